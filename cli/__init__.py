@@ -1,0 +1,1 @@
+"""The ``segadeform`` command line: thin click commands over library calls."""

@@ -1,0 +1,57 @@
+"""Entry point of the ``segadeform`` command.
+
+Every command is a thin layer over a library call.  Errors the library raises
+on bad input (:class:`~segadeform.errors.SegadeformError`) and operating
+system errors become one ``Error: ...`` line on stderr and exit status 1;
+usage errors exit with 2 (click's convention).  No traceback is printed for
+either.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from segadeform import __version__
+from segadeform.errors import SegadeformError
+
+
+class _Group(click.Group):
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except SegadeformError as e:
+            raise click.ClickException(str(e)) from None
+        except MemoryError:
+            raise click.ClickException("out of memory (is the input much larger than expected?)") from None
+        except OSError as e:
+            where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+            raise click.ClickException(f"{where}{e.strerror or e}") from None
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="segadeform")
+def cli() -> None:
+    """SEGA garment deformation: precompute, export and run."""
+
+
+def _register() -> None:
+    from . import precompute  # noqa: F401  (commands attach themselves to `cli`)
+
+
+_register()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; returns the exit status instead of raising SystemExit."""
+    try:
+        cli.main(args=argv, prog_name="segadeform", standalone_mode=True)
+    except SystemExit as e:  # click exits; turn it into a return value
+        code = e.code
+        return code if isinstance(code, int) else (0 if code is None else 1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,74 @@
+"""Errors raised on bad input.
+
+Every error the package raises for something a user supplied derives from
+:class:`SegadeformError`; the CLI turns these into a one-line message and a
+non-zero exit, never a traceback.  Messages follow one pattern::
+
+    path/to/file.obj:12: face index out of range (expected 1..8 or -8..-1, got 9)
+"""
+
+from __future__ import annotations
+
+import os
+
+__all__ = ["SegadeformError", "InputError", "FileFormatError"]
+
+
+class SegadeformError(Exception):
+    """Base class of every error segadeform raises on purpose."""
+
+
+class InputError(SegadeformError, ValueError):
+    """An input (array, argument, file) does not meet its contract.
+
+    Args:
+        problem: what is wrong, in a few words.
+        path: the file the input came from, if any.
+        line: 1-based line number within ``path``, if it applies.
+        expected / got: what was expected and what was found; both are
+            appended as ``(expected X, got Y)``.
+    """
+
+    def __init__(
+        self,
+        problem: str,
+        *,
+        path: str | os.PathLike | None = None,
+        line: int | None = None,
+        expected: object | None = None,
+        got: object | None = None,
+    ) -> None:
+        self.problem = problem
+        self.path = None if path is None else os.fspath(path)
+        self.line = line
+        self.expected = expected
+        self.got = got
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        where = ""
+        if self.path is not None:
+            where = self.path + (f":{self.line}" if self.line is not None else "") + ": "
+        elif self.line is not None:
+            where = f"line {self.line}: "
+        detail = ""
+        if self.expected is not None or self.got is not None:
+            parts = []
+            if self.expected is not None:
+                parts.append(f"expected {self.expected}")
+            if self.got is not None:
+                parts.append(f"got {self.got}")
+            detail = " (" + ", ".join(parts) + ")"
+        return f"{where}{self.problem}{detail}"
+
+    def with_path(self, path: str | os.PathLike) -> "InputError":
+        """The same error, attributed to ``path`` (if it had no path yet)."""
+        if self.path is not None:
+            return self
+        return type(self)(
+            self.problem, path=path, line=self.line, expected=self.expected, got=self.got
+        )
+
+
+class FileFormatError(InputError):
+    """A file is malformed: wrong magic, truncated, bad counts, bad indices."""

@@ -1,0 +1,208 @@
+"""The garment asset: everything the model and runtime need about one garment, in one ``.npz``.
+
+Written by ``segadeform precompute`` (or :func:`precompute_garment` +
+:meth:`GarmentAsset.save`), read with :meth:`GarmentAsset.load`, which
+validates every array.  The file is a plain ``.npz`` read with
+``allow_pickle=False``; ``schema_version`` changes when a field changes
+meaning, and loaders refuse versions they do not know.
+
+Fields (N vertices, F faces, K neighbour slots, S joints, m <= N* samples):
+
+=================  ===============  =============================================
+vertices           (N, 3) float64   rest positions, file vertex order
+faces              (F, 3) int64     triangles (polygons fan-triangulated)
+normals            (N, 3) float32   area-weighted unit normals (0 where undefined)
+features           (N, 6+S) float32 ``[p, n, d]`` (§4.1)
+nbr, mask          (N, K)           padded 1-ring (see ``geometry.graph``)
+joints             (S, 3) float64   rest-pose joints the distances refer to
+descriptor         (N*,) float64    garment type descriptor (§4.3)
+fps_samples        (m,) int64       the furthest point samples
+geodesic_radius    () float64       kernel width r
+params             JSON string      k, max_k, n_star, geodesic method, versions
+source_name        str              file name of the garment
+source_sha256      str              hash of the garment file's bytes
+=================  ===============  =============================================
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..errors import FileFormatError, InputError
+from ..io.atomic import atomic_path
+from .descriptor import DEFAULT_N_STAR, garment_descriptor
+from .features import vertex_features
+from .geodesic import DEFAULT_GEODESIC, GeodesicSolver
+from .graph import DEFAULT_MAX_K, neighbour_graph
+from .mesh_ops import vertex_normals
+
+__all__ = ["ASSET_SCHEMA_VERSION", "GarmentAsset", "precompute_garment", "file_sha256"]
+
+ASSET_SCHEMA_VERSION = 1
+
+_ARRAYS = {
+    "vertices": (np.float64, 2), "faces": (np.int64, 2), "normals": (np.float32, 2),
+    "features": (np.float32, 2), "nbr": (np.int64, 2), "mask": (np.bool_, 2),
+    "joints": (np.float64, 2), "descriptor": (np.float64, 1), "fps_samples": (np.int64, 1),
+}
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class GarmentAsset:
+    """A precomputed garment (see the module table for shapes)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray
+    features: np.ndarray
+    nbr: np.ndarray
+    mask: np.ndarray
+    joints: np.ndarray
+    descriptor: np.ndarray
+    fps_samples: np.ndarray
+    geodesic_radius: float
+    params: dict
+    source_name: str = ""
+    source_sha256: str = ""
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertices.shape[0])
+
+    def __repr__(self) -> str:
+        return (f"GarmentAsset(N={self.n_vertices}, F={len(self.faces)}, K={self.nbr.shape[1]}, "
+                f"S={len(self.joints)}, N*={len(self.descriptor)}, source={self.source_name!r})")
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the asset atomically as an uncompressed ``.npz``."""
+        self.validate()
+        p = Path(path)
+        with atomic_path(p) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez(
+                    fh,
+                    schema_version=np.int64(ASSET_SCHEMA_VERSION),
+                    geodesic_radius=np.float64(self.geodesic_radius),
+                    params=np.str_(json.dumps(self.params, sort_keys=True)),
+                    source_name=np.str_(self.source_name),
+                    source_sha256=np.str_(self.source_sha256),
+                    **{k: getattr(self, k) for k in _ARRAYS},
+                )
+        return p
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "GarmentAsset":
+        """Read and validate an asset; errors name the file and the field."""
+        p = Path(path)
+        try:
+            z = np.load(p, allow_pickle=False)
+        except FileNotFoundError:
+            raise FileFormatError("no such file", path=p) from None
+        except (OSError, ValueError) as e:
+            raise FileFormatError(f"not a readable .npz garment asset ({e})", path=p) from None
+        with z:
+            names = set(z.files)
+            required = set(_ARRAYS) | {"schema_version", "geodesic_radius", "params"}
+            missing = sorted(required - names)
+            if missing:
+                raise FileFormatError("garment asset is missing fields", path=p, expected=", ".join(sorted(required)),
+                                      got="missing " + ", ".join(missing))
+            try:
+                version = int(z["schema_version"])
+                if version != ASSET_SCHEMA_VERSION:
+                    raise FileFormatError("unsupported garment asset schema version", path=p,
+                                          expected=ASSET_SCHEMA_VERSION, got=version)
+                fields = {k: z[k] for k in _ARRAYS}
+                params = json.loads(str(z["params"]))
+                radius = float(z["geodesic_radius"])
+                src = str(z["source_name"]) if "source_name" in names else ""
+                sha = str(z["source_sha256"]) if "source_sha256" in names else ""
+            except FileFormatError:
+                raise
+            except Exception as e:
+                raise FileFormatError(f"garment asset field cannot be read ({e})", path=p) from None
+        asset = cls(geodesic_radius=radius, params=params, source_name=src, source_sha256=sha, **fields)
+        try:
+            asset.validate()
+        except InputError as e:
+            raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
+        return asset
+
+    def validate(self) -> None:
+        """Check dtypes, shapes, consistency and finiteness of every field."""
+        for k, (dt, nd) in _ARRAYS.items():
+            a = getattr(self, k)
+            if not isinstance(a, np.ndarray) or a.dtype != dt or a.ndim != nd:
+                raise InputError(f"asset field {k!r} has the wrong type",
+                                 expected=f"{np.dtype(dt).name} array with {nd} dims",
+                                 got=f"{getattr(a, 'dtype', type(a).__name__)} with shape {getattr(a, 'shape', '?')}")
+        n = self.vertices.shape[0]
+        s = self.joints.shape[0]
+        checks = [
+            ("vertices", self.vertices.shape == (n, 3) and n >= 1, f"(N, 3), N >= 1"),
+            ("faces", self.faces.shape[1:] == (3,) and len(self.faces) >= 1, "(F, 3), F >= 1"),
+            ("normals", self.normals.shape == (n, 3), f"({n}, 3)"),
+            ("joints", self.joints.shape == (s, 3) and s >= 1, "(S, 3)"),
+            ("features", self.features.shape == (n, 6 + s), f"({n}, {6 + s})"),
+            ("nbr", self.nbr.shape[0] == n and self.nbr.shape[1] >= 1, f"({n}, K)"),
+            ("mask", self.mask.shape == self.nbr.shape, f"{self.nbr.shape}"),
+            ("descriptor", self.descriptor.shape[0] >= 1, "(N*,)"),
+            ("fps_samples", 1 <= len(self.fps_samples) <= len(self.descriptor), "(m,), 1 <= m <= N*"),
+        ]
+        for name, ok, exp in checks:
+            if not ok:
+                raise InputError(f"asset field {name!r} has the wrong shape", expected=exp,
+                                 got=getattr(self, name).shape)
+        for name, arr in (("faces", self.faces), ("nbr", self.nbr), ("fps_samples", self.fps_samples)):
+            if arr.size and (arr.min() < 0 or arr.max() >= n):
+                raise InputError(f"asset field {name!r} has an index out of range", expected=f"0..{n - 1}",
+                                 got=int(arr.max()) if arr.max() >= n else int(arr.min()))
+        for name in ("vertices", "normals", "features", "joints", "descriptor"):
+            if not np.isfinite(getattr(self, name)).all():
+                raise InputError(f"asset field {name!r} contains NaN or inf")
+        if not (np.isfinite(self.geodesic_radius) and self.geodesic_radius > 0):
+            raise InputError("asset geodesic_radius must be positive", got=self.geodesic_radius)
+
+
+def precompute_garment(vertices, faces, joints, *, k: int | None = None, max_k: int = DEFAULT_MAX_K,
+                       n_star: int = DEFAULT_N_STAR, geodesic: str = DEFAULT_GEODESIC,
+                       source_name: str = "", source_sha256: str = "") -> GarmentAsset:
+    """Run every precompute step on a garment and return the asset.
+
+    Memory is O(N K + N* N): no step forms an N x N matrix.
+
+    Shapes:
+        vertices: (N, 3), faces: (F, 3), joints: (S, 3)
+    """
+    from ._checks import check_mesh, check_vertices
+
+    v, f = check_mesh(vertices, faces)
+    j = check_vertices(joints, "joints")
+    normals = vertex_normals(v, f)
+    feats = vertex_features(v, f, j, normals=normals)
+    nbr, mask = neighbour_graph(f, v.shape[0], k=k, vertices=v, max_k=max_k)
+    solver = GeodesicSolver(v, f, method=geodesic)
+    desc = garment_descriptor(v, f, n_star=n_star, solver=solver)
+    params = {"k": int(nbr.shape[1]), "max_k": int(max_k), "n_star": int(n_star), "geodesic": geodesic,
+              "segadeform_version": __version__, "n_components": int(solver.n_components)}
+    return GarmentAsset(
+        vertices=v, faces=f, normals=normals.astype(np.float32), features=feats, nbr=nbr, mask=mask,
+        joints=j.astype(np.float64), descriptor=desc.eigenvalues.astype(np.float64),
+        fps_samples=desc.samples.astype(np.int64), geodesic_radius=float(desc.radius), params=params,
+        source_name=source_name, source_sha256=source_sha256,
+    )

@@ -1,0 +1,150 @@
+"""Per-mesh basics: face areas and normals, vertex normals, edges, boundary loops, components."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+
+from ._checks import check_faces, check_mesh
+
+__all__ = ["face_cross", "face_areas", "vertex_normals", "unique_edges", "edge_lengths",
+           "mean_edge_length", "boundary_loops", "connected_components", "adjacency"]
+
+
+def face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unnormalised face normals ``(p1 - p0) x (p2 - p0)`` (length = 2 x area).
+
+    Shapes:
+        vertices: (N, 3), faces: (F, 3) -> (F, 3)
+    """
+    v, f = vertices, faces
+    return np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+
+
+def face_areas(vertices, faces) -> np.ndarray:
+    """Triangle areas ``(F,)``."""
+    v, f = check_mesh(vertices, faces)
+    return 0.5 * np.linalg.norm(face_cross(v, f), axis=1)
+
+
+def vertex_normals(vertices, faces) -> np.ndarray:
+    """Area-weighted unit vertex normals.
+
+    n_i = normalize(sum over faces f containing i of (2 area_f) n_f).  The
+    cross product already carries the area weight.  Zero-area faces add
+    nothing; a vertex whose faces sum to (numerically) zero, or that has no
+    face at all, gets the zero vector rather than NaN.  The threshold is
+    relative to the mesh scale (1e-12 x mean squared edge length), so mm and
+    km inputs behave alike.
+
+    Shapes:
+        vertices: (N, 3), faces: (F, 3) -> (N, 3) float64
+    """
+    v, f = check_mesh(vertices, faces)
+    n = v.shape[0]
+    out = np.zeros((n, 3))
+    if f.shape[0] == 0:
+        return out
+    c = face_cross(v, f)
+    for k in range(3):
+        for corner in range(3):
+            out[:, k] += np.bincount(f[:, corner], weights=c[:, k], minlength=n)
+    norm = np.linalg.norm(out, axis=1)
+    scale2 = max(mean_edge_length(v, f) ** 2, np.finfo(float).tiny)
+    ok = norm > 1e-12 * scale2
+    out[ok] /= norm[ok, None]
+    out[~ok] = 0.0
+    return out
+
+
+def unique_edges(faces: np.ndarray, n_vertices: int | None = None) -> np.ndarray:
+    """Undirected edges ``(E, 2) int64`` with ``e[:, 0] < e[:, 1]``, sorted lexicographically.
+
+    Edges of degenerate faces that repeat a vertex (i, i) are dropped.
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    if n_vertices is not None:
+        f = check_faces(f, n_vertices)
+    if f.size == 0:
+        return np.zeros((0, 2), np.int64)
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    e = np.sort(e, axis=1)
+    e = e[e[:, 0] != e[:, 1]]
+    return np.unique(e, axis=0)
+
+
+def edge_lengths(vertices, edges) -> np.ndarray:
+    v = np.asarray(vertices, np.float64)
+    return np.linalg.norm(v[edges[:, 1]] - v[edges[:, 0]], axis=1)
+
+
+def mean_edge_length(vertices, faces) -> float:
+    e = unique_edges(faces)
+    if len(e) == 0:
+        return 0.0
+    return float(edge_lengths(vertices, e).mean())
+
+
+def adjacency(faces: np.ndarray, n_vertices: int, weights: np.ndarray | None = None,
+              vertices: np.ndarray | None = None) -> sp.csr_matrix:
+    """Symmetric sparse adjacency ``(N, N)``; entries are edge lengths if ``vertices`` is given, else 1."""
+    e = unique_edges(faces, n_vertices)
+    if weights is None:
+        weights = edge_lengths(vertices, e) if vertices is not None else np.ones(len(e))
+    a = sp.coo_matrix((weights, (e[:, 0], e[:, 1])), shape=(n_vertices, n_vertices))
+    return (a + a.T).tocsr()
+
+
+def connected_components(faces: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray]:
+    """Components of the edge graph: ``(count, labels (N,))``; isolated vertices are their own component."""
+    a = adjacency(faces, n_vertices)
+    k, labels = csgraph.connected_components(a, directed=False)
+    return int(k), labels.astype(np.int64)
+
+
+def boundary_loops(faces: np.ndarray, n_vertices: int | None = None) -> list[np.ndarray]:
+    """Boundary loops as ordered vertex index arrays.
+
+    A boundary edge is an undirected edge used by exactly one face.  Loops
+    follow the face orientation (half-edge i -> j of the face that owns the
+    edge).  At a non-manifold boundary vertex (several boundary edges leave
+    it, e.g. two patches touching at a corner) the walk takes the outgoing
+    edges in index order; every boundary edge is in exactly one loop.  Open
+    chains (possible only on inconsistently oriented meshes) are returned as
+    they are.
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    if n_vertices is not None:
+        f = check_faces(f, n_vertices)
+    if f.size == 0:
+        return []
+    he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    he = he[he[:, 0] != he[:, 1]]
+    key = np.sort(he, axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    bd = he[counts[inv.ravel()] == 1]
+    if len(bd) == 0:
+        return []
+    order = np.lexsort((bd[:, 1], bd[:, 0]))
+    bd = bd[order]
+    nxt: dict[int, list[int]] = {}
+    for a, b in bd.tolist():
+        nxt.setdefault(a, []).append(b)
+    indeg: dict[int, int] = {}
+    for b in bd[:, 1].tolist():
+        indeg[b] = indeg.get(b, 0) + 1
+    loops = []
+    # Start chains at vertices with no incoming boundary edge first (open chains), then loops.
+    starts = [a for a in nxt if indeg.get(a, 0) == 0] + sorted(nxt)
+    for s in starts:
+        while nxt.get(s):
+            loop = [s]
+            cur = nxt[s].pop(0)
+            while cur != s and nxt.get(cur):
+                loop.append(cur)
+                cur = nxt[cur].pop(0)
+            if cur != s and cur != loop[-1]:
+                loop.append(cur)
+            loops.append(np.asarray(loop, dtype=np.int64))
+    return loops

@@ -1,0 +1,84 @@
+"""Atomic file output: write to a temporary name beside the target, then rename.
+
+A failed or interrupted write leaves the target untouched (the old file, or
+nothing) and removes its temporary file.  ``os.replace`` is atomic on POSIX
+and Windows when source and target are on the same file system, which holds
+because the temporary file is created in the target's directory.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import IO, Iterator
+
+__all__ = ["atomic_path", "atomic_open", "atomic_directory"]
+
+
+def _tmp_sibling(target: Path, *, directory: bool) -> Path:
+    target.parent.mkdir(parents=True, exist_ok=True)
+    prefix = f".{target.name}.tmp-"
+    if directory:
+        return Path(tempfile.mkdtemp(prefix=prefix, dir=target.parent))
+    fd, name = tempfile.mkstemp(prefix=prefix, dir=target.parent)
+    os.close(fd)
+    return Path(name)
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path; on success it is renamed to ``path``.
+
+    The caller writes the temporary path by any means (numpy, meshio, ...).
+    On an exception the temporary file is removed and the error re-raised.
+    """
+    target = Path(path)
+    tmp = _tmp_sibling(target, directory=False)
+    try:
+        yield tmp
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+
+
+@contextlib.contextmanager
+def atomic_open(path: str | os.PathLike, mode: str = "wb", **kwargs) -> Iterator[IO]:
+    """``open`` for writing, committed by rename when the block succeeds."""
+    if not any(c in mode for c in "wx"):
+        raise ValueError(f"atomic_open writes new files: expected mode 'w' or 'wb', got {mode!r}")
+    with atomic_path(path) as tmp:
+        with open(tmp, mode.replace("x", "w"), **kwargs) as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+
+
+@contextlib.contextmanager
+def atomic_directory(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary directory; on success it replaces ``path``.
+
+    An existing directory at ``path`` is moved aside first and deleted only
+    after the new one is in place.
+    """
+    target = Path(path)
+    tmp = _tmp_sibling(target, directory=True)
+    try:
+        yield tmp
+        old = None
+        if target.exists():
+            if not target.is_dir():
+                raise FileExistsError(f"{target}: exists and is not a directory")
+            old = _tmp_sibling(target, directory=True)
+            old.rmdir()
+            os.replace(target, old)
+        os.replace(tmp, target)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise

@@ -1,0 +1,201 @@
+"""Wavefront OBJ, read strictly and written simply.
+
+meshio mis-reads real OBJ exports (facts.md): it raises when the ``vt``/``vn``
+counts differ from ``v``, silently mis-reads negative indices, accepts
+out-of-range indices and 2-vertex faces.  This reader handles, per the OBJ
+spec: ``v x y z [w]`` and ``v x y z r g b`` (vertex colours), ``vt``/``vn``
+with any counts, face corners ``v``, ``v/vt``, ``v//vn``, ``v/vt/vn``,
+negative (relative) indices, quads and n-gons (fan-triangulated), groups,
+objects, materials, smoothing groups, comments, ``\\`` line continuations,
+and ignores ``l``/``p`` elements.  **Vertex order and count are kept exactly
+as in the file**: unused vertices stay, nothing is merged or split at seams.
+
+Rejected with ``FileFormatError`` naming file and line: out-of-range or zero
+indices, faces with fewer than 3 corners, non-numeric or non-finite values,
+and files with no vertices or no faces.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FileFormatError
+from .atomic import atomic_open
+from .mesh import Mesh, validate_mesh_arrays
+
+__all__ = ["read_obj", "write_obj", "write_obj_positions"]
+
+_IGNORED = {"vp", "l", "p", "g", "o", "s", "usemtl", "mtllib", "cstype", "deg", "bmat",
+            "step", "curv", "curv2", "surf", "parm", "trim", "hole", "scrv", "sp", "end",
+            "con", "mg", "bevel", "c_interp", "d_interp", "lod", "shadow_obj", "trace_obj",
+            "ctech", "stech", "call", "csh"}
+
+
+def _logical_lines(text: str):
+    """Yield ``(line_number, line)`` joining ``\\`` continuations."""
+    pending = ""
+    start = 0
+    for i, raw in enumerate(text.splitlines(), start=1):
+        if not pending:
+            start = i
+        line = raw.rstrip()
+        if line.endswith("\\"):
+            pending += line[:-1] + " "
+            continue
+        yield start, pending + line
+        pending = ""
+    if pending:
+        yield start, pending
+
+
+def _resolve(tok: str, count: int, kind: str, path, lineno) -> int:
+    try:
+        i = int(tok)
+    except ValueError:
+        raise FileFormatError(f"bad {kind} index {tok!r}", path=path, line=lineno) from None
+    if i > 0:
+        if i > count:
+            raise FileFormatError(
+                f"{kind} index out of range", path=path, line=lineno,
+                expected=f"1..{count} or -{count}..-1" if count else f"a {kind} defined before this line",
+                got=i,
+            )
+        return i - 1
+    if i < 0:
+        if -i > count:
+            raise FileFormatError(
+                f"relative {kind} index out of range", path=path, line=lineno,
+                expected=f"-{count}..-1" if count else f"a {kind} defined before this line", got=i,
+            )
+        return count + i
+    raise FileFormatError(f"{kind} index 0 is not valid (OBJ indices start at 1)", path=path, line=lineno)
+
+
+def read_obj(path: str | os.PathLike) -> Mesh:
+    """Read an OBJ file into a :class:`Mesh` (vertex order kept).
+
+    Returns:
+        Mesh with ``vertices (N, 3)``, ``faces (F, 3)`` (polygons
+        fan-triangulated), ``colors (N, 3)`` if every vertex had colours, and
+        ``face_origin (F,)`` mapping triangles to file polygons.
+    """
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+    except OSError as e:
+        raise FileFormatError(f"cannot read file: {e.strerror or e}", path=p) from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        text = data.decode("latin-1")
+    if "\x00" in text:
+        raise FileFormatError("not a text OBJ file (contains NUL bytes)", path=p)
+
+    verts: list[list[float]] = []
+    colors: list[list[float] | None] = []
+    n_vt = n_vn = 0
+    tris: list[tuple[int, int, int]] = []
+    origin: list[int] = []
+    n_poly = 0
+    for lineno, line in _logical_lines(text):
+        s = line.strip()
+        if not s or s[0] == "#":
+            continue
+        parts = s.split()
+        key = parts[0]
+        if key == "v":
+            vals = parts[1:]
+            if len(vals) not in (3, 4, 6, 7):
+                raise FileFormatError(
+                    "vertex line needs x y z, x y z w, or x y z r g b", path=p, line=lineno,
+                    expected="3, 4 or 6 numbers", got=f"{len(vals)}",
+                )
+            try:
+                nums = [float(x) for x in vals]
+            except ValueError:
+                raise FileFormatError(f"vertex has a non-numeric value in {s!r}", path=p, line=lineno) from None
+            xyz = nums[:3]
+            if len(nums) == 4:  # homogeneous weight
+                w = nums[3]
+                if w == 0 or not np.isfinite(w):
+                    raise FileFormatError("vertex weight w must be finite and non-zero", path=p, line=lineno, got=w)
+                xyz = [c / w for c in xyz]
+            if not all(np.isfinite(xyz)):
+                raise FileFormatError("vertex coordinate is not finite", path=p, line=lineno, got=vals[:3])
+            verts.append(xyz)
+            colors.append(nums[3:6] if len(nums) == 6 else (nums[4:7] if len(nums) == 7 else None))
+        elif key == "vt":
+            n_vt += 1
+        elif key == "vn":
+            n_vn += 1
+        elif key == "f":
+            corners = parts[1:]
+            if len(corners) < 3:
+                raise FileFormatError(
+                    "face has fewer than 3 vertices", path=p, line=lineno, expected=">= 3", got=len(corners)
+                )
+            idx = []
+            for c in corners:
+                sub = c.split("/")
+                if len(sub) > 3 or sub[0] == "":
+                    raise FileFormatError(f"bad face corner {c!r}", path=p, line=lineno,
+                                          expected="v, v/vt, v//vn or v/vt/vn")
+                idx.append(_resolve(sub[0], len(verts), "vertex", p, lineno))
+                if len(sub) > 1 and sub[1] != "":
+                    _resolve(sub[1], n_vt, "texture coordinate", p, lineno)
+                if len(sub) > 2 and sub[2] != "":
+                    _resolve(sub[2], n_vn, "normal", p, lineno)
+            for k in range(1, len(idx) - 1):
+                tris.append((idx[0], idx[k], idx[k + 1]))
+                origin.append(n_poly)
+            n_poly += 1
+        elif key in _IGNORED or key.startswith("#"):
+            continue
+        else:
+            # Unknown statements are rare vendor extensions; skipping them is
+            # what every OBJ importer does, and they cannot affect geometry.
+            continue
+
+    if not verts:
+        raise FileFormatError("mesh has no vertices ('v' lines)", path=p)
+    if not tris:
+        raise FileFormatError("mesh has no faces ('f' lines)", path=p)
+    v, f = validate_mesh_arrays(np.asarray(verts, dtype=np.float64), np.asarray(tris, dtype=np.int64), path=p)
+    col = None
+    if all(c is not None for c in colors):
+        col = np.asarray(colors, dtype=np.float64)
+    return Mesh(vertices=v, faces=f, path=str(p), colors=col, face_origin=np.asarray(origin, dtype=np.int64))
+
+
+def _format_block(fmt: str, rows: np.ndarray) -> str:
+    if rows.size == 0:
+        return ""
+    return (fmt + "\n") * rows.shape[0] % tuple(rows.ravel())
+
+
+def write_obj(path: str | os.PathLike, mesh: Mesh, *, vertices: np.ndarray | None = None,
+              precision: int = 6, header: str | None = None) -> None:
+    """Write ``mesh`` (or its faces with other ``vertices``) as OBJ, atomically.
+
+    Vertices are written in order, faces as triangles with 1-based indices.
+
+    Shapes:
+        vertices: (N, 3), defaults to ``mesh.vertices``
+    """
+    v = mesh.vertices if vertices is None else np.asarray(vertices)
+    v, f = validate_mesh_arrays(v, mesh.faces, allow_no_faces=True)
+    with atomic_open(path, "w", encoding="utf-8", newline="\n") as fh:
+        fh.write(f"# segadeform OBJ: {v.shape[0]} vertices, {f.shape[0]} triangles\n")
+        if header:
+            for line in header.splitlines():
+                fh.write(f"# {line}\n")
+        fh.write(_format_block(f"v %.{precision}g %.{precision}g %.{precision}g", v))
+        fh.write(_format_block("f %d %d %d", f + 1))
+
+
+def write_obj_positions(path, faces: np.ndarray, vertices: np.ndarray, **kw) -> None:
+    """Write one frame of a sequence: ``vertices (N, 3)`` with ``faces (F, 3)``."""
+    write_obj(path, Mesh(vertices=np.asarray(vertices, np.float64), faces=faces), **kw)

@@ -1,0 +1,256 @@
+"""Mesh sequences: a folder of per-frame OBJ files, and meshio's XDMF time series.
+
+Both hold one topology (faces) and S frames of positions ``(S, N, 3)``.
+Writers take frames in batches and publish their output atomically on
+``close`` (a folder is built under a temporary name and renamed; an XDMF
+file likewise).  Readers check that every frame has the same topology.
+
+XDMF is written with meshio's inline ``XML`` data format: a single
+self-contained file that ParaView opens.  The mesh holds the rest positions
+and each time step a point field ``displacement`` (frame - rest), so
+ParaView's "Warp By Vector" shows the animation.  meshio's ``Binary`` and
+``HDF`` formats write their side files into the current working directory
+rather than beside the XDMF file, and HDF needs h5py, so they are not used.
+XDMF is text and meshio keeps the whole document in memory: use PC2 for long
+sequences.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FileFormatError, InputError
+from .atomic import _tmp_sibling, atomic_path
+from .mesh import validate_mesh_arrays
+from .obj import read_obj, write_obj_positions
+
+__all__ = ["ObjSequenceWriter", "XdmfSequenceWriter", "read_obj_sequence", "read_xdmf_sequence",
+           "write_obj_sequence", "write_xdmf_sequence"]
+
+_NUM = re.compile(r"(\d+)(?!.*\d)")
+
+
+def _check_batch(frames, n_points, path) -> np.ndarray:
+    a = np.asarray(frames)
+    if a.ndim == 2:
+        a = a[None]
+    if a.ndim != 3 or a.shape[1:] != (n_points, 3):
+        raise InputError("frames have the wrong shape", path=path,
+                         expected=f"(N, 3) or (B, N, 3) with N = {n_points}", got=a.shape)
+    if not np.isfinite(a).all():
+        raise InputError("frames contain NaN or inf", path=path)
+    return a
+
+
+class ObjSequenceWriter:
+    """Write frames as ``DIR/{prefix}_{i:05d}.obj``; the folder appears on close."""
+
+    def __init__(self, directory: str | os.PathLike, faces: np.ndarray, num_points: int, *,
+                 prefix: str = "frame", start: int = 0, precision: int = 6) -> None:
+        _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
+        self.path = Path(directory)
+        if self.path.exists() and not self.path.is_dir():
+            raise InputError("output for an OBJ sequence must be a folder", path=self.path)
+        self.num_points = int(num_points)
+        self.prefix, self.index, self.precision = prefix, int(start), precision
+        self.num_samples = 0
+        self._tmp = _tmp_sibling(self.path, directory=True)
+        self._closed = False
+
+    def write(self, frames: np.ndarray) -> None:
+        for frame in _check_batch(frames, self.num_points, self.path):
+            write_obj_positions(self._tmp / f"{self.prefix}_{self.index:05d}.obj", self.faces, frame,
+                                precision=self.precision)
+            self.index += 1
+            self.num_samples += 1
+
+    def close(self) -> Path:
+        if not self._closed:
+            if self.path.exists():
+                old = _tmp_sibling(self.path, directory=True)
+                old.rmdir()
+                os.replace(self.path, old)
+                os.replace(self._tmp, self.path)
+                shutil.rmtree(old, ignore_errors=True)
+            else:
+                os.replace(self._tmp, self.path)
+            self._closed = True
+        return self.path
+
+    def abort(self) -> None:
+        if not self._closed:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            self._closed = True
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        self.close() if exc_type is None else self.abort()
+
+    def __del__(self):
+        try:
+            self.abort()
+        except Exception:
+            pass
+
+
+def write_obj_sequence(directory, faces, frames, **kw) -> Path:
+    """Write ``frames (S, N, 3)`` as a folder of OBJ files."""
+    a = np.asarray(frames)
+    if a.ndim != 3:
+        raise InputError("frames must be (S, N, 3)", got=a.shape)
+    with ObjSequenceWriter(directory, faces, a.shape[1], **kw) as w:
+        w.write(a)
+    return Path(directory)
+
+
+def read_obj_sequence(directory: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """Read a folder of per-frame OBJ files, ordered by the last number in each name.
+
+    Returns:
+        faces ``(F, 3) int64`` and frames ``(S, N, 3) float64``.
+    """
+    d = Path(directory)
+    if not d.is_dir():
+        raise FileFormatError("not a folder of OBJ frames", path=d)
+    files = [f for f in d.iterdir() if f.suffix.lower() == ".obj"]
+    if not files:
+        raise FileFormatError("folder has no .obj frames", path=d)
+    keyed = []
+    for f in files:
+        m = _NUM.search(f.stem)
+        if m is None:
+            raise FileFormatError("frame file name has no frame number", path=f)
+        keyed.append((int(m.group(1)), f))
+    keyed.sort()
+    nums = [k for k, _ in keyed]
+    if len(set(nums)) != len(nums):
+        dup = next(k for k in nums if nums.count(k) > 1)
+        raise FileFormatError(f"two frame files have the number {dup}", path=d)
+    first = read_obj(keyed[0][1])
+    frames = np.empty((len(keyed), first.n_vertices, 3))
+    frames[0] = first.vertices
+    for i, (_, f) in enumerate(keyed[1:], start=1):
+        m = read_obj(f)
+        if m.n_vertices != first.n_vertices or not np.array_equal(m.faces, first.faces):
+            raise FileFormatError("frame topology differs from the first frame", path=f,
+                                  expected=f"{first.n_vertices} vertices, {first.n_faces} faces as in {keyed[0][1].name}",
+                                  got=f"{m.n_vertices} vertices, {m.n_faces} faces")
+        frames[i] = m.vertices
+    return first.faces, frames
+
+
+class XdmfSequenceWriter:
+    """Collect frames and write an XDMF time series on close (see module notes)."""
+
+    def __init__(self, path: str | os.PathLike, faces: np.ndarray, num_points: int, *,
+                 rest: np.ndarray | None = None, fps: float = 30.0, start: int = 0) -> None:
+        _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
+        self.path = Path(path)
+        self.num_points = int(num_points)
+        self.rest = None if rest is None else _check_batch(rest, num_points, path)[0].astype(np.float64)
+        if not (np.isfinite(fps) and fps > 0):
+            raise InputError("fps must be positive", got=fps)
+        self.fps, self.start = float(fps), int(start)
+        self._frames: list[np.ndarray] = []
+        self.num_samples = 0
+        self._closed = False
+
+    def write(self, frames: np.ndarray) -> None:
+        a = _check_batch(frames, self.num_points, self.path)
+        if self.rest is None:
+            self.rest = a[0].astype(np.float64)
+        self._frames.extend(np.asarray(f, np.float32) for f in a)
+        self.num_samples += a.shape[0]
+
+    def close(self) -> Path:
+        import meshio
+
+        if self._closed:
+            return self.path
+        if not self._frames:
+            raise InputError("no frames were written", path=self.path)
+        with atomic_path(self.path) as tmp:
+            # meshio derives nothing from the name in XML mode; the suffix matters to readers only.
+            with meshio.xdmf.TimeSeriesWriter(tmp, data_format="XML") as w:
+                w.write_points_cells(self.rest, [("triangle", self.faces)])
+                for i, fr in enumerate(self._frames):
+                    disp = (fr.astype(np.float64) - self.rest).astype(np.float32)
+                    w.write_data((self.start + i) / self.fps, point_data={"displacement": disp})
+        self._frames.clear()
+        self._closed = True
+        return self.path
+
+    def abort(self) -> None:
+        self._frames.clear()
+        self._closed = True
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        self.close() if exc_type is None else self.abort()
+
+
+def write_xdmf_sequence(path, faces, frames, *, rest=None, fps: float = 30.0) -> Path:
+    a = np.asarray(frames)
+    if a.ndim != 3:
+        raise InputError("frames must be (S, N, 3)", got=a.shape)
+    with XdmfSequenceWriter(path, faces, a.shape[1], rest=rest, fps=fps) as w:
+        w.write(a)
+    return Path(path)
+
+
+def read_xdmf_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read an XDMF time series of a triangle mesh.
+
+    Positions are the mesh points plus the point field ``displacement`` (or
+    ``position`` when present) of each step.
+
+    Returns:
+        faces ``(F, 3)``, frames ``(S, N, 3) float64``, times ``(S,)``.
+    """
+    import meshio
+
+    p = Path(path)
+    if not p.is_file():
+        raise FileFormatError("no such file", path=p)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with meshio.xdmf.TimeSeriesReader(p) as r:
+                points, cells = r.read_points_cells()
+                tri = [c.data for c in cells if c.type == "triangle"]
+                if len(tri) != len(cells) or not tri:
+                    raise FileFormatError("XDMF mesh must be made of triangles only", path=p)
+                faces = np.concatenate(tri).astype(np.int64)
+                frames, times = [], []
+                for k in range(r.num_steps):
+                    t, pd, _ = r.read_data(k)
+                    if "position" in pd:
+                        fr = np.asarray(pd["position"], np.float64)
+                    elif "displacement" in pd:
+                        fr = np.asarray(points, np.float64)[:, :3] + np.asarray(pd["displacement"], np.float64)
+                    else:
+                        raise FileFormatError(f"time step {k} has no 'displacement' or 'position' field", path=p)
+                    frames.append(fr)
+                    times.append(float(t))
+    except InputError:
+        raise
+    except Exception as e:
+        msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise FileFormatError(f"cannot parse XDMF time series: {msg}", path=p) from None
+    if not frames:
+        raise FileFormatError("XDMF file has no time steps", path=p)
+    v, faces = validate_mesh_arrays(np.asarray(points)[:, :3], faces, path=p)
+    out = np.stack(frames)
+    if out.shape[1:] != v.shape or not np.isfinite(out).all():
+        raise FileFormatError("XDMF frames are not finite (N, 3) arrays", path=p, got=out.shape)
+    return faces, out, np.asarray(times)
