@@ -20,21 +20,22 @@ from .atomic import atomic_directory, atomic_open, atomic_path
 from .mesh import Mesh, validate_mesh_arrays
 from .meshio_formats import read_meshio, write_meshio
 from .obj import read_obj, write_obj
+from .off import read_off
 from .pc2 import PC2Writer, PointCache, read_pc2, read_pc2_header, write_pc2
 from .sequence import (ObjSequenceWriter, XdmfSequenceWriter, read_obj_sequence,
                        read_xdmf_sequence, write_obj_sequence, write_xdmf_sequence)
 
 __all__ = [
     "Mesh", "read_mesh", "write_mesh", "MESH_READERS", "MESH_WRITERS",
-    "read_obj", "write_obj", "read_pc2", "read_pc2_header", "write_pc2", "PC2Writer", "PointCache",
+    "read_obj", "write_obj", "read_off", "read_pc2", "read_pc2_header", "write_pc2", "PC2Writer", "PointCache",
     "read_obj_sequence", "write_obj_sequence", "read_xdmf_sequence", "write_xdmf_sequence",
     "SEQUENCE_FORMATS", "open_sequence_writer", "read_sequence",
     "atomic_path", "atomic_open", "atomic_directory", "validate_mesh_arrays",
 ]
 
-MESH_READERS: dict[str, Callable[[Path], Mesh]] = {".obj": read_obj}
+MESH_READERS: dict[str, Callable[[Path], Mesh]] = {".obj": read_obj, ".off": read_off}
 MESH_WRITERS: dict[str, Callable[..., None]] = {".obj": write_obj}
-_MESHIO_EXTS = (".ply", ".off", ".stl", ".vtk", ".vtu", ".msh", ".mesh", ".gmsh")
+_MESHIO_EXTS = (".ply", ".stl", ".vtk", ".vtu", ".msh", ".mesh", ".gmsh")
 
 
 def read_mesh(path: str | os.PathLike) -> Mesh:

@@ -1,4 +1,4 @@
-"""Formats other than OBJ (PLY, OFF, STL, VTK, ...), read and written through meshio.
+"""Formats other than OBJ and OFF (PLY, STL, VTK, ...), read and written through meshio.
 
 meshio keeps points in file order for PLY, OFF and VTK.  Its STL reader
 merges coincident facet corners and returns them in sorted order (STL has no
@@ -38,7 +38,9 @@ def read_meshio(path: str | os.PathLike, file_format: str | None = None) -> Mesh
             m = meshio.read(p, file_format=file_format)
     except InputError:
         raise
-    except Exception as e:  # meshio raises many kinds (ReadError, ValueError, struct.error ...)
+    except (Exception, SystemExit) as e:
+        # meshio raises many kinds (ReadError, ValueError, struct.error ...)
+        # and its PLY reader calls sys.exit() on an unknown header line.
         msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise FileFormatError(f"cannot parse mesh: {msg}", path=p) from None
     pts = np.asarray(m.points)

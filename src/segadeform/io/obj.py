@@ -177,7 +177,7 @@ def _format_block(fmt: str, rows: np.ndarray) -> str:
 
 
 def write_obj(path: str | os.PathLike, mesh: Mesh, *, vertices: np.ndarray | None = None,
-              precision: int = 6, header: str | None = None) -> None:
+              precision: int = 9, header: str | None = None) -> None:
     """Write ``mesh`` (or its faces with other ``vertices``) as OBJ, atomically.
 
     Vertices are written in order, faces as triangles with 1-based indices.

@@ -52,7 +52,7 @@ class ObjSequenceWriter:
     """Write frames as ``DIR/{prefix}_{i:05d}.obj``; the folder appears on close."""
 
     def __init__(self, directory: str | os.PathLike, faces: np.ndarray, num_points: int, *,
-                 prefix: str = "frame", start: int = 0, precision: int = 6) -> None:
+                 prefix: str = "frame", start: int = 0, precision: int = 9) -> None:
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
         self.path = Path(directory)
         if self.path.exists() and not self.path.is_dir():

@@ -1,0 +1,24 @@
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SAMPLES = REPO / "samples"
+
+
+@pytest.fixture
+def samples() -> Path:
+    return SAMPLES
+
+
+@pytest.fixture
+def rest_joints() -> np.ndarray:
+    return np.load(SAMPLES / "skeletons" / "tpose_joints_24.npy")
+
+
+def leftovers(directory: Path) -> list[str]:
+    """Temporary files a failed write might have left (atomic writes use '.NAME.tmp-*')."""
+    return sorted(p.name for p in Path(directory).iterdir() if ".tmp-" in p.name)

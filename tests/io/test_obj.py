@@ -1,0 +1,144 @@
+import numpy as np
+import pytest
+
+from segadeform.errors import FileFormatError
+from segadeform.geometry.primitives import frustum
+from segadeform.io import Mesh, read_mesh, read_obj, write_obj
+from tests.conftest import leftovers
+
+
+def write(tmp_path, text, name="m.obj"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_sample_skirt_keeps_vertex_order_and_count(samples):
+    m = read_obj(samples / "garments" / "skirt.obj")
+    v, _ = frustum(64, 24, 0.16, 0.34, 1.02, 0.50)
+    assert m.n_vertices == 64 * 24
+    np.testing.assert_allclose(m.vertices, v, atol=1e-6)
+    assert m.n_faces == 2 * 64 * 23  # quads triangulated
+    # faces written with absolute and with relative indices describe the same grid
+    assert m.faces.min() == 0 and m.faces.max() == m.n_vertices - 1
+
+
+def test_meshio_cannot_read_the_sample_but_we_can(samples):
+    import meshio
+
+    with pytest.raises(Exception):
+        meshio.read(samples / "garments" / "skirt.obj")
+    assert read_mesh(samples / "garments" / "skirt.obj").n_vertices == 1536
+
+
+def test_negative_indices_equal_positive(tmp_path):
+    pos = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"
+    neg = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf -4 -3 -2 -1\n"
+    a, b = read_obj(write(tmp_path, pos, "a.obj")), read_obj(write(tmp_path, neg, "b.obj"))
+    np.testing.assert_array_equal(a.faces, b.faces)
+    np.testing.assert_array_equal(a.faces, [[0, 1, 2], [0, 2, 3]])
+
+
+def test_relative_index_is_relative_to_the_line(tmp_path):
+    text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 5 5 5\nv 6 5 5\nv 5 6 5\nf -3 -2 -1\n"
+    m = read_obj(write(tmp_path, text))
+    np.testing.assert_array_equal(m.faces, [[0, 1, 2], [3, 4, 5]])
+
+
+def test_all_corner_forms_groups_comments_and_continuations(tmp_path):
+    text = """# comment
+mtllib x.mtl
+o thing
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 \\
+  0
+v 2 2 0
+vt 0 0
+vt 1 0
+vn 0 0 1
+g front
+usemtl red
+s off
+f 1/1/1 2/2/1 3//1
+f 1//1 3/1 4
+l 1 2
+p 5
+"""
+    m = read_obj(write(tmp_path, text))
+    assert m.n_vertices == 5  # unused vertex 5 is kept
+    np.testing.assert_array_equal(m.faces, [[0, 1, 2], [0, 2, 3]])
+
+
+def test_vertex_colours_and_ngon_triangulation(tmp_path):
+    text = "".join(f"v {np.cos(a):.6f} {np.sin(a):.6f} 0 0.5 0.25 1\n" for a in np.linspace(0, 2 * np.pi, 6, endpoint=False))
+    text += "f 1 2 3 4 5 6\n"
+    m = read_obj(write(tmp_path, text))
+    assert m.colors.shape == (6, 3)
+    np.testing.assert_allclose(m.colors[0], [0.5, 0.25, 1])
+    np.testing.assert_array_equal(m.faces, [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]])
+    np.testing.assert_array_equal(m.face_origin, [0, 0, 0, 0])
+
+
+def test_homogeneous_w_divides(tmp_path):
+    m = read_obj(write(tmp_path, "v 2 4 6 2\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"))
+    np.testing.assert_allclose(m.vertices[0], [1, 2, 3])
+
+
+@pytest.mark.parametrize(
+    "text, line, words",
+    [
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", 4, "out of range"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n", 4, "out of range"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", 4, "index 0"),
+        ("v 0 0 0\nv 1 0 0\nf 1 2\n", 3, "fewer than 3"),
+        ("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", 2, "not finite"),
+        ("v 0 0 0\nv inf 0 0\nv 0 1 0\nf 1 2 3\n", 2, "not finite"),
+        ("v 0 0 0\nv 1 0 x\nv 0 1 0\nf 1 2 3\n", 2, "non-numeric"),
+        ("v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 1, "x y z"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/2 2/1 3/1\n", 5, "texture coordinate index out of range"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1//1 2//1 3//1\n", 4, "normal index out of range"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 a\n", 4, "bad vertex index"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n", 4, "bad face corner"),
+        ("v 0 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 1, "weight"),
+    ],
+)
+def test_malformed_obj_names_file_and_line(tmp_path, text, line, words):
+    p = write(tmp_path, text)
+    with pytest.raises(FileFormatError) as ei:
+        read_obj(p)
+    msg = str(ei.value)
+    assert msg.startswith(f"{p}:{line}: "), msg
+    assert words in msg
+
+
+@pytest.mark.parametrize("text, words", [("", "no vertices"), ("# only a comment\n", "no vertices"),
+                                         ("v 0 0 0\nv 1 0 0\n", "no faces"), ("\x00\x01binary", "NUL")])
+def test_empty_or_binary_obj(tmp_path, text, words):
+    p = write(tmp_path, text)
+    with pytest.raises(FileFormatError, match=words):
+        read_obj(p)
+
+
+def test_missing_file_is_a_clear_error(tmp_path):
+    with pytest.raises(FileFormatError, match="cannot read file"):
+        read_obj(tmp_path / "nope.obj")
+
+
+def test_write_read_round_trip(tmp_path):
+    rng = np.random.default_rng(0)
+    v = rng.normal(size=(50, 3)) * 1000.0  # kilometre-scale values keep 9 significant digits
+    f = rng.integers(0, 50, size=(80, 3))
+    write_obj(tmp_path / "r.obj", Mesh(vertices=v, faces=f))
+    m = read_obj(tmp_path / "r.obj")
+    np.testing.assert_allclose(m.vertices, v, rtol=1e-8)
+    np.testing.assert_array_equal(m.faces, f)
+
+
+def test_failed_write_leaves_nothing(tmp_path):
+    bad = np.array([[0.0, 0.0, np.nan], [1, 0, 0], [0, 1, 0]])
+    with pytest.raises(Exception):
+        write_obj(tmp_path / "x.obj", Mesh(vertices=bad, faces=np.array([[0, 1, 2]])))
+    assert not (tmp_path / "x.obj").exists()
+    assert leftovers(tmp_path) == []
