@@ -6,8 +6,10 @@ Two methods, both single-source at a time and O(N) memory per source:
   heat step ``(M + t L) u = delta_s``, the normalised gradient field
   ``X = -grad u / |grad u|``, then the Poisson equation ``L phi = div X``.
   Both matrices are factored once per mesh (sparse LU), so each source costs
-  two triangular solves.  For meshes with boundary (garments) the heat step is
-  the average of the Neumann and Dirichlet solutions, as the paper suggests.
+  two triangular solves.  For meshes with boundary (garments) the heat step of
+  an interior source is the average of the Neumann and Dirichlet solutions,
+  as the paper suggests; a source on the boundary uses the Neumann solution
+  (a Dirichlet condition would pin the source itself to zero).
 * ``"dijkstra"`` -- shortest paths along mesh edges (scipy).  Robust on any
   input; over-estimates true distances (paths zig-zag along edges).
 
@@ -122,10 +124,15 @@ class GeodesicSolver:
         delta[s, np.arange(k)] = 1.0
         u = self._heat_n.solve(delta)
         if self._has_boundary:
-            rhs = delta.copy()
-            rhs[self._bd] = 0.0
-            rhs[s, np.arange(k)] = 1.0  # a source on the boundary keeps its unit heat
-            u = 0.5 * (u + self._heat_d.solve(rhs))
+            # Average with the Dirichlet solution (u = 0 on the boundary) for
+            # interior sources.  Both solve (M + tL) u = delta at interior rows,
+            # so they have the same magnitude.  A source on the boundary would
+            # be pinned to 0 itself: it keeps the Neumann solution alone.
+            interior = ~np.isin(s, self._bd)
+            if interior.any():
+                rhs = delta[:, interior].copy()
+                rhs[self._bd] = 0.0
+                u[:, interior] = 0.5 * (u[:, interior] + self._heat_d.solve(rhs))
         gu = (self._grad @ u).reshape(-1, 3, k)
         norm = np.linalg.norm(gu, axis=1, keepdims=True)
         tiny = np.finfo(float).tiny

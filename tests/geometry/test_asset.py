@@ -1,0 +1,86 @@
+import dataclasses
+
+import numpy as np
+import pytest
+
+from segadeform.errors import FileFormatError, InputError
+from segadeform.geometry import GarmentAsset, precompute_garment, vertex_features
+from segadeform.geometry.primitives import frustum
+from tests.conftest import leftovers
+
+
+@pytest.fixture
+def asset(rest_joints):
+    v, f = frustum(20, 8, 0.16, 0.3, 1.0, 0.6)
+    return precompute_garment(v, f, rest_joints, n_star=16)
+
+
+def test_features_are_position_normal_joint_distance(rest_joints):
+    v, f = frustum(10, 4, 0.2, 0.3, 1.0, 0.6)
+    x = vertex_features(v, f, rest_joints)
+    assert x.shape == (40, 30) and x.dtype == np.float32
+    np.testing.assert_allclose(x[:, :3], v, atol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(x[:, 3:6], axis=1), 1, atol=1e-5)
+    np.testing.assert_allclose(x[7, 6 + 4], np.linalg.norm(v[7] - rest_joints[4]), rtol=1e-6)
+
+
+def test_round_trip(tmp_path, asset):
+    asset.save(tmp_path / "a.npz")
+    b = GarmentAsset.load(tmp_path / "a.npz")
+    for fld in dataclasses.fields(GarmentAsset):
+        x, y = getattr(asset, fld.name), getattr(b, fld.name)
+        if isinstance(x, np.ndarray):
+            np.testing.assert_array_equal(x, y)
+            assert x.dtype == y.dtype
+        else:
+            assert x == y
+    assert leftovers(tmp_path) == []
+
+
+def corrupt(tmp_path, asset, **changes):
+    z = dict(np.load(tmp_path / "a.npz", allow_pickle=False)) if (tmp_path / "a.npz").exists() else None
+    if z is None:
+        asset.save(tmp_path / "a.npz")
+        z = dict(np.load(tmp_path / "a.npz", allow_pickle=False))
+    for k, val in changes.items():
+        if val is None:
+            z.pop(k)
+        else:
+            z[k] = val
+    p = tmp_path / "bad.npz"
+    np.savez(p, **z)
+    return p
+
+
+@pytest.mark.parametrize("changes, words", [
+    (dict(schema_version=np.int64(99)), "schema version"),
+    (dict(nbr=None), "missing fields"),
+    (dict(faces=np.array([[0, 1, 999]])), "out of range"),
+    (dict(features=np.zeros((3, 30), np.float32)), "wrong shape"),
+    (dict(mask=np.zeros((1, 1), np.int8)), "wrong type"),
+    (dict(descriptor=np.full(16, np.nan)), "NaN"),
+    (dict(geodesic_radius=np.float64(0.0)), "positive"),
+])
+def test_load_rejects_corrupt_assets(tmp_path, asset, changes, words):
+    p = corrupt(tmp_path, asset, **changes)
+    with pytest.raises(FileFormatError, match=words) as ei:
+        GarmentAsset.load(p)
+    assert str(p) in str(ei.value)
+
+
+def test_load_rejects_non_npz_and_pickles(tmp_path):
+    p = tmp_path / "x.npz"
+    p.write_bytes(b"not a zip")
+    with pytest.raises(FileFormatError, match="not a readable"):
+        GarmentAsset.load(p)
+    np.savez(tmp_path / "o.npz", **{"vertices": np.array([object()], dtype=object)})
+    with pytest.raises(FileFormatError):
+        GarmentAsset.load(tmp_path / "o.npz")
+
+
+def test_precompute_validates_inputs(rest_joints):
+    v, f = frustum(10, 4, 0.2, 0.3, 1.0, 0.6)
+    with pytest.raises(InputError, match="joints"):
+        precompute_garment(v, f, rest_joints[:, :2])
+    with pytest.raises(InputError, match="NaN"):
+        precompute_garment(np.where(np.arange(40)[:, None] == 3, np.nan, v), f, rest_joints)

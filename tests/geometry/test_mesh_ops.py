@@ -1,0 +1,88 @@
+import numpy as np
+import pytest
+
+from segadeform.errors import InputError
+from segadeform.geometry import (boundary_loops, connected_components, face_areas, unique_edges,
+                                 vertex_normals)
+from segadeform.geometry.primitives import cylinder, fan, grid_plane
+
+
+def slow_normals(v, f):
+    out = np.zeros_like(v)
+    for a, b, c in f:
+        n = np.cross(v[b] - v[a], v[c] - v[a])
+        for i in (a, b, c):
+            out[i] += n
+    for i in range(len(v)):
+        ln = np.linalg.norm(out[i])
+        out[i] = out[i] / ln if ln > 0 else 0
+    return out
+
+
+def test_normals_match_slow_reference():
+    v, f = cylinder(12, 5)
+    v = v + np.random.default_rng(1).normal(scale=0.02, size=v.shape)
+    np.testing.assert_allclose(vertex_normals(v, f), slow_normals(v, f), atol=1e-12)
+
+
+def test_cylinder_normals_point_outward():
+    v, f = cylinder(16, 6, radius=2.0)
+    n = vertex_normals(v, f)
+    radial = v * [1, 0, 1]
+    assert (np.einsum("ij,ij->i", n, radial) > 0).all()
+
+
+def test_zero_area_and_isolated_vertices_give_zero_not_nan():
+    v = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [5, 5, 5]], float)  # collinear face + isolated vertex
+    f = np.array([[0, 1, 2]])
+    n = vertex_normals(v, f)
+    assert np.isfinite(n).all() and (n == 0).all()
+
+
+def test_normals_scale_invariant():
+    v, f = cylinder(10, 4)
+    for s in (1e-3, 1e3):
+        np.testing.assert_allclose(vertex_normals(v * s, f), vertex_normals(v, f), atol=1e-9)
+
+
+def test_unique_edges_match_set():
+    v, f = grid_plane(5, 4)
+    ref = sorted({tuple(sorted((int(a), int(b)))) for t in f for a, b in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))})
+    np.testing.assert_array_equal(unique_edges(f), ref)
+    assert len(ref) == len(v) + len(f) - 1  # Euler: V - E + F = 1 for a disc
+
+
+def test_boundary_loops_plane_and_cylinder():
+    v, f = grid_plane(6, 4)
+    loops = boundary_loops(f)
+    assert len(loops) == 1 and len(loops[0]) == 2 * (6 - 1) + 2 * (4 - 1)
+    loop = loops[0]
+    # consecutive loop vertices are mesh edges
+    e = {tuple(x) for x in unique_edges(f).tolist()}
+    assert all(tuple(sorted((int(loop[i]), int(loop[(i + 1) % len(loop)])))) in e for i in range(len(loop)))
+    v, f = cylinder(10, 5)
+    loops = boundary_loops(f)
+    assert sorted(len(x) for x in loops) == [10, 10]
+    assert boundary_loops(np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]])) == []  # closed tetrahedron
+
+
+def test_components():
+    v1, f1 = grid_plane(3, 3)
+    f = np.concatenate([f1, f1 + 9])
+    k, lab = connected_components(f, 19)  # plus one isolated vertex
+    assert k == 3
+    assert len(set(lab[:9])) == 1 and len(set(lab[9:18])) == 1 and lab[18] not in (lab[0], lab[9])
+
+
+def test_fan_valence_and_area():
+    v, f = fan(64)
+    assert face_areas(v, f).sum() == pytest.approx(0.5 * 64 * np.sin(2 * np.pi / 64))
+
+
+def test_input_validation_messages():
+    with pytest.raises(InputError, match=r"expected \(N, 3\), got \(4, 2\)"):
+        vertex_normals(np.zeros((4, 2)), np.zeros((1, 3), int))
+    with pytest.raises(InputError, match="out of range"):
+        vertex_normals(np.zeros((3, 3)), np.array([[0, 1, 3]]))
+    with pytest.raises(InputError, match="NaN"):
+        vertex_normals(np.full((3, 3), np.nan), np.array([[0, 1, 2]]))
