@@ -71,7 +71,10 @@ def unique_edges(faces: np.ndarray, n_vertices: int | None = None) -> np.ndarray
     e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     e = np.sort(e, axis=1)
     e = e[e[:, 0] != e[:, 1]]
-    return np.unique(e, axis=0)
+    # one int64 key per edge: a 1-D unique is far faster than unique(axis=0)
+    m = np.int64(f.max()) + 1
+    key = np.unique(e[:, 0] * m + e[:, 1])
+    return np.stack([key // m, key % m], axis=1)
 
 
 def edge_lengths(vertices, edges) -> np.ndarray:
@@ -121,8 +124,9 @@ def boundary_loops(faces: np.ndarray, n_vertices: int | None = None) -> list[np.
         return []
     he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     he = he[he[:, 0] != he[:, 1]]
-    key = np.sort(he, axis=1)
-    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    srt = np.sort(he, axis=1)
+    key = srt[:, 0] * (np.int64(f.max()) + 1) + srt[:, 1]
+    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
     bd = he[counts[inv.ravel()] == 1]
     if len(bd) == 0:
         return []
