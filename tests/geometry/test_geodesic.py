@@ -105,3 +105,13 @@ def test_source_validation():
         geodesic_distances(v, f, [9])
     with pytest.raises(InputError, match="unknown geodesic method"):
         geodesic_distances(v, f, [0], method="fmm")
+
+
+@pytest.mark.parametrize("method", ["heat", "dijkstra"])
+def test_mesh_with_only_degenerate_faces(method):
+    # found by hypothesis: all vertices coincide, so L = 0 and the Poisson matrix was singular
+    v = np.zeros((4, 3))
+    f = np.array([[0, 0, 0], [0, 1, 2]])
+    d = GeodesicSolver(v, f, method=method)(np.arange(4))
+    assert not np.isnan(d).any()
+    assert d[0, 1] == pytest.approx(0.0, abs=1e-300) and np.isinf(d[0, 3])

@@ -86,3 +86,11 @@ def test_input_validation_messages():
         vertex_normals(np.zeros((3, 3)), np.array([[0, 1, 3]]))
     with pytest.raises(InputError, match="NaN"):
         vertex_normals(np.full((3, 3), np.nan), np.array([[0, 1, 2]]))
+
+
+def test_boundary_vertices_match_loops():
+    from segadeform.geometry.mesh_ops import boundary_vertices
+
+    v, f = cylinder(10, 5)
+    np.testing.assert_array_equal(boundary_vertices(f), np.sort(np.concatenate(boundary_loops(f))))
+    assert boundary_vertices(np.array([[0, 1, 2], [1, 0, 2]])).size == 0  # closed two-sided triangle

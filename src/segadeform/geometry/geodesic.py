@@ -28,7 +28,7 @@ from scipy.sparse import csgraph
 from ..errors import InputError
 from ._checks import check_mesh
 from .laplacian import cotangent_laplacian, lumped_mass, nondegenerate_faces
-from .mesh_ops import boundary_loops, connected_components, edge_lengths, face_cross, mean_edge_length, unique_edges
+from .mesh_ops import boundary_vertices, connected_components, edge_lengths, face_cross, mean_edge_length, unique_edges
 
 __all__ = ["GEODESIC_METHODS", "DEFAULT_GEODESIC", "GeodesicSolver", "geodesic_distances"]
 
@@ -78,6 +78,10 @@ class GeodesicSolver:
         covered = np.zeros(n, bool)
         covered[fg.ravel()] = True
         self._orphans = np.flatnonzero(~covered)
+        if len(fg) == 0:  # no surface at all: every vertex uses graph distances
+            self._heat_ready = False
+            return
+        self._heat_ready = True
         h = mean_edge_length(v, f) or 1.0
         L = cotangent_laplacian(v, f).tocsc()
         m = lumped_mass(v, f)
@@ -86,7 +90,7 @@ class GeodesicSolver:
         # Neumann heat step; Dirichlet variant pins boundary vertices to u = 0.
         heat = (M + t * L).tocsc()
         self._heat_n = _factor(heat)
-        bd = np.unique(np.concatenate(boundary_loops(fg, n))) if len(fg) else np.zeros(0, np.int64)
+        bd = boundary_vertices(fg)
         self._has_boundary = bd.size > 0
         if self._has_boundary:
             interior = np.ones(n, bool)
@@ -114,7 +118,7 @@ class GeodesicSolver:
         self._area = np.repeat(0.5 * area2, 3)
         self._div = (self._grad.T @ sp.diags(self._area)).tocsr()  # integrated divergence (N x 3F)
         # Poisson solve: L is singular per component; a tiny mass shift pins the constant.
-        eps = 1e-8 * (np.abs(L).sum() / max(m.sum(), np.finfo(float).tiny)) / max(n, 1)
+        eps = 1e-8 * max(float(L.diagonal().mean()) / float(m.mean()), 1.0 / (h * h))
         self._poisson = _factor((L + eps * M).tocsc())
 
     def __call__(self, sources) -> np.ndarray:
@@ -129,6 +133,9 @@ class GeodesicSolver:
 
     def _heat(self, s: np.ndarray) -> np.ndarray:
         n, k = self.n, len(s)
+        if not self._heat_ready:
+            d = csgraph.dijkstra(self._graph, directed=False, indices=s)
+            return d
         delta = np.zeros((n, k))
         delta[s, np.arange(k)] = 1.0
         u = self._heat_n.solve(delta)

@@ -9,7 +9,7 @@ from scipy.sparse import csgraph
 from ._checks import check_faces, check_mesh
 
 __all__ = ["face_cross", "face_areas", "vertex_normals", "unique_edges", "edge_lengths",
-           "mean_edge_length", "boundary_loops", "connected_components", "adjacency"]
+           "mean_edge_length", "boundary_vertices", "boundary_loops", "connected_components", "adjacency"]
 
 
 def face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -104,6 +104,18 @@ def connected_components(faces: np.ndarray, n_vertices: int) -> tuple[int, np.nd
     a = adjacency(faces, n_vertices)
     k, labels = csgraph.connected_components(a, directed=False)
     return int(k), labels.astype(np.int64)
+
+
+def boundary_vertices(faces: np.ndarray) -> np.ndarray:
+    """Sorted indices of vertices on a boundary edge (an edge used by one face), ``(B,) int64``."""
+    f = np.asarray(faces, dtype=np.int64)
+    if f.size == 0:
+        return np.zeros(0, np.int64)
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    e = e[e[:, 0] != e[:, 1]]
+    key = e[:, 0] * (np.int64(f.max()) + 1) + e[:, 1]
+    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return np.unique(e[counts[inv.ravel()] == 1])
 
 
 def boundary_loops(faces: np.ndarray, n_vertices: int | None = None) -> list[np.ndarray]:
