@@ -12,39 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
+from segadeform.body.skeleton import default_rest_joints
 from segadeform.geometry.primitives import frustum
 
 HERE = Path(__file__).resolve().parent
 
-# A hand-made 24-joint T-pose skeleton in SMPL joint order (metres, +Y up,
-# facing +Z, the body's left at +X), roughly a 1.7 m adult.  It stands in for
-# the default body's joints until the body model ships; it is not SMPL data.
-REST_JOINTS_24 = np.array([
-    [0.000, 0.950, 0.000],   # pelvis
-    [0.090, 0.870, 0.000],   # left_hip
-    [-0.090, 0.870, 0.000],  # right_hip
-    [0.000, 1.060, -0.010],  # spine1
-    [0.100, 0.500, 0.000],   # left_knee
-    [-0.100, 0.500, 0.000],  # right_knee
-    [0.000, 1.190, 0.000],   # spine2
-    [0.110, 0.090, -0.020],  # left_ankle
-    [-0.110, 0.090, -0.020], # right_ankle
-    [0.000, 1.250, 0.010],   # spine3
-    [0.120, 0.030, 0.100],   # left_foot
-    [-0.120, 0.030, 0.100],  # right_foot
-    [0.000, 1.480, -0.010],  # neck
-    [0.070, 1.400, 0.000],   # left_collar
-    [-0.070, 1.400, 0.000],  # right_collar
-    [0.000, 1.580, 0.030],   # head
-    [0.180, 1.420, -0.010],  # left_shoulder
-    [-0.180, 1.420, -0.010], # right_shoulder
-    [0.440, 1.420, -0.020],  # left_elbow
-    [-0.440, 1.420, -0.020], # right_elbow
-    [0.690, 1.420, -0.010],  # left_wrist
-    [-0.690, 1.420, -0.010], # right_wrist
-    [0.770, 1.420, -0.010],  # left_hand
-    [-0.770, 1.420, -0.010], # right_hand
-])
 
 
 def write_skirt_obj(path: Path, n_around: int = 64, n_rings: int = 24) -> None:
@@ -86,7 +58,7 @@ def main() -> None:
     (HERE / "garments").mkdir(exist_ok=True)
     (HERE / "skeletons").mkdir(exist_ok=True)
     write_skirt_obj(HERE / "garments" / "skirt.obj")
-    np.save(HERE / "skeletons" / "tpose_joints_24.npy", REST_JOINTS_24)
+    np.save(HERE / "skeletons" / "tpose_joints_24.npy", default_rest_joints())
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import FileFormatError
 
-__all__ = ["SMPL_JOINT_NAMES", "SMPL_PARENTS", "load_rest_joints"]
+__all__ = ["SMPL_JOINT_NAMES", "SMPL_PARENTS", "load_rest_joints", "default_rest_joints"]
 
 SMPL_JOINT_NAMES = (
     "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2",
@@ -62,3 +62,23 @@ def load_rest_joints(path: str | os.PathLike) -> np.ndarray:
             return _finite_joints(jr.astype(np.float64) @ vt.astype(np.float64), p, "joints")
         raise FileFormatError("body file has no joints", path=p,
                               expected="'joints' or 'J_regressor' + 'v_template'", got=", ".join(z.files))
+
+
+def default_rest_joints() -> np.ndarray:
+    """A 24-joint T-pose skeleton (metres, +Y up, facing +Z), roughly a 1.7 m adult.
+
+    Hand-made stand-in proportions (not SMPL data), used where a skeleton is
+    needed without a body file: writing BVH, tests.  The same values ship as
+    ``samples/skeletons/tpose_joints_24.npy``.
+    """
+    return _TPOSE.copy()
+
+
+_TPOSE = np.array([
+    [0.000, 0.950, 0.000], [0.090, 0.870, 0.000], [-0.090, 0.870, 0.000], [0.000, 1.060, -0.010],
+    [0.100, 0.500, 0.000], [-0.100, 0.500, 0.000], [0.000, 1.190, 0.000], [0.110, 0.090, -0.020],
+    [-0.110, 0.090, -0.020], [0.000, 1.250, 0.010], [0.120, 0.030, 0.100], [-0.120, 0.030, 0.100],
+    [0.000, 1.480, -0.010], [0.070, 1.400, 0.000], [-0.070, 1.400, 0.000], [0.000, 1.580, 0.030],
+    [0.180, 1.420, -0.010], [-0.180, 1.420, -0.010], [0.440, 1.420, -0.020], [-0.440, 1.420, -0.020],
+    [0.690, 1.420, -0.010], [-0.690, 1.420, -0.010], [0.770, 1.420, -0.010], [-0.770, 1.420, -0.010],
+])

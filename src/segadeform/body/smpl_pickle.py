@@ -64,12 +64,20 @@ def _scalar(dtype, data=None):
     return np.frombuffer(data, dtype=dtype, count=1)[0]
 
 
+def _codecs_encode(text, encoding="utf-8"):
+    """Protocol-2 pickles written by Python 3 carry bytes as ``_codecs.encode(str, 'latin1')``."""
+    if not isinstance(text, str) or encoding.lower().replace("-", "") not in ("latin1", "iso88591"):
+        raise pickle.UnpicklingError("refusing _codecs.encode with an unexpected argument")
+    return text.encode("latin-1")
+
+
 _NUMPY_MODULES = ("numpy.core.multiarray", "numpy._core.multiarray", "numpy")
 _ALLOWED = {
     ("copy_reg", "_reconstructor"): _reconstructor,
     ("copyreg", "_reconstructor"): _reconstructor,
     ("__builtin__", "object"): object,
     ("builtins", "object"): object,
+    ("_codecs", "encode"): _codecs_encode,
 }
 for _m in _NUMPY_MODULES:
     _ALLOWED[(_m, "_reconstruct")] = _ndarray_reconstruct

@@ -1,0 +1,34 @@
+"""``segadeform body info | bake``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+import numpy as np
+
+from .main import cli
+
+
+@cli.group("body")
+def body_group():
+    """Inspect and bake body models."""
+
+
+@body_group.command("info")
+@click.argument("body", type=click.Path(dir_okay=False, path_type=Path))
+def info_cmd(body):
+    """Print the size, skeleton and shape space of BODY (.npz or SMPL .pkl)."""
+    from segadeform.body import load_body
+
+    b = load_body(body)
+    j = b.rest_joints()[0]
+    v = b.v_template
+    click.echo(f"{body}: {b.n_vertices} vertices, {len(b.faces)} faces, {b.n_joints} joints, "
+               f"{b.n_betas} shape coefficients, pose blend shapes: {'yes' if b.posedirs is not None else 'no'}")
+    click.echo(f"  units {b.units}, up +{b.up_axis}; height {np.ptp(v[:, 1 if b.up_axis == 'y' else 2]):.3f}, "
+               f"bounds {v.min(0).round(3).tolist()} .. {v.max(0).round(3).tolist()}")
+    click.echo("  joints: " + ", ".join(f"{n}" for n in b.joint_names))
+    click.echo(f"  pelvis at {j[0].round(3).tolist()}")
+    if b.licence:
+        click.echo(f"  licence: {b.licence}")
