@@ -1,0 +1,194 @@
+import re
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from segadeform.body import axis_angle_to_matrix, default_rest_joints, forward_kinematics, poses_to_rotmats
+from segadeform.body.skeleton import SMPL_PARENTS
+from segadeform.cli.main import cli
+from segadeform.errors import FileFormatError, InputError
+from segadeform.motion import (MOTION_KINDS, Motion, load_motion, make_motion, motion_windows, read_bvh,
+                               resample, write_bvh)
+from segadeform.motion.bvh import MIXAMO_TO_SMPL, SMPL_SHORT_NAMES
+from segadeform.motion.limits import limit_violation
+
+
+def rot(m):
+    return axis_angle_to_matrix(m.poses.reshape(-1, 24, 3))
+
+
+# ---- AMASS npz -----------------------------------------------------------
+@pytest.mark.parametrize("width", [72, 66, 156])
+def test_amass_widths(tmp_path, width):
+    rng = np.random.default_rng(0)
+    poses = rng.normal(scale=0.2, size=(10, width))
+    np.savez(tmp_path / "a.npz", poses=poses, trans=rng.normal(size=(10, 3)), betas=np.ones(16),
+             mocap_framerate=120.0)
+    m = load_motion(tmp_path / "a.npz")
+    assert m.poses.shape == (10, 72) and m.fps == 120.0 and m.betas.shape == (16,)
+    np.testing.assert_array_equal(m.poses[:, :66], poses[:, :66])
+    if width != 72:
+        assert (m.poses[:, 66:] == 0).all()
+
+
+@pytest.mark.parametrize("arrays, words", [
+    (dict(trans=np.zeros((3, 3))), "no 'poses'"),
+    (dict(poses=np.zeros((3, 70))), "unknown width"),
+    (dict(poses=np.zeros((0, 72))), "no frames"),
+    (dict(poses=np.zeros((3, 72)), trans=np.zeros((2, 3))), "trans"),
+    (dict(poses=np.full((3, 72), np.nan)), "NaN"),
+    (dict(poses=np.zeros((3, 72)), mocap_framerate=-1.0), "fps"),
+    (dict(poses=np.array(["a"] * 72).reshape(1, 72)), "numeric"),
+])
+def test_malformed_amass(tmp_path, arrays, words):
+    np.savez(tmp_path / "m.npz", **arrays)
+    with pytest.raises(FileFormatError, match=words) as ei:
+        load_motion(tmp_path / "m.npz")
+    assert "m.npz" in str(ei.value)
+
+
+def test_save_load_round_trip(tmp_path):
+    m = make_motion("walk", seconds=1.0)
+    m.save(tmp_path / "w.npz")
+    back = load_motion(tmp_path / "w.npz")
+    np.testing.assert_allclose(back.poses, m.poses, atol=1e-6)
+    assert back.fps == m.fps
+
+
+# ---- resampling and windows ----------------------------------------------
+def test_resample_keeps_frames_and_interpolates_on_the_sphere():
+    m = make_motion("dance", seconds=2.0, fps=30)
+    up = resample(m, 60)
+    assert up.n_frames == 2 * m.n_frames - 1
+    np.testing.assert_allclose(rot(up)[::2], rot(m), atol=1e-9)
+    # a midpoint is the slerp midpoint: equal angle to both neighbours
+    r = rot(up)
+    a = np.einsum("tjik,tjik->tj", r[1:-1:2], r[0:-2:2])
+    b = np.einsum("tjik,tjik->tj", r[1:-1:2], r[2::2])
+    np.testing.assert_allclose(a, b, atol=1e-9)
+    down = resample(m, 10)
+    np.testing.assert_allclose(rot(down), rot(m)[::3], atol=1e-9)
+
+
+def test_windows_pad_with_first_frame():
+    p = np.arange(6, dtype=float)[:, None] * np.ones((1, 72))
+    w = motion_windows(p, 4)
+    assert w.shape == (6, 4, 72)
+    np.testing.assert_array_equal(w[:, :, 0], [[0, 0, 0, 0], [1, 0, 0, 0], [2, 1, 0, 0], [3, 2, 1, 0],
+                                               [4, 3, 2, 1], [5, 4, 3, 2]])
+    np.testing.assert_array_equal(motion_windows(p, 2, start=2, stop=4)[:, :, 0], [[2, 1], [3, 2]])
+    with pytest.raises(InputError):
+        motion_windows(p, 0)
+
+
+# ---- procedural ----------------------------------------------------------
+@pytest.mark.parametrize("kind", sorted(MOTION_KINDS))
+def test_procedural_inside_limits_and_deterministic(kind):
+    worst = 0.0
+    for seed in range(12):
+        m = make_motion(kind, seconds=3.0, seed=seed, amplitude=1.0 + 0.08 * seed, speed=0.5 + 0.2 * seed)
+        worst = max(worst, limit_violation(m.poses))
+        assert np.isfinite(m.poses).all() and np.isfinite(m.trans).all()
+    assert worst < 1e-9
+    a, b = make_motion(kind, seed=7), make_motion(kind, seed=7)
+    np.testing.assert_array_equal(a.poses, b.poses)
+    c = make_motion(kind, seed=8, seconds=3.0)
+    assert not np.array_equal(a.poses[45:], c.poses[45:]) or kind == "jump"  # jump has no random part
+
+
+def test_motions_ease_in_from_rest():
+    m = make_motion("walk", seconds=2.0)
+    assert np.abs(m.poses[0]).max() < 1e-12
+
+
+def test_limit_check_can_fail():
+    p = np.zeros((1, 72))
+    p[0, 3 * 4] = -np.deg2rad(30)  # left knee bent backwards
+    assert np.rad2deg(limit_violation(p)) == pytest.approx(30.0)
+
+
+# ---- BVH -----------------------------------------------------------------
+def test_bvh_round_trip_smpl_and_mixamo_names(tmp_path):
+    J = default_rest_joints()
+    m = make_motion("dance", seconds=1.5, seed=2)
+    write_bvh(tmp_path / "a.bvh", m, J, scale=100.0)
+    r = read_bvh(tmp_path / "a.bvh", rest_joints=J)
+    np.testing.assert_allclose(rot(r), rot(m), atol=1e-7)
+    np.testing.assert_allclose(r.trans, m.trans, atol=1e-7)
+    assert r.fps == pytest.approx(30.0, rel=1e-6)
+    for vocab, prefix in ((MIXAMO_TO_SMPL, "mixamorig:"), (SMPL_SHORT_NAMES, "")):
+        txt = (tmp_path / "a.bvh").read_text()
+        inv = {v: k for k, v in vocab.items()}
+        for smpl, other in inv.items():
+            txt = re.sub(rf"\b(JOINT|ROOT) {smpl}\b", rf"\1 {prefix}{other}", txt)
+        (tmp_path / "b.bvh").write_text(txt)
+        np.testing.assert_allclose(rot(read_bvh(tmp_path / "b.bvh", rest_joints=J)), rot(m), atol=1e-7)
+    # write -> read -> write gives the same file
+    write_bvh(tmp_path / "c.bvh", r, J, scale=100.0)
+    r2 = read_bvh(tmp_path / "c.bvh", rest_joints=J)
+    np.testing.assert_allclose(rot(r2), rot(r), atol=1e-7)
+
+
+def test_bvh_a_pose_rest_is_corrected(tmp_path):
+    """A file whose rest pose has the arms 45 degrees down: at zero rotation the arms must hang
+    45 degrees down on the T-pose target too."""
+    J = default_rest_joints()
+    a_pose = J.copy()
+    for sh, el, wr, ha, s in ((16, 18, 20, 22, 1), (17, 19, 21, 23, -1)):
+        for k in (el, wr, ha):
+            d = J[k] - J[sh]
+            a_pose[k] = J[sh] + np.array([d[0] * np.cos(np.pi / 4), -abs(d[0]) * np.sin(np.pi / 4), d[2]])
+    still = Motion(poses=np.zeros((2, 72)), trans=np.zeros((2, 3)), fps=30)
+    write_bvh(tmp_path / "a.bvh", still, a_pose, scale=100.0)
+    m = read_bvh(tmp_path / "a.bvh", rest_joints=J)
+    _, posed = forward_kinematics(poses_to_rotmats(m.poses, 24), J, SMPL_PARENTS, m.trans)
+    for sh, el in ((16, 18), (17, 19)):
+        d = posed[0, el] - posed[0, sh]
+        want = a_pose[el] - a_pose[sh]
+        np.testing.assert_allclose(d / np.linalg.norm(d), want / np.linalg.norm(want), atol=1e-6)
+
+
+def test_bvh_unknown_names_listed(tmp_path):
+    J = default_rest_joints()
+    write_bvh(tmp_path / "a.bvh", make_motion("idle", seconds=0.2), J)
+    txt = (tmp_path / "a.bvh").read_text().replace("JOINT left_knee", "JOINT LKneeThing")
+    (tmp_path / "b.bvh").write_text(txt)
+    with pytest.raises(FileFormatError) as ei:
+        read_bvh(tmp_path / "b.bvh")
+    msg = str(ei.value)
+    assert "unknown joint names: LKneeThing" in msg and "missing SMPL joints: left_knee" in msg
+    assert "expected SMPL names (pelvis, left_hip" in msg
+
+
+@pytest.mark.parametrize("mutate, words", [
+    (lambda t: t.replace("HIERARCHY", "HIERARCHX"), "unexpected token"),
+    (lambda t: t.rsplit("\n", 3)[0] + "\n", "does not match its declared size"),
+    (lambda t: t.replace("Frames: 6", "Frames: 600000000"), "does not match its declared size"),
+    (lambda t: t.replace("Frame Time: ", "Frame Time: -"), "positive"),
+    (lambda t: t.replace("CHANNELS 3", "CHANNELS 9", 1), "channel count"),
+    (lambda t: t.replace("Zrotation", "Wrotation", 1), "unknown channel"),
+    (lambda t: "\n".join(t.splitlines()[:40]), "ends too early"),
+    (lambda t: t.replace("0.000000", "nan", 1), "not finite"),
+])
+def test_malformed_bvh(tmp_path, mutate, words):
+    write_bvh(tmp_path / "a.bvh", make_motion("idle", seconds=0.2), default_rest_joints())
+    (tmp_path / "b.bvh").write_text(mutate((tmp_path / "a.bvh").read_text()))
+    with pytest.raises(FileFormatError, match=words) as ei:
+        read_bvh(tmp_path / "b.bvh")
+    assert "b.bvh" in str(ei.value)
+
+
+# ---- CLI -----------------------------------------------------------------
+def test_motion_cli(tmp_path):
+    r = CliRunner().invoke(cli, ["motion", "make", "run", "--seconds", "1", "--fps", "24", "--seed", "3",
+                                 "-o", str(tmp_path / "r.npz")])
+    assert r.exit_code == 0, r.output
+    m = load_motion(tmp_path / "r.npz")
+    assert m.n_frames == 24 and m.fps == 24
+    r = CliRunner().invoke(cli, ["motion", "info", str(tmp_path / "r.npz")])
+    assert r.exit_code == 0 and "24 frames" in r.output and "outside joint limits by: 0.00 deg" in r.output
+    r = CliRunner().invoke(cli, ["motion", "make", "fly", "-o", str(tmp_path / "x.npz")])
+    assert r.exit_code == 1 and "unknown motion kind" in r.output and not (tmp_path / "x.npz").exists()
+    r = CliRunner().invoke(cli, ["motion", "info", str(tmp_path / "missing.bvh")])
+    assert r.exit_code == 1 and "missing.bvh" in r.output
