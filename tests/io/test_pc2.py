@@ -120,3 +120,20 @@ def test_zero_samples_is_valid(tmp_path):
         pass
     assert read_pc2_header(tmp_path / "e.pc2").num_samples == 0
     assert read_pc2(tmp_path / "e.pc2").frames.shape == (0, 3, 3)
+
+
+def test_outputs_respect_the_umask(tmp_path):
+    import os
+    import stat
+
+    from segadeform.io import atomic_open
+
+    old = os.umask(0o022)
+    try:
+        write_pc2(tmp_path / "a.pc2", frames())
+        with atomic_open(tmp_path / "b.txt", "w") as fh:
+            fh.write("x")
+    finally:
+        os.umask(old)
+    for name in ("a.pc2", "b.txt"):
+        assert stat.S_IMODE((tmp_path / name).stat().st_mode) == 0o644

@@ -11,7 +11,6 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
-import tempfile
 from pathlib import Path
 from typing import IO, Iterator
 
@@ -19,13 +18,25 @@ __all__ = ["atomic_path", "atomic_open", "atomic_directory"]
 
 
 def _tmp_sibling(target: Path, *, directory: bool) -> Path:
+    """A new, empty temporary file (or folder) beside ``target``.
+
+    Created with mode 0o666 (0o777 for folders) filtered by the umask, like
+    ``open()`` and ``mkdir()`` -- not ``mkstemp``'s 0o600, which would make
+    every output readable by its owner only.
+    """
     target.parent.mkdir(parents=True, exist_ok=True)
     prefix = f".{target.name}.tmp-"
-    if directory:
-        return Path(tempfile.mkdtemp(prefix=prefix, dir=target.parent))
-    fd, name = tempfile.mkstemp(prefix=prefix, dir=target.parent)
-    os.close(fd)
-    return Path(name)
+    for _ in range(100):
+        name = target.parent / f"{prefix}{os.urandom(6).hex()}"
+        try:
+            if directory:
+                os.mkdir(name, 0o777)
+            else:
+                os.close(os.open(name, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
+            return name
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"could not create a temporary file beside {target}")
 
 
 @contextlib.contextmanager
