@@ -1,0 +1,58 @@
+"""``segadeform export``: checkpoint (or a random initialisation) -> model package."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from .main import cli
+
+
+@cli.command("export")
+@click.argument("checkpoint", required=False, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Model package directory to write.")
+@click.option("--random-init", is_flag=True, help="Export a randomly initialised model (for tests).")
+@click.option("--config", "config_json", default=None,
+              help="ModelConfig overrides as JSON (with --random-init), e.g. '{\"skinning\": \"dqs\"}'.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed for --random-init.")
+@click.option("--check/--no-check", default=True, show_default=True,
+              help="Compare torch and onnxruntime on random inputs and print the errors.")
+@click.option("--legacy", is_flag=True, help="Use the legacy (TorchScript) exporter instead of dynamo.")
+def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy):
+    """Export CHECKPOINT (or --random-init) to an ONNX model package (needs the 'torch' extra)."""
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise click.ClickException("export needs the 'torch' extra: pip install 'segadeform[torch]'") from None
+    from segadeform.errors import InputError
+    from segadeform.export import export_package
+    from segadeform.model import ModelConfig, SEGANet, load_checkpoint
+
+    if (checkpoint is None) == (not random_init):
+        raise click.UsageError("give a CHECKPOINT or --random-init (not both)")
+    if random_init:
+        try:
+            overrides = json.loads(config_json) if config_json else {}
+        except json.JSONDecodeError as e:
+            raise InputError(f"--config is not valid JSON ({e.msg})", got=config_json) from None
+        if not isinstance(overrides, dict):
+            raise InputError("--config must be a JSON object", got=config_json)
+        import dataclasses
+
+        cfg = ModelConfig.from_dict({**dataclasses.asdict(ModelConfig()), **overrides})
+        torch.manual_seed(seed)
+        model = SEGANet(cfg)
+    else:
+        if config_json:
+            raise click.UsageError("--config applies to --random-init only (a checkpoint carries its config)")
+        model = load_checkpoint(checkpoint)
+    m = export_package(model, output, dynamo=not legacy, check=check)
+    click.echo(f"{output}: garment_encoder.onnx, deformer.onnx, manifest.json (opset {m['opset']}, "
+               f"{m['exporter']} exporter)")
+    if check:
+        for g, outs in m["parity"].items():
+            for o, e in outs.items():
+                click.echo(f"  {g}.{o}: max abs {e['max_abs']:.3g}, max rel {e['max_rel']:.3g} (torch vs onnxruntime)")

@@ -1,0 +1,66 @@
+"""Which ONNX ops an exported graph may use, so the same file runs in onnxruntime (CPU, CUDA),
+onnxruntime-web (wasm, WebGPU), Unity Sentis and Unreal NNE.
+
+The allowed set is the intersection we rely on (see ``../shared/notes/facts.md``
+"Engines"): elementwise maths, MatMul/Gemm, Gather, reductions, shape ops,
+Where, Softmax, ArgMax/OneHot.  Forbidden, with the reason:
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+
+from segadeform.errors import SegadeformError
+
+__all__ = ["ALLOWED_OPS", "FORBIDDEN_OPS", "PortabilityError", "op_counts", "check_portability"]
+
+FORBIDDEN_OPS = {
+    "Einsum": "limited in Unity Sentis; write MatMul",
+    "NonZero": "data-dependent output shape; CPU-only in Sentis",
+    "ScatterElements": "scatter with reduction is missing or slow on GPU engines; use padded Gather",
+    "ScatterND": "scatter with reduction is missing or slow on GPU engines; use padded Gather",
+    "LSTM": "no LSTM on Sentis' GPU backends nor onnxruntime-web WebGPU; unroll it",
+    "GRU": "unsupported in Sentis", "RNN": "unsupported in Sentis",
+    "Loop": "unsupported in Sentis", "Scan": "unsupported in Sentis", "If": "control flow; not portable",
+    "Unique": "data-dependent output shape", "SequenceConstruct": "sequence types are not portable",
+}
+ALLOWED_OPS = frozenset("""
+Abs Add And ArgMax Cast Ceil Clip Concat Constant ConstantOfShape Cos Div Elu Equal Erf Exp Expand
+Flatten Floor Gather Gemm Greater GreaterOrEqual Identity LeakyRelu Less LessOrEqual Log MatMul Max
+Min Mul Neg Not OneHot Or Pow Range Reciprocal ReduceL2 ReduceMax ReduceMean ReduceMin ReduceSum Relu
+Reshape Shape Sigmoid Sign Sin Slice Softmax Split Sqrt Squeeze Sub Tanh Tile Transpose Unsqueeze Where
+""".split())
+
+
+class PortabilityError(SegadeformError):
+    """An exported graph uses an op outside :data:`ALLOWED_OPS`."""
+
+
+def op_counts(model) -> Counter:
+    """Op types used by an ``onnx.ModelProto`` (including subgraphs and local functions)."""
+    c: Counter = Counter()
+
+    def walk(graph):
+        for node in graph.node:
+            c[node.op_type] += 1
+            for attr in node.attribute:
+                if attr.g is not None and attr.g.node:
+                    walk(attr.g)
+                for g in attr.graphs:
+                    walk(g)
+
+    walk(model.graph)
+    for fn in model.functions:
+        for node in fn.node:
+            c[node.op_type] += 1
+    return c
+
+
+def check_portability(model, name: str = "graph") -> Counter:
+    """Raise :class:`PortabilityError` listing every op outside the allowed set; return the op counts."""
+    counts = op_counts(model)
+    bad = sorted(op for op in counts if op not in ALLOWED_OPS)
+    if bad:
+        why = "; ".join(f"{op}: {FORBIDDEN_OPS.get(op, 'not in the portable op set')}" for op in bad)
+        raise PortabilityError(f"{name} uses non-portable ops: {why}")
+    return counts

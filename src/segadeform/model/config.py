@@ -1,0 +1,85 @@
+"""The one frozen model configuration (whisper ``ModelDimensions`` style).
+
+Checkpoints are ``{"config": dataclasses.asdict(cfg), "state_dict": ...}``
+and the same JSON rides in the exported model package's manifest.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+from ..errors import InputError
+
+__all__ = ["ModelConfig"]
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelConfig:
+    """Dimensions and switches of the SEGA network.
+
+    Attributes:
+        n_joints: S, skeleton joints (24 for SMPL); also the heads of the encoder's last block.
+        n_betas: |beta|, body shape coefficients.
+        n_star: N*, length of the garment type descriptor.
+        feat_dim: F, per-vertex input features (6 + S: position, normal, joint distances).
+        hidden: hidden width of graph blocks, parsers and motion processors.
+        heads: attention heads of the hidden graph blocks.
+        enc_layers / dec_layers: graph blocks in the encoder / decoder (>= 1).
+        f_enc: F_enc, features per joint of the encoder output.
+        window: T, motion frames seen by the motion processors.
+        lstm_hidden: hidden size of the (unrolled) LSTMs.
+        alpha, tau: SEGA bounds (Eqs. 8, 13); the paper's best is 2, 2.
+        skinning: "lbs" or "dqs".
+        use_sega: False gives the PlainGAT ablation (no bounds).
+        use_descriptor: False replaces f^gp(lambda) by a learned constant.
+        use_blend_shapes: False removes the decoder (B = 0).
+    """
+
+    n_joints: int = 24
+    n_betas: int = 10
+    n_star: int = 32
+    feat_dim: int = 30
+    hidden: int = 32
+    heads: int = 4
+    enc_layers: int = 2
+    dec_layers: int = 2
+    f_enc: int = 8
+    window: int = 5
+    lstm_hidden: int = 32
+    alpha: float = 2.0
+    tau: float = 2.0
+    skinning: str = "lbs"
+    use_sega: bool = True
+    use_descriptor: bool = True
+    use_blend_shapes: bool = True
+
+    def __post_init__(self):
+        ints = ("n_joints", "n_betas", "n_star", "feat_dim", "hidden", "heads", "enc_layers", "dec_layers",
+                "f_enc", "window", "lstm_hidden")
+        for name in ints:
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                raise InputError(f"ModelConfig.{name} must be a positive integer", got=v)
+        if self.hidden % self.heads:
+            raise InputError("ModelConfig.hidden must be divisible by heads", got=(self.hidden, self.heads))
+        for name in ("alpha", "tau"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and v > 0):
+                raise InputError(f"ModelConfig.{name} must be positive", got=v)
+        if self.skinning not in ("lbs", "dqs"):
+            raise InputError("ModelConfig.skinning must be 'lbs' or 'dqs'", got=self.skinning)
+
+    def to_json(self) -> str:
+        return json.dumps(dataclasses.asdict(self), sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ModelConfig":
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise InputError("unknown ModelConfig fields", expected=", ".join(sorted(known)), got=", ".join(unknown))
+        return cls(**d)
+
+    def replace(self, **kw) -> "ModelConfig":
+        return dataclasses.replace(self, **kw)

@@ -1,0 +1,167 @@
+"""The network's modules (§3, §4.3): parsers, graph encoder/decoder, motion processors."""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from .config import ModelConfig
+from .sega import SEGABlock, TauLinear
+
+__all__ = ["MLP", "UnrolledLSTM", "GarmentTypeParser", "BodyShapeParser", "GraphEncoder", "GraphDecoder",
+           "MotionProcessor"]
+
+
+class MLP(nn.Module):
+    """Linear layers with ELU between them; tau-bounded (Eq. 8) when ``tau`` is set."""
+
+    def __init__(self, sizes: list[int], tau: float | None) -> None:
+        super().__init__()
+        self.layers = nn.ModuleList(TauLinear(a, b, tau) for a, b in zip(sizes[:-1], sizes[1:]))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        for i, layer in enumerate(self.layers):
+            x = layer(x)
+            if i < len(self.layers) - 1:
+                x = nn.functional.elu(x)
+        return x
+
+
+class UnrolledLSTM(nn.Module):
+    """A single-layer LSTM written as MatMul/Sigmoid/Tanh over a fixed window (no ONNX LSTM op:
+    Sentis' GPU backends and ORT-web's WebGPU lack it).  Weights follow ``torch.nn.LSTM``'s layout
+    (gates i, f, g, o), so :meth:`from_lstm` copies a trained ``nn.LSTM``.
+
+    Shapes:
+        x: (B, T, I) with x[:, 0] the current frame -> final hidden state (B, H)
+    """
+
+    def __init__(self, input_size: int, hidden_size: int) -> None:
+        super().__init__()
+        self.input_size, self.hidden_size = input_size, hidden_size
+        self.w_ih = nn.Parameter(torch.empty(4 * hidden_size, input_size))
+        self.w_hh = nn.Parameter(torch.empty(4 * hidden_size, hidden_size))
+        self.bias = nn.Parameter(torch.zeros(4 * hidden_size))
+        self.reset_parameters()
+
+    def reset_parameters(self) -> None:
+        k = 1.0 / self.hidden_size ** 0.5
+        for p in (self.w_ih, self.w_hh):
+            nn.init.uniform_(p, -k, k)
+        nn.init.zeros_(self.bias)
+        with torch.no_grad():  # forget-gate bias 1: remember by default
+            self.bias[self.hidden_size:2 * self.hidden_size].fill_(1.0)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        b, t, _ = x.shape
+        h = x.new_zeros(b, self.hidden_size)
+        c = x.new_zeros(b, self.hidden_size)
+        gx = torch.matmul(x, self.w_ih.t()) + self.bias  # (B, T, 4H)
+        hs = self.hidden_size
+        for step in range(t - 1, -1, -1):  # oldest frame first, the current frame last
+            g = gx[:, step] + torch.matmul(h, self.w_hh.t())
+            i = torch.sigmoid(g[:, :hs])
+            f = torch.sigmoid(g[:, hs:2 * hs])
+            gg = torch.tanh(g[:, 2 * hs:3 * hs])
+            o = torch.sigmoid(g[:, 3 * hs:])
+            c = f * c + i * gg
+            h = o * torch.tanh(c)
+        return h
+
+
+class GarmentTypeParser(nn.Module):
+    """f^gp: descriptor lambda (B, N*) -> (B, F_enc); a learned constant without the descriptor."""
+
+    def __init__(self, cfg: ModelConfig) -> None:
+        super().__init__()
+        self.use = cfg.use_descriptor
+        tau = cfg.tau if cfg.use_sega else None
+        if self.use:
+            self.mlp = MLP([cfg.n_star, cfg.hidden, cfg.f_enc], tau)
+        else:
+            self.const = nn.Parameter(torch.ones(cfg.f_enc))
+
+    def forward(self, lam: torch.Tensor) -> torch.Tensor:
+        if self.use:
+            # eigenvalues scale with N*: feed them per sample (lambda / N*), sign-preserving sqrt
+            x = lam / lam.shape[-1]
+            return self.mlp(torch.sign(x) * torch.sqrt(torch.abs(x) + 1e-12))
+        return self.const.expand(lam.shape[0], -1)
+
+
+class BodyShapeParser(nn.Module):
+    """f^bp: beta (B, |beta|) -> (B, F_enc, S)."""
+
+    def __init__(self, cfg: ModelConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        self.mlp = MLP([cfg.n_betas, cfg.hidden, cfg.f_enc * cfg.n_joints], cfg.tau if cfg.use_sega else None)
+
+    def forward(self, betas: torch.Tensor) -> torch.Tensor:
+        return self.mlp(betas).reshape(-1, self.cfg.f_enc, self.cfg.n_joints)
+
+
+class GraphEncoder(nn.Module):
+    """f^enc: SEGA blocks over the garment graph -> (B, F_enc, S, N); the last block has S heads."""
+
+    def __init__(self, cfg: ModelConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        hp = cfg.hidden // cfg.heads
+        blocks = []
+        width = cfg.feat_dim
+        for _ in range(cfg.enc_layers - 1):
+            blk = SEGABlock(width, hp, cfg.heads, cfg.hidden, alpha=cfg.alpha, tau=cfg.tau, use_sega=cfg.use_sega)
+            blocks.append(blk)
+            width = blk.out_features
+        self.blocks = nn.ModuleList(blocks)
+        self.last = SEGABlock(width, cfg.f_enc, cfg.n_joints, cfg.f_enc * cfg.n_joints, alpha=cfg.alpha,
+                              tau=cfg.tau, use_sega=cfg.use_sega)
+
+    def forward(self, x, nbr, mask):
+        for blk in self.blocks:
+            x = nn.functional.elu(blk(x, nbr, mask))
+        y = self.last(x, nbr, mask)  # (B, N, 2 S F_enc): attention part | self part
+        half = self.cfg.f_enc * self.cfg.n_joints
+        y = y[..., :half] + y[..., half:]
+        b, n = y.shape[:2]
+        # heads are joints: (B, N, S, F_enc) -> (B, F_enc, S, N)
+        return y.reshape(b, n, self.cfg.n_joints, self.cfg.f_enc).permute(0, 3, 2, 1)
+
+
+class GraphDecoder(nn.Module):
+    """f^dec: SEGA blocks over the blend features X^mid (B, N, F_enc S) -> blend shapes (B, N, 3)."""
+
+    def __init__(self, cfg: ModelConfig) -> None:
+        super().__init__()
+        hp = cfg.hidden // cfg.heads
+        width = cfg.f_enc * cfg.n_joints
+        blocks = []
+        for _ in range(cfg.dec_layers):
+            blk = SEGABlock(width, hp, cfg.heads, cfg.hidden, alpha=cfg.alpha, tau=cfg.tau, use_sega=cfg.use_sega)
+            blocks.append(blk)
+            width = blk.out_features
+        self.blocks = nn.ModuleList(blocks)
+        self.out = TauLinear(width, 3, cfg.tau if cfg.use_sega else None)
+
+    def forward(self, x, nbr, mask):
+        for blk in self.blocks:
+            x = nn.functional.elu(blk(x, nbr, mask))
+        return self.out(x)
+
+
+class MotionProcessor(nn.Module):
+    """f^mo: an unrolled LSTM over the window Theta (and beta for f^mo2) -> (B, out)."""
+
+    def __init__(self, cfg: ModelConfig, out: int, with_betas: bool) -> None:
+        super().__init__()
+        self.with_betas = with_betas
+        self.lstm = UnrolledLSTM(3 * cfg.n_joints, cfg.lstm_hidden)
+        extra = cfg.n_betas if with_betas else 0
+        self.head = MLP([cfg.lstm_hidden + extra, cfg.hidden, out], cfg.tau if cfg.use_sega else None)
+
+    def forward(self, window: torch.Tensor, betas: torch.Tensor | None = None) -> torch.Tensor:
+        h = self.lstm(window)
+        if self.with_betas:
+            h = torch.cat([h, betas], dim=-1)
+        return self.head(h)

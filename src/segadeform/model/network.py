@@ -1,0 +1,139 @@
+"""The SEGA deformation network (Eqs. 1-2, 15-18) and checkpoints.
+
+Two halves, exported as two graphs:
+
+* :meth:`SEGANet.garment_encoder` -- once per garment and body shape --
+  computes the target-aware features ``P`` (Eq. 15)::
+
+      P[k, j, i] = f^bp(beta)[i, j] * sum_i' f^gp(lambda)[i'] f^enc(G)[i', j, k]
+
+  stored vertex-major as ``(N, S, F_enc)``.
+* :meth:`SEGANet.deformer` -- per frame, batched over frames -- combines ``P``
+  with the motion window:
+
+  - temporal weights (Eq. 16) ``W~[k, j] = sum_i P[k, j, i] f^mo1(Theta)[i]``,
+    normalised over the joints with a softmax, so every vertex's weights are
+    positive and sum to 1 as skinning needs (the paper leaves the
+    normalisation open);
+  - blend features (Eq. 17) ``X^mid[k, (j, i)] = P[k, j, i] f^mo2(Theta, beta)[(j, i)]``
+    and blend shapes (Eq. 18) ``B = f^dec(X^mid)``;
+  - deformation (Eq. 2) ``M = skin(T + B, J, theta_t, W~) + trans`` with LBS
+    or DQS, forward kinematics inside the graph.
+
+The rest joints ``J`` are an input (computed on the host from the body model
+and beta), so the same network drives any SMPL-compatible body.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from ..body.skeleton import SMPL_PARENTS
+from ..errors import FileFormatError, InputError
+from .config import ModelConfig
+from .kinematics import axis_angle_to_matrix, dqs, forward_kinematics, lbs, skinning_transforms
+from .modules import BodyShapeParser, GarmentTypeParser, GraphDecoder, GraphEncoder, MotionProcessor
+from .sega import SEGABlock, TauLinear
+
+__all__ = ["SEGANet", "save_checkpoint", "load_checkpoint"]
+
+
+class SEGANet(nn.Module):
+    """The full network; see the module docstring.
+
+    Shapes (garment_encoder):
+        features (B, N, F), nbr (N, K) int64, mask (N, K) bool, descriptor (B, N*), betas (B, |beta|)
+        -> P (B, N, S, F_enc)
+    Shapes (deformer):
+        P (N, S, F_enc), window (B, T, 3 S) with window[:, 0] the current pose, betas (B, |beta|),
+        rest (N, 3), nbr (N, K), mask (N, K), joints (B, S, 3), trans (B, 3)
+        -> vertices (B, N, 3), weights (B, N, S), blend_shapes (B, N, 3)
+    """
+
+    def __init__(self, cfg: ModelConfig) -> None:
+        super().__init__()
+        if cfg.n_joints != len(SMPL_PARENTS):
+            raise InputError("only the 24-joint SMPL skeleton is supported", got=cfg.n_joints)
+        self.cfg = cfg
+        self.parents = [int(p) for p in SMPL_PARENTS]
+        self.gp = GarmentTypeParser(cfg)
+        self.bp = BodyShapeParser(cfg)
+        self.enc = GraphEncoder(cfg)
+        self.mo1 = MotionProcessor(cfg, cfg.f_enc, with_betas=False)
+        self.mo2 = MotionProcessor(cfg, cfg.f_enc * cfg.n_joints, with_betas=True) if cfg.use_blend_shapes else None
+        self.dec = GraphDecoder(cfg) if cfg.use_blend_shapes else None
+
+    def freeze(self) -> "SEGANet":
+        """Fold every tau scaling into its weight (exact spectral norms); use before export."""
+        for m in self.modules():
+            if isinstance(m, (TauLinear, SEGABlock)):
+                m.freeze()
+        return self
+
+    def garment_encoder(self, features, nbr, mask, descriptor, betas) -> torch.Tensor:
+        enc = self.enc(features, nbr, mask)  # (B, F_enc, S, N)
+        gp = self.gp(descriptor)  # (B, F_enc)
+        g = torch.matmul(gp[:, None, None, :], enc.permute(0, 2, 1, 3))[:, :, 0, :]  # (B, S, N)
+        bp = self.bp(betas)  # (B, F_enc, S)
+        p = bp.permute(0, 2, 1)[:, None, :, :] * g.permute(0, 2, 1)[..., None]  # (B, N, S, F_enc)
+        return p
+
+    def deformer(self, P, window, betas, rest, nbr, mask, joints, trans):
+        cfg = self.cfg
+        b = window.shape[0]
+        n = P.shape[0]
+        s, f = cfg.n_joints, cfg.f_enc
+        mo1 = self.mo1(window)  # (B, F_enc)
+        w_raw = torch.matmul(P.reshape(n * s, f), mo1.t()).reshape(n, s, b).permute(2, 0, 1)  # (B, N, S)
+        weights = torch.softmax(w_raw, dim=-1)
+        if self.dec is not None:
+            mo2 = self.mo2(window, betas)  # (B, S F_enc)
+            x_mid = P.reshape(1, n, s * f) * mo2[:, None, :]
+            blend = self.dec(x_mid, nbr, mask)  # (B, N, 3)
+        else:
+            blend = torch.zeros(b, n, 3, dtype=P.dtype, device=P.device)
+        verts = rest[None] + blend
+        rot = axis_angle_to_matrix(window[:, 0].reshape(b, s, 3))
+        g = forward_kinematics(rot, joints, self.parents, trans)
+        a = skinning_transforms(g, joints)
+        skin = dqs if cfg.skinning == "dqs" else lbs
+        return skin(verts, weights, a), weights, blend
+
+    def forward(self, features, nbr, mask, descriptor, betas, window, rest, joints, trans):
+        """Encoder and deformer in one call (training); the garment batch must be 1."""
+        P = self.garment_encoder(features, nbr, mask, descriptor, betas[:1])[0]
+        return self.deformer(P, window, betas, rest, nbr, mask, joints, trans)
+
+
+def save_checkpoint(path: str | os.PathLike, model: SEGANet, **extra) -> Path:
+    """Write ``{config, state_dict, **extra}`` atomically."""
+    from ..io.atomic import atomic_path
+
+    p = Path(path)
+    with atomic_path(p) as tmp:
+        torch.save({"config": dataclasses.asdict(model.cfg), "state_dict": model.state_dict(), **extra}, tmp)
+    return p
+
+
+def load_checkpoint(path: str | os.PathLike) -> SEGANet:
+    """Read a checkpoint with ``torch.load(weights_only=True)`` and rebuild the model."""
+    p = Path(path)
+    try:
+        ck = torch.load(p, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise FileFormatError("no such file", path=p) from None
+    except Exception as e:
+        raise FileFormatError(f"not a readable checkpoint ({type(e).__name__}: {e})", path=p) from None
+    if not isinstance(ck, dict) or "config" not in ck or "state_dict" not in ck:
+        raise FileFormatError("checkpoint must hold 'config' and 'state_dict'", path=p)
+    try:
+        model = SEGANet(ModelConfig.from_dict(ck["config"]))
+        model.load_state_dict(ck["state_dict"])
+    except (InputError, RuntimeError, TypeError) as e:
+        raise FileFormatError(f"checkpoint does not fit its config ({e})", path=p) from None
+    return model

@@ -1,0 +1,215 @@
+"""The spectrum-enhanced graph attention block (SEGA, §4.1-4.2) and its PlainGAT ablation.
+
+Everything here gathers neighbour features through a padded ``(N, K)``
+index with ``index_select`` (ONNX ``Gather``) and masks the padding; there
+is no scatter.  Shapes: ``B`` batch, ``N`` vertices, ``K`` neighbour slots,
+``H`` heads.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import nn
+
+__all__ = ["TauLinear", "SEGABlock", "gather_neighbours", "masked_softmax", "theorem2_bound"]
+
+_NEG = -1e9
+
+
+def theorem2_bound(alpha: float, tau: float) -> float:
+    """Eq. 14: ``sqrt((tau e^alpha + sqrt(2)(alpha + alpha tau))^2 + tau^2)``."""
+    return math.sqrt((tau * math.exp(alpha) + math.sqrt(2.0) * (alpha + alpha * tau)) ** 2 + tau ** 2)
+
+
+def gather_neighbours(x: torch.Tensor, nbr: torch.Tensor) -> torch.Tensor:
+    """``x[:, nbr]`` via one index_select (ONNX Gather).
+
+    Shapes:
+        x: (B, N, C), nbr: (N, K) int64 -> (B, N, K, C)
+    """
+    n, k = nbr.shape
+    return torch.index_select(x, 1, nbr.reshape(-1)).reshape(x.shape[0], n, k, x.shape[-1])
+
+
+def masked_softmax(scores: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Softmax over the K axis (dim 2) that ignores padded slots; an all-padding row gives zeros.
+
+    Shapes:
+        scores: (B, N, K, H), mask: (N, K) bool -> (B, N, K, H)
+    """
+    m = mask[None, :, :, None]
+    s = torch.where(m, scores, torch.full_like(scores, _NEG))
+    s = s - s.amax(dim=2, keepdim=True)
+    e = torch.exp(s) * m.to(scores.dtype)
+    return e / e.sum(dim=2, keepdim=True).clamp_min(1e-30)
+
+
+class TauLinear(nn.Module):
+    """A linear map whose spectral norm is bounded by ``tau`` (Eq. 8): ``W_eff = tau W / max(tau, ||W||_2)``.
+
+    While training, ``||W||_2`` is estimated by power iteration with a persistent
+    vector (one step per forward, as in spectral normalisation).  :meth:`freeze`
+    replaces the estimate by the exact value (SVD) and stores the scaled weight,
+    so the exported graph holds a constant.  ``tau=None`` gives a plain linear.
+
+    Shapes:
+        x: (..., in_features) -> (..., out_features)
+    """
+
+    def __init__(self, in_features: int, out_features: int, tau: float | None, bias: bool = True,
+                 n_blocks: int = 1) -> None:
+        super().__init__()
+        self.in_features, self.out_features, self.tau, self.n_blocks = in_features, out_features, tau, n_blocks
+        self.weight = nn.Parameter(torch.empty(out_features, in_features))
+        self.bias = nn.Parameter(torch.zeros(out_features)) if bias else None
+        # power-iteration vectors, one per output block (heads)
+        self.register_buffer("_u", torch.randn(n_blocks, out_features // n_blocks))
+        # a plain attribute, not a buffer: exporters must not see a data-dependent branch
+        self.frozen = False
+        self.reset_parameters()
+
+    def reset_parameters(self) -> None:
+        nn.init.xavier_uniform_(self.weight)
+        if self.bias is not None:
+            nn.init.zeros_(self.bias)
+        with torch.no_grad():
+            self._u.normal_()
+
+    def _blocks(self, w: torch.Tensor) -> torch.Tensor:
+        return w.reshape(self.n_blocks, self.out_features // self.n_blocks, self.in_features)
+
+    def block_norms(self, exact: bool = False) -> torch.Tensor:
+        """Spectral norm of each output block ``(n_blocks,)``."""
+        wb = self._blocks(self.weight)
+        if exact:
+            return torch.linalg.matrix_norm(wb.detach().double(), ord=2).to(wb.dtype)
+        with torch.no_grad():
+            u = self._u
+            v = torch.nn.functional.normalize(torch.einsum("hoi,ho->hi", wb, u), dim=-1, eps=1e-12)
+            u = torch.nn.functional.normalize(torch.einsum("hoi,hi->ho", wb, v), dim=-1, eps=1e-12)
+            if self.training:
+                self._u.copy_(u)
+        return torch.einsum("ho,hoi,hi->h", u, wb, v).abs()
+
+    def effective_weight(self) -> torch.Tensor:
+        if self.tau is None or self.frozen:
+            return self.weight
+        # each block bounded by tau / sqrt(n_blocks): the stacked map then has norm <= tau
+        # however differently the blocks are used (e.g. with per-head attention)
+        t = self.tau / math.sqrt(self.n_blocks)
+        sigma = self.block_norms(exact=not self.training)
+        scale = t / torch.clamp(sigma, min=t)
+        return (self._blocks(self.weight) * scale[:, None, None]).reshape(self.out_features, self.in_features)
+
+    @torch.no_grad()
+    def freeze(self) -> None:
+        """Fold the exact tau scaling into ``weight`` (for export); idempotent."""
+        if self.tau is not None and not self.frozen:
+            self.weight.copy_(self.effective_weight())
+            self.frozen = True
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return nn.functional.linear(x, self.effective_weight(), self.bias)
+
+    def extra_repr(self) -> str:
+        return f"in={self.in_features}, out={self.out_features}, tau={self.tau}, blocks={self.n_blocks}"
+
+
+class SEGABlock(nn.Module):
+    r"""Spectrum-enhanced graph attention block (Eq. 4 with Eqs. 8 and 13).
+
+    .. math::
+        \Psi(X) = v(X)\,\sigma(s(X))^\top \,\|\, m(X), \qquad
+        s_{ij} = s^{pre}_{ij} / n_i(X)
+
+    * ``v`` (values, ``H x F'``) and ``m`` (self stream, ``F''``) are
+      :class:`TauLinear` maps: each head's value map has spectral norm at most
+      ``tau / sqrt(H)`` and ``m`` at most ``tau`` (Eq. 8).
+    * ``s^pre_ij = LeakyReLU_0.2(a_h . W_s x_i + b_h . W_s x_j)`` per head (GAT
+      scores) over the padded neighbours ``j in nbr(i)``; softmax over the real
+      neighbours only.
+    * Eq. 13 per vertex: ``n_i(X) = max(||s^pre_i||_2, max_{j in nbr(i)} ||v(x_j)|| L_i) / alpha``,
+      so ``|s_ij| <= alpha``.  ``L_i = sqrt(K) ||u|| + ||w||`` is the Lipschitz constant
+      of ``X -> s^pre_i`` for the linear score ``u . x_i + w . x_j``
+      (``u = W_s^T a``, ``w = W_s^T b``; LeakyReLU is 1-Lipschitz), computed from
+      the weights.  The paper writes ``n`` with the Frobenius norm of the whole
+      ``N x N`` score matrix; that norm grows with ``sqrt(N K)`` and would flatten
+      the attention on large garments, against the paper's own point that the
+      attention is local and independent of N.  Applied per vertex, the same
+      argument bounds each row.
+    * ``use_sega=False`` is the PlainGAT ablation: plain linear maps, ``n = 1``.
+
+    Output features: ``H F' + F''``.
+
+    Shapes:
+        x: (B, N, F), nbr: (N, K) int64, mask: (N, K) bool -> (B, N, H F' + F'')
+    """
+
+    def __init__(self, in_features: int, head_features: int, heads: int, self_features: int, *,
+                 alpha: float = 2.0, tau: float = 2.0, use_sega: bool = True) -> None:
+        super().__init__()
+        self.in_features, self.head_features, self.heads = in_features, head_features, heads
+        self.self_features, self.alpha, self.tau, self.use_sega = self_features, alpha, tau, use_sega
+        t = tau if use_sega else None
+        self.value = TauLinear(in_features, heads * head_features, t, bias=False, n_blocks=heads)
+        self.self_stream = TauLinear(in_features, self_features, t, bias=False) if self_features else None
+        self.score = nn.Linear(in_features, head_features, bias=False)  # W_s
+        self.att_src = nn.Parameter(torch.empty(heads, head_features))
+        self.att_dst = nn.Parameter(torch.empty(heads, head_features))
+        self.reset_parameters()
+
+    def reset_parameters(self) -> None:
+        self.value.reset_parameters()
+        if self.self_stream is not None:
+            self.self_stream.reset_parameters()
+        nn.init.xavier_uniform_(self.score.weight)
+        nn.init.xavier_uniform_(self.att_src)
+        nn.init.xavier_uniform_(self.att_dst)
+
+    @property
+    def out_features(self) -> int:
+        return self.heads * self.head_features + self.self_features
+
+    def freeze(self) -> None:
+        self.value.freeze()
+        if self.self_stream is not None:
+            self.self_stream.freeze()
+
+    def forward(self, x: torch.Tensor, nbr: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        b, n, _ = x.shape
+        k = nbr.shape[1]
+        h, fp = self.heads, self.head_features
+        z = self.score(x)  # (B, N, F')
+        e_src = torch.matmul(z, self.att_src.t())  # (B, N, H)
+        e_dst = torch.matmul(z, self.att_dst.t())
+        s_pre = nn.functional.leaky_relu(e_src[:, :, None, :] + gather_neighbours(e_dst, nbr), 0.2)  # (B,N,K,H)
+        v = self.value(x)  # (B, N, H F')
+        v_nb = gather_neighbours(v, nbr).reshape(b, n, k, h, fp)
+        if self.use_sega:
+            mf = mask[None, :, :, None].to(x.dtype)
+            row = torch.sqrt((s_pre * s_pre * mf).sum(dim=2) + 1e-30)  # ||s_pre_i||_2, (B, N, H)
+            vnorm = torch.sqrt((v_nb * v_nb).sum(dim=-1) + 1e-30) * mf  # ||v(x_j)||, (B, N, K, H)
+            vmax = vnorm.amax(dim=2)  # (B, N, H)
+            w_s = self.score.weight  # (F', F)
+            u = torch.matmul(self.att_src, w_s)  # (H, F)
+            w = torch.matmul(self.att_dst, w_s)
+            # sqrt(K) from a tensor, so exported graphs follow the runtime K (a Python
+            # float would be frozen at the export-time K)
+            sqrt_k = torch.sqrt(torch.ones_like(mask[0], dtype=x.dtype).sum())
+            lip = sqrt_k * torch.linalg.vector_norm(u, dim=-1) + torch.linalg.vector_norm(w, dim=-1)  # (H,)
+            n_i = torch.maximum(row, vmax * lip) / self.alpha
+            s = s_pre / n_i.clamp_min(1e-12)[:, :, None, :]
+        else:
+            s = s_pre
+        att = masked_softmax(s, mask)  # (B, N, K, H)
+        phi = (att[..., None] * v_nb).sum(dim=2).reshape(b, n, h * fp)
+        if self.self_stream is None:
+            return phi
+        return torch.cat([phi, self.self_stream(x)], dim=-1)
+
+    def extra_repr(self) -> str:
+        kind = f"alpha={self.alpha}, tau={self.tau}" if self.use_sega else "PlainGAT"
+        return (f"in={self.in_features}, heads={self.heads}x{self.head_features}, self={self.self_features}, "
+                f"{kind}")
