@@ -23,6 +23,14 @@ def theorem2_bound(alpha: float, tau: float) -> float:
     return math.sqrt((tau * math.exp(alpha) + math.sqrt(2.0) * (alpha + alpha * tau)) ** 2 + tau ** 2)
 
 
+def _safe_norm(x: torch.Tensor, dim: int) -> torch.Tensor:
+    """Euclidean norm as ``m * ||x / m||`` with ``m = max |x|``: no overflow for huge entries
+    (a plain sum of squares overflows float32 above ~1.8e19)."""
+    m = x.abs().amax(dim=dim, keepdim=True)
+    safe = torch.where(m > 0, m, torch.ones_like(m))
+    return (torch.sqrt(((x / safe) ** 2).sum(dim=dim, keepdim=True)) * m).squeeze(dim)
+
+
 def gather_neighbours(x: torch.Tensor, nbr: torch.Tensor) -> torch.Tensor:
     """``x[:, nbr]`` via one index_select (ONNX Gather).
 
@@ -189,9 +197,8 @@ class SEGABlock(nn.Module):
         v_nb = gather_neighbours(v, nbr).reshape(b, n, k, h, fp)
         if self.use_sega:
             mf = mask[None, :, :, None].to(x.dtype)
-            row = torch.sqrt((s_pre * s_pre * mf).sum(dim=2) + 1e-30)  # ||s_pre_i||_2, (B, N, H)
-            vnorm = torch.sqrt((v_nb * v_nb).sum(dim=-1) + 1e-30) * mf  # ||v(x_j)||, (B, N, K, H)
-            vmax = vnorm.amax(dim=2)  # (B, N, H)
+            row = _safe_norm(s_pre * mf, dim=2)  # ||s_pre_i||_2, (B, N, H)
+            vmax = (_safe_norm(v_nb, dim=-1) * mf).amax(dim=2)  # max_j ||v(x_j)||, (B, N, H)
             w_s = self.score.weight  # (F', F)
             u = torch.matmul(self.att_src, w_s)  # (H, F)
             w = torch.matmul(self.att_dst, w_s)

@@ -1,0 +1,156 @@
+"""Export -> parity -> portability, for random-weight models.
+
+Tolerance: for every output, max |torch - onnxruntime| <= 1e-5 x max |torch| (fp32)."""
+
+import json
+
+import numpy as np
+import onnx
+import onnxruntime as ort
+import pytest
+import torch
+from click.testing import CliRunner
+
+from segadeform.body import default_rest_joints
+from segadeform.cli.main import cli
+from segadeform.export import check_portability, export_package
+from segadeform.export.package import graph_specs, sample_inputs
+from segadeform.export.portability import PortabilityError
+from segadeform.export.verify import compare
+from segadeform.geometry import precompute_garment
+from segadeform.geometry.primitives import cylinder, grid_plane
+from segadeform.model import ModelConfig, SEGANet
+from segadeform.motion import make_motion, motion_windows
+
+RTOL = 1e-5
+VARIANTS = {"lbs": dict(skinning="lbs"), "dqs": dict(skinning="dqs"),
+            "lbs-noblend": dict(skinning="lbs", use_blend_shapes=False)}
+
+
+@pytest.fixture(scope="module")
+def packages(tmp_path_factory):
+    out = {}
+    for name, kw in VARIANTS.items():
+        torch.manual_seed(7)
+        net = SEGANet(ModelConfig(**kw)).eval()
+        d = tmp_path_factory.mktemp(name)
+        manifest = export_package(net, d / "pkg", check=False)
+        sessions = {g: ort.InferenceSession(str(d / "pkg" / spec["file"]), providers=["CPUExecutionProvider"])
+                    for g, spec in graph_specs(net.cfg).items()}
+        out[name] = (net.freeze(), d / "pkg", manifest, sessions)
+    return out
+
+
+def torch_run(net, graph, feeds):
+    spec = graph_specs(net.cfg)[graph]
+    fn = net.garment_encoder if graph == "garment_encoder" else net.deformer
+    with torch.no_grad():
+        r = fn(*(torch.as_tensor(feeds[i["name"]]) for i in spec["inputs"]))
+    return r if isinstance(r, tuple) else (r,)
+
+
+def assert_parity(net, sess, graph, feeds):
+    ref = torch_run(net, graph, feeds)
+    got = sess.run(None, feeds)
+    for r, g in zip(ref, got):
+        assert g.shape == tuple(r.shape)
+        assert np.isfinite(g).all()
+        err, rel = compare(r.numpy(), g)
+        assert rel <= RTOL, (graph, err, rel)
+
+
+@pytest.mark.parametrize("variant", list(VARIANTS))
+@pytest.mark.parametrize("n", [3, 37, 1000, 20000])
+@pytest.mark.parametrize("b", [1, 2, 5])
+def test_parity_random_inputs(packages, variant, n, b):
+    net, _, _, sessions = packages[variant]
+    k = min(8, n - 1) if n > 3 else 2
+    for graph in ("garment_encoder", "deformer"):
+        assert_parity(net, sessions[graph], graph, sample_inputs(net.cfg, graph, n=n, k=k, b=b, seed=n * 10 + b))
+
+
+def garment_inputs(net, v, f, poses, trans):
+    joints = default_rest_joints()
+    a = precompute_garment(v, f, joints, n_star=net.cfg.n_star)
+    enc = {"features": a.features[None], "nbr": a.nbr, "mask": a.mask,
+           "descriptor": a.descriptor[None].astype(np.float32), "betas": np.zeros((1, 10), np.float32)}
+    win = motion_windows(poses, net.cfg.window).astype(np.float32)
+    b = len(win)
+    dec = {"window": win, "betas": np.zeros((b, 10), np.float32), "rest": a.vertices.astype(np.float32),
+           "nbr": a.nbr, "mask": a.mask, "joints": np.repeat(joints[None], b, 0).astype(np.float32),
+           "trans": trans.astype(np.float32)}
+    return enc, dec
+
+
+def hard_meshes():
+    v, f = grid_plane(10, 10)
+    degenerate = (np.vstack([v, v[5], [[0.5, 0, 0.5]]]), np.vstack([f, [[5, 100, 6]], [[0, 101, 0]]]))
+    v1, f1 = cylinder(12, 6, 0.2, 0.5)
+    disconnected = (np.vstack([v1, v1 + [0.6, 0, 0], [[3.0, 3, 3]]]), np.vstack([f1, f1 + len(v1)]))
+    return {"degenerate": degenerate, "disconnected": disconnected, "plane": (v + [0, 0.9, 0], f)}
+
+
+@pytest.mark.parametrize("variant", ["lbs", "dqs"])
+@pytest.mark.parametrize("mesh", ["degenerate", "disconnected", "plane"])
+def test_parity_on_hard_garments_and_twists(packages, variant, mesh):
+    net, _, _, sessions = packages[variant]
+    v, f = hard_meshes()[mesh]
+    m = make_motion("dance", seconds=0.5, seed=1)
+    poses = m.poses[:6].copy()
+    poses[2, 3 * 5: 3 * 5 + 3] = [np.pi, 0, 0]  # 180-degree knee twist
+    poses[3, 3 * 16: 3 * 16 + 3] = [0, 0, np.pi]  # 180-degree shoulder twist
+    enc, dec = garment_inputs(net, v, f, poses, m.trans[:6])
+    assert_parity(net, sessions["garment_encoder"], "garment_encoder", enc)
+    P = sessions["garment_encoder"].run(None, enc)[0][0]
+    assert_parity(net, sessions["deformer"], "deformer", dict(dec, P=P))
+
+
+def test_manifest_matches_the_graphs(packages):
+    net, path, manifest, _ = packages["dqs"]
+    on_disk = json.loads((path / "manifest.json").read_text())
+    assert on_disk["schema_version"] == 1 and on_disk["opset"] == 18
+    assert ModelConfig.from_dict(on_disk["config"]) == net.cfg
+    assert on_disk["units"] == "m" and on_disk["up_axis"] == "y" and len(on_disk["joint_names"]) == 24
+    for g, spec in on_disk["graphs"].items():
+        proto = onnx.load(str(path / spec["file"]))
+        assert [i.name for i in proto.graph.input] == [i["name"] for i in spec["inputs"]]
+        assert [o.name for o in proto.graph.output] == [o["name"] for o in spec["outputs"]]
+        assert proto.opset_import[0].version == 18
+        # N, B and K stay symbolic: nothing was frozen to the export sample sizes (37, 7, 3)
+        for i in proto.graph.input:
+            shape = [d.dim_param or d.dim_value for d in i.type.tensor_type.shape.dim]
+            want = [i2["shape"] for i2 in spec["inputs"] if i2["name"] == i.name][0]
+            for got_d, want_d in zip(shape, want):
+                if isinstance(want_d, str):
+                    assert isinstance(got_d, str) and got_d, (g, i.name, shape)
+                else:
+                    assert got_d == want_d
+        check_portability(proto, g)
+
+
+def test_portability_check_can_fail():
+    from onnx import TensorProto, helper
+
+    node = helper.make_node("Einsum", ["a", "b"], ["c"], equation="ij,jk->ik")
+    g = helper.make_graph([node], "g", [helper.make_tensor_value_info("a", TensorProto.FLOAT, [2, 2]),
+                                        helper.make_tensor_value_info("b", TensorProto.FLOAT, [2, 2])],
+                          [helper.make_tensor_value_info("c", TensorProto.FLOAT, [2, 2])])
+    with pytest.raises(PortabilityError, match="Einsum: limited in Unity Sentis"):
+        check_portability(helper.make_model(g), "toy")
+    lstm = helper.make_node("LSTM", ["x", "w", "r"], ["y"], hidden_size=2)
+    g2 = helper.make_graph([lstm], "g", [], [])
+    with pytest.raises(PortabilityError, match="LSTM"):
+        check_portability(helper.make_model(g2), "toy")
+
+
+def test_export_cli_random_init_with_check(tmp_path):
+    r = CliRunner().invoke(cli, ["export", "--random-init", "--config", '{"hidden": 16, "heads": 2}',
+                                 "-o", str(tmp_path / "pkg"), "--check"])
+    assert r.exit_code == 0, r.output
+    assert "deformer.vertices: max abs" in r.output and "max rel" in r.output
+    rels = [float(line.rsplit("max rel ", 1)[1].split()[0]) for line in r.output.splitlines() if "max rel" in line]
+    assert rels and max(rels) <= RTOL
+    r = CliRunner().invoke(cli, ["export", "-o", str(tmp_path / "p2")])
+    assert r.exit_code == 2 and "CHECKPOINT or --random-init" in r.output
+    r = CliRunner().invoke(cli, ["export", str(tmp_path / "missing.pt"), "-o", str(tmp_path / "p3")])
+    assert r.exit_code == 1 and "missing.pt" in r.output and not (tmp_path / "p3").exists()

@@ -1,0 +1,87 @@
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from segadeform.errors import FileFormatError, InputError
+from segadeform.model import ModelConfig, SEGANet, load_checkpoint, save_checkpoint
+from segadeform.export.package import sample_inputs
+
+
+def run(net, n=40, k=6, b=3):
+    enc_in = sample_inputs(net.cfg, "garment_encoder", n=n, k=k, b=1)
+    dec_in = sample_inputs(net.cfg, "deformer", n=n, k=k, b=b)
+    t = {k_: torch.as_tensor(v) for k_, v in {**enc_in, **dec_in}.items()}
+    with torch.no_grad():
+        P = net.garment_encoder(t["features"], t["nbr"], t["mask"], t["descriptor"], torch.as_tensor(enc_in["betas"]))
+        return P, net.deformer(P[0], t["window"], t["betas"], t["rest"], t["nbr"], t["mask"], t["joints"], t["trans"])
+
+
+def test_shapes_and_weights_are_a_partition_of_unity():
+    torch.manual_seed(0)
+    net = SEGANet(ModelConfig()).eval()
+    P, (v, w, b) = run(net)
+    assert P.shape == (1, 40, 24, 8)
+    assert v.shape == (3, 40, 3) and w.shape == (3, 40, 24) and b.shape == (3, 40, 3)
+    assert (w >= 0).all() and torch.allclose(w.sum(-1), torch.ones(3, 40), atol=1e-6)
+
+
+def test_no_blend_shapes_means_b_is_zero_and_skinning_of_rest():
+    torch.manual_seed(0)
+    net = SEGANet(ModelConfig(use_blend_shapes=False)).eval()
+    _, (v, w, b) = run(net)
+    assert (b == 0).all()
+    assert net.dec is None and net.mo2 is None
+
+
+def test_weights_follow_eq16():
+    """W~ = softmax_j(sum_i P[k, j, i] f^mo1(Theta)_i), computed by hand."""
+    torch.manual_seed(0)
+    net = SEGANet(ModelConfig()).eval()
+    dec_in = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=20, k=5, b=2).items()}
+    with torch.no_grad():
+        _, w, _ = net.deformer(*(dec_in[k] for k in ("P", "window", "betas", "rest", "nbr", "mask", "joints", "trans")))
+        mo1 = net.mo1(dec_in["window"])
+        ref = torch.softmax(torch.einsum("kji,bi->bkj", dec_in["P"], mo1), dim=-1)
+    torch.testing.assert_close(w, ref)
+
+
+def test_identity_pose_with_zero_blend_keeps_rest_up_to_trans():
+    torch.manual_seed(0)
+    net = SEGANet(ModelConfig(use_blend_shapes=False)).eval()
+    d = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=20, k=5, b=2).items()}
+    d["window"] = torch.zeros_like(d["window"])
+    with torch.no_grad():
+        v, _, _ = net.deformer(*(d[k] for k in ("P", "window", "betas", "rest", "nbr", "mask", "joints", "trans")))
+    torch.testing.assert_close(v, d["rest"][None] + d["trans"][:, None], atol=1e-5, rtol=1e-5)
+
+
+def test_checkpoint_round_trip(tmp_path):
+    torch.manual_seed(0)
+    net = SEGANet(ModelConfig(skinning="dqs", hidden=16, heads=2))
+    save_checkpoint(tmp_path / "c.pt", net, epoch=3)
+    back = load_checkpoint(tmp_path / "c.pt").eval()
+    assert back.cfg == net.cfg
+    torch.testing.assert_close(run(back)[1][0], run(net.eval())[1][0])
+
+
+def test_bad_checkpoints_and_configs(tmp_path):
+    (tmp_path / "x.pt").write_bytes(b"garbage")
+    with pytest.raises(FileFormatError, match="not a readable checkpoint"):
+        load_checkpoint(tmp_path / "x.pt")
+    torch.save({"config": {"nope": 1}, "state_dict": {}}, tmp_path / "y.pt")
+    with pytest.raises(FileFormatError, match="unknown ModelConfig fields"):
+        load_checkpoint(tmp_path / "y.pt")
+    with pytest.raises(InputError):
+        ModelConfig(hidden=30, heads=4)
+    with pytest.raises(InputError):
+        ModelConfig(alpha=0)
+
+
+def test_freeze_keeps_outputs():
+    torch.manual_seed(0)
+    net = SEGANet(ModelConfig()).eval()
+    before = run(net)[1][0]
+    net.freeze()
+    torch.testing.assert_close(run(net)[1][0], before, atol=1e-5, rtol=1e-5)
