@@ -85,3 +85,16 @@ def test_freeze_keeps_outputs():
     before = run(net)[1][0]
     net.freeze()
     torch.testing.assert_close(run(net)[1][0], before, atol=1e-5, rtol=1e-5)
+
+
+def test_modulated_decoder_equals_materialised_blend_features():
+    """The factored X^mid = P' * mo2 path gives what the literal Eq. 17 product gives."""
+    torch.manual_seed(0)
+    net = SEGANet(ModelConfig()).eval()
+    d = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=30, k=5, b=3).items()}
+    with torch.no_grad():
+        mo2 = net.mo2(d["window"], d["betas"])
+        p2 = d["P"].reshape(30, -1)
+        factored = net.dec(p2, d["nbr"], d["mask"], modulation=mo2)
+        literal = net.dec(p2[None] * mo2[:, None, :], d["nbr"], d["mask"])
+    torch.testing.assert_close(factored, literal, atol=1e-5, rtol=1e-5)

@@ -8,23 +8,8 @@ import torch
 
 from segadeform.geometry import neighbour_graph
 from segadeform.geometry.primitives import fan, frustum
+from segadeform.model.lipschitz import ADVERSARIAL_CASES, adversarial_features, lipschitz_estimate
 from segadeform.model.sega import SEGABlock, theorem2_bound
-
-
-def lipschitz_estimate(block, x, nbr, mask, iters=50, seed=0):
-    """Largest singular value of the block's Jacobian at x (power iteration on J^T J)."""
-    fn = lambda z: block(z, nbr, mask)  # noqa: E731
-    g = torch.Generator().manual_seed(seed)
-    u = torch.randn(x.shape, generator=g, dtype=x.dtype)
-    u /= u.norm()
-    sigma = 0.0
-    for _ in range(iters):
-        _, jv = torch.func.jvp(fn, (x,), (u,))
-        _, vjp = torch.func.vjp(fn, x)
-        w = vjp(jv)[0]
-        sigma = float(jv.norm())
-        u = w / w.norm().clamp_min(1e-300)
-    return sigma
 
 
 def graph(kind):
@@ -37,21 +22,10 @@ def graph(kind):
 
 
 def inputs(kind, v, rng):
-    n = len(v)
-    if kind == "random":
-        return rng.normal(size=(n, 30))
-    if kind == "large":
-        return 1e4 * rng.normal(size=(n, 30))
-    if kind == "near_duplicate":
-        return rng.normal(size=(1, 30)) + 1e-7 * rng.normal(size=(n, 30))
-    if kind == "all_equal":
-        return np.tile(rng.normal(size=(1, 30)), (n, 1))
-    if kind == "tiny":
-        return 1e-6 * rng.normal(size=(n, 30))
-    raise ValueError(kind)
+    return adversarial_features(kind, len(v), 30, rng)
 
 
-CASES = ["random", "large", "near_duplicate", "all_equal", "tiny"]
+CASES = ADVERSARIAL_CASES
 
 
 @pytest.mark.parametrize("alpha, tau", [(2.0, 2.0), (1.0, 1.0), (3.0, 1.0)])

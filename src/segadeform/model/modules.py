@@ -144,9 +144,10 @@ class GraphDecoder(nn.Module):
         self.blocks = nn.ModuleList(blocks)
         self.out = TauLinear(width, 3, cfg.tau if cfg.use_sega else None)
 
-    def forward(self, x, nbr, mask):
-        for blk in self.blocks:
-            x = nn.functional.elu(blk(x, nbr, mask))
+    def forward(self, x, nbr, mask, modulation=None):
+        """``x (B, N, C)``; or ``x (N, C)`` shared with ``modulation (B, C)`` (see SEGABlock)."""
+        for i, blk in enumerate(self.blocks):
+            x = nn.functional.elu(blk(x, nbr, mask, modulation if i == 0 else None))
         return self.out(x)
 
 

@@ -93,8 +93,8 @@ class SEGANet(nn.Module):
         weights = torch.softmax(w_raw, dim=-1)
         if self.dec is not None:
             mo2 = self.mo2(window, betas)  # (B, S F_enc)
-            x_mid = P.reshape(1, n, s * f) * mo2[:, None, :]
-            blend = self.dec(x_mid, nbr, mask)  # (B, N, 3)
+            # X^mid = P' * mo2 (Eq. 17), passed factored so the (B, N, S F_enc) product is never formed
+            blend = self.dec(P.reshape(n, s * f), nbr, mask, modulation=mo2)  # (B, N, 3)
         else:
             blend = torch.zeros(b, n, 3, dtype=P.dtype, device=P.device)
         verts = rest[None] + blend

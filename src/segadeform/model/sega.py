@@ -185,20 +185,31 @@ class SEGABlock(nn.Module):
         if self.self_stream is not None:
             self.self_stream.freeze()
 
-    def forward(self, x: torch.Tensor, nbr: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-        b, n, _ = x.shape
+    def forward(self, x: torch.Tensor, nbr: torch.Tensor, mask: torch.Tensor,
+                modulation: torch.Tensor | None = None) -> torch.Tensor:
+        """With ``modulation (B, F)``, ``x`` is ``(N, F)`` shared by the batch and the block sees
+        ``x[None] * modulation[:, None]`` -- computed as ``x @ (W * modulation)^T`` so the
+        ``(B, N, F)`` product is never formed (the decoder's blend features, Eq. 17)."""
+        if modulation is not None:
+            lin = lambda layer_w: torch.matmul(x, (layer_w[None] * modulation[:, None, :]).transpose(1, 2))  # noqa: E731
+            b, n = modulation.shape[0], x.shape[0]
+        else:
+            lin = None
+            b, n = x.shape[0], x.shape[1]
         k = nbr.shape[1]
         h, fp = self.heads, self.head_features
-        z = self.score(x)  # (B, N, F')
+        z = self.score(x) if lin is None else lin(self.score.weight)  # (B, N, F')
         e_src = torch.matmul(z, self.att_src.t())  # (B, N, H)
         e_dst = torch.matmul(z, self.att_dst.t())
         s_pre = nn.functional.leaky_relu(e_src[:, :, None, :] + gather_neighbours(e_dst, nbr), 0.2)  # (B,N,K,H)
-        v = self.value(x)  # (B, N, H F')
+        v = self.value(x) if lin is None else lin(self.value.effective_weight())  # (B, N, H F')
         v_nb = gather_neighbours(v, nbr).reshape(b, n, k, h, fp)
         if self.use_sega:
             mf = mask[None, :, :, None].to(x.dtype)
             row = _safe_norm(s_pre * mf, dim=2)  # ||s_pre_i||_2, (B, N, H)
-            vmax = (_safe_norm(v_nb, dim=-1) * mf).amax(dim=2)  # max_j ||v(x_j)||, (B, N, H)
+            # ||v(x_j)|| once per vertex, then gathered: K times cheaper than norming v_nb
+            vn = _safe_norm(v.reshape(b, n, h, fp), dim=-1)  # (B, N, H)
+            vmax = (gather_neighbours(vn, nbr) * mf).amax(dim=2)  # max_j ||v(x_j)||, (B, N, H)
             w_s = self.score.weight  # (F', F)
             u = torch.matmul(self.att_src, w_s)  # (H, F)
             w = torch.matmul(self.att_dst, w_s)
@@ -214,7 +225,8 @@ class SEGABlock(nn.Module):
         phi = (att[..., None] * v_nb).sum(dim=2).reshape(b, n, h * fp)
         if self.self_stream is None:
             return phi
-        return torch.cat([phi, self.self_stream(x)], dim=-1)
+        m = self.self_stream(x) if lin is None else lin(self.self_stream.effective_weight())
+        return torch.cat([phi, m], dim=-1)
 
     def extra_repr(self) -> str:
         kind = f"alpha={self.alpha}, tau={self.tau}" if self.use_sega else "PlainGAT"
