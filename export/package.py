@@ -147,12 +147,47 @@ def _run_export(module, args, spec, in_names, out_names, path, dynamo) -> None:
                               output_names=out_names, dynamic_axes=dyn)
 
 
+def deformer_variants(cfg) -> dict:
+    """The per-effect deformer graphs: skinning x wrinkles (blend-shape decoder) x dynamics (window).
+
+    ``dynamics=False`` sees only the current pose (window 1); ``wrinkles=False``
+    drops the decoder (B = 0).  The variant matching ``cfg`` is ``deformer.onnx``.
+    """
+    out = {}
+    for skin in ("lbs", "dqs"):
+        for wrinkles in (True, False):
+            if wrinkles and not cfg.use_blend_shapes:
+                continue
+            for dynamics in (True, False):
+                name = f"deformer_{skin}" + ("" if wrinkles else "_nowrinkles") + ("" if dynamics else "_static")
+                vcfg = cfg.replace(skinning=skin, use_blend_shapes=wrinkles, window=cfg.window if dynamics else 1)
+                default = skin == cfg.skinning and wrinkles == cfg.use_blend_shapes and dynamics
+                out[name] = {"config": vcfg, "file": "deformer.onnx" if default else f"{name}.onnx",
+                             "effects": {"skinning": skin, "wrinkles": wrinkles, "dynamics": dynamics},
+                             "default": default}
+    return out
+
+
+def _variant_model(net, vcfg):
+    """A network for ``vcfg`` carrying ``net``'s (frozen) weights; the dropped parts are left out."""
+    from segadeform.model import SEGANet
+
+    v = SEGANet(vcfg).eval()
+    missing, unexpected = v.load_state_dict(net.state_dict(), strict=False)
+    if missing:
+        raise RuntimeError(f"variant is missing weights: {missing[:5]}")
+    for m in v.modules():
+        if hasattr(m, "frozen"):
+            m.frozen = True  # the weights are already scaled
+    return v
+
+
 def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, check: bool = True,
-                   extra_manifest: dict | None = None) -> dict:
+                   variants: bool = True, extra_manifest: dict | None = None) -> dict:
     """Export ``model`` (a SEGANet) to ``out_dir``; returns the manifest (and parity figures when ``check``).
 
     The model is copied and frozen (tau scalings folded into constants).
@@ -197,6 +232,22 @@ def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, ch
             manifest["ops"][name] = dict(sorted(counts.items()))
             if check:
                 report[name] = parity(wrappers[name], path, spec, cfg)
+        manifest["variants"] = {}
+        if variants:
+            for vname, var in deformer_variants(cfg).items():
+                vspec = dict(graph_specs(var["config"])["deformer"], file=var["file"])
+                if not var["default"]:
+                    vnet = _variant_model(net, var["config"])
+                    vmod = _wrappers(vnet)["deformer"]
+                    path = tmp / var["file"]
+                    _export_one(vmod, vspec, sample_inputs(var["config"], "deformer", n=37, k=7, b=3), path,
+                                dynamo=dynamo)
+                    counts = check_portability(onnx.load(str(path)), vname)
+                    manifest["ops"][vname] = dict(sorted(counts.items()))
+                    if check:
+                        report[vname] = parity(vmod, path, vspec, var["config"], sizes=((37, 7, 2),), graph="deformer")
+                manifest["variants"][vname] = dict(vspec, effects=var["effects"], window=var["config"].window,
+                                                   sha256=_sha256(tmp / var["file"]))
         (tmp / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
     if check:
         manifest = dict(manifest, parity=report)

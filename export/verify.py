@@ -16,14 +16,16 @@ def compare(ref: np.ndarray, got: np.ndarray) -> tuple[float, float]:
     return err, err / max(scale, 1e-30)
 
 
-def parity(module, onnx_path, spec, cfg, sizes=((3, 4, 1), (37, 7, 2), (300, 9, 5))) -> dict:
-    """Run torch and onnxruntime on random inputs of several (N, K, B); worst abs/rel error per output."""
+def parity(module, onnx_path, spec, cfg, sizes=((3, 4, 1), (37, 7, 2), (300, 9, 5)), graph: str | None = None) -> dict:
+    """Run torch and onnxruntime on random inputs of several (N, K, B); worst abs/rel error per output.
+
+    ``graph`` is "garment_encoder" or "deformer" (default: from the file name)."""
     import onnxruntime as ort
     import torch
 
     from .package import sample_inputs
 
-    name = spec["file"].replace(".onnx", "")
+    name = graph or spec["file"].replace(".onnx", "")
     sess = ort.InferenceSession(str(onnx_path), providers=["CPUExecutionProvider"])
     worst = {o["name"]: [0.0, 0.0] for o in spec["outputs"]}
     for n, k, b in sizes:

@@ -28,7 +28,7 @@ from ..errors import InputError
 from ..geometry._checks import check_mesh
 from ..geometry.mesh_ops import face_cross
 
-__all__ = ["BodyProxy", "ProximityResult", "closest_point_on_triangles", "winding_number"]
+__all__ = ["BodyProxy", "ProximityResult", "closest_point_on_triangles", "winding_number", "push_out"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -116,38 +116,55 @@ class BodyProxy:
         k: nearest-centroid candidates per query
     """
 
-    def __init__(self, vertices, faces, *, k: int = 8) -> None:
+    def __init__(self, vertices, faces, *, k: int = 8, _topology: dict | None = None) -> None:
         v, f = check_mesh(vertices, faces)
         self.vertices, self.faces, self.k = v, f, int(k)
+        self._topo = _topology if _topology is not None else self._build_topology(f, len(v))
+        t = self._topo
         cr = face_cross(v, f)
         area2 = np.linalg.norm(cr, axis=1)
         self.face_normals = cr / np.maximum(area2, 1e-300)[:, None]
         # angle-weighted vertex pseudo-normals
-        vn = np.zeros_like(v)
+        nv = len(v)
+        ang = np.empty((len(f), 3))
         for c in range(3):
             e1 = v[f[:, (c + 1) % 3]] - v[f[:, c]]
             e2 = v[f[:, (c + 2) % 3]] - v[f[:, c]]
             cosang = np.einsum("ij,ij->i", e1, e2) / np.maximum(
                 np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), 1e-300)
-            ang = np.arccos(np.clip(cosang, -1, 1))
-            for k3 in range(3):
-                vn[:, k3] += np.bincount(f[:, c], weights=ang * self.face_normals[:, k3], minlength=len(v))
+            ang[:, c] = np.arccos(np.clip(cosang, -1, 1))
+        contrib = (ang[:, :, None] * self.face_normals[:, None, :]).reshape(-1, 3)  # (3F, 3) per corner
+        vn = t["corner_to_vertex"] @ contrib
         self.vertex_normals = vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
         # edge pseudo-normals: sum of the (up to two) adjacent face normals, per face edge slot
-        e = np.sort(np.stack([f[:, [1, 2]], f[:, [2, 0]], f[:, [0, 1]]], axis=1), axis=2)  # edge opposite corner c
-        key = e[..., 0] * (np.int64(len(v)) + 1) + e[..., 1]
-        uk, inv = np.unique(key.ravel(), return_inverse=True)
-        en = np.zeros((len(uk), 3))
-        for k3 in range(3):
-            en[:, k3] = np.bincount(inv, weights=np.repeat(self.face_normals[:, k3], 3), minlength=len(uk))
-        self.edge_normals = en[inv].reshape(len(f), 3, 3)
+        en = t["slot_to_edge"] @ np.repeat(self.face_normals, 3, axis=0)  # (E, 3)
+        self.edge_normals = en[t["edge_of_slot"]].reshape(len(f), 3, 3)
         self.edge_normals /= np.maximum(np.linalg.norm(self.edge_normals, axis=2), 1e-300)[..., None]
-        self._tree = cKDTree(v[f].mean(axis=1))
-        self._vtree = cKDTree(v)
+        # unbalanced, uncompacted trees build several times faster; queries barely change
+        self._tree = cKDTree(v[f].mean(axis=1), balanced_tree=False, compact_nodes=False)
+        self._vtree = cKDTree(v, balanced_tree=False, compact_nodes=False)
+        self._vf_faces, self._vf_ptr, self._max_valence = t["vf_faces"], t["vf_ptr"], t["max_valence"]
+
+    @staticmethod
+    def _build_topology(f: np.ndarray, nv: int) -> dict:
+        """Everything that depends on the faces only (reused across frames by :meth:`moved`)."""
+        import scipy.sparse as sp
+
+        nf = len(f)
+        corner_to_vertex = sp.csr_matrix((np.ones(3 * nf), (f.ravel(), np.arange(3 * nf))), shape=(nv, 3 * nf))
+        e = np.sort(np.stack([f[:, [1, 2]], f[:, [2, 0]], f[:, [0, 1]]], axis=1), axis=2)  # edge opposite corner c
+        key = e[..., 0] * (np.int64(nv) + 1) + e[..., 1]
+        uk, inv = np.unique(key.ravel(), return_inverse=True)
+        inv = inv.ravel()
+        slot_to_edge = sp.csr_matrix((np.ones(3 * nf), (inv, np.arange(3 * nf))), shape=(len(uk), 3 * nf))
         order = np.argsort(f.ravel(), kind="stable")
-        self._vf_faces = order // 3
-        self._vf_ptr = np.concatenate([[0], np.cumsum(np.bincount(f.ravel(), minlength=len(v)))])
-        self._max_valence = int(np.diff(self._vf_ptr).max())
+        vf_ptr = np.concatenate([[0], np.cumsum(np.bincount(f.ravel(), minlength=nv))])
+        return {"corner_to_vertex": corner_to_vertex, "slot_to_edge": slot_to_edge, "edge_of_slot": inv,
+                "vf_faces": order // 3, "vf_ptr": vf_ptr, "max_valence": int(np.diff(vf_ptr).max())}
+
+    def moved(self, vertices) -> "BodyProxy":
+        """The same body surface at new vertex positions (topology reused: cheaper per frame)."""
+        return BodyProxy(vertices, self.faces, k=self.k, _topology=self._topo)
 
     def query(self, points) -> ProximityResult:
         """Signed distance (negative inside), closest point, outward normal for ``points (P, 3)``."""
@@ -192,3 +209,22 @@ class BodyProxy:
         dist = np.linalg.norm(diff, axis=1)
         sign = np.where(np.einsum("ij,ij->i", diff, normal) < 0, -1.0, 1.0)
         return ProximityResult(signed_distance=sign * dist, closest=closest, normal=normal, face=face)
+
+
+def push_out(points: np.ndarray, proxy: "BodyProxy", margin: float = 0.0) -> tuple[np.ndarray, int]:
+    """Move points that are inside the body, or closer than ``margin`` to it, out along the body normal.
+
+    ``p' = closest + margin * n`` for every point with signed distance below
+    ``margin``; others are unchanged.  A point exactly on the surface has a
+    finite unit normal (see :class:`BodyProxy`), so it moves to ``margin``
+    along it, never to NaN.  Vectorised over points.
+
+    Shapes:
+        points: (P, 3) -> (P, 3), and the number of points moved
+    """
+    p = np.asarray(points, np.float64)
+    r = proxy.query(p)
+    hit = r.signed_distance < margin
+    out = p.copy()
+    out[hit] = r.closest[hit] + margin * r.normal[hit]
+    return out, int(hit.sum())

@@ -1,0 +1,122 @@
+"""``segadeform run`` and ``segadeform info``."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import click
+
+from .main import cli
+
+
+def _fmt_from(path: Path, fmt: str | None) -> str:
+    from segadeform.scene import SEQUENCE_FORMAT_BY_EXT
+
+    f = fmt or SEQUENCE_FORMAT_BY_EXT.get(path.suffix.lower())
+    if f is None:
+        raise click.UsageError(f"cannot tell the output format from {path.name!r}; pass --format")
+    return f
+
+
+@cli.command("run")
+@click.argument("scene", required=False, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", type=click.Path(path_type=Path), help="Output (overrides the scene's).")
+@click.option("--garment", type=click.Path(dir_okay=False, path_type=Path), help="Garment mesh (flag form).")
+@click.option("--motion", "motion_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Motion .npz/.bvh (flag form).")
+@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz/.pkl (default: shipped body).")
+@click.option("--betas", help="Comma-separated body shape coefficients.")
+@click.option("--effects", help="e.g. 'dqs,-wrinkles,-collisions' (default: lbs, all effects on).")
+@click.option("--format", "fmt", type=click.Choice(["pc2", "obj-seq", "xdmf"]), help="Output format.")
+@click.option("--model", type=click.Path(file_okay=False, path_type=Path), help="Model package directory.")
+@click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
+@click.option("--fps", type=float, help="Resample the motion to this frame rate.")
+@click.option("--batch", type=click.IntRange(min=1), default=8, show_default=True, help="Frames per deformer call.")
+@click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help="onnxruntime threads.")
+@click.option("--providers", help="Comma-separated onnxruntime providers, or 'auto' (default: CPU).")
+@click.option("--body-out", type=click.Path(path_type=Path), help="Also write the posed body sequence here.")
+@click.option("--up", type=click.Choice(["y", "z"]), help="Up axis of the written coordinates (default y).")
+@click.option("--no-cache", is_flag=True, help="Do not write precompute/encoder caches next to the garment.")
+def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, model, frames, fps, batch, threads,
+            providers, body_out, up, no_cache):
+    """Animate a garment: SCENE.toml, or the flag form --garment G --motion M -o OUT."""
+    import dataclasses
+
+    from segadeform.runtime.pipeline import run_scene
+    from segadeform.scene import Effects, MotionSpec, Scene, load_scene, parse_effects, parse_frames
+
+    if scene is not None:
+        if garment or motion_path:
+            raise click.UsageError("give a SCENE or --garment/--motion, not both")
+        sc = load_scene(scene)
+        changes = {}
+        if effects:
+            changes["effects"] = parse_effects(effects, sc.effects)
+        if fmt or output:
+            changes["output_format"] = fmt or _fmt_from(output, None) if output else fmt
+        if up:
+            changes["up"] = up
+        if body_out:
+            changes["body_output"] = body_out
+        if body:
+            changes["body"] = body
+        if betas:
+            changes["betas"] = tuple(float(x) for x in betas.split(","))
+        if frames or fps:
+            changes["motion"] = dataclasses.replace(
+                sc.motion, frames=parse_frames(frames) if frames else sc.motion.frames, fps=fps or sc.motion.fps)
+        sc = dataclasses.replace(sc, **changes)
+    else:
+        if not (garment and motion_path and output):
+            raise click.UsageError("give a SCENE, or --garment, --motion and -o")
+        try:
+            beta_vals = tuple(float(x) for x in betas.split(",")) if betas else ()
+        except ValueError:
+            raise click.UsageError(f"--betas must be comma-separated numbers, got {betas!r}") from None
+        sc = Scene(garment=garment, motion=MotionSpec(file=motion_path, fps=fps,
+                                                      frames=parse_frames(frames) if frames else None),
+                   output=output, output_format=_fmt_from(output, fmt), up=up or "y", body=body, betas=beta_vals,
+                   model=None, body_output=body_out,
+                   effects=parse_effects(effects) if effects else Effects())
+    prov = None
+    if providers:
+        prov = "auto" if providers == "auto" else [p.strip() for p in providers.split(",") if p.strip()]
+    interactive = sys.stderr.isatty()
+    from segadeform.runtime.pipeline import build_motion
+
+    total = None
+    if interactive:
+        m = build_motion(sc.motion)
+        a, b = sc.motion.frames or (0, None)
+        total = (min(b, m.n_frames) if b else m.n_frames) - a
+    with click.progressbar(length=total or 1, label="deforming", file=sys.stderr,
+                           hidden=not interactive) as bar:
+        summary = run_scene(sc, model=model, output=output, batch=batch, threads=threads, providers=prov,
+                            progress=bar.update if interactive else None, cache=not no_cache)
+    extra = f", body -> {summary.body_output}" if summary.body_output else ""
+    click.echo(f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame ({summary.effects.label()}, "
+               f"{summary.variant}) -> {summary.output}{extra}")
+
+
+@cli.command("info")
+@click.argument("package", type=click.Path(file_okay=False, path_type=Path))
+def info_cmd(package):
+    """Print a model package's manifest, I/O signature and op set."""
+    from segadeform.runtime import ModelPackage
+
+    pkg = ModelPackage(package)
+    m = pkg.manifest
+    click.echo(f"{package}: {m.get('format', 'model package')} schema {m['schema_version']}, opset {m['opset']}, "
+               f"{m.get('producer', '?')}, exporter {m.get('exporter', '?')}")
+    click.echo(f"  units {m.get('units')}, up +{m.get('up_axis')}, {len(m['joint_names'])} joints")
+    click.echo("  config: " + json.dumps(m["config"], sort_keys=True))
+    graphs = dict(m["graphs"], **{k: v for k, v in m.get("variants", {}).items() if v["file"] != "deformer.onnx"})
+    for name, spec in graphs.items():
+        sig = ", ".join(f"{i['name']}{i['shape']}" for i in spec["inputs"])
+        outs = ", ".join(f"{o['name']}{o['shape']}" for o in spec["outputs"])
+        eff = f" effects={spec['effects']}" if "effects" in spec else ""
+        click.echo(f"  {name} ({spec['file']}){eff}\n    in:  {sig}\n    out: {outs}")
+    ops = sorted({op for g in m.get("ops", {}).values() for op in g})
+    click.echo(f"  ops ({len(ops)}): " + " ".join(ops))

@@ -1,0 +1,136 @@
+"""Garment encoding (cached) and batched per-frame deformation on onnxruntime."""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+
+from segadeform.errors import InputError
+from segadeform.geometry import GarmentAsset
+from segadeform.geometry.features import vertex_features
+from segadeform.scene import Effects
+
+from .package import ModelPackage
+
+__all__ = ["Deformer"]
+
+log = logging.getLogger(__name__)
+
+
+def _digest(*arrays, extra: str = "") -> str:
+    h = hashlib.sha256(extra.encode())
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(str(a.dtype).encode() + str(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()[:32]
+
+
+class Deformer:
+    """Runs a model package for one set of effects.
+
+    Only the graphs the effects need get a session: the garment encoder (when
+    a garment is encoded) and the one deformer variant for ``effects``.
+
+    Args:
+        package: a :class:`ModelPackage`.
+        effects: which stages run (skinning kind, dynamics, wrinkles; collisions are the pipeline's).
+    """
+
+    def __init__(self, package: ModelPackage, effects: Effects = Effects()):
+        self.package = package
+        self.effects = effects
+        self.variant = package.variant_for(effects)
+        spec = package.spec(self.variant)
+        self.window = int(dict((i["name"], i["shape"]) for i in spec["inputs"])["window"][1])
+        self.n_betas = int(package.config["n_betas"])
+        self.n_joints = int(package.config["n_joints"])
+        self._memory: dict[str, np.ndarray] = {}
+        self.encoder_runs = 0
+
+    # ---- encoder -------------------------------------------------------
+    def _betas(self, betas) -> np.ndarray:
+        b = np.zeros(self.n_betas, np.float32)
+        given = np.asarray(betas if betas is not None else [], np.float64).ravel()
+        if given.size > self.n_betas:
+            raise InputError("too many shape coefficients for this model", expected=f"<= {self.n_betas}", got=given.size)
+        if not np.isfinite(given).all():
+            raise InputError("betas contain NaN or inf")
+        b[: given.size] = given
+        return b
+
+    def encode(self, asset: GarmentAsset, joints: np.ndarray, betas=None, *,
+               cache_dir: str | os.PathLike | None = None) -> np.ndarray:
+        """The target-aware features ``P (N, S, F_enc)`` for a garment on a body shape.
+
+        Vertex features are recomputed for ``joints`` (the body's rest joints
+        for ``betas``).  Results are cached in memory and, when ``cache_dir``
+        is given and writable, on disk as ``P-<hash>.npy``, keyed by a hash of
+        every encoder input and the encoder graph.
+        """
+        asset.validate()
+        j = np.asarray(joints, np.float64)
+        if j.shape != (self.n_joints, 3) or not np.isfinite(j).all():
+            raise InputError("joints must be a finite (S, 3) array", expected=(self.n_joints, 3), got=j.shape)
+        b = self._betas(betas)
+        feats = vertex_features(asset.vertices, asset.faces, j, normals=asset.normals.astype(np.float64))
+        desc = asset.descriptor.astype(np.float32)
+        n_star = int(self.package.config["n_star"])
+        if desc.shape != (n_star,):
+            raise InputError("garment descriptor length does not match the model", expected=n_star, got=desc.shape[0])
+        key = _digest(feats, asset.nbr, asset.mask, desc, b,
+                      extra=self.package.spec("garment_encoder").get("sha256", str(self.package.path)))
+        if key in self._memory:
+            return self._memory[key]
+        path = Path(cache_dir) / f"P-{key}.npy" if cache_dir is not None else None
+        if path is not None and path.is_file():
+            try:
+                P = np.load(path, allow_pickle=False)
+                if P.shape[0] == asset.n_vertices and np.isfinite(P).all():
+                    self._memory[key] = P
+                    return P
+            except (OSError, ValueError):
+                log.warning("ignoring unreadable encoder cache %s", path)
+        P = self.package.run("garment_encoder", {"features": feats[None], "nbr": asset.nbr, "mask": asset.mask,
+                                                 "descriptor": desc[None], "betas": b[None]})[0][0]
+        self.encoder_runs += 1
+        if not np.isfinite(P).all():
+            raise InputError("the garment encoder produced NaN or inf")
+        self._memory[key] = P
+        if path is not None:
+            try:
+                from segadeform.io.atomic import atomic_path
+
+                with atomic_path(path) as tmp:
+                    with open(tmp, "wb") as fh:
+                        np.save(fh, P)
+            except OSError as e:  # a read-only garment folder: run without the disk cache
+                log.warning("cannot write the encoder cache %s (%s)", path, e.strerror or e)
+        return P
+
+    # ---- deformer ------------------------------------------------------
+    def deform(self, P: np.ndarray, asset: GarmentAsset, windows: np.ndarray, joints: np.ndarray, trans: np.ndarray,
+               betas=None, *, outputs: bool = False):
+        """Deform a batch of frames.
+
+        Shapes:
+            P: (N, S, F_enc), windows: (B, T, 3 S) (T = the variant's window; window[:, 0] is
+            the current pose), joints: (S, 3) rest joints, trans: (B, 3)
+            -> vertices (B, N, 3); with ``outputs=True`` also weights (B, N, S) and blend shapes (B, N, 3)
+        """
+        w = np.asarray(windows, np.float32)
+        if w.ndim != 3 or w.shape[1] != self.window or w.shape[2] != 3 * self.n_joints:
+            raise InputError("motion windows have the wrong shape", expected=f"(B, {self.window}, {3 * self.n_joints})",
+                             got=w.shape)
+        bsz = w.shape[0]
+        b = np.repeat(self._betas(betas)[None], bsz, axis=0)
+        j = np.repeat(np.asarray(joints, np.float32)[None], bsz, axis=0)
+        out = self.package.run(self.variant, {
+            "P": np.asarray(P, np.float32), "window": w, "betas": b, "rest": asset.vertices.astype(np.float32),
+            "nbr": asset.nbr, "mask": asset.mask, "joints": j, "trans": np.asarray(trans, np.float32),
+        })
+        return out if outputs else out[0]

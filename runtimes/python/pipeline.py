@@ -1,0 +1,236 @@
+"""The effect pipeline: garment + body + motion -> frames -> writer, building only the stages asked for.
+
+Stages, in order, and when they exist:
+
+==============  ==================================================  =====================
+precompute      garment mesh -> asset (cached on disk by file hash)  always
+encode          garment encoder, once per garment and body shape    always (cached)
+deform          the deformer variant for skinning/dynamics/wrinkles  always
+pose body       body model posed per batch (numpy)                   collisions or body output
+collisions      push garment vertices out of the body               ``effects.collisions``
+write           streaming writer (PC2, OBJ sequence, XDMF)          always
+==============  ==================================================  =====================
+
+Frames stream in batches: memory stays flat however long the motion is.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+
+from segadeform.body import BodyModel, BodyProxy, load_body
+from segadeform.body.collision import push_out
+from segadeform.errors import InputError
+from segadeform.geometry import GarmentAsset, precompute_garment
+from segadeform.geometry.asset import file_sha256
+from segadeform.io import open_sequence_writer, read_mesh, write_obj, Mesh
+from segadeform.motion import Motion, load_motion, make_motion, motion_windows, resample
+from segadeform.scene import Effects, MotionSpec, Scene
+
+from .deformer import Deformer
+from .package import ModelPackage
+
+__all__ = ["Run", "RunSummary", "run_scene", "default_body_path", "default_model_path", "Y_TO_Z"]
+
+log = logging.getLogger(__name__)
+#: Y-up -> Z-up as Blender's OBJ importer converts by default (forward -Z, up Y): (x, y, z) -> (x, -z, y)
+Y_TO_Z = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+
+
+def _repo_samples() -> Path:
+    return Path(__file__).resolve().parents[2] / "samples"
+
+
+def default_body_path() -> Path:
+    p = _repo_samples() / "bodies" / "default_body.npz"
+    if not p.is_file():
+        raise InputError("the default body is not available in this installation; pass a body file",
+                         expected=str(p))
+    return p
+
+
+def default_model_path() -> Path:
+    p = _repo_samples() / "models" / "default"
+    if not (p / "manifest.json").is_file():
+        raise InputError("no model package given and no trained default model ships yet: pass one "
+                         "(`segadeform export --random-init -o DIR` makes an untrained package for testing)",
+                         expected="--model PACKAGE_DIR or [model] package in the scene")
+    return p
+
+
+@dataclasses.dataclass
+class RunSummary:
+    frames: int
+    seconds: float
+    output: Path
+    body_output: Optional[Path]
+    effects: Effects
+    variant: str
+    sessions: list
+    pushed_vertices: int
+    stage_seconds: dict
+
+    @property
+    def ms_per_frame(self) -> float:
+        return 1e3 * self.seconds / max(self.frames, 1)
+
+
+class Run:
+    """One configured run; :meth:`execute` streams it.  Built from a :class:`Scene` by :func:`run_scene`.
+
+    Args:
+        garment: mesh file (OBJ, PLY, ...) or a precomputed asset ``.npz``.
+        motion: a :class:`Motion`.
+        package: a :class:`ModelPackage`.
+        body: a :class:`BodyModel`.
+        betas: body shape.
+        effects: stages to run.
+        output / output_format / up / body_output: where and how to write.
+        frames: ``(start, stop)`` of the motion, stop exclusive (None: to the end).
+        batch: frames per deformer call.
+        cache: write precompute/encoder caches next to the garment file.
+    """
+
+    def __init__(self, *, garment: Path, motion: Motion, package: ModelPackage, body: BodyModel, betas=(),
+                 effects: Effects = Effects(), output: Path, output_format: str = "pc2", up: str = "y",
+                 body_output: Optional[Path] = None, frames=None, batch: int = 8, cache: bool = True) -> None:
+        if batch < 1:
+            raise InputError("batch must be at least 1", got=batch)
+        self.garment, self.motion, self.package, self.body = Path(garment), motion, package, body
+        self.betas = np.asarray(betas, np.float64)
+        self.effects, self.output, self.output_format, self.up = effects, Path(output), output_format, up
+        self.body_output = Path(body_output) if body_output else None
+        self.batch, self.cache = int(batch), cache
+        a, b = frames if frames else (0, None)
+        b = motion.n_frames if b is None else min(b, motion.n_frames)
+        if not 0 <= a < b:
+            raise InputError("frame range is empty for this motion", expected=f"A < B <= {motion.n_frames}", got=(a, b))
+        self.start, self.stop = a, b
+        self.deformer = Deformer(package, effects)  # picks the variant; creates no session yet
+
+    def _cache_dir(self) -> Optional[Path]:
+        return self.garment.parent / ".segadeform-cache" if self.cache else None
+
+    def load_asset(self, joints: np.ndarray) -> GarmentAsset:
+        if self.garment.suffix.lower() == ".npz":
+            return GarmentAsset.load(self.garment)
+        n_star = int(self.package.config["n_star"])
+        sha = file_sha256(self.garment) if self.garment.is_file() else ""
+        cdir = self._cache_dir()
+        cpath = cdir / f"asset-{sha[:32]}-n{n_star}.npz" if cdir is not None and sha else None
+        if cpath is not None and cpath.is_file():
+            try:
+                a = GarmentAsset.load(cpath)
+                if a.source_sha256 == sha:
+                    return a
+            except Exception:  # a stale or broken cache entry is recomputed
+                log.warning("ignoring unreadable asset cache %s", cpath)
+        mesh = read_mesh(self.garment)
+        a = precompute_garment(mesh.vertices, mesh.faces, joints, n_star=n_star, source_name=self.garment.name,
+                               source_sha256=sha)
+        if cpath is not None:
+            try:
+                a.save(cpath)
+            except OSError as e:
+                log.warning("cannot write the asset cache %s (%s)", cpath, e.strerror or e)
+        return a
+
+    def execute(self, progress: Optional[Callable[[int], None]] = None) -> RunSummary:
+        t_all = time.perf_counter()
+        stage = {k: 0.0 for k in ("precompute", "encode", "deform", "pose body", "collisions", "write")}
+        t = time.perf_counter()
+        joints = self.body.rest_joints(self.betas)[0]
+        asset = self.load_asset(joints)
+        stage["precompute"] += time.perf_counter() - t
+        t = time.perf_counter()
+        P = self.deformer.encode(asset, joints, self.betas, cache_dir=self._cache_dir())
+        stage["encode"] += time.perf_counter() - t
+        need_body = self.effects.collisions or self.body_output is not None
+        rot = Y_TO_Z if self.up == "z" else None
+        fps = self.motion.fps
+        writer = open_sequence_writer(self.output, self.output_format, faces=asset.faces,
+                                      num_points=asset.n_vertices, fps=fps, start_frame=self.start,
+                                      rest=asset.vertices if rot is None else asset.vertices @ rot.T)
+        body_writer = None
+        if self.body_output is not None:
+            body_writer = open_sequence_writer(self.body_output, self.output_format, faces=self.body.faces,
+                                               num_points=self.body.n_vertices, fps=fps, start_frame=self.start)
+        pushed = 0
+        proxy = None
+        try:
+            for lo in range(self.start, self.stop, self.batch):
+                hi = min(lo + self.batch, self.stop)
+                t = time.perf_counter()
+                win = motion_windows(self.motion.poses, self.deformer.window, start=lo, stop=hi)
+                verts = self.deformer.deform(P, asset, win, joints, self.motion.trans[lo:hi], self.betas)
+                stage["deform"] += time.perf_counter() - t
+                if not np.isfinite(verts).all():
+                    raise InputError(f"the deformer produced NaN or inf at frames {lo}..{hi - 1}")
+                if need_body:
+                    t = time.perf_counter()
+                    posed = self.body.forward(self.motion.poses[lo:hi], self.betas, self.motion.trans[lo:hi],
+                                              skinning=self.effects.skinning).vertices
+                    stage["pose body"] += time.perf_counter() - t
+                if self.effects.collisions:
+                    t = time.perf_counter()
+                    fixed = np.empty_like(verts, dtype=np.float64)
+                    for i in range(len(verts)):
+                        proxy = BodyProxy(posed[i], self.body.faces) if proxy is None else proxy.moved(posed[i])
+                        fixed[i], n = push_out(verts[i], proxy, self.effects.collision_margin)
+                        pushed += n
+                    verts = fixed
+                    stage["collisions"] += time.perf_counter() - t
+                t = time.perf_counter()
+                writer.write(verts if rot is None else verts @ rot.T)
+                if body_writer is not None:
+                    body_writer.write(posed if rot is None else posed @ rot.T)
+                stage["write"] += time.perf_counter() - t
+                if progress is not None:
+                    progress(hi - lo)
+            t = time.perf_counter()
+            writer.close()
+            if body_writer is not None:
+                body_writer.close()
+                if self.output_format == "pc2":  # the rest mesh the cache animates, for Blender's Mesh Cache
+                    rest = self.body.shaped_vertices(self.betas)[0]
+                    write_obj(self.body_output.with_suffix(".obj"),
+                              Mesh(vertices=rest if rot is None else rest @ rot.T, faces=self.body.faces))
+            stage["write"] += time.perf_counter() - t
+        except BaseException:
+            writer.abort()
+            if body_writer is not None:
+                body_writer.abort()
+            raise
+        return RunSummary(frames=self.stop - self.start, seconds=time.perf_counter() - t_all, output=self.output,
+                          body_output=self.body_output, effects=self.effects, variant=self.deformer.variant,
+                          sessions=sorted(self.package.created), pushed_vertices=pushed, stage_seconds=stage)
+
+
+def build_motion(spec: MotionSpec) -> Motion:
+    if spec.file is not None:
+        m = load_motion(spec.file)
+    else:
+        m = make_motion(spec.kind, seconds=spec.seconds, fps=spec.fps or 30.0, speed=spec.speed,
+                        amplitude=spec.amplitude, seed=spec.seed)
+    if spec.fps is not None and abs(spec.fps - m.fps) > 1e-9:
+        m = resample(m, spec.fps)
+    return m
+
+
+def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Path] = None, batch: int = 8,
+              threads: int = 1, providers=None, progress=None, cache: bool = True) -> RunSummary:
+    """Run a scene (optionally overriding its model package and output path)."""
+    package = ModelPackage(model or scene.model or default_model_path(), threads=threads, providers=providers)
+    body = load_body(scene.body or default_body_path())
+    motion = build_motion(scene.motion)
+    out = Path(output) if output is not None else scene.output
+    run = Run(garment=scene.garment, motion=motion, package=package, body=body, betas=scene.betas,
+              effects=scene.effects, output=out, output_format=scene.output_format, up=scene.up,
+              body_output=scene.body_output, frames=scene.motion.frames, batch=batch, cache=cache)
+    return run.execute(progress)

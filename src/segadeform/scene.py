@@ -1,0 +1,232 @@
+"""Scenes: a TOML file naming a garment, a body, a motion, the output, and the effects to simulate.
+
+Example (every key shown; only ``garment.mesh``, ``motion`` and ``output.path``
+are required; relative paths are relative to the scene file)::
+
+    [garment]
+    mesh = "../garments/skirt.obj"
+
+    [body]                         # optional; the shipped default body when absent
+    model = "../bodies/default_body.npz"
+    betas = [0.0, 0.5]             # up to the body's shape coefficients; the rest are 0
+
+    [motion]                       # a file ...
+    file = "../motions/walk.npz"   # .npz (AMASS-style) or .bvh
+    # ... or a procedural kind:
+    # kind = "walk"; seconds = 3.0; speed = 1.0; amplitude = 1.0; seed = 0
+    fps = 30.0                     # resample the motion to this rate (default: the motion's own)
+    frames = "0:90"                # optional frame range A:B of the (resampled) motion
+
+    [model]                        # optional; the shipped default model when absent
+    package = "../models/default"
+
+    [output]
+    path = "../../out/skirt.pc2"
+    format = "pc2"                 # pc2 | obj-seq | xdmf (default: from the extension)
+    up = "y"                       # y (as computed) | z (Blender's OBJ-import convention)
+    body = "../../out/body.pc2"    # optional: the posed body too, same format
+
+    [effects]
+    skinning = "lbs"               # lbs | dqs
+    dynamics = true                # temporal weights from the motion window (false: current pose only)
+    wrinkles = true                # the blend-shape decoder (false: B = 0)
+    collisions = true              # push vertices out of the body (post-process)
+    collision_margin = 0.004       # metres kept between garment and body skin
+
+Unknown tables or keys are errors, as are wrong types and out-of-range values,
+each naming the scene file and the key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+from pathlib import Path
+from typing import Optional
+
+from .errors import FileFormatError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["Effects", "MotionSpec", "Scene", "load_scene", "parse_effects", "SEQUENCE_FORMAT_BY_EXT"]
+
+SEQUENCE_FORMAT_BY_EXT = {".pc2": "pc2", ".xdmf": "xdmf", ".xmf": "xdmf", "": "obj-seq"}
+
+
+@dataclasses.dataclass(frozen=True)
+class Effects:
+    """Which stages run.  See the module docstring for their meaning."""
+
+    skinning: str = "lbs"
+    dynamics: bool = True
+    wrinkles: bool = True
+    collisions: bool = True
+    collision_margin: float = 0.004
+
+    def __post_init__(self):
+        if self.skinning not in ("lbs", "dqs"):
+            raise ValueError(f"skinning must be 'lbs' or 'dqs', got {self.skinning!r}")
+        if not (self.collision_margin >= 0 and self.collision_margin < 1):
+            raise ValueError(f"collision_margin must be in [0, 1) metres, got {self.collision_margin!r}")
+
+    def label(self) -> str:
+        on = [self.skinning] + [n for n in ("dynamics", "wrinkles", "collisions") if getattr(self, n)]
+        return "+".join(on)
+
+
+@dataclasses.dataclass(frozen=True)
+class MotionSpec:
+    file: Optional[Path] = None
+    kind: Optional[str] = None
+    seconds: float = 3.0
+    speed: float = 1.0
+    amplitude: float = 1.0
+    seed: int = 0
+    fps: Optional[float] = None
+    frames: Optional[tuple[int, Optional[int]]] = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Scene:
+    garment: Path
+    motion: MotionSpec
+    output: Path
+    output_format: str = "pc2"
+    up: str = "y"
+    body: Optional[Path] = None
+    betas: tuple = ()
+    model: Optional[Path] = None
+    body_output: Optional[Path] = None
+    effects: Effects = Effects()
+    path: Optional[Path] = None
+
+
+_SCHEMA = {
+    "garment": {"mesh": str},
+    "body": {"model": str, "betas": list},
+    "motion": {"file": str, "kind": str, "seconds": (int, float), "speed": (int, float),
+               "amplitude": (int, float), "seed": int, "fps": (int, float), "frames": str},
+    "model": {"package": str},
+    "output": {"path": str, "format": str, "up": str, "body": str},
+    "effects": {"skinning": str, "dynamics": bool, "wrinkles": bool, "collisions": bool,
+                "collision_margin": (int, float)},
+}
+_REQUIRED = {"garment": ("mesh",), "output": ("path",)}
+
+
+def parse_frames(text: str, *, where=None) -> tuple[int, Optional[int]]:
+    """``"A:B"`` (B exclusive; either side may be empty) -> (A, B or None)."""
+    parts = text.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        a = int(parts[0]) if parts[0].strip() else 0
+        b = int(parts[1]) if parts[1].strip() else None
+    except ValueError:
+        raise FileFormatError("frames must look like A:B", path=where, expected="e.g. 0:90 or 10:", got=text) from None
+    if a < 0 or (b is not None and b <= a):
+        raise FileFormatError("frame range must satisfy 0 <= A < B", path=where, got=text)
+    return a, b
+
+
+def parse_effects(text: str, base: Effects = Effects()) -> Effects:
+    """Parse a CLI effects list like ``"dqs,-wrinkles,collisions"`` (``-name`` turns one off)."""
+    kw = dataclasses.asdict(base)
+    for item in [t.strip() for t in text.split(",") if t.strip()]:
+        if item in ("lbs", "dqs"):
+            kw["skinning"] = item
+            continue
+        on = not item.startswith("-")
+        name = item.lstrip("-+")
+        if name not in ("dynamics", "wrinkles", "collisions"):
+            raise FileFormatError("unknown effect", expected="lbs | dqs | [-]dynamics | [-]wrinkles | [-]collisions",
+                                  got=item)
+        kw[name] = on
+    return Effects(**kw)
+
+
+def load_scene(path: str | os.PathLike) -> Scene:
+    """Read and validate a scene file (see the module docstring)."""
+    p = Path(path)
+    try:
+        raw = p.read_bytes()
+    except OSError as e:
+        raise FileFormatError(f"cannot read scene: {e.strerror or e}", path=p) from None
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise FileFormatError("scene is not UTF-8 text", path=p) from None
+    except tomllib.TOMLDecodeError as e:
+        raise FileFormatError(f"invalid TOML: {e}", path=p) from None
+    unknown = sorted(set(data) - set(_SCHEMA))
+    if unknown:
+        raise FileFormatError(f"unknown table [{unknown[0]}]", path=p, expected=", ".join(sorted(_SCHEMA)),
+                              got=", ".join(unknown))
+    for table, keys in _SCHEMA.items():
+        t = data.get(table, {})
+        if not isinstance(t, dict):
+            raise FileFormatError(f"[{table}] must be a table", path=p, got=type(t).__name__)
+        bad = sorted(set(t) - set(keys))
+        if bad:
+            raise FileFormatError(f"unknown key {table}.{bad[0]}", path=p, expected=", ".join(sorted(keys)),
+                                  got=", ".join(bad))
+        for k, typ in keys.items():
+            if k in t:
+                v = t[k]
+                ok = isinstance(v, typ) and not (typ is not bool and isinstance(v, bool) and bool not in
+                                                  (typ if isinstance(typ, tuple) else (typ,)))
+                if not ok:
+                    name = typ.__name__ if isinstance(typ, type) else " or ".join(x.__name__ for x in typ)
+                    raise FileFormatError(f"{table}.{k} has the wrong type", path=p, expected=name,
+                                          got=f"{type(v).__name__} {v!r}"[:60])
+        for k in _REQUIRED.get(table, ()):
+            if k not in t:
+                raise FileFormatError(f"missing {table}.{k}", path=p)
+    if "motion" not in data:
+        raise FileFormatError("missing [motion]", path=p, expected="motion.file or motion.kind")
+    base = p.resolve().parent
+
+    def rel(s: str) -> Path:
+        q = Path(s).expanduser()
+        return Path(os.path.normpath(q if q.is_absolute() else base / q))
+
+    m = data["motion"]
+    if ("file" in m) == ("kind" in m):
+        raise FileFormatError("[motion] needs exactly one of 'file' or 'kind'", path=p)
+    if "file" in m and any(k in m for k in ("seconds", "speed", "amplitude", "seed")):
+        raise FileFormatError("motion.seconds/speed/amplitude/seed apply to procedural motions (kind) only", path=p)
+    for k, lo, hi in (("seconds", 1e-3, 3600), ("speed", 0.05, 5), ("amplitude", 0, 2), ("fps", 1, 1000)):
+        if k in m and not lo <= m[k] <= hi:
+            raise FileFormatError(f"motion.{k} out of range", path=p, expected=f"{lo}..{hi}", got=m[k])
+    motion = MotionSpec(
+        file=rel(m["file"]) if "file" in m else None, kind=m.get("kind"), seconds=float(m.get("seconds", 3.0)),
+        speed=float(m.get("speed", 1.0)), amplitude=float(m.get("amplitude", 1.0)), seed=int(m.get("seed", 0)),
+        fps=float(m["fps"]) if "fps" in m else None,
+        frames=parse_frames(m["frames"], where=p) if "frames" in m else None,
+    )
+    out = data["output"]
+    out_path = rel(out["path"])
+    fmt = out.get("format") or SEQUENCE_FORMAT_BY_EXT.get(out_path.suffix.lower())
+    if fmt not in ("pc2", "obj-seq", "xdmf"):
+        raise FileFormatError("output.format must be pc2, obj-seq or xdmf", path=p, got=out.get("format", out_path.suffix))
+    up = out.get("up", "y")
+    if up not in ("y", "z"):
+        raise FileFormatError("output.up must be 'y' or 'z'", path=p, got=up)
+    betas = data.get("body", {}).get("betas", [])
+    if not all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in betas):
+        raise FileFormatError("body.betas must be a list of numbers", path=p, got=betas)
+    eff = data.get("effects", {})
+    try:
+        effects = Effects(**{k: (float(v) if k == "collision_margin" else v) for k, v in eff.items()})
+    except ValueError as e:
+        raise FileFormatError(f"[effects]: {e}", path=p) from None
+    return Scene(
+        garment=rel(data["garment"]["mesh"]), motion=motion, output=out_path, output_format=fmt, up=up,
+        body=rel(data["body"]["model"]) if "model" in data.get("body", {}) else None, betas=tuple(float(b) for b in betas),
+        model=rel(data["model"]["package"]) if "package" in data.get("model", {}) else None,
+        body_output=rel(out["body"]) if "body" in out else None, effects=effects, path=p,
+    )
