@@ -22,3 +22,16 @@ def rest_joints() -> np.ndarray:
 def leftovers(directory: Path) -> list[str]:
     """Temporary files a failed write might have left (atomic writes use '.NAME.tmp-*')."""
     return sorted(p.name for p in Path(directory).iterdir() if ".tmp-" in p.name)
+
+
+@pytest.fixture(scope="session")
+def random_package(tmp_path_factory):
+    """A random-init model package with every deformer variant (exported once per test session)."""
+    torch = pytest.importorskip("torch", reason="exporting a package needs the 'torch' extra")
+    from segadeform.export import export_package
+    from segadeform.model import ModelConfig, SEGANet
+
+    torch.manual_seed(3)
+    path = tmp_path_factory.mktemp("pkg") / "random"
+    export_package(SEGANet(ModelConfig()), path, check=False)
+    return path

@@ -98,3 +98,14 @@ def test_modulated_decoder_equals_materialised_blend_features():
         factored = net.dec(p2, d["nbr"], d["mask"], modulation=mo2)
         literal = net.dec(p2[None] * mo2[:, None, :], d["nbr"], d["mask"])
     torch.testing.assert_close(factored, literal, atol=1e-5, rtol=1e-5)
+
+
+def test_mean_body_shape_does_not_zero_the_features():
+    """Regression: zero-initialised biases made f^bp(0) = 0, so P = 0 for the mean body."""
+    torch.manual_seed(0)
+    net = SEGANet(ModelConfig()).eval()
+    enc = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "garment_encoder", n=20, k=5, b=1).items()}
+    enc["betas"] = torch.zeros(1, 10)
+    with torch.no_grad():
+        P = net.garment_encoder(**enc)
+    assert P.abs().max() > 1e-3

@@ -81,7 +81,10 @@ class TauLinear(nn.Module):
     def reset_parameters(self) -> None:
         nn.init.xavier_uniform_(self.weight)
         if self.bias is not None:
-            nn.init.zeros_(self.bias)
+            # as nn.Linear: a zero bias would map beta = 0 (the mean body) to exactly 0 through
+            # the ELU MLPs, and Eq. 15's product would then zero P for the commonest input
+            bound = 1.0 / math.sqrt(self.in_features)
+            nn.init.uniform_(self.bias, -bound, bound)
         with torch.no_grad():
             self._u.normal_()
 

@@ -1,0 +1,65 @@
+import pytest
+
+from segadeform.errors import FileFormatError
+from segadeform.scene import Effects, load_scene, parse_effects
+from tests.conftest import SAMPLES
+
+
+def write(tmp_path, text):
+    p = tmp_path / "s.toml"
+    p.write_text(text)
+    return p
+
+
+BASE = '[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\n[output]\npath = "o.pc2"\n'
+
+
+def test_sample_scenes_parse():
+    s = load_scene(SAMPLES / "scenes" / "skirt_walk.toml")
+    assert s.garment == (SAMPLES / "garments" / "skirt.obj").resolve()
+    assert s.effects == Effects() and s.output_format == "pc2"
+    d = load_scene(SAMPLES / "scenes" / "skirt_dance_dqs.toml")
+    assert d.effects.skinning == "dqs" and not d.effects.wrinkles and d.up == "z" and d.output_format == "obj-seq"
+
+
+def test_minimal_scene_defaults(tmp_path):
+    s = load_scene(write(tmp_path, BASE))
+    assert s.motion.kind == "walk" and s.body is None and s.model is None and s.effects == Effects()
+    assert s.output == tmp_path / "o.pc2"
+
+
+@pytest.mark.parametrize("extra, words", [
+    ("[effects]\nglitter = true\n", "unknown key effects.glitter"),
+    ("[lights]\non = 1\n", "unknown table [lights]"),
+    ("[effects]\nwrinkles = \"yes\"\n", "effects.wrinkles has the wrong type"),
+    ("[effects]\nskinning = \"blend\"\n", "skinning must be"),
+    ("[effects]\ncollision_margin = -1\n", "collision_margin"),
+    ("[output2]\n", "unknown table"),
+    ("[body]\nbetas = [1, \"a\"]\n", "betas"),
+])
+def test_invalid_scenes(tmp_path, extra, words):
+    p = write(tmp_path, BASE + extra)
+    with pytest.raises(FileFormatError, match=words.replace("[", r"\[").replace("]", r"\]")) as ei:
+        load_scene(p)
+    assert str(p) in str(ei.value)
+
+
+@pytest.mark.parametrize("text, words", [
+    ('[motion]\nkind = "walk"\n[output]\npath = "o.pc2"\n', "missing garment.mesh"),
+    ('[garment]\nmesh = "g.obj"\n[output]\npath = "o.pc2"\n', "missing [motion]"),
+    ('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\nfile = "m.npz"\n[output]\npath = "o.pc2"\n', "exactly one"),
+    ('[garment]\nmesh = "g.obj"\n[motion]\nfile = "m.npz"\nseed = 3\n[output]\npath = "o.pc2"\n', "procedural"),
+    ('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\nframes = "x"\n[output]\npath = "o.pc2"\n', "A:B"),
+    ('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\n[output]\npath = "o.abc"\n', "output.format"),
+    ("garment = = 1", "invalid TOML"),
+])
+def test_structural_errors(tmp_path, text, words):
+    with pytest.raises(FileFormatError, match=words.replace("[", r"\[").replace("]", r"\]")):
+        load_scene(write(tmp_path, text))
+
+
+def test_effects_flags():
+    e = parse_effects("dqs,-wrinkles,-collisions")
+    assert e == Effects(skinning="dqs", wrinkles=False, collisions=False)
+    with pytest.raises(FileFormatError, match="unknown effect"):
+        parse_effects("sparkles")
