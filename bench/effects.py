@@ -1,0 +1,149 @@
+"""What each effect costs: ms per frame of every effect combination, one thread.
+
+    python bench/effects.py [--vertices 4000] [--frames 60] [--batch 8] [--package DIR]
+
+A ~4k-vertex skirt on the default body, a 2-second dance; the model package
+is a random-weight export unless ``--package`` is given (the cost does not
+depend on the weights).  Each row is a full ``Run`` (precompute and encoder
+cached beforehand, so rows time the per-frame stages), writing PC2 to a
+temporary folder.  The ratio is against "all effects on" measured in the
+same run.  A final section streams ``--long`` frames (default 10,000) with
+LBS and dynamics (no wrinkles, no collisions) in a fresh process and reports
+its peak resident memory against a 100-frame run in another fresh process:
+flat memory means the ratio stays near 1 while the output grows 100x.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _hwm_reset():
+    try:
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def _status(key):
+    for line in open("/proc/self/status"):
+        if line.startswith(key):
+            return int(line.split()[1]) * 1024
+    return 0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--vertices", type=int, default=4000)
+    ap.add_argument("--frames", type=int, default=60)
+    ap.add_argument("--batch", type=int, default=8)
+    ap.add_argument("--package", type=Path)
+    ap.add_argument("--long", type=int, default=10000)
+    ap.add_argument("--child-long", type=int, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child_long:
+        child_long(args.child_long, args.package, args.vertices, args.batch)
+        return
+
+    from segadeform.body import load_body
+    from segadeform.geometry.primitives import frustum
+    from segadeform.io import Mesh, write_obj
+    from segadeform.motion import make_motion
+    from segadeform.runtime import ModelPackage
+    from segadeform.runtime.pipeline import Run
+    from segadeform.scene import Effects
+
+    tmp = Path(tempfile.mkdtemp())
+    pkg = args.package
+    if pkg is None:
+        import torch
+
+        from segadeform.export import export_package
+        from segadeform.model import ModelConfig, SEGANet
+
+        torch.manual_seed(0)
+        pkg = tmp / "pkg"
+        export_package(SEGANet(ModelConfig()), pkg, check=False)
+    body = load_body(ROOT / "samples" / "bodies" / "default_body.npz")
+    na = int(round(np.sqrt(2.0 * args.vertices)))
+    v, f = frustum(na, max(2, args.vertices // na), 0.17, 0.36, 1.02, 0.5)
+    garment = tmp / "skirt.obj"
+    write_obj(garment, Mesh(vertices=v, faces=f))
+    motion = make_motion("dance", seconds=args.frames / 30.0, seed=1)
+
+    def run(effects, motion=motion, out="o.pc2", cache=True):
+        r = Run(garment=garment, motion=motion, package=ModelPackage(pkg, threads=1), body=body, effects=effects,
+                output=tmp / out, batch=args.batch, cache=cache)
+        return r.execute()
+
+    run(Effects())  # warm the precompute and encoder caches
+    rows = []
+    for skin, dyn, wr, col in itertools.product(("lbs", "dqs"), (True, False), (True, False), (True, False)):
+        e = Effects(skinning=skin, dynamics=dyn, wrinkles=wr, collisions=col)
+        s = run(e)
+        rows.append((e, s.ms_per_frame, s.stage_seconds, s.frames))
+    base = next(ms for e, ms, _, _ in rows if e == Effects())
+    print(f"garment: {len(v)} vertices; body: {body.n_vertices} vertices; {args.frames} frames; batch {args.batch}; 1 thread")
+    print(f"{'skinning':8s} {'dynamics':>8s} {'wrinkles':>8s} {'collisions':>10s} {'ms/frame':>9s} {'x all-on':>9s} "
+          f"{'deform':>7s} {'pose':>6s} {'collide':>8s}")
+    for e, ms, st, n in rows:
+        print(f"{e.skinning:8s} {str(e.dynamics):>8s} {str(e.wrinkles):>8s} {str(e.collisions):>10s} {ms:9.2f} "
+              f"{ms / base:9.2f} {1e3 * st['deform'] / n:7.2f} {1e3 * st['pose body'] / n:6.2f} "
+              f"{1e3 * st['collisions'] / n:8.2f}")
+    if args.long:
+        import subprocess
+        import sys
+
+        peaks = {}
+        for n in (100, args.long):
+            p = subprocess.run([sys.executable, __file__, "--child-long", str(n), "--package", str(pkg),
+                                "--vertices", str(args.vertices), "--batch", str(args.batch)],
+                               capture_output=True, text=True, check=True)
+            rss, ms, size = (float(x) for x in p.stdout.split())
+            peaks[n] = rss
+            print(f"{n:6d} frames (lbs + dynamics, fresh process): {ms:.2f} ms/frame, peak RSS {rss / 2**20:.1f} MiB, "
+                  f"output {size / 2**20:.1f} MiB")
+        print(f"peak memory ratio {args.long} vs 100 frames: {peaks[args.long] / peaks[100]:.3f} "
+              f"(the output file grows {args.long / 100:.0f}x)")
+
+
+def child_long(n: int, pkg: Path, vertices: int, batch: int) -> None:
+    """Stream n frames in this (fresh) process; print peak RSS bytes, ms/frame, output bytes."""
+    import resource
+
+    from segadeform.body import load_body
+    from segadeform.geometry.primitives import frustum
+    from segadeform.io import Mesh, write_obj
+    from segadeform.motion import make_motion
+    from segadeform.runtime import ModelPackage
+    from segadeform.runtime.pipeline import Run
+    from segadeform.scene import Effects
+
+    tmp = Path(tempfile.mkdtemp())
+    na = int(round(np.sqrt(2.0 * vertices)))
+    v, f = frustum(na, max(2, vertices // na), 0.17, 0.36, 1.02, 0.5)
+    write_obj(tmp / "g.obj", Mesh(vertices=v, faces=f))
+    m = make_motion("walk", seconds=n / 30.0, seed=0)
+    run = Run(garment=tmp / "g.obj", motion=m, package=ModelPackage(pkg), effects=Effects(wrinkles=False, collisions=False),
+              body=load_body(ROOT / "samples" / "bodies" / "default_body.npz"), output=tmp / "o.pc2", batch=batch,
+              cache=False)
+    t0 = time.perf_counter()
+    run.execute()
+    dt = time.perf_counter() - t0
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    print(rss, 1e3 * dt / n, os.path.getsize(tmp / "o.pc2"))
+
+
+if __name__ == "__main__":
+    main()
