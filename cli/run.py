@@ -29,7 +29,8 @@ def _fmt_from(path: Path, fmt: str | None) -> str:
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz/.pkl (default: shipped body).")
 @click.option("--betas", help="Comma-separated body shape coefficients.")
 @click.option("--effects", help="e.g. 'dqs,-wrinkles,-collisions' (default: lbs, all effects on).")
-@click.option("--format", "fmt", type=click.Choice(["pc2", "obj-seq", "xdmf"]), help="Output format.")
+@click.option("--format", "fmt", type=click.Choice(["pc2", "obj-seq", "xdmf", "abc"]),
+              help="Output format (abc needs the 'alembic' extra).")
 @click.option("--model", type=click.Path(file_okay=False, path_type=Path), help="Model package directory.")
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
 @click.option("--fps", type=float, help="Resample the motion to this frame rate.")
@@ -54,8 +55,10 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, mode
         changes = {}
         if effects:
             changes["effects"] = parse_effects(effects, sc.effects)
-        if fmt or output:
-            changes["output_format"] = fmt or _fmt_from(output, None) if output else fmt
+        if fmt:
+            changes["output_format"] = fmt
+        elif output:
+            changes["output_format"] = _fmt_from(output, None)
         if up:
             changes["up"] = up
         if body_out:

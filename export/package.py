@@ -129,22 +129,21 @@ def _export_one(module, spec, inputs, path: Path, *, dynamo: bool) -> None:
 def _run_export(module, args, spec, in_names, out_names, path, dynamo) -> None:
     import torch
 
-    if True:
-        if dynamo:
-            from torch.export import Dim
+    if dynamo:
+        from torch.export import Dim
 
-            dims = {"B": Dim("B", min=1, max=1 << 20), "N": Dim("N", min=3, max=1 << 24),
-                    "K": Dim("K", min=1, max=256)}
-            dyn = {i["name"]: {ax: dims[d] for ax, d in enumerate(i["shape"]) if isinstance(d, str)}
-                   for i in spec["inputs"]}
-            prog = torch.onnx.export(module, args, dynamo=True, opset_version=OPSET, dynamic_shapes=dyn,
-                                     input_names=in_names, output_names=out_names, verbose=False)
-            prog.save(str(path), external_data=False)
-        else:
-            dyn = {x["name"]: {ax: d for ax, d in enumerate(x["shape"]) if isinstance(d, str)}
-                   for x in spec["inputs"] + spec["outputs"]}
-            torch.onnx.export(module, args, str(path), dynamo=False, opset_version=OPSET, input_names=in_names,
-                              output_names=out_names, dynamic_axes=dyn)
+        dims = {"B": Dim("B", min=1, max=1 << 20), "N": Dim("N", min=3, max=1 << 24),
+                "K": Dim("K", min=1, max=256)}
+        dyn = {i["name"]: {ax: dims[d] for ax, d in enumerate(i["shape"]) if isinstance(d, str)}
+               for i in spec["inputs"]}
+        prog = torch.onnx.export(module, args, dynamo=True, opset_version=OPSET, dynamic_shapes=dyn,
+                                 input_names=in_names, output_names=out_names, verbose=False)
+        prog.save(str(path), external_data=False)
+    else:
+        dyn = {x["name"]: {ax: d for ax, d in enumerate(x["shape"]) if isinstance(d, str)}
+               for x in spec["inputs"] + spec["outputs"]}
+        torch.onnx.export(module, args, str(path), dynamo=False, opset_version=OPSET, input_names=in_names,
+                          output_names=out_names, dynamic_axes=dyn)
 
 
 def deformer_variants(cfg) -> dict:

@@ -22,7 +22,8 @@ are required; relative paths are relative to the scene file)::
 
     [output]
     path = "../../out/skirt.pc2"
-    format = "pc2"                 # pc2 | obj-seq | xdmf (default: from the extension)
+    format = "pc2"                 # pc2 | obj-seq | xdmf | abc (default: from the extension; abc needs
+                                   # the 'alembic' extra)
     up = "y"                       # y (as computed) | z (Blender's OBJ-import convention)
     body = "../../out/body.pc2"    # optional: the posed body too, same format
 
@@ -54,7 +55,7 @@ else:  # pragma: no cover
 
 __all__ = ["Effects", "MotionSpec", "Scene", "load_scene", "parse_effects", "SEQUENCE_FORMAT_BY_EXT"]
 
-SEQUENCE_FORMAT_BY_EXT = {".pc2": "pc2", ".xdmf": "xdmf", ".xmf": "xdmf", "": "obj-seq"}
+SEQUENCE_FORMAT_BY_EXT = {".pc2": "pc2", ".xdmf": "xdmf", ".xmf": "xdmf", ".abc": "abc", "": "obj-seq"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -211,8 +212,8 @@ def load_scene(path: str | os.PathLike) -> Scene:
     out = data["output"]
     out_path = rel(out["path"])
     fmt = out.get("format") or SEQUENCE_FORMAT_BY_EXT.get(out_path.suffix.lower())
-    if fmt not in ("pc2", "obj-seq", "xdmf"):
-        raise FileFormatError("output.format must be pc2, obj-seq or xdmf", path=p, got=out.get("format", out_path.suffix))
+    if fmt not in ("pc2", "obj-seq", "xdmf", "abc"):
+        raise FileFormatError("output.format must be pc2, obj-seq, xdmf or abc", path=p, got=out.get("format", out_path.suffix))
     up = out.get("up", "y")
     if up not in ("y", "z"):
         raise FileFormatError("output.up must be 'y' or 'z'", path=p, got=up)

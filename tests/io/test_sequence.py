@@ -79,3 +79,28 @@ def test_broken_xdmf(tmp_path):
     with pytest.raises(FileFormatError) as ei:
         read_xdmf_sequence(p)
     assert str(p) in str(ei.value)
+
+
+def test_alembic_round_trip(tmp_path):
+    from segadeform.io.alembic import read_alembic_sequence
+
+    f, fr = animated()
+    with open_sequence_writer(tmp_path / "a.abc", "abc", faces=f, num_points=fr.shape[1], fps=25.0,
+                              start_frame=2) as w:
+        w.write(fr[:2])
+        w.write(fr[2:])
+    faces, back, times = read_alembic_sequence(tmp_path / "a.abc")
+    np.testing.assert_array_equal(faces, f)
+    np.testing.assert_allclose(back, fr, atol=1e-6)
+    np.testing.assert_allclose(times, (2 + np.arange(5)) / 25.0)
+    np.testing.assert_allclose(read_sequence(tmp_path / "a.abc"), fr, atol=1e-6)
+    assert leftovers(tmp_path) == []
+
+
+def test_alembic_failure_leaves_nothing(tmp_path):
+    f, fr = animated()
+    with pytest.raises(RuntimeError):
+        with open_sequence_writer(tmp_path / "a.abc", "abc", faces=f, num_points=fr.shape[1]) as w:
+            w.write(fr[:2])
+            raise RuntimeError("boom")
+    assert list(tmp_path.iterdir()) == []

@@ -266,3 +266,13 @@ def test_run_works_without_torch(tmp_path, random_package):
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr + p.stdout
     assert read_pc2(tmp_path / "o.pc2").frames.shape == (6, 1536, 3)
+
+
+def test_run_writes_alembic(tmp_path, random_package):
+    from segadeform.io.alembic import read_alembic_sequence
+
+    r = CliRunner().invoke(cli, ["run", str(SAMPLES / "scenes" / "skirt_walk.toml"), "--model", str(random_package),
+                                 "-o", str(tmp_path / "skirt.abc"), "--frames", "0:4", "--no-cache"])
+    assert r.exit_code == 0, r.output
+    faces, frames, _ = read_alembic_sequence(tmp_path / "skirt.abc")
+    assert frames.shape == (4, 1536, 3) and faces.shape == (2944, 3)

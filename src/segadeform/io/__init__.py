@@ -60,7 +60,7 @@ def write_mesh(path: str | os.PathLike, mesh: Mesh, **kw) -> None:
         write_meshio(p, mesh, **kw)
 
 
-SEQUENCE_FORMATS = ("pc2", "obj-seq", "xdmf")
+SEQUENCE_FORMATS = ("pc2", "obj-seq", "xdmf", "abc")
 
 
 def open_sequence_writer(path, fmt: str, *, faces: np.ndarray, num_points: int, fps: float = 30.0,
@@ -72,6 +72,10 @@ def open_sequence_writer(path, fmt: str, *, faces: np.ndarray, num_points: int, 
         return ObjSequenceWriter(path, faces, num_points, start=start_frame)
     if fmt == "xdmf":
         return XdmfSequenceWriter(path, faces, num_points, rest=rest, fps=fps, start=start_frame)
+    if fmt == "abc":
+        from .alembic import AlembicSequenceWriter
+
+        return AlembicSequenceWriter(path, faces, num_points, fps=fps, start_frame=start_frame)
     raise InputError("unknown sequence format", expected=" | ".join(SEQUENCE_FORMATS), got=fmt)
 
 
@@ -85,5 +89,9 @@ def read_sequence(path: str | os.PathLike, *, faces: np.ndarray | None = None) -
         return np.asarray(read_pc2(p, check_finite=True).frames, np.float64)
     if ext in (".xdmf", ".xmf"):
         return read_xdmf_sequence(p)[1]
-    raise InputError("unknown sequence format", path=p, expected=".pc2, .xdmf or a folder of OBJ frames",
+    if ext == ".abc":
+        from .alembic import read_alembic_sequence
+
+        return read_alembic_sequence(p)[1]
+    raise InputError("unknown sequence format", path=p, expected=".pc2, .xdmf, .abc or a folder of OBJ frames",
                      got=ext or "none")

@@ -1,0 +1,147 @@
+"""Alembic (``.abc``) mesh sequences through the optional ``alembic3d`` package (extra ``alembic``).
+
+One ``OPolyMesh`` named after the garment: topology written once with the
+first frame, positions per frame, uniform time sampling ``1 / fps`` from
+``start / fps``.  Alembic (as Maya writes it) winds faces clockwise, so
+triangles are stored reversed and reversed back on reading; DCC importers
+(Blender, Maya, Houdini) then show outward normals.  Vertex order is the
+garment file's.  The archive is written under a temporary name and renamed
+when closed.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FileFormatError, InputError
+from .atomic import _tmp_sibling
+from .mesh import validate_mesh_arrays
+
+__all__ = ["AlembicSequenceWriter", "read_alembic_sequence", "alembic_available"]
+
+
+def _modules():
+    try:
+        import imath
+        from alembic3d import Abc, AbcCoreAbstract, AbcGeom
+    except ImportError:
+        raise InputError("Alembic output needs the 'alembic' extra: pip install 'segadeform[alembic]'") from None
+    return Abc, AbcGeom, AbcCoreAbstract, imath
+
+
+def alembic_available() -> bool:
+    try:
+        _modules()
+        return True
+    except InputError:
+        return False
+
+
+def _v3(imath, a: np.ndarray):
+    arr = imath.V3fArray(len(a))
+    np.asarray(memoryview(arr))[:] = a
+    return arr
+
+
+def _ints(imath, a: np.ndarray):
+    arr = imath.IntArray(len(a))
+    np.asarray(memoryview(arr))[:] = a
+    return arr
+
+
+class AlembicSequenceWriter:
+    """Stream frames into an ``.abc`` file; the file appears when :meth:`close` succeeds."""
+
+    def __init__(self, path: str | os.PathLike, faces: np.ndarray, num_points: int, *, fps: float = 30.0,
+                 start_frame: int = 0, name: str = "garment") -> None:
+        Abc, AbcGeom, AbcCoreAbstract, self._imath = _modules()
+        _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
+        if not (np.isfinite(fps) and fps > 0):
+            raise InputError("fps must be positive", got=fps)
+        self.path, self.num_points, self.num_samples = Path(path), int(num_points), 0
+        self._tmp = _tmp_sibling(self.path, directory=False)
+        self._archive = Abc.OArchive(str(self._tmp))
+        ts = self._archive.addTimeSampling(AbcCoreAbstract.TimeSampling(1.0 / fps, start_frame / fps))
+        self._schema = AbcGeom.OPolyMesh(self._archive.getTop(), name, ts).getSchema()
+        self._sample = AbcGeom.OPolyMeshSchemaSample
+        self._closed = False
+
+    def write(self, frames: np.ndarray) -> None:
+        a = np.asarray(frames)
+        if a.ndim == 2:
+            a = a[None]
+        if a.ndim != 3 or a.shape[1:] != (self.num_points, 3):
+            raise InputError("frames have the wrong shape", path=self.path,
+                             expected=f"(B, {self.num_points}, 3)", got=a.shape)
+        if not np.isfinite(a).all():
+            raise InputError("frames contain NaN or inf", path=self.path)
+        im = self._imath
+        for fr in a.astype(np.float32):
+            if self.num_samples == 0:
+                s = self._sample(_v3(im, fr), _ints(im, self.faces[:, ::-1].ravel()),
+                                 _ints(im, np.full(len(self.faces), 3)))
+            else:
+                s = self._sample(_v3(im, fr))
+            self._schema.set(s)
+            self.num_samples += 1
+
+    def _release(self) -> None:
+        self._schema = None
+        self._archive = None  # the archive is written out when its last reference goes
+        gc.collect()
+
+    def close(self) -> Path:
+        if not self._closed:
+            if self.num_samples == 0:
+                self.abort()
+                raise InputError("no frames were written", path=self.path)
+            self._release()
+            os.replace(self._tmp, self.path)
+            self._closed = True
+        return self.path
+
+    def abort(self) -> None:
+        if not self._closed:
+            self._release()
+            self._tmp.unlink(missing_ok=True)
+            self._closed = True
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        self.close() if exc_type is None else self.abort()
+
+
+def read_alembic_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read the first PolyMesh of an ``.abc`` file: faces ``(F, 3)``, frames ``(S, N, 3)``, times ``(S,)``."""
+    Abc, AbcGeom, _, _ = _modules()
+    p = Path(path)
+    if not p.is_file():
+        raise FileFormatError("no such file", path=p)
+    try:
+        top = Abc.IArchive(str(p)).getTop()
+        meshes = [top.getChild(i) for i in range(top.getNumChildren())
+                  if AbcGeom.IPolyMesh.matches(top.getChild(i).getMetaData())]
+        if not meshes:
+            raise FileFormatError("Alembic file has no polygon mesh at its top level", path=p)
+        schema = AbcGeom.IPolyMesh(top, meshes[0].getName()).getSchema()
+        ts = schema.getTimeSampling()
+        n = schema.getNumSamples()
+        first = schema.getValue(Abc.ISampleSelector(ts.getSampleTime(0)))
+        counts = np.array(memoryview(first.getFaceCounts()))
+        if (counts != 3).any():
+            raise FileFormatError("Alembic mesh is not all triangles", path=p)
+        faces = np.array(memoryview(first.getFaceIndices())).reshape(-1, 3)[:, ::-1].astype(np.int64)
+        times = np.array([ts.getSampleTime(i) for i in range(n)])
+        frames = np.stack([np.array(memoryview(schema.getValue(Abc.ISampleSelector(t)).getPositions()))
+                           for t in times]).astype(np.float64)
+    except FileFormatError:
+        raise
+    except Exception as e:
+        raise FileFormatError(f"cannot read Alembic file ({type(e).__name__}: {e})", path=p) from None
+    return faces, frames, times
