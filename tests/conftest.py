@@ -25,13 +25,19 @@ def leftovers(directory: Path) -> list[str]:
 
 
 @pytest.fixture(scope="session")
-def random_package(tmp_path_factory):
-    """A random-init model package with every deformer variant (exported once per test session)."""
+def random_model(tmp_path_factory):
+    """(frozen torch SEGANet, its model package with every deformer variant), made once per session."""
     torch = pytest.importorskip("torch", reason="exporting a package needs the 'torch' extra")
     from segadeform.export import export_package
     from segadeform.model import ModelConfig, SEGANet
 
     torch.manual_seed(3)
+    net = SEGANet(ModelConfig()).eval()
     path = tmp_path_factory.mktemp("pkg") / "random"
-    export_package(SEGANet(ModelConfig()), path, check=False)
-    return path
+    export_package(net, path, check=False)
+    return net.freeze(), path
+
+
+@pytest.fixture(scope="session")
+def random_package(random_model):
+    return random_model[1]

@@ -115,3 +115,14 @@ def test_mesh_with_only_degenerate_faces(method):
     d = GeodesicSolver(v, f, method=method)(np.arange(4))
     assert not np.isnan(d).any()
     assert d[0, 1] == pytest.approx(0.0, abs=1e-300) and np.isinf(d[0, 3])
+
+
+def test_needle_triangle_is_degenerate_not_singular():
+    """Regression (hard-case catalogue): a needle with clamped cotangents made the Poisson LU singular."""
+    v, f = grid_plane(6, 6)
+    extra = np.array([[0.2, 1.0, 0.0], [0.2 + 1e-9, 1.0, 0.3], [0.2, 1.0 + 1e-9, 0.6]])
+    v = np.vstack([v, extra])
+    f = np.vstack([f, [[36, 37, 38]]])
+    d = GeodesicSolver(v, f)(np.arange(len(v)))
+    assert not np.isnan(d).any()
+    assert np.isfinite(d[36, 36:]).all() and np.isinf(d[36, :36]).all()

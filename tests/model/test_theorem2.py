@@ -81,3 +81,16 @@ def test_attention_scores_stay_finite_for_huge_features():
     with torch.no_grad():
         out = block(x, nbr, mask)
     assert torch.isfinite(out).all()
+
+
+def test_gradients_are_finite_at_zero_and_equal_features():
+    """Regression (hard-case catalogue): sqrt at exactly 0 gave NaN derivatives for all-zero features."""
+    torch.manual_seed(0)
+    v, nbr, mask = graph("skirt")
+    block = SEGABlock(30, 8, 4, 16).double()
+    for x in (torch.zeros(1, len(v), 30, dtype=torch.float64),
+              torch.ones(1, len(v), 30, dtype=torch.float64)):
+        x.requires_grad_(True)
+        block(x, nbr, mask).sum().backward()
+        assert torch.isfinite(x.grad).all()
+        assert all(torch.isfinite(p.grad).all() for p in block.parameters() if p.grad is not None)

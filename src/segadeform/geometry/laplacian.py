@@ -28,12 +28,27 @@ MAX_DENSE_VERTICES = 12000
 
 
 def nondegenerate_faces(vertices, faces) -> np.ndarray:
-    """Boolean ``(F,)``: faces with area above ``DEGENERATE_AREA * h^2`` and three distinct vertices."""
+    """Boolean ``(F,)``: faces that carry a well-defined surface.
+
+    A face is degenerate when it repeats a vertex, when its area is below
+    ``DEGENERATE_AREA * h^2``, or when it is a needle: an angle whose
+    cotangent reaches ``COT_CLAMP`` (below ~0.06 deg or above ~179.94 deg).  A
+    needle kept with clamped cotangents gives Laplacian rows that sum to zero
+    with zero diagonal -- an exactly singular factorisation (found by the
+    hard-case catalogue).
+    """
     f = faces
-    area2 = np.linalg.norm(face_cross(vertices, f), axis=1)
-    h = mean_edge_length(vertices, f)
+    v = vertices
+    area2 = np.linalg.norm(face_cross(v, f), axis=1)
+    h = mean_edge_length(v, f)
     distinct = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])
-    return distinct & (area2 > 2 * DEGENERATE_AREA * max(h * h, np.finfo(float).tiny))
+    ok = distinct & (area2 > 2 * DEGENERATE_AREA * max(h * h, np.finfo(float).tiny))
+    for c in range(3):
+        a = v[f[:, (c + 1) % 3]] - v[f[:, c]]
+        b = v[f[:, (c + 2) % 3]] - v[f[:, c]]
+        dot = np.einsum("ij,ij->i", a, b)
+        ok &= np.abs(dot) < COT_CLAMP * np.maximum(area2, np.finfo(float).tiny)
+    return ok
 
 
 def cotangents(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

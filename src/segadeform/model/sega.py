@@ -25,10 +25,12 @@ def theorem2_bound(alpha: float, tau: float) -> float:
 
 def _safe_norm(x: torch.Tensor, dim: int) -> torch.Tensor:
     """Euclidean norm as ``m * ||x / m||`` with ``m = max |x|``: no overflow for huge entries
-    (a plain sum of squares overflows float32 above ~1.8e19)."""
+    (a plain sum of squares overflows float32 above ~1.8e19).  The ``1e-24`` under the root
+    keeps the derivative finite at x = 0 (sqrt'(0) is infinite: NaN gradients in training);
+    the scaled sum is at least 1 whenever x != 0, so it changes nothing else."""
     m = x.abs().amax(dim=dim, keepdim=True)
     safe = torch.where(m > 0, m, torch.ones_like(m))
-    return (torch.sqrt(((x / safe) ** 2).sum(dim=dim, keepdim=True)) * m).squeeze(dim)
+    return (torch.sqrt(((x / safe) ** 2).sum(dim=dim, keepdim=True) + 1e-24) * m).squeeze(dim)
 
 
 def gather_neighbours(x: torch.Tensor, nbr: torch.Tensor) -> torch.Tensor:
