@@ -160,7 +160,12 @@ class ModelPackage:
                                            expected=w["shape"], got=g.shape)
 
     def run(self, name: str, feeds: dict[str, np.ndarray]) -> list[np.ndarray]:
-        """Validate ``feeds`` against the manifest (names, dtypes, ranks, fixed sizes, finiteness), then run."""
+        """Validate ``feeds`` against the manifest (names, dtypes, ranks, fixed sizes, finiteness), then run.
+
+        The session is created first, so a manifest that disagrees with its ONNX file is reported as
+        such (naming the file) rather than as a caller's missing input; nothing runs before the feeds
+        pass."""
+        sess = self.session(name)
         spec = self.spec(name)
         checked = {}
         for w in spec["inputs"]:
@@ -177,4 +182,4 @@ class ModelPackage:
             if a.dtype.kind == "f" and not np.isfinite(a).all():
                 raise InputError(f"input '{w['name']}' contains NaN or inf")
             checked[w["name"]] = np.ascontiguousarray(a)
-        return self.session(name).run(None, checked)
+        return sess.run(None, checked)

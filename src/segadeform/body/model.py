@@ -296,13 +296,9 @@ def load_body(path: str | os.PathLike) -> BodyModel:
             raise FileFormatError(f"malformed pickle ({type(e).__name__}: {e})", path=p) from None
         return _from_arrays(z, p)
     if ext == ".npz":
-        try:
-            with np.load(p, allow_pickle=False) as npz:
-                z = {k: npz[k] for k in npz.files}
-        except ValueError as e:
-            raise FileFormatError(f"body .npz holds pickled objects, which are not read ({e})", path=p) from None
-        except Exception as e:
-            raise FileFormatError(f"not a readable .npz file ({type(e).__name__}: {e})", path=p) from None
+        from ..io.npz import load_npz
+
+        z = load_npz(p, what="body .npz")
         if "schema_version" in z and int(z["schema_version"]) != BODY_SCHEMA_VERSION:
             raise FileFormatError("unsupported body schema version", path=p, expected=BODY_SCHEMA_VERSION,
                                   got=int(z["schema_version"]))

@@ -42,26 +42,30 @@ def load_rest_joints(path: str | os.PathLike) -> np.ndarray:
     Files are read with ``allow_pickle=False``.
     """
     p = Path(path)
-    try:
-        z = np.load(p, allow_pickle=False)
-    except FileNotFoundError:
-        raise FileFormatError("no such file", path=p) from None
-    except (OSError, ValueError) as e:
-        raise FileFormatError(f"not a readable .npy/.npz file ({e})", path=p) from None
+    if p.suffix.lower() == ".npz":
+        from ..io.npz import load_npz
+
+        z = load_npz(p, what="body .npz")
+    else:
+        try:
+            z = np.load(p, allow_pickle=False)
+        except FileNotFoundError:
+            raise FileFormatError("no such file", path=p) from None
+        except (OSError, ValueError) as e:
+            raise FileFormatError(f"not a readable .npy file ({e})", path=p) from None
     if isinstance(z, np.ndarray):
         return _finite_joints(z, p, "joints")
-    with z:
-        if "joints" in z.files:
-            return _finite_joints(z["joints"], p, "joints")
-        if "J_regressor" in z.files and "v_template" in z.files:
-            jr, vt = np.asarray(z["J_regressor"]), np.asarray(z["v_template"])
-            if jr.ndim != 2 or vt.ndim != 2 or vt.shape[1] != 3 or jr.shape[1] != vt.shape[0]:
-                raise FileFormatError("J_regressor and v_template do not fit", path=p,
-                                      expected="J_regressor (S, V) and v_template (V, 3)",
-                                      got=f"{jr.shape} and {vt.shape}")
-            return _finite_joints(jr.astype(np.float64) @ vt.astype(np.float64), p, "joints")
-        raise FileFormatError("body file has no joints", path=p,
-                              expected="'joints' or 'J_regressor' + 'v_template'", got=", ".join(z.files))
+    if "joints" in z:
+        return _finite_joints(z["joints"], p, "joints")
+    if "J_regressor" in z and "v_template" in z:
+        jr, vt = np.asarray(z["J_regressor"]), np.asarray(z["v_template"])
+        if jr.ndim != 2 or vt.ndim != 2 or vt.shape[1] != 3 or jr.shape[1] != vt.shape[0]:
+            raise FileFormatError("J_regressor and v_template do not fit", path=p,
+                                  expected="J_regressor (S, V) and v_template (V, 3)",
+                                  got=f"{jr.shape} and {vt.shape}")
+        return _finite_joints(jr.astype(np.float64) @ vt.astype(np.float64), p, "joints")
+    raise FileFormatError("body file has no joints", path=p,
+                          expected="'joints' or 'J_regressor' + 'v_template'", got=", ".join(z))
 
 
 def default_rest_joints() -> np.ndarray:

@@ -109,33 +109,29 @@ class GarmentAsset:
     def load(cls, path: str | os.PathLike) -> "GarmentAsset":
         """Read and validate an asset; errors name the file and the field."""
         p = Path(path)
+        from ..io.npz import load_npz
+
+        z = load_npz(p, what="garment asset .npz")
+        names = set(z)
+        required = set(_ARRAYS) | {"schema_version", "geodesic_radius", "params"}
+        missing = sorted(required - names)
+        if missing:
+            raise FileFormatError("garment asset is missing fields", path=p, expected=", ".join(sorted(required)),
+                                  got="missing " + ", ".join(missing))
         try:
-            z = np.load(p, allow_pickle=False)
-        except FileNotFoundError:
-            raise FileFormatError("no such file", path=p) from None
-        except (OSError, ValueError) as e:
-            raise FileFormatError(f"not a readable .npz garment asset ({e})", path=p) from None
-        with z:
-            names = set(z.files)
-            required = set(_ARRAYS) | {"schema_version", "geodesic_radius", "params"}
-            missing = sorted(required - names)
-            if missing:
-                raise FileFormatError("garment asset is missing fields", path=p, expected=", ".join(sorted(required)),
-                                      got="missing " + ", ".join(missing))
-            try:
-                version = int(z["schema_version"])
-                if version != ASSET_SCHEMA_VERSION:
-                    raise FileFormatError("unsupported garment asset schema version", path=p,
-                                          expected=ASSET_SCHEMA_VERSION, got=version)
-                fields = {k: z[k] for k in _ARRAYS}
-                params = json.loads(str(z["params"]))
-                radius = float(z["geodesic_radius"])
-                src = str(z["source_name"]) if "source_name" in names else ""
-                sha = str(z["source_sha256"]) if "source_sha256" in names else ""
-            except FileFormatError:
-                raise
-            except Exception as e:
-                raise FileFormatError(f"garment asset field cannot be read ({e})", path=p) from None
+            version = int(z["schema_version"])
+            if version != ASSET_SCHEMA_VERSION:
+                raise FileFormatError("unsupported garment asset schema version", path=p,
+                                      expected=ASSET_SCHEMA_VERSION, got=version)
+            fields = {k: z[k] for k in _ARRAYS}
+            params = json.loads(str(z["params"]))
+            radius = float(z["geodesic_radius"])
+            src = str(z["source_name"]) if "source_name" in names else ""
+            sha = str(z["source_sha256"]) if "source_sha256" in names else ""
+        except FileFormatError:
+            raise
+        except Exception as e:
+            raise FileFormatError(f"garment asset field cannot be read ({e})", path=p) from None
         asset = cls(geodesic_radius=radius, params=params, source_name=src, source_sha256=sha, **fields)
         try:
             asset.validate()

@@ -87,15 +87,9 @@ def load_motion_npz(path: str | os.PathLike) -> Motion:
     ``mocap_frame_rate``), default 30 when absent.
     """
     p = Path(path)
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            d = {k: z[k] for k in z.files}
-    except FileNotFoundError:
-        raise FileFormatError("no such file", path=p) from None
-    except ValueError as e:
-        raise FileFormatError(f"motion .npz holds pickled objects, which are not read ({e})", path=p) from None
-    except Exception as e:
-        raise FileFormatError(f"not a readable .npz file ({type(e).__name__}: {e})", path=p) from None
+    from ..io.npz import load_npz
+
+    d = load_npz(p, what="motion .npz")
     if "poses" not in d:
         raise FileFormatError("motion file has no 'poses' array", path=p, got=", ".join(sorted(d)) or "no arrays")
     poses = d["poses"]

@@ -1,0 +1,60 @@
+"""Reading ``.npz`` files safely: no pickles, and no allocation larger than the file holds.
+
+``np.load`` on an ``.npz`` member allocates the array its header declares
+before reading the data, so a crafted header (shape 10^10, say) can exhaust
+memory.  :func:`load_npz` reads every member's header first and refuses a
+declared size that differs from the member's stored byte count.
+"""
+
+from __future__ import annotations
+
+import os
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FileFormatError
+
+__all__ = ["load_npz"]
+
+
+def load_npz(path: str | os.PathLike, *, what: str = ".npz") -> dict[str, np.ndarray]:
+    """All arrays of an ``.npz`` file as a dict, each checked against its stored size first."""
+    p = Path(path)
+    if not p.is_file():
+        raise FileFormatError("no such file", path=p)
+    try:
+        zf = zipfile.ZipFile(p)
+    except (zipfile.BadZipFile, OSError) as e:
+        raise FileFormatError(f"not a readable {what} file ({e})", path=p) from None
+    out = {}
+    with zf:
+        for info in zf.infolist():
+            name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+            try:
+                with zf.open(info) as fh:
+                    version = np.lib.format.read_magic(fh)
+                    if version == (1, 0):
+                        shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+                    else:
+                        shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+                    if dtype.hasobject:
+                        raise FileFormatError(f"array '{name}' holds pickled objects, which are not read", path=p)
+                    declared = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                    header_len = fh.tell()
+                    stored = info.file_size - header_len
+                    if declared != stored:
+                        raise FileFormatError(f"array '{name}' declares more data than the file holds"
+                                              if declared > stored else f"array '{name}' has trailing data", path=p,
+                                              expected=f"{declared} bytes for shape {tuple(shape)} {dtype}",
+                                              got=f"{stored} bytes")
+                    data = fh.read(stored)
+                a = np.frombuffer(data, dtype=dtype)
+                a = a.reshape(shape, order="F" if fortran else "C").copy()
+            except FileFormatError:
+                raise
+            except Exception as e:  # bad magic, bad header, truncated member, CRC error
+                raise FileFormatError(f"array '{name}' cannot be read ({type(e).__name__}: {e})", path=p) from None
+            out[name] = a
+    return out

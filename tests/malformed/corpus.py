@@ -1,0 +1,230 @@
+"""The malformed-input corpus: files that must each give a clear error through the CLI.
+
+``build(dir, package)`` writes every file into ``dir`` and returns the cases:
+(name, CLI arguments, a fragment the message must contain, the output path
+that must not appear).  The files are generated (not committed) so the corpus
+follows the formats as they evolve; ``python -m tests.malformed.corpus DIR``
+writes them for a fuzzer's seed corpus.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import pickle
+import shutil
+import struct
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+PC2 = struct.Struct("<12siiffi")
+MAGIC = b"POINTCACHE2\0"
+ROOT = Path(__file__).resolve().parents[2]
+JOINTS = ROOT / "samples" / "skeletons" / "tpose_joints_24.npy"
+GOOD_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n"
+
+
+def _npz_with_huge_header(path: Path, name: str, shape=(10 ** 10,)):
+    """An .npz whose member declares ``shape`` float64 but stores 8 bytes."""
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "<f8", "fortran_order": False, "shape": shape})
+    buf.write(b"\0" * 8)
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr(f"{name}.npy", buf.getvalue())
+
+
+class _Evil:
+    def __init__(self, cmd):
+        self.cmd = cmd
+
+    def __reduce__(self):
+        return (os.system, (self.cmd,))
+
+
+def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], str, Path | None]]:
+    d = Path(d)
+    d.mkdir(parents=True, exist_ok=True)
+    cases: list = []
+    out = d / "OUT.npz"
+
+    def obj(name, text, words):
+        p = d / f"{name}.obj"
+        p.write_text(text) if isinstance(text, str) else p.write_bytes(text)
+        cases.append((f"obj/{name}", ["precompute", str(p), "--joints", str(JOINTS), "-o", str(out)], words, out))
+
+    obj("index_out_of_range", GOOD_OBJ + "f 1 2 9\n", "vertex index out of range")
+    obj("index_zero", GOOD_OBJ + "f 0 1 2\n", "index 0")
+    obj("relative_out_of_range", GOOD_OBJ + "f -1 -2 -9\n", "relative vertex index out of range")
+    obj("two_vertex_face", GOOD_OBJ + "f 1 2\n", "fewer than 3")
+    obj("nan_coordinate", "v 0 nan 0\n" + GOOD_OBJ + "f 1 2 3\n", "not finite")
+    obj("inf_coordinate", "v 0 0 -inf\n" + GOOD_OBJ, "not finite")
+    obj("non_numeric", "v 0 zero 0\n" + GOOD_OBJ, "non-numeric")
+    obj("empty", "", "no vertices")
+    obj("no_faces", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", "no faces")
+    obj("binary_garbage", b"\x00\x01\x02OBJ?\xff" * 50, "NUL")
+    obj("bad_texcoord_index", GOOD_OBJ + "vt 0 0\nf 1/3 2/1 3/1\n", "texture coordinate index out of range")
+    obj("bad_normal_index", GOOD_OBJ + "f 1//1 2//1 3//1\n", "normal index out of range")
+    obj("truncated_vertex_line", "v 0 0 0\nv 1 0\n", "x y z")
+    obj("bad_corner", GOOD_OBJ + "f 1/1/1/1 2 3\n", "bad face corner")
+
+    def mesh(name, ext, data, words):
+        p = d / f"{name}{ext}"
+        p.write_text(data) if isinstance(data, str) else p.write_bytes(data)
+        cases.append((f"mesh/{name}", ["precompute", str(p), "--joints", str(JOINTS), "-o", str(out)], words, out))
+
+    mesh("off_truncated", ".off", "OFF\n4 2 0\n0 0 0\n1 0 0\n", "truncated")
+    mesh("off_bad_counts", ".off", "OFF\nfour two zero\n", "counts")
+    mesh("off_index", ".off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", "out of range")
+    mesh("off_not_off", ".off", "COFFEE\n", "not an OFF file")
+    mesh("ply_garbage", ".ply", "ply\nformat nonsense 9\n", "cannot parse mesh")
+    mesh("ply_truncated", ".ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
+         b"property float y\nproperty float z\nelement face 10\nproperty list uchar int vertex_indices\nend_header\n\x00\x00",
+         "cannot parse mesh")
+    mesh("unknown_extension", ".xyz", "1 2 3\n", "unknown mesh file extension")
+
+    def pc2(name, data, words):
+        p = d / f"{name}.pc2"
+        p.write_bytes(data)
+        cases.append((f"pc2/{name}", ["inspect", str(p)], words, None))
+
+    def hdr(magic=MAGIC, version=1, n=4, start=0.0, rate=1.0, s=2):
+        return PC2.pack(magic, version, n, start, rate, s)
+
+    body = b"\0" * (2 * 4 * 12)
+    pc2("empty", b"", "too short")
+    pc2("short_header", MAGIC + b"\0\0", "too short")
+    pc2("bad_magic", hdr(magic=b"POINTCACHE1\0") + body, "bad magic")
+    pc2("version_2", hdr(version=2) + body, "version")
+    pc2("zero_points", hdr(n=0, s=0), "numPoints")
+    pc2("negative_samples", hdr(s=-3), "numSamples")
+    pc2("huge_declared", hdr(n=2 ** 31 - 1, s=2 ** 31 - 1) + body, "size does not match")
+    pc2("truncated_data", hdr() + body[:50], "size does not match")
+    pc2("trailing_data", hdr() + body + b"\0" * 7, "size does not match")
+    pc2("nan_sample", hdr() + np.array([0, 0, 0] * 7 + [np.nan, 0, 0], "<f4").tobytes(), "non-finite")
+    pc2("zero_rate", hdr(rate=0.0) + body, "sampleRate")
+
+    def bodyfile(name, ext, writer, words):
+        p = d / f"{name}{ext}"
+        writer(p)
+        cases.append((f"body/{name}", ["body", "info", str(p)], words, None))
+
+    from tests.body.conftest import toy_body
+
+    good = toy_body()
+    good.save(d / "good_body.npz")
+    arrays = dict(np.load(d / "good_body.npz", allow_pickle=False))
+
+    def body_variant(**changes):
+        def write(p):
+            z = dict(arrays)
+            for k, v in changes.items():
+                if v is None:
+                    z.pop(k)
+                else:
+                    z[k] = v(z[k]) if callable(v) else v
+            np.savez(p, **z)
+        return write
+
+    bodyfile("missing_weights", ".npz", body_variant(weights=None), "missing arrays")
+    bodyfile("weights_not_normalised", ".npz", body_variant(weights=lambda w: w * 2), "do not sum to 1")
+    bodyfile("parents_cycle", ".npz", body_variant(parents=np.array([-1] + [5] * 23)), "invalid parent")
+    bodyfile("nan_template", ".npz", body_variant(v_template=lambda v: np.where(np.arange(v.size).reshape(v.shape) == 4, np.nan, v)), "NaN")
+    bodyfile("string_weights", ".npz", body_variant(weights=np.array(["a"] * 10)), "numeric")
+    bodyfile("huge_declared_shape", ".npz", lambda p: _npz_with_huge_header(p, "v_template"), "declares more data")
+    bodyfile("truncated_zip", ".npz", lambda p: p.write_bytes((d / "good_body.npz").read_bytes()[:300]), "not a readable")
+    bodyfile("object_array", ".npz", lambda p: np.savez(p, v_template=np.array([{"a": 1}], dtype=object)), "pickled objects")
+    bodyfile("pickle_os_system", ".pkl", lambda p: p.write_bytes(pickle.dumps({"v_template": _Evil("true")}, protocol=2)), "forbidden global")
+    bodyfile("pickle_eval", ".pkl", lambda p: p.write_bytes(b"cbuiltins\neval\n(V1+1\ntR."), "forbidden global")
+    bodyfile("pickle_truncated", ".pkl", lambda p: p.write_bytes(pickle.dumps({"a": np.zeros(3)}, protocol=2)[:-5]), "malformed")
+    bodyfile("pickle_not_dict", ".pkl", lambda p: p.write_bytes(pickle.dumps([1, 2, 3], protocol=2)), "expected a dict")
+
+    def motionfile(name, ext, writer, words):
+        p = d / f"{name}{ext}"
+        writer(p)
+        cases.append((f"motion/{name}", ["motion", "info", str(p)], words, None))
+
+    motionfile("no_poses", ".npz", lambda p: np.savez(p, trans=np.zeros((3, 3))), "no 'poses'")
+    motionfile("bad_width", ".npz", lambda p: np.savez(p, poses=np.zeros((3, 70))), "unknown width")
+    motionfile("zero_frames", ".npz", lambda p: np.savez(p, poses=np.zeros((0, 72))), "no frames")
+    motionfile("nan_pose", ".npz", lambda p: np.savez(p, poses=np.full((2, 72), np.nan)), "NaN")
+    motionfile("trans_mismatch", ".npz", lambda p: np.savez(p, poses=np.zeros((4, 72)), trans=np.zeros((3, 3))), "trans")
+    motionfile("huge_declared_poses", ".npz", lambda p: _npz_with_huge_header(p, "poses", (10 ** 9, 72)), "declares more data")
+
+    from segadeform.body import default_rest_joints
+    from segadeform.motion import make_motion, write_bvh
+
+    write_bvh(d / "good.bvh", make_motion("idle", seconds=0.2), default_rest_joints())
+    good_bvh = (d / "good.bvh").read_text()
+    for name, text, words in (
+        ("bvh_bad_keyword", good_bvh.replace("HIERARCHY", "HEIRARCHY"), "unexpected token"),
+        ("bvh_truncated", "\n".join(good_bvh.splitlines()[:30]), "ends too early"),
+        ("bvh_frame_mismatch", good_bvh.replace("Frames: 6", "Frames: 7"), "does not match its declared size"),
+        ("bvh_huge_frames", good_bvh.replace("Frames: 6", "Frames: 999999999"), "does not match its declared size"),
+        ("bvh_unknown_joints", good_bvh.replace("JOINT left_knee", "JOINT Knee_L_007"), "unknown joint names"),
+        ("bvh_nan", good_bvh.replace("0.000000", "nan", 1), "not finite"),
+        ("bvh_channels", good_bvh.replace("CHANNELS 3", "CHANNELS 9", 1), "channel count"),
+    ):
+        motionfile(name, ".bvh", lambda p, t=text: p.write_text(t), words)
+
+    scene_out = d / "SCENE_OUT.pc2"
+    pkg_arg = ["--model", str(package)] if package else []
+
+    def scene(name, text, words):
+        p = d / f"{name}.toml"
+        p.write_text(text)
+        cases.append((f"scene/{name}", ["run", str(p), *pkg_arg, "-o", str(scene_out)], words, scene_out))
+
+    garment = ROOT / "samples" / "garments" / "skirt.obj"
+    base = f'[garment]\nmesh = "{garment}"\n[motion]\nkind = "walk"\nseconds = 0.2\n[output]\npath = "{scene_out}"\n'
+    scene("unknown_key", base + "[effects]\nsparkles = true\n", "unknown key effects.sparkles")
+    scene("unknown_table", base + "[camera]\nfov = 40\n", "unknown table")
+    scene("wrong_type", base + "[effects]\ncollisions = 1\n", "wrong type")
+    scene("missing_garment", base.split("[motion]")[0].replace("mesh", "file") + "[motion]\nkind = \"walk\"\n[output]\npath = \"x.pc2\"\n",
+          "unknown key garment.file")
+    scene("invalid_toml", "[garment\nmesh = ", "invalid TOML")
+    scene("file_and_kind", base.replace('kind = "walk"', 'kind = "walk"\nfile = "m.npz"'), "exactly one")
+    scene("bad_format", base.replace(f'path = "{scene_out}"', 'path = "out.fbx"'), "output.format")
+    scene("garment_missing_file", base.replace(str(garment), str(d / "nope.obj")), "nope.obj")
+    scene("bad_skinning", base + '[effects]\nskinning = "quaternion"\n', "skinning must be")
+
+    if package is not None:
+        good_scene = d / "good_scene.toml"
+        good_scene.write_text(base)
+
+        def pkgcase(name, edit, words):
+            p = d / f"pkg_{name}"
+            shutil.copytree(package, p)
+            edit(p)
+            cases.append((f"package/{name}", ["run", str(good_scene), "--model", str(p), "-o", str(scene_out)], words,
+                          scene_out))
+
+        def man(**kw):
+            def edit(p):
+                m = json.loads((p / "manifest.json").read_text())
+                for k, v in kw.items():
+                    if callable(v):
+                        v(m)
+                    else:
+                        m[k] = v
+                (p / "manifest.json").write_text(json.dumps(m))
+            return edit
+
+        pkgcase("no_manifest", lambda p: (p / "manifest.json").unlink(), "no manifest.json")
+        pkgcase("manifest_not_json", lambda p: (p / "manifest.json").write_text("{,"), "not valid JSON")
+        pkgcase("schema_99", man(schema_version=99), "schema version")
+        pkgcase("graph_missing", lambda p: (p / "garment_encoder.onnx").unlink(), "file is missing")
+        pkgcase("graph_corrupt", lambda p: (p / "deformer.onnx").write_bytes(b"\x08\x01junk"), "manifest hash")
+        pkgcase("manifest_disagrees_with_onnx",
+                man(rename=lambda m: m["graphs"]["garment_encoder"]["inputs"][0].update(name="vertex_features")),
+                "disagree with the manifest")
+        pkgcase("joint_count_mismatch", man(joint_names=["pelvis"]), "joint_names do not match")
+    return [c for c in cases if c is not None]
+
+
+if __name__ == "__main__":
+    target = Path(sys.argv[1] if len(sys.argv) > 1 else "malformed-corpus")
+    print(len(build(target)), "files in", target)

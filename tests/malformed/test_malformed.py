@@ -1,0 +1,62 @@
+"""Every file of the malformed corpus, through the CLI: exit status 1 (2 for usage), a message naming the
+file and the problem, no traceback, no output file, and no memory blow-up from a huge declared size
+(the whole corpus runs in one child process limited to 4 GB of address space)."""
+
+import json
+import subprocess
+import sys
+
+from tests.conftest import REPO
+from tests.malformed.corpus import build
+
+CHILD = r"""
+import json, resource, sys
+resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
+sys.path.insert(0, sys.argv[3])
+from click.testing import CliRunner
+from segadeform.cli.main import cli
+from tests.malformed.corpus import build
+results = []
+for name, args, words, out in build(sys.argv[1], sys.argv[2] if sys.argv[2] != "-" else None):
+    r = CliRunner().invoke(cli, args)
+    results.append({"name": name, "code": r.exit_code, "output": r.output, "exc": repr(r.exception) if r.exception and not isinstance(r.exception, SystemExit) else None,
+                    "words": words, "out_exists": bool(out) and __import__("pathlib").Path(out).exists(), "file": args[1] if args[0] not in ("body", "motion") else args[2]})
+print(json.dumps(results))
+"""
+
+
+def test_malformed_corpus_through_the_cli(tmp_path, random_package):
+    p = subprocess.run([sys.executable, "-c", CHILD, str(tmp_path / "corpus"), str(random_package), str(REPO)],
+                       capture_output=True, text=True, timeout=900)
+    assert p.returncode == 0, p.stderr[-3000:]
+    results = json.loads(p.stdout.strip().splitlines()[-1])
+    assert len(results) >= 50, len(results)
+    failures = []
+    for r in results:
+        problems = []
+        if r["code"] != 1:
+            problems.append(f"exit {r['code']}")
+        if r["exc"]:
+            problems.append(f"raised {r['exc']}")
+        if "Traceback" in r["output"]:
+            problems.append("traceback")
+        if r["words"] not in r["output"]:
+            problems.append(f"message lacks {r['words']!r}")
+        if r["out_exists"]:
+            problems.append("partial output written")
+        if problems:
+            failures.append(f"{r['name']}: {', '.join(problems)} -- {r['output'].strip()[:200]}")
+    assert not failures, "\n".join(failures)
+
+
+def test_messages_name_the_file(tmp_path, random_package):
+    cases = build(tmp_path / "c", random_package)
+    from click.testing import CliRunner
+
+    from segadeform.cli.main import cli
+
+    for name, args, words, out in cases[:30]:
+        r = CliRunner().invoke(cli, args)
+        target = args[1] if args[0] not in ("body", "motion") else args[2]
+        fname = target.rsplit("/", 1)[-1]
+        assert fname in r.output or name.startswith(("scene/garment", "package/")), (name, r.output)
