@@ -192,7 +192,12 @@ def load_scene(path: str | os.PathLike) -> Scene:
     base = p.resolve().parent
 
     def rel(s: str) -> Path:
-        q = Path(s).expanduser()
+        if "\x00" in s:
+            raise FileFormatError("path contains a NUL character", path=p, got=repr(s)[:60])
+        try:
+            q = Path(s).expanduser()
+        except RuntimeError:  # "~someone" for an unknown user (found by fuzzing)
+            raise FileFormatError("cannot expand '~' in a path", path=p, got=s[:60]) from None
         return Path(os.path.normpath(q if q.is_absolute() else base / q))
 
     m = data["motion"]

@@ -26,8 +26,8 @@ def load_npz(path: str | os.PathLike, *, what: str = ".npz") -> dict[str, np.nda
         raise FileFormatError("no such file", path=p)
     try:
         zf = zipfile.ZipFile(p)
-    except (zipfile.BadZipFile, OSError) as e:
-        raise FileFormatError(f"not a readable {what} file ({e})", path=p) from None
+    except Exception as e:  # BadZipFile, OSError, NotImplementedError ("zip file version 22.7", found by fuzzing) ...
+        raise FileFormatError(f"not a readable {what} file ({type(e).__name__}: {e})", path=p) from None
     out = {}
     with zf:
         for info in zf.infolist():

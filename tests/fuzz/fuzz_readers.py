@@ -1,0 +1,129 @@
+"""Coverage-guided fuzzing (atheris, libFuzzer) of the file readers.
+
+    python tests/fuzz/fuzz_readers.py TARGET [libFuzzer options] [CORPUS_DIR ...]
+
+TARGET is one of obj, off, pc2, bvh, toml, npz.  Every input is written to a
+file and read with the package's reader; a reader may only fail with
+:class:`segadeform.errors.SegadeformError` (a clear error).  Anything else
+-- IndexError, struct.error, RecursionError, a NaN slipping through -- is a
+crash and libFuzzer stops with the input saved as ``crash-*``.
+
+A short run is part of the test suite (``tests/fuzz/test_fuzz.py``); a
+longer run, e.g. ten minutes per target::
+
+    python tests/fuzz/fuzz_readers.py obj -max_total_time=600 -rss_limit_mb=4096 fuzz-corpus/obj
+
+Seed corpora come from ``python tests/fuzz/fuzz_readers.py --seeds DIR``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+TARGETS = ("obj", "off", "pc2", "bvh", "toml", "npz")
+_TMP = Path(tempfile.mkdtemp(prefix="segadeform-fuzz-"))
+
+
+def _check_finite(*arrays):
+    for a in arrays:
+        a = np.asarray(a)
+        if a.dtype.kind == "f" and not np.isfinite(a).all():
+            raise AssertionError("a reader returned NaN or inf")
+
+
+def make_target(name: str):
+    from segadeform.errors import SegadeformError
+
+    if name == "obj":
+        from segadeform.io import read_obj
+
+        def read(p):
+            m = read_obj(p)
+            _check_finite(m.vertices)
+            assert m.faces.min() >= 0 and m.faces.max() < m.n_vertices
+    elif name == "off":
+        from segadeform.io import read_off
+
+        def read(p):
+            m = read_off(p)
+            _check_finite(m.vertices)
+            assert m.faces.max() < m.n_vertices
+    elif name == "pc2":
+        from segadeform.io import read_pc2
+
+        def read(p):
+            pc = read_pc2(p, check_finite=True)
+            _check_finite(pc.frames)
+    elif name == "bvh":
+        from segadeform.motion import read_bvh
+
+        def read(p):
+            m = read_bvh(p)
+            _check_finite(m.poses, m.trans)
+    elif name == "toml":
+        from segadeform.scene import load_scene
+
+        def read(p):
+            load_scene(p)
+    elif name == "npz":
+        from segadeform.body import load_body
+
+        def read(p):
+            load_body(p)
+    else:
+        raise SystemExit(f"unknown target {name!r}; expected one of {', '.join(TARGETS)}")
+    path = _TMP / f"input.{name}"
+
+    def one_input(data: bytes) -> None:
+        path.write_bytes(data)
+        try:
+            read(path)
+        except SegadeformError:
+            pass
+
+    return one_input
+
+
+def write_seeds(d: Path) -> None:
+    """Valid example files per target, to start the fuzzer from."""
+    from segadeform.body import default_rest_joints
+    from segadeform.io import write_pc2
+    from segadeform.motion import make_motion, write_bvh
+
+    root = Path(__file__).resolve().parents[2]
+    for t in TARGETS:
+        (d / t).mkdir(parents=True, exist_ok=True)
+    (d / "obj" / "quad.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1 -1/1/1\n")
+    (d / "obj" / "skirt_head.obj").write_text("\n".join((root / "samples/garments/skirt.obj").read_text().splitlines()[:200]))
+    (d / "off" / "quad.off").write_text("OFF\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n")
+    write_pc2(d / "pc2" / "small.pc2", np.random.default_rng(0).normal(size=(3, 5, 3)))
+    write_bvh(d / "bvh" / "idle.bvh", make_motion("idle", seconds=0.1), default_rest_joints())
+    (d / "toml" / "scene.toml").write_text((root / "samples/scenes/skirt_walk.toml").read_text())
+    from tests.body.conftest import toy_body
+
+    toy_body(n_betas=2).save(d / "npz" / "toy_body.npz")
+
+
+def main() -> None:
+    if len(sys.argv) >= 3 and sys.argv[1] == "--seeds":
+        write_seeds(Path(sys.argv[2]))
+        return
+    if len(sys.argv) < 2 or sys.argv[1] not in TARGETS:
+        raise SystemExit(__doc__)
+    import atheris
+
+    target = sys.argv.pop(1)
+    with atheris.instrument_imports(include=["segadeform"]):
+        fn = make_target(target)
+    atheris.Setup(sys.argv, fn)
+    atheris.Fuzz()
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    main()
