@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import os
 from pathlib import Path
@@ -82,8 +83,11 @@ class Deformer:
         n_star = int(self.package.config["n_star"])
         if desc.shape != (n_star,):
             raise InputError("garment descriptor length does not match the model", expected=n_star, got=desc.shape[0])
+        # the key covers the encoder file and its manifest entry: a package whose manifest no
+        # longer matches its graph must not be served from an old cache
+        spec = self.package.spec("garment_encoder")
         key = _digest(feats, asset.nbr, asset.mask, desc, b,
-                      extra=self.package.spec("garment_encoder").get("sha256", str(self.package.path)))
+                      extra=json.dumps(spec, sort_keys=True) + str(spec.get("sha256", self.package.path)))
         if key in self._memory:
             return self._memory[key]
         path = Path(cache_dir) / f"P-{key}.npy" if cache_dir is not None else None

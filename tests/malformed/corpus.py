@@ -176,7 +176,7 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     def scene(name, text, words):
         p = d / f"{name}.toml"
         p.write_text(text)
-        cases.append((f"scene/{name}", ["run", str(p), *pkg_arg, "-o", str(scene_out)], words, scene_out))
+        cases.append((f"scene/{name}", ["run", str(p), *pkg_arg, "-o", str(scene_out), "--no-cache"], words, scene_out))
 
     garment = ROOT / "samples" / "garments" / "skirt.obj"
     base = f'[garment]\nmesh = "{garment}"\n[motion]\nkind = "walk"\nseconds = 0.2\n[output]\npath = "{scene_out}"\n'
@@ -199,8 +199,8 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
             p = d / f"pkg_{name}"
             shutil.copytree(package, p)
             edit(p)
-            cases.append((f"package/{name}", ["run", str(good_scene), "--model", str(p), "-o", str(scene_out)], words,
-                          scene_out))
+            cases.append((f"package/{name}", ["run", str(good_scene), "--model", str(p), "-o", str(scene_out),
+                                              "--no-cache"], words, scene_out))
 
         def man(**kw):
             def edit(p):

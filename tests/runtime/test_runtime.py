@@ -276,3 +276,20 @@ def test_run_writes_alembic(tmp_path, random_package):
     assert r.exit_code == 0, r.output
     faces, frames, _ = read_alembic_sequence(tmp_path / "skirt.abc")
     assert frames.shape == (4, 1536, 3) and faces.shape == (2944, 3)
+
+
+def test_encoder_cache_does_not_hide_a_broken_manifest(tmp_path, random_package, body):
+    """Regression: a cached P skipped the encoder session, so a manifest renamed since went unnoticed."""
+    joints = body.rest_joints()[0]
+    asset = make_run(tmp_path, random_package, body, Effects()).load_asset(joints)
+    Deformer(ModelPackage(random_package)).encode(asset, joints, cache_dir=tmp_path / "cache")
+    broken = corrupt(tmp_path, random_package,
+                     lambda p: _manifest(p, graphs={**json.loads((p / "manifest.json").read_text())["graphs"],
+                                                    "garment_encoder": {**json.loads((p / "manifest.json").read_text())
+                                                                        ["graphs"]["garment_encoder"],
+                                                                        "inputs": [{"name": "feats", "dtype": "float32",
+                                                                                    "shape": ["B", "N", 30]}] +
+                                                                        json.loads((p / "manifest.json").read_text())
+                                                                        ["graphs"]["garment_encoder"]["inputs"][1:]}}))
+    with pytest.raises(PackageError, match="disagree with the manifest"):
+        Deformer(ModelPackage(broken)).encode(asset, joints, cache_dir=tmp_path / "cache")
