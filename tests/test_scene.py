@@ -50,7 +50,7 @@ def test_invalid_scenes(tmp_path, extra, words):
     ('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\nfile = "m.npz"\n[output]\npath = "o.pc2"\n', "exactly one"),
     ('[garment]\nmesh = "g.obj"\n[motion]\nfile = "m.npz"\nseed = 3\n[output]\npath = "o.pc2"\n', "procedural"),
     ('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\nframes = "x"\n[output]\npath = "o.pc2"\n', "A:B"),
-    ('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\n[output]\npath = "o.abc"\n', "output.format"),
+    ('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\n[output]\npath = "o.fbx"\n', "output.format"),
     ("garment = = 1", "invalid TOML"),
 ])
 def test_structural_errors(tmp_path, text, words):

@@ -18,7 +18,6 @@ Seed corpora come from ``python tests/fuzz/fuzz_readers.py --seeds DIR``.
 
 from __future__ import annotations
 
-import os
 import sys
 import tempfile
 from pathlib import Path

@@ -13,7 +13,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from segadeform.geometry.primitives import cylinder, fan, frustum, grid_plane
+from segadeform.geometry.primitives import fan, frustum, grid_plane
 from segadeform.motion import make_motion
 
 

@@ -77,7 +77,6 @@ def run_case(case, models, body, tmp_path):
     # encoder
     d = Deformer(pkg)
     P_ort = d.encode(asset, joints, betas)
-    feats = d_feats = None
     from segadeform.geometry.features import vertex_features
 
     d_feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))

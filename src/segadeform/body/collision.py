@@ -125,7 +125,6 @@ class BodyProxy:
         area2 = np.linalg.norm(cr, axis=1)
         self.face_normals = cr / np.maximum(area2, 1e-300)[:, None]
         # angle-weighted vertex pseudo-normals
-        nv = len(v)
         ang = np.empty((len(f), 3))
         for c in range(3):
             e1 = v[f[:, (c + 1) % 3]] - v[f[:, c]]

@@ -150,7 +150,7 @@ class GarmentAsset:
         n = self.vertices.shape[0]
         s = self.joints.shape[0]
         checks = [
-            ("vertices", self.vertices.shape == (n, 3) and n >= 1, f"(N, 3), N >= 1"),
+            ("vertices", self.vertices.shape == (n, 3) and n >= 1, "(N, 3), N >= 1"),
             ("faces", self.faces.shape[1:] == (3,) and len(self.faces) >= 1, "(F, 3), F >= 1"),
             ("normals", self.normals.shape == (n, 3), f"({n}, 3)"),
             ("joints", self.joints.shape == (s, 3) and s >= 1, "(S, 3)"),
