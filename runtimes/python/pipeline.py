@@ -30,8 +30,8 @@ from segadeform.errors import InputError
 from segadeform.geometry import GarmentAsset, precompute_garment
 from segadeform.geometry.asset import file_sha256
 from segadeform.io import open_sequence_writer, read_mesh, write_obj, Mesh
-from segadeform.motion import Motion, load_motion, make_motion, motion_windows, resample
-from segadeform.scene import Effects, MotionSpec, Scene
+from segadeform.motion import Motion, motion_windows
+from segadeform.scene import Effects, MotionSpec, Scene, build_motion  # noqa: F401  (build_motion re-exported)
 
 from .deformer import Deformer
 from .package import ModelPackage
@@ -210,17 +210,6 @@ class Run:
         return RunSummary(frames=self.stop - self.start, seconds=time.perf_counter() - t_all, output=self.output,
                           body_output=self.body_output, effects=self.effects, variant=self.deformer.variant,
                           sessions=sorted(self.package.created), pushed_vertices=pushed, stage_seconds=stage)
-
-
-def build_motion(spec: MotionSpec) -> Motion:
-    if spec.file is not None:
-        m = load_motion(spec.file)
-    else:
-        m = make_motion(spec.kind, seconds=spec.seconds, fps=spec.fps or 30.0, speed=spec.speed,
-                        amplitude=spec.amplitude, seed=spec.seed)
-    if spec.fps is not None and abs(spec.fps - m.fps) > 1e-9:
-        m = resample(m, spec.fps)
-    return m
 
 
 def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Path] = None, batch: int = 8,

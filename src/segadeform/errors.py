@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["SegadeformError", "InputError", "FileFormatError"]
+__all__ = ["SegadeformError", "InputError", "FileFormatError", "SimulationError"]
 
 
 class SegadeformError(Exception):
@@ -72,3 +72,7 @@ class InputError(SegadeformError, ValueError):
 
 class FileFormatError(InputError):
     """A file is malformed: wrong magic, truncated, bad counts, bad indices."""
+
+
+class SimulationError(SegadeformError):
+    """The cloth simulator failed or is not installed; the message says which and how to fix it."""

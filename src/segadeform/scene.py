@@ -34,6 +34,10 @@ are required; relative paths are relative to the scene file)::
     collisions = true              # push vertices out of the body (post-process)
     collision_margin = 0.004       # metres kept between garment and body skin
 
+    [simulate]                     # for `segadeform simulate` (ground truth); see segadeform.physics.settings
+    effects = ["gravity", "body_collision", "bending", "air_damping"]   # all others are off
+    material = "cotton"
+
 Unknown tables or keys are errors, as are wrong types and out-of-range values,
 each naming the scene file and the key.
 """
@@ -53,7 +57,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["Effects", "MotionSpec", "Scene", "load_scene", "parse_effects", "SEQUENCE_FORMAT_BY_EXT"]
+__all__ = ["Effects", "MotionSpec", "Scene", "load_scene", "parse_effects", "build_motion", "SEQUENCE_FORMAT_BY_EXT"]
 
 SEQUENCE_FORMAT_BY_EXT = {".pc2": "pc2", ".xdmf": "xdmf", ".xmf": "xdmf", ".abc": "abc", "": "obj-seq"}
 
@@ -104,6 +108,7 @@ class Scene:
     body_output: Optional[Path] = None
     effects: Effects = Effects()
     path: Optional[Path] = None
+    simulate: Optional[object] = None  # segadeform.physics.SimSettings; None: no [simulate] table
 
 
 _SCHEMA = {
@@ -163,9 +168,9 @@ def load_scene(path: str | os.PathLike) -> Scene:
         raise FileFormatError("scene is not UTF-8 text", path=p) from None
     except tomllib.TOMLDecodeError as e:
         raise FileFormatError(f"invalid TOML: {e}", path=p) from None
-    unknown = sorted(set(data) - set(_SCHEMA))
+    unknown = sorted(set(data) - set(_SCHEMA) - {"simulate"})
     if unknown:
-        raise FileFormatError(f"unknown table [{unknown[0]}]", path=p, expected=", ".join(sorted(_SCHEMA)),
+        raise FileFormatError(f"unknown table [{unknown[0]}]", path=p, expected=", ".join(sorted(set(_SCHEMA) | {"simulate"})),
                               got=", ".join(unknown))
     for table, keys in _SCHEMA.items():
         t = data.get(table, {})
@@ -230,9 +235,27 @@ def load_scene(path: str | os.PathLike) -> Scene:
         effects = Effects(**{k: (float(v) if k == "collision_margin" else v) for k, v in eff.items()})
     except ValueError as e:
         raise FileFormatError(f"[effects]: {e}", path=p) from None
+    from .physics.settings import parse_simulate_table
+
+    sim = parse_simulate_table(data["simulate"], where=p) if "simulate" in data else None
     return Scene(
+        simulate=sim,
         garment=rel(data["garment"]["mesh"]), motion=motion, output=out_path, output_format=fmt, up=up,
         body=rel(data["body"]["model"]) if "model" in data.get("body", {}) else None, betas=tuple(float(b) for b in betas),
         model=rel(data["model"]["package"]) if "package" in data.get("model", {}) else None,
         body_output=rel(out["body"]) if "body" in out else None, effects=effects, path=p,
     )
+
+
+def build_motion(spec: MotionSpec):
+    """The :class:`~segadeform.motion.Motion` a scene's ``[motion]`` table describes (frame range not applied)."""
+    from .motion import load_motion, make_motion, resample
+
+    if spec.file is not None:
+        m = load_motion(spec.file)
+    else:
+        m = make_motion(spec.kind, seconds=spec.seconds, fps=spec.fps or 30.0, speed=spec.speed,
+                        amplitude=spec.amplitude, seed=spec.seed)
+    if spec.fps is not None and abs(spec.fps - m.fps) > 1e-9:
+        m = resample(m, spec.fps)
+    return m

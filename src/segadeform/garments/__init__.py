@@ -1,0 +1,8 @@
+"""Procedural garments dressed on a body in its rest pose (numpy/scipy only).
+
+See :mod:`.make` for the kinds and their parameters.
+"""
+
+from .make import GARMENT_KINDS, GARMENT_TYPES, Garment, GarmentParams, make_garment, check_garment
+
+__all__ = ["GARMENT_KINDS", "GARMENT_TYPES", "Garment", "GarmentParams", "make_garment", "check_garment"]

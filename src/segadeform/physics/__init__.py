@@ -1,0 +1,12 @@
+"""Ground truth by cloth simulation (Blender's solver, run out of process) and its settings.
+
+Nothing here imports ``bpy`` or torch: :mod:`.blender` talks to Blender
+through a subprocess (see its docstring), :mod:`.settings` turns a scene's
+``[simulate]`` table into solver settings.
+"""
+
+from .blender import SimResult, find_sim_python, pin_weights, preroll_poses, simulate
+from .settings import DEFAULT_EFFECTS, EFFECTS, MATERIALS, Material, SimSettings, blender_settings, parse_simulate_table
+
+__all__ = ["SimResult", "simulate", "find_sim_python", "pin_weights", "preroll_poses", "SimSettings", "Material",
+           "MATERIALS", "EFFECTS", "DEFAULT_EFFECTS", "blender_settings", "parse_simulate_table"]

@@ -1,0 +1,234 @@
+"""The bridge to Blender's cloth solver: build, bake and read back one simulation per call.
+
+Blender (``bpy``) is GPL-3.0, exists only for Python 3.11 and pins numpy<2,
+so it never enters segadeform's process: :func:`simulate` writes a job folder
+(the garment and body as ``.npy``, the posed body as a PC2 point cache that
+Blender plays back through a Mesh Cache modifier, and every solver setting as
+JSON) and runs ``blender_worker.py`` with the simulator environment's Python.
+
+The simulator environment is found, in order: the ``sim_python`` argument,
+the ``SEGADEFORM_SIM_PYTHON`` environment variable (read at call time), a
+``.venv-sim`` folder at the repository root.  ``python -m
+segadeform.physics.setup`` creates that folder (``bpy`` pinned in
+``requirements-blender.txt``).
+
+Coordinates: segadeform is y-up; Blender is z-up with gravity along -z.  The
+bridge converts both ways, so callers see y-up metres only.  The frames come
+back in the garment's vertex order.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+
+from ..body.model import BodyModel
+from ..body.rotations import axis_angle_to_quaternion, quaternion_slerp, quaternion_to_axis_angle
+from ..body.transfer import skin_garment, transfer_weights
+from ..errors import InputError, SimulationError
+from ..geometry.mesh_ops import boundary_loops, unique_edges
+from ..io.pc2 import PC2Writer
+from ..motion.motion import Motion
+from .settings import SimSettings, blender_settings
+
+__all__ = ["SimResult", "simulate", "find_sim_python", "preroll_poses", "pin_weights", "WORKER"]
+
+WORKER = Path(__file__).with_name("blender_worker.py")
+#: y-up -> z-up (Blender's OBJ-import convention): (x, y, z) -> (x, -z, y)
+_Y_TO_Z = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+
+
+def _repo_root() -> Path:
+    return Path(__file__).resolve().parents[3]
+
+
+def find_sim_python(explicit: Optional[str | os.PathLike] = None) -> Path:
+    """The simulator environment's Python (see the module docstring); :class:`SimulationError` if none."""
+    cands = []
+    if explicit:
+        cands.append(("argument", Path(explicit)))
+    env = os.environ.get("SEGADEFORM_SIM_PYTHON")
+    if env:
+        cands.append(("SEGADEFORM_SIM_PYTHON", Path(env)))
+    if not cands:
+        for name in ("bin/python", "Scripts/python.exe"):
+            cands.append((".venv-sim", _repo_root() / ".venv-sim" / name))
+    for src, p in cands:
+        if p.is_file() and os.access(p, os.X_OK):
+            return p
+        if src != ".venv-sim":
+            raise SimulationError(f"the simulator Python given by {src} does not exist: {p}")
+    raise SimulationError("no simulator environment: run `python -m segadeform.physics.setup` (creates "
+                          f"{_repo_root() / '.venv-sim'} with Blender's bpy), or set SEGADEFORM_SIM_PYTHON")
+
+
+@dataclasses.dataclass
+class SimResult:
+    """frames (F, N, 3) y-up metres in the garment's vertex order; the rest is provenance."""
+
+    frames: np.ndarray
+    fps: float
+    settings: dict
+    blender: dict
+    preroll_frames: int
+    wall_seconds: float
+
+    @property
+    def seconds_per_frame(self) -> float:
+        return float(self.blender["seconds_per_frame"])
+
+
+def preroll_poses(motion: Motion, drape_frames: int, blend_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rest-pose drape, then a slerp into the first frame, then the motion.
+
+    Shapes: -> poses (drape + blend + T, 72), trans (drape + blend + T, 3)
+    """
+    d, b = max(int(drape_frames), 1), max(int(blend_frames), 0)
+    q1 = axis_angle_to_quaternion(motion.poses[0].reshape(24, 3))
+    q0 = np.zeros_like(q1)
+    q0[:, 0] = 1.0
+    t = (np.arange(1, b + 1) / (b + 1))
+    s = 0.5 - 0.5 * np.cos(np.pi * t)  # ease in and out: no velocity jump at either end
+    blend = np.stack([quaternion_to_axis_angle(quaternion_slerp(q0, q1, si)).reshape(72) for si in s]) \
+        if b else np.zeros((0, 72))
+    poses = np.concatenate([np.zeros((d, 72)), blend, motion.poses])
+    trans = np.concatenate([np.zeros((d, 3)), s[:, None] * motion.trans[:1], motion.trans])
+    return poses, trans
+
+
+def pin_weights(vertices, faces, group: str, width: float = 0.025) -> np.ndarray:
+    """Pin weights (N,) in {0, 1}: ``waistband`` = within ``width`` (along edges) of the highest
+    boundary loop; ``top`` = within ``width`` of the highest vertex height."""
+    v = np.asarray(vertices, np.float64)
+    if group == "top":
+        return (v[:, 1] >= v[:, 1].max() - width).astype(np.float64)
+    if group != "waistband":
+        raise InputError("unknown pin group", expected="waistband | top", got=group)
+    loops = boundary_loops(faces, len(v))
+    if not loops:
+        raise InputError("pin = 'waistband' needs a garment with an open boundary (this mesh is closed)")
+    top = max(loops, key=lambda l: v[l, 1].mean())
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import dijkstra
+
+    e = unique_edges(faces, len(v))
+    ln = np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1)
+    g = sp.coo_matrix((ln, (e[:, 0], e[:, 1])), shape=(len(v), len(v))).tocsr()
+    d = dijkstra(g, directed=False, indices=top, limit=width, min_only=True)
+    return (d <= width).astype(np.float64)
+
+
+def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, settings: SimSettings = SimSettings(),
+             sim_python=None, progress: Optional[Callable[[int, int], None]] = None, keep_job: Optional[Path] = None,
+             timeout: Optional[float] = None) -> SimResult:
+    """Simulate a rest-pose garment on ``body`` (shape ``betas``) playing ``motion``.
+
+    Args:
+        vertices, faces: the garment, (N, 3) y-up metres dressed on the body's rest pose, (F, 3) triangles.
+        body, betas: the collider.
+        motion: what the body does; every frame of it is recorded.
+        settings: effects, material and solver settings (:class:`SimSettings`).
+        sim_python: the simulator environment's Python (see :func:`find_sim_python`).
+        progress: called as ``progress(done, total)`` with simulated frames (pre-roll included).
+        keep_job: copy the job folder there (for debugging in Blender).
+        timeout: seconds before the solver is killed.
+
+    Shapes:
+        -> SimResult.frames (T, N, 3), T = motion.n_frames
+    """
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3 or len(v) < 3 or not np.isfinite(v).all():
+        raise InputError("garment vertices must be finite (N, 3), N >= 3", got=v.shape)
+    if f.ndim != 2 or f.shape[1] != 3 or len(f) < 1 or f.min() < 0 or f.max() >= len(v):
+        raise InputError("garment faces must be (F, 3) triangle indices into the vertices", got=f.shape)
+    exe = find_sim_python(sim_python)
+    bs = blender_settings(settings)
+    fps = float(motion.fps)
+    drape = max(1, int(round(settings.drape_seconds * fps)))
+    blend = int(round(settings.blend_seconds * fps))
+    poses, trans = preroll_poses(motion, drape, blend)
+    posed = body.forward(poses, betas, trans)
+    z = lambda a: (np.asarray(a) @ _Y_TO_Z.T).astype(np.float32)  # noqa: E731
+    rest_body = body.shaped_vertices(betas)[0]
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="segadeform-sim-") as tmp:
+        job_dir = Path(tmp)
+        np.save(job_dir / "garment_rest.npy", z(v))
+        np.save(job_dir / "garment_faces.npy", f.astype(np.int64))
+        np.save(job_dir / "body_rest.npy", z(rest_body))
+        np.save(job_dir / "body_faces.npy", body.faces.astype(np.int64))
+        with PC2Writer(job_dir / "body.pc2", body.n_vertices, start_frame=1, sample_rate=1) as w:
+            w.write(z(posed.vertices))
+        check = sorted({1, drape + blend + 1, len(poses)})
+        np.save(job_dir / "body_check.npy", z(posed.vertices[[c - 1 for c in check]]))
+        job = {"fps": fps, "total_frames": len(poses), "record_start": drape + blend + 1,
+               "garment_rest": "garment_rest.npy", "garment_faces": "garment_faces.npy",
+               "body_rest": "body_rest.npy", "body_faces": "body_faces.npy", "body_cache": "body.pc2",
+               "check_body_frames": check, "body_check": "body_check.npy", **bs}
+        if bs["wind"]:
+            job["wind"]["direction"] = list(map(float, np.asarray(settings.wind) @ _Y_TO_Z.T))
+        if settings.has("pinning"):
+            pins = pin_weights(v, f, settings.pin)
+            if not pins.any():
+                raise InputError(f"pin group {settings.pin!r} selects no vertex of this garment")
+            np.save(job_dir / "pins.npy", pins.astype(np.float32))
+            job["pins"] = "pins.npy"
+            # pinned vertices follow the body: the garment's own input is the skinned garment
+            wts = transfer_weights(v, rest_body, body.faces, body.weights)
+            skinned = skin_garment(v, wts, body, poses, betas, trans)
+            with PC2Writer(job_dir / "garment.pc2", len(v), start_frame=1, sample_rate=1) as w:
+                w.write(z(skinned))
+            job["garment_cache"] = "garment.pc2"
+        (job_dir / "job.json").write_text(json.dumps(job, indent=1))
+        _run_worker(exe, job_dir, len(poses), progress, timeout)
+        frames = np.load(job_dir / "frames.npy").astype(np.float64) @ _Y_TO_Z
+        info = json.loads((job_dir / "result.json").read_text())
+        if keep_job is not None:
+            shutil.copytree(job_dir, keep_job, dirs_exist_ok=True)
+    if frames.shape != (motion.n_frames, len(v), 3):
+        raise SimulationError(f"the simulator returned frames of shape {frames.shape}, "
+                              f"expected {(motion.n_frames, len(v), 3)}")
+    if info.get("body_playback_max_error", 0.0) > 1e-4:
+        raise SimulationError("Blender played the body back wrongly (max error "
+                              f"{info['body_playback_max_error']:.3g} m): check the Mesh Cache settings")
+    return SimResult(frames=frames, fps=fps, settings={"segadeform": settings.to_dict(), "blender": bs},
+                     blender=info, preroll_frames=drape + blend, wall_seconds=time.perf_counter() - t0)
+
+
+def _run_worker(exe: Path, job_dir: Path, total: int, progress, timeout) -> None:
+    cmd = [str(exe), str(WORKER), str(job_dir)]
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    log_path = job_dir / "worker.log"
+    with open(log_path, "wb") as err:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, env=env, cwd=job_dir, text=True)
+        t0 = time.monotonic()
+        done = 0
+        try:
+            for line in proc.stdout:
+                if line.startswith("FRAME "):
+                    n = int(line.split()[1])
+                    if progress is not None and n > done:
+                        progress(n, total)
+                    done = n
+                if timeout is not None and time.monotonic() - t0 > timeout:
+                    proc.kill()
+                    raise SimulationError(f"the simulator ran past its {timeout:.0f} s limit at frame {done}/{total}")
+            rc = proc.wait()
+        except BaseException:
+            proc.kill()
+            proc.wait()
+            raise
+    if rc != 0 or not (job_dir / "frames.npy").is_file():
+        tail = log_path.read_text(errors="replace").strip().splitlines()[-8:]
+        raise SimulationError(f"Blender's cloth solver failed (exit {rc}) at frame {done}/{total}:\n  "
+                              + "\n  ".join(tail))
