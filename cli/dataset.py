@@ -1,0 +1,65 @@
+"""``segadeform dataset make`` and ``segadeform dataset info``."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import click
+
+from .main import cli
+
+
+@cli.group("dataset")
+def dataset_group():
+    """Ground-truth datasets made with the cloth simulator."""
+
+
+@dataset_group.command("make")
+@click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Dataset folder (an existing one is continued).")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True, help="Parallel simulations.")
+@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
+@click.option("--limit", type=click.IntRange(min=1), help="Make at most this many samples now.")
+@click.option("--sim-python", type=click.Path(dir_okay=False, path_type=Path), help="The simulator's Python.")
+def dataset_make_cmd(config, output, jobs, body, limit, sim_python):
+    """Simulate every garment x body x motion of CONFIG.toml into OUTPUT (resumable)."""
+    from segadeform.dataset import load_dataset_config, make_dataset
+    from segadeform.physics import find_sim_python
+    from segadeform.physics.scene_sim import default_body_file
+
+    cfg = load_dataset_config(config)
+    find_sim_python(sim_python)  # fail before planning anything
+    n = [0]
+
+    def progress(rec):
+        n[0] += 1
+        why = "" if rec["status"] == "kept" else ": " + "; ".join(rec.get("reasons", []))
+        spf = f"{rec['seconds_per_frame']:.3f} s/frame" if "seconds_per_frame" in rec else ""
+        click.echo(f"[{n[0]}] {rec['id']} ({rec['vertices']} v) {rec['status']} {spf}{why}", err=True)
+
+    s = make_dataset(cfg, output, body_path=body or default_body_file(), jobs=jobs, sim_python=sim_python,
+                     progress=progress, limit=limit)
+    click.echo(f"{s.planned} planned, {s.skipped} already done, {s.kept} kept, {s.rejected} rejected -> {output}")
+
+
+@dataset_group.command("info")
+@click.argument("folder", type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print the statistics as JSON.")
+def dataset_info_cmd(folder, as_json):
+    """Statistics of a dataset folder: samples per split, rejection reasons, seconds per frame by size."""
+    from segadeform.dataset.report import dataset_stats
+
+    st = dataset_stats(folder)
+    if as_json:
+        click.echo(json.dumps(st, indent=1))
+        return
+    click.echo(f"{folder}: {st['kept']} kept, {st['rejected']} rejected ({100 * st['rejection_rate']:.1f} %)")
+    for k, v in st["splits"].items():
+        click.echo(f"  split {k}: {v} samples")
+    for r, c in st["reasons"].items():
+        click.echo(f"  rejected: {c} x {r}")
+    for row in st["by_size"]:
+        click.echo(f"  {row['garment']:24s} {row['vertices']:6d} v  {row['seconds_per_frame']:.3f} s/frame")

@@ -1,0 +1,65 @@
+"""One sample per ``.npz`` (arrays) beside a ``.json`` (metadata); both written atomically, the json last."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FileFormatError
+from ..io.atomic import atomic_path
+from ..io.npz import load_npz
+
+__all__ = ["Sample", "save_sample", "load_sample", "list_samples"]
+
+_ARRAYS = {"rest": 2, "faces": 2, "betas": 1, "poses": 2, "trans": 2, "frames": 3}
+
+
+@dataclasses.dataclass
+class Sample:
+    """rest (N, 3), faces (F, 3), betas (B,), poses (T, 72), trans (T, 3), frames (T, N, 3) float32, meta."""
+
+    id: str
+    rest: np.ndarray
+    faces: np.ndarray
+    betas: np.ndarray
+    poses: np.ndarray
+    trans: np.ndarray
+    frames: np.ndarray
+    meta: dict
+
+
+def save_sample(root: Path, s: Sample) -> None:
+    d = Path(root) / "samples"
+    d.mkdir(parents=True, exist_ok=True)
+    with atomic_path(d / f"{s.id}.npz") as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, rest=s.rest, faces=s.faces, betas=s.betas, poses=s.poses, trans=s.trans,
+                     frames=s.frames.astype(np.float32))
+    with atomic_path(d / f"{s.id}.json") as tmp:
+        Path(tmp).write_text(json.dumps(s.meta, indent=1, sort_keys=True))
+
+
+def load_sample(root: Path, sid: str) -> Sample:
+    d = Path(root) / "samples"
+    meta_p = d / f"{sid}.json"
+    try:
+        meta = json.loads(meta_p.read_text())
+    except (OSError, ValueError) as e:
+        raise FileFormatError(f"cannot read sample metadata: {e}", path=meta_p) from None
+    z = load_npz(d / f"{sid}.npz")
+    for k, nd in _ARRAYS.items():
+        if k not in z or z[k].ndim != nd:
+            raise FileFormatError(f"sample array {k!r} missing or not {nd}-D", path=d / f"{sid}.npz")
+    return Sample(id=sid, meta=meta, **{k: z[k] for k in _ARRAYS})
+
+
+def list_samples(root: Path, split: str | None = None) -> list[str]:
+    """Ids of the kept samples (those with metadata), optionally of one split, sorted."""
+    out = []
+    for p in sorted((Path(root) / "samples").glob("*.json")):
+        if split is None or json.loads(p.read_text()).get("split") == split:
+            out.append(p.stem)
+    return out
