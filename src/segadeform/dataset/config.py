@@ -18,6 +18,7 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
 
     [[garments]]
     kind = "skirt"            # segadeform.garments kinds; other keys are GarmentParams
+    pin = "waistband"         # optional: the pin group of this garment (with the "pinning" effect)
     resolution = 2500
     split = "train"           # train | test (held out)
 
@@ -63,6 +64,7 @@ class GarmentSpec:
     kind: str
     params: GarmentParams
     split: str
+    pin: Optional[str] = None  # overrides simulate.pin for this garment
 
 
 @dataclasses.dataclass(frozen=True)
@@ -139,6 +141,9 @@ def load_dataset_config(path) -> DatasetConfig:
         split = _split(g, p, f"garments[{i}]")
         g.pop("split", None)
         name = g.pop("name", None) or f"{kind}-{i}"
+        pin = g.pop("pin", None)
+        if pin is not None and pin not in ("waistband", "top"):
+            raise FileFormatError(f"garments[{i}].pin must be 'waistband' or 'top'", path=p, got=pin)
         if name in names:
             raise FileFormatError(f"garment name {name!r} is used twice", path=p)
         names.add(name)
@@ -146,7 +151,7 @@ def load_dataset_config(path) -> DatasetConfig:
             params = GarmentParams(**g)
         except (TypeError, InputError) as e:
             raise FileFormatError(f"garments[{i}]: {e}", path=p) from None
-        garments.append(GarmentSpec(name, kind, params, split))
+        garments.append(GarmentSpec(name, kind, params, split, pin))
     bodies = []
     for i, b in enumerate(data.get("bodies", [{"betas": []}])):
         betas = b.get("betas", [])

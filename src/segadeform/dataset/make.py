@@ -98,7 +98,8 @@ def _run_one(root: str, cfg: DatasetConfig, ps: PlannedSample, body_path: str, s
     rec = {"id": ps.id, "split": ps.split, "garment": g.name, "kind": g.kind, "type": GARMENT_TYPES[g.kind],
            "body": ps.body, "motion": m.name, "vertices": len(mesh.vertices), "frames": motion.n_frames}
     try:
-        res = simulate(mesh.vertices, mesh.faces, body, motion, betas=betas or None, settings=cfg.simulate,
+        st = cfg.simulate.replace(pin=g.pin) if g.pin else cfg.simulate
+        res = simulate(mesh.vertices, mesh.faces, body, motion, betas=betas or None, settings=st,
                        sim_python=sim_python)
     except SegadeformError as e:
         rec.update(status="rejected", reasons=[f"simulation failed: {e}"], seconds=time.perf_counter() - t0)

@@ -1,0 +1,122 @@
+"""Dataset samples as training tensors: the garment asset (cached), motion windows, targets and body contact.
+
+Per (garment, body) pair the precompute runs once and is cached in
+``DATASET/cache/asset-<hash>.npz``; per sample the closest body point and
+normal to every simulated vertex (for the collision loss) are cached in
+``DATASET/cache/contact-<id>.npz``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..body.collision import BodyProxy
+from ..body.model import BodyModel
+from ..dataset.store import Sample, list_samples, load_sample
+from ..geometry.asset import GarmentAsset, precompute_garment
+from ..geometry.mesh_ops import unique_edges
+from ..io.atomic import atomic_path
+from ..motion.motion import motion_windows
+
+__all__ = ["TrainItem", "load_items", "sample_asset"]
+
+
+@dataclasses.dataclass
+class TrainItem:
+    """Everything one sample contributes (torch tensors, float32 unless stated)."""
+
+    id: str
+    meta: dict
+    features: torch.Tensor    # (1, N, F)
+    nbr: torch.Tensor         # (N, K) int64
+    mask: torch.Tensor        # (N, K) bool
+    descriptor: torch.Tensor  # (1, N*)
+    betas: torch.Tensor       # (1, B)
+    joints: torch.Tensor      # (S, 3)
+    rest: torch.Tensor        # (N, 3)
+    faces: torch.Tensor       # (F, 3) int64
+    edges: torch.Tensor       # (E, 2) int64
+    windows: torch.Tensor     # (T, W, 3 S)
+    trans: torch.Tensor       # (T, 3)
+    frames: torch.Tensor      # (T, N, 3)
+    contact_p: torch.Tensor   # (T, N, 3) closest body point to the simulated vertex
+    contact_n: torch.Tensor   # (T, N, 3) outward body normal there
+    asset: GarmentAsset
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.frames.shape[0])
+
+    def to(self, device) -> "TrainItem":
+        kw = {f.name: (getattr(self, f.name).to(device) if isinstance(getattr(self, f.name), torch.Tensor)
+                       else getattr(self, f.name)) for f in dataclasses.fields(self)}
+        return TrainItem(**kw)
+
+
+def _hash(*arrays) -> str:
+    h = hashlib.sha256()
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(str(a.dtype).encode() + str(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()[:24]
+
+
+def sample_asset(root: Path, s: Sample, body: BodyModel, n_star: int) -> GarmentAsset:
+    joints = body.rest_joints(s.betas if s.betas.size else None)[0]
+    key = _hash(s.rest, s.faces, joints, np.array([n_star]))
+    p = Path(root) / "cache" / f"asset-{key}.npz"
+    if p.is_file():
+        return GarmentAsset.load(p)
+    a = precompute_garment(s.rest, s.faces, joints, n_star=n_star, source_name=s.meta.get("garment", s.id))
+    p.parent.mkdir(exist_ok=True)
+    a.save(p)
+    return a
+
+
+def _contact(root: Path, s: Sample, body: BodyModel):
+    p = Path(root) / "cache" / f"contact-{s.id}.npz"
+    if p.is_file():
+        z = np.load(p)
+        if z["p"].shape == s.frames.shape:
+            return z["p"], z["n"]
+    posed = body.forward(s.poses, s.betas if s.betas.size else None, s.trans).vertices
+    cp = np.empty(s.frames.shape, np.float32)
+    cn = np.empty(s.frames.shape, np.float32)
+    proxy = None
+    for t in range(len(posed)):
+        proxy = BodyProxy(posed[t], body.faces) if proxy is None else proxy.moved(posed[t])
+        q = proxy.query(s.frames[t].astype(np.float64))
+        cp[t], cn[t] = q.closest, q.normal
+    p.parent.mkdir(exist_ok=True)
+    with atomic_path(p) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, p=cp, n=cn)
+    return cp, cn
+
+
+def load_items(root: Path, body: BodyModel, *, n_star: int, window: int, n_betas: int, split: str | None = "train",
+               ids=None) -> list[TrainItem]:
+    """Load every kept sample of ``split`` (or the given ``ids``) as :class:`TrainItem`."""
+    f32 = lambda a: torch.as_tensor(np.asarray(a, np.float32))  # noqa: E731
+    out = []
+    for sid in (ids if ids is not None else list_samples(root, split)):
+        s = load_sample(root, sid)
+        a = sample_asset(root, s, body, n_star)
+        cp, cn = _contact(root, s, body)
+        b = np.zeros(n_betas)
+        b[: s.betas.size] = s.betas[:n_betas]
+        joints = body.rest_joints(s.betas if s.betas.size else None)[0]
+        win = motion_windows(s.poses, window)
+        out.append(TrainItem(
+            id=sid, meta=s.meta, features=f32(a.features)[None], nbr=torch.as_tensor(a.nbr, dtype=torch.int64),
+            mask=torch.as_tensor(a.mask, dtype=torch.bool), descriptor=f32(a.descriptor)[None], betas=f32(b)[None],
+            joints=f32(joints), rest=f32(s.rest), faces=torch.as_tensor(s.faces, dtype=torch.int64),
+            edges=torch.as_tensor(unique_edges(s.faces, len(s.rest)), dtype=torch.int64), windows=f32(win),
+            trans=f32(s.trans), frames=f32(s.frames), contact_p=f32(cp), contact_n=f32(cn), asset=a))
+    return out

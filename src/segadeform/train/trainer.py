@@ -1,0 +1,226 @@
+"""``segadeform train``: deterministic, resumable training with a loss log and curves.
+
+Run folder::
+
+    RUN/config.toml        the config (copied) and RUN/train.json (resolved config, hardware, timings)
+    RUN/last.pt            {config, state_dict, optimizer, step, rng} -- resumed from when present
+    RUN/model.pt           {config, state_dict} of the final step
+    RUN/loss.csv           step, total and every term (one row per logged step)
+    RUN/loss.png           the curves
+
+One garment (sample) per step, ``optim.frames`` random frames of it; samples
+and frames come from a seeded generator whose state is checkpointed, so a
+resumed run continues the same sequence.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import os
+import platform
+import shutil
+import time
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+import torch
+
+from ..body.model import BodyModel
+from ..errors import InputError
+from ..io.atomic import atomic_path
+from ..model.network import SEGANet
+from . import losses as L
+from .config import TrainConfig
+from .data import TrainItem, load_items
+
+__all__ = ["train", "step_losses", "TERMS", "pick_device", "plot_losses"]
+
+TERMS = ("vertex", "normal", "edge", "stretch", "shear", "gravity", "collision")
+
+
+def pick_device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise InputError("optim.device is 'cuda' but no CUDA device is available")
+    return torch.device(name)
+
+
+def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w) -> dict:
+    """Every loss term for frames ``t (B,)`` of ``item``; returns {term: tensor} and 'total'."""
+    b = len(t)
+    verts, _, _ = model(item.features, item.nbr, item.mask, item.descriptor, item.betas.expand(b, -1),
+                        item.windows[t], item.rest, item.joints[None].expand(b, -1, -1), item.trans[t])
+    y = item.frames[t]
+    out = {
+        "vertex": L.vertex_loss(verts, y),
+        "normal": L.normal_loss(verts, y, item.faces),
+        "edge": L.edge_loss(verts, y, item.edges),
+        "stretch": L.stretch_loss(verts, item.rest, item.edges),
+        "shear": L.shear_loss(verts, item.rest, item.faces),
+        "gravity": L.gravity_loss(verts, item.rest),
+        "collision": L.collision_loss(verts, item.contact_p[t], item.contact_n[t], w.collision_margin),
+    }
+    out["total"] = sum(getattr(w, k) * out[k] for k in TERMS if getattr(w, k) != 0)
+    return out
+
+
+def plot_losses(csv_path: Path, png_path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = list(csv.DictReader(open(csv_path)))
+    if not rows:
+        return
+    steps = [int(r["step"]) for r in rows]
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+    ax[0].plot(steps, [float(r["total"]) for r in rows], label="total")
+    ax[0].plot(steps, [float(r["vertex"]) for r in rows], label="vertex (m)")
+    if "val_vertex" in rows[0]:
+        pts = [(s, float(r["val_vertex"])) for s, r in zip(steps, rows) if r.get("val_vertex")]
+        if pts:
+            ax[0].plot(*zip(*pts), "o-", label="held-out vertex (m)")
+    ax[0].set_yscale("log")
+    ax[0].set_xlabel("step")
+    ax[0].legend()
+    for k in TERMS[1:]:
+        vals = [abs(float(r[k])) for r in rows]
+        if max(vals) > 0:
+            ax[1].plot(steps, vals, label=k)
+    ax[1].set_yscale("log")
+    ax[1].set_xlabel("step")
+    ax[1].legend()
+    fig.tight_layout()
+    with atomic_path(png_path) as tmp:
+        fig.savefig(tmp, format="png", dpi=80)
+    plt.close(fig)
+
+
+def _hardware(device: torch.device) -> dict:
+    hw = {"device": str(device), "cpu": platform.processor() or platform.machine(), "cpu_count": os.cpu_count(),
+          "torch_threads": torch.get_num_threads(), "torch": torch.__version__, "python": platform.python_version()}
+    if device.type == "cuda":
+        hw["gpu"] = torch.cuda.get_device_name(device)
+    return hw
+
+
+def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optional[Callable[[int, dict], None]] = None,
+          val_ids=None, log_every: int = 10) -> Path:
+    """Train (or resume) into ``run_dir``; returns the final ``model.pt``."""
+    run = Path(run_dir)
+    run.mkdir(parents=True, exist_ok=True)
+    if cfg.path is not None and cfg.path.resolve() != (run / "config.toml").resolve():
+        shutil.copyfile(cfg.path, run / "config.toml")
+    o = cfg.optim
+    device = pick_device(o.device)
+    torch.manual_seed(o.seed)
+    m = cfg.model
+    items = load_items(cfg.dataset, body, n_star=m.n_star, window=m.window, n_betas=m.n_betas, split=cfg.split)
+    if not items:
+        raise InputError(f"no '{cfg.split}' samples in the dataset", expected="segadeform dataset make first",
+                         got=str(cfg.dataset))
+    if items[0].features.shape[-1] != m.feat_dim:
+        raise InputError("model.feat_dim does not match the garment features", expected=items[0].features.shape[-1],
+                         got=m.feat_dim)
+    items = [it.to(device) for it in items]
+    val = [it.to(device) for it in load_items(cfg.dataset, body, n_star=m.n_star, window=m.window,
+                                              n_betas=m.n_betas, split=None, ids=val_ids)] if val_ids else []
+    model = SEGANet(m).to(device)
+    opt = torch.optim.Adam(model.parameters(), lr=o.lr)
+    sched = torch.optim.lr_scheduler.LambdaLR(
+        opt, lambda s: o.lr_final + (1 - o.lr_final) * 0.5 * (1 + np.cos(np.pi * min(s, o.steps) / o.steps)))
+    rng = np.random.default_rng(o.seed)
+    step, elapsed = 0, 0.0
+    last = run / "last.pt"
+    if last.is_file():
+        ck = torch.load(last, map_location=device, weights_only=False)
+        if ck.get("config_digest") != cfg.digest():
+            raise InputError("the run folder holds a run of a different config", expected=cfg.digest(),
+                             got=ck.get("config_digest"))
+        model.load_state_dict(ck["state_dict"])
+        opt.load_state_dict(ck["optimizer"])
+        sched.load_state_dict(ck["scheduler"])
+        rng.bit_generator.state = ck["rng"]
+        torch.set_rng_state(ck["torch_rng"])
+        step, elapsed = int(ck["step"]), float(ck["elapsed"])
+    log_path = run / "loss.csv"
+    fields = ["step", "total", *TERMS, "lr", "seconds", "val_vertex"]
+    if step == 0 or not log_path.is_file():
+        with open(log_path, "w", newline="") as fh:
+            csv.writer(fh).writerow(fields)
+    else:  # drop rows logged after the checkpoint we resume from
+        rows = [r for r in csv.DictReader(open(log_path)) if int(r["step"]) <= step]
+        with open(log_path, "w", newline="") as fh:
+            wr = csv.DictWriter(fh, fields)
+            wr.writeheader()
+            wr.writerows(rows)
+
+    def save_last():
+        with atomic_path(last) as tmp:
+            torch.save({"config": dataclasses.asdict(m), "state_dict": model.state_dict(), "optimizer": opt.state_dict(),
+                        "scheduler": sched.state_dict(), "rng": rng.bit_generator.state,
+                        "torch_rng": torch.get_rng_state(), "step": step, "elapsed": elapsed,
+                        "config_digest": cfg.digest()}, tmp)
+
+    def validate() -> float:
+        if not val:
+            return float("nan")
+        model.eval()
+        with torch.no_grad():
+            errs = []
+            for it in val:
+                t = torch.arange(it.n_frames, device=device)
+                errs.append(float(step_losses(model, it, t, cfg.loss)["vertex"]))
+        model.train()
+        return float(np.mean(errs))
+
+    acc = {k: 0.0 for k in ("total", *TERMS)}
+    n_acc = 0
+    t0 = time.perf_counter()
+    model.train()
+    while step < o.steps:
+        it = items[int(rng.integers(len(items)))]
+        t = torch.as_tensor(rng.choice(it.n_frames, size=min(o.frames, it.n_frames), replace=False), device=device)
+        ls = step_losses(model, it, t, cfg.loss)
+        if not torch.isfinite(ls["total"]):
+            raise InputError(f"the loss became {float(ls['total'])} at step {step} on {it.id}; lower optim.lr")
+        opt.zero_grad(set_to_none=True)
+        ls["total"].backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), o.grad_clip)
+        opt.step()
+        sched.step()
+        step += 1
+        for k in acc:
+            acc[k] += float(ls[k])
+        n_acc += 1
+        if step % log_every == 0 or step == o.steps:
+            now = time.perf_counter()
+            elapsed += now - t0
+            t0 = now
+            do_val = val and (step % o.checkpoint_every == 0 or step == o.steps)
+            row = {"step": step, **{k: acc[k] / n_acc for k in acc}, "lr": sched.get_last_lr()[0],
+                   "seconds": round(elapsed, 2), "val_vertex": validate() if do_val else ""}
+            with open(log_path, "a", newline="") as fh:
+                csv.DictWriter(fh, fields).writerow(row)
+            if progress is not None:
+                progress(step, row)
+            acc = {k: 0.0 for k in acc}
+            n_acc = 0
+        if step % o.checkpoint_every == 0 or step == o.steps:
+            save_last()
+    elapsed += time.perf_counter() - t0
+    final = run / "model.pt"
+    from ..model.network import save_checkpoint
+
+    save_checkpoint(final, model, train_config=cfg.to_dict(), steps=step)
+    info = {"config": cfg.to_dict(), "config_digest": cfg.digest(), "steps": step, "train_seconds": round(elapsed, 1),
+            "samples": [i.id for i in items], "hardware": _hardware(device)}
+    with atomic_path(run / "train.json") as tmp:
+        Path(tmp).write_text(json.dumps(info, indent=1))
+    plot_losses(log_path, run / "loss.png")
+    return final
