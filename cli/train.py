@@ -1,0 +1,79 @@
+"""``segadeform train`` and ``segadeform eval`` (need the 'torch' extra; imported only when run)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from .main import cli
+
+
+def _body(path):
+    from segadeform.body import load_body
+    from segadeform.physics.scene_sim import default_body_file
+
+    return load_body(path or default_body_file())
+
+
+@cli.command("train")
+@click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Run folder (an existing run of the same config is resumed).")
+@click.option("--dataset", type=click.Path(file_okay=False, path_type=Path), help="Overrides [data] dataset.")
+@click.option("--steps", type=click.IntRange(min=1), help="Overrides optim.steps.")
+@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), help="Overrides optim.device.")
+@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
+@click.option("--val", "val_ids", multiple=True, help="Sample id to validate on at each checkpoint (repeatable).")
+def train_cmd(config, output, dataset, steps, device, body, val_ids):
+    """Train the SEGA model on a simulated dataset (CONFIG.toml; see segadeform.train.config)."""
+    from segadeform.train import load_train_config
+    from segadeform.train.trainer import train
+
+    ov = {}
+    if steps:
+        ov["optim.steps"] = steps
+    if device:
+        ov["optim.device"] = device
+    cfg = load_train_config(config, dataset=dataset, overrides=ov)
+    interactive = sys.stderr.isatty()
+
+    def progress(step, row):
+        if interactive or step % 100 == 0 or step == cfg.optim.steps:
+            val = f" held-out {100 * float(row['val_vertex']):.2f} cm" if row.get("val_vertex") != "" else ""
+            click.echo(f"step {step}/{cfg.optim.steps} loss {row['total']:.4g} vertex {100 * row['vertex']:.2f} cm"
+                       f"{val} ({row['seconds']:.0f} s)", err=True)
+
+    final = train(cfg, output, _body(body), progress=progress, val_ids=list(val_ids) or None)
+    click.echo(f"trained {cfg.optim.steps} steps -> {final}")
+
+
+@cli.command("eval")
+@click.argument("dataset", type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.option("-m", "--model", "models", multiple=True, required=True,
+              help="NAME=SPEC with SPEC a model package folder, a .pt checkpoint or 'lbs' (repeatable).")
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Report folder (eval.md, eval.json, PNG plots).")
+@click.option("--split", default="test", show_default=True, help="Dataset split to evaluate.")
+@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
+@click.option("--push-out", "push_margin", type=float, help="Also report learned models with the collision "
+                                                           "post-process at this margin (m).")
+@click.option("--heatmap", help="Model NAME whose per-vertex error map is rendered (default: the first).")
+def eval_cmd(dataset, models, output, split, body, push_margin, heatmap):
+    """Evaluate models against the simulation: the paper's metrics per model and garment type."""
+    from segadeform.train.evaluate import markdown_table, write_report
+    from segadeform.train.evaluate import evaluate as run_eval
+
+    spec = {}
+    for m in models:
+        name, eq, s = m.partition("=")
+        if not eq or not name or not s:
+            raise click.UsageError(f"--model must be NAME=SPEC, got {m!r}")
+        spec[name] = s
+    b = _body(body)
+    res = run_eval(dataset, b, spec, split=split, push_out_margin=push_margin,
+                   progress=lambda sid: click.echo(f"  {sid}", err=True))
+    write_report(res, output, dataset=dataset, body=b, heatmap_model=heatmap or next(iter(spec)))
+    click.echo(markdown_table(res))
+    click.echo(f"-> {output}")

@@ -1,0 +1,319 @@
+"""``segadeform eval``: the paper's metrics (§5) against the simulation, for the model and its baselines.
+
+Metrics, averaged over every frame and vertex of the evaluated samples:
+
+* ``vertex_cm``     mean vertex distance (cm)
+* ``normal_deg``    mean angle between predicted and simulated vertex normals (degrees)
+* ``edge_mm``       mean |edge length - simulated edge length| (mm)
+* ``low_cm`` / ``mid_cm`` / ``high_cm``  the error field ``pred - sim`` split into the
+  low / mid / high spectral bands of the rest garment (§5.2, Table 2;
+  :class:`~segadeform.geometry.laplacian.SpectralBasis`), mean vertex norm of each (cm)
+* ``penetration_pct``  vertices deeper than 2 mm inside the posed body (%)
+* ``jitter_mm``     mean |second difference of pred - second difference of sim| (mm/frame^2)
+
+Models: a model package (ONNX, run by onnxruntime, torch-free), a checkpoint
+(``.pt``, run by torch), or ``lbs`` -- the body's skinning weights transferred to the
+garment from the nearest body point, no blend shapes (baseline (a)).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+
+from ..body.collision import BodyProxy, push_out
+from ..body.model import BodyModel
+from ..body.transfer import skin_garment, transfer_weights
+from ..dataset.store import Sample, list_samples, load_sample
+from ..errors import InputError
+from ..geometry.laplacian import SpectralBasis
+from ..geometry.mesh_ops import unique_edges, vertex_normals
+from ..io.atomic import atomic_path
+from ..motion.motion import motion_windows
+
+__all__ = ["METRICS", "evaluate", "write_report", "Predictor", "make_predictor"]
+
+METRICS = ("vertex_cm", "normal_deg", "edge_mm", "low_cm", "mid_cm", "high_cm", "penetration_pct", "jitter_mm")
+PEN_DEPTH = 0.002
+
+
+class Predictor:
+    """``predict(sample, asset) -> (T, N, 3)``; see :func:`make_predictor`."""
+
+    name: str
+
+    def predict(self, s: Sample, body: BodyModel, asset) -> np.ndarray:  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+class _LBS(Predictor):
+    def predict(self, s, body, asset):
+        betas = s.betas if s.betas.size else None
+        w = transfer_weights(s.rest, body.shaped_vertices(betas)[0], body.faces, body.weights)
+        return skin_garment(s.rest, w, body, s.poses, betas, s.trans)
+
+
+class _Package(Predictor):
+    def __init__(self, path):
+        from ..runtime import ModelPackage
+        from ..runtime.deformer import Deformer
+        from ..scene import Effects
+
+        self.pkg = ModelPackage(path)
+        self.cfg = self.pkg.config
+        self.deformer = Deformer(self.pkg, Effects(skinning=self.cfg.get("skinning", "lbs"), collisions=False))
+
+    def predict(self, s, body, asset):
+        betas = s.betas if s.betas.size else None
+        joints = body.rest_joints(betas)[0]
+        P = self.deformer.encode(asset, joints, s.betas)
+        out = []
+        for lo in range(0, len(s.poses), 16):
+            hi = min(lo + 16, len(s.poses))
+            win = motion_windows(s.poses, self.deformer.window, start=lo, stop=hi)
+            out.append(self.deformer.deform(P, asset, win, joints, s.trans[lo:hi], s.betas))
+        return np.concatenate(out).astype(np.float64)
+
+
+class _Checkpoint(Predictor):
+    def __init__(self, path):
+        from ..model.network import load_checkpoint
+
+        self.model = load_checkpoint(path).eval()
+        self.cfg = self.model.cfg
+
+    def predict(self, s, body, asset):
+        import torch
+
+        c = self.cfg
+        betas = s.betas if s.betas.size else None
+        joints = body.rest_joints(betas)[0]
+        b = np.zeros(c.n_betas, np.float32)
+        b[: s.betas.size] = s.betas[: c.n_betas]
+        t32 = lambda a: torch.as_tensor(np.asarray(a, np.float32))  # noqa: E731
+        nbr, mask = torch.as_tensor(asset.nbr, dtype=torch.int64), torch.as_tensor(asset.mask, dtype=torch.bool)
+        from ..geometry.features import vertex_features
+
+        feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
+        with torch.no_grad():
+            P = self.model.garment_encoder(t32(feats)[None], nbr, mask, t32(asset.descriptor)[None], t32(b)[None])[0]
+            win = motion_windows(s.poses, c.window)
+            out = []
+            for lo in range(0, len(s.poses), 16):
+                hi = min(lo + 16, len(s.poses))
+                n = hi - lo
+                v, _, _ = self.model.deformer(P, t32(win[lo:hi]), t32(b)[None].expand(n, -1), t32(s.rest), nbr, mask,
+                                              t32(joints)[None].expand(n, -1, -1), t32(s.trans[lo:hi]))
+                out.append(v.numpy())
+        return np.concatenate(out).astype(np.float64)
+
+
+def make_predictor(name: str, spec: str) -> Predictor:
+    """``spec``: ``lbs``, a model package folder, or a ``.pt`` checkpoint."""
+    if spec == "lbs":
+        p: Predictor = _LBS()
+    elif Path(spec).is_dir():
+        p = _Package(spec)
+    elif Path(spec).suffix == ".pt":
+        p = _Checkpoint(spec)
+    else:
+        raise InputError("a model must be 'lbs', a model package folder or a .pt checkpoint", got=spec)
+    p.name = name
+    return p
+
+
+def _normals(x, faces):
+    return np.stack([vertex_normals(f, faces) for f in x])
+
+
+@dataclasses.dataclass
+class _Acc:
+    sums: dict
+    counts: dict
+
+    @classmethod
+    def new(cls):
+        return cls({}, {})
+
+    def add(self, key, value, n=1):
+        self.sums[key] = self.sums.get(key, 0.0) + float(value) * n
+        self.counts[key] = self.counts.get(key, 0) + n
+
+    def mean(self, key):
+        return self.sums[key] / max(self.counts[key], 1)
+
+
+def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test", n_star: int = 32,
+             frame_step: int = 1, progress: Optional[Callable[[str], None]] = None, push_out_margin=None) -> dict:
+    """Evaluate ``models`` ({name: spec}) on ``split`` of ``dataset``.
+
+    Returns ``{"models": {name: {metric: value}}, "by_type": {name: {type: {metric: value}}},
+    "per_frame": {name: [vertex_cm per frame index]}, "samples": [...]}``.
+    ``push_out_margin``: also report every learned model with the runtime's collision
+    post-process (``name + push-out``).
+    """
+    from .data import sample_asset
+
+    ids = list_samples(dataset, split)
+    if not ids:
+        raise InputError(f"no '{split}' samples in the dataset", got=str(dataset))
+    preds = {n: make_predictor(n, s) for n, s in models.items()}
+    names = list(preds) + ([f"{n} + push-out" for n, s in models.items() if s != "lbs"] if push_out_margin else [])
+    acc = {n: _Acc.new() for n in names}
+    by_type = {n: {} for n in names}
+    per_frame = {n: _Acc.new() for n in names}
+    bases = {}
+    for sid in ids:
+        s = load_sample(dataset, sid)
+        if progress:
+            progress(sid)
+        asset = sample_asset(dataset, s, body, n_star)
+        gt = s.frames.astype(np.float64)
+        faces = s.faces
+        edges = unique_edges(faces, len(s.rest))
+        key = s.meta.get("garment", sid) + f"-b{s.meta.get('body', 0)}"
+        if key not in bases:
+            bases[key] = SpectralBasis.from_mesh(s.rest, faces)
+        basis = bases[key]
+        n_gt = _normals(gt, faces)
+        l_gt = np.linalg.norm(gt[:, edges[:, 0]] - gt[:, edges[:, 1]], axis=2)
+        acc_gt = gt[2:] - 2 * gt[1:-1] + gt[:-2]
+        betas = s.betas if s.betas.size else None
+        posed = body.forward(s.poses, betas, s.trans).vertices
+        proxies = []
+        proxy = None
+        for t in range(len(posed)):
+            proxy = BodyProxy(posed[t], body.faces) if proxy is None else proxy.moved(posed[t])
+            proxies.append(proxy)
+        outs = {}
+        for n, p in preds.items():
+            outs[n] = p.predict(s, body, asset)
+            if push_out_margin and models[n] != "lbs":
+                outs[f"{n} + push-out"] = np.stack([push_out(outs[n][t], proxies[t], push_out_margin)[0]
+                                                    for t in range(len(gt))])
+        typ = s.meta.get("type", "?")
+        for n, x in outs.items():
+            if x.shape != gt.shape or not np.isfinite(x).all():
+                raise InputError(f"model {n} produced a bad prediction for {sid}", expected=gt.shape, got=x.shape)
+            d = np.linalg.norm(x - gt, axis=2)
+            cosang = np.clip((_normals(x, faces) * n_gt).sum(-1), -1, 1)
+            l_x = np.linalg.norm(x[:, edges[:, 0]] - x[:, edges[:, 1]], axis=2)
+            frames = range(0, len(gt), frame_step)
+            bands = np.zeros(3)
+            for t in frames:
+                lo, mid, hi = basis.split(x[t] - gt[t])
+                bands += [np.linalg.norm(lo, axis=1).mean(), np.linalg.norm(mid, axis=1).mean(),
+                          np.linalg.norm(hi, axis=1).mean()]
+            bands /= len(frames)
+            pen = np.mean([(proxies[t].query(x[t]).signed_distance < -PEN_DEPTH).mean() for t in frames])
+            jit = np.linalg.norm((x[2:] - 2 * x[1:-1] + x[:-2]) - acc_gt, axis=2).mean() if len(gt) > 2 else 0.0
+            vals = {"vertex_cm": 100 * d.mean(), "normal_deg": np.degrees(np.arccos(cosang)).mean(),
+                    "edge_mm": 1000 * np.abs(l_x - l_gt).mean(), "low_cm": 100 * bands[0], "mid_cm": 100 * bands[1],
+                    "high_cm": 100 * bands[2], "penetration_pct": 100 * pen, "jitter_mm": 1000 * jit}
+            for k, v in vals.items():
+                acc[n].add(k, v)
+                by_type[n].setdefault(typ, _Acc.new()).add(k, v)
+            for t, v in enumerate(100 * d.mean(axis=1)):
+                per_frame[n].add(t, v)
+    res = {"split": split, "samples": ids, "metrics": list(METRICS),
+           "models": {n: {k: acc[n].mean(k) for k in METRICS} for n in names},
+           "by_type": {n: {t: {k: a.mean(k) for k in METRICS} for t, a in sorted(by_type[n].items())} for n in names},
+           "per_frame": {n: [per_frame[n].mean(t) for t in sorted(per_frame[n].sums)] for n in names},
+           "specs": dict(models)}
+    return res
+
+
+_HEAD = {"vertex_cm": "vertex (cm)", "normal_deg": "normal (°)", "edge_mm": "edge (mm)", "low_cm": "low band (cm)",
+         "mid_cm": "mid band (cm)", "high_cm": "high band (cm)", "penetration_pct": "penetrating (%)",
+         "jitter_mm": "jitter (mm/f²)"}
+
+
+def markdown_table(res: dict) -> str:
+    lines = ["| model | " + " | ".join(_HEAD[k] for k in METRICS) + " |", "|---" * (len(METRICS) + 1) + "|"]
+    for n, m in res["models"].items():
+        lines.append(f"| {n} | " + " | ".join(f"{m[k]:.3f}" for k in METRICS) + " |")
+    out = ["\n".join(lines), "", "Per garment type (vertex error, cm):", ""]
+    types = sorted({t for n in res["by_type"] for t in res["by_type"][n]})
+    out.append("| model | " + " | ".join(types) + " |")
+    out.append("|---" * (len(types) + 1) + "|")
+    for n, bt in res["by_type"].items():
+        out.append(f"| {n} | " + " | ".join(f"{bt[t]['vertex_cm']:.3f}" if t in bt else "-" for t in types) + " |")
+    return "\n".join(out)
+
+
+def write_report(res: dict, out_dir: Path, *, dataset: Optional[Path] = None, body: Optional[BodyModel] = None,
+                 heatmap_model: Optional[str] = None) -> None:
+    """Write ``eval.json``, ``eval.md`` and the PNG plots into ``out_dir``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    with atomic_path(out / "eval.json") as tmp:
+        Path(tmp).write_text(json.dumps(res, indent=1))
+    md = [f"# Evaluation on the '{res['split']}' split ({len(res['samples'])} samples)", "", markdown_table(res), ""]
+    with atomic_path(out / "eval.md") as tmp:
+        Path(tmp).write_text("\n".join(md))
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for n, v in res["per_frame"].items():
+        ax.plot(v, label=n)
+    ax.set_xlabel("frame")
+    ax.set_ylabel("mean vertex error (cm)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "error_per_frame.png", dpi=80)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    names = list(res["models"])
+    w = 0.8 / len(names)
+    for i, n in enumerate(names):
+        ax.bar(np.arange(3) + i * w, [res["models"][n][k] for k in ("low_cm", "mid_cm", "high_cm")], w, label=n)
+    ax.set_xticks(np.arange(3) + 0.4 - w / 2, ["low", "mid", "high"])
+    ax.set_ylabel("band error (cm)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "error_per_band.png", dpi=80)
+    plt.close(fig)
+    if dataset is not None and body is not None and heatmap_model:
+        _heatmap(res, Path(dataset), body, heatmap_model, out / "error_map.png")
+
+
+def _heatmap(res, dataset, body, name, path):
+    """Per-vertex error of one held-out frame, coloured on the simulated garment."""
+    import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    from .data import sample_asset
+
+    sid = res["samples"][0]
+    s = load_sample(dataset, sid)
+    p = make_predictor(name, res["specs"][name])
+    x = p.predict(s, body, sample_asset(dataset, s, body, 32))
+    t = len(x) // 2
+    err = 100 * np.linalg.norm(x[t] - s.frames[t], axis=1)
+    v = s.frames[t].astype(np.float64)
+    fe = err[s.faces].mean(1)
+    fig = plt.figure(figsize=(5, 6))
+    ax = fig.add_subplot(projection="3d")
+    cmap = plt.get_cmap("viridis")
+    vmax = max(float(np.percentile(err, 99)), 1e-6)
+    tri = v[s.faces][:, :, [0, 2, 1]]
+    ax.add_collection3d(Poly3DCollection(tri, facecolors=cmap(np.clip(fe / vmax, 0, 1)), linewidth=0))
+    c = v.mean(0)
+    r = np.abs(v - c).max()
+    ax.set_xlim(c[0] - r, c[0] + r)
+    ax.set_ylim(c[2] - r, c[2] + r)
+    ax.set_zlim(c[1] - r, c[1] + r)
+    ax.view_init(10, -70)
+    ax.axis("off")
+    sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, vmax))
+    fig.colorbar(sm, ax=ax, shrink=0.6, label="vertex error (cm)")
+    ax.set_title(f"{name}: {sid}, frame {t}", fontsize=8)
+    fig.savefig(path, dpi=80)
+    plt.close(fig)

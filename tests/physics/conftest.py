@@ -1,0 +1,32 @@
+from __future__ import annotations
+
+import pytest
+
+
+@pytest.fixture(scope="session")
+def sim_python():
+    """The simulator environment; CI makes it (.ci/run), so these tests run there."""
+    from segadeform.errors import SimulationError
+    from segadeform.physics import find_sim_python
+
+    try:
+        return find_sim_python()
+    except SimulationError as e:
+        pytest.skip(f"no simulator environment here ({e}); `python -m segadeform.physics.setup` makes one")
+
+
+@pytest.fixture(scope="session")
+def body():
+    from segadeform.body import load_body
+
+    from ..conftest import SAMPLES
+
+    return load_body(SAMPLES / "bodies" / "default_body.npz")
+
+
+@pytest.fixture(scope="session")
+def coarse_skirt(body):
+    """A coarse skirt made for the default body (about 660 vertices)."""
+    from segadeform.garments import make_garment
+
+    return make_garment("skirt", body)

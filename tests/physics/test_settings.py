@@ -1,0 +1,69 @@
+"""A scene's [simulate] table -> solver settings: only the named effects are on."""
+
+from __future__ import annotations
+
+import pytest
+
+from segadeform.errors import FileFormatError, InputError
+from segadeform.physics import DEFAULT_EFFECTS, EFFECTS, MATERIALS, SimSettings, blender_settings, parse_simulate_table
+from segadeform.scene import load_scene
+
+
+def _scene(tmp_path, simulate: str) -> object:
+    p = tmp_path / "s.toml"
+    p.write_text('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\n[output]\npath = "o.pc2"\n' + simulate)
+    return load_scene(p)
+
+
+def test_scene_without_simulate_table_has_none(tmp_path):
+    assert _scene(tmp_path, "").simulate is None
+
+
+def test_named_effects_only(tmp_path):
+    sc = _scene(tmp_path, '[simulate]\neffects = ["gravity", "pinning"]\nmaterial = "silk"\n')
+    s = sc.simulate
+    assert s.effects == ("gravity", "pinning") and s.material == "silk"
+    b = blender_settings(s)
+    assert b["effects"] == {e: e in ("gravity", "pinning") for e in EFFECTS}
+    assert b["cloth"]["bending_stiffness"] == 0.0 and b["cloth"]["air_damping"] == 0.0
+    assert b["cloth"]["pin_stiffness"] == s.pin_stiffness
+    assert b["wind"] is None and "self_distance_min" not in b["collision"]
+
+
+def test_every_effect_maps_to_its_switch():
+    for e in EFFECTS:
+        on = blender_settings(SimSettings(effects=(e,)))
+        off = blender_settings(SimSettings(effects=()))
+        assert on["effects"][e] and not off["effects"][e]
+        assert sum(on["effects"].values()) == 1
+    m = MATERIALS["denim"]
+    b = blender_settings(SimSettings(effects=("bending", "air_damping", "wind"), material="denim"))
+    assert b["cloth"]["bending_stiffness"] == m.bending and b["cloth"]["air_damping"] == m.air_damping
+    assert b["cloth"]["tension_stiffness"] == m.tension and b["wind"]["strength"] > 0
+
+
+def test_effects_are_canonical_and_defaults():
+    assert SimSettings(effects=("wind", "gravity")).effects == ("gravity", "wind")
+    assert SimSettings().effects == DEFAULT_EFFECTS
+
+
+@pytest.mark.parametrize("table, msg", [
+    ('[simulate]\nmaterial = "silk"\n', "must name its effects"),
+    ('[simulate]\neffects = ["gravity", "magic"]\n', "unknown simulation effect"),
+    ('[simulate]\neffects = ["gravity", "gravity"]\n', "named twice"),
+    ('[simulate]\neffects = []\nmaterial = "paper"\n', "unknown material"),
+    ('[simulate]\neffects = []\nquality = 0\n', "quality"),
+    ('[simulate]\neffects = []\nquality = 2.5\n', "wrong type"),
+    ('[simulate]\neffects = []\nbogus = 1\n', "unknown key simulate.bogus"),
+    ('[simulate]\neffects = []\nwind = [0, 0, 0]\n', "non-zero"),
+])
+def test_bad_simulate_tables_name_the_file(tmp_path, table, msg):
+    with pytest.raises(FileFormatError) as e:
+        _scene(tmp_path, table)
+    assert msg in str(e.value) and "s.toml" in str(e.value)
+
+
+def test_parse_none_is_default():
+    assert parse_simulate_table(None) == SimSettings()
+    with pytest.raises(InputError):
+        SimSettings(pin="sleeve")
