@@ -165,4 +165,9 @@ def main(job_dir):
 
 
 if __name__ == "__main__":
-    main(sys.argv[-1])
+    if sys.argv[-1] == "--version":
+        import bpy
+
+        sys.stdout.write(bpy.app.version_string + "\n")
+    else:
+        main(sys.argv[-1])

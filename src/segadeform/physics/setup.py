@@ -39,8 +39,9 @@ def setup_sim_env(target: Path, python=None, *, quiet: bool = True) -> Path:
         subprocess.run([_python311(python), "-m", "venv", str(target)], check=True)
     cmd = [str(exe), "-m", "pip", "install", "-r", str(REQUIREMENTS)] + (["-q"] if quiet else [])
     subprocess.run(cmd, check=True)
-    out = subprocess.run([str(exe), "-c", "import bpy; print(bpy.app.version_string)"], check=True,
-                         capture_output=True, text=True)
+    from .blender import WORKER
+
+    out = subprocess.run([str(exe), str(WORKER), "--version"], check=True, capture_output=True, text=True)
     if not out.stdout.strip():
         raise SimulationError(f"bpy did not import in {target}")
     return exe
