@@ -143,7 +143,10 @@ def make_dataset(cfg: DatasetConfig, out: Path, *, body_path: Path, jobs: int = 
     if cfg.path is not None:
         shutil.copyfile(cfg.path, out / "config.toml")
     plan = sample_plan(cfg)
-    todo = [p for p in plan if not ((out / "samples" / f"{p.id}.json").is_file()
+    # held-out samples first, then body-major, motion, garment: a run stopped early still has
+    # every garment and motion of the bodies it reached, and a complete test split
+    order = sorted(plan, key=lambda p: (p.split == "train", p.body, p.motion, p.garment))
+    todo = [p for p in order if not ((out / "samples" / f"{p.id}.json").is_file()
                                     or (out / "rejected" / f"{p.id}.json").is_file())]
     skipped = len(plan) - len(todo)
     if limit is not None:
