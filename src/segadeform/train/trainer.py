@@ -196,8 +196,10 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
         sched.step()
         step += 1
         for k in acc:
-            acc[k] += float(ls[k])
+            acc[k] += float(ls[k].detach())
         n_acc += 1
+        if step % o.checkpoint_every == 0 or step == o.steps:
+            save_last()
         if step % log_every == 0 or step == o.steps:
             now = time.perf_counter()
             elapsed += now - t0
@@ -211,8 +213,6 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
                 progress(step, row)
             acc = {k: 0.0 for k in acc}
             n_acc = 0
-        if step % o.checkpoint_every == 0 or step == o.steps:
-            save_last()
     elapsed += time.perf_counter() - t0
     final = run / "model.pt"
     from ..model.network import save_checkpoint
