@@ -105,7 +105,8 @@ def _run_one(root: str, cfg: DatasetConfig, ps: PlannedSample, body_path: str, s
         rec.update(status="rejected", reasons=[f"simulation failed: {e}"], seconds=time.perf_counter() - t0)
         return rec
     posed = body.forward(motion.poses, betas or None, motion.trans).vertices
-    q = quality_check(res.frames, mesh.vertices, mesh.faces, posed, body.faces, cfg.quality)
+    contact = {}
+    q = quality_check(res.frames, mesh.vertices, mesh.faces, posed, body.faces, cfg.quality, contact=contact)
     rec.update(quality=q.to_dict(), seconds_per_frame=res.seconds_per_frame, blender=res.blender["blender_version"],
                sim_seconds=res.blender["simulate_seconds"], preroll_frames=res.preroll_frames)
     if q.ok:
@@ -114,7 +115,8 @@ def _run_one(root: str, cfg: DatasetConfig, ps: PlannedSample, body_path: str, s
                     blender_info=res.blender)
         save_sample(root_p, Sample(id=ps.id, rest=mesh.vertices, faces=mesh.faces,
                                    betas=np.asarray(betas, np.float64), poses=motion.poses, trans=motion.trans,
-                                   frames=res.frames.astype(np.float32), meta=meta))
+                                   frames=res.frames.astype(np.float32), meta=meta,
+                                   contact_p=contact["closest"], contact_n=contact["normal"]))
         rec["status"] = "kept"
     else:
         rec.update(status="rejected", reasons=q.reasons)

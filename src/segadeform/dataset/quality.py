@@ -43,8 +43,12 @@ class QualityReport:
         return d
 
 
-def quality_check(frames, rest, faces, body_frames, body_faces, spec) -> QualityReport:
-    """Shapes: frames (T, N, 3), rest (N, 3), faces (F, 3), body_frames (T, V, 3) -> report."""
+def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact: dict | None = None) -> QualityReport:
+    """Shapes: frames (T, N, 3), rest (N, 3), faces (F, 3), body_frames (T, V, 3) -> report.
+
+    ``contact``: a dict that receives ``closest`` and ``normal`` (T, N, 3) float32, the closest
+    body point and its outward normal for every vertex and frame (training's collision loss uses them).
+    """
     x = np.asarray(frames, np.float64)
     if not np.isfinite(x).all():
         return QualityReport(False, float("nan"), float("nan"), float("nan"), float("nan"), ["non-finite positions"])
@@ -54,10 +58,15 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec) -> Quality
     strain = np.abs(l / np.maximum(l0, 1e-12) - 1)
     proxy = None
     pen = 0.0
+    if contact is not None:
+        contact["closest"] = np.empty(x.shape, np.float32)
+        contact["normal"] = np.empty(x.shape, np.float32)
     for t in range(len(x)):
         proxy = BodyProxy(body_frames[t], body_faces) if proxy is None else proxy.moved(body_frames[t])
-        sd = proxy.query(x[t]).signed_distance
-        pen = max(pen, float((sd < -spec.penetration_depth).mean()))
+        q = proxy.query(x[t])
+        pen = max(pen, float((q.signed_distance < -spec.penetration_depth).mean()))
+        if contact is not None:
+            contact["closest"][t], contact["normal"][t] = q.closest, q.normal
     jit = 0.0
     if len(x) >= 3:
         acc = np.linalg.norm(x[2:] - 2 * x[1:-1] + x[:-2], axis=2)  # (T-2, N)

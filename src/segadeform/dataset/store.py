@@ -29,6 +29,8 @@ class Sample:
     trans: np.ndarray
     frames: np.ndarray
     meta: dict
+    contact_p: np.ndarray | None = None  # (T, N, 3) closest body point to each simulated vertex
+    contact_n: np.ndarray | None = None  # (T, N, 3) outward body normal there
 
 
 def save_sample(root: Path, s: Sample) -> None:
@@ -36,8 +38,10 @@ def save_sample(root: Path, s: Sample) -> None:
     d.mkdir(parents=True, exist_ok=True)
     with atomic_path(d / f"{s.id}.npz") as tmp:
         with open(tmp, "wb") as fh:
+            extra = {} if s.contact_p is None else {"contact_p": s.contact_p.astype(np.float32),
+                                                     "contact_n": s.contact_n.astype(np.float32)}
             np.savez(fh, rest=s.rest, faces=s.faces, betas=s.betas, poses=s.poses, trans=s.trans,
-                     frames=s.frames.astype(np.float32))
+                     frames=s.frames.astype(np.float32), **extra)
     with atomic_path(d / f"{s.id}.json") as tmp:
         Path(tmp).write_text(json.dumps(s.meta, indent=1, sort_keys=True))
 
@@ -53,7 +57,10 @@ def load_sample(root: Path, sid: str) -> Sample:
     for k, nd in _ARRAYS.items():
         if k not in z or z[k].ndim != nd:
             raise FileFormatError(f"sample array {k!r} missing or not {nd}-D", path=d / f"{sid}.npz")
-    return Sample(id=sid, meta=meta, **{k: z[k] for k in _ARRAYS})
+    contact = {}
+    if "contact_p" in z and "contact_n" in z and z["contact_p"].shape == z["frames"].shape == z["contact_n"].shape:
+        contact = {"contact_p": z["contact_p"], "contact_n": z["contact_n"]}
+    return Sample(id=sid, meta=meta, **{k: z[k] for k in _ARRAYS}, **contact)
 
 
 def list_samples(root: Path, split: str | None = None) -> list[str]:

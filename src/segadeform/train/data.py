@@ -80,6 +80,8 @@ def sample_asset(root: Path, s: Sample, body: BodyModel, n_star: int) -> Garment
 
 
 def _contact(root: Path, s: Sample, body: BodyModel):
+    if s.contact_p is not None:  # stored by `dataset make`
+        return s.contact_p, s.contact_n
     p = Path(root) / "cache" / f"contact-{s.id}.npz"
     if p.is_file():
         z = np.load(p)
