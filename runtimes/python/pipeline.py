@@ -58,9 +58,8 @@ def default_body_path() -> Path:
 def default_model_path() -> Path:
     p = _repo_samples() / "models" / "default"
     if not (p / "manifest.json").is_file():
-        raise InputError("no model package given and no trained default model ships yet: pass one "
-                         "(`segadeform export --random-init -o DIR` makes an untrained package for testing)",
-                         expected="--model PACKAGE_DIR or [model] package in the scene")
+        raise InputError("no model package given and the default model is missing from this installation",
+                         expected=f"--model PACKAGE_DIR, [model] package in the scene, or {p}")
     return p
 
 

@@ -28,7 +28,9 @@ def _safe_norm(x: torch.Tensor, dim: int) -> torch.Tensor:
     (a plain sum of squares overflows float32 above ~1.8e19).  The ``1e-24`` under the root
     keeps the derivative finite at x = 0 (sqrt'(0) is infinite: NaN gradients in training);
     the scaled sum is at least 1 whenever x != 0, so it changes nothing else."""
-    m = x.abs().amax(dim=dim, keepdim=True)
+    # m only rescales (the norm does not depend on it), so it needs no gradient: detaching it gives
+    # the exact gradient x / ||x|| and spares the max's backward pass
+    m = x.abs().amax(dim=dim, keepdim=True).detach()
     safe = torch.where(m > 0, m, torch.ones_like(m))
     return (torch.sqrt(((x / safe) ** 2).sum(dim=dim, keepdim=True) + 1e-24) * m).squeeze(dim)
 
@@ -51,7 +53,7 @@ def masked_softmax(scores: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     """
     m = mask[None, :, :, None]
     s = torch.where(m, scores, torch.full_like(scores, _NEG))
-    s = s - s.amax(dim=2, keepdim=True)
+    s = s - s.amax(dim=2, keepdim=True).detach()  # softmax is shift-invariant: the shift needs no gradient
     e = torch.exp(s) * m.to(scores.dtype)
     return e / e.sum(dim=2, keepdim=True).clamp_min(1e-30)
 
