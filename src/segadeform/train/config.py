@@ -20,6 +20,8 @@ Example (``samples/train/default.toml`` is the shipped model's)::
     gravity = 0.0                  # gravitational potential (physics; see LossWeights)
     collision = 1.0                # depth inside the body plus a margin (physics)
     collision_margin = 0.002
+    skin_prior = 1.0               # pull the skinning weights towards the body's (nearest point) ...
+    skin_prior_until = 0.5         # ... fading out by half-way (NCS notes transferred weights speed convergence)
 
     [optim]
     steps = 3000
@@ -64,6 +66,8 @@ class LossWeights:
     gravity: float = 0.0
     collision: float = 1.0
     collision_margin: float = 0.002
+    skin_prior: float = 1.0         # mean squared distance of the skinning weights to the body's, transferred
+    skin_prior_until: float = 0.5   # ... decaying linearly to 0 at this fraction of the steps
 
 
 @dataclasses.dataclass(frozen=True)

@@ -17,6 +17,7 @@ import torch
 
 from ..body.collision import BodyProxy
 from ..body.model import BodyModel
+from ..body.transfer import transfer_weights
 from ..dataset.store import Sample, list_samples, load_sample
 from ..geometry.asset import GarmentAsset, precompute_garment
 from ..geometry.mesh_ops import unique_edges
@@ -46,6 +47,7 @@ class TrainItem:
     frames: torch.Tensor      # (T, N, 3)
     contact_p: torch.Tensor   # (T, N, 3) closest body point to the simulated vertex
     contact_n: torch.Tensor   # (T, N, 3) outward body normal there
+    body_weights: torch.Tensor  # (N, S) the body's skinning weights at the closest rest-pose point
     asset: GarmentAsset
 
     @property
@@ -115,10 +117,13 @@ def load_items(root: Path, body: BodyModel, *, n_star: int, window: int, n_betas
         b[: s.betas.size] = s.betas[:n_betas]
         joints = body.rest_joints(s.betas if s.betas.size else None)[0]
         win = motion_windows(s.poses, window)
+        bw = transfer_weights(s.rest, body.shaped_vertices(s.betas if s.betas.size else None)[0], body.faces,
+                              body.weights)
         out.append(TrainItem(
             id=sid, meta=s.meta, features=f32(a.features)[None], nbr=torch.as_tensor(a.nbr, dtype=torch.int64),
             mask=torch.as_tensor(a.mask, dtype=torch.bool), descriptor=f32(a.descriptor)[None], betas=f32(b)[None],
             joints=f32(joints), rest=f32(s.rest), faces=torch.as_tensor(s.faces, dtype=torch.int64),
             edges=torch.as_tensor(unique_edges(s.faces, len(s.rest)), dtype=torch.int64), windows=f32(win),
-            trans=f32(s.trans), frames=f32(s.frames), contact_p=f32(cp), contact_n=f32(cn), asset=a))
+            trans=f32(s.trans), frames=f32(s.frames), contact_p=f32(cp), contact_n=f32(cn), body_weights=f32(bw),
+            asset=a))
     return out

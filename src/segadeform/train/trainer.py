@@ -38,7 +38,7 @@ from .data import TrainItem, load_items
 
 __all__ = ["train", "step_losses", "TERMS", "pick_device", "plot_losses"]
 
-TERMS = ("vertex", "normal", "edge", "stretch", "shear", "gravity", "collision")
+TERMS = ("vertex", "normal", "edge", "stretch", "shear", "gravity", "collision", "skin_prior")
 
 
 def pick_device(name: str) -> torch.device:
@@ -49,10 +49,12 @@ def pick_device(name: str) -> torch.device:
     return torch.device(name)
 
 
-def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w) -> dict:
-    """Every loss term for frames ``t (B,)`` of ``item``; returns {term: tensor} and 'total'."""
+def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_scale: float = 1.0) -> dict:
+    """Every loss term for frames ``t (B,)`` of ``item``; returns {term: tensor} and 'total'.
+
+    ``prior_scale`` multiplies the skinning-weight prior's weight (the trainer fades it out)."""
     b = len(t)
-    verts, _, _ = model(item.features, item.nbr, item.mask, item.descriptor, item.betas.expand(b, -1),
+    verts, weights, _ = model(item.features, item.nbr, item.mask, item.descriptor, item.betas.expand(b, -1),
                         item.windows[t], item.rest, item.joints[None].expand(b, -1, -1), item.trans[t])
     y = item.frames[t]
     out = {
@@ -63,8 +65,10 @@ def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w) -> dict:
         "shear": L.shear_loss(verts, item.rest, item.faces),
         "gravity": L.gravity_loss(verts, item.rest),
         "collision": L.collision_loss(verts, item.contact_p[t], item.contact_n[t], w.collision_margin),
+        "skin_prior": ((weights - item.body_weights[None]) ** 2).sum(-1).mean(),
     }
-    out["total"] = sum(getattr(w, k) * out[k] for k in TERMS if getattr(w, k) != 0)
+    scale = {"skin_prior": prior_scale}
+    out["total"] = sum(getattr(w, k) * scale.get(k, 1.0) * out[k] for k in TERMS if getattr(w, k) != 0)
     return out
 
 
@@ -186,7 +190,8 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
     while step < o.steps:
         it = items[int(rng.integers(len(items)))]
         t = torch.as_tensor(rng.choice(it.n_frames, size=min(o.frames, it.n_frames), replace=False), device=device)
-        ls = step_losses(model, it, t, cfg.loss)
+        until = cfg.loss.skin_prior_until * o.steps
+        ls = step_losses(model, it, t, cfg.loss, prior_scale=max(0.0, 1.0 - step / until) if until > 0 else 0.0)
         if not torch.isfinite(ls["total"]):
             raise InputError(f"the loss became {float(ls['total'])} at step {step} on {it.id}; lower optim.lr")
         opt.zero_grad(set_to_none=True)
