@@ -79,5 +79,5 @@ def test_run_uses_the_shipped_model_by_default(tmp_path):
     assert main(["run", str(SAMPLES / "scenes" / "dress_dance.toml"), "-o", str(out), "--frames", "0:12"]) == 0
     from segadeform.io.pc2 import read_pc2
 
-    x = read_pc2(out)
-    assert x.shape[0] == 12 and np.isfinite(x).all()
+    x = read_pc2(out).frames
+    assert x.shape == (12, len(read_mesh(SAMPLES / "garments" / "dress.obj").vertices), 3) and np.isfinite(x).all()

@@ -88,7 +88,20 @@ def test_cli_train_and_eval(synthetic_dataset, tiny_config, tmp_path, capsys):
                  str(out)]) == 0
     text = capsys.readouterr().out
     assert "| lbs |" in text and "| sega |" in text
-    for f in ("eval.md", "eval.json", "error_per_frame.png", "error_per_band.png", "error_map.png"):
+    for f in ("eval.md", "eval.json", "error_per_frame.png", "error_per_band.png", "error_map.png", "error_vs_cost.png"):
         assert (out / f).stat().st_size > 100
     assert main(["eval", str(synthetic_dataset), "-m", "nonsense", "-o", str(out)]) == 2
     assert main(["train", str(tiny_config), "-o", str(tmp_path / "x")]) == 1  # no dataset named anywhere
+
+
+def test_evaluate_packages_with_effects_off(synthetic_dataset, random_package, body):
+    pkg = str(random_package)
+    res = evaluate(synthetic_dataset, body, {"all": pkg, "no wrinkles": f"{pkg}:-wrinkles",
+                                             "static": f"{pkg}:-dynamics"})
+    m = res["models"]
+    assert all(np.isfinite(m[n][k]) for n in m for k in METRICS) and all(m[n]["ms_per_frame"] > 0 for n in m)
+    assert m["all"]["vertex_cm"] != m["no wrinkles"]["vertex_cm"]
+    from segadeform.errors import InputError
+
+    with pytest.raises(InputError):
+        evaluate(synthetic_dataset, body, {"x": f"{pkg}:collisions"})

@@ -10,6 +10,10 @@ Metrics, averaged over every frame and vertex of the evaluated samples:
   :class:`~segadeform.geometry.laplacian.SpectralBasis`), mean vertex norm of each (cm)
 * ``penetration_pct``  vertices deeper than 2 mm inside the posed body (%)
 * ``jitter_mm``     mean |second difference of pred - second difference of sim| (mm/frame^2)
+* ``ms_per_frame``  the model's own time per frame (garment precompute excluded), one thread
+
+The metrics beside the time per frame show what accuracy costs: a package can be
+evaluated with effects off (``FOLDER:-wrinkles``, ``FOLDER:-dynamics``, ``FOLDER:dqs``).
 
 Models: a model package (ONNX, run by onnxruntime, torch-free), a checkpoint
 (``.pt``, run by torch), or ``lbs`` -- the body's skinning weights transferred to the
@@ -20,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import time
 from pathlib import Path
 from typing import Callable, Optional
 
@@ -58,14 +63,19 @@ class _LBS(Predictor):
 
 
 class _Package(Predictor):
-    def __init__(self, path):
+    def __init__(self, path, effects: str = ""):
         from ..runtime import ModelPackage
         from ..runtime.deformer import Deformer
-        from ..scene import Effects
+        from ..scene import Effects, parse_effects
 
-        self.pkg = ModelPackage(path)
+        self.pkg = ModelPackage(path, threads=1)
         self.cfg = self.pkg.config
-        self.deformer = Deformer(self.pkg, Effects(skinning=self.cfg.get("skinning", "lbs"), collisions=False))
+        eff = Effects(skinning=self.cfg.get("skinning", "lbs"), collisions=False)
+        if effects:
+            eff = parse_effects(effects, eff)
+            if eff.collisions:
+                raise InputError("evaluate collisions with --push-out, not as a package effect", got=effects)
+        self.deformer = Deformer(self.pkg, eff)
 
     def predict(self, s, body, asset):
         betas = s.betas if s.betas.size else None
@@ -113,11 +123,15 @@ class _Checkpoint(Predictor):
 
 
 def make_predictor(name: str, spec: str) -> Predictor:
-    """``spec``: ``lbs``, a model package folder, or a ``.pt`` checkpoint."""
+    """``spec``: ``lbs``, a model package folder (optionally ``FOLDER:EFFECTS`` with effects as for
+    ``segadeform run --effects``, e.g. ``pkg:-wrinkles``), or a ``.pt`` checkpoint."""
     if spec == "lbs":
         p: Predictor = _LBS()
     elif Path(spec).is_dir():
         p = _Package(spec)
+    elif ":" in spec and Path(spec.rsplit(":", 1)[0]).is_dir():
+        folder, eff = spec.rsplit(":", 1)
+        p = _Package(folder, eff)
     elif Path(spec).suffix == ".pt":
         p = _Checkpoint(spec)
     else:
@@ -191,10 +205,15 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
             proxies.append(proxy)
         outs = {}
         for n, p in preds.items():
+            t0 = time.perf_counter()
             outs[n] = p.predict(s, body, asset)
+            acc[n].add("ms_per_frame", 1e3 * (time.perf_counter() - t0) / len(gt))
             if push_out_margin and models[n] != "lbs":
+                t0 = time.perf_counter()
                 outs[f"{n} + push-out"] = np.stack([push_out(outs[n][t], proxies[t], push_out_margin)[0]
                                                     for t in range(len(gt))])
+                acc[f"{n} + push-out"].add("ms_per_frame", acc[n].sums["ms_per_frame"] / acc[n].counts["ms_per_frame"]
+                                           + 1e3 * (time.perf_counter() - t0) / len(gt))
         typ = s.meta.get("type", "?")
         for n, x in outs.items():
             if x.shape != gt.shape or not np.isfinite(x).all():
@@ -220,7 +239,7 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
             for t, v in enumerate(100 * d.mean(axis=1)):
                 per_frame[n].add(t, v)
     res = {"split": split, "samples": ids, "metrics": list(METRICS),
-           "models": {n: {k: acc[n].mean(k) for k in METRICS} for n in names},
+           "models": {n: {k: acc[n].mean(k) for k in METRICS + ("ms_per_frame",)} for n in names},
            "by_type": {n: {t: {k: a.mean(k) for k in METRICS} for t, a in sorted(by_type[n].items())} for n in names},
            "per_frame": {n: [per_frame[n].mean(t) for t in sorted(per_frame[n].sums)] for n in names},
            "specs": dict(models)}
@@ -229,13 +248,15 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
 
 _HEAD = {"vertex_cm": "vertex (cm)", "normal_deg": "normal (°)", "edge_mm": "edge (mm)", "low_cm": "low band (cm)",
          "mid_cm": "mid band (cm)", "high_cm": "high band (cm)", "penetration_pct": "penetrating (%)",
-         "jitter_mm": "jitter (mm/f²)"}
+         "jitter_mm": "jitter (mm/f²)", "ms_per_frame": "ms/frame"}
 
 
 def markdown_table(res: dict) -> str:
-    lines = ["| model | " + " | ".join(_HEAD[k] for k in METRICS) + " |", "|---" * (len(METRICS) + 1) + "|"]
+    cols = METRICS + ("ms_per_frame",)
+    lines = ["| model | " + " | ".join(_HEAD[k] for k in cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for n, m in res["models"].items():
-        lines.append(f"| {n} | " + " | ".join(f"{m[k]:.3f}" for k in METRICS) + " |")
+        lines.append(f"| {n} | " + " | ".join(f"{m[k]:.3f}" if k != "ms_per_frame" else f"{m[k]:.1f}"
+                                             for k in cols) + " |")
     out = ["\n".join(lines), "", "Per garment type (vertex error, cm):", ""]
     types = sorted({t for n in res["by_type"] for t in res["by_type"][n]})
     out.append("| model | " + " | ".join(types) + " |")
@@ -279,6 +300,16 @@ def write_report(res: dict, out_dir: Path, *, dataset: Optional[Path] = None, bo
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(out / "error_per_band.png", dpi=80)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for n, m in res["models"].items():
+        ax.scatter(m["ms_per_frame"], m["vertex_cm"])
+        ax.annotate(n, (m["ms_per_frame"], m["vertex_cm"]), fontsize=7)
+    ax.set_xlabel("ms per frame (one thread, this machine)")
+    ax.set_ylabel("mean vertex error (cm)")
+    ax.set_title("what accuracy costs")
+    fig.tight_layout()
+    fig.savefig(out / "error_vs_cost.png", dpi=80)
     plt.close(fig)
     if dataset is not None and body is not None and heatmap_model:
         _heatmap(res, Path(dataset), body, heatmap_model, out / "error_map.png")
