@@ -156,6 +156,26 @@ def _smooth_normals(v, f, rounds=2):
     return n
 
 
+def _relax(v, f, proxy: BodyProxy, ease, passes: int = 10, step: float = 0.5):
+    """Uniform Laplacian smoothing of interior vertices, keeping ``ease / 2`` clearance from the body."""
+    from ..geometry.mesh_ops import boundary_vertices
+
+    e = unique_edges(f, len(v))
+    deg = np.bincount(e.ravel(), minlength=len(v)).astype(np.float64)
+    interior = np.ones(len(v), bool)
+    interior[boundary_vertices(f)] = False
+    for _ in range(passes):
+        acc = np.zeros_like(v)
+        np.add.at(acc, e[:, 0], v[e[:, 1]])
+        np.add.at(acc, e[:, 1], v[e[:, 0]])
+        avg = acc / np.maximum(deg, 1)[:, None]
+        v = np.where(interior[:, None], v + step * (avg - v), v)
+        q = proxy.query(v)
+        bad = q.signed_distance < 0.5 * ease
+        v[bad] = q.closest[bad] + ease * q.normal[bad]
+    return v
+
+
 def _extrude_skirt(v, f, hem_y, flare, proxy: BodyProxy, ease):
     """Extrude the lowest boundary loop down to ``hem_y``, widening to ``1 + flare`` at the hem and
     never closer than ``ease`` to the body."""
@@ -261,6 +281,9 @@ def make_garment(kind: str, body: BodyModel, betas=None, params: GarmentParams =
     q = proxy.query(v)
     bad = q.signed_distance < 0.5 * params.ease
     v[bad] = q.closest[bad] + params.ease * q.normal[bad]
+    # crease vertices pushed out above bunch up (armpits: 3 mm edges that the simulator then
+    # stretched 300 %); a few smoothing passes even the triangles, each followed by the push-out
+    v = _relax(v, f, proxy, params.ease)
     if hem is not None:
         v, f = _extrude_skirt(v, f, hem, params.flare, proxy, params.ease)
     # refine last, so skirts are refined too; flat midpoints sit < 1 mm inside the offset surface
