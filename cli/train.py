@@ -26,10 +26,16 @@ def _body(path):
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), help="Overrides optim.device.")
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option("--val", "val_ids", multiple=True, help="Sample id to validate on at each checkpoint (repeatable).")
-def train_cmd(config, output, dataset, steps, device, body, val_ids):
+@click.option("--threads", type=click.IntRange(min=1), help="torch CPU threads (default: torch's choice).")
+def train_cmd(config, output, dataset, steps, device, body, val_ids, threads):
     """Train the SEGA model on a simulated dataset (CONFIG.toml; see segadeform.train.config)."""
     from segadeform.train import load_train_config
     from segadeform.train.trainer import train
+
+    if threads:
+        import torch
+
+        torch.set_num_threads(threads)
 
     ov = {}
     if steps:
