@@ -31,7 +31,7 @@ from segadeform.geometry import GarmentAsset, precompute_garment
 from segadeform.geometry.asset import file_sha256
 from segadeform.io import open_sequence_writer, read_mesh, write_obj, Mesh
 from segadeform.motion import Motion, motion_windows
-from segadeform.scene import Effects, MotionSpec, Scene, build_motion  # noqa: F401  (build_motion re-exported)
+from segadeform.scene import Effects, Scene, build_motion  # noqa: F401  (build_motion re-exported)
 
 from .deformer import Deformer
 from .package import ModelPackage

@@ -224,7 +224,7 @@ def _region(kind: str, p: GarmentParams, j: np.ndarray, bv: np.ndarray):
     """Vertex mask on the rest body, the skirt hem height (None: no skirt)."""
     x, y, z = bv[:, 0], bv[:, 1], bv[:, 2]
     ax = np.abs(x)
-    pelvis, hip, knee, ankle = j[_J["pelvis"]], j[_J["left_hip"]], j[_J["left_knee"]], j[_J["left_ankle"]]
+    pelvis, hip, ankle = j[_J["pelvis"]], j[_J["left_hip"]], j[_J["left_ankle"]]
     neck, shoulder, wrist = j[_J["neck"]], j[_J["left_shoulder"]], j[_J["left_wrist"]]
     waist_y = j[_J["spine1"]][1] - 0.02
     cut_y = hip[1] - 0.01  # above the crotch: one loop around the pelvis

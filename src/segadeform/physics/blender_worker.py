@@ -101,9 +101,10 @@ def main(job_dir):
     cloth.point_cache.frame_start = 1
     cloth.point_cache.frame_end = total
     if eff["wind"]:
-        wind = bpy.data.objects.new("wind", None)
-        scene.collection.objects.link(wind)
-        wind.field.type = "WIND"
+        # a force field needs its field settings, which only the operator creates
+        bpy.ops.object.effector_add(type="WIND", location=(0.0, 0.0, 0.0))
+        wind = bpy.context.view_layer.objects.active
+        wind.name = "wind"
         wind.field.strength = float(job["wind"]["strength"])
         wind.field.flow = float(job["wind"].get("flow", 0.0))
         d = np.asarray(job["wind"]["direction"], float)
