@@ -27,7 +27,7 @@ def dataset_make_cmd(config, output, jobs, body, limit, sim_python):
     """Simulate every garment x body x motion of CONFIG.toml into OUTPUT (resumable)."""
     from segadeform.dataset import load_dataset_config, make_dataset
     from segadeform.physics import find_sim_python
-    from segadeform.physics.scene_sim import default_body_file
+    from segadeform.body import default_body_path
 
     cfg = load_dataset_config(config)
     find_sim_python(sim_python)  # fail before planning anything
@@ -39,7 +39,7 @@ def dataset_make_cmd(config, output, jobs, body, limit, sim_python):
         spf = f"{rec['seconds_per_frame']:.3f} s/frame" if "seconds_per_frame" in rec else ""
         click.echo(f"[{n[0]}] {rec['id']} ({rec['vertices']} v) {rec['status']} {spf}{why}", err=True)
 
-    s = make_dataset(cfg, output, body_path=body or default_body_file(), jobs=jobs, sim_python=sim_python,
+    s = make_dataset(cfg, output, body_path=body or default_body_path(), jobs=jobs, sim_python=sim_python,
                      progress=progress, limit=limit)
     click.echo(f"{s.planned} planned, {s.skipped} already done, {s.kept} kept, {s.rejected} rejected -> {output}")
 

@@ -80,13 +80,13 @@ def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, res
     from segadeform.body import load_body
     from segadeform.garments import GarmentParams, check_garment, make_garment
     from segadeform.io import Mesh, write_obj
-    from segadeform.physics.scene_sim import default_body_file
+    from segadeform.body import default_body_path
 
     try:
         b = tuple(float(x) for x in betas.split(",")) if betas else None
     except ValueError:
         raise click.UsageError(f"--betas must be comma-separated numbers, got {betas!r}") from None
-    bm = load_body(body or default_body_file())
+    bm = load_body(body or default_body_path())
     g = make_garment(kind, bm, b, GarmentParams(length=length, flare=flare, ease=ease, sleeve=sleeve,
                                                   resolution=resolution))
     info = check_garment(g.vertices, g.faces, bm, b)

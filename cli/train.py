@@ -12,9 +12,9 @@ from .main import cli
 
 def _body(path):
     from segadeform.body import load_body
-    from segadeform.physics.scene_sim import default_body_file
+    from segadeform.body import default_body_path
 
-    return load_body(path or default_body_file())
+    return load_body(path or default_body_path())
 
 
 @cli.command("train")

@@ -24,13 +24,14 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from segadeform.body import BodyModel, BodyProxy, load_body
+from segadeform.body import BodyModel, BodyProxy, default_body_path, load_body
 from segadeform.body.collision import push_out
 from segadeform.errors import InputError
 from segadeform.geometry import GarmentAsset, precompute_garment
 from segadeform.geometry.asset import file_sha256
 from segadeform.io import open_sequence_writer, read_mesh, write_obj, Mesh
 from segadeform.motion import Motion, motion_windows
+from segadeform.scene import Y_TO_Z as _Y_TO_Z
 from segadeform.scene import Effects, Scene, build_motion  # noqa: F401  (build_motion re-exported)
 
 from .deformer import Deformer
@@ -39,20 +40,11 @@ from .package import ModelPackage
 __all__ = ["Run", "RunSummary", "run_scene", "default_body_path", "default_model_path", "Y_TO_Z"]
 
 log = logging.getLogger(__name__)
-#: Y-up -> Z-up as Blender's OBJ importer converts by default (forward -Z, up Y): (x, y, z) -> (x, -z, y)
-Y_TO_Z = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+Y_TO_Z = np.array(_Y_TO_Z)  # see segadeform.scene.Y_TO_Z
 
 
 def _repo_samples() -> Path:
     return Path(__file__).resolve().parents[2] / "samples"
-
-
-def default_body_path() -> Path:
-    p = _repo_samples() / "bodies" / "default_body.npz"
-    if not p.is_file():
-        raise InputError("the default body is not available in this installation; pass a body file",
-                         expected=str(p))
-    return p
 
 
 def default_model_path() -> Path:

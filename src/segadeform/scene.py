@@ -46,18 +46,18 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import sys
 from pathlib import Path
 from typing import Optional
 
+from ._toml import read_toml
 from .errors import FileFormatError
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
-__all__ = ["Effects", "MotionSpec", "Scene", "load_scene", "parse_effects", "build_motion", "SEQUENCE_FORMAT_BY_EXT"]
+__all__ = ["Y_TO_Z", "Effects", "MotionSpec", "Scene", "load_scene", "parse_effects", "build_motion", "SEQUENCE_FORMAT_BY_EXT"]
+
+#: y-up -> z-up as Blender's OBJ importer converts by default (forward -Z, up Y): (x, y, z) -> (x, -z, y);
+#: rows act on column vectors, so row-vector points map as ``p @ Y_TO_Z.T``
+Y_TO_Z = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
 
 SEQUENCE_FORMAT_BY_EXT = {".pc2": "pc2", ".xdmf": "xdmf", ".xmf": "xdmf", ".abc": "abc", "": "obj-seq"}
 
@@ -158,16 +158,7 @@ def parse_effects(text: str, base: Effects = Effects()) -> Effects:
 def load_scene(path: str | os.PathLike) -> Scene:
     """Read and validate a scene file (see the module docstring)."""
     p = Path(path)
-    try:
-        raw = p.read_bytes()
-    except OSError as e:
-        raise FileFormatError(f"cannot read scene: {e.strerror or e}", path=p) from None
-    try:
-        data = tomllib.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError:
-        raise FileFormatError("scene is not UTF-8 text", path=p) from None
-    except tomllib.TOMLDecodeError as e:
-        raise FileFormatError(f"invalid TOML: {e}", path=p) from None
+    data, _ = read_toml(p, "scene")
     unknown = sorted(set(data) - set(_SCHEMA) - {"simulate"})
     if unknown:
         raise FileFormatError(f"unknown table [{unknown[0]}]", path=p, expected=", ".join(sorted(set(_SCHEMA) | {"simulate"})),

@@ -39,7 +39,7 @@ from .kinematics import check_parents, forward_kinematics, poses_to_rotmats, rel
 from .skeleton import SMPL_JOINT_NAMES
 from .skinning import dual_quaternion_skinning, linear_blend_skinning
 
-__all__ = ["BodyModel", "BodyOutput", "load_body", "BODY_SCHEMA_VERSION"]
+__all__ = ["BodyModel", "BodyOutput", "load_body", "default_body_path", "BODY_SCHEMA_VERSION"]
 
 BODY_SCHEMA_VERSION = 1
 _WEIGHT_TOL = 1e-4
@@ -304,3 +304,12 @@ def load_body(path: str | os.PathLike) -> BodyModel:
                                   got=int(z["schema_version"]))
         return _from_arrays(z, p)
     raise FileFormatError("unknown body file type", path=p, expected=".npz or .pkl", got=ext or "none")
+
+
+def default_body_path() -> Path:
+    """The shipped default body (``samples/bodies/default_body.npz`` of the source tree)."""
+    p = Path(__file__).resolve().parents[3] / "samples" / "bodies" / "default_body.npz"
+    if not p.is_file():
+        raise InputError("the default body is not available in this installation; pass a body file",
+                         expected=str(p))
+    return p

@@ -41,19 +41,15 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import sys
 from pathlib import Path
 from typing import Optional
 
+from .._toml import read_toml
 from ..errors import FileFormatError, InputError
 from ..garments import GARMENT_KINDS, GarmentParams
 from ..motion.procedural import MOTION_KINDS
 from ..physics.settings import SimSettings, parse_simulate_table
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = ["GarmentSpec", "MotionEntry", "QualitySpec", "DatasetConfig", "load_dataset_config"]
 
@@ -112,13 +108,7 @@ def _split(d, where, what):
 
 def load_dataset_config(path) -> DatasetConfig:
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-        data = tomllib.loads(text)
-    except OSError as e:
-        raise FileFormatError(f"cannot read dataset config: {e.strerror or e}", path=p) from None
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        raise FileFormatError(f"invalid TOML: {e}", path=p) from None
+    data, text = read_toml(p, "dataset config")
     known = {"dataset", "quality", "simulate", "garments", "bodies", "motions"}
     bad = sorted(set(data) - known)
     if bad:

@@ -35,16 +35,16 @@ from ..body.model import BodyModel
 from ..body.rotations import axis_angle_to_quaternion, quaternion_slerp, quaternion_to_axis_angle
 from ..body.transfer import skin_garment, transfer_weights
 from ..errors import InputError, SimulationError
-from ..geometry.mesh_ops import boundary_loops, unique_edges
+from ..geometry.mesh_ops import adjacency, boundary_loops
 from ..io.pc2 import PC2Writer
 from ..motion.motion import Motion
+from ..scene import Y_TO_Z
 from .settings import SimSettings, blender_settings
 
 __all__ = ["SimResult", "simulate", "find_sim_python", "preroll_poses", "pin_weights", "WORKER"]
 
 WORKER = Path(__file__).with_name("blender_worker.py")
-#: y-up -> z-up (Blender's OBJ-import convention): (x, y, z) -> (x, -z, y)
-_Y_TO_Z = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+_Y_TO_Z = np.array(Y_TO_Z)
 
 
 def _repo_root() -> Path:
@@ -117,13 +117,9 @@ def pin_weights(vertices, faces, group: str, width: float = 0.025) -> np.ndarray
     if not loops:
         raise InputError("pin = 'waistband' needs a garment with an open boundary (this mesh is closed)")
     top = max(loops, key=lambda l: v[l, 1].mean())
-    import scipy.sparse as sp
     from scipy.sparse.csgraph import dijkstra
 
-    e = unique_edges(faces, len(v))
-    ln = np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1)
-    g = sp.coo_matrix((ln, (e[:, 0], e[:, 1])), shape=(len(v), len(v))).tocsr()
-    d = dijkstra(g, directed=False, indices=top, limit=width, min_only=True)
+    d = dijkstra(adjacency(faces, len(v), vertices=v), directed=False, indices=top, limit=width, min_only=True)
     return (d <= width).astype(np.float64)
 
 

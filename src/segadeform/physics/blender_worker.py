@@ -33,6 +33,17 @@ def _mesh_object(bpy, name, verts, faces):
     return ob
 
 
+def _mesh_cache(obj, path):
+    """Play a PC2 point cache (frame 1 = the cache's first sample) on ``obj``'s vertices."""
+    mc = obj.modifiers.new("cache", "MESH_CACHE")
+    mc.cache_format = "PC2"
+    mc.filepath = path
+    mc.play_mode = "SCENE"
+    mc.time_mode = "FRAME"
+    mc.frame_start = 1.0
+    return mc
+
+
 def _set(obj, name, value):
     if not hasattr(obj, name):
         raise RuntimeError(f"this Blender has no setting {type(obj).__name__}.{name}")
@@ -59,12 +70,7 @@ def main(job_dir):
     scene.gravity = (0.0, 0.0, -9.81)
 
     body = _mesh_object(bpy, "body", load("body_rest"), load("body_faces"))
-    mc = body.modifiers.new("cache", "MESH_CACHE")
-    mc.cache_format = "PC2"
-    mc.filepath = os.path.join(job_dir, job["body_cache"])
-    mc.play_mode = "SCENE"
-    mc.time_mode = "FRAME"
-    mc.frame_start = 1.0
+    _mesh_cache(body, os.path.join(job_dir, job["body_cache"]))
     if eff["body_collision"]:
         body.modifiers.new("collision", "COLLISION")
         for k, v in job["body_collision"].items():
@@ -79,12 +85,7 @@ def main(job_dir):
             idx = [int(i) for i in np.nonzero(w == value)[0]]
             vg.add(idx, value, "REPLACE")
     if job.get("garment_cache"):  # pinned vertices follow this input (the skinned garment)
-        gc = garment.modifiers.new("cache", "MESH_CACHE")
-        gc.cache_format = "PC2"
-        gc.filepath = os.path.join(job_dir, job["garment_cache"])
-        gc.play_mode = "SCENE"
-        gc.time_mode = "FRAME"
-        gc.frame_start = 1.0
+        _mesh_cache(garment, os.path.join(job_dir, job["garment_cache"]))
     cloth = garment.modifiers.new("cloth", "CLOTH")
     s = cloth.settings
     for k, v in job["cloth"].items():

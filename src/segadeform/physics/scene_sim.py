@@ -8,24 +8,16 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ..body.model import load_body
+from ..body.model import default_body_path, load_body
 from ..errors import InputError
 from ..io import Mesh, open_sequence_writer, read_mesh, write_obj
-from ..scene import Scene, build_motion
+from ..scene import Y_TO_Z, Scene, build_motion
 from .blender import SimResult, simulate
 from .settings import SimSettings
 
-__all__ = ["SimSummary", "simulate_scene", "default_body_file"]
+__all__ = ["SimSummary", "simulate_scene"]
 
-_Y_TO_Z = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
-
-
-def default_body_file() -> Path:
-    p = Path(__file__).resolve().parents[3] / "samples" / "bodies" / "default_body.npz"
-    if not p.is_file():
-        raise InputError("the default body is not available in this installation; pass a body file",
-                         expected=str(p))
-    return p
+_Y_TO_Z = np.array(Y_TO_Z)
 
 
 @dataclasses.dataclass
@@ -45,7 +37,7 @@ def simulate_scene(scene: Scene, *, output: Optional[Path] = None, settings: Opt
     any); the drape and blend pre-roll are simulated but not written.
     """
     st = settings or scene.simulate or SimSettings()
-    body = load_body(scene.body or default_body_file())
+    body = load_body(scene.body or default_body_path())
     motion = build_motion(scene.motion)
     if scene.motion.frames:
         a, b = scene.motion.frames

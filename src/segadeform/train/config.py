@@ -37,17 +37,13 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import sys
 from pathlib import Path
 from typing import Optional
 
+from .._toml import read_toml
 from ..errors import FileFormatError, InputError
 from ..model.config import ModelConfig
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = ["LossWeights", "OptimConfig", "TrainConfig", "load_train_config"]
 
@@ -116,13 +112,7 @@ def load_train_config(path, *, dataset: Optional[Path] = None, overrides: Option
     """Read a training config; ``dataset`` overrides ``[data] dataset``; ``overrides`` maps
     ``"table.key"`` to values (e.g. ``{"optim.steps": 10}``)."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-        data = tomllib.loads(text)
-    except OSError as e:
-        raise FileFormatError(f"cannot read training config: {e.strerror or e}", path=p) from None
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        raise FileFormatError(f"invalid TOML: {e}", path=p) from None
+    data, text = read_toml(p, "training config")
     for k, v in (overrides or {}).items():
         t, _, key = k.partition(".")
         data.setdefault(t, {})[key] = v

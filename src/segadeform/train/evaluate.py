@@ -22,6 +22,7 @@ garment from the nearest body point, no blend shapes (baseline (a)).
 
 from __future__ import annotations
 
+import abc
 import dataclasses
 import json
 import time
@@ -46,13 +47,14 @@ METRICS = ("vertex_cm", "normal_deg", "edge_mm", "low_cm", "mid_cm", "high_cm", 
 PEN_DEPTH = 0.002
 
 
-class Predictor:
-    """``predict(sample, asset) -> (T, N, 3)``; see :func:`make_predictor`."""
+class Predictor(abc.ABC):
+    """``predict(sample, body, asset) -> (T, N, 3)``; see :func:`make_predictor`."""
 
     name: str
 
-    def predict(self, s: Sample, body: BodyModel, asset) -> np.ndarray:  # pragma: no cover - interface
-        raise NotImplementedError
+    @abc.abstractmethod
+    def predict(self, s: Sample, body: BodyModel, asset) -> np.ndarray:
+        """Shapes: -> (T, N, 3) vertices for every frame of ``s``."""
 
 
 class _LBS(Predictor):
@@ -242,7 +244,7 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
            "models": {n: {k: acc[n].mean(k) for k in METRICS + ("ms_per_frame",)} for n in names},
            "by_type": {n: {t: {k: a.mean(k) for k in METRICS} for t, a in sorted(by_type[n].items())} for n in names},
            "per_frame": {n: [per_frame[n].mean(t) for t in sorted(per_frame[n].sums)] for n in names},
-           "specs": dict(models)}
+           "specs": dict(models), "n_star": n_star}
     return res
 
 
@@ -312,10 +314,10 @@ def write_report(res: dict, out_dir: Path, *, dataset: Optional[Path] = None, bo
     fig.savefig(out / "error_vs_cost.png", dpi=80)
     plt.close(fig)
     if dataset is not None and body is not None and heatmap_model:
-        _heatmap(res, Path(dataset), body, heatmap_model, out / "error_map.png")
+        _heatmap(res, Path(dataset), body, heatmap_model, out / "error_map.png", res.get("n_star", 32))
 
 
-def _heatmap(res, dataset, body, name, path):
+def _heatmap(res, dataset, body, name, path, n_star: int = 32):
     """Per-vertex error of one held-out frame, coloured on the simulated garment."""
     import matplotlib.pyplot as plt
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
@@ -325,7 +327,7 @@ def _heatmap(res, dataset, body, name, path):
     sid = res["samples"][0]
     s = load_sample(dataset, sid)
     p = make_predictor(name, res["specs"][name])
-    x = p.predict(s, body, sample_asset(dataset, s, body, 32))
+    x = p.predict(s, body, sample_asset(dataset, s, body, n_star))
     t = len(x) // 2
     err = 100 * np.linalg.norm(x[t] - s.frames[t], axis=1)
     v = s.frames[t].astype(np.float64)
