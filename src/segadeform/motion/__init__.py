@@ -8,19 +8,42 @@ from pathlib import Path
 
 from ..errors import FileFormatError
 from .bvh import read_bvh, write_bvh
-from .motion import N_POSE, Motion, load_motion_npz, motion_windows, resample
+from .motion import N_POSE, Motion, feet_on_floor, load_motion_npz, motion_windows, resample
 from .procedural import MOTION_KINDS, make_motion
 
-__all__ = ["Motion", "N_POSE", "load_motion", "load_motion_npz", "read_bvh", "write_bvh", "resample",
+__all__ = ["Motion", "N_POSE", "load_motion", "load_motion_npz", "feet_on_floor", "read_bvh", "write_bvh", "resample",
            "motion_windows", "MOTION_KINDS", "make_motion"]
 
 
-def load_motion(path: str | os.PathLike, **kw) -> Motion:
-    """Read a motion by extension: ``.npz`` (AMASS-style) or ``.bvh``."""
+def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", units=None, joint_map=None,
+                floor: bool = False) -> Motion:
+    """Read a motion by extension onto the SMPL skeleton of a body.
+
+    Args:
+        path: ``.npz`` (AMASS / SMPL / segadeform) or ``.bvh`` (any common humanoid skeleton).
+        rest_joints: (24, 3) rest joints of the body that will play it (T-pose, metres): BVH files are
+            retargeted onto it, SMPL files' root position is carried over to it.  Default: the
+            built-in T-pose skeleton for ``.npz``, the file's own proportions for ``.bvh``.
+        up: the file's up axis, ``"auto"``, ``"y"`` or ``"z"``.
+        units: BVH only: metres per file unit or a unit name (``cm``, ``inch`` ...); default: fit the
+            file's legs to the body's.
+        joint_map: BVH only: SMPL name -> file joint name, a dict or a TOML/JSON file.
+        floor: shift the motion so its lowest foot joint is where the rest pose's is (needs
+            ``rest_joints``, else the built-in skeleton).
+    """
     p = Path(path)
     ext = p.suffix.lower()
+    if floor and rest_joints is None:
+        from ..body.skeleton import default_rest_joints
+
+        rest_joints = default_rest_joints()
     if ext == ".npz":
-        return load_motion_npz(p)
-    if ext == ".bvh":
-        return read_bvh(p, **kw)
-    raise FileFormatError("unknown motion file type", path=p, expected=".npz or .bvh", got=ext or "none")
+        if units is not None or joint_map is not None:
+            raise FileFormatError("units and joint maps apply to BVH files only", path=p,
+                                  expected=".bvh for --units / --joint-map", got=ext)
+        m = load_motion_npz(p, up=up, rest_joints=rest_joints)
+    elif ext == ".bvh":
+        m = read_bvh(p, rest_joints=rest_joints, up=up, units=units, joint_map=joint_map)
+    else:
+        raise FileFormatError("unknown motion file type", path=p, expected=".npz or .bvh", got=ext or "none")
+    return feet_on_floor(m, rest_joints) if floor else m

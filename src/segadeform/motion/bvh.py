@@ -1,90 +1,62 @@
-"""BVH motion files with SMPL- or Mixamo-named joints, read onto the SMPL skeleton, and written.
+"""BVH motion files from any common humanoid skeleton, retargeted onto the SMPL skeleton of a body; and written.
 
-Reading:
+Reading (:func:`read_bvh`):
 
-* joint names are matched in three vocabularies: SMPL (``left_hip``), SMPL's
-  short form (``L_Hip``) and Mixamo (``LeftUpLeg``, with or without a
-  ``mixamorig:`` prefix).  All 24 SMPL joints must be found; extra joints of a
-  known vocabulary (fingers, toe and head ends) are ignored; any other name is
-  an error that lists the expected names.
-* channels may come in any order and any Euler order (``Zrotation Xrotation
-  Yrotation`` means ``R = Rz Rx Ry``); angles are degrees.
-* rest-pose offsets: a BVH skeleton at zero rotation need not be in SMPL's
-  T-pose (an A-pose, say).  Each joint's global rotation is corrected by the
-  rotation that takes the target skeleton's rest bone direction onto the BVH
-  rest bone direction, so the bones point where the file says; bone twist
-  follows the file.
-* units: ``scale="auto"`` reads centimetres when the rest skeleton is taller
-  than 5 units (Mixamo exports are in cm), metres otherwise.
-* translation: the root position per frame, scaled, minus the target's rest
-  pelvis position, so the posed pelvis lands where the file puts it.
+* **any channel layout**: channels in any order and number per joint, any
+  Euler order (``Zrotation Xrotation Yrotation`` means ``R = Rz Rx Ry``),
+  degrees; position channels on any joint (they replace its OFFSET, as game
+  rigs with six channels on every joint use them).
+* **any humanoid naming**: :func:`segadeform.body.skeleton_map.map_skeleton`
+  finds SMPL's joints (name tables for SMPL, Mixamo, the CMU conversions; a
+  generic rule from the hierarchy; ``joint_map`` for the rest).  Extra
+  joints -- eyes, fingers, toe ends, ``LHipJoint``-style helpers -- are
+  folded into the joints they hang from.
+* **rest-pose differences** (T- vs A-pose, bone rolls, proportions) are
+  retargeted by :func:`segadeform.body.retarget.retarget_to_smpl`.
+* **units**: ``scale="auto"`` fits the file's legs to the target body's
+  (:func:`~segadeform.body.retarget.limb_scale`), whatever the unit; the
+  unit the file is most likely in (m, dm, cm, mm, inches or CMU's
+  0.45-inch unit, judged from its leg length) is reported in
+  ``Motion.meta["units"]``.  ``units="cm"`` (etc.) or a number uses that
+  factor as it is (metres per file unit).
+* **up axis**: ``up="auto"`` takes the rest skeleton's tallest axis of y and
+  z; ``"y"``/``"z"`` force it.  Z-up files are turned to y-up.
 
-Writing: the 24-joint SMPL skeleton, offsets from rest joints, the root
-with 6 channels (``Xposition Yposition Zposition Zrotation Yrotation
-Xrotation``) and the others with 3.
+Writing (:func:`write_bvh`): the 24-joint SMPL skeleton, offsets from rest
+joints, the root with 6 channels (``Xposition Yposition Zposition Zrotation
+Yrotation Xrotation``) and the others with 3.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
-import re
 from pathlib import Path
 
 import numpy as np
 
+from ..body.retarget import limb_scale, retarget_to_smpl
 from ..body.rotations import axis_angle_to_matrix, euler_to_matrix, matrix_to_axis_angle, matrix_to_euler
 from ..body.skeleton import SMPL_JOINT_NAMES, SMPL_PARENTS
+from ..body.skeleton_map import MIXAMO_TO_SMPL, SMPL_SHORT_NAMES, map_skeleton, read_joint_map
 from ..errors import FileFormatError, InputError
 from ..io.atomic import atomic_open
 from .motion import Motion
 
-__all__ = ["read_bvh", "write_bvh", "MIXAMO_TO_SMPL", "SMPL_SHORT_NAMES"]
+__all__ = ["read_bvh", "write_bvh", "read_bvh_skeleton", "BVHSkeleton", "UNITS", "MIXAMO_TO_SMPL",
+           "SMPL_SHORT_NAMES"]
 
-MIXAMO_TO_SMPL = {
-    "Hips": "pelvis", "LeftUpLeg": "left_hip", "RightUpLeg": "right_hip", "Spine": "spine1",
-    "LeftLeg": "left_knee", "RightLeg": "right_knee", "Spine1": "spine2", "LeftFoot": "left_ankle",
-    "RightFoot": "right_ankle", "Spine2": "spine3", "LeftToeBase": "left_foot", "RightToeBase": "right_foot",
-    "Neck": "neck", "LeftShoulder": "left_collar", "RightShoulder": "right_collar", "Head": "head",
-    "LeftArm": "left_shoulder", "RightArm": "right_shoulder", "LeftForeArm": "left_elbow",
-    "RightForeArm": "right_elbow", "LeftHand": "left_wrist", "RightHand": "right_wrist",
-    "LeftHandMiddle1": "left_hand", "RightHandMiddle1": "right_hand",
-}
-SMPL_SHORT_NAMES = {
-    "Pelvis": "pelvis", "L_Hip": "left_hip", "R_Hip": "right_hip", "Spine1": "spine1", "L_Knee": "left_knee",
-    "R_Knee": "right_knee", "Spine2": "spine2", "L_Ankle": "left_ankle", "R_Ankle": "right_ankle",
-    "Spine3": "spine3", "L_Foot": "left_foot", "R_Foot": "right_foot", "Neck": "neck", "L_Collar": "left_collar",
-    "R_Collar": "right_collar", "Head": "head", "L_Shoulder": "left_shoulder", "R_Shoulder": "right_shoulder",
-    "L_Elbow": "left_elbow", "R_Elbow": "right_elbow", "L_Wrist": "left_wrist", "R_Wrist": "right_wrist",
-    "L_Hand": "left_hand", "R_Hand": "right_hand",
-}
-_FINGERS = {f"{s}Hand{f}{i}" for s in ("Left", "Right") for f in ("Thumb", "Index", "Middle", "Ring", "Pinky")
-            for i in range(1, 5)}
-_IGNORABLE = _FINGERS | {"HeadTop_End", "LeftToe_End", "RightToe_End", "End Site"}
-
-
-_VOCABULARIES = {
-    "smpl": {n: n for n in SMPL_JOINT_NAMES},
-    "smpl-short": SMPL_SHORT_NAMES,
-    "mixamo": MIXAMO_TO_SMPL,
-}
-
-
-def _strip(name: str) -> str:
-    return re.sub(r"^mixamorig\d*[:_]", "", name)
-
-
-def _vocabulary(names: list[str]) -> dict[str, str]:
-    """The naming scheme matching the most joint names (the schemes overlap: Mixamo's
-    ``Spine1`` is SMPL's ``spine2`` but SMPL-short's ``Spine1`` is ``spine1``)."""
-    base = [_strip(n) for n in names]
-    best = max(_VOCABULARIES.values(), key=lambda voc: sum(b in voc for b in base))
-    return best
+#: metres per file unit of the units a BVH file may be in (``units=`` in :func:`read_bvh`).
+UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "cmu": 0.0254 / 0.45}
+_TYPICAL_LEGS_M = 1.64  # hip-knee-ankle, both legs, of an adult (metres); only for reporting the unit
+Z_UP_TO_Y_UP = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # (x, y, z) -> (x, z, -y)
 
 
 class _Joint:
     def __init__(self, name, parent):
         self.name, self.parent = name, parent
         self.offset = np.zeros(3)
+        self.end: np.ndarray | None = None  # the first End Site's offset
         self.channels: list[str] = []
 
 
@@ -146,8 +118,9 @@ def _parse(text: str, path: Path):
                 nxt("Site")
                 nxt("{")
                 nxt("OFFSET")
-                for _ in range(3):
-                    num("End Site OFFSET")
+                e = np.array([num("End Site OFFSET") for _ in range(3)])
+                if j.end is None:
+                    j.end = e
                 nxt("}")
             elif t == "}":
                 return
@@ -194,70 +167,46 @@ def _isfloat(t):
         return False
 
 
-def _min_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Smallest rotation taking unit direction a to unit direction b."""
-    a = a / max(np.linalg.norm(a), 1e-12)
-    b = b / max(np.linalg.norm(b), 1e-12)
-    axis = np.cross(a, b)
-    s, c = np.linalg.norm(axis), float(np.dot(a, b))
-    if s < 1e-9:
-        if c > 0:
-            return np.eye(3)
-        perp = np.cross(a, [1.0, 0, 0])
-        if np.linalg.norm(perp) < 1e-6:
-            perp = np.cross(a, [0, 1.0, 0])
-        return axis_angle_to_matrix(np.pi * perp / np.linalg.norm(perp))
-    return axis_angle_to_matrix(axis / s * np.arctan2(s, c))
+@dataclasses.dataclass(frozen=True)
+class BVHSkeleton:
+    """A BVH file's skeleton and motion, by forward kinematics (file units, +Y up after ``up``).
 
-
-def read_bvh(path: str | os.PathLike, *, rest_joints: np.ndarray | None = None, scale: float | str = "auto") -> Motion:
-    """Read a BVH onto the 24-joint SMPL skeleton (see the module docstring).
-
-    Args:
-        rest_joints: ``(24, 3)`` rest joints of the target body (bone
-            directions and pelvis height); defaults to SMPL-like T-pose
-            directions (each bone as in the file's own rest, i.e. no correction).
-        scale: file units to metres, or ``"auto"``.
+    Attributes:
+        names: (J,) joint names; parents: (J,) parent index (-1: root).
+        rest: (J, 3) rest joint positions (all rotations zero); ends: (J, 3) end-site positions
+            (a joint's own position when it has none).
+        rotations: (T, J, 3, 3) global joint rotations; positions: (T, J, 3) joint positions.
+        fps: frames per second; up: the file's up axis ("y" or "z").
     """
+
+    names: tuple
+    parents: np.ndarray
+    rest: np.ndarray
+    ends: np.ndarray
+    rotations: np.ndarray
+    positions: np.ndarray
+    fps: float
+    up: str
+
+
+def read_bvh_skeleton(path: str | os.PathLike, *, up: str = "auto") -> BVHSkeleton:
+    """Parse a BVH and run its forward kinematics (no mapping to SMPL)."""
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8", errors="replace")
     except OSError as e:
         raise FileFormatError(f"cannot read file: {e.strerror or e}", path=p) from None
     joints, data, frame_time = _parse(text, p)
-    names = [j.name for j in joints]
-    voc = _vocabulary(names)
-    mapped: dict[str, int] = {}
-    unknown = []
-    for i, n in enumerate(names):
-        base = _strip(n)
-        c = voc.get(base)
-        if c is None:
-            if base not in _IGNORABLE:
-                unknown.append(n)
-            continue
-        if c in mapped:
-            raise FileFormatError(f"two joints map to SMPL joint {c!r}", path=p, got=f"{names[mapped[c]]}, {n}")
-        mapped[c] = i
-    missing = [n for n in SMPL_JOINT_NAMES if n not in mapped]
-    if unknown or missing:
-        what = []
-        if unknown:
-            what.append("unknown joint names: " + ", ".join(unknown[:8]) + (" ..." if len(unknown) > 8 else ""))
-        if missing:
-            what.append("missing SMPL joints: " + ", ".join(missing))
-        raise FileFormatError("; ".join(what), path=p,
-                              expected="SMPL names (" + ", ".join(SMPL_JOINT_NAMES) + "), their short forms "
-                              "(L_Hip ...) or Mixamo names (Hips, LeftUpLeg, ...)")
-    # per-frame local rotation and root position of every BVH joint
     nj, nf = len(joints), data.shape[0]
     local = np.broadcast_to(np.eye(3), (nf, nj, 3, 3)).copy()
+    offs = np.broadcast_to(np.stack([j.offset for j in joints]), (nf, nj, 3)).copy()
     col = 0
-    root_pos = np.zeros((nf, 3))
     for i, j in enumerate(joints):
         rot_axes = [c[0] for c in j.channels if c.endswith("rotation")]
         rot_cols = [col + k for k, c in enumerate(j.channels) if c.endswith("rotation")]
-        pos_cols = {c[0]: col + k for k, c in enumerate(j.channels) if c.endswith("position")}
+        for k, c in enumerate(j.channels):
+            if c.endswith("position"):
+                offs[:, i, "xyz".index(c[0])] = data[:, col + k]
         if rot_axes:
             order = "".join(rot_axes)
             if len(order) == 3 and len(set(order)) == 3:
@@ -267,52 +216,123 @@ def read_bvh(path: str | os.PathLike, *, rest_joints: np.ndarray | None = None, 
                     r = np.zeros((nf, 3))
                     r[:, "xyz".index(ax)] = np.deg2rad(data[:, rot_cols[k]])
                     local[:, i] = local[:, i] @ axis_angle_to_matrix(r)
-        if i == 0:
-            for k, ax in enumerate("xyz"):
-                root_pos[:, k] = data[:, pos_cols[ax]] if ax in pos_cols else j.offset[k]
         col += len(j.channels)
+    parents = np.array([j.parent for j in joints], np.int64)
     glob = np.empty_like(local)
-    rest_pos = np.zeros((nj, 3))
+    pos = np.empty((nf, nj, 3))
+    rest = np.zeros((nj, 3))
     for i, j in enumerate(joints):
         if j.parent < 0:
             glob[:, i] = local[:, i]
-            rest_pos[i] = j.offset
+            pos[:, i] = offs[:, i]
+            rest[i] = j.offset
         else:
             glob[:, i] = glob[:, j.parent] @ local[:, i]
-            rest_pos[i] = rest_pos[j.parent] + j.offset
-    height = float(np.ptp(rest_pos[:, 1])) if nj > 1 else 0.0
-    if scale == "auto":
-        scale_f = 0.01 if height > 5.0 else 1.0
+            pos[:, i] = pos[:, j.parent] + np.einsum("tij,tj->ti", glob[:, j.parent], offs[:, i])
+            rest[i] = rest[j.parent] + j.offset
+    ends = np.stack([rest[i] + (j.end if j.end is not None else 0.0) for i, j in enumerate(joints)])
+    if up == "auto":
+        allp = np.concatenate([rest, ends])
+        up = "z" if np.ptp(allp[:, 2]) > 1.2 * np.ptp(allp[:, 1]) else "y"
+    if up not in ("y", "z"):
+        raise InputError("up must be 'auto', 'y' or 'z'", got=up)
+    if up == "z":
+        Q = Z_UP_TO_Y_UP
+        rest, ends, pos = rest @ Q.T, ends @ Q.T, pos @ Q.T
+        glob = Q @ glob @ Q.T
+    return BVHSkeleton(names=tuple(j.name for j in joints), parents=parents, rest=rest, ends=ends,
+                       rotations=glob, positions=pos, fps=1.0 / frame_time, up=up)
+
+
+def guess_units(leg_length: float) -> str:
+    """The unit in :data:`UNITS` that makes both legs (hip-knee-ankle) closest to an adult's."""
+    return min(UNITS, key=lambda u: abs(np.log(max(leg_length, 1e-12) * UNITS[u] / _TYPICAL_LEGS_M)))
+
+
+def read_bvh(path: str | os.PathLike, *, rest_joints: np.ndarray | None = None, scale: float | str = "auto",
+             units: str | float | None = None, up: str = "auto", joint_map=None) -> Motion:
+    """Read a BVH onto the 24-joint SMPL skeleton (see the module docstring).
+
+    Args:
+        rest_joints: ``(24, 3)`` rest joints of the target body (T-pose, metres); defaults to the
+            file's own mapped joints (no rest correction, file proportions).
+        scale: metres per file unit, or ``"auto"`` (fit the legs to ``rest_joints``; without
+            ``rest_joints``, the guessed unit).  ``units`` (a key of :data:`UNITS` or a number)
+            overrides it.
+        up: the file's up axis: ``"auto"``, ``"y"`` or ``"z"``.
+        joint_map: SMPL name -> file joint name (a dict, or a TOML/JSON file path) for skeletons
+            the tables and the generic rule do not cover.
+
+    ``Motion.meta`` records the mapping scheme, the SMPL joints filled in (virtual), the file's
+    joints left out, the guessed unit and the scale used.
+    """
+    p = Path(path)
+    sk = read_bvh_skeleton(p, up=up)
+    if joint_map is not None and not isinstance(joint_map, dict):
+        joint_map = read_joint_map(joint_map)
+    try:
+        mapping = map_skeleton(sk.names, sk.parents, sk.rest, leaf_ends=sk.ends, joint_map=joint_map, path=p)
+    except FileFormatError:
+        raise
+    except InputError as e:
+        raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
+    src = mapping.source
+    legs = 0.0
+    for a, b, c in ((1, 4, 7), (2, 5, 8)):
+        legs += np.linalg.norm(sk.rest[src[a]] - sk.rest[src[b]]) + np.linalg.norm(sk.rest[src[b]] - sk.rest[src[c]])
+    unit_guess = guess_units(legs)
+    if units is not None:
+        if isinstance(units, str) and units in UNITS:
+            scale_f = UNITS[units]
+        else:
+            try:
+                scale_f = float(units)
+            except (TypeError, ValueError):
+                raise InputError("unknown units", expected=", ".join(UNITS) + " or a number", got=units) from None
+    elif scale == "auto":
+        scale_f = UNITS[unit_guess] if rest_joints is None else None
     else:
         scale_f = float(scale)
-        if not (np.isfinite(scale_f) and scale_f > 0):
-            raise InputError("scale must be positive or 'auto'", got=scale)
-    bvh_idx = np.array([mapped[n] for n in SMPL_JOINT_NAMES])
-    bvh_rest = rest_pos[bvh_idx] * scale_f
-    target = bvh_rest if rest_joints is None else np.asarray(rest_joints, np.float64)
-    if target.shape != (24, 3):
-        raise InputError("rest_joints must be (24, 3)", got=target.shape)
-    # rest correction C_s: target bone direction -> BVH bone direction (global)
-    children: dict[int, list[int]] = {}
-    for s_i, par in enumerate(SMPL_PARENTS):
-        if par >= 0:
-            children.setdefault(int(par), []).append(s_i)
-    corr = np.broadcast_to(np.eye(3), (24, 3, 3)).copy()
-    for s_i in range(1, 24):
-        kids = children.get(s_i, [])
-        if len(kids) == 1:
-            c = kids[0]
-            corr[s_i] = _min_rotation(target[c] - target[s_i], bvh_rest[c] - bvh_rest[s_i])
-        elif not kids:
-            corr[s_i] = corr[int(SMPL_PARENTS[s_i])]
-    g_smpl = glob[:, bvh_idx] @ corr[None]
-    loc = np.empty_like(g_smpl)
-    loc[:, 0] = g_smpl[:, 0]
-    par = SMPL_PARENTS[1:]
-    loc[:, 1:] = np.swapaxes(g_smpl[:, par], -1, -2) @ g_smpl[:, 1:]
-    poses = matrix_to_axis_angle(loc).reshape(nf, 72)
-    trans = root_pos * scale_f - target[0]
-    return Motion(poses=poses, trans=trans, fps=1.0 / frame_time, name=p.stem)
+    if scale_f is not None and not (np.isfinite(scale_f) and scale_f > 0):
+        raise InputError("scale must be positive", got=scale_f)
+    if rest_joints is None:
+        # the file's own skeleton: mapped joints, virtual ones between their neighbours
+        target = _own_rest(sk.rest, src) * scale_f
+    else:
+        target = np.asarray(rest_joints, np.float64)
+        if target.shape != (24, 3) or not np.isfinite(target).all():
+            raise InputError("rest_joints must be a finite (24, 3) array", got=target.shape)
+        if scale_f is None:
+            try:
+                scale_f = limb_scale(sk.rest, src, target)
+            except InputError as e:
+                raise FileFormatError(e.problem, path=p, got=e.got) from None
+    rot, trans = retarget_to_smpl(src, sk.rest, sk.rotations, sk.positions, target, scale_f)
+    poses = matrix_to_axis_angle(rot).reshape(len(rot), 72)
+    meta = {"format": "bvh", "scheme": mapping.scheme, "mapped": mapping.mapped(), "virtual": mapping.virtual,
+            "ignored": mapping.ignored, "units_guess": unit_guess, "scale": float(scale_f), "up": sk.up,
+            "source_fps": float(sk.fps)}
+    return Motion(poses=poses, trans=trans, fps=sk.fps, name=p.stem, meta=meta)
+
+
+def _own_rest(rest: np.ndarray, src: np.ndarray) -> np.ndarray:
+    """(24, 3) rest joints from a file's mapped joints; a virtual joint sits between its neighbours."""
+    from ..body.retarget import smpl_children
+
+    out = np.zeros((24, 3))
+    children = smpl_children()
+    for j in range(24):
+        if src[j] >= 0:
+            out[j] = rest[src[j]]
+    for j in range(24):
+        if src[j] >= 0:
+            continue
+        par = int(SMPL_PARENTS[j])
+        c, n = j, 1
+        while src[c] < 0 and len(children[c]) == 1:
+            c, n = children[c][0], n + 1
+        out[j] = out[par] + (out[c] - out[par]) / n if src[c] >= 0 else out[par]
+    return out
 
 
 def write_bvh(path: str | os.PathLike, motion: Motion, rest_joints: np.ndarray, *, scale: float = 1.0,

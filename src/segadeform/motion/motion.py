@@ -13,7 +13,7 @@ from ..body.rotations import (axis_angle_to_quaternion, quaternion_slerp, quater
 from ..errors import FileFormatError, InputError
 from ..io.atomic import atomic_path
 
-__all__ = ["Motion", "load_motion_npz", "resample", "motion_windows", "N_POSE"]
+__all__ = ["Motion", "load_motion_npz", "feet_on_floor", "resample", "motion_windows", "N_POSE", "SMPL_PELVIS"]
 
 N_POSE = 72  # 24 SMPL joints x axis-angle
 
@@ -28,6 +28,7 @@ class Motion:
         fps: frames per second
         betas: (B,) body shape the motion was captured with, or None
         name: a label (file name or procedural kind)
+        meta: what reading the file found and did (format, joint mapping, units, up axis ...)
     """
 
     poses: np.ndarray
@@ -35,6 +36,7 @@ class Motion:
     fps: float
     betas: Optional[np.ndarray] = None
     name: str = ""
+    meta: Optional[dict] = None
 
     def __post_init__(self):
         p, t = np.asarray(self.poses), np.asarray(self.trans)
@@ -48,6 +50,7 @@ class Motion:
             raise InputError("fps must be positive", got=self.fps)
         object.__setattr__(self, "poses", p.astype(np.float64))
         object.__setattr__(self, "trans", t.astype(np.float64))
+        object.__setattr__(self, "meta", dict(self.meta or {}))
         if self.betas is not None:
             b = np.asarray(self.betas, np.float64).ravel()
             if not np.isfinite(b).all():
@@ -66,63 +69,171 @@ class Motion:
         return f"Motion({self.name!r}, frames={self.n_frames}, fps={self.fps:g})"
 
     def save(self, path: str | os.PathLike) -> Path:
-        """Write an AMASS-compatible ``.npz`` (poses, trans, betas, mocap_framerate), atomically."""
+        """Write an AMASS-compatible ``.npz`` (poses, trans, betas, mocap_framerate), atomically.
+
+        ``trans_convention = "rest-pelvis"`` and ``up = "y"`` mark the file as segadeform's: the pelvis is at
+        the body's own rest pelvis plus ``trans``, +Y up (:func:`load_motion_npz` reads it back as it is).
+        """
         p = Path(path)
         with atomic_path(p) as tmp:
             with open(tmp, "wb") as fh:
                 np.savez_compressed(fh, poses=self.poses.astype(np.float32), trans=self.trans.astype(np.float32),
                                     betas=(np.zeros(10) if self.betas is None else self.betas).astype(np.float32),
-                                    mocap_framerate=np.float64(self.fps), name=np.str_(self.name))
+                                    mocap_framerate=np.float64(self.fps), name=np.str_(self.name),
+                                    trans_convention=np.str_(_TRANS_CONVENTION), up=np.str_("y"))
         return p
 
 
-def load_motion_npz(path: str | os.PathLike) -> Motion:
-    """Read an AMASS-style ``.npz``.
+#: SMPL's rest pelvis joint (neutral template, metres, SMPL's y-up model frame).  AMASS and other SMPL
+#: ``.npz`` files give ``trans`` relative to it: the pelvis is at ``R_up (SMPL_PELVIS + trans)``.
+SMPL_PELVIS = np.array([-0.0018, -0.2233, 0.0282])
+_Z_UP_TO_Y_UP = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # (x, y, z) -> (x, z, -y)
+_TRANS_CONVENTION = "rest-pelvis"  # written by Motion.save: pelvis = rest pelvis of the body + trans
 
-    ``poses`` may be ``(T, 72)`` (SMPL), ``(T, 66)`` (body without hands) or
-    ``(T, 156)`` (SMPL-H): the first 22 joints are the body and SMPL's two
-    hand joints are set to zero rotation, the usual AMASS-to-SMPL practice
-    (SMPL-H's finger joints have no SMPL counterpart).  ``trans`` defaults to
-    zeros; the frame rate comes from ``mocap_framerate`` (or
-    ``mocap_frame_rate``), default 30 when absent.
+
+def _text(v) -> str:
+    v = np.asarray(v)
+    if v.dtype.kind == "S":
+        return v.tobytes().decode("utf-8", "replace").rstrip("\0")
+    if v.dtype.kind == "U":
+        return str(v.item() if v.ndim == 0 else v.ravel()[0])
+    return str(v)
+
+
+def load_motion_npz(path: str | os.PathLike, *, up: str = "auto", rest_joints: np.ndarray | None = None) -> Motion:
+    """Read an AMASS / SMPL ``.npz`` (or one written by :meth:`Motion.save`).
+
+    * **poses**: ``poses`` as ``(T, 72)`` (SMPL), ``(T, 66)`` (body only), ``(T, 156)`` (SMPL-H) or
+      ``(T, 165)`` (SMPL-X), or ``(T, J, 3)`` with J = 22, 24, 52 or 55; or AMASS SMPL-X's split
+      ``root_orient (T, 3)`` + ``pose_body (T, 63)``.  The first 22 joints are SMPL's body; SMPL's two
+      hand joints are kept when the file has them (72 / 24 x 3), else set to zero rotation (the hand
+      models' fingers have no SMPL counterpart).
+    * **up axis**: AMASS is Z-up.  ``up="auto"`` reads the root orientation (the body's up direction,
+      +Y in the model, points along world +Z in Z-up data); ``"z"`` or ``"y"`` force it.  Z-up motions
+      are turned to Y-up: root orientation and position both.
+    * **translation**: SMPL files place the pelvis at ``SMPL_PELVIS + trans``; the motion returned places
+      it at the same world point on the target body (``rest_joints[0] + trans``; by default the
+      :func:`~segadeform.body.skeleton.default_rest_joints` pelvis).  Files written by
+      :meth:`Motion.save` are already in that convention.
+    * **frame rate**: ``mocap_framerate``, ``mocap_frame_rate`` or ``fps`` (non-integer rates kept),
+      30 when absent; ``gender`` may be bytes or text (recorded in ``meta``).
     """
     p = Path(path)
     from ..io.npz import load_npz
 
     d = load_npz(p, what="motion .npz")
-    if "poses" not in d:
-        raise FileFormatError("motion file has no 'poses' array", path=p, got=", ".join(sorted(d)) or "no arrays")
-    poses = d["poses"]
-    if not np.issubdtype(poses.dtype, np.number) or poses.ndim != 2:
-        raise FileFormatError("poses must be a numeric (T, D) array", path=p, got=f"{poses.dtype} {poses.shape}")
+    if "poses" in d:
+        poses = d["poses"]
+    elif "root_orient" in d and "pose_body" in d:
+        ro, pb = d["root_orient"], d["pose_body"]
+        if ro.ndim != 2 or pb.ndim != 2 or ro.shape[0] != pb.shape[0] or ro.shape[1] != 3 or pb.shape[1] != 63:
+            raise FileFormatError("root_orient and pose_body do not fit", path=p,
+                                  expected="(T, 3) and (T, 63)", got=f"{ro.shape} and {pb.shape}")
+        poses = np.concatenate([ro, pb], axis=1)
+    else:
+        raise FileFormatError("motion file has no 'poses' array", path=p,
+                              expected="'poses' or 'root_orient' + 'pose_body'", got=", ".join(sorted(d)) or "no arrays")
+    if not np.issubdtype(poses.dtype, np.number):
+        raise FileFormatError("poses must be numeric", path=p, got=poses.dtype)
+    if poses.ndim == 3:
+        if poses.shape[2] != 3 or poses.shape[1] not in (22, 24, 52, 55):
+            raise FileFormatError("poses have an unknown layout", path=p,
+                                  expected="(T, J, 3) with J = 22, 24, 52 or 55", got=poses.shape)
+        poses = poses.reshape(poses.shape[0], -1)
+    if poses.ndim != 2:
+        raise FileFormatError("poses must be a (T, D) or (T, J, 3) array", path=p, got=poses.shape)
     if poses.shape[0] < 1:
         raise FileFormatError("motion has no frames", path=p, got=poses.shape)
     d_in = poses.shape[1]
     if d_in == 72:
-        body = poses
+        body = poses.astype(np.float64)
     elif d_in in (66, 156, 165):
-        body = np.concatenate([poses[:, :66], np.zeros((poses.shape[0], 6))], axis=1)
+        body = np.concatenate([poses[:, :66], np.zeros((poses.shape[0], 6))], axis=1).astype(np.float64)
     else:
-        raise FileFormatError("poses have an unknown width", path=p, expected="72 (SMPL), 66, 156 (SMPL-H) or 165",
-                              got=d_in)
+        raise FileFormatError("poses have an unknown width", path=p,
+                              expected="72 (SMPL), 66, 156 (SMPL-H) or 165 (SMPL-X)", got=d_in)
+    if not np.isfinite(body).all():
+        raise FileFormatError("poses contain NaN or inf", path=p)
     trans = d.get("trans", np.zeros((poses.shape[0], 3)))
     if trans.shape != (poses.shape[0], 3) or not np.issubdtype(trans.dtype, np.number):
         raise FileFormatError("trans must be (T, 3) matching poses", path=p, expected=(poses.shape[0], 3), got=trans.shape)
-    fps_arr = d.get("mocap_framerate", d.get("mocap_frame_rate", np.float64(30.0)))
+    trans = trans.astype(np.float64)
+    if not np.isfinite(trans).all():
+        raise FileFormatError("trans contains NaN or inf", path=p)
+    fps_arr = d.get("mocap_framerate", d.get("mocap_frame_rate", d.get("fps", np.float64(30.0))))
     try:
-        fps = float(fps_arr)
-    except (TypeError, ValueError):
-        raise FileFormatError("mocap_framerate must be a number", path=p, got=fps_arr.shape) from None
+        fps = float(np.asarray(fps_arr).ravel()[0])
+    except (TypeError, ValueError, IndexError):
+        raise FileFormatError("mocap_framerate must be a number", path=p, got=np.shape(fps_arr)) from None
+    if not (np.isfinite(fps) and fps > 0):
+        raise FileFormatError("fps (mocap_framerate) must be positive", path=p, got=fps)
     betas = d.get("betas")
     if betas is not None and (not np.issubdtype(betas.dtype, np.number) or betas.ndim > 2):
         raise FileFormatError("betas must be a numeric vector", path=p, got=betas.shape)
     if betas is not None and betas.ndim == 2:
         betas = betas[0]
-    name = str(d["name"]) if "name" in d else p.stem
+    name = _text(d["name"]) if "name" in d else p.stem
+    # segadeform's own files; those written before the convention was recorded have a 'name' and no
+    # 'gender' (AMASS files always carry a gender and never a name)
+    ours = ("trans_convention" in d and _text(d["trans_convention"]) == _TRANS_CONVENTION) or \
+        ("trans_convention" not in d and "name" in d and "gender" not in d)
+    from ..body.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+
+    if up == "auto":
+        if ours:
+            up = _text(d["up"]) if "up" in d else "y"
+        else:
+            body_up = axis_angle_to_matrix(body[:, :3])[:, :, 1].mean(axis=0)  # the body's +Y in the world
+            up = "z" if abs(body_up[2]) > abs(body_up[1]) else "y"
+    if up not in ("y", "z"):
+        raise InputError("up must be 'auto', 'y' or 'z'", got=up)
+    target_pelvis = (np.asarray(rest_joints, np.float64)[0] if rest_joints is not None
+                     else _default_pelvis())
+    if ours:
+        pelvis = trans + target_pelvis
+    else:
+        pelvis = trans + SMPL_PELVIS
+    if up == "z":
+        Q = _Z_UP_TO_Y_UP
+        body = body.copy()
+        body[:, :3] = matrix_to_axis_angle(Q @ axis_angle_to_matrix(body[:, :3]))
+        pelvis = pelvis @ Q.T
+    trans = pelvis - target_pelvis
+    meta = {"format": "npz", "up": up, "source_width": int(d_in), "convention": "segadeform" if ours else "smpl"}
+    if "gender" in d:
+        meta["gender"] = _text(d["gender"])
     try:
-        return Motion(poses=body.astype(np.float64), trans=trans.astype(np.float64), fps=fps, betas=betas, name=name)
+        return Motion(poses=body, trans=trans, fps=fps, betas=betas, name=name, meta=meta)
     except InputError as e:
         raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
+
+
+def _default_pelvis() -> np.ndarray:
+    from ..body.skeleton import default_rest_joints
+
+    return default_rest_joints()[0]
+
+
+def feet_on_floor(motion: Motion, rest_joints: np.ndarray, *, floor: float = 0.0) -> Motion:
+    """Shift the whole motion vertically so its lowest foot joint (ankles, toes) over all frames is as
+    high above ``floor`` as in the rest pose (where the body stands on the floor).  One constant shift:
+    jumps stay jumps.
+
+    Shapes:
+        rest_joints: (24, 3)
+    """
+    from ..body.kinematics import forward_kinematics, poses_to_rotmats
+    from ..body.skeleton import SMPL_PARENTS
+
+    J = np.asarray(rest_joints, np.float64)
+    if J.shape != (24, 3):
+        raise InputError("rest_joints must be (24, 3)", got=J.shape)
+    feet = [7, 8, 10, 11]
+    _, posed = forward_kinematics(poses_to_rotmats(motion.poses, 24), J, SMPL_PARENTS, motion.trans)
+    shift = (J[feet, 1].min() + floor) - posed[:, feet, 1].min()
+    trans = motion.trans + np.array([0.0, shift, 0.0])
+    meta = dict(motion.meta, floor_shift=float(shift))
+    return dataclasses.replace(motion, trans=trans, meta=meta)
 
 
 def resample(motion: Motion, fps: float) -> Motion:
@@ -145,7 +256,8 @@ def resample(motion: Motion, fps: float) -> Motion:
     qs = quaternion_slerp(q[i0], q[i1], np.repeat(a, 24, axis=1))
     poses = quaternion_to_axis_angle(qs).reshape(n_out, N_POSE)
     trans = (1 - a) * motion.trans[i0] + a * motion.trans[i1]
-    return Motion(poses=poses, trans=trans, fps=float(fps), betas=motion.betas, name=motion.name)
+    return Motion(poses=poses, trans=trans, fps=float(fps), betas=motion.betas, name=motion.name,
+                  meta=dict(motion.meta, resampled_from=motion.fps))
 
 
 def motion_windows(poses: np.ndarray, window: int, *, start: int = 0, stop: int | None = None) -> np.ndarray:
