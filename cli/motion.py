@@ -41,15 +41,47 @@ def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
 
 @motion_group.command("info")
 @click.argument("motion", type=click.Path(dir_okay=False, path_type=Path))
-def info_cmd(motion):
-    """Print frames, rate, duration and joint ranges of MOTION (.npz or .bvh)."""
+@click.option("--body", type=click.Path(dir_okay=False, path_type=Path),
+              help="Retarget onto this body (default: the shipped body).")
+@click.option("--up", type=click.Choice(["auto", "y", "z"]), default="auto", show_default=True,
+              help="Up axis of the file.")
+@click.option("--units", help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).")
+@click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path), help="BVH joint map (TOML/JSON).")
+def info_cmd(motion, body, up, units, joint_map):
+    """Print frames, rate, duration, joint ranges and (BVH) the joint mapping of MOTION (.npz or .bvh)."""
+    from segadeform.body import default_body_path, load_body
     from segadeform.motion import load_motion
     from segadeform.motion.limits import limit_violation
 
-    m = load_motion(motion)
+    J = load_body(body or default_body_path()).rest_joints()[0]
+    try:
+        units_v = float(units) if units is not None else None
+    except ValueError:
+        units_v = units
+    m = load_motion(motion, rest_joints=J, up=up, units=units_v, joint_map=joint_map)
     ang = np.linalg.norm(m.poses.reshape(-1, 24, 3), axis=-1)
     click.echo(f"{motion}: {m.n_frames} frames, {m.fps:g} fps, {m.seconds:.2f} s")
+    meta = m.meta
+    if meta.get("format") == "bvh":
+        click.echo(f"  skeleton: {meta['scheme']} names, up {meta['up']}, units look like {meta['units_guess']}, "
+                   f"scale {meta['scale']:.5g} m per unit")
+        click.echo("  mapped: " + ", ".join(f"{k}={v}" for k, v in meta["mapped"].items()))
+        if meta["virtual"]:
+            click.echo("  filled in (not in the file): " + ", ".join(meta["virtual"]))
+        if meta["ignored"]:
+            click.echo(f"  folded into their parents ({len(meta['ignored'])}): " + ", ".join(meta["ignored"][:20])
+                       + (" ..." if len(meta["ignored"]) > 20 else ""))
+    elif meta.get("format") == "npz":
+        click.echo(f"  {meta['convention']} npz, {meta['source_width']} pose values per frame, up {meta['up']}"
+                   + (f", gender {meta['gender']}" if "gender" in meta else ""))
+    from segadeform.body.kinematics import forward_kinematics, poses_to_rotmats
+    from segadeform.body.skeleton import SMPL_PARENTS
+
+    _, posed = forward_kinematics(poses_to_rotmats(m.poses, 24), J, SMPL_PARENTS, m.trans)
+    feet = posed[:, [7, 8, 10, 11], 1]
     click.echo(f"  root travel: {np.ptp(m.trans, axis=0).round(3).tolist()} m (x, y, z range)")
+    click.echo(f"  lowest foot joint: {feet.min():.3f} m (rest pose: {J[[7, 8, 10, 11], 1].min():.3f} m; "
+               f"--floor moves it there)")
     click.echo(f"  largest joint rotation: {np.rad2deg(ang[:, 1:].max()):.1f} deg")
     click.echo(f"  outside joint limits by: {np.rad2deg(limit_violation(m.poses)):.2f} deg")
     if m.betas is not None:

@@ -40,8 +40,14 @@ def _fmt_from(path: Path, fmt: str | None) -> str:
 @click.option("--body-out", type=click.Path(path_type=Path), help="Also write the posed body sequence here.")
 @click.option("--up", type=click.Choice(["y", "z"]), help="Up axis of the written coordinates (default y).")
 @click.option("--no-cache", is_flag=True, help="Do not write precompute/encoder caches next to the garment.")
+@click.option("--motion-up", type=click.Choice(["auto", "y", "z"]),
+              help="Up axis of the motion file (default auto; AMASS is z-up).")
+@click.option("--units", help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).")
+@click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path),
+              help="BVH joint map (TOML/JSON: smpl_name = \"FileJoint\") for skeletons not recognised.")
+@click.option("--floor", is_flag=True, default=None, help="Move the motion so the feet touch the floor.")
 def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, model, frames, fps, batch, threads,
-            providers, body_out, up, no_cache):
+            providers, body_out, up, no_cache, motion_up, units, joint_map, floor):
     """Animate a garment: SCENE.toml, or the flag form --garment G --motion M -o OUT."""
     import dataclasses
 
@@ -67,9 +73,12 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, mode
             changes["body"] = body
         if betas:
             changes["betas"] = tuple(float(x) for x in betas.split(","))
-        if frames or fps:
+        mchanges = {k: v for k, v in (("up", motion_up), ("units", units), ("joint_map", joint_map),
+                                       ("floor", floor)) if v is not None}
+        if frames or fps or mchanges:
             changes["motion"] = dataclasses.replace(
-                sc.motion, frames=parse_frames(frames) if frames else sc.motion.frames, fps=fps or sc.motion.fps)
+                sc.motion, frames=parse_frames(frames) if frames else sc.motion.frames, fps=fps or sc.motion.fps,
+                **mchanges)
         sc = dataclasses.replace(sc, **changes)
     else:
         if not (garment and motion_path and output):
@@ -79,7 +88,9 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, mode
         except ValueError:
             raise click.UsageError(f"--betas must be comma-separated numbers, got {betas!r}") from None
         sc = Scene(garment=garment, motion=MotionSpec(file=motion_path, fps=fps,
-                                                      frames=parse_frames(frames) if frames else None),
+                                                      frames=parse_frames(frames) if frames else None,
+                                                      up=motion_up or "auto", units=units, joint_map=joint_map,
+                                                      floor=bool(floor)),
                    output=output, output_format=_fmt_from(output, fmt), up=up or "y", body=body, betas=beta_vals,
                    model=None, body_output=body_out,
                    effects=parse_effects(effects) if effects else Effects())
@@ -91,7 +102,7 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, mode
 
     total = None
     if interactive:
-        m = build_motion(sc.motion)
+        m = build_motion(sc.motion, None)
         a, b = sc.motion.frames or (0, None)
         total = (min(b, m.n_frames) if b else m.n_frames) - a
     with click.progressbar(length=total or 1, label="deforming", file=sys.stderr,

@@ -208,7 +208,7 @@ def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Pa
     """Run a scene (optionally overriding its model package and output path)."""
     package = ModelPackage(model or scene.model or default_model_path(), threads=threads, providers=providers)
     body = load_body(scene.body or default_body_path())
-    motion = build_motion(scene.motion)
+    motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
     out = Path(output) if output is not None else scene.output
     run = Run(garment=scene.garment, motion=motion, package=package, body=body, betas=scene.betas,
               effects=scene.effects, output=out, output_format=scene.output_format, up=scene.up,

@@ -16,6 +16,10 @@ are required; relative paths are relative to the scene file)::
     # kind = "walk"; seconds = 3.0; speed = 1.0; amplitude = 1.0; seed = 0
     fps = 30.0                     # resample the motion to this rate (default: the motion's own)
     frames = "0:90"                # optional frame range A:B of the (resampled) motion
+    up = "auto"                    # the file's up axis: auto | y | z (AMASS is z-up)
+    units = "cm"                   # BVH: metres per file unit or m|dm|cm|mm|inch|cmu (default: fit the legs)
+    joint_map = "map.toml"         # BVH: SMPL name = "file joint name" for skeletons not recognised
+    floor = false                  # move the motion so the feet touch the floor
 
     [model]                        # optional; the shipped default model when absent
     package = "../models/default"
@@ -93,6 +97,10 @@ class MotionSpec:
     seed: int = 0
     fps: Optional[float] = None
     frames: Optional[tuple[int, Optional[int]]] = None
+    up: str = "auto"
+    units: Optional[str] = None
+    joint_map: Optional[Path] = None
+    floor: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -115,7 +123,8 @@ _SCHEMA = {
     "garment": {"mesh": str},
     "body": {"model": str, "betas": list},
     "motion": {"file": str, "kind": str, "seconds": (int, float), "speed": (int, float),
-               "amplitude": (int, float), "seed": int, "fps": (int, float), "frames": str},
+               "amplitude": (int, float), "seed": int, "fps": (int, float), "frames": str, "up": str,
+               "units": (str, int, float), "joint_map": str, "floor": bool},
     "model": {"package": str},
     "output": {"path": str, "format": str, "up": str, "body": str},
     "effects": {"skinning": str, "dynamics": bool, "wrinkles": bool, "collisions": bool,
@@ -201,6 +210,10 @@ def load_scene(path: str | os.PathLike) -> Scene:
         raise FileFormatError("[motion] needs exactly one of 'file' or 'kind'", path=p)
     if "file" in m and any(k in m for k in ("seconds", "speed", "amplitude", "seed")):
         raise FileFormatError("motion.seconds/speed/amplitude/seed apply to procedural motions (kind) only", path=p)
+    if "kind" in m and any(k in m for k in ("up", "units", "joint_map")):
+        raise FileFormatError("motion.up/units/joint_map apply to motion files only", path=p)
+    if m.get("up", "auto") not in ("auto", "y", "z"):
+        raise FileFormatError("motion.up must be auto, y or z", path=p, got=m["up"])
     for k, lo, hi in (("seconds", 1e-3, 3600), ("speed", 0.05, 5), ("amplitude", 0, 2), ("fps", 1, 1000)):
         if k in m and not lo <= m[k] <= hi:
             raise FileFormatError(f"motion.{k} out of range", path=p, expected=f"{lo}..{hi}", got=m[k])
@@ -209,6 +222,8 @@ def load_scene(path: str | os.PathLike) -> Scene:
         speed=float(m.get("speed", 1.0)), amplitude=float(m.get("amplitude", 1.0)), seed=int(m.get("seed", 0)),
         fps=float(m["fps"]) if "fps" in m else None,
         frames=parse_frames(m["frames"], where=p) if "frames" in m else None,
+        up=m.get("up", "auto"), units=str(m["units"]) if "units" in m else None,
+        joint_map=rel(m["joint_map"]) if "joint_map" in m else None, floor=bool(m.get("floor", False)),
     )
     out = data["output"]
     out_path = rel(out["path"])
@@ -238,15 +253,27 @@ def load_scene(path: str | os.PathLike) -> Scene:
     )
 
 
-def build_motion(spec: MotionSpec):
-    """The :class:`~segadeform.motion.Motion` a scene's ``[motion]`` table describes (frame range not applied)."""
-    from .motion import load_motion, make_motion, resample
+def build_motion(spec: MotionSpec, rest_joints=None):
+    """The :class:`~segadeform.motion.Motion` a scene's ``[motion]`` table describes (frame range not applied).
+
+    ``rest_joints (24, 3)``: the body that will play it (files are retargeted onto it).
+    """
+    from .motion import feet_on_floor, load_motion, make_motion, resample
 
     if spec.file is not None:
-        m = load_motion(spec.file)
+        units = spec.units
+        if units is not None:
+            try:
+                units = float(units)
+            except ValueError:
+                pass
+        m = load_motion(spec.file, rest_joints=rest_joints, up=spec.up, units=units, joint_map=spec.joint_map,
+                        floor=spec.floor)
     else:
         m = make_motion(spec.kind, seconds=spec.seconds, fps=spec.fps or 30.0, speed=spec.speed,
                         amplitude=spec.amplitude, seed=spec.seed)
+        if spec.floor and rest_joints is not None:
+            m = feet_on_floor(m, rest_joints)
     if spec.fps is not None and abs(spec.fps - m.fps) > 1e-9:
         m = resample(m, spec.fps)
     return m

@@ -25,6 +25,12 @@ For SMPL joint ``j`` mapped to source joint ``m``:
 * **no mapped child** (hands, toes, head): the source rotation with the
   parent's correction, ``S_p(t) G_src[m] C_p``.
 
+The collars follow the source's collar *relative to its rest and to the
+chest*, reduced to its swing about the target's collar bone: a collar's twist
+moves no joint but turns the shoulder's skin, and a mocap skeleton's collar
+bone (sternum to shoulder) points elsewhere than SMPL's, so matching its
+direction outright would shrug the shoulders.
+
 SMPL joints the source lacks get, when they lie between two mapped joints
 (``spine2`` of a two-joint spine, a missing neck or collar), an even share of
 the rotation between them (slerp of the globals), and otherwise the parent's
@@ -43,6 +49,10 @@ from .rotations import matrix_to_quaternion, quaternion_slerp, quaternion_to_mat
 from .skeleton import SMPL_JOINT_NAMES, SMPL_PARENTS
 
 __all__ = ["min_rotation", "kabsch", "retarget_to_smpl", "limb_scale", "smpl_children"]
+
+
+#: joints whose rotation is only the swing onto the source bone (no twist of their own): the collars
+_SWING_ONLY = frozenset({13, 14})
 
 
 def min_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -193,6 +203,18 @@ def retarget_to_smpl(src: np.ndarray, source_rest: np.ndarray, source_global: np
             t = targets[0]
             u = Jt[t] - Jt[j]
             corr[j] = min_rotation(u, P0[src[t]] - P0[m])
+            p = int(SMPL_PARENTS[j])
+            if j in _SWING_ONLY and known[p] and src[p] >= 0:
+                # the source's rotation of the collar relative to the chest and to its rest, in the
+                # target's frame, reduced to its swing about the target's collar bone
+                rel = np.swapaxes(G[:, src[p]], -1, -2) @ G[:, m]  # (T, 3, 3), identity at rest
+                Cp = corr[p]
+                R = Cp.T @ rel @ Cp
+                glob[:, j] = glob[:, p] @ min_rotation(u, R @ u)
+                fix[j] = glob[:, j] @ np.swapaxes(G[:, m] @ corr[j], -1, -2)
+                has_fix[j] = True
+                known[j] = True
+                continue
             base = G[:, m] @ corr[j]
             cur = base @ u
             fix[j] = min_rotation(cur, P[:, src[t]] - P[:, m])

@@ -38,7 +38,7 @@ def simulate_scene(scene: Scene, *, output: Optional[Path] = None, settings: Opt
     """
     st = settings or scene.simulate or SimSettings()
     body = load_body(scene.body or default_body_path())
-    motion = build_motion(scene.motion)
+    motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
     if scene.motion.frames:
         a, b = scene.motion.frames
         b = motion.n_frames if b is None else min(b, motion.n_frames)
