@@ -1,0 +1,111 @@
+"""AMASS / SMPL .npz motions: Z-up worlds, the SMPL pelvis convention, pose layouts, metadata, the floor."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from segadeform.body.kinematics import forward_kinematics, poses_to_rotmats
+from segadeform.body.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from segadeform.body.skeleton import SMPL_PARENTS, default_rest_joints
+from segadeform.errors import FileFormatError
+from segadeform.motion import feet_on_floor, load_motion, make_motion
+from segadeform.motion.motion import SMPL_PELVIS
+
+Y_UP_TO_Z_UP = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])  # (x, y, z) -> (x, -z, y)
+
+
+def _as_amass(m, J, *, width=156, layout="flat", z_up=True):
+    """What AMASS stores for motion ``m`` played on a body with rest joints ``J``."""
+    pelvis = J[0] + m.trans  # world pelvis, y-up
+    poses = m.poses.copy()
+    if z_up:
+        poses[:, :3] = matrix_to_axis_angle(Y_UP_TO_Z_UP @ axis_angle_to_matrix(poses[:, :3]))
+        pelvis = pelvis @ Y_UP_TO_Z_UP.T
+    trans = pelvis - SMPL_PELVIS
+    if width == 72:
+        p = poses
+    else:
+        p = np.concatenate([poses[:, :66], np.random.default_rng(0).normal(size=(len(poses), width - 66)) * 0.1], 1)
+    if layout == "tj3":
+        p = p.reshape(len(p), -1, 3)
+    return p, trans
+
+
+@pytest.mark.parametrize("width, layout", [(156, "flat"), (165, "flat"), (72, "flat"), (72, "tj3"), (156, "tj3")])
+def test_amass_round_trip_upright(tmp_path, width, layout):
+    J = default_rest_joints()
+    m = make_motion("walk", seconds=1.0, seed=1)
+    poses, trans = _as_amass(m, J, width=width, layout=layout)
+    np.savez(tmp_path / "a.npz", poses=poses, trans=trans, mocap_framerate=np.float64(120.00004578),
+             gender=np.array(b"female"), betas=np.zeros(16), dmpls=np.zeros((len(poses), 8)))
+    r = load_motion(tmp_path / "a.npz", rest_joints=J)
+    assert r.meta["up"] == "z" and r.meta["gender"] == "female" and r.fps == pytest.approx(120.00004578)
+    body = np.asarray(m.poses)
+    np.testing.assert_allclose(poses_to_rotmats(r.poses, 24)[:, :22 if width != 72 else 24],
+                               poses_to_rotmats(body, 24)[:, :22 if width != 72 else 24], atol=1e-9)
+    np.testing.assert_allclose(r.trans, m.trans, atol=1e-9)
+    # upright: the head is above the pelvis, the feet near the floor
+    _, posed = forward_kinematics(poses_to_rotmats(r.poses, 24), J, SMPL_PARENTS, r.trans)
+    assert (posed[:, 15, 1] - posed[:, 0, 1]).min() > 0.4
+    assert abs(posed[:, [7, 8, 10, 11], 1].min() - J[[7, 8, 10, 11], 1].min()) < 0.03
+
+
+def test_amass_split_keys_and_string_gender(tmp_path):
+    J = default_rest_joints()
+    m = make_motion("dance", seconds=0.5, seed=2)
+    poses, trans = _as_amass(m, J, width=72)
+    np.savez(tmp_path / "x.npz", root_orient=poses[:, :3], pose_body=poses[:, 3:66], trans=trans,
+             mocap_frame_rate=np.array(60.0), gender=np.array("male"))
+    r = load_motion(tmp_path / "x.npz", rest_joints=J)
+    assert r.meta["gender"] == "male" and r.fps == 60.0 and r.meta["up"] == "z"
+    np.testing.assert_allclose(r.trans, m.trans, atol=1e-9)
+
+
+def test_up_override_and_y_up_data(tmp_path):
+    J = default_rest_joints()
+    m = make_motion("walk", seconds=0.5)
+    poses, trans = _as_amass(m, J, width=72, z_up=False)
+    np.savez(tmp_path / "y.npz", poses=poses, trans=trans, gender="neutral")
+    r = load_motion(tmp_path / "y.npz", rest_joints=J)
+    assert r.meta["up"] == "y"
+    np.testing.assert_allclose(r.trans, m.trans, atol=1e-9)
+    forced = load_motion(tmp_path / "y.npz", rest_joints=J, up="z")  # wrong on purpose: lies on its back
+    _, posed = forward_kinematics(poses_to_rotmats(forced.poses, 24), J, SMPL_PARENTS, forced.trans)
+    assert abs(posed[:, 15, 1] - posed[:, 0, 1]).max() < 0.3
+    with pytest.raises(Exception, match="up must be"):
+        load_motion(tmp_path / "y.npz", up="x")
+
+
+def test_own_files_round_trip_unchanged(tmp_path):
+    m = make_motion("jump", seconds=0.5)
+    m.save(tmp_path / "m.npz")
+    r = load_motion(tmp_path / "m.npz", rest_joints=default_rest_joints() * 1.1)
+    np.testing.assert_allclose(r.poses, m.poses, atol=1e-6)
+    np.testing.assert_allclose(r.trans, m.trans, atol=1e-6)
+    assert r.meta["convention"] == "segadeform"
+
+
+def test_feet_on_floor_shift_is_one_constant(tmp_path):
+    J = default_rest_joints()
+    m = make_motion("jump", seconds=1.0)
+    lifted = feet_on_floor(m, J, floor=0.5)
+    d = lifted.trans - m.trans
+    assert np.ptp(d[:, 1]) < 1e-12 and np.abs(d[:, [0, 2]]).max() == 0
+    _, posed = forward_kinematics(poses_to_rotmats(lifted.poses, 24), J, SMPL_PARENTS, lifted.trans)
+    assert posed[:, [7, 8, 10, 11], 1].min() == pytest.approx(J[[7, 8, 10, 11], 1].min() + 0.5)
+
+
+@pytest.mark.parametrize("arrays, words", [
+    (dict(poses=np.zeros((3, 24, 2))), "unknown layout"),
+    (dict(poses=np.zeros((3, 23, 3))), "unknown layout"),
+    (dict(root_orient=np.zeros((3, 3)), pose_body=np.zeros((3, 60))), "do not fit"),
+    (dict(poses=np.zeros((3, 72)), mocap_framerate=np.float64(np.nan)), "positive"),
+    (dict(poses=np.full((3, 72), np.nan)), "NaN"),
+    (dict(poses=np.zeros((3, 72)), trans=np.full((3, 3), np.inf)), "NaN or inf"),
+])
+def test_malformed_amass_layouts(tmp_path, arrays, words):
+    np.savez(tmp_path / "m.npz", **arrays)
+    with pytest.raises(FileFormatError, match=words) as ei:
+        load_motion(tmp_path / "m.npz")
+    assert "m.npz" in str(ei.value)
