@@ -46,8 +46,9 @@ def _fmt_from(path: Path, fmt: str | None) -> str:
 @click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path),
               help="BVH joint map (TOML/JSON: smpl_name = \"FileJoint\") for skeletons not recognised.")
 @click.option("--floor", is_flag=True, default=None, help="Move the motion so the feet touch the floor.")
+@click.option("--force", is_flag=True, help="Animate a garment even when it does not sit on the body.")
 def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, model, frames, fps, batch, threads,
-            providers, body_out, up, no_cache, motion_up, units, joint_map, floor):
+            providers, body_out, up, no_cache, motion_up, units, joint_map, floor, force):
     """Animate a garment: SCENE.toml, or the flag form --garment G --motion M -o OUT."""
     import dataclasses
 
@@ -108,7 +109,7 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, mode
     with click.progressbar(length=total or 1, label="deforming", file=sys.stderr,
                            hidden=not interactive) as bar:
         summary = run_scene(sc, model=model, output=output, batch=batch, threads=threads, providers=prov,
-                            progress=bar.update if interactive else None, cache=not no_cache)
+                            progress=bar.update if interactive else None, cache=not no_cache, force=force)
     extra = f", body -> {summary.body_output}" if summary.body_output else ""
     click.echo(f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame ({summary.effects.label()}, "
                f"{summary.variant}) -> {summary.output}{extra}")

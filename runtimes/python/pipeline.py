@@ -27,6 +27,7 @@ import numpy as np
 from segadeform.body import BodyModel, BodyProxy, default_body_path, load_body
 from segadeform.body.collision import push_out
 from segadeform.errors import InputError
+from segadeform.garments.fit import check_placement
 from segadeform.geometry import GarmentAsset, precompute_garment
 from segadeform.geometry.asset import file_sha256
 from segadeform.io import open_sequence_writer, read_mesh, write_obj, Mesh
@@ -86,18 +87,21 @@ class Run:
         frames: ``(start, stop)`` of the motion, stop exclusive (None: to the end).
         batch: frames per deformer call.
         cache: write precompute/encoder caches next to the garment file.
+        force: animate a garment that does not sit on the body (see
+            :func:`segadeform.garments.fit.check_placement`) instead of refusing it.
     """
 
     def __init__(self, *, garment: Path, motion: Motion, package: ModelPackage, body: BodyModel, betas=(),
                  effects: Effects = Effects(), output: Path, output_format: str = "pc2", up: str = "y",
-                 body_output: Optional[Path] = None, frames=None, batch: int = 8, cache: bool = True) -> None:
+                 body_output: Optional[Path] = None, frames=None, batch: int = 8, cache: bool = True,
+                 force: bool = False) -> None:
         if batch < 1:
             raise InputError("batch must be at least 1", got=batch)
         self.garment, self.motion, self.package, self.body = Path(garment), motion, package, body
         self.betas = np.asarray(betas, np.float64)
         self.effects, self.output, self.output_format, self.up = effects, Path(output), output_format, up
         self.body_output = Path(body_output) if body_output else None
-        self.batch, self.cache = int(batch), cache
+        self.batch, self.cache, self.force = int(batch), cache, bool(force)
         a, b = frames if frames else (0, None)
         b = motion.n_frames if b is None else min(b, motion.n_frames)
         if not 0 <= a < b:
@@ -138,6 +142,9 @@ class Run:
         t = time.perf_counter()
         joints = self.body.rest_joints(self.betas)[0]
         asset = self.load_asset(joints)
+        if not self.force:  # refuse a garment that is not on the body (units, axes, another body)
+            check_placement(asset.vertices, self.body.shaped_vertices(self.betas)[0], self.body.faces,
+                            path=self.garment)
         stage["precompute"] += time.perf_counter() - t
         t = time.perf_counter()
         P = self.deformer.encode(asset, joints, self.betas, cache_dir=self._cache_dir())
@@ -204,7 +211,7 @@ class Run:
 
 
 def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Path] = None, batch: int = 8,
-              threads: int = 1, providers=None, progress=None, cache: bool = True) -> RunSummary:
+              threads: int = 1, providers=None, progress=None, cache: bool = True, force: bool = False) -> RunSummary:
     """Run a scene (optionally overriding its model package and output path)."""
     package = ModelPackage(model or scene.model or default_model_path(), threads=threads, providers=providers)
     body = load_body(scene.body or default_body_path())
@@ -212,5 +219,5 @@ def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Pa
     out = Path(output) if output is not None else scene.output
     run = Run(garment=scene.garment, motion=motion, package=package, body=body, betas=scene.betas,
               effects=scene.effects, output=out, output_format=scene.output_format, up=scene.up,
-              body_output=scene.body_output, frames=scene.motion.frames, batch=batch, cache=cache)
+              body_output=scene.body_output, frames=scene.motion.frames, batch=batch, cache=cache, force=force)
     return run.execute(progress)

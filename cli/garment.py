@@ -1,0 +1,140 @@
+"""``segadeform garment make | kinds | fit``: procedural garments, and garments made for another body."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from .main import cli
+
+
+def _betas(betas):
+    try:
+        return tuple(float(x) for x in betas.split(",")) if betas else None
+    except ValueError:
+        raise click.UsageError(f"--betas must be comma-separated numbers, got {betas!r}") from None
+
+
+@cli.group("garment")
+def garment_group():
+    """Procedural garments, and garments made for another body (fit)."""
+
+
+@garment_group.command("make")
+@click.argument("kind")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path), help="Output OBJ.")
+@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
+@click.option("--betas", help="Comma-separated body shape coefficients.")
+@click.option("--length", type=float, help="Skirt hem / trouser leg length, 0..1 of hip-to-ankle.")
+@click.option("--flare", type=float, default=0.25, show_default=True, help="Skirt widening at the hem.")
+@click.option("--ease", type=float, default=0.015, show_default=True, help="Metres between skin and cloth.")
+@click.option("--sleeve", type=float, help="Sleeve length, 0..1 of shoulder-to-wrist.")
+@click.option("--resolution", type=int, help="Target vertex count (picks the refinement level).")
+def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, resolution):
+    """Make a KIND garment dressed on the body in rest pose (kinds: see `segadeform garment kinds`)."""
+    from segadeform.body import load_body
+    from segadeform.garments import GarmentParams, check_garment, make_garment
+    from segadeform.io import Mesh, write_obj
+    from segadeform.body import default_body_path
+
+    b = _betas(betas)
+    bm = load_body(body or default_body_path())
+    g = make_garment(kind, bm, b, GarmentParams(length=length, flare=flare, ease=ease, sleeve=sleeve,
+                                                  resolution=resolution))
+    info = check_garment(g.vertices, g.faces, bm, b)
+    write_obj(output, Mesh(vertices=g.vertices, faces=g.faces), header=g.header())
+    click.echo(f"{kind} ({g.type}): {info['vertices']} vertices, {info['faces']} triangles, "
+               f"{info['boundary_loops']} openings, clearance >= {1e3 * info['min_clearance']:.1f} mm -> {output}")
+
+
+@garment_group.command("kinds")
+def garment_kinds_cmd():
+    """List the garment kinds and their type labels."""
+    from segadeform.garments import GARMENT_TYPES
+
+    for k, t in GARMENT_TYPES.items():
+        click.echo(f"{k:14s} {t}")
+
+
+@garment_group.command("fit")
+@click.argument("garment", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path), help="Fitted OBJ.")
+@click.option("--mhclo", type=click.Path(dir_okay=False, path_type=Path),
+              help="MakeHuman binding (default: GARMENT itself if .mhclo, else a .mhclo of the same name beside it).")
+@click.option("--from-body", type=click.Path(dir_okay=False, path_type=Path),
+              help="The body mesh the garment was modelled on (any topology, pose and units).")
+@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Target body .npz (default: shipped).")
+@click.option("--betas", help="Target body shape, comma-separated coefficients.")
+@click.option("--units", help="Units of the garment (and --from-body) file: m, dm, cm, mm, inch, ft or a number.")
+@click.option("--up", type=click.Choice(["y", "z", "-z", "x"]), default="y", show_default=True,
+              help="Up axis of the garment (and --from-body) file.")
+@click.option("--scale", type=float, default=1.0, show_default=True, help="Extra scale factor.")
+@click.option("--offset", help="Move by dx,dy,dz metres (after units, axes and scale).")
+@click.option("--margin", type=float, help="Push vertices out of the body to this clearance, metres "
+              "(default 0.003 for --mhclo/--from-body fits, none for plain unit/axis fixes).")
+def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, scale, offset, margin):
+    """Bring GARMENT (OBJ or .mhclo) onto the body: a MakeHuman binding, --from-body, or --units/--up/--scale.
+
+    Vertex order and count are kept; faces, UVs and groups are copied from the input OBJ.
+    """
+    from segadeform.body import default_body_path, load_body
+    from segadeform.errors import InputError
+    from segadeform.garments import fit as gfit
+    from segadeform.io import read_mesh
+
+    b = _betas(betas)
+    try:
+        off = tuple(float(x) for x in offset.split(",")) if offset else None
+        if off is not None and len(off) != 3:
+            raise ValueError
+    except ValueError:
+        raise click.UsageError(f"--offset must be dx,dy,dz, got {offset!r}") from None
+    bm = load_body(body or default_body_path())
+    obj = garment
+    if garment.suffix.lower() == ".mhclo":
+        mhclo, obj = garment, None
+    elif mhclo is None and from_body is None and garment.with_suffix(".mhclo").is_file():
+        mhclo = garment.with_suffix(".mhclo")
+    try:
+        units_v = float(units) if units is not None else None
+    except ValueError:
+        units_v = units
+    rest = bm.shaped_vertices(b)[0]
+    if mhclo is not None:
+        if from_body is not None:
+            raise click.UsageError("give --mhclo or --from-body, not both")
+        binding = gfit.read_mhclo(mhclo)
+        obj = obj or binding.obj_path()
+        if obj is None:
+            raise InputError("the .mhclo names no obj_file; pass the OBJ as GARMENT", path=mhclo)
+        v = gfit.fit_mhclo(binding, bm, b)
+        how = f"MakeHuman binding {mhclo.name}"
+        default_margin = 0.003
+    elif from_body is not None:
+        src = read_mesh(from_body)
+        g = read_mesh(obj)
+        fit = gfit.fit_to_body_mesh(gfit.fix_units_and_axes(g.vertices, units=units_v, up=up, scale=scale),
+                                    gfit.fix_units_and_axes(src.vertices, units=units_v, up=up, scale=scale),
+                                    src.faces, bm, b)
+        v = fit.vertices
+        how = f"registered to {from_body.name} (body fit {100 * fit.body_error:.1f} cm mean)"
+        default_margin = 0.003
+    else:
+        g = read_mesh(obj)
+        v = gfit.fix_units_and_axes(g.vertices, units=units_v, up=up, scale=scale, offset=off)
+        how = f"units {units or 'm'}, up {up}, scale {scale:g}" + (f", offset {off}" if off else "")
+        default_margin = None
+    mesh = read_mesh(obj)
+    if len(mesh.vertices) != len(v):
+        raise InputError("the binding and the OBJ have different vertex counts", path=obj,
+                         expected=len(v), got=len(mesh.vertices))
+    m = default_margin if margin is None else margin
+    pushed = 0
+    if m is not None:
+        v, pushed = gfit.push_off_body(v, rest, bm.faces, m)
+    gfit.rewrite_obj_vertices(obj, v, output)
+    rep = gfit.placement_report(v, rest, bm.faces)
+    click.echo(f"{obj.name}: {len(v)} vertices, {how}" + (f", {pushed} pushed to {1e3 * m:.0f} mm" if m else ""))
+    click.echo(f"  {rep.line()}")
+    click.echo(f"  -> {output}")

@@ -1,0 +1,388 @@
+"""Garments made for another body, brought onto ours: MakeHuman ``.mhclo`` bindings, another body's mesh,
+and plain unit/axis fixes.  Vertex order and count are always kept.
+
+* :func:`read_mhclo` / :func:`fit_mhclo`: a MakeHuman garment binds each vertex
+  to three hm08 base-mesh vertices (weights, offset; ``../shared/data/MHCLO_FORMAT.md``).
+  The default body *is* the hm08 mesh (T-posed, metres), and its file says
+  where every hm08 vertex is for any shape (:mod:`segadeform.body.makehuman`),
+  so the garment is fitted in MakeHuman's A-pose at the requested ``betas``
+  exactly as MakeHuman does it (``p = sum w_k B[v_k] + diag(s) d``, with the
+  per-axis scales measured on the shaped body), then carried to the body's
+  T-pose rest by inverse linear blend skinning with weights taken from the
+  three bound vertices.
+* :func:`fit_to_body_mesh`: a garment modelled on another body (any topology,
+  pose, units): the body is registered to that mesh (scale and placement,
+  shape ``betas`` and joint rotations, then a smooth surface correction), each
+  garment vertex is attached to the registered surface (closest point and
+  offset in the local surface frame), and carried onto the body's rest.
+* :func:`fix_units_and_axes`: a plain similarity (units, up axis, scale).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from ..errors import FileFormatError, InputError
+
+__all__ = ["MhcloBinding", "read_mhclo", "fit_mhclo", "fix_units_and_axes", "UNIT_SCALES", "rewrite_obj_vertices",
+           "FitReport", "placement_report", "push_off_body", "fit_to_body_mesh", "BodyFit", "check_placement",
+           "PlacementError"]
+
+UNIT_SCALES = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "ft": 0.3048}
+_MH_TO_M = 0.1  # MakeHuman mesh units are decimetres
+
+
+@dataclasses.dataclass(frozen=True)
+class MhcloBinding:
+    """A parsed ``.mhclo``.
+
+    Attributes:
+        verts: (N, 3) hm08 vertex indices per garment vertex; weights: (N, 3); offsets: (N, 3) decimetres,
+            MakeHuman axes (= ours: +X the character's left, +Y up, +Z front).
+        scales: {"x"|"y"|"z": (vertex_a, vertex_b, reference distance in dm)}.
+        delete_verts: hm08 vertices the garment hides.
+        obj_file: the garment mesh named in the file (relative to it), or None.
+    """
+
+    path: Path
+    name: str
+    verts: np.ndarray
+    weights: np.ndarray
+    offsets: np.ndarray
+    scales: dict
+    delete_verts: np.ndarray
+    obj_file: Optional[str]
+    basemesh: str
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.verts.shape[0])
+
+    def obj_path(self) -> Optional[Path]:
+        return None if self.obj_file is None else self.path.parent / self.obj_file
+
+
+def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
+    """Parse a MakeHuman ``.mhclo`` file strictly (errors name the file and line)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8", errors="strict")
+    except FileNotFoundError:
+        raise FileFormatError("no such file", path=p) from None
+    except UnicodeDecodeError:
+        raise FileFormatError("not UTF-8 text", path=p) from None
+    except OSError as e:
+        raise FileFormatError(f"cannot read file: {e.strerror or e}", path=p) from None
+    name, obj_file, basemesh = p.stem, None, "hm08"
+    scales: dict = {}
+    verts, weights, offsets = [], [], []
+    deletes: list[int] = []
+    section = "header"
+    for ln, raw in enumerate(text.splitlines(), 1):
+        tok = raw.split()
+        if not tok or tok[0].startswith("#"):
+            continue
+        key = tok[0]
+        if section == "verts" and (key[0].isdigit() or key[0] == "-"):
+            if len(tok) == 1:
+                verts.append((_int(tok[0], p, ln), 0, 0))
+                weights.append((1.0, 0.0, 0.0))
+                offsets.append((0.0, 0.0, 0.0))
+            elif len(tok) in (6, 9):
+                verts.append(tuple(_int(t, p, ln) for t in tok[:3]))
+                weights.append(tuple(_float(t, p, ln) for t in tok[3:6]))
+                offsets.append(tuple(_float(t, p, ln) for t in tok[6:9]) if len(tok) == 9 else (0.0, 0.0, 0.0))
+            else:
+                raise FileFormatError("a binding line needs 1, 6 or 9 numbers", path=p, line=ln,
+                                      expected="v1 v2 v3 w1 w2 w3 [d1 d2 d3] or v", got=len(tok))
+            continue
+        if section == "delete" and (key[0].isdigit() or key == "-"):
+            i = 0
+            while i < len(tok):
+                a = _int(tok[i], p, ln)
+                if i + 2 < len(tok) and tok[i + 1] == "-":
+                    b = _int(tok[i + 2], p, ln)
+                    if b < a:
+                        raise FileFormatError("delete_verts range runs backwards", path=p, line=ln, got=f"{a} - {b}")
+                    deletes.extend(range(a, b + 1))
+                    i += 3
+                else:
+                    deletes.append(a)
+                    i += 1
+            continue
+        if key == "verts":
+            section = "verts"
+        elif key == "delete_verts":
+            section = "delete"
+        elif key == "name":
+            name = raw.split(None, 1)[1].strip() if len(tok) > 1 else name
+            section = "header"
+        elif key == "obj_file":
+            if len(tok) < 2:
+                raise FileFormatError("obj_file needs a file name", path=p, line=ln)
+            obj_file = raw.split(None, 1)[1].strip()
+            if not Path(obj_file).suffix:
+                obj_file += ".obj"
+            section = "header"
+        elif key == "basemesh":
+            basemesh = tok[1] if len(tok) > 1 else ""
+            section = "header"
+        elif key in ("x_scale", "y_scale", "z_scale"):
+            if len(tok) != 4:
+                raise FileFormatError(f"{key} needs 3 values", path=p, line=ln, expected="vertex vertex reference",
+                                      got=len(tok) - 1)
+            ref = _float(tok[3], p, ln)
+            if not ref > 0:
+                raise FileFormatError(f"{key} reference must be positive", path=p, line=ln, got=ref)
+            scales[key[0]] = (_int(tok[1], p, ln), _int(tok[2], p, ln), ref)
+        else:
+            section = "header"  # other keys (uuid, tag, material, z_depth, weights ...) are not needed here
+    if basemesh != "hm08":
+        raise FileFormatError("only hm08 bindings are supported", path=p, expected="basemesh hm08", got=basemesh)
+    if not verts:
+        raise FileFormatError("no binding lines (after 'verts 0')", path=p)
+    v = np.array(verts, np.int64)
+    w = np.array(weights, np.float64)
+    d = np.array(offsets, np.float64)
+    if v.min() < 0:
+        raise FileFormatError("negative base-mesh index", path=p, got=int(v.min()))
+    return MhcloBinding(path=p, name=name, verts=v, weights=w, offsets=d, scales=scales,
+                        delete_verts=np.array(sorted(set(deletes)), np.int64), obj_file=obj_file, basemesh=basemesh)
+
+
+def _int(t, p, ln) -> int:
+    try:
+        return int(t)
+    except ValueError:
+        raise FileFormatError("expected an integer", path=p, line=ln, got=t[:30]) from None
+
+
+def _float(t, p, ln) -> float:
+    try:
+        v = float(t)
+    except ValueError:
+        raise FileFormatError("expected a number", path=p, line=ln, got=t[:30]) from None
+    if not np.isfinite(v):
+        raise FileFormatError("value is not finite", path=p, line=ln, got=t[:30])
+    return v
+
+
+def fit_mhclo(binding: MhcloBinding, body, betas=None) -> np.ndarray:
+    """The garment's vertices on ``body`` at shape ``betas``, in the body's T-pose rest (metres, +Y up).
+
+    Shapes:
+        -> (N, 3), the ``.mhclo``'s (= its OBJ's) vertex order
+    """
+    from ..body.makehuman import makehuman_vertices, makehuman_weights
+
+    mh = getattr(body, "makehuman", None)
+    if mh is None:
+        raise InputError("this body has no MakeHuman binding, so .mhclo garments cannot be fitted to it",
+                         expected="the default body, or one baked with `segadeform body bake`")
+    n_hm = len(mh["hm08_index"]) + len(mh["extra_index"])
+    idx = binding.verts
+    used = np.concatenate([idx.ravel(), np.array([a for s in binding.scales.values() for a in s[:2]], np.int64)])
+    if used.max() >= n_hm:
+        raise FileFormatError("binding names a base-mesh vertex the body does not have", path=binding.path,
+                              expected=f"indices < {n_hm}", got=int(used.max()))
+    H = makehuman_vertices(body, mh, betas)  # (19158, 3), A-pose, metres
+    s = np.ones(3)
+    for ax, (a, b, ref) in binding.scales.items():
+        k = "xyz".index(ax)
+        s[k] = abs(H[a, k] - H[b, k]) / (ref * _MH_TO_M)
+    p_a = np.einsum("nk,nkc->nc", binding.weights, H[idx]) + binding.offsets * _MH_TO_M * s
+    W = makehuman_weights(body, mh)  # (19158, S)
+    wg = np.einsum("nk,nks->ns", binding.weights, W[idx])
+    wg = np.clip(wg, 0.0, None)
+    wg /= np.maximum(wg.sum(axis=1, keepdims=True), 1e-12)
+    pose_a = mh["rest_pose_a"].reshape(1, 72)
+    A = body.forward(pose_a, betas).transforms[0]  # (S, 4, 4): T-pose rest -> A-pose
+    M = np.einsum("ns,sij->nij", wg, A)
+    ph = np.concatenate([p_a, np.ones((len(p_a), 1))], axis=1)
+    p_t = np.linalg.solve(M, ph[..., None])[..., 0]
+    return p_t[:, :3]
+
+
+def fix_units_and_axes(vertices, *, units: str | float | None = None, up: str = "y", scale: float = 1.0,
+                       offset=None) -> np.ndarray:
+    """A plain similarity: file units to metres, the file's up axis to +Y, an extra scale, then ``offset``
+    (metres, after the rest).
+
+    ``up``: ``"y"`` (no change), ``"z"`` (Blender / 3ds Max: (x, y, z) -> (x, z, -y)), ``"-z"``, ``"x"``.
+
+    Shapes:
+        vertices: (N, 3) -> (N, 3)
+    """
+    v = np.asarray(vertices, np.float64)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise InputError("vertices must be (N, 3)", got=v.shape)
+    if units is None:
+        f = 1.0
+    elif isinstance(units, str):
+        if units not in UNIT_SCALES:
+            raise InputError("unknown units", expected=", ".join(UNIT_SCALES), got=units)
+        f = UNIT_SCALES[units]
+    else:
+        f = float(units)
+    f *= float(scale)
+    if not (np.isfinite(f) and f > 0):
+        raise InputError("scale must be positive", got=f)
+    rot = {"y": np.eye(3), "z": np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]]),
+           "-z": np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]),
+           "x": np.array([[0, 1.0, 0], [-1.0, 0, 0], [0, 0, 1.0]])}.get(up)
+    if rot is None:
+        raise InputError("unknown up axis", expected="y, z, -z or x", got=up)
+    out = (v @ rot.T) * f
+    if offset is not None:
+        o = np.asarray(offset, np.float64).reshape(3)
+        if not np.isfinite(o).all():
+            raise InputError("offset must be finite", got=o)
+        out = out + o
+    return out
+
+
+def rewrite_obj_vertices(src: str | os.PathLike, vertices: np.ndarray, dst: str | os.PathLike) -> Path:
+    """Copy an OBJ file with its ``v`` lines replaced by ``vertices`` (same order), keeping faces, UVs,
+    normals' lines, groups and materials as they are; written atomically."""
+    from ..io.atomic import atomic_open
+
+    src, dst = Path(src), Path(dst)
+    v = np.asarray(vertices, np.float64)
+    lines = src.read_text(encoding="utf-8", errors="replace").splitlines()
+    n = sum(1 for ln in lines if ln.split()[:1] == ["v"])
+    if n != len(v):
+        raise InputError("vertex count differs from the OBJ's", path=src, expected=n, got=len(v))
+    it = iter(v)
+    with atomic_open(dst, "w", encoding="utf-8", newline="\n") as fh:
+        for ln in lines:
+            if ln.split()[:1] == ["v"]:
+                x = next(it)
+                extra = ln.split()[4:]  # vertex colours stay
+                fh.write(f"v {x[0]:.6f} {x[1]:.6f} {x[2]:.6f}" + (" " + " ".join(extra) if extra else "") + "\n")
+            elif ln.split()[:1] == ["vn"]:
+                continue  # normals no longer match the moved vertices; importers recompute them
+            else:
+                fh.write(ln + "\n")
+    return dst
+
+
+@dataclasses.dataclass(frozen=True)
+class FitReport:
+    """How a garment sits on a body: distances from the body surface (m) and the share inside it."""
+
+    median_distance: float
+    p90_distance: float
+    inside_fraction: float
+    deep_inside_fraction: float  # more than 1 cm inside
+    garment_height: float
+    body_height: float
+
+    def line(self) -> str:
+        return (f"median distance to the body {100 * self.median_distance:.1f} cm, 90th percentile "
+                f"{100 * self.p90_distance:.1f} cm, {100 * self.inside_fraction:.1f} % of vertices inside "
+                f"({100 * self.deep_inside_fraction:.1f} % deeper than 1 cm)")
+
+
+def placement_report(vertices, body_vertices, body_faces) -> FitReport:
+    """Distances of garment ``vertices (N, 3)`` from a (rest) body surface, and the share inside."""
+    from ..body.collision import BodyProxy
+
+    v = np.asarray(vertices, np.float64)
+    q = BodyProxy(body_vertices, body_faces).query(v)
+    d = q.signed_distance
+    ad = np.abs(d)
+    bv = np.asarray(body_vertices)
+    return FitReport(median_distance=float(np.median(ad)), p90_distance=float(np.percentile(ad, 90)),
+                     inside_fraction=float((d < 0).mean()), deep_inside_fraction=float((d < -0.01).mean()),
+                     garment_height=float(np.ptp(v[:, 1])), body_height=float(np.ptp(bv[:, 1])))
+
+
+def push_off_body(vertices, body_vertices, body_faces, margin: float) -> tuple[np.ndarray, int]:
+    """Move vertices inside the (rest) body, or closer than ``margin`` (m), out along its normal.
+
+    Shapes:
+        vertices: (N, 3) -> (N, 3), and the number moved
+    """
+    from ..body.collision import BodyProxy, push_out
+
+    if not (np.isfinite(margin) and 0 <= margin < 0.1):
+        raise InputError("margin must be in [0, 0.1) metres", got=margin)
+    return push_out(np.asarray(vertices, np.float64), BodyProxy(body_vertices, body_faces), float(margin))
+
+
+class PlacementError(InputError):
+    """A garment does not sit on the body it is to be animated on (units, axes, another body or pose)."""
+
+
+def _stats(v, proxy, top, floor):
+    d = proxy.query(v).signed_distance
+    return {"p20": float(np.percentile(np.abs(d), 20)), "median": float(np.median(np.abs(d))),
+            "deep": float((d < -0.01).mean()), "outside_height": float(((v[:, 1] > top + 0.02) |
+                                                                         (v[:, 1] < floor - 0.02)).mean())}
+
+
+def _fits(st) -> bool:
+    return st["p20"] <= 0.05 and st["deep"] <= 0.05 and st["outside_height"] <= 0.02
+
+
+def check_placement(vertices, body_vertices, body_faces, *, path=None, max_points: int = 4000) -> dict:
+    """Refuse a garment that does not sit on the (rest) body, naming the likely cause and the fix.
+
+    A garment sits on the body when the closest fifth of its vertices are within 5 cm of the skin, at
+    most 5 % are more than 1 cm inside the body, and at most 2 % lie above the head or below the feet.
+    Otherwise the garment is tried in other units (dm, cm, mm, inch), with other up axes (z, -z) and moved
+    up or down (another body's origin, e.g. SMPL's pelvis at y = 0); the first of those that fits is named
+    in the error with its ``segadeform garment fit`` command, else the garment was made for another body
+    or pose (``--mhclo`` or ``--from-body``).
+
+    Returns the statistics (``p20``, ``median`` distance in m, ``deep`` and ``outside_height`` fractions).
+
+    Raises:
+        PlacementError
+    """
+    from ..body.collision import BodyProxy
+
+    v = np.asarray(vertices, np.float64)
+    if len(v) > max_points:
+        v = v[np.linspace(0, len(v) - 1, max_points).astype(np.int64)]
+    bv = np.asarray(body_vertices, np.float64)
+    proxy = BodyProxy(bv, body_faces)
+    top, floor = float(bv[:, 1].max()), float(bv[:, 1].min())
+    st = _stats(v, proxy, top, floor)
+    if _fits(st):
+        return st
+    what = (f"median distance to the body {100 * st['median']:.1f} cm (closest fifth beyond "
+            f"{100 * st['p20']:.1f} cm), {100 * st['deep']:.1f} % of vertices more than 1 cm inside it, "
+            f"{100 * st['outside_height']:.1f} % above the head or below the feet")
+    g = path if path is not None else "GARMENT"
+    for units in (None, "dm", "cm", "mm", "inch"):
+        for up in ("y", "z", "-z"):
+            if units is None and up == "y":
+                continue
+            w = fix_units_and_axes(v, units=units, up=up)
+            if _fits(_stats(w, proxy, top, floor)):
+                opts = (f" --units {units}" if units else "") + (f" --up {up}" if up != "y" else "")
+                read = " and ".join(x for x in ((f"in {units}" if units else ""),
+                                                (f"with +{up.lstrip('-')} up" if up != "y" else "")) if x)
+                raise PlacementError(f"the garment does not sit on the body ({what}); it does once read {read}",
+                                     path=path, expected=f"metres, +Y up: run `segadeform garment fit {g} -o FIXED.obj"
+                                     f"{opts}`, or pass --force")
+    size = np.ptp(v, axis=0)
+    if size.max() < 2.0 * (top - floor):  # a plausible size: try moving it
+        for dy in np.arange(-1.5, 1.51, 0.05):
+            w = v + np.array([0.0, dy, 0.0])
+            if abs(dy) > 0.07 and _fits(_stats(w, proxy, top, floor)):
+                raise PlacementError(f"the garment does not sit on the body ({what}); it does {abs(dy):.2f} m "
+                                     f"{'higher' if dy > 0 else 'lower'}: it was placed for another body's "
+                                     "origin (SMPL-fitted garments sit around SMPL's pelvis at y = 0)", path=path,
+                                     expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
+                                              f"--offset 0,{dy:.2f},0` or `--from-body THEIR_BODY.obj`, or pass --force")
+    raise PlacementError(f"the garment does not sit on the body ({what}); it was made for another body or pose",
+                         path=path, expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
+                                             "--from-body THEIR_BODY.obj` (MakeHuman clothes: --mhclo FILE), "
+                                             "or pass --force")

@@ -1,0 +1,196 @@
+"""Garments made for another body: MakeHuman .mhclo fits, unit/axis fixes, the off-body check, the CLI."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from segadeform.body import default_body_path, load_body
+from segadeform.body.makehuman import makehuman_vertices, makehuman_weights
+from segadeform.cli.main import cli
+from segadeform.errors import FileFormatError, InputError
+from segadeform.garments.fit import (PlacementError, check_placement, fit_mhclo, fix_units_and_axes,
+                                     placement_report, read_mhclo, rewrite_obj_vertices)
+from segadeform.io import read_mesh
+
+ROOT = Path(__file__).resolve().parents[2]
+SAMPLES = ROOT / "samples" / "garments" / "makehuman"
+SHARED = ROOT.parent / "shared" / "data" / "garments"
+SHARED_MHCLO = sorted(SHARED.glob("makehuman*/*/*.mhclo"))
+
+
+@pytest.fixture(scope="module")
+def body():
+    return load_body(default_body_path())
+
+
+def test_binding_reproduces_the_helper_proxies(body):
+    """tightshelper/skirthelper bind each vertex exactly to one hm08 vertex: the fit must put them exactly
+    where the body file says those hm08 vertices are (here: in the A-pose, before unposing)."""
+    mh = body.makehuman
+    H = makehuman_vertices(body, mh)
+    assert H.shape == (19158, 3) and np.isfinite(H).all()
+    W = makehuman_weights(body, mh)
+    np.testing.assert_allclose(W.sum(axis=1), 1.0, atol=1e-6)
+    # body vertices in the A-pose come from the body itself
+    pose_a = mh["rest_pose_a"].reshape(1, 72)
+    np.testing.assert_allclose(H[mh["hm08_index"]], body.forward(pose_a).vertices[0], atol=1e-12)
+
+
+@pytest.mark.parametrize("betas", [[], [2.0, 0.0, 0.0], [-1.5, 1.5]])
+@pytest.mark.parametrize("name", ["tshirt_short_sleeve_m", "skirt_short_f"])
+def test_mhclo_fit_sits_on_the_body(body, name, betas):
+    """The fitted garment hugs the body at three shapes: median distance <= 2 cm, <= 1 % deeper than 1 cm
+    inside, and it is where the garment belongs (a T-shirt on the torso, a skirt on the hips)."""
+    b = read_mhclo(SAMPLES / f"{name}.mhclo")
+    v = fit_mhclo(b, body, betas)
+    mesh = read_mesh(SAMPLES / f"{name}.obj")
+    assert v.shape == mesh.vertices.shape and np.isfinite(v).all()
+    rest = body.shaped_vertices(betas)[0]
+    r = placement_report(v, rest, body.faces)
+    assert r.median_distance < 0.02 and r.deep_inside_fraction < 0.01, r.line()
+    J = body.rest_joints(betas)[0]
+    centre = v.mean(axis=0)
+    if name.startswith("tshirt"):
+        assert J[0, 1] < centre[1] < J[12, 1]  # between pelvis and neck
+        assert np.ptp(v[:, 0]) > 0.3  # sleeves out along the T-posed arms
+    else:
+        assert J[4, 1] < centre[1] < J[3, 1] + 0.1  # between knees and waist
+    check_placement(v, rest, body.faces)  # does not raise
+
+
+@pytest.mark.skipif(not SHARED_MHCLO, reason="../shared/data/garments is not beside the checkout")
+@pytest.mark.parametrize("path", SHARED_MHCLO, ids=[p.stem for p in SHARED_MHCLO])
+def test_every_shared_makehuman_garment_fits(body, path):
+    b = read_mhclo(path)
+    v = fit_mhclo(b, body, [0.5, -0.5])
+    r = placement_report(v, body.shaped_vertices([0.5, -0.5])[0], body.faces)
+    assert r.median_distance < 0.035 and r.deep_inside_fraction < 0.02, r.line()
+
+
+def test_fit_follows_the_shape(body):
+    """A wider body gives a wider garment (the binding follows the shape, not the authoring body)."""
+    b = read_mhclo(SAMPLES / "tshirt_short_sleeve_m.mhclo")
+    widths = []
+    for beta0 in (-2.0, 0.0, 2.0):
+        rest = body.shaped_vertices([beta0])[0]
+        v = fit_mhclo(b, body, [beta0])
+        widths.append((np.ptp(v[:, 2]), np.ptp(rest[(rest[:, 1] > 1.0) & (rest[:, 1] < 1.3), 2])))
+    g = [w[0] for w in widths]
+    s = [w[1] for w in widths]
+    assert (np.diff(g) * np.sign(np.diff(s)) > 0).all()
+
+
+def test_rewrite_keeps_everything_but_positions(tmp_path):
+    src = SAMPLES / "skirt_short_f.obj"
+    m = read_mesh(src)
+    rewrite_obj_vertices(src, m.vertices + 1.0, tmp_path / "o.obj")
+    m2 = read_mesh(tmp_path / "o.obj")
+    np.testing.assert_allclose(m2.vertices, m.vertices + 1.0, atol=1e-6)
+    np.testing.assert_array_equal(m2.faces, m.faces)
+    assert sum(ln.startswith("vt ") for ln in (tmp_path / "o.obj").read_text().splitlines()) == \
+        sum(ln.startswith("vt ") for ln in src.read_text().splitlines())
+    with pytest.raises(InputError, match="vertex count"):
+        rewrite_obj_vertices(src, m.vertices[:-1], tmp_path / "p.obj")
+    assert not (tmp_path / "p.obj").exists()
+
+
+def test_units_and_axes():
+    v = np.array([[0.0, 1.0, 2.0]])
+    np.testing.assert_allclose(fix_units_and_axes(v, units="cm"), [[0, 0.01, 0.02]])
+    np.testing.assert_allclose(fix_units_and_axes(v, up="z"), [[0, 2.0, -1.0]])
+    np.testing.assert_allclose(fix_units_and_axes(v, scale=2, offset=(1, 0, 0)), [[1, 2, 4]])
+    with pytest.raises(InputError, match="unknown units"):
+        fix_units_and_axes(v, units="furlong")
+
+
+# ---- the off-body check -------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def dress():
+    return read_mesh(ROOT / "samples" / "garments" / "dress.obj")
+
+
+@pytest.mark.parametrize("transform, words", [
+    (lambda v: v * 10, "once read in dm"),
+    (lambda v: v * 100, "once read in cm"),
+    (lambda v: v @ np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]).T, r"once read with \+z up"),
+    (lambda v: v - [0, 0.95, 0], "0.95 m higher"),
+])
+def test_off_body_garments_are_refused_with_the_cause(body, dress, transform, words):
+    rest = body.shaped_vertices()[0]
+    with pytest.raises(PlacementError, match=words) as ei:
+        check_placement(transform(dress.vertices), rest, body.faces, path=Path("g.obj"))
+    assert "segadeform garment fit g.obj" in str(ei.value)
+
+
+def test_garment_for_another_body_is_refused(body):
+    from segadeform.garments import GarmentParams, make_garment
+
+    g = make_garment("tshirt", body, [-2.0, 1.0], GarmentParams())
+    with pytest.raises(PlacementError, match="another body or pose"):
+        check_placement(g.vertices, body.shaped_vertices()[0], body.faces)
+
+
+def test_on_body_samples_pass(body, dress):
+    rest = body.shaped_vertices()[0]
+    for f in ("dress.obj", "skirt.obj"):
+        check_placement(read_mesh(ROOT / "samples" / "garments" / f).vertices, rest, body.faces)
+
+
+def test_run_refuses_then_force(tmp_path, dress):
+    from segadeform.io import Mesh, write_obj
+
+    write_obj(tmp_path / "dm.obj", Mesh(vertices=dress.vertices * 10, faces=dress.faces))
+    args = ["run", "--garment", str(tmp_path / "dm.obj"), "--motion", str(ROOT / "samples/motions/walk.npz"),
+            "-o", str(tmp_path / "o.pc2"), "--frames", "0:4", "--no-cache", "--effects=-wrinkles,-collisions"]
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 1 and "once read in dm" in r.output and "--units dm" in r.output
+    assert not (tmp_path / "o.pc2").exists()
+    r = CliRunner().invoke(cli, args + ["--force"])
+    assert r.exit_code == 0, r.output
+
+
+# ---- CLI and malformed files ---------------------------------------------------------------------------
+def test_garment_fit_cli(tmp_path):
+    r = CliRunner().invoke(cli, ["garment", "fit", str(SAMPLES / "tshirt_short_sleeve_m.mhclo"), "-o",
+                                 str(tmp_path / "t.obj"), "--betas", "1,0.5"])
+    assert r.exit_code == 0, r.output
+    assert "MakeHuman binding" in r.output and "0.0 % of vertices inside" in r.output
+    m = read_mesh(tmp_path / "t.obj")
+    assert len(m.vertices) == 810
+    # an OBJ with its .mhclo beside it is found; plain fixes otherwise
+    r = CliRunner().invoke(cli, ["garment", "fit", str(SAMPLES / "skirt_short_f.obj"), "-o", str(tmp_path / "s.obj")])
+    assert r.exit_code == 0 and "skirt_short_f.mhclo" in r.output
+    r = CliRunner().invoke(cli, ["garment", "fit", str(tmp_path / "t.obj"), "-o", str(tmp_path / "u.obj"),
+                                 "--units", "cm"])
+    assert r.exit_code == 0 and "units cm" in r.output
+    np.testing.assert_allclose(read_mesh(tmp_path / "u.obj").vertices, m.vertices * 0.01, atol=1e-6)
+
+
+@pytest.mark.parametrize("mutate, words", [
+    (lambda t: t.replace("basemesh hm08", "basemesh hm07"), "only hm08"),
+    (lambda t: t.replace("verts 0", "verts 0\n12 13 0.5 0.5"), "1, 6 or 9 numbers"),
+    (lambda t: t.replace("verts 0", "verts 0\n12 13 14 0.5 x 0.5 0 0 0"), "expected a number"),
+    (lambda t: t.replace("verts 0", "verts 0\n12 13 14 0.5 nan 0.5 0 0 0"), "not finite"),
+    (lambda t: t.replace("x_scale 5399 11998", "x_scale 5399 11998 0 0").replace("x_scale 5399 11998 0 0 ",
+                                                                                 "x_scale 5399 11998 0 "),
+     "x_scale"),
+    (lambda t: t.split("verts 0")[0], "no binding lines"),
+    (lambda t: t.replace("delete_verts", "delete_verts\n20 - 10"), "runs backwards"),
+])
+def test_malformed_mhclo(tmp_path, mutate, words):
+    src = (SAMPLES / "skirt_short_f.mhclo").read_text()
+    (tmp_path / "b.mhclo").write_text(mutate(src))
+    with pytest.raises(FileFormatError, match=words) as ei:
+        read_mhclo(tmp_path / "b.mhclo")
+    assert "b.mhclo" in str(ei.value)
+
+
+def test_binding_out_of_range(tmp_path, body):
+    src = (SAMPLES / "skirt_short_f.mhclo").read_text()
+    (tmp_path / "b.mhclo").write_text(src.replace("verts 0", "verts 0\n99999 1 2 0.3 0.3 0.4 0 0 0", 1))
+    with pytest.raises(FileFormatError, match="does not have"):
+        fit_mhclo(read_mhclo(tmp_path / "b.mhclo"), body)
