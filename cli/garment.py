@@ -108,6 +108,9 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         obj = obj or binding.obj_path()
         if obj is None:
             raise InputError("the .mhclo names no obj_file; pass the OBJ as GARMENT", path=mhclo)
+        if not obj.is_file():
+            raise InputError(f"the garment mesh {obj.name} is missing", path=mhclo,
+                             expected=f"{obj} (obj_file in the .mhclo, or the OBJ given as GARMENT)")
         v = gfit.fit_mhclo(binding, bm, b)
         how = f"MakeHuman binding {mhclo.name}"
         default_margin = 0.003
@@ -127,8 +130,8 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         default_margin = None
     mesh = read_mesh(obj)
     if len(mesh.vertices) != len(v):
-        raise InputError("the binding and the OBJ have different vertex counts", path=obj,
-                         expected=len(v), got=len(mesh.vertices))
+        raise InputError(f"the binding and {obj.name} have different vertex counts", path=mhclo or obj,
+                         expected=f"{len(mesh.vertices)} binding lines", got=len(v))
     m = default_margin if margin is None else margin
     pushed = 0
     if m is not None:

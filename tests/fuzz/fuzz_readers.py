@@ -2,7 +2,7 @@
 
     python tests/fuzz/fuzz_readers.py TARGET [libFuzzer options] [CORPUS_DIR ...]
 
-TARGET is one of obj, off, pc2, bvh, toml, npz.  Every input is written to a
+TARGET is one of obj, off, pc2, bvh, toml, npz, mhclo, motion (AMASS-style .npz).  Every input is written to a
 file and read with the package's reader; a reader may only fail with
 :class:`segadeform.errors.SegadeformError` (a clear error).  Anything else
 -- IndexError, struct.error, RecursionError, a NaN slipping through -- is a
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-TARGETS = ("obj", "off", "pc2", "bvh", "toml", "npz")
+TARGETS = ("obj", "off", "pc2", "bvh", "toml", "npz", "mhclo", "motion")
 _TMP = Path(tempfile.mkdtemp(prefix="segadeform-fuzz-"))
 
 
@@ -74,9 +74,22 @@ def make_target(name: str):
 
         def read(p):
             load_body(p)
+    elif name == "mhclo":
+        from segadeform.garments.fit import read_mhclo
+
+        def read(p):
+            b = read_mhclo(p)
+            _check_finite(b.weights, b.offsets)
+            assert b.verts.min() >= 0
+    elif name == "motion":
+        from segadeform.motion import load_motion_npz
+
+        def read(p):
+            m = load_motion_npz(p)
+            _check_finite(m.poses, m.trans)
     else:
         raise SystemExit(f"unknown target {name!r}; expected one of {', '.join(TARGETS)}")
-    path = _TMP / f"input.{name}"
+    path = _TMP / f"input.{'npz' if name == 'motion' else name}"
 
     def one_input(data: bytes) -> None:
         path.write_bytes(data)
@@ -102,6 +115,13 @@ def write_seeds(d: Path) -> None:
     (d / "off" / "quad.off").write_text("OFF\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n")
     write_pc2(d / "pc2" / "small.pc2", np.random.default_rng(0).normal(size=(3, 5, 3)))
     write_bvh(d / "bvh" / "idle.bvh", make_motion("idle", seconds=0.1), default_rest_joints())
+    for f in ("07_03_walk", "02_01_walk"):
+        head, motion = (root / "samples/motions/cmu" / f"{f}.bvh").read_text().split("MOTION")
+        first = [ln for ln in motion.splitlines() if ln.strip() and ln.strip()[0] in "-0123456789"][:2]
+        (d / "bvh" / f"cmu_{f}.bvh").write_text(head + "MOTION\nFrames: 2\nFrame Time: 0.1\n" + "\n".join(first) + "\n")
+    mh = (root / "samples/garments/makehuman/skirt_short_f.mhclo").read_text().splitlines()
+    (d / "mhclo" / "skirt_head.mhclo").write_text("\n".join(mh[:60] + [ln for ln in mh if "delete_verts" in ln]))
+    make_motion("walk", seconds=0.1).save(d / "motion" / "walk.npz")
     (d / "toml" / "scene.toml").write_text((root / "samples/scenes/skirt_walk.toml").read_text())
     from tests.body.conftest import toy_body
 

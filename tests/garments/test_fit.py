@@ -194,3 +194,59 @@ def test_binding_out_of_range(tmp_path, body):
     (tmp_path / "b.mhclo").write_text(src.replace("verts 0", "verts 0\n99999 1 2 0.3 0.3 0.4 0 0 0", 1))
     with pytest.raises(FileFormatError, match="does not have"):
         fit_mhclo(read_mhclo(tmp_path / "b.mhclo"), body)
+
+
+# ---- a garment modelled on another body mesh ----------------------------------------------------------
+def _other_body_scene(body, betas_src):
+    """A source body of other shape, pose (MakeHuman's A-pose, a twisted spine), topology (every
+    triangle split at its centre, vertices shuffled), units (cm) and up axis (z), and a T-shirt made on
+    it in T-pose and skinned into that pose."""
+    from segadeform.body.transfer import transfer_weights
+    from segadeform.body.skinning import linear_blend_skinning
+    from segadeform.garments import GarmentParams, make_garment
+
+    rest_src = body.shaped_vertices(betas_src)[0]
+    g = make_garment("tshirt", body, betas_src, GarmentParams())
+    pose = body.makehuman["rest_pose_a"].copy()
+    pose.reshape(24, 3)[3] += [0.1, 0.2, 0.0]
+    out = body.forward(pose[None], betas_src)
+    w = transfer_weights(g.vertices, rest_src, body.faces, body.weights)
+    g_posed = linear_blend_skinning(g.vertices, w, out.transforms)[0]
+    v, f = out.vertices[0], body.faces
+    mid = v[f].mean(axis=1)
+    sv = np.concatenate([v, mid])
+    k = np.arange(len(f)) + len(v)
+    sf = np.concatenate([np.stack([f[:, 0], f[:, 1], k], 1), np.stack([f[:, 1], f[:, 2], k], 1),
+                         np.stack([f[:, 2], f[:, 0], k], 1)])
+    perm = np.random.default_rng(0).permutation(len(sv))
+    sv, sf = sv[perm], np.argsort(perm)[sf]
+    to_zup_cm = lambda x: (x @ np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]).T) * 100  # noqa: E731
+    return g, to_zup_cm(g_posed), to_zup_cm(sv), sf
+
+
+def test_fit_to_another_body_mesh(body, tmp_path):
+    """Registered and carried over, the T-shirt sits on the default body (median <= 2 cm, <= 2 % deeper
+    than 1 cm inside) and, carried back onto the shape it was made on, lands within a few cm of where it
+    was made (mean <= 5 cm: the shape space and the scale trade off a little, so the surface slides)."""
+    from segadeform.garments.fit import fit_to_body_mesh
+    from segadeform.io import Mesh, write_obj
+
+    betas_src = [1.5, -1.0]
+    g, g_src, sv, sf = _other_body_scene(body, betas_src)
+    gv = fix_units_and_axes(g_src, units="cm", up="z")
+    bv = fix_units_and_axes(sv, units="cm", up="z")
+    back = fit_to_body_mesh(gv, bv, sf, body, betas_src, samples=800, rounds=5)
+    assert back.body_error < 0.006
+    err = np.linalg.norm(back.vertices - g.vertices, axis=1)
+    assert err.mean() < 0.05, err.mean()
+    onto = fit_to_body_mesh(gv, bv, sf, body, None, samples=800, rounds=5)
+    r = placement_report(onto.vertices, body.shaped_vertices()[0], body.faces)
+    assert r.median_distance < 0.02 and r.deep_inside_fraction < 0.02, r.line()
+    # the same through the CLI, files in cm and z-up
+    write_obj(tmp_path / "g.obj", Mesh(vertices=g_src, faces=g.faces))
+    write_obj(tmp_path / "b.obj", Mesh(vertices=sv, faces=sf))
+    res = CliRunner().invoke(cli, ["garment", "fit", str(tmp_path / "g.obj"), "--from-body", str(tmp_path / "b.obj"),
+                                   "--units", "cm", "--up", "z", "-o", str(tmp_path / "f.obj")])
+    assert res.exit_code == 0, res.output
+    assert "registered to b.obj" in res.output
+    check_placement(read_mesh(tmp_path / "f.obj").vertices, body.shaped_vertices()[0], body.faces)

@@ -153,6 +153,11 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     motionfile("nan_pose", ".npz", lambda p: np.savez(p, poses=np.full((2, 72), np.nan)), "NaN")
     motionfile("trans_mismatch", ".npz", lambda p: np.savez(p, poses=np.zeros((4, 72)), trans=np.zeros((3, 3))), "trans")
     motionfile("huge_declared_poses", ".npz", lambda p: _npz_with_huge_header(p, "poses", (10 ** 9, 72)), "declares more data")
+    motionfile("bad_layout", ".npz", lambda p: np.savez(p, poses=np.zeros((3, 23, 3))), "unknown layout")
+    motionfile("split_keys_mismatch", ".npz", lambda p: np.savez(p, root_orient=np.zeros((3, 3)),
+                                                                  pose_body=np.zeros((2, 63))), "do not fit")
+    motionfile("nan_framerate", ".npz", lambda p: np.savez(p, poses=np.zeros((3, 72)),
+                                                            mocap_framerate=np.float64(np.nan)), "positive")
 
     from segadeform.body import default_rest_joints
     from segadeform.motion import make_motion, write_bvh
@@ -164,11 +169,36 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
         ("bvh_truncated", "\n".join(good_bvh.splitlines()[:30]), "ends too early"),
         ("bvh_frame_mismatch", good_bvh.replace("Frames: 6", "Frames: 7"), "does not match its declared size"),
         ("bvh_huge_frames", good_bvh.replace("Frames: 6", "Frames: 999999999"), "does not match its declared size"),
-        ("bvh_unknown_joints", good_bvh.replace("JOINT left_knee", "JOINT Knee_L_007"), "unknown joint names"),
+        ("bvh_unmappable", "HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 3 Xrotation Yrotation Zrotation\n"
+         " JOINT b\n {\n  OFFSET 0 1 0\n  CHANNELS 3 Xrotation Yrotation Zrotation\n  End Site\n  {\n   OFFSET 0 1 0\n"
+         "  }\n }\n}\nMOTION\nFrames: 1\nFrame Time: 0.1\n0 0 0 0 0 0\n", "cannot map this skeleton"),
+        ("bvh_duplicate_joints", good_bvh.replace("JOINT left_knee", "JOINT Left_Hip"), "joint names repeat"),
         ("bvh_nan", good_bvh.replace("0.000000", "nan", 1), "not finite"),
         ("bvh_channels", good_bvh.replace("CHANNELS 3", "CHANNELS 9", 1), "channel count"),
     ):
         motionfile(name, ".bvh", lambda p, t=text: p.write_text(t), words)
+
+    # MakeHuman bindings, through `garment fit`
+    mh_src = ROOT / "samples" / "garments" / "makehuman"
+    fit_out = d / "FIT_OUT.obj"
+    good_mhclo = (mh_src / "skirt_short_f.mhclo").read_text()
+    shutil.copy(mh_src / "skirt_short_f.obj", d / "skirt_short_f.obj")
+
+    def mhclo(name, text, words):
+        p = d / f"{name}.mhclo"
+        p.write_text(text.replace("obj_file skirt_short_f.obj", "obj_file skirt_short_f.obj"))
+        cases.append((f"mhclo/{name}", ["garment", "fit", str(p), "-o", str(fit_out)], words, fit_out))
+
+    mhclo("other_basemesh", good_mhclo.replace("basemesh hm08", "basemesh hm07"), "only hm08")
+    mhclo("short_line", good_mhclo.replace("verts 0", "verts 0\n12 13 0.5 0.5", 1), "1, 6 or 9 numbers")
+    mhclo("not_a_number", good_mhclo.replace("verts 0", "verts 0\n12 13 14 0.5 x 0.5 0 0 0", 1), "expected a number")
+    mhclo("no_bindings", good_mhclo.split("verts 0")[0], "no binding lines")
+    mhclo("index_out_of_range", good_mhclo.replace("verts 0", "verts 0\n99999 1 2 0.3 0.3 0.4 0 0 0", 1),
+          "does not have")
+    mhclo("obj_missing", good_mhclo.replace("obj_file skirt_short_f.obj", "obj_file nowhere.obj"), "nowhere.obj")
+    mhclo("count_mismatch", good_mhclo.replace("verts 0", "verts 0\n12 13 14 0.3 0.3 0.4 0 0 0", 1),
+          "different vertex counts")
+    mhclo("backwards_range", good_mhclo.replace("delete_verts", "delete_verts\n20 - 10"), "runs backwards")
 
     scene_out = d / "SCENE_OUT.pc2"
     pkg_arg = ["--model", str(package)] if package else []

@@ -20,7 +20,7 @@ results = []
 for name, args, words, out in build(sys.argv[1], sys.argv[2] if sys.argv[2] != "-" else None):
     r = CliRunner().invoke(cli, args)
     results.append({"name": name, "code": r.exit_code, "output": r.output, "exc": repr(r.exception) if r.exception and not isinstance(r.exception, SystemExit) else None,
-                    "words": words, "out_exists": bool(out) and __import__("pathlib").Path(out).exists(), "file": args[1] if args[0] not in ("body", "motion") else args[2]})
+                    "words": words, "out_exists": bool(out) and __import__("pathlib").Path(out).exists(), "file": args[1] if args[0] not in ("body", "motion", "garment") else args[2]})
 print(json.dumps(results))
 """
 
@@ -57,7 +57,7 @@ def test_messages_name_the_file(tmp_path, random_package):
 
     for name, args, words, out in cases:
         r = CliRunner().invoke(cli, args)
-        target = args[1] if args[0] not in ("body", "motion") else args[2]
+        target = args[1] if args[0] not in ("body", "motion", "garment") else args[2]
         if name.startswith("package/"):  # the package (or the file inside it) is at fault
             target = args[args.index("--model") + 1]
         if name == "scene/garment_missing_file":  # the scene names a garment that does not exist
