@@ -110,9 +110,14 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, mode
                            hidden=not interactive) as bar:
         summary = run_scene(sc, model=model, output=output, batch=batch, threads=threads, providers=prov,
                             progress=bar.update if interactive else None, cache=not no_cache, force=force)
-    extra = f", body -> {summary.body_output}" if summary.body_output else ""
-    click.echo(f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame ({summary.effects.label()}, "
-               f"{summary.variant}) -> {summary.output}{extra}")
+    off = summary.effects.off()
+    click.echo(f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame (effects {summary.effects.label()}"
+               f"{'; off: ' + ', '.join(off) if off else ''}; graph {summary.variant})")
+    click.echo(f"  wrote {summary.output}")
+    if summary.body_output:
+        click.echo(f"  wrote {summary.body_output}")
+        if summary.output_format == "pc2":
+            click.echo(f"  wrote {summary.body_output.with_suffix('.obj')} (the body's rest mesh the cache animates)")
 
 
 @cli.command("info")

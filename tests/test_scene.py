@@ -63,3 +63,26 @@ def test_effects_flags():
     assert e == Effects(skinning="dqs", wrinkles=False, collisions=False)
     with pytest.raises(FileFormatError, match="unknown effect"):
         parse_effects("sparkles")
+
+
+def test_effects_not_named_are_off(tmp_path):
+    base = '[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\n[output]\npath = "o.pc2"\n'
+    s = load_scene(write(tmp_path, base + '[effects]\nskinning = "lbs"\ncollisions = true\n'))
+    assert s.effects == Effects(skinning="lbs", dynamics=False, wrinkles=False, collisions=True)
+    assert s.effects.off() == ["dynamics", "wrinkles"] and s.effects.label() == "lbs+collisions"
+    s = load_scene(write(tmp_path, base + '[effects]\n'))
+    assert s.effects == Effects(dynamics=False, wrinkles=False, collisions=False)
+    from segadeform.scene import DEFAULT_EFFECTS
+
+    assert load_scene(write(tmp_path, base)).effects == DEFAULT_EFFECTS == Effects()
+
+
+def test_cli_effects_complete_list_or_changes():
+    assert parse_effects("dqs,collisions") == Effects(skinning="dqs", dynamics=False, wrinkles=False, collisions=True)
+    assert parse_effects("dynamics") == Effects(dynamics=True, wrinkles=False, collisions=False)
+    base = Effects(skinning="dqs", dynamics=True, wrinkles=False, collisions=True, collision_margin=0.01)
+    assert parse_effects("-collisions,+wrinkles", base) == Effects(skinning="dqs", wrinkles=True, collisions=False,
+                                                                   collision_margin=0.01)
+    assert parse_effects("lbs,collisions", base).collision_margin == 0.01
+    with pytest.raises(FileFormatError, match="mix a complete list"):
+        parse_effects("collisions,-wrinkles")

@@ -62,6 +62,7 @@ class RunSummary:
     seconds: float
     output: Path
     body_output: Optional[Path]
+    output_format: str
     effects: Effects
     variant: str
     sessions: list
@@ -103,9 +104,10 @@ class Run:
         self.body_output = Path(body_output) if body_output else None
         self.batch, self.cache, self.force = int(batch), cache, bool(force)
         a, b = frames if frames else (0, None)
-        b = motion.n_frames if b is None else min(b, motion.n_frames)
-        if not 0 <= a < b:
-            raise InputError("frame range is empty for this motion", expected=f"A < B <= {motion.n_frames}", got=(a, b))
+        b = motion.n_frames if b is None else b
+        if not 0 <= a < b <= motion.n_frames:
+            raise InputError(f"frame range {a}:{b} is outside the motion's {motion.n_frames} frames",
+                             expected=f"0 <= A < B <= {motion.n_frames}", got=f"{a}:{b}")
         self.start, self.stop = a, b
         self.deformer = Deformer(package, effects)  # picks the variant; creates no session yet
 
@@ -206,7 +208,7 @@ class Run:
                 body_writer.abort()
             raise
         return RunSummary(frames=self.stop - self.start, seconds=time.perf_counter() - t_all, output=self.output,
-                          body_output=self.body_output, effects=self.effects, variant=self.deformer.variant,
+                          body_output=self.body_output, output_format=self.output_format, effects=self.effects, variant=self.deformer.variant,
                           sessions=sorted(self.package.created), pushed_vertices=pushed, stage_seconds=stage)
 
 

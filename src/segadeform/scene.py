@@ -28,13 +28,13 @@ are required; relative paths are relative to the scene file)::
     path = "../../out/skirt.pc2"
     format = "pc2"                 # pc2 | obj-seq | xdmf | abc (default: from the extension; abc needs
                                    # the 'alembic' extra)
-    up = "y"                       # y (as computed) | z (Blender's OBJ-import convention)
+    up = "y"                       # y (as computed; what Blender's Mesh Cache on an imported OBJ wants) | z
     body = "../../out/body.pc2"    # optional: the posed body too, same format
 
-    [effects]
+    [effects]                      # what is not named is off (skinning: lbs); no table: every effect on
     skinning = "lbs"               # lbs | dqs
-    dynamics = true                # temporal weights from the motion window (false: current pose only)
-    wrinkles = true                # the blend-shape decoder (false: B = 0)
+    dynamics = true                # temporal weights from the motion window (off: current pose only)
+    wrinkles = true                # the blend-shape decoder (off: B = 0)
     collisions = true              # push vertices out of the body (post-process)
     collision_margin = 0.004       # metres kept between garment and body skin
 
@@ -44,6 +44,15 @@ are required; relative paths are relative to the scene file)::
 
 Unknown tables or keys are errors, as are wrong types and out-of-range values,
 each naming the scene file and the key.
+
+**Effects: what is not named is off.**  The ``[effects]`` table runs the
+skinning it names (``lbs`` when it names none) and exactly the effects it sets
+to true; ``[simulate]`` works the same way for the simulator.  A scene without
+an ``[effects]`` table gets :data:`DEFAULT_EFFECTS`: LBS with dynamics,
+wrinkles and collisions (the full model).  On the command line,
+``--effects dqs,collisions`` is a complete list in the same sense, while
+``--effects=-wrinkles`` or ``+collisions`` (every item signed) changes the
+scene's set (:func:`parse_effects`).
 """
 
 from __future__ import annotations
@@ -57,7 +66,8 @@ from ._toml import read_toml
 from .errors import FileFormatError
 
 
-__all__ = ["Y_TO_Z", "Effects", "MotionSpec", "Scene", "load_scene", "parse_effects", "build_motion", "SEQUENCE_FORMAT_BY_EXT"]
+__all__ = ["Y_TO_Z", "Effects", "DEFAULT_EFFECTS", "MotionSpec", "Scene", "load_scene", "parse_effects", "build_motion",
+           "SEQUENCE_FORMAT_BY_EXT"]
 
 #: y-up -> z-up as Blender's OBJ importer converts by default (forward -Z, up Y): (x, y, z) -> (x, -z, y);
 #: rows act on column vectors, so row-vector points map as ``p @ Y_TO_Z.T``
@@ -85,6 +95,15 @@ class Effects:
     def label(self) -> str:
         on = [self.skinning] + [n for n in ("dynamics", "wrinkles", "collisions") if getattr(self, n)]
         return "+".join(on)
+
+    def off(self) -> list[str]:
+        """The effects this set leaves off."""
+        return [n for n in ("dynamics", "wrinkles", "collisions") if not getattr(self, n)]
+
+
+#: the effects of a scene without an ``[effects]`` table (and of the command line's flag form)
+DEFAULT_EFFECTS = Effects()
+_EFFECT_NAMES = ("dynamics", "wrinkles", "collisions")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -148,19 +167,34 @@ def parse_frames(text: str, *, where=None) -> tuple[int, Optional[int]]:
     return a, b
 
 
-def parse_effects(text: str, base: Effects = Effects()) -> Effects:
-    """Parse a CLI effects list like ``"dqs,-wrinkles,collisions"`` (``-name`` turns one off)."""
+def parse_effects(text: str, base: Effects = DEFAULT_EFFECTS) -> Effects:
+    """Parse a CLI effects list.
+
+    * every item unsigned (``"dqs,collisions"``): exactly these -- what is not named is off, the
+      skinning is the one named (lbs if none); ``collision_margin`` is kept from ``base``;
+    * every item signed (``"-wrinkles,+collisions"``, ``"dqs,-wrinkles"``: ``lbs``/``dqs`` may join
+      either form): ``base`` with those effects switched on or off.
+    """
+    items = [t.strip() for t in text.split(",") if t.strip()]
     kw = dataclasses.asdict(base)
-    for item in [t.strip() for t in text.split(",") if t.strip()]:
+    named = [i for i in items if i not in ("lbs", "dqs")]
+    signed = [i[0] in "+-" for i in named]
+    if named and any(signed) and not all(signed):
+        raise FileFormatError("effects mix a complete list with changes", got=text,
+                              expected="either names only (dqs,collisions: the rest off) or signed "
+                                       "changes only (-wrinkles,+collisions)")
+    exact = not any(signed)
+    if exact:
+        kw.update({n: False for n in _EFFECT_NAMES}, skinning="lbs")
+    for item in items:
         if item in ("lbs", "dqs"):
             kw["skinning"] = item
             continue
-        on = not item.startswith("-")
         name = item.lstrip("-+")
-        if name not in ("dynamics", "wrinkles", "collisions"):
-            raise FileFormatError("unknown effect", expected="lbs | dqs | [-]dynamics | [-]wrinkles | [-]collisions",
-                                  got=item)
-        kw[name] = on
+        if name not in _EFFECT_NAMES:
+            raise FileFormatError("unknown effect", expected="lbs | dqs | [+-]dynamics | [+-]wrinkles | "
+                                                             "[+-]collisions", got=item)
+        kw[name] = not item.startswith("-")
     return Effects(**kw)
 
 
@@ -236,11 +270,14 @@ def load_scene(path: str | os.PathLike) -> Scene:
     betas = data.get("body", {}).get("betas", [])
     if not all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in betas):
         raise FileFormatError("body.betas must be a list of numbers", path=p, got=betas)
-    eff = data.get("effects", {})
-    try:
-        effects = Effects(**{k: (float(v) if k == "collision_margin" else v) for k, v in eff.items()})
-    except ValueError as e:
-        raise FileFormatError(f"[effects]: {e}", path=p) from None
+    if "effects" in data:  # what is not named is off
+        eff = dict({n: False for n in _EFFECT_NAMES}, **data["effects"])
+        try:
+            effects = Effects(**{k: (float(v) if k == "collision_margin" else v) for k, v in eff.items()})
+        except ValueError as e:
+            raise FileFormatError(f"[effects]: {e}", path=p) from None
+    else:
+        effects = DEFAULT_EFFECTS
     from .physics.settings import parse_simulate_table
 
     sim = parse_simulate_table(data["simulate"], where=p) if "simulate" in data else None

@@ -41,9 +41,10 @@ def simulate_scene(scene: Scene, *, output: Optional[Path] = None, settings: Opt
     motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
     if scene.motion.frames:
         a, b = scene.motion.frames
-        b = motion.n_frames if b is None else min(b, motion.n_frames)
-        if not 0 <= a < b:
-            raise InputError("frame range is empty for this motion", expected=f"A < B <= {motion.n_frames}", got=(a, b))
+        b = motion.n_frames if b is None else b
+        if not 0 <= a < b <= motion.n_frames:
+            raise InputError(f"frame range {a}:{b} is outside the motion's {motion.n_frames} frames",
+                             expected=f"0 <= A < B <= {motion.n_frames}", got=f"{a}:{b}")
         motion = dataclasses.replace(motion, poses=motion.poses[a:b], trans=motion.trans[a:b])
         start = a
     else:
