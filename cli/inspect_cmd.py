@@ -10,6 +10,28 @@ import numpy as np
 from .main import cli
 
 
+def _frames_summary(path, frames: np.ndarray) -> None:
+    """Bounds, a NaN check and the motion per frame of a (S, N, 3) sequence; NaN/inf is an error."""
+    from segadeform.errors import FileFormatError
+
+    bad = ~np.isfinite(frames).all(axis=(1, 2))
+    if bad.any():
+        idx = np.flatnonzero(bad)
+        raise FileFormatError(f"{int((~np.isfinite(frames)).sum())} values are NaN or inf, in {len(idx)} frames "
+                              f"({', '.join(map(str, idx[:8]))}{' ...' if len(idx) > 8 else ''})", path=path)
+    lo, hi = frames.reshape(-1, 3).min(0).astype(float), frames.reshape(-1, 3).max(0).astype(float)
+    click.echo(f"  bounds {np.round(lo, 4).tolist()} .. {np.round(hi, 4).tolist()} (all frames); NaN/inf: none")
+    if len(frames) > 1:
+        step = np.linalg.norm(np.diff(frames, axis=0), axis=2)  # (S-1, N)
+        c = frames.mean(axis=1).astype(float)
+        click.echo(f"  motion per frame: mean {1e3 * step.mean():.2f} mm, largest {1e3 * step.max():.2f} mm "
+                   f"(frame {int(np.unravel_index(step.argmax(), step.shape)[0]) + 1}); centroid travels "
+                   f"{np.round(np.ptp(c, axis=0), 4).tolist()} m (x, y, z range)")
+        still = int((step.max(axis=1) == 0).sum())
+        if still:
+            click.echo(f"  {still} frames identical to the one before")
+
+
 @cli.command("inspect")
 @click.argument("path", type=click.Path(path_type=Path))
 def inspect_cmd(path):
@@ -32,21 +54,24 @@ def inspect_cmd(path):
 
             faces, frames = read_obj_sequence(path)
             click.echo(f"{path}: OBJ sequence, {frames.shape[0]} frames x {frames.shape[1]} vertices, {len(faces)} faces")
+            _frames_summary(path, frames)
         return
     if not path.exists():
         raise FileFormatError("no such file", path=path)
     if ext == ".pc2":
         from segadeform.io import read_pc2
 
-        pc = read_pc2(path, check_finite=True)
+        pc = read_pc2(path, check_finite=False)
         h = pc.header
         click.echo(f"{path}: PC2, {h.num_samples} samples x {h.num_points} points, start frame {h.start_frame:g}, "
                    f"sample rate {h.sample_rate:g}")
+        _frames_summary(path, np.asarray(pc.frames))
     elif ext in (".xdmf", ".xmf", ".abc"):
         from segadeform.io import read_sequence
 
         fr = read_sequence(path)
         click.echo(f"{path}: sequence, {fr.shape[0]} frames x {fr.shape[1]} vertices")
+        _frames_summary(path, np.asarray(fr))
     elif ext == ".bvh":
         from segadeform.motion import load_motion
 

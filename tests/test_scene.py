@@ -19,7 +19,7 @@ def test_sample_scenes_parse():
     assert s.garment == (SAMPLES / "garments" / "skirt.obj").resolve()
     assert s.effects == Effects() and s.output_format == "pc2"
     d = load_scene(SAMPLES / "scenes" / "skirt_dance_dqs.toml")
-    assert d.effects.skinning == "dqs" and not d.effects.wrinkles and d.up == "z" and d.output_format == "obj-seq"
+    assert d.effects.skinning == "dqs" and not d.effects.wrinkles and d.up == "y" and d.output_format == "obj-seq"
 
 
 def test_minimal_scene_defaults(tmp_path):

@@ -21,9 +21,10 @@ __all__ = ["MeshLayer", "render", "save_image", "save_animation", "view_rotation
 
 
 class MeshLayer:
-    """One mesh to draw: vertices (V, 3), faces (F, 3), an RGB colour in 0..1, optional alpha."""
+    """One mesh to draw: vertices (V, 3), faces (F, 3), an RGB colour in 0..1, optional alpha, and a
+    depth bias (metres towards the camera, for sorting only: cloth a few mm over skin wins the tie)."""
 
-    def __init__(self, vertices, faces, color=(0.8, 0.8, 0.8), alpha: float = 1.0):
+    def __init__(self, vertices, faces, color=(0.8, 0.8, 0.8), alpha: float = 1.0, depth_bias: float = 0.0):
         v = np.asarray(vertices, np.float64)
         f = np.asarray(faces, np.int64)
         if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
@@ -35,6 +36,7 @@ class MeshLayer:
         self.vertices, self.faces = v, f
         self.color = np.asarray(color, np.float64)
         self.alpha = float(alpha)
+        self.depth_bias = float(depth_bias)
 
 
 def view_rotation(azimuth_deg: float, elevation_deg: float = 10.0) -> np.ndarray:
@@ -74,7 +76,7 @@ def render(layers: Sequence[MeshLayer], *, azimuth: float = 0.0, elevation: floa
         rgb = np.clip(layer.color[None] * shade[:, None], 0, 1)
         polys.append(tri[:, :, :2])
         colors.append(np.concatenate([rgb, np.full((len(rgb), 1), layer.alpha)], axis=1))
-        depth.append(tri[:, :, 2].mean(axis=1))
+        depth.append(tri[:, :, 2].mean(axis=1) + layer.depth_bias)
     if not polys:
         raise InputError("nothing to render")
     P = np.concatenate(polys)
