@@ -39,7 +39,8 @@ def _fmt_from(path: Path, fmt: str | None) -> str:
 @click.option("--providers", help="Comma-separated onnxruntime providers, or 'auto' (default: CPU).")
 @click.option("--body-out", type=click.Path(path_type=Path), help="Also write the posed body sequence here.")
 @click.option("--up", type=click.Choice(["y", "z"]), help="Up axis of the written coordinates (default y).")
-@click.option("--no-cache", is_flag=True, help="Do not write precompute/encoder caches next to the garment.")
+@click.option("--no-cache", is_flag=True, help="Do not use the user cache of precompute/encoder results "
+              "($SEGADEFORM_CACHE_DIR or the platform's cache folder).")
 @click.option("--motion-up", type=click.Choice(["auto", "y", "z"]),
               help="Up axis of the motion file (default auto; AMASS is z-up).")
 @click.option("--units", help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).")

@@ -41,3 +41,18 @@ def random_model(tmp_path_factory):
 @pytest.fixture(scope="session")
 def random_package(random_model):
     return random_model[1]
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _user_cache(tmp_path_factory):
+    """The suite's runs cache into a folder of its own, never the user's cache."""
+    import os
+
+    d = tmp_path_factory.mktemp("user-cache")
+    old = os.environ.get("SEGADEFORM_CACHE_DIR")
+    os.environ["SEGADEFORM_CACHE_DIR"] = str(d)
+    yield d
+    if old is None:
+        os.environ.pop("SEGADEFORM_CACHE_DIR", None)
+    else:
+        os.environ["SEGADEFORM_CACHE_DIR"] = old

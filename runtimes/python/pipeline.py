@@ -87,7 +87,7 @@ class Run:
         output / output_format / up / body_output: where and how to write.
         frames: ``(start, stop)`` of the motion, stop exclusive (None: to the end).
         batch: frames per deformer call.
-        cache: write precompute/encoder caches next to the garment file.
+        cache: keep precompute/encoder results in the user cache (:mod:`segadeform.cache`).
         force: animate a garment that does not sit on the body (see
             :func:`segadeform.garments.fit.check_placement`) instead of refusing it.
     """
@@ -112,7 +112,11 @@ class Run:
         self.deformer = Deformer(package, effects)  # picks the variant; creates no session yet
 
     def _cache_dir(self) -> Optional[Path]:
-        return self.garment.parent / ".segadeform-cache" if self.cache else None
+        if not self.cache:
+            return None
+        from segadeform.cache import cache_dir
+
+        return cache_dir()
 
     def load_asset(self, joints: np.ndarray) -> GarmentAsset:
         if self.garment.suffix.lower() == ".npz":
@@ -195,6 +199,10 @@ class Run:
                     progress(hi - lo)
             t = time.perf_counter()
             writer.close()
+            if self.cache:
+                from segadeform.cache import prune
+
+                prune()
             if body_writer is not None:
                 body_writer.close()
                 if self.output_format == "pc2":  # the rest mesh the cache animates, for Blender's Mesh Cache

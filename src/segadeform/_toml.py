@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .errors import FileFormatError
+from .errors import FileFormatError, file_error
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -21,7 +21,7 @@ def read_toml(path, what: str) -> tuple[dict, str]:
     try:
         raw = p.read_bytes()
     except OSError as e:
-        raise FileFormatError(f"cannot read {what}: {e.strerror or e}", path=p) from None
+        raise file_error(e, p, what) from None
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:

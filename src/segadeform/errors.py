@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["SegadeformError", "InputError", "FileFormatError", "SimulationError"]
+__all__ = ["SegadeformError", "InputError", "FileFormatError", "SimulationError", "file_error"]
 
 
 class SegadeformError(Exception):
@@ -76,3 +76,15 @@ class FileFormatError(InputError):
 
 class SimulationError(SegadeformError):
     """The cloth simulator failed or is not installed; the message says which and how to fix it."""
+
+
+def file_error(e: OSError, path, what: str = "file") -> "FileFormatError":
+    """The one wording for a file that cannot be opened: ``no such file``, ``is a directory``,
+    ``permission denied``, else ``cannot read {what}: {reason}``."""
+    if isinstance(e, FileNotFoundError):
+        return FileFormatError("no such file", path=path)
+    if isinstance(e, IsADirectoryError):
+        return FileFormatError("is a directory, not a file", path=path)
+    if isinstance(e, PermissionError):
+        return FileFormatError("permission denied", path=path)
+    return FileFormatError(f"cannot read {what}: {e.strerror or e}", path=path)

@@ -122,8 +122,21 @@ def test_empty_or_binary_obj(tmp_path, text, words):
 
 
 def test_missing_file_is_a_clear_error(tmp_path):
-    with pytest.raises(FileFormatError, match="cannot read file"):
-        read_obj(tmp_path / "nope.obj")
+    """One wording for a missing file, whatever reads it."""
+    from segadeform.body import load_body
+    from segadeform.garments.fit import read_mhclo
+    from segadeform.io import read_mesh, read_off, read_pc2
+    from segadeform.motion import load_motion
+    from segadeform.scene import load_scene
+
+    for reader, name in ((read_obj, "nope.obj"), (read_off, "nope.off"), (read_pc2, "nope.pc2"),
+                         (read_mesh, "nope.ply"), (load_motion, "nope.bvh"), (load_motion, "nope.npz"),
+                         (load_body, "nope.npz"), (load_scene, "nope.toml"), (read_mhclo, "nope.mhclo")):
+        with pytest.raises(FileFormatError, match=r"nope\.\w+: no such file$"):
+            reader(tmp_path / name)
+    (tmp_path / "d.obj").mkdir()
+    with pytest.raises(FileFormatError, match="is a directory"):
+        read_obj(tmp_path / "d.obj")
 
 
 def test_write_read_round_trip(tmp_path):

@@ -27,7 +27,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..errors import FileFormatError, InputError
+from ..errors import FileFormatError, InputError, file_error
 
 __all__ = ["MhcloBinding", "read_mhclo", "fit_mhclo", "fix_units_and_axes", "UNIT_SCALES", "rewrite_obj_vertices",
            "FitReport", "placement_report", "push_off_body", "fit_to_body_mesh", "BodyFit", "check_placement",
@@ -77,7 +77,7 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
     except UnicodeDecodeError:
         raise FileFormatError("not UTF-8 text", path=p) from None
     except OSError as e:
-        raise FileFormatError(f"cannot read file: {e.strerror or e}", path=p) from None
+        raise file_error(e, p) from None
     name, obj_file, basemesh = p.stem, None, "hm08"
     scales: dict = {}
     verts, weights, offsets = [], [], []

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError
+from ..errors import FileFormatError, file_error
 from .atomic import atomic_open
 from .mesh import Mesh, validate_mesh_arrays
 
@@ -86,7 +86,7 @@ def read_obj(path: str | os.PathLike) -> Mesh:
     try:
         data = p.read_bytes()
     except OSError as e:
-        raise FileFormatError(f"cannot read file: {e.strerror or e}", path=p) from None
+        raise file_error(e, p) from None
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError:

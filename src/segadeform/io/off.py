@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError
+from ..errors import FileFormatError, file_error
 from .mesh import Mesh, validate_mesh_arrays
 
 __all__ = ["read_off"]
@@ -27,7 +27,7 @@ def read_off(path: str | os.PathLike) -> Mesh:
     try:
         text = p.read_bytes().decode("utf-8", errors="replace")
     except OSError as e:
-        raise FileFormatError(f"cannot read file: {e.strerror or e}", path=p) from None
+        raise file_error(e, p) from None
     lines = [(i, ln.split("#", 1)[0].split()) for i, ln in enumerate(text.splitlines(), start=1)]
     lines = [(i, t) for i, t in lines if t]
     if not lines or not lines[0][1][0].endswith("OFF"):

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError, InputError
+from ..errors import FileFormatError, InputError, file_error
 from .atomic import _tmp_sibling
 
 __all__ = ["PC2_HEADER", "PC2_MAGIC", "PC2Header", "PointCache", "PC2Writer",
@@ -63,7 +63,7 @@ def read_pc2_header(path: str | os.PathLike) -> PC2Header:
         with open(p, "rb") as fh:
             raw = fh.read(PC2_HEADER.size)
     except OSError as e:
-        raise FileFormatError(f"cannot read file: {e.strerror or e}", path=p) from None
+        raise file_error(e, p) from None
     if len(raw) < PC2_HEADER.size:
         raise FileFormatError("file too short for a PC2 header", path=p, expected="32 bytes", got=f"{len(raw)} bytes")
     magic, version, n_points, start, rate, n_samples = PC2_HEADER.unpack(raw)

@@ -39,7 +39,7 @@ from ..body.retarget import limb_scale, retarget_to_smpl
 from ..body.rotations import axis_angle_to_matrix, euler_to_matrix, matrix_to_axis_angle, matrix_to_euler
 from ..body.skeleton import SMPL_JOINT_NAMES, SMPL_PARENTS
 from ..body.skeleton_map import MIXAMO_TO_SMPL, SMPL_SHORT_NAMES, map_skeleton, read_joint_map
-from ..errors import FileFormatError, InputError
+from ..errors import FileFormatError, InputError, file_error
 from ..io.atomic import atomic_open
 from .motion import Motion
 
@@ -195,7 +195,7 @@ def read_bvh_skeleton(path: str | os.PathLike, *, up: str = "auto") -> BVHSkelet
     try:
         text = p.read_text(encoding="utf-8", errors="replace")
     except OSError as e:
-        raise FileFormatError(f"cannot read file: {e.strerror or e}", path=p) from None
+        raise file_error(e, p) from None
     joints, data, frame_time = _parse(text, p)
     nj, nf = len(joints), data.shape[0]
     local = np.broadcast_to(np.eye(3), (nf, nj, 3, 3)).copy()
