@@ -12,12 +12,18 @@ from .main import cli
 
 
 def _fmt_from(path: Path, fmt: str | None) -> str:
-    from segadeform.scene import SEQUENCE_FORMAT_BY_EXT
+    from segadeform.io import format_for_path
 
-    f = fmt or SEQUENCE_FORMAT_BY_EXT.get(path.suffix.lower())
+    f = fmt or getattr(format_for_path(path), "name", None)
     if f is None:
         raise click.UsageError(f"cannot tell the output format from {path.name!r}; pass --format")
     return f
+
+
+def _format_choice():
+    from segadeform.io import SEQUENCE_FORMATS
+
+    return click.Choice(list(SEQUENCE_FORMATS))
 
 
 @cli.command("run")
@@ -29,8 +35,8 @@ def _fmt_from(path: Path, fmt: str | None) -> str:
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz/.pkl (default: shipped body).")
 @click.option("--betas", help="Comma-separated body shape coefficients.")
 @click.option("--effects", help="e.g. 'dqs,-wrinkles,-collisions' (default: lbs, all effects on).")
-@click.option("--format", "fmt", type=click.Choice(["pc2", "obj-seq", "xdmf", "abc"]),
-              help="Output format (abc needs the 'alembic' extra).")
+@click.option("--format", "fmt", type=_format_choice(),
+              help="Output format (see segadeform.io.formats; abc needs the 'alembic' extra).")
 @click.option("--model", type=click.Path(file_okay=False, path_type=Path), help="Model package directory.")
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
 @click.option("--fps", type=float, help="Resample the motion to this frame rate.")
@@ -114,11 +120,8 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, mode
     off = summary.effects.off()
     click.echo(f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame (effects {summary.effects.label()}"
                f"{'; off: ' + ', '.join(off) if off else ''}; graph {summary.variant})")
-    click.echo(f"  wrote {summary.output}")
-    if summary.body_output:
-        click.echo(f"  wrote {summary.body_output}")
-        if summary.output_format == "pc2":
-            click.echo(f"  wrote {summary.body_output.with_suffix('.obj')} (the body's rest mesh the cache animates)")
+    for path in summary.written:
+        click.echo(f"  wrote {path}")
 
 
 @cli.command("info")

@@ -25,7 +25,8 @@ def simulate_cmd(scene, output, effects, material, quality, frames, sim_python):
     """Simulate SCENE.toml's garment on its body with Blender's cloth solver; write it like `run`."""
     from segadeform.physics import SimSettings
     from segadeform.physics.scene_sim import simulate_scene
-    from segadeform.scene import SEQUENCE_FORMAT_BY_EXT, load_scene, parse_frames
+    from segadeform.io import format_for_path
+    from segadeform.scene import load_scene, parse_frames
 
     sc = load_scene(scene)
     st = sc.simulate or SimSettings()
@@ -41,7 +42,7 @@ def simulate_cmd(scene, output, effects, material, quality, frames, sim_python):
     if frames:
         changes["motion"] = dataclasses.replace(sc.motion, frames=parse_frames(frames))
     if output is not None:
-        fmt = SEQUENCE_FORMAT_BY_EXT.get(output.suffix.lower())
+        fmt = getattr(format_for_path(output), "name", None)
         if fmt is None:
             raise click.UsageError(f"cannot tell the output format from {output.name!r}")
         changes["output_format"] = fmt
@@ -57,4 +58,6 @@ def simulate_cmd(scene, output, effects, material, quality, frames, sim_python):
     r = s.result
     click.echo(f"{s.frames} frames (+{r.preroll_frames} pre-roll), {r.seconds_per_frame:.3f} s/frame in Blender "
                f"{r.blender['blender_version']} ({', '.join(st.effects) or 'no effects'}; {st.material}, "
-               f"quality {st.quality}) -> {s.output}")
+               f"quality {st.quality})")
+    for path in s.written:
+        click.echo(f"  wrote {path}")

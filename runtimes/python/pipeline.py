@@ -30,18 +30,16 @@ from segadeform.errors import InputError
 from segadeform.garments.fit import check_placement
 from segadeform.geometry import GarmentAsset, precompute_garment
 from segadeform.geometry.asset import file_sha256
-from segadeform.io import open_sequence_writer, read_mesh, write_obj, Mesh
+from segadeform.io import SceneOutput, read_mesh
 from segadeform.motion import Motion, motion_windows
-from segadeform.scene import Y_TO_Z as _Y_TO_Z
 from segadeform.scene import Effects, Scene, build_motion  # noqa: F401  (build_motion re-exported)
 
 from .deformer import Deformer
 from .package import ModelPackage
 
-__all__ = ["Run", "RunSummary", "run_scene", "default_body_path", "default_model_path", "Y_TO_Z"]
+__all__ = ["Run", "RunSummary", "run_scene", "default_body_path", "default_model_path"]
 
 log = logging.getLogger(__name__)
-Y_TO_Z = np.array(_Y_TO_Z)  # see segadeform.scene.Y_TO_Z
 
 
 def _repo_samples() -> Path:
@@ -63,6 +61,7 @@ class RunSummary:
     output: Path
     body_output: Optional[Path]
     output_format: str
+    written: list
     effects: Effects
     variant: str
     sessions: list
@@ -156,15 +155,10 @@ class Run:
         P = self.deformer.encode(asset, joints, self.betas, cache_dir=self._cache_dir())
         stage["encode"] += time.perf_counter() - t
         need_body = self.effects.collisions or self.body_output is not None
-        rot = Y_TO_Z if self.up == "z" else None
-        fps = self.motion.fps
-        writer = open_sequence_writer(self.output, self.output_format, faces=asset.faces,
-                                      num_points=asset.n_vertices, fps=fps, start_frame=self.start,
-                                      rest=asset.vertices if rot is None else asset.vertices @ rot.T)
-        body_writer = None
-        if self.body_output is not None:
-            body_writer = open_sequence_writer(self.body_output, self.output_format, faces=self.body.faces,
-                                               num_points=self.body.n_vertices, fps=fps, start_frame=self.start)
+        out = SceneOutput(path=self.output, fmt=self.output_format, up=self.up, fps=self.motion.fps,
+                          start_frame=self.start, garment_faces=asset.faces, garment_rest=asset.vertices,
+                          body_path=self.body_output, body_faces=self.body.faces,
+                          body_rest=self.body.shaped_vertices(self.betas)[0] if self.body_output else None)
         pushed = 0
         proxy = None
         try:
@@ -191,32 +185,22 @@ class Run:
                     verts = fixed
                     stage["collisions"] += time.perf_counter() - t
                 t = time.perf_counter()
-                writer.write(verts if rot is None else verts @ rot.T)
-                if body_writer is not None:
-                    body_writer.write(posed if rot is None else posed @ rot.T)
+                out.write(verts, posed if self.body_output is not None else None)
                 stage["write"] += time.perf_counter() - t
                 if progress is not None:
                     progress(hi - lo)
             t = time.perf_counter()
-            writer.close()
+            written = out.close()
             if self.cache:
                 from segadeform.cache import prune
 
                 prune()
-            if body_writer is not None:
-                body_writer.close()
-                if self.output_format == "pc2":  # the rest mesh the cache animates, for Blender's Mesh Cache
-                    rest = self.body.shaped_vertices(self.betas)[0]
-                    write_obj(self.body_output.with_suffix(".obj"),
-                              Mesh(vertices=rest if rot is None else rest @ rot.T, faces=self.body.faces))
             stage["write"] += time.perf_counter() - t
         except BaseException:
-            writer.abort()
-            if body_writer is not None:
-                body_writer.abort()
+            out.abort()
             raise
         return RunSummary(frames=self.stop - self.start, seconds=time.perf_counter() - t_all, output=self.output,
-                          body_output=self.body_output, output_format=self.output_format, effects=self.effects, variant=self.deformer.variant,
+                          body_output=self.body_output, output_format=self.output_format, written=written, effects=self.effects, variant=self.deformer.variant,
                           sessions=sorted(self.package.created), pushed_vertices=pushed, stage_seconds=stage)
 
 

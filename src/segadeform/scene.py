@@ -66,14 +66,9 @@ from ._toml import read_toml
 from .errors import FileFormatError
 
 
-__all__ = ["Y_TO_Z", "Effects", "DEFAULT_EFFECTS", "MotionSpec", "Scene", "load_scene", "parse_effects", "build_motion",
-           "SEQUENCE_FORMAT_BY_EXT"]
+__all__ = ["Y_TO_Z", "Effects", "DEFAULT_EFFECTS", "MotionSpec", "Scene", "load_scene", "parse_effects", "build_motion"]
 
-#: y-up -> z-up as Blender's OBJ importer converts by default (forward -Z, up Y): (x, y, z) -> (x, -z, y);
-#: rows act on column vectors, so row-vector points map as ``p @ Y_TO_Z.T``
-Y_TO_Z = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
-
-SEQUENCE_FORMAT_BY_EXT = {".pc2": "pc2", ".xdmf": "xdmf", ".xmf": "xdmf", ".abc": "abc", "": "obj-seq"}
+from .io.writer import Y_TO_Z  # noqa: E402  (re-exported; the io layer owns the axis convention)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -261,9 +256,12 @@ def load_scene(path: str | os.PathLike) -> Scene:
     )
     out = data["output"]
     out_path = rel(out["path"])
-    fmt = out.get("format") or SEQUENCE_FORMAT_BY_EXT.get(out_path.suffix.lower())
-    if fmt not in ("pc2", "obj-seq", "xdmf", "abc"):
-        raise FileFormatError("output.format must be pc2, obj-seq, xdmf or abc", path=p, got=out.get("format", out_path.suffix))
+    from .io.formats import SEQUENCE_FORMATS, format_for_path
+
+    fmt = out.get("format") or getattr(format_for_path(out_path), "name", None)
+    if fmt not in SEQUENCE_FORMATS:
+        raise FileFormatError("output.format must be " + ", ".join(SEQUENCE_FORMATS), path=p,
+                              got=out.get("format", out_path.suffix))
     up = out.get("up", "y")
     if up not in ("y", "z"):
         raise FileFormatError("output.up must be 'y' or 'z'", path=p, got=up)

@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import FileFormatError, InputError
 from .atomic import _tmp_sibling
 from .mesh import validate_mesh_arrays
+from .writer import SequenceWriter
 
 __all__ = ["AlembicSequenceWriter", "read_alembic_sequence", "alembic_available"]
 
@@ -53,68 +54,44 @@ def _ints(imath, a: np.ndarray):
     return arr
 
 
-class AlembicSequenceWriter:
+class AlembicSequenceWriter(SequenceWriter):
     """Stream frames into an ``.abc`` file; the file appears when :meth:`close` succeeds."""
 
     def __init__(self, path: str | os.PathLike, faces: np.ndarray, num_points: int, *, fps: float = 30.0,
-                 start_frame: int = 0, name: str = "garment") -> None:
+                 start_frame: int = 0, name: str = "garment", up: str = "y") -> None:
+        super().__init__(path, num_points, up=up)
         Abc, AbcGeom, AbcCoreAbstract, self._imath = _modules()
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
         if not (np.isfinite(fps) and fps > 0):
             raise InputError("fps must be positive", got=fps)
-        self.path, self.num_points, self.num_samples = Path(path), int(num_points), 0
         self._tmp = _tmp_sibling(self.path, directory=False)
         self._archive = Abc.OArchive(str(self._tmp))
         ts = self._archive.addTimeSampling(AbcCoreAbstract.TimeSampling(1.0 / fps, start_frame / fps))
         self._schema = AbcGeom.OPolyMesh(self._archive.getTop(), name, ts).getSchema()
         self._sample = AbcGeom.OPolyMeshSchemaSample
-        self._closed = False
 
-    def write(self, frames: np.ndarray) -> None:
-        a = np.asarray(frames)
-        if a.ndim == 2:
-            a = a[None]
-        if a.ndim != 3 or a.shape[1:] != (self.num_points, 3):
-            raise InputError("frames have the wrong shape", path=self.path,
-                             expected=f"(B, {self.num_points}, 3)", got=a.shape)
-        if not np.isfinite(a).all():
-            raise InputError("frames contain NaN or inf", path=self.path)
+    def _append(self, frames: np.ndarray) -> None:
         im = self._imath
-        for fr in a.astype(np.float32):
-            if self.num_samples == 0:
+        for k, fr in enumerate(frames.astype(np.float32)):
+            if self.num_samples + k == 0:
                 s = self._sample(_v3(im, fr), _ints(im, self.faces[:, ::-1].ravel()),
                                  _ints(im, np.full(len(self.faces), 3)))
             else:
                 s = self._sample(_v3(im, fr))
             self._schema.set(s)
-            self.num_samples += 1
 
     def _release(self) -> None:
         self._schema = None
         self._archive = None  # the archive is written out when its last reference goes
         gc.collect()
 
-    def close(self) -> Path:
-        if not self._closed:
-            if self.num_samples == 0:
-                self.abort()
-                raise InputError("no frames were written", path=self.path)
-            self._release()
-            os.replace(self._tmp, self.path)
-            self._closed = True
-        return self.path
+    def _commit(self) -> None:
+        self._release()
+        os.replace(self._tmp, self.path)
 
-    def abort(self) -> None:
-        if not self._closed:
-            self._release()
-            self._tmp.unlink(missing_ok=True)
-            self._closed = True
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        self.close() if exc_type is None else self.abort()
+    def _discard(self) -> None:
+        self._release()
+        self._tmp.unlink(missing_ok=True)
 
 
 def read_alembic_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

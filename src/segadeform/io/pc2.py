@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError, file_error
+from .writer import SequenceWriter
 from .atomic import _tmp_sibling
 
 __all__ = ["PC2_HEADER", "PC2_MAGIC", "PC2Header", "PointCache", "PC2Writer",
@@ -123,7 +124,7 @@ def read_pc2(path: str | os.PathLike, *, mmap: bool = True, check_finite: bool =
     return PointCache(header=h, frames=frames, path=str(p))
 
 
-class PC2Writer:
+class PC2Writer(SequenceWriter):
     """Stream frames into a PC2 file; the file appears (atomically) on :meth:`close`.
 
     Frames go to a temporary file beside the target; ``close`` patches
@@ -137,80 +138,46 @@ class PC2Writer:
                 w.write(batch)
     """
 
+    needs_frames = False  # a PC2 with zero samples is a valid file
+
     def __init__(self, path: str | os.PathLike, num_points: int, *, start_frame: float = 0.0,
-                 sample_rate: float = 1.0) -> None:
-        if int(num_points) <= 0:
-            raise InputError("num_points must be positive", got=num_points)
+                 sample_rate: float = 1.0, up: str = "y") -> None:
+        super().__init__(path, num_points, up=up)
         if not np.isfinite(start_frame):
             raise InputError("start_frame must be finite", got=start_frame)
         if not (np.isfinite(sample_rate) and sample_rate > 0):
             raise InputError("sample_rate must be finite and positive", got=sample_rate)
-        self.path = Path(path)
-        self.num_points = int(num_points)
         self.start_frame = float(start_frame)
         self.sample_rate = float(sample_rate)
-        self.num_samples = 0
         self._tmp = _tmp_sibling(self.path, directory=False)
         self._fh = open(self._tmp, "wb")
         self._fh.write(self._header())
-        self._closed = False
 
     def _header(self) -> bytes:
         return PC2_HEADER.pack(PC2_MAGIC, 1, self.num_points, self.start_frame, self.sample_rate, self.num_samples)
 
-    def write(self, frames: np.ndarray) -> None:
-        """Append ``(N, 3)`` or ``(B, N, 3)`` frames (cast to float32, must be finite)."""
-        if self._closed:
-            raise InputError("PC2Writer is closed")
-        a = np.asarray(frames)
-        if a.ndim == 2:
-            a = a[None]
-        if a.ndim != 3 or a.shape[1:] != (self.num_points, 3):
-            raise InputError("frames have the wrong shape", path=self.path,
-                             expected=f"(N, 3) or (B, N, 3) with N = {self.num_points}", got=a.shape)
-        a = np.ascontiguousarray(a, dtype=_FRAME_DTYPE)
-        if not np.isfinite(a).all():
-            raise InputError("frames contain NaN or inf", path=self.path)
-        self._fh.write(a.tobytes())
-        self.num_samples += a.shape[0]
+    def _append(self, frames: np.ndarray) -> None:
+        self._fh.write(np.ascontiguousarray(frames, dtype=_FRAME_DTYPE).tobytes())
 
-    def close(self) -> Path:
+    def write(self, frames: np.ndarray) -> None:
+        """Append ``(N, 3)`` or ``(B, N, 3)`` frames (cast to float32 first, then they must be finite)."""
+        a = np.asarray(frames)
+        super().write(a.astype(_FRAME_DTYPE) if np.issubdtype(a.dtype, np.number) else a)
+
+    def _commit(self) -> None:
         """Patch the header, flush, and move the file into place."""
-        if self._closed:
-            return self.path
         self._fh.seek(0)
         self._fh.write(self._header())
         self._fh.flush()
         os.fsync(self._fh.fileno())
         self._fh.close()
         os.replace(self._tmp, self.path)
-        self._closed = True
-        return self.path
 
-    def abort(self) -> None:
-        """Discard everything written; no output file is left."""
-        if self._closed:
-            return
+    def _discard(self) -> None:
         self._fh.close()
         try:
             self._tmp.unlink()
         except FileNotFoundError:
-            pass
-        self._closed = True
-
-    def __enter__(self) -> "PC2Writer":
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
-
-    def __del__(self):  # a writer dropped without close leaves nothing behind
-        try:
-            self.abort()
-        except Exception:
             pass
 
 

@@ -29,6 +29,7 @@ from ..errors import FileFormatError, InputError
 from .atomic import _tmp_sibling, atomic_path
 from .mesh import validate_mesh_arrays
 from .obj import read_obj, write_obj_positions
+from .writer import SequenceWriter, to_up
 
 __all__ = ["ObjSequenceWriter", "XdmfSequenceWriter", "read_obj_sequence", "read_xdmf_sequence",
            "write_obj_sequence", "write_xdmf_sequence"]
@@ -36,69 +37,38 @@ __all__ = ["ObjSequenceWriter", "XdmfSequenceWriter", "read_obj_sequence", "read
 _NUM = re.compile(r"(\d+)(?!.*\d)")
 
 
-def _check_batch(frames, n_points, path) -> np.ndarray:
-    a = np.asarray(frames)
-    if a.ndim == 2:
-        a = a[None]
-    if a.ndim != 3 or a.shape[1:] != (n_points, 3):
-        raise InputError("frames have the wrong shape", path=path,
-                         expected=f"(N, 3) or (B, N, 3) with N = {n_points}", got=a.shape)
-    if not np.isfinite(a).all():
-        raise InputError("frames contain NaN or inf", path=path)
-    return a
-
-
-class ObjSequenceWriter:
+class ObjSequenceWriter(SequenceWriter):
     """Write frames as ``DIR/{prefix}_{i:05d}.obj``; the folder appears on close."""
 
+    needs_frames = False
+
     def __init__(self, directory: str | os.PathLike, faces: np.ndarray, num_points: int, *,
-                 prefix: str = "frame", start: int = 0, precision: int = 9) -> None:
+                 prefix: str = "frame", start: int = 0, precision: int = 9, up: str = "y") -> None:
+        super().__init__(directory, num_points, up=up)
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
-        self.path = Path(directory)
         if self.path.exists() and not self.path.is_dir():
             raise InputError("output for an OBJ sequence must be a folder", path=self.path)
-        self.num_points = int(num_points)
         self.prefix, self.index, self.precision = prefix, int(start), precision
-        self.num_samples = 0
         self._tmp = _tmp_sibling(self.path, directory=True)
-        self._closed = False
 
-    def write(self, frames: np.ndarray) -> None:
-        for frame in _check_batch(frames, self.num_points, self.path):
+    def _append(self, frames: np.ndarray) -> None:
+        for frame in frames:
             write_obj_positions(self._tmp / f"{self.prefix}_{self.index:05d}.obj", self.faces, frame,
                                 precision=self.precision)
             self.index += 1
-            self.num_samples += 1
 
-    def close(self) -> Path:
-        if not self._closed:
-            if self.path.exists():
-                old = _tmp_sibling(self.path, directory=True)
-                old.rmdir()
-                os.replace(self.path, old)
-                os.replace(self._tmp, self.path)
-                shutil.rmtree(old, ignore_errors=True)
-            else:
-                os.replace(self._tmp, self.path)
-            self._closed = True
-        return self.path
+    def _commit(self) -> None:
+        if self.path.exists():
+            old = _tmp_sibling(self.path, directory=True)
+            old.rmdir()
+            os.replace(self.path, old)
+            os.replace(self._tmp, self.path)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(self._tmp, self.path)
 
-    def abort(self) -> None:
-        if not self._closed:
-            shutil.rmtree(self._tmp, ignore_errors=True)
-            self._closed = True
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        self.close() if exc_type is None else self.abort()
-
-    def __del__(self):
-        try:
-            self.abort()
-        except Exception:
-            pass
+    def _discard(self) -> None:
+        shutil.rmtree(self._tmp, ignore_errors=True)
 
 
 def write_obj_sequence(directory, faces, frames, **kw) -> Path:
@@ -147,36 +117,27 @@ def read_obj_sequence(directory: str | os.PathLike) -> tuple[np.ndarray, np.ndar
     return first.faces, frames
 
 
-class XdmfSequenceWriter:
+class XdmfSequenceWriter(SequenceWriter):
     """Collect frames and write an XDMF time series on close (see module notes)."""
 
     def __init__(self, path: str | os.PathLike, faces: np.ndarray, num_points: int, *,
-                 rest: np.ndarray | None = None, fps: float = 30.0, start: int = 0) -> None:
+                 rest: np.ndarray | None = None, fps: float = 30.0, start: int = 0, up: str = "y") -> None:
+        super().__init__(path, num_points, up=up)
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
-        self.path = Path(path)
-        self.num_points = int(num_points)
-        self.rest = None if rest is None else _check_batch(rest, num_points, path)[0].astype(np.float64)
+        self.rest = None if rest is None else to_up(self.check(rest)[0].astype(np.float64), up)
         if not (np.isfinite(fps) and fps > 0):
             raise InputError("fps must be positive", got=fps)
         self.fps, self.start = float(fps), int(start)
         self._frames: list[np.ndarray] = []
-        self.num_samples = 0
-        self._closed = False
 
-    def write(self, frames: np.ndarray) -> None:
-        a = _check_batch(frames, self.num_points, self.path)
+    def _append(self, frames: np.ndarray) -> None:
         if self.rest is None:
-            self.rest = a[0].astype(np.float64)
-        self._frames.extend(np.asarray(f, np.float32) for f in a)
-        self.num_samples += a.shape[0]
+            self.rest = frames[0].astype(np.float64)
+        self._frames.extend(np.asarray(f, np.float32) for f in frames)
 
-    def close(self) -> Path:
+    def _commit(self) -> None:
         import meshio
 
-        if self._closed:
-            return self.path
-        if not self._frames:
-            raise InputError("no frames were written", path=self.path)
         with atomic_path(self.path) as tmp:
             # meshio derives nothing from the name in XML mode; the suffix matters to readers only.
             with meshio.xdmf.TimeSeriesWriter(tmp, data_format="XML") as w:
@@ -185,18 +146,9 @@ class XdmfSequenceWriter:
                     disp = (fr.astype(np.float64) - self.rest).astype(np.float32)
                     w.write_data((self.start + i) / self.fps, point_data={"displacement": disp})
         self._frames.clear()
-        self._closed = True
-        return self.path
 
-    def abort(self) -> None:
+    def _discard(self) -> None:
         self._frames.clear()
-        self._closed = True
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        self.close() if exc_type is None else self.abort()
 
 
 def write_xdmf_sequence(path, faces, frames, *, rest=None, fps: float = 30.0) -> Path:

@@ -10,15 +10,12 @@ import numpy as np
 
 from ..body.model import default_body_path, load_body
 from ..errors import InputError
-from ..io import Mesh, open_sequence_writer, read_mesh, write_obj
-from ..scene import Y_TO_Z, Scene, build_motion
+from ..io import SceneOutput, read_mesh
+from ..scene import Scene, build_motion
 from .blender import SimResult, simulate
 from .settings import SimSettings
 
 __all__ = ["SimSummary", "simulate_scene"]
-
-_Y_TO_Z = np.array(Y_TO_Z)
-
 
 @dataclasses.dataclass
 class SimSummary:
@@ -27,6 +24,7 @@ class SimSummary:
     body_output: Optional[Path]
     settings: SimSettings
     result: SimResult
+    written: list = dataclasses.field(default_factory=list)
 
 
 def simulate_scene(scene: Scene, *, output: Optional[Path] = None, settings: Optional[SimSettings] = None,
@@ -55,28 +53,13 @@ def simulate_scene(scene: Scene, *, output: Optional[Path] = None, settings: Opt
     if not np.isfinite(res.frames).all():
         raise InputError("the simulation produced NaN or inf; try a higher quality")
     out = Path(output) if output is not None else scene.output
-    rot = _Y_TO_Z if scene.up == "z" else None
-    w = open_sequence_writer(out, scene.output_format, faces=mesh.faces, num_points=len(mesh.vertices),
-                             fps=motion.fps, start_frame=start,
-                             rest=mesh.vertices if rot is None else mesh.vertices @ rot.T)
-    try:
-        w.write(res.frames if rot is None else res.frames @ rot.T)
-        w.close()
-    except BaseException:
-        w.abort()
-        raise
-    if scene.body_output is not None:
-        posed = body.forward(motion.poses, scene.betas or None, motion.trans).vertices
-        bw = open_sequence_writer(scene.body_output, scene.output_format, faces=body.faces,
-                                  num_points=body.n_vertices, fps=motion.fps, start_frame=start)
-        try:
-            bw.write(posed if rot is None else posed @ rot.T)
-            bw.close()
-        except BaseException:
-            bw.abort()
-            raise
-        if scene.output_format == "pc2":
-            rest = body.shaped_vertices(scene.betas or None)[0]
-            write_obj(scene.body_output.with_suffix(".obj"),
-                      Mesh(vertices=rest if rot is None else rest @ rot.T, faces=body.faces))
-    return SimSummary(frames=motion.n_frames, output=out, body_output=scene.body_output, settings=st, result=res)
+    posed = body.forward(motion.poses, scene.betas or None, motion.trans).vertices \
+        if scene.body_output is not None else None
+    with SceneOutput(path=out, fmt=scene.output_format, up=scene.up, fps=motion.fps, start_frame=start,
+                     garment_faces=mesh.faces, garment_rest=mesh.vertices, body_path=scene.body_output,
+                     body_faces=body.faces,
+                     body_rest=body.shaped_vertices(scene.betas or None)[0] if posed is not None else None) as w:
+        w.write(res.frames, posed)
+        written = w.close()
+    return SimSummary(frames=motion.n_frames, output=out, body_output=scene.body_output, settings=st, result=res,
+                      written=written)

@@ -1,0 +1,159 @@
+"""The one home of the output (sequence) formats: name, extensions, writer and reader, registered by name.
+
+Scenes (``output.format``), the CLI (``--format``, ``inspect``, ``preview``) and the
+runtime and simulator all read this registry; adding a format is one
+:func:`register_sequence_format` call with a :class:`~segadeform.io.writer.SequenceWriter`
+subclass and a reader.
+
+=========  ==================  =====================================================  =========
+name       extensions          what                                                    extra
+=========  ==================  =====================================================  =========
+pc2        .pc2                point cache (3ds Max, Blender Mesh Cache, Houdini)
+obj-seq    (a folder)          one OBJ per frame, ``frame_00000.obj`` ...
+xdmf       .xdmf .xmf          XDMF time series (ParaView)
+abc        .abc                Alembic polygon mesh (Blender, Maya, Houdini)           alembic
+=========  ==================  =====================================================  =========
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["SequenceFormat", "SEQUENCE_FORMATS", "register_sequence_format", "sequence_format",
+           "format_for_path", "open_sequence_writer", "read_sequence"]
+
+
+@dataclasses.dataclass(frozen=True)
+class SequenceFormat:
+    """An output format.
+
+    Attributes:
+        name: what scenes and ``--format`` call it.
+        extensions: file extensions (lower case, with the dot); empty for a folder format.
+        open: ``open(path, *, faces, num_points, fps, start_frame, rest, up) -> SequenceWriter``.
+        read: ``read(path, faces) -> frames (S, N, 3)``.
+        description: one line for help texts.
+        extra: the optional dependency group it needs, if any.
+    """
+
+    name: str
+    extensions: tuple
+    open: Callable
+    read: Callable
+    description: str
+    extra: Optional[str] = None
+
+    @property
+    def folder(self) -> bool:
+        return not self.extensions
+
+
+SEQUENCE_FORMATS: dict[str, SequenceFormat] = {}
+
+
+def register_sequence_format(fmt: SequenceFormat) -> SequenceFormat:
+    if fmt.name in SEQUENCE_FORMATS:
+        raise InputError(f"sequence format {fmt.name!r} is already registered")
+    SEQUENCE_FORMATS[fmt.name] = fmt
+    return fmt
+
+
+def sequence_format(name: str) -> SequenceFormat:
+    """The format called ``name``; an error listing the known ones otherwise."""
+    try:
+        return SEQUENCE_FORMATS[name]
+    except KeyError:
+        raise InputError("unknown sequence format", expected=" | ".join(SEQUENCE_FORMATS), got=name) from None
+
+
+def format_for_path(path: str | os.PathLike) -> Optional[SequenceFormat]:
+    """The format a path's extension names (no extension: the folder format), or None."""
+    p = Path(path)
+    ext = p.suffix.lower()
+    for f in SEQUENCE_FORMATS.values():
+        if (ext and ext in f.extensions) or (not ext and f.folder):
+            return f
+    return None
+
+
+def open_sequence_writer(path, fmt: str, *, faces: np.ndarray, num_points: int, fps: float = 30.0,
+                         start_frame: int = 0, rest: np.ndarray | None = None, up: str = "y"):
+    """A streaming writer (:class:`~segadeform.io.writer.SequenceWriter`) for the format called ``fmt``."""
+    return sequence_format(fmt).open(path, faces=faces, num_points=num_points, fps=fps, start_frame=start_frame,
+                                     rest=rest, up=up)
+
+
+def read_sequence(path: str | os.PathLike, *, faces: np.ndarray | None = None) -> np.ndarray:
+    """Frames ``(S, N, 3)`` (float64) of any registered format, chosen by extension (a folder: OBJ sequence)."""
+    p = Path(path)
+    f = next(f for f in SEQUENCE_FORMATS.values() if f.folder) if p.is_dir() else format_for_path(p)
+    if f is None or (f.folder and not p.is_dir() and p.suffix):
+        known = ", ".join(e for f2 in SEQUENCE_FORMATS.values() for e in f2.extensions)
+        raise InputError("unknown sequence format", path=p, expected=f"{known} or a folder of OBJ frames",
+                         got=p.suffix or "none")
+    return np.asarray(f.read(p, faces), np.float64)
+
+
+# ---- the built-in formats ----------------------------------------------------------------------------------
+def _pc2_open(path, *, faces, num_points, fps, start_frame, rest, up):
+    from .pc2 import PC2Writer
+
+    return PC2Writer(path, num_points, start_frame=float(start_frame), sample_rate=1.0, up=up)
+
+
+def _pc2_read(path, faces):
+    from .pc2 import read_pc2
+
+    return read_pc2(path, check_finite=True).frames
+
+
+def _objseq_open(path, *, faces, num_points, fps, start_frame, rest, up):
+    from .sequence import ObjSequenceWriter
+
+    return ObjSequenceWriter(path, faces, num_points, start=start_frame, up=up)
+
+
+def _objseq_read(path, faces):
+    from .sequence import read_obj_sequence
+
+    return read_obj_sequence(path)[1]
+
+
+def _xdmf_open(path, *, faces, num_points, fps, start_frame, rest, up):
+    from .sequence import XdmfSequenceWriter
+
+    return XdmfSequenceWriter(path, faces, num_points, rest=rest, fps=fps, start=start_frame, up=up)
+
+
+def _xdmf_read(path, faces):
+    from .sequence import read_xdmf_sequence
+
+    return read_xdmf_sequence(path)[1]
+
+
+def _abc_open(path, *, faces, num_points, fps, start_frame, rest, up):
+    from .alembic import AlembicSequenceWriter
+
+    return AlembicSequenceWriter(path, faces, num_points, fps=fps, start_frame=start_frame, up=up)
+
+
+def _abc_read(path, faces):
+    from .alembic import read_alembic_sequence
+
+    return read_alembic_sequence(path)[1]
+
+
+register_sequence_format(SequenceFormat("pc2", (".pc2",), _pc2_open, _pc2_read,
+                                        "point cache (3ds Max, Blender Mesh Cache, Houdini)"))
+register_sequence_format(SequenceFormat("obj-seq", (), _objseq_open, _objseq_read, "a folder of OBJ frames"))
+register_sequence_format(SequenceFormat("xdmf", (".xdmf", ".xmf"), _xdmf_open, _xdmf_read,
+                                        "XDMF time series (ParaView)"))
+register_sequence_format(SequenceFormat("abc", (".abc",), _abc_open, _abc_read,
+                                        "Alembic polygon mesh (Blender, Maya, Houdini)", extra="alembic"))

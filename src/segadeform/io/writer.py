@@ -1,0 +1,126 @@
+"""The one lifecycle every streaming sequence writer shares, and the output axis convention.
+
+A :class:`SequenceWriter` takes frames ``(N, 3)`` or ``(B, N, 3)`` (finite, the right
+vertex count), optionally turns them from the package's +Y-up convention to +Z up,
+and hands them to its format's ``_append``; ``close`` commits the output (atomically:
+nothing appears under the final name before) and ``abort`` -- or leaving a ``with``
+block by an exception, or dropping the writer -- discards it.  A format subclasses
+it with ``_append``, ``_commit`` and ``_discard`` (and registers itself in
+:mod:`segadeform.io.formats`).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["SequenceWriter", "Y_TO_Z", "to_up"]
+
+#: +Y up -> +Z up as Blender's OBJ importer turns objects by default (forward -Z, up Y):
+#: (x, y, z) -> (x, -z, y).  Rows act on column vectors: row-vector points map as ``p @ Y_TO_Z.T``.
+Y_TO_Z = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
+
+
+def to_up(points: np.ndarray, up: str) -> np.ndarray:
+    """Points in the package's +Y-up convention, as written for ``up`` ("y": unchanged, "z": Z-up).
+
+    Shapes:
+        points: (..., 3) -> (..., 3)
+    """
+    if up == "y":
+        return points
+    if up == "z":
+        return np.asarray(points) @ np.array(Y_TO_Z).T
+    raise InputError("up must be 'y' or 'z'", got=up)
+
+
+class SequenceWriter:
+    """Base class of the streaming writers (see the module docstring).
+
+    Attributes:
+        path: the output; num_points: vertices per frame; num_samples: frames written so far.
+    """
+
+    #: a writer whose ``close`` needs at least one frame
+    needs_frames = True
+
+    def __init__(self, path: str | os.PathLike, num_points: int, *, up: str = "y") -> None:
+        if int(num_points) <= 0:
+            raise InputError("num_points must be positive", got=num_points)
+        if up not in ("y", "z"):
+            raise InputError("up must be 'y' or 'z'", got=up)
+        self.path = Path(path)
+        self.num_points = int(num_points)
+        self.num_samples = 0
+        self.up = up
+        self._closed = False
+
+    # ---- what a format provides ---------------------------------------------------------------
+    def _append(self, frames: np.ndarray) -> None:  # (B, N, 3) finite, already in the output axes
+        raise NotImplementedError
+
+    def _commit(self) -> None:
+        raise NotImplementedError
+
+    def _discard(self) -> None:
+        raise NotImplementedError
+
+    # ---- the shared lifecycle ---------------------------------------------------------------------
+    def check(self, frames: np.ndarray) -> np.ndarray:
+        """Frames as (B, N, 3), validated."""
+        a = np.asarray(frames)
+        if a.ndim == 2:
+            a = a[None]
+        if a.ndim != 3 or a.shape[1:] != (self.num_points, 3):
+            raise InputError("frames have the wrong shape", path=self.path,
+                             expected=f"(N, 3) or (B, N, 3) with N = {self.num_points}", got=a.shape)
+        if not np.isfinite(a).all():
+            raise InputError("frames contain NaN or inf", path=self.path)
+        return a
+
+    def write(self, frames: np.ndarray) -> None:
+        """Append ``(N, 3)`` or ``(B, N, 3)`` frames (+Y up; written in ``up``)."""
+        if self._closed:
+            raise InputError(f"{type(self).__name__} is closed", path=self.path)
+        a = self.check(frames)
+        self._append(to_up(a, self.up))
+        self.num_samples += a.shape[0]
+
+    def close(self) -> Path:
+        """Commit the output and return its path (idempotent)."""
+        if self._closed:
+            return self.path
+        if self.needs_frames and self.num_samples == 0:
+            self.abort()
+            raise InputError("no frames were written", path=self.path)
+        self._commit()
+        self._closed = True
+        return self.path
+
+    def abort(self) -> None:
+        """Discard everything written; no output is left."""
+        if self._closed:
+            return
+        try:
+            self._discard()
+        finally:
+            self._closed = True
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+    def __del__(self):  # a writer dropped without close leaves nothing behind
+        try:
+            self.abort()
+        except Exception:
+            pass
