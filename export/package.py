@@ -48,7 +48,8 @@ def graph_specs(cfg) -> dict:
                 {"name": "mask", "dtype": "bool", "shape": ["N", "K"]},
                 {"name": "joints", "dtype": "float32", "shape": ["B", s, 3]},
                 {"name": "trans", "dtype": "float32", "shape": ["B", 3]},
-            ],
+            ] + ([{"name": "log_wbody", "dtype": "float32", "shape": ["N", s]}]
+                 if getattr(cfg, "weights", "free") == "residual" else []),
             "outputs": [
                 {"name": "vertices", "dtype": "float32", "shape": ["B", "N", 3]},
                 {"name": "weights", "dtype": "float32", "shape": ["B", "N", s]},
@@ -80,6 +81,11 @@ def sample_inputs(cfg, graph: str, *, n: int, k: int, b: int, seed: int = 0) -> 
             out["window"] = (0.4 * rng.standard_normal(shape)).astype(np.float32)
         elif inp["name"] == "joints":
             out["joints"] = (np.random.default_rng(1).normal(size=(cfg.n_joints, 3)) * 0.3)[None].repeat(b, 0).astype(np.float32)
+        elif inp["name"] == "log_wbody":  # sparse body weights: a few joints per vertex, as on a real body
+            w = rng.dirichlet(np.full(cfg.n_joints, 0.3), size=n)
+            w[w < 0.05] = 0.0
+            w /= w.sum(axis=1, keepdims=True)
+            out["log_wbody"] = np.log(w + 1e-5).astype(np.float32)
         else:
             out[inp["name"]] = rng.standard_normal(shape).astype(_NP[inp["dtype"]])
     return out
@@ -104,7 +110,16 @@ def _wrappers(model):
         def forward(self, P, window, betas, rest, nbr, mask, joints, trans):
             return self.net.deformer(P, window, betas, rest, nbr, mask, joints, trans)
 
-    return {"garment_encoder": Encoder(model), "deformer": Deformer(model)}
+    class ResidualDeformer(torch.nn.Module):
+        def __init__(self, net):
+            super().__init__()
+            self.net = net
+
+        def forward(self, P, window, betas, rest, nbr, mask, joints, trans, log_wbody):
+            return self.net.deformer(P, window, betas, rest, nbr, mask, joints, trans, log_wbody)
+
+    dec = ResidualDeformer(model) if getattr(model, "residual", False) else Deformer(model)
+    return {"garment_encoder": Encoder(model), "deformer": dec}
 
 
 def _export_one(module, spec, inputs, path: Path, *, dynamo: bool) -> None:

@@ -52,6 +52,8 @@ class Deformer:
         self.n_joints = int(package.config["n_joints"])
         self._memory: dict[str, np.ndarray] = {}
         self.encoder_runs = 0
+        #: residual-weights models take the body's weights at the garment (``log_wbody``)
+        self.needs_body_weights = any(i["name"] == "log_wbody" for i in spec["inputs"])
 
     # ---- encoder -------------------------------------------------------
     def _betas(self, betas) -> np.ndarray:
@@ -117,13 +119,26 @@ class Deformer:
         return P
 
     # ---- deformer ------------------------------------------------------
+    def body_log_weights(self, asset: GarmentAsset, body, betas=None) -> np.ndarray:
+        """``log_wbody (N, S)``: the body's skinning weights at each garment vertex's closest point on the
+        rest body of shape ``betas`` (what residual-weights models start from), cached in memory."""
+        from segadeform.body.transfer import residual_log_weights, transfer_weights
+
+        b = self._betas(betas)
+        key = _digest(asset.vertices, b, extra="wbody" + str(id(body)))
+        if key not in self._memory:
+            rest = body.shaped_vertices(b[: body.n_betas])[0]
+            self._memory[key] = residual_log_weights(transfer_weights(asset.vertices, rest, body.faces, body.weights))
+        return self._memory[key]
+
     def deform(self, P: np.ndarray, asset: GarmentAsset, windows: np.ndarray, joints: np.ndarray, trans: np.ndarray,
-               betas=None, *, outputs: bool = False):
+               betas=None, *, outputs: bool = False, log_wbody: np.ndarray | None = None):
         """Deform a batch of frames.
 
         Shapes:
             P: (N, S, F_enc), windows: (B, T, 3 S) (T = the variant's window; window[:, 0] is
-            the current pose), joints: (S, 3) rest joints, trans: (B, 3)
+            the current pose), joints: (S, 3) rest joints, trans: (B, 3),
+            log_wbody: (N, S) for residual-weights models (:meth:`body_log_weights`)
             -> vertices (B, N, 3); with ``outputs=True`` also weights (B, N, S) and blend shapes (B, N, 3)
         """
         w = np.asarray(windows, np.float32)
@@ -133,8 +148,16 @@ class Deformer:
         bsz = w.shape[0]
         b = np.repeat(self._betas(betas)[None], bsz, axis=0)
         j = np.repeat(np.asarray(joints, np.float32)[None], bsz, axis=0)
-        out = self.package.run(self.variant, {
+        feeds = {
             "P": np.asarray(P, np.float32), "window": w, "betas": b, "rest": asset.vertices.astype(np.float32),
             "nbr": asset.nbr, "mask": asset.mask, "joints": j, "trans": np.asarray(trans, np.float32),
-        })
+        }
+        if self.needs_body_weights:
+            lw = None if log_wbody is None else np.asarray(log_wbody, np.float32)
+            if lw is None or lw.shape != (asset.n_vertices, self.n_joints) or not np.isfinite(lw).all():
+                raise InputError("this model needs the body's weights at the garment (log_wbody)",
+                                 expected=f"finite ({asset.n_vertices}, {self.n_joints}): Deformer.body_log_weights",
+                                 got=None if lw is None else lw.shape)
+            feeds["log_wbody"] = lw
+        out = self.package.run(self.variant, feeds)
         return out if outputs else out[0]

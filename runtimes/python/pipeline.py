@@ -153,6 +153,7 @@ class Run:
         stage["precompute"] += time.perf_counter() - t
         t = time.perf_counter()
         P = self.deformer.encode(asset, joints, self.betas, cache_dir=self._cache_dir())
+        lw = self.deformer.body_log_weights(asset, self.body, self.betas) if self.deformer.needs_body_weights else None
         stage["encode"] += time.perf_counter() - t
         need_body = self.effects.collisions or self.body_output is not None
         out = SceneOutput(path=self.output, fmt=self.output_format, up=self.up, fps=self.motion.fps,
@@ -166,7 +167,7 @@ class Run:
                 hi = min(lo + self.batch, self.stop)
                 t = time.perf_counter()
                 win = motion_windows(self.motion.poses, self.deformer.window, start=lo, stop=hi)
-                verts = self.deformer.deform(P, asset, win, joints, self.motion.trans[lo:hi], self.betas)
+                verts = self.deformer.deform(P, asset, win, joints, self.motion.trans[lo:hi], self.betas, log_wbody=lw)
                 stage["deform"] += time.perf_counter() - t
                 if not np.isfinite(verts).all():
                     raise InputError(f"the deformer produced NaN or inf at frames {lo}..{hi - 1}")

@@ -89,11 +89,13 @@ def run_case(case, models, body, tmp_path):
     results = {}
     for skin in ("lbs", "dqs"):
         dd = Deformer(pkg, d.effects.__class__(skinning=skin))
-        verts, weights, blend = dd.deform(P_ort, asset, win, joints, motion.trans, betas, outputs=True)
+        lw = dd.body_log_weights(asset, body, betas)
+        verts, weights, blend = dd.deform(P_ort, asset, win, joints, motion.trans, betas, outputs=True, log_wbody=lw)
         t = {k: torch.as_tensor(x) for k, x in dict(
             P=P_ort, window=win, betas=np.repeat(betas[None], len(win), 0).astype(np.float32),
             rest=asset.vertices.astype(np.float32), nbr=asset.nbr, mask=asset.mask,
-            joints=np.repeat(joints[None], len(win), 0).astype(np.float32), trans=motion.trans.astype(np.float32)).items()}
+            joints=np.repeat(joints[None], len(win), 0).astype(np.float32), trans=motion.trans.astype(np.float32),
+            log_wbody=lw).items()}
         with torch.no_grad():
             ref = nets[skin].deformer(**t)
         for name, r, g in zip(("vertices", "weights", "blend shapes"), ref, (verts, weights, blend)):
@@ -169,7 +171,7 @@ def test_garment_200k_vertices(models, body):
     parity(_torch_encoder(nets["lbs"], feats, asset, np.zeros(10)), P, "encoder at 200k")
     poses, trans = CASES[0].motion()
     win = motion_windows(poses[:2], 5).astype(np.float32)
-    out = d.deform(P, asset, win, joints, trans[:2])
+    out = d.deform(P, asset, win, joints, trans[:2], log_wbody=d.body_log_weights(asset, body))
     assert out.shape == (2, len(v), 3) and np.isfinite(out).all()
 
 
@@ -263,6 +265,11 @@ def test_fp16_model(models, body, tmp_path):
     dec = {"P": P16, "window": win.astype(np.float16), "betas": np.zeros((len(win), 10), np.float16),
            "rest": asset.vertices.astype(np.float16), "nbr": asset.nbr, "mask": asset.mask,
            "joints": np.repeat(joints[None], len(win), 0).astype(np.float16), "trans": trans.astype(np.float16)}
+    if net32.residual:
+        from segadeform.body.transfer import residual_log_weights, transfer_weights
+
+        wb = transfer_weights(asset.vertices, body.shaped_vertices()[0], body.faces, body.weights)
+        dec["log_wbody"] = residual_log_weights(wb).astype(np.float16)
     _export_one(w["deformer"], specs["deformer"], dec, tmp_path / "dec16.onnx", dynamo=True)
     out16 = ort.InferenceSession(str(tmp_path / "dec16.onnx")).run(None, dec)[0]
     with torch.no_grad():

@@ -1,3 +1,4 @@
+import numpy as np
 
 import pytest
 import torch
@@ -13,7 +14,8 @@ def run(net, n=40, k=6, b=3):
     t = {k_: torch.as_tensor(v) for k_, v in {**enc_in, **dec_in}.items()}
     with torch.no_grad():
         P = net.garment_encoder(t["features"], t["nbr"], t["mask"], t["descriptor"], torch.as_tensor(enc_in["betas"]))
-        return P, net.deformer(P[0], t["window"], t["betas"], t["rest"], t["nbr"], t["mask"], t["joints"], t["trans"])
+        return P, net.deformer(P[0], t["window"], t["betas"], t["rest"], t["nbr"], t["mask"], t["joints"], t["trans"],
+                               t.get("log_wbody"))
 
 
 def test_shapes_and_weights_are_a_partition_of_unity():
@@ -34,9 +36,9 @@ def test_no_blend_shapes_means_b_is_zero_and_skinning_of_rest():
 
 
 def test_weights_follow_eq16():
-    """W~ = softmax_j(sum_i P[k, j, i] f^mo1(Theta)_i), computed by hand."""
+    """W~ = softmax_j(sum_i P[k, j, i] f^mo1(Theta)_i), computed by hand (the paper's free weights)."""
     torch.manual_seed(0)
-    net = SEGANet(ModelConfig()).eval()
+    net = SEGANet(ModelConfig(weights="free")).eval()
     dec_in = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=20, k=5, b=2).items()}
     with torch.no_grad():
         _, w, _ = net.deformer(*(dec_in[k] for k in ("P", "window", "betas", "rest", "nbr", "mask", "joints", "trans")))
@@ -51,7 +53,8 @@ def test_identity_pose_with_zero_blend_keeps_rest_up_to_trans():
     d = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=20, k=5, b=2).items()}
     d["window"] = torch.zeros_like(d["window"])
     with torch.no_grad():
-        v, _, _ = net.deformer(*(d[k] for k in ("P", "window", "betas", "rest", "nbr", "mask", "joints", "trans")))
+        v, _, _ = net.deformer(*(d[k] for k in ("P", "window", "betas", "rest", "nbr", "mask", "joints", "trans",
+                                                 "log_wbody")))
     torch.testing.assert_close(v, d["rest"][None] + d["trans"][:, None], atol=1e-5, rtol=1e-5)
 
 
@@ -107,3 +110,51 @@ def test_mean_body_shape_does_not_zero_the_features():
     with torch.no_grad():
         P = net.garment_encoder(**enc)
     assert P.abs().max() > 1e-3
+
+
+# ---- residual skinning weights ----------------------------------------------------------------------
+def test_untrained_residual_model_is_lbs_with_the_body_weights():
+    """With the gates at their initial 0, the weights are the body's (softmax(log(w + eps)) = w up to S eps)
+    and the garment is the LBS of its rest shape with them: no blend shapes."""
+    from segadeform.body import default_body_path, load_body
+    from segadeform.body.transfer import RESIDUAL_EPS, residual_log_weights, skin_garment, transfer_weights
+    from segadeform.garments import make_garment
+    from segadeform.motion import make_motion, motion_windows
+
+    torch.manual_seed(0)
+    body = load_body(default_body_path())
+    g = make_garment("tank", body)
+    wb = transfer_weights(g.vertices, body.shaped_vertices()[0], body.faces, body.weights)
+    net = SEGANet(ModelConfig()).eval()
+    assert net.residual and net.weight_gate.item() == 0.0 and net.blend_gate.item() == 0.0
+    m = make_motion("dance", seconds=0.3)
+    J = body.rest_joints()[0]
+    from segadeform.geometry import precompute_garment
+
+    a = precompute_garment(g.vertices, g.faces, J)
+    from segadeform.geometry.features import vertex_features
+
+    f32 = lambda x: torch.as_tensor(np.asarray(x, np.float32))  # noqa: E731
+    feats = vertex_features(a.vertices, a.faces, J, normals=a.normals.astype(np.float64))
+    win = motion_windows(m.poses, net.cfg.window)
+    n = len(win)
+    with torch.no_grad():
+        v, w, b = net(f32(feats)[None], torch.as_tensor(a.nbr), torch.as_tensor(a.mask), f32(a.descriptor)[None],
+                      torch.zeros(n, 10), f32(win), f32(a.vertices), f32(J)[None].expand(n, -1, -1), f32(m.trans),
+                      f32(residual_log_weights(wb)))
+    assert (b == 0).all()
+    assert np.abs(w.numpy() - wb[None]).max() < 24 * RESIDUAL_EPS
+    ref = skin_garment(a.vertices, wb, body, m.poses, None, m.trans)
+    assert np.abs(v.numpy() - ref).max() < 1e-4
+
+
+def test_residual_gates_learn_and_old_configs_load_free():
+    net = SEGANet(ModelConfig()).train()
+    d = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=20, k=5, b=2).items()}
+    v, w, b = net.deformer(*(d[k] for k in ("P", "window", "betas", "rest", "nbr", "mask", "joints", "trans",
+                                             "log_wbody")))
+    (v.sum() + w.pow(2).sum()).backward()
+    assert net.weight_gate.grad.abs() > 0 and net.blend_gate.grad.abs() > 0
+    assert ModelConfig.from_dict({"hidden": 32}).weights == "free"
+    with pytest.raises(InputError, match="needs log_wbody"):
+        net.deformer(*(d[k] for k in ("P", "window", "betas", "rest", "nbr", "mask", "joints", "trans")))

@@ -52,7 +52,8 @@ def test_wrinkles_off_means_zero_blend_shapes(tmp_path, random_package, body):
     for wr in (True, False):
         d = Deformer(ModelPackage(random_package), Effects(wrinkles=wr))
         P = d.encode(asset, joints)
-        out[wr] = d.deform(P, asset, win if wr or d.window == 5 else win[:, :1], joints, trans, outputs=True)
+        out[wr] = d.deform(P, asset, win if wr or d.window == 5 else win[:, :1], joints, trans, outputs=True,
+                           log_wbody=d.body_log_weights(asset, body))
     v_on, w_on, b_on = out[True]
     v_off, w_off, b_off = out[False]
     assert (b_off == 0).all() and np.abs(b_on).max() > 0
@@ -74,9 +75,12 @@ def test_dynamics_off_depends_on_the_current_pose_only(tmp_path, random_package,
     hist_b = np.concatenate([cur, rng.normal(scale=0.3, size=(1, 4, 72))], 1).astype(np.float32)
     P = d.encode(asset, joints)
     z = np.zeros((1, 3))
-    np.testing.assert_array_equal(d.deform(P, asset, hist_a[:, :1], joints, z), d.deform(P, asset, hist_b[:, :1], joints, z))
+    lw = d.body_log_weights(asset, body)
+    np.testing.assert_array_equal(d.deform(P, asset, hist_a[:, :1], joints, z, log_wbody=lw),
+                                  d.deform(P, asset, hist_b[:, :1], joints, z, log_wbody=lw))
     P2 = d_dyn.encode(asset, joints)
-    assert not np.allclose(d_dyn.deform(P2, asset, hist_a, joints, z), d_dyn.deform(P2, asset, hist_b, joints, z))
+    assert not np.allclose(d_dyn.deform(P2, asset, hist_a, joints, z, log_wbody=lw),
+                           d_dyn.deform(P2, asset, hist_b, joints, z, log_wbody=lw))
 
 
 def test_collisions_off_never_poses_the_body(tmp_path, random_package, body, monkeypatch):

@@ -13,7 +13,23 @@ from .collision import BodyProxy
 from .model import BodyModel
 from .skinning import dual_quaternion_skinning, linear_blend_skinning
 
-__all__ = ["transfer_weights", "skin_garment"]
+__all__ = ["transfer_weights", "skin_garment", "residual_log_weights", "RESIDUAL_EPS"]
+
+#: added to the body's weights before the log that residual-weights models take (``log_wbody``): a joint
+#: the body does not use starts at log(1e-5) = -11.5, and softmax(log(w + eps)) differs from w by < S eps
+RESIDUAL_EPS = 1e-5
+
+
+def residual_log_weights(weights) -> np.ndarray:
+    """``log(w + RESIDUAL_EPS)`` as float32: the ``log_wbody`` input of residual-weights models.
+
+    Shapes:
+        weights: (N, S) -> (N, S)
+    """
+    w = np.asarray(weights, np.float64)
+    if w.ndim != 2 or not np.isfinite(w).all() or (w < -1e-6).any():
+        raise InputError("weights must be finite, non-negative (N, S)", got=w.shape)
+    return np.log(np.clip(w, 0.0, None) + RESIDUAL_EPS).astype(np.float32)
 
 
 def _barycentric(p, a, b, c):

@@ -34,6 +34,10 @@ class ModelConfig:
         use_sega: False gives the PlainGAT ablation (no bounds).
         use_descriptor: False replaces f^gp(lambda) by a learned constant.
         use_blend_shapes: False removes the decoder (B = 0).
+        weights: "residual" (skinning logits = log w_body + gated correction, the correction and the
+            blend shapes starting at zero: an untrained model is LBS with the body's weights) or
+            "free" (the paper's Eq. 16: softmax of the network's logits alone).  Checkpoints and
+            manifests without the field are "free" (made before it existed).
     """
 
     n_joints: int = 24
@@ -53,6 +57,7 @@ class ModelConfig:
     use_sega: bool = True
     use_descriptor: bool = True
     use_blend_shapes: bool = True
+    weights: str = "residual"
 
     def __post_init__(self):
         ints = ("n_joints", "n_betas", "n_star", "feat_dim", "hidden", "heads", "enc_layers", "dec_layers",
@@ -69,6 +74,8 @@ class ModelConfig:
                 raise InputError(f"ModelConfig.{name} must be positive", got=v)
         if self.skinning not in ("lbs", "dqs"):
             raise InputError("ModelConfig.skinning must be 'lbs' or 'dqs'", got=self.skinning)
+        if self.weights not in ("residual", "free"):
+            raise InputError("ModelConfig.weights must be 'residual' or 'free'", got=self.weights)
 
     def to_json(self) -> str:
         return json.dumps(dataclasses.asdict(self), sort_keys=True)
@@ -79,6 +86,8 @@ class ModelConfig:
         unknown = sorted(set(d) - known)
         if unknown:
             raise InputError("unknown ModelConfig fields", expected=", ".join(sorted(known)), got=", ".join(unknown))
+        d = dict(d)
+        d.setdefault("weights", "free")  # saved before residual weights existed
         return cls(**d)
 
     def replace(self, **kw) -> "ModelConfig":

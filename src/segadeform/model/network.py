@@ -14,9 +14,14 @@ Two halves, exported as two graphs:
   - temporal weights (Eq. 16) ``W~[k, j] = sum_i P[k, j, i] f^mo1(Theta)[i]``,
     normalised over the joints with a softmax, so every vertex's weights are
     positive and sum to 1 as skinning needs (the paper leaves the
-    normalisation open);
+    normalisation open).  With ``cfg.weights == "residual"`` the logits are
+    ``log(w_body + eps) + g_w W~`` (``w_body``: the body's weights at the
+    garment's closest body point, an input ``log_wbody``; ``g_w``: a learned
+    gate starting at 0), so the weights start as the body's and the network
+    learns only where the garment should skin differently;
   - blend features (Eq. 17) ``X^mid[k, (j, i)] = P[k, j, i] f^mo2(Theta, beta)[(j, i)]``
-    and blend shapes (Eq. 18) ``B = f^dec(X^mid)``;
+    and blend shapes (Eq. 18) ``B = f^dec(X^mid)`` (times a second gate starting at 0 for
+    residual models: an untrained residual model is exactly LBS with the body's weights);
   - deformation (Eq. 2) ``M = skin(T + B, J, theta_t, W~) + trans`` with LBS
     or DQS, forward kinematics inside the graph.
 
@@ -52,6 +57,7 @@ class SEGANet(nn.Module):
     Shapes (deformer):
         P (N, S, F_enc), window (B, T, 3 S) with window[:, 0] the current pose, betas (B, |beta|),
         rest (N, 3), nbr (N, K), mask (N, K), joints (B, S, 3), trans (B, 3)
+        [, log_wbody (N, S) for residual weights]
         -> vertices (B, N, 3), weights (B, N, S), blend_shapes (B, N, 3)
     """
 
@@ -67,6 +73,10 @@ class SEGANet(nn.Module):
         self.mo1 = MotionProcessor(cfg, cfg.f_enc, with_betas=False)
         self.mo2 = MotionProcessor(cfg, cfg.f_enc * cfg.n_joints, with_betas=True) if cfg.use_blend_shapes else None
         self.dec = GraphDecoder(cfg) if cfg.use_blend_shapes else None
+        self.residual = cfg.weights == "residual"
+        if self.residual:  # ReZero-style gates: the corrections start at exactly zero and still learn
+            self.weight_gate = nn.Parameter(torch.zeros(()))
+            self.blend_gate = nn.Parameter(torch.zeros(()))
 
     def freeze(self) -> "SEGANet":
         """Fold every tau scaling into its weight (exact spectral norms); use before export."""
@@ -83,18 +93,24 @@ class SEGANet(nn.Module):
         p = bp.permute(0, 2, 1)[:, None, :, :] * g.permute(0, 2, 1)[..., None]  # (B, N, S, F_enc)
         return p
 
-    def deformer(self, P, window, betas, rest, nbr, mask, joints, trans):
+    def deformer(self, P, window, betas, rest, nbr, mask, joints, trans, log_wbody=None):
         cfg = self.cfg
         b = window.shape[0]
         n = P.shape[0]
         s, f = cfg.n_joints, cfg.f_enc
         mo1 = self.mo1(window)  # (B, F_enc)
         w_raw = torch.matmul(P.reshape(n * s, f), mo1.t()).reshape(n, s, b).permute(2, 0, 1)  # (B, N, S)
+        if self.residual:
+            if log_wbody is None:
+                raise InputError("a residual-weights model needs log_wbody (N, S): log of the body's weights")
+            w_raw = log_wbody[None] + self.weight_gate * w_raw
         weights = torch.softmax(w_raw, dim=-1)
         if self.dec is not None:
             mo2 = self.mo2(window, betas)  # (B, S F_enc)
             # X^mid = P' * mo2 (Eq. 17), passed factored so the (B, N, S F_enc) product is never formed
             blend = self.dec(P.reshape(n, s * f), nbr, mask, modulation=mo2)  # (B, N, 3)
+            if self.residual:
+                blend = self.blend_gate * blend
         else:
             blend = torch.zeros(b, n, 3, dtype=P.dtype, device=P.device)
         verts = rest[None] + blend
@@ -104,10 +120,10 @@ class SEGANet(nn.Module):
         skin = dqs if cfg.skinning == "dqs" else lbs
         return skin(verts, weights, a), weights, blend
 
-    def forward(self, features, nbr, mask, descriptor, betas, window, rest, joints, trans):
+    def forward(self, features, nbr, mask, descriptor, betas, window, rest, joints, trans, log_wbody=None):
         """Encoder and deformer in one call (training); the garment batch must be 1."""
         P = self.garment_encoder(features, nbr, mask, descriptor, betas[:1])[0]
-        return self.deformer(P, window, betas, rest, nbr, mask, joints, trans)
+        return self.deformer(P, window, betas, rest, nbr, mask, joints, trans, log_wbody)
 
 
 def save_checkpoint(path: str | os.PathLike, model: SEGANet, **extra) -> Path:

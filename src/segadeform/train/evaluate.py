@@ -83,11 +83,12 @@ class _Package(Predictor):
         betas = s.betas if s.betas.size else None
         joints = body.rest_joints(betas)[0]
         P = self.deformer.encode(asset, joints, s.betas)
+        lw = self.deformer.body_log_weights(asset, body, s.betas) if self.deformer.needs_body_weights else None
         out = []
         for lo in range(0, len(s.poses), 16):
             hi = min(lo + 16, len(s.poses))
             win = motion_windows(s.poses, self.deformer.window, start=lo, stop=hi)
-            out.append(self.deformer.deform(P, asset, win, joints, s.trans[lo:hi], s.betas))
+            out.append(self.deformer.deform(P, asset, win, joints, s.trans[lo:hi], s.betas, log_wbody=lw))
         return np.concatenate(out).astype(np.float64)
 
 
@@ -111,6 +112,12 @@ class _Checkpoint(Predictor):
         from ..geometry.features import vertex_features
 
         feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
+        lw = None
+        if self.model.residual:
+            from ..body.transfer import residual_log_weights
+
+            rest = body.shaped_vertices(betas)[0]
+            lw = t32(residual_log_weights(transfer_weights(asset.vertices, rest, body.faces, body.weights)))
         with torch.no_grad():
             P = self.model.garment_encoder(t32(feats)[None], nbr, mask, t32(asset.descriptor)[None], t32(b)[None])[0]
             win = motion_windows(s.poses, c.window)
@@ -119,7 +126,7 @@ class _Checkpoint(Predictor):
                 hi = min(lo + 16, len(s.poses))
                 n = hi - lo
                 v, _, _ = self.model.deformer(P, t32(win[lo:hi]), t32(b)[None].expand(n, -1), t32(s.rest), nbr, mask,
-                                              t32(joints)[None].expand(n, -1, -1), t32(s.trans[lo:hi]))
+                                              t32(joints)[None].expand(n, -1, -1), t32(s.trans[lo:hi]), lw)
                 out.append(v.numpy())
         return np.concatenate(out).astype(np.float64)
 

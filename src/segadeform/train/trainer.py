@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 from ..body.model import BodyModel
+from ..body.transfer import RESIDUAL_EPS
 from ..errors import InputError
 from ..io.atomic import atomic_path
 from ..model.network import SEGANet
@@ -54,8 +55,9 @@ def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_sc
 
     ``prior_scale`` multiplies the skinning-weight prior's weight (the trainer fades it out)."""
     b = len(t)
+    lw = torch.log(item.body_weights + RESIDUAL_EPS) if model.residual else None
     verts, weights, _ = model(item.features, item.nbr, item.mask, item.descriptor, item.betas.expand(b, -1),
-                        item.windows[t], item.rest, item.joints[None].expand(b, -1, -1), item.trans[t])
+                              item.windows[t], item.rest, item.joints[None].expand(b, -1, -1), item.trans[t], lw)
     y = item.frames[t]
     out = {
         "vertex": L.vertex_loss(verts, y),
