@@ -25,7 +25,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from segadeform.body import BodyModel, BodyProxy, default_body_path, load_body
-from segadeform.body.collision import push_out
+from segadeform.body.collision import BodyCollider, push_out
 from segadeform.errors import InputError
 from segadeform.garments.fit import check_placement
 from segadeform.geometry import GarmentAsset, precompute_garment
@@ -89,12 +89,18 @@ class Run:
         cache: keep precompute/encoder results in the user cache (:mod:`segadeform.cache`).
         force: animate a garment that does not sit on the body (see
             :func:`segadeform.garments.fit.check_placement`) instead of refusing it.
+        collider: ``"fast"`` (:class:`~segadeform.body.collision.BodyCollider`, built once) or
+            ``"reference"`` (:class:`~segadeform.body.collision.BodyProxy` per frame: the slow, obvious
+            one, for comparisons).
     """
 
     def __init__(self, *, garment: Path, motion: Motion, package: ModelPackage, body: BodyModel, betas=(),
                  effects: Effects = Effects(), output: Path, output_format: str = "pc2", up: str = "y",
                  body_output: Optional[Path] = None, frames=None, batch: int = 8, cache: bool = True,
-                 force: bool = False) -> None:
+                 force: bool = False, collider: str = "fast") -> None:
+        if collider not in ("fast", "reference"):
+            raise InputError("collider must be 'fast' or 'reference'", got=collider)
+        self.collider = collider
         if batch < 1:
             raise InputError("batch must be at least 1", got=batch)
         self.garment, self.motion, self.package, self.body = Path(garment), motion, package, body
@@ -162,6 +168,8 @@ class Run:
                           body_rest=self.body.shaped_vertices(self.betas)[0] if self.body_output else None)
         pushed = 0
         proxy = None
+        collider = BodyCollider(self.body.v_template, self.body.faces) \
+            if self.effects.collisions and self.collider == "fast" else None
         try:
             for lo in range(self.start, self.stop, self.batch):
                 hi = min(lo + self.batch, self.stop)
@@ -180,8 +188,11 @@ class Run:
                     t = time.perf_counter()
                     fixed = np.empty_like(verts, dtype=np.float64)
                     for i in range(len(verts)):
-                        proxy = BodyProxy(posed[i], self.body.faces) if proxy is None else proxy.moved(posed[i])
-                        fixed[i], n = push_out(verts[i], proxy, self.effects.collision_margin)
+                        if collider is not None:
+                            fixed[i], n = collider.push_out(verts[i], posed[i], self.effects.collision_margin)
+                        else:
+                            proxy = BodyProxy(posed[i], self.body.faces) if proxy is None else proxy.moved(posed[i])
+                            fixed[i], n = push_out(verts[i], proxy, self.effects.collision_margin)
                         pushed += n
                     verts = fixed
                     stage["collisions"] += time.perf_counter() - t

@@ -241,3 +241,251 @@ def push_out(points: np.ndarray, proxy: "BodyProxy", margin: float = 0.0, *, ite
         moved[idx[hit]] = True
         idx = idx[hit]
     return out, int(moved.sum())
+
+
+def _closest_on_segments(p, a, b):
+    """Closest points on segments ab to p and the parameter t in [0, 1]. Shapes: (..., 3) -> (..., 3), (...)"""
+    ab = b - a
+    t = np.einsum("...i,...i", p - a, ab) / np.maximum(np.einsum("...i,...i", ab, ab), 1e-300)
+    t = np.clip(t, 0.0, 1.0)
+    return a + t[..., None] * ab, t
+
+
+def closest_point_fast(p, a, b, c):
+    """The same closest point and barycentric weights as :func:`closest_point_on_triangles` (the slow,
+    obvious reference beside it, compared in the tests), by another route: the projection onto the
+    plane when it falls inside the triangle, else the nearest of the three edges.
+
+    Shapes:
+        p, a, b, c: (..., 3) -> closest (..., 3), bary (..., 3)
+    """
+    p, a, b, c = np.broadcast_arrays(*(np.asarray(x, np.float64) for x in (p, a, b, c)))
+    e0, e1, ap = b - a, c - a, p - a
+    d00, d01, d11 = (np.einsum("...i,...i", x, y) for x, y in ((e0, e0), (e0, e1), (e1, e1)))
+    d20, d21 = np.einsum("...i,...i", ap, e0), np.einsum("...i,...i", ap, e1)
+    den = d00 * d11 - d01 * d01
+    ok = np.abs(den) > 1e-300
+    den = np.where(ok, den, 1.0)
+    v = (d11 * d20 - d01 * d21) / den
+    w = (d00 * d21 - d01 * d20) / den
+    u = 1.0 - v - w
+    inside = ok & (u >= 0) & (v >= 0) & (w >= 0)
+    bary = np.stack([u, v, w], -1)
+    closest = a + v[..., None] * e0 + w[..., None] * e1
+    out = ~inside
+    if out.any():
+        po, ao, bo, co = p[out], a[out], b[out], c[out]
+        cands = [_closest_on_segments(po, ao, bo), _closest_on_segments(po, bo, co), _closest_on_segments(po, co, ao)]
+        dist = np.stack([np.einsum("...i,...i", q - po, q - po) for q, _ in cands], -1)
+        k = np.argmin(dist, axis=-1)
+        q = np.stack([q for q, _ in cands], -2)[np.arange(len(k)), k]
+        t = np.stack([t for _, t in cands], -1)[np.arange(len(k)), k]
+        bo_ = np.zeros((len(k), 3))
+        for e, (i, j) in enumerate(((0, 1), (1, 2), (2, 0))):
+            m = k == e
+            bo_[m, i] = 1.0 - t[m]
+            bo_[m, j] = t[m]
+        closest[out] = q
+        bary[out] = bo_
+    return closest, bary
+
+
+def _closest_with_face_terms(p, cand, fr):
+    """The closest point to each ``p (M, 3)`` over its candidate faces ``cand (M, C)``, with per-face terms
+    precomputed (``BodyCollider._frame``): plane projection first, the full edge search only for the
+    pairs whose projection leaves the triangle.  Returns closest (M, 3), face (M,), bary (M, 3)."""
+    a, e0, e1 = fr["a"][cand], fr["e0"][cand], fr["e1"][cand]  # (M, C, 3)
+    ap = p[:, None, :] - a
+    d20 = (ap * e0).sum(-1)
+    d21 = (ap * e1).sum(-1)
+    inv = fr["inv"][cand]
+    v = (fr["d11"][cand] * d20 - fr["d01"][cand] * d21) * inv
+    w = (fr["d00"][cand] * d21 - fr["d01"][cand] * d20) * inv
+    u = 1.0 - v - w
+    inside = (u >= 0) & (v >= 0) & (w >= 0) & (inv != 0)
+    # the plane distance is exact where the projection is inside and a lower bound elsewhere: the edge
+    # search runs only for outside pairs that could still beat the best inside one
+    proj = a + v[..., None] * e0 + w[..., None] * e1
+    d2 = ((proj - p[:, None, :]) ** 2).sum(-1)
+    bary = np.stack([u, v, w], -1)
+    closest = proj
+    best_in = np.where(inside, d2, np.inf).min(axis=1)
+    todo = ~inside & (d2 < best_in[:, None])
+    d2 = np.where(inside, d2, np.inf)
+    if todo.any():
+        m, c = np.nonzero(todo)
+        tri = fr["tri"][cand[m, c]]
+        q, b = closest_point_fast(p[m], tri[:, 0], tri[:, 1], tri[:, 2])
+        closest = closest.copy()
+        closest[m, c] = q
+        bary[m, c] = b
+        d2[m, c] = ((q - p[m]) ** 2).sum(-1)
+    best = np.argmin(d2, axis=1)
+    r = np.arange(len(p))
+    return closest[r, best], cand[r, best], bary[r, best]
+
+
+class BodyCollider:
+    """Fast collisions against a body mesh whose triangles stay the same and whose vertices move every
+    frame (the posed body): everything that depends on the triangles is built once.
+
+    Per frame, a k-d tree over the posed *vertices* (cheap to build, unlike the reference's centroid
+    tree and full normal fields) finds each garment point's nearest body vertex, and points farther
+    from it than the margin plus the longest edge around it, on the outer side of its normal, are
+    skipped: no triangle is within the margin of them.  For the rest, the exact closest point is computed on the triangles around that
+    vertex (its fan and the fans of its neighbours across the fan, precomputed), and only the
+    pseudo-normals of the features actually hit are evaluated.  :class:`BodyProxy` stays beside it as
+    the slow, obvious reference; ``tests/body/test_collision.py`` compares the two on dancing bodies.
+
+    Args:
+        vertices: (V, 3) any pose of the body (for the longest edge); faces: (F, 3).
+    """
+
+    def __init__(self, vertices, faces) -> None:
+        v, f = check_mesh(vertices, faces)
+        self.faces = f
+        self.n_vertices = len(v)
+        topo = BodyProxy._build_topology(f, len(v))
+        # per face slot: the face across each edge (for edge pseudo-normals), -1 on a boundary
+        e = np.sort(np.stack([f[:, [1, 2]], f[:, [2, 0]], f[:, [0, 1]]], axis=1), axis=2).reshape(-1, 2)
+        key = e[:, 0] * (np.int64(len(v)) + 1) + e[:, 1]
+        order = np.argsort(key, kind="stable")
+        ks = key[order]
+        other = np.full(len(key), -1, np.int64)
+        same = ks[1:] == ks[:-1]
+        i0, i1 = order[:-1][same], order[1:][same]
+        other[i0], other[i1] = i1 // 3, i0 // 3
+        self._across = other.reshape(len(f), 3)
+        vf, ptr = topo["vf_faces"], topo["vf_ptr"]
+        val = np.diff(ptr)
+        fan = np.full((len(v), int(val.max())), -1, np.int64)
+        fan[np.repeat(np.arange(len(v)), val), np.arange(len(vf)) - np.repeat(ptr[:-1], val)] = vf
+        self._fan = fan
+        # candidates per vertex: its fan plus the faces across the fan's outer edges (a 1.5-ring)
+        outer = self._across[np.maximum(fan, 0)]  # (V, val, 3)
+        cand = np.concatenate([fan, np.where(fan[..., None] >= 0, outer, -1).reshape(len(v), -1)], axis=1)
+        cand = np.sort(cand, axis=1)
+        dup = np.concatenate([np.zeros((len(v), 1), bool), cand[:, 1:] == cand[:, :-1]], axis=1)
+        cand[dup] = -1
+        cand = -np.sort(-cand, axis=1)  # valid ids first
+        width = int((cand >= 0).sum(axis=1).max())
+        cand = cand[:, :width]
+        self._cand = np.where(cand >= 0, cand, cand[:, :1])  # pad with a real candidate
+        edges = np.linalg.norm(v[f] - v[np.roll(f, 1, axis=1)], axis=2).max(axis=1)  # (F,) longest edge
+        self.edge = float(edges.max())
+        # the longest edge among each vertex's candidate triangles: the reach of its neighbourhood
+        self._reach = edges[self._cand].max(axis=1)
+
+    def _normals(self, posed, face, bary):
+        """Pseudo-normal of the closest feature (face, edge or vertex) on the posed body, per point."""
+        f = self.faces
+        tri = posed[f[face]]
+        fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+        nz = bary > 1e-9
+        count = nz.sum(axis=1)
+        normal = fn.copy()
+        edge = count == 2
+        if edge.any():
+            slot = np.argmin(bary[edge], axis=1)  # the corner with ~0 weight is opposite the edge
+            g = self._across[face[edge], slot]
+            tg = posed[f[np.maximum(g, 0)]]
+            gn = np.cross(tg[:, 1] - tg[:, 0], tg[:, 2] - tg[:, 0])
+            gn /= np.maximum(np.linalg.norm(gn, axis=1, keepdims=True), 1e-300)
+            gn[g < 0] = 0.0
+            en = fn[edge] + gn
+            normal[edge] = en / np.maximum(np.linalg.norm(en, axis=1, keepdims=True), 1e-300)
+        vert = count <= 1
+        if vert.any():
+            vid = f[face[vert], np.argmax(bary[vert], axis=1)]
+            fan = self._fan[vid]  # (M, valence), -1 padded
+            ff = f[np.maximum(fan, 0)]  # (M, val, 3)
+            t = posed[ff]
+            n = np.cross(t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :])
+            n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)
+            # the angle of each fan face at the vertex
+            corner = np.argmax(ff == vid[:, None, None], axis=-1)
+            pv = np.take_along_axis(t, corner[..., None, None].repeat(3, -1), -2)[..., 0, :]
+            e1 = np.take_along_axis(t, ((corner + 1) % 3)[..., None, None].repeat(3, -1), -2)[..., 0, :] - pv
+            e2 = np.take_along_axis(t, ((corner + 2) % 3)[..., None, None].repeat(3, -1), -2)[..., 0, :] - pv
+            cosang = np.einsum("...i,...i", e1, e2) / np.maximum(
+                np.linalg.norm(e1, axis=-1) * np.linalg.norm(e2, axis=-1), 1e-300)
+            ang = np.arccos(np.clip(cosang, -1, 1)) * (fan >= 0)
+            vn = (ang[..., None] * n).sum(axis=1)
+            normal[vert] = vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
+        return normal
+
+    def query(self, points, posed, tree, idx=None, *, cutoff: float = np.inf, frame=None) -> tuple:
+        """Closest posed-body point, outward normal and signed distance for the points ``points[idx]``
+        within ``cutoff`` of the body; returns (the examined indices, closest, normal, signed distance).
+        ``frame``: the per-face terms of :meth:`_frame` for ``posed`` (computed when not given)."""
+        p = np.asarray(points, np.float64)
+        idx = np.arange(len(p)) if idx is None else idx
+        d, nv = tree.query(p[idx])
+        near = d <= cutoff + self._reach[nv]  # beyond the local reach of its nearest vertex no triangle is that close
+        far = ~near
+        if far.any():  # ... unless the point is deep inside: on the inner side of that vertex's normal
+            fv = nv[far]
+            fan = self._fan[fv]
+            t = posed[self.faces[np.maximum(fan, 0)]]
+            n = np.cross(t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :]) * (fan >= 0)[..., None]
+            near[far] = np.einsum("ij,ij->i", p[idx[far]] - posed[fv], n.sum(axis=1)) < 0
+        sel = idx[near]
+        if not len(sel):
+            return sel, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
+        cand = self._cand[nv[near]]  # (M, C)
+        if frame is None:  # per-face terms for the candidate faces only, indexed through `local`
+            uniq, local = np.unique(cand, return_inverse=True)
+            fr = self._frame(posed, uniq)
+            local = local.reshape(cand.shape)
+        else:
+            fr, local = frame, cand
+        pp = p[sel]
+        closest, face_local, bary = _closest_with_face_terms(pp, local, fr)
+        face = fr["faces"][face_local] if "faces" in fr else face_local
+        normal = self._normals(posed, face, bary)
+        diff = pp - closest
+        dist = np.linalg.norm(diff, axis=1)
+        sign = np.where(np.einsum("ij,ij->i", diff, normal) < 0, -1.0, 1.0)
+        return sel, closest, normal, sign * dist
+
+    def _frame(self, posed, faces=None):
+        """Per-face terms of the projection (for ``faces``, default all): corner a, edges e0 = b - a,
+        e1 = c - a, and the entries of their Gram matrix with its inverse determinant."""
+        tri = posed[self.faces if faces is None else self.faces[faces]]
+        a, e0, e1 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+        d00, d01, d11 = (e0 * e0).sum(1), (e0 * e1).sum(1), (e1 * e1).sum(1)
+        den = d00 * d11 - d01 * d01
+        inv = np.where(np.abs(den) > 1e-300, 1.0 / np.where(den == 0, 1.0, den), 0.0)
+        out = {"tri": tri, "a": a, "e0": e0, "e1": e1, "d00": d00, "d01": d01, "d11": d11, "inv": inv}
+        if faces is not None:
+            out["faces"] = faces
+        return out
+
+    def push_out(self, points, posed, margin: float = 0.0, *, iterations: int = 3):
+        """:func:`push_out` against the body at ``posed (V, 3)``.
+
+        Shapes:
+            points: (N, 3) -> (N, 3), and the number of points moved
+        """
+        out = np.array(points, dtype=np.float64)
+        if out.ndim != 2 or out.shape[1] != 3:
+            raise InputError("points must be (N, 3)", got=out.shape)
+        if not np.isfinite(out).all():
+            raise InputError("points contain NaN or inf")
+        posed = np.asarray(posed, np.float64)
+        if posed.shape != (self.n_vertices, 3) or not np.isfinite(posed).all():
+            raise InputError("posed body must be finite (V, 3)", expected=(self.n_vertices, 3), got=posed.shape)
+        tree = cKDTree(posed, balanced_tree=False, compact_nodes=False)
+        moved = np.zeros(len(out), bool)
+        idx = np.arange(len(out))
+        for _ in range(max(1, int(iterations))):
+            sel, closest, normal, sd = self.query(out, posed, tree, idx, cutoff=float(margin))
+            hit = sd < margin
+            if not hit.any():
+                break
+            h = sel[hit]
+            out[h] = closest[hit] + margin * normal[hit]
+            moved[h] = True
+            idx = h
+        return out, int(moved.sum())

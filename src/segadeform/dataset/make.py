@@ -105,7 +105,9 @@ def _run_one(root: str, cfg: DatasetConfig, ps: PlannedSample, body_path: str, s
         return rec
     posed = body.forward(motion.poses, betas or None, motion.trans).vertices
     contact = {}
-    q = quality_check(res.frames, mesh.vertices, mesh.faces, posed, body.faces, cfg.quality, contact=contact)
+    # strain against the cloth's own rest (the A-posed garment when the simulation rests there)
+    strain_rest = res.cloth_rest if res.cloth_rest is not None else mesh.vertices
+    q = quality_check(res.frames, strain_rest, mesh.faces, posed, body.faces, cfg.quality, contact=contact)
     rec.update(quality=q.to_dict(), seconds_per_frame=res.seconds_per_frame, blender=res.blender["blender_version"],
                sim_seconds=res.blender["simulate_seconds"], preroll_frames=res.preroll_frames)
     if q.ok:

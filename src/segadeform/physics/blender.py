@@ -81,26 +81,34 @@ class SimResult:
     blender: dict
     preroll_frames: int
     wall_seconds: float
+    cloth_rest: Optional[np.ndarray] = None  # (N, 3) the shape Blender took the cloth's rest lengths from
 
     @property
     def seconds_per_frame(self) -> float:
         return float(self.blender["seconds_per_frame"])
 
 
-def preroll_poses(motion: Motion, drape_frames: int, blend_frames: int) -> tuple[np.ndarray, np.ndarray]:
-    """Rest-pose drape, then a slerp into the first frame, then the motion.
+#: the A-pose of ``rest_pose = "a"``: both upper arms 45 degrees down from the T-pose (SMPL axes)
+A_POSE = np.zeros(72)
+A_POSE[3 * 16 + 2] = -np.pi / 4
+A_POSE[3 * 17 + 2] = np.pi / 4
 
-    Shapes: -> poses (drape + blend + T, 72), trans (drape + blend + T, 3)
+
+def preroll_poses(motion: Motion, drape_frames: int, blend_frames: int,
+                  start_pose: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
+    """Drape in ``start_pose`` (default: the rest pose), then a slerp into the first frame, then the motion.
+
+    Shapes: start_pose (72,) -> poses (drape + blend + T, 72), trans (drape + blend + T, 3)
     """
     d, b = max(int(drape_frames), 1), max(int(blend_frames), 0)
+    p0 = np.zeros(72) if start_pose is None else np.asarray(start_pose, np.float64).reshape(72)
     q1 = axis_angle_to_quaternion(motion.poses[0].reshape(24, 3))
-    q0 = np.zeros_like(q1)
-    q0[:, 0] = 1.0
+    q0 = axis_angle_to_quaternion(p0.reshape(24, 3))
     t = (np.arange(1, b + 1) / (b + 1))
     s = 0.5 - 0.5 * np.cos(np.pi * t)  # ease in and out: no velocity jump at either end
     blend = np.stack([quaternion_to_axis_angle(quaternion_slerp(q0, q1, si)).reshape(72) for si in s]) \
         if b else np.zeros((0, 72))
-    poses = np.concatenate([np.zeros((d, 72)), blend, motion.poses])
+    poses = np.concatenate([np.repeat(p0[None], d, axis=0), blend, motion.poses])
     trans = np.concatenate([np.zeros((d, 3)), s[:, None] * motion.trans[:1], motion.trans])
     return poses, trans
 
@@ -152,14 +160,18 @@ def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, se
     fps = float(motion.fps)
     drape = max(1, int(round(settings.drape_seconds * fps)))
     blend = int(round(settings.blend_seconds * fps))
-    poses, trans = preroll_poses(motion, drape, blend)
+    a_pose = settings.rest_pose == "a"
+    poses, trans = preroll_poses(motion, drape, blend, A_POSE if a_pose else None)
     posed = body.forward(poses, betas, trans)
     z = lambda a: (np.asarray(a) @ _Y_TO_Z.T).astype(np.float32)  # noqa: E731
     rest_body = body.shaped_vertices(betas)[0]
+    wts = transfer_weights(v, rest_body, body.faces, body.weights) if (a_pose or settings.has("pinning")) else None
+    # the cloth's rest: the garment as given, or skinned into the A-pose (rest lengths from there)
+    cloth_rest = skin_garment(v, wts, body, A_POSE[None], betas, np.zeros((1, 3)))[0] if a_pose else v
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="segadeform-sim-") as tmp:
         job_dir = Path(tmp)
-        np.save(job_dir / "garment_rest.npy", z(v))
+        np.save(job_dir / "garment_rest.npy", z(cloth_rest))
         np.save(job_dir / "garment_faces.npy", f.astype(np.int64))
         np.save(job_dir / "body_rest.npy", z(rest_body))
         np.save(job_dir / "body_faces.npy", body.faces.astype(np.int64))
@@ -180,7 +192,6 @@ def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, se
             np.save(job_dir / "pins.npy", pins.astype(np.float32))
             job["pins"] = "pins.npy"
             # pinned vertices follow the body: the garment's own input is the skinned garment
-            wts = transfer_weights(v, rest_body, body.faces, body.weights)
             skinned = skin_garment(v, wts, body, poses, betas, trans)
             with PC2Writer(job_dir / "garment.pc2", len(v), start_frame=1, sample_rate=1) as w:
                 w.write(z(skinned))
@@ -198,7 +209,8 @@ def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, se
         raise SimulationError("Blender played the body back wrongly (max error "
                               f"{info['body_playback_max_error']:.3g} m): check the Mesh Cache settings")
     return SimResult(frames=frames, fps=fps, settings={"segadeform": settings.to_dict(), "blender": bs},
-                     blender=info, preroll_frames=drape + blend, wall_seconds=time.perf_counter() - t0)
+                     blender=info, preroll_frames=drape + blend, wall_seconds=time.perf_counter() - t0,
+                     cloth_rest=cloth_rest)
 
 
 def _run_worker(exe: Path, job_dir: Path, total: int, progress, timeout) -> None:

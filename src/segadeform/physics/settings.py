@@ -15,6 +15,10 @@ does not name is off in the solver::
     wind_strength = 2.0
     drape_seconds = 0.5            # settle in the rest pose before the motion
     blend_seconds = 0.5            # blend from the rest pose into the motion's first frame
+    rest_pose = "t"                # t: the cloth's rest is the garment as given (T-pose); a: the garment
+                                   # skinned to an A-pose (arms 45 deg down) is the cloth's rest and the
+                                   # drape starts there -- T-posed garments are too short over the shoulders
+                                   # for lowered arms, which tore tops (strain 2-4) in the T-pose rest
 
 Effects (:data:`EFFECTS`):
 
@@ -104,6 +108,7 @@ class SimSettings:
     wind_strength: float = 2.0
     drape_seconds: float = 0.5
     blend_seconds: float = 0.5
+    rest_pose: str = "t"
 
     def __post_init__(self):
         eff = tuple(self.effects)
@@ -127,6 +132,9 @@ class SimSettings:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and not isinstance(v, bool) and lo <= v <= hi):
                 raise InputError(f"{name} must be a number in {lo}..{hi}", got=v)
+        if self.rest_pose not in ("t", "a"):
+            raise InputError("rest_pose must be 't' (the garment's own T-pose) or 'a' (arms lowered)",
+                             got=self.rest_pose)
         w = tuple(float(x) for x in self.wind)
         if len(w) != 3 or sum(x * x for x in w) < 1e-12:
             raise InputError("wind must be a non-zero 3-vector", got=self.wind)
@@ -149,7 +157,7 @@ class SimSettings:
 _KEYS = {"effects": list, "material": str, "quality": int, "collision_quality": int,
          "collision_distance": (int, float), "self_collision_distance": (int, float), "pin": str,
          "pin_stiffness": (int, float), "wind": list, "wind_strength": (int, float),
-         "drape_seconds": (int, float), "blend_seconds": (int, float)}
+         "drape_seconds": (int, float), "blend_seconds": (int, float), "rest_pose": str}
 
 
 def parse_simulate_table(table: Optional[dict], *, where=None) -> SimSettings:
