@@ -18,22 +18,27 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
 
     [[garments]]
     kind = "skirt"            # segadeform.garments kinds; other keys are GarmentParams
+    # mhclo = "../../shared/data/garments/makehuman_split/jeans_m/jeans_m.mhclo"   # a MakeHuman garment
+    #                         # fitted to each body instead (kind then only gives its type label)
     pin = "waistband"         # optional: the pin group of this garment (with the "pinning" effect)
     resolution = 2500
     split = "train"           # train | test (held out)
 
     [[bodies]]
     betas = [0.0, 0.0]
+    split = "train"           # a "test" body is only used in held-out samples (unseen shape)
 
     [[motions]]
     kind = "walk"             # procedural kind ...
     seed = 0
     split = "train"
-    # file = "../motions/walk.npz"   # ... or a motion file (relative to this config)
+    # file = "../motions/walk.npz"   # ... or a motion file (relative to this config; BVH retargeted
+    # start = 2.0                    #     onto each body, feet on the floor), from `start` seconds
 
-Splits: a sample is ``train`` when its garment and motion are both train,
-``test`` when both are held out; with ``cross_splits`` the mixed pairs are
-made too, as ``test-garment`` and ``test-motion``.
+Splits: a sample is ``train`` when its garment, motion and body are all train,
+``test`` when garment and motion are both held out (any body); with
+``cross_splits`` the mixed ones are made too, as ``test-garment``,
+``test-motion`` and ``test-body``.
 """
 
 from __future__ import annotations
@@ -61,6 +66,7 @@ class GarmentSpec:
     params: GarmentParams
     split: str
     pin: Optional[str] = None  # overrides simulate.pin for this garment
+    mhclo: Optional[Path] = None  # a MakeHuman garment fitted to each body (instead of a procedural one)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -72,6 +78,7 @@ class MotionEntry:
     speed: float = 1.0
     amplitude: float = 1.0
     file: Optional[Path] = None
+    start: float = 0.0  # seconds into the file where the clip begins
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,6 +101,7 @@ class DatasetConfig:
     cross_splits: bool = False
     path: Optional[Path] = None
     text: str = ""
+    body_splits: tuple = ()  # "train" | "test" per body (default: all train)
 
     def digest(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()[:16]
@@ -132,6 +140,11 @@ def load_dataset_config(path) -> DatasetConfig:
         g.pop("split", None)
         name = g.pop("name", None) or f"{kind}-{i}"
         pin = g.pop("pin", None)
+        mhclo = g.pop("mhclo", None)
+        if mhclo is not None:
+            mhclo = (p.parent / mhclo).resolve()
+            if not mhclo.is_file():
+                raise FileFormatError(f"garments[{i}].mhclo does not exist", path=p, got=str(mhclo))
         if pin is not None and pin not in ("waistband", "top"):
             raise FileFormatError(f"garments[{i}].pin must be 'waistband' or 'top'", path=p, got=pin)
         if name in names:
@@ -141,13 +154,14 @@ def load_dataset_config(path) -> DatasetConfig:
             params = GarmentParams(**g)
         except (TypeError, InputError) as e:
             raise FileFormatError(f"garments[{i}]: {e}", path=p) from None
-        garments.append(GarmentSpec(name, kind, params, split, pin))
-    bodies = []
+        garments.append(GarmentSpec(name, kind, params, split, pin, mhclo))
+    bodies, body_splits = [], []
     for i, b in enumerate(data.get("bodies", [{"betas": []}])):
         betas = b.get("betas", [])
-        if set(b) - {"betas"} or not all(isinstance(x, (int, float)) for x in betas):
-            raise FileFormatError(f"bodies[{i}] must be {{betas = [numbers]}}", path=p, got=b)
+        if set(b) - {"betas", "split"} or not all(isinstance(x, (int, float)) for x in betas):
+            raise FileFormatError(f"bodies[{i}] must be {{betas = [numbers], split = train|test}}", path=p, got=b)
         bodies.append(tuple(float(x) for x in betas))
+        body_splits.append(_split(b, p, f"bodies[{i}]"))
     motions, mnames = [], set()
     for i, m in enumerate(data.get("motions", [])):
         m = dict(m)
@@ -157,7 +171,7 @@ def load_dataset_config(path) -> DatasetConfig:
         if "kind" in m and m["kind"] not in MOTION_KINDS:
             raise FileFormatError(f"motions[{i}].kind is not a motion kind", path=p,
                                   expected=" | ".join(MOTION_KINDS), got=m["kind"])
-        extra = set(m) - {"kind", "file", "seed", "speed", "amplitude", "split", "name"}
+        extra = set(m) - {"kind", "file", "seed", "speed", "amplitude", "split", "name", "start"}
         if extra:
             raise FileFormatError(f"unknown key motions[{i}].{sorted(extra)[0]}", path=p)
         f = (p.parent / m["file"]).resolve() if "file" in m else None
@@ -166,7 +180,8 @@ def load_dataset_config(path) -> DatasetConfig:
             raise FileFormatError(f"motion name {name!r} is used twice", path=p)
         mnames.add(name)
         motions.append(MotionEntry(name=name, split=split, kind=m.get("kind"), seed=int(m.get("seed", 0)),
-                                   speed=float(m.get("speed", 1.0)), amplitude=float(m.get("amplitude", 1.0)), file=f))
+                                   speed=float(m.get("speed", 1.0)), amplitude=float(m.get("amplitude", 1.0)), file=f,
+                                   start=float(m.get("start", 0.0))))
     if not garments or not motions:
         raise FileFormatError("a dataset needs at least one [[garments]] and one [[motions]]", path=p)
     sim = parse_simulate_table(data.get("simulate"), where=p)
@@ -174,5 +189,6 @@ def load_dataset_config(path) -> DatasetConfig:
     if not (1 <= fps <= 240 and 0.1 <= seconds <= 60):
         raise FileFormatError("dataset.fps / dataset.seconds out of range", path=p, got=(fps, seconds))
     return DatasetConfig(garments=tuple(garments), bodies=tuple(bodies), motions=tuple(motions), simulate=sim,
+                         body_splits=tuple(body_splits),
                          quality=q, fps=fps, seconds=seconds, cross_splits=bool(ds.get("cross_splits", False)),
                          path=p, text=json.dumps(data, sort_keys=True, default=str))

@@ -51,35 +51,56 @@ class PlannedSample:
 def sample_plan(cfg: DatasetConfig) -> list[PlannedSample]:
     """Every sample the config asks for, in a stable order (see the config's split rules)."""
     out = []
+    bsplit = cfg.body_splits or ("train",) * len(cfg.bodies)
     for gi, g in enumerate(cfg.garments):
         for bi, _ in enumerate(cfg.bodies):
             for mi, m in enumerate(cfg.motions):
-                if g.split == m.split:
-                    split = g.split
+                if g.split == m.split == "test":
+                    split = "test"
+                elif g.split == m.split == bsplit[bi] == "train":
+                    split = "train"
                 elif not cfg.cross_splits:
                     continue
+                elif g.split == "test":
+                    split = "test-garment"
+                elif m.split == "test":
+                    split = "test-motion"
                 else:
-                    split = "test-garment" if g.split == "test" else "test-motion"
+                    split = "test-body"
                 out.append(PlannedSample(f"{g.name}__b{bi}__{m.name}", gi, bi, mi, split))
     return out
 
 
-def _motion(m: MotionEntry, cfg: DatasetConfig) -> Motion:
+def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None) -> Motion:
     if m.kind is not None:
         return make_motion(m.kind, seconds=cfg.seconds, fps=cfg.fps, speed=m.speed, amplitude=m.amplitude, seed=m.seed)
-    mo = load_motion(m.file)
+    mo = load_motion(m.file, rest_joints=rest_joints, floor=True)
     if abs(mo.fps - cfg.fps) > 1e-9:
         mo = resample(mo, cfg.fps)
-    n = min(mo.n_frames, int(round(cfg.seconds * cfg.fps)))
-    return dataclasses.replace(mo, poses=mo.poses[:n], trans=mo.trans[:n])
+    a = min(int(round(m.start * cfg.fps)), mo.n_frames - 1)
+    n = min(mo.n_frames - a, int(round(cfg.seconds * cfg.fps)))
+    # the clip starts where the body stands: its root is moved to x = z = 0 at the clip's first frame
+    trans = mo.trans[a:a + n] - np.array([mo.trans[a, 0], 0.0, mo.trans[a, 2]])
+    return dataclasses.replace(mo, poses=mo.poses[a:a + n], trans=trans)
 
 
 def _garment_file(root: Path, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) -> Path:
     g = cfg.garments[gi]
     p = root / "garments" / f"{g.name}-b{bi}.obj"
     if not p.is_file():
-        gar = make_garment(g.kind, body, cfg.bodies[bi] or None, g.params)
-        write_obj(p, Mesh(vertices=gar.vertices, faces=gar.faces), header=gar.header())
+        if g.mhclo is not None:  # a MakeHuman garment: fitted to this body, 3 mm off the skin
+            from ..garments.fit import fit_mhclo, push_off_body, read_mhclo
+
+            binding = read_mhclo(g.mhclo)
+            betas = cfg.bodies[bi] or None
+            v = fit_mhclo(binding, body, betas)
+            v, _ = push_off_body(v, body.shaped_vertices(betas)[0], body.faces, 0.003)
+            faces = read_mesh(binding.obj_path()).faces
+            write_obj(p, Mesh(vertices=v, faces=faces), header=f"MakeHuman garment {binding.name} (CC0), "
+                                                                f"fitted by segadeform")
+        else:
+            gar = make_garment(g.kind, body, cfg.bodies[bi] or None, g.params)
+            write_obj(p, Mesh(vertices=gar.vertices, faces=gar.faces), header=gar.header())
     return p
 
 
@@ -93,7 +114,7 @@ def _run_one(root: str, cfg: DatasetConfig, ps: PlannedSample, body_path: str, s
     g, m = cfg.garments[ps.garment], cfg.motions[ps.motion]
     betas = cfg.bodies[ps.body]
     mesh = read_mesh(_garment_file(root_p, cfg, ps.garment, ps.body, body))
-    motion = _motion(m, cfg)
+    motion = _motion(m, cfg, body.rest_joints(betas or None)[0])
     rec = {"id": ps.id, "split": ps.split, "garment": g.name, "kind": g.kind, "type": GARMENT_TYPES[g.kind],
            "body": ps.body, "motion": m.name, "vertices": len(mesh.vertices), "frames": motion.n_frames}
     try:

@@ -172,11 +172,15 @@ def _float(t, p, ln) -> float:
     return v
 
 
-def fit_mhclo(binding: MhcloBinding, body, betas=None) -> np.ndarray:
+def fit_mhclo(binding: MhcloBinding, body, betas=None, *, return_apose: bool = False):
     """The garment's vertices on ``body`` at shape ``betas``, in the body's T-pose rest (metres, +Y up).
 
+    With ``return_apose`` also the fit in MakeHuman's A-pose (the body posed by ``rest_pose_a``), before
+    it is carried to the T-pose: the shape the garment was designed in, which the cloth simulator uses
+    as the rest shape (``simulate(..., cloth_rest=, start_pose=)``).
+
     Shapes:
-        -> (N, 3), the ``.mhclo``'s (= its OBJ's) vertex order
+        -> (N, 3), the ``.mhclo``'s (= its OBJ's) vertex order [, (N, 3)]
     """
     from ..body.makehuman import makehuman_vertices, makehuman_weights
 
@@ -204,8 +208,8 @@ def fit_mhclo(binding: MhcloBinding, body, betas=None) -> np.ndarray:
     A = body.forward(pose_a, betas).transforms[0]  # (S, 4, 4): T-pose rest -> A-pose
     M = np.einsum("ns,sij->nij", wg, A)
     ph = np.concatenate([p_a, np.ones((len(p_a), 1))], axis=1)
-    p_t = np.linalg.solve(M, ph[..., None])[..., 0]
-    return p_t[:, :3]
+    p_t = np.linalg.solve(M, ph[..., None])[..., 0][:, :3]
+    return (p_t, p_a) if return_apose else p_t
 
 
 def fix_units_and_axes(vertices, *, units: str | float | None = None, up: str = "y", scale: float = 1.0,

@@ -133,7 +133,7 @@ def pin_weights(vertices, faces, group: str, width: float = 0.025) -> np.ndarray
 
 def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, settings: SimSettings = SimSettings(),
              sim_python=None, progress: Optional[Callable[[int, int], None]] = None, keep_job: Optional[Path] = None,
-             timeout: Optional[float] = None) -> SimResult:
+             timeout: Optional[float] = None, cloth_rest=None, start_pose=None, rest_lengths_from=None) -> SimResult:
     """Simulate a rest-pose garment on ``body`` (shape ``betas``) playing ``motion``.
 
     Args:
@@ -145,6 +145,12 @@ def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, se
         progress: called as ``progress(done, total)`` with simulated frames (pre-roll included).
         keep_job: copy the job folder there (for debugging in Blender).
         timeout: seconds before the solver is killed.
+        cloth_rest, start_pose: with ``rest_pose = "a"``: the garment as designed in an A-pose
+            (N, 3), e.g. a MakeHuman garment's fit before it is carried to the T-pose, and that A-pose
+            (72,); default: the garment skinned to :data:`A_POSE`.
+        rest_lengths_from: (N, 3) another shape of the garment whose edge lengths are the cloth's rest
+            lengths (Blender's rest shape key), e.g. a MakeHuman garment as designed; default: the
+            shape the cloth starts from.
 
     Shapes:
         -> SimResult.frames (T, N, 3), T = motion.n_frames
@@ -161,17 +167,32 @@ def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, se
     drape = max(1, int(round(settings.drape_seconds * fps)))
     blend = int(round(settings.blend_seconds * fps))
     a_pose = settings.rest_pose == "a"
-    poses, trans = preroll_poses(motion, drape, blend, A_POSE if a_pose else None)
+    if cloth_rest is not None and (not a_pose or start_pose is None or np.shape(cloth_rest) != v.shape):
+        raise InputError("cloth_rest needs rest_pose = 'a', a start_pose and the garment's vertex count",
+                         got=(settings.rest_pose, start_pose is None, np.shape(cloth_rest)))
+    p0 = (A_POSE if start_pose is None else np.asarray(start_pose, np.float64).reshape(72)) if a_pose else None
+    poses, trans = preroll_poses(motion, drape, blend, p0)
     posed = body.forward(poses, betas, trans)
     z = lambda a: (np.asarray(a) @ _Y_TO_Z.T).astype(np.float32)  # noqa: E731
     rest_body = body.shaped_vertices(betas)[0]
     wts = transfer_weights(v, rest_body, body.faces, body.weights) if (a_pose or settings.has("pinning")) else None
-    # the cloth's rest: the garment as given, or skinned into the A-pose (rest lengths from there)
-    cloth_rest = skin_garment(v, wts, body, A_POSE[None], betas, np.zeros((1, 3)))[0] if a_pose else v
+    # the cloth's rest: the garment as given (T-pose), as designed in an A-pose, or skinned into one
+    if cloth_rest is not None:
+        cloth_rest = np.asarray(cloth_rest, np.float64)
+    elif a_pose:
+        cloth_rest = skin_garment(v, wts, body, p0[None], betas, np.zeros((1, 3)))[0]
+    else:
+        cloth_rest = v
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="segadeform-sim-") as tmp:
         job_dir = Path(tmp)
         np.save(job_dir / "garment_rest.npy", z(cloth_rest))
+        if rest_lengths_from is not None:
+            rl = np.asarray(rest_lengths_from, np.float64)
+            if rl.shape != v.shape or not np.isfinite(rl).all():
+                raise InputError("rest_lengths_from must be finite and shaped like the garment", expected=v.shape,
+                                 got=rl.shape)
+            np.save(job_dir / "garment_rest_shape.npy", z(rl))
         np.save(job_dir / "garment_faces.npy", f.astype(np.int64))
         np.save(job_dir / "body_rest.npy", z(rest_body))
         np.save(job_dir / "body_faces.npy", body.faces.astype(np.int64))
@@ -182,6 +203,7 @@ def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, se
         job = {"fps": fps, "total_frames": len(poses), "record_start": drape + blend + 1,
                "garment_rest": "garment_rest.npy", "garment_faces": "garment_faces.npy",
                "body_rest": "body_rest.npy", "body_faces": "body_faces.npy", "body_cache": "body.pc2",
+               "garment_rest_shape": "garment_rest_shape.npy" if rest_lengths_from is not None else None,
                "check_body_frames": check, "body_check": "body_check.npy", **bs}
         if bs["wind"]:
             job["wind"]["direction"] = list(map(float, np.asarray(settings.wind) @ _Y_TO_Z.T))
@@ -210,7 +232,7 @@ def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, se
                               f"{info['body_playback_max_error']:.3g} m): check the Mesh Cache settings")
     return SimResult(frames=frames, fps=fps, settings={"segadeform": settings.to_dict(), "blender": bs},
                      blender=info, preroll_frames=drape + blend, wall_seconds=time.perf_counter() - t0,
-                     cloth_rest=cloth_rest)
+                     cloth_rest=cloth_rest if rest_lengths_from is None else np.asarray(rest_lengths_from, np.float64))
 
 
 def _run_worker(exe: Path, job_dir: Path, total: int, progress, timeout) -> None:

@@ -86,10 +86,20 @@ def main(job_dir):
             vg.add(idx, value, "REPLACE")
     if job.get("garment_cache"):  # pinned vertices follow this input (the skinned garment)
         _mesh_cache(garment, os.path.join(job_dir, job["garment_cache"]))
+    rest_shape = None
+    if job.get("garment_rest_shape"):  # rest lengths from another shape than the starting one
+        garment.shape_key_add(name="start")
+        key = garment.shape_key_add(name="rest", from_mix=False)
+        for i, co in enumerate(load("garment_rest_shape")):
+            key.data[i].co = (float(co[0]), float(co[1]), float(co[2]))
+        key.value = 0.0
+        rest_shape = key
     cloth = garment.modifiers.new("cloth", "CLOTH")
     s = cloth.settings
     for k, v in job["cloth"].items():
         _set(s, k, v)
+    if rest_shape is not None:
+        s.rest_shape_key = rest_shape
     s.effector_weights.gravity = 1.0 if eff["gravity"] else 0.0
     s.effector_weights.wind = 1.0 if eff["wind"] else 0.0
     if pins:
