@@ -130,7 +130,7 @@ def test_garment_for_another_body_is_refused(body):
     from segadeform.garments import GarmentParams, make_garment
 
     g = make_garment("tshirt", body, [-2.0, 1.0], GarmentParams())
-    with pytest.raises(PlacementError, match="another body or pose"):
+    with pytest.raises(PlacementError, match="another body, pose or body shape"):
         check_placement(g.vertices, body.shaped_vertices()[0], body.faces)
 
 

@@ -8,7 +8,8 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     cross_splits = false      # also simulate held-out garments on training motions and vice versa
 
     [quality]                 # the gate every sample must pass (see segadeform.dataset.quality)
-    max_strain = 1.0          # largest |edge length / rest - 1|
+    max_strain = 1.0          # largest |edge length / rest - 1| ...
+    max_strained_edges = 0.0  # ... that more than this share of the edges may reach (0: no edge)
     max_penetrating = 0.01    # largest fraction of vertices deeper than `penetration_depth`, any frame
     penetration_depth = 0.005
     max_jitter = 0.001        # largest fraction of (frame, vertex) acceleration outliers
@@ -16,8 +17,14 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     [simulate]                # as in a scene (segadeform.physics.settings)
     effects = ["gravity", "body_collision", "bending", "air_damping"]
 
+    held_out_kinds = []       # garment kinds that only held-out entries may use (never trained on)
+    held_out_motions = []     # motion kinds / motion file names likewise
+
     [[garments]]
     kind = "skirt"            # segadeform.garments kinds; other keys are GarmentParams
+    # length = [0.3, 0.8]     # a range [lo, hi] instead of a value: each of `count` draws samples it
+    # count = 4               #     uniformly (integers for resolution), deterministically from `seed`
+    # seed = 0                #     (default: from the name) and its draw number k; named NAME-k
     # mhclo = "../../shared/data/garments/makehuman_split/jeans_m/jeans_m.mhclo"   # a MakeHuman garment
     #                         # fitted to each body instead (kind then only gives its type label)
     pin = "waistband"         # optional: the pin group of this garment (with the "pinning" effect)
@@ -34,11 +41,20 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     split = "train"
     # file = "../motions/walk.npz"   # ... or a motion file (relative to this config; BVH retargeted
     # start = 2.0                    #     onto each body, feet on the floor), from `start` seconds
+    # ease_in = 0.0          # procedural: seconds blending in from the rest pose (default 1.0)
+    # count = 3              # procedural: seeds seed .. seed+2; speed / amplitude may be ranges;
+    #                        # files: `start` may be a range (clips of one file); named NAME-k
 
 Splits: a sample is ``train`` when its garment, motion and body are all train,
 ``test`` when garment and motion are both held out (any body); with
 ``cross_splits`` the mixed ones are made too, as ``test-garment``,
-``test-motion`` and ``test-body``.
+``test-motion`` and ``test-body``.  Every draw of an entry has the entry's split; a
+motion file or MakeHuman garment used by a held-out entry may not be used by a
+training one, nor a ``held_out_kinds`` / ``held_out_motions`` kind.
+
+Growing a dataset: entries added to a config, or a larger ``count``, only add
+samples -- draw k of an entry depends on the entry and k alone, never on the
+count (see :mod:`.make` for what is checked when a dataset is continued).
 """
 
 from __future__ import annotations
@@ -48,6 +64,8 @@ import hashlib
 import json
 from pathlib import Path
 from typing import Optional
+
+import numpy as np
 
 from .._toml import read_toml
 from ..errors import FileFormatError, InputError
@@ -79,11 +97,13 @@ class MotionEntry:
     amplitude: float = 1.0
     file: Optional[Path] = None
     start: float = 0.0  # seconds into the file where the clip begins
+    ease_in: float = 1.0  # procedural: seconds blending in from the rest pose
 
 
 @dataclasses.dataclass(frozen=True)
 class QualitySpec:
     max_strain: float = 1.0
+    max_strained_edges: float = 0.0  # share of edges allowed past max_strain (a few local snags)
     max_penetrating: float = 0.01
     penetration_depth: float = 0.005
     max_jitter: float = 0.001
@@ -102,6 +122,8 @@ class DatasetConfig:
     path: Optional[Path] = None
     text: str = ""
     body_splits: tuple = ()  # "train" | "test" per body (default: all train)
+    held_out_kinds: tuple = ()    # garment kinds only held-out entries use
+    held_out_motions: tuple = ()  # motion kinds / file stems only held-out entries use
 
     def digest(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()[:16]
@@ -114,6 +136,53 @@ def _split(d, where, what):
     return s
 
 
+#: garment parameters that may be ranges, and whether they are integers
+_GARMENT_RANGED = {"length": False, "flare": False, "ease": False, "sleeve": False, "resolution": True,
+                   "subdivisions": True}
+
+
+def _entry_seed(seed, name: str) -> int:
+    """An entry's sampling seed: the config's ``seed``, else a stable number from its name."""
+    if seed is None:
+        return int.from_bytes(hashlib.sha256(name.encode()).digest()[:4], "little")
+    return int(seed)
+
+
+def draw_values(ranges: dict, integer: dict, seed: int, k: int) -> dict:
+    """Draw ``k`` of an entry: every ``key: [lo, hi]`` of ``ranges`` sampled uniformly (integers in
+    ``lo..hi`` where ``integer[key]``), from a generator seeded by ``(seed, k)`` alone -- so a draw
+    never changes when the count grows.  Keys are drawn in sorted order."""
+    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, int(k)])
+    out = {}
+    for key in sorted(ranges):
+        lo, hi = ranges[key]
+        out[key] = int(rng.integers(lo, hi + 1)) if integer.get(key) else float(lo + (hi - lo) * rng.random())
+    return out
+
+
+def _ranges(d: dict, allowed: dict, p, what: str) -> dict:
+    """Pop the ``[lo, hi]`` ranges out of entry ``d`` (validated)."""
+    out = {}
+    for key in [k for k, v in d.items() if isinstance(v, list)]:
+        v = d.pop(key)
+        if key not in allowed:
+            raise FileFormatError(f"{what}.{key} cannot be a range", path=p,
+                                  expected=" | ".join(sorted(allowed)) or "no range here", got=v)
+        num = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+        if len(v) != 2 or not num or v[0] > v[1] or (allowed[key] and not all(isinstance(x, int) for x in v)):
+            raise FileFormatError(f"{what}.{key} must be a range [lo, hi] with lo <= hi", path=p,
+                                  expected="two integers" if allowed[key] else "two numbers", got=v)
+        out[key] = (v[0], v[1])
+    return out
+
+
+def _count(d: dict, p, what: str) -> Optional[int]:
+    c = d.pop("count", None)
+    if c is not None and (not isinstance(c, int) or isinstance(c, bool) or not 1 <= c <= 100_000):
+        raise FileFormatError(f"{what}.count must be an integer 1..100000", path=p, got=c)
+    return c
+
+
 def load_dataset_config(path) -> DatasetConfig:
     p = Path(path)
     data, text = read_toml(p, "dataset config")
@@ -122,9 +191,17 @@ def load_dataset_config(path) -> DatasetConfig:
     if bad:
         raise FileFormatError(f"unknown table [{bad[0]}]", path=p, expected=", ".join(sorted(known)))
     ds = data.get("dataset", {})
-    bad = sorted(set(ds) - {"fps", "seconds", "cross_splits"})
+    bad = sorted(set(ds) - {"fps", "seconds", "cross_splits", "held_out_kinds", "held_out_motions"})
     if bad:
         raise FileFormatError(f"unknown key dataset.{bad[0]}", path=p)
+    held_kinds = tuple(ds.get("held_out_kinds", ()))
+    held_motions = tuple(ds.get("held_out_motions", ()))
+    if not all(isinstance(k, str) and k in GARMENT_KINDS for k in held_kinds):
+        raise FileFormatError("dataset.held_out_kinds must list garment kinds", path=p,
+                              expected=" | ".join(GARMENT_KINDS), got=list(held_kinds))
+    if not all(isinstance(k, str) for k in held_motions):
+        raise FileFormatError("dataset.held_out_motions must list motion kinds or file names", path=p,
+                              got=list(held_motions))
     try:
         q = QualitySpec(**data.get("quality", {}))
     except TypeError as e:
@@ -141,20 +218,40 @@ def load_dataset_config(path) -> DatasetConfig:
         name = g.pop("name", None) or f"{kind}-{i}"
         pin = g.pop("pin", None)
         mhclo = g.pop("mhclo", None)
+        count = _count(g, p, f"garments[{i}]")
+        seed = g.pop("seed", None)
+        if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool)):
+            raise FileFormatError(f"garments[{i}].seed must be an integer", path=p, got=seed)
+        ranged = _ranges(g, _GARMENT_RANGED, p, f"garments[{i}]")
         if mhclo is not None:
             mhclo = (p.parent / mhclo).resolve()
             if not mhclo.is_file():
                 raise FileFormatError(f"garments[{i}].mhclo does not exist", path=p, got=str(mhclo))
+            if ranged or (count or 1) > 1:
+                raise FileFormatError(f"garments[{i}]: a MakeHuman garment has no parameters to draw", path=p,
+                                      expected="no ranges and no count with mhclo")
         if pin is not None and pin not in ("waistband", "top"):
             raise FileFormatError(f"garments[{i}].pin must be 'waistband' or 'top'", path=p, got=pin)
-        if name in names:
-            raise FileFormatError(f"garment name {name!r} is used twice", path=p)
-        names.add(name)
-        try:
-            params = GarmentParams(**g)
-        except (TypeError, InputError) as e:
-            raise FileFormatError(f"garments[{i}]: {e}", path=p) from None
-        garments.append(GarmentSpec(name, kind, params, split, pin, mhclo))
+        if split == "train" and kind in held_kinds:
+            raise FileFormatError(f"garments[{i}] is a training garment of the held-out kind {kind!r}", path=p,
+                                  expected="split = 'test' for kinds in dataset.held_out_kinds")
+        if count is None and not ranged:
+            draws = [(name, {})]
+        elif not ranged and count > 1:
+            raise FileFormatError(f"garments[{i}]: count = {count} with no range draws {count} identical garments",
+                                  path=p, expected="at least one parameter as a range [lo, hi]")
+        else:
+            es = _entry_seed(seed, name)
+            draws = [(f"{name}-{k}", draw_values(ranged, _GARMENT_RANGED, es, k)) for k in range(count or 1)]
+        for dname, vals in draws:
+            if dname in names:
+                raise FileFormatError(f"garment name {dname!r} is used twice", path=p)
+            names.add(dname)
+            try:
+                params = GarmentParams(**g, **vals)
+            except (TypeError, InputError) as e:
+                raise FileFormatError(f"garments[{i}] ({dname}): {e}", path=p) from None
+            garments.append(GarmentSpec(dname, kind, params, split, pin, mhclo))
     bodies, body_splits = [], []
     for i, b in enumerate(data.get("bodies", [{"betas": []}])):
         betas = b.get("betas", [])
@@ -165,23 +262,64 @@ def load_dataset_config(path) -> DatasetConfig:
     motions, mnames = [], set()
     for i, m in enumerate(data.get("motions", [])):
         m = dict(m)
-        split = _split(m, p, f"motions[{i}]")
+        what = f"motions[{i}]"
+        split = _split(m, p, what)
+        m.pop("split", None)
         if ("kind" in m) == ("file" in m):
-            raise FileFormatError(f"motions[{i}] needs exactly one of kind or file", path=p)
+            raise FileFormatError(f"{what} needs exactly one of kind or file", path=p)
         if "kind" in m and m["kind"] not in MOTION_KINDS:
-            raise FileFormatError(f"motions[{i}].kind is not a motion kind", path=p,
+            raise FileFormatError(f"{what}.kind is not a motion kind", path=p,
                                   expected=" | ".join(MOTION_KINDS), got=m["kind"])
-        extra = set(m) - {"kind", "file", "seed", "speed", "amplitude", "split", "name", "start"}
+        allowed = {"kind", "seed", "speed", "amplitude", "name", "count", "ease_in"} if "kind" in m \
+            else {"file", "name", "start", "count", "seed"}
+        extra = set(m) - allowed
         if extra:
-            raise FileFormatError(f"unknown key motions[{i}].{sorted(extra)[0]}", path=p)
+            raise FileFormatError(f"unknown key {what}.{sorted(extra)[0]}", path=p,
+                                  expected=", ".join(sorted(allowed)))
+        count = _count(m, p, what)
+        ranged = _ranges(m, {"speed": False, "amplitude": False} if "kind" in m else {"start": False}, p, what)
         f = (p.parent / m["file"]).resolve() if "file" in m else None
-        name = m.get("name") or (f.stem if f else f"{m['kind']}-s{m.get('seed', 0)}")
-        if name in mnames:
-            raise FileFormatError(f"motion name {name!r} is used twice", path=p)
-        mnames.add(name)
-        motions.append(MotionEntry(name=name, split=split, kind=m.get("kind"), seed=int(m.get("seed", 0)),
-                                   speed=float(m.get("speed", 1.0)), amplitude=float(m.get("amplitude", 1.0)), file=f,
-                                   start=float(m.get("start", 0.0))))
+        seed = m.get("seed", 0)
+        if not isinstance(seed, int) or isinstance(seed, bool):
+            raise FileFormatError(f"{what}.seed must be an integer", path=p, got=seed)
+        base = m.get("name") or (f.stem if f else f"{m['kind']}-s{seed}")
+        family = f.stem if f else m["kind"]
+        if split == "train" and (family in held_motions or (f is not None and f.name in held_motions)):
+            raise FileFormatError(f"{what} is a training motion of the held-out family {family!r}", path=p,
+                                  expected="split = 'test' for motions in dataset.held_out_motions")
+        if count is None and not ranged:
+            draws = [(base, 0, {})]
+        elif not ranged and f is not None and (count or 1) > 1:
+            raise FileFormatError(f"{what}: count = {count} of one file with no start range repeats one clip",
+                                  path=p, expected="start = [lo, hi]")
+        else:
+            es = _entry_seed(m.get("seed"), base)
+            draws = [(f"{base}-{k}", k, draw_values(ranged, {}, es, k)) for k in range(count or 1)]
+        for dname, k, vals in draws:
+            if dname in mnames:
+                raise FileFormatError(f"motion name {dname!r} is used twice", path=p)
+            mnames.add(dname)
+            try:
+                kw = dict(speed=float(vals.get("speed", m.get("speed", 1.0))),
+                          amplitude=float(vals.get("amplitude", m.get("amplitude", 1.0))),
+                          start=float(vals.get("start", m.get("start", 0.0))),
+                          ease_in=float(m.get("ease_in", 1.0)))
+            except (TypeError, ValueError):
+                raise FileFormatError(f"{what}: speed, amplitude, start and ease_in must be numbers", path=p) from None
+            if kw["start"] < 0 or kw["ease_in"] < 0:
+                raise FileFormatError(f"{what}: start and ease_in must be >= 0", path=p, got=(kw["start"], kw["ease_in"]))
+            motions.append(MotionEntry(name=dname, split=split, kind=m.get("kind"),
+                                       seed=seed + k if f is None else 0, file=f, **kw))
+    # one source, one side: a motion file or a MakeHuman garment is either trained on or held out
+    for what, items in (("motion file", [(mo.file, mo.split) for mo in motions if mo.file is not None]),
+                        ("MakeHuman garment", [(g.mhclo, g.split) for g in garments if g.mhclo is not None])):
+        sides = {}
+        for src, sp in items:
+            sides.setdefault(src, set()).add(sp)
+        both = sorted(str(k) for k, v in sides.items() if len(v) > 1)
+        if both:
+            raise FileFormatError(f"the {what} {both[0]} is used by both training and held-out entries", path=p,
+                                  expected="each source in one split")
     if not garments or not motions:
         raise FileFormatError("a dataset needs at least one [[garments]] and one [[motions]]", path=p)
     sim = parse_simulate_table(data.get("simulate"), where=p)
@@ -189,6 +327,6 @@ def load_dataset_config(path) -> DatasetConfig:
     if not (1 <= fps <= 240 and 0.1 <= seconds <= 60):
         raise FileFormatError("dataset.fps / dataset.seconds out of range", path=p, got=(fps, seconds))
     return DatasetConfig(garments=tuple(garments), bodies=tuple(bodies), motions=tuple(motions), simulate=sim,
-                         body_splits=tuple(body_splits),
+                         body_splits=tuple(body_splits), held_out_kinds=held_kinds, held_out_motions=held_motions,
                          quality=q, fps=fps, seconds=seconds, cross_splits=bool(ds.get("cross_splits", False)),
                          path=p, text=json.dumps(data, sort_keys=True, default=str))

@@ -2,8 +2,11 @@
 
 Layout of the output folder::
 
-    DIR/config.toml             the config that made it (copied)
-    DIR/garments/G-bK.obj       garment G made for body K (rest pose)
+    DIR/config.toml             the config of the latest run (copied)
+    DIR/configs/NNN.toml        every config the folder was made with, in order
+    DIR/garments/G-bK.obj       garment G made for body K (rest pose) ...
+    DIR/garments/G-bK.cloth.obj ... and made in the A-pose (the cloth's rest, with rest_pose = "a")
+    DIR/garments/G-bK.json      what the garment was made from
     DIR/samples/ID.npz|.json    kept samples (arrays, metadata)
     DIR/rejected/ID.json        samples the quality gate rejected, with the reasons
     DIR/log.jsonl               one line per finished sample (kept or rejected), appended
@@ -11,14 +14,21 @@ Layout of the output folder::
 A sample is done when its ``samples/ID.json`` or ``rejected/ID.json`` exists;
 a killed run simply starts again and skips those.  Sample ids are
 ``G__bK__M`` (garment, body index, motion).
+
+A dataset grows over many runs: run again with more entries or a larger
+``count`` and only the new samples are made.  Each sample records a digest of
+everything that defines it (garment, body shape, motion, clip, simulation
+settings); a run whose config gives a finished sample id another meaning
+(an entry's parameters changed under the same name, bodies reordered) stops
+before simulating anything and names the ids -- rename the entry instead.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
 import dataclasses
+import hashlib
 import json
-import shutil
 import time
 from pathlib import Path
 from typing import Callable, Optional
@@ -26,17 +36,17 @@ from typing import Callable, Optional
 import numpy as np
 
 from ..body.model import BodyModel, load_body
-from ..errors import SegadeformError
+from ..errors import InputError, SegadeformError
 from ..garments import GARMENT_TYPES, make_garment
 from ..io import Mesh, read_mesh, write_obj
 from ..io.atomic import atomic_path
 from ..motion import load_motion, make_motion, resample
 from ..motion.motion import Motion
-from .config import DatasetConfig, MotionEntry
+from .config import DatasetConfig, GarmentSpec, MotionEntry
 from .quality import quality_check
 from .store import Sample, save_sample
 
-__all__ = ["PlannedSample", "sample_plan", "make_dataset", "DatasetSummary"]
+__all__ = ["PlannedSample", "sample_plan", "make_dataset", "DatasetSummary", "sample_spec", "check_splits"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,9 +81,52 @@ def sample_plan(cfg: DatasetConfig) -> list[PlannedSample]:
     return out
 
 
+def check_splits(cfg: DatasetConfig, plan: list[PlannedSample]) -> None:
+    """Raise :class:`InputError` if a ``train`` sample uses anything held out: a test garment, motion
+    or body, a ``held_out_kinds`` garment kind, a ``held_out_motions`` motion, or a motion file /
+    MakeHuman garment that a held-out entry uses."""
+    bsplit = cfg.body_splits or ("train",) * len(cfg.bodies)
+    held_files = {m.file for m in cfg.motions if m.split == "test" and m.file is not None}
+    held_mhclo = {g.mhclo for g in cfg.garments if g.split == "test" and g.mhclo is not None}
+    for p in plan:
+        if p.split != "train":
+            continue
+        g, m = cfg.garments[p.garment], cfg.motions[p.motion]
+        family = m.file.stem if m.file is not None else m.kind
+        bad = [why for why, leak in (
+            ("a held-out garment", g.split != "train"), ("a held-out motion", m.split != "train"),
+            ("a held-out body", bsplit[p.body] != "train"), ("a held-out garment kind", g.kind in cfg.held_out_kinds),
+            ("a held-out motion family", family in cfg.held_out_motions),
+            ("a held-out motion file", m.file is not None and m.file in held_files),
+            ("a held-out MakeHuman garment", g.mhclo is not None and g.mhclo in held_mhclo)) if leak]
+        if bad:
+            raise InputError(f"training sample {p.id} uses {bad[0]}")
+
+
+def _digest(obj) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def _garment_key(g: GarmentSpec) -> dict:
+    return {"kind": g.kind, "params": dataclasses.asdict(g.params), "pin": g.pin,
+            "mhclo": str(g.mhclo) if g.mhclo else None}
+
+
+def sample_spec(cfg: DatasetConfig, p: PlannedSample) -> str:
+    """A digest of everything that defines sample ``p``'s data: garment, body shape, motion and clip,
+    frame rate and length, simulation settings (not the quality gate, which only keeps or rejects)."""
+    g, m = cfg.garments[p.garment], cfg.motions[p.motion]
+    mo = dataclasses.asdict(m)
+    mo.pop("split")
+    st = cfg.simulate.replace(pin=g.pin) if g.pin else cfg.simulate
+    return _digest({"garment": _garment_key(g), "betas": list(cfg.bodies[p.body]), "motion": mo,
+                    "fps": cfg.fps, "seconds": cfg.seconds, "simulate": st.to_dict()})
+
+
 def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None) -> Motion:
     if m.kind is not None:
-        return make_motion(m.kind, seconds=cfg.seconds, fps=cfg.fps, speed=m.speed, amplitude=m.amplitude, seed=m.seed)
+        return make_motion(m.kind, seconds=cfg.seconds, fps=cfg.fps, speed=m.speed, amplitude=m.amplitude, seed=m.seed,
+                           ease_in=m.ease_in)
     mo = load_motion(m.file, rest_joints=rest_joints, floor=True)
     if abs(mo.fps - cfg.fps) > 1e-9:
         mo = resample(mo, cfg.fps)
@@ -85,8 +138,20 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None) -> Motion:
 
 
 def _garment_file(root: Path, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) -> Path:
+    """The garment's rest-pose OBJ (made once per garment and body); with ``rest_pose = "a"`` a
+    procedural garment is also made in the A-pose, ``G-bK.cloth.obj`` beside it (same vertices)."""
+    from ..physics.blender import A_POSE
+
     g = cfg.garments[gi]
     p = root / "garments" / f"{g.name}-b{bi}.obj"
+    key_p = p.with_suffix(".json")
+    key = {"garment": _garment_key(g), "betas": list(cfg.bodies[bi]), "cloth_pose": cfg.simulate.rest_pose}
+    if p.is_file() and key_p.is_file():
+        old = json.loads(key_p.read_text())
+        if old != json.loads(json.dumps(key)):
+            raise InputError(f"garment {g.name} (body {bi}) in this dataset was made from other parameters; "
+                             f"give the changed entry a new name (or use a new folder)", path=key_p,
+                             expected=json.dumps(key, sort_keys=True), got=json.dumps(old, sort_keys=True))
     if not p.is_file():
         if g.mhclo is not None:  # a MakeHuman garment: fitted to this body, 3 mm off the skin
             from ..garments.fit import fit_mhclo, push_off_body, read_mhclo
@@ -99,28 +164,42 @@ def _garment_file(root: Path, cfg: DatasetConfig, gi: int, bi: int, body: BodyMo
             write_obj(p, Mesh(vertices=v, faces=faces), header=f"MakeHuman garment {binding.name} (CC0), "
                                                                 f"fitted by segadeform")
         else:
-            gar = make_garment(g.kind, body, cfg.bodies[bi] or None, g.params)
+            a_pose = cfg.simulate.rest_pose == "a"
+            gar = make_garment(g.kind, body, cfg.bodies[bi] or None, g.params, cloth_pose=A_POSE if a_pose else None)
+            if a_pose:  # the cloth file first: the rest-pose OBJ is what marks the garment done
+                write_obj(_cloth_file(p), Mesh(vertices=gar.cloth_rest, faces=gar.faces),
+                          header=gar.header() + "\nthe same garment made in the A-pose (the cloth's rest)")
             write_obj(p, Mesh(vertices=gar.vertices, faces=gar.faces), header=gar.header())
+        with atomic_path(key_p) as tmp:
+            Path(tmp).write_text(json.dumps(key, indent=1, sort_keys=True))
     return p
+
+
+def _cloth_file(p: Path) -> Path:
+    return p.with_name(p.stem + ".cloth.obj")
 
 
 def _run_one(root: str, cfg: DatasetConfig, ps: PlannedSample, body_path: str, sim_python) -> dict:
     """Simulate and gate one sample (in a worker process); returns its log record."""
-    from ..physics.blender import simulate
+    from ..physics.blender import A_POSE, simulate
 
     t0 = time.perf_counter()
     root_p = Path(root)
     body = load_body(body_path)
     g, m = cfg.garments[ps.garment], cfg.motions[ps.motion]
     betas = cfg.bodies[ps.body]
-    mesh = read_mesh(_garment_file(root_p, cfg, ps.garment, ps.body, body))
+    gpath = _garment_file(root_p, cfg, ps.garment, ps.body, body)
+    mesh = read_mesh(gpath)
+    cloth = read_mesh(_cloth_file(gpath)).vertices if _cloth_file(gpath).is_file() else None
     motion = _motion(m, cfg, body.rest_joints(betas or None)[0])
     rec = {"id": ps.id, "split": ps.split, "garment": g.name, "kind": g.kind, "type": GARMENT_TYPES[g.kind],
-           "body": ps.body, "motion": m.name, "vertices": len(mesh.vertices), "frames": motion.n_frames}
+           "body": ps.body, "motion": m.name, "vertices": len(mesh.vertices), "frames": motion.n_frames,
+           "spec": sample_spec(cfg, ps)}
     try:
         st = cfg.simulate.replace(pin=g.pin) if g.pin else cfg.simulate
+        kw = {} if cloth is None else {"cloth_rest": cloth, "start_pose": A_POSE}
         res = simulate(mesh.vertices, mesh.faces, body, motion, betas=betas or None, settings=st,
-                       sim_python=sim_python)
+                       sim_python=sim_python, **kw)
     except SegadeformError as e:
         rec.update(status="rejected", reasons=[f"simulation failed: {e}"], seconds=time.perf_counter() - t0)
         return rec
@@ -138,7 +217,9 @@ def _run_one(root: str, cfg: DatasetConfig, ps: PlannedSample, body_path: str, s
         save_sample(root_p, Sample(id=ps.id, rest=mesh.vertices, faces=mesh.faces,
                                    betas=np.asarray(betas, np.float64), poses=motion.poses, trans=motion.trans,
                                    frames=res.frames.astype(np.float32), meta=meta,
-                                   contact_p=contact["closest"], contact_n=contact["normal"]))
+                                   contact_p=contact["closest"], contact_n=contact["normal"],
+                                   cloth_rest=None if res.cloth_rest is None or strain_rest is mesh.vertices
+                                   else np.asarray(res.cloth_rest, np.float64)))
         rec["status"] = "kept"
     else:
         rec.update(status="rejected", reasons=q.reasons)
@@ -147,6 +228,36 @@ def _run_one(root: str, cfg: DatasetConfig, ps: PlannedSample, body_path: str, s
             Path(tmp).write_text(json.dumps(rec, indent=1))
     rec["seconds"] = time.perf_counter() - t0
     return rec
+
+
+def _check_done(out: Path, cfg: DatasetConfig, plan: list[PlannedSample]) -> None:
+    """Stop if a finished sample's recorded spec differs from what the config now asks of its id."""
+    bad = []
+    for p in plan:
+        for f in (out / "samples" / f"{p.id}.json", out / "rejected" / f"{p.id}.json"):
+            if f.is_file():
+                old = json.loads(f.read_text()).get("spec")
+                if old is not None and old != sample_spec(cfg, p):
+                    bad.append(p.id)
+    if bad:
+        raise InputError(f"{len(bad)} finished samples of this dataset were made from other settings than this "
+                         f"config gives them (first: {bad[0]}); give changed entries new names, keep bodies in "
+                         f"order, or use a new folder", path=out)
+
+
+def _keep_config(out: Path, cfg: DatasetConfig) -> None:
+    """config.toml = this run's config; configs/NNN.toml = every distinct config, in order."""
+    if cfg.path is None:
+        return
+    text = Path(cfg.path).read_bytes()
+    hist = out / "configs"
+    hist.mkdir(exist_ok=True)
+    old = sorted(hist.glob("*.toml"))
+    if not old or old[-1].read_bytes() != text:
+        with atomic_path(hist / f"{len(old) + 1:03d}.toml") as tmp:
+            Path(tmp).write_bytes(text)
+    with atomic_path(out / "config.toml") as tmp:
+        Path(tmp).write_bytes(text)
 
 
 @dataclasses.dataclass
@@ -164,9 +275,10 @@ def make_dataset(cfg: DatasetConfig, out: Path, *, body_path: Path, jobs: int = 
     out = Path(out)
     (out / "samples").mkdir(parents=True, exist_ok=True)
     (out / "garments").mkdir(exist_ok=True)
-    if cfg.path is not None:
-        shutil.copyfile(cfg.path, out / "config.toml")
     plan = sample_plan(cfg)
+    check_splits(cfg, plan)
+    _check_done(out, cfg, plan)
+    _keep_config(out, cfg)
     # held-out samples first, then body-major, motion, garment: a run stopped early still has
     # every garment and motion of the bodies it reached, and a complete test split
     order = sorted(plan, key=lambda p: (p.split == "train", p.body, p.motion, p.garment))
@@ -179,9 +291,13 @@ def make_dataset(cfg: DatasetConfig, out: Path, *, body_path: Path, jobs: int = 
     for gi, bi in sorted({(p.garment, p.body) for p in todo}):  # garments first, in this process: no races
         _garment_file(out, cfg, gi, bi, body)
     records = []
+    run = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime())
+    run_t0 = time.time()
     log = open(out / "log.jsonl", "a")
     try:
         def done(rec):
+            # the run it belongs to and when it finished: `dataset info` measures samples per hour
+            rec.update(run=run, run_started=run_t0, finished=time.time(), jobs=jobs)
             records.append(rec)
             log.write(json.dumps(rec) + "\n")
             log.flush()

@@ -3,7 +3,8 @@
 Checks (thresholds from the dataset config's ``[quality]``):
 
 * **finite** -- no NaN or inf anywhere;
-* **strain** -- max over frames and edges of ``|l / l_rest - 1|``;
+* **strain** -- ``|l / l_rest - 1|`` over frames and edges: the share of edges past ``max_strain`` in
+  some frame may be at most ``max_strained_edges`` (default 0: none may);
 * **penetration** -- per frame, the fraction of garment vertices deeper than
   ``penetration_depth`` inside the posed body (signed distance, the same
   proxy as the runtime's collision stage); the worst frame counts;
@@ -32,6 +33,7 @@ class QualityReport:
     max_penetrating: float       # fraction of vertices, worst frame
     jitter: float                # fraction of vertex-frames
     reasons: list
+    strained_edges: float = 0.0  # fraction of edges past max_strain in some frame
 
     @property
     def ok(self) -> bool:
@@ -51,7 +53,8 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
     """
     x = np.asarray(frames, np.float64)
     if not np.isfinite(x).all():
-        return QualityReport(False, float("nan"), float("nan"), float("nan"), float("nan"), ["non-finite positions"])
+        return QualityReport(False, float("nan"), float("nan"), float("nan"), float("nan"), ["non-finite positions"],
+                             float("nan"))
     e = unique_edges(faces, len(rest))
     l0 = np.linalg.norm(rest[e[:, 0]] - rest[e[:, 1]], axis=1)
     l = np.linalg.norm(x[:, e[:, 0]] - x[:, e[:, 1]], axis=2)
@@ -74,10 +77,13 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
         bacc = np.linalg.norm(b[2:] - 2 * b[1:-1] + b[:-2], axis=2).max(axis=1)  # (T-2,)
         jit = float((acc > 3 * bacc[:, None] + 0.01).mean())
     reasons = []
-    if strain.max() > spec.max_strain:
-        reasons.append(f"strain {strain.max():.2f} > {spec.max_strain}")
+    over = float((strain.max(axis=0) > spec.max_strain).mean())  # edges strained past the bound in some frame
+    if over > spec.max_strained_edges:
+        reasons.append(f"strain {strain.max():.2f} > {spec.max_strain}"
+                       + (f" on {100 * over:.2f}% of edges > {100 * spec.max_strained_edges:.2f}%"
+                          if spec.max_strained_edges > 0 else ""))
     if pen > spec.max_penetrating:
         reasons.append(f"penetration {100 * pen:.2f}% of vertices > {100 * spec.max_penetrating:.2f}%")
     if jit > spec.max_jitter:
         reasons.append(f"jitter {100 * jit:.3f}% > {100 * spec.max_jitter:.3f}%")
-    return QualityReport(True, float(strain.max()), float(np.percentile(strain, 99)), pen, jit, reasons)
+    return QualityReport(True, float(strain.max()), float(np.percentile(strain, 99)), pen, jit, reasons, over)

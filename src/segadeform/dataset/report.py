@@ -1,4 +1,6 @@
-"""Statistics of a dataset folder from its log (what `segadeform dataset info` prints)."""
+"""Statistics of a dataset folder from its log (what `segadeform dataset info` prints): kept and
+rejected samples, rejection rates per garment kind and per motion, reasons, seconds per frame by
+size, and kept samples per hour of the runs that made it."""
 
 from __future__ import annotations
 
@@ -31,7 +33,30 @@ def dataset_stats(folder) -> dict:
     for r in recs:
         if "seconds_per_frame" in r:
             by[(r["garment"], r["vertices"])].append(r["seconds_per_frame"])
+    def rates(key):
+        groups = collections.defaultdict(lambda: [0, 0])
+        for r in recs:
+            groups[r.get(key)][0] += 1
+            groups[r.get(key)][1] += r["status"] != "kept"
+        return {str(k): {"samples": n, "rejected": b, "rejection_rate": b / n} for k, (n, b) in sorted(groups.items())}
+
     return {"kept": len(kept), "rejected": len(rej), "rejection_rate": len(rej) / max(len(recs), 1),
+            "by_kind": rates("kind"), "by_motion": rates("motion"), "throughput": _throughput(recs),
             "splits": dict(collections.Counter(r["split"] for r in kept)), "reasons": dict(reasons),
             "by_size": [{"garment": g, "vertices": v, "seconds_per_frame": float(np.mean(s)), "samples": len(s)}
                         for (g, v), s in sorted(by.items(), key=lambda kv: kv[0][1])]}
+
+
+def _throughput(recs: list) -> dict:
+    """Kept samples per hour of wall time, over the runs that logged their timing: a run's wall time
+    is from its start to its last finished sample (several runs add up; gaps between runs do not)."""
+    runs = collections.defaultdict(list)
+    for r in recs:
+        if "run_started" in r and "finished" in r:
+            runs[r["run_started"]].append(r)
+    wall = sum(max(x["finished"] for x in rs) - start for start, rs in runs.items())
+    timed = [r for rs in runs.values() for r in rs]
+    kept = sum(r["status"] == "kept" for r in timed)
+    return {"runs": len(runs), "samples": len(timed), "kept": kept, "wall_hours": wall / 3600,
+            "kept_per_hour": kept / (wall / 3600) if wall > 0 else None,
+            "samples_per_hour": len(timed) / (wall / 3600) if wall > 0 else None}

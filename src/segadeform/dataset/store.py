@@ -19,7 +19,8 @@ _ARRAYS = {"rest": 2, "faces": 2, "betas": 1, "poses": 2, "trans": 2, "frames": 
 
 @dataclasses.dataclass
 class Sample:
-    """rest (N, 3), faces (F, 3), betas (B,), poses (T, 72), trans (T, 3), frames (T, N, 3) float32, meta."""
+    """rest (N, 3), faces (F, 3), betas (B,), poses (T, 72), trans (T, 3), frames (T, N, 3) float32, meta;
+    optional contact_p, contact_n (T, N, 3) and cloth_rest (N, 3)."""
 
     id: str
     rest: np.ndarray
@@ -31,6 +32,7 @@ class Sample:
     meta: dict
     contact_p: np.ndarray | None = None  # (T, N, 3) closest body point to each simulated vertex
     contact_n: np.ndarray | None = None  # (T, N, 3) outward body normal there
+    cloth_rest: np.ndarray | None = None  # (N, 3) the cloth's rest shape when it was not ``rest`` (A-pose)
 
 
 def save_sample(root: Path, s: Sample) -> None:
@@ -40,6 +42,8 @@ def save_sample(root: Path, s: Sample) -> None:
         with open(tmp, "wb") as fh:
             extra = {} if s.contact_p is None else {"contact_p": s.contact_p.astype(np.float32),
                                                      "contact_n": s.contact_n.astype(np.float32)}
+            if s.cloth_rest is not None:
+                extra["cloth_rest"] = np.asarray(s.cloth_rest, np.float64)
             np.savez(fh, rest=s.rest, faces=s.faces, betas=s.betas, poses=s.poses, trans=s.trans,
                      frames=s.frames.astype(np.float32), **extra)
     with atomic_path(d / f"{s.id}.json") as tmp:
@@ -60,6 +64,11 @@ def load_sample(root: Path, sid: str) -> Sample:
     contact = {}
     if "contact_p" in z and "contact_n" in z and z["contact_p"].shape == z["frames"].shape == z["contact_n"].shape:
         contact = {"contact_p": z["contact_p"], "contact_n": z["contact_n"]}
+    if "cloth_rest" in z:
+        if z["cloth_rest"].shape != z["rest"].shape:
+            raise FileFormatError("sample array 'cloth_rest' is not shaped like 'rest'", path=d / f"{sid}.npz",
+                                  expected=z["rest"].shape, got=z["cloth_rest"].shape)
+        contact["cloth_rest"] = z["cloth_rest"]
     return Sample(id=sid, meta=meta, **{k: z[k] for k in _ARRAYS}, **contact)
 
 

@@ -380,13 +380,14 @@ def check_placement(vertices, body_vertices, body_faces, *, path=None, max_point
     if size.max() < 2.0 * (top - floor):  # a plausible size: try moving it
         for dy in np.arange(-1.5, 1.51, 0.05):
             w = v + np.array([0.0, dy, 0.0])
-            if abs(dy) > 0.07 and _fits(_stats(w, proxy, top, floor)):
+            if abs(dy) >= 0.25 and _fits(_stats(w, proxy, top, floor)):  # an origin, not a shape, is off
                 raise PlacementError(f"the garment does not sit on the body ({what}); it does {abs(dy):.2f} m "
                                      f"{'higher' if dy > 0 else 'lower'}: it was placed for another body's "
                                      "origin (SMPL-fitted garments sit around SMPL's pelvis at y = 0)", path=path,
                                      expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
                                               f"--offset 0,{dy:.2f},0` or `--from-body THEIR_BODY.obj`, or pass --force")
-    raise PlacementError(f"the garment does not sit on the body ({what}); it was made for another body or pose",
+    raise PlacementError(f"the garment does not sit on the body ({what}); it was made for another body, pose or "
+                         "body shape (betas)",
                          path=path, expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
                                              "--from-body THEIR_BODY.obj` (MakeHuman clothes: --mhclo FILE), "
                                              "or pass --force")

@@ -1,0 +1,31 @@
+"""``segadeform bundle``: a scene's model inputs for runtimes in other languages (and the test vector)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from .main import cli
+
+
+@cli.command("bundle")
+@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path), help="OUT.sgdb")
+@click.option("--model", type=click.Path(file_okay=False, path_type=Path), help="Model package directory.")
+@click.option("--no-expected", is_flag=True, help="Leave out the Python runtime's output.")
+@click.option("--frames", help="Frame range A:B of the motion.")
+@click.option("--force", is_flag=True, help="Bundle a garment even when it does not sit on the body.")
+def bundle_cmd(scene, output, model, no_expected, frames, force):
+    """Write SCENE's garment, body-shape and motion inputs as a bundle (docs/package.md) for Node, browser
+    and C++ runtimes, with the Python runtime's output as the parity vector."""
+    import dataclasses
+
+    from segadeform.runtime.bundles import scene_bundle
+    from segadeform.scene import load_scene, parse_frames
+
+    sc = load_scene(scene)
+    if frames:
+        sc = dataclasses.replace(sc, motion=dataclasses.replace(sc.motion, frames=parse_frames(frames)))
+    p = scene_bundle(sc, output, model=model, expected=not no_expected, force=force)
+    click.echo(f"wrote {p}")

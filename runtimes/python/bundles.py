@@ -1,0 +1,71 @@
+"""Scene bundles for other runtimes (:mod:`segadeform.bundle`): a scene's model inputs, and the Python
+runtime's output as the shared test vector."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from segadeform.body import default_body_path, load_body
+from segadeform.bundle import write_bundle
+from segadeform.errors import InputError
+from segadeform.geometry.features import vertex_features
+from segadeform.motion import motion_windows
+from segadeform.scene import Scene, build_motion
+
+from .package import ModelPackage
+from .pipeline import Run, default_model_path
+
+__all__ = ["scene_bundle"]
+
+
+def scene_bundle(scene: Scene, out: str | Path, *, model: Optional[Path] = None, expected: bool = True,
+                 batch: int = 8, force: bool = False) -> Path:
+    """Write the bundle of ``scene`` (its effects without collisions: those are the host's post-process).
+
+    ``expected``: also run the deformer here and store its output (the parity vector)."""
+    package = ModelPackage(model or scene.model or default_model_path())
+    body = load_body(scene.body or default_body_path())
+    joints = body.rest_joints(scene.betas)[0]
+    motion = build_motion(scene.motion, joints)
+    a, b = scene.motion.frames or (0, None)
+    b = motion.n_frames if b is None else b
+    if not 0 <= a < b <= motion.n_frames:
+        raise InputError(f"frame range {a}:{b} is outside the motion's {motion.n_frames} frames")
+    motion = dataclasses.replace(motion, poses=motion.poses[a:b], trans=motion.trans[a:b])
+    effects = dataclasses.replace(scene.effects, collisions=False)
+    run = Run(garment=scene.garment, motion=motion, package=package, body=body, betas=scene.betas, effects=effects,
+              output=Path(out).with_suffix(".unused"), cache=False, force=force)
+    asset = run.load_asset(joints)
+    if not force:
+        from segadeform.garments.fit import check_placement
+
+        check_placement(asset.vertices, body.shaped_vertices(scene.betas)[0], body.faces, path=scene.garment)
+    d = run.deformer
+    feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
+    betas = d._betas(scene.betas)
+    arrays = {
+        "features": feats.astype(np.float32), "nbr": asset.nbr.astype(np.int32), "mask": asset.mask.astype(np.uint8),
+        "descriptor": asset.descriptor.astype(np.float32), "betas": betas, "rest": asset.vertices.astype(np.float32),
+        "faces": asset.faces.astype(np.int32), "joints": joints.astype(np.float32),
+        "poses": motion.poses.astype(np.float32), "trans": motion.trans.astype(np.float32),
+    }
+    lw = d.body_log_weights(asset, body, scene.betas) if d.needs_body_weights else None
+    if lw is not None:
+        arrays["log_wbody"] = lw.astype(np.float32)
+    if expected:
+        P = d.encode(asset, joints, scene.betas)
+        frames = []
+        for lo in range(0, motion.n_frames, batch):
+            hi = min(lo + batch, motion.n_frames)
+            win = motion_windows(motion.poses, d.window, start=lo, stop=hi)
+            frames.append(d.deform(P, asset, win, joints, motion.trans[lo:hi], scene.betas, log_wbody=lw))
+        arrays["expected"] = np.concatenate(frames).astype(np.float32)
+    meta = {"fps": float(motion.fps), "window": int(d.window), "graph": d.variant,
+            "effects": {"skinning": effects.skinning, "dynamics": effects.dynamics, "wrinkles": effects.wrinkles},
+            "garment": Path(scene.garment).name, "motion": motion.name, "betas": [float(x) for x in betas],
+            "package_config": package.config}
+    return write_bundle(out, arrays, meta)
