@@ -322,8 +322,10 @@ def load_body(path: str | os.PathLike) -> BodyModel:
 
 
 def default_body_path() -> Path:
-    """The shipped default body (``samples/bodies/default_body.npz`` of the source tree)."""
-    p = Path(__file__).resolve().parents[3] / "samples" / "bodies" / "default_body.npz"
+    """The shipped default body (package data; ``samples/bodies/default_body.npz`` in the source tree)."""
+    from .._resources import data_path
+
+    p = data_path("default_body.npz")
     if not p.is_file():
         raise InputError("the default body is not available in this installation; pass a body file",
                          expected=str(p))
