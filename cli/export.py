@@ -56,3 +56,22 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
         for g, outs in m["parity"].items():
             for o, e in outs.items():
                 click.echo(f"  {g}.{o}: max abs {e['max_abs']:.3g}, max rel {e['max_rel']:.3g} (torch vs onnxruntime)")
+
+
+@cli.command("quantize")
+@click.argument("package", type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="The new package folder.")
+@click.option("--precision", type=click.Choice(["int8"]), default="int8", show_default=True,
+              help="int8: onnxruntime dynamic quantisation (weights int8, inputs and outputs float32).")
+def quantize_cmd(package, output, precision):
+    """Copy model PACKAGE at another precision (needs the 'torch' extra for onnx)."""
+    try:
+        import onnx  # noqa: F401
+    except ImportError:
+        raise click.ClickException("quantize needs onnx: pip install 'segadeform[torch]'") from None
+    from segadeform.export.precision import convert_package
+
+    convert_package(package, output, precision)
+    size = sum(f.stat().st_size for f in Path(output).glob("*.onnx"))
+    click.echo(f"{output}: {precision} package, graphs {size / 1e6:.1f} MB")

@@ -17,7 +17,7 @@ def _frames_summary(path, frames: np.ndarray) -> None:
     bad = ~np.isfinite(frames).all(axis=(1, 2))
     if bad.any():
         idx = np.flatnonzero(bad)
-        raise FileFormatError(f"{int((~np.isfinite(frames)).sum())} values are NaN or inf, in {len(idx)} frames "
+        raise FileFormatError(f"{int((~np.isfinite(frames)).sum())} non-finite values (NaN or inf), in {len(idx)} frames "
                               f"({', '.join(map(str, idx[:8]))}{' ...' if len(idx) > 8 else ''})", path=path)
     lo, hi = frames.reshape(-1, 3).min(0).astype(float), frames.reshape(-1, 3).max(0).astype(float)
     click.echo(f"  bounds {np.round(lo, 4).tolist()} .. {np.round(hi, 4).tolist()} (all frames); NaN/inf: none")

@@ -42,12 +42,11 @@ __all__ = ["Run", "RunSummary", "run_scene", "default_body_path", "default_model
 log = logging.getLogger(__name__)
 
 
-def _repo_samples() -> Path:
-    return Path(__file__).resolve().parents[2] / "samples"
-
-
 def default_model_path() -> Path:
-    p = _repo_samples() / "models" / "default"
+    """The shipped default model package (package data; ``samples/models/default`` in the source tree)."""
+    from segadeform._resources import data_path
+
+    p = data_path("models", "default")
     if not (p / "manifest.json").is_file():
         raise InputError("no model package given and the default model is missing from this installation",
                          expected=f"--model PACKAGE_DIR, [model] package in the scene, or {p}")
@@ -89,7 +88,8 @@ class Run:
         cache: keep precompute/encoder results in the user cache (:mod:`segadeform.cache`).
         force: animate a garment that does not sit on the body (see
             :func:`segadeform.garments.fit.check_placement`) instead of refusing it.
-        collider: ``"fast"`` (:class:`~segadeform.body.collision.BodyCollider`, built once) or
+        collider: ``"fast"`` (:class:`~segadeform.body.collision.BodyCollider`, built once, every frame of
+            a batch in one call) or
             ``"reference"`` (:class:`~segadeform.body.collision.BodyProxy` per frame: the slow, obvious
             one, for comparisons).
     """
@@ -167,9 +167,7 @@ class Run:
                           body_path=self.body_output, body_faces=self.body.faces,
                           body_rest=self.body.shaped_vertices(self.betas)[0] if self.body_output else None)
         pushed = 0
-        proxy = None
-        collider = BodyCollider(self.body.v_template, self.body.faces) \
-            if self.effects.collisions and self.collider == "fast" else None
+        proxy = collider = None
         try:
             for lo in range(self.start, self.stop, self.batch):
                 hi = min(lo + self.batch, self.stop)
@@ -186,15 +184,18 @@ class Run:
                     stage["pose body"] += time.perf_counter() - t
                 if self.effects.collisions:
                     t = time.perf_counter()
-                    fixed = np.empty_like(verts, dtype=np.float64)
-                    for i in range(len(verts)):
-                        if collider is not None:
-                            fixed[i], n = collider.push_out(verts[i], posed[i], self.effects.collision_margin)
-                        else:
+                    if self.collider == "fast":  # built once per run (its cost counts here), all frames at once
+                        if collider is None:
+                            collider = BodyCollider(self.body.v_template, self.body.faces)
+                        verts, n = collider.push_out(verts, posed, self.effects.collision_margin)
+                        pushed += n
+                    else:
+                        fixed = np.empty_like(verts, dtype=np.float64)
+                        for i in range(len(verts)):
                             proxy = BodyProxy(posed[i], self.body.faces) if proxy is None else proxy.moved(posed[i])
                             fixed[i], n = push_out(verts[i], proxy, self.effects.collision_margin)
-                        pushed += n
-                    verts = fixed
+                            pushed += n
+                        verts = fixed
                     stage["collisions"] += time.perf_counter() - t
                 t = time.perf_counter()
                 out.write(verts, posed if self.body_output is not None else None)

@@ -73,4 +73,13 @@ def test_bake_reproduces_the_shipped_body(tmp_path, body):
     baked = load_body(tmp_path / "b.npz")
     np.testing.assert_allclose(baked.v_template, body.v_template, atol=1e-5)
     np.testing.assert_allclose(baked.shapedirs, body.shapedirs, atol=1e-5)
-    np.testing.assert_array_equal(baked.faces, body.faces)
+    # anny splits each quad along its shorter diagonal; on a near-square quad the two diagonals tie
+    # and float rounding may pick the other one. Faces must match except for such flipped quads:
+    # the differing triangles come in consecutive pairs covering the same four vertices.
+    assert baked.faces.shape == body.faces.shape
+    bad = np.flatnonzero((baked.faces != body.faces).any(axis=1))
+    assert len(bad) <= 0.01 * len(body.faces), f"{len(bad)} faces differ"
+    pairs = sorted({int(i) - (int(i) - int(bad[0])) % 2 for i in bad})
+    for i in pairs:
+        assert set(baked.faces[i:i + 2].ravel()) == set(body.faces[i:i + 2].ravel()), f"faces {i}, {i + 1}"
+        assert len(set(body.faces[i:i + 2].ravel())) == 4

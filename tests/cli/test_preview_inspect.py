@@ -45,4 +45,4 @@ def test_inspect_pc2_bounds_nan_motion(tmp_path):
     raw[off:off + 4] = np.float32(np.nan).tobytes()
     (tmp_path / "n.pc2").write_bytes(bytes(raw))
     r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "n.pc2")])
-    assert r.exit_code == 1 and "1 values are NaN or inf, in 1 frames (2)" in r.output
+    assert r.exit_code == 1 and "1 non-finite values (NaN or inf), in 1 frames (2)" in r.output

@@ -127,3 +127,233 @@ def test_resume_skips_done_and_redoes_missing(tiny_dataset, tmp_path, capsys):
     line = capsys.readouterr().out
     assert "4 planned, 3 already done, " in line
     assert victim.is_file()
+
+
+# ---------------------------------------------------------------- ranges, counts, splits, growth
+RANGED = """
+[dataset]
+seconds = 1.0
+{dataset}
+
+[simulate]
+effects = ["gravity"]
+
+[[garments]]
+name = "tee"
+kind = "tshirt"
+count = {count}
+length = [0.3, 0.8]
+sleeve = [0.1, 0.6]
+ease = [0.01, 0.03]
+resolution = [1000, 6000]
+flare = 0.4
+{seed}
+
+[[garments]]
+kind = "skirt"
+split = "test"
+
+[[motions]]
+kind = "walk"
+count = {mcount}
+speed = [0.8, 1.2]
+ease_in = 0.0
+
+[[motions]]
+kind = "dance"
+split = "test"
+"""
+
+
+def _cfg(tmp_path, name="c.toml", **kw):
+    fmt = dict(dataset="", count=4, seed="", mcount=2)
+    fmt.update(kw)
+    p = tmp_path / name
+    p.write_text(RANGED.format(**fmt))
+    return load_dataset_config(p)
+
+
+def test_ranges_are_sampled_deterministically_and_counts_only_append(tmp_path):
+    a = _cfg(tmp_path, "a.toml")
+    b = _cfg(tmp_path, "b.toml")
+    tees = [g for g in a.garments if g.kind == "tshirt"]
+    assert [g.name for g in tees] == ["tee-0", "tee-1", "tee-2", "tee-3"]
+    assert [g.params for g in tees] == [g.params for g in b.garments if g.kind == "tshirt"]  # same file, same draws
+    for g in tees:
+        p = g.params
+        assert 0.3 <= p.length <= 0.8 and 0.1 <= p.sleeve <= 0.6 and 0.01 <= p.ease <= 0.03 and p.flare == 0.4
+        assert isinstance(p.resolution, int) and 1000 <= p.resolution <= 6000
+    assert len({g.params for g in tees}) == 4  # a continuum, not one garment four times
+    grown = _cfg(tmp_path, "g.toml", count=7, mcount=3)
+    assert [g.params for g in grown.garments[:4]] == [g.params for g in tees]  # draws 0-3 unchanged
+    assert [m.name for m in grown.motions[:2]] == [m.name for m in a.motions[:2]]
+    assert grown.motions[0].speed == a.motions[0].speed and grown.motions[1].seed == a.motions[1].seed == 1
+    other = _cfg(tmp_path, "s.toml", seed="seed = 7")
+    assert [g.params for g in other.garments if g.kind == "tshirt"] != [g.params for g in tees]
+    assert all(m.ease_in == 0.0 for m in a.motions if m.kind == "walk")
+    assert [m.ease_in for m in a.motions if m.kind == "dance"] == [1.0]
+
+
+def test_growing_keeps_every_finished_sample_and_its_meaning(tmp_path):
+    from segadeform.dataset.make import sample_spec
+
+    a = _cfg(tmp_path, "a.toml")
+    grown = _cfg(tmp_path, "g.toml", count=6, mcount=3)
+    plan_a = {p.id: sample_spec(a, p) for p in sample_plan(a)}
+    plan_g = {p.id: sample_spec(grown, p) for p in sample_plan(grown)}
+    assert set(plan_a) < set(plan_g) and all(plan_g[k] == v for k, v in plan_a.items())
+    changed = load_dataset_config(_write(tmp_path, "x.toml", RANGED.format(dataset="", count=4, seed="", mcount=2)
+                                         .replace("flare = 0.4", "flare = 0.5")))
+    plan_x = {p.id: sample_spec(changed, p) for p in sample_plan(changed)}
+    assert set(plan_x) == set(plan_a) and all(plan_x[k] != plan_a[k] for k in plan_a if k.startswith("tee"))
+
+
+def _write(tmp_path, name, text):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_a_changed_entry_under_an_old_name_stops_before_simulating(tmp_path):
+    from segadeform.dataset import make_dataset
+    from segadeform.dataset.make import sample_spec
+    from segadeform.errors import InputError
+
+    a = _cfg(tmp_path, "a.toml")
+    out = tmp_path / "ds"
+    (out / "samples").mkdir(parents=True)
+    p0 = sample_plan(a)[0]
+    (out / "samples" / f"{p0.id}.json").write_text(json.dumps({"spec": sample_spec(a, p0)}))
+    changed = load_dataset_config(_write(tmp_path, "x.toml", RANGED.format(dataset="", count=4, seed="", mcount=2)
+                                         .replace("[0.3, 0.8]", "[0.35, 0.8]")))
+    never = tmp_path / "no-simulator"  # nothing may be simulated: the check comes first
+    with pytest.raises(InputError, match="other settings"):
+        make_dataset(changed, out, body_path=SAMPLES / "bodies" / "default_body.npz", sim_python=never)
+
+
+@pytest.mark.parametrize("edit, msg", [
+    (("length = [0.3, 0.8]", "length = [0.8, 0.3]"), "lo <= hi"),
+    (("resolution = [1000, 6000]", "resolution = [1000.5, 6000]"), "two integers"),
+    (("ease_in = 0.0", "ease_in = [0.0, 1.0]"), "cannot be a range"),
+    (("count = 4\nlength = [0.3, 0.8]\nsleeve = [0.1, 0.6]\nease = [0.01, 0.03]\nresolution = [1000, 6000]",
+      "count = 4"), "identical"),
+    (("count = 4", "count = 0"), "count"),
+    (("[dataset]\nseconds = 1.0", "[dataset]\nseconds = 1.0\nheld_out_kinds = ['tshirt']"), "held-out kind"),
+    (("[dataset]\nseconds = 1.0", "[dataset]\nseconds = 1.0\nheld_out_motions = ['walk']"), "held-out family"),
+    (("[dataset]\nseconds = 1.0", "[dataset]\nseconds = 1.0\nheld_out_kinds = ['cape']"), "garment kinds"),
+])
+def test_bad_ranges_and_leaks_are_refused(tmp_path, edit, msg):
+    text = RANGED.format(dataset="", count=4, seed="", mcount=2)
+    assert edit[0] in text
+    with pytest.raises(FileFormatError, match=msg):
+        load_dataset_config(_write(tmp_path, "c.toml", text.replace(edit[0], edit[1])))
+
+
+def test_one_motion_file_cannot_be_trained_on_and_held_out(tmp_path):
+    walk = (SAMPLES / "motions" / "walk.npz").resolve()
+    text = ("[[garments]]\nkind = 'skirt'\n[[motions]]\nname = 'a'\nfile = '{f}'\n"
+            "[[motions]]\nname = 'b'\nfile = '{f}'\nstart = 1.0\nsplit = 'test'\n").format(f=walk)
+    with pytest.raises(FileFormatError, match="both training and held-out"):
+        load_dataset_config(_write(tmp_path, "c.toml", text))
+
+
+def test_the_split_logic_never_leaks_held_out_data_into_training(tmp_path):
+    """Random configs (splits, counts, cross splits, held-out kinds and motion families, test bodies):
+    no training sample may touch anything held out, and every held-out entry appears only outside
+    training.  The checker itself is shown to catch a leak planted in a plan."""
+    from segadeform.dataset.make import PlannedSample, check_splits
+    from segadeform.errors import InputError
+    from segadeform.garments import GARMENT_KINDS
+    from segadeform.motion import MOTION_KINDS
+
+    rng = np.random.default_rng(13)
+    for trial in range(40):
+        held_k = [str(k) for k in rng.choice(GARMENT_KINDS, size=rng.integers(0, 3), replace=False)]
+        held_m = [str(k) for k in rng.choice(list(MOTION_KINDS), size=rng.integers(0, 2), replace=False)]
+        lines = ["[dataset]", f"cross_splits = {str(bool(rng.integers(2))).lower()}",
+                 f"held_out_kinds = {json.dumps(held_k)}", f"held_out_motions = {json.dumps(held_m)}"]
+        for i in range(rng.integers(2, 6)):
+            kind = str(rng.choice(GARMENT_KINDS))
+            split = "test" if kind in held_k or rng.random() < 0.3 else "train"
+            n = int(rng.integers(1, 4))
+            lines += ["[[garments]]", f'name = "g{i}"', f'kind = "{kind}"', f'split = "{split}"', f"count = {n}",
+                      "length = [0.3, 0.8]"]
+        for i in range(rng.integers(2, 5)):
+            kind = str(rng.choice(list(MOTION_KINDS)))
+            split = "test" if kind in held_m or rng.random() < 0.3 else "train"
+            lines += ["[[motions]]", f'name = "m{i}"', f'kind = "{kind}"', f'split = "{split}"',
+                      f"count = {int(rng.integers(1, 3))}"]
+        for i in range(rng.integers(1, 4)):
+            lines += ["[[bodies]]", f"betas = [{rng.normal():.2f}]", f'split = "{"test" if rng.random() < 0.3 else "train"}"']
+        cfg = load_dataset_config(_write(tmp_path, f"r{trial}.toml", "\n".join(lines) + "\n"))
+        plan = sample_plan(cfg)
+        check_splits(cfg, plan)
+        bsplit = cfg.body_splits
+        train_g = {g.name for g in cfg.garments if g.split == "train"}
+        train_m = {m.name for m in cfg.motions if m.split == "train"}
+        for p in plan:
+            g, m = cfg.garments[p.garment], cfg.motions[p.motion]
+            if p.split == "train":
+                assert g.split == m.split == bsplit[p.body] == "train"
+                assert g.kind not in held_k and m.kind not in held_m
+            else:
+                assert g.name not in train_g or m.name not in train_m or bsplit[p.body] == "test"
+                if p.split == "test":
+                    assert g.split == m.split == "test"
+        ids = [p.id for p in plan]
+        assert len(set(ids)) == len(ids)
+    # a leak planted by hand is caught
+    cfg = load_dataset_config(TRAIN)
+    gi = next(i for i, g in enumerate(cfg.garments) if g.split == "test")
+    with pytest.raises(InputError, match="held-out garment"):
+        check_splits(cfg, [PlannedSample("leak", gi, 0, 0, "train")])
+
+
+def test_growing_the_tiny_dataset_adds_only_the_new_samples(tiny_dataset, tmp_path, capsys):
+    out = tmp_path / "grown"
+    shutil.copytree(tiny_dataset, out)
+    before = {p.name: p.stat().st_mtime_ns for p in (out / "samples").iterdir()}
+    grown = _write(tmp_path, "tiny-grown.toml", TINY.read_text() + '\n[[motions]]\nkind = "idle"\nsplit = "train"\n')
+    capsys.readouterr()
+    assert main(["dataset", "make", str(grown), "-o", str(out), "--limit", "1"]) == 0
+    assert "6 planned, 4 already done, " in capsys.readouterr().out  # 2 garments x 3 motions, cross splits
+    after = {p.name: p.stat().st_mtime_ns for p in (out / "samples").iterdir()}
+    assert all(after[k] == v for k, v in before.items())  # finished samples untouched, not renumbered
+    new = [k for k in after if k not in before]
+    done_new = new or [p.name for p in (out / "rejected").glob("*idle*")]
+    assert done_new and all("__idle-s0" in k for k in done_new)
+    assert sorted(p.name for p in (out / "configs").glob("*.toml")) == ["001.toml", "002.toml"]
+    assert (out / "config.toml").read_text() == grown.read_text()
+    st = json.loads((main(["dataset", "info", str(out), "--json"]), capsys.readouterr().out)[1])
+    assert st["throughput"]["runs"] == 2 and st["throughput"]["kept_per_hour"] > 0
+    assert set(st["by_kind"]) == {"skirt", "shorts"} and "idle-s0" in st["by_motion"]
+
+
+def test_a_tshirt_through_the_a_pose_drape_passes_the_gate(tmp_path):
+    """A sleeved top, arms hanging at the sides, through the dataset's drape path (garment made in the
+    A-pose too, cloth resting there, 2 mm collision distance, clamped collision impulses): kept by
+    the strict gate (no edge past 100 % strain), and stored with its rest-pose vertex order."""
+    from segadeform.errors import SimulationError
+    from segadeform.physics import find_sim_python
+
+    try:
+        find_sim_python()
+    except SimulationError as e:
+        pytest.skip(f"no simulator environment here ({e})")
+    text = (SAMPLES / "datasets" / "kinds.toml").read_text()
+    head = text[:text.index("[[garments]]")].replace("seconds = 1.5", "seconds = 0.5")
+    cfg = _write(tmp_path, "tee.toml", head + '[[garments]]\nname = "tee"\nkind = "tshirt"\npin = "top"\n'
+                                             '[[motions]]\nkind = "walk_arms_down"\nease_in = 0.0\n')
+    out = tmp_path / "tee"
+    assert main(["dataset", "make", str(cfg), "-o", str(out)]) == 0
+    rejected = list((out / "rejected").glob("*.json")) if (out / "rejected").is_dir() else []
+    assert not rejected, json.loads(rejected[0].read_text())["reasons"]
+    s = load_sample(out, "tee__b0__walk_arms_down-s0")
+    assert s.meta["quality"]["ok"] and s.meta["quality"]["max_strain"] <= 1.0
+    assert s.meta["settings"]["segadeform"]["rest_pose"] == "a"
+    assert s.cloth_rest is not None and s.cloth_rest.shape == s.rest.shape == s.frames.shape[1:]
+    from segadeform.io import read_mesh
+
+    g = read_mesh(out / "garments" / "tee-b0.obj")
+    assert np.array_equal(g.vertices, s.rest) and np.array_equal(g.faces, s.faces)
+    assert np.abs(read_mesh(out / "garments" / "tee-b0.cloth.obj").vertices - s.cloth_rest).max() < 1e-5

@@ -9,7 +9,10 @@ from segadeform.body import BodyProxy, load_body
 from segadeform.cli.main import main
 from segadeform.errors import InputError
 from segadeform.garments import GARMENT_KINDS, GARMENT_TYPES, GarmentParams, check_garment, make_garment
+from segadeform.garments.make import PLANAR, _loop_plane, boundary_turning
+from segadeform.geometry.mesh_ops import boundary_loops
 from segadeform.io import read_obj
+from segadeform.physics.blender import A_POSE
 
 from ..conftest import SAMPLES
 
@@ -19,9 +22,22 @@ def body():
     return load_body(SAMPLES / "bodies" / "default_body.npz")
 
 
+@pytest.fixture(scope="module")
+def made(body):
+    """Every kind made once for the default body, in the rest pose and the simulator's A-pose."""
+    cache = {}
+
+    def get(kind):
+        if kind not in cache:
+            cache[kind] = make_garment(kind, body, cloth_pose=A_POSE)
+        return cache[kind]
+
+    return get
+
+
 @pytest.mark.parametrize("kind", GARMENT_KINDS)
-def test_every_kind_is_clean_and_outside_the_body(body, kind):
-    g = make_garment(kind, body)
+def test_every_kind_is_clean_and_outside_the_body(body, made, kind):
+    g = made(kind)
     info = check_garment(g.vertices, g.faces, body)
     assert 500 <= info["vertices"] <= 5000 and info["boundary_loops"] >= 1
     assert g.type == GARMENT_TYPES[kind]
@@ -86,3 +102,62 @@ def test_cli_garment_make(tmp_path, capsys):
     assert main(["garment", "make", "cape", "-o", str(tmp_path / "x.obj")]) == 1
     assert not (tmp_path / "x.obj").exists()
     assert "unknown garment kind" in capsys.readouterr().err
+
+
+#: bounds on the garment edges (hems, necklines, armholes, cuffs, waistbands): the turning angle at a
+#: boundary vertex (measured on the default body: at most 23 degrees, 28 on the jacket's front corners;
+#: a cut along the body's triangles turns 87-106 degrees) and, for planar loops, the total curvature
+#: over 2 pi (measured 1.00-1.12; a staircase along triangles gives 1.5-8)
+MAX_TURN_DEG = 35.0
+P95_TURN_DEG = 25.0
+MAX_PLANAR_CURVATURE = 1.2
+
+
+def _smoothness(v, f):
+    turns = boundary_turning(v, f)
+    planar = [t.sum() / (2 * np.pi) for t, loop in zip(turns, boundary_loops(f, len(v)))
+              if _loop_plane(v[loop])[2] <= PLANAR]
+    deg = np.degrees(np.concatenate(turns))
+    return deg.max(), np.percentile(deg, 95), planar
+
+
+@pytest.mark.parametrize("kind", GARMENT_KINDS)
+def test_every_kinds_edges_are_smooth_curves(body, made, kind):
+    g = made(kind)
+    for v in (g.vertices, g.cloth_rest):  # rest pose and A-pose alike
+        worst, p95, planar = _smoothness(v, g.faces)
+        assert worst <= MAX_TURN_DEG and p95 <= P95_TURN_DEG, (kind, worst, p95)
+        assert planar and max(planar) <= MAX_PLANAR_CURVATURE, (kind, planar)
+
+
+def test_smoothness_bounds_reject_a_cut_along_the_body_triangles(body):
+    """What the garments were before their cut followed a smooth level set: the faces whose vertices
+    all lie in a band (a skirt's waist), i.e. a staircase along the body mesh."""
+    from segadeform.garments.make import _clean_patch, _largest_component
+
+    v = body.shaped_vertices()[0]
+    keep = (v[:, 1] > 1.0) & (v[:, 1] < 1.12)  # a band around the hips: two planar loops
+    x, f = _clean_patch(*_largest_component(v, body.faces[keep[body.faces].all(1)]))
+    worst, p95, planar = _smoothness(x, f)
+    assert worst > MAX_TURN_DEG and max(planar) > MAX_PLANAR_CURVATURE
+
+
+def test_the_a_posed_garment_is_the_same_garment(body, made):
+    t = made("tshirt")
+    assert t.cloth_rest.shape == t.vertices.shape
+    plain = make_garment("tshirt", body)  # the rest-pose garment does not depend on the second pose
+    assert np.array_equal(plain.faces, t.faces) and np.allclose(plain.vertices, t.vertices)
+    posed = body.forward(A_POSE[None]).vertices[0]
+    sd = BodyProxy(posed, body.faces).query(t.cloth_rest).signed_distance
+    assert sd.min() > 0.001  # outside the A-posed body
+    # the sleeves moved with the arms (45 degrees down), the hem did not
+    left = t.vertices[:, 0] > 0.3
+    assert (t.cloth_rest[left, 1] < t.vertices[left, 1] - 0.05).all()
+    hem = t.vertices[:, 1] < t.vertices[:, 1].min() + 0.02
+    assert np.abs(t.cloth_rest[hem] - t.vertices[hem]).max() < 1e-6
+    skirt = make_garment("dress", body, cloth_pose=A_POSE)  # the extruded skirt follows its waist
+    assert skirt.cloth_rest.shape == skirt.vertices.shape
+    low = skirt.vertices[:, 1] < 0.9
+    assert np.abs(skirt.cloth_rest[low] - skirt.vertices[low]).max() < 1e-6
+    with pytest.raises(InputError, match="cloth_pose"):
+        make_garment("skirt", body, cloth_pose=np.zeros(5))

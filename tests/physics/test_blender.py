@@ -103,3 +103,18 @@ def test_wind_blows_the_cloth_along_its_direction(sim_python, body, coarse_skirt
     assert "wind" in a["objects"] and a["effector_wind"] == 1.0 and "wind" not in calm.blender["applied"]["objects"]
     shift = (windy.frames[-1] - calm.frames[-1]).mean(axis=0)  # measured: 1.5 cm along +x in 0.7 s
     assert shift[0] > 5e-3 and abs(shift[1]) < 0.2 * shift[0] and abs(shift[2]) < 0.2 * shift[0]
+
+
+def test_unposing_then_skinning_gives_back_the_a_posed_garment(body):
+    """The pinned vertices' input starts from the cloth's own A-posed rest: LBS of the unposed garment
+    reproduces it (and the plain LBS of the T-posed garment would not)."""
+    from segadeform.body.transfer import skin_garment, transfer_weights
+    from segadeform.garments import make_garment
+    from segadeform.physics import A_POSE, unpose_lbs
+
+    g = make_garment("tshirt", body, cloth_pose=A_POSE)
+    w = transfer_weights(g.vertices, body.shaped_vertices()[0], body.faces, body.weights)
+    back = skin_garment(unpose_lbs(g.cloth_rest, w, body.forward(A_POSE[None]).transforms[0]), w, body,
+                        A_POSE[None])[0]
+    assert np.abs(back - g.cloth_rest).max() < 1e-9
+    assert np.abs(skin_garment(g.vertices, w, body, A_POSE[None])[0] - g.cloth_rest).max() > 1e-3

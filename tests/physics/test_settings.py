@@ -67,3 +67,11 @@ def test_parse_none_is_default():
     assert parse_simulate_table(None) == SimSettings()
     with pytest.raises(InputError):
         SimSettings(pin="sleeve")
+
+
+def test_impulse_clamp_reaches_the_cloth_collision_settings(tmp_path):
+    s = _scene(tmp_path, '[simulate]\neffects = ["body_collision"]\nimpulse_clamp = 0.02\n').simulate
+    assert s.impulse_clamp == 0.02 and blender_settings(s)["collision"]["impulse_clamp"] == 0.02
+    assert blender_settings(SimSettings())["collision"]["impulse_clamp"] == 0.0  # Blender's own default: off
+    with pytest.raises(FileFormatError, match="impulse_clamp"):
+        _scene(tmp_path, '[simulate]\neffects = []\nimpulse_clamp = 2.0\n')

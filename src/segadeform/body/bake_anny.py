@@ -191,9 +191,10 @@ def bake_anny_body(*, n_train: int = 240, n_test: int = 40, n_betas: int = 10, s
     U, S, Vt = np.linalg.svd(X - mean, full_matrices=False)
     scale = S[:n_betas] / np.sqrt(n_train - 1)  # std of each component's coefficient
     comps = Vt[:n_betas]  # (K, 3V), orthonormal
-    # SVD signs are arbitrary: make each component's largest entry positive so the
-    # bake gives the same file whatever LAPACK computed it
-    comps = comps * np.sign(comps[np.arange(n_betas), np.argmax(np.abs(comps), axis=1)])[:, None]
+    # SVD signs are arbitrary: make each component's sum of cubed entries (its skew) positive so
+    # the bake gives the same file whatever LAPACK computed it. (The largest entry is no rule: on
+    # a left-right symmetric body it is often a mirrored pair of equal size and opposite sign.)
+    comps = comps * np.where((comps ** 3).sum(axis=1) < 0, -1.0, 1.0)[:, None]
     shapedirs = (comps * scale[:, None]).T.reshape(nv, 3, n_betas)
     betas_tr = (X - mean) @ comps.T / scale
     A = np.concatenate([np.ones((n_train, 1)), betas_tr], axis=1)

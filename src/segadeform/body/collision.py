@@ -1,20 +1,24 @@
-"""Body collision proxy: signed distance, closest point and outward normal for query points.
+"""Body collisions: signed distance, closest point and outward normal for query points, and the
+push-out of garment vertices found inside the body or closer than a margin.
 
-The proxy is the posed body surface itself (a closed triangle mesh).  A query:
+Two implementations of the same rule, side by side:
 
-1. candidate triangles: the ``k`` triangles with the nearest centroids
-   (scipy cKDTree) plus every triangle around the nearest body vertex;
-2. the exact closest point on each candidate (Ericson, *Real-Time Collision
-   Detection*, 5.1.5), keeping the nearest;
-3. the sign from the angle-weighted pseudo-normal of the feature the closest
-   point lies on -- face, edge or vertex (Bærentzen & Aanæs 2005), which is
-   exact for a closed, consistently oriented mesh once the closest point is.
+* :class:`BodyProxy` with :func:`push_out` -- the slow, obvious reference.  Rebuilt for every
+  frame: candidate triangles are the ``k`` with the nearest centroids (scipy cKDTree) plus every
+  triangle around the nearest body vertex; the exact closest point on each candidate (Ericson,
+  *Real-Time Collision Detection*, 5.1.5) is kept; the sign comes from the angle-weighted
+  pseudo-normal of the feature the closest point lies on -- face, edge or vertex (Bærentzen &
+  Aanæs 2005), which is exact for a closed, consistently oriented mesh once the closest point is.
+  The candidate set can miss the true closest triangle for points far from the surface relative
+  to the triangle size.  Cost per query O(k log F), plus the trees, built every frame.
+* :class:`BodyCollider` -- the fast path used by the runtime: a tree over the triangles built
+  once, refitted to each posed frame, and walked only as far as needed to find every point that
+  is inside or closer than the margin; for those it gives the exact (brute-force) closest point,
+  with the same feature rule and pseudo-normals.  See its docstring.
 
-Accuracy: the candidate set can miss the true closest triangle for points
-far from the surface relative to the triangle size; ``tests/body/test_collision.py``
-compares against brute force (every triangle) and the sign against the
-generalised winding number.  Points exactly on the surface get distance 0
-and a finite unit normal, never NaN.  Cost per query is O(k log F).
+``tests/body/test_collision.py`` compares both against brute force (every triangle), the sign
+against the generalised winding number, and the fast push-out against the reference.  Points
+exactly on the surface get distance 0 and a finite unit normal, never NaN.
 """
 
 from __future__ import annotations
@@ -28,7 +32,8 @@ from ..errors import InputError
 from ..geometry._checks import check_mesh
 from ..geometry.mesh_ops import face_cross
 
-__all__ = ["BodyProxy", "ProximityResult", "closest_point_on_triangles", "winding_number", "push_out"]
+__all__ = ["BodyProxy", "BodyCollider", "ProximityResult", "closest_point_on_triangles", "closest_point_fast",
+           "winding_number", "push_out"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -243,112 +248,182 @@ def push_out(points: np.ndarray, proxy: "BodyProxy", margin: float = 0.0, *, ite
     return out, int(moved.sum())
 
 
-def _closest_on_segments(p, a, b):
-    """Closest points on segments ab to p and the parameter t in [0, 1]. Shapes: (..., 3) -> (..., 3), (...)"""
-    ab = b - a
-    t = np.einsum("...i,...i", p - a, ab) / np.maximum(np.einsum("...i,...i", ab, ab), 1e-300)
-    t = np.clip(t, 0.0, 1.0)
-    return a + t[..., None] * ab, t
+def _dot(x, y):
+    """Row-wise dot product of (3, K) arrays -> (K,)."""
+    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
+
+
+def _cross(x, y):
+    """Cross product of (3, K) arrays -> (3, K)."""
+    return np.stack([x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]])
+
+
+def _closest_soa(p, a, b, c):
+    """Closest point on triangles ``abc`` to ``p`` with its barycentric weights: the projection onto the
+    plane when it falls inside the triangle, else the nearest point of the three edges.
+
+    Shapes:
+        p, a, b, c: (3, K) -> closest (3, K), bary (3, K)
+    """
+    ab, ac, ap = b - a, c - a, p - a
+    d00, d01, d11 = _dot(ab, ab), _dot(ab, ac), _dot(ac, ac)
+    d20, d21 = _dot(ap, ab), _dot(ap, ac)
+    den = d00 * d11 - d01 * d01
+    ok = den > 1e-300
+    inv = np.where(ok, 1.0 / np.where(ok, den, 1.0), 0.0)
+    v = (d11 * d20 - d01 * d21) * inv
+    w = (d00 * d21 - d01 * d20) * inv
+    u = 1.0 - v - w
+    inside = ok & (u >= 0) & (v >= 0) & (w >= 0)
+    # the three edges: parameter t along ab, ac and bc, and the squared distance (only to pick one)
+    tiny = 1e-300
+    dbc = d00 + d11 - 2.0 * d01
+    pbc = d21 - d20 - d01 + d00  # (p - b) . (c - b)
+    t_ab = np.clip(d20 / np.maximum(d00, tiny), 0.0, 1.0)
+    t_ac = np.clip(d21 / np.maximum(d11, tiny), 0.0, 1.0)
+    t_bc = np.clip(pbc / np.maximum(dbc, tiny), 0.0, 1.0)
+    s_ab = t_ab * (t_ab * d00 - 2.0 * d20)  # |ap - t ab|^2 - |ap|^2
+    s_ac = t_ac * (t_ac * d11 - 2.0 * d21)
+    s_bc = t_bc * (t_bc * dbc - 2.0 * pbc) + d00 - 2.0 * d20  # |p - b - t bc|^2 - |ap|^2
+    use_ac = s_ac < s_ab
+    use_bc = s_bc < np.minimum(s_ab, s_ac)
+    eu = np.where(use_bc, 0.0, np.where(use_ac, 1.0 - t_ac, 1.0 - t_ab))
+    ev = np.where(use_bc, 1.0 - t_bc, np.where(use_ac, 0.0, t_ab))
+    ew = np.where(use_bc, t_bc, np.where(use_ac, t_ac, 0.0))
+    u, v, w = np.where(inside, u, eu), np.where(inside, v, ev), np.where(inside, w, ew)
+    return a + v * ab + w * ac, np.stack([u, v, w])
 
 
 def closest_point_fast(p, a, b, c):
     """The same closest point and barycentric weights as :func:`closest_point_on_triangles` (the slow,
     obvious reference beside it, compared in the tests), by another route: the projection onto the
-    plane when it falls inside the triangle, else the nearest of the three edges.
+    plane when it falls inside the triangle, else the nearest of the three edges (:func:`_closest_soa`).
 
     Shapes:
         p, a, b, c: (..., 3) -> closest (..., 3), bary (..., 3)
     """
     p, a, b, c = np.broadcast_arrays(*(np.asarray(x, np.float64) for x in (p, a, b, c)))
-    e0, e1, ap = b - a, c - a, p - a
-    d00, d01, d11 = (np.einsum("...i,...i", x, y) for x, y in ((e0, e0), (e0, e1), (e1, e1)))
-    d20, d21 = np.einsum("...i,...i", ap, e0), np.einsum("...i,...i", ap, e1)
-    den = d00 * d11 - d01 * d01
-    ok = np.abs(den) > 1e-300
-    den = np.where(ok, den, 1.0)
-    v = (d11 * d20 - d01 * d21) / den
-    w = (d00 * d21 - d01 * d20) / den
-    u = 1.0 - v - w
-    inside = ok & (u >= 0) & (v >= 0) & (w >= 0)
-    bary = np.stack([u, v, w], -1)
-    closest = a + v[..., None] * e0 + w[..., None] * e1
-    out = ~inside
-    if out.any():
-        po, ao, bo, co = p[out], a[out], b[out], c[out]
-        cands = [_closest_on_segments(po, ao, bo), _closest_on_segments(po, bo, co), _closest_on_segments(po, co, ao)]
-        dist = np.stack([np.einsum("...i,...i", q - po, q - po) for q, _ in cands], -1)
-        k = np.argmin(dist, axis=-1)
-        q = np.stack([q for q, _ in cands], -2)[np.arange(len(k)), k]
-        t = np.stack([t for _, t in cands], -1)[np.arange(len(k)), k]
-        bo_ = np.zeros((len(k), 3))
-        for e, (i, j) in enumerate(((0, 1), (1, 2), (2, 0))):
-            m = k == e
-            bo_[m, i] = 1.0 - t[m]
-            bo_[m, j] = t[m]
-        closest[out] = q
-        bary[out] = bo_
-    return closest, bary
+    shape = p.shape
+    p, a, b, c = (np.ascontiguousarray(x.reshape(-1, 3).T) for x in (p, a, b, c))
+    closest, bary = _closest_soa(p, a, b, c)
+    return closest.T.reshape(shape), bary.T.reshape(shape)
 
 
-def _closest_with_face_terms(p, cand, fr):
-    """The closest point to each ``p (M, 3)`` over its candidate faces ``cand (M, C)``, with per-face terms
-    precomputed (``BodyCollider._frame``): plane projection first, the full edge search only for the
-    pairs whose projection leaves the triangle.  Returns closest (M, 3), face (M,), bary (M, 3)."""
-    a, e0, e1 = fr["a"][cand], fr["e0"][cand], fr["e1"][cand]  # (M, C, 3)
-    ap = p[:, None, :] - a
-    d20 = (ap * e0).sum(-1)
-    d21 = (ap * e1).sum(-1)
-    inv = fr["inv"][cand]
-    v = (fr["d11"][cand] * d20 - fr["d01"][cand] * d21) * inv
-    w = (fr["d00"][cand] * d21 - fr["d01"][cand] * d20) * inv
-    u = 1.0 - v - w
-    inside = (u >= 0) & (v >= 0) & (w >= 0) & (inv != 0)
-    # the plane distance is exact where the projection is inside and a lower bound elsewhere: the edge
-    # search runs only for outside pairs that could still beat the best inside one
-    proj = a + v[..., None] * e0 + w[..., None] * e1
-    d2 = ((proj - p[:, None, :]) ** 2).sum(-1)
-    bary = np.stack([u, v, w], -1)
-    closest = proj
-    best_in = np.where(inside, d2, np.inf).min(axis=1)
-    todo = ~inside & (d2 < best_in[:, None])
-    d2 = np.where(inside, d2, np.inf)
-    if todo.any():
-        m, c = np.nonzero(todo)
-        tri = fr["tri"][cand[m, c]]
-        q, b = closest_point_fast(p[m], tri[:, 0], tri[:, 1], tri[:, 2])
-        closest = closest.copy()
-        closest[m, c] = q
-        bary[m, c] = b
-        d2[m, c] = ((q - p[m]) ** 2).sum(-1)
-    best = np.argmin(d2, axis=1)
-    r = np.arange(len(p))
-    return closest[r, best], cand[r, best], bary[r, best]
+def _spread_bits(x):
+    """Spread the low 10 bits of ``x`` (int64) to every third bit (Morton codes)."""
+    x = x & 0x3FF
+    x = (x | (x << 16)) & 0x030000FF
+    x = (x | (x << 8)) & 0x0300F00F
+    x = (x | (x << 4)) & 0x030C30C3
+    return (x | (x << 2)) & 0x09249249
+
+
+def _build_bvh(vertices, faces, leaf_size: int):
+    """A complete binary tree over the faces, built once from one pose of the body: level ``l`` has
+    ``2**l`` nodes and node ``i`` has the children ``2i`` and ``2i + 1``; each node's faces are split at
+    the median of their centroids along the node's longest axis.  Only the topology is kept: the boxes
+    are recomputed from the posed vertices every frame (:meth:`BodyCollider._frames`), so the tree is
+    valid for any pose; only its tightness depends on the pose it was built in.
+
+    Shapes:
+        vertices: (V, 3), faces: (F, 3) -> depth, leaf faces (L, w) padded with the leaf's first face,
+        their validity mask (L, w), and every leaf's vertices, one after another, with where each leaf's
+        start (T,), (L,); L = 2**depth
+    """
+    c = vertices[faces].mean(axis=1)
+    nf = len(faces)
+    depth = max(0, int(np.ceil(np.log2(max(nf / leaf_size, 1.0)))))
+    order = np.arange(nf)
+    for level in range(depth):
+        n = 2 ** level
+        bounds = (np.arange(n + 1) * nf) // n  # node i holds order[bounds[i]:bounds[i + 1]]
+        cc = c[order]
+        lo = np.minimum.reduceat(cc, bounds[:-1], axis=0)
+        hi = np.maximum.reduceat(cc, bounds[:-1], axis=0)
+        axis = np.argmax(hi - lo, axis=1)
+        key = cc[np.arange(nf), np.repeat(axis, np.diff(bounds))]
+        slot = bounds[:-1, None] + np.arange(int(np.diff(bounds).max()))[None, :]  # (n, w) one row per node
+        valid = slot < bounds[1:, None]
+        rows = np.argsort(np.where(valid, key[np.minimum(slot, nf - 1)], np.inf), axis=1)
+        order = order[(bounds[:-1, None] + rows)[valid]]  # padding sorts last, so `valid` keeps each row's faces
+    n = 2 ** depth
+    bounds = (np.arange(n + 1) * nf) // n  # every leaf holds at least one face (n <= nf)
+    width = int(np.diff(bounds).max())
+    slot = bounds[:-1, None] + np.arange(width)[None, :]
+    valid = slot < bounds[1:, None]
+    leaf_faces = order[np.where(valid, slot, bounds[:-1, None])]
+    lv = np.sort(np.where(np.repeat(valid, 3, axis=1), faces[leaf_faces].reshape(n, -1), -1), axis=1)
+    lv[:, 1:][lv[:, 1:] == lv[:, :-1]] = -1
+    keep = lv >= 0
+    starts = np.concatenate([[0], np.cumsum(keep.sum(axis=1))[:-1]])
+    return depth, leaf_faces, valid, (lv[keep], starts)
+
+
+def _group_starts(pt):
+    """First index of each run of equal values in the sorted ``pt (M,)``."""
+    return np.flatnonzero(np.concatenate([[True], pt[1:] != pt[:-1]]))
+
+
+@dataclasses.dataclass
+class _Frames:
+    """Per-call data of ``B`` stacked frames: vertices (3, B * V) (frame b's vertex i is column b V + i),
+    node boxes per tree level (lists of float32 (3, B * 2**l), grown by ``slack``), each frame's centre
+    (3, B), the long axis and the largest extent."""
+
+    verts: np.ndarray
+    lo: list
+    hi: list
+    centre: np.ndarray
+    axis: int
+    scale: float
+    slack: float
 
 
 class BodyCollider:
-    """Fast collisions against a body mesh whose triangles stay the same and whose vertices move every
-    frame (the posed body): everything that depends on the triangles is built once.
+    """Fast, exact collisions against a body whose triangles stay the same while its vertices move
+    every frame (the posed body): everything that depends on the triangles is built once.
 
-    Per frame, a k-d tree over the posed *vertices* (cheap to build, unlike the reference's centroid
-    tree and full normal fields) finds each garment point's nearest body vertex, and points farther
-    from it than the margin plus the longest edge around it, on the outer side of its normal, are
-    skipped: no triangle is within the margin of them.  For the rest, the exact closest point is computed on the triangles around that
-    vertex (its fan and the fans of its neighbours across the fan, precomputed), and only the
-    pseudo-normals of the features actually hit are evaluated.  :class:`BodyProxy` stays beside it as
-    the slow, obvious reference; ``tests/body/test_collision.py`` compares the two on dancing bodies.
+    A bounding-volume hierarchy over the triangles is built once (see :func:`_build_bvh`); per frame only
+    its axis-aligned boxes are recomputed from the posed vertices, bottom-up (a few vectorised passes,
+    no sorting).  A query then walks the tree a few levels at a time for all points together:
+
+    1. *near*: every leaf whose box lies within ``margin`` of the point, then the exact closest point on
+       the leaves' triangles.  Every triangle closer than ``margin`` is in a kept leaf, so a closest point
+       found closer than ``margin`` is the exact one (:func:`_closest_soa`, with the same feature rule and
+       pseudo-normals as :class:`BodyProxy`).
+    2. *the others' side*: a point farther than ``margin`` is left alone unless it is inside.  A ray from
+       it (pointing away from the body's centre, which only makes it cheaper) is traced through the same
+       tree and its crossings with the triangles are summed with their orientation: zero for a point
+       outside a closed mesh.  A ray that grazes an edge or a vertex is cast again in another direction.
+    3. points whose count is not zero (inside, deep or not) get the exact closest point by branch and
+       bound with no radius (the radius shrinking to the farthest corner of the nearest box).
+
+    So every point closer than ``margin`` or inside gets the brute-force closest point (over every
+    triangle), which :class:`BodyProxy` -- the slow, obvious reference beside it -- approximates with its
+    ``k`` nearest centroids; ``tests/body/test_collision.py`` compares the two, and both with brute
+    force.  A mesh that is not closed (an edge not shared by exactly two opposite faces) gets no ray
+    test: every point takes step 3 (exact, slow).  Frames can be batched: the boxes of ``B`` frames are
+    stacked so that one walk serves them all.
 
     Args:
-        vertices: (V, 3) any pose of the body (for the longest edge); faces: (F, 3).
+        vertices: (V, 3) any pose of the body (the tree is built from it); faces: (F, 3) outward triangles.
+        leaf_size: triangles per leaf (at most).
+        step: tree levels per pass of the walk (a ``2**step``-ary tree).
     """
 
-    def __init__(self, vertices, faces) -> None:
+    def __init__(self, vertices, faces, *, leaf_size: int = 4, step: int = 2) -> None:
         v, f = check_mesh(vertices, faces)
+        if len(f) == 0:
+            raise InputError("the body has no faces", expected="F >= 1", got=0)
+        for name, x in (("leaf_size", leaf_size), ("step", step)):
+            if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or x < 1:
+                raise InputError(f"{name} must be a positive integer", expected=">= 1", got=x)
         self.faces = f
         self.n_vertices = len(v)
-        topo = BodyProxy._build_topology(f, len(v))
-        # per face slot: the face across each edge (for edge pseudo-normals), -1 on a boundary
+        nv = np.int64(len(v)) + 1
+        # per face slot (edge opposite corner c): the face across that edge, -1 on a boundary
         e = np.sort(np.stack([f[:, [1, 2]], f[:, [2, 0]], f[:, [0, 1]]], axis=1), axis=2).reshape(-1, 2)
-        key = e[:, 0] * (np.int64(len(v)) + 1) + e[:, 1]
+        key = e[:, 0] * nv + e[:, 1]
         order = np.argsort(key, kind="stable")
         ks = key[order]
         other = np.full(len(key), -1, np.int64)
@@ -356,40 +431,301 @@ class BodyCollider:
         i0, i1 = order[:-1][same], order[1:][same]
         other[i0], other[i1] = i1 // 3, i0 // 3
         self._across = other.reshape(len(f), 3)
-        vf, ptr = topo["vf_faces"], topo["vf_ptr"]
-        val = np.diff(ptr)
-        fan = np.full((len(v), int(val.max())), -1, np.int64)
-        fan[np.repeat(np.arange(len(v)), val), np.arange(len(vf)) - np.repeat(ptr[:-1], val)] = vf
+        # closed: every edge has exactly two faces, which run along it in opposite directions
+        start = np.stack([f[:, 1], f[:, 2], f[:, 0]], axis=1).ravel()  # where each slot's edge starts
+        triple = (ks[2:] == ks[:-2]).any() if len(ks) > 2 else False
+        self.closed = bool((other >= 0).all() and not triple and (start[i0] != start[i1]).all())
+        # the faces around each vertex, -1 padded (vertex pseudo-normals)
+        count = np.bincount(f.ravel(), minlength=len(v))
+        ptr = np.concatenate([[0], np.cumsum(count)])
+        vf = np.argsort(f.ravel(), kind="stable") // 3
+        fan = np.full((len(v), max(1, int(count.max()))), -1, np.int64)
+        fan[np.repeat(np.arange(len(v)), count), np.arange(len(vf)) - np.repeat(ptr[:-1], count)] = vf
         self._fan = fan
-        # candidates per vertex: its fan plus the faces across the fan's outer edges (a 1.5-ring)
-        outer = self._across[np.maximum(fan, 0)]  # (V, val, 3)
-        cand = np.concatenate([fan, np.where(fan[..., None] >= 0, outer, -1).reshape(len(v), -1)], axis=1)
-        cand = np.sort(cand, axis=1)
-        dup = np.concatenate([np.zeros((len(v), 1), bool), cand[:, 1:] == cand[:, :-1]], axis=1)
-        cand[dup] = -1
-        cand = -np.sort(-cand, axis=1)  # valid ids first
-        width = int((cand >= 0).sum(axis=1).max())
-        cand = cand[:, :width]
-        self._cand = np.where(cand >= 0, cand, cand[:, :1])  # pad with a real candidate
-        edges = np.linalg.norm(v[f] - v[np.roll(f, 1, axis=1)], axis=2).max(axis=1)  # (F,) longest edge
-        self.edge = float(edges.max())
-        # the longest edge among each vertex's candidate triangles: the reach of its neighbourhood
-        self._reach = edges[self._cand].max(axis=1)
+        self.depth, self._leaf_faces, self._leaf_valid, (ids, starts) = _build_bvh(v, f, int(leaf_size))
+        # each leaf's vertices as a dense block of the first `w` (padded with its first vertex) and, for the
+        # leaves with more, an overflow block: fewer gathers than padding every leaf to the largest
+        count = np.diff(np.append(starts, len(ids)))
+        n_leaf, u = len(starts), int(count.max())
+        w = min(range(1, u + 1), key=lambda w: w * n_leaf + (u - w) * int((count > w).sum()))
+        col = lambda j, rows: ids[starts[rows] + np.minimum(j, count[rows] - 1)]  # noqa: E731
+        every = np.arange(n_leaf)
+        self._over = np.flatnonzero(count > w)
+        self._dense = np.stack([col(j, every) for j in range(w)])  # (w, L)
+        self._overflow = np.stack([col(j, self._over) for j in range(w, u)]) if u > w else np.zeros((0, 0), int)
+        self._gather = {}  # per number of frames: the stacked-frame columns of both blocks
+        self._levels = list(range(self.depth % int(step), self.depth + 1, int(step)))
+        if self._levels[0]:
+            self._levels.insert(0, 0)
+        self.chunk = 8192  # points per walk
+        self.group = 16  # points per run in the top of the walks
+        self._split = min(3, len(self._levels) - 1)  # the walks follow runs of points down to _levels[_split]
 
-    def _normals(self, posed, face, bary):
-        """Pseudo-normal of the closest feature (face, edge or vertex) on the posed body, per point."""
+    # ---- per call -----------------------------------------------------------------------------------
+    def _frames(self, posed) -> _Frames:
+        """Stack the frames ``posed (B, V, 3)`` and fit the tree's boxes to them."""
+        nb, nv = posed.shape[:2]
+        verts = np.ascontiguousarray(posed.transpose(2, 0, 1)).reshape(3, nb * nv)
+        if nb not in self._gather:
+            base = np.arange(nb) * nv
+            n_leaf = self._dense.shape[1]
+            self._gather[nb] = ((self._dense[:, None, :] + base[None, :, None]).reshape(len(self._dense), -1),
+                                (self._overflow[:, None, :] + base[None, :, None]).reshape(len(self._overflow), -1),
+                                ((np.arange(nb) * n_leaf)[:, None] + self._over).ravel())
+        dense, over, at = self._gather[nb]
+        lo, hi = np.empty((3, dense.shape[1])), np.empty((3, dense.shape[1]))
+        for k in range(3):  # leaf boxes, one axis at a time from contiguous rows
+            x = np.take(verts[k], dense)
+            lo[k], hi[k] = x.min(axis=0), x.max(axis=0)
+            if over.size:
+                y = np.take(verts[k], over)
+                lo[k, at], hi[k, at] = np.minimum(lo[k, at], y.min(axis=0)), np.maximum(hi[k, at], y.max(axis=0))
+        los, his = [lo], [hi]
+        for _ in range(self.depth):
+            lo, hi = np.minimum(lo[:, 0::2], lo[:, 1::2]), np.maximum(hi[:, 0::2], hi[:, 1::2])
+            los.append(lo)
+            his.append(hi)
+        ext = verts.max(axis=1) - verts.min(axis=1)
+        scale = float(ext.max())
+        # the walks run in float32 on boxes grown by `slack`, far above float32 rounding at this scale, so
+        # they keep every box the float64 test would; the triangles themselves are measured in float64
+        slack = 1e-5 * max(scale, float(np.abs(verts).max()), 1e-30)
+        lo32 = [(x - slack).astype(np.float32) for x in los[::-1]]
+        hi32 = [(x + slack).astype(np.float32) for x in his[::-1]]
+        return _Frames(verts=verts, lo=lo32, hi=hi32, centre=verts.reshape(3, nb, nv).mean(axis=2),
+                       axis=int(np.argmax(ext)), scale=scale, slack=slack)
+
+    def _descend(self, pt, nd, level):
+        """The children of the nodes ``nd`` at ``level`` on the next level walked, paired with ``pt``."""
+        step = self._levels[self._levels.index(level) + 1] - level
+        k = 2 ** step
+        return np.repeat(pt, k), ((nd[:, None] << step) | np.arange(k, dtype=nd.dtype)).ravel()
+
+    def _groups(self, P, frame):
+        """Runs of up to ``self.group`` points close together (Morton order of their cells, frame by frame).
+
+        ``P (3, M)`` float32.  Returns the order (M,), where each run starts in it (R,), each run's frame
+        and the box of its points (3, R) twice."""
+        lo, ext = P.min(axis=1, keepdims=True), np.maximum(np.ptp(P, axis=1).max(), 1e-30)
+        q = np.clip(((P - lo) * (1023.0 / ext)).astype(np.int64), 0, 1023)
+        code = (np.asarray(frame, np.int64) << 30) | (_spread_bits(q[0]) << 2) | (_spread_bits(q[1]) << 1) \
+            | _spread_bits(q[2])
+        order = np.argsort(code, kind="stable")
+        f = np.asarray(frame)[order]
+        first = np.flatnonzero(np.concatenate([[True], f[1:] != f[:-1]]))  # where each frame's points start
+        pos = np.arange(len(order)) - np.repeat(first, np.diff(np.append(first, len(order))))
+        starts = np.flatnonzero(pos % self.group == 0)
+        Ps = np.take(P, order, axis=1)
+        return order, starts, f[starts], np.minimum.reduceat(Ps, starts, axis=1), np.maximum.reduceat(Ps, starts, axis=1)
+
+    def _seed(self, fr: _Frames, order, starts, run_frame, keep):
+        """Walk the top of the tree with the runs of :meth:`_groups` instead of single points:
+        ``keep(level, run, node) -> bool`` must hold for a run wherever it holds for one of its points.
+        Returns (point, node) pairs at level ``self._levels[self._split]``, grouped by point."""
+        run, nd = np.arange(len(starts), dtype=np.int32), np.asarray(run_frame, np.int32)
+        prev = 0
+        for level in self._levels[:self._split + 1]:
+            if level:
+                run, nd = self._descend(run, nd, prev)
+            prev = level
+            k = keep(level, run, nd)
+            run, nd = run[k], nd[k]
+        # every point of a run with every node kept for the run, point after point
+        size = np.diff(np.append(starts, len(order)))
+        g = _group_starts(run)  # the runs' node lists, one after another
+        n_nodes = np.diff(np.append(g, len(run)))
+        runs = run[g]
+        block = size[runs] * n_nodes
+        total = int(block.sum())
+        j = np.arange(total) - np.repeat(np.cumsum(block) - block, block)
+        per = np.repeat(n_nodes, block)
+        pt = order[np.repeat(starts[runs], block) + j // per].astype(np.int32)
+        return pt, nd[np.repeat(g, block) + j % per]
+
+    def _leaves_near(self, fr: _Frames, P, frame, ub2):
+        """Branch and bound: pairs (point, leaf column) whose box is within the point's radius.
+
+        ``P (3, M)`` float32 points, ``frame (M,)`` their frames, ``ub2 (M,)`` squared radius (inf: none,
+        then the radius shrinks to the farthest corner of the nearest box of each level walked: a surface
+        point lies within it).  Returns point indices, leaf columns (grouped by point) and their squared
+        box distances (float32, boxes grown by ``fr.slack``)."""
+        s = fr.slack
+        ub2 = ((np.sqrt(np.asarray(ub2, np.float64)) + s) ** 2).astype(np.float32)
+        shrink = bool(np.isinf(ub2).any())
+        levels = self._levels
+        if P.shape[1] >= 4 * self.group and self._split:
+            order, starts, run_frame, rlo, rhi = self._groups(P, frame)
+            rub2 = np.maximum.reduceat(ub2[order], starts)
+
+            def keep(level, run, nd):  # the gap between the run's box and the node's
+                gap = np.maximum(np.maximum(np.take(fr.lo[level], nd, axis=1) - np.take(rhi, run, axis=1),
+                                            np.take(rlo, run, axis=1) - np.take(fr.hi[level], nd, axis=1)), 0.0)
+                return _dot(gap, gap) <= rub2[run]
+
+            pt, nd = self._seed(fr, order, starts, run_frame, keep)
+            levels = levels[self._split:]
+        else:
+            pt, nd = np.arange(P.shape[1], dtype=np.int32), np.asarray(frame, np.int32)
+        prev = levels[0]
+        for level in levels:
+            if level != prev:
+                pt, nd = self._descend(pt, nd, prev)
+            prev = level
+            q = np.take(P, pt, axis=1)
+            a, b = np.take(fr.lo[level], nd, axis=1) - q, q - np.take(fr.hi[level], nd, axis=1)
+            d = np.maximum(np.maximum(a, b), 0.0)
+            lb2 = _dot(d, d)
+            if shrink:
+                c = np.maximum(np.abs(a), np.abs(b))
+                g = _group_starts(pt)
+                ps = pt[g]
+                ub2[ps] = np.minimum(ub2[ps], (np.sqrt(np.minimum.reduceat(_dot(c, c), g)) + s) ** 2)
+            keep = lb2 <= ub2[pt]
+            pt, nd, lb2 = pt[keep], nd[keep], lb2[keep]
+            if not len(pt):
+                break
+        return pt, nd, lb2
+
+    def _leaf_pairs(self, fr: _Frames, pt, leaf, frame):
+        """(point, face) pairs of the (point, leaf column) pairs, and each face's three vertex columns."""
+        nleaf = self._leaf_faces.shape[0]
+        lf = leaf % nleaf
+        valid = self._leaf_valid[lf]
+        face = self._leaf_faces[lf][valid]
+        pt = np.broadcast_to(pt[:, None], valid.shape)[valid]
+        cols = self.faces[face] + (frame[pt] * self.n_vertices)[:, None]  # (K, 3)
+        return pt, face, cols
+
+    def _closest(self, fr: _Frames, P, frame, ub2, *, tighten: bool = False):
+        """Exact closest point for the points of ``P (3, M)`` with a triangle within ``sqrt(ub2)``;
+        ``tighten`` when the radii are loose (measure each point's nearest box first, then only the boxes
+        within that).
+
+        Returns (indices of the points found, closest (3, K), face (K,), bary (3, K), squared distance)."""
+        pt, leaf, lb2 = self._leaves_near(fr, P.astype(np.float32), frame, ub2)
+        if not len(pt):
+            return pt, np.zeros((3, 0)), pt, np.zeros((3, 0)), np.zeros(0)
+        if tighten:
+            # the triangles of each point's nearest box give a tight radius, and only the boxes within it
+            # need their triangles measured
+            order = np.lexsort((lb2, pt))
+            best = order[_group_starts(pt[order])]  # each point's nearest box
+            found, _, _, _, d2 = self._measure(fr, P, frame, pt[best], leaf[best])
+            tight = np.zeros(P.shape[1])
+            tight[found] = (np.sqrt(d2) + fr.slack) ** 2
+            keep = lb2 <= tight[pt]
+            pt, leaf = pt[keep], leaf[keep]
+        return self._measure(fr, P, frame, pt, leaf)
+
+    def _measure(self, fr: _Frames, P, frame, pt, leaf):
+        """The nearest point on the triangles of the leaves paired with each point (pairs grouped by point).
+
+        Returns (the points, closest (3, K), face (K,), bary (3, K), squared distance (K,))."""
+        pt, face, cols = self._leaf_pairs(fr, pt, leaf, frame)
+        q = np.take(P, pt, axis=1)
+        a, b, c = (np.take(fr.verts, cols[:, k], axis=1) for k in range(3))
+        x, bary = _closest_soa(q, a, b, c)
+        diff = x - q
+        d2 = _dot(diff, diff)
+        order = np.lexsort((d2, pt))
+        first = order[_group_starts(pt[order])]
+        return pt[first], x[:, first], face[first], bary[:, first], d2[first]
+
+    def _winding(self, fr: _Frames, P, frame, centre):
+        """Signed count of the crossings of a ray from each point of ``P (3, M)`` (direction: away from
+        ``centre (3, B)`` of its frame, mostly across the body's long axis) with the surface: 0 outside a
+        closed mesh, 1 inside, more where the posed body overlaps itself; whether the ray grazed an edge or
+        a vertex or started on a triangle (the count is then unreliable); and where along the ray it first
+        meets the surface (inf: nowhere), a bound on the distance to the surface."""
+        def direction(x, f):
+            d = x - np.take(centre, f, axis=1)
+            d[fr.axis] *= 0.25  # sideways: fewer boxes on the way
+            n = np.sqrt(_dot(d, d))
+            d = np.where(n > 1e-9, d / np.maximum(n, 1e-300), np.array([[0.6], [0.48], [0.64]]))
+            return np.where(np.abs(d) < 1e-6, np.where(d < 0, -1e-6, 1e-6), d)  # no zero component: finite 1/d
+
+        P32 = P.astype(np.float32)  # the walk in float32 on boxes grown by fr.slack: see _frames
+        levels = self._levels
+        if P.shape[1] >= 4 * self.group and self._split:
+            # a run of nearby points casts parallel rays (any direction will do): the rays from its box hit
+            # the node's box only if the ray from its centre hits the node's box grown by the run's box
+            order, starts, run_frame, rlo, rhi = self._groups(P32, frame)
+            rc, rh = 0.5 * (rlo + rhi), 0.5 * (rhi - rlo)
+            rd = direction(rc.astype(np.float64), run_frame)
+            rinv = (1.0 / rd).astype(np.float32)
+            d = np.empty_like(P)
+            d[:, order] = np.repeat(rd, np.diff(np.append(starts, P.shape[1])), axis=1)
+
+            def keep(level, run, nd):
+                o, iv, h = np.take(rc, run, axis=1), np.take(rinv, run, axis=1), np.take(rh, run, axis=1)
+                t1 = (np.take(fr.lo[level], nd, axis=1) - h - o) * iv
+                t2 = (np.take(fr.hi[level], nd, axis=1) + h - o) * iv
+                near_end, far_end = np.minimum(t1, t2), np.maximum(t1, t2)
+                t_in = np.maximum(np.maximum(near_end[0], near_end[1]), np.maximum(near_end[2], 0.0))
+                return np.minimum(np.minimum(far_end[0], far_end[1]), far_end[2]) >= t_in
+
+            pt, nd = self._seed(fr, order, starts, run_frame, keep)
+            levels = levels[self._split:]
+        else:
+            d = direction(P, frame)
+            pt, nd = np.arange(P.shape[1], dtype=np.int32), np.asarray(frame, np.int32)
+        inv = (1.0 / d).astype(np.float32)
+        prev = levels[0]
+        for level in levels:
+            if level != prev:
+                pt, nd = self._descend(pt, nd, prev)
+            prev = level
+            o, iv = np.take(P32, pt, axis=1), np.take(inv, pt, axis=1)
+            t1, t2 = (np.take(fr.lo[level], nd, axis=1) - o) * iv, (np.take(fr.hi[level], nd, axis=1) - o) * iv
+            near_end = np.minimum(t1, t2)
+            far_end = np.maximum(t1, t2)
+            t_in = np.maximum(np.maximum(near_end[0], near_end[1]), np.maximum(near_end[2], 0.0))
+            t_out = np.minimum(np.minimum(far_end[0], far_end[1]), far_end[2])
+            keep = t_out >= t_in
+            pt, nd = pt[keep], nd[keep]
+            if not len(pt):
+                break
+        wind = np.zeros(P.shape[1])
+        graze = np.zeros(P.shape[1], bool)
+        reach = np.full(P.shape[1], np.inf)
+        if not len(pt):
+            return wind, graze, reach
+        pt, _, cols = self._leaf_pairs(fr, pt, nd, frame)
+        o = np.take(P, pt, axis=1)
+        A, B, C = (np.take(fr.verts, cols[:, k], axis=1) - o for k in range(3))
+        dd = np.take(d, pt, axis=1)
+        # edge functions d . (X x Y): the same edge seen from its two faces gives exactly opposite values
+        e0, e1, e2 = _dot(dd, _cross(B, C)), _dot(dd, _cross(C, A)), _dot(dd, _cross(A, B))
+        s = e0 + e1 + e2  # d . n
+        plane = _dot(A, _cross(B - A, C - A))  # (a - o) . n: the hit is at t = plane / s
+        hit = (((e0 > 0) & (e1 > 0) & (e2 > 0)) | ((e0 < 0) & (e1 < 0) & (e2 < 0))) & (plane * s > 0)
+        closed = ((e0 >= 0) & (e1 >= 0) & (e2 >= 0)) | ((e0 <= 0) & (e1 <= 0) & (e2 <= 0))
+        touch = closed & (s != 0) & (plane * s >= 0) & ~hit  # through an edge or a vertex, or from the plane
+        wind += np.bincount(pt[hit], weights=np.sign(s[hit]), minlength=P.shape[1])
+        graze[pt[touch]] = True
+        np.minimum.at(reach, pt[hit], plane[hit] / s[hit])  # how far along the ray it first meets the surface
+        return wind, graze, reach
+
+    def _normals(self, verts, face, bary, voff):
+        """Pseudo-normal of the closest feature (face, edge or vertex) per point, as :class:`BodyProxy`.
+
+        Shapes:
+            verts: (3, B * V) stacked frames; face (K,), bary (3, K), voff (K,) the first column of each
+            point's frame -> (K, 3)
+        """
+        flat = verts.T
+        bary = bary.T
         f = self.faces
-        tri = posed[f[face]]
+        tri = flat[f[face] + voff[:, None]]
         fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
-        nz = bary > 1e-9
-        count = nz.sum(axis=1)
+        count = (bary > 1e-9).sum(axis=1)
         normal = fn.copy()
         edge = count == 2
         if edge.any():
             slot = np.argmin(bary[edge], axis=1)  # the corner with ~0 weight is opposite the edge
             g = self._across[face[edge], slot]
-            tg = posed[f[np.maximum(g, 0)]]
+            tg = flat[f[np.maximum(g, 0)] + voff[edge, None]]
             gn = np.cross(tg[:, 1] - tg[:, 0], tg[:, 2] - tg[:, 0])
             gn /= np.maximum(np.linalg.norm(gn, axis=1, keepdims=True), 1e-300)
             gn[g < 0] = 0.0
@@ -399,15 +735,16 @@ class BodyCollider:
         if vert.any():
             vid = f[face[vert], np.argmax(bary[vert], axis=1)]
             fan = self._fan[vid]  # (M, valence), -1 padded
-            ff = f[np.maximum(fan, 0)]  # (M, val, 3)
-            t = posed[ff]
+            ff = f[np.maximum(fan, 0)]  # (M, valence, 3)
+            t = flat[ff + voff[vert, None, None]]
             n = np.cross(t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :])
             n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)
-            # the angle of each fan face at the vertex
-            corner = np.argmax(ff == vid[:, None, None], axis=-1)
-            pv = np.take_along_axis(t, corner[..., None, None].repeat(3, -1), -2)[..., 0, :]
-            e1 = np.take_along_axis(t, ((corner + 1) % 3)[..., None, None].repeat(3, -1), -2)[..., 0, :] - pv
-            e2 = np.take_along_axis(t, ((corner + 2) % 3)[..., None, None].repeat(3, -1), -2)[..., 0, :] - pv
+            corner = np.argmax(ff == vid[:, None, None], axis=-1)  # the vertex's corner in each fan face
+
+            def pick(k):
+                return np.take_along_axis(t, ((corner + k) % 3)[..., None, None].repeat(3, -1), -2)[..., 0, :]
+
+            e1, e2 = pick(1) - pick(0), pick(2) - pick(0)
             cosang = np.einsum("...i,...i", e1, e2) / np.maximum(
                 np.linalg.norm(e1, axis=-1) * np.linalg.norm(e2, axis=-1), 1e-300)
             ang = np.arccos(np.clip(cosang, -1, 1)) * (fan >= 0)
@@ -415,77 +752,111 @@ class BodyCollider:
             normal[vert] = vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
         return normal
 
-    def query(self, points, posed, tree, idx=None, *, cutoff: float = np.inf, frame=None) -> tuple:
-        """Closest posed-body point, outward normal and signed distance for the points ``points[idx]``
-        within ``cutoff`` of the body; returns (the examined indices, closest, normal, signed distance).
-        ``frame``: the per-face terms of :meth:`_frame` for ``posed`` (computed when not given)."""
-        p = np.asarray(points, np.float64)
-        idx = np.arange(len(p)) if idx is None else idx
-        d, nv = tree.query(p[idx])
-        near = d <= cutoff + self._reach[nv]  # beyond the local reach of its nearest vertex no triangle is that close
-        far = ~near
-        if far.any():  # ... unless the point is deep inside: on the inner side of that vertex's normal
-            fv = nv[far]
-            fan = self._fan[fv]
-            t = posed[self.faces[np.maximum(fan, 0)]]
-            n = np.cross(t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :]) * (fan >= 0)[..., None]
-            near[far] = np.einsum("ij,ij->i", p[idx[far]] - posed[fv], n.sum(axis=1)) < 0
-        sel = idx[near]
-        if not len(sel):
-            return sel, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
-        cand = self._cand[nv[near]]  # (M, C)
-        if frame is None:  # per-face terms for the candidate faces only, indexed through `local`
-            uniq, local = np.unique(cand, return_inverse=True)
-            fr = self._frame(posed, uniq)
-            local = local.reshape(cand.shape)
-        else:
-            fr, local = frame, cand
-        pp = p[sel]
-        closest, face_local, bary = _closest_with_face_terms(pp, local, fr)
-        face = fr["faces"][face_local] if "faces" in fr else face_local
-        normal = self._normals(posed, face, bary)
-        diff = pp - closest
-        dist = np.linalg.norm(diff, axis=1)
+    def _signed(self, fr: _Frames, P, frame, found, closest, face, bary):
+        """Normals (K, 3) and signed distances (K,) of the points ``found`` at their closest points."""
+        normal = self._normals(fr.verts, face, bary, frame[found] * self.n_vertices)
+        diff = (np.take(P, found, axis=1) - closest).T
         sign = np.where(np.einsum("ij,ij->i", diff, normal) < 0, -1.0, 1.0)
-        return sel, closest, normal, sign * dist
+        return normal, sign * np.linalg.norm(diff, axis=1)
 
-    def _frame(self, posed, faces=None):
-        """Per-face terms of the projection (for ``faces``, default all): corner a, edges e0 = b - a,
-        e1 = c - a, and the entries of their Gram matrix with its inverse determinant."""
-        tri = posed[self.faces if faces is None else self.faces[faces]]
-        a, e0, e1 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-        d00, d01, d11 = (e0 * e0).sum(1), (e0 * e1).sum(1), (e1 * e1).sum(1)
-        den = d00 * d11 - d01 * d01
-        inv = np.where(np.abs(den) > 1e-300, 1.0 / np.where(den == 0, 1.0, den), 0.0)
-        out = {"tri": tri, "a": a, "e0": e0, "e1": e1, "d00": d00, "d01": d01, "d11": d11, "inv": inv}
-        if faces is not None:
-            out["faces"] = faces
-        return out
+    def _within(self, fr: _Frames, P, frame, margin):
+        """Exact signed distance, closest point and normal for every point of ``P (3, M)`` closer to the
+        body than ``margin`` or inside it; the others are proven farther and outside.
+        Returns (their indices, closest (K, 3), normal (K, 3), signed distance (K,))."""
+        m = P.shape[1]
+        # a radius a little over the margin: a point just pushed out to the margin is found here too
+        rho2 = (margin * (1.0 + 1e-3) + 1e-9) ** 2
+        found, closest, face, bary, d2 = self._closest(fr, P, frame, np.full(m, rho2))
+        ok = d2 < rho2
+        found, closest, face, bary = found[ok], closest[:, ok], face[ok], bary[:, ok]
+        rest = np.ones(m, bool)
+        rest[found] = False
+        rest = np.flatnonzero(rest)
+        reach = np.full(len(rest), np.inf)
+        if len(rest) and self.closed:
+            wind, graze, reach = self._winding(fr, P[:, rest], frame[rest], fr.centre)
+            tilts = np.array([[0.071, -0.113, 0.097], [-0.131, 0.089, 0.053]]) * fr.scale
+            for tilt in tilts:  # a grazing ray is cast again in another direction
+                g = np.flatnonzero(graze)
+                if not len(g):
+                    break
+                wind[g], graze[g], reach[g] = self._winding(fr, P[:, rest[g]], frame[rest[g]],
+                                                            fr.centre + tilt[:, None])
+            inside = (wind != 0) | graze
+            rest, reach = rest[inside], np.where(graze, np.inf, reach)[inside]
+        if len(rest):
+            # the ray's first hit is a surface point: the closest one is no farther
+            ub2 = (reach * (1.0 + 1e-9) + fr.slack) ** 2
+            f2, c2, fa2, b2, _ = self._closest(fr, P[:, rest], frame[rest], ub2, tighten=True)
+            found = np.concatenate([found, rest[f2]])
+            closest, face = np.concatenate([closest, c2], axis=1), np.concatenate([face, fa2])
+            bary = np.concatenate([bary, b2], axis=1)
+        normal, sd = self._signed(fr, P, frame, found, closest, face, bary)
+        return found, closest.T, normal, sd
 
-    def push_out(self, points, posed, margin: float = 0.0, *, iterations: int = 3):
-        """:func:`push_out` against the body at ``posed (V, 3)``.
+    def _check(self, points, posed):
+        p = np.asarray(points, np.float64)
+        v = np.asarray(posed, np.float64)
+        if p.ndim not in (2, 3) or p.shape[-1] != 3:
+            raise InputError("points must be (N, 3) or (B, N, 3)", got=p.shape)
+        batched = p.ndim == 3
+        want = (p.shape[0], self.n_vertices, 3) if batched else (self.n_vertices, 3)
+        if v.shape != want:
+            raise InputError("the posed body must have the body's vertices, one frame per frame of points",
+                             expected=want, got=v.shape)
+        if not np.isfinite(p).all():
+            raise InputError("points contain NaN or inf")
+        if not np.isfinite(v).all():
+            raise InputError("the posed body contains NaN or inf")
+        return (p, v) if batched else (p[None], v[None])
+
+    def query(self, points, posed) -> ProximityResult:
+        """Exact signed distance (negative inside), closest point, outward normal and face for every point,
+        by branch and bound with no radius: the brute-force answer (slower than :meth:`push_out`, which
+        only looks for points near or inside).
 
         Shapes:
-            points: (N, 3) -> (N, 3), and the number of points moved
+            points: (P, 3), posed: (V, 3) -> fields (P,) / (P, 3)
         """
-        out = np.array(points, dtype=np.float64)
-        if out.ndim != 2 or out.shape[1] != 3:
-            raise InputError("points must be (N, 3)", got=out.shape)
-        if not np.isfinite(out).all():
-            raise InputError("points contain NaN or inf")
-        posed = np.asarray(posed, np.float64)
-        if posed.shape != (self.n_vertices, 3) or not np.isfinite(posed).all():
-            raise InputError("posed body must be finite (V, 3)", expected=(self.n_vertices, 3), got=posed.shape)
-        tree = cKDTree(posed, balanced_tree=False, compact_nodes=False)
-        moved = np.zeros(len(out), bool)
-        idx = np.arange(len(out))
+        p, v = self._check(points, posed)
+        if p.shape[0] != 1 or np.ndim(points) != 2:
+            raise InputError("query takes one frame of points", expected="(P, 3)", got=np.shape(points))
+        fr = self._frames(v)
+        P = np.ascontiguousarray(p[0].T)
+        frame = np.zeros(P.shape[1], np.int64)
+        found, closest, face, bary, _ = self._closest(fr, P, frame, np.full(P.shape[1], np.inf), tighten=True)
+        normal, sd = self._signed(fr, P, frame, found, closest, face, bary)
+        return ProximityResult(signed_distance=sd, closest=closest.T.copy(), normal=normal, face=face)
+
+    def push_out(self, points, posed, margin: float = 0.0, *, iterations: int = 3):
+        """:func:`push_out` against the body at ``posed``: the same rule, moves and passes, with exact
+        closest points (see the class docstring).  Frames can be batched.
+
+        Shapes:
+            points: (N, 3), posed: (V, 3) -> (N, 3), and the number of points moved
+            points: (B, N, 3), posed: (B, V, 3) -> (B, N, 3), and the number of points moved in all frames
+        """
+        p, v = self._check(points, posed)
+        margin = float(margin)
+        if not np.isfinite(margin) or margin < 0:
+            raise InputError("margin must be finite and >= 0", got=margin)
+        nb, n = p.shape[:2]
+        out = np.ascontiguousarray(p.reshape(-1, 3).T)  # (3, B N)
+        frame = np.repeat(np.arange(nb), n)
+        fr = self._frames(v)
+        moved = np.zeros(out.shape[1], bool)
+        idx = np.arange(out.shape[1])
         for _ in range(max(1, int(iterations))):
-            sel, closest, normal, sd = self.query(out, posed, tree, idx, cutoff=float(margin))
-            hit = sd < margin
-            if not hit.any():
+            hits = []
+            for lo in range(0, len(idx), self.chunk):  # a few thousand points at a time stay in cache
+                part = idx[lo:lo + self.chunk]
+                sel, closest, normal, sd = self._within(fr, out[:, part], frame[part], margin)
+                hit = sd < margin
+                h = part[sel[hit]]
+                out[:, h] = (closest[hit] + margin * normal[hit]).T
+                hits.append(h)
+            idx = np.sort(np.concatenate(hits))
+            if not len(idx):
                 break
-            h = sel[hit]
-            out[h] = closest[hit] + margin * normal[hit]
-            moved[h] = True
-            idx = h
-        return out, int(moved.sum())
+            moved[idx] = True
+        return out.T.reshape(np.shape(points)).copy(), int(moved.sum())

@@ -40,7 +40,7 @@ from ..errors import InputError, SegadeformError
 from ..garments import GARMENT_TYPES, make_garment
 from ..io import Mesh, read_mesh, write_obj
 from ..io.atomic import atomic_path
-from ..motion import load_motion, make_motion, resample
+from ..motion import face_forward, load_motion, make_motion, resample
 from ..motion.motion import Motion
 from .config import DatasetConfig, GarmentSpec, MotionEntry
 from .quality import quality_check
@@ -123,18 +123,32 @@ def sample_spec(cfg: DatasetConfig, p: PlannedSample) -> str:
                     "fps": cfg.fps, "seconds": cfg.seconds, "simulate": st.to_dict()})
 
 
-def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None) -> Motion:
+LEAD_SECONDS = 1.0  # of a motion file, simulated before a clip and dropped: the cloth enters it in motion
+
+
+def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: bool = False):
+    """The sample's motion.  ``with_lead``: ``(motion, lead)`` where the motion starts ``lead`` frames
+    before the clip (up to LEAD_SECONDS of the file before ``start``): motion capture starts mid-stride,
+    and cloth blended from rest straight into a walking body lags and tears; the lead frames are
+    simulated and dropped."""
     if m.kind is not None:
-        return make_motion(m.kind, seconds=cfg.seconds, fps=cfg.fps, speed=m.speed, amplitude=m.amplitude, seed=m.seed,
-                           ease_in=m.ease_in)
+        # a procedural motion with no ease-in starts at full speed: it gets the same lead, its first
+        # LEAD_SECONDS simulated and dropped (one that eases in from rest needs none)
+        lead = int(round(LEAD_SECONDS * cfg.fps)) if with_lead and m.ease_in == 0 else 0
+        mo = make_motion(m.kind, seconds=cfg.seconds + lead / cfg.fps, fps=cfg.fps, speed=m.speed,
+                         amplitude=m.amplitude, seed=m.seed, ease_in=m.ease_in)
+        if not with_lead:  # the clip itself (what a sample stores), as with the lead dropped
+            return dataclasses.replace(mo, poses=mo.poses[lead:], trans=mo.trans[lead:])
+        return mo, lead
     mo = load_motion(m.file, rest_joints=rest_joints, floor=True)
     if abs(mo.fps - cfg.fps) > 1e-9:
         mo = resample(mo, cfg.fps)
     a = min(int(round(m.start * cfg.fps)), mo.n_frames - 1)
     n = min(mo.n_frames - a, int(round(cfg.seconds * cfg.fps)))
-    # the clip starts where the body stands: its root is moved to x = z = 0 at the clip's first frame
-    trans = mo.trans[a:a + n] - np.array([mo.trans[a, 0], 0.0, mo.trans[a, 2]])
-    return dataclasses.replace(mo, poses=mo.poses[a:a + n], trans=trans)
+    lead = min(a, int(round(LEAD_SECONDS * cfg.fps))) if with_lead else 0
+    # the lead's first frame is where the simulation's rest pose stands: facing +Z above x = z = 0
+    clip = face_forward(dataclasses.replace(mo, poses=mo.poses[a - lead:a + n], trans=mo.trans[a - lead:a + n]), 0)
+    return (clip, lead) if with_lead else clip
 
 
 def _garment_file(root: Path, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) -> Path:
@@ -191,15 +205,19 @@ def _run_one(root: str, cfg: DatasetConfig, ps: PlannedSample, body_path: str, s
     gpath = _garment_file(root_p, cfg, ps.garment, ps.body, body)
     mesh = read_mesh(gpath)
     cloth = read_mesh(_cloth_file(gpath)).vertices if _cloth_file(gpath).is_file() else None
-    motion = _motion(m, cfg, body.rest_joints(betas or None)[0])
+    motion, lead = _motion(m, cfg, body.rest_joints(betas or None)[0], with_lead=True)
+    full_motion = motion
+    motion = dataclasses.replace(motion, poses=motion.poses[lead:], trans=motion.trans[lead:])
     rec = {"id": ps.id, "split": ps.split, "garment": g.name, "kind": g.kind, "type": GARMENT_TYPES[g.kind],
            "body": ps.body, "motion": m.name, "vertices": len(mesh.vertices), "frames": motion.n_frames,
            "spec": sample_spec(cfg, ps)}
     try:
         st = cfg.simulate.replace(pin=g.pin) if g.pin else cfg.simulate
         kw = {} if cloth is None else {"cloth_rest": cloth, "start_pose": A_POSE}
-        res = simulate(mesh.vertices, mesh.faces, body, motion, betas=betas or None, settings=st,
+        res = simulate(mesh.vertices, mesh.faces, body, full_motion, betas=betas or None, settings=st,
                        sim_python=sim_python, **kw)
+        if lead:
+            res = dataclasses.replace(res, frames=res.frames[lead:], preroll_frames=res.preroll_frames + lead)
     except SegadeformError as e:
         rec.update(status="rejected", reasons=[f"simulation failed: {e}"], seconds=time.perf_counter() - t0)
         return rec

@@ -8,10 +8,10 @@ from pathlib import Path
 
 from ..errors import FileFormatError
 from .bvh import read_bvh, write_bvh
-from .motion import N_POSE, Motion, feet_on_floor, load_motion_npz, motion_windows, resample
+from .motion import N_POSE, Motion, face_forward, feet_on_floor, load_motion_npz, motion_windows, resample
 from .procedural import MOTION_KINDS, make_motion
 
-__all__ = ["Motion", "N_POSE", "load_motion", "load_motion_npz", "feet_on_floor", "read_bvh", "write_bvh", "resample",
+__all__ = ["Motion", "N_POSE", "load_motion", "load_motion_npz", "feet_on_floor", "face_forward", "read_bvh", "write_bvh", "resample",
            "motion_windows", "MOTION_KINDS", "make_motion"]
 
 

@@ -13,7 +13,7 @@ from ..body.rotations import (axis_angle_to_quaternion, quaternion_slerp, quater
 from ..errors import FileFormatError, InputError
 from ..io.atomic import atomic_path
 
-__all__ = ["Motion", "load_motion_npz", "feet_on_floor", "resample", "motion_windows", "N_POSE", "SMPL_PELVIS"]
+__all__ = ["Motion", "load_motion_npz", "feet_on_floor", "face_forward", "resample", "motion_windows", "N_POSE", "SMPL_PELVIS"]
 
 N_POSE = 72  # 24 SMPL joints x axis-angle
 
@@ -212,6 +212,30 @@ def _default_pelvis() -> np.ndarray:
     from ..body.skeleton import default_rest_joints
 
     return default_rest_joints()[0]
+
+
+def face_forward(motion: Motion, frame: int = 0) -> Motion:
+    """Turn the whole motion about the vertical axis so the body faces +Z at ``frame``, and move it so its
+    root is above x = z = 0 there.  Motion capture faces wherever the subject walked; a simulator that
+    blends from the rest pose (facing +Z at the origin) into a clip facing backwards whirls the cloth.
+
+    Shapes:
+        poses (T, 72), trans (T, 3) -> the same
+    """
+    from ..body.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+
+    if not 0 <= frame < motion.n_frames:
+        raise InputError("frame outside the motion", expected=f"0..{motion.n_frames - 1}", got=frame)
+    R = axis_angle_to_matrix(motion.poses[:, :3])
+    fwd = R[frame] @ np.array([0.0, 0.0, 1.0])
+    yaw = float(np.arctan2(fwd[0], fwd[2]))
+    c, s = np.cos(-yaw), np.sin(-yaw)
+    Ry = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    poses = motion.poses.copy()
+    poses[:, :3] = matrix_to_axis_angle(Ry @ R)
+    t = motion.trans - np.array([motion.trans[frame, 0], 0.0, motion.trans[frame, 2]])
+    trans = t @ Ry.T
+    return dataclasses.replace(motion, poses=poses, trans=trans, meta=dict(motion.meta, turned_deg=np.degrees(-yaw)))
 
 
 def feet_on_floor(motion: Motion, rest_joints: np.ndarray, *, floor: float = 0.0) -> Motion:

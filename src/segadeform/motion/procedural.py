@@ -8,7 +8,9 @@ small smooth variations, so a (kind, parameters, seed) triple always gives
 the same motion.  The first second eases in from the rest pose (arms
 lowered) so simulations can start from rest.
 
-Kinds: idle, walk, run, jump, arm_swing, touch_high, torso_twist, dance.
+Kinds: idle, walk, walk_arms_down, run, jump, arm_swing, touch_high, torso_twist, dance.
+``walk_arms_down`` is a walk with the arms hanging at the sides (88 degrees below the
+T-pose, as in motion capture), where sleeves are squeezed between arm and torso.
 """
 
 from __future__ import annotations
@@ -67,7 +69,7 @@ def _idle(p, t, w, rng, speed, amp):
     return np.zeros((len(t), 3))
 
 
-def _gait(p, t, w, rng, speed, amp, run: bool):
+def _gait(p, t, w, rng, speed, amp, run: bool, arms_down=None, arm_swing=None, elbow=None):
     freq = (1.4 if run else 0.9) * speed  # strides per second (one left + one right step)
     ph = 2 * np.pi * freq * t + rng.uniform(0, 2 * np.pi)
     s = np.sin(ph)
@@ -79,12 +81,13 @@ def _gait(p, t, w, rng, speed, amp, run: bool):
     p.add("right_knee", "x", knee * D * np.maximum(0, np.sin(ph + np.pi + 1.2)) * w)
     p.add("left_ankle", "x", 10 * D * amp * np.sin(ph + 0.5) * w)
     p.add("right_ankle", "x", -10 * D * amp * np.sin(ph + 0.5) * w)
-    _arms_down(p, w, 65 if run else 75)
-    arm = (40 if run else 25) * amp
+    _arms_down(p, w, arms_down if arms_down is not None else (65 if run else 75))
+    arm = (arm_swing if arm_swing is not None else (40 if run else 25)) * amp
     p.add("left_shoulder", "y", -arm * D * -s * w)  # left arm swings against the left leg
     p.add("right_shoulder", "y", arm * D * -s * w)
-    p.add("left_elbow", "y", -(70 if run else 20) * D * w)
-    p.add("right_elbow", "y", (70 if run else 20) * D * w)
+    bend = elbow if elbow is not None else (70 if run else 20)
+    p.add("left_elbow", "y", -bend * D * w)
+    p.add("right_elbow", "y", bend * D * w)
     p.add("spine2", "y", 5 * D * amp * s * w)
     p.add("spine1", "x", (10 if run else 3) * D * w)
     v = (2.5 if run else 1.2) * speed
@@ -96,6 +99,10 @@ def _gait(p, t, w, rng, speed, amp, run: bool):
 
 def _walk(p, t, w, rng, speed, amp):
     return _gait(p, t, w, rng, speed, amp, run=False)
+
+
+def _walk_arms_down(p, t, w, rng, speed, amp):
+    return _gait(p, t, w, rng, speed, amp, run=False, arms_down=88.0, arm_swing=15.0, elbow=10.0)
 
 
 def _run(p, t, w, rng, speed, amp):
@@ -189,7 +196,7 @@ def _dance(p, t, w, rng, speed, amp):
 
 
 MOTION_KINDS: dict[str, Callable] = {
-    "idle": _idle, "walk": _walk, "run": _run, "jump": _jump, "arm_swing": _arm_swing,
+    "idle": _idle, "walk": _walk, "walk_arms_down": _walk_arms_down, "run": _run, "jump": _jump, "arm_swing": _arm_swing,
     "touch_high": _touch_high, "torso_twist": _torso_twist, "dance": _dance,
 }
 

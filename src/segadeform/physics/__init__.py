@@ -5,8 +5,9 @@ through a subprocess (see its docstring), :mod:`.settings` turns a scene's
 ``[simulate]`` table into solver settings.
 """
 
-from .blender import SimResult, find_sim_python, pin_weights, preroll_poses, simulate
+from .blender import A_POSE, SimResult, find_sim_python, pin_weights, preroll_poses, simulate, unpose_lbs
 from .settings import DEFAULT_EFFECTS, EFFECTS, MATERIALS, Material, SimSettings, blender_settings, parse_simulate_table
 
-__all__ = ["SimResult", "simulate", "find_sim_python", "pin_weights", "preroll_poses", "SimSettings", "Material",
+__all__ = ["SimResult", "simulate", "find_sim_python", "pin_weights", "preroll_poses", "unpose_lbs", "A_POSE",
+           "SimSettings", "Material",
            "MATERIALS", "EFFECTS", "DEFAULT_EFFECTS", "blender_settings", "parse_simulate_table"]

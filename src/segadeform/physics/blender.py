@@ -41,7 +41,8 @@ from ..motion.motion import Motion
 from ..scene import Y_TO_Z
 from .settings import SimSettings, blender_settings
 
-__all__ = ["SimResult", "simulate", "find_sim_python", "preroll_poses", "pin_weights", "WORKER"]
+__all__ = ["SimResult", "simulate", "find_sim_python", "preroll_poses", "pin_weights", "unpose_lbs", "A_POSE",
+           "WORKER"]
 
 WORKER = Path(__file__).with_name("blender_worker.py")
 _Y_TO_Z = np.array(Y_TO_Z)
@@ -111,6 +112,15 @@ def preroll_poses(motion: Motion, drape_frames: int, blend_frames: int,
     poses = np.concatenate([np.repeat(p0[None], d, axis=0), blend, motion.poses])
     trans = np.concatenate([np.zeros((d, 3)), s[:, None] * motion.trans[:1], motion.trans])
     return poses, trans
+
+
+def unpose_lbs(points, weights, transforms) -> np.ndarray:
+    """Inverse linear blend skinning: the rest positions that ``transforms`` skin onto ``points``.
+
+    Shapes: points (N, 3), weights (N, S), transforms (S, 4, 4) -> (N, 3)
+    """
+    m = np.einsum("ns,sij->nij", np.asarray(weights, np.float64), np.asarray(transforms, np.float64)[:, :3, :])
+    return np.linalg.solve(m[:, :, :3], (np.asarray(points, np.float64) - m[:, :, 3])[..., None])[..., 0]
 
 
 def pin_weights(vertices, faces, group: str, width: float = 0.025) -> np.ndarray:
@@ -213,8 +223,10 @@ def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, se
                 raise InputError(f"pin group {settings.pin!r} selects no vertex of this garment")
             np.save(job_dir / "pins.npy", pins.astype(np.float32))
             job["pins"] = "pins.npy"
-            # pinned vertices follow the body: the garment's own input is the skinned garment
-            skinned = skin_garment(v, wts, body, poses, betas, trans)
+            # pinned vertices follow the body: the garment's own input is the skinned garment, from
+            # the cloth's own start on (unposed from there, so pins and cloth agree on frame 1)
+            skin_rest = v if not a_pose else unpose_lbs(cloth_rest, wts, body.forward(p0[None], betas).transforms[0])
+            skinned = skin_garment(skin_rest, wts, body, poses, betas, trans)
             with PC2Writer(job_dir / "garment.pc2", len(v), start_frame=1, sample_rate=1) as w:
                 w.write(z(skinned))
             job["garment_cache"] = "garment.pc2"

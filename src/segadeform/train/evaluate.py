@@ -170,6 +170,60 @@ class _Acc:
         return self.sums[key] / max(self.counts[key], 1)
 
 
+@dataclasses.dataclass
+class Reference:
+    """What every prediction of one sample is compared with, computed once per sample.
+
+    Shapes: gt (T, N, 3); n_gt (T, N, 3) vertex normals; l_gt (T, E) edge lengths; acc_gt (T-2, N, 3)
+    second differences; proxies: one posed-body proxy per frame."""
+
+    gt: np.ndarray
+    faces: np.ndarray
+    edges: np.ndarray
+    basis: SpectralBasis
+    n_gt: np.ndarray
+    l_gt: np.ndarray
+    acc_gt: np.ndarray
+    proxies: list
+
+
+def reference(s: Sample, body: BodyModel, basis: Optional[SpectralBasis] = None) -> Reference:
+    """The simulated frames of sample ``s`` and what the metrics derive from them (``basis``: the rest
+    garment's spectral basis, made here when not given)."""
+    gt = s.frames.astype(np.float64)
+    edges = unique_edges(s.faces, len(s.rest))
+    basis = basis if basis is not None else SpectralBasis.from_mesh(s.rest, s.faces)
+    posed = body.forward(s.poses, s.betas if s.betas.size else None, s.trans).vertices
+    proxies, proxy = [], None
+    for t in range(len(posed)):
+        proxy = BodyProxy(posed[t], body.faces) if proxy is None else proxy.moved(posed[t])
+        proxies.append(proxy)
+    return Reference(gt=gt, faces=s.faces, edges=edges, basis=basis, n_gt=_normals(gt, s.faces),
+                     l_gt=np.linalg.norm(gt[:, edges[:, 0]] - gt[:, edges[:, 1]], axis=2),
+                     acc_gt=gt[2:] - 2 * gt[1:-1] + gt[:-2], proxies=proxies)
+
+
+def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
+    """The :data:`METRICS` of one prediction ``x`` (T, N, 3) against ``ref`` (bands and penetration on
+    every ``frame_step``-th frame)."""
+    gt, faces, edges = ref.gt, ref.faces, ref.edges
+    d = np.linalg.norm(x - gt, axis=2)
+    cosang = np.clip((_normals(x, faces) * ref.n_gt).sum(-1), -1, 1)
+    l_x = np.linalg.norm(x[:, edges[:, 0]] - x[:, edges[:, 1]], axis=2)
+    frames = range(0, len(gt), frame_step)
+    bands = np.zeros(3)
+    for t in frames:
+        lo, mid, hi = ref.basis.split(x[t] - gt[t])
+        bands += [np.linalg.norm(lo, axis=1).mean(), np.linalg.norm(mid, axis=1).mean(),
+                  np.linalg.norm(hi, axis=1).mean()]
+    bands /= len(frames)
+    pen = np.mean([(ref.proxies[t].query(x[t]).signed_distance < -PEN_DEPTH).mean() for t in frames])
+    jit = np.linalg.norm((x[2:] - 2 * x[1:-1] + x[:-2]) - ref.acc_gt, axis=2).mean() if len(gt) > 2 else 0.0
+    return {"vertex_cm": 100 * d.mean(), "normal_deg": np.degrees(np.arccos(cosang)).mean(),
+            "edge_mm": 1000 * np.abs(l_x - ref.l_gt).mean(), "low_cm": 100 * bands[0], "mid_cm": 100 * bands[1],
+            "high_cm": 100 * bands[2], "penetration_pct": 100 * pen, "jitter_mm": 1000 * jit}
+
+
 def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test", n_star: int = 32,
              frame_step: int = 1, progress: Optional[Callable[[str], None]] = None, push_out_margin=None) -> dict:
     """Evaluate ``models`` ({name: spec}) on ``split`` of ``dataset``.
@@ -195,23 +249,11 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
         if progress:
             progress(sid)
         asset = sample_asset(dataset, s, body, n_star)
-        gt = s.frames.astype(np.float64)
-        faces = s.faces
-        edges = unique_edges(faces, len(s.rest))
         key = s.meta.get("garment", sid) + f"-b{s.meta.get('body', 0)}"
         if key not in bases:
-            bases[key] = SpectralBasis.from_mesh(s.rest, faces)
-        basis = bases[key]
-        n_gt = _normals(gt, faces)
-        l_gt = np.linalg.norm(gt[:, edges[:, 0]] - gt[:, edges[:, 1]], axis=2)
-        acc_gt = gt[2:] - 2 * gt[1:-1] + gt[:-2]
-        betas = s.betas if s.betas.size else None
-        posed = body.forward(s.poses, betas, s.trans).vertices
-        proxies = []
-        proxy = None
-        for t in range(len(posed)):
-            proxy = BodyProxy(posed[t], body.faces) if proxy is None else proxy.moved(posed[t])
-            proxies.append(proxy)
+            bases[key] = SpectralBasis.from_mesh(s.rest, s.faces)
+        ref = reference(s, body, bases[key])
+        gt, proxies = ref.gt, ref.proxies
         outs = {}
         for n, p in preds.items():
             t0 = time.perf_counter()
@@ -227,21 +269,8 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
         for n, x in outs.items():
             if x.shape != gt.shape or not np.isfinite(x).all():
                 raise InputError(f"model {n} produced a bad prediction for {sid}", expected=gt.shape, got=x.shape)
+            vals = sample_metrics(x, ref, frame_step)
             d = np.linalg.norm(x - gt, axis=2)
-            cosang = np.clip((_normals(x, faces) * n_gt).sum(-1), -1, 1)
-            l_x = np.linalg.norm(x[:, edges[:, 0]] - x[:, edges[:, 1]], axis=2)
-            frames = range(0, len(gt), frame_step)
-            bands = np.zeros(3)
-            for t in frames:
-                lo, mid, hi = basis.split(x[t] - gt[t])
-                bands += [np.linalg.norm(lo, axis=1).mean(), np.linalg.norm(mid, axis=1).mean(),
-                          np.linalg.norm(hi, axis=1).mean()]
-            bands /= len(frames)
-            pen = np.mean([(proxies[t].query(x[t]).signed_distance < -PEN_DEPTH).mean() for t in frames])
-            jit = np.linalg.norm((x[2:] - 2 * x[1:-1] + x[:-2]) - acc_gt, axis=2).mean() if len(gt) > 2 else 0.0
-            vals = {"vertex_cm": 100 * d.mean(), "normal_deg": np.degrees(np.arccos(cosang)).mean(),
-                    "edge_mm": 1000 * np.abs(l_x - l_gt).mean(), "low_cm": 100 * bands[0], "mid_cm": 100 * bands[1],
-                    "high_cm": 100 * bands[2], "penetration_pct": 100 * pen, "jitter_mm": 1000 * jit}
             for k, v in vals.items():
                 acc[n].add(k, v)
                 by_type[n].setdefault(typ, _Acc.new()).add(k, v)

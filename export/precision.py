@@ -1,0 +1,90 @@
+"""A model package at another precision: int8 dynamic quantisation.
+
+``convert_package(src, dst, "int8")`` copies a package and rewrites every graph file:
+
+* ``int8``: onnxruntime's dynamic quantisation (``quantize_dynamic``): MatMul/Gemm weights stored as
+  int8, activations quantised per call; inputs and outputs stay float32.
+
+The manifest gets the new files' SHA-256 and ``"precision"``; nothing else changes. Error and speed
+of each precision are measured by ``segadeform report tradeoffs`` (docs/accuracy-vs-time.md).
+
+Not yet: fp16. onnxconverter-common's float16 conversion of the exported graphs gives a garment
+encoder onnxruntime refuses to load (a Cast whose declared output type disagrees with its node), and
+with Cast kept in fp32 the conversion did not finish in 90 minutes on this machine.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from segadeform.errors import InputError
+from segadeform.io.atomic import atomic_directory
+
+from .package import _sha256
+
+__all__ = ["PRECISIONS", "convert_package", "convert_graph"]
+
+PRECISIONS = ("fp32", "int8")
+
+
+def convert_graph(src: Path, dst: Path, precision: str) -> None:
+    """Write graph ``src`` (.onnx) at ``precision`` to ``dst``."""
+    if precision not in PRECISIONS:
+        raise InputError("unknown precision", expected=" | ".join(PRECISIONS), got=precision)
+    if precision == "fp32":
+        shutil.copyfile(src, dst)
+    else:
+        from onnxruntime.quantization import QuantType, quantize_dynamic
+
+        import onnx
+
+        with tempfile.TemporaryDirectory() as tmp:  # quantize_dynamic writes side files beside its output
+            # the exporter's intermediate value_info can carry the example's sizes, which the
+            # quantiser's shape inference then contradicts: let it infer them afresh
+            m = onnx.load(str(src))
+            del m.graph.value_info[:]
+            plain, out = Path(tmp) / "plain.onnx", Path(tmp) / "q.onnx"
+            onnx.save(m, str(plain))
+            import logging
+
+            root = logging.getLogger()
+            level = root.level
+            root.setLevel(logging.ERROR)  # the quantiser's advice goes to the root logger
+            try:
+                quantize_dynamic(str(plain), str(out), weight_type=QuantType.QInt8)
+            finally:
+                root.setLevel(level)
+            shutil.copyfile(out, dst)
+
+
+def convert_package(src: str | os.PathLike, dst: str | os.PathLike, precision: str) -> Path:
+    """Copy package ``src`` to ``dst`` with every graph at ``precision``; returns ``dst``.
+
+    Written to a temporary folder and renamed, so a failed conversion leaves no ``dst``."""
+    src, dst = Path(src), Path(dst)
+    if precision not in PRECISIONS:
+        raise InputError("unknown precision", expected=" | ".join(PRECISIONS), got=precision)
+    mpath = src / "manifest.json"
+    if not mpath.is_file():
+        raise InputError("not a model package (no manifest.json)", path=src)
+    m = json.loads(mpath.read_text())
+    with atomic_directory(dst) as tmp:
+        tmp = Path(tmp)
+        done: dict[str, str] = {}
+        for section in ("graphs", "variants"):
+            for spec in m.get(section, {}).values():
+                f = spec["file"]
+                if f not in done:
+                    convert_graph(src / f, tmp / f, precision)
+                    done[f] = _sha256(tmp / f)
+                spec["sha256"] = done[f]
+        for extra in src.iterdir():  # the model card and the like, not the checkpoint or reports
+            if extra.is_file() and extra.suffix in (".md", ".txt") and not (tmp / extra.name).exists():
+                shutil.copyfile(extra, tmp / extra.name)
+        m["precision"] = precision
+        (tmp / "manifest.json").write_text(json.dumps(m, indent=1))
+    return dst

@@ -1,0 +1,76 @@
+"""int8 packages: same interface, valid hashes, output close to fp32, and the CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("onnx", reason="needs the 'torch' extra")
+
+
+@pytest.fixture(scope="module")
+def body():
+    from segadeform.body import load_body
+
+    from ..conftest import SAMPLES
+
+    return load_body(SAMPLES / "bodies" / "default_body.npz")
+
+
+@pytest.fixture(scope="module")
+def skirt_asset(body):
+    from segadeform.geometry.asset import precompute_garment
+    from segadeform.io.obj import read_obj
+
+    from ..conftest import SAMPLES
+
+    g = read_obj(SAMPLES / "garments" / "skirt.obj")
+    return precompute_garment(g.vertices, g.faces, body.rest_joints(None)[0])
+
+
+def _deform(pkg_path, garment_asset, body):
+    from segadeform.motion import make_motion
+    from segadeform.motion.motion import motion_windows
+    from segadeform.runtime import ModelPackage
+    from segadeform.runtime.deformer import Deformer
+    from segadeform.scene import Effects
+
+    d = Deformer(ModelPackage(pkg_path), Effects(collisions=False))
+    joints = body.rest_joints(None)[0]
+    P = d.encode(garment_asset, joints, np.zeros(10))
+    lw = d.body_log_weights(garment_asset, body, np.zeros(10)) if d.needs_body_weights else None
+    m = make_motion("walk", seconds=0.3, fps=30)
+    win = motion_windows(m.poses, d.window)
+    return d.deform(P, garment_asset, win, joints, m.trans, np.zeros(10), log_wbody=lw)
+
+
+def test_int8_package_runs_close_to_fp32(tmp_path, random_package, body, skirt_asset):
+    from segadeform.export.precision import convert_package
+    from segadeform.runtime import ModelPackage
+
+    out = convert_package(random_package, tmp_path / "q", "int8")
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["precision"] == "int8"
+    ModelPackage(out, verify_hashes=True)  # every graph's hash matches the rewritten manifest
+    a, b = _deform(random_package, skirt_asset, body), _deform(out, skirt_asset, body)
+    assert a.shape == b.shape and np.isfinite(b).all()
+    disp = np.abs(a - skirt_asset.vertices[None]).max()
+    err = np.abs(a - b).max()
+    assert 0 < err < 0.1 * max(disp, 1e-3), (err, disp)  # quantised (not a copy), yet close
+
+
+def test_quantize_cli_and_bad_precision(tmp_path, random_package):
+    from click.testing import CliRunner
+
+    from segadeform.cli.main import cli
+    from segadeform.errors import InputError
+    from segadeform.export.precision import convert_package
+
+    r = CliRunner().invoke(cli, ["quantize", str(random_package), "-o", str(tmp_path / "q8")])
+    assert r.exit_code == 0, r.output
+    assert "int8 package" in r.output and (tmp_path / "q8" / "manifest.json").is_file()
+    with pytest.raises(InputError, match="unknown precision"):
+        convert_package(random_package, tmp_path / "x", "fp4")
+    assert not (tmp_path / "x").exists()
