@@ -57,7 +57,8 @@ def test_bad_configs(tmp_path, text, msg):
 
 def _cloth(t=5):
     v, f = grid_plane(6, 6, (0.5, 0.5))
-    v = np.c_[v[:, 0], v[:, 1] + 3.0, v[:, 2]] if v.shape[1] == 3 else np.c_[v, np.full(len(v), 3.0)]
+    v = np.c_[v[:, 0], v[:, 2], v[:, 1]]  # the xz grid stood up, facing +z
+    v = v - v.mean(0) + [0.0, 1.0, 0.25]  # a sheet 25 cm in front of the body's belly: near, not inside
     frames = np.repeat(v[None], t, axis=0)
     return v, f, frames
 
@@ -86,6 +87,10 @@ def test_quality_gate_accepts_clean_and_names_each_failure():
     inside[:, :] = b.rest_joints()[0][0]  # every vertex at the pelvis joint, inside the body
     r = quality_check(inside + np.random.default_rng(0).normal(0, 1e-3, inside.shape), v, f, bf, b.faces, spec)
     assert any(s.startswith("penetration") for s in r.reasons)
+    fell = x.copy()
+    fell[-1, :3] -= [0.0, 2.0, 0.0]  # three vertices fell 2 m (a loose piece): no strain inside it
+    r = quality_check(fell, v, f, bf, b.faces, spec)
+    assert any(s.startswith("detached") for s in r.reasons) and 0 < r.detached < 0.2
 
 
 @pytest.fixture(scope="module")

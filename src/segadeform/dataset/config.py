@@ -13,6 +13,8 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     max_penetrating = 0.01    # largest fraction of vertices deeper than `penetration_depth`, any frame
     penetration_depth = 0.005
     max_jitter = 0.001        # largest fraction of (frame, vertex) acceleration outliers
+    max_body_distance = 0.3   # no vertex may be farther from the body in any frame (m): a piece
+                              # that fell off, or a vertex that flew away
 
     [simulate]                # as in a scene (segadeform.physics.settings)
     effects = ["gravity", "body_collision", "bending", "air_damping"]
@@ -107,6 +109,7 @@ class QualitySpec:
     max_penetrating: float = 0.01
     penetration_depth: float = 0.005
     max_jitter: float = 0.001
+    max_body_distance: float = 0.3  # no vertex may end farther than this from the body (m)
 
 
 @dataclasses.dataclass(frozen=True)

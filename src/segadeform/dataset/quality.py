@@ -10,7 +10,10 @@ Checks (thresholds from the dataset config's ``[quality]``):
   proxy as the runtime's collision stage); the worst frame counts;
 * **jitter** -- acceleration outliers: a vertex-frame whose second difference
   exceeds ``3 x`` the body's largest vertex acceleration in that frame plus
-  1 cm/frame^2 (cloth may swing, but not spike past everything driving it).
+  1 cm/frame^2 (cloth may swing, but not spike past everything driving it);
+* **detached** -- no vertex farther than ``max_body_distance`` from the posed body in any frame (a
+  loose piece such as a button or a strap falling to the floor strains no edge and penetrates
+  nothing, yet is no ground truth).
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ class QualityReport:
     jitter: float                # fraction of vertex-frames
     reasons: list
     strained_edges: float = 0.0  # fraction of edges past max_strain in some frame
+    detached: float = 0.0        # fraction of vertices farther than max_body_distance, worst frame
 
     @property
     def ok(self) -> bool:
@@ -61,6 +65,7 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
     strain = np.abs(l / np.maximum(l0, 1e-12) - 1)
     proxy = None
     pen = 0.0
+    far = 0.0
     if contact is not None:
         contact["closest"] = np.empty(x.shape, np.float32)
         contact["normal"] = np.empty(x.shape, np.float32)
@@ -68,6 +73,7 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
         proxy = BodyProxy(body_frames[t], body_faces) if proxy is None else proxy.moved(body_frames[t])
         q = proxy.query(x[t])
         pen = max(pen, float((q.signed_distance < -spec.penetration_depth).mean()))
+        far = max(far, float((np.abs(q.signed_distance) > spec.max_body_distance).mean()))
         if contact is not None:
             contact["closest"][t], contact["normal"][t] = q.closest, q.normal
     jit = 0.0
@@ -86,4 +92,6 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
         reasons.append(f"penetration {100 * pen:.2f}% of vertices > {100 * spec.max_penetrating:.2f}%")
     if jit > spec.max_jitter:
         reasons.append(f"jitter {100 * jit:.3f}% > {100 * spec.max_jitter:.3f}%")
-    return QualityReport(True, float(strain.max()), float(np.percentile(strain, 99)), pen, jit, reasons, over)
+    if far > 0:
+        reasons.append(f"detached: {100 * far:.2f}% of vertices farther than {spec.max_body_distance} m from the body")
+    return QualityReport(True, float(strain.max()), float(np.percentile(strain, 99)), pen, jit, reasons, over, far)
