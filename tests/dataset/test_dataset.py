@@ -93,15 +93,20 @@ def test_quality_gate_accepts_clean_and_names_each_failure():
     assert any(s.startswith("detached") for s in r.reasons) and 0 < r.detached < 0.2
 
 
-@pytest.fixture(scope="module")
-def tiny_dataset(tmp_path_factory):
+def _need_simulator():
+    """Skip where the Blender environment is missing (CI makes it: `python -m segadeform.physics.setup`)."""
     from segadeform.errors import SimulationError
     from segadeform.physics import find_sim_python
 
     try:
         find_sim_python()
     except SimulationError as e:
-        pytest.skip(f"no simulator environment here ({e})")
+        pytest.skip(f"no simulator environment here ({e}); `python -m segadeform.physics.setup` makes one")
+
+
+@pytest.fixture(scope="module")
+def tiny_dataset(tmp_path_factory):
+    _need_simulator()
     out = tmp_path_factory.mktemp("ds") / "tiny"
     assert main(["dataset", "make", str(TINY), "-o", str(out), "-j", "2"]) == 0
     return out
@@ -338,13 +343,7 @@ def test_a_tshirt_through_the_a_pose_drape_passes_the_gate(tmp_path):
     """A sleeved top, arms hanging at the sides, through the dataset's drape path (garment made in the
     A-pose too, cloth resting there, 2 mm collision distance, clamped collision impulses): kept by
     the strict gate (no edge past 100 % strain), and stored with its rest-pose vertex order."""
-    from segadeform.errors import SimulationError
-    from segadeform.physics import find_sim_python
-
-    try:
-        find_sim_python()
-    except SimulationError as e:
-        pytest.skip(f"no simulator environment here ({e})")
+    _need_simulator()
     text = (SAMPLES / "datasets" / "kinds.toml").read_text()
     head = text[:text.index("[[garments]]")].replace("seconds = 1.5", "seconds = 0.5")
     cfg = _write(tmp_path, "tee.toml", head + '[[garments]]\nname = "tee"\nkind = "tshirt"\npin = "top"\n'
