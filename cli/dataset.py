@@ -17,20 +17,28 @@ def dataset_group():
 
 @dataset_group.command("make")
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Dataset folder (an existing one is continued).")
-@click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True, help="Parallel simulations.")
+@click.option("-o", "--output", required=True,
+              help="Dataset folder or fsspec URL, e.g. s3://bucket/ds (an existing one is continued).")
+@click.option("-j", "--jobs", type=click.IntRange(min=1),
+              help="Simulations at a time (default: 1 on the local pool, every CPU of a Ray cluster).")
+@click.option("--executor", default="local", show_default=True, metavar="local|ray|ray://HOST:PORT|ray:ADDRESS",
+              help="Where the samples are simulated: this machine's process pool or a Ray cluster "
+                   "(needs the 'ray' extra).")
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option("--limit", type=click.IntRange(min=1), help="Make at most this many samples now.")
 @click.option("--sim-python", type=click.Path(dir_okay=False, path_type=Path), help="The simulator's Python.")
-def dataset_make_cmd(config, output, jobs, body, limit, sim_python):
+def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python):
     """Simulate every garment x body x motion of CONFIG.toml into OUTPUT (resumable)."""
     from segadeform.dataset import load_dataset_config, make_dataset
+    from segadeform.executors import make_executor
+    from segadeform.io.location import open_location
     from segadeform.physics import find_sim_python
-    from segadeform.body import default_body_path
 
     cfg = load_dataset_config(config)
-    find_sim_python(sim_python)  # fail before planning anything
+    ex = make_executor(executor, jobs)
+    loc = open_location(output)
+    if not ex.remote:
+        find_sim_python(sim_python)  # fail before planning anything (a cluster's workers make theirs)
     n = [0]
 
     def progress(rec):
@@ -39,8 +47,9 @@ def dataset_make_cmd(config, output, jobs, body, limit, sim_python):
         spf = f"{rec['seconds_per_frame']:.3f} s/frame" if "seconds_per_frame" in rec else ""
         click.echo(f"[{n[0]}] {rec['id']} ({rec['vertices']} v) {rec['status']} {spf}{why}", err=True)
 
-    s = make_dataset(cfg, output, body_path=body or default_body_path(), jobs=jobs, sim_python=sim_python,
-                     progress=progress, limit=limit)
+    with ex:
+        s = make_dataset(cfg, loc, body_path=body, sim_python=sim_python, progress=progress,
+                         limit=limit, executor=ex)
     click.echo(f"{s.planned} planned, {s.skipped} already done, {s.kept} kept, {s.rejected} rejected -> {output}")
 
 

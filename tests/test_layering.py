@@ -5,7 +5,8 @@ import sys
 
 TORCH_FREE = ["segadeform", "segadeform.io", "segadeform.geometry", "segadeform.body", "segadeform.motion",
               "segadeform.scene", "segadeform.physics", "segadeform.physics.scene_sim", "segadeform.garments",
-              "segadeform.dataset", "segadeform.runtime", "segadeform.cli.main"]
+              "segadeform.dataset", "segadeform.runtime", "segadeform.cli.main",
+              "segadeform.executors", "segadeform.io.location", "segadeform.runtime.batch"]
 
 
 def test_torch_free_packages_import_with_torch_blocked():

@@ -15,6 +15,17 @@ A sample is done when its ``samples/ID.json`` or ``rejected/ID.json`` exists;
 a killed run simply starts again and skips those.  Sample ids are
 ``G__bK__M`` (garment, body index, motion).
 
+Where and how: ``DIR`` is a folder or an fsspec URL (:mod:`segadeform.io.location`; every file
+committed whole, the ``.json`` that marks a sample done last and once), and the samples are
+simulated by an executor (:mod:`segadeform.executors`: this machine's process pool by default, or
+a Ray cluster).  Each sample is one task, a function of its spec alone: it returns the committed
+record when its sample is done already, removes what a killed attempt of it left, and commits its
+result; so a task retried after its worker died writes its sample once.  On a cluster, the
+garments are made by this process into ``DIR`` first and read from there by the workers, the
+files a config names (motion files, MakeHuman garments, the body) must be at the same path on
+every worker, and a worker without the simulator environment makes one on first use
+(:func:`segadeform.physics.setup.ensure_sim_python`).
+
 A dataset grows over many runs: run again with more entries or a larger
 ``count`` and only the new samples are made.  Each sample records a digest of
 everything that defines it (garment, body shape, motion, clip, simulation
@@ -25,21 +36,22 @@ before simulating anything and names the ids -- rename the entry instead.
 
 from __future__ import annotations
 
-import concurrent.futures as cf
 import dataclasses
 import hashlib
 import json
+import tempfile
 import time
 from pathlib import Path
 from typing import Callable, Optional
 
 import numpy as np
 
-from ..body.model import BodyModel, load_body
+from ..body.model import BodyModel, default_body_path, load_body
 from ..errors import InputError, SegadeformError
+from ..executors import Executor, LocalExecutor
 from ..garments import GARMENT_TYPES, make_garment
 from ..io import Mesh, read_mesh, write_obj
-from ..io.atomic import atomic_path
+from ..io.location import Location, LocalLocation, open_location
 from ..motion import face_forward, load_motion, make_motion, resample
 from ..motion.motion import Motion
 from .config import DatasetConfig, GarmentSpec, MotionEntry
@@ -151,22 +163,32 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
     return (clip, lead) if with_lead else clip
 
 
-def _garment_file(root: Path, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) -> Path:
-    """The garment's rest-pose OBJ (made once per garment and body); with ``rest_pose = "a"`` a
-    procedural garment is also made in the A-pose, ``G-bK.cloth.obj`` beside it (same vertices)."""
+def _garment_rel(cfg: DatasetConfig, gi: int, bi: int) -> str:
+    return f"garments/{cfg.garments[gi].name}-b{bi}.obj"
+
+
+def _cloth_rel(rel: str) -> str:
+    return rel[:-len(".obj")] + ".cloth.obj"
+
+
+def _garment_file(out, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) -> str:
+    """Make the garment's rest-pose OBJ in ``out`` (once per garment and body; done by the process that
+    plans the run, before any task starts); with ``rest_pose = "a"`` a procedural garment is also made
+    in the A-pose, ``G-bK.cloth.obj`` beside it (same vertices).  Returns its path inside ``out``."""
     from ..physics.blender import A_POSE
 
+    loc = open_location(out)
     g = cfg.garments[gi]
-    p = root / "garments" / f"{g.name}-b{bi}.obj"
-    key_p = p.with_suffix(".json")
+    rel = _garment_rel(cfg, gi, bi)
+    key_rel = rel[:-len(".obj")] + ".json"
     key = {"garment": _garment_key(g), "betas": list(cfg.bodies[bi]), "cloth_pose": cfg.simulate.rest_pose}
-    if p.is_file() and key_p.is_file():
-        old = json.loads(key_p.read_text())
+    if loc.exists(rel) and loc.exists(key_rel):
+        old = json.loads(loc.read_text(key_rel))
         if old != json.loads(json.dumps(key)):
             raise InputError(f"garment {g.name} (body {bi}) in this dataset was made from other parameters; "
-                             f"give the changed entry a new name (or use a new folder)", path=key_p,
+                             f"give the changed entry a new name (or use a new folder)", path=f"{loc}/{key_rel}",
                              expected=json.dumps(key, sort_keys=True), got=json.dumps(old, sort_keys=True))
-    if not p.is_file():
+    if not loc.exists(rel):
         if g.mhclo is not None:  # a MakeHuman garment: fitted to this body, 3 mm off the skin
             from ..garments.fit import fit_mhclo, push_off_body, read_mhclo
 
@@ -175,36 +197,61 @@ def _garment_file(root: Path, cfg: DatasetConfig, gi: int, bi: int, body: BodyMo
             v = fit_mhclo(binding, body, betas)
             v, _ = push_off_body(v, body.shaped_vertices(betas)[0], body.faces, 0.003)
             faces = read_mesh(binding.obj_path()).faces
-            write_obj(p, Mesh(vertices=v, faces=faces), header=f"MakeHuman garment {binding.name} (CC0), "
-                                                                f"fitted by segadeform")
+            with loc.writing(rel) as tmp:
+                write_obj(tmp, Mesh(vertices=v, faces=faces), header=f"MakeHuman garment {binding.name} (CC0), "
+                                                                      f"fitted by segadeform")
         else:
             a_pose = cfg.simulate.rest_pose == "a"
             gar = make_garment(g.kind, body, cfg.bodies[bi] or None, g.params, cloth_pose=A_POSE if a_pose else None)
             if a_pose:  # the cloth file first: the rest-pose OBJ is what marks the garment done
-                write_obj(_cloth_file(p), Mesh(vertices=gar.cloth_rest, faces=gar.faces),
-                          header=gar.header() + "\nthe same garment made in the A-pose (the cloth's rest)")
-            write_obj(p, Mesh(vertices=gar.vertices, faces=gar.faces), header=gar.header())
-        with atomic_path(key_p) as tmp:
-            Path(tmp).write_text(json.dumps(key, indent=1, sort_keys=True))
-    return p
+                with loc.writing(_cloth_rel(rel)) as tmp:
+                    write_obj(tmp, Mesh(vertices=gar.cloth_rest, faces=gar.faces),
+                              header=gar.header() + "\nthe same garment made in the A-pose (the cloth's rest)")
+            with loc.writing(rel) as tmp:
+                write_obj(tmp, Mesh(vertices=gar.vertices, faces=gar.faces), header=gar.header())
+        loc.put_bytes(key_rel, json.dumps(key, indent=1, sort_keys=True).encode("utf-8"))
+    return rel
 
 
-def _cloth_file(p: Path) -> Path:
-    return p.with_name(p.stem + ".cloth.obj")
+#: what a sample's log record holds (its committed ``.json`` holds these and more)
+_REC_KEYS = ("id", "split", "garment", "kind", "type", "body", "motion", "vertices", "frames", "spec", "status",
+             "reasons", "quality", "seconds_per_frame", "blender", "sim_seconds", "preroll_frames", "seconds")
 
 
-def _run_one(root: str, cfg: DatasetConfig, ps: PlannedSample, body_path: str, sim_python) -> dict:
-    """Simulate and gate one sample (in a worker process); returns its log record."""
+def _committed(loc: Location, sid: str) -> Optional[dict]:
+    """The log record of sample ``sid`` when it is committed already (kept or rejected), else None."""
+    for rel in (f"samples/{sid}.json", f"rejected/{sid}.json"):
+        if loc.exists(rel):
+            meta = json.loads(loc.read_text(rel))
+            return dict({k: meta[k] for k in _REC_KEYS if k in meta}, resumed=True)
+    return None
+
+
+def _run_one(root, cfg: DatasetConfig, ps: PlannedSample, body_path: Optional[str], sim_python,
+             provision: bool = False) -> dict:
+    """Simulate, gate and commit one sample (in a worker); returns its log record.  Idempotent: a
+    sample committed already is not made again (its record comes back with ``resumed``)."""
     from ..physics.blender import A_POSE, simulate
 
     t0 = time.perf_counter()
-    root_p = Path(root)
-    body = load_body(body_path)
+    loc = open_location(root)
+    done = _committed(loc, ps.id)
+    if done is not None:
+        return done
+    for rel in (f"samples/{ps.id}.npz", f"samples/{ps.id}.json", f"rejected/{ps.id}.json"):
+        loc.remove_temporaries(rel)  # what a killed attempt of this task left
+    if provision:
+        from ..physics.setup import ensure_sim_python
+
+        sim_python = ensure_sim_python(sim_python)
+    body = load_body(body_path or default_body_path())
     g, m = cfg.garments[ps.garment], cfg.motions[ps.motion]
     betas = cfg.bodies[ps.body]
-    gpath = _garment_file(root_p, cfg, ps.garment, ps.body, body)
-    mesh = read_mesh(gpath)
-    cloth = read_mesh(_cloth_file(gpath)).vertices if _cloth_file(gpath).is_file() else None
+    grel = _garment_rel(cfg, ps.garment, ps.body)
+    with tempfile.TemporaryDirectory(prefix="segadeform-garment-") as d:
+        mesh = read_mesh(loc.local_copy(grel, Path(d)))
+        crel = _cloth_rel(grel)
+        cloth = read_mesh(loc.local_copy(crel, Path(d))).vertices if loc.exists(crel) else None
     motion, lead = _motion(m, cfg, body.rest_joints(betas or None)[0], with_lead=True)
     full_motion = motion
     motion = dataclasses.replace(motion, poses=motion.poses[lead:], trans=motion.trans[lead:])
@@ -232,50 +279,102 @@ def _run_one(root: str, cfg: DatasetConfig, ps: PlannedSample, body_path: str, s
         meta = dict(rec, status="kept", fps=motion.fps, betas=list(betas), settings=res.settings,
                     garment_params=dataclasses.asdict(g.params), config_digest=cfg.digest(),
                     blender_info=res.blender)
-        save_sample(root_p, Sample(id=ps.id, rest=mesh.vertices, faces=mesh.faces,
-                                   betas=np.asarray(betas, np.float64), poses=motion.poses, trans=motion.trans,
-                                   frames=res.frames.astype(np.float32), meta=meta,
-                                   contact_p=contact["closest"], contact_n=contact["normal"],
-                                   cloth_rest=None if res.cloth_rest is None or strain_rest is mesh.vertices
-                                   else np.asarray(res.cloth_rest, np.float64)))
+        committed = save_sample(loc, Sample(id=ps.id, rest=mesh.vertices, faces=mesh.faces,
+                                            betas=np.asarray(betas, np.float64), poses=motion.poses,
+                                            trans=motion.trans, frames=res.frames.astype(np.float32), meta=meta,
+                                            contact_p=contact["closest"], contact_n=contact["normal"],
+                                            cloth_rest=None if res.cloth_rest is None or strain_rest is mesh.vertices
+                                            else np.asarray(res.cloth_rest, np.float64)))
         rec["status"] = "kept"
     else:
         rec.update(status="rejected", reasons=q.reasons)
-        (root_p / "rejected").mkdir(exist_ok=True)
-        with atomic_path(root_p / "rejected" / f"{ps.id}.json") as tmp:
-            Path(tmp).write_text(json.dumps(rec, indent=1))
+        committed = loc.put_bytes(f"rejected/{ps.id}.json", json.dumps(rec, indent=1).encode("utf-8"), once=True)
+    if not committed:  # another attempt of this task committed it first: its record is the one
+        return _committed(loc, ps.id)
     rec["seconds"] = time.perf_counter() - t0
     return rec
 
 
-def _check_done(out: Path, cfg: DatasetConfig, plan: list[PlannedSample]) -> None:
+@dataclasses.dataclass(frozen=True)
+class _SampleTask:
+    """Everything a worker needs to make one sample (pickled to it)."""
+
+    out: Location
+    cfg: DatasetConfig
+    sample: PlannedSample
+    body_path: Optional[str]  # None: the shipped body of the worker's own installation
+    sim_python: Optional[str]
+    provision: bool
+
+
+def _run_task(t: _SampleTask) -> dict:
+    return _run_one(t.out, t.cfg, t.sample, t.body_path, t.sim_python, t.provision)
+
+
+def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample]) -> None:
     """Stop if a finished sample's recorded spec differs from what the config now asks of its id."""
+    loc = open_location(out)
     bad = []
+    names = {d: set(loc.listdir(d)) for d in ("samples", "rejected")}
     for p in plan:
-        for f in (out / "samples" / f"{p.id}.json", out / "rejected" / f"{p.id}.json"):
-            if f.is_file():
-                old = json.loads(f.read_text()).get("spec")
+        for d in ("samples", "rejected"):
+            if f"{p.id}.json" in names[d]:
+                old = json.loads(loc.read_text(f"{d}/{p.id}.json")).get("spec")
                 if old is not None and old != sample_spec(cfg, p):
                     bad.append(p.id)
     if bad:
         raise InputError(f"{len(bad)} finished samples of this dataset were made from other settings than this "
                          f"config gives them (first: {bad[0]}); give changed entries new names, keep bodies in "
-                         f"order, or use a new folder", path=out)
+                         f"order, or use a new folder", path=str(loc))
 
 
-def _keep_config(out: Path, cfg: DatasetConfig) -> None:
+def _keep_config(out, cfg: DatasetConfig) -> None:
     """config.toml = this run's config; configs/NNN.toml = every distinct config, in order."""
     if cfg.path is None:
         return
+    loc = open_location(out)
     text = Path(cfg.path).read_bytes()
-    hist = out / "configs"
-    hist.mkdir(exist_ok=True)
-    old = sorted(hist.glob("*.toml"))
-    if not old or old[-1].read_bytes() != text:
-        with atomic_path(hist / f"{len(old) + 1:03d}.toml") as tmp:
-            Path(tmp).write_bytes(text)
-    with atomic_path(out / "config.toml") as tmp:
-        Path(tmp).write_bytes(text)
+    old = [n for n in loc.listdir("configs") if n.endswith(".toml")]
+    if not old or loc.read_bytes(f"configs/{old[-1]}") != text:
+        loc.put_bytes(f"configs/{len(old) + 1:03d}.toml", text)
+    loc.put_bytes("config.toml", text)
+
+
+class _Log:
+    """``log.jsonl``: a line per finished sample, appended as it finishes (in a local folder); on an
+    object store, which cannot append, the file is rewritten at most every ``every`` seconds and at
+    the end."""
+
+    def __init__(self, loc: Location, every: float = 30.0) -> None:
+        self.loc, self.every = loc, every
+        self.buf: list[str] = []
+        self.last = time.monotonic()
+        self.fh = None
+        if isinstance(loc, LocalLocation):
+            loc.root.mkdir(parents=True, exist_ok=True)
+            self.fh = open(loc.path("log.jsonl"), "a")
+
+    def write(self, rec: dict) -> None:
+        line = json.dumps(rec) + "\n"
+        if self.fh is not None:
+            self.fh.write(line)
+            self.fh.flush()
+            return
+        self.buf.append(line)
+        if time.monotonic() - self.last >= self.every:
+            self.flush()
+
+    def flush(self) -> None:
+        if self.buf:
+            self.loc.append_text("log.jsonl", "".join(self.buf))
+            self.buf = []
+        self.last = time.monotonic()
+
+    def close(self) -> None:
+        if self.fh is not None:
+            self.fh.close()
+        else:
+            self.flush()
 
 
 @dataclasses.dataclass
@@ -287,50 +386,55 @@ class DatasetSummary:
     records: list
 
 
-def make_dataset(cfg: DatasetConfig, out: Path, *, body_path: Path, jobs: int = 1, sim_python=None,
-                 progress: Optional[Callable[[dict], None]] = None, limit: Optional[int] = None) -> DatasetSummary:
-    """Make (or continue) the dataset ``cfg`` in ``out``; see the module docstring."""
-    out = Path(out)
-    (out / "samples").mkdir(parents=True, exist_ok=True)
-    (out / "garments").mkdir(exist_ok=True)
+def make_dataset(cfg: DatasetConfig, out, *, body_path: Optional[Path] = None, jobs: int = 1, sim_python=None,
+                 progress: Optional[Callable[[dict], None]] = None, limit: Optional[int] = None,
+                 executor: Optional[Executor] = None) -> DatasetSummary:
+    """Make (or continue) the dataset ``cfg`` in ``out`` (a folder, an fsspec URL or a
+    :class:`~segadeform.io.location.Location`); see the module docstring.
+
+    ``executor`` runs the samples (default: a local pool of ``jobs`` processes; one given here is
+    left open).  Tasks on a remote executor make the simulator environment where a worker has none.
+    ``body_path`` None: the shipped body, found by each worker in its own installation.
+    """
+    loc = open_location(out)
+    if isinstance(loc, LocalLocation):  # the folder's layout, even before anything is kept
+        (loc.root / "samples").mkdir(parents=True, exist_ok=True)
+        (loc.root / "garments").mkdir(exist_ok=True)
     plan = sample_plan(cfg)
     check_splits(cfg, plan)
-    _check_done(out, cfg, plan)
-    _keep_config(out, cfg)
+    _check_done(loc, cfg, plan)
+    _keep_config(loc, cfg)
     # held-out samples first, then body-major, motion, garment: a run stopped early still has
     # every garment and motion of the bodies it reached, and a complete test split
     order = sorted(plan, key=lambda p: (p.split == "train", p.body, p.motion, p.garment))
-    todo = [p for p in order if not ((out / "samples" / f"{p.id}.json").is_file()
-                                    or (out / "rejected" / f"{p.id}.json").is_file())]
+    finished = {n[:-len(".json")] for d in ("samples", "rejected") for n in loc.listdir(d) if n.endswith(".json")}
+    todo = [p for p in order if p.id not in finished]
     skipped = len(plan) - len(todo)
     if limit is not None:
         todo = todo[:limit]
-    body = load_body(body_path)
+    body = load_body(body_path or default_body_path())
     for gi, bi in sorted({(p.garment, p.body) for p in todo}):  # garments first, in this process: no races
-        _garment_file(out, cfg, gi, bi, body)
+        _garment_file(loc, cfg, gi, bi, body)
+    own = executor is None
+    ex = LocalExecutor(jobs) if own else executor
+    tasks = [_SampleTask(loc, cfg, p, None if body_path is None else str(body_path),
+                         None if sim_python is None else str(sim_python), ex.remote)
+             for p in todo]
     records = []
     run = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime())
     run_t0 = time.time()
-    log = open(out / "log.jsonl", "a")
+    log = _Log(loc)
     try:
-        def done(rec):
+        for rec in ex.map_unordered(_run_task, tasks):
             # the run it belongs to and when it finished: `dataset info` measures samples per hour
-            rec.update(run=run, run_started=run_t0, finished=time.time(), jobs=jobs)
+            rec.update(run=run, run_started=run_t0, finished=time.time(), jobs=ex.workers, executor=ex.name)
             records.append(rec)
-            log.write(json.dumps(rec) + "\n")
-            log.flush()
+            log.write(rec)
             if progress is not None:
                 progress(rec)
-
-        if jobs <= 1:
-            for p in todo:
-                done(_run_one(str(out), cfg, p, str(body_path), sim_python))
-        else:
-            with cf.ProcessPoolExecutor(max_workers=jobs) as ex:
-                futs = [ex.submit(_run_one, str(out), cfg, p, str(body_path), sim_python) for p in todo]
-                for f in cf.as_completed(futs):
-                    done(f.result())
     finally:
         log.close()
+        if own:
+            ex.close()
     kept = sum(r["status"] == "kept" for r in records)
     return DatasetSummary(planned=len(plan), skipped=skipped, kept=kept, rejected=len(records) - kept, records=records)

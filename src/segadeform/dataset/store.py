@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError
-from ..io.atomic import atomic_path
+from ..io.location import open_location
 from ..io.npz import load_npz
 
 __all__ = ["Sample", "save_sample", "load_sample", "list_samples"]
@@ -35,10 +35,15 @@ class Sample:
     cloth_rest: np.ndarray | None = None  # (N, 3) the cloth's rest shape when it was not ``rest`` (A-pose)
 
 
-def save_sample(root: Path, s: Sample) -> None:
-    d = Path(root) / "samples"
-    d.mkdir(parents=True, exist_ok=True)
-    with atomic_path(d / f"{s.id}.npz") as tmp:
+def save_sample(root, s: Sample) -> bool:
+    """Commit sample ``s`` to ``root`` (a folder, URL or :class:`~segadeform.io.location.Location`): the
+    ``.npz`` first, then the ``.json`` that marks it done, once.  False (nothing written) when the
+    sample's ``.json`` is there already: a sample is committed once, whichever attempt gets there first."""
+    loc = open_location(root)
+    meta_rel = f"samples/{s.id}.json"
+    if loc.exists(meta_rel):
+        return False
+    with loc.writing(f"samples/{s.id}.npz") as tmp:
         with open(tmp, "wb") as fh:
             extra = {} if s.contact_p is None else {"contact_p": s.contact_p.astype(np.float32),
                                                      "contact_n": s.contact_n.astype(np.float32)}
@@ -46,8 +51,7 @@ def save_sample(root: Path, s: Sample) -> None:
                 extra["cloth_rest"] = np.asarray(s.cloth_rest, np.float64)
             np.savez(fh, rest=s.rest, faces=s.faces, betas=s.betas, poses=s.poses, trans=s.trans,
                      frames=s.frames.astype(np.float32), **extra)
-    with atomic_path(d / f"{s.id}.json") as tmp:
-        Path(tmp).write_text(json.dumps(s.meta, indent=1, sort_keys=True))
+    return loc.put_bytes(meta_rel, json.dumps(s.meta, indent=1, sort_keys=True).encode("utf-8"), once=True)
 
 
 def load_sample(root: Path, sid: str) -> Sample:

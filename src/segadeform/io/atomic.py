@@ -9,12 +9,13 @@ because the temporary file is created in the target's directory.
 from __future__ import annotations
 
 import contextlib
+import glob
 import os
 import shutil
 from pathlib import Path
 from typing import IO, Iterator
 
-__all__ = ["atomic_path", "atomic_open", "atomic_directory"]
+__all__ = ["atomic_path", "atomic_open", "atomic_directory", "remove_temporaries"]
 
 
 def _tmp_sibling(target: Path, *, directory: bool) -> Path:
@@ -40,21 +41,59 @@ def _tmp_sibling(target: Path, *, directory: bool) -> Path:
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike, *, exclusive: bool = False) -> Iterator[Path]:
     """Yield a temporary path; on success it is renamed to ``path``.
 
     The caller writes the temporary path by any means (numpy, meshio, ...).
     On an exception the temporary file is removed and the error re-raised.
+
+    ``exclusive``: commit only if ``path`` does not exist yet (a hard link, which fails when the
+    target exists, then the temporary name removed); :class:`FileExistsError` otherwise, the
+    existing file untouched.  On file systems without hard links the check and the rename are
+    two steps.
     """
     target = Path(path)
     tmp = _tmp_sibling(target, directory=False)
     try:
         yield tmp
-        os.replace(tmp, target)
+        if exclusive:
+            _link_exclusive(tmp, target)
+        else:
+            os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
         raise
+
+
+def _link_exclusive(tmp: Path, target: Path) -> None:
+    try:
+        os.link(tmp, target)
+    except FileExistsError:
+        raise FileExistsError(f"{target}: exists already (an exclusive commit)") from None
+    except OSError:  # no hard links here (some network and FUSE file systems)
+        if target.exists():
+            raise FileExistsError(f"{target}: exists already (an exclusive commit)") from None
+        os.replace(tmp, target)
+        return
+    tmp.unlink()
+
+
+def remove_temporaries(path: str | os.PathLike) -> int:
+    """Remove the temporary files and folders a killed writer of ``path`` left beside it; returns
+    how many.  Only for a writer that owns ``path``: a live writer's temporary would go too."""
+    target = Path(path)
+    n = 0
+    if not target.parent.is_dir():
+        return 0
+    for p in target.parent.glob(f".{glob.escape(target.name)}.tmp-*"):
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            with contextlib.suppress(FileNotFoundError):
+                p.unlink()
+        n += 1
+    return n
 
 
 @contextlib.contextmanager

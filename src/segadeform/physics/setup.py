@@ -47,6 +47,79 @@ def setup_sim_env(target: Path, python=None, *, quiet: bool = True) -> Path:
     return exe
 
 
+def worker_env_path() -> Path:
+    """Where :func:`ensure_sim_python` makes the simulator environment of a worker machine: the user
+    cache (:func:`segadeform.cache.cache_dir`), named by the pinned requirements."""
+    import hashlib
+
+    from ..cache import cache_dir
+
+    digest = hashlib.sha256(REQUIREMENTS.read_bytes()).hexdigest()[:12]
+    return cache_dir() / f"sim-env-{digest}"
+
+
+def ensure_sim_python(explicit=None, *, target: Path | None = None, setup=None) -> Path:
+    """The simulator's Python, made on first use where there is none (each worker of a cluster).
+
+    Found as :func:`~segadeform.physics.blender.find_sim_python` finds it (``explicit``,
+    ``SEGADEFORM_SIM_PYTHON``, ``.venv-sim`` of a source checkout); a Python named by ``explicit`` or the
+    environment variable that does not exist is an error, not made.  Otherwise the environment at
+    ``target`` (default :func:`worker_env_path`) is used, made by ``setup(target)`` (default
+    :func:`setup_sim_env`: Python 3.11 and PyPI needed) the first time: one process of the machine
+    makes it under a file lock while the others wait, and a marker written last says it is complete.
+    """
+    import os
+
+    from .blender import find_sim_python
+
+    try:
+        return find_sim_python(explicit)
+    except SimulationError:
+        if explicit or os.environ.get("SEGADEFORM_SIM_PYTHON"):
+            raise
+    target = Path(target) if target is not None else worker_env_path()
+    exe = target / "bin" / "python"
+    ready = target / ".segadeform-ready"
+    if ready.is_file() and exe.is_file():
+        return exe
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with _file_lock(target.with_name(target.name + ".lock")):
+        if not (ready.is_file() and exe.is_file()):  # another process may have made it meanwhile
+            try:
+                made = (setup or setup_sim_env)(target)
+            except (subprocess.CalledProcessError, OSError) as e:
+                raise SimulationError(f"could not make the simulator environment in {target} (expected "
+                                      f"`python -m segadeform.physics.setup {target}` to succeed, got {e})") from None
+            if made is not None:
+                exe = Path(made)
+            if not exe.is_file():
+                raise SimulationError(f"the simulator environment in {target} has no Python (expected {exe})")
+            from ..io.atomic import atomic_path
+
+            with atomic_path(ready) as tmp:
+                Path(tmp).write_text(REQUIREMENTS.read_text())
+    return exe
+
+
+class _file_lock:
+    """An exclusive lock on a file, held across processes of one machine (POSIX ``flock``; elsewhere none)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def __enter__(self):
+        self.fh = open(self.path, "a")
+        try:
+            import fcntl
+        except ImportError:  # Windows: no lock (workers of a cluster run POSIX)
+            return self
+        fcntl.flock(self.fh.fileno(), fcntl.LOCK_EX)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.fh.close()  # releases the lock
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m segadeform.physics.setup", description=__doc__.splitlines()[0])
     ap.add_argument("target", nargs="?", default=str(Path(__file__).resolve().parents[3] / ".venv-sim"))

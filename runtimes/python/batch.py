@@ -1,0 +1,321 @@
+"""``segadeform batch``: many garments x motions through the runtime, on an executor.
+
+A jobs file (TOML; relative paths are relative to it)::
+
+    [batch]
+    output = "../../out/batch"     # a folder or an fsspec URL (s3://bucket/prefix, ...)
+    format = "pc2"                 # pc2 | obj-seq | xdmf | abc (default pc2)
+    model = "../models/default"    # optional (default: the shipped model)
+    body = "../bodies/default_body.npz"   # optional (default: the shipped body)
+    effects = "dqs,collisions"     # optional, as `run --effects` (default: every effect)
+    up = "y"                       # y | z
+    frames_per_call = 8            # frames per deformer call (`run --batch`)
+
+    [[garments]]
+    mesh = "../garments/skirt.obj"
+    name = "skirt"                 # optional: the file's stem
+    betas = [0.0, 0.5]             # optional body shape for this garment
+
+    [[motions]]
+    file = "../motions/walk.npz"   # a file (.npz, .bvh) ...
+    # kind = "walk"                # ... or a procedural kind, with seconds / speed / amplitude / seed
+    name = "walk"                  # optional: the file's stem or the kind
+    fps = 30.0                     # optional: resample to this rate
+    frames = "0:60"                # optional frame range A:B
+
+Every garment x motion is a job ``GARMENT__MOTION``.  A job is a function of its spec alone: it
+runs in a scratch folder, commits its output to ``OUTPUT/GARMENT__MOTION.EXT`` (a folder of frames
+for obj-seq), and then its record to ``OUTPUT/jobs/GARMENT__MOTION.json``, written last and once:
+that file marks the job done.  A run skips done jobs (run again to resume), a job retried after its
+worker died starts over and commits once, and a job whose spec changed under the same name (another
+mesh, motion, model or effects) stops the run before anything is made.  The executor
+(:mod:`segadeform.executors`) is this machine's process pool or a Ray cluster; the files a jobs
+file names must be at the same path on every worker.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import time
+from pathlib import Path
+from typing import Callable, Optional
+
+from segadeform._toml import read_toml
+from segadeform.errors import FileFormatError, InputError
+from segadeform.executors import Executor, LocalExecutor
+from segadeform.io.location import Location, is_url, open_location
+from segadeform.scene import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects, parse_frames
+
+__all__ = ["BatchConfig", "BatchJob", "BatchSummary", "load_batch", "batch_jobs", "run_batch", "run_job"]
+
+_BATCH_KEYS = {"output": str, "format": str, "model": str, "body": str, "effects": str, "up": str,
+               "frames_per_call": int}
+_GARMENT_KEYS = {"mesh": str, "name": str, "betas": list}
+_MOTION_KEYS = {"file": str, "kind": str, "name": str, "seconds": (int, float), "speed": (int, float),
+                "amplitude": (int, float), "seed": int, "fps": (int, float), "frames": str, "up": str,
+                "units": (str, int, float), "floor": bool}
+
+
+@dataclasses.dataclass(frozen=True)
+class BatchGarment:
+    name: str
+    mesh: Path
+    betas: tuple = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class BatchMotion:
+    name: str
+    spec: MotionSpec
+
+
+@dataclasses.dataclass(frozen=True)
+class BatchConfig:
+    output: str  # a folder path or a URL
+    garments: tuple
+    motions: tuple
+    format: str = "pc2"
+    model: Optional[Path] = None
+    body: Optional[Path] = None
+    effects: Effects = DEFAULT_EFFECTS
+    up: str = "y"
+    frames_per_call: int = 8
+    path: Optional[Path] = None
+
+
+def _typed(table: dict, keys: dict, where: str, p: Path) -> None:
+    bad = sorted(set(table) - set(keys))
+    if bad:
+        raise FileFormatError(f"unknown key {where}.{bad[0]}", path=p, expected=", ".join(sorted(keys)),
+                              got=", ".join(bad))
+    for k, typ in keys.items():
+        if k in table:
+            v = table[k]
+            types = typ if isinstance(typ, tuple) else (typ,)
+            if not isinstance(v, types) or (isinstance(v, bool) and bool not in types):
+                raise FileFormatError(f"{where}.{k} has the wrong type", path=p,
+                                      expected=" or ".join(t.__name__ for t in types),
+                                      got=f"{type(v).__name__} {v!r}"[:60])
+
+
+def _name_ok(name: str, what: str, p: Path) -> str:
+    if not name or "__" in name or any(c in name for c in "/\\:\x00") or name.startswith("."):
+        raise FileFormatError(f"{what} name is not usable in a file name", path=p,
+                              expected="letters, digits, '-', '_' (no '__', '/', ':', leading '.')", got=repr(name))
+    return name
+
+
+def load_batch(path) -> BatchConfig:
+    """Read and validate a jobs file (see the module docstring)."""
+    p = Path(path)
+    data, _ = read_toml(p, "jobs file")
+    unknown = sorted(set(data) - {"batch", "garments", "motions"})
+    if unknown:
+        raise FileFormatError(f"unknown table [{unknown[0]}]", path=p, expected="batch, garments, motions",
+                              got=", ".join(unknown))
+    b = data.get("batch", {})
+    if not isinstance(b, dict):
+        raise FileFormatError("[batch] must be a table", path=p, got=type(b).__name__)
+    _typed(b, _BATCH_KEYS, "batch", p)
+    base = p.resolve().parent
+
+    def rel(s: str) -> Path:
+        q = Path(s).expanduser()
+        return q if q.is_absolute() else (base / q).resolve()
+
+    gs, ms = data.get("garments", []), data.get("motions", [])
+    for what, items in (("garments", gs), ("motions", ms)):
+        if not isinstance(items, list) or not items or not all(isinstance(x, dict) for x in items):
+            raise FileFormatError(f"the jobs file needs at least one [[{what}]] table", path=p,
+                                  got=f"{len(items) if isinstance(items, list) else type(items).__name__}")
+    garments = []
+    for i, g in enumerate(gs):
+        _typed(g, _GARMENT_KEYS, f"garments[{i}]", p)
+        if "mesh" not in g:
+            raise FileFormatError(f"missing garments[{i}].mesh", path=p)
+        mesh = rel(g["mesh"])
+        betas = g.get("betas", [])
+        if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in betas):
+            raise FileFormatError(f"garments[{i}].betas must be a list of numbers", path=p, got=betas)
+        garments.append(BatchGarment(_name_ok(g.get("name", mesh.stem), "garment", p), mesh,
+                                     tuple(float(x) for x in betas)))
+    motions = []
+    for i, m in enumerate(ms):
+        _typed(m, _MOTION_KEYS, f"motions[{i}]", p)
+        if ("file" in m) == ("kind" in m):
+            raise FileFormatError(f"motions[{i}] needs exactly one of 'file' or 'kind'", path=p)
+        if "file" in m and any(k in m for k in ("seconds", "speed", "amplitude", "seed")):
+            raise FileFormatError(f"motions[{i}]: seconds/speed/amplitude/seed apply to procedural motions only",
+                                  path=p)
+        if "kind" in m:
+            from segadeform.motion import MOTION_KINDS
+
+            if m["kind"] not in MOTION_KINDS:
+                raise FileFormatError(f"motions[{i}].kind is not a motion kind", path=p,
+                                      expected=", ".join(sorted(MOTION_KINDS)), got=m["kind"])
+        for k, lo, hi in (("seconds", 1e-3, 3600), ("speed", 0.05, 5), ("amplitude", 0, 2), ("fps", 1, 1000)):
+            if k in m and not lo <= m[k] <= hi:
+                raise FileFormatError(f"motions[{i}].{k} out of range", path=p, expected=f"{lo}..{hi}", got=m[k])
+        if m.get("up", "auto") not in ("auto", "y", "z"):
+            raise FileFormatError(f"motions[{i}].up must be auto, y or z", path=p, got=m["up"])
+        spec = MotionSpec(file=rel(m["file"]) if "file" in m else None, kind=m.get("kind"),
+                          seconds=float(m.get("seconds", 3.0)), speed=float(m.get("speed", 1.0)),
+                          amplitude=float(m.get("amplitude", 1.0)), seed=int(m.get("seed", 0)),
+                          fps=float(m["fps"]) if "fps" in m else None,
+                          frames=parse_frames(m["frames"], where=p) if "frames" in m else None,
+                          up=m.get("up", "auto"), units=str(m["units"]) if "units" in m else None,
+                          floor=bool(m.get("floor", False)))
+        default = Path(m["file"]).stem if "file" in m else m["kind"]
+        motions.append(BatchMotion(_name_ok(m.get("name", default), "motion", p), spec))
+    for what, items in (("garment", garments), ("motion", motions)):
+        names = [x.name for x in items]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise FileFormatError(f"{what} name used twice; give each entry a name", path=p, got=dup[0])
+    from segadeform.io import SEQUENCE_FORMATS
+
+    fmt = b.get("format", "pc2")
+    if fmt not in SEQUENCE_FORMATS:
+        raise FileFormatError("batch.format is not an output format", path=p, expected=", ".join(SEQUENCE_FORMATS),
+                              got=fmt)
+    if b.get("up", "y") not in ("y", "z"):
+        raise FileFormatError("batch.up must be 'y' or 'z'", path=p, got=b["up"])
+    if b.get("frames_per_call", 8) < 1:
+        raise FileFormatError("batch.frames_per_call must be at least 1", path=p, got=b["frames_per_call"])
+    try:
+        effects = parse_effects(b["effects"]) if "effects" in b else DEFAULT_EFFECTS
+    except FileFormatError as e:
+        raise e.with_path(p) from None
+    out = b.get("output")
+    if out is not None and not is_url(out):
+        out = str(rel(out))
+    return BatchConfig(output=out, garments=tuple(garments), motions=tuple(motions), format=fmt,
+                       model=rel(b["model"]) if "model" in b else None, body=rel(b["body"]) if "body" in b else None,
+                       effects=effects, up=b.get("up", "y"), frames_per_call=int(b.get("frames_per_call", 8)), path=p)
+
+
+@dataclasses.dataclass(frozen=True)
+class BatchJob:
+    """One garment x motion: everything a worker needs (pickled to it)."""
+
+    id: str
+    out: Location
+    garment: BatchGarment
+    motion: BatchMotion
+    format: str
+    model: Optional[Path]
+    body: Optional[Path]
+    effects: Effects
+    up: str
+    frames_per_call: int
+    spec: str
+
+    @property
+    def output_name(self) -> str:
+        from segadeform.io import sequence_format
+
+        exts = sequence_format(self.format).extensions
+        return self.id + (exts[0] if exts else "")
+
+
+def _file_digest(p: Path) -> str:
+    from segadeform.geometry.asset import file_sha256
+
+    try:
+        return file_sha256(p)[:16]
+    except OSError as e:
+        raise InputError(f"cannot read {p}: {e.strerror or e}", path=p) from None
+
+
+def batch_jobs(cfg: BatchConfig, out=None) -> list[BatchJob]:
+    """Every job of ``cfg`` (garment-major), writing to ``out`` (default: the file's ``[batch] output``)."""
+    where = out if out is not None else cfg.output
+    if where is None:
+        raise InputError("no output for the batch", expected="[batch] output in the jobs file or -o OUTPUT",
+                         got="neither", path=cfg.path)
+    loc = open_location(where)
+    gd = {g.name: _file_digest(g.mesh) for g in cfg.garments}
+    jobs = []
+    for g in cfg.garments:
+        for m in cfg.motions:
+            spec = {"garment": str(g.mesh), "garment_sha256": gd[g.name], "betas": list(g.betas),
+                    "motion": dataclasses.asdict(m.spec), "format": cfg.format, "model": str(cfg.model),
+                    "body": str(cfg.body), "effects": dataclasses.asdict(cfg.effects), "up": cfg.up}
+            digest = hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:16]
+            jobs.append(BatchJob(f"{g.name}__{m.name}", loc, g, m, cfg.format, cfg.model, cfg.body, cfg.effects,
+                                 cfg.up, cfg.frames_per_call, digest))
+    return jobs
+
+
+def _record(loc: Location, jid: str) -> Optional[dict]:
+    rel = f"jobs/{jid}.json"
+    return dict(json.loads(loc.read_text(rel)), resumed=True) if loc.exists(rel) else None
+
+
+def run_job(job: BatchJob) -> dict:
+    """Run one job and commit its output and then its record (see the module docstring); returns the record."""
+    from .pipeline import run_scene
+
+    loc = job.out
+    done = _record(loc, job.id)
+    if done is not None:
+        return done
+    t0 = time.perf_counter()
+    name = job.output_name
+    loc.remove_temporaries(name)  # what a killed attempt of this job left
+    loc.remove_temporaries(f"jobs/{job.id}.json")
+    with loc.scratch(name) as d:
+        scene = Scene(garment=job.garment.mesh, motion=job.motion.spec, output=Path(d) / name,
+                      output_format=job.format, up=job.up, body=job.body, betas=job.garment.betas, model=job.model,
+                      effects=job.effects)
+        s = run_scene(scene, batch=job.frames_per_call, threads=1)
+        written = loc.commit_tree(Path(d))
+    rec = {"id": job.id, "garment": job.garment.name, "motion": job.motion.name, "spec": job.spec,
+           "output": name, "files": written, "frames": s.frames, "ms_per_frame": s.ms_per_frame,
+           "effects": job.effects.label(), "graph": s.variant, "seconds": time.perf_counter() - t0}
+    if not loc.put_bytes(f"jobs/{job.id}.json", json.dumps(rec, indent=1, sort_keys=True).encode(), once=True):
+        return _record(loc, job.id)  # another attempt committed it first
+    return rec
+
+
+@dataclasses.dataclass
+class BatchSummary:
+    planned: int
+    skipped: int
+    made: int
+    records: list
+    output: str
+
+
+def run_batch(cfg: BatchConfig, *, out=None, executor: Optional[Executor] = None, jobs: int = 1,
+              limit: Optional[int] = None, progress: Optional[Callable[[dict], None]] = None) -> BatchSummary:
+    """Run every job of ``cfg`` not done yet in ``out`` (see the module docstring) on ``executor``
+    (default: a local pool of ``jobs`` processes; one given here is left open)."""
+    plan = batch_jobs(cfg, out)
+    if not plan:
+        raise InputError("the jobs file makes no jobs", path=cfg.path)
+    loc = plan[0].out
+    names = set(loc.listdir("jobs"))
+    changed = [j.id for j in plan if f"{j.id}.json" in names
+               and json.loads(loc.read_text(f"jobs/{j.id}.json")).get("spec") != j.spec]
+    if changed:
+        raise InputError(f"{len(changed)} finished jobs in {loc} were made from another spec than the jobs file now "
+                         f"gives them (first: {changed[0]}); rename the entries or use another output", path=cfg.path)
+    todo = [j for j in plan if f"{j.id}.json" not in names]
+    skipped = len(plan) - len(todo)
+    if limit is not None:
+        todo = todo[:limit]
+    own = executor is None
+    ex = LocalExecutor(jobs) if own else executor
+    records = []
+    try:
+        for rec in ex.map_unordered(run_job, todo):
+            records.append(rec)
+            if progress is not None:
+                progress(rec)
+    finally:
+        if own:
+            ex.close()
+    return BatchSummary(planned=len(plan), skipped=skipped, made=len(records), records=records, output=str(loc))

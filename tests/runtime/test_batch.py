@@ -1,0 +1,116 @@
+"""`segadeform batch`: the jobs file, every garment x motion run once and committed, resumed, refused
+when a finished job's spec changed; outputs in a folder or at a URL (fsspec)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from segadeform.cli.main import main
+from segadeform.errors import FileFormatError, InputError
+from segadeform.io import read_pc2, read_sequence
+from segadeform.runtime.batch import batch_jobs, load_batch, run_batch
+
+from ..conftest import SAMPLES, leftovers
+
+JOBS = f"""
+[batch]
+output = "out"
+effects = "lbs,collisions"
+
+[[garments]]
+mesh = "{SAMPLES / 'garments' / 'skirt.obj'}"
+
+[[garments]]
+name = "big-skirt"
+mesh = "{SAMPLES / 'garments' / 'skirt.obj'}"
+betas = [0.1]
+
+[[motions]]
+file = "{SAMPLES / 'motions' / 'walk.npz'}"
+frames = "0:6"
+
+[[motions]]
+kind = "dance"
+seconds = 0.3
+"""
+IDS = ["big-skirt__dance", "big-skirt__walk", "skirt__dance", "skirt__walk"]
+
+
+def jobs_file(tmp_path, text=JOBS, name="jobs.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_jobs_file_makes_every_garment_x_motion(tmp_path):
+    cfg = load_batch(jobs_file(tmp_path))
+    assert cfg.output == str(tmp_path / "out") and cfg.effects.label() == "lbs+collisions"
+    jobs = batch_jobs(cfg)
+    assert sorted(j.id for j in jobs) == IDS and {j.output_name for j in jobs} == {f"{i}.pc2" for i in IDS}
+    assert len({j.spec for j in jobs}) == 4
+    assert batch_jobs(load_batch(jobs_file(tmp_path, name="again.toml")))[0].spec == jobs[0].spec
+
+
+@pytest.mark.parametrize("edit, msg", [
+    (("[batch]", "[batch]\nspeed = 1"), "unknown key batch.speed"),
+    (("kind = \"dance\"", "kind = \"moonwalk\""), "not a motion kind"),
+    (("kind = \"dance\"", f"kind = \"dance\"\nfile = \"{SAMPLES / 'motions' / 'walk.npz'}\""), "exactly one"),
+    (("name = \"big-skirt\"", "name = \"skirt\""), "used twice"),
+    (("name = \"big-skirt\"", "name = \"a__b\""), "not usable in a file name"),
+    (("effects = \"lbs,collisions\"", "effects = \"fire\""), "unknown effect"),
+    (("frames = \"0:6\"", "frames = \"6:0\""), "0 <= A < B"),
+    (("[batch]", "[batch]\nformat = \"gif\""), "not an output format"),
+    (("betas = [0.1]", "betas = 0.1"), "wrong type"),
+])
+def test_bad_jobs_files(tmp_path, edit, msg):
+    assert edit[0] in JOBS
+    with pytest.raises(FileFormatError, match=msg) as e:
+        load_batch(jobs_file(tmp_path, JOBS.replace(edit[0], edit[1], 1)))
+    assert "jobs.toml" in str(e.value)
+
+
+def test_batch_runs_resumes_and_refuses_a_changed_job(tmp_path, capsys):
+    jf = jobs_file(tmp_path)
+    assert main(["batch", str(jf), "-j", "2"]) == 0
+    assert "4 jobs, 0 already done, 4 made" in capsys.readouterr().out
+    out = tmp_path / "out"
+    assert sorted(p.stem for p in out.glob("*.pc2")) == IDS
+    assert sorted(p.stem for p in (out / "jobs").glob("*.json")) == IDS and leftovers(out) == []
+    rec = json.loads((out / "jobs" / "skirt__walk.json").read_text())
+    assert rec["frames"] == 6 and rec["files"] == ["skirt__walk.pc2"] and rec["effects"] == "lbs+collisions"
+    assert read_pc2(out / "skirt__walk.pc2").frames.shape[0] == 6
+    # the same as one `segadeform run` of that garment and motion
+    assert main(["run", "--garment", str(SAMPLES / "garments" / "skirt.obj"), "--motion",
+                 str(SAMPLES / "motions" / "walk.npz"), "--frames", "0:6", "--effects", "lbs,collisions",
+                 "-o", str(tmp_path / "one.pc2")]) == 0
+    assert (tmp_path / "one.pc2").read_bytes() == (out / "skirt__walk.pc2").read_bytes()
+    # resumed: a job whose record is missing is run again, the others skipped
+    (out / "jobs" / "skirt__dance.json").unlink()
+    before = (out / "skirt__walk.pc2").stat().st_mtime_ns
+    capsys.readouterr()
+    assert main(["batch", str(jf)]) == 0
+    assert "4 jobs, 3 already done, 1 made" in capsys.readouterr().out
+    assert (out / "skirt__walk.pc2").stat().st_mtime_ns == before
+    # a finished job given another meaning under its name stops the run before anything runs
+    changed = jobs_file(tmp_path, JOBS.replace('frames = "0:6"', 'frames = "0:8"'), "changed.toml")
+    with pytest.raises(InputError, match="another spec"):
+        run_batch(load_batch(changed))
+
+
+def test_batch_to_a_url_in_frame_folders(tmp_path):
+    fsspec = pytest.importorskip("fsspec")
+    jf = jobs_file(tmp_path, JOBS.replace('output = "out"', 'output = "memory://segadeform-batch-test/out"\n'
+                                                            'format = "obj-seq"'))
+    s = run_batch(load_batch(jf), limit=1)
+    assert (s.planned, s.skipped, s.made) == (4, 0, 1)
+    fs = fsspec.filesystem("memory")
+    jid = s.records[0]["id"]
+    names = sorted(p.rsplit("/", 1)[1] for p in fs.find(f"/segadeform-batch-test/out/{jid}"))
+    assert len(names) == s.records[0]["frames"] and all(n.endswith(".obj") for n in names)
+    assert fs.isfile(f"/segadeform-batch-test/out/jobs/{jid}.json")
+    assert not [p for p in fs.find("/segadeform-batch-test") if ".tmp-" in p]
+    local = tmp_path / "copy"
+    fs.get(f"/segadeform-batch-test/out/{jid}", str(local), recursive=True)
+    assert read_sequence(local).shape[0] == s.records[0]["frames"]
