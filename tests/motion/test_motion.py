@@ -97,6 +97,15 @@ def test_procedural_inside_limits_and_deterministic(kind):
     assert not np.array_equal(a.poses[45:], c.poses[45:]) or kind == "jump"  # jump has no random part
 
 
+@pytest.mark.parametrize("kind", sorted(MOTION_KINDS))
+def test_very_short_procedural_motions(kind):
+    """Regression: the dance's 0.25 s smoothing kernel was longer than motions under ~0.25 s (a broadcast error)."""
+    for seconds in (1 / 30, 0.05, 0.1, 0.2, 0.3):
+        m = make_motion(kind, seconds=seconds)
+        assert m.poses.shape == (max(1, round(seconds * 30)), 72)
+        assert np.isfinite(m.poses).all() and np.isfinite(m.trans).all()
+
+
 def test_motions_ease_in_from_rest():
     m = make_motion("walk", seconds=2.0)
     assert np.abs(m.poses[0]).max() < 1e-12

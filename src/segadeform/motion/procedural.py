@@ -185,9 +185,12 @@ def _dance(p, t, w, rng, speed, amp):
     order = rng.permutation(len(moves))
     for k, fn in enumerate(moves):
         mask = (order[seg % len(moves)] == k).astype(float)
-        # smooth the switches over 0.25 s
-        kern = np.hanning(max(3, int(0.25 * len(t) / max(t[-1], 1e-6)) | 1))
-        mask = np.convolve(mask, kern / kern.sum(), mode="same")
+        # smooth the switches over 0.25 s (no longer than the motion: np.convolve's "same" mode returns
+        # the longer of its inputs)
+        width = min(max(3, int(0.25 * len(t) / max(t[-1], 1e-6)) | 1), len(t) - 1 + len(t) % 2)
+        if width >= 3:
+            kern = np.hanning(width)
+            mask = np.convolve(mask, kern / kern.sum(), mode="same")
         sub = _Pose(len(t))
         tr = fn(sub, t, w, rng, speed, amp)
         p.a += sub.a * mask[:, None, None]
