@@ -35,7 +35,7 @@ def main() -> None:
     import torch
 
     from segadeform.body import default_rest_joints
-    from segadeform.export import export_package
+    from segadeform.export import export_package, graph_specs
     from segadeform.geometry import precompute_garment
     from segadeform.geometry.primitives import frustum
     from segadeform.model import ModelConfig, SEGANet
@@ -51,7 +51,8 @@ def main() -> None:
     so.intra_op_num_threads = 1
     so.inter_op_num_threads = 1
     enc_s = ort.InferenceSession(str(pkg / "garment_encoder.onnx"), so, providers=["CPUExecutionProvider"])
-    dec_s = ort.InferenceSession(str(pkg / "deformer.onnx"), so, providers=["CPUExecutionProvider"])
+    dec_file = graph_specs(net.cfg)["deformer"]["file"]  # the model's own deformer (package_spec names it)
+    dec_s = ort.InferenceSession(str(pkg / dec_file), so, providers=["CPUExecutionProvider"])
     joints = default_rest_joints()
     motion = make_motion("dance", seconds=2.0)
     win_all = motion_windows(motion.poses, net.cfg.window).astype(np.float32)
@@ -72,18 +73,18 @@ def main() -> None:
         v, f = frustum(na, max(2, n // na), 0.16, 0.34, 1.02, 0.5)
         a = precompute_garment(v, f, joints, n_star=net.cfg.n_star)
         enc = {"features": a.features[None], "nbr": a.nbr, "mask": a.mask,
-               "descriptor": a.descriptor[None].astype(np.float32), "betas": np.zeros((1, 10), np.float32)}
+               "descriptor": a.descriptor[None].astype(np.float32)}
         tenc = {k: torch.as_tensor(x) for k, x in enc.items()}
         with torch.no_grad():
             P_t = net.garment_encoder(**tenc)[0]
         P = enc_s.run(None, enc)[0][0]
         for b in args.batches:
-            dec = {"P": P, "window": win_all[:b], "betas": np.zeros((b, 10), np.float32),
+            dec = {"g": P, "window": win_all[:b], "betas": np.zeros((b, 10), np.float32),
                    "rest": a.vertices.astype(np.float32), "nbr": a.nbr, "mask": a.mask,
                    "joints": np.repeat(joints[None], b, 0).astype(np.float32),
                    "trans": motion.trans[:b].astype(np.float32)}
             tdec = {k: torch.as_tensor(x) for k, x in dec.items()}
-            tdec["P"] = P_t
+            tdec["g"] = P_t
 
             def torch_dec():
                 with torch.no_grad():
@@ -92,12 +93,12 @@ def main() -> None:
             def torch_both():
                 with torch.no_grad():
                     p = net.garment_encoder(**tenc)[0]
-                    net.deformer(**dict(tdec, P=p))
+                    net.deformer(**dict(tdec, g=p))
 
             t_t = timeit(torch_dec) / b
             t_o = timeit(lambda: dec_s.run(None, dec)) / b
             t_te = timeit(torch_both) / b
-            t_oe = timeit(lambda: dec_s.run(None, dict(dec, P=enc_s.run(None, enc)[0][0]))) / b
+            t_oe = timeit(lambda: dec_s.run(None, dict(dec, g=enc_s.run(None, enc)[0][0]))) / b
             print(f"{len(v):6d} {b:3d} {1e3 * t_t:11.2f} {1e3 * t_o:9.2f} {t_t / t_o:6.2f} "
                   f"{1e3 * t_te:15.2f} {1e3 * t_oe:13.2f} {t_t / t_oe:10.2f}")
     print("x = torch eager (encoder cached) time / this column's time, same run, one thread.")

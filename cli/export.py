@@ -21,7 +21,9 @@ from .main import cli
 @click.option("--check/--no-check", default=True, show_default=True,
               help="Compare torch and onnxruntime on random inputs and print the errors.")
 @click.option("--legacy", is_flag=True, help="Use the legacy (TorchScript) exporter instead of dynamo.")
-def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy):
+@click.option("--inline-weights", is_flag=True,
+              help="Self-contained graph files (each with its own weights) instead of one shared weights.bin.")
+def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy, inline_weights):
     """Export CHECKPOINT (or --random-init) to an ONNX model package (needs the 'torch' extra)."""
     try:
         import torch  # noqa: F401
@@ -49,9 +51,10 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
         if config_json:
             raise click.UsageError("--config applies to --random-init only (a checkpoint carries its config)")
         model = load_checkpoint(checkpoint)
-    m = export_package(model, output, dynamo=not legacy, check=check)
-    click.echo(f"{output}: garment_encoder.onnx, deformer.onnx, manifest.json (opset {m['opset']}, "
-               f"{m['exporter']} exporter)")
+    m = export_package(model, output, dynamo=not legacy, check=check, shared_weights=not inline_weights)
+    click.echo(f"{output}: {len(m['graphs'])} graphs (default {m['default_deformer']}), manifest.json, "
+               f"{_size(output) / 1e6:.2f} MB (opset {m['opset']}, {m['exporter']} exporter"
+               f"{', weights shared in ' + m['weights']['file'] if 'weights' in m else ''})")
     if check:
         for g, outs in m["parity"].items():
             for o, e in outs.items():
@@ -73,5 +76,29 @@ def quantize_cmd(package, output, precision):
     from segadeform.export.precision import convert_package
 
     convert_package(package, output, precision)
-    size = sum(f.stat().st_size for f in Path(output).glob("*.onnx"))
-    click.echo(f"{output}: {precision} package, graphs {size / 1e6:.1f} MB")
+    click.echo(f"{output}: {precision} package, graphs {_size(output) / 1e6:.1f} MB")
+
+
+@cli.command("repack")
+@click.argument("package", type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="The new package folder.")
+@click.option("--inline-weights", is_flag=True,
+              help="Self-contained graph files (each with its own weights) instead of one shared weights.bin.")
+def repack_cmd(package, output, inline_weights):
+    """Rewrite model PACKAGE (any schema) in the current layout, same graphs (needs onnx)."""
+    try:
+        import onnx  # noqa: F401
+    except ImportError:
+        raise click.ClickException("repack needs onnx: pip install 'segadeform[torch]'") from None
+    from segadeform.export.packing import repack_package
+
+    before = _size(package)
+    m = repack_package(package, output, shared=not inline_weights)
+    click.echo(f"{output}: schema {m['schema_version']}, {len(m['graphs'])} graphs, "
+               f"{before / 1e6:.2f} MB -> {_size(output) / 1e6:.2f} MB")
+
+
+def _size(folder) -> int:
+    """Bytes of a package's graph and weights files."""
+    return sum(f.stat().st_size for f in Path(folder).iterdir() if f.is_file() and f.suffix in (".onnx", ".bin"))

@@ -47,8 +47,9 @@ def inspect_cmd(path):
             pkg = ModelPackage(path)
             for name in pkg.manifest["graphs"]:
                 pkg.session(name)
-            click.echo(f"{path}: model package, graphs {', '.join(pkg.manifest['graphs'])}, "
-                       f"{len(pkg.manifest.get('variants', {}))} deformer variants")
+            n_dec = sum(1 for g in pkg.manifest["graphs"].values() if g["role"] == "deformer")
+            click.echo(f"{path}: model package, graphs {', '.join(pkg.manifest['graphs'])} "
+                       f"({n_dec} deformers, default {pkg.default_deformer})")
         else:
             from segadeform.io import read_obj_sequence
 
@@ -86,6 +87,10 @@ def inspect_cmd(path):
         from segadeform.body import load_body
 
         click.echo(f"{path}: body {load_body(path)!r}")
+    elif ext == ".sgda":
+        from segadeform.geometry import GarmentAsset
+
+        click.echo(f"{path}: portable {GarmentAsset.load(path)!r}")
     elif ext == ".npz":
         from segadeform.io.npz import load_npz
 

@@ -1,4 +1,4 @@
-"""``segadeform precompute``: garment mesh -> garment asset (.npz)."""
+"""``segadeform precompute``: garment mesh -> garment asset (.npz, or .sgda: the portable form)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from .main import cli
 @cli.command("precompute")
 @click.argument("garment", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Asset file to write (.npz).")
+              help="Asset file to write: .npz, or .sgda (portable: read without Python; docs/package.md).")
 @click.option("--joints", "joints_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Rest-pose joints, an (S, 3) .npy array (metres, +Y up).")
 @click.option("--body", "body_path", type=click.Path(dir_okay=False, path_type=Path),

@@ -26,6 +26,12 @@ def _format_choice():
     return click.Choice(list(SEQUENCE_FORMATS))
 
 
+def _quality_choice():
+    from segadeform.presets import QUALITY_PRESETS
+
+    return click.Choice(list(QUALITY_PRESETS))
+
+
 @cli.command("run")
 @click.argument("scene", required=False, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path), help="Output (overrides the scene's).")
@@ -35,6 +41,10 @@ def _format_choice():
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz/.pkl (default: shipped body).")
 @click.option("--betas", help="Comma-separated body shape coefficients.")
 @click.option("--effects", help="e.g. 'dqs,-wrinkles,-collisions' (default: lbs, all effects on).")
+@click.option("--quality", type=_quality_choice(),
+              help="A preset from the measured accuracy/time frontier (segadeform.presets, "
+                   "docs/accuracy-vs-time.md); replaces the scene's effects; --effects may then only change "
+                   "it (+name/-name).")
 @click.option("--format", "fmt", type=_format_choice(),
               help="Output format (see segadeform.io.formats; abc needs the 'alembic' extra).")
 @click.option("--model", type=click.Path(file_okay=False, path_type=Path), help="Model package directory.")
@@ -54,20 +64,30 @@ def _format_choice():
               help="BVH joint map (TOML/JSON: smpl_name = \"FileJoint\") for skeletons not recognised.")
 @click.option("--floor", is_flag=True, default=None, help="Move the motion so the feet touch the floor.")
 @click.option("--force", is_flag=True, help="Animate a garment even when it does not sit on the body.")
-def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, model, frames, fps, batch, threads,
-            providers, body_out, up, no_cache, motion_up, units, joint_map, floor, force):
+def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, fmt, model, frames, fps, batch,
+            threads, providers, body_out, up, no_cache, motion_up, units, joint_map, floor, force):
     """Animate a garment: SCENE.toml, or the flag form --garment G --motion M -o OUT."""
     import dataclasses
 
     from segadeform.runtime.pipeline import run_scene
     from segadeform.scene import Effects, MotionSpec, Scene, load_scene, parse_effects, parse_frames
 
+    preset = None
+    if quality:
+        from segadeform.presets import is_change_list, preset_effects
+
+        if effects and not is_change_list(effects):
+            raise click.UsageError(f"--quality {quality} sets the effects; --effects may only change them with "
+                                   f"signed items (e.g. --effects=+collisions), got the complete list {effects!r}")
+        preset = preset_effects(quality, effects)
     if scene is not None:
         if garment or motion_path:
             raise click.UsageError("give a SCENE or --garment/--motion, not both")
         sc = load_scene(scene)
         changes = {}
-        if effects:
+        if preset is not None:
+            changes["effects"] = preset
+        elif effects:
             changes["effects"] = parse_effects(effects, sc.effects)
         if fmt:
             changes["output_format"] = fmt
@@ -101,7 +121,7 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, mode
                                                       floor=bool(floor)),
                    output=output, output_format=_fmt_from(output, fmt), up=up or "y", body=body, betas=beta_vals,
                    model=None, body_output=body_out,
-                   effects=parse_effects(effects) if effects else Effects())
+                   effects=preset if preset is not None else parse_effects(effects) if effects else Effects())
     prov = None
     if providers:
         prov = "auto" if providers == "auto" else [p.strip() for p in providers.split(",") if p.strip()]
@@ -118,7 +138,8 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, fmt, mode
         summary = run_scene(sc, model=model, output=output, batch=batch, threads=threads, providers=prov,
                             progress=bar.update if interactive else None, cache=not no_cache, force=force)
     off = summary.effects.off()
-    click.echo(f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame (effects {summary.effects.label()}"
+    q = f"quality {quality}: " if quality else ""
+    click.echo(f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame ({q}effects {summary.effects.label()}"
                f"{'; off: ' + ', '.join(off) if off else ''}; graph {summary.variant})")
     for path in summary.written:
         click.echo(f"  wrote {path}")
@@ -136,11 +157,19 @@ def info_cmd(package):
                f"{m.get('producer', '?')}, exporter {m.get('exporter', '?')}")
     click.echo(f"  units {m.get('units')}, up +{m.get('up_axis')}, {len(m['joint_names'])} joints")
     click.echo("  config: " + json.dumps(m["config"], sort_keys=True))
-    graphs = dict(m["graphs"], **{k: v for k, v in m.get("variants", {}).items() if v["file"] != "deformer.onnx"})
-    for name, spec in graphs.items():
+    if m.get("upgraded_from"):
+        click.echo(f"  (read as schema {m['schema_version']} from schema {m['upgraded_from']}; "
+                   "`segadeform repack` rewrites it)")
+    for name, spec in m["graphs"].items():
         sig = ", ".join(f"{i['name']}{i['shape']}" for i in spec["inputs"])
         outs = ", ".join(f"{o['name']}{o['shape']}" for o in spec["outputs"])
         eff = f" effects={spec['effects']}" if "effects" in spec else ""
-        click.echo(f"  {name} ({spec['file']}){eff}\n    in:  {sig}\n    out: {outs}")
+        dflt = " (default)" if name == m["default_deformer"] else ""
+        click.echo(f"  {name} ({spec['file']}){dflt}{eff}\n    in:  {sig}\n    out: {outs}")
+    files = [spec["file"] for spec in m["graphs"].values()] + ([m["weights"]["file"]] if "weights" in m else [])
+    size = sum((Path(package) / f).stat().st_size for f in files)
+    w = m.get("weights")
+    shared = f", weights shared in {w['file']} ({w['bytes'] / 1e6:.2f} MB)" if w else ""
+    click.echo(f"  {len(m['graphs'])} graphs, {size / 1e6:.2f} MB{shared}")
     ops = sorted({op for g in m.get("ops", {}).values() for op in g})
     click.echo(f"  ops ({len(ops)}): " + " ".join(ops))

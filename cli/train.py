@@ -63,8 +63,9 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads):
               help="Report folder (eval.md, eval.json, PNG plots).")
 @click.option("--split", default="test", show_default=True, help="Dataset split to evaluate.")
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
-@click.option("--push-out", "push_margin", type=float, help="Also report learned models with the collision "
-                                                           "post-process at this margin (m).")
+@click.option("--push-out", "push_margin", type=float, multiple=True,
+              help="Also report learned models with the runtime's collision post-process at this margin (m); "
+                   "repeatable (rows 'NAME + push-out N mm').")
 @click.option("--heatmap", help="Model NAME whose per-vertex error map is rendered (default: the first).")
 def eval_cmd(dataset, models, output, split, body, push_margin, heatmap):
     """Evaluate models against the simulation: the paper's metrics per model and garment type."""
@@ -78,7 +79,8 @@ def eval_cmd(dataset, models, output, split, body, push_margin, heatmap):
             raise click.UsageError(f"--model must be NAME=SPEC, got {m!r}")
         spec[name] = s
     b = _body(body)
-    res = run_eval(dataset, b, spec, split=split, push_out_margin=push_margin,
+    margins = None if not push_margin else push_margin[0] if len(push_margin) == 1 else list(push_margin)
+    res = run_eval(dataset, b, spec, split=split, push_out_margin=margins,
                    progress=lambda sid: click.echo(f"  {sid}", err=True))
     write_report(res, output, dataset=dataset, body=b, heatmap_model=heatmap or next(iter(spec)))
     click.echo(markdown_table(res))

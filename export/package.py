@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import warnings
@@ -11,52 +10,18 @@ from pathlib import Path
 import numpy as np
 
 from segadeform import UNITS, UP_AXIS, __version__
+from segadeform import package_spec as contract
 from segadeform.body.skeleton import SMPL_JOINT_NAMES, SMPL_PARENTS
 from segadeform.io.atomic import atomic_directory
+from segadeform.package_spec import OPSET, graph_specs
 
+from .packing import pack_graphs, sha256_file
 from .portability import check_portability
 
-__all__ = ["MANIFEST_SCHEMA_VERSION", "OPSET", "graph_specs", "export_package", "sample_inputs"]
+__all__ = ["MANIFEST_SCHEMA_VERSION", "OPSET", "graph_specs", "deformer_variants", "export_package", "sample_inputs"]
 
-MANIFEST_SCHEMA_VERSION = 1
-OPSET = 18
-
-
-def graph_specs(cfg) -> dict:
-    """Input/output names, dtypes and symbolic shapes of both graphs for ``cfg``."""
-    s, f, t = cfg.n_joints, cfg.f_enc, cfg.window
-    return {
-        "garment_encoder": {
-            "file": "garment_encoder.onnx",
-            "inputs": [
-                {"name": "features", "dtype": "float32", "shape": ["B", "N", cfg.feat_dim]},
-                {"name": "nbr", "dtype": "int64", "shape": ["N", "K"]},
-                {"name": "mask", "dtype": "bool", "shape": ["N", "K"]},
-                {"name": "descriptor", "dtype": "float32", "shape": ["B", cfg.n_star]},
-                {"name": "betas", "dtype": "float32", "shape": ["B", cfg.n_betas]},
-            ],
-            "outputs": [{"name": "P", "dtype": "float32", "shape": ["B", "N", s, f]}],
-        },
-        "deformer": {
-            "file": "deformer.onnx",
-            "inputs": [
-                {"name": "P", "dtype": "float32", "shape": ["N", s, f]},
-                {"name": "window", "dtype": "float32", "shape": ["B", t, 3 * s]},
-                {"name": "betas", "dtype": "float32", "shape": ["B", cfg.n_betas]},
-                {"name": "rest", "dtype": "float32", "shape": ["N", 3]},
-                {"name": "nbr", "dtype": "int64", "shape": ["N", "K"]},
-                {"name": "mask", "dtype": "bool", "shape": ["N", "K"]},
-                {"name": "joints", "dtype": "float32", "shape": ["B", s, 3]},
-                {"name": "trans", "dtype": "float32", "shape": ["B", 3]},
-            ] + ([{"name": "log_wbody", "dtype": "float32", "shape": ["N", s]}]
-                 if getattr(cfg, "weights", "free") == "residual" else []),
-            "outputs": [
-                {"name": "vertices", "dtype": "float32", "shape": ["B", "N", 3]},
-                {"name": "weights", "dtype": "float32", "shape": ["B", "N", s]},
-                {"name": "blend_shapes", "dtype": "float32", "shape": ["B", "N", 3]},
-            ],
-        },
-    }
+#: the manifest layout written (``segadeform.package_spec`` holds the contract: I/O, names, manifest keys)
+MANIFEST_SCHEMA_VERSION = contract.SCHEMA_VERSION
 
 
 _NP = {"float32": np.float32, "int64": np.int64, "bool": np.bool_}
@@ -65,13 +30,14 @@ _NP = {"float32": np.float32, "int64": np.int64, "bool": np.bool_}
 def sample_inputs(cfg, graph: str, *, n: int, k: int, b: int, seed: int = 0) -> dict[str, np.ndarray]:
     """Random, valid inputs for ``graph`` with N = n, K = k, B = b (a symmetric ring-like graph)."""
     rng = np.random.default_rng(seed)
-    spec = graph_specs(cfg)[graph]
+    role = contract.ENCODER if graph == contract.ENCODER else contract.DEFORMER  # a deformer graph's name or its role
+    gspec = graph_specs(cfg)[role]
     dims = {"N": n, "K": k, "B": b}
     out = {}
     nbr = (np.arange(n)[:, None] + np.arange(1, k + 1)[None, :] * (1 - 2 * (np.arange(k) % 2))[None, :]) % n
     mask = rng.random((n, k)) > 0.15
     mask[:, 0] = True
-    for inp in spec["inputs"]:
+    for inp in gspec["inputs"]:
         shape = [dims[d] if isinstance(d, str) else d for d in inp["shape"]]
         if inp["name"] == "nbr":
             out["nbr"] = nbr.astype(np.int64)
@@ -99,24 +65,24 @@ def _wrappers(model):
             super().__init__()
             self.net = net
 
-        def forward(self, features, nbr, mask, descriptor, betas):
-            return self.net.garment_encoder(features, nbr, mask, descriptor, betas)
+        def forward(self, features, nbr, mask, descriptor):
+            return self.net.garment_encoder(features, nbr, mask, descriptor)
 
     class Deformer(torch.nn.Module):
         def __init__(self, net):
             super().__init__()
             self.net = net
 
-        def forward(self, P, window, betas, rest, nbr, mask, joints, trans):
-            return self.net.deformer(P, window, betas, rest, nbr, mask, joints, trans)
+        def forward(self, g, window, betas, rest, nbr, mask, joints, trans):
+            return self.net.deformer(g, window, betas, rest, nbr, mask, joints, trans)
 
     class ResidualDeformer(torch.nn.Module):
         def __init__(self, net):
             super().__init__()
             self.net = net
 
-        def forward(self, P, window, betas, rest, nbr, mask, joints, trans, log_wbody):
-            return self.net.deformer(P, window, betas, rest, nbr, mask, joints, trans, log_wbody)
+        def forward(self, g, window, betas, rest, nbr, mask, joints, trans, log_wbody):
+            return self.net.deformer(g, window, betas, rest, nbr, mask, joints, trans, log_wbody)
 
     dec = ResidualDeformer(model) if getattr(model, "residual", False) else Deformer(model)
     return {"garment_encoder": Encoder(model), "deformer": dec}
@@ -164,21 +130,19 @@ def _run_export(module, args, spec, in_names, out_names, path, dynamo) -> None:
 def deformer_variants(cfg) -> dict:
     """The per-effect deformer graphs: skinning x wrinkles (blend-shape decoder) x dynamics (window).
 
-    ``dynamics=False`` sees only the current pose (window 1); ``wrinkles=False``
-    drops the decoder (B = 0).  The variant matching ``cfg`` is ``deformer.onnx``.
+    ``dynamics=False`` sees only the current pose (window 1); ``wrinkles=False`` drops the decoder
+    (B = 0).  Names and files follow :func:`segadeform.package_spec.deformer_name`; ``default`` marks
+    the one matching ``cfg`` (exported from the model itself).  ``config`` is the network each variant
+    is exported from; ``spec`` its manifest entry (without the hash).
     """
     out = {}
-    for skin in ("lbs", "dqs"):
-        for wrinkles in (True, False):
-            if wrinkles and not cfg.use_blend_shapes:
-                continue
-            for dynamics in (True, False):
-                name = f"deformer_{skin}" + ("" if wrinkles else "_nowrinkles") + ("" if dynamics else "_static")
-                vcfg = cfg.replace(skinning=skin, use_blend_shapes=wrinkles, window=cfg.window if dynamics else 1)
-                default = skin == cfg.skinning and wrinkles == cfg.use_blend_shapes and dynamics
-                out[name] = {"config": vcfg, "file": "deformer.onnx" if default else f"{name}.onnx",
-                             "effects": {"skinning": skin, "wrinkles": wrinkles, "dynamics": dynamics},
-                             "default": default}
+    dflt = contract.default_effects(cfg)
+    for eff in contract.effect_sets(cfg):
+        name = contract.deformer_name(eff)
+        vcfg = cfg.replace(skinning=eff["skinning"], use_blend_shapes=eff["wrinkles"],
+                           window=cfg.window if eff["dynamics"] else 1)
+        vspec = contract.deformer_spec(cfg, eff)
+        out[name] = {"config": vcfg, "file": vspec["file"], "effects": eff, "default": eff == dflt, "spec": vspec}
     return out
 
 
@@ -197,12 +161,17 @@ def _variant_model(net, vcfg):
 
 
 def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+    return sha256_file(path)
 
 
 def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, check: bool = True,
-                   variants: bool = True, extra_manifest: dict | None = None) -> dict:
+                   variants: bool = True, extra_manifest: dict | None = None, shared_weights: bool = True) -> dict:
     """Export ``model`` (a SEGANet) to ``out_dir``; returns the manifest (and parity figures when ``check``).
+
+    Writes the garment encoder and one deformer per effect combination (only the model's own with
+    ``variants=False``), named and described by :mod:`segadeform.package_spec`, then packs them
+    (:func:`~segadeform.export.packing.pack_graphs`: debug info stripped; with ``shared_weights`` one
+    ``weights.bin`` holds the weights every graph shares).  The parity check runs on the packed files.
 
     The model is copied and frozen (tau scalings folded into constants).
     Sample sizes are >= 2 and distinct (N = 37, K = 7, B = 3): the dynamo
@@ -218,51 +187,42 @@ def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, ch
 
     net = copy.deepcopy(model).eval().float().freeze()
     cfg = net.cfg
-    specs = graph_specs(cfg)
     wrappers = _wrappers(net)
-    manifest = {
-        "schema_version": MANIFEST_SCHEMA_VERSION, "format": "segadeform-model-package", "opset": OPSET,
-        "producer": f"segadeform {__version__}", "torch": torch.__version__, "exporter": "dynamo" if dynamo else "legacy",
-        "config": json.loads(cfg.to_json()), "joint_names": list(SMPL_JOINT_NAMES),
-        "parents": [int(p) for p in SMPL_PARENTS], "units": UNITS, "up_axis": UP_AXIS,
-        "graphs": {}, "ops": {},
-    }
-    if extra_manifest:
-        manifest.update(extra_manifest)
-    report = {}
+    todo = {contract.ENCODER: (wrappers[contract.ENCODER], graph_specs(cfg)[contract.ENCODER], cfg, True)}
+    for vname, var in deformer_variants(cfg).items():
+        if var["default"]:
+            todo[vname] = (wrappers[contract.DEFORMER], var["spec"], cfg, True)
+        elif variants:
+            todo[vname] = (_wrappers(_variant_model(net, var["config"]))[contract.DEFORMER], var["spec"],
+                           var["config"], False)
+    default = contract.deformer_name(contract.default_effects(cfg))
+    graphs, ops, report = {}, {}, {}
     with atomic_directory(out_dir) as tmp:
-        for name, spec in specs.items():
-            inputs = sample_inputs(cfg, name, n=37, k=7, b=3)
-            path = tmp / spec["file"]
-            _export_one(wrappers[name], spec, inputs, path, dynamo=dynamo)
+        for name, (module, gspec, gcfg, _) in todo.items():
+            path = tmp / gspec["file"]
+            _export_one(module, gspec, sample_inputs(gcfg, name, n=37, k=7, b=3), path, dynamo=dynamo)
             proto = onnx.load(str(path))
             onnx.checker.check_model(proto)
-            counts = check_portability(proto, name)
+            ops[name] = dict(sorted(check_portability(proto, name).items()))
             got_in = [i.name for i in proto.graph.input]
-            want_in = [i["name"] for i in spec["inputs"]]
+            want_in = [i["name"] for i in gspec["inputs"]]
             if got_in != want_in:
                 raise RuntimeError(f"{name}: exported inputs {got_in} differ from the spec {want_in}")
-            manifest["graphs"][name] = dict(spec, sha256=_sha256(path))
-            manifest["ops"][name] = dict(sorted(counts.items()))
+            graphs[name] = dict(gspec)
+        weights = pack_graphs(tmp, [g["file"] for g in graphs.values()], shared=shared_weights)
+        for name, g in graphs.items():
+            g["sha256"] = _sha256(tmp / g["file"])
             if check:
-                report[name] = parity(wrappers[name], path, spec, cfg)
-        manifest["variants"] = {}
-        if variants:
-            for vname, var in deformer_variants(cfg).items():
-                vspec = dict(graph_specs(var["config"])["deformer"], file=var["file"])
-                if not var["default"]:
-                    vnet = _variant_model(net, var["config"])
-                    vmod = _wrappers(vnet)["deformer"]
-                    path = tmp / var["file"]
-                    _export_one(vmod, vspec, sample_inputs(var["config"], "deformer", n=37, k=7, b=3), path,
-                                dynamo=dynamo)
-                    counts = check_portability(onnx.load(str(path)), vname)
-                    manifest["ops"][vname] = dict(sorted(counts.items()))
-                    if check:
-                        report[vname] = parity(vmod, path, vspec, var["config"], sizes=((37, 7, 2),), graph="deformer")
-                manifest["variants"][vname] = dict(vspec, effects=var["effects"], window=var["config"].window,
-                                                   sha256=_sha256(tmp / var["file"]))
-        (tmp / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+                module, gspec, gcfg, full = todo[name]
+                sizes = {} if full else {"sizes": ((37, 7, 2),)}
+                report[name] = parity(module, tmp / g["file"], gspec, gcfg, graph=name, **sizes)
+        manifest = contract.make_manifest(
+            config=json.loads(cfg.to_json()), graphs=graphs, default_deformer=default,
+            producer=f"segadeform {__version__}", joint_names=SMPL_JOINT_NAMES, parents=SMPL_PARENTS, units=UNITS,
+            up_axis=UP_AXIS, ops=ops, weights=weights, torch=torch.__version__,
+            exporter="dynamo" if dynamo else "legacy", **(extra_manifest or {}))
+        contract.validate_manifest(manifest, path=tmp / contract.MANIFEST_FILE)
+        (tmp / contract.MANIFEST_FILE).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
     if check:
         manifest = dict(manifest, parity=report)
     return manifest

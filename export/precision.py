@@ -5,7 +5,8 @@
 * ``int8``: onnxruntime's dynamic quantisation (``quantize_dynamic``): MatMul/Gemm weights stored as
   int8, activations quantised per call; inputs and outputs stay float32.
 
-The manifest gets the new files' SHA-256 and ``"precision"``; nothing else changes. Error and speed
+The manifest gets the new files' SHA-256, ``"precision"`` and the current layout (schema 2: one file per
+graph, the weights shared in ``weights.bin``); nothing else changes. Error and speed
 of each precision are measured by ``segadeform report tradeoffs`` (docs/accuracy-vs-time.md).
 
 Not yet: fp16. onnxconverter-common's float16 conversion of the exported graphs gives a garment
@@ -21,10 +22,12 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from segadeform import package_spec as contract
 from segadeform.errors import InputError
 from segadeform.io.atomic import atomic_directory
 
 from .package import _sha256
+from .packing import pack_graphs
 
 __all__ = ["PRECISIONS", "convert_package", "convert_graph"]
 
@@ -35,8 +38,10 @@ def convert_graph(src: Path, dst: Path, precision: str) -> None:
     """Write graph ``src`` (.onnx) at ``precision`` to ``dst``."""
     if precision not in PRECISIONS:
         raise InputError("unknown precision", expected=" | ".join(PRECISIONS), got=precision)
-    if precision == "fp32":
-        shutil.copyfile(src, dst)
+    if precision == "fp32":  # self-contained (any external weights read in); the packing shares them again
+        import onnx
+
+        onnx.save(onnx.load(str(src), load_external_data=True), str(dst))
     else:
         from onnxruntime.quantization import QuantType, quantize_dynamic
 
@@ -68,23 +73,27 @@ def convert_package(src: str | os.PathLike, dst: str | os.PathLike, precision: s
     src, dst = Path(src), Path(dst)
     if precision not in PRECISIONS:
         raise InputError("unknown precision", expected=" | ".join(PRECISIONS), got=precision)
-    mpath = src / "manifest.json"
+    mpath = src / contract.MANIFEST_FILE
     if not mpath.is_file():
         raise InputError("not a model package (no manifest.json)", path=src)
-    m = json.loads(mpath.read_text())
+    m = contract.read_manifest_text(mpath.read_text(encoding="utf-8"), path=mpath)
     with atomic_directory(dst) as tmp:
         tmp = Path(tmp)
-        done: dict[str, str] = {}
-        for section in ("graphs", "variants"):
-            for spec in m.get(section, {}).values():
-                f = spec["file"]
-                if f not in done:
-                    convert_graph(src / f, tmp / f, precision)
-                    done[f] = _sha256(tmp / f)
-                spec["sha256"] = done[f]
+        graphs = {}
+        for name, spec in m["graphs"].items():
+            f = contract.graph_file(name)
+            convert_graph(src / spec["file"], tmp / f, precision)
+            graphs[name] = dict(spec, file=f)
+        weights = pack_graphs(tmp, [g["file"] for g in graphs.values()])
+        for g in graphs.values():
+            g["sha256"] = _sha256(tmp / g["file"])
         for extra in src.iterdir():  # the model card and the like, not the checkpoint or reports
             if extra.is_file() and extra.suffix in (".md", ".txt") and not (tmp / extra.name).exists():
                 shutil.copyfile(extra, tmp / extra.name)
-        m["precision"] = precision
-        (tmp / "manifest.json").write_text(json.dumps(m, indent=1))
+        out = {k: v for k, v in m.items() if k not in ("graphs", "weights", "upgraded_from")}
+        out.update(schema_version=contract.SCHEMA_VERSION, graphs=graphs, precision=precision)
+        if weights is not None:
+            out["weights"] = weights
+        contract.validate_manifest(out, path=dst / contract.MANIFEST_FILE)
+        (tmp / contract.MANIFEST_FILE).write_text(json.dumps(out, indent=2, sort_keys=True) + "\n")
     return dst

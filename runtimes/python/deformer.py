@@ -54,6 +54,11 @@ class Deformer:
         self.encoder_runs = 0
         #: residual-weights models take the body's weights at the garment (``log_wbody``)
         self.needs_body_weights = any(i["name"] == "log_wbody" for i in spec["inputs"])
+        enc = package.spec("garment_encoder")
+        #: the encoder's output, fed to every deformer call under the same name without its batch axis:
+        #: ``g (N, S)`` (older packages: ``P (N, S, F_enc)``, from an encoder that also took betas)
+        self.code_name = enc["outputs"][0]["name"]
+        self._encoder_inputs = [i["name"] for i in enc["inputs"]]
 
     # ---- encoder -------------------------------------------------------
     def _betas(self, betas) -> np.ndarray:
@@ -68,7 +73,7 @@ class Deformer:
 
     def encode(self, asset: GarmentAsset, joints: np.ndarray, betas=None, *,
                cache_dir: str | os.PathLike | None = None) -> np.ndarray:
-        """The target-aware features ``P (N, S, F_enc)`` for a garment on a body shape.
+        """The garment code the deformer takes, ``g (N, S)`` (``P (N, S, F_enc)`` for older packages).
 
         Vertex features are recomputed for ``joints`` (the body's rest joints
         for ``betas``).  Results are cached in memory and, when ``cache_dir``
@@ -101,8 +106,8 @@ class Deformer:
                     return P
             except (OSError, ValueError):
                 log.warning("ignoring unreadable encoder cache %s", path)
-        P = self.package.run("garment_encoder", {"features": feats[None], "nbr": asset.nbr, "mask": asset.mask,
-                                                 "descriptor": desc[None], "betas": b[None]})[0][0]
+        avail = {"features": feats[None], "nbr": asset.nbr, "mask": asset.mask, "descriptor": desc[None], "betas": b[None]}
+        P = self.package.run("garment_encoder", {k: avail[k] for k in self._encoder_inputs if k in avail})[0][0]
         self.encoder_runs += 1
         if not np.isfinite(P).all():
             raise InputError("the garment encoder produced NaN or inf")
@@ -136,7 +141,7 @@ class Deformer:
         """Deform a batch of frames.
 
         Shapes:
-            P: (N, S, F_enc), windows: (B, T, 3 S) (T = the variant's window; window[:, 0] is
+            P: the output of :meth:`encode`, (N, S) (or (N, S, F_enc)), windows: (B, T, 3 S) (T = the variant's window; window[:, 0] is
             the current pose), joints: (S, 3) rest joints, trans: (B, 3),
             log_wbody: (N, S) for residual-weights models (:meth:`body_log_weights`)
             -> vertices (B, N, 3); with ``outputs=True`` also weights (B, N, S) and blend shapes (B, N, 3)
@@ -149,7 +154,7 @@ class Deformer:
         b = np.repeat(self._betas(betas)[None], bsz, axis=0)
         j = np.repeat(np.asarray(joints, np.float32)[None], bsz, axis=0)
         feeds = {
-            "P": np.asarray(P, np.float32), "window": w, "betas": b, "rest": asset.vertices.astype(np.float32),
+            self.code_name: np.asarray(P, np.float32), "window": w, "betas": b, "rest": asset.vertices.astype(np.float32),
             "nbr": asset.nbr, "mask": asset.mask, "joints": j, "trans": np.asarray(trans, np.float32),
         }
         if self.needs_body_weights:

@@ -1,25 +1,34 @@
-"""Model packages: ``manifest.json`` plus ONNX graphs, validated before any session runs."""
+"""Model packages: ``manifest.json`` plus ONNX graphs, validated before any session runs.
+
+The package format is :mod:`segadeform.package_spec` (``docs/package.md``): the manifest is read and
+checked through it (schema-1 manifests are upgraded on reading), and the deformer for a set of
+effects is chosen by its rule."""
 
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 from pathlib import Path
 
 import numpy as np
 
-from segadeform.errors import FileFormatError, InputError
+from segadeform import package_spec as contract
+from segadeform.errors import InputError
+from segadeform.package_spec import PackageError
 
 __all__ = ["ModelPackage", "PackageError", "SUPPORTED_SCHEMA", "SUPPORTED_OPSETS"]
 
-SUPPORTED_SCHEMA = (1,)
-SUPPORTED_OPSETS = range(17, 22)
+SUPPORTED_SCHEMA = contract.READABLE_SCHEMAS
+SUPPORTED_OPSETS = contract.SUPPORTED_OPSETS
 _ORT_TYPES = {"tensor(float)": "float32", "tensor(int64)": "int64", "tensor(bool)": "bool"}
 
 
-class PackageError(FileFormatError):
-    """A model package is malformed or its manifest and ONNX files disagree."""
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
 
 
 class ModelPackage:
@@ -48,42 +57,29 @@ class ModelPackage:
 
     # ---- manifest -----------------------------------------------------
     def _read_manifest(self, verify_hashes: bool) -> dict:
-        mpath = self.path / "manifest.json"
+        mpath = self.path / contract.MANIFEST_FILE
         if not self.path.is_dir():
             raise PackageError("model package must be a folder", path=self.path)
         try:
-            m = json.loads(mpath.read_text(encoding="utf-8"))
+            text = mpath.read_text(encoding="utf-8")
         except FileNotFoundError:
             raise PackageError("model package has no manifest.json", path=self.path) from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        except (OSError, UnicodeDecodeError) as e:
             raise PackageError(f"manifest is not valid JSON ({e})", path=mpath) from None
-        if not isinstance(m, dict):
-            raise PackageError("manifest must be a JSON object", path=mpath)
-        for key in ("schema_version", "opset", "config", "graphs", "joint_names"):
-            if key not in m:
-                raise PackageError(f"manifest has no '{key}'", path=mpath)
-        if m["schema_version"] not in SUPPORTED_SCHEMA:
-            raise PackageError("unsupported manifest schema version", path=mpath,
-                               expected=" or ".join(map(str, SUPPORTED_SCHEMA)), got=m["schema_version"])
-        if m["opset"] not in SUPPORTED_OPSETS:
-            raise PackageError("unsupported ONNX opset", path=mpath,
-                               expected=f"{SUPPORTED_OPSETS.start}..{SUPPORTED_OPSETS.stop - 1}", got=m["opset"])
-        if "garment_encoder" not in m["graphs"] or "deformer" not in m["graphs"]:
-            raise PackageError("manifest must describe 'garment_encoder' and 'deformer'", path=mpath,
-                               got=", ".join(m["graphs"]))
-        if len(m["joint_names"]) != m["config"].get("n_joints"):
-            raise PackageError("manifest joint_names do not match config.n_joints", path=mpath,
-                               expected=m["config"].get("n_joints"), got=len(m["joint_names"]))
-        specs = dict(m["graphs"], **m.get("variants", {}))
-        for name, spec in specs.items():
-            f = self.path / spec.get("file", "")
-            if not spec.get("file") or not f.is_file():
-                raise PackageError(f"graph '{name}' file is missing", path=f)
-            if verify_hashes and "sha256" in spec:
-                h = hashlib.sha256(f.read_bytes()).hexdigest()
-                if h != spec["sha256"]:
-                    raise PackageError(f"graph '{name}' does not match its manifest hash", path=f,
-                                       expected=spec["sha256"][:16] + "...", got=h[:16] + "...")
+        m = contract.read_manifest_text(text, path=mpath)
+        files = [(f"graph '{name}'", f"graph '{name}' file", spec["file"], spec.get("sha256"))
+                 for name, spec in m["graphs"].items()]
+        if "weights" in m:
+            files.append(("the weights file", "the weights file", m["weights"]["file"], m["weights"].get("sha256")))
+        for what, what_file, name, sha in files:
+            f = self.path / name
+            if not f.is_file():
+                raise PackageError(f"{what_file} is missing", path=f)
+            if verify_hashes and sha:
+                h = _sha256(f)
+                if h != sha:
+                    raise PackageError(f"{what} does not match its manifest hash", path=f,
+                                       expected=sha[:16] + "...", got=h[:16] + "...")
         return m
 
     def _providers(self, providers):
@@ -102,28 +98,29 @@ class ModelPackage:
         return providers
 
     # ---- graphs --------------------------------------------------------
+    @property
+    def default_deformer(self) -> str:
+        """The deformer for the model's own effects (its skinning and blend shapes, with dynamics)."""
+        return self.manifest["default_deformer"]
+
     def spec(self, name: str) -> dict:
-        specs = dict(self.manifest["graphs"], **self.manifest.get("variants", {}))
-        if name not in specs:
-            raise PackageError(f"package has no graph '{name}'", path=self.path, expected=", ".join(sorted(specs)))
-        return specs[name]
+        """The manifest entry of graph ``name`` (``"deformer"``: the :attr:`default_deformer`)."""
+        graphs = self.manifest["graphs"]
+        if name == contract.DEFORMER:
+            name = self.default_deformer
+        if name not in graphs:
+            raise PackageError(f"package has no graph '{name}'", path=self.path, expected=", ".join(sorted(graphs)))
+        return graphs[name]
 
     def variant_for(self, effects) -> str:
-        """The deformer graph for ``effects`` (skinning, wrinkles, dynamics)."""
-        want = {"skinning": effects.skinning, "wrinkles": effects.wrinkles, "dynamics": effects.dynamics}
-        variants = self.manifest.get("variants", {})
-        for name, v in variants.items():
-            if v.get("effects") == want:
-                return name
-        cfg = self.config
-        default = {"skinning": cfg["skinning"], "wrinkles": cfg["use_blend_shapes"], "dynamics": True}
-        if default == want:
-            return "deformer"
-        have = [v.get("effects") for v in variants.values()] or [default]
-        raise PackageError("package has no deformer for these effects", path=self.path, expected=str(have), got=str(want))
+        """The deformer graph for ``effects`` (skinning, wrinkles, dynamics), by the contract's rule
+        (:func:`segadeform.package_spec.select_deformer`: an exact match, or an error listing the graphs)."""
+        return contract.select_deformer(self.manifest, effects, path=self.path)
 
     def session(self, name: str):
         """The onnxruntime session for graph ``name``, created (and checked against the manifest) on first use."""
+        if name == contract.DEFORMER:
+            name = self.default_deformer
         if name in self.created:
             return self.created[name]
         import onnxruntime as ort
@@ -139,6 +136,13 @@ class ModelPackage:
         except Exception as e:
             raise PackageError(f"onnxruntime cannot load graph '{name}' ({str(e).splitlines()[0][:200]})", path=path) from None
         self._check_io(name, spec, sess, path)
+        feedable = set(contract.FEEDS[spec["role"]])
+        if spec["role"] == "deformer":
+            feedable.add(contract.code_name(self.manifest))
+        unknown = [i["name"] for i in spec["inputs"] if i["name"] not in feedable]
+        if unknown:
+            raise PackageError(f"graph '{name}' takes inputs this runtime cannot feed", path=path,
+                               expected=", ".join(sorted(feedable)), got=", ".join(unknown))
         self.created[name] = sess
         return sess
 

@@ -29,7 +29,7 @@ from segadeform.body.collision import BodyCollider, push_out
 from segadeform.errors import InputError
 from segadeform.garments.fit import check_placement
 from segadeform.geometry import GarmentAsset, precompute_garment
-from segadeform.geometry.asset import file_sha256
+from segadeform.geometry.asset import PORTABLE_SUFFIX, file_sha256
 from segadeform.io import SceneOutput, read_mesh
 from segadeform.motion import Motion, motion_windows
 from segadeform.scene import Effects, Scene, build_motion  # noqa: F401  (build_motion re-exported)
@@ -76,7 +76,7 @@ class Run:
     """One configured run; :meth:`execute` streams it.  Built from a :class:`Scene` by :func:`run_scene`.
 
     Args:
-        garment: mesh file (OBJ, PLY, ...) or a precomputed asset ``.npz``.
+        garment: mesh file (OBJ, PLY, ...) or a precomputed asset (``.npz`` or portable ``.sgda``).
         motion: a :class:`Motion`.
         package: a :class:`ModelPackage`.
         body: a :class:`BodyModel`.
@@ -124,7 +124,7 @@ class Run:
         return cache_dir()
 
     def load_asset(self, joints: np.ndarray) -> GarmentAsset:
-        if self.garment.suffix.lower() == ".npz":
+        if self.garment.suffix.lower() in (".npz", PORTABLE_SUFFIX):
             return GarmentAsset.load(self.garment)
         n_star = int(self.package.config["n_star"])
         sha = file_sha256(self.garment) if self.garment.is_file() else ""

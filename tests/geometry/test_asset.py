@@ -37,6 +37,35 @@ def test_round_trip(tmp_path, asset):
     assert leftovers(tmp_path) == []
 
 
+def test_portable_round_trip_is_exact(tmp_path, asset):
+    """The portable form (.sgda, the bundle container: read by the Node and C++ runtimes' bundle readers)."""
+    from segadeform.bundle import read_bundle, write_bundle
+
+    asset.save(tmp_path / "a.sgda")
+    b = GarmentAsset.load(tmp_path / "a.sgda")
+    for fld in dataclasses.fields(GarmentAsset):
+        x, y = getattr(asset, fld.name), getattr(b, fld.name)
+        if isinstance(x, np.ndarray):
+            np.testing.assert_array_equal(x, y)
+            assert x.dtype == y.dtype
+        else:
+            assert x == y
+    arrays, meta = read_bundle(tmp_path / "a.sgda")  # what a runtime without Python sees
+    assert meta["kind"] == "segadeform-garment-asset" and meta["schema_version"] == 1
+    assert {k: a.dtype.str for k, a in arrays.items()} == {
+        "vertices": "<f8", "faces": "<i4", "normals": "<f4", "features": "<f4", "nbr": "<i4", "mask": "|u1",
+        "joints": "<f8", "descriptor": "<f8", "fps_samples": "<i4"}
+    write_bundle(tmp_path / "x.sgda", dict(arrays, nbr=arrays["nbr"] + 10**6), meta)
+    with pytest.raises(FileFormatError, match="x.sgda: asset field 'nbr' has an index out of range"):
+        GarmentAsset.load(tmp_path / "x.sgda")
+    write_bundle(tmp_path / "k.sgda", arrays, dict(meta, kind="scene-bundle"))
+    with pytest.raises(FileFormatError, match="not a garment asset"):
+        GarmentAsset.load(tmp_path / "k.sgda")
+    write_bundle(tmp_path / "d.sgda", dict(arrays, faces=arrays["faces"].astype(np.int64)), meta)
+    with pytest.raises(FileFormatError, match="'faces' is missing or has the wrong dtype"):
+        GarmentAsset.load(tmp_path / "d.sgda")
+
+
 def corrupt(tmp_path, asset, **changes):
     z = dict(np.load(tmp_path / "a.npz", allow_pickle=False)) if (tmp_path / "a.npz").exists() else None
     if z is None:

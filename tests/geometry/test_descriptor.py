@@ -90,3 +90,24 @@ def test_dissimilarity_properties():
     assert dissimilarity(a, b) == pytest.approx(0.5 * (1 / 3 + 0 + 0.25 / 0.5 + 0))
     with pytest.raises(InputError):
         dissimilarity(a, b[:3])
+
+
+def test_rescaled_descriptor_at_other_n_star_approximates_the_trained_one(samples):
+    """A descriptor from m samples, rescaled to the model's N*, is close to the one made at N* (what
+    bench/tradeoffs.py feeds a model at another N*); lengths, padding and bad input."""
+    from segadeform.geometry.descriptor import rescale_descriptor
+
+    m = read_mesh(samples / "garments" / "skirt.obj")
+    ref = garment_descriptor(m.vertices, m.faces, n_star=32).eigenvalues
+    for n in (16, 64):
+        lam = rescale_descriptor(garment_descriptor(m.vertices, m.faces, n_star=n).eigenvalues, 32)
+        assert lam.shape == (32,)
+        assert abs(lam[0] - ref[0]) < 0.05 * ref[0]
+        assert dissimilarity(lam, ref) < dissimilarity(np.zeros(32), ref)
+    np.testing.assert_allclose(rescale_descriptor(ref, 32), ref)
+    np.testing.assert_allclose(rescale_descriptor([2.0, 1.0], 4), [4.0, 2.0, 0.0, 0.0])
+    for bad in ([], [np.nan]):
+        with pytest.raises(InputError):
+            rescale_descriptor(bad, 32)
+    with pytest.raises(InputError):
+        rescale_descriptor(ref, 0)

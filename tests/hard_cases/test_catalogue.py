@@ -82,8 +82,7 @@ def run_case(case, models, body, tmp_path):
     d_feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
     with torch.no_grad():
         P_t = nets["lbs"].garment_encoder(torch.as_tensor(d_feats[None]), torch.as_tensor(asset.nbr),
-                                          torch.as_tensor(asset.mask), torch.as_tensor(asset.descriptor[None]).float(),
-                                          torch.as_tensor(betas[None]).float())[0].numpy()
+                                          torch.as_tensor(asset.mask), torch.as_tensor(asset.descriptor[None]).float())[0].numpy()
     parity(P_t, P_ort, "garment encoder")
     win = motion_windows(motion.poses, nets["lbs"].cfg.window).astype(np.float32)
     results = {}
@@ -92,7 +91,7 @@ def run_case(case, models, body, tmp_path):
         lw = dd.body_log_weights(asset, body, betas)
         verts, weights, blend = dd.deform(P_ort, asset, win, joints, motion.trans, betas, outputs=True, log_wbody=lw)
         t = {k: torch.as_tensor(x) for k, x in dict(
-            P=P_ort, window=win, betas=np.repeat(betas[None], len(win), 0).astype(np.float32),
+            g=P_ort, window=win, betas=np.repeat(betas[None], len(win), 0).astype(np.float32),
             rest=asset.vertices.astype(np.float32), nbr=asset.nbr, mask=asset.mask,
             joints=np.repeat(joints[None], len(win), 0).astype(np.float32), trans=motion.trans.astype(np.float32),
             log_wbody=lw).items()}
@@ -151,8 +150,7 @@ def test_catalogue_has_at_least_30_cases():
 def _torch_encoder(net, feats, asset, betas):
     with torch.no_grad():
         return net.garment_encoder(torch.as_tensor(feats), torch.as_tensor(asset.nbr), torch.as_tensor(asset.mask),
-                                   torch.as_tensor(asset.descriptor[None]).float(),
-                                   torch.as_tensor(betas[None]).float())[0].numpy()
+                                   torch.as_tensor(asset.descriptor[None]).float())[0].numpy()
 
 
 def test_garment_200k_vertices(models, body):
@@ -216,8 +214,7 @@ def test_attention_numerics(models, body, kind):
         feats = np.zeros((1, len(v), 30), np.float32)
     sess = pkg.session("garment_encoder")
     got = sess.run(None, {"features": feats, "nbr": asset.nbr, "mask": asset.mask,
-                          "descriptor": asset.descriptor[None].astype(np.float32),
-                          "betas": np.zeros((1, 10), np.float32)})[0][0]
+                          "descriptor": asset.descriptor[None].astype(np.float32)})[0][0]
     parity(_torch_encoder(nets["lbs"], feats, asset, np.zeros(10)), got, f"encoder, {kind} features")
     # the SEGA bound holds at these inputs too (Theorem 2)
     from segadeform.model.lipschitz import lipschitz_estimate
@@ -251,7 +248,7 @@ def test_fp16_model(models, body, tmp_path):
 
     feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))[None]
     enc = {"features": feats.astype(np.float16), "nbr": asset.nbr, "mask": asset.mask,
-           "descriptor": asset.descriptor[None].astype(np.float16), "betas": np.zeros((1, 10), np.float16)}
+           "descriptor": asset.descriptor[None].astype(np.float16)}
     specs = graph_specs(net32.cfg)
     w = _wrappers(net16)
     _export_one(w["garment_encoder"], specs["garment_encoder"], enc, tmp_path / "enc16.onnx", dynamo=True)
@@ -262,7 +259,7 @@ def test_fp16_model(models, body, tmp_path):
     assert np.isfinite(P16).all()
     assert np.abs(P16.astype(np.float64) - P32).max() / np.abs(P32).max() < FP16_RTOL
     win = motion_windows(poses, 5)
-    dec = {"P": P16, "window": win.astype(np.float16), "betas": np.zeros((len(win), 10), np.float16),
+    dec = {"g": P16, "window": win.astype(np.float16), "betas": np.zeros((len(win), 10), np.float16),
            "rest": asset.vertices.astype(np.float16), "nbr": asset.nbr, "mask": asset.mask,
            "joints": np.repeat(joints[None], len(win), 0).astype(np.float16), "trans": trans.astype(np.float16)}
     if net32.residual:

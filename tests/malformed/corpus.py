@@ -247,7 +247,7 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
         pkgcase("manifest_not_json", lambda p: (p / "manifest.json").write_text("{,"), "not valid JSON")
         pkgcase("schema_99", man(schema_version=99), "schema version")
         pkgcase("graph_missing", lambda p: (p / "garment_encoder.onnx").unlink(), "file is missing")
-        pkgcase("graph_corrupt", lambda p: (p / "deformer.onnx").write_bytes(b"\x08\x01junk"), "manifest hash")
+        pkgcase("graph_corrupt", lambda p: (p / "deformer_lbs.onnx").write_bytes(b"\x08\x01junk"), "manifest hash")
         pkgcase("manifest_disagrees_with_onnx",
                 man(rename=lambda m: m["graphs"]["garment_encoder"]["inputs"][0].update(name="vertex_features")),
                 "disagree with the manifest")

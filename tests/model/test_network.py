@@ -13,16 +13,16 @@ def run(net, n=40, k=6, b=3):
     dec_in = sample_inputs(net.cfg, "deformer", n=n, k=k, b=b)
     t = {k_: torch.as_tensor(v) for k_, v in {**enc_in, **dec_in}.items()}
     with torch.no_grad():
-        P = net.garment_encoder(t["features"], t["nbr"], t["mask"], t["descriptor"], torch.as_tensor(enc_in["betas"]))
-        return P, net.deformer(P[0], t["window"], t["betas"], t["rest"], t["nbr"], t["mask"], t["joints"], t["trans"],
+        g = net.garment_encoder(t["features"], t["nbr"], t["mask"], t["descriptor"])
+        return g, net.deformer(g[0], t["window"], t["betas"], t["rest"], t["nbr"], t["mask"], t["joints"], t["trans"],
                                t.get("log_wbody"))
 
 
 def test_shapes_and_weights_are_a_partition_of_unity():
     torch.manual_seed(0)
     net = SEGANet(ModelConfig()).eval()
-    P, (v, w, b) = run(net)
-    assert P.shape == (1, 40, 24, 8)
+    g, (v, w, b) = run(net)
+    assert g.shape == (1, 40, 24)
     assert v.shape == (3, 40, 3) and w.shape == (3, 40, 24) and b.shape == (3, 40, 3)
     assert (w >= 0).all() and torch.allclose(w.sum(-1), torch.ones(3, 40), atol=1e-6)
 
@@ -36,14 +36,15 @@ def test_no_blend_shapes_means_b_is_zero_and_skinning_of_rest():
 
 
 def test_weights_follow_eq16():
-    """W~ = softmax_j(sum_i P[k, j, i] f^mo1(Theta)_i), computed by hand (the paper's free weights)."""
+    """W~ = softmax_j(sum_i P[k, j, i] f^mo1(Theta)_i), with Eq. 15's P formed by hand (the paper's free weights)."""
     torch.manual_seed(0)
     net = SEGANet(ModelConfig(weights="free")).eval()
     dec_in = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=20, k=5, b=2).items()}
     with torch.no_grad():
-        _, w, _ = net.deformer(*(dec_in[k] for k in ("P", "window", "betas", "rest", "nbr", "mask", "joints", "trans")))
+        _, w, _ = net.deformer(*(dec_in[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans")))
         mo1 = net.mo1(dec_in["window"])
-        ref = torch.softmax(torch.einsum("kji,bi->bkj", dec_in["P"], mo1), dim=-1)
+        P = net.target_features(dec_in["g"][None].expand(2, -1, -1), dec_in["betas"])  # (B, N, S, F_enc)
+        ref = torch.softmax(torch.einsum("bkji,bi->bkj", P, mo1), dim=-1)
     torch.testing.assert_close(w, ref)
 
 
@@ -53,7 +54,7 @@ def test_identity_pose_with_zero_blend_keeps_rest_up_to_trans():
     d = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=20, k=5, b=2).items()}
     d["window"] = torch.zeros_like(d["window"])
     with torch.no_grad():
-        v, _, _ = net.deformer(*(d[k] for k in ("P", "window", "betas", "rest", "nbr", "mask", "joints", "trans",
+        v, _, _ = net.deformer(*(d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans",
                                                  "log_wbody")))
     torch.testing.assert_close(v, d["rest"][None] + d["trans"][:, None], atol=1e-5, rtol=1e-5)
 
@@ -88,17 +89,27 @@ def test_freeze_keeps_outputs():
     torch.testing.assert_close(run(net)[1][0], before, atol=1e-5, rtol=1e-5)
 
 
-def test_modulated_decoder_equals_materialised_blend_features():
-    """The factored X^mid = P' * mo2 path gives what the literal Eq. 17 product gives."""
+def test_factored_decoder_equals_materialised_blend_features():
+    """The deformer's factored X^mid = g @ lift gives what the literal Eq. 17 product P * mo2 gives,
+    with P formed from Eq. 15 and the decoder run on the (B, N, S F_enc) features."""
     torch.manual_seed(0)
-    net = SEGANet(ModelConfig()).eval()
+    net = SEGANet(ModelConfig(weights="free")).eval()
     d = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=30, k=5, b=3).items()}
     with torch.no_grad():
+        _, _, factored = net.deformer(*(d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans")))
         mo2 = net.mo2(d["window"], d["betas"])
-        p2 = d["P"].reshape(30, -1)
-        factored = net.dec(p2, d["nbr"], d["mask"], modulation=mo2)
-        literal = net.dec(p2[None] * mo2[:, None, :], d["nbr"], d["mask"])
+        P = net.target_features(d["g"][None].expand(3, -1, -1), d["betas"]).reshape(3, 30, -1)
+        literal = net.dec.out(_decoder_blocks(net, P * mo2[:, None, :], d))
     torch.testing.assert_close(factored, literal, atol=1e-5, rtol=1e-5)
+
+
+def _decoder_blocks(net, x, d):
+    """The decoder's blocks on materialised features, each by its slow reference forward."""
+    from segadeform.model.modules import elu
+
+    for blk in net.dec.blocks:
+        x = elu(blk.forward_reference(x, d["nbr"], d["mask"]))
+    return x
 
 
 def test_mean_body_shape_does_not_zero_the_features():
@@ -106,9 +117,8 @@ def test_mean_body_shape_does_not_zero_the_features():
     torch.manual_seed(0)
     net = SEGANet(ModelConfig()).eval()
     enc = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "garment_encoder", n=20, k=5, b=1).items()}
-    enc["betas"] = torch.zeros(1, 10)
     with torch.no_grad():
-        P = net.garment_encoder(**enc)
+        P = net.target_features(net.garment_encoder(**enc), torch.zeros(1, 10))
     assert P.abs().max() > 1e-3
 
 
@@ -151,10 +161,10 @@ def test_untrained_residual_model_is_lbs_with_the_body_weights():
 def test_residual_gates_learn_and_old_configs_load_free():
     net = SEGANet(ModelConfig()).train()
     d = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=20, k=5, b=2).items()}
-    v, w, b = net.deformer(*(d[k] for k in ("P", "window", "betas", "rest", "nbr", "mask", "joints", "trans",
+    v, w, b = net.deformer(*(d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans",
                                              "log_wbody")))
     (v.sum() + w.pow(2).sum()).backward()
     assert net.weight_gate.grad.abs() > 0 and net.blend_gate.grad.abs() > 0
     assert ModelConfig.from_dict({"hidden": 32}).weights == "free"
     with pytest.raises(InputError, match="needs log_wbody"):
-        net.deformer(*(d[k] for k in ("P", "window", "betas", "rest", "nbr", "mask", "joints", "trans")))
+        net.deformer(*(d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans")))

@@ -195,7 +195,13 @@ def corrupt(tmp_path, random_package, edit):
     (lambda p: _manifest(p, schema_version=99), "schema version"),
     (lambda p: _manifest(p, opset=7), "opset"),
     (lambda p: (p / "deformer_dqs.onnx").unlink(), "file is missing"),
-    (lambda p: (p / "deformer.onnx").write_bytes(b"junk"), "does not match its manifest hash"),
+    (lambda p: (p / "deformer_lbs.onnx").write_bytes(b"junk"), "does not match its manifest hash"),
+    (lambda p: (p / "weights.bin").write_bytes(b"junk"), "weights file does not match its manifest hash"),
+    (lambda p: (p / "weights.bin").unlink(), "the weights file is missing"),
+    (lambda p: _manifest(p, graphs=dict(_m(p)["graphs"], deformer_lbs_static=_m(p)["graphs"]["deformer_lbs"])),
+     "name the same file"),
+    (lambda p: _manifest(p, default_deformer="deformer"), "default_deformer is not a deformer graph"),
+    (lambda p: _manifest(p, format="something-else"), "not a segadeform model package"),
     (lambda p: _rename_input(p), "disagree with the manifest"),
 ])
 def test_broken_packages_are_refused(tmp_path, random_package, edit, words):
@@ -203,6 +209,10 @@ def test_broken_packages_are_refused(tmp_path, random_package, edit, words):
     with pytest.raises(PackageError, match=words):
         pkg = ModelPackage(p)
         pkg.session("deformer")
+
+
+def _m(p):
+    return json.loads((p / "manifest.json").read_text())
 
 
 def _manifest(p, **kw):
@@ -213,7 +223,7 @@ def _manifest(p, **kw):
 
 def _rename_input(p):
     m = json.loads((p / "manifest.json").read_text())
-    m["graphs"]["deformer"]["inputs"][1]["name"] = "motion"
+    m["graphs"][m["default_deformer"]]["inputs"][3]["name"] = "rest_positions"  # (was "rest")
     (p / "manifest.json").write_text(json.dumps(m))
 
 

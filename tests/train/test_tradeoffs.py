@@ -1,9 +1,11 @@
-"""bench/tradeoffs.py: the frontier rule, and a tiny run end to end (table, plot, JSON)."""
+"""bench/tradeoffs.py: the frontier rule, the row plan, and a tiny run end to end over every knob (table,
+presets, the simulator's axis with a stand-in simulator, plot, JSON)."""
 
 from __future__ import annotations
 
 import importlib.util
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -14,6 +16,7 @@ from ..conftest import REPO
 def _bench():
     spec = importlib.util.spec_from_file_location("tradeoffs_bench", REPO / "bench" / "tradeoffs.py")
     mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod  # dataclasses look their module up there
     spec.loader.exec_module(mod)
     return mod
 
@@ -25,15 +28,80 @@ def test_frontier_keeps_only_undominated_points():
     assert f(pts) == ["fast", "mid", "tie", "slow-good"]
 
 
+def test_every_preset_is_a_planned_row_with_its_effects_and_margin():
+    from segadeform.presets import QUALITY_PRESETS
+
+    b = _bench()
+    rows, presets = b.plan_rows("PKG", "Q8", {"wide": "W"})
+    names = [r.name for r in rows]
+    assert len(names) == len(set(names))
+    by = {r.name: r for r in rows}
+    for r in rows:  # a push-out row follows the row it pushes out
+        if r.base is not None:
+            assert names.index(r.base) < names.index(r.name) and by[r.base].spec == r.spec
+    assert set(presets) == set(QUALITY_PRESETS)
+    for name, rn in presets.items():
+        e, r = QUALITY_PRESETS[name].effects, by[rn]
+        assert r.spec == "PKG" and r.effects == b.effects_key(e)
+        assert r.margin == (e.collision_margin if e.collisions else None)
+    assert {"K=4", "N*=16", "batch 1", "garment 1/4 res", "wide + push-out 4 mm", "int8"} <= set(names)
+
+
 def test_tradeoffs_runs_on_a_tiny_dataset(synthetic_dataset, random_package, tmp_path):
     pytest.importorskip("matplotlib")
     out = tmp_path / "docs"
-    assert _bench().main([str(synthetic_dataset), "--package", str(random_package), "-o", str(out)]) == 0
+    calls = []
+
+    def fake_simulator(sid, quality):  # a simulator whose error falls as 1/quality and whose cost grows with it
+        from segadeform.dataset.store import load_sample
+
+        calls.append((sid, quality))
+        x = load_sample(synthetic_dataset, sid).frames.astype(np.float64)
+        return x + 0.01 / quality, 0.01 * quality
+
+    b = _bench()
+    argv = [str(synthetic_dataset), "--package", str(random_package), "--model", f"again={random_package}",
+            "-o", str(out), "--repeats", "1", "--threads-all", "2", "--ks", "4", "--n-stars", "16",
+            "--batches", "3", "--resolutions", "1/2,4x", "--sim-qualities", "2,5", "--sim-reference", "20"]
+    assert b.main(argv, _simulate=fake_simulator) == 0
     md = (out / "accuracy-vs-time.md").read_text()
-    for row in ("lbs", "all effects", "no wrinkles", "int8", "push-out 2 mm", "push-out 8 mm"):
-        assert f"| {row}" in md or row in md, row
     data = json.loads((out / "accuracy-vs-time.json").read_text())
-    assert data["frontier"] and set(data["frontier"]) <= set(data["rows"])
-    assert all(np.isfinite(v["vertex_cm"]) and v["ms_per_frame"] > 0 for v in data["rows"].values())
-    assert data["rows"]["lbs"]["vertex_cm"] < 1e-3  # the synthetic test sample is exactly LBS
+    rows = data["rows"]
+    for row in ("lbs", "all effects", "no wrinkles", "dqs", "int8", "again", "all effects + push-out 2 mm",
+                "all effects + push-out 8 mm", "again + push-out 4 mm", "batch 3", "K=4", "N*=16",
+                "garment 1/2 res", "garment 4x res"):
+        assert row in rows and f"| {row} |" in md, row
+    assert data["frontier"] and set(data["frontier"]) <= set(rows) and set(data["frontier_2t"]) <= set(rows)
+    for v in rows.values():
+        assert all(np.isfinite(v[k]) for k in data["metrics"] + ["setup_ms"])
+        assert v["ms_per_frame"] > 0 and v["ms_per_frame_all"] > 0
+    assert rows["lbs"]["vertex_cm"] < 1e-3  # the synthetic test sample is exactly LBS
+    # the same package under another name predicts the same; a batch changes only the time
+    assert rows["again"]["vertex_cm"] == pytest.approx(rows["all effects"]["vertex_cm"], rel=1e-5)
+    assert data["per_sample"]["batch 3"]["skirt__b0__swing"].get("same_as") == "all effects"
+    # push-out leaves nothing deeper than 2 mm
+    assert rows["all effects + push-out 4 mm"]["penetration_pct"] <= rows["all effects"]["penetration_pct"]
+    assert rows["all effects + push-out 4 mm"]["penetration_pct"] < 1.0
+    # the subdivided garment carries back exactly the vertices it was made from: a close prediction
+    assert abs(rows["garment 4x res"]["vertex_cm"] - rows["all effects"]["vertex_cm"]) < 0.5
+    assert data["per_sample"]["garment 1/2 res"]["skirt__b0__swing"]["vertices"] < \
+        data["per_sample"]["all effects"]["skirt__b0__swing"]["vertices"]
+    # presets: each names a row, with its error and frames per second in the docs
+    assert set(data["presets"]) == {"fast", "balanced", "best"} and set(data["presets"].values()) <= set(rows)
+    assert "## Presets" in md and "| fast |" in md and "fps" in md
+    # the simulator's axis: reference first, then each quality; errors fall with quality, speed-ups measured
+    sim = data["simulator"]
+    assert [q for _, q in calls] == [20, 2, 5] and sim["sample"] == "skirt__b0__swing"
+    assert sim["qualities"]["2"]["vertex_cm"] > sim["qualities"]["5"]["vertex_cm"] > 0
+    assert sim["qualities"]["20"]["vertex_cm"] == 0.0
+    lrn = sim["learned"]
+    assert "lbs" in lrn and set(data["presets"].values()) <= set(lrn)  # every row against the reference
+    r = lrn[data["presets"]["fast"]]
+    assert r["speedup"]["20"] == pytest.approx(1e3 * 0.2 / r["ms_per_frame"])
+    assert "simulator's quality axis" in md and "Blender quality 2" in md
+    assert f"| fast ({data['presets']['fast']}) |" in md
     assert (out / "accuracy-vs-time.png").stat().st_size > 0 and (out / "accuracy-vs-time.svg").is_file()
+    # the docs come back the same from the JSON alone (no measuring)
+    (out / "accuracy-vs-time.md").unlink()
+    assert b.main([str(synthetic_dataset), "--package", str(random_package), "-o", str(out), "--redraw"]) == 0
+    assert (out / "accuracy-vs-time.md").read_text() == md

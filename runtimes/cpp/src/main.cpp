@@ -198,10 +198,17 @@ int main(int argc, char** argv) {
     sgd::Json manifest = sgd::parse_json(read_text(dir + "/manifest.json"));
     if (!manifest.has("format") || manifest["format"].str != "segadeform-model-package")
       throw std::runtime_error(dir + ": not a segadeform model package");
+    // docs/package.md: schema 2 lists every graph once in "graphs" (deformers with role "deformer" and
+    // their effects); schema 1 listed the deformers in "variants"
+    const int schema = static_cast<int>(manifest["schema_version"].num);
+    if (schema != 1 && schema != 2)
+      throw std::runtime_error(dir + "/manifest.json: unsupported manifest schema version (expected 1 or 2, got " +
+                               std::to_string(schema) + ")");
     sgd::Bundle b = sgd::read_bundle(pos[1]);
     const sgd::Json& eff = b.meta["effects"];
     const sgd::Json* dec_spec = nullptr;
-    for (const auto& kv : manifest["variants"].obj) {
+    for (const auto& kv : (schema == 1 ? manifest["variants"] : manifest["graphs"]).obj) {
+      if (schema == 2 && (!kv.second.has("role") || kv.second["role"].str != "deformer")) continue;
       const auto& e = kv.second["effects"];
       if (e["skinning"].str == eff["skinning"].str && e["wrinkles"].b == eff["wrinkles"].b &&
           e["dynamics"].b == eff["dynamics"].b) dec_spec = &kv.second;
@@ -210,6 +217,7 @@ int main(int argc, char** argv) {
     const sgd::Json& enc_spec = manifest["graphs"]["garment_encoder"];
     OrtEnv* env;
     check(api->CreateEnv(ORT_LOGGING_LEVEL_WARNING, "segadeform", &env));
+    // sessions from the file path: the graphs may keep their weights in the package's shared weights.bin
     Session enc(env, dir + "/" + enc_spec["file"].str, threads);
     Session dec(env, dir + "/" + (*dec_spec)["file"].str, threads);
     const auto& rest = b.at("rest");
@@ -218,18 +226,26 @@ int main(int argc, char** argv) {
     int64_t W = 0;
     for (const auto& i : (*dec_spec)["inputs"].arr) if (i["name"].str == "window") W = static_cast<int64_t>(i["shape"].arr[1].num);
     auto t0 = std::chrono::steady_clock::now();
+    // the encoder's inputs, fed by name (older encoders also take betas)
     std::vector<Input> ein;
-    ein.push_back(input_from(enc_spec, "features", b.at("features"), {1, N, b.at("features").shape[1]}));
-    ein.push_back(input_from(enc_spec, "nbr", b.at("nbr"), {N, K}));
-    ein.push_back(input_from(enc_spec, "mask", b.at("mask"), {N, K}));
-    ein.push_back(input_from(enc_spec, "descriptor", b.at("descriptor"), {1, b.at("descriptor").shape[0]}));
-    ein.push_back(input_from(enc_spec, "betas", b.at("betas"), {1, NB}));
+    for (const auto& i : enc_spec["inputs"].arr) {
+      const std::string& name = i["name"].str;
+      if (name == "features")
+        ein.push_back(input_from(enc_spec, name, b.at("features"), {1, N, b.at("features").shape[1]}));
+      else if (name == "nbr") ein.push_back(input_from(enc_spec, name, b.at("nbr"), {N, K}));
+      else if (name == "mask") ein.push_back(input_from(enc_spec, name, b.at("mask"), {N, K}));
+      else if (name == "descriptor")
+        ein.push_back(input_from(enc_spec, name, b.at("descriptor"), {1, b.at("descriptor").shape[0]}));
+      else if (name == "betas") ein.push_back(input_from(enc_spec, name, b.at("betas"), {1, NB}));
+      else throw std::runtime_error("the garment encoder takes '" + name + "', which this runtime cannot feed");
+    }
+    // its one output, without the batch axis, is the deformer input of the same name (g (N, S); older: P (N, S, F))
+    const std::string code_name = enc_spec["outputs"].arr[0]["name"].str;
     std::vector<int64_t> pshape;
-    std::vector<float> P = enc.run(ein, enc_spec["outputs"].arr[0]["name"].str, &pshape);
+    std::vector<float> code = enc.run(ein, code_name, &pshape);
     release(ein);
-    const int64_t F = pshape[3];
     std::vector<Input> fixed;
-    fixed.push_back(input_floats("P", P, {N, S, F}));
+    fixed.push_back(input_floats(code_name, code, std::vector<int64_t>(pshape.begin() + 1, pshape.end())));
     fixed.push_back(input_from(*dec_spec, "rest", rest, {N, 3}));
     fixed.push_back(input_from(*dec_spec, "nbr", b.at("nbr"), {N, K}));
     fixed.push_back(input_from(*dec_spec, "mask", b.at("mask"), {N, K}));

@@ -6,31 +6,64 @@ import * as ort from "onnxruntime-node";
 
 export { parseBundle, readBundle } from "./bundle.js";
 
-/** Read a model package's manifest and check every graph file against its sha256. */
+const FORMAT = "segadeform-model-package";
+
+/**
+ * Read a model package's manifest (docs/package.md) and check every file against its sha256.
+ * Schema-1 manifests are read in schema-2 form: `graphs` holds every graph once, each deformer with
+ * its `effects`; `default_deformer` names the model's own.
+ */
 export function loadManifest(dir) {
   const path = join(dir, "manifest.json");
   if (!existsSync(path)) throw new Error(`${dir}: no manifest.json (not a model package)`);
-  const m = JSON.parse(readFileSync(path, "utf8"));
-  if (m.format !== "segadeform-model-package") throw new Error(`${path}: not a segadeform model package`);
+  let m = JSON.parse(readFileSync(path, "utf8"));
+  if (m.format !== FORMAT && m.schema_version !== 1) throw new Error(`${path}: not a segadeform model package`);
+  if (m.schema_version === 1) m = upgradeManifest(m);
+  else if (m.schema_version !== 2) {
+    throw new Error(`${path}: unsupported manifest schema version (expected 1 or 2, got ${m.schema_version})`);
+  }
+  if (!m.graphs || !m.graphs.garment_encoder) throw new Error(`${path}: manifest has no garment_encoder`);
+  for (const [name, g] of Object.entries(m.graphs)) checkHash(dir, g.file, g.sha256, `graph '${name}'`);
+  if (m.weights) checkHash(dir, m.weights.file, m.weights.sha256, "the weights file");
   return m;
 }
 
-/** The deformer graph for a set of effects: the manifest's variant whose effects match. */
+/** Schema 1 -> 2 (segadeform.package_spec.upgrade_manifest): one name per graph. */
+function upgradeManifest(m) {
+  const graphs = { garment_encoder: { ...m.graphs.garment_encoder, role: "encoder" } };
+  let dflt = null;
+  for (const [name, v] of Object.entries(m.variants || {})) {
+    graphs[name] = { ...v, role: "deformer" };
+    if (v.file === m.graphs.deformer.file) dflt = name;
+  }
+  if (dflt === null) {
+    const c = m.config;
+    const effects = { skinning: c.skinning, wrinkles: c.use_blend_shapes, dynamics: true };
+    dflt = `deformer_${c.skinning}${c.use_blend_shapes ? "" : "_nowrinkles"}`;
+    const win = m.graphs.deformer.inputs.find((i) => i.name === "window").shape[1];
+    graphs[dflt] = { ...m.graphs.deformer, role: "deformer", effects, window: win };
+  }
+  const { variants, ...rest } = m;
+  return { ...rest, format: FORMAT, schema_version: 2, graphs, default_deformer: dflt, upgraded_from: 1 };
+}
+
+/** The deformer graph for a set of effects: the one whose effects equal them exactly (skinning, wrinkles, dynamics). */
 export function pickVariant(manifest, effects) {
-  for (const [name, v] of Object.entries(manifest.variants || {})) {
-    const e = v.effects;
-    if (e.skinning === effects.skinning && e.wrinkles === effects.wrinkles && e.dynamics === effects.dynamics) {
-      return { name, spec: v };
+  for (const [name, g] of Object.entries(manifest.graphs)) {
+    const e = g.effects;
+    if (g.role === "deformer" && e.skinning === effects.skinning && e.wrinkles === effects.wrinkles &&
+        e.dynamics === effects.dynamics) {
+      return { name, spec: g };
     }
   }
   throw new Error(`no deformer graph for effects ${JSON.stringify(effects)}`);
 }
 
-function checkHash(dir, spec) {
-  const bytes = readFileSync(join(dir, spec.file));
-  const h = createHash("sha256").update(bytes).digest("hex");
-  if (spec.sha256 && h !== spec.sha256) throw new Error(`${join(dir, spec.file)}: does not match its manifest hash`);
-  return bytes;
+function checkHash(dir, file, sha256, what) {
+  const path = join(dir, file);
+  if (!existsSync(path)) throw new Error(`${path}: ${what} file is missing`);
+  const h = createHash("sha256").update(readFileSync(path)).digest("hex");
+  if (sha256 && h !== sha256) throw new Error(`${path}: ${what} does not match its manifest hash`);
 }
 
 function tensor(type, data, dims) {
@@ -61,8 +94,9 @@ export async function animate(dir, bundle, options = {}) {
   const so = { intraOpNumThreads: options.threads || 1, interOpNumThreads: 1, executionProviders: ["cpu"] };
   const encSpec = manifest.graphs.garment_encoder;
   const { spec: decSpec } = pickVariant(manifest, effects);
-  const enc = await ort.InferenceSession.create(checkHash(dir, encSpec), so);
-  const dec = await ort.InferenceSession.create(checkHash(dir, decSpec), so);
+  // sessions from the file path: graphs may keep their weights in the package's shared weights.bin
+  const enc = await ort.InferenceSession.create(join(dir, encSpec.file), so);
+  const dec = await ort.InferenceSession.create(join(dir, decSpec.file), so);
   const N = A.rest.shape[0];
   const K = A.nbr.shape[1];
   const S = A.joints.shape[0];
@@ -73,16 +107,21 @@ export async function animate(dir, bundle, options = {}) {
   const window = decSpec.inputs.find((i) => i.name === "window").shape[1];
   const nb = A.betas.shape[0];
   const t0 = performance.now();
-  const encOut = await enc.run({
-    features: feed(inEnc.features, A.features.data, [1, N, A.features.shape[1]]),
-    nbr: feed(inEnc.nbr, A.nbr.data, [N, K]),
-    mask: feed(inEnc.mask, A.mask.data, [N, K]),
-    descriptor: feed(inEnc.descriptor, A.descriptor.data, [1, A.descriptor.shape[0]]),
-    betas: feed(inEnc.betas, A.betas.data, [1, nb]),
-  });
-  const P = encOut[encSpec.outputs[0].name]; // (1, N, S, F)
-  const F = P.dims[3];
-  const Pd = tensor("float32", P.data, [N, S, F]);
+  // the encoder's inputs, fed by name (older encoders also take betas)
+  const encArrays = {
+    features: [A.features.data, [1, N, A.features.shape[1]]], nbr: [A.nbr.data, [N, K]], mask: [A.mask.data, [N, K]],
+    descriptor: [A.descriptor.data, [1, A.descriptor.shape[0]]], betas: [A.betas.data, [1, nb]],
+  };
+  const encFeeds = {};
+  for (const i of encSpec.inputs) {
+    if (!encArrays[i.name]) throw new Error(`the garment encoder takes '${i.name}', which this runtime cannot feed`);
+    encFeeds[i.name] = feed(i, ...encArrays[i.name]);
+  }
+  const encOut = await enc.run(encFeeds);
+  // its one output, without the batch axis, is a deformer input of the same name: g (N, S) (older: P (N, S, F_enc))
+  const codeName = encSpec.outputs[0].name;
+  const code = encOut[codeName];
+  const codeT = tensor("float32", code.data, code.dims.slice(1));
   const nbr = feed(inDec.nbr, A.nbr.data, [N, K]);
   const mask = feed(inDec.mask, A.mask.data, [N, K]);
   const rest = feed(inDec.rest, A.rest.data, [N, 3]);
@@ -106,7 +145,7 @@ export async function animate(dir, bundle, options = {}) {
       joints.set(A.joints.data, b * S * 3);
     }
     const feeds = {
-      P: Pd, window: tensor("float32", win, [B, window, D]), betas: tensor("float32", betas, [B, nb]), rest,
+      [codeName]: codeT, window: tensor("float32", win, [B, window, D]), betas: tensor("float32", betas, [B, nb]), rest,
       nbr, mask, joints: tensor("float32", joints, [B, S, 3]),
       trans: tensor("float32", A.trans.data.slice(lo * 3, hi * 3), [B, 3]),
     };

@@ -22,6 +22,15 @@ params             JSON string      k, max_k, n_star, geodesic method, versions
 source_name        str              file name of the garment
 source_sha256      str              hash of the garment file's bytes
 =================  ===============  =============================================
+
+**Portable form** (``.sgda``, for runtimes without Python; ``docs/package.md``): the same fields in
+the scene-bundle container of :mod:`segadeform.bundle` (little-endian, a text header, 64-byte aligned
+arrays; the Node and C++ runtimes' bundle readers read it), with ``vertices``, ``joints`` and
+``descriptor`` as ``f64``, ``normals`` and ``features`` as ``f32``, ``faces``, ``nbr`` and
+``fps_samples`` as ``i32``, ``mask`` as ``u8``, and the rest in ``meta``: ``kind`` =
+``"segadeform-garment-asset"``, ``schema_version``, ``geodesic_radius``, ``params``,
+``source_name``, ``source_sha256``.  :meth:`GarmentAsset.save` writes it for a ``.sgda`` path and
+:meth:`GarmentAsset.load` reads either form; the round trip is exact.
 """
 
 from __future__ import annotations
@@ -43,9 +52,17 @@ from .geodesic import DEFAULT_GEODESIC, GeodesicSolver
 from .graph import DEFAULT_MAX_K, neighbour_graph
 from .mesh_ops import vertex_normals
 
-__all__ = ["ASSET_SCHEMA_VERSION", "GarmentAsset", "precompute_garment", "file_sha256"]
+__all__ = ["ASSET_SCHEMA_VERSION", "ASSET_KIND", "PORTABLE_SUFFIX", "GarmentAsset", "precompute_garment",
+           "file_sha256"]
 
 ASSET_SCHEMA_VERSION = 1
+#: ``meta.kind`` of the portable form, and its file suffix
+ASSET_KIND = "segadeform-garment-asset"
+PORTABLE_SUFFIX = ".sgda"
+#: the portable form's array dtypes (bundle dtype names)
+_PORTABLE = {"vertices": "f64", "faces": "i32", "normals": "f32", "features": "f32", "nbr": "i32", "mask": "u8",
+             "joints": "f64", "descriptor": "f64", "fps_samples": "i32"}
+_NP_OF = {"f64": np.float64, "f32": np.float32, "i32": np.int32, "u8": np.uint8}
 
 _ARRAYS = {
     "vertices": (np.float64, 2), "faces": (np.int64, 2), "normals": (np.float32, 2),
@@ -89,9 +106,11 @@ class GarmentAsset:
                 f"S={len(self.joints)}, N*={len(self.descriptor)}, source={self.source_name!r})")
 
     def save(self, path: str | os.PathLike) -> Path:
-        """Write the asset atomically as an uncompressed ``.npz``."""
+        """Write the asset atomically: an uncompressed ``.npz``, or the portable form for a ``.sgda`` path."""
         self.validate()
         p = Path(path)
+        if p.suffix.lower() == PORTABLE_SUFFIX:
+            return self._save_portable(p)
         with atomic_path(p) as tmp:
             with open(tmp, "wb") as fh:
                 np.savez(
@@ -105,11 +124,63 @@ class GarmentAsset:
                 )
         return p
 
+    def _save_portable(self, p: Path) -> Path:
+        from ..bundle import write_bundle
+
+        if self.n_vertices >= 2**31 - 1:
+            raise InputError("garment too large for the portable asset's int32 indices", expected="N < 2^31 - 1",
+                             got=self.n_vertices)
+        arrays = {k: getattr(self, k).astype(_NP_OF[dt]) for k, dt in _PORTABLE.items()}
+        meta = {"kind": ASSET_KIND, "schema_version": ASSET_SCHEMA_VERSION,
+                "geodesic_radius": float(self.geodesic_radius), "params": self.params,
+                "source_name": self.source_name, "source_sha256": self.source_sha256}
+        return write_bundle(p, arrays, meta)
+
+    @classmethod
+    def _load_portable(cls, p: Path) -> "GarmentAsset":
+        from ..bundle import read_bundle
+
+        arrays, meta = read_bundle(p)
+        if meta.get("kind") != ASSET_KIND:
+            raise FileFormatError("not a garment asset", path=p, expected=f"meta.kind {ASSET_KIND!r}",
+                                  got=meta.get("kind"))
+        if meta.get("schema_version") != ASSET_SCHEMA_VERSION:
+            raise FileFormatError("unsupported garment asset schema version", path=p, expected=ASSET_SCHEMA_VERSION,
+                                  got=meta.get("schema_version"))
+        fields = {}
+        for k, dt in _PORTABLE.items():
+            a = arrays.get(k)
+            if a is None or a.dtype != np.dtype(_NP_OF[dt]).newbyteorder("<"):
+                raise FileFormatError(f"garment asset field {k!r} is missing or has the wrong dtype", path=p,
+                                      expected=dt, got=None if a is None else a.dtype)
+            fields[k] = a.astype(_ARRAYS[k][0])
+        try:
+            radius = float(meta["geodesic_radius"])
+            params = dict(meta["params"])
+        except (KeyError, TypeError, ValueError):
+            raise FileFormatError("garment asset meta lacks geodesic_radius or params", path=p) from None
+        return cls(geodesic_radius=radius, params=params, source_name=str(meta.get("source_name", "")),
+                   source_sha256=str(meta.get("source_sha256", "")), **fields)
+
     @classmethod
     def load(cls, path: str | os.PathLike) -> "GarmentAsset":
-        """Read and validate an asset; errors name the file and the field."""
+        """Read and validate an asset (``.npz`` or the portable form); errors name the file and the field."""
         p = Path(path)
+        from ..bundle import BUNDLE_MAGIC
         from ..io.npz import load_npz
+
+        try:
+            with open(p, "rb") as fh:
+                portable = fh.read(len(BUNDLE_MAGIC)) == BUNDLE_MAGIC
+        except OSError:
+            portable = False  # load_npz reports the file error
+        if portable:
+            asset = cls._load_portable(p)
+            try:
+                asset.validate()
+            except InputError as e:
+                raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
+            return asset
 
         z = load_npz(p, what="garment asset .npz")
         names = set(z)

@@ -50,7 +50,8 @@ from ._checks import check_mesh
 from .geodesic import DEFAULT_GEODESIC, GeodesicSolver
 
 __all__ = ["DEFAULT_N_STAR", "furthest_point_sampling", "furthest_point_sampling_naive",
-           "gaussian_affinity", "Descriptor", "garment_descriptor", "nystrom_eigen", "dissimilarity"]
+           "gaussian_affinity", "Descriptor", "garment_descriptor", "nystrom_eigen", "dissimilarity",
+           "rescale_descriptor"]
 
 DEFAULT_N_STAR = 32
 
@@ -185,6 +186,27 @@ def garment_descriptor(vertices, faces, *, n_star: int = DEFAULT_N_STAR, method:
     out = np.zeros(int(n_star))
     out[: lam.size] = lam
     return Descriptor(eigenvalues=out, samples=samples, distances=rows, radius=r)
+
+
+def rescale_descriptor(eigenvalues, n_star: int) -> np.ndarray:
+    """A descriptor made from ``m = len(eigenvalues)`` samples, as the ``n_star``-long one a model
+    trained at ``N* = n_star`` takes: the eigenvalues of the ``m x m`` sampled affinity approximate
+    ``m / N`` times the full affinity's (Nystrom; the module notes measure lambda_1 / N* against
+    lambda_1 / N), so they are scaled by ``n_star / m`` and the leading ``n_star`` kept, zero-padded
+    when ``m < n_star`` (as for a garment with fewer vertices than samples).  ``bench/tradeoffs.py``
+    runs a model at other N* this way.
+
+    Shapes: (m,) -> (n_star,)
+    """
+    lam = np.asarray(eigenvalues, np.float64)
+    if lam.ndim != 1 or lam.size == 0 or not np.isfinite(lam).all():
+        raise InputError("eigenvalues must be a finite, non-empty 1-D array", got=lam.shape)
+    if isinstance(n_star, bool) or not isinstance(n_star, (int, np.integer)) or n_star < 1:
+        raise InputError("n_star must be a positive integer", got=n_star)
+    out = np.zeros(int(n_star))
+    k = min(int(n_star), lam.size)
+    out[:k] = lam[:k] * (int(n_star) / lam.size)
+    return out
 
 
 def nystrom_eigen(descriptor: Descriptor, k: int | None = None, *, rcond: float = 1e-10):

@@ -60,9 +60,19 @@ def lbs(verts: torch.Tensor, weights: torch.Tensor, a: torch.Tensor) -> torch.Te
         verts: (B, N, 3) or (N, 3), weights: (B, N, S), a: (B, S, 3, 4) -> (B, N, 3)
     """
     b, s = a.shape[:2]
-    m = torch.matmul(weights, a.reshape(b, s, 12)).reshape(b, -1, 3, 4)  # (B, N, 3, 4)
-    v = verts.expand(b, -1, -1) if verts.dim() == 3 else verts.expand(b, -1, -1)
-    return torch.matmul(m[..., :3], v[..., None])[..., 0] + m[..., 3]
+    # blended transforms stored column-major, (B, N, 4, 3): column c of every vertex's 3x4 matrix
+    m = torch.matmul(weights, a.transpose(2, 3).reshape(b, s, 12)).reshape(b, -1, 4, 3)
+    return _affine(m[:, :, 0], m[:, :, 1], m[:, :, 2], m[:, :, 3], verts)
+
+
+def _affine(c0: torch.Tensor, c1: torch.Tensor, c2: torch.Tensor, t: torch.Tensor, verts: torch.Tensor) -> torch.Tensor:
+    """``[c0 c1 c2] @ v + t`` per vertex as multiply-adds of the matrix columns (a batch of 3x3
+    MatMuls is slow in onnxruntime).
+
+    Shapes:
+        c0, c1, c2, t: (B, N, 3), verts: (B, N, 3) or (N, 3) -> (B, N, 3)
+    """
+    return c0 * verts[..., 0:1] + c1 * verts[..., 1:2] + c2 * verts[..., 2:3] + t
 
 
 def matrix_to_quaternion(R: torch.Tensor) -> torch.Tensor:
@@ -131,5 +141,4 @@ def dqs(verts: torch.Tensor, weights: torch.Tensor, a: torch.Tensor, eps: float 
                      2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1).reshape(qb.shape[:-1] + (3, 3))
     conj = qb * torch.tensor([1.0, -1.0, -1.0, -1.0], dtype=qb.dtype, device=qb.device)
     tr = 2.0 * _qmul(db, conj)[..., 1:]
-    v = verts.expand(b, -1, -1)
-    return torch.matmul(R, v[..., None])[..., 0] + tr
+    return _affine(R[..., 0], R[..., 1], R[..., 2], tr, verts)

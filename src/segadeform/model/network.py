@@ -2,16 +2,21 @@
 
 Two halves, exported as two graphs:
 
-* :meth:`SEGANet.garment_encoder` -- once per garment and body shape --
-  computes the target-aware features ``P`` (Eq. 15)::
+* :meth:`SEGANet.garment_encoder` -- once per garment -- computes the
+  garment's per-joint code ``g`` (Eq. 15 without the body-shape factor)::
 
-      P[k, j, i] = f^bp(beta)[i, j] * sum_i' f^gp(lambda)[i'] f^enc(G)[i', j, k]
+      g[k, j] = sum_i' f^gp(lambda)[i'] f^enc(G)[i', j, k]
 
-  stored vertex-major as ``(N, S, F_enc)``.
-* :meth:`SEGANet.deformer` -- per frame, batched over frames -- combines ``P``
-  with the motion window:
+  stored vertex-major as ``(N, S)``.  The target-aware features of Eq. 15 are
+  ``P[k, j, i] = f^bp(beta)[i, j] g[k, j]`` (:meth:`SEGANet.target_features`);
+  the deformer never forms them: every use of ``P`` below is linear in it, so
+  the body-shape factor is folded into the small per-frame matrices instead,
+  and the first decoder block reads ``N x S`` numbers per frame, not ``N x S F_enc``.
+* :meth:`SEGANet.deformer` -- per frame, batched over frames -- combines ``g``
+  with the body shape and the motion window:
 
-  - temporal weights (Eq. 16) ``W~[k, j] = sum_i P[k, j, i] f^mo1(Theta)[i]``,
+  - temporal weights (Eq. 16) ``W~[k, j] = sum_i P[k, j, i] f^mo1(Theta)[i]
+    = g[k, j] sum_i f^bp(beta)[i, j] f^mo1(Theta)[i]``,
     normalised over the joints with a softmax, so every vertex's weights are
     positive and sum to 1 as skinning needs (the paper leaves the
     normalisation open).  With ``cfg.weights == "residual"`` the logits are
@@ -19,8 +24,9 @@ Two halves, exported as two graphs:
     garment's closest body point, an input ``log_wbody``; ``g_w``: a learned
     gate starting at 0), so the weights start as the body's and the network
     learns only where the garment should skin differently;
-  - blend features (Eq. 17) ``X^mid[k, (j, i)] = P[k, j, i] f^mo2(Theta, beta)[(j, i)]``
-    and blend shapes (Eq. 18) ``B = f^dec(X^mid)`` (times a second gate starting at 0 for
+  - blend features (Eq. 17) ``X^mid[k, (j, i)] = P[k, j, i] f^mo2(Theta, beta)[(j, i)] = (g @ L)[k, (j, i)]``
+    with ``L[j, (j, i)] = f^bp(beta)[i, j] f^mo2[(j, i)]`` (zero off the block diagonal), and blend
+    shapes (Eq. 18) ``B = f^dec(X^mid)`` (times a second gate starting at 0 for
     residual models: an untrained residual model is exactly LBS with the body's weights);
   - deformation (Eq. 2) ``M = skin(T + B, J, theta_t, W~) + trans`` with LBS
     or DQS, forward kinematics inside the graph.
@@ -52,10 +58,9 @@ class SEGANet(nn.Module):
     """The full network; see the module docstring.
 
     Shapes (garment_encoder):
-        features (B, N, F), nbr (N, K) int64, mask (N, K) bool, descriptor (B, N*), betas (B, |beta|)
-        -> P (B, N, S, F_enc)
+        features (B, N, F), nbr (N, K) int64, mask (N, K) bool, descriptor (B, N*) -> g (B, N, S)
     Shapes (deformer):
-        P (N, S, F_enc), window (B, T, 3 S) with window[:, 0] the current pose, betas (B, |beta|),
+        g (N, S), window (B, T, 3 S) with window[:, 0] the current pose, betas (B, |beta|),
         rest (N, 3), nbr (N, K), mask (N, K), joints (B, S, 3), trans (B, 3)
         [, log_wbody (N, S) for residual weights]
         -> vertices (B, N, 3), weights (B, N, S), blend_shapes (B, N, 3)
@@ -85,21 +90,25 @@ class SEGANet(nn.Module):
                 m.freeze()
         return self
 
-    def garment_encoder(self, features, nbr, mask, descriptor, betas) -> torch.Tensor:
+    def garment_encoder(self, features, nbr, mask, descriptor) -> torch.Tensor:
         enc = self.enc(features, nbr, mask)  # (B, F_enc, S, N)
         gp = self.gp(descriptor)  # (B, F_enc)
         g = torch.matmul(gp[:, None, None, :], enc.permute(0, 2, 1, 3))[:, :, 0, :]  # (B, S, N)
-        bp = self.bp(betas)  # (B, F_enc, S)
-        p = bp.permute(0, 2, 1)[:, None, :, :] * g.permute(0, 2, 1)[..., None]  # (B, N, S, F_enc)
-        return p
+        return g.permute(0, 2, 1)  # (B, N, S)
 
-    def deformer(self, P, window, betas, rest, nbr, mask, joints, trans, log_wbody=None):
+    def target_features(self, g, betas) -> torch.Tensor:
+        """Eq. 15's ``P (B, N, S, F_enc)`` from the garment code ``g (B, N, S)`` and ``betas (B, |beta|)``
+        (for inspection and tests; the deformer uses it only in factored form)."""
+        bp = self.bp(betas)  # (B, F_enc, S)
+        return g[..., None] * bp.permute(0, 2, 1)[:, None, :, :]
+
+    def deformer(self, g, window, betas, rest, nbr, mask, joints, trans, log_wbody=None):
         cfg = self.cfg
         b = window.shape[0]
-        n = P.shape[0]
         s, f = cfg.n_joints, cfg.f_enc
+        bp = self.bp(betas).permute(0, 2, 1)  # f^bp(beta)[i, j] as (B, S, F_enc)
         mo1 = self.mo1(window)  # (B, F_enc)
-        w_raw = torch.matmul(P.reshape(n * s, f), mo1.t()).reshape(n, s, b).permute(2, 0, 1)  # (B, N, S)
+        w_raw = g[None] * torch.matmul(bp, mo1[:, :, None])[:, None, :, 0]  # Eq. 16: (B, N, S)
         if self.residual:
             if log_wbody is None:
                 raise InputError("a residual-weights model needs log_wbody (N, S): log of the body's weights")
@@ -107,23 +116,25 @@ class SEGANet(nn.Module):
         weights = torch.softmax(w_raw, dim=-1)
         if self.dec is not None:
             mo2 = self.mo2(window, betas)  # (B, S F_enc)
-            # X^mid = P' * mo2 (Eq. 17), passed factored so the (B, N, S F_enc) product is never formed
-            blend = self.dec(P.reshape(n, s * f), nbr, mask, modulation=mo2)  # (B, N, 3)
+            # X^mid = P * mo2 (Eq. 17) = g @ lift, lift block-diagonal (B, S, S F_enc): never formed as (B, N, S F_enc)
+            diag = torch.eye(s, dtype=g.dtype, device=g.device)[None, :, :, None]
+            lift = (diag * (bp.reshape(b, 1, s, f) * mo2.reshape(b, 1, s, f))).reshape(b, s, s * f)
+            blend = self.dec(g, nbr, mask, lift=lift)  # (B, N, 3)
             if self.residual:
                 blend = self.blend_gate * blend
         else:
-            blend = torch.zeros(b, n, 3, dtype=P.dtype, device=P.device)
+            blend = torch.zeros(b, g.shape[0], 3, dtype=g.dtype, device=g.device)
         verts = rest[None] + blend
         rot = axis_angle_to_matrix(window[:, 0].reshape(b, s, 3))
-        g = forward_kinematics(rot, joints, self.parents, trans)
-        a = skinning_transforms(g, joints)
+        g_fk = forward_kinematics(rot, joints, self.parents, trans)
+        a = skinning_transforms(g_fk, joints)
         skin = dqs if cfg.skinning == "dqs" else lbs
         return skin(verts, weights, a), weights, blend
 
     def forward(self, features, nbr, mask, descriptor, betas, window, rest, joints, trans, log_wbody=None):
         """Encoder and deformer in one call (training); the garment batch must be 1."""
-        P = self.garment_encoder(features, nbr, mask, descriptor, betas[:1])[0]
-        return self.deformer(P, window, betas, rest, nbr, mask, joints, trans, log_wbody)
+        g = self.garment_encoder(features, nbr, mask, descriptor)[0]
+        return self.deformer(g, window, betas, rest, nbr, mask, joints, trans, log_wbody)
 
 
 def save_checkpoint(path: str | os.PathLike, model: SEGANet, **extra) -> Path:

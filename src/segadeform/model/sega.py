@@ -45,6 +45,21 @@ def gather_neighbours(x: torch.Tensor, nbr: torch.Tensor) -> torch.Tensor:
     return torch.index_select(x, 1, nbr.reshape(-1)).reshape(x.shape[0], n, k, x.shape[-1])
 
 
+def _gather_slots(x: torch.Tensor, idx: torch.Tensor, k: int) -> torch.Tensor:
+    """``x[:, nbr.T]`` slot-major via one index_select; ``idx = nbr.T.reshape(-1)``.
+
+    Shapes:
+        x: (B, N, C), idx: (K N,) int64 -> (B, K, N, C)
+    """
+    return torch.index_select(x, 1, idx).reshape(x.shape[0], k, -1, x.shape[-1])
+
+
+def _batch_scale(x: torch.Tensor, dims=1) -> torch.Tensor:
+    """``max |x|`` over ``dims`` (kept), 1 where that is 0; detached: a rescaling for overflow-safe norms."""
+    m = x.abs().amax(dim=dims, keepdim=True).detach()
+    return torch.where(m > 0, m, torch.ones_like(m))
+
+
 def masked_softmax(scores: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     """Softmax over the K axis (dim 2) that ignores padded slots; an all-padding row gives zeros.
 
@@ -193,23 +208,89 @@ class SEGABlock(nn.Module):
             self.self_stream.freeze()
 
     def forward(self, x: torch.Tensor, nbr: torch.Tensor, mask: torch.Tensor,
-                modulation: torch.Tensor | None = None) -> torch.Tensor:
-        """With ``modulation (B, F)``, ``x`` is ``(N, F)`` shared by the batch and the block sees
-        ``x[None] * modulation[:, None]`` -- computed as ``x @ (W * modulation)^T`` so the
-        ``(B, N, F)`` product is never formed (the decoder's blend features, Eq. 17)."""
-        if modulation is not None:
-            lin = lambda layer_w: torch.matmul(x, (layer_w[None] * modulation[:, None, :]).transpose(1, 2))  # noqa: E731
-            b, n = modulation.shape[0], x.shape[0]
+                lift: torch.Tensor | None = None) -> torch.Tensor:
+        """``x (B, N, F) -> (B, N, out)``.  With ``lift (B, R, F)``, ``x`` is ``(N, R)`` shared by the
+        batch and the block sees ``x @ lift[b]``, never formed: every linear map is applied as
+        ``x @ (lift[b] @ W^T)`` (the decoder's blend features, Eq. 17, are ``g @ lift`` with ``R = S``
+        joints: see :meth:`SEGANet.deformer`).
+
+        The same maths as :meth:`forward_reference`, laid out for speed in exported graphs:
+
+        * neighbours are gathered slot-major, ``(B, K, N, C)``, so every reduction over the
+          neighbours is over a middle axis with a large contiguous inner block, and every broadcast
+          covers whole ``(N, H)`` slabs (onnxruntime's fast paths; the ``(B, N, K, H)`` layout hit its
+          per-element ones; a vertex-major ``(K, N, B, C)`` layout was measured slower);
+        * one linear map computes the score, value and self streams;
+        * the overflow guard of the norms is one scale per batch row and head
+          (``max |e_src| + max |e_dst|`` bounds every ``|s_pre|``; LeakyReLU is positively
+          homogeneous, so the scores are formed already divided by it) instead of a per-row max;
+        * padded slots are zeroed before the division by ``n_i``, so ``|s| <= alpha`` everywhere
+          and the softmax needs no running max (it is shifted by the constant ``alpha``);
+        * the attention is expanded to the value channels with a ``(H, H F')`` 0/1 MatMul and
+          normalised after the sum over neighbours.
+        """
+        h, fp = self.heads, self.head_features
+        maps = [self.score.weight, self.value.effective_weight()]
+        if self.self_stream is not None:
+            maps.append(self.self_stream.effective_weight())
+        w_all = torch.cat(maps, 0)  # (O, F), O = F' + H F' [+ F'']
+        n, k = nbr.shape
+        if lift is None:
+            b = x.shape[0]
+            y = torch.matmul(x, w_all.t())  # (B, N, O)
         else:
-            lin = None
-            b, n = x.shape[0], x.shape[1]
+            b = lift.shape[0]
+            y = torch.matmul(x, torch.matmul(lift, w_all.t()))  # (N, R) @ (B, R, O)
+        z, v = y[..., :fp], y[..., fp:fp + h * fp]  # (B, N, F'), (B, N, H F')
+        e = torch.matmul(z, torch.cat([self.att_src, self.att_dst], 0).t())  # (B, N, 2H): e_src | e_dst
+        idx = nbr.t().reshape(-1)  # slot-major
+        mf = mask.t().to(y.dtype)[:, :, None].expand(k, n, h)[None]  # (1, K, N, H)
+        expand = torch.repeat_interleave(torch.eye(h, dtype=y.dtype, device=y.device), fp, dim=1)  # (H, H F')
+        if self.use_sega:
+            sc = _batch_scale(e, 1)
+            sc = sc[..., :h] + sc[..., h:]  # (B, 1, H) >= |e_src_i + e_dst_j| >= |s_pre_ij|
+            vs = _batch_scale(v, (1, 2))  # (B, 1, 1)
+            vq = (v / vs).reshape(b, n, h, fp)
+            vn = torch.sqrt((vq * vq).sum(dim=-1) + 1e-24) * vs  # ||v(x_j)||, (B, N, H)
+            # one gather for both per-vertex quantities the neighbours contribute
+            nb = _gather_slots(torch.cat([e[..., h:] / sc, vn], dim=-1), idx, k)  # (B, K, N, 2H)
+            sp = nn.functional.leaky_relu(e[..., :h][:, None] / sc[:, None] + nb[..., :h], 0.2) * mf  # s_pre / sc
+            row = torch.sqrt((sp * sp).sum(dim=1) + 1e-24)  # ||s_pre_i|| / sc, (B, N, H)
+            vmax = (nb[..., h:] * mf).amax(dim=1)  # max_j ||v(x_j)||, (B, N, H)
+            w_s = self.score.weight
+            u = torch.matmul(self.att_src, w_s)  # (H, F)
+            w = torch.matmul(self.att_dst, w_s)
+            sqrt_k = torch.sqrt(torch.ones_like(mask[0], dtype=y.dtype).sum())  # runtime K (see reference)
+            lip = sqrt_k * torch.linalg.vector_norm(u, dim=-1) + torch.linalg.vector_norm(w, dim=-1)  # (H,)
+            n_i = torch.maximum(torch.maximum(row, vmax * lip / sc) / self.alpha, 1e-12 / sc)  # n_i / sc
+            s = sp / n_i[:, None]  # (B, K, N, H), |s| <= alpha; 0 on padded slots
+            shift = self.alpha if self.alpha <= 40.0 else s.amax(dim=1, keepdim=True).detach()
+            ex = torch.exp(s - shift) * mf
+        else:
+            s = nn.functional.leaky_relu(e[..., :h][:, None] + _gather_slots(e[..., h:], idx, k), 0.2)
+            s = torch.where(mf > 0, s, torch.full_like(s, _NEG))
+            ex = torch.exp(s - s.amax(dim=1, keepdim=True).detach()) * mf
+        num = (torch.matmul(ex, expand) * _gather_slots(v, idx, k)).sum(dim=1)  # (B, N, H F')
+        phi = num / torch.matmul(ex.sum(dim=1).clamp_min(1e-30), expand)
+        if self.self_stream is None:
+            return phi
+        return torch.cat([phi, y[..., fp + h * fp:]], dim=-1)
+
+    def forward_reference(self, x: torch.Tensor, nbr: torch.Tensor, mask: torch.Tensor,
+                          lift: torch.Tensor | None = None) -> torch.Tensor:
+        """The slow, obvious form of :meth:`forward` (the lifted input formed, vertex-major
+        ``(B, N, K, H)`` tensors, a per-row overflow-safe norm, a masked softmax): kept as the
+        reference the tests compare with."""
+        if lift is not None:
+            x = torch.matmul(x, lift)  # (B, N, F)
+        b, n = x.shape[0], x.shape[1]
         k = nbr.shape[1]
         h, fp = self.heads, self.head_features
-        z = self.score(x) if lin is None else lin(self.score.weight)  # (B, N, F')
+        z = self.score(x)  # (B, N, F')
         e_src = torch.matmul(z, self.att_src.t())  # (B, N, H)
         e_dst = torch.matmul(z, self.att_dst.t())
         s_pre = nn.functional.leaky_relu(e_src[:, :, None, :] + gather_neighbours(e_dst, nbr), 0.2)  # (B,N,K,H)
-        v = self.value(x) if lin is None else lin(self.value.effective_weight())  # (B, N, H F')
+        v = self.value(x)  # (B, N, H F')
         v_nb = gather_neighbours(v, nbr).reshape(b, n, k, h, fp)
         if self.use_sega:
             mf = mask[None, :, :, None].to(x.dtype)
@@ -232,7 +313,7 @@ class SEGABlock(nn.Module):
         phi = (att[..., None] * v_nb).sum(dim=2).reshape(b, n, h * fp)
         if self.self_stream is None:
             return phi
-        m = self.self_stream(x) if lin is None else lin(self.self_stream.effective_weight())
+        m = self.self_stream(x)
         return torch.cat([phi, m], dim=-1)
 
     def extra_repr(self) -> str:

@@ -31,7 +31,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ..body.collision import BodyProxy, push_out
+from ..body.collision import BodyCollider, BodyProxy
 from ..body.model import BodyModel
 from ..body.transfer import skin_garment, transfer_weights
 from ..dataset.store import Sample, list_samples, load_sample
@@ -41,7 +41,8 @@ from ..geometry.mesh_ops import unique_edges, vertex_normals
 from ..io.atomic import atomic_path
 from ..motion.motion import motion_windows
 
-__all__ = ["METRICS", "evaluate", "write_report", "Predictor", "make_predictor"]
+__all__ = ["METRICS", "evaluate", "write_report", "Predictor", "make_predictor", "reference", "sample_metrics",
+           "push_out_frames", "push_out_names"]
 
 METRICS = ("vertex_cm", "normal_deg", "edge_mm", "low_cm", "mid_cm", "high_cm", "penetration_pct", "jitter_mm")
 PEN_DEPTH = 0.002
@@ -119,13 +120,13 @@ class _Checkpoint(Predictor):
             rest = body.shaped_vertices(betas)[0]
             lw = t32(residual_log_weights(transfer_weights(asset.vertices, rest, body.faces, body.weights)))
         with torch.no_grad():
-            P = self.model.garment_encoder(t32(feats)[None], nbr, mask, t32(asset.descriptor)[None], t32(b)[None])[0]
+            g = self.model.garment_encoder(t32(feats)[None], nbr, mask, t32(asset.descriptor)[None])[0]
             win = motion_windows(s.poses, c.window)
             out = []
             for lo in range(0, len(s.poses), 16):
                 hi = min(lo + 16, len(s.poses))
                 n = hi - lo
-                v, _, _ = self.model.deformer(P, t32(win[lo:hi]), t32(b)[None].expand(n, -1), t32(s.rest), nbr, mask,
+                v, _, _ = self.model.deformer(g, t32(win[lo:hi]), t32(b)[None].expand(n, -1), t32(s.rest), nbr, mask,
                                               t32(joints)[None].expand(n, -1, -1), t32(s.trans[lo:hi]), lw)
                 out.append(v.numpy())
         return np.concatenate(out).astype(np.float64)
@@ -175,7 +176,8 @@ class Reference:
     """What every prediction of one sample is compared with, computed once per sample.
 
     Shapes: gt (T, N, 3); n_gt (T, N, 3) vertex normals; l_gt (T, E) edge lengths; acc_gt (T-2, N, 3)
-    second differences; proxies: one posed-body proxy per frame."""
+    second differences; proxies: one posed-body proxy per frame (the penetration metric's reference
+    query); posed (T, V, 3): the posed body (what the runtime's collider pushes out of)."""
 
     gt: np.ndarray
     faces: np.ndarray
@@ -185,6 +187,7 @@ class Reference:
     l_gt: np.ndarray
     acc_gt: np.ndarray
     proxies: list
+    posed: Optional[np.ndarray] = None
 
 
 def reference(s: Sample, body: BodyModel, basis: Optional[SpectralBasis] = None) -> Reference:
@@ -200,7 +203,7 @@ def reference(s: Sample, body: BodyModel, basis: Optional[SpectralBasis] = None)
         proxies.append(proxy)
     return Reference(gt=gt, faces=s.faces, edges=edges, basis=basis, n_gt=_normals(gt, s.faces),
                      l_gt=np.linalg.norm(gt[:, edges[:, 0]] - gt[:, edges[:, 1]], axis=2),
-                     acc_gt=gt[2:] - 2 * gt[1:-1] + gt[:-2], proxies=proxies)
+                     acc_gt=gt[2:] - 2 * gt[1:-1] + gt[:-2], proxies=proxies, posed=posed)
 
 
 def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
@@ -224,14 +227,43 @@ def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
             "high_cm": 100 * bands[2], "penetration_pct": 100 * pen, "jitter_mm": 1000 * jit}
 
 
+def push_out_frames(x: np.ndarray, ref: Reference, collider: BodyCollider, margin: float, *,
+                    batch: int = 8) -> np.ndarray:
+    """The runtime's collision stage on a prediction: ``collider`` (:class:`BodyCollider`, built once)
+    pushes ``batch`` frames at a time out of the posed body, as ``segadeform run`` does.
+    Shapes: x (T, N, 3) -> (T, N, 3)."""
+    if ref.posed is None:
+        raise InputError("this reference has no posed body", expected="reference(...) of this module")
+    out = np.empty(x.shape, np.float64)
+    for lo in range(0, len(x), batch):
+        out[lo:lo + batch] = collider.push_out(x[lo:lo + batch], ref.posed[lo:lo + batch], margin)[0]
+    return out
+
+
+def push_out_names(margins) -> dict:
+    """``{suffix: margin}`` for :func:`evaluate`'s ``push_out_margin``: one margin (a number) gives the
+    suffix ``" + push-out"``, a sequence one ``" + push-out N mm"`` per margin."""
+    if margins is None:
+        return {}
+    if np.ndim(margins) == 0:
+        ms, one = [float(margins)], True
+    else:
+        ms, one = [float(m) for m in margins], False
+    for m in ms:
+        if not (np.isfinite(m) and 0 <= m < 1):
+            raise InputError("a push-out margin must be in [0, 1) metres", got=m)
+    return {" + push-out": ms[0]} if one else {f" + push-out {1e3 * m:g} mm": m for m in ms}
+
+
 def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test", n_star: int = 32,
              frame_step: int = 1, progress: Optional[Callable[[str], None]] = None, push_out_margin=None) -> dict:
     """Evaluate ``models`` ({name: spec}) on ``split`` of ``dataset``.
 
     Returns ``{"models": {name: {metric: value}}, "by_type": {name: {type: {metric: value}}},
     "per_frame": {name: [vertex_cm per frame index]}, "samples": [...]}``.
-    ``push_out_margin``: also report every learned model with the runtime's collision
-    post-process (``name + push-out``).
+    ``push_out_margin``: also report every learned model with the runtime's collision post-process
+    (:class:`BodyCollider`, as ``segadeform run``): one margin in metres (``name + push-out``) or a list
+    (``name + push-out 2 mm``, ... ; :func:`push_out_names`).  Its time is the model's plus the push-out's.
     """
     from .data import sample_asset
 
@@ -239,7 +271,9 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
     if not ids:
         raise InputError(f"no '{split}' samples in the dataset", got=str(dataset))
     preds = {n: make_predictor(n, s) for n, s in models.items()}
-    names = list(preds) + ([f"{n} + push-out" for n, s in models.items() if s != "lbs"] if push_out_margin else [])
+    pushes = push_out_names(push_out_margin)
+    names = list(preds) + [f"{n}{sfx}" for sfx in pushes for n, s in models.items() if s != "lbs"]
+    collider = BodyCollider(body.v_template, body.faces) if pushes else None
     acc = {n: _Acc.new() for n in names}
     by_type = {n: {} for n in names}
     per_frame = {n: _Acc.new() for n in names}
@@ -253,18 +287,19 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
         if key not in bases:
             bases[key] = SpectralBasis.from_mesh(s.rest, s.faces)
         ref = reference(s, body, bases[key])
-        gt, proxies = ref.gt, ref.proxies
+        gt = ref.gt
         outs = {}
         for n, p in preds.items():
             t0 = time.perf_counter()
             outs[n] = p.predict(s, body, asset)
-            acc[n].add("ms_per_frame", 1e3 * (time.perf_counter() - t0) / len(gt))
-            if push_out_margin and models[n] != "lbs":
+            ms = 1e3 * (time.perf_counter() - t0) / len(gt)
+            acc[n].add("ms_per_frame", ms)
+            for sfx, margin in pushes.items():
+                if models[n] == "lbs":
+                    continue
                 t0 = time.perf_counter()
-                outs[f"{n} + push-out"] = np.stack([push_out(outs[n][t], proxies[t], push_out_margin)[0]
-                                                    for t in range(len(gt))])
-                acc[f"{n} + push-out"].add("ms_per_frame", acc[n].sums["ms_per_frame"] / acc[n].counts["ms_per_frame"]
-                                           + 1e3 * (time.perf_counter() - t0) / len(gt))
+                outs[f"{n}{sfx}"] = push_out_frames(outs[n], ref, collider, margin)
+                acc[f"{n}{sfx}"].add("ms_per_frame", ms + 1e3 * (time.perf_counter() - t0) / len(gt))
         typ = s.meta.get("type", "?")
         for n, x in outs.items():
             if x.shape != gt.shape or not np.isfinite(x).all():

@@ -1,0 +1,166 @@
+"""How a package's graph files are stored (needs ``onnx``, not torch): debug metadata stripped, and one
+copy of the weights shared by every graph.
+
+Nothing here changes what a graph computes: the nodes, their attributes and every initializer's
+bytes stay as exported; only where the bytes live changes.
+
+* :func:`strip_debug_info` drops what the exporter records for debugging: per-node metadata (the
+  torch stack trace, FX node and module path of every node: about 85 % of an exported deformer's
+  bytes, and local paths of the machine that exported it) and doc strings.
+* :func:`pack_graphs` writes every initializer of at least ``min_bytes`` once into one
+  ``weights.bin`` (ONNX external data, 64-byte aligned offsets, deduplicated by dtype, shape and
+  bytes) and points each graph's initializers at it: the 8 deformer variants of a model repeat
+  the same weights, which are then stored once.  onnxruntime (Python, Node, C, web with
+  ``externalData``), Unity Sentis and the ``onnx`` package load such graphs from the folder;
+  ``shared=False`` keeps every graph self-contained instead.
+* :func:`repack_package` rewrites an existing package (schema 1 or 2) in the current layout
+  without re-exporting it: the same graphs, one name and one file per graph.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+from pathlib import Path
+
+from segadeform import package_spec as spec
+from segadeform.errors import InputError
+from segadeform.io.atomic import atomic_directory
+
+__all__ = ["strip_debug_info", "pack_graphs", "repack_package", "sha256_file", "ALIGN"]
+
+ALIGN = 64
+
+
+def sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def strip_debug_info(model) -> None:
+    """Remove per-node metadata and doc strings from ``model`` (an ``onnx.ModelProto``), in place."""
+
+    def walk(graph):
+        graph.doc_string = ""
+        for node in graph.node:
+            del node.metadata_props[:]
+            node.doc_string = ""
+            for attr in node.attribute:
+                if attr.HasField("g"):
+                    walk(attr.g)
+                for g in attr.graphs:
+                    walk(g)
+
+    walk(model.graph)
+    for fn in model.functions:
+        for node in fn.node:
+            del node.metadata_props[:]
+            node.doc_string = ""
+
+
+def _raw_bytes(tensor) -> bytes:
+    """The tensor's data as little-endian raw bytes (what external data stores)."""
+    from onnx import numpy_helper
+
+    a = numpy_helper.to_array(tensor)
+    if a.dtype.byteorder == ">":
+        a = a.astype(a.dtype.newbyteorder("<"))
+    return a.tobytes()
+
+
+def pack_graphs(folder: str | os.PathLike, files: list[str], *, shared: bool = True, min_bytes: int = 256,
+                weights_file: str = spec.WEIGHTS_FILE) -> dict | None:
+    """Rewrite the graph ``files`` in ``folder``: debug info stripped; with ``shared``, initializers of at
+    least ``min_bytes`` moved into one deduplicated ``weights_file``.
+
+    Every graph is read (with any external data it already has) before anything is written.
+    Returns the manifest's ``weights`` entry (``file``, ``sha256``, ``bytes``), or None when nothing
+    was shared (``shared=False`` or no initializer large enough), in which case no weights file is left.
+    """
+    import onnx
+
+    folder = Path(folder)
+    models = {f: onnx.load(str(folder / f), load_external_data=True) for f in files}
+    blob = bytearray()
+    where: dict[tuple, tuple[int, int]] = {}
+    for model in models.values():
+        strip_debug_info(model)
+        if not shared:
+            continue
+        for t in model.graph.initializer:
+            if t.data_type in (onnx.TensorProto.STRING, onnx.TensorProto.UNDEFINED):
+                continue
+            data = _raw_bytes(t)
+            if len(data) < min_bytes:
+                continue
+            key = (t.data_type, tuple(t.dims), hashlib.sha256(data).digest())
+            if key not in where:
+                off = -(-len(blob) // ALIGN) * ALIGN
+                blob.extend(b"\0" * (off - len(blob)))
+                blob.extend(data)
+                where[key] = (off, len(data))
+            off, length = where[key]
+            for field in ("float_data", "int32_data", "int64_data", "double_data", "uint64_data", "raw_data"):
+                t.ClearField(field)
+            del t.external_data[:]
+            for key, value in (("location", weights_file), ("offset", str(off)), ("length", str(length))):
+                entry = t.external_data.add()
+                entry.key, entry.value = key, value
+            t.data_location = onnx.TensorProto.EXTERNAL
+    wpath = folder / weights_file
+    if blob:
+        wpath.write_bytes(bytes(blob))
+    elif wpath.exists():
+        wpath.unlink()
+    for f, model in models.items():
+        (folder / f).write_bytes(model.SerializeToString())
+        onnx.checker.check_model(str(folder / f))
+    if not blob:
+        return None
+    return {"file": weights_file, "sha256": sha256_file(wpath), "bytes": len(blob)}
+
+
+def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bool = True) -> dict:
+    """Write package ``src`` (schema 1 or 2) to ``dst`` in the current layout; returns the new manifest.
+
+    The graphs are the same (what they compute is unchanged; only their storage and, for schema-1
+    packages, the file name of the model's own deformer change): debug info stripped, weights shared
+    unless ``shared=False``.  The model card and other ``.md``/``.txt`` files are copied; checkpoints and
+    reports are not (they live beside a package, not in it).  Written atomically."""
+    import onnx
+
+    from .portability import op_counts
+
+    src, dst = Path(src), Path(dst)
+    mpath = src / spec.MANIFEST_FILE
+    if not mpath.is_file():
+        raise InputError("not a model package (no manifest.json)", path=src)
+    if src.resolve() == dst.resolve():
+        raise InputError("repack writes a new folder", expected="an output other than the package", got=dst)
+    m = spec.read_manifest_text(mpath.read_text(encoding="utf-8"), path=mpath)
+    with atomic_directory(dst) as tmp:
+        tmp = Path(tmp)
+        graphs, ops = {}, {}
+        for name, g in m["graphs"].items():
+            new = spec.graph_file(name)
+            onnx.save(onnx.load(str(src / g["file"]), load_external_data=True), str(tmp / new))
+            graphs[name] = dict(g, file=new)
+        weights = pack_graphs(tmp, [g["file"] for g in graphs.values()], shared=shared)
+        for name, g in graphs.items():
+            g["sha256"] = sha256_file(tmp / g["file"])
+            ops[name] = dict(sorted(op_counts(onnx.load(str(tmp / g["file"]), load_external_data=False)).items()))
+        out = {k: v for k, v in m.items() if k not in ("graphs", "ops", "weights", "upgraded_from")}
+        out.update(schema_version=spec.SCHEMA_VERSION, graphs=graphs, ops=ops)
+        if weights is not None:
+            out["weights"] = weights
+        spec.validate_manifest(out, path=dst / spec.MANIFEST_FILE)
+        for extra in src.iterdir():
+            if extra.is_file() and extra.suffix in (".md", ".txt"):
+                shutil.copyfile(extra, tmp / extra.name)
+        (tmp / spec.MANIFEST_FILE).write_text(json.dumps(out, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+    return out

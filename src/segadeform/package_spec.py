@@ -1,0 +1,483 @@
+"""The model package contract: what a package holds and how a runtime uses it (``docs/package.md``).
+
+One home for the format, torch-free and numpy-free: export (``export/package.py``) writes packages
+through it, the Python runtime (``runtimes/python``) reads them through it, and
+``docs/manifest.schema.json`` is generated from it (:func:`manifest_schema`).  What is here:
+
+* the graph I/O: every input and output of each graph, its dtype and shape (:func:`graph_specs`,
+  :data:`INPUTS`, :data:`OUTPUTS`, which also say what each array means);
+* the effect -> graph rule: one deformer graph per combination of ``skinning`` x ``wrinkles`` x
+  ``dynamics``, named by :func:`deformer_name`, chosen by exact match (:func:`select_deformer`);
+* the manifest: its keys (:func:`make_manifest`), its checks (:func:`validate_manifest`), the reading
+  of schema-1 manifests (:func:`upgrade_manifest`) and its JSON Schema (:func:`manifest_schema`).
+
+Layout of a package folder (schema 2)::
+
+    manifest.json                 this module's manifest
+    garment_encoder.onnx          once per garment (and body shape for schema-1 encoders)
+    deformer_<effects>.onnx       one per effect combination, per frame, batched over frames
+    weights.bin                   optional: the graphs' weights, one copy shared by every graph
+                                  (ONNX external data; offsets 64-byte aligned)
+    MODEL_CARD.md                 optional
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from .errors import FileFormatError
+
+__all__ = [
+    "FORMAT", "SCHEMA_VERSION", "READABLE_SCHEMAS", "OPSET", "SUPPORTED_OPSETS", "MANIFEST_FILE", "WEIGHTS_FILE",
+    "ENCODER", "DEFORMER", "ROLES", "EFFECT_KEYS", "SKINNING", "DTYPES", "DIMENSIONS", "INPUTS", "OUTPUTS",
+    "LEGACY_INPUTS", "FEEDS", "PackageError", "graph_specs", "encoder_spec", "deformer_spec", "deformer_name",
+    "graph_file", "effect_sets", "default_effects", "effects_of", "select_deformer", "deformers", "code_name",
+    "make_manifest", "validate_manifest", "upgrade_manifest", "read_manifest_text", "manifest_schema",
+    "write_manifest_schema",
+]
+
+#: ``manifest.json``'s ``format``
+FORMAT = "segadeform-model-package"
+#: the manifest layout this version writes; 2: one name per graph (``graphs`` holds every graph, each
+#: deformer with its ``effects``), ``default_deformer``, an optional shared ``weights`` file
+SCHEMA_VERSION = 2
+#: what the runtime reads (1: ``graphs`` = encoder + ``deformer``, ``variants`` repeating the default)
+READABLE_SCHEMAS = (1, 2)
+OPSET = 18
+SUPPORTED_OPSETS = range(17, 22)
+MANIFEST_FILE = "manifest.json"
+WEIGHTS_FILE = "weights.bin"
+#: roles, and the names of the two graph kinds in :func:`graph_specs`
+ENCODER = "garment_encoder"
+DEFORMER = "deformer"
+ROLES = {ENCODER: "encoder", DEFORMER: "deformer"}
+#: the effects that choose a deformer graph (collisions are the host's post-process, not a graph)
+EFFECT_KEYS = ("skinning", "wrinkles", "dynamics")
+SKINNING = ("lbs", "dqs")
+DTYPES = ("float32", "int64", "bool")
+
+#: symbolic axes of the graphs' inputs and outputs (everything else is fixed by ``config``)
+DIMENSIONS = {
+    "B": "batch: frames per deformer call; 1 for the encoder (one garment)",
+    "N": "garment vertices, in the garment file's order",
+    "K": "neighbour slots per vertex (the precompute's K; any K >= 1 works)",
+}
+
+#: every input a runtime may have to feed: name -> meaning (units, layout, padding).  Shapes use
+#: S = config.n_joints, F = config.feat_dim (= 6 + S), N* = config.n_star, |beta| = config.n_betas,
+#: T = the deformer's window (``window`` of its manifest entry).
+INPUTS = {
+    "features": "float32 (B, N, F): per garment vertex [position (3, metres), unit normal (3; 0 where "
+                "undefined: area-weighted over the incident faces), distance to each of the S rest-pose "
+                "joints of the body shape (S, metres)]; F = 6 + S = 30 for SMPL's 24 joints",
+    "nbr": "int64 (N, K): the padded 1-ring: row i lists vertex i's edge neighbours, nearest first by rest "
+           "length (ties by index), at most K; unused slots hold i itself",
+    "mask": "bool (N, K): true where nbr is a real neighbour, false in padded slots (an isolated vertex "
+            "has an all-false row)",
+    "descriptor": "float32 (B, N*): the garment type descriptor (the precompute's descriptor, N* values)",
+    "g": "float32 (N, S): the encoder's output for this garment without its batch axis, the same array "
+         "for every deformer call",
+    "window": "float32 (B, T, 3 S): motion windows; window[b, k] = the pose k frames before frame b "
+              "(window[b, 0] is the frame itself), each pose the S joints' local axis-angle rotations "
+              "(radians, SMPL joint order, joint-major: x, y, z of joint 0, then joint 1, ...); frames "
+              "before the first frame repeat the first frame",
+    "betas": "float32 (B, |beta|): the body shape coefficients, zero-padded to |beta|, the same row "
+             "repeated for every frame",
+    "rest": "float32 (N, 3): garment rest positions (metres, +Y up)",
+    "joints": "float32 (B, S, 3): the body's rest-pose joints for betas (metres), the same (S, 3) "
+              "repeated for every frame",
+    "trans": "float32 (B, 3): root translation of each frame (metres)",
+    "log_wbody": "float32 (N, S): log(w + 1e-5), w = the body's skinning weights at each garment vertex's "
+                 "closest point on the rest body of shape betas (residual-weights models only, "
+                 "config.weights = 'residual')",
+}
+#: inputs of schema-1-era graphs that current exports no longer have (still read)
+LEGACY_INPUTS = {
+    "P": "float32 (N, S, F_enc): the encoder output of packages exported before the factored encoder "
+         "(fed like g: the encoder's output without its batch axis)",
+    "betas (encoder)": "float32 (B, |beta|): those encoders also took the body shape; their output "
+                       "depends on it",
+}
+OUTPUTS = {
+    "g": "float32 (B, N, S): the garment's per-joint code (older encoders: P (B, N, S, F_enc))",
+    "vertices": "float32 (B, N, 3): the deformed garment per frame (metres, +Y up, world space: "
+                "includes trans)",
+    "weights": "float32 (B, N, S): the skinning weights used (positive, each row sums to 1)",
+    "blend_shapes": "float32 (B, N, 3): the pose-dependent offsets added to rest before skinning "
+                    "(zero without wrinkles)",
+}
+#: by role, every input name a runtime must know how to feed (the encoder's ``betas``: older packages),
+#: besides the deformer's encoder output (``g``, or ``P``: :func:`code_name`)
+FEEDS = {"encoder": ("features", "nbr", "mask", "descriptor", "betas"),
+         "deformer": ("window", "betas", "rest", "nbr", "mask", "joints", "trans", "log_wbody")}
+
+
+class PackageError(FileFormatError):
+    """A model package is malformed or its manifest and ONNX files disagree."""
+
+
+# ---- config access (a ModelConfig or the manifest's config dict) ------------------------------------
+def _cfg(cfg, key: str, default=None):
+    if isinstance(cfg, Mapping):
+        return cfg.get(key, default)
+    return getattr(cfg, key, default)
+
+
+def _io(name: str, dtype: str, shape: list) -> dict:
+    return {"name": name, "dtype": dtype, "shape": list(shape)}
+
+
+# ---- graph I/O ---------------------------------------------------------------------------------------
+def encoder_spec(cfg) -> dict:
+    """Inputs and outputs of the garment encoder for ``cfg`` (a ModelConfig or a config dict)."""
+    s = int(_cfg(cfg, "n_joints"))
+    return {
+        "role": ROLES[ENCODER], "file": graph_file(ENCODER),
+        "inputs": [_io("features", "float32", ["B", "N", int(_cfg(cfg, "feat_dim"))]),
+                   _io("nbr", "int64", ["N", "K"]), _io("mask", "bool", ["N", "K"]),
+                   _io("descriptor", "float32", ["B", int(_cfg(cfg, "n_star"))])],
+        "outputs": [_io("g", "float32", ["B", "N", s])],
+    }
+
+
+def deformer_spec(cfg, effects: Mapping | None = None) -> dict:
+    """Inputs, outputs, effects and window of the deformer for ``effects`` (default: ``cfg``'s own)."""
+    eff = dict(default_effects(cfg) if effects is None else effects)
+    s, nb = int(_cfg(cfg, "n_joints")), int(_cfg(cfg, "n_betas"))
+    t = int(_cfg(cfg, "window")) if eff["dynamics"] else 1
+    inputs = [_io("g", "float32", ["N", s]), _io("window", "float32", ["B", t, 3 * s]),
+              _io("betas", "float32", ["B", nb]), _io("rest", "float32", ["N", 3]), _io("nbr", "int64", ["N", "K"]),
+              _io("mask", "bool", ["N", "K"]), _io("joints", "float32", ["B", s, 3]), _io("trans", "float32", ["B", 3])]
+    if _cfg(cfg, "weights", "free") == "residual":
+        inputs.append(_io("log_wbody", "float32", ["N", s]))
+    name = deformer_name(eff)
+    return {"role": ROLES[DEFORMER], "file": graph_file(name), "effects": eff, "window": t, "inputs": inputs,
+            "outputs": [_io("vertices", "float32", ["B", "N", 3]), _io("weights", "float32", ["B", "N", s]),
+                        _io("blend_shapes", "float32", ["B", "N", 3])]}
+
+
+def graph_specs(cfg) -> dict:
+    """``{"garment_encoder": spec, "deformer": spec}``: the encoder and ``cfg``'s own deformer (its
+    ``skinning`` and ``use_blend_shapes``, with dynamics), each with role, file, inputs and outputs."""
+    return {ENCODER: encoder_spec(cfg), DEFORMER: deformer_spec(cfg)}
+
+
+# ---- effects -> graphs ---------------------------------------------------------------------------------
+def effects_of(effects) -> dict:
+    """``{"skinning", "wrinkles", "dynamics"}`` of a :class:`segadeform.scene.Effects` or a mapping."""
+    get = (lambda k: effects[k]) if isinstance(effects, Mapping) else (lambda k: getattr(effects, k))
+    try:
+        out = {"skinning": str(get("skinning")), "wrinkles": bool(get("wrinkles")), "dynamics": bool(get("dynamics"))}
+    except (KeyError, AttributeError):
+        raise PackageError("effects must name skinning, wrinkles and dynamics", got=effects) from None
+    if out["skinning"] not in SKINNING:
+        raise PackageError("unknown skinning", expected=" | ".join(SKINNING), got=out["skinning"])
+    return out
+
+
+def deformer_name(effects) -> str:
+    """The graph name (and, + ``.onnx``, file name) of the deformer for ``effects``:
+    ``deformer_<lbs|dqs>[_nowrinkles][_static]``."""
+    e = effects_of(effects)
+    return f"deformer_{e['skinning']}" + ("" if e["wrinkles"] else "_nowrinkles") + ("" if e["dynamics"] else "_static")
+
+
+def graph_file(name: str) -> str:
+    return f"{name}.onnx"
+
+
+def default_effects(cfg) -> dict:
+    """The effects of the model as trained: its skinning, its blend shapes, dynamics on."""
+    return {"skinning": str(_cfg(cfg, "skinning", "lbs")), "wrinkles": bool(_cfg(cfg, "use_blend_shapes", True)),
+            "dynamics": True}
+
+
+def effect_sets(cfg) -> list[dict]:
+    """Every effect combination an export makes a deformer for: skinning x wrinkles x dynamics (no
+    wrinkles-on graph for a model without blend shapes), the model's own first."""
+    out = [default_effects(cfg)]
+    for skin in SKINNING:
+        for wrinkles in (True, False):
+            if wrinkles and not _cfg(cfg, "use_blend_shapes", True):
+                continue
+            for dynamics in (True, False):
+                e = {"skinning": skin, "wrinkles": wrinkles, "dynamics": dynamics}
+                if e not in out:
+                    out.append(e)
+    return out
+
+
+def deformers(manifest: Mapping) -> dict:
+    """The deformer graphs of a (schema-2) manifest: name -> entry."""
+    return {k: g for k, g in manifest["graphs"].items() if g.get("role") == ROLES[DEFORMER]}
+
+
+def select_deformer(manifest: Mapping, effects, *, path=None) -> str:
+    """The rule every runtime follows: the deformer graph whose ``effects`` equal the requested
+    skinning, wrinkles and dynamics exactly; none is an error listing what the package has."""
+    want = effects_of(effects)
+    for name, g in deformers(manifest).items():
+        if g.get("effects") == want:
+            return name
+    have = "; ".join(f"{n} {g.get('effects')}" for n, g in sorted(deformers(manifest).items()))
+    raise PackageError("package has no deformer for these effects", path=path, expected=have, got=want)
+
+
+def code_name(manifest: Mapping) -> str:
+    """The encoder's one output name (``g``; ``P`` in older packages), also a deformer input name."""
+    return manifest["graphs"][ENCODER]["outputs"][0]["name"]
+
+
+# ---- manifests ---------------------------------------------------------------------------------------
+def make_manifest(*, config: dict, graphs: dict, default_deformer: str, producer: str, joint_names, parents,
+                  units: str, up_axis: str, ops: dict | None = None, weights: dict | None = None,
+                  **extra) -> dict:
+    """A schema-2 manifest.  ``graphs``: name -> entry (role, file, sha256, inputs, outputs; deformers
+    also effects and window); ``weights``: ``{"file", "sha256", "bytes"}`` when the graphs share one."""
+    m = {"format": FORMAT, "schema_version": SCHEMA_VERSION, "opset": OPSET, "producer": producer,
+         "config": dict(config), "joint_names": list(joint_names), "parents": [int(p) for p in parents],
+         "units": units, "up_axis": up_axis, "graphs": dict(graphs), "default_deformer": default_deformer,
+         "ops": dict(ops or {})}
+    if weights is not None:
+        m["weights"] = dict(weights)
+    m.update(extra)
+    return m
+
+
+def read_manifest_text(text: str, *, path=None) -> dict:
+    """Parse, upgrade (schema 1) and validate a manifest's text; the schema-2 form."""
+    import json
+
+    try:
+        m = json.loads(text)
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise PackageError(f"manifest is not valid JSON ({e})", path=path) from None
+    m = upgrade_manifest(m, path=path)
+    validate_manifest(m, path=path)
+    return m
+
+
+def upgrade_manifest(m, *, path=None) -> dict:
+    """A schema-1 manifest in schema-2 form (a copy; schema-2 manifests come back as they are).
+
+    Schema 1 named the model's own deformer twice (``graphs.deformer`` and its entry in
+    ``variants``, both the same file); here each file is one graph, named by its effects."""
+    if not isinstance(m, dict):
+        raise PackageError("manifest must be a JSON object", path=path, got=type(m).__name__)
+    if m.get("schema_version") != 1:
+        return m
+    for key in ("config", "graphs"):
+        if not isinstance(m.get(key), dict):
+            raise PackageError(f"manifest has no '{key}'", path=path)
+    old, cfg = m["graphs"], m["config"]
+    if ENCODER not in old or DEFORMER not in old:
+        raise PackageError("manifest must describe 'garment_encoder' and 'deformer'", path=path,
+                           got=", ".join(old))
+    graphs = {ENCODER: dict(old[ENCODER], role=ROLES[ENCODER])}
+    ops = dict(m.get("ops", {}))
+    dflt = dict(old[DEFORMER])
+    default = None
+    for name, v in (m.get("variants") or {}).items():
+        graphs[name] = dict(v, role=ROLES[DEFORMER])
+        if v.get("file") == dflt.get("file"):
+            default = name
+    if default is None:  # no variants (or none for the model's own effects): the model's own deformer
+        eff = default_effects(cfg)
+        default = deformer_name(eff)
+        win = next((i["shape"][1] for i in dflt.get("inputs", []) if i.get("name") == "window"), cfg.get("window"))
+        graphs[default] = dict(dflt, role=ROLES[DEFORMER], effects=eff, window=win)
+    if DEFORMER in ops:
+        ops.setdefault(default, ops.pop(DEFORMER))
+    out = {k: v for k, v in m.items() if k not in ("variants", "graphs", "ops")}
+    out.update(schema_version=SCHEMA_VERSION, graphs=graphs, default_deformer=default, ops=ops,
+               upgraded_from=1)
+    out.setdefault("format", FORMAT)
+    return out
+
+
+def _shape_ok(shape) -> bool:
+    return isinstance(shape, list) and all(
+        (isinstance(d, int) and not isinstance(d, bool) and d >= 1) or (isinstance(d, str) and d) for d in shape)
+
+
+def _check_io(name, kind, entries, path) -> None:
+    if not isinstance(entries, list) or not entries:
+        raise PackageError(f"graph '{name}' has no {kind}", path=path, expected="a non-empty list", got=entries)
+    seen = set()
+    for e in entries:
+        if not isinstance(e, dict) or not isinstance(e.get("name"), str) or not e["name"]:
+            raise PackageError(f"graph '{name}' has a malformed {kind[:-1]}", path=path,
+                               expected="{name, dtype, shape}", got=e)
+        if e["name"] in seen:
+            raise PackageError(f"graph '{name}' names {kind[:-1]} '{e['name']}' twice", path=path)
+        seen.add(e["name"])
+        if e.get("dtype") not in DTYPES:
+            raise PackageError(f"graph '{name}' {kind[:-1]} '{e['name']}' has an unknown dtype", path=path,
+                               expected=" | ".join(DTYPES), got=e.get("dtype"))
+        if not _shape_ok(e.get("shape")):
+            raise PackageError(f"graph '{name}' {kind[:-1]} '{e['name']}' has a malformed shape", path=path,
+                               expected="a list of positive sizes and axis names", got=e.get("shape"))
+
+
+def validate_manifest(m, *, path=None) -> None:
+    """Check a schema-2 manifest's structure (what :func:`manifest_schema` says, plus the rules a
+    schema cannot: one deformer per effect set, the default a deformer, the encoder's output a
+    deformer input, file names without folders).  Files and ONNX contents are the runtime's checks."""
+    if not isinstance(m, dict):
+        raise PackageError("manifest must be a JSON object", path=path, got=type(m).__name__)
+    for key in ("format", "schema_version", "opset", "config", "graphs", "joint_names", "default_deformer"):
+        if key not in m:
+            raise PackageError(f"manifest has no '{key}'", path=path)
+    if m["format"] != FORMAT:
+        raise PackageError("not a segadeform model package", path=path, expected=FORMAT, got=m["format"])
+    if m["schema_version"] not in READABLE_SCHEMAS:
+        raise PackageError("unsupported manifest schema version", path=path,
+                           expected=" or ".join(map(str, READABLE_SCHEMAS)), got=m["schema_version"])
+    if m["opset"] not in SUPPORTED_OPSETS:
+        raise PackageError("unsupported ONNX opset", path=path,
+                           expected=f"{SUPPORTED_OPSETS.start}..{SUPPORTED_OPSETS.stop - 1}", got=m["opset"])
+    cfg, graphs = m["config"], m["graphs"]
+    if not isinstance(cfg, dict):
+        raise PackageError("manifest config must be an object", path=path, got=type(cfg).__name__)
+    for key in ("n_joints", "n_betas", "n_star"):
+        if not isinstance(cfg.get(key), int) or cfg[key] < 1:
+            raise PackageError(f"manifest config.{key} must be a positive integer", path=path, got=cfg.get(key))
+    if not isinstance(m["joint_names"], list) or len(m["joint_names"]) != cfg["n_joints"]:
+        raise PackageError("manifest joint_names do not match config.n_joints", path=path,
+                           expected=cfg["n_joints"], got=len(m["joint_names"]) if isinstance(m["joint_names"], list)
+                           else m["joint_names"])
+    if not isinstance(graphs, dict) or ENCODER not in graphs:
+        raise PackageError(f"manifest must describe '{ENCODER}'", path=path,
+                           got=", ".join(graphs) if isinstance(graphs, dict) else graphs)
+    files = {}
+    for name, g in graphs.items():
+        if not isinstance(g, dict):
+            raise PackageError(f"graph '{name}' must be an object", path=path, got=g)
+        f = g.get("file")
+        if not isinstance(f, str) or not f.endswith(".onnx") or "/" in f or "\\" in f or f.startswith("."):
+            raise PackageError(f"graph '{name}' file must be a .onnx file name in the package folder", path=path,
+                               got=f)
+        if f in files:
+            raise PackageError(f"graphs '{files[f]}' and '{name}' name the same file (one name per graph)",
+                               path=path, got=f)
+        files[f] = name
+        role = g.get("role")
+        if role not in ROLES.values() or (role == ROLES[ENCODER]) != (name == ENCODER):
+            raise PackageError(f"graph '{name}' has the wrong role", path=path,
+                               expected=ROLES[ENCODER] if name == ENCODER else ROLES[DEFORMER], got=role)
+        _check_io(name, "inputs", g.get("inputs"), path)
+        _check_io(name, "outputs", g.get("outputs"), path)
+    if len(graphs[ENCODER]["outputs"]) != 1:
+        raise PackageError("the garment encoder must have one output", path=path,
+                           got=len(graphs[ENCODER]["outputs"]))
+    code = code_name(m)
+    seen_effects = {}
+    decs = deformers(m)
+    if not decs:
+        raise PackageError("manifest has no deformer graph", path=path)
+    for name, g in decs.items():
+        e = g.get("effects")
+        if not isinstance(e, dict) or set(e) != set(EFFECT_KEYS) or e["skinning"] not in SKINNING \
+                or not isinstance(e["wrinkles"], bool) or not isinstance(e["dynamics"], bool):
+            raise PackageError(f"deformer '{name}' has malformed effects", path=path,
+                               expected="{skinning: lbs|dqs, wrinkles: bool, dynamics: bool}", got=e)
+        if name != deformer_name(e):
+            raise PackageError(f"deformer '{name}' is not named by its effects", path=path,
+                               expected=deformer_name(e), got=name)
+        key = (e["skinning"], e["wrinkles"], e["dynamics"])
+        if key in seen_effects:
+            raise PackageError(f"deformers '{seen_effects[key]}' and '{name}' have the same effects", path=path,
+                               got=e)
+        seen_effects[key] = name
+        win = next((i["shape"] for i in g["inputs"] if i["name"] == "window"), None)
+        if win is None or len(win) != 3 or g.get("window") != win[1] or (not e["dynamics"] and win[1] != 1):
+            raise PackageError(f"deformer '{name}' window does not match its window input", path=path,
+                               expected=f"window = T of input window (B, T, 3S), T = 1 without dynamics",
+                               got=f"window {g.get('window')}, input {win}")
+        if code not in [i["name"] for i in g["inputs"]]:
+            raise PackageError(f"deformer '{name}' does not take the encoder's output '{code}'", path=path)
+    if m["default_deformer"] not in decs:
+        raise PackageError("default_deformer is not a deformer graph", path=path, expected=", ".join(sorted(decs)),
+                           got=m["default_deformer"])
+    w = m.get("weights")
+    if w is not None and (not isinstance(w, dict) or not isinstance(w.get("file"), str) or "/" in w["file"]
+                          or "\\" in w["file"] or w["file"].startswith(".")):
+        raise PackageError("manifest weights must name a file in the package folder", path=path, got=w)
+    if w is not None and w["file"] in files:
+        raise PackageError("manifest weights file is also a graph file", path=path, got=w["file"])
+
+
+def manifest_schema() -> dict:
+    """The JSON Schema (draft 2020-12) of a schema-2 ``manifest.json`` (``docs/manifest.schema.json``)."""
+    dim = {"oneOf": [{"type": "integer", "minimum": 1}, {"type": "string", "minLength": 1}]}
+    tensor = {"type": "object", "required": ["name", "dtype", "shape"], "additionalProperties": False,
+              "properties": {"name": {"type": "string", "minLength": 1},
+                             "dtype": {"enum": list(DTYPES)},
+                             "shape": {"type": "array", "items": dim}}}
+    sha = {"type": "string", "pattern": "^[0-9a-f]{64}$"}
+    fname = {"type": "string", "pattern": r"^[^./\\][^/\\]*\.onnx$"}
+    graph_common = {"file": fname, "sha256": sha,
+                    "inputs": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/tensor"}},
+                    "outputs": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/tensor"}}}
+    effects = {"type": "object", "required": list(EFFECT_KEYS), "additionalProperties": False,
+               "properties": {"skinning": {"enum": list(SKINNING)}, "wrinkles": {"type": "boolean"},
+                              "dynamics": {"type": "boolean"}}}
+    encoder = {"type": "object", "required": ["role", "file", "inputs", "outputs"],
+               "properties": dict(graph_common, role={"const": ROLES[ENCODER]},
+                                  outputs=dict(graph_common["outputs"], maxItems=1))}
+    deformer = {"type": "object", "required": ["role", "file", "inputs", "outputs", "effects", "window"],
+                "properties": dict(graph_common, role={"const": ROLES[DEFORMER]}, effects={"$ref": "#/$defs/effects"},
+                                   window={"type": "integer", "minimum": 1})}
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": "https://segadeform.invalid/manifest.schema.json",
+        "title": "segadeform model package manifest (schema 2)",
+        "description": "manifest.json of a segadeform model package; docs/package.md says what each field and "
+                       "each graph input means. Generated by segadeform.package_spec.manifest_schema().",
+        "type": "object",
+        "required": ["format", "schema_version", "opset", "producer", "config", "joint_names", "parents", "units",
+                     "up_axis", "graphs", "default_deformer"],
+        "properties": {
+            "format": {"const": FORMAT},
+            "schema_version": {"const": SCHEMA_VERSION},
+            "opset": {"type": "integer", "minimum": SUPPORTED_OPSETS.start, "maximum": SUPPORTED_OPSETS.stop - 1},
+            "producer": {"type": "string"},
+            "exporter": {"enum": ["dynamo", "legacy"]},
+            "torch": {"type": "string"},
+            "precision": {"enum": ["fp32", "int8"]},
+            "upgraded_from": {"type": "integer"},
+            "config": {"type": "object",
+                       "required": ["n_joints", "n_betas", "n_star", "feat_dim", "window", "skinning",
+                                    "use_blend_shapes"],
+                       "properties": {k: {"type": "integer", "minimum": 1}
+                                      for k in ("n_joints", "n_betas", "n_star", "feat_dim", "window")}
+                       | {"skinning": {"enum": list(SKINNING)}, "use_blend_shapes": {"type": "boolean"},
+                          "weights": {"enum": ["free", "residual"]}}},
+            "joint_names": {"type": "array", "items": {"type": "string"}, "minItems": 1},
+            "parents": {"type": "array", "items": {"type": "integer", "minimum": -1}, "minItems": 1},
+            "units": {"const": "m"},
+            "up_axis": {"const": "y"},
+            "graphs": {"type": "object", "required": [ENCODER],
+                       "properties": {ENCODER: {"$ref": "#/$defs/encoder"}},
+                       "patternProperties": {"^deformer_(lbs|dqs)(_nowrinkles)?(_static)?$":
+                                             {"$ref": "#/$defs/deformer"}},
+                       "additionalProperties": False, "minProperties": 2},
+            "default_deformer": {"type": "string", "pattern": "^deformer_"},
+            "weights": {"type": "object", "required": ["file", "sha256", "bytes"], "additionalProperties": False,
+                        "properties": {"file": {"type": "string", "pattern": r"^[^./\\][^/\\]*$"}, "sha256": sha,
+                                       "bytes": {"type": "integer", "minimum": 0}}},
+            "ops": {"type": "object", "additionalProperties": {"type": "object",
+                                                               "additionalProperties": {"type": "integer"}}},
+        },
+        "$defs": {"tensor": tensor, "effects": effects, "encoder": encoder, "deformer": deformer},
+    }
+
+
+def write_manifest_schema(path) -> None:
+    """Write :func:`manifest_schema` as JSON to ``path`` (how ``docs/manifest.schema.json`` is made)."""
+    import json
+
+    from .io.atomic import atomic_open
+
+    with atomic_open(path, "w", encoding="utf-8") as fh:
+        fh.write(json.dumps(manifest_schema(), indent=2) + "\n")

@@ -1,0 +1,71 @@
+"""Quality presets: ``segadeform run --quality fast|balanced|best``.
+
+Each preset is a point on the accuracy/time frontier measured by ``bench/tradeoffs.py`` on the
+held-out split of ``samples/datasets/generalise.toml`` with the shipped model
+(``docs/accuracy-vs-time.md``, section "Presets", records each preset's error and frames per second;
+the bench measures every preset in the same run as the other knobs).  A preset sets the effects and
+the collision margin only; ``--batch``, ``--threads`` and ``--model`` stay separate options.
+
+How presets meet other effect settings (``segadeform run``):
+
+* ``--quality`` replaces a scene's ``[effects]`` table (the command line wins over the file);
+* ``--effects`` with signed changes only (``+collisions``, ``-dynamics``; ``lbs``/``dqs`` may join
+  them) applies on top of the preset;
+* ``--effects`` with a complete list (``dqs,collisions``) names every effect itself, so giving it with
+  ``--quality`` is an error (:func:`preset_effects` raises, the command exits with a usage error).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from .errors import InputError
+from .scene import Effects, parse_effects
+
+__all__ = ["Preset", "QUALITY_PRESETS", "preset_effects", "is_change_list"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Preset:
+    """A named point of the frontier: the effects it runs and why it was picked."""
+
+    effects: Effects
+    why: str
+
+
+#: name -> preset, fastest first.  Measured figures: docs/accuracy-vs-time.md ("Presets").  All three are
+#: points of the measured frontier of the shipped model.  Wrinkles (the blend-shape decoder) are off in
+#: every preset: with the shipped model they raise the held-out error (3.60 against 3.19 cm without)
+#: and cost most of the deformer's time; a model whose blend shapes pay should run the bench again and
+#: revise this table.
+QUALITY_PRESETS = {
+    "fast": Preset(Effects(dynamics=True, wrinkles=False, collisions=False),
+                   "the fastest useful frontier point: dynamic skinning weights, no blend shapes, no collision "
+                   "stage (about a fifth of the vertices stay more than 2 mm inside the body)"),
+    "balanced": Preset(Effects(dynamics=True, wrinkles=False, collisions=True, collision_margin=0.002),
+                       "the cheapest frontier point with the collision stage: the fast preset plus the push-out "
+                       "at a 2 mm margin (no body penetration left)"),
+    "best": Preset(Effects(dynamics=True, wrinkles=False, collisions=True, collision_margin=0.008),
+                   "the frontier point with the lowest vertex error: the push-out at an 8 mm margin (a few "
+                   "hundredths of a cm better than balanced, for a third more time)"),
+}
+
+
+def is_change_list(text: str) -> bool:
+    """Whether an ``--effects`` text holds signed changes only (``-wrinkles,+collisions``, ``dqs,-dynamics``)
+    rather than a complete list (``dqs,collisions``; a skinning name alone is a complete list too)."""
+    named = [t.strip() for t in text.split(",") if t.strip() and t.strip() not in ("lbs", "dqs")]
+    return bool(named) and all(t[0] in "+-" for t in named)
+
+
+def preset_effects(name: str, effects: str | None = None) -> Effects:
+    """The effects of preset ``name``, with ``effects`` (signed changes only) applied on top."""
+    if name not in QUALITY_PRESETS:
+        raise InputError("unknown quality preset", expected=" | ".join(QUALITY_PRESETS), got=name)
+    base = QUALITY_PRESETS[name].effects
+    if not effects:
+        return base
+    if not is_change_list(effects):
+        raise InputError("a quality preset takes effect changes (+name/-name), not a complete effects list",
+                         expected="e.g. --quality fast --effects=+collisions", got=effects)
+    return parse_effects(effects, base)

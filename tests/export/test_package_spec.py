@@ -1,0 +1,255 @@
+"""The package contract (segadeform.package_spec, docs/package.md): manifests against the JSON Schema, the
+contract's I/O against the ONNX graphs, the effect -> graph rule, schema-1 packages, shared weights."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import jsonschema  # the dev extra
+import onnx
+import onnxruntime as ort
+import pytest
+
+from segadeform import package_spec as contract
+from segadeform.model import ModelConfig
+from segadeform.runtime import ModelPackage, PackageError
+from segadeform.scene import Effects
+from tests.conftest import REPO, SAMPLES
+
+SHIPPED = SAMPLES / "models" / "default"
+SCHEMA = REPO / "docs" / "manifest.schema.json"
+_ORT = {"tensor(float)": "float32", "tensor(int64)": "int64", "tensor(bool)": "bool"}
+
+
+def _validator():
+    schema = json.loads(SCHEMA.read_text())
+    jsonschema.Draft202012Validator.check_schema(schema)
+    return jsonschema.Draft202012Validator(schema)
+
+
+def _errors(manifest) -> list[str]:
+    return [f"{list(e.path)}: {e.message}" for e in _validator().iter_errors(manifest)]
+
+
+def test_schema_file_is_the_contracts():
+    """docs/manifest.schema.json is generated; regenerate with
+    python -c "from segadeform.package_spec import write_manifest_schema as w; w('docs/manifest.schema.json')"."""
+    assert json.loads(SCHEMA.read_text()) == contract.manifest_schema()
+
+
+def test_shipped_manifest_is_valid():
+    m = json.loads((SHIPPED / "manifest.json").read_text())
+    assert _errors(m) == []
+    contract.validate_manifest(m)
+    assert m["schema_version"] == contract.SCHEMA_VERSION and "variants" not in m
+    ModelPackage(SHIPPED)  # every file present and matching its hash
+
+
+def test_fresh_export_is_valid_and_named_by_the_contract(random_model):
+    net, path = random_model
+    m = json.loads((path / "manifest.json").read_text())
+    assert _errors(m) == []
+    contract.validate_manifest(m)
+    want = {contract.deformer_name(e) for e in contract.effect_sets(net.cfg)} | {contract.ENCODER}
+    assert set(m["graphs"]) == want and len(want) == 9
+    assert m["default_deformer"] == contract.deformer_name(contract.default_effects(net.cfg)) == "deformer_lbs"
+    files = [g["file"] for g in m["graphs"].values()]
+    assert len(set(files)) == len(files) and all(f == f"{n}.onnx" for n, f in zip(m["graphs"], files))
+    assert sorted(p.name for p in path.iterdir()) == sorted(files + ["manifest.json", m["weights"]["file"]])
+
+
+def test_contract_io_matches_the_onnx_graphs(random_model):
+    """What the contract says each graph takes and returns is what onnxruntime sees in the files."""
+    net, path = random_model
+    m = json.loads((path / "manifest.json").read_text())
+    for name, entry in m["graphs"].items():
+        want = contract.encoder_spec(net.cfg) if name == contract.ENCODER else \
+            contract.deformer_spec(net.cfg, entry["effects"])
+        assert {k: entry[k] for k in want} == dict(want, file=entry["file"]), name
+        sess = ort.InferenceSession(str(path / entry["file"]), providers=["CPUExecutionProvider"])
+        for got, spec in ((sess.get_inputs(), want["inputs"]), (sess.get_outputs(), want["outputs"])):
+            assert [g.name for g in got] == [s["name"] for s in spec], name
+            for g, s in zip(got, spec):
+                assert _ORT[g.type] == s["dtype"] and len(g.shape) == len(s["shape"]), (name, g.name)
+                for gd, sd in zip(g.shape, s["shape"]):
+                    assert gd == sd if isinstance(sd, int) else isinstance(gd, str), (name, g.name, g.shape)
+
+
+def test_runtimes_can_feed_every_input_the_contract_names():
+    cfg = ModelConfig(weights="residual")
+    assert {i["name"] for i in contract.encoder_spec(cfg)["inputs"]} <= set(contract.FEEDS["encoder"])
+    code = contract.encoder_spec(cfg)["outputs"][0]["name"]
+    assert {i["name"] for i in contract.deformer_spec(cfg)["inputs"]} <= set(contract.FEEDS["deformer"]) | {code}
+    assert set(contract.FEEDS["encoder"]) | set(contract.FEEDS["deformer"]) <= set(contract.INPUTS)
+
+
+def test_shipped_graphs_take_only_what_the_contract_describes():
+    """The shipped (older, P-style) graphs: manifest I/O = the files' I/O, every name one the contract documents."""
+    m = contract.read_manifest_text((SHIPPED / "manifest.json").read_text())
+    documented = set(contract.INPUTS) | {"P"}
+    for name, entry in m["graphs"].items():
+        sess = ort.InferenceSession(str(SHIPPED / entry["file"]), providers=["CPUExecutionProvider"])
+        assert [i.name for i in sess.get_inputs()] == [i["name"] for i in entry["inputs"]]
+        assert [o.name for o in sess.get_outputs()] == [o["name"] for o in entry["outputs"]]
+        assert {i["name"] for i in entry["inputs"]} <= documented, name
+    assert contract.code_name(m) == "P"
+
+
+def test_docs_describe_every_name_and_key():
+    doc = (REPO / "docs" / "package.md").read_text()
+    for name in list(contract.INPUTS) + list(contract.OUTPUTS) + ["P"]:
+        assert f"`{name}`" in doc, name
+    for key in contract.manifest_schema()["properties"]:
+        if key != "upgraded_from":
+            assert f"`{key}`" in doc, key
+    for key in ("role", "file", "sha256", "inputs", "effects", "window"):
+        assert f".{key}`" in doc, key
+
+
+# ---- effects -> graph -------------------------------------------------------------------------------
+def test_select_deformer_is_an_exact_match(random_package):
+    pkg = ModelPackage(random_package)
+    for skin in contract.SKINNING:
+        for wrinkles in (True, False):
+            for dynamics in (True, False):
+                e = Effects(skinning=skin, wrinkles=wrinkles, dynamics=dynamics)
+                name = pkg.variant_for(e)
+                assert name == contract.deformer_name(e) and pkg.spec(name)["effects"] == contract.effects_of(e)
+                assert pkg.spec(name)["window"] == (pkg.config["window"] if dynamics else 1)
+    assert pkg.spec("deformer") is pkg.spec("deformer_lbs")  # "deformer": the default deformer
+    no_blend = {k: v for k, v in pkg.manifest.items()}
+    no_blend["graphs"] = {k: v for k, v in pkg.manifest["graphs"].items() if "nowrinkles" in k or k == contract.ENCODER}
+    with pytest.raises(PackageError, match="no deformer for these effects.*deformer_dqs_nowrinkles"):
+        contract.select_deformer(no_blend, Effects(wrinkles=True))
+
+
+def test_export_of_a_model_without_blend_shapes_has_no_wrinkle_graphs():
+    cfg = ModelConfig(use_blend_shapes=False, skinning="dqs")
+    names = [contract.deformer_name(e) for e in contract.effect_sets(cfg)]
+    assert names[0] == "deformer_dqs_nowrinkles"  # the model's own first
+    assert sorted(names) == ["deformer_dqs_nowrinkles", "deformer_dqs_nowrinkles_static", "deformer_lbs_nowrinkles",
+                             "deformer_lbs_nowrinkles_static"]
+
+
+@pytest.mark.parametrize("edit, words, schema_sees", [
+    (lambda m: m["graphs"]["deformer_lbs"].update(effects={"skinning": "lbs", "wrinkles": True, "dynamics": False}),
+     "not named by its effects", False),
+    (lambda m: m["graphs"]["deformer_lbs"].update(window=3), "window does not match", False),
+    (lambda m: m["graphs"]["deformer_lbs"].update(file="../x.onnx"), "file name in the package folder", True),
+    (lambda m: m["graphs"]["deformer_lbs"]["inputs"][0].update(dtype="float16"), "unknown dtype", True),
+    (lambda m: m["graphs"]["garment_encoder"].update(role="deformer"), "wrong role", True),
+    (lambda m: m.pop("default_deformer"), "no 'default_deformer'", True),
+    (lambda m: m.update(format="onnx-bundle"), "not a segadeform model package", True),
+])
+def test_malformed_manifests_are_refused(random_package, edit, words, schema_sees):
+    """The runtime's checks refuse what the JSON Schema refuses, and the rules a schema cannot state."""
+    m = json.loads((random_package / "manifest.json").read_text())
+    edit(m)
+    with pytest.raises(PackageError, match=words):
+        contract.validate_manifest(m)
+    assert bool(_errors(m)) == schema_sees
+
+
+# ---- schema 1 ---------------------------------------------------------------------------------------
+def _as_schema_1(src, dst):
+    """``src`` (schema 2) rewritten as the exporter wrote packages before: the model's own deformer as
+    ``deformer.onnx``, listed in ``graphs`` and again in ``variants``, every graph self-contained."""
+    m = json.loads((src / "manifest.json").read_text())
+    dst.mkdir()
+    graphs = {}
+    for name, g in m["graphs"].items():
+        f = "deformer.onnx" if name == m["default_deformer"] else g["file"]
+        onnx.save(onnx.load(str(src / g["file"])), str(dst / f))
+        graphs[name] = {k: v for k, v in g.items() if k != "role"}
+        graphs[name].update(file=f, sha256=contract_sha(dst / f))
+    enc = graphs.pop(contract.ENCODER)
+    dflt = {k: v for k, v in graphs[m["default_deformer"]].items() if k not in ("effects", "window")}
+    old = {k: v for k, v in m.items() if k not in ("graphs", "default_deformer", "weights")}
+    old.update(schema_version=1, graphs={"garment_encoder": enc, "deformer": dflt}, variants=graphs)
+    (dst / "manifest.json").write_text(json.dumps(old))
+    return dst
+
+
+def contract_sha(path):
+    from segadeform.export.packing import sha256_file
+
+    return sha256_file(path)
+
+
+def _outputs(pkg_path, seed=0):
+    """Every deformer's outputs and the encoder's on one random garment, by graph name."""
+    from segadeform.export.package import sample_inputs
+
+    pkg = ModelPackage(pkg_path)
+    cfg = ModelConfig.from_dict(pkg.config)
+    out = {}
+    for name, g in pkg.manifest["graphs"].items():
+        gcfg = cfg.replace(window=g["window"]) if name != contract.ENCODER else cfg
+        out[name] = pkg.run(name, sample_inputs(gcfg, name, n=50, k=6, b=3, seed=seed))
+    return out
+
+
+def test_schema_1_packages_still_load_and_repack_to_the_same_outputs(tmp_path, random_package):
+    from segadeform.export.packing import repack_package
+
+    old = _as_schema_1(random_package, tmp_path / "v1")
+    pkg = ModelPackage(old)
+    assert pkg.manifest["upgraded_from"] == 1 and pkg.default_deformer == "deformer_lbs"
+    assert pkg.spec("deformer_lbs")["file"] == "deformer.onnx" and len(pkg.manifest["graphs"]) == 9
+    assert _errors({k: v for k, v in pkg.manifest.items()}) == []  # the upgraded form is a valid schema-2 manifest
+    ref = _outputs(random_package)
+    for name, got in _outputs(old).items():
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
+    new = repack_package(old, tmp_path / "v2")
+    assert new["schema_version"] == 2 and "upgraded_from" not in new and _errors(new) == []
+    assert not (tmp_path / "v2" / "deformer.onnx").exists() and (tmp_path / "v2" / "deformer_lbs.onnx").is_file()
+    for name, got in _outputs(tmp_path / "v2").items():
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
+
+
+# ---- shared weights ---------------------------------------------------------------------------------
+def test_shared_weights_are_stored_once_and_change_nothing(tmp_path, random_package):
+    from segadeform.export.packing import repack_package
+
+    inline = tmp_path / "inline"
+    m = repack_package(random_package, inline, shared=False)
+    assert "weights" not in m and not (inline / "weights.bin").exists() and _errors(m) == []
+    ref = _outputs(random_package, seed=4)
+    for name, got in _outputs(inline, seed=4).items():
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
+
+    def size(p):
+        return sum(f.stat().st_size for f in p.iterdir() if f.suffix in (".onnx", ".bin"))
+
+    assert size(random_package) < 0.6 * size(inline)
+    # every large initializer of every graph lives in weights.bin; no graph carries debug metadata
+    shared = json.loads((random_package / "manifest.json").read_text())
+    for g in shared["graphs"].values():
+        proto = onnx.load(str(random_package / g["file"]), load_external_data=False)
+        assert not any(n.metadata_props for n in proto.graph.node)
+        for t in proto.graph.initializer:
+            if t.data_location != onnx.TensorProto.EXTERNAL:
+                assert len(t.raw_data) + 4 * len(t.float_data) + 8 * len(t.int64_data) < 256, t.name
+            else:
+                assert {e.key: e.value for e in t.external_data}["location"] == "weights.bin"
+    # a copy without weights.bin cannot run: the graphs really read it
+    broken = tmp_path / "broken"
+    shutil.copytree(random_package, broken)
+    (broken / "weights.bin").unlink()
+    with pytest.raises(PackageError, match="weights file is missing"):
+        ModelPackage(broken)
+
+
+def test_pack_graphs_offsets_are_aligned(random_package):
+    from segadeform.export.packing import ALIGN
+
+    seen = set()
+    for f in random_package.glob("*.onnx"):
+        for t in onnx.load(str(f), load_external_data=False).graph.initializer:
+            if t.data_location == onnx.TensorProto.EXTERNAL:
+                e = {x.key: int(x.value) for x in t.external_data if x.key in ("offset", "length")}
+                assert e["offset"] % ALIGN == 0
+                seen.add((e["offset"], e["length"]))
+    total = (random_package / "weights.bin").stat().st_size
+    assert sum(n for _, n in seen) <= total < sum(n for _, n in seen) + ALIGN * len(seen)

@@ -1,0 +1,71 @@
+"""segadeform run --quality: presets are data (segadeform.presets), set the effects and margin, take signed
+--effects changes on top and refuse a complete --effects list."""
+
+from __future__ import annotations
+
+import pytest
+from click.testing import CliRunner
+
+from segadeform.cli.main import cli
+from segadeform.errors import InputError
+from segadeform.presets import QUALITY_PRESETS, is_change_list, preset_effects
+from segadeform.scene import Effects
+from tests.conftest import SAMPLES
+
+
+def test_preset_table_and_rules():
+    assert list(QUALITY_PRESETS) == ["fast", "balanced", "best"]
+    for name, p in QUALITY_PRESETS.items():
+        assert isinstance(p.effects, Effects) and p.why
+        assert preset_effects(name) == p.effects
+    assert preset_effects("fast", "+collisions") == Effects(
+        **{**QUALITY_PRESETS["fast"].effects.__dict__, "collisions": True})
+    assert preset_effects("best", "dqs,-wrinkles").skinning == "dqs"
+    assert not preset_effects("best", "dqs,-wrinkles").wrinkles
+    assert is_change_list("-wrinkles,+collisions") and is_change_list("dqs,-dynamics")
+    assert not is_change_list("dqs,collisions") and not is_change_list("dqs") and not is_change_list("")
+    for bad in ("dqs,collisions", "lbs"):
+        with pytest.raises(InputError, match="complete effects list"):
+            preset_effects("fast", bad)
+    with pytest.raises(InputError, match="unknown quality preset"):
+        preset_effects("ultra")
+
+
+def _flags(tmp_path, package, *extra):
+    return ["run", "--garment", str(SAMPLES / "garments" / "skirt.obj"), "--motion",
+            str(SAMPLES / "motions" / "walk.npz"), "--frames", "0:4", "-o", str(tmp_path / "o.pc2"),
+            "--model", str(package), "--no-cache", *extra]
+
+
+def _label(e: Effects) -> str:
+    off = e.off()
+    return f"effects {e.label()}" + (f"; off: {', '.join(off)}" if off else "")
+
+
+def test_run_quality_presets_pick_their_effects(tmp_path, random_package):
+    for name, p in QUALITY_PRESETS.items():
+        r = CliRunner().invoke(cli, _flags(tmp_path, random_package, "--quality", name))
+        assert r.exit_code == 0, r.output
+        assert f"(quality {name}: {_label(p.effects)};" in r.output
+    # signed changes apply on top of the preset
+    r = CliRunner().invoke(cli, _flags(tmp_path, random_package, "--quality", "fast", "--effects=+collisions,dqs"))
+    e = preset_effects("fast", "+collisions,dqs")
+    assert r.exit_code == 0 and f"(quality fast: {_label(e)};" in r.output
+    # a complete list conflicts: a usage error naming both, nothing written
+    out = tmp_path / "x.pc2"
+    args = _flags(tmp_path, random_package, "--quality", "best", "--effects", "dqs,collisions")
+    args[args.index(str(tmp_path / "o.pc2"))] = str(out)
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 2 and "--quality best" in r.output and "dqs,collisions" in r.output
+    assert not out.exists()
+    r = CliRunner().invoke(cli, _flags(tmp_path, random_package, "--quality", "ultra"))
+    assert r.exit_code == 2
+
+
+def test_quality_replaces_a_scenes_effects(tmp_path, random_package):
+    scene = tmp_path / "s.toml"
+    scene.write_text(f'[garment]\nmesh = "{SAMPLES / "garments" / "skirt.obj"}"\n[motion]\nkind = "walk"\n'
+                     f'seconds = 0.2\n[output]\npath = "{tmp_path / "o.pc2"}"\n[effects]\nskinning = "dqs"\n')
+    r = CliRunner().invoke(cli, ["run", str(scene), "--model", str(random_package), "--no-cache", "--quality", "best"])
+    assert r.exit_code == 0, r.output
+    assert f"(quality best: {_label(QUALITY_PRESETS['best'].effects)};" in r.output
