@@ -85,15 +85,15 @@ def test_runtimes_can_feed_every_input_the_contract_names():
 
 
 def test_shipped_graphs_take_only_what_the_contract_describes():
-    """The shipped (older, P-style) graphs: manifest I/O = the files' I/O, every name one the contract documents."""
+    """The shipped graphs: manifest I/O = the files' I/O, every name one the contract documents."""
     m = contract.read_manifest_text((SHIPPED / "manifest.json").read_text())
-    documented = set(contract.INPUTS) | {"P"}
+    documented = set(contract.INPUTS)
     for name, entry in m["graphs"].items():
         sess = ort.InferenceSession(str(SHIPPED / entry["file"]), providers=["CPUExecutionProvider"])
         assert [i.name for i in sess.get_inputs()] == [i["name"] for i in entry["inputs"]]
         assert [o.name for o in sess.get_outputs()] == [o["name"] for o in entry["outputs"]]
         assert {i["name"] for i in entry["inputs"]} <= documented, name
-    assert contract.code_name(m) == "P"
+    assert contract.code_name(m) == "g"  # the factored encoder (older packages: P)
 
 
 def test_docs_describe_every_name_and_key():
