@@ -83,3 +83,13 @@ def test_bake_reproduces_the_shipped_body(tmp_path, body):
     for i in pairs:
         assert set(baked.faces[i:i + 2].ravel()) == set(body.faces[i:i + 2].ravel()), f"faces {i}, {i + 1}"
         assert len(set(body.faces[i:i + 2].ravel())) == 4
+
+
+def test_rest_joints_load_from_the_default_body_file():
+    """Regression: `precompute --body default_body.npz` said "body file has no joints" (joint_template)."""
+    import numpy as np
+
+    from segadeform.body import default_body_path, load_body
+    from segadeform.body.skeleton import load_rest_joints
+
+    np.testing.assert_array_equal(load_rest_joints(default_body_path()), load_body(default_body_path()).rest_joints(())[0])

@@ -37,7 +37,8 @@ def _finite_joints(j, p: Path, what: str) -> np.ndarray:
 def load_rest_joints(path: str | os.PathLike) -> np.ndarray:
     """Rest-pose joint positions ``(S, 3)`` from a ``.npy`` array or a body ``.npz``.
 
-    A body ``.npz`` provides either ``joints (S, 3)`` or ``J_regressor (S, V)``
+    A body ``.npz`` provides ``joints (S, 3)``, ``joint_template (S, 3)`` (segadeform's body
+    format: the mean shape) or ``J_regressor (S, V)``
     with ``v_template (V, 3)`` (SMPL's form; joints = J_regressor @ v_template).
     Files are read with ``allow_pickle=False``.
     """
@@ -57,6 +58,8 @@ def load_rest_joints(path: str | os.PathLike) -> np.ndarray:
         return _finite_joints(z, p, "joints")
     if "joints" in z:
         return _finite_joints(z["joints"], p, "joints")
+    if "joint_template" in z:  # segadeform's own body format: the mean shape's rest joints
+        return _finite_joints(z["joint_template"], p, "joint_template")
     if "J_regressor" in z and "v_template" in z:
         jr, vt = np.asarray(z["J_regressor"]), np.asarray(z["v_template"])
         if jr.ndim != 2 or vt.ndim != 2 or vt.shape[1] != 3 or jr.shape[1] != vt.shape[0]:
@@ -65,7 +68,7 @@ def load_rest_joints(path: str | os.PathLike) -> np.ndarray:
                                   got=f"{jr.shape} and {vt.shape}")
         return _finite_joints(jr.astype(np.float64) @ vt.astype(np.float64), p, "joints")
     raise FileFormatError("body file has no joints", path=p,
-                          expected="'joints' or 'J_regressor' + 'v_template'", got=", ".join(z))
+                          expected="'joints', 'joint_template' or 'J_regressor' + 'v_template'", got=", ".join(z))
 
 
 def default_rest_joints() -> np.ndarray:
