@@ -22,6 +22,8 @@ imported only when a Ray executor is made (``pip install segadeform[ray]``).
 
 from __future__ import annotations
 
+import abc
+
 import concurrent.futures as cf
 import logging
 import os
@@ -39,13 +41,14 @@ class ExecutorError(SegadeformError):
     """A worker died (more often than the retries allow) or the cluster could not be reached."""
 
 
-class Executor:
+class Executor(abc.ABC):
     """Runs tasks; see the module docstring.  ``remote``: tasks may run on other machines than this one."""
 
     name = "executor"
     remote = False
     workers: Optional[int] = None
 
+    @abc.abstractmethod
     def map_unordered(self, fn: Callable[[Any], Any], tasks: Iterable) -> Iterator:
         raise NotImplementedError
 

@@ -22,6 +22,8 @@ of one target, which the next attempt of the task that owns the target does befo
 
 from __future__ import annotations
 
+import abc
+
 import contextlib
 import os
 import posixpath
@@ -49,24 +51,28 @@ def _check_rel(rel: str) -> str:
     return rel
 
 
-class Location:
+class Location(abc.ABC):
     """A folder that results are committed to (see the module docstring)."""
 
     url: str
 
+    @abc.abstractmethod
     def exists(self, rel: str) -> bool:
         raise NotImplementedError
 
+    @abc.abstractmethod
     def read_bytes(self, rel: str) -> bytes:
         raise NotImplementedError
 
     def read_text(self, rel: str) -> str:
         return self.read_bytes(rel).decode("utf-8")
 
+    @abc.abstractmethod
     def listdir(self, rel: str = "") -> list[str]:
         """Names of the files in folder ``rel`` (temporaries left out), sorted; [] when it does not exist."""
         raise NotImplementedError
 
+    @abc.abstractmethod
     @contextlib.contextmanager
     def writing(self, rel: str, *, once: bool = False) -> Iterator[Path]:
         """Yield a local path to write; committed to ``rel`` when the block succeeds.  With ``once``
@@ -85,10 +91,12 @@ class Location:
             raise
         return True
 
+    @abc.abstractmethod
     def local_copy(self, rel: str, into: Path) -> Path:
         """A local file with ``rel``'s content (a local folder's own file; else downloaded into ``into``)."""
         raise NotImplementedError
 
+    @abc.abstractmethod
     def remove_temporaries(self, rel: str) -> int:
         """Remove what killed writers of ``rel`` left (see the module docstring); returns how many."""
         raise NotImplementedError
