@@ -44,23 +44,13 @@ def sha256_file(path: Path) -> str:
 
 def strip_debug_info(model) -> None:
     """Remove per-node metadata and doc strings from ``model`` (an ``onnx.ModelProto``), in place."""
+    from .portability import iter_graphs, iter_nodes
 
-    def walk(graph):
+    for graph in iter_graphs(model):
         graph.doc_string = ""
-        for node in graph.node:
-            del node.metadata_props[:]
-            node.doc_string = ""
-            for attr in node.attribute:
-                if attr.HasField("g"):
-                    walk(attr.g)
-                for g in attr.graphs:
-                    walk(g)
-
-    walk(model.graph)
-    for fn in model.functions:
-        for node in fn.node:
-            del node.metadata_props[:]
-            node.doc_string = ""
+    for node in iter_nodes(model):
+        del node.metadata_props[:]
+        node.doc_string = ""
 
 
 def _raw_bytes(tensor) -> bytes:

@@ -12,7 +12,8 @@ from collections import Counter
 
 from segadeform.errors import SegadeformError
 
-__all__ = ["ALLOWED_OPS", "FORBIDDEN_OPS", "PortabilityError", "op_counts", "check_portability"]
+__all__ = ["ALLOWED_OPS", "FORBIDDEN_OPS", "PortabilityError", "iter_graphs", "iter_nodes", "op_counts",
+           "check_portability"]
 
 FORBIDDEN_OPS = {
     "Einsum": "limited in Unity Sentis; write MatMul",
@@ -36,24 +37,33 @@ class PortabilityError(SegadeformError):
     """An exported graph uses an op outside :data:`ALLOWED_OPS`."""
 
 
-def op_counts(model) -> Counter:
-    """Op types used by an ``onnx.ModelProto`` (including subgraphs and local functions)."""
-    c: Counter = Counter()
+def iter_graphs(model):
+    """Every graph of an ``onnx.ModelProto``: the main graph and, depth first, the subgraphs of its nodes'
+    attributes (If/Loop/Scan bodies)."""
 
     def walk(graph):
+        yield graph
         for node in graph.node:
-            c[node.op_type] += 1
             for attr in node.attribute:
-                if attr.g is not None and attr.g.node:
-                    walk(attr.g)
+                if attr.HasField("g"):
+                    yield from walk(attr.g)
                 for g in attr.graphs:
-                    walk(g)
+                    yield from walk(g)
 
-    walk(model.graph)
+    yield from walk(model.graph)
+
+
+def iter_nodes(model):
+    """Every node of an ``onnx.ModelProto``: those of :func:`iter_graphs` and of its local functions."""
+    for graph in iter_graphs(model):
+        yield from graph.node
     for fn in model.functions:
-        for node in fn.node:
-            c[node.op_type] += 1
-    return c
+        yield from fn.node
+
+
+def op_counts(model) -> Counter:
+    """Op types used by an ``onnx.ModelProto`` (including subgraphs and local functions)."""
+    return Counter(node.op_type for node in iter_nodes(model))
 
 
 def check_portability(model, name: str = "graph") -> Counter:
