@@ -23,7 +23,11 @@ from .main import cli
 @click.option("--legacy", is_flag=True, help="Use the legacy (TorchScript) exporter instead of dynamo.")
 @click.option("--inline-weights", is_flag=True,
               help="Self-contained graph files (each with its own weights) instead of one shared weights.bin.")
-def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy, inline_weights):
+@click.option("--training-garments", "training_files", multiple=True,
+              type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
+                   "warn about garments far from all of them.  Default: what the checkpoint records.")
+def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy, inline_weights, training_files):
     """Export CHECKPOINT (or --random-init) to an ONNX model package (needs the 'torch' extra)."""
     try:
         import torch  # noqa: F401
@@ -51,7 +55,18 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
         if config_json:
             raise click.UsageError("--config applies to --random-init only (a checkpoint carries its config)")
         model = load_checkpoint(checkpoint)
-    m = export_package(model, output, dynamo=not legacy, check=check, shared_weights=not inline_weights)
+    extra = {}
+    garments = _training_garments(training_files, model.cfg.n_star)
+    if garments is None and checkpoint is not None:
+        from segadeform.model.network import checkpoint_training_garments
+
+        garments = checkpoint_training_garments(checkpoint)
+    if garments is not None:
+        from segadeform.export.training_set import training_garments_entry
+
+        extra["training_garments"] = training_garments_entry(*garments)
+    m = export_package(model, output, dynamo=not legacy, check=check, shared_weights=not inline_weights,
+                       extra_manifest=extra)
     click.echo(f"{output}: {len(m['graphs'])} graphs (default {m['default_deformer']}), manifest.json, "
                f"{_size(output) / 1e6:.2f} MB (opset {m['opset']}, {m['exporter']} exporter"
                f"{', weights shared in ' + m['weights']['file'] if 'weights' in m else ''})")
@@ -85,7 +100,11 @@ def quantize_cmd(package, output, precision):
               help="The new package folder.")
 @click.option("--inline-weights", is_flag=True,
               help="Self-contained graph files (each with its own weights) instead of one shared weights.bin.")
-def repack_cmd(package, output, inline_weights):
+@click.option("--training-garments", "training_files", multiple=True,
+              type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
+                   "warn about garments far from all of them.  Default: the package's own list.")
+def repack_cmd(package, output, inline_weights, training_files):
     """Rewrite model PACKAGE (any schema) in the current layout, same graphs (needs onnx)."""
     try:
         import onnx  # noqa: F401
@@ -93,10 +112,28 @@ def repack_cmd(package, output, inline_weights):
         raise click.ClickException("repack needs onnx: pip install 'segadeform[torch]'") from None
     from segadeform.export.packing import repack_package
 
+    from segadeform import package_spec as contract
+
     before = _size(package)
-    m = repack_package(package, output, shared=not inline_weights)
+    garments = _training_garments(training_files, contract.read_manifest_text(
+        (package / contract.MANIFEST_FILE).read_text(encoding="utf-8"))["config"]["n_star"])
+    entry = None
+    if garments is not None:
+        from segadeform.export.training_set import training_garments_entry
+
+        entry = training_garments_entry(*garments)
+    m = repack_package(package, output, shared=not inline_weights, training_garments=entry)
     click.echo(f"{output}: schema {m['schema_version']}, {len(m['graphs'])} graphs, "
                f"{before / 1e6:.2f} MB -> {_size(output) / 1e6:.2f} MB")
+
+
+def _training_garments(files, n_star: int):
+    """``(names, descriptors)`` of the garment files given, or None when none are."""
+    if not files:
+        return None
+    from segadeform.export.training_set import mesh_descriptors
+
+    return mesh_descriptors(files, n_star)
 
 
 def _size(folder) -> int:

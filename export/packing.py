@@ -115,13 +115,15 @@ def pack_graphs(folder: str | os.PathLike, files: list[str], *, shared: bool = T
     return {"file": weights_file, "sha256": sha256_file(wpath), "bytes": len(blob)}
 
 
-def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bool = True) -> dict:
+def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bool = True,
+                   training_garments: dict | None = None) -> dict:
     """Write package ``src`` (schema 1 or 2) to ``dst`` in the current layout; returns the new manifest.
 
     The graphs are the same (what they compute is unchanged; only their storage and, for schema-1
     packages, the file name of the model's own deformer change): debug info stripped, weights shared
     unless ``shared=False``.  The model card and other ``.md``/``.txt`` files are copied; checkpoints and
-    reports are not (they live beside a package, not in it).  Written atomically."""
+    reports are not (they live beside a package, not in it).  ``training_garments`` (a manifest entry,
+    :func:`export.training_set.training_garments_entry`) replaces the package's list.  Written atomically."""
     import onnx
 
     from .portability import op_counts
@@ -146,6 +148,8 @@ def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bo
             ops[name] = dict(sorted(op_counts(onnx.load(str(tmp / g["file"]), load_external_data=False)).items()))
         out = {k: v for k, v in m.items() if k not in ("graphs", "ops", "weights", "upgraded_from")}
         out.update(schema_version=spec.SCHEMA_VERSION, graphs=graphs, ops=ops)
+        if training_garments is not None:
+            out[spec.TRAINING_GARMENTS] = training_garments
         if weights is not None:
             out["weights"] = weights
         spec.validate_manifest(out, path=dst / spec.MANIFEST_FILE)

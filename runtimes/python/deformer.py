@@ -97,6 +97,7 @@ class Deformer:
                       extra=json.dumps(spec, sort_keys=True) + str(spec.get("sha256", self.package.path)))
         if key in self._memory:
             return self._memory[key]
+        self._warn_if_unfamiliar(asset)
         path = Path(cache_dir) / f"P-{key}.npy" if cache_dir is not None else None
         if path is not None and path.is_file():
             try:
@@ -122,6 +123,15 @@ class Deformer:
             except OSError as e:  # a read-only garment folder: run without the disk cache
                 log.warning("cannot write the encoder cache %s (%s)", path, e.strerror or e)
         return P
+
+    def _warn_if_unfamiliar(self, asset: GarmentAsset) -> None:
+        from segadeform.geometry.mesh_ops import boundary_loops
+
+        fam = self.package.familiarity(asset.descriptor, len(boundary_loops(asset.faces, asset.n_vertices)))
+        if fam is not None and fam.outside:
+            log.warning("garment %s lies outside the garments model %s was trained on (%s); results may be "
+                        "less accurate than the model card reports", asset.source_name or "(unnamed)",
+                        self.package.path.name, fam)
 
     # ---- deformer ------------------------------------------------------
     def body_log_weights(self, asset: GarmentAsset, body, betas=None) -> np.ndarray:

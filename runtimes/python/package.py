@@ -6,6 +6,7 @@ effects is chosen by its rule."""
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 from pathlib import Path
@@ -16,11 +17,42 @@ from segadeform import package_spec as contract
 from segadeform.errors import InputError
 from segadeform.package_spec import PackageError
 
-__all__ = ["ModelPackage", "PackageError", "SUPPORTED_SCHEMA", "SUPPORTED_OPSETS"]
+__all__ = ["ModelPackage", "PackageError", "Familiarity", "SUPPORTED_SCHEMA", "SUPPORTED_OPSETS"]
 
 SUPPORTED_SCHEMA = contract.READABLE_SCHEMAS
 SUPPORTED_OPSETS = contract.SUPPORTED_OPSETS
 _ORT_TYPES = {"tensor(float)": "float32", "tensor(int64)": "int64", "tensor(bool)": "bool"}
+
+
+@dataclasses.dataclass(frozen=True)
+class Familiarity:
+    """How close a garment is to the model's training garments (Eq. 19 between descriptors).
+
+    ``outside`` when the nearest training garment is further than the package's threshold (the
+    largest distance from a training garment to its nearest other one), or when no training garment
+    has as many openings (boundary loops); accuracy there is unknown."""
+
+    nearest: str
+    distance: float
+    threshold: float | None
+    openings: int | None = None
+    training_openings: tuple[int, ...] = ()
+
+    @property
+    def new_openings(self) -> bool:
+        return bool(self.training_openings) and self.openings is not None and self.openings not in self.training_openings
+
+    @property
+    def outside(self) -> bool:
+        return (self.threshold is not None and self.distance > self.threshold) or self.new_openings
+
+    def __str__(self) -> str:
+        thr = "no threshold" if self.threshold is None else f"threshold {self.threshold:.4g}"
+        s = f"descriptor distance {self.distance:.4g} to the nearest training garment '{self.nearest}' ({thr})"
+        if self.new_openings:
+            s += (f"; {self.openings} openings, training garments have "
+                  f"{' or '.join(map(str, self.training_openings))}")
+        return s
 
 
 def _sha256(path: Path) -> str:
@@ -111,6 +143,21 @@ class ModelPackage:
         if name not in graphs:
             raise PackageError(f"package has no graph '{name}'", path=self.path, expected=", ".join(sorted(graphs)))
         return graphs[name]
+
+    def familiarity(self, descriptor, openings: int | None = None) -> Familiarity | None:
+        """Where a garment (descriptor ``(N*,)``, number of boundary loops) lies against the training
+        garments the manifest lists (:data:`segadeform.package_spec.TRAINING_GARMENTS`); None when the
+        package lists none."""
+        from segadeform.geometry.descriptor import dissimilarities
+
+        t = self.manifest.get(contract.TRAINING_GARMENTS)
+        if t is None:
+            return None
+        d = dissimilarities(descriptor, np.array([g["descriptor"] for g in t["garments"]], np.float64))
+        i = int(np.argmin(d))
+        known = tuple(sorted({g["openings"] for g in t["garments"] if "openings" in g}))
+        return Familiarity(nearest=t["garments"][i]["name"], distance=float(d[i]), threshold=t["threshold"],
+                           openings=openings, training_openings=known)
 
     def variant_for(self, effects) -> str:
         """The deformer graph for ``effects`` (skinning, wrinkles, dynamics), by the contract's rule

@@ -33,8 +33,16 @@ __all__ = [
     "LEGACY_INPUTS", "FEEDS", "PackageError", "graph_specs", "encoder_spec", "deformer_spec", "deformer_name",
     "graph_file", "effect_sets", "default_effects", "effects_of", "select_deformer", "deformers", "code_name",
     "make_manifest", "validate_manifest", "upgrade_manifest", "read_manifest_text", "manifest_schema",
-    "write_manifest_schema",
+    "write_manifest_schema", "TRAINING_GARMENTS",
 ]
+
+#: optional manifest key: the garments the model was trained on, as descriptors (Eq. 19 distances), so a
+#: runtime can warn when a garment lies outside them: ``{"metric": "eq19", "threshold": float | null,
+#: "garments": [{"name": str, "descriptor": [N* floats], "openings": int (optional)}, ...]}``.
+#: ``threshold``: the largest distance from a training garment to its nearest *other* training garment
+#: (null with one garment); a garment whose nearest training garment is further than that, or whose
+#: number of openings (boundary loops) no training garment has, is outside the training set.
+TRAINING_GARMENTS = "training_garments"
 
 #: ``manifest.json``'s ``format``
 FORMAT = "segadeform-model-package"
@@ -405,6 +413,25 @@ def validate_manifest(m, *, path=None) -> None:
         raise PackageError("manifest weights must name a file in the package folder", path=path, got=w)
     if w is not None and w["file"] in files:
         raise PackageError("manifest weights file is also a graph file", path=path, got=w["file"])
+    if TRAINING_GARMENTS in m:
+        _check_training_garments(m[TRAINING_GARMENTS], cfg["n_star"], path)
+
+
+def _check_training_garments(t, n_star: int, path) -> None:
+    num = (int, float)
+    ok = isinstance(t, dict) and t.get("metric") == "eq19" and isinstance(t.get("garments"), list) \
+        and len(t["garments"]) >= 1 and (t.get("threshold") is None or (isinstance(t["threshold"], num)
+                                                                         and t["threshold"] >= 0))
+    ok = ok and all(isinstance(g, dict) and isinstance(g.get("name"), str) and isinstance(g.get("descriptor"), list)
+                    and len(g["descriptor"]) == n_star and all(isinstance(x, num) for x in g["descriptor"])
+                    and (not isinstance(g.get("openings", 0), bool) and isinstance(g.get("openings", 0), int)
+                         and g.get("openings", 0) >= 0) and set(g) <= {"name", "descriptor", "openings"}
+                    for g in t["garments"])
+    if not ok:
+        raise PackageError(f"manifest {TRAINING_GARMENTS} is malformed", path=path,
+                           expected=f'{{"metric": "eq19", "threshold": number >= 0 or null, "garments": '
+                                    f'[{{"name": str, "descriptor": [{n_star} numbers], "openings": int >= 0 (optional)}}, ...]}}',
+                           got=str(t)[:200])
 
 
 def manifest_schema() -> dict:
@@ -468,6 +495,18 @@ def manifest_schema() -> dict:
                                        "bytes": {"type": "integer", "minimum": 0}}},
             "ops": {"type": "object", "additionalProperties": {"type": "object",
                                                                "additionalProperties": {"type": "integer"}}},
+            TRAINING_GARMENTS: {
+                "type": "object", "required": ["metric", "threshold", "garments"], "additionalProperties": False,
+                "description": "descriptors of the training garments; a runtime warns when a garment's nearest "
+                               "one (Eq. 19) is further than threshold",
+                "properties": {"metric": {"const": "eq19"},
+                               "threshold": {"oneOf": [{"type": "number", "minimum": 0}, {"type": "null"}]},
+                               "garments": {"type": "array", "minItems": 1, "items": {
+                                   "type": "object", "required": ["name", "descriptor"], "additionalProperties": False,
+                                   "properties": {"name": {"type": "string"},
+                                                  "descriptor": {"type": "array", "items": {"type": "number"},
+                                                                 "minItems": 1},
+                                                  "openings": {"type": "integer", "minimum": 0}}}}}},
         },
         "$defs": {"tensor": tensor, "effects": effects, "encoder": encoder, "deformer": deformer},
     }

@@ -27,6 +27,11 @@ def test_train_writes_run_folder(synthetic_dataset, tiny_config, tmp_path, body)
     assert info["steps"] == 6 and info["hardware"]["device"] == "cpu" and info["train_seconds"] > 0
     assert sorted(info["samples"]) == ["shorts__b0__walk", "skirt__b0__walk"]  # the test split stays out
     assert (run / "loss.png").stat().st_size > 1000 and final.is_file() and (run / "config.toml").is_file()
+    # the checkpoint names the garments it saw (export puts them in the manifest; runtimes warn about others)
+    from segadeform.model.network import checkpoint_training_garments
+
+    names, desc, openings = checkpoint_training_garments(final)
+    assert sorted(names) == ["shorts", "skirt"] and desc.shape == (2, cfg.model.n_star) and sorted(openings) == [2, 3]
 
 
 def test_resume_continues_the_same_run(synthetic_dataset, tiny_config, tmp_path, body):

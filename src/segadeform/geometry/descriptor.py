@@ -51,7 +51,7 @@ from .geodesic import DEFAULT_GEODESIC, GeodesicSolver
 
 __all__ = ["DEFAULT_N_STAR", "furthest_point_sampling", "furthest_point_sampling_naive",
            "gaussian_affinity", "Descriptor", "garment_descriptor", "nystrom_eigen", "dissimilarity",
-           "rescale_descriptor"]
+           "rescale_descriptor", "dissimilarities", "novelty_threshold"]
 
 DEFAULT_N_STAR = 32
 
@@ -253,3 +253,36 @@ def dissimilarity(lam_p, lam_q) -> float:
     num, den = (a - b) ** 2, a + b
     terms = np.divide(num, den, out=np.zeros_like(num), where=den > 0)
     return float(0.5 * terms.sum())
+
+
+def dissimilarities(lam, refs) -> np.ndarray:
+    """Eq. 19 between one descriptor ``lam (N*,)`` and each row of ``refs (R, N*)``; ``(R,)``.
+
+    The vectorised form of :func:`dissimilarity` (``tests/geometry/test_descriptor.py`` compares them)."""
+    a = np.sqrt(np.abs(np.asarray(lam, np.float64)))
+    b = np.sqrt(np.abs(np.asarray(refs, np.float64)))
+    if a.ndim != 1 or b.ndim != 2 or b.shape[1] != a.shape[0]:
+        raise InputError("expected a (N*,) descriptor and (R, N*) references", got=(a.shape, b.shape))
+    num, den = (a - b) ** 2, a + b
+    return 0.5 * np.divide(num, den, out=np.zeros_like(num), where=den > 0).sum(axis=1)
+
+
+def novelty_threshold(refs, groups) -> float | None:
+    """How far a garment may lie from its nearest reference and still count as familiar.
+
+    The largest distance (Eq. 19) from a reference to its nearest reference of *another* group
+    (leave one garment out, every body it was made on at once): a garment further from every
+    reference than any training garment is from the rest of the training set is outside it.
+    ``refs (R, N*)``, ``groups`` R labels; None with fewer than two groups.
+    """
+    refs = np.asarray(refs, np.float64)
+    groups = np.asarray(groups)
+    if refs.ndim != 2 or groups.shape != (refs.shape[0],):
+        raise InputError("expected (R, N*) references and R group labels", got=(refs.shape, groups.shape))
+    if len(set(groups.tolist())) < 2:
+        return None
+    worst = 0.0
+    for i in range(len(refs)):
+        other = groups != groups[i]
+        worst = max(worst, float(dissimilarities(refs[i], refs[other]).min()))
+    return worst

@@ -41,6 +41,7 @@ import dataclasses
 import os
 from pathlib import Path
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -145,6 +146,16 @@ def save_checkpoint(path: str | os.PathLike, model: SEGANet, **extra) -> Path:
     with atomic_path(p) as tmp:
         torch.save({"config": dataclasses.asdict(model.cfg), "state_dict": model.state_dict(), **extra}, tmp)
     return p
+
+
+def checkpoint_training_garments(path: str | os.PathLike):
+    """``(names, descriptors (R, N*), openings)`` of the garments a checkpoint was trained on; None when it
+    does not say (checkpoints written before training recorded them)."""
+    ck = torch.load(Path(path), map_location="cpu", weights_only=True)
+    t = ck.get("training_garments") if isinstance(ck, dict) else None
+    if not t:
+        return None
+    return list(t["names"]), np.asarray(t["descriptors"], np.float64), t.get("openings")
 
 
 def load_checkpoint(path: str | os.PathLike) -> SEGANet:

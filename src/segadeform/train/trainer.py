@@ -224,7 +224,16 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
     final = run / "model.pt"
     from ..model.network import save_checkpoint
 
-    save_checkpoint(final, model, train_config=cfg.to_dict(), steps=step)
+    # the garments it saw, by descriptor: export writes them to the manifest, and runtimes warn about garments
+    # far from all of them (segadeform.package_spec.TRAINING_GARMENTS)
+    from ..geometry.mesh_ops import boundary_loops
+
+    garments = {(i.asset.source_name or i.id, i.asset.descriptor.tobytes()): i.asset for i in items}
+    save_checkpoint(final, model, train_config=cfg.to_dict(), steps=step,
+                    training_garments={"names": [k[0] for k in garments],
+                                       "descriptors": [[float(x) for x in a.descriptor] for a in garments.values()],
+                                       "openings": [len(boundary_loops(a.faces, a.n_vertices))
+                                                    for a in garments.values()]})
     info = {"config": cfg.to_dict(), "config_digest": cfg.digest(), "steps": step, "train_seconds": round(elapsed, 1),
             "samples": [i.id for i in items], "hardware": _hardware(device)}
     with atomic_path(run / "train.json") as tmp:
