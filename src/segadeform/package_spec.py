@@ -471,7 +471,7 @@ def manifest_schema() -> dict:
             "producer": {"type": "string"},
             "exporter": {"enum": ["dynamo", "legacy"]},
             "torch": {"type": "string"},
-            "precision": {"enum": ["fp32", "int8"]},
+            "precision": {"enum": ["fp32", "fp16-weights", "int8"]},
             "upgraded_from": {"type": "integer"},
             "config": {"type": "object",
                        "required": ["n_joints", "n_betas", "n_star", "feat_dim", "window", "skinning",

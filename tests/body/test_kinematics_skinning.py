@@ -127,3 +127,52 @@ def test_dqs_antipodal_quaternions_and_cancelling_blend():
 def test_skinning_shape_errors():
     with pytest.raises(InputError, match="weights"):
         linear_blend_skinning(np.zeros((3, 3)), np.ones((3, 5)), np.broadcast_to(np.eye(4), (1, 2, 4, 4)))
+
+
+def _dqs_per_vertex(v, w, a):
+    """The obvious DQS: vertex by vertex, quaternions flipped to the pivot's side, blended, normalised,
+    turned into a matrix and a translation (the fast code never forms the matrix)."""
+    from segadeform.body.rotations import quaternion_multiply
+    from segadeform.body.skinning import transforms_to_dual_quaternions
+
+    q, d = transforms_to_dual_quaternions(a)
+    out = np.zeros((a.shape[0], len(v), 3))
+    for b in range(a.shape[0]):
+        for i in range(len(v)):
+            p = int(np.argmax(w[i]))
+            sg = np.where(q[b] @ q[b, p] < 0, -1.0, 1.0)
+            qb, db = (w[i] * sg) @ q[b], (w[i] * sg) @ d[b]
+            nrm = np.linalg.norm(qb)
+            if nrm < 1e-8:
+                qb, db, nrm = q[b, p], d[b, p], 1.0
+            qb, db = qb / nrm, db / nrm
+            t = 2 * quaternion_multiply(db, qb * np.array([1, -1, -1, -1]))[1:]
+            out[b, i] = quaternion_to_matrix(qb) @ v[i] + t
+    return out
+
+
+def test_skinning_fast_paths_match_the_per_vertex_reference():
+    """Shared weights (N, S) take one BLAS product per pivot joint, per-frame weights (B, N, S) another
+    path; both match the vertex-by-vertex formula, including a vertex whose blend vanishes."""
+    rng = np.random.default_rng(4)
+    s, n, b = 6, 40, 3
+    parents = np.array([-1, 0, 1, 1, 2, 3])
+    J = rng.normal(size=(s, 3))
+    rot = axis_angle_to_matrix(rng.normal(size=(b, s, 3)) * 1.5)
+    g, _ = forward_kinematics(rot, J, parents)
+    a = relative_transforms(g, J)
+    v = rng.normal(size=(n, 3))
+    w = rng.random((n, s)) ** 3
+    w /= w.sum(1, keepdims=True)
+    w[0] = [0.5, 0.5, 0, 0, 0, 0]  # joints 0 and 1 rotated by pi against each other: a quaternion dot of 0
+    w[1] = 0.0  # no weights: the blend is zero and the vertex takes its pivot joint's transform
+    a[:, 1] = a[:, 0] @ np.block([[axis_angle_to_matrix(np.array([0, 0, np.pi])), np.zeros((3, 1))],
+                                  [np.zeros((1, 3)), np.ones((1, 1))]])
+    ref = _dqs_per_vertex(v, w, a)
+    np.testing.assert_allclose(dual_quaternion_skinning(v, w, a), ref, atol=1e-12)
+    np.testing.assert_allclose(dual_quaternion_skinning(np.repeat(v[None], b, 0), np.repeat(w[None], b, 0), a), ref,
+                               atol=1e-12)
+    lbs_ref = np.stack([[(w[i] @ a[k, :, :3, :].reshape(s, 12)).reshape(3, 4) @ np.append(v[i], 1) for i in range(n)]
+                        for k in range(b)])
+    np.testing.assert_allclose(linear_blend_skinning(v, w, a), lbs_ref, atol=1e-12)
+    np.testing.assert_allclose(linear_blend_skinning(v, np.repeat(w[None], b, 0), a), lbs_ref, atol=1e-12)

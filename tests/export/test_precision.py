@@ -1,4 +1,4 @@
-"""int8 packages: same interface, valid hashes, output close to fp32, and the CLI."""
+"""int8 and fp16-weights packages: same interface, valid hashes, output close to fp32, and the CLI."""
 
 from __future__ import annotations
 
@@ -61,6 +61,30 @@ def test_int8_package_runs_close_to_fp32(tmp_path, random_package, body, skirt_a
     assert 0 < err < 0.1 * max(disp, 1e-3), (err, disp)  # quantised (not a copy), yet close
 
 
+def test_fp16_weights_package_is_half_the_weights_and_rounds_them_only(tmp_path, random_package, body, skirt_asset):
+    import onnx
+    from onnx import TensorProto
+
+    from segadeform.export.precision import FP16_MIN_ELEMENTS, convert_package
+    from segadeform.runtime import ModelPackage
+
+    out = convert_package(random_package, tmp_path / "h", "fp16-weights")
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["precision"] == "fp16-weights"
+    ModelPackage(out, verify_hashes=True)
+    w0, w1 = (json.loads((p / "manifest.json").read_text())["weights"]["bytes"] for p in (random_package, out))
+    assert w1 < 0.55 * w0  # the shared weights file: half the bytes
+    g = onnx.load(str(out / "garment_encoder.onnx"), load_external_data=True).graph
+    for init in g.initializer:  # every big float weight is fp16 now, and read through a Cast
+        big = int(np.prod(init.dims)) >= FP16_MIN_ELEMENTS
+        assert init.data_type != TensorProto.FLOAT or not big, init.name
+    assert sum(n.op_type == "Cast" and n.name.endswith("__to_fp32") for n in g.node) >= 4
+    a, b = _deform(random_package, skirt_asset, body), _deform(out, skirt_asset, body)
+    disp = np.abs(a - skirt_asset.vertices[None]).max()
+    err = np.abs(a - b).max()
+    assert 0 < err < 0.02 * max(disp, 1e-3), (err, disp)  # rounded weights: a small, non-zero change
+
+
 def test_quantize_cli_and_bad_precision(tmp_path, random_package):
     from click.testing import CliRunner
 
@@ -71,6 +95,9 @@ def test_quantize_cli_and_bad_precision(tmp_path, random_package):
     r = CliRunner().invoke(cli, ["quantize", str(random_package), "-o", str(tmp_path / "q8")])
     assert r.exit_code == 0, r.output
     assert "int8 package" in r.output and (tmp_path / "q8" / "manifest.json").is_file()
+    r = CliRunner().invoke(cli, ["quantize", str(random_package), "-o", str(tmp_path / "h"), "--precision",
+                                 "fp16-weights"])
+    assert r.exit_code == 0 and "fp16-weights package" in r.output, r.output
     with pytest.raises(InputError, match="unknown precision"):
         convert_package(random_package, tmp_path / "x", "fp4")
     assert not (tmp_path / "x").exists()

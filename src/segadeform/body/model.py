@@ -193,8 +193,12 @@ class BodyModel:
         if b.shape[0] != n:
             raise InputError("betas batch does not match poses", expected=n, got=b.shape[0])
         rot = poses_to_rotmats(poses, self.n_joints)
-        verts = self.shaped_vertices(b)
-        joints = self.rest_joints(b)
+        if n > 1 and (b == b[:1]).all():  # one shape for every frame: shape the body once
+            verts = np.broadcast_to(self.shaped_vertices(b[:1]), (n, self.n_vertices, 3))
+            joints = np.broadcast_to(self.rest_joints(b[:1]), (n, self.n_joints, 3))
+        else:
+            verts = self.shaped_vertices(b)
+            joints = self.rest_joints(b)
         if self.posedirs is not None:
             feat = (rot[:, 1:] - np.eye(3)).reshape(n, -1)
             verts = verts + np.einsum("vcp,np->nvc", self.posedirs, feat)

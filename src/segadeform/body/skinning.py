@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from .rotations import matrix_to_quaternion, quaternion_multiply, quaternion_to_matrix
+from .rotations import matrix_to_quaternion, quaternion_multiply
 
 __all__ = ["linear_blend_skinning", "dual_quaternion_skinning", "transforms_to_dual_quaternions"]
 
@@ -39,8 +39,23 @@ def linear_blend_skinning(vertices, weights, transforms) -> np.ndarray:
         -> (B, N, 3)
     """
     v, w, a = _check(vertices, weights, transforms)
-    m = np.einsum("bns,bsij->bnij", w, a[..., :3, :])  # (B, N, 3, 4)
-    return np.einsum("bnij,bnj->bni", m[..., :3], v) + m[..., 3]
+    b, s = a.shape[:2]
+    m = _blend(w, a[..., :3, :].reshape(b, s, 12)).reshape(b, -1, 3, 4)  # (B, N, 3, 4)
+    return _apply(m[..., :3], v) + m[..., 3]
+
+
+def _blend(w, x):
+    """``sum_s w[b, n, s] x[b, s, :]`` as BLAS products: ``w (B, N, S)``, ``x (B, S, C)`` -> ``(B, N, C)``.
+    One product for every frame when the weights are shared (a broadcast ``w``)."""
+    if w.strides[0] == 0:  # the same (N, S) weights for every frame
+        b, s, c = x.shape
+        return (w[0] @ x.transpose(1, 0, 2).reshape(s, b * c)).reshape(-1, b, c).transpose(1, 0, 2)
+    return np.matmul(w, x)
+
+
+def _apply(r, v):
+    """``r (B, N, 3, 3)`` times ``v (B, N, 3)`` per vertex, as three multiply-adds (no einsum loop)."""
+    return r[..., 0] * v[..., 0, None] + r[..., 1] * v[..., 1, None] + r[..., 2] * v[..., 2, None]
 
 
 def transforms_to_dual_quaternions(transforms) -> tuple[np.ndarray, np.ndarray]:
@@ -69,22 +84,38 @@ def dual_quaternion_skinning(vertices, weights, transforms, *, eps: float = 1e-8
     """
     v, w, a = _check(vertices, weights, transforms)
     q, d = transforms_to_dual_quaternions(a)  # (B, S, 4)
-    pivot = np.argmax(w, axis=-1)  # (B, N)
-    qp = np.take_along_axis(q[:, None, :, :], pivot[:, :, None, None], axis=2)[:, :, 0]  # (B, N, 4)
-    sign = np.sign(np.einsum("bnk,bsk->bns", qp, q))
-    sign[sign == 0] = 1.0
-    ws = w * sign
-    qb = np.einsum("bns,bsk->bnk", ws, q)
-    db = np.einsum("bns,bsk->bnk", ws, d)
-    norm = np.linalg.norm(qb, axis=-1, keepdims=True)
-    bad = norm[..., 0] < eps
-    if bad.any():
-        dp = np.take_along_axis(d[:, None, :, :], pivot[:, :, None, None], axis=2)[:, :, 0]
-        qb = np.where(bad[..., None], qp, qb)
-        db = np.where(bad[..., None], dp, db)
-        norm = np.where(bad[..., None], 1.0, norm)
-    qb, db = qb / norm, db / norm
-    R = quaternion_to_matrix(qb)
-    conj = qb * np.array([1.0, -1.0, -1.0, -1.0])
-    t = 2.0 * quaternion_multiply(db, conj)[..., 1:]
-    return np.einsum("bnij,bnj->bni", R, v) + t
+    b, s = q.shape[:2]
+    n = w.shape[1]
+    qd8 = np.concatenate([q, d], axis=-1)  # (B, S, 8)
+    # the blend, component-major: c[k] (B, N) for the 8 components (contiguous rows, cheap elementwise passes)
+    if w.strides[0] == 0:  # weights shared by every frame: the pivot and the flips depend on the pivot joint only
+        pivot = np.broadcast_to(np.argmax(w[0], axis=-1), (b, n))
+        flip = np.sign(np.matmul(q, q.transpose(0, 2, 1)))  # (B, S pivot, S): q_j's sign against pivot q_p
+        flip[flip == 0] = 1.0
+        c = np.empty((8, b, n))
+        for jp in np.unique(pivot[0]):  # one BLAS product per pivot joint (<= S), no (B, N, S) arrays
+            rows = np.flatnonzero(pivot[0] == jp)
+            signed = (flip[:, jp, :, None] * qd8).transpose(1, 0, 2).reshape(s, b * 8)
+            c[:, :, rows] = (w[0, rows] @ signed).reshape(-1, b, 8).transpose(2, 1, 0)
+    else:
+        pivot = np.argmax(w, axis=-1)  # (B, N)
+        qp = np.take_along_axis(q[:, None, :, :], pivot[:, :, None, None], axis=2)[:, :, 0]  # (B, N, 4)
+        sign = np.sign(np.matmul(qp, q.transpose(0, 2, 1)))  # (B, N, S)
+        sign[sign == 0] = 1.0
+        c = np.ascontiguousarray(np.matmul(w * sign, qd8).transpose(2, 0, 1))
+    norm = np.sqrt(c[0] ** 2 + c[1] ** 2 + c[2] ** 2 + c[3] ** 2)  # (B, N)
+    bad = norm < eps
+    if bad.any():  # the pivot joint's own dual quaternion
+        piv = qd8[np.arange(b)[:, None], pivot]  # (B, N, 8)
+        c[:, bad] = piv[bad].T
+        norm[bad] = 1.0
+    c /= norm
+    qw, ux, uy, uz, dw, dx, dy, dz = c
+    vx, vy, vz = (v[..., i] for i in range(3))
+    # rotate by (w, u): v + 2 w (u x v) + 2 u x (u x v); translate by t = 2 (d q*)_vec = 2 (w d - d_w u + u x d)
+    cx, cy, cz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+    out = np.empty((b, n, 3))
+    out[..., 0] = vx + 2.0 * (qw * cx + uy * cz - uz * cy + qw * dx - dw * ux + uy * dz - uz * dy)
+    out[..., 1] = vy + 2.0 * (qw * cy + uz * cx - ux * cz + qw * dy - dw * uy + uz * dx - ux * dz)
+    out[..., 2] = vz + 2.0 * (qw * cz + ux * cy - uy * cx + qw * dz - dw * uz + ux * dy - uy * dx)
+    return out
