@@ -12,7 +12,7 @@ process, one after another (errors against the Blender simulation stored in the 
 * collisions: the runtime's push-out (:class:`BodyCollider`, built once, frames in batches as
   ``segadeform run`` does) at 2, 4 and 8 mm on "all effects" and "no wrinkles", at 4 mm on every other
   effects, precision and model row;
-* precision: int8 (``segadeform quantize``);
+* precision: fp16 weights (float32 arithmetic) and int8 dynamic quantisation (``segadeform quantize``);
 * batch: frames per deformer call (8 elsewhere, the runtime's default);
 * K: neighbours per vertex in the garment graph, made at precompute (``neighbour_graph(k=K)``; the
   models were trained at K = the garment's largest valence, capped at 16);
@@ -126,7 +126,7 @@ def match_presets(rows: dict, pkg: str) -> dict:
     return out
 
 
-def plan_rows(pkg: str, int8: Optional[str], models: dict, *, margins=(0.002, 0.004, 0.008), ks=(4, 6, 12),
+def plan_rows(pkg: str, int8: Optional[str], models: dict, *, fp16: Optional[str] = None, margins=(0.002, 0.004, 0.008), ks=(4, 6, 12),
               n_stars=(8, 16, 64), batches=(1, 32), resolutions=("1/4", "1/2", "4x")) -> tuple[list[Row], dict]:
     """Every row, bases before what is derived from them, and ``{preset: row name}``."""
     from segadeform.presets import QUALITY_PRESETS
@@ -134,6 +134,8 @@ def plan_rows(pkg: str, int8: Optional[str], models: dict, *, margins=(0.002, 0.
     rows = [Row("lbs", "baseline", "body skinning only", "lbs", effects="")]
     for n, (eff, what) in EFFECTS_ROWS.items():
         rows.append(Row(n, "effects", what, pkg, eff))
+    if fp16:
+        rows.append(Row("fp16 weights", "precision", "weights stored as float16, float32 arithmetic", fp16))
     if int8:
         rows.append(Row("int8", "precision", "int8 dynamic quantisation", int8))
     for n, s in models.items():
@@ -647,6 +649,7 @@ def main(argv=None, *, _simulate: Optional[Callable] = None) -> int:
     ap.add_argument("--batches", default="1,32")
     ap.add_argument("--resolutions", default="1/4,1/2,4x")
     ap.add_argument("--no-int8", action="store_true")
+    ap.add_argument("--no-fp16", action="store_true")
     ap.add_argument("--samples", default="", help="comma-separated sample ids (default: the whole split)")
     ap.add_argument("--sim", help="sample id for the simulator's quality axis (default: the test sample with "
                                   "the fewest vertices x frames)")
@@ -695,7 +698,8 @@ def main(argv=None, *, _simulate: Optional[Callable] = None) -> int:
             sim_sid = min(ids, key=lambda i: (sizes[i].frames.shape[0] * sizes[i].frames.shape[1], i))
     with tempfile.TemporaryDirectory() as tmp:
         q8 = None if a.no_int8 else str(convert_package(pkg, Path(tmp) / "int8", "int8"))
-        rows, presets = plan_rows(pkg, q8, models, ks=ints(a.ks), n_stars=ints(a.n_stars), batches=ints(a.batches),
+        h16 = None if a.no_fp16 else str(convert_package(pkg, Path(tmp) / "fp16", "fp16-weights"))
+        rows, presets = plan_rows(pkg, q8, models, fp16=h16, ks=ints(a.ks), n_stars=ints(a.n_stars), batches=ints(a.batches),
                                   resolutions=tuple(x for x in a.resolutions.split(",") if x.strip()))
         res = measure(a.dataset, body, rows, split=a.split, threads_all=a.threads_all, repeats=a.repeats,
                       keep=(sim_sid,) if sim_sid else (), only=tuple(x for x in a.samples.split(",") if x),

@@ -32,7 +32,7 @@ def test_every_preset_is_a_planned_row_with_its_effects_and_margin():
     from segadeform.presets import QUALITY_PRESETS
 
     b = _bench()
-    rows, presets = b.plan_rows("PKG", "Q8", {"wide": "W"})
+    rows, presets = b.plan_rows("PKG", "Q8", {"wide": "W"}, fp16="H")
     names = [r.name for r in rows]
     assert len(names) == len(set(names))
     by = {r.name: r for r in rows}
@@ -44,7 +44,7 @@ def test_every_preset_is_a_planned_row_with_its_effects_and_margin():
         e, r = QUALITY_PRESETS[name].effects, by[rn]
         assert r.spec == "PKG" and r.effects == b.effects_key(e)
         assert r.margin == (e.collision_margin if e.collisions else None)
-    assert {"K=4", "N*=16", "batch 1", "garment 1/4 res", "wide + push-out 4 mm", "int8"} <= set(names)
+    assert {"K=4", "N*=16", "batch 1", "garment 1/4 res", "wide + push-out 4 mm", "int8", "fp16 weights"} <= set(names)
 
 
 def test_tradeoffs_runs_on_a_tiny_dataset(synthetic_dataset, random_package, tmp_path):
