@@ -6,14 +6,13 @@ import json
 import os
 import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from segadeform.bundle import read_bundle, write_bundle
 from segadeform.errors import FileFormatError
-from tests.conftest import REPO, SAMPLES
+from tests.conftest import REPO
 
 RTOL = 1e-5
 
@@ -34,21 +33,6 @@ def test_bundle_round_trip_and_errors(tmp_path):
     (tmp_path / "n.sgdb").write_bytes(b"hello")
     with pytest.raises(FileFormatError, match="not a segadeform bundle"):
         read_bundle(tmp_path / "n.sgdb")
-
-
-@pytest.fixture(scope="module")
-def shared_bundle(tmp_path_factory, random_package):
-    """A scene's bundle with the Python runtime's output: the test vector every runtime is held to."""
-    from segadeform.runtime.bundles import scene_bundle
-    from segadeform.scene import load_scene
-
-    d = tmp_path_factory.mktemp("bundle")
-    scene = d / "s.toml"
-    scene.write_text(f'[garment]\nmesh = "{SAMPLES / "garments" / "dress.obj"}"\n[motion]\nkind = "dance"\n'
-                     f'seconds = 0.4\nseed = 2\n[body]\nbetas = [0.5, -0.3]\n[output]\npath = "{d / "o.pc2"}"\n'
-                     '[effects]\nskinning = "dqs"\ndynamics = true\nwrinkles = true\n')
-    # force: the sample dress was made on the mean body; here it is only numbers to run, shaped by betas
-    return scene_bundle(load_scene(scene), d / "s.sgdb", model=random_package, batch=5, force=True)
 
 
 def _parity(output: str) -> dict:
