@@ -105,7 +105,9 @@ def quantize_cmd(package, output, precision):
               type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
                    "warn about garments far from all of them.  Default: the package's own list.")
-def repack_cmd(package, output, inline_weights, training_files):
+@click.option("--opset", type=click.IntRange(15, 21), default=None,
+              help="Convert every graph to this ONNX opset (default: the exporter's, 18); 15 for Unity Sentis.")
+def repack_cmd(package, output, inline_weights, training_files, opset):
     """Rewrite model PACKAGE (any schema) in the current layout, same graphs (needs onnx)."""
     try:
         import onnx  # noqa: F401
@@ -123,8 +125,8 @@ def repack_cmd(package, output, inline_weights, training_files):
         from segadeform.export.training_set import training_garments_entry
 
         entry = training_garments_entry(*garments)
-    m = repack_package(package, output, shared=not inline_weights, training_garments=entry)
-    click.echo(f"{output}: schema {m['schema_version']}, {len(m['graphs'])} graphs, "
+    m = repack_package(package, output, shared=not inline_weights, training_garments=entry, opset=opset)
+    click.echo(f"{output}: schema {m['schema_version']}, opset {m['opset']}, {len(m['graphs'])} graphs, "
                f"{before / 1e6:.2f} MB -> {_size(output) / 1e6:.2f} MB")
 
 

@@ -115,15 +115,45 @@ def pack_graphs(folder: str | os.PathLike, files: list[str], *, shared: bool = T
     return {"file": weights_file, "sha256": sha256_file(wpath), "bytes": len(blob)}
 
 
+def convert_opset(model, opset: int):
+    """``model`` (an ``onnx.ModelProto``) at another default-domain opset, by onnx's version converter.
+
+    The graphs convert to opset 15 and up; below 15 onnx has no adapter for their ``Shape`` nodes.
+    ``tests/export/test_package_spec.py`` checks that a converted package computes the same outputs."""
+    import onnx
+    from onnx import version_converter
+
+    if not spec.SUPPORTED_OPSETS.start <= int(opset) < spec.SUPPORTED_OPSETS.stop:
+        raise InputError("unsupported ONNX opset", expected=f"{spec.SUPPORTED_OPSETS.start}.."
+                                                            f"{spec.SUPPORTED_OPSETS.stop - 1}", got=opset)
+    now = next(o.version for o in model.opset_import if o.domain in ("", "ai.onnx"))
+    if now == opset:
+        return model
+    out = version_converter.convert_version(model, int(opset))
+    if opset < 18:  # the converter keeps opset 18's noop_with_empty_axes on reductions that had none before
+        from .portability import iter_nodes
+
+        for node in iter_nodes(out):
+            if node.op_type.startswith("Reduce") and (node.op_type != "ReduceSum" or opset < 13):
+                keep = [a for a in node.attribute if a.name != "noop_with_empty_axes"]
+                if any(a.name == "noop_with_empty_axes" and a.i for a in node.attribute):
+                    raise InputError(f"{node.op_type} with noop_with_empty_axes=1 has no opset-{opset} form")
+                del node.attribute[:]
+                node.attribute.extend(keep)
+    onnx.checker.check_model(out)
+    return out
+
+
 def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bool = True,
-                   training_garments: dict | None = None) -> dict:
+                   training_garments: dict | None = None, opset: int | None = None) -> dict:
     """Write package ``src`` (schema 1 or 2) to ``dst`` in the current layout; returns the new manifest.
 
     The graphs are the same (what they compute is unchanged; only their storage and, for schema-1
     packages, the file name of the model's own deformer change): debug info stripped, weights shared
     unless ``shared=False``.  The model card and other ``.md``/``.txt`` files are copied; checkpoints and
     reports are not (they live beside a package, not in it).  ``training_garments`` (a manifest entry,
-    :func:`export.training_set.training_garments_entry`) replaces the package's list.  Written atomically."""
+    :func:`export.training_set.training_garments_entry`) replaces the package's list; ``opset`` converts
+    every graph (:func:`convert_opset`, e.g. 15 for Unity Sentis).  Written atomically."""
     import onnx
 
     from .portability import op_counts
@@ -140,7 +170,8 @@ def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bo
         graphs, ops = {}, {}
         for name, g in m["graphs"].items():
             new = spec.graph_file(name)
-            onnx.save(onnx.load(str(src / g["file"]), load_external_data=True), str(tmp / new))
+            model = onnx.load(str(src / g["file"]), load_external_data=True)
+            onnx.save(model if opset is None else convert_opset(model, opset), str(tmp / new))
             graphs[name] = dict(g, file=new)
         weights = pack_graphs(tmp, [g["file"] for g in graphs.values()], shared=shared)
         for name, g in graphs.items():
@@ -148,6 +179,8 @@ def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bo
             ops[name] = dict(sorted(op_counts(onnx.load(str(tmp / g["file"]), load_external_data=False)).items()))
         out = {k: v for k, v in m.items() if k not in ("graphs", "ops", "weights", "upgraded_from")}
         out.update(schema_version=spec.SCHEMA_VERSION, graphs=graphs, ops=ops)
+        if opset is not None:
+            out["opset"] = int(opset)
         if training_garments is not None:
             out[spec.TRAINING_GARMENTS] = training_garments
         if weights is not None:

@@ -52,7 +52,9 @@ SCHEMA_VERSION = 2
 #: what the runtime reads (1: ``graphs`` = encoder + ``deformer``, ``variants`` repeating the default)
 READABLE_SCHEMAS = (1, 2)
 OPSET = 18
-SUPPORTED_OPSETS = range(17, 22)
+#: opsets a package may declare: export writes OPSET; ``segadeform repack --opset 15`` converts for engines
+#: that read older ones (Unity Sentis reads 7-15; below 15 onnx has no converter for the graphs' Shape nodes)
+SUPPORTED_OPSETS = range(15, 22)
 MANIFEST_FILE = "manifest.json"
 WEIGHTS_FILE = "weights.bin"
 #: roles, and the names of the two graph kinds in :func:`graph_specs`

@@ -7,6 +7,7 @@ import json
 import shutil
 
 import jsonschema  # the dev extra
+import numpy as np
 import onnx
 import onnxruntime as ort
 import pytest
@@ -206,6 +207,26 @@ def test_schema_1_packages_still_load_and_repack_to_the_same_outputs(tmp_path, r
     assert not (tmp_path / "v2" / "deformer.onnx").exists() and (tmp_path / "v2" / "deformer_lbs.onnx").is_file()
     for name, got in _outputs(tmp_path / "v2").items():
         assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
+
+
+def test_repack_to_opset_15_for_engines_keeps_the_outputs(tmp_path, random_package):
+    """``repack --opset 15`` (Unity Sentis reads opsets 7-15): every graph declares 15 and computes the same."""
+    import onnx
+
+    from segadeform.cli.main import main
+
+    assert main(["repack", str(random_package), "-o", str(tmp_path / "o15"), "--opset", "15"]) == 0
+    pkg = ModelPackage(tmp_path / "o15")
+    assert pkg.manifest["opset"] == 15 and _errors(pkg.manifest) == []
+    for g in pkg.manifest["graphs"].values():
+        m = onnx.load(str(tmp_path / "o15" / g["file"]), load_external_data=False)
+        assert [o.version for o in m.opset_import if o.domain in ("", "ai.onnx")] == [15], g["file"]
+    ref = _outputs(random_package)
+    for name, got in _outputs(tmp_path / "o15").items():
+        for a, b in zip(ref[name], got):
+            np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-6, err_msg=name)
+    assert main(["repack", str(random_package), "-o", str(tmp_path / "o11"), "--opset", "11"]) != 0  # no converter
+    assert not (tmp_path / "o11").exists()
 
 
 # ---- shared weights ---------------------------------------------------------------------------------
