@@ -1,0 +1,114 @@
+"""Cost against garment size: ms per frame of each stage and peak memory at N = 1k, 4k, 16k, 64k vertices.
+
+    python bench/scaling.py [--sizes 1000,4000,16000,64000] [--frames 30] [--batch 8] [--package DIR]
+                            [--blender-max 4000]
+
+A skirt-like frustum of N vertices on the default body, a dance of ``--frames`` frames, the shipped
+model, one onnxruntime thread; each size runs in a fresh process (so its peak resident memory is its
+own): precompute (graph, features, descriptor; once per garment), then ``segadeform run``'s pipeline with
+every effect and again without collisions.  ``x per vertex`` is the per-frame cost divided by N, against
+the smallest size's (1.00 = linear growth).  For sizes up to ``--blender-max`` the same garment and
+motion are simulated by Blender (the dataset's settings, ``segadeform simulate``'s path) and its
+seconds per simulated frame (measured inside Blender, start-up excluded) are given, with the learned pipeline's speed-up over it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def one(n: int, frames: int, batch: int, package: str, blender: bool) -> dict:
+    """Measure size ``n`` in this process; returns the row."""
+    import resource
+
+    import numpy as np
+
+    from segadeform.body import load_body
+    from segadeform.geometry.asset import precompute_garment
+    from segadeform.geometry.primitives import frustum
+    from segadeform.io import Mesh, write_obj
+    from segadeform.motion import make_motion
+    from segadeform.runtime import ModelPackage
+    from segadeform.runtime.pipeline import Run
+    from segadeform.scene import Effects
+
+    tmp = Path(tempfile.mkdtemp())
+    body = load_body(ROOT / "samples" / "bodies" / "default_body.npz")
+    na = int(round(np.sqrt(2.0 * n)))
+    v, f = frustum(na, max(2, n // na), 0.17, 0.36, 1.02, 0.5)
+    garment = tmp / "skirt.obj"
+    write_obj(garment, Mesh(vertices=v, faces=f))
+    motion = make_motion("dance", seconds=frames / 30.0, seed=1)
+    t = time.perf_counter()
+    precompute_garment(v, f, body.rest_joints()[0], n_star=32)
+    pre = time.perf_counter() - t
+    row = {"n": int(len(v)), "precompute_s": pre}
+    for key, eff in (("all", Effects()), ("nocol", Effects(collisions=False))):
+        r = Run(garment=garment, motion=motion, package=ModelPackage(package, threads=1), body=body, effects=eff,
+                output=tmp / f"{key}.pc2", batch=batch, cache=True, force=True)
+        r.execute()  # precompute and encoder cached
+        s = r.execute()
+        row[key] = s.ms_per_frame
+        row[key + "_stages"] = {k: 1e3 * x / s.frames for k, x in s.stage_seconds.items()}
+    row["peak_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    if blender:
+        from segadeform.physics import SimSettings, simulate
+
+        settings = SimSettings(effects=("gravity", "body_collision", "bending", "air_damping", "pinning"),
+                               pin="waistband")
+        sim = simulate(v, f, body, motion, settings=settings)
+        row["blender_s_per_frame"] = sim.seconds_per_frame  # Blender's own time per simulated frame
+    return row
+
+
+def _opt(x, fmt: str) -> str:
+    width = int(fmt.split(".")[0])
+    return format(x, fmt) if x else "-".rjust(width)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", default="1000,4000,16000,64000")
+    ap.add_argument("--frames", type=int, default=30)
+    ap.add_argument("--batch", type=int, default=8)
+    ap.add_argument("--package", default=str(ROOT / "samples" / "models" / "default"))
+    ap.add_argument("--blender-max", type=int, default=4000)
+    ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.one:
+        print("ROW " + json.dumps(one(a.one, a.frames, a.batch, a.package, a.one <= a.blender_max)))
+        return 0
+    rows = []
+    for n in (int(x) for x in a.sizes.split(",")):
+        p = subprocess.run([sys.executable, __file__, "--one", str(n), "--frames", str(a.frames), "--batch",
+                            str(a.batch), "--package", a.package, "--blender-max", str(a.blender_max)],
+                           capture_output=True, text=True)
+        if p.returncode:
+            print(f"N={n}: failed\n{p.stderr[-2000:]}", file=sys.stderr)
+            continue
+        rows.append(json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("ROW "))[4:]))
+        print(f"  N={rows[-1]['n']} done", file=sys.stderr)
+    base = rows[0]
+    print(f"{'N':>7s} {'precomp s':>9s} {'all ms':>8s} {'x/vert':>6s} {'deform':>7s} {'pose':>6s} {'collide':>7s} "
+          f"{'no-col ms':>9s} {'x/vert':>6s} {'peak MiB':>8s} {'Blender s/f':>11s} {'x faster':>8s}")
+    for r in rows:
+        st = r["all_stages"]
+        scale = base["n"] / r["n"]
+        bl = r.get("blender_s_per_frame")
+        print(f"{r['n']:7d} {r['precompute_s']:9.2f} {r['all']:8.2f} {r['all'] / base['all'] * scale:6.2f} "
+              f"{st.get('deform', 0):7.2f} {st.get('pose body', 0):6.2f} {st.get('collisions', 0):7.2f} "
+              f"{r['nocol']:9.2f} {r['nocol'] / base['nocol'] * scale:6.2f} {r['peak_mib']:8.0f} "
+              f"{_opt(bl, '11.3f')} {_opt(bl and bl * 1e3 / r['all'], '8.0f')}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
