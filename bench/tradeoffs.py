@@ -526,9 +526,8 @@ def write_docs(res: dict, out: Path, *, command: str, seconds: float, threads_al
            "* **models**: width/depth variants of `samples/train/default.toml` (`narrow.toml`, `wide.toml`, "
            "`shallow.toml` beside it; `gen2` is `default.toml` itself) trained on the training split of the same "
            "dataset, 1500 steps, seed 0, one torch thread (`segadeform train samples/train/NAME.toml -o runs/NAME "
-           "--dataset data/generalise --threads 1`, then `segadeform export runs/NAME/model.pt -o runs/NAME/pkg`; "
-           "gen2's package is its checkpoint exported again with the current exporter, `runs/gen2/pkg-current`, "
-           "the same predictions as its first export within 0.001 mm). The shipped model (the effects rows) "
+           "--dataset data/generalise --threads 1`, then `segadeform export runs/NAME/model.pt -o runs/NAME/pkg`). "
+           "The shipped model (the effects rows) "
            "was trained on another dataset (`data/train`)." + _training_note(rows), ""]
     if sim is not None:
         md += ["## The simulator's quality axis", "",
