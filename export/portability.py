@@ -3,7 +3,8 @@ onnxruntime-web (wasm, WebGPU), Unity Sentis and Unreal NNE.
 
 The allowed set is the intersection we rely on (see ``../shared/notes/facts.md``
 "Engines"): elementwise maths, MatMul/Gemm, Gather, reductions, shape ops,
-Where, Softmax, ArgMax/OneHot.  Forbidden, with the reason:
+Where, Softmax, ArgMax/OneHot; and no node reads and writes more than ``MAX_NODE_TENSORS`` (8) tensors,
+WebGPU's default storage buffers per shader stage.  Forbidden, with the reason:
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 from collections import Counter
 
 from segadeform.errors import SegadeformError
+from segadeform.package_spec import MAX_NODE_TENSORS
 
 __all__ = ["ALLOWED_OPS", "FORBIDDEN_OPS", "PortabilityError", "iter_graphs", "iter_nodes", "op_counts",
            "check_portability"]
@@ -73,4 +75,10 @@ def check_portability(model, name: str = "graph") -> Counter:
     if bad:
         why = "; ".join(f"{op}: {FORBIDDEN_OPS.get(op, 'not in the portable op set')}" for op in bad)
         raise PortabilityError(f"{name} uses non-portable ops: {why}")
+    wide = sorted({(n.op_type, len(n.input) + len(n.output)) for n in iter_nodes(model)
+                   if len(n.input) + len(n.output) > MAX_NODE_TENSORS})
+    if wide:
+        raise PortabilityError(f"{name} has nodes reading and writing more than {MAX_NODE_TENSORS} tensors (WebGPU's "
+                               f"default storage buffers per shader): "
+                               + ", ".join(f"{op} with {k}" for op, k in wide))
     return counts

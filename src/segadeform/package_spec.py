@@ -33,7 +33,7 @@ __all__ = [
     "LEGACY_INPUTS", "FEEDS", "PackageError", "graph_specs", "encoder_spec", "deformer_spec", "deformer_name",
     "graph_file", "effect_sets", "default_effects", "effects_of", "select_deformer", "deformers", "code_name",
     "make_manifest", "validate_manifest", "upgrade_manifest", "read_manifest_text", "manifest_schema",
-    "write_manifest_schema", "TRAINING_GARMENTS",
+    "write_manifest_schema", "TRAINING_GARMENTS", "MAX_NODE_TENSORS",
 ]
 
 #: optional manifest key: the garments the model was trained on, as descriptors (Eq. 19 distances), so a
@@ -43,6 +43,11 @@ __all__ = [
 #: (null with one garment); a garment whose nearest training garment is further than that, or whose
 #: number of openings (boundary loops) no training garment has, is outside the training set.
 TRAINING_GARMENTS = "training_garments"
+
+#: the most tensors one graph node may read and write: WebGPU's default storage buffers per shader stage (a
+#: Concat of 24 joints needed 25, and onnxruntime-web's JSEP WebGPU returned wrong numbers without an error);
+#: export checks it (``export/portability.py``) and the model builds its stacks within it
+MAX_NODE_TENSORS = 8
 
 #: ``manifest.json``'s ``format``
 FORMAT = "segadeform-model-package"

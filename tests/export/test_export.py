@@ -150,6 +150,23 @@ def test_portability_check_can_fail():
     g2 = helper.make_graph([lstm], "g", [], [])
     with pytest.raises(PortabilityError, match="LSTM"):
         check_portability(helper.make_model(g2), "toy")
+    # a Concat of 24 inputs needs 25 WebGPU storage buffers (the default limit is 8)
+    ins = [helper.make_tensor_value_info(f"x{i}", TensorProto.FLOAT, [1]) for i in range(24)]
+    cat = helper.make_node("Concat", [f"x{i}" for i in range(24)], ["y"], axis=0)
+    g3 = helper.make_graph([cat], "g", ins, [helper.make_tensor_value_info("y", TensorProto.FLOAT, [24])])
+    with pytest.raises(PortabilityError, match="more than 8 tensors.*Concat with 25"):
+        check_portability(helper.make_model(g3), "toy")
+
+
+def test_stacks_in_the_model_stay_within_webgpus_buffers():
+    """Forward kinematics' 24 joints and the 3x3 matrices are stacked in narrow Concats, with the same values."""
+    torch = pytest.importorskip("torch")
+    from segadeform.model.kinematics import _matrix3, stack_narrow
+
+    ts = [torch.randn(2, 3) for _ in range(24)]
+    assert torch.equal(stack_narrow(ts, 1), torch.stack(ts, 1))
+    rows = [[torch.randn(4) for _ in range(3)] for _ in range(3)]
+    assert torch.equal(_matrix3(rows), torch.stack([x for r in rows for x in r], -1).reshape(4, 3, 3))
 
 
 def test_export_cli_random_init_with_check(tmp_path):

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import torch
 
+from ..package_spec import MAX_NODE_TENSORS
+
 __all__ = ["axis_angle_to_matrix", "forward_kinematics", "skinning_transforms", "lbs", "dqs",
            "matrix_to_quaternion"]
 
@@ -25,7 +27,7 @@ def axis_angle_to_matrix(r: torch.Tensor) -> torch.Tensor:
     b = torch.where(small, 0.5 - t2 / 24.0, (1.0 - torch.cos(t)) / t2s)
     x, y, z = r[..., 0], r[..., 1], r[..., 2]
     zero = torch.zeros_like(x)
-    K = torch.stack([zero, -z, y, z, zero, -x, -y, x, zero], dim=-1).reshape(r.shape[:-1] + (3, 3))
+    K = _matrix3([[zero, -z, y], [z, zero, -x], [-y, x, zero]])
     eye = torch.eye(3, dtype=r.dtype, device=r.device).expand(K.shape)
     return eye + a[..., None, None] * K + b[..., None, None] * torch.matmul(K, K)
 
@@ -34,8 +36,8 @@ def forward_kinematics(rot: torch.Tensor, joints: torch.Tensor, parents: list[in
                        trans: torch.Tensor | None = None) -> torch.Tensor:
     """Global transforms ``(B, S, 4, 4)`` from local rotations ``(B, S, 3, 3)`` and rest joints ``(B, S, 3)``."""
     b, s = rot.shape[:2]
-    rel = [joints[:, 0]] + [joints[:, k] - joints[:, parents[k]] for k in range(1, s)]
-    rel = torch.stack(rel, dim=1)  # (B, S, 3)
+    par = torch.tensor(list(parents[1:s]), dtype=torch.long, device=joints.device)
+    rel = torch.cat([joints[:, :1], joints[:, 1:] - torch.index_select(joints, 1, par)], dim=1)  # (B, S, 3): offsets
     if trans is not None:
         rel = torch.cat([rel[:, :1] + trans[:, None], rel[:, 1:]], dim=1)
     bottom = torch.tensor([0.0, 0.0, 0.0, 1.0], dtype=rot.dtype, device=rot.device).expand(b, s, 1, 4)
@@ -43,7 +45,20 @@ def forward_kinematics(rot: torch.Tensor, joints: torch.Tensor, parents: list[in
     g = [local[:, 0]]
     for k in range(1, s):
         g.append(torch.matmul(g[parents[k]], local[:, k]))
-    return torch.stack(g, dim=1)
+    return stack_narrow(g, dim=1)
+
+
+def stack_narrow(ts: list, dim: int) -> torch.Tensor:
+    """``torch.stack(ts, dim)`` exported as Concats of at most ``MAX_NODE_TENSORS - 1`` inputs (same values)."""
+    width = MAX_NODE_TENSORS - 1
+    if len(ts) <= width:
+        return torch.stack(ts, dim=dim)
+    return torch.cat([torch.stack(ts[i:i + width], dim=dim) for i in range(0, len(ts), width)], dim=dim)
+
+
+def _matrix3(rows) -> torch.Tensor:
+    """A ``(..., 3, 3)`` matrix from 3 rows of 3 ``(...)`` tensors, as 4 three-input Concats (not one of 9)."""
+    return torch.stack([torch.stack(r, dim=-1) for r in rows], dim=-2)
 
 
 def skinning_transforms(g: torch.Tensor, joints: torch.Tensor) -> torch.Tensor:
@@ -136,9 +151,9 @@ def dqs(verts: torch.Tensor, weights: torch.Tensor, a: torch.Tensor, eps: float 
     norm = torch.where(bad, torch.ones_like(norm), norm)
     qb, db = qb / norm, db / norm
     w, x, y, z = qb.unbind(-1)
-    R = torch.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
-                     2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-                     2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1).reshape(qb.shape[:-1] + (3, 3))
+    R = _matrix3([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
     conj = qb * torch.tensor([1.0, -1.0, -1.0, -1.0], dtype=qb.dtype, device=qb.device)
     tr = 2.0 * _qmul(db, conj)[..., 1:]
     return _affine(R[..., 0], R[..., 1], R[..., 2], tr, verts)
