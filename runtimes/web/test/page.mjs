@@ -18,6 +18,7 @@ const page_url = `http://127.0.0.1:${port}/runtimes/web/index.html?` + new URLSe
 const browser = await puppeteer.launch({
   executablePath: opt("--chromium", "/usr/bin/chromium"),
   headless: true,
+  protocolTimeout: 600000, // WebGPU on a software GPU is slow: seconds per deformer call
   args: ["--no-sandbox", "--enable-unsafe-webgpu", "--enable-features=Vulkan", "--use-angle=swiftshader",
          "--use-webgpu-adapter=swiftshader", "--ignore-gpu-blocklist", "--window-size=960,720"],
 });
