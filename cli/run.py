@@ -50,7 +50,8 @@ def _quality_choice():
 @click.option("--model", type=click.Path(file_okay=False, path_type=Path), help="Model package directory.")
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
 @click.option("--fps", type=float, help="Resample the motion to this frame rate.")
-@click.option("--batch", type=click.IntRange(min=1), default=8, show_default=True, help="Frames per deformer call.")
+@click.option("--batch", type=click.IntRange(min=1), default=8, show_default=True,
+              help="Frames per deformer call, at most (big garments use fewer: <= 32,768 vertex-frames per call).")
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help="onnxruntime threads.")
 @click.option("--providers", help="Comma-separated onnxruntime providers, or 'auto' (default: CPU).")
 @click.option("--body-out", type=click.Path(path_type=Path), help="Also write the posed body sequence here.")

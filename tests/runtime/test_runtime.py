@@ -307,3 +307,27 @@ def test_encoder_cache_does_not_hide_a_broken_manifest(tmp_path, random_package,
                                                                         ["graphs"]["garment_encoder"]["inputs"][1:]}}))
     with pytest.raises(PackageError, match="disagree with the manifest"):
         Deformer(ModelPackage(broken)).encode(asset, joints, cache_dir=tmp_path / "cache")
+
+
+def test_big_garments_take_fewer_frames_per_call(tmp_path, random_package, body, monkeypatch):
+    """The batch is lowered so a deformer call holds <= MAX_VERTEX_FRAMES vertex-frames (memory); frames are
+    the same as with any other batch."""
+    from segadeform.runtime import pipeline
+
+    assert [pipeline.effective_batch(8, n) for n in (1000, 4096, 4097, 16000, 64000)] == [8, 8, 7, 2, 1]
+    monkeypatch.setattr(pipeline, "MAX_VERTEX_FRAMES", 2 * read_obj(SKIRT).vertices.shape[0])
+    calls = []
+    real = Deformer.deform
+
+    def spy(self, P, asset, windows, *a, **k):
+        calls.append(windows.shape[0])
+        return real(self, P, asset, windows, *a, **k)
+
+    monkeypatch.setattr(Deformer, "deform", spy)
+    motion = make_motion("walk", seconds=0.3)
+    make_run(tmp_path, random_package, body, Effects(collisions=False), motion=motion, batch=8).execute()
+    assert max(calls) == 2 and sum(calls) == motion.n_frames
+    a = read_pc2(tmp_path / "out.pc2").frames
+    monkeypatch.setattr(pipeline, "MAX_VERTEX_FRAMES", 10**9)
+    make_run(tmp_path, random_package, body, Effects(collisions=False), motion=motion, batch=8).execute()
+    np.testing.assert_allclose(read_pc2(tmp_path / "out.pc2").frames, a, atol=1e-5)
