@@ -108,7 +108,8 @@ def _model_setting(spec: str) -> str:
     if not mpath.is_file():
         return spec
     c = json.loads(mpath.read_text())["config"]
-    return f"hidden {c['hidden']}, {c['enc_layers']}+{c['dec_layers']} graph blocks ({spec})"
+    return (f"hidden {c['hidden']}, {c['enc_layers']}+{c['dec_layers']} graph blocks, {c.get('heads', '?')} heads, "
+            f"window T = {c.get('window', '?')} ({spec})")
 
 
 def match_presets(rows: dict, pkg: str) -> dict:
@@ -523,8 +524,9 @@ def write_docs(res: dict, out: Path, *, command: str, seconds: float, threads_al
            "place on the nearest triangle plus the rest offset along its normal: `garments/resample.py`); "
            "errors on the full-resolution garment, ms/frame including the carry, setup including the resampling.",
            "* **collisions**: the push-out at the margin named, on the row named.",
-           "* **models**: width/depth variants of `samples/train/default.toml` (`narrow.toml`, `wide.toml`, "
-           "`shallow.toml` beside it; `gen2` is `default.toml` itself) trained on the training split of the same "
+           "* **models**: variants of `samples/train/default.toml` in width, depth, heads and window T "
+           "(`narrow.toml`, `wide.toml`, `shallow.toml`, `heads2.toml`, `window3.toml` beside it; `gen2` is "
+           "`default.toml` itself) trained on the training split of the same "
            "dataset, 1500 steps, seed 0, one torch thread (`segadeform train samples/train/NAME.toml -o runs/NAME "
            "--dataset data/generalise --threads 1`, then `segadeform export runs/NAME/model.pt -o runs/NAME/pkg`). "
            "The shipped model (the effects rows) "
