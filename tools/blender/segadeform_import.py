@@ -3,23 +3,46 @@
 Runs inside Blender (GPL-3.0; this script is a separate program, not part of the segadeform package):
 
     blender --python tools/blender/segadeform_import.py -- --garment out/tshirt.obj --cache out/tshirt_walk.pc2 \\
-        [--body out/body_walk.obj --body-cache out/body_walk.pc2] [--frame-start 1]
+        [--body out/body_walk.obj --body-cache out/body_walk.pc2] [--frame-start F]
 
 or from Blender's Python console / another script: ``import_result(...)``.
 
-The recipe (verified in Blender 5.0.1 by ``tests/physics/test_blender_recipe.py``): import the OBJ with
-Blender's default OBJ importer (it keeps the file's +Y-up coordinates and turns the *object* 90 degrees
-about X), add a Mesh Cache modifier reading the PC2 as segadeform writes it by default (``--up y``: the
-cache holds object-local positions, like the OBJ), frame start = the scene frame where the cache's
-first sample should show.  Vertex order, count and frames line up exactly.  A cache written with
-``--up z`` would be rotated a second time by the object's rotation: do not use it for this.
+The recipe (verified in Blender 5.0.1 by ``tests/physics/test_blender_recipe.py``, on synthetic caches and on a
+real ``segadeform run ... --body-out`` output): import the OBJ with Blender's default OBJ importer (it keeps
+the file's +Y-up coordinates and turns the *object* 90 degrees about X), add a Mesh Cache modifier reading
+the PC2 as segadeform writes it by default (``--up y``: the cache holds object-local positions, like the
+OBJ), frame start = the scene frame where the cache's first sample should show.  Vertex order, count and
+frames line up exactly.  A cache written with ``--up z`` would be rotated a second time by the object's
+rotation: do not use it for this.
+
+Timing: by default each cache starts at the start frame in its PC2 header (``segadeform run --frames 10:40``
+writes 10, so Blender's frame 10 shows the motion's frame 10) and advances one sample per
+``sampleRate`` frames; ``--frame-start`` puts the first sample of every cache at that scene frame
+instead.  The scene's frame range is set to cover all caches.
 """
 
 from __future__ import annotations
 
+import struct
 import sys
 
 import bpy  # noqa: F401  (Blender's own module: this file only runs inside Blender)
+
+_PC2_HEADER = struct.Struct("<12siiffi")
+
+
+def pc2_header(path: str) -> dict:
+    """``{"points", "start_frame", "sample_rate", "samples"}`` of a PC2 file."""
+    with open(path, "rb") as fh:
+        raw = fh.read(_PC2_HEADER.size)
+    if len(raw) < _PC2_HEADER.size:
+        raise RuntimeError(f"{path}: file too short for a PC2 header (expected 32 bytes, got {len(raw)} bytes)")
+    magic, _version, points, start, rate, samples = _PC2_HEADER.unpack(raw)
+    if magic != b"POINTCACHE2\0":
+        raise RuntimeError(f"{path}: not a PC2 file (expected magic b'POINTCACHE2\\x00', got {magic!r})")
+    if not rate > 0:
+        raise RuntimeError(f"{path}: PC2 sampleRate must be positive (expected > 0, got {rate})")
+    return {"points": points, "start_frame": float(start), "sample_rate": float(rate), "samples": samples}
 
 
 def _import_obj(path: str):
@@ -31,35 +54,44 @@ def _import_obj(path: str):
     return new[0]
 
 
-def _attach_cache(obj, pc2: str, frame_start: float):
+def _attach_cache(obj, pc2: str, frame_start: float | None):
+    """A Mesh Cache modifier on ``obj`` playing ``pc2``; returns (modifier, first frame, last frame)."""
+    h = pc2_header(pc2)
+    if h["points"] != len(obj.data.vertices):
+        raise RuntimeError(f"{pc2}: point count does not match {obj.name} "
+                           f"(expected {len(obj.data.vertices)}, got {h['points']})")
+    start = h["start_frame"] if frame_start is None else float(frame_start)
     mod = obj.modifiers.new(name="segadeform cache", type="MESH_CACHE")
     mod.cache_format = "PC2"
     mod.filepath = pc2
-    mod.frame_start = frame_start
-    mod.frame_scale = 1.0
-    return mod
+    mod.frame_start = start
+    mod.frame_scale = 1.0 / h["sample_rate"]  # scene frames -> samples
+    return mod, start, start + max(h["samples"] - 1, 0) * h["sample_rate"]
 
 
 def import_result(garment: str, cache: str, body: str | None = None, body_cache: str | None = None,
-                  frame_start: float = 1.0, frames: int | None = None):
-    """Import the garment (and body) OBJ, attach the PC2 caches, set the scene's frame range."""
-    objs = []
+                  frame_start: float | None = None, frames: int | None = None):
+    """Import the garment (and body) OBJ, attach the PC2 caches, set the scene's frame range.
+
+    ``frame_start``: the scene frame of every cache's first sample (None: each cache's header start frame).
+    ``frames``: the scene's number of frames (None: up to the last sample of the caches).
+    Returns the objects, garment first.
+    """
+    objs, spans = [], []
     g = _import_obj(garment)
-    _attach_cache(g, cache, frame_start)
+    spans.append(_attach_cache(g, cache, frame_start)[1:])
     objs.append(g)
     if body:
         b = _import_obj(body)
         if body_cache:
-            _attach_cache(b, body_cache, frame_start)
+            spans.append(_attach_cache(b, body_cache, frame_start)[1:])
         objs.append(b)
-    if frames is None:
-        import struct
-
-        with open(cache, "rb") as fh:
-            frames = struct.unpack("<12siiffi", fh.read(32))[5]
+    first = min(s for s, _ in spans)
+    last = max(e for _, e in spans) if frames is None else first + int(frames) - 1
     scene = bpy.context.scene
-    scene.frame_start = int(frame_start)
-    scene.frame_end = int(frame_start) + int(frames) - 1
+    scene.frame_start = int(round(first))
+    scene.frame_end = int(round(last))
+    scene.frame_set(scene.frame_start)
     return objs
 
 
@@ -71,9 +103,10 @@ def _main(argv):
     ap.add_argument("--cache", required=True)
     ap.add_argument("--body")
     ap.add_argument("--body-cache")
-    ap.add_argument("--frame-start", type=float, default=1.0)
+    ap.add_argument("--frame-start", type=float, default=None,
+                    help="scene frame of the first sample (default: the PC2 header's start frame)")
     a = ap.parse_args(argv)
-    import_result(a.garment, a.cache, a.body, a.body_cache, a.frame_start)
+    return import_result(a.garment, a.cache, a.body, a.body_cache, a.frame_start)
 
 
 if __name__ == "__main__":
