@@ -6,6 +6,12 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     fps = 30.0
     seconds = 3.0             # every motion is cut or generated to this length
     cross_splits = false      # also simulate held-out garments on training motions and vice versa
+    order = "body-major"      # the order samples are made in (held-out ones first either way):
+                              # "body-major" (body, motion, garment: a run stopped early has every
+                              # garment and motion of the bodies it reached) or "spread" (a fixed
+                              # pseudo-random order by sample name: any prefix covers every
+                              # garment, body and motion about evenly -- for datasets grown with
+                              # --limit over many runs)
 
     [quality]                 # the gate every sample must pass (see segadeform.dataset.quality)
     max_strain = 1.0          # largest |edge length / rest - 1| ...
@@ -76,7 +82,9 @@ from ..motion.procedural import MOTION_KINDS
 from ..physics.settings import SimSettings, parse_simulate_table
 
 
-__all__ = ["GarmentSpec", "MotionEntry", "QualitySpec", "DatasetConfig", "load_dataset_config"]
+__all__ = ["GarmentSpec", "MotionEntry", "QualitySpec", "DatasetConfig", "load_dataset_config", "SAMPLE_ORDERS"]
+
+SAMPLE_ORDERS = ("body-major", "spread")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,6 +135,7 @@ class DatasetConfig:
     body_splits: tuple = ()  # "train" | "test" per body (default: all train)
     held_out_kinds: tuple = ()    # garment kinds only held-out entries use
     held_out_motions: tuple = ()  # motion kinds / file stems only held-out entries use
+    order: str = "body-major"     # "body-major" | "spread": the order samples are made in
 
     def digest(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()[:16]
@@ -194,9 +203,13 @@ def load_dataset_config(path) -> DatasetConfig:
     if bad:
         raise FileFormatError(f"unknown table [{bad[0]}]", path=p, expected=", ".join(sorted(known)))
     ds = data.get("dataset", {})
-    bad = sorted(set(ds) - {"fps", "seconds", "cross_splits", "held_out_kinds", "held_out_motions"})
+    bad = sorted(set(ds) - {"fps", "seconds", "cross_splits", "held_out_kinds", "held_out_motions", "order"})
     if bad:
         raise FileFormatError(f"unknown key dataset.{bad[0]}", path=p)
+    order = ds.get("order", "body-major")
+    if order not in SAMPLE_ORDERS:
+        raise FileFormatError("dataset.order is not a sample order", path=p, expected=" | ".join(SAMPLE_ORDERS),
+                              got=order)
     held_kinds = tuple(ds.get("held_out_kinds", ()))
     held_motions = tuple(ds.get("held_out_motions", ()))
     if not all(isinstance(k, str) and k in GARMENT_KINDS for k in held_kinds):
@@ -332,4 +345,4 @@ def load_dataset_config(path) -> DatasetConfig:
     return DatasetConfig(garments=tuple(garments), bodies=tuple(bodies), motions=tuple(motions), simulate=sim,
                          body_splits=tuple(body_splits), held_out_kinds=held_kinds, held_out_motions=held_motions,
                          quality=q, fps=fps, seconds=seconds, cross_splits=bool(ds.get("cross_splits", False)),
-                         path=p, text=json.dumps(data, sort_keys=True, default=str))
+                         order=order, path=p, text=json.dumps(data, sort_keys=True, default=str))

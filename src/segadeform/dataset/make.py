@@ -58,7 +58,7 @@ from .config import DatasetConfig, GarmentSpec, MotionEntry
 from .quality import quality_check
 from .store import Sample, save_sample
 
-__all__ = ["PlannedSample", "sample_plan", "make_dataset", "DatasetSummary", "sample_spec", "check_splits"]
+__all__ = ["PlannedSample", "sample_plan", "make_dataset", "DatasetSummary", "sample_spec", "check_splits", "make_order"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -91,6 +91,22 @@ def sample_plan(cfg: DatasetConfig) -> list[PlannedSample]:
                     split = "test-body"
                 out.append(PlannedSample(f"{g.name}__b{bi}__{m.name}", gi, bi, mi, split))
     return out
+
+
+def make_order(cfg: DatasetConfig, plan: list[PlannedSample]) -> list[PlannedSample]:
+    """The order ``plan`` is made in: held-out samples first, then, for ``cfg.order``
+
+    * ``"body-major"``: body, motion, garment -- a run stopped early still has every garment and
+      motion of the bodies it reached, and a complete test split;
+    * ``"spread"``: by a hash of the sample's name (fixed, pseudo-random), so that any prefix -- a
+      dataset grown by ``--limit`` runs -- covers every garment, body and motion about evenly; a
+      sample's place never depends on the rest of the plan, so entries added later interleave.
+    """
+    if cfg.order == "spread":
+        key = lambda p: (p.split == "train", hashlib.sha256(p.id.encode()).hexdigest())  # noqa: E731
+    else:
+        key = lambda p: (p.split == "train", p.body, p.motion, p.garment)  # noqa: E731
+    return sorted(plan, key=key)
 
 
 def check_splits(cfg: DatasetConfig, plan: list[PlannedSample]) -> None:
@@ -404,9 +420,7 @@ def make_dataset(cfg: DatasetConfig, out, *, body_path: Optional[Path] = None, j
     check_splits(cfg, plan)
     _check_done(loc, cfg, plan)
     _keep_config(loc, cfg)
-    # held-out samples first, then body-major, motion, garment: a run stopped early still has
-    # every garment and motion of the bodies it reached, and a complete test split
-    order = sorted(plan, key=lambda p: (p.split == "train", p.body, p.motion, p.garment))
+    order = make_order(cfg, plan)
     finished = {n[:-len(".json")] for d in ("samples", "rejected") for n in loc.listdir(d) if n.endswith(".json")}
     todo = [p for p in order if p.id not in finished]
     skipped = len(plan) - len(todo)

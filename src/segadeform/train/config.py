@@ -20,6 +20,7 @@ Example (``samples/train/default.toml`` is the shipped model's)::
     gravity = 0.0                  # gravitational potential (physics; see LossWeights)
     collision = 1.0                # depth inside the body plus a margin (physics)
     collision_margin = 0.002
+    collision_power = 2            # 2: mean squared depth (as before); 1: mean depth (m), the vertex term's unit
     skin_prior = 1.0               # pull the skinning weights towards the body's (nearest point) ...
     skin_prior_until = 0.5         # ... fading out by half-way (NCS notes transferred weights speed convergence)
 
@@ -30,6 +31,13 @@ Example (``samples/train/default.toml`` is the shipped model's)::
     seed = 0
     checkpoint_every = 200
     device = "auto"                # auto | cpu | cuda
+
+    [physics]                      # self-supervision on pairs never simulated (segadeform.train.physics)
+    pairs = "../datasets/continuum.toml"   # a dataset config: its training garments x bodies x motions
+    every = 2                      # add a self-supervised term every `every` steps (0: off)
+    weight = 0.3                   # its weight; the energies are in metres of equivalent height
+    frames = 5                     # consecutive frames per term (the first two are the history)
+    density = 0.2                  # the cloth (segadeform.train.physics.Material)
 """
 
 from __future__ import annotations
@@ -45,7 +53,7 @@ from ..errors import FileFormatError, InputError
 from ..model.config import ModelConfig
 
 
-__all__ = ["LossWeights", "OptimConfig", "TrainConfig", "load_train_config"]
+__all__ = ["LossWeights", "OptimConfig", "PhysicsConfig", "TrainConfig", "load_train_config"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -62,8 +70,41 @@ class LossWeights:
     gravity: float = 0.0
     collision: float = 1.0
     collision_margin: float = 0.002
+    collision_power: int = 2         # 2: mean squared depth below the margin; 1: mean depth (m)
     skin_prior: float = 1.0         # mean squared distance of the skinning weights to the body's, transferred
     skin_prior_until: float = 0.5   # ... decaying linearly to 0 at this fraction of the steps
+
+
+@dataclasses.dataclass(frozen=True)
+class PhysicsConfig:
+    """Self-supervised cloth energies on garment x body x motion pairs that were never simulated
+    (:mod:`segadeform.train.physics`); ``every = 0`` (the default) turns them off."""
+
+    pairs: Optional[str] = None  # a dataset config (relative to the training config): its training pairs
+    every: int = 0
+    weight: float = 0.3
+    frames: int = 5
+    density: float = 0.2
+    stretch: float = 2.0e4
+    bending: float = 4.0e-5
+    collision: float = 1.0e7
+    margin: float = 0.003
+
+    def __post_init__(self):
+        if not isinstance(self.every, int) or isinstance(self.every, bool) or self.every < 0:
+            raise InputError("physics.every must be an integer >= 0", got=self.every)
+        if not isinstance(self.frames, int) or self.frames < 3:
+            raise InputError("physics.frames must be an integer >= 3 (two frames of history)", got=self.frames)
+        if self.every and not self.pairs:
+            raise InputError("physics.every > 0 needs physics.pairs (a dataset config)")
+        if not (isinstance(self.weight, (int, float)) and self.weight >= 0):
+            raise InputError("physics.weight must be >= 0", got=self.weight)
+
+    def material(self):
+        from .physics import Material
+
+        return Material(density=self.density, stretch=self.stretch, bending=self.bending, collision=self.collision,
+                        margin=self.margin)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,6 +126,8 @@ class TrainConfig:
     optim: OptimConfig
     dataset: Path
     split: str = "train"
+    physics: PhysicsConfig = PhysicsConfig()
+    pairs: Optional[Path] = None  # physics.pairs resolved against the config's folder
     path: Optional[Path] = None
     text: str = ""
 
@@ -93,7 +136,8 @@ class TrainConfig:
 
     def to_dict(self) -> dict:
         return {"model": dataclasses.asdict(self.model), "loss": dataclasses.asdict(self.loss),
-                "optim": dataclasses.asdict(self.optim), "dataset": str(self.dataset), "split": self.split}
+                "optim": dataclasses.asdict(self.optim), "dataset": str(self.dataset), "split": self.split,
+                "physics": dataclasses.asdict(self.physics)}
 
 
 def _table(data, name, cls, where):
@@ -116,9 +160,9 @@ def load_train_config(path, *, dataset: Optional[Path] = None, overrides: Option
     for k, v in (overrides or {}).items():
         t, _, key = k.partition(".")
         data.setdefault(t, {})[key] = v
-    bad = sorted(set(data) - {"data", "model", "loss", "optim"})
+    bad = sorted(set(data) - {"data", "model", "loss", "optim", "physics"})
     if bad:
-        raise FileFormatError(f"unknown table [{bad[0]}]", path=p, expected="data, model, loss, optim")
+        raise FileFormatError(f"unknown table [{bad[0]}]", path=p, expected="data, model, loss, optim, physics")
     d = data.get("data", {})
     if dataset is None:
         if "dataset" not in d:
@@ -127,9 +171,15 @@ def load_train_config(path, *, dataset: Optional[Path] = None, overrides: Option
     model = _table(data, "model", ModelConfig, p)
     loss = _table(data, "loss", LossWeights, p)
     optim = _table(data, "optim", OptimConfig, p)
+    physics = _table(data, "physics", PhysicsConfig, p)
+    pairs = (p.parent / physics.pairs).resolve() if physics.pairs else None
+    if physics.every and not pairs.is_file():
+        raise FileFormatError("physics.pairs is not a file", path=p, got=str(pairs))
+    if loss.collision_power not in (1, 2):
+        raise FileFormatError("loss.collision_power must be 1 or 2", path=p, got=loss.collision_power)
     if optim.device not in ("auto", "cpu", "cuda"):
         raise FileFormatError("optim.device must be auto, cpu or cuda", path=p, got=optim.device)
     if optim.steps < 1 or optim.frames < 1 or not optim.lr > 0:
         raise FileFormatError("optim.steps, optim.frames and optim.lr must be positive", path=p)
     return TrainConfig(model=model, loss=loss, optim=optim, dataset=Path(dataset), split=d.get("split", "train"),
-                       path=p, text=json.dumps(data, sort_keys=True, default=str))
+                       physics=physics, pairs=pairs, path=p, text=json.dumps(data, sort_keys=True, default=str))

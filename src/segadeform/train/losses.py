@@ -66,7 +66,8 @@ def gravity_loss(x, rest, g: float = 9.81):
     return (g * (x[..., 1] - rest[None, :, 1])).mean()
 
 
-def collision_loss(x, body_p, body_n, margin: float = 0.002):
-    """Mean squared depth below ``margin`` above the body surface (closest point and normal given)."""
+def collision_loss(x, body_p, body_n, margin: float = 0.002, power: int = 2):
+    """Mean depth below ``margin`` above the body surface (closest point and normal given), squared
+    (``power`` 2) or not (1: metres, the unit of :func:`vertex_loss`)."""
     d = ((x - body_p) * body_n).sum(-1)
-    return torch.relu(margin - d).pow(2).mean()
+    return torch.relu(margin - d).pow(power).mean()

@@ -40,6 +40,8 @@ from .data import TrainItem, load_items
 __all__ = ["train", "step_losses", "TERMS", "pick_device", "plot_losses"]
 
 TERMS = ("vertex", "normal", "edge", "stretch", "shear", "gravity", "collision", "skin_prior")
+#: logged beside TERMS: the self-supervised cloth energy of a pair never simulated (weighted already)
+PHYSICS_TERM = "physics"
 
 
 def pick_device(name: str) -> torch.device:
@@ -66,12 +68,29 @@ def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_sc
         "stretch": L.stretch_loss(verts, item.rest, item.edges),
         "shear": L.shear_loss(verts, item.rest, item.faces),
         "gravity": L.gravity_loss(verts, item.rest),
-        "collision": L.collision_loss(verts, item.contact_p[t], item.contact_n[t], w.collision_margin),
+        "collision": L.collision_loss(verts, item.contact_p[t], item.contact_n[t], w.collision_margin,
+                                      w.collision_power),
         "skin_prior": ((weights - item.body_weights[None]) ** 2).sum(-1).mean(),
     }
     scale = {"skin_prior": prior_scale}
     out["total"] = sum(getattr(w, k) * scale.get(k, 1.0) * out[k] for k in TERMS if getattr(w, k) != 0)
     return out
+
+
+def physics_losses(model: SEGANet, pair, t0: int, frames: int, mat, body_faces, device) -> dict:
+    """The cloth energy (:func:`~segadeform.train.physics.cloth_energy`) of frames ``t0+2 .. t0+frames-1``
+    of a pair never simulated, the two frames before each (the network's own, detached) as history."""
+    from .physics import body_contact, cloth_energy
+
+    t = torch.arange(t0, t0 + frames, device=device)
+    lw = torch.log(pair.body_weights + RESIDUAL_EPS) if model.residual else None
+    x, _, _ = model(pair.features, pair.nbr, pair.mask, pair.descriptor, pair.betas.expand(frames, -1),
+                    pair.windows[t], pair.rest, pair.joints[None].expand(frames, -1, -1), pair.trans[t], lw)
+    cp, cn = body_contact(x[2:].detach().cpu().numpy(), pair.posed_body[t0 + 2:t0 + frames], body_faces)
+    h = x.detach()
+    return cloth_energy(x[2:], pair.topo.to(device), mat, prev=h[1:-1], prev2=h[:-2], dt=1.0 / pair.fps,
+                        contact_p=torch.as_tensor(cp, device=device), contact_n=torch.as_tensor(cn, device=device),
+                        height_ref=pair.trans[t[2:], 1])
 
 
 def plot_losses(csv_path: Path, png_path: Path) -> None:
@@ -155,7 +174,7 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
         torch.set_rng_state(ck["torch_rng"])
         step, elapsed = int(ck["step"]), float(ck["elapsed"])
     log_path = run / "loss.csv"
-    fields = ["step", "total", *TERMS, "lr", "seconds", "val_vertex"]
+    fields = ["step", "total", *TERMS, PHYSICS_TERM, "lr", "seconds", "val_vertex"]
     if step == 0 or not log_path.is_file():
         with open(log_path, "w", newline="") as fh:
             csv.writer(fh).writerow(fields)
@@ -185,7 +204,17 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
         model.train()
         return float(np.mean(errs))
 
-    acc = {k: 0.0 for k in ("total", *TERMS)}
+    ph = cfg.physics
+    pairs = None
+    if ph.every:
+        from .physics import PhysicsPairs
+
+        # the pairs' garments are made once into the dataset's cache (the same files `dataset make` writes)
+        pairs = PhysicsPairs(cfg.pairs, Path(cfg.dataset) / "cache" / "pairs", body, n_star=m.n_star,
+                             window=m.window, n_betas=m.n_betas)
+        mat = ph.material()
+        body_faces = np.asarray(body.faces)
+    acc = {k: 0.0 for k in ("total", *TERMS, PHYSICS_TERM)}
     n_acc = 0
     t0 = time.perf_counter()
     model.train()
@@ -194,6 +223,14 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
         t = torch.as_tensor(rng.choice(it.n_frames, size=min(o.frames, it.n_frames), replace=False), device=device)
         until = cfg.loss.skin_prior_until * o.steps
         ls = step_losses(model, it, t, cfg.loss, prior_scale=max(0.0, 1.0 - step / until) if until > 0 else 0.0)
+        ls[PHYSICS_TERM] = torch.zeros(())
+        if pairs is not None and step % ph.every == 0:
+            pair = pairs.item(int(rng.integers(len(pairs)))).to(device)
+            f = min(ph.frames, pair.n_frames)
+            if f >= 3:
+                t0 = int(rng.integers(pair.n_frames - f + 1))
+                ls[PHYSICS_TERM] = ph.weight * physics_losses(model, pair, t0, f, mat, body_faces, device)["total"]
+                ls["total"] = ls["total"] + ls[PHYSICS_TERM]
         if not torch.isfinite(ls["total"]):
             raise InputError(f"the loss became {float(ls['total'])} at step {step} on {it.id}; lower optim.lr")
         opt.zero_grad(set_to_none=True)
