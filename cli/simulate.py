@@ -1,4 +1,4 @@
-"""``segadeform simulate`` (ground truth by cloth simulation) and ``segadeform garment make``."""
+"""``segadeform simulate``: ground truth by cloth simulation (Blender, out of process), written like ``run``."""
 
 from __future__ import annotations
 
@@ -14,8 +14,10 @@ from .main import cli
 @cli.command("simulate")
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path), help="Output (overrides the scene's).")
-@click.option("--effects", help="Comma-separated simulation effects, replacing the scene's (e.g. "
-                                "'gravity,body_collision'); 'none' for none.")
+@click.option("--effects", help="Simulation effects, as for run: a complete list replaces the scene's "
+                                "(e.g. 'gravity,body_collision'; 'none' for none), signed items change it "
+                                "(e.g. '+wind,-bending').  A scene without [simulate] starts from "
+                                "gravity, body_collision, bending, air_damping.")
 @click.option("--material", help="Material preset (cotton, silk, denim, jersey, leather).")
 @click.option("--quality", type=click.IntRange(1, 80), help="Solver steps per frame.")
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
@@ -24,6 +26,7 @@ from .main import cli
 def simulate_cmd(scene, output, effects, material, quality, frames, sim_python):
     """Simulate SCENE.toml's garment on its body with Blender's cloth solver; write it like `run`."""
     from segadeform.physics import SimSettings
+    from segadeform.physics.settings import parse_sim_effects
     from segadeform.physics.scene_sim import simulate_scene
     from segadeform.io import format_for_path
     from segadeform.scene import load_scene, parse_frames
@@ -32,7 +35,7 @@ def simulate_cmd(scene, output, effects, material, quality, frames, sim_python):
     st = sc.simulate or SimSettings()
     kw = {}
     if effects is not None:
-        kw["effects"] = () if effects.strip() == "none" else tuple(e.strip() for e in effects.split(",") if e.strip())
+        kw["effects"] = parse_sim_effects(effects, st.effects)
     if material:
         kw["material"] = material
     if quality:

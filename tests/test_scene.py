@@ -86,3 +86,5 @@ def test_cli_effects_complete_list_or_changes():
     assert parse_effects("lbs,collisions", base).collision_margin == 0.01
     with pytest.raises(FileFormatError, match="mix a complete list"):
         parse_effects("collisions,-wrinkles")
+    assert parse_effects("none", base) == Effects(dynamics=False, wrinkles=False, collisions=False,
+                                                  collision_margin=0.01)  # as `simulate --effects none`

@@ -163,34 +163,21 @@ def parse_frames(text: str, *, where=None) -> tuple[int, Optional[int]]:
 
 
 def parse_effects(text: str, base: Effects = DEFAULT_EFFECTS) -> Effects:
-    """Parse a CLI effects list.
+    """Parse a CLI effects list (the rule of :mod:`segadeform.effect_list`, shared with ``simulate --effects``).
 
     * every item unsigned (``"dqs,collisions"``): exactly these -- what is not named is off, the
-      skinning is the one named (lbs if none); ``collision_margin`` is kept from ``base``;
+      skinning is the one named (lbs if none); ``none`` alone: every effect off;
     * every item signed (``"-wrinkles,+collisions"``, ``"dqs,-wrinkles"``: ``lbs``/``dqs`` may join
       either form): ``base`` with those effects switched on or off.
+
+    ``collision_margin`` is kept from ``base`` in both forms.
     """
-    items = [t.strip() for t in text.split(",") if t.strip()]
-    kw = dataclasses.asdict(base)
-    named = [i for i in items if i not in ("lbs", "dqs")]
-    signed = [i[0] in "+-" for i in named]
-    if named and any(signed) and not all(signed):
-        raise FileFormatError("effects mix a complete list with changes", got=text,
-                              expected="either names only (dqs,collisions: the rest off) or signed "
-                                       "changes only (-wrinkles,+collisions)")
-    exact = not any(signed)
-    if exact:
-        kw.update({n: False for n in _EFFECT_NAMES}, skinning="lbs")
-    for item in items:
-        if item in ("lbs", "dqs"):
-            kw["skinning"] = item
-            continue
-        name = item.lstrip("-+")
-        if name not in _EFFECT_NAMES:
-            raise FileFormatError("unknown effect", expected="lbs | dqs | [+-]dynamics | [+-]wrinkles | "
-                                                             "[+-]collisions", got=item)
-        kw[name] = not item.startswith("-")
-    return Effects(**kw)
+    from .effect_list import parse_effect_list
+
+    lst = parse_effect_list(text, _EFFECT_NAMES, [n for n in _EFFECT_NAMES if getattr(base, n)],
+                            choices=("lbs", "dqs"))
+    skinning = lst.choices[-1] if lst.choices else ("lbs" if lst.complete else base.skinning)
+    return dataclasses.replace(base, skinning=skinning, **{n: n in lst.on for n in _EFFECT_NAMES})
 
 
 def load_scene(path: str | os.PathLike) -> Scene:

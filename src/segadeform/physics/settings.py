@@ -60,7 +60,7 @@ from typing import Optional
 from ..errors import FileFormatError, InputError
 
 __all__ = ["EFFECTS", "DEFAULT_EFFECTS", "MATERIALS", "PIN_GROUPS", "Material", "SimSettings",
-           "parse_simulate_table", "blender_settings"]
+           "parse_simulate_table", "parse_sim_effects", "blender_settings"]
 
 EFFECTS = ("gravity", "body_collision", "self_collision", "bending", "air_damping", "pinning", "wind")
 #: what a scene without a [simulate] table gets
@@ -202,6 +202,19 @@ def parse_simulate_table(table: Optional[dict], *, where=None) -> SimSettings:
         return SimSettings(**kw)
     except InputError as e:
         raise FileFormatError(f"[simulate]: {e}", path=where) from None
+
+
+def parse_sim_effects(text: str, base=DEFAULT_EFFECTS) -> tuple:
+    """``simulate --effects``: the same rule as ``run --effects`` (:mod:`segadeform.effect_list`).
+
+    Every item unsigned (``"gravity,body_collision"``) is a complete list: exactly these are on, the rest
+    off (``"none"``: no effect); every item signed (``"+wind,-bending"``) changes ``base`` (the scene's
+    ``[simulate]`` effects, or :data:`DEFAULT_EFFECTS` for a scene without that table).  Returns the
+    effects on, in :data:`EFFECTS` order.
+    """
+    from ..effect_list import parse_effect_list
+
+    return parse_effect_list(text, EFFECTS, base).on
 
 
 def blender_settings(s: SimSettings) -> dict:
