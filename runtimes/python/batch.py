@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import Callable, Optional
 
 from segadeform._toml import read_toml
-from segadeform.errors import FileFormatError, InputError
+from segadeform.errors import FileFormatError, InputError, file_error
 from segadeform.executors import Executor, LocalExecutor
 from segadeform.io.location import Location, is_url, open_location
 from segadeform.scene import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects, parse_frames
@@ -226,7 +226,7 @@ def _file_digest(p: Path) -> str:
     try:
         return file_sha256(p)[:16]
     except OSError as e:
-        raise InputError(f"cannot read {p}: {e.strerror or e}", path=p) from None
+        raise file_error(e, p) from None
 
 
 def batch_jobs(cfg: BatchConfig, out=None) -> list[BatchJob]:

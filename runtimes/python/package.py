@@ -14,14 +14,14 @@ from pathlib import Path
 import numpy as np
 
 from segadeform import package_spec as contract
-from segadeform.errors import InputError
+from segadeform.errors import InputError, file_error
 from segadeform.package_spec import PackageError
 
 __all__ = ["ModelPackage", "PackageError", "Familiarity", "SUPPORTED_SCHEMA", "SUPPORTED_OPSETS"]
 
 SUPPORTED_SCHEMA = contract.READABLE_SCHEMAS
 SUPPORTED_OPSETS = contract.SUPPORTED_OPSETS
-_ORT_TYPES = {"tensor(float)": "float32", "tensor(int64)": "int64", "tensor(bool)": "bool"}
+_ORT_TYPES = {"tensor(float)": "float32", "tensor(int32)": "int32", "tensor(int64)": "int64", "tensor(bool)": "bool"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -90,14 +90,22 @@ class ModelPackage:
     # ---- manifest -----------------------------------------------------
     def _read_manifest(self, verify_hashes: bool) -> dict:
         mpath = self.path / contract.MANIFEST_FILE
+        try:
+            self.path.stat()
+        except OSError as e:
+            raise file_error(e, self.path, "model package", cls=PackageError) from None
         if not self.path.is_dir():
             raise PackageError("model package must be a folder", path=self.path)
         try:
-            text = mpath.read_text(encoding="utf-8")
-        except FileNotFoundError:
+            raw = mpath.read_bytes()
+        except FileNotFoundError:  # the folder is there but is not a package
             raise PackageError("model package has no manifest.json", path=self.path) from None
-        except (OSError, UnicodeDecodeError) as e:
-            raise PackageError(f"manifest is not valid JSON ({e})", path=mpath) from None
+        except OSError as e:
+            raise file_error(e, mpath, "manifest", cls=PackageError) from None
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError:
+            raise PackageError("manifest is not UTF-8 text", path=mpath) from None
         m = contract.read_manifest_text(text, path=mpath)
         files = [(f"graph '{name}'", f"graph '{name}' file", spec["file"], spec.get("sha256"))
                  for name, spec in m["graphs"].items()]
@@ -224,10 +232,16 @@ class ModelPackage:
                 raise InputError(f"missing input '{w['name']}' for graph '{name}'")
             a = np.asarray(feeds[w["name"]])
             want_dt = np.dtype(w["dtype"])
-            if a.dtype != want_dt:
-                if want_dt == np.bool_ or (np.issubdtype(want_dt, np.integer) and not np.issubdtype(a.dtype, np.integer)):
+            if a.dtype != want_dt:  # each input in its manifest's dtype: schema 3 int32 / float32, schema 2 int64 / bool
+                if np.issubdtype(want_dt, np.integer) and not np.issubdtype(a.dtype, np.integer):
                     raise InputError(f"input '{w['name']}' has the wrong dtype", expected=w["dtype"], got=a.dtype)
-                a = a.astype(want_dt)
+                if np.issubdtype(want_dt, np.integer) and a.size and (a.min() < np.iinfo(want_dt).min
+                                                                     or a.max() > np.iinfo(want_dt).max):
+                    raise InputError(f"input '{w['name']}' does not fit {w['dtype']}", expected=w["dtype"],
+                                     got=f"values {a.min()}..{a.max()}")
+                if want_dt == np.bool_ and a.dtype.kind not in "biuf":
+                    raise InputError(f"input '{w['name']}' has the wrong dtype", expected=w["dtype"], got=a.dtype)
+                a = a != 0 if want_dt == np.bool_ else a.astype(want_dt)
             if a.ndim != len(w["shape"]) or any(isinstance(d, int) and d != s for d, s in zip(w["shape"], a.shape)):
                 raise InputError(f"input '{w['name']}' has the wrong shape", expected=w["shape"], got=a.shape)
             if a.dtype.kind == "f" and not np.isfinite(a).all():

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["SegadeformError", "InputError", "FileFormatError", "SimulationError", "file_error"]
+__all__ = ["SegadeformError", "InputError", "FileFormatError", "SimulationError", "file_error", "check_readable",
+           "unreadable_error"]
 
 
 class SegadeformError(Exception):
@@ -78,13 +79,32 @@ class SimulationError(SegadeformError):
     """The cloth simulator failed or is not installed; the message says which and how to fix it."""
 
 
-def file_error(e: OSError, path, what: str = "file") -> "FileFormatError":
-    """The one wording for a file that cannot be opened: ``no such file``, ``is a directory``,
-    ``permission denied``, else ``cannot read {what}: {reason}``."""
+def file_error(e: OSError, path, what: str = "file", *, cls: type = FileFormatError) -> "FileFormatError":
+    """The one wording for a file that cannot be opened: ``no such file``, ``is a directory, not a file``,
+    ``permission denied``, else ``cannot read {what}: {reason}``.
+
+    ``cls``: the error class (a :class:`FileFormatError` subclass, e.g. a model package's ``PackageError``).
+    """
     if isinstance(e, FileNotFoundError):
-        return FileFormatError("no such file", path=path)
+        return cls("no such file", path=path)
     if isinstance(e, IsADirectoryError):
-        return FileFormatError("is a directory, not a file", path=path)
+        return cls("is a directory, not a file", path=path)
     if isinstance(e, PermissionError):
-        return FileFormatError("permission denied", path=path)
-    return FileFormatError(f"cannot read {what}: {e.strerror or e}", path=path)
+        return cls("permission denied", path=path)
+    return cls(f"cannot read {what}: {e.strerror or e}", path=path)
+
+
+def check_readable(path, what: str = "file", *, cls: type = FileFormatError) -> None:
+    """Raise :func:`file_error`'s error if ``path`` cannot be opened for reading (for readers whose library
+    opens the file itself and words its own failures)."""
+    try:
+        with open(path, "rb"):
+            pass
+    except OSError as e:
+        raise file_error(e, path, what, cls=cls) from None
+
+
+def unreadable_error(e: BaseException, path, what: str, *, cls: type = FileFormatError) -> "FileFormatError":
+    """The one wording for a file that opens but whose contents a library cannot read:
+    ``not a readable {what} file ({ExceptionType}: {message})``."""
+    return cls(f"not a readable {what} file ({type(e).__name__}: {e})", path=path)

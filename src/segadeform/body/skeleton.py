@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError
+from ..errors import FileFormatError, check_readable, unreadable_error
 
 __all__ = ["SMPL_JOINT_NAMES", "SMPL_PARENTS", "load_rest_joints", "default_rest_joints"]
 
@@ -48,12 +48,11 @@ def load_rest_joints(path: str | os.PathLike) -> np.ndarray:
 
         z = load_npz(p, what="body .npz")
     else:
+        check_readable(p)
         try:
             z = np.load(p, allow_pickle=False)
-        except FileNotFoundError:
-            raise FileFormatError("no such file", path=p) from None
-        except (OSError, ValueError) as e:
-            raise FileFormatError(f"not a readable .npy file ({e})", path=p) from None
+        except (OSError, ValueError, EOFError) as e:
+            raise unreadable_error(e, p, ".npy") from None
     if isinstance(z, np.ndarray):
         return _finite_joints(z, p, "joints")
     if "joints" in z:

@@ -161,14 +161,16 @@ def read_joint_map(path) -> dict[str, str]:
     import json
     from pathlib import Path
 
-    from ..errors import FileFormatError
+    from ..errors import FileFormatError, file_error
 
     p = Path(path)
     if p.suffix.lower() == ".json":
         try:
-            text = p.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as e:
-            raise FileFormatError(f"cannot read joint map: {getattr(e, 'strerror', None) or e}", path=p) from None
+            text = p.read_bytes().decode("utf-8")
+        except OSError as e:
+            raise file_error(e, p, "joint map") from None
+        except UnicodeDecodeError:
+            raise FileFormatError("joint map is not UTF-8 text", path=p) from None
         try:
             data = json.loads(text)
         except json.JSONDecodeError as e:

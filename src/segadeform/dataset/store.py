@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError
+from ..errors import FileFormatError, file_error, unreadable_error
 from ..io.location import open_location
 from ..io.npz import load_npz
 
@@ -58,9 +58,15 @@ def load_sample(root: Path, sid: str) -> Sample:
     d = Path(root) / "samples"
     meta_p = d / f"{sid}.json"
     try:
-        meta = json.loads(meta_p.read_text())
-    except (OSError, ValueError) as e:
-        raise FileFormatError(f"cannot read sample metadata: {e}", path=meta_p) from None
+        raw = meta_p.read_bytes()
+    except OSError as e:
+        raise file_error(e, meta_p, "sample metadata") from None
+    try:
+        meta = json.loads(raw)
+    except json.JSONDecodeError as e:
+        raise FileFormatError(f"sample metadata is not valid JSON ({e.msg})", path=meta_p, line=e.lineno) from None
+    except ValueError as e:  # not UTF-8
+        raise unreadable_error(e, meta_p, "sample metadata") from None
     z = load_npz(d / f"{sid}.npz")
     for k, nd in _ARRAYS.items():
         if k not in z or z[k].ndim != nd:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError, InputError
+from ..errors import FileFormatError, InputError, check_readable, unreadable_error
 from .atomic import _tmp_sibling
 from .mesh import validate_mesh_arrays
 from .writer import SequenceWriter
@@ -96,10 +96,9 @@ class AlembicSequenceWriter(SequenceWriter):
 
 def read_alembic_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read the first PolyMesh of an ``.abc`` file: faces ``(F, 3)``, frames ``(S, N, 3)``, times ``(S,)``."""
-    Abc, AbcGeom, _, _ = _modules()
     p = Path(path)
-    if not p.is_file():
-        raise FileFormatError("no such file", path=p)
+    check_readable(p)  # a missing file is worded like every reader's, with or without the extra
+    Abc, AbcGeom, _, _ = _modules()
     try:
         top = Abc.IArchive(str(p)).getTop()
         meshes = [top.getChild(i) for i in range(top.getNumChildren())
@@ -120,5 +119,5 @@ def read_alembic_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarr
     except FileFormatError:
         raise
     except Exception as e:
-        raise FileFormatError(f"cannot read Alembic file ({type(e).__name__}: {e})", path=p) from None
+        raise unreadable_error(e, p, "Alembic") from None
     return faces, frames, times
