@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from segadeform.io.writer import UP_AXES
+
 from .main import cli
 
 
@@ -25,7 +27,7 @@ from .main import cli
               default="three-quarter", show_default=True)
 @click.option("--size", default="360x480", show_default=True, help="WIDTHxHEIGHT of one view in pixels.")
 @click.option("--fps", type=float, help="Animation rate (default: the result's 30 fps over --every).")
-@click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True,
+@click.option("--up", type=click.Choice(UP_AXES), default="y", show_default=True,
               help="Up axis the result was written with (run --up).")
 def preview_cmd(result, garment, body_seq, body_model, output, frames, every, view, size, fps, up):
     """Render RESULT (PC2, OBJ sequence folder, XDMF or Alembic) with its garment and, if given, the body."""

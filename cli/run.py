@@ -8,6 +8,8 @@ from pathlib import Path
 
 import click
 
+from segadeform.io.writer import UP_AXES
+
 from .main import cli
 
 
@@ -55,7 +57,7 @@ def _quality_choice():
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help="onnxruntime threads.")
 @click.option("--providers", help="Comma-separated onnxruntime providers, or 'auto' (default: CPU).")
 @click.option("--body-out", type=click.Path(path_type=Path), help="Also write the posed body sequence here.")
-@click.option("--up", type=click.Choice(["y", "z"]), help="Up axis of the written coordinates (default y).")
+@click.option("--up", type=click.Choice(UP_AXES), help="Up axis of the written coordinates (default y).")
 @click.option("--no-cache", is_flag=True, help="Do not use the user cache of precompute/encoder results "
               "($SEGADEFORM_CACHE_DIR or the platform's cache folder).")
 @click.option("--motion-up", type=click.Choice(["auto", "y", "z"]),
@@ -127,13 +129,12 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
     if providers:
         prov = "auto" if providers == "auto" else [p.strip() for p in providers.split(",") if p.strip()]
     interactive = sys.stderr.isatty()
-    from segadeform.runtime.pipeline import build_motion
+    from segadeform.motion import build_motion, frame_range
 
     total = None
     if interactive:
-        m = build_motion(sc.motion, None)
-        a, b = sc.motion.frames or (0, None)
-        total = (min(b, m.n_frames) if b else m.n_frames) - a
+        a, b = frame_range(sc.motion.frames, build_motion(sc.motion, None).n_frames)
+        total = b - a
     with click.progressbar(length=total or 1, label="deforming", file=sys.stderr,
                            hidden=not interactive) as bar:
         summary = run_scene(sc, model=model, output=output, batch=batch, threads=threads, providers=prov,

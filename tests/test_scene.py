@@ -88,3 +88,18 @@ def test_cli_effects_complete_list_or_changes():
         parse_effects("collisions,-wrinkles")
     assert parse_effects("none", base) == Effects(dynamics=False, wrinkles=False, collisions=False,
                                                   collision_margin=0.01)  # as `simulate --effects none`
+
+
+def test_scene_only_parses_and_uses_the_io_axes(tmp_path, monkeypatch):
+    """Building the motion is the motion layer's (segadeform.motion.build_motion); the output axes are the io
+    layer's list (an axis added there is accepted by scenes without touching scene.py)."""
+    import segadeform.scene as scene_mod
+    from segadeform.motion import MotionSpec, build_motion
+
+    assert not hasattr(scene_mod, "build_motion") and scene_mod.MotionSpec is MotionSpec
+    s = load_scene(write(tmp_path, BASE.replace('path = "o.pc2"', 'path = "o.pc2"\nup = "z"')))
+    assert s.up == "z" and build_motion(s.motion).n_frames > 1
+    with pytest.raises(FileFormatError, match=r"unknown output.up axis \(expected y \| z, got x\)"):
+        load_scene(write(tmp_path, BASE.replace('path = "o.pc2"', 'path = "o.pc2"\nup = "x"')))
+    monkeypatch.setattr(scene_mod, "UP_AXES", ("y", "z", "x"))
+    assert load_scene(write(tmp_path, BASE.replace('path = "o.pc2"', 'path = "o.pc2"\nup = "x"'))).up == "x"

@@ -180,8 +180,10 @@ def load_batch(path) -> BatchConfig:
     if fmt not in SEQUENCE_FORMATS:
         raise FileFormatError("batch.format is not an output format", path=p, expected=", ".join(SEQUENCE_FORMATS),
                               got=fmt)
-    if b.get("up", "y") not in ("y", "z"):
-        raise FileFormatError("batch.up must be 'y' or 'z'", path=p, got=b["up"])
+    from segadeform.io import UP_AXES
+
+    if b.get("up", "y") not in UP_AXES:
+        raise FileFormatError("unknown batch.up axis", path=p, expected=" | ".join(UP_AXES), got=b["up"])
     if b.get("frames_per_call", 8) < 1:
         raise FileFormatError("batch.frames_per_call must be at least 1", path=p, got=b["frames_per_call"])
     try:

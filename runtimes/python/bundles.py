@@ -11,10 +11,9 @@ import numpy as np
 
 from segadeform.body import default_body_path, load_body
 from segadeform.bundle import write_bundle
-from segadeform.errors import InputError
 from segadeform.geometry.features import vertex_features
-from segadeform.motion import motion_windows
-from segadeform.scene import Scene, build_motion
+from segadeform.motion import build_motion, motion_windows, select_frames
+from segadeform.scene import Scene
 
 from .package import ModelPackage
 from .pipeline import Run, default_model_path
@@ -30,12 +29,7 @@ def scene_bundle(scene: Scene, out: str | Path, *, model: Optional[Path] = None,
     package = ModelPackage(model or scene.model or default_model_path())
     body = load_body(scene.body or default_body_path())
     joints = body.rest_joints(scene.betas)[0]
-    motion = build_motion(scene.motion, joints)
-    a, b = scene.motion.frames or (0, None)
-    b = motion.n_frames if b is None else b
-    if not 0 <= a < b <= motion.n_frames:
-        raise InputError(f"frame range {a}:{b} is outside the motion's {motion.n_frames} frames")
-    motion = dataclasses.replace(motion, poses=motion.poses[a:b], trans=motion.trans[a:b])
+    motion, _ = select_frames(build_motion(scene.motion, joints), scene.motion.frames)
     effects = dataclasses.replace(scene.effects, collisions=False)
     run = Run(garment=scene.garment, motion=motion, package=package, body=body, betas=scene.betas, effects=effects,
               output=Path(out).with_suffix(".unused"), cache=False, force=force)

@@ -35,8 +35,8 @@ from segadeform.garments.fit import check_placement
 from segadeform.geometry import GarmentAsset, precompute_garment
 from segadeform.geometry.asset import PORTABLE_SUFFIX, file_sha256
 from segadeform.io import SceneOutput, read_mesh
-from segadeform.motion import Motion, motion_windows
-from segadeform.scene import Effects, Scene, build_motion  # noqa: F401  (build_motion re-exported)
+from segadeform.motion import Motion, build_motion, frame_range, motion_windows
+from segadeform.scene import Effects, Scene
 
 from .deformer import Deformer
 from .package import ModelPackage
@@ -123,12 +123,7 @@ class Run:
         self.effects, self.output, self.output_format, self.up = effects, Path(output), output_format, up
         self.body_output = Path(body_output) if body_output else None
         self.batch, self.cache, self.force = int(batch), cache, bool(force)
-        a, b = frames if frames else (0, None)
-        b = motion.n_frames if b is None else b
-        if not 0 <= a < b <= motion.n_frames:
-            raise InputError(f"frame range {a}:{b} is outside the motion's {motion.n_frames} frames",
-                             expected=f"0 <= A < B <= {motion.n_frames}", got=f"{a}:{b}")
-        self.start, self.stop = a, b
+        self.start, self.stop = frame_range(frames, motion.n_frames)
         self.deformer = Deformer(package, effects)  # picks the variant; creates no session yet
 
     def _cache_dir(self) -> Optional[Path]:

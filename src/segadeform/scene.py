@@ -66,9 +66,11 @@ from ._toml import read_toml
 from .errors import FileFormatError
 
 
-__all__ = ["Y_TO_Z", "Effects", "DEFAULT_EFFECTS", "MotionSpec", "Scene", "load_scene", "parse_effects", "build_motion"]
+__all__ = ["Y_TO_Z", "Effects", "DEFAULT_EFFECTS", "MotionSpec", "Scene", "load_scene", "parse_effects",
+           "parse_frames"]
 
-from .io.writer import Y_TO_Z  # noqa: E402  (re-exported; the io layer owns the axis convention)
+from .io.writer import UP_AXES, Y_TO_Z  # noqa: E402  (Y_TO_Z re-exported; the io layer owns the axis convention)
+from .motion.spec import MotionSpec  # noqa: E402  (what [motion] parses into; the motion layer builds it)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,22 +101,6 @@ class Effects:
 #: the effects of a scene without an ``[effects]`` table (and of the command line's flag form)
 DEFAULT_EFFECTS = Effects()
 _EFFECT_NAMES = ("dynamics", "wrinkles", "collisions")
-
-
-@dataclasses.dataclass(frozen=True)
-class MotionSpec:
-    file: Optional[Path] = None
-    kind: Optional[str] = None
-    seconds: float = 3.0
-    speed: float = 1.0
-    amplitude: float = 1.0
-    seed: int = 0
-    fps: Optional[float] = None
-    frames: Optional[tuple[int, Optional[int]]] = None
-    up: str = "auto"
-    units: Optional[str] = None
-    joint_map: Optional[Path] = None
-    floor: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -250,8 +236,8 @@ def load_scene(path: str | os.PathLike) -> Scene:
         raise FileFormatError("output.format must be " + ", ".join(SEQUENCE_FORMATS), path=p,
                               got=out.get("format", out_path.suffix))
     up = out.get("up", "y")
-    if up not in ("y", "z"):
-        raise FileFormatError("output.up must be 'y' or 'z'", path=p, got=up)
+    if up not in UP_AXES:
+        raise FileFormatError("unknown output.up axis", path=p, expected=" | ".join(UP_AXES), got=up)
     betas = data.get("body", {}).get("betas", [])
     if not all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in betas):
         raise FileFormatError("body.betas must be a list of numbers", path=p, got=betas)
@@ -273,29 +259,3 @@ def load_scene(path: str | os.PathLike) -> Scene:
         model=rel(data["model"]["package"]) if "package" in data.get("model", {}) else None,
         body_output=rel(out["body"]) if "body" in out else None, effects=effects, path=p,
     )
-
-
-def build_motion(spec: MotionSpec, rest_joints=None):
-    """The :class:`~segadeform.motion.Motion` a scene's ``[motion]`` table describes (frame range not applied).
-
-    ``rest_joints (24, 3)``: the body that will play it (files are retargeted onto it).
-    """
-    from .motion import feet_on_floor, load_motion, make_motion, resample
-
-    if spec.file is not None:
-        units = spec.units
-        if units is not None:
-            try:
-                units = float(units)
-            except ValueError:
-                pass
-        m = load_motion(spec.file, rest_joints=rest_joints, up=spec.up, units=units, joint_map=spec.joint_map,
-                        floor=spec.floor)
-    else:
-        m = make_motion(spec.kind, seconds=spec.seconds, fps=spec.fps or 30.0, speed=spec.speed,
-                        amplitude=spec.amplitude, seed=spec.seed)
-        if spec.floor and rest_joints is not None:
-            m = feet_on_floor(m, rest_joints)
-    if spec.fps is not None and abs(spec.fps - m.fps) > 1e-9:
-        m = resample(m, spec.fps)
-    return m

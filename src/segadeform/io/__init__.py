@@ -29,14 +29,14 @@ from .sequence import (ObjSequenceWriter, XdmfSequenceWriter, read_obj_sequence,
 from .formats import (SEQUENCE_FORMATS, SequenceFormat, format_for_path, open_sequence_writer, read_sequence,
                       register_sequence_format, sequence_format)
 from .outputs import SceneOutput
-from .writer import SequenceWriter, Y_TO_Z, to_up
+from .writer import UP_AXES, SequenceWriter, Y_TO_Z, to_up
 
 __all__ = [
     "Mesh", "read_mesh", "write_mesh", "MESH_READERS", "MESH_WRITERS",
     "read_obj", "write_obj", "read_off", "read_pc2", "read_pc2_header", "write_pc2", "PC2Writer", "PointCache",
     "read_obj_sequence", "write_obj_sequence", "read_xdmf_sequence", "write_xdmf_sequence",
     "SEQUENCE_FORMATS", "SequenceFormat", "SequenceWriter", "open_sequence_writer", "read_sequence",
-    "register_sequence_format", "sequence_format", "format_for_path", "Y_TO_Z", "to_up", "SceneOutput",
+    "register_sequence_format", "sequence_format", "format_for_path", "UP_AXES", "Y_TO_Z", "to_up", "SceneOutput",
     "atomic_path", "atomic_open", "atomic_directory", "validate_mesh_arrays",
 ]
 

@@ -18,7 +18,10 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["SequenceWriter", "Y_TO_Z", "to_up"]
+__all__ = ["SequenceWriter", "UP_AXES", "Y_TO_Z", "to_up"]
+
+#: the up axes a writer can write (``--up``, a scene's ``output.up``, a jobs file's ``batch.up``)
+UP_AXES = ("y", "z")
 
 #: +Y up -> +Z up as Blender's OBJ importer turns objects by default (forward -Z, up Y):
 #: (x, y, z) -> (x, -z, y).  Rows act on column vectors: row-vector points map as ``p @ Y_TO_Z.T``.
@@ -35,7 +38,7 @@ def to_up(points: np.ndarray, up: str) -> np.ndarray:
         return points
     if up == "z":
         return np.asarray(points) @ np.array(Y_TO_Z).T
-    raise InputError("up must be 'y' or 'z'", got=up)
+    raise InputError("unknown up axis", expected=" | ".join(UP_AXES), got=up)
 
 
 class SequenceWriter:
@@ -51,8 +54,8 @@ class SequenceWriter:
     def __init__(self, path: str | os.PathLike, num_points: int, *, up: str = "y") -> None:
         if int(num_points) <= 0:
             raise InputError("num_points must be positive", got=num_points)
-        if up not in ("y", "z"):
-            raise InputError("up must be 'y' or 'z'", got=up)
+        if up not in UP_AXES:
+            raise InputError("unknown up axis", expected=" | ".join(UP_AXES), got=up)
         self.path = Path(path)
         self.num_points = int(num_points)
         self.num_samples = 0

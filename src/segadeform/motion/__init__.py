@@ -1,5 +1,6 @@
 """Motions on the 24-joint SMPL skeleton: AMASS ``.npz`` and BVH IO, resampling,
-motion windows, joint limits and a procedural motion library (numpy only)."""
+motion windows, joint limits, a procedural motion library (numpy only), and the motion a scene
+describes (:class:`MotionSpec` -> :func:`build_motion`; :func:`frame_range`, the one ``--frames`` check)."""
 
 from __future__ import annotations
 
@@ -10,9 +11,11 @@ from ..errors import FileFormatError
 from .bvh import read_bvh, write_bvh
 from .motion import N_POSE, Motion, face_forward, feet_on_floor, load_motion_npz, motion_windows, resample
 from .procedural import MOTION_KINDS, make_motion
+from .spec import MotionSpec, build_motion, frame_range, select_frames
 
 __all__ = ["Motion", "N_POSE", "load_motion", "load_motion_npz", "feet_on_floor", "face_forward", "read_bvh", "write_bvh", "resample",
-           "motion_windows", "MOTION_KINDS", "make_motion"]
+           "motion_windows", "MOTION_KINDS", "make_motion", "MotionSpec", "build_motion", "frame_range",
+           "select_frames"]
 
 
 def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", units=None, joint_map=None,

@@ -11,7 +11,8 @@ import numpy as np
 from ..body.model import default_body_path, load_body
 from ..errors import InputError
 from ..io import SceneOutput, read_mesh
-from ..scene import Scene, build_motion
+from ..motion import build_motion, select_frames
+from ..scene import Scene
 from .blender import SimResult, simulate
 from .settings import SimSettings
 
@@ -37,16 +38,7 @@ def simulate_scene(scene: Scene, *, output: Optional[Path] = None, settings: Opt
     st = settings or scene.simulate or SimSettings()
     body = load_body(scene.body or default_body_path())
     motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
-    if scene.motion.frames:
-        a, b = scene.motion.frames
-        b = motion.n_frames if b is None else b
-        if not 0 <= a < b <= motion.n_frames:
-            raise InputError(f"frame range {a}:{b} is outside the motion's {motion.n_frames} frames",
-                             expected=f"0 <= A < B <= {motion.n_frames}", got=f"{a}:{b}")
-        motion = dataclasses.replace(motion, poses=motion.poses[a:b], trans=motion.trans[a:b])
-        start = a
-    else:
-        start = 0
+    motion, start = select_frames(motion, scene.motion.frames)  # checked before the simulator starts
     mesh = read_mesh(scene.garment)
     res = simulate(mesh.vertices, mesh.faces, body, motion, betas=scene.betas or None, settings=st,
                    sim_python=sim_python, progress=progress)

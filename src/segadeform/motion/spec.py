@@ -1,0 +1,89 @@
+"""A motion as a scene or jobs file describes it (:class:`MotionSpec`), the :class:`Motion` it builds, and the
+one check of a frame range against a motion (``--frames A:B`` of ``run``, ``simulate`` and ``bundle``).
+
+Parsing the text (``[motion]`` tables, ``"A:B"``) is :mod:`segadeform.scene`'s; this module only turns
+what was parsed into motions and frame ranges.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Optional
+
+from ..errors import InputError
+from .motion import Motion, feet_on_floor, resample
+from .procedural import make_motion
+
+__all__ = ["MotionSpec", "build_motion", "frame_range", "select_frames"]
+
+
+@dataclasses.dataclass(frozen=True)
+class MotionSpec:
+    """A motion file or a procedural kind, with how to play it (see :mod:`segadeform.scene`'s ``[motion]``).
+
+    ``frames``: ``(A, B)`` of the (resampled) motion, B exclusive, or ``(A, None)`` for "to the end"; None: all.
+    """
+
+    file: Optional[Path] = None
+    kind: Optional[str] = None
+    seconds: float = 3.0
+    speed: float = 1.0
+    amplitude: float = 1.0
+    seed: int = 0
+    fps: Optional[float] = None
+    frames: Optional[tuple[int, Optional[int]]] = None
+    up: str = "auto"
+    units: Optional[str] = None
+    joint_map: Optional[Path] = None
+    floor: bool = False
+
+
+def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
+    """The :class:`~segadeform.motion.Motion` ``spec`` describes (its frame range not applied: see
+    :func:`frame_range`).
+
+    ``rest_joints (24, 3)``: the body that will play it (files are retargeted onto it).
+    """
+    from . import load_motion  # the package's reader by extension
+
+    if spec.file is not None:
+        units = spec.units
+        if units is not None:
+            try:
+                units = float(units)
+            except ValueError:
+                pass
+        m = load_motion(spec.file, rest_joints=rest_joints, up=spec.up, units=units, joint_map=spec.joint_map,
+                        floor=spec.floor)
+    else:
+        m = make_motion(spec.kind, seconds=spec.seconds, fps=spec.fps or 30.0, speed=spec.speed,
+                        amplitude=spec.amplitude, seed=spec.seed)
+        if spec.floor and rest_joints is not None:
+            m = feet_on_floor(m, rest_joints)
+    if spec.fps is not None and abs(spec.fps - m.fps) > 1e-9:
+        m = resample(m, spec.fps)
+    return m
+
+
+def frame_range(frames: Optional[tuple[int, Optional[int]]], n_frames: int) -> tuple[int, int]:
+    """``(A, B)`` -- B exclusive, ``None`` meaning the end -- checked against a motion of ``n_frames``.
+
+    Returns ``(A, B)`` with B filled in; :class:`~segadeform.errors.InputError` when the range is empty or
+    goes past the motion (the one check ``run``, ``simulate`` and ``bundle`` share).
+    """
+    a, b = frames if frames else (0, None)
+    stop = n_frames if b is None else b
+    if not 0 <= a < stop <= n_frames:
+        given = f"{a}:{'' if b is None else b}"
+        raise InputError(f"frame range {given} is outside the motion's {n_frames} frames",
+                         expected=f"0 <= A < B <= {n_frames}", got=given)
+    return int(a), int(stop)
+
+
+def select_frames(motion: Motion, frames: Optional[tuple[int, Optional[int]]]) -> tuple[Motion, int]:
+    """The motion's frames ``A:B`` as a motion of their own (checked by :func:`frame_range`), and ``A``."""
+    a, b = frame_range(frames, motion.n_frames)
+    if (a, b) == (0, motion.n_frames):
+        return motion, 0
+    return dataclasses.replace(motion, poses=motion.poses[a:b], trans=motion.trans[a:b]), a
