@@ -35,44 +35,30 @@ def _frames_summary(path, frames: np.ndarray) -> None:
 @cli.command("inspect")
 @click.argument("path", type=click.Path(path_type=Path))
 def inspect_cmd(path):
-    """Read PATH (mesh, point cache, sequence, body, motion, garment asset, scene or model package),
-    validate it fully, and print a summary."""
-    from segadeform.errors import FileFormatError
+    """Read PATH (mesh, point cache or any registered sequence format, body, motion, garment asset, scene or
+    model package), validate it fully, and print a summary."""
+    from segadeform.errors import file_error
+    from segadeform.io.formats import inspect_sequence, sequence_format_of
 
     ext = path.suffix.lower()
-    if path.is_dir():
-        if (path / "manifest.json").exists():
-            from segadeform.runtime import ModelPackage
+    if path.is_dir() and (path / "manifest.json").exists():
+        from segadeform.runtime import ModelPackage
 
-            pkg = ModelPackage(path)
-            for name in pkg.manifest["graphs"]:
-                pkg.session(name)
-            n_dec = sum(1 for g in pkg.manifest["graphs"].values() if g["role"] == "deformer")
-            click.echo(f"{path}: model package, graphs {', '.join(pkg.manifest['graphs'])} "
-                       f"({n_dec} deformers, default {pkg.default_deformer})")
-        else:
-            from segadeform.io import read_obj_sequence
-
-            faces, frames = read_obj_sequence(path)
-            click.echo(f"{path}: OBJ sequence, {frames.shape[0]} frames x {frames.shape[1]} vertices, {len(faces)} faces")
-            _frames_summary(path, frames)
+        pkg = ModelPackage(path)
+        for name in pkg.manifest["graphs"]:
+            pkg.session(name)
+        n_dec = sum(1 for g in pkg.manifest["graphs"].values() if g["role"] == "deformer")
+        click.echo(f"{path}: model package, graphs {', '.join(pkg.manifest['graphs'])} "
+                   f"({n_dec} deformers, default {pkg.default_deformer})")
         return
-    if not path.exists():
-        raise FileFormatError("no such file", path=path)
-    if ext == ".pc2":
-        from segadeform.io import read_pc2
-
-        pc = read_pc2(path, check_finite=False)
-        h = pc.header
-        click.echo(f"{path}: PC2, {h.num_samples} samples x {h.num_points} points, start frame {h.start_frame:g}, "
-                   f"sample rate {h.sample_rate:g}")
-        _frames_summary(path, np.asarray(pc.frames))
-    elif ext in (".xdmf", ".xmf", ".abc"):
-        from segadeform.io import read_sequence
-
-        fr = read_sequence(path)
-        click.echo(f"{path}: sequence, {fr.shape[0]} frames x {fr.shape[1]} vertices")
-        _frames_summary(path, np.asarray(fr))
+    try:
+        path.stat()
+    except OSError as e:
+        raise file_error(e, path) from None
+    if sequence_format_of(path) is not None:  # every registered output format (segadeform.io.formats)
+        fmt, summary, frames = inspect_sequence(path)
+        click.echo(f"{path}: {fmt.name} sequence, {summary}")
+        _frames_summary(path, np.asarray(frames))
     elif ext == ".bvh":
         from segadeform.motion import load_motion
 

@@ -3,7 +3,8 @@
 Scenes (``output.format``), the CLI (``--format``, ``inspect``, ``preview``) and the
 runtime and simulator all read this registry; adding a format is one
 :func:`register_sequence_format` call with a :class:`~segadeform.io.writer.SequenceWriter`
-subclass and a reader.
+subclass and a reader (and, optionally, an ``inspect`` hook that describes a file's header for
+``segadeform inspect``; without one, inspect reads the frames with ``read`` and counts them).
 
 =========  ==================  =====================================================  =========
 name       extensions          what                                                    extra
@@ -27,7 +28,7 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = ["SequenceFormat", "SEQUENCE_FORMATS", "register_sequence_format", "sequence_format",
-           "format_for_path", "open_sequence_writer", "read_sequence"]
+           "format_for_path", "sequence_format_of", "open_sequence_writer", "read_sequence", "inspect_sequence"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,6 +42,9 @@ class SequenceFormat:
         read: ``read(path, faces) -> frames (S, N, 3)``.
         description: one line for help texts.
         extra: the optional dependency group it needs, if any.
+        inspect: optional ``inspect(path) -> (summary, frames)`` for ``segadeform inspect``: a one-line
+            summary of the file (its header: counts, start frame ...) and its frames ``(S, N, 3)`` with
+            non-finite values kept (inspect reports them).  None: ``read`` and a summary of the counts.
     """
 
     name: str
@@ -49,6 +53,7 @@ class SequenceFormat:
     read: Callable
     description: str
     extra: Optional[str] = None
+    inspect: Optional[Callable] = None
 
     @property
     def folder(self) -> bool:
@@ -83,6 +88,16 @@ def format_for_path(path: str | os.PathLike) -> Optional[SequenceFormat]:
     return None
 
 
+def sequence_format_of(path: str | os.PathLike) -> Optional[SequenceFormat]:
+    """The format of an existing output: a folder is the folder format, a file goes by its extension; None
+    when no registered format claims it."""
+    p = Path(path)
+    if p.is_dir():
+        return next((f for f in SEQUENCE_FORMATS.values() if f.folder), None)
+    f = format_for_path(p)
+    return None if f is None or f.folder else f
+
+
 def open_sequence_writer(path, fmt: str, *, faces: np.ndarray, num_points: int, fps: float = 30.0,
                          start_frame: int = 0, rest: np.ndarray | None = None, up: str = "y"):
     """A streaming writer (:class:`~segadeform.io.writer.SequenceWriter`) for the format called ``fmt``."""
@@ -93,12 +108,30 @@ def open_sequence_writer(path, fmt: str, *, faces: np.ndarray, num_points: int, 
 def read_sequence(path: str | os.PathLike, *, faces: np.ndarray | None = None) -> np.ndarray:
     """Frames ``(S, N, 3)`` (float64) of any registered format, chosen by extension (a folder: OBJ sequence)."""
     p = Path(path)
-    f = next(f for f in SEQUENCE_FORMATS.values() if f.folder) if p.is_dir() else format_for_path(p)
-    if f is None or (f.folder and not p.is_dir() and p.suffix):
+    f = sequence_format_of(p)
+    if f is None and not p.suffix:  # a folder output that is not there (its reader says so)
+        f = format_for_path(p)
+    if f is None:
         known = ", ".join(e for f2 in SEQUENCE_FORMATS.values() for e in f2.extensions)
         raise InputError("unknown sequence format", path=p, expected=f"{known} or a folder of OBJ frames",
                          got=p.suffix or "none")
     return np.asarray(f.read(p, faces), np.float64)
+
+
+def inspect_sequence(path: str | os.PathLike) -> tuple[SequenceFormat, str, np.ndarray]:
+    """``(format, summary, frames (S, N, 3))`` of an output of any registered format, for ``segadeform inspect``:
+    the format's ``inspect`` hook, else its reader and the counts.  Non-finite values are kept, not refused."""
+    p = Path(path)
+    f = sequence_format_of(p)
+    if f is None:
+        raise InputError("not a registered sequence format", path=p,
+                         expected=", ".join(SEQUENCE_FORMATS), got=p.suffix or "none")
+    if f.inspect is not None:
+        summary, frames = f.inspect(p)
+    else:
+        frames = np.asarray(f.read(p, None))
+        summary = f"{frames.shape[0]} frames x {frames.shape[1]} vertices"
+    return f, summary, np.asarray(frames)
 
 
 # ---- the built-in formats ----------------------------------------------------------------------------------
@@ -114,6 +147,15 @@ def _pc2_read(path, faces):
     return read_pc2(path, check_finite=True).frames
 
 
+def _pc2_inspect(path):
+    from .pc2 import read_pc2
+
+    pc = read_pc2(path, check_finite=False)
+    h = pc.header
+    return (f"{h.num_samples} samples x {h.num_points} points, start frame {h.start_frame:g}, "
+            f"sample rate {h.sample_rate:g}", pc.frames)
+
+
 def _objseq_open(path, *, faces, num_points, fps, start_frame, rest, up):
     from .sequence import ObjSequenceWriter
 
@@ -124,6 +166,13 @@ def _objseq_read(path, faces):
     from .sequence import read_obj_sequence
 
     return read_obj_sequence(path)[1]
+
+
+def _objseq_inspect(path):
+    from .sequence import read_obj_sequence
+
+    faces, frames = read_obj_sequence(path)
+    return f"{frames.shape[0]} frames x {frames.shape[1]} vertices, {len(faces)} faces", frames
 
 
 def _xdmf_open(path, *, faces, num_points, fps, start_frame, rest, up):
@@ -151,8 +200,9 @@ def _abc_read(path, faces):
 
 
 register_sequence_format(SequenceFormat("pc2", (".pc2",), _pc2_open, _pc2_read,
-                                        "point cache (3ds Max, Blender Mesh Cache, Houdini)"))
-register_sequence_format(SequenceFormat("obj-seq", (), _objseq_open, _objseq_read, "a folder of OBJ frames"))
+                                        "point cache (3ds Max, Blender Mesh Cache, Houdini)", inspect=_pc2_inspect))
+register_sequence_format(SequenceFormat("obj-seq", (), _objseq_open, _objseq_read, "a folder of OBJ frames",
+                                        inspect=_objseq_inspect))
 register_sequence_format(SequenceFormat("xdmf", (".xdmf", ".xmf"), _xdmf_open, _xdmf_read,
                                         "XDMF time series (ParaView)"))
 register_sequence_format(SequenceFormat("abc", (".abc",), _abc_open, _abc_read,
