@@ -37,7 +37,7 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from . import batch, body, bundle_cmd, cache_cmd, dataset, export, garment, inspect_cmd, motion, precompute, preview, run, simulate, train  # noqa: F401  (commands attach themselves to `cli`)
+    from . import batch, body, bundle_cmd, cache_cmd, dataset, export, garment, info_cmd, inspect_cmd, motion, precompute, preview, run, simulate, train  # noqa: F401  (commands attach themselves to `cli`)
 
 
 _register()
