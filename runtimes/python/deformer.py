@@ -135,16 +135,24 @@ class Deformer:
 
     # ---- deformer ------------------------------------------------------
     def body_log_weights(self, asset: GarmentAsset, body, betas=None) -> np.ndarray:
-        """``log_wbody (N, S)``: the body's skinning weights at each garment vertex's closest point on the
-        rest body of shape ``betas`` (what residual-weights models start from), cached in memory."""
-        from segadeform.body.transfer import residual_log_weights, transfer_weights
+        """``log_wbody (N, S)``: the body's skinning weights carried to the garment on the rest body of shape
+        ``betas`` by the model's ``weight_prior`` (closest point, or inpainted:
+        :func:`segadeform.body.transfer.garment_weights`): what residual-weights models start from, cached
+        in memory."""
+        from segadeform.body.transfer import garment_weights, residual_log_weights
 
         b = self._betas(betas)
-        key = _digest(asset.vertices, b, extra="wbody" + str(id(body)))
+        prior = self.weight_prior
+        key = _digest(asset.vertices, asset.faces, b, extra=f"wbody-{prior}-{id(body)}")
         if key not in self._memory:
-            rest = body.shaped_vertices(b[: body.n_betas])[0]
-            self._memory[key] = residual_log_weights(transfer_weights(asset.vertices, rest, body.faces, body.weights))
+            w = garment_weights(asset.vertices, asset.faces, body, b[: body.n_betas], prior)
+            self._memory[key] = residual_log_weights(w)
         return self._memory[key]
+
+    @property
+    def weight_prior(self) -> str:
+        """How residual models get the body's weights (``weight_prior`` of the package's config)."""
+        return str(self.package.config.get("weight_prior", "nearest"))
 
     def deform(self, P: np.ndarray, asset: GarmentAsset, windows: np.ndarray, joints: np.ndarray, trans: np.ndarray,
                betas=None, *, outputs: bool = False, log_wbody: np.ndarray | None = None):

@@ -1,7 +1,14 @@
-"""Skinning-weight transfer from a body to a garment (nearest body point), and garment LBS.
+"""Skinning-weight transfer from a body to a garment, and garment LBS.
 
-Used to drive pinned garment vertices in the simulator and as the LBS
-baseline of the evaluation (issue #7, baseline (a)).
+Two priors (:data:`WEIGHT_PRIORS`, named by a model's ``weight_prior``):
+
+* ``"nearest"`` (:func:`transfer_weights`): the weights of the closest body point.  Drives pinned
+  garment vertices in the simulator and is the LBS baseline of the evaluation (issue #7, baseline (a)).
+* ``"inpaint"`` (:func:`inpaint_transfer_weights`): the closest point's weights only where the garment
+  lies on the body (closer than :data:`INPAINT_MAX_DISTANCE`, normals within :data:`INPAINT_MAX_ANGLE`),
+  the rest filled in by the harmonic interpolation of those over the garment (cotangent Laplacian), after
+  Abdrashitov et al., *Robust skin weights transfer via weight inpainting* (2023): a skirt's hem then
+  moves with a blend of the hips and both legs instead of tearing between the legs.
 """
 
 from __future__ import annotations
@@ -13,7 +20,15 @@ from .collision import BodyProxy
 from .model import BodyModel
 from .skinning import dual_quaternion_skinning, linear_blend_skinning
 
-__all__ = ["transfer_weights", "skin_garment", "residual_log_weights", "RESIDUAL_EPS"]
+__all__ = ["transfer_weights", "inpaint_transfer_weights", "inpaint_weights", "garment_weights", "skin_garment",
+           "residual_log_weights", "RESIDUAL_EPS", "WEIGHT_PRIORS", "INPAINT_MAX_DISTANCE", "INPAINT_MAX_ANGLE"]
+
+#: the skinning-weight priors a garment can get from the body (see the module docstring)
+WEIGHT_PRIORS = ("nearest", "inpaint")
+#: a garment vertex keeps its closest body point's weights only this close to the body (m) ...
+INPAINT_MAX_DISTANCE = 0.02
+#: ... and with its normal within this angle (degrees, either side) of the body's there
+INPAINT_MAX_ANGLE = 35.0
 
 #: added to the body's weights before the log that residual-weights models take (``log_wbody``): a joint
 #: the body does not use starts at log(1e-5) = -11.5, and softmax(log(w + eps)) differs from w by < S eps
@@ -64,6 +79,77 @@ def transfer_weights(points, body_vertices, body_faces, body_weights) -> np.ndar
     bary = _barycentric(r.closest, v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]])
     out = np.einsum("pc,pcs->ps", bary, w[tri])
     return out / out.sum(1, keepdims=True)
+
+
+def inpaint_weights(vertices, faces, weights, known) -> np.ndarray:
+    """Harmonic inpainting: the rows of ``weights`` where ``known`` is False replaced by the solution of
+    ``L w = 0`` there (cotangent Laplacian of the mesh), the known rows fixed (and returned unchanged);
+    the solved rows clipped at 0 and normalised.  A connected piece with no known vertex keeps its weights.
+
+    Shapes:
+        vertices: (N, 3), faces: (F, 3), weights: (N, S), known: (N,) bool -> (N, S)
+    """
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spl
+
+    from ..geometry.laplacian import cotangent_laplacian
+    from ..geometry.mesh_ops import connected_components
+
+    v = np.asarray(vertices, np.float64)
+    w = np.asarray(weights, np.float64)
+    known = np.asarray(known, bool)
+    if w.ndim != 2 or len(w) != len(v) or known.shape != (len(v),):
+        raise InputError("weights (N, S) and known (N,) must match the vertices", expected=f"N = {len(v)}",
+                         got=(w.shape, known.shape))
+    _, comp = connected_components(np.asarray(faces), len(v))
+    has_known = np.bincount(comp, known.astype(np.int64), minlength=comp.max() + 1) > 0
+    solve = ~known & has_known[comp]
+    if not solve.any():
+        return w.copy()
+    lap = cotangent_laplacian(v, faces)
+    u, k = np.flatnonzero(solve), np.flatnonzero(~solve)
+    luu = lap[u][:, u].tocsc()
+    # a tiny diagonal shift keeps the system solvable where a vertex has no area (isolated / degenerate)
+    luu = luu + sp.identity(len(u), format="csc") * (1e-12 * max(abs(luu.diagonal()).max(), 1e-30))
+    sol = spl.splu(luu).solve(-(lap[u][:, k] @ w[k]))
+    sol = np.clip(sol, 0.0, None)
+    total = sol.sum(1, keepdims=True)
+    bad = ~np.isfinite(total[:, 0]) | (total[:, 0] <= 1e-12)
+    sol[bad] = w[u[bad]]
+    out = w.copy()
+    out[u] = sol / sol.sum(1, keepdims=True)
+    return out
+
+
+def inpaint_transfer_weights(points, faces, body_vertices, body_faces, body_weights, *,
+                             max_distance: float = INPAINT_MAX_DISTANCE, max_angle: float = INPAINT_MAX_ANGLE):
+    """The ``"inpaint"`` prior: closest-point weights where the garment ``points``/``faces`` lies on the body
+    (distance below ``max_distance``, normals within ``max_angle`` degrees, either orientation), harmonic
+    inpainting elsewhere (:func:`inpaint_weights`).
+
+    Shapes:
+        points: (P, 3), faces: (F, 3), body_vertices: (V, 3), body_faces: (G, 3), body_weights: (V, S) -> (P, S)
+    """
+    from ..geometry.mesh_ops import vertex_normals
+
+    p = np.asarray(points, np.float64)
+    w = transfer_weights(p, body_vertices, body_faces, body_weights)
+    q = BodyProxy(body_vertices, body_faces).query(p)
+    n = vertex_normals(p, np.asarray(faces))
+    cos = np.abs(np.einsum("ij,ij->i", n, q.normal))
+    known = (np.abs(q.signed_distance) < float(max_distance)) & (cos >= np.cos(np.radians(float(max_angle))))
+    return inpaint_weights(p, faces, w, known)
+
+
+def garment_weights(points, faces, body: BodyModel, betas=None, prior: str = "nearest") -> np.ndarray:
+    """The body's skinning weights carried to a garment in the rest pose of the body shaped by ``betas``,
+    by the named prior (:data:`WEIGHT_PRIORS`).  Shapes: points (P, 3), faces (F, 3) -> (P, S)."""
+    if prior not in WEIGHT_PRIORS:
+        raise InputError("unknown skinning-weight prior", expected=" | ".join(WEIGHT_PRIORS), got=prior)
+    bv = body.shaped_vertices(betas)[0]
+    if prior == "inpaint":
+        return inpaint_transfer_weights(points, faces, bv, body.faces, body.weights)
+    return transfer_weights(points, bv, body.faces, body.weights)
 
 
 def skin_garment(rest, weights, body: BodyModel, poses, betas=None, trans=None, *, skinning: str = "lbs"):

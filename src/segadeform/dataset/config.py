@@ -6,12 +6,12 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     fps = 30.0
     seconds = 3.0             # every motion is cut or generated to this length
     cross_splits = false      # also simulate held-out garments on training motions and vice versa
-    order = "body-major"      # the order samples are made in (held-out ones first either way):
-                              # "body-major" (body, motion, garment: a run stopped early has every
-                              # garment and motion of the bodies it reached) or "spread" (a fixed
-                              # pseudo-random order by sample name: any prefix covers every
-                              # garment, body and motion about evenly -- for datasets grown with
-                              # --limit over many runs)
+    order = "body-major"      # the order samples are made in: "body-major" (held-out ones first,
+                              # then body, motion, garment: a run stopped early has every garment and
+                              # motion of the bodies it reached) or "spread" (a fixed pseudo-random
+                              # order by sample name, a held-out sample after every two training ones:
+                              # any prefix covers every garment, body and motion about evenly -- for
+                              # datasets grown with --limit over many runs)
 
     [quality]                 # the gate every sample must pass (see segadeform.dataset.quality)
     max_strain = 1.0          # largest |edge length / rest - 1| ...

@@ -93,20 +93,31 @@ def sample_plan(cfg: DatasetConfig) -> list[PlannedSample]:
     return out
 
 
-def make_order(cfg: DatasetConfig, plan: list[PlannedSample]) -> list[PlannedSample]:
-    """The order ``plan`` is made in: held-out samples first, then, for ``cfg.order``
+#: with ``order = "spread"``: training samples made between two held-out ones
+SPREAD_TRAIN_PER_HELD_OUT = 2
 
-    * ``"body-major"``: body, motion, garment -- a run stopped early still has every garment and
-      motion of the bodies it reached, and a complete test split;
-    * ``"spread"``: by a hash of the sample's name (fixed, pseudo-random), so that any prefix -- a
-      dataset grown by ``--limit`` runs -- covers every garment, body and motion about evenly; a
-      sample's place never depends on the rest of the plan, so entries added later interleave.
+
+def make_order(cfg: DatasetConfig, plan: list[PlannedSample]) -> list[PlannedSample]:
+    """The order ``plan`` is made in, by ``cfg.order``:
+
+    * ``"body-major"``: held-out samples first, then body, motion, garment -- a run stopped early still
+      has every garment and motion of the bodies it reached, and a complete test split;
+    * ``"spread"``: held-out and training samples each by a hash of the sample's name (fixed,
+      pseudo-random), one held-out sample after every :data:`SPREAD_TRAIN_PER_HELD_OUT` training ones
+      until the held-out ones are done: any prefix -- a dataset grown by ``--limit`` runs -- covers
+      every garment, body and motion about evenly, with test data and training data from the start.
     """
-    if cfg.order == "spread":
-        key = lambda p: (p.split == "train", hashlib.sha256(p.id.encode()).hexdigest())  # noqa: E731
-    else:
-        key = lambda p: (p.split == "train", p.body, p.motion, p.garment)  # noqa: E731
-    return sorted(plan, key=key)
+    if cfg.order != "spread":
+        return sorted(plan, key=lambda p: (p.split == "train", p.body, p.motion, p.garment))
+    h = lambda p: hashlib.sha256(p.id.encode()).hexdigest()  # noqa: E731
+    held = sorted((p for p in plan if p.split != "train"), key=h)
+    train = sorted((p for p in plan if p.split == "train"), key=h)
+    # one held-out sample, then SPREAD_TRAIN_PER_HELD_OUT training ones, until the held-out are done
+    out, k = [], SPREAD_TRAIN_PER_HELD_OUT
+    for i, p in enumerate(held):
+        out.append(p)
+        out.extend(train[i * k:(i + 1) * k])
+    return out + train[len(held) * k:]
 
 
 def check_splits(cfg: DatasetConfig, plan: list[PlannedSample]) -> None:

@@ -38,6 +38,10 @@ class ModelConfig:
             blend shapes starting at zero: an untrained model is LBS with the body's weights) or
             "free" (the paper's Eq. 16: softmax of the network's logits alone).  Checkpoints and
             manifests without the field are "free" (made before it existed).
+        weight_prior: how the body's weights reach the garment for residual weights (``log_wbody``):
+            "nearest" (closest body point) or "inpaint" (closest point where the garment lies on the
+            body, harmonic inpainting elsewhere: segadeform.body.transfer).  Checkpoints and manifests
+            without the field are "nearest".
     """
 
     n_joints: int = 24
@@ -58,6 +62,7 @@ class ModelConfig:
     use_descriptor: bool = True
     use_blend_shapes: bool = True
     weights: str = "residual"
+    weight_prior: str = "nearest"
 
     def __post_init__(self):
         ints = ("n_joints", "n_betas", "n_star", "feat_dim", "hidden", "heads", "enc_layers", "dec_layers",
@@ -76,6 +81,8 @@ class ModelConfig:
             raise InputError("ModelConfig.skinning must be 'lbs' or 'dqs'", got=self.skinning)
         if self.weights not in ("residual", "free"):
             raise InputError("ModelConfig.weights must be 'residual' or 'free'", got=self.weights)
+        if self.weight_prior not in ("nearest", "inpaint"):
+            raise InputError("ModelConfig.weight_prior must be 'nearest' or 'inpaint'", got=self.weight_prior)
 
     def to_json(self) -> str:
         return json.dumps(dataclasses.asdict(self), sort_keys=True)
@@ -88,6 +95,7 @@ class ModelConfig:
             raise InputError("unknown ModelConfig fields", expected=", ".join(sorted(known)), got=", ".join(unknown))
         d = dict(d)
         d.setdefault("weights", "free")  # saved before residual weights existed
+        d.setdefault("weight_prior", "nearest")  # saved before the inpainted prior existed
         return cls(**d)
 
     def replace(self, **kw) -> "ModelConfig":

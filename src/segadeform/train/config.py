@@ -5,6 +5,9 @@ Example (``samples/train/default.toml`` is the shipped model's)::
     [data]
     dataset = "../../data/train"   # relative to this file
     split = "train"
+    exclude = []                   # sample ids matching any of these globs are not trained on
+                                   # (e.g. ["*__cmu-*"]: no motion capture)
+    fraction = 1.0                 # train on this share of the samples (a fixed subset by sample id)
 
     [model]                        # any ModelConfig field; alpha = tau = 2 is Table 1's best
     hidden = 32
@@ -127,6 +130,8 @@ class TrainConfig:
     dataset: Path
     split: str = "train"
     physics: PhysicsConfig = PhysicsConfig()
+    exclude: tuple = ()      # globs of sample ids left out of training
+    fraction: float = 1.0    # share of the (remaining) samples trained on, by a hash of their ids
     pairs: Optional[Path] = None  # physics.pairs resolved against the config's folder
     path: Optional[Path] = None
     text: str = ""
@@ -134,10 +139,22 @@ class TrainConfig:
     def digest(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()[:16]
 
+    def select(self, ids) -> list:
+        """The sample ids trained on: ``exclude`` globs removed, then the ``fraction`` whose id hashes
+        lowest (a fixed subset: a smaller fraction is contained in a larger one)."""
+        import fnmatch
+
+        keep = [i for i in ids if not any(fnmatch.fnmatchcase(i, g) for g in self.exclude)]
+        if self.fraction < 1.0:
+            keep = sorted(keep, key=lambda i: hashlib.sha256(i.encode()).hexdigest())
+            keep = sorted(keep[:max(1, int(round(self.fraction * len(keep))))])
+        return keep
+
     def to_dict(self) -> dict:
         return {"model": dataclasses.asdict(self.model), "loss": dataclasses.asdict(self.loss),
                 "optim": dataclasses.asdict(self.optim), "dataset": str(self.dataset), "split": self.split,
-                "physics": dataclasses.asdict(self.physics)}
+                "physics": dataclasses.asdict(self.physics), "exclude": list(self.exclude),
+                "fraction": self.fraction}
 
 
 def _table(data, name, cls, where):
@@ -164,6 +181,15 @@ def load_train_config(path, *, dataset: Optional[Path] = None, overrides: Option
     if bad:
         raise FileFormatError(f"unknown table [{bad[0]}]", path=p, expected="data, model, loss, optim, physics")
     d = data.get("data", {})
+    bad = sorted(set(d) - {"dataset", "split", "exclude", "fraction"})
+    if bad:
+        raise FileFormatError(f"unknown key data.{bad[0]}", path=p, expected="dataset, split, exclude, fraction")
+    exclude = d.get("exclude", [])
+    if not isinstance(exclude, list) or not all(isinstance(x, str) for x in exclude):
+        raise FileFormatError("data.exclude must be a list of glob patterns", path=p, got=exclude)
+    fraction = d.get("fraction", 1.0)
+    if not isinstance(fraction, (int, float)) or isinstance(fraction, bool) or not 0 < fraction <= 1:
+        raise FileFormatError("data.fraction must be in (0, 1]", path=p, got=fraction)
     if dataset is None:
         if "dataset" not in d:
             raise FileFormatError("missing data.dataset (or pass a dataset folder)", path=p)
@@ -182,4 +208,4 @@ def load_train_config(path, *, dataset: Optional[Path] = None, overrides: Option
     if optim.steps < 1 or optim.frames < 1 or not optim.lr > 0:
         raise FileFormatError("optim.steps, optim.frames and optim.lr must be positive", path=p)
     return TrainConfig(model=model, loss=loss, optim=optim, dataset=Path(dataset), split=d.get("split", "train"),
-                       physics=physics, pairs=pairs, path=p, text=json.dumps(data, sort_keys=True, default=str))
+                       physics=physics, pairs=pairs, exclude=tuple(exclude), fraction=float(fraction), path=p, text=json.dumps(data, sort_keys=True, default=str))

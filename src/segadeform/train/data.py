@@ -17,7 +17,7 @@ import torch
 
 from ..body.collision import BodyProxy
 from ..body.model import BodyModel
-from ..body.transfer import transfer_weights
+from ..body.transfer import garment_weights
 from ..dataset.store import Sample, list_samples, load_sample
 from ..geometry.asset import GarmentAsset, precompute_garment
 from ..geometry.mesh_ops import unique_edges
@@ -47,7 +47,7 @@ class TrainItem:
     frames: torch.Tensor      # (T, N, 3)
     contact_p: torch.Tensor   # (T, N, 3) closest body point to the simulated vertex
     contact_n: torch.Tensor   # (T, N, 3) outward body normal there
-    body_weights: torch.Tensor  # (N, S) the body's skinning weights at the closest rest-pose point
+    body_weights: torch.Tensor  # (N, S) the body's skinning weights carried to the garment (weight_prior)
     asset: GarmentAsset
 
     @property
@@ -105,8 +105,9 @@ def _contact(root: Path, s: Sample, body: BodyModel):
 
 
 def load_items(root: Path, body: BodyModel, *, n_star: int, window: int, n_betas: int, split: str | None = "train",
-               ids=None) -> list[TrainItem]:
-    """Load every kept sample of ``split`` (or the given ``ids``) as :class:`TrainItem`."""
+               ids=None, weight_prior: str = "nearest") -> list[TrainItem]:
+    """Load every kept sample of ``split`` (or the given ``ids``) as :class:`TrainItem`; ``body_weights`` by
+    ``weight_prior`` (:func:`~segadeform.body.transfer.garment_weights`)."""
     f32 = lambda a: torch.as_tensor(np.asarray(a, np.float32))  # noqa: E731
     out = []
     for sid in (ids if ids is not None else list_samples(root, split)):
@@ -117,8 +118,7 @@ def load_items(root: Path, body: BodyModel, *, n_star: int, window: int, n_betas
         b[: s.betas.size] = s.betas[:n_betas]
         joints = body.rest_joints(s.betas if s.betas.size else None)[0]
         win = motion_windows(s.poses, window)
-        bw = transfer_weights(s.rest, body.shaped_vertices(s.betas if s.betas.size else None)[0], body.faces,
-                              body.weights)
+        bw = garment_weights(s.rest, s.faces, body, s.betas if s.betas.size else None, weight_prior)
         out.append(TrainItem(
             id=sid, meta=s.meta, features=f32(a.features)[None], nbr=torch.as_tensor(a.nbr, dtype=torch.int64),
             mask=torch.as_tensor(a.mask, dtype=torch.bool), descriptor=f32(a.descriptor)[None], betas=f32(b)[None],

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..body.collision import BodyCollider, BodyProxy
 from ..body.model import BodyModel
-from ..body.transfer import skin_garment, transfer_weights
+from ..body.transfer import garment_weights, skin_garment
 from ..dataset.store import Sample, list_samples, load_sample
 from ..errors import InputError
 from ..geometry.laplacian import SpectralBasis
@@ -59,9 +59,15 @@ class Predictor(abc.ABC):
 
 
 class _LBS(Predictor):
+    """LBS with the body's weights carried to the garment by ``prior`` (``lbs``: the closest body point,
+    baseline (a); ``lbs-inpaint``: inpainted where the garment leaves the body, segadeform.body.transfer)."""
+
+    def __init__(self, prior: str = "nearest"):
+        self.prior = prior
+
     def predict(self, s, body, asset):
         betas = s.betas if s.betas.size else None
-        w = transfer_weights(s.rest, body.shaped_vertices(betas)[0], body.faces, body.weights)
+        w = garment_weights(s.rest, s.faces, body, betas, self.prior)
         return skin_garment(s.rest, w, body, s.poses, betas, s.trans)
 
 
@@ -115,10 +121,10 @@ class _Checkpoint(Predictor):
         feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
         lw = None
         if self.model.residual:
-            from ..body.transfer import residual_log_weights
+            from ..body.transfer import garment_weights, residual_log_weights
 
-            rest = body.shaped_vertices(betas)[0]
-            lw = t32(residual_log_weights(transfer_weights(asset.vertices, rest, body.faces, body.weights)))
+            lw = t32(residual_log_weights(garment_weights(asset.vertices, asset.faces, body, betas,
+                                                          self.cfg.weight_prior)))
         with torch.no_grad():
             g = self.model.garment_encoder(t32(feats)[None], nbr, mask, t32(asset.descriptor)[None])[0]
             win = motion_windows(s.poses, c.window)
@@ -133,10 +139,13 @@ class _Checkpoint(Predictor):
 
 
 def make_predictor(name: str, spec: str) -> Predictor:
-    """``spec``: ``lbs``, a model package folder (optionally ``FOLDER:EFFECTS`` with effects as for
-    ``segadeform run --effects``, e.g. ``pkg:-wrinkles``), or a ``.pt`` checkpoint."""
+    """``spec``: ``lbs`` (closest-point weights) or ``lbs-inpaint`` (inpainted weights), a model package
+    folder (optionally ``FOLDER:EFFECTS`` with effects as for ``segadeform run --effects``, e.g.
+    ``pkg:-wrinkles``), or a ``.pt`` checkpoint."""
     if spec == "lbs":
         p: Predictor = _LBS()
+    elif spec == "lbs-inpaint":
+        p = _LBS("inpaint")
     elif Path(spec).is_dir():
         p = _Package(spec)
     elif ":" in spec and Path(spec.rsplit(":", 1)[0]).is_dir():
@@ -145,7 +154,7 @@ def make_predictor(name: str, spec: str) -> Predictor:
     elif Path(spec).suffix == ".pt":
         p = _Checkpoint(spec)
     else:
-        raise InputError("a model must be 'lbs', a model package folder or a .pt checkpoint", got=spec)
+        raise InputError("a model must be 'lbs', 'lbs-inpaint', a model package folder or a .pt checkpoint", got=spec)
     p.name = name
     return p
 

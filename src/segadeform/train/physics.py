@@ -34,7 +34,7 @@ import torch
 
 from ..body.collision import BodyProxy
 from ..body.model import BodyModel
-from ..body.transfer import transfer_weights
+from ..body.transfer import garment_weights
 from ..dataset.config import DatasetConfig, load_dataset_config
 from ..dataset.make import _garment_file, _motion, check_splits, sample_plan
 from ..errors import InputError
@@ -224,23 +224,27 @@ class PairItem:
 class PhysicsPairs:
     """The training pairs of a dataset config, for self-supervised steps (none of them need be simulated).
 
-    Only ``train`` pairs of the plan are used (:func:`~segadeform.dataset.make.check_splits` refuses a
+    Only ``train`` pairs of the plan are used, less those matching an ``exclude`` glob (:func:`~segadeform.dataset.make.check_splits` refuses a
     config that would leak a held-out garment kind, motion family or body into them).  Garments are
     made once per (garment, body) into ``cache`` (the same files ``dataset make`` writes); a pair's
     precompute and motion are kept in memory after first use.
     """
 
     def __init__(self, config, cache, body: BodyModel, *, n_star: int, window: int, n_betas: int,
-                 body_faces: Optional[np.ndarray] = None) -> None:
+                 weight_prior: str = "nearest", exclude=()) -> None:
         self.cfg: DatasetConfig = config if isinstance(config, DatasetConfig) else load_dataset_config(config)
         plan = sample_plan(self.cfg)
         check_splits(self.cfg, plan)
-        self.plan = [p for p in plan if p.split == "train"]
+        import fnmatch
+
+        # `exclude`: globs of pair ids left out, as a training config's [data] exclude
+        self.plan = [p for p in plan if p.split == "train" and not any(fnmatch.fnmatchcase(p.id, g) for g in exclude)]
         if not self.plan:
             raise InputError("the physics pairs' config has no training samples", got=str(self.cfg.path))
         self.cache = Path(cache)
         self.body = body
         self.n_star, self.window, self.n_betas = int(n_star), int(window), int(n_betas)
+        self.weight_prior = weight_prior
         self._items: dict = {}
         self._garments: dict = {}
         self._motions: dict = {}
@@ -268,8 +272,7 @@ class PhysicsPairs:
                                            source_name=self.cfg.garments[gi].name)
                 p.parent.mkdir(exist_ok=True)
                 asset.save(p)
-            bw = transfer_weights(mesh.vertices, self.body.shaped_vertices(betas)[0], self.body.faces,
-                                  self.body.weights)
+            bw = garment_weights(mesh.vertices, mesh.faces, self.body, betas, self.weight_prior)
             self._garments[key] = (mesh, asset, joints, bw, cloth_topology(mesh.vertices, mesh.faces))
         return self._garments[key]
 

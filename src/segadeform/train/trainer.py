@@ -145,7 +145,11 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
     device = pick_device(o.device)
     torch.manual_seed(o.seed)
     m = cfg.model
-    items = load_items(cfg.dataset, body, n_star=m.n_star, window=m.window, n_betas=m.n_betas, split=cfg.split)
+    from ..dataset.store import list_samples
+
+    ids = cfg.select(list_samples(cfg.dataset, cfg.split))
+    items = load_items(cfg.dataset, body, n_star=m.n_star, window=m.window, n_betas=m.n_betas, ids=ids,
+                       weight_prior=m.weight_prior)
     if not items:
         raise InputError(f"no '{cfg.split}' samples in the dataset", expected="segadeform dataset make first",
                          got=str(cfg.dataset))
@@ -154,7 +158,8 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
                          got=m.feat_dim)
     items = [it.to(device) for it in items]
     val = [it.to(device) for it in load_items(cfg.dataset, body, n_star=m.n_star, window=m.window,
-                                              n_betas=m.n_betas, split=None, ids=val_ids)] if val_ids else []
+                                              n_betas=m.n_betas, split=None, ids=val_ids,
+                                              weight_prior=m.weight_prior)] if val_ids else []
     model = SEGANet(m).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=o.lr)
     sched = torch.optim.lr_scheduler.LambdaLR(
@@ -211,7 +216,8 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
 
         # the pairs' garments are made once into the dataset's cache (the same files `dataset make` writes)
         pairs = PhysicsPairs(cfg.pairs, Path(cfg.dataset) / "cache" / "pairs", body, n_star=m.n_star,
-                             window=m.window, n_betas=m.n_betas)
+                             window=m.window, n_betas=m.n_betas, weight_prior=m.weight_prior,
+                             exclude=cfg.exclude)
         mat = ph.material()
         body_faces = np.asarray(body.faces)
     acc = {k: 0.0 for k in ("total", *TERMS, PHYSICS_TERM)}

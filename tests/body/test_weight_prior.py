@@ -1,0 +1,70 @@
+"""Skinning-weight priors: closest point and inpainted (segadeform.body.transfer)."""
+
+import numpy as np
+import pytest
+
+from segadeform.body.model import default_body_path, load_body
+from segadeform.body.transfer import (INPAINT_MAX_DISTANCE, garment_weights, inpaint_transfer_weights,
+                                      inpaint_weights, transfer_weights)
+from segadeform.errors import InputError
+from segadeform.garments import make_garment
+from segadeform.geometry.primitives import grid_plane
+
+
+@pytest.fixture(scope="module")
+def body():
+    return load_body(default_body_path())
+
+
+def test_inpainting_keeps_the_known_rows_and_is_harmonic_elsewhere():
+    v, f = grid_plane(7, 7, (1.0, 1.0))
+    w = np.zeros((len(v), 2))
+    left, right = v[:, 0] < 1e-9, v[:, 0] > 1 - 1e-9
+    w[left, 0] = 1
+    w[right, 1] = 1
+    w[~(left | right)] = [0.9, 0.1]  # arbitrary: replaced
+    out = inpaint_weights(v, f, w, left | right)
+    assert np.array_equal(out[left | right], w[left | right])
+    # the harmonic interpolation between the two sides is linear in x on a regular grid
+    np.testing.assert_allclose(out[:, 1], v[:, 0], atol=1e-9)
+    np.testing.assert_allclose(out.sum(1), 1.0)
+
+
+def test_a_piece_with_nothing_known_keeps_its_weights_and_nothing_known_is_a_copy():
+    v1, f1 = grid_plane(3, 3)
+    v2, f2 = grid_plane(3, 3)
+    v = np.concatenate([v1, v2 + 5.0])
+    f = np.concatenate([f1, f2 + len(v1)])
+    w = np.random.default_rng(0).dirichlet(np.ones(3), len(v))
+    known = np.zeros(len(v), bool)
+    known[:2] = True
+    out = inpaint_weights(v, f, w, known)
+    np.testing.assert_array_equal(out[len(v1):], w[len(v1):])
+    np.testing.assert_array_equal(inpaint_weights(v, f, w, np.zeros(len(v), bool)), w)
+    with pytest.raises(InputError, match="must match"):
+        inpaint_weights(v, f, w[:-1], known)
+
+
+def test_a_tight_garment_keeps_the_body_weights_and_a_skirt_hem_blends_both_legs(body):
+    rest = body.shaped_vertices()[0]
+    tee = make_garment("tshirt", body)
+    near = transfer_weights(tee.vertices, rest, body.faces, body.weights)
+    inp = garment_weights(tee.vertices, tee.faces, body, None, "inpaint")
+    assert np.abs(inp - near).max(axis=1).mean() < 0.05  # nearly all of a T-shirt lies on the body
+    skirt = make_garment("skirt", body)
+    near = transfer_weights(skirt.vertices, rest, body.faces, body.weights)
+    inp = inpaint_transfer_weights(skirt.vertices, skirt.faces, rest, body.faces, body.weights)
+    np.testing.assert_allclose(inp.sum(1), 1.0, atol=1e-12)
+    assert (inp >= 0).all()
+    hem = skirt.vertices[:, 1] < skirt.vertices[:, 1].min() + 0.02
+    # SMPL: 1 left hip, 2 right hip.  Closest-point weights give each hem vertex (nearly) one leg;
+    # inpainted ones give every hem vertex some of both
+    both = lambda w: np.minimum(w[:, 1], w[:, 2])  # noqa: E731
+    assert np.median(both(near[hem])) < 0.05 and np.median(both(inp[hem])) > 0.1
+
+
+def test_unknown_prior_is_refused(body):
+    g = make_garment("skirt", body)
+    with pytest.raises(InputError, match="prior"):
+        garment_weights(g.vertices, g.faces, body, None, "smooth")
+    assert INPAINT_MAX_DISTANCE > 0

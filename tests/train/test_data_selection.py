@@ -1,0 +1,30 @@
+"""[data] exclude / fraction: which samples a training run sees."""
+
+import pytest
+
+from segadeform.errors import FileFormatError
+from segadeform.train.config import load_train_config
+
+
+def _cfg(tmp_path, text):
+    p = tmp_path / "t.toml"
+    p.write_text(text)
+    return load_train_config(p, dataset=tmp_path)
+
+
+def test_exclude_globs_and_nested_fractions(tmp_path):
+    ids = [f"g{i}__b0__cmu-{i}" for i in range(20)] + [f"g{i}__b0__walk-s{i}" for i in range(20)]
+    assert _cfg(tmp_path, "").select(ids) == ids
+    no_mocap = _cfg(tmp_path, '[data]\nexclude = ["*__cmu-*"]\n').select(ids)
+    assert no_mocap == [i for i in ids if "cmu" not in i]
+    quarter = _cfg(tmp_path, "[data]\nfraction = 0.25\n").select(ids)
+    half = _cfg(tmp_path, "[data]\nfraction = 0.5\n").select(ids)
+    assert len(quarter) == 10 and len(half) == 20 and set(quarter) <= set(half)  # 1x within 2x within 4x
+    assert quarter == _cfg(tmp_path, "[data]\nfraction = 0.25\n").select(list(reversed(ids)))  # order-free
+
+
+@pytest.mark.parametrize("text, msg", [("[data]\nfraction = 0\n", "fraction"), ("[data]\nfraction = 1.5\n", "fraction"),
+                                       ("[data]\nexclude = \"cmu\"\n", "exclude"), ("[data]\nsplits = 1\n", "unknown")])
+def test_bad_selections_are_refused(tmp_path, text, msg):
+    with pytest.raises(FileFormatError, match=msg):
+        _cfg(tmp_path, text)
