@@ -104,7 +104,7 @@ class Run:
         force: animate a garment that does not sit on the body (see
             :func:`segadeform.garments.fit.check_placement`) instead of refusing it.
         collider: ``"fast"`` (:class:`~segadeform.body.collision.BodyCollider`, built once, every frame of
-            a batch in one call) or
+            a batch in one call; its compiled backend on the package's threads, numpy if it was not built) or
             ``"reference"`` (:class:`~segadeform.body.collision.BodyProxy` per frame: the slow, obvious
             one, for comparisons).
     """
@@ -196,8 +196,9 @@ class Run:
                 if self.effects.collisions:
                     t = time.perf_counter()
                     if self.collider == "fast":  # built once per run (its cost counts here), all frames at once
-                        if collider is None:
-                            collider = BodyCollider(self.body.v_template, self.body.faces)
+                        if collider is None:  # the compiled kernel (numpy if it was not built), the session's threads
+                            collider = BodyCollider(self.body.v_template, self.body.faces,
+                                                    threads=max(1, int(getattr(self.package, "threads", 1))))
                         verts, n = collider.push_out(verts, posed, self.effects.collision_margin)
                         pushed += n
                     else:

@@ -41,8 +41,12 @@ def test_far_points():
     np.testing.assert_allclose(r.signed_distance, brute_force(p, v, f), rtol=1e-9)
 
 
-# ---- the fast pass (BodyCollider) against the references ------------------------------------------------
+# ---- the fast pass (BodyCollider, both backends) against the references -----------------------------------
 from segadeform.body.collision import BodyCollider, closest_point_fast  # noqa: E402
+
+# the compiled backend must be built here (pip install -e . compiles src/segadeform/body/_collide.c): a missing
+# kernel fails these tests with the reason instead of silently testing numpy twice
+BACKENDS = ["compiled", "numpy"]
 
 
 def exhaustive(v, f):
@@ -97,13 +101,14 @@ def _cloud(v, f, n, seed):
                            0.5 * (v[f[:, 0]] + v[f[:, 1]]), centre + 20 * scale * rng.normal(size=(10, 3))])
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("shape", ["icosphere", "degenerate", "open", "uv-sphere"])
-def test_fast_query_is_the_brute_force_answer(shape):
+def test_fast_query_is_the_brute_force_answer(shape, backend):
     v, f = {"icosphere": _icosphere, "degenerate": _degenerate_icosphere, "open": lambda: _icosphere()[:1] + (
         _icosphere()[1][7:],), "uv-sphere": lambda: sphere(24, 16)}[shape]()
     v = v * [0.3, 0.9, 0.2] + [0.0, 1.0, 0.0]
     p = _cloud(v, f, 2000, 3)
-    col = BodyCollider(v, f)
+    col = BodyCollider(v, f, backend=backend)
     assert col.closed == (shape != "open")
     r = col.query(p, v)
     np.testing.assert_allclose(np.abs(r.signed_distance), brute_force(p, v, f), atol=1e-12)
@@ -116,23 +121,48 @@ def test_fast_query_is_the_brute_force_answer(shape):
         np.testing.assert_array_equal(r.signed_distance[off] < 0, inside)
 
 
+def ambiguous(p, v, f, tol=1e-12):
+    """Points whose nearest triangles tie (within ``tol``) on features with different pseudo-normals: on the
+    degenerate icosphere, an edge of the zero-area sliver lies on an edge of a real face, so a point there
+    is as near to both and either answer is right.  Exhaustive: (P, F) distances."""
+    proxy = exhaustive(v, f)
+    tri = v[f]
+    cp, _ = closest_point_on_triangles(p[:, None, :], tri[None, :, 0], tri[None, :, 1], tri[None, :, 2])
+    d = np.linalg.norm(cp - p[:, None], axis=-1)
+    tied = d <= d.min(axis=1, keepdims=True) + tol
+    out = np.zeros(len(p), bool)
+    for i in np.flatnonzero(tied.sum(axis=1) > 1):
+        faces = np.flatnonzero(tied[i])
+        n = exhaustive_rows(proxy, np.repeat(p[i:i + 1], len(faces), 0), faces, normals=True)[1]
+        out[i] = np.abs(n - n[0]).max() > 1e-9
+    return out
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("shape", ["icosphere", "degenerate", "open"])
 @pytest.mark.parametrize("margin", [0.0, 0.01, 0.08])
-def test_fast_push_out_is_the_exhaustive_reference(shape, margin):
+def test_fast_push_out_is_the_exhaustive_reference(shape, margin, backend):
     """Every point inside or within the margin moves where the reference moves it when the reference
-    looks at every triangle; the others stay bit for bit."""
+    looks at every triangle; the others stay bit for bit.  Points whose nearest features tie with
+    different normals (only on the degenerate mesh, see :func:`ambiguous`), at the start or after any
+    pass, may go either way."""
     v, f = {"icosphere": _icosphere, "degenerate": _degenerate_icosphere,
             "open": lambda: (_icosphere()[0], _icosphere()[1][7:])}[shape]()
     v = v * [0.3, 0.9, 0.2]
     p = _cloud(v, f, 1500, 4)
-    got, n_got = BodyCollider(v, f).push_out(p, v, margin)
+    got, n_got = BodyCollider(v, f, backend=backend).push_out(p, v, margin)
     ref, n_ref = push_out(p, exhaustive(v, f), margin)
-    np.testing.assert_allclose(got, ref, atol=1e-12)
+    skip = np.zeros(len(p), bool)
+    if shape == "degenerate":
+        for k in range(3):
+            skip |= ambiguous(push_out(p, exhaustive(v, f), margin, iterations=k)[0] if k else p, v, f)
+        assert skip.sum() < 0.01 * len(p)
+    np.testing.assert_allclose(got[~skip], ref[~skip], atol=1e-12)
     clear = np.abs(exhaustive(v, f).query(p).signed_distance - margin) > 1e-9  # not on the threshold
     untouched = np.all(ref == p, axis=1) & clear
     np.testing.assert_array_equal(got[untouched], p[untouched])
     if margin > 0:
-        assert n_got == n_ref > 100
+        assert abs(n_got - n_ref) <= skip.sum() and n_ref > 100
     else:  # a point pushed onto the surface can count as moved again in the next pass on either side
         assert abs(n_got - n_ref) <= 0.01 * len(p) and n_ref > 100
 
@@ -155,13 +185,14 @@ def dancing():
     return body, posed, gv
 
 
-def test_fast_collider_matches_the_reference_on_a_dancing_body(dancing):
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_fast_collider_matches_the_reference_on_a_dancing_body(dancing, backend):
     """The fast pass moves the same vertices to the same places as the reference (BodyProxy rebuilt per
     frame), frame by frame and with frames batched, with the same quality afterwards: at most 0.1 % of
     vertices inside, as many closer than the margin."""
     body, posed, gv = dancing
     margin = 0.004
-    fast = BodyCollider(body.v_template, body.faces)
+    fast = BodyCollider(body.v_template, body.faces, backend=backend)
     batched, n_batched = fast.push_out(gv, posed, margin)
     exact = total = moved_ref = moved_fast = 0
     differ = 0.0
@@ -195,14 +226,15 @@ def test_fast_collider_matches_the_reference_on_a_dancing_body(dancing):
     assert abs(close[1] - close[0]) <= 1e-4 * total, (close, total)
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("frame", ["rest", "posed"])
-def test_fast_collider_finds_points_deep_inside_the_body(dancing, frame):
+def test_fast_collider_finds_points_deep_inside_the_body(dancing, frame, backend):
     """Points 1-4 cm under the skin (inside by the winding number) are at the brute-force distance, with
     the reference's sign at the same closest point, and get pushed out as the reference pushes them."""
     body, posed, _ = dancing
     v = body.v_template if frame == "rest" else posed[-1]
     rng = np.random.default_rng(2)
-    fast = BodyCollider(body.v_template, body.faces)
+    fast = BodyCollider(body.v_template, body.faces, backend=backend)
     pick = rng.choice(len(v), 150, replace=False)
     proxy = BodyProxy(v, body.faces)
     p = v[pick] - rng.uniform(0.01, 0.04, (150, 1)) * proxy.vertex_normals[pick]
@@ -221,8 +253,9 @@ def test_fast_collider_finds_points_deep_inside_the_body(dancing, frame):
     assert (fast.query(out, v).signed_distance > 0).mean() >= (fast.query(ref_out, v).signed_distance > 0).mean()
 
 
-def exhaustive_rows(proxy, p, face):
-    """The reference's signed distance for each point at the given closest face (its own feature rule)."""
+def exhaustive_rows(proxy, p, face, normals=False):
+    """The reference's signed distance for each point at the given closest face (its own feature rule);
+    with ``normals``, the pseudo-normals too."""
     tri = proxy.vertices[proxy.faces[face]]
     cp, b = closest_point_on_triangles(p, tri[:, 0], tri[:, 1], tri[:, 2])
     count = (b > 1e-9).sum(axis=1)
@@ -232,13 +265,15 @@ def exhaustive_rows(proxy, p, face):
     vert = count <= 1
     n[vert] = proxy.vertex_normals[proxy.faces[face[vert], np.argmax(b[vert], axis=1)]]
     diff = p - cp
-    return np.where(np.einsum("ij,ij->i", diff, n) < 0, -1.0, 1.0) * np.linalg.norm(diff, axis=1)
+    sd = np.where(np.einsum("ij,ij->i", diff, n) < 0, -1.0, 1.0) * np.linalg.norm(diff, axis=1)
+    return (sd, n) if normals else sd
 
 
-def test_fast_collider_edge_cases():
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_fast_collider_edge_cases(backend):
     """Points on the surface, deep inside, far away; a margin of 0; bad input refused."""
     v, f = _icosphere()
-    col = BodyCollider(v, f)
+    col = BodyCollider(v, f, backend=backend)
     on = v[:10].copy()
     deep = 0.1 * v[10:20]
     far = 5.0 * v[20:30]
