@@ -11,10 +11,13 @@ minimises, with the two previous frames (the network's own, detached) as the his
     E_bend      = sum_h  k_b 3 l0_h^2 / (A_1 + A_2) (theta_h - theta0_h)^2 / 2   (discrete shells hinge)
     E_gravity   = sum_v  m_v g y_v
     E_inertia   = sum_v  m_v |x_t - 2 x_{t-1} + x_{t-2}|^2 / (2 h^2)
+    E_damping   = sum_v  c_d m_v |x_t - x_{t-1}|^2 / (2 h)                  (air drag, Rayleigh)
     E_collision = sum_v  k_c A_v max(eps - d_v, 0)^3                        (d: signed body distance)
 
-with ``A_e`` a third of the rest area of the faces at edge ``e``, ``A_v`` likewise per vertex,
-``m_v = rho A_v``.  The loss is ``E / (M g)`` (M the garment's mass): metres of equivalent height,
+with ``A_e`` a third of the rest area of the faces at edge ``e``, ``A_v`` likewise per vertex and
+``m_v = rho A / N`` (the garment's mass ``rho A`` shared equally, as Blender's cloth shares it).  The
+stiffnesses and drag need not be guessed: :func:`calibrate_material` fits them to simulated frames
+(the frames should be stationary points of E given their history).  The loss is ``E / (M g)`` (M the garment's mass): metres of equivalent height,
 the unit of the supervised vertex term, so one weight balances the two.  ``d_v`` is measured against
 the posed body at the detached prediction (closest point and outward normal, then linearised), as the
 supervised collision term does with the simulated vertex.
@@ -44,7 +47,7 @@ from ..io import read_mesh
 from ..motion.motion import motion_windows
 
 __all__ = ["Material", "ClothTopology", "cloth_topology", "cloth_energy", "dihedral_angles", "PhysicsPairs",
-           "PairItem", "body_contact"]
+           "PairItem", "body_contact", "vertex_masses"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -54,6 +57,7 @@ class Material:
     Attributes:
         density: kg / m^2.  stretch: k_s, N / m.  bending: k_b, N m.  collision: k_c, J / m^5.
         margin: eps, the distance kept from the body (m).  gravity: m / s^2 along -y.
+        damping: c_d, 1 / s (air drag).
     """
 
     density: float = 0.2
@@ -62,6 +66,7 @@ class Material:
     collision: float = 1.0e7
     margin: float = 0.003
     gravity: float = 9.81
+    damping: float = 0.0
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -127,6 +132,12 @@ def cloth_topology(rest: np.ndarray, faces: np.ndarray) -> ClothTopology:
     return topo
 
 
+def vertex_masses(topo: ClothTopology, mat: Material) -> torch.Tensor:
+    """``m_v (N,)``: the garment's mass ``rho A`` shared equally by its vertices."""
+    n = topo.vertex_area.shape[0]
+    return torch.full_like(topo.vertex_area, mat.density * float(topo.vertex_area.sum()) / max(n, 1))
+
+
 def dihedral_angles(x: torch.Tensor, hinges: torch.Tensor) -> torch.Tensor:
     """Signed bending angle of every hinge (0 when flat).  x (B, N, 3), hinges (H, 4) -> (B, H)."""
     xi, xj, xk, xl = (x[:, hinges[:, c]] for c in range(4))
@@ -149,7 +160,7 @@ def cloth_energy(x: torch.Tensor, topo: ClothTopology, mat: Material, *, prev: O
     left out without them).  ``contact_p``/``contact_n (B, N, 3)``: closest body point and outward normal
     per vertex (the collision term is left out without them).  ``height_ref (B,)``: subtracted from the
     heights in the gravity term (e.g. the root's), which changes its value, not its gradient."""
-    m = mat.density * topo.vertex_area  # (N,)
+    m = vertex_masses(topo, mat)  # (N,)
     mg = float(m.sum()) * max(mat.gravity, 1e-12)
     ed = topo.edges
     length = (x[:, ed[:, 0]] - x[:, ed[:, 1]]).norm(dim=-1)
@@ -167,6 +178,10 @@ def cloth_energy(x: torch.Tensor, topo: ClothTopology, mat: Material, *, prev: O
         out["inertia"] = (m * (acc ** 2).sum(-1)).sum(-1) / (2 * dt * dt)
     else:
         out["inertia"] = x.new_zeros(x.shape[0])
+    if prev is not None and mat.damping:
+        out["damping"] = mat.damping * (m * ((x - prev) ** 2).sum(-1)).sum(-1) / (2 * dt)
+    else:
+        out["damping"] = x.new_zeros(x.shape[0])
     if contact_p is not None and contact_n is not None:
         d = ((x - contact_p) * contact_n).sum(-1)
         out["collision"] = mat.collision * (topo.vertex_area * torch.relu(mat.margin - d) ** 3).sum(-1)
@@ -273,7 +288,10 @@ class PhysicsPairs:
                 p.parent.mkdir(exist_ok=True)
                 asset.save(p)
             bw = garment_weights(mesh.vertices, mesh.faces, self.body, betas, self.weight_prior)
-            self._garments[key] = (mesh, asset, joints, bw, cloth_topology(mesh.vertices, mesh.faces))
+            # the cloth's own rest (the A-posed garment the simulator drapes, when made) sets the rest lengths
+            cloth = self.cache / (rel[:-len(".obj")] + ".cloth.obj")
+            cloth_rest = read_mesh(cloth).vertices if cloth.is_file() else mesh.vertices
+            self._garments[key] = (mesh, asset, joints, bw, cloth_topology(cloth_rest, mesh.faces))
         return self._garments[key]
 
     def _motion(self, mi: int, bi: int):
@@ -301,3 +319,4 @@ class PhysicsPairs:
                 windows=f32(motion_windows(mo.poses, self.window)), trans=f32(mo.trans), body_weights=f32(bw),
                 posed_body=posed, topo=topo, fps=float(mo.fps))
         return self._items[p.id]
+
