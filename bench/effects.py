@@ -7,7 +7,9 @@ is a random-weight export unless ``--package`` is given (the cost does not
 depend on the weights).  Each row is a full ``Run`` (precompute and encoder
 cached beforehand, so rows time the per-frame stages), writing PC2 to a
 temporary folder.  The ratio is against "all effects on" measured in the
-same run.  A final section streams ``--long`` frames (default 10,000) with
+same run.  The collision stage is then timed for the reference (BodyProxy per
+frame), the numpy BodyCollider and the compiled one (the runtime's), runs
+interleaved.  A final section streams ``--long`` frames (default 10,000) with
 LBS and dynamics (no wrinkles, no collisions) in a fresh process and reports
 its peak resident memory against a 100-frame run in another fresh process:
 flat memory means the ratio stays near 1 while the output grows 100x.
@@ -101,19 +103,37 @@ def main() -> None:
         print(f"{e.skinning:8s} {str(e.dynamics):>8s} {str(e.wrinkles):>8s} {str(e.collisions):>10s} {ms:9.2f} "
               f"{ms / base:9.2f} {1e3 * st['deform'] / n:7.2f} {1e3 * st['pose body'] / n:6.2f} "
               f"{1e3 * st['collisions'] / n:8.2f}")
-    # the collision pass: the reference (BodyProxy rebuilt per frame) against the fast one, same run
-    ref = run(Effects(), collider="reference")
-    fast = run(Effects(), collider="fast")
+    # the collision pass, all effects on: the reference (BodyProxy rebuilt per frame), the numpy BodyCollider
+    # and the compiled one (the runtime's), interleaved, median of 3; outputs compared with the reference's
+    import functools
+
+    import segadeform.runtime.pipeline as pipeline
+    from segadeform.body.collision import BodyCollider
     from segadeform.io import read_pc2
 
-    a = np.asarray(read_pc2(tmp / "o.pc2").frames)
-    run(Effects(), collider="reference", out="ref.pc2")
-    b = np.asarray(read_pc2(tmp / "ref.pc2").frames)
-    print(f"collisions (all effects on): reference {1e3 * ref.stage_seconds['collisions'] / ref.frames:.2f} ms/frame, "
-          f"fast {1e3 * fast.stage_seconds['collisions'] / fast.frames:.2f} ms/frame, ratio "
-          f"{fast.stage_seconds['collisions'] / ref.stage_seconds['collisions']:.3f}; whole frame "
-          f"{ref.ms_per_frame:.2f} -> {fast.ms_per_frame:.2f} ms; outputs differ by max "
-          f"{1e3 * np.abs(a - b).max():.3f} mm, pushed vertices {ref.pushed_vertices} vs {fast.pushed_vertices}")
+    def collide(kind):
+        if kind == "reference":
+            return run(Effects(), collider="reference", out=f"{kind}.pc2")
+        pipeline.BodyCollider = functools.partial(BodyCollider, backend=kind)
+        try:
+            return run(Effects(), out=f"{kind}.pc2")
+        finally:
+            pipeline.BodyCollider = BodyCollider
+
+    kinds = ("reference", "numpy", "compiled")
+    times = {k: [] for k in kinds}
+    summary = {}
+    for _ in range(3):
+        for k in kinds:
+            summary[k] = collide(k)
+            times[k].append(summary[k].stage_seconds["collisions"] / summary[k].frames)
+    ms = {k: 1e3 * float(np.median(t)) for k, t in times.items()}
+    frames = {k: np.asarray(read_pc2(tmp / f"{k}.pc2").frames) for k in kinds}
+    print("collisions (all effects on, 1 thread, median of 3 interleaved runs):")
+    for k in kinds:
+        print(f"  {k:9s} {ms[k]:7.2f} ms/frame  x numpy {ms[k] / ms['numpy']:6.3f}  whole frame "
+              f"{summary[k].ms_per_frame:7.2f} ms  pushed {summary[k].pushed_vertices:6d}  max diff from the "
+              f"reference {1e3 * np.abs(frames[k] - frames['reference']).max():.4f} mm")
     if args.long:
         import subprocess
         import sys

@@ -662,7 +662,8 @@ static int near_or_inside(const sdc_frame *fr, const double *p, double radius, d
         bound = first;
     }
     nearest(fr, p, bound, face, bary, closest);
-    if (*face < 0) nearest(fr, p, INFINITY, face, bary, closest); /* cannot happen; kept for safety */
+    /* none within the bound: the ray's first hit, measured on a nearly edge-on triangle, came out short */
+    if (*face < 0) nearest(fr, p, INFINITY, face, bary, closest);
     *sd = signed_at(fr, p, *face, bary, closest, n);
     return 1;
 }

@@ -26,9 +26,10 @@ One rule, three implementations side by side:
   - ``"numpy"``: the same algorithm vectorised over all points in numpy (the fallback when the
     kernel was not built, e.g. no C compiler at install: ``"auto"`` then logs one warning).
 
-  Measured by ``bench/collisions.py`` (a 3,916-vertex skirt on the 13,718-vertex default body,
-  one thread): see DEVELOPERS.md for the command; the compiled kernel costs a few ms per frame
-  where numpy costs 3 to 6 times more.
+  Measured by ``bench/collisions.py`` (a 3,916-vertex skirt jittered into and out of the
+  13,718-vertex default body, a dance, batches of 8 frames, one thread, passes interleaved on a
+  shared 2-core machine): compiled 1.8 ms/frame wall (1.2 ms CPU), numpy 11.3 ms (7.3 ms CPU),
+  the reference 101 ms; every one leaves 0.000 % of the vertices inside (3.0 % before).
 
 ``tests/body/test_collision.py`` compares both backends against brute force (every triangle), the
 sign against the generalised winding number, and the fast push-out against the reference;
