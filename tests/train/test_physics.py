@@ -209,3 +209,22 @@ def test_physics_configs_are_checked(tmp_path, synthetic_dataset):
     p.write_text("[physics]\nframes = 2\n")
     with pytest.raises(FileFormatError, match="frames"):
         load_train_config(p, dataset=synthetic_dataset)
+
+
+def test_training_time_is_wall_time_with_physics(synthetic_dataset, pairs_config, tmp_path, body):
+    """The physics term's frame draw once overwrote the trainer's timer (train_seconds was wrong)."""
+    import json
+    import time
+
+    from segadeform.train.config import load_train_config
+    from segadeform.train.trainer import train
+
+    cfg_path = tmp_path / "train.toml"
+    cfg_path.write_text("[model]\nhidden = 16\nlstm_hidden = 16\nwindow = 3\nn_star = 16\n"
+                        "[optim]\nsteps = 3\nframes = 2\ncheckpoint_every = 3\n"
+                        "[physics]\npairs = \"pairs.toml\"\nevery = 1\nframes = 4\n")
+    t0 = time.perf_counter()
+    train(load_train_config(cfg_path, dataset=synthetic_dataset), tmp_path / "run", body)
+    wall = time.perf_counter() - t0
+    took = json.loads((tmp_path / "run" / "train.json").read_text())["train_seconds"]
+    assert 0 < took <= wall

@@ -234,8 +234,8 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
             pair = pairs.item(int(rng.integers(len(pairs)))).to(device)
             f = min(ph.frames, pair.n_frames)
             if f >= 3:
-                t0 = int(rng.integers(pair.n_frames - f + 1))
-                ls[PHYSICS_TERM] = ph.weight * physics_losses(model, pair, t0, f, mat, body_faces, device)["total"]
+                first = int(rng.integers(pair.n_frames - f + 1))
+                ls[PHYSICS_TERM] = ph.weight * physics_losses(model, pair, first, f, mat, body_faces, device)["total"]
                 ls["total"] = ls["total"] + ls[PHYSICS_TERM]
         if not torch.isfinite(ls["total"]):
             raise InputError(f"the loss became {float(ls['total'])} at step {step} on {it.id}; lower optim.lr")
