@@ -38,7 +38,7 @@ Example (``samples/train/default.toml`` is the shipped model's)::
     [physics]                      # self-supervision on pairs never simulated (segadeform.train.physics)
     pairs = "../datasets/continuum.toml"   # a dataset config: its training garments x bodies x motions
     every = 2                      # add a self-supervised term every `every` steps (0: off)
-    weight = 0.01                  # its weight; the energies are in metres of equivalent height
+    weight = 0.002                 # its weight; the energies are in metres of equivalent height
     frames = 5                     # consecutive frames per term (the first two are the history)
     density = 0.2                  # the cloth (segadeform.train.physics.Material)
 """

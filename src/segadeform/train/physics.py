@@ -192,15 +192,19 @@ def cloth_energy(x: torch.Tensor, topo: ClothTopology, mat: Material, *, prev: O
     return out
 
 
-def body_contact(points: np.ndarray, posed: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def body_contact(points: np.ndarray, posed: np.ndarray, faces, collider=None) -> tuple[np.ndarray, np.ndarray]:
     """Closest body point and outward normal for every point.  points (B, N, 3), posed (B, V, 3) ->
-    (B, N, 3) twice (float32)."""
+    (B, N, 3) twice (float32).  ``collider``: a :class:`~segadeform.body.collision.BodyCollider` of the
+    body (exact and fast; built once), else a :class:`~segadeform.body.collision.BodyProxy` per frame."""
     cp = np.empty(points.shape, np.float32)
     cn = np.empty(points.shape, np.float32)
     proxy = None
     for b in range(len(points)):
-        proxy = BodyProxy(posed[b], faces) if proxy is None else proxy.moved(posed[b])
-        q = proxy.query(np.asarray(points[b], np.float64))
+        if collider is not None:
+            q = collider.query(np.asarray(points[b], np.float64), posed[b])
+        else:
+            proxy = BodyProxy(posed[b], faces) if proxy is None else proxy.moved(posed[b])
+            q = proxy.query(np.asarray(points[b], np.float64))
         cp[b], cn[b] = q.closest, q.normal
     return cp, cn
 

@@ -77,7 +77,7 @@ def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_sc
     return out
 
 
-def physics_losses(model: SEGANet, pair, t0: int, frames: int, mat, body_faces, device) -> dict:
+def physics_losses(model: SEGANet, pair, t0: int, frames: int, mat, body_faces, device, collider=None) -> dict:
     """The cloth energy (:func:`~segadeform.train.physics.cloth_energy`) of frames ``t0+2 .. t0+frames-1``
     of a pair never simulated, the two frames before each (the network's own, detached) as history."""
     from .physics import body_contact, cloth_energy
@@ -86,7 +86,7 @@ def physics_losses(model: SEGANet, pair, t0: int, frames: int, mat, body_faces, 
     lw = torch.log(pair.body_weights + RESIDUAL_EPS) if model.residual else None
     x, _, _ = model(pair.features, pair.nbr, pair.mask, pair.descriptor, pair.betas.expand(frames, -1),
                     pair.windows[t], pair.rest, pair.joints[None].expand(frames, -1, -1), pair.trans[t], lw)
-    cp, cn = body_contact(x[2:].detach().cpu().numpy(), pair.posed_body[t0 + 2:t0 + frames], body_faces)
+    cp, cn = body_contact(x[2:].detach().cpu().numpy(), pair.posed_body[t0 + 2:t0 + frames], body_faces, collider)
     h = x.detach()
     return cloth_energy(x[2:], pair.topo.to(device), mat, prev=h[1:-1], prev2=h[:-2], dt=1.0 / pair.fps,
                         contact_p=torch.as_tensor(cp, device=device), contact_n=torch.as_tensor(cn, device=device),
@@ -220,6 +220,9 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
                              exclude=cfg.exclude)
         mat = ph.material()
         body_faces = np.asarray(body.faces)
+        from ..body.collision import BodyCollider
+
+        collider = BodyCollider(body.v_template, body.faces)  # exact closest points, built once
     acc = {k: 0.0 for k in ("total", *TERMS, PHYSICS_TERM)}
     n_acc = 0
     t0 = time.perf_counter()
@@ -235,7 +238,8 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
             f = min(ph.frames, pair.n_frames)
             if f >= 3:
                 first = int(rng.integers(pair.n_frames - f + 1))
-                ls[PHYSICS_TERM] = ph.weight * physics_losses(model, pair, first, f, mat, body_faces, device)["total"]
+                ls[PHYSICS_TERM] = ph.weight * physics_losses(model, pair, first, f, mat, body_faces, device,
+                                                              collider)["total"]
                 ls["total"] = ls["total"] + ls[PHYSICS_TERM]
         if not torch.isfinite(ls["total"]):
             raise InputError(f"the loss became {float(ls['total'])} at step {step} on {it.id}; lower optim.lr")
