@@ -38,6 +38,7 @@ def cli() -> None:
 
 def _register() -> None:
     from . import batch, body, bundle_cmd, cache_cmd, dataset, export, garment, info_cmd, inspect_cmd, motion, precompute, preview, run, simulate, train  # noqa: F401  (commands attach themselves to `cli`)
+    from . import body_export, garment_export, motion_export  # noqa: F401  (the runtimes' inputs: docs/package.md)
 
 
 _register()

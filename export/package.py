@@ -16,7 +16,7 @@ from segadeform.io.atomic import atomic_directory
 from segadeform.package_spec import OPSET, graph_specs
 
 from .packing import pack_graphs, sha256_file
-from .portability import check_portability
+from .portability import check_portability, replace_trig
 
 __all__ = ["MANIFEST_SCHEMA_VERSION", "OPSET", "graph_specs", "deformer_variants", "export_package", "sample_inputs"]
 
@@ -24,7 +24,7 @@ __all__ = ["MANIFEST_SCHEMA_VERSION", "OPSET", "graph_specs", "deformer_variants
 MANIFEST_SCHEMA_VERSION = contract.SCHEMA_VERSION
 
 
-_NP = {"float32": np.float32, "int64": np.int64, "bool": np.bool_}
+_NP = {"float32": np.float32, "int32": np.int32, "int64": np.int64, "bool": np.bool_}
 
 
 def sample_inputs(cfg, graph: str, *, n: int, k: int, b: int, seed: int = 0) -> dict[str, np.ndarray]:
@@ -40,9 +40,9 @@ def sample_inputs(cfg, graph: str, *, n: int, k: int, b: int, seed: int = 0) -> 
     for inp in gspec["inputs"]:
         shape = [dims[d] if isinstance(d, str) else d for d in inp["shape"]]
         if inp["name"] == "nbr":
-            out["nbr"] = nbr.astype(np.int64)
+            out["nbr"] = nbr.astype(_NP[inp["dtype"]])
         elif inp["name"] == "mask":
-            out["mask"] = mask
+            out["mask"] = mask.astype(_NP[inp["dtype"]])
         elif inp["name"] == "window":
             out["window"] = (0.4 * rng.standard_normal(shape)).astype(np.float32)
         elif inp["name"] == "joints":
@@ -58,6 +58,8 @@ def sample_inputs(cfg, graph: str, *, n: int, k: int, b: int, seed: int = 0) -> 
 
 
 def _wrappers(model):
+    """The graphs' modules.  ``nbr`` arrives as int32 (Gather takes int32 indices as they are) and ``mask`` as
+    float32 1/0 (the attention multiplies by it as a float anyway): schema 3's inputs, with no Cast added."""
     import torch
 
     class Encoder(torch.nn.Module):
@@ -164,12 +166,49 @@ def _sha256(path: Path) -> str:
     return sha256_file(path)
 
 
+def _load_body(body):
+    """``body`` for :func:`export_package`: ``"default"`` (the shipped body), a path, a BodyModel, or None."""
+    if body is None:
+        return None
+    from segadeform.body import BodyModel, default_body_path, load_body
+
+    if isinstance(body, BodyModel):
+        return body
+    return load_body(default_body_path() if isinstance(body, str) and body == "default" else body)
+
+
+def body_parity(body, path, skinning: str, sizes=(1, 4)) -> dict:
+    """Worst abs/rel error of body graph ``path`` against :meth:`BodyModel.forward` (float64) on random inputs."""
+    import onnxruntime as ort
+
+    from .body import body_sample_inputs
+    from .verify import compare
+
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    worst = {"vertices": [0.0, 0.0], "joints": [0.0, 0.0], "rest_joints": [0.0, 0.0]}
+    for b in sizes:
+        x = body_sample_inputs(body, b=b, seed=b)
+        got = dict(zip(("vertices", "joints", "rest_joints", "faces"), sess.run(None, x)))
+        ref = body.forward(x["poses"].reshape(b, -1).astype(np.float64), x["betas"].astype(np.float64),
+                           x["trans"].astype(np.float64), skinning=skinning)
+        for k, r in (("vertices", ref.vertices), ("joints", ref.joints),
+                     ("rest_joints", body.rest_joints(x["betas"].astype(np.float64))[0])):
+            a, rel = compare(r, got[k])
+            worst[k] = [max(worst[k][0], a), max(worst[k][1], rel)]
+        if not np.array_equal(got["faces"], body.faces):
+            raise RuntimeError(f"{path}: the body graph's faces are not the body's")
+    return {k: {"max_abs": v[0], "max_rel": v[1]} for k, v in worst.items()}
+
+
 def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, check: bool = True,
-                   variants: bool = True, extra_manifest: dict | None = None, shared_weights: bool = True) -> dict:
+                   variants: bool = True, extra_manifest: dict | None = None, shared_weights: bool = True,
+                   body="default") -> dict:
     """Export ``model`` (a SEGANet) to ``out_dir``; returns the manifest (and parity figures when ``check``).
 
     Writes the garment encoder and one deformer per effect combination (only the model's own with
-    ``variants=False``), named and described by :mod:`segadeform.package_spec`, then packs them
+    ``variants=False``), named and described by :mod:`segadeform.package_spec`, and the body graphs
+    ``body_lbs`` and ``body_dqs`` of ``body`` (``"default"``: the shipped body; a body file or
+    :class:`~segadeform.body.BodyModel`; None: no body graphs; :mod:`.body`), then packs them
     (:func:`~segadeform.export.packing.pack_graphs`: debug info stripped; with ``shared_weights`` one
     ``weights.bin`` holds the weights every graph shares).  The parity check runs on the packed files.
 
@@ -187,6 +226,7 @@ def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, ch
 
     net = copy.deepcopy(model).eval().float().freeze()
     cfg = net.cfg
+    body_model = _load_body(body)
     wrappers = _wrappers(net)
     todo = {contract.ENCODER: (wrappers[contract.ENCODER], graph_specs(cfg)[contract.ENCODER], cfg, True)}
     for vname, var in deformer_variants(cfg).items():
@@ -202,6 +242,8 @@ def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, ch
             path = tmp / gspec["file"]
             _export_one(module, gspec, sample_inputs(gcfg, name, n=37, k=7, b=3), path, dynamo=dynamo)
             proto = onnx.load(str(path))
+            if replace_trig(proto):  # WebGPU's sin/cos are not float32-accurate (portability.replace_trig)
+                onnx.save(proto, str(path))
             onnx.checker.check_model(proto)
             ops[name] = dict(sorted(check_portability(proto, name).items()))
             got_in = [i.name for i in proto.graph.input]
@@ -209,10 +251,20 @@ def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, ch
             if got_in != want_in:
                 raise RuntimeError(f"{name}: exported inputs {got_in} differ from the spec {want_in}")
             graphs[name] = dict(gspec)
+        if body_model is not None:
+            from .body import export_body_graphs
+
+            if list(body_model.joint_names) != list(SMPL_JOINT_NAMES):
+                raise RuntimeError("the body's skeleton is not the model's (SMPL's 24 joints)")
+            body_graphs, body_ops = export_body_graphs(body_model, tmp)
+            graphs.update(body_graphs)
+            ops.update(body_ops)
         weights = pack_graphs(tmp, [g["file"] for g in graphs.values()], shared=shared_weights)
         for name, g in graphs.items():
             g["sha256"] = _sha256(tmp / g["file"])
-            if check:
+            if check and g["role"] == contract.ROLES[contract.BODY]:
+                report[name] = body_parity(body_model, tmp / g["file"], g["skinning"])
+            elif check:
                 module, gspec, gcfg, full = todo[name]
                 sizes = {} if full else {"sizes": ((37, 7, 2),)}
                 report[name] = parity(module, tmp / g["file"], gspec, gcfg, graph=name, **sizes)

@@ -13,8 +13,10 @@ bytes stay as exported; only where the bytes live changes.
   the same weights, which are then stored once.  onnxruntime (Python, Node, C, web with
   ``externalData``), Unity Sentis and the ``onnx`` package load such graphs from the folder;
   ``shared=False`` keeps every graph self-contained instead.
-* :func:`repack_package` rewrites an existing package (schema 1 or 2) in the current layout
-  without re-exporting it: the same graphs, one name and one file per graph.
+* :func:`repack_package` rewrites an existing package (schema 1, 2 or 3) in the current layout
+  without re-exporting it: the same graphs, one name and one file per graph, their int64 and bool
+  inputs read as int32 and float32 (a Cast inside) and their sin and cos as polynomials
+  (:func:`~.portability.replace_trig`, within 2e-7 of the builtins).
 """
 
 from __future__ import annotations
@@ -146,17 +148,18 @@ def convert_opset(model, opset: int):
 
 def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bool = True,
                    training_garments: dict | None = None, opset: int | None = None) -> dict:
-    """Write package ``src`` (schema 1 or 2) to ``dst`` in the current layout; returns the new manifest.
+    """Write package ``src`` (schema 1, 2 or 3) to ``dst`` in the current layout; returns the new manifest.
 
-    The graphs are the same (what they compute is unchanged; only their storage and, for schema-1
-    packages, the file name of the model's own deformer change): debug info stripped, weights shared
-    unless ``shared=False``.  The model card and other ``.md``/``.txt`` files are copied; checkpoints and
+    The graphs are the same (what they compute is unchanged but for sin and cos, now polynomials within 2e-7
+    of the builtins; only their storage, their int64/bool inputs, which become int32/float32 read through a
+    Cast, and, for schema-1 packages, the file name of the model's own deformer change): debug info stripped,
+    weights shared unless ``shared=False``.  The model card and other ``.md``/``.txt`` files are copied; checkpoints and
     reports are not (they live beside a package, not in it).  ``training_garments`` (a manifest entry,
     :func:`export.training_set.training_garments_entry`) replaces the package's list; ``opset`` converts
     every graph (:func:`convert_opset`, e.g. 15 for Unity Sentis).  Written atomically."""
     import onnx
 
-    from .portability import op_counts
+    from .portability import make_inputs_portable, op_counts, replace_trig
 
     src, dst = Path(src), Path(dst)
     mpath = src / spec.MANIFEST_FILE
@@ -171,8 +174,11 @@ def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bo
         for name, g in m["graphs"].items():
             new = spec.graph_file(name)
             model = onnx.load(str(src / g["file"]), load_external_data=True)
+            retyped = make_inputs_portable(model)  # schema 3: int32 / float32 inputs (older packages: int64 / bool)
+            replace_trig(model)  # sin and cos float32-accurate on WebGPU (graphs exported before it)
             onnx.save(model if opset is None else convert_opset(model, opset), str(tmp / new))
-            graphs[name] = dict(g, file=new)
+            graphs[name] = dict(g, file=new, inputs=[dict(i, dtype=retyped.get(i["name"], i["dtype"]))
+                                                     for i in g["inputs"]])
         weights = pack_graphs(tmp, [g["file"] for g in graphs.values()], shared=shared)
         for name, g in graphs.items():
             g["sha256"] = sha256_file(tmp / g["file"])

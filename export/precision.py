@@ -8,8 +8,8 @@
 * ``int8``: onnxruntime's dynamic quantisation (``quantize_dynamic``): MatMul/Gemm weights stored as
   int8, activations quantised per call; inputs and outputs stay float32.
 
-The manifest gets the new files' SHA-256, ``"precision"`` and the current layout (schema 2: one file per
-graph, the weights shared in ``weights.bin``); nothing else changes. Error and speed
+The manifest gets the new files' SHA-256, ``"precision"`` and the current layout (schema 3: one file per
+graph, the weights shared in ``weights.bin``, int32/float32 inputs); nothing else changes. Error and speed
 of each precision are measured by ``bench/tradeoffs.py`` (docs/accuracy-vs-time.md).
 
 Not here: fp16 *arithmetic*.  onnxruntime's CPU provider has float16 kernels for few of the graphs' ops
@@ -103,6 +103,19 @@ def _fp16_weights(graph) -> None:
     graph.node.extend(casts + nodes)
 
 
+def _portable_inputs(path: Path) -> dict:
+    """An older package's int64/bool graph inputs as int32/float32 (schema 3), in place; the inputs changed."""
+    import onnx
+
+    from .portability import make_inputs_portable
+
+    m = onnx.load(str(path), load_external_data=True)
+    changed = make_inputs_portable(m)
+    if changed:
+        onnx.save(m, str(path))
+    return changed
+
+
 def convert_package(src: str | os.PathLike, dst: str | os.PathLike, precision: str) -> Path:
     """Copy package ``src`` to ``dst`` with every graph at ``precision``; returns ``dst``.
 
@@ -120,7 +133,9 @@ def convert_package(src: str | os.PathLike, dst: str | os.PathLike, precision: s
         for name, spec in m["graphs"].items():
             f = contract.graph_file(name)
             convert_graph(src / spec["file"], tmp / f, precision)
-            graphs[name] = dict(spec, file=f)
+            retyped = _portable_inputs(tmp / f)
+            graphs[name] = dict(spec, file=f, inputs=[dict(i, dtype=retyped.get(i["name"], i["dtype"]))
+                                                      for i in spec["inputs"]])
         weights = pack_graphs(tmp, [g["file"] for g in graphs.values()])
         for g in graphs.values():
             g["sha256"] = _sha256(tmp / g["file"])

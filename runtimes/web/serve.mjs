@@ -9,7 +9,8 @@ import { fileURLToPath } from "node:url";
 const TYPES = {
   ".html": "text/html", ".js": "text/javascript", ".mjs": "text/javascript", ".json": "application/json",
   ".wasm": "application/wasm", ".css": "text/css", ".png": "image/png", ".onnx": "application/octet-stream",
-  ".bin": "application/octet-stream", ".sgdb": "application/octet-stream", ".obj": "text/plain",
+  ".bin": "application/octet-stream", ".sgdb": "application/octet-stream", ".sgda": "application/octet-stream",
+  ".sgdm": "application/octet-stream", ".obj": "text/plain",
 };
 
 /** Start serving `root`; resolves to the server (listening on `port`, 0: any free one). */

@@ -8,14 +8,18 @@ through it, the Python runtime (``runtimes/python``) reads them through it, and
   :data:`INPUTS`, :data:`OUTPUTS`, which also say what each array means);
 * the effect -> graph rule: one deformer graph per combination of ``skinning`` x ``wrinkles`` x
   ``dynamics``, named by :func:`deformer_name`, chosen by exact match (:func:`select_deformer`);
+* the body graphs: the body model as ONNX (``body_lbs``, ``body_dqs``: betas, poses and translations
+  in, posed vertices and joints out), so runtimes without Python pose the body (:func:`body_spec`,
+  :func:`body_name`, :func:`select_body`, :data:`BODY_INPUTS`, :data:`BODY_OUTPUTS`);
 * the manifest: its keys (:func:`make_manifest`), its checks (:func:`validate_manifest`), the reading
-  of schema-1 manifests (:func:`upgrade_manifest`) and its JSON Schema (:func:`manifest_schema`).
+  of schema-1 and schema-2 manifests (:func:`upgrade_manifest`) and its JSON Schema (:func:`manifest_schema`).
 
-Layout of a package folder (schema 2)::
+Layout of a package folder (schema 3)::
 
     manifest.json                 this module's manifest
     garment_encoder.onnx          once per garment (and body shape for schema-1 encoders)
     deformer_<effects>.onnx       one per effect combination, per frame, batched over frames
+    body_lbs.onnx, body_dqs.onnx  optional: the body posed (LBS, DQS), per frame, batched over frames
     weights.bin                   optional: the graphs' weights, one copy shared by every graph
                                   (ONNX external data; offsets 64-byte aligned)
     MODEL_CARD.md                 optional
@@ -33,7 +37,8 @@ __all__ = [
     "LEGACY_INPUTS", "FEEDS", "PackageError", "graph_specs", "encoder_spec", "deformer_spec", "deformer_name",
     "graph_file", "effect_sets", "default_effects", "effects_of", "select_deformer", "deformers", "code_name",
     "make_manifest", "validate_manifest", "upgrade_manifest", "read_manifest_text", "manifest_schema",
-    "write_manifest_schema", "TRAINING_GARMENTS", "MAX_NODE_TENSORS",
+    "write_manifest_schema", "TRAINING_GARMENTS", "MAX_NODE_TENSORS", "BODY", "BODY_INPUTS", "BODY_OUTPUTS",
+    "body_spec", "body_name", "body_graphs", "select_body", "PORTABLE_INPUT_DTYPES",
 ]
 
 #: optional manifest key: the garments the model was trained on, as descriptors (Eq. 19 distances), so a
@@ -52,10 +57,13 @@ MAX_NODE_TENSORS = 8
 #: ``manifest.json``'s ``format``
 FORMAT = "segadeform-model-package"
 #: the manifest layout this version writes; 2: one name per graph (``graphs`` holds every graph, each
-#: deformer with its ``effects``), ``default_deformer``, an optional shared ``weights`` file
-SCHEMA_VERSION = 2
-#: what the runtime reads (1: ``graphs`` = encoder + ``deformer``, ``variants`` repeating the default)
-READABLE_SCHEMAS = (1, 2)
+#: deformer with its ``effects``), ``default_deformer``, an optional shared ``weights`` file; 3: graph inputs
+#: are float32 or int32 only (``nbr`` int32, ``mask`` float32 1/0: what WebGPU and engines take), and the
+#: optional body graphs (role ``body``)
+SCHEMA_VERSION = 3
+#: what the runtime reads (1: ``graphs`` = encoder + ``deformer``, ``variants`` repeating the default;
+#: 2: int64 ``nbr`` and bool ``mask``, no body graphs)
+READABLE_SCHEMAS = (1, 2, 3)
 OPSET = 18
 #: opsets a package may declare: export writes OPSET; ``segadeform repack --opset 15`` converts for engines
 #: that read older ones (Unity Sentis reads 7-15; below 15 onnx has no converter for the graphs' Shape nodes)
@@ -65,11 +73,16 @@ WEIGHTS_FILE = "weights.bin"
 #: roles, and the names of the two graph kinds in :func:`graph_specs`
 ENCODER = "garment_encoder"
 DEFORMER = "deformer"
-ROLES = {ENCODER: "encoder", DEFORMER: "deformer"}
+BODY = "body"
+ROLES = {ENCODER: "encoder", DEFORMER: "deformer", BODY: "body"}
 #: the effects that choose a deformer graph (collisions are the host's post-process, not a graph)
 EFFECT_KEYS = ("skinning", "wrinkles", "dynamics")
 SKINNING = ("lbs", "dqs")
-DTYPES = ("float32", "int64", "bool")
+DTYPES = ("float32", "int32", "int64", "bool")
+#: the only graph input dtypes a schema-3 package has: WebGPU has no 64-bit integers (onnxruntime-web emulates
+#: them or falls back to the CPU) and engines such as Unity Sentis take float and int32 tensors from the host;
+#: manifests upgraded from schema 2 keep their int64 and bool
+PORTABLE_INPUT_DTYPES = ("float32", "int32")
 
 #: symbolic axes of the graphs' inputs and outputs (everything else is fixed by ``config``)
 DIMENSIONS = {
@@ -85,10 +98,10 @@ INPUTS = {
     "features": "float32 (B, N, F): per garment vertex [position (3, metres), unit normal (3; 0 where "
                 "undefined: area-weighted over the incident faces), distance to each of the S rest-pose "
                 "joints of the body shape (S, metres)]; F = 6 + S = 30 for SMPL's 24 joints",
-    "nbr": "int64 (N, K): the padded 1-ring: row i lists vertex i's edge neighbours, nearest first by rest "
-           "length (ties by index), at most K; unused slots hold i itself",
-    "mask": "bool (N, K): true where nbr is a real neighbour, false in padded slots (an isolated vertex "
-            "has an all-false row)",
+    "nbr": "int32 (N, K): the padded 1-ring: row i lists vertex i's edge neighbours, nearest first by rest "
+           "length (ties by index), at most K; unused slots hold i itself (schema-2 packages: int64)",
+    "mask": "float32 (N, K): 1 where nbr is a real neighbour, 0 in padded slots (an isolated vertex "
+            "has an all-zero row; schema-2 packages: bool, true and false)",
     "descriptor": "float32 (B, N*): the garment type descriptor (the precompute's descriptor, N* values)",
     "g": "float32 (N, S): the encoder's output for this garment without its batch axis, the same array "
          "for every deformer call",
@@ -102,8 +115,11 @@ INPUTS = {
     "joints": "float32 (B, S, 3): the body's rest-pose joints for betas (metres), the same (S, 3) "
               "repeated for every frame",
     "trans": "float32 (B, 3): root translation of each frame (metres)",
-    "log_wbody": "float32 (N, S): log(w + 1e-5), w = the body's skinning weights at each garment vertex's "
-                 "closest point on the rest body of shape betas (residual-weights models only, "
+    "log_wbody": "float32 (N, S): log(w + 1e-5), w = the body's skinning weights carried to the garment on "
+                 "the rest body of shape betas by config.weight_prior: 'nearest' (absent: the closest body "
+                 "point's weights) or 'inpaint' (the closest point's weights where the garment vertex is within "
+                 "2 cm of the body with its normal within 35 degrees of the body's, harmonic inpainting with the "
+                 "cotangent Laplacian elsewhere: segadeform.body.transfer) (residual-weights models only, "
                  "config.weights = 'residual')",
 }
 #: inputs of schema-1-era graphs that current exports no longer have (still read)
@@ -121,10 +137,28 @@ OUTPUTS = {
     "blend_shapes": "float32 (B, N, 3): the pose-dependent offsets added to rest before skinning "
                     "(zero without wrinkles)",
 }
+#: the body graphs' inputs (``betas`` here is one row, not one per frame) and outputs; S = the body's joints
+#: (24), V and F its vertices and triangles (fixed by the body: integers in the manifest)
+BODY_INPUTS = {
+    "betas": "float32 (|beta_body|,): the body's shape coefficients (the body file's count, zero-padded), one "
+             "row for every frame of the call",
+    "poses": "float32 (B, S, 3): each frame's local axis-angle joint rotations (radians, SMPL order; the "
+             "motion file's poses)",
+    "trans": "float32 (B, 3): each frame's root translation (metres), added to the root joint's rest position",
+}
+BODY_OUTPUTS = {
+    "vertices": "float32 (B, V, 3): the posed body (metres, +Y up, world space: trans included), skinned "
+                "with the graph's skinning (LBS or DQS) as segadeform.body.BodyModel.forward does",
+    "joints": "float32 (B, S, 3): the posed joints (world space)",
+    "rest_joints": "float32 (S, 3): the rest-pose joints for betas (what the deformers' joints input "
+                   "repeats per frame)",
+    "faces": "int32 (F, 3): the body's triangles (constant), so the graph alone describes the mesh",
+}
 #: by role, every input name a runtime must know how to feed (the encoder's ``betas``: older packages),
 #: besides the deformer's encoder output (``g``, or ``P``: :func:`code_name`)
 FEEDS = {"encoder": ("features", "nbr", "mask", "descriptor", "betas"),
-         "deformer": ("window", "betas", "rest", "nbr", "mask", "joints", "trans", "log_wbody")}
+         "deformer": ("window", "betas", "rest", "nbr", "mask", "joints", "trans", "log_wbody"),
+         "body": ("betas", "poses", "trans")}
 
 
 class PackageError(FileFormatError):
@@ -149,7 +183,7 @@ def encoder_spec(cfg) -> dict:
     return {
         "role": ROLES[ENCODER], "file": graph_file(ENCODER),
         "inputs": [_io("features", "float32", ["B", "N", int(_cfg(cfg, "feat_dim"))]),
-                   _io("nbr", "int64", ["N", "K"]), _io("mask", "bool", ["N", "K"]),
+                   _io("nbr", "int32", ["N", "K"]), _io("mask", "float32", ["N", "K"]),
                    _io("descriptor", "float32", ["B", int(_cfg(cfg, "n_star"))])],
         "outputs": [_io("g", "float32", ["B", "N", s])],
     }
@@ -161,14 +195,36 @@ def deformer_spec(cfg, effects: Mapping | None = None) -> dict:
     s, nb = int(_cfg(cfg, "n_joints")), int(_cfg(cfg, "n_betas"))
     t = int(_cfg(cfg, "window")) if eff["dynamics"] else 1
     inputs = [_io("g", "float32", ["N", s]), _io("window", "float32", ["B", t, 3 * s]),
-              _io("betas", "float32", ["B", nb]), _io("rest", "float32", ["N", 3]), _io("nbr", "int64", ["N", "K"]),
-              _io("mask", "bool", ["N", "K"]), _io("joints", "float32", ["B", s, 3]), _io("trans", "float32", ["B", 3])]
+              _io("betas", "float32", ["B", nb]), _io("rest", "float32", ["N", 3]), _io("nbr", "int32", ["N", "K"]),
+              _io("mask", "float32", ["N", "K"]), _io("joints", "float32", ["B", s, 3]), _io("trans", "float32", ["B", 3])]
     if _cfg(cfg, "weights", "free") == "residual":
         inputs.append(_io("log_wbody", "float32", ["N", s]))
     name = deformer_name(eff)
     return {"role": ROLES[DEFORMER], "file": graph_file(name), "effects": eff, "window": t, "inputs": inputs,
             "outputs": [_io("vertices", "float32", ["B", "N", 3]), _io("weights", "float32", ["B", "N", s]),
                         _io("blend_shapes", "float32", ["B", "N", 3])]}
+
+
+def body_name(skinning: str) -> str:
+    """The name (and, + ``.onnx``, file name) of the body graph for ``skinning``: ``body_lbs`` or ``body_dqs``."""
+    if skinning not in SKINNING:
+        raise PackageError("unknown skinning", expected=" | ".join(SKINNING), got=skinning)
+    return f"{BODY}_{skinning}"
+
+
+def body_spec(*, n_vertices: int, n_faces: int, n_betas: int, n_joints: int, skinning: str,
+              body: Mapping | None = None) -> dict:
+    """Inputs, outputs and skinning of a body graph (the manifest entry without its hash); ``body``: what
+    identifies the body (``name``, ``sha256`` of its arrays: :func:`segadeform.body.identity.body_sha256`)."""
+    v, f, nb, s = int(n_vertices), int(n_faces), int(n_betas), int(n_joints)
+    out = {"role": ROLES[BODY], "file": graph_file(body_name(skinning)), "skinning": skinning,
+           "inputs": [_io("betas", "float32", [nb]), _io("poses", "float32", ["B", s, 3]),
+                      _io("trans", "float32", ["B", 3])],
+           "outputs": [_io("vertices", "float32", ["B", v, 3]), _io("joints", "float32", ["B", s, 3]),
+                       _io("rest_joints", "float32", [s, 3]), _io("faces", "int32", [f, 3])]}
+    if body is not None:
+        out["body"] = dict(body)
+    return out
 
 
 def graph_specs(cfg) -> dict:
@@ -223,8 +279,26 @@ def effect_sets(cfg) -> list[dict]:
 
 
 def deformers(manifest: Mapping) -> dict:
-    """The deformer graphs of a (schema-2) manifest: name -> entry."""
+    """The deformer graphs of a (schema-2 or later) manifest: name -> entry."""
     return {k: g for k, g in manifest["graphs"].items() if g.get("role") == ROLES[DEFORMER]}
+
+
+def body_graphs(manifest: Mapping) -> dict:
+    """The body graphs of a manifest (none in packages before schema 3): name -> entry."""
+    return {k: g for k, g in manifest["graphs"].items() if g.get("role") == ROLES[BODY]}
+
+
+def select_body(manifest: Mapping, skinning: str, *, path=None) -> str | None:
+    """The body graph that poses the body with ``skinning`` (the garment's, so the body and the garment are
+    skinned alike); None when the package has no body graph, an error when it has others only."""
+    bodies = body_graphs(manifest)
+    if not bodies:
+        return None
+    for name, g in bodies.items():
+        if g.get("skinning") == skinning:
+            return name
+    raise PackageError("package has no body graph for this skinning", path=path, expected=", ".join(sorted(bodies)),
+                       got=skinning)
 
 
 def select_deformer(manifest: Mapping, effects, *, path=None) -> str:
@@ -247,8 +321,8 @@ def code_name(manifest: Mapping) -> str:
 def make_manifest(*, config: dict, graphs: dict, default_deformer: str, producer: str, joint_names, parents,
                   units: str, up_axis: str, ops: dict | None = None, weights: dict | None = None,
                   **extra) -> dict:
-    """A schema-2 manifest.  ``graphs``: name -> entry (role, file, sha256, inputs, outputs; deformers
-    also effects and window); ``weights``: ``{"file", "sha256", "bytes"}`` when the graphs share one."""
+    """A schema-3 manifest.  ``graphs``: name -> entry (role, file, sha256, inputs, outputs; deformers
+    also effects and window, body graphs skinning and body); ``weights``: ``{"file", "sha256", "bytes"}`` when the graphs share one."""
     m = {"format": FORMAT, "schema_version": SCHEMA_VERSION, "opset": OPSET, "producer": producer,
          "config": dict(config), "joint_names": list(joint_names), "parents": [int(p) for p in parents],
          "units": units, "up_axis": up_axis, "graphs": dict(graphs), "default_deformer": default_deformer,
@@ -260,7 +334,7 @@ def make_manifest(*, config: dict, graphs: dict, default_deformer: str, producer
 
 
 def read_manifest_text(text: str, *, path=None) -> dict:
-    """Parse, upgrade (schema 1) and validate a manifest's text; the schema-2 form."""
+    """Parse, upgrade (schemas 1 and 2) and validate a manifest's text; the schema-3 form."""
     import json
 
     try:
@@ -273,12 +347,18 @@ def read_manifest_text(text: str, *, path=None) -> dict:
 
 
 def upgrade_manifest(m, *, path=None) -> dict:
-    """A schema-1 manifest in schema-2 form (a copy; schema-2 manifests come back as they are).
+    """A schema-1 or schema-2 manifest in the current (schema-3) form (a copy; current manifests come back
+    as they are), with ``upgraded_from`` set to the version read.
 
     Schema 1 named the model's own deformer twice (``graphs.deformer`` and its entry in
-    ``variants``, both the same file); here each file is one graph, named by its effects."""
+    ``variants``, both the same file); here each file is one graph, named by its effects.  Schema 2 has the
+    schema-3 layout without body graphs; its graphs take ``nbr`` as int64 and ``mask`` as bool, which the
+    upgraded manifest keeps saying (the inputs are the ONNX files'): a runtime feeds each input in the dtype
+    its manifest entry names (``segadeform repack`` rewrites such a package with int32 and float32 inputs)."""
     if not isinstance(m, dict):
         raise PackageError("manifest must be a JSON object", path=path, got=type(m).__name__)
+    if m.get("schema_version") == 2:
+        return dict(m, schema_version=SCHEMA_VERSION, upgraded_from=2)
     if m.get("schema_version") != 1:
         return m
     for key in ("config", "graphs"):
@@ -335,9 +415,10 @@ def _check_io(name, kind, entries, path) -> None:
 
 
 def validate_manifest(m, *, path=None) -> None:
-    """Check a schema-2 manifest's structure (what :func:`manifest_schema` says, plus the rules a
+    """Check a schema-3 manifest's structure (what :func:`manifest_schema` says, plus the rules a
     schema cannot: one deformer per effect set, the default a deformer, the encoder's output a
-    deformer input, file names without folders).  Files and ONNX contents are the runtime's checks."""
+    deformer input, file names without folders, float32/int32 inputs unless upgraded from schema 2,
+    body graphs named by their skinning with a body graph's inputs and outputs).  Files and ONNX contents are the runtime's checks."""
     if not isinstance(m, dict):
         raise PackageError("manifest must be a JSON object", path=path, got=type(m).__name__)
     for key in ("format", "schema_version", "opset", "config", "graphs", "joint_names", "default_deformer"):
@@ -377,11 +458,19 @@ def validate_manifest(m, *, path=None) -> None:
                                path=path, got=f)
         files[f] = name
         role = g.get("role")
-        if role not in ROLES.values() or (role == ROLES[ENCODER]) != (name == ENCODER):
-            raise PackageError(f"graph '{name}' has the wrong role", path=path,
-                               expected=ROLES[ENCODER] if name == ENCODER else ROLES[DEFORMER], got=role)
+        want_role = ROLES[ENCODER] if name == ENCODER else ROLES[BODY] if name.startswith(BODY + "_") \
+            else ROLES[DEFORMER]
+        if role != want_role:
+            raise PackageError(f"graph '{name}' has the wrong role", path=path, expected=want_role, got=role)
         _check_io(name, "inputs", g.get("inputs"), path)
         _check_io(name, "outputs", g.get("outputs"), path)
+        if not m.get("upgraded_from"):  # schema 3 as written: WebGPU's and engines' input dtypes only
+            bad = [f"{i['name']} {i['dtype']}" for i in g["inputs"] if i["dtype"] not in PORTABLE_INPUT_DTYPES]
+            if bad:
+                raise PackageError(f"graph '{name}' has inputs of a dtype schema {SCHEMA_VERSION} does not allow",
+                                   path=path, expected=" or ".join(PORTABLE_INPUT_DTYPES), got=", ".join(bad))
+        if role == ROLES[BODY]:
+            _check_body(name, g, m, path)
     if len(graphs[ENCODER]["outputs"]) != 1:
         raise PackageError("the garment encoder must have one output", path=path,
                            got=len(graphs[ENCODER]["outputs"]))
@@ -424,6 +513,22 @@ def validate_manifest(m, *, path=None) -> None:
         _check_training_garments(m[TRAINING_GARMENTS], cfg["n_star"], path)
 
 
+def _check_body(name, g, m, path) -> None:
+    """A body graph's entry: named by its skinning, the body's inputs and outputs in order."""
+    if g.get("skinning") not in SKINNING or name != body_name(g["skinning"]):
+        raise PackageError(f"body graph '{name}' is not named by its skinning", path=path,
+                           expected="body_lbs (skinning lbs) or body_dqs (skinning dqs)", got=g.get("skinning"))
+    ins, outs = [i["name"] for i in g["inputs"]], [o["name"] for o in g["outputs"]]
+    if ins != list(BODY_INPUTS) or outs != list(BODY_OUTPUTS):
+        raise PackageError(f"body graph '{name}' has other inputs or outputs than a body graph", path=path,
+                           expected=f"{', '.join(BODY_INPUTS)} -> {', '.join(BODY_OUTPUTS)}",
+                           got=f"{', '.join(ins)} -> {', '.join(outs)}")
+    joints = g["inputs"][1]["shape"]
+    if len(joints) != 3 or joints[1] != len(m["joint_names"]):
+        raise PackageError(f"body graph '{name}' poses another skeleton than the model's", path=path,
+                           expected=f"poses (B, {len(m['joint_names'])}, 3)", got=joints)
+
+
 def _check_training_garments(t, n_star: int, path) -> None:
     num = (int, float)
     ok = isinstance(t, dict) and t.get("metric") == "eq19" and isinstance(t.get("garments"), list) \
@@ -442,7 +547,8 @@ def _check_training_garments(t, n_star: int, path) -> None:
 
 
 def manifest_schema() -> dict:
-    """The JSON Schema (draft 2020-12) of a schema-2 ``manifest.json`` (``docs/manifest.schema.json``)."""
+    """The JSON Schema (draft 2020-12) of a schema-3 ``manifest.json`` (``docs/manifest.schema.json``); input
+    dtypes are float32 or int32 (manifests upgraded from schema 2, ``upgraded_from``, may keep int64 and bool)."""
     dim = {"oneOf": [{"type": "integer", "minimum": 1}, {"type": "string", "minLength": 1}]}
     tensor = {"type": "object", "required": ["name", "dtype", "shape"], "additionalProperties": False,
               "properties": {"name": {"type": "string", "minLength": 1},
@@ -462,10 +568,15 @@ def manifest_schema() -> dict:
     deformer = {"type": "object", "required": ["role", "file", "inputs", "outputs", "effects", "window"],
                 "properties": dict(graph_common, role={"const": ROLES[DEFORMER]}, effects={"$ref": "#/$defs/effects"},
                                    window={"type": "integer", "minimum": 1})}
+    body = {"type": "object", "required": ["role", "file", "inputs", "outputs", "skinning"],
+            "properties": dict(graph_common, role={"const": ROLES[BODY]}, skinning={"enum": list(SKINNING)},
+                               body={"type": "object", "description": "the body posed: its name and the sha256 of "
+                                                                      "its arrays (segadeform.body.identity)",
+                                     "properties": {"name": {"type": "string"}, "sha256": sha}})}
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "$id": "https://segadeform.invalid/manifest.schema.json",
-        "title": "segadeform model package manifest (schema 2)",
+        "title": f"segadeform model package manifest (schema {SCHEMA_VERSION})",
         "description": "manifest.json of a segadeform model package; docs/package.md says what each field and "
                        "each graph input means. Generated by segadeform.package_spec.manifest_schema().",
         "type": "object",
@@ -486,7 +597,8 @@ def manifest_schema() -> dict:
                        "properties": {k: {"type": "integer", "minimum": 1}
                                       for k in ("n_joints", "n_betas", "n_star", "feat_dim", "window")}
                        | {"skinning": {"enum": list(SKINNING)}, "use_blend_shapes": {"type": "boolean"},
-                          "weights": {"enum": ["free", "residual"]}}},
+                          "weights": {"enum": ["free", "residual"]},
+                          "weight_prior": {"enum": ["nearest", "inpaint"]}}},
             "joint_names": {"type": "array", "items": {"type": "string"}, "minItems": 1},
             "parents": {"type": "array", "items": {"type": "integer", "minimum": -1}, "minItems": 1},
             "units": {"const": "m"},
@@ -494,7 +606,8 @@ def manifest_schema() -> dict:
             "graphs": {"type": "object", "required": [ENCODER],
                        "properties": {ENCODER: {"$ref": "#/$defs/encoder"}},
                        "patternProperties": {"^deformer_(lbs|dqs)(_nowrinkles)?(_static)?$":
-                                             {"$ref": "#/$defs/deformer"}},
+                                             {"$ref": "#/$defs/deformer"},
+                                             "^body_(lbs|dqs)$": {"$ref": "#/$defs/body"}},
                        "additionalProperties": False, "minProperties": 2},
             "default_deformer": {"type": "string", "pattern": "^deformer_"},
             "weights": {"type": "object", "required": ["file", "sha256", "bytes"], "additionalProperties": False,
@@ -515,7 +628,7 @@ def manifest_schema() -> dict:
                                                                  "minItems": 1},
                                                   "openings": {"type": "integer", "minimum": 0}}}}}},
         },
-        "$defs": {"tensor": tensor, "effects": effects, "encoder": encoder, "deformer": deformer},
+        "$defs": {"tensor": tensor, "effects": effects, "encoder": encoder, "deformer": deformer, "body": body},
     }
 
 

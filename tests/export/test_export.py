@@ -37,7 +37,7 @@ def packages(tmp_path_factory):
             net.weight_gate.fill_(0.7)
             net.blend_gate.fill_(0.5)
         d = tmp_path_factory.mktemp(name)
-        manifest = export_package(net, d / "pkg", check=False, variants=False)
+        manifest = export_package(net, d / "pkg", check=False, variants=False, body=None)
         sessions = {g: ort.InferenceSession(str(d / "pkg" / spec["file"]), providers=["CPUExecutionProvider"])
                     for g, spec in graph_specs(net.cfg).items()}
         out[name] = (net.freeze(), d / "pkg", manifest, sessions)
@@ -76,12 +76,13 @@ def test_parity_random_inputs(packages, variant, n, b):
 def garment_inputs(net, v, f, poses, trans):
     joints = default_rest_joints()
     a = precompute_garment(v, f, joints, n_star=net.cfg.n_star)
-    enc = {"features": a.features[None], "nbr": a.nbr, "mask": a.mask,
+    nbr, mask = a.nbr.astype(np.int32), a.mask.astype(np.float32)  # the graphs' int32 indices and float mask
+    enc = {"features": a.features[None], "nbr": nbr, "mask": mask,
            "descriptor": a.descriptor[None].astype(np.float32), "betas": np.zeros((1, 10), np.float32)}
     win = motion_windows(poses, net.cfg.window).astype(np.float32)
     b = len(win)
     dec = {"window": win, "betas": np.zeros((b, 10), np.float32), "rest": a.vertices.astype(np.float32),
-           "nbr": a.nbr, "mask": a.mask, "joints": np.repeat(joints[None], b, 0).astype(np.float32),
+           "nbr": nbr, "mask": mask, "joints": np.repeat(joints[None], b, 0).astype(np.float32),
            "trans": trans.astype(np.float32)}
     if net.residual:
         w = np.random.default_rng(0).dirichlet(np.full(24, 0.3), size=len(v))
@@ -117,7 +118,7 @@ def test_parity_on_hard_garments_and_twists(packages, variant, mesh):
 def test_manifest_matches_the_graphs(packages):
     net, path, manifest, _ = packages["dqs"]
     on_disk = json.loads((path / "manifest.json").read_text())
-    assert on_disk["schema_version"] == 2 and on_disk["opset"] == 18
+    assert on_disk["schema_version"] == 3 and on_disk["opset"] == 18
     assert ModelConfig.from_dict(on_disk["config"]) == net.cfg
     assert on_disk["units"] == "m" and on_disk["up_axis"] == "y" and len(on_disk["joint_names"]) == 24
     for g, spec in on_disk["graphs"].items():
@@ -135,6 +136,54 @@ def test_manifest_matches_the_graphs(packages):
                 else:
                     assert got_d == want_d
         check_portability(proto, g)
+        assert {i["dtype"] for i in spec["inputs"]} <= {"float32", "int32"}, g
+        assert not any(n.op_type in ("Sin", "Cos") for n in proto.graph.node), g  # polynomials (replace_trig)
+
+
+def test_graph_inputs_are_int32_and_float32_and_older_graphs_are_retyped():
+    """Schema 3: no int64 or bool graph input (WebGPU, Sentis); make_inputs_portable retypes an older graph's,
+    reading them through a Cast, with the same outputs."""
+    from onnx import TensorProto, helper
+
+    from segadeform.export.portability import make_inputs_portable
+
+    nodes = [helper.make_node("Gather", ["x", "idx"], ["g"], axis=0),
+             helper.make_node("Cast", ["m"], ["mf"], to=TensorProto.FLOAT),
+             helper.make_node("Mul", ["g", "mf"], ["y"])]
+    graph = helper.make_graph(nodes, "g", [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["n"]),
+                                           helper.make_tensor_value_info("idx", TensorProto.INT64, ["k"]),
+                                           helper.make_tensor_value_info("m", TensorProto.BOOL, ["k"])],
+                              [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["k"])])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 18)])
+    with pytest.raises(PortabilityError, match="idx int64, m bool"):
+        check_portability(model, "toy")
+    x, idx, m = np.arange(5, dtype=np.float32), np.array([4, 0, 2]), np.array([True, False, True])
+    ref = ort.InferenceSession(model.SerializeToString()).run(None, {"x": x, "idx": idx, "m": m})[0]
+    assert make_inputs_portable(model) == {"idx": "int32", "m": "float32"}
+    onnx.checker.check_model(model)
+    check_portability(model, "toy")
+    got = ort.InferenceSession(model.SerializeToString()).run(
+        None, {"x": x, "idx": idx.astype(np.int32), "m": m.astype(np.float32)})[0]
+    assert got.tobytes() == ref.tobytes()
+
+
+def test_sine_and_cosine_polynomials_match_the_builtins():
+    """replace_trig: within 2e-7 of float64 sin/cos over many turns and near 0 (WebGPU's builtins: 2^-11)."""
+    from onnx import TensorProto, helper
+
+    from segadeform.export.portability import replace_trig
+
+    x = np.concatenate([np.linspace(-40, 40, 400_001), np.linspace(-1e-3, 1e-3, 2001), [0.0, np.pi, -np.pi]])
+    for op in ("Sin", "Cos"):
+        g = helper.make_graph([helper.make_node(op, ["x"], ["y"])], "g",
+                              [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["n"])],
+                              [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["n"])])
+        model = helper.make_model(g, opset_imports=[helper.make_opsetid("", 18)])
+        assert replace_trig(model) == 1 and {n.op_type for n in model.graph.node} <= {"Mul", "Add", "Sub", "Floor"}
+        onnx.checker.check_model(model)
+        check_portability(model, op)
+        y = ort.InferenceSession(model.SerializeToString()).run(None, {"x": x.astype(np.float32)})[0]
+        assert np.abs(y - getattr(np, op.lower())(x.astype(np.float32).astype(np.float64))).max() <= 2e-7, op
 
 
 def test_portability_check_can_fail():

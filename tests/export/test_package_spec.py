@@ -20,7 +20,7 @@ from tests.conftest import REPO, SAMPLES
 
 SHIPPED = SAMPLES / "models" / "default"
 SCHEMA = REPO / "docs" / "manifest.schema.json"
-_ORT = {"tensor(float)": "float32", "tensor(int64)": "int64", "tensor(bool)": "bool"}
+_ORT = {"tensor(float)": "float32", "tensor(int32)": "int32", "tensor(int64)": "int64", "tensor(bool)": "bool"}
 
 
 def _validator():
@@ -52,8 +52,9 @@ def test_fresh_export_is_valid_and_named_by_the_contract(random_model):
     m = json.loads((path / "manifest.json").read_text())
     assert _errors(m) == []
     contract.validate_manifest(m)
-    want = {contract.deformer_name(e) for e in contract.effect_sets(net.cfg)} | {contract.ENCODER}
-    assert set(m["graphs"]) == want and len(want) == 9
+    want = {contract.deformer_name(e) for e in contract.effect_sets(net.cfg)} | {contract.ENCODER} \
+        | {contract.body_name(s) for s in contract.SKINNING}
+    assert set(m["graphs"]) == want and len(want) == 11
     assert m["default_deformer"] == contract.deformer_name(contract.default_effects(net.cfg)) == "deformer_lbs"
     files = [g["file"] for g in m["graphs"].values()]
     assert len(set(files)) == len(files) and all(f == f"{n}.onnx" for n, f in zip(m["graphs"], files))
@@ -64,9 +65,17 @@ def test_contract_io_matches_the_onnx_graphs(random_model):
     """What the contract says each graph takes and returns is what onnxruntime sees in the files."""
     net, path = random_model
     m = json.loads((path / "manifest.json").read_text())
+    from segadeform.body import default_body_path, load_body
+    from segadeform.body.identity import body_label
+
+    body = load_body(default_body_path())
     for name, entry in m["graphs"].items():
-        want = contract.encoder_spec(net.cfg) if name == contract.ENCODER else \
-            contract.deformer_spec(net.cfg, entry["effects"])
+        if entry["role"] == "body":
+            want = contract.body_spec(n_vertices=body.n_vertices, n_faces=len(body.faces), n_betas=body.n_betas,
+                                      n_joints=body.n_joints, skinning=entry["skinning"], body=body_label(body))
+        else:
+            want = contract.encoder_spec(net.cfg) if name == contract.ENCODER else \
+                contract.deformer_spec(net.cfg, entry["effects"])
         assert {k: entry[k] for k in want} == dict(want, file=entry["file"]), name
         sess = ort.InferenceSession(str(path / entry["file"]), providers=["CPUExecutionProvider"])
         for got, spec in ((sess.get_inputs(), want["inputs"]), (sess.get_outputs(), want["outputs"])):
@@ -88,23 +97,26 @@ def test_runtimes_can_feed_every_input_the_contract_names():
 def test_shipped_graphs_take_only_what_the_contract_describes():
     """The shipped graphs: manifest I/O = the files' I/O, every name one the contract documents."""
     m = contract.read_manifest_text((SHIPPED / "manifest.json").read_text())
-    documented = set(contract.INPUTS)
     for name, entry in m["graphs"].items():
+        documented = set(contract.BODY_INPUTS if entry["role"] == "body" else contract.INPUTS)
         sess = ort.InferenceSession(str(SHIPPED / entry["file"]), providers=["CPUExecutionProvider"])
         assert [i.name for i in sess.get_inputs()] == [i["name"] for i in entry["inputs"]]
         assert [o.name for o in sess.get_outputs()] == [o["name"] for o in entry["outputs"]]
+        assert [_ORT[i.type] for i in sess.get_inputs()] == [i["dtype"] for i in entry["inputs"]], name
         assert {i["name"] for i in entry["inputs"]} <= documented, name
+        assert {i["dtype"] for i in entry["inputs"]} <= {"float32", "int32"}, name  # schema 3: WebGPU's dtypes
     assert contract.code_name(m) == "g"  # the factored encoder (older packages: P)
 
 
 def test_docs_describe_every_name_and_key():
     doc = (REPO / "docs" / "package.md").read_text()
-    for name in list(contract.INPUTS) + list(contract.OUTPUTS) + ["P"]:
+    for name in list(contract.INPUTS) + list(contract.OUTPUTS) + list(contract.BODY_INPUTS) \
+            + list(contract.BODY_OUTPUTS) + ["P", "body_lbs", "body_dqs"]:
         assert f"`{name}`" in doc, name
     for key in contract.manifest_schema()["properties"]:
         if key != "upgraded_from":
             assert f"`{key}`" in doc, key
-    for key in ("role", "file", "sha256", "inputs", "effects", "window"):
+    for key in ("role", "file", "sha256", "inputs", "effects", "window", "skinning", "body"):
         assert f".{key}`" in doc, key
 
 
@@ -142,6 +154,11 @@ def test_export_of_a_model_without_blend_shapes_has_no_wrinkle_graphs():
     (lambda m: m["graphs"]["garment_encoder"].update(role="deformer"), "wrong role", True),
     (lambda m: m.pop("default_deformer"), "no 'default_deformer'", True),
     (lambda m: m.update(format="onnx-bundle"), "not a segadeform model package", True),
+    (lambda m: m["graphs"]["deformer_lbs"]["inputs"][4].update(dtype="int64"), "schema 3 does not allow", False),
+    (lambda m: m["graphs"]["garment_encoder"]["inputs"][2].update(dtype="bool"), "mask bool", False),
+    (lambda m: m["graphs"]["body_lbs"].update(skinning="dqs"), "not named by its skinning", False),
+    (lambda m: m["graphs"]["body_dqs"]["inputs"][1].update(shape=["B", 22, 3]), "another skeleton", False),
+    (lambda m: m["graphs"]["body_lbs"].update(role="deformer"), "wrong role", True),
 ])
 def test_malformed_manifests_are_refused(random_package, edit, words, schema_sees):
     """The runtime's checks refuse what the JSON Schema refuses, and the rules a schema cannot state."""
@@ -152,24 +169,14 @@ def test_malformed_manifests_are_refused(random_package, edit, words, schema_see
     assert bool(_errors(m)) == schema_sees
 
 
-# ---- schema 1 ---------------------------------------------------------------------------------------
+# ---- schemas 1 and 2 ---------------------------------------------------------------------------------
 def _as_schema_1(src, dst):
-    """``src`` (schema 2) rewritten as the exporter wrote packages before: the model's own deformer as
-    ``deformer.onnx``, listed in ``graphs`` and again in ``variants``, every graph self-contained."""
-    m = json.loads((src / "manifest.json").read_text())
-    dst.mkdir()
-    graphs = {}
-    for name, g in m["graphs"].items():
-        f = "deformer.onnx" if name == m["default_deformer"] else g["file"]
-        onnx.save(onnx.load(str(src / g["file"])), str(dst / f))
-        graphs[name] = {k: v for k, v in g.items() if k != "role"}
-        graphs[name].update(file=f, sha256=contract_sha(dst / f))
-    enc = graphs.pop(contract.ENCODER)
-    dflt = {k: v for k, v in graphs[m["default_deformer"]].items() if k not in ("effects", "window")}
-    old = {k: v for k, v in m.items() if k not in ("graphs", "default_deformer", "weights")}
-    old.update(schema_version=1, graphs={"garment_encoder": enc, "deformer": dflt}, variants=graphs)
-    (dst / "manifest.json").write_text(json.dumps(old))
-    return dst
+    """``src`` rewritten as the exporter wrote packages before schema 2: the model's own deformer as
+    ``deformer.onnx``, listed in ``graphs`` and again in ``variants``, every graph self-contained, int64/bool
+    inputs, no body graphs (:mod:`tests.export.legacy`)."""
+    from tests.export.legacy import as_schema
+
+    return as_schema(src, dst, 1)
 
 
 def contract_sha(path):
@@ -182,10 +189,16 @@ def _outputs(pkg_path, seed=0):
     """Every deformer's outputs and the encoder's on one random garment, by graph name."""
     from segadeform.export.package import sample_inputs
 
+    from segadeform.body import default_body_path, load_body
+    from segadeform.export.body import body_sample_inputs
+
     pkg = ModelPackage(pkg_path)
     cfg = ModelConfig.from_dict(pkg.config)
     out = {}
     for name, g in pkg.manifest["graphs"].items():
+        if g["role"] == "body":
+            out[name] = pkg.run(name, body_sample_inputs(load_body(default_body_path()), b=2, seed=seed))
+            continue
         gcfg = cfg.replace(window=g["window"]) if name != contract.ENCODER else cfg
         out[name] = pkg.run(name, sample_inputs(gcfg, name, n=50, k=6, b=3, seed=seed))
     return out
@@ -198,14 +211,42 @@ def test_schema_1_packages_still_load_and_repack_to_the_same_outputs(tmp_path, r
     pkg = ModelPackage(old)
     assert pkg.manifest["upgraded_from"] == 1 and pkg.default_deformer == "deformer_lbs"
     assert pkg.spec("deformer_lbs")["file"] == "deformer.onnx" and len(pkg.manifest["graphs"]) == 9
-    assert _errors({k: v for k, v in pkg.manifest.items()}) == []  # the upgraded form is a valid schema-2 manifest
+    assert _errors({k: v for k, v in pkg.manifest.items()}) == []  # the upgraded form is a valid schema-3 manifest
+    assert pkg.spec("garment_encoder")["inputs"][1]["dtype"] == "int64"  # fed as the graphs take them
     ref = _outputs(random_package)
     for name, got in _outputs(old).items():
         assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
-    new = repack_package(old, tmp_path / "v2")
-    assert new["schema_version"] == 2 and "upgraded_from" not in new and _errors(new) == []
-    assert not (tmp_path / "v2" / "deformer.onnx").exists() and (tmp_path / "v2" / "deformer_lbs.onnx").is_file()
-    for name, got in _outputs(tmp_path / "v2").items():
+    new = repack_package(old, tmp_path / "v3")
+    assert new["schema_version"] == 3 and "upgraded_from" not in new and _errors(new) == []
+    contract.validate_manifest(new)  # int32 and float32 inputs again
+    assert not (tmp_path / "v3" / "deformer.onnx").exists() and (tmp_path / "v3" / "deformer_lbs.onnx").is_file()
+    for name, got in _outputs(tmp_path / "v3").items():
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
+
+
+def test_schema_2_packages_still_load_and_repack_to_schema_3(tmp_path, random_package):
+    """Schema 2 (int64 nbr, bool mask, no body graphs): read as schema 3 with its graphs' dtypes, fed as they
+    say; repack retypes the inputs (a Cast inside) and the outputs stay bit-identical."""
+    from segadeform.export.packing import repack_package
+    from segadeform.export.portability import PortabilityError, check_portability
+    from tests.export.legacy import as_schema
+
+    old = as_schema(random_package, tmp_path / "v2", 2)
+    pkg = ModelPackage(old)
+    assert pkg.manifest["upgraded_from"] == 2 and pkg.manifest["schema_version"] == 3 and _errors(pkg.manifest) == []
+    assert {i["name"]: i["dtype"] for i in pkg.spec("deformer_lbs")["inputs"]}["mask"] == "bool"
+    assert contract.select_body(pkg.manifest, "lbs") is None  # no body graph before schema 3
+    with pytest.raises(PortabilityError, match="nbr int64, mask bool"):
+        check_portability(onnx.load(str(old / "garment_encoder.onnx")), "encoder")
+    ref = _outputs(random_package)
+    for name, got in _outputs(old).items():
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
+    new = repack_package(old, tmp_path / "v3")
+    assert new["schema_version"] == 3 and _errors(new) == []
+    for name, g in new["graphs"].items():
+        check_portability(onnx.load(str(tmp_path / "v3" / g["file"])), name)
+        assert {i["dtype"] for i in g["inputs"]} <= {"float32", "int32"}
+    for name, got in _outputs(tmp_path / "v3").items():
         assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
 
 
@@ -217,7 +258,7 @@ def test_repack_to_opset_15_for_engines_keeps_the_outputs(tmp_path, random_packa
 
     assert main(["repack", str(random_package), "-o", str(tmp_path / "o15"), "--opset", "15"]) == 0
     pkg = ModelPackage(tmp_path / "o15")
-    assert pkg.manifest["opset"] == 15 and _errors(pkg.manifest) == []
+    assert pkg.manifest["opset"] == 15 and _errors(pkg.manifest) == [] and "body_lbs" in pkg.manifest["graphs"]
     for g in pkg.manifest["graphs"].values():
         m = onnx.load(str(tmp_path / "o15" / g["file"]), load_external_data=False)
         assert [o.version for o in m.opset_import if o.domain in ("", "ai.onnx")] == [15], g["file"]

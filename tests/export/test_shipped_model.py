@@ -37,7 +37,12 @@ def test_package_is_the_checkpoints_and_small(shipped):
     net, manifest = shipped
     assert dict({"weights": "free"}, **manifest["config"]) == json.loads(net.cfg.to_json())  # older manifests: free
     size = sum(p.stat().st_size for p in PKG.iterdir())
-    assert size < 1.5e6  # 6 MB before the graphs shared their weights and lost their debug metadata
+    # 6 MB before the graphs shared their weights and lost their debug metadata; 0.9 MB since, plus the body
+    # graphs' 13,718-vertex body (3.5 MB of shape blend shapes, skinning weights and triangles)
+    assert size < 5.5e6
+    body_graphs = [g for g in manifest["graphs"].values() if g["role"] == "body"]
+    assert sorted(g["skinning"] for g in body_graphs) == ["dqs", "lbs"]
+    assert all((PKG / g["file"]).stat().st_size < 1.5e5 for g in manifest["graphs"].values())  # weights in weights.bin
     assert (PKG / "MODEL_CARD.md").read_text().count("| ") > 10
     # one file per graph, every file a graph, the weights or the card: no checkpoint, no reports
     listed = {g["file"] for g in manifest["graphs"].values()} | {manifest["weights"]["file"]}
@@ -54,7 +59,8 @@ def test_shipped_parity_on_the_sample_dress(shipped):
     joints = body.rest_joints()[0]
     a = precompute_garment(mesh.vertices, mesh.faces, joints, n_star=net.cfg.n_star)
     feats = vertex_features(a.vertices, a.faces, joints, normals=a.normals.astype(np.float64)).astype(np.float32)
-    enc = {"features": feats[None], "nbr": a.nbr, "mask": a.mask, "descriptor": a.descriptor[None].astype(np.float32)}
+    nbr, mask = a.nbr.astype(np.int32), a.mask.astype(np.float32)  # schema 3: int32 indices, float32 mask
+    enc = {"features": feats[None], "nbr": nbr, "mask": mask, "descriptor": a.descriptor[None].astype(np.float32)}
     sess = ort.InferenceSession(str(PKG / manifest["graphs"]["garment_encoder"]["file"]),
                                 providers=["CPUExecutionProvider"])
     P = sess.run(None, enc)[0]
@@ -66,7 +72,7 @@ def test_shipped_parity_on_the_sample_dress(shipped):
         w = motion_windows(mo.poses, var["config"].window).astype(np.float32)
         b = len(w)
         feeds = {"g": Pt[0], "window": w, "betas": np.repeat(betas[None], b, 0), "rest": a.vertices.astype(np.float32),
-                 "nbr": a.nbr, "mask": a.mask, "joints": np.repeat(joints[None].astype(np.float32), b, 0),
+                 "nbr": nbr, "mask": mask, "joints": np.repeat(joints[None].astype(np.float32), b, 0),
                  "trans": mo.trans.astype(np.float32)}
         s = ort.InferenceSession(str(PKG / manifest["graphs"][name]["file"]), providers=["CPUExecutionProvider"])
         got = s.run(None, feeds)
@@ -76,6 +82,27 @@ def test_shipped_parity_on_the_sample_dress(shipped):
         for r, g in zip(ref, got):
             r = r.numpy()
             assert np.isfinite(g).all() and np.abs(g - r).max() <= RTOL * max(np.abs(r).max(), 1e-6), name
+
+
+@pytest.mark.parametrize("skinning", ["lbs", "dqs"])
+def test_shipped_body_graphs_pose_the_shipped_body(shipped, skinning):
+    """The package's body graphs are the default body's: same hash, and they pose it as BodyModel.forward does."""
+    from segadeform.body import default_body_path
+    from segadeform.body.identity import body_sha256
+
+    _, manifest = shipped
+    body = load_body(default_body_path())
+    spec = manifest["graphs"][f"body_{skinning}"]
+    assert spec["body"] == {"name": "default_body.npz", "sha256": body_sha256(body)}
+    mo = make_motion("dance", seconds=0.3, fps=30, seed=1)
+    betas = np.array([0.5, -0.3] + [0.0] * 8, np.float32)
+    feeds = {"betas": betas, "poses": mo.poses.reshape(-1, 24, 3).astype(np.float32), "trans": mo.trans.astype(np.float32)}
+    v, j, rj, f = ort.InferenceSession(str(PKG / spec["file"]), providers=["CPUExecutionProvider"]).run(None, feeds)
+    ref = body.forward(feeds["poses"].reshape(len(v), -1).astype(np.float64), betas.astype(np.float64),
+                       feeds["trans"].astype(np.float64), skinning=skinning)
+    assert np.abs(v - ref.vertices).max() <= RTOL * np.abs(ref.vertices).max()
+    assert np.abs(j - ref.joints).max() <= RTOL * np.abs(ref.joints).max()
+    np.testing.assert_array_equal(f, body.faces)
 
 
 def test_run_uses_the_shipped_model_by_default(tmp_path):

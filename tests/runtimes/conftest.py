@@ -20,3 +20,34 @@ def shared_bundle(tmp_path_factory, random_package):
                      '[effects]\nskinning = "dqs"\ndynamics = true\nwrinkles = true\n')
     # force: the sample dress was made on the mean body; here it is only numbers to run, shaped by betas
     return scene_bundle(load_scene(scene), d / "s.sgdb", model=random_package, batch=5, force=True)
+
+
+@pytest.fixture(scope="session")
+def portable_scene(tmp_path_factory, random_package):
+    """A garment and a motion as the runtimes without Python read them -- `segadeform garment export` and
+    `segadeform motion export` -- and `segadeform run`'s frames of the same (garment and posed body): the test
+    vector the Node, browser and C++ runtimes are held to.  Returns a dict of paths and the effects."""
+    import numpy as np
+
+    from segadeform.bundle import write_bundle
+    from segadeform.cli.main import main
+    from segadeform.io import read_pc2
+
+    d = tmp_path_factory.mktemp("portable")
+    betas = "0.5,-0.3"
+    assert main(["garment", "export", str(SAMPLES / "garments" / "dress.obj"), "--betas", betas, "--model",
+                 str(random_package), "--force", "-o", str(d / "garment.sgda")]) == 0
+    assert main(["motion", "export", "dance", "--seconds", "0.4", "--seed", "2", "--betas", betas,
+                 "-o", str(d / "motion.sgdm")]) == 0
+    # the same garment and motion through `segadeform run` (Python): the asset, and the motion it was made from
+    scene = d / "s.toml"
+    scene.write_text(f'[garment]\nmesh = "{d / "garment.sgda"}"\n[motion]\nkind = "dance"\nseconds = 0.4\nseed = 2\n'
+                     f'[body]\nbetas = [0.5, -0.3]\n[output]\npath = "{d / "python.pc2"}"\n'
+                     f'body = "{d / "python_body.pc2"}"\n'
+                     '[effects]\nskinning = "dqs"\ndynamics = true\nwrinkles = true\n')
+    assert main(["run", str(scene), "--model", str(random_package), "--force", "--no-cache"]) == 0
+    frames, body = read_pc2(d / "python.pc2").frames, read_pc2(d / "python_body.pc2").frames
+    assert np.isfinite(frames).all() and np.isfinite(body).all()
+    write_bundle(d / "check.sgdb", {"expected": frames, "body": body}, {"effects": "dqs,dynamics,wrinkles"})
+    return {"dir": d, "garment": d / "garment.sgda", "motion": d / "motion.sgdm", "check": d / "check.sgdb",
+            "frames": frames, "body": body, "effects": "dqs,dynamics,wrinkles"}

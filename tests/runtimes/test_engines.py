@@ -1,4 +1,6 @@
-"""The same package and scene through the Node and C++ runtimes: parity with Python on a shared bundle."""
+"""The same package, garment and motion through the Node and C++ runtimes: parity with `segadeform run` (Python)
+on the garment asset and motion file those runtimes read, with the body posed by the package's body graph; and
+the scene bundles they also still run."""
 
 from __future__ import annotations
 
@@ -12,9 +14,11 @@ import pytest
 
 from segadeform.bundle import read_bundle, write_bundle
 from segadeform.errors import FileFormatError
+from segadeform.io import read_pc2
 from tests.conftest import REPO
 
 RTOL = 1e-5
+NODE = REPO / "runtimes" / "node"
 
 
 def test_bundle_round_trip_and_errors(tmp_path):
@@ -40,37 +44,139 @@ def _parity(output: str) -> dict:
     return json.loads(line.split("PARITY", 1)[1].strip())
 
 
-def test_node_runtime_matches_python(shared_bundle, random_package):
+def _rel(got, want) -> float:
+    got, want = np.asarray(got, np.float64), np.asarray(want, np.float64)
+    assert got.shape == want.shape and np.isfinite(got).all()
+    return float(np.abs(got - want).max() / np.abs(want).max())
+
+
+@pytest.fixture(scope="module")
+def node():
     if shutil.which("node") is None:
         pytest.fail("node is not on PATH (the project's runtimes need Node.js >= 18)")
-    node_dir = REPO / "runtimes" / "node"
-    if not (node_dir / "node_modules" / "onnxruntime-node").is_dir():
+    if not (NODE / "node_modules" / "onnxruntime-node").is_dir():
         pytest.fail("runtimes/node has no node_modules: run `ONNXRUNTIME_NODE_INSTALL=skip npm ci` there "
                     "(.ci/run does)")
-    env = dict(os.environ, SEGADEFORM_PACKAGE=str(random_package), SEGADEFORM_BUNDLE=str(shared_bundle))
-    p = subprocess.run(["npm", "test"], cwd=node_dir, env=env, capture_output=True, text=True, timeout=600)
-    assert p.returncode == 0, (p.stdout + p.stderr)[-3000:]
-    r = _parity(p.stdout)
-    assert r["rel"] <= RTOL, r
-    assert "# skipped 0" in p.stdout and "# fail 0" in p.stdout  # the parity test ran
+    return ["node", str(NODE / "src" / "cli.js")]
 
 
-def test_cpp_runtime_matches_python(shared_bundle, random_package, tmp_path):
+@pytest.fixture(scope="module")
+def cpp(tmp_path_factory):
     for tool in ("go", "cmake", "g++"):
         if shutil.which(tool) is None:
             pytest.fail(f"{tool} is not on PATH (building the C++ runtime needs go, cmake and g++)")
-    b = subprocess.run([str(REPO / "tools" / "onnxruntime_cpp.sh"), str(tmp_path / "build")], capture_output=True,
-                       text=True, timeout=900)
+    build = tmp_path_factory.mktemp("cpp") / "build"
+    b = subprocess.run([str(REPO / "tools" / "onnxruntime_cpp.sh"), str(build)], capture_output=True, text=True,
+                       timeout=900)
     assert b.returncode == 0, (b.stdout + b.stderr)[-3000:]
-    exe = b.stdout.strip().splitlines()[-1]
+    return [b.stdout.strip().splitlines()[-1]]
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_runtime_animates_the_garment_asset_and_motion_like_segadeform_run(runtime, request, portable_scene,
+                                                                             random_package, tmp_path):
+    """`segadeform-node` / `segadeform-run --package P --garment G.sgda --motion M.sgdm -o OUT --body-out BODY`:
+    the garment's frames and the posed body's equal `segadeform run`'s on the same garment and motion."""
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    p = subprocess.run(exe + ["--package", str(random_package), "--garment", str(s["garment"]), "--motion",
+                              str(s["motion"]), "--effects", s["effects"], "-o", str(tmp_path / "g.pc2"),
+                              "--body-out", str(tmp_path / "b.pc2"), "--batch", "5"],
+                       capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "deformer" in p.stdout or "dqs" in p.stdout
+    assert _rel(read_pc2(tmp_path / "g.pc2").frames, s["frames"]) <= RTOL
+    assert _rel(read_pc2(tmp_path / "b.pc2").frames, s["body"]) <= RTOL
+    # the model's own effects when none are named (LBS, dynamics, wrinkles): runs, and differs from DQS
+    p = subprocess.run(exe + ["--package", str(random_package), "--garment", str(s["garment"]), "--motion",
+                              str(s["motion"]), "-o", str(tmp_path / "own.pc2")], capture_output=True, text=True,
+                       timeout=600)
+    assert p.returncode == 0, p.stderr
+    own = read_pc2(tmp_path / "own.pc2").frames
+    assert own.shape == s["frames"].shape and np.isfinite(own).all() and not np.allclose(own, s["frames"])
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_runtime_refuses_what_it_cannot_run(runtime, request, portable_scene, random_package, tmp_path):
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    from segadeform.geometry import GarmentAsset
+
+    a = GarmentAsset.load(s["garment"])
+    import dataclasses
+
+    dataclasses.replace(a, betas=None, log_wbody=None, body=None).save(tmp_path / "plain.sgda")  # not for a body
+    dataclasses.replace(a, body={"name": "other.npz", "sha256": "0" * 64}).save(tmp_path / "other.sgda")
+    dataclasses.replace(a, body=dict(a.body, weight_prior="inpaint")).save(tmp_path / "inpaint.sgda")
+
+    def run(*args):
+        return subprocess.run(exe + ["--package", str(random_package), "-o", str(tmp_path / "x.pc2")] + list(args),
+                              capture_output=True, text=True, timeout=600)
+
+    cases = [
+        (["--garment", str(tmp_path / "plain.sgda"), "--motion", str(s["motion"])], "not prepared for a body shape"),
+        (["--garment", str(s["motion"]), "--motion", str(s["motion"])], "not a garment asset"),
+        (["--garment", str(s["garment"]), "--motion", str(s["garment"])], "not a motion file"),
+        (["--garment", str(s["garment"]), "--motion", str(tmp_path / "missing.sgdm")], "missing.sgdm: no such file"),
+        (["--garment", str(s["garment"]), "--motion", str(s["motion"]), "--effects", "lbs,collisions"],
+         "collisions are not in this runtime"),
+        (["--garment", str(tmp_path / "other.sgda"), "--motion", str(s["motion"]), "--body-out",
+          str(tmp_path / "b.pc2")], "prepared for another body"),
+        (["--garment", str(tmp_path / "inpaint.sgda"), "--motion", str(s["motion"])],
+         "made with the inpaint weight prior, the model wants nearest"),
+    ]
+    for args, words in cases:
+        p = run(*args)
+        assert p.returncode == 1 and words in p.stderr, (args, p.stderr)
+        assert not (tmp_path / "x.pc2").exists()
+    assert run("--garment", str(s["garment"])).returncode == 2  # usage: no motion
+    assert not (tmp_path / "b.pc2").exists()
+
+
+def test_node_api_matches_python_on_a_bundle_and_on_asset_and_motion(shared_bundle, portable_scene, random_package,
+                                                                     node):
+    """The Node API (`animate(package, garment.sgda, motion.sgdm, {body: true})`, and `animate(package, bundle)`)."""
+    s = portable_scene
+    env = dict(os.environ, SEGADEFORM_PACKAGE=str(random_package), SEGADEFORM_BUNDLE=str(shared_bundle),
+               SEGADEFORM_GARMENT=str(s["garment"]), SEGADEFORM_MOTION=str(s["motion"]),
+               SEGADEFORM_CHECK=str(s["check"]), SEGADEFORM_EFFECTS=s["effects"])
+    p = subprocess.run(["npm", "test"], cwd=NODE, env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, (p.stdout + p.stderr)[-3000:]
+    r = _parity(p.stdout)
+    assert r["rel"] <= RTOL, r
+    assert "# skipped 0" in p.stdout and "# fail 0" in p.stdout  # the parity tests ran
+    line = next(ln for ln in p.stdout.splitlines() if "PARITY_ASSET" in ln)
+    a = json.loads(line.split("PARITY_ASSET", 1)[1])
+    assert a["garment"]["rel"] <= RTOL and a["body"]["rel"] <= RTOL, a
+
+
+def test_cpp_runtime_matches_python_on_a_bundle(shared_bundle, random_package, cpp, tmp_path):
+    exe = cpp[0]
     p = subprocess.run([exe, str(random_package), str(shared_bundle), "-o", str(tmp_path / "o.pc2"), "--check",
                         "--batch", "3"], capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr
     assert _parity(p.stdout)["rel"] <= RTOL
-    from segadeform.io import read_pc2
-
     arrays, _ = read_bundle(shared_bundle)
     np.testing.assert_allclose(read_pc2(tmp_path / "o.pc2").frames, arrays["expected"], rtol=0, atol=1e-5)
     bad = subprocess.run([exe, str(random_package), str(tmp_path / "missing.sgdb"), "-o", str(tmp_path / "x.pc2")],
                          capture_output=True, text=True)
     assert bad.returncode == 1 and "missing.sgdb: no such file" in bad.stderr and not (tmp_path / "x.pc2").exists()
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+@pytest.mark.parametrize("schema", [1, 2])
+def test_runtimes_still_run_older_packages(runtime, schema, request, portable_scene, random_package, tmp_path):
+    """Schema 1 and 2 packages (int64 nbr and bool mask inputs, no body graphs): fed in their manifests' dtypes,
+    the same frames; asking them for the body says why not."""
+    from tests.export.legacy import as_schema
+
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    old = as_schema(random_package, tmp_path / f"v{schema}", schema)
+    args = exe + ["--package", str(old), "--garment", str(s["garment"]), "--motion", str(s["motion"]), "--effects",
+                  s["effects"], "-o", str(tmp_path / "g.pc2")]
+    p = subprocess.run(args, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert _rel(read_pc2(tmp_path / "g.pc2").frames, s["frames"]) <= RTOL
+    p = subprocess.run(args + ["--body-out", str(tmp_path / "b.pc2")], capture_output=True, text=True, timeout=600)
+    assert p.returncode == 1 and "no body graph" in p.stderr and not (tmp_path / "b.pc2").exists()

@@ -1,9 +1,13 @@
-// segadeform-run: a model package and a scene bundle in, a PC2 point cache out (the C++ runtime).
+// segadeform-run: the C++ runtime.  A model package and a garment asset (.sgda) with a motion file (.sgdm) in,
+// PC2 point caches of the garment (and, with --body-out, of the body posed by the package's body graph) out:
 //
+//   segadeform-run --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]
+//                  [--effects lbs|dqs,dynamics,wrinkles] [--batch N] [--threads N]
 //   segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--check]
 //
-// Built on the onnxruntime C API (the shared library, C++17, no other dependency).  --check compares
-// the frames with the bundle's `expected` array (the Python runtime's output) and prints the error.
+// (the second form: a scene bundle from `segadeform bundle`; --check compares the frames with its `expected`
+// array, the Python runtime's output, and prints the error).  Built on the onnxruntime C API (the shared
+// library, C++17, no other dependency).  Formats: docs/package.md.
 #include <onnxruntime_c_api.h>
 
 #include <algorithm>
@@ -14,6 +18,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -76,6 +81,13 @@ std::vector<uint8_t> convert(const sgd::Array& a, const std::string& dtype) {
   return out;
 }
 
+// One output of a run: floats (float32 outputs) or ints (int32 outputs), and the shape.
+struct Output {
+  std::vector<float> f;
+  std::vector<int32_t> i;
+  std::vector<int64_t> shape;
+};
+
 class Session {
  public:
   Session(OrtEnv* env, const std::string& path, int threads) {
@@ -90,8 +102,8 @@ class Session {
   Session(const Session&) = delete;
   Session& operator=(const Session&) = delete;
 
-  // Runs with named inputs; returns the first output as floats and its shape.
-  std::vector<float> run(std::vector<Input>& ins, const std::string& out_name, std::vector<int64_t>* shape) {
+  // Runs with named inputs; returns the named outputs (float32 or int32) with their shapes.
+  std::vector<Output> run(std::vector<Input>& ins, const std::vector<std::string>& out_names) {
     std::vector<const char*> names;
     std::vector<OrtValue*> values;
     for (auto& in : ins) {
@@ -99,22 +111,30 @@ class Session {
       names.push_back(in.name.c_str());
       values.push_back(in.value);
     }
-    const char* on = out_name.c_str();
-    OrtValue* out = nullptr;
-    check(api->Run(s_, nullptr, names.data(), values.data(), values.size(), &on, 1, &out));
-    OrtTensorTypeAndShapeInfo* info;
-    check(api->GetTensorTypeAndShape(out, &info));
-    size_t nd;
-    check(api->GetDimensionsCount(info, &nd));
-    shape->resize(nd);
-    check(api->GetDimensions(info, shape->data(), nd));
-    size_t count;
-    check(api->GetTensorShapeElementCount(info, &count));
-    api->ReleaseTensorTypeAndShapeInfo(info);
-    float* p;
-    check(api->GetTensorMutableData(out, reinterpret_cast<void**>(&p)));
-    std::vector<float> r(p, p + count);
-    api->ReleaseValue(out);
+    std::vector<const char*> on;
+    for (const auto& n : out_names) on.push_back(n.c_str());
+    std::vector<OrtValue*> outs(on.size(), nullptr);
+    check(api->Run(s_, nullptr, names.data(), values.data(), values.size(), on.data(), on.size(), outs.data()));
+    std::vector<Output> r(outs.size());
+    for (size_t k = 0; k < outs.size(); ++k) {
+      OrtTensorTypeAndShapeInfo* info;
+      check(api->GetTensorTypeAndShape(outs[k], &info));
+      size_t nd, count;
+      ONNXTensorElementDataType type;
+      check(api->GetDimensionsCount(info, &nd));
+      r[k].shape.resize(nd);
+      check(api->GetDimensions(info, r[k].shape.data(), nd));
+      check(api->GetTensorShapeElementCount(info, &count));
+      check(api->GetTensorElementType(info, &type));
+      api->ReleaseTensorTypeAndShapeInfo(info);
+      void* p;
+      check(api->GetTensorMutableData(outs[k], &p));
+      if (type == ONNX_TENSOR_ELEMENT_DATA_TYPE_FLOAT) r[k].f.assign(static_cast<float*>(p), static_cast<float*>(p) + count);
+      else if (type == ONNX_TENSOR_ELEMENT_DATA_TYPE_INT32)
+        r[k].i.assign(static_cast<int32_t*>(p), static_cast<int32_t*>(p) + count);
+      else throw std::runtime_error("output '" + out_names[k] + "' is neither float32 nor int32");
+      api->ReleaseValue(outs[k]);
+    }
     return r;
   }
   OrtSession* s_ = nullptr;
@@ -138,6 +158,13 @@ const sgd::Json& find_input(const sgd::Json& spec, const std::string& name) {
   throw std::runtime_error("graph has no input '" + name + "'");
 }
 
+bool has_input(const sgd::Json& spec, const std::string& name) {
+  for (const auto& i : spec["inputs"].arr) if (i["name"].str == name) return true;
+  return false;
+}
+
+// An input in the dtype the graph's manifest entry names (schema 3: int32 indices and float32 masks; schema 2:
+// int64 and bool), from a container array of any dtype.
 Input input_from(const sgd::Json& spec, const std::string& name, const sgd::Array& a, std::vector<int64_t> dims) {
   const std::string dtype = find_input(spec, name)["dtype"].str;
   Input in{name, convert(a, dtype), std::move(dims)};
@@ -152,7 +179,15 @@ Input input_floats(const std::string& name, std::vector<float> v, std::vector<in
   return in;
 }
 
-void write_pc2(const std::string& path, const std::vector<float>& frames, int32_t T, int32_t N) {
+// A container array as float32 values (f32, f64, i32 or u8).
+std::vector<float> floats(const sgd::Array& a) {
+  std::vector<uint8_t> b = convert(a, "float32");
+  std::vector<float> out(b.size() / 4);
+  std::memcpy(out.data(), b.data(), b.size());
+  return out;
+}
+
+void write_pc2(const std::string& path, const float* frames, int32_t T, int32_t N) {
   std::string tmp = path + ".tmp";
   {
     std::ofstream f(tmp, std::ios::binary);
@@ -165,131 +200,389 @@ void write_pc2(const std::string& path, const std::vector<float>& frames, int32_
     f.write(reinterpret_cast<const char*>(&start), 4);
     f.write(reinterpret_cast<const char*>(&rate), 4);
     f.write(reinterpret_cast<const char*>(&T), 4);
-    f.write(reinterpret_cast<const char*>(frames.data()), static_cast<std::streamsize>(frames.size() * 4));
-    if (!f) throw std::runtime_error(path + ": write failed");
+    f.write(reinterpret_cast<const char*>(frames), static_cast<std::streamsize>(sizeof(float)) * T * N * 3);
+    if (!f) {
+      f.close();
+      std::remove(tmp.c_str());
+      throw std::runtime_error(path + ": write failed");
+    }
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error(path + ": cannot rename");
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw std::runtime_error(path + ": cannot rename");
+  }
 }
+
+struct Effects {
+  std::string skinning = "lbs";
+  bool wrinkles = false, dynamics = false;
+};
+
+// --effects: a complete list, as `segadeform run --effects` (what is not named is off; lbs unless dqs is named).
+Effects parse_effects(const std::string& text) {
+  Effects e;
+  bool lbs = false, dqs = false;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (item == "lbs") lbs = true;
+    else if (item == "dqs") dqs = true;
+    else if (item == "dynamics") e.dynamics = true;
+    else if (item == "wrinkles") e.wrinkles = true;
+    else if (item == "collisions") throw std::runtime_error("collisions are not in this runtime yet (expected lbs, dqs, dynamics, wrinkles)");
+    else if (!item.empty()) throw std::runtime_error("unknown effect '" + item + "' (expected lbs, dqs, dynamics, wrinkles)");
+  }
+  if (lbs && dqs) throw std::runtime_error("name one skinning (expected lbs or dqs, got both)");
+  e.skinning = dqs ? "dqs" : "lbs";
+  return e;
+}
+
+Effects effects_of(const sgd::Json& e) {
+  Effects r;
+  r.skinning = e["skinning"].str;
+  r.wrinkles = e["wrinkles"].b;
+  r.dynamics = e["dynamics"].b;
+  return r;
+}
+
+// The manifest, checked: schema 1, 2 or 3 (docs/package.md).
+struct Package {
+  std::string dir;
+  sgd::Json manifest;
+  int schema = 0;
+
+  explicit Package(const std::string& d) : dir(d), manifest(sgd::parse_json(read_text(d + "/manifest.json"))) {
+    if (!manifest.has("format") || manifest["format"].str != "segadeform-model-package")
+      throw std::runtime_error(dir + ": not a segadeform model package");
+    schema = static_cast<int>(manifest["schema_version"].num);
+    if (schema < 1 || schema > 3)
+      throw std::runtime_error(dir + "/manifest.json: unsupported manifest schema version (expected 1, 2 or 3, got " +
+                               std::to_string(schema) + ")");
+  }
+  // schema 1 listed the deformers in "variants"; 2 and 3 list every graph once in "graphs", with a role
+  const sgd::Json& deformer(const Effects& want) const {
+    for (const auto& kv : (schema == 1 ? manifest["variants"] : manifest["graphs"]).obj) {
+      if (schema > 1 && (!kv.second.has("role") || kv.second["role"].str != "deformer")) continue;
+      const auto& e = kv.second["effects"];
+      if (e["skinning"].str == want.skinning && e["wrinkles"].b == want.wrinkles && e["dynamics"].b == want.dynamics)
+        return kv.second;
+    }
+    throw std::runtime_error("the package has no deformer graph for effects " + want.skinning +
+                             (want.dynamics ? ", dynamics" : "") + (want.wrinkles ? ", wrinkles" : ""));
+  }
+  Effects default_effects() const {
+    if (schema == 1) {
+      const auto& c = manifest["config"];
+      Effects e;
+      e.skinning = c["skinning"].str;
+      e.wrinkles = c["use_blend_shapes"].b;
+      e.dynamics = true;
+      return e;
+    }
+    return effects_of(manifest["graphs"][manifest["default_deformer"].str]["effects"]);
+  }
+  // the body graph posing with `skinning`, or nullptr when the package has none (packages before schema 3)
+  const sgd::Json* body(const std::string& skinning) const {
+    if (schema < 3) return nullptr;
+    bool any = false;
+    for (const auto& kv : manifest["graphs"].obj) {
+      if (!kv.second.has("role") || kv.second["role"].str != "body") continue;
+      any = true;
+      if (kv.second["skinning"].str == skinning) return &kv.second;
+    }
+    if (any) throw std::runtime_error("the package has no body graph for skinning " + skinning);
+    return nullptr;
+  }
+};
+
+// The model inputs of one scene: from a bundle, or from a garment asset and a motion file.
+struct Scene {
+  const sgd::Array *features = nullptr, *nbr = nullptr, *mask = nullptr, *descriptor = nullptr, *joints = nullptr,
+                   *log_wbody = nullptr;
+  std::vector<float> rest, betas, poses, trans;
+  int64_t N = 0, K = 0, S = 0, T = 0, D = 0;
+  std::string body_sha;  // the body a garment asset was prepared for
+  std::string weight_prior;  // how its weights reached the garment (log_wbody): nearest | inpaint
+};
+
+Scene scene_of_bundle(const sgd::Bundle& b) {
+  Scene s;
+  s.features = &b.at("features");
+  s.nbr = &b.at("nbr");
+  s.mask = &b.at("mask");
+  s.descriptor = &b.at("descriptor");
+  s.joints = &b.at("joints");
+  if (b.has("log_wbody")) s.log_wbody = &b.at("log_wbody");
+  s.rest = floats(b.at("rest"));
+  s.betas = floats(b.at("betas"));
+  s.poses = floats(b.at("poses"));
+  s.trans = floats(b.at("trans"));
+  s.N = b.at("rest").shape[0];
+  s.K = b.at("nbr").shape[1];
+  s.S = b.at("joints").shape[0];
+  s.T = b.at("poses").shape[0];
+  s.D = b.at("poses").shape[1];
+  return s;
+}
+
+const sgd::Array& need(const sgd::Bundle& b, const std::string& path, const std::string& name, const std::string& dtype,
+                       size_t ndim) {
+  if (!b.has(name) || b.at(name).dtype != dtype || b.at(name).shape.size() != ndim)
+    throw std::runtime_error(path + ": field '" + name + "' is missing or malformed (expected " + dtype + " with " +
+                             std::to_string(ndim) + " dims)");
+  return b.at(name);
+}
+
+Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::Bundle& m, const std::string& mpath) {
+  if (!a.meta.has("kind") || a.meta["kind"].str != "segadeform-garment-asset")
+    throw std::runtime_error(apath + ": not a garment asset (expected meta.kind 'segadeform-garment-asset')");
+  const int av = static_cast<int>(a.meta["schema_version"].num);
+  if (av != 1 && av != 2)
+    throw std::runtime_error(apath + ": unsupported garment asset schema version (expected 1 or 2, got " +
+                             std::to_string(av) + ")");
+  if (!a.has("betas") || !a.has("log_wbody") || !a.meta.has("body"))
+    throw std::runtime_error(apath + ": the garment asset is not prepared for a body shape (expected a schema-2 asset "
+                             "with betas, log_wbody and body: segadeform garment export GARMENT --betas ... -o G.sgda)");
+  if (!m.meta.has("kind") || m.meta["kind"].str != "segadeform-motion")
+    throw std::runtime_error(mpath + ": not a motion file (expected meta.kind 'segadeform-motion')");
+  if (static_cast<int>(m.meta["schema_version"].num) != 1)
+    throw std::runtime_error(mpath + ": unsupported motion file schema version (expected 1)");
+  const auto& v = need(a, apath, "vertices", "f64", 2);
+  Scene s;
+  s.features = &need(a, apath, "features", "f32", 2);
+  s.nbr = &need(a, apath, "nbr", "i32", 2);
+  s.mask = &need(a, apath, "mask", "u8", 2);
+  s.descriptor = &need(a, apath, "descriptor", "f64", 1);
+  s.joints = &need(a, apath, "joints", "f64", 2);
+  s.log_wbody = &need(a, apath, "log_wbody", "f32", 2);
+  s.N = v.shape[0];
+  s.K = s.nbr->shape[1];
+  s.S = s.joints->shape[0];
+  if (s.nbr->shape[0] != s.N || s.mask->shape != s.nbr->shape || s.features->shape[0] != s.N ||
+      s.features->shape[1] != 6 + s.S || s.log_wbody->shape[0] != s.N || s.log_wbody->shape[1] != s.S)
+    throw std::runtime_error(apath + ": fields do not agree (expected nbr, mask (N, K), features (N, 6 + S), log_wbody (N, S))");
+  const int32_t* nb = s.nbr->as<int32_t>();
+  for (int64_t i = 0; i < s.nbr->count(); ++i)
+    if (nb[i] < 0 || nb[i] >= s.N)
+      throw std::runtime_error(apath + ": nbr index out of range (expected 0.." + std::to_string(s.N - 1) + ", got " +
+                               std::to_string(nb[i]) + ")");
+  const auto& poses = need(m, mpath, "poses", "f32", 3);
+  const auto& trans = need(m, mpath, "trans", "f32", 2);
+  if (poses.shape[1] != s.S || poses.shape[2] != 3 || trans.shape[0] != poses.shape[0] || trans.shape[1] != 3 ||
+      poses.shape[0] < 1)
+    throw std::runtime_error(mpath + ": poses and trans do not fit the garment asset (expected (T, " +
+                             std::to_string(s.S) + ", 3) and (T, 3))");
+  s.rest = floats(v);
+  s.betas = floats(a.at("betas"));
+  s.poses = floats(poses);
+  s.trans = floats(trans);
+  s.T = poses.shape[0];
+  s.D = 3 * s.S;
+  s.body_sha = a.meta["body"]["sha256"].str;
+  s.weight_prior = a.meta["body"].has("weight_prior") ? a.meta["body"]["weight_prior"].str : "nearest";
+  if (m.meta.has("body") && m.meta["body"]["sha256"].str != s.body_sha)
+    std::cerr << "warning: the motion was retargeted onto another body than the garment asset's\n";
+  return s;
+}
+
+// The model's betas: the scene's, zero-padded or cut to `nb` (a cut coefficient must be 0).
+std::vector<float> model_betas(const std::vector<float>& betas, int64_t nb) {
+  std::vector<float> out(static_cast<size_t>(nb), 0.f);
+  for (size_t i = 0; i < betas.size(); ++i) {
+    if (static_cast<int64_t>(i) < nb) out[i] = betas[i];
+    else if (betas[i] != 0.f)
+      throw std::runtime_error("too many shape coefficients for this model (expected <= " + std::to_string(nb) + ")");
+  }
+  return out;
+}
+
+// Encoder once, then the deformer over every frame in batches; returns the frames (T * N * 3) and ms per frame.
+std::vector<float> animate(OrtEnv* env, const Package& pkg, const sgd::Json& dec_spec, const Scene& sc, int batch,
+                           int threads, double* ms_per_frame) {
+  const sgd::Json& enc_spec = pkg.manifest["graphs"]["garment_encoder"];
+  // sessions from the file path: the graphs may keep their weights in the package's shared weights.bin
+  Session enc(env, pkg.dir + "/" + enc_spec["file"].str, threads);
+  Session dec(env, pkg.dir + "/" + dec_spec["file"].str, threads);
+  const int64_t N = sc.N, K = sc.K, S = sc.S, T = sc.T, D = sc.D;
+  const int64_t W = static_cast<int64_t>(find_input(dec_spec, "window")["shape"].arr[1].num);
+  const int64_t NB = static_cast<int64_t>(find_input(dec_spec, "betas")["shape"].arr[1].num);
+  const std::vector<float> betas = model_betas(sc.betas, NB);
+  const std::vector<float> joints = floats(*sc.joints);
+  auto t0 = std::chrono::steady_clock::now();
+  // the encoder's inputs, fed by name (older encoders also take betas)
+  std::vector<Input> ein;
+  for (const auto& i : enc_spec["inputs"].arr) {
+    const std::string& name = i["name"].str;
+    if (name == "features") ein.push_back(input_from(enc_spec, name, *sc.features, {1, N, sc.features->shape[1]}));
+    else if (name == "nbr") ein.push_back(input_from(enc_spec, name, *sc.nbr, {N, K}));
+    else if (name == "mask") ein.push_back(input_from(enc_spec, name, *sc.mask, {N, K}));
+    else if (name == "descriptor")
+      ein.push_back(input_from(enc_spec, name, *sc.descriptor, {1, sc.descriptor->shape[0]}));
+    else if (name == "betas") ein.push_back(input_floats(name, betas, {1, NB}));
+    else throw std::runtime_error("the garment encoder takes '" + name + "', which this runtime cannot feed");
+  }
+  // its one output, without the batch axis, is the deformer input of the same name (g (N, S); older: P (N, S, F))
+  const std::string code_name = enc_spec["outputs"].arr[0]["name"].str;
+  Output code = std::move(enc.run(ein, {code_name})[0]);
+  release(ein);
+  std::vector<Input> fixed;
+  fixed.push_back(input_floats(code_name, code.f, std::vector<int64_t>(code.shape.begin() + 1, code.shape.end())));
+  fixed.push_back(input_floats("rest", sc.rest, {N, 3}));
+  fixed.push_back(input_from(dec_spec, "nbr", *sc.nbr, {N, K}));
+  fixed.push_back(input_from(dec_spec, "mask", *sc.mask, {N, K}));
+  if (has_input(dec_spec, "log_wbody")) {
+    if (!sc.log_wbody) throw std::runtime_error("this model needs the body's weights at the garment (log_wbody)");
+    const sgd::Json& cfg = pkg.manifest["config"];
+    const std::string want = cfg.has("weight_prior") ? cfg["weight_prior"].str : "nearest";
+    if (!sc.weight_prior.empty() && sc.weight_prior != want)
+      throw std::runtime_error("the garment asset's log_wbody was made with the " + sc.weight_prior +
+                               " weight prior, the model wants " + want +
+                               " (expected an asset from segadeform garment export --model PACKAGE)");
+    fixed.push_back(input_from(dec_spec, "log_wbody", *sc.log_wbody, {N, S}));
+  }
+  std::vector<float> frames(static_cast<size_t>(T * N * 3));
+  const std::string out_name = dec_spec["outputs"].arr[0]["name"].str;
+  for (int64_t lo = 0; lo < T; lo += batch) {
+    int64_t hi = std::min<int64_t>(lo + batch, T), B = hi - lo;
+    std::vector<float> win(static_cast<size_t>(B * W * D)), bb(static_cast<size_t>(B * NB)),
+        jj(static_cast<size_t>(B * S * 3)), tt(sc.trans.begin() + lo * 3, sc.trans.begin() + hi * 3);
+    for (int64_t i = 0; i < B; ++i) {
+      for (int64_t k = 0; k < W; ++k) {  // window[:, k] = the pose k frames back, the first frame before it
+        int64_t src = std::max<int64_t>(lo + i - k, 0);
+        std::copy(sc.poses.begin() + src * D, sc.poses.begin() + src * D + D, win.begin() + (i * W + k) * D);
+      }
+      std::copy(betas.begin(), betas.end(), bb.begin() + i * NB);
+      std::copy(joints.begin(), joints.end(), jj.begin() + i * S * 3);
+    }
+    std::vector<Input> din;
+    din.push_back(input_floats("window", win, {B, W, D}));
+    din.push_back(input_floats("betas", bb, {B, NB}));
+    din.push_back(input_floats("joints", jj, {B, S, 3}));
+    din.push_back(input_floats("trans", tt, {B, 3}));
+    std::vector<Input> all;
+    for (auto& f : fixed) all.push_back(Input{f.name, {}, f.dims, f.value});
+    for (auto& d : din) all.push_back(Input{d.name, {}, d.dims, d.value});
+    Output v = std::move(dec.run(all, {out_name})[0]);
+    std::copy(v.f.begin(), v.f.end(), frames.begin() + lo * N * 3);
+    release(din);
+  }
+  *ms_per_frame = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / T;
+  release(fixed);
+  return frames;
+}
+
+// The body posed by the package's body graph (betas (|beta|,), poses (B, S, 3), trans (B, 3) -> vertices, ...).
+std::vector<float> pose_body(OrtEnv* env, const Package& pkg, const sgd::Json& spec, const Scene& sc, int batch,
+                             int threads, int64_t* V, double* ms_per_frame) {
+  if (spec.has("body") && !sc.body_sha.empty() && spec["body"]["sha256"].str != sc.body_sha)
+    throw std::runtime_error("the garment asset was prepared for another body than the package's (" +
+                             spec["body"]["name"].str + ")");
+  Session sess(env, pkg.dir + "/" + spec["file"].str, threads);
+  const int64_t NB = static_cast<int64_t>(spec["inputs"].arr[0]["shape"].arr[0].num);
+  const int64_t S = static_cast<int64_t>(spec["inputs"].arr[1]["shape"].arr[1].num);
+  *V = static_cast<int64_t>(spec["outputs"].arr[0]["shape"].arr[1].num);
+  if (S != sc.S) throw std::runtime_error("the body graph poses " + std::to_string(S) + " joints, the motion has " +
+                                          std::to_string(sc.S));
+  std::vector<float> out(static_cast<size_t>(sc.T * *V * 3));
+  auto t0 = std::chrono::steady_clock::now();
+  std::vector<Input> fixed;
+  fixed.push_back(input_floats("betas", model_betas(sc.betas, NB), {NB}));
+  for (int64_t lo = 0; lo < sc.T; lo += batch) {
+    int64_t hi = std::min<int64_t>(lo + batch, sc.T), B = hi - lo;
+    std::vector<Input> din;
+    din.push_back(input_floats("poses", std::vector<float>(sc.poses.begin() + lo * S * 3, sc.poses.begin() + hi * S * 3),
+                               {B, S, 3}));
+    din.push_back(input_floats("trans", std::vector<float>(sc.trans.begin() + lo * 3, sc.trans.begin() + hi * 3), {B, 3}));
+    std::vector<Input> all{Input{"betas", {}, {NB}, fixed[0].value}};
+    for (auto& d : din) all.push_back(Input{d.name, {}, d.dims, d.value});
+    Output v = std::move(sess.run(all, {"vertices"})[0]);
+    std::copy(v.f.begin(), v.f.end(), out.begin() + lo * *V * 3);
+    release(din);
+  }
+  release(fixed);
+  *ms_per_frame = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / sc.T;
+  return out;
+}
+
+const char* USAGE =
+    "usage: segadeform-run --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]\n"
+    "                      [--effects lbs|dqs,dynamics,wrinkles] [--batch N] [--threads N]\n"
+    "       segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--check]\n";
 
 }  // namespace
 
 int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
-  std::string out;
+  std::string out, package, garment, motion, body_out, effects;
   int batch = 8, threads = 1;
   bool do_check = false;
   std::vector<std::string> pos;
-  for (size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "-o" && i + 1 < args.size()) out = args[++i];
-    else if (args[i] == "--batch" && i + 1 < args.size()) batch = std::stoi(args[++i]);
-    else if (args[i] == "--threads" && i + 1 < args.size()) threads = std::stoi(args[++i]);
-    else if (args[i] == "--check") do_check = true;
-    else pos.push_back(args[i]);
+  try {
+    for (size_t i = 0; i < args.size(); ++i) {
+      const bool more = i + 1 < args.size();
+      if (args[i] == "-o" && more) out = args[++i];
+      else if (args[i] == "--batch" && more) batch = std::stoi(args[++i]);
+      else if (args[i] == "--threads" && more) threads = std::stoi(args[++i]);
+      else if (args[i] == "--package" && more) package = args[++i];
+      else if (args[i] == "--garment" && more) garment = args[++i];
+      else if (args[i] == "--motion" && more) motion = args[++i];
+      else if (args[i] == "--body-out" && more) body_out = args[++i];
+      else if (args[i] == "--effects" && more) effects = args[++i];
+      else if (args[i] == "--check") do_check = true;
+      else pos.push_back(args[i]);
+    }
+  } catch (const std::exception&) {
+    std::cerr << USAGE;
+    return 2;
   }
-  if (pos.size() != 2 || out.empty() || batch < 1 || threads < 1) {
-    std::cerr << "usage: segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--check]\n";
+  const bool flag_form = !package.empty() || !garment.empty() || !motion.empty();
+  const bool ok = flag_form ? (!package.empty() && !garment.empty() && !motion.empty() && pos.empty() && !do_check)
+                            : (pos.size() == 2 && body_out.empty() && effects.empty());
+  if (!ok || out.empty() || batch < 1 || threads < 1) {
+    std::cerr << USAGE;
     return 2;
   }
   try {
     api = OrtGetApiBase()->GetApi(ORT_API_VERSION);
     if (!api) throw std::runtime_error("the onnxruntime library is older than the headers (API " +
                                        std::to_string(ORT_API_VERSION) + ")");
-    const std::string dir = pos[0];
-    sgd::Json manifest = sgd::parse_json(read_text(dir + "/manifest.json"));
-    if (!manifest.has("format") || manifest["format"].str != "segadeform-model-package")
-      throw std::runtime_error(dir + ": not a segadeform model package");
-    // docs/package.md: schema 2 lists every graph once in "graphs" (deformers with role "deformer" and
-    // their effects); schema 1 listed the deformers in "variants"
-    const int schema = static_cast<int>(manifest["schema_version"].num);
-    if (schema != 1 && schema != 2)
-      throw std::runtime_error(dir + "/manifest.json: unsupported manifest schema version (expected 1 or 2, got " +
-                               std::to_string(schema) + ")");
-    sgd::Bundle b = sgd::read_bundle(pos[1]);
-    const sgd::Json& eff = b.meta["effects"];
-    const sgd::Json* dec_spec = nullptr;
-    for (const auto& kv : (schema == 1 ? manifest["variants"] : manifest["graphs"]).obj) {
-      if (schema == 2 && (!kv.second.has("role") || kv.second["role"].str != "deformer")) continue;
-      const auto& e = kv.second["effects"];
-      if (e["skinning"].str == eff["skinning"].str && e["wrinkles"].b == eff["wrinkles"].b &&
-          e["dynamics"].b == eff["dynamics"].b) dec_spec = &kv.second;
+    Package pkg(flag_form ? package : pos[0]);
+    sgd::Bundle bundle, asset, mot;
+    Scene sc;
+    Effects eff;
+    if (flag_form) {
+      asset = sgd::read_bundle(garment);
+      mot = sgd::read_bundle(motion);
+      sc = scene_of_asset(asset, garment, mot, motion);
+      eff = effects.empty() ? pkg.default_effects() : parse_effects(effects);
+    } else {
+      bundle = sgd::read_bundle(pos[1]);
+      sc = scene_of_bundle(bundle);
+      eff = effects_of(bundle.meta["effects"]);
     }
-    if (!dec_spec) throw std::runtime_error("the package has no deformer graph for the bundle's effects");
-    const sgd::Json& enc_spec = manifest["graphs"]["garment_encoder"];
+    const sgd::Json& dec_spec = pkg.deformer(eff);
+    const sgd::Json* body_spec = body_out.empty() ? nullptr : pkg.body(eff.skinning);
+    if (!body_out.empty() && !body_spec)
+      throw std::runtime_error("the package has no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
     OrtEnv* env;
     check(api->CreateEnv(ORT_LOGGING_LEVEL_WARNING, "segadeform", &env));
-    // sessions from the file path: the graphs may keep their weights in the package's shared weights.bin
-    Session enc(env, dir + "/" + enc_spec["file"].str, threads);
-    Session dec(env, dir + "/" + (*dec_spec)["file"].str, threads);
-    const auto& rest = b.at("rest");
-    const int64_t N = rest.shape[0], K = b.at("nbr").shape[1], S = b.at("joints").shape[0];
-    const int64_t T = b.at("poses").shape[0], D = b.at("poses").shape[1], NB = b.at("betas").shape[0];
-    int64_t W = 0;
-    for (const auto& i : (*dec_spec)["inputs"].arr) if (i["name"].str == "window") W = static_cast<int64_t>(i["shape"].arr[1].num);
-    auto t0 = std::chrono::steady_clock::now();
-    // the encoder's inputs, fed by name (older encoders also take betas)
-    std::vector<Input> ein;
-    for (const auto& i : enc_spec["inputs"].arr) {
-      const std::string& name = i["name"].str;
-      if (name == "features")
-        ein.push_back(input_from(enc_spec, name, b.at("features"), {1, N, b.at("features").shape[1]}));
-      else if (name == "nbr") ein.push_back(input_from(enc_spec, name, b.at("nbr"), {N, K}));
-      else if (name == "mask") ein.push_back(input_from(enc_spec, name, b.at("mask"), {N, K}));
-      else if (name == "descriptor")
-        ein.push_back(input_from(enc_spec, name, b.at("descriptor"), {1, b.at("descriptor").shape[0]}));
-      else if (name == "betas") ein.push_back(input_from(enc_spec, name, b.at("betas"), {1, NB}));
-      else throw std::runtime_error("the garment encoder takes '" + name + "', which this runtime cannot feed");
-    }
-    // its one output, without the batch axis, is the deformer input of the same name (g (N, S); older: P (N, S, F))
-    const std::string code_name = enc_spec["outputs"].arr[0]["name"].str;
-    std::vector<int64_t> pshape;
-    std::vector<float> code = enc.run(ein, code_name, &pshape);
-    release(ein);
-    std::vector<Input> fixed;
-    fixed.push_back(input_floats(code_name, code, std::vector<int64_t>(pshape.begin() + 1, pshape.end())));
-    fixed.push_back(input_from(*dec_spec, "rest", rest, {N, 3}));
-    fixed.push_back(input_from(*dec_spec, "nbr", b.at("nbr"), {N, K}));
-    fixed.push_back(input_from(*dec_spec, "mask", b.at("mask"), {N, K}));
-    bool residual = false;
-    for (const auto& i : (*dec_spec)["inputs"].arr) if (i["name"].str == "log_wbody") residual = true;
-    if (residual) fixed.push_back(input_from(*dec_spec, "log_wbody", b.at("log_wbody"), {N, S}));
-    const float* poses = b.at("poses").as<float>();
-    const float* trans = b.at("trans").as<float>();
-    const float* betas = b.at("betas").as<float>();
-    const float* joints = b.at("joints").as<float>();
-    std::vector<float> frames(static_cast<size_t>(T * N * 3));
-    const std::string out_name = (*dec_spec)["outputs"].arr[0]["name"].str;
-    for (int64_t lo = 0; lo < T; lo += batch) {
-      int64_t hi = std::min<int64_t>(lo + batch, T), B = hi - lo;
-      std::vector<float> win(static_cast<size_t>(B * W * D)), bb(static_cast<size_t>(B * NB)),
-          jj(static_cast<size_t>(B * S * 3)), tt(trans + lo * 3, trans + hi * 3);
-      for (int64_t i = 0; i < B; ++i) {
-        for (int64_t k = 0; k < W; ++k) {  // window[:, k] = the pose k frames back, the first frame before it
-          int64_t src = std::max<int64_t>(lo + i - k, 0);
-          std::copy(poses + src * D, poses + src * D + D, win.begin() + (i * W + k) * D);
-        }
-        std::copy(betas, betas + NB, bb.begin() + i * NB);
-        std::copy(joints, joints + S * 3, jj.begin() + i * S * 3);
-      }
-      std::vector<Input> din;
-      din.push_back(input_floats("window", win, {B, W, D}));
-      din.push_back(input_floats("betas", bb, {B, NB}));
-      din.push_back(input_floats("joints", jj, {B, S, 3}));
-      din.push_back(input_floats("trans", tt, {B, 3}));
-      std::vector<Input> all;
-      for (auto& f : fixed) all.push_back(Input{f.name, {}, f.dims, f.value});
-      for (auto& d : din) all.push_back(Input{d.name, {}, d.dims, d.value});
-      std::vector<int64_t> vshape;
-      std::vector<float> v = dec.run(all, out_name, &vshape);
-      std::copy(v.begin(), v.end(), frames.begin() + lo * N * 3);
-      release(din);
-    }
-    double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / T;
-    release(fixed);
-    write_pc2(out, frames, static_cast<int32_t>(T), static_cast<int32_t>(N));
-    std::printf("%lld frames, %.2f ms/frame -> %s\n", static_cast<long long>(T), ms, out.c_str());
+    double ms = 0, body_ms = 0;
+    std::vector<float> frames = animate(env, pkg, dec_spec, sc, batch, threads, &ms);
+    int64_t V = 0;
+    std::vector<float> body;
+    if (body_spec) body = pose_body(env, pkg, *body_spec, sc, batch, threads, &V, &body_ms);
+    write_pc2(out, frames.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(sc.N));
+    if (body_spec) write_pc2(body_out, body.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(V));
+    std::printf("%lld frames, %.2f ms/frame (%s%s%s) -> %s", static_cast<long long>(sc.T), ms, eff.skinning.c_str(),
+                eff.dynamics ? ", dynamics" : "", eff.wrinkles ? ", wrinkles" : "", out.c_str());
+    if (body_spec) std::printf("; body %lld vertices, %.2f ms/frame -> %s", static_cast<long long>(V), body_ms,
+                               body_out.c_str());
+    std::printf("\n");
     if (do_check) {
-      const auto& e = b.at("expected");
+      const auto& e = bundle.at("expected");
       const float* ex = e.as<float>();
+      if (static_cast<size_t>(e.count()) != frames.size())
+        throw std::runtime_error("the bundle's expected frames have another size than the frames");
       double max_abs = 0, max_ref = 0;
       for (size_t i = 0; i < frames.size(); ++i) {
         max_abs = std::max(max_abs, static_cast<double>(std::fabs(frames[i] - ex[i])));

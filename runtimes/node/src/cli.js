@@ -1,7 +1,12 @@
 #!/usr/bin/env node
-// segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]
-import { readBundle, animate, writePC2 } from "./index.js";
+// segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]
+//                 [--effects lbs,dynamics,wrinkles] [--batch N] [--threads N]
+// segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]      (a scene bundle)
+import { animate, writePC2 } from "./index.js";
 
+const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
+  "[--effects lbs|dqs,dynamics,wrinkles] [--batch N] [--threads N]\n" +
+  "       segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]";
 const args = process.argv.slice(2);
 const opt = (name, dflt) => {
   const i = args.indexOf(name);
@@ -10,15 +15,26 @@ const opt = (name, dflt) => {
 const out = opt("-o");
 const batch = parseInt(opt("--batch", "8"), 10);
 const threads = parseInt(opt("--threads", "1"), 10);
-if (args.length !== 2 || !out) {
-  console.error("usage: segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]");
+const pkg = opt("--package"), garment = opt("--garment"), motion = opt("--motion");
+const bodyOut = opt("--body-out"), effects = opt("--effects");
+const flagForm = pkg || garment || motion;
+if (!out || !(batch >= 1) || !(threads >= 1) || (flagForm ? !(pkg && garment && motion) || args.length : args.length !== 2) ||
+    (!flagForm && (bodyOut || effects))) {
+  console.error(USAGE);
   process.exit(2);
 }
 try {
-  const bundle = readBundle(args[1]);
-  const r = await animate(args[0], bundle, { batch, threads });
+  const r = flagForm
+    ? await animate(pkg, garment, motion, { batch, threads, effects, body: !!bodyOut })
+    : await animate(args[0], args[1], { batch, threads });
+  for (const w of r.warnings || []) console.error(`warning: ${w}`);
+  // PC2 in frames, as `segadeform run` writes it: start 0, one sample per frame
   writePC2(out, r.frames, r.T, r.N);
-  console.log(`${r.T} frames, ${r.msPerFrame.toFixed(2)} ms/frame -> ${out}`);
+  if (bodyOut) writePC2(bodyOut, r.body.vertices, r.body.T, r.body.V);
+  const e = r.effects;
+  console.log(`${r.T} frames, ${r.msPerFrame.toFixed(2)} ms/frame (${r.variant}: ${e.skinning}` +
+    `${e.dynamics ? ", dynamics" : ""}${e.wrinkles ? ", wrinkles" : ""}) -> ${out}` +
+    (bodyOut ? `; body ${r.body.V} vertices, ${r.body.msPerFrame.toFixed(2)} ms/frame (${r.body.graph}) -> ${bodyOut}` : ""));
 } catch (e) {
   console.error(`Error: ${e.message}`);
   process.exit(1);

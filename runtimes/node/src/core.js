@@ -1,6 +1,7 @@
 // segadeform's JavaScript core, shared by the Node runtime (index.js) and the browser runtime
 // (runtimes/web): no Node or DOM APIs here, the onnxruntime module is passed in.
-// The package format is docs/package.md; scene bundles are src/segadeform/bundle.py.
+// The package format is docs/package.md; the container of scene bundles (.sgdb), garment assets (.sgda)
+// and motion files (.sgdm) is src/segadeform/bundle.py.
 
 export const FORMAT = "segadeform-model-package";
 const MAGIC = "SEGADEFORM-BUNDLE 1\n";
@@ -44,20 +45,22 @@ export function parseBundle(bytes, where = "bundle") {
 }
 
 /**
- * Check a parsed manifest and return it in schema-2 form (schema 1 upgraded: `graphs` holds every graph
- * once, each deformer with its `effects`; `default_deformer` names the model's own).
+ * Check a parsed manifest and return it in schema-3 form (schema 1 and 2 upgraded: `graphs` holds every graph
+ * once, each deformer with its `effects`; `default_deformer` names the model's own; schema-2 graphs keep their
+ * int64/bool inputs, fed as their manifest entries say).
  */
 export function readManifest(m, where = "manifest.json") {
   if (m.format !== FORMAT && m.schema_version !== 1) throw new Error(`${where}: not a segadeform model package`);
   if (m.schema_version === 1) m = upgradeManifest(m);
-  else if (m.schema_version !== 2) {
-    throw new Error(`${where}: unsupported manifest schema version (expected 1 or 2, got ${m.schema_version})`);
+  else if (m.schema_version === 2) m = { ...m, schema_version: 3, upgraded_from: 2 };
+  else if (m.schema_version !== 3) {
+    throw new Error(`${where}: unsupported manifest schema version (expected 1, 2 or 3, got ${m.schema_version})`);
   }
   if (!m.graphs || !m.graphs.garment_encoder) throw new Error(`${where}: manifest has no garment_encoder`);
   return m;
 }
 
-/** Schema 1 -> 2 (segadeform.package_spec.upgrade_manifest): one name per graph. */
+/** Schema 1 -> 3 (segadeform.package_spec.upgrade_manifest): one name per graph. */
 function upgradeManifest(m) {
   const graphs = { garment_encoder: { ...m.graphs.garment_encoder, role: "encoder" } };
   let dflt = null;
@@ -73,7 +76,7 @@ function upgradeManifest(m) {
     graphs[dflt] = { ...m.graphs.deformer, role: "deformer", effects, window: win };
   }
   const { variants, ...rest } = m;
-  return { ...rest, format: FORMAT, schema_version: 2, graphs, default_deformer: dflt, upgraded_from: 1 };
+  return { ...rest, format: FORMAT, schema_version: 3, graphs, default_deformer: dflt, upgraded_from: 1 };
 }
 
 /** The deformer graph for a set of effects: the one whose effects equal them exactly (skinning, wrinkles, dynamics). */
@@ -85,47 +88,179 @@ export function pickVariant(manifest, effects) {
       return { name, spec: g };
     }
   }
-  throw new Error(`no deformer graph for effects ${JSON.stringify(effects)}`);
+  const have = Object.entries(manifest.graphs).filter(([, g]) => g.role === "deformer").map(([n]) => n).join(", ");
+  throw new Error(`the package has no deformer graph for effects ${JSON.stringify(effects)} (expected one of ${have})`);
 }
 
-/** Feed for an input spec from a typed array (int32 bundle indices become int64 when the graph wants it). */
+/** The model's own effects (its default deformer's). */
+export function defaultEffects(manifest) {
+  return { ...manifest.graphs[manifest.default_deformer].effects };
+}
+
+/**
+ * Effects from a complete list such as "dqs,dynamics,wrinkles" (what is not named is off; lbs unless dqs is
+ * named), as `segadeform run --effects`.  Collisions are not a graph and not in this runtime.
+ */
+export function parseEffects(text) {
+  const names = text.split(",").map((s) => s.trim()).filter(Boolean);
+  const known = ["lbs", "dqs", "dynamics", "wrinkles"];
+  for (const n of names) {
+    if (n === "collisions") throw new Error("collisions are not in this runtime yet (expected lbs, dqs, dynamics, wrinkles)");
+    if (!known.includes(n)) throw new Error(`unknown effect '${n}' (expected ${known.join(", ")})`);
+  }
+  if (names.includes("lbs") && names.includes("dqs")) throw new Error("name one skinning (expected lbs or dqs, got both)");
+  return { skinning: names.includes("dqs") ? "dqs" : "lbs", wrinkles: names.includes("wrinkles"),
+    dynamics: names.includes("dynamics") };
+}
+
+/** The body graph posing with `skinning` ({name, spec}), or null when the package has no body graph. */
+export function pickBody(manifest, skinning) {
+  const bodies = Object.entries(manifest.graphs).filter(([, g]) => g.role === "body");
+  if (!bodies.length) return null;
+  const hit = bodies.find(([, g]) => g.skinning === skinning);
+  if (!hit) throw new Error(`the package has no body graph for skinning ${skinning} (expected one of ${bodies.map(([n]) => n).join(", ")})`);
+  return { name: hit[0], spec: hit[1] };
+}
+
+const ASSET_KIND = "segadeform-garment-asset";
+const MOTION_KIND = "segadeform-motion";
+
+function need(parsed, name, dtype, ndim, where) {
+  const a = parsed.arrays[name];
+  if (!a || a.dtype !== dtype || a.shape.length !== ndim) {
+    throw new Error(`${where}: field '${name}' is missing or malformed (expected ${dtype} with ${ndim} dims, got ` +
+      `${a ? `${a.dtype} ${JSON.stringify(a.shape)}` : "none"})`);
+  }
+  return a;
+}
+
+/**
+ * Check a parsed garment asset (.sgda, docs/package.md): schema 1 or 2.  Animating it needs one prepared for a
+ * body shape (schema 2 with betas, log_wbody and the body: `segadeform garment export`).
+ */
+export function readAsset(parsed, where = "garment asset") {
+  const { meta } = parsed;
+  if (meta.kind !== ASSET_KIND) throw new Error(`${where}: not a garment asset (expected meta.kind '${ASSET_KIND}', got ${JSON.stringify(meta.kind)})`);
+  if (meta.schema_version !== 1 && meta.schema_version !== 2) {
+    throw new Error(`${where}: unsupported garment asset schema version (expected 1 or 2, got ${meta.schema_version})`);
+  }
+  const v = need(parsed, "vertices", "f64", 2, where);
+  const N = v.shape[0];
+  for (const [k, dt] of [["faces", "i32"], ["normals", "f32"], ["features", "f32"], ["nbr", "i32"], ["mask", "u8"], ["joints", "f64"]]) {
+    need(parsed, k, dt, 2, where);
+  }
+  need(parsed, "descriptor", "f64", 1, where);
+  const { nbr, mask, features, joints } = parsed.arrays;
+  if (nbr.shape[0] !== N || mask.shape[0] !== N || mask.shape[1] !== nbr.shape[1] || features.shape[0] !== N ||
+      features.shape[1] !== 6 + joints.shape[0]) {
+    throw new Error(`${where}: fields do not agree (expected nbr and mask (${N}, K), features (${N}, ${6 + joints.shape[0]}), ` +
+      `got ${JSON.stringify([nbr.shape, mask.shape, features.shape])})`);
+  }
+  for (let i = 0; i < nbr.data.length; i++) {
+    if (!(nbr.data[i] >= 0 && nbr.data[i] < N)) throw new Error(`${where}: nbr index out of range (expected 0..${N - 1}, got ${nbr.data[i]})`);
+  }
+  return parsed;
+}
+
+/** Check a parsed motion file (.sgdm): poses f32 (T, S, 3), trans f32 (T, 3), meta.fps. */
+export function readMotion(parsed, where = "motion file") {
+  const { meta } = parsed;
+  if (meta.kind !== MOTION_KIND) throw new Error(`${where}: not a motion file (expected meta.kind '${MOTION_KIND}', got ${JSON.stringify(meta.kind)})`);
+  if (meta.schema_version !== 1) throw new Error(`${where}: unsupported motion file schema version (expected 1, got ${meta.schema_version})`);
+  const p = need(parsed, "poses", "f32", 3, where);
+  const t = need(parsed, "trans", "f32", 2, where);
+  if (p.shape[2] !== 3 || p.shape[0] < 1 || t.shape[0] !== p.shape[0] || t.shape[1] !== 3) {
+    throw new Error(`${where}: poses and trans do not fit (expected (T, S, 3) and (T, 3), got ${JSON.stringify(p.shape)} and ${JSON.stringify(t.shape)})`);
+  }
+  if (!(meta.fps > 0)) throw new Error(`${where}: meta.fps must be positive (got ${meta.fps})`);
+  return parsed;
+}
+
+const f32 = (a) => (a instanceof Float32Array ? a : Float32Array.from(a));
+
+/**
+ * The model inputs of a source, in one form: a scene bundle, or { asset, motion } (parsed .sgda and .sgdm).
+ * Returns { features, nbr, mask, descriptor, betas, rest, joints, log_wbody, poses, trans, faces, N, K, S, T,
+ * D, F, effects (the bundle's, else undefined), body (the asset's body label), fps }.
+ */
+export function sceneInputs(source) {
+  if (source.asset) {
+    const A = source.asset.arrays, M = source.motion.arrays, am = source.asset.meta, mm = source.motion.meta;
+    if (!A.betas || !A.log_wbody || !am.body) {
+      throw new Error("the garment asset is not prepared for a body shape (expected a schema-2 asset with betas, " +
+        "log_wbody and body: segadeform garment export GARMENT --betas ... -o G.sgda)");
+    }
+    const S = A.joints.shape[0];
+    if (M.poses.shape[1] !== S) throw new Error(`the motion has ${M.poses.shape[1]} joints, the garment asset ${S}`);
+    const warnings = [];
+    if (mm.body && mm.body.sha256 !== am.body.sha256) warnings.push("the motion was retargeted onto another body than the garment asset's");
+    if (mm.betas && mm.betas.some((b, i) => Math.abs(b - (A.betas.data[i] || 0)) > 1e-9)) {
+      warnings.push("the motion was retargeted onto another body shape (betas) than the garment asset's");
+    }
+    return {
+      features: A.features.data, nbr: A.nbr.data, mask: A.mask.data, descriptor: f32(A.descriptor.data),
+      betas: f32(A.betas.data), rest: f32(A.vertices.data), joints: f32(A.joints.data), log_wbody: A.log_wbody.data,
+      poses: M.poses.data, trans: M.trans.data, faces: A.faces.data, N: A.vertices.shape[0], K: A.nbr.shape[1], S,
+      T: M.poses.shape[0], D: 3 * S, F: A.features.shape[1], effects: undefined, body: am.body, fps: mm.fps, warnings,
+    };
+  }
+  const { arrays: A, meta } = source;
+  return {
+    features: A.features.data, nbr: A.nbr.data, mask: A.mask.data, descriptor: A.descriptor.data, betas: A.betas.data,
+    rest: A.rest.data, joints: A.joints.data, log_wbody: A.log_wbody ? A.log_wbody.data : null, poses: A.poses.data,
+    trans: A.trans.data, faces: A.faces ? A.faces.data : null, N: A.rest.shape[0], K: A.nbr.shape[1],
+    S: A.joints.shape[0], T: A.poses.shape[0], D: A.poses.shape[1], F: A.features.shape[1], effects: meta.effects,
+    body: null, fps: meta.fps, warnings: [],
+  };
+}
+
+/** Feed for an input spec from a typed array, in the dtype the graph's manifest entry names (int32 indices become
+ * int64 and 0/1 masks bool for schema-2 graphs; schema 3 takes int32 and float32). */
 function feed(ort, spec, arr, dims) {
   if (spec.dtype === "int64") {
     const out = new BigInt64Array(arr.length);
     for (let i = 0; i < arr.length; i++) out[i] = BigInt(arr[i]);
     return new ort.Tensor("int64", out, dims);
   }
-  if (spec.dtype === "int32") return new ort.Tensor("int32", Int32Array.from(arr), dims);
-  if (spec.dtype === "bool") return new ort.Tensor("bool", Uint8Array.from(arr), dims);
-  return new ort.Tensor("float32", arr instanceof Float32Array ? arr : Float32Array.from(arr), dims);
+  if (spec.dtype === "int32") return new ort.Tensor("int32", arr instanceof Int32Array ? arr : Int32Array.from(arr), dims);
+  if (spec.dtype === "bool") return new ort.Tensor("bool", Uint8Array.from(arr, (x) => (x ? 1 : 0)), dims);
+  return new ort.Tensor("float32", f32(arr), dims);
+}
+
+/** The model's betas from a source's (zero-padded or cut to the model's count; a cut coefficient must be 0). */
+function modelBetas(betas, nb) {
+  const out = new Float32Array(nb);
+  for (let i = 0; i < betas.length; i++) {
+    if (i < nb) out[i] = betas[i];
+    else if (betas[i] !== 0) throw new Error(`too many shape coefficients for this model (expected <= ${nb}, got ${betas.length})`);
+  }
+  return out;
 }
 
 /**
- * Animate a bundle with a package's graphs.  `session(spec)` returns an onnxruntime InferenceSession for a
- * graph's manifest entry.  Returns { frames: Float32Array (T*N*3), T, N, msPerFrame, variant }.
- * options: { effects (default: the bundle's), batch (8) }.
+ * Animate a source with a package's graphs: a scene bundle, or { asset, motion } (parsed .sgda and .sgdm).
+ * `session(spec)` returns an onnxruntime InferenceSession for a graph's manifest entry.
+ * Returns { frames: Float32Array (T*N*3), T, N, msPerFrame, variant, effects, faces, fps, warnings }.
+ * options: { effects (default: the bundle's, else the model's own), batch (8) }.
  */
-export async function animateWith(ort, manifest, bundle, session, options = {}) {
-  const { arrays: A, meta } = bundle;
-  const effects = options.effects || meta.effects;
+export async function animateWith(ort, manifest, source, session, options = {}) {
+  const I = sceneInputs(source);
+  const effects = options.effects || I.effects || defaultEffects(manifest);
   const batch = options.batch || 8;
   const encSpec = manifest.graphs.garment_encoder;
   const { name: variant, spec: decSpec } = pickVariant(manifest, effects);
   const enc = await session(encSpec);
   const dec = await session(decSpec);
-  const N = A.rest.shape[0];
-  const K = A.nbr.shape[1];
-  const S = A.joints.shape[0];
-  const T = A.poses.shape[0];
-  const D = A.poses.shape[1];
+  const { N, K, S, T, D } = I;
   const inDec = Object.fromEntries(decSpec.inputs.map((i) => [i.name, i]));
-  const window = decSpec.inputs.find((i) => i.name === "window").shape[1];
-  const nb = A.betas.shape[0];
+  const window = inDec.window.shape[1];
+  const nb = inDec.betas.shape[1];
+  const betasRow = modelBetas(I.betas, nb);
   const t0 = performance.now();
   // the encoder's inputs, fed by name (older encoders also take betas)
   const encArrays = {
-    features: [A.features.data, [1, N, A.features.shape[1]]], nbr: [A.nbr.data, [N, K]], mask: [A.mask.data, [N, K]],
-    descriptor: [A.descriptor.data, [1, A.descriptor.shape[0]]], betas: [A.betas.data, [1, nb]],
+    features: [I.features, [1, N, I.F]], nbr: [I.nbr, [N, K]], mask: [I.mask, [N, K]],
+    descriptor: [I.descriptor, [1, I.descriptor.length]], betas: [betasRow, [1, nb]],
   };
   const encFeeds = {};
   for (const i of encSpec.inputs) {
@@ -137,10 +272,19 @@ export async function animateWith(ort, manifest, bundle, session, options = {}) 
   const codeName = encSpec.outputs[0].name;
   const code = encOut[codeName];
   const codeT = new ort.Tensor("float32", await code.getData(), code.dims.slice(1));
-  const nbr = feed(ort, inDec.nbr, A.nbr.data, [N, K]);
-  const mask = feed(ort, inDec.mask, A.mask.data, [N, K]);
-  const rest = feed(ort, inDec.rest, A.rest.data, [N, 3]);
-  const lw = inDec.log_wbody ? feed(ort, inDec.log_wbody, A.log_wbody.data, [N, S]) : null;
+  const nbr = feed(ort, inDec.nbr, I.nbr, [N, K]);
+  const mask = feed(ort, inDec.mask, I.mask, [N, K]);
+  const rest = feed(ort, inDec.rest, I.rest, [N, 3]);
+  let lw = null;
+  if (inDec.log_wbody) {
+    if (!I.log_wbody) throw new Error("this model needs the body's weights at the garment (log_wbody), which the input lacks");
+    const want = manifest.config.weight_prior || "nearest", got = I.body ? I.body.weight_prior || "nearest" : want;
+    if (got !== want) {
+      throw new Error(`the garment asset's log_wbody was made with the ${got} weight prior, the model wants ${want} ` +
+        "(expected an asset from segadeform garment export --model PACKAGE)");
+    }
+    lw = feed(ort, inDec.log_wbody, I.log_wbody, [N, S]);
+  }
   const frames = new Float32Array(T * N * 3);
   for (let lo = 0; lo < T; lo += batch) {
     const hi = Math.min(lo + batch, T);
@@ -150,27 +294,79 @@ export async function animateWith(ort, manifest, bundle, session, options = {}) 
     for (let b = 0; b < B; b++) {
       for (let k = 0; k < window; k++) {
         const src = Math.max(lo + b - k, 0);
-        win.set(A.poses.data.subarray(src * D, src * D + D), (b * window + k) * D);
+        win.set(I.poses.subarray(src * D, src * D + D), (b * window + k) * D);
       }
     }
     const betas = new Float32Array(B * nb);
     const joints = new Float32Array(B * S * 3);
     for (let b = 0; b < B; b++) {
-      betas.set(A.betas.data, b * nb);
-      joints.set(A.joints.data, b * S * 3);
+      betas.set(betasRow, b * nb);
+      joints.set(I.joints, b * S * 3);
     }
     const feeds = {
       [codeName]: codeT, window: new ort.Tensor("float32", win, [B, window, D]),
       betas: new ort.Tensor("float32", betas, [B, nb]), rest, nbr, mask,
       joints: new ort.Tensor("float32", joints, [B, S, 3]),
-      trans: new ort.Tensor("float32", A.trans.data.slice(lo * 3, hi * 3), [B, 3]),
+      trans: new ort.Tensor("float32", I.trans.slice(lo * 3, hi * 3), [B, 3]),
     };
     if (lw) feeds.log_wbody = lw;
     const out = await dec.run(feeds);
     frames.set(await out[decSpec.outputs[0].name].getData(), lo * N * 3);
   }
   const ms = (performance.now() - t0) / T;
-  return { frames, T, N, msPerFrame: ms, variant };
+  return { frames, T, N, msPerFrame: ms, variant, effects, faces: I.faces, fps: I.fps, warnings: I.warnings };
+}
+
+/**
+ * Pose the body with the package's body graph for `skinning` (docs/package.md: betas (|beta|,), poses (B, S, 3),
+ * trans (B, 3) in; vertices (B, V, 3), joints (B, S, 3), rest_joints (S, 3), faces (F, 3) out), over a source's
+ * motion and body shape.  Returns { vertices (T*V*3), joints (T*S*3), restJoints, faces, V, T, msPerFrame, graph },
+ * or throws when the package has no body graph or the garment asset was prepared for another body.
+ */
+export async function poseBodyWith(ort, manifest, source, session, { skinning = "lbs", batch = 8 } = {}) {
+  const I = sceneInputs(source);
+  const picked = pickBody(manifest, skinning);
+  if (!picked) throw new Error("the package has no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
+  const { name, spec } = picked;
+  if (I.body && spec.body && I.body.sha256 !== spec.body.sha256) {
+    throw new Error(`the garment asset was prepared for another body than the package's (expected ${spec.body.name} ` +
+      `${spec.body.sha256.slice(0, 12)}, got ${I.body.name} ${I.body.sha256.slice(0, 12)})`);
+  }
+  const sess = await session(spec);
+  const nb = spec.inputs[0].shape[0];
+  const V = spec.outputs[0].shape[1], S = spec.inputs[1].shape[1];
+  if (S !== I.S) throw new Error(`the body graph poses ${S} joints, the motion has ${I.S}`);
+  const betas = feed(ort, spec.inputs[0], modelBetas(I.betas, nb), [nb]);
+  const { T } = I;
+  const vertices = new Float32Array(T * V * 3), joints = new Float32Array(T * S * 3);
+  let restJoints = null, faces = null;
+  const t0 = performance.now();
+  for (let lo = 0; lo < T; lo += batch) {
+    const hi = Math.min(lo + batch, T);
+    const out = await sess.run({
+      betas, poses: new ort.Tensor("float32", I.poses.slice(lo * S * 3, hi * S * 3), [hi - lo, S, 3]),
+      trans: new ort.Tensor("float32", I.trans.slice(lo * 3, hi * 3), [hi - lo, 3]),
+    });
+    vertices.set(await out.vertices.getData(), lo * V * 3);
+    joints.set(await out.joints.getData(), lo * S * 3);
+    if (!restJoints) {
+      restJoints = Float32Array.from(await out.rest_joints.getData());
+      faces = Int32Array.from(await out.faces.getData());
+    }
+  }
+  return { vertices, joints, restJoints, faces, V, T, msPerFrame: (performance.now() - t0) / T, graph: name };
+}
+
+/** Parity of `got` against `expected` (same length): { maxAbs, rel (to the largest |expected|), finite, sameLength }. */
+export function compareFrames(got, expected) {
+  let maxAbs = 0, maxRef = 0, finite = true;
+  const n = Math.min(got.length, expected.length);
+  for (let i = 0; i < n; i++) {
+    if (!Number.isFinite(got[i])) finite = false;
+    maxAbs = Math.max(maxAbs, Math.abs(got[i] - expected[i]));
+    maxRef = Math.max(maxRef, Math.abs(expected[i]));
+  }
+  return { maxAbs, rel: maxAbs / maxRef, finite, sameLength: got.length === expected.length };
 }
 
 /** PC2 point-cache bytes (header + T*N*3 float32 little-endian) for frames. */

@@ -1,13 +1,17 @@
-// segadeform's Node runtime: a model package (docs/package.md) and a scene bundle in, frames out.
+// segadeform's Node runtime: a model package (docs/package.md) and a garment asset (.sgda) with a motion file
+// (.sgdm) -- or a scene bundle (.sgdb) -- in, frames out; the package's body graph poses the body.
 // The logic is core.js (shared with the browser runtime, runtimes/web); this file adds files and hashes.
-import { readFileSync, writeFileSync, renameSync, existsSync } from "node:fs";
+import { readFileSync, writeFileSync, renameSync, existsSync, unlinkSync } from "node:fs";
 import { createHash } from "node:crypto";
 import { join } from "node:path";
 import * as ort from "onnxruntime-node";
-import { animateWith, pc2Bytes, pickVariant, readManifest } from "./core.js";
+import {
+  animateWith, compareFrames, defaultEffects, parseBundle, parseEffects, pc2Bytes, pickBody, pickVariant,
+  poseBodyWith, readAsset as checkAsset, readManifest, readMotion as checkMotion,
+} from "./core.js";
 
 export { parseBundle, readBundle } from "./bundle.js";
-export { pickVariant };
+export { compareFrames, defaultEffects, parseEffects, pickBody, pickVariant };
 
 /** Read a model package's manifest (docs/package.md) and check every file against its sha256. */
 export function loadManifest(dir) {
@@ -26,22 +30,74 @@ function checkHash(dir, file, sha256, what) {
   if (sha256 && h !== sha256) throw new Error(`${path}: ${what} does not match its manifest hash`);
 }
 
-/**
- * Animate a bundle with a package.  Returns { frames: Float32Array (T*N*3), T, N, msPerFrame }.
- * options: { effects (default: the bundle's), batch (8), threads (1) }.
- */
-export async function animate(dir, bundle, options = {}) {
-  const manifest = loadManifest(dir);
+function readContainer(path) {
+  if (!existsSync(path)) throw new Error(`${path}: no such file`);
+  return parseBundle(readFileSync(path), path);
+}
+
+/** Read and check a garment asset (.sgda). */
+export function readAsset(path) {
+  return checkAsset(readContainer(path), path);
+}
+
+/** Read and check a motion file (.sgdm). */
+export function readMotion(path) {
+  return checkMotion(readContainer(path), path);
+}
+
+function sessions(dir, options) {
   const so = { intraOpNumThreads: options.threads || 1, interOpNumThreads: 1, executionProviders: ["cpu"] };
+  const made = new Map();
   // sessions from the file path: graphs may keep their weights in the package's shared weights.bin
-  return animateWith(ort, manifest, bundle, (spec) => ort.InferenceSession.create(join(dir, spec.file), so), options);
+  return (spec) => {
+    if (!made.has(spec.file)) made.set(spec.file, ort.InferenceSession.create(join(dir, spec.file), so));
+    return made.get(spec.file);
+  };
+}
+
+/**
+ * Animate a garment with a package:
+ *   animate(dir, garment, motion, options)  garment: a .sgda path or readAsset(...); motion: a .sgdm path or readMotion(...)
+ *   animate(dir, bundle, options)           bundle: a .sgdb path or readBundle(...) (the Python runtime's scene)
+ * Returns { frames: Float32Array (T*N*3), T, N, msPerFrame, variant, effects, faces, fps, warnings } and, with
+ * options.body, body: { vertices (T*V*3), joints, restJoints, faces, V, T, msPerFrame, graph } (the package's body
+ * graph, with the garment's skinning).
+ * options: { effects (default: the bundle's, else the model's own; an object or "dqs,dynamics,wrinkles"), batch (8),
+ * threads (1), body (false) }.
+ */
+export async function animate(dir, garment, motion, options = {}) {
+  let source;
+  if (typeof garment === "string" && !garment.endsWith(".sgdb")) garment = readAsset(garment);
+  if (typeof garment === "string") garment = readContainer(garment);
+  if (garment.meta && garment.meta.kind === "segadeform-garment-asset") {
+    if (typeof motion === "string") motion = readMotion(motion);
+    else if (!motion || !motion.arrays) throw new Error("a garment asset needs a motion (a .sgdm path or readMotion(...))");
+    else checkMotion(motion);
+    source = { asset: checkAsset(garment), motion };
+  } else {
+    if (motion && !motion.arrays) options = motion;
+    source = garment;
+  }
+  if (typeof options.effects === "string") options = { ...options, effects: parseEffects(options.effects) };
+  const manifest = loadManifest(dir);
+  const session = sessions(dir, options);
+  const r = await animateWith(ort, manifest, source, session, options);
+  if (options.body) {
+    r.body = await poseBodyWith(ort, manifest, source, session, { skinning: r.effects.skinning, batch: options.batch });
+  }
+  return r;
 }
 
 /** Write frames (T*N*3 float32) as a PC2 point cache, atomically. */
 export function writePC2(path, frames, T, N, opts = {}) {
   const tmp = `${path}.tmp-${process.pid}`;
-  writeFileSync(tmp, pc2Bytes(frames, T, N, opts));
-  renameSync(tmp, path);
+  try {
+    writeFileSync(tmp, pc2Bytes(frames, T, N, opts));
+    renameSync(tmp, path);
+  } catch (e) {
+    if (existsSync(tmp)) unlinkSync(tmp);
+    throw e;
+  }
 }
 
 export { ort };

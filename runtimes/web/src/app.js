@@ -1,10 +1,13 @@
-// The viewer page: run a scene bundle through a model package (onnxruntime-web) or play dropped
-// OBJ + PC2 files, with three.js.  Query: ?bundle=URL&package=URL&ep=wasm|webgpu&batch=8&frame=N&paused=1
-// &body=BODY.pc2&bodyMesh=BODY.obj (the posed body, from `segadeform run --body-out`, shown beside the garment)
+// The viewer page: run a garment asset (.sgda) and a motion (.sgdm) -- or a scene bundle -- through a model
+// package (onnxruntime-web), with the body posed by the package's body graph, or play dropped OBJ + PC2 files,
+// with three.js.  Query: ?garment=G.sgda&motion=M.sgdm (or ?bundle=URL) &package=URL&ep=wasm|webgpu&batch=8
+// &effects=dqs,dynamics,wrinkles&frame=N&paused=1&check=VEC.sgdb (the Python runtime's frames, `expected` and
+// `body`, to compare with) &body=BODY.pc2&bodyMesh=BODY.obj (a posed body from `segadeform run --body-out`).
+// Dropping files works as well: a package's files or folder, a .sgda and a .sgdm, a .sgdb, OBJ + PC2.
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
-import { parseOBJ, parsePC2 } from "../../node/src/core.js";
-import { animate, loadOrt, loadPackage } from "./runtime.js";
+import { parseEffects, parseOBJ, parsePC2 } from "../../node/src/core.js";
+import { animate, compareFrames, loadOrt, loadPackage, openContainer, packageFromFiles } from "./runtime.js";
 
 const q = new URLSearchParams(location.search);
 const statusEl = document.getElementById("status");
@@ -91,39 +94,85 @@ requestAnimationFrame(loop);
 slider.addEventListener("input", () => show(+slider.value));
 playBtn.addEventListener("click", () => { playing = !playing; playBtn.textContent = playing ? "pause" : "play"; });
 
-// ---- a scene bundle through a model package ---------------------------------------------------------
-async function runBundle(bundle) {
-  const ep = q.get("ep") || "wasm";
-  const pkgUrl = q.get("package") || "../../samples/models/default/";
-  say(`loading onnxruntime-web (${ep}) and ${pkgUrl} ...`);
-  const ort = await loadOrt(ep, new URL("../node_modules/onnxruntime-web/dist/", import.meta.url).href);
-  const pkg = await loadPackage(pkgUrl);
-  say(`running ${pkgUrl} on ${ep} ...`);
-  const r = await animate(ort, pkg, bundle, { ep, batch: +(q.get("batch") || 8) });
-  const A = r.bundle.arrays;
-  const faces = A.faces ? Uint32Array.from(A.faces.data) : new Uint32Array(0);
-  addTrack(faces, r.frames, r.N, r.T, 0x3b64d8);
-  const result = { ep, T: r.T, N: r.N, msPerFrame: r.msPerFrame, variant: r.variant, ort: ort.env.versions?.web };
-  if (A.expected) { // a test vector: compare with the Python runtime's frames
-    const exp = A.expected.data;
-    let maxAbs = 0, maxRef = 0, finite = true;
-    for (let i = 0; i < exp.length; i++) {
-      const d = Math.abs(r.frames[i] - exp[i]);
-      if (!Number.isFinite(r.frames[i])) finite = false;
-      maxAbs = Math.max(maxAbs, d);
-      maxRef = Math.max(maxRef, Math.abs(exp[i]));
-    }
-    Object.assign(result, { maxAbs, rel: maxAbs / maxRef, finite, sameLength: exp.length === r.frames.length });
+// ---- a garment asset and a motion (or a scene bundle) through a model package ------------------------
+let ort = null, pkg = null;
+const ep = q.get("ep") || "wasm";
+
+async function getOrt() {
+  if (!ort) ort = await loadOrt(ep, new URL("../node_modules/onnxruntime-web/dist/", import.meta.url).href);
+  return ort;
+}
+
+async function getPackage() {
+  if (!pkg) {
+    const url = q.get("package") || "../../samples/models/default/";
+    say(`loading ${url} ...`);
+    pkg = await loadPackage(url);
   }
-  if (q.has("body") && q.has("bodyMesh")) {
+  return pkg;
+}
+
+function clearTracks() {
+  for (const tr of tracks.splice(0)) {
+    scene.remove(tr.mesh);
+    tr.mesh.geometry.dispose();
+  }
+  T = 0;
+  frame = 0;
+}
+
+/**
+ * Run `source` (a parsed scene bundle, or { asset, motion }) and play it: the garment, and the body posed by the
+ * package's body graph.  `expected`: arrays to compare with ({expected (T, N, 3), body (T, V, 3)}: the Python
+ * runtime's frames); a bundle's own `expected` is used when none is given.
+ */
+async function runScene(source, expected = null) {
+  const o = await getOrt();
+  const p = await getPackage();
+  say(`running ${p.url} on ${ep} ...`);
+  const effects = q.get("effects") ? parseEffects(q.get("effects")) : undefined;
+  const r = await animate(o, p, source, { ep, batch: +(q.get("batch") || 8), effects });
+  clearTracks();
+  const faces = r.faces ? Uint32Array.from(r.faces) : new Uint32Array(0);
+  addTrack(faces, r.frames, r.N, r.T, 0x3b64d8);
+  if (r.body && !r.body.error) addTrack(Uint32Array.from(r.body.faces), r.body.vertices, r.body.V, r.body.T, 0xd9b99b);
+  if (r.fps) fps = r.fps;
+  const result = { ep, T: r.T, N: r.N, msPerFrame: r.msPerFrame, variant: r.variant, ort: o.env.versions?.web,
+    warnings: r.warnings };
+  const want = expected || (source.arrays && source.arrays.expected ? { expected: source.arrays.expected } : null);
+  if (want && want.expected) Object.assign(result, compareFrames(r.frames, want.expected.data));
+  if (r.body) {
+    result.body = r.body.error ? { error: r.body.error }
+      : { V: r.body.V, msPerFrame: r.body.msPerFrame, graph: r.body.graph };
+    if (!r.body.error && want && want.body) Object.assign(result.body, compareFrames(r.body.vertices, want.body.data));
+  }
+  if (q.has("frame")) show(Math.min(+q.get("frame"), T - 1));
+  const bodyLine = r.body ? (r.body.error ? `\nbody not shown: ${r.body.error}`
+    : `\nbody: ${r.body.V} vertices, ${r.body.msPerFrame.toFixed(1)} ms/frame (${r.body.graph})`) : "";
+  say(`${r.T} frames x ${r.N} vertices, ${r.msPerFrame.toFixed(1)} ms/frame on ${ep} (${r.variant})${bodyLine}` +
+      (result.rel !== undefined ? `\nagainst Python: max abs ${result.maxAbs.toExponential(2)}, rel ${result.rel.toExponential(2)}` : "") +
+      (r.warnings && r.warnings.length ? `\nwarning: ${r.warnings.join("; ")}` : ""));
+  return result;
+}
+
+async function runFromQuery() {
+  let result;
+  if (q.has("garment") && q.has("motion")) {
+    const [a, m] = await Promise.all([openContainer(q.get("garment")), openContainer(q.get("motion"))]);
+    if (a.kind !== "asset") throw new Error(`${q.get("garment")}: not a garment asset (.sgda)`);
+    if (m.kind !== "motion") throw new Error(`${q.get("motion")}: not a motion file (.sgdm)`);
+    const check = q.has("check") ? (await openContainer(q.get("check"))).parsed.arrays : null;
+    result = await runScene({ asset: a.parsed, motion: m.parsed }, check);
+  } else {
+    const b = await openContainer(q.get("bundle"));
+    result = await runScene(b.parsed);
+  }
+  if (q.has("body") && q.has("bodyMesh")) { // a posed body from `segadeform run --body-out` (OBJ + PC2)
     const [pc2, obj] = await Promise.all([fetch(q.get("body")), fetch(q.get("bodyMesh"))]);
     if (!pc2.ok || !obj.ok) throw new Error(`cannot fetch the body (${q.get("body")}, ${q.get("bodyMesh")})`);
     const b = parsePC2(new Uint8Array(await pc2.arrayBuffer()), q.get("body"));
     addTrack(parseOBJ(await obj.text(), q.get("bodyMesh")).faces, b.frames, b.N, b.T, 0xd9b99b);
   }
-  if (q.has("frame")) show(Math.min(+q.get("frame"), T - 1));
-  say(`${r.T} frames x ${r.N} vertices, ${r.msPerFrame.toFixed(1)} ms/frame on ${ep} (${r.variant})` +
-      (result.rel !== undefined ? `\nagainst Python: max abs ${result.maxAbs.toExponential(2)}, rel ${result.rel.toExponential(2)}` : ""));
   return result;
 }
 
@@ -135,24 +184,69 @@ window.addEventListener("drop", async (e) => {
   e.preventDefault();
   drop.style.display = "none";
   try {
-    await openFiles([...e.dataTransfer.files]);
+    window.segadeformResult = await openFiles(await droppedFiles(e.dataTransfer));
   } catch (err) {
     say(`error: ${err.message}`);
+    window.segadeformResult = { error: err.message };
   }
 });
 
-/** OBJ + PC2 pairs (matched by vertex count; the first pair is the garment), or one .sgdb bundle. */
+/** The files of a drop, folders (a model package folder) read through. */
+async function droppedFiles(dt) {
+  const entries = [...(dt.items || [])].map((it) => it.webkitGetAsEntry && it.webkitGetAsEntry()).filter(Boolean);
+  if (!entries.some((en) => en.isDirectory)) return [...dt.files];
+  const out = [];
+  const walk = async (en) => {
+    if (en.isFile) out.push(await new Promise((ok, bad) => en.file(ok, bad)));
+    else {
+      const reader = en.createReader();
+      for (;;) {
+        const batch = await new Promise((ok, bad) => reader.readEntries(ok, bad));
+        if (!batch.length) break;
+        for (const child of batch) await walk(child);
+      }
+    }
+  };
+  for (const en of entries) await walk(en);
+  return out;
+}
+
+// what the drops so far have given: a garment asset and a motion wait for each other
+const dropped = { asset: null, motion: null };
+
+/**
+ * Open dropped files: a model package's files (manifest.json, the .onnx graphs, weights.bin, or its folder),
+ * a garment asset (.sgda) and a motion (.sgdm) -- run as soon as both are there, with the dropped package or the
+ * page's --, a scene bundle (.sgdb), or OBJ + PC2 pairs to play (matched by vertex count; the first pair is the
+ * garment).  Returns the run's result, or null when it waits for more files.
+ */
 export async function openFiles(files) {
-  const objs = [], caches = [];
+  const objs = [], caches = [], pkgFiles = {};
+  let bundle = null;
   for (const f of files) {
     const name = f.name.toLowerCase();
-    if (name.endsWith(".sgdb")) {
-      const { parseBundle } = await import("./runtime.js");
-      return runBundle(parseBundle(new Uint8Array(await f.arrayBuffer()), f.name));
-    }
-    if (name.endsWith(".obj")) objs.push({ name: f.name, ...parseOBJ(await f.text(), f.name) });
+    if (name === "manifest.json" || name.endsWith(".onnx") || name.endsWith(".bin")) {
+      pkgFiles[f.name] = new Uint8Array(await f.arrayBuffer());
+    } else if (name.endsWith(".sgda") || name.endsWith(".sgdm") || name.endsWith(".sgdb")) {
+      const c = await openContainer(new Uint8Array(await f.arrayBuffer()), f.name);
+      if (c.kind === "bundle") bundle = c.parsed;
+      else dropped[c.kind] = c.parsed;
+    } else if (name.endsWith(".obj")) objs.push({ name: f.name, ...parseOBJ(await f.text(), f.name) });
     else if (name.endsWith(".pc2")) caches.push({ name: f.name, ...parsePC2(new Uint8Array(await f.arrayBuffer()), f.name) });
-    else throw new Error(`${f.name}: expected .obj, .pc2 or .sgdb`);
+    else if (!name.endsWith(".md")) throw new Error(`${f.name}: expected .sgda, .sgdm, .sgdb, a package's files, .obj or .pc2`);
+  }
+  if (Object.keys(pkgFiles).length) {
+    pkg = await packageFromFiles(pkgFiles);
+    say(`package ${Object.keys(pkg.manifest.graphs).length} graphs loaded`);
+  }
+  if (bundle) return runScene(bundle);
+  if (dropped.asset && dropped.motion) {
+    const check = q.has("check") ? (await openContainer(q.get("check"))).parsed.arrays : null;
+    return runScene({ asset: dropped.asset, motion: dropped.motion }, check);
+  }
+  if (dropped.asset || dropped.motion) {
+    say(`${dropped.asset ? "garment asset" : "motion"} loaded; drop a ${dropped.asset ? "motion (.sgdm)" : "garment asset (.sgda)"} to run`);
+    return null;
   }
   const colors = [0x3b64d8, 0xd9b99b];
   let k = 0;
@@ -165,10 +259,11 @@ export async function openFiles(files) {
     addTrack(o.faces, o.vertices, o.vertices.length / 3, 1, colors[Math.min(k++, 1)]); // a still mesh
   }
   say(`${tracks.length} meshes, ${T} frames`);
+  return { T, meshes: tracks.length };
 }
 
 window.segadeform = { openFiles, show };
-if (q.has("bundle")) {
-  runBundle(q.get("bundle")).then((r) => { window.segadeformResult = r; },
+if (q.has("bundle") || (q.has("garment") && q.has("motion"))) {
+  runFromQuery().then((r) => { window.segadeformResult = r; },
     (err) => { say(`error: ${err.message}`); window.segadeformResult = { error: err.message }; });
 }

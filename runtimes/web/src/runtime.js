@@ -1,8 +1,10 @@
-// segadeform in the browser: a model package fetched over HTTP, its graphs run by onnxruntime-web
-// (wasm or WebGPU).  The animation logic is the Node runtime's core.js, shared as is.
-import { animateWith, parseBundle, pickVariant, readManifest } from "../../node/src/core.js";
+// segadeform in the browser: a model package fetched over HTTP (or dropped on the page), its graphs run by
+// onnxruntime-web (wasm or WebGPU).  The animation logic is the Node runtime's core.js, shared as is.
+import {
+  animateWith, compareFrames, parseBundle, pickBody, pickVariant, poseBodyWith, readAsset, readManifest, readMotion,
+} from "../../node/src/core.js";
 
-export { parseBundle, pickVariant };
+export { compareFrames, parseBundle, pickBody, pickVariant, readAsset, readMotion };
 
 const ORT_BUILDS = { wasm: "ort.wasm.min.mjs", webgpu: "ort.webgpu.min.mjs" };
 
@@ -16,7 +18,7 @@ export async function loadOrt(ep, base) {
   return ort;
 }
 
-async function fetchBytes(url) {
+export async function fetchBytes(url) {
   const r = await fetch(url);
   if (!r.ok) throw new Error(`${url}: ${r.status} ${r.statusText}`);
   return new Uint8Array(await r.arrayBuffer());
@@ -25,6 +27,19 @@ async function fetchBytes(url) {
 async function sha256Hex(bytes) {
   const h = new Uint8Array(await crypto.subtle.digest("SHA-256", bytes));
   return Array.from(h, (b) => b.toString(16).padStart(2, "0")).join("");
+}
+
+/** A package from its manifest and a function giving a file's bytes, every file checked against its SHA-256. */
+async function packageFrom(manifest, where, bytesOf) {
+  const files = {};
+  const want = Object.values(manifest.graphs).map((g) => [g.file, g.sha256]);
+  if (manifest.weights) want.push([manifest.weights.file, manifest.weights.sha256]);
+  for (const [file, sha] of want) {
+    const bytes = await bytesOf(file);
+    if (sha && (await sha256Hex(bytes)) !== sha) throw new Error(`${where}${file}: does not match its manifest hash`);
+    files[file] = bytes;
+  }
+  return { manifest, files, url: where };
 }
 
 /**
@@ -36,28 +51,55 @@ export async function loadPackage(url) {
   const r = await fetch(new URL("manifest.json", base));
   if (!r.ok) throw new Error(`${base}: no manifest.json (not a model package)`);
   const manifest = readManifest(await r.json(), new URL("manifest.json", base).href);
-  const files = {};
-  const want = Object.values(manifest.graphs).map((g) => [g.file, g.sha256]);
-  if (manifest.weights) want.push([manifest.weights.file, manifest.weights.sha256]);
-  for (const [file, sha] of want) {
-    const bytes = await fetchBytes(new URL(file, base));
-    if (sha && (await sha256Hex(bytes)) !== sha) throw new Error(`${base}${file}: does not match its manifest hash`);
-    files[file] = bytes;
-  }
-  return { manifest, files, url: base.href };
+  return packageFrom(manifest, base.href, (file) => fetchBytes(new URL(file, base)));
+}
+
+/** A package from dropped files ({name: Uint8Array}: manifest.json, the graphs, weights.bin). */
+export async function packageFromFiles(files) {
+  if (!files["manifest.json"]) throw new Error("the dropped files have no manifest.json (expected a model package's files)");
+  const manifest = readManifest(JSON.parse(new TextDecoder().decode(files["manifest.json"])), "manifest.json");
+  return packageFrom(manifest, "dropped package: ", async (file) => {
+    if (!files[file]) throw new Error(`dropped package: ${file} is missing (the manifest lists it)`);
+    return files[file];
+  });
+}
+
+/** Parse a container (bytes or a URL) as a garment asset, a motion file or a scene bundle, by its meta.kind. */
+export async function openContainer(src, name = String(src)) {
+  const bytes = typeof src === "string" ? await fetchBytes(src) : src;
+  const parsed = parseBundle(bytes, name);
+  if (parsed.meta.kind === "segadeform-garment-asset") return { kind: "asset", parsed: readAsset(parsed, name) };
+  if (parsed.meta.kind === "segadeform-motion") return { kind: "motion", parsed: readMotion(parsed, name) };
+  return { kind: "bundle", parsed };
 }
 
 /**
- * Animate a bundle (parsed, or a URL) with a loaded package on `ort` (from loadOrt).
- * Returns core.animateWith's result plus the execution provider.
+ * Animate a scene bundle (parsed, or a URL) or { asset, motion } (parsed) with a loaded package on `ort` (from
+ * loadOrt), and pose the body when the package has a body graph (options.body !== false).
+ * Returns core.animateWith's result plus the execution provider and `body` (core.poseBodyWith's result, or
+ * { error } when the body cannot be posed: no body graph, another body).
  */
-export async function animate(ort, pkg, bundle, { ep = "wasm", batch = 8, effects } = {}) {
-  if (typeof bundle === "string") bundle = parseBundle(await fetchBytes(bundle), bundle);
+export async function animate(ort, pkg, source, { ep = "wasm", batch = 8, effects, body = true } = {}) {
+  if (typeof source === "string") source = parseBundle(await fetchBytes(source), source);
   const external = pkg.manifest.weights
     ? [{ path: pkg.manifest.weights.file, data: pkg.files[pkg.manifest.weights.file] }] : [];
-  const session = (spec) => ort.InferenceSession.create(pkg.files[spec.file], {
-    executionProviders: [ep], externalData: external, graphOptimizationLevel: "all",
-  });
-  const r = await animateWith(ort, pkg.manifest, bundle, session, { batch, effects });
-  return { ...r, ep, bundle };
+  const made = new Map();
+  const session = (spec) => {
+    if (!made.has(spec.file)) {
+      made.set(spec.file, ort.InferenceSession.create(pkg.files[spec.file], {
+        executionProviders: [ep], externalData: external, graphOptimizationLevel: "all",
+      }));
+    }
+    return made.get(spec.file);
+  };
+  const r = await animateWith(ort, pkg.manifest, source, session, { batch, effects });
+  let posed = null;
+  if (body && Object.values(pkg.manifest.graphs).some((g) => g.role === "body")) {
+    try {
+      posed = await poseBodyWith(ort, pkg.manifest, source, session, { skinning: r.effects.skinning, batch });
+    } catch (e) {
+      posed = { error: e.message };
+    }
+  }
+  return { ...r, ep, source, body: posed };
 }

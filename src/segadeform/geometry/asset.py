@@ -21,7 +21,18 @@ geodesic_radius    () float64       kernel width r
 params             JSON string      k, max_k, n_star, geodesic method, versions
 source_name        str              file name of the garment
 source_sha256      str              hash of the garment file's bytes
+betas              (B,) float64     optional (schema 2): the body shape ``joints`` and ``features`` are for
+log_wbody          (N, S) float32   optional (schema 2): ``log(w + 1e-5)``, ``w`` the body's skinning weights
+                                    at each vertex's closest point on the rest body of shape ``betas``
+body               JSON string      optional (schema 2): ``{"name", "sha256", "weight_prior"}``: that body
+                                    (:func:`segadeform.body.identity.body_sha256`) and how its weights
+                                    reached the garment (the model's ``config.weight_prior``)
 =================  ===============  =============================================
+
+An asset **prepared for a body shape** (:meth:`GarmentAsset.for_body`, ``segadeform garment export``) has
+the three optional fields: with them it holds every model input that only Python computes (features for
+the shape, neighbours, mask, descriptor, the body's weights at the garment), so the Node, browser and C++
+runtimes animate it from a motion file alone.  Schema 1 (no optional fields) is still read.
 
 **Portable form** (``.sgda``, for runtimes without Python; ``docs/package.md``): the same fields in
 the scene-bundle container of :mod:`segadeform.bundle` (little-endian, a text header, 64-byte aligned
@@ -29,7 +40,8 @@ arrays; the Node and C++ runtimes' bundle readers read it), with ``vertices``, `
 ``descriptor`` as ``f64``, ``normals`` and ``features`` as ``f32``, ``faces``, ``nbr`` and
 ``fps_samples`` as ``i32``, ``mask`` as ``u8``, and the rest in ``meta``: ``kind`` =
 ``"segadeform-garment-asset"``, ``schema_version``, ``geodesic_radius``, ``params``,
-``source_name``, ``source_sha256``.  :meth:`GarmentAsset.save` writes it for a ``.sgda`` path and
+``source_name``, ``source_sha256``; prepared for a body, also the arrays ``betas`` (``f64``) and
+``log_wbody`` (``f32``) and ``meta.body``.  :meth:`GarmentAsset.save` writes it for a ``.sgda`` path and
 :meth:`GarmentAsset.load` reads either form; the round trip is exact.
 """
 
@@ -52,10 +64,12 @@ from .geodesic import DEFAULT_GEODESIC, GeodesicSolver
 from .graph import DEFAULT_MAX_K, neighbour_graph
 from .mesh_ops import vertex_normals
 
-__all__ = ["ASSET_SCHEMA_VERSION", "ASSET_KIND", "PORTABLE_SUFFIX", "GarmentAsset", "precompute_garment",
-           "file_sha256"]
+__all__ = ["ASSET_SCHEMA_VERSION", "READABLE_ASSET_SCHEMAS", "ASSET_KIND", "PORTABLE_SUFFIX", "GarmentAsset",
+           "precompute_garment", "file_sha256"]
 
-ASSET_SCHEMA_VERSION = 1
+#: 2: optional ``betas``, ``log_wbody`` and ``body`` (an asset prepared for a body shape)
+ASSET_SCHEMA_VERSION = 2
+READABLE_ASSET_SCHEMAS = (1, 2)
 #: ``meta.kind`` of the portable form, and its file suffix
 ASSET_KIND = "segadeform-garment-asset"
 PORTABLE_SUFFIX = ".sgda"
@@ -63,6 +77,9 @@ PORTABLE_SUFFIX = ".sgda"
 _PORTABLE = {"vertices": "f64", "faces": "i32", "normals": "f32", "features": "f32", "nbr": "i32", "mask": "u8",
              "joints": "f64", "descriptor": "f64", "fps_samples": "i32"}
 _NP_OF = {"f64": np.float64, "f32": np.float32, "i32": np.int32, "u8": np.uint8}
+#: the optional fields of an asset prepared for a body shape (portable dtypes); ``body`` is in ``meta``
+_BODY_PORTABLE = {"betas": "f64", "log_wbody": "f32"}
+_BODY_ARRAYS = {"betas": (np.float64, 1), "log_wbody": (np.float32, 2)}
 
 _ARRAYS = {
     "vertices": (np.float64, 2), "faces": (np.int64, 2), "normals": (np.float32, 2),
@@ -96,14 +113,56 @@ class GarmentAsset:
     params: dict
     source_name: str = ""
     source_sha256: str = ""
+    betas: np.ndarray | None = None
+    log_wbody: np.ndarray | None = None
+    body: dict | None = None
 
     @property
     def n_vertices(self) -> int:
         return int(self.vertices.shape[0])
 
+    @property
+    def for_a_body(self) -> bool:
+        """Whether the asset was prepared for a body shape (``betas``, ``log_wbody`` and ``body``)."""
+        return self.betas is not None
+
     def __repr__(self) -> str:
+        shape = f", betas={np.round(self.betas, 3).tolist()}" if self.for_a_body else ""
         return (f"GarmentAsset(N={self.n_vertices}, F={len(self.faces)}, K={self.nbr.shape[1]}, "
-                f"S={len(self.joints)}, N*={len(self.descriptor)}, source={self.source_name!r})")
+                f"S={len(self.joints)}, N*={len(self.descriptor)}, source={self.source_name!r}{shape})")
+
+    def for_body(self, body, betas=(), *, weight_prior: str = "nearest") -> "GarmentAsset":
+        """This garment prepared for ``body`` (a :class:`~segadeform.body.BodyModel`) of shape ``betas``: the
+        rest joints, the encoder features for them and the body's log weights at the garment, carried by
+        ``weight_prior`` (``nearest`` | ``inpaint``: the model's ``config.weight_prior``), computed as
+        ``segadeform run`` computes them (so runtimes without Python reproduce its frames), plus ``betas``
+        and the body's name, hash and the prior (``body``).  Neighbours, mask and descriptor do not depend on
+        the body and are kept.
+
+        Shapes:
+            betas: (B',), B' <= body.n_betas
+        """
+        from ..body.identity import body_label
+        from ..body.transfer import garment_weights, residual_log_weights
+
+        b = np.asarray(betas if betas is not None else [], np.float64).ravel()
+        if b.size > body.n_betas or not np.isfinite(b).all():
+            raise InputError("betas must be finite and at most the body's count", expected=f"<= {body.n_betas}",
+                             got=b.size if b.size > body.n_betas else "NaN or inf")
+        full = np.zeros(body.n_betas)
+        full[: b.size] = b
+        joints = body.rest_joints(full)[0]
+        if joints.shape != self.joints.shape:
+            raise InputError("the body's skeleton has another number of joints than the asset's",
+                             expected=self.joints.shape, got=joints.shape)
+        # as the runtime's encoder does: the normals as stored (float32), the joints of the shape
+        feats = vertex_features(self.vertices, self.faces, joints, normals=self.normals.astype(np.float64))
+        # as Deformer.body_log_weights does: the shape rounded to the float32 the graphs take
+        lw = residual_log_weights(garment_weights(self.vertices, self.faces, body, full.astype(np.float32),
+                                                  weight_prior))
+        return dataclasses.replace(self, features=feats.astype(np.float32), joints=joints.astype(np.float64),
+                                   betas=full, log_wbody=np.asarray(lw, np.float32),
+                                   body=dict(body_label(body), weight_prior=weight_prior))
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the asset atomically: an uncompressed ``.npz``, or the portable form for a ``.sgda`` path."""
@@ -121,6 +180,8 @@ class GarmentAsset:
                     source_name=np.str_(self.source_name),
                     source_sha256=np.str_(self.source_sha256),
                     **{k: getattr(self, k) for k in _ARRAYS},
+                    **({k: getattr(self, k) for k in _BODY_ARRAYS} | {"body": np.str_(json.dumps(self.body))}
+                       if self.for_a_body else {}),
                 )
         return p
 
@@ -134,6 +195,9 @@ class GarmentAsset:
         meta = {"kind": ASSET_KIND, "schema_version": ASSET_SCHEMA_VERSION,
                 "geodesic_radius": float(self.geodesic_radius), "params": self.params,
                 "source_name": self.source_name, "source_sha256": self.source_sha256}
+        if self.for_a_body:
+            arrays.update({k: getattr(self, k).astype(_NP_OF[dt]) for k, dt in _BODY_PORTABLE.items()})
+            meta["body"] = self.body
         return write_bundle(p, arrays, meta)
 
     @classmethod
@@ -144,21 +208,24 @@ class GarmentAsset:
         if meta.get("kind") != ASSET_KIND:
             raise FileFormatError("not a garment asset", path=p, expected=f"meta.kind {ASSET_KIND!r}",
                                   got=meta.get("kind"))
-        if meta.get("schema_version") != ASSET_SCHEMA_VERSION:
-            raise FileFormatError("unsupported garment asset schema version", path=p, expected=ASSET_SCHEMA_VERSION,
-                                  got=meta.get("schema_version"))
+        if meta.get("schema_version") not in READABLE_ASSET_SCHEMAS:
+            raise FileFormatError("unsupported garment asset schema version", path=p,
+                                  expected=" or ".join(map(str, READABLE_ASSET_SCHEMAS)), got=meta.get("schema_version"))
         fields = {}
-        for k, dt in _PORTABLE.items():
+        optional = {k: dt for k, dt in _BODY_PORTABLE.items() if k in arrays or "body" in meta}
+        for k, dt in (_PORTABLE | optional).items():
             a = arrays.get(k)
             if a is None or a.dtype != np.dtype(_NP_OF[dt]).newbyteorder("<"):
                 raise FileFormatError(f"garment asset field {k!r} is missing or has the wrong dtype", path=p,
                                       expected=dt, got=None if a is None else a.dtype)
-            fields[k] = a.astype(_ARRAYS[k][0])
+            fields[k] = a.astype((_ARRAYS | _BODY_ARRAYS)[k][0])
         try:
             radius = float(meta["geodesic_radius"])
             params = dict(meta["params"])
         except (KeyError, TypeError, ValueError):
             raise FileFormatError("garment asset meta lacks geodesic_radius or params", path=p) from None
+        if optional:
+            fields["body"] = meta.get("body")
         return cls(geodesic_radius=radius, params=params, source_name=str(meta.get("source_name", "")),
                    source_sha256=str(meta.get("source_sha256", "")), **fields)
 
@@ -191,10 +258,13 @@ class GarmentAsset:
                                   got="missing " + ", ".join(missing))
         try:
             version = int(z["schema_version"])
-            if version != ASSET_SCHEMA_VERSION:
+            if version not in READABLE_ASSET_SCHEMAS:
                 raise FileFormatError("unsupported garment asset schema version", path=p,
-                                      expected=ASSET_SCHEMA_VERSION, got=version)
+                                      expected=" or ".join(map(str, READABLE_ASSET_SCHEMAS)), got=version)
             fields = {k: z[k] for k in _ARRAYS}
+            if version >= 2 and ({"betas", "log_wbody", "body"} & names):
+                fields.update({k: z[k] for k in _BODY_ARRAYS if k in names})
+                fields["body"] = json.loads(str(z["body"])) if "body" in names else None
             params = json.loads(str(z["params"]))
             radius = float(z["geodesic_radius"])
             src = str(z["source_name"]) if "source_name" in names else ""
@@ -242,6 +312,23 @@ class GarmentAsset:
         for name in ("vertices", "normals", "features", "joints", "descriptor"):
             if not np.isfinite(getattr(self, name)).all():
                 raise InputError(f"asset field {name!r} contains NaN or inf")
+        given = [k for k in ("betas", "log_wbody", "body") if getattr(self, k) is not None]
+        if given and len(given) != 3:
+            raise InputError("an asset prepared for a body needs betas, log_wbody and body together",
+                             expected="all three or none", got=", ".join(given))
+        if given:
+            for k, (dt, nd) in _BODY_ARRAYS.items():
+                a = getattr(self, k)
+                if not isinstance(a, np.ndarray) or a.dtype != dt or a.ndim != nd or not np.isfinite(a).all():
+                    raise InputError(f"asset field {k!r} has the wrong type or is not finite",
+                                     expected=f"finite {np.dtype(dt).name} array with {nd} dims",
+                                     got=f"{getattr(a, 'dtype', type(a).__name__)} {getattr(a, 'shape', '')}")
+            if self.log_wbody.shape != (n, s):
+                raise InputError("asset field 'log_wbody' has the wrong shape", expected=(n, s),
+                                 got=self.log_wbody.shape)
+            if not isinstance(self.body, dict) or not isinstance(self.body.get("sha256"), str):
+                raise InputError("asset field 'body' must name the body", expected='{"name": str, "sha256": str}',
+                                 got=self.body)
         if not (np.isfinite(self.geodesic_radius) and self.geodesic_radius > 0):
             raise InputError("asset geodesic_radius must be positive", got=self.geodesic_radius)
 

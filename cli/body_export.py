@@ -1,0 +1,33 @@
+"""``segadeform export-body``: a body file -> the body graphs of a model package (docs/package.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from .main import cli
+
+
+@cli.command("export-body")
+@click.argument("body", required=False, type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, exists=True, path_type=Path),
+              help="The model package to give the body graphs (replaced in place, atomically).")
+@click.option("--to", "copy_to", type=click.Path(file_okay=False, path_type=Path),
+              help="Write the package with the body graphs here instead of replacing it.")
+def export_body_cmd(body, output, copy_to):
+    """Export BODY (.npz or SMPL .pkl; default: the shipped body) as the package's body graphs body_lbs and
+    body_dqs: betas, poses and translations in, posed vertices, joints, rest joints and triangles out, so
+    runtimes without Python pose the body (needs the 'torch' extra)."""
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise click.ClickException("export-body needs the 'torch' extra: pip install 'segadeform[torch]'") from None
+    from segadeform.body import default_body_path, load_body
+    from segadeform.export.body import add_body_to_package
+
+    b = load_body(body or default_body_path())
+    m = add_body_to_package(output, b, copy_to)
+    names = sorted(k for k, g in m["graphs"].items() if g["role"] == "body")
+    click.echo(f"{copy_to or output}: body graphs {', '.join(names)} of {Path(b.path).name if b.path else 'the body'} "
+               f"({b.n_vertices} vertices, {len(b.faces)} triangles, {b.n_betas} betas)")
