@@ -1,4 +1,4 @@
-"""``segadeform dataset make`` and ``segadeform dataset info``."""
+"""``segadeform dataset make``, ``info`` and ``regate``."""
 
 from __future__ import annotations
 
@@ -71,3 +71,22 @@ def dataset_info_cmd(folder, as_json):
         click.echo(f"  rejected: {c} x {r}")
     for row in st["by_size"]:
         click.echo(f"  {row['garment']:24s} {row['vertices']:6d} v  {row['seconds_per_frame']:.3f} s/frame")
+
+
+@dataset_group.command("regate")
+@click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, exists=True, path_type=Path),
+              help="The dataset folder.")
+@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
+def dataset_regate_cmd(config, output, body):
+    """Apply CONFIG's quality gate again to every sample of the dataset that kept its arrays (kept and
+    rejected alike), moving those whose status changes; nothing is simulated."""
+    from segadeform.dataset import load_dataset_config
+    from segadeform.dataset.make import regate
+
+    cfg = load_dataset_config(config)
+    r = regate(output, cfg, body_path=body)
+    for sid, status in r.moved:
+        click.echo(f"{sid}: now {status}")
+    click.echo(f"{output}: {r.kept} pass the gate, {r.rejected} do not ({len(r.moved)} moved; "
+               f"{len(r.skipped)} rejected before their arrays were kept)")

@@ -56,9 +56,10 @@ from ..motion import face_forward, load_motion, make_motion, resample
 from ..motion.motion import Motion
 from .config import DatasetConfig, GarmentSpec, MotionEntry
 from .quality import quality_check
-from .store import Sample, save_sample
+from .store import Sample, load_sample, save_sample
 
-__all__ = ["PlannedSample", "sample_plan", "make_dataset", "DatasetSummary", "sample_spec", "check_splits", "make_order"]
+__all__ = ["PlannedSample", "sample_plan", "make_dataset", "DatasetSummary", "sample_spec", "check_splits", "make_order", "regate",
+           "RegateSummary"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -265,7 +266,7 @@ def _run_one(root, cfg: DatasetConfig, ps: PlannedSample, body_path: Optional[st
     done = _committed(loc, ps.id)
     if done is not None:
         return done
-    for rel in (f"samples/{ps.id}.npz", f"samples/{ps.id}.json", f"rejected/{ps.id}.json"):
+    for rel in (f"samples/{ps.id}.npz", f"samples/{ps.id}.json", f"rejected/{ps.id}.npz", f"rejected/{ps.id}.json"):
         loc.remove_temporaries(rel)  # what a killed attempt of this task left
     if provision:
         from ..physics.setup import ensure_sim_python
@@ -302,20 +303,19 @@ def _run_one(root, cfg: DatasetConfig, ps: PlannedSample, body_path: Optional[st
     q = quality_check(res.frames, strain_rest, mesh.faces, posed, body.faces, cfg.quality, contact=contact)
     rec.update(quality=q.to_dict(), seconds_per_frame=res.seconds_per_frame, blender=res.blender["blender_version"],
                sim_seconds=res.blender["simulate_seconds"], preroll_frames=res.preroll_frames)
-    if q.ok:
-        meta = dict(rec, status="kept", fps=motion.fps, betas=list(betas), settings=res.settings,
-                    garment_params=dataclasses.asdict(g.params), config_digest=cfg.digest(),
-                    blender_info=res.blender)
-        committed = save_sample(loc, Sample(id=ps.id, rest=mesh.vertices, faces=mesh.faces,
-                                            betas=np.asarray(betas, np.float64), poses=motion.poses,
-                                            trans=motion.trans, frames=res.frames.astype(np.float32), meta=meta,
-                                            contact_p=contact["closest"], contact_n=contact["normal"],
-                                            cloth_rest=None if res.cloth_rest is None or strain_rest is mesh.vertices
-                                            else np.asarray(res.cloth_rest, np.float64)))
-        rec["status"] = "kept"
-    else:
-        rec.update(status="rejected", reasons=q.reasons)
-        committed = loc.put_bytes(f"rejected/{ps.id}.json", json.dumps(rec, indent=1).encode("utf-8"), once=True)
+    # a rejected sample keeps its arrays too: another gate can be applied later without simulating (regate)
+    rec.update(status="kept" if q.ok else "rejected", **({} if q.ok else {"reasons": q.reasons}))
+    meta = dict(rec, fps=motion.fps, betas=list(betas), settings=res.settings,
+                garment_params=dataclasses.asdict(g.params), config_digest=cfg.digest(), blender_info=res.blender)
+    finite = np.isfinite(res.frames).all()
+    committed = save_sample(loc, Sample(id=ps.id, rest=mesh.vertices, faces=mesh.faces,
+                                        betas=np.asarray(betas, np.float64), poses=motion.poses,
+                                        trans=motion.trans, frames=res.frames.astype(np.float32), meta=meta,
+                                        contact_p=contact["closest"] if finite else None,
+                                        contact_n=contact["normal"] if finite else None,
+                                        cloth_rest=None if res.cloth_rest is None or strain_rest is mesh.vertices
+                                        else np.asarray(res.cloth_rest, np.float64)),
+                            folder="samples" if q.ok else "rejected")
     if not committed:  # another attempt of this task committed it first: its record is the one
         return _committed(loc, ps.id)
     rec["seconds"] = time.perf_counter() - t0
@@ -411,6 +411,59 @@ class DatasetSummary:
     kept: int
     rejected: int
     records: list
+
+
+@dataclasses.dataclass(frozen=True)
+class RegateSummary:
+    kept: int            # samples that pass the gate now
+    rejected: int        # samples that fail it now
+    moved: list          # (id, "kept" | "rejected") of the samples whose status changed
+    skipped: list        # ids of rejected samples with no arrays (rejected before arrays were kept)
+
+
+def regate(out, cfg: DatasetConfig, *, body_path: Optional[Path] = None,
+           progress: Optional[Callable[[str], None]] = None) -> RegateSummary:
+    """Apply ``cfg``'s quality gate again to every sample of the dataset folder ``out`` that has its
+    arrays, kept or rejected, and move those whose status changes (``samples/`` <-> ``rejected/``: the
+    arrays and the ``.json`` that marks the sample are committed in the new place, then removed from the
+    old).  Nothing is simulated.  Run it while no ``dataset make`` writes to the same dataset."""
+    loc = open_location(out)
+    if not isinstance(loc, LocalLocation):
+        raise InputError("regate works on a dataset folder on this machine", got=str(out))
+    root = loc.root
+    body = load_body(body_path or default_body_path())
+    kept = rejected = 0
+    moved, skipped = [], []
+    for folder in ("samples", "rejected"):
+        d = root / folder
+        for meta_p in sorted(d.glob("*.json")) if d.is_dir() else []:
+            sid = meta_p.stem
+            if not (d / f"{sid}.npz").is_file():
+                skipped.append(sid)
+                rejected += folder == "rejected"
+                continue
+            if progress is not None:
+                progress(sid)
+            s = load_sample(root, sid, folder)
+            betas = s.betas if s.betas.size else None
+            posed = body.forward(s.poses, betas, s.trans).vertices
+            rest = s.cloth_rest if s.cloth_rest is not None else s.rest
+            q = quality_check(s.frames, rest, s.faces, posed, body.faces, cfg.quality)
+            kept += q.ok
+            rejected += not q.ok
+            now = "samples" if q.ok else "rejected"
+            meta = {k: v for k, v in s.meta.items() if k != "reasons"}
+            meta.update(quality=q.to_dict(), status="kept" if q.ok else "rejected")
+            if not q.ok:
+                meta["reasons"] = q.reasons
+            if now == folder:
+                loc.put_bytes(f"{folder}/{sid}.json", json.dumps(meta, indent=1, sort_keys=True).encode("utf-8"))
+                continue
+            save_sample(root, dataclasses.replace(s, meta=meta), folder=now)
+            meta_p.unlink()
+            (d / f"{sid}.npz").unlink()
+            moved.append((sid, meta["status"]))
+    return RegateSummary(kept=kept, rejected=rejected, moved=moved, skipped=skipped)
 
 
 def make_dataset(cfg: DatasetConfig, out, *, body_path: Optional[Path] = None, jobs: int = 1, sim_python=None,

@@ -8,11 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError, file_error, unreadable_error
+from ..errors import FileFormatError, InputError, file_error, unreadable_error
 from ..io.location import open_location
 from ..io.npz import load_npz
 
-__all__ = ["Sample", "save_sample", "load_sample", "list_samples"]
+__all__ = ["Sample", "save_sample", "load_sample", "list_samples", "SAMPLE_FOLDERS"]
+
+#: where a dataset keeps samples that passed its quality gate, and those that did not
+SAMPLE_FOLDERS = ("samples", "rejected")
 
 _ARRAYS = {"rest": 2, "faces": 2, "betas": 1, "poses": 2, "trans": 2, "frames": 3}
 
@@ -35,15 +38,19 @@ class Sample:
     cloth_rest: np.ndarray | None = None  # (N, 3) the cloth's rest shape when it was not ``rest`` (A-pose)
 
 
-def save_sample(root, s: Sample) -> bool:
+def save_sample(root, s: Sample, folder: str = "samples") -> bool:
     """Commit sample ``s`` to ``root`` (a folder, URL or :class:`~segadeform.io.location.Location`): the
     ``.npz`` first, then the ``.json`` that marks it done, once.  False (nothing written) when the
-    sample's ``.json`` is there already: a sample is committed once, whichever attempt gets there first."""
+    sample's ``.json`` is there already: a sample is committed once, whichever attempt gets there first.
+    ``folder``: ``samples`` (kept) or ``rejected`` (kept too, so that another gate can be applied later
+    without simulating again: :func:`segadeform.dataset.make.regate`)."""
+    if folder not in SAMPLE_FOLDERS:
+        raise InputError("a sample lives in 'samples' or 'rejected'", got=folder)
     loc = open_location(root)
-    meta_rel = f"samples/{s.id}.json"
+    meta_rel = f"{folder}/{s.id}.json"
     if loc.exists(meta_rel):
         return False
-    with loc.writing(f"samples/{s.id}.npz") as tmp:
+    with loc.writing(f"{folder}/{s.id}.npz") as tmp:
         with open(tmp, "wb") as fh:
             extra = {} if s.contact_p is None else {"contact_p": s.contact_p.astype(np.float32),
                                                      "contact_n": s.contact_n.astype(np.float32)}
@@ -54,8 +61,10 @@ def save_sample(root, s: Sample) -> bool:
     return loc.put_bytes(meta_rel, json.dumps(s.meta, indent=1, sort_keys=True).encode("utf-8"), once=True)
 
 
-def load_sample(root: Path, sid: str) -> Sample:
-    d = Path(root) / "samples"
+def load_sample(root: Path, sid: str, folder: str = "samples") -> Sample:
+    if folder not in SAMPLE_FOLDERS:
+        raise InputError("a sample lives in 'samples' or 'rejected'", got=folder)
+    d = Path(root) / folder
     meta_p = d / f"{sid}.json"
     try:
         raw = meta_p.read_bytes()
