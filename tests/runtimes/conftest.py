@@ -1,10 +1,40 @@
-"""The shared test vector every runtime is held to."""
+"""The shared test vectors every runtime is held to, and the runtimes' command lines (Node; C++, built once)."""
 
 from __future__ import annotations
 
+import shutil
+import subprocess
+
 import pytest
 
-from tests.conftest import SAMPLES
+from tests.conftest import REPO, SAMPLES
+
+NODE = REPO / "runtimes" / "node"
+
+
+@pytest.fixture(scope="session")
+def node():
+    """`segadeform-node` (runtimes/node/src/cli.js) as an argv prefix."""
+    if shutil.which("node") is None:
+        pytest.fail("node is not on PATH (the project's runtimes need Node.js >= 18)")
+    if not (NODE / "node_modules" / "onnxruntime-node").is_dir():
+        pytest.fail("runtimes/node has no node_modules: run `ONNXRUNTIME_NODE_INSTALL=skip npm ci` there "
+                    "(.ci/run does)")
+    return ["node", str(NODE / "src" / "cli.js")]
+
+
+@pytest.fixture(scope="session")
+def cpp(tmp_path_factory):
+    """`segadeform-run` (runtimes/cpp, with the collision kernel src/segadeform/body/_collide.c), built once per
+    session by tools/onnxruntime_cpp.sh, as an argv prefix."""
+    for tool in ("go", "cmake", "g++"):
+        if shutil.which(tool) is None:
+            pytest.fail(f"{tool} is not on PATH (building the C++ runtime needs go, cmake and g++)")
+    build = tmp_path_factory.mktemp("cpp") / "build"
+    b = subprocess.run([str(REPO / "tools" / "onnxruntime_cpp.sh"), str(build)], capture_output=True, text=True,
+                       timeout=900)
+    assert b.returncode == 0, (b.stdout + b.stderr)[-3000:]
+    return [b.stdout.strip().splitlines()[-1]]
 
 
 @pytest.fixture(scope="session")

@@ -2,12 +2,15 @@
 // PC2 point caches of the garment (and, with --body-out, of the body posed by the package's body graph) out:
 //
 //   segadeform-run --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]
-//                  [--effects lbs|dqs,dynamics,wrinkles] [--batch N] [--threads N]
+//                  [--effects lbs|dqs,dynamics,wrinkles,collisions] [--collision-margin M] [--batch N] [--threads N]
 //   segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--check]
 //
 // (the second form: a scene bundle from `segadeform bundle`; --check compares the frames with its `expected`
-// array, the Python runtime's output, and prints the error).  Built on the onnxruntime C API (the shared
-// library, C++17, no other dependency).  Formats: docs/package.md.
+// array, the Python runtime's output, and prints the error).  Without --effects: the model's own effects and
+// collisions when the package has a body graph, as `segadeform run` without --effects.  Collisions push the
+// garment out of the posed body with the compiled kernel src/segadeform/body/_collide.c (collide.hpp; margin
+// 0.004 m unless --collision-margin).  Built on the onnxruntime C API (the shared library, C++17, no other
+// dependency).  Formats: docs/package.md.
 #include <onnxruntime_c_api.h>
 
 #include <algorithm>
@@ -23,6 +26,7 @@
 #include <vector>
 
 #include "bundle.hpp"
+#include "collide.hpp"
 #include "json.hpp"
 
 namespace {
@@ -215,8 +219,11 @@ void write_pc2(const std::string& path, const float* frames, int32_t T, int32_t 
 
 struct Effects {
   std::string skinning = "lbs";
-  bool wrinkles = false, dynamics = false;
+  bool wrinkles = false, dynamics = false, collisions = false;
 };
+
+// segadeform.scene.Effects.collision_margin's default (metres)
+const double DEFAULT_COLLISION_MARGIN = 0.004;
 
 // --effects: a complete list, as `segadeform run --effects` (what is not named is off; lbs unless dqs is named).
 Effects parse_effects(const std::string& text) {
@@ -229,8 +236,9 @@ Effects parse_effects(const std::string& text) {
     else if (item == "dqs") dqs = true;
     else if (item == "dynamics") e.dynamics = true;
     else if (item == "wrinkles") e.wrinkles = true;
-    else if (item == "collisions") throw std::runtime_error("collisions are not in this runtime yet (expected lbs, dqs, dynamics, wrinkles)");
-    else if (!item.empty()) throw std::runtime_error("unknown effect '" + item + "' (expected lbs, dqs, dynamics, wrinkles)");
+    else if (item == "collisions") e.collisions = true;
+    else if (!item.empty())
+      throw std::runtime_error("unknown effect '" + item + "' (expected lbs, dqs, dynamics, wrinkles, collisions)");
   }
   if (lbs && dqs) throw std::runtime_error("name one skinning (expected lbs or dqs, got both)");
   e.skinning = dqs ? "dqs" : "lbs";
@@ -270,6 +278,7 @@ struct Package {
     throw std::runtime_error("the package has no deformer graph for effects " + want.skinning +
                              (want.dynamics ? ", dynamics" : "") + (want.wrinkles ? ", wrinkles" : ""));
   }
+  // the effects of a run that names none: the model's own and collisions when the package can pose the body
   Effects default_effects() const {
     if (schema == 1) {
       const auto& c = manifest["config"];
@@ -279,7 +288,15 @@ struct Package {
       e.dynamics = true;
       return e;
     }
-    return effects_of(manifest["graphs"][manifest["default_deformer"].str]["effects"]);
+    Effects e = effects_of(manifest["graphs"][manifest["default_deformer"].str]["effects"]);
+    e.collisions = has_body();
+    return e;
+  }
+  bool has_body() const {
+    if (schema < 3) return false;
+    for (const auto& kv : manifest["graphs"].obj)
+      if (kv.second.has("role") && kv.second["role"].str == "body") return true;
+    return false;
   }
   // the body graph posing with `skinning`, or nullptr when the package has none (packages before schema 3)
   const sgd::Json* body(const std::string& skinning) const {
@@ -471,9 +488,10 @@ std::vector<float> animate(OrtEnv* env, const Package& pkg, const sgd::Json& dec
   return frames;
 }
 
-// The body posed by the package's body graph (betas (|beta|,), poses (B, S, 3), trans (B, 3) -> vertices, ...).
+// The body posed by the package's body graph (betas (|beta|,), poses (B, S, 3), trans (B, 3) -> vertices, ...);
+// its triangles (the graph's constant `faces` output) in *faces.
 std::vector<float> pose_body(OrtEnv* env, const Package& pkg, const sgd::Json& spec, const Scene& sc, int batch,
-                             int threads, int64_t* V, double* ms_per_frame) {
+                             int threads, int64_t* V, double* ms_per_frame, std::vector<int32_t>* faces) {
   if (spec.has("body") && !sc.body_sha.empty() && spec["body"]["sha256"].str != sc.body_sha)
     throw std::runtime_error("the garment asset was prepared for another body than the package's (" +
                              spec["body"]["name"].str + ")");
@@ -495,8 +513,10 @@ std::vector<float> pose_body(OrtEnv* env, const Package& pkg, const sgd::Json& s
     din.push_back(input_floats("trans", std::vector<float>(sc.trans.begin() + lo * 3, sc.trans.begin() + hi * 3), {B, 3}));
     std::vector<Input> all{Input{"betas", {}, {NB}, fixed[0].value}};
     for (auto& d : din) all.push_back(Input{d.name, {}, d.dims, d.value});
-    Output v = std::move(sess.run(all, {"vertices"})[0]);
-    std::copy(v.f.begin(), v.f.end(), out.begin() + lo * *V * 3);
+    std::vector<Output> o = sess.run(all, lo == 0 ? std::vector<std::string>{"vertices", "faces"}
+                                                  : std::vector<std::string>{"vertices"});
+    std::copy(o[0].f.begin(), o[0].f.end(), out.begin() + lo * *V * 3);
+    if (lo == 0) *faces = std::move(o[1].i);
     release(din);
   }
   release(fixed);
@@ -504,9 +524,25 @@ std::vector<float> pose_body(OrtEnv* env, const Package& pkg, const sgd::Json& s
   return out;
 }
 
+// Collisions: the garment's frames (T * N * 3) pushed out of the posed body (T * V * 3), a batch of frames at a time.
+// Returns the number of (frame, vertex) pairs moved; *ms_per_frame: the collider's build, refits and push-outs.
+int64_t collide(std::vector<float>& frames, int64_t T, int64_t N, const std::vector<float>& body, int64_t V,
+                const std::vector<int32_t>& faces, double margin, int batch, int threads, double* ms_per_frame) {
+  auto t0 = std::chrono::steady_clock::now();
+  sgd::Collider col(body.data(), V, faces.data(), static_cast<int64_t>(faces.size() / 3));
+  int64_t moved = 0;
+  for (int64_t lo = 0; lo < T; lo += batch) {
+    const int64_t B = std::min<int64_t>(lo + batch, T) - lo;
+    moved += col.push_out(frames.data() + lo * N * 3, B, N, body.data() + lo * V * 3, margin, threads);
+  }
+  *ms_per_frame = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / T;
+  return moved;
+}
+
 const char* USAGE =
     "usage: segadeform-run --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]\n"
-    "                      [--effects lbs|dqs,dynamics,wrinkles] [--batch N] [--threads N]\n"
+    "                      [--effects lbs|dqs,dynamics,wrinkles,collisions] [--collision-margin M] [--batch N]\n"
+    "                      [--threads N]\n"
     "       segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--check]\n";
 
 }  // namespace
@@ -515,6 +551,8 @@ int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   std::string out, package, garment, motion, body_out, effects;
   int batch = 8, threads = 1;
+  double margin = DEFAULT_COLLISION_MARGIN;
+  bool margin_given = false;
   bool do_check = false;
   std::vector<std::string> pos;
   try {
@@ -528,6 +566,12 @@ int main(int argc, char** argv) {
       else if (args[i] == "--motion" && more) motion = args[++i];
       else if (args[i] == "--body-out" && more) body_out = args[++i];
       else if (args[i] == "--effects" && more) effects = args[++i];
+      else if (args[i] == "--collision-margin" && more) {
+        size_t used = 0;
+        margin = std::stod(args[++i], &used);
+        if (used != args[i].size()) throw std::invalid_argument(args[i]);
+        margin_given = true;
+      }
       else if (args[i] == "--check") do_check = true;
       else pos.push_back(args[i]);
     }
@@ -537,7 +581,7 @@ int main(int argc, char** argv) {
   }
   const bool flag_form = !package.empty() || !garment.empty() || !motion.empty();
   const bool ok = flag_form ? (!package.empty() && !garment.empty() && !motion.empty() && pos.empty() && !do_check)
-                            : (pos.size() == 2 && body_out.empty() && effects.empty());
+                            : (pos.size() == 2 && body_out.empty() && effects.empty() && !margin_given);
   if (!ok || out.empty() || batch < 1 || threads < 1) {
     std::cerr << USAGE;
     return 2;
@@ -560,23 +604,33 @@ int main(int argc, char** argv) {
       sc = scene_of_bundle(bundle);
       eff = effects_of(bundle.meta["effects"]);
     }
+    if (!(margin >= 0 && margin < 1))
+      throw std::runtime_error("the collision margin must be in [0, 1) metres (got " + std::to_string(margin) + ")");
     const sgd::Json& dec_spec = pkg.deformer(eff);
-    const sgd::Json* body_spec = body_out.empty() ? nullptr : pkg.body(eff.skinning);
-    if (!body_out.empty() && !body_spec)
-      throw std::runtime_error("the package has no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
+    const bool need_body = !body_out.empty() || eff.collisions;
+    const sgd::Json* body_spec = need_body ? pkg.body(eff.skinning) : nullptr;
+    if (need_body && !body_spec)
+      throw std::runtime_error(std::string(eff.collisions ? "collisions need the posed body, and " : "") +
+                               "the package has no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
     OrtEnv* env;
     check(api->CreateEnv(ORT_LOGGING_LEVEL_WARNING, "segadeform", &env));
-    double ms = 0, body_ms = 0;
+    double ms = 0, body_ms = 0, col_ms = 0;
     std::vector<float> frames = animate(env, pkg, dec_spec, sc, batch, threads, &ms);
-    int64_t V = 0;
+    int64_t V = 0, moved = 0;
     std::vector<float> body;
-    if (body_spec) body = pose_body(env, pkg, *body_spec, sc, batch, threads, &V, &body_ms);
+    std::vector<int32_t> body_faces;
+    if (body_spec) body = pose_body(env, pkg, *body_spec, sc, batch, threads, &V, &body_ms, &body_faces);
+    if (eff.collisions) moved = collide(frames, sc.T, sc.N, body, V, body_faces, margin, batch, threads, &col_ms);
     write_pc2(out, frames.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(sc.N));
-    if (body_spec) write_pc2(body_out, body.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(V));
-    std::printf("%lld frames, %.2f ms/frame (%s%s%s) -> %s", static_cast<long long>(sc.T), ms, eff.skinning.c_str(),
-                eff.dynamics ? ", dynamics" : "", eff.wrinkles ? ", wrinkles" : "", out.c_str());
-    if (body_spec) std::printf("; body %lld vertices, %.2f ms/frame -> %s", static_cast<long long>(V), body_ms,
-                               body_out.c_str());
+    if (!body_out.empty()) write_pc2(body_out, body.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(V));
+    std::printf("%lld frames, %.2f ms/frame (%s%s%s%s) -> %s", static_cast<long long>(sc.T), ms, eff.skinning.c_str(),
+                eff.dynamics ? ", dynamics" : "", eff.wrinkles ? ", wrinkles" : "", eff.collisions ? ", collisions" : "",
+                out.c_str());
+    if (!body_out.empty())
+      std::printf("; body %lld vertices, %.2f ms/frame -> %s", static_cast<long long>(V), body_ms, body_out.c_str());
+    if (eff.collisions)
+      std::printf("; collisions: %lld vertex-frames pushed out (margin %g m), %.2f ms/frame",
+                  static_cast<long long>(moved), margin, col_ms);
     std::printf("\n");
     if (do_check) {
       const auto& e = bundle.at("expected");
