@@ -1,9 +1,14 @@
 // segadeform's JavaScript core, shared by the Node runtime (index.js) and the browser runtime
 // (runtimes/web): no Node or DOM APIs here, the onnxruntime module is passed in.
 // The package format is docs/package.md; the container of scene bundles (.sgdb), garment assets (.sgda)
-// and motion files (.sgdm) is src/segadeform/bundle.py.
+// and motion files (.sgdm) is src/segadeform/bundle.py.  Collisions: collide.js (the port of the C kernel).
 
+import { BodyCollider, pushOutFrames } from "./collide.js";
+
+export { BodyCollider, pushOutFrames };
 export const FORMAT = "segadeform-model-package";
+/** The collision margin when none is given (metres): segadeform.scene.Effects.collision_margin's default. */
+export const DEFAULT_COLLISION_MARGIN = 0.004;
 const MAGIC = "SEGADEFORM-BUNDLE 1\n";
 const DTYPES = {
   f32: [Float32Array, 4], f64: [Float64Array, 8], i32: [Int32Array, 4], i64: [BigInt64Array, 8], u8: [Uint8Array, 1],
@@ -92,25 +97,33 @@ export function pickVariant(manifest, effects) {
   throw new Error(`the package has no deformer graph for effects ${JSON.stringify(effects)} (expected one of ${have})`);
 }
 
-/** The model's own effects (its default deformer's). */
+/**
+ * The effects of a run that names none, as `segadeform run` without --effects: the model's own (its default
+ * deformer's) and collisions when the package can pose the body (it has a body graph).
+ */
 export function defaultEffects(manifest) {
-  return { ...manifest.graphs[manifest.default_deformer].effects };
+  return { ...manifest.graphs[manifest.default_deformer].effects, collisions: hasBody(manifest) };
 }
 
 /**
- * Effects from a complete list such as "dqs,dynamics,wrinkles" (what is not named is off; lbs unless dqs is
- * named), as `segadeform run --effects`.  Collisions are not a graph and not in this runtime.
+ * Effects from a complete list such as "dqs,dynamics,wrinkles,collisions" (what is not named is off; lbs unless dqs
+ * is named), as `segadeform run --effects`.  Collisions are not a graph: the push-out out of the body posed by the
+ * package's body graph (collide.js), after the deformer.
  */
 export function parseEffects(text) {
   const names = text.split(",").map((s) => s.trim()).filter(Boolean);
-  const known = ["lbs", "dqs", "dynamics", "wrinkles"];
+  const known = ["lbs", "dqs", "dynamics", "wrinkles", "collisions"];
   for (const n of names) {
-    if (n === "collisions") throw new Error("collisions are not in this runtime yet (expected lbs, dqs, dynamics, wrinkles)");
     if (!known.includes(n)) throw new Error(`unknown effect '${n}' (expected ${known.join(", ")})`);
   }
   if (names.includes("lbs") && names.includes("dqs")) throw new Error("name one skinning (expected lbs or dqs, got both)");
   return { skinning: names.includes("dqs") ? "dqs" : "lbs", wrinkles: names.includes("wrinkles"),
-    dynamics: names.includes("dynamics") };
+    dynamics: names.includes("dynamics"), collisions: names.includes("collisions") };
+}
+
+/** Whether a package has body graphs (schema 3 with `segadeform export-body`): what collisions need. */
+export function hasBody(manifest) {
+  return Object.values(manifest.graphs).some((g) => g.role === "body");
 }
 
 /** The body graph posing with `skinning` ({name, spec}), or null when the package has no body graph. */
@@ -241,11 +254,17 @@ function modelBetas(betas, nb) {
  * Animate a source with a package's graphs: a scene bundle, or { asset, motion } (parsed .sgda and .sgdm).
  * `session(spec)` returns an onnxruntime InferenceSession for a graph's manifest entry.
  * Returns { frames: Float32Array (T*N*3), T, N, msPerFrame, variant, effects, faces, fps, warnings }.
- * options: { effects (default: the bundle's, else the model's own), batch (8) }.
+ * options: { effects (default: the bundle's, else defaultEffects), batch (8) }.  With effects.collisions the frames
+ * are the deformer's: the host pushes them out of the posed body afterwards (poseBodyWith, collideWith).
  */
 export async function animateWith(ort, manifest, source, session, options = {}) {
   const I = sceneInputs(source);
-  const effects = options.effects || I.effects || defaultEffects(manifest);
+  const effects = { collisions: false, ...(options.effects || I.effects || defaultEffects(manifest)) };
+  if (options.collisionMargin !== undefined) checkMargin(options.collisionMargin);
+  if (effects.collisions && !hasBody(manifest)) {
+    throw new Error("collisions need the posed body, and the package has no body graph (segadeform export-body " +
+      "[BODY] -o PACKAGE adds one)");
+  }
   const batch = options.batch || 8;
   const encSpec = manifest.graphs.garment_encoder;
   const { name: variant, spec: decSpec } = pickVariant(manifest, effects);
@@ -355,6 +374,27 @@ export async function poseBodyWith(ort, manifest, source, session, { skinning = 
     }
   }
   return { vertices, joints, restJoints, faces, V, T, msPerFrame: (performance.now() - t0) / T, graph: name };
+}
+
+/** A collision margin must be in [0, 1) metres, as a scene's collision_margin. */
+export function checkMargin(margin) {
+  if (!(typeof margin === "number" && margin >= 0 && margin < 1)) {
+    throw new Error(`the collision margin must be in [0, 1) metres (got ${margin})`);
+  }
+}
+
+/**
+ * Collisions: push the garment's frames out of the posed body (`segadeform run`'s post-process: p' = closest +
+ * margin * n for every vertex inside the body or closer than `margin`, up to 3 passes; collide.js).  `r` is
+ * animateWith's result (its frames are changed in place), `body` poseBodyWith's.  Returns { moved (vertex-frames
+ * moved), msPerFrame (collider build, refit and push-out), margin }.
+ */
+export function collideWith(r, body, { margin = DEFAULT_COLLISION_MARGIN, iterations = 3, batch = 8 } = {}) {
+  checkMargin(margin);
+  if (!body || body.error) throw new Error(`collisions need the posed body${body && body.error ? `: ${body.error}` : ""}`);
+  if (body.T !== r.T) throw new Error(`the posed body has ${body.T} frames, the garment ${r.T}`);
+  const c = pushOutFrames(r.frames, r.T, r.N, body.vertices, body.V, body.faces, { margin, iterations, batch });
+  return { moved: c.moved, msPerFrame: c.msPerFrame, margin };
 }
 
 /** Parity of `got` against `expected` (same length): { maxAbs, rel (to the largest |expected|), finite, sameLength }. */

@@ -6,12 +6,16 @@ import { createHash } from "node:crypto";
 import { join } from "node:path";
 import * as ort from "onnxruntime-node";
 import {
-  animateWith, compareFrames, defaultEffects, parseBundle, parseEffects, pc2Bytes, pickBody, pickVariant,
-  poseBodyWith, readAsset as checkAsset, readManifest, readMotion as checkMotion,
+  animateWith, BodyCollider, collideWith, compareFrames, DEFAULT_COLLISION_MARGIN, defaultEffects, parseBundle,
+  parseEffects, pc2Bytes, pickBody, pickVariant, poseBodyWith, pushOutFrames, readAsset as checkAsset, readManifest,
+  readMotion as checkMotion,
 } from "./core.js";
 
 export { parseBundle, readBundle } from "./bundle.js";
-export { compareFrames, defaultEffects, parseEffects, pickBody, pickVariant };
+export {
+  BodyCollider, compareFrames, DEFAULT_COLLISION_MARGIN, defaultEffects, parseEffects, pickBody, pickVariant,
+  pushOutFrames,
+};
 
 /** Read a model package's manifest (docs/package.md) and check every file against its sha256. */
 export function loadManifest(dir) {
@@ -61,9 +65,11 @@ function sessions(dir, options) {
  *   animate(dir, bundle, options)           bundle: a .sgdb path or readBundle(...) (the Python runtime's scene)
  * Returns { frames: Float32Array (T*N*3), T, N, msPerFrame, variant, effects, faces, fps, warnings } and, with
  * options.body, body: { vertices (T*V*3), joints, restJoints, faces, V, T, msPerFrame, graph } (the package's body
- * graph, with the garment's skinning).
- * options: { effects (default: the bundle's, else the model's own; an object or "dqs,dynamics,wrinkles"), batch (8),
- * threads (1), body (false) }.
+ * graph, with the garment's skinning); with collisions in the effects, the frames pushed out of that body and
+ * collisions: { moved (vertex-frames moved), msPerFrame, margin }.
+ * options: { effects (an object or "dqs,dynamics,wrinkles,collisions"; default: a bundle's, else the model's own
+ * and collisions when the package has a body graph), collisionMargin (metres, 0.004), batch (8), threads (1),
+ * body (false) }.
  */
 export async function animate(dir, garment, motion, options = {}) {
   let source;
@@ -82,8 +88,13 @@ export async function animate(dir, garment, motion, options = {}) {
   const manifest = loadManifest(dir);
   const session = sessions(dir, options);
   const r = await animateWith(ort, manifest, source, session, options);
-  if (options.body) {
-    r.body = await poseBodyWith(ort, manifest, source, session, { skinning: r.effects.skinning, batch: options.batch });
+  if (options.body || r.effects.collisions) {
+    const body = await poseBodyWith(ort, manifest, source, session, { skinning: r.effects.skinning, batch: options.batch });
+    if (options.body) r.body = body;
+    if (r.effects.collisions) {
+      r.collisions = collideWith(r, body, { margin: options.collisionMargin ?? DEFAULT_COLLISION_MARGIN,
+        batch: options.batch });
+    }
   }
   return r;
 }

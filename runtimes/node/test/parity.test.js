@@ -15,10 +15,10 @@ test("bundle header errors are clear", () => {
 });
 
 test("effects lists read as `segadeform run --effects` reads them", () => {
-  assert.deepEqual(parseEffects("dqs,dynamics"), { skinning: "dqs", wrinkles: false, dynamics: true });
-  assert.deepEqual(parseEffects("wrinkles"), { skinning: "lbs", wrinkles: true, dynamics: false });
+  assert.deepEqual(parseEffects("dqs,dynamics"), { skinning: "dqs", wrinkles: false, dynamics: true, collisions: false });
+  assert.deepEqual(parseEffects("wrinkles"), { skinning: "lbs", wrinkles: true, dynamics: false, collisions: false });
+  assert.deepEqual(parseEffects("lbs,collisions"), { skinning: "lbs", wrinkles: false, dynamics: false, collisions: true });
   assert.throws(() => parseEffects("lbs,dqs"), /one skinning/);
-  assert.throws(() => parseEffects("lbs,collisions"), /collisions are not in this runtime/);
   assert.throws(() => parseEffects("lbs,wind"), /unknown effect 'wind'/);
 });
 

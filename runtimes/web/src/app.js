@@ -1,8 +1,10 @@
 // The viewer page: run a garment asset (.sgda) and a motion (.sgdm) -- or a scene bundle -- through a model
 // package (onnxruntime-web), with the body posed by the package's body graph, or play dropped OBJ + PC2 files,
 // with three.js.  Query: ?garment=G.sgda&motion=M.sgdm (or ?bundle=URL) &package=URL&ep=wasm|webgpu&batch=8
-// &effects=dqs,dynamics,wrinkles&frame=N&paused=1&check=VEC.sgdb (the Python runtime's frames, `expected` and
-// `body`, to compare with) &body=BODY.pc2&bodyMesh=BODY.obj (a posed body from `segadeform run --body-out`).
+// &effects=dqs,dynamics,wrinkles,collisions&margin=M (the collision margin, metres; 0.004) &frame=N&paused=1
+// &check=VEC.sgdb (the Python runtime's frames, `expected` and `body`, to compare with) &body=BODY.pc2
+// &bodyMesh=BODY.obj (a posed body from `segadeform run --body-out`).  Without `effects`: the model's own and
+// collisions when the package has a body graph (the garment pushed out of the posed body, as `segadeform run`).
 // Dropping files works as well: a package's files or folder, a .sgda and a .sgdm, a .sgdb, OBJ + PC2.
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
@@ -131,14 +133,15 @@ async function runScene(source, expected = null) {
   const p = await getPackage();
   say(`running ${p.url} on ${ep} ...`);
   const effects = q.get("effects") ? parseEffects(q.get("effects")) : undefined;
-  const r = await animate(o, p, source, { ep, batch: +(q.get("batch") || 8), effects });
+  const collisionMargin = q.has("margin") ? Number(q.get("margin")) : undefined;
+  const r = await animate(o, p, source, { ep, batch: +(q.get("batch") || 8), effects, collisionMargin });
   clearTracks();
   const faces = r.faces ? Uint32Array.from(r.faces) : new Uint32Array(0);
   addTrack(faces, r.frames, r.N, r.T, 0x3b64d8);
   if (r.body && !r.body.error) addTrack(Uint32Array.from(r.body.faces), r.body.vertices, r.body.V, r.body.T, 0xd9b99b);
   if (r.fps) fps = r.fps;
   const result = { ep, T: r.T, N: r.N, msPerFrame: r.msPerFrame, variant: r.variant, ort: o.env.versions?.web,
-    warnings: r.warnings };
+    warnings: r.warnings, effects: r.effects, collisions: r.collisions };
   const want = expected || (source.arrays && source.arrays.expected ? { expected: source.arrays.expected } : null);
   if (want && want.expected) Object.assign(result, compareFrames(r.frames, want.expected.data));
   if (r.body) {
@@ -149,7 +152,9 @@ async function runScene(source, expected = null) {
   if (q.has("frame")) show(Math.min(+q.get("frame"), T - 1));
   const bodyLine = r.body ? (r.body.error ? `\nbody not shown: ${r.body.error}`
     : `\nbody: ${r.body.V} vertices, ${r.body.msPerFrame.toFixed(1)} ms/frame (${r.body.graph})`) : "";
-  say(`${r.T} frames x ${r.N} vertices, ${r.msPerFrame.toFixed(1)} ms/frame on ${ep} (${r.variant})${bodyLine}` +
+  const colLine = r.collisions ? `\ncollisions: ${r.collisions.moved} vertex-frames pushed out of the body (margin ` +
+    `${r.collisions.margin} m), ${r.collisions.msPerFrame.toFixed(1)} ms/frame` : "";
+  say(`${r.T} frames x ${r.N} vertices, ${r.msPerFrame.toFixed(1)} ms/frame on ${ep} (${r.variant})${bodyLine}${colLine}` +
       (result.rel !== undefined ? `\nagainst Python: max abs ${result.maxAbs.toExponential(2)}, rel ${result.rel.toExponential(2)}` : "") +
       (r.warnings && r.warnings.length ? `\nwarning: ${r.warnings.join("; ")}` : ""));
   return result;

@@ -1,7 +1,8 @@
 // segadeform in the browser: a model package fetched over HTTP (or dropped on the page), its graphs run by
 // onnxruntime-web (wasm or WebGPU).  The animation logic is the Node runtime's core.js, shared as is.
 import {
-  animateWith, compareFrames, parseBundle, pickBody, pickVariant, poseBodyWith, readAsset, readManifest, readMotion,
+  animateWith, collideWith, compareFrames, DEFAULT_COLLISION_MARGIN, parseBundle, pickBody, pickVariant, poseBodyWith,
+  readAsset, readManifest, readMotion,
 } from "../../node/src/core.js";
 
 export { compareFrames, parseBundle, pickBody, pickVariant, readAsset, readMotion };
@@ -75,11 +76,14 @@ export async function openContainer(src, name = String(src)) {
 
 /**
  * Animate a scene bundle (parsed, or a URL) or { asset, motion } (parsed) with a loaded package on `ort` (from
- * loadOrt), and pose the body when the package has a body graph (options.body !== false).
- * Returns core.animateWith's result plus the execution provider and `body` (core.poseBodyWith's result, or
- * { error } when the body cannot be posed: no body graph, another body).
+ * loadOrt), and pose the body when the package has a body graph (options.body !== false) or collisions need it.
+ * Returns core.animateWith's result plus the execution provider, `body` (core.poseBodyWith's result, or { error }
+ * when the body cannot be posed: no body graph, another body) and, with collisions in the effects (named, or by
+ * default when the package has a body graph), the frames pushed out of that body (the Node runtime's collide.js)
+ * and `collisions` ({ moved, msPerFrame, margin }: core.collideWith's).
  */
-export async function animate(ort, pkg, source, { ep = "wasm", batch = 8, effects, body = true } = {}) {
+export async function animate(ort, pkg, source, { ep = "wasm", batch = 8, effects, body = true,
+  collisionMargin = DEFAULT_COLLISION_MARGIN } = {}) {
   if (typeof source === "string") source = parseBundle(await fetchBytes(source), source);
   const external = pkg.manifest.weights
     ? [{ path: pkg.manifest.weights.file, data: pkg.files[pkg.manifest.weights.file] }] : [];
@@ -92,14 +96,16 @@ export async function animate(ort, pkg, source, { ep = "wasm", batch = 8, effect
     }
     return made.get(spec.file);
   };
-  const r = await animateWith(ort, pkg.manifest, source, session, { batch, effects });
+  const r = await animateWith(ort, pkg.manifest, source, session, { batch, effects, collisionMargin });
   let posed = null;
-  if (body && Object.values(pkg.manifest.graphs).some((g) => g.role === "body")) {
+  if ((body || r.effects.collisions) && Object.values(pkg.manifest.graphs).some((g) => g.role === "body")) {
     try {
       posed = await poseBodyWith(ort, pkg.manifest, source, session, { skinning: r.effects.skinning, batch });
     } catch (e) {
+      if (r.effects.collisions) throw e; // collisions cannot do without the body
       posed = { error: e.message };
     }
   }
-  return { ...r, ep, source, body: posed };
+  const collisions = r.effects.collisions ? collideWith(r, posed, { margin: collisionMargin, batch }) : null;
+  return { ...r, ep, source, body: body ? posed : null, collisions };
 }

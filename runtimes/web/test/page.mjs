@@ -1,7 +1,8 @@
 // Open the viewer page in headless Chromium, run a garment asset and a motion (or a bundle) through a package,
 // print the result as `PAGE {json}` and save a screenshot.   Used by tests/runtimes/test_web.py and bench/runtimes.py:
 //   node test/page.mjs --root REPO --package PATH_IN_ROOT (--garment G.sgda --motion M.sgdm [--check VEC.sgdb] |
-//        --bundle PATH_IN_ROOT) --ep wasm|webgpu [--drop] [--effects dqs,dynamics,wrinkles] [--screenshot OUT.png]
+//        --bundle PATH_IN_ROOT) --ep wasm|webgpu [--drop] [--effects dqs,dynamics,wrinkles,collisions]
+//        [--margin M] [--screenshot OUT.png]
 //        [--frame N] [--body B.pc2 --body-mesh B.obj] [--chromium /usr/bin/chromium]
 // --drop: open the page bare and drop the package's files, the asset and the motion on it (a synthetic drop event
 // carrying the files, as a user's drag and drop does), instead of naming them in the query.
@@ -16,6 +17,7 @@ const port = server.address().port;
 const query = { ep, batch: opt("--batch", "4"), frame: opt("--frame", "0"), paused: "1" };
 if (!dropMode) query.package = `/${opt("--package")}/`;
 if (opt("--effects")) query.effects = opt("--effects");
+if (opt("--margin")) query.margin = opt("--margin");
 if (args.includes("--check")) query.check = `/${opt("--check")}`;
 if (!dropMode && args.includes("--garment")) {
   Object.assign(query, { garment: `/${opt("--garment")}`, motion: `/${opt("--motion")}` });

@@ -1,0 +1,34 @@
+// The JavaScript collider (src/collide.js) on a shared test vector made by Python's BodyCollider (the compiled
+// kernel, src/segadeform/body/_collide.c): prints `COLLIDE {json}` with the largest differences.
+//   node scripts/collide_vectors.mjs VEC.sgdb
+// VEC.sgdb (tests/runtimes/test_collisions.py writes it): rest (V, 3) f64 and faces (F, 3) i32 of the body, posed
+// (B, V, 3) f64, points (P, 3) f64 queried against posed[query_frame] with Python's sd (P), closest (P, 3),
+// normal (P, 3) and face (P), and push_in (B, N, 3) pushed out of the B frames with meta.margin into push_out
+// (B, N, 3), meta.moved points moved.
+import { readBundle } from "../src/bundle.js";
+import { BodyCollider } from "../src/collide.js";
+
+const { arrays: A, meta } = readBundle(process.argv[2]);
+const maxDiff = (x, y) => {
+  let m = 0;
+  for (let i = 0; i < x.length; i++) m = Math.max(m, Math.abs(x[i] - y[i]));
+  return m;
+};
+const [B, V] = A.posed.shape;
+const col = new BodyCollider(A.rest.data, A.faces.data);
+const f = meta.query_frame;
+const q = col.query(A.posed.data.subarray(f * V * 3, (f + 1) * V * 3), A.points.data);
+let faces = 0;
+for (let i = 0; i < q.face.length; i++) if (q.face[i] !== A.face.data[i]) faces++;
+const pts = new Float64Array(A.push_in.data);
+const N = A.push_in.shape[1];
+const t0 = performance.now();
+const r = col.pushOut(A.posed.data, pts, B, N, meta.margin, meta.iterations);
+const ms = performance.now() - t0;
+let identical = 0;
+for (let i = 0; i < pts.length; i++) if (pts[i] === A.push_out.data[i]) identical++;
+console.log(`COLLIDE ${JSON.stringify({
+  closed: col.closed, nodes: col.nNodes, points: q.face.length, sd: maxDiff(q.signedDistance, A.sd.data),
+  closest: maxDiff(q.closest, A.closest.data), normal: maxDiff(q.normal, A.normal.data), facesDiffer: faces,
+  pushOut: maxDiff(pts, A.push_out.data), identical, coordinates: pts.length, moved: r.moved, pushMs: ms,
+})}`);
