@@ -73,6 +73,23 @@ def inspect_cmd(path):
         from segadeform.body import load_body
 
         click.echo(f"{path}: body {load_body(path)!r}")
+    elif ext == ".sgdm":
+        from segadeform.bundle import read_motion_file
+
+        m, meta = read_motion_file(path)
+        body = meta.get("body") or {}
+        made = f", made for body {body.get('name', '?')}" if body else ""
+        betas = meta.get("betas")
+        if betas is not None:
+            nz = [float(b) for b in betas]
+            while nz and nz[-1] == 0:
+                nz.pop()
+            made += f" with betas [{', '.join(f'{b:g}' for b in nz)}]"
+        click.echo(f"{path}: motion file, {m.n_frames} frames at {m.fps:g} fps, {m.poses.shape[1] // 3} joints"
+                   f"{made}; source {meta.get('source', meta.get('name', '?'))}")
+        rot = np.linalg.norm(m.poses.reshape(m.n_frames, -1, 3), axis=2)
+        click.echo(f"  root translation {np.round(m.trans.min(0), 4).tolist()} .. {np.round(m.trans.max(0), 4).tolist()} m; "
+                   f"largest joint rotation {float(rot.max()):.3f} rad")
     elif ext == ".sgda":
         from segadeform.geometry import GarmentAsset
 

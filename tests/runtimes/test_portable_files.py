@@ -184,3 +184,31 @@ def test_export_body_gives_a_package_another_body(random_package, body, tmp_path
         x = sample_inputs(cfg.replace(window=old.spec(name).get("window", cfg.window)), name, n=40, k=5, b=2)
         assert all(a.tobytes() == b.tobytes() for a, b in zip(old.run(name, x), new.run(name, x))), name
     assert main(["export-body", "-o", str(tmp_path)]) == 1  # not a package
+
+
+def test_segadeform_reads_the_motion_file_it_exports(tmp_path, capsys):
+    """`segadeform run --motion M.sgdm` (scenes' motion.file too) and `segadeform inspect M.sgdm` read the motion
+    file as the runtimes without Python do: its frames as they are (no retargeting, y-up); units, joint maps and a
+    z-up axis are refused."""
+    from segadeform.cli.main import main
+    from segadeform.motion import MotionSpec, build_motion, load_motion
+
+    assert main(["motion", "export", "walk", "--seconds", "0.3", "--betas", "0.4", "-o", str(tmp_path / "w.sgdm")]) == 0
+    want, meta = read_motion_file(tmp_path / "w.sgdm")
+    for got in (load_motion(tmp_path / "w.sgdm"), build_motion(MotionSpec(file=tmp_path / "w.sgdm"), np.zeros((24, 3)))):
+        np.testing.assert_array_equal(got.poses, want.poses)
+        np.testing.assert_array_equal(got.trans, want.trans)
+        assert got.fps == want.fps == 30
+    for kw, words in (({"units": "cm"}, "units"), ({"joint_map": {"pelvis": "Hips"}}, "joint map"),
+                      ({"up": "z"}, "up z")):
+        with pytest.raises(FileFormatError, match="already retargeted") as e:
+            load_motion(tmp_path / "w.sgdm", **kw)
+        assert words in str(e.value)
+    capsys.readouterr()
+    assert main(["inspect", str(tmp_path / "w.sgdm")]) == 0
+    out = capsys.readouterr().out
+    assert f"motion file, {want.n_frames} frames at 30 fps, 24 joints, made for body {meta['body']['name']}" in out
+    assert "betas [0.4]" in out and "root translation" in out
+    (tmp_path / "bad.sgdm").write_bytes(b"hello")
+    assert main(["inspect", str(tmp_path / "bad.sgdm")]) == 1
+    assert "not a segadeform bundle" in capsys.readouterr().err

@@ -23,7 +23,9 @@ def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", 
     """Read a motion by extension onto the SMPL skeleton of a body.
 
     Args:
-        path: ``.npz`` (AMASS / SMPL / segadeform) or ``.bvh`` (any common humanoid skeleton).
+        path: ``.npz`` (AMASS / SMPL / segadeform), ``.bvh`` (any common humanoid skeleton) or ``.sgdm`` (a motion
+            file from ``segadeform motion export``: played as it is, already retargeted onto the body shape it
+            was made for, whatever ``rest_joints``).
         rest_joints: (24, 3) rest joints of the body that will play it (T-pose, metres): BVH files are
             retargeted onto it, SMPL files' root position is carried over to it.  Default: the
             built-in T-pose skeleton for ``.npz``, the file's own proportions for ``.bvh``.
@@ -47,6 +49,15 @@ def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", 
         m = load_motion_npz(p, up=up, rest_joints=rest_joints)
     elif ext == ".bvh":
         m = read_bvh(p, rest_joints=rest_joints, up=up, units=units, joint_map=joint_map)
+    elif ext == ".sgdm":  # a motion file (segadeform motion export): already on the skeleton, y-up, retargeted
+        from ..bundle import read_motion_file
+
+        if units is not None or joint_map is not None or up not in ("auto", "y"):
+            raise FileFormatError("a motion file (.sgdm) is already retargeted, y-up: units, joint maps and up "
+                                  "axes do not apply", path=p, expected="no --units, --joint-map or --motion-up z",
+                                  got=", ".join(k for k, v in (("units", units), ("joint map", joint_map),
+                                                               ("up " + str(up), up not in ("auto", "y"))) if v))
+        m, _ = read_motion_file(p)
     else:
-        raise FileFormatError("unknown motion file type", path=p, expected=".npz or .bvh", got=ext or "none")
+        raise FileFormatError("unknown motion file type", path=p, expected=".npz, .bvh or .sgdm", got=ext or "none")
     return feet_on_floor(m, rest_joints) if floor else m
