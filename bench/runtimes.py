@@ -267,19 +267,19 @@ relative, like every other runtime.
 
 COLLISION_NOTE = """\
 **Collisions.** Given the same deformer frames and the same posed body, the C++ runtime's push-out equals Python's
-`BodyCollider` exactly (both run `src/segadeform/body/_collide.c`) and the JavaScript port's equals it to the last bit
-of `Math.acos` in vertex pseudo-normals (`tests/runtimes/test_collisions.py`: 4,000 points near and inside the posed
-body, closest points, signed distances and push-out within 2.2e-16 m; on the pipeline, Python's collider given a
-runtime's own posed body reproduces its frames bit for bit).  What the collision errors above measure is the body:
-the runtimes pose it with the package's body graph in float32 (within 4e-7 m of the numpy body `segadeform run`
-poses), and the push-out rule is not continuous in the body.  In a concave crease (under the arms, between the legs,
-an arm against the torso) no point is the margin away from both faces, so the passes bounce between them and which
-face the last pass takes, decided by the body's last bits, moves such a vertex by up to about the margin.  Measured:
-the parity test's tightened dress on a dance, 1 vertex-frame of 18,900 pushed over 1e-5 relative (3.7e-5 m); the
-dress on the CMU walk `02_01_walk.bvh`, whose arms brush the torso, 243 of 50,677 (up to 0.29 mm), and there
-Python's own push-out given its float64 body rounded to float32 moves vertices by up to 2.2 mm.  A rule that is
-continuous in the body (e.g. projecting onto both faces' offset planes at once) would be a change to `_collide.c`,
-`collision.py` and the port together.
+`BodyCollider` exactly (both run `src/segadeform/body/_collide.c`) and the JavaScript port's equals it to the last
+bit of `Math.acos` in vertex pseudo-normals (`tests/runtimes/test_collisions.py`: 4,000 points near and inside the
+posed body, closest points, signed distances and push-out within 2.2e-16 m; on the pipeline, Python's collider given
+a runtime's own posed body reproduces its frames bit for bit).  What the collision errors above measure is the
+inputs: the runtimes pose the body with the package's body graph in float32 (within 4e-7 m of the numpy body
+`segadeform run` poses; the browser's deformer adds its own float32 rounding, 8e-7 m), and the push-out rule is not
+continuous in them.  In a concave crease (under the arms, between the legs, an arm against the torso) no point is
+the margin away from both faces, so the passes bounce between them and which face the last pass takes, decided by
+the body's last bits, moves such a vertex by up to about the margin.  Measured: the parity test's tightened dress on
+a dance, 1 vertex-frame of 18,900 pushed over 1e-5 relative (3.7e-5 m); the dress on the CMU walk `02_01_walk.bvh`,
+whose arms brush the torso, 243 of 50,677 (up to 0.29 mm), and there Python's own push-out given its float64 body
+rounded to float32 moves vertices by up to 2.2 mm.  A rule that is continuous in the body (e.g. projecting onto both
+faces' offset planes at once) would be a change to `_collide.c`, `collision.py` and the port together.
 """
 
 
