@@ -58,7 +58,7 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads):
 @cli.command("eval")
 @click.argument("dataset", type=click.Path(file_okay=False, exists=True, path_type=Path))
 @click.option("-m", "--model", "models", multiple=True, required=True,
-              help="NAME=SPEC with SPEC a model package folder, a .pt checkpoint or 'lbs' (repeatable).")
+              help="NAME=SPEC with SPEC a model package folder, a .pt checkpoint, 'lbs' or 'lbs-inpaint' (repeatable).")
 @click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Report folder (eval.md, eval.json, PNG plots).")
 @click.option("--split", default="test", show_default=True, help="Dataset split to evaluate.")
