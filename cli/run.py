@@ -66,8 +66,11 @@ def _quality_choice():
               help="BVH joint map (TOML/JSON: smpl_name = \"FileJoint\") for skeletons not recognised.")
 @click.option("--floor", is_flag=True, default=None, help="Move the motion so the feet touch the floor.")
 @click.option("--force", is_flag=True, help="Animate a garment even when it does not sit on the body.")
+@click.option("--body-backend", type=click.Choice(["auto", "graph", "numpy"]), default="auto", show_default=True,
+              help="How the body is posed for collisions and --body-out: the package's body graph (float32, as "
+                   "every other runtime), numpy (float64), or auto: the graph when it poses this body, else numpy.")
 def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, fmt, model, frames, fps, batch,
-            threads, providers, body_out, up, no_cache, motion_up, units, joint_map, floor, force):
+            threads, providers, body_out, up, no_cache, motion_up, units, joint_map, floor, force, body_backend):
     """Animate a garment: SCENE.toml, or the flag form --garment G --motion M -o OUT."""
     import dataclasses
 
@@ -137,7 +140,8 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
     with click.progressbar(length=total or 1, label="deforming", file=sys.stderr,
                            hidden=not interactive) as bar:
         summary = run_scene(sc, model=model, output=output, batch=batch, threads=threads, providers=prov,
-                            progress=bar.update if interactive else None, cache=not no_cache, force=force)
+                            progress=bar.update if interactive else None, cache=not no_cache, force=force,
+                            body_backend=body_backend)
     off = summary.effects.off()
     q = f"quality {quality}: " if quality else ""
     click.echo(f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame ({q}effects {summary.effects.label()}"

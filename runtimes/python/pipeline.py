@@ -6,7 +6,7 @@ Stages, in order, and when they exist:
 precompute      garment mesh -> asset (cached on disk by file hash)  always
 encode          garment encoder, once per garment and body shape    always (cached)
 deform          the deformer variant for skinning/dynamics/wrinkles  always
-pose body       body model posed per batch (numpy)                   collisions or body output
+pose body       body posed per batch (the package's body graph)      collisions or body output
 collisions      push garment vertices out of the body               ``effects.collisions``
 write           streaming writer (PC2, OBJ sequence, XDMF)          always
 ==============  ==================================================  =====================
@@ -16,6 +16,10 @@ Frames stream in batches: memory stays flat however long the motion is.  A batch
 per-call intermediates grow with B x N x K.  Measured (``bench/scaling.py --one 16000``, all effects, 30
 frames): a 15,931-vertex garment peaked at 1,470 MiB with batch 8 and at 481 MiB with batch 2, at the
 same speed (72.0 and 69.1 ms/frame); the frames do not depend on the batch.
+
+The body (for collisions and ``body_output``) is posed by the package's body graph when it poses the run's body,
+as in every other runtime, so that all of them push out of the same float32 body; else by numpy
+(:mod:`segadeform.runtime.body`, ``Run(body_backend=...)``).
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ from segadeform.io import SceneOutput, read_mesh
 from segadeform.motion import Motion, build_motion, frame_range, motion_windows
 from segadeform.scene import Effects, Scene
 
+from .body import BODY_BACKENDS, BodyPoser
 from .deformer import Deformer
 from .package import ModelPackage
 
@@ -80,6 +85,8 @@ class RunSummary:
     sessions: list
     pushed_vertices: int
     stage_seconds: dict
+    #: how the body was posed: "graph" (the package's body graph), "numpy", or None (not posed)
+    body_backend: Optional[str] = None
 
     @property
     def ms_per_frame(self) -> float:
@@ -107,14 +114,20 @@ class Run:
             a batch in one call; its compiled backend on the package's threads, numpy if it was not built) or
             ``"reference"`` (:class:`~segadeform.body.collision.BodyProxy` per frame: the slow, obvious
             one, for comparisons).
+        body_backend: how the body is posed for collisions and ``body_output`` (:mod:`segadeform.runtime.body`):
+            ``"auto"`` (the package's body graph for the effects' skinning when it poses this body -- the body hash
+            its manifest records -- as every other runtime does; else numpy, the reason logged once), ``"graph"``
+            (that graph, or an error saying why not) or ``"numpy"`` (:meth:`BodyModel.forward`, float64).
     """
 
     def __init__(self, *, garment: Path, motion: Motion, package: ModelPackage, body: BodyModel, betas=(),
                  effects: Effects = Effects(), output: Path, output_format: str = "pc2", up: str = "y",
                  body_output: Optional[Path] = None, frames=None, batch: int = 8, cache: bool = True,
-                 force: bool = False, collider: str = "fast") -> None:
+                 force: bool = False, collider: str = "fast", body_backend: str = "auto") -> None:
         if collider not in ("fast", "reference"):
             raise InputError("collider must be 'fast' or 'reference'", got=collider)
+        if body_backend not in BODY_BACKENDS:
+            raise InputError("unknown body backend", expected=" | ".join(BODY_BACKENDS), got=body_backend)
         self.collider = collider
         if batch < 1:
             raise InputError("batch must be at least 1", got=batch)
@@ -125,6 +138,9 @@ class Run:
         self.batch, self.cache, self.force = int(batch), cache, bool(force)
         self.start, self.stop = frame_range(frames, motion.n_frames)
         self.deformer = Deformer(package, effects)  # picks the variant; creates no session yet
+        #: poses the body when collisions or the body output need it (None otherwise); creates no session yet
+        self.body_poser = (BodyPoser(package, body, skinning=effects.skinning, backend=body_backend)
+                           if effects.collisions or self.body_output is not None else None)
 
     def _cache_dir(self) -> Optional[Path]:
         if not self.cache:
@@ -190,8 +206,7 @@ class Run:
                     raise InputError(f"the deformer produced NaN or inf at frames {lo}..{hi - 1}")
                 if need_body:
                     t = time.perf_counter()
-                    posed = self.body.forward(self.motion.poses[lo:hi], self.betas, self.motion.trans[lo:hi],
-                                              skinning=self.effects.skinning).vertices
+                    posed = self.body_poser.pose(self.motion.poses[lo:hi], self.betas, self.motion.trans[lo:hi])
                     stage["pose body"] += time.perf_counter() - t
                 if self.effects.collisions:
                     t = time.perf_counter()
@@ -226,17 +241,20 @@ class Run:
             raise
         return RunSummary(frames=self.stop - self.start, seconds=time.perf_counter() - t_all, output=self.output,
                           body_output=self.body_output, output_format=self.output_format, written=written, effects=self.effects, variant=self.deformer.variant,
-                          sessions=sorted(self.package.created), pushed_vertices=pushed, stage_seconds=stage)
+                          sessions=sorted(self.package.created), pushed_vertices=pushed, stage_seconds=stage,
+                          body_backend=self.body_poser.backend if need_body else None)
 
 
 def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Path] = None, batch: int = 8,
-              threads: int = 1, providers=None, progress=None, cache: bool = True, force: bool = False) -> RunSummary:
-    """Run a scene (optionally overriding its model package and output path)."""
+              threads: int = 1, providers=None, progress=None, cache: bool = True, force: bool = False,
+              body_backend: str = "auto") -> RunSummary:
+    """Run a scene (optionally overriding its model package and output path); ``body_backend``: :class:`Run`'s."""
     package = ModelPackage(model or scene.model or default_model_path(), threads=threads, providers=providers)
     body = load_body(scene.body or default_body_path())
     motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
     out = Path(output) if output is not None else scene.output
     run = Run(garment=scene.garment, motion=motion, package=package, body=body, betas=scene.betas,
               effects=scene.effects, output=out, output_format=scene.output_format, up=scene.up,
-              body_output=scene.body_output, frames=scene.motion.frames, batch=batch, cache=cache, force=force)
+              body_output=scene.body_output, frames=scene.motion.frames, batch=batch, cache=cache, force=force,
+              body_backend=body_backend)
     return run.execute(progress)
