@@ -5,6 +5,7 @@ import pytest
 
 from segadeform.errors import FileFormatError, InputError
 from segadeform.geometry import GarmentAsset, precompute_garment, vertex_features
+from segadeform.geometry.asset import ASSET_SCHEMA_VERSION
 from segadeform.geometry.primitives import frustum
 from tests.conftest import leftovers
 
@@ -51,7 +52,7 @@ def test_portable_round_trip_is_exact(tmp_path, asset):
         else:
             assert x == y
     arrays, meta = read_bundle(tmp_path / "a.sgda")  # what a runtime without Python sees
-    assert meta["kind"] == "segadeform-garment-asset" and meta["schema_version"] == 1
+    assert meta["kind"] == "segadeform-garment-asset" and meta["schema_version"] == ASSET_SCHEMA_VERSION
     assert {k: a.dtype.str for k, a in arrays.items()} == {
         "vertices": "<f8", "faces": "<i4", "normals": "<f4", "features": "<f4", "nbr": "<i4", "mask": "|u1",
         "joints": "<f8", "descriptor": "<f8", "fps_samples": "<i4"}

@@ -212,9 +212,9 @@ def test_attention_numerics(models, body, kind):
         feats = np.tile(rng.normal(size=(1, 1, 30)), (1, len(v), 1)).astype(np.float32)
     else:
         feats = np.zeros((1, len(v), 30), np.float32)
-    sess = pkg.session("garment_encoder")
-    got = sess.run(None, {"features": feats, "nbr": asset.nbr, "mask": asset.mask,
-                          "descriptor": asset.descriptor[None].astype(np.float32)})[0][0]
+    # through the package's checked run: it casts nbr / mask to the manifest's dtypes (schema 3: int32 / float32)
+    got = pkg.run("garment_encoder", {"features": feats, "nbr": asset.nbr, "mask": asset.mask,
+                                      "descriptor": asset.descriptor[None].astype(np.float32)})[0][0]
     parity(_torch_encoder(nets["lbs"], feats, asset, np.zeros(10)), got, f"encoder, {kind} features")
     # the SEGA bound holds at these inputs too (Theorem 2)
     from segadeform.model.lipschitz import lipschitz_estimate

@@ -64,9 +64,9 @@ def masked_softmax(scores: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     """Softmax over the K axis (dim 2) that ignores padded slots; an all-padding row gives zeros.
 
     Shapes:
-        scores: (B, N, K, H), mask: (N, K) bool -> (B, N, K, H)
+        scores: (B, N, K, H), mask: (N, K) bool, or float 1/0 (package schema 3) -> (B, N, K, H)
     """
-    m = mask[None, :, :, None]
+    m = mask[None, :, :, None] if mask.dtype == torch.bool else mask[None, :, :, None] > 0
     s = torch.where(m, scores, torch.full_like(scores, _NEG))
     s = s - s.amax(dim=2, keepdim=True).detach()  # softmax is shift-invariant: the shift needs no gradient
     e = torch.exp(s) * m.to(scores.dtype)
