@@ -12,7 +12,7 @@ from .main import cli
 
 @cli.group("motion")
 def motion_group():
-    """Make and inspect motions (AMASS-style .npz, BVH)."""
+    """Make, inspect and export motions (AMASS-style .npz, BVH, .sgdm)."""
 
 
 @motion_group.command("make")
@@ -24,7 +24,7 @@ def motion_group():
 @click.option("--amplitude", type=float, default=1.0, show_default=True, help="Joint angle scale (0..2).")
 @click.option("--ease-in", type=float, default=1.0, show_default=True, help="Seconds to blend in from rest.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Motion file (.npz, or .bvh).")
+              help="Motion file (.npz, .bvh or .sgdm).")
 def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
     """Make a procedural motion of KIND (idle, walk, run, jump, arm_swing, touch_high, torso_twist, dance)."""
     from segadeform.motion import make_motion, write_bvh
@@ -48,7 +48,7 @@ def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
 @click.option("--units", help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).")
 @click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path), help="BVH joint map (TOML/JSON).")
 def info_cmd(motion, body, up, units, joint_map):
-    """Print frames, rate, duration, joint ranges and (BVH) the joint mapping of MOTION (.npz or .bvh)."""
+    """Print frames, rate, duration, joint ranges and (BVH) the joint mapping of MOTION (.npz, .bvh or .sgdm)."""
     from segadeform.body import default_body_path, load_body
     from segadeform.motion import load_motion
     from segadeform.motion.limits import limit_violation

@@ -38,7 +38,7 @@ def _quality_choice():
 @click.option("-o", "--output", type=click.Path(path_type=Path), help="Output (overrides the scene's).")
 @click.option("--garment", type=click.Path(dir_okay=False, path_type=Path), help="Garment mesh (flag form).")
 @click.option("--motion", "motion_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Motion .npz/.bvh (flag form).")
+              help="Motion .npz/.bvh/.sgdm (flag form).")
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz/.pkl (default: shipped body).")
 @click.option("--betas", help="Comma-separated body shape coefficients.")
 @click.option("--effects", help="e.g. 'dqs,-wrinkles,-collisions' (default: lbs, all effects on).")

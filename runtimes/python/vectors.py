@@ -30,7 +30,8 @@ def scene_vectors(scene: Scene, out_dir: str | Path, *, model: Optional[Path] = 
                   force: bool = False) -> dict[str, Path]:
     """Write ``garment.sgda``, ``motion.sgdm`` and ``check.sgdb`` for ``scene`` into ``out_dir``; returns their
     paths by name (``garment``, ``motion``, ``check``).  The frames are ``segadeform run``'s on the asset and the
-    motion (the scene's effects without collisions, which the other runtimes do not have yet; its frame range
+    motion (the scene's effects without collisions, so these vectors test the network and skinning alone; the
+    collision stage has its own cross-runtime parity test, tests/runtimes/test_collisions.py; the frame range is
     cut into the motion file)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

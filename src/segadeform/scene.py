@@ -11,7 +11,7 @@ are required; relative paths are relative to the scene file)::
     betas = [0.0, 0.5]             # up to the body's shape coefficients; the rest are 0
 
     [motion]                       # a file ...
-    file = "../motions/walk.npz"   # .npz (AMASS-style) or .bvh
+    file = "../motions/walk.npz"   # .npz (AMASS-style), .bvh or .sgdm (segadeform motion export)
     # ... or a procedural kind:
     # kind = "walk"; seconds = 3.0; speed = 1.0; amplitude = 1.0; seed = 0
     fps = 30.0                     # resample the motion to this rate (default: the motion's own)
