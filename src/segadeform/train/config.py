@@ -1,6 +1,7 @@
 """Training configuration (TOML): model dimensions, loss weights, optimisation, data.
 
-Example (``samples/train/default.toml`` is the shipped model's)::
+Example (``samples/train/continuum/full.toml`` is the shipped model's recipe, ``samples/train/default.toml``
+the previous one's)::
 
     [data]
     dataset = "../../data/train"   # relative to this file
