@@ -68,12 +68,20 @@ def test_shipped_parity_on_the_sample_dress(shipped):
         Pt = net.garment_encoder(*(torch.as_tensor(enc[k]) for k in ("features", "nbr", "mask", "descriptor"))).numpy()
     assert np.abs(P - Pt).max() <= RTOL * np.abs(Pt).max()
     mo = make_motion("dance", seconds=0.3, fps=30, seed=1)
+    log_wbody = None
+    if net.residual:
+        from segadeform.body.transfer import garment_weights, residual_log_weights
+
+        log_wbody = residual_log_weights(garment_weights(a.vertices, a.faces, body, None, net.cfg.weight_prior))
+        log_wbody = np.asarray(log_wbody, np.float32)
     for name, var in deformer_variants(net.cfg).items():
         w = motion_windows(mo.poses, var["config"].window).astype(np.float32)
         b = len(w)
         feeds = {"g": Pt[0], "window": w, "betas": np.repeat(betas[None], b, 0), "rest": a.vertices.astype(np.float32),
                  "nbr": nbr, "mask": mask, "joints": np.repeat(joints[None].astype(np.float32), b, 0),
                  "trans": mo.trans.astype(np.float32)}
+        if net.residual:  # residual skinning weights: the body's weights at the garment, as log weights (last input)
+            feeds["log_wbody"] = log_wbody
         s = ort.InferenceSession(str(PKG / manifest["graphs"][name]["file"]), providers=["CPUExecutionProvider"])
         got = s.run(None, feeds)
         vnet = net if var["default"] else _variant_model(net, var["config"])
