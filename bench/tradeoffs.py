@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/tradeoffs.py DATASET --package PKG [--model NAME=SPEC ...] -o docs
         [--split test] [--threads-all N] [--repeats 3] [--sim SAMPLE_ID | --no-sim]
-        [--sim-config samples/datasets/generalise.toml] [--sim-qualities 2,5,10,20] [--sim-reference 40]
+        [--sim-config DATASET_PLAN.toml] [--sim-qualities 2,5,10,20] [--sim-reference 40]
     .venv/bin/python bench/tradeoffs.py DATASET --package PKG -o docs --redraw   # docs again from the JSON
 
 On the held-out (``--split``) samples of DATASET, every row is measured on the same samples, in the same
@@ -495,8 +495,9 @@ def write_docs(res: dict, out: Path, *, command: str, seconds: float, threads_al
           "frames in batches of 8), not the once-per-garment `setup_ms` (precompute and encoder) nor writing. "
           "LBS is numpy (both columns are one timing); LBS is the body's skinning weights moved to the "
           "garment, no learned part.", "",
-          "The dataset is made by `segadeform dataset make samples/datasets/generalise.toml -o data/generalise` "
-          "(its test split: a garment kind, motion families and a body shape the training never saw).", "",
+          f"The dataset is `{dataset}` (its plan: `{dataset}/config.toml`, made by `segadeform dataset make`); "
+          f"its {split} split is what the models never trained on (garment kinds, motion families and a body "
+          "shape held out by the plan).", "",
           "\n".join(lines), "",
           f"Pareto frontier at one thread (fastest first): {', '.join(front)}.", "",
           f"Pareto frontier at {threads_all} threads: {', '.join(front_n)}.", "",
@@ -524,13 +525,10 @@ def write_docs(res: dict, out: Path, *, command: str, seconds: float, threads_al
            "place on the nearest triangle plus the rest offset along its normal: `garments/resample.py`); "
            "errors on the full-resolution garment, ms/frame including the carry, setup including the resampling.",
            "* **collisions**: the push-out at the margin named, on the row named.",
-           "* **models**: variants of `samples/train/default.toml` in width, depth, heads and window T "
-           "(`narrow.toml`, `wide.toml`, `shallow.toml`, `heads2.toml`, `window3.toml` beside it; `gen2` is "
-           "`default.toml` itself) trained on the training split of the same "
-           "dataset, 1500 steps, seed 0, one torch thread (`segadeform train samples/train/NAME.toml -o runs/NAME "
-           "--dataset data/generalise --threads 1`, then `segadeform export runs/NAME/model.pt -o runs/NAME/pkg`). "
-           "The shipped model (the effects rows) "
-           "was trained on another dataset (`data/train`)." + _training_note(rows), ""]
+           "* **models**: variants of the package's recipe in width, depth, heads or window T (the setting "
+           "column, read from each package's manifest), each trained on the training split of the same dataset "
+           "with the same steps and seed (`segadeform train CONFIG -o runs/NAME --dataset DATASET --threads 1`, "
+           "then `segadeform export runs/NAME/model.pt -o runs/NAME/pkg`)." + _training_note(rows), ""]
     if sim is not None:
         md += ["## The simulator's quality axis", "",
                f"Sample `{sim['sample']}` made again by Blender (the dataset config's settings, its garment "
@@ -655,7 +653,7 @@ def main(argv=None, *, _simulate: Optional[Callable] = None) -> int:
     ap.add_argument("--sim", help="sample id for the simulator's quality axis (default: the test sample with "
                                   "the fewest vertices x frames)")
     ap.add_argument("--no-sim", action="store_true")
-    ap.add_argument("--sim-config", type=Path, default=REPO / "samples" / "datasets" / "generalise.toml")
+    ap.add_argument("--sim-config", type=Path, default=REPO / "samples" / "datasets" / "continuum.toml")
     ap.add_argument("--sim-qualities", default="2,5,10,20")
     ap.add_argument("--sim-reference", type=int, default=40)
     ap.add_argument("--redraw", action="store_true",
