@@ -16,9 +16,7 @@ every runtime, and engines that import ONNX (Unity Sentis, Unreal NNE) get the b
 
 from __future__ import annotations
 
-import json
 import os
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -177,7 +175,7 @@ def add_body_to_package(package: str | os.PathLike, body, out: str | os.PathLike
     model's skeleton.  Its graphs' weights join the package's ``weights.bin`` (when it has one)."""
     import onnx
 
-    from .packing import pack_graphs, sha256_file
+    from .packing import finish_package, pack_graphs, sha256_file
 
     src = Path(package)
     dst = Path(out) if out is not None else src
@@ -208,10 +206,5 @@ def add_body_to_package(package: str | os.PathLike, body, out: str | os.PathLike
         out_m.update(graphs=graphs, ops=ops)
         if weights is not None:
             out_m["weights"] = weights
-        contract.validate_manifest(out_m, path=dst / contract.MANIFEST_FILE)
-        for extra in src.iterdir():
-            if extra.is_file() and extra.suffix in (".md", ".txt"):
-                shutil.copyfile(extra, tmp / extra.name)
-        (tmp / contract.MANIFEST_FILE).write_text(json.dumps(out_m, indent=2, sort_keys=True) + "\n",
-                                                  encoding="utf-8")
+        finish_package(src, tmp, out_m, dst)
     return out_m

@@ -31,7 +31,7 @@ from segadeform import package_spec as spec
 from segadeform.errors import InputError
 from segadeform.io.atomic import atomic_directory
 
-__all__ = ["strip_debug_info", "pack_graphs", "repack_package", "sha256_file", "ALIGN"]
+__all__ = ["strip_debug_info", "pack_graphs", "repack_package", "finish_package", "sha256_file", "ALIGN"]
 
 ALIGN = 64
 
@@ -191,9 +191,16 @@ def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bo
             out[spec.TRAINING_GARMENTS] = training_garments
         if weights is not None:
             out["weights"] = weights
-        spec.validate_manifest(out, path=dst / spec.MANIFEST_FILE)
-        for extra in src.iterdir():
-            if extra.is_file() and extra.suffix in (".md", ".txt"):
-                shutil.copyfile(extra, tmp / extra.name)
-        (tmp / spec.MANIFEST_FILE).write_text(json.dumps(out, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+        finish_package(src, tmp, out, dst)
     return out
+
+
+def finish_package(src: Path, tmp: Path, manifest: dict, dst: Path) -> None:
+    """The last step of rewriting a package ``src`` into ``tmp`` (the folder that becomes ``dst``): validate
+    ``manifest``, carry the package's documents (``.md``, ``.txt``: the model card) over, write ``manifest.json``."""
+    spec.validate_manifest(manifest, path=Path(dst) / spec.MANIFEST_FILE)
+    for extra in Path(src).iterdir():
+        if extra.is_file() and extra.suffix in (".md", ".txt"):
+            shutil.copyfile(extra, Path(tmp) / extra.name)
+    (Path(tmp) / spec.MANIFEST_FILE).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n",
+                                                encoding="utf-8")
