@@ -1,18 +1,24 @@
 """What each effect costs: ms per frame of every effect combination, one thread.
 
-    python bench/effects.py [--vertices 4000] [--frames 60] [--batch 8] [--package DIR]
+    python bench/effects.py [--vertices 4000] [--frames 60] [--steady 300] [--batch 8] [--package DIR]
 
-A ~4k-vertex skirt on the default body, a 2-second dance; the model package
-is a random-weight export unless ``--package`` is given (the cost does not
-depend on the weights).  Each row is a full ``Run`` (precompute and encoder
-cached beforehand, so rows time the per-frame stages), writing PC2 to a
-temporary folder.  The ratio is against "all effects on" measured in the
-same run.  The collision stage is then timed for the reference (BodyProxy per
-frame), the numpy BodyCollider and the compiled one (the runtime's), runs
-interleaved.  A final section streams ``--long`` frames (default 10,000) with
-LBS and dynamics (no wrinkles, no collisions) in a fresh process and reports
-its peak resident memory against a 100-frame run in another fresh process:
-flat memory means the ratio stays near 1 while the output grows 100x.
+A ~4k-vertex skirt on the default body, a dance; the model package is a random-weight export unless
+``--package`` is given (the cost does not depend on the weights).  Each row is a full ``Run`` (the
+garment asset, its encoding and the body's weights at the garment cached beforehand, as on any second
+run of a garment), writing PC2 to a temporary folder, done twice: with ``--frames`` and with
+``--steady`` frames of the same motion.  From the two:
+
+* ``ms/frame @F``: the whole run of ``--frames`` frames divided by them (what a short clip costs);
+* ``steady``: the cost of one more frame, ``(t_steady - t_F) / (steady - F)`` (what a long motion costs
+  per frame; the frames per second a stream sustains), with the deform / pose / collide stages the same way;
+* ``fixed ms``: what a run costs before its frames, ``t_F - F x steady`` (creating the sessions and
+  onnxruntime's first calls, which grow its memory arena).
+
+Ratios are against "all effects on" measured in the same run.  The collision stage is then timed for
+the reference (BodyProxy per frame), the numpy BodyCollider and the compiled one (the runtime's), runs
+interleaved.  A final section streams ``--long`` frames (default 10,000) with LBS and dynamics (no
+wrinkles, no collisions) in a fresh process and reports its peak resident memory against a 100-frame
+run in another fresh process: flat memory means the ratio stays near 1 while the output grows 100x.
 """
 
 from __future__ import annotations
@@ -49,6 +55,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--vertices", type=int, default=4000)
     ap.add_argument("--frames", type=int, default=60)
+    ap.add_argument("--steady", type=int, default=300, help="frames of the second run of each row (> --frames)")
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--package", type=Path)
     ap.add_argument("--long", type=int, default=10000)
@@ -82,27 +89,34 @@ def main() -> None:
     v, f = frustum(na, max(2, args.vertices // na), 0.17, 0.36, 1.02, 0.5)
     garment = tmp / "skirt.obj"
     write_obj(garment, Mesh(vertices=v, faces=f))
-    motion = make_motion("dance", seconds=args.frames / 30.0, seed=1)
+    if args.steady <= args.frames:
+        raise SystemExit(f"--steady must be more than --frames, got {args.steady} <= {args.frames}")
+    motion = make_motion("dance", seconds=args.steady / 30.0, seed=1)
 
-    def run(effects, motion=motion, out="o.pc2", cache=True, collider="fast"):
+    def run(effects, frames=args.frames, out="o.pc2", cache=True, collider="fast"):
         r = Run(garment=garment, motion=motion, package=ModelPackage(pkg, threads=1), body=body, effects=effects,
-                output=tmp / out, batch=args.batch, cache=cache, force=True, collider=collider)
+                output=tmp / out, batch=args.batch, cache=cache, force=True, collider=collider, frames=(0, frames))
         return r.execute()
 
-    run(Effects())  # warm the precompute and encoder caches
+    run(Effects())  # warm the precompute, encoder and body-weights caches
+    stages = ("deform", "pose body", "collisions")
     rows = []
     for skin, dyn, wr, col in itertools.product(("lbs", "dqs"), (True, False), (True, False), (True, False)):
         e = Effects(skinning=skin, dynamics=dyn, wrinkles=wr, collisions=col)
-        s = run(e)
-        rows.append((e, s.ms_per_frame, s.stage_seconds, s.frames))
-    base = next(ms for e, ms, _, _ in rows if e == Effects())
-    print(f"garment: {len(v)} vertices; body: {body.n_vertices} vertices; {args.frames} frames; batch {args.batch}; 1 thread")
-    print(f"{'skinning':8s} {'dynamics':>8s} {'wrinkles':>8s} {'collisions':>10s} {'ms/frame':>9s} {'x all-on':>9s} "
-          f"{'deform':>7s} {'pose':>6s} {'collide':>8s}")
-    for e, ms, st, n in rows:
-        print(f"{e.skinning:8s} {str(e.dynamics):>8s} {str(e.wrinkles):>8s} {str(e.collisions):>10s} {ms:9.2f} "
-              f"{ms / base:9.2f} {1e3 * st['deform'] / n:7.2f} {1e3 * st['pose body'] / n:6.2f} "
-              f"{1e3 * st['collisions'] / n:8.2f}")
+        short, long = run(e), run(e, frames=motion.n_frames)
+        df = long.frames - short.frames
+        steady = 1e3 * (long.seconds - short.seconds) / df
+        st = {k: 1e3 * (long.stage_seconds[k] - short.stage_seconds[k]) / df for k in stages}
+        rows.append((e, short.ms_per_frame, steady, 1e3 * short.seconds - short.frames * steady, st))
+    base = next(r for r in rows if r[0] == Effects())
+    print(f"garment: {len(v)} vertices; body: {body.n_vertices} vertices; {args.frames} and {args.steady} frames; "
+          f"batch {args.batch}; 1 thread")
+    print(f"{'skinning':8s} {'dynamics':>8s} {'wrinkles':>8s} {'collisions':>10s} {'ms/frame@' + str(args.frames):>12s} "
+          f"{'steady':>7s} {'x all-on':>8s} {'fps':>6s} {'fixed ms':>8s} {'deform':>7s} {'pose':>6s} {'collide':>8s}")
+    for e, ms, steady, fixed, st in rows:
+        print(f"{e.skinning:8s} {str(e.dynamics):>8s} {str(e.wrinkles):>8s} {str(e.collisions):>10s} {ms:12.2f} "
+              f"{steady:7.2f} {steady / base[2]:8.2f} {1e3 / steady:6.0f} {fixed:8.1f} {st['deform']:7.2f} "
+              f"{st['pose body']:6.2f} {st['collisions']:8.2f}")
     # the collision pass, all effects on: the reference (BodyProxy rebuilt per frame), the numpy BodyCollider
     # and the compiled one (the runtime's), interleaved, median of 3; outputs compared with the reference's
     import functools

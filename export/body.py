@@ -79,7 +79,7 @@ def body_module(body, skinning: str):
             g = forward_kinematics(rot, joints, self.parents, trans)
             a = skinning_transforms(g, joints)
             if skinning == "dqs":
-                posed = dqs(verts, self.weights[None].expand(b, v, s), a)
+                posed = dqs(verts, self.weights, a)
             else:
                 posed = lbs(verts, self.weights, a)
             return posed, g[..., :3, 3], rest, self.triangles

@@ -185,6 +185,10 @@ class ModelPackage:
         so.intra_op_num_threads = self.threads
         so.inter_op_num_threads = 1
         so.log_severity_level = 3
+        # the encoder runs once per garment: onnxruntime's memory arena would keep its peak (about 300 MB at
+        # 16k vertices) for the rest of the run, so it allocates without one.  The deformer and body graphs
+        # keep the arena (without it the deformer is about 2x slower: bench/scaling.py, issue #14's note)
+        so.enable_cpu_mem_arena = spec["role"] != contract.ROLES[contract.ENCODER]
         path = self.path / spec["file"]
         try:
             sess = ort.InferenceSession(str(path), so, providers=self.providers)

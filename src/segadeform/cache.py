@@ -1,4 +1,5 @@
-"""The user cache: precomputed garment assets and encoder outputs, kept between runs.
+"""The user cache: precomputed garment assets, encoder outputs and (residual-weights models) the body's
+weights carried to the garment, kept between runs.
 
 Where (read when a run asks, never at import):
 

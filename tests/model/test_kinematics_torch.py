@@ -66,3 +66,33 @@ def test_dqs_at_the_180_degree_tie_is_finite_and_rigid_where_unblended():
     assert torch.isfinite(out).all()
     onehot = torch.nn.functional.one_hot(torch.full((3, 50), 5), 24).double()  # all weight on the twisted joint
     torch.testing.assert_close(K.dqs(t(verts)[None], onehot, a), K.lbs(t(verts)[None], onehot, a))
+
+
+def test_dqs_falls_back_to_the_pivot_joint_where_the_blend_vanishes():
+    # after the hemisphere flip the blend's real part has norm >= the pivot's weight, so only a vertex
+    # with no weight at all reaches the fallback: it takes the pivot's (joint 0's) rigid transform
+    poses, joints, trans, verts, w = setup(twist=False, scale=0.5)
+    w = np.array(w, copy=True)
+    w[..., :7, :] = 0.0
+    g_np, _ = np_fk(np_aa(poses), joints, SMPL_PARENTS, trans)
+    ref = np_dqs(verts, w, relative_transforms(g_np, joints))
+    t = lambda x: torch.as_tensor(np.asarray(x))  # noqa: E731
+    g = K.forward_kinematics(K.axis_angle_to_matrix(t(poses)), t(joints), [int(p) for p in SMPL_PARENTS], t(trans))
+    a = K.skinning_transforms(g, t(joints))
+    out = K.dqs(t(verts)[None], t(w), a).numpy()
+    np.testing.assert_allclose(out, ref, atol=1e-10)
+    onehot = torch.nn.functional.one_hot(torch.zeros(w.shape[:-1], dtype=torch.long), 24).double()
+    np.testing.assert_allclose(out[..., :7, :], K.lbs(t(verts)[None], onehot, a).numpy()[..., :7, :], atol=1e-10)
+
+
+@pytest.mark.parametrize("skin", ["lbs", "dqs"])
+def test_weights_shared_by_every_frame_give_the_per_frame_result(skin):
+    # (N, S) weights (the body graphs' path, read transposed) against the same weights given per frame
+    poses, joints, trans, verts, w = setup(twist=False, scale=0.5)
+    t = lambda x: torch.as_tensor(np.asarray(x))  # noqa: E731
+    g = K.forward_kinematics(K.axis_angle_to_matrix(t(poses)), t(joints), [int(p) for p in SMPL_PARENTS], t(trans))
+    a = K.skinning_transforms(g, t(joints))
+    f = K.lbs if skin == "lbs" else K.dqs
+    shared = t(w[0])
+    torch.testing.assert_close(f(t(verts), shared, a), f(t(verts), shared[None].expand(len(poses), -1, -1), a),
+                               rtol=0, atol=1e-12)

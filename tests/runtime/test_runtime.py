@@ -121,6 +121,33 @@ def test_skinning_variant_changes_the_output(tmp_path, random_package, body):
 
 
 # ---- caching, vertex order, streaming ------------------------------------------------------------
+def test_body_weights_are_cached_on_disk(tmp_path, body, monkeypatch):
+    """The residual model's log_wbody (the inpainted prior, ~0.2 s at 4k vertices) is computed once per garment,
+    body and shape: a second deformer reads it from the cache, a new shape computes it again."""
+    import segadeform.body.transfer as transfer
+
+    pkg = SAMPLES / "models" / "default"
+    joints = body.rest_joints()[0]
+    asset = make_run(tmp_path, pkg, body, Effects()).load_asset(joints)
+    d = Deformer(ModelPackage(pkg))
+    assert d.needs_body_weights
+    lw = d.body_log_weights(asset, body, cache_dir=tmp_path / "cache")
+    assert [p.name[:2] for p in (tmp_path / "cache").iterdir()] == ["W-"]
+    calls = []
+    real = transfer.garment_weights
+    monkeypatch.setattr(transfer, "garment_weights", lambda *a, **k: calls.append(1) or real(*a, **k))
+    d2 = Deformer(ModelPackage(pkg))
+    np.testing.assert_array_equal(d2.body_log_weights(asset, body, cache_dir=tmp_path / "cache"), lw)
+    assert calls == []  # served from disk
+    other = d2.body_log_weights(asset, body, [1.5], cache_dir=tmp_path / "cache")
+    assert calls == [1] and not np.array_equal(other, lw)
+    assert len(list((tmp_path / "cache").glob("W-*.npy"))) == 2
+    # a broken entry is recomputed, not trusted
+    for p in (tmp_path / "cache").glob("W-*.npy"):
+        p.write_bytes(b"broken")
+    np.testing.assert_array_equal(Deformer(ModelPackage(pkg)).body_log_weights(asset, body, cache_dir=tmp_path / "cache"), lw)
+
+
 def test_encoder_runs_once_and_is_cached_on_disk(tmp_path, random_package, body):
     joints = body.rest_joints()[0]
     run = make_run(tmp_path, random_package, body, Effects())

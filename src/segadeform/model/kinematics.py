@@ -71,23 +71,25 @@ def skinning_transforms(g: torch.Tensor, joints: torch.Tensor) -> torch.Tensor:
 def lbs(verts: torch.Tensor, weights: torch.Tensor, a: torch.Tensor) -> torch.Tensor:
     """Linear blend skinning.
 
+    Laid out for onnxruntime's fast paths: the blended 3x4 matrices are formed component-major,
+    ``(B, 12, N)`` (one MatMul against the transposed weights), so every later operation is an
+    element-wise one on contiguous ``(B, N)`` rows; the vertex-major ``(B, N, 4, 3)`` layout spent most
+    of its time in strided slices and ``(B, N, 1)`` broadcasts.
+
     Shapes:
-        verts: (B, N, 3) or (N, 3), weights: (B, N, S), a: (B, S, 3, 4) -> (B, N, 3)
+        verts: (B, N, 3) or (N, 3), weights: (B, N, S) or (N, S), a: (B, S, 3, 4) -> (B, N, 3)
     """
     b, s = a.shape[:2]
-    # blended transforms stored column-major, (B, N, 4, 3): column c of every vertex's 3x4 matrix
-    m = torch.matmul(weights, a.transpose(2, 3).reshape(b, s, 12)).reshape(b, -1, 4, 3)
-    return _affine(m[:, :, 0], m[:, :, 1], m[:, :, 2], m[:, :, 3], verts)
+    at = a.reshape(b, s, 12).transpose(1, 2)  # (B, 12, S): row 4 r + c holds A[r, c]
+    m = torch.matmul(at, weights.transpose(-1, -2))  # (B, 12, N)
+    vx, vy, vz = _planar(verts)
+    rows = [m[:, 4 * r] * vx + m[:, 4 * r + 1] * vy + m[:, 4 * r + 2] * vz + m[:, 4 * r + 3] for r in range(3)]
+    return torch.stack(rows, dim=-1)
 
 
-def _affine(c0: torch.Tensor, c1: torch.Tensor, c2: torch.Tensor, t: torch.Tensor, verts: torch.Tensor) -> torch.Tensor:
-    """``[c0 c1 c2] @ v + t`` per vertex as multiply-adds of the matrix columns (a batch of 3x3
-    MatMuls is slow in onnxruntime).
-
-    Shapes:
-        c0, c1, c2, t: (B, N, 3), verts: (B, N, 3) or (N, 3) -> (B, N, 3)
-    """
-    return c0 * verts[..., 0:1] + c1 * verts[..., 1:2] + c2 * verts[..., 2:3] + t
+def _planar(verts: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The x, y, z rows of ``verts (..., N, 3)``, each ``(..., N)``."""
+    return verts[..., 0], verts[..., 1], verts[..., 2]
 
 
 def matrix_to_quaternion(R: torch.Tensor) -> torch.Tensor:
@@ -129,31 +131,49 @@ def dqs(verts: torch.Tensor, weights: torch.Tensor, a: torch.Tensor, eps: float 
     joint; a blend whose real part has norm below ``eps`` falls back to that
     joint's transform.
 
+    Laid out as :func:`lbs`: which joints flip depends only on the pair (pivot joint, joint), so an
+    ``(S, S)`` sign table per frame is gathered by pivot, and so is the pivot's own dual quaternion
+    (row Gathers, no ``(B, N, S)`` comparison or Where); the blend is one MatMul into component-major
+    ``(B, 8, N)`` and everything after it is element-wise on contiguous ``(B, N)`` rows.
+
     Shapes: as :func:`lbs`.
     """
     b, s = a.shape[:2]
+    n = weights.shape[-2]
     q = matrix_to_quaternion(a[..., :3])  # (B, S, 4)
     t = torch.cat([torch.zeros_like(a[..., :1, 3]), a[..., :3, 3]], dim=-1)  # (B, S, 4) pure quaternion
     d = 0.5 * _qmul(t, q)
-    pivot = torch.argmax(weights, dim=-1)  # (B, N)
-    onehot = torch.nn.functional.one_hot(pivot, s).to(weights.dtype)  # (B, N, S)
-    qp = torch.matmul(onehot, q)  # (B, N, 4)
-    dp = torch.matmul(onehot, d)
-    sign = torch.matmul(qp, q.transpose(1, 2))  # (B, N, S)
-    sign = torch.where(sign < 0, -torch.ones_like(sign), torch.ones_like(sign))
-    ws = weights * sign
-    qb = torch.matmul(ws, q)
-    db = torch.matmul(ws, d)
-    norm = torch.linalg.vector_norm(qb, dim=-1, keepdim=True)
-    bad = norm < eps
-    qb = torch.where(bad, qp, qb)
-    db = torch.where(bad, dp, db)
-    norm = torch.where(bad, torch.ones_like(norm), norm)
-    qb, db = qb / norm, db / norm
-    w, x, y, z = qb.unbind(-1)
-    R = _matrix3([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-    conj = qb * torch.tensor([1.0, -1.0, -1.0, -1.0], dtype=qb.dtype, device=qb.device)
-    tr = 2.0 * _qmul(db, conj)[..., 1:]
-    return _affine(R[..., 0], R[..., 1], R[..., 2], tr, verts)
+    qd = torch.cat([q, d], dim=-1)  # (B, S, 8)
+    # sign[j, k] = +1 when joint k's quaternion lies in joint j's hemisphere (q_j . q_k >= 0), else -1;
+    # sign(sign(x) + 0.5) maps x >= 0 to +1 and x < 0 to -1
+    sign = torch.sign(torch.sign(torch.matmul(q, q.transpose(1, 2))) + 0.5)  # (B, S, S)
+    # weights shared by every frame (N, S) are only read transposed (see below)
+    wt = weights.transpose(0, 1) if weights.dim() == 2 else None
+    pivot = torch.argmax(wt, dim=0) if wt is not None else torch.argmax(weights, dim=-1)  # (N,) or (B, N)
+    rows = (pivot + (torch.arange(b, device=a.device) * s)[:, None]).reshape(-1)  # (B N): row of (frame, pivot)
+    signs = torch.index_select(sign.reshape(b * s, s), 0, rows).reshape(b, n, s)
+    # each joint's weight, signed into the pivot's hemisphere, joint-major (B, S, N) for the blend's MatMul
+    if wt is not None:  # shared by every frame: only the transposed weights are read (an exported body
+        # graph then stores the one (S, N) copy its LBS sibling stores too)
+        wst = wt * signs.transpose(1, 2)
+    else:
+        wst = (weights * signs).transpose(1, 2)
+    qdb = torch.matmul(qd.transpose(1, 2), wst)  # (B, 8, N)
+    # the pivot's dual quaternion, component-major (8, B, N)
+    qdp = torch.index_select(qd.reshape(b * s, 8), 0, rows).transpose(0, 1).reshape(8, b, n)
+    c = [qdb[:, i] for i in range(8)]
+    norm = torch.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2] + c[3] * c[3])
+    bad = (norm < eps).to(norm.dtype)  # 1 where the blend falls back to the pivot
+    c = [ci + bad * (qdp[i] - ci) for i, ci in enumerate(c)]
+    inv = 1.0 / (norm + bad * (1.0 - norm))  # the pivot is a unit quaternion
+    w, x, y, z, dw, dx, dy, dz = [ci * inv for ci in c]
+    # translation: 2 (db * conj(qb)), its vector part
+    tx = 2.0 * (-dw * x + dx * w - dy * z + dz * y)
+    ty = 2.0 * (-dw * y + dx * z + dy * w - dz * x)
+    tz = 2.0 * (-dw * z - dx * y + dy * x + dz * w)
+    vx, vy, vz = _planar(verts)
+    xx, yy, zz, xy, xz, yz, wx, wy, wz = x * x, y * y, z * z, x * y, x * z, y * z, w * x, w * y, w * z
+    px = (1 - 2 * (yy + zz)) * vx + 2 * (xy - wz) * vy + 2 * (xz + wy) * vz + tx
+    py = 2 * (xy + wz) * vx + (1 - 2 * (xx + zz)) * vy + 2 * (yz - wx) * vz + ty
+    pz = 2 * (xz - wy) * vx + 2 * (yz + wx) * vy + (1 - 2 * (xx + yy)) * vz + tz
+    return torch.stack([px, py, pz], dim=-1)
