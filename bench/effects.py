@@ -17,8 +17,8 @@ run of a garment), writing PC2 to a temporary folder, done twice: with ``--frame
 Ratios are against "all effects on" measured in the same run.  The collision stage is then timed for
 the reference (BodyProxy per frame), the numpy BodyCollider and the compiled one (the runtime's), runs
 interleaved.  A final section streams ``--long`` frames (default 10,000) with LBS and dynamics (no
-wrinkles, no collisions) in a fresh process and reports its peak resident memory against a 100-frame
-run in another fresh process: flat memory means the ratio stays near 1 while the output grows 100x.
+wrinkles, no collisions) in a fresh process and reports its peak resident memory (its own ``VmHWM``, not
+the parent's: ``bench/_peak.py``) against a 100-frame run in another fresh process: flat memory means the ratio stays near 1 while the output grows 100x.
 """
 
 from __future__ import annotations
@@ -167,7 +167,7 @@ def main() -> None:
 
 def child_long(n: int, pkg: Path, vertices: int, batch: int) -> None:
     """Stream n frames in this (fresh) process; print peak RSS bytes, ms/frame, output bytes."""
-    import resource
+    from _peak import peak_rss_bytes
 
     from segadeform.body import load_body
     from segadeform.geometry.primitives import frustum
@@ -188,7 +188,7 @@ def child_long(n: int, pkg: Path, vertices: int, batch: int) -> None:
     t0 = time.perf_counter()
     run.execute()
     dt = time.perf_counter() - t0
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    rss = peak_rss_bytes()
     print(rss, 1e3 * dt / n, os.path.getsize(tmp / "o.pc2"))
 
 

@@ -4,9 +4,10 @@
                             [--blender-max 4000]
 
 A skirt-like frustum of N vertices on the default body, a dance of ``--frames`` frames, the shipped
-model, one onnxruntime thread; each size runs in a fresh process (so its peak resident memory is its
-own): precompute (graph, features, descriptor; once per garment), then ``segadeform run``'s pipeline with
-every effect and again without collisions.  ``x per vertex`` is the per-frame cost divided by N, against
+model, one onnxruntime thread; each size runs in a fresh process with an empty user cache (its peak
+resident memory is its own ``VmHWM``, ``bench/_peak.py``, and includes encoding the garment, as on its first
+run): precompute (graph, features, descriptor; once per garment), then ``segadeform run``'s pipeline with
+every effect and again without collisions, each run twice and the second (warm) one timed.  ``x per vertex`` is the per-frame cost divided by N, against
 the smallest size's (1.00 = linear growth).  For sizes up to ``--blender-max`` the same garment and
 motion are simulated by Blender (the dataset's settings, ``segadeform simulate``'s path) and its
 seconds per simulated frame (measured inside Blender, start-up excluded) are given, with the learned pipeline's speed-up over it.
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -27,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def one(n: int, frames: int, batch: int, package: str, blender: bool) -> dict:
     """Measure size ``n`` in this process; returns the row."""
-    import resource
+    from _peak import peak_rss_bytes
 
     import numpy as np
 
@@ -58,7 +60,7 @@ def one(n: int, frames: int, batch: int, package: str, blender: bool) -> dict:
         s = r.execute()
         row[key] = s.ms_per_frame
         row[key + "_stages"] = {k: 1e3 * x / s.frames for k, x in s.stage_seconds.items()}
-    row["peak_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    row["peak_mib"] = peak_rss_bytes() / 2**20
     if blender:
         from segadeform.physics import SimSettings, simulate
 
@@ -88,9 +90,10 @@ def main(argv=None) -> int:
         return 0
     rows = []
     for n in (int(x) for x in a.sizes.split(",")):
-        p = subprocess.run([sys.executable, __file__, "--one", str(n), "--frames", str(a.frames), "--batch",
-                            str(a.batch), "--package", a.package, "--blender-max", str(a.blender_max)],
-                           capture_output=True, text=True)
+        with tempfile.TemporaryDirectory() as cache:  # an empty user cache: the first run encodes the garment
+            p = subprocess.run([sys.executable, __file__, "--one", str(n), "--frames", str(a.frames), "--batch",
+                                str(a.batch), "--package", a.package, "--blender-max", str(a.blender_max)],
+                               capture_output=True, text=True, env={**os.environ, "SEGADEFORM_CACHE_DIR": cache})
         if p.returncode:
             print(f"N={n}: failed\n{p.stderr[-2000:]}", file=sys.stderr)
             continue
