@@ -5,7 +5,8 @@
 A frustum "skirt" of about ``--vertices`` vertices on the default body; each round runs every package
 once, and the minimum over rounds is reported with its ratio to the first package (so load from other
 processes affects all packages alike).  ``--variant`` names the graph (default: each package's default
-deformer; e.g. ``deformer_lbs_nowrinkles`` for the path without blend shapes).  To compare with an
+deformer; e.g. ``deformer_lbs_nowrinkles`` for the path without blend shapes, or a body graph,
+``body_lbs`` / ``body_dqs``, posing the package's body ``--batch`` times).  To compare with an
 earlier commit: ``git archive COMMIT samples/models/default | tar -x -C /tmp/old`` and pass
 ``/tmp/old/samples/models/default``.
 """
@@ -48,6 +49,13 @@ def main(argv=None) -> list[tuple[str, float]]:
         variant = a.variant or pkg.default_deformer
         spec = pkg.spec(variant)
         shapes = {i["name"]: i["shape"] for i in spec["inputs"]}
+        if spec["role"] == "body":  # a body graph: B poses of the package's body
+            feeds = {"betas": np.zeros(shapes["betas"][0], np.float32),
+                     "poses": (0.3 * rng.standard_normal((b, *shapes["poses"][1:]))).astype(np.float32),
+                     "trans": np.zeros((b, 3), np.float32)}
+            runs.append((path, variant, _session(pkg, spec), feeds, []))
+            runs[-1][2].run(None, feeds)
+            continue
         t = int(shapes["window"][1])
         code = dec.encode(asset, joints)
         feeds = {dec.code_name: code, "window": (0.3 * rng.standard_normal((b, t, 72))).astype(np.float32),
@@ -57,9 +65,7 @@ def main(argv=None) -> list[tuple[str, float]]:
         if "log_wbody" in shapes:
             feeds["log_wbody"] = dec.body_log_weights(asset, body, np.zeros(0))
         feeds = {name: feeds[name] for name in shapes}
-        so = ort.SessionOptions()
-        so.intra_op_num_threads = 1
-        sess = ort.InferenceSession(str(pkg.path / spec["file"]), so, providers=["CPUExecutionProvider"])
+        sess = _session(pkg, spec)
         for w in spec["inputs"]:  # each input in its manifest's dtype (schema 3: int32 nbr, float32 mask)
             feeds[w["name"]] = np.ascontiguousarray(np.asarray(feeds[w["name"]]).astype(w["dtype"]))
         sess.run(None, feeds)
@@ -73,9 +79,16 @@ def main(argv=None) -> list[tuple[str, float]]:
     out = []
     for path, variant, _, _, ts in runs:
         ms = 1e3 * min(ts) / b
-        print(f"{variant} N={asset.n_vertices} B={b} {path}: {ms:.2f} ms/frame (x{min(ts) / base:.2f})")
+        size = "body" if variant.startswith("body") else f"N={asset.n_vertices}"
+        print(f"{variant} {size} B={b} {path}: {ms:.2f} ms/frame (x{min(ts) / base:.2f})")
         out.append((path, ms))
     return out
+
+
+def _session(pkg, spec):
+    so = ort.SessionOptions()
+    so.intra_op_num_threads = 1
+    return ort.InferenceSession(str(pkg.path / spec["file"]), so, providers=["CPUExecutionProvider"])
 
 
 if __name__ == "__main__":
