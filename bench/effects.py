@@ -1,6 +1,6 @@
-"""What each effect costs: ms per frame of every effect combination, one thread.
+"""What each effect costs: ms per frame of every effect combination, one thread (``--threads``).
 
-    python bench/effects.py [--vertices 4000] [--frames 60] [--steady 300] [--batch 8] [--package DIR]
+    python bench/effects.py [--vertices 4000] [--frames 60] [--steady 300] [--batch 8] [--threads 1] [--package DIR]
 
 A ~4k-vertex skirt on the default body, a dance; the model package is a random-weight export unless
 ``--package`` is given (the cost does not depend on the weights).  Each row is a full ``Run`` (the
@@ -57,6 +57,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=60)
     ap.add_argument("--steady", type=int, default=300, help="frames of the second run of each row (> --frames)")
     ap.add_argument("--batch", type=int, default=8)
+    ap.add_argument("--threads", type=int, default=1, help="onnxruntime and collision threads per run")
     ap.add_argument("--package", type=Path)
     ap.add_argument("--long", type=int, default=10000)
     ap.add_argument("--child-long", type=int, help=argparse.SUPPRESS)
@@ -94,7 +95,7 @@ def main() -> None:
     motion = make_motion("dance", seconds=args.steady / 30.0, seed=1)
 
     def run(effects, frames=args.frames, out="o.pc2", cache=True, collider="fast"):
-        r = Run(garment=garment, motion=motion, package=ModelPackage(pkg, threads=1), body=body, effects=effects,
+        r = Run(garment=garment, motion=motion, package=ModelPackage(pkg, threads=args.threads), body=body, effects=effects,
                 output=tmp / out, batch=args.batch, cache=cache, force=True, collider=collider, frames=(0, frames))
         return r.execute()
 
@@ -110,7 +111,7 @@ def main() -> None:
         rows.append((e, short.ms_per_frame, steady, 1e3 * short.seconds - short.frames * steady, st))
     base = next(r for r in rows if r[0] == Effects())
     print(f"garment: {len(v)} vertices; body: {body.n_vertices} vertices; {args.frames} and {args.steady} frames; "
-          f"batch {args.batch}; 1 thread")
+          f"batch {args.batch}; {args.threads} thread(s)")
     print(f"{'skinning':8s} {'dynamics':>8s} {'wrinkles':>8s} {'collisions':>10s} {'ms/frame@' + str(args.frames):>12s} "
           f"{'steady':>7s} {'x all-on':>8s} {'fps':>6s} {'fixed ms':>8s} {'deform':>7s} {'pose':>6s} {'collide':>8s}")
     for e, ms, steady, fixed, st in rows:
@@ -143,7 +144,7 @@ def main() -> None:
             times[k].append(summary[k].stage_seconds["collisions"] / summary[k].frames)
     ms = {k: 1e3 * float(np.median(t)) for k, t in times.items()}
     frames = {k: np.asarray(read_pc2(tmp / f"{k}.pc2").frames) for k in kinds}
-    print("collisions (all effects on, 1 thread, median of 3 interleaved runs):")
+    print(f"collisions (all effects on, {args.threads} thread(s), median of 3 interleaved runs):")
     for k in kinds:
         print(f"  {k:9s} {ms[k]:7.2f} ms/frame  x numpy {ms[k] / ms['numpy']:6.3f}  whole frame "
               f"{summary[k].ms_per_frame:7.2f} ms  pushed {summary[k].pushed_vertices:6d}  max diff from the "

@@ -189,6 +189,9 @@ class ModelPackage:
         # 16k vertices) for the rest of the run, so it allocates without one.  The deformer and body graphs
         # keep the arena (without it the deformer is about 2x slower: bench/scaling.py, issue #14's note)
         so.enable_cpu_mem_arena = spec["role"] != contract.ROLES[contract.ENCODER]
+        if self.threads > 1:  # idle pool threads sleep instead of spinning: the run's other stages (posing,
+            # the collision kernel's threads, writing) get the cores between deformer calls
+            so.add_session_config_entry("session.intra_op.allow_spinning", "0")
         path = self.path / spec["file"]
         try:
             sess = ort.InferenceSession(str(path), so, providers=self.providers)
