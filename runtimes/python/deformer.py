@@ -134,15 +134,20 @@ class Deformer:
         :func:`segadeform.body.transfer.garment_weights`): what residual-weights models start from.
 
         Cached in memory and, when ``cache_dir`` is given and writable, on disk as ``W-<hash>.npy``, keyed by
-        the garment's vertices and faces, ``betas``, the prior and the body's rest arrays (the inpainted
-        prior takes about 0.2 s at 4k vertices: every run of the same garment would pay it again).
+        the garment's vertices and faces, ``betas``, the prior (name, version, settings) and the body's rest
+        arrays (the inpainted prior takes about 0.2 s at 4k vertices: every run of the same garment would pay
+        it again).
         """
+        from segadeform.body import transfer
         from segadeform.body.transfer import garment_weights, residual_log_weights
 
         b = self._betas(betas)
         prior = self.weight_prior
+        # the prior's version and settings are part of the key: a release that changes them reads no old entry
+        settings = (f"v{transfer.WEIGHT_PRIOR_VERSION}-{transfer.INPAINT_MAX_DISTANCE}-{transfer.INPAINT_MAX_ANGLE}-"
+                    f"{transfer.RESIDUAL_EPS}")
         key = _digest(asset.vertices, asset.faces, b, body.v_template, body.faces, body.shapedirs, body.weights,
-                      extra=f"wbody-{prior}")
+                      extra=f"wbody-{prior}-{settings}")
         if key in self._memory:
             return self._memory[key]
         path = Path(cache_dir) / f"W-{key}.npy" if cache_dir is not None else None

@@ -142,6 +142,10 @@ def test_body_weights_are_cached_on_disk(tmp_path, body, monkeypatch):
     other = d2.body_log_weights(asset, body, [1.5], cache_dir=tmp_path / "cache")
     assert calls == [1] and not np.array_equal(other, lw)
     assert len(list((tmp_path / "cache").glob("W-*.npy"))) == 2
+    # a new version of the priors reads no old entry
+    monkeypatch.setattr(transfer, "WEIGHT_PRIOR_VERSION", transfer.WEIGHT_PRIOR_VERSION + 1)
+    Deformer(ModelPackage(pkg)).body_log_weights(asset, body, cache_dir=tmp_path / "cache")
+    assert calls == [1, 1] and len(list((tmp_path / "cache").glob("W-*.npy"))) == 3
     # a broken entry is recomputed, not trusted
     for p in (tmp_path / "cache").glob("W-*.npy"):
         p.write_bytes(b"broken")

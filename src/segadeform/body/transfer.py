@@ -21,7 +21,8 @@ from .model import BodyModel
 from .skinning import dual_quaternion_skinning, linear_blend_skinning
 
 __all__ = ["transfer_weights", "inpaint_transfer_weights", "inpaint_weights", "garment_weights", "skin_garment",
-           "residual_log_weights", "RESIDUAL_EPS", "WEIGHT_PRIORS", "INPAINT_MAX_DISTANCE", "INPAINT_MAX_ANGLE"]
+           "residual_log_weights", "RESIDUAL_EPS", "WEIGHT_PRIORS", "WEIGHT_PRIOR_VERSION", "INPAINT_MAX_DISTANCE",
+           "INPAINT_MAX_ANGLE"]
 
 #: the skinning-weight priors a garment can get from the body (see the module docstring)
 WEIGHT_PRIORS = ("nearest", "inpaint")
@@ -29,6 +30,10 @@ WEIGHT_PRIORS = ("nearest", "inpaint")
 INPAINT_MAX_DISTANCE = 0.02
 #: ... and with its normal within this angle (degrees, either side) of the body's there
 INPAINT_MAX_ANGLE = 35.0
+
+#: the version of what :func:`garment_weights` computes: part of the runtime's cache key for the body's weights
+#: at a garment (``W-<hash>.npy``), so a change to the priors must bump it
+WEIGHT_PRIOR_VERSION = 1
 
 #: added to the body's weights before the log that residual-weights models take (``log_wbody``): a joint
 #: the body does not use starts at log(1e-5) = -11.5, and softmax(log(w + eps)) differs from w by < S eps
