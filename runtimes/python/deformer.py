@@ -51,6 +51,7 @@ class Deformer:
         self.n_betas = int(package.config["n_betas"])
         self.n_joints = int(package.config["n_joints"])
         self._memory: dict[str, np.ndarray] = {}
+        self._bodies: dict[int, tuple[object, str]] = {}  # id(body) -> (body, digest of its rest arrays)
         self.encoder_runs = 0
         #: residual-weights models take the body's weights at the garment (``log_wbody``)
         self.needs_body_weights = any(i["name"] == "log_wbody" for i in spec["inputs"])
@@ -146,8 +147,7 @@ class Deformer:
         # the prior's version and settings are part of the key: a release that changes them reads no old entry
         settings = (f"v{transfer.WEIGHT_PRIOR_VERSION}-{transfer.INPAINT_MAX_DISTANCE}-{transfer.INPAINT_MAX_ANGLE}-"
                     f"{transfer.RESIDUAL_EPS}")
-        key = _digest(asset.vertices, asset.faces, b, body.v_template, body.faces, body.shapedirs, body.weights,
-                      extra=f"wbody-{prior}-{settings}")
+        key = _digest(asset.vertices, asset.faces, b, extra=f"wbody-{prior}-{settings}-{self._body_key(body)}")
         if key in self._memory:
             return self._memory[key]
         path = Path(cache_dir) / f"W-{key}.npy" if cache_dir is not None else None
@@ -164,6 +164,14 @@ class Deformer:
         if path is not None:
             self._save(path, lw)
         return lw
+
+    def _body_key(self, body) -> str:
+        """A digest of the body's rest arrays that decide its weights at a garment, once per body object (the
+        object is kept, so its ``id`` is not reused while the entry lives)."""
+        held = self._bodies.get(id(body))
+        if held is None or held[0] is not body:
+            held = self._bodies[id(body)] = (body, _digest(body.v_template, body.faces, body.shapedirs, body.weights))
+        return held[1]
 
     @staticmethod
     def _save(path: Path, array: np.ndarray) -> None:

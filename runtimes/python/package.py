@@ -187,7 +187,7 @@ class ModelPackage:
         so.log_severity_level = 3
         # the encoder runs once per garment: onnxruntime's memory arena would keep its peak (about 300 MB at
         # 16k vertices) for the rest of the run, so it allocates without one.  The deformer and body graphs
-        # keep the arena (without it the deformer is about 2x slower: bench/scaling.py, issue #14's note)
+        # keep the arena (without it the deformer graph measured about 2x slower at 4k vertices, issue #14)
         so.enable_cpu_mem_arena = spec["role"] != contract.ROLES[contract.ENCODER]
         if self.threads > 1:  # idle pool threads sleep instead of spinning: the run's other stages (posing,
             # the collision kernel's threads, writing) get the cores between deformer calls

@@ -185,7 +185,8 @@ class Run:
         stage["precompute"] += time.perf_counter() - t
         t = time.perf_counter()
         P = self.deformer.encode(asset, joints, self.betas, cache_dir=self._cache_dir())
-        lw = self.deformer.body_log_weights(asset, self.body, self.betas, cache_dir=self._cache_dir()) if self.deformer.needs_body_weights else None
+        lw = (self.deformer.body_log_weights(asset, self.body, self.betas, cache_dir=self._cache_dir())
+              if self.deformer.needs_body_weights else None)
         stage["encode"] += time.perf_counter() - t
         need_body = self.effects.collisions or self.body_output is not None
         out = SceneOutput(path=self.output, fmt=self.output_format, up=self.up, fps=self.motion.fps,

@@ -71,6 +71,11 @@ def transfer_weights(points, body_vertices, body_faces, body_weights) -> np.ndar
     Shapes:
         points: (P, 3), body_vertices: (V, 3), body_faces: (F, 3), body_weights: (V, S) -> (P, S)
     """
+    return _closest_point_weights(points, body_vertices, body_faces, body_weights)[2]
+
+
+def _closest_point_weights(points, body_vertices, body_faces, body_weights):
+    """``(points (P, 3) float64, the body query at them, the body's weights there (P, S))``, validated."""
     p = np.asarray(points, np.float64)
     w = np.asarray(body_weights, np.float64)
     if p.ndim != 2 or p.shape[1] != 3 or len(p) == 0:
@@ -78,16 +83,12 @@ def transfer_weights(points, body_vertices, body_faces, body_weights) -> np.ndar
     if w.ndim != 2 or w.shape[0] != len(body_vertices):
         raise InputError("body_weights must be (V, S)", expected=f"({len(body_vertices)}, S)", got=w.shape)
     proxy = BodyProxy(body_vertices, body_faces)
-    return _closest_point_weights(proxy, proxy.query(p), w)
-
-
-def _closest_point_weights(proxy: BodyProxy, r, weights: np.ndarray) -> np.ndarray:
-    """The body's ``weights (V, S)`` interpolated at the closest points ``r`` (a :meth:`BodyProxy.query`)."""
+    r = proxy.query(p)
     tri = proxy.faces[r.face]
     v = proxy.vertices
     bary = _barycentric(r.closest, v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]])
-    out = np.einsum("pc,pcs->ps", bary, weights[tri])
-    return out / out.sum(1, keepdims=True)
+    out = np.einsum("pc,pcs->ps", bary, w[tri])
+    return p, r, out / out.sum(1, keepdims=True)
 
 
 def inpaint_weights(vertices, faces, weights, known) -> np.ndarray:
@@ -141,15 +142,8 @@ def inpaint_transfer_weights(points, faces, body_vertices, body_faces, body_weig
     """
     from ..geometry.mesh_ops import vertex_normals
 
-    p = np.asarray(points, np.float64)
-    bw = np.asarray(body_weights, np.float64)
-    if p.ndim != 2 or p.shape[1] != 3 or len(p) == 0:
-        raise InputError("points must be (P, 3) with P >= 1", got=p.shape)
-    if bw.ndim != 2 or bw.shape[0] != len(body_vertices):
-        raise InputError("body_weights must be (V, S)", expected=f"({len(body_vertices)}, S)", got=bw.shape)
-    proxy = BodyProxy(body_vertices, body_faces)
-    q = proxy.query(p)  # one query serves the closest-point weights and the on-body test
-    w = _closest_point_weights(proxy, q, bw)
+    # one body query serves the closest-point weights and the on-body test
+    p, q, w = _closest_point_weights(points, body_vertices, body_faces, body_weights)
     n = vertex_normals(p, np.asarray(faces))
     cos = np.abs(np.einsum("ij,ij->i", n, q.normal))
     known = (np.abs(q.signed_distance) < float(max_distance)) & (cos >= np.cos(np.radians(float(max_angle))))
