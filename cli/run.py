@@ -65,7 +65,9 @@ def _quality_choice():
 @click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path),
               help="BVH joint map (TOML/JSON: smpl_name = \"FileJoint\") for skeletons not recognised.")
 @click.option("--floor", is_flag=True, default=None, help="Move the motion so the feet touch the floor.")
-@click.option("--force", is_flag=True, help="Animate a garment even when it does not sit on the body.")
+@click.option("--force", is_flag=True, help="Replace the outputs of an earlier run (never a file segadeform did not "
+              "write: segadeform.io.output_guard), write beside other files in an output folder, and animate a "
+              "garment even when it does not sit on the body or the body shape is unusual (|beta| > 5).")
 @click.option("--body-backend", type=click.Choice(["auto", "graph", "numpy"]), default="auto", show_default=True,
               help="How the body is posed for collisions and --body-out: the package's body graph (float32, as "
                    "every other runtime), numpy (float64), or auto: the graph when it poses this body, else numpy.")
@@ -137,11 +139,15 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
     if interactive:
         a, b = frame_range(sc.motion.frames, build_motion(sc.motion, None).n_frames)
         total = b - a
+    from segadeform.io.output_guard import OutputGuard
+
+    guard = OutputGuard("run", force=force, inputs=(scene, sc.garment, sc.motion.file, sc.body, sc.motion.joint_map,
+                                                    model or sc.model))
     with click.progressbar(length=total or 1, label="deforming", file=sys.stderr,
                            hidden=not interactive) as bar:
         summary = run_scene(sc, model=model, output=output, batch=batch, threads=threads, providers=prov,
                             progress=bar.update if interactive else None, cache=not no_cache, force=force,
-                            body_backend=body_backend)
+                            body_backend=body_backend, guard=guard)
     off = summary.effects.off()
     q = f"quality {quality}: " if quality else ""
     click.echo(f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame ({q}effects {summary.effects.label()}"

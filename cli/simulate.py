@@ -23,7 +23,9 @@ from .main import cli
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
 @click.option("--sim-python", type=click.Path(dir_okay=False, path_type=Path),
               help="The simulator environment's Python (default: SEGADEFORM_SIM_PYTHON or .venv-sim).")
-def simulate_cmd(scene, output, effects, material, quality, frames, sim_python):
+@click.option("--force", is_flag=True, help="Replace the outputs of an earlier simulate (never a file segadeform did "
+                                            "not write), write beside other files in an output folder.")
+def simulate_cmd(scene, output, effects, material, quality, frames, sim_python, force):
     """Simulate SCENE.toml's garment on its body with Blender's cloth solver; write it like `run`."""
     from segadeform.physics import SimSettings
     from segadeform.physics.settings import parse_sim_effects
@@ -56,8 +58,12 @@ def simulate_cmd(scene, output, effects, material, quality, frames, sim_python):
             bar.length = total
             bar.update(done - bar.pos)
 
+        from segadeform.io.output_guard import OutputGuard
+
+        guard = OutputGuard("simulate", force=force, inputs=(scene, sc.garment, sc.motion.file, sc.body,
+                                                             sc.motion.joint_map))
         s = simulate_scene(sc, output=output, settings=st, sim_python=sim_python,
-                           progress=progress if interactive else None)
+                           progress=progress if interactive else None, guard=guard)
     r = s.result
     click.echo(f"{s.frames} frames (+{r.preroll_frames} pre-roll), {r.seconds_per_frame:.3f} s/frame in Blender "
                f"{r.blender['blender_version']} ({', '.join(st.effects) or 'no effects'}; {st.material}, "

@@ -39,6 +39,7 @@ from segadeform.garments.fit import check_placement
 from segadeform.geometry import GarmentAsset, precompute_garment
 from segadeform.geometry.asset import PORTABLE_SUFFIX, file_sha256
 from segadeform.io import SceneOutput, read_mesh
+from segadeform.io.outputs import claim_scene_outputs
 from segadeform.motion import Motion, build_motion, frame_range, motion_windows
 from segadeform.scene import Effects, Scene
 
@@ -114,6 +115,8 @@ class Run:
             a batch in one call; its compiled backend on the package's threads, numpy if it was not built) or
             ``"reference"`` (:class:`~segadeform.body.collision.BodyProxy` per frame: the slow, obvious
             one, for comparisons).
+        guard: the command's output rule (:class:`~segadeform.io.output_guard.OutputGuard`; None: none, library
+            use): the outputs are claimed here, before any work, and recorded when written.
         body_backend: how the body is posed for collisions and ``body_output`` (:mod:`segadeform.runtime.body`):
             ``"auto"`` (the package's body graph for the effects' skinning when it poses this body -- the body hash
             its manifest records -- as every other runtime does; else numpy, the reason logged once), ``"graph"``
@@ -123,7 +126,7 @@ class Run:
     def __init__(self, *, garment: Path, motion: Motion, package: ModelPackage, body: BodyModel, betas=(),
                  effects: Effects = Effects(), output: Path, output_format: str = "pc2", up: str = "y",
                  body_output: Optional[Path] = None, frames=None, batch: int = 8, cache: bool = True,
-                 force: bool = False, collider: str = "fast", body_backend: str = "auto") -> None:
+                 force: bool = False, collider: str = "fast", body_backend: str = "auto", guard=None) -> None:
         if collider not in ("fast", "reference"):
             raise InputError("collider must be 'fast' or 'reference'", got=collider)
         if body_backend not in BODY_BACKENDS:
@@ -137,6 +140,9 @@ class Run:
         self.body_output = Path(body_output) if body_output else None
         self.batch, self.cache, self.force = int(batch), cache, bool(force)
         self.start, self.stop = frame_range(frames, motion.n_frames)
+        self.guard = guard
+        if guard is not None:  # refused before any work: an output over a file segadeform did not write ...
+            claim_scene_outputs(guard, self.output, output_format, self.body_output)
         self.deformer = Deformer(package, effects)  # picks the variant; creates no session yet
         #: poses the body when collisions or the body output need it (None otherwise); creates no session yet
         self.body_poser = (BodyPoser(package, body, skinning=effects.skinning, backend=body_backend)
@@ -192,7 +198,8 @@ class Run:
         out = SceneOutput(path=self.output, fmt=self.output_format, up=self.up, fps=self.motion.fps,
                           start_frame=self.start, garment_faces=asset.faces, garment_rest=asset.vertices,
                           body_path=self.body_output, body_faces=self.body.faces,
-                          body_rest=self.body.shaped_vertices(self.betas)[0] if self.body_output else None)
+                          body_rest=self.body.shaped_vertices(self.betas)[0] if self.body_output else None,
+                          guard=self.guard)
         pushed = 0
         proxy = collider = None
         try:
@@ -248,8 +255,9 @@ class Run:
 
 def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Path] = None, batch: int = 8,
               threads: int = 1, providers=None, progress=None, cache: bool = True, force: bool = False,
-              body_backend: str = "auto") -> RunSummary:
-    """Run a scene (optionally overriding its model package and output path); ``body_backend``: :class:`Run`'s."""
+              body_backend: str = "auto", guard=None) -> RunSummary:
+    """Run a scene (optionally overriding its model package and output path); ``body_backend`` and ``guard``:
+    :class:`Run`'s."""
     package = ModelPackage(model or scene.model or default_model_path(), threads=threads, providers=providers)
     body = load_body(scene.body or default_body_path())
     motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
@@ -257,5 +265,5 @@ def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Pa
     run = Run(garment=scene.garment, motion=motion, package=package, body=body, betas=scene.betas,
               effects=scene.effects, output=out, output_format=scene.output_format, up=scene.up,
               body_output=scene.body_output, frames=scene.motion.frames, batch=batch, cache=cache, force=force,
-              body_backend=body_backend)
+              body_backend=body_backend, guard=guard)
     return run.execute(progress)

@@ -9,13 +9,39 @@ because the temporary file is created in the target's directory.
 from __future__ import annotations
 
 import contextlib
+import errno
 import glob
 import os
 import shutil
 from pathlib import Path
 from typing import IO, Iterator
 
-__all__ = ["atomic_path", "atomic_open", "atomic_directory", "remove_temporaries"]
+from ..errors import SegadeformError
+
+__all__ = ["atomic_path", "atomic_open", "atomic_directory", "remove_temporaries", "merge_directory", "WriteError",
+           "write_error"]
+
+
+class WriteError(SegadeformError):
+    """An output could not be written (disk full, file-size limit, read-only or missing folder); the message
+    names the target.  Nothing partial is left: the temporary file is removed."""
+
+    def __init__(self, path, reason: str) -> None:
+        self.path = os.fspath(path)
+        super().__init__(f"{self.path}: cannot write: {reason}")
+
+
+_WHY = {errno.ENOSPC: "no space left on the device", errno.EFBIG: "the file-size limit is reached (ulimit -f)",
+        errno.EDQUOT: "the disk quota is exceeded", errno.EROFS: "the file system is read-only",
+        errno.EACCES: "permission denied (is the folder read-only?)",
+        errno.EPERM: "permission denied (is the folder read-only?)"}
+
+
+def write_error(e: OSError, target) -> SegadeformError:
+    """The one wording for an output that could not be written: the target and the reason, e.g.
+    ``out/x.pc2: cannot write: no space left on the device (expected free space, got ...)``."""
+    why = _WHY.get(e.errno, e.strerror or str(e))
+    return WriteError(target, f"{why}; nothing was left behind")
 
 
 def _tmp_sibling(target: Path, *, directory: bool) -> Path:
@@ -25,7 +51,15 @@ def _tmp_sibling(target: Path, *, directory: bool) -> Path:
     ``open()`` and ``mkdir()`` -- not ``mkstemp``'s 0o600, which would make
     every output readable by its owner only.
     """
-    target.parent.mkdir(parents=True, exist_ok=True)
+    for a in [target.parent, *target.parent.parents]:  # `-o file.obj/x.pc2`: say so, not "File exists"
+        if a.exists():
+            if not a.is_dir():
+                raise WriteError(target, f"{a} is a file, not a folder")
+            break
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise write_error(e, target) from None
     prefix = f".{target.name}.tmp-"
     for _ in range(100):
         name = target.parent / f"{prefix}{os.urandom(6).hex()}"
@@ -37,6 +71,8 @@ def _tmp_sibling(target: Path, *, directory: bool) -> Path:
             return name
         except FileExistsError:
             continue
+        except OSError as e:
+            raise write_error(e, target) from None
     raise FileExistsError(f"could not create a temporary file beside {target}")
 
 
@@ -60,6 +96,12 @@ def atomic_path(path: str | os.PathLike, *, exclusive: bool = False) -> Iterator
             _link_exclusive(tmp, target)
         else:
             os.replace(tmp, target)
+    except OSError as e:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        if e.errno in _WHY and (e.filename is None or Path(e.filename) in (tmp, target)):
+            raise write_error(e, target) from None  # disk full, ulimit -f ...: name the output
+        raise
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
@@ -108,27 +150,44 @@ def atomic_open(path: str | os.PathLike, mode: str = "wb", **kwargs) -> Iterator
             os.fsync(fh.fileno())
 
 
+def merge_directory(tmp: Path, target: Path) -> None:
+    """Move the files of folder ``tmp`` into ``target``: renamed whole when ``target`` does not exist (or is
+    empty), else file by file (each replacing the file of its name; nothing else in ``target`` is touched), then
+    ``tmp`` removed.  Which files may be replaced is the caller's rule (:mod:`segadeform.io.output_guard`)."""
+    tmp, target = Path(tmp), Path(target)
+    if target.exists() and not target.is_dir():
+        raise FileExistsError(f"{target}: exists and is not a directory")
+    if not target.exists():
+        os.replace(tmp, target)
+        return
+    with contextlib.suppress(OSError):  # an empty folder (not the working directory): replaced whole
+        if not any(target.iterdir()) and Path.cwd().resolve() != target.resolve():
+            os.replace(tmp, target)
+            return
+    for src in sorted(tmp.iterdir()):
+        dst = target / src.name
+        if src.is_dir() and not src.is_symlink() and dst.is_dir():
+            merge_directory(src, dst)
+        else:
+            os.replace(src, dst)
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
 @contextlib.contextmanager
 def atomic_directory(path: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary directory; on success it replaces ``path``.
-
-    An existing directory at ``path`` is moved aside first and deleted only
-    after the new one is in place.
+    """Yield a temporary directory; on success its files go to ``path`` (:func:`merge_directory`): the whole
+    folder renamed into place when ``path`` is new, else file by file -- nothing already in ``path`` is removed.
     """
     target = Path(path)
     tmp = _tmp_sibling(target, directory=True)
     try:
         yield tmp
-        old = None
-        if target.exists():
-            if not target.is_dir():
-                raise FileExistsError(f"{target}: exists and is not a directory")
-            old = _tmp_sibling(target, directory=True)
-            old.rmdir()
-            os.replace(target, old)
-        os.replace(tmp, target)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
+        merge_directory(tmp, target)
+    except OSError as e:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if e.errno in _WHY and e.filename is None:
+            raise write_error(e, target) from None
+        raise
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -2,7 +2,9 @@
 the posed body sequence with (for point caches) the body's rest mesh the cache animates.
 
 All of it is written atomically and committed or discarded together; :meth:`SceneOutput.close`
-returns every path written, so callers can announce each one.
+returns every path written, so callers can announce each one.  With an
+:class:`~segadeform.io.output_guard.OutputGuard` (the command's output rule), every target is claimed first
+(:func:`claim_scene_outputs`), checked again just before the commit, and recorded after it.
 """
 
 from __future__ import annotations
@@ -16,7 +18,24 @@ import numpy as np
 from .formats import open_sequence_writer, sequence_format
 from .writer import to_up
 
-__all__ = ["SceneOutput"]
+__all__ = ["SceneOutput", "claim_scene_outputs"]
+
+
+def claim_scene_outputs(guard, path, fmt: str, body_path=None) -> None:
+    """Claim with ``guard`` (:class:`~segadeform.io.output_guard.OutputGuard`) every path a scene output writes:
+    the garment output (a file, or for a folder format a folder of ``frame_*.obj``), the body output and, for
+    point caches, the body's rest mesh beside it (``.obj``)."""
+    f = sequence_format(fmt)
+    for p in (path, body_path):
+        if p is None:
+            continue
+        p = Path(p)
+        if f.folder:
+            guard.folder(p, names="frame_*.obj")
+        else:
+            guard.file(p)
+    if body_path is not None and fmt == "pc2":
+        guard.file(Path(body_path).with_suffix(".obj"))
 
 
 class SceneOutput:
@@ -29,13 +48,17 @@ class SceneOutput:
         garment_faces (F, 3), garment_rest (N, 3): the garment mesh.
         body_path: also write the posed body here (same format), with ``body_faces`` and ``body_rest``
             (V, 3) -- for PC2 the rest mesh goes beside it as ``.obj``.
+        guard: the command's :class:`~segadeform.io.output_guard.OutputGuard` that claimed these outputs
+            (:func:`claim_scene_outputs`; None: no rule, library use): checked again before the commit and
+            recorded after it.
     """
 
     def __init__(self, *, path: str | os.PathLike, fmt: str, up: str = "y", fps: float = 30.0, start_frame: int = 0,
                  garment_faces: np.ndarray, garment_rest: np.ndarray, body_path: Optional[os.PathLike] = None,
-                 body_faces: Optional[np.ndarray] = None, body_rest: Optional[np.ndarray] = None) -> None:
+                 body_faces: Optional[np.ndarray] = None, body_rest: Optional[np.ndarray] = None,
+                 guard=None) -> None:
         sequence_format(fmt)  # unknown formats fail before anything is opened
-        self.fmt, self.up = fmt, up
+        self.fmt, self.up, self.guard = fmt, up, guard
         rest = np.asarray(garment_rest, np.float64)
         self.garment = open_sequence_writer(path, fmt, faces=garment_faces, num_points=len(rest), fps=fps,
                                             start_frame=start_frame, rest=rest, up=up)
@@ -61,6 +84,8 @@ class SceneOutput:
         from .mesh import Mesh
         from .obj import write_obj
 
+        if self.guard is not None:
+            self.guard.recheck()  # nothing appeared at the targets since they were claimed
         written = [self.garment.close()]
         if self.body is not None:
             written.append(self.body.close())
@@ -68,6 +93,8 @@ class SceneOutput:
                 obj = Path(self.body.path).with_suffix(".obj")
                 write_obj(obj, Mesh(vertices=to_up(self._body_rest, self.up), faces=self._body_faces))
                 written.append(obj)
+        if self.guard is not None:
+            self.guard.record()
         return written
 
     def abort(self) -> None:

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from .atomic import _tmp_sibling, atomic_path
+from .atomic import _tmp_sibling, atomic_path, merge_directory
 from .mesh import validate_mesh_arrays
 from .obj import read_obj, write_obj_positions
 from .writer import SequenceWriter, to_up
@@ -58,14 +58,9 @@ class ObjSequenceWriter(SequenceWriter):
             self.index += 1
 
     def _commit(self) -> None:
-        if self.path.exists():
-            old = _tmp_sibling(self.path, directory=True)
-            old.rmdir()
-            os.replace(self.path, old)
-            os.replace(self._tmp, self.path)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(self._tmp, self.path)
+        # a new folder appears whole; into an existing one the frames go file by file, nothing else touched
+        # (which frames may be replaced is segadeform.io.output_guard's rule)
+        merge_directory(self._tmp, self.path)
 
     def _discard(self) -> None:
         shutil.rmtree(self._tmp, ignore_errors=True)

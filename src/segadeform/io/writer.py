@@ -28,6 +28,12 @@ UP_AXES = ("y", "z")
 Y_TO_Z = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
 
 
+def _write_error(e: OSError, path):
+    from .atomic import write_error
+
+    return write_error(e, path)
+
+
 def to_up(points: np.ndarray, up: str) -> np.ndarray:
     """Points in the package's +Y-up convention, as written for ``up`` ("y": unchanged, "z": Z-up).
 
@@ -90,7 +96,11 @@ class SequenceWriter:
         if self._closed:
             raise InputError(f"{type(self).__name__} is closed", path=self.path)
         a = self.check(frames)
-        self._append(to_up(a, self.up))
+        try:
+            self._append(to_up(a, self.up))
+        except OSError as e:  # disk full, ulimit -f: name the output, leave nothing
+            self.abort()
+            raise _write_error(e, self.path) from None
         self.num_samples += a.shape[0]
 
     def close(self) -> Path:
@@ -100,7 +110,11 @@ class SequenceWriter:
         if self.needs_frames and self.num_samples == 0:
             self.abort()
             raise InputError("no frames were written", path=self.path)
-        self._commit()
+        try:
+            self._commit()
+        except OSError as e:
+            self.abort()
+            raise _write_error(e, self.path) from None
         self._closed = True
         return self.path
 

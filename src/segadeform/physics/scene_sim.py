@@ -11,6 +11,7 @@ import numpy as np
 from ..body.model import default_body_path, load_body
 from ..errors import InputError
 from ..io import SceneOutput, read_mesh
+from ..io.outputs import claim_scene_outputs
 from ..motion import build_motion, select_frames
 from ..scene import Scene
 from .blender import SimResult, simulate
@@ -29,28 +30,32 @@ class SimSummary:
 
 
 def simulate_scene(scene: Scene, *, output: Optional[Path] = None, settings: Optional[SimSettings] = None,
-                   sim_python=None, progress: Optional[Callable[[int, int], None]] = None) -> SimSummary:
+                   sim_python=None, progress: Optional[Callable[[int, int], None]] = None, guard=None) -> SimSummary:
     """Simulate ``scene`` (its ``[simulate]`` table, or ``settings``) and write its output like ``segadeform run``.
 
     The frames written are the motion's frames (the scene's frame range, if
-    any); the drape and blend pre-roll are simulated but not written.
+    any); the drape and blend pre-roll are simulated but not written.  ``guard``: the command's output rule
+    (:class:`~segadeform.io.output_guard.OutputGuard`), which claims the outputs before the simulator starts.
     """
     st = settings or scene.simulate or SimSettings()
     body = load_body(scene.body or default_body_path())
     motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
     motion, start = select_frames(motion, scene.motion.frames)  # checked before the simulator starts
     mesh = read_mesh(scene.garment)
+    out = Path(output) if output is not None else scene.output
+    if guard is not None:  # refused before minutes of simulation, not after
+        claim_scene_outputs(guard, out, scene.output_format, scene.body_output)
     res = simulate(mesh.vertices, mesh.faces, body, motion, betas=scene.betas or None, settings=st,
                    sim_python=sim_python, progress=progress)
     if not np.isfinite(res.frames).all():
         raise InputError("the simulation produced NaN or inf; try a higher quality")
-    out = Path(output) if output is not None else scene.output
     posed = body.forward(motion.poses, scene.betas or None, motion.trans).vertices \
         if scene.body_output is not None else None
     with SceneOutput(path=out, fmt=scene.output_format, up=scene.up, fps=motion.fps, start_frame=start,
                      garment_faces=mesh.faces, garment_rest=mesh.vertices, body_path=scene.body_output,
                      body_faces=body.faces,
-                     body_rest=body.shaped_vertices(scene.betas or None)[0] if posed is not None else None) as w:
+                     body_rest=body.shaped_vertices(scene.betas or None)[0] if posed is not None else None,
+                     guard=guard) as w:
         w.write(res.frames, posed)
         written = w.close()
     return SimSummary(frames=motion.n_frames, output=out, body_output=scene.body_output, settings=st, result=res,

@@ -1,0 +1,477 @@
+"""The one output rule: no command deletes or overwrites a file it did not write.
+
+Every command that writes files builds an :class:`OutputGuard` -- its *kind* (the command: ``"run"``,
+``"garment fit"`` ...; the model-package writers share ``"package"``), the user's ``--force`` and the
+files it reads -- and claims each output before any work starts:
+
+* **A file** (:meth:`OutputGuard.file`).  A new path is written.  An existing file is replaced only when a
+  previous run of the same kind wrote it (the folder's manifest lists it, unchanged since) and ``force`` is
+  given; a file segadeform did not write, or that another command wrote, is refused with no way round it
+  but another path.  An input of the command, a folder, and a path inside a file are refused too.
+* **A folder of files** (:meth:`OutputGuard.folder`: an OBJ sequence, a model package).  A new or empty
+  folder is written.  One that holds anything is refused without ``force``; with it the new files go beside
+  what is there: files a previous run of the same kind wrote are replaced (and those this run does not
+  write again are removed), nothing else is touched, and a file segadeform did not write at a name the
+  output uses (``names``, a glob) is refused.  Without ``names`` (the files are not known in advance) such a
+  folder is refused even with ``force``.
+* **A resumable folder** (:meth:`OutputGuard.resumable`: ``dataset make``, ``batch``, ``train``, on a local
+  folder or an fsspec URL).  A new or empty folder is started; one that a run of the same kind made
+  (its manifest says so, or it has that command's layout, ``legacy``) is continued, which is how these
+  commands resume.  One that holds other files is refused without ``force``; with it the run writes beside
+  them, and is refused if any of them sits where its layout writes (``layout``: the top-level names).
+
+An output inside an input's folder is written like any other; inputs are never replaced or removed.
+
+**The manifest.**  ``.segadeform-outputs.json`` in each folder that receives outputs lists, per file name,
+the kind that wrote it and the file's size and modification time (ns) when written; a file whose size or
+time changed since is no longer counted as written by segadeform (someone edited it).  A resumable folder's
+manifest also says whose folder it is (``"folder": kind``).  :meth:`OutputGuard.record` updates it after a
+successful commit (under an advisory lock, so parallel writers into one folder do not lose entries).
+
+**The write itself** stays atomic (:mod:`segadeform.io.atomic`): claims are checked before any work and again
+just before the commit (:meth:`OutputGuard.recheck`), so a file that appeared meanwhile is refused too.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import fnmatch
+import json
+import os
+from pathlib import Path
+from typing import Iterable, Iterator, Optional, Sequence, Union
+
+from ..errors import InputError
+
+__all__ = ["MANIFEST_NAME", "OutputRefused", "OutputGuard", "written_by", "read_manifest"]
+
+#: the manifest each output folder gets
+MANIFEST_NAME = ".segadeform-outputs.json"
+_MANIFEST_VERSION = 1
+
+
+class OutputRefused(InputError):
+    """An output would delete or overwrite something segadeform did not write (or an input, or a previous
+    output without ``--force``).  The message says why and what to do instead."""
+
+
+def _is_temporary(name: str) -> bool:
+    return name.startswith(".") and ".tmp-" in name
+
+
+# ---- the manifest --------------------------------------------------------------------------------------------
+def read_manifest(folder: Union[str, os.PathLike]) -> dict:
+    """The manifest of ``folder`` (``{"files": {name: {"kind", "size", "mtime_ns"}}, "folder": kind?}``);
+    an empty one when there is none.  A manifest that is not one is refused (it is never overwritten)."""
+    p = Path(folder) / MANIFEST_NAME
+    try:
+        raw = p.read_bytes()
+    except FileNotFoundError:
+        return {"files": {}}
+    except NotADirectoryError:
+        return {"files": {}}
+    except OSError as e:
+        raise OutputRefused(f"cannot read the outputs manifest ({e.strerror or e})", path=p) from None
+    try:
+        m = json.loads(raw.decode("utf-8"))
+        if not isinstance(m, dict) or m.get("segadeform_outputs") != _MANIFEST_VERSION \
+                or not isinstance(m.get("files"), dict) \
+                or not all(isinstance(v, dict) and isinstance(v.get("kind"), str) for v in m["files"].values()):
+            raise ValueError
+    except (ValueError, UnicodeDecodeError):
+        raise OutputRefused("not a segadeform outputs manifest, and segadeform does not overwrite it", path=p,
+                            expected=f'JSON with "segadeform_outputs": {_MANIFEST_VERSION}',
+                            got=repr(raw[:40])) from None
+    return m
+
+
+def _stat(p: Path) -> Optional[os.stat_result]:
+    try:
+        return os.lstat(p)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+
+
+def _entry(kind: str, st: os.stat_result) -> dict:
+    return {"kind": kind, "size": int(st.st_size), "mtime_ns": int(st.st_mtime_ns)}
+
+
+def _unchanged(entry: dict, st: Optional[os.stat_result]) -> bool:
+    import stat as stat_mod
+
+    return (st is not None and stat_mod.S_ISREG(st.st_mode) and entry.get("size") == st.st_size
+            and entry.get("mtime_ns") == st.st_mtime_ns)
+
+
+def written_by(path: Union[str, os.PathLike]) -> Optional[str]:
+    """The kind of the command that wrote ``path`` when its folder's manifest lists it and the file is unchanged
+    since; None otherwise (not written by segadeform, edited since, or missing)."""
+    p = Path(path)
+    e = read_manifest(p.parent)["files"].get(p.name)
+    return e["kind"] if e is not None and _unchanged(e, _stat(p)) else None
+
+
+@contextlib.contextmanager
+def _locked(folder: Path) -> Iterator[None]:
+    """An advisory lock on ``folder`` (flock on the folder itself; none where the platform has no flock)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover  (Windows)
+        yield
+        return
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _update_manifest(folder: Path, add: dict, drop: Iterable[str] = (), mark: Optional[str] = None) -> None:
+    """Add entries ``add`` (name -> entry), drop names, optionally mark the folder as ``mark``'s; atomic."""
+    from .atomic import atomic_path
+
+    with _locked(folder):
+        m = read_manifest(folder)
+        files = dict(m["files"])
+        for n in drop:
+            files.pop(n, None)
+        files.update(add)
+        out = {"segadeform_outputs": _MANIFEST_VERSION,
+               "note": "files segadeform wrote here (name: command, size, mtime); see segadeform.io.output_guard"}
+        if mark or m.get("folder"):
+            out["folder"] = m.get("folder") or mark
+        out["files"] = dict(sorted(files.items()))
+        with atomic_path(folder / MANIFEST_NAME) as tmp:
+            Path(tmp).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
+
+
+# ---- claims ----------------------------------------------------------------------------------------------------
+@dataclasses.dataclass
+class _Claim:
+    path: Path
+    what: str                        # "file" | "folder" | "resumable"
+    names: Optional[str] = None      # folder: glob of the names the output writes
+    existed: bool = False
+    snapshot: dict = dataclasses.field(default_factory=dict)  # folder: name -> (size, mtime_ns, ino) before
+    location: object = None          # resumable: the Location
+    layout: tuple = ()
+    legacy: tuple = ()
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.abspath(a) == os.path.abspath(b)
+
+
+def _listing(folder: Path) -> list[str]:
+    return sorted(n for n in os.listdir(folder) if n != MANIFEST_NAME and not _is_temporary(n))
+
+
+def _names(items: Sequence[str], more: int = 0) -> str:
+    s = ", ".join(items[:3])
+    return s + (f" and {len(items) - 3 + more} more" if len(items) + more > 3 else "")
+
+
+class OutputGuard:
+    """The output rule for one command run (see the module docstring).
+
+    Args:
+        kind: the command (``"run"``, ``"simulate"``, ``"garment fit"`` ...); files are replaced only by a
+            later run of the same kind.
+        force: the user's ``--force``: replace what a previous run of this kind wrote, write into a folder
+            that holds other files (beside them).
+        inputs: files and folders the command reads; never an output, never replaced or removed.
+    """
+
+    def __init__(self, kind: str, *, force: bool = False, inputs: Iterable = ()) -> None:
+        if not kind or not isinstance(kind, str):
+            raise InputError("an output guard needs the command's name", got=kind)
+        self.kind, self.force = kind, bool(force)
+        self.inputs = tuple(Path(p) for p in inputs if p is not None and not _is_url(p))
+        self.claims: list[_Claim] = []
+
+    def __repr__(self) -> str:
+        return f"OutputGuard({self.kind!r}, force={self.force}, {len(self.claims)} claims)"
+
+    # -- helpers -----------------------------------------------------------------------------------------------
+    @property
+    def _cmd(self) -> str:
+        return f"segadeform {self.kind}"
+
+    def _input_at(self, p: Path) -> Optional[Path]:
+        return next((i for i in self.inputs if _same_file(i, p)), None)
+
+    def _check_parent(self, p: Path) -> None:
+        for a in [p.parent, *p.parent.parents]:
+            st = _stat(a)
+            if st is None:
+                continue
+            if not os.path.isdir(a):
+                raise OutputRefused(f"{a} is a file, so nothing can be written inside it", path=p,
+                                    expected="a path in a folder", got=f"{a.name} (a file)")
+            return
+
+    # -- file outputs ------------------------------------------------------------------------------------------
+    def _check_file(self, p: Path) -> bool:
+        """Raise unless ``p`` may be written; whether it exists."""
+        self._check_parent(p)
+        inp = self._input_at(p)
+        if inp is not None:
+            raise OutputRefused(f"is an input of this command, and {self._cmd} never writes over its inputs",
+                                path=p, expected="an output path that is not an input", got=str(inp))
+        st = _stat(p)
+        if st is None:
+            return False
+        if os.path.isdir(p):
+            raise OutputRefused("is a folder", path=p, expected="a file path for this output", got="a folder")
+        entry = read_manifest(p.parent)["files"].get(p.name)
+        if entry is None or not _unchanged(entry, st):
+            why = "segadeform did not write it" if entry is None else "it changed since segadeform wrote it"
+            raise OutputRefused(f"exists and {why}; segadeform never overwrites such a file", path=p,
+                                expected="a new path (or remove the file yourself)", got="an existing file")
+        if entry["kind"] != self.kind:
+            raise OutputRefused(f"exists, written by `segadeform {entry['kind']}`; {self._cmd} does not replace "
+                                "another command's output", path=p, expected="another path",
+                                got=f"an output of segadeform {entry['kind']}")
+        if not self.force:
+            raise OutputRefused(f"exists (the output of an earlier `{self._cmd}`)", path=p,
+                                expected="a new path, or --force to replace it", got="an existing output")
+        return True
+
+    def file(self, path: Union[str, os.PathLike]) -> Path:
+        """Claim file output ``path`` (see the module docstring); returns it."""
+        p = Path(path)
+        existed = self._check_file(p)
+        self.claims.append(_Claim(p, "file", existed=existed))
+        return p
+
+    # -- folder outputs ----------------------------------------------------------------------------------------
+    def _check_folder(self, p: Path, names: Optional[str]) -> tuple[bool, dict]:
+        self._check_parent(p)
+        inp = self._input_at(p)
+        if inp is not None:
+            raise OutputRefused(f"is an input of this command, and {self._cmd} never writes over its inputs",
+                                path=p, expected="an output folder that is not an input", got=str(inp))
+        st = _stat(p)
+        if st is None:
+            return False, {}
+        if not os.path.isdir(p):
+            raise OutputRefused("is a file", path=p, expected="a folder for this output (a new or empty one)",
+                                got="a file")
+        listing = _listing(p)
+        if not listing:
+            return True, {}
+        files = read_manifest(p)["files"]
+        snap = {}
+        ours, other, taken = [], [], []
+        for n in listing:
+            q = p / n
+            s = _stat(q)
+            snap[n] = None if s is None else (s.st_size, s.st_mtime_ns, s.st_ino)
+            e = files.get(n)
+            mine = e is not None and e["kind"] == self.kind and _unchanged(e, s) and self._input_at(q) is None
+            (ours if mine else other).append(n)
+            if not mine and (names is None or fnmatch.fnmatchcase(n, names)):
+                taken.append(n)
+        if not self.force:
+            if other:
+                raise OutputRefused(f"the folder holds {len(other)} file(s) {self._cmd} did not write "
+                                    f"({_names(other)})", path=p,
+                                    expected="a new or empty folder, or --force to write beside them, "
+                                             "untouched", got="a folder in use")
+            raise OutputRefused(f"the folder holds the output of an earlier `{self._cmd}` ({len(ours)} files)",
+                                path=p, expected="a new or empty folder, or --force to replace that output",
+                                got="an existing output")
+        if taken:
+            if names is None:
+                raise OutputRefused(f"the folder holds {len(taken)} file(s) {self._cmd} did not write "
+                                    f"({_names(taken)}), and this output's files are not known in advance",
+                                    path=p, expected="a new or empty folder, or one holding only an earlier "
+                                                     f"output of {self._cmd}", got="a folder in use")
+            raise OutputRefused(f"the folder holds {len(taken)} file(s) named like this output's ({names}) that "
+                                f"{self._cmd} did not write ({_names(taken)})", path=p,
+                                expected="another folder", got="files in the way")
+        return True, snap
+
+    def folder(self, path: Union[str, os.PathLike], *, names: Optional[str] = None) -> Path:
+        """Claim folder output ``path`` whose files are named like glob ``names`` (None: not known in advance)."""
+        p = Path(path)
+        existed, snap = self._check_folder(p, names)
+        self.claims.append(_Claim(p, "folder", names=names, existed=existed, snapshot=snap))
+        return p
+
+    # -- resumable folders ---------------------------------------------------------------------------------------
+    def resumable(self, where, *, layout: Sequence[str] = (), legacy: Sequence[str] = ()):
+        """Claim a resumable output folder (a path, URL or :class:`~segadeform.io.location.Location`); returns
+        the Location.  ``layout``: the top-level names the command writes (files or folders); ``legacy``:
+        names whose presence marks a folder this command made before it had a manifest (all must be there).
+        """
+        from .location import LocalLocation, open_location
+
+        loc = open_location(where)
+        if isinstance(loc, LocalLocation):
+            p = loc.root
+            self._check_parent(p)
+            if self._input_at(p) is not None:
+                raise OutputRefused(f"is an input of this command, and {self._cmd} never writes over its inputs",
+                                    path=p, expected="an output folder that is not an input", got=str(p))
+            if _stat(p) is not None and not os.path.isdir(p):
+                raise OutputRefused("is a file", path=p, expected="a folder for this output", got="a file")
+        names = self._top_names(loc)
+        c = _Claim(Path(str(loc)), "resumable", location=loc, layout=tuple(layout), legacy=tuple(legacy),
+                   existed=names is not None)
+        self._check_resumable(c, names or [])
+        self.claims.append(c)
+        return loc
+
+    @staticmethod
+    def _top_names(loc) -> Optional[list[str]]:
+        """Top-level names in the location (files and folders, manifest and temporaries left out); None when it
+        does not exist."""
+        from .location import LocalLocation
+
+        if isinstance(loc, LocalLocation):
+            if not loc.root.is_dir():
+                return None
+            return _listing(loc.root)
+        try:
+            entries = loc.fs.ls(loc.root, detail=False)
+        except (FileNotFoundError, NotADirectoryError):
+            return None
+        names = [str(e).rstrip("/").rsplit("/", 1)[-1] for e in entries]
+        return sorted(n for n in names if n and n != MANIFEST_NAME and not _is_temporary(n))
+
+    def _folder_owner(self, loc) -> Optional[str]:
+        if not loc.exists(MANIFEST_NAME):
+            return None
+        from .location import LocalLocation
+
+        if isinstance(loc, LocalLocation):
+            return read_manifest(loc.root).get("folder")
+        try:
+            m = json.loads(loc.read_text(MANIFEST_NAME))
+            return m.get("folder") if isinstance(m, dict) else None
+        except ValueError:
+            return None
+
+    def _check_resumable(self, c: _Claim, names: list[str]) -> None:
+        loc = c.location
+        if not names:
+            return
+        owner = self._folder_owner(loc)
+        if owner == self.kind:
+            return
+        where = Path(str(loc))
+        if owner is not None:
+            raise OutputRefused(f"the folder is the output of `segadeform {owner}`", path=where,
+                                expected=f"a new or empty folder for {self._cmd}", got=f"a {owner} folder")
+        if c.legacy and all(n in names for n in c.legacy):
+            return  # made by this command before folders had manifests
+        other = [n for n in names]
+        if not self.force:
+            raise OutputRefused(f"the folder holds {len(other)} item(s) {self._cmd} did not write "
+                                f"({_names(other)})", path=where,
+                                expected="a new or empty folder, or --force to write beside them, untouched",
+                                got="a folder in use")
+        taken = [n for n in names if any(fnmatch.fnmatchcase(n, pat) for pat in c.layout)]
+        if taken:
+            raise OutputRefused(f"the folder holds {len(taken)} item(s) where {self._cmd} writes ({_names(taken)})",
+                                path=where, expected="another folder", got="files in the way")
+
+    def start(self) -> None:
+        """Mark claimed resumable folders as this kind's now (before the first task commits), so a stopped run
+        is resumed; the folder is created."""
+        for c in self.claims:
+            if c.what == "resumable":
+                self._mark(c.location)
+
+    def _mark(self, loc) -> None:
+        from .location import LocalLocation
+
+        if isinstance(loc, LocalLocation):
+            loc.root.mkdir(parents=True, exist_ok=True)
+            _update_manifest(loc.root, {}, mark=self.kind)
+        elif not loc.exists(MANIFEST_NAME):
+            body = {"segadeform_outputs": _MANIFEST_VERSION, "folder": self.kind, "files": {}}
+            loc.put_bytes(MANIFEST_NAME, (json.dumps(body, indent=1) + "\n").encode("utf-8"))
+
+    def abandon(self) -> None:
+        """After a run that made nothing: remove the resumable folders this run created that hold nothing but
+        its manifest (a failed run leaves no empty output folder behind)."""
+        from .location import LocalLocation
+
+        for c in self.claims:
+            if c.what != "resumable" or c.existed or not isinstance(c.location, LocalLocation):
+                continue
+            root = c.location.root
+            with contextlib.suppress(OSError):
+                if not _listing(root):
+                    for sub in [MANIFEST_NAME]:
+                        with contextlib.suppress(FileNotFoundError):
+                            (root / sub).unlink()
+                    root.rmdir()
+
+    # -- before the commit, and after ----------------------------------------------------------------------------
+    def recheck(self) -> None:
+        """Check every file and folder claim again (just before committing: something may have appeared)."""
+        for c in self.claims:
+            if c.what == "file":
+                self._check_file(c.path)
+            elif c.what == "folder" and not (c.existed and c.snapshot):
+                self._check_folder(c.path, c.names)
+
+    def record(self) -> list[Path]:
+        """After a successful commit: list what was written in the manifests, and remove the files an earlier run
+        of this kind wrote into a claimed folder that this run did not write again.  Returns the files recorded."""
+        out: list[Path] = []
+        for c in self.claims:
+            if c.what == "file":
+                st = _stat(c.path)
+                if st is not None and os.path.isfile(c.path):
+                    _update_manifest(c.path.parent, {c.path.name: _entry(self.kind, st)})
+                    out.append(c.path)
+            elif c.what == "folder" and c.path.is_dir():
+                out.extend(self._record_folder(c))
+        return out
+
+    def _record_folder(self, c: _Claim) -> list[Path]:
+        p = c.path
+        with _locked(p):
+            files = read_manifest(p)["files"]
+            add, drop, stale = {}, [], []
+            for n in _listing(p):
+                q = p / n
+                s = _stat(q)
+                if s is None or not os.path.isfile(q):
+                    continue
+                before = c.snapshot.get(n)
+                if before is None or before != (s.st_size, s.st_mtime_ns, s.st_ino):
+                    add[n] = _entry(self.kind, s)  # written by this run
+                    continue
+                e = files.get(n)
+                if e is not None and e["kind"] == self.kind:
+                    if _unchanged(e, s) and self._input_at(q) is None:
+                        stale.append(n)  # an earlier run's, not written again: replaced means removed
+                    else:
+                        drop.append(n)   # edited since: no longer ours, kept
+            for n in stale:
+                with contextlib.suppress(FileNotFoundError):
+                    (p / n).unlink()
+            drop.extend(stale)
+            drop.extend(n for n in files if not (p / n).exists())
+        _update_manifest(p, add, drop)
+        return [p / n for n in sorted(add)]
+
+    @contextlib.contextmanager
+    def writing(self) -> Iterator["OutputGuard"]:
+        """``with guard.writing():`` -- :meth:`record` when the block succeeds (what it claimed and wrote)."""
+        yield self
+        self.record()
+
+
+def _is_url(p) -> bool:
+    return isinstance(p, str) and "://" in p and not p.startswith("/")
