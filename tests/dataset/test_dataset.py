@@ -88,10 +88,25 @@ def test_quality_gate_accepts_clean_and_names_each_failure():
     inside[:, :] = b.rest_joints()[0][0]  # every vertex at the pelvis joint, inside the body
     r = quality_check(inside + np.random.default_rng(0).normal(0, 1e-3, inside.shape), v, f, bf, b.faces, spec)
     assert any(s.startswith("penetration") for s in r.reasons)
-    fell = x.copy()
-    fell[-1, :3] -= [0.0, 2.0, 0.0]  # three vertices fell 2 m (a loose piece): no strain inside it
-    r = quality_check(fell, v, f, bf, b.faces, spec)
-    assert any(s.startswith("detached") for s in r.reasons) and 0 < r.detached < 0.2
+    # a loose piece (its own connected component, a button) falls 2 m: no strain inside it
+    v2 = np.concatenate([v, v[:3] + [0.0, 0.0, 0.005]])
+    f2 = np.concatenate([f, [[len(v), len(v) + 1, len(v) + 2]]])
+    x2 = np.concatenate([x, np.repeat(v2[None, len(v):], len(x), axis=0)], axis=1)
+    assert quality_check(x2, v2, f2, bf, b.faces, spec).ok
+    fell = x2.copy()
+    fell[-1, len(v):] -= [0.0, 2.0, 0.0]
+    r = quality_check(fell, v2, f2, bf, b.faces, spec)
+    assert any(s.startswith("detached") for s in r.reasons) and r.detached == 3 / len(v2)
+    # a hem swinging 0.4 m out from the body is cloth, not a detached piece (the piece's other
+    # vertices stay near the body) ...
+    swing = x.copy()
+    swing[-1, :6] += [0.0, 0.0, 0.4]
+    r = quality_check(swing, v, f, bf, b.faces, QualitySpec(max_strain=10.0, max_jitter=1.0))
+    assert r.ok, r.reasons
+    # ... unless a vertex flies past max_vertex_distance
+    swing[-1, 0] += [0.0, 0.0, 2.0]
+    r = quality_check(swing, v, f, bf, b.faces, QualitySpec(max_strain=100.0, max_jitter=1.0))
+    assert any(s.startswith("detached") for s in r.reasons) and r.detached == 1 / len(v)
 
 
 def _need_simulator():

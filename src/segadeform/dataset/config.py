@@ -19,8 +19,9 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     max_penetrating = 0.01    # largest fraction of vertices deeper than `penetration_depth`, any frame
     penetration_depth = 0.005
     max_jitter = 0.001        # largest fraction of (frame, vertex) acceleration outliers
-    max_body_distance = 0.3   # no vertex may be farther from the body in any frame (m): a piece
-                              # that fell off, or a vertex that flew away
+    max_body_distance = 0.3   # no piece of the garment (a connected component) may be farther from
+                              # the body in any frame (m): a piece that fell off ...
+    max_vertex_distance = 1.0 # ... and no vertex farther than this (m): one that flew away
 
     [simulate]                # as in a scene (segadeform.physics.settings)
     effects = ["gravity", "body_collision", "bending", "air_damping"]
@@ -117,7 +118,8 @@ class QualitySpec:
     max_penetrating: float = 0.01
     penetration_depth: float = 0.005
     max_jitter: float = 0.001
-    max_body_distance: float = 0.3  # no vertex may end farther than this from the body (m)
+    max_body_distance: float = 0.3  # no piece (connected component) may be farther than this from the body (m)
+    max_vertex_distance: float = 1.0  # and no vertex farther than this (m)
 
 
 @dataclasses.dataclass(frozen=True)

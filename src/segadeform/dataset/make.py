@@ -259,7 +259,8 @@ def _run_one(root, cfg: DatasetConfig, ps: PlannedSample, body_path: Optional[st
              provision: bool = False) -> dict:
     """Simulate, gate and commit one sample (in a worker); returns its log record.  Idempotent: a
     sample committed already is not made again (its record comes back with ``resumed``)."""
-    from ..physics.blender import A_POSE, simulate
+    from ..body.identity import body_sha256
+    from ..physics.blender import A_POSE, SIM_BRIDGE_VERSION, simulate
 
     t0 = time.perf_counter()
     loc = open_location(root)
@@ -306,7 +307,8 @@ def _run_one(root, cfg: DatasetConfig, ps: PlannedSample, body_path: Optional[st
     # a rejected sample keeps its arrays too: another gate can be applied later without simulating (regate)
     rec.update(status="kept" if q.ok else "rejected", **({} if q.ok else {"reasons": q.reasons}))
     meta = dict(rec, fps=motion.fps, betas=list(betas), settings=res.settings,
-                garment_params=dataclasses.asdict(g.params), config_digest=cfg.digest(), blender_info=res.blender)
+                garment_params=dataclasses.asdict(g.params), config_digest=cfg.digest(), blender_info=res.blender,
+                sim_bridge=SIM_BRIDGE_VERSION, body_sha256=body_sha256(body))
     finite = np.isfinite(res.frames).all()
     committed = save_sample(loc, Sample(id=ps.id, rest=mesh.vertices, faces=mesh.faces,
                                         betas=np.asarray(betas, np.float64), poses=motion.poses,

@@ -42,9 +42,13 @@ from ..scene import Y_TO_Z
 from .settings import SimSettings, blender_settings
 
 __all__ = ["SimResult", "simulate", "find_sim_python", "preroll_poses", "pin_weights", "unpose_lbs", "A_POSE",
-           "WORKER"]
+           "WORKER", "SIM_BRIDGE_VERSION"]
 
 WORKER = Path(__file__).with_name("blender_worker.py")
+#: the version of this bridge (how a scene becomes a Blender simulation): recorded by every dataset sample
+#: and pack; samples of different versions are not mixed.  1: up to issue #13; 2: collider settings
+#: (``collision_inner``, ``collision_normals``) and the per-piece detachment gate (issue #27)
+SIM_BRIDGE_VERSION = 2
 _Y_TO_Z = np.array(Y_TO_Z)
 
 

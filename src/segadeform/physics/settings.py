@@ -16,6 +16,10 @@ does not name is off in the solver::
     wind_strength = 2.0
     drape_seconds = 0.5            # settle in the rest pose before the motion
     blend_seconds = 0.5            # blend from the rest pose into the motion's first frame
+    collision_inner = 0.02         # metres inside the body from which cloth is still pushed out
+    collision_normals = false      # push cloth out along the body's normals (Blender's "single sided"
+                                   # and "override normals"): cloth that got inside comes out the side it
+                                   # came in from, not the nearest side
     rest_pose = "t"                # t: the cloth's rest is the garment as given (T-pose); a: the garment
                                    # skinned to an A-pose (arms 45 deg down) is the cloth's rest and the
                                    # drape starts there -- T-posed garments are too short over the shoulders
@@ -122,6 +126,8 @@ class SimSettings:
     blend_seconds: float = 0.5
     rest_pose: str = "t"
     impulse_clamp: float = 0.0
+    collision_inner: float = 0.02
+    collision_normals: bool = False
 
     def __post_init__(self):
         eff = tuple(self.effects)
@@ -141,10 +147,13 @@ class SimSettings:
                 raise InputError(f"{name} must be an integer in {lo}..{hi}", got=v)
         for name, lo, hi in (("collision_distance", 1e-4, 0.1), ("self_collision_distance", 1e-4, 0.1),
                              ("pin_stiffness", 0.0, 50.0), ("wind_strength", 0.0, 100.0),
-                             ("drape_seconds", 0.0, 10.0), ("blend_seconds", 0.0, 10.0), ("impulse_clamp", 0.0, 1.0)):
+                             ("drape_seconds", 0.0, 10.0), ("blend_seconds", 0.0, 10.0), ("impulse_clamp", 0.0, 1.0),
+                             ("collision_inner", 1e-3, 1.0)):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and not isinstance(v, bool) and lo <= v <= hi):
                 raise InputError(f"{name} must be a number in {lo}..{hi}", got=v)
+        if not isinstance(self.collision_normals, bool):
+            raise InputError("collision_normals must be true or false", got=self.collision_normals)
         if self.rest_pose not in ("t", "a"):
             raise InputError("rest_pose must be 't' (the garment's own T-pose) or 'a' (arms lowered)",
                              got=self.rest_pose)
@@ -162,16 +171,25 @@ class SimSettings:
         return dataclasses.replace(self, **kw)
 
     def to_dict(self) -> dict:
+        """The settings as plain data; the collider settings added later (:data:`_LATER_DEFAULTS`) only when
+        they differ from their defaults, so the digests of datasets made before them do not change."""
         d = dataclasses.asdict(self)
         d["effects"], d["wind"] = list(self.effects), list(self.wind)
+        for k, v in _LATER_DEFAULTS.items():
+            if d[k] == v:
+                del d[k]
         return d
+
+
+#: settings added after datasets were made with this module: left out of ``to_dict`` at these values
+_LATER_DEFAULTS = {"collision_inner": 0.02, "collision_normals": False}
 
 
 _KEYS = {"effects": list, "material": str, "quality": int, "collision_quality": int,
          "collision_distance": (int, float), "self_collision_distance": (int, float), "pin": str,
          "pin_stiffness": (int, float), "wind": list, "wind_strength": (int, float),
          "drape_seconds": (int, float), "blend_seconds": (int, float), "rest_pose": str,
-         "impulse_clamp": (int, float)}
+         "impulse_clamp": (int, float), "collision_inner": (int, float), "collision_normals": bool}
 
 
 def parse_simulate_table(table: Optional[dict], *, where=None) -> SimSettings:
@@ -185,7 +203,7 @@ def parse_simulate_table(table: Optional[dict], *, where=None) -> SimSettings:
         raise FileFormatError(f"unknown key simulate.{bad[0]}", path=where, expected=", ".join(sorted(_KEYS)),
                               got=", ".join(bad))
     for k, typ in _KEYS.items():
-        if k in table and (not isinstance(table[k], typ) or isinstance(table[k], bool)):
+        if k in table and (not isinstance(table[k], typ) or (isinstance(table[k], bool) and typ is not bool)):
             raise FileFormatError(f"simulate.{k} has the wrong type", path=where, got=repr(table[k])[:60])
     if "effects" not in table:
         raise FileFormatError("[simulate] must name its effects", path=where,
@@ -195,7 +213,7 @@ def parse_simulate_table(table: Optional[dict], *, where=None) -> SimSettings:
         raise FileFormatError("simulate.effects must be a list of names", path=where, got=kw["effects"])
     kw["effects"] = tuple(kw["effects"])
     for k in ("collision_distance", "self_collision_distance", "pin_stiffness", "wind_strength",
-              "drape_seconds", "blend_seconds", "impulse_clamp"):
+              "drape_seconds", "blend_seconds", "impulse_clamp", "collision_inner"):
         if k in kw:
             kw[k] = float(kw[k])
     try:
@@ -240,8 +258,10 @@ def blender_settings(s: SimSettings) -> dict:
                  "friction": m.friction, "impulse_clamp": s.impulse_clamp}
     if s.has("self_collision"):
         collision.update(self_distance_min=s.self_collision_distance, self_friction=m.self_friction)
-    body = {"thickness_outer": s.collision_distance, "thickness_inner": 0.02, "cloth_friction": m.friction,
+    body = {"thickness_outer": s.collision_distance, "thickness_inner": s.collision_inner, "cloth_friction": m.friction,
             "damping": 0.0}
+    if s.collision_normals:  # push cloth out along the body's normals (recovers cloth that got inside)
+        body.update(use_culling=True, use_normal=True)
     effects = {e: s.has(e) for e in EFFECTS}
     return {"effects": effects, "cloth": cloth, "collision": collision, "body_collision": body,
             "wind": {"strength": s.wind_strength, "direction": list(s.wind)} if s.has("wind") else None}

@@ -1,0 +1,179 @@
+"""Several dataset roots read as one: dataset folders and read-only packs.
+
+``dataset make``, ``train``, ``eval`` and ``regate`` take more than one root::
+
+    segadeform train CONFIG -o RUN --dataset data/continuum --dataset ../shared/data/sim
+
+A root is
+
+* a dataset folder (``samples/``, ``rejected/``: what ``dataset make`` writes),
+* a pack (``*.sgdpack``, :mod:`.pack`), or
+* a folder of packs (every ``*.sgdpack`` in it, in name order), such as ``../shared/data/sim``.
+
+Packs are only ever read.  A sample found in several roots must be the same sample (the same ``spec``
+digest): the first root that holds it serves it; two roots that give one id different contents are an
+error, and so are packs simulated on different bodies or by different simulators (their samples cannot
+be trained on together).  Derived data -- garment precomputes, contact caches -- goes to
+:attr:`DatasetRoots.cache_dir`: the first dataset folder's ``cache/`` (the writable root), else a
+folder the caller names.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Iterable, Optional, Sequence
+
+from ..errors import FileFormatError, InputError
+from .pack import PACK_SUFFIX, Pack
+from .store import SAMPLE_FOLDERS, Sample, load_sample
+
+__all__ = ["DatasetRoots", "as_roots", "expand_root"]
+
+
+def expand_root(path) -> list:
+    """A root -> ``[Path]`` (a dataset folder) or ``[Pack, ...]`` (a pack, or every pack in a folder)."""
+    p = Path(path)
+    if p.is_file():
+        return [Pack(p)]
+    if not p.is_dir():
+        raise InputError("dataset root does not exist", path=p,
+                         expected="a dataset folder, a .sgdpack file or a folder of packs")
+    if (p / "samples").is_dir() or (p / "rejected").is_dir():
+        return [p]
+    packs = sorted(p.glob(f"*{PACK_SUFFIX}"))
+    if packs:
+        return [Pack(q) for q in packs]
+    if not any(p.iterdir()):  # an empty folder: a dataset not begun yet, or a store with no packs yet
+        return []
+    raise InputError("not a dataset root", path=p,
+                     expected="a dataset folder (samples/), a .sgdpack file or a folder of packs")
+
+
+class DatasetRoots:
+    """Read-only view of several roots (see the module docstring).
+
+    Args:
+        roots: paths (folders, packs, folders of packs); the first dataset folder is the writable root.
+        optional: paths read when they exist and skipped when they do not (e.g. ``../shared/data/sim``).
+        cache_dir: where derived data goes when no root is a dataset folder.
+    """
+
+    def __init__(self, roots: Sequence, *, optional: Iterable = (), cache_dir=None) -> None:
+        self.folders: list[Path] = []
+        self.packs: list[Pack] = []
+        self.skipped: list[Path] = []  # optional roots that did not exist
+        order: list = []
+        for r in roots:
+            order.extend(expand_root(r))
+        for r in optional:
+            if Path(r).exists():
+                order.extend(expand_root(r))
+            else:
+                self.skipped.append(Path(r))
+        if not order and not roots and not self.skipped:
+            raise InputError("no dataset root given")
+        self._where: dict[tuple, object] = {}  # (folder name, id) -> Path | Pack
+        self._spec: dict[str, tuple] = {}      # id -> (spec, source) of the serving root
+        for src in order:
+            if isinstance(src, Pack):
+                self.packs.append(src)
+                listing = ((e["folder"], sid, e.get("spec")) for sid, e in src.entries.items())
+            else:
+                self.folders.append(src)
+                listing = ((f, m.stem, None) for f in SAMPLE_FOLDERS
+                           for m in sorted((src / f).glob("*.json")) if (src / f / f"{m.stem}.npz").is_file())
+            for folder, sid, spec in listing:
+                if spec is None and not isinstance(src, Pack):
+                    spec = _folder_spec(src, folder, sid)
+                prev = self._spec.get(sid)
+                if prev is not None:
+                    if prev[0] is not None and spec is not None and prev[0] != spec:
+                        raise InputError(f"sample {sid} differs between two dataset roots", path=str(_name(src)),
+                                         expected=f"the sample of {_name(prev[1])} (spec {prev[0]})", got=spec)
+                    continue
+                self._spec[sid] = (spec, src)
+                self._where[(folder, sid)] = src
+        self._check_compatible()
+        first = self.folders[0] / "cache" if self.folders else None
+        self.cache_dir: Optional[Path] = first if first is not None else (Path(cache_dir) if cache_dir else None)
+
+    def _check_compatible(self) -> None:
+        bodies = {p.body_sha256 for p in self.packs if p.body_sha256}
+        if len(bodies) > 1:
+            raise InputError("these packs were simulated on different bodies and cannot be mixed",
+                             path=", ".join(str(p.path) for p in self.packs),
+                             got=", ".join(sorted(b[:12] for b in bodies)))
+        sims = {(p.simulator.get("blender"), p.simulator.get("bridge")) for p in self.packs}
+        if len(sims) > 1:
+            raise InputError("these packs were made by different simulators and cannot be mixed",
+                             path=", ".join(str(p.path) for p in self.packs),
+                             got="; ".join(f"Blender {b}, bridge {v}" for b, v in sorted(sims, key=str)))
+
+    # ------------------------------------------------------------------------------------------------
+    @property
+    def writable(self) -> Optional[Path]:
+        """The first dataset folder (where new samples and caches go), None when only packs were given."""
+        return self.folders[0] if self.folders else None
+
+    def ids(self, split: Optional[str] = None, folder: str = "samples") -> list[str]:
+        """Sorted ids of ``folder``'s samples (kept by default), optionally of one split."""
+        out = []
+        for (f, sid), src in self._where.items():
+            if f != folder:
+                continue
+            if split is None or self.meta(sid, folder).get("split") == split:
+                out.append(sid)
+        return sorted(out)
+
+    def has(self, sid: str) -> bool:
+        return any((f, sid) in self._where for f in SAMPLE_FOLDERS)
+
+    def source(self, sid: str, folder: str = "samples"):
+        src = self._where.get((folder, sid))
+        if src is None:
+            raise InputError(f"no dataset root holds sample {sid}", path=", ".join(str(_name(s)) for s in self.roots))
+        return src
+
+    @property
+    def roots(self) -> list:
+        return [*self.folders, *self.packs]
+
+    def meta(self, sid: str, folder: str = "samples") -> dict:
+        src = self.source(sid, folder)
+        if isinstance(src, Pack):
+            e = src.entries[sid]
+            # the pack's index carries what selecting samples needs; the full metadata is read on demand
+            return e if "split" in e and e.get("split") is not None else src.read_meta(sid)
+        p = src / folder / f"{sid}.json"
+        try:
+            return json.loads(p.read_text())
+        except (OSError, ValueError) as e:
+            raise FileFormatError(f"sample metadata is unreadable ({e})", path=p) from None
+
+    def load(self, sid: str, folder: str = "samples") -> Sample:
+        src = self.source(sid, folder)
+        return src.load(sid) if isinstance(src, Pack) else load_sample(src, sid, folder)
+
+    def __repr__(self) -> str:
+        return f"DatasetRoots({[str(_name(r)) for r in self.roots]})"
+
+
+def _name(src):
+    return src.path if isinstance(src, Pack) else src
+
+
+def _folder_spec(root: Path, folder: str, sid: str) -> Optional[str]:
+    try:
+        return json.loads((root / folder / f"{sid}.json").read_text()).get("spec")
+    except (OSError, ValueError):
+        return None
+
+
+def as_roots(dataset, *, cache_dir=None) -> DatasetRoots:
+    """A :class:`DatasetRoots` from one path, a list of paths, or a ``DatasetRoots`` (returned as it is)."""
+    if isinstance(dataset, DatasetRoots):
+        return dataset
+    if isinstance(dataset, (str, Path)):
+        dataset = [dataset]
+    return DatasetRoots(list(dataset), cache_dir=cache_dir)

@@ -1,0 +1,186 @@
+"""Dataset packs and several dataset roots: round trip within the stated error, size, read-only use,
+incompatible packs refused."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from segadeform.body.model import default_body_path, load_body
+from segadeform.body.transfer import skin_garment, transfer_weights
+from segadeform.cli.main import main
+from segadeform.dataset.pack import FRAME_STEP, Pack, decode_frames, encode_frames, write_pack
+from segadeform.dataset.roots import DatasetRoots
+from segadeform.dataset.store import Sample, load_sample, save_sample
+from segadeform.errors import InputError
+from segadeform.garments import GarmentParams, make_garment
+from segadeform.motion import make_motion
+
+
+@pytest.fixture(scope="module")
+def body():
+    return load_body(default_body_path())
+
+
+def _cloth_like(body, n_frames=60, resolution=2000, seed=0):
+    """A ~3k-vertex dress skinned to a walk, with a smooth swing on top: the kind of motion a pack stores."""
+    g = make_garment("dress", body, None, GarmentParams(resolution=resolution, length=0.6, flare=0.6))
+    w = transfer_weights(g.vertices, body.shaped_vertices()[0], body.faces, body.weights)
+    m = make_motion("walk", seconds=n_frames / 30.0, fps=30.0, seed=seed)
+    x = skin_garment(g.vertices, w, body, m.poses, None, m.trans)
+    t = np.arange(len(x))[:, None, None] / 30.0
+    swing = 0.03 * np.sin(2 * np.pi * 1.3 * t + g.vertices[None, :, :1] * 7.0) * (1.0 - g.vertices[None, :, 1:2])
+    x = x + swing * np.array([1.0, 0.2, 0.6])
+    return g, m, x.astype(np.float32)
+
+
+def _save(root, sid, body, *, folder="samples", split="train", seed=0, spec=None, **meta):
+    g, m, x = _cloth_like(body, seed=seed)
+    s = Sample(id=sid, rest=g.vertices, faces=g.faces, betas=np.zeros(0), poses=m.poses, trans=m.trans, frames=x,
+               meta={"id": sid, "split": split, "kind": "skirt", "spec": spec or f"spec-{sid}", "blender": "5.0.1",
+                     "sim_bridge": 2, **meta},
+               cloth_rest=g.vertices + 0.001)
+    save_sample(root, s, folder=folder)
+    return s
+
+
+def test_frame_codec_is_exact_to_its_step_and_does_not_drift():
+    rng = np.random.default_rng(0)
+    x = np.cumsum(rng.normal(0, 0.01, (200, 50, 3)), axis=0) + [0.0, 1.0, 0.0]  # a random walk over 200 frames
+    y = decode_frames(encode_frames(x))
+    err = np.abs(y - x).max()
+    assert err <= FRAME_STEP / 2 + 1e-6  # float32 output adds at most ~1e-7 at these magnitudes
+    assert np.abs(y[-1] - x[-1]).max() <= FRAME_STEP / 2 + 1e-6  # no drift along the frames
+    # non-finite frames (a rejected sample) are kept as they are
+    x[3, 2, 1] = np.nan
+    z = decode_frames(encode_frames(x))
+    assert np.isnan(z[3, 2, 1]) and np.allclose(z[0], x[0], atol=1e-6)
+    for t in (1, 2):  # one or two frames
+        assert np.abs(decode_frames(encode_frames(x[:t, :3])) - x[:t, :3]).max() <= FRAME_STEP / 2 + 1e-6
+
+
+def test_pack_round_trip_within_its_stated_error_and_size(tmp_path, body):
+    root = tmp_path / "ds"
+    a = _save(root, "skirt__b0__walk", body)
+    _save(root, "skirt__b0__run", body, folder="rejected", seed=1)
+    (root / "configs").mkdir()
+    (root / "configs" / "001.toml").write_text("# a config\n")
+    out = tmp_path / "p.sgdpack"
+    s = write_pack(root, out, body=body)
+    assert (s.samples, s.rejected, s.skipped) == (1, 1, 0)
+    n, t = a.rest.shape[0], a.frames.shape[0]
+    assert n >= 2000 and t == 60
+    per_2k = out.stat().st_size / 2 * 2000 / n  # the stated bound: 0.5 MB per 2,000 vertices x 60 frames
+    assert per_2k <= 0.5e6, f"{per_2k / 1e6:.2f} MB per 2,000 vertices x {t} frames"
+    p = Pack(out)
+    assert p.ids() == ["skirt__b0__walk"] and p.ids("rejected") == ["skirt__b0__run"]
+    assert p.body_sha256 and p.simulator == {"blender": "5.0.1", "bridge": 2} and p.configs() == ["configs/001.toml"]
+    b = p.load("skirt__b0__walk")
+    assert np.abs(b.frames - a.frames).max() <= FRAME_STEP / 2 + 1e-6
+    assert np.abs(b.rest - a.rest).max() < 1e-6 and np.array_equal(b.faces, a.faces)
+    assert np.abs(b.cloth_rest - a.cloth_rest).max() < 1e-6 and np.allclose(b.poses, a.poses, atol=1e-6)
+    assert b.meta == a.meta
+
+
+def test_roots_read_packs_beside_folders_and_never_write_them(tmp_path, body):
+    old = tmp_path / "old"
+    _save(old, "a", body)
+    _save(old, "b", body, split="test", seed=1)
+    store = tmp_path / "store"
+    store.mkdir()
+    pack = store / "one.sgdpack"
+    write_pack(old, pack, body=body)
+    digest = hashlib.sha256(pack.read_bytes()).hexdigest()
+    new = tmp_path / "new"
+    _save(new, "c", body, seed=2)
+    _save(new, "a", body)  # the same sample in both: the first root serves it
+    r = DatasetRoots([new, store])
+    assert r.ids() == ["a", "b", "c"] and r.ids(split="test") == ["b"]
+    assert r.writable == new and r.cache_dir == new / "cache"
+    assert isinstance(r.source("b"), Pack) and r.source("a") == new
+    assert np.abs(r.load("b").frames - load_sample(old, "b").frames).max() <= FRAME_STEP / 2 + 1e-6
+    assert hashlib.sha256(pack.read_bytes()).hexdigest() == digest
+    # a pack made later holds only what is new
+    s = write_pack(new, store / "two.sgdpack", body=body, skip=[Pack(pack)])
+    assert (s.samples, s.skipped) == (1, 1)
+    assert DatasetRoots([store]).ids() == ["a", "b", "c"]
+    # an optional root that is not there is skipped; packs are refused as the writable root's files
+    r = DatasetRoots([store], optional=[tmp_path / "absent"])
+    assert r.writable is None and r.skipped == [tmp_path / "absent"]
+    with pytest.raises(InputError, match="never overwritten"):
+        write_pack(new, pack, body=body)
+
+
+def test_a_sample_that_differs_between_roots_is_an_error(tmp_path, body):
+    one, two = tmp_path / "one", tmp_path / "two"
+    _save(one, "a", body, spec="x")
+    _save(two, "a", body, spec="y")
+    with pytest.raises(InputError, match="differs between two dataset roots"):
+        DatasetRoots([one, two])
+
+
+def _rewrite_head(src: Path, dst: Path, **change):
+    with zipfile.ZipFile(src) as zi, zipfile.ZipFile(dst, "w") as zo:
+        for n in zi.namelist():
+            data = zi.read(n)
+            if n == "pack.json":
+                head = json.loads(data)
+                for k, v in change.items():
+                    head[k] = v
+                data = json.dumps(head).encode()
+            zo.writestr(n, data)
+
+
+def test_incompatible_packs_are_refused(tmp_path, body):
+    ds = tmp_path / "ds"
+    _save(ds, "a", body)
+    one = tmp_path / "s1" / "one.sgdpack"
+    one.parent.mkdir()
+    write_pack(ds, one, body=body)
+    other_body = tmp_path / "s2" / "other.sgdpack"
+    other_body.parent.mkdir()
+    _rewrite_head(one, other_body, body={"name": "x.npz", "sha256": "0" * 64})
+    with pytest.raises(InputError, match="different bodies"):
+        DatasetRoots([one, other_body])
+    other_sim = tmp_path / "s3" / "sim.sgdpack"
+    other_sim.parent.mkdir()
+    _rewrite_head(one, other_sim, simulator={"blender": "4.4.0", "bridge": 1})
+    with pytest.raises(InputError, match="different simulators"):
+        DatasetRoots([one, other_sim])
+
+
+def test_damaged_pack_is_a_clear_error(tmp_path, body):
+    from segadeform.errors import FileFormatError
+
+    ds = tmp_path / "ds"
+    _save(ds, "a", body)
+    p = tmp_path / "p.sgdpack"
+    write_pack(ds, p, body=body)
+    bad = tmp_path / "bad.sgdpack"
+    with zipfile.ZipFile(p) as zi, zipfile.ZipFile(bad, "w") as zo:
+        for n in zi.namelist():
+            data = zi.read(n)
+            if n.endswith(".npz"):
+                data = data[:-10] + b"0123456789"
+            zo.writestr(n, data)
+    with pytest.raises(FileFormatError, match="SHA-256"):
+        Pack(bad).load("a")
+    (tmp_path / "junk.sgdpack").write_bytes(b"not a zip")
+    with pytest.raises(FileFormatError, match="not a zip"):
+        Pack(tmp_path / "junk.sgdpack")
+
+
+def test_dataset_pack_command(tmp_path, body, capsys):
+    ds = tmp_path / "ds"
+    _save(ds, "a", body)
+    out = tmp_path / "p.sgdpack"
+    assert main(["dataset", "pack", str(ds), "-o", str(out)]) == 0
+    assert "1 kept and 0 rejected" in capsys.readouterr().out
+    before = out.read_bytes()
+    assert main(["dataset", "pack", str(ds), "-o", str(out)]) == 1  # never over an existing file
+    assert "never overwritten" in capsys.readouterr().err and out.read_bytes() == before
