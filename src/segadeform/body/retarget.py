@@ -196,7 +196,11 @@ def retarget_to_smpl(src: np.ndarray, source_rest: np.ndarray, source_global: np
             v = np.stack([P0[src[t]] - P0[m] for t in targets])  # (K, 3) source rest directions
             u = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), 1e-12)
             v = v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
-            corr[j] = kabsch(u, v)
+            if np.linalg.norm(np.cross(v, v[0]), axis=-1).max() > 1e-6:
+                corr[j] = kabsch(u, v)
+            else:  # the children start at one point of the source (CMU's ASF: neck and both clavicles at the
+                # thorax's end): Kabsch leaves the turn about that direction free; take the smallest rotation
+                corr[j] = min_rotation(u.sum(axis=0), v[0])
             glob[:, j] = G[:, m] @ corr[j]
             has_fix[j] = True  # fix[j] stays the identity
         elif len(targets) == 1:

@@ -106,10 +106,11 @@ NAME_TABLES: dict[str, dict[str, str]] = {
         "lowerback": "spine1", "abdomen": "spine2", "chest": "spine3", "neck": "neck", "head": "head",
         "{c}collar": "{s}_collar", "{c}shoulder": "{s}_shoulder", "{c}elbow": "{s}_elbow", "{c}hand": "{s}_wrist",
         "{S}fingerbase": "{s}_hand",
-        # the raw ASF bone names
+        # the raw ASF bone names; a joint is where its bone starts: lradius at the elbow, lwrist a
+        # forearm twist bone part-way down (folded in), lhand at the wrist, lfingers at the knuckles
         "root": "pelvis", "{c}femur": "{s}_hip", "{c}tibia": "{s}_knee", "{c}toes": "{s}_foot",
         "upperback": "spine2", "thorax": "spine3", "lowerneck": "neck", "{c}clavicle": "{s}_collar",
-        "{c}humerus": "{s}_shoulder", "{c}radius": "{s}_elbow", "{c}wrist": "{s}_wrist"}),
+        "{c}humerus": "{s}_shoulder", "{c}radius": "{s}_elbow", "{c}fingers": "{s}_hand"}),
 }
 
 

@@ -1,4 +1,4 @@
-"""Motions on the 24-joint SMPL skeleton: AMASS ``.npz`` and BVH IO, resampling,
+"""Motions on the 24-joint SMPL skeleton: AMASS ``.npz``, BVH and ASF/AMC IO, resampling,
 motion windows, joint limits, a procedural motion library (numpy only), and the motion a scene
 describes (:class:`MotionSpec` -> :func:`build_motion`; :func:`frame_range`, the one ``--frames`` check)."""
 
@@ -19,22 +19,25 @@ __all__ = ["Motion", "N_POSE", "load_motion", "load_motion_npz", "feet_on_floor"
 
 
 def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", units=None, joint_map=None,
-                floor: bool = False) -> Motion:
+                floor: bool = False, skeleton: str | os.PathLike | None = None) -> Motion:
     """Read a motion by extension onto the SMPL skeleton of a body.
 
     Args:
-        path: ``.npz`` (AMASS / SMPL / segadeform), ``.bvh`` (any common humanoid skeleton) or ``.sgdm`` (a motion
-            file from ``segadeform motion export``: played as it is, already retargeted onto the body shape it
-            was made for, whatever ``rest_joints``).
+        path: ``.npz`` (AMASS / SMPL / segadeform), ``.bvh`` (any common humanoid skeleton), ``.amc`` (CMU's
+            ASF/AMC motion capture, at CMU's 120 fps: :mod:`.asf`) or ``.sgdm`` (a motion file from
+            ``segadeform motion export``: played as it is, already retargeted onto the body shape it was made
+            for, whatever ``rest_joints``).
         rest_joints: (24, 3) rest joints of the body that will play it (T-pose, metres): BVH files are
-            retargeted onto it, SMPL files' root position is carried over to it.  Default: the
-            built-in T-pose skeleton for ``.npz``, the file's own proportions for ``.bvh``.
+            retargeted onto it (BVH and AMC alike), SMPL files' root position is carried over to it.  Default:
+            the built-in T-pose skeleton for ``.npz``, the file's own proportions for ``.bvh`` and ``.amc``.
         up: the file's up axis, ``"auto"``, ``"y"`` or ``"z"``.
         units: BVH only: metres per file unit or a unit name (``cm``, ``inch`` ...); default: fit the
             file's legs to the body's.
-        joint_map: BVH only: SMPL name -> file joint name, a dict or a TOML/JSON file.
+        joint_map: BVH and AMC: SMPL name -> file joint (bone) name, a dict or a TOML/JSON file.
         floor: shift the motion so its lowest foot joint is where the rest pose's is (needs
             ``rest_joints``, else the built-in skeleton).
+        skeleton: AMC only: the ASF skeleton; default: the one ``.asf`` in the AMC's folder
+            (:func:`.asf.find_asf`).
     """
     p = Path(path)
     ext = p.suffix.lower()
@@ -42,6 +45,9 @@ def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", 
         from ..body.skeleton import default_rest_joints
 
         rest_joints = default_rest_joints()
+    if skeleton is not None and ext != ".amc":
+        raise FileFormatError("a skeleton (.asf) applies to AMC motions only", path=p,
+                              expected=".amc with --skeleton", got=ext or "no extension")
     if ext == ".npz":
         if units is not None or joint_map is not None:
             raise FileFormatError("units and joint maps apply to BVH files only", path=p,
@@ -49,6 +55,13 @@ def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", 
         m = load_motion_npz(p, up=up, rest_joints=rest_joints)
     elif ext == ".bvh":
         m = read_bvh(p, rest_joints=rest_joints, up=up, units=units, joint_map=joint_map)
+    elif ext == ".amc":
+        from .asf import read_amc
+
+        if units is not None:
+            raise FileFormatError("units apply to BVH files only: an ASF states its own (:units length)", path=p,
+                                  expected="no --units for .amc", got=units)
+        m = read_amc(p, skeleton, rest_joints=rest_joints, up=up, joint_map=joint_map)
     elif ext == ".sgdm":  # a motion file (segadeform motion export): already on the skeleton, y-up, retargeted
         from ..bundle import read_motion_file
 
@@ -59,5 +72,6 @@ def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", 
                                                                ("up " + str(up), up not in ("auto", "y"))) if v))
         m, _ = read_motion_file(p)
     else:
-        raise FileFormatError("unknown motion file type", path=p, expected=".npz, .bvh or .sgdm", got=ext or "none")
+        raise FileFormatError("unknown motion file type", path=p, expected=".npz, .bvh, .amc or .sgdm",
+                              got=ext or "none")
     return feet_on_floor(m, rest_joints) if floor else m

@@ -43,8 +43,8 @@ from ..errors import FileFormatError, InputError, file_error
 from ..io.atomic import atomic_open
 from .motion import Motion
 
-__all__ = ["read_bvh", "write_bvh", "read_bvh_skeleton", "BVHSkeleton", "UNITS", "MIXAMO_TO_SMPL",
-           "SMPL_SHORT_NAMES"]
+__all__ = ["read_bvh", "write_bvh", "read_bvh_skeleton", "BVHSkeleton", "skeleton_motion", "to_y_up", "UNITS",
+           "MIXAMO_TO_SMPL", "SMPL_SHORT_NAMES"]
 
 #: metres per file unit of the units a BVH file may be in (``units=`` in :func:`read_bvh`).
 UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "cmu": 0.0254 / 0.45}
@@ -169,7 +169,8 @@ def _isfloat(t):
 
 @dataclasses.dataclass(frozen=True)
 class BVHSkeleton:
-    """A BVH file's skeleton and motion, by forward kinematics (file units, +Y up after ``up``).
+    """A BVH file's skeleton and motion, by forward kinematics (file units, +Y up after ``up``); an ASF/AMC
+    motion comes in the same form (:func:`segadeform.motion.asf.amc_skeleton`).
 
     Attributes:
         names: (J,) joint names; parents: (J,) parent index (-1: root).
@@ -231,6 +232,18 @@ def read_bvh_skeleton(path: str | os.PathLike, *, up: str = "auto") -> BVHSkelet
             pos[:, i] = pos[:, j.parent] + np.einsum("tij,tj->ti", glob[:, j.parent], offs[:, i])
             rest[i] = rest[j.parent] + j.offset
     ends = np.stack([rest[i] + (j.end if j.end is not None else 0.0) for i, j in enumerate(joints)])
+    return to_y_up(tuple(j.name for j in joints), parents, rest, ends, glob, pos, 1.0 / frame_time, up)
+
+
+def to_y_up(names, parents, rest, ends, rotations, positions, fps, up: str = "auto") -> BVHSkeleton:
+    """A skeleton's forward kinematics (file axes) as a :class:`BVHSkeleton`, turned to +Y up.
+
+    ``up``: the file's up axis, ``"y"``, ``"z"`` or ``"auto"`` (the rest skeleton's tallest axis of y and z).
+
+    Shapes:
+        rest, ends: (J, 3); rotations: (T, J, 3, 3); positions: (T, J, 3)
+    """
+    pos, glob = positions, rotations
     if up == "auto":
         allp = np.concatenate([rest, ends])
         up = "z" if np.ptp(allp[:, 2]) > 1.2 * np.ptp(allp[:, 1]) else "y"
@@ -240,8 +253,8 @@ def read_bvh_skeleton(path: str | os.PathLike, *, up: str = "auto") -> BVHSkelet
         Q = Z_UP_TO_Y_UP
         rest, ends, pos = rest @ Q.T, ends @ Q.T, pos @ Q.T
         glob = Q @ glob @ Q.T
-    return BVHSkeleton(names=tuple(j.name for j in joints), parents=parents, rest=rest, ends=ends,
-                       rotations=glob, positions=pos, fps=1.0 / frame_time, up=up)
+    return BVHSkeleton(names=tuple(names), parents=np.asarray(parents, np.int64), rest=rest, ends=ends,
+                       rotations=glob, positions=pos, fps=float(fps), up=up)
 
 
 def guess_units(leg_length: float) -> str:
@@ -267,7 +280,18 @@ def read_bvh(path: str | os.PathLike, *, rest_joints: np.ndarray | None = None, 
     joints left out, the guessed unit and the scale used.
     """
     p = Path(path)
-    sk = read_bvh_skeleton(p, up=up)
+    return skeleton_motion(read_bvh_skeleton(p, up=up), p, rest_joints=rest_joints, scale=scale, units=units,
+                           joint_map=joint_map)
+
+
+def skeleton_motion(sk: BVHSkeleton, path: Path, *, rest_joints: np.ndarray | None = None,
+                    scale: float | str = "auto", units: str | float | None = None, joint_map=None,
+                    fmt: str = "bvh") -> Motion:
+    """A mocap skeleton's motion (:class:`BVHSkeleton`, from a BVH or an ASF/AMC) mapped onto SMPL's joints
+    (:func:`~segadeform.body.skeleton_map.map_skeleton`) and retargeted onto ``rest_joints``
+    (:func:`~segadeform.body.retarget.retarget_to_smpl`); the arguments as for :func:`read_bvh`, ``path``
+    for messages and the motion's name, ``fmt`` recorded in ``Motion.meta["format"]``."""
+    p = Path(path)
     if joint_map is not None and not isinstance(joint_map, dict):
         joint_map = read_joint_map(joint_map)
     try:
@@ -309,7 +333,7 @@ def read_bvh(path: str | os.PathLike, *, rest_joints: np.ndarray | None = None, 
                 raise FileFormatError(e.problem, path=p, got=e.got) from None
     rot, trans = retarget_to_smpl(src, sk.rest, sk.rotations, sk.positions, target, scale_f)
     poses = matrix_to_axis_angle(rot).reshape(len(rot), 72)
-    meta = {"format": "bvh", "scheme": mapping.scheme, "mapped": mapping.mapped(), "virtual": mapping.virtual,
+    meta = {"format": fmt, "scheme": mapping.scheme, "mapped": mapping.mapped(), "virtual": mapping.virtual,
             "ignored": mapping.ignored, "units_guess": unit_guess, "scale": float(scale_f), "up": sk.up,
             "source_fps": float(sk.fps)}
     return Motion(poses=poses, trans=trans, fps=sk.fps, name=p.stem, meta=meta)

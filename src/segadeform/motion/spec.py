@@ -37,6 +37,7 @@ class MotionSpec:
     units: Optional[str] = None
     joint_map: Optional[Path] = None
     floor: bool = False
+    skeleton: Optional[Path] = None  # an AMC's ASF (default: the one .asf beside it)
 
 
 def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
@@ -55,7 +56,7 @@ def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
             except ValueError:
                 pass
         m = load_motion(spec.file, rest_joints=rest_joints, up=spec.up, units=units, joint_map=spec.joint_map,
-                        floor=spec.floor)
+                        floor=spec.floor, skeleton=spec.skeleton)
     else:
         m = make_motion(spec.kind, seconds=spec.seconds, fps=spec.fps or 30.0, speed=spec.speed,
                         amplitude=spec.amplitude, seed=spec.seed)
