@@ -61,7 +61,7 @@ def simulate_cmd(scene, output, effects, material, quality, frames, sim_python, 
         from segadeform.io.output_guard import OutputGuard
 
         guard = OutputGuard("simulate", force=force, inputs=(scene, sc.garment, sc.motion.file, sc.body,
-                                                             sc.motion.joint_map))
+                                                             sc.motion.joint_map, sc.motion.skeleton))
         s = simulate_scene(sc, output=output, settings=st, sim_python=sim_python,
                            progress=progress if interactive else None, guard=guard)
     r = s.result
