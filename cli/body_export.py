@@ -15,7 +15,8 @@ from .main import cli
               help="The model package to give the body graphs (replaced in place, atomically).")
 @click.option("--to", "copy_to", type=click.Path(file_okay=False, path_type=Path),
               help="Write the package with the body graphs here instead of replacing it.")
-def export_body_cmd(body, output, copy_to):
+@click.option("--force", is_flag=True, help="With --to: replace a model package segadeform wrote there before.")
+def export_body_cmd(body, output, copy_to, force):
     """Export BODY (.npz or SMPL .pkl; default: the shipped body) as the package's body graphs body_lbs and
     body_dqs: betas, poses and translations in, posed vertices, joints, rest joints and triangles out, so
     runtimes without Python pose the body (needs the 'torch' extra)."""
@@ -25,9 +26,22 @@ def export_body_cmd(body, output, copy_to):
         raise click.ClickException("export-body needs the 'torch' extra: pip install 'segadeform[torch]'") from None
     from segadeform.body import default_body_path, load_body
     from segadeform.export.body import add_body_to_package
+    from segadeform.io.output_guard import OutputGuard, OutputRefused
 
+    if copy_to is not None:
+        guard = OutputGuard("package", force=force, inputs=(body, output))
+        guard.folder(copy_to)
+    else:  # in place: only a package segadeform wrote (its manifest lists every file) is rewritten
+        guard = OutputGuard("package", force=True, inputs=(body,))
+        try:
+            guard.folder(output)
+        except OutputRefused as e:
+            raise OutputRefused(f"{e.problem}; export-body replaces only a package segadeform wrote", path=output,
+                                expected="--to NEW_DIR to write the package with the body graphs there",
+                                got="a package segadeform did not write") from None
     b = load_body(body or default_body_path())
     m = add_body_to_package(output, b, copy_to)
+    guard.record()
     names = sorted(k for k, g in m["graphs"].items() if g["role"] == "body")
     click.echo(f"{copy_to or output}: body graphs {', '.join(names)} of {Path(b.path).name if b.path else 'the body'} "
                f"({b.n_vertices} vertices, {len(b.faces)} triangles, {b.n_betas} betas)")

@@ -27,7 +27,10 @@ from .main import cli
               type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
                    "warn about garments far from all of them.  Default: what the checkpoint records.")
-def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy, inline_weights, training_files):
+@click.option("--force", is_flag=True, help="Replace a model package segadeform wrote there before (never a file "
+              "segadeform did not write).")
+def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy, inline_weights, training_files,
+               force):
     """Export CHECKPOINT (or --random-init) to an ONNX model package (needs the 'torch' extra)."""
     try:
         import torch  # noqa: F401
@@ -39,6 +42,7 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
 
     if (checkpoint is None) == (not random_init):
         raise click.UsageError("give a CHECKPOINT or --random-init (not both)")
+    guard = _package_guard(output, force, (checkpoint, *training_files))
     if random_init:
         try:
             overrides = json.loads(config_json) if config_json else {}
@@ -67,6 +71,7 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
         extra["training_garments"] = training_garments_entry(*garments)
     m = export_package(model, output, dynamo=not legacy, check=check, shared_weights=not inline_weights,
                        extra_manifest=extra)
+    guard.record()
     click.echo(f"{output}: {len(m['graphs'])} graphs (default {m['default_deformer']}), manifest.json, "
                f"{_size(output) / 1e6:.2f} MB (opset {m['opset']}, {m['exporter']} exporter"
                f"{', weights shared in ' + m['weights']['file'] if 'weights' in m else ''})")
@@ -83,7 +88,9 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
 @click.option("--precision", type=click.Choice(["int8", "fp16-weights"]), default="int8", show_default=True,
               help="int8: onnxruntime dynamic quantisation (weights int8, inputs and outputs float32); "
                    "fp16-weights: weights stored as float16, arithmetic float32 (half the file, fp32 speed).")
-def quantize_cmd(package, output, precision):
+@click.option("--force", is_flag=True, help="Replace a model package segadeform wrote there before (never a file "
+              "segadeform did not write).")
+def quantize_cmd(package, output, precision, force):
     """Copy model PACKAGE at another precision (needs the 'torch' extra for onnx)."""
     try:
         import onnx  # noqa: F401
@@ -91,7 +98,9 @@ def quantize_cmd(package, output, precision):
         raise click.ClickException("quantize needs onnx: pip install 'segadeform[torch]'") from None
     from segadeform.export.precision import convert_package
 
+    guard = _package_guard(output, force, (package,))
     convert_package(package, output, precision)
+    guard.record()
     click.echo(f"{output}: {precision} package, graphs {_size(output) / 1e6:.1f} MB")
 
 
@@ -107,7 +116,9 @@ def quantize_cmd(package, output, precision):
                    "warn about garments far from all of them.  Default: the package's own list.")
 @click.option("--opset", type=click.IntRange(15, 21), default=None,
               help="Convert every graph to this ONNX opset (default: the exporter's, 18); 15 for Unity Sentis.")
-def repack_cmd(package, output, inline_weights, training_files, opset):
+@click.option("--force", is_flag=True, help="Replace a model package segadeform wrote there before (never a file "
+              "segadeform did not write).")
+def repack_cmd(package, output, inline_weights, training_files, opset, force):
     """Rewrite model PACKAGE (any schema) in the current layout, same graphs (needs onnx)."""
     try:
         import onnx  # noqa: F401
@@ -117,6 +128,7 @@ def repack_cmd(package, output, inline_weights, training_files, opset):
 
     from segadeform import package_spec as contract
 
+    guard = _package_guard(output, force, (package, *training_files))
     before = _size(package)
     garments = _training_garments(training_files, contract.read_manifest_text(
         (package / contract.MANIFEST_FILE).read_text(encoding="utf-8"))["config"]["n_star"])
@@ -126,8 +138,19 @@ def repack_cmd(package, output, inline_weights, training_files, opset):
 
         entry = training_garments_entry(*garments)
     m = repack_package(package, output, shared=not inline_weights, training_garments=entry, opset=opset)
+    guard.record()
     click.echo(f"{output}: schema {m['schema_version']}, opset {m['opset']}, {len(m['graphs'])} graphs, "
                f"{before / 1e6:.2f} MB -> {_size(output) / 1e6:.2f} MB")
+
+
+def _package_guard(output, force: bool, inputs):
+    """The output rule for a model package folder (segadeform.io.output_guard): a new or empty folder, or with
+    --force one holding only a package segadeform wrote (kind "package": export, repack, quantize, export-body)."""
+    from segadeform.io.output_guard import OutputGuard
+
+    guard = OutputGuard("package", force=force, inputs=inputs)
+    guard.folder(output)
+    return guard
 
 
 def _training_garments(files, n_star: int):

@@ -31,19 +31,26 @@ def garment_group():
 @click.option("--ease", type=float, default=0.015, show_default=True, help="Metres between skin and cloth.")
 @click.option("--sleeve", type=float, help="Sleeve length, 0..1 of shoulder-to-wrist.")
 @click.option("--resolution", type=int, help="Target vertex count (picks the refinement level).")
-def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, resolution):
+@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform garment make` (never a file "
+              "segadeform did not write).")
+def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, resolution, force):
     """Make a KIND garment dressed on the body in rest pose (kinds: see `segadeform garment kinds`)."""
     from segadeform.body import load_body
     from segadeform.garments import GarmentParams, check_garment, make_garment
     from segadeform.io import Mesh, write_obj
     from segadeform.body import default_body_path
 
+    from segadeform.io.output_guard import OutputGuard
+
+    guard = OutputGuard("garment make", force=force, inputs=(body,))
+    guard.file(output)
     b = _betas(betas)
     bm = load_body(body or default_body_path())
     g = make_garment(kind, bm, b, GarmentParams(length=length, flare=flare, ease=ease, sleeve=sleeve,
                                                   resolution=resolution))
     info = check_garment(g.vertices, g.faces, bm, b)
     write_obj(output, Mesh(vertices=g.vertices, faces=g.faces), header=g.header())
+    guard.record()
     click.echo(f"{kind} ({g.type}): {info['vertices']} vertices, {info['faces']} triangles, "
                f"{info['boundary_loops']} openings, clearance >= {1e3 * info['min_clearance']:.1f} mm -> {output}")
 
@@ -73,7 +80,9 @@ def garment_kinds_cmd():
 @click.option("--offset", help="Move by dx,dy,dz metres (after units, axes and scale).")
 @click.option("--margin", type=float, help="Push vertices out of the body to this clearance, metres "
               "(default 0.003 for --mhclo/--from-body fits, none for plain unit/axis fixes).")
-def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, scale, offset, margin):
+@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform garment fit` (never a file "
+              "segadeform did not write).")
+def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, scale, offset, margin, force):
     """Bring GARMENT (OBJ or .mhclo) onto the body: a MakeHuman binding, --from-body, or --units/--up/--scale.
 
     Vertex order and count are kept; faces, UVs and groups are copied from the input OBJ.
@@ -83,6 +92,11 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     from segadeform.garments import fit as gfit
     from segadeform.io import read_mesh
 
+    from segadeform.io.output_guard import OutputGuard
+
+    guard = OutputGuard("garment fit", force=force, inputs=(garment, mhclo, from_body, body,
+                                                           garment.with_suffix(".mhclo"), garment.with_suffix(".obj")))
+    guard.file(output)
     b = _betas(betas)
     try:
         off = tuple(float(x) for x in offset.split(",")) if offset else None
@@ -137,6 +151,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     if m is not None:
         v, pushed = gfit.push_off_body(v, rest, bm.faces, m)
     gfit.rewrite_obj_vertices(obj, v, output)
+    guard.record()
     rep = gfit.placement_report(v, rest, bm.faces)
     click.echo(f"{obj.name}: {len(v)} vertices, {how}" + (f", {pushed} pushed to {1e3 * m:.0f} mm" if m else ""))
     click.echo(f"  {rep.line()}")

@@ -21,7 +21,9 @@ from .garment import _betas, garment_group
               help="Model package the asset is for: its descriptor length N* and skinning-weight prior "
                    "(default: the shipped model).")
 @click.option("--k", type=click.IntRange(min=1), default=None, help="Neighbour slots K (default: max valence, capped).")
-@click.option("--force", is_flag=True, help="Export a garment even when it does not sit on the body.")
+@click.option("--force", is_flag=True, help="Export a garment even when it does not sit on the body or the body shape "
+              "is unusual (|beta| > 5), and replace the output of an earlier `segadeform garment export` (never a "
+              "file segadeform did not write).")
 def garment_export_cmd(garment, output, body, betas, model, k, force):
     """Prepare GARMENT (a mesh, or an asset from `segadeform precompute`) for a body shape: neighbours, mask,
     descriptor, the encoder features for the shape's rest joints, the body's weights at the garment
@@ -33,6 +35,10 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
     from segadeform.io import read_mesh
     from segadeform.package_spec import read_manifest_text
 
+    from segadeform.io.output_guard import OutputGuard
+
+    guard = OutputGuard("garment export", force=force, inputs=(garment, body, model))
+    guard.file(output)
     b = load_body(body or default_body_path())
     beta_vals = _betas(betas) or ()
     if model is None:
@@ -51,6 +57,7 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
         check_placement(asset.vertices, b.shaped_vertices(beta_vals)[0], b.faces, path=garment)
     asset = asset.for_body(b, beta_vals, weight_prior=config.get("weight_prior", "nearest"))
     asset.save(output)
+    guard.record()
     click.echo(f"{garment.name}: {asset.n_vertices} vertices, K={asset.nbr.shape[1]}, N*={len(asset.descriptor)}, "
                f"for {asset.body['name'] or 'the body'} betas {[round(float(x), 4) for x in asset.betas[:len(beta_vals)]]} "
                f"-> {output}")

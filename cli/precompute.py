@@ -22,7 +22,9 @@ from .main import cli
 @click.option("--max-k", type=click.IntRange(min=1), default=None, help="Cap for automatic K.")
 @click.option("--n-star", type=click.IntRange(min=1), default=None, help="Descriptor length N*.")
 @click.option("--geodesic", type=click.Choice(["heat", "dijkstra"]), default=None, help="Geodesic method.")
-def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, geodesic):
+@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform precompute` (never a file "
+              "segadeform did not write).")
+def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, geodesic, force):
     """Precompute graph, features and descriptor of GARMENT (OBJ, PLY, OFF, STL ...)."""
     from segadeform.body import load_rest_joints
     from segadeform.geometry import DEFAULT_GEODESIC, DEFAULT_MAX_K, DEFAULT_N_STAR, precompute_garment
@@ -31,6 +33,10 @@ def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, ge
 
     if (joints_path is None) == (body_path is None):
         raise click.UsageError("give exactly one of --joints JOINTS.npy or --body BODY.npz")
+    from segadeform.io.output_guard import OutputGuard
+
+    guard = OutputGuard("precompute", force=force, inputs=(garment, joints_path, body_path))
+    guard.file(output)
     t0 = time.perf_counter()
     mesh = read_mesh(garment)
     joints = load_rest_joints(joints_path or body_path)
@@ -40,6 +46,7 @@ def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, ge
         source_name=garment.name, source_sha256=file_sha256(garment),
     )
     asset.save(output)
+    guard.record()
     dt = time.perf_counter() - t0
     click.echo(f"{garment.name}: {asset.n_vertices} vertices, {len(asset.faces)} triangles, "
                f"K={asset.nbr.shape[1]}, S={len(asset.joints)}, N*={len(asset.descriptor)}, "

@@ -29,7 +29,9 @@ from .main import cli
 @click.option("--fps", type=float, help="Animation rate (default: the result's 30 fps over --every).")
 @click.option("--up", type=click.Choice(UP_AXES), default="y", show_default=True,
               help="Up axis the result was written with (run --up).")
-def preview_cmd(result, garment, body_seq, body_model, output, frames, every, view, size, fps, up):
+@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform preview` (never a file "
+              "segadeform did not write).")
+def preview_cmd(result, garment, body_seq, body_model, output, frames, every, view, size, fps, up, force):
     """Render RESULT (PC2, OBJ sequence folder, XDMF or Alembic) with its garment and, if given, the body."""
     import numpy as np
 
@@ -39,6 +41,10 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     from segadeform.render import MeshLayer, fit_bounds, render, save_animation, save_image
     from segadeform.scene import Y_TO_Z, parse_frames
 
+    from segadeform.io.output_guard import OutputGuard
+
+    guard = OutputGuard("preview", force=force, inputs=(result, garment, body_seq, body_model))
+    guard.file(output)
     try:
         w, h = (int(x) for x in size.lower().split("x"))
     except ValueError:
@@ -90,4 +96,5 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         save_image(output, np.concatenate(images, axis=1))
     else:
         save_animation(output, images, fps or 30.0 / every)
+    guard.record()
     click.echo(f"{len(images)} frames rendered -> {output}")

@@ -27,8 +27,15 @@ def _body(path):
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option("--val", "val_ids", multiple=True, help="Sample id to validate on at each checkpoint (repeatable).")
 @click.option("--threads", type=click.IntRange(min=1), help="torch CPU threads (default: torch's choice).")
-def train_cmd(config, output, dataset, steps, device, body, val_ids, threads):
+@click.option("--force", is_flag=True, help="Write into a run folder that holds other files (beside them, never over "
+              "them); a run folder of the same config is resumed without it.")
+def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, force):
     """Train the SEGA model on a simulated dataset (CONFIG.toml; see segadeform.train.config)."""
+    from segadeform.io.output_guard import OutputGuard
+
+    guard = OutputGuard("train", force=force, inputs=(config, dataset, body))
+    guard.resumable(output, layout=("config.toml", "train.json", "last.pt", "model.pt", "loss.csv", "loss.png"),
+                    legacy=("config.toml", "loss.csv"))
     from segadeform.train import load_train_config
     from segadeform.train.trainer import train
 
@@ -51,7 +58,11 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads):
             click.echo(f"step {step}/{cfg.optim.steps} loss {row['total']:.4g} vertex {100 * row['vertex']:.2f} cm"
                        f"{val} ({row['seconds']:.0f} s)", err=True)
 
-    final = train(cfg, output, _body(body), progress=progress, val_ids=list(val_ids) or None)
+    guard.start()
+    try:
+        final = train(cfg, output, _body(body), progress=progress, val_ids=list(val_ids) or None)
+    finally:
+        guard.abandon()
     click.echo(f"trained {cfg.optim.steps} steps -> {final}")
 
 
@@ -67,11 +78,17 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads):
               help="Also report learned models with the runtime's collision post-process at this margin (m); "
                    "repeatable (rows 'NAME + push-out N mm').")
 @click.option("--heatmap", help="Model NAME whose per-vertex error map is rendered (default: the first).")
-def eval_cmd(dataset, models, output, split, body, push_margin, heatmap):
+@click.option("--force", is_flag=True, help="Replace the report of an earlier `segadeform eval` there, write beside "
+              "other files (never over them).")
+def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force):
     """Evaluate models against the simulation: the paper's metrics per model and garment type."""
     from segadeform.train.evaluate import markdown_table, write_report
     from segadeform.train.evaluate import evaluate as run_eval
 
+    from segadeform.io.output_guard import OutputGuard
+
+    guard = OutputGuard("eval", force=force, inputs=(dataset, body))
+    guard.folder(output, names=("eval.*", "*.png"))
     spec = {}
     for m in models:
         name, eq, s = m.partition("=")
@@ -83,5 +100,6 @@ def eval_cmd(dataset, models, output, split, body, push_margin, heatmap):
     res = run_eval(dataset, b, spec, split=split, push_out_margin=margins,
                    progress=lambda sid: click.echo(f"  {sid}", err=True))
     write_report(res, output, dataset=dataset, body=b, heatmap_model=heatmap or next(iter(spec)))
+    guard.record()
     click.echo(markdown_table(res))
     click.echo(f"-> {output}")

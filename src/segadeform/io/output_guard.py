@@ -152,7 +152,7 @@ def _update_manifest(folder: Path, add: dict, drop: Iterable[str] = (), mark: Op
 class _Claim:
     path: Path
     what: str                        # "file" | "folder" | "resumable"
-    names: Optional[str] = None      # folder: glob of the names the output writes
+    names: Optional[tuple] = None    # folder: globs of the names the output writes
     existed: bool = False
     snapshot: dict = dataclasses.field(default_factory=dict)  # folder: name -> (size, mtime_ns, ino) before
     location: object = None          # resumable: the Location
@@ -200,7 +200,7 @@ class OutputGuard:
     # -- helpers -----------------------------------------------------------------------------------------------
     @property
     def _cmd(self) -> str:
-        return f"segadeform {self.kind}"
+        return _label(self.kind)
 
     def _input_at(self, p: Path) -> Optional[Path]:
         return next((i for i in self.inputs if _same_file(i, p)), None)
@@ -232,11 +232,11 @@ class OutputGuard:
         if entry is None or not _unchanged(entry, st):
             why = "segadeform did not write it" if entry is None else "it changed since segadeform wrote it"
             raise OutputRefused(f"exists and {why}; segadeform never overwrites such a file", path=p,
-                                expected="a new path (or remove the file yourself)", got="an existing file")
+                                expected="a new path, or remove the file yourself", got="an existing file")
         if entry["kind"] != self.kind:
-            raise OutputRefused(f"exists, written by `segadeform {entry['kind']}`; {self._cmd} does not replace "
+            raise OutputRefused(f"exists, written by `{_label(entry['kind'])}`; {self._cmd} does not replace "
                                 "another command's output", path=p, expected="another path",
-                                got=f"an output of segadeform {entry['kind']}")
+                                got=f"an output of {_label(entry['kind'])}")
         if not self.force:
             raise OutputRefused(f"exists (the output of an earlier `{self._cmd}`)", path=p,
                                 expected="a new path, or --force to replace it", got="an existing output")
@@ -250,7 +250,7 @@ class OutputGuard:
         return p
 
     # -- folder outputs ----------------------------------------------------------------------------------------
-    def _check_folder(self, p: Path, names: Optional[str]) -> tuple[bool, dict]:
+    def _check_folder(self, p: Path, names: Optional[tuple]) -> tuple[bool, dict]:
         self._check_parent(p)
         inp = self._input_at(p)
         if inp is not None:
@@ -275,7 +275,7 @@ class OutputGuard:
             e = files.get(n)
             mine = e is not None and e["kind"] == self.kind and _unchanged(e, s) and self._input_at(q) is None
             (ours if mine else other).append(n)
-            if not mine and (names is None or fnmatch.fnmatchcase(n, names)):
+            if not mine and (names is None or any(fnmatch.fnmatchcase(n, g) for g in names)):
                 taken.append(n)
         if not self.force:
             if other:
@@ -292,14 +292,17 @@ class OutputGuard:
                                     f"({_names(taken)}), and this output's files are not known in advance",
                                     path=p, expected="a new or empty folder, or one holding only an earlier "
                                                      f"output of {self._cmd}", got="a folder in use")
-            raise OutputRefused(f"the folder holds {len(taken)} file(s) named like this output's ({names}) that "
+            raise OutputRefused(f"the folder holds {len(taken)} file(s) named like this output's "
+                                f"({', '.join(names)}) that "
                                 f"{self._cmd} did not write ({_names(taken)})", path=p,
                                 expected="another folder", got="files in the way")
         return True, snap
 
-    def folder(self, path: Union[str, os.PathLike], *, names: Optional[str] = None) -> Path:
-        """Claim folder output ``path`` whose files are named like glob ``names`` (None: not known in advance)."""
+    def folder(self, path: Union[str, os.PathLike], *, names=None) -> Path:
+        """Claim folder output ``path`` whose files are named like glob(s) ``names`` (None: not known in
+        advance)."""
         p = Path(path)
+        names = (names,) if isinstance(names, str) else None if names is None else tuple(names)
         existed, snap = self._check_folder(p, names)
         self.claims.append(_Claim(p, "folder", names=names, existed=existed, snapshot=snap))
         return p
@@ -367,7 +370,7 @@ class OutputGuard:
             return
         where = Path(str(loc))
         if owner is not None:
-            raise OutputRefused(f"the folder is the output of `segadeform {owner}`", path=where,
+            raise OutputRefused(f"the folder is the output of `{_label(owner)}`", path=where,
                                 expected=f"a new or empty folder for {self._cmd}", got=f"a {owner} folder")
         if c.legacy and all(n in names for n in c.legacy):
             return  # made by this command before folders had manifests
@@ -471,6 +474,14 @@ class OutputGuard:
         """``with guard.writing():`` -- :meth:`record` when the block succeeds (what it claimed and wrote)."""
         yield self
         self.record()
+
+
+#: kinds shared by several commands, as messages name them
+_KIND_LABELS = {"package": "segadeform export/repack/quantize/export-body"}
+
+
+def _label(kind: str) -> str:
+    return _KIND_LABELS.get(kind, f"segadeform {kind}")
 
 
 def _is_url(p) -> bool:
