@@ -135,8 +135,8 @@ def _check_file(tmp_path, kind, *, order="zxy", six=False, scale=1.0, up="y", se
 @pytest.mark.parametrize("kind", ["mixamo", "game", "biovision", "nonames"])
 def test_skeletons_map_and_limbs_follow(tmp_path, kind):
     m = _check_file(tmp_path, kind, six=(kind == "game"))
-    assert m.meta["scheme"] == {"mixamo": "mixamo", "game": "generic", "biovision": "cmu-3dsmax",
-                                "nonames": "generic"}[kind]
+    assert m.meta["scheme"] == {"mixamo": "mixamo", "game": "unity", "biovision": "cmu-3dsmax",
+                                "nonames": "shape"}[kind]
     assert np.isfinite(m.poses).all()
 
 
@@ -187,7 +187,7 @@ def test_joint_map_file(tmp_path):
     jm.write_text("[joints]\nleft_hand = \"b22\"\nb23 = \"right_hand\"\nneck = \"b12\"\nhead = \"b15\"\n")
     m = read_bvh(f, rest_joints=default_rest_joints(), joint_map=jm)
     assert m.meta["mapped"]["left_hand"] == "b22" and m.meta["mapped"]["right_hand"] == "b23"
-    assert m.meta["scheme"] == "generic+joint-map"
+    assert m.meta["scheme"] == "shape+joint-map"
     jm.write_text("[joints]\nleft_hand = \"nope\"\n")
     with pytest.raises(FileFormatError, match="'nope', which is not in the file"):
         read_bvh(f, joint_map=jm)

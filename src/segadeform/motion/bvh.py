@@ -5,12 +5,15 @@ Reading (:func:`read_bvh`):
 * **any channel layout**: channels in any order and number per joint, any
   Euler order (``Zrotation Xrotation Yrotation`` means ``R = Rz Rx Ry``),
   degrees; position channels on any joint (they replace its OFFSET, as game
-  rigs with six channels on every joint use them).
+  rigs with six channels on every joint use them; where such a rig's OFFSETs
+  are all zero, the channels' mean is the rest bone).  A UTF-8 byte order
+  mark is skipped.
 * **any humanoid naming**: :func:`segadeform.body.skeleton_map.map_skeleton`
-  finds SMPL's joints (name tables for SMPL, Mixamo, the CMU conversions; a
-  generic rule from the hierarchy; ``joint_map`` for the rest).  Extra
-  joints -- eyes, fingers, toe ends, ``LHipJoint``-style helpers -- are
-  folded into the joints they hang from.
+  finds SMPL's joints (name tables for SMPL, Mixamo, the CMU conversions,
+  Unity, Character Creator, Unreal, Xsens, VRM, Rigify, Rokoko; a rule that
+  reads the skeleton's shape; ``joint_map`` for the rest).  Extra joints --
+  eyes, face, fingers, toe ends, twist and share helpers, ``LHipJoint`` --
+  are folded into the joints they hang from.
 * **rest-pose differences** (T- vs A-pose, bone rolls, proportions) are
   retargeted by :func:`segadeform.body.retarget.retarget_to_smpl`.
 * **units**: ``scale="auto"`` fits the file's legs to the target body's
@@ -194,20 +197,28 @@ def read_bvh_skeleton(path: str | os.PathLike, *, up: str = "auto") -> BVHSkelet
     """Parse a BVH and run its forward kinematics (no mapping to SMPL)."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8", errors="replace")
+        text = p.read_text(encoding="utf-8-sig", errors="replace")  # a UTF-8 byte order mark is dropped
     except OSError as e:
         raise file_error(e, p) from None
     joints, data, frame_time = _parse(text, p)
     nj, nf = len(joints), data.shape[0]
     local = np.broadcast_to(np.eye(3), (nf, nj, 3, 3)).copy()
     offs = np.broadcast_to(np.stack([j.offset for j in joints]), (nf, nj, 3)).copy()
+    rest_offs = np.stack([j.offset for j in joints])  # (J, 3) the skeleton with every rotation zero
     col = 0
     for i, j in enumerate(joints):
         rot_axes = [c[0] for c in j.channels if c.endswith("rotation")]
         rot_cols = [col + k for k, c in enumerate(j.channels) if c.endswith("rotation")]
+        pos_cols = {}
         for k, c in enumerate(j.channels):
             if c.endswith("position"):
                 offs[:, i, "xyz".index(c[0])] = data[:, col + k]
+                pos_cols["xyz".index(c[0])] = col + k
+        if j.parent >= 0 and len(pos_cols) == 3 and not np.any(j.offset):
+            # six channels on every joint and all OFFSETs zero (some game exporters): the bones are in the
+            # position channels
+            for ax, cc in pos_cols.items():
+                rest_offs[i, ax] = data[:, cc].mean()
         if rot_axes:
             order = "".join(rot_axes)
             if len(order) == 3 and len(set(order)) == 3:
@@ -226,11 +237,11 @@ def read_bvh_skeleton(path: str | os.PathLike, *, up: str = "auto") -> BVHSkelet
         if j.parent < 0:
             glob[:, i] = local[:, i]
             pos[:, i] = offs[:, i]
-            rest[i] = j.offset
+            rest[i] = rest_offs[i]
         else:
             glob[:, i] = glob[:, j.parent] @ local[:, i]
             pos[:, i] = pos[:, j.parent] + np.einsum("tij,tj->ti", glob[:, j.parent], offs[:, i])
-            rest[i] = rest[j.parent] + j.offset
+            rest[i] = rest[j.parent] + rest_offs[i]
     ends = np.stack([rest[i] + (j.end if j.end is not None else 0.0) for i, j in enumerate(joints)])
     return to_y_up(tuple(j.name for j in joints), parents, rest, ends, glob, pos, 1.0 / frame_time, up)
 
@@ -274,7 +285,7 @@ def read_bvh(path: str | os.PathLike, *, rest_joints: np.ndarray | None = None, 
             overrides it.
         up: the file's up axis: ``"auto"``, ``"y"`` or ``"z"``.
         joint_map: SMPL name -> file joint name (a dict, or a TOML/JSON file path) for skeletons
-            the tables and the generic rule do not cover.
+            the tables and the shape rule do not cover.
 
     ``Motion.meta`` records the mapping scheme, the SMPL joints filled in (virtual), the file's
     joints left out, the guessed unit and the scale used.
@@ -333,7 +344,8 @@ def skeleton_motion(sk: BVHSkeleton, path: Path, *, rest_joints: np.ndarray | No
                 raise FileFormatError(e.problem, path=p, got=e.got) from None
     rot, trans = retarget_to_smpl(src, sk.rest, sk.rotations, sk.positions, target, scale_f)
     poses = matrix_to_axis_angle(rot).reshape(len(rot), 72)
-    meta = {"format": fmt, "scheme": mapping.scheme, "mapped": mapping.mapped(), "virtual": mapping.virtual,
+    meta = {"format": fmt, "scheme": mapping.scheme, "mapped": mapping.mapped(), "found_by": mapping.how(),
+            "virtual": mapping.virtual,
             "ignored": mapping.ignored, "units_guess": unit_guess, "scale": float(scale_f), "up": sk.up,
             "source_fps": float(sk.fps)}
     return Motion(poses=poses, trans=trans, fps=sk.fps, name=p.stem, meta=meta)
