@@ -13,6 +13,7 @@ pc2        .pc2                point cache (3ds Max, Blender Mesh Cache, Houdini
 obj-seq    (a folder)          one OBJ per frame, ``frame_00000.obj`` ...
 xdmf       .xdmf .xmf          XDMF time series (ParaView)
 abc        .abc                Alembic polygon mesh (Blender, Maya, Houdini)           alembic
+usd        .usd .usda .usdc    USD mesh, time-sampled points (Blender, Houdini ...)    usd
 =========  ==================  =====================================================  =========
 """
 
@@ -207,3 +208,34 @@ register_sequence_format(SequenceFormat("xdmf", (".xdmf", ".xmf"), _xdmf_open, _
                                         "XDMF time series (ParaView)"))
 register_sequence_format(SequenceFormat("abc", (".abc",), _abc_open, _abc_read,
                                         "Alembic polygon mesh (Blender, Maya, Houdini)", extra="alembic"))
+
+
+def _usd_open(path, *, faces, num_points, fps, start_frame, rest, up):
+    from .usd import UsdSequenceWriter
+
+    return UsdSequenceWriter(path, faces, num_points, fps=fps, start_frame=start_frame, up=up)
+
+
+def _usd_read(path, faces):
+    from .usd import read_usd_sequence
+
+    frames = read_usd_sequence(path)[1]
+    if not np.isfinite(frames).all():
+        from ..errors import FileFormatError
+
+        raise FileFormatError("USD points contain NaN or inf", path=path)
+    return frames
+
+
+def _usd_inspect(path):
+    from .usd import read_usd_sequence
+
+    faces, frames, times, info = read_usd_sequence(path)
+    return (f"{frames.shape[0]} time samples x {frames.shape[1]} points, {len(faces)} faces ({info['prim']}), "
+            f"upAxis {info['up']}, {info['meters_per_unit']:g} m per unit, {info['fps']:g} fps, time codes "
+            f"{times[0]:g}..{times[-1]:g}", frames)
+
+
+register_sequence_format(SequenceFormat("usd", (".usd", ".usda", ".usdc"), _usd_open, _usd_read,
+                                        "USD mesh with time-sampled points (Blender, Houdini, usdview)", extra="usd",
+                                        inspect=_usd_inspect))

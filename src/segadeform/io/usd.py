@@ -1,0 +1,155 @@
+"""USD (``.usd``, ``.usda``, ``.usdc``) mesh sequences through the optional ``usd-core`` package (extra ``usd``).
+
+One ``UsdGeom.Mesh`` named after the file (``out/dress_walk.usd`` -> ``/dress_walk``, the stage's default
+prim): faces written once (``faceVertexCounts`` all 3, ``faceVertexIndices`` in the garment file's order,
+counter-clockwise = ``rightHanded``, no subdivision), ``points`` and ``extent`` as time samples at time codes
+``start_frame, start_frame + 1, ...``.  The stage says how to read them: ``upAxis`` (``Y`` as computed, or
+``Z`` for ``--up z``), ``metersPerUnit = 1`` and ``timeCodesPerSecond = framesPerSecond = fps``, with
+``startTimeCode``/``endTimeCode`` spanning the frames.  ``.usd`` and ``.usdc`` are written binary (crate),
+``.usda`` as text.
+
+The stage is built in memory and exported under a temporary name when the writer closes, then renamed: a
+failed run leaves nothing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FileFormatError, InputError, check_readable, unreadable_error
+from .atomic import WriteError, _tmp_sibling, write_error
+from .mesh import validate_mesh_arrays
+from .writer import SequenceWriter
+
+__all__ = ["UsdSequenceWriter", "read_usd_sequence", "usd_available", "USD_EXTENSIONS"]
+
+USD_EXTENSIONS = (".usd", ".usda", ".usdc")
+
+
+def _modules():
+    try:
+        from pxr import Sdf, Tf, Usd, UsdGeom, Vt
+    except ImportError:
+        raise InputError("USD output needs the 'usd' extra: pip install 'segadeform[usd]'") from None
+    return Usd, UsdGeom, Sdf, Vt, Tf
+
+
+def usd_available() -> bool:
+    try:
+        _modules()
+        return True
+    except InputError:
+        return False
+
+
+class UsdSequenceWriter(SequenceWriter):
+    """Stream frames into a USD stage; the file appears when :meth:`close` succeeds.
+
+    Args:
+        path: ``.usd``, ``.usda`` or ``.usdc``.
+        faces: (F, 3) triangles; num_points: N.
+        fps: frames per second (the stage's time codes per second); start_frame: the first frame's time code.
+        up: "y" (as computed) or "z" (points turned to Z-up, ``upAxis = Z``).
+    """
+
+    def __init__(self, path: str | os.PathLike, faces: np.ndarray, num_points: int, *, fps: float = 30.0,
+                 start_frame: int = 0, up: str = "y") -> None:
+        super().__init__(path, num_points, up=up)
+        ext = self.path.suffix.lower()
+        if ext not in USD_EXTENSIONS:
+            raise InputError("not a USD file name", path=self.path, expected=" | ".join(USD_EXTENSIONS), got=ext)
+        Usd, UsdGeom, Sdf, self._Vt, Tf = _modules()
+        _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
+        if not (np.isfinite(fps) and fps > 0):
+            raise InputError("fps must be positive", got=fps)
+        self._Usd = Usd
+        self.fps, self.start = float(fps), float(start_frame)
+        self._stage = Usd.Stage.CreateInMemory()
+        UsdGeom.SetStageUpAxis(self._stage, UsdGeom.Tokens.z if up == "z" else UsdGeom.Tokens.y)
+        UsdGeom.SetStageMetersPerUnit(self._stage, 1.0)
+        self._stage.SetTimeCodesPerSecond(self.fps)
+        self._stage.SetFramesPerSecond(self.fps)
+        self._stage.SetStartTimeCode(self.start)
+        name = Tf.MakeValidIdentifier(self.path.stem) or "mesh"
+        mesh = UsdGeom.Mesh.Define(self._stage, Sdf.Path("/" + name))
+        self._stage.SetDefaultPrim(mesh.GetPrim())
+        mesh.CreateFaceVertexCountsAttr(self._Vt.IntArray.FromNumpy(np.full(len(self.faces), 3, np.int32)))
+        mesh.CreateFaceVertexIndicesAttr(self._Vt.IntArray.FromNumpy(self.faces.astype(np.int32).ravel()))
+        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+        self._points = mesh.CreatePointsAttr()
+        self._extent = mesh.CreateExtentAttr()
+
+    def _append(self, frames: np.ndarray) -> None:
+        Vt, Usd = self._Vt, self._Usd
+        for k, fr in enumerate(frames.astype(np.float32)):
+            t = Usd.TimeCode(self.start + self.num_samples + k)
+            self._points.Set(Vt.Vec3fArray.FromNumpy(fr), t)
+            self._extent.Set(Vt.Vec3fArray.FromNumpy(np.stack([fr.min(axis=0), fr.max(axis=0)])), t)
+
+    def _commit(self) -> None:
+        self._stage.SetEndTimeCode(self.start + max(self.num_samples - 1, 0))
+        ext = self.path.suffix.lower()
+        hold = _tmp_sibling(self.path, directory=False)  # reserves the name; USD needs the extension
+        tmp = hold.with_name(hold.name + ext)
+        try:
+            args = {"format": "usdc"} if ext == ".usd" else {}
+            if not self._stage.GetRootLayer().Export(str(tmp), "", args):
+                raise WriteError(self.path, "USD could not export the stage; nothing was left behind")
+            os.replace(tmp, self.path)
+        except OSError as e:
+            raise write_error(e, self.path) from None
+        finally:
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()
+            with contextlib.suppress(FileNotFoundError):
+                hold.unlink()
+            self._stage = None
+
+    def _discard(self) -> None:
+        self._stage = None
+
+
+def read_usd_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+    """The first mesh of a USD file: faces ``(F, 3)``, frames ``(S, N, 3)`` (its points' time samples, or its
+    one default value), time codes ``(S,)`` and the stage's ``{"up", "meters_per_unit", "fps", "start",
+    "end", "prim"}``.  Non-finite points are returned as they are (``segadeform inspect`` reports them)."""
+    p = Path(path)
+    check_readable(p)
+    Usd, UsdGeom, _, _, _ = _modules()
+    try:
+        stage = Usd.Stage.Open(str(p))
+    except Exception as e:  # pxr raises Tf.ErrorException on a file it cannot parse
+        raise unreadable_error(e, p, "USD") from None
+    if stage is None:
+        raise FileFormatError("not a readable USD file", path=p)
+    mesh = next((UsdGeom.Mesh(prim) for prim in stage.Traverse() if prim.IsA(UsdGeom.Mesh)), None)
+    if mesh is None:
+        raise FileFormatError("USD file has no mesh", path=p, expected="a UsdGeom.Mesh prim", got="none")
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get() or [], np.int64)
+    idx = np.asarray(mesh.GetFaceVertexIndicesAttr().Get() or [], np.int64)
+    if counts.size == 0 or (counts != 3).any() or idx.size != 3 * counts.size:
+        raise FileFormatError("USD mesh is not all triangles", path=p, expected="faceVertexCounts all 3",
+                              got=f"{counts.size} faces, counts {sorted(set(counts.tolist()))[:5]}")
+    attr = mesh.GetPointsAttr()
+    times = np.asarray(attr.GetTimeSamples(), np.float64)
+    if times.size:
+        frames = np.stack([np.asarray(attr.Get(t), np.float64) for t in times])
+    else:
+        pts = attr.Get()
+        if pts is None:
+            raise FileFormatError("USD mesh has no points", path=p, got=str(mesh.GetPath()))
+        frames, times = np.asarray(pts, np.float64)[None], np.zeros(1)
+    if frames.ndim != 3 or frames.shape[2] != 3:
+        raise FileFormatError("USD points are not 3-vectors", path=p, got=frames.shape)
+    if idx.size and (idx.min() < 0 or idx.max() >= frames.shape[1]):
+        raise FileFormatError("USD face index out of range", path=p, expected=f"0..{frames.shape[1] - 1}",
+                              got=f"{idx.min()}..{idx.max()}")
+    info = {"up": str(UsdGeom.GetStageUpAxis(stage)), "meters_per_unit": float(UsdGeom.GetStageMetersPerUnit(stage)),
+            "fps": float(stage.GetTimeCodesPerSecond()), "start": float(stage.GetStartTimeCode()),
+            "end": float(stage.GetEndTimeCode()), "prim": str(mesh.GetPath())}
+    return idx.reshape(-1, 3), frames, times, info

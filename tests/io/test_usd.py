@@ -1,0 +1,135 @@
+"""USD output (extra 'usd'): a registered sequence format -- time-sampled points, faces, upAxis, metersPerUnit and
+the frame rate -- read back by the reader and `segadeform inspect`; `run --format usd` (and `--body-out`) gives the
+frames the PC2 path gives; bad targets fail whole."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+pytest.importorskip("pxr", reason="USD output needs the 'usd' extra")
+
+from segadeform.cli.main import cli  # noqa: E402
+from segadeform.errors import FileFormatError  # noqa: E402
+from segadeform.io import format_for_path, open_sequence_writer, read_pc2, read_sequence  # noqa: E402
+from segadeform.io.usd import read_usd_sequence  # noqa: E402
+from segadeform.io.writer import Y_TO_Z  # noqa: E402
+
+from ..conftest import SAMPLES, leftovers  # noqa: E402
+
+
+def _mesh(n=40, frames=6, seed=0):
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(n, 3))
+    f = np.array([[i, i + 1, i + 2] for i in range(n - 2)])
+    return v, f, np.stack([v + [0.1 * k, 0.02 * k, -0.03 * k] + 0.01 * rng.normal(size=v.shape) for k in range(frames)])
+
+
+@pytest.mark.parametrize("ext", [".usd", ".usda", ".usdc"])
+@pytest.mark.parametrize("up", ["y", "z"])
+def test_round_trip(tmp_path, ext, up):
+    v, f, frames = _mesh()
+    path = tmp_path / f"garment{ext}"
+    assert format_for_path(path).name == "usd"
+    with open_sequence_writer(path, "usd", faces=f, num_points=len(v), fps=24.0, start_frame=7, up=up) as w:
+        w.write(frames[:2])
+        w.write(frames[2:])
+    faces, got, times, info = read_usd_sequence(path)
+    want = frames if up == "y" else frames @ np.array(Y_TO_Z).T
+    np.testing.assert_array_equal(faces, f)
+    np.testing.assert_array_equal(got, want.astype(np.float32))
+    np.testing.assert_array_equal(times, np.arange(7, 13))
+    assert info == {"up": up.upper(), "meters_per_unit": 1.0, "fps": 24.0, "start": 7.0, "end": 12.0,
+                    "prim": "/garment"}
+    np.testing.assert_array_equal(read_sequence(path), want.astype(np.float32))
+    head = path.read_bytes()[:8]
+    assert head.startswith(b"#usda") == (ext == ".usda") and head.startswith(b"PXR-USDC") == (ext != ".usda")
+    assert leftovers(tmp_path) == []
+
+
+def test_aborted_writer_leaves_nothing(tmp_path):
+    v, f, frames = _mesh()
+    with pytest.raises(RuntimeError):
+        with open_sequence_writer(tmp_path / "g.usd", "usd", faces=f, num_points=len(v)) as w:
+            w.write(frames[:3])
+            raise RuntimeError("killed")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_reader_refuses_what_is_not_a_triangle_mesh(tmp_path):
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.CreateNew(str(tmp_path / "empty.usda"))
+    UsdGeom.Xform.Define(stage, "/root")
+    stage.GetRootLayer().Save()
+    with pytest.raises(FileFormatError, match="empty.usda: USD file has no mesh"):
+        read_usd_sequence(tmp_path / "empty.usda")
+    stage = Usd.Stage.CreateNew(str(tmp_path / "quad.usda"))
+    m = UsdGeom.Mesh.Define(stage, "/quad")
+    m.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)])
+    m.CreateFaceVertexCountsAttr([4])
+    m.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    stage.GetRootLayer().Save()
+    with pytest.raises(FileFormatError, match="quad.usda: USD mesh is not all triangles"):
+        read_usd_sequence(tmp_path / "quad.usda")
+    (tmp_path / "junk.usd").write_bytes(b"PXR-USDC" + b"\0" * 40)
+    with pytest.raises(FileFormatError, match="junk.usd: not a readable USD file"):
+        read_usd_sequence(tmp_path / "junk.usd")
+
+
+def _run(args):
+    return CliRunner().invoke(cli, ["run", "--garment", str(SAMPLES / "garments" / "dress.obj"), "--motion", "walk",
+                                    "--no-cache"] + args)
+
+
+@pytest.fixture(scope="module")
+def walk_motion(tmp_path_factory):
+    from segadeform.motion import make_motion
+
+    p = tmp_path_factory.mktemp("m") / "walk.npz"
+    make_motion("walk", seconds=0.3, fps=30).save(p)
+    return p
+
+
+def test_run_format_usd_matches_pc2_and_inspect_reads_it(tmp_path, walk_motion):
+    """`run ... -o x.usd --body-out b.usd` writes the garment and body frames the PC2 path writes (the same
+    float32 numbers), with the faces and the motion's rate; `inspect` summarises the file."""
+    def run(out, body):
+        r = CliRunner().invoke(cli, ["run", "--garment", str(SAMPLES / "garments" / "dress.obj"), "--motion",
+                                     str(walk_motion), "--frames", "2:8", "--no-cache", "-o", str(out),
+                                     "--body-out", str(body)])
+        assert r.exit_code == 0, r.output
+        return r.output
+
+    out = run(tmp_path / "dress.usd", tmp_path / "body.usd")
+    assert f"wrote {tmp_path / 'dress.usd'}" in out and f"wrote {tmp_path / 'body.usd'}" in out
+    run(tmp_path / "dress.pc2", tmp_path / "body.pc2")
+    for name in ("dress", "body"):
+        faces, frames, times, info = read_usd_sequence(tmp_path / f"{name}.usd")
+        np.testing.assert_array_equal(frames, read_pc2(tmp_path / f"{name}.pc2").frames)
+        np.testing.assert_array_equal(times, np.arange(2, 8))
+        assert info["fps"] == 30.0 and info["up"] == "Y" and info["meters_per_unit"] == 1.0
+    from segadeform.io import read_obj
+
+    np.testing.assert_array_equal(read_usd_sequence(tmp_path / "body.usd")[0], read_obj(tmp_path / "body.obj").faces)
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "dress.usd")])
+    assert r.exit_code == 0, r.output
+    first = r.output.splitlines()[0]
+    assert first.startswith(f"{tmp_path / 'dress.usd'}: usd sequence, 6 time samples x ")
+    assert "upAxis Y, 1 m per unit, 30 fps, time codes 2..7" in first
+    assert "NaN/inf: none" in r.output
+
+
+def test_usd_target_that_cannot_be_written(tmp_path, walk_motion):
+    """A USD output in a folder that cannot be made (its parent is a file): one line naming the target, exit 1,
+    nothing written (not the body either)."""
+    (tmp_path / "afile").write_text("x")
+    r = CliRunner().invoke(cli, ["run", "--garment", str(SAMPLES / "garments" / "dress.obj"), "--motion",
+                                 str(walk_motion), "--no-cache", "-o", str(tmp_path / "afile" / "dress.usd"),
+                                 "--body-out", str(tmp_path / "body.usd")])
+    assert r.exit_code == 1
+    lines = [ln for ln in r.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("Error: ") and "dress.usd" in lines[0], r.output
+    assert "afile" in lines[0].split("dress.usd", 1)[1]  # and says why: afile is a file
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
