@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 from pathlib import Path
 from typing import Optional
 
@@ -52,6 +53,7 @@ _INCH = 0.0254
 _ROT_DOFS = ("rx", "ry", "rz")
 _ROOT_DOFS = ("tx", "ty", "tz", "rx", "ry", "rz")
 _SECTIONS = (":version", ":name", ":units", ":documentation", ":root", ":bonedata", ":hierarchy", ":skin")
+_FRAME_NUMBER = re.compile(r"[+-]?[0-9]{1,15}", re.ASCII)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -314,6 +316,9 @@ def read_asf(path: str | os.PathLike) -> ASFSkeleton:
             hier.append((ln, toks))
     if bone is not None:
         raise FileFormatError("the file ends inside a bone block", path=p, expected="end", got="end of file")
+    if section is None and not seen_sections:
+        raise FileFormatError("ASF is empty", path=p, expected="an ASF skeleton (:units, :root, :bonedata, :hierarchy)",
+                              got="no keywords" if text.strip() else "an empty file")
     if root["order"] is None:
         raise FileFormatError("ASF has no :root order", path=p, line=root["line"],
                               expected="a :root section with order TX TY TZ RX RY RZ", got="none")
@@ -390,7 +395,7 @@ def _assemble(p: Path, units, root, bones: list, hier) -> ASFSkeleton:
             cur, ln = parent[cur]
             if cur in seen:
                 raise FileFormatError("the hierarchy has a cycle", path=p, line=ln, expected="a tree under root",
-                                      got=" -> ".join(seen[seen.index(cur):][::-1] + [cur]))
+                                      got=" -> ".join([cur] + seen[seen.index(cur):][::-1]))
             seen.append(cur)
     order: list[str] = []
     stack = ["root"]
@@ -474,7 +479,7 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
             tokens[head] += parts[1:]
             line_of[head].append(ln)
             continue
-        if len(parts) == 1 and head.lstrip("+-").isdigit():
+        if len(parts) == 1 and _FRAME_NUMBER.fullmatch(head):
             num = int(head)
             if first is None:
                 first = num
@@ -515,7 +520,7 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
             continue
         toks = tokens[n]
         try:
-            v = np.array(toks, np.float64).reshape(-1, k)
+            v = np.fromiter(map(float, toks), np.float64, len(toks)).reshape(-1, k)
         except ValueError:
             bad = next(i for i, t in enumerate(toks) if not _isnum(t))
             raise FileFormatError(f"bone {n!r} has a value that is not a number", path=p, line=line_of[n][bad // k],
@@ -660,6 +665,9 @@ def amc_skeleton(path: str | os.PathLike, skeleton: str | os.PathLike | ASFSkele
     amc = read_amc_values(p, skeleton)
     G, starts, ends = asf_forward_kinematics(skeleton, amc)
     rest_start, rest_end = skeleton.rest()
+    if not (np.isfinite(rest_end).all() and np.isfinite(ends).all()):
+        raise FileFormatError("bone lengths or root positions are too large: positions overflow", path=p,
+                              expected="lengths and translations below 1e300", got="inf")
     return to_y_up(skeleton.names, skeleton.parents, rest_start, rest_end, G, starts, fps, up)
 
 
