@@ -27,7 +27,10 @@ def dataset_group():
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option("--limit", type=click.IntRange(min=1), help="Make at most this many samples now.")
 @click.option("--sim-python", type=click.Path(dir_okay=False, path_type=Path), help="The simulator's Python.")
-def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python):
+@click.option("--dataset", "roots", multiple=True, type=click.Path(exists=True, path_type=Path),
+              help="A read-only dataset root (a pack, a folder of packs, a dataset folder): samples it holds are "
+                   "done and not made again. Repeatable; the config's dataset.roots are read too.")
+def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, roots):
     """Simulate every garment x body x motion of CONFIG.toml into OUTPUT (resumable)."""
     from segadeform.dataset import load_dataset_config, make_dataset
     from segadeform.executors import make_executor
@@ -49,7 +52,7 @@ def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python):
 
     with ex:
         s = make_dataset(cfg, loc, body_path=body, sim_python=sim_python, progress=progress,
-                         limit=limit, executor=ex)
+                         limit=limit, executor=ex, roots=roots)
     click.echo(f"{s.planned} planned, {s.skipped} already done, {s.kept} kept, {s.rejected} rejected -> {output}")
 
 

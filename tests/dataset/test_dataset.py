@@ -42,7 +42,14 @@ def test_plan_and_held_out_splits():
 @pytest.mark.parametrize("text, msg", [
     ("[[garments]]\nkind = 'cape'\n[[motions]]\nkind = 'walk'\n", "not a garment kind"),
     ("[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'moonwalk'\n", "not a motion kind"),
-    ("[[garments]]\nkind = 'skirt'\nsplit = 'val'\n[[motions]]\nkind = 'walk'\n", "split"),
+    ("[[garments]]\nkind = 'skirt'\nsplit = 'dev'\n[[motions]]\nkind = 'walk'\n", "split"),
+    ("[dataset]\nval_kinds = ['skirt']\n[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n", "validation kind"),
+    ("[dataset]\nval_motions = ['jog']\n[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\nfamily = 'jog'\n",
+     "validation family"),
+    ("[dataset]\nheld_out_motions = ['jog']\nval_motions = ['jog']\n[[garments]]\nkind = 'skirt'\n[[motions]]\n"
+     "kind = 'walk'\n", "both validation and test"),
+    ("[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\nfamily = 'f'\n[[motions]]\nkind = 'run'\n"
+     "family = 'f'\nsplit = 'test'\n", "two splits"),
     ("[[garments]]\nkind = 'skirt'\n", "at least one"),
     ("[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n[[motions]]\nkind = 'walk'\n", "used twice"),
     ("[dataset]\nspeed = 1\n[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n", "unknown key"),
@@ -279,7 +286,7 @@ def test_one_motion_file_cannot_be_trained_on_and_held_out(tmp_path):
     walk = (SAMPLES / "motions" / "walk.npz").resolve()
     text = ("[[garments]]\nkind = 'skirt'\n[[motions]]\nname = 'a'\nfile = '{f}'\n"
             "[[motions]]\nname = 'b'\nfile = '{f}'\nstart = 1.0\nsplit = 'test'\n").format(f=walk)
-    with pytest.raises(FileFormatError, match="both training and held-out"):
+    with pytest.raises(FileFormatError, match="entries of two splits"):
         load_dataset_config(_write(tmp_path, "c.toml", text))
 
 
@@ -404,3 +411,69 @@ def test_spread_order_covers_every_garment_body_and_motion_early_with_held_out_i
     # body-major (the default) is what it was
     bm = make_order(dataclasses.replace(cfg, order="body-major"), sample_plan(cfg))
     assert [p.body for p in bm if p.split == "train"] == sorted(p.body for p in bm if p.split == "train")
+
+
+def test_validation_split_is_disjoint_from_training_and_test(tmp_path):
+    """Whole garment kinds and motion families held out for validation and for test: the plan puts every
+    sample in one split, and no training sample sees a validation or test kind, family, file or body;
+    no validation sample sees a test one."""
+    from segadeform.dataset.make import check_splits
+
+    p = tmp_path / "c.toml"
+    p.write_text("""
+[dataset]
+held_out_kinds = ["tank"]
+val_kinds = ["jacket"]
+held_out_motions = ["jumps"]
+val_motions = ["runs"]
+[[garments]]
+kind = "skirt"
+[[garments]]
+kind = "tshirt"
+split = "val"
+[[garments]]
+kind = "jacket"
+split = "val"
+[[garments]]
+kind = "tank"
+split = "test"
+[[bodies]]
+betas = []
+[[bodies]]
+betas = [1.0]
+split = "test"
+[[motions]]
+kind = "walk"
+count = 2
+speed = [0.8, 1.2]
+family = "walks"
+[[motions]]
+kind = "run"
+family = "runs"
+split = "val"
+[[motions]]
+kind = "dance"
+family = "jumps"
+split = "test"
+""")
+    cfg = load_dataset_config(p)
+    plan = sample_plan(cfg)
+    check_splits(cfg, plan)
+    by = {}
+    for s in plan:
+        by.setdefault(s.split, []).append(s)
+    assert set(by) == {"train", "val", "test"}
+    fam = lambda s: cfg.motions[s.motion].family  # noqa: E731
+    kinds = lambda sp: {cfg.garments[s.garment].kind for s in by[sp]}  # noqa: E731
+    assert kinds("train") == {"skirt"} and kinds("val") == {"tshirt", "jacket"} and kinds("test") == {"tank"}
+    assert {fam(s) for s in by["train"]} == {"walks"} and {fam(s) for s in by["val"]} == {"runs"}
+    assert {s.body for s in by["val"]} == {0} and {s.body for s in by["train"]} == {0}
+    assert {fam(s) for s in by["test"]} == {"jumps"} and {s.body for s in by["test"]} == {0, 1}
+    # a plan that leaks a validation family into training is refused
+    from segadeform.dataset.make import PlannedSample
+    leak = [PlannedSample("x", 0, 0, [m.family for m in cfg.motions].index("runs"), "train")]
+    with pytest.raises(Exception, match="validation motion"):
+        check_splits(cfg, leak)
+    leak = [PlannedSample("y", 1, 1, [m.family for m in cfg.motions].index("runs"), "val")]
+    with pytest.raises(Exception, match="held-out body"):
+        check_splits(cfg, leak)

@@ -184,3 +184,36 @@ def test_dataset_pack_command(tmp_path, body, capsys):
     before = out.read_bytes()
     assert main(["dataset", "pack", str(ds), "-o", str(out)]) == 1  # never over an existing file
     assert "never overwritten" in capsys.readouterr().err and out.read_bytes() == before
+
+
+def test_dataset_make_skips_what_a_pack_holds_and_never_writes_it(tmp_path, body):
+    """A fresh machine with the durable packs beside it: `dataset make` finds every sample done in the
+    pack (nothing simulated, so no simulator is needed here) and writes nothing into it; a pack whose
+    sample was made from other settings than the config now gives stops the run."""
+    from segadeform.dataset import load_dataset_config, sample_plan
+    from segadeform.dataset.make import make_dataset, sample_spec
+
+    cfg_p = tmp_path / "c.toml"
+    cfg_p.write_text("[dataset]\nseconds = 0.5\n[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n"
+                     "[[motions]]\nkind = 'run'\n")
+    cfg = load_dataset_config(cfg_p)
+    plan = sample_plan(cfg)
+    old = tmp_path / "old"
+    for ps in plan:
+        _save(old, ps.id, body, spec=sample_spec(cfg, ps))
+    store = tmp_path / "sim"
+    store.mkdir()
+    write_pack(old, store / "a.sgdpack", body=body)
+    digest = hashlib.sha256((store / "a.sgdpack").read_bytes()).hexdigest()
+    s = make_dataset(cfg, tmp_path / "new", roots=[store])
+    assert (s.planned, s.skipped, s.kept + s.rejected) == (len(plan), len(plan), 0)
+    assert hashlib.sha256((store / "a.sgdpack").read_bytes()).hexdigest() == digest
+    assert list((tmp_path / "new" / "samples").iterdir()) == []
+    # the config's own dataset.roots: read where they exist, skipped where they do not
+    cfg_p.write_text(cfg_p.read_text().replace("[dataset]\n", f"[dataset]\nroots = ['sim', 'absent']\n"))
+    s = make_dataset(load_dataset_config(cfg_p), tmp_path / "new")
+    assert s.skipped == len(plan)
+    # a changed entry under the same name is refused before anything is simulated
+    cfg_p.write_text(cfg_p.read_text().replace("kind = 'run'", "kind = 'run'\nspeed = 1.5"))
+    with pytest.raises(InputError, match="made from other settings"):
+        make_dataset(load_dataset_config(cfg_p), tmp_path / "new")

@@ -109,6 +109,7 @@ class MotionEntry:
     file: Optional[Path] = None
     start: float = 0.0  # seconds into the file where the clip begins
     ease_in: float = 1.0  # procedural: seconds blending in from the rest pose
+    family: str = ""    # what splits hold out together (default: the file's stem, or the procedural entry)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -135,18 +136,25 @@ class DatasetConfig:
     path: Optional[Path] = None
     text: str = ""
     body_splits: tuple = ()  # "train" | "test" per body (default: all train)
-    held_out_kinds: tuple = ()    # garment kinds only held-out entries use
-    held_out_motions: tuple = ()  # motion kinds / file stems only held-out entries use
+    held_out_kinds: tuple = ()    # garment kinds only held-out (test) entries use
+    held_out_motions: tuple = ()  # motion families only held-out (test) entries use
     order: str = "body-major"     # "body-major" | "spread": the order samples are made in
+    val_kinds: tuple = ()         # garment kinds only validation entries use
+    val_motions: tuple = ()       # motion families only validation entries use
+    roots: tuple = ()             # read-only dataset roots (packs ...) read where they exist
 
     def digest(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()[:16]
 
 
+#: the splits an entry may name: trained on, held out for choosing the model, held out for the report
+SPLITS = ("train", "val", "test")
+
+
 def _split(d, where, what):
     s = d.get("split", "train")
-    if s not in ("train", "test"):
-        raise FileFormatError(f"{what}.split must be 'train' or 'test'", path=where, got=s)
+    if s not in SPLITS:
+        raise FileFormatError(f"{what}.split must be 'train', 'val' or 'test'", path=where, got=s)
     return s
 
 
@@ -205,7 +213,8 @@ def load_dataset_config(path) -> DatasetConfig:
     if bad:
         raise FileFormatError(f"unknown table [{bad[0]}]", path=p, expected=", ".join(sorted(known)))
     ds = data.get("dataset", {})
-    bad = sorted(set(ds) - {"fps", "seconds", "cross_splits", "held_out_kinds", "held_out_motions", "order"})
+    bad = sorted(set(ds) - {"fps", "seconds", "cross_splits", "held_out_kinds", "held_out_motions", "order",
+                            "val_kinds", "val_motions", "roots"})
     if bad:
         raise FileFormatError(f"unknown key dataset.{bad[0]}", path=p)
     order = ds.get("order", "body-major")
@@ -214,12 +223,25 @@ def load_dataset_config(path) -> DatasetConfig:
                               got=order)
     held_kinds = tuple(ds.get("held_out_kinds", ()))
     held_motions = tuple(ds.get("held_out_motions", ()))
-    if not all(isinstance(k, str) and k in GARMENT_KINDS for k in held_kinds):
-        raise FileFormatError("dataset.held_out_kinds must list garment kinds", path=p,
-                              expected=" | ".join(GARMENT_KINDS), got=list(held_kinds))
-    if not all(isinstance(k, str) for k in held_motions):
-        raise FileFormatError("dataset.held_out_motions must list motion kinds or file names", path=p,
-                              got=list(held_motions))
+    val_kinds = tuple(ds.get("val_kinds", ()))
+    val_motions = tuple(ds.get("val_motions", ()))
+    for key, kinds in (("held_out_kinds", held_kinds), ("val_kinds", val_kinds)):
+        if not all(isinstance(k, str) and k in GARMENT_KINDS for k in kinds):
+            raise FileFormatError(f"dataset.{key} must list garment kinds", path=p,
+                                  expected=" | ".join(GARMENT_KINDS), got=list(kinds))
+    for key, fams in (("held_out_motions", held_motions), ("val_motions", val_motions)):
+        if not all(isinstance(k, str) for k in fams):
+            raise FileFormatError(f"dataset.{key} must list motion kinds or families", path=p, got=list(fams))
+    both = sorted((set(held_kinds) & set(val_kinds)) | (set(held_motions) & set(val_motions)))
+    if both:
+        raise FileFormatError(f"{both[0]!r} is held out for both validation and test", path=p,
+                              expected="validation and test kinds and motion families apart")
+    roots = ds.get("roots", [])
+    if isinstance(roots, str):
+        roots = [roots]
+    if not isinstance(roots, list) or not all(isinstance(r, str) for r in roots):
+        raise FileFormatError("dataset.roots must list paths (packs, folders of packs)", path=p, got=roots)
+    roots = tuple((p.parent / r).resolve() for r in roots)
     try:
         q = QualitySpec(**data.get("quality", {}))
     except TypeError as e:
@@ -250,9 +272,12 @@ def load_dataset_config(path) -> DatasetConfig:
                                       expected="no ranges and no count with mhclo")
         if pin is not None and pin not in ("waistband", "top"):
             raise FileFormatError(f"garments[{i}].pin must be 'waistband' or 'top'", path=p, got=pin)
-        if split == "train" and kind in held_kinds:
-            raise FileFormatError(f"garments[{i}] is a training garment of the held-out kind {kind!r}", path=p,
+        if split != "test" and kind in held_kinds:
+            raise FileFormatError(f"garments[{i}] is a {split} garment of the held-out kind {kind!r}", path=p,
                                   expected="split = 'test' for kinds in dataset.held_out_kinds")
+        if split != "val" and kind in val_kinds:
+            raise FileFormatError(f"garments[{i}] is a {split} garment of the validation kind {kind!r}", path=p,
+                                  expected="split = 'val' for kinds in dataset.val_kinds")
         if count is None and not ranged:
             draws = [(name, {})]
         elif not ranged and count > 1:
@@ -274,7 +299,8 @@ def load_dataset_config(path) -> DatasetConfig:
     for i, b in enumerate(data.get("bodies", [{"betas": []}])):
         betas = b.get("betas", [])
         if set(b) - {"betas", "split"} or not all(isinstance(x, (int, float)) for x in betas):
-            raise FileFormatError(f"bodies[{i}] must be {{betas = [numbers], split = train|test}}", path=p, got=b)
+            raise FileFormatError(f"bodies[{i}] must be {{betas = [numbers], split = train|val|test}}", path=p,
+                                  got=b)
         bodies.append(tuple(float(x) for x in betas))
         body_splits.append(_split(b, p, f"bodies[{i}]"))
     motions, mnames = [], set()
@@ -288,8 +314,8 @@ def load_dataset_config(path) -> DatasetConfig:
         if "kind" in m and m["kind"] not in MOTION_KINDS:
             raise FileFormatError(f"{what}.kind is not a motion kind", path=p,
                                   expected=" | ".join(MOTION_KINDS), got=m["kind"])
-        allowed = {"kind", "seed", "speed", "amplitude", "name", "count", "ease_in"} if "kind" in m \
-            else {"file", "name", "start", "count", "seed"}
+        allowed = {"kind", "seed", "speed", "amplitude", "name", "count", "ease_in", "family"} if "kind" in m \
+            else {"file", "name", "start", "count", "seed", "family"}
         extra = set(m) - allowed
         if extra:
             raise FileFormatError(f"unknown key {what}.{sorted(extra)[0]}", path=p,
@@ -301,10 +327,16 @@ def load_dataset_config(path) -> DatasetConfig:
         if not isinstance(seed, int) or isinstance(seed, bool):
             raise FileFormatError(f"{what}.seed must be an integer", path=p, got=seed)
         base = m.get("name") or (f.stem if f else f"{m['kind']}-s{seed}")
-        family = f.stem if f else m["kind"]
-        if split == "train" and (family in held_motions or (f is not None and f.name in held_motions)):
-            raise FileFormatError(f"{what} is a training motion of the held-out family {family!r}", path=p,
+        family = m.get("family") or (f.stem if f else base)  # a procedural entry is its own family
+        if not isinstance(family, str):
+            raise FileFormatError(f"{what}.family must be a name", path=p, got=family)
+        names_of = {family, *((f.stem, f.name) if f is not None else (m["kind"],))}
+        if split != "test" and names_of & set(held_motions):
+            raise FileFormatError(f"{what} is a {split} motion of the held-out family {family!r}", path=p,
                                   expected="split = 'test' for motions in dataset.held_out_motions")
+        if split != "val" and names_of & set(val_motions):
+            raise FileFormatError(f"{what} is a {split} motion of the validation family {family!r}", path=p,
+                                  expected="split = 'val' for motions in dataset.val_motions")
         if count is None and not ranged:
             draws = [(base, 0, {})]
         elif not ranged and f is not None and (count or 1) > 1:
@@ -327,7 +359,7 @@ def load_dataset_config(path) -> DatasetConfig:
             if kw["start"] < 0 or kw["ease_in"] < 0:
                 raise FileFormatError(f"{what}: start and ease_in must be >= 0", path=p, got=(kw["start"], kw["ease_in"]))
             motions.append(MotionEntry(name=dname, split=split, kind=m.get("kind"),
-                                       seed=seed + k if f is None else 0, file=f, **kw))
+                                       seed=seed + k if f is None else 0, file=f, family=family, **kw))
     # one source, one side: a motion file or a MakeHuman garment is either trained on or held out
     for what, items in (("motion file", [(mo.file, mo.split) for mo in motions if mo.file is not None]),
                         ("MakeHuman garment", [(g.mhclo, g.split) for g in garments if g.mhclo is not None])):
@@ -336,8 +368,15 @@ def load_dataset_config(path) -> DatasetConfig:
             sides.setdefault(src, set()).add(sp)
         both = sorted(str(k) for k, v in sides.items() if len(v) > 1)
         if both:
-            raise FileFormatError(f"the {what} {both[0]} is used by both training and held-out entries", path=p,
+            raise FileFormatError(f"the {what} {both[0]} is used by entries of two splits", path=p,
                                   expected="each source in one split")
+    fam_sides = {}
+    for mo in motions:
+        fam_sides.setdefault(mo.family, set()).add(mo.split)
+    both = sorted(k for k, v in fam_sides.items() if len(v) > 1)
+    if both:
+        raise FileFormatError(f"the motion family {both[0]!r} has entries in two splits", path=p,
+                              expected="a family trained on or held out whole")
     if not garments or not motions:
         raise FileFormatError("a dataset needs at least one [[garments]] and one [[motions]]", path=p)
     sim = parse_simulate_table(data.get("simulate"), where=p)
@@ -346,5 +385,6 @@ def load_dataset_config(path) -> DatasetConfig:
         raise FileFormatError("dataset.fps / dataset.seconds out of range", path=p, got=(fps, seconds))
     return DatasetConfig(garments=tuple(garments), bodies=tuple(bodies), motions=tuple(motions), simulate=sim,
                          body_splits=tuple(body_splits), held_out_kinds=held_kinds, held_out_motions=held_motions,
+                         val_kinds=val_kinds, val_motions=val_motions, roots=roots,
                          quality=q, fps=fps, seconds=seconds, cross_splits=bool(ds.get("cross_splits", False)),
                          order=order, path=p, text=json.dumps(data, sort_keys=True, default=str))

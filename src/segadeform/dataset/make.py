@@ -80,9 +80,11 @@ def sample_plan(cfg: DatasetConfig) -> list[PlannedSample]:
             for mi, m in enumerate(cfg.motions):
                 if g.split == m.split == "test":
                     split = "test"
+                elif g.split == m.split == "val" and bsplit[bi] != "test":
+                    split = "val"  # validation: its garments and motions, on bodies the test split does not hold
                 elif g.split == m.split == bsplit[bi] == "train":
                     split = "train"
-                elif not cfg.cross_splits:
+                elif not cfg.cross_splits or "val" in (g.split, m.split, bsplit[bi]):
                     continue
                 elif g.split == "test":
                     split = "test-garment"
@@ -121,26 +123,41 @@ def make_order(cfg: DatasetConfig, plan: list[PlannedSample]) -> list[PlannedSam
     return out + train[len(held) * k:]
 
 
+def _family(m: MotionEntry) -> str:
+    return m.family or (m.file.stem if m.file is not None else str(m.kind))
+
+
 def check_splits(cfg: DatasetConfig, plan: list[PlannedSample]) -> None:
-    """Raise :class:`InputError` if a ``train`` sample uses anything held out: a test garment, motion
-    or body, a ``held_out_kinds`` garment kind, a ``held_out_motions`` motion, or a motion file /
-    MakeHuman garment that a held-out entry uses."""
+    """Raise :class:`InputError` if a sample leaks into a split it must not see:
+
+    * a ``train`` sample uses anything held out for validation or test: such a garment, motion or
+      body, a ``held_out_kinds`` / ``val_kinds`` garment kind, a ``held_out_motions`` /
+      ``val_motions`` family, a motion family, motion file or MakeHuman garment a held-out entry uses;
+    * a ``val`` sample uses anything of the test split (garment, motion, body, kind, family, file).
+    """
     bsplit = cfg.body_splits or ("train",) * len(cfg.bodies)
-    held_files = {m.file for m in cfg.motions if m.split == "test" and m.file is not None}
-    held_mhclo = {g.mhclo for g in cfg.garments if g.split == "test" and g.mhclo is not None}
+    held = {sp: ({m.file for m in cfg.motions if m.split == sp and m.file is not None},
+                 {g.mhclo for g in cfg.garments if g.split == sp and g.mhclo is not None},
+                 {_family(m) for m in cfg.motions if m.split == sp})
+            for sp in ("val", "test")}
+    kinds = {"val": set(cfg.val_kinds), "test": set(cfg.held_out_kinds)}
+    families = {"val": set(cfg.val_motions), "test": set(cfg.held_out_motions)}
     for p in plan:
-        if p.split != "train":
+        if p.split not in ("train", "val"):
             continue
         g, m = cfg.garments[p.garment], cfg.motions[p.motion]
-        family = m.file.stem if m.file is not None else m.kind
-        bad = [why for why, leak in (
-            ("a held-out garment", g.split != "train"), ("a held-out motion", m.split != "train"),
-            ("a held-out body", bsplit[p.body] != "train"), ("a held-out garment kind", g.kind in cfg.held_out_kinds),
-            ("a held-out motion family", family in cfg.held_out_motions),
-            ("a held-out motion file", m.file is not None and m.file in held_files),
-            ("a held-out MakeHuman garment", g.mhclo is not None and g.mhclo in held_mhclo)) if leak]
-        if bad:
-            raise InputError(f"training sample {p.id} uses {bad[0]}")
+        names = {_family(m), *((m.file.stem, m.file.name) if m.file is not None else (m.kind,))}
+        for other in (("val", "test") if p.split == "train" else ("test",)):
+            files, mhclo, fams = held[other]
+            what = "held-out" if other == "test" else "validation"
+            bad = [why for why, leak in (
+                (f"a {what} garment", g.split == other), (f"a {what} motion", m.split == other),
+                (f"a {what} body", bsplit[p.body] == other), (f"a {what} garment kind", g.kind in kinds[other]),
+                (f"a {what} motion family", bool(names & (families[other] | fams))),
+                (f"a {what} motion file", m.file is not None and m.file in files),
+                (f"a {what} MakeHuman garment", g.mhclo is not None and g.mhclo in mhclo)) if leak]
+            if bad:
+                raise InputError(f"{'training' if p.split == 'train' else 'validation'} sample {p.id} uses {bad[0]}")
 
 
 def _digest(obj) -> str:
@@ -158,6 +175,7 @@ def sample_spec(cfg: DatasetConfig, p: PlannedSample) -> str:
     g, m = cfg.garments[p.garment], cfg.motions[p.motion]
     mo = dataclasses.asdict(m)
     mo.pop("split")
+    mo.pop("family")  # a label for splitting, not data
     st = cfg.simulate.replace(pin=g.pin) if g.pin else cfg.simulate
     return _digest({"garment": _garment_key(g), "betas": list(cfg.bodies[p.body]), "motion": mo,
                     "fps": cfg.fps, "seconds": cfg.seconds, "simulate": st.to_dict()})
@@ -340,8 +358,9 @@ def _run_task(t: _SampleTask) -> dict:
     return _run_one(t.out, t.cfg, t.sample, t.body_path, t.sim_python, t.provision)
 
 
-def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample]) -> None:
-    """Stop if a finished sample's recorded spec differs from what the config now asks of its id."""
+def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample], roots=None) -> None:
+    """Stop if a finished sample's recorded spec (in ``out`` or in the read-only ``roots``, a
+    :class:`~segadeform.dataset.roots.DatasetRoots`) differs from what the config now asks of its id."""
     loc = open_location(out)
     bad = []
     names = {d: set(loc.listdir(d)) for d in ("samples", "rejected")}
@@ -349,6 +368,10 @@ def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample]) -> None:
         for d in ("samples", "rejected"):
             if f"{p.id}.json" in names[d]:
                 old = json.loads(loc.read_text(f"{d}/{p.id}.json")).get("spec")
+                if old is not None and old != sample_spec(cfg, p):
+                    bad.append(p.id)
+            elif roots is not None and roots.has(p.id):
+                old = roots.spec(p.id)
                 if old is not None and old != sample_spec(cfg, p):
                     bad.append(p.id)
     if bad:
@@ -470,24 +493,32 @@ def regate(out, cfg: DatasetConfig, *, body_path: Optional[Path] = None,
 
 def make_dataset(cfg: DatasetConfig, out, *, body_path: Optional[Path] = None, jobs: int = 1, sim_python=None,
                  progress: Optional[Callable[[dict], None]] = None, limit: Optional[int] = None,
-                 executor: Optional[Executor] = None) -> DatasetSummary:
+                 executor: Optional[Executor] = None, roots=()) -> DatasetSummary:
     """Make (or continue) the dataset ``cfg`` in ``out`` (a folder, an fsspec URL or a
     :class:`~segadeform.io.location.Location`); see the module docstring.
 
     ``executor`` runs the samples (default: a local pool of ``jobs`` processes; one given here is
     left open).  Tasks on a remote executor make the simulator environment where a worker has none.
     ``body_path`` None: the shipped body, found by each worker in its own installation.
+    ``roots``: read-only dataset roots (packs, folders; :mod:`segadeform.dataset.roots`), and the
+    config's own ``dataset.roots`` where they exist: a sample one of them holds is done and is not
+    made again (new samples always go to ``out``).
     """
+    from .roots import DatasetRoots
+
+    extra = DatasetRoots(list(roots), optional=cfg.roots) if (roots or cfg.roots) else None
     loc = open_location(out)
     if isinstance(loc, LocalLocation):  # the folder's layout, even before anything is kept
         (loc.root / "samples").mkdir(parents=True, exist_ok=True)
         (loc.root / "garments").mkdir(exist_ok=True)
     plan = sample_plan(cfg)
     check_splits(cfg, plan)
-    _check_done(loc, cfg, plan)
+    _check_done(loc, cfg, plan, extra)
     _keep_config(loc, cfg)
     order = make_order(cfg, plan)
     finished = {n[:-len(".json")] for d in ("samples", "rejected") for n in loc.listdir(d) if n.endswith(".json")}
+    if extra is not None:
+        finished |= {p.id for p in plan if extra.has(p.id)}
     todo = [p for p in order if p.id not in finished]
     skipped = len(plan) - len(todo)
     if limit is not None:

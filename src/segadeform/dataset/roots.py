@@ -129,6 +129,11 @@ class DatasetRoots:
     def has(self, sid: str) -> bool:
         return any((f, sid) in self._where for f in SAMPLE_FOLDERS)
 
+    def spec(self, sid: str) -> Optional[str]:
+        """The ``spec`` digest the serving root records for sample ``sid`` (None when it records none)."""
+        got = self._spec.get(sid)
+        return None if got is None else got[0]
+
     def source(self, sid: str, folder: str = "samples"):
         src = self._where.get((folder, sid))
         if src is None:
