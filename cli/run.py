@@ -38,7 +38,7 @@ def _quality_choice():
 @click.option("-o", "--output", type=click.Path(path_type=Path), help="Output (overrides the scene's).")
 @click.option("--garment", type=click.Path(dir_okay=False, path_type=Path), help="Garment mesh (flag form).")
 @click.option("--motion", "motion_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Motion .npz/.bvh/.amc/.sgdm (flag form; CMU's .amc is read at 120 fps).")
+              help="Motion .npz/.bvh/.amc/.glb/.gltf/.sgdm (flag form; CMU's .amc is read at 120 fps).")
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz/.pkl (default: shipped body).")
 @click.option("--betas", help="Comma-separated body shape coefficients.")
 @click.option("--effects", help="e.g. 'dqs,-wrinkles,-collisions' (default: lbs, all effects on).")
@@ -66,6 +66,7 @@ def _quality_choice():
               help="BVH joint map (TOML/JSON: smpl_name = \"FileJoint\") for skeletons not recognised.")
 @click.option("--skeleton", type=click.Path(dir_okay=False, path_type=Path),
               help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).")
+@click.option("--animation", help="glTF motions (.glb/.gltf): the animation to play (default: the first).")
 @click.option("--floor", is_flag=True, default=None, help="Move the motion so the feet touch the floor.")
 @click.option("--force", is_flag=True, help="Replace the outputs of an earlier run (never a file segadeform did not "
               "write: segadeform.io.output_guard), write beside other files in an output folder, and animate a "
@@ -74,8 +75,8 @@ def _quality_choice():
               help="How the body is posed for collisions and --body-out: the package's body graph (float32, as "
                    "every other runtime), numpy (float64), or auto: the graph when it poses this body, else numpy.")
 def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, fmt, model, frames, fps, batch,
-            threads, providers, body_out, up, no_cache, motion_up, units, joint_map, skeleton, floor, force,
-            body_backend):
+            threads, providers, body_out, up, no_cache, motion_up, units, joint_map, skeleton, animation, floor,
+            force, body_backend):
     """Animate a garment: SCENE.toml, or the flag form --garment G --motion M -o OUT."""
     import dataclasses
 
@@ -112,7 +113,8 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
         if betas:
             changes["betas"] = tuple(float(x) for x in betas.split(","))
         mchanges = {k: v for k, v in (("up", motion_up), ("units", units), ("joint_map", joint_map),
-                                       ("skeleton", skeleton), ("floor", floor)) if v is not None}
+                                       ("skeleton", skeleton), ("animation", animation), ("floor", floor))
+                    if v is not None}
         if frames or fps or mchanges:
             changes["motion"] = dataclasses.replace(
                 sc.motion, frames=parse_frames(frames) if frames else sc.motion.frames, fps=fps or sc.motion.fps,
@@ -128,7 +130,7 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
         sc = Scene(garment=garment, motion=MotionSpec(file=motion_path, fps=fps,
                                                       frames=parse_frames(frames) if frames else None,
                                                       up=motion_up or "auto", units=units, joint_map=joint_map,
-                                                      skeleton=skeleton, floor=bool(floor)),
+                                                      skeleton=skeleton, animation=animation, floor=bool(floor)),
                    output=output, output_format=_fmt_from(output, fmt), up=up or "y", body=body, betas=beta_vals,
                    model=None, body_output=body_out,
                    effects=preset if preset is not None else parse_effects(effects) if effects else Effects())

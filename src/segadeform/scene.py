@@ -11,7 +11,7 @@ are required; relative paths are relative to the scene file)::
     betas = [0.0, 0.5]             # up to the body's shape coefficients; the rest are 0
 
     [motion]                       # a file ...
-    file = "../motions/walk.npz"   # .npz (AMASS-style), .bvh, .amc (CMU ASF/AMC) or .sgdm (motion export)
+    file = "../motions/walk.npz"   # .npz (AMASS-style), .bvh, .amc (CMU ASF/AMC), .glb/.gltf or .sgdm
     # ... or a procedural kind:
     # kind = "walk"; seconds = 3.0; speed = 1.0; amplitude = 1.0; seed = 0
     fps = 30.0                     # resample the motion to this rate (default: the motion's own)
@@ -20,6 +20,7 @@ are required; relative paths are relative to the scene file)::
     units = "cm"                   # BVH: metres per file unit or m|dm|cm|mm|inch|cmu (default: fit the legs)
     joint_map = "map.toml"         # BVH: SMPL name = "file joint name" for skeletons not recognised
     skeleton = "16.asf"            # AMC: its ASF skeleton (default: the one .asf beside the .amc)
+    animation = "Walk"             # glTF (.glb/.gltf): which animation (default: the first)
     floor = false                  # move the motion so the feet touch the floor
 
     [model]                        # optional; the shipped default model when absent
@@ -125,7 +126,8 @@ _SCHEMA = {
     "body": {"model": str, "betas": list},
     "motion": {"file": str, "kind": str, "seconds": (int, float), "speed": (int, float),
                "amplitude": (int, float), "seed": int, "fps": (int, float), "frames": str, "up": str,
-               "units": (str, int, float), "joint_map": str, "floor": bool, "skeleton": str},
+               "units": (str, int, float), "joint_map": str, "floor": bool, "skeleton": str,
+               "animation": str},
     "model": {"package": str},
     "output": {"path": str, "format": str, "up": str, "body": str},
     "effects": {"skinning": str, "dynamics": bool, "wrinkles": bool, "collisions": bool,
@@ -213,8 +215,8 @@ def load_scene(path: str | os.PathLike) -> Scene:
         raise FileFormatError("[motion] needs exactly one of 'file' or 'kind'", path=p)
     if "file" in m and any(k in m for k in ("seconds", "speed", "amplitude", "seed")):
         raise FileFormatError("motion.seconds/speed/amplitude/seed apply to procedural motions (kind) only", path=p)
-    if "kind" in m and any(k in m for k in ("up", "units", "joint_map", "skeleton")):
-        raise FileFormatError("motion.up/units/joint_map/skeleton apply to motion files only", path=p)
+    if "kind" in m and any(k in m for k in ("up", "units", "joint_map", "skeleton", "animation")):
+        raise FileFormatError("motion.up/units/joint_map/skeleton/animation apply to motion files only", path=p)
     if m.get("up", "auto") not in ("auto", "y", "z"):
         raise FileFormatError("motion.up must be auto, y or z", path=p, got=m["up"])
     for k, lo, hi in (("seconds", 1e-3, 3600), ("speed", 0.05, 5), ("amplitude", 0, 2), ("fps", 1, 1000)):
@@ -227,7 +229,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
         frames=parse_frames(m["frames"], where=p) if "frames" in m else None,
         up=m.get("up", "auto"), units=str(m["units"]) if "units" in m else None,
         joint_map=rel(m["joint_map"]) if "joint_map" in m else None, floor=bool(m.get("floor", False)),
-        skeleton=rel(m["skeleton"]) if "skeleton" in m else None,
+        skeleton=rel(m["skeleton"]) if "skeleton" in m else None, animation=m.get("animation"),
     )
     out = data["output"]
     out_path = rel(out["path"])

@@ -19,7 +19,7 @@ __all__ = ["Motion", "N_POSE", "load_motion", "load_motion_npz", "feet_on_floor"
 
 
 def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", units=None, joint_map=None,
-                floor: bool = False, skeleton: str | os.PathLike | None = None) -> Motion:
+                floor: bool = False, skeleton: str | os.PathLike | None = None, animation: str | None = None) -> Motion:
     """Read a motion by extension onto the SMPL skeleton of a body.
 
     Args:
@@ -38,6 +38,8 @@ def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", 
             ``rest_joints``, else the built-in skeleton).
         skeleton: AMC only: the ASF skeleton; default: the one ``.asf`` in the AMC's folder
             (:func:`.asf.find_asf`).
+        animation: glTF only (``.glb``/``.gltf``, a skinned character's animation read like a BVH file:
+            :mod:`.gltf`): the animation's name when the file has several (default: the first).
     """
     p = Path(path)
     ext = p.suffix.lower()
@@ -48,6 +50,9 @@ def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", 
     if skeleton is not None and ext != ".amc":
         raise FileFormatError("a skeleton (.asf) applies to AMC motions only", path=p,
                               expected=".amc with --skeleton", got=ext or "no extension")
+    if animation is not None and ext not in (".glb", ".gltf"):
+        raise FileFormatError("an animation name applies to glTF files only", path=p,
+                              expected=".glb or .gltf with --animation", got=ext or "no extension")
     if ext == ".npz":
         if units is not None or joint_map is not None:
             raise FileFormatError("units and joint maps apply to BVH files only", path=p,
@@ -55,6 +60,10 @@ def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", 
         m = load_motion_npz(p, up=up, rest_joints=rest_joints)
     elif ext == ".bvh":
         m = read_bvh(p, rest_joints=rest_joints, up=up, units=units, joint_map=joint_map)
+    elif ext in (".glb", ".gltf"):
+        from .gltf import read_gltf
+
+        m = read_gltf(p, rest_joints=rest_joints, up=up, units=units, joint_map=joint_map, animation=animation)
     elif ext == ".amc":
         from .asf import read_amc
 
@@ -72,6 +81,6 @@ def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", 
                                                                ("up " + str(up), up not in ("auto", "y"))) if v))
         m, _ = read_motion_file(p)
     else:
-        raise FileFormatError("unknown motion file type", path=p, expected=".npz, .bvh, .amc or .sgdm",
+        raise FileFormatError("unknown motion file type", path=p, expected=".npz, .bvh, .amc, .glb, .gltf or .sgdm",
                               got=ext or "none")
     return feet_on_floor(m, rest_joints) if floor else m

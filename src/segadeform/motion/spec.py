@@ -38,6 +38,7 @@ class MotionSpec:
     joint_map: Optional[Path] = None
     floor: bool = False
     skeleton: Optional[Path] = None  # an AMC's ASF (default: the one .asf beside it)
+    animation: Optional[str] = None  # a glTF file's animation (default: the first)
 
 
 def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
@@ -56,7 +57,7 @@ def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
             except ValueError:
                 pass
         m = load_motion(spec.file, rest_joints=rest_joints, up=spec.up, units=units, joint_map=spec.joint_map,
-                        floor=spec.floor, skeleton=spec.skeleton)
+                        floor=spec.floor, skeleton=spec.skeleton, animation=spec.animation)
     else:
         m = make_motion(spec.kind, seconds=spec.seconds, fps=spec.fps or 30.0, speed=spec.speed,
                         amplitude=spec.amplitude, seed=spec.seed)
