@@ -2,8 +2,8 @@
 
     python tests/fuzz/fuzz_readers.py TARGET [libFuzzer options] [CORPUS_DIR ...]
 
-TARGET is one of obj, off, pc2, bvh, toml, npz, mhclo, motion (AMASS-style .npz).  Every input is written to a
-file and read with the package's reader; a reader may only fail with
+TARGET is one of obj, off, pc2, bvh, toml, npz, mhclo, motion (AMASS-style .npz), amc (an ASF skeleton, a line
+``%%``, then an AMC motion: CMU's format).  Every input is written to a file and read with the package's reader; a reader may only fail with
 :class:`segadeform.errors.SegadeformError` (a clear error).  Anything else
 -- IndexError, struct.error, RecursionError, a NaN slipping through -- is a
 crash and libFuzzer stops with the input saved as ``crash-*``.
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-TARGETS = ("obj", "off", "pc2", "bvh", "toml", "npz", "mhclo", "motion")
+TARGETS = ("obj", "off", "pc2", "bvh", "toml", "npz", "mhclo", "motion", "amc")
 _TMP = Path(tempfile.mkdtemp(prefix="segadeform-fuzz-"))
 
 
@@ -87,6 +87,15 @@ def make_target(name: str):
         def read(p):
             m = load_motion_npz(p)
             _check_finite(m.poses, m.trans)
+    elif name == "amc":
+        from segadeform.motion.asf import read_amc
+
+        def read(p):
+            skeleton, _, motion = p.read_bytes().partition(b"\n%%\n")
+            p.with_suffix(".asf").write_bytes(skeleton)
+            p.write_bytes(motion)
+            m = read_amc(p, p.with_suffix(".asf"))
+            _check_finite(m.poses, m.trans)
     else:
         raise SystemExit(f"unknown target {name!r}; expected one of {', '.join(TARGETS)}")
     path = _TMP / f"input.{'npz' if name == 'motion' else name}"
@@ -126,6 +135,11 @@ def write_seeds(d: Path) -> None:
     from tests.body.conftest import toy_body
 
     toy_body(n_betas=2).save(d / "npz" / "toy_body.npz")
+    from tests.motion.asf_build import amc_text, asf_text, smooth_values
+
+    (d / "amc" / "cmu_like.asfamc").write_text(asf_text() + "%%\n" + amc_text(smooth_values(n_frames=2)))
+    (d / "amc" / "radians.asfamc").write_text(asf_text(angle="rad", limits=False) + "%%\n" + amc_text(
+        smooth_values(n_frames=1), header=(":RADIANS",)))
 
 
 def main() -> None:

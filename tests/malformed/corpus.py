@@ -178,6 +178,8 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     ):
         motionfile(name, ".bvh", lambda p, t=text: p.write_text(t), words)
 
+    asf_amc_cases(d, cases)
+
     # MakeHuman bindings, through `garment fit`
     mh_src = ROOT / "samples" / "garments" / "makehuman"
     fit_out = d / "FIT_OUT.obj"
@@ -253,6 +255,66 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
                 "disagree with the manifest")
         pkgcase("joint_count_mismatch", man(joint_names=["pelvis"]), "joint_names do not match")
     return [c for c in cases if c is not None]
+
+
+def asf_amc_cases(d: Path, cases: list) -> None:
+    """CMU's ASF/AMC through `motion export` (each case in a folder of its own, its skeleton the one .asf
+    beside the .amc): ``amc/`` cases are the AMC's fault, ``asf/`` cases the skeleton's (the message names
+    the .asf)."""
+    from tests.motion.asf_build import amc_text, asf_text, cmu_bones, smooth_values
+
+    good_asf, good_amc = asf_text(), amc_text(smooth_values(n_frames=3))
+    out = d / "AMC_OUT.sgdm"
+
+    def line_of(text, line):
+        return text.splitlines().index(line) + 1
+
+    def case(kind, name, asf, amc, words, extra=()):
+        f = d / f"{kind}_{name}"
+        f.mkdir(parents=True, exist_ok=True)
+        if asf is not None:
+            (f / f"{name}.asf").write_text(asf)
+        (f / f"{name}.amc").write_text(amc)
+        words = words.replace("FILE", f"{name}.{kind}")
+        cases.append((f"{kind}/{name}", ["motion", "export", str(f / f"{name}.amc"), *extra, "-o", str(out)], words, out))
+
+    def first_value(bone, value):
+        lines = good_amc.splitlines()
+        i = next(k for k, ln in enumerate(lines) if ln.startswith(bone + " "))
+        lines[i] = " ".join([bone, value] + lines[i].split()[2:])
+        return "\n".join(lines) + "\n", i + 1
+
+    tail = good_amc.replace("\nlhumerus", "\ntail 1 2 3\nlhumerus", 1)
+    case("amc", "bone_not_in_asf", good_asf, tail,
+         f"FILE:{line_of(tail, 'tail 1 2 3')}: bone 'tail' is not in the skeleton")
+    many = good_amc.replace("\nltibia ", "\nltibia 5 ", 1)
+    case("amc", "wrong_value_count", good_asf, many,
+         f"FILE:{next(i for i, ln in enumerate(many.splitlines(), 1) if ln.startswith('ltibia'))}: "
+         "wrong number of values for bone 'ltibia' (expected 1 (dof rx in wrong_value_count.asf), got 2)")
+    case("amc", "frames_not_consecutive", good_asf, good_amc.replace("\n3\n", "\n5\n"),
+         f"FILE:{line_of(good_amc, '3')}: frame numbers are not consecutive (expected frame 3, got frame 5)")
+    text, ln = first_value("lfemur", "nan")
+    case("amc", "nan", good_asf, text, f"FILE:{ln}: bone 'lfemur' has a value that is not finite")
+    case("amc", "empty", good_asf, "", "FILE: AMC has no frames")
+    case("amc", "skeleton_missing", None, good_amc, "FILE: cannot tell which skeleton this AMC uses")
+    # a skeleton that does not fit the motion: its ltibia bends two ways
+    other = asf_text([b if b[0] != "ltibia" else b[:5] + (("rx", "rz"),) for b in cmu_bones()])
+    case("amc", "skeleton_mismatch", other, good_amc,
+         f"FILE:{next(i for i, ln in enumerate(good_amc.splitlines(), 1) if ln.startswith('ltibia'))}: wrong number "
+         "of values for bone 'ltibia' (expected 2 (dof rx rz in skeleton_mismatch.asf), got 1)")
+    case("asf", "skeleton_not_found", None, good_amc, "FILE: no such file",
+         extra=("--skeleton", str(d / "asf_skeleton_not_found" / "skeleton_not_found.asf")))
+    loop = good_asf.replace("    root lhipjoint rhipjoint lowerback\n", "    root rhipjoint lowerback\n").replace(
+        "    lfemur ltibia\n", "    lfemur ltibia\n    ltoes lhipjoint\n")
+    case("asf", "hierarchy_cycle", loop, good_amc,
+         f"FILE:{line_of(loop, '    lhipjoint lfemur')}: the hierarchy has a cycle (expected a tree under root, "
+         "got lhipjoint -> lfemur -> ltibia -> lfoot -> ltoes -> lhipjoint)")
+    unknown = good_asf.replace("    lfemur ltibia", "    lfemur ltibia tail")
+    case("asf", "hierarchy_unknown_bone", unknown, good_amc,
+         f"FILE:{line_of(unknown, '    lfemur ltibia tail')}: unknown bone 'tail' in the hierarchy")
+    case("asf", "empty", "", good_amc, "FILE: ASF is empty")
+    case("asf", "bad_units", good_asf.replace("length 0.45", "length 0"), good_amc,
+         f"FILE:{line_of(good_asf, '  length 0.45')}: units length must be positive")
 
 
 if __name__ == "__main__":

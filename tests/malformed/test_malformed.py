@@ -62,4 +62,6 @@ def test_messages_name_the_file(tmp_path, random_package):
             target = args[args.index("--model") + 1]
         if name == "scene/garment_missing_file":  # the scene names a garment that does not exist
             target = words
+        if name.startswith("asf/"):  # the AMC's skeleton is at fault
+            target = target[:-len(".amc")] + ".asf"
         assert target.rsplit("/", 1)[-1] in r.output, (name, r.output)
