@@ -3,8 +3,8 @@
     python tests/fuzz/fuzz_readers.py TARGET [libFuzzer options] [CORPUS_DIR ...]
 
 TARGET is one of obj, off, pc2, bvh, toml, npz, mhclo, motion (AMASS-style .npz), amc (an ASF skeleton, a line
-``%%``, then an AMC motion: CMU's format).  Every input is written to a file and read with the package's reader; a reader may only fail with
-:class:`segadeform.errors.SegadeformError` (a clear error).  Anything else
+``%%``, then an AMC motion: CMU's format).  Every input is written to a file and read with the package's reader;
+a reader may only fail with :class:`segadeform.errors.SegadeformError` (a clear error).  Anything else
 -- IndexError, struct.error, RecursionError, a NaN slipping through -- is a
 crash and libFuzzer stops with the input saved as ``crash-*``.
 

@@ -276,7 +276,8 @@ def asf_amc_cases(d: Path, cases: list) -> None:
             (f / f"{name}.asf").write_text(asf)
         (f / f"{name}.amc").write_text(amc)
         words = words.replace("FILE", f"{name}.{kind}")
-        cases.append((f"{kind}/{name}", ["motion", "export", str(f / f"{name}.amc"), *extra, "-o", str(out)], words, out))
+        args = ["motion", "export", str(f / f"{name}.amc"), *extra, "-o", str(out)]
+        cases.append((f"{kind}/{name}", args, words, out))
 
     def first_value(bone, value):
         lines = good_amc.splitlines()

@@ -235,7 +235,8 @@ def read_asf(path: str | os.PathLike) -> ASFSkeleton:
                 order = tuple(t.lower() for t in toks[1:])
                 if not order or any(t not in _ROOT_DOFS for t in order) or len(set(order)) != len(order):
                     raise FileFormatError("root order must list TX TY TZ RX RY RZ, each at most once", path=p,
-                                          line=ln, expected="e.g. TX TY TZ RX RY RZ", got=" ".join(toks[1:]) or "nothing")
+                                          line=ln, expected="e.g. TX TY TZ RX RY RZ",
+                                          got=" ".join(toks[1:]) or "nothing")
                 root["order"] = order
             elif key == "axis":
                 if len(toks) != 2:
@@ -454,7 +455,8 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
         if fully and len(seen) != len(required):
             missing = sorted(required - seen, key=skeleton.names.index)
             raise FileFormatError(f"frame {first + len(frame_lines) - 1} lacks bone {missing[0]!r}", path=p,
-                                  line=frame_lines[-1], expected="every bone with dofs in each frame (:FULLY-SPECIFIED)",
+                                  line=frame_lines[-1],
+                                  expected="every bone with dofs in each frame (:FULLY-SPECIFIED)",
                                   got=f"{len(seen)} of {len(required)} bones; missing {', '.join(missing[:4])}")
 
     for ln, line in enumerate(text.splitlines(), 1):
