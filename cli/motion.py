@@ -46,9 +46,12 @@ def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
 @click.option("--up", type=click.Choice(["auto", "y", "z"]), default="auto", show_default=True,
               help="Up axis of the file.")
 @click.option("--units", help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).")
-@click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path), help="BVH joint map (TOML/JSON).")
-def info_cmd(motion, body, up, units, joint_map):
-    """Print frames, rate, duration, joint ranges and (BVH) the joint mapping of MOTION (.npz, .bvh or .sgdm)."""
+@click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path), help="BVH/AMC joint map (TOML/JSON).")
+@click.option("--skeleton", type=click.Path(dir_okay=False, path_type=Path),
+              help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).")
+def info_cmd(motion, body, up, units, joint_map, skeleton):
+    """Print frames, rate, duration, joint ranges and (BVH, AMC) the joint mapping of MOTION (.npz, .bvh, .amc or
+    .sgdm)."""
     from segadeform.body import default_body_path, load_body
     from segadeform.motion import load_motion
     from segadeform.motion.limits import limit_violation
@@ -58,13 +61,18 @@ def info_cmd(motion, body, up, units, joint_map):
         units_v = float(units) if units is not None else None
     except ValueError:
         units_v = units
-    m = load_motion(motion, rest_joints=J, up=up, units=units_v, joint_map=joint_map)
+    m = load_motion(motion, rest_joints=J, up=up, units=units_v, joint_map=joint_map, skeleton=skeleton)
     ang = np.linalg.norm(m.poses.reshape(-1, 24, 3), axis=-1)
     click.echo(f"{motion}: {m.n_frames} frames, {m.fps:g} fps, {m.seconds:.2f} s")
     meta = m.meta
-    if meta.get("format") == "bvh":
+    if meta.get("format") == "amc":
+        click.echo(f"  skeleton: {meta['skeleton']} ({meta['scheme']} names), length unit {meta['length_unit']:g} "
+                   f"= {meta['metres_per_unit']:.5g} m, up {meta['up']}, scale {meta['scale']:.5g} m per unit "
+                   f"(legs fitted to the body); {meta['source_fps']:g} fps (CMU's rate: AMC states none)")
+    elif meta.get("format") == "bvh":
         click.echo(f"  skeleton: {meta['scheme']} names, up {meta['up']}, units look like {meta['units_guess']}, "
                    f"scale {meta['scale']:.5g} m per unit")
+    if meta.get("format") in ("bvh", "amc"):
         click.echo("  mapped: " + ", ".join(f"{k}={v}" for k, v in meta["mapped"].items()))
         if meta["virtual"]:
             click.echo("  filled in (not in the file): " + ", ".join(meta["virtual"]))
