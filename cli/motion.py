@@ -49,7 +49,8 @@ def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
 @click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path), help="BVH/AMC joint map (TOML/JSON).")
 @click.option("--skeleton", type=click.Path(dir_okay=False, path_type=Path),
               help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).")
-def info_cmd(motion, body, up, units, joint_map, skeleton):
+@click.option("--animation", help="glTF motions (.glb/.gltf): the animation (default: the first).")
+def info_cmd(motion, body, up, units, joint_map, skeleton, animation):
     """Print frames, rate, duration, joint ranges and (BVH, AMC) the joint mapping of MOTION (.npz, .bvh, .amc or
     .sgdm)."""
     from segadeform.body import default_body_path, load_body
@@ -61,7 +62,8 @@ def info_cmd(motion, body, up, units, joint_map, skeleton):
         units_v = float(units) if units is not None else None
     except ValueError:
         units_v = units
-    m = load_motion(motion, rest_joints=J, up=up, units=units_v, joint_map=joint_map, skeleton=skeleton)
+    m = load_motion(motion, rest_joints=J, up=up, units=units_v, joint_map=joint_map, skeleton=skeleton,
+                    animation=animation)
     ang = np.linalg.norm(m.poses.reshape(-1, 24, 3), axis=-1)
     click.echo(f"{motion}: {m.n_frames} frames, {m.fps:g} fps, {m.seconds:.2f} s")
     meta = m.meta
@@ -69,11 +71,16 @@ def info_cmd(motion, body, up, units, joint_map, skeleton):
         click.echo(f"  skeleton: {meta['skeleton']} ({meta['scheme']} names), length unit {meta['length_unit']:g} "
                    f"= {meta['metres_per_unit']:.5g} m, up {meta['up']}, scale {meta['scale']:.5g} m per unit "
                    f"(legs fitted to the body); {meta['source_fps']:g} fps (CMU's rate: AMC states none)")
-    elif meta.get("format") == "bvh":
-        click.echo(f"  skeleton: {meta['scheme']} names, up {meta['up']}, units look like {meta['units_guess']}, "
-                   f"scale {meta['scale']:.5g} m per unit")
-    if meta.get("format") in ("bvh", "amc"):
-        click.echo("  mapped: " + ", ".join(f"{k}={v}" for k, v in meta["mapped"].items()))
+    elif meta.get("format") in ("bvh", "gltf"):
+        names = "read by its shape" if meta["scheme"].startswith("shape") else f"{meta['scheme']} names"
+        click.echo(f"  skeleton: {names}, up {meta['up']}, units look like {meta['units_guess']}, "
+                   f"scale {meta['scale']:.5g} m per unit"
+                   + (f"; animation {meta['animation']!r} of {len(meta['animations'])}" if "animation" in meta else ""))
+    if meta.get("format") in ("bvh", "amc", "gltf"):
+        how = meta.get("found_by", {})
+        for by in dict.fromkeys(how.get(k, meta["scheme"]) for k in meta["mapped"]):  # one line per way found
+            click.echo(f"  mapped by {by}: " + ", ".join(f"{k}={v}" for k, v in meta["mapped"].items()
+                                                        if how.get(k, meta["scheme"]) == by))
         if meta["virtual"]:
             click.echo("  filled in (not in the file): " + ", ".join(meta["virtual"]))
         if meta["ignored"]:

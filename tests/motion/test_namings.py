@@ -211,3 +211,21 @@ def test_non_humanoids_are_refused_saying_what_is_missing(tmp_path):
     f = _write_tree(tmp_path, "snake.bvh", [f"s{k}" for k in range(n)], [-1] + list(range(n - 1)), snake)
     with pytest.raises(FileFormatError, match=r"snake\.bvh.*missing pelvis.*by shape"):
         read_bvh(f)
+
+
+def test_motion_info_says_how_each_joint_was_found(tmp_path):
+    from click.testing import CliRunner
+
+    from segadeform.cli.main import cli
+
+    names, *_ = naming_skeleton("unity")
+    write_naming_bvh(tmp_path / "named.bvh", "unity", scale=100.0)
+    write_naming_bvh(tmp_path / "j.bvh", "unity", scale=100.0, rename=[f"j{i}" for i in range(len(names))])
+    named = CliRunner().invoke(cli, ["motion", "info", str(tmp_path / "named.bvh")])
+    shape = CliRunner().invoke(cli, ["motion", "info", str(tmp_path / "j.bvh")])
+    assert named.exit_code == 0 and shape.exit_code == 0, named.output + shape.output
+    assert "  skeleton: unity names, up y, units look like cm" in named.output
+    assert "  mapped by name (unity): pelvis=Hips, left_hip=UpperLeg_L," in named.output
+    assert "  skeleton: read by its shape, up y" in shape.output
+    line = next(ln for ln in shape.output.splitlines() if ln.startswith("  mapped by shape: "))
+    assert "left_hip=j" in line and "left_wrist=j" in line and "mapped by name" not in shape.output
