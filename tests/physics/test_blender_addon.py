@@ -24,25 +24,12 @@ TOOLS = REPO / "tools" / "blender"
 SEGADEFORM = str(Path(sys.executable).with_name("segadeform"))
 
 ADDON_RUN = r"""
-import sys, json
+import sys, json, runpy
 import numpy as np
-import bpy, addon_utils
-zip_path, exe, bvh, garment, out, frames = sys.argv[1:7]
-bpy.ops.wm.read_factory_settings(use_empty=True)
-bpy.ops.preferences.addon_install(filepath=zip_path)
-addon_utils.enable("segadeform_addon", default_set=True)
-bpy.context.preferences.addons["segadeform_addon"].preferences.executable = exe
-addon_utils.enable("io_anim_bvh", default_set=True)
-# the generated scene: an armature animated by a BVH, a garment imported with the default OBJ importer
-bpy.ops.import_anim.bvh(filepath=bvh, global_scale=0.01, update_scene_fps=True)
-arm = bpy.context.object
-bpy.ops.wm.obj_import(filepath=garment)
-g = next(o for o in bpy.data.objects if o.type == "MESH")
-# (the OBJ importer turns the object 90 degrees about X: the cache must be in the object's own coordinates)
-arm.select_set(True); g.select_set(True); bpy.context.view_layer.objects.active = g
-s = bpy.context.scene.segadeform
-s.output_dir, s.quality = out, "fast"
-res = {"result": sorted(bpy.ops.segadeform.animate_garment()), "world": {},
+import bpy
+scene_py, zip_path, exe, bvh, garment, out, frames = sys.argv[1:8]
+g, result = runpy.run_path(scene_py)["setup_scene"](zip_path, exe, bvh, garment, out)
+res = {"result": sorted(result), "world": {},
        "frames": [bpy.context.scene.frame_start, bpy.context.scene.frame_end],
        "modifiers": [m.type for m in g.modifiers]}
 for f in json.loads(frames):
@@ -85,7 +72,8 @@ def test_addon_zip_runs_headless_and_matches_run(sim_python, tmp_path):
     assert r.exit_code == 0, r.output
     env = dict(os.environ, BLENDER_USER_SCRIPTS=str(tmp_path / "blender-scripts"))  # not the user's add-ons
     frames = [1, 6, 12]
-    got = _blender(sim_python, ADDON_RUN, zip_path, SEGADEFORM, tmp_path / "walk.bvh",
+    got = _blender(sim_python, ADDON_RUN, TOOLS / "render_addon_screenshot.py", zip_path, SEGADEFORM,
+                   tmp_path / "walk.bvh",
                    SAMPLES / "garments" / "dress.obj", tmp_path / "out", json.dumps(frames), env=env)
     assert got["result"] == ["FINISHED"] and got["modifiers"] == ["MESH_CACHE"] and got["frames"] == [1, 12]
     assert got["error"] and "cannot start segadeform (/nonexistent/segadeform)" in got["error"]
