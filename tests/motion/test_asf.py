@@ -438,7 +438,7 @@ def test_cmu_cross_check_with_cgspeed_bvh(monkeypatch):
     Its root translation is the AMC's times 1.06312 on every axis in every frame, its skeleton is another
     calibration of subject 02 (femur 7.16 vs 7.59 units, hip joints 2-4 mm elsewhere), and its joint
     rotations differ from the AMC's by 2-6 degrees that change over the trial (the head's are identical).
-    Read with the dof order reversed, the same comparison gives mean 6.9 cm, max 66 cm.
+    Read with the Euler order reversed (axes and dofs), the same comparison gives mean 6.9 cm, max 66 cm.
 
     16_15, 16_31, 16_36 (DAZ-style BVH, retargeted by cgspeed onto a figure of other proportions; a T-pose
     first frame): the root's global rotation equals the AMC's in every frame to 1e-4 degrees.

@@ -25,8 +25,13 @@ Reading (:func:`read_asf`, :func:`read_amc_values`, :func:`amc_skeleton`, :func:
 The skeleton is returned as a :class:`~segadeform.motion.bvh.BVHSkeleton` (one joint per bone, at the
 bone's start; end sites at the bone ends), so it maps onto SMPL and is retargeted by the same code as a
 BVH file (:func:`segadeform.motion.bvh.skeleton_motion`; CMU's bone names are a table of
-:mod:`segadeform.body.skeleton_map`).  AMC files carry no frame rate: CMU captured at 120 fps, the
-default.
+:mod:`segadeform.body.skeleton_map`: ``lhand`` starts at the wrist, ``lwrist`` is a forearm twist bone
+folded into the elbow).  AMC files carry no frame rate: CMU captured at 120 fps, the default.
+
+The conventions were checked against the data (``tests/motion/test_asf.py``): cgspeed's DAZ-style BVH
+conversions of 16_15, 16_31 and 16_36 carry the AMC root rotation read this way to 1e-4 degrees in every
+frame; its MotionBuilder-style 02_01 (another calibration of the subject) agrees on the posed body to
+0.74 cm on average once the start is aligned, where the reversed Euler order is off by 6.9 cm.
 """
 
 from __future__ import annotations
