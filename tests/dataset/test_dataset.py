@@ -477,3 +477,47 @@ split = "test"
     leak = [PlannedSample("y", 1, 1, [m.family for m in cfg.motions].index("runs"), "val")]
     with pytest.raises(Exception, match="held-out body"):
         check_splits(cfg, leak)
+
+
+def test_gate_tells_a_pinch_from_tunnelling():
+    """Cloth caught where the posed body meets itself (an arm pressed against the torso) is a pinch: counted
+    apart from penetration; cloth inside a thigh with no other body part near is tunnelling and counts."""
+    from scipy.spatial import cKDTree
+
+    from segadeform.body import load_body
+    from segadeform.body.collision import BodyProxy
+    from segadeform.dataset.quality import BodyParts, pinched
+    from segadeform.geometry.mesh_ops import vertex_normals
+
+    b = load_body(SAMPLES / "bodies" / "default_body.npz")
+    pose = np.zeros((1, 72))
+    pose[0, 3 * 16 + 2] = -1.45  # the left upper arm lowered against the side of the torso
+    out = b.forward(pose)
+    posed = out.vertices[0]
+    parts = BodyParts.of(b)
+    proxy = BodyProxy(posed, b.faces)
+    arm, torso = np.flatnonzero(parts.part == 1), np.flatnonzero(parts.part == 0)
+    d, _ = cKDTree(posed[arm]).query(posed[torso])
+    normals = vertex_normals(posed, b.faces)
+    # torso vertices the arm comes within 1.5 cm of; 8 mm inside the torso under each
+    under = [posed[c] - 0.008 * normals[c] for c in torso[np.argsort(d)[:10]] if d[list(torso).index(c)] < 0.015]
+    under = np.array([u for u in under if proxy.query(u[None]).signed_distance[0] < -0.005])
+    assert len(under) >= 3
+    depth = np.maximum(-proxy.query(under).signed_distance, 0.0)
+    assert pinched(under, depth, posed, parts).all()
+    p_pinch = under[:1]
+    # a point inside the middle of the left thigh: no other part near
+    p_thigh = (0.5 * (out.joints[0, 4] + out.joints[0, 1]))[None]
+    depth = np.maximum(-proxy.query(p_thigh).signed_distance, 0.0)
+    assert depth[0] > 0.02 and not pinched(p_thigh, depth, posed, parts)[0]
+    # the gate: a small sheet at the pinch counts as pinched, not as penetration
+    v, f = grid_plane(3, 3, (0.004, 0.004))
+    v = np.c_[v[:, 0], v[:, 2], v[:, 1]] - v.mean(0)[[0, 2, 1]] + p_pinch
+    frames = np.repeat(v[None], 3, axis=0)
+    bodyf = np.repeat(posed[None], 3, axis=0)
+    spec = QualitySpec(max_jitter=1.0)
+    r_plain = quality_check(frames, v, f, bodyf, b.faces, spec)
+    r_parts = quality_check(frames, v, f, bodyf, b.faces, spec, parts=parts)
+    assert r_plain.max_penetrating > 0.5 and any(s.startswith("penetration") for s in r_plain.reasons)
+    assert r_parts.pinched > 0.5 and r_parts.max_penetrating < r_plain.max_penetrating
+    assert any(s.startswith("pinched") for s in r_parts.reasons)  # more than max_pinched of this sheet

@@ -22,6 +22,8 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     max_body_distance = 0.3   # no piece of the garment (a connected component) may be farther from
                               # the body in any frame (m): a piece that fell off ...
     max_vertex_distance = 1.0 # ... and no vertex farther than this (m): one that flew away
+    max_pinched = 0.05        # vertices inside the body where two body parts touch (arm on torso, thigh
+                              # on thigh), counted apart from penetration: largest fraction, any frame
 
     [simulate]                # as in a scene (segadeform.physics.settings)
     effects = ["gravity", "body_collision", "bending", "air_damping"]
@@ -121,6 +123,7 @@ class QualitySpec:
     max_jitter: float = 0.001
     max_body_distance: float = 0.3  # no piece (connected component) may be farther than this from the body (m)
     max_vertex_distance: float = 1.0  # and no vertex farther than this (m)
+    max_pinched: float = 0.05  # largest fraction of vertices inside the body where two body parts touch
 
 
 @dataclasses.dataclass(frozen=True)

@@ -55,7 +55,7 @@ from ..io.location import Location, LocalLocation, open_location
 from ..motion import face_forward, load_motion, make_motion, resample
 from ..motion.motion import Motion
 from .config import DatasetConfig, GarmentSpec, MotionEntry
-from .quality import quality_check
+from .quality import BodyParts, quality_check
 from .store import Sample, load_sample, save_sample
 
 __all__ = ["PlannedSample", "sample_plan", "make_dataset", "DatasetSummary", "sample_spec", "check_splits", "make_order", "regate",
@@ -319,7 +319,8 @@ def _run_one(root, cfg: DatasetConfig, ps: PlannedSample, body_path: Optional[st
     contact = {}
     # strain against the cloth's own rest (the A-posed garment when the simulation rests there)
     strain_rest = res.cloth_rest if res.cloth_rest is not None else mesh.vertices
-    q = quality_check(res.frames, strain_rest, mesh.faces, posed, body.faces, cfg.quality, contact=contact)
+    q = quality_check(res.frames, strain_rest, mesh.faces, posed, body.faces, cfg.quality, contact=contact,
+                      parts=BodyParts.of(body, betas or None))
     rec.update(quality=q.to_dict(), seconds_per_frame=res.seconds_per_frame, blender=res.blender["blender_version"],
                sim_seconds=res.blender["simulate_seconds"], preroll_frames=res.preroll_frames)
     # a rejected sample keeps its arrays too: another gate can be applied later without simulating (regate)
@@ -473,7 +474,7 @@ def regate(out, cfg: DatasetConfig, *, body_path: Optional[Path] = None,
             betas = s.betas if s.betas.size else None
             posed = body.forward(s.poses, betas, s.trans).vertices
             rest = s.cloth_rest if s.cloth_rest is not None else s.rest
-            q = quality_check(s.frames, rest, s.faces, posed, body.faces, cfg.quality)
+            q = quality_check(s.frames, rest, s.faces, posed, body.faces, cfg.quality, parts=BodyParts.of(body, betas))
             kept += q.ok
             rejected += not q.ok
             now = "samples" if q.ok else "rejected"

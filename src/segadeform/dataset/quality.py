@@ -4,10 +4,15 @@ Checks (thresholds from the dataset config's ``[quality]``):
 
 * **finite** -- no NaN or inf anywhere;
 * **strain** -- ``|l / l_rest - 1|`` over frames and edges: the share of edges past ``max_strain`` in
-  some frame may be at most ``max_strained_edges`` (default 0: none may);
+  some frame may be at most ``max_strained_edges`` (default 0: none may); an edge over the limit only
+  where one of its ends is pinched (above) is a pinch, not a tear, and is counted apart;
 * **penetration** -- per frame, the fraction of garment vertices deeper than
   ``penetration_depth`` inside the posed body (signed distance, the same
-  proxy as the runtime's collision stage); the worst frame counts;
+  proxy as the runtime's collision stage); the worst frame counts.  Vertices *pinched* between two
+  parts of the body that touch (an arm against the torso, thigh against thigh: see :func:`pinched`)
+  are counted apart, against ``max_pinched``: the posed body intersects itself there, so cloth caught
+  between the two parts has no place outside both -- that is the body's doing, not a failed
+  simulation.  Tunnelling (a thigh through a skirt) is not a pinch and counts as penetration;
 * **jitter** -- acceleration outliers: a vertex-frame whose second difference
   exceeds ``3 x`` the body's largest vertex acceleration in that frame plus
   1 cm/frame^2 (cloth may swing, but not spike past everything driving it);
@@ -28,7 +33,7 @@ import numpy as np
 from ..body.collision import BodyProxy
 from ..geometry.mesh_ops import connected_components, unique_edges
 
-__all__ = ["QualityReport", "quality_check"]
+__all__ = ["QualityReport", "quality_check", "BodyParts", "pinched"]
 
 
 @dataclasses.dataclass
@@ -39,8 +44,10 @@ class QualityReport:
     max_penetrating: float       # fraction of vertices, worst frame
     jitter: float                # fraction of vertex-frames
     reasons: list
-    strained_edges: float = 0.0  # fraction of edges past max_strain in some frame
+    strained_edges: float = 0.0  # fraction of edges past max_strain in some frame (pinches not counted)
     detached: float = 0.0        # fraction of vertices in a detached piece or too far, worst frame
+    pinched: float = 0.0         # fraction of vertices inside the body where two body parts touch, worst frame
+    pinched_edges: float = 0.0   # fraction of edges past max_strain only where pinched
 
     @property
     def ok(self) -> bool:
@@ -52,11 +59,57 @@ class QualityReport:
         return d
 
 
-def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact: dict | None = None) -> QualityReport:
+#: body parts for telling a pinch: SMPL joint -> part (torso 0, left arm 1, right arm 2, left leg 3, right leg 4)
+_PART_OF_JOINT = np.array([0, 3, 4, 0, 3, 4, 0, 3, 4, 0, 3, 4, 0, 0, 0, 0, 1, 2, 1, 2, 1, 2, 1, 2])
+
+
+@dataclasses.dataclass(frozen=True)
+class BodyParts:
+    """What :func:`pinched` needs of a body: ``rest (V, 3)`` its vertices in the rest pose (the shape
+    simulated) and ``part (V,)`` each vertex's part (torso, arms, legs) by its largest skinning weight."""
+
+    rest: np.ndarray
+    part: np.ndarray
+
+    @classmethod
+    def of(cls, body, betas=None) -> "BodyParts":
+        w = np.asarray(body.weights)
+        part = _PART_OF_JOINT[w.argmax(axis=1)] if w.shape[1] == 24 else np.zeros(len(w), np.int64)
+        return cls(rest=np.asarray(body.shaped_vertices(betas)[0], np.float64), part=part)
+
+
+def pinched(points, depth, body_posed, parts: BodyParts, *, gap: float = 0.01, separation: float = 0.08,
+            k: int = 32) -> np.ndarray:
+    """Which ``points`` lie where two parts of the posed body touch: within ``depth + gap`` of the point
+    (``depth``: how far inside the body it is, 0 outside) lie body vertices of two different parts
+    (torso, arms, legs) that are more than ``separation`` apart in the rest pose -- an arm pressed
+    into the side of the torso, thigh against thigh -- not the joint where a limb meets the torso.
+
+    Shapes:
+        points (P, 3), depth (P,), body_posed (V, 3) -> (P,) bool
+    """
+    from scipy.spatial import cKDTree
+
+    pts = np.asarray(points, np.float64)
+    if len(pts) == 0:
+        return np.zeros(0, bool)
+    r = np.asarray(depth, np.float64) + gap
+    d, idx = cKDTree(np.asarray(body_posed, np.float64)).query(pts, k=k)
+    near = d <= r[:, None]
+    a0 = idx[:, :1]
+    other = parts.part[idx] != parts.part[a0]
+    apart = np.linalg.norm(parts.rest[idx] - parts.rest[a0], axis=2) > separation
+    return (near & other & apart).any(axis=1)
+
+
+def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact: dict | None = None,
+                  parts: BodyParts | None = None) -> QualityReport:
     """Shapes: frames (T, N, 3), rest (N, 3), faces (F, 3), body_frames (T, V, 3) -> report.
 
     ``contact``: a dict that receives ``closest`` and ``normal`` (T, N, 3) float32, the closest
     body point and its outward normal for every vertex and frame (training's collision loss uses them).
+    ``parts``: the body's parts (:class:`BodyParts`), to tell pinches (:func:`pinched`); without them
+    every penetrating vertex and strained edge counts.
     """
     x = np.asarray(frames, np.float64)
     if not np.isfinite(x).all():
@@ -66,17 +119,33 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
     l0 = np.linalg.norm(rest[e[:, 0]] - rest[e[:, 1]], axis=1)
     l = np.linalg.norm(x[:, e[:, 0]] - x[:, e[:, 1]], axis=2)
     strain = np.abs(l / np.maximum(l0, 1e-12) - 1)
+    over_t = strain > spec.max_strain  # (T, E)
     proxy = None
-    pen = 0.0
+    pen = pinch = 0.0
     far = 0.0
     n_comp, comp = connected_components(faces, len(rest))
+    tear = np.zeros(len(e), bool)   # edges over the limit in some frame where neither end is pinched
+    pinch_e = np.zeros(len(e), bool)
     if contact is not None:
         contact["closest"] = np.empty(x.shape, np.float32)
         contact["normal"] = np.empty(x.shape, np.float32)
     for t in range(len(x)):
         proxy = BodyProxy(body_frames[t], body_faces) if proxy is None else proxy.moved(body_frames[t])
         q = proxy.query(x[t])
-        pen = max(pen, float((q.signed_distance < -spec.penetration_depth).mean()))
+        inside = q.signed_distance < -spec.penetration_depth
+        hot = np.flatnonzero(over_t[t])
+        if parts is not None and (inside.any() or len(hot)):
+            ask = np.union1d(np.flatnonzero(inside), e[hot].ravel())
+            pin = np.zeros(len(x[t]), bool)
+            pin[ask] = pinched(x[t][ask], np.maximum(-q.signed_distance[ask], 0.0), body_frames[t], parts)
+            pinch = max(pinch, float((inside & pin).mean()))
+            inside &= ~pin
+            by_pinch = pin[e[hot, 0]] | pin[e[hot, 1]]
+            pinch_e[hot[by_pinch]] = True
+            tear[hot[~by_pinch]] = True
+        else:
+            tear[hot] = True
+        pen = max(pen, float(inside.mean()))
         dist = np.abs(q.signed_distance)
         near = np.full(n_comp, np.inf)
         np.minimum.at(near, comp, dist)  # each piece's nearest vertex to the body
@@ -91,16 +160,20 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
         bacc = np.linalg.norm(b[2:] - 2 * b[1:-1] + b[:-2], axis=2).max(axis=1)  # (T-2,)
         jit = float((acc > 3 * bacc[:, None] + 0.01).mean())
     reasons = []
-    over = float((strain.max(axis=0) > spec.max_strain).mean())  # edges strained past the bound in some frame
+    over = float(tear.mean())  # edges strained past the bound in some frame, pinches aside
+    pinch_edges = float((pinch_e & ~tear).mean())
     if over > spec.max_strained_edges:
         reasons.append(f"strain {strain.max():.2f} > {spec.max_strain}"
                        + (f" on {100 * over:.2f}% of edges > {100 * spec.max_strained_edges:.2f}%"
                           if spec.max_strained_edges > 0 else ""))
     if pen > spec.max_penetrating:
         reasons.append(f"penetration {100 * pen:.2f}% of vertices > {100 * spec.max_penetrating:.2f}%")
+    if pinch > spec.max_pinched:
+        reasons.append(f"pinched {100 * pinch:.2f}% of vertices > {100 * spec.max_pinched:.2f}%")
     if jit > spec.max_jitter:
         reasons.append(f"jitter {100 * jit:.3f}% > {100 * spec.max_jitter:.3f}%")
     if far > 0:
         reasons.append(f"detached: {100 * far:.2f}% of vertices in a piece farther than {spec.max_body_distance} m "
                        f"from the body or farther than {spec.max_vertex_distance} m themselves")
-    return QualityReport(True, float(strain.max()), float(np.percentile(strain, 99)), pen, jit, reasons, over, far)
+    return QualityReport(True, float(strain.max()), float(np.percentile(strain, 99)), pen, jit, reasons, over, far,
+                         pinch, pinch_edges)
