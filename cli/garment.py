@@ -77,7 +77,8 @@ def garment_kinds_cmd():
 @click.option("--up", type=click.Choice(["y", "z", "-z", "x"]), default="y", show_default=True,
               help="Up axis of the garment (and --from-body) file.")
 @click.option("--scale", type=float, default=1.0, show_default=True, help="Extra scale factor.")
-@click.option("--offset", help="Move by dx,dy,dz metres (after units, axes and scale).")
+@click.option("--offset", help="Move by dx,dy,dz metres (after a --mhclo/--from-body fit, or after units, axes and "
+              "scale).")
 @click.option("--margin", type=float, help="Push vertices out of the body to this clearance, metres "
               "(default 0.003 for --mhclo/--from-body fits, none for plain unit/axis fixes).")
 @click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform garment fit` (never a file "
@@ -85,39 +86,40 @@ def garment_kinds_cmd():
 def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, scale, offset, margin, force):
     """Bring GARMENT (OBJ or .mhclo) onto the body: a MakeHuman binding, --from-body, or --units/--up/--scale.
 
-    Vertex order and count are kept; faces, UVs and groups are copied from the input OBJ.
+    Vertex order and count are kept; faces (quads and polygons as they are), UVs and groups are copied from the
+    input OBJ, and its normals recomputed for the fitted vertices.  --offset moves the result (after a fit, or
+    after --units/--up/--scale); --betas reshapes only what can be refitted (--mhclo, --from-body).
     """
+    import numpy as np
+
     from segadeform.body import default_body_path, load_body
     from segadeform.errors import InputError
     from segadeform.garments import fit as gfit
     from segadeform.io import read_mesh
-
     from segadeform.io.output_guard import OutputGuard
 
-    guard = OutputGuard("garment fit", force=force, inputs=(garment, mhclo, from_body, body,
-                                                           garment.with_suffix(".mhclo"), garment.with_suffix(".obj")))
-    guard.file(output)
     b = _betas(betas)
     try:
         off = tuple(float(x) for x in offset.split(",")) if offset else None
-        if off is not None and len(off) != 3:
+        if off is not None and (len(off) != 3 or not np.isfinite(off).all()):
             raise ValueError
     except ValueError:
         raise click.UsageError(f"--offset must be dx,dy,dz, got {offset!r}") from None
-    bm = load_body(body or default_body_path())
     obj = garment
     if garment.suffix.lower() == ".mhclo":
         mhclo, obj = garment, None
     elif mhclo is None and from_body is None and garment.with_suffix(".mhclo").is_file():
         mhclo = garment.with_suffix(".mhclo")
-    try:
-        units_v = float(units) if units is not None else None
-    except ValueError:
-        units_v = units
-    rest = bm.shaped_vertices(b)[0]
+    binding = None
     if mhclo is not None:
         if from_body is not None:
             raise click.UsageError("give --mhclo or --from-body, not both")
+        fixes = [f for f, given in (("--units", units is not None), ("--up", up != "y"), ("--scale", scale != 1.0))
+                 if given]
+        if fixes:  # the binding places every vertex on the body itself: these cannot apply
+            raise InputError(f"{', '.join(fixes)} do not apply to a MakeHuman binding: it places the garment on "
+                             "the body itself", path=mhclo, expected="--offset, --margin, --betas",
+                             got=", ".join(fixes))
         binding = gfit.read_mhclo(mhclo)
         obj = obj or binding.obj_path()
         if obj is None:
@@ -125,6 +127,19 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         if not obj.is_file():
             raise InputError(f"the garment mesh {obj.name} is missing", path=mhclo,
                              expected=f"{obj} (obj_file in the .mhclo, or the OBJ given as GARMENT)")
+    elif from_body is None and b is not None:
+        raise InputError("--betas needs a garment that can be refitted to a body shape; a unit/axis fix does not "
+                         "change the garment's shape", path=garment,
+                         expected="a MakeHuman binding (--mhclo) or --from-body with --betas", got="a plain OBJ")
+    guard = OutputGuard("garment fit", force=force, inputs=(garment, mhclo, obj, from_body, body))
+    guard.file(output)
+    bm = load_body(body or default_body_path())
+    try:
+        units_v = float(units) if units is not None else None
+    except ValueError:
+        units_v = units
+    rest = bm.shaped_vertices(b)[0]
+    if binding is not None:
         v = gfit.fit_mhclo(binding, bm, b)
         how = f"MakeHuman binding {mhclo.name}"
         default_margin = 0.003
@@ -139,9 +154,12 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         default_margin = 0.003
     else:
         g = read_mesh(obj)
-        v = gfit.fix_units_and_axes(g.vertices, units=units_v, up=up, scale=scale, offset=off)
-        how = f"units {units or 'm'}, up {up}, scale {scale:g}" + (f", offset {off}" if off else "")
+        v = gfit.fix_units_and_axes(g.vertices, units=units_v, up=up, scale=scale)
+        how = f"units {units or 'm'}, up {up}, scale {scale:g}"
         default_margin = None
+    if off is not None:  # after the fit (a binding's, another body's) or the unit/axis fix
+        v = v + np.asarray(off, np.float64)
+        how += f", offset {off}"
     mesh = read_mesh(obj)
     if len(mesh.vertices) != len(v):
         raise InputError(f"the binding and {obj.name} have different vertex counts", path=mhclo or obj,

@@ -43,6 +43,7 @@ from pathlib import Path
 from typing import Callable, Optional
 
 from segadeform._toml import read_toml
+from segadeform.bounds import SEED_RANGE, check_betas
 from segadeform.errors import FileFormatError, InputError, file_error
 from segadeform.executors import Executor, LocalExecutor
 from segadeform.io.location import Location, is_url, open_location
@@ -139,6 +140,10 @@ def load_batch(path) -> BatchConfig:
         betas = g.get("betas", [])
         if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in betas):
             raise FileFormatError(f"garments[{i}].betas must be a list of numbers", path=p, got=betas)
+        try:
+            betas = check_betas(betas, what=f"garments[{i}].betas")  # finite, in the shape space
+        except InputError as e:
+            raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
         garments.append(BatchGarment(_name_ok(g.get("name", mesh.stem), "garment", p), mesh,
                                      tuple(float(x) for x in betas)))
     motions = []
@@ -155,8 +160,9 @@ def load_batch(path) -> BatchConfig:
             if m["kind"] not in MOTION_KINDS:
                 raise FileFormatError(f"motions[{i}].kind is not a motion kind", path=p,
                                       expected=", ".join(sorted(MOTION_KINDS)), got=m["kind"])
-        for k, lo, hi in (("seconds", 1e-3, 3600), ("speed", 0.05, 5), ("amplitude", 0, 2), ("fps", 1, 1000)):
-            if k in m and not lo <= m[k] <= hi:
+        for k, lo, hi in (("seconds", 1e-3, 3600), ("speed", 0.05, 5), ("amplitude", 0, 2), ("fps", 1, 1000),
+                          ("seed", *SEED_RANGE)):
+            if k in m and not lo <= m[k] <= hi:  # (NaN fails too)
                 raise FileFormatError(f"motions[{i}].{k} out of range", path=p, expected=f"{lo}..{hi}", got=m[k])
         if m.get("up", "auto") not in ("auto", "y", "z"):
             raise FileFormatError(f"motions[{i}].up must be auto, y or z", path=p, got=m["up"])

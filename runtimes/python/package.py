@@ -103,10 +103,16 @@ class ModelPackage:
         except OSError as e:
             raise file_error(e, mpath, "manifest", cls=PackageError) from None
         try:
-            text = raw.decode("utf-8")
+            text = raw.decode("utf-8-sig")  # a byte-order mark (an editor's) is dropped
         except UnicodeDecodeError:
             raise PackageError("manifest is not UTF-8 text", path=mpath) from None
         m = contract.read_manifest_text(text, path=mpath)
+        wfile = self.path / contract.WEIGHTS_FILE
+        if "weights" not in m and wfile.is_file():  # the graphs read it: its hash must be checked too
+            raise PackageError("the package holds weights.bin but its manifest has no 'weights' entry, so the "
+                               "weights would be used unchecked", path=mpath,
+                               expected='"weights": {"file", "sha256", "bytes"} (segadeform repack writes it)',
+                               got="no weights entry")
         files = [(f"graph '{name}'", f"graph '{name}' file", spec["file"], spec.get("sha256"))
                  for name, spec in m["graphs"].items()]
         if "weights" in m:

@@ -34,6 +34,7 @@ import numpy as np
 
 from segadeform.body import BodyModel, BodyProxy, default_body_path, load_body
 from segadeform.body.collision import BodyCollider, push_out
+from segadeform.bounds import check_body_height
 from segadeform.errors import InputError
 from segadeform.garments.fit import check_placement
 from segadeform.geometry import GarmentAsset, precompute_garment
@@ -186,6 +187,7 @@ class Run:
         joints = self.body.rest_joints(self.betas)[0]
         asset = self.load_asset(joints)
         if not self.force:  # refuse a garment that is not on the body (units, axes, another body)
+            check_body_height(self.body, self.betas)  # and a body shape no human has (--force: meant)
             check_placement(asset.vertices, self.body.shaped_vertices(self.betas)[0], self.body.faces,
                             path=self.garment)
         stage["precompute"] += time.perf_counter() - t
@@ -261,6 +263,10 @@ def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Pa
     package = ModelPackage(model or scene.model or default_model_path(), threads=threads, providers=providers)
     body = load_body(scene.body or default_body_path())
     motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
+    try:  # a range past the motion's end is the scene's to fix: name it
+        frame_range(scene.motion.frames, motion.n_frames)
+    except InputError as e:
+        raise e.with_path(scene.path) if scene.path is not None else e from None
     out = Path(output) if output is not None else scene.output
     run = Run(garment=scene.garment, motion=motion, package=package, body=body, betas=scene.betas,
               effects=scene.effects, output=out, output_format=scene.output_format, up=scene.up,

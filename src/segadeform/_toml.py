@@ -23,7 +23,7 @@ def read_toml(path, what: str) -> tuple[dict, str]:
     except OSError as e:
         raise file_error(e, p, what) from None
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")  # a byte-order mark (Windows editors write one) is not TOML
     except UnicodeDecodeError:
         raise FileFormatError(f"{what} is not UTF-8 text", path=p) from None
     try:

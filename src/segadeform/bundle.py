@@ -126,8 +126,11 @@ def read_bundle(path: str | os.PathLike) -> tuple[dict, dict]:
         if not 0 <= n <= 1000 or len(lines) != n + 2 or not lines[n + 1].startswith("meta "):
             raise ValueError
         meta = json.loads(lines[n + 1][5:])
-    except (ValueError, IndexError):
+    except (ValueError, IndexError, RecursionError):
         raise FileFormatError("malformed bundle header", path=p) from None
+    if not isinstance(meta, dict):
+        raise FileFormatError("bundle meta must be a JSON object", path=p, expected="meta {...}",
+                              got=f"a JSON {type(meta).__name__}")
     arrays = {}
     for ln in lines[1:n + 1]:
         t = ln.split()
@@ -137,11 +140,15 @@ def read_bundle(path: str | os.PathLike) -> tuple[dict, dict]:
             off, nbytes = int(t[3 + nd]), int(t[4 + nd])
         except (KeyError, ValueError, IndexError):
             raise FileFormatError(f"malformed bundle entry {ln[:60]!r}", path=p) from None
-        count = int(np.prod(shape, dtype=np.int64)) if shape else 1
-        if min(shape, default=1) < 0 or count * dt.itemsize != nbytes or off < 0 \
-                or start + off + nbytes > len(data):
-            raise FileFormatError(f"bundle array {name!r} does not fit the file", path=p,
-                                  expected=f"{count * dt.itemsize} bytes inside the file", got=nbytes)
+        count = 1
+        for d in shape:  # Python integers: a huge shape cannot wrap around to a small size
+            count *= d
+        if min(shape, default=1) < 0 or count * dt.itemsize != nbytes:
+            raise FileFormatError(f"bundle array {name!r} declares a size its shape does not have", path=p,
+                                  expected=f"{count * dt.itemsize} bytes for shape {shape}", got=f"{nbytes} bytes")
+        if off < 0 or start + off + nbytes > len(data):
+            raise FileFormatError(f"bundle array {name!r} runs past the end of the file (truncated?)", path=p,
+                                  expected=f"at least {start + off + nbytes} bytes", got=f"{len(data)} bytes")
         arrays[name] = np.frombuffer(data, dt, count, start + off).reshape(shape)
     return arrays, meta
 

@@ -65,7 +65,8 @@ from pathlib import Path
 from typing import Optional
 
 from ._toml import read_toml
-from .errors import FileFormatError
+from .bounds import SEED_RANGE, check_betas
+from .errors import FileFormatError, InputError
 
 
 __all__ = ["Y_TO_Z", "Effects", "DEFAULT_EFFECTS", "MotionSpec", "Scene", "load_scene", "parse_effects",
@@ -219,8 +220,9 @@ def load_scene(path: str | os.PathLike) -> Scene:
         raise FileFormatError("motion.up/units/joint_map/skeleton/animation apply to motion files only", path=p)
     if m.get("up", "auto") not in ("auto", "y", "z"):
         raise FileFormatError("motion.up must be auto, y or z", path=p, got=m["up"])
-    for k, lo, hi in (("seconds", 1e-3, 3600), ("speed", 0.05, 5), ("amplitude", 0, 2), ("fps", 1, 1000)):
-        if k in m and not lo <= m[k] <= hi:
+    for k, lo, hi in (("seconds", 1e-3, 3600), ("speed", 0.05, 5), ("amplitude", 0, 2), ("fps", 1, 1000),
+                      ("seed", *SEED_RANGE)):
+        if k in m and not lo <= m[k] <= hi:  # (NaN fails too)
             raise FileFormatError(f"motion.{k} out of range", path=p, expected=f"{lo}..{hi}", got=m[k])
     motion = MotionSpec(
         file=rel(m["file"]) if "file" in m else None, kind=m.get("kind"), seconds=float(m.get("seconds", 3.0)),
@@ -245,6 +247,10 @@ def load_scene(path: str | os.PathLike) -> Scene:
     betas = data.get("body", {}).get("betas", [])
     if not all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in betas):
         raise FileFormatError("body.betas must be a list of numbers", path=p, got=betas)
+    try:
+        betas = check_betas(betas, what="body.betas")  # finite, within the shape space (segadeform.bounds)
+    except InputError as e:
+        raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
     if "effects" in data:  # what is not named is off
         eff = dict({n: False for n in _EFFECT_NAMES}, **data["effects"])
         try:

@@ -157,6 +157,9 @@ class BodyModel:
             raise InputError("too many shape coefficients", expected=f"<= {self.n_betas}", got=b.shape[1])
         if not np.isfinite(b).all():
             raise InputError("betas contain NaN or inf")
+        from ..bounds import check_betas
+
+        check_betas(b)  # within the shape space: past it the body folds through itself
         out = np.zeros((b.shape[0], self.n_betas))
         out[:, : b.shape[1]] = b
         return out
@@ -302,7 +305,8 @@ def load_body(path: str | os.PathLike) -> BodyModel:
     """Read a body ``.npz`` (ours or SMPL's) or an official SMPL ``.pkl``; validate everything."""
     p = Path(path)
     if not p.is_file():
-        raise FileFormatError("no such file", path=p)
+        raise FileFormatError("is a folder, not a body file" if p.is_dir() else "no such file", path=p,
+                              expected="a body .npz or SMPL .pkl" if p.is_dir() else None)
     ext = p.suffix.lower()
     if ext == ".pkl":
         from .smpl_pickle import load_smpl_pickle

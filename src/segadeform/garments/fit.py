@@ -27,9 +27,11 @@ from typing import Optional
 
 import numpy as np
 
+from ..bounds import BETA_LIMIT
 from ..errors import FileFormatError, InputError, file_error
 
 __all__ = ["MhcloBinding", "read_mhclo", "fit_mhclo", "fix_units_and_axes", "UNIT_SCALES", "rewrite_obj_vertices",
+           "corner_normals",
            "FitReport", "placement_report", "push_off_body", "fit_to_body_mesh", "BodyFit", "check_placement",
            "PlacementError"]
 
@@ -71,7 +73,7 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
     """Parse a MakeHuman ``.mhclo`` file strictly (errors name the file and line)."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8", errors="strict")
+        text = p.read_text(encoding="utf-8-sig", errors="strict")  # a byte-order mark is dropped
     except FileNotFoundError:
         raise FileFormatError("no such file", path=p) from None
     except UnicodeDecodeError:
@@ -80,7 +82,7 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
         raise file_error(e, p) from None
     name, obj_file, basemesh = p.stem, None, "hm08"
     scales: dict = {}
-    verts, weights, offsets = [], [], []
+    verts, weights, offsets, lines = [], [], [], []
     deletes: list[int] = []
     section = "header"
     for ln, raw in enumerate(text.splitlines(), 1):
@@ -89,6 +91,7 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
             continue
         key = tok[0]
         if section == "verts" and (key[0].isdigit() or key[0] == "-"):
+            lines.append(ln)
             if len(tok) == 1:
                 verts.append((_int(tok[0], p, ln), 0, 0))
                 weights.append((1.0, 0.0, 0.0))
@@ -109,9 +112,13 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
                     b = _int(tok[i + 2], p, ln)
                     if b < a:
                         raise FileFormatError("delete_verts range runs backwards", path=p, line=ln, got=f"{a} - {b}")
+                    if a < 0:
+                        raise FileFormatError("negative base-mesh index in delete_verts", path=p, line=ln, got=a)
                     deletes.extend(range(a, b + 1))
                     i += 3
                 else:
+                    if a < 0:
+                        raise FileFormatError("negative base-mesh index in delete_verts", path=p, line=ln, got=a)
                     deletes.append(a)
                     i += 1
             continue
@@ -139,7 +146,10 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
             ref = _float(tok[3], p, ln)
             if not ref > 0:
                 raise FileFormatError(f"{key} reference must be positive", path=p, line=ln, got=ref)
-            scales[key[0]] = (_int(tok[1], p, ln), _int(tok[2], p, ln), ref)
+            a, b = _int(tok[1], p, ln), _int(tok[2], p, ln)
+            if min(a, b) < 0:  # numpy would count it from the end
+                raise FileFormatError(f"negative base-mesh index in {key}", path=p, line=ln, got=min(a, b))
+            scales[key[0]] = (a, b, ref)
         else:
             section = "header"  # other keys (uuid, tag, material, z_depth, weights ...) are not needed here
     if basemesh != "hm08":
@@ -149,8 +159,14 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
     v = np.array(verts, np.int64)
     w = np.array(weights, np.float64)
     d = np.array(offsets, np.float64)
-    if v.min() < 0:
-        raise FileFormatError("negative base-mesh index", path=p, got=int(v.min()))
+    if v.min() < 0:  # numpy would count it from the end
+        k = int(np.argwhere(v < 0)[0, 0])
+        raise FileFormatError("negative base-mesh index", path=p, line=lines[k], got=int(v[k].min()))
+    bad = np.flatnonzero(np.abs(w.sum(axis=1) - 1.0) > 0.01)
+    if bad.size:  # barycentric: every MakeHuman binding sums to 1 (to 1e-5)
+        k = int(bad[0])
+        raise FileFormatError("binding weights must sum to 1", path=p, line=lines[k], expected="w1 + w2 + w3 = 1",
+                              got=f"{w[k].sum():g}")
     return MhcloBinding(path=p, name=name, verts=v, weights=w, offsets=d, scales=scales,
                         delete_verts=np.array(sorted(set(deletes)), np.int64), obj_file=obj_file, basemesh=basemesh)
 
@@ -251,28 +267,102 @@ def fix_units_and_axes(vertices, *, units: str | float | None = None, up: str = 
 
 
 def rewrite_obj_vertices(src: str | os.PathLike, vertices: np.ndarray, dst: str | os.PathLike) -> Path:
-    """Copy an OBJ file with its ``v`` lines replaced by ``vertices`` (same order), keeping faces, UVs,
-    normals' lines, groups and materials as they are; written atomically."""
+    """Copy an OBJ file with its ``v`` lines replaced by ``vertices`` (same order) and its ``vn`` lines
+    recomputed for them (:func:`corner_normals`), keeping faces (quads and polygons as they are), UVs, groups,
+    materials and every other line; written atomically.
+
+    Shapes:
+        vertices: (N, 3), N = the file's ``v`` lines
+    """
     from ..io.atomic import atomic_open
+    from ..io.obj import obj_logical_lines
 
     src, dst = Path(src), Path(dst)
     v = np.asarray(vertices, np.float64)
-    lines = src.read_text(encoding="utf-8", errors="replace").splitlines()
-    n = sum(1 for ln in lines if ln.split()[:1] == ["v"])
-    if n != len(v):
-        raise InputError("vertex count differs from the OBJ's", path=src, expected=n, got=len(v))
-    it = iter(v)
+    try:
+        lines = list(obj_logical_lines(src))
+    except OSError as e:
+        raise file_error(e, src) from None
+    n = sum(1 for _, ln in lines if ln.split()[:1] == ["v"])
+    if v.ndim != 2 or v.shape[1:] != (3,) or n != len(v):
+        raise InputError("vertex count differs from the OBJ's", path=src, expected=n, got=v.shape)
+    if not np.isfinite(v).all():
+        raise InputError("fitted vertices are not finite", path=src)
+    normals = corner_normals(lines, v, path=src)
+    it, k = iter(v), 0
     with atomic_open(dst, "w", encoding="utf-8", newline="\n") as fh:
-        for ln in lines:
-            if ln.split()[:1] == ["v"]:
+        for _, ln in lines:
+            key = ln.split()[:1]
+            if key == ["v"]:
                 x = next(it)
                 extra = ln.split()[4:]  # vertex colours stay
                 fh.write(f"v {x[0]:.6f} {x[1]:.6f} {x[2]:.6f}" + (" " + " ".join(extra) if extra else "") + "\n")
-            elif ln.split()[:1] == ["vn"]:
-                continue  # normals no longer match the moved vertices; importers recompute them
+            elif key == ["vn"]:
+                nx = normals[k]
+                k += 1
+                fh.write(f"vn {nx[0]:.6f} {nx[1]:.6f} {nx[2]:.6f}\n")
             else:
                 fh.write(ln + "\n")
     return dst
+
+
+def corner_normals(lines, vertices: np.ndarray, *, path=None) -> np.ndarray:
+    """New ``vn`` vectors for an OBJ whose vertices moved to ``vertices``: normal ``k`` is the unit sum of the
+    (Newell, area-weighted) normals of the polygons with a corner that names ``vn`` ``k``, so shared normals stay
+    smooth and a normal of one flat face stays flat.  A ``vn`` no face names keeps its value.
+
+    Args:
+        lines: ``(line number, text)`` of the file (:func:`segadeform.io.obj.obj_logical_lines`).
+    Shapes:
+        vertices: (N, 3) -> (K, 3), K = the file's ``vn`` lines
+    """
+    old, acc = [], []
+    n_v = 0
+    for ln_no, ln in lines:
+        t = ln.split()
+        if not t:
+            continue
+        if t[0] == "v":
+            n_v += 1
+        elif t[0] == "vn":
+            try:
+                old.append([float(x) for x in t[1:4]])
+            except ValueError:
+                raise FileFormatError("normal has a non-numeric value", path=path, line=ln_no) from None
+            if len(old[-1]) != 3:
+                raise FileFormatError("normal line needs x y z", path=path, line=ln_no, got=len(old[-1]))
+            acc.append(np.zeros(3))
+        elif t[0] == "f" and len(t) >= 4:
+            idx, nrm = [], []
+            for c in t[1:]:
+                sub = c.split("/")
+                idx.append(_obj_index(sub[0], n_v, path, ln_no))
+                nrm.append(_obj_index(sub[2], len(old), path, ln_no) if len(sub) > 2 and sub[2] else None)
+            if all(x is None for x in nrm):
+                continue
+            q = vertices[idx]
+            fn = np.cross(q, np.roll(q, -1, axis=0)).sum(axis=0)  # Newell: 2 x area x unit normal
+            for x in nrm:
+                if x is not None:
+                    acc[x] += fn
+    out = np.asarray(old, np.float64).reshape(-1, 3)
+    for k, a in enumerate(acc):
+        length = float(np.linalg.norm(a))
+        if length > 0:
+            out[k] = a / length
+    return out
+
+
+def _obj_index(tok: str, count: int, path, line: int) -> int:
+    try:
+        i = int(tok)
+    except ValueError:
+        raise FileFormatError(f"bad index {tok!r}", path=path, line=line) from None
+    j = i - 1 if i > 0 else count + i
+    if i == 0 or not 0 <= j < count:
+        raise FileFormatError("index out of range", path=path, line=line, expected=f"1..{count} or -{count}..-1",
+                              got=i)
+    return j
 
 
 @dataclasses.dataclass(frozen=True)
@@ -492,6 +582,7 @@ def fit_to_body_mesh(garment_vertices, source_vertices, source_faces, body, beta
                       sv[:, 2].mean() - p[:, 2].mean()]
         lo = np.full_like(x, -np.inf)
         hi = np.full_like(x, np.inf)
+        lo[4:4 + nb], hi[4:4 + nb] = -BETA_LIMIT, BETA_LIMIT  # the shape space (segadeform.bounds)
         if scale is not None:  # a fixed scale: bounds pin it
             lo[0], hi[0] = np.log(scale) - 1e-9, np.log(scale) + 1e-9
             x[0] = np.log(scale)

@@ -23,7 +23,7 @@ def load_npz(path: str | os.PathLike, *, what: str = ".npz") -> dict[str, np.nda
     """All arrays of an ``.npz`` file as a dict, each checked against its stored size first."""
     p = Path(path)
     if not p.is_file():
-        raise FileFormatError("no such file", path=p)
+        raise FileFormatError("is a folder, not a file" if p.is_dir() else "no such file", path=p)
     try:
         zf = zipfile.ZipFile(p)
     except Exception as e:  # BadZipFile, OSError, NotImplementedError ("zip file version 22.7", found by fuzzing) ...

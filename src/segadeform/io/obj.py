@@ -26,7 +26,7 @@ from ..errors import FileFormatError, file_error
 from .atomic import atomic_open
 from .mesh import Mesh, validate_mesh_arrays
 
-__all__ = ["read_obj", "write_obj", "write_obj_positions"]
+__all__ = ["read_obj", "write_obj", "write_obj_positions", "obj_text", "obj_logical_lines"]
 
 _IGNORED = {"vp", "l", "p", "g", "o", "s", "usemtl", "mtllib", "cstype", "deg", "bmat",
             "step", "curv", "curv2", "surf", "parm", "trim", "hole", "scrv", "sp", "end",
@@ -49,6 +49,23 @@ def _logical_lines(text: str):
         pending = ""
     if pending:
         yield start, pending
+
+
+def obj_text(path: Path) -> str:
+    """The text of an OBJ file: UTF-8 (a leading byte-order mark dropped: editors on Windows write one, and it
+    would hide the first line), else Latin-1.  ``OSError`` when it cannot be read."""
+    data = Path(path).read_bytes()
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
+def obj_logical_lines(path) -> list[tuple[int, str]]:
+    """``(line number, logical line)`` of an OBJ file (:func:`obj_text`, ``\\`` continuations joined)."""
+    return list(_logical_lines(obj_text(path)))
 
 
 def _resolve(tok: str, count: int, kind: str, path, lineno) -> int:
@@ -84,13 +101,9 @@ def read_obj(path: str | os.PathLike) -> Mesh:
     """
     p = Path(path)
     try:
-        data = p.read_bytes()
+        text = obj_text(p)
     except OSError as e:
         raise file_error(e, p) from None
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError:
-        text = data.decode("latin-1")
     if "\x00" in text:
         raise FileFormatError("not a text OBJ file (contains NUL bytes)", path=p)
 

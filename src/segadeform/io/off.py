@@ -25,7 +25,7 @@ __all__ = ["read_off"]
 def read_off(path: str | os.PathLike) -> Mesh:
     p = Path(path)
     try:
-        text = p.read_bytes().decode("utf-8", errors="replace")
+        text = p.read_bytes().decode("utf-8-sig", errors="replace")  # a byte-order mark is dropped
     except OSError as e:
         raise file_error(e, p) from None
     lines = [(i, ln.split("#", 1)[0].split()) for i, ln in enumerate(text.splitlines(), start=1)]

@@ -348,7 +348,10 @@ def skeleton_motion(sk: BVHSkeleton, path: Path, *, rest_joints: np.ndarray | No
             "virtual": mapping.virtual,
             "ignored": mapping.ignored, "units_guess": unit_guess, "scale": float(scale_f), "up": sk.up,
             "source_fps": float(sk.fps)}
-    return Motion(poses=poses, trans=trans, fps=sk.fps, name=p.stem, meta=meta)
+    try:  # the frame rate and root travel within physical bounds (segadeform.bounds), naming the file
+        return Motion(poses=poses, trans=trans, fps=sk.fps, name=p.stem, meta=meta)
+    except InputError as e:
+        raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
 
 
 def _own_rest(rest: np.ndarray, src: np.ndarray) -> np.ndarray:

@@ -39,15 +39,20 @@ class Motion:
     meta: Optional[dict] = None
 
     def __post_init__(self):
+        from ..bounds import check_fps, check_translation
+
         p, t = np.asarray(self.poses), np.asarray(self.trans)
         if p.ndim != 2 or p.shape[1] != N_POSE or p.shape[0] < 1:
             raise InputError("poses must be (T, 72) with T >= 1", expected="(T, 72)", got=p.shape)
         if t.shape != (p.shape[0], 3):
             raise InputError("trans must be (T, 3) matching poses", expected=(p.shape[0], 3), got=t.shape)
+        for what, a in (("poses", p), ("trans", t)):  # complex numbers would be cast with only a warning
+            if a.dtype.kind not in "biuf":
+                raise InputError(f"{what} must be real numbers", expected="float", got=str(a.dtype))
         if not (np.isfinite(p).all() and np.isfinite(t).all()):
             raise InputError("motion contains NaN or inf")
-        if not (np.isfinite(self.fps) and self.fps > 0):
-            raise InputError("fps must be positive", got=self.fps)
+        check_fps(self.fps)
+        check_translation(t)
         object.__setattr__(self, "poses", p.astype(np.float64))
         object.__setattr__(self, "trans", t.astype(np.float64))
         object.__setattr__(self, "meta", dict(self.meta or {}))
@@ -133,8 +138,8 @@ def load_motion_npz(path: str | os.PathLike, *, up: str = "auto", rest_joints: n
     else:
         raise FileFormatError("motion file has no 'poses' array", path=p,
                               expected="'poses' or 'root_orient' + 'pose_body'", got=", ".join(sorted(d)) or "no arrays")
-    if not np.issubdtype(poses.dtype, np.number):
-        raise FileFormatError("poses must be numeric", path=p, got=poses.dtype)
+    if poses.dtype.kind not in "biuf":  # complex numbers are not rotations
+        raise FileFormatError("poses must be real numeric values", path=p, expected="float", got=poses.dtype)
     if poses.ndim == 3:
         if poses.shape[2] != 3 or poses.shape[1] not in (22, 24, 52, 55):
             raise FileFormatError("poses have an unknown layout", path=p,
@@ -155,20 +160,21 @@ def load_motion_npz(path: str | os.PathLike, *, up: str = "auto", rest_joints: n
     if not np.isfinite(body).all():
         raise FileFormatError("poses contain NaN or inf", path=p)
     trans = d.get("trans", np.zeros((poses.shape[0], 3)))
-    if trans.shape != (poses.shape[0], 3) or not np.issubdtype(trans.dtype, np.number):
+    if trans.shape != (poses.shape[0], 3) or trans.dtype.kind not in "biuf":
         raise FileFormatError("trans must be (T, 3) matching poses", path=p, expected=(poses.shape[0], 3), got=trans.shape)
     trans = trans.astype(np.float64)
     if not np.isfinite(trans).all():
         raise FileFormatError("trans contains NaN or inf", path=p)
-    fps_arr = d.get("mocap_framerate", d.get("mocap_frame_rate", d.get("fps", np.float64(30.0))))
-    try:
-        fps = float(np.asarray(fps_arr).ravel()[0])
-    except (TypeError, ValueError, IndexError):
-        raise FileFormatError("mocap_framerate must be a number", path=p, got=np.shape(fps_arr)) from None
+    fps_key = next((k for k in ("mocap_framerate", "mocap_frame_rate", "fps") if k in d), None)
+    fps_arr = np.asarray(d[fps_key]) if fps_key else np.float64(30.0)
+    if fps_arr.size != 1 or fps_arr.dtype.kind not in "biuf":  # [30, 60] is two rates, not the first of them
+        raise FileFormatError(f"{fps_key} must be one number", path=p, expected="a scalar frame rate",
+                              got=f"{fps_arr.dtype} {fps_arr.shape}")
+    fps = float(fps_arr.ravel()[0])
     if not (np.isfinite(fps) and fps > 0):
         raise FileFormatError("fps (mocap_framerate) must be positive", path=p, got=fps)
     betas = d.get("betas")
-    if betas is not None and (not np.issubdtype(betas.dtype, np.number) or betas.ndim > 2):
+    if betas is not None and (betas.dtype.kind not in "biuf" or betas.ndim > 2):
         raise FileFormatError("betas must be a numeric vector", path=p, got=betas.shape)
     if betas is not None and betas.ndim == 2:
         betas = betas[0]

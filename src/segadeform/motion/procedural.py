@@ -219,6 +219,9 @@ def make_motion(kind: str, *, seconds: float = 3.0, fps: float = 30.0, speed: fl
                               ("amplitude", amplitude, 0, 2), ("ease_in", ease_in, 0, 3600)):
         if not (np.isfinite(val) and lo <= val <= hi):
             raise InputError(f"{name} out of range", expected=f"{lo}..{hi}", got=val)
+    from ..bounds import check_seed
+
+    seed = check_seed(seed)
     n = max(1, int(round(seconds * fps)))
     t = np.arange(n) / fps
     w = np.ones(n) if ease_in <= 0 else np.clip(t / ease_in, 0, 1)

@@ -40,7 +40,10 @@ def simulate_scene(scene: Scene, *, output: Optional[Path] = None, settings: Opt
     st = settings or scene.simulate or SimSettings()
     body = load_body(scene.body or default_body_path())
     motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
-    motion, start = select_frames(motion, scene.motion.frames)  # checked before the simulator starts
+    try:  # checked before the simulator starts; a range past the motion's end is the scene's to fix
+        motion, start = select_frames(motion, scene.motion.frames)
+    except InputError as e:
+        raise e.with_path(scene.path) if scene.path is not None else e from None
     mesh = read_mesh(scene.garment)
     out = Path(output) if output is not None else scene.output
     if guard is not None:  # refused before minutes of simulation, not after

@@ -1,0 +1,98 @@
+"""Physical bounds on the numbers users give: one table, and the checks every reader and command shares.
+
+A value past a *hard* bound cannot be right (a frame rate of 1e-30 fps, a root 1e30 m away, a shape
+coefficient of 1e300) and is refused wherever it enters; a value past a *usual* bound might be meant (a
+3-metre giant) and is refused unless the command was given ``--force``.
+
+==================  ===================  ==========================================================
+value               bound                why
+==================  ===================  ==========================================================
+frame rate          1 .. 1000 fps        motion capture runs at 24..480 fps; BVH ``Frame Time``
+                                         1 ms .. 1 s
+root translation    |t| <= 10 km         float32 outputs keep 1 mm steps up to 16 km; a clip
+                                         further away is in the wrong units
+shape (betas)       |beta| <= 10 (hard)  the shape space is linear: past about 10 standard
+                                         deviations the body folds through itself (beta0 = -20
+                                         turns it inside out)
+body height         0.9 .. 2.5 m         a human; betas of about +-3 on the default body reach it
+                    (usual, --force)
+procedural seed     0 .. 2**32 - 1       numpy's seeds
+==================  ===================  ==========================================================
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["FPS_RANGE", "MAX_TRANSLATION", "BETA_LIMIT", "HEIGHT_RANGE", "SEED_RANGE", "check_fps",
+           "check_translation", "check_betas", "check_body_height", "check_seed"]
+
+FPS_RANGE = (1.0, 1000.0)
+MAX_TRANSLATION = 1.0e4
+BETA_LIMIT = 10.0
+HEIGHT_RANGE = (0.9, 2.5)
+SEED_RANGE = (0, 2 ** 32 - 1)
+
+
+def _real(a, what: str, path, line=None) -> np.ndarray:
+    x = np.asarray(a)
+    if x.dtype.kind not in "biuf":
+        raise InputError(f"{what} must be real numbers", path=path, line=line, got=str(x.dtype))
+    return x.astype(np.float64)
+
+
+def check_fps(fps, *, path=None, what: str = "frame rate") -> float:
+    """``fps`` as a float inside :data:`FPS_RANGE`; :class:`InputError` naming ``path`` otherwise."""
+    try:
+        f = float(fps)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must be a number", path=path, got=repr(fps)[:40]) from None
+    lo, hi = FPS_RANGE
+    if not (np.isfinite(f) and lo <= f <= hi):
+        raise InputError(f"{what} is outside what motion is recorded at", path=path,
+                         expected=f"{lo:g}..{hi:g} frames per second", got=f"{f:g}")
+    return f
+
+
+def check_translation(trans, *, path=None) -> None:
+    """Every root translation ``(T, 3)`` within :data:`MAX_TRANSLATION` metres of the origin."""
+    t = _real(trans, "translations", path)
+    m = float(np.abs(t).max()) if t.size else 0.0
+    if not m <= MAX_TRANSLATION:  # NaN fails too
+        raise InputError("the motion's root moves too far: check the file's units", path=path,
+                         expected=f"|translation| <= {MAX_TRANSLATION:g} m", got=f"{m:.3g} m")
+
+
+def check_betas(betas, *, path=None, what: str = "betas") -> tuple:
+    """Shape coefficients as a tuple of floats, each finite with ``|beta| <= BETA_LIMIT``."""
+    b = _real(betas, what, path).ravel()
+    if not np.isfinite(b).all():
+        raise InputError(f"{what} must be finite", path=path, got=[float(x) for x in b[:10]])
+    if b.size and np.abs(b).max() > BETA_LIMIT:
+        raise InputError(f"{what} out of range: past it the body model folds through itself", path=path,
+                         expected=f"|beta| <= {BETA_LIMIT:g}", got=f"{float(b[np.abs(b).argmax()]):g}")
+    return tuple(float(x) for x in b)
+
+
+def check_body_height(body, betas=None, *, force: bool = False, path=None) -> float:
+    """The rest height (m) of ``body`` shaped by ``betas``; outside :data:`HEIGHT_RANGE` refused unless ``force``
+    (a shape a user may mean, but no human has)."""
+    h = float(np.ptp(body.shaped_vertices(betas)[0][:, 1]))
+    lo, hi = HEIGHT_RANGE
+    if not force and not lo <= h <= hi:
+        raise InputError("the body shape is not a human's height", path=path,
+                         expected=f"{lo:g}..{hi:g} m (betas within about +-3), or --force to use it anyway",
+                         got=f"{h:.2f} m")
+    return h
+
+
+def check_seed(seed, *, path=None) -> int:
+    """A procedural motion's seed as an int inside :data:`SEED_RANGE`."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise InputError("seed must be an integer", path=path, got=repr(seed)[:40])
+    lo, hi = SEED_RANGE
+    if not lo <= int(seed) <= hi:
+        raise InputError("seed out of range", path=path, expected=f"{lo}..{hi}", got=int(seed))
+    return int(seed)
