@@ -29,6 +29,7 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
     descriptor, the encoder features for the shape's rest joints, the body's weights at the garment
     (log_wbody), betas and the body's hash: what `segadeform run` computes before the model runs."""
     from segadeform.body import default_body_path, load_body
+    from segadeform.bounds import check_body_height
     from segadeform.garments.fit import check_placement
     from segadeform.geometry import GarmentAsset, precompute_garment
     from segadeform.geometry.asset import PORTABLE_SUFFIX, file_sha256
@@ -54,7 +55,9 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
         asset = precompute_garment(mesh.vertices, mesh.faces, b.rest_joints()[0], k=k, n_star=n_star,
                                    source_name=garment.name, source_sha256=file_sha256(garment))
     if not force:
-        check_placement(asset.vertices, b.shaped_vertices(beta_vals)[0], b.faces, path=garment)
+        check_body_height(b, beta_vals)
+        check_placement(asset.vertices, b.shaped_vertices(beta_vals)[0], b.faces, path=garment,
+                        template_vertices=b.v_template, betas=beta_vals)
     asset = asset.for_body(b, beta_vals, weight_prior=config.get("weight_prior", "nearest"))
     asset.save(output)
     guard.record()

@@ -25,10 +25,15 @@ def motion_group():
 @click.option("--ease-in", type=float, default=1.0, show_default=True, help="Seconds to blend in from rest.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Motion file (.npz, .bvh or .sgdm).")
-def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
+@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform motion make` (never a file "
+              "segadeform did not write).")
+def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output, force):
     """Make a procedural motion of KIND (idle, walk, run, jump, arm_swing, touch_high, torso_twist, dance)."""
+    from segadeform.io.output_guard import OutputGuard
     from segadeform.motion import make_motion, write_bvh
 
+    guard = OutputGuard("motion make", force=force)
+    guard.file(output)
     m = make_motion(kind, seconds=seconds, fps=fps, seed=seed, speed=speed, amplitude=amplitude, ease_in=ease_in)
     if output.suffix.lower() == ".bvh":
         from segadeform.body.skeleton import default_rest_joints
@@ -36,6 +41,7 @@ def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
         write_bvh(output, m, default_rest_joints(), scale=100.0)
     else:
         m.save(output)
+    guard.record()
     click.echo(f"{m.name}: {m.n_frames} frames at {m.fps:g} fps ({m.seconds:.2f} s) -> {output}")
 
 

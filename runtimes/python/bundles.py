@@ -37,7 +37,8 @@ def scene_bundle(scene: Scene, out: str | Path, *, model: Optional[Path] = None,
     if not force:
         from segadeform.garments.fit import check_placement
 
-        check_placement(asset.vertices, body.shaped_vertices(scene.betas)[0], body.faces, path=scene.garment)
+        check_placement(asset.vertices, body.shaped_vertices(scene.betas)[0], body.faces, path=scene.garment,
+                        template_vertices=body.v_template, betas=scene.betas)
     d = run.deformer
     feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
     betas = d._betas(scene.betas)

@@ -189,7 +189,7 @@ class Run:
         if not self.force:  # refuse a garment that is not on the body (units, axes, another body)
             check_body_height(self.body, self.betas)  # and a body shape no human has (--force: meant)
             check_placement(asset.vertices, self.body.shaped_vertices(self.betas)[0], self.body.faces,
-                            path=self.garment)
+                            path=self.garment, template_vertices=self.body.v_template, betas=self.betas)
         stage["precompute"] += time.perf_counter() - t
         t = time.perf_counter()
         P = self.deformer.encode(asset, joints, self.betas, cache_dir=self._cache_dir())
@@ -255,6 +255,75 @@ class Run:
                           body_backend=self.body_poser.backend if need_body else None)
 
 
+def _padded(betas, n: int) -> np.ndarray:
+    b = np.zeros(n)
+    v = np.asarray(betas if betas is not None else (), np.float64).ravel()[:n]
+    b[:len(v)] = v
+    return b
+
+
+def _label(betas) -> str:
+    b = np.trim_zeros(np.asarray(betas, np.float64), "b")
+    return "[" + ", ".join(f"{x:g}" for x in b) + "]" if b.size else "0 (the default shape)"
+
+
+def shape_for_inputs(scene: Scene, body: BodyModel, *, force: bool = False) -> tuple:
+    """The body shape a run uses: the scene's ``betas``, or -- for a garment asset prepared for a body shape
+    (``segadeform garment export``) -- the asset's, which it was made for.  An asset prepared for another body,
+    or for other betas than the scene gives, is refused (``force``: the scene's betas are used anyway)."""
+    g = Path(scene.garment)
+    if g.suffix.lower() not in (".npz", PORTABLE_SUFFIX) or not g.is_file():
+        return tuple(scene.betas)
+    asset = GarmentAsset.load(g)
+    if not asset.for_a_body:
+        return tuple(scene.betas)
+    from segadeform.body.identity import body_sha256
+
+    want = (asset.body or {}).get("sha256")
+    if want and want != body_sha256(body) and not force:
+        raise InputError(f"the garment asset was prepared for another body ({(asset.body or {}).get('name')})",
+                         path=g, expected=f"the body it was exported for, or `segadeform garment export` "
+                                          f"for {Path(body.path).name if body.path else 'this body'}",
+                         got=f"body {Path(body.path).name if body.path else ''} (another hash)")
+    ab = _padded(asset.betas, body.n_betas)
+    if not scene.betas:
+        return tuple(float(x) for x in np.trim_zeros(ab, "b"))
+    if not np.allclose(_padded(scene.betas, body.n_betas), ab, atol=1e-6) and not force:
+        raise InputError("the garment asset was prepared for another body shape than the run's betas", path=g,
+                         expected=f"betas {_label(ab)}, the asset's: leave --betas out, or export the garment "
+                                  "again for these betas",
+                         got=f"betas {_label(_padded(scene.betas, body.n_betas))}")
+    return tuple(scene.betas)
+
+
+def check_motion_shape(motion: Motion, scene: Scene, body: BodyModel, *, force: bool = False) -> None:
+    """A motion file (``.sgdm``) is retargeted onto one body and shape (``segadeform motion export``): refuse it
+    for another body or shape, unless ``force`` (then it plays as it is)."""
+    meta = motion.meta or {}
+    if meta.get("format") != "sgdm" or force:
+        return
+    from segadeform.body.identity import body_sha256
+
+    f = scene.motion.file
+    mb = meta.get("body") or {}
+    if isinstance(mb, dict) and mb.get("sha256") and mb["sha256"] != body_sha256(body):
+        raise InputError(f"the motion file was retargeted onto another body ({mb.get('name')})", path=f,
+                         expected="the body it was exported for, or the motion exported again for this one; "
+                                  "--force plays it anyway", got="another body")
+    mbetas = meta.get("betas")
+    if mbetas is not None:
+        try:
+            mb_full = _padded([float(x) for x in mbetas], body.n_betas)
+        except (TypeError, ValueError):
+            raise InputError("the motion file's betas are not numbers", path=f, got=repr(mbetas)[:60]) from None
+        run_b = _padded(scene.betas, body.n_betas)
+        if not np.allclose(mb_full, run_b, atol=1e-6):
+            raise InputError("the motion file was retargeted onto another body shape than the run's", path=f,
+                             expected=f"betas {_label(mb_full)}: run with those, or export the motion again for "
+                                      "these betas; --force plays it anyway",
+                             got=f"betas {_label(run_b)}")
+
+
 def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Path] = None, batch: int = 8,
               threads: int = 1, providers=None, progress=None, cache: bool = True, force: bool = False,
               body_backend: str = "auto", guard=None) -> RunSummary:
@@ -262,7 +331,11 @@ def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Pa
     :class:`Run`'s."""
     package = ModelPackage(model or scene.model or default_model_path(), threads=threads, providers=providers)
     body = load_body(scene.body or default_body_path())
+    betas = shape_for_inputs(scene, body, force=force)
+    if betas != tuple(scene.betas):
+        scene = dataclasses.replace(scene, betas=betas)
     motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
+    check_motion_shape(motion, scene, body, force=force)
     try:  # a range past the motion's end is the scene's to fix: name it
         frame_range(scene.motion.frames, motion.n_frames)
     except InputError as e:

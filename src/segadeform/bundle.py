@@ -204,7 +204,8 @@ def read_motion_file(path: str | os.PathLike):
         raise FileFormatError("motion file meta has no fps", path=p) from None
     try:
         m = Motion(poses=poses.reshape(len(poses), -1).astype(np.float64), trans=trans.astype(np.float64), fps=fps,
-                   name=str(meta.get("name", p.stem)), meta={"format": "sgdm", "body": meta.get("body")})
+                   name=str(meta.get("name", p.stem)),
+                   meta={"format": "sgdm", "body": meta.get("body"), "betas": meta.get("betas")})
     except InputError as e:
         raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
     return m, meta

@@ -424,7 +424,8 @@ def _fits(st) -> bool:
     return st["p20"] <= 0.05 and st["deep"] <= 0.05 and st["outside_height"] <= 0.02
 
 
-def check_placement(vertices, body_vertices, body_faces, *, path=None, max_points: int = 4000) -> dict:
+def check_placement(vertices, body_vertices, body_faces, *, path=None, max_points: int = 4000,
+                    template_vertices=None, betas=()) -> dict:
     """Refuse a garment that does not sit on the (rest) body, naming the likely cause and the fix.
 
     A garment sits on the body when the closest fifth of its vertices are within 5 cm of the skin, at
@@ -432,7 +433,9 @@ def check_placement(vertices, body_vertices, body_faces, *, path=None, max_point
     Otherwise the garment is tried in other units (dm, cm, mm, inch), with other up axes (z, -z) and moved
     up or down (another body's origin, e.g. SMPL's pelvis at y = 0); the first of those that fits is named
     in the error with its ``segadeform garment fit`` command, else the garment was made for another body
-    or pose (``--mhclo`` or ``--from-body``).
+    or pose (``--mhclo`` or ``--from-body``).  With ``template_vertices`` (the body at betas 0) and ``betas`` (the
+    shape ``body_vertices`` has), a garment that sits on the default shape is named as made for it: it needs
+    making (or fitting) again for ``betas``, not another origin or units.
 
     Returns the statistics (``p20``, ``median`` distance in m, ``deep`` and ``outside_height`` fractions).
 
@@ -454,6 +457,15 @@ def check_placement(vertices, body_vertices, body_faces, *, path=None, max_point
             f"{100 * st['p20']:.1f} cm), {100 * st['deep']:.1f} % of vertices more than 1 cm inside it, "
             f"{100 * st['outside_height']:.1f} % above the head or below the feet")
     g = path if path is not None else "GARMENT"
+    b = np.asarray(betas if betas is not None else (), np.float64).ravel()
+    if template_vertices is not None and b.size and np.abs(b).max() > 0:
+        tv = np.asarray(template_vertices, np.float64)
+        if _fits(_stats(v, BodyProxy(tv, body_faces), float(tv[:, 1].max()), float(tv[:, 1].min()))):
+            shape = ",".join(f"{x:g}" for x in b)
+            raise PlacementError(f"the garment was made for the default body shape (betas 0), not for betas {shape} "
+                                 f"({what})", path=path,
+                                 expected=f"a garment made for betas {shape}: `segadeform garment make KIND --betas "
+                                          f"{shape}`, `segadeform garment fit G.mhclo --betas {shape}`, or --force")
     for units in (None, "dm", "cm", "mm", "inch"):
         for up in ("y", "z", "-z"):
             if units is None and up == "y":
