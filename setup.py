@@ -1,9 +1,10 @@
-"""The one compiled part of segadeform: the collision kernel ``src/segadeform/body/_collide.c``.
+"""The compiled parts of segadeform: the collision kernel ``src/segadeform/body/_collide.c`` and the cloth stage
+``src/segadeform/body/_cloth.c`` (built with the collision kernel it calls).
 
-Everything else is declared in ``pyproject.toml``.  The kernel is a plain C99 file built as the (empty)
-extension module ``segadeform.body._collide`` and called through ctypes; it is optional: without a C
-compiler the install goes on and :class:`segadeform.body.collision.BodyCollider` falls back to its numpy
-implementation (with one logged warning).
+Everything else is declared in ``pyproject.toml``.  Each kernel is plain C99 built as an (empty)
+extension module (``segadeform.body._collide``, ``segadeform.body._cloth``) and called through ctypes; both are
+optional: without a C compiler the install goes on, :class:`segadeform.body.collision.BodyCollider` falls back to
+its numpy implementation (with one logged warning) and the cloth stage says it needs the compiled kernel.
 """
 
 import sys
@@ -20,4 +21,9 @@ else:
 
 setup(ext_modules=[Extension("segadeform.body._collide", sources=["src/segadeform/body/_collide.c"],
                              define_macros=[("SDC_PYTHON_MODULE", "1")], extra_compile_args=FLAGS,
+                             optional=True),
+                   # the cloth stage (segadeform.body.cloth): _cloth.c with the collider it calls, in one library
+                   Extension("segadeform.body._cloth",
+                             sources=["src/segadeform/body/_cloth.c", "src/segadeform/body/_collide.c"],
+                             define_macros=[("SCL_PYTHON_MODULE", "1")], extra_compile_args=FLAGS,
                              optional=True)])

@@ -683,6 +683,24 @@ SDC_API void sdc_query(const void *h, const double *verts, const double *box, co
     }
 }
 
+/* The exact signed distance, closest point and outward normal of every point of pts [i0, i1) that is inside the
+ * body or within `radius` of it, against one frame (verts with its boxes from sdc_refit); the others get
+ * sd = +inf (their closest point and normal are not defined).  Returns how many were found.  The cloth stage's
+ * contacts (_cloth.c). */
+SDC_API int64_t sdc_near(const void *h, const double *verts, const double *box, const double *pts, int64_t i0,
+                         int64_t i1, double radius, double *sd, double *closest, double *normal) {
+    sdc_frame fr;
+    int64_t i, face, found = 0;
+    make_frame((const sdc_body *)h, verts, box, &fr);
+    for (i = i0; i < i1; i++) {
+        if (near_or_inside(&fr, pts + 3 * i, radius, sd + i, closest + 3 * i, normal + 3 * i, &face))
+            found++;
+        else
+            sd[i] = INFINITY;
+    }
+    return found;
+}
+
 /* push_out of the points [i0, i1) of every frame: pts (B, N, 3) moved in place against verts (B, V, 3)
  * with boxes (B, n_nodes, 6) from sdc_refit; moved (B, N) set to 1 for every point moved (others are left
  * as they are).  Returns the number of points moved. */

@@ -1,0 +1,386 @@
+/*
+ * The cloth stage, compiled: a few position-based constraint sweeps after the network that make a garment behave
+ * like cloth against the posed body while it follows the network's frame (the target) where it lies on the body.
+ *
+ * Portable C99 with no dependencies besides the body collider it calls (_collide.c: the C++ runtime compiles both
+ * files into one program, setup.py builds both into the extension segadeform.body._cloth, and
+ * runtimes/node/src/cloth.js ports this file line for line for Node and the browser).  Plain loops over plain
+ * arrays, float64 arithmetic using only + - * / and sqrt (correctly rounded everywhere), no threads, no libm
+ * function that rounds differently per platform.  Compile without floating-point contraction
+ * (-ffp-contract=off) so that every platform rounds alike.  Deterministic: the same inputs give the same bits.
+ *
+ * The method is position-based dynamics (Mueller, Heidelberger, Hennix & Ratcliff, "Position based dynamics",
+ * VRIPHYS 2006 / J. Vis. Commun. Image R. 2007): predict positions from the previous output frames (inertia and
+ * gravity), then project constraints one after another (Gauss-Seidel), a few sweeps; a constraint's stiffness k
+ * is applied per sweep as 1 - (1 - k)^(1/sweeps) so that the number of sweeps changes how well the constraints
+ * are met, not how stiff they are.  The constraints, in the order each sweep projects them:
+ *
+ *   stretch       every edge's length kept within [(1 - compress) L0, (1 + stretch) L0] of its rest length L0:
+ *                 strain limiting (Provot, "Deformation constraints in a mass-spring model to describe rigid
+ *                 cloth behavior", Graphics Interface 1995), stiffness `stiffness`;
+ *   smoothing     each free vertex's deviation from the target (x - y) moved toward the mean deviation of its
+ *                 neighbours, stiffness `bending`: the target's Laplacian coordinates are kept (Sorkine et al.,
+ *                 "Laplacian surface editing", SGP 2004), so the network's folds stay while a displacement made
+ *                 by a contact spreads to the neighbours instead of moving one vertex alone;
+ *   attachment    every vertex within radius[i] of its target (the engines' "max distance" or motion
+ *                 constraint: Unreal Chaos Cloth, NvCloth): radius 0 where the garment lies on the body at
+ *                 rest (it follows the network exactly), growing with the rest distance from the body to at
+ *                 most max_distance on hems and loose parts (scl_setup);
+ *   contact       every vertex found at the frame's start inside the body or within margin + SCL_CONTACT_BAND
+ *                 of it kept on the outer side of the plane through its closest body point: n . (x - c) >= margin.
+ *
+ * After the sweeps, the vertices that may be inside the body or closer than the margin -- found so, or moved
+ * farther than their clearance since the contacts were found (no other can be) -- are pushed out of the body
+ * exactly as the collision stage does (sdc_push_out, SCL_PASSES passes): contact wins over the attachment.  Attached vertices
+ * (radius 0) have infinite mass: edges and smoothing move only free vertices.
+ *
+ * State (the caller keeps it between calls; calls may hold any number of frames): the last two output frames and
+ * the last target.  Inertia: p = x1 + (1 - damping)(x1 - x0) - (0, gravity dt^2, 0), from the frames before, then
+ * p += follow (y - p) (a drive toward the target: the deviation decays instead of staying at the bound); the
+ * first frame, and a frame whose target moved more than `reset` metres on average since the last one (a body
+ * that teleports), start from the target with no velocity (a reset, counted).
+ */
+
+#ifdef SCL_PYTHON_MODULE
+#include <Python.h> /* first, as Python asks; only for the empty module at the end of the file */
+#endif
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#if defined(_WIN32)
+#define SCL_API __declspec(dllexport)
+#else
+#define SCL_API __attribute__((visibility("default")))
+#endif
+
+/* the body collider: _collide.c's entry points (compiled into the same library or program) */
+int64_t sdc_n_nodes(const void *h);
+void sdc_refit(const void *h, const double *verts, double *box);
+int64_t sdc_near(const void *h, const double *verts, const double *box, const double *pts, int64_t i0, int64_t i1,
+                 double radius, double *sd, double *closest, double *normal);
+int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
+                     int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
+
+#define SCL_ABI 1
+#define SCL_CONTACT_BAND 0.01 /* metres beyond the margin within which a vertex gets a contact plane */
+#define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
+#define SCL_TINY 1e-300
+
+/* the settings array's entries (segadeform.body.cloth.ClothSettings.array) */
+enum {
+    S_ITERATIONS, /* sweeps per frame, >= 1 */
+    S_STIFFNESS,  /* stretch stiffness in [0, 1] */
+    S_STRETCH,    /* an edge may be at most (1 + stretch) L0 */
+    S_COMPRESS,   /* and at least (1 - compress) L0 */
+    S_BENDING,    /* smoothing stiffness in [0, 1] */
+    S_DAMPING,    /* fraction of the velocity lost per frame */
+    S_GRAVITY,    /* m/s^2 along -y */
+    S_DT,         /* seconds per frame */
+    S_MARGIN,     /* metres kept between garment and body */
+    S_RESET,      /* metres of mean target motion in one frame that reset the state */
+    S_FOLLOW,     /* fraction of the predicted deviation from the target removed per frame */
+    S_COUNT
+};
+
+/* info array entries (in and out) */
+enum { I_HAVE, I_RESETS, I_CONTACTS, I_PUSHED, I_FIRST_RESET, I_COUNT };
+
+SCL_API int64_t scl_abi(void) { return SCL_ABI; }
+
+SCL_API int64_t scl_n_settings(void) { return S_COUNT; }
+
+/* ---- per garment ---------------------------------------------------------------------------------------- */
+typedef struct {
+    int64_t a, b;
+} scl_edge;
+
+static int cmp_edge(const void *x, const void *y) {
+    const scl_edge *p = (const scl_edge *)x, *q = (const scl_edge *)y;
+    if (p->a != q->a) return p->a < q->a ? -1 : 1;
+    return p->b < q->b ? -1 : (p->b > q->b ? 1 : 0);
+}
+
+/* The per-garment data from the rest garment rest (N, 3), faces (F, 3) and each vertex's signed distance from
+ * the body at rest rest_sd (N,) (negative inside):
+ *   edges (E, 2)     the distinct edges (a < b) of the faces, sorted by (a, b); a face's repeated vertex makes none;
+ *   rest_len (E,)    their rest lengths;
+ *   nptr (N + 1), nidx (2E)  each vertex's neighbours nidx[nptr[i]:nptr[i + 1]], ascending;
+ *   radius (N,)      how far each vertex may leave its target: 0 within `attachment` of the body at rest, else
+ *                    min(max_distance, rest_sd - attachment).
+ * The caller sizes edges for 3F pairs, rest_len for 3F, nidx for 6F.  Returns E, -1 when out of memory, -2 for a
+ * face index outside [0, N). */
+SCL_API int64_t scl_setup(const double *rest, int64_t n, const int64_t *faces, int64_t nf, const double *rest_sd,
+                          double attachment, double max_distance, int64_t *edges, double *rest_len, int64_t *nptr,
+                          int64_t *nidx, double *radius) {
+    scl_edge *e;
+    int64_t *fill;
+    int64_t i, k, ne = 0, m = 0;
+    if (n < 1 || nf < 0) return -2;
+    for (i = 0; i < 3 * nf; i++)
+        if (faces[i] < 0 || faces[i] >= n) return -2;
+    e = (scl_edge *)malloc(sizeof(scl_edge) * (size_t)(nf > 0 ? 3 * nf : 1));
+    fill = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
+    if (!e || !fill) { free(e); free(fill); return -1; }
+    for (i = 0; i < nf; i++)
+        for (k = 0; k < 3; k++) {
+            int64_t x = faces[3 * i + k], y = faces[3 * i + (k + 1) % 3];
+            if (x == y) continue;
+            e[ne].a = x < y ? x : y;
+            e[ne].b = x < y ? y : x;
+            ne++;
+        }
+    qsort(e, (size_t)ne, sizeof(scl_edge), cmp_edge);
+    for (i = 0; i < ne; i++)
+        if (m == 0 || e[i].a != e[m - 1].a || e[i].b != e[m - 1].b) e[m++] = e[i];
+    ne = m;
+    for (i = 0; i < ne; i++) {
+        const double *p = rest + 3 * e[i].a, *q = rest + 3 * e[i].b;
+        double dx = q[0] - p[0], dy = q[1] - p[1], dz = q[2] - p[2];
+        edges[2 * i] = e[i].a;
+        edges[2 * i + 1] = e[i].b;
+        rest_len[i] = sqrt(dx * dx + dy * dy + dz * dz);
+    }
+    for (i = 0; i <= n; i++) nptr[i] = 0;
+    for (i = 0; i < ne; i++) {
+        nptr[e[i].a + 1]++;
+        nptr[e[i].b + 1]++;
+    }
+    for (i = 0; i < n; i++) nptr[i + 1] += nptr[i];
+    for (i = 0; i < n; i++) fill[i] = nptr[i];
+    /* edges sorted by (a, b): a vertex meets its smaller neighbours (as b) before its larger ones (as a) */
+    for (i = 0; i < ne; i++) {
+        nidx[fill[e[i].a]++] = e[i].b;
+        nidx[fill[e[i].b]++] = e[i].a;
+    }
+    for (i = 0; i < n; i++) {
+        double d = rest_sd[i] - attachment;
+        radius[i] = d > 0 ? (d < max_distance ? d : max_distance) : 0.0;
+    }
+    free(e);
+    free(fill);
+    return ne;
+}
+
+/* ---- per frame ------------------------------------------------------------------------------------------ */
+/* The per-sweep stiffness that gives k after `sweeps` sweeps: 1 - (1 - k)^(1/sweeps), by bisection with
+ * products only (no pow: every platform and JavaScript give the same bits). */
+SCL_API double scl_per_sweep(double k, int64_t sweeps) {
+    double lo = 0.0, hi = 1.0;
+    int s;
+    int64_t j;
+    if (!(k > 0)) return 0.0;
+    if (k >= 1 || sweeps <= 1) return k >= 1 ? 1.0 : k;
+    for (s = 0; s < 64; s++) {
+        double mid = 0.5 * (lo + hi), q = 1.0;
+        for (j = 0; j < sweeps; j++) q *= 1.0 - mid;
+        if (1.0 - q < k) lo = mid; else hi = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
+static int all_finite(const double *a, int64_t n) {
+    int64_t i;
+    for (i = 0; i < n; i++)
+        if (!(a[i] - a[i] == 0)) return 0; /* NaN and inf give NaN */
+    return 1;
+}
+
+/* Keep x within r of y (r = 0: x = y). */
+static void attach(double *x, const double *y, double r) {
+    double e0 = x[0] - y[0], e1 = x[1] - y[1], e2 = x[2] - y[2], l2 = e0 * e0 + e1 * e1 + e2 * e2;
+    if (l2 > r * r) {
+        double s = r > 0 ? r / sqrt(l2) : 0.0;
+        x[0] = y[0] + s * e0;
+        x[1] = y[1] + s * e1;
+        x[2] = y[2] + s * e2;
+    }
+}
+
+/* One edge's strain limit: move the free ends of edge e along it (Provot 1995 with PBD's stiffness). */
+static void stretch_edge(double *x, const int64_t *edges, const double *rest_len, const double *radius, int64_t e,
+                         double lo_f, double hi_f, double k) {
+    int64_t a = edges[2 * e], b = edges[2 * e + 1];
+    double *p = x + 3 * a, *q = x + 3 * b;
+    double wa = radius[a] > 0 ? 1.0 : 0.0, wb = radius[b] > 0 ? 1.0 : 0.0, d0, d1, d2, l2, hi, lo, len, c, s;
+    if (wa + wb == 0) return;
+    d0 = q[0] - p[0];
+    d1 = q[1] - p[1];
+    d2 = q[2] - p[2];
+    l2 = d0 * d0 + d1 * d1 + d2 * d2;
+    hi = hi_f * rest_len[e];
+    lo = lo_f * rest_len[e];
+    if (l2 <= hi * hi && l2 >= lo * lo) return; /* within the limits (most edges): no square root */
+    len = sqrt(l2);
+    if (len < SCL_TINY) return; /* no direction: left to the other constraints */
+    c = l2 > hi * hi ? len - hi : len - lo; /* the side decided as above (the root may round onto hi) */
+    s = k * c / (len * (wa + wb));
+    p[0] += wa * s * d0;
+    p[1] += wa * s * d1;
+    p[2] += wa * s * d2;
+    q[0] -= wb * s * d0;
+    q[1] -= wb * s * d1;
+    q[2] -= wb * s * d2;
+}
+
+/* One vertex's smoothing: its deviation from the target moved toward its neighbours' mean deviation. */
+static void smooth_vertex(double *x, const double *y, const int64_t *nptr, const int64_t *nidx, const double *radius,
+                          int64_t i, double k) {
+    int64_t j, deg = nptr[i + 1] - nptr[i];
+    double m0 = 0, m1 = 0, m2 = 0;
+    if (deg == 0 || !(radius[i] > 0)) return;
+    for (j = nptr[i]; j < nptr[i + 1]; j++) {
+        int64_t v = nidx[j];
+        m0 += x[3 * v] - y[3 * v];
+        m1 += x[3 * v + 1] - y[3 * v + 1];
+        m2 += x[3 * v + 2] - y[3 * v + 2];
+    }
+    m0 /= (double)deg;
+    m1 /= (double)deg;
+    m2 /= (double)deg;
+    x[3 * i] += k * (m0 - (x[3 * i] - y[3 * i]));
+    x[3 * i + 1] += k * (m1 - (x[3 * i + 1] - y[3 * i + 1]));
+    x[3 * i + 2] += k * (m2 - (x[3 * i + 2] - y[3 * i + 2]));
+}
+
+/* The cloth stage on nb frames: targets (B, N, 3) -> out (B, N, 3), against the posed body (B, V, 3) through the
+ * collider (sdc_create on the body's faces), with the per-garment data of scl_setup and settings (S_COUNT,).
+ * state (3, N, 3): the last output, the one before it and the last target; info (I_COUNT,): I_HAVE how many of
+ * the state's frames are set (0: none, the next frame starts from its target), counts added to (I_RESETS,
+ * I_CONTACTS: vertex-frames with a contact plane, I_PUSHED: vertex-frames the final push-out moved), and
+ * I_FIRST_RESET set to the first frame of this call that reset the state (-1: none).
+ * Returns 0; -1 when out of memory; 1 + f when frame f's target or body holds NaN or inf (the frames before it
+ * are done, the state is theirs). */
+SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const double *rest_len, const int64_t *nptr,
+                         const int64_t *nidx, const double *radius, const double *settings, const void *collider,
+                         int64_t nv, const double *body, int64_t nb, const double *target, double *out, double *state,
+                         int64_t *info) {
+    int64_t iters = (int64_t)settings[S_ITERATIONS], n_nodes = sdc_n_nodes(collider), f, i, it, e;
+    double ks = scl_per_sweep(settings[S_STIFFNESS], iters), kb = scl_per_sweep(settings[S_BENDING], iters);
+    double hi_f = 1.0 + settings[S_STRETCH], lo_f = 1.0 - settings[S_COMPRESS];
+    double keep = 1.0 - settings[S_DAMPING], drop = settings[S_GRAVITY] * settings[S_DT] * settings[S_DT];
+    double margin = settings[S_MARGIN], reset = settings[S_RESET], band = SCL_CONTACT_BAND;
+    double follow = settings[S_FOLLOW];
+    double *x1 = state, *x0 = state + 3 * n, *yp = state + 6 * n;
+    double *box = (double *)malloc(sizeof(double) * 6 * (size_t)n_nodes);
+    double *sd = (double *)malloc(sizeof(double) * (size_t)n);
+    double *cp = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    double *cn = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    double *q = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    int64_t *pick = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
+    uint8_t *moved = (uint8_t *)malloc((size_t)n);
+    int64_t status = 0;
+    if (iters < 1) iters = 1;
+    info[I_FIRST_RESET] = -1;
+    if (!box || !sd || !cp || !cn || !q || !pick || !moved) { status = -1; goto done; }
+    for (f = 0; f < nb; f++) {
+        const double *y = target + 3 * n * f, *bv = body + 3 * nv * f;
+        double *x = out + 3 * n * f;
+        int64_t have = info[I_HAVE], m;
+        if (!all_finite(y, 3 * n) || !all_finite(bv, 3 * nv)) { status = 1 + f; goto done; }
+        if (have > 0) { /* a teleport: the target moved more than `reset` on average */
+            double s = 0;
+            for (i = 0; i < n; i++) {
+                double d0 = y[3 * i] - yp[3 * i], d1 = y[3 * i + 1] - yp[3 * i + 1], d2 = y[3 * i + 2] - yp[3 * i + 2];
+                s += sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+            }
+            if (!(s / (double)n <= reset)) {
+                have = 0;
+                info[I_RESETS]++;
+                if (info[I_FIRST_RESET] < 0) info[I_FIRST_RESET] = f;
+            }
+        }
+        /* predict: inertia and gravity from the previous outputs, within the attachment */
+        for (i = 0; i < n; i++) {
+            double *p = x + 3 * i;
+            if (have == 0) {
+                p[0] = y[3 * i];
+                p[1] = y[3 * i + 1];
+                p[2] = y[3 * i + 2];
+            } else {
+                double v0 = 0, v1 = 0, v2 = 0;
+                if (have >= 2) {
+                    v0 = x1[3 * i] - x0[3 * i];
+                    v1 = x1[3 * i + 1] - x0[3 * i + 1];
+                    v2 = x1[3 * i + 2] - x0[3 * i + 2];
+                }
+                p[0] = x1[3 * i] + keep * v0;
+                p[1] = x1[3 * i + 1] + keep * v1 - drop;
+                p[2] = x1[3 * i + 2] + keep * v2;
+                p[0] += follow * (y[3 * i] - p[0]);
+                p[1] += follow * (y[3 * i + 1] - p[1]);
+                p[2] += follow * (y[3 * i + 2] - p[2]);
+            }
+            attach(p, y + 3 * i, radius[i]);
+        }
+        /* contacts: a plane for every vertex inside the body or near it */
+        sdc_refit(collider, bv, box);
+        sdc_near(collider, bv, box, x, 0, n, margin + band, sd, cp, cn);
+        memcpy(q, x, sizeof(double) * 3 * (size_t)n);
+        /* the sweeps, alternating direction */
+        for (it = 0; it < iters; it++) {
+            int fwd = it % 2 == 0;
+            for (e = 0; e < ne; e++) stretch_edge(x, edges, rest_len, radius, fwd ? e : ne - 1 - e, lo_f, hi_f, ks);
+            if (kb > 0)
+                for (i = 0; i < n; i++) smooth_vertex(x, y, nptr, nidx, radius, fwd ? i : n - 1 - i, kb);
+            for (i = 0; i < n; i++) {
+                double *p = x + 3 * i, s;
+                attach(p, y + 3 * i, radius[i]);
+                if (!(sd[i] < margin + band)) continue;
+                s = cn[3 * i] * (p[0] - cp[3 * i]) + cn[3 * i + 1] * (p[1] - cp[3 * i + 1]) +
+                    cn[3 * i + 2] * (p[2] - cp[3 * i + 2]) - margin;
+                if (s < 0) {
+                    p[0] -= s * cn[3 * i];
+                    p[1] -= s * cn[3 * i + 1];
+                    p[2] -= s * cn[3 * i + 2];
+                }
+            }
+        }
+        /* the exact push-out of every vertex that may be inside or closer than the margin: those found inside or
+         * within it, and those that moved farther than their clearance (the distance from the body less the
+         * margin, at least the band for vertices not found) since the contacts were found */
+        m = 0;
+        for (i = 0; i < n; i++) {
+            double d0 = x[3 * i] - q[3 * i], d1 = x[3 * i + 1] - q[3 * i + 1], d2 = x[3 * i + 2] - q[3 * i + 2];
+            double clear = (sd[i] < margin + band ? sd[i] : margin + band) - margin;
+            info[I_CONTACTS] += sd[i] < margin + band;
+            if (!(clear > 0) || d0 * d0 + d1 * d1 + d2 * d2 >= clear * clear) {
+                pick[m] = i;
+                q[3 * m] = x[3 * i];
+                q[3 * m + 1] = x[3 * i + 1];
+                q[3 * m + 2] = x[3 * i + 2];
+                moved[m] = 0;
+                m++;
+            }
+        }
+        if (m > 0) {
+            info[I_PUSHED] += sdc_push_out(collider, bv, box, 1, q, m, 0, m, margin, SCL_PASSES, moved);
+            for (i = 0; i < m; i++) {
+                x[3 * pick[i]] = q[3 * i];
+                x[3 * pick[i] + 1] = q[3 * i + 1];
+                x[3 * pick[i] + 2] = q[3 * i + 2];
+            }
+        }
+        /* the state: this frame, the one before, this target */
+        if (have == 0) memcpy(x0, x, sizeof(double) * 3 * (size_t)n);
+        else memcpy(x0, x1, sizeof(double) * 3 * (size_t)n);
+        memcpy(x1, x, sizeof(double) * 3 * (size_t)n);
+        memcpy(yp, y, sizeof(double) * 3 * (size_t)n);
+        info[I_HAVE] = have == 0 ? 1 : 2;
+    }
+done:
+    free(box); free(sd); free(cp); free(cn); free(q); free(pick); free(moved);
+    return status;
+}
+
+/* ---- the Python extension module ------------------------------------------------------------------------ */
+/* Built (with _collide.c) as the empty module segadeform.body._cloth so that setuptools compiles it at install;
+ * the functions above are reached through ctypes.  Other builds leave SCL_PYTHON_MODULE undefined. */
+#ifdef SCL_PYTHON_MODULE
+static struct PyModuleDef scl_module = {PyModuleDef_HEAD_INIT, "_cloth",
+                                        "segadeform's compiled cloth stage (called through ctypes).", -1, NULL, NULL,
+                                        NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__cloth(void) { return PyModule_Create(&scl_module); }
+#endif

@@ -1,0 +1,495 @@
+"""The cloth stage: a deterministic, stateful contact-and-stretch pass after the network.
+
+It takes the network's frames as targets and returns frames that behave like cloth against the posed body:
+edges held within a stretch limit, contact with the body resolved with the neighbours moving along, inertia and
+gravity from the previous output frames, and every vertex within a bounded distance of its target (zero where
+the garment lies on the body at rest, so there it follows the network exactly).  The method -- position-based
+dynamics (Mueller et al. 2007) with strain limiting (Provot 1995), smoothing of the deviation from the target,
+max-distance attachments and contact planes, then the collision stage's exact push-out -- and the meaning of
+every knob are in the kernel's header, ``src/segadeform/body/_cloth.c``.
+
+Side by side:
+
+* :class:`ClothStage` -- the fast path: the compiled kernel ``_cloth.c`` (built with the collision kernel it
+  calls as the extension ``segadeform.body._cloth``; the C++ runtime compiles the same file and
+  ``runtimes/node/src/cloth.js`` ports it) through ctypes.  It keeps the state between calls, so batches of any
+  size and a stream of any length give the frames of one long call; memory is O(N).
+* :func:`garment_setup` -- the per-garment data (edges, rest lengths, neighbours, each vertex's attachment
+  radius from its distance to the body at rest), computed once and cached on disk with the garment
+  (``C-<hash>.npz`` in the user cache, :mod:`segadeform.cache`), as the garment's encoding is.
+* :func:`cloth_setup_reference` and :func:`cloth_reference` -- the slow, obvious references: the same rule in
+  numpy and Python loops, contacts and the final push-out from the numpy :class:`BodyCollider`; tests compare
+  them with the kernel.
+
+Without the compiled kernel (no C compiler at install) the stage is not available: :class:`ClothStage` says so
+(the reference is far too slow for production).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import dataclasses
+import hashlib
+import importlib.util
+import logging
+import threading
+import weakref
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from ..cloth_settings import ClothSettings
+from ..errors import InputError
+from ..geometry._checks import check_mesh
+
+__all__ = ["ClothSettings", "ClothSetup", "ClothStage", "cloth_setup", "cloth_setup_reference", "cloth_reference",
+           "garment_setup", "rest_signed_distance", "compiled_available", "settings_array", "CONTACT_BAND"]
+
+log = logging.getLogger(__name__)
+
+#: metres beyond the margin within which a vertex gets a contact plane (_cloth.c's SCL_CONTACT_BAND)
+CONTACT_BAND = 0.01
+#: the final push-out's passes (_cloth.c's SCL_PASSES: segadeform.body.collision.push_out's default)
+PASSES = 3
+#: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
+SETUP_VERSION = 1
+_ABI = 1
+#: the order of _cloth.c's settings array
+_SETTINGS = ("iterations", "stiffness", "stretch", "compress", "bending", "damping", "gravity", "dt", "margin",
+             "reset", "follow")
+
+
+def settings_array(settings: ClothSettings, *, margin: float, dt: float) -> np.ndarray:
+    """The kernel's settings array (``_cloth.c``'s ``S_*`` order) for ``settings``, the collision ``margin`` (m)
+    and the time step ``dt`` (s per frame).  Shapes: -> (11,)"""
+    if not isinstance(settings, ClothSettings):
+        raise InputError("cloth settings must be a ClothSettings", got=type(settings).__name__)
+    margin, dt = float(margin), float(dt)
+    if not (np.isfinite(margin) and 0 <= margin < 1):
+        raise InputError("the collision margin must be in [0, 1) metres", got=margin)
+    if not (np.isfinite(dt) and 0 < dt <= 10):
+        raise InputError("the time step must be in (0, 10] seconds", got=dt)
+    vals = dataclasses.asdict(settings) | {"dt": dt, "margin": margin}
+    return np.array([float(vals[k]) for k in _SETTINGS], np.float64)
+
+
+# ---- the compiled kernel ------------------------------------------------------------------------------------
+_KERNEL_LOCK = threading.Lock()
+_KERNEL: dict = {}  # the loaded library, filled on first use: {"lib": CDLL | None, "why": str}
+
+
+def _load_kernel():
+    """The compiled cloth kernel (a ctypes library) and, when it is missing, why; loaded once per process."""
+    with _KERNEL_LOCK:
+        if not _KERNEL:
+            lib, why = None, ""
+            try:
+                spec = importlib.util.find_spec(__name__.rsplit(".", 1)[0] + "._cloth")
+                if spec is None or not spec.origin:
+                    why = "the extension module was not built (no C compiler at install?)"
+                else:
+                    lib = ctypes.CDLL(spec.origin)
+                    if lib.scl_abi() != _ABI or lib.scl_n_settings() != len(_SETTINGS):
+                        lib, why = None, f"{spec.origin} is from another version (reinstall segadeform)"
+            except (OSError, ImportError, AttributeError) as e:
+                lib, why = None, f"cannot load it ({e})"
+            if lib is not None:
+                p, i64, f64 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+                for name, res, args in (
+                        ("sdc_create", p, (p, i64, p, i64, i64)), ("sdc_free", None, (p,)),
+                        ("scl_setup", i64, (p, i64, p, i64, p, f64, f64, p, p, p, p, p)),
+                        ("scl_per_sweep", f64, (f64, i64)),
+                        ("scl_step", i64, (i64, i64, p, p, p, p, p, p, p, i64, p, i64, p, p, p, p))):
+                    fn = getattr(lib, name)
+                    fn.restype, fn.argtypes = res, args
+            _KERNEL.update(lib=lib, why=why)
+        return _KERNEL["lib"], _KERNEL["why"]
+
+
+def compiled_available() -> bool:
+    """Whether the compiled cloth kernel was built and loads (the stage needs it)."""
+    return _load_kernel()[0] is not None
+
+
+def _kernel():
+    lib, why = _load_kernel()
+    if lib is None:
+        raise InputError("the cloth stage needs its compiled kernel, which is not available (reinstall segadeform "
+                         "with a C compiler: pip install -e .)", expected="segadeform.body._cloth", got=why)
+    return lib
+
+
+def _ptr(a: np.ndarray) -> int:
+    return a.ctypes.data
+
+
+# ---- per garment ---------------------------------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True, eq=False)
+class ClothSetup:
+    """The per-garment data of the cloth stage (``_cloth.c``'s ``scl_setup``).
+
+    Shapes: edges (E, 2) int64, a < b, sorted; rest_len (E,); nptr (N + 1,) int64 and nidx (2E,) int64: vertex i's
+    neighbours ``nidx[nptr[i]:nptr[i + 1]]``, ascending; radius (N,): how far vertex i may leave its target."""
+
+    edges: np.ndarray
+    rest_len: np.ndarray
+    nptr: np.ndarray
+    nidx: np.ndarray
+    radius: np.ndarray
+
+    @property
+    def n_vertices(self) -> int:
+        return len(self.radius)
+
+    def validate(self) -> "ClothSetup":
+        n, e = len(self.radius), len(self.edges)
+        ok = (self.edges.dtype == np.int64 and self.edges.shape == (e, 2) and self.rest_len.shape == (e,)
+              and self.nptr.dtype == np.int64 and self.nptr.shape == (n + 1,) and self.nidx.dtype == np.int64
+              and self.nidx.shape == (2 * e,) and self.radius.dtype == np.float64 and n >= 1
+              and self.rest_len.dtype == np.float64)
+        ok = ok and (e == 0 or (self.edges.min() >= 0 and self.edges.max() < n and (self.edges[:, 0] < self.edges[:, 1]).all()))
+        ok = ok and self.nptr[0] == 0 and self.nptr[-1] == 2 * e and (np.diff(self.nptr) >= 0).all()
+        ok = ok and (2 * e == 0 or (self.nidx.min() >= 0 and self.nidx.max() < n))
+        ok = ok and np.isfinite(self.rest_len).all() and np.isfinite(self.radius).all() and (self.radius >= 0).all()
+        if not ok:
+            raise InputError("inconsistent cloth setup", expected="scl_setup's arrays",
+                             got=f"edges {self.edges.shape}, nptr {self.nptr.shape}, radius {self.radius.shape}")
+        return self
+
+    def save(self, path) -> Path:
+        from ..io.atomic import atomic_path
+
+        p = Path(path)
+        with atomic_path(p) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez(fh, **{f.name: getattr(self, f.name) for f in dataclasses.fields(self)})
+        return p
+
+    @classmethod
+    def load(cls, path) -> "ClothSetup":
+        with np.load(path, allow_pickle=False) as z:
+            return cls(**{f.name: np.asarray(z[f.name]) for f in dataclasses.fields(cls)}).validate()
+
+
+def _check_setup_inputs(rest, faces, rest_sd, settings):
+    v, f = check_mesh(rest, faces)
+    sd = np.ascontiguousarray(rest_sd, np.float64)
+    if sd.shape != (len(v),) or not np.isfinite(sd).all():
+        raise InputError("rest distances must be finite, one per garment vertex", expected=(len(v),), got=sd.shape)
+    if not isinstance(settings, ClothSettings):
+        raise InputError("cloth settings must be a ClothSettings", got=type(settings).__name__)
+    return np.ascontiguousarray(v, np.float64), np.ascontiguousarray(f, np.int64), sd
+
+
+def cloth_setup(rest, faces, rest_sd, settings: ClothSettings = ClothSettings()) -> ClothSetup:
+    """The per-garment data by the compiled kernel (``scl_setup``).
+
+    Shapes:
+        rest: (N, 3) the garment at rest; faces: (F, 3); rest_sd: (N,) signed distance of each vertex from the body
+        at rest (:func:`rest_signed_distance`) -> :class:`ClothSetup`
+    """
+    lib = _kernel()
+    v, f, sd = _check_setup_inputs(rest, faces, rest_sd, settings)
+    n, nf = len(v), len(f)
+    edges = np.empty((max(3 * nf, 1), 2), np.int64)
+    rest_len = np.empty(max(3 * nf, 1))
+    nptr = np.empty(n + 1, np.int64)
+    nidx = np.empty(max(6 * nf, 1), np.int64)
+    radius = np.empty(n)
+    ne = lib.scl_setup(_ptr(v), n, _ptr(f), nf, _ptr(sd), float(settings.attachment), float(settings.max_distance),
+                       _ptr(edges), _ptr(rest_len), _ptr(nptr), _ptr(nidx), _ptr(radius))
+    if ne == -1:
+        raise MemoryError("out of memory in the cloth stage's setup")
+    if ne < 0:
+        raise InputError("a face index is out of range", expected=f"0..{n - 1}")
+    return ClothSetup(edges=edges[:ne].copy(), rest_len=rest_len[:ne].copy(), nptr=nptr, nidx=nidx[:2 * ne].copy(),
+                      radius=radius)
+
+
+def cloth_setup_reference(rest, faces, rest_sd, settings: ClothSettings = ClothSettings()) -> ClothSetup:
+    """:func:`cloth_setup` in numpy, the obvious way (the reference the kernel is tested against)."""
+    v, f, sd = _check_setup_inputs(rest, faces, rest_sd, settings)
+    n = len(v)
+    pairs = np.stack([f, np.roll(f, -1, axis=1)], axis=-1).reshape(-1, 2)  # (a, b) of every face side
+    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+    pairs = np.unique(np.sort(pairs, axis=1), axis=0)  # sorted by (a, b)
+    d = v[pairs[:, 1]] - v[pairs[:, 0]]
+    rest_len = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
+    src = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    dst = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    order = np.lexsort((dst, src))
+    nptr = np.concatenate([[0], np.cumsum(np.bincount(src, minlength=n))]).astype(np.int64)
+    over = sd - settings.attachment
+    radius = np.where(over > 0, np.minimum(over, settings.max_distance), 0.0)
+    return ClothSetup(edges=pairs.astype(np.int64).reshape(-1, 2), rest_len=rest_len, nptr=nptr,
+                      nidx=dst[order].astype(np.int64), radius=radius.astype(np.float64))
+
+
+def rest_signed_distance(rest, rest_body, body_faces) -> np.ndarray:
+    """Signed distance (negative inside) of each garment vertex from the body at rest (the exact closest point,
+    :class:`BodyCollider`): what the attachment radii derive from.
+
+    Shapes:
+        rest: (N, 3); rest_body: (V, 3); body_faces: (F, 3) -> (N,)
+    """
+    from .collision import BodyCollider
+
+    return BodyCollider(rest_body, body_faces).query(np.asarray(rest, np.float64), rest_body).signed_distance
+
+
+def garment_setup(rest, faces, rest_body, body_faces, settings: ClothSettings = ClothSettings(), *,
+                  cache_dir=None) -> ClothSetup:
+    """The per-garment data for the garment ``rest``/``faces`` on the body at rest ``rest_body``/``body_faces``,
+    read from ``cache_dir`` when it was computed before (``C-<hash>.npz``, keyed by every input and
+    :data:`SETUP_VERSION`), else computed (:func:`rest_signed_distance`, :func:`cloth_setup`) and written there.
+
+    Shapes:
+        rest: (N, 3); faces: (F, 3); rest_body: (V, 3); body_faces: (F', 3) -> :class:`ClothSetup`
+    """
+    v = np.ascontiguousarray(rest, np.float64)
+    f = np.ascontiguousarray(faces, np.int64)
+    b = np.ascontiguousarray(rest_body, np.float64)
+    bf = np.ascontiguousarray(body_faces, np.int64)
+    h = hashlib.sha256(f"cloth-setup-v{SETUP_VERSION}-{settings.attachment!r}-{settings.max_distance!r}".encode())
+    for a in (v, f, b, bf):
+        h.update(str(a.shape).encode() + a.tobytes())
+    path = Path(cache_dir) / f"C-{h.hexdigest()[:32]}.npz" if cache_dir is not None else None
+    if path is not None and path.is_file():
+        try:
+            s = ClothSetup.load(path)
+            if s.n_vertices == len(v):
+                return s
+        except (OSError, ValueError, KeyError):  # a broken entry is computed again
+            log.warning("ignoring unreadable cloth setup cache %s", path)
+    s = cloth_setup(v, f, rest_signed_distance(v, b, bf), settings)
+    if path is not None:
+        try:
+            s.save(path)
+        except OSError as e:
+            log.warning("cannot write the cloth setup cache %s (%s)", path, e.strerror or e)
+    return s
+
+
+# ---- the stage -----------------------------------------------------------------------------------------------
+class ClothStage:
+    """The cloth stage for one garment on one body, keeping its state between calls (:meth:`step`).
+
+    Args:
+        setup: the garment's :class:`ClothSetup` (:func:`garment_setup`).
+        body_vertices: (V, 3) any pose of the body (its collider's tree is built from it); body_faces: (F, 3).
+        settings: the knobs; margin: metres kept from the body (the collision margin); dt: seconds per frame.
+
+    Counters (vertex-frames unless said): ``frames``, ``resets`` (frames where the state was reset because the
+    garment jumped, :attr:`ClothSettings.reset`; the first is logged), ``contacts`` (given a contact plane),
+    ``pushed`` (moved by the final push-out).
+    """
+
+    def __init__(self, setup: ClothSetup, body_vertices, body_faces, settings: ClothSettings = ClothSettings(), *,
+                 margin: float = 0.004, dt: float = 1.0 / 30.0) -> None:
+        lib = _kernel()
+        setup.validate()
+        bv, bf = check_mesh(body_vertices, body_faces)
+        if len(bf) == 0:
+            raise InputError("the body has no faces", expected="F >= 1", got=0)
+        self.setup, self.settings = setup, settings
+        self._settings = settings_array(settings, margin=margin, dt=dt)
+        self.margin, self.dt = float(margin), float(dt)
+        self.n_vertices, self.n_body = setup.n_vertices, len(bv)
+        v = np.ascontiguousarray(bv, np.float64)
+        f = np.ascontiguousarray(bf, np.int64)
+        h = lib.sdc_create(_ptr(v), len(v), _ptr(f), len(f), 4)
+        if not h:
+            raise MemoryError("out of memory building the cloth stage's body collider")
+        self._lib, self._h = lib, h
+        self._free = weakref.finalize(self, lib.sdc_free, h)
+        self._arrays = [np.ascontiguousarray(a) for a in (setup.edges, setup.rest_len, setup.nptr, setup.nidx,
+                                                          setup.radius)]
+        self._state = np.zeros((3, self.n_vertices, 3))
+        self._info = np.zeros(5, np.int64)  # have, resets, contacts, pushed, first reset of the last call
+        self.frames = 0
+
+    @property
+    def resets(self) -> int:
+        return int(self._info[1])
+
+    @property
+    def contacts(self) -> int:
+        return int(self._info[2])
+
+    @property
+    def pushed(self) -> int:
+        return int(self._info[3])
+
+    def reset(self) -> None:
+        """Forget the previous frames: the next one starts from its target with no velocity."""
+        self._info[0] = 0
+
+    def step(self, targets, posed) -> np.ndarray:
+        """The next frames of the garment.
+
+        Shapes:
+            targets: (B, N, 3) the network's frames; posed: (B, V, 3) the posed body -> (B, N, 3) float64
+        """
+        y = np.asarray(targets)
+        bv = np.asarray(posed)
+        if y.ndim != 3 or y.shape[1:] != (self.n_vertices, 3):
+            raise InputError("the cloth stage takes frames of the garment", expected=f"(B, {self.n_vertices}, 3)",
+                             got=y.shape)
+        if bv.shape != (len(y), self.n_body, 3):
+            raise InputError("the posed body must have the body's vertices, one frame per garment frame",
+                             expected=(len(y), self.n_body, 3), got=bv.shape)
+        for what, a in (("garment frames", y), ("posed body", bv)):
+            if np.isfinite(np.add.reduce(a, axis=None)):  # quick: NaN and inf propagate into the sum
+                continue
+            bad = ~np.isfinite(a).reshape(len(a), -1).all(axis=1)
+            if bad.any():
+                raise InputError(f"the cloth stage got NaN or inf in the {what} at frame {self.frames + int(np.argmax(bad))}",
+                                 expected="finite coordinates (from the deformer and the body)")
+        y = np.ascontiguousarray(y, np.float64)
+        bv = np.ascontiguousarray(bv, np.float64)
+        out = np.empty_like(y)
+        before = self.resets
+        e, rl, nptr, nidx, rad = self._arrays
+        status = self._lib.scl_step(self.n_vertices, len(e), _ptr(e), _ptr(rl), _ptr(nptr), _ptr(nidx), _ptr(rad),
+                                    _ptr(self._settings), self._h, self.n_body, _ptr(bv), len(y), _ptr(y), _ptr(out),
+                                    _ptr(self._state), _ptr(self._info))
+        if status == -1:
+            raise MemoryError("out of memory in the cloth stage")
+        if status != 0:  # not reached: the inputs were checked above
+            raise InputError("the cloth stage got NaN or inf", expected="finite coordinates",
+                             got=f"frame {self.frames + status - 1}")
+        if self.resets > before and before == 0:
+            f = int(self._info[4])
+            prev = y[f - 1] if f > 0 else None
+            jump = float(np.linalg.norm(y[f] - prev, axis=1).mean()) if prev is not None else float("nan")
+            log.warning("cloth: the garment moved %s m on average into frame %d (more than reset=%g m): the stage "
+                        "started again from the network's frame there (reported once; later resets are counted)",
+                        f"{jump:.3g}" if prev is not None else "more than the reset distance",
+                        self.frames + f, self.settings.reset)
+        self.frames += len(y)
+        return out
+
+
+# ---- the slow, obvious reference -------------------------------------------------------------------------------
+def _per_sweep(k: float, sweeps: int) -> float:
+    """1 - (1 - k)^(1/sweeps) by bisection with products only (``scl_per_sweep``)."""
+    if not k > 0:
+        return 0.0
+    if k >= 1 or sweeps <= 1:
+        return 1.0 if k >= 1 else float(k)
+    lo, hi = 0.0, 1.0
+    for _ in range(64):
+        mid = 0.5 * (lo + hi)
+        q = 1.0
+        for _ in range(sweeps):
+            q *= 1.0 - mid
+        if 1.0 - q < k:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def cloth_reference(targets, posed, body_faces, setup: ClothSetup, settings: ClothSettings = ClothSettings(), *,
+                    margin: float = 0.004, dt: float = 1.0 / 30.0, state: Optional[dict] = None):
+    """The cloth stage's rule, slowly and obviously: every frame, vertex and edge in Python, in the kernel's order;
+    contacts and the final push-out by the numpy :class:`BodyCollider` (exact closest points).  ``state`` (from a
+    previous call, or None) is updated in place and returned.
+
+    Shapes:
+        targets: (B, N, 3); posed: (B, V, 3); body_faces: (F, 3) -> (B, N, 3), state dict
+    """
+    from .collision import BodyCollider
+
+    s = dict(zip(_SETTINGS, settings_array(settings, margin=margin, dt=dt)))
+    iters = int(s["iterations"])
+    ks, kb = _per_sweep(s["stiffness"], iters), _per_sweep(s["bending"], iters)
+    hi_f, lo_f = 1.0 + s["stretch"], 1.0 - s["compress"]
+    keep, drop = 1.0 - s["damping"], s["gravity"] * s["dt"] * s["dt"]
+    y_all = np.asarray(targets, np.float64)
+    b_all = np.asarray(posed, np.float64)
+    n = setup.n_vertices
+    st = state if state is not None else {}
+    st.setdefault("have", 0)
+    for k in ("resets", "contacts", "pushed"):
+        st.setdefault(k, 0)
+    col = BodyCollider(b_all[0], body_faces, backend="numpy")
+    w = (setup.radius > 0).astype(np.float64)
+    out = np.empty_like(y_all)
+    for f in range(len(y_all)):
+        y, bv = y_all[f], b_all[f]
+        have = st["have"]
+        if have > 0 and not np.linalg.norm(y - st["yp"], axis=1).mean() <= s["reset"]:
+            have = 0
+            st["resets"] += 1
+        # predict
+        if have == 0:
+            x = y.copy()
+        else:
+            v = st["x1"] - st["x0"] if have >= 2 else np.zeros_like(y)
+            x = st["x1"] + keep * v - np.array([0.0, drop, 0.0])
+            x = x + s["follow"] * (y - x)
+        for i in range(n):
+            _attach(x, y, i, setup.radius[i])
+        # contacts
+        q = col.query(x, bv)
+        contact = q.signed_distance < margin + CONTACT_BAND
+        x_query = x.copy()
+        for it in range(iters):
+            fwd = it % 2 == 0
+            for e in (range(len(setup.edges)) if fwd else reversed(range(len(setup.edges)))):
+                a, b = setup.edges[e]
+                wa, wb = w[a], w[b]
+                if wa + wb == 0:
+                    continue
+                d = x[b] - x[a]
+                l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+                hi, lo = hi_f * setup.rest_len[e], lo_f * setup.rest_len[e]
+                if lo * lo <= l2 <= hi * hi:
+                    continue
+                length = np.sqrt(l2)
+                if length < 1e-300:
+                    continue
+                c = length - hi if l2 > hi * hi else length - lo
+                sc = ks * c / (length * (wa + wb))
+                x[a] = x[a] + wa * sc * d
+                x[b] = x[b] - wb * sc * d
+            if kb > 0:
+                for i in (range(n) if fwd else reversed(range(n))):
+                    nb = setup.nidx[setup.nptr[i]:setup.nptr[i + 1]]
+                    if len(nb) == 0 or not setup.radius[i] > 0:
+                        continue
+                    m = np.zeros(3)
+                    for j in nb:
+                        m = m + (x[j] - y[j])
+                    m = m / float(len(nb))
+                    x[i] = x[i] + kb * (m - (x[i] - y[i]))
+            for i in range(n):
+                _attach(x, y, i, setup.radius[i])
+                if contact[i]:
+                    nrm, cp = q.normal[i], q.closest[i]
+                    sep = nrm[0] * (x[i, 0] - cp[0]) + nrm[1] * (x[i, 1] - cp[1]) + nrm[2] * (x[i, 2] - cp[2]) - margin
+                    if sep < 0:
+                        x[i] = x[i] - sep * nrm
+        clear = np.where(contact, q.signed_distance, margin + CONTACT_BAND) - margin
+        moved = np.sum((x - x_query) ** 2, axis=1) >= clear * clear
+        pick = np.flatnonzero(~(clear > 0) | moved)
+        st["contacts"] += int(contact.sum())
+        if len(pick):
+            pushed, count = col.push_out(x[pick], bv, margin, iterations=PASSES)
+            x[pick] = pushed
+            st["pushed"] += count
+        st["x0"] = x.copy() if have == 0 else st["x1"]
+        st["x1"], st["yp"], st["have"] = x.copy(), y.copy(), 1 if have == 0 else 2
+        out[f] = x
+    return out, st
+
+
+def _attach(x, y, i, r):
+    """Keep x[i] within r of y[i] (``attach`` in _cloth.c)."""
+    e = x[i] - y[i]
+    l2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
+    if l2 > r * r:
+        s = r / np.sqrt(l2) if r > 0 else 0.0
+        x[i] = y[i] + s * e
