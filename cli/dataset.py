@@ -9,6 +9,11 @@ import click
 
 from .main import cli
 
+#: what `dataset make` writes at the top of its folder (segadeform.dataset.make), and what marks a dataset
+#: folder made before folders had an outputs manifest
+DATASET_LAYOUT = ("config.toml", "configs", "garments", "samples", "rejected", "log.jsonl")
+DATASET_LEGACY = ("samples", "garments")
+
 
 @cli.group("dataset")
 def dataset_group():
@@ -30,16 +35,19 @@ def dataset_group():
 @click.option("--dataset", "roots", multiple=True, type=click.Path(exists=True, path_type=Path),
               help="A read-only dataset root (a pack, a folder of packs, a dataset folder): samples it holds are "
                    "done and not made again. Repeatable; the config's dataset.roots are read too.")
-def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, roots):
+@click.option("--force", is_flag=True, help="Write into a folder that holds other files (beside them, never over "
+              "them); a dataset folder is continued without it.")
+def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, roots, force):
     """Simulate every garment x body x motion of CONFIG.toml into OUTPUT (resumable)."""
     from segadeform.dataset import load_dataset_config, make_dataset
     from segadeform.executors import make_executor
-    from segadeform.io.location import open_location
+    from segadeform.io.output_guard import OutputGuard
     from segadeform.physics import find_sim_python
 
     cfg = load_dataset_config(config)
+    guard = OutputGuard("dataset", force=force, inputs=(config, body, *roots))
+    loc = guard.resumable(output, layout=DATASET_LAYOUT, legacy=DATASET_LEGACY)
     ex = make_executor(executor, jobs)
-    loc = open_location(output)
     if not ex.remote:
         find_sim_python(sim_python)  # fail before planning anything (a cluster's workers make theirs)
     n = [0]
@@ -50,9 +58,13 @@ def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, ro
         spf = f"{rec['seconds_per_frame']:.3f} s/frame" if "seconds_per_frame" in rec else ""
         click.echo(f"[{n[0]}] {rec['id']} ({rec['vertices']} v) {rec['status']} {spf}{why}", err=True)
 
-    with ex:
-        s = make_dataset(cfg, loc, body_path=body, sim_python=sim_python, progress=progress,
-                         limit=limit, executor=ex, roots=roots)
+    try:
+        with ex:
+            guard.start()
+            s = make_dataset(cfg, loc, body_path=body, sim_python=sim_python, progress=progress,
+                             limit=limit, executor=ex, roots=roots)
+    finally:
+        guard.abandon()  # a run that made nothing leaves no empty folder
     click.echo(f"{s.planned} planned, {s.skipped} already done, {s.kept} kept, {s.rejected} rejected -> {output}")
 
 
@@ -86,8 +98,12 @@ def dataset_regate_cmd(config, output, body):
     rejected alike), moving those whose status changes; nothing is simulated."""
     from segadeform.dataset import load_dataset_config
     from segadeform.dataset.make import regate
+    from segadeform.io.output_guard import OutputGuard
 
     cfg = load_dataset_config(config)
+    # regate moves a dataset's own files: a folder that is not a dataset (made by `dataset make`) is refused
+    OutputGuard("dataset", inputs=(config, body), replaces=False).resumable(output, layout=DATASET_LAYOUT,
+                                                                            legacy=DATASET_LEGACY)
     r = regate(output, cfg, body_path=body)
     for sid, status in r.moved:
         click.echo(f"{sid}: now {status}")
@@ -112,8 +128,13 @@ def dataset_pack_cmd(folder, output, skip, no_rejected, body):
     from segadeform.dataset.pack import write_pack
     from segadeform.dataset.roots import expand_root
 
+    from segadeform.io.output_guard import OutputGuard
+
+    guard = OutputGuard("dataset pack", replaces=False, inputs=(folder, body, *skip))
+    guard.file(output)
     packs = [p for s in skip for p in expand_root(s) if not isinstance(p, Path)]
     s = write_pack(folder, output, body=load_body(body or default_body_path()), skip=packs,
                    include_rejected=not no_rejected)
+    guard.record()
     click.echo(f"{s.samples} kept and {s.rejected} rejected samples ({s.skipped} already in the packs given) "
                f"-> {s.path} ({s.bytes / 1e6:.1f} MB)")

@@ -185,12 +185,14 @@ class OutputGuard:
         force: the user's ``--force``: replace what a previous run of this kind wrote, write into a folder
             that holds other files (beside them).
         inputs: files and folders the command reads; never an output, never replaced or removed.
+        replaces: False for a command whose outputs are never replaced, even its own (``dataset pack``): no
+            ``--force`` is offered.
     """
 
-    def __init__(self, kind: str, *, force: bool = False, inputs: Iterable = ()) -> None:
+    def __init__(self, kind: str, *, force: bool = False, inputs: Iterable = (), replaces: bool = True) -> None:
         if not kind or not isinstance(kind, str):
             raise InputError("an output guard needs the command's name", got=kind)
-        self.kind, self.force = kind, bool(force)
+        self.kind, self.force, self.replaces = kind, bool(force) and replaces, replaces
         self.inputs = tuple(Path(p) for p in inputs if p is not None and not _is_url(p))
         self.claims: list[_Claim] = []
 
@@ -239,7 +241,8 @@ class OutputGuard:
                                 got=f"an output of {_label(entry['kind'])}")
         if not self.force:
             raise OutputRefused(f"exists (the output of an earlier `{self._cmd}`)", path=p,
-                                expected="a new path, or --force to replace it", got="an existing output")
+                                expected="a new path, or --force to replace it" if self.replaces else
+                                f"a new path ({self._cmd} never replaces a file)", got="an existing output")
         return True
 
     def file(self, path: Union[str, os.PathLike]) -> Path:
@@ -378,8 +381,8 @@ class OutputGuard:
         if not self.force:
             raise OutputRefused(f"the folder holds {len(other)} item(s) {self._cmd} did not write "
                                 f"({_names(other)})", path=where,
-                                expected="a new or empty folder, or --force to write beside them, untouched",
-                                got="a folder in use")
+                                expected="a new or empty folder, or --force to write beside them, untouched"
+                                if self.replaces else f"a folder made by {self._cmd}", got="a folder in use")
         taken = [n for n in names if any(fnmatch.fnmatchcase(n, pat) for pat in c.layout)]
         if taken:
             raise OutputRefused(f"the folder holds {len(taken)} item(s) where {self._cmd} writes ({_names(taken)})",
