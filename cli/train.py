@@ -21,7 +21,8 @@ def _body(path):
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Run folder (an existing run of the same config is resumed).")
-@click.option("--dataset", type=click.Path(file_okay=False, path_type=Path), help="Overrides [data] dataset.")
+@click.option("--dataset", multiple=True, type=click.Path(exists=True, path_type=Path),
+              help="A dataset root (a folder, a .sgdpack, a folder of packs); repeatable; overrides [data] dataset.")
 @click.option("--steps", type=click.IntRange(min=1), help="Overrides optim.steps.")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), help="Overrides optim.device.")
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
@@ -33,9 +34,9 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
     """Train the SEGA model on a simulated dataset (CONFIG.toml; see segadeform.train.config)."""
     from segadeform.io.output_guard import OutputGuard
 
-    guard = OutputGuard("train", force=force, inputs=(config, dataset, body))
+    guard = OutputGuard("train", force=force, inputs=(config, *dataset, body))
     guard.resumable(output, layout=("config.toml", "train.json", "last.pt", "model.pt", "loss.csv", "loss.png"),
-                    legacy=("config.toml", "loss.csv"))
+                    legacy=("config.toml", "loss.csv", "last.pt"))
     from segadeform.train import load_train_config
     from segadeform.train.trainer import train
 
@@ -49,7 +50,7 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
         ov["optim.steps"] = steps
     if device:
         ov["optim.device"] = device
-    cfg = load_train_config(config, dataset=dataset, overrides=ov)
+    cfg = load_train_config(config, dataset=list(dataset) or None, overrides=ov)
     interactive = sys.stderr.isatty()
 
     def progress(step, row):

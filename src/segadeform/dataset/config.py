@@ -145,6 +145,7 @@ class DatasetConfig:
     val_kinds: tuple = ()         # garment kinds only validation entries use
     val_motions: tuple = ()       # motion families only validation entries use
     roots: tuple = ()             # read-only dataset roots (packs ...) read where they exist
+    spread: int = 0               # order "spread": training samples between two held-out ones (0: 2)
 
     def digest(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()[:16]
@@ -217,7 +218,7 @@ def load_dataset_config(path) -> DatasetConfig:
         raise FileFormatError(f"unknown table [{bad[0]}]", path=p, expected=", ".join(sorted(known)))
     ds = data.get("dataset", {})
     bad = sorted(set(ds) - {"fps", "seconds", "cross_splits", "held_out_kinds", "held_out_motions", "order",
-                            "val_kinds", "val_motions", "roots"})
+                            "val_kinds", "val_motions", "roots", "spread"})
     if bad:
         raise FileFormatError(f"unknown key dataset.{bad[0]}", path=p)
     order = ds.get("order", "body-major")
@@ -245,6 +246,9 @@ def load_dataset_config(path) -> DatasetConfig:
     if not isinstance(roots, list) or not all(isinstance(r, str) for r in roots):
         raise FileFormatError("dataset.roots must list paths (packs, folders of packs)", path=p, got=roots)
     roots = tuple((p.parent / r).resolve() for r in roots)
+    spread = ds.get("spread", 0)
+    if not isinstance(spread, int) or isinstance(spread, bool) or not 0 <= spread <= 1000:
+        raise FileFormatError("dataset.spread must be an integer 1..1000 (0: the default)", path=p, got=spread)
     try:
         q = QualitySpec(**data.get("quality", {}))
     except TypeError as e:
@@ -388,6 +392,6 @@ def load_dataset_config(path) -> DatasetConfig:
         raise FileFormatError("dataset.fps / dataset.seconds out of range", path=p, got=(fps, seconds))
     return DatasetConfig(garments=tuple(garments), bodies=tuple(bodies), motions=tuple(motions), simulate=sim,
                          body_splits=tuple(body_splits), held_out_kinds=held_kinds, held_out_motions=held_motions,
-                         val_kinds=val_kinds, val_motions=val_motions, roots=roots,
+                         val_kinds=val_kinds, val_motions=val_motions, roots=roots, spread=spread,
                          quality=q, fps=fps, seconds=seconds, cross_splits=bool(ds.get("cross_splits", False)),
                          order=order, path=p, text=json.dumps(data, sort_keys=True, default=str))

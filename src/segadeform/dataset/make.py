@@ -106,7 +106,8 @@ def make_order(cfg: DatasetConfig, plan: list[PlannedSample]) -> list[PlannedSam
     * ``"body-major"``: held-out samples first, then body, motion, garment -- a run stopped early still
       has every garment and motion of the bodies it reached, and a complete test split;
     * ``"spread"``: held-out and training samples each by a hash of the sample's name (fixed,
-      pseudo-random), one held-out sample after every :data:`SPREAD_TRAIN_PER_HELD_OUT` training ones
+      pseudo-random), one held-out sample after every ``dataset.spread`` (default
+      :data:`SPREAD_TRAIN_PER_HELD_OUT`) training ones
       until the held-out ones are done: any prefix -- a dataset grown by ``--limit`` runs -- covers
       every garment, body and motion about evenly, with test data and training data from the start.
     """
@@ -115,8 +116,8 @@ def make_order(cfg: DatasetConfig, plan: list[PlannedSample]) -> list[PlannedSam
     h = lambda p: hashlib.sha256(p.id.encode()).hexdigest()  # noqa: E731
     held = sorted((p for p in plan if p.split != "train"), key=h)
     train = sorted((p for p in plan if p.split == "train"), key=h)
-    # one held-out sample, then SPREAD_TRAIN_PER_HELD_OUT training ones, until the held-out are done
-    out, k = [], SPREAD_TRAIN_PER_HELD_OUT
+    # one held-out sample, then k training ones, until the held-out are done
+    out, k = [], cfg.spread or SPREAD_TRAIN_PER_HELD_OUT
     for i, p in enumerate(held):
         out.append(p)
         out.extend(train[i * k:(i + 1) * k])

@@ -4,8 +4,11 @@ Example (``samples/train/continuum/full.toml`` is the shipped model's recipe, ``
 the previous one's)::
 
     [data]
-    dataset = "../../data/train"   # relative to this file
+    dataset = "../../data/train"   # relative to this file; or a list of roots: folders and packs
+    optional = ["../../../shared/data/sim"]  # roots read when they exist (the durable packs)
     split = "train"
+    val_split = "val"              # held-out garments and motion families that choose the model
+                                   # (the checkpoint with the lowest vertex error on them is model.pt)
     exclude = []                   # sample ids matching any of these globs are not trained on
                                    # (e.g. ["*__cmu-*"]: no motion capture)
     fraction = 1.0                 # train on this share of the samples (a fixed subset by sample id)
@@ -31,7 +34,8 @@ the previous one's)::
     [optim]
     steps = 3000
     lr = 1e-3
-    frames = 8                     # frames per step (one garment per step)
+    frames = 8                     # frames per garment per step
+    garments = 1                   # garments per step (their losses averaged: one batch)
     seed = 0
     checkpoint_every = 200
     device = "auto"                # auto | cpu | cuda
@@ -116,6 +120,7 @@ class OptimConfig:
     steps: int = 3000
     lr: float = 1e-3
     frames: int = 8
+    garments: int = 1           # garments per step
     seed: int = 0
     checkpoint_every: int = 200
     device: str = "auto"
@@ -128,8 +133,10 @@ class TrainConfig:
     model: ModelConfig
     loss: LossWeights
     optim: OptimConfig
-    dataset: Path
+    dataset: tuple            # dataset roots (folders, packs, folders of packs)
     split: str = "train"
+    optional: tuple = ()      # roots read where they exist
+    val_split: Optional[str] = None  # the split whose vertex error chooses the checkpoint
     physics: PhysicsConfig = PhysicsConfig()
     exclude: tuple = ()      # globs of sample ids left out of training
     fraction: float = 1.0    # share of the (remaining) samples trained on, by a hash of their ids
@@ -153,7 +160,8 @@ class TrainConfig:
 
     def to_dict(self) -> dict:
         return {"model": dataclasses.asdict(self.model), "loss": dataclasses.asdict(self.loss),
-                "optim": dataclasses.asdict(self.optim), "dataset": str(self.dataset), "split": self.split,
+                "optim": dataclasses.asdict(self.optim), "dataset": [str(d) for d in self.dataset],
+                "optional": [str(d) for d in self.optional], "val_split": self.val_split, "split": self.split,
                 "physics": dataclasses.asdict(self.physics), "exclude": list(self.exclude),
                 "fraction": self.fraction}
 
@@ -170,9 +178,9 @@ def _table(data, name, cls, where):
         raise FileFormatError(f"[{name}]: {e}", path=where) from None
 
 
-def load_train_config(path, *, dataset: Optional[Path] = None, overrides: Optional[dict] = None) -> TrainConfig:
-    """Read a training config; ``dataset`` overrides ``[data] dataset``; ``overrides`` maps
-    ``"table.key"`` to values (e.g. ``{"optim.steps": 10}``)."""
+def load_train_config(path, *, dataset=None, overrides: Optional[dict] = None) -> TrainConfig:
+    """Read a training config; ``dataset`` (a root or a list of roots) overrides ``[data] dataset``;
+    ``overrides`` maps ``"table.key"`` to values (e.g. ``{"optim.steps": 10}``)."""
     p = Path(path)
     data, text = read_toml(p, "training config")
     for k, v in (overrides or {}).items():
@@ -182,19 +190,32 @@ def load_train_config(path, *, dataset: Optional[Path] = None, overrides: Option
     if bad:
         raise FileFormatError(f"unknown table [{bad[0]}]", path=p, expected="data, model, loss, optim, physics")
     d = data.get("data", {})
-    bad = sorted(set(d) - {"dataset", "split", "exclude", "fraction"})
+    known = {"dataset", "split", "exclude", "fraction", "optional", "val_split"}
+    bad = sorted(set(d) - known)
     if bad:
-        raise FileFormatError(f"unknown key data.{bad[0]}", path=p, expected="dataset, split, exclude, fraction")
+        raise FileFormatError(f"unknown key data.{bad[0]}", path=p, expected=", ".join(sorted(known)))
     exclude = d.get("exclude", [])
     if not isinstance(exclude, list) or not all(isinstance(x, str) for x in exclude):
         raise FileFormatError("data.exclude must be a list of glob patterns", path=p, got=exclude)
     fraction = d.get("fraction", 1.0)
     if not isinstance(fraction, (int, float)) or isinstance(fraction, bool) or not 0 < fraction <= 1:
         raise FileFormatError("data.fraction must be in (0, 1]", path=p, got=fraction)
+    def paths(v, key):
+        v = [v] if isinstance(v, str) else v
+        if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+            raise FileFormatError(f"data.{key} must be a path or a list of paths", path=p, got=v)
+        return tuple((p.parent / x).resolve() for x in v)
+
     if dataset is None:
-        if "dataset" not in d:
+        if "dataset" not in d and "optional" not in d:
             raise FileFormatError("missing data.dataset (or pass a dataset folder)", path=p)
-        dataset = (p.parent / d["dataset"]).resolve()
+        dataset = paths(d.get("dataset", []), "dataset")
+    else:
+        dataset = tuple(Path(x) for x in ([dataset] if isinstance(dataset, (str, Path)) else dataset))
+    optional = paths(d.get("optional", []), "optional")
+    val_split = d.get("val_split")
+    if val_split is not None and (not isinstance(val_split, str) or val_split == d.get("split", "train")):
+        raise FileFormatError("data.val_split must name a split other than the training one", path=p, got=val_split)
     model = _table(data, "model", ModelConfig, p)
     loss = _table(data, "loss", LossWeights, p)
     optim = _table(data, "optim", OptimConfig, p)
@@ -206,7 +227,8 @@ def load_train_config(path, *, dataset: Optional[Path] = None, overrides: Option
         raise FileFormatError("loss.collision_power must be 1 or 2", path=p, got=loss.collision_power)
     if optim.device not in ("auto", "cpu", "cuda"):
         raise FileFormatError("optim.device must be auto, cpu or cuda", path=p, got=optim.device)
-    if optim.steps < 1 or optim.frames < 1 or not optim.lr > 0:
-        raise FileFormatError("optim.steps, optim.frames and optim.lr must be positive", path=p)
-    return TrainConfig(model=model, loss=loss, optim=optim, dataset=Path(dataset), split=d.get("split", "train"),
+    if optim.steps < 1 or optim.frames < 1 or optim.garments < 1 or not optim.lr > 0:
+        raise FileFormatError("optim.steps, optim.frames, optim.garments and optim.lr must be positive", path=p)
+    return TrainConfig(model=model, loss=loss, optim=optim, dataset=dataset, split=d.get("split", "train"),
+                       optional=optional, val_split=val_split,
                        physics=physics, pairs=pairs, exclude=tuple(exclude), fraction=float(fraction), path=p, text=json.dumps(data, sort_keys=True, default=str))

@@ -1,9 +1,11 @@
 """Dataset samples as training tensors: the garment asset (cached), motion windows, targets and body contact.
 
-Per (garment, body) pair the precompute runs once and is cached in
-``DATASET/cache/asset-<hash>.npz``; per sample the closest body point and
-normal to every simulated vertex (for the collision loss) are cached in
-``DATASET/cache/contact-<id>.npz``.
+Samples come from one or several dataset roots (folders and read-only packs:
+:class:`~segadeform.dataset.roots.DatasetRoots`).  Per (garment, body) pair the precompute runs once
+and is cached in ``CACHE/asset-<hash>.npz``; per sample the closest body point and normal to every
+simulated vertex (for the collision loss) are cached in ``CACHE/contact-<id>.npz`` when the sample
+does not store them (packs never do).  ``CACHE`` is the roots' cache folder: the writable dataset
+folder's ``cache/``, else the folder the caller gives (a run's own).
 """
 
 from __future__ import annotations
@@ -15,10 +17,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..body.collision import BodyProxy
+from ..body.collision import BodyCollider
 from ..body.model import BodyModel
 from ..body.transfer import garment_weights
-from ..dataset.store import Sample, list_samples, load_sample
+from ..dataset.roots import DatasetRoots, as_roots
+from ..dataset.store import Sample
 from ..geometry.asset import GarmentAsset, precompute_garment
 from ..geometry.mesh_ops import unique_edges
 from ..io.atomic import atomic_path
@@ -69,51 +72,69 @@ def _hash(*arrays) -> str:
     return h.hexdigest()[:24]
 
 
-def sample_asset(root: Path, s: Sample, body: BodyModel, n_star: int) -> GarmentAsset:
+def _cache_dir(root) -> "Path | None":
+    """Where derived data of ``root`` (a dataset folder, or :class:`DatasetRoots`) is cached."""
+    if isinstance(root, DatasetRoots):
+        return root.cache_dir
+    return Path(root) / "cache"
+
+
+def sample_asset(root, s: Sample, body: BodyModel, n_star: int) -> GarmentAsset:
+    """The garment precompute of sample ``s`` (cached in ``root``'s cache folder when it has one)."""
     joints = body.rest_joints(s.betas if s.betas.size else None)[0]
     key = _hash(s.rest, s.faces, joints, np.array([n_star]))
-    p = Path(root) / "cache" / f"asset-{key}.npz"
-    if p.is_file():
+    cache = _cache_dir(root)
+    p = None if cache is None else cache / f"asset-{key}.npz"
+    if p is not None and p.is_file():
         return GarmentAsset.load(p)
     a = precompute_garment(s.rest, s.faces, joints, n_star=n_star, source_name=s.meta.get("garment", s.id))
-    p.parent.mkdir(exist_ok=True)
-    a.save(p)
+    if p is not None:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        a.save(p)
     return a
 
 
-def _contact(root: Path, s: Sample, body: BodyModel):
+def _contact(root, s: Sample, body: BodyModel, collider=None):
+    """Closest body point and outward normal of every simulated vertex, (T, N, 3) twice: stored by
+    ``dataset make``, else cached, else computed (exactly, with the compiled collider) and cached."""
     if s.contact_p is not None:  # stored by `dataset make`
         return s.contact_p, s.contact_n
-    p = Path(root) / "cache" / f"contact-{s.id}.npz"
-    if p.is_file():
+    cache = _cache_dir(root)
+    p = None if cache is None else cache / f"contact-{s.id}.npz"
+    if p is not None and p.is_file():
         z = np.load(p)
         if z["p"].shape == s.frames.shape:
             return z["p"], z["n"]
     posed = body.forward(s.poses, s.betas if s.betas.size else None, s.trans).vertices
     cp = np.empty(s.frames.shape, np.float32)
     cn = np.empty(s.frames.shape, np.float32)
-    proxy = None
+    collider = collider if collider is not None else BodyCollider(body.v_template, body.faces)
     for t in range(len(posed)):
-        proxy = BodyProxy(posed[t], body.faces) if proxy is None else proxy.moved(posed[t])
-        q = proxy.query(s.frames[t].astype(np.float64))
+        q = collider.query(s.frames[t].astype(np.float64), posed[t])
         cp[t], cn[t] = q.closest, q.normal
-    p.parent.mkdir(exist_ok=True)
-    with atomic_path(p) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, p=cp, n=cn)
+    if p is not None:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(p) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez(fh, p=cp, n=cn)
     return cp, cn
 
 
-def load_items(root: Path, body: BodyModel, *, n_star: int, window: int, n_betas: int, split: str | None = "train",
+def load_items(root, body: BodyModel, *, n_star: int, window: int, n_betas: int, split: str | None = "train",
                ids=None, weight_prior: str = "nearest") -> list[TrainItem]:
-    """Load every kept sample of ``split`` (or the given ``ids``) as :class:`TrainItem`; ``body_weights`` by
-    ``weight_prior`` (:func:`~segadeform.body.transfer.garment_weights`)."""
+    """Load every kept sample of ``split`` (or the given ``ids``) of ``root`` (a dataset folder, a pack, a list
+    of roots or :class:`DatasetRoots`) as :class:`TrainItem`; ``body_weights`` by ``weight_prior``
+    (:func:`~segadeform.body.transfer.garment_weights`)."""
     f32 = lambda a: torch.as_tensor(np.asarray(a, np.float32))  # noqa: E731
+    roots = as_roots(root)
     out = []
-    for sid in (ids if ids is not None else list_samples(root, split)):
-        s = load_sample(root, sid)
-        a = sample_asset(root, s, body, n_star)
-        cp, cn = _contact(root, s, body)
+    collider = None
+    for sid in (ids if ids is not None else roots.ids(split)):
+        s = roots.load(sid)
+        if s.contact_p is None and collider is None:
+            collider = BodyCollider(body.v_template, body.faces)
+        a = sample_asset(roots, s, body, n_star)
+        cp, cn = _contact(roots, s, body, collider)
         b = np.zeros(n_betas)
         b[: s.betas.size] = s.betas[:n_betas]
         joints = body.rest_joints(s.betas if s.betas.size else None)[0]

@@ -34,7 +34,8 @@ import numpy as np
 from ..body.collision import BodyCollider, BodyProxy
 from ..body.model import BodyModel
 from ..body.transfer import garment_weights, skin_garment
-from ..dataset.store import Sample, list_samples, load_sample
+from ..dataset.roots import as_roots
+from ..dataset.store import Sample
 from ..errors import InputError
 from ..geometry.laplacian import SpectralBasis
 from ..geometry.mesh_ops import unique_edges, vertex_normals
@@ -276,7 +277,8 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
     """
     from .data import sample_asset
 
-    ids = list_samples(dataset, split)
+    dataset = as_roots(dataset)  # a folder, a pack, or several roots
+    ids = dataset.ids(split)
     if not ids:
         raise InputError(f"no '{split}' samples in the dataset", got=str(dataset))
     preds = {n: make_predictor(n, s) for n, s in models.items()}
@@ -288,7 +290,7 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
     per_frame = {n: _Acc.new() for n in names}
     bases = {}
     for sid in ids:
-        s = load_sample(dataset, sid)
+        s = dataset.load(sid)
         if progress:
             progress(sid)
         asset = sample_asset(dataset, s, body, n_star)
@@ -394,7 +396,7 @@ def write_report(res: dict, out_dir: Path, *, dataset: Optional[Path] = None, bo
     fig.savefig(out / "error_vs_cost.png", dpi=80)
     plt.close(fig)
     if dataset is not None and body is not None and heatmap_model:
-        _heatmap(res, Path(dataset), body, heatmap_model, out / "error_map.png", res.get("n_star", 32))
+        _heatmap(res, dataset, body, heatmap_model, out / "error_map.png", res.get("n_star", 32))
 
 
 def _heatmap(res, dataset, body, name, path, n_star: int = 32):
@@ -405,7 +407,8 @@ def _heatmap(res, dataset, body, name, path, n_star: int = 32):
     from .data import sample_asset
 
     sid = res["samples"][0]
-    s = load_sample(dataset, sid)
+    dataset = as_roots(dataset)
+    s = dataset.load(sid)
     p = make_predictor(name, res["specs"][name])
     x = p.predict(s, body, sample_asset(dataset, s, body, n_star))
     t = len(x) // 2

@@ -4,13 +4,17 @@ Run folder::
 
     RUN/config.toml        the config (copied) and RUN/train.json (resolved config, hardware, timings)
     RUN/last.pt            {config, state_dict, optimizer, step, rng} -- resumed from when present
-    RUN/model.pt           {config, state_dict} of the final step
+    RUN/best.pt            the checkpoint with the lowest vertex error on the validation split so far
+    RUN/model.pt           {config, state_dict}: the best on the validation split when the config names
+                           one (``data.val_split``), else the final step
+    RUN/cache/             garment precomputes and contacts when no dataset folder is writable
     RUN/loss.csv           step, total and every term (one row per logged step)
     RUN/loss.png           the curves
 
-One garment (sample) per step, ``optim.frames`` random frames of it; samples
-and frames come from a seeded generator whose state is checkpointed, so a
-resumed run continues the same sequence.
+``optim.garments`` garments (samples) per step, ``optim.frames`` random frames of each, their losses
+averaged into one batch; samples and frames come from a seeded generator whose state is checkpointed,
+so a resumed run continues the same sequence.  Samples come from the config's dataset roots (folders
+and read-only packs, :class:`~segadeform.dataset.roots.DatasetRoots`).
 """
 
 from __future__ import annotations
@@ -145,19 +149,22 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
     device = pick_device(o.device)
     torch.manual_seed(o.seed)
     m = cfg.model
-    from ..dataset.store import list_samples
+    from ..dataset.roots import DatasetRoots
 
-    ids = cfg.select(list_samples(cfg.dataset, cfg.split))
-    items = load_items(cfg.dataset, body, n_star=m.n_star, window=m.window, n_betas=m.n_betas, ids=ids,
+    roots = DatasetRoots(list(cfg.dataset), optional=cfg.optional, cache_dir=run / "cache")
+    ids = cfg.select(roots.ids(cfg.split))
+    items = load_items(roots, body, n_star=m.n_star, window=m.window, n_betas=m.n_betas, ids=ids,
                        weight_prior=m.weight_prior)
     if not items:
         raise InputError(f"no '{cfg.split}' samples in the dataset", expected="segadeform dataset make first",
-                         got=str(cfg.dataset))
+                         got=", ".join(str(r) for r in roots.roots) or "no dataset root")
+    if cfg.val_split and not val_ids:
+        val_ids = roots.ids(cfg.val_split)
     if items[0].features.shape[-1] != m.feat_dim:
         raise InputError("model.feat_dim does not match the garment features", expected=items[0].features.shape[-1],
                          got=m.feat_dim)
     items = [it.to(device) for it in items]
-    val = [it.to(device) for it in load_items(cfg.dataset, body, n_star=m.n_star, window=m.window,
+    val = [it.to(device) for it in load_items(roots, body, n_star=m.n_star, window=m.window,
                                               n_betas=m.n_betas, split=None, ids=val_ids,
                                               weight_prior=m.weight_prior)] if val_ids else []
     model = SEGANet(m).to(device)
@@ -178,6 +185,10 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
         rng.bit_generator.state = ck["rng"]
         torch.set_rng_state(ck["torch_rng"])
         step, elapsed = int(ck["step"]), float(ck["elapsed"])
+        best_val = (float(ck.get("best_val", float("inf"))), int(ck.get("best_step", -1)))
+    else:
+        best_val = (float("inf"), -1)  # (vertex error on the validation split, step)
+    best_path = run / "best.pt"
     log_path = run / "loss.csv"
     fields = ["step", "total", *TERMS, PHYSICS_TERM, "lr", "seconds", "val_vertex"]
     if step == 0 or not log_path.is_file():
@@ -195,7 +206,7 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
             torch.save({"config": dataclasses.asdict(m), "state_dict": model.state_dict(), "optimizer": opt.state_dict(),
                         "scheduler": sched.state_dict(), "rng": rng.bit_generator.state,
                         "torch_rng": torch.get_rng_state(), "step": step, "elapsed": elapsed,
-                        "config_digest": cfg.digest()}, tmp)
+                        "config_digest": cfg.digest(), "best_val": best_val[0], "best_step": best_val[1]}, tmp)
 
     def validate() -> float:
         if not val:
@@ -215,7 +226,7 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
         from .physics import PhysicsPairs
 
         # the pairs' garments are made once into the dataset's cache (the same files `dataset make` writes)
-        pairs = PhysicsPairs(cfg.pairs, Path(cfg.dataset) / "cache" / "pairs", body, n_star=m.n_star,
+        pairs = PhysicsPairs(cfg.pairs, (roots.cache_dir or run / "cache") / "pairs", body, n_star=m.n_star,
                              window=m.window, n_betas=m.n_betas, weight_prior=m.weight_prior,
                              exclude=cfg.exclude)
         mat = ph.material()
@@ -228,23 +239,32 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
     t0 = time.perf_counter()
     model.train()
     while step < o.steps:
-        it = items[int(rng.integers(len(items)))]
-        t = torch.as_tensor(rng.choice(it.n_frames, size=min(o.frames, it.n_frames), replace=False), device=device)
         until = cfg.loss.skin_prior_until * o.steps
-        ls = step_losses(model, it, t, cfg.loss, prior_scale=max(0.0, 1.0 - step / until) if until > 0 else 0.0)
+        opt.zero_grad(set_to_none=True)
+        ls = {}
+        for _ in range(o.garments):  # one batch: each garment's loss backpropagated as it is made (memory)
+            it = items[int(rng.integers(len(items)))]
+            t = torch.as_tensor(rng.choice(it.n_frames, size=min(o.frames, it.n_frames), replace=False),
+                                device=device)
+            one = step_losses(model, it, t, cfg.loss, prior_scale=max(0.0, 1.0 - step / until) if until > 0 else 0.0)
+            if not torch.isfinite(one["total"]):
+                raise InputError(f"the loss became {float(one['total'])} at step {step} on {it.id}; lower optim.lr")
+            (one["total"] / o.garments).backward()
+            for k, v in one.items():
+                ls[k] = ls.get(k, 0.0) + v.detach() / o.garments
         ls[PHYSICS_TERM] = torch.zeros(())
         if pairs is not None and step % ph.every == 0:
             pair = pairs.item(int(rng.integers(len(pairs)))).to(device)
             f = min(ph.frames, pair.n_frames)
             if f >= 3:
                 first = int(rng.integers(pair.n_frames - f + 1))
-                ls[PHYSICS_TERM] = ph.weight * physics_losses(model, pair, first, f, mat, body_faces, device,
-                                                              collider)["total"]
+                phys = ph.weight * physics_losses(model, pair, first, f, mat, body_faces, device, collider)["total"]
+                if not torch.isfinite(phys):
+                    raise InputError(f"the physics loss became {float(phys)} at step {step} on {pair.id}; "
+                                     f"lower optim.lr")
+                phys.backward()
+                ls[PHYSICS_TERM] = phys.detach()
                 ls["total"] = ls["total"] + ls[PHYSICS_TERM]
-        if not torch.isfinite(ls["total"]):
-            raise InputError(f"the loss became {float(ls['total'])} at step {step} on {it.id}; lower optim.lr")
-        opt.zero_grad(set_to_none=True)
-        ls["total"].backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), o.grad_clip)
         opt.step()
         sched.step()
@@ -252,15 +272,21 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
         for k in acc:
             acc[k] += float(ls[k].detach())
         n_acc += 1
+        val_err = ""
         if step % o.checkpoint_every == 0 or step == o.steps:
+            if val:
+                val_err = validate()
+                if val_err < best_val[0]:  # the model the validation split chooses
+                    best_val = (val_err, step)
+                    with atomic_path(best_path) as tmp:
+                        torch.save({"state_dict": model.state_dict(), "step": step, "val_vertex": val_err}, tmp)
             save_last()
         if step % log_every == 0 or step == o.steps:
             now = time.perf_counter()
             elapsed += now - t0
             t0 = now
-            do_val = val and (step % o.checkpoint_every == 0 or step == o.steps)
             row = {"step": step, **{k: acc[k] / n_acc for k in acc}, "lr": sched.get_last_lr()[0],
-                   "seconds": round(elapsed, 2), "val_vertex": validate() if do_val else ""}
+                   "seconds": round(elapsed, 2), "val_vertex": val_err}
             with open(log_path, "a", newline="") as fh:
                 csv.DictWriter(fh, fields).writerow(row)
             if progress is not None:
@@ -275,6 +301,12 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
     # far from all of them (segadeform.package_spec.TRAINING_GARMENTS)
     from ..geometry.mesh_ops import boundary_loops
 
+    chosen = {"step": step}
+    if val and best_path.is_file():  # the checkpoint the validation split chose
+        best = torch.load(best_path, map_location=device, weights_only=False)
+        model.load_state_dict(best["state_dict"])
+        chosen = {"step": int(best["step"]), "val_vertex": float(best["val_vertex"]),
+                  "val_split": cfg.val_split, "val_samples": len(val)}
     garments = {(i.asset.source_name or i.id, i.asset.descriptor.tobytes()): i.asset for i in items}
     save_checkpoint(final, model, train_config=cfg.to_dict(), steps=step,
                     training_garments={"names": [k[0] for k in garments],
@@ -282,6 +314,7 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
                                        "openings": [len(boundary_loops(a.faces, a.n_vertices))
                                                     for a in garments.values()]})
     info = {"config": cfg.to_dict(), "config_digest": cfg.digest(), "steps": step, "train_seconds": round(elapsed, 1),
+            "chosen": chosen, "sample_frames_seen": step * o.garments * o.frames,
             "samples": [i.id for i in items], "hardware": _hardware(device)}
     with atomic_path(run / "train.json") as tmp:
         Path(tmp).write_text(json.dumps(info, indent=1))
