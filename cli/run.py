@@ -46,6 +46,10 @@ def _quality_choice():
               help="A preset from the measured accuracy/time frontier (segadeform.presets, "
                    "docs/accuracy-vs-time.md); replaces the scene's effects; --effects may then only change "
                    "it (+name/-name).")
+@click.option("--cloth", "cloth", metavar="NAME=VALUE,..",
+              help="The cloth stage's knobs (iterations, stiffness, stretch, compress, bending, damping, follow, "
+                   "gravity, attachment, max_distance, reset: segadeform.cloth_settings) over the scene's; the "
+                   "stage is on when the scene or --effects names it (--effects=+cloth).")
 @click.option("--format", "fmt", type=_format_choice(),
               help="Output format (see segadeform.io.formats; abc needs the 'alembic' extra).")
 @click.option("--model", type=click.Path(file_okay=False, path_type=Path), help="Model package directory.")
@@ -77,7 +81,7 @@ def _quality_choice():
                    "every other runtime), numpy (float64), or auto: the graph when it poses this body, else numpy.")
 def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, fmt, model, frames, fps, batch,
             threads, providers, body_out, up, no_cache, motion_up, units, joint_map, skeleton, animation, floor,
-            force, body_backend):
+            force, body_backend, cloth=None):
     """Animate a garment: SCENE.toml, or the flag form --garment G --motion M -o OUT."""
     import dataclasses
 
@@ -135,6 +139,17 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
                    output=output, output_format=_fmt_from(output, fmt), up=up or "y", body=body, betas=beta_vals,
                    model=None, body_output=body_out,
                    effects=preset if preset is not None else parse_effects(effects) if effects else Effects())
+    if cloth:
+        from segadeform.cloth_settings import ClothSettings
+
+        if not sc.effects.cloth:
+            raise click.UsageError("--cloth sets the cloth stage's knobs, but the stage is off (turn it on with "
+                                   "--effects=+cloth)")
+        try:
+            knobs = ClothSettings.parse(cloth, sc.effects.cloth_settings)
+        except ValueError as e:
+            raise click.BadParameter(str(e), param_hint="--cloth") from None
+        sc = dataclasses.replace(sc, effects=dataclasses.replace(sc.effects, cloth_settings=knobs))
     prov = None
     if providers:
         prov = "auto" if providers == "auto" else [p.strip() for p in providers.split(",") if p.strip()]
@@ -158,5 +173,10 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
     q = f"quality {quality}: " if quality else ""
     click.echo(f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame ({q}effects {summary.effects.label()}"
                f"{'; off: ' + ', '.join(off) if off else ''}; graph {summary.variant})")
+    if summary.cloth is not None:
+        c = summary.cloth
+        click.echo(f"  cloth: {c['contacts']} vertex-frames in contact, {c['pushed']} pushed out after the sweeps, "
+                   f"{c['resets']} reset(s), {1e3 * summary.stage_seconds['cloth'] / max(summary.frames, 1):.2f} "
+                   f"ms/frame")
     for path in summary.written:
         click.echo(f"  wrote {path}")

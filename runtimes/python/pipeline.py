@@ -6,8 +6,10 @@ Stages, in order, and when they exist:
 precompute      garment mesh -> asset (cached on disk by file hash)  always
 encode          garment encoder, once per garment and body shape    always (cached)
 deform          the deformer variant for skinning/dynamics/wrinkles  always
-pose body       body posed per batch (the package's body graph)      collisions or body output
-collisions      push garment vertices out of the body               ``effects.collisions``
+pose body       body posed per batch (the package's body graph)      collisions, cloth or body output
+collisions      push garment vertices out of the body               ``effects.collisions`` without cloth
+cloth           stretch, contact and inertia against the body       ``effects.cloth`` (resolves contact itself)
+                (:mod:`segadeform.body.cloth`, state across batches)
 write           streaming writer (PC2, OBJ sequence, XDMF)          always
 ==============  ==================================================  =====================
 
@@ -89,6 +91,8 @@ class RunSummary:
     stage_seconds: dict
     #: how the body was posed: "graph" (the package's body graph), "numpy", or None (not posed)
     body_backend: Optional[str] = None
+    #: the cloth stage's counts (vertex-frames in ``contacts`` and ``pushed``, ``resets``), None when it was off
+    cloth: Optional[dict] = None
 
     @property
     def ms_per_frame(self) -> float:
@@ -145,9 +149,10 @@ class Run:
         if guard is not None:  # refused before any work: an output over a file segadeform did not write ...
             claim_scene_outputs(guard, self.output, output_format, self.body_output)
         self.deformer = Deformer(package, effects)  # picks the variant; creates no session yet
-        #: poses the body when collisions or the body output need it (None otherwise); creates no session yet
+        #: poses the body when collisions, the cloth stage or the body output need it (None otherwise); creates no
+        #: session yet
         self.body_poser = (BodyPoser(package, body, skinning=effects.skinning, backend=body_backend)
-                           if effects.collisions or self.body_output is not None else None)
+                           if effects.collisions or effects.cloth or self.body_output is not None else None)
 
     def _cache_dir(self) -> Optional[Path]:
         if not self.cache:
@@ -180,9 +185,22 @@ class Run:
                 log.warning("cannot write the asset cache %s (%s)", cpath, e.strerror or e)
         return a
 
+    def _cloth_stage(self, asset: GarmentAsset):
+        """The cloth stage for this run: the garment's per-garment data on the body at rest (posed as the run poses
+        it, zero pose: the same float32 body the other runtimes use with the body graph), cached with the garment,
+        and the collider over the body."""
+        from segadeform.body.cloth import ClothStage, garment_setup
+
+        rest = self.body_poser.pose(np.zeros((1, 3 * self.body.n_joints)), self.betas, np.zeros((1, 3)))[0]
+        setup = garment_setup(asset.vertices, asset.faces, rest, self.body.faces, self.effects.cloth_settings,
+                              cache_dir=self._cache_dir())
+        return ClothStage(setup, self.body.v_template, self.body.faces, self.effects.cloth_settings,
+                          margin=self.effects.collision_margin, dt=1.0 / float(self.motion.fps),
+                          first_frame=self.start)
+
     def execute(self, progress: Optional[Callable[[int], None]] = None) -> RunSummary:
         t_all = time.perf_counter()
-        stage = {k: 0.0 for k in ("precompute", "encode", "deform", "pose body", "collisions", "write")}
+        stage = {k: 0.0 for k in ("precompute", "encode", "deform", "pose body", "collisions", "cloth", "write")}
         t = time.perf_counter()
         joints = self.body.rest_joints(self.betas)[0]
         asset = self.load_asset(joints)
@@ -196,14 +214,14 @@ class Run:
         lw = (self.deformer.body_log_weights(asset, self.body, self.betas, cache_dir=self._cache_dir())
               if self.deformer.needs_body_weights else None)
         stage["encode"] += time.perf_counter() - t
-        need_body = self.effects.collisions or self.body_output is not None
+        need_body = self.effects.collisions or self.effects.cloth or self.body_output is not None
         out = SceneOutput(path=self.output, fmt=self.output_format, up=self.up, fps=self.motion.fps,
                           start_frame=self.start, garment_faces=asset.faces, garment_rest=asset.vertices,
                           body_path=self.body_output, body_faces=self.body.faces,
                           body_rest=self.body.shaped_vertices(self.betas)[0] if self.body_output else None,
                           guard=self.guard)
         pushed = 0
-        proxy = collider = None
+        proxy = collider = cloth = None
         try:
             batch = effective_batch(self.batch, asset.n_vertices)
             for lo in range(self.start, self.stop, batch):
@@ -218,7 +236,13 @@ class Run:
                     t = time.perf_counter()
                     posed = self.body_poser.pose(self.motion.poses[lo:hi], self.betas, self.motion.trans[lo:hi])
                     stage["pose body"] += time.perf_counter() - t
-                if self.effects.collisions:
+                if self.effects.cloth:  # contact included: no push-out after it
+                    t = time.perf_counter()
+                    if cloth is None:  # built once per run (its cost counts here); its state spans the batches
+                        cloth = self._cloth_stage(asset)
+                    verts = cloth.step(verts, posed)
+                    stage["cloth"] += time.perf_counter() - t
+                elif self.effects.collisions:
                     t = time.perf_counter()
                     if self.collider == "fast":  # built once per run (its cost counts here), all frames at once
                         if collider is None:  # the compiled kernel (numpy if it was not built), the session's threads
@@ -252,7 +276,9 @@ class Run:
         return RunSummary(frames=self.stop - self.start, seconds=time.perf_counter() - t_all, output=self.output,
                           body_output=self.body_output, output_format=self.output_format, written=written, effects=self.effects, variant=self.deformer.variant,
                           sessions=sorted(self.package.created), pushed_vertices=pushed, stage_seconds=stage,
-                          body_backend=self.body_poser.backend if need_body else None)
+                          body_backend=self.body_poser.backend if need_body else None,
+                          cloth=None if cloth is None else {"contacts": cloth.contacts, "pushed": cloth.pushed,
+                                                            "resets": cloth.resets})
 
 
 def _padded(betas, n: int) -> np.ndarray:

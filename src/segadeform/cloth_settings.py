@@ -36,12 +36,12 @@ class ClothSettings:
     setting ``segadeform run --effects=+cloth`` uses."""
 
     iterations: int = 4
-    stiffness: float = 0.9
-    stretch: float = 0.1
-    compress: float = 0.1
-    bending: float = 0.5
+    stiffness: float = 1.0
+    stretch: float = 0.03
+    compress: float = 0.03
+    bending: float = 0.9
     damping: float = 0.1
-    follow: float = 0.2
+    follow: float = 0.5
     gravity: float = 9.81
     attachment: float = 0.02
     max_distance: float = 0.05

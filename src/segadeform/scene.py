@@ -39,6 +39,11 @@ are required; relative paths are relative to the scene file)::
     wrinkles = true                # the blend-shape decoder (off: B = 0)
     collisions = true              # push vertices out of the body (post-process)
     collision_margin = 0.004       # metres kept between garment and body skin
+    cloth = false                  # the cloth stage (segadeform.body.cloth): stretch, contact, inertia; off
+                                   # unless named; it resolves contact itself (at collision_margin)
+    cloth_iterations = 4           # its knobs (segadeform.cloth_settings.CLOTH_KNOBS): cloth_stiffness,
+                                   # cloth_stretch, cloth_compress, cloth_bending, cloth_damping, cloth_follow,
+                                   # cloth_gravity, cloth_attachment, cloth_max_distance, cloth_reset
 
     [simulate]                     # for `segadeform simulate` (ground truth); see segadeform.physics.settings
     effects = ["gravity", "body_collision", "bending", "air_damping"]   # all others are off
@@ -66,6 +71,7 @@ from typing import Optional
 
 from ._toml import read_toml
 from .bounds import SEED_RANGE, check_betas
+from .cloth_settings import CLOTH_KNOBS, ClothSettings
 from .errors import FileFormatError, InputError
 
 
@@ -85,6 +91,9 @@ class Effects:
     wrinkles: bool = True
     collisions: bool = True
     collision_margin: float = 0.004
+    #: the cloth stage after the deformer (off unless named) and its knobs
+    cloth: bool = False
+    cloth_settings: ClothSettings = ClothSettings()
 
     def __post_init__(self):
         if self.skinning not in ("lbs", "dqs"):
@@ -93,17 +102,17 @@ class Effects:
             raise ValueError(f"collision_margin must be in [0, 1) metres, got {self.collision_margin!r}")
 
     def label(self) -> str:
-        on = [self.skinning] + [n for n in ("dynamics", "wrinkles", "collisions") if getattr(self, n)]
-        return "+".join(on)
+        on = [self.skinning] + [n for n in ("dynamics", "wrinkles", "collisions", "cloth") if getattr(self, n)]
+        return "+".join(on) + (f"({self.cloth_settings.label()})" if self.cloth and self.cloth_settings.label() else "")
 
     def off(self) -> list[str]:
-        """The effects this set leaves off."""
+        """The effects this set leaves off (the cloth stage, off unless named, is not listed)."""
         return [n for n in ("dynamics", "wrinkles", "collisions") if not getattr(self, n)]
 
 
 #: the effects of a scene without an ``[effects]`` table (and of the command line's flag form)
 DEFAULT_EFFECTS = Effects()
-_EFFECT_NAMES = ("dynamics", "wrinkles", "collisions")
+_EFFECT_NAMES = ("dynamics", "wrinkles", "collisions", "cloth")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,7 +141,8 @@ _SCHEMA = {
     "model": {"package": str},
     "output": {"path": str, "format": str, "up": str, "body": str},
     "effects": {"skinning": str, "dynamics": bool, "wrinkles": bool, "collisions": bool,
-                "collision_margin": (int, float)},
+                "collision_margin": (int, float), "cloth": bool,
+                **{f"cloth_{k}": (int, float) for k in CLOTH_KNOBS}},
 }
 _REQUIRED = {"garment": ("mesh",), "output": ("path",)}
 
@@ -160,7 +170,7 @@ def parse_effects(text: str, base: Effects = DEFAULT_EFFECTS) -> Effects:
     * every item signed (``"-wrinkles,+collisions"``, ``"dqs,-wrinkles"``: ``lbs``/``dqs`` may join
       either form): ``base`` with those effects switched on or off.
 
-    ``collision_margin`` is kept from ``base`` in both forms.
+    ``collision_margin`` and the cloth stage's knobs are kept from ``base`` in both forms.
     """
     from .effect_list import parse_effect_list
 
@@ -253,8 +263,10 @@ def load_scene(path: str | os.PathLike) -> Scene:
         raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
     if "effects" in data:  # what is not named is off
         eff = dict({n: False for n in _EFFECT_NAMES}, **data["effects"])
+        knobs = {k[len("cloth_"):]: eff.pop(k) for k in list(eff) if k.startswith("cloth_")}
         try:
-            effects = Effects(**{k: (float(v) if k == "collision_margin" else v) for k, v in eff.items()})
+            effects = Effects(**{k: (float(v) if k == "collision_margin" else v) for k, v in eff.items()},
+                              cloth_settings=ClothSettings(**knobs))
         except ValueError as e:
             raise FileFormatError(f"[effects]: {e}", path=p) from None
     else:

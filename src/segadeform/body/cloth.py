@@ -279,6 +279,7 @@ class ClothStage:
         setup: the garment's :class:`ClothSetup` (:func:`garment_setup`).
         body_vertices: (V, 3) any pose of the body (its collider's tree is built from it); body_faces: (F, 3).
         settings: the knobs; margin: metres kept from the body (the collision margin); dt: seconds per frame.
+        first_frame: the number of the first frame stepped (for messages only).
 
     Counters (vertex-frames unless said): ``frames``, ``resets`` (frames where the state was reset because the
     garment jumped, :attr:`ClothSettings.reset`; the first is logged), ``contacts`` (given a contact plane),
@@ -286,7 +287,7 @@ class ClothStage:
     """
 
     def __init__(self, setup: ClothSetup, body_vertices, body_faces, settings: ClothSettings = ClothSettings(), *,
-                 margin: float = 0.004, dt: float = 1.0 / 30.0) -> None:
+                 margin: float = 0.004, dt: float = 1.0 / 30.0, first_frame: int = 0) -> None:
         lib = _kernel()
         setup.validate()
         bv, bf = check_mesh(body_vertices, body_faces)
@@ -308,6 +309,7 @@ class ClothStage:
         self._state = np.zeros((3, self.n_vertices, 3))
         self._info = np.zeros(5, np.int64)  # have, resets, contacts, pushed, first reset of the last call
         self.frames = 0
+        self.first_frame = int(first_frame)
 
     @property
     def resets(self) -> int:
@@ -344,12 +346,13 @@ class ClothStage:
                 continue
             bad = ~np.isfinite(a).reshape(len(a), -1).all(axis=1)
             if bad.any():
-                raise InputError(f"the cloth stage got NaN or inf in the {what} at frame {self.frames + int(np.argmax(bad))}",
+                raise InputError(f"the cloth stage got NaN or inf in the {what} at frame "
+                                 f"{self.first_frame + self.frames + int(np.argmax(bad))}",
                                  expected="finite coordinates (from the deformer and the body)")
         y = np.ascontiguousarray(y, np.float64)
         bv = np.ascontiguousarray(bv, np.float64)
         out = np.empty_like(y)
-        before = self.resets
+        before, last = self.resets, self._state[2].copy()  # the last target, for the reset's message
         e, rl, nptr, nidx, rad = self._arrays
         status = self._lib.scl_step(self.n_vertices, len(e), _ptr(e), _ptr(rl), _ptr(nptr), _ptr(nidx), _ptr(rad),
                                     _ptr(self._settings), self._h, self.n_body, _ptr(bv), len(y), _ptr(y), _ptr(out),
@@ -358,15 +361,13 @@ class ClothStage:
             raise MemoryError("out of memory in the cloth stage")
         if status != 0:  # not reached: the inputs were checked above
             raise InputError("the cloth stage got NaN or inf", expected="finite coordinates",
-                             got=f"frame {self.frames + status - 1}")
-        if self.resets > before and before == 0:
+                             got=f"frame {self.first_frame + self.frames + status - 1}")
+        if self.resets > before and before == 0:  # the first reset is said, once
             f = int(self._info[4])
-            prev = y[f - 1] if f > 0 else None
-            jump = float(np.linalg.norm(y[f] - prev, axis=1).mean()) if prev is not None else float("nan")
-            log.warning("cloth: the garment moved %s m on average into frame %d (more than reset=%g m): the stage "
-                        "started again from the network's frame there (reported once; later resets are counted)",
-                        f"{jump:.3g}" if prev is not None else "more than the reset distance",
-                        self.frames + f, self.settings.reset)
+            jump = float(np.linalg.norm(y[f] - (y[f - 1] if f > 0 else last), axis=1).mean())
+            log.warning("cloth: the garment moved %.3g m on average into frame %d (more than reset=%g m): the stage "
+                        "started again from the network's frame there (said once; later resets are only counted)",
+                        jump, self.first_frame + self.frames + f, self.settings.reset)
         self.frames += len(y)
         return out
 
