@@ -104,7 +104,7 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
                 raise FileFormatError("a binding line needs 1, 6 or 9 numbers", path=p, line=ln,
                                       expected="v1 v2 v3 w1 w2 w3 [d1 d2 d3] or v", got=len(tok))
             continue
-        if section == "delete" and (key[0].isdigit() or key == "-"):
+        if section == "delete" and (key[0].isdigit() or key[0] == "-"):
             i = 0
             while i < len(tok):
                 a = _int(tok[i], p, ln)
