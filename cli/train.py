@@ -78,10 +78,13 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
 @click.option("--push-out", "push_margin", type=float, multiple=True,
               help="Also report learned models with the runtime's collision post-process at this margin (m); "
                    "repeatable (rows 'NAME + push-out N mm').")
+@click.option("--cloth", "cloth", multiple=True, metavar="NAME=VALUE,..|default",
+              help="Also report learned models with the runtime's cloth stage at these settings (as run --cloth; "
+                   "'default' for its defaults); repeatable (rows 'NAME + cloth [settings]').")
 @click.option("--heatmap", help="Model NAME whose per-vertex error map is rendered (default: the first).")
 @click.option("--force", is_flag=True, help="Replace the report of an earlier `segadeform eval` there, write beside "
               "other files (never over them).")
-def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force):
+def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, cloth=()):
     """Evaluate models against the simulation: the paper's metrics per model and garment type."""
     from segadeform.train.evaluate import markdown_table, write_report
     from segadeform.train.evaluate import evaluate as run_eval
@@ -98,7 +101,7 @@ def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force):
         spec[name] = s
     b = _body(body)
     margins = None if not push_margin else push_margin[0] if len(push_margin) == 1 else list(push_margin)
-    res = run_eval(dataset, b, spec, split=split, push_out_margin=margins,
+    res = run_eval(dataset, b, spec, split=split, push_out_margin=margins, cloth=list(cloth) or None,
                    progress=lambda sid: click.echo(f"  {sid}", err=True))
     write_report(res, output, dataset=dataset, body=b, heatmap_model=heatmap or next(iter(spec)))
     guard.record()

@@ -9,6 +9,8 @@ Metrics, averaged over every frame and vertex of the evaluated samples:
   low / mid / high spectral bands of the rest garment (§5.2, Table 2;
   :class:`~segadeform.geometry.laplacian.SpectralBasis`), mean vertex norm of each (cm)
 * ``penetration_pct``  vertices deeper than 2 mm inside the posed body (%)
+* ``max_strain_pct``  the largest edge stretch, length / rest length - 1 against the garment's rest mesh, over
+  every edge and frame (%; over samples, the largest), and ``p99_strain_pct`` its 99th percentile (averaged)
 * ``jitter_mm``     mean |second difference of pred - second difference of sim| (mm/frame^2)
 * ``ms_per_frame``  the model's own time per frame (garment precompute excluded), one thread
 
@@ -45,7 +47,10 @@ from ..motion.motion import motion_windows
 __all__ = ["METRICS", "evaluate", "write_report", "Predictor", "make_predictor", "reference", "sample_metrics",
            "push_out_frames", "push_out_names"]
 
-METRICS = ("vertex_cm", "normal_deg", "edge_mm", "low_cm", "mid_cm", "high_cm", "penetration_pct", "jitter_mm")
+METRICS = ("vertex_cm", "normal_deg", "edge_mm", "low_cm", "mid_cm", "high_cm", "penetration_pct", "jitter_mm",
+           "max_strain_pct", "p99_strain_pct")
+#: metrics aggregated over samples by their largest value, not their mean
+PEAK_METRICS = ("max_strain_pct",)
 PEN_DEPTH = 0.002
 
 
@@ -85,6 +90,8 @@ class _Package(Predictor):
             eff = parse_effects(effects, eff)
             if eff.collisions:
                 raise InputError("evaluate collisions with --push-out, not as a package effect", got=effects)
+            if eff.cloth:
+                raise InputError("evaluate the cloth stage with --cloth, not as a package effect", got=effects)
         self.deformer = Deformer(self.pkg, eff)
 
     def predict(self, s, body, asset):
@@ -174,6 +181,10 @@ class _Acc:
         return cls({}, {})
 
     def add(self, key, value, n=1):
+        if key in PEAK_METRICS:  # the largest, kept in sums with a count of 1
+            self.sums[key] = max(self.sums.get(key, -np.inf), float(value))
+            self.counts[key] = 1
+            return
         self.sums[key] = self.sums.get(key, 0.0) + float(value) * n
         self.counts[key] = self.counts.get(key, 0) + n
 
@@ -198,6 +209,8 @@ class Reference:
     acc_gt: np.ndarray
     proxies: list
     posed: Optional[np.ndarray] = None
+    #: (E,) the edges' lengths on the garment's rest mesh (the strain metrics' reference)
+    l_rest: Optional[np.ndarray] = None
 
 
 def reference(s: Sample, body: BodyModel, basis: Optional[SpectralBasis] = None) -> Reference:
@@ -213,7 +226,8 @@ def reference(s: Sample, body: BodyModel, basis: Optional[SpectralBasis] = None)
         proxies.append(proxy)
     return Reference(gt=gt, faces=s.faces, edges=edges, basis=basis, n_gt=_normals(gt, s.faces),
                      l_gt=np.linalg.norm(gt[:, edges[:, 0]] - gt[:, edges[:, 1]], axis=2),
-                     acc_gt=gt[2:] - 2 * gt[1:-1] + gt[:-2], proxies=proxies, posed=posed)
+                     acc_gt=gt[2:] - 2 * gt[1:-1] + gt[:-2], proxies=proxies, posed=posed,
+                     l_rest=np.linalg.norm(s.rest[edges[:, 0]] - s.rest[edges[:, 1]], axis=1))
 
 
 def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
@@ -232,9 +246,13 @@ def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
     bands /= len(frames)
     pen = np.mean([(ref.proxies[t].query(x[t]).signed_distance < -PEN_DEPTH).mean() for t in frames])
     jit = np.linalg.norm((x[2:] - 2 * x[1:-1] + x[:-2]) - ref.acc_gt, axis=2).mean() if len(gt) > 2 else 0.0
+    # stretch (compression counts as 0): what a stretch limit bounds
+    strain = (np.maximum(l_x / np.maximum(ref.l_rest, 1e-12) - 1, 0) if ref.l_rest is not None and len(edges)
+              else np.zeros((1, 1)))
     return {"vertex_cm": 100 * d.mean(), "normal_deg": np.degrees(np.arccos(cosang)).mean(),
             "edge_mm": 1000 * np.abs(l_x - ref.l_gt).mean(), "low_cm": 100 * bands[0], "mid_cm": 100 * bands[1],
-            "high_cm": 100 * bands[2], "penetration_pct": 100 * pen, "jitter_mm": 1000 * jit}
+            "high_cm": 100 * bands[2], "penetration_pct": 100 * pen, "jitter_mm": 1000 * jit,
+            "max_strain_pct": 100 * float(strain.max()), "p99_strain_pct": 100 * float(np.percentile(strain, 99))}
 
 
 def push_out_frames(x: np.ndarray, ref: Reference, collider: BodyCollider, margin: float, *,
@@ -265,8 +283,43 @@ def push_out_names(margins) -> dict:
     return {" + push-out": ms[0]} if one else {f" + push-out {1e3 * m:g} mm": m for m in ms}
 
 
+def cloth_frames(x: np.ndarray, s: Sample, ref: Reference, body: BodyModel, settings, *, margin: float = 0.004,
+                 batch: int = 8) -> np.ndarray:
+    """The runtime's cloth stage (:class:`segadeform.body.cloth.ClothStage`, as ``segadeform run --effects=+cloth``)
+    on a prediction of sample ``s``: the garment's setup on the body at rest of the sample's shape, then ``batch``
+    frames at a time against the posed body, one stage (its state) over the whole sample.
+    Shapes: x (T, N, 3) -> (T, N, 3)."""
+    from ..body.cloth import ClothStage, garment_setup
+
+    if ref.posed is None:
+        raise InputError("this reference has no posed body", expected="reference(...) of this module")
+    rest_body = body.shaped_vertices(s.betas if s.betas.size else None)[0]
+    stage = ClothStage(garment_setup(s.rest, s.faces, rest_body, body.faces, settings), body.v_template, body.faces,
+                       settings, margin=margin, dt=1.0 / float(s.meta.get("fps", 30.0)))
+    return np.concatenate([stage.step(x[lo:lo + batch], ref.posed[lo:lo + batch]) for lo in range(0, len(x), batch)])
+
+
+def cloth_names(settings) -> dict:
+    """``{suffix: ClothSettings}`` for :func:`evaluate`'s ``cloth``: each item a :class:`ClothSettings` or its
+    text form (``iterations=8,stiffness=0.5``; ``default`` or ``""``: the defaults), named ``" + cloth"`` for
+    the defaults and ``" + cloth iterations=8,..."`` otherwise."""
+    from ..cloth_settings import ClothSettings
+
+    out = {}
+    for item in ([] if settings is None else [settings] if isinstance(settings, (str, ClothSettings)) else settings):
+        if isinstance(item, str):
+            try:
+                item = ClothSettings.parse("" if item.strip() == "default" else item)
+            except ValueError as e:
+                raise InputError(f"bad cloth settings: {e}", got=item) from None
+        label = item.label()
+        out[f" + cloth {label}" if label else " + cloth"] = item
+    return out
+
+
 def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test", n_star: int = 32,
-             frame_step: int = 1, progress: Optional[Callable[[str], None]] = None, push_out_margin=None) -> dict:
+             frame_step: int = 1, progress: Optional[Callable[[str], None]] = None, push_out_margin=None,
+             cloth=None, cloth_margin: float = 0.004) -> dict:
     """Evaluate ``models`` ({name: spec}) on ``split`` of ``dataset``.
 
     Returns ``{"models": {name: {metric: value}}, "by_type": {name: {type: {metric: value}}},
@@ -274,6 +327,8 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
     ``push_out_margin``: also report every learned model with the runtime's collision post-process
     (:class:`BodyCollider`, as ``segadeform run``): one margin in metres (``name + push-out``) or a list
     (``name + push-out 2 mm``, ... ; :func:`push_out_names`).  Its time is the model's plus the push-out's.
+    ``cloth``: also report every learned model (a package or checkpoint) with the runtime's cloth stage at each
+    of these settings (:func:`cloth_names`, :func:`cloth_frames`; contact at ``cloth_margin``), timed the same way.
     """
     from .data import sample_asset
 
@@ -283,7 +338,10 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
         raise InputError(f"no '{split}' samples in the dataset", got=str(dataset))
     preds = {n: make_predictor(n, s) for n, s in models.items()}
     pushes = push_out_names(push_out_margin)
-    names = list(preds) + [f"{n}{sfx}" for sfx in pushes for n, s in models.items() if s != "lbs"]
+    cloths = cloth_names(cloth)
+    learned = [n for n, s in models.items() if s not in ("lbs", "lbs-inpaint")]
+    names = list(preds) + [f"{n}{sfx}" for sfx in pushes for n, s in models.items() if s != "lbs"] + \
+        [f"{n}{sfx}" for sfx in cloths for n in learned]
     collider = BodyCollider(body.v_template, body.faces) if pushes else None
     acc = {n: _Acc.new() for n in names}
     by_type = {n: {} for n in names}
@@ -311,6 +369,12 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
                 t0 = time.perf_counter()
                 outs[f"{n}{sfx}"] = push_out_frames(outs[n], ref, collider, margin)
                 acc[f"{n}{sfx}"].add("ms_per_frame", ms + 1e3 * (time.perf_counter() - t0) / len(gt))
+            for sfx, settings in cloths.items():
+                if n not in learned:
+                    continue
+                t0 = time.perf_counter()
+                outs[f"{n}{sfx}"] = cloth_frames(outs[n], s, ref, body, settings, margin=cloth_margin)
+                acc[f"{n}{sfx}"].add("ms_per_frame", ms + 1e3 * (time.perf_counter() - t0) / len(gt))
         typ = s.meta.get("type", "?")
         for n, x in outs.items():
             if x.shape != gt.shape or not np.isfinite(x).all():
@@ -332,7 +396,10 @@ def evaluate(dataset: Path, body: BodyModel, models: dict, *, split: str = "test
 
 _HEAD = {"vertex_cm": "vertex (cm)", "normal_deg": "normal (°)", "edge_mm": "edge (mm)", "low_cm": "low band (cm)",
          "mid_cm": "mid band (cm)", "high_cm": "high band (cm)", "penetration_pct": "penetrating (%)",
-         "jitter_mm": "jitter (mm/f²)", "ms_per_frame": "ms/frame"}
+         "jitter_mm": "jitter (mm/f²)", "ms_per_frame": "ms/frame", "max_strain_pct": "max stretch (%)",
+         "p99_strain_pct": "p99 stretch (%)"}
+#: the per-type table's columns
+_TYPE_COLS = ("vertex_cm", "normal_deg", "edge_mm", "penetration_pct", "max_strain_pct", "p99_strain_pct")
 
 
 def markdown_table(res: dict) -> str:
@@ -347,6 +414,13 @@ def markdown_table(res: dict) -> str:
     out.append("|---" * (len(types) + 1) + "|")
     for n, bt in res["by_type"].items():
         out.append(f"| {n} | " + " | ".join(f"{bt[t]['vertex_cm']:.3f}" if t in bt else "-" for t in types) + " |")
+    out += ["", "Per garment type, every metric:", "",
+            "| type | model | " + " | ".join(_HEAD[k] for k in _TYPE_COLS) + " |", "|---" * (len(_TYPE_COLS) + 2) + "|"]
+    for t in types:
+        for n, bt in res["by_type"].items():
+            if t in bt:
+                out.append(f"| {t} | {n} | " + " | ".join(f"{bt[t][k]:.3f}" if k in bt[t] else "-"
+                                                        for k in _TYPE_COLS) + " |")
     return "\n".join(out)
 
 
