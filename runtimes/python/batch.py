@@ -46,6 +46,7 @@ from segadeform._toml import read_toml
 from segadeform.bounds import SEED_RANGE, check_betas
 from segadeform.errors import FileFormatError, InputError, file_error
 from segadeform.executors import Executor, LocalExecutor
+from segadeform.io.atomic import WriteError
 from segadeform.io.location import Location, is_url, open_location
 from segadeform.scene import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects, parse_frames
 
@@ -274,12 +275,15 @@ def run_job(job: BatchJob) -> dict:
     name = job.output_name
     loc.remove_temporaries(name)  # what a killed attempt of this job left
     loc.remove_temporaries(f"jobs/{job.id}.json")
-    with loc.scratch(name) as d:
-        scene = Scene(garment=job.garment.mesh, motion=job.motion.spec, output=Path(d) / name,
-                      output_format=job.format, up=job.up, body=job.body, betas=job.garment.betas, model=job.model,
-                      effects=job.effects)
-        s = run_scene(scene, batch=job.frames_per_call, threads=1)
-        written = loc.commit_tree(Path(d))
+    try:
+        with loc.scratch(name) as d:
+            scene = Scene(garment=job.garment.mesh, motion=job.motion.spec, output=Path(d) / name,
+                          output_format=job.format, up=job.up, body=job.body, betas=job.garment.betas,
+                          model=job.model, effects=job.effects)
+            s = run_scene(scene, batch=job.frames_per_call, threads=1)
+            written = loc.commit_tree(Path(d))
+    except WriteError as e:  # disk full, read-only: name the job's output, not its scratch folder
+        raise WriteError(f"{loc}/{name}", e.reason, e.errno) from None
     rec = {"id": job.id, "garment": job.garment.name, "motion": job.motion.name, "spec": job.spec,
            "output": name, "files": written, "frames": s.frames, "ms_per_frame": s.ms_per_frame,
            "effects": job.effects.label(), "graph": s.variant, "seconds": time.perf_counter() - t0}

@@ -22,13 +22,18 @@ __all__ = ["atomic_path", "atomic_open", "atomic_directory", "remove_temporaries
            "write_error"]
 
 
-class WriteError(SegadeformError):
+class WriteError(SegadeformError, OSError):
     """An output could not be written (disk full, file-size limit, read-only or missing folder); the message
-    names the target.  Nothing partial is left: the temporary file is removed."""
+    names the target.  Nothing partial is left: the temporary file is removed.  Also an :class:`OSError` (with the
+    ``errno``), so code that treats a failed optional write (a cache) as a warning keeps doing so."""
 
-    def __init__(self, path, reason: str) -> None:
-        self.path = os.fspath(path)
-        super().__init__(f"{self.path}: cannot write: {reason}")
+    def __init__(self, path, reason: str, err: int | None = None) -> None:
+        self.path, self.reason = os.fspath(path), reason
+        super().__init__(err, f"{self.path}: cannot write: {reason}")
+        self.filename = self.path
+
+    def __str__(self) -> str:
+        return self.strerror
 
 
 _WHY = {errno.ENOSPC: "no space left on the device", errno.EFBIG: "the file-size limit is reached (ulimit -f)",
@@ -41,7 +46,7 @@ def write_error(e: OSError, target) -> SegadeformError:
     """The one wording for an output that could not be written: the target and the reason, e.g.
     ``out/x.pc2: cannot write: no space left on the device (expected free space, got ...)``."""
     why = _WHY.get(e.errno, e.strerror or str(e))
-    return WriteError(target, f"{why}; nothing was left behind")
+    return WriteError(target, f"{why}; nothing was left behind", e.errno)
 
 
 def _tmp_sibling(target: Path, *, directory: bool) -> Path:
@@ -54,7 +59,7 @@ def _tmp_sibling(target: Path, *, directory: bool) -> Path:
     for a in [target.parent, *target.parent.parents]:  # `-o file.obj/x.pc2`: say so, not "File exists"
         if a.exists():
             if not a.is_dir():
-                raise WriteError(target, f"{a} is a file, not a folder")
+                raise WriteError(target, f"{a} is a file, not a folder", errno.ENOTDIR)
             break
     try:
         target.parent.mkdir(parents=True, exist_ok=True)

@@ -406,10 +406,17 @@ class OutputGuard:
 
     def start(self) -> None:
         """Mark claimed resumable folders as this kind's now (before the first task commits), so a stopped run
-        is resumed; the folder is created."""
+        is resumed; the folder is created.  A folder that cannot be written (read-only, full) is named."""
+        from .atomic import WriteError, write_error
+
         for c in self.claims:
             if c.what == "resumable":
-                self._mark(c.location)
+                try:
+                    self._mark(c.location)
+                except WriteError as e:
+                    raise WriteError(c.path, e.reason, e.errno) from None
+                except OSError as e:
+                    raise write_error(e, c.path) from None
 
     def _mark(self, loc) -> None:
         from .location import LocalLocation
