@@ -30,3 +30,5 @@ def read_toml(path, what: str) -> tuple[dict, str]:
         return tomllib.loads(text), text
     except tomllib.TOMLDecodeError as e:
         raise FileFormatError(f"invalid TOML: {e}", path=p) from None
+    except RecursionError:  # arrays or tables nested thousands deep
+        raise FileFormatError(f"{what} nests too deeply to be read", path=p) from None

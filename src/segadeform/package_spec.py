@@ -341,6 +341,8 @@ def read_manifest_text(text: str, *, path=None) -> dict:
         m = json.loads(text)
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise PackageError(f"manifest is not valid JSON ({e})", path=path) from None
+    except RecursionError:  # (arrays nested thousands deep: found by fuzzing)
+        raise PackageError("manifest nests too deeply to be read", path=path) from None
     m = upgrade_manifest(m, path=path)
     validate_manifest(m, path=path)
     return m

@@ -3,7 +3,9 @@
     python tests/fuzz/fuzz_readers.py TARGET [libFuzzer options] [CORPUS_DIR ...]
 
 TARGET is one of obj, off, pc2, bvh, toml, npz, mhclo, motion (AMASS-style .npz), amc (an ASF skeleton, a line
-``%%``, then an AMC motion: CMU's format).  Every input is written to a file and read with the package's reader;
+``%%``, then an AMC motion: CMU's format), sgda (a garment asset), sgdm (a motion file), batch (a jobs file),
+manifest (a model package's manifest.json, through ModelPackage), bvhbody (a BVH mapped by the skeleton rules and
+retargeted onto the default body's joints).  Every input is written to a file and read with the package's reader;
 a reader may only fail with :class:`segadeform.errors.SegadeformError` (a clear error).  Anything else
 -- IndexError, struct.error, RecursionError, a NaN slipping through -- is a
 crash and libFuzzer stops with the input saved as ``crash-*``.
@@ -24,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-TARGETS = ("obj", "off", "pc2", "bvh", "toml", "npz", "mhclo", "motion", "amc")
+TARGETS = ("obj", "off", "pc2", "bvh", "toml", "npz", "mhclo", "motion", "amc", "sgda", "sgdm", "batch", "manifest",
+           "bvhbody")
 _TMP = Path(tempfile.mkdtemp(prefix="segadeform-fuzz-"))
 
 
@@ -96,9 +99,46 @@ def make_target(name: str):
             p.write_bytes(motion)
             m = read_amc(p, p.with_suffix(".asf"))
             _check_finite(m.poses, m.trans)
+    elif name == "sgda":
+        from segadeform.geometry import GarmentAsset
+
+        def read(p):
+            a = GarmentAsset.load(p)
+            _check_finite(a.vertices, a.descriptor, *(x for x in (a.betas, a.log_wbody) if x is not None))
+            assert a.faces.min() >= 0 and a.faces.max() < a.n_vertices
+            assert a.nbr.min() >= 0 and a.nbr.max() < a.n_vertices
+    elif name == "sgdm":
+        from segadeform.bundle import read_motion_file
+
+        def read(p):
+            m, meta = read_motion_file(p)
+            _check_finite(m.poses, m.trans)
+            assert isinstance(meta, dict)
+    elif name == "batch":
+        from segadeform.runtime.batch import load_batch
+
+        def read(p):
+            cfg = load_batch(p)
+            assert cfg.garments and cfg.motions
+    elif name == "manifest":
+        from segadeform.runtime.package import ModelPackage
+
+        def read(p):
+            ModelPackage(p.parent, verify_hashes=True)
+    elif name == "bvhbody":
+        from segadeform.body import default_rest_joints
+        from segadeform.motion import load_motion
+
+        joints = default_rest_joints()
+
+        def read(p):
+            m = load_motion(p, rest_joints=joints)
+            _check_finite(m.poses, m.trans)
     else:
         raise SystemExit(f"unknown target {name!r}; expected one of {', '.join(TARGETS)}")
-    path = _TMP / f"input.{'npz' if name == 'motion' else name}"
+    path = _TMP / {"motion": "input.npz", "manifest": "pkg/manifest.json", "bvhbody": "input.bvh",
+                   "batch": "jobs.toml"}.get(name, f"input.{name}")
+    path.parent.mkdir(parents=True, exist_ok=True)
 
     def one_input(data: bytes) -> None:
         path.write_bytes(data)
@@ -140,6 +180,41 @@ def write_seeds(d: Path) -> None:
     (d / "amc" / "cmu_like.asfamc").write_text(asf_text() + "%%\n" + amc_text(smooth_values(n_frames=2)))
     (d / "amc" / "radians.asfamc").write_text(asf_text(angle="rad", limits=False) + "%%\n" + amc_text(
         smooth_values(n_frames=1), header=(":RADIANS",)))
+    _write_portable_seeds(d, root)
+
+
+def _write_portable_seeds(d: Path, root: Path) -> None:
+    """Seeds of the runtimes' files (.sgda, .sgdm), jobs files, manifests and BVH for the body (issue 29)."""
+    import json
+    import shutil
+
+    from segadeform.body import load_body
+    from segadeform.bundle import write_motion_file
+    from segadeform.body.identity import body_label
+    from segadeform.geometry import precompute_garment
+    from segadeform.motion import make_motion
+
+    body = load_body(root / "samples/bodies/default_body.npz")
+    u, w = np.meshgrid(np.linspace(0, 2 * np.pi, 9)[:-1], np.linspace(0.9, 1.1, 3))
+    v = np.stack([0.2 * np.cos(u), w, 0.2 * np.sin(u)], -1).reshape(-1, 3)
+    f = np.array([[r * 8 + c, r * 8 + (c + 1) % 8, (r + 1) * 8 + c] for r in range(2) for c in range(8)] +
+                 [[r * 8 + (c + 1) % 8, (r + 1) * 8 + (c + 1) % 8, (r + 1) * 8 + c] for r in range(2) for c in range(8)])
+    a = precompute_garment(v, f, body.rest_joints()[0], n_star=4)
+    a.save(d / "sgda" / "tube.sgda")
+    a.for_body(body, (0.3,)).save(d / "sgda" / "tube_for_body.sgda")
+    m = make_motion("walk", seconds=0.1)
+    write_motion_file(d / "sgdm" / "walk.sgdm", m, body=body_label(body), betas=[0.0] * body.n_betas, source="walk")
+    write_motion_file(d / "sgdm" / "bare.sgdm", m)
+    (d / "batch" / "jobs.toml").write_text(
+        '[batch]\noutput = "out"\nformat = "pc2"\neffects = "dqs,collisions"\nup = "y"\nframes_per_call = 4\n'
+        '[[garments]]\nmesh = "skirt.obj"\nname = "skirt"\nbetas = [0.0, 0.5]\n'
+        '[[motions]]\nfile = "walk.npz"\nfps = 30.0\nframes = "0:6"\n[[motions]]\nkind = "dance"\nseconds = 0.5\n'
+        'seed = 2\n')
+    man = json.loads((root / "samples/models/default/manifest.json").read_text())
+    man.pop("training_garments", None)  # (large; the rest of the manifest's structure stays)
+    (d / "manifest" / "manifest.json").write_text(json.dumps(man))
+    for src in (d / "bvh").iterdir():
+        shutil.copy(src, d / "bvhbody" / src.name)
 
 
 def main() -> None:
