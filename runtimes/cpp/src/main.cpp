@@ -2,15 +2,17 @@
 // PC2 point caches of the garment (and, with --body-out, of the body posed by the package's body graph) out:
 //
 //   segadeform-run --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]
-//                  [--effects lbs|dqs,dynamics,wrinkles,collisions] [--collision-margin M] [--batch N] [--threads N]
+//                  [--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M] [--cloth K=V,..]
+//                  [--batch N] [--threads N]
 //   segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--check]
 //
 // (the second form: a scene bundle from `segadeform bundle`; --check compares the frames with its `expected`
 // array, the Python runtime's output, and prints the error).  Without --effects: the model's own effects and
 // collisions when the package has a body graph, as `segadeform run` without --effects.  Collisions push the
 // garment out of the posed body with the compiled kernel src/segadeform/body/_collide.c (collide.hpp; margin
-// 0.004 m unless --collision-margin).  Built on the onnxruntime C API (the shared library, C++17, no other
-// dependency).  Formats: docs/package.md.
+// 0.004 m unless --collision-margin).  The cloth stage (off unless named; cloth.hpp, the compiled kernel
+// src/segadeform/body/_cloth.c) replaces the push-out when named, its knobs from --cloth.  Built on the onnxruntime C
+// API (the shared library, C++17, no other dependency).  Formats: docs/package.md.
 #include <onnxruntime_c_api.h>
 
 #include <algorithm>
@@ -26,6 +28,7 @@
 #include <vector>
 
 #include "bundle.hpp"
+#include "cloth.hpp"
 #include "collide.hpp"
 #include "json.hpp"
 
@@ -219,7 +222,7 @@ void write_pc2(const std::string& path, const float* frames, int32_t T, int32_t 
 
 struct Effects {
   std::string skinning = "lbs";
-  bool wrinkles = false, dynamics = false, collisions = false;
+  bool wrinkles = false, dynamics = false, collisions = false, cloth = false;
 };
 
 // segadeform.scene.Effects.collision_margin's default (metres)
@@ -237,8 +240,9 @@ Effects parse_effects(const std::string& text) {
     else if (item == "dynamics") e.dynamics = true;
     else if (item == "wrinkles") e.wrinkles = true;
     else if (item == "collisions") e.collisions = true;
+    else if (item == "cloth") e.cloth = true;
     else if (!item.empty())
-      throw std::runtime_error("unknown effect '" + item + "' (expected lbs, dqs, dynamics, wrinkles, collisions)");
+      throw std::runtime_error("unknown effect '" + item + "' (expected lbs, dqs, dynamics, wrinkles, collisions, cloth)");
   }
   if (lbs && dqs) throw std::runtime_error("name one skinning (expected lbs or dqs, got both)");
   e.skinning = dqs ? "dqs" : "lbs";
@@ -320,6 +324,8 @@ struct Scene {
   int64_t N = 0, K = 0, S = 0, T = 0, D = 0;
   std::string body_sha;  // the body a garment asset was prepared for
   std::string weight_prior;  // how its weights reached the garment (log_wbody): nearest | inpaint
+  const sgd::Array *vertices64 = nullptr, *faces = nullptr;  // a garment asset's rest vertices and faces (cloth)
+  double fps = 0;  // a motion file's frame rate
 };
 
 Scene scene_of_bundle(const sgd::Bundle& b) {
@@ -397,6 +403,9 @@ Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::
   s.D = 3 * s.S;
   s.body_sha = a.meta["body"]["sha256"].str;
   s.weight_prior = a.meta["body"].has("weight_prior") ? a.meta["body"]["weight_prior"].str : "nearest";
+  s.vertices64 = &v;
+  s.faces = &need(a, apath, "faces", "i32", 2);
+  s.fps = m.meta.has("fps") ? m.meta["fps"].num : 0;
   if (m.meta.has("body") && m.meta["body"]["sha256"].str != s.body_sha)
     std::cerr << "warning: the motion was retargeted onto another body than the garment asset's\n";
   return s;
@@ -541,15 +550,15 @@ int64_t collide(std::vector<float>& frames, int64_t T, int64_t N, const std::vec
 
 const char* USAGE =
     "usage: segadeform-run --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]\n"
-    "                      [--effects lbs|dqs,dynamics,wrinkles,collisions] [--collision-margin M] [--batch N]\n"
-    "                      [--threads N]\n"
+    "                      [--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M]\n"
+    "                      [--cloth K=V,..] [--batch N] [--threads N]\n"
     "       segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--check]\n";
 
 }  // namespace
 
 int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
-  std::string out, package, garment, motion, body_out, effects;
+  std::string out, package, garment, motion, body_out, effects, cloth;
   int batch = 8, threads = 1;
   double margin = DEFAULT_COLLISION_MARGIN;
   bool margin_given = false;
@@ -566,6 +575,7 @@ int main(int argc, char** argv) {
       else if (args[i] == "--motion" && more) motion = args[++i];
       else if (args[i] == "--body-out" && more) body_out = args[++i];
       else if (args[i] == "--effects" && more) effects = args[++i];
+      else if (args[i] == "--cloth" && more) cloth = args[++i];
       else if (args[i] == "--collision-margin" && more) {
         size_t used = 0;
         margin = std::stod(args[++i], &used);
@@ -581,7 +591,7 @@ int main(int argc, char** argv) {
   }
   const bool flag_form = !package.empty() || !garment.empty() || !motion.empty();
   const bool ok = flag_form ? (!package.empty() && !garment.empty() && !motion.empty() && pos.empty() && !do_check)
-                            : (pos.size() == 2 && body_out.empty() && effects.empty() && !margin_given);
+                            : (pos.size() == 2 && body_out.empty() && effects.empty() && !margin_given && cloth.empty());
   if (!ok || out.empty() || batch < 1 || threads < 1) {
     std::cerr << USAGE;
     return 2;
@@ -606,11 +616,24 @@ int main(int argc, char** argv) {
     }
     if (!(margin >= 0 && margin < 1))
       throw std::runtime_error("the collision margin must be in [0, 1) metres (got " + std::to_string(margin) + ")");
+    sgd::ClothSettings knobs;
+    if (!cloth.empty()) {
+      if (!eff.cloth) {
+        std::cerr << "--cloth sets the cloth stage's knobs, but the stage is off (name cloth in --effects)\n" << USAGE;
+        return 2;
+      }
+      knobs.parse(cloth);
+    }
+    if (eff.cloth && !sc.vertices64)
+      throw std::runtime_error("the cloth stage needs a garment asset and a motion file (expected .sgda and .sgdm, got a "
+                               "scene bundle)");
+    if (eff.cloth && !(sc.fps > 0)) throw std::runtime_error("the motion file's fps must be positive");
     const sgd::Json& dec_spec = pkg.deformer(eff);
-    const bool need_body = !body_out.empty() || eff.collisions;
+    const bool need_body = !body_out.empty() || eff.collisions || eff.cloth;
     const sgd::Json* body_spec = need_body ? pkg.body(eff.skinning) : nullptr;
     if (need_body && !body_spec)
-      throw std::runtime_error(std::string(eff.collisions ? "collisions need the posed body, and " : "") +
+      throw std::runtime_error(std::string(eff.cloth ? "the cloth stage needs the posed body, and "
+                                           : eff.collisions ? "collisions need the posed body, and " : "") +
                                "the package has no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
     OrtEnv* env;
     check(api->CreateEnv(ORT_LOGGING_LEVEL_WARNING, "segadeform", &env));
@@ -620,17 +643,46 @@ int main(int argc, char** argv) {
     std::vector<float> body;
     std::vector<int32_t> body_faces;
     if (body_spec) body = pose_body(env, pkg, *body_spec, sc, batch, threads, &V, &body_ms, &body_faces);
-    if (eff.collisions) moved = collide(frames, sc.T, sc.N, body, V, body_faces, margin, batch, threads, &col_ms);
+    std::unique_ptr<sgd::Cloth> stage;
+    double cloth_ms = 0;
+    if (eff.cloth) {  // contact included: no push-out after it
+      auto t0 = std::chrono::steady_clock::now();
+      Scene rest_scene = sc;  // the body at rest: the body graph at zero pose, no translation
+      rest_scene.T = 1;
+      rest_scene.poses.assign(static_cast<size_t>(3 * sc.S), 0.f);
+      rest_scene.trans.assign(3, 0.f);
+      int64_t rv = 0;
+      double rms = 0;
+      std::vector<int32_t> rf;
+      const std::vector<float> rest = pose_body(env, pkg, *body_spec, rest_scene, 1, threads, &rv, &rms, &rf);
+      stage.reset(new sgd::Cloth(sc.vertices64->as<double>(), sc.N, sc.faces->as<int32_t>(), sc.faces->shape[0],
+                                 rest.data(), V, body_faces.data(), static_cast<int64_t>(body_faces.size() / 3), knobs,
+                                 margin, 1.0 / sc.fps));
+      for (int64_t lo = 0; lo < sc.T; lo += batch) {
+        const int64_t B = std::min<int64_t>(lo + batch, sc.T) - lo;
+        stage->step(frames.data() + lo * sc.N * 3, B, body.data() + lo * V * 3);
+      }
+      cloth_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / sc.T;
+      if (stage->resets() > 0)
+        std::cerr << "cloth: the stage started again from the network's frame at frame " << stage->first_reset()
+                  << " (the garment jumped)\n";
+    } else if (eff.collisions) {
+      moved = collide(frames, sc.T, sc.N, body, V, body_faces, margin, batch, threads, &col_ms);
+    }
     write_pc2(out, frames.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(sc.N));
     if (!body_out.empty()) write_pc2(body_out, body.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(V));
-    std::printf("%lld frames, %.2f ms/frame (%s%s%s%s) -> %s", static_cast<long long>(sc.T), ms, eff.skinning.c_str(),
-                eff.dynamics ? ", dynamics" : "", eff.wrinkles ? ", wrinkles" : "", eff.collisions ? ", collisions" : "",
-                out.c_str());
+    std::printf("%lld frames, %.2f ms/frame (%s%s%s%s%s) -> %s", static_cast<long long>(sc.T), ms,
+                eff.skinning.c_str(), eff.dynamics ? ", dynamics" : "", eff.wrinkles ? ", wrinkles" : "",
+                eff.collisions ? ", collisions" : "", eff.cloth ? ", cloth" : "", out.c_str());
     if (!body_out.empty())
       std::printf("; body %lld vertices, %.2f ms/frame -> %s", static_cast<long long>(V), body_ms, body_out.c_str());
-    if (eff.collisions)
+    if (eff.collisions && !eff.cloth)
       std::printf("; collisions: %lld vertex-frames pushed out (margin %g m), %.2f ms/frame",
                   static_cast<long long>(moved), margin, col_ms);
+    if (stage)
+      std::printf("; cloth: %lld vertex-frames in contact, %lld pushed out after the sweeps, %lld reset(s), %.2f "
+                  "ms/frame", static_cast<long long>(stage->contacts()), static_cast<long long>(stage->pushed()),
+                  static_cast<long long>(stage->resets()), cloth_ms);
     std::printf("\n");
     if (do_check) {
       const auto& e = bundle.at("expected");

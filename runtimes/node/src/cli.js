@@ -1,12 +1,15 @@
 #!/usr/bin/env node
 // segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]
-//                 [--effects lbs,dynamics,wrinkles,collisions] [--collision-margin M] [--batch N] [--threads N]
-// (without --effects: the model's own effects, and collisions when the package has a body graph; margin 0.004 m)
+//                 [--effects lbs,dynamics,wrinkles,collisions,cloth] [--collision-margin M] [--cloth K=V,..]
+//                 [--batch N] [--threads N]
+// (without --effects: the model's own effects, and collisions when the package has a body graph; margin 0.004 m;
+// cloth, the cloth stage, only when named; --cloth sets its knobs, as segadeform run --cloth)
 // segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]      (a scene bundle)
 import { animate, writePC2 } from "./index.js";
 
 const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
-  "[--effects lbs|dqs,dynamics,wrinkles,collisions] [--collision-margin M] [--batch N] [--threads N]\n" +
+  "[--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M] [--cloth K=V,..] [--batch N] " +
+  "[--threads N]\n" +
   "       segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]";
 const args = process.argv.slice(2);
 const opt = (name, dflt) => {
@@ -18,27 +21,37 @@ const batch = parseInt(opt("--batch", "8"), 10);
 const threads = parseInt(opt("--threads", "1"), 10);
 const pkg = opt("--package"), garment = opt("--garment"), motion = opt("--motion");
 const bodyOut = opt("--body-out"), effects = opt("--effects"), marginText = opt("--collision-margin");
+const cloth = opt("--cloth");
 const margin = marginText === undefined ? undefined : Number(marginText);
 const flagForm = pkg || garment || motion;
 if (!out || !(batch >= 1) || !(threads >= 1) || (flagForm ? !(pkg && garment && motion) || args.length : args.length !== 2) ||
-    (!flagForm && (bodyOut || effects || marginText !== undefined)) || (marginText !== undefined && !Number.isFinite(margin))) {
+    (!flagForm && (bodyOut || effects || cloth || marginText !== undefined)) ||
+    (marginText !== undefined && !Number.isFinite(margin))) {
   console.error(USAGE);
+  process.exit(2);
+}
+if (cloth && !(effects || "").split(",").map((s) => s.trim()).includes("cloth")) {
+  console.error("--cloth sets the cloth stage's knobs, but the stage is off (name cloth in --effects)");
   process.exit(2);
 }
 try {
   const r = flagForm
-    ? await animate(pkg, garment, motion, { batch, threads, effects, body: !!bodyOut, collisionMargin: margin })
+    ? await animate(pkg, garment, motion, { batch, threads, effects, body: !!bodyOut, collisionMargin: margin, cloth })
     : await animate(args[0], args[1], { batch, threads });
   for (const w of r.warnings || []) console.error(`warning: ${w}`);
   // PC2 in frames, as `segadeform run` writes it: start 0, one sample per frame
   writePC2(out, r.frames, r.T, r.N);
   if (bodyOut) writePC2(bodyOut, r.body.vertices, r.body.T, r.body.V);
   const e = r.effects;
-  const c = r.collisions;
+  const c = r.collisions, k = r.cloth;
   console.log(`${r.T} frames, ${r.msPerFrame.toFixed(2)} ms/frame (${r.variant}: ${e.skinning}` +
-    `${e.dynamics ? ", dynamics" : ""}${e.wrinkles ? ", wrinkles" : ""}${e.collisions ? ", collisions" : ""}) -> ${out}` +
+    `${e.dynamics ? ", dynamics" : ""}${e.wrinkles ? ", wrinkles" : ""}${e.collisions ? ", collisions" : ""}` +
+    `${e.cloth ? ", cloth" : ""}) -> ${out}` +
     (bodyOut ? `; body ${r.body.V} vertices, ${r.body.msPerFrame.toFixed(2)} ms/frame (${r.body.graph}) -> ${bodyOut}` : "") +
-    (c ? `; collisions: ${c.moved} vertex-frames pushed out (margin ${c.margin} m), ${c.msPerFrame.toFixed(2)} ms/frame` : ""));
+    (c ? `; collisions: ${c.moved} vertex-frames pushed out (margin ${c.margin} m), ${c.msPerFrame.toFixed(2)} ms/frame` : "") +
+    (k ? `; cloth: ${k.contacts} vertex-frames in contact, ${k.pushed} pushed out after the sweeps, ${k.resets} reset(s), ` +
+      `${k.msPerFrame.toFixed(2)} ms/frame` : ""));
+  if (k && k.resets) console.error(`cloth: the stage started again from the network's frame at frame ${k.firstReset} (the garment jumped)`);
 } catch (e) {
   console.error(`Error: ${e.message}`);
   process.exit(1);

@@ -553,6 +553,31 @@ function nearOrInside(fr, P, ip, radius, closest, n) {
   return true;
 }
 
+const cP = new Float64Array(3), nP = new Float64Array(3);
+
+/* The push-out of points [i0, i1) of one frame fr: pts[3 * (off + i) ...] moved in place, mask[off + i] set to 1 for
+ * every point moved (sdc_push_out's loop over one frame).  Returns the number of points newly marked. */
+function pushFrame(fr, pts, off, i0, i1, margin, iterations, mask) {
+  let total = 0;
+  if (iterations < 1) iterations = 1;
+  // a little over the margin: a point just pushed out to the margin is found again by the radius
+  const radius = margin * (1.0 + 1e-3) + 1e-9 * fr.scale;
+  for (let i = i0; i < i1; i++) {
+    const ip = 3 * (off + i);
+    for (let it = 0; it < iterations; it++) {
+      if (!nearOrInside(fr, pts, ip, radius, cP, nP) || !(nearSd < margin)) break;
+      pts[ip] = cP[0] + margin * nP[0];
+      pts[ip + 1] = cP[1] + margin * nP[1];
+      pts[ip + 2] = cP[2] + margin * nP[2];
+      if (!mask[off + i]) {
+        mask[off + i] = 1;
+        total++;
+      }
+    }
+  }
+  return total;
+}
+
 // ---- the collider ---------------------------------------------------------------------------------------------
 /**
  * A collider for a body whose triangles stay the same while its vertices move (the posed body): the tree, built
@@ -628,28 +653,45 @@ export class BodyCollider {
     const V = verts instanceof Float64Array ? verts : new Float64Array(verts);
     const box = this.refit(V, B);
     const mask = new Uint8Array(B * N);
-    if (iterations < 1) iterations = 1;
-    const c = new Float64Array(3), nrm = new Float64Array(3);
     let total = 0;
     for (let f = 0; f < B; f++) {
-      const fr = makeFrame(this, V, 3 * this.nv * f, box, 6 * this.nNodes * f);
-      // a little over the margin: a point just pushed out to the margin is found again by the radius
-      const radius = margin * (1.0 + 1e-3) + 1e-9 * fr.scale;
-      for (let i = 0; i < N; i++) {
-        const ip = 3 * (N * f + i);
-        for (let it = 0; it < iterations; it++) {
-          if (!nearOrInside(fr, pts, ip, radius, c, nrm) || !(nearSd < margin)) break;
-          pts[ip] = c[0] + margin * nrm[0];
-          pts[ip + 1] = c[1] + margin * nrm[1];
-          pts[ip + 2] = c[2] + margin * nrm[2];
-          if (!mask[N * f + i]) {
-            mask[N * f + i] = 1;
-            total++;
-          }
-        }
-      }
+      total += pushFrame(makeFrame(this, V, 3 * this.nv * f, box, 6 * this.nNodes * f), pts, N * f, 0, N, margin,
+        iterations, mask);
     }
     return { moved: total, mask };
+  }
+
+  /** The boxes of one frame verts (V*3, Float64Array) written into box (nNodes*6, Float64Array) (sdc_refit). */
+  refitInto(verts, box) {
+    refit(this, verts, 0, box, 0);
+  }
+
+  /**
+   * The exact signed distance, closest point and normal of every point of pts [i0, i1) (Float64Array) inside the
+   * body or within `radius` of it, against one frame (verts with its boxes from refitInto), written to sd (P),
+   * closest and normal (P*3); the others get sd = Infinity (sdc_near).  Returns how many were found.
+   */
+  near(verts, box, pts, i0, i1, radius, sd, closest, normal) {
+    const fr = makeFrame(this, verts, 0, box, 0);
+    const c = new Float64Array(3), nrm = new Float64Array(3);
+    let found = 0;
+    for (let i = i0; i < i1; i++) {
+      if (nearOrInside(fr, pts, 3 * i, radius, c, nrm)) {
+        sd[i] = nearSd;
+        closest[3 * i] = c[0]; closest[3 * i + 1] = c[1]; closest[3 * i + 2] = c[2];
+        normal[3 * i] = nrm[0]; normal[3 * i + 1] = nrm[1]; normal[3 * i + 2] = nrm[2];
+        found++;
+      } else {
+        sd[i] = Infinity;
+      }
+    }
+    return found;
+  }
+
+  /** sdc_push_out of the points [i0, i1) of pts (n*3, moved in place) against one frame (verts with its boxes from
+   * refitInto); moved (Uint8Array n) set to 1 where a point moved.  Returns how many moved. */
+  pushOutFrame(verts, box, pts, i0, i1, margin, iterations, moved) {
+    return pushFrame(makeFrame(this, verts, 0, box, 0), pts, 0, i0, i1, margin, iterations, moved);
   }
 
   /** Whether the mesh is closed (every edge has two faces running along it in opposite directions). */

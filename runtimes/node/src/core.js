@@ -1,11 +1,13 @@
 // segadeform's JavaScript core, shared by the Node runtime (index.js) and the browser runtime
 // (runtimes/web): no Node or DOM APIs here, the onnxruntime module is passed in.
 // The package format is docs/package.md; the container of scene bundles (.sgdb), garment assets (.sgda)
-// and motion files (.sgdm) is src/segadeform/bundle.py.  Collisions: collide.js (the port of the C kernel).
+// and motion files (.sgdm) is src/segadeform/bundle.py.  Collisions: collide.js (the port of the C kernel); the cloth
+// stage: cloth.js (the port of _cloth.c).
 
+import { clothFrames, DEFAULT_CLOTH, parseCloth } from "./cloth.js";
 import { BodyCollider, pushOutFrames } from "./collide.js";
 
-export { BodyCollider, pushOutFrames };
+export { BodyCollider, clothFrames, DEFAULT_CLOTH, parseCloth, pushOutFrames };
 export const FORMAT = "segadeform-model-package";
 /** The collision margin when none is given (metres): segadeform.scene.Effects.collision_margin's default. */
 export const DEFAULT_COLLISION_MARGIN = 0.004;
@@ -102,23 +104,24 @@ export function pickVariant(manifest, effects) {
  * deformer's) and collisions when the package can pose the body (it has a body graph).
  */
 export function defaultEffects(manifest) {
-  return { ...manifest.graphs[manifest.default_deformer].effects, collisions: hasBody(manifest) };
+  return { ...manifest.graphs[manifest.default_deformer].effects, collisions: hasBody(manifest), cloth: false };
 }
 
 /**
  * Effects from a complete list such as "dqs,dynamics,wrinkles,collisions" (what is not named is off; lbs unless dqs
  * is named), as `segadeform run --effects`.  Collisions are not a graph: the push-out out of the body posed by the
- * package's body graph (collide.js), after the deformer.
+ * package's body graph (collide.js), after the deformer; cloth (off unless named) is the cloth stage (cloth.js),
+ * which resolves contact itself: with it the push-out is not run.
  */
 export function parseEffects(text) {
   const names = text.split(",").map((s) => s.trim()).filter(Boolean);
-  const known = ["lbs", "dqs", "dynamics", "wrinkles", "collisions"];
+  const known = ["lbs", "dqs", "dynamics", "wrinkles", "collisions", "cloth"];
   for (const n of names) {
     if (!known.includes(n)) throw new Error(`unknown effect '${n}' (expected ${known.join(", ")})`);
   }
   if (names.includes("lbs") && names.includes("dqs")) throw new Error("name one skinning (expected lbs or dqs, got both)");
   return { skinning: names.includes("dqs") ? "dqs" : "lbs", wrinkles: names.includes("wrinkles"),
-    dynamics: names.includes("dynamics"), collisions: names.includes("collisions") };
+    dynamics: names.includes("dynamics"), collisions: names.includes("collisions"), cloth: names.includes("cloth") };
 }
 
 /** Whether a package has body graphs (schema 3 with `segadeform export-body`): what collisions need. */
@@ -259,11 +262,14 @@ function modelBetas(betas, nb) {
  */
 export async function animateWith(ort, manifest, source, session, options = {}) {
   const I = sceneInputs(source);
-  const effects = { collisions: false, ...(options.effects || I.effects || defaultEffects(manifest)) };
+  const effects = { collisions: false, cloth: false, ...(options.effects || I.effects || defaultEffects(manifest)) };
   if (options.collisionMargin !== undefined) checkMargin(options.collisionMargin);
-  if (effects.collisions && !hasBody(manifest)) {
-    throw new Error("collisions need the posed body, and the package has no body graph (segadeform export-body " +
-      "[BODY] -o PACKAGE adds one)");
+  if ((effects.collisions || effects.cloth) && !hasBody(manifest)) {
+    throw new Error(`${effects.cloth ? "the cloth stage needs" : "collisions need"} the posed body, and the package has ` +
+      "no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
+  }
+  if (effects.cloth && !source.asset) {
+    throw new Error("the cloth stage needs a garment asset and a motion file (expected .sgda and .sgdm, got a scene bundle)");
   }
   const batch = options.batch || 8;
   const encSpec = manifest.graphs.garment_encoder;
@@ -374,6 +380,40 @@ export async function poseBodyWith(ort, manifest, source, session, { skinning = 
     }
   }
   return { vertices, joints, restJoints, faces, V, T, msPerFrame: (performance.now() - t0) / T, graph: name };
+}
+
+/**
+ * The body at rest: the package's body graph for `skinning` at zero pose and no translation (the shape of the source's
+ * betas), V*3 float32: what the cloth stage measures each garment vertex's rest distance from, as `segadeform run`.
+ */
+export async function restBodyWith(ort, manifest, source, session, { skinning = "lbs" } = {}) {
+  const I = sceneInputs(source);
+  const picked = pickBody(manifest, skinning);
+  if (!picked) throw new Error("the package has no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
+  const sess = await session(picked.spec);
+  const nb = picked.spec.inputs[0].shape[0], S = picked.spec.inputs[1].shape[1];
+  const out = await sess.run({
+    betas: feed(ort, picked.spec.inputs[0], modelBetas(I.betas, nb), [nb]),
+    poses: new ort.Tensor("float32", new Float32Array(S * 3), [1, S, 3]),
+    trans: new ort.Tensor("float32", new Float32Array(3), [1, 3]),
+  });
+  return Float32Array.from(await out.vertices.getData());
+}
+
+/**
+ * The cloth stage on animateWith's frames (changed in place), as `segadeform run --effects=+cloth`: `body`
+ * poseBodyWith's, `restBody` restBodyWith's, `source` the { asset, motion } animated.  Returns { contacts, pushed,
+ * resets, firstReset, msPerFrame, settings, margin } (cloth.js clothFrames).
+ */
+export function clothWith(r, body, restBody, source, { settings = DEFAULT_CLOTH, margin = DEFAULT_COLLISION_MARGIN,
+  batch = 8 } = {}) {
+  checkMargin(margin);
+  if (!body || body.error) throw new Error(`the cloth stage needs the posed body${body && body.error ? `: ${body.error}` : ""}`);
+  if (body.T !== r.T) throw new Error(`the posed body has ${body.T} frames, the garment ${r.T}`);
+  if (!source.asset) throw new Error("the cloth stage needs a garment asset (.sgda)");
+  const A = source.asset.arrays;
+  return clothFrames(r.frames, r.T, r.N, body.vertices, body.V, body.faces, restBody, A.vertices.data, A.faces.data,
+    { settings: typeof settings === "string" ? parseCloth(settings) : settings, margin, dt: 1.0 / r.fps, batch });
 }
 
 /** A collision margin must be in [0, 1) metres, as a scene's collision_margin. */

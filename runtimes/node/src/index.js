@@ -6,15 +6,15 @@ import { createHash } from "node:crypto";
 import { join } from "node:path";
 import * as ort from "onnxruntime-node";
 import {
-  animateWith, BodyCollider, collideWith, compareFrames, DEFAULT_COLLISION_MARGIN, defaultEffects, parseBundle,
-  parseEffects, pc2Bytes, pickBody, pickVariant, poseBodyWith, pushOutFrames, readAsset as checkAsset, readManifest,
-  readMotion as checkMotion,
+  animateWith, BodyCollider, clothWith, collideWith, compareFrames, DEFAULT_CLOTH, DEFAULT_COLLISION_MARGIN,
+  defaultEffects, parseBundle, parseCloth, parseEffects, pc2Bytes, pickBody, pickVariant, poseBodyWith, pushOutFrames,
+  readAsset as checkAsset, readManifest, readMotion as checkMotion, restBodyWith,
 } from "./core.js";
 
 export { parseBundle, readBundle } from "./bundle.js";
 export {
-  BodyCollider, compareFrames, DEFAULT_COLLISION_MARGIN, defaultEffects, parseEffects, pickBody, pickVariant,
-  pushOutFrames,
+  BodyCollider, compareFrames, DEFAULT_CLOTH, DEFAULT_COLLISION_MARGIN, defaultEffects, parseCloth, parseEffects,
+  pickBody, pickVariant, pushOutFrames,
 };
 
 /** Read a model package's manifest (docs/package.md) and check every file against its sha256. */
@@ -66,10 +66,11 @@ function sessions(dir, options) {
  * Returns { frames: Float32Array (T*N*3), T, N, msPerFrame, variant, effects, faces, fps, warnings } and, with
  * options.body, body: { vertices (T*V*3), joints, restJoints, faces, V, T, msPerFrame, graph } (the package's body
  * graph, with the garment's skinning); with collisions in the effects, the frames pushed out of that body and
- * collisions: { moved (vertex-frames moved), msPerFrame, margin }.
- * options: { effects (an object or "dqs,dynamics,wrinkles,collisions"; default: a bundle's, else the model's own
- * and collisions when the package has a body graph), collisionMargin (metres, 0.004), batch (8), threads (1),
- * body (false) }.
+ * collisions: { moved (vertex-frames moved), msPerFrame, margin }; with cloth in the effects, the cloth stage's frames
+ * instead (cloth.js; contact included, no push-out) and cloth: { contacts, pushed, resets, firstReset, msPerFrame }.
+ * options: { effects (an object or "dqs,dynamics,wrinkles,collisions[,cloth]"; default: a bundle's, else the model's
+ * own and collisions when the package has a body graph), collisionMargin (metres, 0.004), cloth (the stage's knobs:
+ * an object or "iterations=8,..."; DEFAULT_CLOTH), batch (8), threads (1), body (false) }.
  */
 export async function animate(dir, garment, motion, options = {}) {
   let source;
@@ -88,10 +89,15 @@ export async function animate(dir, garment, motion, options = {}) {
   const manifest = loadManifest(dir);
   const session = sessions(dir, options);
   const r = await animateWith(ort, manifest, source, session, options);
-  if (options.body || r.effects.collisions) {
+  if (options.body || r.effects.collisions || r.effects.cloth) {
     const body = await poseBodyWith(ort, manifest, source, session, { skinning: r.effects.skinning, batch: options.batch });
     if (options.body) r.body = body;
-    if (r.effects.collisions) {
+    if (r.effects.cloth) {
+      const rest = await restBodyWith(ort, manifest, source, session, { skinning: r.effects.skinning });
+      const settings = typeof options.cloth === "string" ? parseCloth(options.cloth) : options.cloth || DEFAULT_CLOTH;
+      r.cloth = clothWith(r, body, rest, source, { settings, margin: options.collisionMargin ?? DEFAULT_COLLISION_MARGIN,
+        batch: options.batch });
+    } else if (r.effects.collisions) {
       r.collisions = collideWith(r, body, { margin: options.collisionMargin ?? DEFAULT_COLLISION_MARGIN,
         batch: options.batch });
     }

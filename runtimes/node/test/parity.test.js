@@ -15,9 +15,11 @@ test("bundle header errors are clear", () => {
 });
 
 test("effects lists read as `segadeform run --effects` reads them", () => {
-  assert.deepEqual(parseEffects("dqs,dynamics"), { skinning: "dqs", wrinkles: false, dynamics: true, collisions: false });
-  assert.deepEqual(parseEffects("wrinkles"), { skinning: "lbs", wrinkles: true, dynamics: false, collisions: false });
-  assert.deepEqual(parseEffects("lbs,collisions"), { skinning: "lbs", wrinkles: false, dynamics: false, collisions: true });
+  const off = { collisions: false, cloth: false };
+  assert.deepEqual(parseEffects("dqs,dynamics"), { ...off, skinning: "dqs", wrinkles: false, dynamics: true });
+  assert.deepEqual(parseEffects("wrinkles"), { ...off, skinning: "lbs", wrinkles: true, dynamics: false });
+  assert.deepEqual(parseEffects("lbs,collisions"), { ...off, skinning: "lbs", wrinkles: false, dynamics: false, collisions: true });
+  assert.deepEqual(parseEffects("lbs,cloth"), { ...off, skinning: "lbs", wrinkles: false, dynamics: false, cloth: true });
   assert.throws(() => parseEffects("lbs,dqs"), /one skinning/);
   assert.throws(() => parseEffects("lbs,wind"), /unknown effect 'wind'/);
 });

@@ -1,0 +1,358 @@
+// The cloth stage in JavaScript: a line-for-line port of src/segadeform/body/_cloth.c (the compiled kernel the
+// Python and C++ runtimes call), shared by the Node runtime and the browser page (plain ES module, no Node or DOM
+// APIs).  The method, the order of its constraints and why each is there are in that file's header: position-based
+// dynamics with strain limiting, smoothing of the deviation from the network's frame, max-distance attachments and
+// contact planes against the posed body, then the collision stage's exact push-out (collide.js).  This port keeps the
+// C file's functions, their order of operations and its float64 arithmetic (only + - * / and Math.sqrt, which
+// JavaScript rounds as C does), so on the same inputs it gives the kernel's frames bit for bit
+// (tests/runtimes/test_cloth.py holds it to Python's ClothStage on shared vectors).
+
+import { BodyCollider } from "./collide.js";
+
+const CONTACT_BAND = 0.01; // metres beyond the margin within which a vertex gets a contact plane (SCL_CONTACT_BAND)
+const PASSES = 3; // the final push-out's passes (SCL_PASSES)
+const TINY = 1e-300;
+
+/** The cloth stage's knobs when none are given: segadeform.cloth_settings.ClothSettings' defaults. */
+export const DEFAULT_CLOTH = Object.freeze({
+  iterations: 4, stiffness: 1.0, stretch: 0.03, compress: 0.03, bending: 0.9, damping: 0.1, follow: 0.5, gravity: 9.81,
+  attachment: 0.02, max_distance: 0.05, reset: 0.25,
+});
+
+/** knob -> [integer?, lowest, highest] (segadeform.cloth_settings.CLOTH_KNOBS) */
+const KNOBS = {
+  iterations: [true, 1, 64], stiffness: [false, 0, 1], stretch: [false, 0, 1], compress: [false, 0, 1],
+  bending: [false, 0, 1], damping: [false, 0, 1], follow: [false, 0, 1], gravity: [false, 0, 100],
+  attachment: [false, 0, 1], max_distance: [false, 0, 1], reset: [false, 1e-6, 1e3],
+};
+
+/** The knobs from "NAME=VALUE,..." over `base` (DEFAULT_CLOTH), checked as ClothSettings checks them. */
+export function parseCloth(text, base = DEFAULT_CLOTH) {
+  const out = { ...base };
+  for (const item of String(text || "").split(",").map((s) => s.trim()).filter(Boolean)) {
+    const [name, value] = item.split("=").map((s) => s.trim());
+    if (!(name in KNOBS) || value === undefined) {
+      throw new Error(`unknown cloth setting (expected NAME=VALUE with NAME one of ${Object.keys(KNOBS).join(", ")}, got '${item}')`);
+    }
+    out[name] = Number(value);
+  }
+  return checkCloth(out);
+}
+
+/** Check every knob (finite, in range, iterations an integer); returns the settings. */
+export function checkCloth(s) {
+  for (const [name, [int, lo, hi]] of Object.entries(KNOBS)) {
+    const v = s[name];
+    if (!(typeof v === "number" && Number.isFinite(v) && v >= lo && v <= hi && (!int || Number.isInteger(v)))) {
+      throw new Error(`cloth ${name} must be ${int ? "an integer" : "a number"} in [${lo}, ${hi}] (got ${v})`);
+    }
+  }
+  return s;
+}
+
+// ---- per garment ---------------------------------------------------------------------------------------------
+/**
+ * The per-garment data (scl_setup) from the rest garment rest (N*3, Float64Array), faces (F*3 indices) and each
+ * vertex's signed distance from the body at rest restSd (N): { edges (Int32Array 2E, a < b, sorted by (a, b)),
+ * restLen (E), nptr (Int32Array N + 1), nidx (Int32Array 2E: each vertex's neighbours, ascending), radius (N) }.
+ */
+export function clothSetup(rest, faces, restSd, attachment, maxDistance) {
+  const n = Math.floor(rest.length / 3), nf = Math.floor(faces.length / 3);
+  for (let i = 0; i < 3 * nf; i++) {
+    if (!(faces[i] >= 0 && faces[i] < n)) throw new Error(`garment face index out of range (expected 0..${n - 1}, got ${faces[i]})`);
+  }
+  // the distinct edges (a < b) sorted by (a, b): the C file's qsort of pairs, as one sort of keys a * n + b
+  const keys = new Float64Array(3 * nf);
+  let ne = 0;
+  for (let i = 0; i < nf; i++) {
+    for (let k = 0; k < 3; k++) {
+      const x = faces[3 * i + k], y = faces[3 * i + (k + 1) % 3];
+      if (x === y) continue;
+      keys[ne++] = x < y ? x * n + y : y * n + x;
+    }
+  }
+  const sorted = keys.subarray(0, ne).sort();
+  let m = 0;
+  for (let i = 0; i < ne; i++) if (m === 0 || sorted[i] !== sorted[m - 1]) sorted[m++] = sorted[i];
+  ne = m;
+  const edges = new Int32Array(2 * ne), restLen = new Float64Array(ne);
+  for (let i = 0; i < ne; i++) {
+    const a = Math.floor(sorted[i] / n), b = sorted[i] - a * n;
+    const dx = rest[3 * b] - rest[3 * a], dy = rest[3 * b + 1] - rest[3 * a + 1], dz = rest[3 * b + 2] - rest[3 * a + 2];
+    edges[2 * i] = a;
+    edges[2 * i + 1] = b;
+    restLen[i] = Math.sqrt(dx * dx + dy * dy + dz * dz);
+  }
+  const nptr = new Int32Array(n + 1), nidx = new Int32Array(2 * ne);
+  for (let i = 0; i < ne; i++) {
+    nptr[edges[2 * i] + 1]++;
+    nptr[edges[2 * i + 1] + 1]++;
+  }
+  for (let i = 0; i < n; i++) nptr[i + 1] += nptr[i];
+  const fill = nptr.slice(0, n);
+  // edges sorted by (a, b): a vertex meets its smaller neighbours (as b) before its larger ones (as a)
+  for (let i = 0; i < ne; i++) {
+    nidx[fill[edges[2 * i]]++] = edges[2 * i + 1];
+    nidx[fill[edges[2 * i + 1]]++] = edges[2 * i];
+  }
+  const radius = new Float64Array(n);
+  for (let i = 0; i < n; i++) {
+    const d = restSd[i] - attachment;
+    radius[i] = d > 0 ? (d < maxDistance ? d : maxDistance) : 0.0;
+  }
+  return { edges, restLen, nptr, nidx, radius, n, ne };
+}
+
+// ---- per frame -----------------------------------------------------------------------------------------------
+/** The per-sweep stiffness that gives k after `sweeps` sweeps, by bisection with products only (scl_per_sweep). */
+export function perSweep(k, sweeps) {
+  if (!(k > 0)) return 0.0;
+  if (k >= 1 || sweeps <= 1) return k >= 1 ? 1.0 : k;
+  let lo = 0.0, hi = 1.0;
+  for (let s = 0; s < 64; s++) {
+    const mid = 0.5 * (lo + hi);
+    let q = 1.0;
+    for (let j = 0; j < sweeps; j++) q *= 1.0 - mid;
+    if (1.0 - q < k) lo = mid; else hi = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+function allFinite(a, off, n) {
+  for (let i = off; i < off + n; i++) if (!(a[i] - a[i] === 0)) return false; // NaN and inf give NaN
+  return true;
+}
+
+/* Keep x[ix..] within r of y[iy..] (r = 0: x = y). */
+function attach(x, ix, y, iy, r) {
+  const e0 = x[ix] - y[iy], e1 = x[ix + 1] - y[iy + 1], e2 = x[ix + 2] - y[iy + 2], l2 = e0 * e0 + e1 * e1 + e2 * e2;
+  if (l2 > r * r) {
+    const s = r > 0 ? r / Math.sqrt(l2) : 0.0;
+    x[ix] = y[iy] + s * e0;
+    x[ix + 1] = y[iy + 1] + s * e1;
+    x[ix + 2] = y[iy + 2] + s * e2;
+  }
+}
+
+/* One edge's strain limit: move the free ends of edge e along it (x at offset xo). */
+function stretchEdge(x, xo, edges, restLen, radius, e, loF, hiF, k) {
+  const a = edges[2 * e], b = edges[2 * e + 1];
+  const p = xo + 3 * a, q = xo + 3 * b;
+  const wa = radius[a] > 0 ? 1.0 : 0.0, wb = radius[b] > 0 ? 1.0 : 0.0;
+  if (wa + wb === 0) return;
+  const d0 = x[q] - x[p], d1 = x[q + 1] - x[p + 1], d2 = x[q + 2] - x[p + 2];
+  const l2 = d0 * d0 + d1 * d1 + d2 * d2;
+  const hi = hiF * restLen[e], lo = loF * restLen[e];
+  if (l2 <= hi * hi && l2 >= lo * lo) return; // within the limits (most edges): no square root
+  const len = Math.sqrt(l2);
+  if (len < TINY) return; // no direction: left to the other constraints
+  const c = l2 > hi * hi ? len - hi : len - lo; // the side decided as above (the root may round onto hi)
+  const s = k * c / (len * (wa + wb));
+  x[p] += wa * s * d0;
+  x[p + 1] += wa * s * d1;
+  x[p + 2] += wa * s * d2;
+  x[q] -= wb * s * d0;
+  x[q + 1] -= wb * s * d1;
+  x[q + 2] -= wb * s * d2;
+}
+
+/* One vertex's smoothing: its deviation from the target moved toward its neighbours' mean deviation. */
+function smoothVertex(x, xo, y, yo, nptr, nidx, radius, i, k) {
+  const deg = nptr[i + 1] - nptr[i];
+  if (deg === 0 || !(radius[i] > 0)) return;
+  let m0 = 0, m1 = 0, m2 = 0;
+  for (let j = nptr[i]; j < nptr[i + 1]; j++) {
+    const v = nidx[j];
+    m0 += x[xo + 3 * v] - y[yo + 3 * v];
+    m1 += x[xo + 3 * v + 1] - y[yo + 3 * v + 1];
+    m2 += x[xo + 3 * v + 2] - y[yo + 3 * v + 2];
+  }
+  m0 /= deg;
+  m1 /= deg;
+  m2 /= deg;
+  const p = xo + 3 * i, t = yo + 3 * i;
+  x[p] += k * (m0 - (x[p] - y[t]));
+  x[p + 1] += k * (m1 - (x[p + 1] - y[t + 1]));
+  x[p + 2] += k * (m2 - (x[p + 2] - y[t + 2]));
+}
+
+/**
+ * The cloth stage for one garment on one body, keeping its state between calls (scl_step):
+ *   new ClothStage(setup (clothSetup), collider (a BodyCollider over the body's faces), settings, { margin, dt })
+ *   stage.step(targets (B*N*3), body (B*V*3), B) -> Float64Array (B*N*3)
+ * Counters: frames, resets (the state reset because the garment jumped more than settings.reset on average),
+ * contacts (vertex-frames given a contact plane), pushed (vertex-frames moved by the final push-out).
+ */
+export class ClothStage {
+  constructor(setup, collider, settings = DEFAULT_CLOTH, { margin = 0.004, dt = 1 / 30 } = {}) {
+    checkCloth(settings);
+    if (!(Number.isFinite(margin) && margin >= 0 && margin < 1)) throw new Error(`the collision margin must be in [0, 1) metres (got ${margin})`);
+    if (!(Number.isFinite(dt) && dt > 0 && dt <= 10)) throw new Error(`the time step must be in (0, 10] seconds (got ${dt})`);
+    this.setup = setup;
+    this.collider = collider;
+    this.settings = settings;
+    this.margin = margin;
+    this.dt = dt;
+    const n = setup.n;
+    this.state = new Float64Array(9 * n); // the last output, the one before it, the last target
+    this.have = 0;
+    this.resets = 0;
+    this.contacts = 0;
+    this.pushed = 0;
+    this.frames = 0;
+    this.firstReset = -1; // the first frame (counted from the stage's start) that reset the state
+    this.box = new Float64Array(6 * collider.nNodes);
+    this.sd = new Float64Array(n);
+    this.cp = new Float64Array(3 * n);
+    this.cn = new Float64Array(3 * n);
+    this.q = new Float64Array(3 * n);
+    this.pick = new Int32Array(n);
+    this.moved = new Uint8Array(n);
+  }
+
+  step(target, body, nb) {
+    const { n, ne, edges, restLen, nptr, nidx, radius } = this.setup;
+    const nv = this.collider.nv, st = this.settings, col = this.collider;
+    if (target.length !== nb * n * 3 || body.length !== nb * nv * 3) {
+      throw new Error(`the cloth stage takes ${nb} frames of ${n} garment and ${nv} body vertices (got ${target.length} ` +
+        `and ${body.length} coordinates)`);
+    }
+    const iters = st.iterations < 1 ? 1 : st.iterations;
+    const ks = perSweep(st.stiffness, iters), kb = perSweep(st.bending, iters);
+    const hiF = 1.0 + st.stretch, loF = 1.0 - st.compress;
+    const keep = 1.0 - st.damping, drop = st.gravity * this.dt * this.dt;
+    const margin = this.margin, reset = st.reset, band = CONTACT_BAND, follow = st.follow;
+    const S = this.state, x1 = 0, x0 = 3 * n, yp = 6 * n;
+    const { box, sd, cp, cn, q, pick, moved } = this;
+    const y = target instanceof Float64Array ? target : new Float64Array(target);
+    const B = body instanceof Float64Array ? body : new Float64Array(body);
+    const out = new Float64Array(nb * n * 3);
+    for (let f = 0; f < nb; f++) {
+      const yo = 3 * n * f, xo = 3 * n * f, bo = 3 * nv * f;
+      let have = this.have;
+      if (!allFinite(y, yo, 3 * n) || !allFinite(B, bo, 3 * nv)) {
+        throw new Error(`the cloth stage got NaN or inf at frame ${this.frames + f} (expected finite coordinates from ` +
+          "the deformer and the body)");
+      }
+      if (have > 0) { // a teleport: the target moved more than `reset` on average
+        let s = 0;
+        for (let i = 0; i < n; i++) {
+          const d0 = y[yo + 3 * i] - S[yp + 3 * i], d1 = y[yo + 3 * i + 1] - S[yp + 3 * i + 1],
+            d2 = y[yo + 3 * i + 2] - S[yp + 3 * i + 2];
+          s += Math.sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+        }
+        if (!(s / n <= reset)) {
+          have = 0;
+          this.resets++;
+          if (this.firstReset < 0) this.firstReset = this.frames + f;
+        }
+      }
+      // predict: inertia and gravity from the previous outputs, within the attachment
+      for (let i = 0; i < n; i++) {
+        const p = xo + 3 * i, t = yo + 3 * i;
+        if (have === 0) {
+          out[p] = y[t];
+          out[p + 1] = y[t + 1];
+          out[p + 2] = y[t + 2];
+        } else {
+          let v0 = 0, v1 = 0, v2 = 0;
+          if (have >= 2) {
+            v0 = S[x1 + 3 * i] - S[x0 + 3 * i];
+            v1 = S[x1 + 3 * i + 1] - S[x0 + 3 * i + 1];
+            v2 = S[x1 + 3 * i + 2] - S[x0 + 3 * i + 2];
+          }
+          out[p] = S[x1 + 3 * i] + keep * v0;
+          out[p + 1] = S[x1 + 3 * i + 1] + keep * v1 - drop;
+          out[p + 2] = S[x1 + 3 * i + 2] + keep * v2;
+          out[p] += follow * (y[t] - out[p]);
+          out[p + 1] += follow * (y[t + 1] - out[p + 1]);
+          out[p + 2] += follow * (y[t + 2] - out[p + 2]);
+        }
+        attach(out, p, y, t, radius[i]);
+      }
+      // contacts: a plane for every vertex inside the body or near it
+      const bv = B.subarray(bo, bo + 3 * nv), x = out.subarray(xo, xo + 3 * n), yf = y.subarray(yo, yo + 3 * n);
+      col.refitInto(bv, box);
+      col.near(bv, box, x, 0, n, margin + band, sd, cp, cn);
+      q.set(x);
+      // the sweeps, alternating direction
+      for (let it = 0; it < iters; it++) {
+        const fwd = it % 2 === 0;
+        for (let e = 0; e < ne; e++) stretchEdge(x, 0, edges, restLen, radius, fwd ? e : ne - 1 - e, loF, hiF, ks);
+        if (kb > 0) for (let i = 0; i < n; i++) smoothVertex(x, 0, yf, 0, nptr, nidx, radius, fwd ? i : n - 1 - i, kb);
+        for (let i = 0; i < n; i++) {
+          const p = 3 * i;
+          attach(x, p, yf, p, radius[i]);
+          if (!(sd[i] < margin + band)) continue;
+          const s = cn[p] * (x[p] - cp[p]) + cn[p + 1] * (x[p + 1] - cp[p + 1]) + cn[p + 2] * (x[p + 2] - cp[p + 2]) - margin;
+          if (s < 0) {
+            x[p] -= s * cn[p];
+            x[p + 1] -= s * cn[p + 1];
+            x[p + 2] -= s * cn[p + 2];
+          }
+        }
+      }
+      // the exact push-out of every vertex that may be inside or closer than the margin: those found inside or
+      // within it, and those that moved farther than their clearance since the contacts were found
+      let m = 0;
+      for (let i = 0; i < n; i++) {
+        const d0 = x[3 * i] - q[3 * i], d1 = x[3 * i + 1] - q[3 * i + 1], d2 = x[3 * i + 2] - q[3 * i + 2];
+        const clear = (sd[i] < margin + band ? sd[i] : margin + band) - margin;
+        if (sd[i] < margin + band) this.contacts++;
+        if (!(clear > 0) || d0 * d0 + d1 * d1 + d2 * d2 >= clear * clear) {
+          pick[m] = i;
+          q[3 * m] = x[3 * i];
+          q[3 * m + 1] = x[3 * i + 1];
+          q[3 * m + 2] = x[3 * i + 2];
+          moved[m] = 0;
+          m++;
+        }
+      }
+      if (m > 0) {
+        this.pushed += col.pushOutFrame(bv, box, q, 0, m, margin, PASSES, moved);
+        for (let i = 0; i < m; i++) {
+          x[3 * pick[i]] = q[3 * i];
+          x[3 * pick[i] + 1] = q[3 * i + 1];
+          x[3 * pick[i] + 2] = q[3 * i + 2];
+        }
+      }
+      // the state: this frame, the one before, this target
+      if (have === 0) S.set(x, x0);
+      else S.copyWithin(x0, x1, x1 + 3 * n);
+      S.set(x, x1);
+      S.set(yf, yp);
+      this.have = have === 0 ? 1 : 2;
+    }
+    this.frames += nb;
+    return out;
+  }
+}
+
+/**
+ * The cloth stage over a run's frames, as `segadeform run --effects=+cloth` does after the deformer: the garment's
+ * setup on the body at rest, then `batch` frames at a time against the posed body.  frames (T*N*3 float32, changed in
+ * place: computed in float64, rounded back), bodyVertices (T*V*3), faces (the body's, F*3), restBody (V*3: the body
+ * graph at zero pose), rest (N*3 float64: the garment asset's vertices), garmentFaces (F'*3).
+ * Returns { contacts, pushed, resets, firstReset, msPerFrame (setup and steps), settings }.
+ */
+export function clothFrames(frames, T, N, bodyVertices, V, faces, restBody, rest, garmentFaces,
+  { settings = DEFAULT_CLOTH, margin = 0.004, dt = 1 / 30, batch = 8 } = {}) {
+  if (frames.length !== T * N * 3 || bodyVertices.length !== T * V * 3 || restBody.length !== V * 3 || rest.length !== N * 3) {
+    throw new Error(`frames, the posed body and the rest shapes do not fit (expected ${T * N * 3}, ${T * V * 3}, ` +
+      `${V * 3} and ${N * 3} values, got ${frames.length}, ${bodyVertices.length}, ${restBody.length} and ${rest.length})`);
+  }
+  const t0 = performance.now();
+  const rb = new Float64Array(restBody), rg = new Float64Array(rest);
+  const col = new BodyCollider(rb, faces);
+  const restSd = col.query(rb, rg).signedDistance;
+  const setup = clothSetup(rg, garmentFaces, restSd, settings.attachment, settings.max_distance);
+  const stage = new ClothStage(setup, col, settings, { margin, dt });
+  for (let lo = 0; lo < T; lo += batch) {
+    const hi = Math.min(lo + batch, T);
+    const out = stage.step(new Float64Array(frames.subarray(lo * N * 3, hi * N * 3)),
+      new Float64Array(bodyVertices.subarray(lo * V * 3, hi * V * 3)), hi - lo);
+    frames.set(out, lo * N * 3); // float64 -> float32, rounded to nearest
+  }
+  return { contacts: stage.contacts, pushed: stage.pushed, resets: stage.resets, firstReset: stage.firstReset,
+    msPerFrame: (performance.now() - t0) / Math.max(T, 1), settings, margin };
+}
