@@ -5,6 +5,8 @@
 // &check=VEC.sgdb (the Python runtime's frames, `expected` and `body`, to compare with) &body=BODY.pc2
 // &bodyMesh=BODY.obj (a posed body from `segadeform run --body-out`).  Without `effects`: the model's own and
 // collisions when the package has a body graph (the garment pushed out of the posed body, as `segadeform run`).
+// &cloth=1 (or the stage's knobs, &cloth=iterations=8,stiffness=0.5) turns the cloth stage on, as the page's "cloth"
+// switch does (it runs the scene again with the stage on or off).
 // Dropping files works as well: a package's files or folder, a .sgda and a .sgdm, a .sgdb, OBJ + PC2.
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
@@ -13,6 +15,9 @@ import { animate, compareFrames, loadOrt, loadPackage, openContainer, packageFro
 
 const q = new URLSearchParams(location.search);
 const statusEl = document.getElementById("status");
+const clothSwitch = document.getElementById("cloth");
+clothSwitch.checked = q.has("cloth") && q.get("cloth") !== "0";
+let lastScene = null; // [source, expected] of the last run: what the cloth switch runs again
 const say = (s) => { statusEl.textContent = s; };
 
 // ---- the scene -------------------------------------------------------------------------------------
@@ -134,14 +139,18 @@ async function runScene(source, expected = null) {
   say(`running ${p.url} on ${ep} ...`);
   const effects = q.get("effects") ? parseEffects(q.get("effects")) : undefined;
   const collisionMargin = q.has("margin") ? Number(q.get("margin")) : undefined;
-  const r = await animate(o, p, source, { ep, batch: +(q.get("batch") || 8), effects, collisionMargin });
+  lastScene = [source, expected];
+  if (effects && effects.cloth) clothSwitch.checked = true;
+  const cloth = clothSwitch.checked ? (q.get("cloth") && q.get("cloth") !== "1" ? q.get("cloth") : true) : null;
+  const r = await animate(o, p, source, { ep, batch: +(q.get("batch") || 8), effects: effects && { ...effects, cloth: false },
+    collisionMargin, cloth });
   clearTracks();
   const faces = r.faces ? Uint32Array.from(r.faces) : new Uint32Array(0);
   addTrack(faces, r.frames, r.N, r.T, 0x3b64d8);
   if (r.body && !r.body.error) addTrack(Uint32Array.from(r.body.faces), r.body.vertices, r.body.V, r.body.T, 0xd9b99b);
   if (r.fps) fps = r.fps;
   const result = { ep, T: r.T, N: r.N, msPerFrame: r.msPerFrame, variant: r.variant, ort: o.env.versions?.web,
-    warnings: r.warnings, effects: r.effects, collisions: r.collisions };
+    warnings: r.warnings, effects: r.effects, collisions: r.collisions, cloth: r.cloth };
   const want = expected || (source.arrays && source.arrays.expected ? { expected: source.arrays.expected } : null);
   if (want && want.expected) Object.assign(result, compareFrames(r.frames, want.expected.data));
   if (r.body) {
@@ -154,7 +163,10 @@ async function runScene(source, expected = null) {
     : `\nbody: ${r.body.V} vertices, ${r.body.msPerFrame.toFixed(1)} ms/frame (${r.body.graph})`) : "";
   const colLine = r.collisions ? `\ncollisions: ${r.collisions.moved} vertex-frames pushed out of the body (margin ` +
     `${r.collisions.margin} m), ${r.collisions.msPerFrame.toFixed(1)} ms/frame` : "";
+  const clothLine = r.cloth ? `\ncloth: ${r.cloth.contacts} vertex-frames in contact, ${r.cloth.pushed} pushed out after ` +
+    `the sweeps, ${r.cloth.resets} reset(s), ${r.cloth.msPerFrame.toFixed(1)} ms/frame` : "";
   say(`${r.T} frames x ${r.N} vertices, ${r.msPerFrame.toFixed(1)} ms/frame on ${ep} (${r.variant})${bodyLine}${colLine}` +
+      clothLine +
       (result.rel !== undefined ? `\nagainst Python: max abs ${result.maxAbs.toExponential(2)}, rel ${result.rel.toExponential(2)}` : "") +
       (r.warnings && r.warnings.length ? `\nwarning: ${r.warnings.join("; ")}` : ""));
   return result;
@@ -266,6 +278,14 @@ export async function openFiles(files) {
   say(`${tracks.length} meshes, ${T} frames`);
   return { T, meshes: tracks.length };
 }
+
+// the cloth switch: the scene run again with the stage on or off
+clothSwitch.addEventListener("change", () => {
+  if (!lastScene) return;
+  window.segadeformResult = undefined;
+  runScene(...lastScene).then((r) => { window.segadeformResult = r; },
+    (err) => { say(`error: ${err.message}`); window.segadeformResult = { error: err.message }; });
+});
 
 window.segadeform = { openFiles, show };
 if (q.has("bundle") || (q.has("garment") && q.has("motion"))) {

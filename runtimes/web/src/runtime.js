@@ -1,8 +1,8 @@
 // segadeform in the browser: a model package fetched over HTTP (or dropped on the page), its graphs run by
 // onnxruntime-web (wasm or WebGPU).  The animation logic is the Node runtime's core.js, shared as is.
 import {
-  animateWith, collideWith, compareFrames, DEFAULT_COLLISION_MARGIN, parseBundle, pickBody, pickVariant, poseBodyWith,
-  readAsset, readManifest, readMotion,
+  animateWith, clothWith, collideWith, compareFrames, DEFAULT_CLOTH, DEFAULT_COLLISION_MARGIN, defaultEffects,
+  parseBundle, parseCloth, pickBody, pickVariant, poseBodyWith, readAsset, readManifest, readMotion, restBodyWith,
 } from "../../node/src/core.js";
 
 export { compareFrames, parseBundle, pickBody, pickVariant, readAsset, readMotion };
@@ -80,11 +80,14 @@ export async function openContainer(src, name = String(src)) {
  * Returns core.animateWith's result plus the execution provider, `body` (core.poseBodyWith's result, or { error }
  * when the body cannot be posed: no body graph, another body) and, with collisions in the effects (named, or by
  * default when the package has a body graph), the frames pushed out of that body (the Node runtime's collide.js)
- * and `collisions` ({ moved, msPerFrame, margin }: core.collideWith's).
+ * and `collisions` ({ moved, msPerFrame, margin }: core.collideWith's).  `cloth` (true, or the stage's knobs as
+ * "iterations=8,..." or an object) turns the cloth stage on over the effects (the model's own when none are named):
+ * the frames are then the stage's (core.clothWith, contact included: no push-out) and `cloth` is its counts.
  */
 export async function animate(ort, pkg, source, { ep = "wasm", batch = 8, effects, body = true,
-  collisionMargin = DEFAULT_COLLISION_MARGIN } = {}) {
+  collisionMargin = DEFAULT_COLLISION_MARGIN, cloth = null } = {}) {
   if (typeof source === "string") source = parseBundle(await fetchBytes(source), source);
+  if (cloth) effects = { ...(effects || (source.asset ? defaultEffects(pkg.manifest) : source.meta.effects)), cloth: true };
   const external = pkg.manifest.weights
     ? [{ path: pkg.manifest.weights.file, data: pkg.files[pkg.manifest.weights.file] }] : [];
   const made = new Map();
@@ -98,14 +101,22 @@ export async function animate(ort, pkg, source, { ep = "wasm", batch = 8, effect
   };
   const r = await animateWith(ort, pkg.manifest, source, session, { batch, effects, collisionMargin });
   let posed = null;
-  if ((body || r.effects.collisions) && Object.values(pkg.manifest.graphs).some((g) => g.role === "body")) {
+  const need = r.effects.collisions || r.effects.cloth;
+  if ((body || need) && Object.values(pkg.manifest.graphs).some((g) => g.role === "body")) {
     try {
       posed = await poseBodyWith(ort, pkg.manifest, source, session, { skinning: r.effects.skinning, batch });
     } catch (e) {
-      if (r.effects.collisions) throw e; // collisions cannot do without the body
+      if (need) throw e; // collisions and the cloth stage cannot do without the body
       posed = { error: e.message };
     }
   }
-  const collisions = r.effects.collisions ? collideWith(r, posed, { margin: collisionMargin, batch }) : null;
-  return { ...r, ep, source, body: body ? posed : null, collisions };
+  let clothed = null, collisions = null;
+  if (r.effects.cloth) {
+    const rest = await restBodyWith(ort, pkg.manifest, source, session, { skinning: r.effects.skinning });
+    const settings = typeof cloth === "string" ? parseCloth(cloth) : typeof cloth === "object" && cloth ? cloth : DEFAULT_CLOTH;
+    clothed = clothWith(r, posed, rest, source, { settings, margin: collisionMargin, batch });
+  } else if (r.effects.collisions) {
+    collisions = collideWith(r, posed, { margin: collisionMargin, batch });
+  }
+  return { ...r, ep, source, body: body ? posed : null, collisions, cloth: clothed };
 }

@@ -2,7 +2,7 @@
 // print the result as `PAGE {json}` and save a screenshot.   Used by tests/runtimes/test_web.py and bench/runtimes.py:
 //   node test/page.mjs --root REPO --package PATH_IN_ROOT (--garment G.sgda --motion M.sgdm [--check VEC.sgdb] |
 //        --bundle PATH_IN_ROOT) --ep wasm|webgpu [--drop] [--effects dqs,dynamics,wrinkles,collisions]
-//        [--margin M] [--screenshot OUT.png]
+//        [--margin M] [--cloth 1|K=V,..] [--screenshot OUT.png]
 //        [--frame N] [--body B.pc2 --body-mesh B.obj] [--chromium /usr/bin/chromium]
 // --drop: open the page bare and drop the package's files, the asset and the motion on it (a synthetic drop event
 // carrying the files, as a user's drag and drop does), instead of naming them in the query.
@@ -18,6 +18,7 @@ const query = { ep, batch: opt("--batch", "4"), frame: opt("--frame", "0"), paus
 if (!dropMode) query.package = `/${opt("--package")}/`;
 if (opt("--effects")) query.effects = opt("--effects");
 if (opt("--margin")) query.margin = opt("--margin");
+if (opt("--cloth")) query.cloth = opt("--cloth"); // the cloth stage on (1: its default knobs)
 if (args.includes("--check")) query.check = `/${opt("--check")}`;
 if (!dropMode && args.includes("--garment")) {
   Object.assign(query, { garment: `/${opt("--garment")}`, motion: `/${opt("--motion")}` });
