@@ -12,6 +12,7 @@ import { BodyCollider } from "./collide.js";
 const CONTACT_BAND = 0.01; // metres beyond the margin within which a vertex gets a contact plane (SCL_CONTACT_BAND)
 const PASSES = 3; // the final push-out's passes (SCL_PASSES)
 const TINY = 1e-300;
+const MOVED = 1e-6; // metres: a final push-out move counted as one (SCL_MOVED)
 
 /** The cloth stage's knobs when none are given: segadeform.cloth_settings.ClothSettings' defaults. */
 export const DEFAULT_CLOTH = Object.freeze({
@@ -181,7 +182,7 @@ function smoothVertex(x, xo, y, yo, nptr, nidx, radius, i, k) {
  *   new ClothStage(setup (clothSetup), collider (a BodyCollider over the body's faces), settings, { margin, dt })
  *   stage.step(targets (B*N*3), body (B*V*3), B) -> Float64Array (B*N*3)
  * Counters: frames, resets (the state reset because the garment jumped more than settings.reset on average),
- * contacts (vertex-frames given a contact plane), pushed (vertex-frames moved by the final push-out).
+ * contacts (vertex-frames given a contact plane), pushed (vertex-frames moved by the final push-out, more than 1 um).
  */
 export class ClothStage {
   constructor(setup, collider, settings = DEFAULT_CLOTH, { margin = 0.004, dt = 1 / 30 } = {}) {
@@ -309,11 +310,13 @@ export class ClothStage {
         }
       }
       if (m > 0) {
-        this.pushed += col.pushOutFrame(bv, box, q, 0, m, margin, PASSES, moved);
+        col.pushOutFrame(bv, box, q, 0, m, margin, PASSES, moved);
         for (let i = 0; i < m; i++) {
-          x[3 * pick[i]] = q[3 * i];
-          x[3 * pick[i] + 1] = q[3 * i + 1];
-          x[3 * pick[i] + 2] = q[3 * i + 2];
+          const p = 3 * pick[i], d0 = q[3 * i] - x[p], d1 = q[3 * i + 1] - x[p + 1], d2 = q[3 * i + 2] - x[p + 2];
+          if (d0 * d0 + d1 * d1 + d2 * d2 > MOVED * MOVED) this.pushed++;
+          x[p] = q[3 * i];
+          x[p + 1] = q[3 * i + 1];
+          x[p + 2] = q[3 * i + 2];
         }
       }
       // the state: this frame, the one before, this target

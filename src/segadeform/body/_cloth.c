@@ -67,6 +67,7 @@ int64_t sdc_push_out(const void *h, const double *verts, const double *box, int6
 #define SCL_CONTACT_BAND 0.01 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
 #define SCL_TINY 1e-300
+#define SCL_MOVED 1e-6        /* metres: a final push-out move counted as one (not a vertex already at the margin) */
 
 /* the settings array's entries (segadeform.body.cloth.ClothSettings.array) */
 enum {
@@ -248,7 +249,8 @@ static void smooth_vertex(double *x, const double *y, const int64_t *nptr, const
  * collider (sdc_create on the body's faces), with the per-garment data of scl_setup and settings (S_COUNT,).
  * state (3, N, 3): the last output, the one before it and the last target; info (I_COUNT,): I_HAVE how many of
  * the state's frames are set (0: none, the next frame starts from its target), counts added to (I_RESETS,
- * I_CONTACTS: vertex-frames with a contact plane, I_PUSHED: vertex-frames the final push-out moved), and
+ * I_CONTACTS: vertex-frames with a contact plane, I_PUSHED: vertex-frames the final push-out moved by more than
+ * SCL_MOVED), and
  * I_FIRST_RESET set to the first frame of this call that reset the state (-1: none).
  * Returns 0; -1 when out of memory; 1 + f when frame f's target or body holds NaN or inf (the frames before it
  * are done, the state is theirs). */
@@ -355,11 +357,13 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
             }
         }
         if (m > 0) {
-            info[I_PUSHED] += sdc_push_out(collider, bv, box, 1, q, m, 0, m, margin, SCL_PASSES, moved);
+            sdc_push_out(collider, bv, box, 1, q, m, 0, m, margin, SCL_PASSES, moved);
             for (i = 0; i < m; i++) {
-                x[3 * pick[i]] = q[3 * i];
-                x[3 * pick[i] + 1] = q[3 * i + 1];
-                x[3 * pick[i] + 2] = q[3 * i + 2];
+                double *p = x + 3 * pick[i], d0 = q[3 * i] - p[0], d1 = q[3 * i + 1] - p[1], d2 = q[3 * i + 2] - p[2];
+                info[I_PUSHED] += d0 * d0 + d1 * d1 + d2 * d2 > SCL_MOVED * SCL_MOVED;
+                p[0] = q[3 * i];
+                p[1] = q[3 * i + 1];
+                p[2] = q[3 * i + 2];
             }
         }
         /* the state: this frame, the one before, this target */

@@ -52,6 +52,8 @@ log = logging.getLogger(__name__)
 CONTACT_BAND = 0.01
 #: the final push-out's passes (_cloth.c's SCL_PASSES: segadeform.body.collision.push_out's default)
 PASSES = 3
+#: metres: a final push-out move counted in ``pushed`` (_cloth.c's SCL_MOVED; a vertex already at the margin is not)
+MOVED = 1e-6
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
 SETUP_VERSION = 1
 _ABI = 1
@@ -283,7 +285,7 @@ class ClothStage:
 
     Counters (vertex-frames unless said): ``frames``, ``resets`` (frames where the state was reset because the
     garment jumped, :attr:`ClothSettings.reset`; the first is logged), ``contacts`` (given a contact plane),
-    ``pushed`` (moved by the final push-out).
+    ``pushed`` (moved by the final push-out, more than :data:`MOVED`).
     """
 
     def __init__(self, setup: ClothSetup, body_vertices, body_faces, settings: ClothSettings = ClothSettings(), *,
@@ -478,9 +480,9 @@ def cloth_reference(targets, posed, body_faces, setup: ClothSetup, settings: Clo
         pick = np.flatnonzero(~(clear > 0) | moved)
         st["contacts"] += int(contact.sum())
         if len(pick):
-            pushed, count = col.push_out(x[pick], bv, margin, iterations=PASSES)
+            pushed, _ = col.push_out(x[pick], bv, margin, iterations=PASSES)
+            st["pushed"] += int((np.sum((pushed - x[pick]) ** 2, axis=1) > MOVED ** 2).sum())
             x[pick] = pushed
-            st["pushed"] += count
         st["x0"] = x.copy() if have == 0 else st["x1"]
         st["x1"], st["yp"], st["have"] = x.copy(), y.copy(), 1 if have == 0 else 2
         out[f] = x

@@ -1,0 +1,231 @@
+"""The cloth stage (segadeform.body.cloth, the compiled kernel _cloth.c): against its slow reference, and what the
+rule promises -- attached vertices follow the network exactly, free ones stay within their radius, nothing is left
+inside the body, edges are pulled back toward their stretch limit, inertia and gravity act on loose parts, batches and
+streams give the frames of one long call, a jump resets the state once with one message, NaN is refused."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+
+from segadeform.body import default_body_path, load_body
+from segadeform.body.cloth import (CONTACT_BAND, ClothSettings, ClothSetup, ClothStage, cloth_reference, cloth_setup,
+                                   cloth_setup_reference, compiled_available, garment_setup, rest_signed_distance,
+                                   settings_array)
+from segadeform.body.collision import BodyCollider
+from segadeform.errors import InputError
+from segadeform.geometry.primitives import frustum, grid_plane
+from segadeform.motion import make_motion
+
+MARGIN = 0.004
+
+
+@pytest.fixture(scope="module")
+def body():
+    return load_body(default_body_path())
+
+
+@pytest.fixture(scope="module")
+def walk(body):
+    """A thin skirt partly inside the hips, skinned rigidly to the pelvis over a walk (targets that push through
+    the thighs), the posed body, and the skirt's setup."""
+    assert compiled_available(), "the compiled cloth kernel is not built (pip install -e . builds it)"
+    v, f = frustum(20, 8, 0.13, 0.26, 1.0, 0.5)
+    m = make_motion("walk", seconds=0.4, seed=0)
+    posed = body.forward(m.poses, None, m.trans).vertices
+    # each frame's target: the skirt carried by the root's translation only (the legs swing through it)
+    targets = np.stack([v + t for t in m.trans])
+    setup = garment_setup(v, f, body.shaped_vertices()[0], body.faces)
+    return v, f, targets, posed, setup
+
+
+def _stage(setup, body, settings=ClothSettings(), **kw):
+    return ClothStage(setup, body.v_template, body.faces, settings, margin=MARGIN, **kw)
+
+
+def test_setup_is_the_reference_on_hard_meshes(body):
+    rest_body = body.shaped_vertices()[0]
+    v, f = frustum(16, 6, 0.17, 0.33, 1.02, 0.55)
+    meshes = {"skirt": (v, f),
+              # repeated-vertex and collinear faces, a duplicate face, vertices in no face
+              "degenerate": (np.vstack([v, v[0], (v[0] + v[1]) / 2, [[0.0, 1.5, 0.0]]]),
+                             np.vstack([f, [[0, 1, len(v) + 1]], [[0, len(v), 1]], f[:3]])),
+              "strip": (grid_plane(30, 2, size=(0.6, 0.02))[0] + [-0.3, 1.0, 0.2], grid_plane(30, 2, size=(0.6, 0.02))[1])}
+    for name, (vv, ff) in meshes.items():
+        sd = rest_signed_distance(vv, rest_body, body.faces)
+        for s in (ClothSettings(), ClothSettings(attachment=0.0, max_distance=0.2)):
+            a, b = cloth_setup(vv, ff, sd, s), cloth_setup_reference(vv, ff, sd, s)
+            for k in ("edges", "rest_len", "nptr", "nidx", "radius"):
+                np.testing.assert_array_equal(getattr(a, k), getattr(b, k), err_msg=f"{name} {k}")
+            a.validate()
+            assert (a.edges[:, 0] < a.edges[:, 1]).all() and len(np.unique(a.edges, axis=0)) == len(a.edges)
+            assert (a.radius <= s.max_distance).all() and (a.radius[sd <= s.attachment] == 0).all()
+    # the isolated vertex has no neighbours
+    a = cloth_setup(*meshes["degenerate"], rest_signed_distance(meshes["degenerate"][0], rest_body, body.faces))
+    assert a.nptr[-1] - a.nptr[-2] == 0
+
+
+def test_kernel_is_the_reference(walk, body):
+    """The compiled stage and the slow reference agree to 1e-9 m on every frame of a walk through the thighs, in
+    contact (the reference's contacts and push-out come from the numpy BodyCollider), for two settings."""
+    v, f, targets, posed, setup = walk
+    for s in (ClothSettings(), ClothSettings(iterations=3, stiffness=0.6, bending=0.0, compress=1.0, follow=0.0,
+                                             gravity=20.0)):
+        stage = _stage(setup, body, s)
+        fast = stage.step(targets, posed)
+        ref, st = cloth_reference(targets, posed, body.faces, setup, s, margin=MARGIN)
+        err = np.abs(fast - ref).max()
+        assert err <= 1e-9, err
+        assert stage.contacts == st["contacts"] > 50  # the test means something: many vertex-frames in contact
+        assert abs(stage.pushed - st["pushed"]) <= max(3, st["pushed"] // 20)  # vertices exactly at the margin
+        assert np.abs(fast - targets).max() > 0.01
+
+
+def test_batches_and_streams_give_the_frames_of_one_call(walk, body):
+    v, f, targets, posed, setup = walk
+    one = _stage(setup, body).step(targets, posed)
+    for size in (1, 3, 5):
+        st = _stage(setup, body)
+        parts = [st.step(targets[lo:lo + size], posed[lo:lo + size]) for lo in range(0, len(targets), size)]
+        np.testing.assert_array_equal(np.concatenate(parts), one)
+        assert st.frames == len(targets)
+    # deterministic: a second stage gives the same bits; float32 inputs are taken as their float64 values
+    np.testing.assert_array_equal(_stage(setup, body).step(targets, posed), one)
+    t32 = targets.astype(np.float32)
+    np.testing.assert_array_equal(_stage(setup, body).step(t32, posed), _stage(setup, body).step(t32.astype(np.float64), posed))
+
+
+def test_attachment_contact_and_the_bound(walk, body):
+    """Attached vertices (radius 0) follow the target exactly unless the body pushes them; free ones stay within
+    their radius of it unless the body pushes them; nothing is left inside the body deeper than rounding."""
+    v, f, targets, posed, setup = walk
+    stage = _stage(setup, body)
+    out = stage.step(targets, posed)
+    col = BodyCollider(body.v_template, body.faces)
+    dev = np.linalg.norm(out - targets, axis=2)
+    att = setup.radius == 0
+    assert 0.05 < att.mean() < 0.95
+    inside_before = 0
+    for t in range(len(out)):
+        sd_target = col.query(targets[t], posed[t]).signed_distance
+        sd_out = col.query(out[t], posed[t]).signed_distance
+        inside_before += int((sd_target < 0).sum())
+        free_of_body = sd_target > MARGIN + CONTACT_BAND + setup.radius  # the body cannot have moved these
+        assert (dev[t][att & free_of_body] == 0).all()
+        assert (dev[t][free_of_body] <= setup.radius[free_of_body] + 1e-12).all()
+        assert (sd_out > -1e-6).mean() >= 0.999, (t, (sd_out <= -1e-6).sum())
+    assert inside_before > 100  # the targets went through the body
+
+
+def test_strain_is_limited_and_inertia_and_gravity_act():
+    """Far from any body (a tiny body 10 m away): a patch whose target is stretched 30 % along x comes back toward
+    its stretch limit; a still target with gravity makes the free part sag within its bound; a target that moves
+    and stops leaves the free part moving on (inertia), within its bound."""
+    v, f = grid_plane(6, 6, size=(0.1, 0.1))
+    v = v + [0.0, 1.0, 0.0]
+    body_v = np.array([[10.0, 0, 0], [11.0, 0, 0], [10.0, 1, 0], [10.0, 0, 1]])
+    body_f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    free = cloth_setup(v, f, np.full(len(v), 1.0), ClothSettings())  # every vertex loose (radius 5 cm)
+    assert (free.radius == 0.05).all()
+    T = 30
+    posed = np.repeat(body_v[None], T, 0)
+    stretched = np.repeat((v * [1.3, 1.0, 1.0])[None], T, 0)
+    s = ClothSettings(iterations=16, gravity=0.0)
+    out = ClothStage(free, body_v, body_f, s).step(stretched, posed)
+
+    def strain(x):
+        d = x[:, free.edges[:, 1]] - x[:, free.edges[:, 0]]
+        return np.linalg.norm(d, axis=-1) / free.rest_len - 1
+
+    assert strain(stretched).max() > 0.29
+    assert strain(out[-1:]).max() < 0.08 and strain(out[-1:]).max() < 0.3 * strain(stretched).max()
+    still = np.repeat(v[None], T, 0)
+    sag = ClothStage(free, body_v, body_f, ClothSettings(stretch=1.0, compress=1.0)).step(still, posed)
+    drop = still[-1, :, 1] - sag[-1, :, 1]
+    assert drop.min() > 0.001 and drop.max() <= 0.05 + 1e-12  # down, within the bound
+    np.testing.assert_array_equal(ClothStage(free, body_v, body_f, ClothSettings(gravity=0)).step(still, posed), still)
+    # moving at 3 cm/frame for 10 frames, then still: the free patch lags as it starts, goes on past the stop, and
+    # settles back on the target, always within its bound
+    path = np.concatenate([0.03 * np.arange(10), np.full(20, 0.27)])
+    moving = still + np.stack([path, np.zeros(T), np.zeros(T)], -1)[:, None, :]
+    go = ClothStage(free, body_v, body_f, ClothSettings(gravity=0, follow=0.2, damping=0.0)).step(moving, posed)
+    over = (go[:, :, 0] - moving[:, :, 0]).mean(axis=1)
+    assert over[0] == 0 and over[2] < -0.02 and over[10:13].max() > 0.01 and np.abs(over).max() <= 0.05 + 1e-12
+    assert abs(over[-1]) < 0.25 * np.abs(over).max()
+
+
+def test_a_jump_resets_once_and_says_so_once(walk, body, caplog):
+    v, f, targets, posed, setup = walk
+    jumped = targets.copy()
+    jumped[4:] += [5.0, 0.0, 0.0]  # the body teleports 5 m between frames 3 and 4 ...
+    jumped[8:] -= [5.0, 0.0, 0.0]  # ... and back between 7 and 8
+    pj = posed.copy()
+    pj[4:] += [5.0, 0.0, 0.0]
+    pj[8:] -= [5.0, 0.0, 0.0]
+    stage = _stage(setup, body, first_frame=100)
+    with caplog.at_level(logging.WARNING, logger="segadeform.body.cloth"):
+        out = np.concatenate([stage.step(jumped[:6], pj[:6]), stage.step(jumped[6:], pj[6:])])
+    said = [r for r in caplog.records if "started again" in r.getMessage()]
+    assert stage.resets == 2 and len(said) == 1 and "frame 104" in said[0].getMessage(), said
+    assert "5 m" in said[0].getMessage()
+    assert np.isfinite(out).all() and np.abs(out - jumped).max() < 0.1  # no explosion
+    # after a reset the frame starts from its target: the same as a fresh stage there
+    fresh = _stage(setup, body).step(jumped[4:8], pj[4:8])
+    np.testing.assert_array_equal(out[4:8], fresh)
+
+
+def test_bad_input_is_refused(walk, body):
+    v, f, targets, posed, setup = walk
+    stage = _stage(setup, body, first_frame=10)
+    bad = targets[:3].copy()
+    bad[2, 5, 1] = np.nan
+    with pytest.raises(InputError, match="NaN or inf in the garment frames at frame 12"):
+        stage.step(bad, posed[:3])
+    assert stage.frames == 0  # nothing was taken
+    badb = posed[:2].copy()
+    badb[1, 0, 0] = np.inf
+    with pytest.raises(InputError, match="posed body at frame 11"):
+        stage.step(targets[:2], badb)
+    with pytest.raises(InputError, match="expected"):
+        stage.step(targets[:2, :5], posed[:2])
+    with pytest.raises(InputError, match="one frame per garment frame"):
+        stage.step(targets[:2], posed[:3])
+    for kw in ({"iterations": 0}, {"iterations": 2.5}, {"stretch": -0.1}, {"gravity": float("nan")},
+               {"reset": 0.0}, {"follow": 2}):
+        with pytest.raises(ValueError, match="cloth"):
+            ClothSettings(**kw)
+    with pytest.raises(ValueError, match="unknown cloth setting"):
+        ClothSettings.parse("wind=1")
+    assert ClothSettings.parse("iterations=8, stiffness=0.5") == ClothSettings(iterations=8, stiffness=0.5)
+    assert ClothSettings.parse("iterations=8").label() == "iterations=8" and ClothSettings().label() == ""
+    with pytest.raises(InputError, match="time step"):
+        settings_array(ClothSettings(), margin=MARGIN, dt=0.0)
+    with pytest.raises(InputError, match="inconsistent cloth setup"):
+        ClothSetup(edges=setup.edges, rest_len=setup.rest_len, nptr=setup.nptr[:-1], nidx=setup.nidx,
+                   radius=setup.radius).validate()
+
+
+def test_setup_is_cached_with_the_garment(tmp_path, body, monkeypatch):
+    import segadeform.body.cloth as cloth
+
+    v, f = frustum(12, 4, 0.17, 0.33, 1.02, 0.55)
+    rest = body.shaped_vertices()[0]
+    a = garment_setup(v, f, rest, body.faces, cache_dir=tmp_path)
+    files = list(tmp_path.glob("C-*.npz"))
+    assert len(files) == 1
+
+    def boom(*a, **k):
+        raise AssertionError("computed again")
+
+    monkeypatch.setattr(cloth, "cloth_setup", boom)
+    b = garment_setup(v, f, rest, body.faces, cache_dir=tmp_path)
+    for k in ("edges", "rest_len", "nptr", "nidx", "radius"):
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
+    with pytest.raises(AssertionError, match="computed again"):  # other knobs of the setup: another entry
+        garment_setup(v, f, rest, body.faces, ClothSettings(attachment=0.03), cache_dir=tmp_path)
+    files[0].write_bytes(b"broken")  # a broken entry is computed again (and said)
+    monkeypatch.undo()
+    c = garment_setup(v, f, rest, body.faces, cache_dir=tmp_path)
+    np.testing.assert_array_equal(c.radius, a.radius)
