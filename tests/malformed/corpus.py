@@ -222,6 +222,7 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     scene("bad_format", base.replace(f'path = "{scene_out}"', 'path = "out.fbx"'), "output.format")
     scene("garment_missing_file", base.replace(str(garment), str(d / "nope.obj")), "nope.obj")
     scene("bad_skinning", base + '[effects]\nskinning = "quaternion"\n', "skinning must be")
+    issue29_cases(d, cases, package, base)
 
     if package is not None:
         good_scene = d / "good_scene.toml"
@@ -321,3 +322,102 @@ def asf_amc_cases(d: Path, cases: list) -> None:
 if __name__ == "__main__":
     target = Path(sys.argv[1] if len(sys.argv) > 1 else "malformed-corpus")
     print(len(build(target)), "files in", target)
+
+
+def issue29_cases(d: Path, cases: list, package, base: str) -> None:
+    """Issue 29's bad inputs that crashed or passed silently: runtime files (.sgdm/.sgda), .mhclo bindings, motion
+    values past physical bounds, scenes, jobs files, and manifests (each must now give one line naming the file)."""
+    from segadeform.bundle import write_motion_file
+    from segadeform.motion import make_motion
+
+    def inspect(name, data, words, ext=".sgdm"):
+        p = d / f"{name}{ext}"
+        p.write_bytes(data)
+        cases.append((f"runtime/{name}", ["inspect", str(p)], words, None))
+
+    write_motion_file(d / "good.sgdm", make_motion("walk", seconds=0.2))
+    good = (d / "good.sgdm").read_bytes()
+    i, j = good.index(b"\nmeta ") + 1, good.index(b"\nEND\n")
+    inspect("sgdm_meta_list", good[:i] + b"meta [1]" + good[j:], "bundle meta must be a JSON object")
+    line = next(ln for ln in good.split(b"\n") if ln.startswith(b"trans "))
+    t = line.split()
+    inspect("sgdm_shape_overflow", good.replace(line, b" ".join([*t[:3], b"4611686018427387904", b"4", *t[5:]])),
+            "declares a size its shape does not have")
+    inspect("sgdm_truncated", good[:-64], "runs past the end of the file")
+    inspect("sgda_meta_list", good[:i] + b"meta [1]" + good[j:], "bundle meta must be a JSON object", ".sgda")
+
+    mh_src = ROOT / "samples" / "garments" / "makehuman"
+    lines = (mh_src / "skirt_short_f.mhclo").read_text().split("\n")
+    k = next(n for n, ln in enumerate(lines) if ln.startswith("verts")) + 1
+    fit_out = d / "FIT_OUT.obj"
+
+    def mhclo(name, edited, words):
+        p = d / f"{name}.mhclo"
+        p.write_text("\n".join(edited))
+        cases.append((f"mhclo/{name}", ["garment", "fit", str(p), "-o", str(fit_out)], words, fit_out))
+
+    tok = lines[k].split()
+    mhclo("weights_zero", lines[:k] + [" ".join(tok[:3] + ["0", "0", "0"] + tok[6:])] + lines[k + 1:],
+          "must sum to 1")
+    mhclo("negative_scale_index", [("x_scale -3 11998 1.3980" if ln.startswith("x_scale") else ln) for ln in lines],
+          "negative base-mesh index")
+    mhclo("negative_delete_index", [ln + ("\n-7" if ln.startswith("delete_verts") else "") for ln in lines],
+          "negative base-mesh index")
+
+    def motion(name, ext, write, words):
+        p = d / f"{name}{ext}"
+        write(p)
+        cases.append((f"motion/{name}", ["motion", "info", str(p)], words, None))
+
+    motion("complex_poses", ".npz", lambda p: np.savez(p, poses=np.zeros((3, 72), complex) + 1j), "must be real")
+    motion("two_frame_rates", ".npz", lambda p: np.savez(p, poses=np.zeros((3, 72)),
+                                                         mocap_framerate=np.array([30.0, 60.0])), "one number")
+    from segadeform.body import default_rest_joints
+    from segadeform.motion import write_bvh
+
+    write_bvh(d / "bounds.bvh", make_motion("idle", seconds=0.2), default_rest_joints())
+    bvh = (d / "bounds.bvh").read_text()
+    head, rows = bvh.split("MOTION")
+    rows = rows.strip().split("\n")
+    motion("bvh_frame_time_huge", ".bvh", lambda p: p.write_text(bvh.replace(rows[1], "Frame Time: 1e30")),
+           "frame rate is outside")
+    motion("bvh_root_far", ".bvh", lambda p: p.write_text(
+        head + "MOTION\n" + "\n".join(rows[:2] + ["1e30 " + r.split(None, 1)[1] for r in rows[2:]]) + "\n"),
+        "root moves too far")
+
+    scene_out = d / "SCENE_OUT.pc2"
+    pkg_arg = ["--model", str(package)] if package else []
+
+    def scene(name, text, words):
+        p = d / f"{name}.toml"
+        p.write_text(text)
+        cases.append((f"scene/{name}", ["run", str(p), *pkg_arg, "-o", str(scene_out), "--no-cache"], words,
+                      scene_out))
+
+    scene("nan_betas", base + "[body]\nbetas = [nan]\n", "body.betas must be finite")
+    scene("huge_betas", base + "[body]\nbetas = [1e300]\n", "body.betas out of range")
+    scene("negative_seed", base.replace('kind = "walk"', 'kind = "walk"\nseed = -5'), "motion.seed out of range")
+    scene("frames_past_end", base.replace('kind = "walk"', 'kind = "walk"\nframes = "3:100"'), "is outside the motion")
+    scene("nested_deep", "a = " + "[" * 50000, "nests too deeply")
+    jobs = d / "negative_seed_jobs.toml"
+    jobs.write_text(f'[[garments]]\nmesh = "{ROOT / "samples" / "garments" / "skirt.obj"}"\n'
+                    '[[motions]]\nkind = "walk"\nseed = -5\n')
+    cases.append(("batch/negative_seed", ["batch", str(jobs), "-o", str(d / "BATCH_OUT")], "seed out of range",
+                  d / "BATCH_OUT"))
+    if package is not None and (Path(package) / "weights.bin").is_file():
+        good_scene = d / "good_scene_29.toml"
+        good_scene.write_text(base)
+        for name, edit, words in (
+                ("no_weights_entry", lambda m: m.pop("weights"), "no 'weights' entry"),
+                ("manifest_nested_deep", None, "nests too deeply")):
+            p = d / f"pkg_{name}"
+            shutil.copytree(package, p)
+            if edit is None:
+                (p / "manifest.json").write_text("[" * 50000)
+            else:
+                m = json.loads((p / "manifest.json").read_text())
+                edit(m)
+                (p / "manifest.json").write_text(json.dumps(m))
+            cases.append((f"package/{name}", ["run", str(good_scene), "--model", str(p), "-o", str(scene_out),
+                                              "--no-cache"], words, scene_out))
+
