@@ -1,0 +1,117 @@
+"""The cloth effect in `segadeform run`: off unless named (a scene that does not name it builds nothing of it and calls
+no kernel), on from a scene, --effects=+cloth or a preset's changes, its knobs from the scene and --cloth; the run's
+frames are the stage's (contact included, no push-out after it), the same for any batch size, the per-garment setup
+cached with the garment."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from segadeform.body import load_body
+from segadeform.cli.main import cli
+from segadeform.io import read_pc2
+from segadeform.motion import make_motion
+from segadeform.runtime import ModelPackage
+from segadeform.runtime.pipeline import Run
+from segadeform.scene import DEFAULT_EFFECTS, Effects, load_scene, parse_effects
+from segadeform.cloth_settings import ClothSettings
+from tests.conftest import SAMPLES
+
+BODY = SAMPLES / "bodies" / "default_body.npz"
+SKIRT = SAMPLES / "garments" / "skirt.obj"
+
+
+@pytest.fixture(scope="module")
+def body():
+    return load_body(BODY)
+
+
+def _run(tmp_path, pkg, body, effects, *, batch=4, name="out.pc2", cache=False, frames=None):
+    return Run(garment=SKIRT, motion=make_motion("dance", seconds=0.6, seed=3), package=ModelPackage(pkg), body=body,
+               effects=effects, output=tmp_path / name, batch=batch, cache=cache, force=True, frames=frames).execute()
+
+
+def test_off_unless_named():
+    assert not DEFAULT_EFFECTS.cloth and not Effects().cloth
+    assert not parse_effects("dqs,collisions").cloth and parse_effects("dqs,cloth").cloth
+    assert parse_effects("+cloth", Effects(collisions=False)) == Effects(collisions=False, cloth=True)
+    assert Effects(cloth=True).label() == "lbs+dynamics+wrinkles+collisions+cloth"
+    on = Effects(cloth=True, cloth_settings=ClothSettings(iterations=8))
+    assert on.label().endswith("+cloth(iterations=8)") and "cloth" not in Effects().off()
+    from segadeform.presets import preset_effects
+
+    assert not any(preset_effects(p).cloth for p in ("fast", "balanced"))
+    assert preset_effects("fast", "+cloth").cloth
+
+
+def test_scene_keys(tmp_path):
+    base = (f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\n[output]\npath = "{tmp_path / "o.pc2"}"\n')
+    p = tmp_path / "s.toml"
+    p.write_text(base + "[effects]\ncloth = true\ncloth_iterations = 8\ncloth_stretch = 0.05\n")
+    e = load_scene(p).effects
+    assert e.cloth and not e.collisions and e.cloth_settings == ClothSettings(iterations=8, stretch=0.05)
+    p.write_text(base + "[effects]\ncollisions = true\n")
+    assert not load_scene(p).effects.cloth
+    from segadeform.errors import FileFormatError
+
+    for bad, msg in (("cloth = true\ncloth_iterations = 0", "cloth iterations must be an integer"),
+                     ("cloth = true\ncloth_wind = 1", "unknown key effects.cloth_wind"),
+                     ("cloth = 1", "effects.cloth has the wrong type"),
+                     ('cloth = true\ncloth_stiffness = "high"', "effects.cloth_stiffness has the wrong type")):
+        p.write_text(base + f"[effects]\n{bad}\n")
+        with pytest.raises(FileFormatError, match=msg) as ei:
+            load_scene(p)
+        assert str(p) in str(ei.value)
+
+
+def test_a_run_without_cloth_pays_nothing(tmp_path, random_package, body, monkeypatch):
+    """No setup, no stage, no kernel call: every entry of segadeform.body.cloth a run could reach raises."""
+    import segadeform.body.cloth as cloth
+
+    def boom(*a, **k):
+        raise AssertionError("the cloth stage was touched")
+
+    for name in ("ClothStage", "garment_setup", "cloth_setup", "rest_signed_distance", "_load_kernel"):
+        monkeypatch.setattr(cloth, name, boom)
+    s = _run(tmp_path, random_package, body, Effects())
+    assert s.cloth is None and s.stage_seconds["cloth"] == 0.0 and s.pushed_vertices > 0
+    s = _run(tmp_path, random_package, body, Effects(collisions=False), name="b.pc2")
+    assert s.cloth is None and s.stage_seconds["cloth"] == 0.0
+
+
+def test_a_run_with_cloth(tmp_path, random_package, body, monkeypatch):
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("SEGADEFORM_CACHE_DIR", str(cache))
+    on = Effects(cloth=True)
+    a = _run(tmp_path, random_package, body, on, batch=4, name="a.pc2", cache=True)
+    assert a.cloth is not None and a.cloth["contacts"] > 0 and a.cloth["resets"] == 0
+    assert a.pushed_vertices == 0 and a.stage_seconds["collisions"] == 0.0 and a.stage_seconds["cloth"] > 0
+    assert len(list(cache.glob("C-*.npz"))) == 1  # the per-garment setup, cached with the garment
+    b = _run(tmp_path, random_package, body, on, batch=1, name="b.pc2")
+    fa, fb = read_pc2(tmp_path / "a.pc2").frames, read_pc2(tmp_path / "b.pc2").frames
+    # any batch size: the frames of one long call (the deformer's float32 may differ in its last bit between batch
+    # sizes: the stage's own batch invariance is exact, tests/body/test_cloth.py)
+    np.testing.assert_allclose(fa, fb, rtol=0, atol=1e-6)
+    pushed = _run(tmp_path, random_package, body, Effects(), name="p.pc2")
+    fp = read_pc2(tmp_path / "p.pc2").frames
+    assert pushed.pushed_vertices > 0 and np.abs(np.asarray(fa, np.float64) - fp).max() > 1e-3
+    # a run that starts later starts the stage there (its first frame is the network's, pushed out)
+    late = _run(tmp_path, random_package, body, on, name="l.pc2", frames=(5, 18))
+    assert late.frames == 13 and late.cloth["contacts"] > 0
+
+
+def test_command_line(tmp_path, random_package):
+    base = ["run", "--garment", str(SKIRT), "--motion", str(SAMPLES / "motions" / "walk.npz"), "--model",
+            str(random_package), "--no-cache", "--frames", "0:6"]
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "a.pc2"), "--effects=+cloth", "--cloth",
+                                        "iterations=2,stiffness=0.5"])
+    assert r.exit_code == 0, r.output
+    assert "+cloth(iterations=2,stiffness=0.5)" in r.output and "cloth: " in r.output and "vertex-frames in contact" in r.output
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "b.pc2"), "--cloth", "iterations=2"])
+    assert r.exit_code == 2 and "the stage is off" in r.output and not (tmp_path / "b.pc2").exists()
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "c.pc2"), "--effects=+cloth", "--cloth", "iterations=0"])
+    assert r.exit_code == 2 and "cloth iterations must be an integer" in r.output and not (tmp_path / "c.pc2").exists()
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "d.pc2"), "--quality", "fast", "--effects=+cloth"])
+    assert r.exit_code == 0 and "+cloth" in r.output, r.output
