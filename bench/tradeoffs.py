@@ -22,7 +22,11 @@ process, one after another (errors against the Blender simulation stored in the 
   (:mod:`segadeform.garments.resample`), the result carried to the full-resolution vertices by a
   :class:`SurfaceMap` and compared there;
 * models: each ``NAME=SPEC`` (e.g. width/depth variants trained on the same data);
-* presets: ``segadeform run --quality`` (:mod:`segadeform.presets`), each the row with its effects and margin.
+* cloth: the runtime's cloth stage (:mod:`segadeform.body.cloth`, as ``segadeform run --effects=+cloth``) on
+  "all effects" at 1, 2, 4, 8 and 16 sweeps per frame (the other knobs at their defaults) and at two other
+  stiffnesses, contact at 4 mm (``--cloth-iterations``, ``--cloth-stiffness``);
+* presets: ``segadeform run --quality`` (:mod:`segadeform.presets`), each the row with its effects and margin
+  (and cloth settings).
 
 Every row: ms/frame at one onnxruntime thread and at ``--threads-all`` threads (best of ``--repeats``),
 deformer calls and push-out only (plus carrying results back to full resolution for the resolution rows);
@@ -91,6 +95,18 @@ class Row:
     n_star: Optional[int] = None
     res: Optional[str] = None
     base: Optional[str] = None
+    #: the cloth stage's settings (their text form, "default" for the defaults) on ``base``'s prediction
+    cloth: Optional[str] = None
+
+
+def cloth_key(e) -> Optional[str]:
+    """An Effects' cloth stage as the rows name it: None when off, ``"default"`` or its knobs' text form."""
+    return (e.cloth_settings.label() or "default") if e.cloth else None
+
+
+def preset_key(e) -> tuple:
+    """What a row must match to be a preset's: (effects list, margin of the push-out or the cloth's contact, cloth)."""
+    return (effects_key(e), e.collision_margin if e.collisions or e.cloth else None, cloth_key(e))
 
 
 def effects_key(e) -> str:
@@ -118,9 +134,9 @@ def match_presets(rows: dict, pkg: str) -> dict:
 
     out = {}
     for name, p in QUALITY_PRESETS.items():
-        key = (effects_key(p.effects), p.effects.collision_margin if p.effects.collisions else None)
-        hit = [n for n, r in rows.items() if r["spec"] == pkg and r["knob"] in ("effects", "collisions", "preset")
-               and (r["effects"], r["margin"]) == key]
+        key = preset_key(p.effects)
+        hit = [n for n, r in rows.items() if r["spec"] == pkg and r["knob"] in ("effects", "collisions", "cloth", "preset")
+               and (r["effects"], r["margin"], r.get("cloth")) == key]
         if not hit:
             raise SystemExit(f"preset {name} ({key}) was not measured in this run")
         out[name] = hit[0]
@@ -128,7 +144,8 @@ def match_presets(rows: dict, pkg: str) -> dict:
 
 
 def plan_rows(pkg: str, int8: Optional[str], models: dict, *, fp16: Optional[str] = None, margins=(0.002, 0.004, 0.008), ks=(4, 6, 12),
-              n_stars=(8, 16, 64), batches=(1, 32), resolutions=("1/4", "1/2", "4x")) -> tuple[list[Row], dict]:
+              n_stars=(8, 16, 64), batches=(1, 32), resolutions=("1/4", "1/2", "4x"),
+              cloth_iterations=(1, 2, 4, 8, 16), cloth_stiffness=(0.5, 0.2)) -> tuple[list[Row], dict]:
     """Every row, bases before what is derived from them, and ``{preset: row name}``."""
     from segadeform.presets import QUALITY_PRESETS
 
@@ -156,17 +173,26 @@ def plan_rows(pkg: str, int8: Optional[str], models: dict, *, fp16: Optional[str
         for m in ms:
             rows.append(dataclasses.replace(r, name=f"{r.name} + push-out {_mm(m)}", knob="collisions",
                                             setting=f"{r.name}, push-out at {_mm(m)}", margin=m, base=r.name))
+    from segadeform.cloth_settings import ClothSettings
+
+    cloths = [f"iterations={k}" if k != ClothSettings().iterations else "default" for k in cloth_iterations] + \
+        [f"stiffness={k:g}" for k in cloth_stiffness]
+    for r in [r for r in rows if r.name == "all effects"]:
+        for c in cloths:
+            rows.append(dataclasses.replace(r, name=f"{r.name} + cloth {c}", knob="cloth",
+                                            setting=f"{r.name}, the cloth stage ({c}), contact at 4 mm", margin=0.004,
+                                            base=r.name, cloth=c))
     presets = {}
     for name, p in QUALITY_PRESETS.items():
-        key = (effects_key(p.effects), p.effects.collision_margin if p.effects.collisions else None)
-        hit = [r.name for r in rows if r.spec == pkg and r.knob in ("effects", "collisions")
-               and (r.effects, r.margin) == key]
+        key = preset_key(p.effects)
+        hit = [r.name for r in rows if r.spec == pkg and r.knob in ("effects", "collisions", "cloth")
+               and (r.effects, r.margin, r.cloth) == key]
         if hit:
             presets[name] = hit[0]
         else:
             base = [r.name for r in rows if r.spec == pkg and r.knob == "effects" and r.effects == key[0]]
             rows.append(Row(f"preset {name}", "preset", f"--quality {name}", pkg, key[0], margin=key[1],
-                            base=base[0] if base and key[1] is not None else None))
+                            base=base[0] if base and key[1] is not None else None, cloth=key[2]))
             presets[name] = f"preset {name}"
     return rows, presets
 
@@ -270,7 +296,9 @@ def measure(dataset: Path, body, rows: list[Row], *, split: str, threads_all: in
     from segadeform.body.collision import BodyCollider
     from segadeform.dataset.store import list_samples, load_sample
     from segadeform.geometry.laplacian import SpectralBasis
-    from segadeform.train.evaluate import METRICS, make_predictor, push_out_frames, reference, sample_metrics
+    from segadeform.cloth_settings import ClothSettings
+    from segadeform.train.evaluate import (METRICS, cloth_frames, make_predictor, push_out_frames, reference,
+                                           sample_metrics)
 
     ids = [i for i in list_samples(dataset, split) if not only or i in only]
     if not ids:
@@ -296,9 +324,14 @@ def measure(dataset: Path, body, rows: list[Row], *, split: str, threads_all: in
         assets = None
         for r in rows:
             info = {}
-            if r.base is not None:  # a push-out of another row's prediction
+            if r.base is not None:  # a push-out (or the cloth stage) of another row's prediction
                 t0 = time.perf_counter()
-                x = push_out_frames(preds[r.base], ref, collider, r.margin, batch=r.batch)
+                if r.cloth is not None:
+                    x = cloth_frames(preds[r.base], s, ref, body,
+                                     ClothSettings.parse("" if r.cloth == "default" else r.cloth), margin=r.margin,
+                                     batch=r.batch)
+                else:
+                    x = push_out_frames(preds[r.base], ref, collider, r.margin, batch=r.batch)
                 push = 1e3 * (time.perf_counter() - t0) / T
                 ms1, msn, setup = times[r.base][0] + push, times[r.base][1] + push, times[r.base][2]
             elif Path(r.spec).is_dir():
@@ -355,7 +388,7 @@ def measure(dataset: Path, body, rows: list[Row], *, split: str, threads_all: in
     for r in rows:
         out[r.name] = {k_: v_ / len(ids) for k_, v_ in sums[r.name].items()}
         out[r.name].update(knob=r.knob, setting=r.setting, spec=r.spec, effects=r.effects, margin=r.margin,
-                           batch=r.batch, k=r.k, n_star=r.n_star, res=r.res)
+                           batch=r.batch, k=r.k, n_star=r.n_star, res=r.res, cloth=r.cloth)
     return {"rows": out, "samples": ids, "per_sample": per_sample, "kept": kept, "metrics": list(METRICS)}
 
 
@@ -477,7 +510,8 @@ def write_docs(res: dict, out: Path, *, command: str, seconds: float, threads_al
     for name, rn in presets.items():
         p, m = QUALITY_PRESETS[name], rows[rn]
         e = p.effects
-        ptab.append(f"| {name} | {effects_key(e)} | {_mm(e.collision_margin) if e.collisions else 'off'} | {rn} | "
+        ptab.append(f"| {name} | {effects_key(e) + ('+cloth' if e.cloth else '')} | "
+                    f"{_mm(e.collision_margin) if e.collisions or e.cloth else 'off'} | {rn} | "
                     f"{m['vertex_cm']:.3f} | {m['penetration_pct']:.3f} | {m['ms_per_frame']:.1f} | "
                     f"{1e3 / m['ms_per_frame']:.0f} | {m['ms_per_frame_all']:.1f} | "
                     f"{1e3 / m['ms_per_frame_all']:.0f} |")
@@ -525,6 +559,11 @@ def write_docs(res: dict, out: Path, *, command: str, seconds: float, threads_al
            "place on the nearest triangle plus the rest offset along its normal: `garments/resample.py`); "
            "errors on the full-resolution garment, ms/frame including the carry, setup including the resampling.",
            "* **collisions**: the push-out at the margin named, on the row named.",
+           "* **cloth**: the runtime's cloth stage (`segadeform run --effects=+cloth --cloth ...`: stretch limit, "
+           "contact with neighbours following, inertia and gravity, attachment to the network's frame; "
+           "`src/segadeform/body/_cloth.c`) on the row named, contact at 4 mm, its knobs at their defaults but the "
+           "one named (`iterations`: sweeps per frame; `stiffness`: of the stretch limit); ms/frame includes its "
+           "per-garment setup spread over the sample's frames.",
            "* **models**: variants of the package's recipe in width, depth, heads or window T (the setting "
            "column, read from each package's manifest), each trained on the training split of the same dataset "
            "with the same steps and seed (`segadeform train CONFIG -o runs/NAME --dataset DATASET --threads 1`, "
@@ -647,6 +686,8 @@ def main(argv=None, *, _simulate: Optional[Callable] = None) -> int:
     ap.add_argument("--n-stars", default="8,16,64")
     ap.add_argument("--batches", default="1,32")
     ap.add_argument("--resolutions", default="1/4,1/2,4x")
+    ap.add_argument("--cloth-iterations", default="1,2,4,8,16", help="the cloth stage's sweeps per frame, one row each")
+    ap.add_argument("--cloth-stiffness", default="0.5,0.2", help="its other stiffnesses, one row each")
     ap.add_argument("--no-int8", action="store_true")
     ap.add_argument("--no-fp16", action="store_true")
     ap.add_argument("--samples", default="", help="comma-separated sample ids (default: the whole split)")
@@ -699,7 +740,9 @@ def main(argv=None, *, _simulate: Optional[Callable] = None) -> int:
         q8 = None if a.no_int8 else str(convert_package(pkg, Path(tmp) / "int8", "int8"))
         h16 = None if a.no_fp16 else str(convert_package(pkg, Path(tmp) / "fp16", "fp16-weights"))
         rows, presets = plan_rows(pkg, q8, models, fp16=h16, ks=ints(a.ks), n_stars=ints(a.n_stars), batches=ints(a.batches),
-                                  resolutions=tuple(x for x in a.resolutions.split(",") if x.strip()))
+                                  resolutions=tuple(x for x in a.resolutions.split(",") if x.strip()),
+                                  cloth_iterations=ints(a.cloth_iterations),
+                                  cloth_stiffness=tuple(float(x) for x in a.cloth_stiffness.split(",") if x.strip()))
         res = measure(a.dataset, body, rows, split=a.split, threads_all=a.threads_all, repeats=a.repeats,
                       keep=(sim_sid,) if sim_sid else (), only=tuple(x for x in a.samples.split(",") if x),
                       progress=lambda sid: print(f"  {sid}", file=sys.stderr))

@@ -45,6 +45,10 @@ def test_every_preset_is_a_planned_row_with_its_effects_and_margin():
         assert r.spec == "PKG" and r.effects == b.effects_key(e)
         assert r.margin == (e.collision_margin if e.collisions else None)
     assert {"K=4", "N*=16", "batch 1", "garment 1/4 res", "wide + push-out 4 mm", "int8", "fp16 weights"} <= set(names)
+    # the cloth stage: sweeps 1, 2, 4 (its default), 8, 16 and two stiffnesses, on all effects
+    cloth = {r.name: r.cloth for r in rows if r.knob == "cloth"}
+    assert cloth == {f"all effects + cloth {c}": c for c in ("iterations=1", "iterations=2", "default", "iterations=8",
+                                                            "iterations=16", "stiffness=0.5", "stiffness=0.2")}
 
 
 def test_tradeoffs_runs_on_a_tiny_dataset(synthetic_dataset, random_package, tmp_path):
@@ -69,7 +73,8 @@ def test_tradeoffs_runs_on_a_tiny_dataset(synthetic_dataset, random_package, tmp
     rows = data["rows"]
     for row in ("lbs", "all effects", "no wrinkles", "dqs", "int8", "again", "all effects + push-out 2 mm",
                 "all effects + push-out 8 mm", "again + push-out 4 mm", "batch 3", "K=4", "N*=16",
-                "garment 1/2 res", "garment 4x res"):
+                "garment 1/2 res", "garment 4x res", "all effects + cloth default", "all effects + cloth iterations=1",
+                "all effects + cloth stiffness=0.2"):
         assert row in rows and f"| {row} |" in md, row
     assert data["frontier"] and set(data["frontier"]) <= set(rows) and set(data["frontier_2t"]) <= set(rows)
     for v in rows.values():
@@ -82,6 +87,9 @@ def test_tradeoffs_runs_on_a_tiny_dataset(synthetic_dataset, random_package, tmp
     # push-out leaves nothing deeper than 2 mm
     assert rows["all effects + push-out 4 mm"]["penetration_pct"] <= rows["all effects"]["penetration_pct"]
     assert rows["all effects + push-out 4 mm"]["penetration_pct"] < 1.0
+    for n in (n for n in rows if "+ cloth" in n):  # the cloth stage's rows: its own contact, timed on top
+        assert rows[n]["penetration_pct"] < 1.0 and rows[n]["ms_per_frame"] > rows["all effects"]["ms_per_frame"]
+        assert rows[n]["cloth"] and rows[n]["max_strain_pct"] >= 0
     # the subdivided garment carries back exactly the vertices it was made from: a close prediction
     assert abs(rows["garment 4x res"]["vertex_cm"] - rows["all effects"]["vertex_cm"]) < 0.5
     assert data["per_sample"]["garment 1/2 res"]["skirt__b0__swing"]["vertices"] < \
