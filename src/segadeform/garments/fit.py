@@ -171,11 +171,20 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
                         delete_verts=np.array(sorted(set(deletes)), np.int64), obj_file=obj_file, basemesh=basemesh)
 
 
+#: the largest base-mesh index a binding may name (hm08 has 19,158 vertices with its helpers; found by fuzzing:
+#: a 30-digit index overflowed numpy's int64, and a delete range of 10^12 would fill memory)
+_MAX_INDEX = 10 ** 6
+
+
 def _int(t, p, ln) -> int:
     try:
-        return int(t)
+        i = int(t)
     except ValueError:
         raise FileFormatError("expected an integer", path=p, line=ln, got=t[:30]) from None
+    if abs(i) > _MAX_INDEX:
+        raise FileFormatError("base-mesh index out of range", path=p, line=ln, expected=f"0..{_MAX_INDEX}",
+                              got=t[:30])
+    return i
 
 
 def _float(t, p, ln) -> float:
