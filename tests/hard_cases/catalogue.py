@@ -2,8 +2,9 @@
 
 Each case builds a garment, a motion and a body shape; ``test_catalogue.py`` runs
 it through every stage that exists (precompute -> garment encoder -> deformer,
-in torch and in onnxruntime -> collisions -> writer) and checks the outcome the
-case declares: finite and parity-checked output, or a clear error.
+in torch and in onnxruntime -> the cloth stage, collisions -> writer) and checks the outcome the
+case declares: finite and parity-checked output, or a clear error.  :data:`CLOTH_CASES` names the cloth stage's
+cases that need more than that runner (``test_cloth_cases.py``).
 """
 
 from __future__ import annotations
@@ -190,6 +191,18 @@ def _motion_huge_trans(frames=3):
     return p, t + [1e4, 0.0, -1e4]
 
 
+def _mesh_deep_inside_body():
+    v, f = frustum(16, 6, 0.03, 0.05, 1.05, 0.25)  # a narrow tube inside the hips and belly: every vertex deep inside
+    return v, f
+
+
+def _motion_teleport(frames=8):
+    m = make_motion("walk", seconds=frames / 30.0 + 1.0)
+    p, t = m.poses[-frames:], m.trans[-frames:].copy()
+    t[frames // 2:] += [3.0, 0.0, 2.0]  # the body jumps 3.6 m between two frames
+    return p, t
+
+
 CASES = [
     Case("zero_area_triangles", "collinear and repeated-vertex faces have no normal and infinite cotangents",
          _mesh_zero_area),
@@ -232,6 +245,10 @@ CASES = [
     Case("extreme_beta_minus5", "-5 sigma body shape", betas=(-5.0, -5.0, -5.0)),
     Case("huge_translation", "the body 14 km from the origin: float32 positions lose millimetres",
          motion=_motion_huge_trans, collisions=False),
+    Case("garment_deep_inside_body", "every vertex centimetres inside the body: contact must push the whole garment out",
+         _mesh_deep_inside_body),
+    Case("teleporting_body", "the body jumps 3.6 m between two frames: inertia would fling the cloth (it resets)",
+         motion=_motion_teleport),
     Case("nan_vertex", "a NaN coordinate: must be refused before anything runs", _mesh_nan, error="NaN"),
     Case("face_index_out_of_range", "a face pointing past the last vertex", _mesh_bad_index, error="out of range"),
     Case("nan_pose", "a NaN in the motion", motion=_motion_nan, error="NaN"),
@@ -239,3 +256,14 @@ CASES = [
     Case("too_many_betas", "more shape coefficients than the body has", betas=tuple(range(12)),
          error="too many shape coefficients"),
 ]
+
+#: the cloth stage's hard cases beyond the generic runner's (``test_cloth_cases.py``); the generic runner puts every
+#: case above through the stage too (zero-length and duplicate edges: duplicate_vertices, degenerate triangles:
+#: zero_area_triangles and needle_triangles, vertices with no neighbours: isolated_vertices)
+CLOTH_CASES = {
+    "cloth_200k_vertices": "a 200,000-vertex garment: setup and sweeps in time and memory linear in N",
+    "cloth_stream_10000_frames": "10,000 frames streamed through the stage: state O(N), memory flat, frames unchanged",
+    "cloth_nan_from_upstream": "NaN in the deformer's frames or the posed body: refused, naming the frame",
+    "cloth_teleport_resets_once": "a body that teleports: no explosion, the stage resets and says so once",
+    "cloth_zero_length_edges": "coincident vertices joined by edges of rest length 0: no division by zero",
+}

@@ -106,6 +106,13 @@ def run_case(case, models, body, tmp_path):
     out = results["lbs"].astype(np.float64)
     if case.collisions:
         posed = body.forward(motion.poses, betas, motion.trans).vertices
+        # the cloth stage on the deformer's frames: finite, and no vertex flung (within the bound, or the body's
+        # push, of its target)
+        from segadeform.body.cloth import ClothStage, garment_setup
+
+        setup = garment_setup(asset.vertices, asset.faces, body.shaped_vertices(betas)[0], body.faces)
+        clothed = ClothStage(setup, body.v_template, body.faces).step(out, posed)
+        assert np.isfinite(clothed).all() and np.linalg.norm(clothed - out, axis=-1).max() < 0.5
         proxy = BodyProxy(posed[0], body.faces)
         for i in range(len(out)):
             proxy = proxy.moved(posed[i]) if i else proxy
