@@ -1,12 +1,13 @@
 // The browser runtime's frames, every one of them (the viewer page reports only the largest error): in headless
 // Chromium, on a bare page of the same server, runtimes/web/src/runtime.js's animate() -- what the page runs --
 // animates a garment asset and a motion file with a package on onnxruntime-web (wasm, one thread), and the frames
-// (after collisions when the effects have them) are written as float32 little-endian to OUT.
+// (after collisions or the cloth stage when the effects have them) are written as float32 little-endian to OUT.
 //   node tests/runtimes/web_frames.mjs --root SITE --package PATH_IN_ROOT --garment G.sgda --motion M.sgdm
 //        --effects lbs,dynamics,wrinkles,collisions [--margin M] [--batch B] -o OUT.f32 [--body-out BODY.f32]
 //        [--chromium PATH]
 // SITE holds runtimes/ (a link to the repository's) and the files named; --body-out: the body posed by the package's
-// body graph (T, V, 3), as the page poses it.  Prints `FRAMES {json}` (T, N, V, moved, msPerFrame, ort, browser).
+// body graph (T, V, 3), as the page poses it.  Prints `FRAMES {json}` (T, N, V, moved, cloth (the stage's counts),
+// msPerFrame, ort, browser).
 import { writeFileSync } from "node:fs";
 import { createRequire } from "node:module";
 import { dirname, join, resolve } from "node:path";
@@ -55,7 +56,8 @@ try {
       };
       if (o.body && (!res.body || res.body.error)) throw new Error(`no posed body: ${res.body && res.body.error}`);
       return { T: res.T, N: res.N, V: o.body ? res.body.V : null, msPerFrame: res.msPerFrame,
-        moved: res.collisions ? res.collisions.moved : null, ort: ort.env.versions?.web, frames: b64(res.frames),
+        moved: res.collisions ? res.collisions.moved : null, cloth: res.cloth || null, ort: ort.env.versions?.web,
+        frames: b64(res.frames),
         body: o.body ? b64(res.body.vertices) : null };
     } catch (e) {
       return { error: String(e && e.stack || e) };

@@ -1,0 +1,190 @@
+"""The cloth stage in every runtime, held to the rule the collision parity uses (tests/runtimes/test_collisions.py):
+`segadeform run --effects=+cloth` (the compiled kernel ``src/segadeform/body/_cloth.c`` through
+:class:`~segadeform.body.cloth.ClothStage`) against the C++ runtime (the same C file compiled into ``segadeform-run``),
+the Node runtime and the browser page (its line-for-line JavaScript port, ``runtimes/node/src/cloth.js``).
+
+* A shared vector of the stage alone: a skirt through the hips and thighs over a walk with a teleport, Python's
+  setup and frames, against the JavaScript stage on the same float64 inputs (two settings): the setup equal, every
+  frame equal (in practice bit for bit), the same counts.
+* The whole pipeline on the shipped model: the dress, tightened, dancing, as the runtimes without Python read it;
+  `segadeform run` with the cloth stage against Node and C++ (the same deformer frames and body graph: within 1e-5
+  relative every vertex-frame, in practice bit for bit, the same counts) and the browser (wasm rounds the deformer's
+  float32 in another order: at most one in 1,000 vertex-frames in contact over 1e-5 relative, none by more than the
+  margin).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+import subprocess
+
+import numpy as np
+import pytest
+
+from segadeform.bundle import read_bundle, write_bundle
+from segadeform.io import read_pc2
+from tests.conftest import REPO, SAMPLES
+from tests.runtimes.test_collisions import FRAMES, MARGIN, TIGHTEN, _agree, _web_frames
+
+NODE = REPO / "runtimes" / "node"
+EFFECTS = "lbs,dynamics,wrinkles,cloth"
+
+
+def _report(name: str, **figures) -> None:
+    print(f"CLOTH {name} " + json.dumps(figures))
+
+
+@pytest.fixture(scope="module", params=["default", "iterations=3,stiffness=0.6,bending=0,follow=0,gravity=20"])
+def cloth_vector(request, tmp_path_factory):
+    from segadeform.body import default_body_path, load_body
+    from segadeform.body.cloth import ClothSettings, ClothStage, compiled_available, garment_setup
+    from segadeform.body.transfer import garment_weights, skin_garment
+    from segadeform.geometry.primitives import frustum
+    from segadeform.motion import make_motion
+
+    assert compiled_available(), "the compiled cloth kernel is not built (pip install -e . builds it)"
+    body = load_body(default_body_path())
+    settings = ClothSettings.parse("" if request.param == "default" else request.param)
+    v, f = frustum(24, 9, 0.15, 0.3, 1.0, 0.5)  # partly inside the hips, the thighs swinging through it
+    m = make_motion("walk", seconds=0.8, seed=1)
+    trans = m.trans.copy()
+    trans[14:] += [2.0, 0.0, 1.0]  # a teleport: the stage resets
+    posed = body.forward(m.poses, None, trans).vertices
+    targets = skin_garment(v, garment_weights(v, f, body, None, "nearest"), body, m.poses, None, trans)
+    rest_body = body.shaped_vertices()[0]
+    setup = garment_setup(v, f, rest_body, body.faces, settings)
+    stage = ClothStage(setup, body.v_template, body.faces, settings, margin=MARGIN, dt=1 / 30)
+    batch = 5
+    out = np.concatenate([stage.step(targets[lo:lo + batch], posed[lo:lo + batch])
+                          for lo in range(0, len(targets), batch)])
+    assert stage.resets == 1 and stage.contacts > 200 and stage.pushed > 0  # the vector means something
+    path = tmp_path_factory.mktemp("cloth") / "vec.sgdb"
+    write_bundle(path, {"rest": v, "faces": f.astype(np.int32), "rest_body": rest_body,
+                        "body_faces": body.faces.astype(np.int32), "targets": targets, "posed": posed,
+                        "edges": setup.edges.astype(np.int32), "rest_len": setup.rest_len,
+                        "nptr": setup.nptr.astype(np.int32), "nidx": setup.nidx.astype(np.int32),
+                        "radius": setup.radius, "expected": out},
+                 {"settings": dataclasses.asdict(settings), "margin": MARGIN, "dt": 1 / 30, "batch": batch})
+    return path, {"contacts": stage.contacts, "pushed": stage.pushed, "resets": stage.resets,
+                  "settings": request.param}
+
+
+def test_javascript_cloth_is_the_compiled_kernel(cloth_vector, node):
+    """Same float64 inputs, same setup and frames: every coordinate equal (the port uses only + - * / and sqrt, as the
+    C file), the same counts."""
+    path, py = cloth_vector
+    p = subprocess.run(["node", str(NODE / "scripts" / "cloth_vectors.mjs"), str(path)], capture_output=True,
+                       text=True, timeout=600)
+    assert p.returncode == 0, p.stderr[-3000:]
+    r = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("CLOTH "))[6:])
+    _report("javascript stage vs ClothStage", **r, python=py)
+    assert r["edges"] == r["nptr"] == r["nidx"] == 0 and r["restLen"] == 0 and r["radius"] == 0, r
+    assert r["frames"] <= 1e-12 and r["identical"] == r["coordinates"], r
+    assert (r["contacts"], r["pushed"], r["resets"]) == (py["contacts"], py["pushed"], py["resets"]), (r, py)
+
+
+@pytest.fixture(scope="module")
+def clothed(tmp_path_factory):
+    """The shipped model's dress, tightened, on a dance, as the runtimes without Python read it, and `segadeform run`
+    on those two files with the cloth stage: its frames, counts and posed body."""
+    from segadeform.io import read_mesh
+    from segadeform.io.obj import write_obj
+    from segadeform.runtime.pipeline import run_scene
+    from segadeform.runtime.vectors import scene_vectors
+    from segadeform.scene import load_scene
+
+    d = tmp_path_factory.mktemp("clothed")
+    pkg = SAMPLES / "models" / "default"
+    m = read_mesh(SAMPLES / "garments" / "dress.obj")
+    v = m.vertices.copy()
+    c = v.mean(axis=0)
+    v[:, [0, 2]] = c[[0, 2]] + TIGHTEN * (v[:, [0, 2]] - c[[0, 2]])
+    write_obj(d / "tight_dress.obj", m, vertices=v)
+    sc = load_scene(SAMPLES / "scenes" / "dress_dance.toml")
+    sc = dataclasses.replace(sc, garment=d / "tight_dress.obj",
+                             motion=dataclasses.replace(sc.motion, frames=(0, FRAMES)))
+    files = scene_vectors(sc, d, model=pkg, force=True)
+    scene = d / "cloth.toml"
+    scene.write_text(f'[garment]\nmesh = "{files["garment"]}"\n[motion]\nfile = "{files["motion"]}"\n'
+                     f'[output]\npath = "{d / "py.pc2"}"\nbody = "{d / "py_body.pc2"}"\n'
+                     '[effects]\nskinning = "lbs"\ndynamics = true\nwrinkles = true\ncloth = true\n')
+    s = run_scene(load_scene(scene), model=pkg, cache=False, force=True)
+    assert s.body_backend == "graph" and s.cloth["contacts"] > 0.2 * FRAMES * len(v)
+    frames = read_pc2(d / "py.pc2").frames
+    write_bundle(d / "clothed.sgdb", {"expected": frames})
+    return dict(files, package=pkg, dir=d, frames=frames, cloth=s.cloth, check_clothed=d / "clothed.sgdb",
+                ms=1e3 * s.stage_seconds["cloth"] / FRAMES)
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_runtime_cloth_matches_segadeform_run(runtime, request, clothed, tmp_path):
+    exe = request.getfixturevalue(runtime)
+    c = clothed
+    p = subprocess.run(exe + ["--package", str(c["package"]), "--garment", str(c["garment"]), "--motion",
+                              str(c["motion"]), "--effects", EFFECTS, "-o", str(tmp_path / "g.pc2"), "--batch", "8"],
+                       capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stdout + p.stderr
+    m = re.search(r"cloth: (\d+) vertex-frames in contact, (\d+) pushed out after the sweeps, (\d+) reset\(s\), "
+                  r"([\d.]+) ms/frame", p.stdout)
+    assert m, p.stdout
+    counts = {"contacts": int(m.group(1)), "pushed": int(m.group(2)), "resets": int(m.group(3))}
+    got = read_pc2(tmp_path / "g.pc2").frames
+    a = _agree(got, c["frames"], c["cloth"]["contacts"])
+    _report(runtime, **a, **counts, python=c["cloth"], ms_per_frame=float(m.group(4)), python_ms_per_frame=c["ms"])
+    assert a["exact"] and a["max_rel"] <= 1e-5, a
+    assert counts == c["cloth"], (counts, c["cloth"])
+
+
+def test_cloth_knobs_and_refusals_in_the_runtimes(node, cpp, clothed, tmp_path):
+    """--cloth sets the knobs (the same frames as segadeform run --cloth); --cloth without the stage is a usage error;
+    a bad knob a clear error; a scene bundle cannot run the stage."""
+    from segadeform.cli.main import main
+
+    c = clothed
+    knobs = "iterations=2,stiffness=0.5,gravity=0"
+    assert main(["run", "--garment", str(c["garment"]), "--motion", str(c["motion"]), "--model", str(c["package"]),
+                 "--effects", EFFECTS, "--cloth", knobs, "--no-cache", "--force", "-o", str(tmp_path / "py.pc2")]) == 0
+    want = read_pc2(tmp_path / "py.pc2").frames
+    assert np.abs(np.asarray(want, np.float64) - c["frames"]).max() > 1e-4  # the knobs change the frames
+    for name, exe in (("node", node), ("cpp", cpp)):
+        base = exe + ["--package", str(c["package"]), "--garment", str(c["garment"]), "--motion", str(c["motion"])]
+        p = subprocess.run(base + ["--effects", EFFECTS, "--cloth", knobs, "-o", str(tmp_path / f"{name}.pc2")],
+                           capture_output=True, text=True, timeout=600)
+        assert p.returncode == 0, p.stdout + p.stderr
+        assert _agree(read_pc2(tmp_path / f"{name}.pc2").frames, want, 1)["exact"]
+        p = subprocess.run(base + ["--cloth", "iterations=2", "-o", str(tmp_path / "x.pc2")], capture_output=True,
+                           text=True, timeout=600)
+        assert p.returncode == 2 and "the stage is off" in p.stderr, p.stderr
+        p = subprocess.run(base + ["--effects", EFFECTS, "--cloth", "iterations=0", "-o", str(tmp_path / "x.pc2")],
+                           capture_output=True, text=True, timeout=600)
+        assert p.returncode == 1 and "cloth iterations must be an integer" in p.stderr, p.stderr
+        assert not (tmp_path / "x.pc2").exists()
+
+
+@pytest.fixture(scope="module")
+def clothed_site(tmp_path_factory, clothed):
+    d = tmp_path_factory.mktemp("site")
+    (d / "runtimes").symlink_to(REPO / "runtimes")
+    (d / "pkg").symlink_to(clothed["package"])
+    for k in ("garment", "motion", "check_clothed"):
+        (d / clothed[k].name).symlink_to(clothed[k])
+    return d
+
+
+def test_browser_cloth_every_frame(clothed_site, clothed, tmp_path):
+    """The browser (onnxruntime-web on wasm, the page's runtime.js and cloth.js), every vertex-frame, against
+    `segadeform run --effects=+cloth`: the collision parity's rule (at most one in 1,000 vertex-frames in contact over
+    1e-5 relative, none by more than the margin) and the same counts within that share."""
+    c = clothed
+    r = _web_frames(clothed_site, tmp_path / "cloth.f32", EFFECTS)
+    shape = c["frames"].shape
+    assert (r["T"], r["N"]) == shape[:2] and r["cloth"] is not None
+    got = np.fromfile(tmp_path / "cloth.f32", "<f4").reshape(shape)
+    a = _agree(got, c["frames"], c["cloth"]["contacts"])
+    _report("browser wasm", **a, contacts=r["cloth"]["contacts"], pushed=r["cloth"]["pushed"], python=c["cloth"],
+            ms_per_frame=r["cloth"]["msPerFrame"])
+    assert a["ok"], a
+    assert abs(r["cloth"]["contacts"] - c["cloth"]["contacts"]) <= max(3, c["cloth"]["contacts"] // 1000)
+    assert r["cloth"]["resets"] == c["cloth"]["resets"] == 0
