@@ -68,9 +68,10 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
 
 
 @cli.command("eval")
-@click.argument("dataset", type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.argument("dataset", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
 @click.option("-m", "--model", "models", multiple=True, required=True,
-              help="NAME=SPEC with SPEC a model package folder, a .pt checkpoint, 'lbs' or 'lbs-inpaint' (repeatable).")
+              help="NAME=SPEC with SPEC a model package folder, a .pt checkpoint, 'lbs' or 'lbs-PRIOR' (lbs-inpaint, "
+                   "lbs-idw, lbs-gaussian, lbs-smooth; repeatable).")
 @click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Report folder (eval.md, eval.json, PNG plots).")
 @click.option("--split", default="test", show_default=True, help="Dataset split to evaluate.")
@@ -82,16 +83,17 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
               help="Also report learned models with the runtime's cloth stage at these settings (as run --cloth; "
                    "'default' for its defaults); repeatable (rows 'NAME + cloth [settings]').")
 @click.option("--heatmap", help="Model NAME whose per-vertex error map is rendered (default: the first).")
-@click.option("--force", is_flag=True, help="Replace the report of an earlier `segadeform eval` there, write beside "
-              "other files (never over them).")
+@click.option("--force", is_flag=True, help="Write the report into a folder that holds other files (beside them, "
+              "never over them).")
 def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, cloth=()):
-    """Evaluate models against the simulation: the paper's metrics per model and garment type."""
+    """Evaluate models against the simulation on DATASET (one or more roots: dataset folders, packs, folders of
+    packs): the paper's metrics per model and garment type."""
     from segadeform.train.evaluate import markdown_table, write_report
     from segadeform.train.evaluate import evaluate as run_eval
 
     from segadeform.io.output_guard import OutputGuard
 
-    guard = OutputGuard("eval", force=force, inputs=(dataset, body))
+    guard = OutputGuard("eval", force=force, inputs=(*dataset, body))
     guard.folder(output, names=("eval.*", "*.png"))
     spec = {}
     for m in models:
@@ -100,6 +102,9 @@ def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, 
             raise click.UsageError(f"--model must be NAME=SPEC, got {m!r}")
         spec[name] = s
     b = _body(body)
+    from segadeform.dataset.roots import DatasetRoots
+
+    dataset = DatasetRoots(list(dataset))
     margins = None if not push_margin else push_margin[0] if len(push_margin) == 1 else list(push_margin)
     res = run_eval(dataset, b, spec, split=split, push_out_margin=margins, cloth=list(cloth) or None,
                    progress=lambda sid: click.echo(f"  {sid}", err=True))

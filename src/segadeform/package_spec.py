@@ -30,6 +30,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from .errors import FileFormatError
+from .body.transfer import WEIGHT_PRIORS
 
 __all__ = [
     "FORMAT", "SCHEMA_VERSION", "READABLE_SCHEMAS", "OPSET", "SUPPORTED_OPSETS", "MANIFEST_FILE", "WEIGHTS_FILE",
@@ -117,9 +118,10 @@ INPUTS = {
     "trans": "float32 (B, 3): root translation of each frame (metres)",
     "log_wbody": "float32 (N, S): log(w + 1e-5), w = the body's skinning weights carried to the garment on "
                  "the rest body of shape betas by config.weight_prior: 'nearest' (absent: the closest body "
-                 "point's weights) or 'inpaint' (the closest point's weights where the garment vertex is within "
+                 "point's weights), 'inpaint' (the closest point's weights where the garment vertex is within "
                  "2 cm of the body with its normal within 35 degrees of the body's, harmonic inpainting with the "
-                 "cotangent Laplacian elsewhere: segadeform.body.transfer) (residual-weights models only, "
+                 "cotangent Laplacian elsewhere), 'idw', 'gaussian' or 'smooth' (kernel priors: "
+                 "segadeform.body.transfer) (residual-weights models only, "
                  "config.weights = 'residual')",
 }
 #: inputs of schema-1-era graphs that current exports no longer have (still read)
@@ -600,7 +602,7 @@ def manifest_schema() -> dict:
                                       for k in ("n_joints", "n_betas", "n_star", "feat_dim", "window")}
                        | {"skinning": {"enum": list(SKINNING)}, "use_blend_shapes": {"type": "boolean"},
                           "weights": {"enum": ["free", "residual"]},
-                          "weight_prior": {"enum": ["nearest", "inpaint"]}}},
+                          "weight_prior": {"enum": list(WEIGHT_PRIORS)}}},
             "joint_names": {"type": "array", "items": {"type": "string"}, "minItems": 1},
             "parents": {"type": "array", "items": {"type": "integer", "minimum": -1}, "minItems": 1},
             "units": {"const": "m"},

@@ -68,3 +68,53 @@ def test_unknown_prior_is_refused(body):
     with pytest.raises(InputError, match="prior"):
         garment_weights(g.vertices, g.faces, body, None, "smooth")
     assert INPAINT_MAX_DISTANCE > 0
+
+
+KERNEL_PRIORS = ("idw", "gaussian", "smooth")
+
+
+@pytest.mark.parametrize("prior", ("nearest", "inpaint") + KERNEL_PRIORS)
+def test_every_prior_sums_to_one_is_non_negative_and_is_the_body_on_the_skin(body, prior):
+    """Each prior: weights >= 0 summing to 1 on a loose garment; on a garment lying on the skin (a patch of the
+    body's own surface) exactly the body's weights there, and within 0.01 of them 1 mm out (the closest point is then between vertices)."""
+    skirt = make_garment("skirt", body)
+    w = garment_weights(skirt.vertices, skirt.faces, body, None, prior)
+    assert w.shape == (len(skirt.vertices), body.weights.shape[1])
+    assert (w >= 0).all() and np.allclose(w.sum(1), 1.0, atol=1e-9)
+    from segadeform.geometry.mesh_ops import vertex_normals
+
+    rest = body.shaped_vertices()[0]
+    n = vertex_normals(rest, body.faces)
+    torso = np.flatnonzero((rest[:, 1] > 1.0) & (rest[:, 1] < 1.3) & (np.abs(rest[:, 0]) < 0.12))
+    keep = np.isin(body.faces, torso).all(axis=1)
+    faces = body.faces[keep]
+    used = np.unique(faces)
+    remap = -np.ones(len(rest), np.int64)
+    remap[used] = np.arange(len(used))
+    w = garment_weights(rest[used], remap[faces], body, None, prior)  # on the skin
+    np.testing.assert_allclose(w, body.weights[used], atol=1e-6)
+    w = garment_weights(rest[used] + 0.001 * n[used], remap[faces], body, None, prior)  # 1 mm out
+    np.testing.assert_allclose(w, body.weights[used], atol=0.01)
+
+
+def test_kernel_priors_blend_both_legs_at_a_skirt_hem(body):
+    """The point of the kernel priors: a hem vertex in front of the legs takes both legs' weights, not one."""
+    skirt = make_garment("skirt", body)
+    v = skirt.vertices
+    hem = v[:, 1] < v[:, 1].min() + 0.03
+    front = hem & (np.abs(v[:, 0]) < 0.03) & (v[:, 2] > 0)
+    assert front.sum() >= 2
+    near = garment_weights(v, skirt.faces, body, None, "nearest")[front]
+    for prior in KERNEL_PRIORS:
+        w = garment_weights(v, skirt.faces, body, None, prior)[front]
+        # left (1, 4) and right (2, 5) hip and knee: closer to an even split than the closest point's
+        left, right = w[:, [1, 4]].sum(1), w[:, [2, 5]].sum(1)
+        nl, nr = near[:, [1, 4]].sum(1), near[:, [2, 5]].sum(1)
+        assert np.abs(left - right).mean() < np.abs(nl - nr).mean(), prior
+        assert (np.minimum(left, right) > 0.15).all(), prior
+
+
+def test_unknown_prior_is_refused(body):
+    skirt = make_garment("skirt", body)
+    with pytest.raises(InputError, match="unknown skinning-weight prior"):
+        garment_weights(skirt.vertices, skirt.faces, body, None, "magic")

@@ -1,3 +1,4 @@
+import dataclasses
 import re
 
 import numpy as np
@@ -189,3 +190,36 @@ def test_motion_cli(tmp_path):
     assert r.exit_code == 1 and "unknown motion kind" in r.output and not (tmp_path / "x.npz").exists()
     r = CliRunner().invoke(cli, ["motion", "info", str(tmp_path / "missing.bvh")])
     assert r.exit_code == 1 and "missing.bvh" in r.output
+
+
+def test_drop_leading_jumps_removes_a_tpose_put_in_front():
+    from segadeform.motion import make_motion
+    from segadeform.motion.motion import drop_leading_jumps
+
+    m = make_motion("walk", seconds=1.0, fps=30.0, seed=0)
+    assert drop_leading_jumps(m)[1] == 0  # a motion that flows is left alone
+    poses = np.concatenate([np.zeros((1, 72)), m.poses])
+    poses[1:, 3 * 16 + 2] -= 1.3  # the capture has the arms down; the T-pose in front has them up
+    trans = np.concatenate([m.trans[:1], m.trans])
+    tp = dataclasses.replace(m, poses=poses, trans=trans)
+    out, k = drop_leading_jumps(tp)
+    assert k == 1 and out.n_frames == m.n_frames and np.allclose(out.poses, poses[1:])
+    assert out.meta["dropped_leading_frames"] == 1
+
+
+def test_ramp_in_starts_from_rest_and_joins_the_motion_at_full_speed():
+    from segadeform.motion import make_motion
+    from segadeform.motion.motion import ramp_in
+
+    m = make_motion("run", seconds=2.0, fps=30.0, seed=0, ease_in=0.0)
+    r = ramp_in(m, 0.5)
+    k = 15
+    assert r.n_frames == 2 * k + (m.n_frames - k)
+    np.testing.assert_allclose(r.poses[2 * k:], m.poses[k:])  # the rest as it is
+    np.testing.assert_allclose(r.poses[0], m.poses[0])  # starts in the first pose ...
+    step = np.linalg.norm(np.diff(r.trans, axis=0), axis=1)
+    assert step[0] < 0.1 * step[2 * k + 5]  # ... at rest, and speeds up ...
+    assert np.all(np.diff(step[: 2 * k - 1]) > -1e-3 * step.max())  # ... without slowing down on the way
+    assert abs(step[2 * k - 1] - step[2 * k]) < 0.2 * step[2 * k]  # its speed where the motion takes over
+    with pytest.raises(InputError):
+        ramp_in(m, 100.0)

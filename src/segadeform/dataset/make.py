@@ -53,6 +53,7 @@ from ..garments import GARMENT_TYPES, make_garment
 from ..io import Mesh, read_mesh, write_obj
 from ..io.location import Location, LocalLocation, open_location
 from ..motion import face_forward, load_motion, make_motion, resample
+from ..motion.motion import drop_leading_jumps, ramp_in
 from ..motion.motion import Motion
 from .config import DatasetConfig, GarmentSpec, MotionEntry
 from .quality import BodyParts, quality_check
@@ -183,13 +184,16 @@ def sample_spec(cfg: DatasetConfig, p: PlannedSample) -> str:
 
 
 LEAD_SECONDS = 1.0  # of a motion file, simulated before a clip and dropped: the cloth enters it in motion
+RAMP_MIN_SECONDS = 0.3  # a clip with less capture before it starts this far in, the body ramped up from rest
 
 
 def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: bool = False):
     """The sample's motion.  ``with_lead``: ``(motion, lead)`` where the motion starts ``lead`` frames
-    before the clip (up to LEAD_SECONDS of the file before ``start``): motion capture starts mid-stride,
-    and cloth blended from rest straight into a walking body lags and tears; the lead frames are
-    simulated and dropped."""
+    before the clip (LEAD_SECONDS of the file before ``start``): motion capture starts mid-stride, and
+    cloth blended from rest straight into a running body lags and ends up inside it; the lead frames are
+    simulated and dropped.  A clip with less capture before it starts at least RAMP_MIN_SECONDS in, and its
+    lead is that capture played from rest with the speed ramping up (:func:`~segadeform.motion.motion.ramp_in`).
+    A T-pose frame in front of a capture is dropped first (:func:`~segadeform.motion.motion.drop_leading_jumps`)."""
     if m.kind is not None:
         # a procedural motion with no ease-in starts at full speed: it gets the same lead, its first
         # LEAD_SECONDS simulated and dropped (one that eases in from rest needs none)
@@ -200,11 +204,22 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
             return dataclasses.replace(mo, poses=mo.poses[lead:], trans=mo.trans[lead:])
         return mo, lead
     mo = load_motion(m.file, rest_joints=rest_joints, floor=True)
+    mo, _ = drop_leading_jumps(mo)  # a T-pose put in front of the capture (cgspeed's CMU BVH)
     if abs(mo.fps - cfg.fps) > 1e-9:
         mo = resample(mo, cfg.fps)
     a = min(int(round(m.start * cfg.fps)), mo.n_frames - 1)
+    full = int(round(LEAD_SECONDS * cfg.fps))
+    short = a < full  # less capture before the clip than a lead needs
+    if short:  # the clip starts at least RAMP_MIN_SECONDS in (the same clip with and without the lead)
+        a = max(1, min(max(a, int(round(RAMP_MIN_SECONDS * cfg.fps))), mo.n_frames - 2))
     n = min(mo.n_frames - a, int(round(cfg.seconds * cfg.fps)))
-    lead = min(a, int(round(LEAD_SECONDS * cfg.fps))) if with_lead else 0
+    if with_lead and short:
+        # the body sets off from rest instead: the capture up to the clip's start played slowed (ramp_in),
+        # over twice its length; the clip starts where the normal speed takes over
+        mo = ramp_in(mo, a / cfg.fps)
+        a = lead = 2 * a
+    else:
+        lead = min(a, full) if with_lead else 0
     # the lead's first frame is where the simulation's rest pose stands: facing +Z above x = z = 0
     clip = face_forward(dataclasses.replace(mo, poses=mo.poses[a - lead:a + n], trans=mo.trans[a - lead:a + n]), 0)
     return (clip, lead) if with_lead else clip

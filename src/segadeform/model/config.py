@@ -81,8 +81,11 @@ class ModelConfig:
             raise InputError("ModelConfig.skinning must be 'lbs' or 'dqs'", got=self.skinning)
         if self.weights not in ("residual", "free"):
             raise InputError("ModelConfig.weights must be 'residual' or 'free'", got=self.weights)
-        if self.weight_prior not in ("nearest", "inpaint"):
-            raise InputError("ModelConfig.weight_prior must be 'nearest' or 'inpaint'", got=self.weight_prior)
+        from ..body.transfer import WEIGHT_PRIORS
+
+        if self.weight_prior not in WEIGHT_PRIORS:
+            raise InputError("ModelConfig.weight_prior is not a weight prior", expected=" | ".join(WEIGHT_PRIORS),
+                             got=self.weight_prior)
 
     def to_json(self) -> str:
         return json.dumps(dataclasses.asdict(self), sort_keys=True)

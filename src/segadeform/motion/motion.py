@@ -13,7 +13,8 @@ from ..body.rotations import (axis_angle_to_quaternion, quaternion_slerp, quater
 from ..errors import FileFormatError, InputError
 from ..io.atomic import atomic_path
 
-__all__ = ["Motion", "load_motion_npz", "feet_on_floor", "face_forward", "resample", "motion_windows", "N_POSE", "SMPL_PELVIS"]
+__all__ = ["Motion", "load_motion_npz", "feet_on_floor", "face_forward", "resample", "motion_windows", "N_POSE", "SMPL_PELVIS",
+           "sample_frames", "drop_leading_jumps", "ramp_in"]
 
 N_POSE = 72  # 24 SMPL joints x axis-angle
 
@@ -266,6 +267,24 @@ def feet_on_floor(motion: Motion, rest_joints: np.ndarray, *, floor: float = 0.0
     return dataclasses.replace(motion, trans=trans, meta=meta)
 
 
+def sample_frames(motion: Motion, t) -> tuple[np.ndarray, np.ndarray]:
+    """The motion at fractional frame indices ``t`` (clamped to the motion): slerp on each joint's rotation,
+    linear on translation.
+
+    Shapes:
+        t: (M,) -> poses (M, 72), trans (M, 3)
+    """
+    t = np.clip(np.asarray(t, np.float64), 0.0, motion.n_frames - 1)
+    i0 = np.clip(np.floor(t).astype(int), 0, motion.n_frames - 1)
+    i1 = np.clip(i0 + 1, 0, motion.n_frames - 1)
+    a = (t - i0)[:, None]
+    q = axis_angle_to_quaternion(motion.poses.reshape(-1, 24, 3))
+    qs = quaternion_slerp(q[i0], q[i1], np.repeat(a, 24, axis=1))
+    poses = quaternion_to_axis_angle(qs).reshape(len(t), N_POSE)
+    trans = (1 - a) * motion.trans[i0] + a * motion.trans[i1]
+    return poses, trans
+
+
 def resample(motion: Motion, fps: float) -> Motion:
     """Resample to ``fps``: slerp on each joint's rotation, linear on translation.
 
@@ -278,16 +297,58 @@ def resample(motion: Motion, fps: float) -> Motion:
         return motion
     duration = (motion.n_frames - 1) / motion.fps
     n_out = int(np.floor(duration * fps + 1e-9)) + 1
-    t = np.arange(n_out) / fps * motion.fps  # in input frames
-    i0 = np.clip(np.floor(t).astype(int), 0, motion.n_frames - 1)
-    i1 = np.clip(i0 + 1, 0, motion.n_frames - 1)
-    a = (t - i0)[:, None]
-    q = axis_angle_to_quaternion(motion.poses.reshape(-1, 24, 3))
-    qs = quaternion_slerp(q[i0], q[i1], np.repeat(a, 24, axis=1))
-    poses = quaternion_to_axis_angle(qs).reshape(n_out, N_POSE)
-    trans = (1 - a) * motion.trans[i0] + a * motion.trans[i1]
+    poses, trans = sample_frames(motion, np.arange(n_out) / fps * motion.fps)
     return Motion(poses=poses, trans=trans, fps=float(fps), betas=motion.betas, name=motion.name,
                   meta=dict(motion.meta, resampled_from=motion.fps))
+
+
+def drop_leading_jumps(motion: Motion, max_degrees: float = 60.0, *, max_frames: int = 3) -> tuple[Motion, int]:
+    """Drop first frames that the motion jumps away from: while some joint turns more than ``max_degrees``
+    from frame 0 to frame 1 (or the root moves more than 0.5 m), frame 0 goes (at most ``max_frames``).
+    Several CMU conversions (cgspeed's MotionBuilder release) put a T-pose in front of the capture: played as
+    it is, the body teleports out of it on the next frame.  Returns the motion and how many frames went.
+    """
+    from ..body.rotations import axis_angle_to_matrix
+
+    dropped = 0
+    m = motion
+    while dropped < max_frames and m.n_frames >= 3:
+        r = axis_angle_to_matrix(m.poses[:2].reshape(2, 24, 3))
+        rel = np.einsum("jab,jac->jbc", r[0], r[1])  # R0^T R1 per joint
+        cos = np.clip((np.trace(rel, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+        turn = np.degrees(np.arccos(cos)).max()
+        if turn <= max_degrees and np.linalg.norm(m.trans[1] - m.trans[0]) <= 0.5:
+            break
+        m = dataclasses.replace(m, poses=m.poses[1:], trans=m.trans[1:])
+        dropped += 1
+    if dropped:
+        m = dataclasses.replace(m, meta=dict(m.meta, dropped_leading_frames=dropped))
+    return m, dropped
+
+
+def ramp_in(motion: Motion, seconds: float) -> Motion:
+    """The motion started from rest: its first ``seconds`` played with a speed rising linearly from 0 to 1
+    over ``2 seconds`` (time warped ``tau(t) = t^2 / (4 seconds)``: position and speed continuous where the
+    normal speed takes over), then the rest of it as it is.  A capture that starts mid-stride then starts
+    like a person setting off, not at full speed out of a standstill.
+
+    Returns a motion of ``2 seconds fps + (T - seconds fps)`` frames; its frame ``round(2 seconds fps)`` is
+    the input's frame ``round(seconds fps)``.
+    """
+    if not (np.isfinite(seconds) and seconds > 0):
+        raise InputError("ramp seconds must be positive", got=seconds)
+    fps = motion.fps
+    k = int(round(seconds * fps))  # input frames the ramp plays
+    if k < 1 or k >= motion.n_frames:
+        raise InputError("the ramp must be shorter than the motion", expected=f"< {motion.n_frames / fps:.3f} s",
+                         got=seconds)
+    n = 2 * k  # output frames of the ramp
+    t = np.arange(n)  # output frame index
+    tau = t * t / (4.0 * k)  # input frame index: tau(2k) = k, tau'(2k) = 1
+    rp, rt = sample_frames(motion, tau)
+    poses = np.concatenate([rp, motion.poses[k:]])
+    trans = np.concatenate([rt, motion.trans[k:]])
+    return dataclasses.replace(motion, poses=poses, trans=trans, meta=dict(motion.meta, ramp_seconds=seconds))
 
 
 def motion_windows(poses: np.ndarray, window: int, *, start: int = 0, stop: int | None = None) -> np.ndarray:

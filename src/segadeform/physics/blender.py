@@ -47,8 +47,9 @@ __all__ = ["SimResult", "simulate", "find_sim_python", "preroll_poses", "pin_wei
 WORKER = Path(__file__).with_name("blender_worker.py")
 #: the version of this bridge (how a scene becomes a Blender simulation): recorded by every dataset sample
 #: and pack; samples of different versions are not mixed.  1: up to issue #13; 2: collider settings
-#: (``collision_inner``, ``collision_normals``) and the per-piece detachment gate (issue #27)
-SIM_BRIDGE_VERSION = 2
+#: (``collision_inner``, ``collision_normals``) and the per-piece detachment gate (issue #27); 3: leads without
+#: a T-pose in front and ramped up from rest where the capture before a clip is short (issue #27)
+SIM_BRIDGE_VERSION = 3
 _Y_TO_Z = np.array(Y_TO_Z)
 
 

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..body.collision import BodyCollider, BodyProxy
 from ..body.model import BodyModel
-from ..body.transfer import garment_weights, skin_garment
+from ..body.transfer import WEIGHT_PRIORS, garment_weights, skin_garment
 from ..dataset.roots import as_roots
 from ..dataset.store import Sample
 from ..errors import InputError
@@ -66,7 +66,8 @@ class Predictor(abc.ABC):
 
 class _LBS(Predictor):
     """LBS with the body's weights carried to the garment by ``prior`` (``lbs``: the closest body point,
-    baseline (a); ``lbs-inpaint``: inpainted where the garment leaves the body, segadeform.body.transfer)."""
+    baseline (a); ``lbs-<prior>`` for every other prior of :data:`segadeform.body.transfer.WEIGHT_PRIORS`:
+    ``lbs-inpaint``, ``lbs-idw``, ``lbs-gaussian``, ``lbs-smooth``: the non-learned priors)."""
 
     def __init__(self, prior: str = "nearest"):
         self.prior = prior
@@ -147,13 +148,14 @@ class _Checkpoint(Predictor):
 
 
 def make_predictor(name: str, spec: str) -> Predictor:
-    """``spec``: ``lbs`` (closest-point weights) or ``lbs-inpaint`` (inpainted weights), a model package
+    """``spec``: ``lbs`` (closest-point weights) or ``lbs-<prior>`` (a non-learned weight prior of
+    :data:`~segadeform.body.transfer.WEIGHT_PRIORS`: ``lbs-inpaint``, ``lbs-idw`` ...), a model package
     folder (optionally ``FOLDER:EFFECTS`` with effects as for ``segadeform run --effects``, e.g.
     ``pkg:-wrinkles``), or a ``.pt`` checkpoint."""
     if spec == "lbs":
         p: Predictor = _LBS()
-    elif spec == "lbs-inpaint":
-        p = _LBS("inpaint")
+    elif spec.startswith("lbs-") and spec[4:] in WEIGHT_PRIORS and spec[4:] != "nearest":
+        p = _LBS(spec[4:])
     elif Path(spec).is_dir():
         p = _Package(spec)
     elif ":" in spec and Path(spec.rsplit(":", 1)[0]).is_dir():
@@ -162,7 +164,8 @@ def make_predictor(name: str, spec: str) -> Predictor:
     elif Path(spec).suffix == ".pt":
         p = _Checkpoint(spec)
     else:
-        raise InputError("a model must be 'lbs', 'lbs-inpaint', a model package folder or a .pt checkpoint", got=spec)
+        raise InputError("a model must be 'lbs', 'lbs-PRIOR' (" + ", ".join(f"lbs-{w}" for w in WEIGHT_PRIORS[1:])
+                         + "), a model package folder or a .pt checkpoint", got=spec)
     p.name = name
     return p
 
