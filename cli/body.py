@@ -41,13 +41,11 @@ def info_cmd(body):
 @click.option("--n-test", type=click.IntRange(min=1), default=40, show_default=True,
               help="Held-out phenotypes for the fidelity report.")
 @click.option("--seed", type=int, default=0, show_default=True)
-@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform body bake` (never a file "
-              "segadeform did not write).")
-def bake_cmd(output, n_train, n_test, seed, force):
+def bake_cmd(output, n_train, n_test, seed):
     """Bake the default body from anny (needs the 'body' extra)."""
     from segadeform.io.output_guard import OutputGuard
 
-    guard = OutputGuard("body bake", force=force)
+    guard = OutputGuard("body bake")
     guard.file(output)
     from segadeform.body.bake_anny import bake_anny_body
 

@@ -15,8 +15,7 @@ from .main import cli
               help="The model package to give the body graphs (replaced in place, atomically).")
 @click.option("--to", "copy_to", type=click.Path(file_okay=False, path_type=Path),
               help="Write the package with the body graphs here instead of replacing it.")
-@click.option("--force", is_flag=True, help="With --to: replace a model package segadeform wrote there before.")
-def export_body_cmd(body, output, copy_to, force):
+def export_body_cmd(body, output, copy_to):
     """Export BODY (.npz or SMPL .pkl; default: the shipped body) as the package's body graphs body_lbs and
     body_dqs: betas, poses and translations in, posed vertices, joints, rest joints and triangles out, so
     runtimes without Python pose the body (needs the 'torch' extra)."""
@@ -29,10 +28,10 @@ def export_body_cmd(body, output, copy_to, force):
     from segadeform.io.output_guard import OutputGuard, OutputRefused
 
     if copy_to is not None:
-        guard = OutputGuard("package", force=force, inputs=(body, output))
+        guard = OutputGuard("package", inputs=(body, output))
         guard.folder(copy_to)
     else:  # in place: only a package segadeform wrote (its manifest lists every file) is rewritten
-        guard = OutputGuard("package", force=True, inputs=(body,))
+        guard = OutputGuard("package", inputs=(body,))
         try:
             guard.folder(output)
         except OutputRefused as e:

@@ -15,8 +15,7 @@ from .main import cli
 @click.option("--model", type=click.Path(file_okay=False, path_type=Path), help="Model package directory.")
 @click.option("--no-expected", is_flag=True, help="Leave out the Python runtime's output.")
 @click.option("--frames", help="Frame range A:B of the motion.")
-@click.option("--force", is_flag=True, help="Bundle a garment even when it does not sit on the body, and replace the "
-              "output of an earlier `segadeform bundle` (never a file segadeform did not write).")
+@click.option("--force", is_flag=True, help="Bundle a garment even when it does not sit on the body.")
 def bundle_cmd(scene, output, model, no_expected, frames, force):
     """Write SCENE's garment, body-shape and motion inputs as a bundle (docs/package.md) for Node, browser
     and C++ runtimes, with the Python runtime's output as the parity vector."""
@@ -28,7 +27,7 @@ def bundle_cmd(scene, output, model, no_expected, frames, force):
     from segadeform.io.output_guard import OutputGuard
 
     sc = load_scene(scene)
-    guard = OutputGuard("bundle", force=force, inputs=(scene, sc.garment, sc.motion.file, sc.body, model or sc.model))
+    guard = OutputGuard("bundle", inputs=(scene, sc.garment, sc.motion.file, sc.body, model or sc.model))
     guard.file(output)
     if frames:
         sc = dataclasses.replace(sc, motion=dataclasses.replace(sc.motion, frames=parse_frames(frames)))

@@ -27,10 +27,7 @@ from .main import cli
               type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
                    "warn about garments far from all of them.  Default: what the checkpoint records.")
-@click.option("--force", is_flag=True, help="Replace a model package segadeform wrote there before (never a file "
-              "segadeform did not write).")
-def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy, inline_weights, training_files,
-               force):
+def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy, inline_weights, training_files):
     """Export CHECKPOINT (or --random-init) to an ONNX model package (needs the 'torch' extra)."""
     try:
         import torch  # noqa: F401
@@ -42,7 +39,7 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
 
     if (checkpoint is None) == (not random_init):
         raise click.UsageError("give a CHECKPOINT or --random-init (not both)")
-    guard = _package_guard(output, force, (checkpoint, *training_files))
+    guard = _package_guard(output, (checkpoint, *training_files))
     if random_init:
         try:
             overrides = json.loads(config_json) if config_json else {}
@@ -88,9 +85,7 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
 @click.option("--precision", type=click.Choice(["int8", "fp16-weights"]), default="int8", show_default=True,
               help="int8: onnxruntime dynamic quantisation (weights int8, inputs and outputs float32); "
                    "fp16-weights: weights stored as float16, arithmetic float32 (half the file, fp32 speed).")
-@click.option("--force", is_flag=True, help="Replace a model package segadeform wrote there before (never a file "
-              "segadeform did not write).")
-def quantize_cmd(package, output, precision, force):
+def quantize_cmd(package, output, precision):
     """Copy model PACKAGE at another precision (needs the 'torch' extra for onnx)."""
     try:
         import onnx  # noqa: F401
@@ -98,7 +93,7 @@ def quantize_cmd(package, output, precision, force):
         raise click.ClickException("quantize needs onnx: pip install 'segadeform[torch]'") from None
     from segadeform.export.precision import convert_package
 
-    guard = _package_guard(output, force, (package,))
+    guard = _package_guard(output, (package,))
     convert_package(package, output, precision)
     guard.record()
     click.echo(f"{output}: {precision} package, graphs {_size(output) / 1e6:.1f} MB")
@@ -116,9 +111,7 @@ def quantize_cmd(package, output, precision, force):
                    "warn about garments far from all of them.  Default: the package's own list.")
 @click.option("--opset", type=click.IntRange(15, 21), default=None,
               help="Convert every graph to this ONNX opset (default: the exporter's, 18); 15 for Unity Sentis.")
-@click.option("--force", is_flag=True, help="Replace a model package segadeform wrote there before (never a file "
-              "segadeform did not write).")
-def repack_cmd(package, output, inline_weights, training_files, opset, force):
+def repack_cmd(package, output, inline_weights, training_files, opset):
     """Rewrite model PACKAGE (any schema) in the current layout, same graphs (needs onnx)."""
     try:
         import onnx  # noqa: F401
@@ -128,7 +121,7 @@ def repack_cmd(package, output, inline_weights, training_files, opset, force):
 
     from segadeform import package_spec as contract
 
-    guard = _package_guard(output, force, (package, *training_files))
+    guard = _package_guard(output, (package, *training_files))
     before = _size(package)
     garments = _training_garments(training_files, contract.read_manifest_text(
         (package / contract.MANIFEST_FILE).read_text(encoding="utf-8"))["config"]["n_star"])
@@ -143,12 +136,12 @@ def repack_cmd(package, output, inline_weights, training_files, opset, force):
                f"{before / 1e6:.2f} MB -> {_size(output) / 1e6:.2f} MB")
 
 
-def _package_guard(output, force: bool, inputs):
-    """The output rule for a model package folder (segadeform.io.output_guard): a new or empty folder, or with
-    --force one holding only a package segadeform wrote (kind "package": export, repack, quantize, export-body)."""
+def _package_guard(output, inputs):
+    """The output rule for a model package folder (segadeform.io.output_guard): a new or empty folder, or one
+    holding only a package segadeform wrote (kind "package": export, repack, quantize, export-body), replaced."""
     from segadeform.io.output_guard import OutputGuard
 
-    guard = OutputGuard("package", force=force, inputs=inputs)
+    guard = OutputGuard("package", inputs=inputs)
     guard.folder(output)
     return guard
 

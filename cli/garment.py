@@ -31,9 +31,7 @@ def garment_group():
 @click.option("--ease", type=float, default=0.015, show_default=True, help="Metres between skin and cloth.")
 @click.option("--sleeve", type=float, help="Sleeve length, 0..1 of shoulder-to-wrist.")
 @click.option("--resolution", type=int, help="Target vertex count (picks the refinement level).")
-@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform garment make` (never a file "
-              "segadeform did not write).")
-def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, resolution, force):
+def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, resolution):
     """Make a KIND garment dressed on the body in rest pose (kinds: see `segadeform garment kinds`)."""
     from segadeform.body import load_body
     from segadeform.garments import GarmentParams, check_garment, make_garment
@@ -42,7 +40,7 @@ def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, res
 
     from segadeform.io.output_guard import OutputGuard
 
-    guard = OutputGuard("garment make", force=force, inputs=(body,))
+    guard = OutputGuard("garment make", inputs=(body,))
     guard.file(output)
     b = _betas(betas)
     bm = load_body(body or default_body_path())
@@ -81,9 +79,7 @@ def garment_kinds_cmd():
               "scale).")
 @click.option("--margin", type=float, help="Push vertices out of the body to this clearance, metres "
               "(default 0.003 for --mhclo/--from-body fits, none for plain unit/axis fixes).")
-@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform garment fit` (never a file "
-              "segadeform did not write).")
-def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, scale, offset, margin, force):
+def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, scale, offset, margin):
     """Bring GARMENT (OBJ or .mhclo) onto the body: a MakeHuman binding, --from-body, or --units/--up/--scale.
 
     Vertex order and count are kept; faces (quads and polygons as they are), UVs and groups are copied from the
@@ -131,7 +127,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         raise InputError("--betas needs a garment that can be refitted to a body shape; a unit/axis fix does not "
                          "change the garment's shape", path=garment,
                          expected="a MakeHuman binding (--mhclo) or --from-body with --betas", got="a plain OBJ")
-    guard = OutputGuard("garment fit", force=force, inputs=(garment, mhclo, obj, from_body, body))
+    guard = OutputGuard("garment fit", inputs=(garment, mhclo, obj, from_body, body))
     guard.file(output)
     bm = load_body(body or default_body_path())
     try:

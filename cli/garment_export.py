@@ -21,9 +21,8 @@ from .garment import _betas, garment_group
               help="Model package the asset is for: its descriptor length N* and skinning-weight prior "
                    "(default: the shipped model).")
 @click.option("--k", type=click.IntRange(min=1), default=None, help="Neighbour slots K (default: max valence, capped).")
-@click.option("--force", is_flag=True, help="Export a garment even when it does not sit on the body or the body shape "
-              "is unusual (|beta| > 5), and replace the output of an earlier `segadeform garment export` (never a "
-              "file segadeform did not write).")
+@click.option("--force", is_flag=True, help="Export a garment even when it does not sit on the body, or for a body no "
+              "human's height.")
 def garment_export_cmd(garment, output, body, betas, model, k, force):
     """Prepare GARMENT (a mesh, or an asset from `segadeform precompute`) for a body shape: neighbours, mask,
     descriptor, the encoder features for the shape's rest joints, the body's weights at the garment
@@ -38,7 +37,7 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
 
     from segadeform.io.output_guard import OutputGuard
 
-    guard = OutputGuard("garment export", force=force, inputs=(garment, body, model))
+    guard = OutputGuard("garment export", inputs=(garment, body, model))
     guard.file(output)
     b = load_body(body or default_body_path())
     beta_vals = _betas(betas) or ()

@@ -25,14 +25,12 @@ def motion_group():
 @click.option("--ease-in", type=float, default=1.0, show_default=True, help="Seconds to blend in from rest.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Motion file (.npz, .bvh or .sgdm).")
-@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform motion make` (never a file "
-              "segadeform did not write).")
-def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output, force):
+def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
     """Make a procedural motion of KIND (idle, walk, run, jump, arm_swing, touch_high, torso_twist, dance)."""
     from segadeform.io.output_guard import OutputGuard
     from segadeform.motion import make_motion, write_bvh
 
-    guard = OutputGuard("motion make", force=force)
+    guard = OutputGuard("motion make")
     guard.file(output)
     m = make_motion(kind, seconds=seconds, fps=fps, seed=seed, speed=speed, amplitude=amplitude, ease_in=ease_in)
     if output.suffix.lower() == ".bvh":

@@ -30,10 +30,8 @@ from .motion import motion_group
 @click.option("--seed", type=int, default=0, show_default=True, help="Procedural motions: seed.")
 @click.option("--speed", type=float, default=1.0, show_default=True, help="Procedural motions: cycle rate.")
 @click.option("--amplitude", type=float, default=1.0, show_default=True, help="Procedural motions: joint angle scale.")
-@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform motion export` (never a file "
-              "segadeform did not write).")
 def motion_export_cmd(source, output, body, betas, fps, frames, up, units, joint_map, skeleton, floor, seconds, seed,
-                      speed, amplitude, force):
+                      speed, amplitude):
     """Write SOURCE (a .bvh, .amc or .npz motion, or a procedural kind: idle, walk, dance, ...) as a motion file:
     poses (T, 24, 3) and translations (T, 3) on the body's skeleton, as `segadeform run` would play it."""
     from segadeform.body import default_body_path, load_body
@@ -52,7 +50,7 @@ def motion_export_cmd(source, output, body, betas, fps, frames, up, units, joint
     from segadeform.io.output_guard import OutputGuard
 
     path = Path(source)
-    guard = OutputGuard("motion export", force=force, inputs=(path, body, joint_map, skeleton))
+    guard = OutputGuard("motion export", inputs=(path, body, joint_map, skeleton))
     guard.file(output)
     if path.suffix.lower() in (".bvh", ".npz", ".amc") or path.exists():
         spec = MotionSpec(file=path, fps=fps, up=up, units=units, joint_map=joint_map, floor=floor, skeleton=skeleton)

@@ -22,9 +22,7 @@ from .main import cli
 @click.option("--max-k", type=click.IntRange(min=1), default=None, help="Cap for automatic K.")
 @click.option("--n-star", type=click.IntRange(min=1), default=None, help="Descriptor length N*.")
 @click.option("--geodesic", type=click.Choice(["heat", "dijkstra"]), default=None, help="Geodesic method.")
-@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform precompute` (never a file "
-              "segadeform did not write).")
-def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, geodesic, force):
+def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, geodesic):
     """Precompute graph, features and descriptor of GARMENT (OBJ, PLY, OFF, STL ...)."""
     from segadeform.body import load_rest_joints
     from segadeform.geometry import DEFAULT_GEODESIC, DEFAULT_MAX_K, DEFAULT_N_STAR, precompute_garment
@@ -35,7 +33,7 @@ def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, ge
         raise click.UsageError("give exactly one of --joints JOINTS.npy or --body BODY.npz")
     from segadeform.io.output_guard import OutputGuard
 
-    guard = OutputGuard("precompute", force=force, inputs=(garment, joints_path, body_path))
+    guard = OutputGuard("precompute", inputs=(garment, joints_path, body_path))
     guard.file(output)
     t0 = time.perf_counter()
     mesh = read_mesh(garment)

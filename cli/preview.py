@@ -29,9 +29,7 @@ from .main import cli
 @click.option("--fps", type=float, help="Animation rate (default: the result's 30 fps over --every).")
 @click.option("--up", type=click.Choice(UP_AXES), default="y", show_default=True,
               help="Up axis the result was written with (run --up).")
-@click.option("--force", is_flag=True, help="Replace the output of an earlier `segadeform preview` (never a file "
-              "segadeform did not write).")
-def preview_cmd(result, garment, body_seq, body_model, output, frames, every, view, size, fps, up, force):
+def preview_cmd(result, garment, body_seq, body_model, output, frames, every, view, size, fps, up):
     """Render RESULT (PC2, OBJ sequence folder, XDMF or Alembic) with its garment and, if given, the body."""
     import numpy as np
 
@@ -43,7 +41,7 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
 
     from segadeform.io.output_guard import OutputGuard
 
-    guard = OutputGuard("preview", force=force, inputs=(result, garment, body_seq, body_model))
+    guard = OutputGuard("preview", inputs=(result, garment, body_seq, body_model))
     guard.file(output)
     try:
         w, h = (int(x) for x in size.lower().split("x"))

@@ -72,10 +72,10 @@ def _quality_choice():
               help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).")
 @click.option("--animation", help="glTF motions (.glb/.gltf): the animation to play (default: the first).")
 @click.option("--floor", is_flag=True, default=None, help="Move the motion so the feet touch the floor.")
-@click.option("--force", is_flag=True, help="Replace the outputs of an earlier run (never a file segadeform did not "
-              "write: segadeform.io.output_guard), write beside other files in an output folder, and accept inputs "
-              "that do not fit the body: a garment off it, a body no human's height, an asset or motion file "
-              "made for another shape.")
+@click.option("--force", is_flag=True, help="Write into an output folder that holds other files (beside them, never "
+              "over a file segadeform did not write: segadeform.io.output_guard), and accept inputs that do not fit "
+              "the body: a garment off it, a body no human's height, an asset or motion file made for another "
+              "shape.")
 @click.option("--body-backend", type=click.Choice(["auto", "graph", "numpy"]), default="auto", show_default=True,
               help="How the body is posed for collisions and --body-out: the package's body graph (float32, as "
                    "every other runtime), numpy (float64), or auto: the graph when it poses this body, else numpy.")

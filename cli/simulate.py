@@ -23,8 +23,8 @@ from .main import cli
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
 @click.option("--sim-python", type=click.Path(dir_okay=False, path_type=Path),
               help="The simulator environment's Python (default: SEGADEFORM_SIM_PYTHON or .venv-sim).")
-@click.option("--force", is_flag=True, help="Replace the outputs of an earlier simulate (never a file segadeform did "
-                                            "not write), write beside other files in an output folder.")
+@click.option("--force", is_flag=True, help="Write into an output folder that holds other files (beside them, never "
+                                            "over a file segadeform did not write).")
 def simulate_cmd(scene, output, effects, material, quality, frames, sim_python, force):
     """Simulate SCENE.toml's garment on its body with Blender's cloth solver; write it like `run`."""
     from segadeform.physics import SimSettings

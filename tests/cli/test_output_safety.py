@@ -4,10 +4,10 @@ a run with and without --force, byte for byte (the folder is hashed before and a
 Two situations per command:
 
 * **in the way**: the output path is a user's file (or, for a folder output, a folder holding a file at one of
-  the output's names): refused with and without --force, exit 1, one line naming the path;
-* **beside**: the output goes into a folder holding a user's file: a file output is written, refused again
-  without --force, replaced with --force; a folder output is refused without --force and written beside the
-  user's file with it.
+  the output's names): refused, with --force too where the command has it; exit 1, one line naming the path;
+* **beside**: the output goes into a folder holding a user's file: a file output is written, and written again
+  (an earlier output of the same command is replaced); a folder output is refused without --force and written
+  beside the user's file with it.
 
 Commands that need torch, Blender or anny are checked where the refusal happens (before any of those run); the
 full runs beside a user's file for simulate and dataset make need the simulator and are skipped without it.
@@ -97,12 +97,17 @@ REFUSAL_ONLY = {
 }
 
 
+#: the commands with a --force (run, simulate: write beside a user's files; garment export, bundle: a garment off
+#: the body); the others have none
+HAS_FORCE = {"run", "simulate", "garment export", "bundle"}
+
+
 @pytest.mark.parametrize("cmd", sorted(FILE_COMMANDS) + sorted(REFUSAL_ONLY))
 def test_a_users_file_at_the_output_path_survives_with_and_without_force(cmd, tmp_path):
     name, args = {**FILE_COMMANDS, **REFUSAL_ONLY}[cmd]
     d = user_folder(tmp_path, name)
     before = folder_hash(d)
-    for force in ([], ["--force"]) if cmd != "dataset pack" else ([],):  # (packs are never replaced: no --force)
+    for force in ([], ["--force"]) if cmd in HAS_FORCE else ([],):
         r = invoke(args(tmp_path, d / name) + force)
         assert r.exit_code == 1, (cmd, force, r.output)
         assert str(d / name) in r.output and "segadeform did not write it" in r.output, r.output
@@ -111,21 +116,25 @@ def test_a_users_file_at_the_output_path_survives_with_and_without_force(cmd, tm
 
 
 @pytest.mark.parametrize("cmd", sorted(FILE_COMMANDS))
-def test_an_output_beside_a_users_file_is_written_and_replaced_only_with_force(cmd, tmp_path):
+def test_an_output_beside_a_users_file_is_written_and_its_own_output_replaced(cmd, tmp_path):
     name, args = FILE_COMMANDS[cmd]
     d = user_folder(tmp_path)
     before = folder_hash(d)
     out = d / ("new-" + name)
-    r = invoke(args(tmp_path, out))
-    assert r.exit_code == 0, r.output
-    first = out.read_bytes()
-    r = invoke(args(tmp_path, out))
-    assert r.exit_code == 1 and "--force to replace it" in r.output and str(out) in r.output, r.output
-    assert out.read_bytes() == first
-    r = invoke(args(tmp_path, out) + ["--force"])
-    assert r.exit_code == 0, r.output
-    after = folder_hash(d)
-    assert {k: v for k, v in after.items() if k in before} == before
+    for force in ([], ["--force"]) if cmd in HAS_FORCE else ([], []):
+        r = invoke(args(tmp_path, out) + force)  # the second time over its own earlier output
+        assert r.exit_code == 0, r.output
+        after = folder_hash(d)
+        assert {k: v for k, v in after.items() if k in before} == before and set(after) == set(before) | {out.name}
+
+
+def test_another_commands_output_is_not_replaced(tmp_path):
+    g = tmp_path / "g.obj"
+    assert invoke(["garment", "make", "skirt", "-o", g]).exit_code == 0
+    first = g.read_bytes()
+    r = invoke(["garment", "fit", MHCLO, "-o", g])
+    assert r.exit_code == 1 and "written by `segadeform garment make`" in r.output and str(g) in r.output
+    assert g.read_bytes() == first
 
 
 def test_run_into_a_folder_of_the_users_files_issue_reproduction(tmp_path):
@@ -207,7 +216,7 @@ def test_a_users_folder_is_never_a_package_or_report(cmd, tmp_path):
             "repack": ["repack", MODEL, "-o", d],
             "export-body --to": ["export-body", "-o", MODEL, "--to", d],
             "eval": ["eval", tmp_path, "-m", "l=lbs", "-o", d]}[cmd]
-    for force in ([], ["--force"]):
+    for force in ([], ["--force"]) if cmd == "eval" else ([],):  # (the package writers have no --force)
         r = invoke(args + force)
         assert r.exit_code == 1 and str(d) in r.output and "did not write" in r.output, (cmd, force, r.output)
     assert folder_hash(d) == before

@@ -43,15 +43,16 @@ def test_a_file_segadeform_did_not_write_is_never_replaced_even_with_force(tmp_p
     assert p.read_text() == "user data"
 
 
-def test_an_earlier_output_needs_force_and_the_same_kind(tmp_path):
+def test_an_earlier_output_of_the_same_command_is_replaced_another_commands_is_not(tmp_path):
     p = tmp_path / "a.pc2"
     _made("run", p)
-    with pytest.raises(OutputRefused, match="--force to replace it"):
-        OutputGuard("run").file(p)
+    _made("run", p, "again")
+    assert p.read_text() == "again" and written_by(p) == "run"
     with pytest.raises(OutputRefused, match="written by `segadeform run`"):
         OutputGuard("simulate", force=True).file(p)
-    _made("run", p, "again", force=True)
-    assert p.read_text() == "again" and written_by(p) == "run"
+    with pytest.raises(OutputRefused, match="never replaces a file"):  # dataset pack: not even its own
+        OutputGuard("run", replaces=False).file(p)
+    assert p.read_text() == "again"
 
 
 def test_an_output_edited_since_is_no_longer_segadeforms(tmp_path):
@@ -112,8 +113,20 @@ def test_folder_output_refuses_foreign_files_with_its_names(tmp_path):
     (d / "frame_00003.obj").write_text("the user's")
     with pytest.raises(OutputRefused, match="named like this output's"):
         OutputGuard("run", force=True).folder(d, names="frame_*.obj")
-    with pytest.raises(OutputRefused, match="not known in advance"):  # a package: its names are not known
+    with pytest.raises(OutputRefused, match="one holding only an earlier output"):  # a package: names unknown
         OutputGuard("package", force=True).folder(d)
+
+
+def test_a_folder_holding_only_an_earlier_output_is_replaced_without_force(tmp_path):
+    d = tmp_path / "pkg"
+    for files in (("a.onnx", "b.onnx", "manifest.json"), ("a.onnx", "manifest.json")):
+        g = OutputGuard("package")
+        g.folder(d)
+        with atomic_directory(d) as tmp:
+            for f in files:
+                (tmp / f).write_text(f)
+        g.record()
+    assert sorted(p.name for p in d.iterdir()) == [MANIFEST_NAME, "a.onnx", "manifest.json"]
 
 
 def test_stale_removal_spares_inputs_and_edited_files(tmp_path):

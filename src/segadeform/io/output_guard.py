@@ -4,21 +4,21 @@ Every command that writes files builds an :class:`OutputGuard` -- its *kind* (th
 ``"garment fit"`` ...; the model-package writers share ``"package"``), the user's ``--force`` and the
 files it reads -- and claims each output before any work starts:
 
-* **A file** (:meth:`OutputGuard.file`).  A new path is written.  An existing file is replaced only when a
-  previous run of the same kind wrote it (the folder's manifest lists it, unchanged since) and ``force`` is
-  given; a file segadeform did not write, or that another command wrote, is refused with no way round it
-  but another path.  An input of the command, a folder, and a path inside a file are refused too.
-* **A folder of files** (:meth:`OutputGuard.folder`: an OBJ sequence, a model package).  A new or empty
-  folder is written.  One that holds anything is refused without ``force``; with it the new files go beside
-  what is there: files a previous run of the same kind wrote are replaced (and those this run does not
-  write again are removed), nothing else is touched, and a file segadeform did not write at a name the
-  output uses (``names``, a glob) is refused.  Without ``names`` (the files are not known in advance) such a
-  folder is refused even with ``force``.
+* **A file** (:meth:`OutputGuard.file`).  A new path is written; a file an earlier run of the same kind wrote
+  (the folder's manifest lists it, unchanged since) is replaced.  Anything else is refused with the reason and
+  a way out, ``--force`` or not: a file segadeform did not write (or that was edited since), another command's
+  output, an input of the command, a folder, a path inside a file.
+* **A folder of files** (:meth:`OutputGuard.folder`: an OBJ sequence, a model package, a report).  A new or
+  empty folder, or one holding only an earlier output of the same kind, is written (the earlier files this run
+  does not write again are removed).  A folder that holds anything else is refused; with ``force`` the new
+  files go beside what is there, replacing only what an earlier run of the same kind wrote, and a file
+  segadeform did not write at a name the output uses (``names``, globs) is refused.  Without ``names`` (the
+  files are not known in advance: a model package) such a folder is refused even with ``force``.
 * **A resumable folder** (:meth:`OutputGuard.resumable`: ``dataset make``, ``batch``, ``train``, on a local
-  folder or an fsspec URL).  A new or empty folder is started; one that a run of the same kind made
-  (its manifest says so, or it has that command's layout, ``legacy``) is continued, which is how these
-  commands resume.  One that holds other files is refused without ``force``; with it the run writes beside
-  them, and is refused if any of them sits where its layout writes (``layout``: the top-level names).
+  folder or an fsspec URL).  A new or empty folder is started; one that a run of the same kind made (its
+  manifest says so, or it has that command's layout, ``legacy``) is continued, which is how these commands
+  resume.  One that holds other files is refused without ``force``; with it the run writes beside them, and is
+  refused if any of them sits where its layout writes (``layout``: the top-level names).
 
 An output inside an input's folder is written like any other; inputs are never replaced or removed.
 
@@ -182,11 +182,10 @@ class OutputGuard:
     Args:
         kind: the command (``"run"``, ``"simulate"``, ``"garment fit"`` ...); files are replaced only by a
             later run of the same kind.
-        force: the user's ``--force``: replace what a previous run of this kind wrote, write into a folder
-            that holds other files (beside them).
+        force: the user's ``--force``: write into a folder that holds other files, beside them (what an earlier
+            run of this kind wrote is replaced with or without it).
         inputs: files and folders the command reads; never an output, never replaced or removed.
-        replaces: False for a command whose outputs are never replaced, even its own (``dataset pack``): no
-            ``--force`` is offered.
+        replaces: False for a command whose outputs are never replaced, even its own (``dataset pack``).
     """
 
     def __init__(self, kind: str, *, force: bool = False, inputs: Iterable = (), replaces: bool = True) -> None:
@@ -240,11 +239,10 @@ class OutputGuard:
             raise OutputRefused(f"exists, written by `{_label(entry['kind'])}`; {self._cmd} does not replace "
                                 "another command's output", path=p, expected="another path",
                                 got=f"an output of {_label(entry['kind'])}")
-        if not self.force:
-            raise OutputRefused(f"exists (the output of an earlier `{self._cmd}`)", path=p,
-                                expected="a new path, or --force to replace it" if self.replaces else
-                                f"a new path ({self._cmd} never replaces a file)", got="an existing output")
-        return True
+        if not self.replaces:
+            raise OutputRefused(f"exists (the output of an earlier `{self._cmd}`), and {self._cmd} never replaces "
+                                "a file", path=p, expected="a new path", got="an existing output")
+        return True  # an earlier run's output of this command: replaced
 
     def file(self, path: Union[str, os.PathLike]) -> Path:
         """Claim file output ``path`` (see the module docstring); returns it."""
@@ -281,21 +279,15 @@ class OutputGuard:
             (ours if mine else other).append(n)
             if not mine and (names is None or any(fnmatch.fnmatchcase(n, g) for g in names)):
                 taken.append(n)
-        if not self.force:
-            if other:
-                raise OutputRefused(f"the folder holds {len(other)} file(s) {self._cmd} did not write "
-                                    f"({_names(other)})", path=p,
-                                    expected="a new or empty folder, or --force to write beside them, "
-                                             "untouched", got="a folder in use")
-            raise OutputRefused(f"the folder holds the output of an earlier `{self._cmd}` ({len(ours)} files)",
-                                path=p, expected="a new or empty folder, or --force to replace that output",
-                                got="an existing output")
+        if not other:
+            return True, snap  # only an earlier output of this command: replaced
+        if not self.force or names is None:
+            raise OutputRefused(f"the folder holds {len(other)} file(s) {self._cmd} did not write "
+                                f"({_names(other)})", path=p,
+                                expected="a new or empty folder, or --force to write beside them, untouched"
+                                if names is not None else "a new or empty folder, or one holding only an earlier "
+                                f"output of {self._cmd}", got="a folder in use")
         if taken:
-            if names is None:
-                raise OutputRefused(f"the folder holds {len(taken)} file(s) {self._cmd} did not write "
-                                    f"({_names(taken)}), and this output's files are not known in advance",
-                                    path=p, expected="a new or empty folder, or one holding only an earlier "
-                                                     f"output of {self._cmd}", got="a folder in use")
             raise OutputRefused(f"the folder holds {len(taken)} file(s) named like this output's "
                                 f"({', '.join(names)}) that "
                                 f"{self._cmd} did not write ({_names(taken)})", path=p,
