@@ -140,3 +140,43 @@ def test_push_out_frames_is_the_runtime_collider_and_matches_the_reference(synth
     assert push_out_names(None) == {}
     with pytest.raises(InputError):
         push_out_names([-0.001])
+
+
+def test_train_on_a_pack_with_a_validation_split_and_batches_of_garments(synthetic_dataset, tmp_path, body):
+    """Training reads a read-only pack (caches go to the run folder, the pack is never written), takes
+    several garments per step, and the validation split picks the checkpoint that becomes model.pt."""
+    import hashlib
+    import shutil
+
+    from segadeform.dataset.pack import write_pack
+
+    ds = tmp_path / "ds"
+    shutil.copytree(synthetic_dataset / "samples", ds / "samples")
+    for p in (ds / "samples").glob("*__swing.json"):  # the test sample serves as the validation split here
+        meta = json.loads(p.read_text())
+        meta["split"] = "val"
+        p.write_text(json.dumps(meta))
+    pack = tmp_path / "store" / "a.sgdpack"
+    pack.parent.mkdir()
+    write_pack(ds, pack, body=body)
+    digest = hashlib.sha256(pack.read_bytes()).hexdigest()
+    cfg_p = tmp_path / "t.toml"
+    cfg_p.write_text(f"[data]\ndataset = '{pack.parent}'\noptional = ['{tmp_path / 'absent'}']\nval_split = 'val'\n"
+                     "[model]\nhidden = 16\nlstm_hidden = 16\n"
+                     "[optim]\nsteps = 6\nframes = 3\ngarments = 2\ncheckpoint_every = 2\nlr = 0.003\n")
+    cfg = load_train_config(cfg_p)
+    run = tmp_path / "run"
+    final = train(cfg, run, body, log_every=2)
+    assert hashlib.sha256(pack.read_bytes()).hexdigest() == digest and sorted(p.name for p in pack.parent.iterdir()) \
+        == ["a.sgdpack"]
+    assert any((run / "cache").glob("asset-*.npz")) and any((run / "cache").glob("contact-*.npz"))
+    info = json.loads((run / "train.json").read_text())
+    rows = list(csv.DictReader(open(run / "loss.csv")))
+    vals = {int(r["step"]): float(r["val_vertex"]) for r in rows if r["val_vertex"]}
+    assert sorted(vals) == [2, 4, 6] and info["sample_frames_seen"] == 6 * 2 * 3
+    best = min(vals, key=vals.get)
+    assert info["chosen"]["step"] == best and info["chosen"]["val_split"] == "val"
+    chosen = torch.load(run / "best.pt", weights_only=False)
+    final_sd = torch.load(final, weights_only=True)["state_dict"]
+    assert all(torch.equal(chosen["state_dict"][k], final_sd[k]) for k in final_sd)
+    assert sorted(info["samples"]) == ["shorts__b0__walk", "skirt__b0__walk"]  # validation never trained on
