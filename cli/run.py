@@ -168,7 +168,7 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
                            hidden=not interactive) as bar:
         summary = run_scene(sc, model=model, output=output, batch=batch, threads=threads, providers=prov,
                             progress=bar.update if interactive else None, cache=not no_cache, force=force,
-                            body_backend=body_backend, guard=guard)
+                            body_backend=body_backend, guard=guard, frames_from_scene=not frames)
     off = summary.effects.off()
     q = f"quality {quality}: " if quality else ""
     click.echo(f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame ({q}effects {summary.effects.label()}"

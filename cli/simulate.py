@@ -63,7 +63,7 @@ def simulate_cmd(scene, output, effects, material, quality, frames, sim_python, 
         guard = OutputGuard("simulate", force=force, inputs=(scene, sc.garment, sc.motion.file, sc.body,
                                                              sc.motion.joint_map, sc.motion.skeleton))
         s = simulate_scene(sc, output=output, settings=st, sim_python=sim_python,
-                           progress=progress if interactive else None, guard=guard)
+                           progress=progress if interactive else None, guard=guard, frames_from_scene=not frames)
     r = s.result
     click.echo(f"{s.frames} frames (+{r.preroll_frames} pre-roll), {r.seconds_per_frame:.3f} s/frame in Blender "
                f"{r.blender['blender_version']} ({', '.join(st.effects) or 'no effects'}; {st.material}, "

@@ -352,9 +352,10 @@ def check_motion_shape(motion: Motion, scene: Scene, body: BodyModel, *, force: 
 
 def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Path] = None, batch: int = 8,
               threads: int = 1, providers=None, progress=None, cache: bool = True, force: bool = False,
-              body_backend: str = "auto", guard=None) -> RunSummary:
+              body_backend: str = "auto", guard=None, frames_from_scene: bool = True) -> RunSummary:
     """Run a scene (optionally overriding its model package and output path); ``body_backend`` and ``guard``:
-    :class:`Run`'s."""
+    :class:`Run`'s.  ``frames_from_scene``: the frame range is the scene file's (a range past the motion's end
+    names the file); False when a command-line flag gave it."""
     package = ModelPackage(model or scene.model or default_model_path(), threads=threads, providers=providers)
     body = load_body(scene.body or default_body_path())
     betas = shape_for_inputs(scene, body, force=force)
@@ -365,7 +366,7 @@ def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Pa
     try:  # a range past the motion's end is the scene's to fix: name it
         frame_range(scene.motion.frames, motion.n_frames)
     except InputError as e:
-        raise e.with_path(scene.path) if scene.path is not None else e from None
+        raise e.with_path(scene.path) if scene.path is not None and frames_from_scene else e from None
     out = Path(output) if output is not None else scene.output
     run = Run(garment=scene.garment, motion=motion, package=package, body=body, betas=scene.betas,
               effects=scene.effects, output=out, output_format=scene.output_format, up=scene.up,

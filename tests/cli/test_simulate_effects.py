@@ -21,7 +21,7 @@ def captured(monkeypatch):
 
     seen = {}
 
-    def fake(scene, *, output=None, settings=None, sim_python=None, progress=None, guard=None):
+    def fake(scene, *, output=None, settings=None, sim_python=None, progress=None, guard=None, frames_from_scene=True):
         seen["settings"] = settings
         res = types.SimpleNamespace(preroll_frames=0, seconds_per_frame=0.0, blender={"blender_version": "-"})
         return types.SimpleNamespace(frames=0, result=res, written=[])

@@ -30,12 +30,14 @@ class SimSummary:
 
 
 def simulate_scene(scene: Scene, *, output: Optional[Path] = None, settings: Optional[SimSettings] = None,
-                   sim_python=None, progress: Optional[Callable[[int, int], None]] = None, guard=None) -> SimSummary:
+                   sim_python=None, progress: Optional[Callable[[int, int], None]] = None, guard=None,
+                   frames_from_scene: bool = True) -> SimSummary:
     """Simulate ``scene`` (its ``[simulate]`` table, or ``settings``) and write its output like ``segadeform run``.
 
     The frames written are the motion's frames (the scene's frame range, if
     any); the drape and blend pre-roll are simulated but not written.  ``guard``: the command's output rule
-    (:class:`~segadeform.io.output_guard.OutputGuard`), which claims the outputs before the simulator starts.
+    (:class:`~segadeform.io.output_guard.OutputGuard`), which claims the outputs before the simulator starts;
+    ``frames_from_scene``: the frame range is the scene file's (named when past the motion's end), not a flag's.
     """
     st = settings or scene.simulate or SimSettings()
     body = load_body(scene.body or default_body_path())
@@ -43,7 +45,7 @@ def simulate_scene(scene: Scene, *, output: Optional[Path] = None, settings: Opt
     try:  # checked before the simulator starts; a range past the motion's end is the scene's to fix
         motion, start = select_frames(motion, scene.motion.frames)
     except InputError as e:
-        raise e.with_path(scene.path) if scene.path is not None else e from None
+        raise e.with_path(scene.path) if scene.path is not None and frames_from_scene else e from None
     mesh = read_mesh(scene.garment)
     out = Path(output) if output is not None else scene.output
     if guard is not None:  # refused before minutes of simulation, not after
