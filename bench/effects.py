@@ -14,7 +14,9 @@ run of a garment), writing PC2 to a temporary folder, done twice: with ``--frame
 * ``fixed ms``: what a run costs before its frames, ``t_F - F x steady`` (creating the sessions and
   onnxruntime's first calls, which grow its memory arena).
 
-Ratios are against "all effects on" measured in the same run.  The collision stage is then timed for
+Rows with the cloth stage (``cloth``: :mod:`segadeform.body.cloth` at its default settings, which replaces the
+push-out) follow the 16 combinations; a section then times the stage alone, steady, median of 3 (``--cloth K=V,..``
+for other knobs).  Ratios are against "all effects on" measured in the same run.  The collision stage is then timed for
 the reference (BodyProxy per frame), the numpy BodyCollider and the compiled one (the runtime's), runs
 interleaved.  A final section streams ``--long`` frames (default 10,000) with LBS and dynamics (no
 wrinkles, no collisions) in a fresh process and reports its peak resident memory (its own ``VmHWM``, not
@@ -60,6 +62,7 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=1, help="onnxruntime and collision threads per run")
     ap.add_argument("--package", type=Path)
     ap.add_argument("--long", type=int, default=10000)
+    ap.add_argument("--cloth", default="", help="the cloth stage's knobs for its rows (default: its defaults)")
     ap.add_argument("--child-long", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child_long:
@@ -100,24 +103,43 @@ def main() -> None:
         return r.execute()
 
     run(Effects())  # warm the precompute, encoder and body-weights caches
-    stages = ("deform", "pose body", "collisions")
-    rows = []
-    for skin, dyn, wr, col in itertools.product(("lbs", "dqs"), (True, False), (True, False), (True, False)):
-        e = Effects(skinning=skin, dynamics=dyn, wrinkles=wr, collisions=col)
+    from segadeform.cloth_settings import ClothSettings
+
+    knobs = ClothSettings.parse(args.cloth)
+    stages = ("deform", "pose body", "collisions", "cloth")
+
+    def measure(e):
         short, long = run(e), run(e, frames=motion.n_frames)
         df = long.frames - short.frames
         steady = 1e3 * (long.seconds - short.seconds) / df
         st = {k: 1e3 * (long.stage_seconds[k] - short.stage_seconds[k]) / df for k in stages}
-        rows.append((e, short.ms_per_frame, steady, 1e3 * short.seconds - short.frames * steady, st))
+        return e, short.ms_per_frame, steady, 1e3 * short.seconds - short.frames * steady, st
+
+    rows = [measure(Effects(skinning=skin, dynamics=dyn, wrinkles=wr, collisions=col))
+            for skin, dyn, wr, col in itertools.product(("lbs", "dqs"), (True, False), (True, False), (True, False))]
+    rows += [measure(Effects(cloth=True, cloth_settings=knobs)),
+             measure(Effects(dynamics=False, wrinkles=False, cloth=True, cloth_settings=knobs))]
     base = next(r for r in rows if r[0] == Effects())
     print(f"garment: {len(v)} vertices; body: {body.n_vertices} vertices; {args.frames} and {args.steady} frames; "
           f"batch {args.batch}; {args.threads} thread(s)")
-    print(f"{'skinning':8s} {'dynamics':>8s} {'wrinkles':>8s} {'collisions':>10s} {'ms/frame@' + str(args.frames):>12s} "
-          f"{'steady':>7s} {'x all-on':>8s} {'fps':>6s} {'fixed ms':>8s} {'deform':>7s} {'pose':>6s} {'collide':>8s}")
+    print(f"{'skinning':8s} {'dynamics':>8s} {'wrinkles':>8s} {'collisions':>10s} {'cloth':>6s} "
+          f"{'ms/frame@' + str(args.frames):>12s} {'steady':>7s} {'x all-on':>8s} {'fps':>6s} {'fixed ms':>8s} "
+          f"{'deform':>7s} {'pose':>6s} {'collide':>8s} {'cloth':>6s}")
     for e, ms, steady, fixed, st in rows:
-        print(f"{e.skinning:8s} {str(e.dynamics):>8s} {str(e.wrinkles):>8s} {str(e.collisions):>10s} {ms:12.2f} "
+        print(f"{e.skinning:8s} {str(e.dynamics):>8s} {str(e.wrinkles):>8s} "
+              f"{str(e.collisions and not e.cloth):>10s} {str(e.cloth):>6s} {ms:12.2f} "
               f"{steady:7.2f} {steady / base[2]:8.2f} {1e3 / steady:6.0f} {fixed:8.1f} {st['deform']:7.2f} "
-              f"{st['pose body']:6.2f} {st['collisions']:8.2f}")
+              f"{st['pose body']:6.2f} {st['collisions']:8.2f} {st['cloth']:6.2f}")
+    # the cloth stage alone, steady (its setup and the collider's build excluded by the two run lengths), at its
+    # settings, median of 3, against the push-out of the same runs (all effects on)
+    cl, po = [], []
+    for _ in range(3):
+        cl.append(measure(Effects(cloth=True, cloth_settings=knobs))[4]["cloth"])
+        po.append(measure(Effects())[4]["collisions"])
+    print(f"cloth stage ({knobs.label() or 'default settings'}; all effects on; {len(v)} vertices; one thread), "
+          f"steady, median of 3: {np.median(cl):.2f} ms/frame (runs {', '.join(f'{x:.2f}' for x in cl)}); the "
+          f"push-out it replaces {np.median(po):.2f} ms/frame; x push-out {np.median(cl) / np.median(po):.2f}; "
+          f"load average {os.getloadavg()[0]:.2f}")
     # the collision pass, all effects on: the reference (BodyProxy rebuilt per frame), the numpy BodyCollider
     # and the compiled one (the runtime's), interleaved, median of 3; outputs compared with the reference's
     import functools

@@ -7,7 +7,10 @@ A skirt-like frustum of N vertices on the default body, a dance of ``--frames`` 
 model, one onnxruntime thread; each size runs in a fresh process with an empty user cache (its peak
 resident memory is its own ``VmHWM``, ``bench/_peak.py``, and includes encoding the garment, as on its first
 run): precompute (graph, features, descriptor; once per garment), then ``segadeform run``'s pipeline with
-every effect and again without collisions, each run twice and the second (warm) one timed.  ``x per vertex`` is the per-frame cost divided by N, against
+every effect, again without collisions, and again with the cloth stage (default settings, in place of the
+push-out), each run twice and the second (warm) one timed; ``cloth ms`` is the stage's own steady time per frame
+(from runs of ``--frames`` and twice as many frames: its fixed per-run cost, the body collider's build and the
+cached setup, cancels).  ``x per vertex`` is the per-frame cost divided by N, against
 the smallest size's (1.00 = linear growth).  For sizes up to ``--blender-max`` the same garment and
 motion are simulated by Blender (the dataset's settings, ``segadeform simulate``'s path) and its
 seconds per simulated frame (measured inside Blender, start-up excluded) are given, with the learned pipeline's speed-up over it.
@@ -53,13 +56,23 @@ def one(n: int, frames: int, batch: int, package: str, blender: bool) -> dict:
     precompute_garment(v, f, body.rest_joints()[0], n_star=32)
     pre = time.perf_counter() - t
     row = {"n": int(len(v)), "precompute_s": pre}
-    for key, eff in (("all", Effects()), ("nocol", Effects(collisions=False))):
+    for key, eff in (("all", Effects()), ("nocol", Effects(collisions=False)), ("cloth", Effects(cloth=True))):
         r = Run(garment=garment, motion=motion, package=ModelPackage(package, threads=1), body=body, effects=eff,
                 output=tmp / f"{key}.pc2", batch=batch, cache=True, force=True)
         r.execute()  # precompute and encoder cached
         s = r.execute()
         row[key] = s.ms_per_frame
         row[key + "_stages"] = {k: 1e3 * x / s.frames for k, x in s.stage_seconds.items()}
+    # the cloth stage's steady cost: the same runs at `frames` and 2 x `frames` frames of a longer dance (its
+    # collider build and cached setup, fixed per run, cancel)
+    longer = make_motion("dance", seconds=2 * frames / 30.0, seed=1)
+    spent = {}
+    for k in (frames, 2 * frames):
+        r = Run(garment=garment, motion=longer, package=ModelPackage(package, threads=1), body=body,
+                effects=Effects(cloth=True), output=tmp / "steady.pc2", batch=batch, cache=True, force=True,
+                frames=(0, k))
+        spent[k] = r.execute().stage_seconds["cloth"]
+    row["cloth_steady"] = 1e3 * (spent[2 * frames] - spent[frames]) / frames
     row["peak_mib"] = peak_rss_bytes() / 2**20
     if blender:
         from segadeform.physics import SimSettings, simulate
@@ -69,6 +82,11 @@ def one(n: int, frames: int, batch: int, package: str, blender: bool) -> dict:
         sim = simulate(v, f, body, motion, settings=settings)
         row["blender_s_per_frame"] = sim.seconds_per_frame  # Blender's own time per simulated frame
     return row
+
+
+def _cloth_ms(row: dict) -> float:
+    """The cloth stage's own steady ms per frame in a row (0 for rows of a version without it)."""
+    return row.get("cloth_steady", 0.0)
 
 
 def _opt(x, fmt: str) -> str:
@@ -101,14 +119,16 @@ def main(argv=None) -> int:
         print(f"  N={rows[-1]['n']} done", file=sys.stderr)
     base = rows[0]
     print(f"{'N':>7s} {'precomp s':>9s} {'all ms':>8s} {'x/vert':>6s} {'deform':>7s} {'pose':>6s} {'collide':>7s} "
-          f"{'no-col ms':>9s} {'x/vert':>6s} {'peak MiB':>8s} {'Blender s/f':>11s} {'x faster':>8s}")
+          f"{'no-col ms':>9s} {'x/vert':>6s} {'cloth ms':>8s} {'x/vert':>6s} {'peak MiB':>8s} {'Blender s/f':>11s} "
+          f"{'x faster':>8s}")
     for r in rows:
         st = r["all_stages"]
         scale = base["n"] / r["n"]
         bl = r.get("blender_s_per_frame")
         print(f"{r['n']:7d} {r['precompute_s']:9.2f} {r['all']:8.2f} {r['all'] / base['all'] * scale:6.2f} "
               f"{st.get('deform', 0):7.2f} {st.get('pose body', 0):6.2f} {st.get('collisions', 0):7.2f} "
-              f"{r['nocol']:9.2f} {r['nocol'] / base['nocol'] * scale:6.2f} {r['peak_mib']:8.0f} "
+              f"{r['nocol']:9.2f} {r['nocol'] / base['nocol'] * scale:6.2f} {_cloth_ms(r):8.2f} "
+              f"{_cloth_ms(r) / _cloth_ms(base) * scale:6.2f} {r['peak_mib']:8.0f} "
               f"{_opt(bl, '11.3f')} {_opt(bl and bl * 1e3 / r['all'], '8.0f')}")
     return 0
 

@@ -9,7 +9,7 @@
 
 import { BodyCollider } from "./collide.js";
 
-const CONTACT_BAND = 0.01; // metres beyond the margin within which a vertex gets a contact plane (SCL_CONTACT_BAND)
+const CONTACT_BAND = 0.005; // metres beyond the margin within which a vertex gets a contact plane (SCL_CONTACT_BAND)
 const PASSES = 3; // the final push-out's passes (SCL_PASSES)
 const TINY = 1e-300;
 const MOVED = 1e-6; // metres: a final push-out move counted as one (SCL_MOVED)

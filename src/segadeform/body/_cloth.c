@@ -64,7 +64,7 @@ int64_t sdc_push_out(const void *h, const double *verts, const double *box, int6
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
 #define SCL_ABI 1
-#define SCL_CONTACT_BAND 0.01 /* metres beyond the margin within which a vertex gets a contact plane */
+#define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
 #define SCL_TINY 1e-300
 #define SCL_MOVED 1e-6        /* metres: a final push-out move counted as one (not a vertex already at the margin) */

@@ -49,7 +49,7 @@ __all__ = ["ClothSettings", "ClothSetup", "ClothStage", "cloth_setup", "cloth_se
 log = logging.getLogger(__name__)
 
 #: metres beyond the margin within which a vertex gets a contact plane (_cloth.c's SCL_CONTACT_BAND)
-CONTACT_BAND = 0.01
+CONTACT_BAND = 0.005
 #: the final push-out's passes (_cloth.c's SCL_PASSES: segadeform.body.collision.push_out's default)
 PASSES = 3
 #: metres: a final push-out move counted in ``pushed`` (_cloth.c's SCL_MOVED; a vertex already at the margin is not)
