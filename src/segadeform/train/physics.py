@@ -28,6 +28,7 @@ Shapes follow :mod:`.losses`: ``x (B, N, 3)``.
 from __future__ import annotations
 
 import dataclasses
+from collections import OrderedDict
 import hashlib
 from pathlib import Path
 from typing import Optional
@@ -245,12 +246,13 @@ class PhysicsPairs:
 
     Only ``train`` pairs of the plan are used, less those matching an ``exclude`` glob (:func:`~segadeform.dataset.make.check_splits` refuses a
     config that would leak a held-out garment kind, motion family or body into them).  Garments are
-    made once per (garment, body) into ``cache`` (the same files ``dataset make`` writes); a pair's
-    precompute and motion are kept in memory after first use.
+    made once per (garment, body) into ``cache`` (the same files ``dataset make`` writes); the last
+    ``keep`` pairs, garments and motions used are kept in memory (a plan of thousands of pairs, each
+    motion's posed body ~10 MB, does not fit).
     """
 
     def __init__(self, config, cache, body: BodyModel, *, n_star: int, window: int, n_betas: int,
-                 weight_prior: str = "nearest", exclude=()) -> None:
+                 weight_prior: str = "nearest", exclude=(), keep: int = 48) -> None:
         self.cfg: DatasetConfig = config if isinstance(config, DatasetConfig) else load_dataset_config(config)
         plan = sample_plan(self.cfg)
         check_splits(self.cfg, plan)
@@ -264,9 +266,10 @@ class PhysicsPairs:
         self.body = body
         self.n_star, self.window, self.n_betas = int(n_star), int(window), int(n_betas)
         self.weight_prior = weight_prior
-        self._items: dict = {}
-        self._garments: dict = {}
-        self._motions: dict = {}
+        self.keep = int(keep)
+        self._items: OrderedDict = OrderedDict()
+        self._garments: OrderedDict = OrderedDict()
+        self._motions: OrderedDict = OrderedDict()
 
     def __len__(self) -> int:
         return len(self.plan)
@@ -296,7 +299,7 @@ class PhysicsPairs:
             cloth = self.cache / (rel[:-len(".obj")] + ".cloth.obj")
             cloth_rest = read_mesh(cloth).vertices if cloth.is_file() else mesh.vertices
             self._garments[key] = (mesh, asset, joints, bw, cloth_topology(cloth_rest, mesh.faces))
-        return self._garments[key]
+        return _lru(self._garments, key, self.keep)
 
     def _motion(self, mi: int, bi: int):
         key = (mi, bi)
@@ -305,7 +308,7 @@ class PhysicsPairs:
             mo = _motion(self.cfg.motions[mi], self.cfg, self.body.rest_joints(betas)[0])
             posed = self.body.forward(mo.poses, betas, mo.trans).vertices.astype(np.float32)
             self._motions[key] = (mo, posed)
-        return self._motions[key]
+        return _lru(self._motions, key, self.keep)
 
     def item(self, i: int) -> PairItem:
         p = self.plan[int(i)]
@@ -322,5 +325,13 @@ class PhysicsPairs:
                 betas=f32(b)[None], joints=f32(joints), rest=f32(mesh.vertices),
                 windows=f32(motion_windows(mo.poses, self.window)), trans=f32(mo.trans), body_weights=f32(bw),
                 posed_body=posed, topo=topo, fps=float(mo.fps))
-        return self._items[p.id]
+        return _lru(self._items, p.id, self.keep)
+
+
+def _lru(cache: OrderedDict, key, keep: int):
+    """``cache[key]``, marked as the newest; the oldest entries past ``keep`` are dropped."""
+    cache.move_to_end(key)
+    while len(cache) > keep:
+        cache.popitem(last=False)
+    return cache[key]
 

@@ -236,6 +236,12 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
         collider = BodyCollider(body.v_template, body.faces)  # exact closest points, built once
     acc = {k: 0.0 for k in ("total", *TERMS, PHYSICS_TERM)}
     n_acc = 0
+    if val and step == 0 and best_val[1] < 0:
+        # the untrained model is a candidate too (a residual model at step 0 is its weight prior's LBS):
+        # the validation split never chooses a model worse than where training started
+        best_val = (validate(), 0)
+        with atomic_path(best_path) as tmp:
+            torch.save({"state_dict": model.state_dict(), "step": 0, "val_vertex": best_val[0]}, tmp)
     t0 = time.perf_counter()
     model.train()
     while step < o.steps:
