@@ -12,7 +12,23 @@ from .main import cli
 #: what `dataset make` writes at the top of its folder (segadeform.dataset.make), and what marks a dataset
 #: folder made before folders had an outputs manifest
 DATASET_LAYOUT = ("config.toml", "configs", "garments", "samples", "rejected", "log.jsonl")
-DATASET_LEGACY = ("samples/", "garments/")
+
+
+def DATASET_LEGACY(loc, names) -> bool:
+    """A dataset folder made before folders had a manifest: samples/ or rejected/ holding sample files only, or
+    config.toml with configs/ holding the numbered configs (a run stopped before its first sample)."""
+    if "config.toml" in names and "configs" in names:
+        cfgs = loc.listdir("configs")
+        if cfgs and all(f[:-5].isdigit() and f.endswith(".toml") for f in cfgs):
+            return True
+    found = False
+    for d in ("samples", "rejected"):
+        if d in names:
+            files = loc.listdir(d)
+            if not files or not all(f.endswith((".json", ".npz")) for f in files):
+                return False
+            found = True
+    return found
 
 
 @cli.group("dataset")

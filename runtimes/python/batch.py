@@ -124,7 +124,12 @@ def load_batch(path) -> BatchConfig:
     base = p.resolve().parent
 
     def rel(s: str) -> Path:
-        q = Path(s).expanduser()
+        if "\x00" in s:
+            raise FileFormatError("path contains a NUL character", path=p, got=repr(s)[:60])
+        try:
+            q = Path(s).expanduser()
+        except RuntimeError:  # "~someone" for an unknown user, or no home directory (found by fuzzing)
+            raise FileFormatError("cannot expand '~' in a path", path=p, got=s[:60]) from None
         return q if q.is_absolute() else (base / q).resolve()
 
     gs, ms = data.get("garments", []), data.get("motions", [])

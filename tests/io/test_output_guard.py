@@ -50,7 +50,7 @@ def test_an_earlier_output_of_the_same_command_is_replaced_another_commands_is_n
     assert p.read_text() == "again" and written_by(p) == "run"
     with pytest.raises(OutputRefused, match="written by `segadeform run`"):
         OutputGuard("simulate", force=True).file(p)
-    with pytest.raises(OutputRefused, match="never replaces a file"):  # dataset pack: not even its own
+    with pytest.raises(OutputRefused, match="never overwritten"):  # dataset pack: not even its own
         OutputGuard("run", replaces=False).file(p)
     assert p.read_text() == "again"
 

@@ -157,7 +157,7 @@ class _Claim:
     snapshot: dict = dataclasses.field(default_factory=dict)  # folder: name -> (size, mtime_ns, ino) before
     location: object = None          # resumable: the Location
     layout: tuple = ()
-    legacy: tuple = ()
+    legacy: object = ()             # resumable: names (all present), or a function (location, names) -> bool
 
 
 def _same_file(a: Path, b: Path) -> bool:
@@ -240,8 +240,8 @@ class OutputGuard:
                                 "another command's output", path=p, expected="another path",
                                 got=f"an output of {_label(entry['kind'])}")
         if not self.replaces:
-            raise OutputRefused(f"exists (the output of an earlier `{self._cmd}`), and {self._cmd} never replaces "
-                                "a file", path=p, expected="a new path", got="an existing output")
+            raise OutputRefused(f"exists (the output of an earlier `{self._cmd}`), and its outputs are never "
+                                "overwritten", path=p, expected="a new path", got="an existing output")
         return True  # an earlier run's output of this command: replaced
 
     def file(self, path: Union[str, os.PathLike]) -> Path:
@@ -308,7 +308,7 @@ class OutputGuard:
         """Claim a resumable output folder (a path, URL or :class:`~segadeform.io.location.Location`); returns
         the Location.  ``layout``: the top-level names (globs) the command writes (files or folders); ``legacy``:
         names whose presence marks a folder this command made before it had a manifest (all must be there; a
-        trailing ``/`` names a folder).
+        trailing ``/`` names a folder), or a function ``legacy(location, top-level names) -> bool``.
         """
         from .location import LocalLocation, open_location
 
@@ -322,8 +322,8 @@ class OutputGuard:
             if _stat(p) is not None and not os.path.isdir(p):
                 raise OutputRefused("is a file", path=p, expected="a folder for this output", got="a file")
         names = self._top_names(loc)
-        c = _Claim(Path(str(loc)), "resumable", location=loc, layout=tuple(layout), legacy=tuple(legacy),
-                   existed=names is not None)
+        c = _Claim(Path(str(loc)), "resumable", location=loc, layout=tuple(layout),
+                   legacy=legacy if callable(legacy) else tuple(legacy), existed=names is not None)
         self._check_resumable(c, names or [])
         self.claims.append(c)
         return loc
@@ -383,7 +383,8 @@ class OutputGuard:
         if owner is not None:
             raise OutputRefused(f"the folder is the output of `{_label(owner)}`", path=where,
                                 expected=f"a new or empty folder for {self._cmd}", got=f"a {owner} folder")
-        if c.legacy and all(self._has(loc, n, names) for n in c.legacy):
+        if callable(c.legacy) and c.legacy(loc, names) or \
+                not callable(c.legacy) and c.legacy and all(self._has(loc, n, names) for n in c.legacy):
             return  # made by this command before folders had manifests
         other = [n for n in names]
         if not self.force:
