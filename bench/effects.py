@@ -140,6 +140,27 @@ def main() -> None:
           f"steady, median of 3: {np.median(cl):.2f} ms/frame (runs {', '.join(f'{x:.2f}' for x in cl)}); the "
           f"push-out it replaces {np.median(po):.2f} ms/frame; x push-out {np.median(cl) / np.median(po):.2f}; "
           f"load average {os.getloadavg()[0]:.2f}")
+    # the stage alone on one run's deformer frames and posed body (as the pipeline gives them: float32), timed by the
+    # wall clock and by this thread's CPU time (which other work on the machine inflates far less), median of 3
+    from segadeform.body.cloth import ClothStage, garment_setup
+    from segadeform.io import read_pc2 as _read
+
+    Run(garment=garment, motion=motion, package=ModelPackage(pkg, threads=args.threads), body=body,
+        effects=Effects(collisions=False), output=tmp / "raw.pc2", body_output=tmp / "raw_body.pc2", batch=args.batch,
+        cache=True, force=True).execute()
+    y, posed = np.asarray(_read(tmp / "raw.pc2").frames), np.asarray(_read(tmp / "raw_body.pc2").frames)
+    setup = garment_setup(v, f, body.shaped_vertices()[0], body.faces, knobs)
+    wall, cpu = [], []
+    for _ in range(3):
+        stage = ClothStage(setup, body.v_template, body.faces, knobs, dt=1 / motion.fps)
+        w0, c0 = time.perf_counter(), time.thread_time()
+        for lo in range(0, len(y), args.batch):
+            stage.step(y[lo:lo + args.batch], posed[lo:lo + args.batch])
+        wall.append(1e3 * (time.perf_counter() - w0) / len(y))
+        cpu.append(1e3 * (time.thread_time() - c0) / len(y))
+    print(f"cloth stage alone on {len(y)} frames of that run (collider built, setup cached): "
+          f"{np.median(wall):.2f} ms/frame wall, {np.median(cpu):.2f} ms/frame CPU (this thread), median of 3; "
+          f"{stage.contacts / len(y):.0f} vertices in contact per frame; load average {os.getloadavg()[0]:.2f}")
     # the collision pass, all effects on: the reference (BodyProxy rebuilt per frame), the numpy BodyCollider
     # and the compiled one (the runtime's), interleaved, median of 3; outputs compared with the reference's
     import functools

@@ -1,13 +1,14 @@
 """Look before you trust a number: held-out samples of a dataset rendered beside their ground truth.
 
     python bench/render_heldout.py DATASET --sample ID [--sample ID ...] [--model NAME=SPEC ...] \
-        [--frames 15,30,45] [--push-out 0.004] -o heldout.png
+        [--frames 15,30,45] [--push-out 0.004] [--cloth default|K=V,..] -o heldout.png
 
 One row per (sample, frame): the Blender simulation, then each model (``NAME=SPEC`` as in
 ``segadeform eval``: a package folder, a checkpoint, ``lbs`` or ``lbs-inpaint``), with the mean vertex
 error of that frame in each title.  ``--push-out`` adds the first learned model with the runtime's
-collision stage at that margin (what ``segadeform run`` gives with collisions on).  The default models
-are ``lbs`` and the shipped package.
+collision stage at that margin (what ``segadeform run`` gives with collisions on); ``--cloth`` adds it with the
+cloth stage at those settings (``default``: its defaults; what ``segadeform run --effects=+cloth --cloth ...``
+gives; contact at the ``--push-out`` margin, else 4 mm).  The default models are ``lbs`` and the shipped package.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from segadeform.dataset.store import load_sample
 from segadeform.geometry import precompute_garment
 from segadeform.render import MeshLayer, fit_bounds, render, save_image
 from segadeform.runtime.pipeline import default_model_path
-from segadeform.train.evaluate import make_predictor, push_out_frames, reference
+from segadeform.train.evaluate import cloth_names, cloth_frames, make_predictor, push_out_frames, reference
 
 SKIN, CLOTH = (0.85, 0.7, 0.6), (0.25, 0.4, 0.85)
 
@@ -35,6 +36,7 @@ def main(argv=None) -> Path:
     ap.add_argument("--model", action="append", help="NAME=SPEC (repeatable; default lbs and the shipped package)")
     ap.add_argument("--frames", default="15,30,45")
     ap.add_argument("--push-out", type=float, default=None)
+    ap.add_argument("--cloth", action="append", help="the cloth stage's settings (repeatable; 'default')")
     ap.add_argument("--size", default="200x260")
     ap.add_argument("-o", "--output", type=Path, required=True)
     a = ap.parse_args(argv)
@@ -59,6 +61,11 @@ def main(argv=None) -> Path:
         if a.push_out is not None and learned is not None:
             shown[f"{learned}+push-out"] = push_out_frames(shown[learned], reference(s, body),
                                                            BodyCollider(body.v_template, body.faces), a.push_out)
+        for sfx, settings in cloth_names(a.cloth).items():
+            if learned is not None:
+                shown[f"{learned}{sfx.replace(' + ', '+')}"] = cloth_frames(
+                    shown[learned], s, reference(s, body), body, settings,
+                    margin=a.push_out if a.push_out is not None else 0.004)
         label = sid.split("__")[0]
         for fi in frames:
             if not 0 <= fi < len(s.frames):
