@@ -30,11 +30,12 @@ def test_run_caches_in_the_user_cache_not_beside_the_garment(tmp_path, random_pa
 def test_prune_keeps_the_newest_within_the_bound(tmp_path, monkeypatch):
     monkeypatch.setenv("SEGADEFORM_CACHE_DIR", str(tmp_path / "c"))
     d = cache_dir()
-    for i in range(5):
-        (d / f"e{i}").write_bytes(b"x" * 1000)
-        os.utime(d / f"e{i}", (1000 + i, 1000 + i))
+    names = [f"P-{i:032x}.npy" for i in range(5)]  # entries are named by content hashes (cache.is_entry)
+    for i, n in enumerate(names):
+        (d / n).write_bytes(b"x" * 1000)
+        os.utime(d / n, (1000 + i, 1000 + i))
     freed = prune(d, max_bytes=2500)
-    assert freed == 3000 and sorted(p.name for p in d.iterdir()) == ["e3", "e4"]
+    assert freed == 3000 and sorted(p.name for p in d.iterdir()) == names[3:]
     monkeypatch.setenv("SEGADEFORM_CACHE_MAX_MB", "0")
     prune()
     assert list(d.iterdir()) == []

@@ -325,3 +325,18 @@ def test_a_scene_with_a_byte_order_mark_reads(tmp_path):
     r = invoke("run", scene, "--no-cache")
     assert r.exit_code == 0, r.output
     assert (tmp_path / "o.pc2").is_file()
+
+
+def test_clearing_the_cache_never_deletes_a_users_file(tmp_path, monkeypatch):
+    """$SEGADEFORM_CACHE_DIR may name a folder that holds the user's files: `run` (which prunes the cache) and
+    `cache clear` remove the cache's own entries only."""
+    d = tmp_path / "mine"
+    d.mkdir()
+    (d / "thesis.pdf").write_bytes(b"%PDF" + b"0" * 4096)
+    (d / "P-notes.npy").write_bytes(b"not an entry")  # a cache-like name without a content hash
+    monkeypatch.setenv("SEGADEFORM_CACHE_DIR", str(d))
+    monkeypatch.setenv("SEGADEFORM_CACHE_MAX_MB", "0")
+    r = invoke("run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:2", "-o", tmp_path / "o.pc2")
+    assert r.exit_code == 0, r.output
+    assert invoke("cache", "clear").exit_code == 0
+    assert sorted(p.name for p in d.iterdir()) == ["P-notes.npy", "thesis.pdf"]

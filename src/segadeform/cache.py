@@ -16,12 +16,23 @@ stale entry is never used; any of them can be deleted at any time (``segadeform 
 from __future__ import annotations
 
 import os
+import re
 import sys
 from pathlib import Path
 
-__all__ = ["cache_dir", "prune", "DEFAULT_MAX_MB"]
+__all__ = ["cache_dir", "prune", "is_entry", "DEFAULT_MAX_MB"]
 
 DEFAULT_MAX_MB = 1024
+
+#: the names of the cache's entries (content hashes): garment assets, encoder outputs (P-), body weights at a
+#: garment (W-), cloth setups (C-).  prune and `cache clear` remove these only: $SEGADEFORM_CACHE_DIR may name
+#: a folder that holds the user's own files too, and no command deletes a file it did not write.
+_ENTRY = re.compile(r"^(?:asset-[0-9a-f]{16,}(?:-n\d+)?\.npz|[A-Z]-[0-9a-f]{16,}\.np[yz])$")
+
+
+def is_entry(name: str) -> bool:
+    """Whether ``name`` is one of the cache's entries (see :data:`_ENTRY`)."""
+    return bool(_ENTRY.match(name))
 
 
 def cache_dir(create: bool = True) -> Path:
@@ -49,13 +60,16 @@ def _max_bytes() -> int:
 
 
 def prune(d: Path | None = None, max_bytes: int | None = None) -> int:
-    """Delete least recently used files until ``d`` holds at most ``max_bytes``; returns bytes freed."""
+    """Delete least recently used cache entries (:func:`is_entry`; nothing else in ``d``) until they take at most
+    ``max_bytes``; returns bytes freed."""
     d = cache_dir(create=False) if d is None else Path(d)
     limit = _max_bytes() if max_bytes is None else int(max_bytes)
     if not d.is_dir():
         return 0
     files = []
     for p in d.iterdir():
+        if not is_entry(p.name):
+            continue
         try:
             st = p.stat()
         except OSError:
