@@ -28,3 +28,26 @@ def test_exclude_globs_and_nested_fractions(tmp_path):
 def test_bad_selections_are_refused(tmp_path, text, msg):
     with pytest.raises(FileFormatError, match=msg):
         _cfg(tmp_path, text)
+
+
+def test_a_config_changes_its_base(tmp_path):
+    """``base = "full.toml"``: the base's tables with the config's keys over them; the base's relative paths
+    stay the base's; a cycle is refused."""
+    import pytest
+
+    from segadeform.errors import FileFormatError
+    from segadeform.train import load_train_config
+
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "full.toml").write_text("[data]\ndataset = 'data'\nval_split = 'val'\n[model]\nhidden = 16\n"
+                                                "[optim]\nsteps = 5\nseed = 0\nlr = 0.002\n")
+    (tmp_path / "seed1.toml").write_text("base = 'sub/full.toml'\n[optim]\nseed = 1\n")
+    full = load_train_config(tmp_path / "sub" / "full.toml")
+    one = load_train_config(tmp_path / "seed1.toml")
+    assert one.optim.seed == 1 and one.optim.steps == 5 and one.optim.lr == 0.002 and one.model.hidden == 16
+    assert one.dataset == full.dataset == ((tmp_path / "sub" / "data").resolve(),) and one.val_split == "val"
+    assert one.digest() != full.digest()
+    (tmp_path / "a.toml").write_text("base = 'b.toml'\n")
+    (tmp_path / "b.toml").write_text("base = 'a.toml'\n")
+    with pytest.raises(FileFormatError, match="each other"):
+        load_train_config(tmp_path / "a.toml")

@@ -178,11 +178,44 @@ def _table(data, name, cls, where):
         raise FileFormatError(f"[{name}]: {e}", path=where) from None
 
 
+def _read_with_base(p: Path, seen=()) -> dict:
+    """A config's tables with those of its ``base`` (another training config, relative to it) underneath:
+    a table the config names replaces the base's keys it names, the rest stays the base's.  Paths in a
+    base are resolved against the base's folder (made absolute here)."""
+    data, _ = read_toml(p, "training config")
+    base = data.pop("base", None)
+    if base is None:
+        return data
+    if not isinstance(base, str):
+        raise FileFormatError("base must be the path of another training config", path=p, got=base)
+    bp = (p.parent / base).resolve()
+    if bp in seen or bp == p.resolve():
+        raise FileFormatError("training configs name each other as base", path=p, got=str(bp))
+    under = _read_with_base(bp, (*seen, p.resolve()))
+    # the base's relative paths are the base's: make them absolute before merging
+    d = under.get("data", {})
+    for key in ("dataset", "optional"):
+        if key in d:
+            v = d[key]
+            d[key] = [str((bp.parent / x).resolve()) for x in v] if isinstance(v, list) else \
+                str((bp.parent / v).resolve()) if isinstance(v, str) else v
+    ph = under.get("physics", {})
+    if isinstance(ph.get("pairs"), str):
+        ph["pairs"] = str((bp.parent / ph["pairs"]).resolve())
+    for table, values in data.items():
+        if isinstance(values, dict) and isinstance(under.get(table), dict):
+            under[table] = {**under[table], **values}
+        else:
+            under[table] = values
+    return under
+
+
 def load_train_config(path, *, dataset=None, overrides: Optional[dict] = None) -> TrainConfig:
     """Read a training config; ``dataset`` (a root or a list of roots) overrides ``[data] dataset``;
-    ``overrides`` maps ``"table.key"`` to values (e.g. ``{"optim.steps": 10}``)."""
+    ``overrides`` maps ``"table.key"`` to values (e.g. ``{"optim.steps": 10}``).  A config may name a
+    ``base`` config whose tables it changes (``base = "full.toml"`` and ``[optim] seed = 1``)."""
     p = Path(path)
-    data, text = read_toml(p, "training config")
+    data = _read_with_base(p)
     for k, v in (overrides or {}).items():
         t, _, key = k.partition(".")
         data.setdefault(t, {})[key] = v
