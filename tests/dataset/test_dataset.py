@@ -397,7 +397,7 @@ def test_spread_order_covers_every_garment_body_and_motion_early_with_held_out_i
     order = make_order(cfg, sample_plan(cfg))
     n_held = sum(p.split != "train" for p in order)
     k = cfg.spread
-    assert k == 3
+    assert k == 1
     # one held-out sample (test or validation), then k training ones, until the held-out ones are done
     assert [p.split != "train" for p in order[:2 * (k + 1)]] == ([True] + [False] * k) * 2
     assert all(p.split != "train" for p in order[:(k + 1) * n_held:k + 1]) and order[(k + 1) * n_held].split == "train"
