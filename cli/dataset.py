@@ -100,6 +100,8 @@ def dataset_info_cmd(folder, as_json):
         click.echo(f"  split {k}: {v} samples")
     for r, c in st["reasons"].items():
         click.echo(f"  rejected: {c} x {r}")
+    for k, v in st["by_kind_source"].items():
+        click.echo(f"  kept {v['samples'] - v['rejected']:4d} / {v['samples']:4d} made  {k}")
     for row in st["by_size"]:
         click.echo(f"  {row['garment']:24s} {row['vertices']:6d} v  {row['seconds_per_frame']:.3f} s/frame")
 

@@ -40,8 +40,12 @@ def dataset_stats(folder) -> dict:
             groups[r.get(key)][1] += r["status"] != "kept"
         return {str(k): {"samples": n, "rejected": b, "rejection_rate": b / n} for k, (n, b) in sorted(groups.items())}
 
+    for r in recs:  # what drove the body: motion capture (CMU clips, named cmu-...) or procedural motion
+        r["source"] = "mocap" if str(r.get("motion", "")).startswith("cmu-") else "procedural"
+        r["kind_source"] = f"{r.get('kind')} / {r['source']}"
     return {"kept": len(kept), "rejected": len(rej), "rejection_rate": len(rej) / max(len(recs), 1),
-            "by_kind": rates("kind"), "by_motion": rates("motion"), "throughput": _throughput(recs),
+            "by_kind": rates("kind"), "by_motion": rates("motion"), "by_source": rates("source"),
+            "by_kind_source": rates("kind_source"), "throughput": _throughput(recs),
             "splits": dict(collections.Counter(r["split"] for r in kept)), "reasons": dict(reasons),
             "by_size": [{"garment": g, "vertices": v, "seconds_per_frame": float(np.mean(s)), "samples": len(s)}
                         for (g, v), s in sorted(by.items(), key=lambda kv: kv[0][1])]}
