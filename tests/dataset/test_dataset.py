@@ -360,6 +360,8 @@ def test_growing_the_tiny_dataset_adds_only_the_new_samples(tiny_dataset, tmp_pa
     st = json.loads((main(["dataset", "info", str(out), "--json"]), capsys.readouterr().out)[1])
     assert st["throughput"]["runs"] == 2 and st["throughput"]["kept_per_hour"] > 0
     assert set(st["by_kind"]) == {"skirt", "shorts"} and "idle-s0" in st["by_motion"]
+    assert set(st["by_kind_source"]) == {"skirt / procedural", "shorts / procedural"}
+    assert sum(v["samples"] for v in st["by_kind_source"].values()) == st["kept"] + st["rejected"]
 
 
 def test_a_tshirt_through_the_a_pose_drape_passes_the_gate(tmp_path):
