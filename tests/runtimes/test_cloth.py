@@ -26,9 +26,8 @@ import pytest
 from segadeform.bundle import read_bundle, write_bundle
 from segadeform.io import read_pc2
 from tests.conftest import REPO, SAMPLES
-from tests.runtimes.test_collisions import FRAMES, MARGIN, TIGHTEN, _agree, _web_frames
+from tests.runtimes.test_collisions import FRAMES, MARGIN, TIGHTEN, _agree, _node_vectors, _site, _web_frames
 
-NODE = REPO / "runtimes" / "node"
 EFFECTS = "lbs,dynamics,wrinkles,cloth"
 
 
@@ -75,10 +74,7 @@ def test_javascript_cloth_is_the_compiled_kernel(cloth_vector, node):
     """Same float64 inputs, same setup and frames: every coordinate equal (the port uses only + - * / and sqrt, as the
     C file), the same counts."""
     path, py = cloth_vector
-    p = subprocess.run(["node", str(NODE / "scripts" / "cloth_vectors.mjs"), str(path)], capture_output=True,
-                       text=True, timeout=600)
-    assert p.returncode == 0, p.stderr[-3000:]
-    r = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("CLOTH "))[6:])
+    r = _node_vectors("cloth_vectors.mjs", path, "CLOTH")
     _report("javascript stage vs ClothStage", **r, python=py)
     assert r["edges"] == r["nptr"] == r["nidx"] == 0 and r["restLen"] == 0 and r["radius"] == 0, r
     assert r["frames"] <= 1e-12 and r["identical"] == r["coordinates"], r
@@ -165,12 +161,8 @@ def test_cloth_knobs_and_refusals_in_the_runtimes(node, cpp, clothed, tmp_path):
 
 @pytest.fixture(scope="module")
 def clothed_site(tmp_path_factory, clothed):
-    d = tmp_path_factory.mktemp("site")
-    (d / "runtimes").symlink_to(REPO / "runtimes")
-    (d / "pkg").symlink_to(clothed["package"])
-    for k in ("garment", "motion", "check_clothed"):
-        (d / clothed[k].name).symlink_to(clothed[k])
-    return d
+    return _site(tmp_path_factory.mktemp("site"), clothed["package"],
+                 [clothed[k] for k in ("garment", "motion", "check_clothed")])
 
 
 def test_browser_cloth_every_frame(clothed_site, clothed, tmp_path):

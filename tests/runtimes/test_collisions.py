@@ -92,15 +92,20 @@ def collider_vector(tmp_path_factory):
     return path, {"moved": moved, "inside": int((q.signed_distance < 0).sum()), "points": len(points)}
 
 
+def _node_vectors(script: str, vector, tag: str) -> dict:
+    """Run ``runtimes/node/scripts/SCRIPT VECTOR`` and return the JSON of its ``TAG {json}`` line."""
+    p = subprocess.run(["node", str(NODE / "scripts" / script), str(vector)], capture_output=True, text=True,
+                       timeout=600)
+    assert p.returncode == 0, p.stderr[-3000:]
+    return json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith(tag + " "))[len(tag) + 1:])
+
+
 def test_javascript_collider_is_the_compiled_kernel(collider_vector, node):
     """Same float64 inputs, same answers: closest points, signed distances and normals to 1e-12 m (in practice
     identical but for Math.acos's last bit in vertex pseudo-normals), push-out positions to 1e-9 m and the same
     points moved.  Face ids are reported, not compared (a tie may pick another face at the same distance)."""
     path, py = collider_vector
-    p = subprocess.run(["node", str(NODE / "scripts" / "collide_vectors.mjs"), str(path)], capture_output=True,
-                       text=True, timeout=600)
-    assert p.returncode == 0, p.stderr[-3000:]
-    r = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("COLLIDE "))[8:])
+    r = _node_vectors("collide_vectors.mjs", path, "COLLIDE")
     _report("javascript collider vs BodyCollider", **r, python=py)
     assert r["closed"] and r["points"] == py["points"] and py["inside"] > 500 and py["moved"] > 1000
     assert r["sd"] <= 1e-12 and r["closest"] <= 1e-12 and r["normal"] <= 1e-12, r
@@ -257,14 +262,19 @@ def test_collisions_refused_without_a_body_graph_or_with_a_bad_margin(node, cpp,
         assert not (tmp_path / "x.pc2").exists()
 
 
+def _site(d, package, files):
+    """A folder ``d`` the page's server roots at: the runtimes, the package as ``pkg`` and ``files`` by their names."""
+    (d / "runtimes").symlink_to(REPO / "runtimes")
+    (d / "pkg").symlink_to(package)
+    for f in files:
+        (d / f.name).symlink_to(f)
+    return d
+
+
 @pytest.fixture(scope="module")
 def collided_site(tmp_path_factory, collided):
-    d = tmp_path_factory.mktemp("site")
-    (d / "runtimes").symlink_to(REPO / "runtimes")
-    (d / "pkg").symlink_to(collided["package"])
-    for k in ("garment", "motion", "check_collided"):
-        (d / collided[k].name).symlink_to(collided[k])
-    return d
+    return _site(tmp_path_factory.mktemp("site"), collided["package"],
+                 [collided[k] for k in ("garment", "motion", "check_collided")])
 
 
 def test_page_pushes_out_by_default_like_segadeform_run_on_wasm(collided_site, collided, tmp_path):
@@ -273,7 +283,8 @@ def test_page_pushes_out_by_default_like_segadeform_run_on_wasm(collided_site, c
     r = _page(collided_site, "wasm", tmp_path, "--garment", "garment.sgda", "--motion", "motion.sgdm", "--check",
               "collided.sgdb", shot=False)
     col = r["collisions"]
-    assert r["effects"] == {"skinning": "lbs", "dynamics": True, "wrinkles": True, "collisions": True}, r
+    assert r["effects"] == {"skinning": "lbs", "dynamics": True, "wrinkles": True, "collisions": True,
+                            "cloth": False}, r  # the cloth stage: only when named
     assert r["finite"] and r["sameLength"] and r["T"] == FRAMES and col["margin"] == MARGIN, r
     _report("browser wasm page", max_abs=r["maxAbs"], max_rel=r["rel"], moved=col["moved"],
             python_moved=collided["moved"], ms_per_frame=col["msPerFrame"])

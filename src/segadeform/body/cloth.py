@@ -30,7 +30,6 @@ from __future__ import annotations
 import ctypes
 import dataclasses
 import hashlib
-import importlib.util
 import logging
 import threading
 import weakref
@@ -83,28 +82,16 @@ _KERNEL: dict = {}  # the loaded library, filled on first use: {"lib": CDLL | No
 
 def _load_kernel():
     """The compiled cloth kernel (a ctypes library) and, when it is missing, why; loaded once per process."""
+    from .collision import load_extension
+
     with _KERNEL_LOCK:
         if not _KERNEL:
-            lib, why = None, ""
-            try:
-                spec = importlib.util.find_spec(__name__.rsplit(".", 1)[0] + "._cloth")
-                if spec is None or not spec.origin:
-                    why = "the extension module was not built (no C compiler at install?)"
-                else:
-                    lib = ctypes.CDLL(spec.origin)
-                    if lib.scl_abi() != _ABI or lib.scl_n_settings() != len(_SETTINGS):
-                        lib, why = None, f"{spec.origin} is from another version (reinstall segadeform)"
-            except (OSError, ImportError, AttributeError) as e:
-                lib, why = None, f"cannot load it ({e})"
-            if lib is not None:
-                p, i64, f64 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
-                for name, res, args in (
-                        ("sdc_create", p, (p, i64, p, i64, i64)), ("sdc_free", None, (p,)),
-                        ("scl_setup", i64, (p, i64, p, i64, p, f64, f64, p, p, p, p, p)),
-                        ("scl_per_sweep", f64, (f64, i64)),
-                        ("scl_step", i64, (i64, i64, p, p, p, p, p, p, p, i64, p, i64, p, p, p, p))):
-                    fn = getattr(lib, name)
-                    fn.restype, fn.argtypes = res, args
+            p, i64, f64 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+            lib, why = load_extension(
+                "_cloth", lambda lib: lib.scl_abi() == _ABI and lib.scl_n_settings() == len(_SETTINGS),
+                (("sdc_create", p, (p, i64, p, i64, i64)), ("sdc_free", None, (p,)),
+                 ("scl_setup", i64, (p, i64, p, i64, p, f64, f64, p, p, p, p, p)), ("scl_per_sweep", f64, (f64, i64)),
+                 ("scl_step", i64, (i64, i64, p, p, p, p, p, p, p, i64, p, i64, p, p, p, p))))
             _KERNEL.update(lib=lib, why=why)
         return _KERNEL["lib"], _KERNEL["why"]
 

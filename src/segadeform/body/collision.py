@@ -940,31 +940,38 @@ _KERNEL: dict = {}  # a cache of the loaded library, filled on first use: {"lib"
 _ABI = 1  # sdc_abi() of the kernel this wrapper speaks to
 
 
+def load_extension(module: str, current, signatures):
+    """The extension module ``module`` of this package (``_collide``, ``_cloth``: built by setup.py, C reached through
+    ctypes) as a ctypes library with ``signatures`` ((name, restype, argtypes), ...) set, and, when it cannot be
+    used, None and why: not built, not loadable, or ``current(lib)`` false (built from another version)."""
+    lib, why = None, ""
+    try:
+        spec = importlib.util.find_spec(__name__.rsplit(".", 1)[0] + "." + module)
+        if spec is None or not spec.origin:
+            why = "the extension module was not built (no C compiler at install?)"
+        else:
+            lib = ctypes.CDLL(spec.origin)
+            if not current(lib):
+                lib, why = None, f"{spec.origin} is from another version (reinstall segadeform)"
+    except (OSError, ImportError, AttributeError) as e:
+        lib, why = None, f"cannot load it ({e})"
+    if lib is not None:
+        for name, res, args in signatures:
+            fn = getattr(lib, name)
+            fn.restype, fn.argtypes = res, args
+    return lib, why
+
+
 def _load_kernel():
     """The compiled kernel (a ctypes library) and, when it is missing, why; loaded once per process."""
     with _KERNEL_LOCK:
         if not _KERNEL:
-            lib, why = None, ""
-            try:
-                spec = importlib.util.find_spec(__name__.rsplit(".", 1)[0] + "._collide")
-                if spec is None or not spec.origin:
-                    why = "the extension module was not built (no C compiler at install?)"
-                else:
-                    lib = ctypes.CDLL(spec.origin)
-                    if lib.sdc_abi() != _ABI:
-                        lib, why = None, f"{spec.origin} is from another version (reinstall segadeform)"
-            except (OSError, ImportError, AttributeError) as e:
-                lib, why = None, f"cannot load it ({e})"
-            if lib is not None:
-                p, i64 = ctypes.c_void_p, ctypes.c_int64
-                for name, res, args in (("sdc_create", p, (p, i64, p, i64, i64)), ("sdc_free", None, (p,)),
-                                        ("sdc_n_nodes", i64, (p,)), ("sdc_depth", i64, (p,)),
-                                        ("sdc_closed", i64, (p,)), ("sdc_refit", None, (p, p, p)),
-                                        ("sdc_query", None, (p, p, p, p, i64, i64, p, p, p, p)),
-                                        ("sdc_push_out", i64, (p, p, p, i64, p, i64, i64, i64, ctypes.c_double,
-                                                               i64, p))):
-                    fn = getattr(lib, name)
-                    fn.restype, fn.argtypes = res, args
+            p, i64 = ctypes.c_void_p, ctypes.c_int64
+            lib, why = load_extension("_collide", lambda lib: lib.sdc_abi() == _ABI, (
+                ("sdc_create", p, (p, i64, p, i64, i64)), ("sdc_free", None, (p,)), ("sdc_n_nodes", i64, (p,)),
+                ("sdc_depth", i64, (p,)), ("sdc_closed", i64, (p,)), ("sdc_refit", None, (p, p, p)),
+                ("sdc_query", None, (p, p, p, p, i64, i64, p, p, p, p)),
+                ("sdc_push_out", i64, (p, p, p, i64, p, i64, i64, i64, ctypes.c_double, i64, p))))
             _KERNEL.update(lib=lib, why=why)
         return _KERNEL["lib"], _KERNEL["why"]
 
