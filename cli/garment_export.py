@@ -31,7 +31,8 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
     from segadeform.bounds import check_body_height
     from segadeform.garments.fit import check_placement
     from segadeform.geometry import GarmentAsset, precompute_garment
-    from segadeform.geometry.asset import PORTABLE_SUFFIX, file_sha256
+    from segadeform.geometry.asset import PORTABLE_SUFFIX
+    from segadeform.io.hashing import file_sha256
     from segadeform.io import read_mesh
     from segadeform.package_spec import read_manifest_text
 

@@ -26,7 +26,7 @@ def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, ge
     """Precompute graph, features and descriptor of GARMENT (OBJ, PLY, OFF, STL ...)."""
     from segadeform.body import load_rest_joints
     from segadeform.geometry import DEFAULT_GEODESIC, DEFAULT_MAX_K, DEFAULT_N_STAR, precompute_garment
-    from segadeform.geometry.asset import file_sha256
+    from segadeform.io.hashing import file_sha256
     from segadeform.io import read_mesh
 
     if (joints_path is None) == (body_path is None):

@@ -175,7 +175,8 @@ def add_body_to_package(package: str | os.PathLike, body, out: str | os.PathLike
     model's skeleton.  Its graphs' weights join the package's ``weights.bin`` (when it has one)."""
     import onnx
 
-    from .packing import finish_package, pack_graphs, sha256_file
+    from ..io.hashing import file_sha256
+    from .packing import finish_package, pack_graphs
 
     src = Path(package)
     dst = Path(out) if out is not None else src
@@ -199,7 +200,7 @@ def add_body_to_package(package: str | os.PathLike, body, out: str | os.PathLike
         graphs.update(new)
         weights = pack_graphs(tmp, [g["file"] for g in graphs.values()], shared="weights" in m)
         for g in graphs.values():
-            g["sha256"] = sha256_file(tmp / g["file"])
+            g["sha256"] = file_sha256(tmp / g["file"])
         ops = {k: v for k, v in m.get("ops", {}).items() if k in graphs}
         ops.update(body_ops)
         out_m = {k: v for k, v in m.items() if k not in ("graphs", "ops", "weights")}

@@ -15,7 +15,8 @@ from segadeform.body.skeleton import SMPL_JOINT_NAMES, SMPL_PARENTS
 from segadeform.io.atomic import atomic_directory
 from segadeform.package_spec import OPSET, graph_specs
 
-from .packing import pack_graphs, sha256_file
+from ..io.hashing import file_sha256
+from .packing import pack_graphs
 from .portability import check_portability, replace_trig
 
 __all__ = ["MANIFEST_SCHEMA_VERSION", "OPSET", "graph_specs", "deformer_variants", "export_package", "sample_inputs"]
@@ -162,10 +163,6 @@ def _variant_model(net, vcfg):
     return v
 
 
-def _sha256(path: Path) -> str:
-    return sha256_file(path)
-
-
 def _load_body(body):
     """``body`` for :func:`export_package`: ``"default"`` (the shipped body), a path, a BodyModel, or None."""
     if body is None:
@@ -261,7 +258,7 @@ def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, ch
             ops.update(body_ops)
         weights = pack_graphs(tmp, [g["file"] for g in graphs.values()], shared=shared_weights)
         for name, g in graphs.items():
-            g["sha256"] = _sha256(tmp / g["file"])
+            g["sha256"] = file_sha256(tmp / g["file"])
             if check and g["role"] == contract.ROLES[contract.BODY]:
                 report[name] = body_parity(body_model, tmp / g["file"], g["skinning"])
             elif check:

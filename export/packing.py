@@ -30,18 +30,11 @@ from pathlib import Path
 from segadeform import package_spec as spec
 from segadeform.errors import InputError
 from segadeform.io.atomic import atomic_directory
+from segadeform.io.hashing import file_sha256
 
-__all__ = ["strip_debug_info", "pack_graphs", "repack_package", "finish_package", "sha256_file", "ALIGN"]
+__all__ = ["strip_debug_info", "pack_graphs", "repack_package", "finish_package", "ALIGN"]
 
 ALIGN = 64
-
-
-def sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def strip_debug_info(model) -> None:
@@ -114,7 +107,7 @@ def pack_graphs(folder: str | os.PathLike, files: list[str], *, shared: bool = T
         onnx.checker.check_model(str(folder / f))
     if not blob:
         return None
-    return {"file": weights_file, "sha256": sha256_file(wpath), "bytes": len(blob)}
+    return {"file": weights_file, "sha256": file_sha256(wpath), "bytes": len(blob)}
 
 
 def convert_opset(model, opset: int):
@@ -181,7 +174,7 @@ def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bo
                                                      for i in g["inputs"]])
         weights = pack_graphs(tmp, [g["file"] for g in graphs.values()], shared=shared)
         for name, g in graphs.items():
-            g["sha256"] = sha256_file(tmp / g["file"])
+            g["sha256"] = file_sha256(tmp / g["file"])
             ops[name] = dict(sorted(op_counts(onnx.load(str(tmp / g["file"]), load_external_data=False)).items()))
         out = {k: v for k, v in m.items() if k not in ("graphs", "ops", "weights", "upgraded_from")}
         out.update(schema_version=spec.SCHEMA_VERSION, graphs=graphs, ops=ops)

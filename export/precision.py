@@ -31,7 +31,7 @@ from segadeform import package_spec as contract
 from segadeform.errors import InputError
 from segadeform.io.atomic import atomic_directory
 
-from .package import _sha256
+from ..io.hashing import file_sha256
 from .packing import pack_graphs
 
 __all__ = ["PRECISIONS", "convert_package", "convert_graph"]
@@ -138,7 +138,7 @@ def convert_package(src: str | os.PathLike, dst: str | os.PathLike, precision: s
                                                       for i in spec["inputs"]])
         weights = pack_graphs(tmp, [g["file"] for g in graphs.values()])
         for g in graphs.values():
-            g["sha256"] = _sha256(tmp / g["file"])
+            g["sha256"] = file_sha256(tmp / g["file"])
         for extra in src.iterdir():  # the model card and the like, not the checkpoint or reports
             if extra.is_file() and extra.suffix in (".md", ".txt") and not (tmp / extra.name).exists():
                 shutil.copyfile(extra, tmp / extra.name)

@@ -65,7 +65,7 @@ MODULE_LAYERS = {
     "segadeform.runtime": "runtime",
     "segadeform.cli": "cli",
     # modules still to be moved into the package of their layer
-    "segadeform._toml": "io", "segadeform._resources": "io", "segadeform.cache": "io", "segadeform.bundle": "io",
+    "segadeform._resources": "io", "segadeform.cache": "io", "segadeform.bundle": "io",
     "segadeform.scene": "settings", "segadeform.effect_list": "settings", "segadeform.cloth_settings": "settings",
     "segadeform.presets": "settings", "segadeform.physics.settings": "settings", "segadeform.executors": "distributed",
     "segadeform.package_spec": "contracts", "segadeform.render": "preview",
@@ -73,15 +73,15 @@ MODULE_LAYERS = {
 
 #: back-edges still in the tree, each to be removed (the test fails on any other, and on one of these once gone)
 KNOWN_BACK_EDGES = [
-    "segadeform.bundle (io) imports segadeform.body.skeleton (body) at line 167",
-    "segadeform.bundle (io) imports segadeform.motion (motion) at line 185",
-    "segadeform.geometry.asset (geometry) imports segadeform.body.identity (body) at line 145",
-    "segadeform.geometry.asset (geometry) imports segadeform.body.transfer (body) at line 146",
-    "segadeform.runtime.bundles (runtime) imports segadeform.garments.fit (garments) at line 38",
-    "segadeform.runtime.pipeline (runtime) imports segadeform.garments.fit (garments) at line 41",
-    "segadeform.scene (settings) imports segadeform.motion.spec (motion) at line 82",
-    "segadeform.train.evaluate (train) imports segadeform.runtime (runtime) at line 83",
-    "segadeform.train.evaluate (train) imports segadeform.runtime.deformer (runtime) at line 84",
+    "segadeform.bundle (io) imports segadeform.body.skeleton (body)",
+    "segadeform.bundle (io) imports segadeform.motion (motion)",
+    "segadeform.geometry.asset (geometry) imports segadeform.body.identity (body)",
+    "segadeform.geometry.asset (geometry) imports segadeform.body.transfer (body)",
+    "segadeform.runtime.bundles (runtime) imports segadeform.garments.fit (garments)",
+    "segadeform.runtime.pipeline (runtime) imports segadeform.garments.fit (garments)",
+    "segadeform.scene (settings) imports segadeform.motion.spec (motion)",
+    "segadeform.train.evaluate (train) imports segadeform.runtime (runtime)",
+    "segadeform.train.evaluate (train) imports segadeform.runtime.deformer (runtime)",
 ]
 
 #: third-party modules only some layers may import
@@ -230,7 +230,7 @@ def test_the_order_is_a_hierarchy():
 
 def test_no_import_goes_against_the_layers():
     edges, _ = import_graph()
-    assert violations(edges) == KNOWN_BACK_EDGES
+    assert sorted({v.split(" at line ")[0] for v in violations(edges)}) == KNOWN_BACK_EDGES
 
 
 def restricted(external) -> list[str]:

@@ -42,7 +42,7 @@ import time
 from pathlib import Path
 from typing import Callable, Optional
 
-from segadeform._toml import read_toml
+from segadeform.io.toml import key, read_table, read_toml
 from segadeform.bounds import SEED_RANGE, check_betas
 from segadeform.errors import FileFormatError, InputError, file_error
 from segadeform.executors import Executor, LocalExecutor
@@ -52,12 +52,41 @@ from segadeform.scene import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_
 
 __all__ = ["BatchConfig", "BatchJob", "BatchSummary", "load_batch", "batch_jobs", "run_batch", "run_job"]
 
-_BATCH_KEYS = {"output": str, "format": str, "model": str, "body": str, "effects": str, "up": str,
-               "frames_per_call": int}
-_GARMENT_KEYS = {"mesh": str, "name": str, "betas": list}
-_MOTION_KEYS = {"file": str, "kind": str, "name": str, "seconds": (int, float), "speed": (int, float),
-                "amplitude": (int, float), "seed": int, "fps": (int, float), "frames": str, "up": str,
-                "units": (str, int, float), "floor": bool}
+
+
+# The jobs file's tables (what each key takes: segadeform.io.toml.read_table)
+@dataclasses.dataclass(frozen=True)
+class _BatchTable:
+    output: Optional[str] = None
+    format: str = "pc2"
+    model: Optional[str] = None
+    body: Optional[str] = None
+    effects: Optional[str] = None
+    up: str = "y"
+    frames_per_call: int = key(8, range=(1, 2**31))
+
+
+@dataclasses.dataclass(frozen=True)
+class _GarmentTable:
+    mesh: str
+    name: Optional[str] = None
+    betas: tuple = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class _MotionTable:
+    file: Optional[str] = None
+    kind: Optional[str] = None
+    name: Optional[str] = None
+    seconds: float = key(3.0, range=(1e-3, 3600))
+    speed: float = key(1.0, range=(0.05, 5))
+    amplitude: float = key(1.0, range=(0, 2))
+    seed: int = key(0, range=SEED_RANGE)
+    fps: Optional[float] = key(None, range=(1, 1000))
+    frames: Optional[str] = None
+    up: str = key("auto", choices=("auto", "y", "z"))
+    units: Optional[str] = key(None, types=(str, int, float))
+    floor: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,21 +116,6 @@ class BatchConfig:
     path: Optional[Path] = None
 
 
-def _typed(table: dict, keys: dict, where: str, p: Path) -> None:
-    bad = sorted(set(table) - set(keys))
-    if bad:
-        raise FileFormatError(f"unknown key {where}.{bad[0]}", path=p, expected=", ".join(sorted(keys)),
-                              got=", ".join(bad))
-    for k, typ in keys.items():
-        if k in table:
-            v = table[k]
-            types = typ if isinstance(typ, tuple) else (typ,)
-            if not isinstance(v, types) or (isinstance(v, bool) and bool not in types):
-                raise FileFormatError(f"{where}.{k} has the wrong type", path=p,
-                                      expected=" or ".join(t.__name__ for t in types),
-                                      got=f"{type(v).__name__} {v!r}"[:60])
-
-
 def _name_ok(name: str, what: str, p: Path) -> str:
     if not name or "__" in name or any(c in name for c in "/\\:\x00") or name.startswith("."):
         raise FileFormatError(f"{what} name is not usable in a file name", path=p,
@@ -117,10 +131,7 @@ def load_batch(path) -> BatchConfig:
     if unknown:
         raise FileFormatError(f"unknown table [{unknown[0]}]", path=p, expected="batch, garments, motions",
                               got=", ".join(unknown))
-    b = data.get("batch", {})
-    if not isinstance(b, dict):
-        raise FileFormatError("[batch] must be a table", path=p, got=type(b).__name__)
-    _typed(b, _BATCH_KEYS, "batch", p)
+    b = read_table(data.get("batch", {}), _BatchTable, where="batch", path=p)
     base = p.resolve().parent
 
     def rel(s: str) -> Path:
@@ -139,9 +150,7 @@ def load_batch(path) -> BatchConfig:
                                   got=f"{len(items) if isinstance(items, list) else type(items).__name__}")
     garments = []
     for i, g in enumerate(gs):
-        _typed(g, _GARMENT_KEYS, f"garments[{i}]", p)
-        if "mesh" not in g:
-            raise FileFormatError(f"missing garments[{i}].mesh", path=p)
+        read_table(g, _GarmentTable, where=f"garments[{i}]", path=p)
         mesh = rel(g["mesh"])
         betas = g.get("betas", [])
         if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in betas):
@@ -154,7 +163,7 @@ def load_batch(path) -> BatchConfig:
                                      tuple(float(x) for x in betas)))
     motions = []
     for i, m in enumerate(ms):
-        _typed(m, _MOTION_KEYS, f"motions[{i}]", p)
+        read_table(m, _MotionTable, where=f"motions[{i}]", path=p)
         if ("file" in m) == ("kind" in m):
             raise FileFormatError(f"motions[{i}] needs exactly one of 'file' or 'kind'", path=p)
         if "file" in m and any(k in m for k in ("seconds", "speed", "amplitude", "seed")):
@@ -166,12 +175,6 @@ def load_batch(path) -> BatchConfig:
             if m["kind"] not in MOTION_KINDS:
                 raise FileFormatError(f"motions[{i}].kind is not a motion kind", path=p,
                                       expected=", ".join(sorted(MOTION_KINDS)), got=m["kind"])
-        for k, lo, hi in (("seconds", 1e-3, 3600), ("speed", 0.05, 5), ("amplitude", 0, 2), ("fps", 1, 1000),
-                          ("seed", *SEED_RANGE)):
-            if k in m and not lo <= m[k] <= hi:  # (NaN fails too)
-                raise FileFormatError(f"motions[{i}].{k} out of range", path=p, expected=f"{lo}..{hi}", got=m[k])
-        if m.get("up", "auto") not in ("auto", "y", "z"):
-            raise FileFormatError(f"motions[{i}].up must be auto, y or z", path=p, got=m["up"])
         spec = MotionSpec(file=rel(m["file"]) if "file" in m else None, kind=m.get("kind"),
                           seconds=float(m.get("seconds", 3.0)), speed=float(m.get("speed", 1.0)),
                           amplitude=float(m.get("amplitude", 1.0)), seed=int(m.get("seed", 0)),
@@ -196,8 +199,6 @@ def load_batch(path) -> BatchConfig:
 
     if b.get("up", "y") not in UP_AXES:
         raise FileFormatError("unknown batch.up axis", path=p, expected=" | ".join(UP_AXES), got=b["up"])
-    if b.get("frames_per_call", 8) < 1:
-        raise FileFormatError("batch.frames_per_call must be at least 1", path=p, got=b["frames_per_call"])
     try:
         effects = parse_effects(b["effects"]) if "effects" in b else DEFAULT_EFFECTS
     except FileFormatError as e:
@@ -235,7 +236,7 @@ class BatchJob:
 
 
 def _file_digest(p: Path) -> str:
-    from segadeform.geometry.asset import file_sha256
+    from segadeform.io.hashing import file_sha256
 
     try:
         return file_sha256(p)[:16]

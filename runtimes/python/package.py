@@ -7,7 +7,6 @@ effects is chosen by its rule."""
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import os
 from pathlib import Path
 
@@ -15,6 +14,7 @@ import numpy as np
 
 from segadeform import package_spec as contract
 from segadeform.errors import InputError, file_error
+from segadeform.io.hashing import file_sha256
 from segadeform.package_spec import PackageError
 
 __all__ = ["ModelPackage", "PackageError", "Familiarity", "SUPPORTED_SCHEMA", "SUPPORTED_OPSETS"]
@@ -53,14 +53,6 @@ class Familiarity:
             s += (f"; {self.openings} openings, training garments have "
                   f"{' or '.join(map(str, self.training_openings))}")
         return s
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 class ModelPackage:
@@ -122,7 +114,7 @@ class ModelPackage:
             if not f.is_file():
                 raise PackageError(f"{what_file} is missing", path=f)
             if verify_hashes and sha:
-                h = _sha256(f)
+                h = file_sha256(f)
                 if h != sha:
                     raise PackageError(f"{what} does not match its manifest hash", path=f,
                                        expected=sha[:16] + "...", got=h[:16] + "...")

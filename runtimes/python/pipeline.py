@@ -40,7 +40,8 @@ from segadeform.bounds import check_body_height
 from segadeform.errors import InputError
 from segadeform.garments.fit import check_placement
 from segadeform.geometry import GarmentAsset, precompute_garment
-from segadeform.geometry.asset import PORTABLE_SUFFIX, file_sha256
+from segadeform.geometry.asset import PORTABLE_SUFFIX
+from segadeform.io.hashing import file_sha256
 from segadeform.io import SceneOutput, read_mesh
 from segadeform.io.outputs import claim_scene_outputs
 from segadeform.motion import Motion, build_motion, frame_range, motion_windows

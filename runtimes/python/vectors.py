@@ -15,7 +15,8 @@ from segadeform.body import default_body_path, load_body
 from segadeform.body.identity import body_label
 from segadeform.bundle import write_bundle, write_motion_file
 from segadeform.geometry import GarmentAsset, precompute_garment
-from segadeform.geometry.asset import PORTABLE_SUFFIX, file_sha256
+from segadeform.geometry.asset import PORTABLE_SUFFIX
+from segadeform.io.hashing import file_sha256
 from segadeform.io import read_mesh, read_pc2
 from segadeform.motion import build_motion, select_frames
 from segadeform.scene import Scene

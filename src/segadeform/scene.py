@@ -69,7 +69,7 @@ import os
 from pathlib import Path
 from typing import Optional
 
-from ._toml import read_toml
+from .io.toml import key, read_table, read_toml
 from .bounds import SEED_RANGE, check_betas
 from .cloth_settings import CLOTH_KNOBS, ClothSettings
 from .errors import FileFormatError, InputError
@@ -131,20 +131,57 @@ class Scene:
     simulate: Optional[object] = None  # segadeform.physics.SimSettings; None: no [simulate] table
 
 
-_SCHEMA = {
-    "garment": {"mesh": str},
-    "body": {"model": str, "betas": list},
-    "motion": {"file": str, "kind": str, "seconds": (int, float), "speed": (int, float),
-               "amplitude": (int, float), "seed": int, "fps": (int, float), "frames": str, "up": str,
-               "units": (str, int, float), "joint_map": str, "floor": bool, "skeleton": str,
-               "animation": str},
-    "model": {"package": str},
-    "output": {"path": str, "format": str, "up": str, "body": str},
-    "effects": {"skinning": str, "dynamics": bool, "wrinkles": bool, "collisions": bool,
-                "collision_margin": (int, float), "cloth": bool,
-                **{f"cloth_{k}": (int, float) for k in CLOTH_KNOBS}},
-}
-_REQUIRED = {"garment": ("mesh",), "output": ("path",)}
+# The scene's tables (what each key takes: segadeform.io.toml.read_table)
+@dataclasses.dataclass(frozen=True)
+class _GarmentTable:
+    mesh: str
+
+
+@dataclasses.dataclass(frozen=True)
+class _BodyTable:
+    model: Optional[str] = None
+    betas: tuple = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class _MotionTable:
+    file: Optional[str] = None
+    kind: Optional[str] = None
+    seconds: float = key(3.0, range=(1e-3, 3600))
+    speed: float = key(1.0, range=(0.05, 5))
+    amplitude: float = key(1.0, range=(0, 2))
+    seed: int = key(0, range=SEED_RANGE)
+    fps: Optional[float] = key(None, range=(1, 1000))
+    frames: Optional[str] = None
+    up: str = key("auto", choices=("auto", "y", "z"))
+    units: Optional[str] = key(None, types=(str, int, float))
+    joint_map: Optional[str] = None
+    floor: bool = False
+    skeleton: Optional[str] = None
+    animation: Optional[str] = None
+
+
+@dataclasses.dataclass(frozen=True)
+class _ModelTable:
+    package: Optional[str] = None
+
+
+@dataclasses.dataclass(frozen=True)
+class _OutputTable:
+    path: str
+    format: Optional[str] = None
+    up: str = "y"  # one of io.writer.UP_AXES, read when a scene is loaded
+    body: Optional[str] = None
+
+
+#: ``[effects]``: the fields of Effects but the cloth settings, which are ``cloth_<knob>`` keys
+_EffectsTable = dataclasses.make_dataclass(
+    "_EffectsTable", [(f.name, f.type, dataclasses.field(default=f.default)) for f in dataclasses.fields(Effects)
+                      if f.name != "cloth_settings"]
+    + [(f"cloth_{k}", float, dataclasses.field(default=None)) for k in CLOTH_KNOBS], frozen=True)
+
+_TABLES = {"garment": _GarmentTable, "body": _BodyTable, "motion": _MotionTable, "model": _ModelTable,
+           "output": _OutputTable, "effects": _EffectsTable}
 
 
 def parse_frames(text: str, *, where=None) -> tuple[int, Optional[int]]:
@@ -184,30 +221,13 @@ def load_scene(path: str | os.PathLike) -> Scene:
     """Read and validate a scene file (see the module docstring)."""
     p = Path(path)
     data, _ = read_toml(p, "scene")
-    unknown = sorted(set(data) - set(_SCHEMA) - {"simulate"})
+    unknown = sorted(set(data) - set(_TABLES) - {"simulate"})
     if unknown:
-        raise FileFormatError(f"unknown table [{unknown[0]}]", path=p, expected=", ".join(sorted(set(_SCHEMA) | {"simulate"})),
-                              got=", ".join(unknown))
-    for table, keys in _SCHEMA.items():
-        t = data.get(table, {})
-        if not isinstance(t, dict):
-            raise FileFormatError(f"[{table}] must be a table", path=p, got=type(t).__name__)
-        bad = sorted(set(t) - set(keys))
-        if bad:
-            raise FileFormatError(f"unknown key {table}.{bad[0]}", path=p, expected=", ".join(sorted(keys)),
-                                  got=", ".join(bad))
-        for k, typ in keys.items():
-            if k in t:
-                v = t[k]
-                ok = isinstance(v, typ) and not (typ is not bool and isinstance(v, bool) and bool not in
-                                                  (typ if isinstance(typ, tuple) else (typ,)))
-                if not ok:
-                    name = typ.__name__ if isinstance(typ, type) else " or ".join(x.__name__ for x in typ)
-                    raise FileFormatError(f"{table}.{k} has the wrong type", path=p, expected=name,
-                                          got=f"{type(v).__name__} {v!r}"[:60])
-        for k in _REQUIRED.get(table, ()):
-            if k not in t:
-                raise FileFormatError(f"missing {table}.{k}", path=p)
+        raise FileFormatError(f"unknown table [{unknown[0]}]", path=p,
+                              expected=", ".join(sorted(set(_TABLES) | {"simulate"})), got=", ".join(unknown))
+    for table, cls in _TABLES.items():
+        if table in data or table in ("garment", "output"):
+            read_table(data.get(table, {}), cls, where=table, path=p)
     if "motion" not in data:
         raise FileFormatError("missing [motion]", path=p, expected="motion.file or motion.kind")
     base = p.resolve().parent
@@ -228,12 +248,6 @@ def load_scene(path: str | os.PathLike) -> Scene:
         raise FileFormatError("motion.seconds/speed/amplitude/seed apply to procedural motions (kind) only", path=p)
     if "kind" in m and any(k in m for k in ("up", "units", "joint_map", "skeleton", "animation")):
         raise FileFormatError("motion.up/units/joint_map/skeleton/animation apply to motion files only", path=p)
-    if m.get("up", "auto") not in ("auto", "y", "z"):
-        raise FileFormatError("motion.up must be auto, y or z", path=p, got=m["up"])
-    for k, lo, hi in (("seconds", 1e-3, 3600), ("speed", 0.05, 5), ("amplitude", 0, 2), ("fps", 1, 1000),
-                      ("seed", *SEED_RANGE)):
-        if k in m and not lo <= m[k] <= hi:  # (NaN fails too)
-            raise FileFormatError(f"motion.{k} out of range", path=p, expected=f"{lo}..{hi}", got=m[k])
     motion = MotionSpec(
         file=rel(m["file"]) if "file" in m else None, kind=m.get("kind"), seconds=float(m.get("seconds", 3.0)),
         speed=float(m.get("speed", 1.0)), amplitude=float(m.get("amplitude", 1.0)), seed=int(m.get("seed", 0)),

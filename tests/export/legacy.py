@@ -10,7 +10,7 @@ from pathlib import Path
 import onnx
 from onnx import TensorProto, helper
 
-from segadeform.export.packing import sha256_file
+from segadeform.io.hashing import file_sha256
 
 
 def legacy_inputs(model) -> None:
@@ -47,7 +47,7 @@ def as_schema(src: Path, dst: Path, version: int) -> Path:
         legacy_inputs(model)
         onnx.save(model, str(dst / f))
         inputs = [dict(i, dtype="bool" if i["name"] == "mask" else dtype[i["dtype"]]) for i in g["inputs"]]
-        graphs[name] = dict(g, file=f, inputs=inputs, sha256=sha256_file(dst / f))
+        graphs[name] = dict(g, file=f, inputs=inputs, sha256=file_sha256(dst / f))
     old = {k: v for k, v in m.items() if k not in ("graphs", "weights", "ops")}
     if version == 1:
         for g in graphs.values():

@@ -180,9 +180,9 @@ def _as_schema_1(src, dst):
 
 
 def contract_sha(path):
-    from segadeform.export.packing import sha256_file
+    from segadeform.io.hashing import file_sha256
 
-    return sha256_file(path)
+    return file_sha256(path)
 
 
 def _outputs(pkg_path, seed=0):

@@ -279,7 +279,7 @@ def read_joint_map(path) -> dict[str, str]:
         except json.JSONDecodeError as e:
             raise FileFormatError(f"not valid JSON ({e.msg})", path=p, line=e.lineno) from None
     else:
-        from .._toml import read_toml
+        from ..io.toml import read_toml
 
         data, _ = read_toml(p, "joint map")
         data = data.get("joints", data)

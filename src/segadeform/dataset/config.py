@@ -78,7 +78,7 @@ from typing import Optional
 
 import numpy as np
 
-from .._toml import read_toml
+from ..io.toml import key, read_table, read_toml
 from ..errors import FileFormatError, InputError
 from ..garments import GARMENT_KINDS, GarmentParams
 from ..motion.procedural import MOTION_KINDS
@@ -209,6 +209,22 @@ def _count(d: dict, p, what: str) -> Optional[int]:
     return c
 
 
+@dataclasses.dataclass(frozen=True)
+class _DatasetTable:
+    """``[dataset]`` (what each key takes: :func:`segadeform.io.toml.read_table`)."""
+
+    fps: float = key(30.0, range=(1, 240))
+    seconds: float = key(3.0, range=(0.1, 60))
+    cross_splits: bool = False
+    held_out_kinds: tuple = ()
+    held_out_motions: tuple = ()
+    order: str = key("body-major", choices=SAMPLE_ORDERS)
+    val_kinds: tuple = ()
+    val_motions: tuple = ()
+    roots: tuple = key((), types=(str, list))
+    spread: int = key(0, range=(0, 1000))
+
+
 def load_dataset_config(path) -> DatasetConfig:
     p = Path(path)
     data, text = read_toml(p, "dataset config")
@@ -216,15 +232,8 @@ def load_dataset_config(path) -> DatasetConfig:
     bad = sorted(set(data) - known)
     if bad:
         raise FileFormatError(f"unknown table [{bad[0]}]", path=p, expected=", ".join(sorted(known)))
-    ds = data.get("dataset", {})
-    bad = sorted(set(ds) - {"fps", "seconds", "cross_splits", "held_out_kinds", "held_out_motions", "order",
-                            "val_kinds", "val_motions", "roots", "spread"})
-    if bad:
-        raise FileFormatError(f"unknown key dataset.{bad[0]}", path=p)
+    ds = read_table(data.get("dataset", {}), _DatasetTable, where="dataset", path=p)
     order = ds.get("order", "body-major")
-    if order not in SAMPLE_ORDERS:
-        raise FileFormatError("dataset.order is not a sample order", path=p, expected=" | ".join(SAMPLE_ORDERS),
-                              got=order)
     held_kinds = tuple(ds.get("held_out_kinds", ()))
     held_motions = tuple(ds.get("held_out_motions", ()))
     val_kinds = tuple(ds.get("val_kinds", ()))
@@ -247,12 +256,7 @@ def load_dataset_config(path) -> DatasetConfig:
         raise FileFormatError("dataset.roots must list paths (packs, folders of packs)", path=p, got=roots)
     roots = tuple((p.parent / r).resolve() for r in roots)
     spread = ds.get("spread", 0)
-    if not isinstance(spread, int) or isinstance(spread, bool) or not 0 <= spread <= 1000:
-        raise FileFormatError("dataset.spread must be an integer 1..1000 (0: the default)", path=p, got=spread)
-    try:
-        q = QualitySpec(**data.get("quality", {}))
-    except TypeError as e:
-        raise FileFormatError(f"[quality]: {e}", path=p) from None
+    q = QualitySpec(**read_table(data.get("quality", {}), QualitySpec, where="quality", path=p))
     garments, names = [], set()
     for i, g in enumerate(data.get("garments", [])):
         g = dict(g)
@@ -388,8 +392,6 @@ def load_dataset_config(path) -> DatasetConfig:
         raise FileFormatError("a dataset needs at least one [[garments]] and one [[motions]]", path=p)
     sim = parse_simulate_table(data.get("simulate"), where=p)
     fps, seconds = float(ds.get("fps", 30.0)), float(ds.get("seconds", 3.0))
-    if not (1 <= fps <= 240 and 0.1 <= seconds <= 60):
-        raise FileFormatError("dataset.fps / dataset.seconds out of range", path=p, got=(fps, seconds))
     return DatasetConfig(garments=tuple(garments), bodies=tuple(bodies), motions=tuple(motions), simulate=sim,
                          body_splits=tuple(body_splits), held_out_kinds=held_kinds, held_out_motions=held_motions,
                          val_kinds=val_kinds, val_motions=val_motions, roots=roots, spread=spread,

@@ -48,7 +48,6 @@ arrays; the Node and C++ runtimes' bundle readers read it), with ``vertices``, `
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import os
 from pathlib import Path
@@ -65,7 +64,7 @@ from .graph import DEFAULT_MAX_K, neighbour_graph
 from .mesh_ops import vertex_normals
 
 __all__ = ["ASSET_SCHEMA_VERSION", "READABLE_ASSET_SCHEMAS", "ASSET_KIND", "PORTABLE_SUFFIX", "GarmentAsset",
-           "precompute_garment", "file_sha256"]
+           "precompute_garment"]
 
 #: 2: optional ``betas``, ``log_wbody`` and ``body`` (an asset prepared for a body shape)
 ASSET_SCHEMA_VERSION = 2
@@ -86,14 +85,6 @@ _ARRAYS = {
     "features": (np.float32, 2), "nbr": (np.int64, 2), "mask": (np.bool_, 2),
     "joints": (np.float64, 2), "descriptor": (np.float64, 1), "fps_samples": (np.int64, 1),
 }
-
-
-def file_sha256(path: str | os.PathLike) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -62,6 +62,7 @@ import dataclasses
 from typing import Optional
 
 from ..errors import FileFormatError, InputError
+from ..io.toml import read_table
 
 __all__ = ["EFFECTS", "DEFAULT_EFFECTS", "MATERIALS", "PIN_GROUPS", "Material", "SimSettings",
            "parse_simulate_table", "parse_sim_effects", "blender_settings"]
@@ -185,26 +186,11 @@ class SimSettings:
 _LATER_DEFAULTS = {"collision_inner": 0.02, "collision_normals": False}
 
 
-_KEYS = {"effects": list, "material": str, "quality": int, "collision_quality": int,
-         "collision_distance": (int, float), "self_collision_distance": (int, float), "pin": str,
-         "pin_stiffness": (int, float), "wind": list, "wind_strength": (int, float),
-         "drape_seconds": (int, float), "blend_seconds": (int, float), "rest_pose": str,
-         "impulse_clamp": (int, float), "collision_inner": (int, float), "collision_normals": bool}
-
-
 def parse_simulate_table(table: Optional[dict], *, where=None) -> SimSettings:
     """``[simulate]`` (a dict from TOML, or None when the scene has none) -> :class:`SimSettings`."""
     if table is None:
         return SimSettings()
-    if not isinstance(table, dict):
-        raise FileFormatError("[simulate] must be a table", path=where, got=type(table).__name__)
-    bad = sorted(set(table) - set(_KEYS))
-    if bad:
-        raise FileFormatError(f"unknown key simulate.{bad[0]}", path=where, expected=", ".join(sorted(_KEYS)),
-                              got=", ".join(bad))
-    for k, typ in _KEYS.items():
-        if k in table and (not isinstance(table[k], typ) or (isinstance(table[k], bool) and typ is not bool)):
-            raise FileFormatError(f"simulate.{k} has the wrong type", path=where, got=repr(table[k])[:60])
+    read_table(table, SimSettings, where="simulate", path=where)  # keys and types: the fields of SimSettings
     if "effects" not in table:
         raise FileFormatError("[simulate] must name its effects", path=where,
                               expected=f"effects = [...] from {', '.join(EFFECTS)} (an empty list is allowed)")

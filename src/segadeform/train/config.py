@@ -56,7 +56,7 @@ import json
 from pathlib import Path
 from typing import Optional
 
-from .._toml import read_toml
+from ..io.toml import read_table, read_toml
 from ..errors import FileFormatError, InputError
 from ..model.config import ModelConfig
 
@@ -167,11 +167,7 @@ class TrainConfig:
 
 
 def _table(data, name, cls, where):
-    t = data.get(name, {})
-    known = {f.name for f in dataclasses.fields(cls)}
-    bad = sorted(set(t) - known)
-    if bad:
-        raise FileFormatError(f"unknown key {name}.{bad[0]}", path=where, expected=", ".join(sorted(known)))
+    t = read_table(data.get(name, {}), cls, where=name, path=where)  # keys and types: the fields of cls
     try:
         return cls(**t)
     except (TypeError, InputError) as e:

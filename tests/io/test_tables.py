@@ -1,0 +1,83 @@
+"""The one TOML table reader (:func:`segadeform.io.toml.read_table`) and the one file hash."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+from pathlib import Path
+from typing import Optional
+
+import pytest
+
+from segadeform.errors import FileFormatError
+from segadeform.io.hashing import file_sha256
+from segadeform.io.toml import key, read_table, toml_types
+
+
+@dataclasses.dataclass(frozen=True)
+class Table:
+    name: str
+    count: int = 1
+    scale: float = key(1.0, range=(0.0, 10.0))
+    flag: bool = False
+    where: Optional[Path] = None
+    items: tuple = ()
+    mode: str = key("a", choices=("a", "b"))
+    units: Optional[str] = key(None, types=(str, int, float))
+
+
+def _err(table, **kw) -> str:
+    with pytest.raises(FileFormatError) as e:
+        read_table(table, Table, where="t", path=Path("cfg.toml"), **kw)
+    return str(e.value)
+
+
+def test_a_good_table_is_returned_as_read():
+    t = {"name": "x", "count": 3, "scale": 2, "flag": True, "where": "a/b", "items": [1, 2], "mode": "b", "units": 0.01}
+    assert read_table(t, Table, where="t") == t
+
+
+@pytest.mark.parametrize("table, words", [
+    ({"name": "x", "extra": 1}, ["unknown key t.extra", "expected count, flag, items, mode, name, scale, units, where",
+                                 "got extra"]),
+    ({"count": 1}, ["missing t.name"]),
+    ({"name": 3}, ["t.name has the wrong type", "expected str", "got int 3"]),
+    ({"name": "x", "count": True}, ["t.count has the wrong type", "expected int", "got bool True"]),
+    ({"name": "x", "count": 1.5}, ["t.count has the wrong type", "expected int", "got float 1.5"]),
+    ({"name": "x", "scale": False}, ["t.scale has the wrong type", "expected int or float", "got bool False"]),
+    ({"name": "x", "scale": 11}, ["t.scale out of range", "expected 0.0..10.0", "got 11"]),
+    ({"name": "x", "scale": float("nan")}, ["t.scale out of range"]),
+    ({"name": "x", "flag": 1}, ["t.flag has the wrong type", "expected bool", "got int 1"]),
+    ({"name": "x", "items": "ab"}, ["t.items has the wrong type", "expected list"]),
+    ({"name": "x", "where": 2}, ["t.where has the wrong type", "expected str"]),
+    ({"name": "x", "mode": "c"}, ["t.mode must be one of a, b", "expected a | b", "got c"]),
+    ({"name": "x", "units": True}, ["t.units has the wrong type", "expected str or int or float"]),
+])
+def test_each_rule_names_the_file_the_key_and_what_was_expected(table, words):
+    msg = _err(table)
+    assert msg.startswith("cfg.toml: ")
+    for w in words:
+        assert w in msg, (w, msg)
+
+
+def test_not_a_table_and_skipped_fields():
+    assert "[t] must be a table" in _err([1, 2])
+    assert "unknown key t.count" in _err({"name": "x", "count": 2}, skip=("count",))
+
+
+def test_types_of_annotations():
+    assert toml_types(float) == (int, float) and toml_types(Optional[Path]) == (str,)
+    assert toml_types(int | str) == (int, str)
+    with pytest.raises(TypeError):
+        toml_types(complex)
+
+
+def test_file_sha256_streams_the_bytes(tmp_path):
+    p = tmp_path / "f.bin"
+    data = bytes(range(256)) * 9000  # > 2 chunks of 1 MiB
+    p.write_bytes(data)
+    assert file_sha256(p) == hashlib.sha256(data).hexdigest()
+    (tmp_path / "e").write_bytes(b"")
+    assert file_sha256(tmp_path / "e") == hashlib.sha256(b"").hexdigest()
+    with pytest.raises(OSError):
+        file_sha256(tmp_path / "missing")
