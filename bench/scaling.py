@@ -10,7 +10,7 @@ run): precompute (graph, features, descriptor; once per garment), then ``segadef
 every effect, again without collisions, and again with the cloth stage (default settings, in place of the
 push-out), each run twice and the second (warm) one timed; ``cloth ms`` is the stage's own steady time per frame
 (from runs of ``--frames`` and twice as many frames: its fixed per-run cost, the body collider's build and the
-cached setup, cancels).  ``x per vertex`` is the per-frame cost divided by N, against
+cached setup, cancels), and ``cloth cpu`` the stage alone on such a run's frames by this thread's CPU time.  ``x per vertex`` is the per-frame cost divided by N, against
 the smallest size's (1.00 = linear growth).  For sizes up to ``--blender-max`` the same garment and
 motion are simulated by Blender (the dataset's settings, ``segadeform simulate``'s path) and its
 seconds per simulated frame (measured inside Blender, start-up excluded) are given, with the learned pipeline's speed-up over it.
@@ -73,6 +73,20 @@ def one(n: int, frames: int, batch: int, package: str, blender: bool) -> dict:
                 frames=(0, k))
         spent[k] = r.execute().stage_seconds["cloth"]
     row["cloth_steady"] = 1e3 * (spent[2 * frames] - spent[frames]) / frames
+    # and alone on that run's deformer frames and posed body, by this thread's CPU time (less inflated than the wall
+    # clock when other work shares the machine): the collider built and the setup made before the clock starts
+    from segadeform.body.cloth import ClothStage, garment_setup
+    from segadeform.io import read_pc2
+
+    Run(garment=garment, motion=longer, package=ModelPackage(package, threads=1), body=body,
+        effects=Effects(collisions=False), output=tmp / "raw.pc2", body_output=tmp / "raw_body.pc2", batch=batch,
+        cache=True, force=True, frames=(0, 2 * frames)).execute()
+    y, posed = np.asarray(read_pc2(tmp / "raw.pc2").frames), np.asarray(read_pc2(tmp / "raw_body.pc2").frames)
+    stage = ClothStage(garment_setup(v, f, body.shaped_vertices()[0], body.faces), body.v_template, body.faces)
+    c0 = time.thread_time()
+    for lo in range(0, len(y), batch):
+        stage.step(y[lo:lo + batch], posed[lo:lo + batch])
+    row["cloth_cpu"] = 1e3 * (time.thread_time() - c0) / len(y)
     row["peak_mib"] = peak_rss_bytes() / 2**20
     if blender:
         from segadeform.physics import SimSettings, simulate
@@ -119,8 +133,8 @@ def main(argv=None) -> int:
         print(f"  N={rows[-1]['n']} done", file=sys.stderr)
     base = rows[0]
     print(f"{'N':>7s} {'precomp s':>9s} {'all ms':>8s} {'x/vert':>6s} {'deform':>7s} {'pose':>6s} {'collide':>7s} "
-          f"{'no-col ms':>9s} {'x/vert':>6s} {'cloth ms':>8s} {'x/vert':>6s} {'peak MiB':>8s} {'Blender s/f':>11s} "
-          f"{'x faster':>8s}")
+          f"{'no-col ms':>9s} {'x/vert':>6s} {'cloth ms':>8s} {'x/vert':>6s} {'cloth cpu':>9s} {'x/vert':>6s} "
+          f"{'peak MiB':>8s} {'Blender s/f':>11s} {'x faster':>8s}")
     for r in rows:
         st = r["all_stages"]
         scale = base["n"] / r["n"]
@@ -128,7 +142,8 @@ def main(argv=None) -> int:
         print(f"{r['n']:7d} {r['precompute_s']:9.2f} {r['all']:8.2f} {r['all'] / base['all'] * scale:6.2f} "
               f"{st.get('deform', 0):7.2f} {st.get('pose body', 0):6.2f} {st.get('collisions', 0):7.2f} "
               f"{r['nocol']:9.2f} {r['nocol'] / base['nocol'] * scale:6.2f} {_cloth_ms(r):8.2f} "
-              f"{_cloth_ms(r) / _cloth_ms(base) * scale:6.2f} {r['peak_mib']:8.0f} "
+              f"{_cloth_ms(r) / _cloth_ms(base) * scale:6.2f} {r.get('cloth_cpu', 0.0):9.2f} "
+              f"{r.get('cloth_cpu', 0.0) / max(base.get('cloth_cpu', 0.0), 1e-9) * scale:6.2f} {r['peak_mib']:8.0f} "
               f"{_opt(bl, '11.3f')} {_opt(bl and bl * 1e3 / r['all'], '8.0f')}")
     return 0
 
