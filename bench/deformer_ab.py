@@ -24,7 +24,7 @@ from segadeform.geometry.asset import precompute_garment
 from segadeform.geometry.primitives import frustum
 from segadeform.runtime import ModelPackage
 from segadeform.runtime.deformer import Deformer
-from segadeform.scene import Effects
+from segadeform.settings import Effects
 
 
 def main(argv=None) -> list[tuple[str, float]]:

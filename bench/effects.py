@@ -75,7 +75,7 @@ def main() -> None:
     from segadeform.motion import make_motion
     from segadeform.runtime import ModelPackage
     from segadeform.runtime.pipeline import Run
-    from segadeform.scene import Effects
+    from segadeform.settings import Effects
 
     tmp = Path(tempfile.mkdtemp())
     pkg = args.package
@@ -103,7 +103,7 @@ def main() -> None:
         return r.execute()
 
     run(Effects())  # warm the precompute, encoder and body-weights caches
-    from segadeform.cloth_settings import ClothSettings
+    from segadeform.settings.cloth import ClothSettings
 
     knobs = ClothSettings.parse(args.cloth)
     stages = ("deform", "pose body", "collisions", "cloth")
@@ -219,7 +219,7 @@ def child_long(n: int, pkg: Path, vertices: int, batch: int) -> None:
     from segadeform.motion import make_motion
     from segadeform.runtime import ModelPackage
     from segadeform.runtime.pipeline import Run
-    from segadeform.scene import Effects
+    from segadeform.settings import Effects
 
     tmp = Path(tempfile.mkdtemp())
     na = int(round(np.sqrt(2.0 * vertices)))

@@ -366,7 +366,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     from segadeform.bundle import read_bundle
     from segadeform.runtime.vectors import scene_vectors
-    from segadeform.scene import load_scene, parse_frames
+    from segadeform.settings import load_scene, parse_frames
 
     t0 = time.time()
     sc = load_scene(a.scene)

@@ -43,7 +43,7 @@ def one(n: int, frames: int, batch: int, package: str, blender: bool) -> dict:
     from segadeform.motion import make_motion
     from segadeform.runtime import ModelPackage
     from segadeform.runtime.pipeline import Run
-    from segadeform.scene import Effects
+    from segadeform.settings import Effects
 
     tmp = Path(tempfile.mkdtemp())
     body = load_body(ROOT / "samples" / "bodies" / "default_body.npz")

@@ -25,7 +25,7 @@ process, one after another (errors against the Blender simulation stored in the 
 * cloth: the runtime's cloth stage (:mod:`segadeform.body.cloth`, as ``segadeform run --effects=+cloth``) on
   "all effects" at 1, 2, 4, 8 and 16 sweeps per frame (the other knobs at their defaults) and at two other
   stiffnesses, contact at 4 mm (``--cloth-iterations``, ``--cloth-stiffness``);
-* presets: ``segadeform run --quality`` (:mod:`segadeform.presets`), each the row with its effects and margin
+* presets: ``segadeform run --quality`` (:mod:`segadeform.settings.presets`), each the row with its effects and margin
   (and cloth settings).
 
 Every row: ms/frame at one onnxruntime thread and at ``--threads-all`` threads (best of ``--repeats``),
@@ -130,7 +130,7 @@ def _model_setting(spec: str) -> str:
 
 def match_presets(rows: dict, pkg: str) -> dict:
     """``{preset: row name}``: the row of package ``pkg`` with each preset's effects and margin."""
-    from segadeform.presets import QUALITY_PRESETS
+    from segadeform.settings.presets import QUALITY_PRESETS
 
     out = {}
     for name, p in QUALITY_PRESETS.items():
@@ -147,7 +147,7 @@ def plan_rows(pkg: str, int8: Optional[str], models: dict, *, fp16: Optional[str
               n_stars=(8, 16, 64), batches=(1, 32), resolutions=("1/4", "1/2", "4x"),
               cloth_iterations=(1, 2, 4, 8, 16), cloth_stiffness=(0.5, 0.2)) -> tuple[list[Row], dict]:
     """Every row, bases before what is derived from them, and ``{preset: row name}``."""
-    from segadeform.presets import QUALITY_PRESETS
+    from segadeform.settings.presets import QUALITY_PRESETS
 
     rows = [Row("lbs", "baseline", "body skinning only", "lbs", effects="")]
     for n, (eff, what) in EFFECTS_ROWS.items():
@@ -173,7 +173,7 @@ def plan_rows(pkg: str, int8: Optional[str], models: dict, *, fp16: Optional[str
         for m in ms:
             rows.append(dataclasses.replace(r, name=f"{r.name} + push-out {_mm(m)}", knob="collisions",
                                             setting=f"{r.name}, push-out at {_mm(m)}", margin=m, base=r.name))
-    from segadeform.cloth_settings import ClothSettings
+    from segadeform.settings.cloth import ClothSettings
 
     cloths = [f"iterations={k}" if k != ClothSettings().iterations else "default" for k in cloth_iterations] + \
         [f"stiffness={k:g}" for k in cloth_stiffness]
@@ -203,7 +203,7 @@ class _Runner:
     def __init__(self, path: str, effects: str, threads_all: int):
         from segadeform.runtime import ModelPackage
         from segadeform.runtime.deformer import Deformer
-        from segadeform.scene import parse_effects
+        from segadeform.settings import parse_effects
 
         eff = dataclasses.replace(parse_effects(effects), collisions=False)
         self.deformers = {t: Deformer(ModelPackage(path, threads=t), eff) for t in sorted({1, threads_all})}
@@ -296,7 +296,7 @@ def measure(dataset: Path, body, rows: list[Row], *, split: str, threads_all: in
     from segadeform.body.collision import BodyCollider
     from segadeform.dataset.store import list_samples, load_sample
     from segadeform.geometry.laplacian import SpectralBasis
-    from segadeform.cloth_settings import ClothSettings
+    from segadeform.settings.cloth import ClothSettings
     from segadeform.train.evaluate import (METRICS, cloth_frames, make_predictor, push_out_frames, reference,
                                            sample_metrics)
 
@@ -483,7 +483,7 @@ def write_docs(res: dict, out: Path, *, command: str, seconds: float, threads_al
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from segadeform.presets import QUALITY_PRESETS
+    from segadeform.settings.presets import QUALITY_PRESETS
 
     rows = res["rows"]
     pts1 = {n: (m["ms_per_frame"], m["vertex_cm"]) for n, m in rows.items()}
@@ -536,7 +536,7 @@ def write_docs(res: dict, out: Path, *, command: str, seconds: float, threads_al
           f"Pareto frontier at one thread (fastest first): {', '.join(front)}.", "",
           f"Pareto frontier at {threads_all} threads: {', '.join(front_n)}.", "",
           "## Presets", "",
-          "`segadeform run --quality fast|balanced|best` (`src/segadeform/presets.py`) picks these rows; "
+          "`segadeform run --quality fast|balanced|best` (`src/segadeform/settings/presets.py`) picks these rows; "
           "`--effects=+name/-name` changes a preset, a complete `--effects` list with `--quality` is an error. "
           "Frames per second are 1000 / ms per frame (deformer and push-out; setup and writing excluded).", "",
           "\n".join(ptab), ""]

@@ -22,7 +22,7 @@ def bundle_cmd(scene, output, model, no_expected, frames, force):
     import dataclasses
 
     from segadeform.runtime.bundles import scene_bundle
-    from segadeform.scene import load_scene, parse_frames
+    from segadeform.settings import load_scene, parse_frames
 
     from segadeform.io.output_guard import OutputGuard
 

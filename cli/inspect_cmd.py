@@ -65,7 +65,7 @@ def inspect_cmd(path):
         m = load_motion(path)
         click.echo(f"{path}: BVH motion, {m.n_frames} frames at {m.fps:g} fps")
     elif ext == ".toml":
-        from segadeform.scene import load_scene
+        from segadeform.settings import load_scene
 
         s = load_scene(path)
         click.echo(f"{path}: scene, garment {s.garment.name}, effects {s.effects.label()}, output {s.output}")

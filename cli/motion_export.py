@@ -39,7 +39,7 @@ def motion_export_cmd(source, output, body, betas, fps, frames, up, units, joint
     from segadeform.bundle import MOTION_SUFFIX, write_motion_file
     from segadeform.errors import InputError
     from segadeform.motion import MOTION_KINDS, MotionSpec, build_motion, select_frames
-    from segadeform.scene import parse_frames
+    from segadeform.settings import parse_frames
 
     if output.suffix.lower() != MOTION_SUFFIX:
         raise click.UsageError(f"-o must end in {MOTION_SUFFIX}, got {output.name!r}")

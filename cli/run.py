@@ -28,7 +28,7 @@ def _format_choice():
 
 
 def _quality_choice():
-    from segadeform.presets import QUALITY_PRESETS
+    from segadeform.settings.presets import QUALITY_PRESETS
 
     return click.Choice(list(QUALITY_PRESETS))
 
@@ -43,12 +43,12 @@ def _quality_choice():
 @click.option("--betas", help="Comma-separated body shape coefficients.")
 @click.option("--effects", help="e.g. 'dqs,-wrinkles,-collisions' (default: lbs, all effects on).")
 @click.option("--quality", type=_quality_choice(),
-              help="A preset from the measured accuracy/time frontier (segadeform.presets, "
+              help="A preset from the measured accuracy/time frontier (segadeform.settings.presets, "
                    "docs/accuracy-vs-time.md); replaces the scene's effects; --effects may then only change "
                    "it (+name/-name).")
 @click.option("--cloth", "cloth", metavar="NAME=VALUE,..",
               help="The cloth stage's knobs (iterations, stiffness, stretch, compress, bending, damping, follow, "
-                   "gravity, attachment, max_distance, reset: segadeform.cloth_settings) over the scene's; the "
+                   "gravity, attachment, max_distance, reset: segadeform.settings.cloth) over the scene's; the "
                    "stage is on when the scene or --effects names it (--effects=+cloth).")
 @click.option("--format", "fmt", type=_format_choice(),
               help="Output format (see segadeform.io.formats; abc needs the 'alembic' extra).")
@@ -86,11 +86,11 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
     import dataclasses
 
     from segadeform.runtime.pipeline import run_scene
-    from segadeform.scene import Effects, MotionSpec, Scene, load_scene, parse_effects, parse_frames
+    from segadeform.settings import Effects, MotionSpec, Scene, load_scene, parse_effects, parse_frames
 
     preset = None
     if quality:
-        from segadeform.presets import is_change_list, preset_effects
+        from segadeform.settings.presets import is_change_list, preset_effects
 
         if effects and not is_change_list(effects):
             raise click.UsageError(f"--quality {quality} sets the effects; --effects may only change them with "
@@ -140,7 +140,7 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
                    model=None, body_output=body_out,
                    effects=preset if preset is not None else parse_effects(effects) if effects else Effects())
     if cloth:
-        from segadeform.cloth_settings import ClothSettings
+        from segadeform.settings.cloth import ClothSettings
 
         if not sc.effects.cloth:
             raise click.UsageError("--cloth sets the cloth stage's knobs, but the stage is off (turn it on with "

@@ -66,8 +66,7 @@ MODULE_LAYERS = {
     "segadeform.cli": "cli",
     # modules still to be moved into the package of their layer
     "segadeform._resources": "io", "segadeform.cache": "io", "segadeform.bundle": "io",
-    "segadeform.scene": "settings", "segadeform.effect_list": "settings", "segadeform.cloth_settings": "settings",
-    "segadeform.presets": "settings", "segadeform.physics.settings": "settings", "segadeform.executors": "distributed",
+    "segadeform.executors": "distributed",
     "segadeform.package_spec": "contracts", "segadeform.render": "preview",
 }
 
@@ -79,7 +78,6 @@ KNOWN_BACK_EDGES = [
     "segadeform.geometry.asset (geometry) imports segadeform.body.transfer (body)",
     "segadeform.runtime.bundles (runtime) imports segadeform.garments.fit (garments)",
     "segadeform.runtime.pipeline (runtime) imports segadeform.garments.fit (garments)",
-    "segadeform.scene (settings) imports segadeform.motion.spec (motion)",
     "segadeform.train.evaluate (train) imports segadeform.runtime (runtime)",
     "segadeform.train.evaluate (train) imports segadeform.runtime.deformer (runtime)",
 ]

@@ -1,7 +1,7 @@
 import pytest
 
 from segadeform.errors import FileFormatError
-from segadeform.scene import Effects, load_scene, parse_effects
+from segadeform.settings import Effects, load_scene, parse_effects
 from tests.conftest import SAMPLES
 
 
@@ -72,7 +72,7 @@ def test_effects_not_named_are_off(tmp_path):
     assert s.effects.off() == ["dynamics", "wrinkles"] and s.effects.label() == "lbs+collisions"
     s = load_scene(write(tmp_path, base + '[effects]\n'))
     assert s.effects == Effects(dynamics=False, wrinkles=False, collisions=False)
-    from segadeform.scene import DEFAULT_EFFECTS
+    from segadeform.settings import DEFAULT_EFFECTS
 
     assert load_scene(write(tmp_path, base)).effects == DEFAULT_EFFECTS == Effects()
 
@@ -93,7 +93,7 @@ def test_cli_effects_complete_list_or_changes():
 def test_scene_only_parses_and_uses_the_io_axes(tmp_path, monkeypatch):
     """Building the motion is the motion layer's (segadeform.motion.build_motion); the output axes are the io
     layer's list (an axis added there is accepted by scenes without touching scene.py)."""
-    import segadeform.scene as scene_mod
+    import segadeform.settings.scene as scene_mod
     from segadeform.motion import MotionSpec, build_motion
 
     assert not hasattr(scene_mod, "build_motion") and scene_mod.MotionSpec is MotionSpec

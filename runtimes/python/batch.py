@@ -48,7 +48,7 @@ from segadeform.errors import FileFormatError, InputError, file_error
 from segadeform.executors import Executor, LocalExecutor
 from segadeform.io.atomic import WriteError
 from segadeform.io.location import Location, is_url, open_location
-from segadeform.scene import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects, parse_frames
+from segadeform.settings import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects, parse_frames
 
 __all__ = ["BatchConfig", "BatchJob", "BatchSummary", "load_batch", "batch_jobs", "run_batch", "run_job"]
 

@@ -13,7 +13,7 @@ from segadeform.body import default_body_path, load_body
 from segadeform.bundle import write_bundle
 from segadeform.geometry.features import vertex_features
 from segadeform.motion import build_motion, motion_windows, select_frames
-from segadeform.scene import Scene
+from segadeform.settings import Scene
 
 from .package import ModelPackage
 from .pipeline import Run, default_model_path

@@ -13,7 +13,7 @@ import numpy as np
 from segadeform.errors import InputError
 from segadeform.geometry import GarmentAsset
 from segadeform.geometry.features import vertex_features
-from segadeform.scene import Effects
+from segadeform.settings import Effects
 
 from .package import ModelPackage
 

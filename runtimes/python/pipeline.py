@@ -45,7 +45,7 @@ from segadeform.io.hashing import file_sha256
 from segadeform.io import SceneOutput, read_mesh
 from segadeform.io.outputs import claim_scene_outputs
 from segadeform.motion import Motion, build_motion, frame_range, motion_windows
-from segadeform.scene import Effects, Scene
+from segadeform.settings import Effects, Scene
 
 from .body import BODY_BACKENDS, BodyPoser
 from .deformer import Deformer

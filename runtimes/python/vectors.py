@@ -19,7 +19,7 @@ from segadeform.geometry.asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
 from segadeform.io import read_mesh, read_pc2
 from segadeform.motion import build_motion, select_frames
-from segadeform.scene import Scene
+from segadeform.settings import Scene
 
 from .package import ModelPackage
 from .pipeline import Run, default_model_path

@@ -237,7 +237,7 @@ def graph_specs(cfg) -> dict:
 
 # ---- effects -> graphs ---------------------------------------------------------------------------------
 def effects_of(effects) -> dict:
-    """``{"skinning", "wrinkles", "dynamics"}`` of a :class:`segadeform.scene.Effects` or a mapping."""
+    """``{"skinning", "wrinkles", "dynamics"}`` of a :class:`segadeform.settings.scene.Effects` or a mapping."""
     get = (lambda k: effects[k]) if isinstance(effects, Mapping) else (lambda k: getattr(effects, k))
     try:
         out = {"skinning": str(get("skinning")), "wrinkles": bool(get("wrinkles")), "dynamics": bool(get("dynamics"))}

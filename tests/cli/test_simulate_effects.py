@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from segadeform.cli.main import cli
-from segadeform.physics.settings import DEFAULT_EFFECTS, EFFECTS, parse_sim_effects
+from segadeform.settings.simulation import DEFAULT_EFFECTS, EFFECTS, parse_sim_effects
 
 BASE = '[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\nseconds = 0.2\n[output]\npath = "o.pc2"\n'
 

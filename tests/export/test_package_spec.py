@@ -15,7 +15,7 @@ import pytest
 from segadeform import package_spec as contract
 from segadeform.model import ModelConfig
 from segadeform.runtime import ModelPackage, PackageError
-from segadeform.scene import Effects
+from segadeform.settings import Effects
 from tests.conftest import REPO, SAMPLES
 
 SHIPPED = SAMPLES / "models" / "default"

@@ -35,7 +35,7 @@ def _deform(pkg_path, garment_asset, body):
     from segadeform.motion.motion import motion_windows
     from segadeform.runtime import ModelPackage
     from segadeform.runtime.deformer import Deformer
-    from segadeform.scene import Effects
+    from segadeform.settings import Effects
 
     d = Deformer(ModelPackage(pkg_path), Effects(collisions=False))
     joints = body.rest_joints(None)[0]

@@ -68,7 +68,7 @@ def make_target(name: str):
             m = read_bvh(p)
             _check_finite(m.poses, m.trans)
     elif name == "toml":
-        from segadeform.scene import load_scene
+        from segadeform.settings import load_scene
 
         def read(p):
             load_scene(p)

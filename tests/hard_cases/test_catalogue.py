@@ -183,7 +183,7 @@ def test_garment_200k_vertices(models, body):
 def test_sequence_10000_frames(models, body, tmp_path):
     from segadeform.motion import make_motion
     from segadeform.runtime.pipeline import Run
-    from segadeform.scene import Effects
+    from segadeform.settings import Effects
 
     _, pkg = models
     m = make_motion("dance", seconds=10000 / 30.0, seed=2)

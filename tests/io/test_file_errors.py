@@ -21,7 +21,7 @@ def _readers():
     from segadeform.motion import read_bvh
     from segadeform.runtime import ModelPackage
     from segadeform.runtime.batch import batch_jobs, load_batch
-    from segadeform.scene import load_scene
+    from segadeform.settings import load_scene
 
     def batch(p):
         jobs = p.parent / "jobs.toml"

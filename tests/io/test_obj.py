@@ -127,7 +127,7 @@ def test_missing_file_is_a_clear_error(tmp_path):
     from segadeform.garments.fit import read_mhclo
     from segadeform.io import read_mesh, read_off, read_pc2
     from segadeform.motion import load_motion
-    from segadeform.scene import load_scene
+    from segadeform.settings import load_scene
 
     for reader, name in ((read_obj, "nope.obj"), (read_off, "nope.off"), (read_pc2, "nope.pc2"),
                          (read_mesh, "nope.ply"), (load_motion, "nope.bvh"), (load_motion, "nope.npz"),

@@ -207,7 +207,7 @@ def test_scene_and_dataset_config_take_amc(trial, tmp_path):
     from segadeform.dataset.config import load_dataset_config
     from segadeform.dataset.make import _motion
     from segadeform.motion import build_motion
-    from segadeform.scene import load_scene
+    from segadeform.settings import load_scene
 
     skel = tmp_path / "skeletons" / "s.asf"
     skel.parent.mkdir()

@@ -16,7 +16,7 @@ from click.testing import CliRunner
 
 from segadeform.cli.main import cli
 from segadeform.io import read_pc2
-from segadeform.scene import Y_TO_Z
+from segadeform.settings import Y_TO_Z
 
 from ..conftest import REPO, SAMPLES
 

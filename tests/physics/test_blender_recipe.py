@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from segadeform.io import Mesh, write_obj, write_pc2
-from segadeform.scene import Y_TO_Z
+from segadeform.settings import Y_TO_Z
 
 TOOL = Path(__file__).resolve().parents[2] / "tools" / "blender" / "segadeform_import.py"
 

@@ -6,7 +6,7 @@ import pytest
 
 from segadeform.errors import FileFormatError, InputError
 from segadeform.physics import DEFAULT_EFFECTS, EFFECTS, MATERIALS, SimSettings, blender_settings, parse_simulate_table
-from segadeform.scene import load_scene
+from segadeform.settings import load_scene
 
 
 def _scene(tmp_path, simulate: str) -> object:

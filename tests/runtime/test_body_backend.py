@@ -17,7 +17,7 @@ from segadeform.motion import make_motion
 from segadeform.runtime import ModelPackage
 from segadeform.runtime.body import BodyPoser, graph_body_status
 from segadeform.runtime.pipeline import Run
-from segadeform.scene import Effects
+from segadeform.settings import Effects
 from tests.conftest import SAMPLES
 
 SHIPPED = SAMPLES / "models" / "default"

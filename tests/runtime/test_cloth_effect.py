@@ -15,8 +15,8 @@ from segadeform.io import read_pc2
 from segadeform.motion import make_motion
 from segadeform.runtime import ModelPackage
 from segadeform.runtime.pipeline import Run
-from segadeform.scene import DEFAULT_EFFECTS, Effects, load_scene, parse_effects
-from segadeform.cloth_settings import ClothSettings
+from segadeform.settings import DEFAULT_EFFECTS, Effects, load_scene, parse_effects
+from segadeform.settings.cloth import ClothSettings
 from tests.conftest import SAMPLES
 
 BODY = SAMPLES / "bodies" / "default_body.npz"
@@ -40,7 +40,7 @@ def test_off_unless_named():
     assert Effects(cloth=True).label() == "lbs+dynamics+wrinkles+collisions+cloth"
     on = Effects(cloth=True, cloth_settings=ClothSettings(iterations=8))
     assert on.label().endswith("+cloth(iterations=8)") and "cloth" not in Effects().off()
-    from segadeform.presets import preset_effects
+    from segadeform.settings.presets import preset_effects
 
     assert not any(preset_effects(p).cloth for p in ("fast", "balanced"))
     assert preset_effects("fast", "+cloth").cloth

@@ -1,4 +1,4 @@
-"""segadeform run --quality: presets are data (segadeform.presets), set the effects and margin, take signed
+"""segadeform run --quality: presets are data (segadeform.settings.presets), set the effects and margin, take signed
 --effects changes on top and refuse a complete --effects list."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ from click.testing import CliRunner
 
 from segadeform.cli.main import cli
 from segadeform.errors import InputError
-from segadeform.presets import QUALITY_PRESETS, is_change_list, preset_effects
-from segadeform.scene import Effects
+from segadeform.settings.presets import QUALITY_PRESETS, is_change_list, preset_effects
+from segadeform.settings import Effects
 from tests.conftest import SAMPLES
 
 

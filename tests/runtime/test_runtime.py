@@ -14,7 +14,7 @@ from segadeform.io import read_obj, read_pc2
 from segadeform.motion import Motion, make_motion
 from segadeform.runtime import Deformer, ModelPackage, PackageError
 from segadeform.runtime.pipeline import Run
-from segadeform.scene import Effects
+from segadeform.settings import Effects
 from tests.conftest import SAMPLES, leftovers
 
 BODY = SAMPLES / "bodies" / "default_body.npz"

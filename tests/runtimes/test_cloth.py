@@ -89,7 +89,7 @@ def clothed(tmp_path_factory):
     from segadeform.io.obj import write_obj
     from segadeform.runtime.pipeline import run_scene
     from segadeform.runtime.vectors import scene_vectors
-    from segadeform.scene import load_scene
+    from segadeform.settings import load_scene
 
     d = tmp_path_factory.mktemp("clothed")
     pkg = SAMPLES / "models" / "default"

@@ -47,7 +47,7 @@ NODE = REPO / "runtimes" / "node"
 #: the browser's every frame (the page reports only the largest error)
 WEB_FRAMES = REPO / "tests" / "runtimes" / "web_frames.mjs"
 RTOL = 1e-5
-#: the pipeline tests' margin: segadeform.scene.Effects' default (the runtimes' default too)
+#: the pipeline tests' margin: segadeform.settings.scene.Effects' default (the runtimes' default too)
 MARGIN = 0.004
 #: the dress made narrower by this factor about its vertical axis: many vertices inside the body
 TIGHTEN = 0.95
@@ -125,7 +125,7 @@ def collided(tmp_path_factory):
     from segadeform.io.obj import write_obj
     from segadeform.runtime.pipeline import run_scene
     from segadeform.runtime.vectors import scene_vectors
-    from segadeform.scene import Effects, load_scene
+    from segadeform.settings import Effects, load_scene
 
     d = tmp_path_factory.mktemp("collided")
     pkg = SAMPLES / "models" / "default"
@@ -217,7 +217,7 @@ def test_runtime_collisions_match_segadeform_run(runtime, request, collided, tmp
     m = re.search(r"collisions: (\d+) vertex-frames pushed out \(margin ([\d.e-]+) m\), ([\d.]+) ms/frame", p.stdout)
     assert m, p.stdout
     moved, ms = int(m.group(1)), float(m.group(3))
-    assert float(m.group(2)) == MARGIN  # segadeform.scene.Effects' default
+    assert float(m.group(2)) == MARGIN  # segadeform.settings.scene.Effects' default
     got, posed = read_pc2(tmp_path / "g.pc2").frames, read_pc2(tmp_path / "b.pc2").frames
     # the runtime's own body through Python's collider: the kernel's result, rounded to float32 as written
     own, n = _own_inputs(c["before"], posed, got)

@@ -37,7 +37,7 @@ def test_asset_for_a_body_holds_what_segadeform_run_computes(skirt, body, random
     """features, joints and log_wbody of an asset prepared for betas are the Python runtime's own inputs."""
     from segadeform.geometry.features import vertex_features
     from segadeform.runtime import Deformer, ModelPackage
-    from segadeform.scene import Effects
+    from segadeform.settings import Effects
 
     betas = (0.7, -0.4, 0.2)
     a = skirt.for_body(body, betas)

@@ -15,7 +15,7 @@ from segadeform.train.evaluate import METRICS, cloth_names, evaluate, markdown_t
 
 
 def test_cloth_names():
-    from segadeform.cloth_settings import ClothSettings
+    from segadeform.settings.cloth import ClothSettings
     from segadeform.errors import InputError
 
     assert cloth_names(None) == {}

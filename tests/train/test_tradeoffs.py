@@ -29,7 +29,7 @@ def test_frontier_keeps_only_undominated_points():
 
 
 def test_every_preset_is_a_planned_row_with_its_effects_and_margin():
-    from segadeform.presets import QUALITY_PRESETS
+    from segadeform.settings.presets import QUALITY_PRESETS
 
     b = _bench()
     rows, presets = b.plan_rows("PKG", "Q8", {"wide": "W"}, fp16="H")

@@ -38,7 +38,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..cloth_settings import ClothSettings
+from ..settings.cloth import ClothSettings
 from ..errors import InputError
 from ..geometry._checks import check_mesh
 

@@ -25,7 +25,7 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     max_pinched = 0.05        # vertices inside the body where two body parts touch (arm on torso, thigh
                               # on thigh), counted apart from penetration: largest fraction, any frame
 
-    [simulate]                # as in a scene (segadeform.physics.settings)
+    [simulate]                # as in a scene (segadeform.settings.simulation)
     effects = ["gravity", "body_collision", "bending", "air_damping"]
 
     held_out_kinds = []       # garment kinds that only held-out entries may use (never trained on)
@@ -82,7 +82,7 @@ from ..io.toml import key, read_table, read_toml
 from ..errors import FileFormatError, InputError
 from ..garments import GARMENT_KINDS, GarmentParams
 from ..motion.procedural import MOTION_KINDS
-from ..physics.settings import SimSettings, parse_simulate_table
+from ..settings.simulation import SimSettings, parse_simulate_table
 
 
 __all__ = ["GarmentSpec", "MotionEntry", "QualitySpec", "DatasetConfig", "load_dataset_config", "SAMPLE_ORDERS"]

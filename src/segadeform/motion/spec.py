@@ -1,8 +1,8 @@
 """A motion as a scene or jobs file describes it (:class:`MotionSpec`), the :class:`Motion` it builds, and the
 one check of a frame range against a motion (``--frames A:B`` of ``run``, ``simulate`` and ``bundle``).
 
-Parsing the text (``[motion]`` tables, ``"A:B"``) is :mod:`segadeform.scene`'s; this module only turns
-what was parsed into motions and frame ranges.
+Parsing the text (``[motion]`` tables, ``"A:B"``) and :class:`MotionSpec` itself are
+:mod:`segadeform.settings.scene`'s; this module only turns what was parsed into motions and frame ranges.
 """
 
 from __future__ import annotations
@@ -14,31 +14,9 @@ from typing import Optional
 from ..errors import InputError
 from .motion import Motion, feet_on_floor, resample
 from .procedural import make_motion
+from ..settings.scene import MotionSpec
 
 __all__ = ["MotionSpec", "build_motion", "frame_range", "select_frames"]
-
-
-@dataclasses.dataclass(frozen=True)
-class MotionSpec:
-    """A motion file or a procedural kind, with how to play it (see :mod:`segadeform.scene`'s ``[motion]``).
-
-    ``frames``: ``(A, B)`` of the (resampled) motion, B exclusive, or ``(A, None)`` for "to the end"; None: all.
-    """
-
-    file: Optional[Path] = None
-    kind: Optional[str] = None
-    seconds: float = 3.0
-    speed: float = 1.0
-    amplitude: float = 1.0
-    seed: int = 0
-    fps: Optional[float] = None
-    frames: Optional[tuple[int, Optional[int]]] = None
-    up: str = "auto"
-    units: Optional[str] = None
-    joint_map: Optional[Path] = None
-    floor: bool = False
-    skeleton: Optional[Path] = None  # an AMC's ASF (default: the one .asf beside it)
-    animation: Optional[str] = None  # a glTF file's animation (default: the first)
 
 
 def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:

@@ -5,8 +5,9 @@ through a subprocess (see its docstring), :mod:`.settings` turns a scene's
 ``[simulate]`` table into solver settings.
 """
 
-from .blender import A_POSE, SimResult, find_sim_python, pin_weights, preroll_poses, simulate, unpose_lbs
-from .settings import DEFAULT_EFFECTS, EFFECTS, MATERIALS, Material, SimSettings, blender_settings, parse_simulate_table
+from ..settings.simulation import DEFAULT_EFFECTS, EFFECTS, MATERIALS, Material, SimSettings, parse_simulate_table
+from .blender import (A_POSE, SimResult, blender_settings, find_sim_python, pin_weights, preroll_poses, simulate,
+                      unpose_lbs)
 
 __all__ = ["SimResult", "simulate", "find_sim_python", "pin_weights", "preroll_poses", "unpose_lbs", "A_POSE",
            "SimSettings", "Material",

@@ -38,8 +38,8 @@ from ..errors import InputError, SimulationError
 from ..geometry.mesh_ops import adjacency, boundary_loops
 from ..io.pc2 import PC2Writer
 from ..motion.motion import Motion
-from ..scene import Y_TO_Z
-from .settings import SimSettings, blender_settings
+from ..settings.scene import Y_TO_Z
+from ..settings.simulation import EFFECTS, MATERIALS, SimSettings
 
 __all__ = ["SimResult", "simulate", "find_sim_python", "preroll_poses", "pin_weights", "unpose_lbs", "A_POSE",
            "WORKER", "SIM_BRIDGE_VERSION"]
@@ -279,3 +279,35 @@ def _run_worker(exe: Path, job_dir: Path, total: int, progress, timeout) -> None
         tail = log_path.read_text(errors="replace").strip().splitlines()[-8:]
         raise SimulationError(f"Blender's cloth solver failed (exit {rc}) at frame {done}/{total}:\n  "
                               + "\n  ".join(tail))
+
+
+def blender_settings(s: SimSettings) -> dict:
+    """The Blender cloth, collision and body-collider settings that ``s`` turns into.
+
+    Only the named effects are on: gravity and wind through the effector
+    weights, body and self collision through their switches, bending and air
+    damping through their stiffness/drag (0 when off), pinning through a
+    vertex group.  Returns ``{"effects", "cloth", "collision", "body_collision",
+    "wind"}``, the keys being Blender's own attribute names.
+    """
+    m = MATERIALS[s.material]
+    cloth = {
+        "quality": s.quality, "mass": m.mass, "air_damping": m.air_damping if s.has("air_damping") else 0.0,
+        "tension_stiffness": m.tension, "compression_stiffness": m.compression, "shear_stiffness": m.shear,
+        "bending_stiffness": m.bending if s.has("bending") else 0.0,
+        "tension_damping": m.tension_damping, "compression_damping": m.compression_damping,
+        "shear_damping": m.shear_damping, "bending_damping": m.bending_damping if s.has("bending") else 0.0,
+    }
+    if s.has("pinning"):
+        cloth["pin_stiffness"] = s.pin_stiffness
+    collision = {"collision_quality": s.collision_quality, "distance_min": s.collision_distance,
+                 "friction": m.friction, "impulse_clamp": s.impulse_clamp}
+    if s.has("self_collision"):
+        collision.update(self_distance_min=s.self_collision_distance, self_friction=m.self_friction)
+    body = {"thickness_outer": s.collision_distance, "thickness_inner": s.collision_inner, "cloth_friction": m.friction,
+            "damping": 0.0}
+    if s.collision_normals:  # push cloth out along the body's normals (recovers cloth that got inside)
+        body.update(use_culling=True, use_normal=True)
+    effects = {e: s.has(e) for e in EFFECTS}
+    return {"effects": effects, "cloth": cloth, "collision": collision, "body_collision": body,
+            "wind": {"strength": s.wind_strength, "direction": list(s.wind)} if s.has("wind") else None}

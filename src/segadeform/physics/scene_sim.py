@@ -13,9 +13,9 @@ from ..errors import InputError
 from ..io import SceneOutput, read_mesh
 from ..io.outputs import claim_scene_outputs
 from ..motion import build_motion, select_frames
-from ..scene import Scene
+from ..settings import Scene
 from .blender import SimResult, simulate
-from .settings import SimSettings
+from ..settings.simulation import SimSettings
 
 __all__ = ["SimSummary", "simulate_scene"]
 

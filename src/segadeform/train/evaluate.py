@@ -82,7 +82,7 @@ class _Package(Predictor):
     def __init__(self, path, effects: str = ""):
         from ..runtime import ModelPackage
         from ..runtime.deformer import Deformer
-        from ..scene import Effects, parse_effects
+        from ..settings import Effects, parse_effects
 
         self.pkg = ModelPackage(path, threads=1)
         self.cfg = self.pkg.config
@@ -306,7 +306,7 @@ def cloth_names(settings) -> dict:
     """``{suffix: ClothSettings}`` for :func:`evaluate`'s ``cloth``: each item a :class:`ClothSettings` or its
     text form (``iterations=8,stiffness=0.5``; ``default`` or ``""``: the defaults), named ``" + cloth"`` for
     the defaults and ``" + cloth iterations=8,..."`` otherwise."""
-    from ..cloth_settings import ClothSettings
+    from ..settings.cloth import ClothSettings
 
     out = {}
     for item in ([] if settings is None else [settings] if isinstance(settings, (str, ClothSettings)) else settings):

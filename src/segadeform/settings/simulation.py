@@ -1,4 +1,5 @@
-"""Simulation settings: materials, solver quality and the effects a scene asks for (no Blender, no torch).
+"""Simulation settings: materials, solver quality and the effects a scene asks for (no Blender, no torch;
+:func:`segadeform.physics.blender.blender_settings` turns them into Blender's own).
 
 A scene's ``[simulate]`` table names the effects to simulate; every effect it
 does not name is off in the solver::
@@ -63,9 +64,10 @@ from typing import Optional
 
 from ..errors import FileFormatError, InputError
 from ..io.toml import read_table
+from .effects import parse_effect_list
 
 __all__ = ["EFFECTS", "DEFAULT_EFFECTS", "MATERIALS", "PIN_GROUPS", "Material", "SimSettings",
-           "parse_simulate_table", "parse_sim_effects", "blender_settings"]
+           "parse_simulate_table", "parse_sim_effects"]
 
 EFFECTS = ("gravity", "body_collision", "self_collision", "bending", "air_damping", "pinning", "wind")
 #: what a scene without a [simulate] table gets
@@ -209,45 +211,11 @@ def parse_simulate_table(table: Optional[dict], *, where=None) -> SimSettings:
 
 
 def parse_sim_effects(text: str, base=DEFAULT_EFFECTS) -> tuple:
-    """``simulate --effects``: the same rule as ``run --effects`` (:mod:`segadeform.effect_list`).
+    """``simulate --effects``: the same rule as ``run --effects`` (:mod:`segadeform.settings.effects`).
 
     Every item unsigned (``"gravity,body_collision"``) is a complete list: exactly these are on, the rest
     off (``"none"``: no effect); every item signed (``"+wind,-bending"``) changes ``base`` (the scene's
     ``[simulate]`` effects, or :data:`DEFAULT_EFFECTS` for a scene without that table).  Returns the
     effects on, in :data:`EFFECTS` order.
     """
-    from ..effect_list import parse_effect_list
-
     return parse_effect_list(text, EFFECTS, base).on
-
-
-def blender_settings(s: SimSettings) -> dict:
-    """The Blender cloth, collision and body-collider settings that ``s`` turns into.
-
-    Only the named effects are on: gravity and wind through the effector
-    weights, body and self collision through their switches, bending and air
-    damping through their stiffness/drag (0 when off), pinning through a
-    vertex group.  Returns ``{"effects", "cloth", "collision", "body_collision",
-    "wind"}``, the keys being Blender's own attribute names.
-    """
-    m = MATERIALS[s.material]
-    cloth = {
-        "quality": s.quality, "mass": m.mass, "air_damping": m.air_damping if s.has("air_damping") else 0.0,
-        "tension_stiffness": m.tension, "compression_stiffness": m.compression, "shear_stiffness": m.shear,
-        "bending_stiffness": m.bending if s.has("bending") else 0.0,
-        "tension_damping": m.tension_damping, "compression_damping": m.compression_damping,
-        "shear_damping": m.shear_damping, "bending_damping": m.bending_damping if s.has("bending") else 0.0,
-    }
-    if s.has("pinning"):
-        cloth["pin_stiffness"] = s.pin_stiffness
-    collision = {"collision_quality": s.collision_quality, "distance_min": s.collision_distance,
-                 "friction": m.friction, "impulse_clamp": s.impulse_clamp}
-    if s.has("self_collision"):
-        collision.update(self_distance_min=s.self_collision_distance, self_friction=m.self_friction)
-    body = {"thickness_outer": s.collision_distance, "thickness_inner": s.collision_inner, "cloth_friction": m.friction,
-            "damping": 0.0}
-    if s.collision_normals:  # push cloth out along the body's normals (recovers cloth that got inside)
-        body.update(use_culling=True, use_normal=True)
-    effects = {e: s.has(e) for e in EFFECTS}
-    return {"effects": effects, "cloth": cloth, "collision": collision, "body_collision": body,
-            "wind": {"strength": s.wind_strength, "direction": list(s.wind)} if s.has("wind") else None}

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from .errors import InputError
-from .scene import Effects, parse_effects
+from ..errors import InputError
+from .effects import Effects, parse_effects
 
 __all__ = ["Preset", "QUALITY_PRESETS", "preset_effects", "is_change_list"]
 

@@ -41,11 +41,11 @@ are required; relative paths are relative to the scene file)::
     collision_margin = 0.004       # metres kept between garment and body skin
     cloth = false                  # the cloth stage (segadeform.body.cloth): stretch, contact, inertia; off
                                    # unless named; it resolves contact itself (at collision_margin)
-    cloth_iterations = 4           # its knobs (segadeform.cloth_settings.CLOTH_KNOBS): cloth_stiffness,
+    cloth_iterations = 4           # its knobs (segadeform.settings.cloth.CLOTH_KNOBS): cloth_stiffness,
                                    # cloth_stretch, cloth_compress, cloth_bending, cloth_damping, cloth_follow,
                                    # cloth_gravity, cloth_attachment, cloth_max_distance, cloth_reset
 
-    [simulate]                     # for `segadeform simulate` (ground truth); see segadeform.physics.settings
+    [simulate]                     # for `segadeform simulate` (ground truth); see segadeform.settings.simulation
     effects = ["gravity", "body_collision", "bending", "air_damping"]   # all others are off
     material = "cotton"
 
@@ -69,50 +69,42 @@ import os
 from pathlib import Path
 from typing import Optional
 
-from .io.toml import key, read_table, read_toml
-from .bounds import SEED_RANGE, check_betas
-from .cloth_settings import CLOTH_KNOBS, ClothSettings
-from .errors import FileFormatError, InputError
+from ..bounds import SEED_RANGE, check_betas
+from ..errors import FileFormatError, InputError
+from ..io.toml import key, read_table, read_toml
+from ..io.writer import UP_AXES, Y_TO_Z
+from .cloth import CLOTH_KNOBS, ClothSettings
+from .effects import DEFAULT_EFFECTS, EFFECT_NAMES, Effects
+from .simulation import parse_simulate_table
 
 
-__all__ = ["Y_TO_Z", "Effects", "DEFAULT_EFFECTS", "MotionSpec", "Scene", "load_scene", "parse_effects",
-           "parse_frames"]
-
-from .io.writer import UP_AXES, Y_TO_Z  # noqa: E402  (Y_TO_Z re-exported; the io layer owns the axis convention)
-from .motion.spec import MotionSpec  # noqa: E402  (what [motion] parses into; the motion layer builds it)
+__all__ = ["Y_TO_Z", "MotionSpec", "Scene", "load_scene", "parse_frames"]
 
 
 @dataclasses.dataclass(frozen=True)
-class Effects:
-    """Which stages run.  See the module docstring for their meaning."""
+class MotionSpec:
+    """A motion file or a procedural kind, with how to play it (a scene's ``[motion]``; :func:`segadeform.motion.build_motion` builds it).
 
-    skinning: str = "lbs"
-    dynamics: bool = True
-    wrinkles: bool = True
-    collisions: bool = True
-    collision_margin: float = 0.004
-    #: the cloth stage after the deformer (off unless named) and its knobs
-    cloth: bool = False
-    cloth_settings: ClothSettings = ClothSettings()
+    ``frames``: ``(A, B)`` of the (resampled) motion, B exclusive, or ``(A, None)`` for "to the end"; None: all.
+    """
 
-    def __post_init__(self):
-        if self.skinning not in ("lbs", "dqs"):
-            raise ValueError(f"skinning must be 'lbs' or 'dqs', got {self.skinning!r}")
-        if not (self.collision_margin >= 0 and self.collision_margin < 1):
-            raise ValueError(f"collision_margin must be in [0, 1) metres, got {self.collision_margin!r}")
-
-    def label(self) -> str:
-        on = [self.skinning] + [n for n in ("dynamics", "wrinkles", "collisions", "cloth") if getattr(self, n)]
-        return "+".join(on) + (f"({self.cloth_settings.label()})" if self.cloth and self.cloth_settings.label() else "")
-
-    def off(self) -> list[str]:
-        """The effects this set leaves off (the cloth stage, off unless named, is not listed)."""
-        return [n for n in ("dynamics", "wrinkles", "collisions") if not getattr(self, n)]
+    file: Optional[Path] = None
+    kind: Optional[str] = None
+    seconds: float = 3.0
+    speed: float = 1.0
+    amplitude: float = 1.0
+    seed: int = 0
+    fps: Optional[float] = None
+    frames: Optional[tuple[int, Optional[int]]] = None
+    up: str = "auto"
+    units: Optional[str] = None
+    joint_map: Optional[Path] = None
+    floor: bool = False
+    skeleton: Optional[Path] = None  # an AMC's ASF (default: the one .asf beside it)
+    animation: Optional[str] = None  # a glTF file's animation (default: the first)
 
 
-#: the effects of a scene without an ``[effects]`` table (and of the command line's flag form)
-DEFAULT_EFFECTS = Effects()
-_EFFECT_NAMES = ("dynamics", "wrinkles", "collisions", "cloth")
+
 
 
 @dataclasses.dataclass(frozen=True)
@@ -199,24 +191,6 @@ def parse_frames(text: str, *, where=None) -> tuple[int, Optional[int]]:
     return a, b
 
 
-def parse_effects(text: str, base: Effects = DEFAULT_EFFECTS) -> Effects:
-    """Parse a CLI effects list (the rule of :mod:`segadeform.effect_list`, shared with ``simulate --effects``).
-
-    * every item unsigned (``"dqs,collisions"``): exactly these -- what is not named is off, the
-      skinning is the one named (lbs if none); ``none`` alone: every effect off;
-    * every item signed (``"-wrinkles,+collisions"``, ``"dqs,-wrinkles"``: ``lbs``/``dqs`` may join
-      either form): ``base`` with those effects switched on or off.
-
-    ``collision_margin`` and the cloth stage's knobs are kept from ``base`` in both forms.
-    """
-    from .effect_list import parse_effect_list
-
-    lst = parse_effect_list(text, _EFFECT_NAMES, [n for n in _EFFECT_NAMES if getattr(base, n)],
-                            choices=("lbs", "dqs"))
-    skinning = lst.choices[-1] if lst.choices else ("lbs" if lst.complete else base.skinning)
-    return dataclasses.replace(base, skinning=skinning, **{n: n in lst.on for n in _EFFECT_NAMES})
-
-
 def load_scene(path: str | os.PathLike) -> Scene:
     """Read and validate a scene file (see the module docstring)."""
     p = Path(path)
@@ -259,7 +233,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
     )
     out = data["output"]
     out_path = rel(out["path"])
-    from .io.formats import SEQUENCE_FORMATS, format_for_path
+    from ..io.formats import SEQUENCE_FORMATS, format_for_path
 
     fmt = out.get("format") or getattr(format_for_path(out_path), "name", None)
     if fmt not in SEQUENCE_FORMATS:
@@ -276,7 +250,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
     except InputError as e:
         raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
     if "effects" in data:  # what is not named is off
-        eff = dict({n: False for n in _EFFECT_NAMES}, **data["effects"])
+        eff = dict({n: False for n in EFFECT_NAMES}, **data["effects"])
         knobs = {k[len("cloth_"):]: eff.pop(k) for k in list(eff) if k.startswith("cloth_")}
         try:
             effects = Effects(**{k: (float(v) if k == "collision_margin" else v) for k, v in eff.items()},
@@ -285,8 +259,6 @@ def load_scene(path: str | os.PathLike) -> Scene:
             raise FileFormatError(f"[effects]: {e}", path=p) from None
     else:
         effects = DEFAULT_EFFECTS
-    from .physics.settings import parse_simulate_table
-
     sim = parse_simulate_table(data["simulate"], where=p) if "simulate" in data else None
     return Scene(
         simulate=sim,
