@@ -528,3 +528,27 @@ def test_gate_tells_a_pinch_from_tunnelling():
     assert r_plain.max_penetrating > 0.5 and any(s.startswith("penetration") for s in r_plain.reasons)
     assert r_parts.pinched > 0.5 and r_parts.max_penetrating < r_plain.max_penetrating
     assert any(s.startswith("pinched") for s in r_parts.reasons)  # more than max_pinched of this sheet
+
+
+def test_tiny_dataset_packed_trains_and_evaluates_end_to_end(tiny_dataset, tmp_path, capsys):
+    """The CI dataset, simulated by Blender, packed, then trained on and evaluated from the pack alone (the
+    folder it came from gone): the data that lasts is enough to retrain and to report."""
+    pytest.importorskip("torch", reason="training needs the 'torch' extra")
+    pack = tmp_path / "store" / "tiny.sgdpack"
+    pack.parent.mkdir()
+    assert main(["dataset", "pack", str(tiny_dataset), "-o", str(pack)]) == 0
+    store = {p.name: p.read_bytes() for p in pack.parent.iterdir()}
+    cfg = tmp_path / "train.toml"
+    cfg.write_text("[model]\nhidden = 16\nlstm_hidden = 16\nweights = 'residual'\nweight_prior = 'smooth'\n"
+                   "[optim]\nsteps = 4\nframes = 3\ngarments = 2\ncheckpoint_every = 2\nlr = 0.003\n")
+    run = tmp_path / "run"
+    assert main(["train", str(cfg), "--dataset", str(pack.parent), "-o", str(run)]) == 0
+    capsys.readouterr()
+    out = tmp_path / "eval"
+    assert main(["eval", str(pack), "-m", "lbs=lbs", "-m", "lbs-smooth=lbs-smooth", "-m", f"sega={run / 'model.pt'}",
+                 "-o", str(out), "--split", "test"]) == 0
+    text = capsys.readouterr().out
+    assert "| lbs |" in text and "| lbs-smooth |" in text and "| sega |" in text
+    res = json.loads((out / "eval.json").read_text())
+    assert res["samples"] and all(np.isfinite(m["vertex_cm"]) for m in res["models"].values())
+    assert {p.name: p.read_bytes() for p in pack.parent.iterdir()} == store  # the store untouched by train and eval
