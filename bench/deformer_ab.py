@@ -20,7 +20,7 @@ import numpy as np
 import onnxruntime as ort
 
 from segadeform.body import default_body_path, load_body
-from segadeform.geometry.asset import precompute_garment
+from segadeform.geometry.precompute import precompute_garment
 from segadeform.geometry.primitives import frustum
 from segadeform.runtime import ModelPackage
 from segadeform.runtime.deformer import Deformer

@@ -19,7 +19,9 @@ SHAPES = {"mean": [], "beta1=+2": [2.0], "beta=(-1.5,+1.5)": [-1.5, 1.5]}
 
 def main(argv=None) -> None:
     from segadeform.body import default_body_path, load_body
-    from segadeform.garments.fit import fit_mhclo, placement_report, push_off_body, read_mhclo
+    from segadeform.body.placement import placement_report, push_off_body
+    from segadeform.garments.registration import fit_mhclo
+    from segadeform.io.mhclo import read_mhclo
 
     folders = [Path(a) for a in (argv or sys.argv[1:])] or [ROOT.parent / "shared" / "data" / "garments"]
     files = sorted(f for d in folders for f in d.rglob("*.mhclo"))

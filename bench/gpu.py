@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _inputs(package, n: int, frames: int):
     from segadeform.body import load_body
-    from segadeform.geometry.asset import precompute_garment
+    from segadeform.geometry.precompute import precompute_garment
     from segadeform.geometry.features import vertex_features
     from segadeform.geometry.primitives import frustum
     from segadeform.motion import make_motion

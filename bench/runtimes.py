@@ -52,7 +52,7 @@ def python_row(pkg_dir: Path, files: dict, batch: int, repeats: int, margin=None
     import onnxruntime
 
     from segadeform.body import default_body_path, load_body
-    from segadeform.bundle import read_motion_file
+    from segadeform.motion import read_motion_file
     from segadeform.geometry import GarmentAsset
     from segadeform.motion.motion import motion_windows
     from segadeform.runtime import ModelPackage
@@ -60,7 +60,7 @@ def python_row(pkg_dir: Path, files: dict, batch: int, repeats: int, margin=None
 
     asset = GarmentAsset.load(files["garment"])
     motion, _ = read_motion_file(files["motion"])
-    _, check_meta = __import__("segadeform.bundle", fromlist=["read_bundle"]).read_bundle(files["check"])
+    _, check_meta = __import__("segadeform.io.sgdb", fromlist=["read_bundle"]).read_bundle(files["check"])
     pkg = ModelPackage(pkg_dir, threads=1)
     enc = pkg.spec("garment_encoder")
     dec_name = check_meta["graph"]
@@ -125,7 +125,7 @@ def python_collided(pkg_dir: Path, files: dict, effects, batch: int, tmp: Path, 
     """`segadeform run` (its Run) on the garment asset and motion file with collisions: frames, body, moved, and how
     the body was posed."""
     from segadeform.body import default_body_path, load_body
-    from segadeform.bundle import read_motion_file
+    from segadeform.motion import read_motion_file
     from segadeform.geometry import GarmentAsset
     from segadeform.io import read_pc2
     from segadeform.runtime import ModelPackage
@@ -218,7 +218,8 @@ def cpp_row(files, effects, batch, repeats, tmp, margin=None) -> dict:
 
 
 def web_row(files, effects, batch, repeats, tmp, ep, frames=None, margin=None) -> dict:
-    from segadeform.bundle import read_bundle, read_motion_file, write_bundle, write_motion_file
+    from segadeform.io.sgdb import read_bundle, write_bundle
+    from segadeform.motion import read_motion_file, write_motion_file
 
     site = tmp / f"site-{ep}"
     site.mkdir()
@@ -364,7 +365,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-webgpu", action="store_true")
     ap.add_argument("-o", "--output", type=Path)
     a = ap.parse_args(argv)
-    from segadeform.bundle import read_bundle
+    from segadeform.io.sgdb import read_bundle
     from segadeform.runtime.vectors import scene_vectors
     from segadeform.settings import load_scene, parse_frames
 

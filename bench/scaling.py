@@ -37,7 +37,7 @@ def one(n: int, frames: int, batch: int, package: str, blender: bool) -> dict:
     import numpy as np
 
     from segadeform.body import load_body
-    from segadeform.geometry.asset import precompute_garment
+    from segadeform.geometry.precompute import precompute_garment
     from segadeform.geometry.primitives import frustum
     from segadeform.io import Mesh, write_obj
     from segadeform.motion import make_motion

@@ -50,7 +50,7 @@ def inputs_for(pkg, name: str, a):
     spec = ModelPackage(pkg).spec(name)
     if spec["role"] == "body":
         return body_sample_inputs(load_body(default_body_path()), b=a.frames, seed=1)
-    from segadeform.bundle import read_bundle
+    from segadeform.io.sgdb import read_bundle
     from segadeform.motion.motion import motion_windows
 
     g, gm = read_bundle(a.garment)
@@ -95,7 +95,7 @@ def main(argv=None) -> int:
     import onnx
     import onnxruntime as ort
 
-    from segadeform.bundle import write_bundle
+    from segadeform.io.sgdb import write_bundle
     from segadeform.runtime import ModelPackage
 
     spec = ModelPackage(a.package).spec(a.graph)

@@ -14,7 +14,7 @@ def cache_group():
 
 @cache_group.command("info")
 def cache_info_cmd():
-    from segadeform.cache import _max_bytes, cache_dir
+    from segadeform.io.cache import _max_bytes, cache_dir
 
     d = cache_dir(create=False)
     files = [p for p in d.iterdir() if p.is_file()] if d.is_dir() else []
@@ -24,7 +24,7 @@ def cache_info_cmd():
 
 @cache_group.command("clear")
 def cache_clear_cmd():
-    from segadeform.cache import cache_dir, prune
+    from segadeform.io.cache import cache_dir, prune
 
     d = cache_dir(create=False)
     freed = prune(d, max_bytes=0)

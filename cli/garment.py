@@ -90,7 +90,10 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
 
     from segadeform.body import default_body_path, load_body
     from segadeform.errors import InputError
-    from segadeform.garments import fit as gfit
+    from segadeform.body.placement import fix_units_and_axes, placement_report, push_off_body
+    from segadeform.garments.registration import fit_mhclo, fit_to_body_mesh
+    from segadeform.io.mhclo import read_mhclo
+    from segadeform.io.obj import rewrite_obj_vertices
     from segadeform.io import read_mesh
     from segadeform.io.output_guard import OutputGuard
 
@@ -116,7 +119,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
             raise InputError(f"{', '.join(fixes)} do not apply to a MakeHuman binding: it places the garment on "
                              "the body itself", path=mhclo, expected="--offset, --margin, --betas",
                              got=", ".join(fixes))
-        binding = gfit.read_mhclo(mhclo)
+        binding = read_mhclo(mhclo)
         obj = obj or binding.obj_path()
         if obj is None:
             raise InputError("the .mhclo names no obj_file; pass the OBJ as GARMENT", path=mhclo)
@@ -136,21 +139,21 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         units_v = units
     rest = bm.shaped_vertices(b)[0]
     if binding is not None:
-        v = gfit.fit_mhclo(binding, bm, b)
+        v = fit_mhclo(binding, bm, b)
         how = f"MakeHuman binding {mhclo.name}"
         default_margin = 0.003
     elif from_body is not None:
         src = read_mesh(from_body)
         g = read_mesh(obj)
-        fit = gfit.fit_to_body_mesh(gfit.fix_units_and_axes(g.vertices, units=units_v, up=up, scale=scale),
-                                    gfit.fix_units_and_axes(src.vertices, units=units_v, up=up, scale=scale),
+        fit = fit_to_body_mesh(fix_units_and_axes(g.vertices, units=units_v, up=up, scale=scale),
+                                    fix_units_and_axes(src.vertices, units=units_v, up=up, scale=scale),
                                     src.faces, bm, b)
         v = fit.vertices
         how = f"registered to {from_body.name} (body fit {100 * fit.body_error:.1f} cm mean)"
         default_margin = 0.003
     else:
         g = read_mesh(obj)
-        v = gfit.fix_units_and_axes(g.vertices, units=units_v, up=up, scale=scale)
+        v = fix_units_and_axes(g.vertices, units=units_v, up=up, scale=scale)
         how = f"units {units or 'm'}, up {up}, scale {scale:g}"
         default_margin = None
     if off is not None:  # after the fit (a binding's, another body's) or the unit/axis fix
@@ -163,10 +166,10 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     m = default_margin if margin is None else margin
     pushed = 0
     if m is not None:
-        v, pushed = gfit.push_off_body(v, rest, bm.faces, m)
-    gfit.rewrite_obj_vertices(obj, v, output)
+        v, pushed = push_off_body(v, rest, bm.faces, m)
+    rewrite_obj_vertices(obj, v, output)
     guard.record()
-    rep = gfit.placement_report(v, rest, bm.faces)
+    rep = placement_report(v, rest, bm.faces)
     click.echo(f"{obj.name}: {len(v)} vertices, {how}" + (f", {pushed} pushed to {1e3 * m:.0f} mm" if m else ""))
     click.echo(f"  {rep.line()}")
     click.echo(f"  -> {output}")

@@ -29,9 +29,10 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
     (log_wbody), betas and the body's hash: what `segadeform run` computes before the model runs."""
     from segadeform.body import default_body_path, load_body
     from segadeform.bounds import check_body_height
-    from segadeform.garments.fit import check_placement
+    from segadeform.body.placement import check_placement
+    from segadeform.body.prepare import prepare_for_body
     from segadeform.geometry import GarmentAsset, precompute_garment
-    from segadeform.geometry.asset import PORTABLE_SUFFIX
+    from segadeform.io.garment_asset import PORTABLE_SUFFIX
     from segadeform.io.hashing import file_sha256
     from segadeform.io import read_mesh
     from segadeform.package_spec import read_manifest_text
@@ -58,7 +59,7 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
         check_body_height(b, beta_vals)
         check_placement(asset.vertices, b.shaped_vertices(beta_vals)[0], b.faces, path=garment,
                         template_vertices=b.v_template, betas=beta_vals)
-    asset = asset.for_body(b, beta_vals, weight_prior=config.get("weight_prior", "nearest"))
+    asset = prepare_for_body(asset, b, beta_vals, weight_prior=config.get("weight_prior", "nearest"))
     asset.save(output)
     guard.record()
     click.echo(f"{garment.name}: {asset.n_vertices} vertices, K={asset.nbr.shape[1]}, N*={len(asset.descriptor)}, "

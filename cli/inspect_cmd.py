@@ -74,7 +74,7 @@ def inspect_cmd(path):
 
         click.echo(f"{path}: body {load_body(path)!r}")
     elif ext == ".sgdm":
-        from segadeform.bundle import read_motion_file
+        from segadeform.motion import read_motion_file
 
         m, meta = read_motion_file(path)
         body = meta.get("body") or {}

@@ -1,5 +1,5 @@
 """``segadeform motion export``: any motion segadeform reads -> a motion file (.sgdm) for the runtimes
-without Python (Node, the browser, C++; the format: docs/package.md, ``segadeform.bundle``)."""
+without Python (Node, the browser, C++; the format: docs/package.md, ``segadeform.io.sgdb``)."""
 
 from __future__ import annotations
 
@@ -36,7 +36,8 @@ def motion_export_cmd(source, output, body, betas, fps, frames, up, units, joint
     poses (T, 24, 3) and translations (T, 3) on the body's skeleton, as `segadeform run` would play it."""
     from segadeform.body import default_body_path, load_body
     from segadeform.body.identity import body_label
-    from segadeform.bundle import MOTION_SUFFIX, write_motion_file
+    from segadeform.io.sgdm import MOTION_SUFFIX
+    from segadeform.motion import write_motion_file
     from segadeform.errors import InputError
     from segadeform.motion import MOTION_KINDS, MotionSpec, build_motion, select_frames
     from segadeform.settings import parse_frames

@@ -4,7 +4,7 @@ import os
 
 from click.testing import CliRunner
 
-from segadeform.cache import cache_dir, prune
+from segadeform.io.cache import cache_dir, prune
 from segadeform.cli.main import cli
 from tests.conftest import SAMPLES
 

@@ -1,4 +1,4 @@
-"""Scene bundles for other runtimes (:mod:`segadeform.bundle`): a scene's model inputs, and the Python
+"""Scene bundles for other runtimes (:mod:`segadeform.io.sgdb`): a scene's model inputs, and the Python
 runtime's output as the shared test vector."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from typing import Optional
 import numpy as np
 
 from segadeform.body import default_body_path, load_body
-from segadeform.bundle import write_bundle
+from segadeform.io.sgdb import write_bundle
 from segadeform.geometry.features import vertex_features
 from segadeform.motion import build_motion, motion_windows, select_frames
 from segadeform.settings import Scene
@@ -35,7 +35,7 @@ def scene_bundle(scene: Scene, out: str | Path, *, model: Optional[Path] = None,
               output=Path(out).with_suffix(".unused"), cache=False, force=force)
     asset = run.load_asset(joints)
     if not force:
-        from segadeform.garments.fit import check_placement
+        from segadeform.body.placement import check_placement
 
         check_placement(asset.vertices, body.shaped_vertices(scene.betas)[0], body.faces, path=scene.garment,
                         template_vertices=body.v_template, betas=scene.betas)

@@ -38,9 +38,9 @@ from segadeform.body import BodyModel, BodyProxy, default_body_path, load_body
 from segadeform.body.collision import BodyCollider, push_out
 from segadeform.bounds import check_body_height
 from segadeform.errors import InputError
-from segadeform.garments.fit import check_placement
+from segadeform.body.placement import check_placement
 from segadeform.geometry import GarmentAsset, precompute_garment
-from segadeform.geometry.asset import PORTABLE_SUFFIX
+from segadeform.io.garment_asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
 from segadeform.io import SceneOutput, read_mesh
 from segadeform.io.outputs import claim_scene_outputs
@@ -68,7 +68,7 @@ def effective_batch(batch: int, n_vertices: int) -> int:
 
 def default_model_path() -> Path:
     """The shipped default model package (package data; ``samples/models/default`` in the source tree)."""
-    from segadeform._resources import data_path
+    from segadeform.io.resources import data_path
 
     p = data_path("models", "default")
     if not (p / "manifest.json").is_file():
@@ -114,9 +114,9 @@ class Run:
         frames: ``(start, stop)`` of the motion, stop exclusive (None: to the end).
         batch: frames per deformer call, at most: lowered so that a call holds at most
             :data:`MAX_VERTEX_FRAMES` vertex-frames (:func:`effective_batch`).
-        cache: keep precompute/encoder results in the user cache (:mod:`segadeform.cache`).
+        cache: keep precompute/encoder results in the user cache (:mod:`segadeform.io.cache`).
         force: animate a garment that does not sit on the body (see
-            :func:`segadeform.garments.fit.check_placement`) instead of refusing it.
+            :func:`segadeform.body.placement.check_placement`) instead of refusing it.
         collider: ``"fast"`` (:class:`~segadeform.body.collision.BodyCollider`, built once, every frame of
             a batch in one call; its compiled backend on the package's threads, numpy if it was not built) or
             ``"reference"`` (:class:`~segadeform.body.collision.BodyProxy` per frame: the slow, obvious
@@ -158,7 +158,7 @@ class Run:
     def _cache_dir(self) -> Optional[Path]:
         if not self.cache:
             return None
-        from segadeform.cache import cache_dir
+        from segadeform.io.cache import cache_dir
 
         return cache_dir()
 
@@ -267,7 +267,7 @@ class Run:
             t = time.perf_counter()
             written = out.close()
             if self.cache:
-                from segadeform.cache import prune
+                from segadeform.io.cache import prune
 
                 prune()
             stage["write"] += time.perf_counter() - t

@@ -1,7 +1,7 @@
 """The shared test vectors of the runtimes without Python: one scene as the portable files those runtimes
 read -- the garment asset prepared for the scene's body shape (``.sgda``) and the motion file (``.sgdm``) --
 and what ``segadeform run`` makes of them here (the garment's frames and the posed body's), in one
-``check.sgdb`` (arrays ``expected (T, N, 3)``, ``body (T, V, 3)``; :mod:`segadeform.bundle`).
+``check.sgdb`` (arrays ``expected (T, N, 3)``, ``body (T, V, 3)``; :mod:`segadeform.io.sgdb`).
 
 ``tests/runtimes`` and ``bench/runtimes.py`` hold the Node, browser and C++ runtimes to these."""
 
@@ -13,9 +13,11 @@ from typing import Optional
 
 from segadeform.body import default_body_path, load_body
 from segadeform.body.identity import body_label
-from segadeform.bundle import write_bundle, write_motion_file
+from segadeform.body.prepare import prepare_for_body
+from segadeform.io.sgdb import write_bundle
+from segadeform.motion import write_motion_file
 from segadeform.geometry import GarmentAsset, precompute_garment
-from segadeform.geometry.asset import PORTABLE_SUFFIX
+from segadeform.io.garment_asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
 from segadeform.io import read_mesh, read_pc2
 from segadeform.motion import build_motion, select_frames
@@ -49,7 +51,7 @@ def scene_vectors(scene: Scene, out_dir: str | Path, *, model: Optional[Path] = 
                                    n_star=int(package.config["n_star"]), source_name=g.name,
                                    source_sha256=file_sha256(g))
     paths = {"garment": out / "garment.sgda", "motion": out / "motion.sgdm", "check": out / "check.sgdb"}
-    asset.for_body(body, scene.betas, weight_prior=str(package.config.get("weight_prior", "nearest"))).save(
+    prepare_for_body(asset, body, scene.betas, weight_prior=str(package.config.get("weight_prior", "nearest"))).save(
         paths["garment"])
     full = [0.0] * body.n_betas
     full[:len(scene.betas)] = scene.betas

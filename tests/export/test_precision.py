@@ -21,7 +21,7 @@ def body():
 
 @pytest.fixture(scope="module")
 def skirt_asset(body):
-    from segadeform.geometry.asset import precompute_garment
+    from segadeform.geometry.precompute import precompute_garment
     from segadeform.io.obj import read_obj
 
     from ..conftest import SAMPLES

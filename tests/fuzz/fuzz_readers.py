@@ -78,7 +78,7 @@ def make_target(name: str):
         def read(p):
             load_body(p)
     elif name == "mhclo":
-        from segadeform.garments.fit import read_mhclo
+        from segadeform.io.mhclo import read_mhclo
 
         def read(p):
             b = read_mhclo(p)
@@ -108,7 +108,7 @@ def make_target(name: str):
             assert a.faces.min() >= 0 and a.faces.max() < a.n_vertices
             assert a.nbr.min() >= 0 and a.nbr.max() < a.n_vertices
     elif name == "sgdm":
-        from segadeform.bundle import read_motion_file
+        from segadeform.motion import read_motion_file
 
         def read(p):
             m, meta = read_motion_file(p)
@@ -189,7 +189,7 @@ def _write_portable_seeds(d: Path, root: Path) -> None:
     import shutil
 
     from segadeform.body import load_body
-    from segadeform.bundle import write_motion_file
+    from segadeform.motion import write_motion_file
     from segadeform.body.identity import body_label
     from segadeform.geometry import precompute_garment
     from segadeform.motion import make_motion
@@ -201,7 +201,9 @@ def _write_portable_seeds(d: Path, root: Path) -> None:
                  [[r * 8 + (c + 1) % 8, (r + 1) * 8 + (c + 1) % 8, (r + 1) * 8 + c] for r in range(2) for c in range(8)])
     a = precompute_garment(v, f, body.rest_joints()[0], n_star=4)
     a.save(d / "sgda" / "tube.sgda")
-    a.for_body(body, (0.3,)).save(d / "sgda" / "tube_for_body.sgda")
+    from segadeform.body.prepare import prepare_for_body
+
+    prepare_for_body(a, body, (0.3,)).save(d / "sgda" / "tube_for_body.sgda")
     m = make_motion("walk", seconds=0.1)
     write_motion_file(d / "sgdm" / "walk.sgdm", m, body=body_label(body), betas=[0.0] * body.n_betas, source="walk")
     write_motion_file(d / "sgdm" / "bare.sgdm", m)

@@ -12,8 +12,10 @@ from segadeform.body import default_body_path, load_body
 from segadeform.body.makehuman import makehuman_vertices, makehuman_weights
 from segadeform.cli.main import cli
 from segadeform.errors import FileFormatError, InputError
-from segadeform.garments.fit import (PlacementError, check_placement, fit_mhclo, fix_units_and_axes,
-                                     placement_report, read_mhclo, rewrite_obj_vertices)
+from segadeform.body.placement import PlacementError, check_placement, fix_units_and_axes, placement_report
+from segadeform.garments.registration import fit_mhclo
+from segadeform.io.mhclo import read_mhclo
+from segadeform.io.obj import rewrite_obj_vertices
 from segadeform.io import read_mesh
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -228,7 +230,7 @@ def test_fit_to_another_body_mesh(body, tmp_path):
     """Registered and carried over, the T-shirt sits on the default body (median <= 2 cm, <= 2 % deeper
     than 1 cm inside) and, carried back onto the shape it was made on, lands within a few cm of where it
     was made (mean <= 5 cm: the shape space and the scale trade off a little, so the surface slides)."""
-    from segadeform.garments.fit import fit_to_body_mesh
+    from segadeform.garments.registration import fit_to_body_mesh
     from segadeform.io import Mesh, write_obj
 
     betas_src = [1.5, -1.0]

@@ -5,7 +5,7 @@ import pytest
 
 from segadeform.errors import FileFormatError, InputError
 from segadeform.geometry import GarmentAsset, precompute_garment, vertex_features
-from segadeform.geometry.asset import ASSET_SCHEMA_VERSION
+from segadeform.io.garment_asset import ASSET_SCHEMA_VERSION
 from segadeform.geometry.primitives import frustum
 from tests.conftest import leftovers
 
@@ -40,7 +40,7 @@ def test_round_trip(tmp_path, asset):
 
 def test_portable_round_trip_is_exact(tmp_path, asset):
     """The portable form (.sgda, the bundle container: read by the Node and C++ runtimes' bundle readers)."""
-    from segadeform.bundle import read_bundle, write_bundle
+    from segadeform.io.sgdb import read_bundle, write_bundle
 
     asset.save(tmp_path / "a.sgda")
     b = GarmentAsset.load(tmp_path / "a.sgda")

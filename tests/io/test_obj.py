@@ -124,7 +124,7 @@ def test_empty_or_binary_obj(tmp_path, text, words):
 def test_missing_file_is_a_clear_error(tmp_path):
     """One wording for a missing file, whatever reads it."""
     from segadeform.body import load_body
-    from segadeform.garments.fit import read_mhclo
+    from segadeform.io.mhclo import read_mhclo
     from segadeform.io import read_mesh, read_off, read_pc2
     from segadeform.motion import load_motion
     from segadeform.settings import load_scene

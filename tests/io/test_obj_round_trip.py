@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from segadeform.cli.main import cli
-from segadeform.garments.fit import corner_normals, rewrite_obj_vertices
+from segadeform.io.obj import corner_normals, rewrite_obj_vertices
 from segadeform.io import Mesh, read_mesh, read_obj, write_obj
 from segadeform.io.obj import obj_logical_lines
 

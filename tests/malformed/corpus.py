@@ -327,7 +327,7 @@ if __name__ == "__main__":
 def issue29_cases(d: Path, cases: list, package, base: str) -> None:
     """Issue 29's bad inputs that crashed or passed silently: runtime files (.sgdm/.sgda), .mhclo bindings, motion
     values past physical bounds, scenes, jobs files, and manifests (each must now give one line naming the file)."""
-    from segadeform.bundle import write_motion_file
+    from segadeform.motion import write_motion_file
     from segadeform.motion import make_motion
 
     def inspect(name, data, words, ext=".sgdm"):

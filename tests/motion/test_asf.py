@@ -326,7 +326,7 @@ def test_mismatched_skeleton(trial, tmp_path):
 def test_cli_info_export_run(trial, tmp_path):
     from click.testing import CliRunner
 
-    from segadeform.bundle import read_motion_file
+    from segadeform.motion import read_motion_file
     from segadeform.cli.main import cli
 
     r = CliRunner().invoke(cli, ["motion", "info", str(trial[1])])

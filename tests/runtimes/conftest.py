@@ -59,7 +59,7 @@ def portable_scene(tmp_path_factory, random_package):
     vector the Node, browser and C++ runtimes are held to.  Returns a dict of paths and the effects."""
     import numpy as np
 
-    from segadeform.bundle import write_bundle
+    from segadeform.io.sgdb import write_bundle
     from segadeform.cli.main import main
     from segadeform.io import read_pc2
 

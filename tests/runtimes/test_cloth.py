@@ -23,7 +23,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from segadeform.bundle import read_bundle, write_bundle
+from segadeform.io.sgdb import read_bundle, write_bundle
 from segadeform.io import read_pc2
 from tests.conftest import REPO, SAMPLES
 from tests.runtimes.test_collisions import FRAMES, MARGIN, TIGHTEN, _agree, _node_vectors, _site, _web_frames

@@ -11,7 +11,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from segadeform.bundle import read_bundle, write_bundle
+from segadeform.io.sgdb import read_bundle, write_bundle
 from segadeform.errors import FileFormatError
 from segadeform.io import read_pc2
 from tests.conftest import REPO

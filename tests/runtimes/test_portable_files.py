@@ -13,7 +13,9 @@ import pytest
 
 from segadeform.body import default_body_path, load_body
 from segadeform.body.identity import body_sha256
-from segadeform.bundle import read_bundle, read_motion_file, write_bundle, write_motion_file
+from segadeform.body.prepare import prepare_for_body
+from segadeform.io.sgdb import read_bundle, write_bundle
+from segadeform.motion import read_motion_file, write_motion_file
 from segadeform.errors import FileFormatError, InputError
 from segadeform.geometry import GarmentAsset, precompute_garment
 from segadeform.io import read_mesh
@@ -40,7 +42,7 @@ def test_asset_for_a_body_holds_what_segadeform_run_computes(skirt, body, random
     from segadeform.settings import Effects
 
     betas = (0.7, -0.4, 0.2)
-    a = skirt.for_body(body, betas)
+    a = prepare_for_body(skirt, body, betas)
     assert a.for_a_body and not skirt.for_a_body and a.body["sha256"] == body_sha256(body)
     assert a.body["weight_prior"] == d_prior(random_package) == "nearest"
     assert a.betas.shape == (body.n_betas,) and a.betas[:3].tolist() == list(betas)
@@ -52,11 +54,11 @@ def test_asset_for_a_body_holds_what_segadeform_run_computes(skirt, body, random
     np.testing.assert_array_equal(a.log_wbody, d.body_log_weights(skirt, body, betas).astype(np.float32))
     np.testing.assert_array_equal(a.nbr, skirt.nbr)  # what does not depend on the body is kept
     with pytest.raises(InputError, match="at most the body's count"):
-        skirt.for_body(body, np.zeros(body.n_betas + 1))
+        prepare_for_body(skirt, body, np.zeros(body.n_betas + 1))
     # models trained with the inpainted prior get it (the model's config.weight_prior; garment export --model)
     from segadeform.body.transfer import garment_weights, residual_log_weights
 
-    ip = skirt.for_body(body, betas, weight_prior="inpaint")
+    ip = prepare_for_body(skirt, body, betas, weight_prior="inpaint")
     assert ip.body["weight_prior"] == "inpaint"
     want = residual_log_weights(garment_weights(skirt.vertices, skirt.faces, body,
                                                 np.pad(betas, (0, body.n_betas - 3)).astype(np.float32), "inpaint"))
@@ -71,7 +73,7 @@ def d_prior(package) -> str:
 
 @pytest.mark.parametrize("suffix", [".sgda", ".npz"])
 def test_asset_schema_2_round_trip_and_schema_1_still_read(skirt, body, tmp_path, suffix):
-    a = skirt.for_body(body, (0.5,))
+    a = prepare_for_body(skirt, body, (0.5,))
     b = GarmentAsset.load(a.save(tmp_path / f"a{suffix}"))
     for k in ("vertices", "faces", "features", "nbr", "mask", "joints", "descriptor", "betas", "log_wbody"):
         np.testing.assert_array_equal(getattr(a, k), getattr(b, k), err_msg=k)

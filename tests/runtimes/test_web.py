@@ -46,7 +46,8 @@ def site(tmp_path_factory, shared_bundle, portable_scene, random_package):
     """A folder the page's server roots at: the runtimes, the package, the bundle, the asset, the motion and the
     check vector side by side; and the first WEBGPU_FRAMES frames as a motion of their own (their frames do not
     depend on later ones)."""
-    from segadeform.bundle import read_bundle, read_motion_file, write_bundle, write_motion_file
+    from segadeform.io.sgdb import read_bundle, write_bundle
+    from segadeform.motion import read_motion_file, write_motion_file
 
     d = tmp_path_factory.mktemp("site")
     (d / "runtimes").symlink_to(REPO / "runtimes")

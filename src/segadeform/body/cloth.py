@@ -16,7 +16,7 @@ Side by side:
   size and a stream of any length give the frames of one long call; memory is O(N).
 * :func:`garment_setup` -- the per-garment data (edges, rest lengths, neighbours, each vertex's attachment
   radius from its distance to the body at rest), computed once and cached on disk with the garment
-  (``C-<hash>.npz`` in the user cache, :mod:`segadeform.cache`), as the garment's encoding is.
+  (``C-<hash>.npz`` in the user cache, :mod:`segadeform.io.cache`), as the garment's encoding is.
 * :func:`cloth_setup_reference` and :func:`cloth_reference` -- the slow, obvious references: the same rule in
   numpy and Python loops, contacts and the final push-out from the numpy :class:`BodyCollider`; tests compare
   them with the kernel.

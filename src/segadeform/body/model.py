@@ -331,7 +331,7 @@ def load_body(path: str | os.PathLike) -> BodyModel:
 
 def default_body_path() -> Path:
     """The shipped default body (package data; ``samples/bodies/default_body.npz`` in the source tree)."""
-    from .._resources import data_path
+    from ..io.resources import data_path
 
     p = data_path("default_body.npz")
     if not p.is_file():

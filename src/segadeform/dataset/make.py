@@ -252,7 +252,9 @@ def _garment_file(out, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) ->
                              expected=json.dumps(key, sort_keys=True), got=json.dumps(old, sort_keys=True))
     if not loc.exists(rel):
         if g.mhclo is not None:  # a MakeHuman garment: fitted to this body, 3 mm off the skin
-            from ..garments.fit import fit_mhclo, push_off_body, read_mhclo
+            from ..body.placement import push_off_body
+            from ..garments.registration import fit_mhclo
+            from ..io.mhclo import read_mhclo
 
             binding = read_mhclo(g.mhclo)
             betas = cfg.bodies[bi] or None

@@ -1,7 +1,8 @@
 """Precompute on garment meshes (numpy/scipy only): normals, graph, Laplacian, bands,
 geodesics, sampling, the garment type descriptor, vertex features and the garment asset."""
 
-from .asset import ASSET_SCHEMA_VERSION, GarmentAsset, precompute_garment
+from ..io.garment_asset import ASSET_SCHEMA_VERSION, GarmentAsset
+from .precompute import precompute_garment
 from .descriptor import (DEFAULT_N_STAR, Descriptor, dissimilarity, furthest_point_sampling,
                          gaussian_affinity, garment_descriptor, nystrom_eigen)
 from .features import feature_dim, vertex_features

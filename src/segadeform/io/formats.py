@@ -1,4 +1,6 @@
-"""The one home of the output (sequence) formats: name, extensions, writer and reader, registered by name.
+"""The one home of the file formats: the output (sequence) formats -- name, extensions, writer and reader,
+registered by name -- and the other files (:data:`FILE_FORMATS`: the portable ``.sgdb``/``.sgda``/``.sgdm`` files
+and ``.mhclo`` bindings, each with its reader and writer in this package).
 
 Scenes (``output.format``), the CLI (``--format``, ``inspect``, ``preview``) and the
 runtime and simulator all read this registry; adding a format is one
@@ -29,7 +31,8 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = ["SequenceFormat", "SEQUENCE_FORMATS", "register_sequence_format", "sequence_format",
-           "format_for_path", "sequence_format_of", "open_sequence_writer", "read_sequence", "inspect_sequence"]
+           "format_for_path", "sequence_format_of", "open_sequence_writer", "read_sequence", "inspect_sequence",
+           "FileFormat", "FILE_FORMATS", "register_file_format", "file_format_for"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -239,3 +242,62 @@ def _usd_inspect(path):
 register_sequence_format(SequenceFormat("usd", (".usd", ".usda", ".usdc"), _usd_open, _usd_read,
                                         "USD mesh with time-sampled points (Blender, Houdini, usdview)", extra="usd",
                                         inspect=_usd_inspect))
+
+
+# ---- portable and input files (not frame sequences) -------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class FileFormat:
+    """A file format other than a frame sequence: the portable files of other runtimes and garment inputs.
+
+    Attributes:
+        name: its short name.
+        extensions: file extensions (lower case, with the dot).
+        read: ``read(path)`` -> what the file holds (every field checked; errors name the file).
+        description: one line for help texts.
+        write: ``write(path, ...)``, written atomically; None for formats segadeform only reads.
+    """
+
+    name: str
+    extensions: tuple
+    read: Callable
+    description: str
+    write: Optional[Callable] = None
+
+
+FILE_FORMATS: dict[str, FileFormat] = {}
+
+
+def register_file_format(fmt: FileFormat) -> FileFormat:
+    if fmt.name in FILE_FORMATS:
+        raise InputError(f"file format {fmt.name!r} is already registered")
+    FILE_FORMATS[fmt.name] = fmt
+    return fmt
+
+
+def file_format_for(path: str | os.PathLike) -> Optional[FileFormat]:
+    """The registered file format a path's extension names, or None."""
+    ext = Path(path).suffix.lower()
+    return next((f for f in FILE_FORMATS.values() if ext in f.extensions), None)
+
+
+def _register_file_formats() -> None:
+    from .garment_asset import PORTABLE_SUFFIX, GarmentAsset
+    from .mhclo import MHCLO_SUFFIX, read_mhclo
+    from .sgdb import BUNDLE_SUFFIX, read_bundle, write_bundle
+    from .sgdm import MOTION_SUFFIX, read_motion_arrays, write_motion_arrays
+
+    def write_asset(path, asset):
+        return asset.save(path)
+
+    register_file_format(FileFormat("sgdb", (BUNDLE_SUFFIX,), read_bundle, "scene bundle: named little-endian arrays "
+                                    "and JSON meta (the container of .sgda and .sgdm)", write_bundle))
+    register_file_format(FileFormat("sgda", (PORTABLE_SUFFIX,), GarmentAsset.load,
+                                    "garment asset, portable form (other runtimes)", write_asset))
+    register_file_format(FileFormat("sgdm", (MOTION_SUFFIX,), read_motion_arrays,
+                                    "motion file: poses and translations on one body's skeleton", write_motion_arrays))
+    register_file_format(FileFormat("mhclo", (MHCLO_SUFFIX,), read_mhclo, "MakeHuman garment binding (read only)"))
+
+
+_register_file_formats()

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError, file_error
+from ..errors import FileFormatError, InputError, file_error
 from .atomic import atomic_open
 from .mesh import Mesh, validate_mesh_arrays
 
@@ -212,3 +212,99 @@ def write_obj(path: str | os.PathLike, mesh: Mesh, *, vertices: np.ndarray | Non
 def write_obj_positions(path, faces: np.ndarray, vertices: np.ndarray, **kw) -> None:
     """Write one frame of a sequence: ``vertices (N, 3)`` with ``faces (F, 3)``."""
     write_obj(path, Mesh(vertices=np.asarray(vertices, np.float64), faces=faces), **kw)
+
+
+def rewrite_obj_vertices(src: str | os.PathLike, vertices: np.ndarray, dst: str | os.PathLike) -> Path:
+    """Copy an OBJ file with its ``v`` lines replaced by ``vertices`` (same order) and its ``vn`` lines
+    recomputed for them (:func:`corner_normals`), keeping faces (quads and polygons as they are), UVs, groups,
+    materials and every other line; written atomically.
+
+    Shapes:
+        vertices: (N, 3), N = the file's ``v`` lines
+    """
+    src, dst = Path(src), Path(dst)
+    v = np.asarray(vertices, np.float64)
+    try:
+        lines = list(obj_logical_lines(src))
+    except OSError as e:
+        raise file_error(e, src) from None
+    n = sum(1 for _, ln in lines if ln.split()[:1] == ["v"])
+    if v.ndim != 2 or v.shape[1:] != (3,) or n != len(v):
+        raise InputError("vertex count differs from the OBJ's", path=src, expected=n, got=v.shape)
+    if not np.isfinite(v).all():
+        raise InputError("fitted vertices are not finite", path=src)
+    normals = corner_normals(lines, v, path=src)
+    it, k = iter(v), 0
+    with atomic_open(dst, "w", encoding="utf-8", newline="\n") as fh:
+        for _, ln in lines:
+            key = ln.split()[:1]
+            if key == ["v"]:
+                x = next(it)
+                extra = ln.split()[4:]  # vertex colours stay
+                fh.write(f"v {x[0]:.6f} {x[1]:.6f} {x[2]:.6f}" + (" " + " ".join(extra) if extra else "") + "\n")
+            elif key == ["vn"]:
+                nx = normals[k]
+                k += 1
+                fh.write(f"vn {nx[0]:.6f} {nx[1]:.6f} {nx[2]:.6f}\n")
+            else:
+                fh.write(ln + "\n")
+    return dst
+
+
+def corner_normals(lines, vertices: np.ndarray, *, path=None) -> np.ndarray:
+    """New ``vn`` vectors for an OBJ whose vertices moved to ``vertices``: normal ``k`` is the unit sum of the
+    (Newell, area-weighted) normals of the polygons with a corner that names ``vn`` ``k``, so shared normals stay
+    smooth and a normal of one flat face stays flat.  A ``vn`` no face names keeps its value.
+
+    Args:
+        lines: ``(line number, text)`` of the file (:func:`obj_logical_lines`).
+    Shapes:
+        vertices: (N, 3) -> (K, 3), K = the file's ``vn`` lines
+    """
+    old, acc = [], []
+    n_v = 0
+    for ln_no, ln in lines:
+        t = ln.split()
+        if not t:
+            continue
+        if t[0] == "v":
+            n_v += 1
+        elif t[0] == "vn":
+            try:
+                old.append([float(x) for x in t[1:4]])
+            except ValueError:
+                raise FileFormatError("normal has a non-numeric value", path=path, line=ln_no) from None
+            if len(old[-1]) != 3:
+                raise FileFormatError("normal line needs x y z", path=path, line=ln_no, got=len(old[-1]))
+            acc.append(np.zeros(3))
+        elif t[0] == "f" and len(t) >= 4:
+            idx, nrm = [], []
+            for c in t[1:]:
+                sub = c.split("/")
+                idx.append(_obj_index(sub[0], n_v, path, ln_no))
+                nrm.append(_obj_index(sub[2], len(old), path, ln_no) if len(sub) > 2 and sub[2] else None)
+            if all(x is None for x in nrm):
+                continue
+            q = vertices[idx]
+            fn = np.cross(q, np.roll(q, -1, axis=0)).sum(axis=0)  # Newell: 2 x area x unit normal
+            for x in nrm:
+                if x is not None:
+                    acc[x] += fn
+    out = np.asarray(old, np.float64).reshape(-1, 3)
+    for k, a in enumerate(acc):
+        length = float(np.linalg.norm(a))
+        if length > 0:
+            out[k] = a / length
+    return out
+
+
+def _obj_index(tok: str, count: int, path, line: int) -> int:
+    try:
+        i = int(tok)
+    except ValueError:
+        raise FileFormatError(f"bad index {tok!r}", path=path, line=line) from None
+    j = i - 1 if i > 0 else count + i
+    if i == 0 or not 0 <= j < count:
+        raise FileFormatError("index out of range", path=path, line=line, expected=f"1..{count} or -{count}..-1",
+                              got=i)
+    return j

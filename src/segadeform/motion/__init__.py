@@ -9,13 +9,14 @@ from pathlib import Path
 
 from ..errors import FileFormatError
 from .bvh import read_bvh, write_bvh
-from .motion import N_POSE, Motion, face_forward, feet_on_floor, load_motion_npz, motion_windows, resample
+from .motion import (N_POSE, Motion, face_forward, feet_on_floor, load_motion_npz, motion_windows, read_motion_file,
+                     resample, write_motion_file)
 from .procedural import MOTION_KINDS, make_motion
 from .spec import MotionSpec, build_motion, frame_range, select_frames
 
 __all__ = ["Motion", "N_POSE", "load_motion", "load_motion_npz", "feet_on_floor", "face_forward", "read_bvh", "write_bvh", "resample",
            "motion_windows", "MOTION_KINDS", "make_motion", "MotionSpec", "build_motion", "frame_range",
-           "select_frames"]
+           "select_frames", "read_motion_file", "write_motion_file"]
 
 
 def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", units=None, joint_map=None,
@@ -72,8 +73,6 @@ def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", 
                                   expected="no --units for .amc", got=units)
         m = read_amc(p, skeleton, rest_joints=rest_joints, up=up, joint_map=joint_map)
     elif ext == ".sgdm":  # a motion file (segadeform motion export): already on the skeleton, y-up, retargeted
-        from ..bundle import read_motion_file
-
         if units is not None or joint_map is not None or up not in ("auto", "y"):
             raise FileFormatError("a motion file (.sgdm) is already retargeted, y-up: units, joint maps and up "
                                   "axes do not apply", path=p, expected="no --units, --joint-map or --motion-up z",

@@ -11,7 +11,9 @@ import numpy as np
 
 from ..body.rotations import (axis_angle_to_quaternion, quaternion_slerp, quaternion_to_axis_angle)
 from ..errors import FileFormatError, InputError
+from ..body.skeleton import SMPL_JOINT_NAMES
 from ..io.atomic import atomic_path
+from ..io.sgdm import read_motion_arrays, write_motion_arrays
 
 __all__ = ["Motion", "load_motion_npz", "feet_on_floor", "face_forward", "resample", "motion_windows", "N_POSE", "SMPL_PELVIS",
            "sample_frames", "drop_leading_jumps", "ramp_in"]
@@ -371,3 +373,28 @@ def motion_windows(poses: np.ndarray, window: int, *, start: int = 0, stop: int 
         raise InputError("frame range out of bounds", expected=f"0 <= start <= stop <= {p.shape[0]}", got=(start, stop))
     t = np.arange(start, stop)[:, None] - np.arange(int(window))[None, :]
     return p[np.maximum(t, 0)]
+
+
+def write_motion_file(path, motion: Motion, *, body: Optional[dict] = None, betas=None, source: str = ""):
+    """Write ``motion`` as a motion file (``.sgdm``, :mod:`segadeform.io.sgdm`): poses ``(T, S, 3)`` and trans
+    ``(T, 3)`` as float32, ``fps`` and the rest in ``meta``.  ``body``: the ``{"name", "sha256"}`` of the body it was
+    retargeted onto (:func:`segadeform.body.identity.body_label`), ``betas`` that body's shape; ``source``: what it
+    was made from."""
+    poses = np.asarray(motion.poses, np.float64)
+    s = poses.shape[1] // 3
+    return write_motion_arrays(path, poses.reshape(len(poses), s, 3), motion.trans, fps=motion.fps, name=motion.name,
+                               joint_names=SMPL_JOINT_NAMES[:s], source=source, body=body, betas=betas)
+
+
+def read_motion_file(path) -> tuple[Motion, dict]:
+    """``(motion, meta)`` of a motion file (``.sgdm``): a :class:`Motion` (poses ``(T, 3 S)``) and the file's
+    ``meta``; every array and key checked."""
+    p = Path(path)
+    poses, trans, fps, meta = read_motion_arrays(p)
+    try:
+        m = Motion(poses=poses.reshape(len(poses), -1).astype(np.float64), trans=trans.astype(np.float64), fps=fps,
+                   name=str(meta.get("name", p.stem)),
+                   meta={"format": "sgdm", "body": meta.get("body"), "betas": meta.get("betas")})
+    except InputError as e:
+        raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
+    return m, meta

@@ -49,10 +49,10 @@ def setup_sim_env(target: Path, python=None, *, quiet: bool = True) -> Path:
 
 def worker_env_path() -> Path:
     """Where :func:`ensure_sim_python` makes the simulator environment of a worker machine: the user
-    cache (:func:`segadeform.cache.cache_dir`), named by the pinned requirements."""
+    cache (:func:`segadeform.io.cache.cache_dir`), named by the pinned requirements."""
     import hashlib
 
-    from ..cache import cache_dir
+    from ..io.cache import cache_dir
 
     digest = hashlib.sha256(REQUIREMENTS.read_bytes()).hexdigest()[:12]
     return cache_dir() / f"sim-env-{digest}"

@@ -22,7 +22,8 @@ from ..body.model import BodyModel
 from ..body.transfer import garment_weights
 from ..dataset.roots import DatasetRoots, as_roots
 from ..dataset.store import Sample
-from ..geometry.asset import GarmentAsset, precompute_garment
+from ..geometry.precompute import precompute_garment
+from ..io.garment_asset import GarmentAsset
 from ..geometry.mesh_ops import unique_edges
 from ..io.atomic import atomic_path
 from ..motion.motion import motion_windows

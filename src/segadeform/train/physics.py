@@ -277,7 +277,8 @@ class PhysicsPairs:
     def _garment(self, gi: int, bi: int):
         key = (gi, bi)
         if key not in self._garments:
-            from ..geometry.asset import GarmentAsset, precompute_garment
+            from ..geometry.precompute import precompute_garment
+            from ..io.garment_asset import GarmentAsset
 
             self.cache.mkdir(parents=True, exist_ok=True)
             rel = _garment_file(open_location(self.cache), self.cfg, gi, bi, self.body)

@@ -1,6 +1,6 @@
 """The garment asset: everything the model and runtime need about one garment, in one ``.npz``.
 
-Written by ``segadeform precompute`` (or :func:`precompute_garment` +
+Written by ``segadeform precompute`` (or :func:`segadeform.geometry.precompute_garment` +
 :meth:`GarmentAsset.save`), read with :meth:`GarmentAsset.load`, which
 validates every array.  The file is a plain ``.npz`` read with
 ``allow_pickle=False``; ``schema_version`` changes when a field changes
@@ -29,13 +29,13 @@ body               JSON string      optional (schema 2): ``{"name", "sha256", "w
                                     reached the garment (the model's ``config.weight_prior``)
 =================  ===============  =============================================
 
-An asset **prepared for a body shape** (:meth:`GarmentAsset.for_body`, ``segadeform garment export``) has
+An asset **prepared for a body shape** (:func:`segadeform.body.prepare.prepare_for_body`, ``segadeform garment export``) has
 the three optional fields: with them it holds every model input that only Python computes (features for
 the shape, neighbours, mask, descriptor, the body's weights at the garment), so the Node, browser and C++
 runtimes animate it from a motion file alone.  Schema 1 (no optional fields) is still read.
 
 **Portable form** (``.sgda``, for runtimes without Python; ``docs/package.md``): the same fields in
-the scene-bundle container of :mod:`segadeform.bundle` (little-endian, a text header, 64-byte aligned
+the scene-bundle container of :mod:`segadeform.io.sgdb` (little-endian, a text header, 64-byte aligned
 arrays; the Node and C++ runtimes' bundle readers read it), with ``vertices``, ``joints`` and
 ``descriptor`` as ``f64``, ``normals`` and ``features`` as ``f32``, ``faces``, ``nbr`` and
 ``fps_samples`` as ``i32``, ``mask`` as ``u8``, and the rest in ``meta``: ``kind`` =
@@ -54,17 +54,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
 from ..errors import FileFormatError, InputError
-from ..io.atomic import atomic_path
-from .descriptor import DEFAULT_N_STAR, garment_descriptor
-from .features import vertex_features
-from .geodesic import DEFAULT_GEODESIC, GeodesicSolver
-from .graph import DEFAULT_MAX_K, neighbour_graph
-from .mesh_ops import vertex_normals
+from .atomic import atomic_path
+from .sgdb import BUNDLE_MAGIC, read_bundle, write_bundle
 
-__all__ = ["ASSET_SCHEMA_VERSION", "READABLE_ASSET_SCHEMAS", "ASSET_KIND", "PORTABLE_SUFFIX", "GarmentAsset",
-           "precompute_garment"]
+__all__ = ["ASSET_SCHEMA_VERSION", "READABLE_ASSET_SCHEMAS", "ASSET_KIND", "PORTABLE_SUFFIX", "GarmentAsset"]
 
 #: 2: optional ``betas``, ``log_wbody`` and ``body`` (an asset prepared for a body shape)
 ASSET_SCHEMA_VERSION = 2
@@ -122,39 +116,6 @@ class GarmentAsset:
         return (f"GarmentAsset(N={self.n_vertices}, F={len(self.faces)}, K={self.nbr.shape[1]}, "
                 f"S={len(self.joints)}, N*={len(self.descriptor)}, source={self.source_name!r}{shape})")
 
-    def for_body(self, body, betas=(), *, weight_prior: str = "nearest") -> "GarmentAsset":
-        """This garment prepared for ``body`` (a :class:`~segadeform.body.BodyModel`) of shape ``betas``: the
-        rest joints, the encoder features for them and the body's log weights at the garment, carried by
-        ``weight_prior`` (``nearest`` | ``inpaint``: the model's ``config.weight_prior``), computed as
-        ``segadeform run`` computes them (so runtimes without Python reproduce its frames), plus ``betas``
-        and the body's name, hash and the prior (``body``).  Neighbours, mask and descriptor do not depend on
-        the body and are kept.
-
-        Shapes:
-            betas: (B',), B' <= body.n_betas
-        """
-        from ..body.identity import body_label
-        from ..body.transfer import garment_weights, residual_log_weights
-
-        b = np.asarray(betas if betas is not None else [], np.float64).ravel()
-        if b.size > body.n_betas or not np.isfinite(b).all():
-            raise InputError("betas must be finite and at most the body's count", expected=f"<= {body.n_betas}",
-                             got=b.size if b.size > body.n_betas else "NaN or inf")
-        full = np.zeros(body.n_betas)
-        full[: b.size] = b
-        joints = body.rest_joints(full)[0]
-        if joints.shape != self.joints.shape:
-            raise InputError("the body's skeleton has another number of joints than the asset's",
-                             expected=self.joints.shape, got=joints.shape)
-        # as the runtime's encoder does: the normals as stored (float32), the joints of the shape
-        feats = vertex_features(self.vertices, self.faces, joints, normals=self.normals.astype(np.float64))
-        # as Deformer.body_log_weights does: the shape rounded to the float32 the graphs take
-        lw = residual_log_weights(garment_weights(self.vertices, self.faces, body, full.astype(np.float32),
-                                                  weight_prior))
-        return dataclasses.replace(self, features=feats.astype(np.float32), joints=joints.astype(np.float64),
-                                   betas=full, log_wbody=np.asarray(lw, np.float32),
-                                   body=dict(body_label(body), weight_prior=weight_prior))
-
     def save(self, path: str | os.PathLike) -> Path:
         """Write the asset atomically: an uncompressed ``.npz``, or the portable form for a ``.sgda`` path."""
         self.validate()
@@ -177,8 +138,6 @@ class GarmentAsset:
         return p
 
     def _save_portable(self, p: Path) -> Path:
-        from ..bundle import write_bundle
-
         if self.n_vertices >= 2**31 - 1:
             raise InputError("garment too large for the portable asset's int32 indices", expected="N < 2^31 - 1",
                              got=self.n_vertices)
@@ -193,8 +152,6 @@ class GarmentAsset:
 
     @classmethod
     def _load_portable(cls, p: Path) -> "GarmentAsset":
-        from ..bundle import read_bundle
-
         arrays, meta = read_bundle(p)
         if meta.get("kind") != ASSET_KIND:
             raise FileFormatError("not a garment asset", path=p, expected=f"meta.kind {ASSET_KIND!r}",
@@ -224,8 +181,7 @@ class GarmentAsset:
     def load(cls, path: str | os.PathLike) -> "GarmentAsset":
         """Read and validate an asset (``.npz`` or the portable form); errors name the file and the field."""
         p = Path(path)
-        from ..bundle import BUNDLE_MAGIC
-        from ..io.npz import load_npz
+        from .npz import load_npz
 
         try:
             with open(p, "rb") as fh:
@@ -324,30 +280,3 @@ class GarmentAsset:
             raise InputError("asset geodesic_radius must be positive", got=self.geodesic_radius)
 
 
-def precompute_garment(vertices, faces, joints, *, k: int | None = None, max_k: int = DEFAULT_MAX_K,
-                       n_star: int = DEFAULT_N_STAR, geodesic: str = DEFAULT_GEODESIC,
-                       source_name: str = "", source_sha256: str = "") -> GarmentAsset:
-    """Run every precompute step on a garment and return the asset.
-
-    Memory is O(N K + N* N): no step forms an N x N matrix.
-
-    Shapes:
-        vertices: (N, 3), faces: (F, 3), joints: (S, 3)
-    """
-    from ._checks import check_mesh, check_vertices
-
-    v, f = check_mesh(vertices, faces)
-    j = check_vertices(joints, "joints")
-    normals = vertex_normals(v, f)
-    feats = vertex_features(v, f, j, normals=normals)
-    nbr, mask = neighbour_graph(f, v.shape[0], k=k, vertices=v, max_k=max_k)
-    solver = GeodesicSolver(v, f, method=geodesic)
-    desc = garment_descriptor(v, f, n_star=n_star, solver=solver)
-    params = {"k": int(nbr.shape[1]), "max_k": int(max_k), "n_star": int(n_star), "geodesic": geodesic,
-              "segadeform_version": __version__, "n_components": int(solver.n_components)}
-    return GarmentAsset(
-        vertices=v, faces=f, normals=normals.astype(np.float32), features=feats, nbr=nbr, mask=mask,
-        joints=j.astype(np.float64), descriptor=desc.eigenvalues.astype(np.float64),
-        fps_samples=desc.samples.astype(np.int64), geodesic_radius=float(desc.radius), params=params,
-        source_name=source_name, source_sha256=source_sha256,
-    )

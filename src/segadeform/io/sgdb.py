@@ -40,16 +40,7 @@ expected       f32 (T, N, 3) optional: the Python runtime's output for ``meta.ef
 ``graph`` (the deformer variant's name), ``model`` (the package's config hash), source names.
 
 The same container holds the other portable files: the garment asset (``.sgda``,
-:mod:`segadeform.geometry.asset`) and the **motion file** (``.sgdm``, :func:`write_motion_file`), a motion
-on the SMPL skeleton of one body, ready to feed a model package and its body graph:
-
-=============  ============  ===================================================================
-poses          f32 (T, S, 3) each frame's local axis-angle joint rotations (radians, SMPL order)
-trans          f32 (T, 3)    each frame's root translation (metres, +Y up), added to the root's rest joint
-=============  ============  ===================================================================
-
-``meta``: ``kind`` = ``"segadeform-motion"``, ``schema_version`` (1), ``fps``, ``name``, ``joint_names``
-(S names), and when it was retargeted onto a body ``body`` (``{"name", "sha256"}``) and ``betas``.
+:mod:`segadeform.io.garment_asset`) and the motion file (``.sgdm``, :mod:`segadeform.io.sgdm`).
 """
 
 from __future__ import annotations
@@ -61,16 +52,17 @@ from typing import Optional
 
 import numpy as np
 
-from .errors import FileFormatError, InputError, file_error
-from .io.atomic import atomic_open
+from ..errors import FileFormatError, InputError, file_error
+from .atomic import atomic_open
 
-__all__ = ["BUNDLE_MAGIC", "write_bundle", "read_bundle", "MOTION_KIND", "MOTION_SUFFIX", "MOTION_SCHEMA_VERSION",
-           "write_motion_file", "read_motion_file"]
+__all__ = ["BUNDLE_MAGIC", "BUNDLE_SUFFIX", "write_bundle", "read_bundle", "DTYPES"]
 
 BUNDLE_MAGIC = b"SEGADEFORM-BUNDLE 1\n"
-_DTYPES = {"f32": np.dtype("<f4"), "f64": np.dtype("<f8"), "i32": np.dtype("<i4"), "i64": np.dtype("<i8"),
+BUNDLE_SUFFIX = ".sgdb"
+#: the container's dtype names
+DTYPES = {"f32": np.dtype("<f4"), "f64": np.dtype("<f8"), "i32": np.dtype("<i4"), "i64": np.dtype("<i8"),
            "u8": np.dtype("u1")}
-_NAMES = {v: k for k, v in _DTYPES.items()}
+_NAMES = {v: k for k, v in DTYPES.items()}
 _ALIGN = 64
 
 
@@ -88,7 +80,7 @@ def write_bundle(path: str | os.PathLike, arrays: dict, meta: Optional[dict] = N
         if key is None or not name.isidentifier():
             raise InputError(f"bundle array {name!r} has an unsupported dtype or name", expected="f32 f64 i32 i64 u8",
                              got=a.dtype)
-        a = a.astype(_DTYPES[key], copy=False)
+        a = a.astype(DTYPES[key], copy=False)
         entries.append(f"{name} {key} {a.ndim} {' '.join(map(str, a.shape))}{' ' if a.ndim else ''}{off} {a.nbytes}")
         blobs.append((off, a.tobytes()))
         off += -(-a.nbytes // _ALIGN) * _ALIGN
@@ -135,7 +127,7 @@ def read_bundle(path: str | os.PathLike) -> tuple[dict, dict]:
     for ln in lines[1:n + 1]:
         t = ln.split()
         try:
-            name, dt, nd = t[0], _DTYPES[t[1]], int(t[2])
+            name, dt, nd = t[0], DTYPES[t[1]], int(t[2])
             shape = tuple(int(x) for x in t[3:3 + nd])
             off, nbytes = int(t[3 + nd]), int(t[4 + nd])
         except (KeyError, ValueError, IndexError):
@@ -151,61 +143,3 @@ def read_bundle(path: str | os.PathLike) -> tuple[dict, dict]:
                                   expected=f"at least {start + off + nbytes} bytes", got=f"{len(data)} bytes")
         arrays[name] = np.frombuffer(data, dt, count, start + off).reshape(shape)
     return arrays, meta
-
-
-MOTION_KIND = "segadeform-motion"
-MOTION_SUFFIX = ".sgdm"
-MOTION_SCHEMA_VERSION = 1
-
-
-def write_motion_file(path: str | os.PathLike, motion, *, body: Optional[dict] = None, betas=None,
-                      source: str = "") -> Path:
-    """Write ``motion`` (a :class:`segadeform.motion.Motion`) as a motion file: poses ``(T, S, 3)`` and trans
-    ``(T, 3)`` as float32 (what the graphs take), ``fps`` and the rest in ``meta``.  ``body``: the
-    ``{"name", "sha256"}`` of the body it was retargeted onto (:func:`segadeform.body.identity.body_label`),
-    ``betas`` that body's shape; ``source``: what it was made from."""
-    from .body.skeleton import SMPL_JOINT_NAMES
-
-    poses = np.asarray(motion.poses, np.float64)
-    s = poses.shape[1] // 3
-    meta = {"kind": MOTION_KIND, "schema_version": MOTION_SCHEMA_VERSION, "fps": float(motion.fps),
-            "name": str(motion.name), "joint_names": list(SMPL_JOINT_NAMES[:s]), "source": str(source)}
-    if body is not None:
-        meta["body"] = dict(body)
-    if betas is not None:
-        meta["betas"] = [float(x) for x in np.asarray(betas, np.float64).ravel()]
-    arrays = {"poses": poses.reshape(len(poses), s, 3).astype(np.float32),
-              "trans": np.asarray(motion.trans, np.float32)}
-    return write_bundle(path, arrays, meta)
-
-
-def read_motion_file(path: str | os.PathLike):
-    """``(motion, meta)`` of a motion file: a :class:`segadeform.motion.Motion` (poses ``(T, 3 S)``) and the
-    file's ``meta``; every array and key checked."""
-    from .motion import Motion
-
-    p = Path(path)
-    arrays, meta = read_bundle(p)
-    if meta.get("kind") != MOTION_KIND:
-        raise FileFormatError("not a motion file", path=p, expected=f"meta.kind {MOTION_KIND!r}", got=meta.get("kind"))
-    if meta.get("schema_version") != MOTION_SCHEMA_VERSION:
-        raise FileFormatError("unsupported motion file schema version", path=p, expected=MOTION_SCHEMA_VERSION,
-                              got=meta.get("schema_version"))
-    poses, trans = arrays.get("poses"), arrays.get("trans")
-    if poses is None or poses.dtype != _DTYPES["f32"] or poses.ndim != 3 or poses.shape[2] != 3 or not len(poses):
-        raise FileFormatError("motion file poses must be f32 (T, S, 3), T >= 1", path=p, expected="f32 (T, S, 3)",
-                              got=None if poses is None else f"{poses.dtype} {poses.shape}")
-    if trans is None or trans.dtype != _DTYPES["f32"] or trans.shape != (len(poses), 3):
-        raise FileFormatError("motion file trans must be f32 (T, 3) matching poses", path=p,
-                              expected=f"f32 ({len(poses)}, 3)", got=None if trans is None else f"{trans.dtype} {trans.shape}")
-    try:
-        fps = float(meta["fps"])
-    except (KeyError, TypeError, ValueError):
-        raise FileFormatError("motion file meta has no fps", path=p) from None
-    try:
-        m = Motion(poses=poses.reshape(len(poses), -1).astype(np.float64), trans=trans.astype(np.float64), fps=fps,
-                   name=str(meta.get("name", p.stem)),
-                   meta={"format": "sgdm", "body": meta.get("body"), "betas": meta.get("betas")})
-    except InputError as e:
-        raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
-    return m, meta

@@ -1,0 +1,179 @@
+"""How a garment sits on a body, and the checks that refuse one that does not (the runtime's, ``garment export``'s
+and ``bundle``'s), with the plain unit/axis fix they suggest (:func:`fix_units_and_axes`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..errors import InputError
+from .collision import BodyProxy, push_out
+
+__all__ = ["UNIT_SCALES", "fix_units_and_axes", "FitReport", "placement_report", "push_off_body", "PlacementError",
+           "check_placement"]
+
+UNIT_SCALES = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "ft": 0.3048}
+
+
+def fix_units_and_axes(vertices, *, units: str | float | None = None, up: str = "y", scale: float = 1.0,
+                       offset=None) -> np.ndarray:
+    """A plain similarity: file units to metres, the file's up axis to +Y, an extra scale, then ``offset``
+    (metres, after the rest).
+
+    ``up``: ``"y"`` (no change), ``"z"`` (Blender / 3ds Max: (x, y, z) -> (x, z, -y)), ``"-z"``, ``"x"``.
+
+    Shapes:
+        vertices: (N, 3) -> (N, 3)
+    """
+    v = np.asarray(vertices, np.float64)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise InputError("vertices must be (N, 3)", got=v.shape)
+    if units is None:
+        f = 1.0
+    elif isinstance(units, str):
+        if units not in UNIT_SCALES:
+            raise InputError("unknown units", expected=", ".join(UNIT_SCALES), got=units)
+        f = UNIT_SCALES[units]
+    else:
+        f = float(units)
+    f *= float(scale)
+    if not (np.isfinite(f) and f > 0):
+        raise InputError("scale must be positive", got=f)
+    rot = {"y": np.eye(3), "z": np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]]),
+           "-z": np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]),
+           "x": np.array([[0, 1.0, 0], [-1.0, 0, 0], [0, 0, 1.0]])}.get(up)
+    if rot is None:
+        raise InputError("unknown up axis", expected="y, z, -z or x", got=up)
+    out = (v @ rot.T) * f
+    if offset is not None:
+        o = np.asarray(offset, np.float64).reshape(3)
+        if not np.isfinite(o).all():
+            raise InputError("offset must be finite", got=o)
+        out = out + o
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class FitReport:
+    """How a garment sits on a body: distances from the body surface (m) and the share inside it."""
+
+    median_distance: float
+    p90_distance: float
+    inside_fraction: float
+    deep_inside_fraction: float  # more than 1 cm inside
+    garment_height: float
+    body_height: float
+
+    def line(self) -> str:
+        return (f"median distance to the body {100 * self.median_distance:.1f} cm, 90th percentile "
+                f"{100 * self.p90_distance:.1f} cm, {100 * self.inside_fraction:.1f} % of vertices inside "
+                f"({100 * self.deep_inside_fraction:.1f} % deeper than 1 cm)")
+
+
+def placement_report(vertices, body_vertices, body_faces) -> FitReport:
+    """Distances of garment ``vertices (N, 3)`` from a (rest) body surface, and the share inside."""
+    v = np.asarray(vertices, np.float64)
+    q = BodyProxy(body_vertices, body_faces).query(v)
+    d = q.signed_distance
+    ad = np.abs(d)
+    bv = np.asarray(body_vertices)
+    return FitReport(median_distance=float(np.median(ad)), p90_distance=float(np.percentile(ad, 90)),
+                     inside_fraction=float((d < 0).mean()), deep_inside_fraction=float((d < -0.01).mean()),
+                     garment_height=float(np.ptp(v[:, 1])), body_height=float(np.ptp(bv[:, 1])))
+
+
+def push_off_body(vertices, body_vertices, body_faces, margin: float) -> tuple[np.ndarray, int]:
+    """Move vertices inside the (rest) body, or closer than ``margin`` (m), out along its normal.
+
+    Shapes:
+        vertices: (N, 3) -> (N, 3), and the number moved
+    """
+    if not (np.isfinite(margin) and 0 <= margin < 0.1):
+        raise InputError("margin must be in [0, 0.1) metres", got=margin)
+    return push_out(np.asarray(vertices, np.float64), BodyProxy(body_vertices, body_faces), float(margin))
+
+
+class PlacementError(InputError):
+    """A garment does not sit on the body it is to be animated on (units, axes, another body or pose)."""
+
+
+def _stats(v, proxy, top, floor):
+    d = proxy.query(v).signed_distance
+    return {"p20": float(np.percentile(np.abs(d), 20)), "median": float(np.median(np.abs(d))),
+            "deep": float((d < -0.01).mean()), "outside_height": float(((v[:, 1] > top + 0.02) |
+                                                                         (v[:, 1] < floor - 0.02)).mean())}
+
+
+def _fits(st) -> bool:
+    return st["p20"] <= 0.05 and st["deep"] <= 0.05 and st["outside_height"] <= 0.02
+
+
+def check_placement(vertices, body_vertices, body_faces, *, path=None, max_points: int = 4000,
+                    template_vertices=None, betas=()) -> dict:
+    """Refuse a garment that does not sit on the (rest) body, naming the likely cause and the fix.
+
+    A garment sits on the body when the closest fifth of its vertices are within 5 cm of the skin, at
+    most 5 % are more than 1 cm inside the body, and at most 2 % lie above the head or below the feet.
+    Otherwise the garment is tried in other units (dm, cm, mm, inch), with other up axes (z, -z) and moved
+    up or down (another body's origin, e.g. SMPL's pelvis at y = 0); the first of those that fits is named
+    in the error with its ``segadeform garment fit`` command, else the garment was made for another body
+    or pose (``--mhclo`` or ``--from-body``).  With ``template_vertices`` (the body at betas 0) and ``betas`` (the
+    shape ``body_vertices`` has), a garment that sits on the default shape is named as made for it: it needs
+    making (or fitting) again for ``betas``, not another origin or units.
+
+    Returns the statistics (``p20``, ``median`` distance in m, ``deep`` and ``outside_height`` fractions).
+
+    Raises:
+        PlacementError
+    """
+    v = np.asarray(vertices, np.float64)
+    if len(v) > max_points:
+        v = v[np.linspace(0, len(v) - 1, max_points).astype(np.int64)]
+    bv = np.asarray(body_vertices, np.float64)
+    proxy = BodyProxy(bv, body_faces)
+    top, floor = float(bv[:, 1].max()), float(bv[:, 1].min())
+    st = _stats(v, proxy, top, floor)
+    if _fits(st):
+        return st
+    what = (f"median distance to the body {100 * st['median']:.1f} cm (closest fifth beyond "
+            f"{100 * st['p20']:.1f} cm), {100 * st['deep']:.1f} % of vertices more than 1 cm inside it, "
+            f"{100 * st['outside_height']:.1f} % above the head or below the feet")
+    g = path if path is not None else "GARMENT"
+    b = np.asarray(betas if betas is not None else (), np.float64).ravel()
+    if template_vertices is not None and b.size and np.abs(b).max() > 0:
+        tv = np.asarray(template_vertices, np.float64)
+        if _fits(_stats(v, BodyProxy(tv, body_faces), float(tv[:, 1].max()), float(tv[:, 1].min()))):
+            shape = ",".join(f"{x:g}" for x in b)
+            raise PlacementError(f"the garment was made for the default body shape (betas 0), not for betas {shape} "
+                                 f"({what})", path=path,
+                                 expected=f"a garment made for betas {shape}: `segadeform garment make KIND --betas "
+                                          f"{shape}`, `segadeform garment fit G.mhclo --betas {shape}`, or --force")
+    for units in (None, "dm", "cm", "mm", "inch"):
+        for up in ("y", "z", "-z"):
+            if units is None and up == "y":
+                continue
+            w = fix_units_and_axes(v, units=units, up=up)
+            if _fits(_stats(w, proxy, top, floor)):
+                opts = (f" --units {units}" if units else "") + (f" --up {up}" if up != "y" else "")
+                read = " and ".join(x for x in ((f"in {units}" if units else ""),
+                                                (f"with +{up.lstrip('-')} up" if up != "y" else "")) if x)
+                raise PlacementError(f"the garment does not sit on the body ({what}); it does once read {read}",
+                                     path=path, expected=f"metres, +Y up: run `segadeform garment fit {g} -o FIXED.obj"
+                                     f"{opts}`, or pass --force")
+    size = np.ptp(v, axis=0)
+    if size.max() < 2.0 * (top - floor):  # a plausible size: try moving it
+        for dy in np.arange(-1.5, 1.51, 0.05):
+            w = v + np.array([0.0, dy, 0.0])
+            if abs(dy) >= 0.25 and _fits(_stats(w, proxy, top, floor)):  # an origin, not a shape, is off
+                raise PlacementError(f"the garment does not sit on the body ({what}); it does {abs(dy):.2f} m "
+                                     f"{'higher' if dy > 0 else 'lower'}: it was placed for another body's "
+                                     "origin (SMPL-fitted garments sit around SMPL's pelvis at y = 0)", path=path,
+                                     expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
+                                              f"--offset 0,{dy:.2f},0` or `--from-body THEIR_BODY.obj`, or pass --force")
+    raise PlacementError(f"the garment does not sit on the body ({what}); it was made for another body, pose or "
+                         "body shape (betas)",
+                         path=path, expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
+                                             "--from-body THEIR_BODY.obj` (MakeHuman clothes: --mhclo FILE), "
+                                             "or pass --force")

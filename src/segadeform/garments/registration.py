@@ -1,0 +1,231 @@
+"""Garments made for another body, registered onto ours: MakeHuman ``.mhclo`` bindings and another body's mesh.
+Vertex order and count are always kept.  (Reading ``.mhclo`` files is :mod:`segadeform.io.mhclo`'s, the rewritten
+OBJ :func:`segadeform.io.obj.rewrite_obj_vertices`'s, placement checks and the plain unit/axis fix
+:mod:`segadeform.body.placement`'s.)
+
+* :func:`fit_mhclo`: a MakeHuman garment binds each vertex
+  to three hm08 base-mesh vertices (weights, offset; ``../shared/data/MHCLO_FORMAT.md``).
+  The default body *is* the hm08 mesh (T-posed, metres), and its file says
+  where every hm08 vertex is for any shape (:mod:`segadeform.body.makehuman`),
+  so the garment is fitted in MakeHuman's A-pose at the requested ``betas``
+  exactly as MakeHuman does it (``p = sum w_k B[v_k] + diag(s) d``, with the
+  per-axis scales measured on the shaped body), then carried to the body's
+  T-pose rest by inverse linear blend skinning with weights taken from the
+  three bound vertices.
+* :func:`fit_to_body_mesh`: a garment modelled on another body (any topology,
+  pose, units): the body is registered to that mesh (scale and placement,
+  shape ``betas`` and joint rotations, then a smooth surface correction), each
+  garment vertex is attached to the registered surface (closest point and
+  offset in the local surface frame), and carried onto the body's rest.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Optional
+
+import numpy as np
+
+from ..body.collision import BodyProxy, closest_point_on_triangles
+from ..body.kinematics import forward_kinematics, poses_to_rotmats, relative_transforms
+from ..body.makehuman import makehuman_vertices, makehuman_weights
+from ..body.skinning import linear_blend_skinning
+from ..bounds import BETA_LIMIT
+from ..errors import FileFormatError, InputError
+from ..geometry.mesh_ops import adjacency
+from ..io.mhclo import MhcloBinding
+
+__all__ = ["fit_mhclo", "fit_to_body_mesh", "BodyFit"]
+
+_MH_TO_M = 0.1  # MakeHuman mesh units are decimetres
+
+
+def fit_mhclo(binding: MhcloBinding, body, betas=None, *, return_apose: bool = False):
+    """The garment's vertices on ``body`` at shape ``betas``, in the body's T-pose rest (metres, +Y up).
+
+    With ``return_apose`` also the fit in MakeHuman's A-pose (the body posed by ``rest_pose_a``), before
+    it is carried to the T-pose: the shape the garment was designed in, which the cloth simulator uses
+    as the rest shape (``simulate(..., cloth_rest=, start_pose=)``).
+
+    Shapes:
+        -> (N, 3), the ``.mhclo``'s (= its OBJ's) vertex order [, (N, 3)]
+    """
+    mh = getattr(body, "makehuman", None)
+    if mh is None:
+        raise InputError("this body has no MakeHuman binding, so .mhclo garments cannot be fitted to it",
+                         expected="the default body, or one baked with `segadeform body bake`")
+    n_hm = len(mh["hm08_index"]) + len(mh["extra_index"])
+    idx = binding.verts
+    used = np.concatenate([idx.ravel(), np.array([a for s in binding.scales.values() for a in s[:2]], np.int64)])
+    if used.max() >= n_hm:
+        raise FileFormatError("binding names a base-mesh vertex the body does not have", path=binding.path,
+                              expected=f"indices < {n_hm}", got=int(used.max()))
+    H = makehuman_vertices(body, mh, betas)  # (19158, 3), A-pose, metres
+    s = np.ones(3)
+    for ax, (a, b, ref) in binding.scales.items():
+        k = "xyz".index(ax)
+        s[k] = abs(H[a, k] - H[b, k]) / (ref * _MH_TO_M)
+    p_a = np.einsum("nk,nkc->nc", binding.weights, H[idx]) + binding.offsets * _MH_TO_M * s
+    W = makehuman_weights(body, mh)  # (19158, S)
+    wg = np.einsum("nk,nks->ns", binding.weights, W[idx])
+    wg = np.clip(wg, 0.0, None)
+    wg /= np.maximum(wg.sum(axis=1, keepdims=True), 1e-12)
+    pose_a = mh["rest_pose_a"].reshape(1, 72)
+    A = body.forward(pose_a, betas).transforms[0]  # (S, 4, 4): T-pose rest -> A-pose
+    M = np.einsum("ns,sij->nij", wg, A)
+    ph = np.concatenate([p_a, np.ones((len(p_a), 1))], axis=1)
+    p_t = np.linalg.solve(M, ph[..., None])[..., 0][:, :3]
+    return (p_t, p_a) if return_apose else p_t
+
+
+@dataclasses.dataclass(frozen=True)
+class BodyFit:
+    """The result of :func:`fit_to_body_mesh`.
+
+    Attributes:
+        vertices: (N, 3) the garment on the target body's rest (T-pose, metres).
+        body_error: mean distance (m) from the source body's points to the registered body surface.
+        scale, trans: the similarity placing the body on the source; pose: (72,) its fitted pose;
+        betas: its fitted shape.
+    """
+
+    vertices: np.ndarray
+    body_error: float
+    scale: float
+    trans: np.ndarray
+    pose: np.ndarray
+    betas: np.ndarray
+
+
+def _local_frames(v: np.ndarray, faces: np.ndarray, face_idx: np.ndarray):
+    """Per-face orthonormal frames (t1, t2, n), each (M, 3), of faces ``face_idx``."""
+    tri = v[faces[face_idx]]
+    t1 = tri[:, 1] - tri[:, 0]
+    n = np.cross(t1, tri[:, 2] - tri[:, 0])
+    t1 /= np.maximum(np.linalg.norm(t1, axis=1, keepdims=True), 1e-300)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    return t1, np.cross(n, t1), n
+
+
+def fit_to_body_mesh(garment_vertices, source_vertices, source_faces, body, betas=None, *,
+                     samples: int = 1500, rounds: int = 8, seed: int = 0,
+                     scale: Optional[float] = None) -> BodyFit:
+    """Carry a garment modelled on another body mesh (any topology and pose, +Y up, metres) onto ``body``.
+
+    1. **register** the body to the source mesh: scale (``None``: free, from the height ratio; a number
+       fixes it), translation, shape and joint rotations by iterative closest points in both
+       directions (body samples -> source, source samples -> body), with priors pulling pose and shape
+       to zero; two rounds from each of the T-pose, MakeHuman's A-pose (when the body file has it) and
+       arms down, then the best one to the end;
+    2. **correct the surface**: every registered body vertex within 3 cm of the source moves onto it,
+       the displacement smoothed over the mesh;
+    3. **attach** each garment vertex to the closest point of that surface: triangle, barycentric
+       weights and the offset in the triangle's own frame;
+    4. **carry** it to the body's rest at ``betas``: the same triangle point and local offset.
+
+    Shapes:
+        garment_vertices: (N, 3); source_vertices: (S, 3); source_faces: (F, 3) -> BodyFit.vertices (N, 3)
+    """
+    from scipy.optimize import least_squares
+    from scipy.spatial import cKDTree
+
+    g = np.asarray(garment_vertices, np.float64)
+    sv = np.asarray(source_vertices, np.float64)
+    sf = np.asarray(source_faces, np.int64)
+    if g.ndim != 2 or g.shape[1] != 3 or sv.ndim != 2 or sv.shape[1] != 3:
+        raise InputError("garment and source body must be (N, 3) vertex arrays", got=(g.shape, sv.shape))
+    if not (np.isfinite(g).all() and np.isfinite(sv).all()):
+        raise InputError("garment or source body contains NaN or inf")
+    rng = np.random.default_rng(seed)
+    nb = body.n_betas
+    bidx = rng.choice(body.n_vertices, size=min(samples, body.n_vertices), replace=False)
+    sidx = rng.choice(len(sv), size=min(samples, len(sv)), replace=False)
+    s_pts = sv[sidx]
+    s_tree = cKDTree(sv)
+    joints_free = [0, 1, 2, 3, 4, 5, 6, 9, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21]
+    W = body.weights[bidx]
+    n_th = 3 * len(joints_free)
+    v0 = body.shaped_vertices()[0]
+    height_s, height_b = float(np.ptp(sv[:, 1])), float(np.ptp(v0[:, 1]))
+    if not height_s > 0:
+        raise InputError("the source body has no height (is it flat, or not +Y up?)", got=height_s)
+
+    def unpack(x):
+        th = np.zeros(72)
+        th.reshape(24, 3)[joints_free] = x[4 + nb:].reshape(-1, 3)
+        return float(np.exp(x[0])), x[1:4], x[4:4 + nb], th
+
+    def body_points(x):
+        sc, t, beta, th = unpack(x)
+        rest = body.v_template[bidx] + np.einsum("vcb,b->vc", body.shapedirs[bidx], beta)
+        J = body.rest_joints(beta)[0]
+        g4, _ = forward_kinematics(poses_to_rotmats(th[None], 24), J, body.parents)
+        return linear_blend_skinning(rest, W, relative_transforms(g4, J))[0] * sc + t
+
+    def fit_from(init_pose: np.ndarray, n_rounds: int, x=None):
+        if x is None:
+            x = np.zeros(4 + nb + n_th)
+            x[0] = np.log(height_s / height_b) if scale is None else np.log(scale)
+            x[4 + nb:] = init_pose.reshape(24, 3)[joints_free].ravel()
+            p = body_points(x)
+            x[1:4] = [sv[:, 0].mean() - p[:, 0].mean(), sv[:, 1].min() - p[:, 1].min(),
+                      sv[:, 2].mean() - p[:, 2].mean()]
+        lo = np.full_like(x, -np.inf)
+        hi = np.full_like(x, np.inf)
+        lo[4:4 + nb], hi[4:4 + nb] = -BETA_LIMIT, BETA_LIMIT  # the shape space (segadeform.bounds)
+        if scale is not None:  # a fixed scale: bounds pin it
+            lo[0], hi[0] = np.log(scale) - 1e-9, np.log(scale) + 1e-9
+            x[0] = np.log(scale)
+        for _ in range(n_rounds):
+            p = body_points(x)
+            q = sv[s_tree.query(p)[1]]  # body sample -> nearest source vertex
+            near_b = cKDTree(p).query(s_pts)[1]  # source sample -> nearest body sample
+
+            def res(xx):
+                pp = body_points(xx)
+                return np.concatenate([(pp - q).ravel(), (pp[near_b] - s_pts).ravel(),
+                                       0.01 * xx[4:4 + nb], 0.02 * xx[4 + nb:]])
+
+            x = least_squares(res, x, max_nfev=20, method="trf", x_scale="jac", bounds=(lo, hi)).x
+        p = body_points(x)
+        return x, 0.5 * (s_tree.query(p)[0].mean() + cKDTree(p).query(s_pts)[0].mean())
+
+    starts = [np.zeros(72)]
+    mh = getattr(body, "makehuman", None)
+    if mh is not None:
+        starts.append(np.asarray(mh["rest_pose_a"], np.float64))
+    down = np.zeros((24, 3))
+    down[16] = [0, 0, -1.2]
+    down[17] = [0, 0, 1.2]
+    starts.append(down.ravel())
+    trials = [fit_from(s0, 2) for s0 in starts]  # a short fit from each start, then the best one to the end
+    x, _ = min(trials, key=lambda r: r[1])
+    x, _ = fit_from(None, rounds, x)
+    scale_f, t, beta, th = unpack(x)
+    B1 = body.forward(th[None], beta).vertices[0] * scale_f + t
+    # surface correction: registered vertices near the source move onto it, smoothed
+    sp_proxy = BodyProxy(sv, sf) if len(sf) else None
+    if sp_proxy is not None:
+        c = sp_proxy.query(B1).closest
+    else:
+        c = sv[s_tree.query(B1)[1]]
+    d = c - B1
+    d[np.linalg.norm(d, axis=1) > 0.03] = 0.0
+    A = adjacency(body.faces, body.n_vertices)
+    deg = np.asarray(A.sum(axis=1)).ravel()
+    for _ in range(10):
+        d = 0.5 * d + 0.5 * (A @ d) / np.maximum(deg, 1)[:, None]
+    B2 = B1 + d
+    body_error = float(BodyProxy(B2, body.faces).query(s_pts).signed_distance.__abs__().mean())
+    # attach the garment to B2 and carry it to the rest body
+    q = BodyProxy(B2, body.faces).query(g)
+    tri = B2[body.faces[q.face]]
+    _, bary = closest_point_on_triangles(g, tri[:, 0], tri[:, 1], tri[:, 2])
+    t1, t2, n = _local_frames(B2, body.faces, q.face)
+    o = g - q.closest
+    coef = np.stack([np.einsum("ij,ij->i", o, t1), np.einsum("ij,ij->i", o, t2), np.einsum("ij,ij->i", o, n)], 1)
+    R = body.shaped_vertices(betas)[0]
+    c_r = np.einsum("mk,mkc->mc", bary, R[body.faces[q.face]])
+    r1, r2, rn = _local_frames(R, body.faces, q.face)
+    out = c_r + coef[:, :1] * r1 + coef[:, 1:2] * r2 + coef[:, 2:] * rn
+    return BodyFit(vertices=out, body_error=body_error, scale=scale_f, trans=np.asarray(t), pose=th, betas=beta)

@@ -1,0 +1,44 @@
+"""Every precompute step on a garment, in one call: the garment asset (:class:`segadeform.io.garment_asset.GarmentAsset`,
+its file format and fields)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import __version__
+from ..io.garment_asset import GarmentAsset
+from ._checks import check_mesh, check_vertices
+from .descriptor import DEFAULT_N_STAR, garment_descriptor
+from .features import vertex_features
+from .geodesic import DEFAULT_GEODESIC, GeodesicSolver
+from .graph import DEFAULT_MAX_K, neighbour_graph
+from .mesh_ops import vertex_normals
+
+__all__ = ["precompute_garment"]
+
+
+def precompute_garment(vertices, faces, joints, *, k: int | None = None, max_k: int = DEFAULT_MAX_K,
+                       n_star: int = DEFAULT_N_STAR, geodesic: str = DEFAULT_GEODESIC,
+                       source_name: str = "", source_sha256: str = "") -> GarmentAsset:
+    """Run every precompute step on a garment and return the asset.
+
+    Memory is O(N K + N* N): no step forms an N x N matrix.
+
+    Shapes:
+        vertices: (N, 3), faces: (F, 3), joints: (S, 3)
+    """
+    v, f = check_mesh(vertices, faces)
+    j = check_vertices(joints, "joints")
+    normals = vertex_normals(v, f)
+    feats = vertex_features(v, f, j, normals=normals)
+    nbr, mask = neighbour_graph(f, v.shape[0], k=k, vertices=v, max_k=max_k)
+    solver = GeodesicSolver(v, f, method=geodesic)
+    desc = garment_descriptor(v, f, n_star=n_star, solver=solver)
+    params = {"k": int(nbr.shape[1]), "max_k": int(max_k), "n_star": int(n_star), "geodesic": geodesic,
+              "segadeform_version": __version__, "n_components": int(solver.n_components)}
+    return GarmentAsset(
+        vertices=v, faces=f, normals=normals.astype(np.float32), features=feats, nbr=nbr, mask=mask,
+        joints=j.astype(np.float64), descriptor=desc.eigenvalues.astype(np.float64),
+        fps_samples=desc.samples.astype(np.int64), geodesic_radius=float(desc.radius), params=params,
+        source_name=source_name, source_sha256=source_sha256,
+    )
