@@ -223,3 +223,17 @@ def test_ramp_in_starts_from_rest_and_joins_the_motion_at_full_speed():
     assert abs(step[2 * k - 1] - step[2 * k]) < 0.2 * step[2 * k]  # its speed where the motion takes over
     with pytest.raises(InputError):
         ramp_in(m, 100.0)
+
+
+def test_drop_leading_tpose_removes_a_calibration_pose_and_the_move_out_of_it():
+    from segadeform.motion import make_motion
+    from segadeform.motion.motion import drop_leading_tpose
+
+    m = make_motion("walk_arms_down", seconds=2.0, fps=30.0, seed=0, ease_in=0.0)
+    assert drop_leading_tpose(m)[1] == 0  # arms down from the start: left alone
+    poses = m.poses.copy()
+    poses[:10, 3 * 16:3 * 18] = 0.0  # the first 10 frames: both upper arms at the T-pose
+    out, k = drop_leading_tpose(dataclasses.replace(m, poses=poses))
+    assert k == 10 + 15 and out.n_frames == m.n_frames - k and np.allclose(out.poses, poses[k:])
+    still = dataclasses.replace(m, poses=np.zeros_like(m.poses))  # a T-pose throughout: nothing to tell apart
+    assert drop_leading_tpose(still)[1] == 0

@@ -53,7 +53,7 @@ from ..garments import GARMENT_TYPES, make_garment
 from ..io import Mesh, read_mesh, write_obj
 from ..io.location import Location, LocalLocation, open_location
 from ..motion import face_forward, load_motion, make_motion, resample
-from ..motion.motion import drop_leading_jumps, ramp_in
+from ..motion.motion import drop_leading_jumps, drop_leading_tpose, ramp_in
 from ..motion.motion import Motion
 from .config import DatasetConfig, GarmentSpec, MotionEntry
 from .quality import BodyParts, quality_check
@@ -193,7 +193,8 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
     cloth blended from rest straight into a running body lags and ends up inside it; the lead frames are
     simulated and dropped.  A clip with less capture before it starts at least RAMP_MIN_SECONDS in, and its
     lead is that capture played from rest with the speed ramping up (:func:`~segadeform.motion.motion.ramp_in`).
-    A T-pose frame in front of a capture is dropped first (:func:`~segadeform.motion.motion.drop_leading_jumps`)."""
+    A T-pose frame in front of a capture and a calibration T-pose held at its start are dropped first
+    (:func:`~segadeform.motion.motion.drop_leading_jumps`, :func:`~segadeform.motion.motion.drop_leading_tpose`)."""
     if m.kind is not None:
         # a procedural motion with no ease-in starts at full speed: it gets the same lead, its first
         # LEAD_SECONDS simulated and dropped (one that eases in from rest needs none)
@@ -205,6 +206,7 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
         return mo, lead
     mo = load_motion(m.file, rest_joints=rest_joints, floor=True)
     mo, _ = drop_leading_jumps(mo)  # a T-pose put in front of the capture (cgspeed's CMU BVH)
+    mo, _ = drop_leading_tpose(mo)  # a calibration T-pose held at the start of the capture
     if abs(mo.fps - cfg.fps) > 1e-9:
         mo = resample(mo, cfg.fps)
     a = min(int(round(m.start * cfg.fps)), mo.n_frames - 1)

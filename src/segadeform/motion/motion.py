@@ -16,7 +16,7 @@ from ..io.atomic import atomic_path
 from ..io.sgdm import read_motion_arrays, write_motion_arrays
 
 __all__ = ["Motion", "load_motion_npz", "feet_on_floor", "face_forward", "resample", "motion_windows", "N_POSE", "SMPL_PELVIS",
-           "sample_frames", "drop_leading_jumps", "ramp_in"]
+           "sample_frames", "drop_leading_jumps", "drop_leading_tpose", "ramp_in"]
 
 N_POSE = 72  # 24 SMPL joints x axis-angle
 
@@ -326,6 +326,28 @@ def drop_leading_jumps(motion: Motion, max_degrees: float = 60.0, *, max_frames:
     if dropped:
         m = dataclasses.replace(m, meta=dict(m.meta, dropped_leading_frames=dropped))
     return m, dropped
+
+
+def drop_leading_tpose(motion: Motion, *, max_degrees: float = 25.0, settle_seconds: float = 0.5,
+                       within_seconds: float = 5.0) -> tuple[Motion, int]:
+    """Drop a calibration T-pose held at the start of a capture, and ``settle_seconds`` of the move out of it:
+    when both upper arms are within ``max_degrees`` of the T-pose in the first frame (SMPL's rest pose is the
+    T-pose), every frame up to the first where one leaves it (within ``within_seconds``) goes, then the settling
+    time.  Some CMU trials open this way (03_02, 127_02); played as they are, the arms drop from horizontal in a
+    few frames and throw a shirt's sleeves off them.  Returns the motion and how many frames went.
+    """
+    arm = np.degrees(np.linalg.norm(motion.poses.reshape(-1, 24, 3)[:, [16, 17]], axis=2)).max(axis=1)
+    held = arm < max_degrees
+    if not held[0]:
+        return motion, 0
+    limit = min(motion.n_frames, int(round(within_seconds * motion.fps)))
+    out = np.flatnonzero(~held[:limit])
+    if len(out) == 0:  # a T-pose throughout (or past the window): nothing to tell capture from calibration
+        return motion, 0
+    k = min(int(out[0]) + int(round(settle_seconds * motion.fps)), motion.n_frames - 2)
+    m = dataclasses.replace(motion, poses=motion.poses[k:], trans=motion.trans[k:],
+                            meta=dict(motion.meta, dropped_leading_tpose_frames=k))
+    return m, k
 
 
 def ramp_in(motion: Motion, seconds: float) -> Motion:
