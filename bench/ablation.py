@@ -66,7 +66,9 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
 
     from segadeform.body.model import default_body_path, load_body
+    from segadeform.runtime.predictor import PackagePredictor
     from segadeform.train.evaluate import evaluate
+    from segadeform.train.predictors import make_predictors
 
     body = load_body(default_body_path())
     models = {"lbs": "lbs", "lbs-inpaint": "lbs-inpaint"}
@@ -82,7 +84,7 @@ def main(argv=None) -> int:
         name, _, p = spec.partition("=")
         models[name] = p
     t0 = time.perf_counter()
-    res = evaluate(a.dataset, body, models, split=a.split, push_out_margin=a.push_out or None,
+    res = evaluate(a.dataset, body, make_predictors(models, package=PackagePredictor), split=a.split, push_out_margin=a.push_out or None,
                    progress=lambda sid: print("  " + sid, file=sys.stderr, flush=True))
     took = time.perf_counter() - t0
     md = table(res, runs)

@@ -24,7 +24,10 @@ from segadeform.dataset.store import load_sample
 from segadeform.geometry import precompute_garment
 from segadeform.render import MeshLayer, fit_bounds, render, save_image
 from segadeform.runtime.pipeline import default_model_path
-from segadeform.train.evaluate import cloth_names, cloth_frames, make_predictor, push_out_frames, reference
+from segadeform.runtime.predictor import PackagePredictor
+from segadeform.train.evaluate import cloth_frames, cloth_names, push_out_frames
+from segadeform.train.metrics import reference
+from segadeform.train.predictors import make_predictor
 
 SKIN, CLOTH = (0.85, 0.7, 0.6), (0.25, 0.4, 0.85)
 
@@ -44,7 +47,7 @@ def main(argv=None) -> Path:
     frames = [int(x) for x in a.frames.split(",")]
     specs = [m.split("=", 1) for m in (a.model or ["lbs=lbs", f"shipped={default_model_path()}"])]
     body = load_body(default_body_path())
-    predictors = [(name, make_predictor(name, spec)) for name, spec in specs]
+    predictors = [(name, make_predictor(name, spec, package=PackagePredictor)) for name, spec in specs]
     rows = []
     for sid in a.sample:
         s = load_sample(a.dataset, sid)

@@ -297,8 +297,10 @@ def measure(dataset: Path, body, rows: list[Row], *, split: str, threads_all: in
     from segadeform.dataset.store import list_samples, load_sample
     from segadeform.geometry.laplacian import SpectralBasis
     from segadeform.settings.cloth import ClothSettings
-    from segadeform.train.evaluate import (METRICS, cloth_frames, make_predictor, push_out_frames, reference,
-                                           sample_metrics)
+    from segadeform.runtime.predictor import PackagePredictor
+    from segadeform.train.evaluate import cloth_frames, push_out_frames
+    from segadeform.train.metrics import METRICS, reference, sample_metrics
+    from segadeform.train.predictors import make_predictor
 
     ids = [i for i in list_samples(dataset, split) if not only or i in only]
     if not ids:
@@ -357,7 +359,7 @@ def measure(dataset: Path, body, rows: list[Row], *, split: str, threads_all: in
                 setup = pre_ms + enc_ms
             else:  # lbs or a checkpoint: one timing (numpy / torch eager), both columns
                 if r.spec not in others:
-                    others[r.spec] = make_predictor(r.name, r.spec)
+                    others[r.spec] = make_predictor(r.name, r.spec, package=PackagePredictor)
                 asset = None
                 if r.spec != "lbs":
                     from segadeform.train.data import sample_asset

@@ -88,8 +88,10 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
 def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, cloth=()):
     """Evaluate models against the simulation on DATASET (one or more roots: dataset folders, packs, folders of
     packs): the paper's metrics per model and garment type."""
-    from segadeform.train.evaluate import markdown_table, write_report
+    from segadeform.runtime.predictor import PackagePredictor
     from segadeform.train.evaluate import evaluate as run_eval
+    from segadeform.train.predictors import make_predictors
+    from segadeform.train.report import markdown_table, write_report
 
     from segadeform.io.output_guard import OutputGuard
 
@@ -106,9 +108,10 @@ def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, 
 
     dataset = DatasetRoots(list(dataset))
     margins = None if not push_margin else push_margin[0] if len(push_margin) == 1 else list(push_margin)
-    res = run_eval(dataset, b, spec, split=split, push_out_margin=margins, cloth=list(cloth) or None,
+    predictors = make_predictors(spec, package=PackagePredictor)
+    res = run_eval(dataset, b, predictors, split=split, push_out_margin=margins, cloth=list(cloth) or None,
                    progress=lambda sid: click.echo(f"  {sid}", err=True))
-    write_report(res, output, dataset=dataset, body=b, heatmap_model=heatmap or next(iter(spec)))
+    write_report(res, output, dataset=dataset, body=b, heatmap=predictors.get(heatmap or next(iter(spec))))
     guard.record()
     click.echo(markdown_table(res))
     click.echo(f"-> {output}")

@@ -71,8 +71,6 @@ MODULE_LAYERS = {
 
 #: back-edges still in the tree, each to be removed (the test fails on any other, and on one of these once gone)
 KNOWN_BACK_EDGES = [
-    "segadeform.train.evaluate (train) imports segadeform.runtime (runtime)",
-    "segadeform.train.evaluate (train) imports segadeform.runtime.deformer (runtime)",
 ]
 
 #: third-party modules only some layers may import

@@ -11,7 +11,11 @@ import pytest
 pytest.importorskip("torch")
 
 from segadeform.cli.main import main  # noqa: E402
-from segadeform.train.evaluate import METRICS, cloth_names, evaluate, markdown_table  # noqa: E402
+from segadeform.runtime.predictor import PackagePredictor  # noqa: E402
+from segadeform.train.evaluate import cloth_names, evaluate  # noqa: E402
+from segadeform.train.metrics import METRICS  # noqa: E402
+from segadeform.train.predictors import make_predictors  # noqa: E402
+from segadeform.train.report import markdown_table  # noqa: E402
 
 
 def test_cloth_names():
@@ -28,7 +32,7 @@ def test_cloth_names():
 
 def test_evaluate_with_the_cloth_stage(synthetic_dataset, random_package, body):
     pkg = str(random_package)
-    res = evaluate(synthetic_dataset, body, {"lbs": "lbs", "lbs-inpaint": "lbs-inpaint", "model": pkg},
+    res = evaluate(synthetic_dataset, body, make_predictors({"lbs": "lbs", "lbs-inpaint": "lbs-inpaint", "model": pkg}, package=PackagePredictor),
                    push_out_margin=0.004, cloth=["default", "iterations=1,stiffness=0.2"])
     m = res["models"]
     want = {"lbs", "lbs-inpaint", "model", "lbs-inpaint + push-out", "model + push-out", "model + cloth",
@@ -46,7 +50,7 @@ def test_evaluate_with_the_cloth_stage(synthetic_dataset, random_package, body):
     md = markdown_table(res)
     assert "| skirt | model + cloth |" in md and "max stretch (%)" in md
     with pytest.raises(Exception, match="--cloth"):
-        evaluate(synthetic_dataset, body, {"x": f"{pkg}:+cloth"})
+        evaluate(synthetic_dataset, body, make_predictors({"x": f"{pkg}:+cloth"}, package=PackagePredictor))
 
 
 def test_cli_eval_cloth(synthetic_dataset, random_package, tmp_path, capsys):

@@ -12,7 +12,10 @@ torch = pytest.importorskip("torch")
 
 from segadeform.cli.main import main  # noqa: E402
 from segadeform.train import load_train_config  # noqa: E402
-from segadeform.train.evaluate import METRICS, evaluate  # noqa: E402
+from segadeform.runtime.predictor import PackagePredictor  # noqa: E402
+from segadeform.train.evaluate import evaluate  # noqa: E402
+from segadeform.train.metrics import METRICS  # noqa: E402
+from segadeform.train.predictors import make_predictors  # noqa: E402
 from segadeform.train.trainer import train  # noqa: E402
 
 
@@ -82,7 +85,7 @@ def test_evaluate_lbs_is_exact_on_skinned_data_and_models_are_measured(synthetic
                                                                       body):
     cfg = load_train_config(tiny_config, dataset=synthetic_dataset)
     ck = train(cfg, tmp_path / "run", body)
-    res = evaluate(synthetic_dataset, body, {"lbs": "lbs", "sega": str(ck)}, push_out_margin=0.004)
+    res = evaluate(synthetic_dataset, body, make_predictors({"lbs": "lbs", "sega": str(ck)}, package=PackagePredictor), push_out_margin=0.004)
     assert res["samples"] == ["skirt__b0__swing"] and set(res["models"]) == {"lbs", "sega", "sega + push-out"}
     lbs = res["models"]["lbs"]
     assert lbs["vertex_cm"] < 1e-3 and lbs["low_cm"] < 1e-3 and lbs["jitter_mm"] < 1e-3
@@ -108,15 +111,15 @@ def test_cli_train_and_eval(synthetic_dataset, tiny_config, tmp_path, capsys):
 
 def test_evaluate_packages_with_effects_off(synthetic_dataset, random_package, body):
     pkg = str(random_package)
-    res = evaluate(synthetic_dataset, body, {"all": pkg, "no wrinkles": f"{pkg}:-wrinkles",
-                                             "static": f"{pkg}:-dynamics"})
+    res = evaluate(synthetic_dataset, body, make_predictors({"all": pkg, "no wrinkles": f"{pkg}:-wrinkles",
+                                             "static": f"{pkg}:-dynamics"}, package=PackagePredictor))
     m = res["models"]
     assert all(np.isfinite(m[n][k]) for n in m for k in METRICS) and all(m[n]["ms_per_frame"] > 0 for n in m)
     assert m["all"]["vertex_cm"] != m["no wrinkles"]["vertex_cm"]
     from segadeform.errors import InputError
 
     with pytest.raises(InputError):
-        evaluate(synthetic_dataset, body, {"x": f"{pkg}:collisions"})
+        evaluate(synthetic_dataset, body, make_predictors({"x": f"{pkg}:collisions"}, package=PackagePredictor))
 
 
 def test_push_out_frames_is_the_runtime_collider_and_matches_the_reference(synthetic_dataset, body):
@@ -125,7 +128,8 @@ def test_push_out_frames_is_the_runtime_collider_and_matches_the_reference(synth
     from segadeform.body.collision import BodyCollider, push_out
     from segadeform.dataset.store import load_sample
     from segadeform.errors import InputError
-    from segadeform.train.evaluate import push_out_frames, push_out_names, reference
+    from segadeform.train.evaluate import push_out_frames, push_out_names
+    from segadeform.train.metrics import reference
 
     s = load_sample(synthetic_dataset, "skirt__b0__swing")
     ref = reference(s, body)

@@ -1,0 +1,90 @@
+"""The paper's metrics (§5) of one prediction against the simulation (see :mod:`segadeform.train.evaluate` for the
+list); :func:`reference` computes once per sample what every prediction is compared with."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Optional
+
+import numpy as np
+
+from ..body.collision import BodyProxy
+from ..body.model import BodyModel
+from ..dataset.store import Sample
+from ..geometry.laplacian import SpectralBasis
+from ..geometry.mesh_ops import unique_edges, vertex_normals
+
+__all__ = ["METRICS", "PEAK_METRICS", "PEN_DEPTH", "Reference", "reference", "sample_metrics"]
+
+METRICS = ("vertex_cm", "normal_deg", "edge_mm", "low_cm", "mid_cm", "high_cm", "penetration_pct", "jitter_mm",
+           "max_strain_pct", "p99_strain_pct")
+#: metrics aggregated over samples by their largest value, not their mean
+PEAK_METRICS = ("max_strain_pct",)
+PEN_DEPTH = 0.002
+
+
+def _normals(x, faces):
+    return np.stack([vertex_normals(f, faces) for f in x])
+
+
+@dataclasses.dataclass
+class Reference:
+    """What every prediction of one sample is compared with, computed once per sample.
+
+    Shapes: gt (T, N, 3); n_gt (T, N, 3) vertex normals; l_gt (T, E) edge lengths; acc_gt (T-2, N, 3)
+    second differences; proxies: one posed-body proxy per frame (the penetration metric's reference
+    query); posed (T, V, 3): the posed body (what the runtime's collider pushes out of)."""
+
+    gt: np.ndarray
+    faces: np.ndarray
+    edges: np.ndarray
+    basis: SpectralBasis
+    n_gt: np.ndarray
+    l_gt: np.ndarray
+    acc_gt: np.ndarray
+    proxies: list
+    posed: Optional[np.ndarray] = None
+    #: (E,) the edges' lengths on the garment's rest mesh (the strain metrics' reference)
+    l_rest: Optional[np.ndarray] = None
+
+
+def reference(s: Sample, body: BodyModel, basis: Optional[SpectralBasis] = None) -> Reference:
+    """The simulated frames of sample ``s`` and what the metrics derive from them (``basis``: the rest
+    garment's spectral basis, made here when not given)."""
+    gt = s.frames.astype(np.float64)
+    edges = unique_edges(s.faces, len(s.rest))
+    basis = basis if basis is not None else SpectralBasis.from_mesh(s.rest, s.faces)
+    posed = body.forward(s.poses, s.betas if s.betas.size else None, s.trans).vertices
+    proxies, proxy = [], None
+    for t in range(len(posed)):
+        proxy = BodyProxy(posed[t], body.faces) if proxy is None else proxy.moved(posed[t])
+        proxies.append(proxy)
+    return Reference(gt=gt, faces=s.faces, edges=edges, basis=basis, n_gt=_normals(gt, s.faces),
+                     l_gt=np.linalg.norm(gt[:, edges[:, 0]] - gt[:, edges[:, 1]], axis=2),
+                     acc_gt=gt[2:] - 2 * gt[1:-1] + gt[:-2], proxies=proxies, posed=posed,
+                     l_rest=np.linalg.norm(s.rest[edges[:, 0]] - s.rest[edges[:, 1]], axis=1))
+
+
+def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
+    """The :data:`METRICS` of one prediction ``x`` (T, N, 3) against ``ref`` (bands and penetration on
+    every ``frame_step``-th frame)."""
+    gt, faces, edges = ref.gt, ref.faces, ref.edges
+    d = np.linalg.norm(x - gt, axis=2)
+    cosang = np.clip((_normals(x, faces) * ref.n_gt).sum(-1), -1, 1)
+    l_x = np.linalg.norm(x[:, edges[:, 0]] - x[:, edges[:, 1]], axis=2)
+    frames = range(0, len(gt), frame_step)
+    bands = np.zeros(3)
+    for t in frames:
+        lo, mid, hi = ref.basis.split(x[t] - gt[t])
+        bands += [np.linalg.norm(lo, axis=1).mean(), np.linalg.norm(mid, axis=1).mean(),
+                  np.linalg.norm(hi, axis=1).mean()]
+    bands /= len(frames)
+    pen = np.mean([(ref.proxies[t].query(x[t]).signed_distance < -PEN_DEPTH).mean() for t in frames])
+    jit = np.linalg.norm((x[2:] - 2 * x[1:-1] + x[:-2]) - ref.acc_gt, axis=2).mean() if len(gt) > 2 else 0.0
+    # stretch (compression counts as 0): what a stretch limit bounds
+    strain = (np.maximum(l_x / np.maximum(ref.l_rest, 1e-12) - 1, 0) if ref.l_rest is not None and len(edges)
+              else np.zeros((1, 1)))
+    return {"vertex_cm": 100 * d.mean(), "normal_deg": np.degrees(np.arccos(cosang)).mean(),
+            "edge_mm": 1000 * np.abs(l_x - ref.l_gt).mean(), "low_cm": 100 * bands[0], "mid_cm": 100 * bands[1],
+            "high_cm": 100 * bands[2], "penetration_pct": 100 * pen, "jitter_mm": 1000 * jit,
+            "max_strain_pct": 100 * float(strain.max()), "p99_strain_pct": 100 * float(np.percentile(strain, 99))}

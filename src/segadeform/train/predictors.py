@@ -1,0 +1,127 @@
+"""The models ``segadeform eval`` compares, as predictors: ``predict(sample, body, asset) -> (T, N, 3)``.
+
+* :class:`LBSPredictor`: the body's skinning weights carried to the garment by a non-learned prior (baseline (a));
+* :class:`CheckpointPredictor`: a ``.pt`` checkpoint run by torch;
+* a model package: the runtime's :class:`segadeform.runtime.predictor.PackagePredictor` (onnxruntime), which the
+  caller passes to :func:`make_predictor` (the runtime is a layer this one does not import).
+"""
+
+from __future__ import annotations
+
+import abc
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+
+from ..body.model import BodyModel
+from ..body.transfer import WEIGHT_PRIORS, garment_weights, residual_log_weights, skin_garment
+from ..dataset.store import Sample
+from ..errors import InputError
+from ..geometry.features import vertex_features
+from ..motion.motion import motion_windows
+
+__all__ = ["Predictor", "LBSPredictor", "CheckpointPredictor", "make_predictor", "make_predictors"]
+
+
+class Predictor(abc.ABC):
+    """``predict(sample, body, asset) -> (T, N, 3)``; see :func:`make_predictor`.  ``name``: its row in the report;
+    ``spec``: what it was made from (``lbs``, ``lbs-PRIOR``, ``FOLDER[:EFFECTS]``, ``X.pt``).  Anything with these
+    three members is a predictor (the runtime's :class:`segadeform.runtime.predictor.PackagePredictor`, which
+    cannot import this torch layer, is one)."""
+
+    name: str = ""
+    spec: str = ""
+
+    @abc.abstractmethod
+    def predict(self, s: Sample, body: BodyModel, asset) -> np.ndarray:
+        """Shapes: -> (T, N, 3) vertices for every frame of ``s``."""
+
+
+class LBSPredictor(Predictor):
+    """LBS with the body's weights carried to the garment by ``prior`` (``lbs``: the closest body point,
+    baseline (a); ``lbs-<prior>`` for every other prior of :data:`segadeform.body.transfer.WEIGHT_PRIORS`:
+    ``lbs-inpaint``, ``lbs-idw``, ``lbs-gaussian``, ``lbs-smooth``: the non-learned priors)."""
+
+    def __init__(self, prior: str = "nearest"):
+        self.prior = prior
+
+    def predict(self, s, body, asset):
+        betas = s.betas if s.betas.size else None
+        w = garment_weights(s.rest, s.faces, body, betas, self.prior)
+        return skin_garment(s.rest, w, body, s.poses, betas, s.trans)
+
+
+class CheckpointPredictor(Predictor):
+    """A ``.pt`` checkpoint run by torch, as the exported graphs would run it."""
+
+    def __init__(self, path):
+        from ..model.network import load_checkpoint
+
+        self.model = load_checkpoint(path).eval()
+        self.cfg = self.model.cfg
+
+    def predict(self, s, body, asset):
+        import torch
+
+        c = self.cfg
+        betas = s.betas if s.betas.size else None
+        joints = body.rest_joints(betas)[0]
+        b = np.zeros(c.n_betas, np.float32)
+        b[: s.betas.size] = s.betas[: c.n_betas]
+        t32 = lambda a: torch.as_tensor(np.asarray(a, np.float32))  # noqa: E731
+        nbr, mask = torch.as_tensor(asset.nbr, dtype=torch.int64), torch.as_tensor(asset.mask, dtype=torch.bool)
+        feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
+        lw = None
+        if self.model.residual:
+            lw = t32(residual_log_weights(garment_weights(asset.vertices, asset.faces, body, betas,
+                                                          self.cfg.weight_prior)))
+        with torch.no_grad():
+            g = self.model.garment_encoder(t32(feats)[None], nbr, mask, t32(asset.descriptor)[None])[0]
+            win = motion_windows(s.poses, c.window)
+            out = []
+            for lo in range(0, len(s.poses), 16):
+                hi = min(lo + 16, len(s.poses))
+                n = hi - lo
+                v, _, _ = self.model.deformer(g, t32(win[lo:hi]), t32(b)[None].expand(n, -1), t32(s.rest), nbr, mask,
+                                              t32(joints)[None].expand(n, -1, -1), t32(s.trans[lo:hi]), lw)
+                out.append(v.numpy())
+        return np.concatenate(out).astype(np.float64)
+
+
+def make_predictor(name: str, spec: str, *, package: Optional[Callable[[str, str], Predictor]] = None) -> Predictor:
+    """``spec``: ``lbs`` (closest-point weights) or ``lbs-<prior>`` (a non-learned weight prior of
+    :data:`~segadeform.body.transfer.WEIGHT_PRIORS`: ``lbs-inpaint``, ``lbs-idw`` ...), a model package
+    folder (optionally ``FOLDER:EFFECTS`` with effects as for ``segadeform run --effects``, e.g.
+    ``pkg:-wrinkles``), or a ``.pt`` checkpoint.
+
+    ``package(folder, effects)`` makes a package's predictor: the runtime's
+    :class:`segadeform.runtime.predictor.PackagePredictor`, given by the caller (this layer does not import the
+    runtime); without it a package spec is refused."""
+    folder = eff = None
+    if Path(spec).is_dir():
+        folder, eff = spec, ""
+    elif ":" in spec and Path(spec.rsplit(":", 1)[0]).is_dir():
+        folder, eff = spec.rsplit(":", 1)
+    if spec == "lbs":
+        p: Predictor = LBSPredictor()
+    elif spec.startswith("lbs-") and spec[4:] in WEIGHT_PRIORS and spec[4:] != "nearest":
+        p = LBSPredictor(spec[4:])
+    elif folder is not None:
+        if package is None:
+            raise InputError("a model package needs the runtime's predictor",
+                             expected="make_predictor(..., package=segadeform.runtime.predictor.PackagePredictor)",
+                             got=spec)
+        p = package(folder, eff)
+    elif Path(spec).suffix == ".pt":
+        p = CheckpointPredictor(spec)
+    else:
+        raise InputError("a model must be 'lbs', 'lbs-PRIOR' (" + ", ".join(f"lbs-{w}" for w in WEIGHT_PRIORS[1:])
+                         + "), a model package folder or a .pt checkpoint", got=spec)
+    p.name, p.spec = name, spec
+    return p
+
+
+def make_predictors(specs: dict, *, package: Optional[Callable[[str, str], Predictor]] = None) -> dict:
+    """``{name: spec}`` -> ``{name: predictor}`` (:func:`make_predictor` for each, in order)."""
+    return {n: make_predictor(n, s, package=package) for n, s in specs.items()}
