@@ -81,7 +81,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     from segadeform.body import default_body_path
     from segadeform.dataset import load_dataset_config, make_dataset, sample_plan
-    from segadeform.executors import make_executor
+    from segadeform.distributed.executors import make_executor
 
     work = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="bench-executors-"))
     work.mkdir(parents=True, exist_ok=True)

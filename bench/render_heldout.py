@@ -22,7 +22,7 @@ from segadeform.body import default_body_path, load_body
 from segadeform.body.collision import BodyCollider
 from segadeform.dataset.store import load_sample
 from segadeform.geometry import precompute_garment
-from segadeform.render import MeshLayer, fit_bounds, render, save_image
+from segadeform.preview.render import MeshLayer, fit_bounds, render, save_image
 from segadeform.runtime.pipeline import default_model_path
 from segadeform.runtime.predictor import PackagePredictor
 from segadeform.train.evaluate import cloth_frames, cloth_names, push_out_frames

@@ -24,7 +24,7 @@ BATCH_LAYOUT = ("jobs", "*__*")
               "never over them); a folder an earlier batch made is resumed without it.")
 def batch_cmd(jobs_file, output, jobs, executor, limit, force):
     """Animate every garment x motion of JOBS.toml (resumable: done jobs are skipped)."""
-    from segadeform.executors import make_executor
+    from segadeform.distributed.executors import make_executor
     from segadeform.runtime.batch import load_batch, run_batch
 
     cfg = load_batch(jobs_file)

@@ -56,7 +56,7 @@ def dataset_group():
 def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, roots, force):
     """Simulate every garment x body x motion of CONFIG.toml into OUTPUT (resumable)."""
     from segadeform.dataset import load_dataset_config, make_dataset
-    from segadeform.executors import make_executor
+    from segadeform.distributed.executors import make_executor
     from segadeform.io.output_guard import OutputGuard
     from segadeform.physics import find_sim_python
 

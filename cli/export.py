@@ -119,7 +119,7 @@ def repack_cmd(package, output, inline_weights, training_files, opset):
         raise click.ClickException("repack needs onnx: pip install 'segadeform[torch]'") from None
     from segadeform.export.packing import repack_package
 
-    from segadeform import package_spec as contract
+    from segadeform.contracts import model_package as contract
 
     guard = _package_guard(output, (package, *training_files))
     before = _size(package)

@@ -35,7 +35,7 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
     from segadeform.io.garment_asset import PORTABLE_SUFFIX
     from segadeform.io.hashing import file_sha256
     from segadeform.io import read_mesh
-    from segadeform.package_spec import read_manifest_text
+    from segadeform.contracts.model_package import read_manifest_text
 
     from segadeform.io.output_guard import OutputGuard
 

@@ -36,7 +36,7 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     from segadeform.body import default_body_path, load_body
     from segadeform.errors import InputError
     from segadeform.io import read_mesh, read_sequence
-    from segadeform.render import MeshLayer, fit_bounds, render, save_animation, save_image
+    from segadeform.preview.render import MeshLayer, fit_bounds, render, save_animation, save_image
     from segadeform.settings import Y_TO_Z, parse_frames
 
     from segadeform.io.output_guard import OutputGuard

@@ -5,7 +5,7 @@
     PACKAGE_DIR/deformer_<effects>.onnx  per frame, batched over frames: one per effect combination
     PACKAGE_DIR/weights.bin              the weights, one copy shared by every graph
 
-``segadeform.package_spec`` is the contract (names, I/O, manifest keys; ``docs/package.md``); the
+``segadeform.contracts.model_package`` is the contract (names, I/O, manifest keys; ``docs/package.md``); the
 packing (:mod:`.packing`) and portability check need only ``onnx``; the export itself needs torch,
 onnx and onnxscript.
 """

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from segadeform import package_spec as contract
+from segadeform.contracts import model_package as contract
 from segadeform.errors import InputError
 from segadeform.io.atomic import atomic_directory
 

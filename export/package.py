@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 
 from segadeform import UNITS, UP_AXIS, __version__
-from segadeform import package_spec as contract
+from segadeform.contracts import model_package as contract
 from segadeform.body.skeleton import SMPL_JOINT_NAMES, SMPL_PARENTS
 from segadeform.io.atomic import atomic_directory
-from segadeform.package_spec import OPSET, graph_specs
+from segadeform.contracts.model_package import OPSET, graph_specs
 
 from ..io.hashing import file_sha256
 from .packing import pack_graphs
@@ -21,7 +21,7 @@ from .portability import check_portability, replace_trig
 
 __all__ = ["MANIFEST_SCHEMA_VERSION", "OPSET", "graph_specs", "deformer_variants", "export_package", "sample_inputs"]
 
-#: the manifest layout written (``segadeform.package_spec`` holds the contract: I/O, names, manifest keys)
+#: the manifest layout written (``segadeform.contracts.model_package`` holds the contract: I/O, names, manifest keys)
 MANIFEST_SCHEMA_VERSION = contract.SCHEMA_VERSION
 
 
@@ -134,7 +134,7 @@ def deformer_variants(cfg) -> dict:
     """The per-effect deformer graphs: skinning x wrinkles (blend-shape decoder) x dynamics (window).
 
     ``dynamics=False`` sees only the current pose (window 1); ``wrinkles=False`` drops the decoder
-    (B = 0).  Names and files follow :func:`segadeform.package_spec.deformer_name`; ``default`` marks
+    (B = 0).  Names and files follow :func:`segadeform.contracts.model_package.deformer_name`; ``default`` marks
     the one matching ``cfg`` (exported from the model itself).  ``config`` is the network each variant
     is exported from; ``spec`` its manifest entry (without the hash).
     """
@@ -203,7 +203,7 @@ def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, ch
     """Export ``model`` (a SEGANet) to ``out_dir``; returns the manifest (and parity figures when ``check``).
 
     Writes the garment encoder and one deformer per effect combination (only the model's own with
-    ``variants=False``), named and described by :mod:`segadeform.package_spec`, and the body graphs
+    ``variants=False``), named and described by :mod:`segadeform.contracts.model_package`, and the body graphs
     ``body_lbs`` and ``body_dqs`` of ``body`` (``"default"``: the shipped body; a body file or
     :class:`~segadeform.body.BodyModel`; None: no body graphs; :mod:`.body`), then packs them
     (:func:`~segadeform.export.packing.pack_graphs`: debug info stripped; with ``shared_weights`` one

@@ -27,7 +27,7 @@ import os
 import shutil
 from pathlib import Path
 
-from segadeform import package_spec as spec
+from segadeform.contracts import model_package as spec
 from segadeform.errors import InputError
 from segadeform.io.atomic import atomic_directory
 from segadeform.io.hashing import file_sha256

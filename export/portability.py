@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections import Counter
 
 from segadeform.errors import SegadeformError
-from segadeform.package_spec import MAX_NODE_TENSORS, PORTABLE_INPUT_DTYPES
+from segadeform.contracts.model_package import MAX_NODE_TENSORS, PORTABLE_INPUT_DTYPES
 
 __all__ = ["ALLOWED_OPS", "FORBIDDEN_OPS", "PortabilityError", "iter_graphs", "iter_nodes", "op_counts",
            "check_portability", "input_dtypes", "make_inputs_portable", "replace_trig"]

@@ -27,7 +27,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from segadeform import package_spec as contract
+from segadeform.contracts import model_package as contract
 from segadeform.errors import InputError
 from segadeform.io.atomic import atomic_directory
 

@@ -1,5 +1,5 @@
 """The training garments a package remembers (``manifest.json`` ``training_garments``), so a runtime can
-warn when a garment lies outside them (:data:`segadeform.package_spec.TRAINING_GARMENTS`)."""
+warn when a garment lies outside them (:data:`segadeform.contracts.model_package.TRAINING_GARMENTS`)."""
 
 from __future__ import annotations
 

@@ -64,14 +64,7 @@ MODULE_LAYERS = {
     "segadeform.export": "export",
     "segadeform.runtime": "runtime",
     "segadeform.cli": "cli",
-    # modules still to be moved into the package of their layer
-    "segadeform.executors": "distributed",
-    "segadeform.package_spec": "contracts", "segadeform.render": "preview",
 }
-
-#: back-edges still in the tree, each to be removed (the test fails on any other, and on one of these once gone)
-KNOWN_BACK_EDGES = [
-]
 
 #: third-party modules only some layers may import
 RESTRICTED = {
@@ -219,7 +212,7 @@ def test_the_order_is_a_hierarchy():
 
 def test_no_import_goes_against_the_layers():
     edges, _ = import_graph()
-    assert sorted({v.split(" at line ")[0] for v in violations(edges)}) == KNOWN_BACK_EDGES
+    assert violations(edges) == []
 
 
 def restricted(external) -> list[str]:

@@ -29,7 +29,7 @@ for obj-seq), and then its record to ``OUTPUT/jobs/GARMENT__MOTION.json``, writt
 that file marks the job done.  A run skips done jobs (run again to resume), a job retried after its
 worker died starts over and commits once, and a job whose spec changed under the same name (another
 mesh, motion, model or effects) stops the run before anything is made.  The executor
-(:mod:`segadeform.executors`) is this machine's process pool or a Ray cluster; the files a jobs
+(:mod:`segadeform.distributed.executors`) is this machine's process pool or a Ray cluster; the files a jobs
 file names must be at the same path on every worker.
 """
 
@@ -45,7 +45,7 @@ from typing import Callable, Optional
 from segadeform.io.toml import key, read_table, read_toml
 from segadeform.bounds import SEED_RANGE, check_betas
 from segadeform.errors import FileFormatError, InputError, file_error
-from segadeform.executors import Executor, LocalExecutor
+from segadeform.distributed.executors import Executor, LocalExecutor
 from segadeform.io.atomic import WriteError
 from segadeform.io.location import Location, is_url, open_location
 from segadeform.settings import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects, parse_frames

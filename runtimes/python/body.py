@@ -22,7 +22,7 @@ from typing import Optional
 
 import numpy as np
 
-from segadeform import package_spec as contract
+from segadeform.contracts import model_package as contract
 from segadeform.body import BodyModel
 from segadeform.errors import InputError
 

@@ -1,6 +1,6 @@
 """Model packages: ``manifest.json`` plus ONNX graphs, validated before any session runs.
 
-The package format is :mod:`segadeform.package_spec` (``docs/package.md``): the manifest is read and
+The package format is :mod:`segadeform.contracts.model_package` (``docs/package.md``): the manifest is read and
 checked through it (schema-1 manifests are upgraded on reading), and the deformer for a set of
 effects is chosen by its rule."""
 
@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from segadeform import package_spec as contract
+from segadeform.contracts import model_package as contract
 from segadeform.errors import InputError, file_error
 from segadeform.io.hashing import file_sha256
-from segadeform.package_spec import PackageError
+from segadeform.contracts.model_package import PackageError
 
 __all__ = ["ModelPackage", "PackageError", "Familiarity", "SUPPORTED_SCHEMA", "SUPPORTED_OPSETS"]
 
@@ -152,7 +152,7 @@ class ModelPackage:
 
     def familiarity(self, descriptor, openings: int | None = None) -> Familiarity | None:
         """Where a garment (descriptor ``(N*,)``, number of boundary loops) lies against the training
-        garments the manifest lists (:data:`segadeform.package_spec.TRAINING_GARMENTS`); None when the
+        garments the manifest lists (:data:`segadeform.contracts.model_package.TRAINING_GARMENTS`); None when the
         package lists none."""
         from segadeform.geometry.descriptor import dissimilarities
 
@@ -167,7 +167,7 @@ class ModelPackage:
 
     def variant_for(self, effects) -> str:
         """The deformer graph for ``effects`` (skinning, wrinkles, dynamics), by the contract's rule
-        (:func:`segadeform.package_spec.select_deformer`: an exact match, or an error listing the graphs)."""
+        (:func:`segadeform.contracts.model_package.select_deformer`: an exact match, or an error listing the graphs)."""
         return contract.select_deformer(self.manifest, effects, path=self.path)
 
     def session(self, name: str):

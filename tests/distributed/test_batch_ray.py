@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 
 from segadeform.cli.main import main
-from segadeform.executors import make_executor
+from segadeform.distributed.executors import make_executor
 from segadeform.runtime.batch import load_batch, run_batch
 
 from ..runtime.test_batch import IDS, JOBS

@@ -10,7 +10,7 @@ import pytest
 
 from segadeform.cli.main import main
 from segadeform.dataset import load_dataset_config, load_sample, make_dataset
-from segadeform.executors import ExecutorError, LocalExecutor, make_executor
+from segadeform.distributed.executors import ExecutorError, LocalExecutor, make_executor
 
 from ..conftest import SAMPLES
 from ..dataset.test_dataset import _need_simulator

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from segadeform.errors import InputError
-from segadeform.executors import ExecutorError, LocalExecutor, RayExecutor, make_executor
+from segadeform.distributed.executors import ExecutorError, LocalExecutor, RayExecutor, make_executor
 
 
 def _square(x):

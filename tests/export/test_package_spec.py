@@ -1,4 +1,4 @@
-"""The package contract (segadeform.package_spec, docs/package.md): manifests against the JSON Schema, the
+"""The package contract (segadeform.contracts.model_package, docs/package.md): manifests against the JSON Schema, the
 contract's I/O against the ONNX graphs, the effect -> graph rule, schema-1 packages, shared weights."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import onnx
 import onnxruntime as ort
 import pytest
 
-from segadeform import package_spec as contract
+from segadeform.contracts import model_package as contract
 from segadeform.model import ModelConfig
 from segadeform.runtime import ModelPackage, PackageError
 from segadeform.settings import Effects
@@ -35,7 +35,7 @@ def _errors(manifest) -> list[str]:
 
 def test_schema_file_is_the_contracts():
     """docs/manifest.schema.json is generated; regenerate with
-    python -c "from segadeform.package_spec import write_manifest_schema as w; w('docs/manifest.schema.json')"."""
+    python -c "from segadeform.contracts.model_package import write_manifest_schema as w; w('docs/manifest.schema.json')"."""
     assert json.loads(SCHEMA.read_text()) == contract.manifest_schema()
 
 

@@ -17,7 +17,7 @@ from segadeform.geometry.features import vertex_features
 from segadeform.io import read_mesh
 from segadeform.model.network import load_checkpoint
 from segadeform.motion import make_motion, motion_windows
-from segadeform.package_spec import read_manifest_text
+from segadeform.contracts.model_package import read_manifest_text
 
 from ..conftest import SAMPLES
 

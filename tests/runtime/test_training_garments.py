@@ -8,7 +8,7 @@ import logging
 import numpy as np
 import pytest
 
-from segadeform import package_spec as contract
+from segadeform.contracts import model_package as contract
 from segadeform.body import load_body
 from segadeform.cli.main import main
 from segadeform.export.training_set import mesh_descriptors, training_garments_entry

@@ -17,7 +17,7 @@ a killed run simply starts again and skips those.  Sample ids are
 
 Where and how: ``DIR`` is a folder or an fsspec URL (:mod:`segadeform.io.location`; every file
 committed whole, the ``.json`` that marks a sample done last and once), and the samples are
-simulated by an executor (:mod:`segadeform.executors`: this machine's process pool by default, or
+simulated by an executor (:mod:`segadeform.distributed.executors`: this machine's process pool by default, or
 a Ray cluster).  Each sample is one task, a function of its spec alone: it returns the committed
 record when its sample is done already, removes what a killed attempt of it left, and commits its
 result; so a task retried after its worker died writes its sample once.  On a cluster, the
@@ -48,7 +48,7 @@ import numpy as np
 
 from ..body.model import BodyModel, default_body_path, load_body
 from ..errors import InputError, SegadeformError
-from ..executors import Executor, LocalExecutor
+from ..distributed.executors import Executor, LocalExecutor
 from ..garments import GARMENT_TYPES, make_garment
 from ..io import Mesh, read_mesh, write_obj
 from ..io.location import Location, LocalLocation, open_location

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import torch
 
-from ..package_spec import MAX_NODE_TENSORS
+from ..contracts.model_package import MAX_NODE_TENSORS
 
 __all__ = ["axis_angle_to_matrix", "forward_kinematics", "skinning_transforms", "lbs", "dqs",
            "matrix_to_quaternion"]

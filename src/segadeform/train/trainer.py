@@ -304,7 +304,7 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
     from ..model.network import save_checkpoint
 
     # the garments it saw, by descriptor: export writes them to the manifest, and runtimes warn about garments
-    # far from all of them (segadeform.package_spec.TRAINING_GARMENTS)
+    # far from all of them (segadeform.contracts.model_package.TRAINING_GARMENTS)
     from ..geometry.mesh_ops import boundary_loops
 
     chosen = {"step": step}

@@ -30,7 +30,7 @@ import os
 import time
 from typing import Any, Callable, Iterable, Iterator, Optional
 
-from .errors import InputError, SegadeformError
+from ..errors import InputError, SegadeformError
 
 __all__ = ["Executor", "LocalExecutor", "RayExecutor", "ExecutorError", "make_executor", "EXECUTOR_HELP"]
 

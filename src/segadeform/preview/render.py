@@ -15,7 +15,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 __all__ = ["MeshLayer", "render", "save_image", "save_animation", "view_rotation"]
 
@@ -124,7 +124,7 @@ def save_image(path: str | os.PathLike, image: np.ndarray) -> Path:
     """Write an RGB uint8 image as PNG, atomically."""
     from matplotlib.image import imsave
 
-    from .io.atomic import atomic_path
+    from ..io.atomic import atomic_path
 
     p = Path(path)
     with atomic_path(p) as tmp:
@@ -134,7 +134,7 @@ def save_image(path: str | os.PathLike, image: np.ndarray) -> Path:
 
 def save_animation(path: str | os.PathLike, frames: Sequence[np.ndarray], fps: float) -> Path:
     """Write frames as an animated GIF (pillow, through matplotlib's dependency) or MP4 (ffmpeg), atomically."""
-    from .io.atomic import atomic_path
+    from ..io.atomic import atomic_path
 
     p = Path(path)
     ext = p.suffix.lower()

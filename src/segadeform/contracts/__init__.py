@@ -1,0 +1,1 @@
+"""The model package contract (:mod:`.model_package`): what export writes and every runtime reads."""

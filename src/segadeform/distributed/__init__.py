@@ -1,0 +1,1 @@
+"""Running independent tasks on this machine's processes or a Ray cluster (:mod:`.executors`)."""

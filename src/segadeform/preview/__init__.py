@@ -1,0 +1,1 @@
+"""Previews: a small software renderer of meshes (:mod:`.render`; the ``plot`` extra)."""
