@@ -9,7 +9,7 @@ from segadeform.cli.main import main
 from segadeform.distributed.executors import make_executor
 from segadeform.runtime.batch import load_batch, run_batch
 
-from ..runtime.test_batch import IDS, JOBS
+from ..python_runtime.test_batch import IDS, JOBS
 from .faults import DyingLocation, temporaries
 
 

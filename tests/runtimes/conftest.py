@@ -40,7 +40,7 @@ def cpp(tmp_path_factory):
 @pytest.fixture(scope="session")
 def shared_bundle(tmp_path_factory, random_package):
     """A scene's bundle with the Python runtime's output: the test vector every runtime is held to."""
-    from segadeform.runtime.bundles import scene_bundle
+    from segadeform.runtime.scene_bundle import scene_bundle
     from segadeform.settings import load_scene
 
     d = tmp_path_factory.mktemp("bundle")

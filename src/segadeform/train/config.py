@@ -40,12 +40,12 @@ the previous one's)::
     checkpoint_every = 200
     device = "auto"                # auto | cpu | cuda
 
-    [physics]                      # self-supervision on pairs never simulated (segadeform.train.physics)
+    [physics]                      # self-supervision on pairs never simulated (segadeform.train.energies)
     pairs = "../datasets/continuum.toml"   # a dataset config: its training garments x bodies x motions
     every = 2                      # add a self-supervised term every `every` steps (0: off)
     weight = 0.002                 # its weight; the energies are in metres of equivalent height
     frames = 5                     # consecutive frames per term (the first two are the history)
-    density = 0.2                  # the cloth (segadeform.train.physics.Material)
+    density = 0.2                  # the cloth (segadeform.train.energies.Material)
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ class LossWeights:
 @dataclasses.dataclass(frozen=True)
 class PhysicsConfig:
     """Self-supervised cloth energies on garment x body x motion pairs that were never simulated
-    (:mod:`segadeform.train.physics`); ``every = 0`` (the default) turns them off."""
+    (:mod:`segadeform.train.energies`); ``every = 0`` (the default) turns them off."""
 
     pairs: Optional[str] = None  # a dataset config (relative to the training config): its training pairs
     every: int = 0
@@ -109,7 +109,7 @@ class PhysicsConfig:
             raise InputError("physics.weight must be >= 0", got=self.weight)
 
     def material(self):
-        from .physics import Material
+        from .energies import Material
 
         return Material(density=self.density, stretch=self.stretch, bending=self.bending, collision=self.collision,
                         margin=self.margin)

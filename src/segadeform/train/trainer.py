@@ -82,9 +82,9 @@ def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_sc
 
 
 def physics_losses(model: SEGANet, pair, t0: int, frames: int, mat, body_faces, device, collider=None) -> dict:
-    """The cloth energy (:func:`~segadeform.train.physics.cloth_energy`) of frames ``t0+2 .. t0+frames-1``
+    """The cloth energy (:func:`~segadeform.train.energies.cloth_energy`) of frames ``t0+2 .. t0+frames-1``
     of a pair never simulated, the two frames before each (the network's own, detached) as history."""
-    from .physics import body_contact, cloth_energy
+    from .energies import body_contact, cloth_energy
 
     t = torch.arange(t0, t0 + frames, device=device)
     lw = torch.log(pair.body_weights + RESIDUAL_EPS) if model.residual else None
@@ -223,7 +223,7 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
     ph = cfg.physics
     pairs = None
     if ph.every:
-        from .physics import PhysicsPairs
+        from .energies import PhysicsPairs
 
         # the pairs' garments are made once into the dataset's cache (the same files `dataset make` writes)
         pairs = PhysicsPairs(cfg.pairs, (roots.cache_dir or run / "cache") / "pairs", body, n_star=m.n_star,

@@ -6,7 +6,7 @@ import torch
 
 from segadeform.errors import InputError
 from segadeform.geometry.primitives import cylinder, grid_plane
-from segadeform.train.physics import Material, cloth_energy, cloth_topology, dihedral_angles
+from segadeform.train.energies import Material, cloth_energy, cloth_topology, dihedral_angles
 
 
 def _t(x):
@@ -149,7 +149,7 @@ def pairs_config(tmp_path):
 
 
 def test_pairs_are_training_pairs_only_and_carry_what_the_energies_need(pairs_config, tmp_path, body):
-    from segadeform.train.physics import PhysicsPairs
+    from segadeform.train.energies import PhysicsPairs
 
     pairs = PhysicsPairs(pairs_config, tmp_path / "cache", body, n_star=16, window=3, n_betas=10)
     assert [p.id for p in pairs.plan] == ["skirt-0__b0__walk-s0"]  # no held-out kind, motion or body
@@ -164,7 +164,7 @@ def test_pairs_are_training_pairs_only_and_carry_what_the_energies_need(pairs_co
 def test_training_with_physics_logs_the_energy_and_lowers_it(synthetic_dataset, pairs_config, tmp_path, body):
     from segadeform.model.network import SEGANet
     from segadeform.train.config import load_train_config
-    from segadeform.train.physics import PhysicsPairs
+    from segadeform.train.energies import PhysicsPairs
     from segadeform.train.trainer import physics_losses, train
 
     cfg_path = tmp_path / "train.toml"
