@@ -552,3 +552,26 @@ def test_tiny_dataset_packed_trains_and_evaluates_end_to_end(tiny_dataset, tmp_p
     res = json.loads((out / "eval.json").read_text())
     assert res["samples"] and all(np.isfinite(m["vertex_cm"]) for m in res["models"].values())
     assert {p.name: p.read_bytes() for p in pack.parent.iterdir()} == store  # the store untouched by train and eval
+
+
+def test_gate_rejects_a_garment_that_slipped_off_the_body():
+    """Nothing tears, nothing penetrates, no piece falls off -- yet a skirt whose waistband slid down to the
+    knees is no ground truth: the vertices on the body at rest must stay near it."""
+    from segadeform.body import load_body
+    from segadeform.dataset.quality import on_body_at_rest
+    from segadeform.garments import make_garment
+
+    b = load_body(SAMPLES / "bodies" / "default_body.npz")
+    g = make_garment("skirt", b)
+    rest = b.shaped_vertices()[0]
+    on = on_body_at_rest(g.vertices, rest, b.faces)
+    assert 0.05 < on.mean() < 0.9  # the waistband and hips lie on the body, the hem does not
+    bf = np.repeat(rest[None], 3, axis=0)
+    x = np.repeat(g.vertices[None], 3, axis=0)
+    spec = QualitySpec(max_jitter=1.0, max_penetrating=1.0)
+    assert quality_check(x, g.vertices, g.faces, bf, b.faces, spec, on_body=on).slipped == 0.0
+    down = x.copy()
+    down[2] += [0.0, 0.0, 0.25]  # the whole skirt 25 cm in front of the body in the last frame
+    r = quality_check(down, g.vertices, g.faces, bf, b.faces, spec, on_body=on)
+    assert r.slipped > 0.5 and any(s.startswith("slipped") for s in r.reasons)
+    assert not any(s.startswith("slipped") for s in quality_check(down, g.vertices, g.faces, bf, b.faces, spec).reasons)

@@ -24,6 +24,8 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     max_vertex_distance = 1.0 # ... and no vertex farther than this (m): one that flew away
     max_pinched = 0.05        # vertices inside the body where two body parts touch (arm on torso, thigh
                               # on thigh), counted apart from penetration: largest fraction, any frame
+    max_slipped = 0.05        # of the vertices on the body at rest (waistband, shoulders, cuffs), the
+    slip_distance = 0.08      # largest fraction farther than slip_distance (m) from it in any frame
 
     [simulate]                # as in a scene (segadeform.settings.simulation)
     effects = ["gravity", "body_collision", "bending", "air_damping"]
@@ -124,6 +126,8 @@ class QualitySpec:
     max_body_distance: float = 0.3  # no piece (connected component) may be farther than this from the body (m)
     max_vertex_distance: float = 1.0  # and no vertex farther than this (m)
     max_pinched: float = 0.05  # largest fraction of vertices inside the body where two body parts touch
+    max_slipped: float = 0.05  # largest fraction of the vertices on the body at rest ...
+    slip_distance: float = 0.08  # ... farther than this from it (m), any frame
 
 
 @dataclasses.dataclass(frozen=True)

@@ -56,7 +56,7 @@ from ..motion import face_forward, load_motion, make_motion, resample
 from ..motion.motion import drop_leading_jumps, drop_leading_tpose, ramp_in
 from ..motion.motion import Motion
 from .config import DatasetConfig, GarmentSpec, MotionEntry
-from .quality import BodyParts, quality_check
+from .quality import BodyParts, on_body_at_rest, quality_check
 from .store import Sample, load_sample, save_sample
 
 __all__ = ["PlannedSample", "sample_plan", "make_dataset", "DatasetSummary", "sample_spec", "check_splits", "make_order", "regate",
@@ -339,8 +339,9 @@ def _run_one(root, cfg: DatasetConfig, ps: PlannedSample, body_path: Optional[st
     contact = {}
     # strain against the cloth's own rest (the A-posed garment when the simulation rests there)
     strain_rest = res.cloth_rest if res.cloth_rest is not None else mesh.vertices
+    parts = BodyParts.of(body, betas or None)
     q = quality_check(res.frames, strain_rest, mesh.faces, posed, body.faces, cfg.quality, contact=contact,
-                      parts=BodyParts.of(body, betas or None))
+                      parts=parts, on_body=on_body_at_rest(mesh.vertices, parts.rest, body.faces))
     rec.update(quality=q.to_dict(), seconds_per_frame=res.seconds_per_frame, blender=res.blender["blender_version"],
                sim_seconds=res.blender["simulate_seconds"], preroll_frames=res.preroll_frames)
     # a rejected sample keeps its arrays too: another gate can be applied later without simulating (regate)
@@ -494,7 +495,9 @@ def regate(out, cfg: DatasetConfig, *, body_path: Optional[Path] = None,
             betas = s.betas if s.betas.size else None
             posed = body.forward(s.poses, betas, s.trans).vertices
             rest = s.cloth_rest if s.cloth_rest is not None else s.rest
-            q = quality_check(s.frames, rest, s.faces, posed, body.faces, cfg.quality, parts=BodyParts.of(body, betas))
+            parts = BodyParts.of(body, betas)
+            q = quality_check(s.frames, rest, s.faces, posed, body.faces, cfg.quality, parts=parts,
+                              on_body=on_body_at_rest(s.rest, parts.rest, body.faces))
             kept += q.ok
             rejected += not q.ok
             now = "samples" if q.ok else "rejected"

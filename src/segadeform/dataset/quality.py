@@ -21,7 +21,11 @@ Checks (thresholds from the dataset config's ``[quality]``):
   ``max_vertex_distance``: a loose piece such as a button falling to the floor strains no edge and
   penetrates nothing, yet is no ground truth.  The rule is per piece, not per vertex: the hem of a
   flared skirt or dress swings well away from the legs in a turn (0.3-0.4 m in CMU's dribble with
-  turns), which is cloth, not a detached piece.
+  turns), which is cloth, not a detached piece;
+* **slipped** -- of the vertices that lie on the body at rest (``on_body``: a waistband, shoulders,
+  cuffs), at most ``max_slipped`` may be farther than ``slip_distance`` from the body in any frame: a
+  sleeve thrown off its arm or a skirt fallen to the knees is no ground truth either, though nothing tears
+  or penetrates.
 """
 
 from __future__ import annotations
@@ -31,9 +35,10 @@ import dataclasses
 import numpy as np
 
 from ..body.collision import BodyProxy
+from ..errors import InputError
 from ..geometry.mesh_ops import connected_components, unique_edges
 
-__all__ = ["QualityReport", "quality_check", "BodyParts", "pinched"]
+__all__ = ["QualityReport", "quality_check", "BodyParts", "pinched", "on_body_at_rest"]
 
 
 @dataclasses.dataclass
@@ -48,6 +53,7 @@ class QualityReport:
     detached: float = 0.0        # fraction of vertices in a detached piece or too far, worst frame
     pinched: float = 0.0         # fraction of vertices inside the body where two body parts touch, worst frame
     pinched_edges: float = 0.0   # fraction of edges past max_strain only where pinched
+    slipped: float = 0.0         # fraction of the on-body vertices far from the body, worst frame
 
     @property
     def ok(self) -> bool:
@@ -102,14 +108,26 @@ def pinched(points, depth, body_posed, parts: BodyParts, *, gap: float = 0.01, s
     return (near & other & apart).any(axis=1)
 
 
+def on_body_at_rest(rest, body_rest, body_faces, *, within: float = 0.015) -> np.ndarray:
+    """Which garment vertices lie on the body at rest (closer than ``within`` to its surface, either side).
+
+    Shapes:
+        rest (N, 3) the garment on the body's rest pose, body_rest (V, 3) -> (N,) bool
+    """
+    q = BodyProxy(np.asarray(body_rest, np.float64), body_faces).query(np.asarray(rest, np.float64))
+    return np.abs(q.signed_distance) < within
+
+
 def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact: dict | None = None,
-                  parts: BodyParts | None = None) -> QualityReport:
+                  parts: BodyParts | None = None, on_body=None) -> QualityReport:
     """Shapes: frames (T, N, 3), rest (N, 3), faces (F, 3), body_frames (T, V, 3) -> report.
 
     ``contact``: a dict that receives ``closest`` and ``normal`` (T, N, 3) float32, the closest
     body point and its outward normal for every vertex and frame (training's collision loss uses them).
     ``parts``: the body's parts (:class:`BodyParts`), to tell pinches (:func:`pinched`); without them
     every penetrating vertex and strained edge counts.
+    ``on_body``: (N,) bool, the vertices that lie on the body at rest (:func:`on_body_at_rest`), for the
+    slipped check; without it the check is skipped.
     """
     x = np.asarray(frames, np.float64)
     if not np.isfinite(x).all():
@@ -124,6 +142,11 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
     pen = pinch = 0.0
     far = 0.0
     n_comp, comp = connected_components(faces, len(rest))
+    slip = 0.0
+    if on_body is not None:
+        on_body = np.asarray(on_body, bool)
+        if on_body.shape != (len(rest),):
+            raise InputError("on_body must be (N,) bool", expected=(len(rest),), got=on_body.shape)
     tear = np.zeros(len(e), bool)   # edges over the limit in some frame where neither end is pinched
     pinch_e = np.zeros(len(e), bool)
     if contact is not None:
@@ -151,6 +174,8 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
         np.minimum.at(near, comp, dist)  # each piece's nearest vertex to the body
         lost = (near[comp] > spec.max_body_distance) | (dist > spec.max_vertex_distance)
         far = max(far, float(lost.mean()))
+        if on_body is not None and on_body.any():
+            slip = max(slip, float((dist[on_body] > spec.slip_distance).mean()))
         if contact is not None:
             contact["closest"][t], contact["normal"][t] = q.closest, q.normal
     jit = 0.0
@@ -172,8 +197,11 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
         reasons.append(f"pinched {100 * pinch:.2f}% of vertices > {100 * spec.max_pinched:.2f}%")
     if jit > spec.max_jitter:
         reasons.append(f"jitter {100 * jit:.3f}% > {100 * spec.max_jitter:.3f}%")
+    if slip > spec.max_slipped:
+        reasons.append(f"slipped: {100 * slip:.1f}% of the vertices on the body at rest farther than "
+                       f"{spec.slip_distance} m from it > {100 * spec.max_slipped:.1f}%")
     if far > 0:
         reasons.append(f"detached: {100 * far:.2f}% of vertices in a piece farther than {spec.max_body_distance} m "
                        f"from the body or farther than {spec.max_vertex_distance} m themselves")
     return QualityReport(True, float(strain.max()), float(np.percentile(strain, 99)), pen, jit, reasons, over, far,
-                         pinch, pinch_edges)
+                         pinch, pinch_edges, slip)
