@@ -53,6 +53,7 @@ from ..body.model import BodyModel
 from ..body.skeleton import SMPL_JOINT_NAMES
 from ..errors import InputError
 from ..geometry.mesh_ops import boundary_loops, connected_components, mean_edge_length, unique_edges, vertex_normals
+from .resample import subdivide
 
 __all__ = ["GARMENT_KINDS", "GARMENT_TYPES", "GarmentParams", "Garment", "make_garment", "check_garment",
            "boundary_turning"]
@@ -138,23 +139,6 @@ def _clean_patch(v, f):
         f = f[~bad]
         v, f = _largest_component(v, f)
     return v, f
-
-
-def _subdivide(v, f):
-    """Midpoint subdivision: every triangle into four."""
-    e = unique_edges(f, len(v))
-    n = len(v)
-    key = {(int(a), int(b)): n + i for i, (a, b) in enumerate(e)}
-    mid = 0.5 * (v[e[:, 0]] + v[e[:, 1]])
-
-    def m(a, b):
-        return key[(a, b) if a < b else (b, a)]
-
-    out = []
-    for a, b, c in f.tolist():
-        ab, bc, ca = m(a, b), m(b, c), m(c, a)
-        out += [(a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca)]
-    return np.concatenate([v, mid]), np.asarray(out, np.int64)
 
 
 def _smooth_normals(v, f, rounds=2):
@@ -537,7 +521,7 @@ def make_garment(kind: str, body: BodyModel, betas=None, params: GarmentParams =
     if params.resolution is not None:  # each level multiplies the count by about 4
         levels = int(np.clip(np.round(np.log(params.resolution / len(x)) / np.log(4.0)), 0, 2))
     for _ in range(levels):
-        x, f = _subdivide(x, f)
+        x, f = subdivide(x, f)
     g = Garment(vertices=x[:, :3].copy(), faces=f, kind=kind, type=GARMENT_TYPES[kind], params=params,
                 betas=tuple(float(b) for b in np.ravel(betas if betas is not None else [])),
                 cloth_rest=x[:, 3:6].copy() if cloth_pose is not None else None)

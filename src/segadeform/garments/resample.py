@@ -2,7 +2,7 @@
 
 * :func:`subdivide` -- midpoint subdivision, every triangle into four (about 4x the vertices).  The
   first ``N`` vertices are the input's; vertex ``N + i`` is the midpoint of ``unique_edges(faces)[i]``.
-  ``garments.make._subdivide`` (a loop over the faces) is the slow, obvious reference beside it.
+  :func:`subdivide_reference` (a loop over the faces) is the slow, obvious reference beside it (tests only).
 * :func:`decimate` -- shortest edge first collapsed, to about ``n`` vertices.  An interior edge
   collapses to its midpoint; an edge from the boundary inwards to its boundary end (so hems,
   necklines and armholes keep their place); a boundary edge to its midpoint.  A collapse is skipped
@@ -33,7 +33,7 @@ from ..errors import InputError
 from ..geometry._checks import check_mesh
 from ..geometry.mesh_ops import face_cross, unique_edges
 
-__all__ = ["subdivide", "decimate", "SurfaceMap"]
+__all__ = ["subdivide", "subdivide_reference", "decimate", "SurfaceMap"]
 
 
 def subdivide(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
@@ -55,6 +55,27 @@ def subdivide(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     out = np.stack([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1), np.stack([ca, bc, c], 1),
                     np.stack([ab, bc, ca], 1)], axis=1).reshape(-1, 3)
     return np.concatenate([v, 0.5 * (v[e[:, 0]] + v[e[:, 1]])]), out
+
+
+def subdivide_reference(v, f):
+    """The slow, obvious :func:`subdivide` (a loop over the faces and a dict of edges), for tests only.
+
+    Shapes:
+        v: (N, 3), f: (F, 3) -> (N + E, 3), (4 F, 3)
+    """
+    e = unique_edges(f, len(v))
+    n = len(v)
+    key = {(int(a), int(b)): n + i for i, (a, b) in enumerate(e)}
+    mid = 0.5 * (v[e[:, 0]] + v[e[:, 1]])
+
+    def m(a, b):
+        return key[(a, b) if a < b else (b, a)]
+
+    out = []
+    for a, b, c in f.tolist():
+        ab, bc, ca = m(a, b), m(b, c), m(c, a)
+        out += [(a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca)]
+    return np.concatenate([v, mid]), np.asarray(out, np.int64)
 
 
 def _unit_normal(p0, p1, p2):
