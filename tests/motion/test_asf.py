@@ -225,7 +225,11 @@ def test_scene_and_dataset_config_take_amc(trial, tmp_path):
                         f'[[motions]]\nfile = "{trial[1]}"\nsplit = "train"\n')
     cfg = load_dataset_config(cfg_path)
     clip = _motion(cfg.motions[0], cfg, default_rest_joints())
-    assert clip.n_frames == 6 and clip.meta["format"] == "amc"
+    # no capture before the clip for a lead: it starts RAMP_MIN_SECONDS in (at most 2 frames before the end)
+    from segadeform.dataset.make import RAMP_MIN_SECONDS
+
+    a = max(1, min(round(RAMP_MIN_SECONDS * 30), 10 - 2))
+    assert clip.n_frames == min(10 - a, 6) and clip.meta["format"] == "amc"
 
 
 # ---- bad input ---------------------------------------------------------------------------------------------
