@@ -12,7 +12,7 @@ inside the body or closer than the margin, as a network's output does.  For
 every size, on the same frames:
 
 * ``reference``: :class:`BodyProxy` refitted to every frame (``moved``) and
-  :func:`push_out`, as the runtime's ``collider="reference"``;
+  :func:`push_out`, as the runtime's ``collider=ReferenceCollider``;
 * ``numpy``, ``numpy xB``: :class:`BodyCollider` with ``backend="numpy"`` (the
   runtime's collider before the compiled kernel), one frame per call, then
   ``--batch`` frames per call;

@@ -70,6 +70,7 @@ def main() -> None:
         return
 
     from segadeform.body import load_body
+    from segadeform.body.collision import BodyCollider, ReferenceCollider
     from segadeform.geometry.primitives import frustum
     from segadeform.io import Mesh, write_obj
     from segadeform.motion import make_motion
@@ -97,7 +98,7 @@ def main() -> None:
         raise SystemExit(f"--steady must be more than --frames, got {args.steady} <= {args.frames}")
     motion = make_motion("dance", seconds=args.steady / 30.0, seed=1)
 
-    def run(effects, frames=args.frames, out="o.pc2", cache=True, collider="fast"):
+    def run(effects, frames=args.frames, out="o.pc2", cache=True, collider=BodyCollider):
         r = Run(garment=garment, motion=motion, package=ModelPackage(pkg, threads=args.threads), body=body, effects=effects,
                 output=tmp / out, batch=args.batch, cache=cache, force=True, collider=collider, frames=(0, frames))
         return r.execute()
@@ -171,7 +172,7 @@ def main() -> None:
 
     def collide(kind):
         if kind == "reference":
-            return run(Effects(), collider="reference", out=f"{kind}.pc2")
+            return run(Effects(), collider=ReferenceCollider, out=f"{kind}.pc2")
         pipeline.BodyCollider = functools.partial(BodyCollider, backend=kind)
         try:
             return run(Effects(), out=f"{kind}.pc2")

@@ -34,8 +34,8 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from segadeform.body import BodyModel, BodyProxy, default_body_path, load_body
-from segadeform.body.collision import BodyCollider, push_out
+from segadeform.body import BodyModel, default_body_path, load_body
+from segadeform.body.collision import BodyCollider
 from segadeform.bounds import check_body_height
 from segadeform.errors import InputError
 from segadeform.body.placement import check_placement
@@ -117,10 +117,10 @@ class Run:
         cache: keep precompute/encoder results in the user cache (:mod:`segadeform.io.cache`).
         force: animate a garment that does not sit on the body (see
             :func:`segadeform.body.placement.check_placement`) instead of refusing it.
-        collider: ``"fast"`` (:class:`~segadeform.body.collision.BodyCollider`, built once, every frame of
-            a batch in one call; its compiled backend on the package's threads, numpy if it was not built) or
-            ``"reference"`` (:class:`~segadeform.body.collision.BodyProxy` per frame: the slow, obvious
-            one, for comparisons).
+        collider: the collider class, built once per run as ``collider(v_template, faces, threads=)`` and called
+            once per batch (``push_out(verts (B, N, 3), posed (B, V, 3), margin)``): by default
+            :class:`~segadeform.body.collision.BodyCollider` (its compiled backend on the package's threads,
+            numpy if it was not built); benchmarks pass :class:`~segadeform.body.collision.ReferenceCollider`.
         guard: the command's output rule (:class:`~segadeform.io.output_guard.OutputGuard`; None: none, library
             use): the outputs are claimed here, before any work, and recorded when written.
         body_backend: how the body is posed for collisions and ``body_output`` (:mod:`segadeform.runtime.body`):
@@ -132,9 +132,11 @@ class Run:
     def __init__(self, *, garment: Path, motion: Motion, package: ModelPackage, body: BodyModel, betas=(),
                  effects: Effects = Effects(), output: Path, output_format: str = "pc2", up: str = "y",
                  body_output: Optional[Path] = None, frames=None, batch: int = 8, cache: bool = True,
-                 force: bool = False, collider: str = "fast", body_backend: str = "auto", guard=None) -> None:
-        if collider not in ("fast", "reference"):
-            raise InputError("collider must be 'fast' or 'reference'", got=collider)
+                 force: bool = False, collider: Callable = BodyCollider, body_backend: str = "auto",
+                 guard=None) -> None:
+        if not callable(collider):
+            raise InputError("collider must be a collider class", expected="BodyCollider or ReferenceCollider",
+                             got=collider)
         if body_backend not in BODY_BACKENDS:
             raise InputError("unknown body backend", expected=" | ".join(BODY_BACKENDS), got=body_backend)
         self.collider = collider
@@ -222,7 +224,7 @@ class Run:
                           body_rest=self.body.shaped_vertices(self.betas)[0] if self.body_output else None,
                           guard=self.guard)
         pushed = 0
-        proxy = collider = cloth = None
+        collider = cloth = None
         try:
             batch = effective_batch(self.batch, asset.n_vertices)
             for lo in range(self.start, self.stop, batch):
@@ -245,19 +247,11 @@ class Run:
                     stage["cloth"] += time.perf_counter() - t
                 elif self.effects.collisions:
                     t = time.perf_counter()
-                    if self.collider == "fast":  # built once per run (its cost counts here), all frames at once
-                        if collider is None:  # the compiled kernel (numpy if it was not built), the session's threads
-                            collider = BodyCollider(self.body.v_template, self.body.faces,
-                                                    threads=max(1, int(getattr(self.package, "threads", 1))))
-                        verts, n = collider.push_out(verts, posed, self.effects.collision_margin)
-                        pushed += n
-                    else:
-                        fixed = np.empty_like(verts, dtype=np.float64)
-                        for i in range(len(verts)):
-                            proxy = BodyProxy(posed[i], self.body.faces) if proxy is None else proxy.moved(posed[i])
-                            fixed[i], n = push_out(verts[i], proxy, self.effects.collision_margin)
-                            pushed += n
-                        verts = fixed
+                    if collider is None:  # built once per run (its cost counts here), the session's threads
+                        collider = self.collider(self.body.v_template, self.body.faces,
+                                                 threads=max(1, int(getattr(self.package, "threads", 1))))
+                    verts, n = collider.push_out(verts, posed, self.effects.collision_margin)
+                    pushed += n
                     stage["collisions"] += time.perf_counter() - t
                 t = time.perf_counter()
                 out.write(verts, posed if self.body_output is not None else None)

@@ -48,7 +48,7 @@ def posed_body():
 
 def test_the_kernel_is_built():
     """CI and `pip install -e .` build it; without it every other test here fails with this reason."""
-    assert collision.compiled_available(), collision._load_kernel()[1]
+    assert collision.compiled_available(), collision.compiled.load_kernel()[1]
     assert BodyCollider(*_icosphere()).backend == "compiled"
 
 
@@ -300,7 +300,7 @@ def test_bad_input_is_refused():
 
 def test_fallback_to_numpy_when_the_kernel_is_missing(monkeypatch, caplog):
     """No compiler at install: "auto" runs numpy with one logged warning per process, "compiled" says why."""
-    monkeypatch.setattr(collision, "_KERNEL", {"lib": None, "why": "not built (test)"})
+    monkeypatch.setattr(collision.compiled, "_KERNEL", {"lib": None, "why": "not built (test)"})
     v, f = _icosphere()
     with caplog.at_level("WARNING", logger="segadeform.body.collision"):
         a = BodyCollider(v, f)

@@ -1,0 +1,175 @@
+"""The body collider: one interface (:class:`BodyCollider`: ``query``, ``push_out``) over the compiled and numpy
+backends, chosen once when it is built; and :class:`ReferenceCollider`, the same interface over the slow, obvious
+:class:`~segadeform.body.collision.reference.BodyProxy` (benchmarks and tests only)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...errors import InputError
+from ...geometry._checks import check_mesh
+from .compiled import CompiledBVH, load_kernel, warn_fallback
+from .numpy_bvh import NumpyBVH
+from .reference import BodyProxy, ProximityResult, push_out
+
+__all__ = ["BodyCollider", "ReferenceCollider"]
+
+
+class BodyCollider:
+    """Fast, exact collisions against a body whose triangles stay the same while its vertices move
+    every frame (the posed body): everything that depends on the triangles is built once.
+
+    A bounding-volume hierarchy over the triangles is built once (see :func:`_build_bvh`); per frame only
+    its axis-aligned boxes are recomputed from the posed vertices, bottom-up (a few vectorised passes,
+    no sorting).  A query then walks the tree a few levels at a time for all points together:
+
+    1. *near*: every leaf whose box lies within ``margin`` of the point, then the exact closest point on
+       the leaves' triangles.  Every triangle closer than ``margin`` is in a kept leaf, so a closest point
+       found closer than ``margin`` is the exact one (:func:`_closest_soa`, with the same feature rule and
+       pseudo-normals as :class:`BodyProxy`).
+    2. *the others' side*: a point farther than ``margin`` is left alone unless it is inside.  A ray from
+       it (pointing away from the body's centre, which only makes it cheaper) is traced through the same
+       tree and its crossings with the triangles are summed with their orientation: zero for a point
+       outside a closed mesh.  A ray that grazes an edge or a vertex is cast again in another direction.
+    3. points whose count is not zero (inside, deep or not) get the exact closest point by branch and
+       bound with no radius (the radius shrinking to the farthest corner of the nearest box).
+
+    So every point closer than ``margin`` or inside gets the brute-force closest point (over every
+    triangle), which :class:`BodyProxy` -- the slow, obvious reference beside it -- approximates with its
+    ``k`` nearest centroids; ``tests/body/test_collision.py`` compares the two, and both with brute
+    force.  A mesh that is not closed (an edge not shared by exactly two opposite faces) gets no ray
+    test: every point takes step 3 (exact, slow).  Frames can be batched: the boxes of ``B`` frames are
+    stacked so that one walk serves them all.
+
+    That is the ``"numpy"`` backend.  The ``"compiled"`` one (``_collide.c``, the default when it was built)
+    follows the same three steps one point at a time, with a binary tree, a ray along the coordinate axis
+    that leaves the body's box soonest (a ray through an edge or a vertex takes step 3 instead of a second
+    ray) and, for push-out, the passes of each point in a row; see the C file's header.  Both give the
+    exhaustive reference's result; they can differ where two triangles are equally near (a point pushed
+    onto an edge: either face, the same distance).
+
+    Args:
+        vertices: (V, 3) any pose of the body (the tree is built from it); faces: (F, 3) outward triangles.
+        leaf_size: triangles per leaf (at most).
+        step: tree levels per pass of the walk (a ``2**step``-ary tree; numpy backend only).
+        backend: ``"auto"`` (compiled if built, else numpy with one logged warning), ``"compiled"`` (an
+            error if it was not built) or ``"numpy"``.
+        threads: threads for the compiled backend (points split between them; same results for any
+            number).
+    """
+
+    def __init__(self, vertices, faces, *, leaf_size: int = 4, step: int = 2, backend: str = "auto",
+                 threads: int = 1) -> None:
+        v, f = check_mesh(vertices, faces)
+        if len(f) == 0:
+            raise InputError("the body has no faces", expected="F >= 1", got=0)
+        for name, x in (("leaf_size", leaf_size), ("step", step), ("threads", threads)):
+            if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or x < 1:
+                raise InputError(f"{name} must be a positive integer", expected=">= 1", got=x)
+        if backend not in ("auto", "compiled", "numpy"):
+            raise InputError("unknown collision backend", expected="'auto', 'compiled' or 'numpy'", got=repr(backend))
+        self.faces = f
+        self.n_vertices = len(v)
+        self.threads = int(threads)
+        self._args = (v, f, {"leaf_size": int(leaf_size), "step": int(step), "backend": backend,
+                             "threads": self.threads})
+        kernel = None
+        if backend != "numpy":  # the backend is chosen here, once: every call goes to it
+            kernel, why = load_kernel()
+            if kernel is None and backend == "compiled":
+                raise InputError("the compiled collision kernel is not available (reinstall segadeform with a C "
+                                 "compiler, or use backend='numpy')", expected="segadeform.body._collide",
+                                 got=why)
+            if kernel is None:
+                warn_fallback(why)
+        self.backend = "numpy" if kernel is None else "compiled"
+        self._impl = CompiledBVH(kernel, v, f, int(leaf_size)) if kernel is not None else \
+            NumpyBVH(v, f, int(leaf_size), int(step))
+        self.closed, self.depth = self._impl.closed, self._impl.depth
+
+    def __reduce__(self):
+        v, f, kw = self._args
+        return (_rebuild_collider, (v, f, kw))
+
+    def _check(self, points, posed):
+        p = np.asarray(points, np.float64)
+        v = np.asarray(posed, np.float64)
+        if p.ndim not in (2, 3) or p.shape[-1] != 3:
+            raise InputError("points must be (N, 3) or (B, N, 3)", got=p.shape)
+        batched = p.ndim == 3
+        want = (p.shape[0], self.n_vertices, 3) if batched else (self.n_vertices, 3)
+        if v.shape != want:
+            raise InputError("the posed body must have the body's vertices, one frame per frame of points",
+                             expected=want, got=v.shape)
+        if not np.isfinite(p).all():
+            raise InputError("points contain NaN or inf")
+        if not np.isfinite(v).all():
+            raise InputError("the posed body contains NaN or inf")
+        return (p, v) if batched else (p[None], v[None])
+
+    def query(self, points, posed) -> ProximityResult:
+        """Exact signed distance (negative inside), closest point, outward normal and face for every point,
+        by branch and bound with no radius: the brute-force answer (slower than :meth:`push_out`, which
+        only looks for points near or inside).
+
+        Shapes:
+            points: (P, 3), posed: (V, 3) -> fields (P,) / (P, 3)
+        """
+        p, v = self._check(points, posed)
+        if p.shape[0] != 1 or np.ndim(points) != 2:
+            raise InputError("query takes one frame of points", expected="(P, 3)", got=np.shape(points))
+        if self.backend == "compiled":
+            return self._impl.query(p[0], v[0], self.threads)
+        return self._impl.query(p, v)
+
+    def push_out(self, points, posed, margin: float = 0.0, *, iterations: int = 3):
+        """:func:`push_out` against the body at ``posed``: the same rule, moves and passes, with exact
+        closest points (see the class docstring).  Frames can be batched.
+
+        Shapes:
+            points: (N, 3), posed: (V, 3) -> (N, 3), and the number of points moved
+            points: (B, N, 3), posed: (B, V, 3) -> (B, N, 3), and the number of points moved in all frames
+        """
+        p, v = self._check(points, posed)
+        margin = float(margin)
+        if not np.isfinite(margin) or margin < 0:
+            raise InputError("margin must be finite and >= 0", got=margin)
+        if self.backend == "compiled":
+            out, moved = self._impl.push_out(p, v, margin, max(1, int(iterations)), self.threads)
+        else:
+            out, moved = self._impl.push_out(p, v, margin, max(1, int(iterations)))
+        return out.reshape(np.shape(points)), moved
+
+
+def _rebuild_collider(vertices, faces, kwargs):
+    """Unpickle a :class:`BodyCollider` (the compiled one holds a C pointer: it is built again)."""
+    return BodyCollider(vertices, faces, **kwargs)
+
+
+class ReferenceCollider:
+    """:class:`BodyCollider`'s ``push_out`` and ``query`` by the reference, frame by frame: a
+    :class:`~segadeform.body.collision.reference.BodyProxy` per posed frame (the topology built once) and
+    :func:`~segadeform.body.collision.reference.push_out`.  Slow; for benchmarks and tests that compare the fast
+    path with it (``bench/effects.py``, ``bench/collisions.py``), never the runtime's choice."""
+
+    backend = "reference"
+
+    def __init__(self, vertices, faces, *, threads: int = 1) -> None:
+        self._proxy = BodyProxy(vertices, faces)
+        self.faces, self.n_vertices, self.threads = self._proxy.faces, len(self._proxy.vertices), int(threads)
+
+    def query(self, points, posed) -> ProximityResult:
+        """Shapes: points (P, 3), posed (V, 3) -> fields (P,) / (P, 3)."""
+        return self._proxy.moved(posed).query(points)
+
+    def push_out(self, points, posed, margin: float = 0.0, *, iterations: int = 3):
+        """Shapes: points (B, N, 3), posed (B, V, 3) -> (B, N, 3) float64, and the number of points moved."""
+        p = np.asarray(points, np.float64)
+        if p.ndim == 2:
+            out, n = push_out(p, self._proxy.moved(posed), margin, iterations=iterations)
+            return out, n
+        fixed, moved = np.empty_like(p), 0
+        for i in range(len(p)):
+            fixed[i], n = push_out(p[i], self._proxy.moved(posed[i]), margin, iterations=iterations)
+            moved += n
+        return fixed, moved
