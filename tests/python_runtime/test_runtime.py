@@ -84,16 +84,17 @@ def test_dynamics_off_depends_on_the_current_pose_only(tmp_path, random_package,
 
 
 def test_collisions_off_never_poses_the_body(tmp_path, random_package, body, monkeypatch):
-    import segadeform.runtime.pipeline as pl
-
     def boom(*a, **k):
         raise AssertionError("a disabled stage ran")
 
-    monkeypatch.setattr(pl, "push_out", boom)
     monkeypatch.setattr(type(body), "forward", boom)
-    make_run(tmp_path, random_package, body, Effects(collisions=False)).execute()
+    # neither the collider is built nor the body posed when collisions are off
+    make_run(tmp_path, random_package, body, Effects(collisions=False), collider=boom).execute()
     with pytest.raises(AssertionError, match="disabled stage"):  # the numpy body: its posing is what is watched
         make_run(tmp_path, random_package, body, Effects(collisions=True), body_backend="numpy").execute()
+    monkeypatch.undo()
+    with pytest.raises(AssertionError, match="disabled stage"):  # and with them on, the collider is built
+        make_run(tmp_path, random_package, body, Effects(collisions=True), collider=boom).execute()
 
 
 def test_collisions_push_every_vertex_out_of_the_body(tmp_path, random_package, body):

@@ -31,7 +31,7 @@ def test_bundle_round_trip_and_errors(tmp_path):
     assert got["m"].dtype == np.uint8 and got["m"].tolist() == [[1, 0]] and got["s"].shape == ()
     raw = (tmp_path / "x.sgdb").read_bytes()
     (tmp_path / "t.sgdb").write_bytes(raw[:200])
-    with pytest.raises(FileFormatError, match="does not fit the file"):
+    with pytest.raises(FileFormatError, match="runs past the end of the file"):
         read_bundle(tmp_path / "t.sgdb")
     (tmp_path / "n.sgdb").write_bytes(b"hello")
     with pytest.raises(FileFormatError, match="not a segadeform bundle"):

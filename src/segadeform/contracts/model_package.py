@@ -394,9 +394,76 @@ def upgrade_manifest(m, *, path=None) -> dict:
     return out
 
 
-def _shape_ok(shape) -> bool:
-    return isinstance(shape, list) and all(
-        (isinstance(d, int) and not isinstance(d, bool) and d >= 1) or (isinstance(d, str) and d) for d in shape)
+# ---- the manifest's rules, written once: JSON Schema fragments that manifest_schema() assembles into
+# docs/manifest.schema.json and validate_manifest() checks values against (_conforms), adding what a schema
+# cannot say (its messages and the rules between fields).
+_DIM = {"oneOf": [{"type": "integer", "minimum": 1}, {"type": "string", "minLength": 1}]}
+_TENSOR = {"type": "object", "required": ["name", "dtype", "shape"], "additionalProperties": False,
+           "properties": {"name": {"type": "string", "minLength": 1},
+                          "dtype": {"enum": list(DTYPES)},
+                          "shape": {"type": "array", "items": _DIM}}}
+_SHA = {"type": "string", "pattern": "^[0-9a-f]{64}$"}
+_GRAPH_FILE = {"type": "string", "pattern": r"^[^./\\][^/\\]*\.onnx$"}
+_WEIGHTS_FILE = {"type": "string", "pattern": r"^[^./\\][^/\\]*$"}
+_EFFECTS = {"type": "object", "required": list(EFFECT_KEYS), "additionalProperties": False,
+            "properties": {"skinning": {"enum": list(SKINNING)}, "wrinkles": {"type": "boolean"},
+                           "dynamics": {"type": "boolean"}}}
+_OPSET = {"type": "integer", "minimum": SUPPORTED_OPSETS.start, "maximum": SUPPORTED_OPSETS.stop - 1}
+_POSITIVE = {"type": "integer", "minimum": 1}
+_TRAINING_GARMENTS = {
+    "type": "object", "required": ["metric", "threshold", "garments"], "additionalProperties": False,
+    "description": "descriptors of the training garments; a runtime warns when a garment's nearest "
+                   "one (Eq. 19) is further than threshold",
+    "properties": {"metric": {"const": "eq19"},
+                   "threshold": {"oneOf": [{"type": "number", "minimum": 0}, {"type": "null"}]},
+                   "garments": {"type": "array", "minItems": 1, "items": {
+                       "type": "object", "required": ["name", "descriptor"], "additionalProperties": False,
+                       "properties": {"name": {"type": "string"},
+                                      "descriptor": {"type": "array", "items": {"type": "number"},
+                                                     "minItems": 1},
+                                      "openings": {"type": "integer", "minimum": 0}}}}}}
+
+_JSON_TYPES = {"object": dict, "array": list, "string": str, "boolean": bool, "null": type(None)}
+
+
+def _conforms(x, schema: dict) -> bool:
+    """Whether the JSON value ``x`` satisfies ``schema`` (the draft 2020-12 keywords this module's fragments use;
+    a boolean is neither an integer nor a number, patterns match the whole string as ECMA regexes do)."""
+    import re
+
+    t = schema.get("type")
+    if t in ("integer", "number"):
+        ok = isinstance(x, int) if t == "integer" else isinstance(x, (int, float))
+        if not ok or isinstance(x, bool):
+            return False
+    elif t is not None and not isinstance(x, _JSON_TYPES[t]):
+        return False
+    if "const" in schema and (x != schema["const"] or isinstance(x, bool) != isinstance(schema["const"], bool)):
+        return False
+    if "enum" in schema and not any(x == e and isinstance(x, bool) == isinstance(e, bool) for e in schema["enum"]):
+        return False
+    if "minimum" in schema and x < schema["minimum"] or "maximum" in schema and x > schema["maximum"]:
+        return False
+    if "minLength" in schema and len(x) < schema["minLength"]:
+        return False
+    if "pattern" in schema and re.fullmatch(schema["pattern"].removeprefix("^").removesuffix("$"), x) is None:
+        return False
+    if "oneOf" in schema and sum(_conforms(x, s) for s in schema["oneOf"]) != 1:
+        return False
+    if isinstance(x, list):
+        if len(x) < schema.get("minItems", 0) or len(x) > schema.get("maxItems", len(x)):
+            return False
+        if "items" in schema and not all(_conforms(v, schema["items"]) for v in x):
+            return False
+    if isinstance(x, dict):
+        props = schema.get("properties", {})
+        if any(k not in x for k in schema.get("required", ())):
+            return False
+        if schema.get("additionalProperties") is False and set(x) - set(props):
+            return False
+        if not all(_conforms(v, props[k]) for k, v in x.items() if k in props):
+            return False
+    return True
 
 
 def _check_io(name, kind, entries, path) -> None:
@@ -404,16 +471,16 @@ def _check_io(name, kind, entries, path) -> None:
         raise PackageError(f"graph '{name}' has no {kind}", path=path, expected="a non-empty list", got=entries)
     seen = set()
     for e in entries:
-        if not isinstance(e, dict) or not isinstance(e.get("name"), str) or not e["name"]:
+        if not isinstance(e, dict) or not _conforms(e.get("name"), _TENSOR["properties"]["name"]):
             raise PackageError(f"graph '{name}' has a malformed {kind[:-1]}", path=path,
                                expected="{name, dtype, shape}", got=e)
         if e["name"] in seen:
             raise PackageError(f"graph '{name}' names {kind[:-1]} '{e['name']}' twice", path=path)
         seen.add(e["name"])
-        if e.get("dtype") not in DTYPES:
+        if not _conforms(e.get("dtype"), _TENSOR["properties"]["dtype"]):
             raise PackageError(f"graph '{name}' {kind[:-1]} '{e['name']}' has an unknown dtype", path=path,
                                expected=" | ".join(DTYPES), got=e.get("dtype"))
-        if not _shape_ok(e.get("shape")):
+        if not _conforms(e.get("shape"), _TENSOR["properties"]["shape"]):
             raise PackageError(f"graph '{name}' {kind[:-1]} '{e['name']}' has a malformed shape", path=path,
                                expected="a list of positive sizes and axis names", got=e.get("shape"))
 
@@ -433,14 +500,14 @@ def validate_manifest(m, *, path=None) -> None:
     if m["schema_version"] not in READABLE_SCHEMAS:
         raise PackageError("unsupported manifest schema version", path=path,
                            expected=" or ".join(map(str, READABLE_SCHEMAS)), got=m["schema_version"])
-    if m["opset"] not in SUPPORTED_OPSETS:
+    if not _conforms(m["opset"], _OPSET):
         raise PackageError("unsupported ONNX opset", path=path,
                            expected=f"{SUPPORTED_OPSETS.start}..{SUPPORTED_OPSETS.stop - 1}", got=m["opset"])
     cfg, graphs = m["config"], m["graphs"]
     if not isinstance(cfg, dict):
         raise PackageError("manifest config must be an object", path=path, got=type(cfg).__name__)
     for key in ("n_joints", "n_betas", "n_star"):
-        if not isinstance(cfg.get(key), int) or cfg[key] < 1:
+        if not _conforms(cfg.get(key), _POSITIVE):
             raise PackageError(f"manifest config.{key} must be a positive integer", path=path, got=cfg.get(key))
     if not isinstance(m["joint_names"], list) or len(m["joint_names"]) != cfg["n_joints"]:
         raise PackageError("manifest joint_names do not match config.n_joints", path=path,
@@ -454,7 +521,7 @@ def validate_manifest(m, *, path=None) -> None:
         if not isinstance(g, dict):
             raise PackageError(f"graph '{name}' must be an object", path=path, got=g)
         f = g.get("file")
-        if not isinstance(f, str) or not f.endswith(".onnx") or "/" in f or "\\" in f or f.startswith("."):
+        if not _conforms(f, _GRAPH_FILE):
             raise PackageError(f"graph '{name}' file must be a .onnx file name in the package folder", path=path,
                                got=f)
         if f in files:
@@ -485,8 +552,7 @@ def validate_manifest(m, *, path=None) -> None:
         raise PackageError("manifest has no deformer graph", path=path)
     for name, g in decs.items():
         e = g.get("effects")
-        if not isinstance(e, dict) or set(e) != set(EFFECT_KEYS) or e["skinning"] not in SKINNING \
-                or not isinstance(e["wrinkles"], bool) or not isinstance(e["dynamics"], bool):
+        if not _conforms(e, _EFFECTS):
             raise PackageError(f"deformer '{name}' has malformed effects", path=path,
                                expected="{skinning: lbs|dqs, wrinkles: bool, dynamics: bool}", got=e)
         if name != deformer_name(e):
@@ -508,8 +574,7 @@ def validate_manifest(m, *, path=None) -> None:
         raise PackageError("default_deformer is not a deformer graph", path=path, expected=", ".join(sorted(decs)),
                            got=m["default_deformer"])
     w = m.get("weights")
-    if w is not None and (not isinstance(w, dict) or not isinstance(w.get("file"), str) or "/" in w["file"]
-                          or "\\" in w["file"] or w["file"].startswith(".")):
+    if w is not None and (not isinstance(w, dict) or not _conforms(w.get("file"), _WEIGHTS_FILE)):
         raise PackageError("manifest weights must name a file in the package folder", path=path, got=w)
     if w is not None and w["file"] in files:
         raise PackageError("manifest weights file is also a graph file", path=path, got=w["file"])
@@ -534,15 +599,7 @@ def _check_body(name, g, m, path) -> None:
 
 
 def _check_training_garments(t, n_star: int, path) -> None:
-    num = (int, float)
-    ok = isinstance(t, dict) and t.get("metric") == "eq19" and isinstance(t.get("garments"), list) \
-        and len(t["garments"]) >= 1 and (t.get("threshold") is None or (isinstance(t["threshold"], num)
-                                                                         and t["threshold"] >= 0))
-    ok = ok and all(isinstance(g, dict) and isinstance(g.get("name"), str) and isinstance(g.get("descriptor"), list)
-                    and len(g["descriptor"]) == n_star and all(isinstance(x, num) for x in g["descriptor"])
-                    and (not isinstance(g.get("openings", 0), bool) and isinstance(g.get("openings", 0), int)
-                         and g.get("openings", 0) >= 0) and set(g) <= {"name", "descriptor", "openings"}
-                    for g in t["garments"])
+    ok = _conforms(t, _TRAINING_GARMENTS) and all(len(g["descriptor"]) == n_star for g in t["garments"])
     if not ok:
         raise PackageError(f"manifest {TRAINING_GARMENTS} is malformed", path=path,
                            expected=f'{{"metric": "eq19", "threshold": number >= 0 or null, "garments": '
@@ -553,19 +610,11 @@ def _check_training_garments(t, n_star: int, path) -> None:
 def manifest_schema() -> dict:
     """The JSON Schema (draft 2020-12) of a schema-3 ``manifest.json`` (``docs/manifest.schema.json``); input
     dtypes are float32 or int32 (manifests upgraded from schema 2, ``upgraded_from``, may keep int64 and bool)."""
-    dim = {"oneOf": [{"type": "integer", "minimum": 1}, {"type": "string", "minLength": 1}]}
-    tensor = {"type": "object", "required": ["name", "dtype", "shape"], "additionalProperties": False,
-              "properties": {"name": {"type": "string", "minLength": 1},
-                             "dtype": {"enum": list(DTYPES)},
-                             "shape": {"type": "array", "items": dim}}}
-    sha = {"type": "string", "pattern": "^[0-9a-f]{64}$"}
-    fname = {"type": "string", "pattern": r"^[^./\\][^/\\]*\.onnx$"}
+    tensor, sha, fname = _TENSOR, _SHA, _GRAPH_FILE
     graph_common = {"file": fname, "sha256": sha,
                     "inputs": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/tensor"}},
                     "outputs": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/tensor"}}}
-    effects = {"type": "object", "required": list(EFFECT_KEYS), "additionalProperties": False,
-               "properties": {"skinning": {"enum": list(SKINNING)}, "wrinkles": {"type": "boolean"},
-                              "dynamics": {"type": "boolean"}}}
+    effects = _EFFECTS
     encoder = {"type": "object", "required": ["role", "file", "inputs", "outputs"],
                "properties": dict(graph_common, role={"const": ROLES[ENCODER]},
                                   outputs=dict(graph_common["outputs"], maxItems=1))}
@@ -590,7 +639,7 @@ def manifest_schema() -> dict:
         "properties": {
             "format": {"const": FORMAT},
             "schema_version": {"const": SCHEMA_VERSION},
-            "opset": {"type": "integer", "minimum": SUPPORTED_OPSETS.start, "maximum": SUPPORTED_OPSETS.stop - 1},
+            "opset": _OPSET,
             "producer": {"type": "string"},
             "exporter": {"enum": ["dynamo", "legacy"]},
             "torch": {"type": "string"},
@@ -599,8 +648,7 @@ def manifest_schema() -> dict:
             "config": {"type": "object",
                        "required": ["n_joints", "n_betas", "n_star", "feat_dim", "window", "skinning",
                                     "use_blend_shapes"],
-                       "properties": {k: {"type": "integer", "minimum": 1}
-                                      for k in ("n_joints", "n_betas", "n_star", "feat_dim", "window")}
+                       "properties": {k: _POSITIVE for k in ("n_joints", "n_betas", "n_star", "feat_dim", "window")}
                        | {"skinning": {"enum": list(SKINNING)}, "use_blend_shapes": {"type": "boolean"},
                           "weights": {"enum": ["free", "residual"]},
                           "weight_prior": {"enum": list(WEIGHT_PRIORS)}}},
@@ -616,22 +664,11 @@ def manifest_schema() -> dict:
                        "additionalProperties": False, "minProperties": 2},
             "default_deformer": {"type": "string", "pattern": "^deformer_"},
             "weights": {"type": "object", "required": ["file", "sha256", "bytes"], "additionalProperties": False,
-                        "properties": {"file": {"type": "string", "pattern": r"^[^./\\][^/\\]*$"}, "sha256": sha,
+                        "properties": {"file": _WEIGHTS_FILE, "sha256": sha,
                                        "bytes": {"type": "integer", "minimum": 0}}},
             "ops": {"type": "object", "additionalProperties": {"type": "object",
                                                                "additionalProperties": {"type": "integer"}}},
-            TRAINING_GARMENTS: {
-                "type": "object", "required": ["metric", "threshold", "garments"], "additionalProperties": False,
-                "description": "descriptors of the training garments; a runtime warns when a garment's nearest "
-                               "one (Eq. 19) is further than threshold",
-                "properties": {"metric": {"const": "eq19"},
-                               "threshold": {"oneOf": [{"type": "number", "minimum": 0}, {"type": "null"}]},
-                               "garments": {"type": "array", "minItems": 1, "items": {
-                                   "type": "object", "required": ["name", "descriptor"], "additionalProperties": False,
-                                   "properties": {"name": {"type": "string"},
-                                                  "descriptor": {"type": "array", "items": {"type": "number"},
-                                                                 "minItems": 1},
-                                                  "openings": {"type": "integer", "minimum": 0}}}}}},
+            TRAINING_GARMENTS: _TRAINING_GARMENTS,
         },
         "$defs": {"tensor": tensor, "effects": effects, "encoder": encoder, "deformer": deformer, "body": body},
     }

@@ -143,6 +143,9 @@ def _update_manifest(folder: Path, add: dict, drop: Iterable[str] = (), mark: Op
         if mark or m.get("folder"):
             out["folder"] = m.get("folder") or mark
         out["files"] = dict(sorted(files.items()))
+        if m.get("folder") == out.get("folder") and m["files"] == out["files"] \
+                and (folder / MANIFEST_NAME).is_file():
+            return  # nothing new: the manifest is left as it is (a resumed run with nothing to do touches nothing)
         with atomic_path(folder / MANIFEST_NAME) as tmp:
             Path(tmp).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
 
