@@ -23,6 +23,18 @@ Side by side:
 
 Without the compiled kernel (no C compiler at install) the stage is not available: :class:`ClothStage` says so
 (the reference is far too slow for production).
+
+What the stretch limit does not hold (measured on held-out skirts and dresses, ``bench/cloth_strain.py`` and
+``docs/cloth-eval.md``): contact wins over the stretch limit and attached vertices follow the network, so an edge
+ends over its limit (1) where the network puts the garment deep inside the body (a thigh 3-7 cm through a skirt):
+each vertex is kept out along its own closest body point, neighbours land on different sides of the limb and
+the edges between them stretch by several hundred percent, which no number of sweeps undoes in one frame; (2)
+where both ends are attached and the network's frame is itself stretched (on a dress 12 % of the network's
+edge-frames are over a 3 % limit; Blender's own frames reach 149 %); (3) where gravity makes loose vertices
+sag a steady ``gravity dt^2 (1 - follow) / follow`` below the network's frame (1.1 cm at 30 fps) beside
+vertices whose attachment radius is a few millimetres.  Prototypes tried and not kept: contact planes from the
+previous output, strain limiting measured against the network's own edge lengths, strain-limit and push-out
+rounds after the sweeps, gravity 0 (the numbers are in ``docs/cloth-eval.md``).
 """
 
 from __future__ import annotations
