@@ -21,10 +21,9 @@ def bundle_cmd(scene, output, model, no_expected, frames, force):
     and C++ runtimes, with the Python runtime's output as the parity vector."""
     import dataclasses
 
+    from segadeform.io.output_guard import OutputGuard
     from segadeform.runtime.scene_bundle import scene_bundle
     from segadeform.settings import load_scene, parse_frames
-
-    from segadeform.io.output_guard import OutputGuard
 
     sc = load_scene(scene)
     guard = OutputGuard("bundle", inputs=(scene, sc.garment, sc.motion.file, sc.body, model or sc.model))

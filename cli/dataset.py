@@ -145,7 +145,6 @@ def dataset_pack_cmd(folder, output, skip, no_rejected, body):
     from segadeform.body.model import default_body_path, load_body
     from segadeform.dataset.pack import write_pack
     from segadeform.dataset.roots import expand_root
-
     from segadeform.io.output_guard import OutputGuard
 
     guard = OutputGuard("dataset pack", replaces=False, inputs=(folder, body, *skip))

@@ -30,7 +30,7 @@ from .main import cli
 def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy, inline_weights, training_files):
     """Export CHECKPOINT (or --random-init) to an ONNX model package (needs the 'torch' extra)."""
     try:
-        import torch  # noqa: F401
+        import torch
     except ImportError:
         raise click.ClickException("export needs the 'torch' extra: pip install 'segadeform[torch]'") from None
     from segadeform.errors import InputError
@@ -88,7 +88,7 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
 def quantize_cmd(package, output, precision):
     """Copy model PACKAGE at another precision (needs the 'torch' extra for onnx)."""
     try:
-        import onnx  # noqa: F401
+        import onnx  # noqa: F401 (only whether the extra is installed)
     except ImportError:
         raise click.ClickException("quantize needs onnx: pip install 'segadeform[torch]'") from None
     from segadeform.export.precision import convert_package
@@ -114,12 +114,11 @@ def quantize_cmd(package, output, precision):
 def repack_cmd(package, output, inline_weights, training_files, opset):
     """Rewrite model PACKAGE (any schema) in the current layout, same graphs (needs onnx)."""
     try:
-        import onnx  # noqa: F401
+        import onnx  # noqa: F401 (only whether the extra is installed)
     except ImportError:
         raise click.ClickException("repack needs onnx: pip install 'segadeform[torch]'") from None
-    from segadeform.export.packing import repack_package
-
     from segadeform.contracts import model_package as contract
+    from segadeform.export.packing import repack_package
 
     guard = _package_guard(output, (package, *training_files))
     before = _size(package)

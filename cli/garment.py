@@ -33,11 +33,9 @@ def garment_group():
 @click.option("--resolution", type=int, help="Target vertex count (picks the refinement level).")
 def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, resolution):
     """Make a KIND garment dressed on the body in rest pose (kinds: see `segadeform garment kinds`)."""
-    from segadeform.body import load_body
+    from segadeform.body import default_body_path, load_body
     from segadeform.garments import GarmentParams, check_garment, make_garment
     from segadeform.io import Mesh, write_obj
-    from segadeform.body import default_body_path
-
     from segadeform.io.output_guard import OutputGuard
 
     guard = OutputGuard("garment make", inputs=(body,))
@@ -89,12 +87,12 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     import numpy as np
 
     from segadeform.body import default_body_path, load_body
-    from segadeform.errors import InputError
     from segadeform.body.placement import fix_units_and_axes, placement_report, push_off_body
+    from segadeform.errors import InputError
     from segadeform.garments.registration import fit_mhclo, fit_to_body_mesh
+    from segadeform.io import read_mesh
     from segadeform.io.mhclo import read_mhclo
     from segadeform.io.obj import rewrite_obj_vertices
-    from segadeform.io import read_mesh
     from segadeform.io.output_guard import OutputGuard
 
     b = _betas(betas)

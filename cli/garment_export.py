@@ -28,15 +28,14 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
     descriptor, the encoder features for the shape's rest joints, the body's weights at the garment
     (log_wbody), betas and the body's hash: what `segadeform run` computes before the model runs."""
     from segadeform.body import default_body_path, load_body
-    from segadeform.bounds import check_body_height
     from segadeform.body.placement import check_placement
     from segadeform.body.prepare import prepare_for_body
+    from segadeform.bounds import check_body_height
+    from segadeform.contracts.model_package import read_manifest_text
     from segadeform.geometry import GarmentAsset, precompute_garment
+    from segadeform.io import read_mesh
     from segadeform.io.garment_asset import PORTABLE_SUFFIX
     from segadeform.io.hashing import file_sha256
-    from segadeform.io import read_mesh
-    from segadeform.contracts.model_package import read_manifest_text
-
     from segadeform.io.output_guard import OutputGuard
 
     guard = OutputGuard("garment export", inputs=(garment, body, model))

@@ -37,8 +37,28 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from . import batch, body, bundle_cmd, cache_cmd, dataset, export, garment, info_cmd, inspect_cmd, motion, precompute, preview, run, simulate, train  # noqa: F401  (commands attach themselves to `cli`)
-    from . import body_export, garment_export, motion_export  # noqa: F401  (the runtimes' inputs: docs/package.md)
+    # the commands attach themselves to `cli`; body_export, garment_export and motion_export make the runtimes'
+    # inputs (docs/package.md)
+    from . import (  # noqa: F401
+        batch,
+        body,
+        body_export,
+        bundle_cmd,
+        cache_cmd,
+        dataset,
+        export,
+        garment,
+        garment_export,
+        info_cmd,
+        inspect_cmd,
+        motion,
+        motion_export,
+        precompute,
+        preview,
+        run,
+        simulate,
+        train,
+    )
 
 
 _register()

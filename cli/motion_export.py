@@ -36,10 +36,9 @@ def motion_export_cmd(source, output, body, betas, fps, frames, up, units, joint
     poses (T, 24, 3) and translations (T, 3) on the body's skeleton, as `segadeform run` would play it."""
     from segadeform.body import default_body_path, load_body
     from segadeform.body.identity import body_label
-    from segadeform.io.sgdm import MOTION_SUFFIX
-    from segadeform.motion import write_motion_file
     from segadeform.errors import InputError
-    from segadeform.motion import MOTION_KINDS, MotionSpec, build_motion, select_frames
+    from segadeform.io.sgdm import MOTION_SUFFIX
+    from segadeform.motion import MOTION_KINDS, MotionSpec, build_motion, select_frames, write_motion_file
     from segadeform.settings import parse_frames
 
     if output.suffix.lower() != MOTION_SUFFIX:

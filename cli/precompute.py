@@ -26,8 +26,8 @@ def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, ge
     """Precompute graph, features and descriptor of GARMENT (OBJ, PLY, OFF, STL ...)."""
     from segadeform.body import load_rest_joints
     from segadeform.geometry import DEFAULT_GEODESIC, DEFAULT_MAX_K, DEFAULT_N_STAR, precompute_garment
-    from segadeform.io.hashing import file_sha256
     from segadeform.io import read_mesh
+    from segadeform.io.hashing import file_sha256
 
     if (joints_path is None) == (body_path is None):
         raise click.UsageError("give exactly one of --joints JOINTS.npy or --body BODY.npz")

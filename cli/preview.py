@@ -36,10 +36,9 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     from segadeform.body import default_body_path, load_body
     from segadeform.errors import InputError
     from segadeform.io import read_mesh, read_sequence
+    from segadeform.io.output_guard import OutputGuard
     from segadeform.preview.render import MeshLayer, fit_bounds, render, save_animation, save_image
     from segadeform.settings import Y_TO_Z, parse_frames
-
-    from segadeform.io.output_guard import OutputGuard
 
     guard = OutputGuard("preview", inputs=(result, garment, body_seq, body_model))
     guard.file(output)
@@ -75,7 +74,7 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     pts = G[idx] if B is None else np.concatenate([G[idx], B[idx]], axis=1)
     # one scale for the whole animation (the largest frame), the camera following the subject
     angles = [az + (360.0 * k / max(len(idx), 1) if view == "turntable" else 0.0) for k in range(len(idx))]
-    boxes = [fit_bounds(p, azimuth=ang, size=(w, h)) for p, ang in zip(pts, angles)]
+    boxes = [fit_bounds(p, azimuth=ang, size=(w, h)) for p, ang in zip(pts, angles, strict=True)]
     half = max(max(bx[0][1] - bx[0][0], bx[1][1] - bx[1][0]) / np.array([w, h]).max() for bx in boxes) / 2
     images = []
     for k, t in enumerate(idx):

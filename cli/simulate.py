@@ -27,11 +27,11 @@ from .main import cli
                                             "over a file segadeform did not write).")
 def simulate_cmd(scene, output, effects, material, quality, frames, sim_python, force):
     """Simulate SCENE.toml's garment on its body with Blender's cloth solver; write it like `run`."""
-    from segadeform.physics import SimSettings
-    from segadeform.settings.simulation import parse_sim_effects
-    from segadeform.physics.scene_sim import simulate_scene
     from segadeform.io import format_for_path
+    from segadeform.physics import SimSettings
+    from segadeform.physics.scene_sim import simulate_scene
     from segadeform.settings import load_scene, parse_frames
+    from segadeform.settings.simulation import parse_sim_effects
 
     sc = load_scene(scene)
     st = sc.simulate or SimSettings()

@@ -11,8 +11,7 @@ from .main import cli
 
 
 def _body(path):
-    from segadeform.body import load_body
-    from segadeform.body import default_body_path
+    from segadeform.body import default_body_path, load_body
 
     return load_body(path or default_body_path())
 
@@ -88,12 +87,11 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
 def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, cloth=()):
     """Evaluate models against the simulation on DATASET (one or more roots: dataset folders, packs, folders of
     packs): the paper's metrics per model and garment type."""
+    from segadeform.io.output_guard import OutputGuard
     from segadeform.runtime.predictor import PackagePredictor
     from segadeform.train.evaluate import evaluate as run_eval
     from segadeform.train.predictors import make_predictors
     from segadeform.train.report import markdown_table, write_report
-
-    from segadeform.io.output_guard import OutputGuard
 
     guard = OutputGuard("eval", force=force, inputs=(*dataset, body))
     guard.folder(output, names=("eval.*", "*.png"))

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from collections import Counter
 
-from segadeform.errors import SegadeformError
 from segadeform.contracts.model_package import MAX_NODE_TENSORS, PORTABLE_INPUT_DTYPES
+from segadeform.errors import SegadeformError
 
 __all__ = ["ALLOWED_OPS", "FORBIDDEN_OPS", "PortabilityError", "iter_graphs", "iter_nodes", "op_counts",
            "check_portability", "input_dtypes", "make_inputs_portable", "replace_trig"]
@@ -156,7 +156,7 @@ def replace_trig(model) -> int:
     forward kinematics that became 1e-4 relative in the posed vertices (``bench/webgpu_nodes.py``).  Mul, Add and
     Floor are exact to an ulp on every backend, so the polynomial gives the CPU's numbers to ~1e-7 everywhere."""
     import numpy as np
-    from onnx import TensorProto, helper, numpy_helper
+    from onnx import helper, numpy_helper
 
     count = 0
     for graph in iter_graphs(model):
@@ -180,9 +180,9 @@ def replace_trig(model) -> int:
             pre = f"{node.name or y}__poly"
             c = names
 
-            def op(kind, a, b, tag, _pre=pre):
+            def op(kind, a, b, tag, _pre=pre, _out=out):
                 name = f"{_pre}_{tag}"
-                out.append(helper.make_node(kind, [a, b] if b is not None else [a], [name], name=name))
+                _out.append(helper.make_node(kind, [a, b] if b is not None else [a], [name], name=name))
                 return name
 
             k = op("Floor", op("Add", op("Mul", x, c["inv_pi"], "q"), c["half"], "q5"), None, "k")

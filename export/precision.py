@@ -57,9 +57,8 @@ def convert_graph(src: Path, dst: Path, precision: str) -> None:
         _fp16_weights(m.graph)
         onnx.save(m, str(dst))
     else:
-        from onnxruntime.quantization import QuantType, quantize_dynamic
-
         import onnx
+        from onnxruntime.quantization import QuantType, quantize_dynamic
 
         with tempfile.TemporaryDirectory() as tmp:  # quantize_dynamic writes side files beside its output
             # the exporter's intermediate value_info can carry the example's sizes, which the

@@ -28,7 +28,7 @@ def training_garments_entry(names: Sequence[str], descriptors, openings: Sequenc
     if openings is not None and len(openings) != len(names):
         raise InputError("expected one openings count per name", expected=len(names), got=len(openings))
     seen, rows = set(), []
-    for i, (n, row) in enumerate(zip(names, d)):
+    for i, (n, row) in enumerate(zip(names, d, strict=False)):
         key = (n, row.tobytes())
         if key not in seen:
             seen.add(key)

@@ -34,7 +34,7 @@ def parity(module, onnx_path, spec, cfg, sizes=((3, 4, 1), (37, 7, 2), (300, 9, 
             ref = module(*(torch.as_tensor(feeds[i["name"]]) for i in spec["inputs"]))
         ref = ref if isinstance(ref, tuple) else (ref,)
         got = sess.run(None, feeds)
-        for o, r, g in zip(spec["outputs"], ref, got):
+        for o, r, g in zip(spec["outputs"], ref, got, strict=False):
             a, rel = compare(r.numpy(), g)
             worst[o["name"]][0] = max(worst[o["name"]][0], a)
             worst[o["name"]][1] = max(worst[o["name"]][1], rel)

@@ -25,6 +25,18 @@ def leftovers(directory: Path) -> list[str]:
 
 
 @pytest.fixture(scope="session")
+def sim_python():
+    """The simulator environment; CI makes it (.ci/run), so these tests run there."""
+    from segadeform.errors import SimulationError
+    from segadeform.physics import find_sim_python
+
+    try:
+        return find_sim_python()
+    except SimulationError as e:
+        pytest.skip(f"no simulator environment here ({e}); `python -m segadeform.physics.setup` makes one")
+
+
+@pytest.fixture(scope="session")
 def random_model(tmp_path_factory):
     """(frozen torch SEGANet, its model package with every deformer variant), made once per session."""
     torch = pytest.importorskip("torch", reason="exporting a package needs the 'torch' extra")

@@ -4,8 +4,8 @@ import os
 
 from click.testing import CliRunner
 
-from segadeform.io.cache import cache_dir, prune
 from segadeform.cli.main import cli
+from segadeform.io.cache import cache_dir, prune
 from tests.conftest import SAMPLES
 
 

@@ -252,7 +252,8 @@ def test_the_check_catches_back_edges_hidden_in_functions(tmp_path):
         "src/segadeform/garments/__init__.py": "",
         "src/segadeform/garments/make.py": "from segadeform.body import model\n",
         "runtimes/python/__init__.py": "",
-        "runtimes/python/pipeline.py": "import numpy\n\ndef h():\n    import torch.nn\n    from segadeform.io import obj\n",
+        "runtimes/python/pipeline.py": "import numpy\n\ndef h():\n    import torch.nn\n"
+                                       "    from segadeform.io import obj\n",
     })
     bad = violations(edges)
     assert bad == ["segadeform.body.model (body) imports segadeform.garments.make (garments) at line 3",

@@ -5,8 +5,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from segadeform.geometry import (GeodesicSolver, SpectralBasis, cotangent_laplacian, neighbour_graph,
-                                 unique_edges, vertex_normals)
+from segadeform.geometry import (
+    GeodesicSolver,
+    SpectralBasis,
+    cotangent_laplacian,
+    neighbour_graph,
+    unique_edges,
+    vertex_normals,
+)
 from segadeform.io import Mesh, read_obj, read_pc2, write_obj, write_pc2
 
 SETTINGS = dict(max_examples=int(__import__("os").environ.get("SEGADEFORM_HYPOTHESIS_EXAMPLES", "40")), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -84,8 +90,14 @@ def test_pc2_round_trip(tmp_path_factory, a):
 
 
 # ---- motions and skinning ------------------------------------------------------------------------
-from segadeform.body import (SMPL_PARENTS, default_rest_joints, dual_quaternion_skinning,  # noqa: E402
-                             forward_kinematics, linear_blend_skinning, relative_transforms)
+from segadeform.body import (  # noqa: E402
+    SMPL_PARENTS,
+    default_rest_joints,
+    dual_quaternion_skinning,
+    forward_kinematics,
+    linear_blend_skinning,
+    relative_transforms,
+)
 from segadeform.body.rotations import axis_angle_to_matrix, matrix_to_axis_angle  # noqa: E402
 from segadeform.motion import MOTION_KINDS, Motion, make_motion, motion_windows, resample  # noqa: E402
 from segadeform.motion.limits import limit_violation  # noqa: E402

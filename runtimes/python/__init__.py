@@ -2,8 +2,8 @@
 apply the effects a scene asks for, and stream the result to a writer.  Imports onnxruntime and
 numpy -- never torch."""
 
-from .package import ModelPackage, PackageError
 from .deformer import Deformer
-from .pipeline import RunSummary, run_scene, Run
+from .package import ModelPackage, PackageError
+from .pipeline import Run, RunSummary, run_scene
 
 __all__ = ["ModelPackage", "PackageError", "Deformer", "Run", "RunSummary", "run_scene"]

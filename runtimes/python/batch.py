@@ -39,15 +39,15 @@ import dataclasses
 import hashlib
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
-from segadeform.io.toml import key, read_table, read_toml
 from segadeform.bounds import SEED_RANGE, check_betas
-from segadeform.errors import FileFormatError, InputError, file_error
 from segadeform.distributed.executors import Executor, LocalExecutor
+from segadeform.errors import FileFormatError, InputError, file_error
 from segadeform.io.atomic import WriteError
 from segadeform.io.location import Location, is_url, open_location
+from segadeform.io.toml import key, read_table, read_toml
 from segadeform.settings import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects, parse_frames
 
 __all__ = ["BatchConfig", "BatchJob", "BatchSummary", "load_batch", "batch_jobs", "run_batch", "run_job"]
@@ -57,11 +57,11 @@ __all__ = ["BatchConfig", "BatchJob", "BatchSummary", "load_batch", "batch_jobs"
 # The jobs file's tables (what each key takes: segadeform.io.toml.read_table)
 @dataclasses.dataclass(frozen=True)
 class _BatchTable:
-    output: Optional[str] = None
+    output: str | None = None
     format: str = "pc2"
-    model: Optional[str] = None
-    body: Optional[str] = None
-    effects: Optional[str] = None
+    model: str | None = None
+    body: str | None = None
+    effects: str | None = None
     up: str = "y"
     frames_per_call: int = key(8, range=(1, 2**31))
 
@@ -69,23 +69,23 @@ class _BatchTable:
 @dataclasses.dataclass(frozen=True)
 class _GarmentTable:
     mesh: str
-    name: Optional[str] = None
+    name: str | None = None
     betas: tuple = ()
 
 
 @dataclasses.dataclass(frozen=True)
 class _MotionTable:
-    file: Optional[str] = None
-    kind: Optional[str] = None
-    name: Optional[str] = None
+    file: str | None = None
+    kind: str | None = None
+    name: str | None = None
     seconds: float = key(3.0, range=(1e-3, 3600))
     speed: float = key(1.0, range=(0.05, 5))
     amplitude: float = key(1.0, range=(0, 2))
     seed: int = key(0, range=SEED_RANGE)
-    fps: Optional[float] = key(None, range=(1, 1000))
-    frames: Optional[str] = None
+    fps: float | None = key(None, range=(1, 1000))
+    frames: str | None = None
     up: str = key("auto", choices=("auto", "y", "z"))
-    units: Optional[str] = key(None, types=(str, int, float))
+    units: str | None = key(None, types=(str, int, float))
     floor: bool = False
 
 
@@ -108,12 +108,12 @@ class BatchConfig:
     garments: tuple
     motions: tuple
     format: str = "pc2"
-    model: Optional[Path] = None
-    body: Optional[Path] = None
+    model: Path | None = None
+    body: Path | None = None
     effects: Effects = DEFAULT_EFFECTS
     up: str = "y"
     frames_per_call: int = 8
-    path: Optional[Path] = None
+    path: Path | None = None
 
 
 def _name_ok(name: str, what: str, p: Path) -> str:
@@ -220,8 +220,8 @@ class BatchJob:
     garment: BatchGarment
     motion: BatchMotion
     format: str
-    model: Optional[Path]
-    body: Optional[Path]
+    model: Path | None
+    body: Path | None
     effects: Effects
     up: str
     frames_per_call: int
@@ -264,7 +264,7 @@ def batch_jobs(cfg: BatchConfig, out=None) -> list[BatchJob]:
     return jobs
 
 
-def _record(loc: Location, jid: str) -> Optional[dict]:
+def _record(loc: Location, jid: str) -> dict | None:
     rel = f"jobs/{jid}.json"
     return dict(json.loads(loc.read_text(rel)), resumed=True) if loc.exists(rel) else None
 
@@ -307,8 +307,8 @@ class BatchSummary:
     output: str
 
 
-def run_batch(cfg: BatchConfig, *, out=None, executor: Optional[Executor] = None, jobs: int = 1,
-              limit: Optional[int] = None, progress: Optional[Callable[[dict], None]] = None) -> BatchSummary:
+def run_batch(cfg: BatchConfig, *, out=None, executor: Executor | None = None, jobs: int = 1,
+              limit: int | None = None, progress: Callable[[dict], None] | None = None) -> BatchSummary:
     """Run every job of ``cfg`` not done yet in ``out`` (see the module docstring) on ``executor``
     (default: a local pool of ``jobs`` processes; one given here is left open)."""
     plan = batch_jobs(cfg, out)

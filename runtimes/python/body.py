@@ -18,12 +18,11 @@ numpy and says why, once.
 from __future__ import annotations
 
 import logging
-from typing import Optional
 
 import numpy as np
 
-from segadeform.contracts import model_package as contract
 from segadeform.body import BodyModel
+from segadeform.contracts import model_package as contract
 from segadeform.errors import InputError
 
 from .package import ModelPackage, PackageError
@@ -40,7 +39,7 @@ def _short(label: dict) -> str:
     return f"{label.get('name') or 'unnamed body'} {str(label.get('sha256', ''))[:12]}".strip()
 
 
-def graph_body_status(package: ModelPackage, body: BodyModel, skinning: str) -> tuple[Optional[str], Optional[str]]:
+def graph_body_status(package: ModelPackage, body: BodyModel, skinning: str) -> tuple[str | None, str | None]:
     """Whether ``package`` has a body graph that poses ``body`` with ``skinning``: ``(graph name, None)`` when it
     does, ``(None, why not)`` when it does not (no body graph, none for that skinning, no body hash recorded, or
     the recorded hash is not ``body``'s: :func:`segadeform.body.identity.body_sha256`)."""
@@ -85,10 +84,10 @@ class BodyPoser:
         if skinning not in contract.SKINNING:
             raise InputError("unknown skinning", expected=" | ".join(contract.SKINNING), got=skinning)
         self.package, self.body, self.skinning = package, body, skinning
-        self.graph: Optional[str] = None
-        self.reason: Optional[str] = None
-        self._betas: Optional[tuple] = None
-        self._betas_row: Optional[np.ndarray] = None
+        self.graph: str | None = None
+        self.reason: str | None = None
+        self._betas: tuple | None = None
+        self._betas_row: np.ndarray | None = None
         if backend == "numpy":
             self.backend = "numpy"
             return

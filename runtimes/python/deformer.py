@@ -195,8 +195,8 @@ class Deformer:
         """Deform a batch of frames.
 
         Shapes:
-            P: the output of :meth:`encode`, (N, S) (or (N, S, F_enc)), windows: (B, T, 3 S) (T = the variant's window; window[:, 0] is
-            the current pose), joints: (S, 3) rest joints, trans: (B, 3),
+            P: the output of :meth:`encode`, (N, S) (or (N, S, F_enc)), windows: (B, T, 3 S) (T = the variant's
+            window; window[:, 0] is the current pose), joints: (S, 3) rest joints, trans: (B, 3),
             log_wbody: (N, S) for residual-weights models (:meth:`body_log_weights`)
             -> vertices (B, N, 3); with ``outputs=True`` also weights (B, N, S) and blend shapes (B, N, 3)
         """

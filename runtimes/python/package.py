@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from segadeform.contracts import model_package as contract
+from segadeform.contracts.model_package import PackageError
 from segadeform.errors import InputError, file_error
 from segadeform.io.hashing import file_sha256
-from segadeform.contracts.model_package import PackageError
 
 __all__ = ["ModelPackage", "PackageError", "Familiarity", "SUPPORTED_SCHEMA", "SUPPORTED_OPSETS"]
 
@@ -214,11 +214,11 @@ class ModelPackage:
             if gn != wn:
                 raise PackageError(f"graph '{name}' {kind} disagree with the manifest", path=path,
                                    expected=", ".join(wn), got=", ".join(gn))
-            for g, w in zip(got, want):
+            for g, w in zip(got, want, strict=True):
                 if len(g.shape) != len(w["shape"]) or _ORT_TYPES.get(g.type) != w["dtype"]:
                     raise PackageError(f"graph '{name}' {kind[:-1]} '{g.name}' disagrees with the manifest", path=path,
                                        expected=f"{w['dtype']} {w['shape']}", got=f"{g.type} {g.shape}")
-                for gd, wd in zip(g.shape, w["shape"]):
+                for gd, wd in zip(g.shape, w["shape"], strict=True):
                     if isinstance(wd, int) and isinstance(gd, int) and gd != wd:
                         raise PackageError(f"graph '{name}' {kind[:-1]} '{g.name}' has a different size", path=path,
                                            expected=w["shape"], got=g.shape)
@@ -247,7 +247,7 @@ class ModelPackage:
                 if want_dt == np.bool_ and a.dtype.kind not in "biuf":
                     raise InputError(f"input '{w['name']}' has the wrong dtype", expected=w["dtype"], got=a.dtype)
                 a = a != 0 if want_dt == np.bool_ else a.astype(want_dt)
-            if a.ndim != len(w["shape"]) or any(isinstance(d, int) and d != s for d, s in zip(w["shape"], a.shape)):
+            if a.ndim != len(w["shape"]) or any(isinstance(d, int) and d != s for d, s in zip(w["shape"], a.shape, strict=True)):
                 raise InputError(f"input '{w['name']}' has the wrong shape", expected=w["shape"], got=a.shape)
             if a.dtype.kind == "f" and not np.isfinite(a).all():
                 raise InputError(f"input '{w['name']}' contains NaN or inf")

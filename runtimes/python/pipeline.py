@@ -29,20 +29,20 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 import numpy as np
 
 from segadeform.body import BodyModel, default_body_path, load_body
 from segadeform.body.collision import BodyCollider
+from segadeform.body.placement import check_placement
 from segadeform.bounds import check_body_height
 from segadeform.errors import InputError
-from segadeform.body.placement import check_placement
 from segadeform.geometry import GarmentAsset, precompute_garment
+from segadeform.io import SceneOutput, read_mesh
 from segadeform.io.garment_asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
-from segadeform.io import SceneOutput, read_mesh
 from segadeform.io.outputs import claim_scene_outputs
 from segadeform.motion import Motion, build_motion, frame_range, motion_windows
 from segadeform.settings import Effects, Scene
@@ -82,7 +82,7 @@ class RunSummary:
     frames: int
     seconds: float
     output: Path
-    body_output: Optional[Path]
+    body_output: Path | None
     output_format: str
     written: list
     effects: Effects
@@ -91,9 +91,9 @@ class RunSummary:
     pushed_vertices: int
     stage_seconds: dict
     #: how the body was posed: "graph" (the package's body graph), "numpy", or None (not posed)
-    body_backend: Optional[str] = None
+    body_backend: str | None = None
     #: the cloth stage's counts (vertex-frames in ``contacts`` and ``pushed``, ``resets``), None when it was off
-    cloth: Optional[dict] = None
+    cloth: dict | None = None
 
     @property
     def ms_per_frame(self) -> float:
@@ -131,7 +131,7 @@ class Run:
 
     def __init__(self, *, garment: Path, motion: Motion, package: ModelPackage, body: BodyModel, betas=(),
                  effects: Effects = Effects(), output: Path, output_format: str = "pc2", up: str = "y",
-                 body_output: Optional[Path] = None, frames=None, batch: int = 8, cache: bool = True,
+                 body_output: Path | None = None, frames=None, batch: int = 8, cache: bool = True,
                  force: bool = False, collider: Callable = BodyCollider, body_backend: str = "auto",
                  guard=None) -> None:
         if not callable(collider):
@@ -157,7 +157,7 @@ class Run:
         self.body_poser = (BodyPoser(package, body, skinning=effects.skinning, backend=body_backend)
                            if effects.collisions or effects.cloth or self.body_output is not None else None)
 
-    def _cache_dir(self) -> Optional[Path]:
+    def _cache_dir(self) -> Path | None:
         if not self.cache:
             return None
         from segadeform.io.cache import cache_dir
@@ -201,7 +201,7 @@ class Run:
                           margin=self.effects.collision_margin, dt=1.0 / float(self.motion.fps),
                           first_frame=self.start)
 
-    def execute(self, progress: Optional[Callable[[int], None]] = None) -> RunSummary:
+    def execute(self, progress: Callable[[int], None] | None = None) -> RunSummary:
         t_all = time.perf_counter()
         stage = {k: 0.0 for k in ("precompute", "encode", "deform", "pose body", "collisions", "cloth", "write")}
         t = time.perf_counter()
@@ -345,7 +345,7 @@ def check_motion_shape(motion: Motion, scene: Scene, body: BodyModel, *, force: 
                              got=f"betas {_label(run_b)}")
 
 
-def run_scene(scene: Scene, *, model: Optional[Path] = None, output: Optional[Path] = None, batch: int = 8,
+def run_scene(scene: Scene, *, model: Path | None = None, output: Path | None = None, batch: int = 8,
               threads: int = 1, providers=None, progress=None, cache: bool = True, force: bool = False,
               body_backend: str = "auto", guard=None, frames_from_scene: bool = True) -> RunSummary:
     """Run a scene (optionally overriding its model package and output path); ``body_backend`` and ``guard``:

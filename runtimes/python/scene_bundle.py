@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
 from segadeform.body import default_body_path, load_body
-from segadeform.io.sgdb import write_bundle
 from segadeform.geometry.features import vertex_features
+from segadeform.io.sgdb import write_bundle
 from segadeform.motion import build_motion, motion_windows, select_frames
 from segadeform.settings import Scene
 
@@ -21,7 +20,7 @@ from .pipeline import Run, default_model_path
 __all__ = ["scene_bundle"]
 
 
-def scene_bundle(scene: Scene, out: str | Path, *, model: Optional[Path] = None, expected: bool = True,
+def scene_bundle(scene: Scene, out: str | Path, *, model: Path | None = None, expected: bool = True,
                  batch: int = 8, force: bool = False) -> Path:
     """Write the bundle of ``scene`` (its effects without collisions: those are the host's post-process).
 

@@ -9,18 +9,16 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Optional
 
 from segadeform.body import default_body_path, load_body
 from segadeform.body.identity import body_label
 from segadeform.body.prepare import prepare_for_body
-from segadeform.io.sgdb import write_bundle
-from segadeform.motion import write_motion_file
 from segadeform.geometry import GarmentAsset, precompute_garment
+from segadeform.io import read_mesh, read_pc2
 from segadeform.io.garment_asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
-from segadeform.io import read_mesh, read_pc2
-from segadeform.motion import build_motion, select_frames
+from segadeform.io.sgdb import write_bundle
+from segadeform.motion import build_motion, select_frames, write_motion_file
 from segadeform.settings import Scene
 
 from .package import ModelPackage
@@ -29,7 +27,7 @@ from .pipeline import Run, default_model_path
 __all__ = ["scene_vectors"]
 
 
-def scene_vectors(scene: Scene, out_dir: str | Path, *, model: Optional[Path] = None, batch: int = 8,
+def scene_vectors(scene: Scene, out_dir: str | Path, *, model: Path | None = None, batch: int = 8,
                   force: bool = False) -> dict[str, Path]:
     """Write ``garment.sgda``, ``motion.sgdm`` and ``check.sgdb`` for ``scene`` into ``out_dir``; returns their
     paths by name (``garment``, ``motion``, ``check``).  The frames are ``segadeform run``'s on the asset and the

@@ -62,7 +62,7 @@ class InputError(SegadeformError, ValueError):
             detail = " (" + ", ".join(parts) + ")"
         return f"{where}{self.problem}{detail}"
 
-    def with_path(self, path: str | os.PathLike) -> "InputError":
+    def with_path(self, path: str | os.PathLike) -> InputError:
         """The same error, attributed to ``path`` (if it had no path yet)."""
         if self.path is not None:
             return self
@@ -79,7 +79,7 @@ class SimulationError(SegadeformError):
     """The cloth simulator failed or is not installed; the message says which and how to fix it."""
 
 
-def file_error(e: OSError, path, what: str = "file", *, cls: type = FileFormatError) -> "FileFormatError":
+def file_error(e: OSError, path, what: str = "file", *, cls: type = FileFormatError) -> FileFormatError:
     """The one wording for a file that cannot be opened: ``no such file``, ``is a directory, not a file``,
     ``permission denied``, else ``cannot read {what}: {reason}``.
 
@@ -104,7 +104,7 @@ def check_readable(path, what: str = "file", *, cls: type = FileFormatError) -> 
         raise file_error(e, path, what, cls=cls) from None
 
 
-def unreadable_error(e: BaseException, path, what: str, *, cls: type = FileFormatError) -> "FileFormatError":
+def unreadable_error(e: BaseException, path, what: str, *, cls: type = FileFormatError) -> FileFormatError:
     """The one wording for a file that opens but whose contents a library cannot read:
     ``not a readable {what} file ({ExceptionType}: {message})``."""
     return cls(f"not a readable {what} file ({type(e).__name__}: {e})", path=path)

@@ -1,15 +1,29 @@
 """Closed test meshes."""
 import numpy as np
-def sphere(n=24,m=16):
-    th=np.linspace(0,np.pi,m); ph=np.linspace(0,2*np.pi,n,endpoint=False)
-    v=[[0,1,0]]
+
+
+def sphere(n=24, m=16):
+    """A UV sphere of radius 1: ``n`` segments around, ``m`` rings pole to pole (poles included)."""
+    th = np.linspace(0, np.pi, m)
+    ph = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    v = [[0, 1, 0]]
     for t in th[1:-1]:
-        for p in ph: v.append([np.sin(t)*np.cos(p), np.cos(t), np.sin(t)*np.sin(p)])
-    v.append([0,-1,0]); v=np.array(v); f=[]
-    for j in range(n): f.append([0,1+(j+1)%n,1+j])
-    for i in range(m-3):
+        for p in ph:
+            v.append([np.sin(t) * np.cos(p), np.cos(t), np.sin(t) * np.sin(p)])
+    v.append([0, -1, 0])
+    v = np.array(v)
+    f = []
+    for j in range(n):
+        f.append([0, 1 + (j + 1) % n, 1 + j])
+    for i in range(m - 3):
         for j in range(n):
-            a=1+i*n+j; b=1+i*n+(j+1)%n; c=a+n; d=b+n; f+= [[a,b,d],[a,d,c]]
-    last=len(v)-1; base=1+(m-3)*n
-    for j in range(n): f.append([last, base+j, base+(j+1)%n])
+            a = 1 + i * n + j
+            b = 1 + i * n + (j + 1) % n
+            c = a + n
+            d = b + n
+            f += [[a, b, d], [a, d, c]]
+    last = len(v) - 1
+    base = 1 + (m - 3) * n
+    for j in range(n):
+        f.append([last, base + j, base + (j + 1) % n])
     return v, np.array(f)

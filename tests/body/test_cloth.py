@@ -11,9 +11,19 @@ import numpy as np
 import pytest
 
 from segadeform.body import default_body_path, load_body
-from segadeform.body.cloth import (CONTACT_BAND, ClothSettings, ClothSetup, ClothStage, cloth_reference, cloth_setup,
-                                   cloth_setup_reference, compiled_available, garment_setup, rest_signed_distance,
-                                   settings_array)
+from segadeform.body.cloth import (
+    CONTACT_BAND,
+    ClothSettings,
+    ClothSetup,
+    ClothStage,
+    cloth_reference,
+    cloth_setup,
+    cloth_setup_reference,
+    compiled_available,
+    garment_setup,
+    rest_signed_distance,
+    settings_array,
+)
 from segadeform.body.collision import BodyCollider
 from segadeform.errors import InputError
 from segadeform.geometry.primitives import frustum, grid_plane

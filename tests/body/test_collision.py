@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 from segadeform.body import BodyProxy
-from segadeform.errors import SegadeformError
 from segadeform.body.collision import closest_point_on_triangles, push_out, winding_number
+from segadeform.errors import SegadeformError
 from tests.body._shapes import sphere
 
 

@@ -158,7 +158,7 @@ def test_threads_give_bit_identical_results(posed_body):
         np.testing.assert_array_equal(out, out1)
         assert n == n1
         a, b = one.query(pts[0], posed[0]), many.query(pts[0], posed[0])
-        for x, y in zip((a.signed_distance, a.closest, a.normal, a.face), (b.signed_distance, b.closest, b.normal, b.face)):
+        for x, y in zip((a.signed_distance, a.closest, a.normal, a.face), (b.signed_distance, b.closest, b.normal, b.face), strict=True):
             np.testing.assert_array_equal(x, y)
     # frame by frame or batched: the same
     for i in range(0, len(posed), 4):

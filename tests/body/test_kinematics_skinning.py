@@ -1,11 +1,22 @@
 import numpy as np
 import pytest
 
-from segadeform.body import (axis_angle_to_matrix, dual_quaternion_skinning, forward_kinematics,
-                             linear_blend_skinning, matrix_to_axis_angle, relative_transforms)
+from segadeform.body import (
+    axis_angle_to_matrix,
+    dual_quaternion_skinning,
+    forward_kinematics,
+    linear_blend_skinning,
+    matrix_to_axis_angle,
+    relative_transforms,
+)
 from segadeform.body.kinematics import check_parents
-from segadeform.body.rotations import (axis_angle_to_quaternion, euler_to_matrix, matrix_to_euler,
-                                       quaternion_slerp, quaternion_to_matrix)
+from segadeform.body.rotations import (
+    axis_angle_to_quaternion,
+    euler_to_matrix,
+    matrix_to_euler,
+    quaternion_slerp,
+    quaternion_to_matrix,
+)
 from segadeform.errors import InputError
 
 
@@ -92,7 +103,10 @@ def test_lbs_equals_dqs_at_identity_and_for_rigid_weights():
 
 def test_dqs_keeps_more_volume_than_lbs_on_a_twist():
     v, w, a = twist_setup(90)
-    radius = lambda p: np.linalg.norm(p[..., 1:], axis=-1)  # distance from the bar's axis
+
+    def radius(p):  # distance from the bar's axis
+        return np.linalg.norm(p[..., 1:], axis=-1)
+
     mid = np.abs(v[:, 0] - 1.0) < 0.03  # the most blended cross-section
     r_rest = radius(v[mid]).mean()
     r_lbs = radius(linear_blend_skinning(v, w, a)[0, mid]).mean()

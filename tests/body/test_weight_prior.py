@@ -4,8 +4,12 @@ import numpy as np
 import pytest
 
 from segadeform.body.model import default_body_path, load_body
-from segadeform.body.transfer import (INPAINT_MAX_DISTANCE, garment_weights, inpaint_transfer_weights,
-                                      inpaint_weights, transfer_weights)
+from segadeform.body.transfer import (
+    garment_weights,
+    inpaint_transfer_weights,
+    inpaint_weights,
+    transfer_weights,
+)
 from segadeform.errors import InputError
 from segadeform.garments import make_garment
 from segadeform.geometry.primitives import grid_plane
@@ -63,20 +67,14 @@ def test_a_tight_garment_keeps_the_body_weights_and_a_skirt_hem_blends_both_legs
     assert np.median(both(near[hem])) < 0.05 and np.median(both(inp[hem])) > 0.1
 
 
-def test_unknown_prior_is_refused(body):
-    g = make_garment("skirt", body)
-    with pytest.raises(InputError, match="prior"):
-        garment_weights(g.vertices, g.faces, body, None, "smooth")
-    assert INPAINT_MAX_DISTANCE > 0
-
-
 KERNEL_PRIORS = ("idw", "gaussian", "smooth")
 
 
 @pytest.mark.parametrize("prior", ("nearest", "inpaint") + KERNEL_PRIORS)
 def test_every_prior_sums_to_one_is_non_negative_and_is_the_body_on_the_skin(body, prior):
     """Each prior: weights >= 0 summing to 1 on a loose garment; on a garment lying on the skin (a patch of the
-    body's own surface) exactly the body's weights there, and within 0.01 of them 1 mm out (the closest point is then between vertices)."""
+    body's own surface) exactly the body's weights there, and within 0.01 of them 1 mm out (the closest point is
+    then between vertices)."""
     skirt = make_garment("skirt", body)
     w = garment_weights(skirt.vertices, skirt.faces, body, None, prior)
     assert w.shape == (len(skirt.vertices), body.weights.shape[1])

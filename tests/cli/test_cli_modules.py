@@ -9,7 +9,6 @@ from segadeform.cli.main import cli
 
 from ..conftest import SAMPLES
 
-
 #: top-level commands that live beside the command whose output they take
 SIBLINGS = {"quantize": "export", "repack": "export", "eval": "train"}
 

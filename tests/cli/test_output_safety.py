@@ -305,8 +305,8 @@ def test_simulate_into_a_users_folder_with_force(tmp_path, monkeypatch):
     """simulate's outputs are claimed before Blender starts (refused at once); with --force beside the user's
     file."""
     _need_simulator()
-    from segadeform.garments import make_garment
     from segadeform.body import load_body
+    from segadeform.garments import make_garment
     from segadeform.io import Mesh, write_obj
 
     g = make_garment("skirt", load_body(BODY))

@@ -35,7 +35,7 @@ def test_preview_png_and_gif(tmp_path):
 
 
 def test_inspect_pc2_bounds_nan_motion(tmp_path):
-    frames = _scene(tmp_path)
+    _scene(tmp_path)
     r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "g.pc2")])
     assert r.exit_code == 0, r.output
     assert "bounds [0.0, 0.0, 0.0] .. [1.0, 1.3" in r.output and "NaN/inf: none" in r.output

@@ -44,7 +44,8 @@ def test_plan_and_held_out_splits():
     ("[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'moonwalk'\n", "not a motion kind"),
     ("[[garments]]\nkind = 'skirt'\nsplit = 'dev'\n[[motions]]\nkind = 'walk'\n", "split"),
     ("[dataset]\nval_kinds = ['skirt']\n[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n", "validation kind"),
-    ("[dataset]\nval_motions = ['jog']\n[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\nfamily = 'jog'\n",
+    ("[dataset]\nval_motions = ['jog']\n[[garments]]\nkind = 'skirt'\n[[motions]]\n"
+     "kind = 'walk'\nfamily = 'jog'\n",
      "validation family"),
     ("[dataset]\nheld_out_motions = ['jog']\nval_motions = ['jog']\n[[garments]]\nkind = 'skirt'\n[[motions]]\n"
      "kind = 'walk'\n", "both validation and test"),
@@ -284,8 +285,8 @@ def test_bad_ranges_and_leaks_are_refused(tmp_path, edit, msg):
 
 def test_one_motion_file_cannot_be_trained_on_and_held_out(tmp_path):
     walk = (SAMPLES / "motions" / "walk.npz").resolve()
-    text = ("[[garments]]\nkind = 'skirt'\n[[motions]]\nname = 'a'\nfile = '{f}'\n"
-            "[[motions]]\nname = 'b'\nfile = '{f}'\nstart = 1.0\nsplit = 'test'\n").format(f=walk)
+    text = (f"[[garments]]\nkind = 'skirt'\n[[motions]]\nname = 'a'\nfile = '{walk}'\n"
+            f"[[motions]]\nname = 'b'\nfile = '{walk}'\nstart = 1.0\nsplit = 'test'\n")
     with pytest.raises(FileFormatError, match="entries of two splits"):
         load_dataset_config(_write(tmp_path, "c.toml", text))
 
@@ -316,7 +317,7 @@ def test_the_split_logic_never_leaks_held_out_data_into_training(tmp_path):
             split = "test" if kind in held_m or rng.random() < 0.3 else "train"
             lines += ["[[motions]]", f'name = "m{i}"', f'kind = "{kind}"', f'split = "{split}"',
                       f"count = {int(rng.integers(1, 3))}"]
-        for i in range(rng.integers(1, 4)):
+        for _ in range(rng.integers(1, 4)):
             lines += ["[[bodies]]", f"betas = [{rng.normal():.2f}]", f'split = "{"test" if rng.random() < 0.3 else "train"}"']
         cfg = load_dataset_config(_write(tmp_path, f"r{trial}.toml", "\n".join(lines) + "\n"))
         plan = sample_plan(cfg)

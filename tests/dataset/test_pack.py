@@ -210,7 +210,7 @@ def test_dataset_make_skips_what_a_pack_holds_and_never_writes_it(tmp_path, body
     assert hashlib.sha256((store / "a.sgdpack").read_bytes()).hexdigest() == digest
     assert list((tmp_path / "new" / "samples").iterdir()) == []
     # the config's own dataset.roots: read where they exist, skipped where they do not
-    cfg_p.write_text(cfg_p.read_text().replace("[dataset]\n", f"[dataset]\nroots = ['sim', 'absent']\n"))
+    cfg_p.write_text(cfg_p.read_text().replace("[dataset]\n", "[dataset]\nroots = ['sim', 'absent']\n"))
     s = make_dataset(load_dataset_config(cfg_p), tmp_path / "new")
     assert s.skipped == len(plan)
     # a changed entry under the same name is refused before anything is simulated

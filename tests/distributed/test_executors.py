@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from segadeform.errors import InputError
 from segadeform.distributed.executors import ExecutorError, LocalExecutor, RayExecutor, make_executor
+from segadeform.errors import InputError
 
 
 def _square(x):
@@ -121,5 +121,5 @@ def test_ray_gives_up_after_the_retries(ray_cluster):
 def test_ray_keeps_to_the_workers_limit(ray_cluster, tmp_path, workers, overlap):
     assert sorted(make_executor("ray", workers).map_unordered(_timed, [(tmp_path, i) for i in range(4)])) == [0, 1, 2, 3]
     spans = sorted(tuple(map(float, p.read_text().split())) for p in tmp_path.glob("*.txt"))
-    overlapping = any(b[0] < a[1] for a, b in zip(spans, spans[1:]))
+    overlapping = any(b[0] < a[1] for a, b in zip(spans, spans[1:], strict=False))
     assert overlapping == overlap

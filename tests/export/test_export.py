@@ -56,7 +56,7 @@ def assert_parity(net, sess, graph, feeds):
     feeds = {i["name"]: feeds[i["name"]] for i in graph_specs(net.cfg)[graph]["inputs"]}  # what the graph takes
     ref = torch_run(net, graph, feeds)
     got = sess.run(None, feeds)
-    for r, g in zip(ref, got):
+    for r, g in zip(ref, got, strict=True):
         assert g.shape == tuple(r.shape)
         assert np.isfinite(g).all()
         err, rel = compare(r.numpy(), g)
@@ -130,7 +130,7 @@ def test_manifest_matches_the_graphs(packages):
         for i in proto.graph.input:
             shape = [d.dim_param or d.dim_value for d in i.type.tensor_type.shape.dim]
             want = [i2["shape"] for i2 in spec["inputs"] if i2["name"] == i.name][0]
-            for got_d, want_d in zip(shape, want):
+            for got_d, want_d in zip(shape, want, strict=True):
                 if isinstance(want_d, str):
                     assert isinstance(got_d, str) and got_d, (g, i.name, shape)
                 else:

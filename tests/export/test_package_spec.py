@@ -34,8 +34,11 @@ def _errors(manifest) -> list[str]:
 
 
 def test_schema_file_is_the_contracts():
-    """docs/manifest.schema.json is generated; regenerate with
-    python -c "from segadeform.contracts.model_package import write_manifest_schema as w; w('docs/manifest.schema.json')"."""
+    """docs/manifest.schema.json is generated; regenerate with ::
+
+        python -c "from segadeform.contracts.model_package import write_manifest_schema as w; \
+            w('docs/manifest.schema.json')"
+    """
     assert json.loads(SCHEMA.read_text()) == contract.manifest_schema()
 
 
@@ -57,7 +60,7 @@ def test_fresh_export_is_valid_and_named_by_the_contract(random_model):
     assert set(m["graphs"]) == want and len(want) == 11
     assert m["default_deformer"] == contract.deformer_name(contract.default_effects(net.cfg)) == "deformer_lbs"
     files = [g["file"] for g in m["graphs"].values()]
-    assert len(set(files)) == len(files) and all(f == f"{n}.onnx" for n, f in zip(m["graphs"], files))
+    assert len(set(files)) == len(files) and all(f == f"{n}.onnx" for n, f in zip(m["graphs"], files, strict=True))
     assert sorted(p.name for p in path.iterdir()) == sorted(files + ["manifest.json", m["weights"]["file"]])
 
 
@@ -80,9 +83,9 @@ def test_contract_io_matches_the_onnx_graphs(random_model):
         sess = ort.InferenceSession(str(path / entry["file"]), providers=["CPUExecutionProvider"])
         for got, spec in ((sess.get_inputs(), want["inputs"]), (sess.get_outputs(), want["outputs"])):
             assert [g.name for g in got] == [s["name"] for s in spec], name
-            for g, s in zip(got, spec):
+            for g, s in zip(got, spec, strict=True):
                 assert _ORT[g.type] == s["dtype"] and len(g.shape) == len(s["shape"]), (name, g.name)
-                for gd, sd in zip(g.shape, s["shape"]):
+                for gd, sd in zip(g.shape, s["shape"], strict=True):
                     assert gd == sd if isinstance(sd, int) else isinstance(gd, str), (name, g.name, g.shape)
 
 
@@ -187,10 +190,9 @@ def contract_sha(path):
 
 def _outputs(pkg_path, seed=0):
     """Every deformer's outputs and the encoder's on one random garment, by graph name."""
-    from segadeform.export.package import sample_inputs
-
     from segadeform.body import default_body_path, load_body
     from segadeform.export.body import body_sample_inputs
+    from segadeform.export.package import sample_inputs
 
     pkg = ModelPackage(pkg_path)
     cfg = ModelConfig.from_dict(pkg.config)
@@ -215,13 +217,13 @@ def test_schema_1_packages_still_load_and_repack_to_the_same_outputs(tmp_path, r
     assert pkg.spec("garment_encoder")["inputs"][1]["dtype"] == "int64"  # fed as the graphs take them
     ref = _outputs(random_package)
     for name, got in _outputs(old).items():
-        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got, strict=True)), name
     new = repack_package(old, tmp_path / "v3")
     assert new["schema_version"] == 3 and "upgraded_from" not in new and _errors(new) == []
     contract.validate_manifest(new)  # int32 and float32 inputs again
     assert not (tmp_path / "v3" / "deformer.onnx").exists() and (tmp_path / "v3" / "deformer_lbs.onnx").is_file()
     for name, got in _outputs(tmp_path / "v3").items():
-        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got, strict=True)), name
 
 
 def test_schema_2_packages_still_load_and_repack_to_schema_3(tmp_path, random_package):
@@ -240,14 +242,14 @@ def test_schema_2_packages_still_load_and_repack_to_schema_3(tmp_path, random_pa
         check_portability(onnx.load(str(old / "garment_encoder.onnx")), "encoder")
     ref = _outputs(random_package)
     for name, got in _outputs(old).items():
-        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got, strict=True)), name
     new = repack_package(old, tmp_path / "v3")
     assert new["schema_version"] == 3 and _errors(new) == []
     for name, g in new["graphs"].items():
         check_portability(onnx.load(str(tmp_path / "v3" / g["file"])), name)
         assert {i["dtype"] for i in g["inputs"]} <= {"float32", "int32"}
     for name, got in _outputs(tmp_path / "v3").items():
-        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got, strict=True)), name
 
 
 def test_repack_to_opset_15_for_engines_keeps_the_outputs(tmp_path, random_package):
@@ -264,7 +266,7 @@ def test_repack_to_opset_15_for_engines_keeps_the_outputs(tmp_path, random_packa
         assert [o.version for o in m.opset_import if o.domain in ("", "ai.onnx")] == [15], g["file"]
     ref = _outputs(random_package)
     for name, got in _outputs(tmp_path / "o15").items():
-        for a, b in zip(ref[name], got):
+        for a, b in zip(ref[name], got, strict=True):
             np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-6, err_msg=name)
     assert main(["repack", str(random_package), "-o", str(tmp_path / "o11"), "--opset", "11"]) != 0  # no converter
     assert not (tmp_path / "o11").exists()
@@ -279,7 +281,7 @@ def test_shared_weights_are_stored_once_and_change_nothing(tmp_path, random_pack
     assert "weights" not in m and not (inline / "weights.bin").exists() and _errors(m) == []
     ref = _outputs(random_package, seed=4)
     for name, got in _outputs(inline, seed=4).items():
-        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got)), name
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(ref[name], got, strict=True)), name
 
     def size(p):
         return sum(f.stat().st_size for f in p.iterdir() if f.suffix in (".onnx", ".bin"))

@@ -11,13 +11,13 @@ import pytest
 import torch
 
 from segadeform.body import load_body
+from segadeform.contracts.model_package import read_manifest_text
 from segadeform.export.package import _variant_model, deformer_variants
 from segadeform.geometry import precompute_garment
 from segadeform.geometry.features import vertex_features
 from segadeform.io import read_mesh
 from segadeform.model.network import load_checkpoint
 from segadeform.motion import make_motion, motion_windows
-from segadeform.contracts.model_package import read_manifest_text
 
 from ..conftest import SAMPLES
 
@@ -87,7 +87,7 @@ def test_shipped_parity_on_the_sample_dress(shipped):
         vnet = net if var["default"] else _variant_model(net, var["config"])
         with torch.no_grad():
             ref = vnet.deformer(*(torch.as_tensor(feeds[k]) for k in feeds))
-        for r, g in zip(ref, got):
+        for r, g in zip(ref, got, strict=True):
             r = r.numpy()
             assert np.isfinite(g).all() and np.abs(g - r).max() <= RTOL * max(np.abs(r).max(), 1e-6), name
 

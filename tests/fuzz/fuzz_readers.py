@@ -189,10 +189,9 @@ def _write_portable_seeds(d: Path, root: Path) -> None:
     import shutil
 
     from segadeform.body import load_body
-    from segadeform.motion import write_motion_file
     from segadeform.body.identity import body_label
     from segadeform.geometry import precompute_garment
-    from segadeform.motion import make_motion
+    from segadeform.motion import make_motion, write_motion_file
 
     body = load_body(root / "samples/bodies/default_body.npz")
     u, w = np.meshgrid(np.linspace(0, 2 * np.pi, 9)[:-1], np.linspace(0.9, 1.1, 3))

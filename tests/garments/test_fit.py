@@ -10,13 +10,13 @@ from click.testing import CliRunner
 
 from segadeform.body import default_body_path, load_body
 from segadeform.body.makehuman import makehuman_vertices, makehuman_weights
+from segadeform.body.placement import PlacementError, check_placement, fix_units_and_axes, placement_report
 from segadeform.cli.main import cli
 from segadeform.errors import FileFormatError, InputError
-from segadeform.body.placement import PlacementError, check_placement, fix_units_and_axes, placement_report
 from segadeform.garments.registration import fit_mhclo
+from segadeform.io import read_mesh
 from segadeform.io.mhclo import read_mhclo
 from segadeform.io.obj import rewrite_obj_vertices
-from segadeform.io import read_mesh
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLES = ROOT / "samples" / "garments" / "makehuman"
@@ -203,8 +203,8 @@ def _other_body_scene(body, betas_src):
     """A source body of other shape, pose (MakeHuman's A-pose, a twisted spine), topology (every
     triangle split at its centre, vertices shuffled), units (cm) and up axis (z), and a T-shirt made on
     it in T-pose and skinned into that pose."""
-    from segadeform.body.transfer import transfer_weights
     from segadeform.body.skinning import linear_blend_skinning
+    from segadeform.body.transfer import transfer_weights
     from segadeform.garments import GarmentParams, make_garment
 
     rest_src = body.shaped_vertices(betas_src)[0]

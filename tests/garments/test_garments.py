@@ -115,7 +115,7 @@ MAX_PLANAR_CURVATURE = 1.2
 
 def _smoothness(v, f):
     turns = boundary_turning(v, f)
-    planar = [t.sum() / (2 * np.pi) for t, loop in zip(turns, boundary_loops(f, len(v)))
+    planar = [t.sum() / (2 * np.pi) for t, loop in zip(turns, boundary_loops(f, len(v)), strict=True)
               if _loop_plane(v[loop])[2] <= PLANAR]
     deg = np.degrees(np.concatenate(turns))
     return deg.max(), np.percentile(deg, 95), planar

@@ -5,8 +5,8 @@ import pytest
 
 from segadeform.errors import FileFormatError, InputError
 from segadeform.geometry import GarmentAsset, precompute_garment, vertex_features
-from segadeform.io.garment_asset import ASSET_SCHEMA_VERSION
 from segadeform.geometry.primitives import frustum
+from segadeform.io.garment_asset import ASSET_SCHEMA_VERSION
 from tests.conftest import leftovers
 
 

@@ -2,8 +2,13 @@ import numpy as np
 import pytest
 
 from segadeform.errors import InputError
-from segadeform.geometry import (GeodesicSolver, dissimilarity, furthest_point_sampling, garment_descriptor,
-                                 nystrom_eigen)
+from segadeform.geometry import (
+    GeodesicSolver,
+    dissimilarity,
+    furthest_point_sampling,
+    garment_descriptor,
+    nystrom_eigen,
+)
 from segadeform.geometry.descriptor import furthest_point_sampling_naive, gaussian_affinity
 from segadeform.geometry.primitives import cylinder, frustum, grid_plane
 from segadeform.io import read_mesh

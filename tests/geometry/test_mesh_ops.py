@@ -2,8 +2,7 @@ import numpy as np
 import pytest
 
 from segadeform.errors import InputError
-from segadeform.geometry import (boundary_loops, connected_components, face_areas, unique_edges,
-                                 vertex_normals)
+from segadeform.geometry import boundary_loops, connected_components, face_areas, unique_edges, vertex_normals
 from segadeform.geometry.primitives import cylinder, fan, grid_plane
 
 

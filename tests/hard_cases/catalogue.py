@@ -10,7 +10,7 @@ cases that need more than that runner (``test_cloth_cases.py``).
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable, Optional
+from collections.abc import Callable
 
 import numpy as np
 
@@ -38,8 +38,8 @@ class Case:
     mesh: Callable = skirt
     motion: Callable = walk
     betas: tuple = ()
-    error: Optional[str] = None  # an invalid input: the message the clear error must contain
-    known_failure: Optional[str] = None  # fails today: why (the test is xfail-strict and flips when fixed)
+    error: str | None = None  # an invalid input: the message the clear error must contain
+    known_failure: str | None = None  # fails today: why (the test is xfail-strict and flips when fixed)
     collisions: bool = True
 
 

@@ -12,9 +12,8 @@ import numpy as np
 import pytest
 import torch
 
-from segadeform.body import BodyProxy, SMPL_PARENTS, load_body
+from segadeform.body import SMPL_PARENTS, BodyProxy, load_body, relative_transforms
 from segadeform.body import forward_kinematics as np_fk
-from segadeform.body import relative_transforms
 from segadeform.body.collision import push_out
 from segadeform.body.rotations import axis_angle_to_matrix
 from segadeform.errors import InputError
@@ -97,7 +96,7 @@ def run_case(case, models, body, tmp_path):
             log_wbody=lw).items()}
         with torch.no_grad():
             ref = nets[skin].deformer(**t)
-        for name, r, g in zip(("vertices", "weights", "blend shapes"), ref, (verts, weights, blend)):
+        for name, r, g in zip(("vertices", "weights", "blend shapes"), ref, (verts, weights, blend), strict=True):
             parity(r.numpy(), g, f"{skin} deformer {name}")
         assert np.allclose(weights.sum(-1), 1.0, atol=1e-5)
         if skin == "lbs":

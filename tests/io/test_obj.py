@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from segadeform.errors import FileFormatError
+from segadeform.errors import FileFormatError, InputError
 from segadeform.geometry.primitives import frustum
 from segadeform.io import Mesh, read_mesh, read_obj, write_obj
 from tests.conftest import leftovers
@@ -26,7 +26,7 @@ def test_sample_skirt_keeps_vertex_order_and_count(samples):
 def test_meshio_cannot_read_the_sample_but_we_can(samples):
     import meshio
 
-    with pytest.raises(Exception):
+    with pytest.raises(ValueError):
         meshio.read(samples / "garments" / "skirt.obj")
     assert read_mesh(samples / "garments" / "skirt.obj").n_vertices == 1536
 
@@ -124,8 +124,8 @@ def test_empty_or_binary_obj(tmp_path, text, words):
 def test_missing_file_is_a_clear_error(tmp_path):
     """One wording for a missing file, whatever reads it."""
     from segadeform.body import load_body
-    from segadeform.io.mhclo import read_mhclo
     from segadeform.io import read_mesh, read_off, read_pc2
+    from segadeform.io.mhclo import read_mhclo
     from segadeform.motion import load_motion
     from segadeform.settings import load_scene
 
@@ -151,7 +151,7 @@ def test_write_read_round_trip(tmp_path):
 
 def test_failed_write_leaves_nothing(tmp_path):
     bad = np.array([[0.0, 0.0, np.nan], [1, 0, 0], [0, 1, 0]])
-    with pytest.raises(Exception):
+    with pytest.raises(InputError, match="non-finite"):
         write_obj(tmp_path / "x.obj", Mesh(vertices=bad, faces=np.array([[0, 1, 2]])))
     assert not (tmp_path / "x.obj").exists()
     assert leftovers(tmp_path) == []

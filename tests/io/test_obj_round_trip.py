@@ -10,9 +10,8 @@ import pytest
 from click.testing import CliRunner
 
 from segadeform.cli.main import cli
-from segadeform.io.obj import corner_normals, rewrite_obj_vertices
-from segadeform.io import Mesh, read_mesh, read_obj, write_obj
-from segadeform.io.obj import obj_logical_lines
+from segadeform.io import read_mesh, read_obj, write_obj
+from segadeform.io.obj import corner_normals, obj_logical_lines, rewrite_obj_vertices
 
 from ..conftest import SAMPLES
 

@@ -3,8 +3,16 @@ import pytest
 
 from segadeform.errors import FileFormatError
 from segadeform.geometry.primitives import grid_plane
-from segadeform.io import (open_sequence_writer, read_obj_sequence, read_sequence, read_xdmf_sequence,
-                           write_obj, write_obj_sequence, write_xdmf_sequence, Mesh)
+from segadeform.io import (
+    Mesh,
+    open_sequence_writer,
+    read_obj_sequence,
+    read_sequence,
+    read_xdmf_sequence,
+    write_obj,
+    write_obj_sequence,
+    write_xdmf_sequence,
+)
 from tests.conftest import leftovers
 
 

@@ -20,10 +20,10 @@ class Table:
     count: int = 1
     scale: float = key(1.0, range=(0.0, 10.0))
     flag: bool = False
-    where: Optional[Path] = None
+    where: Path | None = None
     items: tuple = ()
     mode: str = key("a", choices=("a", "b"))
-    units: Optional[str] = key(None, types=(str, int, float))
+    units: str | None = key(None, types=(str, int, float))
 
 
 def _err(table, **kw) -> str:
@@ -66,7 +66,7 @@ def test_not_a_table_and_skipped_fields():
 
 
 def test_types_of_annotations():
-    assert toml_types(float) == (int, float) and toml_types(Optional[Path]) == (str,)
+    assert toml_types(float) == (int, float) and toml_types(Optional[Path]) == (str,)  # noqa: UP045 (typing's spelling)
     assert toml_types(int | str) == (int, str)
     with pytest.raises(TypeError):
         toml_types(complex)

@@ -10,13 +10,13 @@ from click.testing import CliRunner
 
 pytest.importorskip("pxr", reason="USD output needs the 'usd' extra")
 
-from segadeform.cli.main import cli  # noqa: E402
-from segadeform.errors import FileFormatError  # noqa: E402
-from segadeform.io import format_for_path, open_sequence_writer, read_pc2, read_sequence  # noqa: E402
-from segadeform.io.usd import read_usd_sequence  # noqa: E402
-from segadeform.io.writer import Y_TO_Z  # noqa: E402
+from segadeform.cli.main import cli
+from segadeform.errors import FileFormatError
+from segadeform.io import format_for_path, open_sequence_writer, read_pc2, read_sequence
+from segadeform.io.usd import read_usd_sequence
+from segadeform.io.writer import Y_TO_Z
 
-from ..conftest import SAMPLES, leftovers  # noqa: E402
+from ..conftest import SAMPLES, leftovers
 
 
 def _mesh(n=40, frames=6, seed=0):

@@ -82,7 +82,8 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     mesh("off_not_off", ".off", "COFFEE\n", "not an OFF file")
     mesh("ply_garbage", ".ply", "ply\nformat nonsense 9\n", "cannot parse mesh")
     mesh("ply_truncated", ".ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
-         b"property float y\nproperty float z\nelement face 10\nproperty list uchar int vertex_indices\nend_header\n\x00\x00",
+         b"property float y\nproperty float z\nelement face 10\nproperty list uchar int vertex_indices\n"
+         b"end_header\n\x00\x00",
          "cannot parse mesh")
     mesh("unknown_extension", ".xyz", "1 2 3\n", "unknown mesh file extension")
 
@@ -170,7 +171,8 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
         ("bvh_frame_mismatch", good_bvh.replace("Frames: 6", "Frames: 7"), "does not match its declared size"),
         ("bvh_huge_frames", good_bvh.replace("Frames: 6", "Frames: 999999999"), "does not match its declared size"),
         ("bvh_unmappable", "HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 3 Xrotation Yrotation Zrotation\n"
-         " JOINT b\n {\n  OFFSET 0 1 0\n  CHANNELS 3 Xrotation Yrotation Zrotation\n  End Site\n  {\n   OFFSET 0 1 0\n"
+         " JOINT b\n {\n  OFFSET 0 1 0\n  CHANNELS 3 Xrotation Yrotation Zrotation\n"
+         "  End Site\n  {\n   OFFSET 0 1 0\n"
          "  }\n }\n}\nMOTION\nFrames: 1\nFrame Time: 0.1\n0 0 0 0 0 0\n", "cannot map this skeleton"),
         ("bvh_duplicate_joints", good_bvh.replace("JOINT left_knee", "JOINT Left_Hip"), "joint names repeat"),
         ("bvh_nan", good_bvh.replace("0.000000", "nan", 1), "not finite"),
@@ -327,8 +329,7 @@ if __name__ == "__main__":
 def issue29_cases(d: Path, cases: list, package, base: str) -> None:
     """Issue 29's bad inputs that crashed or passed silently: runtime files (.sgdm/.sgda), .mhclo bindings, motion
     values past physical bounds, scenes, jobs files, and manifests (each must now give one line naming the file)."""
-    from segadeform.motion import write_motion_file
-    from segadeform.motion import make_motion
+    from segadeform.motion import make_motion, write_motion_file
 
     def inspect(name, data, words, ext=".sgdm"):
         p = d / f"{name}{ext}"

@@ -19,8 +19,10 @@ from tests.malformed.corpus import build
 results = []
 for name, args, words, out in build(sys.argv[1], sys.argv[2] if sys.argv[2] != "-" else None):
     r = CliRunner().invoke(cli, args)
-    results.append({"name": name, "code": r.exit_code, "output": r.output, "exc": repr(r.exception) if r.exception and not isinstance(r.exception, SystemExit) else None,
-                    "words": words, "out_exists": bool(out) and __import__("pathlib").Path(out).exists(), "file": args[1] if args[0] not in ("body", "motion", "garment") else args[2]})
+    exc = repr(r.exception) if r.exception and not isinstance(r.exception, SystemExit) else None
+    results.append({"name": name, "code": r.exit_code, "output": r.output, "exc": exc, "words": words,
+                    "out_exists": bool(out) and __import__("pathlib").Path(out).exists(),
+                    "file": args[1] if args[0] not in ("body", "motion", "garment") else args[2]})
 print(json.dumps(results))
 """
 
@@ -55,7 +57,7 @@ def test_messages_name_the_file(tmp_path, random_package):
 
     from segadeform.cli.main import cli
 
-    for name, args, words, out in cases:
+    for name, args, words, _out in cases:
         r = CliRunner().invoke(cli, args)
         target = args[1] if args[0] not in ("body", "motion", "garment") else args[2]
         if name.startswith("package/"):  # the package (or the file inside it) is at fault

@@ -4,11 +4,10 @@ import numpy as np
 import pytest
 import torch
 
-from segadeform.body import SMPL_PARENTS, default_rest_joints
+from segadeform.body import SMPL_PARENTS, default_rest_joints, relative_transforms
 from segadeform.body import dual_quaternion_skinning as np_dqs
 from segadeform.body import forward_kinematics as np_fk
 from segadeform.body import linear_blend_skinning as np_lbs
-from segadeform.body import relative_transforms
 from segadeform.body.rotations import axis_angle_to_matrix as np_aa
 from segadeform.body.rotations import matrix_to_quaternion as np_m2q
 from segadeform.model import kinematics as K

@@ -1,11 +1,10 @@
 import numpy as np
-
 import pytest
 import torch
 
 from segadeform.errors import FileFormatError, InputError
-from segadeform.model import ModelConfig, SEGANet, load_checkpoint, save_checkpoint
 from segadeform.export.package import sample_inputs
+from segadeform.model import ModelConfig, SEGANet, load_checkpoint, save_checkpoint
 
 
 def run(net, n=40, k=6, b=3):

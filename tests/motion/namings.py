@@ -5,8 +5,8 @@ twist and share helpers, fingers, face, IK bones -- where the tool has them.
 :func:`naming_skeleton` returns ``(names, parents, rest (J, 3) metres +Y up, expected {smpl: name},
 twist)``, where ``twist`` lists the helper joints that sit *inside* a bone (between two mapped joints) and
 may only turn about that bone, and structural joints between two mapped ones that keep still (a helper between
-two mapped joints that turned off its bone would move the joints below it where SMPL's skeleton cannot follow); :func:`naming_motion` makes a motion for it and :func:`write_naming_bvh` a
-BVH file (``tests/motion/bvh_build.py``).
+two mapped joints that turned off its bone would move the joints below it where SMPL's skeleton cannot
+follow); :func:`naming_motion` makes a motion for it and :func:`write_naming_bvh` a BVH file (``tests/motion/bvh_build.py``).
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ class _Builder:
         J = default_rest_joints()
         w = J[_IDX["left_wrist"]] * [side_sign, 1, 1]
         for f, (dz, dy) in zip(("Thumb", "Index", "Middle", "Ring", "Pinky"),
-                               ((0.035, -0.01), (0.02, 0.0), (0.0, 0.0), (-0.018, 0.0), (-0.034, -0.005))):
+                               ((0.035, -0.01), (0.02, 0.0), (0.0, 0.0), (-0.018, 0.0), (-0.034, -0.005)), strict=True):
             par = hand
             base = w + [side_sign * (0.03 if f == "Thumb" else 0.08), dy, dz]
             if metacarpal:
@@ -215,7 +215,7 @@ def naming_skeleton(kind: str):
             b.add(nm(S, "Foot"), nm(S, "LowerLeg"), _j(f"{s}_ankle"), f"{s}_ankle")
             b.add(nm(S, "ToeBase" if v else "Toes"), nm(S, "Foot"), _j(f"{s}_foot"), f"{s}_foot")
         if v:
-            for s, S, _, _, sg in _SIDES:
+            for _s, S, _, _, sg in _SIDES:
                 b.add(f"J_Adj_{S}_FaceEye", nm("C", "Head"), _j("head") + [sg * 0.03, 0.08, 0.08])
     elif kind == "rigify":  # DEF- bones; the .001 segments sit inside the limbs (twist)
         b.add("DEF-spine", None, _j("pelvis"), "pelvis")
@@ -257,8 +257,8 @@ def naming_skeleton(kind: str):
             b.add(f"{S}ForeArm", f"{S}Arm", _j(f"{s}_elbow"), f"{s}_elbow")
             b.add(f"{S}Hand", f"{S}ForeArm", _j(f"{s}_wrist"), f"{s}_wrist")
             num = {"Thumb": 1, "Index": 2, "Middle": 3, "Ring": 4, "Pinky": 5}
-            b.fingers(f"{S}Hand", lambda f, k, S=S: f"{S}Finger{num[f]}{('Proximal', 'Medial', 'Distal')[k - 1]}",
-                      sg, mid_smpl=f"{s}_hand", metacarpal=lambda f, S=S: f"{S}Finger{num[f]}Metacarpal")
+            b.fingers(f"{S}Hand", lambda f, k, S=S, num=num: f"{S}Finger{num[f]}{('Proximal', 'Medial', 'Distal')[k - 1]}",
+                      sg, mid_smpl=f"{s}_hand", metacarpal=lambda f, S=S, num=num: f"{S}Finger{num[f]}Metacarpal")
             b.add(f"{S}Thigh", "Hips", _j(f"{s}_hip"), f"{s}_hip")
             b.add(f"{S}Shin", f"{S}Thigh", _j(f"{s}_knee"), f"{s}_knee")
             b.add(f"{S}Foot", f"{S}Shin", _j(f"{s}_ankle"), f"{s}_ankle")

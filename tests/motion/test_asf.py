@@ -330,8 +330,8 @@ def test_mismatched_skeleton(trial, tmp_path):
 def test_cli_info_export_run(trial, tmp_path):
     from click.testing import CliRunner
 
-    from segadeform.motion import read_motion_file
     from segadeform.cli.main import cli
+    from segadeform.motion import read_motion_file
 
     r = CliRunner().invoke(cli, ["motion", "info", str(trial[1])])
     assert r.exit_code == 0, r.output

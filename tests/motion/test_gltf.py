@@ -15,16 +15,15 @@ from click.testing import CliRunner
 
 pytest.importorskip("pygltflib", reason="glTF motion needs the 'gltf' extra")
 
-from segadeform.body.skeleton import default_rest_joints  # noqa: E402
-from segadeform.errors import FileFormatError  # noqa: E402
-from segadeform.motion import load_motion, read_bvh  # noqa: E402
-from segadeform.motion.gltf import gltf_animations, sample_channel, sample_channel_reference  # noqa: E402
+from segadeform.body.skeleton import default_rest_joints
+from segadeform.errors import FileFormatError
+from segadeform.motion import load_motion, read_bvh
+from segadeform.motion.gltf import gltf_animations, sample_channel, sample_channel_reference
 
-from ..conftest import SAMPLES  # noqa: E402
-from ..physics.conftest import sim_python  # noqa: E402,F401  (the simulator environment: Blender)
-from .bvh_build import write_skeleton_bvh  # noqa: E402
-from .gltf_build import write_skeleton_glb  # noqa: E402
-from .namings import naming_motion, naming_skeleton  # noqa: E402
+from ..conftest import SAMPLES
+from .bvh_build import write_skeleton_bvh
+from .gltf_build import write_skeleton_glb
+from .namings import naming_motion, naming_skeleton
 
 
 @pytest.mark.parametrize("interp", ["LINEAR", "STEP", "CUBICSPLINE"])

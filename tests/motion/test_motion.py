@@ -9,8 +9,16 @@ from segadeform.body import axis_angle_to_matrix, default_rest_joints, forward_k
 from segadeform.body.skeleton import SMPL_PARENTS
 from segadeform.cli.main import cli
 from segadeform.errors import FileFormatError, InputError
-from segadeform.motion import (MOTION_KINDS, Motion, load_motion, make_motion, motion_windows, read_bvh,
-                               resample, write_bvh)
+from segadeform.motion import (
+    MOTION_KINDS,
+    Motion,
+    load_motion,
+    make_motion,
+    motion_windows,
+    read_bvh,
+    resample,
+    write_bvh,
+)
 from segadeform.motion.bvh import MIXAMO_TO_SMPL, SMPL_SHORT_NAMES
 from segadeform.motion.limits import limit_violation
 
@@ -145,7 +153,7 @@ def test_bvh_a_pose_rest_is_corrected(tmp_path):
     45 degrees down on the T-pose target too."""
     J = default_rest_joints()
     a_pose = J.copy()
-    for sh, el, wr, ha, s in ((16, 18, 20, 22, 1), (17, 19, 21, 23, -1)):
+    for sh, el, wr, ha, _side in ((16, 18, 20, 22, 1), (17, 19, 21, 23, -1)):
         for k in (el, wr, ha):
             d = J[k] - J[sh]
             a_pose[k] = J[sh] + np.array([d[0] * np.cos(np.pi / 4), -abs(d[0]) * np.sin(np.pi / 4), d[2]])

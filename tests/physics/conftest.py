@@ -4,18 +4,6 @@ import pytest
 
 
 @pytest.fixture(scope="session")
-def sim_python():
-    """The simulator environment; CI makes it (.ci/run), so these tests run there."""
-    from segadeform.errors import SimulationError
-    from segadeform.physics import find_sim_python
-
-    try:
-        return find_sim_python()
-    except SimulationError as e:
-        pytest.skip(f"no simulator environment here ({e}); `python -m segadeform.physics.setup` makes one")
-
-
-@pytest.fixture(scope="session")
 def body():
     from segadeform.body import load_body
 

@@ -9,7 +9,6 @@ import subprocess
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from segadeform.io import Mesh, write_obj, write_pc2
 from segadeform.settings import Y_TO_Z

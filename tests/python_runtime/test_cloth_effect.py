@@ -89,7 +89,7 @@ def test_a_run_with_cloth(tmp_path, random_package, body, monkeypatch):
     assert a.cloth is not None and a.cloth["contacts"] > 0 and a.cloth["resets"] == 0
     assert a.pushed_vertices == 0 and a.stage_seconds["collisions"] == 0.0 and a.stage_seconds["cloth"] > 0
     assert len(list(cache.glob("C-*.npz"))) == 1  # the per-garment setup, cached with the garment
-    b = _run(tmp_path, random_package, body, on, batch=1, name="b.pc2")
+    _run(tmp_path, random_package, body, on, batch=1, name="b.pc2")
     fa, fb = read_pc2(tmp_path / "a.pc2").frames, read_pc2(tmp_path / "b.pc2").frames
     # any batch size: the frames of one long call (the deformer's float32 may differ in its last bit between batch
     # sizes: the stage's own batch invariance is exact, tests/body/test_cloth.py)

@@ -8,8 +8,8 @@ from click.testing import CliRunner
 
 from segadeform.cli.main import cli
 from segadeform.errors import InputError
-from segadeform.settings.presets import QUALITY_PRESETS, is_change_list, preset_effects
 from segadeform.settings import Effects
+from segadeform.settings.presets import QUALITY_PRESETS, is_change_list, preset_effects
 from tests.conftest import SAMPLES
 
 

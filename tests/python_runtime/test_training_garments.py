@@ -8,9 +8,9 @@ import logging
 import numpy as np
 import pytest
 
-from segadeform.contracts import model_package as contract
 from segadeform.body import load_body
 from segadeform.cli.main import main
+from segadeform.contracts import model_package as contract
 from segadeform.export.training_set import mesh_descriptors, training_garments_entry
 from segadeform.garments import make_garment
 from segadeform.garments.make import GarmentParams

@@ -59,9 +59,9 @@ def portable_scene(tmp_path_factory, random_package):
     vector the Node, browser and C++ runtimes are held to.  Returns a dict of paths and the effects."""
     import numpy as np
 
-    from segadeform.io.sgdb import write_bundle
     from segadeform.cli.main import main
     from segadeform.io import read_pc2
+    from segadeform.io.sgdb import write_bundle
 
     d = tmp_path_factory.mktemp("portable")
     betas = "0.5,-0.3"

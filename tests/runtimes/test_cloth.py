@@ -23,9 +23,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from segadeform.io.sgdb import read_bundle, write_bundle
 from segadeform.io import read_pc2
-from tests.conftest import REPO, SAMPLES
+from segadeform.io.sgdb import write_bundle
+from tests.conftest import SAMPLES
 from tests.runtimes.test_collisions import FRAMES, MARGIN, TIGHTEN, _agree, _node_vectors, _site, _web_frames
 
 EFFECTS = "lbs,dynamics,wrinkles,cloth"

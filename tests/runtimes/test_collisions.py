@@ -37,10 +37,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from segadeform.io.sgdb import read_bundle, write_bundle
 from segadeform.io import read_pc2
+from segadeform.io.sgdb import read_bundle, write_bundle
 from tests.conftest import REPO, SAMPLES
-from tests.runtimes.test_engines import _rel
 from tests.runtimes.test_web import CHROMIUM, _page
 
 NODE = REPO / "runtimes" / "node"

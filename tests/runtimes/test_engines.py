@@ -11,9 +11,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from segadeform.io.sgdb import read_bundle, write_bundle
 from segadeform.errors import FileFormatError
 from segadeform.io import read_pc2
+from segadeform.io.sgdb import read_bundle, write_bundle
 from tests.conftest import REPO
 
 RTOL = 1e-5

@@ -14,11 +14,11 @@ import pytest
 from segadeform.body import default_body_path, load_body
 from segadeform.body.identity import body_sha256
 from segadeform.body.prepare import prepare_for_body
-from segadeform.io.sgdb import read_bundle, write_bundle
-from segadeform.motion import read_motion_file, write_motion_file
 from segadeform.errors import FileFormatError, InputError
 from segadeform.geometry import GarmentAsset, precompute_garment
 from segadeform.io import read_mesh
+from segadeform.io.sgdb import read_bundle, write_bundle
+from segadeform.motion import read_motion_file, write_motion_file
 from tests.conftest import SAMPLES
 
 RTOL = 1e-5
@@ -184,7 +184,7 @@ def test_export_body_gives_a_package_another_body(random_package, body, tmp_path
     cfg = ModelConfig.from_dict(old.config)
     for name in ("garment_encoder", "deformer_dqs_static"):  # the model's graphs compute what they did
         x = sample_inputs(cfg.replace(window=old.spec(name).get("window", cfg.window)), name, n=40, k=5, b=2)
-        assert all(a.tobytes() == b.tobytes() for a, b in zip(old.run(name, x), new.run(name, x))), name
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(old.run(name, x), new.run(name, x), strict=True)), name
     assert main(["export-body", "-o", str(tmp_path)]) == 1  # not a package
 
 

@@ -10,17 +10,17 @@ import pytest
 
 pytest.importorskip("torch")
 
-from segadeform.cli.main import main  # noqa: E402
-from segadeform.runtime.predictor import PackagePredictor  # noqa: E402
-from segadeform.train.evaluate import cloth_names, evaluate  # noqa: E402
-from segadeform.train.metrics import METRICS  # noqa: E402
-from segadeform.train.predictors import make_predictors  # noqa: E402
-from segadeform.train.report import markdown_table  # noqa: E402
+from segadeform.cli.main import main
+from segadeform.runtime.predictor import PackagePredictor
+from segadeform.train.evaluate import cloth_names, evaluate
+from segadeform.train.metrics import METRICS
+from segadeform.train.predictors import make_predictors
+from segadeform.train.report import markdown_table
 
 
 def test_cloth_names():
-    from segadeform.settings.cloth import ClothSettings
     from segadeform.errors import InputError
+    from segadeform.settings.cloth import ClothSettings
 
     assert cloth_names(None) == {}
     assert cloth_names("default") == {" + cloth": ClothSettings()}

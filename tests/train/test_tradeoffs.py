@@ -1,28 +1,19 @@
-"""bench/tradeoffs.py: the frontier rule, the row plan, and a tiny run end to end over every knob (table,
+"""bench/tradeoffs.py (its parts imported as modules: bench.tradeoffs_measure, bench.tradeoffs_render): the
+frontier rule, the row plan, and a tiny run end to end over every knob (table,
 presets, the simulator's axis with a stand-in simulator, plot, JSON)."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 
 import numpy as np
 import pytest
 
-from ..conftest import REPO
-
-
-def _bench():
-    spec = importlib.util.spec_from_file_location("tradeoffs_bench", REPO / "bench" / "tradeoffs.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod  # dataclasses look their module up there
-    spec.loader.exec_module(mod)
-    return mod
+from bench import tradeoffs, tradeoffs_measure, tradeoffs_render
 
 
 def test_frontier_keeps_only_undominated_points():
-    f = _bench().frontier
+    f = tradeoffs_render.frontier
     pts = {"fast": (1.0, 5.0), "slow-good": (10.0, 1.0), "dominated": (10.0, 5.0), "mid": (3.0, 3.0),
            "tie": (3.0, 3.0)}
     assert f(pts) == ["fast", "mid", "tie", "slow-good"]
@@ -31,7 +22,7 @@ def test_frontier_keeps_only_undominated_points():
 def test_every_preset_is_a_planned_row_with_its_effects_and_margin():
     from segadeform.settings.presets import QUALITY_PRESETS
 
-    b = _bench()
+    b = tradeoffs_measure
     rows, presets = b.plan_rows("PKG", "Q8", {"wide": "W"}, fp16="H")
     names = [r.name for r in rows]
     assert len(names) == len(set(names))
@@ -43,7 +34,8 @@ def test_every_preset_is_a_planned_row_with_its_effects_and_margin():
     for name, rn in presets.items():
         e, r = QUALITY_PRESETS[name].effects, by[rn]
         assert r.spec == "PKG" and r.effects == b.effects_key(e)
-        assert r.margin == (e.collision_margin if e.collisions else None)
+        assert r.margin == (e.collision_margin if e.collisions or e.cloth else None)
+        assert r.cloth == b.cloth_key(e)
     assert {"K=4", "N*=16", "batch 1", "garment 1/4 res", "wide + push-out 4 mm", "int8", "fp16 weights"} <= set(names)
     # the cloth stage: sweeps 1, 2, 4 (its default), 8, 16 and two stiffnesses, on all effects
     cloth = {r.name: r.cloth for r in rows if r.knob == "cloth"}
@@ -63,7 +55,7 @@ def test_tradeoffs_runs_on_a_tiny_dataset(synthetic_dataset, random_package, tmp
         x = load_sample(synthetic_dataset, sid).frames.astype(np.float64)
         return x + 0.01 / quality, 0.01 * quality
 
-    b = _bench()
+    b = tradeoffs
     argv = [str(synthetic_dataset), "--package", str(random_package), "--model", f"again={random_package}",
             "-o", str(out), "--repeats", "1", "--threads-all", "2", "--ks", "4", "--n-stars", "16",
             "--batches", "3", "--resolutions", "1/2,4x", "--sim-qualities", "2,5", "--sim-reference", "20"]

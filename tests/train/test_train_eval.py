@@ -11,8 +11,8 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from segadeform.cli.main import main  # noqa: E402
-from segadeform.train import load_train_config  # noqa: E402
 from segadeform.runtime.predictor import PackagePredictor  # noqa: E402
+from segadeform.train import load_train_config  # noqa: E402
 from segadeform.train.evaluate import evaluate  # noqa: E402
 from segadeform.train.metrics import METRICS  # noqa: E402
 from segadeform.train.predictors import make_predictors  # noqa: E402

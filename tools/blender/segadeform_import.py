@@ -26,7 +26,7 @@ from __future__ import annotations
 import struct
 import sys
 
-import bpy  # noqa: F401  (Blender's own module: this file only runs inside Blender)
+import bpy
 
 _PC2_HEADER = struct.Struct("<12siiffi")
 

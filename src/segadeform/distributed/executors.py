@@ -11,8 +11,8 @@
 
 ``Executor.map_unordered(fn, tasks)`` yields ``fn(task)`` for every task, in the order they finish.
 ``fn`` is a picklable callable -- a module-level function is pickled by reference, so every worker
-imports segadeform -- and each task a picklable value.  The tasks keep one contract, which is what makes retries and resumed runs
-safe: a task is a function of its spec alone, commits its result atomically (temporary name, then
+imports segadeform -- and each task a picklable value.  The tasks keep one contract, which is what makes
+retries and resumed runs safe: a task is a function of its spec alone, commits its result atomically (temporary name, then
 rename; see :mod:`segadeform.io.location`) and returns early when the result is already committed.
 
 On Ray a task whose worker process or node dies is run again (``max_retries`` times); an exception
@@ -23,12 +23,12 @@ imported only when a Ray executor is made (``pip install segadeform[ray]``).
 from __future__ import annotations
 
 import abc
-
 import concurrent.futures as cf
 import logging
 import os
 import time
-from typing import Any, Callable, Iterable, Iterator, Optional
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
 
 from ..errors import InputError, SegadeformError
 
@@ -46,7 +46,7 @@ class Executor(abc.ABC):
 
     name = "executor"
     remote = False
-    workers: Optional[int] = None
+    workers: int | None = None
 
     @abc.abstractmethod
     def map_unordered(self, fn: Callable[[Any], Any], tasks: Iterable) -> Iterator:
@@ -55,7 +55,7 @@ class Executor(abc.ABC):
     def describe(self) -> str:
         return f"{self.name} ({self.workers or 'all'} workers)"
 
-    def close(self) -> None:
+    def close(self) -> None:  # noqa: B027 (a default, not abstract: an executor with nothing to release keeps it)
         pass
 
     def __enter__(self):
@@ -70,7 +70,7 @@ class LocalExecutor(Executor):
 
     name = "local"
 
-    def __init__(self, workers: Optional[int] = None) -> None:
+    def __init__(self, workers: int | None = None) -> None:
         if workers is not None and workers < 1:
             raise InputError("the number of workers must be at least 1", got=workers)
         self.workers = workers or 1
@@ -123,8 +123,8 @@ class RayExecutor(Executor):
     name = "ray"
     remote = True
 
-    def __init__(self, address: Optional[str] = None, workers: Optional[int] = None, *, max_retries: int = 3,
-                 cpus_per_task: float = 1.0, runtime_env: Optional[dict] = None) -> None:
+    def __init__(self, address: str | None = None, workers: int | None = None, *, max_retries: int = 3,
+                 cpus_per_task: float = 1.0, runtime_env: dict | None = None) -> None:
         if workers is not None and workers < 1:
             raise InputError("the number of workers must be at least 1", got=workers)
         if max_retries < 0:
@@ -212,7 +212,7 @@ class _Window:
     runs at once -- enough to keep every slot busy, few enough that waiting on them stays cheap
     (looked up again every 30 s: an autoscaling cluster grows)."""
 
-    def __init__(self, ray, workers: Optional[int], cpus_per_task: float) -> None:
+    def __init__(self, ray, workers: int | None, cpus_per_task: float) -> None:
         self.ray, self.workers, self.cpus = ray, workers, cpus_per_task
         self.at, self.n = -1e9, 1
 
@@ -231,7 +231,7 @@ def _apply(fn, task):
     return fn(task)
 
 
-def make_executor(spec: str = "local", workers: Optional[int] = None, **ray_options) -> Executor:
+def make_executor(spec: str = "local", workers: int | None = None, **ray_options) -> Executor:
     """The executor ``spec`` names (see the module docstring); ``workers``: how many tasks at a time."""
     if not isinstance(spec, str):
         raise InputError("unknown executor", expected=EXECUTOR_HELP, got=repr(spec))

@@ -3,6 +3,6 @@
 See :mod:`.make` for the kinds and their parameters.
 """
 
-from .make import GARMENT_KINDS, GARMENT_TYPES, Garment, GarmentParams, make_garment, check_garment
+from .make import GARMENT_KINDS, GARMENT_TYPES, Garment, GarmentParams, check_garment, make_garment
 
 __all__ = ["GARMENT_KINDS", "GARMENT_TYPES", "Garment", "GarmentParams", "make_garment", "check_garment"]

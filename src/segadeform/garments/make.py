@@ -44,7 +44,6 @@ by about 4 (0 gives roughly 1k-4k vertices on the default body, 1 gives
 from __future__ import annotations
 
 import dataclasses
-from typing import Optional
 
 import numpy as np
 
@@ -66,12 +65,12 @@ _J = {n: i for i, n in enumerate(SMPL_JOINT_NAMES)}
 
 @dataclasses.dataclass(frozen=True)
 class GarmentParams:
-    length: Optional[float] = None     # kind-specific default
+    length: float | None = None     # kind-specific default
     flare: float = 0.25
     ease: float = 0.015
-    sleeve: Optional[float] = None     # fraction of the arm (shoulder to wrist) the sleeve covers
+    sleeve: float | None = None     # fraction of the arm (shoulder to wrist) the sleeve covers
     subdivisions: int = 0
-    resolution: Optional[int] = None   # target vertex count: picks the subdivisions closest to it
+    resolution: int | None = None   # target vertex count: picks the subdivisions closest to it
 
     def __post_init__(self):
         if self.resolution is not None and not (isinstance(self.resolution, int) and 100 <= self.resolution <= 200_000):
@@ -95,7 +94,7 @@ class Garment:
     type: str
     params: GarmentParams
     betas: tuple
-    cloth_rest: Optional[np.ndarray] = None  # (N, 3) the same garment made in ``cloth_pose`` (see make_garment)
+    cloth_rest: np.ndarray | None = None  # (N, 3) the same garment made in ``cloth_pose`` (see make_garment)
 
     def header(self) -> str:
         p = dataclasses.asdict(self.params)
@@ -178,7 +177,7 @@ def _extrude_skirt(v, f, hem_y, flare, proxy: BodyProxy, ease):
     """Extrude the lowest boundary loop down to ``hem_y``, widening to ``1 + flare`` at the hem and
     never closer than ``ease`` to the body."""
     loops = boundary_loops(f, len(v))
-    loop = min(loops, key=lambda l: v[l, 1].mean())
+    loop = min(loops, key=lambda lp: v[lp, 1].mean())
     ring0 = v[loop]
     y0 = ring0[:, 1].mean()
     if hem_y >= y0 - 0.02:
@@ -208,7 +207,7 @@ def _extrude_skirt(v, f, hem_y, flare, proxy: BodyProxy, ease):
         rings.append(np.arange(nxt, nxt + m))
         nxt += m
     faces = [f]
-    for r0, r1 in zip(rings[:-1], rings[1:]):
+    for r0, r1 in zip(rings[:-1], rings[1:], strict=True):
         a, b = r0, np.roll(r0, -1)
         c, d = r1, np.roll(r1, -1)
         # the loop runs along its owning faces' half-edges a->b, so new faces use b->a
@@ -276,7 +275,7 @@ def _level_set_cut(faces, phi, x=None, snap: float = 0.25):
     mixed = (fs > 0).any(1) & (fs < 0).any(1)
     out = [f[whole]]
     new = []  # polygons with crossing points as -(1 + index into xe)
-    for tri, sg in zip(f[mixed].tolist(), fs[mixed].tolist()):
+    for tri, sg in zip(f[mixed].tolist(), fs[mixed].tolist(), strict=True):
         poly = []
         for k in range(3):
             i, j = tri[k], tri[(k + 1) % 3]
@@ -458,7 +457,7 @@ def _smooth_boundary(v, f, proxy: BodyProxy, ease, passes: int = 20, lam: float 
     Shapes: v (N, 3), f (F, 3) -> (N, 3)
     """
     v = np.array(v, np.float64)
-    loops = [l for l in boundary_loops(f, len(v)) if len(l) >= 5]
+    loops = [lp for lp in boundary_loops(f, len(v)) if len(lp) >= 5]
     if not loops:
         return v
     every = np.concatenate(loops)
@@ -547,7 +546,7 @@ def boundary_turning(vertices, faces) -> list[np.ndarray]:
     return out
 
 
-def check_garment(vertices, faces, body: Optional[BodyModel] = None, betas=None, *, tolerance: float = 0.0) -> dict:
+def check_garment(vertices, faces, body: BodyModel | None = None, betas=None, *, tolerance: float = 0.0) -> dict:
     """Check a garment mesh: one piece, edge-manifold, consistently oriented, open (has a boundary),
     no degenerate triangle, and (with a body) no vertex inside the body.  Raises :class:`InputError`
     naming the first failure; returns the measured numbers."""

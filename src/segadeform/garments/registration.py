@@ -22,7 +22,6 @@ OBJ :func:`segadeform.io.obj.rewrite_obj_vertices`'s, placement checks and the p
 from __future__ import annotations
 
 import dataclasses
-from typing import Optional
 
 import numpy as np
 
@@ -109,7 +108,7 @@ def _local_frames(v: np.ndarray, faces: np.ndarray, face_idx: np.ndarray):
 
 def fit_to_body_mesh(garment_vertices, source_vertices, source_faces, body, betas=None, *,
                      samples: int = 1500, rounds: int = 8, seed: int = 0,
-                     scale: Optional[float] = None) -> BodyFit:
+                     scale: float | None = None) -> BodyFit:
     """Carry a garment modelled on another body mesh (any topology and pose, +Y up, metres) onto ``body``.
 
     1. **register** the body to the source mesh: scale (``None``: free, from the height ratio; a number
@@ -181,7 +180,7 @@ def fit_to_body_mesh(garment_vertices, source_vertices, source_faces, body, beta
             q = sv[s_tree.query(p)[1]]  # body sample -> nearest source vertex
             near_b = cKDTree(p).query(s_pts)[1]  # source sample -> nearest body sample
 
-            def res(xx):
+            def res(xx, q=q, near_b=near_b):  # this round's pairs
                 pp = body_points(xx)
                 return np.concatenate([(pp - q).ravel(), (pp[near_b] - s_pts).ravel(),
                                        0.01 * xx[4:4 + nb], 0.02 * xx[4 + nb:]])

@@ -205,7 +205,7 @@ class SurfaceMap:
     faces: np.ndarray
 
     @classmethod
-    def build(cls, points, vertices, faces, *, candidates: int = 16) -> "SurfaceMap":
+    def build(cls, points, vertices, faces, *, candidates: int = 16) -> SurfaceMap:
         """Map ``points`` (P, 3) onto the mesh ``vertices`` (N, 3), ``faces`` (F, 3): the closest point
         among the triangles with the ``candidates`` nearest centroids (exact for points near a mesh of
         fairly even triangles, which is what it is for: the same garment at another resolution)."""

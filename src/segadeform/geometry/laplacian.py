@@ -142,7 +142,7 @@ class SpectralBasis:
 
     @classmethod
     def from_mesh(cls, vertices, faces, *, low: float = BAND_LOW, mid: float = BAND_MID,
-                  allow_large: bool = False) -> "SpectralBasis":
+                  allow_large: bool = False) -> SpectralBasis:
         v, f = check_mesh(vertices, faces)
         n = v.shape[0]
         if not (0 < low <= mid <= 1):

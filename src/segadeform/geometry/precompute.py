@@ -1,5 +1,5 @@
-"""Every precompute step on a garment, in one call: the garment asset (:class:`segadeform.io.garment_asset.GarmentAsset`,
-its file format and fields)."""
+"""Every precompute step on a garment, in one call: the garment asset
+(:class:`segadeform.io.garment_asset.GarmentAsset`, its file format and fields)."""
 
 from __future__ import annotations
 

@@ -12,29 +12,41 @@ without caring about the format.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
-
-import numpy as np
 
 from ..errors import InputError
 from .atomic import atomic_directory, atomic_open, atomic_path
+from .formats import (
+    SEQUENCE_FORMATS,
+    SequenceFormat,
+    format_for_path,
+    open_sequence_writer,
+    read_sequence,
+    register_sequence_format,
+    sequence_format,
+)
 from .mesh import Mesh, validate_mesh_arrays
 from .meshio_formats import read_meshio, write_meshio
 from .obj import read_obj, write_obj
 from .off import read_off
-from .pc2 import PC2Writer, PointCache, read_pc2, read_pc2_header, write_pc2
-from .sequence import (ObjSequenceWriter, XdmfSequenceWriter, read_obj_sequence,
-                       read_xdmf_sequence, write_obj_sequence, write_xdmf_sequence)
-from .formats import (SEQUENCE_FORMATS, SequenceFormat, format_for_path, open_sequence_writer, read_sequence,
-                      register_sequence_format, sequence_format)
 from .outputs import SceneOutput
-from .writer import UP_AXES, SequenceWriter, Y_TO_Z, to_up
+from .pc2 import PC2Writer, PointCache, read_pc2, read_pc2_header, write_pc2
+from .sequence import (
+    ObjSequenceWriter,
+    XdmfSequenceWriter,
+    read_obj_sequence,
+    read_xdmf_sequence,
+    write_obj_sequence,
+    write_xdmf_sequence,
+)
+from .writer import UP_AXES, Y_TO_Z, SequenceWriter, to_up
 
 __all__ = [
     "Mesh", "read_mesh", "write_mesh", "MESH_READERS", "MESH_WRITERS",
     "read_obj", "write_obj", "read_off", "read_pc2", "read_pc2_header", "write_pc2", "PC2Writer", "PointCache",
-    "read_obj_sequence", "write_obj_sequence", "read_xdmf_sequence", "write_xdmf_sequence",
+    "read_obj_sequence", "write_obj_sequence", "read_xdmf_sequence", "write_xdmf_sequence", "ObjSequenceWriter",
+    "XdmfSequenceWriter",
     "SEQUENCE_FORMATS", "SequenceFormat", "SequenceWriter", "open_sequence_writer", "read_sequence",
     "register_sequence_format", "sequence_format", "format_for_path", "UP_AXES", "Y_TO_Z", "to_up", "SceneOutput",
     "atomic_path", "atomic_open", "atomic_directory", "validate_mesh_arrays",

@@ -13,8 +13,9 @@ import errno
 import glob
 import os
 import shutil
+from collections.abc import Iterator
 from pathlib import Path
-from typing import IO, Iterator
+from typing import IO
 
 from ..errors import SegadeformError
 

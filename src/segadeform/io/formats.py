@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 import numpy as np
 
@@ -56,8 +56,8 @@ class SequenceFormat:
     open: Callable
     read: Callable
     description: str
-    extra: Optional[str] = None
-    inspect: Optional[Callable] = None
+    extra: str | None = None
+    inspect: Callable | None = None
 
     @property
     def folder(self) -> bool:
@@ -82,7 +82,7 @@ def sequence_format(name: str) -> SequenceFormat:
         raise InputError("unknown sequence format", expected=" | ".join(SEQUENCE_FORMATS), got=name) from None
 
 
-def format_for_path(path: str | os.PathLike) -> Optional[SequenceFormat]:
+def format_for_path(path: str | os.PathLike) -> SequenceFormat | None:
     """The format a path's extension names (no extension: the folder format), or None."""
     p = Path(path)
     ext = p.suffix.lower()
@@ -92,7 +92,7 @@ def format_for_path(path: str | os.PathLike) -> Optional[SequenceFormat]:
     return None
 
 
-def sequence_format_of(path: str | os.PathLike) -> Optional[SequenceFormat]:
+def sequence_format_of(path: str | os.PathLike) -> SequenceFormat | None:
     """The format of an existing output: a folder is the folder format, a file goes by its extension; None
     when no registered format claims it."""
     p = Path(path)
@@ -263,7 +263,7 @@ class FileFormat:
     extensions: tuple
     read: Callable
     description: str
-    write: Optional[Callable] = None
+    write: Callable | None = None
 
 
 FILE_FORMATS: dict[str, FileFormat] = {}
@@ -276,7 +276,7 @@ def register_file_format(fmt: FileFormat) -> FileFormat:
     return fmt
 
 
-def file_format_for(path: str | os.PathLike) -> Optional[FileFormat]:
+def file_format_for(path: str | os.PathLike) -> FileFormat | None:
     """The registered file format a path's extension names, or None."""
     ext = Path(path).suffix.lower()
     return next((f for f in FILE_FORMATS.values() if ext in f.extensions), None)

@@ -29,8 +29,8 @@ body               JSON string      optional (schema 2): ``{"name", "sha256", "w
                                     reached the garment (the model's ``config.weight_prior``)
 =================  ===============  =============================================
 
-An asset **prepared for a body shape** (:func:`segadeform.body.prepare.prepare_for_body`, ``segadeform garment export``) has
-the three optional fields: with them it holds every model input that only Python computes (features for
+An asset **prepared for a body shape** (:func:`segadeform.body.prepare.prepare_for_body`,
+``segadeform garment export``) has the three optional fields: with them it holds every model input that only Python computes (features for
 the shape, neighbours, mask, descriptor, the body's weights at the garment), so the Node, browser and C++
 runtimes animate it from a motion file alone.  Schema 1 (no optional fields) is still read.
 
@@ -151,7 +151,7 @@ class GarmentAsset:
         return write_bundle(p, arrays, meta)
 
     @classmethod
-    def _load_portable(cls, p: Path) -> "GarmentAsset":
+    def _load_portable(cls, p: Path) -> GarmentAsset:
         arrays, meta = read_bundle(p)
         if meta.get("kind") != ASSET_KIND:
             raise FileFormatError("not a garment asset", path=p, expected=f"meta.kind {ASSET_KIND!r}",
@@ -178,7 +178,7 @@ class GarmentAsset:
                    source_sha256=str(meta.get("source_sha256", "")), **fields)
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "GarmentAsset":
+    def load(cls, path: str | os.PathLike) -> GarmentAsset:
         """Read and validate an asset (``.npz`` or the portable form); errors name the file and the field."""
         p = Path(path)
         from .npz import load_npz

@@ -23,14 +23,13 @@ of one target, which the next attempt of the task that owns the target does befo
 from __future__ import annotations
 
 import abc
-
 import contextlib
 import os
 import posixpath
 import shutil
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator, Union
 
 from ..errors import InputError, SegadeformError
 from .atomic import _tmp_sibling, atomic_path, remove_temporaries
@@ -139,7 +138,7 @@ class Location(abc.ABC):
 class LocalLocation(Location):
     """A folder on this machine (or a shared file system every worker mounts at the same path)."""
 
-    def __init__(self, root: Union[str, os.PathLike]) -> None:
+    def __init__(self, root: str | os.PathLike) -> None:
         self.root = Path(root)
         self.url = str(self.root)
 
@@ -302,7 +301,7 @@ def _rebuild_fsspec(url: str, storage_options: dict) -> FsspecLocation:
     return FsspecLocation(url, **storage_options)
 
 
-def open_location(where: Union[str, os.PathLike, Location]) -> Location:
+def open_location(where: str | os.PathLike | Location) -> Location:
     """A :class:`Location` for a folder path or an fsspec URL (a Location is returned as it is)."""
     if isinstance(where, Location):
         return where

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Optional
 
 import numpy as np
 
@@ -28,9 +27,9 @@ class Mesh:
 
     vertices: np.ndarray
     faces: np.ndarray
-    path: Optional[str] = None
-    colors: Optional[np.ndarray] = None
-    face_origin: Optional[np.ndarray] = None
+    path: str | None = None
+    colors: np.ndarray | None = None
+    face_origin: np.ndarray | None = None
 
     @property
     def n_vertices(self) -> int:

@@ -8,7 +8,6 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -38,14 +37,14 @@ class MhcloBinding:
     offsets: np.ndarray
     scales: dict
     delete_verts: np.ndarray
-    obj_file: Optional[str]
+    obj_file: str | None
     basemesh: str
 
     @property
     def n_vertices(self) -> int:
         return int(self.verts.shape[0])
 
-    def obj_path(self) -> Optional[Path]:
+    def obj_path(self) -> Path | None:
         return None if self.obj_file is None else self.path.parent / self.obj_file
 
 

@@ -39,8 +39,8 @@ import dataclasses
 import fnmatch
 import json
 import os
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import Iterable, Iterator, Optional, Sequence, Union
 
 from ..errors import InputError
 
@@ -61,7 +61,7 @@ def _is_temporary(name: str) -> bool:
 
 
 # ---- the manifest --------------------------------------------------------------------------------------------
-def read_manifest(folder: Union[str, os.PathLike]) -> dict:
+def read_manifest(folder: str | os.PathLike) -> dict:
     """The manifest of ``folder`` (``{"files": {name: {"kind", "size", "mtime_ns"}}, "folder": kind?}``);
     an empty one when there is none.  A manifest that is not one is refused (it is never overwritten)."""
     p = Path(folder) / MANIFEST_NAME
@@ -86,7 +86,7 @@ def read_manifest(folder: Union[str, os.PathLike]) -> dict:
     return m
 
 
-def _stat(p: Path) -> Optional[os.stat_result]:
+def _stat(p: Path) -> os.stat_result | None:
     try:
         return os.lstat(p)
     except (FileNotFoundError, NotADirectoryError):
@@ -97,14 +97,14 @@ def _entry(kind: str, st: os.stat_result) -> dict:
     return {"kind": kind, "size": int(st.st_size), "mtime_ns": int(st.st_mtime_ns)}
 
 
-def _unchanged(entry: dict, st: Optional[os.stat_result]) -> bool:
+def _unchanged(entry: dict, st: os.stat_result | None) -> bool:
     import stat as stat_mod
 
     return (st is not None and stat_mod.S_ISREG(st.st_mode) and entry.get("size") == st.st_size
             and entry.get("mtime_ns") == st.st_mtime_ns)
 
 
-def written_by(path: Union[str, os.PathLike]) -> Optional[str]:
+def written_by(path: str | os.PathLike) -> str | None:
     """The kind of the command that wrote ``path`` when its folder's manifest lists it and the file is unchanged
     since; None otherwise (not written by segadeform, edited since, or missing)."""
     p = Path(path)
@@ -128,7 +128,7 @@ def _locked(folder: Path) -> Iterator[None]:
         os.close(fd)  # releases the lock
 
 
-def _update_manifest(folder: Path, add: dict, drop: Iterable[str] = (), mark: Optional[str] = None) -> None:
+def _update_manifest(folder: Path, add: dict, drop: Iterable[str] = (), mark: str | None = None) -> None:
     """Add entries ``add`` (name -> entry), drop names, optionally mark the folder as ``mark``'s; atomic."""
     from .atomic import atomic_path
 
@@ -155,7 +155,7 @@ def _update_manifest(folder: Path, add: dict, drop: Iterable[str] = (), mark: Op
 class _Claim:
     path: Path
     what: str                        # "file" | "folder" | "resumable"
-    names: Optional[tuple] = None    # folder: globs of the names the output writes
+    names: tuple | None = None    # folder: globs of the names the output writes
     existed: bool = False
     snapshot: dict = dataclasses.field(default_factory=dict)  # folder: name -> (size, mtime_ns, ino) before
     location: object = None          # resumable: the Location
@@ -206,7 +206,7 @@ class OutputGuard:
     def _cmd(self) -> str:
         return _label(self.kind)
 
-    def _input_at(self, p: Path) -> Optional[Path]:
+    def _input_at(self, p: Path) -> Path | None:
         return next((i for i in self.inputs if _same_file(i, p)), None)
 
     def _check_parent(self, p: Path) -> None:
@@ -247,7 +247,7 @@ class OutputGuard:
                                 "overwritten", path=p, expected="a new path", got="an existing output")
         return True  # an earlier run's output of this command: replaced
 
-    def file(self, path: Union[str, os.PathLike]) -> Path:
+    def file(self, path: str | os.PathLike) -> Path:
         """Claim file output ``path`` (see the module docstring); returns it."""
         p = Path(path)
         existed = self._check_file(p)
@@ -255,7 +255,7 @@ class OutputGuard:
         return p
 
     # -- folder outputs ----------------------------------------------------------------------------------------
-    def _check_folder(self, p: Path, names: Optional[tuple]) -> tuple[bool, dict]:
+    def _check_folder(self, p: Path, names: tuple | None) -> tuple[bool, dict]:
         self._check_parent(p)
         inp = self._input_at(p)
         if inp is not None:
@@ -297,7 +297,7 @@ class OutputGuard:
                                 expected="another folder", got="files in the way")
         return True, snap
 
-    def folder(self, path: Union[str, os.PathLike], *, names=None) -> Path:
+    def folder(self, path: str | os.PathLike, *, names=None) -> Path:
         """Claim folder output ``path`` whose files are named like glob(s) ``names`` (None: not known in
         advance)."""
         p = Path(path)
@@ -332,7 +332,7 @@ class OutputGuard:
         return loc
 
     @staticmethod
-    def _top_names(loc) -> Optional[list[str]]:
+    def _top_names(loc) -> list[str] | None:
         """Top-level names in the location (files and folders, manifest and temporaries left out); None when it
         does not exist."""
         from .location import LocalLocation
@@ -348,7 +348,7 @@ class OutputGuard:
         names = [str(e).rstrip("/").rsplit("/", 1)[-1] for e in entries]
         return sorted(n for n in names if n and n != MANIFEST_NAME and not _is_temporary(n))
 
-    def _folder_owner(self, loc) -> Optional[str]:
+    def _folder_owner(self, loc) -> str | None:
         if not loc.exists(MANIFEST_NAME):
             return None
         from .location import LocalLocation
@@ -492,7 +492,7 @@ class OutputGuard:
         return [p / n for n in sorted(add)]
 
     @contextlib.contextmanager
-    def writing(self) -> Iterator["OutputGuard"]:
+    def writing(self) -> Iterator[OutputGuard]:
         """``with guard.writing():`` -- :meth:`record` when the block succeeds (what it claimed and wrote)."""
         yield self
         self.record()

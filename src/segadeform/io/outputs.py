@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -54,8 +53,8 @@ class SceneOutput:
     """
 
     def __init__(self, *, path: str | os.PathLike, fmt: str, up: str = "y", fps: float = 30.0, start_frame: int = 0,
-                 garment_faces: np.ndarray, garment_rest: np.ndarray, body_path: Optional[os.PathLike] = None,
-                 body_faces: Optional[np.ndarray] = None, body_rest: Optional[np.ndarray] = None,
+                 garment_faces: np.ndarray, garment_rest: np.ndarray, body_path: os.PathLike | None = None,
+                 body_faces: np.ndarray | None = None, body_rest: np.ndarray | None = None,
                  guard=None) -> None:
         sequence_format(fmt)  # unknown formats fail before anything is opened
         self.fmt, self.up, self.guard = fmt, up, guard
@@ -73,7 +72,7 @@ class SceneOutput:
                 raise
             self._body_faces, self._body_rest = body_faces, np.asarray(body_rest, np.float64)
 
-    def write(self, garment_frames: np.ndarray, body_frames: Optional[np.ndarray] = None) -> None:
+    def write(self, garment_frames: np.ndarray, body_frames: np.ndarray | None = None) -> None:
         """Append frames ``(B, N, 3)`` (+Y up) of the garment and, when writing it, the body."""
         self.garment.write(garment_frames)
         if self.body is not None:

@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError, file_error
-from .writer import SequenceWriter
 from .atomic import _tmp_sibling
+from .writer import SequenceWriter
 
 __all__ = ["PC2_HEADER", "PC2_MAGIC", "PC2Header", "PointCache", "PC2Writer",
            "read_pc2_header", "read_pc2", "write_pc2"]

@@ -48,7 +48,6 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -66,7 +65,7 @@ _NAMES = {v: k for k, v in DTYPES.items()}
 _ALIGN = 64
 
 
-def write_bundle(path: str | os.PathLike, arrays: dict, meta: Optional[dict] = None) -> Path:
+def write_bundle(path: str | os.PathLike, arrays: dict, meta: dict | None = None) -> Path:
     """Write ``arrays`` (name -> array of a supported dtype) and ``meta`` (JSON-able) atomically."""
     p = Path(path)
     entries, blobs, off = [], [], 0

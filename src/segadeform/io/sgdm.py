@@ -17,8 +17,8 @@ and key checked); :func:`segadeform.motion.write_motion_file` / :func:`~segadefo
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -33,7 +33,7 @@ MOTION_SCHEMA_VERSION = 1
 
 
 def write_motion_arrays(path: str | os.PathLike, poses, trans, *, fps: float, name: str, joint_names: Sequence[str],
-                        source: str = "", body: Optional[dict] = None, betas=None) -> Path:
+                        source: str = "", body: dict | None = None, betas=None) -> Path:
     """Write a motion file: ``poses`` (T, S, 3) local axis-angle and ``trans`` (T, 3), as float32 (what the graphs
     take), ``fps``, ``name``, the S ``joint_names`` and ``source`` in ``meta``; ``body`` (``{"name", "sha256"}``)
     and ``betas``: the body it was retargeted onto."""

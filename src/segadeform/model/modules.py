@@ -24,7 +24,7 @@ class MLP(nn.Module):
 
     def __init__(self, sizes: list[int], tau: float | None) -> None:
         super().__init__()
-        self.layers = nn.ModuleList(TauLinear(a, b, tau) for a, b in zip(sizes[:-1], sizes[1:]))
+        self.layers = nn.ModuleList(TauLinear(a, b, tau) for a, b in zip(sizes[:-1], sizes[1:], strict=True))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         for i, layer in enumerate(self.layers):
@@ -152,7 +152,8 @@ class GraphDecoder(nn.Module):
         self.out = TauLinear(width, 3, cfg.tau if cfg.use_sega else None)
 
     def forward(self, x, nbr, mask, lift=None):
-        """``x (B, N, C)``; or ``x (N, R)`` shared with ``lift (B, R, C)``: the input is ``x @ lift`` (see SEGABlock)."""
+        """``x (B, N, C)``; or ``x (N, R)`` shared with ``lift (B, R, C)``: the input is ``x @ lift``
+        (see SEGABlock)."""
         for i, blk in enumerate(self.blocks):
             x = elu(blk(x, nbr, mask, lift if i == 0 else None))
         return self.out(x)

@@ -84,7 +84,7 @@ class SEGANet(nn.Module):
             self.weight_gate = nn.Parameter(torch.zeros(()))
             self.blend_gate = nn.Parameter(torch.zeros(()))
 
-    def freeze(self) -> "SEGANet":
+    def freeze(self) -> SEGANet:
         """Fold every tau scaling into its weight (exact spectral norms); use before export."""
         for m in self.modules():
             if isinstance(m, (TauLinear, SEGABlock)):

@@ -9,8 +9,17 @@ from pathlib import Path
 
 from ..errors import FileFormatError
 from .bvh import read_bvh, write_bvh
-from .motion import (N_POSE, Motion, face_forward, feet_on_floor, load_motion_npz, motion_windows, read_motion_file,
-                     resample, write_motion_file)
+from .motion import (
+    N_POSE,
+    Motion,
+    face_forward,
+    feet_on_floor,
+    load_motion_npz,
+    motion_windows,
+    read_motion_file,
+    resample,
+    write_motion_file,
+)
 from .procedural import MOTION_KINDS, make_motion
 from .spec import MotionSpec, build_motion, frame_range, select_frames
 

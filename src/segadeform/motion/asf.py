@@ -40,7 +40,6 @@ import dataclasses
 import os
 import re
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -449,7 +448,7 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
     """Parse an AMC against its ASF skeleton (module docstring); every error names the file and line."""
     p = Path(path)
     text = _read_text(p, "AMC motion")
-    ndof = {n: len(d) for n, d in zip(skeleton.names, skeleton.dofs)}
+    ndof = {n: len(d) for n, d in zip(skeleton.names, skeleton.dofs, strict=False)}
     required = frozenset(n for n, k in ndof.items() if k)
     tokens: dict[str, list] = {n: [] for n in skeleton.names}
     line_of: dict[str, list] = {n: [] for n in skeleton.names}  # the line of each of a bone's rows
@@ -679,7 +678,7 @@ def amc_skeleton(path: str | os.PathLike, skeleton: str | os.PathLike | ASFSkele
 
 
 def read_amc(path: str | os.PathLike, skeleton: str | os.PathLike | ASFSkeleton | None = None, *,
-             rest_joints: Optional[np.ndarray] = None, fps: float = CMU_FPS, up: str = "y",
+             rest_joints: np.ndarray | None = None, fps: float = CMU_FPS, up: str = "y",
              joint_map=None) -> Motion:
     """Read an AMC (with its ASF) onto the 24-joint SMPL skeleton, as :func:`~segadeform.motion.read_bvh`
     reads a BVH: the same mapping and retargeting.

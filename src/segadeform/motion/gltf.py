@@ -32,7 +32,6 @@ from __future__ import annotations
 import os
 import urllib.parse
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -276,7 +275,7 @@ def _node_rest(node) -> np.ndarray:
     return _trs_matrix(t, q / max(np.linalg.norm(q), 1e-12), s)
 
 
-def _pick_animation(f: _File, name: Optional[str]):
+def _pick_animation(f: _File, name: str | None):
     anims = f.g.animations or []
     if not anims:
         raise f.error("glTF has no animation", expected="an animation of the skinned character", got="none")
@@ -289,7 +288,7 @@ def _pick_animation(f: _File, name: Optional[str]):
     return anims[names.index(name)], name, names
 
 
-def read_gltf_skeleton(path: str | os.PathLike, *, animation: Optional[str] = None,
+def read_gltf_skeleton(path: str | os.PathLike, *, animation: str | None = None,
                        up: str = "auto") -> tuple[BVHSkeleton, dict]:
     """A glTF file's skinned skeleton and one animation as a :class:`~segadeform.motion.bvh.BVHSkeleton`
     (metres unless the file's nodes scale it, +Y up; see the module docstring), and what was read
@@ -451,7 +450,7 @@ def read_gltf_skeleton(path: str | os.PathLike, *, animation: Optional[str] = No
 
 
 def read_gltf(path: str | os.PathLike, *, rest_joints: np.ndarray | None = None, scale: float | str = "auto",
-              units=None, up: str = "auto", joint_map=None, animation: Optional[str] = None) -> Motion:
+              units=None, up: str = "auto", joint_map=None, animation: str | None = None) -> Motion:
     """A glTF/GLB character animation on the 24-joint SMPL skeleton (see the module docstring).
 
     Args as :func:`~segadeform.motion.bvh.read_bvh`; ``animation``: its name when the file has several

@@ -5,13 +5,12 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
-from ..body.rotations import (axis_angle_to_quaternion, quaternion_slerp, quaternion_to_axis_angle)
-from ..errors import FileFormatError, InputError
+from ..body.rotations import axis_angle_to_quaternion, quaternion_slerp, quaternion_to_axis_angle
 from ..body.skeleton import SMPL_JOINT_NAMES
+from ..errors import FileFormatError, InputError
 from ..io.atomic import atomic_path
 from ..io.sgdm import read_motion_arrays, write_motion_arrays
 
@@ -37,9 +36,9 @@ class Motion:
     poses: np.ndarray
     trans: np.ndarray
     fps: float
-    betas: Optional[np.ndarray] = None
+    betas: np.ndarray | None = None
     name: str = ""
-    meta: Optional[dict] = None
+    meta: dict | None = None
 
     def __post_init__(self):
         from ..bounds import check_fps, check_translation
@@ -397,7 +396,7 @@ def motion_windows(poses: np.ndarray, window: int, *, start: int = 0, stop: int 
     return p[np.maximum(t, 0)]
 
 
-def write_motion_file(path, motion: Motion, *, body: Optional[dict] = None, betas=None, source: str = ""):
+def write_motion_file(path, motion: Motion, *, body: dict | None = None, betas=None, source: str = ""):
     """Write ``motion`` as a motion file (``.sgdm``, :mod:`segadeform.io.sgdm`): poses ``(T, S, 3)`` and trans
     ``(T, 3)`` as float32, ``fps`` and the rest in ``meta``.  ``body``: the ``{"name", "sha256"}`` of the body it was
     retargeted onto (:func:`segadeform.body.identity.body_label`), ``betas`` that body's shape; ``source``: what it

@@ -15,7 +15,7 @@ T-pose, as in motion capture), where sleeves are squeezed between arm and torso.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

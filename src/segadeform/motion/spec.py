@@ -8,13 +8,11 @@ Parsing the text (``[motion]`` tables, ``"A:B"``) and :class:`MotionSpec` itself
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
-from typing import Optional
 
 from ..errors import InputError
+from ..settings.scene import MotionSpec
 from .motion import Motion, feet_on_floor, resample
 from .procedural import make_motion
-from ..settings.scene import MotionSpec
 
 __all__ = ["MotionSpec", "build_motion", "frame_range", "select_frames"]
 
@@ -46,7 +44,7 @@ def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
     return m
 
 
-def frame_range(frames: Optional[tuple[int, Optional[int]]], n_frames: int) -> tuple[int, int]:
+def frame_range(frames: tuple[int, int | None] | None, n_frames: int) -> tuple[int, int]:
     """``(A, B)`` -- B exclusive, ``None`` meaning the end -- checked against a motion of ``n_frames``.
 
     Returns ``(A, B)`` with B filled in; :class:`~segadeform.errors.InputError` when the range is empty or
@@ -61,7 +59,7 @@ def frame_range(frames: Optional[tuple[int, Optional[int]]], n_frames: int) -> t
     return int(a), int(stop)
 
 
-def select_frames(motion: Motion, frames: Optional[tuple[int, Optional[int]]]) -> tuple[Motion, int]:
+def select_frames(motion: Motion, frames: tuple[int, int | None] | None) -> tuple[Motion, int]:
     """The motion's frames ``A:B`` as a motion of their own (checked by :func:`frame_range`), and ``A``."""
     a, b = frame_range(frames, motion.n_frames)
     if (a, b) == (0, motion.n_frames):

@@ -26,8 +26,8 @@ import shutil
 import subprocess
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 import numpy as np
 
@@ -57,7 +57,7 @@ def _repo_root() -> Path:
     return Path(__file__).resolve().parents[3]
 
 
-def find_sim_python(explicit: Optional[str | os.PathLike] = None) -> Path:
+def find_sim_python(explicit: str | os.PathLike | None = None) -> Path:
     """The simulator environment's Python (see the module docstring); :class:`SimulationError` if none."""
     cands = []
     if explicit:
@@ -87,7 +87,7 @@ class SimResult:
     blender: dict
     preroll_frames: int
     wall_seconds: float
-    cloth_rest: Optional[np.ndarray] = None  # (N, 3) the shape Blender took the cloth's rest lengths from
+    cloth_rest: np.ndarray | None = None  # (N, 3) the shape Blender took the cloth's rest lengths from
 
     @property
     def seconds_per_frame(self) -> float:
@@ -101,7 +101,7 @@ A_POSE[3 * 17 + 2] = np.pi / 4
 
 
 def preroll_poses(motion: Motion, drape_frames: int, blend_frames: int,
-                  start_pose: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
+                  start_pose: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Drape in ``start_pose`` (default: the rest pose), then a slerp into the first frame, then the motion.
 
     Shapes: start_pose (72,) -> poses (drape + blend + T, 72), trans (drape + blend + T, 3)
@@ -139,7 +139,7 @@ def pin_weights(vertices, faces, group: str, width: float = 0.025) -> np.ndarray
     loops = boundary_loops(faces, len(v))
     if not loops:
         raise InputError("pin = 'waistband' needs a garment with an open boundary (this mesh is closed)")
-    top = max(loops, key=lambda l: v[l, 1].mean())
+    top = max(loops, key=lambda lp: v[lp, 1].mean())
     from scipy.sparse.csgraph import dijkstra
 
     d = dijkstra(adjacency(faces, len(v), vertices=v), directed=False, indices=top, limit=width, min_only=True)
@@ -147,8 +147,8 @@ def pin_weights(vertices, faces, group: str, width: float = 0.025) -> np.ndarray
 
 
 def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, settings: SimSettings = SimSettings(),
-             sim_python=None, progress: Optional[Callable[[int, int], None]] = None, keep_job: Optional[Path] = None,
-             timeout: Optional[float] = None, cloth_rest=None, start_pose=None, rest_lengths_from=None) -> SimResult:
+             sim_python=None, progress: Callable[[int, int], None] | None = None, keep_job: Path | None = None,
+             timeout: float | None = None, cloth_rest=None, start_pose=None, rest_lengths_from=None) -> SimResult:
     """Simulate a rest-pose garment on ``body`` (shape ``betas``) playing ``motion``.
 
     Args:

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 import numpy as np
 
@@ -14,8 +14,8 @@ from ..io import SceneOutput, read_mesh
 from ..io.outputs import claim_scene_outputs
 from ..motion import build_motion, select_frames
 from ..settings import Scene
-from .blender import SimResult, simulate
 from ..settings.simulation import SimSettings
+from .blender import SimResult, simulate
 
 __all__ = ["SimSummary", "simulate_scene"]
 
@@ -23,14 +23,14 @@ __all__ = ["SimSummary", "simulate_scene"]
 class SimSummary:
     frames: int
     output: Path
-    body_output: Optional[Path]
+    body_output: Path | None
     settings: SimSettings
     result: SimResult
     written: list = dataclasses.field(default_factory=list)
 
 
-def simulate_scene(scene: Scene, *, output: Optional[Path] = None, settings: Optional[SimSettings] = None,
-                   sim_python=None, progress: Optional[Callable[[int, int], None]] = None, guard=None,
+def simulate_scene(scene: Scene, *, output: Path | None = None, settings: SimSettings | None = None,
+                   sim_python=None, progress: Callable[[int, int], None] | None = None, guard=None,
                    frames_from_scene: bool = True) -> SimSummary:
     """Simulate ``scene`` (its ``[simulate]`` table, or ``settings``) and write its output like ``segadeform run``.
 

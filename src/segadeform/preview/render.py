@@ -10,8 +10,8 @@ write PNG, GIF or MP4 (MP4 needs ffmpeg on PATH).  Needs the ``plot`` extra
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 

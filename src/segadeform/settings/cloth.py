@@ -67,7 +67,7 @@ class ClothSettings:
                         if getattr(self, f.name) != getattr(d, f.name))
 
     @classmethod
-    def parse(cls, text: str, base: "ClothSettings | None" = None) -> "ClothSettings":
+    def parse(cls, text: str, base: ClothSettings | None = None) -> ClothSettings:
         """``NAME=VALUE,...`` applied to ``base`` (the defaults when None).  Raises ValueError with
         "expected X, got Y"."""
         base = base if base is not None else cls()

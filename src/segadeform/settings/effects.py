@@ -14,7 +14,7 @@ either form; the caller names them as ``choices`` and gets them back in order.
 from __future__ import annotations
 
 import dataclasses
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 from ..errors import FileFormatError
 from .cloth import ClothSettings
@@ -104,7 +104,8 @@ EFFECT_NAMES = ("dynamics", "wrinkles", "collisions", "cloth")
 
 
 def parse_effects(text: str, base: Effects = DEFAULT_EFFECTS) -> Effects:
-    """Parse a CLI effects list (the rule of this module's :func:`parse_effect_list`, shared with ``simulate --effects``).
+    """Parse a CLI effects list (the rule of this module's :func:`parse_effect_list`, shared with
+    ``simulate --effects``).
 
     * every item unsigned (``"dqs,collisions"``): exactly these -- what is not named is off, the
       skinning is the one named (lbs if none); ``none`` alone: every effect off;

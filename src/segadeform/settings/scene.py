@@ -67,7 +67,6 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
-from typing import Optional
 
 from ..bounds import SEED_RANGE, check_betas
 from ..errors import FileFormatError, InputError
@@ -77,31 +76,31 @@ from .cloth import CLOTH_KNOBS, ClothSettings
 from .effects import DEFAULT_EFFECTS, EFFECT_NAMES, Effects
 from .simulation import parse_simulate_table
 
-
 __all__ = ["Y_TO_Z", "MotionSpec", "Scene", "load_scene", "parse_frames"]
 
 
 @dataclasses.dataclass(frozen=True)
 class MotionSpec:
-    """A motion file or a procedural kind, with how to play it (a scene's ``[motion]``; :func:`segadeform.motion.build_motion` builds it).
+    """A motion file or a procedural kind, with how to play it (a scene's ``[motion]``;
+    :func:`segadeform.motion.build_motion` builds it).
 
     ``frames``: ``(A, B)`` of the (resampled) motion, B exclusive, or ``(A, None)`` for "to the end"; None: all.
     """
 
-    file: Optional[Path] = None
-    kind: Optional[str] = None
+    file: Path | None = None
+    kind: str | None = None
     seconds: float = 3.0
     speed: float = 1.0
     amplitude: float = 1.0
     seed: int = 0
-    fps: Optional[float] = None
-    frames: Optional[tuple[int, Optional[int]]] = None
+    fps: float | None = None
+    frames: tuple[int, int | None] | None = None
     up: str = "auto"
-    units: Optional[str] = None
-    joint_map: Optional[Path] = None
+    units: str | None = None
+    joint_map: Path | None = None
     floor: bool = False
-    skeleton: Optional[Path] = None  # an AMC's ASF (default: the one .asf beside it)
-    animation: Optional[str] = None  # a glTF file's animation (default: the first)
+    skeleton: Path | None = None  # an AMC's ASF (default: the one .asf beside it)
+    animation: str | None = None  # a glTF file's animation (default: the first)
 
 
 
@@ -114,13 +113,13 @@ class Scene:
     output: Path
     output_format: str = "pc2"
     up: str = "y"
-    body: Optional[Path] = None
+    body: Path | None = None
     betas: tuple = ()
-    model: Optional[Path] = None
-    body_output: Optional[Path] = None
+    model: Path | None = None
+    body_output: Path | None = None
     effects: Effects = Effects()
-    path: Optional[Path] = None
-    simulate: Optional[object] = None  # segadeform.physics.SimSettings; None: no [simulate] table
+    path: Path | None = None
+    simulate: object | None = None  # segadeform.physics.SimSettings; None: no [simulate] table
 
 
 # The scene's tables (what each key takes: segadeform.io.toml.read_table)
@@ -131,39 +130,39 @@ class _GarmentTable:
 
 @dataclasses.dataclass(frozen=True)
 class _BodyTable:
-    model: Optional[str] = None
+    model: str | None = None
     betas: tuple = ()
 
 
 @dataclasses.dataclass(frozen=True)
 class _MotionTable:
-    file: Optional[str] = None
-    kind: Optional[str] = None
+    file: str | None = None
+    kind: str | None = None
     seconds: float = key(3.0, range=(1e-3, 3600))
     speed: float = key(1.0, range=(0.05, 5))
     amplitude: float = key(1.0, range=(0, 2))
     seed: int = key(0, range=SEED_RANGE)
-    fps: Optional[float] = key(None, range=(1, 1000))
-    frames: Optional[str] = None
+    fps: float | None = key(None, range=(1, 1000))
+    frames: str | None = None
     up: str = key("auto", choices=("auto", "y", "z"))
-    units: Optional[str] = key(None, types=(str, int, float))
-    joint_map: Optional[str] = None
+    units: str | None = key(None, types=(str, int, float))
+    joint_map: str | None = None
     floor: bool = False
-    skeleton: Optional[str] = None
-    animation: Optional[str] = None
+    skeleton: str | None = None
+    animation: str | None = None
 
 
 @dataclasses.dataclass(frozen=True)
 class _ModelTable:
-    package: Optional[str] = None
+    package: str | None = None
 
 
 @dataclasses.dataclass(frozen=True)
 class _OutputTable:
     path: str
-    format: Optional[str] = None
+    format: str | None = None
     up: str = "y"  # one of io.writer.UP_AXES, read when a scene is loaded
-    body: Optional[str] = None
+    body: str | None = None
 
 
 #: ``[effects]``: the fields of Effects but the cloth settings, which are ``cloth_<knob>`` keys
@@ -176,7 +175,7 @@ _TABLES = {"garment": _GarmentTable, "body": _BodyTable, "motion": _MotionTable,
            "output": _OutputTable, "effects": _EffectsTable}
 
 
-def parse_frames(text: str, *, where=None) -> tuple[int, Optional[int]]:
+def parse_frames(text: str, *, where=None) -> tuple[int, int | None]:
     """``"A:B"`` (B exclusive; either side may be empty) -> (A, B or None)."""
     parts = text.split(":")
     try:

@@ -60,7 +60,6 @@ recorded; 0.5 s each settles a skirt in the trial to under 1 mm/frame.
 from __future__ import annotations
 
 import dataclasses
-from typing import Optional
 
 from ..errors import FileFormatError, InputError
 from ..io.toml import read_table
@@ -170,7 +169,7 @@ class SimSettings:
             raise InputError("unknown simulation effect", expected=" | ".join(EFFECTS), got=effect)
         return effect in self.effects
 
-    def replace(self, **kw) -> "SimSettings":
+    def replace(self, **kw) -> SimSettings:
         return dataclasses.replace(self, **kw)
 
     def to_dict(self) -> dict:
@@ -188,7 +187,7 @@ class SimSettings:
 _LATER_DEFAULTS = {"collision_inner": 0.02, "collision_normals": False}
 
 
-def parse_simulate_table(table: Optional[dict], *, where=None) -> SimSettings:
+def parse_simulate_table(table: dict | None, *, where=None) -> SimSettings:
     """``[simulate]`` (a dict from TOML, or None when the scene has none) -> :class:`SimSettings`."""
     if table is None:
         return SimSettings()

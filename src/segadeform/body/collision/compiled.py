@@ -115,7 +115,7 @@ class CompiledBVH:
         range near the body costs more than one far from it)."""
         k = 1 if threads <= 1 else min(n, 8 * threads)
         edges = (np.arange(k + 1) * n) // max(k, 1)
-        return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+        return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
 
     def _refit(self, verts, threads: int):
         """Boxes (B, n_nodes, 6) of the tree at the posed frames ``verts (B, V, 3)`` (C-contiguous float64)."""

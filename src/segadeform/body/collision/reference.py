@@ -145,7 +145,7 @@ class BodyProxy:
         return {"corner_to_vertex": corner_to_vertex, "slot_to_edge": slot_to_edge, "edge_of_slot": inv,
                 "vf_faces": order // 3, "vf_ptr": vf_ptr, "max_valence": int(np.diff(vf_ptr).max())}
 
-    def moved(self, vertices) -> "BodyProxy":
+    def moved(self, vertices) -> BodyProxy:
         """The same body surface at new vertex positions (topology reused: cheaper per frame)."""
         return BodyProxy(vertices, self.faces, k=self.k, _topology=self._topo)
 
@@ -194,7 +194,7 @@ class BodyProxy:
         return ProximityResult(signed_distance=sign * dist, closest=closest, normal=normal, face=face)
 
 
-def push_out(points: np.ndarray, proxy: "BodyProxy", margin: float = 0.0, *, iterations: int = 3) -> tuple[np.ndarray, int]:
+def push_out(points: np.ndarray, proxy: BodyProxy, margin: float = 0.0, *, iterations: int = 3) -> tuple[np.ndarray, int]:
     """Move points that are inside the body, or closer than ``margin`` to it, out along the body normal.
 
     ``p' = closest + margin * n`` for every point with signed distance below
