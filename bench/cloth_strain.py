@@ -24,8 +24,12 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 
 #: bins of the deeper end's signed distance from the posed body in the target (m; negative inside)
-DEPTHS = ((-np.inf, -0.03, "deeper than 3 cm"), (-0.03, -0.01, "1-3 cm inside"), (-0.01, 0.0, "0-1 cm inside"),
-          (0.0, np.inf, "outside"))
+DEPTHS = (
+    (-np.inf, -0.03, "deeper than 3 cm"),
+    (-0.03, -0.01, "1-3 cm inside"),
+    (-0.01, 0.0, "0-1 cm inside"),
+    (0.0, np.inf, "outside"),
+)
 
 
 def stretch(x: np.ndarray, edges: np.ndarray, ref_len: np.ndarray) -> np.ndarray:
@@ -59,23 +63,33 @@ def sample_rows(dataset, sid: str, body, predictor, settings) -> dict:
     bad = s_out > 2 * settings.stretch
     attached = (setup.radius[e[:, 0]] == 0) & (setup.radius[e[:, 1]] == 0)
     moved = np.linalg.norm(out - y, axis=2)
-    row = {"sample": sid, "type": s.meta.get("type", "?"), "vertices": len(s.rest), "edges": len(e),
-           "gt_max": 100 * s_gt.max(), "target_max": 100 * s_y.max(), "cloth_max": 100 * s_out.max(),
-           "cloth_added_max": 100 * added.max(), "over_limit_pct": 100 * (s_out > settings.stretch + 1e-9).mean(),
-           "target_over_limit_pct": 100 * (s_y > settings.stretch + 1e-9).mean(),
-           "bad": int(bad.sum()), "bad_attached_pct": 100 * attached[None].repeat(len(y), 0)[bad].mean() if bad.any()
-           else 0.0,
-           "target_inside_pct": 100 * (sd < 0).mean()}
+    row = {
+        "sample": sid,
+        "type": s.meta.get("type", "?"),
+        "vertices": len(s.rest),
+        "edges": len(e),
+        "gt_max": 100 * s_gt.max(),
+        "target_max": 100 * s_y.max(),
+        "cloth_max": 100 * s_out.max(),
+        "cloth_added_max": 100 * added.max(),
+        "over_limit_pct": 100 * (s_out > settings.stretch + 1e-9).mean(),
+        "target_over_limit_pct": 100 * (s_y > settings.stretch + 1e-9).mean(),
+        "bad": int(bad.sum()),
+        "bad_attached_pct": 100 * attached[None].repeat(len(y), 0)[bad].mean() if bad.any() else 0.0,
+        "target_inside_pct": 100 * (sd < 0).mean(),
+    }
     for lo, hi, name in DEPTHS:
         m = (deep >= lo) & (deep < hi)
         row[f"bad in {name} %"] = 100 * (bad & m).sum() / max(int(bad.sum()), 1)
         row[f"max in {name}"] = 100 * s_out[m].max() if m.any() else 0.0
     t, k = np.unravel_index(np.argmax(s_out), s_out.shape)
     a, b = e[k]
-    row["worst"] = (f"frame {t}, rest {1e3 * rest[k]:.1f} mm, target stretch {100 * s_y[t, k]:.0f} %, ends moved "
-                    f"{1e3 * moved[t, a]:.0f}/{1e3 * moved[t, b]:.0f} mm from the target (radius "
-                    f"{1e3 * setup.radius[a]:.0f}/{1e3 * setup.radius[b]:.0f} mm), deeper end "
-                    f"{1e3 * deep[t, k]:.0f} mm from the body")
+    row["worst"] = (
+        f"frame {t}, rest {1e3 * rest[k]:.1f} mm, target stretch {100 * s_y[t, k]:.0f} %, ends moved "
+        f"{1e3 * moved[t, a]:.0f}/{1e3 * moved[t, b]:.0f} mm from the target (radius "
+        f"{1e3 * setup.radius[a]:.0f}/{1e3 * setup.radius[b]:.0f} mm), deeper end "
+        f"{1e3 * deep[t, k]:.0f} mm from the body"
+    )
     return row
 
 
@@ -105,12 +119,19 @@ def main(argv=None) -> int:
     for sid in ids:
         print(f"  {sid}", file=sys.stderr)
         rows.append(sample_rows(ds, sid, body, pred, settings))
-    cols = ["gt_max", "target_max", "cloth_max", "cloth_added_max", "target_over_limit_pct", "over_limit_pct"] + \
-        [f"bad in {n} %" for _, _, n in DEPTHS] + ["bad_attached_pct"]
+    cols = (
+        ["gt_max", "target_max", "cloth_max", "cloth_added_max", "target_over_limit_pct", "over_limit_pct"]
+        + [f"bad in {n} %" for _, _, n in DEPTHS]
+        + ["bad_attached_pct"]
+    )
     head = ["sample", "type"] + cols
-    md = [f"Stretch limit {100 * settings.stretch:g} %; cloth settings `{a.cloth}`; "
-          f"`bad` = edge-frames over twice the limit after the stage.", "",
-          "| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+    md = [
+        f"Stretch limit {100 * settings.stretch:g} %; cloth settings `{a.cloth}`; "
+        f"`bad` = edge-frames over twice the limit after the stage.",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|---" * len(head) + "|",
+    ]
     for r in rows:
         md.append(f"| {r['sample']} | {r['type']} | " + " | ".join(f"{r[c]:.1f}" for c in cols) + " |")
     md += [""] + [f"* {r['sample']}: worst edge at {r['worst']}" for r in rows] + [""]
