@@ -41,6 +41,7 @@ import json
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import cast
 
 from segadeform.bounds import SEED_RANGE, check_betas
 from segadeform.distributed.executors import Executor, LocalExecutor
@@ -104,7 +105,7 @@ class BatchMotion:
 
 @dataclasses.dataclass(frozen=True)
 class BatchConfig:
-    output: str  # a folder path or a URL
+    output: str | None  # a folder path or a URL
     garments: tuple
     motions: tuple
     format: str = "pc2"
@@ -294,7 +295,7 @@ def run_job(job: BatchJob) -> dict:
            "output": name, "files": written, "frames": s.frames, "ms_per_frame": s.ms_per_frame,
            "effects": job.effects.label(), "graph": s.variant, "seconds": time.perf_counter() - t0}
     if not loc.put_bytes(f"jobs/{job.id}.json", json.dumps(rec, indent=1, sort_keys=True).encode(), once=True):
-        return _record(loc, job.id)  # another attempt committed it first
+        return cast(dict, _record(loc, job.id))  # another attempt committed it first
     return rec
 
 
@@ -326,7 +327,7 @@ def run_batch(cfg: BatchConfig, *, out=None, executor: Executor | None = None, j
     if limit is not None:
         todo = todo[:limit]
     own = executor is None
-    ex = LocalExecutor(jobs) if own else executor
+    ex = LocalExecutor(jobs) if executor is None else executor
     records = []
     try:
         for rec in ex.map_unordered(run_job, todo):

@@ -18,6 +18,7 @@ numpy and says why, once.
 from __future__ import annotations
 
 import logging
+from typing import cast
 
 import numpy as np
 
@@ -106,7 +107,7 @@ class BodyPoser:
         """The body graph's ``betas (|beta_body|,)`` float32 row: ``betas`` zero-padded (as BodyModel does)."""
         key = tuple(np.asarray(betas if betas is not None else (), np.float64).ravel().tolist())
         if key != self._betas:
-            nb = int(self.package.spec(self.graph)["inputs"][0]["shape"][0])
+            nb = int(self.package.spec(cast(str, self.graph))["inputs"][0]["shape"][0])  # backend "graph"
             b = np.asarray(key, np.float64)
             if b.size > nb:
                 raise InputError("too many shape coefficients for the body", expected=f"<= {nb}", got=b.size)
@@ -115,7 +116,7 @@ class BodyPoser:
             row = np.zeros(nb, np.float32)
             row[:b.size] = b
             self._betas, self._betas_row = key, row
-        return self._betas_row
+        return cast(np.ndarray, self._betas_row)
 
     def pose(self, poses, betas, trans) -> np.ndarray:
         """The posed body's vertices for a batch of frames.
@@ -133,7 +134,7 @@ class BodyPoser:
         t = np.zeros((len(p), 3)) if trans is None else np.asarray(trans, np.float64)
         if t.shape != (len(p), 3):
             raise InputError("trans must be (batch, 3), one row per pose", expected=(len(p), 3), got=t.shape)
-        out = self.package.run(self.graph, {"betas": self._graph_betas(betas),
+        out = self.package.run(cast(str, self.graph), {"betas": self._graph_betas(betas),
                                             "poses": p.reshape(len(p), s, 3).astype(np.float32),
                                             "trans": t.astype(np.float32)})
         return out[0]

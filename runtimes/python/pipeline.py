@@ -31,6 +31,7 @@ import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -194,7 +195,8 @@ class Run:
         and the collider over the body."""
         from segadeform.body.cloth import ClothStage, garment_setup
 
-        rest = self.body_poser.pose(np.zeros((1, 3 * self.body.n_joints)), self.betas, np.zeros((1, 3)))[0]
+        poser = cast(BodyPoser, self.body_poser)  # the cloth stage needs the body
+        rest = poser.pose(np.zeros((1, 3 * self.body.n_joints)), self.betas, np.zeros((1, 3)))[0]
         setup = garment_setup(asset.vertices, asset.faces, rest, self.body.faces, self.effects.cloth_settings,
                               cache_dir=self._cache_dir())
         return ClothStage(setup, self.body.v_template, self.body.faces, self.effects.cloth_settings,
@@ -237,7 +239,8 @@ class Run:
                     raise InputError(f"the deformer produced NaN or inf at frames {lo}..{hi - 1}")
                 if need_body:
                     t = time.perf_counter()
-                    posed = self.body_poser.pose(self.motion.poses[lo:hi], self.betas, self.motion.trans[lo:hi])
+                    posed = cast(BodyPoser, self.body_poser).pose(self.motion.poses[lo:hi], self.betas,
+                                                                  self.motion.trans[lo:hi])
                     stage["pose body"] += time.perf_counter() - t
                 if self.effects.cloth:  # contact included: no push-out after it
                     t = time.perf_counter()
@@ -271,7 +274,7 @@ class Run:
         return RunSummary(frames=self.stop - self.start, seconds=time.perf_counter() - t_all, output=self.output,
                           body_output=self.body_output, output_format=self.output_format, written=written, effects=self.effects, variant=self.deformer.variant,
                           sessions=sorted(self.package.created), pushed_vertices=pushed, stage_seconds=stage,
-                          body_backend=self.body_poser.backend if need_body else None,
+                          body_backend=cast(BodyPoser, self.body_poser).backend if need_body else None,
                           cloth=None if cloth is None else {"contacts": cloth.contacts, "pushed": cloth.pushed,
                                                             "resets": cloth.resets})
 

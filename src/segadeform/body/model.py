@@ -30,6 +30,7 @@ import dataclasses
 import os
 import pickle
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 
@@ -173,7 +174,9 @@ class BodyModel:
         b = self._betas(betas)
         if self.J_regressor is not None:
             return np.einsum("sv,nvc->nsc", self.J_regressor, self.shaped_vertices(b))
-        return self.joint_template[None] + np.einsum("scb,nb->nsc", self.joint_shapedirs, b)
+        # validate(): without J_regressor, joint_template and joint_shapedirs are both given
+        template, dirs = cast(np.ndarray, self.joint_template), cast(np.ndarray, self.joint_shapedirs)
+        return template[None] + np.einsum("scb,nb->nsc", dirs, b)
 
     def forward(self, poses, betas=None, trans=None, *, skinning: str = "lbs") -> BodyOutput:
         """Pose the body.
@@ -215,7 +218,7 @@ class BodyModel:
     def save(self, path: str | os.PathLike, *, compressed: bool = True) -> Path:
         """Write the body ``.npz`` atomically (float32 arrays, int32 faces)."""
         self.validate()
-        arrays = dict(
+        arrays: dict[str, Any] = dict(
             schema_version=np.int64(BODY_SCHEMA_VERSION),
             v_template=self.v_template.astype(np.float32), faces=self.faces.astype(np.int32),
             shapedirs=self.shapedirs.astype(np.float32), weights=self.weights.astype(np.float32),

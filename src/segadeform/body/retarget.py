@@ -107,7 +107,7 @@ def kabsch(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def smpl_children() -> list[list[int]]:
-    out = [[] for _ in range(24)]
+    out: list[list[int]] = [[] for _ in range(24)]
     for j, p in enumerate(SMPL_PARENTS):
         if p >= 0:
             out[int(p)].append(j)
@@ -133,7 +133,7 @@ def limb_scale(source_rest: np.ndarray, src: np.ndarray, target_rest: np.ndarray
         source_rest: (J, 3), src: (24,), target_rest: (24, 3) -> float
     """
     def legs(p, idx):
-        out = 0.0
+        out: float | np.floating = 0.0
         for a, b, c in ((1, 4, 7), (2, 5, 8)):
             out += np.linalg.norm(p[idx[a]] - p[idx[b]]) + np.linalg.norm(p[idx[b]] - p[idx[c]])
         return out

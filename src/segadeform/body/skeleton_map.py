@@ -53,6 +53,7 @@ import dataclasses
 import functools
 import re
 from collections.abc import Sequence
+from typing import cast
 
 import numpy as np
 
@@ -377,11 +378,11 @@ def _subtree(children: list[list[int]], j: int) -> list[int]:
 
 
 def _lca(parents, idx: Sequence[int]) -> int:
-    common = None
+    common: list[int] | None = None
     for i in idx:
         anc = _ancestors(parents, i)
         common = anc if common is None else [a for a in common if a in set(anc)]
-    return common[0]
+    return cast(list[int], common)[0]  # idx is never empty
 
 
 @functools.lru_cache(maxsize=1)
@@ -445,7 +446,7 @@ def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
     ``rest (J, 3)``: +Y-up rest positions; ``ends (J, 3)``: the end-site position of each joint (its own
     position when it has none)."""
     nj = len(names)
-    children = [[] for _ in range(nj)]
+    children: list[list[int]] = [[] for _ in range(nj)]
     for i, p in enumerate(parents):
         if p >= 0:
             children[int(p)].append(i)
@@ -604,11 +605,11 @@ def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
         if "hand" in named and named["hand"] in after:
             put(f"{s}_hand", named["hand"], "name words")
         elif len(fingers) >= 4:  # the middle finger: the middle one front to back, the thumb (the finger
-            fingers.remove(min(fingers, key=reach.get))  # reaching least far out along the arm) left out
+            fingers.remove(min(fingers, key=reach.__getitem__))  # reaching least far out along the arm) left out
             fingers.sort(key=lambda j: rest[j] @ fwd)
             put(f"{s}_hand", fingers[len(fingers) // 2])
         elif fingers:  # a finger base and a thumb (CMU): the one reaching farther
-            put(f"{s}_hand", max(fingers, key=reach.get))
+            put(f"{s}_hand", max(fingers, key=reach.__getitem__))
     # spine: the joints from the pelvis up to the chest (the chest is spine3)
     spine = _path(parents, pelvis, chest)
     if len(spine) >= 2:
@@ -651,7 +652,7 @@ def _fix_chest(found: dict[str, int], parents: np.ndarray) -> dict[str, int]:
     top = found.get("spine3")
     if top is None or None in arms:
         return found
-    branch = _lca(parents, arms)
+    branch = _lca(parents, cast(list[int], arms))  # None is not in arms
     if branch in arms or branch == top or top not in _ancestors(parents, branch) or branch in found.values():
         return found
     out = dict(found)
@@ -704,14 +705,15 @@ def map_skeleton(names: Sequence[str], parents, rest, *, leaf_ends=None,
                                  expected="one of " + ", ".join(names[:40]))
             user[SMPL_JOINT_NAMES.index(smpl)] = by_name[s]
     # name tables, on the names as they are and without their common prefix
-    best_scheme, best = None, {}
+    best_scheme: str | None = None
+    best: dict[str, int] = {}
     for scheme, table in _NORMALIZED_TABLES.items():
         for keys in ((norm, stripped) if prefix else (norm,)):
-            found = {}
+            found: dict[str, int] = {}
             for i, n in enumerate(keys):
-                smpl = table.get(n)
-                if smpl is not None and smpl not in found:
-                    found[smpl] = i
+                hit = table.get(n)
+                if hit is not None and hit not in found:
+                    found[hit] = i
             if len(found) > len(best):
                 best_scheme, best = scheme, found
     shape, shape_how, problem = _shape_map(names, par, rest, ends)
@@ -744,17 +746,17 @@ def map_skeleton(names: Sequence[str], parents, rest, *, leaf_ends=None,
     if not chosen and user:
         chosen_scheme, chosen = "joint-map", dict(user)
     if user and chosen_scheme != "joint-map":
-        chosen_scheme += "+joint-map"
+        chosen_scheme = cast(str, chosen_scheme) + "+joint-map"
     for j in user:
         chosen_how[j] = "joint map"
     for j, i in chosen.items():
         src[j] = i
     missing = [r for r in REQUIRED_JOINTS if src[SMPL_JOINT_NAMES.index(r)] < 0]
     if missing:
-        found = {SMPL_JOINT_NAMES[j]: names[i] for j, i in enumerate(src) if i >= 0}
-        if not found and best:
-            found = {k: names[i] for k, i in best.items()}
-        shown = ", ".join(f"{k}={v}" for k, v in found.items()) or "none"
+        known = {SMPL_JOINT_NAMES[j]: names[i] for j, i in enumerate(src) if i >= 0}
+        if not known and best:
+            known = {k: names[i] for k, i in best.items()}
+        shown = ", ".join(f"{k}={v}" for k, v in known.items()) or "none"
         raise InputError(
             "cannot map this skeleton onto SMPL's joints: missing " + ", ".join(missing)
             + (f"; by shape: {problem}" if problem else ""), path=path,
@@ -775,4 +777,5 @@ def map_skeleton(names: Sequence[str], parents, rest, *, leaf_ends=None,
                              f"{names[src[pj]]!r} (SMPL {SMPL_JOINT_NAMES[pj]}) in the file's hierarchy",
                              path=path, expected="the SMPL joint order along each limb")
     found_by = tuple(chosen_how.get(j, chosen_scheme) if src[j] >= 0 else "" for j in range(24))
-    return SkeletonMapping(source=src, scheme=chosen_scheme, source_names=tuple(names), found_by=found_by)
+    # a mapping was chosen (else the required joints were missing, refused above)
+    return SkeletonMapping(source=src, scheme=cast(str, chosen_scheme), source_names=tuple(names), found_by=found_by)

@@ -39,6 +39,7 @@ class _Chumpy(_StandIn):
 
 class _Sparse(_StandIn):
     kind = "sparse"
+    fmt: str  # "coo", "csc" or "csr": set by the subclass _find_class makes
 
 
 def _reconstructor(cls, base, state):

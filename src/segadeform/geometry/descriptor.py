@@ -42,6 +42,7 @@ Choices (the paper leaves them open):
 from __future__ import annotations
 
 import dataclasses
+from typing import cast
 
 import numpy as np
 
@@ -122,14 +123,15 @@ def furthest_point_sampling_naive(dist: np.ndarray, n_samples: int, start: int =
     n = dist.shape[0]
     chosen = [start]
     while len(chosen) < min(n_samples, n):
-        best, best_d = None, -np.inf
+        best: int | None = None
+        best_d = -np.inf
         for j in range(n):
             if j in chosen:
                 continue
             dj = min(dist[c, j] for c in chosen)
             if dj > best_d:
                 best, best_d = j, dj
-        chosen.append(best)
+        chosen.append(cast(int, best))  # every distance beats -inf
     return chosen
 
 

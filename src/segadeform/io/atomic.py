@@ -15,7 +15,7 @@ import os
 import shutil
 from collections.abc import Iterator
 from pathlib import Path
-from typing import IO
+from typing import IO, cast
 
 from ..errors import SegadeformError
 
@@ -34,10 +34,11 @@ class WriteError(SegadeformError, OSError):
         self.filename = self.path
 
     def __str__(self) -> str:
-        return self.strerror
+        return cast(str, self.strerror)  # set by __init__
 
 
-_WHY = {errno.ENOSPC: "no space left on the device", errno.EFBIG: "the file-size limit is reached (ulimit -f)",
+_WHY: dict[int | None, str] = {
+        errno.ENOSPC: "no space left on the device", errno.EFBIG: "the file-size limit is reached (ulimit -f)",
         errno.EDQUOT: "the disk quota is exceeded", errno.EROFS: "the file system is read-only",
         errno.EACCES: "permission denied (is the folder read-only?)",
         errno.EPERM: "permission denied (is the folder read-only?)"}

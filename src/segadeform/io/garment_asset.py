@@ -51,6 +51,7 @@ import dataclasses
 import json
 import os
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 
@@ -112,7 +113,7 @@ class GarmentAsset:
         return self.betas is not None
 
     def __repr__(self) -> str:
-        shape = f", betas={np.round(self.betas, 3).tolist()}" if self.for_a_body else ""
+        shape = f", betas={np.round(self.betas, 3).tolist()}" if self.betas is not None else ""  # for_a_body
         return (f"GarmentAsset(N={self.n_vertices}, F={len(self.faces)}, K={self.nbr.shape[1]}, "
                 f"S={len(self.joints)}, N*={len(self.descriptor)}, source={self.source_name!r}{shape})")
 
@@ -208,7 +209,7 @@ class GarmentAsset:
             if version not in READABLE_ASSET_SCHEMAS:
                 raise FileFormatError("unsupported garment asset schema version", path=p,
                                       expected=" or ".join(map(str, READABLE_ASSET_SCHEMAS)), got=version)
-            fields = {k: z[k] for k in _ARRAYS}
+            fields: dict[str, Any] = {k: z[k] for k in _ARRAYS}
             if version >= 2 and ({"betas", "log_wbody", "body"} & names):
                 fields.update({k: z[k] for k in _BODY_ARRAYS if k in names})
                 fields["body"] = json.loads(str(z["body"])) if "body" in names else None
@@ -270,9 +271,10 @@ class GarmentAsset:
                     raise InputError(f"asset field {k!r} has the wrong type or is not finite",
                                      expected=f"finite {np.dtype(dt).name} array with {nd} dims",
                                      got=f"{getattr(a, 'dtype', type(a).__name__)} {getattr(a, 'shape', '')}")
-            if self.log_wbody.shape != (n, s):
+            log_wbody = cast(np.ndarray, self.log_wbody)  # given: checked above
+            if log_wbody.shape != (n, s):
                 raise InputError("asset field 'log_wbody' has the wrong shape", expected=(n, s),
-                                 got=self.log_wbody.shape)
+                                 got=log_wbody.shape)
             if not isinstance(self.body, dict) or not isinstance(self.body.get("sha256"), str):
                 raise InputError("asset field 'body' must name the body", expected='{"name": str, "sha256": str}',
                                  got=self.body)

@@ -61,7 +61,10 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
         raise file_error(e, p) from None
     name, obj_file, basemesh = p.stem, None, "hm08"
     scales: dict = {}
-    verts, weights, offsets, lines = [], [], [], []
+    verts: list[tuple[int, ...]] = []
+    weights: list[tuple[float, ...]] = []
+    offsets: list[tuple[float, ...]] = []
+    lines = []
     deletes: list[int] = []
     section = "header"
     for ln, raw in enumerate(text.splitlines(), 1):

@@ -39,7 +39,7 @@ import dataclasses
 import fnmatch
 import json
 import os
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 
 from ..errors import InputError
@@ -160,7 +160,8 @@ class _Claim:
     snapshot: dict = dataclasses.field(default_factory=dict)  # folder: name -> (size, mtime_ns, ino) before
     location: object = None          # resumable: the Location
     layout: tuple = ()
-    legacy: object = ()             # resumable: names (all present), or a function (location, names) -> bool
+    #: resumable: names (all present), or a function (location, names) -> bool
+    legacy: Sequence[str] | Callable[..., bool] = ()
 
 
 def _same_file(a: Path, b: Path) -> bool:
@@ -272,7 +273,9 @@ class OutputGuard:
             return True, {}
         files = read_manifest(p)["files"]
         snap = {}
-        ours, other, taken = [], [], []
+        ours: list[str] = []
+        other: list[str] = []
+        taken: list[str] = []
         for n in listing:
             q = p / n
             s = _stat(q)

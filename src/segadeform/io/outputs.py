@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -65,7 +66,8 @@ class SceneOutput:
         self._body_rest = None
         if body_path is not None:
             try:
-                self.body = open_sequence_writer(body_path, fmt, faces=body_faces, num_points=len(body_rest), fps=fps,
+                self.body = open_sequence_writer(body_path, fmt, faces=cast(np.ndarray, body_faces),
+                                                 num_points=len(cast(np.ndarray, body_rest)), fps=fps,
                                                  start_frame=start_frame, rest=np.asarray(body_rest), up=up)
             except BaseException:
                 self.garment.abort()
@@ -90,7 +92,8 @@ class SceneOutput:
             written.append(self.body.close())
             if self.fmt == "pc2":  # the rest mesh the cache animates (Blender's Mesh Cache, 3ds Max)
                 obj = Path(self.body.path).with_suffix(".obj")
-                write_obj(obj, Mesh(vertices=to_up(self._body_rest, self.up), faces=self._body_faces))
+                write_obj(obj, Mesh(vertices=to_up(cast(np.ndarray, self._body_rest), self.up),
+                                    faces=cast(np.ndarray, self._body_faces)))
                 written.append(obj)
         if self.guard is not None:
             self.guard.record()

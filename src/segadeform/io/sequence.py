@@ -22,6 +22,7 @@ import re
 import shutil
 import warnings
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -103,12 +104,12 @@ def read_obj_sequence(directory: str | os.PathLike) -> tuple[np.ndarray, np.ndar
     frames = np.empty((len(keyed), first.n_vertices, 3))
     frames[0] = first.vertices
     for i, (_, f) in enumerate(keyed[1:], start=1):
-        m = read_obj(f)
-        if m.n_vertices != first.n_vertices or not np.array_equal(m.faces, first.faces):
+        mesh = read_obj(f)
+        if mesh.n_vertices != first.n_vertices or not np.array_equal(mesh.faces, first.faces):
             raise FileFormatError("frame topology differs from the first frame", path=f,
                                   expected=f"{first.n_vertices} vertices, {first.n_faces} faces as in {keyed[0][1].name}",
-                                  got=f"{m.n_vertices} vertices, {m.n_faces} faces")
-        frames[i] = m.vertices
+                                  got=f"{mesh.n_vertices} vertices, {mesh.n_faces} faces")
+        frames[i] = mesh.vertices
     return first.faces, frames
 
 
@@ -138,7 +139,7 @@ class XdmfSequenceWriter(SequenceWriter):
             with meshio.xdmf.TimeSeriesWriter(tmp, data_format="XML") as w:
                 w.write_points_cells(self.rest, [("triangle", self.faces)])
                 for i, fr in enumerate(self._frames):
-                    disp = (fr.astype(np.float64) - self.rest).astype(np.float32)
+                    disp = (fr.astype(np.float64) - cast(np.ndarray, self.rest)).astype(np.float32)
                     w.write_data((self.start + i) / self.fps, point_data={"displacement": disp})
         self._frames.clear()
 

@@ -59,8 +59,8 @@ __all__ = ["BUNDLE_MAGIC", "BUNDLE_SUFFIX", "write_bundle", "read_bundle", "DTYP
 BUNDLE_MAGIC = b"SEGADEFORM-BUNDLE 1\n"
 BUNDLE_SUFFIX = ".sgdb"
 #: the container's dtype names
-DTYPES = {"f32": np.dtype("<f4"), "f64": np.dtype("<f8"), "i32": np.dtype("<i4"), "i64": np.dtype("<i8"),
-           "u8": np.dtype("u1")}
+DTYPES: dict[str, np.dtype] = {"f32": np.dtype("<f4"), "f64": np.dtype("<f8"), "i32": np.dtype("<i4"),
+                               "i64": np.dtype("<i8"), "u8": np.dtype("u1")}
 _NAMES = {v: k for k, v in DTYPES.items()}
 _ALIGN = 64
 

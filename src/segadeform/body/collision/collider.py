@@ -118,7 +118,7 @@ class BodyCollider:
         p, v = self._check(points, posed)
         if p.shape[0] != 1 or np.ndim(points) != 2:
             raise InputError("query takes one frame of points", expected="(P, 3)", got=np.shape(points))
-        if self.backend == "compiled":
+        if isinstance(self._impl, CompiledBVH):  # self.backend == "compiled"
             return self._impl.query(p[0], v[0], self.threads)
         return self._impl.query(p, v)
 
@@ -134,7 +134,7 @@ class BodyCollider:
         margin = float(margin)
         if not np.isfinite(margin) or margin < 0:
             raise InputError("margin must be finite and >= 0", got=margin)
-        if self.backend == "compiled":
+        if isinstance(self._impl, CompiledBVH):  # self.backend == "compiled"
             out, moved = self._impl.push_out(p, v, margin, max(1, int(iterations)), self.threads)
         else:
             out, moved = self._impl.push_out(p, v, margin, max(1, int(iterations)))

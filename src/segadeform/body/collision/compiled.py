@@ -94,7 +94,7 @@ class CompiledBVH:
         self._free = weakref.finalize(self, lib.sdc_free, h)
         self.n_vertices, self.n_nodes = len(v), int(lib.sdc_n_nodes(h))
         self.depth, self.closed = int(lib.sdc_depth(h)), bool(lib.sdc_closed(h))
-        self._pool = None
+        self._pool: concurrent.futures.ThreadPoolExecutor | None = None
         self._pool_size = 0
 
     def _run(self, calls, threads: int) -> list:

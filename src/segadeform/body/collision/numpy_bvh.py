@@ -183,7 +183,7 @@ class NumpyBVH:
         self._over = np.flatnonzero(count > w)
         self._dense = np.stack([col(j, every) for j in range(w)])  # (w, L)
         self._overflow = np.stack([col(j, self._over) for j in range(w, u)]) if u > w else np.zeros((0, 0), int)
-        self._gather = {}  # per number of frames: the stacked-frame columns of both blocks
+        self._gather: dict = {}  # per number of frames: the stacked-frame columns of both blocks
         self._levels = list(range(self.depth % step, self.depth + 1, step))
         if self._levels[0]:
             self._levels.insert(0, 0)
