@@ -43,13 +43,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import cast
 
-from segadeform.bounds import SEED_RANGE, check_betas
+from segadeform.bounds import check_betas
 from segadeform.distributed.executors import Executor, LocalExecutor
 from segadeform.errors import FileFormatError, InputError, file_error
 from segadeform.io.atomic import WriteError
 from segadeform.io.location import Location, is_url, open_location
-from segadeform.io.toml import key, read_table, read_toml
+from segadeform.io.toml import config_path, key, read_table, read_toml
 from segadeform.settings import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects, parse_frames
+from segadeform.settings.scene import MotionTable
 
 __all__ = ["BatchConfig", "BatchJob", "BatchSummary", "load_batch", "batch_jobs", "run_batch", "run_job"]
 
@@ -75,19 +76,8 @@ class _GarmentTable:
 
 
 @dataclasses.dataclass(frozen=True)
-class _MotionTable:
-    file: str | None = None
-    kind: str | None = None
+class _MotionTable(MotionTable):
     name: str | None = None
-    seconds: float = key(3.0, range=(1e-3, 3600))
-    speed: float = key(1.0, range=(0.05, 5))
-    amplitude: float = key(1.0, range=(0, 2))
-    seed: int = key(0, range=SEED_RANGE)
-    fps: float | None = key(None, range=(1, 1000))
-    frames: str | None = None
-    up: str = key("auto", choices=("auto", "y", "z"))
-    units: str | None = key(None, types=(str, int, float))
-    floor: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -136,12 +126,7 @@ def load_batch(path) -> BatchConfig:
     base = p.resolve().parent
 
     def rel(s: str) -> Path:
-        if "\x00" in s:
-            raise FileFormatError("path contains a NUL character", path=p, got=repr(s)[:60])
-        try:
-            q = Path(s).expanduser()
-        except RuntimeError:  # "~someone" for an unknown user, or no home directory (found by fuzzing)
-            raise FileFormatError("cannot expand '~' in a path", path=p, got=s[:60]) from None
+        q = config_path(s, path=p)
         return q if q.is_absolute() else (base / q).resolve()
 
     gs, ms = data.get("garments", []), data.get("motions", [])

@@ -67,11 +67,16 @@ class SequenceFormat:
 SEQUENCE_FORMATS: dict[str, SequenceFormat] = {}
 
 
-def register_sequence_format(fmt: SequenceFormat) -> SequenceFormat:
-    if fmt.name in SEQUENCE_FORMATS:
-        raise InputError(f"sequence format {fmt.name!r} is already registered")
-    SEQUENCE_FORMATS[fmt.name] = fmt
+def _register(registry: dict, fmt, what: str):
+    """Add ``fmt`` to ``registry`` under its name; an error if the name is taken."""
+    if fmt.name in registry:
+        raise InputError(f"{what} format {fmt.name!r} is already registered")
+    registry[fmt.name] = fmt
     return fmt
+
+
+def register_sequence_format(fmt: SequenceFormat) -> SequenceFormat:
+    return _register(SEQUENCE_FORMATS, fmt, "sequence")
 
 
 def sequence_format(name: str) -> SequenceFormat:
@@ -270,10 +275,7 @@ FILE_FORMATS: dict[str, FileFormat] = {}
 
 
 def register_file_format(fmt: FileFormat) -> FileFormat:
-    if fmt.name in FILE_FORMATS:
-        raise InputError(f"file format {fmt.name!r} is already registered")
-    FILE_FORMATS[fmt.name] = fmt
-    return fmt
+    return _register(FILE_FORMATS, fmt, "file")
 
 
 def file_format_for(path: str | os.PathLike) -> FileFormat | None:

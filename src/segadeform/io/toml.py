@@ -37,7 +37,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["read_toml", "read_table", "key", "toml_types"]
+__all__ = ["read_toml", "read_table", "key", "toml_types", "config_path"]
 
 
 def read_toml(path, what: str) -> tuple[dict, str]:
@@ -57,6 +57,17 @@ def read_toml(path, what: str) -> tuple[dict, str]:
         raise FileFormatError(f"invalid TOML: {e}", path=p) from None
     except RecursionError:  # arrays or tables nested thousands deep
         raise FileFormatError(f"{what} nests too deeply to be read", path=p) from None
+
+
+def config_path(text: str, *, path=None) -> Path:
+    """A path as a configuration file gives it, ``~`` expanded (a relative one is the caller's to resolve);
+    :class:`FileFormatError` naming the file ``path`` for a NUL character or a ``~`` that cannot be expanded."""
+    if "\x00" in text:
+        raise FileFormatError("path contains a NUL character", path=path, got=repr(text)[:60])
+    try:
+        return Path(text).expanduser()
+    except RuntimeError:  # "~someone" for an unknown user, or no home directory (found by fuzzing)
+        raise FileFormatError("cannot expand '~' in a path", path=path, got=text[:60]) from None
 
 
 def key(default=dataclasses.MISSING, *, types: tuple | None = None, range: tuple | None = None,

@@ -70,7 +70,7 @@ from pathlib import Path
 
 from ..bounds import SEED_RANGE, check_betas
 from ..errors import FileFormatError, InputError
-from ..io.toml import key, read_table, read_toml
+from ..io.toml import config_path, key, read_table, read_toml
 from ..io.writer import UP_AXES, Y_TO_Z
 from .cloth import CLOTH_KNOBS, ClothSettings
 from .effects import DEFAULT_EFFECTS, EFFECT_NAMES, Effects
@@ -135,7 +135,9 @@ class _BodyTable:
 
 
 @dataclasses.dataclass(frozen=True)
-class _MotionTable:
+class MotionTable:
+    """The keys of a motion that a scene's ``[motion]`` and a jobs file's ``[[motions]]`` share."""
+
     file: str | None = None
     kind: str | None = None
     seconds: float = key(3.0, range=(1e-3, 3600))
@@ -146,8 +148,12 @@ class _MotionTable:
     frames: str | None = None
     up: str = key("auto", choices=("auto", "y", "z"))
     units: str | None = key(None, types=(str, int, float))
-    joint_map: str | None = None
     floor: bool = False
+
+
+@dataclasses.dataclass(frozen=True)
+class _MotionTable(MotionTable):
+    joint_map: str | None = None
     skeleton: str | None = None
     animation: str | None = None
 
@@ -206,12 +212,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
     base = p.resolve().parent
 
     def rel(s: str) -> Path:
-        if "\x00" in s:
-            raise FileFormatError("path contains a NUL character", path=p, got=repr(s)[:60])
-        try:
-            q = Path(s).expanduser()
-        except RuntimeError:  # "~someone" for an unknown user (found by fuzzing)
-            raise FileFormatError("cannot expand '~' in a path", path=p, got=s[:60]) from None
+        q = config_path(s, path=p)
         return Path(os.path.normpath(q if q.is_absolute() else base / q))
 
     m = data["motion"]
