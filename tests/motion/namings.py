@@ -6,7 +6,8 @@ twist and share helpers, fingers, face, IK bones -- where the tool has them.
 twist)``, where ``twist`` lists the helper joints that sit *inside* a bone (between two mapped joints) and
 may only turn about that bone, and structural joints between two mapped ones that keep still (a helper between
 two mapped joints that turned off its bone would move the joints below it where SMPL's skeleton cannot
-follow); :func:`naming_motion` makes a motion for it and :func:`write_naming_bvh` a BVH file (``tests/motion/bvh_build.py``).
+follow); :func:`naming_motion` makes a motion for it and :func:`write_naming_bvh` a BVH file
+(``tests/motion/bvh_build.py``).
 """
 
 from __future__ import annotations

@@ -12,8 +12,9 @@
 ``Executor.map_unordered(fn, tasks)`` yields ``fn(task)`` for every task, in the order they finish.
 ``fn`` is a picklable callable -- a module-level function is pickled by reference, so every worker
 imports segadeform -- and each task a picklable value.  The tasks keep one contract, which is what makes
-retries and resumed runs safe: a task is a function of its spec alone, commits its result atomically (temporary name, then
-rename; see :mod:`segadeform.io.location`) and returns early when the result is already committed.
+retries and resumed runs safe: a task is a function of its spec alone, commits its result atomically
+(temporary name, then rename; see :mod:`segadeform.io.location`) and returns early when the result is already
+committed.
 
 On Ray a task whose worker process or node dies is run again (``max_retries`` times); an exception
 the task raises is not retried (it would fail again) and ends the run, as on the local pool.  Ray is

@@ -30,9 +30,9 @@ body               JSON string      optional (schema 2): ``{"name", "sha256", "w
 =================  ===============  =============================================
 
 An asset **prepared for a body shape** (:func:`segadeform.body.prepare.prepare_for_body`,
-``segadeform garment export``) has the three optional fields: with them it holds every model input that only Python computes (features for
-the shape, neighbours, mask, descriptor, the body's weights at the garment), so the Node, browser and C++
-runtimes animate it from a motion file alone.  Schema 1 (no optional fields) is still read.
+``segadeform garment export``) has the three optional fields: with them it holds every model input that only
+Python computes (features for the shape, neighbours, mask, descriptor, the body's weights at the garment), so
+the Node, browser and C++ runtimes animate it from a motion file alone.  Schema 1 (no optional fields) is still read.
 
 **Portable form** (``.sgda``, for runtimes without Python; ``docs/package.md``): the same fields in
 the scene-bundle container of :mod:`segadeform.io.sgdb` (little-endian, a text header, 64-byte aligned
