@@ -47,9 +47,9 @@ def write_skirt_obj(path: Path, n_around: int = 64, n_rings: int = 24) -> None:
             quad_t = [r * (n_around + 1) + a, r * (n_around + 1) + a + 1,
                       (r + 1) * (n_around + 1) + a + 1, (r + 1) * (n_around + 1) + a]
             if r < half:
-                corners = [f"{i + 1}/{t + 1}/{i + 1}" for i, t in zip(quad_v, quad_t)]
+                corners = [f"{i + 1}/{t + 1}/{i + 1}" for i, t in zip(quad_v, quad_t, strict=True)]
             else:  # relative indices: -1 is the last vertex/texcoord/normal defined so far
-                corners = [f"{i - n_v}/{t - n_vt}/{i - n_v}" for i, t in zip(quad_v, quad_t)]
+                corners = [f"{i - n_v}/{t - n_vt}/{i - n_v}" for i, t in zip(quad_v, quad_t, strict=True)]
             lines.append("f " + " ".join(corners))
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 

@@ -76,16 +76,14 @@ import dataclasses
 import hashlib
 import json
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
-from ..io.toml import key, read_table, read_toml
 from ..errors import FileFormatError, InputError
 from ..garments import GARMENT_KINDS, GarmentParams
+from ..io.toml import key, read_table, read_toml
 from ..motion.procedural import MOTION_KINDS
 from ..settings.simulation import SimSettings, parse_simulate_table
-
 
 __all__ = ["GarmentSpec", "MotionEntry", "QualitySpec", "DatasetConfig", "load_dataset_config", "SAMPLE_ORDERS"]
 
@@ -98,19 +96,19 @@ class GarmentSpec:
     kind: str
     params: GarmentParams
     split: str
-    pin: Optional[str] = None  # overrides simulate.pin for this garment
-    mhclo: Optional[Path] = None  # a MakeHuman garment fitted to each body (instead of a procedural one)
+    pin: str | None = None  # overrides simulate.pin for this garment
+    mhclo: Path | None = None  # a MakeHuman garment fitted to each body (instead of a procedural one)
 
 
 @dataclasses.dataclass(frozen=True)
 class MotionEntry:
     name: str
     split: str
-    kind: Optional[str] = None
+    kind: str | None = None
     seed: int = 0
     speed: float = 1.0
     amplitude: float = 1.0
-    file: Optional[Path] = None
+    file: Path | None = None
     start: float = 0.0  # seconds into the file where the clip begins
     ease_in: float = 1.0  # procedural: seconds blending in from the rest pose
     family: str = ""    # what splits hold out together (default: the file's stem, or the procedural entry)
@@ -140,7 +138,7 @@ class DatasetConfig:
     fps: float = 30.0
     seconds: float = 3.0
     cross_splits: bool = False
-    path: Optional[Path] = None
+    path: Path | None = None
     text: str = ""
     body_splits: tuple = ()  # "train" | "test" per body (default: all train)
     held_out_kinds: tuple = ()    # garment kinds only held-out (test) entries use
@@ -184,29 +182,29 @@ def draw_values(ranges: dict, integer: dict, seed: int, k: int) -> dict:
     never changes when the count grows.  Keys are drawn in sorted order."""
     rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, int(k)])
     out = {}
-    for key in sorted(ranges):
-        lo, hi = ranges[key]
-        out[key] = int(rng.integers(lo, hi + 1)) if integer.get(key) else float(lo + (hi - lo) * rng.random())
+    for name in sorted(ranges):
+        lo, hi = ranges[name]
+        out[name] = int(rng.integers(lo, hi + 1)) if integer.get(name) else float(lo + (hi - lo) * rng.random())
     return out
 
 
 def _ranges(d: dict, allowed: dict, p, what: str) -> dict:
     """Pop the ``[lo, hi]`` ranges out of entry ``d`` (validated)."""
     out = {}
-    for key in [k for k, v in d.items() if isinstance(v, list)]:
-        v = d.pop(key)
-        if key not in allowed:
-            raise FileFormatError(f"{what}.{key} cannot be a range", path=p,
+    for name in [k for k, v in d.items() if isinstance(v, list)]:
+        v = d.pop(name)
+        if name not in allowed:
+            raise FileFormatError(f"{what}.{name} cannot be a range", path=p,
                                   expected=" | ".join(sorted(allowed)) or "no range here", got=v)
         num = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
-        if len(v) != 2 or not num or v[0] > v[1] or (allowed[key] and not all(isinstance(x, int) for x in v)):
-            raise FileFormatError(f"{what}.{key} must be a range [lo, hi] with lo <= hi", path=p,
-                                  expected="two integers" if allowed[key] else "two numbers", got=v)
-        out[key] = (v[0], v[1])
+        if len(v) != 2 or not num or v[0] > v[1] or (allowed[name] and not all(isinstance(x, int) for x in v)):
+            raise FileFormatError(f"{what}.{name} must be a range [lo, hi] with lo <= hi", path=p,
+                                  expected="two integers" if allowed[name] else "two numbers", got=v)
+        out[name] = (v[0], v[1])
     return out
 
 
-def _count(d: dict, p, what: str) -> Optional[int]:
+def _count(d: dict, p, what: str) -> int | None:
     c = d.pop("count", None)
     if c is not None and (not isinstance(c, int) or isinstance(c, bool) or not 1 <= c <= 100_000):
         raise FileFormatError(f"{what}.count must be an integer 1..100000", path=p, got=c)
@@ -242,13 +240,13 @@ def load_dataset_config(path) -> DatasetConfig:
     held_motions = tuple(ds.get("held_out_motions", ()))
     val_kinds = tuple(ds.get("val_kinds", ()))
     val_motions = tuple(ds.get("val_motions", ()))
-    for key, kinds in (("held_out_kinds", held_kinds), ("val_kinds", val_kinds)):
+    for field, kinds in (("held_out_kinds", held_kinds), ("val_kinds", val_kinds)):
         if not all(isinstance(k, str) and k in GARMENT_KINDS for k in kinds):
-            raise FileFormatError(f"dataset.{key} must list garment kinds", path=p,
+            raise FileFormatError(f"dataset.{field} must list garment kinds", path=p,
                                   expected=" | ".join(GARMENT_KINDS), got=list(kinds))
-    for key, fams in (("held_out_motions", held_motions), ("val_motions", val_motions)):
+    for field, fams in (("held_out_motions", held_motions), ("val_motions", val_motions)):
         if not all(isinstance(k, str) for k in fams):
-            raise FileFormatError(f"dataset.{key} must list motion kinds or families", path=p, got=list(fams))
+            raise FileFormatError(f"dataset.{field} must list motion kinds or families", path=p, got=list(fams))
     both = sorted((set(held_kinds) & set(val_kinds)) | (set(held_motions) & set(val_motions)))
     if both:
         raise FileFormatError(f"{both[0]!r} is held out for both validation and test", path=p,

@@ -41,20 +41,19 @@ import hashlib
 import json
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 import numpy as np
 
 from ..body.model import BodyModel, default_body_path, load_body
-from ..errors import InputError, SegadeformError
 from ..distributed.executors import Executor, LocalExecutor
+from ..errors import InputError, SegadeformError
 from ..garments import GARMENT_TYPES, make_garment
 from ..io import Mesh, read_mesh, write_obj
-from ..io.location import Location, LocalLocation, open_location
+from ..io.location import LocalLocation, Location, open_location
 from ..motion import face_forward, load_motion, make_motion, resample
 from ..motion.motion import drop_leading_jumps, drop_leading_tpose, ramp_in
-from ..motion.motion import Motion
 from .config import DatasetConfig, GarmentSpec, MotionEntry
 from .quality import BodyParts, on_body_at_rest, quality_check
 from .store import Sample, load_sample, save_sample
@@ -284,7 +283,7 @@ _REC_KEYS = ("id", "split", "garment", "kind", "type", "body", "motion", "vertic
              "reasons", "quality", "seconds_per_frame", "blender", "sim_seconds", "preroll_frames", "seconds")
 
 
-def _committed(loc: Location, sid: str) -> Optional[dict]:
+def _committed(loc: Location, sid: str) -> dict | None:
     """The log record of sample ``sid`` when it is committed already (kept or rejected), else None."""
     for rel in (f"samples/{sid}.json", f"rejected/{sid}.json"):
         if loc.exists(rel):
@@ -293,7 +292,7 @@ def _committed(loc: Location, sid: str) -> Optional[dict]:
     return None
 
 
-def _run_one(root, cfg: DatasetConfig, ps: PlannedSample, body_path: Optional[str], sim_python,
+def _run_one(root, cfg: DatasetConfig, ps: PlannedSample, body_path: str | None, sim_python,
              provision: bool = False) -> dict:
     """Simulate, gate and commit one sample (in a worker); returns its log record.  Idempotent: a
     sample committed already is not made again (its record comes back with ``resumed``)."""
@@ -371,8 +370,8 @@ class _SampleTask:
     out: Location
     cfg: DatasetConfig
     sample: PlannedSample
-    body_path: Optional[str]  # None: the shipped body of the worker's own installation
-    sim_python: Optional[str]
+    body_path: str | None  # None: the shipped body of the worker's own installation
+    sim_python: str | None
     provision: bool
 
 
@@ -468,8 +467,8 @@ class RegateSummary:
     skipped: list        # ids of rejected samples with no arrays (rejected before arrays were kept)
 
 
-def regate(out, cfg: DatasetConfig, *, body_path: Optional[Path] = None,
-           progress: Optional[Callable[[str], None]] = None) -> RegateSummary:
+def regate(out, cfg: DatasetConfig, *, body_path: Path | None = None,
+           progress: Callable[[str], None] | None = None) -> RegateSummary:
     """Apply ``cfg``'s quality gate again to every sample of the dataset folder ``out`` that has its
     arrays, kept or rejected, and move those whose status changes (``samples/`` <-> ``rejected/``: the
     arrays and the ``.json`` that marks the sample are committed in the new place, then removed from the
@@ -515,9 +514,9 @@ def regate(out, cfg: DatasetConfig, *, body_path: Optional[Path] = None,
     return RegateSummary(kept=kept, rejected=rejected, moved=moved, skipped=skipped)
 
 
-def make_dataset(cfg: DatasetConfig, out, *, body_path: Optional[Path] = None, jobs: int = 1, sim_python=None,
-                 progress: Optional[Callable[[dict], None]] = None, limit: Optional[int] = None,
-                 executor: Optional[Executor] = None, roots=()) -> DatasetSummary:
+def make_dataset(cfg: DatasetConfig, out, *, body_path: Path | None = None, jobs: int = 1, sim_python=None,
+                 progress: Callable[[dict], None] | None = None, limit: int | None = None,
+                 executor: Executor | None = None, roots=()) -> DatasetSummary:
     """Make (or continue) the dataset ``cfg`` in ``out`` (a folder, an fsspec URL or a
     :class:`~segadeform.io.location.Location`); see the module docstring.
 

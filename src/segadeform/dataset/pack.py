@@ -41,8 +41,8 @@ import hashlib
 import io
 import json
 import zipfile
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable, Optional
 
 import numpy as np
 
@@ -138,7 +138,7 @@ class PackSummary:
     bytes: int
 
 
-def write_pack(folder, out, *, body, skip: Iterable["Pack"] = (), include_rejected: bool = True,
+def write_pack(folder, out, *, body, skip: Iterable[Pack] = (), include_rejected: bool = True,
                step: float = FRAME_STEP, progress=None) -> PackSummary:
     """Pack the dataset folder ``folder`` into the new file ``out`` (atomically; never over a file).
 
@@ -246,7 +246,7 @@ class Pack:
 
     # what made it
     @property
-    def body_sha256(self) -> Optional[str]:
+    def body_sha256(self) -> str | None:
         return (self.head.get("body") or {}).get("sha256")
 
     @property

@@ -78,7 +78,7 @@ class BodyParts:
     part: np.ndarray
 
     @classmethod
-    def of(cls, body, betas=None) -> "BodyParts":
+    def of(cls, body, betas=None) -> BodyParts:
         w = np.asarray(body.weights)
         part = _PART_OF_JOINT[w.argmax(axis=1)] if w.shape[1] == 24 else np.zeros(len(w), np.int64)
         return cls(rest=np.asarray(body.shaped_vertices(betas)[0], np.float64), part=part)
@@ -135,8 +135,8 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
                              float("nan"))
     e = unique_edges(faces, len(rest))
     l0 = np.linalg.norm(rest[e[:, 0]] - rest[e[:, 1]], axis=1)
-    l = np.linalg.norm(x[:, e[:, 0]] - x[:, e[:, 1]], axis=2)
-    strain = np.abs(l / np.maximum(l0, 1e-12) - 1)
+    length = np.linalg.norm(x[:, e[:, 0]] - x[:, e[:, 1]], axis=2)
+    strain = np.abs(length / np.maximum(l0, 1e-12) - 1)
     over_t = strain > spec.max_strain  # (T, E)
     proxy = None
     pen = pinch = 0.0

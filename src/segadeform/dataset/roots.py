@@ -21,8 +21,8 @@ folder the caller names.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Iterable, Optional, Sequence
 
 from ..errors import FileFormatError, InputError
 from .pack import PACK_SUFFIX, Pack
@@ -96,7 +96,7 @@ class DatasetRoots:
                 self._where[(folder, sid)] = src
         self._check_compatible()
         first = self.folders[0] / "cache" if self.folders else None
-        self.cache_dir: Optional[Path] = first if first is not None else (Path(cache_dir) if cache_dir else None)
+        self.cache_dir: Path | None = first if first is not None else (Path(cache_dir) if cache_dir else None)
 
     def _check_compatible(self) -> None:
         bodies = {p.body_sha256 for p in self.packs if p.body_sha256}
@@ -112,14 +112,14 @@ class DatasetRoots:
 
     # ------------------------------------------------------------------------------------------------
     @property
-    def writable(self) -> Optional[Path]:
+    def writable(self) -> Path | None:
         """The first dataset folder (where new samples and caches go), None when only packs were given."""
         return self.folders[0] if self.folders else None
 
-    def ids(self, split: Optional[str] = None, folder: str = "samples") -> list[str]:
+    def ids(self, split: str | None = None, folder: str = "samples") -> list[str]:
         """Sorted ids of ``folder``'s samples (kept by default), optionally of one split."""
         out = []
-        for (f, sid), src in self._where.items():
+        for f, sid in self._where:
             if f != folder:
                 continue
             if split is None or self.meta(sid, folder).get("split") == split:
@@ -129,7 +129,7 @@ class DatasetRoots:
     def has(self, sid: str) -> bool:
         return any((f, sid) in self._where for f in SAMPLE_FOLDERS)
 
-    def spec(self, sid: str) -> Optional[str]:
+    def spec(self, sid: str) -> str | None:
         """The ``spec`` digest the serving root records for sample ``sid`` (None when it records none)."""
         got = self._spec.get(sid)
         return None if got is None else got[0]
@@ -168,7 +168,7 @@ def _name(src):
     return src.path if isinstance(src, Pack) else src
 
 
-def _folder_spec(root: Path, folder: str, sid: str) -> Optional[str]:
+def _folder_spec(root: Path, folder: str, sid: str) -> str | None:
     try:
         return json.loads((root / folder / f"{sid}.json").read_text()).get("spec")
     except (OSError, ValueError):

@@ -54,12 +54,10 @@ import dataclasses
 import hashlib
 import json
 from pathlib import Path
-from typing import Optional
 
-from ..io.toml import read_table, read_toml
 from ..errors import FileFormatError, InputError
+from ..io.toml import read_table, read_toml
 from ..model.config import ModelConfig
-
 
 __all__ = ["LossWeights", "OptimConfig", "PhysicsConfig", "TrainConfig", "load_train_config"]
 
@@ -88,7 +86,7 @@ class PhysicsConfig:
     """Self-supervised cloth energies on garment x body x motion pairs that were never simulated
     (:mod:`segadeform.train.energies`); ``every = 0`` (the default) turns them off."""
 
-    pairs: Optional[str] = None  # a dataset config (relative to the training config): its training pairs
+    pairs: str | None = None  # a dataset config (relative to the training config): its training pairs
     every: int = 0
     weight: float = 0.3
     frames: int = 5
@@ -136,12 +134,12 @@ class TrainConfig:
     dataset: tuple            # dataset roots (folders, packs, folders of packs)
     split: str = "train"
     optional: tuple = ()      # roots read where they exist
-    val_split: Optional[str] = None  # the split whose vertex error chooses the checkpoint
+    val_split: str | None = None  # the split whose vertex error chooses the checkpoint
     physics: PhysicsConfig = PhysicsConfig()
     exclude: tuple = ()      # globs of sample ids left out of training
     fraction: float = 1.0    # share of the (remaining) samples trained on, by a hash of their ids
-    pairs: Optional[Path] = None  # physics.pairs resolved against the config's folder
-    path: Optional[Path] = None
+    pairs: Path | None = None  # physics.pairs resolved against the config's folder
+    path: Path | None = None
     text: str = ""
 
     def digest(self) -> str:
@@ -206,7 +204,7 @@ def _read_with_base(p: Path, seen=()) -> dict:
     return under
 
 
-def load_train_config(path, *, dataset=None, overrides: Optional[dict] = None) -> TrainConfig:
+def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> TrainConfig:
     """Read a training config; ``dataset`` (a root or a list of roots) overrides ``[data] dataset``;
     ``overrides`` maps ``"table.key"`` to values (e.g. ``{"optim.steps": 10}``).  A config may name a
     ``base`` config whose tables it changes (``base = "full.toml"`` and ``[optim] seed = 1``)."""

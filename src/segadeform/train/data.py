@@ -22,10 +22,10 @@ from ..body.model import BodyModel
 from ..body.transfer import garment_weights
 from ..dataset.roots import DatasetRoots, as_roots
 from ..dataset.store import Sample
-from ..geometry.precompute import precompute_garment
-from ..io.garment_asset import GarmentAsset
 from ..geometry.mesh_ops import unique_edges
+from ..geometry.precompute import precompute_garment
 from ..io.atomic import atomic_path
+from ..io.garment_asset import GarmentAsset
 from ..motion.motion import motion_windows
 
 __all__ = ["TrainItem", "load_items", "sample_asset"]
@@ -58,7 +58,7 @@ class TrainItem:
     def n_frames(self) -> int:
         return int(self.frames.shape[0])
 
-    def to(self, device) -> "TrainItem":
+    def to(self, device) -> TrainItem:
         kw = {f.name: (getattr(self, f.name).to(device) if isinstance(getattr(self, f.name), torch.Tensor)
                        else getattr(self, f.name)) for f in dataclasses.fields(self)}
         return TrainItem(**kw)
@@ -73,7 +73,7 @@ def _hash(*arrays) -> str:
     return h.hexdigest()[:24]
 
 
-def _cache_dir(root) -> "Path | None":
+def _cache_dir(root) -> Path | None:
     """Where derived data of ``root`` (a dataset folder, or :class:`DatasetRoots`) is cached."""
     if isinstance(root, DatasetRoots):
         return root.cache_dir

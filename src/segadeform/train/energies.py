@@ -28,10 +28,9 @@ Shapes follow :mod:`.losses`: ``x (B, N, 3)``.
 from __future__ import annotations
 
 import dataclasses
-from collections import OrderedDict
 import hashlib
+from collections import OrderedDict
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 import torch
@@ -43,8 +42,8 @@ from ..dataset.config import DatasetConfig, load_dataset_config
 from ..dataset.make import _garment_file, _motion, check_splits, sample_plan
 from ..errors import InputError
 from ..geometry.mesh_ops import unique_edges
-from ..io.location import open_location
 from ..io import read_mesh
+from ..io.location import open_location
 from ..motion.motion import motion_windows
 
 __all__ = ["Material", "ClothTopology", "cloth_topology", "cloth_energy", "dihedral_angles", "PhysicsPairs",
@@ -90,7 +89,7 @@ class ClothTopology:
     hinge_stiff: torch.Tensor  # (H,) 3 l0^2 / (A_1 + A_2)
     vertex_area: torch.Tensor  # (N,)
 
-    def to(self, device) -> "ClothTopology":
+    def to(self, device) -> ClothTopology:
         return ClothTopology(**{f.name: getattr(self, f.name).to(device) for f in dataclasses.fields(self)})
 
 
@@ -152,9 +151,9 @@ def dihedral_angles(x: torch.Tensor, hinges: torch.Tensor) -> torch.Tensor:
     return torch.atan2(sin, cos)
 
 
-def cloth_energy(x: torch.Tensor, topo: ClothTopology, mat: Material, *, prev: Optional[torch.Tensor] = None,
-                 prev2: Optional[torch.Tensor] = None, dt: float = 1 / 30, contact_p: Optional[torch.Tensor] = None,
-                 contact_n: Optional[torch.Tensor] = None, height_ref: Optional[torch.Tensor] = None) -> dict:
+def cloth_energy(x: torch.Tensor, topo: ClothTopology, mat: Material, *, prev: torch.Tensor | None = None,
+                 prev2: torch.Tensor | None = None, dt: float = 1 / 30, contact_p: torch.Tensor | None = None,
+                 contact_n: torch.Tensor | None = None, height_ref: torch.Tensor | None = None) -> dict:
     """Every energy term of frames ``x (B, N, 3)`` divided by ``M g`` (metres), and their sum ``total``.
 
     ``prev``/``prev2 (B, N, 3)``: the two frames before each (detached history; the inertia term is
@@ -233,7 +232,7 @@ class PairItem:
     def n_frames(self) -> int:
         return int(self.windows.shape[0])
 
-    def to(self, device) -> "PairItem":
+    def to(self, device) -> PairItem:
         if torch.device(device).type == "cpu":
             return self
         kw = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}

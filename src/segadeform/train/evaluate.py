@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 import numpy as np
 
@@ -40,9 +40,9 @@ from ..dataset.roots import as_roots
 from ..dataset.store import Sample
 from ..errors import InputError
 from ..geometry.laplacian import SpectralBasis
+from ..settings.cloth import ClothSettings
 from .data import sample_asset
 from .metrics import METRICS, PEAK_METRICS, Reference, reference, sample_metrics
-from ..settings.cloth import ClothSettings
 from .predictors import Predictor
 
 __all__ = ["evaluate", "push_out_frames", "push_out_names", "cloth_frames", "cloth_names"]
@@ -128,7 +128,7 @@ def cloth_names(settings) -> dict:
 
 
 def evaluate(dataset: Path, body: BodyModel, predictors: dict[str, Predictor], *, split: str = "test", n_star: int = 32,
-             frame_step: int = 1, progress: Optional[Callable[[str], None]] = None, push_out_margin=None,
+             frame_step: int = 1, progress: Callable[[str], None] | None = None, push_out_margin=None,
              cloth=None, cloth_margin: float = 0.004) -> dict:
     """Evaluate ``predictors`` ({name: :class:`~segadeform.train.predictors.Predictor`}) on ``split`` of ``dataset``.
 

@@ -4,7 +4,6 @@ list); :func:`reference` computes once per sample what every prediction is compa
 from __future__ import annotations
 
 import dataclasses
-from typing import Optional
 
 import numpy as np
 
@@ -43,12 +42,12 @@ class Reference:
     l_gt: np.ndarray
     acc_gt: np.ndarray
     proxies: list
-    posed: Optional[np.ndarray] = None
+    posed: np.ndarray | None = None
     #: (E,) the edges' lengths on the garment's rest mesh (the strain metrics' reference)
-    l_rest: Optional[np.ndarray] = None
+    l_rest: np.ndarray | None = None
 
 
-def reference(s: Sample, body: BodyModel, basis: Optional[SpectralBasis] = None) -> Reference:
+def reference(s: Sample, body: BodyModel, basis: SpectralBasis | None = None) -> Reference:
     """The simulated frames of sample ``s`` and what the metrics derive from them (``basis``: the rest
     garment's spectral basis, made here when not given)."""
     gt = s.frames.astype(np.float64)

@@ -9,8 +9,8 @@
 from __future__ import annotations
 
 import abc
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 import numpy as np
 
@@ -89,7 +89,7 @@ class CheckpointPredictor(Predictor):
         return np.concatenate(out).astype(np.float64)
 
 
-def make_predictor(name: str, spec: str, *, package: Optional[Callable[[str, str], Predictor]] = None) -> Predictor:
+def make_predictor(name: str, spec: str, *, package: Callable[[str, str], Predictor] | None = None) -> Predictor:
     """``spec``: ``lbs`` (closest-point weights) or ``lbs-<prior>`` (a non-learned weight prior of
     :data:`~segadeform.body.transfer.WEIGHT_PRIORS`: ``lbs-inpaint``, ``lbs-idw`` ...), a model package
     folder (optionally ``FOLDER:EFFECTS`` with effects as for ``segadeform run --effects``, e.g.
@@ -122,6 +122,6 @@ def make_predictor(name: str, spec: str, *, package: Optional[Callable[[str, str
     return p
 
 
-def make_predictors(specs: dict, *, package: Optional[Callable[[str, str], Predictor]] = None) -> dict:
+def make_predictors(specs: dict, *, package: Callable[[str, str], Predictor] | None = None) -> dict:
     """``{name: spec}`` -> ``{name: predictor}`` (:func:`make_predictor` for each, in order)."""
     return {n: make_predictor(n, s, package=package) for n, s in specs.items()}

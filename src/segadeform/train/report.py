@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -49,8 +48,8 @@ def markdown_table(res: dict) -> str:
     return "\n".join(out)
 
 
-def write_report(res: dict, out_dir: Path, *, dataset: Optional[Path] = None, body: Optional[BodyModel] = None,
-                 heatmap: Optional[Predictor] = None) -> None:
+def write_report(res: dict, out_dir: Path, *, dataset: Path | None = None, body: BodyModel | None = None,
+                 heatmap: Predictor | None = None) -> None:
     """Write ``eval.json``, ``eval.md`` and the PNG plots into ``out_dir``; with ``dataset``, ``body`` and a
     predictor ``heatmap`` (one of those evaluated), also its per-vertex error map."""
     import matplotlib

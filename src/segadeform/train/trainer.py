@@ -26,8 +26,8 @@ import os
 import platform
 import shutil
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 import numpy as np
 import torch
@@ -111,9 +111,9 @@ def plot_losses(csv_path: Path, png_path: Path) -> None:
     ax[0].plot(steps, [float(r["total"]) for r in rows], label="total")
     ax[0].plot(steps, [float(r["vertex"]) for r in rows], label="vertex (m)")
     if "val_vertex" in rows[0]:
-        pts = [(s, float(r["val_vertex"])) for s, r in zip(steps, rows) if r.get("val_vertex")]
+        pts = [(s, float(r["val_vertex"])) for s, r in zip(steps, rows, strict=True) if r.get("val_vertex")]
         if pts:
-            ax[0].plot(*zip(*pts), "o-", label="held-out vertex (m)")
+            ax[0].plot(*zip(*pts, strict=True), "o-", label="held-out vertex (m)")
     ax[0].set_yscale("log")
     ax[0].set_xlabel("step")
     ax[0].legend()
@@ -138,7 +138,7 @@ def _hardware(device: torch.device) -> dict:
     return hw
 
 
-def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optional[Callable[[int, dict], None]] = None,
+def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Callable[[int, dict], None] | None = None,
           val_ids=None, log_every: int = 10) -> Path:
     """Train (or resume) into ``run_dir``; returns the final ``model.pt``."""
     run = Path(run_dir)
@@ -301,11 +301,10 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Optiona
             n_acc = 0
     elapsed += time.perf_counter() - t0
     final = run / "model.pt"
-    from ..model.network import save_checkpoint
-
     # the garments it saw, by descriptor: export writes them to the manifest, and runtimes warn about garments
     # far from all of them (segadeform.contracts.model_package.TRAINING_GARMENTS)
     from ..geometry.mesh_ops import boundary_loops
+    from ..model.network import save_checkpoint
 
     chosen = {"step": step}
     if val and best_path.is_file():  # the checkpoint the validation split chose
