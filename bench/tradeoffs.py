@@ -24,7 +24,8 @@ process, one after another (errors against the Blender simulation stored in the 
 * models: each ``NAME=SPEC`` (e.g. width/depth variants trained on the same data);
 * cloth: the runtime's cloth stage (:mod:`segadeform.body.cloth`, as ``segadeform run --effects=+cloth``) on
   "all effects" at 1, 2, 4, 8 and 16 sweeps per frame (the other knobs at their defaults) and at two other
-  stiffnesses, contact at 4 mm (``--cloth-iterations``, ``--cloth-stiffness``);
+  stiffnesses, and at its defaults on every other effects row, contact at 4 mm (``--cloth-iterations``,
+  ``--cloth-stiffness``);
 * presets: ``segadeform run --quality`` (:mod:`segadeform.settings.presets`), each the row with its effects and margin
   (and cloth settings).
 

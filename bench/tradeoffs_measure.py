@@ -167,8 +167,10 @@ def plan_rows(
     cloths = [f"iterations={k}" if k != ClothSettings().iterations else "default" for k in cloth_iterations] + [
         f"stiffness={k:g}" for k in cloth_stiffness
     ]
-    for r in [r for r in rows if r.name == "all effects"]:
-        for c in cloths:
+    # every setting on "all effects"; the defaults on every other effects row (as the push-out at 4 mm), so that
+    # the stage can be compared with the push-out on the rows the presets use
+    for r in [r for r in rows if r.knob == "effects"]:
+        for c in cloths if r.name == "all effects" else ["default"]:
             rows.append(
                 dataclasses.replace(
                     r,

@@ -9,6 +9,7 @@ from click.testing import CliRunner
 from segadeform.cli.main import cli
 from segadeform.errors import InputError
 from segadeform.settings import Effects
+from segadeform.settings.cloth import ClothSettings
 from segadeform.settings.presets import QUALITY_PRESETS, is_change_list, preset_effects
 from tests.conftest import SAMPLES
 
@@ -22,6 +23,14 @@ def test_preset_table_and_rules():
         **{**QUALITY_PRESETS["fast"].effects.__dict__, "collisions": True})
     assert preset_effects("best", "dqs,-wrinkles").skinning == "dqs"
     assert not preset_effects("best", "dqs,-wrinkles").wrinkles
+    # best runs the cloth stage (the measured frontier's lowest error, docs/accuracy-vs-time.md) at its defaults with
+    # contact at 4 mm; taking it off gives the push-out back; the cheaper presets do not name it
+    best = QUALITY_PRESETS["best"].effects
+    assert best.cloth and best.cloth_settings == ClothSettings() and best.collision_margin == 0.004
+    assert not best.dynamics and best.wrinkles
+    no_cloth = preset_effects("best", "-cloth")
+    assert not no_cloth.cloth and no_cloth.collisions
+    assert not QUALITY_PRESETS["fast"].effects.cloth and not QUALITY_PRESETS["balanced"].effects.cloth
     assert is_change_list("-wrinkles,+collisions") and is_change_list("dqs,-dynamics")
     assert not is_change_list("dqs,collisions") and not is_change_list("dqs") and not is_change_list("")
     for bad in ("dqs,collisions", "lbs"):
