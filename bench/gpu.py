@@ -28,8 +28,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _inputs(package, n: int, frames: int):
     from segadeform.body import load_body
-    from segadeform.geometry.precompute import precompute_garment
     from segadeform.geometry.features import vertex_features
+    from segadeform.geometry.precompute import precompute_garment
     from segadeform.geometry.primitives import frustum
     from segadeform.motion import make_motion
     from segadeform.motion.motion import motion_windows
@@ -111,7 +111,7 @@ def main(argv=None) -> int:
         for b in batches:
             try:
                 frames, fps = run(a.package, [prov, "CPUExecutionProvider"], enc, per_frame, const, b)
-            except Exception as e:  # noqa: BLE001 -- a provider that fails here is reported, the others still run
+            except Exception as e:
                 print(f"{prov}: failed ({type(e).__name__}: {str(e)[:200]})")
                 break
             diff = float(np.abs(frames - cpu[b][0]).max())

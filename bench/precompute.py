@@ -24,8 +24,15 @@ from pathlib import Path
 
 import numpy as np
 
-from segadeform.geometry import (GeodesicSolver, SpectralBasis, garment_descriptor, neighbour_graph,
-                                 precompute_garment, vertex_features, vertex_normals)
+from segadeform.geometry import (
+    GeodesicSolver,
+    SpectralBasis,
+    garment_descriptor,
+    neighbour_graph,
+    precompute_garment,
+    vertex_features,
+    vertex_normals,
+)
 from segadeform.geometry.primitives import frustum
 from segadeform.io import Mesh, read_obj, write_obj
 

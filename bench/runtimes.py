@@ -52,8 +52,8 @@ def python_row(pkg_dir: Path, files: dict, batch: int, repeats: int, margin=None
     import onnxruntime
 
     from segadeform.body import default_body_path, load_body
-    from segadeform.motion import read_motion_file
     from segadeform.geometry import GarmentAsset
+    from segadeform.motion import read_motion_file
     from segadeform.motion.motion import motion_windows
     from segadeform.runtime import ModelPackage
     from segadeform.runtime.body import BodyPoser
@@ -125,9 +125,9 @@ def python_collided(pkg_dir: Path, files: dict, effects, batch: int, tmp: Path, 
     """`segadeform run` (its Run) on the garment asset and motion file with collisions: frames, body, moved, and how
     the body was posed."""
     from segadeform.body import default_body_path, load_body
-    from segadeform.motion import read_motion_file
     from segadeform.geometry import GarmentAsset
     from segadeform.io import read_pc2
+    from segadeform.motion import read_motion_file
     from segadeform.runtime import ModelPackage
     from segadeform.runtime.pipeline import Run
 
@@ -398,13 +398,13 @@ def main(argv=None) -> int:
         for f in (node_row, cpp_row):
             try:
                 rows.append(f(files, effects, a.batch, a.repeats, tmp, margin))
-            except Exception as e:  # noqa: BLE001 -- a runtime that cannot run here is reported, not fatal
+            except Exception as e:
                 rows.append(dict(runtime=f.__name__, error=str(e)[-300:]))
         for ep in ("wasm",) + (() if a.no_webgpu else ("webgpu",)):
             try:  # WebGPU: the graphs only (collisions are collide.js, the same on either backend)
                 rows.append(web_row(files, effects, a.batch, 1 if ep == "webgpu" else a.repeats, tmp, ep,
                                     a.webgpu_frames if ep == "webgpu" else None, margin if ep == "wasm" else None))
-            except Exception as e:  # noqa: BLE001
+            except Exception as e:
                 rows.append(dict(runtime=f"browser {ep}", error=str(e)[-300:]))
         if numpy_row is not None:
             rows.append(numpy_row)

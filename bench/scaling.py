@@ -32,9 +32,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def one(n: int, frames: int, batch: int, package: str, blender: bool) -> dict:
     """Measure size ``n`` in this process; returns the row."""
-    from _peak import peak_rss_bytes
-
     import numpy as np
+    from _peak import peak_rss_bytes
 
     from segadeform.body import load_body
     from segadeform.geometry.precompute import precompute_garment

@@ -43,9 +43,9 @@ def debug_model(path: Path):
 
 
 def inputs_for(pkg, name: str, a):
+    from segadeform.body import default_body_path, load_body
     from segadeform.export.body import body_sample_inputs
     from segadeform.runtime import ModelPackage
-    from segadeform.body import default_body_path, load_body
 
     spec = ModelPackage(pkg).spec(name)
     if spec["role"] == "body":
@@ -55,7 +55,6 @@ def inputs_for(pkg, name: str, a):
 
     g, gm = read_bundle(a.garment)
     mo, _ = read_bundle(a.motion)
-    n = g["vertices"].shape[0]
     dt = {"float32": np.float32, "int32": np.int32, "int64": np.int64, "bool": np.bool_}
     want = {i["name"]: dt[i["dtype"]] for i in spec["inputs"]}
     from segadeform.geometry.features import vertex_features  # noqa: F401
@@ -109,7 +108,7 @@ def main(argv=None) -> int:
         ref = ort.InferenceSession(str(d / "debug.onnx"), so, providers=["CPUExecutionProvider"]).run(None, feeds)
         keys = {o: f"o{i}" for i, o in enumerate(outs)}
         arrays = {f"in__{k}": (v.astype(np.uint8) if v.dtype == np.bool_ else v) for k, v in feeds.items()}
-        arrays.update({f"out__{keys[o]}": np.asarray(r, np.float32) for o, r in zip(outs, ref)})
+        arrays.update({f"out__{keys[o]}": np.asarray(r, np.float32) for o, r in zip(outs, ref, strict=True)})
         write_bundle(d / "data.sgdb", arrays, {"inputs": list(feeds), "outputs": outs, "keys": keys})
         (d / "runtimes").symlink_to(ROOT / "runtimes")
         p = subprocess.run(["node", str(ROOT / "runtimes" / "web" / "test" / "nodes.mjs"), "--root", str(d), "--model",

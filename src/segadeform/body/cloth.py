@@ -46,13 +46,12 @@ import logging
 import threading
 import weakref
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
-from ..settings.cloth import ClothSettings
 from ..errors import InputError
 from ..geometry._checks import check_mesh
+from ..settings.cloth import ClothSettings
 
 __all__ = ["ClothSettings", "ClothSetup", "ClothStage", "cloth_setup", "cloth_setup_reference", "cloth_reference",
            "garment_setup", "rest_signed_distance", "compiled_available", "settings_array", "CONTACT_BAND"]
@@ -143,9 +142,9 @@ class ClothSetup:
     def n_vertices(self) -> int:
         return len(self.radius)
 
-    def validate(self) -> "ClothSetup":
+    def validate(self) -> ClothSetup:
         n, e = len(self.radius), len(self.edges)
-        ok = (self.edges.dtype == np.int64 and self.edges.shape == (e, 2) and self.rest_len.shape == (e,)
+        ok: bool | np.bool_ = (self.edges.dtype == np.int64 and self.edges.shape == (e, 2) and self.rest_len.shape == (e,)
               and self.nptr.dtype == np.int64 and self.nptr.shape == (n + 1,) and self.nidx.dtype == np.int64
               and self.nidx.shape == (2 * e,) and self.radius.dtype == np.float64 and n >= 1
               and self.rest_len.dtype == np.float64)
@@ -168,7 +167,7 @@ class ClothSetup:
         return p
 
     @classmethod
-    def load(cls, path) -> "ClothSetup":
+    def load(cls, path) -> ClothSetup:
         with np.load(path, allow_pickle=False) as z:
             return cls(**{f.name: np.asarray(z[f.name]) for f in dataclasses.fields(cls)}).validate()
 
@@ -394,7 +393,7 @@ def _per_sweep(k: float, sweeps: int) -> float:
 
 
 def cloth_reference(targets, posed, body_faces, setup: ClothSetup, settings: ClothSettings = ClothSettings(), *,
-                    margin: float = 0.004, dt: float = 1.0 / 30.0, state: Optional[dict] = None):
+                    margin: float = 0.004, dt: float = 1.0 / 30.0, state: dict | None = None):
     """The cloth stage's rule, slowly and obviously: every frame, vertex and edge in Python, in the kernel's order;
     contacts and the final push-out by the numpy :class:`BodyCollider` (exact closest points).  ``state`` (from a
     previous call, or None) is updated in place and returned.
@@ -404,7 +403,7 @@ def cloth_reference(targets, posed, body_faces, setup: ClothSetup, settings: Clo
     """
     from .collision import BodyCollider
 
-    s = dict(zip(_SETTINGS, settings_array(settings, margin=margin, dt=dt)))
+    s = dict(zip(_SETTINGS, settings_array(settings, margin=margin, dt=dt), strict=True))
     iters = int(s["iterations"])
     ks, kb = _per_sweep(s["stiffness"], iters), _per_sweep(s["bending"], iters)
     hi_f, lo_f = 1.0 + s["stretch"], 1.0 - s["compress"]
