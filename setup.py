@@ -19,11 +19,22 @@ else:
     # for the module stub, may need the compiler's default standard
     FLAGS = ["-O2", "-ffp-contract=off"]
 
-setup(ext_modules=[Extension("segadeform.body._collide", sources=["src/segadeform/body/_collide.c"],
-                             define_macros=[("SDC_PYTHON_MODULE", "1")], extra_compile_args=FLAGS,
-                             optional=True),
-                   # the cloth stage (segadeform.body.cloth): _cloth.c with the collider it calls, in one library
-                   Extension("segadeform.body._cloth",
-                             sources=["src/segadeform/body/_cloth.c", "src/segadeform/body/_collide.c"],
-                             define_macros=[("SCL_PYTHON_MODULE", "1")], extra_compile_args=FLAGS,
-                             optional=True)])
+setup(
+    ext_modules=[
+        Extension(
+            "segadeform.body._collide",
+            sources=["src/segadeform/body/_collide.c"],
+            define_macros=[("SDC_PYTHON_MODULE", "1")],
+            extra_compile_args=FLAGS,
+            optional=True,
+        ),
+        # the cloth stage (segadeform.body.cloth): _cloth.c with the collider it calls, in one library
+        Extension(
+            "segadeform.body._cloth",
+            sources=["src/segadeform/body/_cloth.c", "src/segadeform/body/_collide.c"],
+            define_macros=[("SCL_PYTHON_MODULE", "1")],
+            extra_compile_args=FLAGS,
+            optional=True,
+        ),
+    ]
+)

@@ -89,18 +89,26 @@ def main() -> None:
         w = time.perf_counter()
         BodyCollider(body.v_template, body.faces, backend=backend)
         builds[backend] = time.perf_counter() - w
-    colliders = {"numpy": BodyCollider(body.v_template, body.faces, backend="numpy"),
-                 "compiled": BodyCollider(body.v_template, body.faces, backend="compiled"),
-                 "threads": BodyCollider(body.v_template, body.faces, backend="compiled", threads=args.threads)}
+    colliders = {
+        "numpy": BodyCollider(body.v_template, body.faces, backend="numpy"),
+        "compiled": BodyCollider(body.v_template, body.faces, backend="compiled"),
+        "threads": BodyCollider(body.v_template, body.faces, backend="compiled", threads=args.threads),
+    }
     exact = colliders["numpy"]  # the inside check: exact, and apart from the kernel
 
-    print(f"body: {body.n_vertices} vertices, {len(body.faces)} triangles; dance, {nf} frames; margin "
-          f"{args.margin} m; noise {args.noise} m; numpy threads {os.environ['OMP_NUM_THREADS']}; "
-          f"median of {args.repeat}, passes interleaved")
-    print(f"BodyCollider build (once per run): numpy {1e3 * builds['numpy']:.1f} ms, "
-          f"compiled {1e3 * builds['compiled']:.1f} ms")
-    head = (f"{'garment':>8s} {'pass':>15s} {'ms/frame':>9s} {'cpu ms':>7s} {'x numpy xB':>10s} {'x ref':>6s} "
-            f"{'amortised':>9s} {'inside %':>9s} {'>2mm %':>7s} {'moved':>7s} {'max diff':>10s} {'mean diff':>11s}")
+    print(
+        f"body: {body.n_vertices} vertices, {len(body.faces)} triangles; dance, {nf} frames; margin "
+        f"{args.margin} m; noise {args.noise} m; numpy threads {os.environ['OMP_NUM_THREADS']}; "
+        f"median of {args.repeat}, passes interleaved"
+    )
+    print(
+        f"BodyCollider build (once per run): numpy {1e3 * builds['numpy']:.1f} ms, "
+        f"compiled {1e3 * builds['compiled']:.1f} ms"
+    )
+    head = (
+        f"{'garment':>8s} {'pass':>15s} {'ms/frame':>9s} {'cpu ms':>7s} {'x numpy xB':>10s} {'x ref':>6s} "
+        f"{'amortised':>9s} {'inside %':>9s} {'>2mm %':>7s} {'moved':>7s} {'max diff':>10s} {'mean diff':>11s}"
+    )
     print(head)
     for n in args.sizes:
         rest = skirt(body, n)
@@ -123,23 +131,29 @@ def main() -> None:
                     out[i], k = collider.push_out(garment[i], posed[i], args.margin)
                     moved += k
                 return out, moved
+
             return run
 
         def batched(collider):
             def run():
                 out, moved = np.empty_like(garment), 0
                 for lo in range(0, nf, args.batch):
-                    out[lo:lo + args.batch], k = collider.push_out(garment[lo:lo + args.batch],
-                                                                   posed[lo:lo + args.batch], args.margin)
+                    out[lo : lo + args.batch], k = collider.push_out(
+                        garment[lo : lo + args.batch], posed[lo : lo + args.batch], args.margin
+                    )
                     moved += k
                 return out, moved
+
             return run
 
-        passes = [("reference", reference, None), ("numpy", per_frame(colliders["numpy"]), "numpy"),
-                  (f"numpy x{args.batch}", batched(colliders["numpy"]), "numpy"),
-                  ("compiled", per_frame(colliders["compiled"]), "compiled"),
-                  (f"compiled x{args.batch}", batched(colliders["compiled"]), "compiled"),
-                  (f"compiled x{args.batch} t{args.threads}", batched(colliders["threads"]), "compiled")]
+        passes = [
+            ("reference", reference, None),
+            ("numpy", per_frame(colliders["numpy"]), "numpy"),
+            (f"numpy x{args.batch}", batched(colliders["numpy"]), "numpy"),
+            ("compiled", per_frame(colliders["compiled"]), "compiled"),
+            (f"compiled x{args.batch}", batched(colliders["compiled"]), "compiled"),
+            (f"compiled x{args.batch} t{args.threads}", batched(colliders["threads"]), "compiled"),
+        ]
         walls = {name: [] for name, _, _ in passes}
         cpus = {name: [] for name, _, _ in passes}
         results = {}
@@ -166,13 +180,17 @@ def main() -> None:
             inside, deep = inside_fractions(out)
             d = np.linalg.norm(out - ref_out, axis=-1)
             amort = wall[name] + (builds[backend] if backend else 0.0)
-            print(f"{garment.shape[1]:8d} {name:>15s} {1e3 * wall[name] / nf:9.2f} "
-                  f"{1e3 * np.median(cpus[name]) / nf:7.2f} {wall[name] / base:10.3f} "
-                  f"{wall[name] / wall['reference']:6.3f} {1e3 * amort / nf:9.2f} {100 * inside:9.3f} "
-                  f"{100 * deep:7.3f} {moved:7d} {1e3 * d.max():8.5f}mm {1e3 * d.mean():9.6f}mm")
+            print(
+                f"{garment.shape[1]:8d} {name:>15s} {1e3 * wall[name] / nf:9.2f} "
+                f"{1e3 * np.median(cpus[name]) / nf:7.2f} {wall[name] / base:10.3f} "
+                f"{wall[name] / wall['reference']:6.3f} {1e3 * amort / nf:9.2f} {100 * inside:9.3f} "
+                f"{100 * deep:7.3f} {moved:7d} {1e3 * d.max():8.5f}mm {1e3 * d.mean():9.6f}mm"
+            )
         inside, deep = inside_fractions(garment)
-        print(f"{garment.shape[1]:8d} {'(input)':>15s} {'':9s} {'':7s} {'':10s} {'':6s} {'':9s} "
-              f"{100 * inside:9.3f} {100 * deep:7.3f}")
+        print(
+            f"{garment.shape[1]:8d} {'(input)':>15s} {'':9s} {'':7s} {'':10s} {'':6s} {'':9s} "
+            f"{100 * inside:9.3f} {100 * deep:7.3f}"
+        )
 
 
 if __name__ == "__main__":

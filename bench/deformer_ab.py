@@ -50,18 +50,26 @@ def main(argv=None) -> list[tuple[str, float]]:
         spec = pkg.spec(variant)
         shapes = {i["name"]: i["shape"] for i in spec["inputs"]}
         if spec["role"] == "body":  # a body graph: B poses of the package's body
-            feeds = {"betas": np.zeros(shapes["betas"][0], np.float32),
-                     "poses": (0.3 * rng.standard_normal((b, *shapes["poses"][1:]))).astype(np.float32),
-                     "trans": np.zeros((b, 3), np.float32)}
+            feeds = {
+                "betas": np.zeros(shapes["betas"][0], np.float32),
+                "poses": (0.3 * rng.standard_normal((b, *shapes["poses"][1:]))).astype(np.float32),
+                "trans": np.zeros((b, 3), np.float32),
+            }
             runs.append((path, variant, _session(pkg, spec), feeds, []))
             runs[-1][2].run(None, feeds)
             continue
         t = int(shapes["window"][1])
         code = dec.encode(asset, joints)
-        feeds = {dec.code_name: code, "window": (0.3 * rng.standard_normal((b, t, 72))).astype(np.float32),
-                 "betas": np.zeros((b, 10), np.float32), "rest": asset.vertices.astype(np.float32),
-                 "nbr": asset.nbr, "mask": asset.mask, "joints": np.repeat(joints[None].astype(np.float32), b, 0),
-                 "trans": np.zeros((b, 3), np.float32)}
+        feeds = {
+            dec.code_name: code,
+            "window": (0.3 * rng.standard_normal((b, t, 72))).astype(np.float32),
+            "betas": np.zeros((b, 10), np.float32),
+            "rest": asset.vertices.astype(np.float32),
+            "nbr": asset.nbr,
+            "mask": asset.mask,
+            "joints": np.repeat(joints[None].astype(np.float32), b, 0),
+            "trans": np.zeros((b, 3), np.float32),
+        }
         if "log_wbody" in shapes:
             feeds["log_wbody"] = dec.body_log_weights(asset, body, np.zeros(0))
         feeds = {name: feeds[name] for name in shapes}

@@ -27,10 +27,15 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main() -> None:
     skirt = read_mesh(ROOT / "samples" / "garments" / "skirt.obj")
-    shapes = {"skirt": (skirt.vertices, skirt.faces), "plane 25x25": grid_plane(25, 25),
-              "long tube": frustum(30, 40, 0.1, 0.1, 1.0, 0.0)}
-    print(f"{'shape':12s} {'N':>5s} {'N*':>4s} {'ms':>7s} {'x(16)':>6s} {'nys err/l1':>10s} "
-          f"{'l1/N*':>6s} {'l1/N':>6s} {'neg':>6s}")
+    shapes = {
+        "skirt": (skirt.vertices, skirt.faces),
+        "plane 25x25": grid_plane(25, 25),
+        "long tube": frustum(30, 40, 0.1, 0.1, 1.0, 0.0),
+    }
+    print(
+        f"{'shape':12s} {'N':>5s} {'N*':>4s} {'ms':>7s} {'x(16)':>6s} {'nys err/l1':>10s} "
+        f"{'l1/N*':>6s} {'l1/N':>6s} {'neg':>6s}"
+    )
     for name, (v, f) in shapes.items():
         solver = GeodesicSolver(v, f)
         dist = solver(np.arange(len(v)))
@@ -44,8 +49,10 @@ def main() -> None:
             lam, _ = nystrom_eigen(d, 10)
             err = np.max(np.abs(lam - full[: len(lam)])) / full[0]
             neg = -full[full < 0].sum() / np.abs(full).sum()
-            print(f"{name:12s} {len(v):5d} {ns:4d} {ms:7.1f} {ms / base:6.2f} {100 * err:9.3f}% "
-                  f"{d.eigenvalues[0] / ns:6.3f} {full[0] / len(v):6.3f} {100 * neg:5.1f}%")
+            print(
+                f"{name:12s} {len(v):5d} {ns:4d} {ms:7.1f} {ms / base:6.2f} {100 * err:9.3f}% "
+                f"{d.eigenvalues[0] / ns:6.3f} {full[0] / len(v):6.3f} {100 * neg:5.1f}%"
+            )
 
 
 if __name__ == "__main__":

@@ -20,7 +20,8 @@ for other knobs).  Ratios are against "all effects on" measured in the same run.
 the reference (BodyProxy per frame), the numpy BodyCollider and the compiled one (the runtime's), runs
 interleaved.  A final section streams ``--long`` frames (default 10,000) with LBS and dynamics (no
 wrinkles, no collisions) in a fresh process and reports its peak resident memory (its own ``VmHWM``, not
-the parent's: ``bench/_peak.py``) against a 100-frame run in another fresh process: flat memory means the ratio stays near 1 while the output grows 100x.
+the parent's: ``bench/_peak.py``) against a 100-frame run in another fresh process: flat memory means the ratio stays
+near 1 while the output grows 100x.
 """
 
 from __future__ import annotations
@@ -99,8 +100,19 @@ def main() -> None:
     motion = make_motion("dance", seconds=args.steady / 30.0, seed=1)
 
     def run(effects, frames=args.frames, out="o.pc2", cache=True, collider=BodyCollider):
-        r = Run(garment=garment, motion=motion, package=ModelPackage(pkg, threads=args.threads), body=body, effects=effects,
-                output=tmp / out, batch=args.batch, cache=cache, force=True, collider=collider, frames=(0, frames))
+        r = Run(
+            garment=garment,
+            motion=motion,
+            package=ModelPackage(pkg, threads=args.threads),
+            body=body,
+            effects=effects,
+            output=tmp / out,
+            batch=args.batch,
+            cache=cache,
+            force=True,
+            collider=collider,
+            frames=(0, frames),
+        )
         return r.execute()
 
     run(Effects())  # warm the precompute, encoder and body-weights caches
@@ -116,39 +128,60 @@ def main() -> None:
         st = {k: 1e3 * (long.stage_seconds[k] - short.stage_seconds[k]) / df for k in stages}
         return e, short.ms_per_frame, steady, 1e3 * short.seconds - short.frames * steady, st
 
-    rows = [measure(Effects(skinning=skin, dynamics=dyn, wrinkles=wr, collisions=col))
-            for skin, dyn, wr, col in itertools.product(("lbs", "dqs"), (True, False), (True, False), (True, False))]
-    rows += [measure(Effects(cloth=True, cloth_settings=knobs)),
-             measure(Effects(dynamics=False, wrinkles=False, cloth=True, cloth_settings=knobs))]
+    rows = [
+        measure(Effects(skinning=skin, dynamics=dyn, wrinkles=wr, collisions=col))
+        for skin, dyn, wr, col in itertools.product(("lbs", "dqs"), (True, False), (True, False), (True, False))
+    ]
+    rows += [
+        measure(Effects(cloth=True, cloth_settings=knobs)),
+        measure(Effects(dynamics=False, wrinkles=False, cloth=True, cloth_settings=knobs)),
+    ]
     base = next(r for r in rows if r[0] == Effects())
-    print(f"garment: {len(v)} vertices; body: {body.n_vertices} vertices; {args.frames} and {args.steady} frames; "
-          f"batch {args.batch}; {args.threads} thread(s)")
-    print(f"{'skinning':8s} {'dynamics':>8s} {'wrinkles':>8s} {'collisions':>10s} {'cloth':>6s} "
-          f"{'ms/frame@' + str(args.frames):>12s} {'steady':>7s} {'x all-on':>8s} {'fps':>6s} {'fixed ms':>8s} "
-          f"{'deform':>7s} {'pose':>6s} {'collide':>8s} {'cloth':>6s}")
+    print(
+        f"garment: {len(v)} vertices; body: {body.n_vertices} vertices; {args.frames} and {args.steady} frames; "
+        f"batch {args.batch}; {args.threads} thread(s)"
+    )
+    print(
+        f"{'skinning':8s} {'dynamics':>8s} {'wrinkles':>8s} {'collisions':>10s} {'cloth':>6s} "
+        f"{'ms/frame@' + str(args.frames):>12s} {'steady':>7s} {'x all-on':>8s} {'fps':>6s} {'fixed ms':>8s} "
+        f"{'deform':>7s} {'pose':>6s} {'collide':>8s} {'cloth':>6s}"
+    )
     for e, ms, steady, fixed, st in rows:
-        print(f"{e.skinning:8s} {str(e.dynamics):>8s} {str(e.wrinkles):>8s} "
-              f"{str(e.collisions and not e.cloth):>10s} {str(e.cloth):>6s} {ms:12.2f} "
-              f"{steady:7.2f} {steady / base[2]:8.2f} {1e3 / steady:6.0f} {fixed:8.1f} {st['deform']:7.2f} "
-              f"{st['pose body']:6.2f} {st['collisions']:8.2f} {st['cloth']:6.2f}")
+        print(
+            f"{e.skinning:8s} {str(e.dynamics):>8s} {str(e.wrinkles):>8s} "
+            f"{str(e.collisions and not e.cloth):>10s} {str(e.cloth):>6s} {ms:12.2f} "
+            f"{steady:7.2f} {steady / base[2]:8.2f} {1e3 / steady:6.0f} {fixed:8.1f} {st['deform']:7.2f} "
+            f"{st['pose body']:6.2f} {st['collisions']:8.2f} {st['cloth']:6.2f}"
+        )
     # the cloth stage alone, steady (its setup and the collider's build excluded by the two run lengths), at its
     # settings, median of 3, against the push-out of the same runs (all effects on)
     cl, po = [], []
     for _ in range(3):
         cl.append(measure(Effects(cloth=True, cloth_settings=knobs))[4]["cloth"])
         po.append(measure(Effects())[4]["collisions"])
-    print(f"cloth stage ({knobs.label() or 'default settings'}; all effects on; {len(v)} vertices; one thread), "
-          f"steady, median of 3: {np.median(cl):.2f} ms/frame (runs {', '.join(f'{x:.2f}' for x in cl)}); the "
-          f"push-out it replaces {np.median(po):.2f} ms/frame; x push-out {np.median(cl) / np.median(po):.2f}; "
-          f"load average {os.getloadavg()[0]:.2f}")
+    print(
+        f"cloth stage ({knobs.label() or 'default settings'}; all effects on; {len(v)} vertices; one thread), "
+        f"steady, median of 3: {np.median(cl):.2f} ms/frame (runs {', '.join(f'{x:.2f}' for x in cl)}); the "
+        f"push-out it replaces {np.median(po):.2f} ms/frame; x push-out {np.median(cl) / np.median(po):.2f}; "
+        f"load average {os.getloadavg()[0]:.2f}"
+    )
     # the stage alone on one run's deformer frames and posed body (as the pipeline gives them: float32), timed by the
     # wall clock and by this thread's CPU time (which other work on the machine inflates far less), median of 3
     from segadeform.body.cloth import ClothStage, garment_setup
     from segadeform.io import read_pc2 as _read
 
-    Run(garment=garment, motion=motion, package=ModelPackage(pkg, threads=args.threads), body=body,
-        effects=Effects(collisions=False), output=tmp / "raw.pc2", body_output=tmp / "raw_body.pc2", batch=args.batch,
-        cache=True, force=True).execute()
+    Run(
+        garment=garment,
+        motion=motion,
+        package=ModelPackage(pkg, threads=args.threads),
+        body=body,
+        effects=Effects(collisions=False),
+        output=tmp / "raw.pc2",
+        body_output=tmp / "raw_body.pc2",
+        batch=args.batch,
+        cache=True,
+        force=True,
+    ).execute()
     y, posed = np.asarray(_read(tmp / "raw.pc2").frames), np.asarray(_read(tmp / "raw_body.pc2").frames)
     setup = garment_setup(v, f, body.shaped_vertices()[0], body.faces, knobs)
     wall, cpu = [], []
@@ -156,12 +189,14 @@ def main() -> None:
         stage = ClothStage(setup, body.v_template, body.faces, knobs, dt=1 / motion.fps)
         w0, c0 = time.perf_counter(), time.thread_time()
         for lo in range(0, len(y), args.batch):
-            stage.step(y[lo:lo + args.batch], posed[lo:lo + args.batch])
+            stage.step(y[lo : lo + args.batch], posed[lo : lo + args.batch])
         wall.append(1e3 * (time.perf_counter() - w0) / len(y))
         cpu.append(1e3 * (time.thread_time() - c0) / len(y))
-    print(f"cloth stage alone on {len(y)} frames of that run (collider built, setup cached): "
-          f"{np.median(wall):.2f} ms/frame wall, {np.median(cpu):.2f} ms/frame CPU (this thread), median of 3; "
-          f"{stage.contacts / len(y):.0f} vertices in contact per frame; load average {os.getloadavg()[0]:.2f}")
+    print(
+        f"cloth stage alone on {len(y)} frames of that run (collider built, setup cached): "
+        f"{np.median(wall):.2f} ms/frame wall, {np.median(cpu):.2f} ms/frame CPU (this thread), median of 3; "
+        f"{stage.contacts / len(y):.0f} vertices in contact per frame; load average {os.getloadavg()[0]:.2f}"
+    )
     # the collision pass, all effects on: the reference (BodyProxy rebuilt per frame), the numpy BodyCollider
     # and the compiled one (the runtime's), interleaved, median of 3; outputs compared with the reference's
     import functools
@@ -190,24 +225,44 @@ def main() -> None:
     frames = {k: np.asarray(read_pc2(tmp / f"{k}.pc2").frames) for k in kinds}
     print(f"collisions (all effects on, {args.threads} thread(s), median of 3 interleaved runs):")
     for k in kinds:
-        print(f"  {k:9s} {ms[k]:7.2f} ms/frame  x numpy {ms[k] / ms['numpy']:6.3f}  whole frame "
-              f"{summary[k].ms_per_frame:7.2f} ms  pushed {summary[k].pushed_vertices:6d}  max diff from the "
-              f"reference {1e3 * np.abs(frames[k] - frames['reference']).max():.4f} mm")
+        print(
+            f"  {k:9s} {ms[k]:7.2f} ms/frame  x numpy {ms[k] / ms['numpy']:6.3f}  whole frame "
+            f"{summary[k].ms_per_frame:7.2f} ms  pushed {summary[k].pushed_vertices:6d}  max diff from the "
+            f"reference {1e3 * np.abs(frames[k] - frames['reference']).max():.4f} mm"
+        )
     if args.long:
         import subprocess
         import sys
 
         peaks = {}
         for n in (100, args.long):
-            p = subprocess.run([sys.executable, __file__, "--child-long", str(n), "--package", str(pkg),
-                                "--vertices", str(args.vertices), "--batch", str(args.batch)],
-                               capture_output=True, text=True, check=True)
+            p = subprocess.run(
+                [
+                    sys.executable,
+                    __file__,
+                    "--child-long",
+                    str(n),
+                    "--package",
+                    str(pkg),
+                    "--vertices",
+                    str(args.vertices),
+                    "--batch",
+                    str(args.batch),
+                ],
+                capture_output=True,
+                text=True,
+                check=True,
+            )
             rss, ms, size = (float(x) for x in p.stdout.split())
             peaks[n] = rss
-            print(f"{n:6d} frames (lbs + dynamics, fresh process): {ms:.2f} ms/frame, peak RSS {rss / 2**20:.1f} MiB, "
-                  f"output {size / 2**20:.1f} MiB")
-        print(f"peak memory ratio {args.long} vs 100 frames: {peaks[args.long] / peaks[100]:.3f} "
-              f"(the output file grows {args.long / 100:.0f}x)")
+            print(
+                f"{n:6d} frames (lbs + dynamics, fresh process): {ms:.2f} ms/frame, peak RSS {rss / 2**20:.1f} MiB, "
+                f"output {size / 2**20:.1f} MiB"
+            )
+        print(
+            f"peak memory ratio {args.long} vs 100 frames: {peaks[args.long] / peaks[100]:.3f} "
+            f"(the output file grows {args.long / 100:.0f}x)"
+        )
 
 
 def child_long(n: int, pkg: Path, vertices: int, batch: int) -> None:
@@ -227,9 +282,17 @@ def child_long(n: int, pkg: Path, vertices: int, batch: int) -> None:
     v, f = frustum(na, max(2, vertices // na), 0.17, 0.36, 1.02, 0.5)
     write_obj(tmp / "g.obj", Mesh(vertices=v, faces=f))
     m = make_motion("walk", seconds=n / 30.0, seed=0)
-    run = Run(garment=tmp / "g.obj", motion=m, package=ModelPackage(pkg), effects=Effects(wrinkles=False, collisions=False),
-              body=load_body(ROOT / "samples" / "bodies" / "default_body.npz"), output=tmp / "o.pc2", batch=batch,
-              cache=False, force=True)
+    run = Run(
+        garment=tmp / "g.obj",
+        motion=m,
+        package=ModelPackage(pkg),
+        effects=Effects(wrinkles=False, collisions=False),
+        body=load_body(ROOT / "samples" / "bodies" / "default_body.npz"),
+        output=tmp / "o.pc2",
+        batch=batch,
+        cache=False,
+        force=True,
+    )
     t0 = time.perf_counter()
     run.execute()
     dt = time.perf_counter() - t0

@@ -93,8 +93,10 @@ def main(argv=None):
     counts = [int(x) for x in a.workers.split(",")]
     import ray
 
-    print(f"{cfg_path.name}: {len(sample_plan(cfg))} samples; {os.cpu_count()} CPUs here, load average "
-          f"{os.getloadavg()[0]:.2f} at the start; ray {ray.__version__}\n")
+    print(
+        f"{cfg_path.name}: {len(sample_plan(cfg))} samples; {os.cpu_count()} CPUs here, load average "
+        f"{os.getloadavg()[0]:.2f} at the start; ray {ray.__version__}\n"
+    )
     rows, ref = [], None
     for w in counts:
         for kind in ("local", "ray"):
@@ -114,20 +116,35 @@ def main(argv=None):
             if ref is None:
                 ref = arrays
             same = arrays.keys() == ref.keys() and all(np.array_equal(arrays[k], ref[k]) for k in ref)
-            rows.append(dict(kind=kind, workers=w, samples=s.kept + s.rejected, kept=s.kept, start=start, wall=wall,
-                             load=load, same=same))
+            rows.append(
+                dict(
+                    kind=kind,
+                    workers=w,
+                    samples=s.kept + s.rejected,
+                    kept=s.kept,
+                    start=start,
+                    wall=wall,
+                    load=load,
+                    same=same,
+                )
+            )
     base = {r["workers"]: r["kept"] / r["wall"] for r in rows if r["kind"] == "local"}
     one = base[min(base)]
-    print("| executor | workers | samples | kept | start s | wall s | kept/h | x local | kept/h incl. start "
-          "| x local | x local, 1 worker | load avg | same arrays |")
+    print(
+        "| executor | workers | samples | kept | start s | wall s | kept/h | x local | kept/h incl. start "
+        "| x local | x local, 1 worker | load avg | same arrays |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         rate = 3600 * r["kept"] / r["wall"]
         full = 3600 * r["kept"] / (r["wall"] + r["start"])
         b = 3600 * base[r["workers"]]
-        print(f"| {r['kind']} | {r['workers']} | {r['samples']} | {r['kept']} | {r['start']:.1f} | {r['wall']:.1f} "
-              f"| {rate:.0f} | {rate / b:.2f} | {full:.0f} | {full / b:.2f} | {rate / (3600 * one):.2f} | {r['load']:.2f} "
-              f"| {'yes' if r['same'] else 'NO'} |")
+        print(
+            f"| {r['kind']} | {r['workers']} | {r['samples']} | {r['kept']} | {r['start']:.1f} | {r['wall']:.1f} "
+            f"| {rate:.0f} | {rate / b:.2f} | {full:.0f} | {full / b:.2f} | {rate / (3600 * one):.2f} "
+            f"| {r['load']:.2f} "
+            f"| {'yes' if r['same'] else 'NO'} |"
+        )
     if not a.keep:
         shutil.rmtree(work, ignore_errors=True)
 

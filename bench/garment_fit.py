@@ -26,7 +26,9 @@ def main(argv=None) -> None:
     folders = [Path(a) for a in (argv or sys.argv[1:])] or [ROOT.parent / "shared" / "data" / "garments"]
     files = sorted(f for d in folders for f in d.rglob("*.mhclo"))
     body = load_body(default_body_path())
-    print("| garment | vertices | shape | median cm | p90 cm | inside % | >1 cm inside % | after push-out inside % | s |")
+    print(
+        "| garment | vertices | shape | median cm | p90 cm | inside % | >1 cm inside % | after push-out inside % | s |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for f in files:
         b = read_mhclo(f)
@@ -38,9 +40,11 @@ def main(argv=None) -> None:
             r = placement_report(v, rest, body.faces)
             pushed, _ = push_off_body(v, rest, body.faces, 0.003)
             r2 = placement_report(pushed, rest, body.faces)
-            print(f"| {f.parent.name}/{f.stem} | {b.n_vertices} | {label} | {100 * r.median_distance:.1f} | "
-                  f"{100 * r.p90_distance:.1f} | {100 * r.inside_fraction:.1f} | {100 * r.deep_inside_fraction:.1f} | "
-                  f"{100 * r2.inside_fraction:.2f} | {dt:.2f} |")
+            print(
+                f"| {f.parent.name}/{f.stem} | {b.n_vertices} | {label} | {100 * r.median_distance:.1f} | "
+                f"{100 * r.p90_distance:.1f} | {100 * r.inside_fraction:.1f} | {100 * r.deep_inside_fraction:.1f} | "
+                f"{100 * r2.inside_fraction:.2f} | {dt:.2f} |"
+            )
 
 
 if __name__ == "__main__":

@@ -29,8 +29,15 @@ def main() -> None:
     for n in (21, 61):
         for jit in (0.0, 0.4):
             v, f = grid_plane(n, n, jitter=jit)
-            cases.append((f"plane {n}x{n}" + (" jittered" if jit else ""), v, f, (n // 2) * n + n // 2,
-                          lambda v, p: np.linalg.norm(v - p, axis=1)))
+            cases.append(
+                (
+                    f"plane {n}x{n}" + (" jittered" if jit else ""),
+                    v,
+                    f,
+                    (n // 2) * n + n // 2,
+                    lambda v, p: np.linalg.norm(v - p, axis=1),
+                )
+            )
     for na, nh in ((40, 13), (120, 39)):
         v, f = cylinder(na, nh, 1.0, 2 * np.pi / na * (nh - 1))
         cases.append((f"cylinder {na}x{nh}", v, f, (nh // 2) * na, cylinder_exact))
@@ -42,9 +49,11 @@ def main() -> None:
             d = GeodesicSolver(v, f, method=method)([src])[0]
             ms = 1e3 * (time.perf_counter() - t0)
             m = exact > 1e-9
-            print(f"{name:22s} {method:9s} {len(v):6d} {np.abs(d - exact).mean() / exact.max():10.4f} "
-                  f"{np.abs(d - exact).max() / exact.max():9.4f} {np.median(np.abs(d[m] - exact[m]) / exact[m]):11.4f} "
-                  f"{ms:7.1f}")
+            print(
+                f"{name:22s} {method:9s} {len(v):6d} {np.abs(d - exact).mean() / exact.max():10.4f} "
+                f"{np.abs(d - exact).max() / exact.max():9.4f} {np.median(np.abs(d[m] - exact[m]) / exact[m]):11.4f} "
+                f"{ms:7.1f}"
+            )
 
 
 if __name__ == "__main__":

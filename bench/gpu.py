@@ -41,12 +41,22 @@ def _inputs(package, n: int, frames: int):
     a = precompute_garment(v, f, joints)
     m = make_motion("dance", seconds=frames / 30.0, seed=1)
     feats = vertex_features(a.vertices, a.faces, joints, normals=a.normals.astype(np.float64))
-    enc = {"features": feats[None].astype(np.float32), "nbr": a.nbr.astype(np.int64), "mask": a.mask.astype(bool),
-           "descriptor": a.descriptor[None].astype(np.float32), "betas": np.zeros((1, 10), np.float32)}
+    enc = {
+        "features": feats[None].astype(np.float32),
+        "nbr": a.nbr.astype(np.int64),
+        "mask": a.mask.astype(bool),
+        "descriptor": a.descriptor[None].astype(np.float32),
+        "betas": np.zeros((1, 10), np.float32),
+    }
     window = int(package.spec(package.default_deformer)["window"])
     per_frame = {"window": motion_windows(m.poses.astype(np.float32), window), "trans": m.trans.astype(np.float32)}
-    const = {"rest": a.vertices.astype(np.float32), "nbr": enc["nbr"], "mask": enc["mask"],
-             "joints": joints.astype(np.float32), "betas": np.zeros(10, np.float32)}
+    const = {
+        "rest": a.vertices.astype(np.float32),
+        "nbr": enc["nbr"],
+        "mask": enc["mask"],
+        "joints": joints.astype(np.float32),
+        "betas": np.zeros(10, np.float32),
+    }
     return enc, per_frame, const
 
 
@@ -62,9 +72,16 @@ def run(pkg_dir, providers, enc, per_frame, const, batch) -> tuple[np.ndarray, f
 
     def feeds(lo, hi):
         b = hi - lo
-        f = {e["outputs"][0]["name"]: code, "window": per_frame["window"][lo:hi], "trans": per_frame["trans"][lo:hi],
-             "rest": const["rest"], "nbr": const["nbr"], "mask": const["mask"],
-             "joints": np.repeat(const["joints"][None], b, 0), "betas": np.repeat(const["betas"][None], b, 0)}
+        f = {
+            e["outputs"][0]["name"]: code,
+            "window": per_frame["window"][lo:hi],
+            "trans": per_frame["trans"][lo:hi],
+            "rest": const["rest"],
+            "nbr": const["nbr"],
+            "mask": const["mask"],
+            "joints": np.repeat(const["joints"][None], b, 0),
+            "betas": np.repeat(const["betas"][None], b, 0),
+        }
         return {i["name"]: f[i["name"]] for i in d["inputs"]}
 
     pkg.run(name, feeds(0, min(batch, t)))  # warm-up (kernels, arenas)
@@ -78,8 +95,9 @@ def run(pkg_dir, providers, enc, per_frame, const, batch) -> tuple[np.ndarray, f
 def _gpu_memory() -> str:
     if shutil.which("nvidia-smi") is None:
         return "-"
-    p = subprocess.run(["nvidia-smi", "--query-gpu=memory.used", "--format=csv,noheader"], capture_output=True,
-                       text=True)
+    p = subprocess.run(
+        ["nvidia-smi", "--query-gpu=memory.used", "--format=csv,noheader"], capture_output=True, text=True
+    )
     return p.stdout.strip().splitlines()[0] if p.returncode == 0 and p.stdout.strip() else "-"
 
 

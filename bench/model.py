@@ -66,23 +66,35 @@ def main() -> None:
             ts.append(time.perf_counter() - t0)
         return statistics.median(ts)
 
-    print(f"{'N':>6s} {'B':>3s} {'torch ms/f':>11s} {'ort ms/f':>9s} {'ort x':>6s} "
-          f"{'torch+enc ms/f':>15s} {'ort+enc ms/f':>13s} {'ort+enc x':>10s}")
+    print(
+        f"{'N':>6s} {'B':>3s} {'torch ms/f':>11s} {'ort ms/f':>9s} {'ort x':>6s} "
+        f"{'torch+enc ms/f':>15s} {'ort+enc ms/f':>13s} {'ort+enc x':>10s}"
+    )
     for n in args.sizes:
         na = int(round(np.sqrt(2.0 * n)))
         v, f = frustum(na, max(2, n // na), 0.16, 0.34, 1.02, 0.5)
         a = precompute_garment(v, f, joints, n_star=net.cfg.n_star)
-        enc = {"features": a.features[None], "nbr": a.nbr, "mask": a.mask,
-               "descriptor": a.descriptor[None].astype(np.float32)}
+        enc = {
+            "features": a.features[None],
+            "nbr": a.nbr,
+            "mask": a.mask,
+            "descriptor": a.descriptor[None].astype(np.float32),
+        }
         tenc = {k: torch.as_tensor(x) for k, x in enc.items()}
         with torch.no_grad():
             P_t = net.garment_encoder(**tenc)[0]
         P = enc_s.run(None, enc)[0][0]
         for b in args.batches:
-            dec = {"g": P, "window": win_all[:b], "betas": np.zeros((b, 10), np.float32),
-                   "rest": a.vertices.astype(np.float32), "nbr": a.nbr, "mask": a.mask,
-                   "joints": np.repeat(joints[None], b, 0).astype(np.float32),
-                   "trans": motion.trans[:b].astype(np.float32)}
+            dec = {
+                "g": P,
+                "window": win_all[:b],
+                "betas": np.zeros((b, 10), np.float32),
+                "rest": a.vertices.astype(np.float32),
+                "nbr": a.nbr,
+                "mask": a.mask,
+                "joints": np.repeat(joints[None], b, 0).astype(np.float32),
+                "trans": motion.trans[:b].astype(np.float32),
+            }
             tdec = {k: torch.as_tensor(x) for k, x in dec.items()}
             tdec["g"] = P_t
 
@@ -99,8 +111,10 @@ def main() -> None:
             t_o = timeit(lambda: dec_s.run(None, dec)) / b
             t_te = timeit(torch_both) / b
             t_oe = timeit(lambda: dec_s.run(None, dict(dec, g=enc_s.run(None, enc)[0][0]))) / b
-            print(f"{len(v):6d} {b:3d} {1e3 * t_t:11.2f} {1e3 * t_o:9.2f} {t_t / t_o:6.2f} "
-                  f"{1e3 * t_te:15.2f} {1e3 * t_oe:13.2f} {t_t / t_oe:10.2f}")
+            print(
+                f"{len(v):6d} {b:3d} {1e3 * t_t:11.2f} {1e3 * t_o:9.2f} {t_t / t_o:6.2f} "
+                f"{1e3 * t_te:15.2f} {1e3 * t_oe:13.2f} {t_t / t_oe:10.2f}"
+            )
     print("x = torch eager (encoder cached) time / this column's time, same run, one thread.")
 
 

@@ -52,8 +52,14 @@ def main(argv=None) -> Path:
     for sid in a.sample:
         s = load_sample(a.dataset, sid)
         betas = s.betas if s.betas.size else None
-        n_star = next((int(p.cfg["n_star"] if isinstance(p.cfg, dict) else p.cfg.n_star)
-                       for _, p in predictors if hasattr(p, "cfg")), 32)
+        n_star = next(
+            (
+                int(p.cfg["n_star"] if isinstance(p.cfg, dict) else p.cfg.n_star)
+                for _, p in predictors
+                if hasattr(p, "cfg")
+            ),
+            32,
+        )
         asset = precompute_garment(s.rest, s.faces, body.rest_joints(betas)[0], n_star=n_star)
         shown = {"Blender": s.frames}
         learned = None
@@ -62,25 +68,36 @@ def main(argv=None) -> Path:
             if learned is None and hasattr(p, "cfg"):
                 learned = name
         if a.push_out is not None and learned is not None:
-            shown[f"{learned}+push-out"] = push_out_frames(shown[learned], reference(s, body),
-                                                           BodyCollider(body.v_template, body.faces), a.push_out)
+            shown[f"{learned}+push-out"] = push_out_frames(
+                shown[learned], reference(s, body), BodyCollider(body.v_template, body.faces), a.push_out
+            )
         for sfx, settings in cloth_names(a.cloth).items():
             if learned is not None:
                 shown[f"{learned}{sfx.replace(' + ', '+')}"] = cloth_frames(
-                    shown[learned], s, reference(s, body), body, settings,
-                    margin=a.push_out if a.push_out is not None else 0.004)
+                    shown[learned],
+                    s,
+                    reference(s, body),
+                    body,
+                    settings,
+                    margin=a.push_out if a.push_out is not None else 0.004,
+                )
         label = sid.split("__")[0]
         for fi in frames:
             if not 0 <= fi < len(s.frames):
                 raise SystemExit(f"{sid}: frame {fi} outside 0..{len(s.frames) - 1}")
-            bv = body.forward(s.poses[fi:fi + 1], betas, s.trans[fi:fi + 1]).vertices[0]
+            bv = body.forward(s.poses[fi : fi + 1], betas, s.trans[fi : fi + 1]).vertices[0]
             bounds = fit_bounds(np.concatenate([bv, s.frames[fi]]), size=(w, h))
             row = []
             for name, x in shown.items():
                 err = np.linalg.norm(x[fi] - s.frames[fi], axis=-1).mean() * 100
-                row.append(render([MeshLayer(bv, body.faces, SKIN), MeshLayer(x[fi], s.faces, CLOTH, depth_bias=0.003)],
-                                  size=(w, h), bounds=bounds,
-                                  title=f"{label[:14]} f{fi}" if name == "Blender" else f"{name} {err:.1f} cm"))
+                row.append(
+                    render(
+                        [MeshLayer(bv, body.faces, SKIN), MeshLayer(x[fi], s.faces, CLOTH, depth_bias=0.003)],
+                        size=(w, h),
+                        bounds=bounds,
+                        title=f"{label[:14]} f{fi}" if name == "Blender" else f"{name} {err:.1f} cm",
+                    )
+                )
             rows.append(np.concatenate(row, axis=1))
     out = save_image(a.output, np.concatenate(rows, axis=0))
     print(f"-> {out}")

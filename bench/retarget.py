@@ -36,8 +36,10 @@ def main(argv=None) -> None:
     files = sorted(f for d in folders for f in (d.glob("*.bvh") if d.is_dir() else [d]))
     J = load_body(default_body_path()).rest_joints()[0]
     limbs = [(1, 4), (2, 5), (4, 7), (5, 8), (16, 18), (17, 19), (18, 20), (19, 21)]
-    print("| file | scheme | frames | fps | units | own-skeleton mm (mean / max) | limb dir max deg "
-          "| after scale cm | load s | parse s |")
+    print(
+        "| file | scheme | frames | fps | units | own-skeleton mm (mean / max) | limb dir max deg "
+        "| after scale cm | load s | parse s |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for f in files:
         t0 = time.perf_counter()
@@ -67,9 +69,11 @@ def main(argv=None) -> None:
             worst = max(worst, float(np.degrees(np.arccos(np.clip(c, -1, 1))).max()))
         ref = sk.positions[:, src[sel]] * m.meta["scale"]
         rel = np.linalg.norm((pb[:, sel] - pb[:, :1]) - (ref - ref[:, :1]), axis=-1)
-        print(f"| {f.name} | {m.meta['scheme']} | {m.n_frames} | {m.fps:.0f} | {m.meta['units_guess']} | "
-              f"{1e3 * e_own.mean():.1f} / {1e3 * e_own.max():.1f} | {worst:.4f} | {1e2 * rel.mean():.1f} | "
-              f"{t_load:.2f} | {t_parse:.2f} |")
+        print(
+            f"| {f.name} | {m.meta['scheme']} | {m.n_frames} | {m.fps:.0f} | {m.meta['units_guess']} | "
+            f"{1e3 * e_own.mean():.1f} / {1e3 * e_own.max():.1f} | {worst:.4f} | {1e2 * rel.mean():.1f} | "
+            f"{t_load:.2f} | {t_parse:.2f} |"
+        )
 
 
 if __name__ == "__main__":

@@ -69,10 +69,14 @@ def python_row(pkg_dir: Path, files: dict, batch: int, repeats: int, margin=None
     n, t = asset.n_vertices, motion.n_frames
     nb = int(pkg.config["n_betas"])
     betas = np.zeros(nb, np.float32)
-    betas[:min(nb, len(asset.betas))] = asset.betas[:nb]
-    enc_in = {"features": asset.features[None], "nbr": asset.nbr.astype(np.int32),
-              "mask": asset.mask.astype(np.float32), "descriptor": asset.descriptor[None].astype(np.float32),
-              "betas": betas[None]}
+    betas[: min(nb, len(asset.betas))] = asset.betas[:nb]
+    enc_in = {
+        "features": asset.features[None],
+        "nbr": asset.nbr.astype(np.int32),
+        "mask": asset.mask.astype(np.float32),
+        "descriptor": asset.descriptor[None].astype(np.float32),
+        "betas": betas[None],
+    }
     names = [i["name"] for i in dec["inputs"]]
     poses = motion.poses.astype(np.float32)
     rest, joints = asset.vertices.astype(np.float32), asset.joints.astype(np.float32)
@@ -84,10 +88,17 @@ def python_row(pkg_dir: Path, files: dict, batch: int, repeats: int, margin=None
         for lo in range(0, t, batch):
             hi = min(lo + batch, t)
             b = hi - lo
-            feeds = {enc["outputs"][0]["name"]: code, "rest": rest, "nbr": enc_in["nbr"], "mask": enc_in["mask"],
-                     "window": motion_windows(poses, window, start=lo, stop=hi), "betas": np.repeat(betas[None], b, 0),
-                     "joints": np.repeat(joints[None], b, 0), "trans": motion.trans[lo:hi].astype(np.float32),
-                     "log_wbody": asset.log_wbody}
+            feeds = {
+                enc["outputs"][0]["name"]: code,
+                "rest": rest,
+                "nbr": enc_in["nbr"],
+                "mask": enc_in["mask"],
+                "window": motion_windows(poses, window, start=lo, stop=hi),
+                "betas": np.repeat(betas[None], b, 0),
+                "joints": np.repeat(joints[None], b, 0),
+                "trans": motion.trans[lo:hi].astype(np.float32),
+                "log_wbody": asset.log_wbody,
+            }
             out.append(pkg.run(dec_name, {k: feeds[k] for k in names})[0])
         return np.concatenate(out), (time.perf_counter() - t0) / t * 1e3
 
@@ -101,12 +112,26 @@ def python_row(pkg_dir: Path, files: dict, batch: int, repeats: int, margin=None
         poser.pose(motion.poses[:batch], asset.betas, motion.trans[:batch])  # the graph's session made
         for _ in range(repeats):
             t0 = time.perf_counter()
-            posed[k] = np.concatenate([poser.pose(motion.poses[lo:lo + batch], asset.betas, motion.trans[lo:lo + batch])
-                                       for lo in range(0, t, batch)])
+            posed[k] = np.concatenate(
+                [
+                    poser.pose(motion.poses[lo : lo + batch], asset.betas, motion.trans[lo : lo + batch])
+                    for lo in range(0, t, batch)
+                ]
+            )
             body_ms[k].append((time.perf_counter() - t0) / t * 1e3)
-    row = dict(runtime="Python (onnxruntime)", version=onnxruntime.__version__, frames=frames,
-               body=posed["graph"], numpy_body=posed["numpy"], ms=ms, body_ms=min(body_ms["graph"]),
-               numpy_body_ms=min(body_ms["numpy"]), n=n, t=t, variant=dec_name)
+    row = dict(
+        runtime="Python (onnxruntime)",
+        version=onnxruntime.__version__,
+        frames=frames,
+        body=posed["graph"],
+        numpy_body=posed["numpy"],
+        ms=ms,
+        body_ms=min(body_ms["graph"]),
+        numpy_body_ms=min(body_ms["numpy"]),
+        n=n,
+        t=t,
+        variant=dec_name,
+    )
     if margin is not None:  # the collision stage as segadeform run runs it: the compiled kernel, built once
         from segadeform.body.collision import BodyCollider
 
@@ -115,7 +140,7 @@ def python_row(pkg_dir: Path, files: dict, batch: int, repeats: int, margin=None
             t0 = time.perf_counter()
             col = BodyCollider(body.v_template, body.faces, threads=1)
             for lo in range(0, t, batch):
-                col.push_out(frames[lo:lo + batch], posed["graph"][lo:lo + batch], margin)
+                col.push_out(frames[lo : lo + batch], posed["graph"][lo : lo + batch], margin)
             col_ms.append((time.perf_counter() - t0) / t * 1e3)
         row.update(col_ms=min(col_ms), col_backend=col.backend)
     return row
@@ -133,14 +158,27 @@ def python_collided(pkg_dir: Path, files: dict, effects, batch: int, tmp: Path, 
 
     motion, _ = read_motion_file(files["motion"])
     asset = GarmentAsset.load(files["garment"])
-    run = Run(garment=files["garment"], motion=motion, package=ModelPackage(pkg_dir),
-              body=load_body(default_body_path()),
-              betas=asset.betas, effects=effects, output=tmp / f"collided-{body_backend}.pc2",
-              body_output=tmp / f"collided-{body_backend}_body.pc2", batch=batch, cache=False, force=True,
-              body_backend=body_backend)
+    run = Run(
+        garment=files["garment"],
+        motion=motion,
+        package=ModelPackage(pkg_dir),
+        body=load_body(default_body_path()),
+        betas=asset.betas,
+        effects=effects,
+        output=tmp / f"collided-{body_backend}.pc2",
+        body_output=tmp / f"collided-{body_backend}_body.pc2",
+        batch=batch,
+        cache=False,
+        force=True,
+        body_backend=body_backend,
+    )
     s = run.execute()
-    return (read_pc2(tmp / f"collided-{body_backend}.pc2").frames,
-            read_pc2(tmp / f"collided-{body_backend}_body.pc2").frames, s.pushed_vertices, s.body_backend)
+    return (
+        read_pc2(tmp / f"collided-{body_backend}.pc2").frames,
+        read_pc2(tmp / f"collided-{body_backend}_body.pc2").frames,
+        s.pushed_vertices,
+        s.body_backend,
+    )
 
 
 def _errors(frames, expected) -> tuple[float, float]:
@@ -178,9 +216,27 @@ def cli_row(name, argv, version, files, effects, batch, repeats, tmp, margin=Non
     from segadeform.io import read_pc2
 
     def run(eff, out, extra=()):
-        p = subprocess.run(argv + ["--package", str(files["package"]), "--garment", str(files["garment"]), "--motion",
-                                   str(files["motion"]), "--effects", eff, "-o", str(out), "--batch", str(batch),
-                                   *extra], capture_output=True, text=True, timeout=900)
+        p = subprocess.run(
+            argv
+            + [
+                "--package",
+                str(files["package"]),
+                "--garment",
+                str(files["garment"]),
+                "--motion",
+                str(files["motion"]),
+                "--effects",
+                eff,
+                "-o",
+                str(out),
+                "--batch",
+                str(batch),
+                *extra,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=900,
+        )
         if p.returncode:
             raise RuntimeError(p.stderr[-2000:])
         return p.stdout
@@ -189,11 +245,19 @@ def cli_row(name, argv, version, files, effects, batch, repeats, tmp, margin=Non
     for _ in range(repeats):
         g, b = _ms(run(effects, tmp / "g.pc2", ["--body-out", str(tmp / "b.pc2")]))
         best = (g, b) if best is None or g < best[0] else best
-    row = dict(runtime=name, version=version, frames=read_pc2(tmp / "g.pc2").frames,
-               body=read_pc2(tmp / "b.pc2").frames, ms=best[0], body_ms=best[1])
+    row = dict(
+        runtime=name,
+        version=version,
+        frames=read_pc2(tmp / "g.pc2").frames,
+        body=read_pc2(tmp / "b.pc2").frames,
+        ms=best[0],
+        body_ms=best[1],
+    )
     if margin is not None:
-        col = [_collisions(run(effects + ",collisions", tmp / "c.pc2", ["--collision-margin", repr(margin)]))
-               for _ in range(repeats)]
+        col = [
+            _collisions(run(effects + ",collisions", tmp / "c.pc2", ["--collision-margin", repr(margin)]))
+            for _ in range(repeats)
+        ]
         row.update(collided=read_pc2(tmp / "c.pc2").frames, moved=col[0][0], col_ms=min(c[1] for c in col))
     return row
 
@@ -201,20 +265,38 @@ def cli_row(name, argv, version, files, effects, batch, repeats, tmp, margin=Non
 def node_row(files, effects, batch, repeats, tmp, margin=None) -> dict:
     node = ROOT / "runtimes" / "node"
     version = json.loads((node / "node_modules" / "onnxruntime-node" / "package.json").read_text())["version"]
-    return cli_row("Node (onnxruntime-node)", ["node", str(node / "src" / "cli.js")],
-                   f"{version}, node {_cmd(['node', '--version'])}", files, effects, batch, repeats, tmp, margin)
+    return cli_row(
+        "Node (onnxruntime-node)",
+        ["node", str(node / "src" / "cli.js")],
+        f"{version}, node {_cmd(['node', '--version'])}",
+        files,
+        effects,
+        batch,
+        repeats,
+        tmp,
+        margin,
+    )
 
 
 def cpp_row(files, effects, batch, repeats, tmp, margin=None) -> dict:
     import onnxruntime
 
-    b = subprocess.run([str(ROOT / "tools" / "onnxruntime_cpp.sh"), str(tmp / "cpp")], capture_output=True,
-                       text=True, timeout=900)
+    b = subprocess.run(
+        [str(ROOT / "tools" / "onnxruntime_cpp.sh"), str(tmp / "cpp")], capture_output=True, text=True, timeout=900
+    )
     if b.returncode:
         raise RuntimeError(b.stderr[-2000:])
-    return cli_row("C++ (onnxruntime C API)", [b.stdout.strip().splitlines()[-1]],
-                   f"{onnxruntime.__version__} (the wheel's library), {_cmd(['g++', '--version']).splitlines()[0]}",
-                   files, effects, batch, repeats, tmp, margin)
+    return cli_row(
+        "C++ (onnxruntime C API)",
+        [b.stdout.strip().splitlines()[-1]],
+        f"{onnxruntime.__version__} (the wheel's library), {_cmd(['g++', '--version']).splitlines()[0]}",
+        files,
+        effects,
+        batch,
+        repeats,
+        tmp,
+        margin,
+    )
 
 
 def web_row(files, effects, batch, repeats, tmp, ep, frames=None, margin=None) -> dict:
@@ -229,16 +311,42 @@ def web_row(files, effects, batch, repeats, tmp, ep, frames=None, margin=None) -
     m, meta = read_motion_file(files["motion"])
     c, _ = read_bundle(files["check"])
     t = m.n_frames if frames is None else min(frames, m.n_frames)  # the first frames do not depend on later ones
-    write_motion_file(site / "m.sgdm", dataclasses.replace(m, poses=m.poses[:t], trans=m.trans[:t]),
-                      body=meta.get("body"), betas=meta.get("betas"))
+    write_motion_file(
+        site / "m.sgdm",
+        dataclasses.replace(m, poses=m.poses[:t], trans=m.trans[:t]),
+        body=meta.get("body"),
+        betas=meta.get("betas"),
+    )
     body_ref = files.get("numpy_body", c["body"])  # the body's errors against the numpy body, as the other rows'
     write_bundle(site / "c.sgdb", {"expected": c["expected"][:t], "body": body_ref[:t]})
 
     def page(eff, check, extra=()):
-        p = subprocess.run(["node", str(ROOT / "runtimes" / "web" / "test" / "page.mjs"), "--root", str(site),
-                            "--package", "pkg", "--garment", "g.sgda", "--motion", "m.sgdm", "--check", check,
-                            "--effects", eff, "--ep", ep, "--batch", str(batch), *extra],
-                           capture_output=True, text=True, timeout=3000)
+        p = subprocess.run(
+            [
+                "node",
+                str(ROOT / "runtimes" / "web" / "test" / "page.mjs"),
+                "--root",
+                str(site),
+                "--package",
+                "pkg",
+                "--garment",
+                "g.sgda",
+                "--motion",
+                "m.sgdm",
+                "--check",
+                check,
+                "--effects",
+                eff,
+                "--ep",
+                ep,
+                "--batch",
+                str(batch),
+                *extra,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=3000,
+        )
         if p.returncode:
             raise RuntimeError((p.stdout + p.stderr)[-2000:])
         return json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("PAGE "))[5:])
@@ -249,26 +357,60 @@ def web_row(files, effects, batch, repeats, tmp, ep, frames=None, margin=None) -
         best = r if best is None or r["msPerFrame"] < best["msPerFrame"] else best
     where = "WebGPU, SwiftShader (software)" if ep == "webgpu" else "wasm, 1 thread"
     note = f", first {t} frames" if t < m.n_frames else ""
-    row = dict(runtime=f"browser (onnxruntime-web, {where}{note})", version=f"{best['ort']}, {best['browser']}",
-               max_abs=best["maxAbs"], rel=best["rel"], ms=best["msPerFrame"], body_rel=best["body"]["rel"],
-               body_ms=best["body"]["msPerFrame"])
+    row = dict(
+        runtime=f"browser (onnxruntime-web, {where}{note})",
+        version=f"{best['ort']}, {best['browser']}",
+        max_abs=best["maxAbs"],
+        rel=best["rel"],
+        ms=best["msPerFrame"],
+        body_rel=best["body"]["rel"],
+        body_ms=best["body"]["msPerFrame"],
+    )
     if margin is not None and "collided" in files:  # against segadeform run's frames with collisions
         write_bundle(site / "col.sgdb", {"expected": files["collided"][:t], "body": body_ref[:t]})
         col = [page(effects + ",collisions", "col.sgdb", ["--margin", repr(margin)]) for _ in range(repeats)]
-        row.update(col_abs=col[0]["maxAbs"], col_rel=col[0]["rel"], moved=col[0]["collisions"]["moved"],
-                   col_ms=min(r["collisions"]["msPerFrame"] for r in col))
+        row.update(
+            col_abs=col[0]["maxAbs"],
+            col_rel=col[0]["rel"],
+            moved=col[0]["collisions"]["moved"],
+            col_ms=min(r["collisions"]["msPerFrame"] for r in col),
+        )
         # every frame (the page reports the largest error only): the same runtime.js in the same browser
-        p = subprocess.run(["node", str(ROOT / "tests" / "runtimes" / "web_frames.mjs"), "--root", str(site),
-                            "--package", "pkg", "--garment", "g.sgda", "--motion", "m.sgdm", "--effects",
-                            effects + ",collisions", "--margin", repr(margin), "--batch", str(batch), "-o",
-                            str(tmp / f"web-{ep}.f32"), "--body-out", str(tmp / f"web-{ep}-body.f32")],
-                           capture_output=True, text=True, timeout=3000)
+        p = subprocess.run(
+            [
+                "node",
+                str(ROOT / "tests" / "runtimes" / "web_frames.mjs"),
+                "--root",
+                str(site),
+                "--package",
+                "pkg",
+                "--garment",
+                "g.sgda",
+                "--motion",
+                "m.sgdm",
+                "--effects",
+                effects + ",collisions",
+                "--margin",
+                repr(margin),
+                "--batch",
+                str(batch),
+                "-o",
+                str(tmp / f"web-{ep}.f32"),
+                "--body-out",
+                str(tmp / f"web-{ep}-body.f32"),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=3000,
+        )
         if p.returncode:
             raise RuntimeError((p.stdout + p.stderr)[-2000:])
         got = np.fromfile(tmp / f"web-{ep}.f32", "<f4").reshape(files["collided"][:t].shape)
         posed = np.fromfile(tmp / f"web-{ep}-body.f32", "<f4").reshape(c["body"][:t].shape)
-        row.update(col_over=_over(got, files["collided"][:t].astype(np.float64)),
-                   run_body_abs=float(np.abs(posed.astype(np.float64) - c["body"][:t]).max()))
+        row.update(
+            col_over=_over(got, files["collided"][:t].astype(np.float64)),
+            run_body_abs=float(np.abs(posed.astype(np.float64) - c["body"][:t]).max()),
+        )
     return row
 
 
@@ -315,14 +457,21 @@ def collision_note(by: dict, moved: int) -> str:
         if "col_over" not in r:
             return "was not measured here"
         if r["col_over"] == 0:
-            return f"moves none of the {moved:,} pushed vertex-frames by more than 1e-5 relative here (up to " \
-                   f"{r['col_abs']:.2g} m)"
-        return f"moves {r['col_over']:,} of the {moved:,} pushed vertex-frames by more than 1e-5 relative " \
-               f"here (up to {r['col_abs']:.2g} m)"
+            return (
+                f"moves none of the {moved:,} pushed vertex-frames by more than 1e-5 relative here (up to "
+                f"{r['col_abs']:.2g} m)"
+            )
+        return (
+            f"moves {r['col_over']:,} of the {moved:,} pushed vertex-frames by more than 1e-5 relative "
+            f"here (up to {r['col_abs']:.2g} m)"
+        )
 
     same = [n for n in ("Node", "C++") if n in by and by[n].get("run_body_abs") == 0]
-    body = (f"equals {' and '.join(same)}'s bit for bit" if len(same) == 2 else
-            f"is within {fig('Node', 'run_body_abs')} m of Node's and {fig('C++', 'run_body_abs')} m of C++'s")
+    body = (
+        f"equals {' and '.join(same)}'s bit for bit"
+        if len(same) == 2
+        else f"is within {fig('Node', 'run_body_abs')} m of Node's and {fig('C++', 'run_body_abs')} m of C++'s"
+    )
     text = (
         "**Collisions.** Given the same deformer frames and the same posed body, the C++ runtime's push-out equals "
         "Python's `BodyCollider` exactly (both run `src/segadeform/body/_collide.c`) and the JavaScript port's equals "
@@ -387,8 +536,9 @@ def main(argv=None) -> int:
             if how != "graph":
                 raise RuntimeError(f"segadeform run posed the body with {how}, not the package's body graph")
             f_np, _, moved_np, _ = python_collided(a.package, files, sc.effects, a.batch, tmp, "numpy")
-            numpy_row = dict(runtime="Python, `--body-backend numpy` (the float64 body)", version="",
-                             collided=f_np, moved=moved_np)
+            numpy_row = dict(
+                runtime="Python, `--body-backend numpy` (the float64 body)", version="", collided=f_np, moved=moved_np
+            )
         py = python_row(a.package, files, a.batch, a.repeats, margin)
         files["numpy_body"] = py["numpy_body"]
         body_expected = py["numpy_body"].astype(np.float64)
@@ -402,8 +552,18 @@ def main(argv=None) -> int:
                 rows.append(dict(runtime=f.__name__, error=str(e)[-300:]))
         for ep in ("wasm",) + (() if a.no_webgpu else ("webgpu",)):
             try:  # WebGPU: the graphs only (collisions are collide.js, the same on either backend)
-                rows.append(web_row(files, effects, a.batch, 1 if ep == "webgpu" else a.repeats, tmp, ep,
-                                    a.webgpu_frames if ep == "webgpu" else None, margin if ep == "wasm" else None))
+                rows.append(
+                    web_row(
+                        files,
+                        effects,
+                        a.batch,
+                        1 if ep == "webgpu" else a.repeats,
+                        tmp,
+                        ep,
+                        a.webgpu_frames if ep == "webgpu" else None,
+                        margin if ep == "wasm" else None,
+                    )
+                )
             except Exception as e:
                 rows.append(dict(runtime=f"browser {ep}", error=str(e)[-300:]))
         if numpy_row is not None:
@@ -433,14 +593,18 @@ def main(argv=None) -> int:
         "ms/frame is the garment encoder once plus the deformer over every frame, one thread, best of the repeats "
         "(WebGPU: one run); `x Python` is its ratio to the Python runtime's in this run; body ms/frame is the body "
         f"graph (Python's numpy body: {py['numpy_body_ms']:.2f} ms/frame in this run)."
-        + ("" if margin is None else
-           f" Collisions (the scene's, margin {margin * 1e3:g} mm; {moved:,} of {py['n'] * py['t']:,} vertex-frames "
-           "pushed by `segadeform run`): each runtime pushes its own frames out of its own posed body; collisions "
-           "ms/frame is the collider's build once plus every frame's refit and push-out, one thread, best of the "
-           "repeats (Python: `BodyCollider`, " + py.get("col_backend", "?") + " backend; Node and the browser: "
-           "`collide.js`; C++: `_collide.c` compiled in); max abs and max rel are against `segadeform run`'s frames "
-           "with collisions, over the vertex-frames further than 1e-5 relative from them, and moved the vertex-frames "
-           "each runtime pushed. The last row is `segadeform run --body-backend numpy`. WebGPU runs the graphs only."),
+        + (
+            ""
+            if margin is None
+            else f" Collisions (the scene's, margin {margin * 1e3:g} mm; {moved:,} of {py['n'] * py['t']:,} "
+            "vertex-frames "
+            "pushed by `segadeform run`): each runtime pushes its own frames out of its own posed body; collisions "
+            "ms/frame is the collider's build once plus every frame's refit and push-out, one thread, best of the "
+            "repeats (Python: `BodyCollider`, " + py.get("col_backend", "?") + " backend; Node and the browser: "
+            "`collide.js`; C++: `_collide.c` compiled in); max abs and max rel are against `segadeform run`'s frames "
+            "with collisions, over the vertex-frames further than 1e-5 relative from them, and moved the vertex-frames "
+            "each runtime pushed. The last row is `segadeform run --body-backend numpy`. WebGPU runs the graphs only."
+        ),
         "",
         "| runtime | version | max abs (m) | max rel | ms/frame | x Python | body max rel | body ms/frame | "
         "collisions ms/frame | collisions max abs (m) | collisions max rel | over 1e-5 | moved |",
@@ -450,10 +614,29 @@ def main(argv=None) -> int:
         if "error" in r:
             lines.append(f"| {r['runtime']} | not measured: {r['error'].splitlines()[-1][:120]} |" + " |" * 11)
             continue
-        main_cols = ([f"{r['max_abs']:.2g}", f"{r['rel']:.2g}", f"{r['ms']:.2f}", f"{r['ms'] / py['ms']:.2f}",
-                      f"{r['body_rel']:.2g}", f"{r['body_ms']:.2f}"] if "max_abs" in r else [""] * 6)
-        col = ([f"{r['col_ms']:.2f}" if "col_ms" in r else "", f"{r['col_abs']:.2g}", f"{r['col_rel']:.2g}",
-                f"{r['col_over']:,}", f"{r['moved']:,}"] if "col_rel" in r else [""] * 5)
+        main_cols = (
+            [
+                f"{r['max_abs']:.2g}",
+                f"{r['rel']:.2g}",
+                f"{r['ms']:.2f}",
+                f"{r['ms'] / py['ms']:.2f}",
+                f"{r['body_rel']:.2g}",
+                f"{r['body_ms']:.2f}",
+            ]
+            if "max_abs" in r
+            else [""] * 6
+        )
+        col = (
+            [
+                f"{r['col_ms']:.2f}" if "col_ms" in r else "",
+                f"{r['col_abs']:.2g}",
+                f"{r['col_rel']:.2g}",
+                f"{r['col_over']:,}",
+                f"{r['moved']:,}",
+            ]
+            if "col_rel" in r
+            else [""] * 5
+        )
         lines.append("| " + " | ".join([r["runtime"], r["version"]] + main_cols + col) + " |")
     text = "\n".join(lines) + "\n\n" + WEBGPU_NOTE + ("" if margin is None else "\n" + collision_note(by, moved))
     print(text)

@@ -40,12 +40,16 @@ def main(argv=None):
 
     body = load_body(ROOT / "samples" / "bodies" / "default_body.npz")
     drape_a = a.drape == "a"
-    g = make_garment(a.kind, body, params=GarmentParams(resolution=a.resolution), cloth_pose=A_POSE if drape_a else None)
+    g = make_garment(
+        a.kind, body, params=GarmentParams(resolution=a.resolution), cloth_pose=A_POSE if drape_a else None
+    )
     path = dict(rest_pose="a", collision_distance=0.002, impulse_clamp=0.02, blend_seconds=1.0) if drape_a else {}
     extra = dict(cloth_rest=g.cloth_rest, start_pose=A_POSE) if drape_a else {}
     mo = make_motion(a.motion, seconds=a.seconds, fps=30)
-    print(f"{a.kind}: {len(g.vertices)} vertices, {a.motion} {mo.n_frames} frames "
-          f"(+{1.5 if drape_a else 1.0:g} s pre-roll), drape path {a.drape}\n")
+    print(
+        f"{a.kind}: {len(g.vertices)} vertices, {a.motion} {mo.n_frames} frames "
+        f"(+{1.5 if drape_a else 1.0:g} s pre-roll), drape path {a.drape}\n"
+    )
 
     def run(**kw):
         r = simulate(g.vertices, g.faces, body, mo, settings=SimSettings(**path, **kw), **extra)

@@ -42,7 +42,10 @@ def main() -> None:
                         x = torch.as_tensor(adversarial_features(case, len(v), 30, rng))[None]
                         worst = max(worst, lipschitz_estimate(block, x, nbr, mask))
             b = theorem2_bound(alpha, tau)
-            print(f"{'SEGA' if use_sega else 'PlainGAT':9s} {alpha:5.1f} {tau:4.1f} {b:8.2f} {worst:17.4g} {worst / b:7.3g}")
+            print(
+                f"{'SEGA' if use_sega else 'PlainGAT':9s} {alpha:5.1f} {tau:4.1f} {b:8.2f} "
+                f"{worst:17.4g} {worst / b:7.3g}"
+            )
 
 
 if __name__ == "__main__":

@@ -73,10 +73,18 @@ def inputs_for(pkg, name: str, a):
     win = motion_windows(poses.astype(np.float32), spec["inputs"][1]["shape"][1], start=0, stop=b)
     nb = spec["inputs"][2]["shape"][1]
     betas = np.zeros(nb, np.float32)
-    betas[:min(nb, len(g["betas"]))] = g["betas"][:nb]
-    feeds = {"g": code, "window": win, "betas": np.repeat(betas[None], b, 0), "rest": g["vertices"].astype(np.float32),
-             "nbr": g["nbr"], "mask": g["mask"], "joints": np.repeat(g["joints"][None].astype(np.float32), b, 0),
-             "trans": mo["trans"][:b], "log_wbody": g["log_wbody"]}
+    betas[: min(nb, len(g["betas"]))] = g["betas"][:nb]
+    feeds = {
+        "g": code,
+        "window": win,
+        "betas": np.repeat(betas[None], b, 0),
+        "rest": g["vertices"].astype(np.float32),
+        "nbr": g["nbr"],
+        "mask": g["mask"],
+        "joints": np.repeat(g["joints"][None].astype(np.float32), b, 0),
+        "trans": mo["trans"][:b],
+        "log_wbody": g["log_wbody"],
+    }
     return {k: np.asarray(feeds[k]).astype(want[k]) for k in want}
 
 
@@ -111,9 +119,25 @@ def main(argv=None) -> int:
         arrays.update({f"out__{keys[o]}": np.asarray(r, np.float32) for o, r in zip(outs, ref, strict=True)})
         write_bundle(d / "data.sgdb", arrays, {"inputs": list(feeds), "outputs": outs, "keys": keys})
         (d / "runtimes").symlink_to(ROOT / "runtimes")
-        p = subprocess.run(["node", str(ROOT / "runtimes" / "web" / "test" / "nodes.mjs"), "--root", str(d), "--model",
-                            "debug.onnx", "--data", "data.sgdb", "--ep", a.ep, "--opt", a.opt],
-                           capture_output=True, text=True, timeout=3000)
+        p = subprocess.run(
+            [
+                "node",
+                str(ROOT / "runtimes" / "web" / "test" / "nodes.mjs"),
+                "--root",
+                str(d),
+                "--model",
+                "debug.onnx",
+                "--data",
+                "data.sgdb",
+                "--ep",
+                a.ep,
+                "--opt",
+                a.opt,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=3000,
+        )
         if p.returncode:
             print(p.stdout[-2000:], p.stderr[-3000:])
             return 1
@@ -131,16 +155,20 @@ def main(argv=None) -> int:
             inn = max([rel.get(i, 0.0) for i in node.input] or [0.0])
             rows.append((node.name or o, node.op_type, res[o][0], rel[o], inn, rel[o] - inn, o))
     final = [o["name"] for o in spec["outputs"] if o["name"] in rel]
-    print(f"{a.graph} on {a.ep} (graph optimisations {a.opt}): final outputs " +
-          ", ".join(f"{o} rel {rel[o]:.2e}" for o in final))
+    print(
+        f"{a.graph} on {a.ep} (graph optimisations {a.opt}): final outputs "
+        + ", ".join(f"{o} rel {rel[o]:.2e}" for o in final)
+    )
     print(f"\nthe {a.top} nodes adding the most relative error (node, op, max abs, rel, rel of inputs, added):")
-    for r in sorted(rows, key=lambda r: -r[5])[:a.top]:
+    for r in sorted(rows, key=lambda r: -r[5])[: a.top]:
         print(f"  {r[0][:60]:60s} {r[1]:10s} {r[2]:.2e} {r[3]:.2e} {r[4]:.2e} {r[5]:+.2e}")
     ops = {}
     for r in rows:
         ops[r[1]] = max(ops.get(r[1], 0.0), r[5])
-    print("\nlargest added relative error by op: " + ", ".join(f"{k} {v:.1e}" for k, v in
-                                                                sorted(ops.items(), key=lambda kv: -kv[1])))
+    print(
+        "\nlargest added relative error by op: "
+        + ", ".join(f"{k} {v:.1e}" for k, v in sorted(ops.items(), key=lambda kv: -kv[1]))
+    )
     return 0
 
 

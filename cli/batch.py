@@ -15,13 +15,26 @@ BATCH_LAYOUT = ("jobs", "*__*")
 @cli.command("batch")
 @click.argument("jobs_file", metavar="JOBS.toml", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", help="Folder or fsspec URL for the outputs (overrides [batch] output).")
-@click.option("-j", "--jobs", type=click.IntRange(min=1),
-              help="Jobs at a time (default: 1 on the local pool, every CPU of a Ray cluster).")
-@click.option("--executor", default="local", show_default=True, metavar="local|ray|ray://HOST:PORT|ray:ADDRESS",
-              help="Where the jobs run: this machine's process pool or a Ray cluster (needs the 'ray' extra).")
+@click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(min=1),
+    help="Jobs at a time (default: 1 on the local pool, every CPU of a Ray cluster).",
+)
+@click.option(
+    "--executor",
+    default="local",
+    show_default=True,
+    metavar="local|ray|ray://HOST:PORT|ray:ADDRESS",
+    help="Where the jobs run: this machine's process pool or a Ray cluster (needs the 'ray' extra).",
+)
 @click.option("--limit", type=click.IntRange(min=1), help="Run at most this many jobs now.")
-@click.option("--force", is_flag=True, help="Write into an output folder that holds other files (beside them, "
-              "never over them); a folder an earlier batch made is resumed without it.")
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Write into an output folder that holds other files (beside them, "
+    "never over them); a folder an earlier batch made is resumed without it.",
+)
 def batch_cmd(jobs_file, output, jobs, executor, limit, force):
     """Animate every garment x motion of JOBS.toml (resumable: done jobs are skipped)."""
     from segadeform.distributed.executors import make_executor
@@ -30,8 +43,11 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
     cfg = load_batch(jobs_file)
     from segadeform.io.output_guard import OutputGuard
 
-    guard = OutputGuard("batch", force=force, inputs=(jobs_file, cfg.model, cfg.body, *(g.mesh for g in cfg.garments),
-                                                      *(m.spec.file for m in cfg.motions)))
+    guard = OutputGuard(
+        "batch",
+        force=force,
+        inputs=(jobs_file, cfg.model, cfg.body, *(g.mesh for g in cfg.garments), *(m.spec.file for m in cfg.motions)),
+    )
     where = output if output is not None else cfg.output
     if where is not None:  # (none: run_batch says so)
         output = guard.resumable(where, layout=BATCH_LAYOUT, legacy=("jobs/",))

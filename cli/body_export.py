@@ -11,10 +11,19 @@ from .main import cli
 
 @cli.command("export-body")
 @click.argument("body", required=False, type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, exists=True, path_type=Path),
-              help="The model package to give the body graphs (replaced in place, atomically).")
-@click.option("--to", "copy_to", type=click.Path(file_okay=False, path_type=Path),
-              help="Write the package with the body graphs here instead of replacing it.")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(file_okay=False, exists=True, path_type=Path),
+    help="The model package to give the body graphs (replaced in place, atomically).",
+)
+@click.option(
+    "--to",
+    "copy_to",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Write the package with the body graphs here instead of replacing it.",
+)
 def export_body_cmd(body, output, copy_to):
     """Export BODY (.npz or SMPL .pkl; default: the shipped body) as the package's body graphs body_lbs and
     body_dqs: betas, poses and translations in, posed vertices, joints, rest joints and triangles out, so
@@ -35,12 +44,17 @@ def export_body_cmd(body, output, copy_to):
         try:
             guard.folder(output)
         except OutputRefused as e:
-            raise OutputRefused(f"{e.problem}; export-body replaces only a package segadeform wrote", path=output,
-                                expected="--to NEW_DIR to write the package with the body graphs there",
-                                got="a package segadeform did not write") from None
+            raise OutputRefused(
+                f"{e.problem}; export-body replaces only a package segadeform wrote",
+                path=output,
+                expected="--to NEW_DIR to write the package with the body graphs there",
+                got="a package segadeform did not write",
+            ) from None
     b = load_body(body or default_body_path())
     m = add_body_to_package(output, b, copy_to)
     guard.record()
     names = sorted(k for k, g in m["graphs"].items() if g["role"] == "body")
-    click.echo(f"{copy_to or output}: body graphs {', '.join(names)} of {Path(b.path).name if b.path else 'the body'} "
-               f"({b.n_vertices} vertices, {len(b.faces)} triangles, {b.n_betas} betas)")
+    click.echo(
+        f"{copy_to or output}: body graphs {', '.join(names)} of {Path(b.path).name if b.path else 'the body'} "
+        f"({b.n_vertices} vertices, {len(b.faces)} triangles, {b.n_betas} betas)"
+    )

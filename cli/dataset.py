@@ -38,21 +38,42 @@ def dataset_group():
 
 @dataset_group.command("make")
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", required=True,
-              help="Dataset folder or fsspec URL, e.g. s3://bucket/ds (an existing one is continued).")
-@click.option("-j", "--jobs", type=click.IntRange(min=1),
-              help="Simulations at a time (default: 1 on the local pool, every CPU of a Ray cluster).")
-@click.option("--executor", default="local", show_default=True, metavar="local|ray|ray://HOST:PORT|ray:ADDRESS",
-              help="Where the samples are simulated: this machine's process pool or a Ray cluster "
-                   "(needs the 'ray' extra).")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    help="Dataset folder or fsspec URL, e.g. s3://bucket/ds (an existing one is continued).",
+)
+@click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(min=1),
+    help="Simulations at a time (default: 1 on the local pool, every CPU of a Ray cluster).",
+)
+@click.option(
+    "--executor",
+    default="local",
+    show_default=True,
+    metavar="local|ray|ray://HOST:PORT|ray:ADDRESS",
+    help="Where the samples are simulated: this machine's process pool or a Ray cluster (needs the 'ray' extra).",
+)
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option("--limit", type=click.IntRange(min=1), help="Make at most this many samples now.")
 @click.option("--sim-python", type=click.Path(dir_okay=False, path_type=Path), help="The simulator's Python.")
-@click.option("--dataset", "roots", multiple=True, type=click.Path(exists=True, path_type=Path),
-              help="A read-only dataset root (a pack, a folder of packs, a dataset folder): samples it holds are "
-                   "done and not made again. Repeatable; the config's dataset.roots are read too.")
-@click.option("--force", is_flag=True, help="Write into a folder that holds other files (beside them, never over "
-              "them); a dataset folder is continued without it.")
+@click.option(
+    "--dataset",
+    "roots",
+    multiple=True,
+    type=click.Path(exists=True, path_type=Path),
+    help="A read-only dataset root (a pack, a folder of packs, a dataset folder): samples it holds are "
+    "done and not made again. Repeatable; the config's dataset.roots are read too.",
+)
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Write into a folder that holds other files (beside them, never over "
+    "them); a dataset folder is continued without it.",
+)
 def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, roots, force):
     """Simulate every garment x body x motion of CONFIG.toml into OUTPUT (resumable)."""
     from segadeform.dataset import load_dataset_config, make_dataset
@@ -77,8 +98,16 @@ def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, ro
     try:
         with ex:
             guard.start()
-            s = make_dataset(cfg, loc, body_path=body, sim_python=sim_python, progress=progress,
-                             limit=limit, executor=ex, roots=roots)
+            s = make_dataset(
+                cfg,
+                loc,
+                body_path=body,
+                sim_python=sim_python,
+                progress=progress,
+                limit=limit,
+                executor=ex,
+                roots=roots,
+            )
     finally:
         guard.abandon()  # a run that made nothing leaves no empty folder
     click.echo(f"{s.planned} planned, {s.skipped} already done, {s.kept} kept, {s.rejected} rejected -> {output}")
@@ -108,8 +137,13 @@ def dataset_info_cmd(folder, as_json):
 
 @dataset_group.command("regate")
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, exists=True, path_type=Path),
-              help="The dataset folder.")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(file_okay=False, exists=True, path_type=Path),
+    help="The dataset folder.",
+)
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 def dataset_regate_cmd(config, output, body):
     """Apply CONFIG's quality gate again to every sample of the dataset that kept its arrays (kept and
@@ -120,24 +154,40 @@ def dataset_regate_cmd(config, output, body):
 
     cfg = load_dataset_config(config)
     # regate moves a dataset's own files: a folder that is not a dataset (made by `dataset make`) is refused
-    OutputGuard("dataset", inputs=(config, body), replaces=False).resumable(output, layout=DATASET_LAYOUT,
-                                                                            legacy=DATASET_LEGACY)
+    OutputGuard("dataset", inputs=(config, body), replaces=False).resumable(
+        output, layout=DATASET_LAYOUT, legacy=DATASET_LEGACY
+    )
     r = regate(output, cfg, body_path=body)
     for sid, status in r.moved:
         click.echo(f"{sid}: now {status}")
-    click.echo(f"{output}: {r.kept} pass the gate, {r.rejected} do not ({len(r.moved)} moved; "
-               f"{len(r.skipped)} rejected before their arrays were kept)")
+    click.echo(
+        f"{output}: {r.kept} pass the gate, {r.rejected} do not ({len(r.moved)} moved; "
+        f"{len(r.skipped)} rejected before their arrays were kept)"
+    )
 
 
 @dataset_group.command("pack")
 @click.argument("folder", type=click.Path(file_okay=False, exists=True, path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="The new pack (NAME.sgdpack); an existing file is never replaced.")
-@click.option("--skip", "skip", multiple=True, type=click.Path(exists=True, path_type=Path),
-              help="Packs (or a folder of packs) whose samples are left out: pack only what is new. Repeatable.")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The new pack (NAME.sgdpack); an existing file is never replaced.",
+)
+@click.option(
+    "--skip",
+    "skip",
+    multiple=True,
+    type=click.Path(exists=True, path_type=Path),
+    help="Packs (or a folder of packs) whose samples are left out: pack only what is new. Repeatable.",
+)
 @click.option("--no-rejected", is_flag=True, help="Leave out the samples the quality gate rejected.")
-@click.option("--body", type=click.Path(dir_okay=False, path_type=Path),
-              help="Body .npz the dataset was made with (default: shipped body).")
+@click.option(
+    "--body",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Body .npz the dataset was made with (default: shipped body).",
+)
 def dataset_pack_cmd(folder, output, skip, no_rejected, body):
     """Pack the dataset FOLDER into one read-only file that lasts (segadeform.dataset.pack): frames
     to 0.1 mm steps (error <= 0.05 mm), LZMA-compressed; train, eval and dataset make read it beside
@@ -150,8 +200,11 @@ def dataset_pack_cmd(folder, output, skip, no_rejected, body):
     guard = OutputGuard("dataset pack", replaces=False, inputs=(folder, body, *skip))
     guard.file(output)
     packs = [p for s in skip for p in expand_root(s) if not isinstance(p, Path)]
-    s = write_pack(folder, output, body=load_body(body or default_body_path()), skip=packs,
-                   include_rejected=not no_rejected)
+    s = write_pack(
+        folder, output, body=load_body(body or default_body_path()), skip=packs, include_rejected=not no_rejected
+    )
     guard.record()
-    click.echo(f"{s.samples} kept and {s.rejected} rejected samples ({s.skipped} already in the packs given) "
-               f"-> {s.path} ({s.bytes / 1e6:.1f} MB)")
+    click.echo(
+        f"{s.samples} kept and {s.rejected} rejected samples ({s.skipped} already in the packs given) "
+        f"-> {s.path} ({s.bytes / 1e6:.1f} MB)"
+    )

@@ -12,21 +12,41 @@ from .main import cli
 
 @cli.command("export")
 @click.argument("checkpoint", required=False, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Model package directory to write.")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Model package directory to write.",
+)
 @click.option("--random-init", is_flag=True, help="Export a randomly initialised model (for tests).")
-@click.option("--config", "config_json", default=None,
-              help="ModelConfig overrides as JSON (with --random-init), e.g. '{\"skinning\": \"dqs\"}'.")
+@click.option(
+    "--config",
+    "config_json",
+    default=None,
+    help='ModelConfig overrides as JSON (with --random-init), e.g. \'{"skinning": "dqs"}\'.',
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed for --random-init.")
-@click.option("--check/--no-check", default=True, show_default=True,
-              help="Compare torch and onnxruntime on random inputs and print the errors.")
+@click.option(
+    "--check/--no-check",
+    default=True,
+    show_default=True,
+    help="Compare torch and onnxruntime on random inputs and print the errors.",
+)
 @click.option("--legacy", is_flag=True, help="Use the legacy (TorchScript) exporter instead of dynamo.")
-@click.option("--inline-weights", is_flag=True,
-              help="Self-contained graph files (each with its own weights) instead of one shared weights.bin.")
-@click.option("--training-garments", "training_files", multiple=True,
-              type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
-                   "warn about garments far from all of them.  Default: what the checkpoint records.")
+@click.option(
+    "--inline-weights",
+    is_flag=True,
+    help="Self-contained graph files (each with its own weights) instead of one shared weights.bin.",
+)
+@click.option(
+    "--training-garments",
+    "training_files",
+    multiple=True,
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
+    "warn about garments far from all of them.  Default: what the checkpoint records.",
+)
 def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy, inline_weights, training_files):
     """Export CHECKPOINT (or --random-init) to an ONNX model package (needs the 'torch' extra)."""
     try:
@@ -66,12 +86,15 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
         from segadeform.export.training_set import training_garments_entry
 
         extra["training_garments"] = training_garments_entry(*garments)
-    m = export_package(model, output, dynamo=not legacy, check=check, shared_weights=not inline_weights,
-                       extra_manifest=extra)
+    m = export_package(
+        model, output, dynamo=not legacy, check=check, shared_weights=not inline_weights, extra_manifest=extra
+    )
     guard.record()
-    click.echo(f"{output}: {len(m['graphs'])} graphs (default {m['default_deformer']}), manifest.json, "
-               f"{_size(output) / 1e6:.2f} MB (opset {m['opset']}, {m['exporter']} exporter"
-               f"{', weights shared in ' + m['weights']['file'] if 'weights' in m else ''})")
+    click.echo(
+        f"{output}: {len(m['graphs'])} graphs (default {m['default_deformer']}), manifest.json, "
+        f"{_size(output) / 1e6:.2f} MB (opset {m['opset']}, {m['exporter']} exporter"
+        f"{', weights shared in ' + m['weights']['file'] if 'weights' in m else ''})"
+    )
     if check:
         for g, outs in m["parity"].items():
             for o, e in outs.items():
@@ -80,11 +103,17 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
 
 @cli.command("quantize")
 @click.argument("package", type=click.Path(file_okay=False, exists=True, path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="The new package folder.")
-@click.option("--precision", type=click.Choice(["int8", "fp16-weights"]), default="int8", show_default=True,
-              help="int8: onnxruntime dynamic quantisation (weights int8, inputs and outputs float32); "
-                   "fp16-weights: weights stored as float16, arithmetic float32 (half the file, fp32 speed).")
+@click.option(
+    "-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path), help="The new package folder."
+)
+@click.option(
+    "--precision",
+    type=click.Choice(["int8", "fp16-weights"]),
+    default="int8",
+    show_default=True,
+    help="int8: onnxruntime dynamic quantisation (weights int8, inputs and outputs float32); "
+    "fp16-weights: weights stored as float16, arithmetic float32 (half the file, fp32 speed).",
+)
 def quantize_cmd(package, output, precision):
     """Copy model PACKAGE at another precision (needs the 'torch' extra for onnx)."""
     try:
@@ -101,16 +130,28 @@ def quantize_cmd(package, output, precision):
 
 @cli.command("repack")
 @click.argument("package", type=click.Path(file_okay=False, exists=True, path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="The new package folder.")
-@click.option("--inline-weights", is_flag=True,
-              help="Self-contained graph files (each with its own weights) instead of one shared weights.bin.")
-@click.option("--training-garments", "training_files", multiple=True,
-              type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
-                   "warn about garments far from all of them.  Default: the package's own list.")
-@click.option("--opset", type=click.IntRange(15, 21), default=None,
-              help="Convert every graph to this ONNX opset (default: the exporter's, 18); 15 for Unity Sentis.")
+@click.option(
+    "-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path), help="The new package folder."
+)
+@click.option(
+    "--inline-weights",
+    is_flag=True,
+    help="Self-contained graph files (each with its own weights) instead of one shared weights.bin.",
+)
+@click.option(
+    "--training-garments",
+    "training_files",
+    multiple=True,
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
+    "warn about garments far from all of them.  Default: the package's own list.",
+)
+@click.option(
+    "--opset",
+    type=click.IntRange(15, 21),
+    default=None,
+    help="Convert every graph to this ONNX opset (default: the exporter's, 18); 15 for Unity Sentis.",
+)
 def repack_cmd(package, output, inline_weights, training_files, opset):
     """Rewrite model PACKAGE (any schema) in the current layout, same graphs (needs onnx)."""
     try:
@@ -122,8 +163,10 @@ def repack_cmd(package, output, inline_weights, training_files, opset):
 
     guard = _package_guard(output, (package, *training_files))
     before = _size(package)
-    garments = _training_garments(training_files, contract.read_manifest_text(
-        (package / contract.MANIFEST_FILE).read_text(encoding="utf-8"))["config"]["n_star"])
+    garments = _training_garments(
+        training_files,
+        contract.read_manifest_text((package / contract.MANIFEST_FILE).read_text(encoding="utf-8"))["config"]["n_star"],
+    )
     entry = None
     if garments is not None:
         from segadeform.export.training_set import training_garments_entry
@@ -131,8 +174,10 @@ def repack_cmd(package, output, inline_weights, training_files, opset):
         entry = training_garments_entry(*garments)
     m = repack_package(package, output, shared=not inline_weights, training_garments=entry, opset=opset)
     guard.record()
-    click.echo(f"{output}: schema {m['schema_version']}, opset {m['opset']}, {len(m['graphs'])} graphs, "
-               f"{before / 1e6:.2f} MB -> {_size(output) / 1e6:.2f} MB")
+    click.echo(
+        f"{output}: schema {m['schema_version']}, opset {m['opset']}, {len(m['graphs'])} graphs, "
+        f"{before / 1e6:.2f} MB -> {_size(output) / 1e6:.2f} MB"
+    )
 
 
 def _package_guard(output, inputs):

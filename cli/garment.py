@@ -42,13 +42,16 @@ def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, res
     guard.file(output)
     b = _betas(betas)
     bm = load_body(body or default_body_path())
-    g = make_garment(kind, bm, b, GarmentParams(length=length, flare=flare, ease=ease, sleeve=sleeve,
-                                                  resolution=resolution))
+    g = make_garment(
+        kind, bm, b, GarmentParams(length=length, flare=flare, ease=ease, sleeve=sleeve, resolution=resolution)
+    )
     info = check_garment(g.vertices, g.faces, bm, b)
     write_obj(output, Mesh(vertices=g.vertices, faces=g.faces), header=g.header())
     guard.record()
-    click.echo(f"{kind} ({g.type}): {info['vertices']} vertices, {info['faces']} triangles, "
-               f"{info['boundary_loops']} openings, clearance >= {1e3 * info['min_clearance']:.1f} mm -> {output}")
+    click.echo(
+        f"{kind} ({g.type}): {info['vertices']} vertices, {info['faces']} triangles, "
+        f"{info['boundary_loops']} openings, clearance >= {1e3 * info['min_clearance']:.1f} mm -> {output}"
+    )
 
 
 @garment_group.command("kinds")
@@ -63,20 +66,36 @@ def garment_kinds_cmd():
 @garment_group.command("fit")
 @click.argument("garment", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path), help="Fitted OBJ.")
-@click.option("--mhclo", type=click.Path(dir_okay=False, path_type=Path),
-              help="MakeHuman binding (default: GARMENT itself if .mhclo, else a .mhclo of the same name beside it).")
-@click.option("--from-body", type=click.Path(dir_okay=False, path_type=Path),
-              help="The body mesh the garment was modelled on (any topology, pose and units).")
+@click.option(
+    "--mhclo",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="MakeHuman binding (default: GARMENT itself if .mhclo, else a .mhclo of the same name beside it).",
+)
+@click.option(
+    "--from-body",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The body mesh the garment was modelled on (any topology, pose and units).",
+)
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Target body .npz (default: shipped).")
 @click.option("--betas", help="Target body shape, comma-separated coefficients.")
 @click.option("--units", help="Units of the garment (and --from-body) file: m, dm, cm, mm, inch, ft or a number.")
-@click.option("--up", type=click.Choice(["y", "z", "-z", "x"]), default="y", show_default=True,
-              help="Up axis of the garment (and --from-body) file.")
+@click.option(
+    "--up",
+    type=click.Choice(["y", "z", "-z", "x"]),
+    default="y",
+    show_default=True,
+    help="Up axis of the garment (and --from-body) file.",
+)
 @click.option("--scale", type=float, default=1.0, show_default=True, help="Extra scale factor.")
-@click.option("--offset", help="Move by dx,dy,dz metres (after a --mhclo/--from-body fit, or after units, axes and "
-              "scale).")
-@click.option("--margin", type=float, help="Push vertices out of the body to this clearance, metres "
-              "(default 0.003 for --mhclo/--from-body fits, none for plain unit/axis fixes).")
+@click.option(
+    "--offset", help="Move by dx,dy,dz metres (after a --mhclo/--from-body fit, or after units, axes and scale)."
+)
+@click.option(
+    "--margin",
+    type=float,
+    help="Push vertices out of the body to this clearance, metres "
+    "(default 0.003 for --mhclo/--from-body fits, none for plain unit/axis fixes).",
+)
 def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, scale, offset, margin):
     """Bring GARMENT (OBJ or .mhclo) onto the body: a MakeHuman binding, --from-body, or --units/--up/--scale.
 
@@ -111,23 +130,34 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     if mhclo is not None:
         if from_body is not None:
             raise click.UsageError("give --mhclo or --from-body, not both")
-        fixes = [f for f, given in (("--units", units is not None), ("--up", up != "y"), ("--scale", scale != 1.0))
-                 if given]
+        fixes = [
+            f for f, given in (("--units", units is not None), ("--up", up != "y"), ("--scale", scale != 1.0)) if given
+        ]
         if fixes:  # the binding places every vertex on the body itself: these cannot apply
-            raise InputError(f"{', '.join(fixes)} do not apply to a MakeHuman binding: it places the garment on "
-                             "the body itself", path=mhclo, expected="--offset, --margin, --betas",
-                             got=", ".join(fixes))
+            raise InputError(
+                f"{', '.join(fixes)} do not apply to a MakeHuman binding: it places the garment on the body itself",
+                path=mhclo,
+                expected="--offset, --margin, --betas",
+                got=", ".join(fixes),
+            )
         binding = read_mhclo(mhclo)
         obj = obj or binding.obj_path()
         if obj is None:
             raise InputError("the .mhclo names no obj_file; pass the OBJ as GARMENT", path=mhclo)
         if not obj.is_file():
-            raise InputError(f"the garment mesh {obj.name} is missing", path=mhclo,
-                             expected=f"{obj} (obj_file in the .mhclo, or the OBJ given as GARMENT)")
+            raise InputError(
+                f"the garment mesh {obj.name} is missing",
+                path=mhclo,
+                expected=f"{obj} (obj_file in the .mhclo, or the OBJ given as GARMENT)",
+            )
     elif from_body is None and b is not None:
-        raise InputError("--betas needs a garment that can be refitted to a body shape; a unit/axis fix does not "
-                         "change the garment's shape", path=garment,
-                         expected="a MakeHuman binding (--mhclo) or --from-body with --betas", got="a plain OBJ")
+        raise InputError(
+            "--betas needs a garment that can be refitted to a body shape; a unit/axis fix does not "
+            "change the garment's shape",
+            path=garment,
+            expected="a MakeHuman binding (--mhclo) or --from-body with --betas",
+            got="a plain OBJ",
+        )
     guard = OutputGuard("garment fit", inputs=(garment, mhclo, obj, from_body, body))
     guard.file(output)
     bm = load_body(body or default_body_path())
@@ -143,9 +173,13 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     elif from_body is not None:
         src = read_mesh(from_body)
         g = read_mesh(obj)
-        fit = fit_to_body_mesh(fix_units_and_axes(g.vertices, units=units_v, up=up, scale=scale),
-                                    fix_units_and_axes(src.vertices, units=units_v, up=up, scale=scale),
-                                    src.faces, bm, b)
+        fit = fit_to_body_mesh(
+            fix_units_and_axes(g.vertices, units=units_v, up=up, scale=scale),
+            fix_units_and_axes(src.vertices, units=units_v, up=up, scale=scale),
+            src.faces,
+            bm,
+            b,
+        )
         v = fit.vertices
         how = f"registered to {from_body.name} (body fit {100 * fit.body_error:.1f} cm mean)"
         default_margin = 0.003
@@ -159,8 +193,12 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         how += f", offset {off}"
     mesh = read_mesh(obj)
     if len(mesh.vertices) != len(v):
-        raise InputError(f"the binding and {obj.name} have different vertex counts", path=mhclo or obj,
-                         expected=f"{len(mesh.vertices)} binding lines", got=len(v))
+        raise InputError(
+            f"the binding and {obj.name} have different vertex counts",
+            path=mhclo or obj,
+            expected=f"{len(mesh.vertices)} binding lines",
+            got=len(v),
+        )
     m = default_margin if margin is None else margin
     pushed = 0
     if m is not None:

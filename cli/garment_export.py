@@ -12,17 +12,31 @@ from .garment import _betas, garment_group
 
 @garment_group.command("export")
 @click.argument("garment", type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="The asset to write: .sgda (portable) or .npz.")
-@click.option("--body", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              help="Body .npz (default: the shipped body): the body the model package's body graphs pose.")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The asset to write: .sgda (portable) or .npz.",
+)
+@click.option(
+    "--body",
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    help="Body .npz (default: the shipped body): the body the model package's body graphs pose.",
+)
 @click.option("--betas", help="Comma-separated body shape coefficients.")
-@click.option("--model", type=click.Path(file_okay=False, exists=True, path_type=Path),
-              help="Model package the asset is for: its descriptor length N* and skinning-weight prior "
-                   "(default: the shipped model).")
+@click.option(
+    "--model",
+    type=click.Path(file_okay=False, exists=True, path_type=Path),
+    help="Model package the asset is for: its descriptor length N* and skinning-weight prior "
+    "(default: the shipped model).",
+)
 @click.option("--k", type=click.IntRange(min=1), default=None, help="Neighbour slots K (default: max valence, capped).")
-@click.option("--force", is_flag=True, help="Export a garment even when it does not sit on the body, or for a body no "
-              "human's height.")
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Export a garment even when it does not sit on the body, or for a body no human's height.",
+)
 def garment_export_cmd(garment, output, body, betas, model, k, force):
     """Prepare GARMENT (a mesh, or an asset from `segadeform precompute`) for a body shape: neighbours, mask,
     descriptor, the encoder features for the shape's rest joints, the body's weights at the garment
@@ -52,15 +66,30 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
     else:
         n_star = config["n_star"]
         mesh = read_mesh(garment)
-        asset = precompute_garment(mesh.vertices, mesh.faces, b.rest_joints()[0], k=k, n_star=n_star,
-                                   source_name=garment.name, source_sha256=file_sha256(garment))
+        asset = precompute_garment(
+            mesh.vertices,
+            mesh.faces,
+            b.rest_joints()[0],
+            k=k,
+            n_star=n_star,
+            source_name=garment.name,
+            source_sha256=file_sha256(garment),
+        )
     if not force:
         check_body_height(b, beta_vals)
-        check_placement(asset.vertices, b.shaped_vertices(beta_vals)[0], b.faces, path=garment,
-                        template_vertices=b.v_template, betas=beta_vals)
+        check_placement(
+            asset.vertices,
+            b.shaped_vertices(beta_vals)[0],
+            b.faces,
+            path=garment,
+            template_vertices=b.v_template,
+            betas=beta_vals,
+        )
     asset = prepare_for_body(asset, b, beta_vals, weight_prior=config.get("weight_prior", "nearest"))
     asset.save(output)
     guard.record()
-    click.echo(f"{garment.name}: {asset.n_vertices} vertices, K={asset.nbr.shape[1]}, N*={len(asset.descriptor)}, "
-               f"for {asset.body['name'] or 'the body'} betas {[round(float(x), 4) for x in asset.betas[:len(beta_vals)]]} "
-               f"-> {output}")
+    click.echo(
+        f"{garment.name}: {asset.n_vertices} vertices, K={asset.nbr.shape[1]}, N*={len(asset.descriptor)}, "
+        f"for {asset.body['name'] or 'the body'} betas {[round(float(x), 4) for x in asset.betas[: len(beta_vals)]]} "
+        f"-> {output}"
+    )

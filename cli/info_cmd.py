@@ -18,13 +18,17 @@ def info_cmd(package):
 
     pkg = ModelPackage(package)
     m = pkg.manifest
-    click.echo(f"{package}: {m.get('format', 'model package')} schema {m['schema_version']}, opset {m['opset']}, "
-               f"{m.get('producer', '?')}, exporter {m.get('exporter', '?')}")
+    click.echo(
+        f"{package}: {m.get('format', 'model package')} schema {m['schema_version']}, opset {m['opset']}, "
+        f"{m.get('producer', '?')}, exporter {m.get('exporter', '?')}"
+    )
     click.echo(f"  units {m.get('units')}, up +{m.get('up_axis')}, {len(m['joint_names'])} joints")
     click.echo("  config: " + json.dumps(m["config"], sort_keys=True))
     if m.get("upgraded_from"):
-        click.echo(f"  (read as schema {m['schema_version']} from schema {m['upgraded_from']}; "
-                   "`segadeform repack` rewrites it)")
+        click.echo(
+            f"  (read as schema {m['schema_version']} from schema {m['upgraded_from']}; "
+            "`segadeform repack` rewrites it)"
+        )
     for name, spec in m["graphs"].items():
         sig = ", ".join(f"{i['name']}{i['shape']}" for i in spec["inputs"])
         outs = ", ".join(f"{o['name']}{o['shape']}" for o in spec["outputs"])

@@ -17,16 +17,21 @@ def _frames_summary(path, frames: np.ndarray) -> None:
     bad = ~np.isfinite(frames).all(axis=(1, 2))
     if bad.any():
         idx = np.flatnonzero(bad)
-        raise FileFormatError(f"{int((~np.isfinite(frames)).sum())} non-finite values (NaN or inf), in {len(idx)} frames "
-                              f"({', '.join(map(str, idx[:8]))}{' ...' if len(idx) > 8 else ''})", path=path)
+        raise FileFormatError(
+            f"{int((~np.isfinite(frames)).sum())} non-finite values (NaN or inf), in {len(idx)} frames "
+            f"({', '.join(map(str, idx[:8]))}{' ...' if len(idx) > 8 else ''})",
+            path=path,
+        )
     lo, hi = frames.reshape(-1, 3).min(0).astype(float), frames.reshape(-1, 3).max(0).astype(float)
     click.echo(f"  bounds {np.round(lo, 4).tolist()} .. {np.round(hi, 4).tolist()} (all frames); NaN/inf: none")
     if len(frames) > 1:
         step = np.linalg.norm(np.diff(frames, axis=0), axis=2)  # (S-1, N)
         c = frames.mean(axis=1).astype(float)
-        click.echo(f"  motion per frame: mean {1e3 * step.mean():.2f} mm, largest {1e3 * step.max():.2f} mm "
-                   f"(frame {int(np.unravel_index(step.argmax(), step.shape)[0]) + 1}); centroid travels "
-                   f"{np.round(np.ptp(c, axis=0), 4).tolist()} m (x, y, z range)")
+        click.echo(
+            f"  motion per frame: mean {1e3 * step.mean():.2f} mm, largest {1e3 * step.max():.2f} mm "
+            f"(frame {int(np.unravel_index(step.argmax(), step.shape)[0]) + 1}); centroid travels "
+            f"{np.round(np.ptp(c, axis=0), 4).tolist()} m (x, y, z range)"
+        )
         still = int((step.max(axis=1) == 0).sum())
         if still:
             click.echo(f"  {still} frames identical to the one before")
@@ -48,8 +53,10 @@ def inspect_cmd(path):
         for name in pkg.manifest["graphs"]:
             pkg.session(name)
         n_dec = sum(1 for g in pkg.manifest["graphs"].values() if g["role"] == "deformer")
-        click.echo(f"{path}: model package, graphs {', '.join(pkg.manifest['graphs'])} "
-                   f"({n_dec} deformers, default {pkg.default_deformer})")
+        click.echo(
+            f"{path}: model package, graphs {', '.join(pkg.manifest['graphs'])} "
+            f"({n_dec} deformers, default {pkg.default_deformer})"
+        )
         return
     try:
         path.stat()
@@ -85,11 +92,15 @@ def inspect_cmd(path):
             while nz and nz[-1] == 0:
                 nz.pop()
             made += f" with betas [{', '.join(f'{b:g}' for b in nz)}]"
-        click.echo(f"{path}: motion file, {m.n_frames} frames at {m.fps:g} fps, {m.poses.shape[1] // 3} joints"
-                   f"{made}; source {meta.get('source', meta.get('name', '?'))}")
+        click.echo(
+            f"{path}: motion file, {m.n_frames} frames at {m.fps:g} fps, {m.poses.shape[1] // 3} joints"
+            f"{made}; source {meta.get('source', meta.get('name', '?'))}"
+        )
         rot = np.linalg.norm(m.poses.reshape(m.n_frames, -1, 3), axis=2)
-        click.echo(f"  root translation {np.round(m.trans.min(0), 4).tolist()} .. {np.round(m.trans.max(0), 4).tolist()} m; "
-                   f"largest joint rotation {float(rot.max()):.3f} rad")
+        click.echo(
+            f"  root translation {np.round(m.trans.min(0), 4).tolist()} .. {np.round(m.trans.max(0), 4).tolist()} m; "
+            f"largest joint rotation {float(rot.max()):.3f} rad"
+        )
     elif ext == ".sgda":
         from segadeform.geometry import GarmentAsset
 
@@ -116,5 +127,7 @@ def inspect_cmd(path):
 
         m = read_mesh(path)
         v = m.vertices
-        click.echo(f"{path}: mesh, {m.n_vertices} vertices, {m.n_faces} triangles, bounds "
-                   f"{np.round(v.min(0), 4).tolist()} .. {np.round(v.max(0), 4).tolist()}")
+        click.echo(
+            f"{path}: mesh, {m.n_vertices} vertices, {m.n_faces} triangles, bounds "
+            f"{np.round(v.min(0), 4).tolist()} .. {np.round(v.max(0), 4).tolist()}"
+        )

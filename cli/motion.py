@@ -23,8 +23,13 @@ def motion_group():
 @click.option("--speed", type=float, default=1.0, show_default=True, help="Cycle rate multiplier.")
 @click.option("--amplitude", type=float, default=1.0, show_default=True, help="Joint angle scale (0..2).")
 @click.option("--ease-in", type=float, default=1.0, show_default=True, help="Seconds to blend in from rest.")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Motion file (.npz, .bvh or .sgdm).")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Motion file (.npz, .bvh or .sgdm).",
+)
 def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
     """Make a procedural motion of KIND (idle, walk, run, jump, arm_swing, touch_high, torso_twist, dance)."""
     from segadeform.io.output_guard import OutputGuard
@@ -45,14 +50,21 @@ def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
 
 @motion_group.command("info")
 @click.argument("motion", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--body", type=click.Path(dir_okay=False, path_type=Path),
-              help="Retarget onto this body (default: the shipped body).")
-@click.option("--up", type=click.Choice(["auto", "y", "z"]), default="auto", show_default=True,
-              help="Up axis of the file.")
+@click.option(
+    "--body",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Retarget onto this body (default: the shipped body).",
+)
+@click.option(
+    "--up", type=click.Choice(["auto", "y", "z"]), default="auto", show_default=True, help="Up axis of the file."
+)
 @click.option("--units", help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).")
 @click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path), help="BVH/AMC joint map (TOML/JSON).")
-@click.option("--skeleton", type=click.Path(dir_okay=False, path_type=Path),
-              help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).")
+@click.option(
+    "--skeleton",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).",
+)
 @click.option("--animation", help="glTF motions (.glb/.gltf): the animation (default: the first).")
 def info_cmd(motion, body, up, units, joint_map, skeleton, animation):
     """Print frames, rate, duration, joint ranges and (BVH, AMC) the joint mapping of MOTION (.npz, .bvh, .amc or
@@ -66,41 +78,55 @@ def info_cmd(motion, body, up, units, joint_map, skeleton, animation):
         units_v = float(units) if units is not None else None
     except ValueError:
         units_v = units
-    m = load_motion(motion, rest_joints=J, up=up, units=units_v, joint_map=joint_map, skeleton=skeleton,
-                    animation=animation)
+    m = load_motion(
+        motion, rest_joints=J, up=up, units=units_v, joint_map=joint_map, skeleton=skeleton, animation=animation
+    )
     ang = np.linalg.norm(m.poses.reshape(-1, 24, 3), axis=-1)
     click.echo(f"{motion}: {m.n_frames} frames, {m.fps:g} fps, {m.seconds:.2f} s")
     meta = m.meta
     if meta.get("format") == "amc":
-        click.echo(f"  skeleton: {meta['skeleton']} ({meta['scheme']} names), length unit {meta['length_unit']:g} "
-                   f"= {meta['metres_per_unit']:.5g} m, up {meta['up']}, scale {meta['scale']:.5g} m per unit "
-                   f"(legs fitted to the body); {meta['source_fps']:g} fps (CMU's rate: AMC states none)")
+        click.echo(
+            f"  skeleton: {meta['skeleton']} ({meta['scheme']} names), length unit {meta['length_unit']:g} "
+            f"= {meta['metres_per_unit']:.5g} m, up {meta['up']}, scale {meta['scale']:.5g} m per unit "
+            f"(legs fitted to the body); {meta['source_fps']:g} fps (CMU's rate: AMC states none)"
+        )
     elif meta.get("format") in ("bvh", "gltf"):
         names = "read by its shape" if meta["scheme"].startswith("shape") else f"{meta['scheme']} names"
-        click.echo(f"  skeleton: {names}, up {meta['up']}, units look like {meta['units_guess']}, "
-                   f"scale {meta['scale']:.5g} m per unit"
-                   + (f"; animation {meta['animation']!r} of {len(meta['animations'])}" if "animation" in meta else ""))
+        click.echo(
+            f"  skeleton: {names}, up {meta['up']}, units look like {meta['units_guess']}, "
+            f"scale {meta['scale']:.5g} m per unit"
+            + (f"; animation {meta['animation']!r} of {len(meta['animations'])}" if "animation" in meta else "")
+        )
     if meta.get("format") in ("bvh", "amc", "gltf"):
         how = meta.get("found_by", {})
         for by in dict.fromkeys(how.get(k, meta["scheme"]) for k in meta["mapped"]):  # one line per way found
-            click.echo(f"  mapped by {by}: " + ", ".join(f"{k}={v}" for k, v in meta["mapped"].items()
-                                                        if how.get(k, meta["scheme"]) == by))
+            click.echo(
+                f"  mapped by {by}: "
+                + ", ".join(f"{k}={v}" for k, v in meta["mapped"].items() if how.get(k, meta["scheme"]) == by)
+            )
         if meta["virtual"]:
             click.echo("  filled in (not in the file): " + ", ".join(meta["virtual"]))
         if meta["ignored"]:
-            click.echo(f"  folded into their parents ({len(meta['ignored'])}): " + ", ".join(meta["ignored"][:20])
-                       + (" ..." if len(meta["ignored"]) > 20 else ""))
+            click.echo(
+                f"  folded into their parents ({len(meta['ignored'])}): "
+                + ", ".join(meta["ignored"][:20])
+                + (" ..." if len(meta["ignored"]) > 20 else "")
+            )
     elif meta.get("format") == "npz":
-        click.echo(f"  {meta['convention']} npz, {meta['source_width']} pose values per frame, up {meta['up']}"
-                   + (f", gender {meta['gender']}" if "gender" in meta else ""))
+        click.echo(
+            f"  {meta['convention']} npz, {meta['source_width']} pose values per frame, up {meta['up']}"
+            + (f", gender {meta['gender']}" if "gender" in meta else "")
+        )
     from segadeform.body.kinematics import forward_kinematics, poses_to_rotmats
     from segadeform.body.skeleton import SMPL_PARENTS
 
     _, posed = forward_kinematics(poses_to_rotmats(m.poses, 24), J, SMPL_PARENTS, m.trans)
     feet = posed[:, [7, 8, 10, 11], 1]
     click.echo(f"  root travel: {np.ptp(m.trans, axis=0).round(3).tolist()} m (x, y, z range)")
-    click.echo(f"  lowest foot joint: {feet.min():.3f} m (rest pose: {J[[7, 8, 10, 11], 1].min():.3f} m; "
-               f"--floor moves it there)")
+    click.echo(
+        f"  lowest foot joint: {feet.min():.3f} m (rest pose: {J[[7, 8, 10, 11], 1].min():.3f} m; "
+        f"--floor moves it there)"
+    )
     click.echo(f"  largest joint rotation: {np.rad2deg(ang[:, 1:].max()):.1f} deg")
     click.echo(f"  outside joint limits by: {np.rad2deg(limit_violation(m.poses)):.2f} deg")
     if m.betas is not None:

@@ -12,26 +12,43 @@ from .motion import motion_group
 
 @motion_group.command("export")
 @click.argument("source")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="The motion file to write (.sgdm).")
-@click.option("--body", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              help="Retarget onto this body (default: the shipped body); the body the garment asset is for.")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The motion file to write (.sgdm).",
+)
+@click.option(
+    "--body",
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    help="Retarget onto this body (default: the shipped body); the body the garment asset is for.",
+)
 @click.option("--betas", help="Comma-separated body shape coefficients (as for the garment asset).")
 @click.option("--fps", type=float, help="Resample to this frame rate (procedural motions: made at it; default 30).")
 @click.option("--frames", help="Keep frames A:B (B exclusive): the file starts at A, so motion windows start there.")
-@click.option("--up", type=click.Choice(["auto", "y", "z"]), default="auto", show_default=True,
-              help="Up axis of a motion file (AMASS is z-up).")
+@click.option(
+    "--up",
+    type=click.Choice(["auto", "y", "z"]),
+    default="auto",
+    show_default=True,
+    help="Up axis of a motion file (AMASS is z-up).",
+)
 @click.option("--units", help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).")
 @click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path), help="BVH/AMC joint map (TOML/JSON).")
-@click.option("--skeleton", type=click.Path(dir_okay=False, path_type=Path),
-              help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).")
+@click.option(
+    "--skeleton",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).",
+)
 @click.option("--floor", is_flag=True, help="Move the motion so the feet touch the floor.")
 @click.option("--seconds", type=float, default=3.0, show_default=True, help="Procedural motions: duration.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Procedural motions: seed.")
 @click.option("--speed", type=float, default=1.0, show_default=True, help="Procedural motions: cycle rate.")
 @click.option("--amplitude", type=float, default=1.0, show_default=True, help="Procedural motions: joint angle scale.")
-def motion_export_cmd(source, output, body, betas, fps, frames, up, units, joint_map, skeleton, floor, seconds, seed,
-                      speed, amplitude):
+def motion_export_cmd(
+    source, output, body, betas, fps, frames, up, units, joint_map, skeleton, floor, seconds, seed, speed, amplitude
+):
     """Write SOURCE (a .bvh, .amc or .npz motion, or a procedural kind: idle, walk, dance, ...) as a motion file:
     poses (T, 24, 3) and translations (T, 3) on the body's skeleton, as `segadeform run` would play it."""
     from segadeform.body import default_body_path, load_body
@@ -55,16 +72,22 @@ def motion_export_cmd(source, output, body, betas, fps, frames, up, units, joint
     if path.suffix.lower() in (".bvh", ".npz", ".amc") or path.exists():
         spec = MotionSpec(file=path, fps=fps, up=up, units=units, joint_map=joint_map, floor=floor, skeleton=skeleton)
     elif source in MOTION_KINDS:
-        spec = MotionSpec(kind=source, seconds=seconds, fps=fps, seed=seed, speed=speed, amplitude=amplitude,
-                          floor=floor)
+        spec = MotionSpec(
+            kind=source, seconds=seconds, fps=fps, seed=seed, speed=speed, amplitude=amplitude, floor=floor
+        )
     else:
-        raise InputError("SOURCE is neither a motion file nor a procedural kind",
-                         expected=".bvh, .amc, .npz or one of " + ", ".join(MOTION_KINDS), got=source)
+        raise InputError(
+            "SOURCE is neither a motion file nor a procedural kind",
+            expected=".bvh, .amc, .npz or one of " + ", ".join(MOTION_KINDS),
+            got=source,
+        )
     b = load_body(body or default_body_path())
     m, _ = select_frames(build_motion(spec, b.rest_joints(beta_vals)[0]), parse_frames(frames) if frames else None)
     full = [0.0] * b.n_betas
-    full[:len(beta_vals)] = beta_vals
+    full[: len(beta_vals)] = beta_vals
     write_motion_file(output, m, body=body_label(b), betas=full, source=str(source))
     guard.record()
-    click.echo(f"{m.name}: {m.n_frames} frames at {m.fps:g} fps ({m.seconds:.2f} s) on "
-               f"{body_label(b)['name'] or 'the body'} -> {output}")
+    click.echo(
+        f"{m.name}: {m.n_frames} frames at {m.fps:g} fps ({m.seconds:.2f} s) on "
+        f"{body_label(b)['name'] or 'the body'} -> {output}"
+    )

@@ -12,12 +12,25 @@ from .main import cli
 
 @cli.command("precompute")
 @click.argument("garment", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Asset file to write: .npz, or .sgda (portable: read without Python; docs/package.md).")
-@click.option("--joints", "joints_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Rest-pose joints, an (S, 3) .npy array (metres, +Y up).")
-@click.option("--body", "body_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Body .npz to take the rest-pose joints from.")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Asset file to write: .npz, or .sgda (portable: read without Python; docs/package.md).",
+)
+@click.option(
+    "--joints",
+    "joints_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Rest-pose joints, an (S, 3) .npy array (metres, +Y up).",
+)
+@click.option(
+    "--body",
+    "body_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Body .npz to take the rest-pose joints from.",
+)
 @click.option("--k", type=click.IntRange(min=1), default=None, help="Neighbour slots K (default: max valence, capped).")
 @click.option("--max-k", type=click.IntRange(min=1), default=None, help="Cap for automatic K.")
 @click.option("--n-star", type=click.IntRange(min=1), default=None, help="Descriptor length N*.")
@@ -39,13 +52,21 @@ def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, ge
     mesh = read_mesh(garment)
     joints = load_rest_joints(joints_path or body_path)
     asset = precompute_garment(
-        mesh.vertices, mesh.faces, joints, k=k, max_k=max_k or DEFAULT_MAX_K,
-        n_star=n_star or DEFAULT_N_STAR, geodesic=geodesic or DEFAULT_GEODESIC,
-        source_name=garment.name, source_sha256=file_sha256(garment),
+        mesh.vertices,
+        mesh.faces,
+        joints,
+        k=k,
+        max_k=max_k or DEFAULT_MAX_K,
+        n_star=n_star or DEFAULT_N_STAR,
+        geodesic=geodesic or DEFAULT_GEODESIC,
+        source_name=garment.name,
+        source_sha256=file_sha256(garment),
     )
     asset.save(output)
     guard.record()
     dt = time.perf_counter() - t0
-    click.echo(f"{garment.name}: {asset.n_vertices} vertices, {len(asset.faces)} triangles, "
-               f"K={asset.nbr.shape[1]}, S={len(asset.joints)}, N*={len(asset.descriptor)}, "
-               f"{asset.params['n_components']} part(s) -> {output} ({dt:.2f} s)")
+    click.echo(
+        f"{garment.name}: {asset.n_vertices} vertices, {len(asset.faces)} triangles, "
+        f"K={asset.nbr.shape[1]}, S={len(asset.joints)}, N*={len(asset.descriptor)}, "
+        f"{asset.params['n_components']} part(s) -> {output} ({dt:.2f} s)"
+    )

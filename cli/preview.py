@@ -13,22 +13,43 @@ from .main import cli
 
 @cli.command("preview")
 @click.argument("result", type=click.Path(path_type=Path))
-@click.option("--garment", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="The garment mesh the result animates (its faces; same vertex count and order).")
-@click.option("--body", "body_seq", type=click.Path(path_type=Path),
-              help="The posed body sequence (`run --body-out`); its faces come from the OBJ beside it, "
-                   "else from --body-model.")
+@click.option(
+    "--garment",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The garment mesh the result animates (its faces; same vertex count and order).",
+)
+@click.option(
+    "--body",
+    "body_seq",
+    type=click.Path(path_type=Path),
+    help="The posed body sequence (`run --body-out`); its faces come from the OBJ beside it, else from --body-model.",
+)
 @click.option("--body-model", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped).")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="preview.png (a strip of frames), .gif or .mp4 (needs ffmpeg).")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="preview.png (a strip of frames), .gif or .mp4 (needs ffmpeg).",
+)
 @click.option("--frames", help="Frame range A:B of the result (default: all).")
 @click.option("--every", type=click.IntRange(min=1), default=1, show_default=True, help="Render every Nth frame.")
-@click.option("--view", type=click.Choice(["front", "side", "back", "three-quarter", "turntable"]),
-              default="three-quarter", show_default=True)
+@click.option(
+    "--view",
+    type=click.Choice(["front", "side", "back", "three-quarter", "turntable"]),
+    default="three-quarter",
+    show_default=True,
+)
 @click.option("--size", default="360x480", show_default=True, help="WIDTHxHEIGHT of one view in pixels.")
 @click.option("--fps", type=float, help="Animation rate (default: the result's 30 fps over --every).")
-@click.option("--up", type=click.Choice(UP_AXES), default="y", show_default=True,
-              help="Up axis the result was written with (run --up).")
+@click.option(
+    "--up",
+    type=click.Choice(UP_AXES),
+    default="y",
+    show_default=True,
+    help="Up axis the result was written with (run --up).",
+)
 def preview_cmd(result, garment, body_seq, body_model, output, frames, every, view, size, fps, up):
     """Render RESULT (PC2, OBJ sequence folder, XDMF or Alembic) with its garment and, if given, the body."""
     import numpy as np
@@ -49,17 +70,25 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     g = read_mesh(garment)
     G = np.asarray(read_sequence(result, faces=g.faces), np.float64)
     if G.shape[1] != g.n_vertices:
-        raise InputError("the result and the garment have different vertex counts", path=result,
-                         expected=g.n_vertices, got=G.shape[1])
+        raise InputError(
+            "the result and the garment have different vertex counts",
+            path=result,
+            expected=g.n_vertices,
+            got=G.shape[1],
+        )
     B = bf = None
     if body_seq is not None:
         side = body_seq.with_suffix(".obj")
-        bf = read_mesh(side).faces if side.is_file() and body_seq.suffix.lower() != ".obj" else \
-            load_body(body_model or default_body_path()).faces
+        bf = (
+            read_mesh(side).faces
+            if side.is_file() and body_seq.suffix.lower() != ".obj"
+            else load_body(body_model or default_body_path()).faces
+        )
         B = np.asarray(read_sequence(body_seq, faces=bf), np.float64)
         if len(B) != len(G):
-            raise InputError("the body and garment sequences have different frame counts", path=body_seq,
-                             expected=len(G), got=len(B))
+            raise InputError(
+                "the body and garment sequences have different frame counts", path=body_seq, expected=len(G), got=len(B)
+            )
     if up == "z":  # back to +Y up for rendering
         R = np.array(Y_TO_Z)
         G = G @ R
@@ -67,8 +96,11 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     a, b = parse_frames(frames) if frames else (0, None)
     b = len(G) if b is None else b
     if not 0 <= a < b <= len(G):
-        raise InputError(f"frame range {a}:{b} is outside the result's {len(G)} frames", path=result,
-                         expected=f"0 <= A < B <= {len(G)}")
+        raise InputError(
+            f"frame range {a}:{b} is outside the result's {len(G)} frames",
+            path=result,
+            expected=f"0 <= A < B <= {len(G)}",
+        )
     idx = list(range(a, b, every))
     az = {"front": 0.0, "side": 90.0, "back": 180.0, "three-quarter": 30.0, "turntable": 0.0}[view]
     pts = G[idx] if B is None else np.concatenate([G[idx], B[idx]], axis=1)
@@ -83,8 +115,7 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         bounds = ((cx - half * w, cx + half * w), (cy - half * h, cy + half * h))
         layers = [] if B is None else [MeshLayer(B[t], bf, (0.86, 0.72, 0.62))]
         layers.append(MeshLayer(G[t], g.faces, (0.28, 0.45, 0.82), depth_bias=0.004))
-        images.append(render(layers, azimuth=angles[k], size=(w, h), bounds=bounds,
-                             title=f"{result.name}  frame {t}"))
+        images.append(render(layers, azimuth=angles[k], size=(w, h), bounds=bounds, title=f"{result.name}  frame {t}"))
     ext = output.suffix.lower()
     if ext == ".png":
         if len(images) > 8:

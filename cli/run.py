@@ -37,51 +37,119 @@ def _quality_choice():
 @click.argument("scene", required=False, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path), help="Output (overrides the scene's).")
 @click.option("--garment", type=click.Path(dir_okay=False, path_type=Path), help="Garment mesh (flag form).")
-@click.option("--motion", "motion_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Motion .npz/.bvh/.amc/.glb/.gltf/.sgdm (flag form; CMU's .amc is read at 120 fps).")
+@click.option(
+    "--motion",
+    "motion_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Motion .npz/.bvh/.amc/.glb/.gltf/.sgdm (flag form; CMU's .amc is read at 120 fps).",
+)
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz/.pkl (default: shipped body).")
 @click.option("--betas", help="Comma-separated body shape coefficients.")
 @click.option("--effects", help="e.g. 'dqs,-wrinkles,-collisions' (default: lbs, all effects on).")
-@click.option("--quality", type=_quality_choice(),
-              help="A preset from the measured accuracy/time frontier (segadeform.settings.presets, "
-                   "docs/accuracy-vs-time.md); replaces the scene's effects; --effects may then only change "
-                   "it (+name/-name).")
-@click.option("--cloth", "cloth", metavar="NAME=VALUE,..",
-              help="The cloth stage's knobs (iterations, stiffness, stretch, compress, bending, damping, follow, "
-                   "gravity, attachment, max_distance, reset: segadeform.settings.cloth) over the scene's; the "
-                   "stage is on when the scene or --effects names it (--effects=+cloth).")
-@click.option("--format", "fmt", type=_format_choice(),
-              help="Output format (see segadeform.io.formats; abc needs the 'alembic' extra).")
+@click.option(
+    "--quality",
+    type=_quality_choice(),
+    help="A preset from the measured accuracy/time frontier (segadeform.settings.presets, "
+    "docs/accuracy-vs-time.md); replaces the scene's effects; --effects may then only change "
+    "it (+name/-name).",
+)
+@click.option(
+    "--cloth",
+    "cloth",
+    metavar="NAME=VALUE,..",
+    help="The cloth stage's knobs (iterations, stiffness, stretch, compress, bending, damping, follow, "
+    "gravity, attachment, max_distance, reset: segadeform.settings.cloth) over the scene's; the "
+    "stage is on when the scene or --effects names it (--effects=+cloth).",
+)
+@click.option(
+    "--format",
+    "fmt",
+    type=_format_choice(),
+    help="Output format (see segadeform.io.formats; abc needs the 'alembic' extra).",
+)
 @click.option("--model", type=click.Path(file_okay=False, path_type=Path), help="Model package directory.")
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
 @click.option("--fps", type=float, help="Resample the motion to this frame rate.")
-@click.option("--batch", type=click.IntRange(min=1), default=8, show_default=True,
-              help="Frames per deformer call, at most (big garments use fewer: <= 32,768 vertex-frames per call).")
+@click.option(
+    "--batch",
+    type=click.IntRange(min=1),
+    default=8,
+    show_default=True,
+    help="Frames per deformer call, at most (big garments use fewer: <= 32,768 vertex-frames per call).",
+)
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help="onnxruntime threads.")
 @click.option("--providers", help="Comma-separated onnxruntime providers, or 'auto' (default: CPU).")
 @click.option("--body-out", type=click.Path(path_type=Path), help="Also write the posed body sequence here.")
 @click.option("--up", type=click.Choice(UP_AXES), help="Up axis of the written coordinates (default y).")
-@click.option("--no-cache", is_flag=True, help="Do not use the user cache of precompute/encoder results "
-              "($SEGADEFORM_CACHE_DIR or the platform's cache folder).")
-@click.option("--motion-up", type=click.Choice(["auto", "y", "z"]),
-              help="Up axis of the motion file (default auto; AMASS is z-up).")
+@click.option(
+    "--no-cache",
+    is_flag=True,
+    help="Do not use the user cache of precompute/encoder results "
+    "($SEGADEFORM_CACHE_DIR or the platform's cache folder).",
+)
+@click.option(
+    "--motion-up",
+    type=click.Choice(["auto", "y", "z"]),
+    help="Up axis of the motion file (default auto; AMASS is z-up).",
+)
 @click.option("--units", help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).")
-@click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path),
-              help="BVH joint map (TOML/JSON: smpl_name = \"FileJoint\") for skeletons not recognised.")
-@click.option("--skeleton", type=click.Path(dir_okay=False, path_type=Path),
-              help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).")
+@click.option(
+    "--joint-map",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help='BVH joint map (TOML/JSON: smpl_name = "FileJoint") for skeletons not recognised.',
+)
+@click.option(
+    "--skeleton",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).",
+)
 @click.option("--animation", help="glTF motions (.glb/.gltf): the animation to play (default: the first).")
 @click.option("--floor", is_flag=True, default=None, help="Move the motion so the feet touch the floor.")
-@click.option("--force", is_flag=True, help="Write into an output folder that holds other files (beside them, never "
-              "over a file segadeform did not write: segadeform.io.output_guard), and accept inputs that do not fit "
-              "the body: a garment off it, a body no human's height, an asset or motion file made for another "
-              "shape.")
-@click.option("--body-backend", type=click.Choice(["auto", "graph", "numpy"]), default="auto", show_default=True,
-              help="How the body is posed for collisions and --body-out: the package's body graph (float32, as "
-                   "every other runtime), numpy (float64), or auto: the graph when it poses this body, else numpy.")
-def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, fmt, model, frames, fps, batch,
-            threads, providers, body_out, up, no_cache, motion_up, units, joint_map, skeleton, animation, floor,
-            force, body_backend, cloth=None):
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Write into an output folder that holds other files (beside them, never "
+    "over a file segadeform did not write: segadeform.io.output_guard), and accept inputs that do not fit "
+    "the body: a garment off it, a body no human's height, an asset or motion file made for another "
+    "shape.",
+)
+@click.option(
+    "--body-backend",
+    type=click.Choice(["auto", "graph", "numpy"]),
+    default="auto",
+    show_default=True,
+    help="How the body is posed for collisions and --body-out: the package's body graph (float32, as "
+    "every other runtime), numpy (float64), or auto: the graph when it poses this body, else numpy.",
+)
+def run_cmd(
+    scene,
+    output,
+    garment,
+    motion_path,
+    body,
+    betas,
+    effects,
+    quality,
+    fmt,
+    model,
+    frames,
+    fps,
+    batch,
+    threads,
+    providers,
+    body_out,
+    up,
+    no_cache,
+    motion_up,
+    units,
+    joint_map,
+    skeleton,
+    animation,
+    floor,
+    force,
+    body_backend,
+    cloth=None,
+):
     """Animate a garment: SCENE.toml, or the flag form --garment G --motion M -o OUT."""
     import dataclasses
 
@@ -93,8 +161,10 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
         from segadeform.settings.presets import is_change_list, preset_effects
 
         if effects and not is_change_list(effects):
-            raise click.UsageError(f"--quality {quality} sets the effects; --effects may only change them with "
-                                   f"signed items (e.g. --effects=+collisions), got the complete list {effects!r}")
+            raise click.UsageError(
+                f"--quality {quality} sets the effects; --effects may only change them with "
+                f"signed items (e.g. --effects=+collisions), got the complete list {effects!r}"
+            )
         preset = preset_effects(quality, effects)
     if scene is not None:
         if garment or motion_path:
@@ -117,13 +187,25 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
             changes["body"] = body
         if betas:
             changes["betas"] = tuple(float(x) for x in betas.split(","))
-        mchanges = {k: v for k, v in (("up", motion_up), ("units", units), ("joint_map", joint_map),
-                                       ("skeleton", skeleton), ("animation", animation), ("floor", floor))
-                    if v is not None}
+        mchanges = {
+            k: v
+            for k, v in (
+                ("up", motion_up),
+                ("units", units),
+                ("joint_map", joint_map),
+                ("skeleton", skeleton),
+                ("animation", animation),
+                ("floor", floor),
+            )
+            if v is not None
+        }
         if frames or fps or mchanges:
             changes["motion"] = dataclasses.replace(
-                sc.motion, frames=parse_frames(frames) if frames else sc.motion.frames, fps=fps or sc.motion.fps,
-                **mchanges)
+                sc.motion,
+                frames=parse_frames(frames) if frames else sc.motion.frames,
+                fps=fps or sc.motion.fps,
+                **mchanges,
+            )
         sc = dataclasses.replace(sc, **changes)
     else:
         if not (garment and motion_path and output):
@@ -132,19 +214,35 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
             beta_vals = tuple(float(x) for x in betas.split(",")) if betas else ()
         except ValueError:
             raise click.UsageError(f"--betas must be comma-separated numbers, got {betas!r}") from None
-        sc = Scene(garment=garment, motion=MotionSpec(file=motion_path, fps=fps,
-                                                      frames=parse_frames(frames) if frames else None,
-                                                      up=motion_up or "auto", units=units, joint_map=joint_map,
-                                                      skeleton=skeleton, animation=animation, floor=bool(floor)),
-                   output=output, output_format=_fmt_from(output, fmt), up=up or "y", body=body, betas=beta_vals,
-                   model=None, body_output=body_out,
-                   effects=preset if preset is not None else parse_effects(effects) if effects else Effects())
+        sc = Scene(
+            garment=garment,
+            motion=MotionSpec(
+                file=motion_path,
+                fps=fps,
+                frames=parse_frames(frames) if frames else None,
+                up=motion_up or "auto",
+                units=units,
+                joint_map=joint_map,
+                skeleton=skeleton,
+                animation=animation,
+                floor=bool(floor),
+            ),
+            output=output,
+            output_format=_fmt_from(output, fmt),
+            up=up or "y",
+            body=body,
+            betas=beta_vals,
+            model=None,
+            body_output=body_out,
+            effects=preset if preset is not None else parse_effects(effects) if effects else Effects(),
+        )
     if cloth:
         from segadeform.settings.cloth import ClothSettings
 
         if not sc.effects.cloth:
-            raise click.UsageError("--cloth sets the cloth stage's knobs, but the stage is off (turn it on with "
-                                   "--effects=+cloth)")
+            raise click.UsageError(
+                "--cloth sets the cloth stage's knobs, but the stage is off (turn it on with --effects=+cloth)"
+            )
         try:
             knobs = ClothSettings.parse(cloth, sc.effects.cloth_settings)
         except ValueError as e:
@@ -162,21 +260,38 @@ def run_cmd(scene, output, garment, motion_path, body, betas, effects, quality, 
         total = b - a
     from segadeform.io.output_guard import OutputGuard
 
-    guard = OutputGuard("run", force=force, inputs=(scene, sc.garment, sc.motion.file, sc.body, sc.motion.joint_map,
-                                                    sc.motion.skeleton, model or sc.model))
-    with click.progressbar(length=total or 1, label="deforming", file=sys.stderr,
-                           hidden=not interactive) as bar:
-        summary = run_scene(sc, model=model, output=output, batch=batch, threads=threads, providers=prov,
-                            progress=bar.update if interactive else None, cache=not no_cache, force=force,
-                            body_backend=body_backend, guard=guard, frames_from_scene=not frames)
+    guard = OutputGuard(
+        "run",
+        force=force,
+        inputs=(scene, sc.garment, sc.motion.file, sc.body, sc.motion.joint_map, sc.motion.skeleton, model or sc.model),
+    )
+    with click.progressbar(length=total or 1, label="deforming", file=sys.stderr, hidden=not interactive) as bar:
+        summary = run_scene(
+            sc,
+            model=model,
+            output=output,
+            batch=batch,
+            threads=threads,
+            providers=prov,
+            progress=bar.update if interactive else None,
+            cache=not no_cache,
+            force=force,
+            body_backend=body_backend,
+            guard=guard,
+            frames_from_scene=not frames,
+        )
     off = summary.effects.off()
     q = f"quality {quality}: " if quality else ""
-    click.echo(f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame ({q}effects {summary.effects.label()}"
-               f"{'; off: ' + ', '.join(off) if off else ''}; graph {summary.variant})")
+    click.echo(
+        f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame ({q}effects {summary.effects.label()}"
+        f"{'; off: ' + ', '.join(off) if off else ''}; graph {summary.variant})"
+    )
     if summary.cloth is not None:
         c = summary.cloth
-        click.echo(f"  cloth: {c['contacts']} vertex-frames in contact, {c['pushed']} pushed out after the sweeps, "
-                   f"{c['resets']} reset(s), {1e3 * summary.stage_seconds['cloth'] / max(summary.frames, 1):.2f} "
-                   f"ms/frame")
+        click.echo(
+            f"  cloth: {c['contacts']} vertex-frames in contact, {c['pushed']} pushed out after the sweeps, "
+            f"{c['resets']} reset(s), {1e3 * summary.stage_seconds['cloth'] / max(summary.frames, 1):.2f} "
+            f"ms/frame"
+        )
     for path in summary.written:
         click.echo(f"  wrote {path}")

@@ -14,17 +14,27 @@ from .main import cli
 @cli.command("simulate")
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path), help="Output (overrides the scene's).")
-@click.option("--effects", help="Simulation effects, as for run: a complete list replaces the scene's "
-                                "(e.g. 'gravity,body_collision'; 'none' for none), signed items change it "
-                                "(e.g. '+wind,-bending').  A scene without [simulate] starts from "
-                                "gravity, body_collision, bending, air_damping.")
+@click.option(
+    "--effects",
+    help="Simulation effects, as for run: a complete list replaces the scene's "
+    "(e.g. 'gravity,body_collision'; 'none' for none), signed items change it "
+    "(e.g. '+wind,-bending').  A scene without [simulate] starts from "
+    "gravity, body_collision, bending, air_damping.",
+)
 @click.option("--material", help="Material preset (cotton, silk, denim, jersey, leather).")
 @click.option("--quality", type=click.IntRange(1, 80), help="Solver steps per frame.")
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
-@click.option("--sim-python", type=click.Path(dir_okay=False, path_type=Path),
-              help="The simulator environment's Python (default: SEGADEFORM_SIM_PYTHON or .venv-sim).")
-@click.option("--force", is_flag=True, help="Write into an output folder that holds other files (beside them, never "
-                                            "over a file segadeform did not write).")
+@click.option(
+    "--sim-python",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="The simulator environment's Python (default: SEGADEFORM_SIM_PYTHON or .venv-sim).",
+)
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Write into an output folder that holds other files (beside them, never "
+    "over a file segadeform did not write).",
+)
 def simulate_cmd(scene, output, effects, material, quality, frames, sim_python, force):
     """Simulate SCENE.toml's garment on its body with Blender's cloth solver; write it like `run`."""
     from segadeform.io import format_for_path
@@ -54,19 +64,32 @@ def simulate_cmd(scene, output, effects, material, quality, frames, sim_python, 
     sc = dataclasses.replace(sc, **changes)
     interactive = sys.stderr.isatty()
     with click.progressbar(length=1, label="simulating", file=sys.stderr, hidden=not interactive) as bar:
+
         def progress(done, total):
             bar.length = total
             bar.update(done - bar.pos)
 
         from segadeform.io.output_guard import OutputGuard
 
-        guard = OutputGuard("simulate", force=force, inputs=(scene, sc.garment, sc.motion.file, sc.body,
-                                                             sc.motion.joint_map, sc.motion.skeleton))
-        s = simulate_scene(sc, output=output, settings=st, sim_python=sim_python,
-                           progress=progress if interactive else None, guard=guard, frames_from_scene=not frames)
+        guard = OutputGuard(
+            "simulate",
+            force=force,
+            inputs=(scene, sc.garment, sc.motion.file, sc.body, sc.motion.joint_map, sc.motion.skeleton),
+        )
+        s = simulate_scene(
+            sc,
+            output=output,
+            settings=st,
+            sim_python=sim_python,
+            progress=progress if interactive else None,
+            guard=guard,
+            frames_from_scene=not frames,
+        )
     r = s.result
-    click.echo(f"{s.frames} frames (+{r.preroll_frames} pre-roll), {r.seconds_per_frame:.3f} s/frame in Blender "
-               f"{r.blender['blender_version']} ({', '.join(st.effects) or 'no effects'}; {st.material}, "
-               f"quality {st.quality})")
+    click.echo(
+        f"{s.frames} frames (+{r.preroll_frames} pre-roll), {r.seconds_per_frame:.3f} s/frame in Blender "
+        f"{r.blender['blender_version']} ({', '.join(st.effects) or 'no effects'}; {st.material}, "
+        f"quality {st.quality})"
+    )
     for path in s.written:
         click.echo(f"  wrote {path}")

@@ -18,24 +18,40 @@ def _body(path):
 
 @cli.command("train")
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Run folder (an existing run of the same config is resumed).")
-@click.option("--dataset", multiple=True, type=click.Path(exists=True, path_type=Path),
-              help="A dataset root (a folder, a .sgdpack, a folder of packs); repeatable; overrides [data] dataset.")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Run folder (an existing run of the same config is resumed).",
+)
+@click.option(
+    "--dataset",
+    multiple=True,
+    type=click.Path(exists=True, path_type=Path),
+    help="A dataset root (a folder, a .sgdpack, a folder of packs); repeatable; overrides [data] dataset.",
+)
 @click.option("--steps", type=click.IntRange(min=1), help="Overrides optim.steps.")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), help="Overrides optim.device.")
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option("--val", "val_ids", multiple=True, help="Sample id to validate on at each checkpoint (repeatable).")
 @click.option("--threads", type=click.IntRange(min=1), help="torch CPU threads (default: torch's choice).")
-@click.option("--force", is_flag=True, help="Write into a run folder that holds other files (beside them, never over "
-              "them); a run folder of the same config is resumed without it.")
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Write into a run folder that holds other files (beside them, never over "
+    "them); a run folder of the same config is resumed without it.",
+)
 def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, force):
     """Train the SEGA model on a simulated dataset (CONFIG.toml; see segadeform.train.config)."""
     from segadeform.io.output_guard import OutputGuard
 
     guard = OutputGuard("train", force=force, inputs=(config, *dataset, body))
-    guard.resumable(output, layout=("config.toml", "train.json", "last.pt", "model.pt", "loss.csv", "loss.png"),
-                    legacy=("config.toml", "loss.csv", "last.pt"))
+    guard.resumable(
+        output,
+        layout=("config.toml", "train.json", "last.pt", "model.pt", "loss.csv", "loss.png"),
+        legacy=("config.toml", "loss.csv", "last.pt"),
+    )
     from segadeform.train import load_train_config
     from segadeform.train.trainer import train
 
@@ -55,8 +71,11 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
     def progress(step, row):
         if interactive or step % 100 == 0 or step == cfg.optim.steps:
             val = f" held-out {100 * float(row['val_vertex']):.2f} cm" if row.get("val_vertex") != "" else ""
-            click.echo(f"step {step}/{cfg.optim.steps} loss {row['total']:.4g} vertex {100 * row['vertex']:.2f} cm"
-                       f"{val} ({row['seconds']:.0f} s)", err=True)
+            click.echo(
+                f"step {step}/{cfg.optim.steps} loss {row['total']:.4g} vertex {100 * row['vertex']:.2f} cm"
+                f"{val} ({row['seconds']:.0f} s)",
+                err=True,
+            )
 
     guard.start()
     try:
@@ -68,22 +87,46 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
 
 @cli.command("eval")
 @click.argument("dataset", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
-@click.option("-m", "--model", "models", multiple=True, required=True,
-              help="NAME=SPEC with SPEC a model package folder, a .pt checkpoint, 'lbs' or 'lbs-PRIOR' (lbs-inpaint, "
-                   "lbs-idw, lbs-gaussian, lbs-smooth; repeatable).")
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Report folder (eval.md, eval.json, PNG plots).")
+@click.option(
+    "-m",
+    "--model",
+    "models",
+    multiple=True,
+    required=True,
+    help="NAME=SPEC with SPEC a model package folder, a .pt checkpoint, 'lbs' or 'lbs-PRIOR' (lbs-inpaint, "
+    "lbs-idw, lbs-gaussian, lbs-smooth; repeatable).",
+)
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Report folder (eval.md, eval.json, PNG plots).",
+)
 @click.option("--split", default="test", show_default=True, help="Dataset split to evaluate.")
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
-@click.option("--push-out", "push_margin", type=float, multiple=True,
-              help="Also report learned models with the runtime's collision post-process at this margin (m); "
-                   "repeatable (rows 'NAME + push-out N mm').")
-@click.option("--cloth", "cloth", multiple=True, metavar="NAME=VALUE,..|default",
-              help="Also report learned models with the runtime's cloth stage at these settings (as run --cloth; "
-                   "'default' for its defaults); repeatable (rows 'NAME + cloth [settings]').")
+@click.option(
+    "--push-out",
+    "push_margin",
+    type=float,
+    multiple=True,
+    help="Also report learned models with the runtime's collision post-process at this margin (m); "
+    "repeatable (rows 'NAME + push-out N mm').",
+)
+@click.option(
+    "--cloth",
+    "cloth",
+    multiple=True,
+    metavar="NAME=VALUE,..|default",
+    help="Also report learned models with the runtime's cloth stage at these settings (as run --cloth; "
+    "'default' for its defaults); repeatable (rows 'NAME + cloth [settings]').",
+)
 @click.option("--heatmap", help="Model NAME whose per-vertex error map is rendered (default: the first).")
-@click.option("--force", is_flag=True, help="Write the report into a folder that holds other files (beside them, "
-              "never over them).")
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Write the report into a folder that holds other files (beside them, never over them).",
+)
 def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, cloth=()):
     """Evaluate models against the simulation on DATASET (one or more roots: dataset folders, packs, folders of
     packs): the paper's metrics per model and garment type."""
@@ -107,8 +150,15 @@ def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, 
     dataset = DatasetRoots(list(dataset))
     margins = None if not push_margin else push_margin[0] if len(push_margin) == 1 else list(push_margin)
     predictors = make_predictors(spec, package=PackagePredictor)
-    res = run_eval(dataset, b, predictors, split=split, push_out_margin=margins, cloth=list(cloth) or None,
-                   progress=lambda sid: click.echo(f"  {sid}", err=True))
+    res = run_eval(
+        dataset,
+        b,
+        predictors,
+        split=split,
+        push_out_margin=margins,
+        cloth=list(cloth) or None,
+        progress=lambda sid: click.echo(f"  {sid}", err=True),
+    )
     write_report(res, output, dataset=dataset, body=b, heatmap=predictors.get(heatmap or next(iter(spec))))
     guard.record()
     click.echo(markdown_table(res))

@@ -14,6 +14,15 @@ from .package import MANIFEST_SCHEMA_VERSION, OPSET, export_package, graph_specs
 from .packing import pack_graphs, repack_package
 from .portability import ALLOWED_OPS, FORBIDDEN_OPS, PortabilityError, check_portability
 
-__all__ = ["export_package", "repack_package", "pack_graphs", "graph_specs", "MANIFEST_SCHEMA_VERSION", "OPSET",
-           "check_portability",
-           "PortabilityError", "ALLOWED_OPS", "FORBIDDEN_OPS"]
+__all__ = [
+    "export_package",
+    "repack_package",
+    "pack_graphs",
+    "graph_specs",
+    "MANIFEST_SCHEMA_VERSION",
+    "OPSET",
+    "check_portability",
+    "PortabilityError",
+    "ALLOWED_OPS",
+    "FORBIDDEN_OPS",
+]

@@ -55,8 +55,9 @@ def body_module(body, skinning: str):
                 self.register_buffer("j_regressor", torch.as_tensor(body.J_regressor, dtype=f32))
             else:
                 self.register_buffer("joint_template", torch.as_tensor(body.joint_template, dtype=f32))
-                self.register_buffer("joint_shapedirs",
-                                     torch.as_tensor(body.joint_shapedirs.reshape(s * 3, nb).T.copy(), dtype=f32))
+                self.register_buffer(
+                    "joint_shapedirs", torch.as_tensor(body.joint_shapedirs.reshape(s * 3, nb).T.copy(), dtype=f32)
+                )
             self.posed = body.posedirs is not None
             if self.posed:  # (9 (S - 1), 3 V)
                 self.register_buffer("posedirs", torch.as_tensor(body.posedirs.reshape(v * 3, -1).T.copy(), dtype=f32))
@@ -90,9 +91,11 @@ def body_module(body, skinning: str):
 def body_sample_inputs(body, *, b: int = 3, seed: int = 0) -> dict[str, np.ndarray]:
     """Random valid body-graph inputs for B = ``b`` frames (poses within a quarter turn per axis)."""
     rng = np.random.default_rng(seed)
-    return {"betas": rng.normal(0.0, 1.0, body.n_betas).astype(np.float32),
-            "poses": rng.uniform(-0.8, 0.8, (b, body.n_joints, 3)).astype(np.float32),
-            "trans": rng.normal(0.0, 0.3, (b, 3)).astype(np.float32)}
+    return {
+        "betas": rng.normal(0.0, 1.0, body.n_betas).astype(np.float32),
+        "poses": rng.uniform(-0.8, 0.8, (b, body.n_joints, 3)).astype(np.float32),
+        "trans": rng.normal(0.0, 0.3, (b, 3)).astype(np.float32),
+    }
 
 
 def _export(module, inputs: dict, spec: dict, path: Path) -> None:
@@ -103,17 +106,26 @@ def _export(module, inputs: dict, spec: dict, path: Path) -> None:
     from torch.export import Dim
 
     args = tuple(torch.as_tensor(inputs[i["name"]]) for i in spec["inputs"])
-    dyn = {i["name"]: {ax: Dim("B", min=1, max=1 << 20) for ax, d in enumerate(i["shape"]) if d == "B"}
-           for i in spec["inputs"]}
+    dyn = {
+        i["name"]: {ax: Dim("B", min=1, max=1 << 20) for ax, d in enumerate(i["shape"]) if d == "B"}
+        for i in spec["inputs"]
+    }
     onnx_log = logging.getLogger("torch.onnx")
     level = onnx_log.level
     onnx_log.setLevel(logging.ERROR)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            prog = torch.onnx.export(module, args, dynamo=True, opset_version=contract.OPSET, dynamic_shapes=dyn,
-                                     input_names=[i["name"] for i in spec["inputs"]],
-                                     output_names=[o["name"] for o in spec["outputs"]], verbose=False)
+            prog = torch.onnx.export(
+                module,
+                args,
+                dynamo=True,
+                opset_version=contract.OPSET,
+                dynamic_shapes=dyn,
+                input_names=[i["name"] for i in spec["inputs"]],
+                output_names=[o["name"] for o in spec["outputs"]],
+                verbose=False,
+            )
             prog.save(str(path), external_data=False)
     finally:
         onnx_log.setLevel(level)
@@ -126,8 +138,12 @@ def _constant_outputs(proto) -> None:
     inits = {t.name: t for t in proto.graph.initializer}
     keep = []
     for n in proto.graph.node:
-        if n.op_type == "Identity" and n.input[0] in inits and n.output[0] in outs \
-                and sum(n.input[0] in m.input for m in proto.graph.node) == 1:
+        if (
+            n.op_type == "Identity"
+            and n.input[0] in inits
+            and n.output[0] in outs
+            and sum(n.input[0] in m.input for m in proto.graph.node) == 1
+        ):
             inits[n.input[0]].name = n.output[0]
             continue
         keep.append(n)
@@ -150,8 +166,14 @@ def export_body_graphs(body, folder: str | os.PathLike, *, skinnings=contract.SK
     label = body_label(body)
     for skin in skinnings:
         name = contract.body_name(skin)
-        spec = contract.body_spec(n_vertices=body.n_vertices, n_faces=len(body.faces), n_betas=body.n_betas,
-                                  n_joints=body.n_joints, skinning=skin, body=label)
+        spec = contract.body_spec(
+            n_vertices=body.n_vertices,
+            n_faces=len(body.faces),
+            n_betas=body.n_betas,
+            n_joints=body.n_joints,
+            skinning=skin,
+            body=label,
+        )
         path = folder / spec["file"]
         _export(body_module(body, skin), body_sample_inputs(body), spec, path)
         proto = onnx.load(str(path))
@@ -185,12 +207,18 @@ def add_body_to_package(package: str | os.PathLike, body, out: str | os.PathLike
         raise InputError("not a model package (no manifest.json)", path=src, expected="a model package folder")
     m = contract.read_manifest_text(mpath.read_text(encoding="utf-8"), path=mpath)
     if m.get("upgraded_from"):
-        raise InputError("the package is an older schema: repack it first", path=src,
-                         expected=f"schema {contract.SCHEMA_VERSION} (segadeform repack PKG -o NEW)",
-                         got=f"schema {m['upgraded_from']}")
+        raise InputError(
+            "the package is an older schema: repack it first",
+            path=src,
+            expected=f"schema {contract.SCHEMA_VERSION} (segadeform repack PKG -o NEW)",
+            got=f"schema {m['upgraded_from']}",
+        )
     if list(body.joint_names) != list(m["joint_names"]):
-        raise InputError("the body's skeleton is not the model's", expected=", ".join(m["joint_names"][:4]) + ", ...",
-                         got=", ".join(list(body.joint_names)[:4]) + ", ...")
+        raise InputError(
+            "the body's skeleton is not the model's",
+            expected=", ".join(m["joint_names"][:4]) + ", ...",
+            got=", ".join(list(body.joint_names)[:4]) + ", ...",
+        )
     with atomic_directory(dst) as tmp:
         tmp = Path(tmp)
         graphs = {k: dict(g) for k, g in m["graphs"].items() if g["role"] != contract.ROLES[contract.BODY]}

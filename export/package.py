@@ -47,7 +47,9 @@ def sample_inputs(cfg, graph: str, *, n: int, k: int, b: int, seed: int = 0) -> 
         elif inp["name"] == "window":
             out["window"] = (0.4 * rng.standard_normal(shape)).astype(np.float32)
         elif inp["name"] == "joints":
-            out["joints"] = (np.random.default_rng(1).normal(size=(cfg.n_joints, 3)) * 0.3)[None].repeat(b, 0).astype(np.float32)
+            out["joints"] = (
+                (np.random.default_rng(1).normal(size=(cfg.n_joints, 3)) * 0.3)[None].repeat(b, 0).astype(np.float32)
+            )
         elif inp["name"] == "log_wbody":  # sparse body weights: a few joints per vertex, as on a real body
             w = rng.dirichlet(np.full(cfg.n_joints, 0.3), size=n)
             w[w < 0.05] = 0.0
@@ -116,18 +118,36 @@ def _run_export(module, args, spec, in_names, out_names, path, dynamo) -> None:
     if dynamo:
         from torch.export import Dim
 
-        dims = {"B": Dim("B", min=1, max=1 << 20), "N": Dim("N", min=3, max=1 << 24),
-                "K": Dim("K", min=1, max=256)}
-        dyn = {i["name"]: {ax: dims[d] for ax, d in enumerate(i["shape"]) if isinstance(d, str)}
-               for i in spec["inputs"]}
-        prog = torch.onnx.export(module, args, dynamo=True, opset_version=OPSET, dynamic_shapes=dyn,
-                                 input_names=in_names, output_names=out_names, verbose=False)
+        dims = {"B": Dim("B", min=1, max=1 << 20), "N": Dim("N", min=3, max=1 << 24), "K": Dim("K", min=1, max=256)}
+        dyn = {
+            i["name"]: {ax: dims[d] for ax, d in enumerate(i["shape"]) if isinstance(d, str)} for i in spec["inputs"]
+        }
+        prog = torch.onnx.export(
+            module,
+            args,
+            dynamo=True,
+            opset_version=OPSET,
+            dynamic_shapes=dyn,
+            input_names=in_names,
+            output_names=out_names,
+            verbose=False,
+        )
         prog.save(str(path), external_data=False)
     else:
-        dyn = {x["name"]: {ax: d for ax, d in enumerate(x["shape"]) if isinstance(d, str)}
-               for x in spec["inputs"] + spec["outputs"]}
-        torch.onnx.export(module, args, str(path), dynamo=False, opset_version=OPSET, input_names=in_names,
-                          output_names=out_names, dynamic_axes=dyn)
+        dyn = {
+            x["name"]: {ax: d for ax, d in enumerate(x["shape"]) if isinstance(d, str)}
+            for x in spec["inputs"] + spec["outputs"]
+        }
+        torch.onnx.export(
+            module,
+            args,
+            str(path),
+            dynamo=False,
+            opset_version=OPSET,
+            input_names=in_names,
+            output_names=out_names,
+            dynamic_axes=dyn,
+        )
 
 
 def deformer_variants(cfg) -> dict:
@@ -142,8 +162,9 @@ def deformer_variants(cfg) -> dict:
     dflt = contract.default_effects(cfg)
     for eff in contract.effect_sets(cfg):
         name = contract.deformer_name(eff)
-        vcfg = cfg.replace(skinning=eff["skinning"], use_blend_shapes=eff["wrinkles"],
-                           window=cfg.window if eff["dynamics"] else 1)
+        vcfg = cfg.replace(
+            skinning=eff["skinning"], use_blend_shapes=eff["wrinkles"], window=cfg.window if eff["dynamics"] else 1
+        )
         vspec = contract.deformer_spec(cfg, eff)
         out[name] = {"config": vcfg, "file": vspec["file"], "effects": eff, "default": eff == dflt, "spec": vspec}
     return out
@@ -186,10 +207,17 @@ def body_parity(body, path, skinning: str, sizes=(1, 4)) -> dict:
     for b in sizes:
         x = body_sample_inputs(body, b=b, seed=b)
         got = dict(zip(("vertices", "joints", "rest_joints", "faces"), sess.run(None, x), strict=False))
-        ref = body.forward(x["poses"].reshape(b, -1).astype(np.float64), x["betas"].astype(np.float64),
-                           x["trans"].astype(np.float64), skinning=skinning)
-        for k, r in (("vertices", ref.vertices), ("joints", ref.joints),
-                     ("rest_joints", body.rest_joints(x["betas"].astype(np.float64))[0])):
+        ref = body.forward(
+            x["poses"].reshape(b, -1).astype(np.float64),
+            x["betas"].astype(np.float64),
+            x["trans"].astype(np.float64),
+            skinning=skinning,
+        )
+        for k, r in (
+            ("vertices", ref.vertices),
+            ("joints", ref.joints),
+            ("rest_joints", body.rest_joints(x["betas"].astype(np.float64))[0]),
+        ):
             a, rel = compare(r, got[k])
             worst[k] = [max(worst[k][0], a), max(worst[k][1], rel)]
         if not np.array_equal(got["faces"], body.faces):
@@ -197,9 +225,17 @@ def body_parity(body, path, skinning: str, sizes=(1, 4)) -> dict:
     return {k: {"max_abs": v[0], "max_rel": v[1]} for k, v in worst.items()}
 
 
-def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, check: bool = True,
-                   variants: bool = True, extra_manifest: dict | None = None, shared_weights: bool = True,
-                   body="default") -> dict:
+def export_package(
+    model,
+    out_dir: str | os.PathLike,
+    *,
+    dynamo: bool = True,
+    check: bool = True,
+    variants: bool = True,
+    extra_manifest: dict | None = None,
+    shared_weights: bool = True,
+    body="default",
+) -> dict:
     """Export ``model`` (a SEGANet) to ``out_dir``; returns the manifest (and parity figures when ``check``).
 
     Writes the garment encoder and one deformer per effect combination (only the model's own with
@@ -230,8 +266,12 @@ def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, ch
         if var["default"]:
             todo[vname] = (wrappers[contract.DEFORMER], var["spec"], cfg, True)
         elif variants:
-            todo[vname] = (_wrappers(_variant_model(net, var["config"]))[contract.DEFORMER], var["spec"],
-                           var["config"], False)
+            todo[vname] = (
+                _wrappers(_variant_model(net, var["config"]))[contract.DEFORMER],
+                var["spec"],
+                var["config"],
+                False,
+            )
     default = contract.deformer_name(contract.default_effects(cfg))
     graphs, ops, report = {}, {}, {}
     with atomic_directory(out_dir) as tmp:
@@ -266,10 +306,20 @@ def export_package(model, out_dir: str | os.PathLike, *, dynamo: bool = True, ch
                 sizes = {} if full else {"sizes": ((37, 7, 2),)}
                 report[name] = parity(module, tmp / g["file"], gspec, gcfg, graph=name, **sizes)
         manifest = contract.make_manifest(
-            config=json.loads(cfg.to_json()), graphs=graphs, default_deformer=default,
-            producer=f"segadeform {__version__}", joint_names=SMPL_JOINT_NAMES, parents=SMPL_PARENTS, units=UNITS,
-            up_axis=UP_AXIS, ops=ops, weights=weights, torch=torch.__version__,
-            exporter="dynamo" if dynamo else "legacy", **(extra_manifest or {}))
+            config=json.loads(cfg.to_json()),
+            graphs=graphs,
+            default_deformer=default,
+            producer=f"segadeform {__version__}",
+            joint_names=SMPL_JOINT_NAMES,
+            parents=SMPL_PARENTS,
+            units=UNITS,
+            up_axis=UP_AXIS,
+            ops=ops,
+            weights=weights,
+            torch=torch.__version__,
+            exporter="dynamo" if dynamo else "legacy",
+            **(extra_manifest or {}),
+        )
         contract.validate_manifest(manifest, path=tmp / contract.MANIFEST_FILE)
         (tmp / contract.MANIFEST_FILE).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
     if check:

@@ -58,8 +58,14 @@ def _raw_bytes(tensor) -> bytes:
     return a.tobytes()
 
 
-def pack_graphs(folder: str | os.PathLike, files: list[str], *, shared: bool = True, min_bytes: int = 256,
-                weights_file: str = spec.WEIGHTS_FILE) -> dict | None:
+def pack_graphs(
+    folder: str | os.PathLike,
+    files: list[str],
+    *,
+    shared: bool = True,
+    min_bytes: int = 256,
+    weights_file: str = spec.WEIGHTS_FILE,
+) -> dict | None:
     """Rewrite the graph ``files`` in ``folder``: debug info stripped; with ``shared``, initializers of at
     least ``min_bytes`` moved into one deduplicated ``weights_file``.
 
@@ -119,8 +125,11 @@ def convert_opset(model, opset: int):
     from onnx import version_converter
 
     if not spec.SUPPORTED_OPSETS.start <= int(opset) < spec.SUPPORTED_OPSETS.stop:
-        raise InputError("unsupported ONNX opset", expected=f"{spec.SUPPORTED_OPSETS.start}.."
-                                                            f"{spec.SUPPORTED_OPSETS.stop - 1}", got=opset)
+        raise InputError(
+            "unsupported ONNX opset",
+            expected=f"{spec.SUPPORTED_OPSETS.start}..{spec.SUPPORTED_OPSETS.stop - 1}",
+            got=opset,
+        )
     now = next(o.version for o in model.opset_import if o.domain in ("", "ai.onnx"))
     if now == opset:
         return model
@@ -139,8 +148,14 @@ def convert_opset(model, opset: int):
     return out
 
 
-def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bool = True,
-                   training_garments: dict | None = None, opset: int | None = None) -> dict:
+def repack_package(
+    src: str | os.PathLike,
+    dst: str | os.PathLike,
+    *,
+    shared: bool = True,
+    training_garments: dict | None = None,
+    opset: int | None = None,
+) -> dict:
     """Write package ``src`` (schema 1, 2 or 3) to ``dst`` in the current layout; returns the new manifest.
 
     The graphs are the same (what they compute is unchanged but for sin and cos, now polynomials within 2e-7
@@ -170,8 +185,9 @@ def repack_package(src: str | os.PathLike, dst: str | os.PathLike, *, shared: bo
             retyped = make_inputs_portable(model)  # schema 3: int32 / float32 inputs (older packages: int64 / bool)
             replace_trig(model)  # sin and cos float32-accurate on WebGPU (graphs exported before it)
             onnx.save(model if opset is None else convert_opset(model, opset), str(tmp / new))
-            graphs[name] = dict(g, file=new, inputs=[dict(i, dtype=retyped.get(i["name"], i["dtype"]))
-                                                     for i in g["inputs"]])
+            graphs[name] = dict(
+                g, file=new, inputs=[dict(i, dtype=retyped.get(i["name"], i["dtype"])) for i in g["inputs"]]
+            )
         weights = pack_graphs(tmp, [g["file"] for g in graphs.values()], shared=shared)
         for name, g in graphs.items():
             g["sha256"] = file_sha256(tmp / g["file"])
@@ -195,5 +211,4 @@ def finish_package(src: Path, tmp: Path, manifest: dict, dst: Path) -> None:
     for extra in Path(src).iterdir():
         if extra.is_file() and extra.suffix in (".md", ".txt"):
             shutil.copyfile(extra, Path(tmp) / extra.name)
-    (Path(tmp) / spec.MANIFEST_FILE).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n",
-                                                encoding="utf-8")
+    (Path(tmp) / spec.MANIFEST_FILE).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n", encoding="utf-8")

@@ -19,8 +19,18 @@ from collections import Counter
 from segadeform.contracts.model_package import MAX_NODE_TENSORS, PORTABLE_INPUT_DTYPES
 from segadeform.errors import SegadeformError
 
-__all__ = ["ALLOWED_OPS", "FORBIDDEN_OPS", "PortabilityError", "iter_graphs", "iter_nodes", "op_counts",
-           "check_portability", "input_dtypes", "make_inputs_portable", "replace_trig"]
+__all__ = [
+    "ALLOWED_OPS",
+    "FORBIDDEN_OPS",
+    "PortabilityError",
+    "iter_graphs",
+    "iter_nodes",
+    "op_counts",
+    "check_portability",
+    "input_dtypes",
+    "make_inputs_portable",
+    "replace_trig",
+]
 
 #: ONNX TensorProto element types by name (the manifest's dtype names)
 _ELEM = {1: "float32", 6: "int32", 7: "int64", 9: "bool", 10: "float16", 11: "float64"}
@@ -31,16 +41,22 @@ FORBIDDEN_OPS = {
     "ScatterElements": "scatter with reduction is missing or slow on GPU engines; use padded Gather",
     "ScatterND": "scatter with reduction is missing or slow on GPU engines; use padded Gather",
     "LSTM": "no LSTM on Sentis' GPU backends nor onnxruntime-web WebGPU; unroll it",
-    "GRU": "unsupported in Sentis", "RNN": "unsupported in Sentis",
-    "Loop": "unsupported in Sentis", "Scan": "unsupported in Sentis", "If": "control flow; not portable",
-    "Unique": "data-dependent output shape", "SequenceConstruct": "sequence types are not portable",
+    "GRU": "unsupported in Sentis",
+    "RNN": "unsupported in Sentis",
+    "Loop": "unsupported in Sentis",
+    "Scan": "unsupported in Sentis",
+    "If": "control flow; not portable",
+    "Unique": "data-dependent output shape",
+    "SequenceConstruct": "sequence types are not portable",
 }
-ALLOWED_OPS = frozenset("""
+ALLOWED_OPS = frozenset(
+    """
 Abs Add And ArgMax Cast Ceil Clip Concat Constant ConstantOfShape Cos Div Elu Equal Erf Exp Expand
 Flatten Floor Gather Gemm Greater GreaterOrEqual Identity LeakyRelu Less LessOrEqual Log MatMul Max
 Min Mul Neg Not OneHot Or Pow Range Reciprocal ReduceL2 ReduceMax ReduceMean ReduceMin ReduceSum Relu
 Reshape Shape Sigmoid Sign Sin Slice Softmax Split Sqrt Squeeze Sub Tanh Tile Transpose Unsqueeze Where
-""".split())
+""".split()
+)
 
 
 class PortabilityError(SegadeformError):
@@ -79,8 +95,11 @@ def op_counts(model) -> Counter:
 def input_dtypes(model) -> dict[str, str]:
     """``{input name: dtype}`` of an ``onnx.ModelProto``'s graph inputs (initializers excluded)."""
     inits = {t.name for t in model.graph.initializer}
-    return {i.name: _ELEM.get(i.type.tensor_type.elem_type, f"elem_type {i.type.tensor_type.elem_type}")
-            for i in model.graph.input if i.name not in inits}
+    return {
+        i.name: _ELEM.get(i.type.tensor_type.elem_type, f"elem_type {i.type.tensor_type.elem_type}")
+        for i in model.graph.input
+        if i.name not in inits
+    }
 
 
 def make_inputs_portable(model) -> dict[str, str]:
@@ -118,21 +137,29 @@ def check_portability(model, name: str = "graph") -> Counter:
     ``MAX_NODE_TENSORS`` tensors and every graph input that is not float32 or int32; return the op counts."""
     wrong = {k: v for k, v in input_dtypes(model).items() if v not in PORTABLE_INPUT_DTYPES}
     if wrong:
-        raise PortabilityError(f"{name} has graph inputs WebGPU and engines do not take: "
-                               + ", ".join(f"{k} {v}" for k, v in wrong.items())
-                               + f" (expected {' or '.join(PORTABLE_INPUT_DTYPES)}; int64 indices as int32, bool "
-                                 "masks as float32 1/0)")
+        raise PortabilityError(
+            f"{name} has graph inputs WebGPU and engines do not take: "
+            + ", ".join(f"{k} {v}" for k, v in wrong.items())
+            + f" (expected {' or '.join(PORTABLE_INPUT_DTYPES)}; int64 indices as int32, bool "
+            "masks as float32 1/0)"
+        )
     counts = op_counts(model)
     bad = sorted(op for op in counts if op not in ALLOWED_OPS)
     if bad:
         why = "; ".join(f"{op}: {FORBIDDEN_OPS.get(op, 'not in the portable op set')}" for op in bad)
         raise PortabilityError(f"{name} uses non-portable ops: {why}")
-    wide = sorted({(n.op_type, len(n.input) + len(n.output)) for n in iter_nodes(model)
-                   if len(n.input) + len(n.output) > MAX_NODE_TENSORS})
+    wide = sorted(
+        {
+            (n.op_type, len(n.input) + len(n.output))
+            for n in iter_nodes(model)
+            if len(n.input) + len(n.output) > MAX_NODE_TENSORS
+        }
+    )
     if wide:
-        raise PortabilityError(f"{name} has nodes reading and writing more than {MAX_NODE_TENSORS} tensors (WebGPU's "
-                               f"default storage buffers per shader): "
-                               + ", ".join(f"{op} with {k}" for op, k in wide))
+        raise PortabilityError(
+            f"{name} has nodes reading and writing more than {MAX_NODE_TENSORS} tensors (WebGPU's "
+            f"default storage buffers per shader): " + ", ".join(f"{op} with {k}" for op, k in wide)
+        )
     return counts
 
 

@@ -93,8 +93,9 @@ def _fp16_weights(graph) -> None:
             continue
         half = numpy_helper.from_array(numpy_helper.to_array(init).astype(np.float16), init.name + "__fp16")
         keep.append(half)
-        casts.append(helper.make_node("Cast", [half.name], [init.name], to=TensorProto.FLOAT,
-                                      name=init.name + "__to_fp32"))
+        casts.append(
+            helper.make_node("Cast", [half.name], [init.name], to=TensorProto.FLOAT, name=init.name + "__to_fp32")
+        )
     del graph.initializer[:]
     graph.initializer.extend(keep)
     nodes = list(graph.node)
@@ -133,8 +134,9 @@ def convert_package(src: str | os.PathLike, dst: str | os.PathLike, precision: s
             f = contract.graph_file(name)
             convert_graph(src / spec["file"], tmp / f, precision)
             retyped = _portable_inputs(tmp / f)
-            graphs[name] = dict(spec, file=f, inputs=[dict(i, dtype=retyped.get(i["name"], i["dtype"]))
-                                                      for i in spec["inputs"]])
+            graphs[name] = dict(
+                spec, file=f, inputs=[dict(i, dtype=retyped.get(i["name"], i["dtype"])) for i in spec["inputs"]]
+            )
         weights = pack_graphs(tmp, [g["file"] for g in graphs.values()])
         for g in graphs.values():
             g["sha256"] = file_sha256(tmp / g["file"])

@@ -57,4 +57,3 @@ def mesh_descriptors(paths: Sequence[str | os.PathLike], n_star: int) -> tuple[l
     if not rows:
         raise InputError("no training garment files given")
     return names, np.stack(rows), openings
-

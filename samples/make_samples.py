@@ -18,7 +18,6 @@ from segadeform.geometry.primitives import frustum
 HERE = Path(__file__).resolve().parent
 
 
-
 def write_skirt_obj(path: Path, n_around: int = 64, n_rings: int = 24) -> None:
     """A flared skirt (open tube from the waist to below the knee), written the way DCC
     tools export: quads, a UV seam (one more ``vt`` column than vertices around),
@@ -44,8 +43,12 @@ def write_skirt_obj(path: Path, n_around: int = 64, n_rings: int = 24) -> None:
         for a in range(n_around):
             b = (a + 1) % n_around
             quad_v = [r * n_around + a, r * n_around + b, (r + 1) * n_around + b, (r + 1) * n_around + a]
-            quad_t = [r * (n_around + 1) + a, r * (n_around + 1) + a + 1,
-                      (r + 1) * (n_around + 1) + a + 1, (r + 1) * (n_around + 1) + a]
+            quad_t = [
+                r * (n_around + 1) + a,
+                r * (n_around + 1) + a + 1,
+                (r + 1) * (n_around + 1) + a + 1,
+                (r + 1) * (n_around + 1) + a,
+            ]
             if r < half:
                 corners = [f"{i + 1}/{t + 1}/{i + 1}" for i, t in zip(quad_v, quad_t, strict=True)]
             else:  # relative indices: -1 is the last vertex/texcoord/normal defined so far

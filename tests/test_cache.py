@@ -16,8 +16,21 @@ def test_run_caches_in_the_user_cache_not_beside_the_garment(tmp_path, random_pa
     g = tmp_path / "in" / "skirt.obj"
     g.parent.mkdir()
     shutil.copy(SAMPLES / "garments" / "skirt.obj", g)
-    args = ["run", "--garment", str(g), "--motion", str(SAMPLES / "motions" / "walk.npz"), "-o",
-            str(tmp_path / "o.pc2"), "--model", str(random_package), "--frames", "0:4", "--effects", "lbs"]
+    args = [
+        "run",
+        "--garment",
+        str(g),
+        "--motion",
+        str(SAMPLES / "motions" / "walk.npz"),
+        "-o",
+        str(tmp_path / "o.pc2"),
+        "--model",
+        str(random_package),
+        "--frames",
+        "0:4",
+        "--effects",
+        "lbs",
+    ]
     assert CliRunner().invoke(cli, args).exit_code == 0
     assert sorted(p.name for p in g.parent.iterdir()) == ["skirt.obj"]
     entries = sorted(p.name for p in (tmp_path / "cache").iterdir())

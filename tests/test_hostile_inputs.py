@@ -61,8 +61,17 @@ def test_bundle_meta_that_is_not_an_object_is_refused(walk_sgdm, tmp_path):
     bad = tmp_path / "list.sgdm"
     bad.write_bytes(data[:i] + b"meta [1]" + data[j:])
     refused("bundle meta must be a JSON object", "inspect", bad, name=bad)
-    refused("bundle meta must be a JSON object", "run", "--garment", SKIRT, "--motion", bad, "-o", tmp_path / "o.pc2",
-            name=bad)
+    refused(
+        "bundle meta must be a JSON object",
+        "run",
+        "--garment",
+        SKIRT,
+        "--motion",
+        bad,
+        "-o",
+        tmp_path / "o.pc2",
+        name=bad,
+    )
     asset = tmp_path / "g.sgda"
     assert invoke("garment", "export", SKIRT, "-o", asset).exit_code == 0
     data = asset.read_bytes()
@@ -70,8 +79,17 @@ def test_bundle_meta_that_is_not_an_object_is_refused(walk_sgdm, tmp_path):
     bad = tmp_path / "list.sgda"
     bad.write_bytes(data[:i] + b"meta [1]" + data[j:])
     refused("bundle meta must be a JSON object", "inspect", bad, name=bad)
-    refused("bundle meta must be a JSON object", "run", "--garment", bad, "--motion", walk_sgdm, "-o",
-            tmp_path / "o.pc2", name=bad)
+    refused(
+        "bundle meta must be a JSON object",
+        "run",
+        "--garment",
+        bad,
+        "--motion",
+        walk_sgdm,
+        "-o",
+        tmp_path / "o.pc2",
+        name=bad,
+    )
     assert not (tmp_path / "o.pc2").exists()
 
 
@@ -118,6 +136,7 @@ def _first_binding(lines):
 
 def test_mhclo_weights_must_sum_to_one(tmp_path):
     """Weights `0 0 0` crashed the fit (LinAlgError)."""
+
     def zero(lines):
         k = _first_binding(lines)
         t = lines[k].split()
@@ -132,6 +151,7 @@ def test_mhclo_weights_must_sum_to_one(tmp_path):
 @pytest.mark.parametrize("where", ["binding", "x_scale", "delete_verts"])
 def test_mhclo_negative_indices_are_refused(tmp_path, where):
     """A negative base-mesh index counted from the end of the base mesh."""
+
     def neg(lines):
         if where == "binding":
             k = _first_binding(lines)
@@ -151,12 +171,25 @@ def test_mhclo_negative_indices_are_refused(tmp_path, where):
 
 def test_betas_outside_the_shape_space_are_refused(tmp_path, walk_sgdm):
     """`run --betas 1e300` and scene `betas = [1e300]` raised IndexError; NaN betas did not name the scene."""
-    refused("betas out of range", "run", "--garment", SKIRT, "--motion", WALK, "--betas", "1e300", "--no-cache",
-            "-o", tmp_path / "o.pc2")
+    refused(
+        "betas out of range",
+        "run",
+        "--garment",
+        SKIRT,
+        "--motion",
+        WALK,
+        "--betas",
+        "1e300",
+        "--no-cache",
+        "-o",
+        tmp_path / "o.pc2",
+    )
     for text, words in (("1e300", "body.betas out of range"), ("nan", "body.betas must be finite")):
         scene = tmp_path / f"s_{text}.toml"
-        scene.write_text(f'[garment]\nmesh = "{SKIRT}"\n[body]\nbetas = [{text}]\n[motion]\nkind = "walk"\n'
-                         '[output]\npath = "o.pc2"\n')
+        scene.write_text(
+            f'[garment]\nmesh = "{SKIRT}"\n[body]\nbetas = [{text}]\n[motion]\nkind = "walk"\n'
+            '[output]\npath = "o.pc2"\n'
+        )
         refused(words, "run", scene, name=scene)
     assert not (tmp_path / "o.pc2").exists()
 
@@ -178,8 +211,19 @@ def shaped_inputs(tmp_path_factory):
     assert invoke("garment", "make", "dress", "--betas", b, "-o", d / "dress.obj").exit_code == 0
     r = invoke("garment", "export", d / "dress.obj", "--betas", b, "--model", MODEL, "-o", d / "dress.sgda")
     assert r.exit_code == 0, r.output
-    r = invoke("motion", "export", SAMPLES / "motions" / "cmu" / "02_01_walk.bvh", "--betas", b, "--fps", "30",
-               "--frames", "0:4", "-o", d / "walk.sgdm")
+    r = invoke(
+        "motion",
+        "export",
+        SAMPLES / "motions" / "cmu" / "02_01_walk.bvh",
+        "--betas",
+        b,
+        "--fps",
+        "30",
+        "--frames",
+        "0:4",
+        "-o",
+        d / "walk.sgdm",
+    )
     assert r.exit_code == 0, r.output
     return d
 
@@ -191,12 +235,32 @@ def test_run_on_an_asset_uses_the_betas_it_was_exported_for(shaped_inputs, tmp_p
 
     r = invoke("run", "--garment", d / "dress.sgda", "--motion", d / "walk.sgdm", "-o", tmp_path / "a.pc2")
     assert r.exit_code == 0, r.output
-    r = invoke("run", "--garment", d / "dress.sgda", "--motion", d / "walk.sgdm", "--betas", "0.5,-0.3", "-o",
-               tmp_path / "b.pc2")
+    r = invoke(
+        "run",
+        "--garment",
+        d / "dress.sgda",
+        "--motion",
+        d / "walk.sgdm",
+        "--betas",
+        "0.5,-0.3",
+        "-o",
+        tmp_path / "b.pc2",
+    )
     assert r.exit_code == 0, r.output
     np.testing.assert_array_equal(read_pc2(tmp_path / "a.pc2").frames, read_pc2(tmp_path / "b.pc2").frames)
-    refused("prepared for another body shape than the run's betas", "run", "--garment", d / "dress.sgda",
-            "--motion", d / "walk.sgdm", "--betas", "0.4", "-o", tmp_path / "c.pc2", name=d / "dress.sgda")
+    refused(
+        "prepared for another body shape than the run's betas",
+        "run",
+        "--garment",
+        d / "dress.sgda",
+        "--motion",
+        d / "walk.sgdm",
+        "--betas",
+        "0.4",
+        "-o",
+        tmp_path / "c.pc2",
+        name=d / "dress.sgda",
+    )
 
 
 def test_a_motion_file_for_another_shape_is_refused(shaped_inputs, walk_sgdm, tmp_path):
@@ -205,8 +269,17 @@ def test_a_motion_file_for_another_shape_is_refused(shaped_inputs, walk_sgdm, tm
     out = refused("retargeted onto another body shape", *args, name=shaped_inputs / "walk.sgdm")
     assert "betas [0.5, -0.3]" in out
     assert invoke(*args, "--force").exit_code == 0
-    refused("retargeted onto another body shape", "run", "--garment", shaped_inputs / "dress.sgda", "--motion",
-            walk_sgdm, "-o", tmp_path / "p.pc2", name=walk_sgdm)
+    refused(
+        "retargeted onto another body shape",
+        "run",
+        "--garment",
+        shaped_inputs / "dress.sgda",
+        "--motion",
+        walk_sgdm,
+        "-o",
+        tmp_path / "p.pc2",
+        name=walk_sgdm,
+    )
 
 
 def test_a_motion_file_for_another_body_is_refused(walk_sgdm, tmp_path):
@@ -217,42 +290,92 @@ def test_a_motion_file_for_another_body_is_refused(walk_sgdm, tmp_path):
     b = load_body(SAMPLES / "bodies" / "default_body.npz")
     other = tmp_path / "other_body.npz"
     dataclasses.replace(b, v_template=b.v_template * 1.01).save(other)
-    refused("retargeted onto another body", "run", "--garment", SKIRT, "--motion", walk_sgdm, "--body", other,
-            "--no-cache", "-o", tmp_path / "o.pc2", name=walk_sgdm)
+    refused(
+        "retargeted onto another body",
+        "run",
+        "--garment",
+        SKIRT,
+        "--motion",
+        walk_sgdm,
+        "--body",
+        other,
+        "--no-cache",
+        "-o",
+        tmp_path / "o.pc2",
+        name=walk_sgdm,
+    )
 
 
 def test_the_readme_runtime_files_work_as_written(shaped_inputs, tmp_path):
     """README: `garment export samples/garments/dress.obj --betas 0.5,-0.3` was refused as not on the body; the
     README now makes the dress for that shape (shaped_inputs ran its commands), and the sample dress is refused
     naming the shape it was made for."""
-    out = refused("made for the default body shape (betas 0), not for betas 0.5,-0.3", "garment", "export",
-                  SAMPLES / "garments" / "dress.obj", "--betas", "0.5,-0.3", "--model", MODEL, "-o",
-                  tmp_path / "d.sgda")
+    out = refused(
+        "made for the default body shape (betas 0), not for betas 0.5,-0.3",
+        "garment",
+        "export",
+        SAMPLES / "garments" / "dress.obj",
+        "--betas",
+        "0.5,-0.3",
+        "--model",
+        MODEL,
+        "-o",
+        tmp_path / "d.sgda",
+    )
     assert "garment make KIND --betas 0.5,-0.3" in out
-    r = invoke("run", "--garment", shaped_inputs / "dress.sgda", "--motion", shaped_inputs / "walk.sgdm", "-o",
-               tmp_path / "python.pc2")
+    r = invoke(
+        "run",
+        "--garment",
+        shaped_inputs / "dress.sgda",
+        "--motion",
+        shaped_inputs / "walk.sgdm",
+        "-o",
+        tmp_path / "python.pc2",
+    )
     assert r.exit_code == 0, r.output
 
 
 def test_a_procedural_garment_for_other_betas_is_not_blamed_on_an_origin(tmp_path):
     g = tmp_path / "skirt.obj"
     assert invoke("garment", "make", "skirt", "-o", g).exit_code == 0
-    out = refused("made for the default body shape", "garment", "export", g, "--betas", "1.5", "-o",
-                  tmp_path / "s.sgda", name=g)
+    out = refused(
+        "made for the default body shape", "garment", "export", g, "--betas", "1.5", "-o", tmp_path / "s.sgda", name=g
+    )
     assert "origin" not in out and "--offset" not in out
 
 
 def test_garment_fit_flags_are_used_or_refused(tmp_path):
     """`garment fit X.obj --betas` ignored --betas; `garment fit X.mhclo --offset --units --up` ignored all three."""
-    refused("--betas needs a garment that can be refitted", "garment", "fit", SKIRT, "--betas", "1", "-o",
-            tmp_path / "a.obj", name=SKIRT)
-    refused("--units, --up do not apply to a MakeHuman binding", "garment", "fit", MH / "skirt_short_f.mhclo",
-            "--units", "cm", "--up", "z", "-o", tmp_path / "b.obj", name=MH / "skirt_short_f.mhclo")
+    refused(
+        "--betas needs a garment that can be refitted",
+        "garment",
+        "fit",
+        SKIRT,
+        "--betas",
+        "1",
+        "-o",
+        tmp_path / "a.obj",
+        name=SKIRT,
+    )
+    refused(
+        "--units, --up do not apply to a MakeHuman binding",
+        "garment",
+        "fit",
+        MH / "skirt_short_f.mhclo",
+        "--units",
+        "cm",
+        "--up",
+        "z",
+        "-o",
+        tmp_path / "b.obj",
+        name=MH / "skirt_short_f.mhclo",
+    )
     from segadeform.io import read_obj
 
     for off, name in (("0,0,0", "c.obj"), ("0,0.2,0", "d.obj")):
-        r = invoke("garment", "fit", MH / "skirt_short_f.mhclo", "--offset", off, "--margin", "0", "-o",
-                   tmp_path / name)
+        r = invoke(
+            "garment", "fit", MH / "skirt_short_f.mhclo", "--offset", off, "--margin", "0", "-o", tmp_path / name
+        )
         assert r.exit_code == 0, r.output
     moved = read_obj(tmp_path / "d.obj").vertices - read_obj(tmp_path / "c.obj").vertices
     exact = np.abs(moved - [0, 0.2, 0]).max(axis=1) < 2e-6  # the rest were pushed off the body after the move
@@ -287,8 +410,17 @@ def test_bvh_frame_time_and_translation_within_physical_bounds(good_bvh, tmp_pat
     rows = motion.strip().split("\n")
     far = tmp_path / "far.bvh"
     far.write_text(head + "MOTION\n" + "\n".join(rows[:2] + ["1e30 " + r.split(None, 1)[1] for r in rows[2:]]) + "\n")
-    refused("the motion's root moves too far", "run", "--garment", SKIRT, "--motion", far, "-o", tmp_path / "o.pc2",
-            name=far)
+    refused(
+        "the motion's root moves too far",
+        "run",
+        "--garment",
+        SKIRT,
+        "--motion",
+        far,
+        "-o",
+        tmp_path / "o.pc2",
+        name=far,
+    )
     assert not (tmp_path / "o.pc2").exists()
 
 
@@ -298,30 +430,46 @@ def test_a_manifest_without_weights_does_not_skip_the_weights_hash(tmp_path):
     m = json.loads((pkg / "manifest.json").read_text())
     del m["weights"]
     (pkg / "manifest.json").write_text(json.dumps(m))
-    refused("holds weights.bin but its manifest has no 'weights' entry", "run", "--garment", SKIRT, "--motion", WALK,
-            "--model", pkg, "-o", tmp_path / "o.pc2", name=pkg / "manifest.json")
+    refused(
+        "holds weights.bin but its manifest has no 'weights' entry",
+        "run",
+        "--garment",
+        SKIRT,
+        "--motion",
+        WALK,
+        "--model",
+        pkg,
+        "-o",
+        tmp_path / "o.pc2",
+        name=pkg / "manifest.json",
+    )
 
 
 def test_frames_past_the_end_name_the_scene(tmp_path):
     scene = tmp_path / "s.toml"
-    scene.write_text(f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\nseconds = 0.2\nframes = "3:100"\n'
-                     '[output]\npath = "o.pc2"\n')
+    scene.write_text(
+        f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\nseconds = 0.2\nframes = "3:100"\n'
+        '[output]\npath = "o.pc2"\n'
+    )
     refused("frame range 3:100 is outside the motion's 6 frames", "run", scene, name=scene)
 
 
 def test_a_folder_given_as_the_body_says_so(tmp_path):
     (tmp_path / "bodydir").mkdir()
     scene = tmp_path / "s.toml"
-    scene.write_text(f'[garment]\nmesh = "{SKIRT}"\n[body]\nmodel = "bodydir"\n[motion]\nkind = "walk"\n'
-                     '[output]\npath = "o.pc2"\n')
+    scene.write_text(
+        f'[garment]\nmesh = "{SKIRT}"\n[body]\nmodel = "bodydir"\n[motion]\nkind = "walk"\n[output]\npath = "o.pc2"\n'
+    )
     refused("is a folder, not a body file", "run", scene, name=tmp_path / "bodydir")
 
 
 def test_a_scene_with_a_byte_order_mark_reads(tmp_path):
     """A scene saved with a BOM said "Invalid statement (line 1, col 1)"."""
     scene = tmp_path / "s.toml"
-    scene.write_bytes(b"\xef\xbb\xbf" + f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\nseconds = 0.1\n'
-                      f'[output]\npath = "o.pc2"\n'.encode())
+    scene.write_bytes(
+        b"\xef\xbb\xbf"
+        + f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\nseconds = 0.1\n[output]\npath = "o.pc2"\n'.encode()
+    )
     r = invoke("run", scene, "--no-cache")
     assert r.exit_code == 0, r.output
     assert (tmp_path / "o.pc2").is_file()

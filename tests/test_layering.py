@@ -20,34 +20,40 @@ import pytest
 from tests.conftest import REPO
 
 #: folder -> the import name it installs as
-ROOTS = {"src/segadeform": "segadeform", "export": "segadeform.export", "runtimes/python": "segadeform.runtime",
-         "cli": "segadeform.cli"}
+ROOTS = {
+    "src/segadeform": "segadeform",
+    "export": "segadeform.export",
+    "runtimes/python": "segadeform.runtime",
+    "cli": "segadeform.cli",
+}
 
 #: every layer, lowest first, and the layers each may import besides itself (its own and every lower one's: the
 #: relation is closed transitively below).  DEVELOPERS.md draws this graph.
 LAYERS = {
-    "base": [],                               # segadeform (the package), errors, bounds
-    "io": ["base"],                           # files: every reader and writer, atomic writes, locations, TOML
-    "settings": ["io"],                       # what a run asks for: scenes, effects, presets, simulation, cloth
-    "distributed": ["io"],                    # executors: local processes or Ray
+    "base": [],  # segadeform (the package), errors, bounds
+    "io": ["base"],  # files: every reader and writer, atomic writes, locations, TOML
+    "settings": ["io"],  # what a run asks for: scenes, effects, presets, simulation, cloth
+    "distributed": ["io"],  # executors: local processes or Ray
     "geometry": ["settings", "distributed"],  # mesh maths: precompute, spectra, geodesics
-    "body": ["geometry"],                     # the body model, skinning, collisions, placement, the cloth stage
-    "motion": ["body"],                       # motion readers, retargeting, procedural motions
-    "contracts": ["motion"],                  # the model package contract (export writes it, runtimes read it)
-    "preview": ["motion"],                    # software rendering of meshes
-    "garments": ["contracts", "preview"],     # procedural garments and garments made for another body
-    "physics": ["garments"],                  # the Blender simulator, out of process
-    "dataset": ["physics"],                   # ground-truth datasets
-    "model": ["dataset"],                     # torch: the SEGA network
-    "train": ["model"],                       # torch: training, predictors, metrics, evaluation
-    "export": ["train"],                      # torch -> ONNX model packages
-    "runtime": ["contracts", "preview"],      # onnxruntime: packages run on scenes (never torch)
-    "cli": ["runtime", "export"],             # the commands
+    "body": ["geometry"],  # the body model, skinning, collisions, placement, the cloth stage
+    "motion": ["body"],  # motion readers, retargeting, procedural motions
+    "contracts": ["motion"],  # the model package contract (export writes it, runtimes read it)
+    "preview": ["motion"],  # software rendering of meshes
+    "garments": ["contracts", "preview"],  # procedural garments and garments made for another body
+    "physics": ["garments"],  # the Blender simulator, out of process
+    "dataset": ["physics"],  # ground-truth datasets
+    "model": ["dataset"],  # torch: the SEGA network
+    "train": ["model"],  # torch: training, predictors, metrics, evaluation
+    "export": ["train"],  # torch -> ONNX model packages
+    "runtime": ["contracts", "preview"],  # onnxruntime: packages run on scenes (never torch)
+    "cli": ["runtime", "export"],  # the commands
 }
 
 #: module -> layer, by the longest matching prefix of the module's dotted name
 MODULE_LAYERS = {
-    "segadeform": "base", "segadeform.errors": "base", "segadeform.bounds": "base",
+    "segadeform": "base",
+    "segadeform.errors": "base",
+    "segadeform.bounds": "base",
     "segadeform.io": "io",
     "segadeform.settings": "settings",
     "segadeform.distributed": "distributed",
@@ -134,8 +140,12 @@ def _imported_names(module: str, path: Path, tree: ast.AST):
             yield node.lineno, base
             for a in node.names:
                 yield node.lineno, f"{base}.{a.name}"
-        elif isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant) \
-                and isinstance(node.args[0].value, str):
+        elif (
+            isinstance(node, ast.Call)
+            and node.args
+            and isinstance(node.args[0], ast.Constant)
+            and isinstance(node.args[0].value, str)
+        ):
             f = node.func
             name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else None
             if name in ("import_module", "__import__"):
@@ -217,9 +227,14 @@ def test_no_import_goes_against_the_layers():
 
 def restricted(external) -> list[str]:
     """The third-party imports against :data:`RESTRICTED`."""
-    return [f"{m} imports {top} at line {line}" for m, top, line, lazy in external
-            if top in RESTRICTED and layer_of(m) not in RESTRICTED[top] and top not in ALLOWED_MODULES.get(m, ())
-            and not (lazy and top in LAZY_ALLOWED.get(layer_of(m), ()))]
+    return [
+        f"{m} imports {top} at line {line}"
+        for m, top, line, lazy in external
+        if top in RESTRICTED
+        and layer_of(m) not in RESTRICTED[top]
+        and top not in ALLOWED_MODULES.get(m, ())
+        and not (lazy and top in LAZY_ALLOWED.get(layer_of(m), ()))
+    ]
 
 
 def test_restricted_third_party_imports():
@@ -242,31 +257,39 @@ def _graph_of(tmp_path, files: dict) -> tuple:
 def test_the_check_catches_back_edges_hidden_in_functions(tmp_path):
     """A function-level import of the runtime from the core, a relative one, one through importlib and torch in
     the runtime are each caught; the same imports going down are not."""
-    edges, external = _graph_of(tmp_path, {
-        "src/segadeform/__init__.py": "",
-        "src/segadeform/io/__init__.py": "",
-        "src/segadeform/io/obj.py": "def f():\n    from ..runtime import pipeline\n",
-        "src/segadeform/body/__init__.py": "",
-        "src/segadeform/body/model.py": "def g():\n    import importlib\n"
-                                        "    return importlib.import_module('segadeform.garments.make')\n",
-        "src/segadeform/garments/__init__.py": "",
-        "src/segadeform/garments/make.py": "from segadeform.body import model\n",
-        "runtimes/python/__init__.py": "",
-        "runtimes/python/pipeline.py": "import numpy\n\ndef h():\n    import torch.nn\n"
-                                       "    from segadeform.io import obj\n",
-    })
+    edges, external = _graph_of(
+        tmp_path,
+        {
+            "src/segadeform/__init__.py": "",
+            "src/segadeform/io/__init__.py": "",
+            "src/segadeform/io/obj.py": "def f():\n    from ..runtime import pipeline\n",
+            "src/segadeform/body/__init__.py": "",
+            "src/segadeform/body/model.py": "def g():\n    import importlib\n"
+            "    return importlib.import_module('segadeform.garments.make')\n",
+            "src/segadeform/garments/__init__.py": "",
+            "src/segadeform/garments/make.py": "from segadeform.body import model\n",
+            "runtimes/python/__init__.py": "",
+            "runtimes/python/pipeline.py": "import numpy\n\ndef h():\n    import torch.nn\n"
+            "    from segadeform.io import obj\n",
+        },
+    )
     bad = violations(edges)
-    assert bad == ["segadeform.body.model (body) imports segadeform.garments.make (garments) at line 3",
-                   "segadeform.io.obj (io) imports segadeform.runtime (runtime) at line 2",  # (its __init__ runs)
-                   "segadeform.io.obj (io) imports segadeform.runtime.pipeline (runtime) at line 2"]
+    assert bad == [
+        "segadeform.body.model (body) imports segadeform.garments.make (garments) at line 3",
+        "segadeform.io.obj (io) imports segadeform.runtime (runtime) at line 2",  # (its __init__ runs)
+        "segadeform.io.obj (io) imports segadeform.runtime.pipeline (runtime) at line 2",
+    ]
     assert restricted(external) == ["segadeform.runtime.pipeline imports torch at line 4"]
     assert ("segadeform.garments.make", "segadeform.body.model", 1) in edges
 
 
 def test_torch_free_layers_import_with_torch_blocked():
     """Every module of the torch-free layers imports (and the CLI builds its commands) with torch unavailable."""
-    names = sorted(m for m in modules() if layer_of(m) in TORCH_FREE and m != "segadeform.physics.blender_worker"
-                   and not m.endswith("__main__"))
+    names = sorted(
+        m
+        for m in modules()
+        if layer_of(m) in TORCH_FREE and m != "segadeform.physics.blender_worker" and not m.endswith("__main__")
+    )
     code = (
         "import sys\n"
         "class Block:\n"
@@ -286,10 +309,17 @@ def test_torch_free_layers_import_with_torch_blocked():
     assert len(names) > 80  # the list is derived from the tree, not written by hand
 
 
-@pytest.mark.parametrize("snippet", ["import bpy", "from bpy import data", "import importlib\nimportlib.import_module('bpy')"])
+@pytest.mark.parametrize(
+    "snippet", ["import bpy", "from bpy import data", "import importlib\nimportlib.import_module('bpy')"]
+)
 def test_bpy_anywhere_but_the_worker_is_caught(tmp_path, snippet):
-    _, external = _graph_of(tmp_path, {"src/segadeform/__init__.py": "",
-                                       "src/segadeform/physics/__init__.py": "",
-                                       "src/segadeform/physics/blender.py": f"def run():\n    {snippet.replace(chr(10), chr(10) + '    ')}\n",
-                                       "src/segadeform/physics/blender_worker.py": "import bpy\n"})
+    _, external = _graph_of(
+        tmp_path,
+        {
+            "src/segadeform/__init__.py": "",
+            "src/segadeform/physics/__init__.py": "",
+            "src/segadeform/physics/blender.py": f"def run():\n    {snippet.replace(chr(10), chr(10) + '    ')}\n",
+            "src/segadeform/physics/blender_worker.py": "import bpy\n",
+        },
+    )
     assert {b.split(" at ")[0] for b in restricted(external)} == {"segadeform.physics.blender imports bpy"}

@@ -15,7 +15,11 @@ from segadeform.geometry import (
 )
 from segadeform.io import Mesh, read_obj, read_pc2, write_obj, write_pc2
 
-SETTINGS = dict(max_examples=int(__import__("os").environ.get("SEGADEFORM_HYPOTHESIS_EXAMPLES", "40")), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+SETTINGS = dict(
+    max_examples=int(__import__("os").environ.get("SEGADEFORM_HYPOTHESIS_EXAMPLES", "40")),
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
 
 
 @st.composite
@@ -81,8 +85,13 @@ def test_obj_round_trip(tmp_path_factory, m):
 
 
 @settings(**SETTINGS)
-@given(a=hnp.arrays(np.float32, hnp.array_shapes(min_dims=3, max_dims=3, min_side=1, max_side=6).map(
-    lambda s: (s[0], s[1], 3)), elements=st.floats(-1e6, 1e6, width=32)))
+@given(
+    a=hnp.arrays(
+        np.float32,
+        hnp.array_shapes(min_dims=3, max_dims=3, min_side=1, max_side=6).map(lambda s: (s[0], s[1], 3)),
+        elements=st.floats(-1e6, 1e6, width=32),
+    )
+)
 def test_pc2_round_trip(tmp_path_factory, a):
     p = tmp_path_factory.mktemp("pc2") / "a.pc2"
     write_pc2(p, a)
@@ -113,9 +122,11 @@ def test_axis_angle_round_trip_any_angle(r):
 
 
 @settings(**SETTINGS)
-@given(hnp.arrays(np.float64, (2, 72), elements=st.floats(-np.pi, np.pi)),
-       hnp.arrays(np.float64, (6, 24), elements=st.floats(0, 1)),
-       hnp.arrays(np.float64, (6, 3), elements=st.floats(-2, 2)))
+@given(
+    hnp.arrays(np.float64, (2, 72), elements=st.floats(-np.pi, np.pi)),
+    hnp.arrays(np.float64, (6, 24), elements=st.floats(0, 1)),
+    hnp.arrays(np.float64, (6, 3), elements=st.floats(-2, 2)),
+)
 def test_skinning_is_finite_and_lbs_stays_in_the_hull(poses, w, verts):
     w = w + 1e-9
     w = w / w.sum(1, keepdims=True)
@@ -129,13 +140,19 @@ def test_skinning_is_finite_and_lbs_stays_in_the_hull(poses, w, verts):
     assert (lbs >= moved.min(2) - 1e-9).all() and (lbs <= moved.max(2) + 1e-9).all()
     # DQS applies a rigid transform per vertex: distances to the blended origin are kept up to scale 1
     onehot = np.eye(24)[np.argmax(w, 1)]
-    np.testing.assert_allclose(dual_quaternion_skinning(verts, onehot, a), linear_blend_skinning(verts, onehot, a),
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        dual_quaternion_skinning(verts, onehot, a), linear_blend_skinning(verts, onehot, a), atol=1e-9
+    )
 
 
 @settings(**SETTINGS)
-@given(st.sampled_from(sorted(MOTION_KINDS)), st.integers(0, 10_000), st.floats(0.2, 2.0), st.floats(0.05, 1.5),
-       st.floats(10, 120))
+@given(
+    st.sampled_from(sorted(MOTION_KINDS)),
+    st.integers(0, 10_000),
+    st.floats(0.2, 2.0),
+    st.floats(0.05, 1.5),
+    st.floats(10, 120),
+)
 def test_procedural_motions_any_parameters(kind, seed, speed, amplitude, fps):
     m = make_motion(kind, seconds=1.0, seed=seed, speed=speed, amplitude=amplitude, fps=fps)
     assert np.isfinite(m.poses).all() and np.isfinite(m.trans).all()
@@ -143,14 +160,19 @@ def test_procedural_motions_any_parameters(kind, seed, speed, amplitude, fps):
 
 
 @settings(**SETTINGS)
-@given(hnp.arrays(np.float64, st.tuples(st.integers(1, 12), st.just(72)), elements=st.floats(-3, 3)),
-       st.floats(5, 200), st.floats(5, 200), st.integers(1, 6))
+@given(
+    hnp.arrays(np.float64, st.tuples(st.integers(1, 12), st.just(72)), elements=st.floats(-3, 3)),
+    st.floats(5, 200),
+    st.floats(5, 200),
+    st.integers(1, 6),
+)
 def test_resample_and_windows(poses, fps_in, fps_out, window):
     m = Motion(poses=poses, trans=np.zeros((len(poses), 3)), fps=fps_in)
     r = resample(m, fps_out)
     assert np.isfinite(r.poses).all() and r.n_frames >= 1
-    np.testing.assert_allclose(axis_angle_to_matrix(r.poses[0].reshape(24, 3)),
-                               axis_angle_to_matrix(poses[0].reshape(24, 3)), atol=1e-9)
+    np.testing.assert_allclose(
+        axis_angle_to_matrix(r.poses[0].reshape(24, 3)), axis_angle_to_matrix(poses[0].reshape(24, 3)), atol=1e-9
+    )
     w = motion_windows(r.poses, window)
     assert w.shape == (r.n_frames, window, 72)
     np.testing.assert_array_equal(w[:, 0], r.poses)

@@ -28,15 +28,18 @@ def test_minimal_scene_defaults(tmp_path):
     assert s.output == tmp_path / "o.pc2"
 
 
-@pytest.mark.parametrize("extra, words", [
-    ("[effects]\nglitter = true\n", "unknown key effects.glitter"),
-    ("[lights]\non = 1\n", "unknown table [lights]"),
-    ("[effects]\nwrinkles = \"yes\"\n", "effects.wrinkles has the wrong type"),
-    ("[effects]\nskinning = \"blend\"\n", "skinning must be"),
-    ("[effects]\ncollision_margin = -1\n", "collision_margin"),
-    ("[output2]\n", "unknown table"),
-    ("[body]\nbetas = [1, \"a\"]\n", "betas"),
-])
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        ("[effects]\nglitter = true\n", "unknown key effects.glitter"),
+        ("[lights]\non = 1\n", "unknown table [lights]"),
+        ('[effects]\nwrinkles = "yes"\n', "effects.wrinkles has the wrong type"),
+        ('[effects]\nskinning = "blend"\n', "skinning must be"),
+        ("[effects]\ncollision_margin = -1\n", "collision_margin"),
+        ("[output2]\n", "unknown table"),
+        ('[body]\nbetas = [1, "a"]\n', "betas"),
+    ],
+)
 def test_invalid_scenes(tmp_path, extra, words):
     p = write(tmp_path, BASE + extra)
     with pytest.raises(FileFormatError, match=words.replace("[", r"\[").replace("]", r"\]")) as ei:
@@ -44,15 +47,21 @@ def test_invalid_scenes(tmp_path, extra, words):
     assert str(p) in str(ei.value)
 
 
-@pytest.mark.parametrize("text, words", [
-    ('[motion]\nkind = "walk"\n[output]\npath = "o.pc2"\n', "missing garment.mesh"),
-    ('[garment]\nmesh = "g.obj"\n[output]\npath = "o.pc2"\n', "missing [motion]"),
-    ('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\nfile = "m.npz"\n[output]\npath = "o.pc2"\n', "exactly one"),
-    ('[garment]\nmesh = "g.obj"\n[motion]\nfile = "m.npz"\nseed = 3\n[output]\npath = "o.pc2"\n', "procedural"),
-    ('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\nframes = "x"\n[output]\npath = "o.pc2"\n', "A:B"),
-    ('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\n[output]\npath = "o.fbx"\n', "output.format"),
-    ("garment = = 1", "invalid TOML"),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ('[motion]\nkind = "walk"\n[output]\npath = "o.pc2"\n', "missing garment.mesh"),
+        ('[garment]\nmesh = "g.obj"\n[output]\npath = "o.pc2"\n', "missing [motion]"),
+        (
+            '[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\nfile = "m.npz"\n[output]\npath = "o.pc2"\n',
+            "exactly one",
+        ),
+        ('[garment]\nmesh = "g.obj"\n[motion]\nfile = "m.npz"\nseed = 3\n[output]\npath = "o.pc2"\n', "procedural"),
+        ('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\nframes = "x"\n[output]\npath = "o.pc2"\n', "A:B"),
+        ('[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\n[output]\npath = "o.fbx"\n', "output.format"),
+        ("garment = = 1", "invalid TOML"),
+    ],
+)
 def test_structural_errors(tmp_path, text, words):
     with pytest.raises(FileFormatError, match=words.replace("[", r"\[").replace("]", r"\]")):
         load_scene(write(tmp_path, text))
@@ -70,7 +79,7 @@ def test_effects_not_named_are_off(tmp_path):
     s = load_scene(write(tmp_path, base + '[effects]\nskinning = "lbs"\ncollisions = true\n'))
     assert s.effects == Effects(skinning="lbs", dynamics=False, wrinkles=False, collisions=True)
     assert s.effects.off() == ["dynamics", "wrinkles"] and s.effects.label() == "lbs+collisions"
-    s = load_scene(write(tmp_path, base + '[effects]\n'))
+    s = load_scene(write(tmp_path, base + "[effects]\n"))
     assert s.effects == Effects(dynamics=False, wrinkles=False, collisions=False)
     from segadeform.settings import DEFAULT_EFFECTS
 
@@ -81,13 +90,15 @@ def test_cli_effects_complete_list_or_changes():
     assert parse_effects("dqs,collisions") == Effects(skinning="dqs", dynamics=False, wrinkles=False, collisions=True)
     assert parse_effects("dynamics") == Effects(dynamics=True, wrinkles=False, collisions=False)
     base = Effects(skinning="dqs", dynamics=True, wrinkles=False, collisions=True, collision_margin=0.01)
-    assert parse_effects("-collisions,+wrinkles", base) == Effects(skinning="dqs", wrinkles=True, collisions=False,
-                                                                   collision_margin=0.01)
+    assert parse_effects("-collisions,+wrinkles", base) == Effects(
+        skinning="dqs", wrinkles=True, collisions=False, collision_margin=0.01
+    )
     assert parse_effects("lbs,collisions", base).collision_margin == 0.01
     with pytest.raises(FileFormatError, match="mix a complete list"):
         parse_effects("collisions,-wrinkles")
-    assert parse_effects("none", base) == Effects(dynamics=False, wrinkles=False, collisions=False,
-                                                  collision_margin=0.01)  # as `simulate --effects none`
+    assert parse_effects("none", base) == Effects(
+        dynamics=False, wrinkles=False, collisions=False, collision_margin=0.01
+    )  # as `simulate --effects none`
 
 
 def test_scene_only_parses_and_uses_the_io_axes(tmp_path, monkeypatch):

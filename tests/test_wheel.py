@@ -17,33 +17,83 @@ from tests.conftest import REPO, SAMPLES
 
 def test_wheel_runs_outside_the_checkout(tmp_path):
     wheels = tmp_path / "wheels"
-    b = subprocess.run([sys.executable, "-m", "pip", "wheel", str(REPO), "--no-deps", "--no-build-isolation",
-                        "-q", "-w", str(wheels)], capture_output=True, text=True, timeout=900)
+    b = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", str(REPO), "--no-deps", "--no-build-isolation", "-q", "-w", str(wheels)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert b.returncode == 0, b.stderr[-2000:]
     whl = next(wheels.glob("segadeform-*.whl"))
     env_dir = tmp_path / "fresh"
     subprocess.run([sys.executable, "-m", "venv", str(env_dir)], check=True, timeout=300)
     py = env_dir / "bin" / "python"
-    i = subprocess.run([str(py), "-m", "pip", "install", "-q", "--disable-pip-version-check", str(whl)],
-                       capture_output=True, text=True, timeout=900)
+    i = subprocess.run(
+        [str(py), "-m", "pip", "install", "-q", "--disable-pip-version-check", str(whl)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert i.returncode == 0, i.stderr[-2000:]
     work = tmp_path / "elsewhere"
     work.mkdir()
     shutil.copy(SAMPLES / "garments" / "dress.obj", work / "dress.obj")
     shutil.copy(SAMPLES / "motions" / "walk.npz", work / "walk.npz")
-    where = subprocess.run([str(py), "-c", "import segadeform; print(segadeform.__file__)"], cwd=work,
-                           capture_output=True, text=True, timeout=120)
+    where = subprocess.run(
+        [str(py), "-c", "import segadeform; print(segadeform.__file__)"],
+        cwd=work,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert str(env_dir) in where.stdout and str(REPO) not in where.stdout
-    r = subprocess.run([str(env_dir / "bin" / "segadeform"), "run", "--garment", "dress.obj", "--motion", "walk.npz",
-                        "-o", "out.pc2", "--frames", "0:8", "--effects", "lbs,dynamics,wrinkles", "--no-cache"],
-                       cwd=work, capture_output=True, text=True, timeout=600)
+    r = subprocess.run(
+        [
+            str(env_dir / "bin" / "segadeform"),
+            "run",
+            "--garment",
+            "dress.obj",
+            "--motion",
+            "walk.npz",
+            "-o",
+            "out.pc2",
+            "--frames",
+            "0:8",
+            "--effects",
+            "lbs,dynamics,wrinkles",
+            "--no-cache",
+        ],
+        cwd=work,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert r.returncode == 0, r.stdout + r.stderr
     here = tmp_path / "checkout"
     here.mkdir()
-    c = subprocess.run([sys.executable, "-c", "import sys; from segadeform.cli.main import main; sys.exit(main())", "run", "--garment", str(work / "dress.obj"),
-                        "--motion", str(work / "walk.npz"), "-o", str(here / "out.pc2"), "--frames", "0:8",
-                        "--effects", "lbs,dynamics,wrinkles", "--no-cache"], cwd=REPO, capture_output=True, text=True,
-                       timeout=600)
+    c = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from segadeform.cli.main import main; sys.exit(main())",
+            "run",
+            "--garment",
+            str(work / "dress.obj"),
+            "--motion",
+            str(work / "walk.npz"),
+            "-o",
+            str(here / "out.pc2"),
+            "--frames",
+            "0:8",
+            "--effects",
+            "lbs,dynamics,wrinkles",
+            "--no-cache",
+        ],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert c.returncode == 0, c.stdout + c.stderr
     from segadeform.io import read_mesh, read_pc2
 

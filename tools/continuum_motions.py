@@ -31,10 +31,25 @@ TEST_FAMILIES = ("jump", "salsa")
 #: indian-dance (too fast for it); the families keep their clips so that no sample made before changes split
 VAL_FAMILIES = ("obstacle-run", "indian-dance", "duck-run", "reach")
 #: clips simulated per held-out family (picked in a fixed order)
-HELD_CLIPS = {"jump": ["16_01", "49_02"], "salsa": ["60_03"], "obstacle-run": ["127_25"], "indian-dance": ["94_06"],
-              "duck-run": ["127_29"], "reach": ["14_07"]}
-SKIP = {"02_01_walk", "16_15_walk", "16_31_walk", "16_36_run_jog",  # here as ASF/AMC too
-        "49_06", "49_07", "49_08", "49_21", "127_01"}                # cartwheels, ropes, motorcycle
+HELD_CLIPS = {
+    "jump": ["16_01", "49_02"],
+    "salsa": ["60_03"],
+    "obstacle-run": ["127_25"],
+    "indian-dance": ["94_06"],
+    "duck-run": ["127_29"],
+    "reach": ["14_07"],
+}
+SKIP = {
+    "02_01_walk",
+    "16_15_walk",
+    "16_31_walk",
+    "16_36_run_jog",  # here as ASF/AMC too
+    "49_06",
+    "49_07",
+    "49_08",
+    "49_21",
+    "127_01",
+}  # cartwheels, ropes, motorcycle
 
 
 def family(trial: str, text: str) -> str:
@@ -107,9 +122,17 @@ def entries():
         # clips of 2 s after a 1 s lead; a capture of S seconds gets about one clip per 8 s, at most 4
         usable = seconds - 3.0
         count = 1 if usable < 8.0 or split != "train" else min(4, int(usable // 8.0) + 1)
-        out.append({"name": f"cmu-{trial}", "file": rel, "family": fam, "split": split,
-                    "start": 1.0 if seconds >= 3.2 else max(0.0, seconds - 2.2) / 2,
-                    "count": count, "last_start": max(1.0, seconds - 2.2)})
+        out.append(
+            {
+                "name": f"cmu-{trial}",
+                "file": rel,
+                "family": fam,
+                "split": split,
+                "start": 1.0 if seconds >= 3.2 else max(0.0, seconds - 2.2) / 2,
+                "count": count,
+                "last_start": max(1.0, seconds - 2.2),
+            }
+        )
     return out
 
 
@@ -118,9 +141,9 @@ def main() -> int:
     for e in entries():
         lines += ["[[motions]]", f'name = "{e["name"]}"', f'file = "{e["file"]}"', f'family = "{e["family"]}"']
         if e["count"] > 1:
-            lines += [f'count = {e["count"]}', f'start = [1.0, {e["last_start"]:.1f}]']
+            lines += [f"count = {e['count']}", f"start = [1.0, {e['last_start']:.1f}]"]
         else:
-            lines.append(f'start = {e["start"]:.2f}')
+            lines.append(f"start = {e['start']:.2f}")
         if e["split"] != "train":
             lines.append(f'split = "{e["split"]}"')
         lines.append("")

@@ -55,7 +55,6 @@ from segadeform.settings.scene import MotionTable
 __all__ = ["BatchConfig", "BatchJob", "BatchSummary", "load_batch", "batch_jobs", "run_batch", "run_job"]
 
 
-
 # The jobs file's tables (what each key takes: segadeform.io.toml.read_table)
 @dataclasses.dataclass(frozen=True)
 class _BatchTable:
@@ -109,8 +108,12 @@ class BatchConfig:
 
 def _name_ok(name: str, what: str, p: Path) -> str:
     if not name or "__" in name or any(c in name for c in "/\\:\x00") or name.startswith("."):
-        raise FileFormatError(f"{what} name is not usable in a file name", path=p,
-                              expected="letters, digits, '-', '_' (no '__', '/', ':', leading '.')", got=repr(name))
+        raise FileFormatError(
+            f"{what} name is not usable in a file name",
+            path=p,
+            expected="letters, digits, '-', '_' (no '__', '/', ':', leading '.')",
+            got=repr(name),
+        )
     return name
 
 
@@ -120,8 +123,9 @@ def load_batch(path) -> BatchConfig:
     data, _ = read_toml(p, "jobs file")
     unknown = sorted(set(data) - {"batch", "garments", "motions"})
     if unknown:
-        raise FileFormatError(f"unknown table [{unknown[0]}]", path=p, expected="batch, garments, motions",
-                              got=", ".join(unknown))
+        raise FileFormatError(
+            f"unknown table [{unknown[0]}]", path=p, expected="batch, garments, motions", got=", ".join(unknown)
+        )
     b = read_table(data.get("batch", {}), _BatchTable, where="batch", path=p)
     base = p.resolve().parent
 
@@ -132,8 +136,11 @@ def load_batch(path) -> BatchConfig:
     gs, ms = data.get("garments", []), data.get("motions", [])
     for what, items in (("garments", gs), ("motions", ms)):
         if not isinstance(items, list) or not items or not all(isinstance(x, dict) for x in items):
-            raise FileFormatError(f"the jobs file needs at least one [[{what}]] table", path=p,
-                                  got=f"{len(items) if isinstance(items, list) else type(items).__name__}")
+            raise FileFormatError(
+                f"the jobs file needs at least one [[{what}]] table",
+                path=p,
+                got=f"{len(items) if isinstance(items, list) else type(items).__name__}",
+            )
     garments = []
     for i, g in enumerate(gs):
         read_table(g, _GarmentTable, where=f"garments[{i}]", path=p)
@@ -145,29 +152,41 @@ def load_batch(path) -> BatchConfig:
             betas = check_betas(betas, what=f"garments[{i}].betas")  # finite, in the shape space
         except InputError as e:
             raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
-        garments.append(BatchGarment(_name_ok(g.get("name", mesh.stem), "garment", p), mesh,
-                                     tuple(float(x) for x in betas)))
+        garments.append(
+            BatchGarment(_name_ok(g.get("name", mesh.stem), "garment", p), mesh, tuple(float(x) for x in betas))
+        )
     motions = []
     for i, m in enumerate(ms):
         read_table(m, _MotionTable, where=f"motions[{i}]", path=p)
         if ("file" in m) == ("kind" in m):
             raise FileFormatError(f"motions[{i}] needs exactly one of 'file' or 'kind'", path=p)
         if "file" in m and any(k in m for k in ("seconds", "speed", "amplitude", "seed")):
-            raise FileFormatError(f"motions[{i}]: seconds/speed/amplitude/seed apply to procedural motions only",
-                                  path=p)
+            raise FileFormatError(
+                f"motions[{i}]: seconds/speed/amplitude/seed apply to procedural motions only", path=p
+            )
         if "kind" in m:
             from segadeform.motion import MOTION_KINDS
 
             if m["kind"] not in MOTION_KINDS:
-                raise FileFormatError(f"motions[{i}].kind is not a motion kind", path=p,
-                                      expected=", ".join(sorted(MOTION_KINDS)), got=m["kind"])
-        spec = MotionSpec(file=rel(m["file"]) if "file" in m else None, kind=m.get("kind"),
-                          seconds=float(m.get("seconds", 3.0)), speed=float(m.get("speed", 1.0)),
-                          amplitude=float(m.get("amplitude", 1.0)), seed=int(m.get("seed", 0)),
-                          fps=float(m["fps"]) if "fps" in m else None,
-                          frames=parse_frames(m["frames"], where=p) if "frames" in m else None,
-                          up=m.get("up", "auto"), units=str(m["units"]) if "units" in m else None,
-                          floor=bool(m.get("floor", False)))
+                raise FileFormatError(
+                    f"motions[{i}].kind is not a motion kind",
+                    path=p,
+                    expected=", ".join(sorted(MOTION_KINDS)),
+                    got=m["kind"],
+                )
+        spec = MotionSpec(
+            file=rel(m["file"]) if "file" in m else None,
+            kind=m.get("kind"),
+            seconds=float(m.get("seconds", 3.0)),
+            speed=float(m.get("speed", 1.0)),
+            amplitude=float(m.get("amplitude", 1.0)),
+            seed=int(m.get("seed", 0)),
+            fps=float(m["fps"]) if "fps" in m else None,
+            frames=parse_frames(m["frames"], where=p) if "frames" in m else None,
+            up=m.get("up", "auto"),
+            units=str(m["units"]) if "units" in m else None,
+            floor=bool(m.get("floor", False)),
+        )
         default = Path(m["file"]).stem if "file" in m else m["kind"]
         motions.append(BatchMotion(_name_ok(m.get("name", default), "motion", p), spec))
     for what, items in (("garment", garments), ("motion", motions)):
@@ -179,8 +198,9 @@ def load_batch(path) -> BatchConfig:
 
     fmt = b.get("format", "pc2")
     if fmt not in SEQUENCE_FORMATS:
-        raise FileFormatError("batch.format is not an output format", path=p, expected=", ".join(SEQUENCE_FORMATS),
-                              got=fmt)
+        raise FileFormatError(
+            "batch.format is not an output format", path=p, expected=", ".join(SEQUENCE_FORMATS), got=fmt
+        )
     from segadeform.io import UP_AXES
 
     if b.get("up", "y") not in UP_AXES:
@@ -192,9 +212,18 @@ def load_batch(path) -> BatchConfig:
     out = b.get("output")
     if out is not None and not is_url(out):
         out = str(rel(out))
-    return BatchConfig(output=out, garments=tuple(garments), motions=tuple(motions), format=fmt,
-                       model=rel(b["model"]) if "model" in b else None, body=rel(b["body"]) if "body" in b else None,
-                       effects=effects, up=b.get("up", "y"), frames_per_call=int(b.get("frames_per_call", 8)), path=p)
+    return BatchConfig(
+        output=out,
+        garments=tuple(garments),
+        motions=tuple(motions),
+        format=fmt,
+        model=rel(b["model"]) if "model" in b else None,
+        body=rel(b["body"]) if "body" in b else None,
+        effects=effects,
+        up=b.get("up", "y"),
+        frames_per_call=int(b.get("frames_per_call", 8)),
+        path=p,
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -234,19 +263,44 @@ def batch_jobs(cfg: BatchConfig, out=None) -> list[BatchJob]:
     """Every job of ``cfg`` (garment-major), writing to ``out`` (default: the file's ``[batch] output``)."""
     where = out if out is not None else cfg.output
     if where is None:
-        raise InputError("no output for the batch", expected="[batch] output in the jobs file or -o OUTPUT",
-                         got="neither", path=cfg.path)
+        raise InputError(
+            "no output for the batch",
+            expected="[batch] output in the jobs file or -o OUTPUT",
+            got="neither",
+            path=cfg.path,
+        )
     loc = open_location(where)
     gd = {g.name: _file_digest(g.mesh) for g in cfg.garments}
     jobs = []
     for g in cfg.garments:
         for m in cfg.motions:
-            spec = {"garment": str(g.mesh), "garment_sha256": gd[g.name], "betas": list(g.betas),
-                    "motion": dataclasses.asdict(m.spec), "format": cfg.format, "model": str(cfg.model),
-                    "body": str(cfg.body), "effects": dataclasses.asdict(cfg.effects), "up": cfg.up}
+            spec = {
+                "garment": str(g.mesh),
+                "garment_sha256": gd[g.name],
+                "betas": list(g.betas),
+                "motion": dataclasses.asdict(m.spec),
+                "format": cfg.format,
+                "model": str(cfg.model),
+                "body": str(cfg.body),
+                "effects": dataclasses.asdict(cfg.effects),
+                "up": cfg.up,
+            }
             digest = hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:16]
-            jobs.append(BatchJob(f"{g.name}__{m.name}", loc, g, m, cfg.format, cfg.model, cfg.body, cfg.effects,
-                                 cfg.up, cfg.frames_per_call, digest))
+            jobs.append(
+                BatchJob(
+                    f"{g.name}__{m.name}",
+                    loc,
+                    g,
+                    m,
+                    cfg.format,
+                    cfg.model,
+                    cfg.body,
+                    cfg.effects,
+                    cfg.up,
+                    cfg.frames_per_call,
+                    digest,
+                )
+            )
     return jobs
 
 
@@ -269,16 +323,34 @@ def run_job(job: BatchJob) -> dict:
     loc.remove_temporaries(f"jobs/{job.id}.json")
     try:
         with loc.scratch(name) as d:
-            scene = Scene(garment=job.garment.mesh, motion=job.motion.spec, output=Path(d) / name,
-                          output_format=job.format, up=job.up, body=job.body, betas=job.garment.betas,
-                          model=job.model, effects=job.effects)
+            scene = Scene(
+                garment=job.garment.mesh,
+                motion=job.motion.spec,
+                output=Path(d) / name,
+                output_format=job.format,
+                up=job.up,
+                body=job.body,
+                betas=job.garment.betas,
+                model=job.model,
+                effects=job.effects,
+            )
             s = run_scene(scene, batch=job.frames_per_call, threads=1)
             written = loc.commit_tree(Path(d))
     except WriteError as e:  # disk full, read-only: name the job's output, not its scratch folder
         raise WriteError(f"{loc}/{name}", e.reason, e.errno) from None
-    rec = {"id": job.id, "garment": job.garment.name, "motion": job.motion.name, "spec": job.spec,
-           "output": name, "files": written, "frames": s.frames, "ms_per_frame": s.ms_per_frame,
-           "effects": job.effects.label(), "graph": s.variant, "seconds": time.perf_counter() - t0}
+    rec = {
+        "id": job.id,
+        "garment": job.garment.name,
+        "motion": job.motion.name,
+        "spec": job.spec,
+        "output": name,
+        "files": written,
+        "frames": s.frames,
+        "ms_per_frame": s.ms_per_frame,
+        "effects": job.effects.label(),
+        "graph": s.variant,
+        "seconds": time.perf_counter() - t0,
+    }
     if not loc.put_bytes(f"jobs/{job.id}.json", json.dumps(rec, indent=1, sort_keys=True).encode(), once=True):
         return cast(dict, _record(loc, job.id))  # another attempt committed it first
     return rec
@@ -293,8 +365,15 @@ class BatchSummary:
     output: str
 
 
-def run_batch(cfg: BatchConfig, *, out=None, executor: Executor | None = None, jobs: int = 1,
-              limit: int | None = None, progress: Callable[[dict], None] | None = None) -> BatchSummary:
+def run_batch(
+    cfg: BatchConfig,
+    *,
+    out=None,
+    executor: Executor | None = None,
+    jobs: int = 1,
+    limit: int | None = None,
+    progress: Callable[[dict], None] | None = None,
+) -> BatchSummary:
     """Run every job of ``cfg`` not done yet in ``out`` (see the module docstring) on ``executor``
     (default: a local pool of ``jobs`` processes; one given here is left open)."""
     plan = batch_jobs(cfg, out)
@@ -302,11 +381,17 @@ def run_batch(cfg: BatchConfig, *, out=None, executor: Executor | None = None, j
         raise InputError("the jobs file makes no jobs", path=cfg.path)
     loc = plan[0].out
     names = set(loc.listdir("jobs"))
-    changed = [j.id for j in plan if f"{j.id}.json" in names
-               and json.loads(loc.read_text(f"jobs/{j.id}.json")).get("spec") != j.spec]
+    changed = [
+        j.id
+        for j in plan
+        if f"{j.id}.json" in names and json.loads(loc.read_text(f"jobs/{j.id}.json")).get("spec") != j.spec
+    ]
     if changed:
-        raise InputError(f"{len(changed)} finished jobs in {loc} were made from another spec than the jobs file now "
-                         f"gives them (first: {changed[0]}); rename the entries or use another output", path=cfg.path)
+        raise InputError(
+            f"{len(changed)} finished jobs in {loc} were made from another spec than the jobs file now "
+            f"gives them (first: {changed[0]}); rename the entries or use another output",
+            path=cfg.path,
+        )
     todo = [j for j in plan if f"{j.id}.json" not in names]
     skipped = len(plan) - len(todo)
     if limit is not None:

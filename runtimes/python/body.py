@@ -57,8 +57,10 @@ def graph_body_status(package: ModelPackage, body: BodyModel, skinning: str) -> 
         return None, f"the package's body graph '{name}' does not record which body it poses"
     mine = body_label(body)
     if mine["sha256"] != recorded["sha256"]:
-        return None, (f"the run's body ({_short(mine)}) is not the one the package's body graph '{name}' poses "
-                      f"({_short(recorded)})")
+        return None, (
+            f"the run's body ({_short(mine)}) is not the one the package's body graph '{name}' poses "
+            f"({_short(recorded)})"
+        )
     if body.n_joints != int(package.spec(name)["inputs"][1]["shape"][1]):  # the hash covers it; a clear error anyway
         return None, f"the package's body graph '{name}' poses another skeleton than the run's body"
     return name, None
@@ -95,9 +97,10 @@ class BodyPoser:
         self.graph, self.reason = graph_body_status(package, body, skinning)
         if self.graph is None:
             if backend == "graph":
-                raise InputError(f"cannot pose the body with the package's body graph: {self.reason}",
-                                 expected="a package whose body graph poses the run's body, or body backend "
-                                          "'numpy' or 'auto'")
+                raise InputError(
+                    f"cannot pose the body with the package's body graph: {self.reason}",
+                    expected="a package whose body graph poses the run's body, or body backend 'numpy' or 'auto'",
+                )
             log.info("posing the body with numpy (float64), not the package's body graph: %s", self.reason)
             self.backend = "numpy"
         else:
@@ -114,7 +117,7 @@ class BodyPoser:
             if not np.isfinite(b).all():
                 raise InputError("betas contain NaN or inf")
             row = np.zeros(nb, np.float32)
-            row[:b.size] = b
+            row[: b.size] = b
             self._betas, self._betas_row = key, row
         return cast(np.ndarray, self._betas_row)
 
@@ -134,7 +137,12 @@ class BodyPoser:
         t = np.zeros((len(p), 3)) if trans is None else np.asarray(trans, np.float64)
         if t.shape != (len(p), 3):
             raise InputError("trans must be (batch, 3), one row per pose", expected=(len(p), 3), got=t.shape)
-        out = self.package.run(cast(str, self.graph), {"betas": self._graph_betas(betas),
-                                            "poses": p.reshape(len(p), s, 3).astype(np.float32),
-                                            "trans": t.astype(np.float32)})
+        out = self.package.run(
+            cast(str, self.graph),
+            {
+                "betas": self._graph_betas(betas),
+                "poses": p.reshape(len(p), s, 3).astype(np.float32),
+                "trans": t.astype(np.float32),
+            },
+        )
         return out[0]

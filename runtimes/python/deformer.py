@@ -66,14 +66,17 @@ class Deformer:
         b = np.zeros(self.n_betas, np.float32)
         given = np.asarray(betas if betas is not None else [], np.float64).ravel()
         if given.size > self.n_betas:
-            raise InputError("too many shape coefficients for this model", expected=f"<= {self.n_betas}", got=given.size)
+            raise InputError(
+                "too many shape coefficients for this model", expected=f"<= {self.n_betas}", got=given.size
+            )
         if not np.isfinite(given).all():
             raise InputError("betas contain NaN or inf")
         b[: given.size] = given
         return b
 
-    def encode(self, asset: GarmentAsset, joints: np.ndarray, betas=None, *,
-               cache_dir: str | os.PathLike | None = None) -> np.ndarray:
+    def encode(
+        self, asset: GarmentAsset, joints: np.ndarray, betas=None, *, cache_dir: str | os.PathLike | None = None
+    ) -> np.ndarray:
         """The garment code the deformer takes, ``g (N, S)`` (``P (N, S, F_enc)`` for older packages).
 
         Vertex features are recomputed for ``joints`` (the body's rest joints
@@ -94,8 +97,14 @@ class Deformer:
         # the key covers the encoder file and its manifest entry: a package whose manifest no
         # longer matches its graph must not be served from an old cache
         spec = self.package.spec("garment_encoder")
-        key = _digest(feats, asset.nbr, asset.mask, desc, b,
-                      extra=json.dumps(spec, sort_keys=True) + str(spec.get("sha256", self.package.path)))
+        key = _digest(
+            feats,
+            asset.nbr,
+            asset.mask,
+            desc,
+            b,
+            extra=json.dumps(spec, sort_keys=True) + str(spec.get("sha256", self.package.path)),
+        )
         if key in self._memory:
             return self._memory[key]
         self._warn_if_unfamiliar(asset)
@@ -108,7 +117,13 @@ class Deformer:
                     return P
             except (OSError, ValueError):
                 log.warning("ignoring unreadable encoder cache %s", path)
-        avail = {"features": feats[None], "nbr": asset.nbr, "mask": asset.mask, "descriptor": desc[None], "betas": b[None]}
+        avail = {
+            "features": feats[None],
+            "nbr": asset.nbr,
+            "mask": asset.mask,
+            "descriptor": desc[None],
+            "betas": b[None],
+        }
         P = self.package.run("garment_encoder", {k: avail[k] for k in self._encoder_inputs if k in avail})[0][0]
         self.encoder_runs += 1
         if not np.isfinite(P).all():
@@ -123,13 +138,18 @@ class Deformer:
 
         fam = self.package.familiarity(asset.descriptor, len(boundary_loops(asset.faces, asset.n_vertices)))
         if fam is not None and fam.outside:
-            log.warning("garment %s lies outside the garments model %s was trained on (%s); results may be "
-                        "less accurate than the model card reports", asset.source_name or "(unnamed)",
-                        self.package.path.name, fam)
+            log.warning(
+                "garment %s lies outside the garments model %s was trained on (%s); results may be "
+                "less accurate than the model card reports",
+                asset.source_name or "(unnamed)",
+                self.package.path.name,
+                fam,
+            )
 
     # ---- deformer ------------------------------------------------------
-    def body_log_weights(self, asset: GarmentAsset, body, betas=None, *,
-                         cache_dir: str | os.PathLike | None = None) -> np.ndarray:
+    def body_log_weights(
+        self, asset: GarmentAsset, body, betas=None, *, cache_dir: str | os.PathLike | None = None
+    ) -> np.ndarray:
         """``log_wbody (N, S)``: the body's skinning weights carried to the garment on the rest body of shape
         ``betas`` by the model's ``weight_prior`` (closest point, or inpainted:
         :func:`segadeform.body.transfer.garment_weights`): what residual-weights models start from.
@@ -145,8 +165,10 @@ class Deformer:
         b = self._betas(betas)
         prior = self.weight_prior
         # the prior's version and settings are part of the key: a release that changes them reads no old entry
-        settings = (f"v{transfer.WEIGHT_PRIOR_VERSION}-{transfer.INPAINT_MAX_DISTANCE}-{transfer.INPAINT_MAX_ANGLE}-"
-                    f"{transfer.RESIDUAL_EPS}")
+        settings = (
+            f"v{transfer.WEIGHT_PRIOR_VERSION}-{transfer.INPAINT_MAX_DISTANCE}-{transfer.INPAINT_MAX_ANGLE}-"
+            f"{transfer.RESIDUAL_EPS}"
+        )
         key = _digest(asset.vertices, asset.faces, b, extra=f"wbody-{prior}-{settings}-{self._body_key(body)}")
         if key in self._memory:
             return self._memory[key]
@@ -190,8 +212,18 @@ class Deformer:
         """How residual models get the body's weights (``weight_prior`` of the package's config)."""
         return str(self.package.config.get("weight_prior", "nearest"))
 
-    def deform(self, P: np.ndarray, asset: GarmentAsset, windows: np.ndarray, joints: np.ndarray, trans: np.ndarray,
-               betas=None, *, outputs: bool = False, log_wbody: np.ndarray | None = None):
+    def deform(
+        self,
+        P: np.ndarray,
+        asset: GarmentAsset,
+        windows: np.ndarray,
+        joints: np.ndarray,
+        trans: np.ndarray,
+        betas=None,
+        *,
+        outputs: bool = False,
+        log_wbody: np.ndarray | None = None,
+    ):
         """Deform a batch of frames.
 
         Shapes:
@@ -202,21 +234,30 @@ class Deformer:
         """
         w = np.asarray(windows, np.float32)
         if w.ndim != 3 or w.shape[1] != self.window or w.shape[2] != 3 * self.n_joints:
-            raise InputError("motion windows have the wrong shape", expected=f"(B, {self.window}, {3 * self.n_joints})",
-                             got=w.shape)
+            raise InputError(
+                "motion windows have the wrong shape", expected=f"(B, {self.window}, {3 * self.n_joints})", got=w.shape
+            )
         bsz = w.shape[0]
         b = np.repeat(self._betas(betas)[None], bsz, axis=0)
         j = np.repeat(np.asarray(joints, np.float32)[None], bsz, axis=0)
         feeds = {
-            self.code_name: np.asarray(P, np.float32), "window": w, "betas": b, "rest": asset.vertices.astype(np.float32),
-            "nbr": asset.nbr, "mask": asset.mask, "joints": j, "trans": np.asarray(trans, np.float32),
+            self.code_name: np.asarray(P, np.float32),
+            "window": w,
+            "betas": b,
+            "rest": asset.vertices.astype(np.float32),
+            "nbr": asset.nbr,
+            "mask": asset.mask,
+            "joints": j,
+            "trans": np.asarray(trans, np.float32),
         }
         if self.needs_body_weights:
             lw = None if log_wbody is None else np.asarray(log_wbody, np.float32)
             if lw is None or lw.shape != (asset.n_vertices, self.n_joints) or not np.isfinite(lw).all():
-                raise InputError("this model needs the body's weights at the garment (log_wbody)",
-                                 expected=f"finite ({asset.n_vertices}, {self.n_joints}): Deformer.body_log_weights",
-                                 got=None if lw is None else lw.shape)
+                raise InputError(
+                    "this model needs the body's weights at the garment (log_wbody)",
+                    expected=f"finite ({asset.n_vertices}, {self.n_joints}): Deformer.body_log_weights",
+                    got=None if lw is None else lw.shape,
+                )
             feeds["log_wbody"] = lw
         out = self.package.run(self.variant, feeds)
         return out if outputs else out[0]

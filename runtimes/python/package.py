@@ -40,7 +40,9 @@ class Familiarity:
 
     @property
     def new_openings(self) -> bool:
-        return bool(self.training_openings) and self.openings is not None and self.openings not in self.training_openings
+        return (
+            bool(self.training_openings) and self.openings is not None and self.openings not in self.training_openings
+        )
 
     @property
     def outside(self) -> bool:
@@ -50,8 +52,7 @@ class Familiarity:
         thr = "no threshold" if self.threshold is None else f"threshold {self.threshold:.4g}"
         s = f"descriptor distance {self.distance:.4g} to the nearest training garment '{self.nearest}' ({thr})"
         if self.new_openings:
-            s += (f"; {self.openings} openings, training garments have "
-                  f"{' or '.join(map(str, self.training_openings))}")
+            s += f"; {self.openings} openings, training garments have {' or '.join(map(str, self.training_openings))}"
         return s
 
 
@@ -101,12 +102,17 @@ class ModelPackage:
         m = contract.read_manifest_text(text, path=mpath)
         wfile = self.path / contract.WEIGHTS_FILE
         if "weights" not in m and wfile.is_file():  # the graphs read it: its hash must be checked too
-            raise PackageError("the package holds weights.bin but its manifest has no 'weights' entry, so the "
-                               "weights would be used unchecked", path=mpath,
-                               expected='"weights": {"file", "sha256", "bytes"} (segadeform repack writes it)',
-                               got="no weights entry")
-        files = [(f"graph '{name}'", f"graph '{name}' file", spec["file"], spec.get("sha256"))
-                 for name, spec in m["graphs"].items()]
+            raise PackageError(
+                "the package holds weights.bin but its manifest has no 'weights' entry, so the "
+                "weights would be used unchecked",
+                path=mpath,
+                expected='"weights": {"file", "sha256", "bytes"} (segadeform repack writes it)',
+                got="no weights entry",
+            )
+        files = [
+            (f"graph '{name}'", f"graph '{name}' file", spec["file"], spec.get("sha256"))
+            for name, spec in m["graphs"].items()
+        ]
         if "weights" in m:
             files.append(("the weights file", "the weights file", m["weights"]["file"], m["weights"].get("sha256")))
         for what, what_file, name, sha in files:
@@ -116,8 +122,12 @@ class ModelPackage:
             if verify_hashes and sha:
                 h = file_sha256(f)
                 if h != sha:
-                    raise PackageError(f"{what} does not match its manifest hash", path=f,
-                                       expected=sha[:16] + "...", got=h[:16] + "...")
+                    raise PackageError(
+                        f"{what} does not match its manifest hash",
+                        path=f,
+                        expected=sha[:16] + "...",
+                        got=h[:16] + "...",
+                    )
         return m
 
     def _providers(self, providers):
@@ -131,8 +141,11 @@ class ModelPackage:
         providers = list(providers)
         bad = [p for p in providers if p not in available]
         if bad:
-            raise InputError("execution provider not available in this onnxruntime", expected=", ".join(available),
-                             got=", ".join(bad))
+            raise InputError(
+                "execution provider not available in this onnxruntime",
+                expected=", ".join(available),
+                got=", ".join(bad),
+            )
         return providers
 
     # ---- graphs --------------------------------------------------------
@@ -162,8 +175,13 @@ class ModelPackage:
         d = dissimilarities(descriptor, np.array([g["descriptor"] for g in t["garments"]], np.float64))
         i = int(np.argmin(d))
         known = tuple(sorted({g["openings"] for g in t["garments"] if "openings" in g}))
-        return Familiarity(nearest=t["garments"][i]["name"], distance=float(d[i]), threshold=t["threshold"],
-                           openings=openings, training_openings=known)
+        return Familiarity(
+            nearest=t["garments"][i]["name"],
+            distance=float(d[i]),
+            threshold=t["threshold"],
+            openings=openings,
+            training_openings=known,
+        )
 
     def variant_for(self, effects) -> str:
         """The deformer graph for ``effects`` (skinning, wrinkles, dynamics), by the contract's rule
@@ -194,34 +212,55 @@ class ModelPackage:
         try:
             sess = ort.InferenceSession(str(path), so, providers=self.providers)
         except Exception as e:
-            raise PackageError(f"onnxruntime cannot load graph '{name}' ({str(e).splitlines()[0][:200]})", path=path) from None
+            raise PackageError(
+                f"onnxruntime cannot load graph '{name}' ({str(e).splitlines()[0][:200]})", path=path
+            ) from None
         self._check_io(name, spec, sess, path)
         feedable = set(contract.FEEDS[spec["role"]])
         if spec["role"] == "deformer":
             feedable.add(contract.code_name(self.manifest))
         unknown = [i["name"] for i in spec["inputs"] if i["name"] not in feedable]
         if unknown:
-            raise PackageError(f"graph '{name}' takes inputs this runtime cannot feed", path=path,
-                               expected=", ".join(sorted(feedable)), got=", ".join(unknown))
+            raise PackageError(
+                f"graph '{name}' takes inputs this runtime cannot feed",
+                path=path,
+                expected=", ".join(sorted(feedable)),
+                got=", ".join(unknown),
+            )
         self.created[name] = sess
         return sess
 
     @staticmethod
     def _check_io(name, spec, sess, path) -> None:
-        for kind, got, want in (("inputs", sess.get_inputs(), spec["inputs"]), ("outputs", sess.get_outputs(), spec["outputs"])):
+        for kind, got, want in (
+            ("inputs", sess.get_inputs(), spec["inputs"]),
+            ("outputs", sess.get_outputs(), spec["outputs"]),
+        ):
             gn = [g.name for g in got]
             wn = [w["name"] for w in want]
             if gn != wn:
-                raise PackageError(f"graph '{name}' {kind} disagree with the manifest", path=path,
-                                   expected=", ".join(wn), got=", ".join(gn))
+                raise PackageError(
+                    f"graph '{name}' {kind} disagree with the manifest",
+                    path=path,
+                    expected=", ".join(wn),
+                    got=", ".join(gn),
+                )
             for g, w in zip(got, want, strict=True):
                 if len(g.shape) != len(w["shape"]) or _ORT_TYPES.get(g.type) != w["dtype"]:
-                    raise PackageError(f"graph '{name}' {kind[:-1]} '{g.name}' disagrees with the manifest", path=path,
-                                       expected=f"{w['dtype']} {w['shape']}", got=f"{g.type} {g.shape}")
+                    raise PackageError(
+                        f"graph '{name}' {kind[:-1]} '{g.name}' disagrees with the manifest",
+                        path=path,
+                        expected=f"{w['dtype']} {w['shape']}",
+                        got=f"{g.type} {g.shape}",
+                    )
                 for gd, wd in zip(g.shape, w["shape"], strict=True):
                     if isinstance(wd, int) and isinstance(gd, int) and gd != wd:
-                        raise PackageError(f"graph '{name}' {kind[:-1]} '{g.name}' has a different size", path=path,
-                                           expected=w["shape"], got=g.shape)
+                        raise PackageError(
+                            f"graph '{name}' {kind[:-1]} '{g.name}' has a different size",
+                            path=path,
+                            expected=w["shape"],
+                            got=g.shape,
+                        )
 
     def run(self, name: str, feeds: dict[str, np.ndarray]) -> list[np.ndarray]:
         """Validate ``feeds`` against the manifest (names, dtypes, ranks, fixed sizes, finiteness), then run.
@@ -237,17 +276,27 @@ class ModelPackage:
                 raise InputError(f"missing input '{w['name']}' for graph '{name}'")
             a = np.asarray(feeds[w["name"]])
             want_dt = np.dtype(w["dtype"])
-            if a.dtype != want_dt:  # each input in its manifest's dtype: schema 3 int32 / float32, schema 2 int64 / bool
+            if (
+                a.dtype != want_dt
+            ):  # each input in its manifest's dtype: schema 3 int32 / float32, schema 2 int64 / bool
                 if np.issubdtype(want_dt, np.integer) and not np.issubdtype(a.dtype, np.integer):
                     raise InputError(f"input '{w['name']}' has the wrong dtype", expected=w["dtype"], got=a.dtype)
-                if np.issubdtype(want_dt, np.integer) and a.size and (a.min() < np.iinfo(want_dt).min
-                                                                     or a.max() > np.iinfo(want_dt).max):
-                    raise InputError(f"input '{w['name']}' does not fit {w['dtype']}", expected=w["dtype"],
-                                     got=f"values {a.min()}..{a.max()}")
+                if (
+                    np.issubdtype(want_dt, np.integer)
+                    and a.size
+                    and (a.min() < np.iinfo(want_dt).min or a.max() > np.iinfo(want_dt).max)
+                ):
+                    raise InputError(
+                        f"input '{w['name']}' does not fit {w['dtype']}",
+                        expected=w["dtype"],
+                        got=f"values {a.min()}..{a.max()}",
+                    )
                 if want_dt == np.bool_ and a.dtype.kind not in "biuf":
                     raise InputError(f"input '{w['name']}' has the wrong dtype", expected=w["dtype"], got=a.dtype)
                 a = a != 0 if want_dt == np.bool_ else a.astype(want_dt)
-            if a.ndim != len(w["shape"]) or any(isinstance(d, int) and d != s for d, s in zip(w["shape"], a.shape, strict=True)):
+            if a.ndim != len(w["shape"]) or any(
+                isinstance(d, int) and d != s for d, s in zip(w["shape"], a.shape, strict=True)
+            ):
                 raise InputError(f"input '{w['name']}' has the wrong shape", expected=w["shape"], got=a.shape)
             if a.dtype.kind == "f" and not np.isfinite(a).all():
                 raise InputError(f"input '{w['name']}' contains NaN or inf")

@@ -52,8 +52,15 @@ from .body import BODY_BACKENDS, BodyPoser
 from .deformer import Deformer
 from .package import ModelPackage
 
-__all__ = ["Run", "RunSummary", "run_scene", "default_body_path", "default_model_path", "MAX_VERTEX_FRAMES",
-           "effective_batch"]
+__all__ = [
+    "Run",
+    "RunSummary",
+    "run_scene",
+    "default_body_path",
+    "default_model_path",
+    "MAX_VERTEX_FRAMES",
+    "effective_batch",
+]
 
 log = logging.getLogger(__name__)
 
@@ -73,8 +80,10 @@ def default_model_path() -> Path:
 
     p = data_path("models", "default")
     if not (p / "manifest.json").is_file():
-        raise InputError("no model package given and the default model is missing from this installation",
-                         expected=f"--model PACKAGE_DIR, [model] package in the scene, or {p}")
+        raise InputError(
+            "no model package given and the default model is missing from this installation",
+            expected=f"--model PACKAGE_DIR, [model] package in the scene, or {p}",
+        )
     return p
 
 
@@ -130,14 +139,31 @@ class Run:
             (that graph, or an error saying why not) or ``"numpy"`` (:meth:`BodyModel.forward`, float64).
     """
 
-    def __init__(self, *, garment: Path, motion: Motion, package: ModelPackage, body: BodyModel, betas=(),
-                 effects: Effects = Effects(), output: Path, output_format: str = "pc2", up: str = "y",
-                 body_output: Path | None = None, frames=None, batch: int = 8, cache: bool = True,
-                 force: bool = False, collider: Callable = BodyCollider, body_backend: str = "auto",
-                 guard=None) -> None:
+    def __init__(
+        self,
+        *,
+        garment: Path,
+        motion: Motion,
+        package: ModelPackage,
+        body: BodyModel,
+        betas=(),
+        effects: Effects = Effects(),
+        output: Path,
+        output_format: str = "pc2",
+        up: str = "y",
+        body_output: Path | None = None,
+        frames=None,
+        batch: int = 8,
+        cache: bool = True,
+        force: bool = False,
+        collider: Callable = BodyCollider,
+        body_backend: str = "auto",
+        guard=None,
+    ) -> None:
         if not callable(collider):
-            raise InputError("collider must be a collider class", expected="BodyCollider or ReferenceCollider",
-                             got=collider)
+            raise InputError(
+                "collider must be a collider class", expected="BodyCollider or ReferenceCollider", got=collider
+            )
         if body_backend not in BODY_BACKENDS:
             raise InputError("unknown body backend", expected=" | ".join(BODY_BACKENDS), got=body_backend)
         self.collider = collider
@@ -155,8 +181,11 @@ class Run:
         self.deformer = Deformer(package, effects)  # picks the variant; creates no session yet
         #: poses the body when collisions, the cloth stage or the body output need it (None otherwise); creates no
         #: session yet
-        self.body_poser = (BodyPoser(package, body, skinning=effects.skinning, backend=body_backend)
-                           if effects.collisions or effects.cloth or self.body_output is not None else None)
+        self.body_poser = (
+            BodyPoser(package, body, skinning=effects.skinning, backend=body_backend)
+            if effects.collisions or effects.cloth or self.body_output is not None
+            else None
+        )
 
     def _cache_dir(self) -> Path | None:
         if not self.cache:
@@ -180,8 +209,9 @@ class Run:
             except Exception:  # a stale or broken cache entry is recomputed
                 log.warning("ignoring unreadable asset cache %s", cpath)
         mesh = read_mesh(self.garment)
-        a = precompute_garment(mesh.vertices, mesh.faces, joints, n_star=n_star, source_name=self.garment.name,
-                               source_sha256=sha)
+        a = precompute_garment(
+            mesh.vertices, mesh.faces, joints, n_star=n_star, source_name=self.garment.name, source_sha256=sha
+        )
         if cpath is not None:
             try:
                 a.save(cpath)
@@ -197,11 +227,18 @@ class Run:
 
         poser = cast(BodyPoser, self.body_poser)  # the cloth stage needs the body
         rest = poser.pose(np.zeros((1, 3 * self.body.n_joints)), self.betas, np.zeros((1, 3)))[0]
-        setup = garment_setup(asset.vertices, asset.faces, rest, self.body.faces, self.effects.cloth_settings,
-                              cache_dir=self._cache_dir())
-        return ClothStage(setup, self.body.v_template, self.body.faces, self.effects.cloth_settings,
-                          margin=self.effects.collision_margin, dt=1.0 / float(self.motion.fps),
-                          first_frame=self.start)
+        setup = garment_setup(
+            asset.vertices, asset.faces, rest, self.body.faces, self.effects.cloth_settings, cache_dir=self._cache_dir()
+        )
+        return ClothStage(
+            setup,
+            self.body.v_template,
+            self.body.faces,
+            self.effects.cloth_settings,
+            margin=self.effects.collision_margin,
+            dt=1.0 / float(self.motion.fps),
+            first_frame=self.start,
+        )
 
     def execute(self, progress: Callable[[int], None] | None = None) -> RunSummary:
         t_all = time.perf_counter()
@@ -211,20 +248,37 @@ class Run:
         asset = self.load_asset(joints)
         if not self.force:  # refuse a garment that is not on the body (units, axes, another body)
             check_body_height(self.body, self.betas)  # and a body shape no human has (--force: meant)
-            check_placement(asset.vertices, self.body.shaped_vertices(self.betas)[0], self.body.faces,
-                            path=self.garment, template_vertices=self.body.v_template, betas=self.betas)
+            check_placement(
+                asset.vertices,
+                self.body.shaped_vertices(self.betas)[0],
+                self.body.faces,
+                path=self.garment,
+                template_vertices=self.body.v_template,
+                betas=self.betas,
+            )
         stage["precompute"] += time.perf_counter() - t
         t = time.perf_counter()
         P = self.deformer.encode(asset, joints, self.betas, cache_dir=self._cache_dir())
-        lw = (self.deformer.body_log_weights(asset, self.body, self.betas, cache_dir=self._cache_dir())
-              if self.deformer.needs_body_weights else None)
+        lw = (
+            self.deformer.body_log_weights(asset, self.body, self.betas, cache_dir=self._cache_dir())
+            if self.deformer.needs_body_weights
+            else None
+        )
         stage["encode"] += time.perf_counter() - t
         need_body = self.effects.collisions or self.effects.cloth or self.body_output is not None
-        out = SceneOutput(path=self.output, fmt=self.output_format, up=self.up, fps=self.motion.fps,
-                          start_frame=self.start, garment_faces=asset.faces, garment_rest=asset.vertices,
-                          body_path=self.body_output, body_faces=self.body.faces,
-                          body_rest=self.body.shaped_vertices(self.betas)[0] if self.body_output else None,
-                          guard=self.guard)
+        out = SceneOutput(
+            path=self.output,
+            fmt=self.output_format,
+            up=self.up,
+            fps=self.motion.fps,
+            start_frame=self.start,
+            garment_faces=asset.faces,
+            garment_rest=asset.vertices,
+            body_path=self.body_output,
+            body_faces=self.body.faces,
+            body_rest=self.body.shaped_vertices(self.betas)[0] if self.body_output else None,
+            guard=self.guard,
+        )
         pushed = 0
         collider = cloth = None
         try:
@@ -239,8 +293,9 @@ class Run:
                     raise InputError(f"the deformer produced NaN or inf at frames {lo}..{hi - 1}")
                 if need_body:
                     t = time.perf_counter()
-                    posed = cast(BodyPoser, self.body_poser).pose(self.motion.poses[lo:hi], self.betas,
-                                                                  self.motion.trans[lo:hi])
+                    posed = cast(BodyPoser, self.body_poser).pose(
+                        self.motion.poses[lo:hi], self.betas, self.motion.trans[lo:hi]
+                    )
                     stage["pose body"] += time.perf_counter() - t
                 if self.effects.cloth:  # contact included: no push-out after it
                     t = time.perf_counter()
@@ -251,8 +306,11 @@ class Run:
                 elif self.effects.collisions:
                     t = time.perf_counter()
                     if collider is None:  # built once per run (its cost counts here), the session's threads
-                        collider = self.collider(self.body.v_template, self.body.faces,
-                                                 threads=max(1, int(getattr(self.package, "threads", 1))))
+                        collider = self.collider(
+                            self.body.v_template,
+                            self.body.faces,
+                            threads=max(1, int(getattr(self.package, "threads", 1))),
+                        )
                     verts, n = collider.push_out(verts, posed, self.effects.collision_margin)
                     pushed += n
                     stage["collisions"] += time.perf_counter() - t
@@ -271,18 +329,29 @@ class Run:
         except BaseException:
             out.abort()
             raise
-        return RunSummary(frames=self.stop - self.start, seconds=time.perf_counter() - t_all, output=self.output,
-                          body_output=self.body_output, output_format=self.output_format, written=written, effects=self.effects, variant=self.deformer.variant,
-                          sessions=sorted(self.package.created), pushed_vertices=pushed, stage_seconds=stage,
-                          body_backend=cast(BodyPoser, self.body_poser).backend if need_body else None,
-                          cloth=None if cloth is None else {"contacts": cloth.contacts, "pushed": cloth.pushed,
-                                                            "resets": cloth.resets})
+        return RunSummary(
+            frames=self.stop - self.start,
+            seconds=time.perf_counter() - t_all,
+            output=self.output,
+            body_output=self.body_output,
+            output_format=self.output_format,
+            written=written,
+            effects=self.effects,
+            variant=self.deformer.variant,
+            sessions=sorted(self.package.created),
+            pushed_vertices=pushed,
+            stage_seconds=stage,
+            body_backend=cast(BodyPoser, self.body_poser).backend if need_body else None,
+            cloth=None
+            if cloth is None
+            else {"contacts": cloth.contacts, "pushed": cloth.pushed, "resets": cloth.resets},
+        )
 
 
 def _padded(betas, n: int) -> np.ndarray:
     b = np.zeros(n)
     v = np.asarray(betas if betas is not None else (), np.float64).ravel()[:n]
-    b[:len(v)] = v
+    b[: len(v)] = v
     return b
 
 
@@ -305,18 +374,23 @@ def shape_for_inputs(scene: Scene, body: BodyModel, *, force: bool = False) -> t
 
     want = (asset.body or {}).get("sha256")
     if want and want != body_sha256(body) and not force:
-        raise InputError(f"the garment asset was prepared for another body ({(asset.body or {}).get('name')})",
-                         path=g, expected=f"the body it was exported for, or `segadeform garment export` "
-                                          f"for {Path(body.path).name if body.path else 'this body'}",
-                         got=f"body {Path(body.path).name if body.path else ''} (another hash)")
+        raise InputError(
+            f"the garment asset was prepared for another body ({(asset.body or {}).get('name')})",
+            path=g,
+            expected=f"the body it was exported for, or `segadeform garment export` "
+            f"for {Path(body.path).name if body.path else 'this body'}",
+            got=f"body {Path(body.path).name if body.path else ''} (another hash)",
+        )
     ab = _padded(asset.betas, body.n_betas)
     if not scene.betas:
         return tuple(float(x) for x in np.trim_zeros(ab, "b"))
     if not np.allclose(_padded(scene.betas, body.n_betas), ab, atol=1e-6) and not force:
-        raise InputError("the garment asset was prepared for another body shape than the run's betas", path=g,
-                         expected=f"betas {_label(ab)}, the asset's: leave --betas out, or export the garment "
-                                  "again for these betas",
-                         got=f"betas {_label(_padded(scene.betas, body.n_betas))}")
+        raise InputError(
+            "the garment asset was prepared for another body shape than the run's betas",
+            path=g,
+            expected=f"betas {_label(ab)}, the asset's: leave --betas out, or export the garment again for these betas",
+            got=f"betas {_label(_padded(scene.betas, body.n_betas))}",
+        )
     return tuple(scene.betas)
 
 
@@ -331,9 +405,12 @@ def check_motion_shape(motion: Motion, scene: Scene, body: BodyModel, *, force: 
     f = scene.motion.file
     mb = meta.get("body") or {}
     if isinstance(mb, dict) and mb.get("sha256") and mb["sha256"] != body_sha256(body):
-        raise InputError(f"the motion file was retargeted onto another body ({mb.get('name')})", path=f,
-                         expected="the body it was exported for, or the motion exported again for this one; "
-                                  "--force plays it anyway", got="another body")
+        raise InputError(
+            f"the motion file was retargeted onto another body ({mb.get('name')})",
+            path=f,
+            expected="the body it was exported for, or the motion exported again for this one; --force plays it anyway",
+            got="another body",
+        )
     mbetas = meta.get("betas")
     if mbetas is not None:
         try:
@@ -342,15 +419,30 @@ def check_motion_shape(motion: Motion, scene: Scene, body: BodyModel, *, force: 
             raise InputError("the motion file's betas are not numbers", path=f, got=repr(mbetas)[:60]) from None
         run_b = _padded(scene.betas, body.n_betas)
         if not np.allclose(mb_full, run_b, atol=1e-6):
-            raise InputError("the motion file was retargeted onto another body shape than the run's", path=f,
-                             expected=f"betas {_label(mb_full)}: run with those, or export the motion again for "
-                                      "these betas; --force plays it anyway",
-                             got=f"betas {_label(run_b)}")
+            raise InputError(
+                "the motion file was retargeted onto another body shape than the run's",
+                path=f,
+                expected=f"betas {_label(mb_full)}: run with those, or export the motion again for "
+                "these betas; --force plays it anyway",
+                got=f"betas {_label(run_b)}",
+            )
 
 
-def run_scene(scene: Scene, *, model: Path | None = None, output: Path | None = None, batch: int = 8,
-              threads: int = 1, providers=None, progress=None, cache: bool = True, force: bool = False,
-              body_backend: str = "auto", guard=None, frames_from_scene: bool = True) -> RunSummary:
+def run_scene(
+    scene: Scene,
+    *,
+    model: Path | None = None,
+    output: Path | None = None,
+    batch: int = 8,
+    threads: int = 1,
+    providers=None,
+    progress=None,
+    cache: bool = True,
+    force: bool = False,
+    body_backend: str = "auto",
+    guard=None,
+    frames_from_scene: bool = True,
+) -> RunSummary:
     """Run a scene (optionally overriding its model package and output path); ``body_backend`` and ``guard``:
     :class:`Run`'s.  ``frames_from_scene``: the frame range is the scene file's (a range past the motion's end
     names the file); False when a command-line flag gave it."""
@@ -366,8 +458,22 @@ def run_scene(scene: Scene, *, model: Path | None = None, output: Path | None = 
     except InputError as e:
         raise e.with_path(scene.path) if scene.path is not None and frames_from_scene else e from None
     out = Path(output) if output is not None else scene.output
-    run = Run(garment=scene.garment, motion=motion, package=package, body=body, betas=scene.betas,
-              effects=scene.effects, output=out, output_format=scene.output_format, up=scene.up,
-              body_output=scene.body_output, frames=scene.motion.frames, batch=batch, cache=cache, force=force,
-              body_backend=body_backend, guard=guard)
+    run = Run(
+        garment=scene.garment,
+        motion=motion,
+        package=package,
+        body=body,
+        betas=scene.betas,
+        effects=scene.effects,
+        output=out,
+        output_format=scene.output_format,
+        up=scene.up,
+        body_output=scene.body_output,
+        frames=scene.motion.frames,
+        batch=batch,
+        cache=cache,
+        force=force,
+        body_backend=body_backend,
+        guard=guard,
+    )
     return run.execute(progress)

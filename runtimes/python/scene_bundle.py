@@ -20,8 +20,15 @@ from .pipeline import Run, default_model_path
 __all__ = ["scene_bundle"]
 
 
-def scene_bundle(scene: Scene, out: str | Path, *, model: Path | None = None, expected: bool = True,
-                 batch: int = 8, force: bool = False) -> Path:
+def scene_bundle(
+    scene: Scene,
+    out: str | Path,
+    *,
+    model: Path | None = None,
+    expected: bool = True,
+    batch: int = 8,
+    force: bool = False,
+) -> Path:
     """Write the bundle of ``scene`` (its effects without collisions: those are the host's post-process).
 
     ``expected``: also run the deformer here and store its output (the parity vector)."""
@@ -30,22 +37,43 @@ def scene_bundle(scene: Scene, out: str | Path, *, model: Path | None = None, ex
     joints = body.rest_joints(scene.betas)[0]
     motion, _ = select_frames(build_motion(scene.motion, joints), scene.motion.frames)
     effects = dataclasses.replace(scene.effects, collisions=False)
-    run = Run(garment=scene.garment, motion=motion, package=package, body=body, betas=scene.betas, effects=effects,
-              output=Path(out).with_suffix(".unused"), cache=False, force=force)
+    run = Run(
+        garment=scene.garment,
+        motion=motion,
+        package=package,
+        body=body,
+        betas=scene.betas,
+        effects=effects,
+        output=Path(out).with_suffix(".unused"),
+        cache=False,
+        force=force,
+    )
     asset = run.load_asset(joints)
     if not force:
         from segadeform.body.placement import check_placement
 
-        check_placement(asset.vertices, body.shaped_vertices(scene.betas)[0], body.faces, path=scene.garment,
-                        template_vertices=body.v_template, betas=scene.betas)
+        check_placement(
+            asset.vertices,
+            body.shaped_vertices(scene.betas)[0],
+            body.faces,
+            path=scene.garment,
+            template_vertices=body.v_template,
+            betas=scene.betas,
+        )
     d = run.deformer
     feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
     betas = d._betas(scene.betas)
     arrays = {
-        "features": feats.astype(np.float32), "nbr": asset.nbr.astype(np.int32), "mask": asset.mask.astype(np.uint8),
-        "descriptor": asset.descriptor.astype(np.float32), "betas": betas, "rest": asset.vertices.astype(np.float32),
-        "faces": asset.faces.astype(np.int32), "joints": joints.astype(np.float32),
-        "poses": motion.poses.astype(np.float32), "trans": motion.trans.astype(np.float32),
+        "features": feats.astype(np.float32),
+        "nbr": asset.nbr.astype(np.int32),
+        "mask": asset.mask.astype(np.uint8),
+        "descriptor": asset.descriptor.astype(np.float32),
+        "betas": betas,
+        "rest": asset.vertices.astype(np.float32),
+        "faces": asset.faces.astype(np.int32),
+        "joints": joints.astype(np.float32),
+        "poses": motion.poses.astype(np.float32),
+        "trans": motion.trans.astype(np.float32),
     }
     lw = d.body_log_weights(asset, body, scene.betas) if d.needs_body_weights else None
     if lw is not None:
@@ -58,8 +86,14 @@ def scene_bundle(scene: Scene, out: str | Path, *, model: Path | None = None, ex
             win = motion_windows(motion.poses, d.window, start=lo, stop=hi)
             frames.append(d.deform(P, asset, win, joints, motion.trans[lo:hi], scene.betas, log_wbody=lw))
         arrays["expected"] = np.concatenate(frames).astype(np.float32)
-    meta = {"fps": float(motion.fps), "window": int(d.window), "graph": d.variant,
-            "effects": {"skinning": effects.skinning, "dynamics": effects.dynamics, "wrinkles": effects.wrinkles},
-            "garment": Path(scene.garment).name, "motion": motion.name, "betas": [float(x) for x in betas],
-            "package_config": package.config}
+    meta = {
+        "fps": float(motion.fps),
+        "window": int(d.window),
+        "graph": d.variant,
+        "effects": {"skinning": effects.skinning, "dynamics": effects.dynamics, "wrinkles": effects.wrinkles},
+        "garment": Path(scene.garment).name,
+        "motion": motion.name,
+        "betas": [float(x) for x in betas],
+        "package_config": package.config,
+    }
     return write_bundle(out, arrays, meta)

@@ -27,8 +27,9 @@ from .pipeline import Run, default_model_path
 __all__ = ["scene_vectors"]
 
 
-def scene_vectors(scene: Scene, out_dir: str | Path, *, model: Path | None = None, batch: int = 8,
-                  force: bool = False) -> dict[str, Path]:
+def scene_vectors(
+    scene: Scene, out_dir: str | Path, *, model: Path | None = None, batch: int = 8, force: bool = False
+) -> dict[str, Path]:
     """Write ``garment.sgda``, ``motion.sgdm`` and ``check.sgdb`` for ``scene`` into ``out_dir``; returns their
     paths by name (``garment``, ``motion``, ``check``).  The frames are ``segadeform run``'s on the asset and the
     motion (the scene's effects without collisions, so these vectors test the network and skinning alone; the
@@ -45,23 +46,43 @@ def scene_vectors(scene: Scene, out_dir: str | Path, *, model: Path | None = Non
         asset = GarmentAsset.load(g)
     else:
         mesh = read_mesh(g)
-        asset = precompute_garment(mesh.vertices, mesh.faces, body.rest_joints()[0],
-                                   n_star=int(package.config["n_star"]), source_name=g.name,
-                                   source_sha256=file_sha256(g))
+        asset = precompute_garment(
+            mesh.vertices,
+            mesh.faces,
+            body.rest_joints()[0],
+            n_star=int(package.config["n_star"]),
+            source_name=g.name,
+            source_sha256=file_sha256(g),
+        )
     paths = {"garment": out / "garment.sgda", "motion": out / "motion.sgdm", "check": out / "check.sgdb"}
     prepare_for_body(asset, body, scene.betas, weight_prior=str(package.config.get("weight_prior", "nearest"))).save(
-        paths["garment"])
+        paths["garment"]
+    )
     full = [0.0] * body.n_betas
-    full[:len(scene.betas)] = scene.betas
+    full[: len(scene.betas)] = scene.betas
     write_motion_file(paths["motion"], motion, body=body_label(body), betas=full, source=motion.name)
     effects = dataclasses.replace(scene.effects, collisions=False)
-    run = Run(garment=paths["garment"], motion=motion, package=package, body=body, betas=scene.betas,
-              effects=effects, output=out / "python.pc2", body_output=out / "python_body.pc2", batch=batch,
-              cache=False, force=force)
+    run = Run(
+        garment=paths["garment"],
+        motion=motion,
+        package=package,
+        body=body,
+        betas=scene.betas,
+        effects=effects,
+        output=out / "python.pc2",
+        body_output=out / "python_body.pc2",
+        batch=batch,
+        cache=False,
+        force=force,
+    )
     run.execute()
-    write_bundle(paths["check"], {"expected": read_pc2(out / "python.pc2").frames,
-                                  "body": read_pc2(out / "python_body.pc2").frames},
-                 {"effects": {"skinning": effects.skinning, "dynamics": effects.dynamics,
-                              "wrinkles": effects.wrinkles}, "graph": run.deformer.variant,
-                  "fps": float(motion.fps)})
+    write_bundle(
+        paths["check"],
+        {"expected": read_pc2(out / "python.pc2").frames, "body": read_pc2(out / "python_body.pc2").frames},
+        {
+            "effects": {"skinning": effects.skinning, "dynamics": effects.dynamics, "wrinkles": effects.wrinkles},
+            "graph": run.deformer.variant,
+            "fps": float(motion.fps),
+        },
+    )
     return paths

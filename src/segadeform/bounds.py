@@ -26,14 +26,24 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["FPS_RANGE", "MAX_TRANSLATION", "BETA_LIMIT", "HEIGHT_RANGE", "SEED_RANGE", "check_fps",
-           "check_translation", "check_betas", "check_body_height", "check_seed"]
+__all__ = [
+    "FPS_RANGE",
+    "MAX_TRANSLATION",
+    "BETA_LIMIT",
+    "HEIGHT_RANGE",
+    "SEED_RANGE",
+    "check_fps",
+    "check_translation",
+    "check_betas",
+    "check_body_height",
+    "check_seed",
+]
 
 FPS_RANGE = (1.0, 1000.0)
 MAX_TRANSLATION = 1.0e4
 BETA_LIMIT = 10.0
 HEIGHT_RANGE = (0.9, 2.5)
-SEED_RANGE = (0, 2 ** 32 - 1)
+SEED_RANGE = (0, 2**32 - 1)
 
 
 def _real(a, what: str, path, line=None) -> np.ndarray:
@@ -51,8 +61,12 @@ def check_fps(fps, *, path=None, what: str = "frame rate") -> float:
         raise InputError(f"{what} must be a number", path=path, got=repr(fps)[:40]) from None
     lo, hi = FPS_RANGE
     if not (np.isfinite(f) and lo <= f <= hi):
-        raise InputError(f"{what} is outside what motion is recorded at", path=path,
-                         expected=f"{lo:g}..{hi:g} frames per second", got=f"{f:g}")
+        raise InputError(
+            f"{what} is outside what motion is recorded at",
+            path=path,
+            expected=f"{lo:g}..{hi:g} frames per second",
+            got=f"{f:g}",
+        )
     return f
 
 
@@ -61,8 +75,12 @@ def check_translation(trans, *, path=None) -> None:
     t = _real(trans, "translations", path)
     m = float(np.abs(t).max()) if t.size else 0.0
     if not m <= MAX_TRANSLATION:  # NaN fails too
-        raise InputError("the motion's root moves too far: check the file's units", path=path,
-                         expected=f"|translation| <= {MAX_TRANSLATION:g} m", got=f"{m:.3g} m")
+        raise InputError(
+            "the motion's root moves too far: check the file's units",
+            path=path,
+            expected=f"|translation| <= {MAX_TRANSLATION:g} m",
+            got=f"{m:.3g} m",
+        )
 
 
 def check_betas(betas, *, path=None, what: str = "betas") -> tuple:
@@ -71,8 +89,12 @@ def check_betas(betas, *, path=None, what: str = "betas") -> tuple:
     if not np.isfinite(b).all():
         raise InputError(f"{what} must be finite", path=path, got=[float(x) for x in b[:10]])
     if b.size and np.abs(b).max() > BETA_LIMIT:
-        raise InputError(f"{what} out of range: past it the body model folds through itself", path=path,
-                         expected=f"|beta| <= {BETA_LIMIT:g}", got=f"{float(b[np.abs(b).argmax()]):g}")
+        raise InputError(
+            f"{what} out of range: past it the body model folds through itself",
+            path=path,
+            expected=f"|beta| <= {BETA_LIMIT:g}",
+            got=f"{float(b[np.abs(b).argmax()]):g}",
+        )
     return tuple(float(x) for x in b)
 
 
@@ -82,9 +104,12 @@ def check_body_height(body, betas=None, *, force: bool = False, path=None) -> fl
     h = float(np.ptp(body.shaped_vertices(betas)[0][:, 1]))
     lo, hi = HEIGHT_RANGE
     if not force and not lo <= h <= hi:
-        raise InputError("the body shape is not a human's height", path=path,
-                         expected=f"{lo:g}..{hi:g} m (betas within about +-3), or --force to use it anyway",
-                         got=f"{h:.2f} m")
+        raise InputError(
+            "the body shape is not a human's height",
+            path=path,
+            expected=f"{lo:g}..{hi:g} m (betas within about +-3), or --force to use it anyway",
+            got=f"{h:.2f} m",
+        )
     return h
 
 

@@ -11,8 +11,15 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["SegadeformError", "InputError", "FileFormatError", "SimulationError", "file_error", "check_readable",
-           "unreadable_error"]
+__all__ = [
+    "SegadeformError",
+    "InputError",
+    "FileFormatError",
+    "SimulationError",
+    "file_error",
+    "check_readable",
+    "unreadable_error",
+]
 
 
 class SegadeformError(Exception):
@@ -66,9 +73,7 @@ class InputError(SegadeformError, ValueError):
         """The same error, attributed to ``path`` (if it had no path yet)."""
         if self.path is not None:
             return self
-        return type(self)(
-            self.problem, path=path, line=self.line, expected=self.expected, got=self.got
-        )
+        return type(self)(self.problem, path=path, line=self.line, expected=self.expected, got=self.got)
 
 
 class FileFormatError(InputError):

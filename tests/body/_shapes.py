@@ -1,4 +1,5 @@
 """Closed test meshes."""
+
 import numpy as np
 
 

@@ -18,8 +18,13 @@ def toy_body(n_betas=4, posedirs=False, seed=0) -> BodyModel:
     for j in range(24):
         jr[j, nearest[:, j]] = 0.25
     return BodyModel(
-        v_template=v, faces=f, shapedirs=rng.normal(scale=0.01, size=(len(v), 3, n_betas)), weights=w,
-        parents=SMPL_PARENTS.copy(), joint_names=SMPL_JOINT_NAMES, J_regressor=jr,
+        v_template=v,
+        faces=f,
+        shapedirs=rng.normal(scale=0.01, size=(len(v), 3, n_betas)),
+        weights=w,
+        parents=SMPL_PARENTS.copy(),
+        joint_names=SMPL_JOINT_NAMES,
+        J_regressor=jr,
         posedirs=rng.normal(scale=1e-3, size=(len(v), 3, 207)) if posedirs else None,
     ).validate()
 

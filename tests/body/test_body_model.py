@@ -38,8 +38,14 @@ def test_forward_shapes_betas_and_posedirs():
 
 def smpl_style_arrays(body):
     kt = np.stack([np.r_[4294967295, body.parents[1:]], np.arange(24)]).astype(np.int64)
-    return dict(v_template=body.v_template, f=body.faces.astype(np.uint32), shapedirs=body.shapedirs,
-                J_regressor=body.J_regressor, weights=body.weights, kintree_table=kt)
+    return dict(
+        v_template=body.v_template,
+        f=body.faces.astype(np.uint32),
+        shapedirs=body.shapedirs,
+        J_regressor=body.J_regressor,
+        weights=body.weights,
+        kintree_table=kt,
+    )
 
 
 def test_official_smpl_npz_layout(tmp_path, body):
@@ -64,8 +70,14 @@ def make_smpl_pickle(body) -> bytes:
     sys.modules["chumpy"], sys.modules["chumpy.ch"] = chumpy, ch_mod
     try:
         a = smpl_style_arrays(body)
-        d = dict(a, v_template=Ch(a["v_template"]), shapedirs=Ch(a["shapedirs"]), weights=Ch(a["weights"]),
-                 J_regressor=sp.csc_matrix(a["J_regressor"]), bs_type="lrotmin")
+        d = dict(
+            a,
+            v_template=Ch(a["v_template"]),
+            shapedirs=Ch(a["shapedirs"]),
+            weights=Ch(a["weights"]),
+            J_regressor=sp.csc_matrix(a["J_regressor"]),
+            bs_type="lrotmin",
+        )
         return pickle.dumps(d, protocol=2)
     finally:
         del sys.modules["chumpy"], sys.modules["chumpy.ch"]
@@ -89,12 +101,15 @@ class _Evil:
         return (os.system, (self.cmd,))
 
 
-@pytest.mark.parametrize("payload", [
-    lambda marker: pickle.dumps({"v_template": _Evil(f"touch {marker}")}, protocol=2),
-    lambda marker: pickle.dumps({"x": _Evil(f"touch {marker}")}, protocol=4),
-    lambda marker: b"cbuiltins\neval\n(V__import__('os').system('touch " + str(marker).encode() + b"')\ntR.",
-    lambda marker: b"ccopyreg\n_reconstructor\n(csubprocess\nPopen\nc__builtin__\nobject\nNtR.",
-])
+@pytest.mark.parametrize(
+    "payload",
+    [
+        lambda marker: pickle.dumps({"v_template": _Evil(f"touch {marker}")}, protocol=2),
+        lambda marker: pickle.dumps({"x": _Evil(f"touch {marker}")}, protocol=4),
+        lambda marker: b"cbuiltins\neval\n(V__import__('os').system('touch " + str(marker).encode() + b"')\ntR.",
+        lambda marker: b"ccopyreg\n_reconstructor\n(csubprocess\nPopen\nc__builtin__\nobject\nNtR.",
+    ],
+)
 def test_crafted_pickles_are_refused_and_never_run(tmp_path, payload):
     marker = tmp_path / "pwned"
     p = tmp_path / "evil.pkl"
@@ -105,16 +120,19 @@ def test_crafted_pickles_are_refused_and_never_run(tmp_path, payload):
     assert not marker.exists()
 
 
-@pytest.mark.parametrize("change, words", [
-    (dict(weights="scale"), "do not sum to 1"),
-    (dict(parents=np.array([0] + list(range(23)))), "root"),
-    (dict(parents=np.array([-1, 5] + list(range(1, 23)))), "invalid parent"),
-    (dict(faces=np.array([[0, 1, 100000]])), "faces"),
-    (dict(v_template="nan"), "NaN"),
-    (dict(shapedirs=np.zeros((3, 3, 2))), "shapedirs"),
-    (dict(weights=None), "missing"),
-    (dict(J_regressor=None), "J_regressor"),
-])
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        (dict(weights="scale"), "do not sum to 1"),
+        (dict(parents=np.array([0] + list(range(23)))), "root"),
+        (dict(parents=np.array([-1, 5] + list(range(1, 23)))), "invalid parent"),
+        (dict(faces=np.array([[0, 1, 100000]])), "faces"),
+        (dict(v_template="nan"), "NaN"),
+        (dict(shapedirs=np.zeros((3, 3, 2))), "shapedirs"),
+        (dict(weights=None), "missing"),
+        (dict(J_regressor=None), "J_regressor"),
+    ],
+)
 def test_malformed_body_files(tmp_path, body, change, words):
     body.save(tmp_path / "ok.npz")
     z = dict(np.load(tmp_path / "ok.npz", allow_pickle=False))

@@ -58,11 +58,15 @@ def _stage(setup, body, settings=ClothSettings(), **kw):
 def test_setup_is_the_reference_on_hard_meshes(body):
     rest_body = body.shaped_vertices()[0]
     v, f = frustum(16, 6, 0.17, 0.33, 1.02, 0.55)
-    meshes = {"skirt": (v, f),
-              # repeated-vertex and collinear faces, a duplicate face, vertices in no face
-              "degenerate": (np.vstack([v, v[0], (v[0] + v[1]) / 2, [[0.0, 1.5, 0.0]]]),
-                             np.vstack([f, [[0, 1, len(v) + 1]], [[0, len(v), 1]], f[:3]])),
-              "strip": (grid_plane(30, 2, size=(0.6, 0.02))[0] + [-0.3, 1.0, 0.2], grid_plane(30, 2, size=(0.6, 0.02))[1])}
+    meshes = {
+        "skirt": (v, f),
+        # repeated-vertex and collinear faces, a duplicate face, vertices in no face
+        "degenerate": (
+            np.vstack([v, v[0], (v[0] + v[1]) / 2, [[0.0, 1.5, 0.0]]]),
+            np.vstack([f, [[0, 1, len(v) + 1]], [[0, len(v), 1]], f[:3]]),
+        ),
+        "strip": (grid_plane(30, 2, size=(0.6, 0.02))[0] + [-0.3, 1.0, 0.2], grid_plane(30, 2, size=(0.6, 0.02))[1]),
+    }
     for name, (vv, ff) in meshes.items():
         sd = rest_signed_distance(vv, rest_body, body.faces)
         for s in (ClothSettings(), ClothSettings(attachment=0.0, max_distance=0.2)):
@@ -81,8 +85,10 @@ def test_kernel_is_the_reference(walk, body):
     """The compiled stage and the slow reference agree to 1e-9 m on every frame of a walk through the thighs, in
     contact (the reference's contacts and push-out come from the numpy BodyCollider), for two settings."""
     v, f, targets, posed, setup = walk
-    for s in (ClothSettings(), ClothSettings(iterations=3, stiffness=0.6, bending=0.0, compress=1.0, follow=0.0,
-                                             gravity=20.0)):
+    for s in (
+        ClothSettings(),
+        ClothSettings(iterations=3, stiffness=0.6, bending=0.0, compress=1.0, follow=0.0, gravity=20.0),
+    ):
         stage = _stage(setup, body, s)
         fast = stage.step(targets, posed)
         ref, st = cloth_reference(targets, posed, body.faces, setup, s, margin=MARGIN)
@@ -98,13 +104,15 @@ def test_batches_and_streams_give_the_frames_of_one_call(walk, body):
     one = _stage(setup, body).step(targets, posed)
     for size in (1, 3, 5):
         st = _stage(setup, body)
-        parts = [st.step(targets[lo:lo + size], posed[lo:lo + size]) for lo in range(0, len(targets), size)]
+        parts = [st.step(targets[lo : lo + size], posed[lo : lo + size]) for lo in range(0, len(targets), size)]
         np.testing.assert_array_equal(np.concatenate(parts), one)
         assert st.frames == len(targets)
     # deterministic: a second stage gives the same bits; float32 inputs are taken as their float64 values
     np.testing.assert_array_equal(_stage(setup, body).step(targets, posed), one)
     t32 = targets.astype(np.float32)
-    np.testing.assert_array_equal(_stage(setup, body).step(t32, posed), _stage(setup, body).step(t32.astype(np.float64), posed))
+    np.testing.assert_array_equal(
+        _stage(setup, body).step(t32, posed), _stage(setup, body).step(t32.astype(np.float64), posed)
+    )
 
 
 def test_attachment_contact_and_the_bound(walk, body):
@@ -202,8 +210,14 @@ def test_bad_input_is_refused(walk, body):
         stage.step(targets[:2, :5], posed[:2])
     with pytest.raises(InputError, match="one frame per garment frame"):
         stage.step(targets[:2], posed[:3])
-    for kw in ({"iterations": 0}, {"iterations": 2.5}, {"stretch": -0.1}, {"gravity": float("nan")},
-               {"reset": 0.0}, {"follow": 2}):
+    for kw in (
+        {"iterations": 0},
+        {"iterations": 2.5},
+        {"stretch": -0.1},
+        {"gravity": float("nan")},
+        {"reset": 0.0},
+        {"follow": 2},
+    ):
         with pytest.raises(ValueError, match="cloth"):
             ClothSettings(**kw)
     with pytest.raises(ValueError, match="unknown cloth setting"):
@@ -213,8 +227,9 @@ def test_bad_input_is_refused(walk, body):
     with pytest.raises(InputError, match="time step"):
         settings_array(ClothSettings(), margin=MARGIN, dt=0.0)
     with pytest.raises(InputError, match="inconsistent cloth setup"):
-        ClothSetup(edges=setup.edges, rest_len=setup.rest_len, nptr=setup.nptr[:-1], nidx=setup.nidx,
-                   radius=setup.radius).validate()
+        ClothSetup(
+            edges=setup.edges, rest_len=setup.rest_len, nptr=setup.nptr[:-1], nidx=setup.nidx, radius=setup.radius
+        ).validate()
 
 
 def test_setup_is_cached_with_the_garment(tmp_path, body, monkeypatch):

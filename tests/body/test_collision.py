@@ -97,15 +97,25 @@ def _cloud(v, f, n, seed):
     rng = np.random.default_rng(seed)
     scale = np.ptp(v, axis=0) / 2
     centre = v.mean(axis=0)
-    return np.concatenate([centre + rng.normal(size=(n, 3)) * scale * rng.uniform(0.1, 1.5, (n, 1)), v,
-                           0.5 * (v[f[:, 0]] + v[f[:, 1]]), centre + 20 * scale * rng.normal(size=(10, 3))])
+    return np.concatenate(
+        [
+            centre + rng.normal(size=(n, 3)) * scale * rng.uniform(0.1, 1.5, (n, 1)),
+            v,
+            0.5 * (v[f[:, 0]] + v[f[:, 1]]),
+            centre + 20 * scale * rng.normal(size=(10, 3)),
+        ]
+    )
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("shape", ["icosphere", "degenerate", "open", "uv-sphere"])
 def test_fast_query_is_the_brute_force_answer(shape, backend):
-    v, f = {"icosphere": _icosphere, "degenerate": _degenerate_icosphere, "open": lambda: _icosphere()[:1] + (
-        _icosphere()[1][7:],), "uv-sphere": lambda: sphere(24, 16)}[shape]()
+    v, f = {
+        "icosphere": _icosphere,
+        "degenerate": _degenerate_icosphere,
+        "open": lambda: _icosphere()[:1] + (_icosphere()[1][7:],),
+        "uv-sphere": lambda: sphere(24, 16),
+    }[shape]()
     v = v * [0.3, 0.9, 0.2] + [0.0, 1.0, 0.0]
     p = _cloud(v, f, 2000, 3)
     col = BodyCollider(v, f, backend=backend)
@@ -133,7 +143,7 @@ def ambiguous(p, v, f, tol=1e-12):
     out = np.zeros(len(p), bool)
     for i in np.flatnonzero(tied.sum(axis=1) > 1):
         faces = np.flatnonzero(tied[i])
-        n = exhaustive_rows(proxy, np.repeat(p[i:i + 1], len(faces), 0), faces, normals=True)[1]
+        n = exhaustive_rows(proxy, np.repeat(p[i : i + 1], len(faces), 0), faces, normals=True)[1]
         out[i] = np.abs(n - n[0]).max() > 1e-9
     return out
 
@@ -146,8 +156,11 @@ def test_fast_push_out_is_the_exhaustive_reference(shape, margin, backend):
     looks at every triangle; the others stay bit for bit.  Points whose nearest features tie with
     different normals (only on the degenerate mesh, see :func:`ambiguous`), at the start or after any
     pass, may go either way."""
-    v, f = {"icosphere": _icosphere, "degenerate": _degenerate_icosphere,
-            "open": lambda: (_icosphere()[0], _icosphere()[1][7:])}[shape]()
+    v, f = {
+        "icosphere": _icosphere,
+        "degenerate": _degenerate_icosphere,
+        "open": lambda: (_icosphere()[0], _icosphere()[1][7:]),
+    }[shape]()
     v = v * [0.3, 0.9, 0.2]
     p = _cloud(v, f, 1500, 4)
     got, n_got = BodyCollider(v, f, backend=backend).push_out(p, v, margin)
@@ -304,12 +317,48 @@ def test_fast_collider_edge_cases(backend):
 
 def _icosphere():
     """A unit icosahedron subdivided twice and projected onto the sphere (closed, outward faces)."""
-    t = (1 + 5 ** 0.5) / 2
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t], [0, 1, -t],
-                  [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
-                  [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5],
-                  [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
+    t = (1 + 5**0.5) / 2
+    v = np.array(
+        [
+            [-1, t, 0],
+            [1, t, 0],
+            [-1, -t, 0],
+            [1, -t, 0],
+            [0, -1, t],
+            [0, 1, t],
+            [0, -1, -t],
+            [0, 1, -t],
+            [t, 0, -1],
+            [t, 0, 1],
+            [-t, 0, -1],
+            [-t, 0, 1],
+        ],
+        float,
+    )
+    f = np.array(
+        [
+            [0, 11, 5],
+            [0, 5, 1],
+            [0, 1, 7],
+            [0, 7, 10],
+            [0, 10, 11],
+            [1, 5, 9],
+            [5, 11, 4],
+            [11, 10, 2],
+            [10, 7, 6],
+            [7, 1, 8],
+            [3, 9, 4],
+            [3, 4, 2],
+            [3, 2, 6],
+            [3, 6, 8],
+            [3, 8, 9],
+            [4, 9, 5],
+            [2, 4, 11],
+            [6, 2, 10],
+            [8, 6, 7],
+            [9, 8, 1],
+        ]
+    )
     for _ in range(2):
         mids = {}
         nv = list(v)

@@ -71,7 +71,7 @@ def test_closest_point_and_sign_on_the_posed_body_are_brute_force(posed_body):
     np.testing.assert_allclose(np.linalg.norm(r.closest - p, axis=1), d, atol=1e-12)
     np.testing.assert_array_equal(np.sign(r.signed_distance), np.sign(exhaustive_rows(proxy, p, r.face)))
     np.testing.assert_allclose(np.linalg.norm(r.normal, axis=1), 1.0, atol=1e-9)
-    deep = deep[np.concatenate([winding_number(deep[i:i + 8], v, f) for i in range(0, len(deep), 8)]) > 0.5]
+    deep = deep[np.concatenate([winding_number(deep[i : i + 8], v, f) for i in range(0, len(deep), 8)]) > 0.5]
     assert len(deep) > 20  # the others left a thin limb on its other side
     # inside by the pseudo-normal too (bar where parts of the body overlap: a point in both can read outside)
     assert (compiled(body.v_template, f).query(deep, v).signed_distance < 0).mean() > 0.9
@@ -158,7 +158,11 @@ def test_threads_give_bit_identical_results(posed_body):
         np.testing.assert_array_equal(out, out1)
         assert n == n1
         a, b = one.query(pts[0], posed[0]), many.query(pts[0], posed[0])
-        for x, y in zip((a.signed_distance, a.closest, a.normal, a.face), (b.signed_distance, b.closest, b.normal, b.face), strict=True):
+        for x, y in zip(
+            (a.signed_distance, a.closest, a.normal, a.face),
+            (b.signed_distance, b.closest, b.normal, b.face),
+            strict=True,
+        ):
             np.testing.assert_array_equal(x, y)
     # frame by frame or batched: the same
     for i in range(0, len(posed), 4):
@@ -172,8 +176,7 @@ def test_points_on_vertices_edges_and_faces(posed_body):
     v, f = posed[0], body.faces
     rng = np.random.default_rng(4)
     tri = f[rng.choice(len(f), 300, replace=False)]
-    on = np.concatenate([v[tri[:100, 0]], 0.5 * (v[tri[100:200, 0]] + v[tri[100:200, 1]]),
-                         v[tri[200:]].mean(axis=1)])
+    on = np.concatenate([v[tri[:100, 0]], 0.5 * (v[tri[100:200, 0]] + v[tri[100:200, 1]]), v[tri[200:]].mean(axis=1)])
     col = compiled(body.v_template, f)
     r = col.query(on, v)
     np.testing.assert_allclose(r.signed_distance, 0.0, atol=1e-12)
@@ -327,18 +330,33 @@ def test_pickles():
 def test_the_kernel_is_plain_c99_without_python(tmp_path):
     """The C++ runtime compiles the same file: C99, no Python, no warnings."""
     src = REPO / "src" / "segadeform" / "body" / "_collide.c"
-    r = subprocess.run(["cc", "-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-O2", "-c", str(src), "-o",
-                        str(tmp_path / "collide.o")], capture_output=True, text=True)
+    r = subprocess.run(
+        [
+            "cc",
+            "-std=c99",
+            "-pedantic",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            "-O2",
+            "-c",
+            str(src),
+            "-o",
+            str(tmp_path / "collide.o"),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
-    assert "Python.h" not in subprocess.run(["cc", "-std=c99", "-E", str(src)], capture_output=True,
-                                            text=True).stdout
+    assert "Python.h" not in subprocess.run(["cc", "-std=c99", "-E", str(src)], capture_output=True, text=True).stdout
 
 
 def _torus(n=24, m=12, big=1.0, small=0.35):
     """A closed torus (genus 1: a ray from the hole crosses the surface twice)."""
     u, w = np.meshgrid(np.arange(n) * 2 * np.pi / n, np.arange(m) * 2 * np.pi / m, indexing="ij")
-    v = np.stack([(big + small * np.cos(w)) * np.cos(u), small * np.sin(w), (big + small * np.cos(w)) * np.sin(u)],
-                 -1).reshape(-1, 3)
+    v = np.stack(
+        [(big + small * np.cos(w)) * np.cos(u), small * np.sin(w), (big + small * np.cos(w)) * np.sin(u)], -1
+    ).reshape(-1, 3)
     i, j = np.meshgrid(np.arange(n), np.arange(m), indexing="ij")
     a, b, c, d = i * m + j, ((i + 1) % n) * m + j, ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m
     f = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])

@@ -30,8 +30,10 @@ def test_default_body_is_valid_and_small(body):
     assert "CC0" in body.licence
 
 
-@pytest.mark.parametrize("beta", [np.zeros(10), np.eye(10)[0] * 2, -np.eye(10)[0] * 2, np.eye(10)[1] * 3,
-                                  -np.eye(10)[2] * 3, np.full(10, 1.0)])
+@pytest.mark.parametrize(
+    "beta",
+    [np.zeros(10), np.eye(10)[0] * 2, -np.eye(10)[0] * 2, np.eye(10)[1] * 3, -np.eye(10)[2] * 3, np.full(10, 1.0)],
+)
 def test_joints_are_inside_the_body(body, beta):
     j = body.rest_joints(beta)[0]
     v = body.shaped_vertices(beta)[0]
@@ -81,8 +83,8 @@ def test_bake_reproduces_the_shipped_body(tmp_path, body):
     assert len(bad) <= 0.01 * len(body.faces), f"{len(bad)} faces differ"
     pairs = sorted({int(i) - (int(i) - int(bad[0])) % 2 for i in bad})
     for i in pairs:
-        assert set(baked.faces[i:i + 2].ravel()) == set(body.faces[i:i + 2].ravel()), f"faces {i}, {i + 1}"
-        assert len(set(body.faces[i:i + 2].ravel())) == 4
+        assert set(baked.faces[i : i + 2].ravel()) == set(body.faces[i : i + 2].ravel()), f"faces {i}, {i + 1}"
+        assert len(set(body.faces[i : i + 2].ravel())) == 4
 
 
 def test_rest_joints_load_from_the_default_body_file():
@@ -92,4 +94,6 @@ def test_rest_joints_load_from_the_default_body_file():
     from segadeform.body import default_body_path, load_body
     from segadeform.body.skeleton import load_rest_joints
 
-    np.testing.assert_array_equal(load_rest_joints(default_body_path()), load_body(default_body_path()).rest_joints(())[0])
+    np.testing.assert_array_equal(
+        load_rest_joints(default_body_path()), load_body(default_body_path()).rest_joints(())[0]
+    )

@@ -180,13 +180,19 @@ def test_skinning_fast_paths_match_the_per_vertex_reference():
     w /= w.sum(1, keepdims=True)
     w[0] = [0.5, 0.5, 0, 0, 0, 0]  # joints 0 and 1 rotated by pi against each other: a quaternion dot of 0
     w[1] = 0.0  # no weights: the blend is zero and the vertex takes its pivot joint's transform
-    a[:, 1] = a[:, 0] @ np.block([[axis_angle_to_matrix(np.array([0, 0, np.pi])), np.zeros((3, 1))],
-                                  [np.zeros((1, 3)), np.ones((1, 1))]])
+    a[:, 1] = a[:, 0] @ np.block(
+        [[axis_angle_to_matrix(np.array([0, 0, np.pi])), np.zeros((3, 1))], [np.zeros((1, 3)), np.ones((1, 1))]]
+    )
     ref = _dqs_per_vertex(v, w, a)
     np.testing.assert_allclose(dual_quaternion_skinning(v, w, a), ref, atol=1e-12)
-    np.testing.assert_allclose(dual_quaternion_skinning(np.repeat(v[None], b, 0), np.repeat(w[None], b, 0), a), ref,
-                               atol=1e-12)
-    lbs_ref = np.stack([[(w[i] @ a[k, :, :3, :].reshape(s, 12)).reshape(3, 4) @ np.append(v[i], 1) for i in range(n)]
-                        for k in range(b)])
+    np.testing.assert_allclose(
+        dual_quaternion_skinning(np.repeat(v[None], b, 0), np.repeat(w[None], b, 0), a), ref, atol=1e-12
+    )
+    lbs_ref = np.stack(
+        [
+            [(w[i] @ a[k, :, :3, :].reshape(s, 12)).reshape(3, 4) @ np.append(v[i], 1) for i in range(n)]
+            for k in range(b)
+        ]
+    )
     np.testing.assert_allclose(linear_blend_skinning(v, w, a), lbs_ref, atol=1e-12)
     np.testing.assert_allclose(linear_blend_skinning(v, np.repeat(w[None], b, 0), a), lbs_ref, atol=1e-12)

@@ -43,7 +43,7 @@ def test_a_piece_with_nothing_known_keeps_its_weights_and_nothing_known_is_a_cop
     known = np.zeros(len(v), bool)
     known[:2] = True
     out = inpaint_weights(v, f, w, known)
-    np.testing.assert_array_equal(out[len(v1):], w[len(v1):])
+    np.testing.assert_array_equal(out[len(v1) :], w[len(v1) :])
     np.testing.assert_array_equal(inpaint_weights(v, f, w, np.zeros(len(v), bool)), w)
     with pytest.raises(InputError, match="must match"):
         inpaint_weights(v, f, w[:-1], known)

@@ -34,10 +34,15 @@ class _NpyWriter(SequenceWriter):
 
 @pytest.fixture
 def npyseq():
-    fmt = register_sequence_format(SequenceFormat(
-        "npyseq", (".npyseq",), lambda path, *, faces, num_points, fps, start_frame, rest, up: _NpyWriter(
-            path, num_points, up=up),
-        lambda path, faces: np.load(path, allow_pickle=False), "frames in one .npy array (a test format)"))
+    fmt = register_sequence_format(
+        SequenceFormat(
+            "npyseq",
+            (".npyseq",),
+            lambda path, *, faces, num_points, fps, start_frame, rest, up: _NpyWriter(path, num_points, up=up),
+            lambda path, faces: np.load(path, allow_pickle=False),
+            "frames in one .npy array (a test format)",
+        )
+    )
     yield fmt
     del SEQUENCE_FORMATS["npyseq"]
 
@@ -68,11 +73,14 @@ def test_builtin_formats_through_the_registry(tmp_path):
     """PC2 (header hook), an OBJ-sequence folder (faces hook) and XDMF (the reader alone)."""
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
     frames = np.stack([v + [0.1 * k, 0, 0] for k in range(3)])
-    for fmt, name, words in (("pc2", "g.pc2", "3 samples x 3 points, start frame 4, sample rate 1"),
-                             ("obj-seq", "g_frames", "3 frames x 3 vertices, 1 faces"),
-                             ("xdmf", "g.xdmf", "3 frames x 3 vertices")):
-        with open_sequence_writer(tmp_path / name, fmt, faces=np.array([[0, 1, 2]]), num_points=3, start_frame=4,
-                                  rest=v) as w:
+    for fmt, name, words in (
+        ("pc2", "g.pc2", "3 samples x 3 points, start frame 4, sample rate 1"),
+        ("obj-seq", "g_frames", "3 frames x 3 vertices, 1 faces"),
+        ("xdmf", "g.xdmf", "3 frames x 3 vertices"),
+    ):
+        with open_sequence_writer(
+            tmp_path / name, fmt, faces=np.array([[0, 1, 2]]), num_points=3, start_frame=4, rest=v
+        ) as w:
             w.write(frames)
         r = CliRunner().invoke(cli, ["inspect", str(tmp_path / name)])
         assert r.exit_code == 0, r.output

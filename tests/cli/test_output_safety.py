@@ -37,8 +37,11 @@ MHCLO = SAMPLES / "garments" / "makehuman" / "skirt_short_f.mhclo"
 
 def folder_hash(d: Path) -> dict:
     """sha256 of every file under ``d`` except segadeform's outputs manifest."""
-    return {p.relative_to(d).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(Path(d).rglob("*")) if p.is_file() and p.name != MANIFEST_NAME}
+    return {
+        p.relative_to(d).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(Path(d).rglob("*"))
+        if p.is_file() and p.name != MANIFEST_NAME
+    }
 
 
 def invoke(args):
@@ -59,10 +62,13 @@ def user_folder(tmp_path, *names) -> Path:
 
 def scene_file(tmp_path, out: str, fmt: str = "") -> Path:
     p = tmp_path / "scene.toml"
-    p.write_text(f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\nseconds = 0.2\n'
-                 f'[output]\npath = "{out}"\n' + (f'format = "{fmt}"\n' if fmt else "") +
-                 '[simulate]\neffects = ["gravity", "body_collision"]\nquality = 3\ndrape_seconds = 0.1\n'
-                 'blend_seconds = 0.0\n')
+    p.write_text(
+        f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\nseconds = 0.2\n'
+        f'[output]\npath = "{out}"\n'
+        + (f'format = "{fmt}"\n' if fmt else "")
+        + '[simulate]\neffects = ["gravity", "body_collision"]\nquality = 3\ndrape_seconds = 0.1\n'
+        "blend_seconds = 0.0\n"
+    )
     return p
 
 
@@ -77,8 +83,10 @@ def pc2_result(tmp_path) -> Path:
 
 # (command, output name in the user's folder, args(tmp_path, out) -> list); the output is a single file
 FILE_COMMANDS = {
-    "run": ("x.pc2", lambda t, o: ["run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:3", "--no-cache",
-                                   "-o", o]),
+    "run": (
+        "x.pc2",
+        lambda t, o: ["run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:3", "--no-cache", "-o", o],
+    ),
     "garment make": ("g.obj", lambda t, o: ["garment", "make", "skirt", "-o", o]),
     "garment fit": ("f.obj", lambda t, o: ["garment", "fit", MHCLO, "-o", o]),
     "garment export": ("g.sgda", lambda t, o: ["garment", "export", SKIRT, "--model", MODEL, "-o", o]),
@@ -86,8 +94,20 @@ FILE_COMMANDS = {
     "motion export": ("m.sgdm", lambda t, o: ["motion", "export", "walk", "--seconds", "0.2", "-o", o]),
     "precompute": ("a.npz", lambda t, o: ["precompute", SKIRT, "--body", BODY, "-o", o]),
     "preview": ("p.png", lambda t, o: ["preview", pc2_result(t), "--garment", SKIRT, "--size", "40x60", "-o", o]),
-    "bundle": ("b.sgdb", lambda t, o: ["bundle", scene_file(t, str(t / "unused.pc2")), "--model", MODEL,
-                                       "--no-expected", "--frames", "0:2", "-o", o]),
+    "bundle": (
+        "b.sgdb",
+        lambda t, o: [
+            "bundle",
+            scene_file(t, str(t / "unused.pc2")),
+            "--model",
+            MODEL,
+            "--no-expected",
+            "--frames",
+            "0:2",
+            "-o",
+            o,
+        ],
+    ),
 }
 # refused before their work: checked only in the way (the work needs anny, Blender or a dataset)
 REFUSAL_ONLY = {
@@ -145,9 +165,22 @@ def test_run_into_a_folder_of_the_users_files_issue_reproduction(tmp_path):
     shutil.copy(SKIRT, d / "skirt.obj")
     (d / "notes.txt").write_text("notes")
     before = folder_hash(d)
+
     def args(frames="0:3"):
-        return ["run", "--garment", d / "skirt.obj", "--motion", WALK, "--frames", frames, "--format", "obj-seq",
-                "--no-cache", "-o", d]
+        return [
+            "run",
+            "--garment",
+            d / "skirt.obj",
+            "--motion",
+            WALK,
+            "--frames",
+            frames,
+            "--format",
+            "obj-seq",
+            "--no-cache",
+            "-o",
+            d,
+        ]
 
     r = invoke(args())
     assert r.exit_code == 1 and "did not write (notes.txt, skirt.obj)" in r.output and str(d) in r.output
@@ -170,8 +203,10 @@ def test_a_scene_writing_into_its_own_folder_keeps_every_toml(tmp_path):
     for p in (SAMPLES / "scenes").glob("*.toml"):
         shutil.copy(p, d / p.name)
     own = d / "own.toml"
-    own.write_text(f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\nseconds = 0.2\n[output]\npath = "."\n'
-                   'format = "obj-seq"\n')
+    own.write_text(
+        f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\nseconds = 0.2\n[output]\npath = "."\n'
+        'format = "obj-seq"\n'
+    )
     before = folder_hash(d)
     r = invoke(["run", own, "--no-cache"])
     assert r.exit_code == 1 and "own.toml" in r.output and "--force to write beside them" in r.output
@@ -192,15 +227,28 @@ def test_output_inside_a_file_and_the_working_folder(tmp_path, monkeypatch):
     work = tmp_path / "work"
     work.mkdir()
     monkeypatch.chdir(work)
-    r = invoke(["run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:2", "--no-cache", "--format", "obj-seq",
-                "-o", "."])
+    r = invoke(
+        ["run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:2", "--no-cache", "--format", "obj-seq", "-o", "."]
+    )
     assert r.exit_code == 0, r.output
     assert sorted(p.name for p in work.iterdir()) == [MANIFEST_NAME, "frame_00000.obj", "frame_00001.obj"]
 
 
 FOLDER_COMMANDS = {  # a folder output: a user's file beside survives; --force writes beside it (run, eval)
-    "run obj-seq": lambda t, o: ["run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:2", "--no-cache",
-                                 "--format", "obj-seq", "-o", o],
+    "run obj-seq": lambda t, o: [
+        "run",
+        "--garment",
+        SKIRT,
+        "--motion",
+        WALK,
+        "--frames",
+        "0:2",
+        "--no-cache",
+        "--format",
+        "obj-seq",
+        "-o",
+        o,
+    ],
 }
 
 
@@ -211,11 +259,13 @@ def test_a_users_folder_is_never_a_package_or_report(cmd, tmp_path):
     pytest.importorskip("onnx", reason="the package writers need the 'torch' extra")
     d = user_folder(tmp_path, "manifest.json", "eval.md")
     before = folder_hash(d)
-    args = {"export": ["export", "--random-init", "--legacy", "--no-check", "-o", d],
-            "quantize": ["quantize", MODEL, "-o", d],
-            "repack": ["repack", MODEL, "-o", d],
-            "export-body --to": ["export-body", "-o", MODEL, "--to", d],
-            "eval": ["eval", tmp_path, "-m", "l=lbs", "-o", d]}[cmd]
+    args = {
+        "export": ["export", "--random-init", "--legacy", "--no-check", "-o", d],
+        "quantize": ["quantize", MODEL, "-o", d],
+        "repack": ["repack", MODEL, "-o", d],
+        "export-body --to": ["export-body", "-o", MODEL, "--to", d],
+        "eval": ["eval", tmp_path, "-m", "l=lbs", "-o", d],
+    }[cmd]
     for force in ([], ["--force"]) if cmd == "eval" else ([],):  # (the package writers have no --force)
         r = invoke(args + force)
         assert r.exit_code == 1 and str(d) in r.output and "did not write" in r.output, (cmd, force, r.output)
@@ -253,10 +303,12 @@ def test_resumable_commands_refuse_a_folder_of_the_users_files(cmd, tmp_path):
     before = folder_hash(d)
     jobs = tmp_path / "jobs.toml"
     jobs.write_text(f'[[garments]]\nmesh = "{SKIRT}"\n[[motions]]\nkind = "walk"\nseconds = 0.2\n')
-    args = {"batch": ["batch", jobs, "-o", d],
-            "dataset make": ["dataset", "make", SAMPLES / "datasets" / "tiny.toml", "-o", d],
-            "train": ["train", SAMPLES / "train" / "default.toml", "-o", d],
-            "dataset regate": ["dataset", "regate", SAMPLES / "datasets" / "tiny.toml", "-o", d]}[cmd]
+    args = {
+        "batch": ["batch", jobs, "-o", d],
+        "dataset make": ["dataset", "make", SAMPLES / "datasets" / "tiny.toml", "-o", d],
+        "train": ["train", SAMPLES / "train" / "default.toml", "-o", d],
+        "dataset regate": ["dataset", "regate", SAMPLES / "datasets" / "tiny.toml", "-o", d],
+    }[cmd]
     if cmd == "train":
         pytest.importorskip("torch", reason="train needs the 'torch' extra")
     for force in ([], ["--force"]) if cmd != "dataset regate" else ([],):
@@ -351,5 +403,15 @@ def test_every_writing_command_claims_its_outputs():
                 assert kinds, f"{f.name}: a command with an output option claims none: {cmd[:80]!r}"
         guarded |= set(re.findall(r'OutputGuard\("([a-z ]+)"', text))
     assert guarded <= covered, guarded - covered
-    assert {"run", "simulate", "batch", "dataset", "preview", "garment fit", "garment export", "motion export",
-            "package", "dataset pack"} <= guarded
+    assert {
+        "run",
+        "simulate",
+        "batch",
+        "dataset",
+        "preview",
+        "garment fit",
+        "garment export",
+        "motion export",
+        "package",
+        "dataset pack",
+    } <= guarded

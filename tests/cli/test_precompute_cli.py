@@ -16,8 +16,14 @@ def run(*args):
 
 def test_precompute_sample(tmp_path, samples):
     out = tmp_path / "skirt.npz"
-    r = run("precompute", samples / "garments" / "skirt.obj", "--joints",
-            samples / "skeletons" / "tpose_joints_24.npy", "-o", out)
+    r = run(
+        "precompute",
+        samples / "garments" / "skirt.obj",
+        "--joints",
+        samples / "skeletons" / "tpose_joints_24.npy",
+        "-o",
+        out,
+    )
     assert r.exit_code == 0, r.output
     assert "1536 vertices" in r.output
     a = GarmentAsset.load(out)
@@ -27,9 +33,20 @@ def test_precompute_sample(tmp_path, samples):
 
 def test_options_are_applied(tmp_path, samples):
     out = tmp_path / "a.npz"
-    r = run("precompute", samples / "garments" / "skirt.obj", "--joints",
-            samples / "skeletons" / "tpose_joints_24.npy", "-o", out, "--k", "4", "--n-star", "8",
-            "--geodesic", "dijkstra")
+    r = run(
+        "precompute",
+        samples / "garments" / "skirt.obj",
+        "--joints",
+        samples / "skeletons" / "tpose_joints_24.npy",
+        "-o",
+        out,
+        "--k",
+        "4",
+        "--n-star",
+        "8",
+        "--geodesic",
+        "dijkstra",
+    )
     assert r.exit_code == 0, r.output
     a = GarmentAsset.load(out)
     assert a.nbr.shape[1] == 4 and a.descriptor.shape == (8,) and a.params["geodesic"] == "dijkstra"
@@ -46,11 +63,14 @@ def test_body_npz_gives_joints(tmp_path, samples):
     np.testing.assert_allclose(GarmentAsset.load(out).joints, j, atol=1e-8)
 
 
-@pytest.mark.parametrize("garment_text, words", [
-    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "g.obj:4: vertex index out of range"),
-    ("", "g.obj: mesh has no vertices"),
-    ("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", "g.obj:2: vertex coordinate is not finite"),
-])
+@pytest.mark.parametrize(
+    "garment_text, words",
+    [
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "g.obj:4: vertex index out of range"),
+        ("", "g.obj: mesh has no vertices"),
+        ("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", "g.obj:2: vertex coordinate is not finite"),
+    ],
+)
 def test_bad_garment_clear_error_no_output(tmp_path, samples, garment_text, words):
     g = tmp_path / "g.obj"
     g.write_text(garment_text)
@@ -68,18 +88,35 @@ def test_bad_joints_and_usage(tmp_path, samples):
     assert r.exit_code == 1 and "expected (S, 3), got (24, 2)" in r.output
     r = run("precompute", g, "-o", tmp_path / "a.npz")
     assert r.exit_code == 2 and "exactly one of --joints" in r.output
-    r = run("precompute", tmp_path / "missing.obj", "--joints", samples / "skeletons" / "tpose_joints_24.npy",
-            "-o", tmp_path / "a.npz")
+    r = run(
+        "precompute",
+        tmp_path / "missing.obj",
+        "--joints",
+        samples / "skeletons" / "tpose_joints_24.npy",
+        "-o",
+        tmp_path / "a.npz",
+    )
     assert r.exit_code == 1 and "missing.obj" in r.output
     assert not (tmp_path / "a.npz").exists()
 
 
 def test_console_script_runs_as_a_process(tmp_path, samples):
     """The installed entry point, in a fresh interpreter: exit codes and stderr."""
-    p = subprocess.run([sys.executable, "-c", "import sys; from segadeform.cli.main import main; sys.exit(main())",
-                        "precompute", str(tmp_path / "nope.obj"), "--joints",
-                        str(samples / "skeletons" / "tpose_joints_24.npy"), "-o", str(tmp_path / "a.npz")],
-                       capture_output=True, text=True)
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from segadeform.cli.main import main; sys.exit(main())",
+            "precompute",
+            str(tmp_path / "nope.obj"),
+            "--joints",
+            str(samples / "skeletons" / "tpose_joints_24.npy"),
+            "-o",
+            str(tmp_path / "a.npz"),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert p.returncode == 1
     assert p.stderr.startswith("Error: ") and "nope.obj" in p.stderr and "Traceback" not in p.stderr
 

@@ -18,19 +18,54 @@ def _scene(tmp_path, n_frames=4):
 
 def test_preview_png_and_gif(tmp_path):
     _scene(tmp_path)
-    r = CliRunner().invoke(cli, ["preview", str(tmp_path / "g.pc2"), "--garment", str(tmp_path / "g.obj"),
-                                 "-o", str(tmp_path / "p.png"), "--size", "80x60"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "preview",
+            str(tmp_path / "g.pc2"),
+            "--garment",
+            str(tmp_path / "g.obj"),
+            "-o",
+            str(tmp_path / "p.png"),
+            "--size",
+            "80x60",
+        ],
+    )
     assert r.exit_code == 0, r.output
     from matplotlib.image import imread
 
     img = imread(tmp_path / "p.png")
     assert img.shape[:2] == (60, 4 * 80)
     assert (img[..., :3] < 0.9).any()  # something was drawn on the white background
-    r = CliRunner().invoke(cli, ["preview", str(tmp_path / "g.pc2"), "--garment", str(tmp_path / "g.obj"),
-                                 "-o", str(tmp_path / "p.gif"), "--size", "80x60", "--view", "turntable"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "preview",
+            str(tmp_path / "g.pc2"),
+            "--garment",
+            str(tmp_path / "g.obj"),
+            "-o",
+            str(tmp_path / "p.gif"),
+            "--size",
+            "80x60",
+            "--view",
+            "turntable",
+        ],
+    )
     assert r.exit_code == 0 and (tmp_path / "p.gif").stat().st_size > 0
-    r = CliRunner().invoke(cli, ["preview", str(tmp_path / "g.pc2"), "--garment", str(tmp_path / "g.obj"),
-                                 "-o", str(tmp_path / "q.png"), "--frames", "2:9"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "preview",
+            str(tmp_path / "g.pc2"),
+            "--garment",
+            str(tmp_path / "g.obj"),
+            "-o",
+            str(tmp_path / "q.png"),
+            "--frames",
+            "2:9",
+        ],
+    )
     assert r.exit_code == 1 and "outside the result's 4 frames" in r.output and not (tmp_path / "q.png").exists()
 
 
@@ -42,7 +77,7 @@ def test_inspect_pc2_bounds_nan_motion(tmp_path):
     assert "motion per frame: mean 100.00 mm" in r.output
     raw = bytearray((tmp_path / "g.pc2").read_bytes())  # the writer refuses NaN: patch one value in
     off = 32 + ((2 * 4) + 1) * 3 * 4
-    raw[off:off + 4] = np.float32(np.nan).tobytes()
+    raw[off : off + 4] = np.float32(np.nan).tobytes()
     (tmp_path / "n.pc2").write_bytes(bytes(raw))
     r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "n.pc2")])
     assert r.exit_code == 1 and "1 non-finite values (NaN or inf), in 1 frames (2)" in r.output

@@ -58,14 +58,26 @@ def test_scene_without_simulate_starts_from_the_default(tmp_path, captured):
     assert st.effects == DEFAULT_EFFECTS == ("gravity", "body_collision", "bending", "air_damping")
 
 
-@pytest.mark.parametrize("arg, message", [("gravity,-wind", "effects mix a complete list with changes"),
-                                          ("+sparkles", "unknown effect")])
+@pytest.mark.parametrize(
+    "arg, message", [("gravity,-wind", "effects mix a complete list with changes"), ("+sparkles", "unknown effect")]
+)
 def test_bad_lists_are_errors_in_the_same_words_as_run(tmp_path, captured, arg, message):
     r, st = _simulate(tmp_path, captured, "", f"--effects={arg}")
     assert r.exit_code == 1 and message in r.output and st is None
     # run says the same about its own effects (before touching any file)
-    r2 = CliRunner().invoke(cli, ["run", "--garment", "g.obj", "--motion", "m.bvh", "-o", str(tmp_path / "x.pc2"),
-                                  f"--effects={arg.replace('gravity', 'dynamics').replace('wind', 'wrinkles')}"])
+    r2 = CliRunner().invoke(
+        cli,
+        [
+            "run",
+            "--garment",
+            "g.obj",
+            "--motion",
+            "m.bvh",
+            "-o",
+            str(tmp_path / "x.pc2"),
+            f"--effects={arg.replace('gravity', 'dynamics').replace('wind', 'wrinkles')}",
+        ],
+    )
     assert r2.exit_code == 1 and message in r2.output
 
 

@@ -39,23 +39,40 @@ def test_plan_and_held_out_splits():
     assert sorted(p.split for p in tiny) == ["test", "test-garment", "test-motion", "train"]
 
 
-@pytest.mark.parametrize("text, msg", [
-    ("[[garments]]\nkind = 'cape'\n[[motions]]\nkind = 'walk'\n", "not a garment kind"),
-    ("[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'moonwalk'\n", "not a motion kind"),
-    ("[[garments]]\nkind = 'skirt'\nsplit = 'dev'\n[[motions]]\nkind = 'walk'\n", "split"),
-    ("[dataset]\nval_kinds = ['skirt']\n[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n", "validation kind"),
-    ("[dataset]\nval_motions = ['jog']\n[[garments]]\nkind = 'skirt'\n[[motions]]\n"
-     "kind = 'walk'\nfamily = 'jog'\n",
-     "validation family"),
-    ("[dataset]\nheld_out_motions = ['jog']\nval_motions = ['jog']\n[[garments]]\nkind = 'skirt'\n[[motions]]\n"
-     "kind = 'walk'\n", "both validation and test"),
-    ("[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\nfamily = 'f'\n[[motions]]\nkind = 'run'\n"
-     "family = 'f'\nsplit = 'test'\n", "two splits"),
-    ("[[garments]]\nkind = 'skirt'\n", "at least one"),
-    ("[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n[[motions]]\nkind = 'walk'\n", "used twice"),
-    ("[dataset]\nspeed = 1\n[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n", "unknown key"),
-    ("[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n[simulate]\neffects = ['fire']\n", "unknown simulation"),
-])
+@pytest.mark.parametrize(
+    "text, msg",
+    [
+        ("[[garments]]\nkind = 'cape'\n[[motions]]\nkind = 'walk'\n", "not a garment kind"),
+        ("[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'moonwalk'\n", "not a motion kind"),
+        ("[[garments]]\nkind = 'skirt'\nsplit = 'dev'\n[[motions]]\nkind = 'walk'\n", "split"),
+        (
+            "[dataset]\nval_kinds = ['skirt']\n[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n",
+            "validation kind",
+        ),
+        (
+            "[dataset]\nval_motions = ['jog']\n[[garments]]\nkind = 'skirt'\n[[motions]]\n"
+            "kind = 'walk'\nfamily = 'jog'\n",
+            "validation family",
+        ),
+        (
+            "[dataset]\nheld_out_motions = ['jog']\nval_motions = ['jog']\n[[garments]]\nkind = 'skirt'\n[[motions]]\n"
+            "kind = 'walk'\n",
+            "both validation and test",
+        ),
+        (
+            "[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\nfamily = 'f'\n[[motions]]\nkind = 'run'\n"
+            "family = 'f'\nsplit = 'test'\n",
+            "two splits",
+        ),
+        ("[[garments]]\nkind = 'skirt'\n", "at least one"),
+        ("[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n[[motions]]\nkind = 'walk'\n", "used twice"),
+        ("[dataset]\nspeed = 1\n[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n", "unknown key"),
+        (
+            "[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n[simulate]\neffects = ['fire']\n",
+            "unknown simulation",
+        ),
+    ],
+)
 def test_bad_configs(tmp_path, text, msg):
     p = tmp_path / "c.toml"
     p.write_text(text)
@@ -99,10 +116,10 @@ def test_quality_gate_accepts_clean_and_names_each_failure():
     # a loose piece (its own connected component, a button) falls 2 m: no strain inside it
     v2 = np.concatenate([v, v[:3] + [0.0, 0.0, 0.005]])
     f2 = np.concatenate([f, [[len(v), len(v) + 1, len(v) + 2]]])
-    x2 = np.concatenate([x, np.repeat(v2[None, len(v):], len(x), axis=0)], axis=1)
+    x2 = np.concatenate([x, np.repeat(v2[None, len(v) :], len(x), axis=0)], axis=1)
     assert quality_check(x2, v2, f2, bf, b.faces, spec).ok
     fell = x2.copy()
-    fell[-1, len(v):] -= [0.0, 2.0, 0.0]
+    fell[-1, len(v) :] -= [0.0, 2.0, 0.0]
     r = quality_check(fell, v2, f2, bf, b.faces, spec)
     assert any(s.startswith("detached") for s in r.reasons) and r.detached == 3 / len(v2)
     # a hem swinging 0.4 m out from the body is cloth, not a detached piece (the piece's other
@@ -236,8 +253,13 @@ def test_growing_keeps_every_finished_sample_and_its_meaning(tmp_path):
     plan_a = {p.id: sample_spec(a, p) for p in sample_plan(a)}
     plan_g = {p.id: sample_spec(grown, p) for p in sample_plan(grown)}
     assert set(plan_a) < set(plan_g) and all(plan_g[k] == v for k, v in plan_a.items())
-    changed = load_dataset_config(_write(tmp_path, "x.toml", RANGED.format(dataset="", count=4, seed="", mcount=2)
-                                         .replace("flare = 0.4", "flare = 0.5")))
+    changed = load_dataset_config(
+        _write(
+            tmp_path,
+            "x.toml",
+            RANGED.format(dataset="", count=4, seed="", mcount=2).replace("flare = 0.4", "flare = 0.5"),
+        )
+    )
     plan_x = {p.id: sample_spec(changed, p) for p in sample_plan(changed)}
     assert set(plan_x) == set(plan_a) and all(plan_x[k] != plan_a[k] for k in plan_a if k.startswith("tee"))
 
@@ -258,24 +280,37 @@ def test_a_changed_entry_under_an_old_name_stops_before_simulating(tmp_path):
     (out / "samples").mkdir(parents=True)
     p0 = sample_plan(a)[0]
     (out / "samples" / f"{p0.id}.json").write_text(json.dumps({"spec": sample_spec(a, p0)}))
-    changed = load_dataset_config(_write(tmp_path, "x.toml", RANGED.format(dataset="", count=4, seed="", mcount=2)
-                                         .replace("[0.3, 0.8]", "[0.35, 0.8]")))
+    changed = load_dataset_config(
+        _write(
+            tmp_path,
+            "x.toml",
+            RANGED.format(dataset="", count=4, seed="", mcount=2).replace("[0.3, 0.8]", "[0.35, 0.8]"),
+        )
+    )
     never = tmp_path / "no-simulator"  # nothing may be simulated: the check comes first
     with pytest.raises(InputError, match="other settings"):
         make_dataset(changed, out, body_path=SAMPLES / "bodies" / "default_body.npz", sim_python=never)
 
 
-@pytest.mark.parametrize("edit, msg", [
-    (("length = [0.3, 0.8]", "length = [0.8, 0.3]"), "lo <= hi"),
-    (("resolution = [1000, 6000]", "resolution = [1000.5, 6000]"), "two integers"),
-    (("ease_in = 0.0", "ease_in = [0.0, 1.0]"), "cannot be a range"),
-    (("count = 4\nlength = [0.3, 0.8]\nsleeve = [0.1, 0.6]\nease = [0.01, 0.03]\nresolution = [1000, 6000]",
-      "count = 4"), "identical"),
-    (("count = 4", "count = 0"), "count"),
-    (("[dataset]\nseconds = 1.0", "[dataset]\nseconds = 1.0\nheld_out_kinds = ['tshirt']"), "held-out kind"),
-    (("[dataset]\nseconds = 1.0", "[dataset]\nseconds = 1.0\nheld_out_motions = ['walk']"), "held-out family"),
-    (("[dataset]\nseconds = 1.0", "[dataset]\nseconds = 1.0\nheld_out_kinds = ['cape']"), "garment kinds"),
-])
+@pytest.mark.parametrize(
+    "edit, msg",
+    [
+        (("length = [0.3, 0.8]", "length = [0.8, 0.3]"), "lo <= hi"),
+        (("resolution = [1000, 6000]", "resolution = [1000.5, 6000]"), "two integers"),
+        (("ease_in = 0.0", "ease_in = [0.0, 1.0]"), "cannot be a range"),
+        (
+            (
+                "count = 4\nlength = [0.3, 0.8]\nsleeve = [0.1, 0.6]\nease = [0.01, 0.03]\nresolution = [1000, 6000]",
+                "count = 4",
+            ),
+            "identical",
+        ),
+        (("count = 4", "count = 0"), "count"),
+        (("[dataset]\nseconds = 1.0", "[dataset]\nseconds = 1.0\nheld_out_kinds = ['tshirt']"), "held-out kind"),
+        (("[dataset]\nseconds = 1.0", "[dataset]\nseconds = 1.0\nheld_out_motions = ['walk']"), "held-out family"),
+        (("[dataset]\nseconds = 1.0", "[dataset]\nseconds = 1.0\nheld_out_kinds = ['cape']"), "garment kinds"),
+    ],
+)
 def test_bad_ranges_and_leaks_are_refused(tmp_path, edit, msg):
     text = RANGED.format(dataset="", count=4, seed="", mcount=2)
     assert edit[0] in text
@@ -285,8 +320,10 @@ def test_bad_ranges_and_leaks_are_refused(tmp_path, edit, msg):
 
 def test_one_motion_file_cannot_be_trained_on_and_held_out(tmp_path):
     walk = (SAMPLES / "motions" / "walk.npz").resolve()
-    text = (f"[[garments]]\nkind = 'skirt'\n[[motions]]\nname = 'a'\nfile = '{walk}'\n"
-            f"[[motions]]\nname = 'b'\nfile = '{walk}'\nstart = 1.0\nsplit = 'test'\n")
+    text = (
+        f"[[garments]]\nkind = 'skirt'\n[[motions]]\nname = 'a'\nfile = '{walk}'\n"
+        f"[[motions]]\nname = 'b'\nfile = '{walk}'\nstart = 1.0\nsplit = 'test'\n"
+    )
     with pytest.raises(FileFormatError, match="entries of two splits"):
         load_dataset_config(_write(tmp_path, "c.toml", text))
 
@@ -304,21 +341,40 @@ def test_the_split_logic_never_leaks_held_out_data_into_training(tmp_path):
     for trial in range(40):
         held_k = [str(k) for k in rng.choice(GARMENT_KINDS, size=rng.integers(0, 3), replace=False)]
         held_m = [str(k) for k in rng.choice(list(MOTION_KINDS), size=rng.integers(0, 2), replace=False)]
-        lines = ["[dataset]", f"cross_splits = {str(bool(rng.integers(2))).lower()}",
-                 f"held_out_kinds = {json.dumps(held_k)}", f"held_out_motions = {json.dumps(held_m)}"]
+        lines = [
+            "[dataset]",
+            f"cross_splits = {str(bool(rng.integers(2))).lower()}",
+            f"held_out_kinds = {json.dumps(held_k)}",
+            f"held_out_motions = {json.dumps(held_m)}",
+        ]
         for i in range(rng.integers(2, 6)):
             kind = str(rng.choice(GARMENT_KINDS))
             split = "test" if kind in held_k or rng.random() < 0.3 else "train"
             n = int(rng.integers(1, 4))
-            lines += ["[[garments]]", f'name = "g{i}"', f'kind = "{kind}"', f'split = "{split}"', f"count = {n}",
-                      "length = [0.3, 0.8]"]
+            lines += [
+                "[[garments]]",
+                f'name = "g{i}"',
+                f'kind = "{kind}"',
+                f'split = "{split}"',
+                f"count = {n}",
+                "length = [0.3, 0.8]",
+            ]
         for i in range(rng.integers(2, 5)):
             kind = str(rng.choice(list(MOTION_KINDS)))
             split = "test" if kind in held_m or rng.random() < 0.3 else "train"
-            lines += ["[[motions]]", f'name = "m{i}"', f'kind = "{kind}"', f'split = "{split}"',
-                      f"count = {int(rng.integers(1, 3))}"]
+            lines += [
+                "[[motions]]",
+                f'name = "m{i}"',
+                f'kind = "{kind}"',
+                f'split = "{split}"',
+                f"count = {int(rng.integers(1, 3))}",
+            ]
         for _ in range(rng.integers(1, 4)):
-            lines += ["[[bodies]]", f"betas = [{rng.normal():.2f}]", f'split = "{"test" if rng.random() < 0.3 else "train"}"']
+            lines += [
+                "[[bodies]]",
+                f"betas = [{rng.normal():.2f}]",
+                f'split = "{"test" if rng.random() < 0.3 else "train"}"',
+            ]
         cfg = load_dataset_config(_write(tmp_path, f"r{trial}.toml", "\n".join(lines) + "\n"))
         plan = sample_plan(cfg)
         check_splits(cfg, plan)
@@ -371,9 +427,13 @@ def test_a_tshirt_through_the_a_pose_drape_passes_the_gate(tmp_path):
     the strict gate (no edge past 100 % strain), and stored with its rest-pose vertex order."""
     _need_simulator()
     text = (SAMPLES / "datasets" / "kinds.toml").read_text()
-    head = text[:text.index("[[garments]]")].replace("seconds = 1.5", "seconds = 0.5")
-    cfg = _write(tmp_path, "tee.toml", head + '[[garments]]\nname = "tee"\nkind = "tshirt"\npin = "top"\n'
-                                             '[[motions]]\nkind = "walk_arms_down"\nease_in = 0.0\n')
+    head = text[: text.index("[[garments]]")].replace("seconds = 1.5", "seconds = 0.5")
+    cfg = _write(
+        tmp_path,
+        "tee.toml",
+        head + '[[garments]]\nname = "tee"\nkind = "tshirt"\npin = "top"\n'
+        '[[motions]]\nkind = "walk_arms_down"\nease_in = 0.0\n',
+    )
     out = tmp_path / "tee"
     assert main(["dataset", "make", str(cfg), "-o", str(out)]) == 0
     rejected = list((out / "rejected").glob("*.json")) if (out / "rejected").is_dir() else []
@@ -402,8 +462,10 @@ def test_spread_order_covers_every_garment_body_and_motion_early_with_held_out_i
     k = cfg.spread
     assert k == 1
     # one held-out sample (test or validation), then k training ones, until the held-out ones are done
-    assert [p.split != "train" for p in order[:2 * (k + 1)]] == ([True] + [False] * k) * 2
-    assert all(p.split != "train" for p in order[:(k + 1) * n_held:k + 1]) and order[(k + 1) * n_held].split == "train"
+    assert [p.split != "train" for p in order[: 2 * (k + 1)]] == ([True] + [False] * k) * 2
+    assert (
+        all(p.split != "train" for p in order[: (k + 1) * n_held : k + 1]) and order[(k + 1) * n_held].split == "train"
+    )
     head = [p for p in order if p.split == "train"][:300]
     kinds = collections.Counter(cfg.garments[p.garment].kind for p in head)
     train_kinds = {g.kind for g in cfg.garments if g.split == "train"}
@@ -479,6 +541,7 @@ split = "test"
     assert {fam(s) for s in by["test"]} == {"jumps"} and {s.body for s in by["test"]} == {0, 1}
     # a plan that leaks a validation family into training is refused
     from segadeform.dataset.make import PlannedSample
+
     leak = [PlannedSample("x", 0, 0, [m.family for m in cfg.motions].index("runs"), "train")]
     with pytest.raises(Exception, match="validation motion"):
         check_splits(cfg, leak)
@@ -540,14 +603,33 @@ def test_tiny_dataset_packed_trains_and_evaluates_end_to_end(tiny_dataset, tmp_p
     assert main(["dataset", "pack", str(tiny_dataset), "-o", str(pack)]) == 0
     store = {p.name: p.read_bytes() for p in pack.parent.iterdir()}
     cfg = tmp_path / "train.toml"
-    cfg.write_text("[model]\nhidden = 16\nlstm_hidden = 16\nweights = 'residual'\nweight_prior = 'smooth'\n"
-                   "[optim]\nsteps = 4\nframes = 3\ngarments = 2\ncheckpoint_every = 2\nlr = 0.003\n")
+    cfg.write_text(
+        "[model]\nhidden = 16\nlstm_hidden = 16\nweights = 'residual'\nweight_prior = 'smooth'\n"
+        "[optim]\nsteps = 4\nframes = 3\ngarments = 2\ncheckpoint_every = 2\nlr = 0.003\n"
+    )
     run = tmp_path / "run"
     assert main(["train", str(cfg), "--dataset", str(pack.parent), "-o", str(run)]) == 0
     capsys.readouterr()
     out = tmp_path / "eval"
-    assert main(["eval", str(pack), "-m", "lbs=lbs", "-m", "lbs-smooth=lbs-smooth", "-m", f"sega={run / 'model.pt'}",
-                 "-o", str(out), "--split", "test"]) == 0
+    assert (
+        main(
+            [
+                "eval",
+                str(pack),
+                "-m",
+                "lbs=lbs",
+                "-m",
+                "lbs-smooth=lbs-smooth",
+                "-m",
+                f"sega={run / 'model.pt'}",
+                "-o",
+                str(out),
+                "--split",
+                "test",
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "| lbs |" in text and "| lbs-smooth |" in text and "| sega |" in text
     res = json.loads((out / "eval.json").read_text())

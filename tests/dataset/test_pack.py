@@ -41,10 +41,25 @@ def _cloth_like(body, n_frames=60, resolution=2000, seed=0):
 
 def _save(root, sid, body, *, folder="samples", split="train", seed=0, spec=None, **meta):
     g, m, x = _cloth_like(body, seed=seed)
-    s = Sample(id=sid, rest=g.vertices, faces=g.faces, betas=np.zeros(0), poses=m.poses, trans=m.trans, frames=x,
-               meta={"id": sid, "split": split, "kind": "skirt", "spec": spec or f"spec-{sid}", "blender": "5.0.1",
-                     "sim_bridge": 2, **meta},
-               cloth_rest=g.vertices + 0.001)
+    s = Sample(
+        id=sid,
+        rest=g.vertices,
+        faces=g.faces,
+        betas=np.zeros(0),
+        poses=m.poses,
+        trans=m.trans,
+        frames=x,
+        meta={
+            "id": sid,
+            "split": split,
+            "kind": "skirt",
+            "spec": spec or f"spec-{sid}",
+            "blender": "5.0.1",
+            "sim_bridge": 2,
+            **meta,
+        },
+        cloth_rest=g.vertices + 0.001,
+    )
     save_sample(root, s, folder=folder)
     return s
 
@@ -194,8 +209,10 @@ def test_dataset_make_skips_what_a_pack_holds_and_never_writes_it(tmp_path, body
     from segadeform.dataset.make import make_dataset, sample_spec
 
     cfg_p = tmp_path / "c.toml"
-    cfg_p.write_text("[dataset]\nseconds = 0.5\n[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n"
-                     "[[motions]]\nkind = 'run'\n")
+    cfg_p.write_text(
+        "[dataset]\nseconds = 0.5\n[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n"
+        "[[motions]]\nkind = 'run'\n"
+    )
     cfg = load_dataset_config(cfg_p)
     plan = sample_plan(cfg)
     old = tmp_path / "old"

@@ -36,8 +36,16 @@ def _sample(body, sid, stretch):
     frames = np.repeat(g.vertices[None], 6, axis=0)
     top = frames[..., 1].max()
     frames[..., 1] = top - (top - frames[..., 1]) * (1.0 + stretch)  # hem lower: vertical edges strain by ~stretch
-    return Sample(id=sid, rest=g.vertices, faces=g.faces, betas=np.zeros(0), poses=poses, trans=trans,
-                  frames=frames.astype(np.float32), meta={"id": sid, "split": "train", "status": "x"})
+    return Sample(
+        id=sid,
+        rest=g.vertices,
+        faces=g.faces,
+        betas=np.zeros(0),
+        poses=poses,
+        trans=trans,
+        frames=frames.astype(np.float32),
+        meta={"id": sid, "split": "train", "status": "x"},
+    )
 
 
 def test_regate_moves_samples_both_ways_and_keeps_their_arrays(tmp_path, body):

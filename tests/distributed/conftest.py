@@ -14,8 +14,14 @@ def ray_cluster():
     ray = pytest.importorskip("ray", reason="the Ray executor needs the 'ray' extra (pip install -e '.[ray]')")
     started = not ray.is_initialized()
     if started:
-        ray.init(address="local", num_cpus=2, _node_ip_address="127.0.0.1", include_dashboard=False,
-                 log_to_driver=False, logging_level=logging.WARNING)
+        ray.init(
+            address="local",
+            num_cpus=2,
+            _node_ip_address="127.0.0.1",
+            include_dashboard=False,
+            log_to_driver=False,
+            logging_level=logging.WARNING,
+        )
     assert ray.cluster_resources().get("CPU") == 2
     yield ray
     if started:

@@ -19,8 +19,10 @@ def _outputs(root):
 
 def _records(root):
     keep = ("id", "garment", "motion", "spec", "output", "files", "frames", "effects", "graph")
-    return {p.stem: {k: v for k, v in json.loads(p.read_text()).items() if k in keep}
-            for p in (root / "jobs").glob("*.json")}
+    return {
+        p.stem: {k: v for k, v in json.loads(p.read_text()).items() if k in keep}
+        for p in (root / "jobs").glob("*.json")
+    }
 
 
 def test_batch_on_ray_equals_the_local_pool_and_survives_killed_workers(ray_cluster, tmp_path, capsys):
@@ -33,8 +35,9 @@ def test_batch_on_ray_equals_the_local_pool_and_survives_killed_workers(ray_clus
     assert sorted(_outputs(local)) == [f"{i}.pc2" for i in IDS] and _outputs(ray) == _outputs(local)
     assert _records(ray) == _records(local)
     # killed: one job after its output was committed but before its record, one while committing its output
-    loc = DyingLocation(tmp_path / "killed", tmp_path / "markers",
-                        die_at={"jobs/skirt__walk.json", "big-skirt__dance.pc2"})
+    loc = DyingLocation(
+        tmp_path / "killed", tmp_path / "markers", die_at={"jobs/skirt__walk.json", "big-skirt__dance.pc2"}
+    )
     with make_executor("ray", 2, max_retries=2) as ex:
         s = run_batch(load_batch(jf), out=loc, executor=ex)
     assert loc.died() == ["big-skirt__dance.pc2.died", "jobs_skirt__walk.json.died"]

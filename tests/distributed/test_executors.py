@@ -47,10 +47,16 @@ def _timed(task):
     return x
 
 
-@pytest.mark.parametrize("spec, kind, address", [
-    ("local", LocalExecutor, None), ("ray", RayExecutor, None), ("ray://head:10001", RayExecutor, "ray://head:10001"),
-    ("ray:auto", RayExecutor, "auto"), ("ray:10.0.0.1:6379", RayExecutor, "10.0.0.1:6379"),
-])
+@pytest.mark.parametrize(
+    "spec, kind, address",
+    [
+        ("local", LocalExecutor, None),
+        ("ray", RayExecutor, None),
+        ("ray://head:10001", RayExecutor, "ray://head:10001"),
+        ("ray:auto", RayExecutor, "auto"),
+        ("ray:10.0.0.1:6379", RayExecutor, "10.0.0.1:6379"),
+    ],
+)
 def test_specs(spec, kind, address):
     ex = make_executor(spec, 3)
     assert type(ex) is kind and ex.workers == 3
@@ -119,7 +125,12 @@ def test_ray_gives_up_after_the_retries(ray_cluster):
 
 @pytest.mark.parametrize("workers, overlap", [(1, False), (2, True)])
 def test_ray_keeps_to_the_workers_limit(ray_cluster, tmp_path, workers, overlap):
-    assert sorted(make_executor("ray", workers).map_unordered(_timed, [(tmp_path, i) for i in range(4)])) == [0, 1, 2, 3]
+    assert sorted(make_executor("ray", workers).map_unordered(_timed, [(tmp_path, i) for i in range(4)])) == [
+        0,
+        1,
+        2,
+        3,
+    ]
     spans = sorted(tuple(map(float, p.read_text().split())) for p in tmp_path.glob("*.txt"))
     overlapping = any(b[0] < a[1] for a, b in zip(spans, spans[1:], strict=False))
     assert overlapping == overlap

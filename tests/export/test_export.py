@@ -23,8 +23,11 @@ from segadeform.model import ModelConfig, SEGANet
 from segadeform.motion import make_motion, motion_windows
 
 RTOL = 1e-5
-VARIANTS = {"lbs": dict(skinning="lbs"), "dqs": dict(skinning="dqs"),
-            "lbs-noblend": dict(skinning="lbs", use_blend_shapes=False)}
+VARIANTS = {
+    "lbs": dict(skinning="lbs"),
+    "dqs": dict(skinning="dqs"),
+    "lbs-noblend": dict(skinning="lbs", use_blend_shapes=False),
+}
 
 
 @pytest.fixture(scope="module")
@@ -38,8 +41,10 @@ def packages(tmp_path_factory):
             net.blend_gate.fill_(0.5)
         d = tmp_path_factory.mktemp(name)
         manifest = export_package(net, d / "pkg", check=False, variants=False, body=None)
-        sessions = {g: ort.InferenceSession(str(d / "pkg" / spec["file"]), providers=["CPUExecutionProvider"])
-                    for g, spec in graph_specs(net.cfg).items()}
+        sessions = {
+            g: ort.InferenceSession(str(d / "pkg" / spec["file"]), providers=["CPUExecutionProvider"])
+            for g, spec in graph_specs(net.cfg).items()
+        }
         out[name] = (net.freeze(), d / "pkg", manifest, sessions)
     return out
 
@@ -77,13 +82,24 @@ def garment_inputs(net, v, f, poses, trans):
     joints = default_rest_joints()
     a = precompute_garment(v, f, joints, n_star=net.cfg.n_star)
     nbr, mask = a.nbr.astype(np.int32), a.mask.astype(np.float32)  # the graphs' int32 indices and float mask
-    enc = {"features": a.features[None], "nbr": nbr, "mask": mask,
-           "descriptor": a.descriptor[None].astype(np.float32), "betas": np.zeros((1, 10), np.float32)}
+    enc = {
+        "features": a.features[None],
+        "nbr": nbr,
+        "mask": mask,
+        "descriptor": a.descriptor[None].astype(np.float32),
+        "betas": np.zeros((1, 10), np.float32),
+    }
     win = motion_windows(poses, net.cfg.window).astype(np.float32)
     b = len(win)
-    dec = {"window": win, "betas": np.zeros((b, 10), np.float32), "rest": a.vertices.astype(np.float32),
-           "nbr": nbr, "mask": mask, "joints": np.repeat(joints[None], b, 0).astype(np.float32),
-           "trans": trans.astype(np.float32)}
+    dec = {
+        "window": win,
+        "betas": np.zeros((b, 10), np.float32),
+        "rest": a.vertices.astype(np.float32),
+        "nbr": nbr,
+        "mask": mask,
+        "joints": np.repeat(joints[None], b, 0).astype(np.float32),
+        "trans": trans.astype(np.float32),
+    }
     if net.residual:
         w = np.random.default_rng(0).dirichlet(np.full(24, 0.3), size=len(v))
         dec["log_wbody"] = np.log(w + 1e-5).astype(np.float32)
@@ -105,8 +121,8 @@ def test_parity_on_hard_garments_and_twists(packages, variant, mesh):
     v, f = hard_meshes()[mesh]
     m = make_motion("dance", seconds=0.5, seed=1)
     poses = m.poses[:6].copy()
-    poses[2, 3 * 5: 3 * 5 + 3] = [np.pi, 0, 0]  # 180-degree knee twist
-    poses[3, 3 * 16: 3 * 16 + 3] = [0, 0, np.pi]  # 180-degree shoulder twist
+    poses[2, 3 * 5 : 3 * 5 + 3] = [np.pi, 0, 0]  # 180-degree knee twist
+    poses[3, 3 * 16 : 3 * 16 + 3] = [0, 0, np.pi]  # 180-degree shoulder twist
     enc, dec = garment_inputs(net, v, f, poses, m.trans[:6])
     assert_parity(net, sessions["garment_encoder"], "garment_encoder", enc)
     enc_spec = graph_specs(net.cfg)["garment_encoder"]
@@ -147,13 +163,21 @@ def test_graph_inputs_are_int32_and_float32_and_older_graphs_are_retyped():
 
     from segadeform.export.portability import make_inputs_portable
 
-    nodes = [helper.make_node("Gather", ["x", "idx"], ["g"], axis=0),
-             helper.make_node("Cast", ["m"], ["mf"], to=TensorProto.FLOAT),
-             helper.make_node("Mul", ["g", "mf"], ["y"])]
-    graph = helper.make_graph(nodes, "g", [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["n"]),
-                                           helper.make_tensor_value_info("idx", TensorProto.INT64, ["k"]),
-                                           helper.make_tensor_value_info("m", TensorProto.BOOL, ["k"])],
-                              [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["k"])])
+    nodes = [
+        helper.make_node("Gather", ["x", "idx"], ["g"], axis=0),
+        helper.make_node("Cast", ["m"], ["mf"], to=TensorProto.FLOAT),
+        helper.make_node("Mul", ["g", "mf"], ["y"]),
+    ]
+    graph = helper.make_graph(
+        nodes,
+        "g",
+        [
+            helper.make_tensor_value_info("x", TensorProto.FLOAT, ["n"]),
+            helper.make_tensor_value_info("idx", TensorProto.INT64, ["k"]),
+            helper.make_tensor_value_info("m", TensorProto.BOOL, ["k"]),
+        ],
+        [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["k"])],
+    )
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 18)])
     with pytest.raises(PortabilityError, match="idx int64, m bool"):
         check_portability(model, "toy")
@@ -163,7 +187,8 @@ def test_graph_inputs_are_int32_and_float32_and_older_graphs_are_retyped():
     onnx.checker.check_model(model)
     check_portability(model, "toy")
     got = ort.InferenceSession(model.SerializeToString()).run(
-        None, {"x": x, "idx": idx.astype(np.int32), "m": m.astype(np.float32)})[0]
+        None, {"x": x, "idx": idx.astype(np.int32), "m": m.astype(np.float32)}
+    )[0]
     assert got.tobytes() == ref.tobytes()
 
 
@@ -175,9 +200,12 @@ def test_sine_and_cosine_polynomials_match_the_builtins():
 
     x = np.concatenate([np.linspace(-40, 40, 400_001), np.linspace(-1e-3, 1e-3, 2001), [0.0, np.pi, -np.pi]])
     for op in ("Sin", "Cos"):
-        g = helper.make_graph([helper.make_node(op, ["x"], ["y"])], "g",
-                              [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["n"])],
-                              [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["n"])])
+        g = helper.make_graph(
+            [helper.make_node(op, ["x"], ["y"])],
+            "g",
+            [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["n"])],
+            [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["n"])],
+        )
         model = helper.make_model(g, opset_imports=[helper.make_opsetid("", 18)])
         assert replace_trig(model) == 1 and {n.op_type for n in model.graph.node} <= {"Mul", "Add", "Sub", "Floor"}
         onnx.checker.check_model(model)
@@ -190,9 +218,15 @@ def test_portability_check_can_fail():
     from onnx import TensorProto, helper
 
     node = helper.make_node("Einsum", ["a", "b"], ["c"], equation="ij,jk->ik")
-    g = helper.make_graph([node], "g", [helper.make_tensor_value_info("a", TensorProto.FLOAT, [2, 2]),
-                                        helper.make_tensor_value_info("b", TensorProto.FLOAT, [2, 2])],
-                          [helper.make_tensor_value_info("c", TensorProto.FLOAT, [2, 2])])
+    g = helper.make_graph(
+        [node],
+        "g",
+        [
+            helper.make_tensor_value_info("a", TensorProto.FLOAT, [2, 2]),
+            helper.make_tensor_value_info("b", TensorProto.FLOAT, [2, 2]),
+        ],
+        [helper.make_tensor_value_info("c", TensorProto.FLOAT, [2, 2])],
+    )
     with pytest.raises(PortabilityError, match="Einsum: limited in Unity Sentis"):
         check_portability(helper.make_model(g), "toy")
     lstm = helper.make_node("LSTM", ["x", "w", "r"], ["y"], hidden_size=2)
@@ -219,8 +253,10 @@ def test_stacks_in_the_model_stay_within_webgpus_buffers():
 
 
 def test_export_cli_random_init_with_check(tmp_path):
-    r = CliRunner().invoke(cli, ["export", "--random-init", "--config", '{"hidden": 16, "heads": 2}',
-                                 "-o", str(tmp_path / "pkg"), "--check"])
+    r = CliRunner().invoke(
+        cli,
+        ["export", "--random-init", "--config", '{"hidden": 16, "heads": 2}', "-o", str(tmp_path / "pkg"), "--check"],
+    )
     assert r.exit_code == 0, r.output
     assert "deformer_lbs.vertices: max abs" in r.output and "max rel" in r.output
     rels = [float(line.rsplit("max rel ", 1)[1].split()[0]) for line in r.output.splitlines() if "max rel" in line]

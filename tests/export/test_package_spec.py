@@ -55,8 +55,11 @@ def test_fresh_export_is_valid_and_named_by_the_contract(random_model):
     m = json.loads((path / "manifest.json").read_text())
     assert _errors(m) == []
     contract.validate_manifest(m)
-    want = {contract.deformer_name(e) for e in contract.effect_sets(net.cfg)} | {contract.ENCODER} \
+    want = (
+        {contract.deformer_name(e) for e in contract.effect_sets(net.cfg)}
+        | {contract.ENCODER}
         | {contract.body_name(s) for s in contract.SKINNING}
+    )
     assert set(m["graphs"]) == want and len(want) == 11
     assert m["default_deformer"] == contract.deformer_name(contract.default_effects(net.cfg)) == "deformer_lbs"
     files = [g["file"] for g in m["graphs"].values()]
@@ -74,11 +77,20 @@ def test_contract_io_matches_the_onnx_graphs(random_model):
     body = load_body(default_body_path())
     for name, entry in m["graphs"].items():
         if entry["role"] == "body":
-            want = contract.body_spec(n_vertices=body.n_vertices, n_faces=len(body.faces), n_betas=body.n_betas,
-                                      n_joints=body.n_joints, skinning=entry["skinning"], body=body_label(body))
+            want = contract.body_spec(
+                n_vertices=body.n_vertices,
+                n_faces=len(body.faces),
+                n_betas=body.n_betas,
+                n_joints=body.n_joints,
+                skinning=entry["skinning"],
+                body=body_label(body),
+            )
         else:
-            want = contract.encoder_spec(net.cfg) if name == contract.ENCODER else \
-                contract.deformer_spec(net.cfg, entry["effects"])
+            want = (
+                contract.encoder_spec(net.cfg)
+                if name == contract.ENCODER
+                else contract.deformer_spec(net.cfg, entry["effects"])
+            )
         assert {k: entry[k] for k in want} == dict(want, file=entry["file"]), name
         sess = ort.InferenceSession(str(path / entry["file"]), providers=["CPUExecutionProvider"])
         for got, spec in ((sess.get_inputs(), want["inputs"]), (sess.get_outputs(), want["outputs"])):
@@ -113,8 +125,13 @@ def test_shipped_graphs_take_only_what_the_contract_describes():
 
 def test_docs_describe_every_name_and_key():
     doc = (REPO / "docs" / "package.md").read_text()
-    for name in list(contract.INPUTS) + list(contract.OUTPUTS) + list(contract.BODY_INPUTS) \
-            + list(contract.BODY_OUTPUTS) + ["P", "body_lbs", "body_dqs"]:
+    for name in (
+        list(contract.INPUTS)
+        + list(contract.OUTPUTS)
+        + list(contract.BODY_INPUTS)
+        + list(contract.BODY_OUTPUTS)
+        + ["P", "body_lbs", "body_dqs"]
+    ):
         assert f"`{name}`" in doc, name
     for key in contract.manifest_schema()["properties"]:
         if key != "upgraded_from":
@@ -144,25 +161,37 @@ def test_export_of_a_model_without_blend_shapes_has_no_wrinkle_graphs():
     cfg = ModelConfig(use_blend_shapes=False, skinning="dqs")
     names = [contract.deformer_name(e) for e in contract.effect_sets(cfg)]
     assert names[0] == "deformer_dqs_nowrinkles"  # the model's own first
-    assert sorted(names) == ["deformer_dqs_nowrinkles", "deformer_dqs_nowrinkles_static", "deformer_lbs_nowrinkles",
-                             "deformer_lbs_nowrinkles_static"]
+    assert sorted(names) == [
+        "deformer_dqs_nowrinkles",
+        "deformer_dqs_nowrinkles_static",
+        "deformer_lbs_nowrinkles",
+        "deformer_lbs_nowrinkles_static",
+    ]
 
 
-@pytest.mark.parametrize("edit, words, schema_sees", [
-    (lambda m: m["graphs"]["deformer_lbs"].update(effects={"skinning": "lbs", "wrinkles": True, "dynamics": False}),
-     "not named by its effects", False),
-    (lambda m: m["graphs"]["deformer_lbs"].update(window=3), "window does not match", False),
-    (lambda m: m["graphs"]["deformer_lbs"].update(file="../x.onnx"), "file name in the package folder", True),
-    (lambda m: m["graphs"]["deformer_lbs"]["inputs"][0].update(dtype="float16"), "unknown dtype", True),
-    (lambda m: m["graphs"]["garment_encoder"].update(role="deformer"), "wrong role", True),
-    (lambda m: m.pop("default_deformer"), "no 'default_deformer'", True),
-    (lambda m: m.update(format="onnx-bundle"), "not a segadeform model package", True),
-    (lambda m: m["graphs"]["deformer_lbs"]["inputs"][4].update(dtype="int64"), "schema 3 does not allow", False),
-    (lambda m: m["graphs"]["garment_encoder"]["inputs"][2].update(dtype="bool"), "mask bool", False),
-    (lambda m: m["graphs"]["body_lbs"].update(skinning="dqs"), "not named by its skinning", False),
-    (lambda m: m["graphs"]["body_dqs"]["inputs"][1].update(shape=["B", 22, 3]), "another skeleton", False),
-    (lambda m: m["graphs"]["body_lbs"].update(role="deformer"), "wrong role", True),
-])
+@pytest.mark.parametrize(
+    "edit, words, schema_sees",
+    [
+        (
+            lambda m: m["graphs"]["deformer_lbs"].update(
+                effects={"skinning": "lbs", "wrinkles": True, "dynamics": False}
+            ),
+            "not named by its effects",
+            False,
+        ),
+        (lambda m: m["graphs"]["deformer_lbs"].update(window=3), "window does not match", False),
+        (lambda m: m["graphs"]["deformer_lbs"].update(file="../x.onnx"), "file name in the package folder", True),
+        (lambda m: m["graphs"]["deformer_lbs"]["inputs"][0].update(dtype="float16"), "unknown dtype", True),
+        (lambda m: m["graphs"]["garment_encoder"].update(role="deformer"), "wrong role", True),
+        (lambda m: m.pop("default_deformer"), "no 'default_deformer'", True),
+        (lambda m: m.update(format="onnx-bundle"), "not a segadeform model package", True),
+        (lambda m: m["graphs"]["deformer_lbs"]["inputs"][4].update(dtype="int64"), "schema 3 does not allow", False),
+        (lambda m: m["graphs"]["garment_encoder"]["inputs"][2].update(dtype="bool"), "mask bool", False),
+        (lambda m: m["graphs"]["body_lbs"].update(skinning="dqs"), "not named by its skinning", False),
+        (lambda m: m["graphs"]["body_dqs"]["inputs"][1].update(shape=["B", 22, 3]), "another skeleton", False),
+        (lambda m: m["graphs"]["body_lbs"].update(role="deformer"), "wrong role", True),
+    ],
+)
 def test_malformed_manifests_are_refused(random_package, edit, words, schema_sees):
     """The runtime's checks refuse what the JSON Schema refuses, and the rules a schema cannot state."""
     m = json.loads((random_package / "manifest.json").read_text())

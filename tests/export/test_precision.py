@@ -95,8 +95,9 @@ def test_quantize_cli_and_bad_precision(tmp_path, random_package):
     r = CliRunner().invoke(cli, ["quantize", str(random_package), "-o", str(tmp_path / "q8")])
     assert r.exit_code == 0, r.output
     assert "int8 package" in r.output and (tmp_path / "q8" / "manifest.json").is_file()
-    r = CliRunner().invoke(cli, ["quantize", str(random_package), "-o", str(tmp_path / "h"), "--precision",
-                                 "fp16-weights"])
+    r = CliRunner().invoke(
+        cli, ["quantize", str(random_package), "-o", str(tmp_path / "h"), "--precision", "fp16-weights"]
+    )
     assert r.exit_code == 0 and "fp16-weights package" in r.output, r.output
     with pytest.raises(InputError, match="unknown precision"):
         convert_package(random_package, tmp_path / "x", "fp4")

@@ -61,8 +61,9 @@ def test_shipped_parity_on_the_sample_dress(shipped):
     feats = vertex_features(a.vertices, a.faces, joints, normals=a.normals.astype(np.float64)).astype(np.float32)
     nbr, mask = a.nbr.astype(np.int32), a.mask.astype(np.float32)  # schema 3: int32 indices, float32 mask
     enc = {"features": feats[None], "nbr": nbr, "mask": mask, "descriptor": a.descriptor[None].astype(np.float32)}
-    sess = ort.InferenceSession(str(PKG / manifest["graphs"]["garment_encoder"]["file"]),
-                                providers=["CPUExecutionProvider"])
+    sess = ort.InferenceSession(
+        str(PKG / manifest["graphs"]["garment_encoder"]["file"]), providers=["CPUExecutionProvider"]
+    )
     P = sess.run(None, enc)[0]
     with torch.no_grad():
         Pt = net.garment_encoder(*(torch.as_tensor(enc[k]) for k in ("features", "nbr", "mask", "descriptor"))).numpy()
@@ -77,9 +78,16 @@ def test_shipped_parity_on_the_sample_dress(shipped):
     for name, var in deformer_variants(net.cfg).items():
         w = motion_windows(mo.poses, var["config"].window).astype(np.float32)
         b = len(w)
-        feeds = {"g": Pt[0], "window": w, "betas": np.repeat(betas[None], b, 0), "rest": a.vertices.astype(np.float32),
-                 "nbr": nbr, "mask": mask, "joints": np.repeat(joints[None].astype(np.float32), b, 0),
-                 "trans": mo.trans.astype(np.float32)}
+        feeds = {
+            "g": Pt[0],
+            "window": w,
+            "betas": np.repeat(betas[None], b, 0),
+            "rest": a.vertices.astype(np.float32),
+            "nbr": nbr,
+            "mask": mask,
+            "joints": np.repeat(joints[None].astype(np.float32), b, 0),
+            "trans": mo.trans.astype(np.float32),
+        }
         if net.residual:  # residual skinning weights: the body's weights at the garment, as log weights (last input)
             feeds["log_wbody"] = log_wbody
         s = ort.InferenceSession(str(PKG / manifest["graphs"][name]["file"]), providers=["CPUExecutionProvider"])
@@ -104,10 +112,18 @@ def test_shipped_body_graphs_pose_the_shipped_body(shipped, skinning):
     assert spec["body"] == {"name": "default_body.npz", "sha256": body_sha256(body)}
     mo = make_motion("dance", seconds=0.3, fps=30, seed=1)
     betas = np.array([0.5, -0.3] + [0.0] * 8, np.float32)
-    feeds = {"betas": betas, "poses": mo.poses.reshape(-1, 24, 3).astype(np.float32), "trans": mo.trans.astype(np.float32)}
+    feeds = {
+        "betas": betas,
+        "poses": mo.poses.reshape(-1, 24, 3).astype(np.float32),
+        "trans": mo.trans.astype(np.float32),
+    }
     v, j, rj, f = ort.InferenceSession(str(PKG / spec["file"]), providers=["CPUExecutionProvider"]).run(None, feeds)
-    ref = body.forward(feeds["poses"].reshape(len(v), -1).astype(np.float64), betas.astype(np.float64),
-                       feeds["trans"].astype(np.float64), skinning=skinning)
+    ref = body.forward(
+        feeds["poses"].reshape(len(v), -1).astype(np.float64),
+        betas.astype(np.float64),
+        feeds["trans"].astype(np.float64),
+        skinning=skinning,
+    )
     assert np.abs(v - ref.vertices).max() <= RTOL * np.abs(ref.vertices).max()
     assert np.abs(j - ref.joints).max() <= RTOL * np.abs(ref.joints).max()
     np.testing.assert_array_equal(f, body.faces)

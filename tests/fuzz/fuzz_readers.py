@@ -26,8 +26,22 @@ from pathlib import Path
 
 import numpy as np
 
-TARGETS = ("obj", "off", "pc2", "bvh", "toml", "npz", "mhclo", "motion", "amc", "sgda", "sgdm", "batch", "manifest",
-           "bvhbody")
+TARGETS = (
+    "obj",
+    "off",
+    "pc2",
+    "bvh",
+    "toml",
+    "npz",
+    "mhclo",
+    "motion",
+    "amc",
+    "sgda",
+    "sgdm",
+    "batch",
+    "manifest",
+    "bvhbody",
+)
 _TMP = Path(tempfile.mkdtemp(prefix="segadeform-fuzz-"))
 
 
@@ -136,8 +150,12 @@ def make_target(name: str):
             _check_finite(m.poses, m.trans)
     else:
         raise SystemExit(f"unknown target {name!r}; expected one of {', '.join(TARGETS)}")
-    path = _TMP / {"motion": "input.npz", "manifest": "pkg/manifest.json", "bvhbody": "input.bvh",
-                   "batch": "jobs.toml"}.get(name, f"input.{name}")
+    path = _TMP / {
+        "motion": "input.npz",
+        "manifest": "pkg/manifest.json",
+        "bvhbody": "input.bvh",
+        "batch": "jobs.toml",
+    }.get(name, f"input.{name}")
     path.parent.mkdir(parents=True, exist_ok=True)
 
     def one_input(data: bytes) -> None:
@@ -159,8 +177,12 @@ def write_seeds(d: Path) -> None:
     root = Path(__file__).resolve().parents[2]
     for t in TARGETS:
         (d / t).mkdir(parents=True, exist_ok=True)
-    (d / "obj" / "quad.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1 -1/1/1\n")
-    (d / "obj" / "skirt_head.obj").write_text("\n".join((root / "samples/garments/skirt.obj").read_text().splitlines()[:200]))
+    (d / "obj" / "quad.obj").write_text(
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1 -1/1/1\n"
+    )
+    (d / "obj" / "skirt_head.obj").write_text(
+        "\n".join((root / "samples/garments/skirt.obj").read_text().splitlines()[:200])
+    )
     (d / "off" / "quad.off").write_text("OFF\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n")
     write_pc2(d / "pc2" / "small.pc2", np.random.default_rng(0).normal(size=(3, 5, 3)))
     write_bvh(d / "bvh" / "idle.bvh", make_motion("idle", seconds=0.1), default_rest_joints())
@@ -178,8 +200,9 @@ def write_seeds(d: Path) -> None:
     from tests.motion.asf_build import amc_text, asf_text, smooth_values
 
     (d / "amc" / "cmu_like.asfamc").write_text(asf_text() + "%%\n" + amc_text(smooth_values(n_frames=2)))
-    (d / "amc" / "radians.asfamc").write_text(asf_text(angle="rad", limits=False) + "%%\n" + amc_text(
-        smooth_values(n_frames=1), header=(":RADIANS",)))
+    (d / "amc" / "radians.asfamc").write_text(
+        asf_text(angle="rad", limits=False) + "%%\n" + amc_text(smooth_values(n_frames=1), header=(":RADIANS",))
+    )
     _write_portable_seeds(d, root)
 
 
@@ -196,8 +219,10 @@ def _write_portable_seeds(d: Path, root: Path) -> None:
     body = load_body(root / "samples/bodies/default_body.npz")
     u, w = np.meshgrid(np.linspace(0, 2 * np.pi, 9)[:-1], np.linspace(0.9, 1.1, 3))
     v = np.stack([0.2 * np.cos(u), w, 0.2 * np.sin(u)], -1).reshape(-1, 3)
-    f = np.array([[r * 8 + c, r * 8 + (c + 1) % 8, (r + 1) * 8 + c] for r in range(2) for c in range(8)] +
-                 [[r * 8 + (c + 1) % 8, (r + 1) * 8 + (c + 1) % 8, (r + 1) * 8 + c] for r in range(2) for c in range(8)])
+    f = np.array(
+        [[r * 8 + c, r * 8 + (c + 1) % 8, (r + 1) * 8 + c] for r in range(2) for c in range(8)]
+        + [[r * 8 + (c + 1) % 8, (r + 1) * 8 + (c + 1) % 8, (r + 1) * 8 + c] for r in range(2) for c in range(8)]
+    )
     a = precompute_garment(v, f, body.rest_joints()[0], n_star=4)
     a.save(d / "sgda" / "tube.sgda")
     from segadeform.body.prepare import prepare_for_body
@@ -210,7 +235,8 @@ def _write_portable_seeds(d: Path, root: Path) -> None:
         '[batch]\noutput = "out"\nformat = "pc2"\neffects = "dqs,collisions"\nup = "y"\nframes_per_call = 4\n'
         '[[garments]]\nmesh = "skirt.obj"\nname = "skirt"\nbetas = [0.0, 0.5]\n'
         '[[motions]]\nfile = "walk.npz"\nfps = 30.0\nframes = "0:6"\n[[motions]]\nkind = "dance"\nseconds = 0.5\n'
-        'seed = 2\n')
+        "seed = 2\n"
+    )
     man = json.loads((root / "samples/models/default/manifest.json").read_text())
     man.pop("training_garments", None)  # (large; the rest of the manifest's structure stays)
     (d / "manifest" / "manifest.json").write_text(json.dumps(man))

@@ -32,9 +32,21 @@ def test_short_fuzz_run(target, seeds, tmp_path):
     # no -rss_limit_mb: Linux carries ru_maxrss over from the (pytest) parent across fork/exec, so
     # libFuzzer would see the suite's own peak (the 200k-vertex case) and stop at once.  Memory
     # blow-up is tested by the malformed corpus under an address-space limit.
-    p = subprocess.run([sys.executable, str(HARNESS), target, f"-runs={RUNS}", "-rss_limit_mb=0",
-                        f"-artifact_prefix={tmp_path}/crash-", str(corpus)],
-                       capture_output=True, text=True, timeout=600, cwd=REPO)
+    p = subprocess.run(
+        [
+            sys.executable,
+            str(HARNESS),
+            target,
+            f"-runs={RUNS}",
+            "-rss_limit_mb=0",
+            f"-artifact_prefix={tmp_path}/crash-",
+            str(corpus),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=REPO,
+    )
     crashes = list(tmp_path.glob("crash-*"))
     assert p.returncode == 0 and not crashes, (p.stdout + p.stderr)[-3000:]
     done = re.search(r"Done (\d+) runs", p.stdout + p.stderr)

@@ -93,8 +93,9 @@ def test_rewrite_keeps_everything_but_positions(tmp_path):
     m2 = read_mesh(tmp_path / "o.obj")
     np.testing.assert_allclose(m2.vertices, m.vertices + 1.0, atol=1e-6)
     np.testing.assert_array_equal(m2.faces, m.faces)
-    assert sum(ln.startswith("vt ") for ln in (tmp_path / "o.obj").read_text().splitlines()) == \
-        sum(ln.startswith("vt ") for ln in src.read_text().splitlines())
+    assert sum(ln.startswith("vt ") for ln in (tmp_path / "o.obj").read_text().splitlines()) == sum(
+        ln.startswith("vt ") for ln in src.read_text().splitlines()
+    )
     with pytest.raises(InputError, match="vertex count"):
         rewrite_obj_vertices(src, m.vertices[:-1], tmp_path / "p.obj")
     assert not (tmp_path / "p.obj").exists()
@@ -115,12 +116,15 @@ def dress():
     return read_mesh(ROOT / "samples" / "garments" / "dress.obj")
 
 
-@pytest.mark.parametrize("transform, words", [
-    (lambda v: v * 10, "once read in dm"),
-    (lambda v: v * 100, "once read in cm"),
-    (lambda v: v @ np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]).T, r"once read with \+z up"),
-    (lambda v: v - [0, 0.95, 0], "0.95 m higher"),
-])
+@pytest.mark.parametrize(
+    "transform, words",
+    [
+        (lambda v: v * 10, "once read in dm"),
+        (lambda v: v * 100, "once read in cm"),
+        (lambda v: v @ np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]).T, r"once read with \+z up"),
+        (lambda v: v - [0, 0.95, 0], "0.95 m higher"),
+    ],
+)
 def test_off_body_garments_are_refused_with_the_cause(body, dress, transform, words):
     rest = body.shaped_vertices()[0]
     with pytest.raises(PlacementError, match=words) as ei:
@@ -146,8 +150,19 @@ def test_run_refuses_then_force(tmp_path, dress):
     from segadeform.io import Mesh, write_obj
 
     write_obj(tmp_path / "dm.obj", Mesh(vertices=dress.vertices * 10, faces=dress.faces))
-    args = ["run", "--garment", str(tmp_path / "dm.obj"), "--motion", str(ROOT / "samples/motions/walk.npz"),
-            "-o", str(tmp_path / "o.pc2"), "--frames", "0:4", "--no-cache", "--effects=-wrinkles,-collisions"]
+    args = [
+        "run",
+        "--garment",
+        str(tmp_path / "dm.obj"),
+        "--motion",
+        str(ROOT / "samples/motions/walk.npz"),
+        "-o",
+        str(tmp_path / "o.pc2"),
+        "--frames",
+        "0:4",
+        "--no-cache",
+        "--effects=-wrinkles,-collisions",
+    ]
     r = CliRunner().invoke(cli, args)
     assert r.exit_code == 1 and "once read in dm" in r.output and "--units dm" in r.output
     assert not (tmp_path / "o.pc2").exists()
@@ -157,8 +172,18 @@ def test_run_refuses_then_force(tmp_path, dress):
 
 # ---- CLI and malformed files ---------------------------------------------------------------------------
 def test_garment_fit_cli(tmp_path):
-    r = CliRunner().invoke(cli, ["garment", "fit", str(SAMPLES / "tshirt_short_sleeve_m.mhclo"), "-o",
-                                 str(tmp_path / "t.obj"), "--betas", "1,0.5"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "garment",
+            "fit",
+            str(SAMPLES / "tshirt_short_sleeve_m.mhclo"),
+            "-o",
+            str(tmp_path / "t.obj"),
+            "--betas",
+            "1,0.5",
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert "MakeHuman binding" in r.output and "0.0 % of vertices inside" in r.output
     m = read_mesh(tmp_path / "t.obj")
@@ -166,23 +191,30 @@ def test_garment_fit_cli(tmp_path):
     # an OBJ with its .mhclo beside it is found; plain fixes otherwise
     r = CliRunner().invoke(cli, ["garment", "fit", str(SAMPLES / "skirt_short_f.obj"), "-o", str(tmp_path / "s.obj")])
     assert r.exit_code == 0 and "skirt_short_f.mhclo" in r.output
-    r = CliRunner().invoke(cli, ["garment", "fit", str(tmp_path / "t.obj"), "-o", str(tmp_path / "u.obj"),
-                                 "--units", "cm"])
+    r = CliRunner().invoke(
+        cli, ["garment", "fit", str(tmp_path / "t.obj"), "-o", str(tmp_path / "u.obj"), "--units", "cm"]
+    )
     assert r.exit_code == 0 and "units cm" in r.output
     np.testing.assert_allclose(read_mesh(tmp_path / "u.obj").vertices, m.vertices * 0.01, atol=1e-6)
 
 
-@pytest.mark.parametrize("mutate, words", [
-    (lambda t: t.replace("basemesh hm08", "basemesh hm07"), "only hm08"),
-    (lambda t: t.replace("verts 0", "verts 0\n12 13 0.5 0.5"), "1, 6 or 9 numbers"),
-    (lambda t: t.replace("verts 0", "verts 0\n12 13 14 0.5 x 0.5 0 0 0"), "expected a number"),
-    (lambda t: t.replace("verts 0", "verts 0\n12 13 14 0.5 nan 0.5 0 0 0"), "not finite"),
-    (lambda t: t.replace("x_scale 5399 11998", "x_scale 5399 11998 0 0").replace("x_scale 5399 11998 0 0 ",
-                                                                                 "x_scale 5399 11998 0 "),
-     "x_scale"),
-    (lambda t: t.split("verts 0")[0], "no binding lines"),
-    (lambda t: t.replace("delete_verts", "delete_verts\n20 - 10"), "runs backwards"),
-])
+@pytest.mark.parametrize(
+    "mutate, words",
+    [
+        (lambda t: t.replace("basemesh hm08", "basemesh hm07"), "only hm08"),
+        (lambda t: t.replace("verts 0", "verts 0\n12 13 0.5 0.5"), "1, 6 or 9 numbers"),
+        (lambda t: t.replace("verts 0", "verts 0\n12 13 14 0.5 x 0.5 0 0 0"), "expected a number"),
+        (lambda t: t.replace("verts 0", "verts 0\n12 13 14 0.5 nan 0.5 0 0 0"), "not finite"),
+        (
+            lambda t: t.replace("x_scale 5399 11998", "x_scale 5399 11998 0 0").replace(
+                "x_scale 5399 11998 0 0 ", "x_scale 5399 11998 0 "
+            ),
+            "x_scale",
+        ),
+        (lambda t: t.split("verts 0")[0], "no binding lines"),
+        (lambda t: t.replace("delete_verts", "delete_verts\n20 - 10"), "runs backwards"),
+    ],
+)
 def test_malformed_mhclo(tmp_path, mutate, words):
     src = (SAMPLES / "skirt_short_f.mhclo").read_text()
     (tmp_path / "b.mhclo").write_text(mutate(src))
@@ -218,8 +250,9 @@ def _other_body_scene(body, betas_src):
     mid = v[f].mean(axis=1)
     sv = np.concatenate([v, mid])
     k = np.arange(len(f)) + len(v)
-    sf = np.concatenate([np.stack([f[:, 0], f[:, 1], k], 1), np.stack([f[:, 1], f[:, 2], k], 1),
-                         np.stack([f[:, 2], f[:, 0], k], 1)])
+    sf = np.concatenate(
+        [np.stack([f[:, 0], f[:, 1], k], 1), np.stack([f[:, 1], f[:, 2], k], 1), np.stack([f[:, 2], f[:, 0], k], 1)]
+    )
     perm = np.random.default_rng(0).permutation(len(sv))
     sv, sf = sv[perm], np.argsort(perm)[sf]
     to_zup_cm = lambda x: (x @ np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]).T) * 100  # noqa: E731
@@ -247,8 +280,22 @@ def test_fit_to_another_body_mesh(body, tmp_path):
     # the same through the CLI, files in cm and z-up
     write_obj(tmp_path / "g.obj", Mesh(vertices=g_src, faces=g.faces))
     write_obj(tmp_path / "b.obj", Mesh(vertices=sv, faces=sf))
-    res = CliRunner().invoke(cli, ["garment", "fit", str(tmp_path / "g.obj"), "--from-body", str(tmp_path / "b.obj"),
-                                   "--units", "cm", "--up", "z", "-o", str(tmp_path / "f.obj")])
+    res = CliRunner().invoke(
+        cli,
+        [
+            "garment",
+            "fit",
+            str(tmp_path / "g.obj"),
+            "--from-body",
+            str(tmp_path / "b.obj"),
+            "--units",
+            "cm",
+            "--up",
+            "z",
+            "-o",
+            str(tmp_path / "f.obj"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "registered to b.obj" in res.output
     check_placement(read_mesh(tmp_path / "f.obj").vertices, body.shaped_vertices()[0], body.faces)

@@ -66,8 +66,9 @@ def test_resolution_picks_the_refinement(body):
     n0 = len(make_garment("skirt", body).vertices)
     n1 = len(make_garment("skirt", body, params=GarmentParams(resolution=4 * n0)).vertices)
     assert 3.5 * n0 < n1 < 4.5 * n0
-    check_garment(*(lambda g: (g.vertices, g.faces))(make_garment("skirt", body, params=GarmentParams(subdivisions=1))),
-                  body)
+    check_garment(
+        *(lambda g: (g.vertices, g.faces))(make_garment("skirt", body, params=GarmentParams(subdivisions=1))), body
+    )
 
 
 def test_garments_follow_the_body_shape(body):
@@ -86,7 +87,9 @@ def test_check_garment_catches_problems(body):
         f[0] = f[0, ::-1]
         check_garment(g.vertices, f)
     with pytest.raises(InputError, match="one piece"):
-        check_garment(np.concatenate([g.vertices, g.vertices + 3]), np.concatenate([g.faces, g.faces + len(g.vertices)]))
+        check_garment(
+            np.concatenate([g.vertices, g.vertices + 3]), np.concatenate([g.faces, g.faces + len(g.vertices)])
+        )
     with pytest.raises(InputError, match="unknown garment kind"):
         make_garment("cape", body)
     with pytest.raises(InputError, match="out of range"):
@@ -115,8 +118,11 @@ MAX_PLANAR_CURVATURE = 1.2
 
 def _smoothness(v, f):
     turns = boundary_turning(v, f)
-    planar = [t.sum() / (2 * np.pi) for t, loop in zip(turns, boundary_loops(f, len(v)), strict=True)
-              if _loop_plane(v[loop])[2] <= PLANAR]
+    planar = [
+        t.sum() / (2 * np.pi)
+        for t, loop in zip(turns, boundary_loops(f, len(v)), strict=True)
+        if _loop_plane(v[loop])[2] <= PLANAR
+    ]
     deg = np.degrees(np.concatenate(turns))
     return deg.max(), np.percentile(deg, 95), planar
 

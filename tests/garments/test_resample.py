@@ -66,8 +66,9 @@ def test_surface_map_carries_posed_frames_between_resolutions(skirt):
     v2, f2 = subdivide(v, f)
     fine = SurfaceMap.build(v, v2, f2)
     assert (fine.offset == 0).all()
-    fine_posed = skin_garment(v2, transfer_weights(v2, body.shaped_vertices()[0], body.faces, body.weights),
-                              body, mo.poses, None, mo.trans)
+    fine_posed = skin_garment(
+        v2, transfer_weights(v2, body.shaped_vertices()[0], body.faces, body.weights), body, mo.poses, None, mo.trans
+    )
     np.testing.assert_allclose(fine.apply(fine_posed), fine_posed[:, : len(v)], atol=1e-12)
     # from a coarse copy: the rest shape comes back within a fraction of an edge, and so does a posed one
     vc, fc = decimate(v, f, len(v) // 4)

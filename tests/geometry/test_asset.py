@@ -54,8 +54,16 @@ def test_portable_round_trip_is_exact(tmp_path, asset):
     arrays, meta = read_bundle(tmp_path / "a.sgda")  # what a runtime without Python sees
     assert meta["kind"] == "segadeform-garment-asset" and meta["schema_version"] == ASSET_SCHEMA_VERSION
     assert {k: a.dtype.str for k, a in arrays.items()} == {
-        "vertices": "<f8", "faces": "<i4", "normals": "<f4", "features": "<f4", "nbr": "<i4", "mask": "|u1",
-        "joints": "<f8", "descriptor": "<f8", "fps_samples": "<i4"}
+        "vertices": "<f8",
+        "faces": "<i4",
+        "normals": "<f4",
+        "features": "<f4",
+        "nbr": "<i4",
+        "mask": "|u1",
+        "joints": "<f8",
+        "descriptor": "<f8",
+        "fps_samples": "<i4",
+    }
     write_bundle(tmp_path / "x.sgda", dict(arrays, nbr=arrays["nbr"] + 10**6), meta)
     with pytest.raises(FileFormatError, match="x.sgda: asset field 'nbr' has an index out of range"):
         GarmentAsset.load(tmp_path / "x.sgda")
@@ -82,15 +90,18 @@ def corrupt(tmp_path, asset, **changes):
     return p
 
 
-@pytest.mark.parametrize("changes, words", [
-    (dict(schema_version=np.int64(99)), "schema version"),
-    (dict(nbr=None), "missing fields"),
-    (dict(faces=np.array([[0, 1, 999]])), "out of range"),
-    (dict(features=np.zeros((3, 30), np.float32)), "wrong shape"),
-    (dict(mask=np.zeros((1, 1), np.int8)), "wrong type"),
-    (dict(descriptor=np.full(16, np.nan)), "NaN"),
-    (dict(geodesic_radius=np.float64(0.0)), "positive"),
-])
+@pytest.mark.parametrize(
+    "changes, words",
+    [
+        (dict(schema_version=np.int64(99)), "schema version"),
+        (dict(nbr=None), "missing fields"),
+        (dict(faces=np.array([[0, 1, 999]])), "out of range"),
+        (dict(features=np.zeros((3, 30), np.float32)), "wrong shape"),
+        (dict(mask=np.zeros((1, 1), np.int8)), "wrong type"),
+        (dict(descriptor=np.full(16, np.nan)), "NaN"),
+        (dict(geodesic_radius=np.float64(0.0)), "positive"),
+    ],
+)
 def test_load_rejects_corrupt_assets(tmp_path, asset, changes, words):
     p = corrupt(tmp_path, asset, **changes)
     with pytest.raises(FileFormatError, match=words) as ei:

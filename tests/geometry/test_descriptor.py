@@ -51,8 +51,7 @@ def test_descriptor_shape_padding_and_invariances():
     assert d.eigenvalues.shape == (32,) and np.isfinite(d.eigenvalues).all()
     assert (np.diff(d.eigenvalues) <= 1e-12).all()
     # a power-of-two scale changes no rounding: the descriptor is unchanged (r scales with d)
-    np.testing.assert_allclose(garment_descriptor(1024.0 * v, f, n_star=32).eigenvalues, d.eigenvalues,
-                               atol=1e-9)
+    np.testing.assert_allclose(garment_descriptor(1024.0 * v, f, n_star=32).eigenvalues, d.eigenvalues, atol=1e-9)
     # a rigid motion and a non-power-of-two scale change rounding only
     for seed in range(3):
         R = np.linalg.qr(np.random.default_rng(seed).normal(size=(3, 3)))[0]
@@ -71,8 +70,10 @@ def test_descriptor_separates_garment_shapes():
     skirt_fine = frustum(60, 30, 0.16, 0.34, 1.0, 0.5)
     tube = frustum(40, 40, 0.1, 0.1, 1.5, 0.0)
     plane = grid_plane(30, 30)
-    d = {k: garment_descriptor(*m).eigenvalues for k, m in
-         dict(skirt=skirt, skirt_fine=skirt_fine, tube=tube, plane=plane).items()}
+    d = {
+        k: garment_descriptor(*m).eigenvalues
+        for k, m in dict(skirt=skirt, skirt_fine=skirt_fine, tube=tube, plane=plane).items()
+    }
     same = dissimilarity(d["skirt"], d["skirt_fine"])
     assert same < 0.5 * dissimilarity(d["skirt"], d["tube"])
     assert same < 0.5 * dissimilarity(d["skirt"], d["plane"])

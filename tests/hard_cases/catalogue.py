@@ -46,8 +46,9 @@ class Case:
 def _rot(joint, vec):
     def make(frames=4):
         p, t = still(frames)
-        p[:, 3 * joint:3 * joint + 3] = vec
+        p[:, 3 * joint : 3 * joint + 3] = vec
         return p, t
+
     return make
 
 
@@ -122,6 +123,7 @@ def _scaled(s, shift=(0.0, 0.0, 0.0)):
     def make():
         v, f = skirt()
         return v * s + np.asarray(shift), f
+
     return make
 
 
@@ -162,16 +164,16 @@ def _motion_frozen(frames=6):
 
 def _motion_jump179(frames=6):
     p, t = still(frames)
-    p[3:, 3 * 16:3 * 16 + 3] = [0.0, 0.0, np.deg2rad(179.0)]  # the left shoulder snaps 179 degrees in one frame
-    p[3:, 3 * 5:3 * 5 + 3] = [np.deg2rad(179.0), 0.0, 0.0]
+    p[3:, 3 * 16 : 3 * 16 + 3] = [0.0, 0.0, np.deg2rad(179.0)]  # the left shoulder snaps 179 degrees in one frame
+    p[3:, 3 * 5 : 3 * 5 + 3] = [np.deg2rad(179.0), 0.0, 0.0]
     return p, t
 
 
 def _motion_antipodal(frames=4):
     p, t = still(frames)
     # parent and child twisted so that their global rotations differ by about 180 degrees
-    p[:, 3 * 16:3 * 16 + 3] = [np.pi * 0.999, 0.0, 0.0]
-    p[:, 3 * 18:3 * 18 + 3] = [np.pi * 0.999, 0.0, 0.0]
+    p[:, 3 * 16 : 3 * 16 + 3] = [np.pi * 0.999, 0.0, 0.0]
+    p[:, 3 * 18 : 3 * 18 + 3] = [np.pi * 0.999, 0.0, 0.0]
     p[:, 0:3] = [0.0, np.pi, 0.0]
     return p, t
 
@@ -199,62 +201,113 @@ def _mesh_deep_inside_body():
 def _motion_teleport(frames=8):
     m = make_motion("walk", seconds=frames / 30.0 + 1.0)
     p, t = m.poses[-frames:], m.trans[-frames:].copy()
-    t[frames // 2:] += [3.0, 0.0, 2.0]  # the body jumps 3.6 m between two frames
+    t[frames // 2 :] += [3.0, 0.0, 2.0]  # the body jumps 3.6 m between two frames
     return p, t
 
 
 CASES = [
-    Case("zero_area_triangles", "collinear and repeated-vertex faces have no normal and infinite cotangents",
-         _mesh_zero_area),
+    Case(
+        "zero_area_triangles",
+        "collinear and repeated-vertex faces have no normal and infinite cotangents",
+        _mesh_zero_area,
+    ),
     Case("needle_triangles", "slivers give cotangents of 1e7 and near-singular Laplacians", _mesh_needles),
-    Case("duplicate_vertices", "a seam split into coincident vertices: zero-length edges, two graph parts that touch",
-         _mesh_duplicates),
-    Case("isolated_vertices", "vertices in no face: empty neighbour rows, no normal, infinite geodesics",
-         _mesh_isolated),
+    Case(
+        "duplicate_vertices",
+        "a seam split into coincident vertices: zero-length edges, two graph parts that touch",
+        _mesh_duplicates,
+    ),
+    Case(
+        "isolated_vertices", "vertices in no face: empty neighbour rows, no normal, infinite geodesics", _mesh_isolated
+    ),
     Case("disconnected_parts", "three separate pieces: infinite geodesic distances between them", _mesh_parts),
-    Case("non_manifold_edge", "an edge shared by three faces breaks boundary and normal assumptions",
-         _mesh_nonmanifold),
+    Case(
+        "non_manifold_edge", "an edge shared by three faces breaks boundary and normal assumptions", _mesh_nonmanifold
+    ),
     Case("single_triangle", "the smallest garment: one face, N = 3 (fewer vertices than N*)", _mesh_single_triangle),
-    Case("three_vertex_double_sided", "two opposite faces on 3 vertices: a closed surface with zero volume",
-         _mesh_three_vertex_double_sided),
+    Case(
+        "three_vertex_double_sided",
+        "two opposite faces on 3 vertices: a closed surface with zero volume",
+        _mesh_three_vertex_double_sided,
+    ),
     Case("flipped_faces", "inconsistent winding: normals cancel at shared vertices", _mesh_flipped),
     Case("high_valence_fan64", "one vertex with 64 neighbours: K is capped and the rest truncated", _mesh_fan),
-    Case("millimetre_units", "a garment in millimetres (x1000): positions and joint distances 1000x too large",
-         _scaled(1000.0)),
-    Case("kilometre_units", "a garment in kilometres (x0.001): everything within a millimetre of the origin",
-         _scaled(0.001)),
-    Case("tiny_garment", "a 0.3 mm garment: edge lengths near float32 resolution of the positions",
-         _scaled(1e-3, (0.0, 1.0, 0.0))),
-    Case("far_from_body", "100 m away from the body: huge joint distances, collisions never touch",
-         _scaled(1.0, (100.0, 0.0, -100.0))),
-    Case("partly_inside_body", "the garment starts inside the hips: collisions must push hundreds of vertices out",
-         _mesh_inside_body),
+    Case(
+        "millimetre_units",
+        "a garment in millimetres (x1000): positions and joint distances 1000x too large",
+        _scaled(1000.0),
+    ),
+    Case(
+        "kilometre_units",
+        "a garment in kilometres (x0.001): everything within a millimetre of the origin",
+        _scaled(0.001),
+    ),
+    Case(
+        "tiny_garment",
+        "a 0.3 mm garment: edge lengths near float32 resolution of the positions",
+        _scaled(1e-3, (0.0, 1.0, 0.0)),
+    ),
+    Case(
+        "far_from_body",
+        "100 m away from the body: huge joint distances, collisions never touch",
+        _scaled(1.0, (100.0, 0.0, -100.0)),
+    ),
+    Case(
+        "partly_inside_body",
+        "the garment starts inside the hips: collisions must push hundreds of vertices out",
+        _mesh_inside_body,
+    ),
     Case("one_face_wide_strip", "a ribbon one triangle wide: every vertex is on the boundary", _mesh_strip),
     Case("self_intersecting", "the garment folds through itself", _mesh_folded),
-    Case("joint_180_twist", "a 180-degree knee twist: the axis-angle inverse and DQS hemisphere test are ambiguous",
-         motion=_rot(5, [np.pi, 0.0, 0.0])),
-    Case("joint_360_equivalent", "a 2 pi rotation equals none: Rodrigues must give the identity",
-         motion=_rot(16, [0.0, 0.0, 2 * np.pi])),
-    Case("antipodal_quaternions", "neighbouring joints' quaternions nearly antipodal: DQS must flip, not cancel",
-         motion=_motion_antipodal),
+    Case(
+        "joint_180_twist",
+        "a 180-degree knee twist: the axis-angle inverse and DQS hemisphere test are ambiguous",
+        motion=_rot(5, [np.pi, 0.0, 0.0]),
+    ),
+    Case(
+        "joint_360_equivalent",
+        "a 2 pi rotation equals none: Rodrigues must give the identity",
+        motion=_rot(16, [0.0, 0.0, 2 * np.pi]),
+    ),
+    Case(
+        "antipodal_quaternions",
+        "neighbouring joints' quaternions nearly antipodal: DQS must flip, not cancel",
+        motion=_motion_antipodal,
+    ),
     Case("frozen_motion", "every frame identical: the LSTM sees no change", motion=_motion_frozen),
-    Case("one_frame_179_jump", "a 179-degree snap between two frames: huge window differences",
-         motion=_motion_jump179),
-    Case("extreme_beta_plus5", "+5 sigma body shape: joints and body far outside the training range",
-         betas=(5.0, 5.0, 5.0)),
+    Case("one_frame_179_jump", "a 179-degree snap between two frames: huge window differences", motion=_motion_jump179),
+    Case(
+        "extreme_beta_plus5",
+        "+5 sigma body shape: joints and body far outside the training range",
+        betas=(5.0, 5.0, 5.0),
+    ),
     Case("extreme_beta_minus5", "-5 sigma body shape", betas=(-5.0, -5.0, -5.0)),
-    Case("huge_translation", "the body 14 km from the origin: float32 positions lose millimetres",
-         motion=_motion_huge_trans, collisions=False),
-    Case("garment_deep_inside_body", "every vertex centimetres inside the body: contact must push the whole garment out",
-         _mesh_deep_inside_body),
-    Case("teleporting_body", "the body jumps 3.6 m between two frames: inertia would fling the cloth (it resets)",
-         motion=_motion_teleport),
+    Case(
+        "huge_translation",
+        "the body 14 km from the origin: float32 positions lose millimetres",
+        motion=_motion_huge_trans,
+        collisions=False,
+    ),
+    Case(
+        "garment_deep_inside_body",
+        "every vertex centimetres inside the body: contact must push the whole garment out",
+        _mesh_deep_inside_body,
+    ),
+    Case(
+        "teleporting_body",
+        "the body jumps 3.6 m between two frames: inertia would fling the cloth (it resets)",
+        motion=_motion_teleport,
+    ),
     Case("nan_vertex", "a NaN coordinate: must be refused before anything runs", _mesh_nan, error="NaN"),
     Case("face_index_out_of_range", "a face pointing past the last vertex", _mesh_bad_index, error="out of range"),
     Case("nan_pose", "a NaN in the motion", motion=_motion_nan, error="NaN"),
     Case("empty_motion", "a motion with no frames", motion=_motion_empty, error="T >= 1"),
-    Case("too_many_betas", "more shape coefficients than the body has", betas=tuple(range(12)),
-         error="too many shape coefficients"),
+    Case(
+        "too_many_betas",
+        "more shape coefficients than the body has",
+        betas=tuple(range(12)),
+        error="too many shape coefficients",
+    ),
 ]
 
 #: the cloth stage's hard cases beyond the generic runner's (``test_cloth_cases.py``); the generic runner puts every

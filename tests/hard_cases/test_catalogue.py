@@ -80,8 +80,16 @@ def run_case(case, models, body, tmp_path):
 
     d_feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
     with torch.no_grad():
-        P_t = nets["lbs"].garment_encoder(torch.as_tensor(d_feats[None]), torch.as_tensor(asset.nbr),
-                                          torch.as_tensor(asset.mask), torch.as_tensor(asset.descriptor[None]).float())[0].numpy()
+        P_t = (
+            nets["lbs"]
+            .garment_encoder(
+                torch.as_tensor(d_feats[None]),
+                torch.as_tensor(asset.nbr),
+                torch.as_tensor(asset.mask),
+                torch.as_tensor(asset.descriptor[None]).float(),
+            )[0]
+            .numpy()
+        )
     parity(P_t, P_ort, "garment encoder")
     win = motion_windows(motion.poses, nets["lbs"].cfg.window).astype(np.float32)
     results = {}
@@ -89,11 +97,20 @@ def run_case(case, models, body, tmp_path):
         dd = Deformer(pkg, d.effects.__class__(skinning=skin))
         lw = dd.body_log_weights(asset, body, betas)
         verts, weights, blend = dd.deform(P_ort, asset, win, joints, motion.trans, betas, outputs=True, log_wbody=lw)
-        t = {k: torch.as_tensor(x) for k, x in dict(
-            g=P_ort, window=win, betas=np.repeat(betas[None], len(win), 0).astype(np.float32),
-            rest=asset.vertices.astype(np.float32), nbr=asset.nbr, mask=asset.mask,
-            joints=np.repeat(joints[None], len(win), 0).astype(np.float32), trans=motion.trans.astype(np.float32),
-            log_wbody=lw).items()}
+        t = {
+            k: torch.as_tensor(x)
+            for k, x in dict(
+                g=P_ort,
+                window=win,
+                betas=np.repeat(betas[None], len(win), 0).astype(np.float32),
+                rest=asset.vertices.astype(np.float32),
+                nbr=asset.nbr,
+                mask=asset.mask,
+                joints=np.repeat(joints[None], len(win), 0).astype(np.float32),
+                trans=motion.trans.astype(np.float32),
+                log_wbody=lw,
+            ).items()
+        }
         with torch.no_grad():
             ref = nets[skin].deformer(**t)
         for name, r, g in zip(("vertices", "weights", "blend shapes"), ref, (verts, weights, blend), strict=True):
@@ -121,8 +138,15 @@ def run_case(case, models, body, tmp_path):
     np.testing.assert_array_equal(read_pc2(tmp_path / "out.pc2").frames, out.astype(np.float32))
 
 
-@pytest.mark.parametrize("case", [pytest.param(c, id=c.name, marks=[pytest.mark.xfail(strict=True, reason=c.known_failure)]
-                                               if c.known_failure else []) for c in CASES])
+@pytest.mark.parametrize(
+    "case",
+    [
+        pytest.param(
+            c, id=c.name, marks=[pytest.mark.xfail(strict=True, reason=c.known_failure)] if c.known_failure else []
+        )
+        for c in CASES
+    ],
+)
 def test_hard_case(case, models, body, tmp_path):
     if case.error is not None:
         with pytest.raises(InputError) as ei:
@@ -155,8 +179,12 @@ def test_catalogue_has_at_least_30_cases():
 
 def _torch_encoder(net, feats, asset, betas):
     with torch.no_grad():
-        return net.garment_encoder(torch.as_tensor(feats), torch.as_tensor(asset.nbr), torch.as_tensor(asset.mask),
-                                   torch.as_tensor(asset.descriptor[None]).float())[0].numpy()
+        return net.garment_encoder(
+            torch.as_tensor(feats),
+            torch.as_tensor(asset.nbr),
+            torch.as_tensor(asset.mask),
+            torch.as_tensor(asset.descriptor[None]).float(),
+        )[0].numpy()
 
 
 def test_garment_200k_vertices(models, body):
@@ -192,10 +220,27 @@ def test_sequence_10000_frames(models, body, tmp_path):
 
     write_obj(tmp_path / "g.obj", Mesh(vertices=v, faces=f))
     eff = Effects(wrinkles=False, collisions=False)
-    long = Run(garment=tmp_path / "g.obj", motion=m, package=pkg, body=body, effects=eff, output=tmp_path / "long.pc2",
-               batch=64, cache=False).execute()
-    short = Run(garment=tmp_path / "g.obj", motion=m, package=pkg, body=body, effects=eff,
-                output=tmp_path / "short.pc2", batch=7, cache=False, frames=(9900, 10000)).execute()
+    long = Run(
+        garment=tmp_path / "g.obj",
+        motion=m,
+        package=pkg,
+        body=body,
+        effects=eff,
+        output=tmp_path / "long.pc2",
+        batch=64,
+        cache=False,
+    ).execute()
+    short = Run(
+        garment=tmp_path / "g.obj",
+        motion=m,
+        package=pkg,
+        body=body,
+        effects=eff,
+        output=tmp_path / "short.pc2",
+        batch=7,
+        cache=False,
+        frames=(9900, 10000),
+    ).execute()
     assert long.frames == 10000 and short.frames == 100
     a = read_pc2(tmp_path / "long.pc2")
     b = read_pc2(tmp_path / "short.pc2")
@@ -219,8 +264,15 @@ def test_attention_numerics(models, body, kind):
     else:
         feats = np.zeros((1, len(v), 30), np.float32)
     # through the package's checked run: it casts nbr / mask to the manifest's dtypes (schema 3: int32 / float32)
-    got = pkg.run("garment_encoder", {"features": feats, "nbr": asset.nbr, "mask": asset.mask,
-                                      "descriptor": asset.descriptor[None].astype(np.float32)})[0][0]
+    got = pkg.run(
+        "garment_encoder",
+        {
+            "features": feats,
+            "nbr": asset.nbr,
+            "mask": asset.mask,
+            "descriptor": asset.descriptor[None].astype(np.float32),
+        },
+    )[0][0]
     parity(_torch_encoder(nets["lbs"], feats, asset, np.zeros(10)), got, f"encoder, {kind} features")
     # the SEGA bound holds at these inputs too (Theorem 2)
     from segadeform.model.lipschitz import lipschitz_estimate
@@ -228,8 +280,9 @@ def test_attention_numerics(models, body, kind):
 
     blk = nets["lbs"].enc.blocks[0].double()
     try:
-        est = lipschitz_estimate(blk, torch.as_tensor(feats).double(), torch.as_tensor(asset.nbr),
-                                 torch.as_tensor(asset.mask), iters=20)
+        est = lipschitz_estimate(
+            blk, torch.as_tensor(feats).double(), torch.as_tensor(asset.nbr), torch.as_tensor(asset.mask), iters=20
+        )
     finally:
         blk.float()
     assert np.isfinite(est) and est <= theorem2_bound(nets["lbs"].cfg.alpha, nets["lbs"].cfg.tau)
@@ -253,8 +306,12 @@ def test_fp16_model(models, body, tmp_path):
     from segadeform.geometry.features import vertex_features
 
     feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))[None]
-    enc = {"features": feats.astype(np.float16), "nbr": asset.nbr, "mask": asset.mask,
-           "descriptor": asset.descriptor[None].astype(np.float16)}
+    enc = {
+        "features": feats.astype(np.float16),
+        "nbr": asset.nbr,
+        "mask": asset.mask,
+        "descriptor": asset.descriptor[None].astype(np.float16),
+    }
     specs = graph_specs(net32.cfg)
     w = _wrappers(net16)
     _export_one(w["garment_encoder"], specs["garment_encoder"], enc, tmp_path / "enc16.onnx", dynamo=True)
@@ -265,9 +322,16 @@ def test_fp16_model(models, body, tmp_path):
     assert np.isfinite(P16).all()
     assert np.abs(P16.astype(np.float64) - P32).max() / np.abs(P32).max() < FP16_RTOL
     win = motion_windows(poses, 5)
-    dec = {"g": P16, "window": win.astype(np.float16), "betas": np.zeros((len(win), 10), np.float16),
-           "rest": asset.vertices.astype(np.float16), "nbr": asset.nbr, "mask": asset.mask,
-           "joints": np.repeat(joints[None], len(win), 0).astype(np.float16), "trans": trans.astype(np.float16)}
+    dec = {
+        "g": P16,
+        "window": win.astype(np.float16),
+        "betas": np.zeros((len(win), 10), np.float16),
+        "rest": asset.vertices.astype(np.float16),
+        "nbr": asset.nbr,
+        "mask": asset.mask,
+        "joints": np.repeat(joints[None], len(win), 0).astype(np.float16),
+        "trans": trans.astype(np.float16),
+    }
     if net32.residual:
         from segadeform.body.transfer import residual_log_weights, transfer_weights
 
@@ -276,7 +340,8 @@ def test_fp16_model(models, body, tmp_path):
     _export_one(w["deformer"], specs["deformer"], dec, tmp_path / "dec16.onnx", dynamo=True)
     out16 = ort.InferenceSession(str(tmp_path / "dec16.onnx")).run(None, dec)[0]
     with torch.no_grad():
-        ref = net32.deformer(**{k: torch.as_tensor(np.asarray(x, np.float32) if x.dtype == np.float16 else x)
-                                for k, x in dec.items()})[0].numpy()
+        ref = net32.deformer(
+            **{k: torch.as_tensor(np.asarray(x, np.float32) if x.dtype == np.float16 else x) for k, x in dec.items()}
+        )[0].numpy()
     assert np.isfinite(out16).all()
     assert np.abs(out16.astype(np.float64) - ref).max() / np.abs(ref).max() < FP16_RTOL

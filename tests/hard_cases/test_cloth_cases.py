@@ -33,7 +33,7 @@ def _targets(v, trans):
 
 def test_the_cases_are_named_with_reasons():
     assert all(r and len(r) < 120 for r in CLOTH_CASES.values())
-    tested = {n[len("test_"):] for n in globals() if n.startswith("test_cloth_")}
+    tested = {n[len("test_") :] for n in globals() if n.startswith("test_cloth_")}
     assert tested == set(CLOTH_CASES)
 
 
@@ -43,8 +43,9 @@ def test_cloth_200k_vertices(body):
     m = make_motion("walk", seconds=2 / 30.0)
     setup = garment_setup(v, f, body.shaped_vertices()[0], body.faces)
     assert len(setup.edges) > 3 * len(v) - 2000
-    out = ClothStage(setup, body.v_template, body.faces).step(_targets(v, m.trans[:2]),
-                                                              body.forward(m.poses[:2], None, m.trans[:2]).vertices)
+    out = ClothStage(setup, body.v_template, body.faces).step(
+        _targets(v, m.trans[:2]), body.forward(m.poses[:2], None, m.trans[:2]).vertices
+    )
     assert out.shape == (2, len(v), 3) and np.isfinite(out).all()
     assert np.linalg.norm(out - _targets(v, m.trans[:2]), axis=-1).max() < 0.5
 
@@ -62,11 +63,10 @@ def test_cloth_stream_10000_frames(body):
     tracemalloc.start()
     try:
         for lo in range(0, 10000, 100):
-            posed = body.forward(m.poses[lo:lo + 100], None, m.trans[lo:lo + 100]).vertices
-            y = _targets(v, m.trans[lo:lo + 100])
+            posed = body.forward(m.poses[lo : lo + 100], None, m.trans[lo : lo + 100]).vertices
+            y = _targets(v, m.trans[lo : lo + 100])
             out = a.step(y, posed)
-            np.testing.assert_array_equal(np.concatenate([b.step(y[:37], posed[:37]), b.step(y[37:], posed[37:])]),
-                                          out)
+            np.testing.assert_array_equal(np.concatenate([b.step(y[:37], posed[:37]), b.step(y[37:], posed[37:])]), out)
             assert np.isfinite(out).all()
             del posed, y, out
             held.append(tracemalloc.get_traced_memory()[0])
@@ -92,8 +92,9 @@ def test_cloth_nan_from_upstream(body):
     assert "Traceback" not in str(ei.value)
     assert stage.frames == 2  # the bad call took nothing: the stage goes on as if it had not been made
     rest = stage.step(y[2:], posed[2:])
-    np.testing.assert_array_equal(np.concatenate([first, rest]),
-                                  ClothStage(setup, body.v_template, body.faces).step(y, posed))
+    np.testing.assert_array_equal(
+        np.concatenate([first, rest]), ClothStage(setup, body.v_template, body.faces).step(y, posed)
+    )
 
 
 def test_cloth_teleport_resets_once(body, caplog):
@@ -107,7 +108,7 @@ def test_cloth_teleport_resets_once(body, caplog):
     setup = garment_setup(v, f, body.shaped_vertices()[0], body.faces)
     stage = ClothStage(setup, body.v_template, body.faces)
     with caplog.at_level(logging.WARNING, logger="segadeform.body.cloth"):
-        out = np.concatenate([stage.step(y[lo:lo + 4], posed[lo:lo + 4]) for lo in range(0, len(y), 4)])
+        out = np.concatenate([stage.step(y[lo : lo + 4], posed[lo : lo + 4]) for lo in range(0, len(y), 4)])
     said = [r.getMessage() for r in caplog.records if "started again" in r.getMessage()]
     assert stage.resets == 2 and len(said) == 1 and "frame 6" in said[0]
     assert np.isfinite(out).all() and np.linalg.norm(out - y, axis=-1).max() < 0.3  # no explosion

@@ -79,10 +79,11 @@ def test_missing_file_same_wording_from_every_command(tmp_path):
         (["inspect", f"{missing}.abc"], f"{missing}.abc"),
         (["motion", "info", f"{missing}.bvh"], f"{missing}.bvh"),
         (["info", str(missing)], str(missing)),
-        (["precompute", str(tmp_path / "g.obj"), "--joints", f"{missing}.npy", "-o", str(tmp_path / "a.npz")],
-         f"{missing}.npy"),
-        (["run", "--garment", f"{missing}.obj", "--motion", f"{missing}.bvh", "-o", str(tmp_path / "o.pc2")],
-         None),
+        (
+            ["precompute", str(tmp_path / "g.obj"), "--joints", f"{missing}.npy", "-o", str(tmp_path / "a.npz")],
+            f"{missing}.npy",
+        ),
+        (["run", "--garment", f"{missing}.obj", "--motion", f"{missing}.bvh", "-o", str(tmp_path / "o.pc2")], None),
         (["simulate", f"{missing}.toml"], f"{missing}.toml"),
     ]
     for args, path in cases:

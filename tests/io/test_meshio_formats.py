@@ -16,8 +16,11 @@ def test_quads_triangulated_and_order_kept(tmp_path, ext):
     v, q = quad_mesh()
     p = tmp_path / f"q{ext}"
     if ext == ".off":  # meshio's OFF writer drops quads; write the file by hand
-        p.write_text("OFF\n6 2 0\n" + "".join(f"{a} {b} {c}\n" for a, b, c in v)
-                     + "".join("4 " + " ".join(map(str, r)) + "\n" for r in q))
+        p.write_text(
+            "OFF\n6 2 0\n"
+            + "".join(f"{a} {b} {c}\n" for a, b, c in v)
+            + "".join("4 " + " ".join(map(str, r)) + "\n" for r in q)
+        )
     else:
         meshio.write_points_cells(p, v, [("quad", q)])
     m = read_mesh(p)
@@ -44,15 +47,18 @@ def test_unknown_extension_and_garbage(tmp_path):
     assert str(p) in str(ei.value)
 
 
-@pytest.mark.parametrize("text, words", [
-    ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", "out of range"),
-    ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n", "at least 3"),
-    ("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "truncated"),
-    ("OFF\n3 1 0\n0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n", "not finite"),
-    ("PLY\n", "not an OFF file"),
-    ("OFF\nx y\n", "counts"),
-    ("OFF\n0 0 0\n", "empty"),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", "out of range"),
+        ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n", "at least 3"),
+        ("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "truncated"),
+        ("OFF\n3 1 0\n0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n", "not finite"),
+        ("PLY\n", "not an OFF file"),
+        ("OFF\nx y\n", "counts"),
+        ("OFF\n0 0 0\n", "empty"),
+    ],
+)
 def test_malformed_off(tmp_path, text, words):
     p = tmp_path / "m.off"
     p.write_text(text)

@@ -72,7 +72,9 @@ p 5
 
 
 def test_vertex_colours_and_ngon_triangulation(tmp_path):
-    text = "".join(f"v {np.cos(a):.6f} {np.sin(a):.6f} 0 0.5 0.25 1\n" for a in np.linspace(0, 2 * np.pi, 6, endpoint=False))
+    text = "".join(
+        f"v {np.cos(a):.6f} {np.sin(a):.6f} 0 0.5 0.25 1\n" for a in np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    )
     text += "f 1 2 3 4 5 6\n"
     m = read_obj(write(tmp_path, text))
     assert m.colors.shape == (6, 3)
@@ -113,8 +115,15 @@ def test_malformed_obj_names_file_and_line(tmp_path, text, line, words):
     assert words in msg
 
 
-@pytest.mark.parametrize("text, words", [("", "no vertices"), ("# only a comment\n", "no vertices"),
-                                         ("v 0 0 0\nv 1 0 0\n", "no faces"), ("\x00\x01binary", "NUL")])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("", "no vertices"),
+        ("# only a comment\n", "no vertices"),
+        ("v 0 0 0\nv 1 0 0\n", "no faces"),
+        ("\x00\x01binary", "NUL"),
+    ],
+)
 def test_empty_or_binary_obj(tmp_path, text, words):
     p = write(tmp_path, text)
     with pytest.raises(FileFormatError, match=words):
@@ -129,9 +138,17 @@ def test_missing_file_is_a_clear_error(tmp_path):
     from segadeform.motion import load_motion
     from segadeform.settings import load_scene
 
-    for reader, name in ((read_obj, "nope.obj"), (read_off, "nope.off"), (read_pc2, "nope.pc2"),
-                         (read_mesh, "nope.ply"), (load_motion, "nope.bvh"), (load_motion, "nope.npz"),
-                         (load_body, "nope.npz"), (load_scene, "nope.toml"), (read_mhclo, "nope.mhclo")):
+    for reader, name in (
+        (read_obj, "nope.obj"),
+        (read_off, "nope.off"),
+        (read_pc2, "nope.pc2"),
+        (read_mesh, "nope.ply"),
+        (load_motion, "nope.bvh"),
+        (load_motion, "nope.npz"),
+        (load_body, "nope.npz"),
+        (load_scene, "nope.toml"),
+        (read_mhclo, "nope.mhclo"),
+    ):
         with pytest.raises(FileFormatError, match=r"nope\.\w+: no such file$"):
             reader(tmp_path / name)
     (tmp_path / "d.obj").mkdir()

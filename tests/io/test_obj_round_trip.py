@@ -93,8 +93,9 @@ def polygons(path):
 
 
 def file_normals(path):
-    return np.array([[float(x) for x in ln.split()[1:4]] for _, ln in obj_logical_lines(path)
-                     if ln.split()[:1] == ["vn"]])
+    return np.array(
+        [[float(x) for x in ln.split()[1:4]] for _, ln in obj_logical_lines(path) if ln.split()[:1] == ["vn"]]
+    )
 
 
 def reference_normals(path, vertices):
@@ -223,8 +224,16 @@ def test_cli_outputs_read_back_in_trimesh(tmp_path):
     g = tmp_path / "g.obj"
     assert r.invoke(cli, ["garment", "make", "skirt", "-o", str(g)]).exit_code == 0
     seq, pc = tmp_path / "seq", tmp_path / "b.pc2"
-    args = ["run", "--garment", str(g), "--motion", str(SAMPLES / "motions" / "walk.npz"), "--frames", "0:2",
-            "--no-cache"]
+    args = [
+        "run",
+        "--garment",
+        str(g),
+        "--motion",
+        str(SAMPLES / "motions" / "walk.npz"),
+        "--frames",
+        "0:2",
+        "--no-cache",
+    ]
     assert r.invoke(cli, args + ["--format", "obj-seq", "-o", str(seq)]).exit_code == 0
     res = r.invoke(cli, args + ["-o", str(tmp_path / "g.pc2"), "--body-out", str(pc)])
     assert res.exit_code == 0, res.output

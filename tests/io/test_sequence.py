@@ -93,8 +93,7 @@ def test_alembic_round_trip(tmp_path):
     from segadeform.io.alembic import read_alembic_sequence
 
     f, fr = animated()
-    with open_sequence_writer(tmp_path / "a.abc", "abc", faces=f, num_points=fr.shape[1], fps=25.0,
-                              start_frame=2) as w:
+    with open_sequence_writer(tmp_path / "a.abc", "abc", faces=f, num_points=fr.shape[1], fps=25.0, start_frame=2) as w:
         w.write(fr[:2])
         w.write(fr[2:])
     faces, back, times = read_alembic_sequence(tmp_path / "a.abc")

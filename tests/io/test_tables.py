@@ -37,22 +37,27 @@ def test_a_good_table_is_returned_as_read():
     assert read_table(t, Table, where="t") == t
 
 
-@pytest.mark.parametrize("table, words", [
-    ({"name": "x", "extra": 1}, ["unknown key t.extra", "expected count, flag, items, mode, name, scale, units, where",
-                                 "got extra"]),
-    ({"count": 1}, ["missing t.name"]),
-    ({"name": 3}, ["t.name has the wrong type", "expected str", "got int 3"]),
-    ({"name": "x", "count": True}, ["t.count has the wrong type", "expected int", "got bool True"]),
-    ({"name": "x", "count": 1.5}, ["t.count has the wrong type", "expected int", "got float 1.5"]),
-    ({"name": "x", "scale": False}, ["t.scale has the wrong type", "expected int or float", "got bool False"]),
-    ({"name": "x", "scale": 11}, ["t.scale out of range", "expected 0.0..10.0", "got 11"]),
-    ({"name": "x", "scale": float("nan")}, ["t.scale out of range"]),
-    ({"name": "x", "flag": 1}, ["t.flag has the wrong type", "expected bool", "got int 1"]),
-    ({"name": "x", "items": "ab"}, ["t.items has the wrong type", "expected list"]),
-    ({"name": "x", "where": 2}, ["t.where has the wrong type", "expected str"]),
-    ({"name": "x", "mode": "c"}, ["t.mode must be one of a, b", "expected a | b", "got c"]),
-    ({"name": "x", "units": True}, ["t.units has the wrong type", "expected str or int or float"]),
-])
+@pytest.mark.parametrize(
+    "table, words",
+    [
+        (
+            {"name": "x", "extra": 1},
+            ["unknown key t.extra", "expected count, flag, items, mode, name, scale, units, where", "got extra"],
+        ),
+        ({"count": 1}, ["missing t.name"]),
+        ({"name": 3}, ["t.name has the wrong type", "expected str", "got int 3"]),
+        ({"name": "x", "count": True}, ["t.count has the wrong type", "expected int", "got bool True"]),
+        ({"name": "x", "count": 1.5}, ["t.count has the wrong type", "expected int", "got float 1.5"]),
+        ({"name": "x", "scale": False}, ["t.scale has the wrong type", "expected int or float", "got bool False"]),
+        ({"name": "x", "scale": 11}, ["t.scale out of range", "expected 0.0..10.0", "got 11"]),
+        ({"name": "x", "scale": float("nan")}, ["t.scale out of range"]),
+        ({"name": "x", "flag": 1}, ["t.flag has the wrong type", "expected bool", "got int 1"]),
+        ({"name": "x", "items": "ab"}, ["t.items has the wrong type", "expected list"]),
+        ({"name": "x", "where": 2}, ["t.where has the wrong type", "expected str"]),
+        ({"name": "x", "mode": "c"}, ["t.mode must be one of a, b", "expected a | b", "got c"]),
+        ({"name": "x", "units": True}, ["t.units has the wrong type", "expected str or int or float"]),
+    ],
+)
 def test_each_rule_names_the_file_the_key_and_what_was_expected(table, words):
     msg = _err(table)
     assert msg.startswith("cfg.toml: ")

@@ -28,8 +28,12 @@ FILE_LIMIT = 48 * 1024  # bytes: a 1,536-vertex frame is 18 KiB, the run writes 
 
 def segadeform(args, *, cwd, fsize=None, read_only=False):
     """Run the CLI in a child; ``fsize``: RLIMIT_FSIZE in bytes; ``read_only``: without CAP_DAC_OVERRIDE."""
-    cmd = [sys.executable, "-c", "import sys; from segadeform.cli.main import main; sys.exit(main(sys.argv[1:]))",
-           *map(str, args)]
+    cmd = [
+        sys.executable,
+        "-c",
+        "import sys; from segadeform.cli.main import main; sys.exit(main(sys.argv[1:]))",
+        *map(str, args),
+    ]
     if read_only and os.geteuid() == 0:
         if shutil.which("setpriv") is None:
             pytest.skip("running as root without setpriv: a read-only folder is writable")
@@ -40,8 +44,15 @@ def segadeform(args, *, cwd, fsize=None, read_only=False):
         if fsize is not None:
             resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
 
-    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=900, preexec_fn=limit,
-                          env=dict(os.environ, PYTHONPATH=str(REPO)))
+    return subprocess.run(
+        cmd,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=900,
+        preexec_fn=limit,
+        env=dict(os.environ, PYTHONPATH=str(REPO)),
+    )
 
 
 def temporaries(d: Path) -> list[str]:
@@ -80,8 +91,10 @@ def test_run_on_a_full_disk_names_the_output_and_leaves_nothing(tmp_path):
 
 def test_batch_on_a_full_disk_resumes_after_space_is_freed(tmp_path):
     jobs = tmp_path / "jobs.toml"
-    jobs.write_text(f'[batch]\noutput = "out"\n[[garments]]\nmesh = "{SKIRT}"\n'
-                    '[[motions]]\nkind = "walk"\nseconds = 0.3\n[[motions]]\nkind = "dance"\nseconds = 0.3\n')
+    jobs.write_text(
+        f'[batch]\noutput = "out"\n[[garments]]\nmesh = "{SKIRT}"\n'
+        '[[motions]]\nkind = "walk"\nseconds = 0.3\n[[motions]]\nkind = "dance"\nseconds = 0.3\n'
+    )
     out = tmp_path / "out"
     r = segadeform(["batch", jobs, "--limit", "1"], cwd=tmp_path)
     assert r.returncode == 0, r.stderr
@@ -139,15 +152,19 @@ def restore_modes(tmp_path):
 
 def test_a_read_only_output_folder_is_named(tmp_path, restore_modes):
     d = read_only_folder(tmp_path)
-    r = segadeform(["run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:2", "--no-cache", "-o", d / "x.pc2"],
-                   cwd=tmp_path, read_only=True)
+    r = segadeform(
+        ["run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:2", "--no-cache", "-o", d / "x.pc2"],
+        cwd=tmp_path,
+        read_only=True,
+    )
     one_error(r, f"{d / 'x.pc2'}: cannot write", "permission denied")
     jobs = tmp_path / "jobs.toml"
     jobs.write_text(f'[[garments]]\nmesh = "{SKIRT}"\n[[motions]]\nkind = "walk"\nseconds = 0.2\n')
     r = segadeform(["batch", jobs, "-o", d, "--force"], cwd=tmp_path, read_only=True)
     one_error(r, f"{d}: cannot write", "permission denied")
-    r = segadeform(["dataset", "make", SAMPLES / "datasets" / "tiny.toml", "-o", d, "--force"], cwd=tmp_path,
-                   read_only=True)
+    r = segadeform(
+        ["dataset", "make", SAMPLES / "datasets" / "tiny.toml", "-o", d, "--force"], cwd=tmp_path, read_only=True
+    )
     one_error(r, f"{d}: cannot write", "permission denied")
     assert sorted(p.name for p in d.iterdir()) == ["notes.txt"]
 
@@ -170,7 +187,9 @@ def tiny_tmpfs(tmp_path):
 
 def test_run_on_a_really_full_disk(tiny_tmpfs, tmp_path):
     (tiny_tmpfs / "notes.txt").write_text("notes")
-    r = segadeform(["run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:9", "--no-cache", "-o",
-                    tiny_tmpfs / "x.pc2"], cwd=tmp_path)
+    r = segadeform(
+        ["run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:9", "--no-cache", "-o", tiny_tmpfs / "x.pc2"],
+        cwd=tmp_path,
+    )
     one_error(r, f"{tiny_tmpfs / 'x.pc2'}: cannot write", "no space left on the device")
     assert sorted(p.name for p in tiny_tmpfs.iterdir()) == ["notes.txt"]

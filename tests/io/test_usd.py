@@ -40,8 +40,14 @@ def test_round_trip(tmp_path, ext, up):
     np.testing.assert_array_equal(faces, f)
     np.testing.assert_array_equal(got, want.astype(np.float32))
     np.testing.assert_array_equal(times, np.arange(7, 13))
-    assert info == {"up": up.upper(), "meters_per_unit": 1.0, "fps": 24.0, "start": 7.0, "end": 12.0,
-                    "prim": "/garment"}
+    assert info == {
+        "up": up.upper(),
+        "meters_per_unit": 1.0,
+        "fps": 24.0,
+        "start": 7.0,
+        "end": 12.0,
+        "prim": "/garment",
+    }
     np.testing.assert_array_equal(read_sequence(path), want.astype(np.float32))
     head = path.read_bytes()[:8]
     assert head.startswith(b"#usda") == (ext == ".usda") and head.startswith(b"PXR-USDC") == (ext != ".usda")
@@ -79,8 +85,9 @@ def test_reader_refuses_what_is_not_a_triangle_mesh(tmp_path):
 
 
 def _run(args):
-    return CliRunner().invoke(cli, ["run", "--garment", str(SAMPLES / "garments" / "dress.obj"), "--motion", "walk",
-                                    "--no-cache"] + args)
+    return CliRunner().invoke(
+        cli, ["run", "--garment", str(SAMPLES / "garments" / "dress.obj"), "--motion", "walk", "--no-cache"] + args
+    )
 
 
 @pytest.fixture(scope="module")
@@ -95,10 +102,25 @@ def walk_motion(tmp_path_factory):
 def test_run_format_usd_matches_pc2_and_inspect_reads_it(tmp_path, walk_motion):
     """`run ... -o x.usd --body-out b.usd` writes the garment and body frames the PC2 path writes (the same
     float32 numbers), with the faces and the motion's rate; `inspect` summarises the file."""
+
     def run(out, body):
-        r = CliRunner().invoke(cli, ["run", "--garment", str(SAMPLES / "garments" / "dress.obj"), "--motion",
-                                     str(walk_motion), "--frames", "2:8", "--no-cache", "-o", str(out),
-                                     "--body-out", str(body)])
+        r = CliRunner().invoke(
+            cli,
+            [
+                "run",
+                "--garment",
+                str(SAMPLES / "garments" / "dress.obj"),
+                "--motion",
+                str(walk_motion),
+                "--frames",
+                "2:8",
+                "--no-cache",
+                "-o",
+                str(out),
+                "--body-out",
+                str(body),
+            ],
+        )
         assert r.exit_code == 0, r.output
         return r.output
 
@@ -125,9 +147,21 @@ def test_usd_target_that_cannot_be_written(tmp_path, walk_motion):
     """A USD output in a folder that cannot be made (its parent is a file): one line naming the target, exit 1,
     nothing written (not the body either)."""
     (tmp_path / "afile").write_text("x")
-    r = CliRunner().invoke(cli, ["run", "--garment", str(SAMPLES / "garments" / "dress.obj"), "--motion",
-                                 str(walk_motion), "--no-cache", "-o", str(tmp_path / "afile" / "dress.usd"),
-                                 "--body-out", str(tmp_path / "body.usd")])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "run",
+            "--garment",
+            str(SAMPLES / "garments" / "dress.obj"),
+            "--motion",
+            str(walk_motion),
+            "--no-cache",
+            "-o",
+            str(tmp_path / "afile" / "dress.usd"),
+            "--body-out",
+            str(tmp_path / "body.usd"),
+        ],
+    )
     assert r.exit_code == 1
     lines = [ln for ln in r.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("Error: ") and "dress.usd" in lines[0], r.output

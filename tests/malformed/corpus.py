@@ -28,7 +28,7 @@ JOINTS = ROOT / "samples" / "skeletons" / "tpose_joints_24.npy"
 GOOD_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n"
 
 
-def _npz_with_huge_header(path: Path, name: str, shape=(10 ** 10,)):
+def _npz_with_huge_header(path: Path, name: str, shape=(10**10,)):
     """An .npz whose member declares ``shape`` float64 but stores 8 bytes."""
     buf = io.BytesIO()
     np.lib.format.write_array_header_1_0(buf, {"descr": "<f8", "fortran_order": False, "shape": shape})
@@ -81,10 +81,14 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     mesh("off_index", ".off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", "out of range")
     mesh("off_not_off", ".off", "COFFEE\n", "not an OFF file")
     mesh("ply_garbage", ".ply", "ply\nformat nonsense 9\n", "cannot parse mesh")
-    mesh("ply_truncated", ".ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
-         b"property float y\nproperty float z\nelement face 10\nproperty list uchar int vertex_indices\n"
-         b"end_header\n\x00\x00",
-         "cannot parse mesh")
+    mesh(
+        "ply_truncated",
+        ".ply",
+        b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
+        b"property float y\nproperty float z\nelement face 10\nproperty list uchar int vertex_indices\n"
+        b"end_header\n\x00\x00",
+        "cannot parse mesh",
+    )
     mesh("unknown_extension", ".xyz", "1 2 3\n", "unknown mesh file extension")
 
     def pc2(name, data, words):
@@ -102,7 +106,7 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     pc2("version_2", hdr(version=2) + body, "version")
     pc2("zero_points", hdr(n=0, s=0), "numPoints")
     pc2("negative_samples", hdr(s=-3), "numSamples")
-    pc2("huge_declared", hdr(n=2 ** 31 - 1, s=2 ** 31 - 1) + body, "size does not match")
+    pc2("huge_declared", hdr(n=2**31 - 1, s=2**31 - 1) + body, "size does not match")
     pc2("truncated_data", hdr() + body[:50], "size does not match")
     pc2("trailing_data", hdr() + body + b"\0" * 7, "size does not match")
     pc2("nan_sample", hdr() + np.array([0, 0, 0] * 7 + [np.nan, 0, 0], "<f4").tobytes(), "non-finite")
@@ -128,19 +132,39 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
                 else:
                     z[k] = v(z[k]) if callable(v) else v
             np.savez(p, **z)
+
         return write
 
     bodyfile("missing_weights", ".npz", body_variant(weights=None), "missing arrays")
     bodyfile("weights_not_normalised", ".npz", body_variant(weights=lambda w: w * 2), "do not sum to 1")
     bodyfile("parents_cycle", ".npz", body_variant(parents=np.array([-1] + [5] * 23)), "invalid parent")
-    bodyfile("nan_template", ".npz", body_variant(v_template=lambda v: np.where(np.arange(v.size).reshape(v.shape) == 4, np.nan, v)), "NaN")
+    bodyfile(
+        "nan_template",
+        ".npz",
+        body_variant(v_template=lambda v: np.where(np.arange(v.size).reshape(v.shape) == 4, np.nan, v)),
+        "NaN",
+    )
     bodyfile("string_weights", ".npz", body_variant(weights=np.array(["a"] * 10)), "numeric")
     bodyfile("huge_declared_shape", ".npz", lambda p: _npz_with_huge_header(p, "v_template"), "declares more data")
-    bodyfile("truncated_zip", ".npz", lambda p: p.write_bytes((d / "good_body.npz").read_bytes()[:300]), "not a readable")
-    bodyfile("object_array", ".npz", lambda p: np.savez(p, v_template=np.array([{"a": 1}], dtype=object)), "pickled objects")
-    bodyfile("pickle_os_system", ".pkl", lambda p: p.write_bytes(pickle.dumps({"v_template": _Evil("true")}, protocol=2)), "forbidden global")
+    bodyfile(
+        "truncated_zip", ".npz", lambda p: p.write_bytes((d / "good_body.npz").read_bytes()[:300]), "not a readable"
+    )
+    bodyfile(
+        "object_array", ".npz", lambda p: np.savez(p, v_template=np.array([{"a": 1}], dtype=object)), "pickled objects"
+    )
+    bodyfile(
+        "pickle_os_system",
+        ".pkl",
+        lambda p: p.write_bytes(pickle.dumps({"v_template": _Evil("true")}, protocol=2)),
+        "forbidden global",
+    )
     bodyfile("pickle_eval", ".pkl", lambda p: p.write_bytes(b"cbuiltins\neval\n(V1+1\ntR."), "forbidden global")
-    bodyfile("pickle_truncated", ".pkl", lambda p: p.write_bytes(pickle.dumps({"a": np.zeros(3)}, protocol=2)[:-5]), "malformed")
+    bodyfile(
+        "pickle_truncated",
+        ".pkl",
+        lambda p: p.write_bytes(pickle.dumps({"a": np.zeros(3)}, protocol=2)[:-5]),
+        "malformed",
+    )
     bodyfile("pickle_not_dict", ".pkl", lambda p: p.write_bytes(pickle.dumps([1, 2, 3], protocol=2)), "expected a dict")
 
     def motionfile(name, ext, writer, words):
@@ -152,13 +176,25 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     motionfile("bad_width", ".npz", lambda p: np.savez(p, poses=np.zeros((3, 70))), "unknown width")
     motionfile("zero_frames", ".npz", lambda p: np.savez(p, poses=np.zeros((0, 72))), "no frames")
     motionfile("nan_pose", ".npz", lambda p: np.savez(p, poses=np.full((2, 72), np.nan)), "NaN")
-    motionfile("trans_mismatch", ".npz", lambda p: np.savez(p, poses=np.zeros((4, 72)), trans=np.zeros((3, 3))), "trans")
-    motionfile("huge_declared_poses", ".npz", lambda p: _npz_with_huge_header(p, "poses", (10 ** 9, 72)), "declares more data")
+    motionfile(
+        "trans_mismatch", ".npz", lambda p: np.savez(p, poses=np.zeros((4, 72)), trans=np.zeros((3, 3))), "trans"
+    )
+    motionfile(
+        "huge_declared_poses", ".npz", lambda p: _npz_with_huge_header(p, "poses", (10**9, 72)), "declares more data"
+    )
     motionfile("bad_layout", ".npz", lambda p: np.savez(p, poses=np.zeros((3, 23, 3))), "unknown layout")
-    motionfile("split_keys_mismatch", ".npz", lambda p: np.savez(p, root_orient=np.zeros((3, 3)),
-                                                                  pose_body=np.zeros((2, 63))), "do not fit")
-    motionfile("nan_framerate", ".npz", lambda p: np.savez(p, poses=np.zeros((3, 72)),
-                                                            mocap_framerate=np.float64(np.nan)), "positive")
+    motionfile(
+        "split_keys_mismatch",
+        ".npz",
+        lambda p: np.savez(p, root_orient=np.zeros((3, 3)), pose_body=np.zeros((2, 63))),
+        "do not fit",
+    )
+    motionfile(
+        "nan_framerate",
+        ".npz",
+        lambda p: np.savez(p, poses=np.zeros((3, 72)), mocap_framerate=np.float64(np.nan)),
+        "positive",
+    )
 
     from segadeform.body import default_rest_joints
     from segadeform.motion import make_motion, write_bvh
@@ -170,10 +206,14 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
         ("bvh_truncated", "\n".join(good_bvh.splitlines()[:30]), "ends too early"),
         ("bvh_frame_mismatch", good_bvh.replace("Frames: 6", "Frames: 7"), "does not match its declared size"),
         ("bvh_huge_frames", good_bvh.replace("Frames: 6", "Frames: 999999999"), "does not match its declared size"),
-        ("bvh_unmappable", "HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 3 Xrotation Yrotation Zrotation\n"
-         " JOINT b\n {\n  OFFSET 0 1 0\n  CHANNELS 3 Xrotation Yrotation Zrotation\n"
-         "  End Site\n  {\n   OFFSET 0 1 0\n"
-         "  }\n }\n}\nMOTION\nFrames: 1\nFrame Time: 0.1\n0 0 0 0 0 0\n", "cannot map this skeleton"),
+        (
+            "bvh_unmappable",
+            "HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 3 Xrotation Yrotation Zrotation\n"
+            " JOINT b\n {\n  OFFSET 0 1 0\n  CHANNELS 3 Xrotation Yrotation Zrotation\n"
+            "  End Site\n  {\n   OFFSET 0 1 0\n"
+            "  }\n }\n}\nMOTION\nFrames: 1\nFrame Time: 0.1\n0 0 0 0 0 0\n",
+            "cannot map this skeleton",
+        ),
         ("bvh_duplicate_joints", good_bvh.replace("JOINT left_knee", "JOINT Left_Hip"), "joint names repeat"),
         ("bvh_nan", good_bvh.replace("0.000000", "nan", 1), "not finite"),
         ("bvh_channels", good_bvh.replace("CHANNELS 3", "CHANNELS 9", 1), "channel count"),
@@ -197,11 +237,15 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     mhclo("short_line", good_mhclo.replace("verts 0", "verts 0\n12 13 0.5 0.5", 1), "1, 6 or 9 numbers")
     mhclo("not_a_number", good_mhclo.replace("verts 0", "verts 0\n12 13 14 0.5 x 0.5 0 0 0", 1), "expected a number")
     mhclo("no_bindings", good_mhclo.split("verts 0")[0], "no binding lines")
-    mhclo("index_out_of_range", good_mhclo.replace("verts 0", "verts 0\n99999 1 2 0.3 0.3 0.4 0 0 0", 1),
-          "does not have")
+    mhclo(
+        "index_out_of_range", good_mhclo.replace("verts 0", "verts 0\n99999 1 2 0.3 0.3 0.4 0 0 0", 1), "does not have"
+    )
     mhclo("obj_missing", good_mhclo.replace("obj_file skirt_short_f.obj", "obj_file nowhere.obj"), "nowhere.obj")
-    mhclo("count_mismatch", good_mhclo.replace("verts 0", "verts 0\n12 13 14 0.3 0.3 0.4 0 0 0", 1),
-          "different vertex counts")
+    mhclo(
+        "count_mismatch",
+        good_mhclo.replace("verts 0", "verts 0\n12 13 14 0.3 0.3 0.4 0 0 0", 1),
+        "different vertex counts",
+    )
     mhclo("backwards_range", good_mhclo.replace("delete_verts", "delete_verts\n20 - 10"), "runs backwards")
 
     scene_out = d / "SCENE_OUT.pc2"
@@ -217,8 +261,11 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     scene("unknown_key", base + "[effects]\nsparkles = true\n", "unknown key effects.sparkles")
     scene("unknown_table", base + "[camera]\nfov = 40\n", "unknown table")
     scene("wrong_type", base + "[effects]\ncollisions = 1\n", "wrong type")
-    scene("missing_garment", base.split("[motion]")[0].replace("mesh", "file") + "[motion]\nkind = \"walk\"\n[output]\npath = \"x.pc2\"\n",
-          "unknown key garment.file")
+    scene(
+        "missing_garment",
+        base.split("[motion]")[0].replace("mesh", "file") + '[motion]\nkind = "walk"\n[output]\npath = "x.pc2"\n',
+        "unknown key garment.file",
+    )
     scene("invalid_toml", "[garment\nmesh = ", "invalid TOML")
     scene("file_and_kind", base.replace('kind = "walk"', 'kind = "walk"\nfile = "m.npz"'), "exactly one")
     scene("bad_format", base.replace(f'path = "{scene_out}"', 'path = "out.fbx"'), "output.format")
@@ -234,8 +281,14 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
             p = d / f"pkg_{name}"
             shutil.copytree(package, p)
             edit(p)
-            cases.append((f"package/{name}", ["run", str(good_scene), "--model", str(p), "-o", str(scene_out),
-                                              "--no-cache"], words, scene_out))
+            cases.append(
+                (
+                    f"package/{name}",
+                    ["run", str(good_scene), "--model", str(p), "-o", str(scene_out), "--no-cache"],
+                    words,
+                    scene_out,
+                )
+            )
 
         def man(**kw):
             def edit(p):
@@ -246,6 +299,7 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
                     else:
                         m[k] = v
                 (p / "manifest.json").write_text(json.dumps(m))
+
             return edit
 
         pkgcase("no_manifest", lambda p: (p / "manifest.json").unlink(), "no manifest.json")
@@ -253,9 +307,11 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
         pkgcase("schema_99", man(schema_version=99), "schema version")
         pkgcase("graph_missing", lambda p: (p / "garment_encoder.onnx").unlink(), "file is missing")
         pkgcase("graph_corrupt", lambda p: (p / "deformer_lbs.onnx").write_bytes(b"\x08\x01junk"), "manifest hash")
-        pkgcase("manifest_disagrees_with_onnx",
-                man(rename=lambda m: m["graphs"]["garment_encoder"]["inputs"][0].update(name="vertex_features")),
-                "disagree with the manifest")
+        pkgcase(
+            "manifest_disagrees_with_onnx",
+            man(rename=lambda m: m["graphs"]["garment_encoder"]["inputs"][0].update(name="vertex_features")),
+            "disagree with the manifest",
+        )
         pkgcase("joint_count_mismatch", man(joint_names=["pelvis"]), "joint_names do not match")
     return [c for c in cases if c is not None]
 
@@ -289,36 +345,78 @@ def asf_amc_cases(d: Path, cases: list) -> None:
         return "\n".join(lines) + "\n", i + 1
 
     tail = good_amc.replace("\nlhumerus", "\ntail 1 2 3\nlhumerus", 1)
-    case("amc", "bone_not_in_asf", good_asf, tail,
-         f"FILE:{line_of(tail, 'tail 1 2 3')}: bone 'tail' is not in the skeleton")
+    case(
+        "amc",
+        "bone_not_in_asf",
+        good_asf,
+        tail,
+        f"FILE:{line_of(tail, 'tail 1 2 3')}: bone 'tail' is not in the skeleton",
+    )
     many = good_amc.replace("\nltibia ", "\nltibia 5 ", 1)
-    case("amc", "wrong_value_count", good_asf, many,
-         f"FILE:{next(i for i, ln in enumerate(many.splitlines(), 1) if ln.startswith('ltibia'))}: "
-         "wrong number of values for bone 'ltibia' (expected 1 (dof rx in wrong_value_count.asf), got 2)")
-    case("amc", "frames_not_consecutive", good_asf, good_amc.replace("\n3\n", "\n5\n"),
-         f"FILE:{line_of(good_amc, '3')}: frame numbers are not consecutive (expected frame 3, got frame 5)")
+    case(
+        "amc",
+        "wrong_value_count",
+        good_asf,
+        many,
+        f"FILE:{next(i for i, ln in enumerate(many.splitlines(), 1) if ln.startswith('ltibia'))}: "
+        "wrong number of values for bone 'ltibia' (expected 1 (dof rx in wrong_value_count.asf), got 2)",
+    )
+    case(
+        "amc",
+        "frames_not_consecutive",
+        good_asf,
+        good_amc.replace("\n3\n", "\n5\n"),
+        f"FILE:{line_of(good_amc, '3')}: frame numbers are not consecutive (expected frame 3, got frame 5)",
+    )
     text, ln = first_value("lfemur", "nan")
     case("amc", "nan", good_asf, text, f"FILE:{ln}: bone 'lfemur' has a value that is not finite")
     case("amc", "empty", good_asf, "", "FILE: AMC has no frames")
     case("amc", "skeleton_missing", None, good_amc, "FILE: cannot tell which skeleton this AMC uses")
     # a skeleton that does not fit the motion: its ltibia bends two ways
     other = asf_text([b if b[0] != "ltibia" else b[:5] + (("rx", "rz"),) for b in cmu_bones()])
-    case("amc", "skeleton_mismatch", other, good_amc,
-         f"FILE:{next(i for i, ln in enumerate(good_amc.splitlines(), 1) if ln.startswith('ltibia'))}: wrong number "
-         "of values for bone 'ltibia' (expected 2 (dof rx rz in skeleton_mismatch.asf), got 1)")
-    case("asf", "skeleton_not_found", None, good_amc, "FILE: no such file",
-         extra=("--skeleton", str(d / "asf_skeleton_not_found" / "skeleton_not_found.asf")))
+    case(
+        "amc",
+        "skeleton_mismatch",
+        other,
+        good_amc,
+        f"FILE:{next(i for i, ln in enumerate(good_amc.splitlines(), 1) if ln.startswith('ltibia'))}: wrong number "
+        "of values for bone 'ltibia' (expected 2 (dof rx rz in skeleton_mismatch.asf), got 1)",
+    )
+    case(
+        "asf",
+        "skeleton_not_found",
+        None,
+        good_amc,
+        "FILE: no such file",
+        extra=("--skeleton", str(d / "asf_skeleton_not_found" / "skeleton_not_found.asf")),
+    )
     loop = good_asf.replace("    root lhipjoint rhipjoint lowerback\n", "    root rhipjoint lowerback\n").replace(
-        "    lfemur ltibia\n", "    lfemur ltibia\n    ltoes lhipjoint\n")
-    case("asf", "hierarchy_cycle", loop, good_amc,
-         f"FILE:{line_of(loop, '    lhipjoint lfemur')}: the hierarchy has a cycle (expected a tree under root, "
-         "got lhipjoint -> lfemur -> ltibia -> lfoot -> ltoes -> lhipjoint)")
+        "    lfemur ltibia\n", "    lfemur ltibia\n    ltoes lhipjoint\n"
+    )
+    case(
+        "asf",
+        "hierarchy_cycle",
+        loop,
+        good_amc,
+        f"FILE:{line_of(loop, '    lhipjoint lfemur')}: the hierarchy has a cycle (expected a tree under root, "
+        "got lhipjoint -> lfemur -> ltibia -> lfoot -> ltoes -> lhipjoint)",
+    )
     unknown = good_asf.replace("    lfemur ltibia", "    lfemur ltibia tail")
-    case("asf", "hierarchy_unknown_bone", unknown, good_amc,
-         f"FILE:{line_of(unknown, '    lfemur ltibia tail')}: unknown bone 'tail' in the hierarchy")
+    case(
+        "asf",
+        "hierarchy_unknown_bone",
+        unknown,
+        good_amc,
+        f"FILE:{line_of(unknown, '    lfemur ltibia tail')}: unknown bone 'tail' in the hierarchy",
+    )
     case("asf", "empty", "", good_amc, "FILE: ASF is empty")
-    case("asf", "bad_units", good_asf.replace("length 0.45", "length 0"), good_amc,
-         f"FILE:{line_of(good_asf, '  length 0.45')}: units length must be positive")
+    case(
+        "asf",
+        "bad_units",
+        good_asf.replace("length 0.45", "length 0"),
+        good_amc,
+        f"FILE:{line_of(good_asf, '  length 0.45')}: units length must be positive",
+    )
 
 
 if __name__ == "__main__":
@@ -342,8 +440,11 @@ def issue29_cases(d: Path, cases: list, package, base: str) -> None:
     inspect("sgdm_meta_list", good[:i] + b"meta [1]" + good[j:], "bundle meta must be a JSON object")
     line = next(ln for ln in good.split(b"\n") if ln.startswith(b"trans "))
     t = line.split()
-    inspect("sgdm_shape_overflow", good.replace(line, b" ".join([*t[:3], b"4611686018427387904", b"4", *t[5:]])),
-            "declares a size its shape does not have")
+    inspect(
+        "sgdm_shape_overflow",
+        good.replace(line, b" ".join([*t[:3], b"4611686018427387904", b"4", *t[5:]])),
+        "declares a size its shape does not have",
+    )
     inspect("sgdm_truncated", good[:-64], "runs past the end of the file")
     inspect("sgda_meta_list", good[:i] + b"meta [1]" + good[j:], "bundle meta must be a JSON object", ".sgda")
 
@@ -358,12 +459,17 @@ def issue29_cases(d: Path, cases: list, package, base: str) -> None:
         cases.append((f"mhclo/{name}", ["garment", "fit", str(p), "-o", str(fit_out)], words, fit_out))
 
     tok = lines[k].split()
-    mhclo("weights_zero", lines[:k] + [" ".join(tok[:3] + ["0", "0", "0"] + tok[6:])] + lines[k + 1:],
-          "must sum to 1")
-    mhclo("negative_scale_index", [("x_scale -3 11998 1.3980" if ln.startswith("x_scale") else ln) for ln in lines],
-          "negative base-mesh index")
-    mhclo("negative_delete_index", [ln + ("\n-7" if ln.startswith("delete_verts") else "") for ln in lines],
-          "negative base-mesh index")
+    mhclo("weights_zero", lines[:k] + [" ".join(tok[:3] + ["0", "0", "0"] + tok[6:])] + lines[k + 1 :], "must sum to 1")
+    mhclo(
+        "negative_scale_index",
+        [("x_scale -3 11998 1.3980" if ln.startswith("x_scale") else ln) for ln in lines],
+        "negative base-mesh index",
+    )
+    mhclo(
+        "negative_delete_index",
+        [ln + ("\n-7" if ln.startswith("delete_verts") else "") for ln in lines],
+        "negative base-mesh index",
+    )
 
     def motion(name, ext, write, words):
         p = d / f"{name}{ext}"
@@ -371,8 +477,12 @@ def issue29_cases(d: Path, cases: list, package, base: str) -> None:
         cases.append((f"motion/{name}", ["motion", "info", str(p)], words, None))
 
     motion("complex_poses", ".npz", lambda p: np.savez(p, poses=np.zeros((3, 72), complex) + 1j), "must be real")
-    motion("two_frame_rates", ".npz", lambda p: np.savez(p, poses=np.zeros((3, 72)),
-                                                         mocap_framerate=np.array([30.0, 60.0])), "one number")
+    motion(
+        "two_frame_rates",
+        ".npz",
+        lambda p: np.savez(p, poses=np.zeros((3, 72)), mocap_framerate=np.array([30.0, 60.0])),
+        "one number",
+    )
     from segadeform.body import default_rest_joints
     from segadeform.motion import write_bvh
 
@@ -380,11 +490,20 @@ def issue29_cases(d: Path, cases: list, package, base: str) -> None:
     bvh = (d / "bounds.bvh").read_text()
     head, rows = bvh.split("MOTION")
     rows = rows.strip().split("\n")
-    motion("bvh_frame_time_huge", ".bvh", lambda p: p.write_text(bvh.replace(rows[1], "Frame Time: 1e30")),
-           "frame rate is outside")
-    motion("bvh_root_far", ".bvh", lambda p: p.write_text(
-        head + "MOTION\n" + "\n".join(rows[:2] + ["1e30 " + r.split(None, 1)[1] for r in rows[2:]]) + "\n"),
-        "root moves too far")
+    motion(
+        "bvh_frame_time_huge",
+        ".bvh",
+        lambda p: p.write_text(bvh.replace(rows[1], "Frame Time: 1e30")),
+        "frame rate is outside",
+    )
+    motion(
+        "bvh_root_far",
+        ".bvh",
+        lambda p: p.write_text(
+            head + "MOTION\n" + "\n".join(rows[:2] + ["1e30 " + r.split(None, 1)[1] for r in rows[2:]]) + "\n"
+        ),
+        "root moves too far",
+    )
 
     scene_out = d / "SCENE_OUT.pc2"
     pkg_arg = ["--model", str(package)] if package else []
@@ -392,8 +511,7 @@ def issue29_cases(d: Path, cases: list, package, base: str) -> None:
     def scene(name, text, words):
         p = d / f"{name}.toml"
         p.write_text(text)
-        cases.append((f"scene/{name}", ["run", str(p), *pkg_arg, "-o", str(scene_out), "--no-cache"], words,
-                      scene_out))
+        cases.append((f"scene/{name}", ["run", str(p), *pkg_arg, "-o", str(scene_out), "--no-cache"], words, scene_out))
 
     scene("nan_betas", base + "[body]\nbetas = [nan]\n", "body.betas must be finite")
     scene("huge_betas", base + "[body]\nbetas = [1e300]\n", "body.betas out of range")
@@ -401,16 +519,19 @@ def issue29_cases(d: Path, cases: list, package, base: str) -> None:
     scene("frames_past_end", base.replace('kind = "walk"', 'kind = "walk"\nframes = "3:100"'), "is outside the motion")
     scene("nested_deep", "a = " + "[" * 50000, "nests too deeply")
     jobs = d / "negative_seed_jobs.toml"
-    jobs.write_text(f'[[garments]]\nmesh = "{ROOT / "samples" / "garments" / "skirt.obj"}"\n'
-                    '[[motions]]\nkind = "walk"\nseed = -5\n')
-    cases.append(("batch/negative_seed", ["batch", str(jobs), "-o", str(d / "BATCH_OUT")], "seed out of range",
-                  d / "BATCH_OUT"))
+    jobs.write_text(
+        f'[[garments]]\nmesh = "{ROOT / "samples" / "garments" / "skirt.obj"}"\n[[motions]]\nkind = "walk"\nseed = -5\n'
+    )
+    cases.append(
+        ("batch/negative_seed", ["batch", str(jobs), "-o", str(d / "BATCH_OUT")], "seed out of range", d / "BATCH_OUT")
+    )
     if package is not None and (Path(package) / "weights.bin").is_file():
         good_scene = d / "good_scene_29.toml"
         good_scene.write_text(base)
         for name, edit, words in (
-                ("no_weights_entry", lambda m: m.pop("weights"), "no 'weights' entry"),
-                ("manifest_nested_deep", None, "nests too deeply")):
+            ("no_weights_entry", lambda m: m.pop("weights"), "no 'weights' entry"),
+            ("manifest_nested_deep", None, "nests too deeply"),
+        ):
             p = d / f"pkg_{name}"
             shutil.copytree(package, p)
             if edit is None:
@@ -419,6 +540,11 @@ def issue29_cases(d: Path, cases: list, package, base: str) -> None:
                 m = json.loads((p / "manifest.json").read_text())
                 edit(m)
                 (p / "manifest.json").write_text(json.dumps(m))
-            cases.append((f"package/{name}", ["run", str(good_scene), "--model", str(p), "-o", str(scene_out),
-                                              "--no-cache"], words, scene_out))
-
+            cases.append(
+                (
+                    f"package/{name}",
+                    ["run", str(good_scene), "--model", str(p), "-o", str(scene_out), "--no-cache"],
+                    words,
+                    scene_out,
+                )
+            )

@@ -28,8 +28,12 @@ print(json.dumps(results))
 
 
 def test_malformed_corpus_through_the_cli(tmp_path, random_package):
-    p = subprocess.run([sys.executable, "-c", CHILD, str(tmp_path / "corpus"), str(random_package), str(REPO)],
-                       capture_output=True, text=True, timeout=900)
+    p = subprocess.run(
+        [sys.executable, "-c", CHILD, str(tmp_path / "corpus"), str(random_package), str(REPO)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert p.returncode == 0, p.stderr[-3000:]
     results = json.loads(p.stdout.strip().splitlines()[-1])
     assert len(results) >= 50, len(results)
@@ -65,5 +69,5 @@ def test_messages_name_the_file(tmp_path, random_package):
         if name == "scene/garment_missing_file":  # the scene names a garment that does not exist
             target = words
         if name.startswith("asf/"):  # the AMC's skeleton is at fault
-            target = target[:-len(".amc")] + ".asf"
+            target = target[: -len(".amc")] + ".asf"
         assert target.rsplit("/", 1)[-1] in r.output, (name, r.output)

@@ -93,5 +93,6 @@ def test_weights_shared_by_every_frame_give_the_per_frame_result(skin):
     a = K.skinning_transforms(g, t(joints))
     f = K.lbs if skin == "lbs" else K.dqs
     shared = t(w[0])
-    torch.testing.assert_close(f(t(verts), shared, a), f(t(verts), shared[None].expand(len(poses), -1, -1), a),
-                               rtol=0, atol=1e-12)
+    torch.testing.assert_close(
+        f(t(verts), shared, a), f(t(verts), shared[None].expand(len(poses), -1, -1), a), rtol=0, atol=1e-12
+    )

@@ -13,8 +13,9 @@ def run(net, n=40, k=6, b=3):
     t = {k_: torch.as_tensor(v) for k_, v in {**enc_in, **dec_in}.items()}
     with torch.no_grad():
         g = net.garment_encoder(t["features"], t["nbr"], t["mask"], t["descriptor"])
-        return g, net.deformer(g[0], t["window"], t["betas"], t["rest"], t["nbr"], t["mask"], t["joints"], t["trans"],
-                               t.get("log_wbody"))
+        return g, net.deformer(
+            g[0], t["window"], t["betas"], t["rest"], t["nbr"], t["mask"], t["joints"], t["trans"], t.get("log_wbody")
+        )
 
 
 def test_shapes_and_weights_are_a_partition_of_unity():
@@ -53,8 +54,9 @@ def test_identity_pose_with_zero_blend_keeps_rest_up_to_trans():
     d = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=20, k=5, b=2).items()}
     d["window"] = torch.zeros_like(d["window"])
     with torch.no_grad():
-        v, _, _ = net.deformer(*(d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans",
-                                                 "log_wbody")))
+        v, _, _ = net.deformer(
+            *(d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans", "log_wbody"))
+        )
     torch.testing.assert_close(v, d["rest"][None] + d["trans"][:, None], atol=1e-5, rtol=1e-5)
 
 
@@ -95,7 +97,9 @@ def test_factored_decoder_equals_materialised_blend_features():
     net = SEGANet(ModelConfig(weights="free")).eval()
     d = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=30, k=5, b=3).items()}
     with torch.no_grad():
-        _, _, factored = net.deformer(*(d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans")))
+        _, _, factored = net.deformer(
+            *(d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans"))
+        )
         mo2 = net.mo2(d["window"], d["betas"])
         P = net.target_features(d["g"][None].expand(3, -1, -1), d["betas"]).reshape(3, 30, -1)
         literal = net.dec.out(_decoder_blocks(net, P * mo2[:, None, :], d))
@@ -148,9 +152,18 @@ def test_untrained_residual_model_is_lbs_with_the_body_weights():
     win = motion_windows(m.poses, net.cfg.window)
     n = len(win)
     with torch.no_grad():
-        v, w, b = net(f32(feats)[None], torch.as_tensor(a.nbr), torch.as_tensor(a.mask), f32(a.descriptor)[None],
-                      torch.zeros(n, 10), f32(win), f32(a.vertices), f32(J)[None].expand(n, -1, -1), f32(m.trans),
-                      f32(residual_log_weights(wb)))
+        v, w, b = net(
+            f32(feats)[None],
+            torch.as_tensor(a.nbr),
+            torch.as_tensor(a.mask),
+            f32(a.descriptor)[None],
+            torch.zeros(n, 10),
+            f32(win),
+            f32(a.vertices),
+            f32(J)[None].expand(n, -1, -1),
+            f32(m.trans),
+            f32(residual_log_weights(wb)),
+        )
     assert (b == 0).all()
     assert np.abs(w.numpy() - wb[None]).max() < 24 * RESIDUAL_EPS
     ref = skin_garment(a.vertices, wb, body, m.poses, None, m.trans)
@@ -160,8 +173,9 @@ def test_untrained_residual_model_is_lbs_with_the_body_weights():
 def test_residual_gates_learn_and_old_configs_load_free():
     net = SEGANet(ModelConfig()).train()
     d = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=20, k=5, b=2).items()}
-    v, w, b = net.deformer(*(d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans",
-                                             "log_wbody")))
+    v, w, b = net.deformer(
+        *(d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans", "log_wbody"))
+    )
     (v.sum() + w.pow(2).sum()).backward()
     assert net.weight_gate.grad.abs() > 0 and net.blend_gate.grad.abs() > 0
     assert ModelConfig.from_dict({"hidden": 32}).weights == "free"

@@ -88,8 +88,7 @@ def test_gradients_are_finite_at_zero_and_equal_features():
     torch.manual_seed(0)
     v, nbr, mask = graph("skirt")
     block = SEGABlock(30, 8, 4, 16).double()
-    for x in (torch.zeros(1, len(v), 30, dtype=torch.float64),
-              torch.ones(1, len(v), 30, dtype=torch.float64)):
+    for x in (torch.zeros(1, len(v), 30, dtype=torch.float64), torch.ones(1, len(v), 30, dtype=torch.float64)):
         x.requires_grad_(True)
         block(x, nbr, mask).sum().backward()
         assert torch.isfinite(x.grad).all()

@@ -44,18 +44,46 @@ def cmu_bones() -> list[tuple]:
     return out
 
 
-def asf_text(bones=None, *, length_unit=0.45, angle="deg", root_order="TX TY TZ RX RY RZ", root_axis="XYZ",
-             position=(0, 0, 0), orientation=(0, 0, 0), limits=True) -> str:
+def asf_text(
+    bones=None,
+    *,
+    length_unit=0.45,
+    angle="deg",
+    root_order="TX TY TZ RX RY RZ",
+    root_axis="XYZ",
+    position=(0, 0, 0),
+    orientation=(0, 0, 0),
+    limits=True,
+) -> str:
     """An ASF file's text for ``bones`` (default :func:`cmu_bones`); angles in degrees, converted for ``rad``."""
     bones = cmu_bones() if bones is None else bones
     k = 1.0 if angle == "deg" else np.pi / 180
-    lines = ["# test skeleton", ":version 1.10", ":name test", ":units", "  mass 1.0", f"  length {length_unit}",
-             f"  angle {angle}", ":documentation", "   written by tests/motion/asf_build.py", ":root",
-             f"   order {root_order}", f"   axis {root_axis}", "   position " + " ".join(map(str, position)),
-             "   orientation " + " ".join(repr(float(a) * k) for a in orientation), ":bonedata"]
+    lines = [
+        "# test skeleton",
+        ":version 1.10",
+        ":name test",
+        ":units",
+        "  mass 1.0",
+        f"  length {length_unit}",
+        f"  angle {angle}",
+        ":documentation",
+        "   written by tests/motion/asf_build.py",
+        ":root",
+        f"   order {root_order}",
+        f"   axis {root_axis}",
+        "   position " + " ".join(map(str, position)),
+        "   orientation " + " ".join(repr(float(a) * k) for a in orientation),
+        ":bonedata",
+    ]
     for i, (name, _, d, length, ax, dofs) in enumerate(bones, 1):
-        lines += ["  begin", f"     id {i}", f"     name {name}", "     direction " + " ".join(repr(float(x)) for x in d),
-                  f"     length {length}", "     axis " + " ".join(repr(float(a) * k) for a in ax) + "  XYZ"]
+        lines += [
+            "  begin",
+            f"     id {i}",
+            f"     name {name}",
+            "     direction " + " ".join(repr(float(x)) for x in d),
+            f"     length {length}",
+            "     axis " + " ".join(repr(float(a) * k) for a in ax) + "  XYZ",
+        ]
         if dofs:
             lines.append("    dof " + " ".join(dofs))
             if limits:

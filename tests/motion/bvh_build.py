@@ -13,8 +13,21 @@ import numpy as np
 from segadeform.body.rotations import axis_angle_to_matrix, matrix_to_euler
 
 
-def write_skeleton_bvh(path, names, parents, rest, local_rot, root_pos, *, fps=30.0, order="zxy",
-                       six_channels=False, end_sites=None, scale=1.0, channel_order=None):
+def write_skeleton_bvh(
+    path,
+    names,
+    parents,
+    rest,
+    local_rot,
+    root_pos,
+    *,
+    fps=30.0,
+    order="zxy",
+    six_channels=False,
+    end_sites=None,
+    scale=1.0,
+    channel_order=None,
+):
     """Write a BVH.
 
     Shapes:
@@ -50,8 +63,9 @@ def write_skeleton_bvh(path, names, parents, rest, local_rot, root_pos, *, fps=3
             emit(c, depth + 1)
         if not children[j]:
             e = end_sites.get(j, np.array([0.0, 0.05, 0.0])) * scale
-            lines.extend([f"{ind}\tEnd Site", f"{ind}\t{{", f"{ind}\t\tOFFSET {e[0]:.6f} {e[1]:.6f} {e[2]:.6f}",
-                          f"{ind}\t}}"])
+            lines.extend(
+                [f"{ind}\tEnd Site", f"{ind}\t{{", f"{ind}\t\tOFFSET {e[0]:.6f} {e[1]:.6f} {e[2]:.6f}", f"{ind}\t}}"]
+            )
         lines.append(f"{ind}}}")
 
     emit(int(np.flatnonzero(parents < 0)[0]), 0)

@@ -20,8 +20,22 @@ def _quat_xyzw(R):
     return q[..., [1, 2, 3, 0]]
 
 
-def write_skeleton_glb(path, names, parents, rest, local_rot, root_pos, *, fps=30.0, armature_scale=1.0,
-                       seed=0, animations=("take",), interpolation="LINEAR", skin=True, nan_key=False):
+def write_skeleton_glb(
+    path,
+    names,
+    parents,
+    rest,
+    local_rot,
+    root_pos,
+    *,
+    fps=30.0,
+    armature_scale=1.0,
+    seed=0,
+    animations=("take",),
+    interpolation="LINEAR",
+    skin=True,
+    nan_key=False,
+):
     """Write a GLB.  ``rest`` (J, 3), ``root_pos`` (T, 3) are in metres divided by ``armature_scale`` (the
     Armature node scales them back); ``local_rot`` (T, J, 3, 3).  Every joint gets a random rest orientation
     (its node's rotation at rest), which the channels carry.  ``animations``: names; the k-th plays the motion
@@ -55,8 +69,11 @@ def write_skeleton_glb(path, names, parents, rest, local_rot, root_pos, *, fps=3
         p = parents[j]
         Wp = W[p] if p >= 0 else np.eye(3)
         off = rest[j] - (rest[p] if p >= 0 else 0.0)
-        nodes.append(g.Node(name=names[j], translation=(Wp.T @ off).tolist(),
-                            rotation=_quat_xyzw(Wp.T @ W[j]).tolist(), children=[]))
+        nodes.append(
+            g.Node(
+                name=names[j], translation=(Wp.T @ off).tolist(), rotation=_quat_xyzw(Wp.T @ W[j]).tolist(), children=[]
+            )
+        )
         (nodes[0] if p < 0 else nodes[idx[p]]).children.append(idx[j])
     # a one-triangle mesh skinned to the root, so the file is a skinned character
     mesh_node = len(nodes)
@@ -64,8 +81,9 @@ def write_skeleton_glb(path, names, parents, rest, local_rot, root_pos, *, fps=3
     accessors[pos].min, accessors[pos].max = [0.0, 0.0, 0.0], [0.1, 0.1, 0.0]
     jts = add(np.zeros((3, 4), np.uint16), "VEC4", comp=g.UNSIGNED_SHORT)
     wts = add(np.tile(np.array([1, 0, 0, 0], np.float32), (3, 1)), "VEC4")
-    mesh = g.Mesh(name="body", primitives=[g.Primitive(attributes=g.Attributes(POSITION=pos, JOINTS_0=jts,
-                                                                                WEIGHTS_0=wts))])
+    mesh = g.Mesh(
+        name="body", primitives=[g.Primitive(attributes=g.Attributes(POSITION=pos, JOINTS_0=jts, WEIGHTS_0=wts))]
+    )
     nodes.append(g.Node(name="body", mesh=0, skin=0 if skin else None))
     # bind pose: world = Armature scale x joint's rest world transform
     ibm = []
@@ -90,20 +108,33 @@ def write_skeleton_glb(path, names, parents, rest, local_rot, root_pos, *, fps=3
             if interpolation == "CUBICSPLINE":
                 q = np.stack([np.zeros_like(q), q, np.zeros_like(q)], axis=1).reshape(-1, 4)
             samplers.append(g.AnimationSampler(input=times, output=add(q, "VEC4"), interpolation=interpolation))
-            channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
-                                               target=g.AnimationChannelTarget(node=idx[j], path="rotation")))
+            channels.append(
+                g.AnimationChannel(
+                    sampler=len(samplers) - 1, target=g.AnimationChannelTarget(node=idx[j], path="rotation")
+                )
+            )
             if p < 0:
                 tr = root_pos[sub].astype(np.float32)
                 if interpolation == "CUBICSPLINE":
                     tr = np.stack([np.zeros_like(tr), tr, np.zeros_like(tr)], axis=1).reshape(-1, 3)
                 samplers.append(g.AnimationSampler(input=times, output=add(tr, "VEC3"), interpolation=interpolation))
-                channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
-                                                   target=g.AnimationChannelTarget(node=idx[j], path="translation")))
+                channels.append(
+                    g.AnimationChannel(
+                        sampler=len(samplers) - 1, target=g.AnimationChannelTarget(node=idx[j], path="translation")
+                    )
+                )
         anims.append(g.Animation(name=name, samplers=samplers, channels=channels))
-    gl = g.GLTF2(scene=0, scenes=[g.Scene(nodes=[0, mesh_node])], nodes=nodes, meshes=[mesh],
-                 skins=[g.Skin(joints=idx, inverseBindMatrices=ibm_acc, skeleton=idx[0])] if skin else [],
-                 animations=anims, accessors=accessors, bufferViews=views,
-                 buffers=[g.Buffer(byteLength=len(blob))])
+    gl = g.GLTF2(
+        scene=0,
+        scenes=[g.Scene(nodes=[0, mesh_node])],
+        nodes=nodes,
+        meshes=[mesh],
+        skins=[g.Skin(joints=idx, inverseBindMatrices=ibm_acc, skeleton=idx[0])] if skin else [],
+        animations=anims,
+        accessors=accessors,
+        bufferViews=views,
+        buffers=[g.Buffer(byteLength=len(blob))],
+    )
     gl.set_binary_blob(bytes(blob))
     gl.save_binary(str(path))
     return path

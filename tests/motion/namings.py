@@ -20,9 +20,19 @@ from segadeform.body.skeleton import SMPL_JOINT_NAMES, default_rest_joints
 from .bvh_build import smooth_local_rotations, write_skeleton_bvh
 
 #: every naming :func:`naming_skeleton` builds, with the name table that should read it
-NAMINGS = {"unity": "unity", "character-creator": "character-creator", "unreal": "unreal", "unreal5": "unreal",
-           "xsens": "xsens", "vrm": "vrm", "vroid": "vrm", "rigify": "rigify", "rokoko": "rokoko",
-           "armature-mixamo": "mixamo", "character1": "mixamo"}
+NAMINGS = {
+    "unity": "unity",
+    "character-creator": "character-creator",
+    "unreal": "unreal",
+    "unreal5": "unreal",
+    "xsens": "xsens",
+    "vrm": "vrm",
+    "vroid": "vrm",
+    "rigify": "rigify",
+    "rokoko": "rokoko",
+    "armature-mixamo": "mixamo",
+    "character1": "mixamo",
+}
 _IDX = {n: i for i, n in enumerate(SMPL_JOINT_NAMES)}
 _SIDES = (("left", "L", "l", "Left", 1.0), ("right", "R", "r", "Right", -1.0))
 
@@ -48,15 +58,22 @@ class _Builder:
         joint is SMPL's hand when ``mid_smpl`` names it."""
         J = default_rest_joints()
         w = J[_IDX["left_wrist"]] * [side_sign, 1, 1]
-        for f, (dz, dy) in zip(("Thumb", "Index", "Middle", "Ring", "Pinky"),
-                               ((0.035, -0.01), (0.02, 0.0), (0.0, 0.0), (-0.018, 0.0), (-0.034, -0.005)), strict=True):
+        for f, (dz, dy) in zip(
+            ("Thumb", "Index", "Middle", "Ring", "Pinky"),
+            ((0.035, -0.01), (0.02, 0.0), (0.0, 0.0), (-0.018, 0.0), (-0.034, -0.005)),
+            strict=True,
+        ):
             par = hand
             base = w + [side_sign * (0.03 if f == "Thumb" else 0.08), dy, dz]
             if metacarpal:
                 par = self.add(metacarpal(f), par, w + [side_sign * 0.03, dy, dz * 0.8])
             for k in range(1, 4):
-                par = self.add(names_of(f, k), par, base + [side_sign * 0.028 * (k - 1), 0, 0],
-                               smpl=mid_smpl if (f == "Middle" and k == 1) else None)
+                par = self.add(
+                    names_of(f, k),
+                    par,
+                    base + [side_sign * 0.028 * (k - 1), 0, 0],
+                    smpl=mid_smpl if (f == "Middle" and k == 1) else None,
+                )
 
     def build(self):
         return list(self.names), np.array(self.parents), np.stack(self.pos), dict(self.expected), list(self.twist)
@@ -108,7 +125,11 @@ def naming_skeleton(kind: str):
         b.add(c + "FacialBone", c + "Head", _j("head") + [0, 0.06, 0.02])
         b.add(c + "JawRoot", c + "FacialBone", _j("head") + [0, 0.0, 0.05])
         for k in range(1, 4):
-            b.add(c + f"Tongue0{k}", c + ("JawRoot" if k == 1 else f"Tongue0{k - 1}"), _j("head") + [0, 0.0, 0.06 + 0.01 * k])
+            b.add(
+                c + f"Tongue0{k}",
+                c + ("JawRoot" if k == 1 else f"Tongue0{k - 1}"),
+                _j("head") + [0, 0.0, 0.06 + 0.01 * k],
+            )
         b.add(c + "Teeth02", c + "JawRoot", _j("head") + [0, 0.0, 0.09])
         b.add(c + "UpperJaw", c + "FacialBone", _j("head") + [0, 0.03, 0.07])
         b.add(c + "Teeth01", c + "UpperJaw", _j("head") + [0, 0.03, 0.09])
@@ -136,8 +157,12 @@ def naming_skeleton(kind: str):
             b.add(c + f"{S}_ForearmTwist01", c + f"{S}_Forearm", _lerp(f"{s}_elbow", f"{s}_wrist", 0.3))
             b.add(c + f"{S}_ForearmTwist02", c + f"{S}_Forearm", _lerp(f"{s}_elbow", f"{s}_wrist", 0.6))
             b.add(c + f"{S}_Hand", c + f"{S}_Forearm", _j(f"{s}_wrist"), f"{s}_wrist")
-            b.fingers(c + f"{S}_Hand", lambda f, k, S=S: c + f"{S}_{'Mid' if f == 'Middle' else f}{k}", sg,
-                      mid_smpl=f"{s}_hand")
+            b.fingers(
+                c + f"{S}_Hand",
+                lambda f, k, S=S: c + f"{S}_{'Mid' if f == 'Middle' else f}{k}",
+                sg,
+                mid_smpl=f"{s}_hand",
+            )
     elif kind in ("unreal", "unreal5"):  # a floor root, twist leaves, IK bones at the feet and hands
         b.add("root", None, [0, 0, 0])
         b.add("pelvis", "root", _j("pelvis"), "pelvis")
@@ -196,8 +221,11 @@ def naming_skeleton(kind: str):
             b.add(f"{S}Toe", f"{S}Foot", _j(f"{s}_foot"), f"{s}_foot")
     elif kind in ("vrm", "vroid"):  # VRM humanoid bone names, or VRoid's J_Bip_ node names
         v = kind == "vroid"
-        nm = (lambda c, part: f"J_Bip_{c}_{part}") if v else (lambda c, part: part[0].lower() + part[1:] if c == "C"
-                                                              else ("left" if c == "L" else "right") + part)
+        nm = (
+            (lambda c, part: f"J_Bip_{c}_{part}")
+            if v
+            else (lambda c, part: part[0].lower() + part[1:] if c == "C" else ("left" if c == "L" else "right") + part)
+        )
         b.add(nm("C", "Hips"), None, _j("pelvis"), "pelvis")
         b.add(nm("C", "Spine"), nm("C", "Hips"), _j("spine1"), "spine1")
         b.add(nm("C", "Chest"), nm("C", "Spine"), _j("spine2"), "spine2")
@@ -236,13 +264,16 @@ def naming_skeleton(kind: str):
             b.add(f"DEF-toe.{S}", f"DEF-foot.{S}", _j(f"{s}_foot"), f"{s}_foot")
             b.add(f"DEF-shoulder.{S}", "DEF-spine.003", _j(f"{s}_collar"), f"{s}_collar")
             b.add(f"DEF-upper_arm.{S}", f"DEF-shoulder.{S}", _j(f"{s}_shoulder"), f"{s}_shoulder")
-            b.add(f"DEF-upper_arm.{S}.001", f"DEF-upper_arm.{S}", _lerp(f"{s}_shoulder", f"{s}_elbow", 0.5),
-                  twist=True)
+            b.add(f"DEF-upper_arm.{S}.001", f"DEF-upper_arm.{S}", _lerp(f"{s}_shoulder", f"{s}_elbow", 0.5), twist=True)
             b.add(f"DEF-forearm.{S}", f"DEF-upper_arm.{S}.001", _j(f"{s}_elbow"), f"{s}_elbow")
             b.add(f"DEF-forearm.{S}.001", f"DEF-forearm.{S}", _lerp(f"{s}_elbow", f"{s}_wrist", 0.5), twist=True)
             b.add(f"DEF-hand.{S}", f"DEF-forearm.{S}.001", _j(f"{s}_wrist"), f"{s}_wrist")
-            b.fingers(f"DEF-hand.{S}", lambda f, k, S=S: f"DEF-f_{f.lower()}.0{k}.{S}" if f != "Thumb"
-                      else f"DEF-thumb.0{k}.{S}", sg, mid_smpl=f"{s}_hand")
+            b.fingers(
+                f"DEF-hand.{S}",
+                lambda f, k, S=S: f"DEF-f_{f.lower()}.0{k}.{S}" if f != "Thumb" else f"DEF-thumb.0{k}.{S}",
+                sg,
+                mid_smpl=f"{s}_hand",
+            )
     elif kind == "rokoko":  # Hips/Spine1..4, LeftThigh/LeftShin, metacarpal finger joints
         b.add("Hips", None, _j("pelvis"), "pelvis")
         b.add("Spine1", "Hips", _j("spine1"), "spine1")
@@ -258,8 +289,13 @@ def naming_skeleton(kind: str):
             b.add(f"{S}ForeArm", f"{S}Arm", _j(f"{s}_elbow"), f"{s}_elbow")
             b.add(f"{S}Hand", f"{S}ForeArm", _j(f"{s}_wrist"), f"{s}_wrist")
             num = {"Thumb": 1, "Index": 2, "Middle": 3, "Ring": 4, "Pinky": 5}
-            b.fingers(f"{S}Hand", lambda f, k, S=S, num=num: f"{S}Finger{num[f]}{('Proximal', 'Medial', 'Distal')[k - 1]}",
-                      sg, mid_smpl=f"{s}_hand", metacarpal=lambda f, S=S, num=num: f"{S}Finger{num[f]}Metacarpal")
+            b.fingers(
+                f"{S}Hand",
+                lambda f, k, S=S, num=num: f"{S}Finger{num[f]}{('Proximal', 'Medial', 'Distal')[k - 1]}",
+                sg,
+                mid_smpl=f"{s}_hand",
+                metacarpal=lambda f, S=S, num=num: f"{S}Finger{num[f]}Metacarpal",
+            )
             b.add(f"{S}Thigh", "Hips", _j(f"{s}_hip"), f"{s}_hip")
             b.add(f"{S}Shin", f"{S}Thigh", _j(f"{s}_knee"), f"{s}_knee")
             b.add(f"{S}Foot", f"{S}Shin", _j(f"{s}_ankle"), f"{s}_ankle")
@@ -301,8 +337,9 @@ def naming_motion(parents, rest, names, twist=(), *, frames=30, seed=0, amplitud
         ang = 0.6 * np.sin(np.linspace(0, 3, frames) + rng.uniform(0, 6))
         loc[:, j] = axis_angle_to_matrix(ang[:, None] * axis)
     root = int(np.flatnonzero(parents < 0)[0])
-    root_pos = rest[root] + np.stack([np.linspace(0, 0.4, frames), 0.02 * np.sin(np.arange(frames)),
-                                      np.zeros(frames)], axis=1)
+    root_pos = rest[root] + np.stack(
+        [np.linspace(0, 0.4, frames), 0.02 * np.sin(np.arange(frames)), np.zeros(frames)], axis=1
+    )
     return loc, root_pos
 
 

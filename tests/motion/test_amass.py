@@ -37,13 +37,23 @@ def test_amass_round_trip_upright(tmp_path, width, layout):
     J = default_rest_joints()
     m = make_motion("walk", seconds=1.0, seed=1)
     poses, trans = _as_amass(m, J, width=width, layout=layout)
-    np.savez(tmp_path / "a.npz", poses=poses, trans=trans, mocap_framerate=np.float64(120.00004578),
-             gender=np.array(b"female"), betas=np.zeros(16), dmpls=np.zeros((len(poses), 8)))
+    np.savez(
+        tmp_path / "a.npz",
+        poses=poses,
+        trans=trans,
+        mocap_framerate=np.float64(120.00004578),
+        gender=np.array(b"female"),
+        betas=np.zeros(16),
+        dmpls=np.zeros((len(poses), 8)),
+    )
     r = load_motion(tmp_path / "a.npz", rest_joints=J)
     assert r.meta["up"] == "z" and r.meta["gender"] == "female" and r.fps == pytest.approx(120.00004578)
     body = np.asarray(m.poses)
-    np.testing.assert_allclose(poses_to_rotmats(r.poses, 24)[:, :22 if width != 72 else 24],
-                               poses_to_rotmats(body, 24)[:, :22 if width != 72 else 24], atol=1e-9)
+    np.testing.assert_allclose(
+        poses_to_rotmats(r.poses, 24)[:, : 22 if width != 72 else 24],
+        poses_to_rotmats(body, 24)[:, : 22 if width != 72 else 24],
+        atol=1e-9,
+    )
     np.testing.assert_allclose(r.trans, m.trans, atol=1e-9)
     # upright: the head is above the pelvis, the feet near the floor
     _, posed = forward_kinematics(poses_to_rotmats(r.poses, 24), J, SMPL_PARENTS, r.trans)
@@ -55,8 +65,14 @@ def test_amass_split_keys_and_string_gender(tmp_path):
     J = default_rest_joints()
     m = make_motion("dance", seconds=0.5, seed=2)
     poses, trans = _as_amass(m, J, width=72)
-    np.savez(tmp_path / "x.npz", root_orient=poses[:, :3], pose_body=poses[:, 3:66], trans=trans,
-             mocap_frame_rate=np.array(60.0), gender=np.array("male"))
+    np.savez(
+        tmp_path / "x.npz",
+        root_orient=poses[:, :3],
+        pose_body=poses[:, 3:66],
+        trans=trans,
+        mocap_frame_rate=np.array(60.0),
+        gender=np.array("male"),
+    )
     r = load_motion(tmp_path / "x.npz", rest_joints=J)
     assert r.meta["gender"] == "male" and r.fps == 60.0 and r.meta["up"] == "z"
     np.testing.assert_allclose(r.trans, m.trans, atol=1e-9)
@@ -96,14 +112,17 @@ def test_feet_on_floor_shift_is_one_constant(tmp_path):
     assert posed[:, [7, 8, 10, 11], 1].min() == pytest.approx(J[[7, 8, 10, 11], 1].min() + 0.5)
 
 
-@pytest.mark.parametrize("arrays, words", [
-    (dict(poses=np.zeros((3, 24, 2))), "unknown layout"),
-    (dict(poses=np.zeros((3, 23, 3))), "unknown layout"),
-    (dict(root_orient=np.zeros((3, 3)), pose_body=np.zeros((3, 60))), "do not fit"),
-    (dict(poses=np.zeros((3, 72)), mocap_framerate=np.float64(np.nan)), "positive"),
-    (dict(poses=np.full((3, 72), np.nan)), "NaN"),
-    (dict(poses=np.zeros((3, 72)), trans=np.full((3, 3), np.inf)), "NaN or inf"),
-])
+@pytest.mark.parametrize(
+    "arrays, words",
+    [
+        (dict(poses=np.zeros((3, 24, 2))), "unknown layout"),
+        (dict(poses=np.zeros((3, 23, 3))), "unknown layout"),
+        (dict(root_orient=np.zeros((3, 3)), pose_body=np.zeros((3, 60))), "do not fit"),
+        (dict(poses=np.zeros((3, 72)), mocap_framerate=np.float64(np.nan)), "positive"),
+        (dict(poses=np.full((3, 72), np.nan)), "NaN"),
+        (dict(poses=np.zeros((3, 72)), trans=np.full((3, 3), np.inf)), "NaN or inf"),
+    ],
+)
 def test_malformed_amass_layouts(tmp_path, arrays, words):
     np.savez(tmp_path / "m.npz", **arrays)
     with pytest.raises(FileFormatError, match=words) as ei:

@@ -72,8 +72,7 @@ def _tiny(tmp_path, bones, values):
 
 def test_euler_order_and_axis_by_hand(tmp_path):
     """``dof rx ry`` applies rx first (M = Ry Rx); ``axis 0 0 90 XYZ`` turns the bone's x axis onto world y."""
-    bones = [("a", "root", (0, 1, 0), 2.0, (0, 0, 0), ("rx", "ry")),
-             ("b", "root", (1, 0, 0), 3.0, (0, 0, 90), ("rx",))]
+    bones = [("a", "root", (0, 1, 0), 2.0, (0, 0, 0), ("rx", "ry")), ("b", "root", (1, 0, 0), 3.0, (0, 0, 90), ("rx",))]
     values = {"root": np.zeros((1, 6)), "a": np.array([[90.0, 90.0]]), "b": np.array([[90.0]])}
     s, start, end = _tiny(tmp_path, bones, values)
     ia, ib = s.names.index("a"), s.names.index("b")
@@ -97,8 +96,9 @@ def test_root_order_orientation_position(tmp_path):
     s = asf.read_asf(a)
     _, start, end = asf.asf_forward_kinematics(s, asf.read_amc_values(m, s))
     np.testing.assert_allclose(start[0, 0], [1.5, 2.0, 8.0])
-    a.write_text(asf_text([("a", "root", (1, 0, 0), 1.0, (0, 0, 0), ())], root_order="RX", orientation=(0, 0, 90),
-                          limits=False))
+    a.write_text(
+        asf_text([("a", "root", (1, 0, 0), 1.0, (0, 0, 0), ())], root_order="RX", orientation=(0, 0, 90), limits=False)
+    )
     m.write_text(amc_text({"root": np.array([[90.0]])}))
     s = asf.read_asf(a)
     _, start, end = asf.asf_forward_kinematics(s, asf.read_amc_values(m, s))
@@ -113,12 +113,13 @@ def test_fast_forward_kinematics_matches_the_reference(tmp_path):
     bones = [(n, p, d, ln, tuple(rng.uniform(-180, 180, 3)), dofs) for n, p, d, ln, _, dofs in cmu_bones()]
     text = asf_text(bones, angle="rad", root_axis="ZXY", position=(0.3, -0.2, 0.5), orientation=(10, -20, 30))
     orders = iter(["".join(rng.permutation(list("XYZ"))) for _ in bones])
-    text = "\n".join(ln.replace("  XYZ", "  " + next(orders)) if "  XYZ" in ln else ln
-                     for ln in text.splitlines())
+    text = "\n".join(ln.replace("  XYZ", "  " + next(orders)) if "  XYZ" in ln else ln for ln in text.splitlines())
     a = tmp_path / "x.asf"
     a.write_text(text)
-    values = {k: np.deg2rad(v) if k != "root" else np.c_[v[:, :3], np.deg2rad(v[:, 3:])]
-              for k, v in smooth_values(n_frames=12, seed=2, amplitude=90).items()}
+    values = {
+        k: np.deg2rad(v) if k != "root" else np.c_[v[:, :3], np.deg2rad(v[:, 3:])]
+        for k, v in smooth_values(n_frames=12, seed=2, amplitude=90).items()
+    }
     m = tmp_path / "x.amc"
     m.write_text(amc_text(values, header=(":FULLY-SPECIFIED", ":RADIANS")))
     s = asf.read_asf(a)
@@ -129,8 +130,7 @@ def test_fast_forward_kinematics_matches_the_reference(tmp_path):
     np.testing.assert_allclose(start, ref_start, atol=1e-9)
     np.testing.assert_allclose(end, ref_end, atol=1e-9)
     # and the rotations are the bones' own: each bone's end is its start plus G (direction x length)
-    np.testing.assert_allclose(end - start, np.einsum("tjab,jb->tja", G, s.directions * s.lengths[:, None]),
-                               atol=1e-9)
+    np.testing.assert_allclose(end - start, np.einsum("tjab,jb->tja", G, s.directions * s.lengths[:, None]), atol=1e-9)
 
 
 def test_not_fully_specified_amc_keeps_values(tmp_path, trial):
@@ -213,16 +213,20 @@ def test_scene_and_dataset_config_take_amc(trial, tmp_path):
     skel.parent.mkdir()
     trial[0].rename(skel)
     scene = tmp_path / "scene.toml"
-    scene.write_text(f'[garment]\nmesh = "g.obj"\n[motion]\nfile = "{trial[1]}"\nskeleton = "skeletons/s.asf"\n'
-                     f'fps = 30\n[output]\npath = "o.pc2"\n')
+    scene.write_text(
+        f'[garment]\nmesh = "g.obj"\n[motion]\nfile = "{trial[1]}"\nskeleton = "skeletons/s.asf"\n'
+        f'fps = 30\n[output]\npath = "o.pc2"\n'
+    )
     sc = load_scene(scene)
     assert sc.motion.skeleton == skel
     m = build_motion(sc.motion, default_rest_joints())
     assert m.fps == 30.0 and m.n_frames == 10  # 40 frames at 120 fps, resampled
     skel.rename(trial[0])  # datasets find the .asf beside the .amc
     cfg_path = tmp_path / "ds.toml"
-    cfg_path.write_text('[dataset]\nfps = 30.0\nseconds = 0.2\n[[garments]]\nkind = "skirt"\nsplit = "train"\n'
-                        f'[[motions]]\nfile = "{trial[1]}"\nsplit = "train"\n')
+    cfg_path.write_text(
+        '[dataset]\nfps = 30.0\nseconds = 0.2\n[[garments]]\nkind = "skirt"\nsplit = "train"\n'
+        f'[[motions]]\nfile = "{trial[1]}"\nsplit = "train"\n'
+    )
     cfg = load_dataset_config(cfg_path)
     clip = _motion(cfg.motions[0], cfg, default_rest_joints())
     # no capture before the clip for a lead: it starts RAMP_MIN_SECONDS in (at most 2 frames before the end)
@@ -248,9 +252,21 @@ def _first_value(text, bone, value):
 
 
 BAD_AMC = [  # (name, edit of the AMC text, message fragment: FILE:LINE: problem)
-    ("bone_not_in_asf", lambda t: _edit_amc(t, "\nlhumerus", "\ntail 1 2 3\nlhumerus"), ":22: bone 'tail' is not in the skeleton"),
-    ("wrong_value_count", lambda t: _edit_amc(t, "\nltibia ", "\nltibia 5 "), "wrong number of values for bone 'ltibia' (expected 1 (dof rx in"),
-    ("frames_not_consecutive", lambda t: _edit_amc(t, "\n3\n", "\n4\n"), "frame numbers are not consecutive (expected frame 3, got frame 4)"),
+    (
+        "bone_not_in_asf",
+        lambda t: _edit_amc(t, "\nlhumerus", "\ntail 1 2 3\nlhumerus"),
+        ":22: bone 'tail' is not in the skeleton",
+    ),
+    (
+        "wrong_value_count",
+        lambda t: _edit_amc(t, "\nltibia ", "\nltibia 5 "),
+        "wrong number of values for bone 'ltibia' (expected 1 (dof rx in",
+    ),
+    (
+        "frames_not_consecutive",
+        lambda t: _edit_amc(t, "\n3\n", "\n4\n"),
+        "frame numbers are not consecutive (expected frame 3, got frame 4)",
+    ),
     ("nan", lambda t: _first_value(t, "lfemur", "nan"), ":6: bone 'lfemur' has a value that is not finite"),
     ("inf", lambda t: _first_value(t, "ltibia", "-inf"), ":8: bone 'ltibia' has a value that is not finite"),
     ("not_a_number", lambda t: _first_value(t, "lfemur", "x1"), ":6: bone 'lfemur' has a value that is not a number"),
@@ -258,9 +274,16 @@ BAD_AMC = [  # (name, edit of the AMC text, message fragment: FILE:LINE: problem
     ("only_header", lambda t: "#!OML:ASF x\n:FULLY-SPECIFIED\n:DEGREES\n", "no frame numbers"),
     ("unknown_keyword", lambda t: _edit_amc(t, ":DEGREES", ":GRADIANS"), ":3: unknown AMC keyword ':GRADIANS'"),
     ("bone_twice", lambda t: _edit_amc(t, "\nltibia ", "\nltibia 1\nltibia "), "bone 'ltibia' given twice in frame 1"),
-    ("missing_bone", lambda t: "\n".join(ln for ln in t.splitlines() if not ln.startswith("rtoes")),
-     "frame 1 lacks bone 'rtoes'"),
-    ("data_before_frames", lambda t: _edit_amc(t, ":DEGREES", ":DEGREES\nroot 0 0 0 0 0 0"), ":4: AMC data before the first frame"),
+    (
+        "missing_bone",
+        lambda t: "\n".join(ln for ln in t.splitlines() if not ln.startswith("rtoes")),
+        "frame 1 lacks bone 'rtoes'",
+    ),
+    (
+        "data_before_frames",
+        lambda t: _edit_amc(t, ":DEGREES", ":DEGREES\nroot 0 0 0 0 0 0"),
+        ":4: AMC data before the first frame",
+    ),
 ]
 
 
@@ -274,22 +297,37 @@ def test_bad_amc(trial, name, edit, words):
 
 
 BAD_ASF = [  # (name, edit of the ASF text, message fragment)
-    ("two_parents", lambda t: t.replace("    lfemur ltibia\n", "    lfemur ltibia\n    ltoes lhipjoint\n"),
-     "bone 'lhipjoint' has two parents in the hierarchy"),
-    ("hierarchy_loop", lambda t: t.replace("    root lhipjoint rhipjoint lowerback\n", "    root rhipjoint lowerback\n")
-     .replace("    lfemur ltibia\n", "    lfemur ltibia\n    ltoes lhipjoint\n"),
-     "the hierarchy has a cycle (expected a tree under root, got lhipjoint -> lfemur -> ltibia -> lfoot -> ltoes -> "
-     "lhipjoint)"),
-    ("hierarchy_unknown_bone", lambda t: t.replace("    lfemur ltibia", "    lfemur ltibia tail"),
-     "unknown bone 'tail' in the hierarchy (expected a bone of :bonedata, got tail)"),
+    (
+        "two_parents",
+        lambda t: t.replace("    lfemur ltibia\n", "    lfemur ltibia\n    ltoes lhipjoint\n"),
+        "bone 'lhipjoint' has two parents in the hierarchy",
+    ),
+    (
+        "hierarchy_loop",
+        lambda t: t.replace("    root lhipjoint rhipjoint lowerback\n", "    root rhipjoint lowerback\n").replace(
+            "    lfemur ltibia\n", "    lfemur ltibia\n    ltoes lhipjoint\n"
+        ),
+        "the hierarchy has a cycle (expected a tree under root, got lhipjoint -> lfemur -> ltibia -> lfoot -> ltoes -> "
+        "lhipjoint)",
+    ),
+    (
+        "hierarchy_unknown_bone",
+        lambda t: t.replace("    lfemur ltibia", "    lfemur ltibia tail"),
+        "unknown bone 'tail' in the hierarchy (expected a bone of :bonedata, got tail)",
+    ),
     ("hierarchy_unknown_parent", lambda t: t.replace("    lfemur ltibia", "    femur ltibia"), "unknown bone 'femur'"),
     ("bone_not_connected", lambda t: t.replace("    ltibia lfoot\n", ""), "bone 'lfoot' is not connected to the root"),
     ("no_hierarchy", lambda t: t.split(":hierarchy")[0], "ASF has no :hierarchy"),
     ("empty", lambda t: "", "ASF is empty"),
     ("bad_dof", lambda t: t.replace("dof rx rz", "dof rx rw", 1), "dof must list rotations rx, ry, rz"),
     ("bad_axis_order", lambda t: t.replace("  XYZ", "  XXY", 1), "axis order must be a permutation of XYZ"),
-    ("limits_count", lambda t: t.replace("dof rx rz\n    limits (-170.0 170.0)\n           (-170.0 170.0)",
-                                         "dof rx rz\n    limits (-170.0 170.0)", 1), "bone 'lfoot' has 2 dofs and 1 limits"),
+    (
+        "limits_count",
+        lambda t: t.replace(
+            "dof rx rz\n    limits (-170.0 170.0)\n           (-170.0 170.0)", "dof rx rz\n    limits (-170.0 170.0)", 1
+        ),
+        "bone 'lfoot' has 2 dofs and 1 limits",
+    ),
     ("nan_length", lambda t: t.replace("length 7.1", "length nan", 1), "length is not finite"),
     ("negative_unit", lambda t: t.replace("length 0.45", "length -0.45"), "units length must be positive"),
     ("unknown_section", lambda t: t.replace(":documentation", ":colour"), "unknown ASF keyword ':colour'"),
@@ -319,8 +357,11 @@ def test_mismatched_skeleton(trial, tmp_path):
     bones = [b if b[0] != "ltibia" else b[:5] + (("rx", "rz"),) for b in cmu_bones()]
     other = tmp_path / "other.asf"
     other.write_text(asf_text(bones))
-    with pytest.raises(FileFormatError, match=r"01_01.amc:8: wrong number of values for bone 'ltibia' "
-                                              r"\(expected 2 \(dof rx rz in other.asf\), got 1\)"):
+    with pytest.raises(
+        FileFormatError,
+        match=r"01_01.amc:8: wrong number of values for bone 'ltibia' "
+        r"\(expected 2 \(dof rx rz in other.asf\), got 1\)",
+    ):
         load_motion(trial[1], skeleton=other)
     with pytest.raises(FileFormatError, match="no such file"):
         load_motion(trial[1], skeleton=tmp_path / "nowhere.asf")
@@ -346,8 +387,23 @@ def test_cli_info_export_run(trial, tmp_path):
     trial[0].rename(skel)
     samples = Path(__file__).resolve().parents[2] / "samples"
     pc2 = tmp_path / "o.pc2"
-    r = CliRunner().invoke(cli, ["run", "--garment", str(samples / "garments" / "skirt.obj"), "--motion", str(trial[1]),
-                                 "--skeleton", str(skel), "--frames", "0:4", "-o", str(pc2), "--no-cache"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "run",
+            "--garment",
+            str(samples / "garments" / "skirt.obj"),
+            "--motion",
+            str(trial[1]),
+            "--skeleton",
+            str(skel),
+            "--frames",
+            "0:4",
+            "-o",
+            str(pc2),
+            "--no-cache",
+        ],
+    )
     assert r.exit_code == 0, r.output
     from segadeform.io import read_pc2
 
@@ -394,8 +450,9 @@ def test_cmu_root_translation_is_in_the_length_unit():
 def test_cmu_fast_forward_kinematics_matches_the_reference():
     s = asf.read_asf(CMU_AMC / "49" / "49.asf")
     amc = asf.read_amc_values(CMU_AMC / "49" / "49_06.amc", s)  # a cartwheel
-    amc = asf.AMCValues(amc.path, {k: v[::40] for k, v in amc.values.items()}, 1, len(amc.values["root"][::40]),
-                        amc.angle, True)
+    amc = asf.AMCValues(
+        amc.path, {k: v[::40] for k, v in amc.values.items()}, 1, len(amc.values["root"][::40]), amc.angle, True
+    )
     _, start, end = asf.asf_forward_kinematics(s, amc)
     ref_start, ref_end = asf._fk_reference(s, amc)
     np.testing.assert_allclose(start, ref_start, atol=1e-9)
@@ -492,8 +549,12 @@ def test_every_cmu_trial_animates_an_upright_body():
         spine = P[:, 12] - P[:, 0]
         up = spine[:, 1] / np.linalg.norm(spine, axis=1)
         y = P[0, :, 1]
-        first_ok = (up[0] > 0.5 and y[15] - y[[7, 8, 10, 11]].max() > 0.9
-                    and y[15] > y[12] > y[0] > max(y[4], y[5]) and min(y[4], y[5]) > min(y[7], y[8]))
+        first_ok = (
+            up[0] > 0.5
+            and y[15] - y[[7, 8, 10, 11]].max() > 0.9
+            and y[15] > y[12] > y[0] > max(y[4], y[5])
+            and min(y[4], y[5]) > min(y[7], y[8])
+        )
         if not first_ok or (up > 0.5).mean() < 0.4:
             bad.append(f"{f.name}: first-frame up {up[0]:.2f}, upright frames {(up > 0.5).mean():.2f}")
     assert not bad, bad

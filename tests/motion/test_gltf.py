@@ -50,8 +50,9 @@ def _pair(tmp_path, kind="unity", *, rename=False, frames=20, **glb):
     loc, root = naming_motion(parents, rest, names, twist, frames=frames)
     out = [f"j{i}" for i in range(len(names))] if rename else names
     bvh = write_skeleton_bvh(tmp_path / "m.bvh", out, parents, rest, loc, root)
-    glb_path = write_skeleton_glb(tmp_path / "m.glb", out, parents, rest * 100, loc, root * 100, armature_scale=0.01,
-                                  **glb)
+    glb_path = write_skeleton_glb(
+        tmp_path / "m.glb", out, parents, rest * 100, loc, root * 100, armature_scale=0.01, **glb
+    )
     return bvh, glb_path
 
 
@@ -96,11 +97,14 @@ def test_animation_is_chosen_by_name(tmp_path):
         load_motion(SAMPLES / "motions" / "walk.npz", animation="walk")
 
 
-@pytest.mark.parametrize("what, kw, message", [
-    ("noskin", {"skin": False}, "glTF has no skin"),
-    ("noanim", {"animations": ()}, "glTF has no animation"),
-    ("nan", {"nan_key": True}, "animation 'take' has NaN or infinite keys"),
-])
+@pytest.mark.parametrize(
+    "what, kw, message",
+    [
+        ("noskin", {"skin": False}, "glTF has no skin"),
+        ("noanim", {"animations": ()}, "glTF has no animation"),
+        ("nan", {"nan_key": True}, "animation 'take' has NaN or infinite keys"),
+    ],
+)
 def test_bad_gltf_gives_one_line_and_no_output(tmp_path, what, kw, message):
     f = write_skeleton_glb(tmp_path / f"{what}.glb", *_args(), armature_scale=0.01, **kw)
     with pytest.raises(FileFormatError, match=f"{what}.glb: {message}"):
@@ -108,8 +112,19 @@ def test_bad_gltf_gives_one_line_and_no_output(tmp_path, what, kw, message):
     from segadeform.cli.main import cli
 
     out = tmp_path / "out"
-    r = CliRunner().invoke(cli, ["run", "--garment", str(SAMPLES / "garments" / "dress.obj"), "--motion", str(f),
-                                 "-o", str(out / "dress.pc2"), "--no-cache"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "run",
+            "--garment",
+            str(SAMPLES / "garments" / "dress.obj"),
+            "--motion",
+            str(f),
+            "-o",
+            str(out / "dress.pc2"),
+            "--no-cache",
+        ],
+    )
     assert r.exit_code == 1
     lines = [ln for ln in r.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith(f"Error: {f}: {message.split(' (')[0]}"), r.output
@@ -158,8 +173,12 @@ def test_blender_glb_matches_the_bvh_path(sim_python, tmp_path):
 
     bvh = SAMPLES / "motions" / "cmu" / "02_01_walk.bvh"
     glb = tmp_path / "walk.glb"
-    p = subprocess.run([str(sim_python), "-c", BLENDER_EXPORT, str(bvh), str(glb), "0.05644"], capture_output=True,
-                       text=True, timeout=600)
+    p = subprocess.run(
+        [str(sim_python), "-c", BLENDER_EXPORT, str(bvh), str(glb), "0.05644"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stderr[-2000:]
     info = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
     body = load_body(default_body_path())

@@ -32,8 +32,7 @@ def rot(m):
 def test_amass_widths(tmp_path, width):
     rng = np.random.default_rng(0)
     poses = rng.normal(scale=0.2, size=(10, width))
-    np.savez(tmp_path / "a.npz", poses=poses, trans=rng.normal(size=(10, 3)), betas=np.ones(16),
-             mocap_framerate=120.0)
+    np.savez(tmp_path / "a.npz", poses=poses, trans=rng.normal(size=(10, 3)), betas=np.ones(16), mocap_framerate=120.0)
     m = load_motion(tmp_path / "a.npz")
     assert m.poses.shape == (10, 72) and m.fps == 120.0 and m.betas.shape == (16,)
     np.testing.assert_array_equal(m.poses[:, :66], poses[:, :66])
@@ -41,15 +40,18 @@ def test_amass_widths(tmp_path, width):
         assert (m.poses[:, 66:] == 0).all()
 
 
-@pytest.mark.parametrize("arrays, words", [
-    (dict(trans=np.zeros((3, 3))), "no 'poses'"),
-    (dict(poses=np.zeros((3, 70))), "unknown width"),
-    (dict(poses=np.zeros((0, 72))), "no frames"),
-    (dict(poses=np.zeros((3, 72)), trans=np.zeros((2, 3))), "trans"),
-    (dict(poses=np.full((3, 72), np.nan)), "NaN"),
-    (dict(poses=np.zeros((3, 72)), mocap_framerate=-1.0), "fps"),
-    (dict(poses=np.array(["a"] * 72).reshape(1, 72)), "numeric"),
-])
+@pytest.mark.parametrize(
+    "arrays, words",
+    [
+        (dict(trans=np.zeros((3, 3))), "no 'poses'"),
+        (dict(poses=np.zeros((3, 70))), "unknown width"),
+        (dict(poses=np.zeros((0, 72))), "no frames"),
+        (dict(poses=np.zeros((3, 72)), trans=np.zeros((2, 3))), "trans"),
+        (dict(poses=np.full((3, 72), np.nan)), "NaN"),
+        (dict(poses=np.zeros((3, 72)), mocap_framerate=-1.0), "fps"),
+        (dict(poses=np.array(["a"] * 72).reshape(1, 72)), "numeric"),
+    ],
+)
 def test_malformed_amass(tmp_path, arrays, words):
     np.savez(tmp_path / "m.npz", **arrays)
     with pytest.raises(FileFormatError, match=words) as ei:
@@ -84,8 +86,9 @@ def test_windows_pad_with_first_frame():
     p = np.arange(6, dtype=float)[:, None] * np.ones((1, 72))
     w = motion_windows(p, 4)
     assert w.shape == (6, 4, 72)
-    np.testing.assert_array_equal(w[:, :, 0], [[0, 0, 0, 0], [1, 0, 0, 0], [2, 1, 0, 0], [3, 2, 1, 0],
-                                               [4, 3, 2, 1], [5, 4, 3, 2]])
+    np.testing.assert_array_equal(
+        w[:, :, 0], [[0, 0, 0, 0], [1, 0, 0, 0], [2, 1, 0, 0], [3, 2, 1, 0], [4, 3, 2, 1], [5, 4, 3, 2]]
+    )
     np.testing.assert_array_equal(motion_windows(p, 2, start=2, stop=4)[:, :, 0], [[2, 1], [3, 2]])
     with pytest.raises(InputError):
         motion_windows(p, 0)
@@ -167,16 +170,19 @@ def test_bvh_a_pose_rest_is_corrected(tmp_path):
         np.testing.assert_allclose(d / np.linalg.norm(d), want / np.linalg.norm(want), atol=1e-6)
 
 
-@pytest.mark.parametrize("mutate, words", [
-    (lambda t: t.replace("HIERARCHY", "HIERARCHX"), "unexpected token"),
-    (lambda t: t.rsplit("\n", 3)[0] + "\n", "does not match its declared size"),
-    (lambda t: t.replace("Frames: 6", "Frames: 600000000"), "does not match its declared size"),
-    (lambda t: t.replace("Frame Time: ", "Frame Time: -"), "positive"),
-    (lambda t: t.replace("CHANNELS 3", "CHANNELS 9", 1), "channel count"),
-    (lambda t: t.replace("Zrotation", "Wrotation", 1), "unknown channel"),
-    (lambda t: "\n".join(t.splitlines()[:40]), "ends too early"),
-    (lambda t: t.replace("0.000000", "nan", 1), "not finite"),
-])
+@pytest.mark.parametrize(
+    "mutate, words",
+    [
+        (lambda t: t.replace("HIERARCHY", "HIERARCHX"), "unexpected token"),
+        (lambda t: t.rsplit("\n", 3)[0] + "\n", "does not match its declared size"),
+        (lambda t: t.replace("Frames: 6", "Frames: 600000000"), "does not match its declared size"),
+        (lambda t: t.replace("Frame Time: ", "Frame Time: -"), "positive"),
+        (lambda t: t.replace("CHANNELS 3", "CHANNELS 9", 1), "channel count"),
+        (lambda t: t.replace("Zrotation", "Wrotation", 1), "unknown channel"),
+        (lambda t: "\n".join(t.splitlines()[:40]), "ends too early"),
+        (lambda t: t.replace("0.000000", "nan", 1), "not finite"),
+    ],
+)
 def test_malformed_bvh(tmp_path, mutate, words):
     write_bvh(tmp_path / "a.bvh", make_motion("idle", seconds=0.2), default_rest_joints())
     (tmp_path / "b.bvh").write_text(mutate((tmp_path / "a.bvh").read_text()))
@@ -187,8 +193,9 @@ def test_malformed_bvh(tmp_path, mutate, words):
 
 # ---- CLI -----------------------------------------------------------------
 def test_motion_cli(tmp_path):
-    r = CliRunner().invoke(cli, ["motion", "make", "run", "--seconds", "1", "--fps", "24", "--seed", "3",
-                                 "-o", str(tmp_path / "r.npz")])
+    r = CliRunner().invoke(
+        cli, ["motion", "make", "run", "--seconds", "1", "--fps", "24", "--seed", "3", "-o", str(tmp_path / "r.npz")]
+    )
     assert r.exit_code == 0, r.output
     m = load_motion(tmp_path / "r.npz")
     assert m.n_frames == 24 and m.fps == 24
@@ -223,7 +230,7 @@ def test_ramp_in_starts_from_rest_and_joins_the_motion_at_full_speed():
     r = ramp_in(m, 0.5)
     k = 15
     assert r.n_frames == 2 * k + (m.n_frames - k)
-    np.testing.assert_allclose(r.poses[2 * k:], m.poses[k:])  # the rest as it is
+    np.testing.assert_allclose(r.poses[2 * k :], m.poses[k:])  # the rest as it is
     np.testing.assert_allclose(r.poses[0], m.poses[0])  # starts in the first pose ...
     step = np.linalg.norm(np.diff(r.trans, axis=0), axis=1)
     assert step[0] < 0.1 * step[2 * k + 5]  # ... at rest, and speeds up ...
@@ -240,7 +247,7 @@ def test_drop_leading_tpose_removes_a_calibration_pose_and_the_move_out_of_it():
     m = make_motion("walk_arms_down", seconds=2.0, fps=30.0, seed=0, ease_in=0.0)
     assert drop_leading_tpose(m)[1] == 0  # arms down from the start: left alone
     poses = m.poses.copy()
-    poses[:10, 3 * 16:3 * 18] = 0.0  # the first 10 frames: both upper arms at the T-pose
+    poses[:10, 3 * 16 : 3 * 18] = 0.0  # the first 10 frames: both upper arms at the T-pose
     out, k = drop_leading_tpose(dataclasses.replace(m, poses=poses))
     assert k == 10 + 15 and out.n_frames == m.n_frames - k and np.allclose(out.poses, poses[k:])
     still = dataclasses.replace(m, poses=np.zeros_like(m.poses))  # a T-pose throughout: nothing to tell apart

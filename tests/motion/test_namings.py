@@ -21,9 +21,16 @@ from .bvh_build import smooth_local_rotations, source_fk, write_skeleton_bvh
 from .namings import NAMINGS, naming_motion, naming_skeleton, write_naming_bvh
 
 SHARED_CMU = Path(__file__).resolve().parents[3] / "shared" / "data" / "mocap" / "cmu"
-LIMBS = [("left_hip", "left_knee"), ("left_knee", "left_ankle"), ("right_hip", "right_knee"),
-         ("right_knee", "right_ankle"), ("left_shoulder", "left_elbow"), ("left_elbow", "left_wrist"),
-         ("right_shoulder", "right_elbow"), ("right_elbow", "right_wrist")]
+LIMBS = [
+    ("left_hip", "left_knee"),
+    ("left_knee", "left_ankle"),
+    ("right_hip", "right_knee"),
+    ("right_knee", "right_ankle"),
+    ("left_shoulder", "left_elbow"),
+    ("left_elbow", "left_wrist"),
+    ("right_shoulder", "right_elbow"),
+    ("right_elbow", "right_wrist"),
+]
 _I = {n: i for i, n in enumerate(SMPL_JOINT_NAMES)}
 
 
@@ -47,8 +54,9 @@ def test_naming_loads_by_name(tmp_path, kind):
     """Each naming (centimetres; Unity-style with six channels on every joint) maps as its tool means it,
     every joint found by name, and the limbs follow."""
     six = kind == "unity"
-    f, names, parents, rest, expected, loc, root = write_naming_bvh(tmp_path / f"{kind}.bvh", kind, scale=100.0,
-                                                                    six_channels=six)
+    f, names, parents, rest, expected, loc, root = write_naming_bvh(
+        tmp_path / f"{kind}.bvh", kind, scale=100.0, six_channels=six
+    )
     m = read_bvh(f, rest_joints=default_rest_joints())
     assert m.meta["scheme"] == NAMINGS[kind]
     assert {k: m.meta["mapped"].get(k) for k in expected} == expected
@@ -69,8 +77,7 @@ def test_shape_fallback_maps_renamed_joints(tmp_path, kind):
     middle finger), and the limbs follow."""
     names, parents, rest, expected, _ = naming_skeleton(kind)
     ren = [f"j{i}" for i in range(len(names))]
-    f, names, parents, rest, expected, loc, root = write_naming_bvh(tmp_path / "j.bvh", kind, scale=100.0,
-                                                                    rename=ren)
+    f, names, parents, rest, expected, loc, root = write_naming_bvh(tmp_path / "j.bvh", kind, scale=100.0, rename=ren)
     m = read_bvh(f, rest_joints=default_rest_joints())
     assert m.meta["scheme"] == "shape"
     assert set(m.meta["found_by"].values()) == {"shape"}
@@ -146,8 +153,10 @@ def test_helper_joints_keep_their_rotations(tmp_path, kind):
 
     sk = read_bvh_skeleton(f)  # joints in the file's (depth-first) order
     mapped = m.meta["mapped"]
-    J = _own_rest(sk.rest, np.array([sk.names.index(mapped[n]) if n in mapped else -1
-                                     for n in SMPL_JOINT_NAMES])) * 0.01
+    J = (
+        _own_rest(sk.rest, np.array([sk.names.index(mapped[n]) if n in mapped else -1 for n in SMPL_JOINT_NAMES]))
+        * 0.01
+    )
     src = np.array([names.index(mapped[n]) if n in mapped else -1 for n in SMPL_JOINT_NAMES])
     Gs, posed = forward_kinematics(poses_to_rotmats(m.poses, 24), J, SMPL_PARENTS, m.trans)
     sel = np.array([j for j in np.flatnonzero(src >= 0) if SMPL_JOINT_NAMES[j] not in ("left_collar", "right_collar")])
@@ -163,11 +172,14 @@ def test_helper_joints_keep_their_rotations(tmp_path, kind):
 def test_six_channels_with_zero_offsets_bom_and_inches(tmp_path):
     """A game export with six channels on every joint and every OFFSET zero (the bones only in the position
     channels), a UTF-8 byte order mark, in inches: the same motion as the plain file."""
-    f, names, parents, rest, expected, loc, root = write_naming_bvh(tmp_path / "plain.bvh", "unity",
-                                                                    scale=1 / 0.0254, six_channels=True)
+    f, names, parents, rest, expected, loc, root = write_naming_bvh(
+        tmp_path / "plain.bvh", "unity", scale=1 / 0.0254, six_channels=True
+    )
     text = f.read_text()
-    lines = [("OFFSET 0.000000 0.000000 0.000000" if ln.strip().startswith("OFFSET") and k > 3 else ln)
-             for k, ln in enumerate(text.splitlines())]
+    lines = [
+        ("OFFSET 0.000000 0.000000 0.000000" if ln.strip().startswith("OFFSET") and k > 3 else ln)
+        for k, ln in enumerate(text.splitlines())
+    ]
     odd = tmp_path / "odd.bvh"
     odd.write_bytes(b"\xef\xbb\xbf" + ("\r\n".join(lines) + "\r\n").encode())
     a = read_bvh(f, rest_joints=default_rest_joints())
@@ -198,7 +210,9 @@ def test_non_humanoids_are_refused_saying_what_is_missing(tmp_path):
     names = [f"j{k}" for k in range(len(keep_legs))]
     parents = [keep_legs.index(SMPL_PARENTS[j]) if SMPL_PARENTS[j] >= 0 else -1 for j in keep_legs]
     f = _write_tree(tmp_path, "legs.bvh", names, parents, J[keep_legs])
-    with pytest.raises(FileFormatError, match=r"legs\.bvh.*missing .*left_shoulder.*by shape: no arms.*found two legs hanging from j0"):
+    with pytest.raises(
+        FileFormatError, match=r"legs\.bvh.*missing .*left_shoulder.*by shape: no arms.*found two legs hanging from j0"
+    ):
         read_bvh(f)
     keep_arms = [0, 3, 6, 9, 12, 15, 13, 14, 16, 17, 18, 19, 20, 21, 22, 23]  # no legs
     names = [f"j{k}" for k in range(len(keep_arms))]

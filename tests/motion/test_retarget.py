@@ -19,9 +19,16 @@ from segadeform.motion.bvh import read_bvh_skeleton
 from .bvh_build import smooth_local_rotations, source_fk, write_skeleton_bvh
 
 SHARED_CMU = Path(__file__).resolve().parents[3] / "shared" / "data" / "mocap" / "cmu"
-LIMB_BONES = [("left_hip", "left_knee"), ("right_hip", "right_knee"), ("left_knee", "left_ankle"),
-              ("right_knee", "right_ankle"), ("left_shoulder", "left_elbow"), ("right_shoulder", "right_elbow"),
-              ("left_elbow", "left_wrist"), ("right_elbow", "right_wrist")]
+LIMB_BONES = [
+    ("left_hip", "left_knee"),
+    ("right_hip", "right_knee"),
+    ("left_knee", "left_ankle"),
+    ("right_knee", "right_ankle"),
+    ("left_shoulder", "left_elbow"),
+    ("right_shoulder", "right_elbow"),
+    ("left_elbow", "left_wrist"),
+    ("right_elbow", "right_wrist"),
+]
 
 
 # ---- building skeletons -----------------------------------------------------------------------------------
@@ -47,49 +54,113 @@ def _skeleton(kind):
         names = ["mixamorig:" + inv[n] for n in SMPL_JOINT_NAMES]
         rest = _a_pose(J)
         parents = P[:]
-        for nm, par, off in (("LeftEye", 15, [0.03, 0.05, 0.08]), ("RightEye", 15, [-0.03, 0.05, 0.08]),
-                             ("HeadTop_End", 15, [0, 0.15, 0]), ("LeftToe_End", 10, [0, 0, 0.05]),
-                             ("LeftHandIndex1", 20, [0.08, 0, 0.03]), ("LeftHandIndex2", 24 + 4, [0.03, 0, 0]),
-                             ("RightHandThumb1", 21, [-0.03, 0, 0.05])):
+        for nm, par, off in (
+            ("LeftEye", 15, [0.03, 0.05, 0.08]),
+            ("RightEye", 15, [-0.03, 0.05, 0.08]),
+            ("HeadTop_End", 15, [0, 0.15, 0]),
+            ("LeftToe_End", 10, [0, 0, 0.05]),
+            ("LeftHandIndex1", 20, [0.08, 0, 0.03]),
+            ("LeftHandIndex2", 24 + 4, [0.03, 0, 0]),
+            ("RightHandThumb1", 21, [-0.03, 0, 0.05]),
+        ):
             names.append("mixamorig:" + nm)
             parents.append(par)
             rest = np.vstack([rest, rest[par] + np.array(off)])
         expected = {n: "mixamorig:" + inv[n] for n in SMPL_JOINT_NAMES}
         return names, parents, rest, expected
     if kind == "game":  # 22 joints: a floor root above the hips, Unity-like names, no collars' twist
-        spec = [("joint_Root", -1, [0, 0, 0]), ("Hips", 0, J[0]), ("UpperLeg_L", 1, J[1]), ("LowerLeg_L", 2, J[4]),
-                ("Foot_L", 3, J[7]), ("Toes_L", 4, J[10]), ("UpperLeg_R", 1, J[2]), ("LowerLeg_R", 6, J[5]),
-                ("Foot_R", 7, J[8]), ("Toes_R", 8, J[11]), ("Spine", 1, J[3]), ("Chest", 10, J[9]),
-                ("Neck", 11, J[12]), ("Head", 12, J[15]), ("Shoulder_L", 11, J[13]), ("UpperArm_L", 14, J[16]),
-                ("LowerArm_L", 15, J[18]), ("Hand_L", 16, J[20]), ("Shoulder_R", 11, J[14]),
-                ("UpperArm_R", 18, J[17]), ("LowerArm_R", 19, J[19]), ("Hand_R", 20, J[21])]
+        spec = [
+            ("joint_Root", -1, [0, 0, 0]),
+            ("Hips", 0, J[0]),
+            ("UpperLeg_L", 1, J[1]),
+            ("LowerLeg_L", 2, J[4]),
+            ("Foot_L", 3, J[7]),
+            ("Toes_L", 4, J[10]),
+            ("UpperLeg_R", 1, J[2]),
+            ("LowerLeg_R", 6, J[5]),
+            ("Foot_R", 7, J[8]),
+            ("Toes_R", 8, J[11]),
+            ("Spine", 1, J[3]),
+            ("Chest", 10, J[9]),
+            ("Neck", 11, J[12]),
+            ("Head", 12, J[15]),
+            ("Shoulder_L", 11, J[13]),
+            ("UpperArm_L", 14, J[16]),
+            ("LowerArm_L", 15, J[18]),
+            ("Hand_L", 16, J[20]),
+            ("Shoulder_R", 11, J[14]),
+            ("UpperArm_R", 18, J[17]),
+            ("LowerArm_R", 19, J[19]),
+            ("Hand_R", 20, J[21]),
+        ]
         names = [s[0] for s in spec]
         parents = [s[1] for s in spec]
         rest = np.array([s[2] for s in spec], float)
-        expected = {"pelvis": "Hips", "left_hip": "UpperLeg_L", "left_knee": "LowerLeg_L", "left_ankle": "Foot_L",
-                    "left_foot": "Toes_L", "right_hip": "UpperLeg_R", "spine1": "Spine", "spine3": "Chest",
-                    "neck": "Neck", "head": "Head", "left_collar": "Shoulder_L", "left_shoulder": "UpperArm_L",
-                    "left_elbow": "LowerArm_L", "left_wrist": "Hand_L", "right_wrist": "Hand_R"}
+        expected = {
+            "pelvis": "Hips",
+            "left_hip": "UpperLeg_L",
+            "left_knee": "LowerLeg_L",
+            "left_ankle": "Foot_L",
+            "left_foot": "Toes_L",
+            "right_hip": "UpperLeg_R",
+            "spine1": "Spine",
+            "spine3": "Chest",
+            "neck": "Neck",
+            "head": "Head",
+            "left_collar": "Shoulder_L",
+            "left_shoulder": "UpperArm_L",
+            "left_elbow": "LowerArm_L",
+            "left_wrist": "Hand_L",
+            "right_wrist": "Hand_R",
+        }
         return names, parents, rest, expected
     if kind == "biovision":  # 19 joints, Hips/Chest/LeftCollar naming, A-pose
         Ja = _a_pose(J, 30.0)
-        spec = [("Hips", -1, Ja[0]), ("LeftHip", 0, Ja[1]), ("LeftKnee", 1, Ja[4]), ("LeftAnkle", 2, Ja[7]),
-                ("RightHip", 0, Ja[2]), ("RightKnee", 4, Ja[5]), ("RightAnkle", 5, Ja[8]), ("Chest", 0, Ja[3]),
-                ("Chest2", 7, Ja[9]), ("LeftCollar", 8, Ja[13]), ("LeftShoulder", 9, Ja[16]),
-                ("LeftElbow", 10, Ja[18]), ("LeftWrist", 11, Ja[20]), ("RightCollar", 8, Ja[14]),
-                ("RightShoulder", 13, Ja[17]), ("RightElbow", 14, Ja[19]), ("RightWrist", 15, Ja[21]),
-                ("Neck", 8, Ja[12]), ("Head", 17, Ja[15])]
+        spec = [
+            ("Hips", -1, Ja[0]),
+            ("LeftHip", 0, Ja[1]),
+            ("LeftKnee", 1, Ja[4]),
+            ("LeftAnkle", 2, Ja[7]),
+            ("RightHip", 0, Ja[2]),
+            ("RightKnee", 4, Ja[5]),
+            ("RightAnkle", 5, Ja[8]),
+            ("Chest", 0, Ja[3]),
+            ("Chest2", 7, Ja[9]),
+            ("LeftCollar", 8, Ja[13]),
+            ("LeftShoulder", 9, Ja[16]),
+            ("LeftElbow", 10, Ja[18]),
+            ("LeftWrist", 11, Ja[20]),
+            ("RightCollar", 8, Ja[14]),
+            ("RightShoulder", 13, Ja[17]),
+            ("RightElbow", 14, Ja[19]),
+            ("RightWrist", 15, Ja[21]),
+            ("Neck", 8, Ja[12]),
+            ("Head", 17, Ja[15]),
+        ]
         names = [s[0] for s in spec]
         parents = [s[1] for s in spec]
         rest = np.array([s[2] for s in spec], float)
-        expected = {"pelvis": "Hips", "left_hip": "LeftHip", "left_knee": "LeftKnee", "left_ankle": "LeftAnkle",
-                    "spine3": "Chest2", "left_collar": "LeftCollar", "left_shoulder": "LeftShoulder",
-                    "left_elbow": "LeftElbow", "left_wrist": "LeftWrist", "neck": "Neck", "head": "Head"}
+        expected = {
+            "pelvis": "Hips",
+            "left_hip": "LeftHip",
+            "left_knee": "LeftKnee",
+            "left_ankle": "LeftAnkle",
+            "spine3": "Chest2",
+            "left_collar": "LeftCollar",
+            "left_shoulder": "LeftShoulder",
+            "left_elbow": "LeftElbow",
+            "left_wrist": "LeftWrist",
+            "neck": "Neck",
+            "head": "Head",
+        }
         return names, parents, rest, expected
     if kind == "nonames":  # meaningless names: only the hierarchy and the geometry say which is which
         names = [f"b{i:02d}" for i in range(24)]
-        expected = {n: f"b{i:02d}" for i, n in enumerate(SMPL_JOINT_NAMES)
-                    if n not in ("left_hand", "right_hand", "spine2", "left_foot", "right_foot", "head", "neck")}
+        expected = {
+            n: f"b{i:02d}"
+            for i, n in enumerate(SMPL_JOINT_NAMES)
+            if n not in ("left_hand", "right_hand", "spine2", "left_foot", "right_foot", "head", "neck")
+        }
         return names, P[:], J.copy(), expected
     raise KeyError(kind)
 
@@ -99,8 +170,9 @@ def _check_file(tmp_path, kind, *, order="zxy", six=False, scale=1.0, up="y", se
     parents = np.array(parents)
     T = 40
     loc = smooth_local_rotations(T, len(names), seed=seed, amplitude=0.4)
-    root = rest[np.flatnonzero(parents < 0)[0]] + np.stack([np.linspace(0, 0.5, T), 0.02 * np.sin(np.arange(T)),
-                                                             np.zeros(T)], axis=1)
+    root = rest[np.flatnonzero(parents < 0)[0]] + np.stack(
+        [np.linspace(0, 0.5, T), 0.02 * np.sin(np.arange(T)), np.zeros(T)], axis=1
+    )
     G, Pos = source_fk(parents, rest, loc, root)
     if up == "z":  # the same motion in a z-up world: (x, y, z)_y-up -> (x, -z, y)_z-up
         Qz = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
@@ -109,11 +181,13 @@ def _check_file(tmp_path, kind, *, order="zxy", six=False, scale=1.0, up="y", se
         loc_w = np.empty_like(loc)
         for j in range(len(names)):
             loc_w[:, j] = Gw[:, j] if parents[j] < 0 else np.swapaxes(Gw[:, parents[j]], -1, -2) @ Gw[:, j]
-        f = write_skeleton_bvh(tmp_path / f"{kind}.bvh", names, parents, rest_w, loc_w, root_w, order=order,
-                               six_channels=six, scale=scale)
+        f = write_skeleton_bvh(
+            tmp_path / f"{kind}.bvh", names, parents, rest_w, loc_w, root_w, order=order, six_channels=six, scale=scale
+        )
     else:
-        f = write_skeleton_bvh(tmp_path / f"{kind}.bvh", names, parents, rest, loc, root, order=order,
-                               six_channels=six, scale=scale)
+        f = write_skeleton_bvh(
+            tmp_path / f"{kind}.bvh", names, parents, rest, loc, root, order=order, six_channels=six, scale=scale
+        )
     target = default_rest_joints()
     m = read_bvh(f, rest_joints=target)
     mapped = m.meta["mapped"]
@@ -135,8 +209,9 @@ def _check_file(tmp_path, kind, *, order="zxy", six=False, scale=1.0, up="y", se
 @pytest.mark.parametrize("kind", ["mixamo", "game", "biovision", "nonames"])
 def test_skeletons_map_and_limbs_follow(tmp_path, kind):
     m = _check_file(tmp_path, kind, six=(kind == "game"))
-    assert m.meta["scheme"] == {"mixamo": "mixamo", "game": "unity", "biovision": "cmu-3dsmax",
-                                "nonames": "shape"}[kind]
+    assert (
+        m.meta["scheme"] == {"mixamo": "mixamo", "game": "unity", "biovision": "cmu-3dsmax", "nonames": "shape"}[kind]
+    )
     assert np.isfinite(m.poses).all()
 
 
@@ -184,14 +259,14 @@ def test_joint_map_file(tmp_path):
     root = np.tile(rest[0], (T, 1))
     f = write_skeleton_bvh(tmp_path / "n.bvh", names, np.array(parents), rest, loc, root)
     jm = tmp_path / "map.toml"
-    jm.write_text("[joints]\nleft_hand = \"b22\"\nb23 = \"right_hand\"\nneck = \"b12\"\nhead = \"b15\"\n")
+    jm.write_text('[joints]\nleft_hand = "b22"\nb23 = "right_hand"\nneck = "b12"\nhead = "b15"\n')
     m = read_bvh(f, rest_joints=default_rest_joints(), joint_map=jm)
     assert m.meta["mapped"]["left_hand"] == "b22" and m.meta["mapped"]["right_hand"] == "b23"
     assert m.meta["scheme"] == "shape+joint-map"
-    jm.write_text("[joints]\nleft_hand = \"nope\"\n")
+    jm.write_text('[joints]\nleft_hand = "nope"\n')
     with pytest.raises(FileFormatError, match="'nope', which is not in the file"):
         read_bvh(f, joint_map=jm)
-    jm.write_text("[joints]\nb1 = \"b2\"\n")
+    jm.write_text('[joints]\nb1 = "b2"\n')
     with pytest.raises(FileFormatError, match="names no SMPL joint"):
         read_bvh(f, joint_map=jm)
 
@@ -200,8 +275,10 @@ def test_unmappable_file_lists_what_was_found(tmp_path):
     """A four-legged chain (no arms): the error names the joints found and the SMPL joints missing."""
     names = ["root", "spine_a", "spine_b", "tail", "leg_fl", "leg_fr", "leg_bl", "leg_br"]
     parents = [-1, 0, 1, 0, 2, 2, 0, 0]
-    rest = np.array([[0, 1, 0], [0, 1, 0.4], [0, 1, 0.8], [0, 1, -0.5], [0.2, 0, 0.8], [-0.2, 0, 0.8],
-                     [0.2, 0, 0], [-0.2, 0, 0]], float)
+    rest = np.array(
+        [[0, 1, 0], [0, 1, 0.4], [0, 1, 0.8], [0, 1, -0.5], [0.2, 0, 0.8], [-0.2, 0, 0.8], [0.2, 0, 0], [-0.2, 0, 0]],
+        float,
+    )
     loc = smooth_local_rotations(3, len(names), amplitude=0.0)
     f = write_skeleton_bvh(tmp_path / "dog.bvh", names, np.array(parents), rest, loc, np.tile(rest[0], (3, 1)))
     with pytest.raises(FileFormatError) as ei:
@@ -230,8 +307,11 @@ def test_normalize_and_kabsch_min_rotation():
     rng = np.random.default_rng(0)
     a, b = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
     R = min_rotation(a, b)
-    np.testing.assert_allclose(np.einsum("nij,nj->ni", R, a / np.linalg.norm(a, axis=1, keepdims=True)),
-                               b / np.linalg.norm(b, axis=1, keepdims=True), atol=1e-12)
+    np.testing.assert_allclose(
+        np.einsum("nij,nj->ni", R, a / np.linalg.norm(a, axis=1, keepdims=True)),
+        b / np.linalg.norm(b, axis=1, keepdims=True),
+        atol=1e-12,
+    )
     np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-12)
     opp = min_rotation(np.array([1.0, 0, 0]), np.array([-2.0, 0, 0]))
     np.testing.assert_allclose(opp @ [1.0, 0, 0], [-1.0, 0, 0], atol=1e-12)

@@ -18,8 +18,9 @@ def _still(n=6):
 
 def test_no_effects_and_no_motion_keeps_the_rest_shape(sim_python, body, coarse_skirt):
     g = coarse_skirt
-    r = simulate(g.vertices, g.faces, body, _still(), settings=SimSettings(effects=(), drape_seconds=0.1,
-                                                                         blend_seconds=0.0))
+    r = simulate(
+        g.vertices, g.faces, body, _still(), settings=SimSettings(effects=(), drape_seconds=0.1, blend_seconds=0.0)
+    )
     assert r.frames.shape == (6, len(g.vertices), 3)
     assert np.abs(r.frames - g.vertices).max() < 1e-4
     a = r.blender["applied"]
@@ -32,8 +33,9 @@ def test_gravity_pulls_down_and_collision_holds_the_cloth(sim_python, body, coar
     g = coarse_skirt
     kw = dict(drape_seconds=0.1, blend_seconds=0.0, quality=5)
     free = simulate(g.vertices, g.faces, body, _still(10), settings=SimSettings(effects=("gravity",), **kw))
-    held = simulate(g.vertices, g.faces, body, _still(10),
-                    settings=SimSettings(effects=("gravity", "body_collision"), **kw))
+    held = simulate(
+        g.vertices, g.faces, body, _still(10), settings=SimSettings(effects=("gravity", "body_collision"), **kw)
+    )
     drop_free = (g.vertices[:, 1] - free.frames[-1][:, 1]).mean()
     assert drop_free > 0.05  # falls freely through the body (about 0.5 g t^2)
     assert held.blender["applied"]["use_collision"] and "COLLISION" in held.blender["applied"]["body_modifiers"]
@@ -114,7 +116,6 @@ def test_unposing_then_skinning_gives_back_the_a_posed_garment(body):
 
     g = make_garment("tshirt", body, cloth_pose=A_POSE)
     w = transfer_weights(g.vertices, body.shaped_vertices()[0], body.faces, body.weights)
-    back = skin_garment(unpose_lbs(g.cloth_rest, w, body.forward(A_POSE[None]).transforms[0]), w, body,
-                        A_POSE[None])[0]
+    back = skin_garment(unpose_lbs(g.cloth_rest, w, body.forward(A_POSE[None]).transforms[0]), w, body, A_POSE[None])[0]
     assert np.abs(back - g.cloth_rest).max() < 1e-9
     assert np.abs(skin_garment(g.vertices, w, body, A_POSE[None])[0] - g.cloth_rest).max() > 1e-3

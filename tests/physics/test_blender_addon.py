@@ -50,8 +50,9 @@ print("RESULT" + json.dumps(res))
 
 
 def _blender(sim_python, script, *args, env=None, timeout=600):
-    p = subprocess.run([str(sim_python), "-c", script, *map(str, args)], capture_output=True, text=True,
-                       timeout=timeout, env=env)
+    p = subprocess.run(
+        [str(sim_python), "-c", script, *map(str, args)], capture_output=True, text=True, timeout=timeout, env=env
+    )
     assert p.returncode == 0, (p.stdout[-2000:], p.stderr[-2000:])
     return json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
 
@@ -67,20 +68,42 @@ def test_addon_zip_runs_headless_and_matches_run(sim_python, tmp_path):
     finally:
         sys.path.remove(str(TOOLS))
     zip_path = build(tmp_path / "segadeform_addon.zip")
-    r = CliRunner().invoke(cli, ["motion", "make", "walk", "--seconds", "0.4", "--fps", "30", "-o",
-                                 str(tmp_path / "walk.bvh")])
+    r = CliRunner().invoke(
+        cli, ["motion", "make", "walk", "--seconds", "0.4", "--fps", "30", "-o", str(tmp_path / "walk.bvh")]
+    )
     assert r.exit_code == 0, r.output
     env = dict(os.environ, BLENDER_USER_SCRIPTS=str(tmp_path / "blender-scripts"))  # not the user's add-ons
     frames = [1, 6, 12]
-    got = _blender(sim_python, ADDON_RUN, TOOLS / "render_addon_screenshot.py", zip_path, SEGADEFORM,
-                   tmp_path / "walk.bvh",
-                   SAMPLES / "garments" / "dress.obj", tmp_path / "out", json.dumps(frames), env=env)
+    got = _blender(
+        sim_python,
+        ADDON_RUN,
+        TOOLS / "render_addon_screenshot.py",
+        zip_path,
+        SEGADEFORM,
+        tmp_path / "walk.bvh",
+        SAMPLES / "garments" / "dress.obj",
+        tmp_path / "out",
+        json.dumps(frames),
+        env=env,
+    )
     assert got["result"] == ["FINISHED"] and got["modifiers"] == ["MESH_CACHE"] and got["frames"] == [1, 12]
     assert got["error"] and "cannot start segadeform (/nonexistent/segadeform)" in got["error"]
     folder = tmp_path / "out" / "dress_walk"
     ref = tmp_path / "ref.pc2"
-    r = CliRunner().invoke(cli, ["run", "--garment", str(folder / "garment.obj"), "--motion", str(folder / "motion.bvh"),
-                                 "-o", str(ref), "--quality", "fast"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "run",
+            "--garment",
+            str(folder / "garment.obj"),
+            "--motion",
+            str(folder / "motion.bvh"),
+            "-o",
+            str(ref),
+            "--quality",
+            "fast",
+        ],
+    )
     assert r.exit_code == 0, r.output
     want = read_pc2(ref).frames.astype(np.float64) @ np.array(Y_TO_Z).T
     assert len(want) == 12
@@ -121,12 +144,29 @@ def test_usd_in_blender_matches_the_pc2_path(sim_python, tmp_path):
     every vertex where the documented PC2 recipe (default OBJ import + Mesh Cache) does, within 1e-6 m."""
     pytest.importorskip("pxr", reason="USD output needs the 'usd' extra")
     for out in ("dress.usd", "dress.pc2"):
-        r = CliRunner().invoke(cli, ["run", str(SAMPLES / "scenes" / "dress_dance.toml"), "--frames", "10:16",
-                                     "-o", str(tmp_path / out), "--no-cache"])
+        r = CliRunner().invoke(
+            cli,
+            [
+                "run",
+                str(SAMPLES / "scenes" / "dress_dance.toml"),
+                "--frames",
+                "10:16",
+                "-o",
+                str(tmp_path / out),
+                "--no-cache",
+            ],
+        )
         assert r.exit_code == 0, r.output
     frames = [10, 12, 15]
-    got = _blender(sim_python, USD_VS_PC2, TOOLS / "segadeform_import.py", tmp_path / "dress.usd",
-                   SAMPLES / "garments" / "dress.obj", tmp_path / "dress.pc2", json.dumps(frames))
+    got = _blender(
+        sim_python,
+        USD_VS_PC2,
+        TOOLS / "segadeform_import.py",
+        tmp_path / "dress.usd",
+        SAMPLES / "garments" / "dress.obj",
+        tmp_path / "dress.pc2",
+        json.dumps(frames),
+    )
     err = max(float(np.abs(np.array(got["usd"][str(f)]) - np.array(got["pc2"][str(f)])).max()) for f in frames)
     cache = read_pc2(tmp_path / "dress.pc2")
     want = np.asarray(cache.frames[5], np.float64) @ np.array(Y_TO_Z).T

@@ -35,8 +35,12 @@ print("RESULT" + json.dumps(out))
 
 
 def _blender_world(sim_python, obj, pc2, frames):
-    p = subprocess.run([str(sim_python), "-c", CHECK, str(TOOL), str(obj), str(pc2), json.dumps(frames)],
-                       capture_output=True, text=True, timeout=300)
+    p = subprocess.run(
+        [str(sim_python), "-c", CHECK, str(TOOL), str(obj), str(pc2), json.dumps(frames)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert p.returncode == 0, p.stderr[-2000:]
     line = next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))
     return json.loads(line[6:])
@@ -108,24 +112,50 @@ def test_real_run_output_through_the_import_script(sim_python, tmp_path):
     from ..conftest import SAMPLES
 
     garment_obj = SAMPLES / "garments" / "dress.obj"
-    r = CliRunner().invoke(cli, ["run", str(SAMPLES / "scenes" / "dress_dance.toml"), "--frames", "10:16",
-                                 "-o", str(tmp_path / "dress.pc2"), "--body-out", str(tmp_path / "body.pc2"),
-                                 "--no-cache"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "run",
+            str(SAMPLES / "scenes" / "dress_dance.toml"),
+            "--frames",
+            "10:16",
+            "-o",
+            str(tmp_path / "dress.pc2"),
+            "--body-out",
+            str(tmp_path / "body.pc2"),
+            "--no-cache",
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert (tmp_path / "body.obj").is_file()  # the body's rest mesh, written beside its cache
     garment, body = read_pc2(tmp_path / "dress.pc2"), read_pc2(tmp_path / "body.pc2")
     assert garment.header.start_frame == 10 and body.header.start_frame == 10 and len(garment) == 6
     frames = [10, 12, 15]
-    args = ["--garment", str(garment_obj), "--cache", str(tmp_path / "dress.pc2"),
-            "--body", str(tmp_path / "body.obj"), "--body-cache", str(tmp_path / "body.pc2")]
-    p = subprocess.run([str(sim_python), "-c", CLI_CHECK, str(TOOL), json.dumps(args), json.dumps(frames)],
-                       capture_output=True, text=True, timeout=600)
+    args = [
+        "--garment",
+        str(garment_obj),
+        "--cache",
+        str(tmp_path / "dress.pc2"),
+        "--body",
+        str(tmp_path / "body.obj"),
+        "--body-cache",
+        str(tmp_path / "body.pc2"),
+    ]
+    p = subprocess.run(
+        [str(sim_python), "-c", CLI_CHECK, str(TOOL), json.dumps(args), json.dumps(frames)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stderr[-2000:]
     got = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
     assert (got["frame_start"], got["frame_end"]) == (10, 15)
     R = np.array(Y_TO_Z)
-    report = {"run": "segadeform run samples/scenes/dress_dance.toml --frames 10:16 --body-out body.pc2",
-              "blender_frames": frames, "unit": "m"}
+    report = {
+        "run": "segadeform run samples/scenes/dress_dance.toml --frames 10:16 --body-out body.pc2",
+        "blender_frames": frames,
+        "unit": "m",
+    }
     for name, cache in (("garment", garment), ("body", body)):
         world = got["objects"][str(Path(cache.path).resolve())]
         worst = 0.0

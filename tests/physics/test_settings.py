@@ -47,16 +47,19 @@ def test_effects_are_canonical_and_defaults():
     assert SimSettings().effects == DEFAULT_EFFECTS
 
 
-@pytest.mark.parametrize("table, msg", [
-    ('[simulate]\nmaterial = "silk"\n', "must name its effects"),
-    ('[simulate]\neffects = ["gravity", "magic"]\n', "unknown simulation effect"),
-    ('[simulate]\neffects = ["gravity", "gravity"]\n', "named twice"),
-    ('[simulate]\neffects = []\nmaterial = "paper"\n', "unknown material"),
-    ('[simulate]\neffects = []\nquality = 0\n', "quality"),
-    ('[simulate]\neffects = []\nquality = 2.5\n', "wrong type"),
-    ('[simulate]\neffects = []\nbogus = 1\n', "unknown key simulate.bogus"),
-    ('[simulate]\neffects = []\nwind = [0, 0, 0]\n', "non-zero"),
-])
+@pytest.mark.parametrize(
+    "table, msg",
+    [
+        ('[simulate]\nmaterial = "silk"\n', "must name its effects"),
+        ('[simulate]\neffects = ["gravity", "magic"]\n', "unknown simulation effect"),
+        ('[simulate]\neffects = ["gravity", "gravity"]\n', "named twice"),
+        ('[simulate]\neffects = []\nmaterial = "paper"\n', "unknown material"),
+        ("[simulate]\neffects = []\nquality = 0\n", "quality"),
+        ("[simulate]\neffects = []\nquality = 2.5\n", "wrong type"),
+        ("[simulate]\neffects = []\nbogus = 1\n", "unknown key simulate.bogus"),
+        ("[simulate]\neffects = []\nwind = [0, 0, 0]\n", "non-zero"),
+    ],
+)
 def test_bad_simulate_tables_name_the_file(tmp_path, table, msg):
     with pytest.raises(FileFormatError) as e:
         _scene(tmp_path, table)
@@ -74,4 +77,4 @@ def test_impulse_clamp_reaches_the_cloth_collision_settings(tmp_path):
     assert s.impulse_clamp == 0.02 and blender_settings(s)["collision"]["impulse_clamp"] == 0.02
     assert blender_settings(SimSettings())["collision"]["impulse_clamp"] == 0.0  # Blender's own default: off
     with pytest.raises(FileFormatError, match="impulse_clamp"):
-        _scene(tmp_path, '[simulate]\neffects = []\nimpulse_clamp = 2.0\n')
+        _scene(tmp_path, "[simulate]\neffects = []\nimpulse_clamp = 2.0\n")

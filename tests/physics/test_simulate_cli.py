@@ -14,10 +14,12 @@ def test_simulate_scene_writes_like_run(sim_python, tmp_path, coarse_skirt):
 
     write_obj(tmp_path / "skirt.obj", Mesh(vertices=coarse_skirt.vertices, faces=coarse_skirt.faces))
     scene = tmp_path / "s.toml"
-    scene.write_text('[garment]\nmesh = "skirt.obj"\n[motion]\nkind = "walk"\nseconds = 0.2\n'
-                     '[output]\npath = "out/g.pc2"\nbody = "out/b.pc2"\n'
-                     '[simulate]\neffects = ["gravity", "body_collision"]\nquality = 3\n'
-                     'drape_seconds = 0.1\nblend_seconds = 0.0\n')
+    scene.write_text(
+        '[garment]\nmesh = "skirt.obj"\n[motion]\nkind = "walk"\nseconds = 0.2\n'
+        '[output]\npath = "out/g.pc2"\nbody = "out/b.pc2"\n'
+        '[simulate]\neffects = ["gravity", "body_collision"]\nquality = 3\n'
+        "drape_seconds = 0.1\nblend_seconds = 0.0\n"
+    )
     r = CliRunner().invoke(cli, ["simulate", str(scene)])
     assert r.exit_code == 0, r.output
     for name in ("g.pc2", "b.pc2", "b.obj"):

@@ -20,15 +20,15 @@ output = "out"
 effects = "lbs,collisions"
 
 [[garments]]
-mesh = "{SAMPLES / 'garments' / 'skirt.obj'}"
+mesh = "{SAMPLES / "garments" / "skirt.obj"}"
 
 [[garments]]
 name = "big-skirt"
-mesh = "{SAMPLES / 'garments' / 'skirt.obj'}"
+mesh = "{SAMPLES / "garments" / "skirt.obj"}"
 betas = [0.1]
 
 [[motions]]
-file = "{SAMPLES / 'motions' / 'walk.npz'}"
+file = "{SAMPLES / "motions" / "walk.npz"}"
 frames = "0:6"
 
 [[motions]]
@@ -53,17 +53,20 @@ def test_jobs_file_makes_every_garment_x_motion(tmp_path):
     assert batch_jobs(load_batch(jobs_file(tmp_path, name="again.toml")))[0].spec == jobs[0].spec
 
 
-@pytest.mark.parametrize("edit, msg", [
-    (("[batch]", "[batch]\nspeed = 1"), "unknown key batch.speed"),
-    (("kind = \"dance\"", "kind = \"moonwalk\""), "not a motion kind"),
-    (("kind = \"dance\"", f"kind = \"dance\"\nfile = \"{SAMPLES / 'motions' / 'walk.npz'}\""), "exactly one"),
-    (("name = \"big-skirt\"", "name = \"skirt\""), "used twice"),
-    (("name = \"big-skirt\"", "name = \"a__b\""), "not usable in a file name"),
-    (("effects = \"lbs,collisions\"", "effects = \"fire\""), "unknown effect"),
-    (("frames = \"0:6\"", "frames = \"6:0\""), "0 <= A < B"),
-    (("[batch]", "[batch]\nformat = \"gif\""), "not an output format"),
-    (("betas = [0.1]", "betas = 0.1"), "wrong type"),
-])
+@pytest.mark.parametrize(
+    "edit, msg",
+    [
+        (("[batch]", "[batch]\nspeed = 1"), "unknown key batch.speed"),
+        (('kind = "dance"', 'kind = "moonwalk"'), "not a motion kind"),
+        (('kind = "dance"', f'kind = "dance"\nfile = "{SAMPLES / "motions" / "walk.npz"}"'), "exactly one"),
+        (('name = "big-skirt"', 'name = "skirt"'), "used twice"),
+        (('name = "big-skirt"', 'name = "a__b"'), "not usable in a file name"),
+        (('effects = "lbs,collisions"', 'effects = "fire"'), "unknown effect"),
+        (('frames = "0:6"', 'frames = "6:0"'), "0 <= A < B"),
+        (("[batch]", '[batch]\nformat = "gif"'), "not an output format"),
+        (("betas = [0.1]", "betas = 0.1"), "wrong type"),
+    ],
+)
 def test_bad_jobs_files(tmp_path, edit, msg):
     assert edit[0] in JOBS
     with pytest.raises(FileFormatError, match=msg) as e:
@@ -82,9 +85,24 @@ def test_batch_runs_resumes_and_refuses_a_changed_job(tmp_path, capsys):
     assert rec["frames"] == 6 and rec["files"] == ["skirt__walk.pc2"] and rec["effects"] == "lbs+collisions"
     assert read_pc2(out / "skirt__walk.pc2").frames.shape[0] == 6
     # the same as one `segadeform run` of that garment and motion
-    assert main(["run", "--garment", str(SAMPLES / "garments" / "skirt.obj"), "--motion",
-                 str(SAMPLES / "motions" / "walk.npz"), "--frames", "0:6", "--effects", "lbs,collisions",
-                 "-o", str(tmp_path / "one.pc2")]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--garment",
+                str(SAMPLES / "garments" / "skirt.obj"),
+                "--motion",
+                str(SAMPLES / "motions" / "walk.npz"),
+                "--frames",
+                "0:6",
+                "--effects",
+                "lbs,collisions",
+                "-o",
+                str(tmp_path / "one.pc2"),
+            ]
+        )
+        == 0
+    )
     assert (tmp_path / "one.pc2").read_bytes() == (out / "skirt__walk.pc2").read_bytes()
     # resumed: a job whose record is missing is run again, the others skipped
     (out / "jobs" / "skirt__dance.json").unlink()
@@ -101,8 +119,9 @@ def test_batch_runs_resumes_and_refuses_a_changed_job(tmp_path, capsys):
 
 def test_batch_to_a_url_in_frame_folders(tmp_path):
     fsspec = pytest.importorskip("fsspec")
-    jf = jobs_file(tmp_path, JOBS.replace('output = "out"', 'output = "memory://segadeform-batch-test/out"\n'
-                                                            'format = "obj-seq"'))
+    jf = jobs_file(
+        tmp_path, JOBS.replace('output = "out"', 'output = "memory://segadeform-batch-test/out"\nformat = "obj-seq"')
+    )
     s = run_batch(load_batch(jf), limit=1)
     assert (s.planned, s.skipped, s.made) == (4, 0, 1)
     fs = fsspec.filesystem("memory")

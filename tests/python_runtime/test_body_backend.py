@@ -45,9 +45,18 @@ def custom_body(tmp_path_factory, body):
 
 
 def _run(tmp_path, package, body, effects, **kw):
-    return Run(garment=SKIRT, motion=make_motion("dance", seconds=0.4, seed=2), package=package, body=body,
-               effects=effects, output=tmp_path / "out.pc2", body_output=tmp_path / "body.pc2", batch=4, cache=False,
-               **kw)
+    return Run(
+        garment=SKIRT,
+        motion=make_motion("dance", seconds=0.4, seed=2),
+        package=package,
+        body=body,
+        effects=effects,
+        output=tmp_path / "out.pc2",
+        body_output=tmp_path / "body.pc2",
+        batch=4,
+        cache=False,
+        **kw,
+    )
 
 
 @pytest.mark.parametrize("skinning", ["lbs", "dqs"])
@@ -61,8 +70,8 @@ def test_graph_body_is_the_numpy_body_within_a_micrometre(shipped, body, skinnin
     assert (graph.backend, graph.graph, graph.reason) == ("graph", f"body_{skinning}", None)
     assert numpy.backend == "numpy" and numpy.graph is None
     for lo in range(0, m.n_frames, 8):
-        g = graph.pose(m.poses[lo:lo + 8], betas, m.trans[lo:lo + 8])
-        n = numpy.pose(m.poses[lo:lo + 8], betas, m.trans[lo:lo + 8])
+        g = graph.pose(m.poses[lo : lo + 8], betas, m.trans[lo : lo + 8])
+        n = numpy.pose(m.poses[lo : lo + 8], betas, m.trans[lo : lo + 8])
         assert g.dtype == np.float32 and n.dtype == np.float64 and g.shape == n.shape
         np.testing.assert_allclose(g, n, rtol=0, atol=1e-6)
 
@@ -75,24 +84,38 @@ def test_run_poses_the_package_body_with_its_graph(tmp_path, shipped, body):
     assert s.body_backend == "graph" and "body_lbs" in s.sessions and s.pushed_vertices > 0
     frames, posed = read_pc2(tmp_path / "out.pc2").frames, read_pc2(tmp_path / "body.pc2").frames
     m = make_motion("dance", seconds=0.4, seed=2)
-    want = shipped.run("body_lbs", {"betas": np.zeros(body.n_betas, np.float32),
-                                    "poses": m.poses.reshape(len(m.poses), -1, 3).astype(np.float32),
-                                    "trans": m.trans.astype(np.float32)})[0]
+    want = shipped.run(
+        "body_lbs",
+        {
+            "betas": np.zeros(body.n_betas, np.float32),
+            "poses": m.poses.reshape(len(m.poses), -1, 3).astype(np.float32),
+            "trans": m.trans.astype(np.float32),
+        },
+    )[0]
     np.testing.assert_array_equal(posed, want)
     g = _run(tmp_path / "g", shipped, body, eff, body_backend="graph").execute()
     assert g.body_backend == "graph" and g.pushed_vertices == s.pushed_vertices
     np.testing.assert_array_equal(read_pc2(tmp_path / "g" / "out.pc2").frames, frames)
     n = _run(tmp_path / "n", ModelPackage(SHIPPED), body, eff, body_backend="numpy").execute()  # its own sessions
     assert n.body_backend == "numpy" and "body_lbs" not in n.sessions
-    np.testing.assert_array_equal(read_pc2(tmp_path / "n" / "body.pc2").frames,
-                                  body.forward(m.poses, None, m.trans).vertices.astype(np.float32))
+    np.testing.assert_array_equal(
+        read_pc2(tmp_path / "n" / "body.pc2").frames, body.forward(m.poses, None, m.trans).vertices.astype(np.float32)
+    )
     np.testing.assert_allclose(read_pc2(tmp_path / "n" / "body.pc2").frames, posed, rtol=0, atol=1e-6)
 
 
 def test_no_body_needed_no_body_posed(tmp_path, body):
     eff = Effects(skinning="lbs", dynamics=False, wrinkles=False, collisions=False)
-    r = Run(garment=SKIRT, motion=make_motion("dance", seconds=0.2, seed=2), package=ModelPackage(SHIPPED), body=body,
-            effects=eff, output=tmp_path / "out.pc2", cache=False, body_backend="graph")
+    r = Run(
+        garment=SKIRT,
+        motion=make_motion("dance", seconds=0.2, seed=2),
+        package=ModelPackage(SHIPPED),
+        body=body,
+        effects=eff,
+        output=tmp_path / "out.pc2",
+        cache=False,
+        body_backend="graph",
+    )
     assert r.body_poser is None
     s = r.execute()
     assert s.body_backend is None and not any(x.startswith("body_") for x in s.sessions)
@@ -109,8 +132,9 @@ def test_custom_body_falls_back_to_numpy(tmp_path, shipped, custom_body, caplog)
     assert len(said) == 1 and "numpy" in said[0] and "taller.npz" in said[0], said
     assert s.body_backend == "numpy" and "body_lbs" not in s.sessions
     m = make_motion("dance", seconds=0.4, seed=2)
-    np.testing.assert_array_equal(read_pc2(tmp_path / "body.pc2").frames,
-                                  custom_body.forward(m.poses, None, m.trans).vertices.astype(np.float32))
+    np.testing.assert_array_equal(
+        read_pc2(tmp_path / "body.pc2").frames, custom_body.forward(m.poses, None, m.trans).vertices.astype(np.float32)
+    )
     with pytest.raises(InputError, match="cannot pose the body with the package's body graph.*taller.npz"):
         _run(tmp_path, shipped, custom_body, eff, body_backend="graph")
 
@@ -143,11 +167,35 @@ def test_bad_body_backend_and_inputs_are_refused(tmp_path, shipped, body):
 def test_cli_body_backend(tmp_path):
     from segadeform.cli.main import main
 
-    args = ["run", "--garment", str(SKIRT), "--motion", str(SAMPLES / "motions" / "dance.npz"), "--model",
-            str(SHIPPED), "--frames", "0:4", "--no-cache", "--effects", "lbs,collisions"]
+    args = [
+        "run",
+        "--garment",
+        str(SKIRT),
+        "--motion",
+        str(SAMPLES / "motions" / "dance.npz"),
+        "--model",
+        str(SHIPPED),
+        "--frames",
+        "0:4",
+        "--no-cache",
+        "--effects",
+        "lbs,collisions",
+    ]
     for backend in ("graph", "numpy"):
-        assert main(args + ["-o", str(tmp_path / f"{backend}.pc2"), "--body-out", str(tmp_path / f"{backend}_b.pc2"),
-                            "--body-backend", backend]) == 0
+        assert (
+            main(
+                args
+                + [
+                    "-o",
+                    str(tmp_path / f"{backend}.pc2"),
+                    "--body-out",
+                    str(tmp_path / f"{backend}_b.pc2"),
+                    "--body-backend",
+                    backend,
+                ]
+            )
+            == 0
+        )
     g, n = read_pc2(tmp_path / "graph_b.pc2").frames, read_pc2(tmp_path / "numpy_b.pc2").frames
     assert not np.array_equal(g, n)
     np.testing.assert_allclose(g, n, rtol=0, atol=1e-6)

@@ -29,8 +29,18 @@ def body():
 
 
 def _run(tmp_path, pkg, body, effects, *, batch=4, name="out.pc2", cache=False, frames=None):
-    return Run(garment=SKIRT, motion=make_motion("dance", seconds=0.6, seed=3), package=ModelPackage(pkg), body=body,
-               effects=effects, output=tmp_path / name, batch=batch, cache=cache, force=True, frames=frames).execute()
+    return Run(
+        garment=SKIRT,
+        motion=make_motion("dance", seconds=0.6, seed=3),
+        package=ModelPackage(pkg),
+        body=body,
+        effects=effects,
+        output=tmp_path / name,
+        batch=batch,
+        cache=cache,
+        force=True,
+        frames=frames,
+    ).execute()
 
 
 def test_off_unless_named():
@@ -47,7 +57,7 @@ def test_off_unless_named():
 
 
 def test_scene_keys(tmp_path):
-    base = (f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\n[output]\npath = "{tmp_path / "o.pc2"}"\n')
+    base = f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\n[output]\npath = "{tmp_path / "o.pc2"}"\n'
     p = tmp_path / "s.toml"
     p.write_text(base + "[effects]\ncloth = true\ncloth_iterations = 8\ncloth_stretch = 0.05\n")
     e = load_scene(p).effects
@@ -56,10 +66,12 @@ def test_scene_keys(tmp_path):
     assert not load_scene(p).effects.cloth
     from segadeform.errors import FileFormatError
 
-    for bad, msg in (("cloth = true\ncloth_iterations = 0", "cloth iterations must be an integer"),
-                     ("cloth = true\ncloth_wind = 1", "unknown key effects.cloth_wind"),
-                     ("cloth = 1", "effects.cloth has the wrong type"),
-                     ('cloth = true\ncloth_stiffness = "high"', "effects.cloth_stiffness has the wrong type")):
+    for bad, msg in (
+        ("cloth = true\ncloth_iterations = 0", "cloth iterations must be an integer"),
+        ("cloth = true\ncloth_wind = 1", "unknown key effects.cloth_wind"),
+        ("cloth = 1", "effects.cloth has the wrong type"),
+        ('cloth = true\ncloth_stiffness = "high"', "effects.cloth_stiffness has the wrong type"),
+    ):
         p.write_text(base + f"[effects]\n{bad}\n")
         with pytest.raises(FileFormatError, match=msg) as ei:
             load_scene(p)
@@ -103,12 +115,27 @@ def test_a_run_with_cloth(tmp_path, random_package, body, monkeypatch):
 
 
 def test_command_line(tmp_path, random_package):
-    base = ["run", "--garment", str(SKIRT), "--motion", str(SAMPLES / "motions" / "walk.npz"), "--model",
-            str(random_package), "--no-cache", "--frames", "0:6"]
-    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "a.pc2"), "--effects=+cloth", "--cloth",
-                                        "iterations=2,stiffness=0.5"])
+    base = [
+        "run",
+        "--garment",
+        str(SKIRT),
+        "--motion",
+        str(SAMPLES / "motions" / "walk.npz"),
+        "--model",
+        str(random_package),
+        "--no-cache",
+        "--frames",
+        "0:6",
+    ]
+    r = CliRunner().invoke(
+        cli, base + ["-o", str(tmp_path / "a.pc2"), "--effects=+cloth", "--cloth", "iterations=2,stiffness=0.5"]
+    )
     assert r.exit_code == 0, r.output
-    assert "+cloth(iterations=2,stiffness=0.5)" in r.output and "cloth: " in r.output and "vertex-frames in contact" in r.output
+    assert (
+        "+cloth(iterations=2,stiffness=0.5)" in r.output
+        and "cloth: " in r.output
+        and "vertex-frames in contact" in r.output
+    )
     r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "b.pc2"), "--cloth", "iterations=2"])
     assert r.exit_code == 2 and "the stage is off" in r.output and not (tmp_path / "b.pc2").exists()
     r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "c.pc2"), "--effects=+cloth", "--cloth", "iterations=0"])

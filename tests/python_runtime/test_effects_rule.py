@@ -8,24 +8,42 @@ from tests.conftest import SAMPLES
 
 def test_scene_runs_only_named_effects(tmp_path, random_package):
     scene = tmp_path / "s.toml"
-    scene.write_text(f'[garment]\nmesh = "{SAMPLES / "garments" / "skirt.obj"}"\n[motion]\nkind = "walk"\n'
-                     f'seconds = 0.3\n[output]\npath = "{tmp_path / "o.pc2"}"\n[effects]\nskinning = "dqs"\n')
+    scene.write_text(
+        f'[garment]\nmesh = "{SAMPLES / "garments" / "skirt.obj"}"\n[motion]\nkind = "walk"\n'
+        f'seconds = 0.3\n[output]\npath = "{tmp_path / "o.pc2"}"\n[effects]\nskinning = "dqs"\n'
+    )
     r = CliRunner().invoke(cli, ["run", str(scene), "--model", str(random_package), "--no-cache"])
     assert r.exit_code == 0, r.output
     assert "effects dqs; off: dynamics, wrinkles, collisions" in r.output
     assert "graph deformer_dqs_nowrinkles_static" in r.output and f"wrote {tmp_path / 'o.pc2'}" in r.output
     # the command line's complete list replaces the scene's set; signed items change it
-    r = CliRunner().invoke(cli, ["run", str(scene), "--model", str(random_package), "--no-cache",
-                                 "--effects", "lbs,wrinkles"])
+    r = CliRunner().invoke(
+        cli, ["run", str(scene), "--model", str(random_package), "--no-cache", "--effects", "lbs,wrinkles"]
+    )
     assert r.exit_code == 0 and "effects lbs+wrinkles; off: dynamics, collisions" in r.output
-    r = CliRunner().invoke(cli, ["run", str(scene), "--model", str(random_package), "--no-cache",
-                                 "--effects=+dynamics"])
+    r = CliRunner().invoke(
+        cli, ["run", str(scene), "--model", str(random_package), "--no-cache", "--effects=+dynamics"]
+    )
     assert r.exit_code == 0 and "effects dqs+dynamics; off: wrinkles, collisions" in r.output
 
 
 def test_frames_past_the_motion_are_an_error(tmp_path, random_package):
-    r = CliRunner().invoke(cli, ["run", "--garment", str(SAMPLES / "garments" / "skirt.obj"), "--motion",
-                                 str(SAMPLES / "motions" / "walk.npz"), "-o", str(tmp_path / "o.pc2"),
-                                 "--model", str(random_package), "--no-cache", "--frames", "50:100"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "run",
+            "--garment",
+            str(SAMPLES / "garments" / "skirt.obj"),
+            "--motion",
+            str(SAMPLES / "motions" / "walk.npz"),
+            "-o",
+            str(tmp_path / "o.pc2"),
+            "--model",
+            str(random_package),
+            "--no-cache",
+            "--frames",
+            "50:100",
+        ],
+    )
     assert r.exit_code == 1 and "frame range" in r.output and "90" in r.output
     assert not (tmp_path / "o.pc2").exists()

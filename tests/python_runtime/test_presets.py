@@ -20,7 +20,8 @@ def test_preset_table_and_rules():
         assert isinstance(p.effects, Effects) and p.why
         assert preset_effects(name) == p.effects
     assert preset_effects("fast", "+collisions") == Effects(
-        **{**QUALITY_PRESETS["fast"].effects.__dict__, "collisions": True})
+        **{**QUALITY_PRESETS["fast"].effects.__dict__, "collisions": True}
+    )
     assert preset_effects("best", "dqs,-wrinkles").skinning == "dqs"
     assert not preset_effects("best", "dqs,-wrinkles").wrinkles
     # best runs the cloth stage (the measured frontier's lowest error, docs/accuracy-vs-time.md) at its defaults with
@@ -41,9 +42,21 @@ def test_preset_table_and_rules():
 
 
 def _flags(tmp_path, package, *extra):
-    return ["run", "--garment", str(SAMPLES / "garments" / "skirt.obj"), "--motion",
-            str(SAMPLES / "motions" / "walk.npz"), "--frames", "0:4", "-o", str(tmp_path / "o.pc2"),
-            "--model", str(package), "--no-cache", *extra]
+    return [
+        "run",
+        "--garment",
+        str(SAMPLES / "garments" / "skirt.obj"),
+        "--motion",
+        str(SAMPLES / "motions" / "walk.npz"),
+        "--frames",
+        "0:4",
+        "-o",
+        str(tmp_path / "o.pc2"),
+        "--model",
+        str(package),
+        "--no-cache",
+        *extra,
+    ]
 
 
 def _label(e: Effects) -> str:
@@ -73,8 +86,10 @@ def test_run_quality_presets_pick_their_effects(tmp_path, random_package):
 
 def test_quality_replaces_a_scenes_effects(tmp_path, random_package):
     scene = tmp_path / "s.toml"
-    scene.write_text(f'[garment]\nmesh = "{SAMPLES / "garments" / "skirt.obj"}"\n[motion]\nkind = "walk"\n'
-                     f'seconds = 0.2\n[output]\npath = "{tmp_path / "o.pc2"}"\n[effects]\nskinning = "dqs"\n')
+    scene.write_text(
+        f'[garment]\nmesh = "{SAMPLES / "garments" / "skirt.obj"}"\n[motion]\nkind = "walk"\n'
+        f'seconds = 0.2\n[output]\npath = "{tmp_path / "o.pc2"}"\n[effects]\nskinning = "dqs"\n'
+    )
     r = CliRunner().invoke(cli, ["run", str(scene), "--model", str(random_package), "--no-cache", "--quality", "best"])
     assert r.exit_code == 0, r.output
     assert f"(quality best: {_label(QUALITY_PRESETS['best'].effects)};" in r.output

@@ -29,8 +29,17 @@ def body():
 def make_run(tmp_path, package_path, body, effects, *, motion=None, garment=SKIRT, batch=4, **kw):
     pkg = ModelPackage(package_path)
     motion = motion or make_motion("walk", seconds=0.5)
-    return Run(garment=garment, motion=motion, package=pkg, body=body, effects=effects,
-               output=tmp_path / "out.pc2", batch=batch, cache=False, **kw)
+    return Run(
+        garment=garment,
+        motion=motion,
+        package=pkg,
+        body=body,
+        effects=effects,
+        output=tmp_path / "out.pc2",
+        batch=batch,
+        cache=False,
+        **kw,
+    )
 
 
 # ---- effects: only the stages a scene names run -----------------------------------------------
@@ -52,8 +61,15 @@ def test_wrinkles_off_means_zero_blend_shapes(tmp_path, random_package, body):
     for wr in (True, False):
         d = Deformer(ModelPackage(random_package), Effects(wrinkles=wr))
         P = d.encode(asset, joints)
-        out[wr] = d.deform(P, asset, win if wr or d.window == 5 else win[:, :1], joints, trans, outputs=True,
-                           log_wbody=d.body_log_weights(asset, body))
+        out[wr] = d.deform(
+            P,
+            asset,
+            win if wr or d.window == 5 else win[:, :1],
+            joints,
+            trans,
+            outputs=True,
+            log_wbody=d.body_log_weights(asset, body),
+        )
     v_on, w_on, b_on = out[True]
     v_off, w_off, b_off = out[False]
     assert (b_off == 0).all() and np.abs(b_on).max() > 0
@@ -76,11 +92,15 @@ def test_dynamics_off_depends_on_the_current_pose_only(tmp_path, random_package,
     P = d.encode(asset, joints)
     z = np.zeros((1, 3))
     lw = d.body_log_weights(asset, body)
-    np.testing.assert_array_equal(d.deform(P, asset, hist_a[:, :1], joints, z, log_wbody=lw),
-                                  d.deform(P, asset, hist_b[:, :1], joints, z, log_wbody=lw))
+    np.testing.assert_array_equal(
+        d.deform(P, asset, hist_a[:, :1], joints, z, log_wbody=lw),
+        d.deform(P, asset, hist_b[:, :1], joints, z, log_wbody=lw),
+    )
     P2 = d_dyn.encode(asset, joints)
-    assert not np.allclose(d_dyn.deform(P2, asset, hist_a, joints, z, log_wbody=lw),
-                           d_dyn.deform(P2, asset, hist_b, joints, z, log_wbody=lw))
+    assert not np.allclose(
+        d_dyn.deform(P2, asset, hist_a, joints, z, log_wbody=lw),
+        d_dyn.deform(P2, asset, hist_b, joints, z, log_wbody=lw),
+    )
 
 
 def test_collisions_off_never_poses_the_body(tmp_path, random_package, body, monkeypatch):
@@ -150,7 +170,9 @@ def test_body_weights_are_cached_on_disk(tmp_path, body, monkeypatch):
     # a broken entry is recomputed, not trusted
     for p in (tmp_path / "cache").glob("W-*.npy"):
         p.write_bytes(b"broken")
-    np.testing.assert_array_equal(Deformer(ModelPackage(pkg)).body_log_weights(asset, body, cache_dir=tmp_path / "cache"), lw)
+    np.testing.assert_array_equal(
+        Deformer(ModelPackage(pkg)).body_log_weights(asset, body, cache_dir=tmp_path / "cache"), lw
+    )
 
 
 def test_encoder_runs_once_and_is_cached_on_disk(tmp_path, random_package, body):
@@ -175,7 +197,9 @@ def test_output_keeps_the_files_vertex_order(tmp_path, random_package, body):
     g = tmp_path / "quads.obj"
     shutil.copy(SKIRT, g)
     still = Motion(poses=np.zeros((3, 72)), trans=np.zeros((3, 3)), fps=30)
-    make_run(tmp_path, random_package, body, Effects(wrinkles=False, collisions=False), motion=still, garment=g).execute()
+    make_run(
+        tmp_path, random_package, body, Effects(wrinkles=False, collisions=False), motion=still, garment=g
+    ).execute()
     frames = read_pc2(tmp_path / "out.pc2").frames
     rest = read_obj(g).vertices
     assert frames.shape == (3, len(rest), 3)
@@ -221,21 +245,26 @@ def corrupt(tmp_path, random_package, edit):
     return p
 
 
-@pytest.mark.parametrize("edit, words", [
-    (lambda p: (p / "manifest.json").unlink(), "no manifest.json"),
-    (lambda p: (p / "manifest.json").write_text("{not json"), "not valid JSON"),
-    (lambda p: _manifest(p, schema_version=99), "schema version"),
-    (lambda p: _manifest(p, opset=7), "opset"),
-    (lambda p: (p / "deformer_dqs.onnx").unlink(), "file is missing"),
-    (lambda p: (p / "deformer_lbs.onnx").write_bytes(b"junk"), "does not match its manifest hash"),
-    (lambda p: (p / "weights.bin").write_bytes(b"junk"), "weights file does not match its manifest hash"),
-    (lambda p: (p / "weights.bin").unlink(), "the weights file is missing"),
-    (lambda p: _manifest(p, graphs=dict(_m(p)["graphs"], deformer_lbs_static=_m(p)["graphs"]["deformer_lbs"])),
-     "name the same file"),
-    (lambda p: _manifest(p, default_deformer="deformer"), "default_deformer is not a deformer graph"),
-    (lambda p: _manifest(p, format="something-else"), "not a segadeform model package"),
-    (lambda p: _rename_input(p), "disagree with the manifest"),
-])
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        (lambda p: (p / "manifest.json").unlink(), "no manifest.json"),
+        (lambda p: (p / "manifest.json").write_text("{not json"), "not valid JSON"),
+        (lambda p: _manifest(p, schema_version=99), "schema version"),
+        (lambda p: _manifest(p, opset=7), "opset"),
+        (lambda p: (p / "deformer_dqs.onnx").unlink(), "file is missing"),
+        (lambda p: (p / "deformer_lbs.onnx").write_bytes(b"junk"), "does not match its manifest hash"),
+        (lambda p: (p / "weights.bin").write_bytes(b"junk"), "weights file does not match its manifest hash"),
+        (lambda p: (p / "weights.bin").unlink(), "the weights file is missing"),
+        (
+            lambda p: _manifest(p, graphs=dict(_m(p)["graphs"], deformer_lbs_static=_m(p)["graphs"]["deformer_lbs"])),
+            "name the same file",
+        ),
+        (lambda p: _manifest(p, default_deformer="deformer"), "default_deformer is not a deformer graph"),
+        (lambda p: _manifest(p, format="something-else"), "not a segadeform model package"),
+        (lambda p: _rename_input(p), "disagree with the manifest"),
+    ],
+)
 def test_broken_packages_are_refused(tmp_path, random_package, edit, words):
     p = corrupt(tmp_path, random_package, edit)
     with pytest.raises(PackageError, match=words):
@@ -262,25 +291,58 @@ def _rename_input(p):
 # ---- CLI ---------------------------------------------------------------------------------------
 def test_run_cli_scene_and_flags(tmp_path, random_package):
     out = tmp_path / "skirt.pc2"
-    r = CliRunner().invoke(cli, ["run", str(SAMPLES / "scenes" / "skirt_walk.toml"), "--model", str(random_package),
-                                 "-o", str(out), "--frames", "0:12", "--no-cache"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "run",
+            str(SAMPLES / "scenes" / "skirt_walk.toml"),
+            "--model",
+            str(random_package),
+            "-o",
+            str(out),
+            "--frames",
+            "0:12",
+            "--no-cache",
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert "12 frames" in r.output and "ms/frame" in r.output and str(out) in r.output
     assert read_pc2(out).frames.shape == (12, 1536, 3)
     motion = tmp_path / "m.npz"
     make_motion("jump", seconds=0.5).save(motion)
-    r = CliRunner().invoke(cli, ["run", "--garment", str(SKIRT), "--motion", str(motion), "-o", str(tmp_path / "seq"),
-                                 "--format", "obj-seq", "--model", str(random_package), "--effects", "dqs,-collisions",
-                                 "--up", "z", "--no-cache"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "run",
+            "--garment",
+            str(SKIRT),
+            "--motion",
+            str(motion),
+            "-o",
+            str(tmp_path / "seq"),
+            "--format",
+            "obj-seq",
+            "--model",
+            str(random_package),
+            "--effects",
+            "dqs,-collisions",
+            "--up",
+            "z",
+            "--no-cache",
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert len(list((tmp_path / "seq").glob("*.obj"))) == 15
 
 
-@pytest.mark.parametrize("args, words", [
-    (["--garment", "nope.obj", "--motion", "m.npz", "-o", "x.pc2"], "nope.obj"),
-    (["--garment", str(SKIRT), "--motion", "m.npz", "-o", "x.pc2", "--effects", "glitter"], "unknown effect"),
-    (["--garment", str(SKIRT), "--motion", "m.npz", "-o", "x.pc2", "--frames", "9:3"], "frame range"),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--garment", "nope.obj", "--motion", "m.npz", "-o", "x.pc2"], "nope.obj"),
+        (["--garment", str(SKIRT), "--motion", "m.npz", "-o", "x.pc2", "--effects", "glitter"], "unknown effect"),
+        (["--garment", str(SKIRT), "--motion", "m.npz", "-o", "x.pc2", "--frames", "9:3"], "frame range"),
+    ],
+)
 def test_run_cli_errors(tmp_path, random_package, args, words, monkeypatch):
     monkeypatch.chdir(tmp_path)
     make_motion("idle", seconds=0.2).save(tmp_path / "m.npz")
@@ -317,8 +379,20 @@ def test_run_works_without_torch(tmp_path, random_package):
 def test_run_writes_alembic(tmp_path, random_package):
     from segadeform.io.alembic import read_alembic_sequence
 
-    r = CliRunner().invoke(cli, ["run", str(SAMPLES / "scenes" / "skirt_walk.toml"), "--model", str(random_package),
-                                 "-o", str(tmp_path / "skirt.abc"), "--frames", "0:4", "--no-cache"])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "run",
+            str(SAMPLES / "scenes" / "skirt_walk.toml"),
+            "--model",
+            str(random_package),
+            "-o",
+            str(tmp_path / "skirt.abc"),
+            "--frames",
+            "0:4",
+            "--no-cache",
+        ],
+    )
     assert r.exit_code == 0, r.output
     faces, frames, _ = read_alembic_sequence(tmp_path / "skirt.abc")
     assert frames.shape == (4, 1536, 3) and faces.shape == (2944, 3)
@@ -329,14 +403,21 @@ def test_encoder_cache_does_not_hide_a_broken_manifest(tmp_path, random_package,
     joints = body.rest_joints()[0]
     asset = make_run(tmp_path, random_package, body, Effects()).load_asset(joints)
     Deformer(ModelPackage(random_package)).encode(asset, joints, cache_dir=tmp_path / "cache")
-    broken = corrupt(tmp_path, random_package,
-                     lambda p: _manifest(p, graphs={**json.loads((p / "manifest.json").read_text())["graphs"],
-                                                    "garment_encoder": {**json.loads((p / "manifest.json").read_text())
-                                                                        ["graphs"]["garment_encoder"],
-                                                                        "inputs": [{"name": "feats", "dtype": "float32",
-                                                                                    "shape": ["B", "N", 30]}] +
-                                                                        json.loads((p / "manifest.json").read_text())
-                                                                        ["graphs"]["garment_encoder"]["inputs"][1:]}}))
+    broken = corrupt(
+        tmp_path,
+        random_package,
+        lambda p: _manifest(
+            p,
+            graphs={
+                **json.loads((p / "manifest.json").read_text())["graphs"],
+                "garment_encoder": {
+                    **json.loads((p / "manifest.json").read_text())["graphs"]["garment_encoder"],
+                    "inputs": [{"name": "feats", "dtype": "float32", "shape": ["B", "N", 30]}]
+                    + json.loads((p / "manifest.json").read_text())["graphs"]["garment_encoder"]["inputs"][1:],
+                },
+            },
+        ),
+    )
     with pytest.raises(PackageError, match="disagree with the manifest"):
         Deformer(ModelPackage(broken)).encode(asset, joints, cache_dir=tmp_path / "cache")
 

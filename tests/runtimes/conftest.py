@@ -18,8 +18,9 @@ def node():
     if shutil.which("node") is None:
         pytest.fail("node is not on PATH (the project's runtimes need Node.js >= 18)")
     if not (NODE / "node_modules" / "onnxruntime-node").is_dir():
-        pytest.fail("runtimes/node has no node_modules: run `ONNXRUNTIME_NODE_INSTALL=skip npm ci` there "
-                    "(.ci/run does)")
+        pytest.fail(
+            "runtimes/node has no node_modules: run `ONNXRUNTIME_NODE_INSTALL=skip npm ci` there (.ci/run does)"
+        )
     return ["node", str(NODE / "src" / "cli.js")]
 
 
@@ -31,8 +32,9 @@ def cpp(tmp_path_factory):
         if shutil.which(tool) is None:
             pytest.fail(f"{tool} is not on PATH (building the C++ runtime needs go, cmake and g++)")
     build = tmp_path_factory.mktemp("cpp") / "build"
-    b = subprocess.run([str(REPO / "tools" / "onnxruntime_cpp.sh"), str(build)], capture_output=True, text=True,
-                       timeout=900)
+    b = subprocess.run(
+        [str(REPO / "tools" / "onnxruntime_cpp.sh"), str(build)], capture_output=True, text=True, timeout=900
+    )
     assert b.returncode == 0, (b.stdout + b.stderr)[-3000:]
     return [b.stdout.strip().splitlines()[-1]]
 
@@ -45,9 +47,11 @@ def shared_bundle(tmp_path_factory, random_package):
 
     d = tmp_path_factory.mktemp("bundle")
     scene = d / "s.toml"
-    scene.write_text(f'[garment]\nmesh = "{SAMPLES / "garments" / "dress.obj"}"\n[motion]\nkind = "dance"\n'
-                     f'seconds = 0.4\nseed = 2\n[body]\nbetas = [0.5, -0.3]\n[output]\npath = "{d / "o.pc2"}"\n'
-                     '[effects]\nskinning = "dqs"\ndynamics = true\nwrinkles = true\n')
+    scene.write_text(
+        f'[garment]\nmesh = "{SAMPLES / "garments" / "dress.obj"}"\n[motion]\nkind = "dance"\n'
+        f'seconds = 0.4\nseed = 2\n[body]\nbetas = [0.5, -0.3]\n[output]\npath = "{d / "o.pc2"}"\n'
+        '[effects]\nskinning = "dqs"\ndynamics = true\nwrinkles = true\n'
+    )
     # force: the sample dress was made on the mean body; here it is only numbers to run, shaped by betas
     return scene_bundle(load_scene(scene), d / "s.sgdb", model=random_package, batch=5, force=True)
 
@@ -65,19 +69,59 @@ def portable_scene(tmp_path_factory, random_package):
 
     d = tmp_path_factory.mktemp("portable")
     betas = "0.5,-0.3"
-    assert main(["garment", "export", str(SAMPLES / "garments" / "dress.obj"), "--betas", betas, "--model",
-                 str(random_package), "--force", "-o", str(d / "garment.sgda")]) == 0
-    assert main(["motion", "export", "dance", "--seconds", "0.4", "--seed", "2", "--betas", betas,
-                 "-o", str(d / "motion.sgdm")]) == 0
+    assert (
+        main(
+            [
+                "garment",
+                "export",
+                str(SAMPLES / "garments" / "dress.obj"),
+                "--betas",
+                betas,
+                "--model",
+                str(random_package),
+                "--force",
+                "-o",
+                str(d / "garment.sgda"),
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "motion",
+                "export",
+                "dance",
+                "--seconds",
+                "0.4",
+                "--seed",
+                "2",
+                "--betas",
+                betas,
+                "-o",
+                str(d / "motion.sgdm"),
+            ]
+        )
+        == 0
+    )
     # the same garment and motion through `segadeform run` (Python): the asset, and the motion it was made from
     scene = d / "s.toml"
-    scene.write_text(f'[garment]\nmesh = "{d / "garment.sgda"}"\n[motion]\nkind = "dance"\nseconds = 0.4\nseed = 2\n'
-                     f'[body]\nbetas = [0.5, -0.3]\n[output]\npath = "{d / "python.pc2"}"\n'
-                     f'body = "{d / "python_body.pc2"}"\n'
-                     '[effects]\nskinning = "dqs"\ndynamics = true\nwrinkles = true\n')
+    scene.write_text(
+        f'[garment]\nmesh = "{d / "garment.sgda"}"\n[motion]\nkind = "dance"\nseconds = 0.4\nseed = 2\n'
+        f'[body]\nbetas = [0.5, -0.3]\n[output]\npath = "{d / "python.pc2"}"\n'
+        f'body = "{d / "python_body.pc2"}"\n'
+        '[effects]\nskinning = "dqs"\ndynamics = true\nwrinkles = true\n'
+    )
     assert main(["run", str(scene), "--model", str(random_package), "--force", "--no-cache"]) == 0
     frames, body = read_pc2(d / "python.pc2").frames, read_pc2(d / "python_body.pc2").frames
     assert np.isfinite(frames).all() and np.isfinite(body).all()
     write_bundle(d / "check.sgdb", {"expected": frames, "body": body}, {"effects": "dqs,dynamics,wrinkles"})
-    return {"dir": d, "garment": d / "garment.sgda", "motion": d / "motion.sgdm", "check": d / "check.sgdb",
-            "frames": frames, "body": body, "effects": "dqs,dynamics,wrinkles"}
+    return {
+        "dir": d,
+        "garment": d / "garment.sgda",
+        "motion": d / "motion.sgdm",
+        "check": d / "check.sgdb",
+        "frames": frames,
+        "body": body,
+        "effects": "dqs,dynamics,wrinkles",
+    }

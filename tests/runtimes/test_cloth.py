@@ -56,18 +56,30 @@ def cloth_vector(request, tmp_path_factory):
     setup = garment_setup(v, f, rest_body, body.faces, settings)
     stage = ClothStage(setup, body.v_template, body.faces, settings, margin=MARGIN, dt=1 / 30)
     batch = 5
-    out = np.concatenate([stage.step(targets[lo:lo + batch], posed[lo:lo + batch])
-                          for lo in range(0, len(targets), batch)])
+    out = np.concatenate(
+        [stage.step(targets[lo : lo + batch], posed[lo : lo + batch]) for lo in range(0, len(targets), batch)]
+    )
     assert stage.resets == 1 and stage.contacts > 200 and stage.pushed > 0  # the vector means something
     path = tmp_path_factory.mktemp("cloth") / "vec.sgdb"
-    write_bundle(path, {"rest": v, "faces": f.astype(np.int32), "rest_body": rest_body,
-                        "body_faces": body.faces.astype(np.int32), "targets": targets, "posed": posed,
-                        "edges": setup.edges.astype(np.int32), "rest_len": setup.rest_len,
-                        "nptr": setup.nptr.astype(np.int32), "nidx": setup.nidx.astype(np.int32),
-                        "radius": setup.radius, "expected": out},
-                 {"settings": dataclasses.asdict(settings), "margin": MARGIN, "dt": 1 / 30, "batch": batch})
-    return path, {"contacts": stage.contacts, "pushed": stage.pushed, "resets": stage.resets,
-                  "settings": request.param}
+    write_bundle(
+        path,
+        {
+            "rest": v,
+            "faces": f.astype(np.int32),
+            "rest_body": rest_body,
+            "body_faces": body.faces.astype(np.int32),
+            "targets": targets,
+            "posed": posed,
+            "edges": setup.edges.astype(np.int32),
+            "rest_len": setup.rest_len,
+            "nptr": setup.nptr.astype(np.int32),
+            "nidx": setup.nidx.astype(np.int32),
+            "radius": setup.radius,
+            "expected": out,
+        },
+        {"settings": dataclasses.asdict(settings), "margin": MARGIN, "dt": 1 / 30, "batch": batch},
+    )
+    return path, {"contacts": stage.contacts, "pushed": stage.pushed, "resets": stage.resets, "settings": request.param}
 
 
 def test_javascript_cloth_is_the_compiled_kernel(cloth_vector, node):
@@ -99,31 +111,61 @@ def clothed(tmp_path_factory):
     v[:, [0, 2]] = c[[0, 2]] + TIGHTEN * (v[:, [0, 2]] - c[[0, 2]])
     write_obj(d / "tight_dress.obj", m, vertices=v)
     sc = load_scene(SAMPLES / "scenes" / "dress_dance.toml")
-    sc = dataclasses.replace(sc, garment=d / "tight_dress.obj",
-                             motion=dataclasses.replace(sc.motion, frames=(0, FRAMES)))
+    sc = dataclasses.replace(
+        sc, garment=d / "tight_dress.obj", motion=dataclasses.replace(sc.motion, frames=(0, FRAMES))
+    )
     files = scene_vectors(sc, d, model=pkg, force=True)
     scene = d / "cloth.toml"
-    scene.write_text(f'[garment]\nmesh = "{files["garment"]}"\n[motion]\nfile = "{files["motion"]}"\n'
-                     f'[output]\npath = "{d / "py.pc2"}"\nbody = "{d / "py_body.pc2"}"\n'
-                     '[effects]\nskinning = "lbs"\ndynamics = true\nwrinkles = true\ncloth = true\n')
+    scene.write_text(
+        f'[garment]\nmesh = "{files["garment"]}"\n[motion]\nfile = "{files["motion"]}"\n'
+        f'[output]\npath = "{d / "py.pc2"}"\nbody = "{d / "py_body.pc2"}"\n'
+        '[effects]\nskinning = "lbs"\ndynamics = true\nwrinkles = true\ncloth = true\n'
+    )
     s = run_scene(load_scene(scene), model=pkg, cache=False, force=True)
     assert s.body_backend == "graph" and s.cloth["contacts"] > 0.2 * FRAMES * len(v)
     frames = read_pc2(d / "py.pc2").frames
     write_bundle(d / "clothed.sgdb", {"expected": frames})
-    return dict(files, package=pkg, dir=d, frames=frames, cloth=s.cloth, check_clothed=d / "clothed.sgdb",
-                ms=1e3 * s.stage_seconds["cloth"] / FRAMES)
+    return dict(
+        files,
+        package=pkg,
+        dir=d,
+        frames=frames,
+        cloth=s.cloth,
+        check_clothed=d / "clothed.sgdb",
+        ms=1e3 * s.stage_seconds["cloth"] / FRAMES,
+    )
 
 
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
 def test_runtime_cloth_matches_segadeform_run(runtime, request, clothed, tmp_path):
     exe = request.getfixturevalue(runtime)
     c = clothed
-    p = subprocess.run(exe + ["--package", str(c["package"]), "--garment", str(c["garment"]), "--motion",
-                              str(c["motion"]), "--effects", EFFECTS, "-o", str(tmp_path / "g.pc2"), "--batch", "8"],
-                       capture_output=True, text=True, timeout=600)
+    p = subprocess.run(
+        exe
+        + [
+            "--package",
+            str(c["package"]),
+            "--garment",
+            str(c["garment"]),
+            "--motion",
+            str(c["motion"]),
+            "--effects",
+            EFFECTS,
+            "-o",
+            str(tmp_path / "g.pc2"),
+            "--batch",
+            "8",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stdout + p.stderr
-    m = re.search(r"cloth: (\d+) vertex-frames in contact, (\d+) pushed out after the sweeps, (\d+) reset\(s\), "
-                  r"([\d.]+) ms/frame", p.stdout)
+    m = re.search(
+        r"cloth: (\d+) vertex-frames in contact, (\d+) pushed out after the sweeps, (\d+) reset\(s\), "
+        r"([\d.]+) ms/frame",
+        p.stdout,
+    )
     assert m, p.stdout
     counts = {"contacts": int(m.group(1)), "pushed": int(m.group(2)), "resets": int(m.group(3))}
     got = read_pc2(tmp_path / "g.pc2").frames
@@ -140,29 +182,64 @@ def test_cloth_knobs_and_refusals_in_the_runtimes(node, cpp, clothed, tmp_path):
 
     c = clothed
     knobs = "iterations=2,stiffness=0.5,gravity=0"
-    assert main(["run", "--garment", str(c["garment"]), "--motion", str(c["motion"]), "--model", str(c["package"]),
-                 "--effects", EFFECTS, "--cloth", knobs, "--no-cache", "--force", "-o", str(tmp_path / "py.pc2")]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--garment",
+                str(c["garment"]),
+                "--motion",
+                str(c["motion"]),
+                "--model",
+                str(c["package"]),
+                "--effects",
+                EFFECTS,
+                "--cloth",
+                knobs,
+                "--no-cache",
+                "--force",
+                "-o",
+                str(tmp_path / "py.pc2"),
+            ]
+        )
+        == 0
+    )
     want = read_pc2(tmp_path / "py.pc2").frames
     assert np.abs(np.asarray(want, np.float64) - c["frames"]).max() > 1e-4  # the knobs change the frames
     for name, exe in (("node", node), ("cpp", cpp)):
         base = exe + ["--package", str(c["package"]), "--garment", str(c["garment"]), "--motion", str(c["motion"])]
-        p = subprocess.run(base + ["--effects", EFFECTS, "--cloth", knobs, "-o", str(tmp_path / f"{name}.pc2")],
-                           capture_output=True, text=True, timeout=600)
+        p = subprocess.run(
+            base + ["--effects", EFFECTS, "--cloth", knobs, "-o", str(tmp_path / f"{name}.pc2")],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         assert p.returncode == 0, p.stdout + p.stderr
         assert _agree(read_pc2(tmp_path / f"{name}.pc2").frames, want, 1)["exact"]
-        p = subprocess.run(base + ["--cloth", "iterations=2", "-o", str(tmp_path / "x.pc2")], capture_output=True,
-                           text=True, timeout=600)
+        p = subprocess.run(
+            base + ["--cloth", "iterations=2", "-o", str(tmp_path / "x.pc2")],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         assert p.returncode == 2 and "the stage is off" in p.stderr, p.stderr
-        p = subprocess.run(base + ["--effects", EFFECTS, "--cloth", "iterations=0", "-o", str(tmp_path / "x.pc2")],
-                           capture_output=True, text=True, timeout=600)
+        p = subprocess.run(
+            base + ["--effects", EFFECTS, "--cloth", "iterations=0", "-o", str(tmp_path / "x.pc2")],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         assert p.returncode == 1 and "cloth iterations must be an integer" in p.stderr, p.stderr
         assert not (tmp_path / "x.pc2").exists()
 
 
 @pytest.fixture(scope="module")
 def clothed_site(tmp_path_factory, clothed):
-    return _site(tmp_path_factory.mktemp("site"), clothed["package"],
-                 [clothed[k] for k in ("garment", "motion", "check_clothed")])
+    return _site(
+        tmp_path_factory.mktemp("site"),
+        clothed["package"],
+        [clothed[k] for k in ("garment", "motion", "check_clothed")],
+    )
 
 
 def test_browser_cloth_every_frame(clothed_site, clothed, tmp_path):
@@ -175,8 +252,14 @@ def test_browser_cloth_every_frame(clothed_site, clothed, tmp_path):
     assert (r["T"], r["N"]) == shape[:2] and r["cloth"] is not None
     got = np.fromfile(tmp_path / "cloth.f32", "<f4").reshape(shape)
     a = _agree(got, c["frames"], c["cloth"]["contacts"])
-    _report("browser wasm", **a, contacts=r["cloth"]["contacts"], pushed=r["cloth"]["pushed"], python=c["cloth"],
-            ms_per_frame=r["cloth"]["msPerFrame"])
+    _report(
+        "browser wasm",
+        **a,
+        contacts=r["cloth"]["contacts"],
+        pushed=r["cloth"]["pushed"],
+        python=c["cloth"],
+        ms_per_frame=r["cloth"]["msPerFrame"],
+    )
     assert a["ok"], a
     assert abs(r["cloth"]["contacts"] - c["cloth"]["contacts"]) <= max(3, c["cloth"]["contacts"] // 1000)
     assert r["cloth"]["resets"] == c["cloth"]["resets"] == 0

@@ -84,19 +84,32 @@ def collider_vector(tmp_path_factory):
     iterations = 3
     push_out, moved = col.push_out(push_in, posed, 0.01, iterations=iterations)
     path = tmp_path_factory.mktemp("collide") / "vec.sgdb"
-    write_bundle(path, {"rest": body.v_template, "faces": body.faces.astype(np.int32), "posed": posed,
-                        "points": points, "sd": q.signed_distance, "closest": q.closest, "normal": q.normal,
-                        "face": q.face.astype(np.int32), "push_in": push_in, "push_out": push_out},
-                 {"margin": 0.01, "iterations": iterations, "moved": moved, "query_frame": 1})
+    write_bundle(
+        path,
+        {
+            "rest": body.v_template,
+            "faces": body.faces.astype(np.int32),
+            "posed": posed,
+            "points": points,
+            "sd": q.signed_distance,
+            "closest": q.closest,
+            "normal": q.normal,
+            "face": q.face.astype(np.int32),
+            "push_in": push_in,
+            "push_out": push_out,
+        },
+        {"margin": 0.01, "iterations": iterations, "moved": moved, "query_frame": 1},
+    )
     return path, {"moved": moved, "inside": int((q.signed_distance < 0).sum()), "points": len(points)}
 
 
 def _node_vectors(script: str, vector, tag: str) -> dict:
     """Run ``runtimes/node/scripts/SCRIPT VECTOR`` and return the JSON of its ``TAG {json}`` line."""
-    p = subprocess.run(["node", str(NODE / "scripts" / script), str(vector)], capture_output=True, text=True,
-                       timeout=600)
+    p = subprocess.run(
+        ["node", str(NODE / "scripts" / script), str(vector)], capture_output=True, text=True, timeout=600
+    )
     assert p.returncode == 0, p.stderr[-3000:]
-    return json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith(tag + " "))[len(tag) + 1:])
+    return json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith(tag + " "))[len(tag) + 1 :])
 
 
 def test_javascript_collider_is_the_compiled_kernel(collider_vector, node):
@@ -134,32 +147,66 @@ def collided(tmp_path_factory):
     v[:, [0, 2]] = c[[0, 2]] + TIGHTEN * (v[:, [0, 2]] - c[[0, 2]])  # narrower, about its vertical axis
     write_obj(d / "tight_dress.obj", m, vertices=v)
     sc = load_scene(SAMPLES / "scenes" / "dress_dance.toml")
-    sc = dataclasses.replace(sc, garment=d / "tight_dress.obj",
-                             motion=dataclasses.replace(sc.motion, frames=(0, FRAMES)))
+    sc = dataclasses.replace(
+        sc, garment=d / "tight_dress.obj", motion=dataclasses.replace(sc.motion, frames=(0, FRAMES))
+    )
     files = scene_vectors(sc, d, model=pkg, force=True)  # force: a tight garment is inside the body
     scene = d / "collide.toml"
-    scene.write_text(f'[garment]\nmesh = "{files["garment"]}"\n[motion]\nfile = "{files["motion"]}"\n'
-                     f'[output]\npath = "{d / "py.pc2"}"\nbody = "{d / "py_body.pc2"}"\n')  # every effect
+    scene.write_text(
+        f'[garment]\nmesh = "{files["garment"]}"\n[motion]\nfile = "{files["motion"]}"\n'
+        f'[output]\npath = "{d / "py.pc2"}"\nbody = "{d / "py_body.pc2"}"\n'
+    )  # every effect
     s = run_scene(load_scene(scene), model=pkg, cache=False, force=True)
     assert s.effects == Effects() and s.effects.collision_margin == MARGIN and s.variant == "deformer_lbs"
     assert s.body_backend == "graph" and "body_lbs" in s.sessions  # the package's body graph poses the body
     frames, body = read_pc2(d / "py.pc2").frames, read_pc2(d / "py_body.pc2").frames
     # `segadeform run` on the command line, the motion file given as --motion: the same frames
-    assert main(["run", "--garment", str(files["garment"]), "--motion", str(files["motion"]), "--model", str(pkg),
-                 "--force", "--no-cache", "-o", str(d / "cli.pc2")]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--garment",
+                str(files["garment"]),
+                "--motion",
+                str(files["motion"]),
+                "--model",
+                str(pkg),
+                "--force",
+                "--no-cache",
+                "-o",
+                str(d / "cli.pc2"),
+            ]
+        )
+        == 0
+    )
     np.testing.assert_array_equal(read_pc2(d / "cli.pc2").frames, frames)
     before = read_bundle(files["check"])[0]["expected"]
     assert before.shape == frames.shape == (FRAMES, before.shape[1], 3)
     write_bundle(d / "collided.sgdb", {"expected": frames, "body": body})
     n = frames.shape[0] * frames.shape[1]
     assert s.pushed_vertices > 0.2 * n, (s.pushed_vertices, n)  # the test means something
-    sn = run_scene(dataclasses.replace(load_scene(scene), output=d / "np.pc2", body_output=d / "np_body.pc2"),
-                   model=pkg, cache=False, force=True, body_backend="numpy")
+    sn = run_scene(
+        dataclasses.replace(load_scene(scene), output=d / "np.pc2", body_output=d / "np_body.pc2"),
+        model=pkg,
+        cache=False,
+        force=True,
+        body_backend="numpy",
+    )
     assert sn.body_backend == "numpy"
-    return dict(files, package=pkg, dir=d, frames=frames, body=body, before=before, moved=s.pushed_vertices,
-                check_collided=d / "collided.sgdb", ms=1e3 * s.stage_seconds["collisions"] / FRAMES,
-                numpy_frames=read_pc2(d / "np.pc2").frames, numpy_body=read_pc2(d / "np_body.pc2").frames,
-                numpy_moved=sn.pushed_vertices)
+    return dict(
+        files,
+        package=pkg,
+        dir=d,
+        frames=frames,
+        body=body,
+        before=before,
+        moved=s.pushed_vertices,
+        check_collided=d / "collided.sgdb",
+        ms=1e3 * s.stage_seconds["collisions"] / FRAMES,
+        numpy_frames=read_pc2(d / "np.pc2").frames,
+        numpy_body=read_pc2(d / "np_body.pc2").frames,
+        numpy_moved=sn.pushed_vertices,
+    )
 
 
 def _agree(got, want, moved: int) -> dict:
@@ -172,8 +219,13 @@ def _agree(got, want, moved: int) -> dict:
     d = np.abs(got - want).max(axis=-1)
     scale = np.abs(want).max()
     over = int((d > RTOL * scale).sum())
-    return {"max_abs": float(d.max()), "max_rel": float(d.max() / scale), "over_1e-5": over, "exact": over == 0,
-            "ok": over <= max(1, moved // 1000) and float(d.max()) <= MARGIN}
+    return {
+        "max_abs": float(d.max()),
+        "max_rel": float(d.max() / scale),
+        "over_1e-5": over,
+        "exact": over == 0,
+        "ok": over <= max(1, moved // 1000) and float(d.max()) <= MARGIN,
+    }
 
 
 def _moved_close(got: int, want: int) -> bool:
@@ -188,8 +240,9 @@ def _push(before, posed) -> tuple[np.ndarray, int]:
     from segadeform.body.collision import BodyCollider
 
     body = load_body(default_body_path())
-    mine, n = BodyCollider(body.v_template, body.faces).push_out(np.asarray(before, np.float64),
-                                                                 np.asarray(posed, np.float64), MARGIN)
+    mine, n = BodyCollider(body.v_template, body.faces).push_out(
+        np.asarray(before, np.float64), np.asarray(posed, np.float64), MARGIN
+    )
     return mine.astype(np.float32), n
 
 
@@ -208,10 +261,28 @@ def test_runtime_collisions_match_segadeform_run(runtime, request, collided, tmp
     own posed body, Python's BodyCollider gives the runtime's frames to float32 rounding."""
     exe = request.getfixturevalue(runtime)
     c = collided
-    p = subprocess.run(exe + ["--package", str(c["package"]), "--garment", str(c["garment"]), "--motion",
-                              str(c["motion"]), "--effects", EFFECTS, "-o", str(tmp_path / "g.pc2"),
-                              "--body-out", str(tmp_path / "b.pc2"), "--batch", "8"],
-                       capture_output=True, text=True, timeout=600)
+    p = subprocess.run(
+        exe
+        + [
+            "--package",
+            str(c["package"]),
+            "--garment",
+            str(c["garment"]),
+            "--motion",
+            str(c["motion"]),
+            "--effects",
+            EFFECTS,
+            "-o",
+            str(tmp_path / "g.pc2"),
+            "--body-out",
+            str(tmp_path / "b.pc2"),
+            "--batch",
+            "8",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stdout + p.stderr
     m = re.search(r"collisions: (\d+) vertex-frames pushed out \(margin ([\d.e-]+) m\), ([\d.]+) ms/frame", p.stdout)
     assert m, p.stdout
@@ -222,8 +293,17 @@ def test_runtime_collisions_match_segadeform_run(runtime, request, collided, tmp
     own, n = _own_inputs(c["before"], posed, got)
     a = _agree(got, c["frames"], c["moved"])
     body_abs = float(np.abs(posed.astype(np.float64) - c["body"]).max())
-    _report(runtime, **a, moved=moved, python_moved=c["moved"], ms_per_frame=ms, python_ms_per_frame=c["ms"],
-            own_body_max_abs=own, own_body_moved=n, body_max_abs=body_abs)
+    _report(
+        runtime,
+        **a,
+        moved=moved,
+        python_moved=c["moved"],
+        ms_per_frame=ms,
+        python_ms_per_frame=c["ms"],
+        own_body_max_abs=own,
+        own_body_moved=n,
+        body_max_abs=body_abs,
+    )
     assert own <= 1.2e-7 and moved == n  # one float32 ulp at the garment's coordinates (< 2 m)
     assert a["exact"] and a["max_rel"] <= RTOL, a
     assert moved == c["moved"], (moved, c["moved"])
@@ -249,14 +329,23 @@ def test_collisions_refused_without_a_body_graph_or_with_a_bad_margin(node, cpp,
     c = collided
     for exe in (node, cpp):
         base = exe + ["--garment", str(c["garment"]), "--motion", str(c["motion"]), "-o", str(tmp_path / "x.pc2")]
-        p = subprocess.run(base + ["--package", str(old), "--effects", "lbs,collisions"], capture_output=True,
-                           text=True, timeout=600)
+        p = subprocess.run(
+            base + ["--package", str(old), "--effects", "lbs,collisions"], capture_output=True, text=True, timeout=600
+        )
         assert p.returncode == 1 and "collisions need the posed body" in p.stderr, p.stderr
-        p = subprocess.run(base + ["--package", str(c["package"]), "--effects", EFFECTS, "--collision-margin", "-1"],
-                           capture_output=True, text=True, timeout=600)
+        p = subprocess.run(
+            base + ["--package", str(c["package"]), "--effects", EFFECTS, "--collision-margin", "-1"],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         assert p.returncode == 1 and "collision margin must be in [0, 1)" in p.stderr, p.stderr
-        p = subprocess.run(base + ["--package", str(c["package"]), "--collision-margin", "x"], capture_output=True,
-                           text=True, timeout=600)
+        p = subprocess.run(
+            base + ["--package", str(c["package"]), "--collision-margin", "x"],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         assert p.returncode == 2, p.stderr  # usage
         assert not (tmp_path / "x.pc2").exists()
 
@@ -272,30 +361,77 @@ def _site(d, package, files):
 
 @pytest.fixture(scope="module")
 def collided_site(tmp_path_factory, collided):
-    return _site(tmp_path_factory.mktemp("site"), collided["package"],
-                 [collided[k] for k in ("garment", "motion", "check_collided")])
+    return _site(
+        tmp_path_factory.mktemp("site"),
+        collided["package"],
+        [collided[k] for k in ("garment", "motion", "check_collided")],
+    )
 
 
 def test_page_pushes_out_by_default_like_segadeform_run_on_wasm(collided_site, collided, tmp_path):
     """The browser page (onnxruntime-web on wasm, collide.js) with no effects named: the model's own and collisions
     at the default margin (the package has a body graph), as `segadeform run`; the same frames and moves."""
-    r = _page(collided_site, "wasm", tmp_path, "--garment", "garment.sgda", "--motion", "motion.sgdm", "--check",
-              "collided.sgdb", shot=False)
+    r = _page(
+        collided_site,
+        "wasm",
+        tmp_path,
+        "--garment",
+        "garment.sgda",
+        "--motion",
+        "motion.sgdm",
+        "--check",
+        "collided.sgdb",
+        shot=False,
+    )
     col = r["collisions"]
-    assert r["effects"] == {"skinning": "lbs", "dynamics": True, "wrinkles": True, "collisions": True,
-                            "cloth": False}, r  # the cloth stage: only when named
+    assert r["effects"] == {
+        "skinning": "lbs",
+        "dynamics": True,
+        "wrinkles": True,
+        "collisions": True,
+        "cloth": False,
+    }, r  # the cloth stage: only when named
     assert r["finite"] and r["sameLength"] and r["T"] == FRAMES and col["margin"] == MARGIN, r
-    _report("browser wasm page", max_abs=r["maxAbs"], max_rel=r["rel"], moved=col["moved"],
-            python_moved=collided["moved"], ms_per_frame=col["msPerFrame"])
+    _report(
+        "browser wasm page",
+        max_abs=r["maxAbs"],
+        max_rel=r["rel"],
+        moved=col["moved"],
+        python_moved=collided["moved"],
+        ms_per_frame=col["msPerFrame"],
+    )
     # the page reports the largest error only: test_browser_collisions_every_frame counts the vertex-frames over
     assert r["rel"] <= RTOL or r["maxAbs"] <= MARGIN, r
     assert _moved_close(col["moved"], collided["moved"]), (col, collided["moved"])
 
 
 def _web_frames(site, out, effects, *extra):
-    p = subprocess.run(["node", str(WEB_FRAMES), "--root", str(site), "--package", "pkg", "--garment", "garment.sgda",
-                        "--motion", "motion.sgdm", "--effects", effects, "--batch", "5", "--chromium", CHROMIUM,
-                        "-o", str(out), *extra], capture_output=True, text=True, timeout=900)
+    p = subprocess.run(
+        [
+            "node",
+            str(WEB_FRAMES),
+            "--root",
+            str(site),
+            "--package",
+            "pkg",
+            "--garment",
+            "garment.sgda",
+            "--motion",
+            "motion.sgdm",
+            "--effects",
+            effects,
+            "--batch",
+            "5",
+            "--chromium",
+            CHROMIUM,
+            "-o",
+            str(out),
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert p.returncode == 0, (p.stdout + p.stderr)[-3000:]
     return json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("FRAMES "))[7:])
 
@@ -309,8 +445,9 @@ def test_browser_collisions_every_frame(collided_site, collided, tmp_path):
     frames and posed body, Python's BodyCollider gives its frames to float32 rounding."""
     c = collided
     shape = c["frames"].shape
-    col = _web_frames(collided_site, tmp_path / "col.f32", EFFECTS, "--margin", repr(MARGIN),
-                      "--body-out", str(tmp_path / "body.f32"))
+    col = _web_frames(
+        collided_site, tmp_path / "col.f32", EFFECTS, "--margin", repr(MARGIN), "--body-out", str(tmp_path / "body.f32")
+    )
     raw = _web_frames(collided_site, tmp_path / "raw.f32", EFFECTS.replace(",collisions", ""))
     assert (col["T"], col["N"]) == (raw["T"], raw["N"]) == shape[:2] and raw["moved"] is None
     got = np.fromfile(tmp_path / "col.f32", "<f4").reshape(shape)
@@ -323,10 +460,19 @@ def test_browser_collisions_every_frame(collided_site, collided, tmp_path):
     # deformer frames pushed out of the browser's body
     deformer_only = _agree(_push(before, c["body"])[0], c["frames"], c["moved"])
     body_only = _agree(_push(c["before"], posed)[0], c["frames"], c["moved"])
-    _report("browser wasm", **a, moved=col["moved"], python_moved=c["moved"], before_collisions=b,
-            body_max_abs=float(np.abs(posed.astype(np.float64) - c["body"]).max()), own_inputs_max_abs=own,
-            own_inputs_moved=n, browser_deformer_python_body=deformer_only, python_deformer_browser_body=body_only,
-            ms_per_frame=col["msPerFrame"])
+    _report(
+        "browser wasm",
+        **a,
+        moved=col["moved"],
+        python_moved=c["moved"],
+        before_collisions=b,
+        body_max_abs=float(np.abs(posed.astype(np.float64) - c["body"]).max()),
+        own_inputs_max_abs=own,
+        own_inputs_moved=n,
+        browser_deformer_python_body=deformer_only,
+        python_deformer_browser_body=body_only,
+        ms_per_frame=col["msPerFrame"],
+    )
     assert b["exact"], b
     assert own <= 1.2e-7 and col["moved"] == n, (own, n, col["moved"])
     assert a["ok"], a

@@ -21,8 +21,12 @@ NODE = REPO / "runtimes" / "node"
 
 
 def test_bundle_round_trip_and_errors(tmp_path):
-    arrays = {"a": np.arange(12, dtype=np.float32).reshape(3, 4), "b": np.array([1, -2], np.int32),
-              "m": np.array([[True, False]]), "s": np.float32(2.5)}
+    arrays = {
+        "a": np.arange(12, dtype=np.float32).reshape(3, 4),
+        "b": np.array([1, -2], np.int32),
+        "m": np.array([[True, False]]),
+        "s": np.float32(2.5),
+    }
     write_bundle(tmp_path / "x.sgdb", arrays, {"k": [1, 2]})
     got, meta = read_bundle(tmp_path / "x.sgdb")
     assert meta == {"k": [1, 2]}
@@ -50,25 +54,57 @@ def _rel(got, want) -> float:
 
 
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
-def test_runtime_animates_the_garment_asset_and_motion_like_segadeform_run(runtime, request, portable_scene,
-                                                                             random_package, tmp_path):
+def test_runtime_animates_the_garment_asset_and_motion_like_segadeform_run(
+    runtime, request, portable_scene, random_package, tmp_path
+):
     """`segadeform-node` / `segadeform-run --package P --garment G.sgda --motion M.sgdm -o OUT --body-out BODY`:
     the garment's frames and the posed body's equal `segadeform run`'s on the same garment and motion."""
     exe = request.getfixturevalue(runtime)
     s = portable_scene
-    p = subprocess.run(exe + ["--package", str(random_package), "--garment", str(s["garment"]), "--motion",
-                              str(s["motion"]), "--effects", s["effects"], "-o", str(tmp_path / "g.pc2"),
-                              "--body-out", str(tmp_path / "b.pc2"), "--batch", "5"],
-                       capture_output=True, text=True, timeout=600)
+    p = subprocess.run(
+        exe
+        + [
+            "--package",
+            str(random_package),
+            "--garment",
+            str(s["garment"]),
+            "--motion",
+            str(s["motion"]),
+            "--effects",
+            s["effects"],
+            "-o",
+            str(tmp_path / "g.pc2"),
+            "--body-out",
+            str(tmp_path / "b.pc2"),
+            "--batch",
+            "5",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stdout + p.stderr
     assert "deformer" in p.stdout or "dqs" in p.stdout
     assert _rel(read_pc2(tmp_path / "g.pc2").frames, s["frames"]) <= RTOL
     assert _rel(read_pc2(tmp_path / "b.pc2").frames, s["body"]) <= RTOL
     # the model's own effects when none are named (LBS, dynamics, wrinkles; and collisions, the package having a
     # body graph): runs, and differs from DQS
-    p = subprocess.run(exe + ["--package", str(random_package), "--garment", str(s["garment"]), "--motion",
-                              str(s["motion"]), "-o", str(tmp_path / "own.pc2")], capture_output=True, text=True,
-                       timeout=600)
+    p = subprocess.run(
+        exe
+        + [
+            "--package",
+            str(random_package),
+            "--garment",
+            str(s["garment"]),
+            "--motion",
+            str(s["motion"]),
+            "-o",
+            str(tmp_path / "own.pc2"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stderr
     assert "collisions: " in p.stdout, p.stdout
     own = read_pc2(tmp_path / "own.pc2").frames
@@ -89,20 +125,37 @@ def test_runtime_refuses_what_it_cannot_run(runtime, request, portable_scene, ra
     dataclasses.replace(a, body=dict(a.body, weight_prior="inpaint")).save(tmp_path / "inpaint.sgda")
 
     def run(*args):
-        return subprocess.run(exe + ["--package", str(random_package), "-o", str(tmp_path / "x.pc2")] + list(args),
-                              capture_output=True, text=True, timeout=600)
+        return subprocess.run(
+            exe + ["--package", str(random_package), "-o", str(tmp_path / "x.pc2")] + list(args),
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
 
     cases = [
         (["--garment", str(tmp_path / "plain.sgda"), "--motion", str(s["motion"])], "not prepared for a body shape"),
         (["--garment", str(s["motion"]), "--motion", str(s["motion"])], "not a garment asset"),
         (["--garment", str(s["garment"]), "--motion", str(s["garment"])], "not a motion file"),
         (["--garment", str(s["garment"]), "--motion", str(tmp_path / "missing.sgdm")], "missing.sgdm: no such file"),
-        (["--garment", str(s["garment"]), "--motion", str(s["motion"]), "--effects", "lbs,wind"],
-         "unknown effect 'wind'"),
-        (["--garment", str(tmp_path / "other.sgda"), "--motion", str(s["motion"]), "--body-out",
-          str(tmp_path / "b.pc2")], "prepared for another body"),
-        (["--garment", str(tmp_path / "inpaint.sgda"), "--motion", str(s["motion"])],
-         "made with the inpaint weight prior, the model wants nearest"),
+        (
+            ["--garment", str(s["garment"]), "--motion", str(s["motion"]), "--effects", "lbs,wind"],
+            "unknown effect 'wind'",
+        ),
+        (
+            [
+                "--garment",
+                str(tmp_path / "other.sgda"),
+                "--motion",
+                str(s["motion"]),
+                "--body-out",
+                str(tmp_path / "b.pc2"),
+            ],
+            "prepared for another body",
+        ),
+        (
+            ["--garment", str(tmp_path / "inpaint.sgda"), "--motion", str(s["motion"])],
+            "made with the inpaint weight prior, the model wants nearest",
+        ),
     ]
     for args, words in cases:
         p = run(*args)
@@ -112,13 +165,20 @@ def test_runtime_refuses_what_it_cannot_run(runtime, request, portable_scene, ra
     assert not (tmp_path / "b.pc2").exists()
 
 
-def test_node_api_matches_python_on_a_bundle_and_on_asset_and_motion(shared_bundle, portable_scene, random_package,
-                                                                     node):
+def test_node_api_matches_python_on_a_bundle_and_on_asset_and_motion(
+    shared_bundle, portable_scene, random_package, node
+):
     """The Node API (`animate(package, garment.sgda, motion.sgdm, {body: true})`, and `animate(package, bundle)`)."""
     s = portable_scene
-    env = dict(os.environ, SEGADEFORM_PACKAGE=str(random_package), SEGADEFORM_BUNDLE=str(shared_bundle),
-               SEGADEFORM_GARMENT=str(s["garment"]), SEGADEFORM_MOTION=str(s["motion"]),
-               SEGADEFORM_CHECK=str(s["check"]), SEGADEFORM_EFFECTS=s["effects"])
+    env = dict(
+        os.environ,
+        SEGADEFORM_PACKAGE=str(random_package),
+        SEGADEFORM_BUNDLE=str(shared_bundle),
+        SEGADEFORM_GARMENT=str(s["garment"]),
+        SEGADEFORM_MOTION=str(s["motion"]),
+        SEGADEFORM_CHECK=str(s["check"]),
+        SEGADEFORM_EFFECTS=s["effects"],
+    )
     p = subprocess.run(["npm", "test"], cwd=NODE, env=env, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, (p.stdout + p.stderr)[-3000:]
     r = _parity(p.stdout)
@@ -131,14 +191,21 @@ def test_node_api_matches_python_on_a_bundle_and_on_asset_and_motion(shared_bund
 
 def test_cpp_runtime_matches_python_on_a_bundle(shared_bundle, random_package, cpp, tmp_path):
     exe = cpp[0]
-    p = subprocess.run([exe, str(random_package), str(shared_bundle), "-o", str(tmp_path / "o.pc2"), "--check",
-                        "--batch", "3"], capture_output=True, text=True, timeout=600)
+    p = subprocess.run(
+        [exe, str(random_package), str(shared_bundle), "-o", str(tmp_path / "o.pc2"), "--check", "--batch", "3"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stderr
     assert _parity(p.stdout)["rel"] <= RTOL
     arrays, _ = read_bundle(shared_bundle)
     np.testing.assert_allclose(read_pc2(tmp_path / "o.pc2").frames, arrays["expected"], rtol=0, atol=1e-5)
-    bad = subprocess.run([exe, str(random_package), str(tmp_path / "missing.sgdb"), "-o", str(tmp_path / "x.pc2")],
-                         capture_output=True, text=True)
+    bad = subprocess.run(
+        [exe, str(random_package), str(tmp_path / "missing.sgdb"), "-o", str(tmp_path / "x.pc2")],
+        capture_output=True,
+        text=True,
+    )
     assert bad.returncode == 1 and "missing.sgdb: no such file" in bad.stderr and not (tmp_path / "x.pc2").exists()
 
 
@@ -152,8 +219,18 @@ def test_runtimes_still_run_older_packages(runtime, schema, request, portable_sc
     exe = request.getfixturevalue(runtime)
     s = portable_scene
     old = as_schema(random_package, tmp_path / f"v{schema}", schema)
-    args = exe + ["--package", str(old), "--garment", str(s["garment"]), "--motion", str(s["motion"]), "--effects",
-                  s["effects"], "-o", str(tmp_path / "g.pc2")]
+    args = exe + [
+        "--package",
+        str(old),
+        "--garment",
+        str(s["garment"]),
+        "--motion",
+        str(s["motion"]),
+        "--effects",
+        s["effects"],
+        "-o",
+        str(tmp_path / "g.pc2"),
+    ]
     p = subprocess.run(args, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr
     assert _rel(read_pc2(tmp_path / "g.pc2").frames, s["frames"]) <= RTOL

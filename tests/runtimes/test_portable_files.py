@@ -48,8 +48,9 @@ def test_asset_for_a_body_holds_what_segadeform_run_computes(skirt, body, random
     assert a.betas.shape == (body.n_betas,) and a.betas[:3].tolist() == list(betas)
     joints = body.rest_joints(betas)[0]
     np.testing.assert_array_equal(a.joints, joints)
-    np.testing.assert_array_equal(a.features, vertex_features(a.vertices, a.faces, joints,
-                                                              normals=a.normals.astype(np.float64)))
+    np.testing.assert_array_equal(
+        a.features, vertex_features(a.vertices, a.faces, joints, normals=a.normals.astype(np.float64))
+    )
     d = Deformer(ModelPackage(random_package), Effects())
     np.testing.assert_array_equal(a.log_wbody, d.body_log_weights(skirt, body, betas).astype(np.float32))
     np.testing.assert_array_equal(a.nbr, skirt.nbr)  # what does not depend on the body is kept
@@ -60,8 +61,11 @@ def test_asset_for_a_body_holds_what_segadeform_run_computes(skirt, body, random
 
     ip = prepare_for_body(skirt, body, betas, weight_prior="inpaint")
     assert ip.body["weight_prior"] == "inpaint"
-    want = residual_log_weights(garment_weights(skirt.vertices, skirt.faces, body,
-                                                np.pad(betas, (0, body.n_betas - 3)).astype(np.float32), "inpaint"))
+    want = residual_log_weights(
+        garment_weights(
+            skirt.vertices, skirt.faces, body, np.pad(betas, (0, body.n_betas - 3)).astype(np.float32), "inpaint"
+        )
+    )
     np.testing.assert_array_equal(ip.log_wbody, want.astype(np.float32))
 
 
@@ -120,8 +124,24 @@ def test_motion_export_is_what_run_plays(tmp_path, body):
     from segadeform.motion import MotionSpec, build_motion
 
     bvh = SAMPLES / "motions" / "cmu" / "02_01_walk.bvh"
-    assert main(["motion", "export", str(bvh), "--betas", "0.3", "--fps", "30", "--frames", "0:40",
-                 "-o", str(tmp_path / "w.sgdm")]) == 0
+    assert (
+        main(
+            [
+                "motion",
+                "export",
+                str(bvh),
+                "--betas",
+                "0.3",
+                "--fps",
+                "30",
+                "--frames",
+                "0:40",
+                "-o",
+                str(tmp_path / "w.sgdm"),
+            ]
+        )
+        == 0
+    )
     got, meta = read_motion_file(tmp_path / "w.sgdm")
     want = build_motion(MotionSpec(file=bvh, fps=30.0), body.rest_joints((0.3,))[0])
     np.testing.assert_array_equal(got.poses, want.poses[:40].astype(np.float32))
@@ -153,8 +173,12 @@ def test_body_graph_poses_the_body_like_segadeform_body(random_package, body, sk
     for b, seed in ((1, 0), (5, 1)):
         x = _body_feeds(body, b, seed)
         v, j, rj, f = sess.run(None, x)
-        ref = body.forward(x["poses"].reshape(b, -1).astype(np.float64), x["betas"].astype(np.float64),
-                           x["trans"].astype(np.float64), skinning=skinning)
+        ref = body.forward(
+            x["poses"].reshape(b, -1).astype(np.float64),
+            x["betas"].astype(np.float64),
+            x["trans"].astype(np.float64),
+            skinning=skinning,
+        )
         for got, want in ((v, ref.vertices), (j, ref.joints), (rj, body.rest_joints(x["betas"].astype(np.float64))[0])):
             assert got.shape == want.shape and np.abs(got - want).max() <= RTOL * np.abs(want).max()
         np.testing.assert_array_equal(f, body.faces)
@@ -167,16 +191,18 @@ def test_export_body_gives_a_package_another_body(random_package, body, tmp_path
 
     other = dataclasses.replace(body, v_template=body.v_template * 1.1, path=str(tmp_path / "tall.npz"))
     other.save(tmp_path / "tall.npz")
-    assert main(["export-body", str(tmp_path / "tall.npz"), "-o", str(random_package), "--to",
-                 str(tmp_path / "pkg")]) == 0
+    assert (
+        main(["export-body", str(tmp_path / "tall.npz"), "-o", str(random_package), "--to", str(tmp_path / "pkg")]) == 0
+    )
     old, new = ModelPackage(random_package), ModelPackage(tmp_path / "pkg")
     tall = load_body(tmp_path / "tall.npz")
     assert new.spec("body_lbs")["body"] == {"name": "tall.npz", "sha256": body_sha256(tall)}
     assert set(new.manifest["graphs"]) == set(old.manifest["graphs"])
     x = _body_feeds(tall, 2, 3)
     v = new.run("body_lbs", x)[0]
-    ref = tall.forward(x["poses"].reshape(2, -1).astype(np.float64), x["betas"].astype(np.float64),
-                       x["trans"].astype(np.float64)).vertices
+    ref = tall.forward(
+        x["poses"].reshape(2, -1).astype(np.float64), x["betas"].astype(np.float64), x["trans"].astype(np.float64)
+    ).vertices
     assert np.abs(v - ref).max() <= RTOL * np.abs(ref).max()
     from segadeform.export.package import sample_inputs
     from segadeform.model import ModelConfig
@@ -197,12 +223,18 @@ def test_segadeform_reads_the_motion_file_it_exports(tmp_path, capsys):
 
     assert main(["motion", "export", "walk", "--seconds", "0.3", "--betas", "0.4", "-o", str(tmp_path / "w.sgdm")]) == 0
     want, meta = read_motion_file(tmp_path / "w.sgdm")
-    for got in (load_motion(tmp_path / "w.sgdm"), build_motion(MotionSpec(file=tmp_path / "w.sgdm"), np.zeros((24, 3)))):
+    for got in (
+        load_motion(tmp_path / "w.sgdm"),
+        build_motion(MotionSpec(file=tmp_path / "w.sgdm"), np.zeros((24, 3))),
+    ):
         np.testing.assert_array_equal(got.poses, want.poses)
         np.testing.assert_array_equal(got.trans, want.trans)
         assert got.fps == want.fps == 30
-    for kw, words in (({"units": "cm"}, "units"), ({"joint_map": {"pelvis": "Hips"}}, "joint map"),
-                      ({"up": "z"}, "up z")):
+    for kw, words in (
+        ({"units": "cm"}, "units"),
+        ({"joint_map": {"pelvis": "Hips"}}, "joint map"),
+        ({"up": "z"}, "up z"),
+    ):
         with pytest.raises(FileFormatError, match="already retargeted") as e:
             load_motion(tmp_path / "w.sgdm", **kw)
         assert words in str(e.value)

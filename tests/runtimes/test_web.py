@@ -31,8 +31,21 @@ def _page(site, ep, tmp_path, *extra, shot=True):
         pytest.fail("runtimes/web has no node_modules: run `npm ci` there (.ci/run does)")
     if not os.path.exists(CHROMIUM):
         pytest.fail(f"no Chromium at {CHROMIUM}: run runtimes/web/install-browser.sh (.ci/run does)")
-    cmd = ["node", str(WEB / "test" / "page.mjs"), "--root", str(site), "--package", "pkg", "--ep", ep,
-           "--chromium", CHROMIUM, "--batch", "5", *extra]
+    cmd = [
+        "node",
+        str(WEB / "test" / "page.mjs"),
+        "--root",
+        str(site),
+        "--package",
+        "pkg",
+        "--ep",
+        ep,
+        "--chromium",
+        CHROMIUM,
+        "--batch",
+        "5",
+        *extra,
+    ]
     if shot:
         cmd += ["--screenshot", str(tmp_path / f"{ep}.png")]
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
@@ -59,8 +72,12 @@ def site(tmp_path_factory, shared_bundle, portable_scene, random_package):
     import dataclasses
 
     n = WEBGPU_FRAMES
-    write_motion_file(d / "short.sgdm", dataclasses.replace(m, poses=m.poses[:n], trans=m.trans[:n]),
-                      body=meta["body"], betas=meta["betas"])
+    write_motion_file(
+        d / "short.sgdm",
+        dataclasses.replace(m, poses=m.poses[:n], trans=m.trans[:n]),
+        body=meta["body"],
+        betas=meta["betas"],
+    )
     c, _ = read_bundle(portable_scene["check"])
     write_bundle(d / "short.sgdb", {"expected": c["expected"][:n], "body": c["body"][:n]})
     return d
@@ -74,16 +91,40 @@ def _assert_matches(r, frames, ep):
 
 
 def test_page_runs_asset_and_motion_on_wasm_like_segadeform_run(site, portable_scene, tmp_path):
-    r = _page(site, "wasm", tmp_path, "--garment", "garment.sgda", "--motion", "motion.sgdm", "--check",
-              "check.sgdb", "--effects", portable_scene["effects"])
+    r = _page(
+        site,
+        "wasm",
+        tmp_path,
+        "--garment",
+        "garment.sgda",
+        "--motion",
+        "motion.sgdm",
+        "--check",
+        "check.sgdb",
+        "--effects",
+        portable_scene["effects"],
+    )
     _assert_matches(r, len(portable_scene["frames"]), "wasm")
     assert (tmp_path / "wasm.png").stat().st_size > 10_000  # the viewer drew the garment and the body
 
 
 def test_page_runs_dropped_package_asset_and_motion(site, portable_scene, tmp_path):
     """Drag and drop: the package's files dropped first, then the asset and the motion together."""
-    r = _page(site, "wasm", tmp_path, "--drop", "--garment", "garment.sgda", "--motion", "motion.sgdm", "--check",
-              "check.sgdb", "--effects", portable_scene["effects"], shot=False)
+    r = _page(
+        site,
+        "wasm",
+        tmp_path,
+        "--drop",
+        "--garment",
+        "garment.sgda",
+        "--motion",
+        "motion.sgdm",
+        "--check",
+        "check.sgdb",
+        "--effects",
+        portable_scene["effects"],
+        shot=False,
+    )
     _assert_matches(r, len(portable_scene["frames"]), "wasm")
 
 
@@ -94,7 +135,19 @@ def test_page_runs_a_bundle_on_wasm(site, tmp_path):
 
 
 def test_page_on_webgpu_matches_segadeform_run(site, portable_scene, tmp_path):
-    r = _page(site, "webgpu", tmp_path, "--garment", "garment.sgda", "--motion", "short.sgdm", "--check",
-              "short.sgdb", "--effects", portable_scene["effects"], shot=False)
+    r = _page(
+        site,
+        "webgpu",
+        tmp_path,
+        "--garment",
+        "garment.sgda",
+        "--motion",
+        "short.sgdm",
+        "--check",
+        "short.sgdb",
+        "--effects",
+        portable_scene["effects"],
+        shot=False,
+    )
     assert r["webgpu"], "Chromium offered no WebGPU adapter (flags in runtimes/web/test/page.mjs)"
     _assert_matches(r, WEBGPU_FRAMES, "webgpu")

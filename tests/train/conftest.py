@@ -26,8 +26,19 @@ def _write(root, sid, split, body, garment, motion, wave, type_):
     t = np.arange(motion.n_frames)[:, None]
     frames[..., 2] += wave * np.sin(0.3 * t + 8 * garment.vertices[None, :, 1])
     meta = {"id": sid, "split": split, "garment": sid.split("__")[0], "type": type_, "body": 0, "status": "kept"}
-    save_sample(root, Sample(id=sid, rest=garment.vertices, faces=garment.faces, betas=np.zeros(0),
-                             poses=motion.poses, trans=motion.trans, frames=frames.astype(np.float32), meta=meta))
+    save_sample(
+        root,
+        Sample(
+            id=sid,
+            rest=garment.vertices,
+            faces=garment.faces,
+            betas=np.zeros(0),
+            poses=motion.poses,
+            trans=motion.trans,
+            frames=frames.astype(np.float32),
+            meta=meta,
+        ),
+    )
 
 
 @pytest.fixture(scope="session")
@@ -49,6 +60,7 @@ def synthetic_dataset(tmp_path_factory, body):
 @pytest.fixture
 def tiny_config(tmp_path):
     p = tmp_path / "train.toml"
-    p.write_text("[model]\nhidden = 16\nlstm_hidden = 16\n[optim]\nsteps = 6\nframes = 3\ncheckpoint_every = 3\n"
-                 "lr = 0.003\n")
+    p.write_text(
+        "[model]\nhidden = 16\nlstm_hidden = 16\n[optim]\nsteps = 6\nframes = 3\ncheckpoint_every = 3\nlr = 0.003\n"
+    )
     return p

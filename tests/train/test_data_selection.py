@@ -23,8 +23,15 @@ def test_exclude_globs_and_nested_fractions(tmp_path):
     assert quarter == _cfg(tmp_path, "[data]\nfraction = 0.25\n").select(list(reversed(ids)))  # order-free
 
 
-@pytest.mark.parametrize("text, msg", [("[data]\nfraction = 0\n", "fraction"), ("[data]\nfraction = 1.5\n", "fraction"),
-                                       ("[data]\nexclude = \"cmu\"\n", "exclude"), ("[data]\nsplits = 1\n", "unknown")])
+@pytest.mark.parametrize(
+    "text, msg",
+    [
+        ("[data]\nfraction = 0\n", "fraction"),
+        ("[data]\nfraction = 1.5\n", "fraction"),
+        ('[data]\nexclude = "cmu"\n', "exclude"),
+        ("[data]\nsplits = 1\n", "unknown"),
+    ],
+)
 def test_bad_selections_are_refused(tmp_path, text, msg):
     with pytest.raises(FileFormatError, match=msg):
         _cfg(tmp_path, text)
@@ -39,8 +46,9 @@ def test_a_config_changes_its_base(tmp_path):
     from segadeform.train import load_train_config
 
     (tmp_path / "sub").mkdir()
-    (tmp_path / "sub" / "full.toml").write_text("[data]\ndataset = 'data'\nval_split = 'val'\n[model]\nhidden = 16\n"
-                                                "[optim]\nsteps = 5\nseed = 0\nlr = 0.002\n")
+    (tmp_path / "sub" / "full.toml").write_text(
+        "[data]\ndataset = 'data'\nval_split = 'val'\n[model]\nhidden = 16\n[optim]\nsteps = 5\nseed = 0\nlr = 0.002\n"
+    )
     (tmp_path / "seed1.toml").write_text("base = 'sub/full.toml'\n[optim]\nseed = 1\n")
     full = load_train_config(tmp_path / "sub" / "full.toml")
     one = load_train_config(tmp_path / "seed1.toml")

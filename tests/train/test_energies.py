@@ -38,13 +38,14 @@ def test_uniform_scaling_gives_the_spring_energy_in_closed_form():
     e = cloth_energy(_t(v * (1 + s))[None], topo, mat)
     area = 0.4 * 0.4
     # every edge strains by s; sum of the edge areas is the total area
-    expect = 0.5 * mat.stretch * area * s ** 2 / (mat.density * area * mat.gravity)
+    expect = 0.5 * mat.stretch * area * s**2 / (mat.density * area * mat.gravity)
     assert float(e["stretch"]) == pytest.approx(expect, rel=1e-3)
 
 
 def test_folding_costs_bending_quadratic_in_the_angle_and_is_smooth_when_flat():
     v, f = _grid()
     topo = cloth_topology(v, f)
+
     # fold the grid about the line x = 0.2 (the middle column of vertices) by angle a
     def folded(a):
         w = v.copy()
@@ -53,6 +54,7 @@ def test_folding_costs_bending_quadratic_in_the_angle_and_is_smooth_when_flat():
         w[right, 0] = 0.2 + r * np.cos(a)
         w[right, 1] = r * np.sin(a)
         return w
+
     e1 = float(cloth_energy(_t(folded(0.1))[None], topo, Material())["bend"])
     e2 = float(cloth_energy(_t(folded(0.2))[None], topo, Material())["bend"])
     assert e1 > 0 and e2 / e1 == pytest.approx(4.0, rel=0.02)
@@ -88,7 +90,7 @@ def test_inertia_is_zero_for_constant_velocity_and_counts_acceleration():
     mat = Material()
     # sum m a^2 / (2 h^2) / (M g) = a^2 / (2 h^2 g)
     got = float(cloth_energy(x2b, topo, mat, prev=x1, prev2=x0, dt=1 / 30)["inertia"])
-    assert got == pytest.approx(a ** 2 * 900 / (2 * mat.gravity), rel=1e-3)
+    assert got == pytest.approx(a**2 * 900 / (2 * mat.gravity), rel=1e-3)
 
 
 def test_collision_costs_only_inside_the_margin():
@@ -99,7 +101,7 @@ def test_collision_costs_only_inside_the_margin():
     far = cloth_energy(_t(v)[None], topo, mat, contact_p=_t(v - [0, 0.01, 0])[None], contact_n=_t(n)[None])
     assert float(far["collision"]) == 0.0
     inside = cloth_energy(_t(v)[None], topo, mat, contact_p=_t(v + [0, 0.002, 0])[None], contact_n=_t(n)[None])
-    expect = mat.collision * 0.4 * 0.4 * 0.005 ** 3 / (mat.density * 0.4 * 0.4 * mat.gravity)
+    expect = mat.collision * 0.4 * 0.4 * 0.005**3 / (mat.density * 0.4 * 0.4 * mat.gravity)
     assert float(inside["collision"]) == pytest.approx(expect, rel=1e-3)
 
 
@@ -168,9 +170,11 @@ def test_training_with_physics_logs_the_energy_and_lowers_it(synthetic_dataset, 
     from segadeform.train.trainer import physics_losses, train
 
     cfg_path = tmp_path / "train.toml"
-    cfg_path.write_text("[model]\nhidden = 16\nlstm_hidden = 16\nwindow = 3\nn_star = 16\n"
-                        "[optim]\nsteps = 4\nframes = 3\ncheckpoint_every = 2\nlr = 0.003\n"
-                        "[physics]\npairs = \"pairs.toml\"\nevery = 1\nframes = 4\n")
+    cfg_path.write_text(
+        "[model]\nhidden = 16\nlstm_hidden = 16\nwindow = 3\nn_star = 16\n"
+        "[optim]\nsteps = 4\nframes = 3\ncheckpoint_every = 2\nlr = 0.003\n"
+        '[physics]\npairs = "pairs.toml"\nevery = 1\nframes = 4\n'
+    )
     cfg = load_train_config(cfg_path, dataset=synthetic_dataset)
     run = tmp_path / "run"
     train(cfg, run, body, log_every=1)
@@ -203,7 +207,7 @@ def test_physics_configs_are_checked(tmp_path, synthetic_dataset):
     p.write_text("[physics]\nevery = 2\n")
     with pytest.raises(FileFormatError, match="needs physics.pairs"):
         load_train_config(p, dataset=synthetic_dataset)
-    p.write_text("[physics]\nevery = 2\npairs = \"nowhere.toml\"\n")
+    p.write_text('[physics]\nevery = 2\npairs = "nowhere.toml"\n')
     with pytest.raises(FileFormatError, match="not a file"):
         load_train_config(p, dataset=synthetic_dataset)
     p.write_text("[physics]\nframes = 2\n")
@@ -220,9 +224,11 @@ def test_training_time_is_wall_time_with_physics(synthetic_dataset, pairs_config
     from segadeform.train.trainer import train
 
     cfg_path = tmp_path / "train.toml"
-    cfg_path.write_text("[model]\nhidden = 16\nlstm_hidden = 16\nwindow = 3\nn_star = 16\n"
-                        "[optim]\nsteps = 3\nframes = 2\ncheckpoint_every = 3\n"
-                        "[physics]\npairs = \"pairs.toml\"\nevery = 1\nframes = 4\n")
+    cfg_path.write_text(
+        "[model]\nhidden = 16\nlstm_hidden = 16\nwindow = 3\nn_star = 16\n"
+        "[optim]\nsteps = 3\nframes = 2\ncheckpoint_every = 3\n"
+        '[physics]\npairs = "pairs.toml"\nevery = 1\nframes = 4\n'
+    )
     t0 = time.perf_counter()
     train(load_train_config(cfg_path, dataset=synthetic_dataset), tmp_path / "run", body)
     wall = time.perf_counter() - t0

@@ -25,18 +25,32 @@ def test_cloth_names():
     assert cloth_names(None) == {}
     assert cloth_names("default") == {" + cloth": ClothSettings()}
     assert cloth_names(["default", "iterations=8,stiffness=0.5"]) == {
-        " + cloth": ClothSettings(), " + cloth iterations=8,stiffness=0.5": ClothSettings(iterations=8, stiffness=0.5)}
+        " + cloth": ClothSettings(),
+        " + cloth iterations=8,stiffness=0.5": ClothSettings(iterations=8, stiffness=0.5),
+    }
     with pytest.raises(InputError, match="bad cloth settings"):
         cloth_names(["iterations=0"])
 
 
 def test_evaluate_with_the_cloth_stage(synthetic_dataset, random_package, body):
     pkg = str(random_package)
-    res = evaluate(synthetic_dataset, body, make_predictors({"lbs": "lbs", "lbs-inpaint": "lbs-inpaint", "model": pkg}, package=PackagePredictor),
-                   push_out_margin=0.004, cloth=["default", "iterations=1,stiffness=0.2"])
+    res = evaluate(
+        synthetic_dataset,
+        body,
+        make_predictors({"lbs": "lbs", "lbs-inpaint": "lbs-inpaint", "model": pkg}, package=PackagePredictor),
+        push_out_margin=0.004,
+        cloth=["default", "iterations=1,stiffness=0.2"],
+    )
     m = res["models"]
-    want = {"lbs", "lbs-inpaint", "model", "lbs-inpaint + push-out", "model + push-out", "model + cloth",
-            "model + cloth iterations=1,stiffness=0.2"}
+    want = {
+        "lbs",
+        "lbs-inpaint",
+        "model",
+        "lbs-inpaint + push-out",
+        "model + push-out",
+        "model + cloth",
+        "model + cloth iterations=1,stiffness=0.2",
+    }
     assert set(m) == want
     assert all(np.isfinite(m[n][k]) for n in m for k in METRICS)
     for n in ("model + cloth", "model + cloth iterations=1,stiffness=0.2"):
@@ -55,11 +69,35 @@ def test_evaluate_with_the_cloth_stage(synthetic_dataset, random_package, body):
 
 def test_cli_eval_cloth(synthetic_dataset, random_package, tmp_path, capsys):
     out = tmp_path / "eval"
-    assert main(["eval", str(synthetic_dataset), "-m", "lbs=lbs", "-m", f"model={random_package}", "--push-out",
-                 "0.004", "--cloth", "default", "--cloth", "iterations=2", "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "eval",
+                str(synthetic_dataset),
+                "-m",
+                "lbs=lbs",
+                "-m",
+                f"model={random_package}",
+                "--push-out",
+                "0.004",
+                "--cloth",
+                "default",
+                "--cloth",
+                "iterations=2",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
-    assert "| model + cloth |" in text and "| model + cloth iterations=2 |" in text and "Per garment type, every metric" in text
+    assert (
+        "| model + cloth |" in text
+        and "| model + cloth iterations=2 |" in text
+        and "Per garment type, every metric" in text
+    )
     res = json.loads((out / "eval.json").read_text())
     assert "model + cloth iterations=2" in res["models"]
-    assert main(["eval", str(synthetic_dataset), "-m", "lbs=lbs", "--cloth", "wind=1", "-o",
-                 str(tmp_path / "bad")]) == 1
+    assert (
+        main(["eval", str(synthetic_dataset), "-m", "lbs=lbs", "--cloth", "wind=1", "-o", str(tmp_path / "bad")]) == 1
+    )

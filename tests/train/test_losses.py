@@ -36,8 +36,11 @@ def test_physics_terms_respond_to_what_they_measure():
     sheared = v.clone()
     sheared[:, 0] += 0.3 * v[:, 2]  # the grid lies in the xz plane
     assert float(L.shear_loss(sheared[None], v, f)) > 1e-3
-    assert float(L.gravity_loss((v - torch.tensor([0, 0.1, 0]))[None], v)) < 0 < float(
-        L.gravity_loss((v + torch.tensor([0, 0.1, 0]))[None], v))
+    assert (
+        float(L.gravity_loss((v - torch.tensor([0, 0.1, 0]))[None], v))
+        < 0
+        < float(L.gravity_loss((v + torch.tensor([0, 0.1, 0]))[None], v))
+    )
 
 
 def test_collision_loss_pushes_out_along_the_normal():

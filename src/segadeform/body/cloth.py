@@ -53,8 +53,19 @@ from ..errors import InputError
 from ..geometry._checks import check_mesh
 from ..settings.cloth import ClothSettings
 
-__all__ = ["ClothSettings", "ClothSetup", "ClothStage", "cloth_setup", "cloth_setup_reference", "cloth_reference",
-           "garment_setup", "rest_signed_distance", "compiled_available", "settings_array", "CONTACT_BAND"]
+__all__ = [
+    "ClothSettings",
+    "ClothSetup",
+    "ClothStage",
+    "cloth_setup",
+    "cloth_setup_reference",
+    "cloth_reference",
+    "garment_setup",
+    "rest_signed_distance",
+    "compiled_available",
+    "settings_array",
+    "CONTACT_BAND",
+]
 
 log = logging.getLogger(__name__)
 
@@ -68,8 +79,19 @@ MOVED = 1e-6
 SETUP_VERSION = 1
 _ABI = 1
 #: the order of _cloth.c's settings array
-_SETTINGS = ("iterations", "stiffness", "stretch", "compress", "bending", "damping", "gravity", "dt", "margin",
-             "reset", "follow")
+_SETTINGS = (
+    "iterations",
+    "stiffness",
+    "stretch",
+    "compress",
+    "bending",
+    "damping",
+    "gravity",
+    "dt",
+    "margin",
+    "reset",
+    "follow",
+)
 
 
 def settings_array(settings: ClothSettings, *, margin: float, dt: float) -> np.ndarray:
@@ -99,10 +121,16 @@ def _load_kernel():
         if not _KERNEL:
             p, i64, f64 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
             lib, why = load_extension(
-                "_cloth", lambda lib: lib.scl_abi() == _ABI and lib.scl_n_settings() == len(_SETTINGS),
-                (("sdc_create", p, (p, i64, p, i64, i64)), ("sdc_free", None, (p,)),
-                 ("scl_setup", i64, (p, i64, p, i64, p, f64, f64, p, p, p, p, p)), ("scl_per_sweep", f64, (f64, i64)),
-                 ("scl_step", i64, (i64, i64, p, p, p, p, p, p, p, i64, p, i64, p, p, p, p))))
+                "_cloth",
+                lambda lib: lib.scl_abi() == _ABI and lib.scl_n_settings() == len(_SETTINGS),
+                (
+                    ("sdc_create", p, (p, i64, p, i64, i64)),
+                    ("sdc_free", None, (p,)),
+                    ("scl_setup", i64, (p, i64, p, i64, p, f64, f64, p, p, p, p, p)),
+                    ("scl_per_sweep", f64, (f64, i64)),
+                    ("scl_step", i64, (i64, i64, p, p, p, p, p, p, p, i64, p, i64, p, p, p, p)),
+                ),
+            )
             _KERNEL.update(lib=lib, why=why)
         return _KERNEL["lib"], _KERNEL["why"]
 
@@ -115,8 +143,12 @@ def compiled_available() -> bool:
 def _kernel():
     lib, why = _load_kernel()
     if lib is None:
-        raise InputError("the cloth stage needs its compiled kernel, which is not available (reinstall segadeform "
-                         "with a C compiler: pip install -e .)", expected="segadeform.body._cloth", got=why)
+        raise InputError(
+            "the cloth stage needs its compiled kernel, which is not available (reinstall segadeform "
+            "with a C compiler: pip install -e .)",
+            expected="segadeform.body._cloth",
+            got=why,
+        )
     return lib
 
 
@@ -144,17 +176,30 @@ class ClothSetup:
 
     def validate(self) -> ClothSetup:
         n, e = len(self.radius), len(self.edges)
-        ok: bool | np.bool_ = (self.edges.dtype == np.int64 and self.edges.shape == (e, 2) and self.rest_len.shape == (e,)
-              and self.nptr.dtype == np.int64 and self.nptr.shape == (n + 1,) and self.nidx.dtype == np.int64
-              and self.nidx.shape == (2 * e,) and self.radius.dtype == np.float64 and n >= 1
-              and self.rest_len.dtype == np.float64)
-        ok = ok and (e == 0 or (self.edges.min() >= 0 and self.edges.max() < n and (self.edges[:, 0] < self.edges[:, 1]).all()))
+        ok: bool | np.bool_ = (
+            self.edges.dtype == np.int64
+            and self.edges.shape == (e, 2)
+            and self.rest_len.shape == (e,)
+            and self.nptr.dtype == np.int64
+            and self.nptr.shape == (n + 1,)
+            and self.nidx.dtype == np.int64
+            and self.nidx.shape == (2 * e,)
+            and self.radius.dtype == np.float64
+            and n >= 1
+            and self.rest_len.dtype == np.float64
+        )
+        ok = ok and (
+            e == 0 or (self.edges.min() >= 0 and self.edges.max() < n and (self.edges[:, 0] < self.edges[:, 1]).all())
+        )
         ok = ok and self.nptr[0] == 0 and self.nptr[-1] == 2 * e and (np.diff(self.nptr) >= 0).all()
         ok = ok and (2 * e == 0 or (self.nidx.min() >= 0 and self.nidx.max() < n))
         ok = ok and np.isfinite(self.rest_len).all() and np.isfinite(self.radius).all() and (self.radius >= 0).all()
         if not ok:
-            raise InputError("inconsistent cloth setup", expected="scl_setup's arrays",
-                             got=f"edges {self.edges.shape}, nptr {self.nptr.shape}, radius {self.radius.shape}")
+            raise InputError(
+                "inconsistent cloth setup",
+                expected="scl_setup's arrays",
+                got=f"edges {self.edges.shape}, nptr {self.nptr.shape}, radius {self.radius.shape}",
+            )
         return self
 
     def save(self, path) -> Path:
@@ -197,14 +242,27 @@ def cloth_setup(rest, faces, rest_sd, settings: ClothSettings = ClothSettings())
     nptr = np.empty(n + 1, np.int64)
     nidx = np.empty(max(6 * nf, 1), np.int64)
     radius = np.empty(n)
-    ne = lib.scl_setup(_ptr(v), n, _ptr(f), nf, _ptr(sd), float(settings.attachment), float(settings.max_distance),
-                       _ptr(edges), _ptr(rest_len), _ptr(nptr), _ptr(nidx), _ptr(radius))
+    ne = lib.scl_setup(
+        _ptr(v),
+        n,
+        _ptr(f),
+        nf,
+        _ptr(sd),
+        float(settings.attachment),
+        float(settings.max_distance),
+        _ptr(edges),
+        _ptr(rest_len),
+        _ptr(nptr),
+        _ptr(nidx),
+        _ptr(radius),
+    )
     if ne == -1:
         raise MemoryError("out of memory in the cloth stage's setup")
     if ne < 0:
         raise InputError("a face index is out of range", expected=f"0..{n - 1}")
-    return ClothSetup(edges=edges[:ne].copy(), rest_len=rest_len[:ne].copy(), nptr=nptr, nidx=nidx[:2 * ne].copy(),
-                      radius=radius)
+    return ClothSetup(
+        edges=edges[:ne].copy(), rest_len=rest_len[:ne].copy(), nptr=nptr, nidx=nidx[: 2 * ne].copy(), radius=radius
+    )
 
 
 def cloth_setup_reference(rest, faces, rest_sd, settings: ClothSettings = ClothSettings()) -> ClothSetup:
@@ -222,8 +280,13 @@ def cloth_setup_reference(rest, faces, rest_sd, settings: ClothSettings = ClothS
     nptr = np.concatenate([[0], np.cumsum(np.bincount(src, minlength=n))]).astype(np.int64)
     over = sd - settings.attachment
     radius = np.where(over > 0, np.minimum(over, settings.max_distance), 0.0)
-    return ClothSetup(edges=pairs.astype(np.int64).reshape(-1, 2), rest_len=rest_len, nptr=nptr,
-                      nidx=dst[order].astype(np.int64), radius=radius.astype(np.float64))
+    return ClothSetup(
+        edges=pairs.astype(np.int64).reshape(-1, 2),
+        rest_len=rest_len,
+        nptr=nptr,
+        nidx=dst[order].astype(np.int64),
+        radius=radius.astype(np.float64),
+    )
 
 
 def rest_signed_distance(rest, rest_body, body_faces) -> np.ndarray:
@@ -238,8 +301,9 @@ def rest_signed_distance(rest, rest_body, body_faces) -> np.ndarray:
     return BodyCollider(rest_body, body_faces).query(np.asarray(rest, np.float64), rest_body).signed_distance
 
 
-def garment_setup(rest, faces, rest_body, body_faces, settings: ClothSettings = ClothSettings(), *,
-                  cache_dir=None) -> ClothSetup:
+def garment_setup(
+    rest, faces, rest_body, body_faces, settings: ClothSettings = ClothSettings(), *, cache_dir=None
+) -> ClothSetup:
     """The per-garment data for the garment ``rest``/``faces`` on the body at rest ``rest_body``/``body_faces``,
     read from ``cache_dir`` when it was computed before (``C-<hash>.npz``, keyed by every input and
     :data:`SETUP_VERSION`), else computed (:func:`rest_signed_distance`, :func:`cloth_setup`) and written there.
@@ -286,8 +350,17 @@ class ClothStage:
     ``pushed`` (moved by the final push-out, more than :data:`MOVED`).
     """
 
-    def __init__(self, setup: ClothSetup, body_vertices, body_faces, settings: ClothSettings = ClothSettings(), *,
-                 margin: float = 0.004, dt: float = 1.0 / 30.0, first_frame: int = 0) -> None:
+    def __init__(
+        self,
+        setup: ClothSetup,
+        body_vertices,
+        body_faces,
+        settings: ClothSettings = ClothSettings(),
+        *,
+        margin: float = 0.004,
+        dt: float = 1.0 / 30.0,
+        first_frame: int = 0,
+    ) -> None:
         lib = _kernel()
         setup.validate()
         bv, bf = check_mesh(body_vertices, body_faces)
@@ -304,8 +377,9 @@ class ClothStage:
             raise MemoryError("out of memory building the cloth stage's body collider")
         self._lib, self._h = lib, h
         self._free = weakref.finalize(self, lib.sdc_free, h)
-        self._arrays = [np.ascontiguousarray(a) for a in (setup.edges, setup.rest_len, setup.nptr, setup.nidx,
-                                                          setup.radius)]
+        self._arrays = [
+            np.ascontiguousarray(a) for a in (setup.edges, setup.rest_len, setup.nptr, setup.nidx, setup.radius)
+        ]
         self._state = np.zeros((3, self.n_vertices, 3))
         self._info = np.zeros(5, np.int64)  # have, resets, contacts, pushed, first reset of the last call
         self.frames = 0
@@ -336,38 +410,66 @@ class ClothStage:
         y = np.asarray(targets)
         bv = np.asarray(posed)
         if y.ndim != 3 or y.shape[1:] != (self.n_vertices, 3):
-            raise InputError("the cloth stage takes frames of the garment", expected=f"(B, {self.n_vertices}, 3)",
-                             got=y.shape)
+            raise InputError(
+                "the cloth stage takes frames of the garment", expected=f"(B, {self.n_vertices}, 3)", got=y.shape
+            )
         if bv.shape != (len(y), self.n_body, 3):
-            raise InputError("the posed body must have the body's vertices, one frame per garment frame",
-                             expected=(len(y), self.n_body, 3), got=bv.shape)
+            raise InputError(
+                "the posed body must have the body's vertices, one frame per garment frame",
+                expected=(len(y), self.n_body, 3),
+                got=bv.shape,
+            )
         for what, a in (("garment frames", y), ("posed body", bv)):
             if np.isfinite(np.add.reduce(a, axis=None)):  # quick: NaN and inf propagate into the sum
                 continue
             bad = ~np.isfinite(a).reshape(len(a), -1).all(axis=1)
             if bad.any():
-                raise InputError(f"the cloth stage got NaN or inf in the {what} at frame "
-                                 f"{self.first_frame + self.frames + int(np.argmax(bad))}",
-                                 expected="finite coordinates (from the deformer and the body)")
+                raise InputError(
+                    f"the cloth stage got NaN or inf in the {what} at frame "
+                    f"{self.first_frame + self.frames + int(np.argmax(bad))}",
+                    expected="finite coordinates (from the deformer and the body)",
+                )
         y = np.ascontiguousarray(y, np.float64)
         bv = np.ascontiguousarray(bv, np.float64)
         out = np.empty_like(y)
         before, last = self.resets, self._state[2].copy()  # the last target, for the reset's message
         e, rl, nptr, nidx, rad = self._arrays
-        status = self._lib.scl_step(self.n_vertices, len(e), _ptr(e), _ptr(rl), _ptr(nptr), _ptr(nidx), _ptr(rad),
-                                    _ptr(self._settings), self._h, self.n_body, _ptr(bv), len(y), _ptr(y), _ptr(out),
-                                    _ptr(self._state), _ptr(self._info))
+        status = self._lib.scl_step(
+            self.n_vertices,
+            len(e),
+            _ptr(e),
+            _ptr(rl),
+            _ptr(nptr),
+            _ptr(nidx),
+            _ptr(rad),
+            _ptr(self._settings),
+            self._h,
+            self.n_body,
+            _ptr(bv),
+            len(y),
+            _ptr(y),
+            _ptr(out),
+            _ptr(self._state),
+            _ptr(self._info),
+        )
         if status == -1:
             raise MemoryError("out of memory in the cloth stage")
         if status != 0:  # not reached: the inputs were checked above
-            raise InputError("the cloth stage got NaN or inf", expected="finite coordinates",
-                             got=f"frame {self.first_frame + self.frames + status - 1}")
+            raise InputError(
+                "the cloth stage got NaN or inf",
+                expected="finite coordinates",
+                got=f"frame {self.first_frame + self.frames + status - 1}",
+            )
         if self.resets > before and before == 0:  # the first reset is said, once
             f = int(self._info[4])
             jump = float(np.linalg.norm(y[f] - (y[f - 1] if f > 0 else last), axis=1).mean())
-            log.warning("cloth: the garment moved %.3g m on average into frame %d (more than reset=%g m): the stage "
-                        "started again from the network's frame there (said once; later resets are only counted)",
-                        jump, self.first_frame + self.frames + f, self.settings.reset)
+            log.warning(
+                "cloth: the garment moved %.3g m on average into frame %d (more than reset=%g m): the stage "
+                "started again from the network's frame there (said once; later resets are only counted)",
+                jump,
+                self.first_frame + self.frames + f,
+                self.settings.reset,
+            )
         self.frames += len(y)
         return out
 
@@ -392,8 +494,17 @@ def _per_sweep(k: float, sweeps: int) -> float:
     return 0.5 * (lo + hi)
 
 
-def cloth_reference(targets, posed, body_faces, setup: ClothSetup, settings: ClothSettings = ClothSettings(), *,
-                    margin: float = 0.004, dt: float = 1.0 / 30.0, state: dict | None = None):
+def cloth_reference(
+    targets,
+    posed,
+    body_faces,
+    setup: ClothSetup,
+    settings: ClothSettings = ClothSettings(),
+    *,
+    margin: float = 0.004,
+    dt: float = 1.0 / 30.0,
+    state: dict | None = None,
+):
     """The cloth stage's rule, slowly and obviously: every frame, vertex and edge in Python, in the kernel's order;
     contacts and the final push-out by the numpy :class:`BodyCollider` (exact closest points).  ``state`` (from a
     previous call, or None) is updated in place and returned.
@@ -439,7 +550,7 @@ def cloth_reference(targets, posed, body_faces, setup: ClothSetup, settings: Clo
         x_query = x.copy()
         for it in range(iters):
             fwd = it % 2 == 0
-            for e in (range(len(setup.edges)) if fwd else reversed(range(len(setup.edges)))):
+            for e in range(len(setup.edges)) if fwd else reversed(range(len(setup.edges))):
                 a, b = setup.edges[e]
                 wa, wb = w[a], w[b]
                 if wa + wb == 0:
@@ -457,8 +568,8 @@ def cloth_reference(targets, posed, body_faces, setup: ClothSetup, settings: Clo
                 x[a] = x[a] + wa * sc * d
                 x[b] = x[b] - wb * sc * d
             if kb > 0:
-                for i in (range(n) if fwd else reversed(range(n))):
-                    nb = setup.nidx[setup.nptr[i]:setup.nptr[i + 1]]
+                for i in range(n) if fwd else reversed(range(n)):
+                    nb = setup.nidx[setup.nptr[i] : setup.nptr[i + 1]]
                     if len(nb) == 0 or not setup.radius[i] > 0:
                         continue
                     m = np.zeros(3)
@@ -479,7 +590,7 @@ def cloth_reference(targets, posed, body_faces, setup: ClothSetup, settings: Clo
         st["contacts"] += int(contact.sum())
         if len(pick):
             pushed, _ = col.push_out(x[pick], bv, margin, iterations=PASSES)
-            st["pushed"] += int((np.sum((pushed - x[pick]) ** 2, axis=1) > MOVED ** 2).sum())
+            st["pushed"] += int((np.sum((pushed - x[pick]) ** 2, axis=1) > MOVED**2).sum())
             x[pick] = pushed
         st["x0"] = x.copy() if have == 0 else st["x1"]
         st["x1"], st["yp"], st["have"] = x.copy(), y.copy(), 1 if have == 0 else 2

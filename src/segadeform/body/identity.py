@@ -11,8 +11,17 @@ import numpy as np
 __all__ = ["body_sha256", "body_label"]
 
 #: the arrays that decide where a posed body's vertices and joints are (in this order)
-_FIELDS = ("v_template", "faces", "shapedirs", "weights", "parents", "J_regressor", "joint_template",
-           "joint_shapedirs", "posedirs")
+_FIELDS = (
+    "v_template",
+    "faces",
+    "shapedirs",
+    "weights",
+    "parents",
+    "J_regressor",
+    "joint_template",
+    "joint_shapedirs",
+    "posedirs",
+)
 
 
 def body_sha256(body) -> str:

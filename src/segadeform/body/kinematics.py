@@ -21,8 +21,11 @@ def check_parents(parents) -> np.ndarray:
     bad = np.flatnonzero((p[1:] < 0) | (p[1:] >= np.arange(1, p.size)))
     if bad.size:
         j = int(bad[0]) + 1
-        raise InputError(f"joint {j} has an invalid parent (each parent must come before its child)",
-                         expected=f"0..{j - 1}", got=int(p[j]))
+        raise InputError(
+            f"joint {j} has an invalid parent (each parent must come before its child)",
+            expected=f"0..{j - 1}",
+            got=int(p[j]),
+        )
     return p
 
 
@@ -30,8 +33,9 @@ def poses_to_rotmats(poses: np.ndarray, n_joints: int | None = None) -> np.ndarr
     """Axis-angle poses ``(..., 3S)`` to rotation matrices ``(..., S, 3, 3)``."""
     poses = np.asarray(poses, np.float64)
     if poses.shape[-1] % 3 or (n_joints is not None and poses.shape[-1] != 3 * n_joints):
-        raise InputError("poses must have 3 values per joint", expected=f"(..., {3 * (n_joints or 24)})",
-                         got=poses.shape)
+        raise InputError(
+            "poses must have 3 values per joint", expected=f"(..., {3 * (n_joints or 24)})", got=poses.shape
+        )
     return axis_angle_to_matrix(poses.reshape(poses.shape[:-1] + (-1, 3)))
 
 

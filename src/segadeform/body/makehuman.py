@@ -31,19 +31,28 @@ def check_makehuman_binding(binding: dict, n_vertices: int, n_faces: int) -> dic
     """Validate the arrays (shapes, ranges, finiteness); returns them as numpy arrays of the right dtype."""
     missing = [k for k in MAKEHUMAN_KEYS if k not in binding]
     if missing:
-        raise InputError("MakeHuman binding is incomplete", expected=", ".join(MAKEHUMAN_KEYS),
-                         got="missing " + ", ".join(missing))
+        raise InputError(
+            "MakeHuman binding is incomplete", expected=", ".join(MAKEHUMAN_KEYS), got="missing " + ", ".join(missing)
+        )
     b = {k: np.asarray(binding[k]) for k in MAKEHUMAN_KEYS}
     idx, extra = b["hm08_index"].astype(np.int64), b["extra_index"].astype(np.int64)
     if idx.shape != (n_vertices,):
-        raise InputError("mh_hm08_index must name one hm08 vertex per body vertex", expected=(n_vertices,),
-                         got=idx.shape)
+        raise InputError(
+            "mh_hm08_index must name one hm08 vertex per body vertex", expected=(n_vertices,), got=idx.shape
+        )
     m = extra.shape[0]
-    if extra.ndim != 1 or b["extra_face"].shape != (m,) or b["extra_bary"].shape != (m, 3) \
-            or b["extra_offset"].shape != (m,) or b["rest_pose_a"].shape != (72,):
-        raise InputError("MakeHuman binding arrays do not fit together",
-                         expected="extra_index/face/offset (M,), extra_bary (M, 3), rest_pose_a (72,)",
-                         got={k: v.shape for k, v in b.items()})
+    if (
+        extra.ndim != 1
+        or b["extra_face"].shape != (m,)
+        or b["extra_bary"].shape != (m, 3)
+        or b["extra_offset"].shape != (m,)
+        or b["rest_pose_a"].shape != (72,)
+    ):
+        raise InputError(
+            "MakeHuman binding arrays do not fit together",
+            expected="extra_index/face/offset (M,), extra_bary (M, 3), rest_pose_a (72,)",
+            got={k: v.shape for k, v in b.items()},
+        )
     allidx = np.concatenate([idx, extra])
     if allidx.min() < 0 or len(np.unique(allidx)) != len(allidx) or allidx.max() != len(allidx) - 1:
         raise InputError("hm08 indices must cover 0..N-1 once each", got=f"{len(allidx)} indices")
@@ -53,9 +62,14 @@ def check_makehuman_binding(binding: dict, n_vertices: int, n_faces: int) -> dic
     for k in ("extra_bary", "extra_offset", "rest_pose_a"):
         if not np.isfinite(b[k]).all():
             raise InputError(f"mh_{k} contains NaN or inf")
-    return {"hm08_index": idx, "extra_index": extra, "extra_face": f,
-            "extra_bary": b["extra_bary"].astype(np.float64), "extra_offset": b["extra_offset"].astype(np.float64),
-            "rest_pose_a": b["rest_pose_a"].astype(np.float64)}
+    return {
+        "hm08_index": idx,
+        "extra_index": extra,
+        "extra_face": f,
+        "extra_bary": b["extra_bary"].astype(np.float64),
+        "extra_offset": b["extra_offset"].astype(np.float64),
+        "rest_pose_a": b["rest_pose_a"].astype(np.float64),
+    }
 
 
 def makehuman_vertices(body, binding: dict, betas=None, *, posed=None) -> np.ndarray:

@@ -90,8 +90,10 @@ class BodyModel:
 
     def __repr__(self) -> str:
         src = f", path={self.path!r}" if self.path else ""
-        return (f"BodyModel(V={self.n_vertices}, F={len(self.faces)}, S={self.n_joints}, betas={self.n_betas}, "
-                f"posedirs={'yes' if self.posedirs is not None else 'no'}{src})")
+        return (
+            f"BodyModel(V={self.n_vertices}, F={len(self.faces)}, S={self.n_joints}, betas={self.n_betas}, "
+            f"posedirs={'yes' if self.posedirs is not None else 'no'}{src})"
+        )
 
     # ---- validation ---------------------------------------------------
     def validate(self) -> BodyModel:
@@ -106,8 +108,11 @@ class BodyModel:
             raise InputError("joint_names must name each joint once", expected=s, got=len(self.joint_names))
         f = self.faces
         if f.ndim != 2 or f.shape[1] != 3 or len(f) < 1 or f.min() < 0 or f.max() >= nv:
-            raise InputError("faces must be (F, 3) indices into v_template", expected=f"0..{nv - 1}",
-                             got=f"{f.shape}, range {f.min() if f.size else '-'}..{f.max() if f.size else '-'}")
+            raise InputError(
+                "faces must be (F, 3) indices into v_template",
+                expected=f"0..{nv - 1}",
+                got=f"{f.shape}, range {f.min() if f.size else '-'}..{f.max() if f.size else '-'}",
+            )
         if self.shapedirs.ndim != 3 or self.shapedirs.shape[:2] != (nv, 3):
             raise InputError("shapedirs must be (V, 3, B)", expected=f"({nv}, 3, B)", got=self.shapedirs.shape)
         if self.weights.shape != (nv, s):
@@ -125,15 +130,24 @@ class BodyModel:
             if self.joint_template.shape != (s, 3):
                 raise InputError("joint_template must be (S, 3)", expected=(s, 3), got=self.joint_template.shape)
             if self.joint_shapedirs.shape != (s, 3, self.n_betas):
-                raise InputError("joint_shapedirs must be (S, 3, B)", expected=(s, 3, self.n_betas),
-                                 got=self.joint_shapedirs.shape)
+                raise InputError(
+                    "joint_shapedirs must be (S, 3, B)", expected=(s, 3, self.n_betas), got=self.joint_shapedirs.shape
+                )
         else:
             raise InputError("body needs J_regressor, or joint_template with joint_shapedirs")
         if self.posedirs is not None and self.posedirs.shape != (nv, 3, 9 * (s - 1)):
-            raise InputError("posedirs must be (V, 3, 9 (S - 1))", expected=(nv, 3, 9 * (s - 1)),
-                             got=self.posedirs.shape)
-        for name in ("v_template", "shapedirs", "weights", "J_regressor", "joint_template", "joint_shapedirs",
-                     "posedirs"):
+            raise InputError(
+                "posedirs must be (V, 3, 9 (S - 1))", expected=(nv, 3, 9 * (s - 1)), got=self.posedirs.shape
+            )
+        for name in (
+            "v_template",
+            "shapedirs",
+            "weights",
+            "J_regressor",
+            "joint_template",
+            "joint_shapedirs",
+            "posedirs",
+        ):
             a = getattr(self, name)
             if a is not None and not np.isfinite(a).all():
                 raise InputError(f"{name} contains NaN or inf")
@@ -145,8 +159,7 @@ class BodyModel:
         """This body with a MakeHuman binding (:mod:`segadeform.body.makehuman`), validated."""
         from .makehuman import check_makehuman_binding
 
-        return dataclasses.replace(self, makehuman=check_makehuman_binding(binding, self.n_vertices,
-                                                                          len(self.faces)))
+        return dataclasses.replace(self, makehuman=check_makehuman_binding(binding, self.n_vertices, len(self.faces)))
 
     # ---- evaluation ---------------------------------------------------
     def _betas(self, betas) -> np.ndarray:
@@ -189,8 +202,9 @@ class BodyModel:
         """
         poses = np.atleast_2d(np.asarray(poses, np.float64))
         if poses.shape[-1] != 3 * self.n_joints or not np.isfinite(poses).all():
-            raise InputError("poses must be finite (batch, 3 S)", expected=f"(batch, {3 * self.n_joints})",
-                             got=poses.shape)
+            raise InputError(
+                "poses must be finite (batch, 3 S)", expected=f"(batch, {3 * self.n_joints})", got=poses.shape
+            )
         n = poses.shape[0]
         b = self._betas(betas)
         if b.shape[0] == 1 and n > 1:
@@ -220,10 +234,15 @@ class BodyModel:
         self.validate()
         arrays: dict[str, Any] = dict(
             schema_version=np.int64(BODY_SCHEMA_VERSION),
-            v_template=self.v_template.astype(np.float32), faces=self.faces.astype(np.int32),
-            shapedirs=self.shapedirs.astype(np.float32), weights=self.weights.astype(np.float32),
-            parents=self.parents.astype(np.int64), joint_names=np.array(self.joint_names, dtype=np.str_),
-            up_axis=np.str_(self.up_axis), units=np.str_(self.units), licence=np.str_(self.licence),
+            v_template=self.v_template.astype(np.float32),
+            faces=self.faces.astype(np.int32),
+            shapedirs=self.shapedirs.astype(np.float32),
+            weights=self.weights.astype(np.float32),
+            parents=self.parents.astype(np.int64),
+            joint_names=np.array(self.joint_names, dtype=np.str_),
+            up_axis=np.str_(self.up_axis),
+            units=np.str_(self.units),
+            licence=np.str_(self.licence),
         )
         for name in ("J_regressor", "joint_template", "joint_shapedirs", "posedirs"):
             a = getattr(self, name)
@@ -242,6 +261,7 @@ class BodyModel:
 
 def _from_arrays(z: dict, path: Path) -> BodyModel:
     """Build a BodyModel from our keys or SMPL's (``f``, ``kintree_table``)."""
+
     def get(name, *alts):
         for k in (name,) + alts:
             if k in z:
@@ -252,11 +272,16 @@ def _from_arrays(z: dict, path: Path) -> BodyModel:
     f = get("faces", "f")
     shapedirs = get("shapedirs")
     weights = get("weights")
-    missing = [n for n, a in (("v_template", v), ("faces", f), ("shapedirs", shapedirs), ("weights", weights))
-               if a is None]
+    missing = [
+        n for n, a in (("v_template", v), ("faces", f), ("shapedirs", shapedirs), ("weights", weights)) if a is None
+    ]
     if missing:
-        raise FileFormatError("body file is missing arrays", path=path,
-                              expected="v_template, faces (or f), shapedirs, weights", got="missing " + ", ".join(missing))
+        raise FileFormatError(
+            "body file is missing arrays",
+            path=path,
+            expected="v_template, faces (or f), shapedirs, weights",
+            got="missing " + ", ".join(missing),
+        )
     parents = get("parents")
     if parents is None and get("kintree_table") is not None:
         kt = get("kintree_table").astype(np.int64)
@@ -284,16 +309,27 @@ def _from_arrays(z: dict, path: Path) -> BodyModel:
         raise FileFormatError("parents must be integers", path=path, got=np.asarray(parents).dtype)
     if shapedirs.ndim == 2 and shapedirs.shape[0] == 3 * v.shape[0]:  # flattened (3V, B)
         shapedirs = shapedirs.reshape(v.shape[0], 3, -1)
-    opt = {k: (None if get(k) is None else get(k).astype(np.float64))
-           for k in ("J_regressor", "joint_template", "joint_shapedirs", "posedirs")}
+    opt = {
+        k: (None if get(k) is None else get(k).astype(np.float64))
+        for k in ("J_regressor", "joint_template", "joint_shapedirs", "posedirs")
+    }
+
     def text(k, default):
         a = get(k)
         return default if a is None else str(a)
+
     body = BodyModel(
-        v_template=v.astype(np.float64), faces=f.astype(np.int64), shapedirs=shapedirs.astype(np.float64),
-        weights=weights.astype(np.float64), parents=np.asarray(parents).astype(np.int64),
-        joint_names=tuple(str(x) for x in np.asarray(names).tolist()), up_axis=text("up_axis", "y"),
-        units=text("units", "m"), licence=text("licence", ""), path=str(path), **opt,
+        v_template=v.astype(np.float64),
+        faces=f.astype(np.int64),
+        shapedirs=shapedirs.astype(np.float64),
+        weights=weights.astype(np.float64),
+        parents=np.asarray(parents).astype(np.int64),
+        joint_names=tuple(str(x) for x in np.asarray(names).tolist()),
+        up_axis=text("up_axis", "y"),
+        units=text("units", "m"),
+        licence=text("licence", ""),
+        path=str(path),
+        **opt,
     )
     try:
         body = body.validate()
@@ -307,8 +343,11 @@ def load_body(path: str | os.PathLike) -> BodyModel:
     """Read a body ``.npz`` (ours or SMPL's) or an official SMPL ``.pkl``; validate everything."""
     p = Path(path)
     if not p.is_file():
-        raise FileFormatError("is a folder, not a body file" if p.is_dir() else "no such file", path=p,
-                              expected="a body .npz or SMPL .pkl" if p.is_dir() else None)
+        raise FileFormatError(
+            "is a folder, not a body file" if p.is_dir() else "no such file",
+            path=p,
+            expected="a body .npz or SMPL .pkl" if p.is_dir() else None,
+        )
     ext = p.suffix.lower()
     if ext == ".pkl":
         from .smpl_pickle import load_smpl_pickle
@@ -325,8 +364,9 @@ def load_body(path: str | os.PathLike) -> BodyModel:
 
         z = load_npz(p, what="body .npz")
         if "schema_version" in z and int(z["schema_version"]) != BODY_SCHEMA_VERSION:
-            raise FileFormatError("unsupported body schema version", path=p, expected=BODY_SCHEMA_VERSION,
-                                  got=int(z["schema_version"]))
+            raise FileFormatError(
+                "unsupported body schema version", path=p, expected=BODY_SCHEMA_VERSION, got=int(z["schema_version"])
+            )
         return _from_arrays(z, p)
     raise FileFormatError("unknown body file type", path=p, expected=".npz or .pkl", got=ext or "none")
 
@@ -337,6 +377,5 @@ def default_body_path() -> Path:
 
     p = data_path("default_body.npz")
     if not p.is_file():
-        raise InputError("the default body is not available in this installation; pass a body file",
-                         expected=str(p))
+        raise InputError("the default body is not available in this installation; pass a body file", expected=str(p))
     return p

@@ -11,14 +11,22 @@ import numpy as np
 from ..errors import InputError
 from .collision import BodyProxy, push_out
 
-__all__ = ["UNIT_SCALES", "fix_units_and_axes", "FitReport", "placement_report", "push_off_body", "PlacementError",
-           "check_placement"]
+__all__ = [
+    "UNIT_SCALES",
+    "fix_units_and_axes",
+    "FitReport",
+    "placement_report",
+    "push_off_body",
+    "PlacementError",
+    "check_placement",
+]
 
 UNIT_SCALES = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "ft": 0.3048}
 
 
-def fix_units_and_axes(vertices, *, units: str | float | None = None, up: str = "y", scale: float = 1.0,
-                       offset=None) -> np.ndarray:
+def fix_units_and_axes(
+    vertices, *, units: str | float | None = None, up: str = "y", scale: float = 1.0, offset=None
+) -> np.ndarray:
     """A plain similarity: file units to metres, the file's up axis to +Y, an extra scale, then ``offset``
     (metres, after the rest).
 
@@ -41,9 +49,12 @@ def fix_units_and_axes(vertices, *, units: str | float | None = None, up: str = 
     f *= float(scale)
     if not (np.isfinite(f) and f > 0):
         raise InputError("scale must be positive", got=f)
-    rot = {"y": np.eye(3), "z": np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]]),
-           "-z": np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]),
-           "x": np.array([[0, 1.0, 0], [-1.0, 0, 0], [0, 0, 1.0]])}.get(up)
+    rot = {
+        "y": np.eye(3),
+        "z": np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]]),
+        "-z": np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]),
+        "x": np.array([[0, 1.0, 0], [-1.0, 0, 0], [0, 0, 1.0]]),
+    }.get(up)
     if rot is None:
         raise InputError("unknown up axis", expected="y, z, -z or x", got=up)
     out = (v @ rot.T) * f
@@ -67,9 +78,11 @@ class FitReport:
     body_height: float
 
     def line(self) -> str:
-        return (f"median distance to the body {100 * self.median_distance:.1f} cm, 90th percentile "
-                f"{100 * self.p90_distance:.1f} cm, {100 * self.inside_fraction:.1f} % of vertices inside "
-                f"({100 * self.deep_inside_fraction:.1f} % deeper than 1 cm)")
+        return (
+            f"median distance to the body {100 * self.median_distance:.1f} cm, 90th percentile "
+            f"{100 * self.p90_distance:.1f} cm, {100 * self.inside_fraction:.1f} % of vertices inside "
+            f"({100 * self.deep_inside_fraction:.1f} % deeper than 1 cm)"
+        )
 
 
 def placement_report(vertices, body_vertices, body_faces) -> FitReport:
@@ -79,9 +92,14 @@ def placement_report(vertices, body_vertices, body_faces) -> FitReport:
     d = q.signed_distance
     ad = np.abs(d)
     bv = np.asarray(body_vertices)
-    return FitReport(median_distance=float(np.median(ad)), p90_distance=float(np.percentile(ad, 90)),
-                     inside_fraction=float((d < 0).mean()), deep_inside_fraction=float((d < -0.01).mean()),
-                     garment_height=float(np.ptp(v[:, 1])), body_height=float(np.ptp(bv[:, 1])))
+    return FitReport(
+        median_distance=float(np.median(ad)),
+        p90_distance=float(np.percentile(ad, 90)),
+        inside_fraction=float((d < 0).mean()),
+        deep_inside_fraction=float((d < -0.01).mean()),
+        garment_height=float(np.ptp(v[:, 1])),
+        body_height=float(np.ptp(bv[:, 1])),
+    )
 
 
 def push_off_body(vertices, body_vertices, body_faces, margin: float) -> tuple[np.ndarray, int]:
@@ -101,17 +119,21 @@ class PlacementError(InputError):
 
 def _stats(v, proxy, top, floor):
     d = proxy.query(v).signed_distance
-    return {"p20": float(np.percentile(np.abs(d), 20)), "median": float(np.median(np.abs(d))),
-            "deep": float((d < -0.01).mean()), "outside_height": float(((v[:, 1] > top + 0.02) |
-                                                                         (v[:, 1] < floor - 0.02)).mean())}
+    return {
+        "p20": float(np.percentile(np.abs(d), 20)),
+        "median": float(np.median(np.abs(d))),
+        "deep": float((d < -0.01).mean()),
+        "outside_height": float(((v[:, 1] > top + 0.02) | (v[:, 1] < floor - 0.02)).mean()),
+    }
 
 
 def _fits(st) -> bool:
     return st["p20"] <= 0.05 and st["deep"] <= 0.05 and st["outside_height"] <= 0.02
 
 
-def check_placement(vertices, body_vertices, body_faces, *, path=None, max_points: int = 4000,
-                    template_vertices=None, betas=()) -> dict:
+def check_placement(
+    vertices, body_vertices, body_faces, *, path=None, max_points: int = 4000, template_vertices=None, betas=()
+) -> dict:
     """Refuse a garment that does not sit on the (rest) body, naming the likely cause and the fix.
 
     A garment sits on the body when the closest fifth of its vertices are within 5 cm of the skin, at
@@ -137,19 +159,23 @@ def check_placement(vertices, body_vertices, body_faces, *, path=None, max_point
     st = _stats(v, proxy, top, floor)
     if _fits(st):
         return st
-    what = (f"median distance to the body {100 * st['median']:.1f} cm (closest fifth beyond "
-            f"{100 * st['p20']:.1f} cm), {100 * st['deep']:.1f} % of vertices more than 1 cm inside it, "
-            f"{100 * st['outside_height']:.1f} % above the head or below the feet")
+    what = (
+        f"median distance to the body {100 * st['median']:.1f} cm (closest fifth beyond "
+        f"{100 * st['p20']:.1f} cm), {100 * st['deep']:.1f} % of vertices more than 1 cm inside it, "
+        f"{100 * st['outside_height']:.1f} % above the head or below the feet"
+    )
     g = path if path is not None else "GARMENT"
     b = np.asarray(betas if betas is not None else (), np.float64).ravel()
     if template_vertices is not None and b.size and np.abs(b).max() > 0:
         tv = np.asarray(template_vertices, np.float64)
         if _fits(_stats(v, BodyProxy(tv, body_faces), float(tv[:, 1].max()), float(tv[:, 1].min()))):
             shape = ",".join(f"{x:g}" for x in b)
-            raise PlacementError(f"the garment was made for the default body shape (betas 0), not for betas {shape} "
-                                 f"({what})", path=path,
-                                 expected=f"a garment made for betas {shape}: `segadeform garment make KIND --betas "
-                                          f"{shape}`, `segadeform garment fit G.mhclo --betas {shape}`, or --force")
+            raise PlacementError(
+                f"the garment was made for the default body shape (betas 0), not for betas {shape} ({what})",
+                path=path,
+                expected=f"a garment made for betas {shape}: `segadeform garment make KIND --betas "
+                f"{shape}`, `segadeform garment fit G.mhclo --betas {shape}`, or --force",
+            )
     for units in (None, "dm", "cm", "mm", "inch"):
         for up in ("y", "z", "-z"):
             if units is None and up == "y":
@@ -157,23 +183,33 @@ def check_placement(vertices, body_vertices, body_faces, *, path=None, max_point
             w = fix_units_and_axes(v, units=units, up=up)
             if _fits(_stats(w, proxy, top, floor)):
                 opts = (f" --units {units}" if units else "") + (f" --up {up}" if up != "y" else "")
-                read = " and ".join(x for x in ((f"in {units}" if units else ""),
-                                                (f"with +{up.lstrip('-')} up" if up != "y" else "")) if x)
-                raise PlacementError(f"the garment does not sit on the body ({what}); it does once read {read}",
-                                     path=path, expected=f"metres, +Y up: run `segadeform garment fit {g} -o FIXED.obj"
-                                     f"{opts}`, or pass --force")
+                read = " and ".join(
+                    x
+                    for x in ((f"in {units}" if units else ""), (f"with +{up.lstrip('-')} up" if up != "y" else ""))
+                    if x
+                )
+                raise PlacementError(
+                    f"the garment does not sit on the body ({what}); it does once read {read}",
+                    path=path,
+                    expected=f"metres, +Y up: run `segadeform garment fit {g} -o FIXED.obj{opts}`, or pass --force",
+                )
     size = np.ptp(v, axis=0)
     if size.max() < 2.0 * (top - floor):  # a plausible size: try moving it
         for dy in np.arange(-1.5, 1.51, 0.05):
             w = v + np.array([0.0, dy, 0.0])
             if abs(dy) >= 0.25 and _fits(_stats(w, proxy, top, floor)):  # an origin, not a shape, is off
-                raise PlacementError(f"the garment does not sit on the body ({what}); it does {abs(dy):.2f} m "
-                                     f"{'higher' if dy > 0 else 'lower'}: it was placed for another body's "
-                                     "origin (SMPL-fitted garments sit around SMPL's pelvis at y = 0)", path=path,
-                                     expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
-                                              f"--offset 0,{dy:.2f},0` or `--from-body THEIR_BODY.obj`, or pass --force")
-    raise PlacementError(f"the garment does not sit on the body ({what}); it was made for another body, pose or "
-                         "body shape (betas)",
-                         path=path, expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
-                                             "--from-body THEIR_BODY.obj` (MakeHuman clothes: --mhclo FILE), "
-                                             "or pass --force")
+                raise PlacementError(
+                    f"the garment does not sit on the body ({what}); it does {abs(dy):.2f} m "
+                    f"{'higher' if dy > 0 else 'lower'}: it was placed for another body's "
+                    "origin (SMPL-fitted garments sit around SMPL's pelvis at y = 0)",
+                    path=path,
+                    expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
+                    f"--offset 0,{dy:.2f},0` or `--from-body THEIR_BODY.obj`, or pass --force",
+                )
+    raise PlacementError(
+        f"the garment does not sit on the body ({what}); it was made for another body, pose or body shape (betas)",
+        path=path,
+        expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
+        "--from-body THEIR_BODY.obj` (MakeHuman clothes: --mhclo FILE), "
+        "or pass --force",
+    )

@@ -30,19 +30,29 @@ def prepare_for_body(asset: GarmentAsset, body, betas=(), *, weight_prior: str =
     """
     b = np.asarray(betas if betas is not None else [], np.float64).ravel()
     if b.size > body.n_betas or not np.isfinite(b).all():
-        raise InputError("betas must be finite and at most the body's count", expected=f"<= {body.n_betas}",
-                         got=b.size if b.size > body.n_betas else "NaN or inf")
+        raise InputError(
+            "betas must be finite and at most the body's count",
+            expected=f"<= {body.n_betas}",
+            got=b.size if b.size > body.n_betas else "NaN or inf",
+        )
     full = np.zeros(body.n_betas)
     full[: b.size] = b
     joints = body.rest_joints(full)[0]
     if joints.shape != asset.joints.shape:
-        raise InputError("the body's skeleton has another number of joints than the asset's",
-                         expected=asset.joints.shape, got=joints.shape)
+        raise InputError(
+            "the body's skeleton has another number of joints than the asset's",
+            expected=asset.joints.shape,
+            got=joints.shape,
+        )
     # as the runtime's encoder does: the normals as stored (float32), the joints of the shape
     feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
     # as Deformer.body_log_weights does: the shape rounded to the float32 the graphs take
-    lw = residual_log_weights(garment_weights(asset.vertices, asset.faces, body, full.astype(np.float32),
-                                              weight_prior))
-    return dataclasses.replace(asset, features=feats.astype(np.float32), joints=joints.astype(np.float64),
-                               betas=full, log_wbody=np.asarray(lw, np.float32),
-                               body=dict(body_label(body), weight_prior=weight_prior))
+    lw = residual_log_weights(garment_weights(asset.vertices, asset.faces, body, full.astype(np.float32), weight_prior))
+    return dataclasses.replace(
+        asset,
+        features=feats.astype(np.float32),
+        joints=joints.astype(np.float64),
+        betas=full,
+        log_wbody=np.asarray(lw, np.float32),
+        body=dict(body_label(body), weight_prior=weight_prior),
+    )

@@ -132,6 +132,7 @@ def limb_scale(source_rest: np.ndarray, src: np.ndarray, target_rest: np.ndarray
     Shapes:
         source_rest: (J, 3), src: (24,), target_rest: (24, 3) -> float
     """
+
     def legs(p, idx):
         out: float | np.floating = 0.0
         for a, b, c in ((1, 4, 7), (2, 5, 8)):
@@ -145,8 +146,14 @@ def limb_scale(source_rest: np.ndarray, src: np.ndarray, target_rest: np.ndarray
     return float(lt / ls)
 
 
-def retarget_to_smpl(src: np.ndarray, source_rest: np.ndarray, source_global: np.ndarray,
-                     source_pos: np.ndarray, target_rest: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
+def retarget_to_smpl(
+    src: np.ndarray,
+    source_rest: np.ndarray,
+    source_global: np.ndarray,
+    source_pos: np.ndarray,
+    target_rest: np.ndarray,
+    scale: float,
+) -> tuple[np.ndarray, np.ndarray]:
     """Local SMPL joint rotations and root translation that reproduce a source motion (module docstring).
 
     Args:

@@ -9,9 +9,18 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["axis_angle_to_matrix", "matrix_to_axis_angle", "matrix_to_quaternion", "quaternion_to_matrix",
-           "quaternion_multiply", "quaternion_slerp", "axis_angle_to_quaternion", "quaternion_to_axis_angle",
-           "euler_to_matrix", "matrix_to_euler"]
+__all__ = [
+    "axis_angle_to_matrix",
+    "matrix_to_axis_angle",
+    "matrix_to_quaternion",
+    "quaternion_to_matrix",
+    "quaternion_multiply",
+    "quaternion_slerp",
+    "axis_angle_to_quaternion",
+    "quaternion_to_axis_angle",
+    "euler_to_matrix",
+    "matrix_to_euler",
+]
 
 _SMALL = 1e-4  # below this angle the series expansions are exact to float64
 
@@ -56,17 +65,45 @@ def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
     q = np.empty(R.shape[:-2] + (4,))
     # case w largest
     s = np.sqrt(np.maximum(1.0 + cand[..., 0], 1e-300)) * 2
-    qw = np.stack([0.25 * s, (R[..., 2, 1] - R[..., 1, 2]) / s, (R[..., 0, 2] - R[..., 2, 0]) / s,
-                   (R[..., 1, 0] - R[..., 0, 1]) / s], -1)
+    qw = np.stack(
+        [
+            0.25 * s,
+            (R[..., 2, 1] - R[..., 1, 2]) / s,
+            (R[..., 0, 2] - R[..., 2, 0]) / s,
+            (R[..., 1, 0] - R[..., 0, 1]) / s,
+        ],
+        -1,
+    )
     s = np.sqrt(np.maximum(1.0 + m00 - m11 - m22, 1e-300)) * 2
-    qx = np.stack([(R[..., 2, 1] - R[..., 1, 2]) / s, 0.25 * s, (R[..., 0, 1] + R[..., 1, 0]) / s,
-                   (R[..., 0, 2] + R[..., 2, 0]) / s], -1)
+    qx = np.stack(
+        [
+            (R[..., 2, 1] - R[..., 1, 2]) / s,
+            0.25 * s,
+            (R[..., 0, 1] + R[..., 1, 0]) / s,
+            (R[..., 0, 2] + R[..., 2, 0]) / s,
+        ],
+        -1,
+    )
     s = np.sqrt(np.maximum(1.0 + m11 - m00 - m22, 1e-300)) * 2
-    qy = np.stack([(R[..., 0, 2] - R[..., 2, 0]) / s, (R[..., 0, 1] + R[..., 1, 0]) / s, 0.25 * s,
-                   (R[..., 1, 2] + R[..., 2, 1]) / s], -1)
+    qy = np.stack(
+        [
+            (R[..., 0, 2] - R[..., 2, 0]) / s,
+            (R[..., 0, 1] + R[..., 1, 0]) / s,
+            0.25 * s,
+            (R[..., 1, 2] + R[..., 2, 1]) / s,
+        ],
+        -1,
+    )
     s = np.sqrt(np.maximum(1.0 + m22 - m00 - m11, 1e-300)) * 2
-    qz = np.stack([(R[..., 1, 0] - R[..., 0, 1]) / s, (R[..., 0, 2] + R[..., 2, 0]) / s,
-                   (R[..., 1, 2] + R[..., 2, 1]) / s, 0.25 * s], -1)
+    qz = np.stack(
+        [
+            (R[..., 1, 0] - R[..., 0, 1]) / s,
+            (R[..., 0, 2] + R[..., 2, 0]) / s,
+            (R[..., 1, 2] + R[..., 2, 1]) / s,
+            0.25 * s,
+        ],
+        -1,
+    )
     q = np.choose(k[..., None], [qw, qx, qy, qz])
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     return np.where(q[..., :1] < 0, -q, q)
@@ -81,11 +118,20 @@ def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, np.float64)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.stack([
-        1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
-        2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-        2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
-    ], axis=-1).reshape(q.shape[:-1] + (3, 3))
+    return np.stack(
+        [
+            1 - 2 * (y * y + z * z),
+            2 * (x * y - z * w),
+            2 * (x * z + y * w),
+            2 * (x * y + z * w),
+            1 - 2 * (x * x + z * z),
+            2 * (y * z - x * w),
+            2 * (x * z - y * w),
+            2 * (y * z + x * w),
+            1 - 2 * (x * x + y * y),
+        ],
+        axis=-1,
+    ).reshape(q.shape[:-1] + (3, 3))
 
 
 def quaternion_to_axis_angle(q: np.ndarray) -> np.ndarray:
@@ -104,8 +150,9 @@ def quaternion_to_axis_angle(q: np.ndarray) -> np.ndarray:
     ss = np.where(small, 1.0, s)
     # theta / s -> 2 / w (1 + s^2 / (3 w^2) ...) for small s; w ~ 1 there
     w = q[..., 0]
-    factor = np.where(small, 2.0 / np.maximum(w, 1e-300) * (1.0 - s * s / (3.0 * np.maximum(w * w, 1e-300))),
-                      theta / ss)
+    factor = np.where(
+        small, 2.0 / np.maximum(w, 1e-300) * (1.0 - s * s / (3.0 * np.maximum(w * w, 1e-300))), theta / ss
+    )
     return v * factor[..., None]
 
 
@@ -129,8 +176,15 @@ def quaternion_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
     aw, ax, ay, az = np.moveaxis(a, -1, 0)
     bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
 
 
 def quaternion_slerp(a: np.ndarray, b: np.ndarray, t) -> np.ndarray:

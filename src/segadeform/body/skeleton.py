@@ -12,14 +12,35 @@ from ..errors import FileFormatError, check_readable, unreadable_error
 __all__ = ["SMPL_JOINT_NAMES", "SMPL_PARENTS", "load_rest_joints", "default_rest_joints"]
 
 SMPL_JOINT_NAMES = (
-    "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2",
-    "left_ankle", "right_ankle", "spine3", "left_foot", "right_foot", "neck", "left_collar",
-    "right_collar", "head", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
-    "left_wrist", "right_wrist", "left_hand", "right_hand",
+    "pelvis",
+    "left_hip",
+    "right_hip",
+    "spine1",
+    "left_knee",
+    "right_knee",
+    "spine2",
+    "left_ankle",
+    "right_ankle",
+    "spine3",
+    "left_foot",
+    "right_foot",
+    "neck",
+    "left_collar",
+    "right_collar",
+    "head",
+    "left_shoulder",
+    "right_shoulder",
+    "left_elbow",
+    "right_elbow",
+    "left_wrist",
+    "right_wrist",
+    "left_hand",
+    "right_hand",
 )
 #: Parent of each joint; -1 for the root.
-SMPL_PARENTS = np.array([-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21],
-                        dtype=np.int64)
+SMPL_PARENTS = np.array(
+    [-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21], dtype=np.int64
+)
 
 
 def _finite_joints(j, p: Path, what: str) -> np.ndarray:
@@ -62,12 +83,19 @@ def load_rest_joints(path: str | os.PathLike) -> np.ndarray:
     if "J_regressor" in z and "v_template" in z:
         jr, vt = np.asarray(z["J_regressor"]), np.asarray(z["v_template"])
         if jr.ndim != 2 or vt.ndim != 2 or vt.shape[1] != 3 or jr.shape[1] != vt.shape[0]:
-            raise FileFormatError("J_regressor and v_template do not fit", path=p,
-                                  expected="J_regressor (S, V) and v_template (V, 3)",
-                                  got=f"{jr.shape} and {vt.shape}")
+            raise FileFormatError(
+                "J_regressor and v_template do not fit",
+                path=p,
+                expected="J_regressor (S, V) and v_template (V, 3)",
+                got=f"{jr.shape} and {vt.shape}",
+            )
         return _finite_joints(jr.astype(np.float64) @ vt.astype(np.float64), p, "joints")
-    raise FileFormatError("body file has no joints", path=p,
-                          expected="'joints', 'joint_template' or 'J_regressor' + 'v_template'", got=", ".join(z))
+    raise FileFormatError(
+        "body file has no joints",
+        path=p,
+        expected="'joints', 'joint_template' or 'J_regressor' + 'v_template'",
+        got=", ".join(z),
+    )
 
 
 def default_rest_joints() -> np.ndarray:
@@ -80,11 +108,31 @@ def default_rest_joints() -> np.ndarray:
     return _TPOSE.copy()
 
 
-_TPOSE = np.array([
-    [0.000, 0.950, 0.000], [0.090, 0.870, 0.000], [-0.090, 0.870, 0.000], [0.000, 1.060, -0.010],
-    [0.100, 0.500, 0.000], [-0.100, 0.500, 0.000], [0.000, 1.190, 0.000], [0.110, 0.090, -0.020],
-    [-0.110, 0.090, -0.020], [0.000, 1.250, 0.010], [0.120, 0.030, 0.100], [-0.120, 0.030, 0.100],
-    [0.000, 1.480, -0.010], [0.070, 1.400, 0.000], [-0.070, 1.400, 0.000], [0.000, 1.580, 0.030],
-    [0.180, 1.420, -0.010], [-0.180, 1.420, -0.010], [0.440, 1.420, -0.020], [-0.440, 1.420, -0.020],
-    [0.690, 1.420, -0.010], [-0.690, 1.420, -0.010], [0.770, 1.420, -0.010], [-0.770, 1.420, -0.010],
-])
+_TPOSE = np.array(
+    [
+        [0.000, 0.950, 0.000],
+        [0.090, 0.870, 0.000],
+        [-0.090, 0.870, 0.000],
+        [0.000, 1.060, -0.010],
+        [0.100, 0.500, 0.000],
+        [-0.100, 0.500, 0.000],
+        [0.000, 1.190, 0.000],
+        [0.110, 0.090, -0.020],
+        [-0.110, 0.090, -0.020],
+        [0.000, 1.250, 0.010],
+        [0.120, 0.030, 0.100],
+        [-0.120, 0.030, 0.100],
+        [0.000, 1.480, -0.010],
+        [0.070, 1.400, 0.000],
+        [-0.070, 1.400, 0.000],
+        [0.000, 1.580, 0.030],
+        [0.180, 1.420, -0.010],
+        [-0.180, 1.420, -0.010],
+        [0.440, 1.420, -0.020],
+        [-0.440, 1.420, -0.020],
+        [0.690, 1.420, -0.010],
+        [-0.690, 1.420, -0.010],
+        [0.770, 1.420, -0.010],
+        [-0.770, 1.420, -0.010],
+    ]
+)

@@ -60,29 +60,86 @@ import numpy as np
 from ..errors import InputError
 from .skeleton import SMPL_JOINT_NAMES, SMPL_PARENTS
 
-__all__ = ["NAME_TABLES", "MIXAMO_TO_SMPL", "SMPL_SHORT_NAMES", "REQUIRED_JOINTS", "SkeletonMapping",
-           "normalize_name", "common_prefix", "map_skeleton", "read_joint_map"]
+__all__ = [
+    "NAME_TABLES",
+    "MIXAMO_TO_SMPL",
+    "SMPL_SHORT_NAMES",
+    "REQUIRED_JOINTS",
+    "SkeletonMapping",
+    "normalize_name",
+    "common_prefix",
+    "map_skeleton",
+    "read_joint_map",
+]
 
 #: SMPL joints a source skeleton must provide (directly or through a user map).
-REQUIRED_JOINTS = ("pelvis", "left_hip", "right_hip", "left_knee", "right_knee", "left_ankle", "right_ankle",
-                   "left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist")
+REQUIRED_JOINTS = (
+    "pelvis",
+    "left_hip",
+    "right_hip",
+    "left_knee",
+    "right_knee",
+    "left_ankle",
+    "right_ankle",
+    "left_shoulder",
+    "right_shoulder",
+    "left_elbow",
+    "right_elbow",
+    "left_wrist",
+    "right_wrist",
+)
 
 MIXAMO_TO_SMPL = {
-    "Hips": "pelvis", "LeftUpLeg": "left_hip", "RightUpLeg": "right_hip", "Spine": "spine1",
-    "LeftLeg": "left_knee", "RightLeg": "right_knee", "Spine1": "spine2", "LeftFoot": "left_ankle",
-    "RightFoot": "right_ankle", "Spine2": "spine3", "LeftToeBase": "left_foot", "RightToeBase": "right_foot",
-    "Neck": "neck", "LeftShoulder": "left_collar", "RightShoulder": "right_collar", "Head": "head",
-    "LeftArm": "left_shoulder", "RightArm": "right_shoulder", "LeftForeArm": "left_elbow",
-    "RightForeArm": "right_elbow", "LeftHand": "left_wrist", "RightHand": "right_wrist",
-    "LeftHandMiddle1": "left_hand", "RightHandMiddle1": "right_hand",
+    "Hips": "pelvis",
+    "LeftUpLeg": "left_hip",
+    "RightUpLeg": "right_hip",
+    "Spine": "spine1",
+    "LeftLeg": "left_knee",
+    "RightLeg": "right_knee",
+    "Spine1": "spine2",
+    "LeftFoot": "left_ankle",
+    "RightFoot": "right_ankle",
+    "Spine2": "spine3",
+    "LeftToeBase": "left_foot",
+    "RightToeBase": "right_foot",
+    "Neck": "neck",
+    "LeftShoulder": "left_collar",
+    "RightShoulder": "right_collar",
+    "Head": "head",
+    "LeftArm": "left_shoulder",
+    "RightArm": "right_shoulder",
+    "LeftForeArm": "left_elbow",
+    "RightForeArm": "right_elbow",
+    "LeftHand": "left_wrist",
+    "RightHand": "right_wrist",
+    "LeftHandMiddle1": "left_hand",
+    "RightHandMiddle1": "right_hand",
 }
 SMPL_SHORT_NAMES = {
-    "Pelvis": "pelvis", "L_Hip": "left_hip", "R_Hip": "right_hip", "Spine1": "spine1", "L_Knee": "left_knee",
-    "R_Knee": "right_knee", "Spine2": "spine2", "L_Ankle": "left_ankle", "R_Ankle": "right_ankle",
-    "Spine3": "spine3", "L_Foot": "left_foot", "R_Foot": "right_foot", "Neck": "neck", "L_Collar": "left_collar",
-    "R_Collar": "right_collar", "Head": "head", "L_Shoulder": "left_shoulder", "R_Shoulder": "right_shoulder",
-    "L_Elbow": "left_elbow", "R_Elbow": "right_elbow", "L_Wrist": "left_wrist", "R_Wrist": "right_wrist",
-    "L_Hand": "left_hand", "R_Hand": "right_hand",
+    "Pelvis": "pelvis",
+    "L_Hip": "left_hip",
+    "R_Hip": "right_hip",
+    "Spine1": "spine1",
+    "L_Knee": "left_knee",
+    "R_Knee": "right_knee",
+    "Spine2": "spine2",
+    "L_Ankle": "left_ankle",
+    "R_Ankle": "right_ankle",
+    "Spine3": "spine3",
+    "L_Foot": "left_foot",
+    "R_Foot": "right_foot",
+    "Neck": "neck",
+    "L_Collar": "left_collar",
+    "R_Collar": "right_collar",
+    "Head": "head",
+    "L_Shoulder": "left_shoulder",
+    "R_Shoulder": "right_shoulder",
+    "L_Elbow": "left_elbow",
+    "R_Elbow": "right_elbow",
+    "L_Wrist": "left_wrist",
+    "R_Wrist": "right_wrist",
+    "L_Hand": "left_hand",
+    "R_Hand": "right_hand",
 }
 
 
@@ -105,85 +162,261 @@ NAME_TABLES: dict[str, dict[str, str]] = {
     "smpl-short": SMPL_SHORT_NAMES,
     "mixamo": MIXAMO_TO_SMPL,
     # cgspeed's MotionBuilder-friendly CMU conversion: Hips/LHipJoint/LeftUpLeg/LowerBack/Spine/Spine1/Neck/Neck1
-    "cmu-motionbuilder": _sided({
-        "Hips": "pelvis", "{S}UpLeg": "{s}_hip", "{S}Leg": "{s}_knee", "{S}Foot": "{s}_ankle",
-        "{S}ToeBase": "{s}_foot", "LowerBack": "spine1", "Spine": "spine2", "Spine1": "spine3", "Neck": "neck",
-        "Head": "head", "{S}Shoulder": "{s}_collar", "{S}Arm": "{s}_shoulder", "{S}ForeArm": "{s}_elbow",
-        "{S}Hand": "{s}_wrist", "{S}FingerBase": "{s}_hand"}),
+    "cmu-motionbuilder": _sided(
+        {
+            "Hips": "pelvis",
+            "{S}UpLeg": "{s}_hip",
+            "{S}Leg": "{s}_knee",
+            "{S}Foot": "{s}_ankle",
+            "{S}ToeBase": "{s}_foot",
+            "LowerBack": "spine1",
+            "Spine": "spine2",
+            "Spine1": "spine3",
+            "Neck": "neck",
+            "Head": "head",
+            "{S}Shoulder": "{s}_collar",
+            "{S}Arm": "{s}_shoulder",
+            "{S}ForeArm": "{s}_elbow",
+            "{S}Hand": "{s}_wrist",
+            "{S}FingerBase": "{s}_hand",
+        }
+    ),
     # cgspeed's 3dsMax-friendly conversion: Hips/LHipJoint/LeftHip/LeftKnee/lowerback/Chest/Chest2/lowerneck
-    "cmu-3dsmax": _sided({
-        "Hips": "pelvis", "{S}Hip": "{s}_hip", "{S}Knee": "{s}_knee", "{S}Ankle": "{s}_ankle", "{S}Toe": "{s}_foot",
-        "lowerback": "spine1", "Chest": "spine2", "Chest2": "spine3", "lowerneck": "neck", "Neck": "neck",
-        "Head": "head",
-        "{S}Collar": "{s}_collar", "{S}Shoulder": "{s}_shoulder", "{S}Elbow": "{s}_elbow", "{S}Wrist": "{s}_wrist",
-        "{c}hand": "{s}_hand"}),
+    "cmu-3dsmax": _sided(
+        {
+            "Hips": "pelvis",
+            "{S}Hip": "{s}_hip",
+            "{S}Knee": "{s}_knee",
+            "{S}Ankle": "{s}_ankle",
+            "{S}Toe": "{s}_foot",
+            "lowerback": "spine1",
+            "Chest": "spine2",
+            "Chest2": "spine3",
+            "lowerneck": "neck",
+            "Neck": "neck",
+            "Head": "head",
+            "{S}Collar": "{s}_collar",
+            "{S}Shoulder": "{s}_shoulder",
+            "{S}Elbow": "{s}_elbow",
+            "{S}Wrist": "{s}_wrist",
+            "{c}hand": "{s}_hand",
+        }
+    ),
     # cgspeed's DAZ/Poser-friendly conversion: hip/abdomen/chest/lCollar/lShldr/lThigh/lShin (no spine2, no toes)
-    "cmu-daz": _sided({
-        "hip": "pelvis", "abdomen": "spine1", "chest": "spine3", "neck": "neck", "head": "head",
-        "{c}Thigh": "{s}_hip", "{c}Shin": "{s}_knee", "{c}Foot": "{s}_ankle", "{c}Collar": "{s}_collar",
-        "{c}Shldr": "{s}_shoulder", "{c}ForeArm": "{s}_elbow", "{c}Hand": "{s}_wrist", "{c}Mid1": "{s}_hand"}),
+    "cmu-daz": _sided(
+        {
+            "hip": "pelvis",
+            "abdomen": "spine1",
+            "chest": "spine3",
+            "neck": "neck",
+            "head": "head",
+            "{c}Thigh": "{s}_hip",
+            "{c}Shin": "{s}_knee",
+            "{c}Foot": "{s}_ankle",
+            "{c}Collar": "{s}_collar",
+            "{c}Shldr": "{s}_shoulder",
+            "{c}ForeArm": "{s}_elbow",
+            "{c}Hand": "{s}_wrist",
+            "{c}Mid1": "{s}_hand",
+        }
+    ),
     # the CMU ASF/AMC bone names as some BVH conversions keep them (hip/lhipjoint/lhip/lknee/lfoot)
-    "cmu-asf": _sided({
-        "hip": "pelvis", "{c}hip": "{s}_hip", "{c}knee": "{s}_knee", "{c}foot": "{s}_ankle", "{S}toebase": "{s}_foot",
-        "lowerback": "spine1", "abdomen": "spine2", "chest": "spine3", "neck": "neck", "head": "head",
-        "{c}collar": "{s}_collar", "{c}shoulder": "{s}_shoulder", "{c}elbow": "{s}_elbow", "{c}hand": "{s}_wrist",
-        "{S}fingerbase": "{s}_hand",
-        # the raw ASF bone names; a joint is where its bone starts: lradius at the elbow, lwrist a
-        # forearm twist bone part-way down (folded in), lhand at the wrist, lfingers at the knuckles
-        "root": "pelvis", "{c}femur": "{s}_hip", "{c}tibia": "{s}_knee", "{c}toes": "{s}_foot",
-        "upperback": "spine2", "thorax": "spine3", "lowerneck": "neck", "{c}clavicle": "{s}_collar",
-        "{c}humerus": "{s}_shoulder", "{c}radius": "{s}_elbow", "{c}fingers": "{s}_hand"}),
+    "cmu-asf": _sided(
+        {
+            "hip": "pelvis",
+            "{c}hip": "{s}_hip",
+            "{c}knee": "{s}_knee",
+            "{c}foot": "{s}_ankle",
+            "{S}toebase": "{s}_foot",
+            "lowerback": "spine1",
+            "abdomen": "spine2",
+            "chest": "spine3",
+            "neck": "neck",
+            "head": "head",
+            "{c}collar": "{s}_collar",
+            "{c}shoulder": "{s}_shoulder",
+            "{c}elbow": "{s}_elbow",
+            "{c}hand": "{s}_wrist",
+            "{S}fingerbase": "{s}_hand",
+            # the raw ASF bone names; a joint is where its bone starts: lradius at the elbow, lwrist a
+            # forearm twist bone part-way down (folded in), lhand at the wrist, lfingers at the knuckles
+            "root": "pelvis",
+            "{c}femur": "{s}_hip",
+            "{c}tibia": "{s}_knee",
+            "{c}toes": "{s}_foot",
+            "upperback": "spine2",
+            "thorax": "spine3",
+            "lowerneck": "neck",
+            "{c}clavicle": "{s}_collar",
+            "{c}humerus": "{s}_shoulder",
+            "{c}radius": "{s}_elbow",
+            "{c}fingers": "{s}_hand",
+        }
+    ),
     # Unity-humanoid style with side suffixes (Bandai-Namco-style game rigs: UpperLeg_L, LowerArm_R; often a
     # floor joint above the hips and six channels on every joint)
-    "unity": _sided({
-        "Hips": "pelvis", "Spine": "spine1", "Chest": "spine2", "UpperChest": "spine3", "Neck": "neck",
-        "Head": "head", "UpperLeg_{C}": "{s}_hip", "LowerLeg_{C}": "{s}_knee", "Foot_{C}": "{s}_ankle",
-        "Toes_{C}": "{s}_foot", "Toe_{C}": "{s}_foot", "Shoulder_{C}": "{s}_collar", "UpperArm_{C}": "{s}_shoulder",
-        "LowerArm_{C}": "{s}_elbow", "Hand_{C}": "{s}_wrist", "Middle1_{C}": "{s}_hand"}),
+    "unity": _sided(
+        {
+            "Hips": "pelvis",
+            "Spine": "spine1",
+            "Chest": "spine2",
+            "UpperChest": "spine3",
+            "Neck": "neck",
+            "Head": "head",
+            "UpperLeg_{C}": "{s}_hip",
+            "LowerLeg_{C}": "{s}_knee",
+            "Foot_{C}": "{s}_ankle",
+            "Toes_{C}": "{s}_foot",
+            "Toe_{C}": "{s}_foot",
+            "Shoulder_{C}": "{s}_collar",
+            "UpperArm_{C}": "{s}_shoulder",
+            "LowerArm_{C}": "{s}_elbow",
+            "Hand_{C}": "{s}_wrist",
+            "Middle1_{C}": "{s}_hand",
+        }
+    ),
     # Character Creator / iClone / ActorCore (CC_Base_ prefix; twist, ShareBone, finger and face joints left out)
-    "character-creator": _sided({
-        p + k: v for p in ("CC_Base_", "") for k, v in {
-            "Hip": "pelvis", "Waist": "spine1", "Spine01": "spine2", "Spine02": "spine3", "NeckTwist01": "neck",
-            "Head": "head", "{C}_Thigh": "{s}_hip", "{C}_Calf": "{s}_knee", "{C}_Foot": "{s}_ankle",
-            "{C}_ToeBase": "{s}_foot", "{C}_Clavicle": "{s}_collar", "{C}_Upperarm": "{s}_shoulder",
-            "{C}_Forearm": "{s}_elbow", "{C}_Hand": "{s}_wrist", "{C}_Mid1": "{s}_hand"}.items()}),
+    "character-creator": _sided(
+        {
+            p + k: v
+            for p in ("CC_Base_", "")
+            for k, v in {
+                "Hip": "pelvis",
+                "Waist": "spine1",
+                "Spine01": "spine2",
+                "Spine02": "spine3",
+                "NeckTwist01": "neck",
+                "Head": "head",
+                "{C}_Thigh": "{s}_hip",
+                "{C}_Calf": "{s}_knee",
+                "{C}_Foot": "{s}_ankle",
+                "{C}_ToeBase": "{s}_foot",
+                "{C}_Clavicle": "{s}_collar",
+                "{C}_Upperarm": "{s}_shoulder",
+                "{C}_Forearm": "{s}_elbow",
+                "{C}_Hand": "{s}_wrist",
+                "{C}_Mid1": "{s}_hand",
+            }.items()
+        }
+    ),
     # Unreal's mannequin (UE4: spine_01..03; UE5's spine_04/05 are found by the chest rule)
-    "unreal": _sided({
-        "pelvis": "pelvis", "spine_01": "spine1", "spine_02": "spine2", "spine_03": "spine3", "neck_01": "neck",
-        "head": "head", "thigh_{c}": "{s}_hip", "calf_{c}": "{s}_knee", "foot_{c}": "{s}_ankle",
-        "ball_{c}": "{s}_foot", "clavicle_{c}": "{s}_collar", "upperarm_{c}": "{s}_shoulder",
-        "lowerarm_{c}": "{s}_elbow", "hand_{c}": "{s}_wrist", "middle_01_{c}": "{s}_hand"}),
+    "unreal": _sided(
+        {
+            "pelvis": "pelvis",
+            "spine_01": "spine1",
+            "spine_02": "spine2",
+            "spine_03": "spine3",
+            "neck_01": "neck",
+            "head": "head",
+            "thigh_{c}": "{s}_hip",
+            "calf_{c}": "{s}_knee",
+            "foot_{c}": "{s}_ankle",
+            "ball_{c}": "{s}_foot",
+            "clavicle_{c}": "{s}_collar",
+            "upperarm_{c}": "{s}_shoulder",
+            "lowerarm_{c}": "{s}_elbow",
+            "hand_{c}": "{s}_wrist",
+            "middle_01_{c}": "{s}_hand",
+        }
+    ),
     # Xsens MVN: Pelvis/L5/L3/T12/T8, RightUpperLeg/RightLowerLeg
-    "xsens": _sided({
-        "Pelvis": "pelvis", "L3": "spine1", "T12": "spine2", "T8": "spine3", "Neck": "neck", "Head": "head",
-        "{S}UpperLeg": "{s}_hip", "{S}LowerLeg": "{s}_knee", "{S}Foot": "{s}_ankle", "{S}Toe": "{s}_foot",
-        "{S}Shoulder": "{s}_collar", "{S}UpperArm": "{s}_shoulder", "{S}ForeArm": "{s}_elbow",
-        "{S}Hand": "{s}_wrist"}),
+    "xsens": _sided(
+        {
+            "Pelvis": "pelvis",
+            "L3": "spine1",
+            "T12": "spine2",
+            "T8": "spine3",
+            "Neck": "neck",
+            "Head": "head",
+            "{S}UpperLeg": "{s}_hip",
+            "{S}LowerLeg": "{s}_knee",
+            "{S}Foot": "{s}_ankle",
+            "{S}Toe": "{s}_foot",
+            "{S}Shoulder": "{s}_collar",
+            "{S}UpperArm": "{s}_shoulder",
+            "{S}ForeArm": "{s}_elbow",
+            "{S}Hand": "{s}_wrist",
+        }
+    ),
     # VRM humanoid bones (leftUpperLeg; also Unity's Mecanim names) and VRoid's node names (J_Bip_L_UpperLeg)
-    "vrm": _sided({
-        "hips": "pelvis", "spine": "spine1", "chest": "spine2", "upperChest": "spine3", "neck": "neck",
-        "head": "head", "{s}UpperLeg": "{s}_hip", "{s}LowerLeg": "{s}_knee", "{s}Foot": "{s}_ankle",
-        "{s}Toes": "{s}_foot", "{s}Shoulder": "{s}_collar", "{s}UpperArm": "{s}_shoulder",
-        "{s}LowerArm": "{s}_elbow", "{s}Hand": "{s}_wrist", "{s}MiddleProximal": "{s}_hand",
-        "J_Bip_C_Hips": "pelvis", "J_Bip_C_Spine": "spine1", "J_Bip_C_Chest": "spine2",
-        "J_Bip_C_UpperChest": "spine3", "J_Bip_C_Neck": "neck", "J_Bip_C_Head": "head",
-        "J_Bip_{C}_UpperLeg": "{s}_hip", "J_Bip_{C}_LowerLeg": "{s}_knee", "J_Bip_{C}_Foot": "{s}_ankle",
-        "J_Bip_{C}_ToeBase": "{s}_foot", "J_Bip_{C}_Shoulder": "{s}_collar", "J_Bip_{C}_UpperArm": "{s}_shoulder",
-        "J_Bip_{C}_LowerArm": "{s}_elbow", "J_Bip_{C}_Hand": "{s}_wrist", "J_Bip_{C}_Middle1": "{s}_hand"}),
+    "vrm": _sided(
+        {
+            "hips": "pelvis",
+            "spine": "spine1",
+            "chest": "spine2",
+            "upperChest": "spine3",
+            "neck": "neck",
+            "head": "head",
+            "{s}UpperLeg": "{s}_hip",
+            "{s}LowerLeg": "{s}_knee",
+            "{s}Foot": "{s}_ankle",
+            "{s}Toes": "{s}_foot",
+            "{s}Shoulder": "{s}_collar",
+            "{s}UpperArm": "{s}_shoulder",
+            "{s}LowerArm": "{s}_elbow",
+            "{s}Hand": "{s}_wrist",
+            "{s}MiddleProximal": "{s}_hand",
+            "J_Bip_C_Hips": "pelvis",
+            "J_Bip_C_Spine": "spine1",
+            "J_Bip_C_Chest": "spine2",
+            "J_Bip_C_UpperChest": "spine3",
+            "J_Bip_C_Neck": "neck",
+            "J_Bip_C_Head": "head",
+            "J_Bip_{C}_UpperLeg": "{s}_hip",
+            "J_Bip_{C}_LowerLeg": "{s}_knee",
+            "J_Bip_{C}_Foot": "{s}_ankle",
+            "J_Bip_{C}_ToeBase": "{s}_foot",
+            "J_Bip_{C}_Shoulder": "{s}_collar",
+            "J_Bip_{C}_UpperArm": "{s}_shoulder",
+            "J_Bip_{C}_LowerArm": "{s}_elbow",
+            "J_Bip_{C}_Hand": "{s}_wrist",
+            "J_Bip_{C}_Middle1": "{s}_hand",
+        }
+    ),
     # Blender Rigify's deform bones (DEF-thigh.L; the .001 twist segments left out), with or without DEF-
-    "rigify": _sided({
-        p + k: v for p in ("DEF-", "") for k, v in {
-            "spine": "pelvis", "spine.001": "spine1", "spine.002": "spine2", "spine.003": "spine3",
-            "spine.004": "neck", "spine.006": "head", "thigh.{C}": "{s}_hip", "shin.{C}": "{s}_knee",
-            "foot.{C}": "{s}_ankle", "toe.{C}": "{s}_foot", "shoulder.{C}": "{s}_collar",
-            "upper_arm.{C}": "{s}_shoulder", "forearm.{C}": "{s}_elbow", "hand.{C}": "{s}_wrist",
-            "f_middle.01.{C}": "{s}_hand"}.items()}),
+    "rigify": _sided(
+        {
+            p + k: v
+            for p in ("DEF-", "")
+            for k, v in {
+                "spine": "pelvis",
+                "spine.001": "spine1",
+                "spine.002": "spine2",
+                "spine.003": "spine3",
+                "spine.004": "neck",
+                "spine.006": "head",
+                "thigh.{C}": "{s}_hip",
+                "shin.{C}": "{s}_knee",
+                "foot.{C}": "{s}_ankle",
+                "toe.{C}": "{s}_foot",
+                "shoulder.{C}": "{s}_collar",
+                "upper_arm.{C}": "{s}_shoulder",
+                "forearm.{C}": "{s}_elbow",
+                "hand.{C}": "{s}_wrist",
+                "f_middle.01.{C}": "{s}_hand",
+            }.items()
+        }
+    ),
     # Rokoko Studio: Hips/Spine1..Spine4, LeftThigh/LeftShin/LeftToe
-    "rokoko": _sided({
-        "Hips": "pelvis", "Spine1": "spine1", "Spine2": "spine2", "Spine4": "spine3", "Neck": "neck",
-        "Head": "head", "{S}Thigh": "{s}_hip", "{S}Shin": "{s}_knee", "{S}Foot": "{s}_ankle", "{S}Toe": "{s}_foot",
-        "{S}Shoulder": "{s}_collar", "{S}Arm": "{s}_shoulder", "{S}ForeArm": "{s}_elbow", "{S}Hand": "{s}_wrist",
-        "{S}Finger3Proximal": "{s}_hand"}),
+    "rokoko": _sided(
+        {
+            "Hips": "pelvis",
+            "Spine1": "spine1",
+            "Spine2": "spine2",
+            "Spine4": "spine3",
+            "Neck": "neck",
+            "Head": "head",
+            "{S}Thigh": "{s}_hip",
+            "{S}Shin": "{s}_knee",
+            "{S}Foot": "{s}_ankle",
+            "{S}Toe": "{s}_foot",
+            "{S}Shoulder": "{s}_collar",
+            "{S}Arm": "{s}_shoulder",
+            "{S}ForeArm": "{s}_elbow",
+            "{S}Hand": "{s}_wrist",
+            "{S}Finger3Proximal": "{s}_hand",
+        }
+    ),
 }
 
 
@@ -204,7 +437,7 @@ def common_prefix(names: Sequence[str], share: float = 0.6) -> str:
     for b in bases:
         for m in re.finditer(r"[_\-. ]", b):
             if m.end() < len(b):
-                counts[b[:m.end()]] = counts.get(b[:m.end()], 0) + 1
+                counts[b[: m.end()]] = counts.get(b[: m.end()], 0) + 1
     need = max(3, share * len(bases))
     good = [k for k, c in counts.items() if c >= need]
     return max(good, key=len) if good else ""
@@ -212,7 +445,7 @@ def common_prefix(names: Sequence[str], share: float = 0.6) -> str:
 
 def _strip(name: str, prefix: str) -> str:
     base = re.split(r"[:|]", name)[-1]
-    return base[len(prefix):] if prefix and base.startswith(prefix) else base
+    return base[len(prefix) :] if prefix and base.startswith(prefix) else base
 
 
 _NORMALIZED_TABLES = {k: {normalize_name(a): b for a, b in t.items()} for k, t in NAME_TABLES.items()}
@@ -243,8 +476,11 @@ class SkeletonMapping:
 
     def how(self) -> dict[str, str]:
         """SMPL name -> how it was found (``found_by``) for every mapped joint."""
-        return {SMPL_JOINT_NAMES[j]: (self.found_by[j] if self.found_by else self.scheme)
-                for j, i in enumerate(self.source) if i >= 0}
+        return {
+            SMPL_JOINT_NAMES[j]: (self.found_by[j] if self.found_by else self.scheme)
+            for j, i in enumerate(self.source)
+            if i >= 0
+        }
 
     @property
     def virtual(self) -> list[str]:
@@ -285,8 +521,12 @@ def read_joint_map(path) -> dict[str, str]:
         data, _ = read_toml(p, "joint map")
         data = data.get("joints", data)
     if not isinstance(data, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in data.items()):
-        raise FileFormatError("joint map must map names to names", path=p,
-                              expected='entries like  left_hip = "UpperLeg_L"', got=type(data).__name__)
+        raise FileFormatError(
+            "joint map must map names to names",
+            path=p,
+            expected='entries like  left_hip = "UpperLeg_L"',
+            got=type(data).__name__,
+        )
     out = {}
     for k, v in data.items():
         if k in SMPL_JOINT_NAMES:
@@ -294,8 +534,11 @@ def read_joint_map(path) -> dict[str, str]:
         elif v in SMPL_JOINT_NAMES:
             out[v] = k
         else:
-            raise FileFormatError(f"joint map entry {k!r} = {v!r} names no SMPL joint", path=p,
-                                  expected="one side of each entry among " + ", ".join(SMPL_JOINT_NAMES))
+            raise FileFormatError(
+                f"joint map entry {k!r} = {v!r} names no SMPL joint",
+                path=p,
+                expected="one side of each entry among " + ", ".join(SMPL_JOINT_NAMES),
+            )
     return out
 
 
@@ -394,12 +637,17 @@ def _template() -> dict[str, float]:
     J = default_rest_joints()
     d = lambda a, b: float(np.linalg.norm(J[a] - J[b]))  # noqa: E731
     leg, arm = d(1, 4) + d(4, 7), d(16, 18) + d(18, 20)
-    return {"leg_ratio": d(1, 4) / d(4, 7), "arm_ratio": d(16, 18) / d(18, 20), "hip_out": d(1, 0) / leg,
-            "shoulder_out": d(16, 9) / arm}
+    return {
+        "leg_ratio": d(1, 4) / d(4, 7),
+        "arm_ratio": d(16, 18) / d(18, 20),
+        "hip_out": d(1, 0) / leg,
+        "shoulder_out": d(16, 9) / arm,
+    }
 
 
-def _limb_triple(pos: np.ndarray, chain: list[int], ends_at: Sequence[int], root: int, ratio: float, out: float,
-                 min_len: float):
+def _limb_triple(
+    pos: np.ndarray, chain: list[int], ends_at: Sequence[int], root: int, ratio: float, out: float, min_len: float
+):
     """The (top, middle, end) joints of a limb along ``chain`` -- hip, knee, ankle or shoulder, elbow, wrist --
     whose two bones are closest to the template's proportions: ``log(upper/lower / ratio)^2`` plus half of
     ``log(top's distance from root / (out x limb length))^2`` (this tells the upper arm from the collar and the
@@ -438,8 +686,9 @@ def _first_at(pos: np.ndarray, chain: list[int], j: int, tol: float) -> int:
     return chain[i]
 
 
-def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
-               ends: np.ndarray) -> tuple[dict[str, int], dict[str, str], str]:
+def _shape_map(
+    names: list[str], parents: np.ndarray, rest: np.ndarray, ends: np.ndarray
+) -> tuple[dict[str, int], dict[str, str], str]:
     """The shape rule (module docstring): ``({smpl name: joint}, {smpl name: "shape" | "name words"}, problem)``;
     the problem says what is missing when the skeleton is not a humanoid (the map is then empty).
 
@@ -453,8 +702,11 @@ def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
     leaves = [i for i in range(nj) if not children[i]]
     height = float(np.ptp(np.concatenate([rest[:, 1], ends[:, 1]]))) if nj else 0.0
     if nj < 7 or height <= 0:
-        return {}, {}, ("a flat skeleton (no height)" if height <= 0 else
-                        f"{nj} joints: too few for hips, two legs and two arms")
+        return (
+            {},
+            {},
+            ("a flat skeleton (no height)" if height <= 0 else f"{nj} joints: too few for hips, two legs and two arms"),
+        )
     roles = [_role_of(n) for n in names]
     sides = [_side_of(n) for n in names]
     anc = [set(_ancestors(parents, i)) for i in range(nj)]
@@ -484,7 +736,7 @@ def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
     by_lat = sorted(cand, key=lambda i: -abs(lateral[i]))
     hands = None
     for ka, a in enumerate(by_lat):
-        for b in by_lat[ka + 1:]:
+        for b in by_lat[ka + 1 :]:
             if np.sign(lateral[b]) == np.sign(lateral[a]):
                 continue
             chest = _lca(parents, [a, b])
@@ -497,15 +749,18 @@ def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
         if hands:
             break
     if hands is None:
-        return {}, {}, f"no arms (two chain ends on either side of the body whose branches meet in a chest above " \
-                       f"the hips; found two legs hanging from {names[legs_root]})"
+        return (
+            {},
+            {},
+            f"no arms (two chain ends on either side of the body whose branches meet in a chest above "
+            f"the hips; found two legs hanging from {names[legs_root]})",
+        )
     hand_a, hand_b, chest, pelvis = hands
     out: dict[str, int] = {"pelvis": pelvis, "spine3": chest}
     how: dict[str, str] = {"pelvis": "shape", "spine3": "shape"}
 
     def put(key, joint, by="shape"):
         out[key], how[key] = joint, by
-
 
     def side(chain_end: int, other_end: int) -> tuple[str, str]:
         s = sides[chain_end] or next((sides[j] for j in _ancestors(parents, chain_end) if sides[j]), None)
@@ -524,18 +779,24 @@ def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
                 named[roles[j]] = j
         if "knee" in named and "ankle" in named and 1 <= chain.index(named["knee"]) < chain.index(named["ankle"]):
             knee, ankle = named["knee"], named["ankle"]
-            before = [j for j in chain[:chain.index(knee)] if roles[j] != "twist"] or chain[:chain.index(knee)]
+            before = [j for j in chain[: chain.index(knee)] if roles[j] != "twist"] or chain[: chain.index(knee)]
             hips = [j for j in before if roles[j] == "hip"]
             hip = hips[-1] if hips else before[-1]
             by = "name words"
         else:
             # the ankle: the first joint from which the rest of the chain runs forward more than down
-            ankle = next((j for j in plain[2:] if abs(ends[f, 1] - rest[j, 1])
-                          < np.linalg.norm((ends[f] - rest[j])[[0, 2]])), plain[-1])
+            ankle = next(
+                (j for j in plain[2:] if abs(ends[f, 1] - rest[j, 1]) < np.linalg.norm((ends[f] - rest[j])[[0, 2]])),
+                plain[-1],
+            )
             trip = _limb_triple(rest, plain, [ankle], pelvis, tmpl["leg_ratio"], tmpl["hip_out"], 0.08 * height)
             if trip is None:
-                return {}, {}, f"the {s} leg has no thigh and shin (two bones of at least {0.08 * height:.3g} " \
-                               f"units from the hips to the foot {names[f]})"
+                return (
+                    {},
+                    {},
+                    f"the {s} leg has no thigh and shin (two bones of at least {0.08 * height:.3g} "
+                    f"units from the hips to the foot {names[f]})",
+                )
             hip, knee, ankle = trip
             by = "shape"
         put(f"{s}_hip", hip, by)
@@ -544,7 +805,7 @@ def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
         if "foot" in named and chain.index(named["foot"]) > chain.index(ankle):
             put(f"{s}_foot", named["foot"], "name words")
         else:
-            after = [j for j in chain[chain.index(ankle) + 1:] if roles[j] != "twist"]
+            after = [j for j in chain[chain.index(ankle) + 1 :] if roles[j] != "twist"]
             if after:
                 put(f"{s}_foot", after[0])
     # arms
@@ -565,7 +826,7 @@ def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
         # where a collar comes before it (LeftCollar -> LeftShoulder): the elbow decides
         if "elbow" in named and "wrist" in named and 1 <= chain.index(named["elbow"]) < chain.index(named["wrist"]):
             el, wr = named["elbow"], named["wrist"]
-            before = chain[:chain.index(el)]
+            before = chain[: chain.index(el)]
             shoulders = [j for j in before if roles[j] == "shoulder"]
             sh = shoulders[-1] if shoulders else ([j for j in before if roles[j] != "twist"] or before)[-1]
             if named.get("collar") is None and shoulders and shoulders[0] != sh:
@@ -574,18 +835,22 @@ def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
         else:
             # the wrist: where the fingers branch (three or more children near the hand's end); else the chain's
             # end, or the joint before it when the last bone is too short for a forearm (a hand's end joint)
-            branch = [j for j in plain[2:] if len(children[j]) >= 3 and np.linalg.norm(ends[h] - rest[j])
-                      <= 0.15 * height]
+            branch = [
+                j for j in plain[2:] if len(children[j]) >= 3 and np.linalg.norm(ends[h] - rest[j]) <= 0.15 * height
+            ]
             wrists = branch[-1:]
             if not wrists and len(plain) >= 3:
                 prev = _first_at(rest, plain, plain[-2], 0.0025 * height)
                 short = np.linalg.norm(rest[plain[-1]] - rest[prev]) < 0.06 * height
                 wrists = [prev if short and plain.index(prev) >= 2 else plain[-1]]
-            trip = _limb_triple(rest, plain, wrists, chest, tmpl["arm_ratio"], tmpl["shoulder_out"],
-                                0.05 * height)
+            trip = _limb_triple(rest, plain, wrists, chest, tmpl["arm_ratio"], tmpl["shoulder_out"], 0.05 * height)
             if trip is None:
-                return {}, {}, f"the {s} arm has no upper arm and forearm (two bones of at least " \
-                               f"{0.05 * height:.3g} units from the chest to the hand {names[h]})"
+                return (
+                    {},
+                    {},
+                    f"the {s} arm has no upper arm and forearm (two bones of at least "
+                    f"{0.05 * height:.3g} units from the chest to the hand {names[h]})",
+                )
             sh, el, wr = trip
             named = {k: v for k, v in named.items() if k in ("collar", "hand")}
             by = "shape"
@@ -597,7 +862,7 @@ def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
             put(f"{s}_collar", named["collar"], "name words")
         elif i_sh > 0:
             put(f"{s}_collar", chain[i_sh - 1])
-        after = [j for j in chain[chain.index(wr) + 1:] if roles[j] != "twist"]
+        after = [j for j in chain[chain.index(wr) + 1 :] if roles[j] != "twist"]
         fingers = [j for j in children[wr] if roles[j] != "twist"]
         along = rest[wr] - rest[el]
         along = along / max(np.linalg.norm(along), 1e-12)
@@ -618,13 +883,19 @@ def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
         put("spine2", spine[-2])
     # neck and head: the chain ends above the shoulders that are not in the arms
     shoulder_y = max(rest[out["left_shoulder"], 1], rest[out["right_shoulder"], 1])
-    head_leaves = [i for i in leaves if chest in anc[i] and i != chest and not (arm_tops & anc[i])
-                   and ends[i, 1] > shoulder_y]
+    head_leaves = [
+        i for i in leaves if chest in anc[i] and i != chest and not (arm_tops & anc[i]) and ends[i, 1] > shoulder_y
+    ]
     head = None
     if head_leaves:
         top = max(head_leaves, key=lambda i: ends[i, 1])
-        worded = [j for j in _path(parents, chest, top) if "head" in normalize_name(names[j])
-                  and "top" not in normalize_name(names[j]) and "end" not in normalize_name(names[j])]
+        worded = [
+            j
+            for j in _path(parents, chest, top)
+            if "head" in normalize_name(names[j])
+            and "top" not in normalize_name(names[j])
+            and "end" not in normalize_name(names[j])
+        ]
         if worded:
             head, by = worded[0], "name words"
         elif len(head_leaves) >= 2 and _lca(parents, head_leaves) != chest:
@@ -632,8 +903,11 @@ def _shape_map(names: list[str], parents: np.ndarray, rest: np.ndarray,
         else:
             par = int(parents[top])
             # a head-top end joint (Mixamo's HeadTop_End) rises above the head more than the head above the neck
-            end_joint = par != chest and parents[par] >= 0 and \
-                rest[top, 1] - rest[par, 1] > 1.2 * (rest[par, 1] - rest[int(parents[par]), 1])
+            end_joint = (
+                par != chest
+                and parents[par] >= 0
+                and rest[top, 1] - rest[par, 1] > 1.2 * (rest[par, 1] - rest[int(parents[par]), 1])
+            )
             head, by = (par if end_joint else top), "shape"
         put("head", head, by)
         path = _path(parents, chest, head)
@@ -662,8 +936,9 @@ def _fix_chest(found: dict[str, int], parents: np.ndarray) -> dict[str, int]:
     return out
 
 
-def map_skeleton(names: Sequence[str], parents, rest, *, leaf_ends=None,
-                 joint_map: dict[str, str] | None = None, path=None) -> SkeletonMapping:
+def map_skeleton(
+    names: Sequence[str], parents, rest, *, leaf_ends=None, joint_map: dict[str, str] | None = None, path=None
+) -> SkeletonMapping:
     """Find the SMPL joints in a source skeleton (module docstring).
 
     Args:
@@ -682,33 +957,42 @@ def map_skeleton(names: Sequence[str], parents, rest, *, leaf_ends=None,
     rest = np.asarray(rest, np.float64)
     ends = rest if leaf_ends is None else np.asarray(leaf_ends, np.float64)
     if par.shape != (len(names),) or rest.shape != (len(names), 3) or ends.shape != rest.shape:
-        raise InputError("skeleton arrays do not fit", path=path, expected=f"({len(names)},) parents and "
-                         f"({len(names)}, 3) positions", got=f"{par.shape} and {rest.shape}")
+        raise InputError(
+            "skeleton arrays do not fit",
+            path=path,
+            expected=f"({len(names)},) parents and ({len(names)}, 3) positions",
+            got=f"{par.shape} and {rest.shape}",
+        )
     norm = [normalize_name(n) for n in names]
     prefix = common_prefix(names)
     stripped = [normalize_name(_strip(n, prefix)) for n in names]
     if len(set(norm)) != len(norm):
         dup = sorted({n for n in names if norm.count(normalize_name(n)) > 1})
         if joint_map is None:
-            raise InputError("joint names repeat (after ignoring case and punctuation)", path=path,
-                             got=", ".join(dup[:6]))
+            raise InputError(
+                "joint names repeat (after ignoring case and punctuation)", path=path, got=", ".join(dup[:6])
+            )
     src = np.full(24, -1, np.int64)
     user = {}
     if joint_map:
         by_name = {n: i for i, n in enumerate(names)}
         for smpl, s in joint_map.items():
             if smpl not in SMPL_JOINT_NAMES:
-                raise InputError(f"joint map names an unknown SMPL joint {smpl!r}", path=path,
-                                 expected=", ".join(SMPL_JOINT_NAMES))
+                raise InputError(
+                    f"joint map names an unknown SMPL joint {smpl!r}", path=path, expected=", ".join(SMPL_JOINT_NAMES)
+                )
             if s not in by_name:
-                raise InputError(f"joint map names {s!r}, which is not in the file", path=path,
-                                 expected="one of " + ", ".join(names[:40]))
+                raise InputError(
+                    f"joint map names {s!r}, which is not in the file",
+                    path=path,
+                    expected="one of " + ", ".join(names[:40]),
+                )
             user[SMPL_JOINT_NAMES.index(smpl)] = by_name[s]
     # name tables, on the names as they are and without their common prefix
     best_scheme: str | None = None
     best: dict[str, int] = {}
     for scheme, table in _NORMALIZED_TABLES.items():
-        for keys in ((norm, stripped) if prefix else (norm,)):
+        for keys in (norm, stripped) if prefix else (norm,):
             found: dict[str, int] = {}
             for i, n in enumerate(keys):
                 hit = table.get(n)
@@ -758,12 +1042,14 @@ def map_skeleton(names: Sequence[str], parents, rest, *, leaf_ends=None,
             known = {k: names[i] for k, i in best.items()}
         shown = ", ".join(f"{k}={v}" for k, v in known.items()) or "none"
         raise InputError(
-            "cannot map this skeleton onto SMPL's joints: missing " + ", ".join(missing)
-            + (f"; by shape: {problem}" if problem else ""), path=path,
+            "cannot map this skeleton onto SMPL's joints: missing "
+            + ", ".join(missing)
+            + (f"; by shape: {problem}" if problem else ""),
+            path=path,
             expected="a humanoid (hips, two legs, spine, two arms, head) with SMPL, Mixamo, CMU or "
-                     "similar joint names, or --joint-map FILE",
-            got=f"{len(names)} joints ({', '.join(names[:30])}{' ...' if len(names) > 30 else ''}); "
-                f"found {shown}")
+            "similar joint names, or --joint-map FILE",
+            got=f"{len(names)} joints ({', '.join(names[:30])}{' ...' if len(names) > 30 else ''}); found {shown}",
+        )
     # a mapped joint's SMPL parent chain must be an ancestor chain in the source
     for j in range(1, 24):
         i = src[j]
@@ -773,9 +1059,12 @@ def map_skeleton(names: Sequence[str], parents, rest, *, leaf_ends=None,
         while pj >= 0 and src[pj] < 0:
             pj = int(SMPL_PARENTS[pj])
         if pj >= 0 and src[pj] not in _ancestors(par, int(i))[1:]:
-            raise InputError(f"joint {names[i]!r} (SMPL {SMPL_JOINT_NAMES[j]}) does not descend from "
-                             f"{names[src[pj]]!r} (SMPL {SMPL_JOINT_NAMES[pj]}) in the file's hierarchy",
-                             path=path, expected="the SMPL joint order along each limb")
+            raise InputError(
+                f"joint {names[i]!r} (SMPL {SMPL_JOINT_NAMES[j]}) does not descend from "
+                f"{names[src[pj]]!r} (SMPL {SMPL_JOINT_NAMES[pj]}) in the file's hierarchy",
+                path=path,
+                expected="the SMPL joint order along each limb",
+            )
     found_by = tuple(chosen_how.get(j, chosen_scheme) if src[j] >= 0 else "" for j in range(24))
     # a mapping was chosen (else the required joints were missing, refused above)
     return SkeletonMapping(source=src, scheme=cast(str, chosen_scheme), source_names=tuple(names), found_by=found_by)

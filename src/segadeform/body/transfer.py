@@ -37,10 +37,23 @@ from .collision import BodyProxy
 from .model import BodyModel
 from .skinning import dual_quaternion_skinning, linear_blend_skinning
 
-__all__ = ["transfer_weights", "inpaint_transfer_weights", "inpaint_weights", "garment_weights", "skin_garment",
-           "idw_transfer_weights", "gaussian_transfer_weights", "smooth_transfer_weights",
-           "residual_log_weights", "RESIDUAL_EPS", "WEIGHT_PRIORS", "WEIGHT_PRIOR_VERSION", "INPAINT_MAX_DISTANCE",
-           "INPAINT_MAX_ANGLE", "ON_SKIN"]
+__all__ = [
+    "transfer_weights",
+    "inpaint_transfer_weights",
+    "inpaint_weights",
+    "garment_weights",
+    "skin_garment",
+    "idw_transfer_weights",
+    "gaussian_transfer_weights",
+    "smooth_transfer_weights",
+    "residual_log_weights",
+    "RESIDUAL_EPS",
+    "WEIGHT_PRIORS",
+    "WEIGHT_PRIOR_VERSION",
+    "INPAINT_MAX_DISTANCE",
+    "INPAINT_MAX_ANGLE",
+    "ON_SKIN",
+]
 
 #: the skinning-weight priors a garment can get from the body (see the module docstring)
 WEIGHT_PRIORS = ("nearest", "inpaint", "idw", "gaussian", "smooth")
@@ -129,8 +142,11 @@ def inpaint_weights(vertices, faces, weights, known) -> np.ndarray:
     w = np.asarray(weights, np.float64)
     known = np.asarray(known, bool)
     if w.ndim != 2 or len(w) != len(v) or known.shape != (len(v),):
-        raise InputError("weights (N, S) and known (N,) must match the vertices", expected=f"N = {len(v)}",
-                         got=(w.shape, known.shape))
+        raise InputError(
+            "weights (N, S) and known (N,) must match the vertices",
+            expected=f"N = {len(v)}",
+            got=(w.shape, known.shape),
+        )
     _, comp = connected_components(np.asarray(faces), len(v))
     has_known = np.bincount(comp, known.astype(np.int64), minlength=comp.max() + 1) > 0
     solve = ~known & has_known[comp]
@@ -151,8 +167,16 @@ def inpaint_weights(vertices, faces, weights, known) -> np.ndarray:
     return out
 
 
-def inpaint_transfer_weights(points, faces, body_vertices, body_faces, body_weights, *,
-                             max_distance: float = INPAINT_MAX_DISTANCE, max_angle: float = INPAINT_MAX_ANGLE):
+def inpaint_transfer_weights(
+    points,
+    faces,
+    body_vertices,
+    body_faces,
+    body_weights,
+    *,
+    max_distance: float = INPAINT_MAX_DISTANCE,
+    max_angle: float = INPAINT_MAX_ANGLE,
+):
     """The ``"inpaint"`` prior: closest-point weights where the garment ``points``/``faces`` lies on the body
     (distance below ``max_distance``, normals within ``max_angle`` degrees, either orientation), harmonic
     inpainting elsewhere (:func:`inpaint_weights`).
@@ -210,8 +234,9 @@ def idw_transfer_weights(points, body_vertices, body_faces, body_weights) -> np.
     p, q, w_cp = _closest_point_weights(points, body_vertices, body_faces, body_weights)
     d = np.abs(q.signed_distance)
     bv = np.asarray(body_vertices, np.float64)
-    far = _kernel_blend(p, d, bv, body_weights, IDW_RADIUS_SCALE * d + IDW_RADIUS_MIN,
-                        lambda r, i: 1.0 / (r * r + IDW_EPS ** 2))
+    far = _kernel_blend(
+        p, d, bv, body_weights, IDW_RADIUS_SCALE * d + IDW_RADIUS_MIN, lambda r, i: 1.0 / (r * r + IDW_EPS**2)
+    )
     return _on_skin_blend(d, w_cp, far)
 
 
@@ -233,8 +258,7 @@ def gaussian_transfer_weights(points, body_vertices, body_faces, body_weights) -
     bv = np.asarray(body_vertices, np.float64)
     # the kernel is centred on the closest body point, not the garment vertex: the blend widens with the
     # distance without shifting towards whatever body part happens to be nearest in space
-    far = _kernel_blend(q.closest, d, bv, body_weights, 3.0 * sigma,
-                        lambda r, i: np.exp(-0.5 * (r / sigma[i]) ** 2))
+    far = _kernel_blend(q.closest, d, bv, body_weights, 3.0 * sigma, lambda r, i: np.exp(-0.5 * (r / sigma[i]) ** 2))
     return _on_skin_blend(d, w_cp, far)
 
 

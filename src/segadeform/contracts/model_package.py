@@ -33,13 +33,52 @@ from ..body.transfer import WEIGHT_PRIORS
 from ..errors import FileFormatError
 
 __all__ = [
-    "FORMAT", "SCHEMA_VERSION", "READABLE_SCHEMAS", "OPSET", "SUPPORTED_OPSETS", "MANIFEST_FILE", "WEIGHTS_FILE",
-    "ENCODER", "DEFORMER", "ROLES", "EFFECT_KEYS", "SKINNING", "DTYPES", "DIMENSIONS", "INPUTS", "OUTPUTS",
-    "LEGACY_INPUTS", "FEEDS", "PackageError", "graph_specs", "encoder_spec", "deformer_spec", "deformer_name",
-    "graph_file", "effect_sets", "default_effects", "effects_of", "select_deformer", "deformers", "code_name",
-    "make_manifest", "validate_manifest", "upgrade_manifest", "read_manifest_text", "manifest_schema",
-    "write_manifest_schema", "TRAINING_GARMENTS", "MAX_NODE_TENSORS", "BODY", "BODY_INPUTS", "BODY_OUTPUTS",
-    "body_spec", "body_name", "body_graphs", "select_body", "PORTABLE_INPUT_DTYPES",
+    "FORMAT",
+    "SCHEMA_VERSION",
+    "READABLE_SCHEMAS",
+    "OPSET",
+    "SUPPORTED_OPSETS",
+    "MANIFEST_FILE",
+    "WEIGHTS_FILE",
+    "ENCODER",
+    "DEFORMER",
+    "ROLES",
+    "EFFECT_KEYS",
+    "SKINNING",
+    "DTYPES",
+    "DIMENSIONS",
+    "INPUTS",
+    "OUTPUTS",
+    "LEGACY_INPUTS",
+    "FEEDS",
+    "PackageError",
+    "graph_specs",
+    "encoder_spec",
+    "deformer_spec",
+    "deformer_name",
+    "graph_file",
+    "effect_sets",
+    "default_effects",
+    "effects_of",
+    "select_deformer",
+    "deformers",
+    "code_name",
+    "make_manifest",
+    "validate_manifest",
+    "upgrade_manifest",
+    "read_manifest_text",
+    "manifest_schema",
+    "write_manifest_schema",
+    "TRAINING_GARMENTS",
+    "MAX_NODE_TENSORS",
+    "BODY",
+    "BODY_INPUTS",
+    "BODY_OUTPUTS",
+    "body_spec",
+    "body_name",
+    "body_graphs",
+    "select_body",
+    "PORTABLE_INPUT_DTYPES",
 ]
 
 #: optional manifest key: the garments the model was trained on, as descriptors (Eq. 19 distances), so a
@@ -97,70 +136,70 @@ DIMENSIONS = {
 #: T = the deformer's window (``window`` of its manifest entry).
 INPUTS = {
     "features": "float32 (B, N, F): per garment vertex [position (3, metres), unit normal (3; 0 where "
-                "undefined: area-weighted over the incident faces), distance to each of the S rest-pose "
-                "joints of the body shape (S, metres)]; F = 6 + S = 30 for SMPL's 24 joints",
+    "undefined: area-weighted over the incident faces), distance to each of the S rest-pose "
+    "joints of the body shape (S, metres)]; F = 6 + S = 30 for SMPL's 24 joints",
     "nbr": "int32 (N, K): the padded 1-ring: row i lists vertex i's edge neighbours, nearest first by rest "
-           "length (ties by index), at most K; unused slots hold i itself (schema-2 packages: int64)",
+    "length (ties by index), at most K; unused slots hold i itself (schema-2 packages: int64)",
     "mask": "float32 (N, K): 1 where nbr is a real neighbour, 0 in padded slots (an isolated vertex "
-            "has an all-zero row; schema-2 packages: bool, true and false)",
+    "has an all-zero row; schema-2 packages: bool, true and false)",
     "descriptor": "float32 (B, N*): the garment type descriptor (the precompute's descriptor, N* values)",
     "g": "float32 (N, S): the encoder's output for this garment without its batch axis, the same array "
-         "for every deformer call",
+    "for every deformer call",
     "window": "float32 (B, T, 3 S): motion windows; window[b, k] = the pose k frames before frame b "
-              "(window[b, 0] is the frame itself), each pose the S joints' local axis-angle rotations "
-              "(radians, SMPL joint order, joint-major: x, y, z of joint 0, then joint 1, ...); frames "
-              "before the first frame repeat the first frame",
+    "(window[b, 0] is the frame itself), each pose the S joints' local axis-angle rotations "
+    "(radians, SMPL joint order, joint-major: x, y, z of joint 0, then joint 1, ...); frames "
+    "before the first frame repeat the first frame",
     "betas": "float32 (B, |beta|): the body shape coefficients, zero-padded to |beta|, the same row "
-             "repeated for every frame",
+    "repeated for every frame",
     "rest": "float32 (N, 3): garment rest positions (metres, +Y up)",
     "joints": "float32 (B, S, 3): the body's rest-pose joints for betas (metres), the same (S, 3) "
-              "repeated for every frame",
+    "repeated for every frame",
     "trans": "float32 (B, 3): root translation of each frame (metres)",
     "log_wbody": "float32 (N, S): log(w + 1e-5), w = the body's skinning weights carried to the garment on "
-                 "the rest body of shape betas by config.weight_prior: 'nearest' (absent: the closest body "
-                 "point's weights), 'inpaint' (the closest point's weights where the garment vertex is within "
-                 "2 cm of the body with its normal within 35 degrees of the body's, harmonic inpainting with the "
-                 "cotangent Laplacian elsewhere), 'idw', 'gaussian' or 'smooth' (kernel priors: "
-                 "segadeform.body.transfer) (residual-weights models only, "
-                 "config.weights = 'residual')",
+    "the rest body of shape betas by config.weight_prior: 'nearest' (absent: the closest body "
+    "point's weights), 'inpaint' (the closest point's weights where the garment vertex is within "
+    "2 cm of the body with its normal within 35 degrees of the body's, harmonic inpainting with the "
+    "cotangent Laplacian elsewhere), 'idw', 'gaussian' or 'smooth' (kernel priors: "
+    "segadeform.body.transfer) (residual-weights models only, "
+    "config.weights = 'residual')",
 }
 #: inputs of schema-1-era graphs that current exports no longer have (still read)
 LEGACY_INPUTS = {
     "P": "float32 (N, S, F_enc): the encoder output of packages exported before the factored encoder "
-         "(fed like g: the encoder's output without its batch axis)",
-    "betas (encoder)": "float32 (B, |beta|): those encoders also took the body shape; their output "
-                       "depends on it",
+    "(fed like g: the encoder's output without its batch axis)",
+    "betas (encoder)": "float32 (B, |beta|): those encoders also took the body shape; their output depends on it",
 }
 OUTPUTS = {
     "g": "float32 (B, N, S): the garment's per-joint code (older encoders: P (B, N, S, F_enc))",
-    "vertices": "float32 (B, N, 3): the deformed garment per frame (metres, +Y up, world space: "
-                "includes trans)",
+    "vertices": "float32 (B, N, 3): the deformed garment per frame (metres, +Y up, world space: includes trans)",
     "weights": "float32 (B, N, S): the skinning weights used (positive, each row sums to 1)",
     "blend_shapes": "float32 (B, N, 3): the pose-dependent offsets added to rest before skinning "
-                    "(zero without wrinkles)",
+    "(zero without wrinkles)",
 }
 #: the body graphs' inputs (``betas`` here is one row, not one per frame) and outputs; S = the body's joints
 #: (24), V and F its vertices and triangles (fixed by the body: integers in the manifest)
 BODY_INPUTS = {
     "betas": "float32 (|beta_body|,): the body's shape coefficients (the body file's count, zero-padded), one "
-             "row for every frame of the call",
+    "row for every frame of the call",
     "poses": "float32 (B, S, 3): each frame's local axis-angle joint rotations (radians, SMPL order; the "
-             "motion file's poses)",
+    "motion file's poses)",
     "trans": "float32 (B, 3): each frame's root translation (metres), added to the root joint's rest position",
 }
 BODY_OUTPUTS = {
     "vertices": "float32 (B, V, 3): the posed body (metres, +Y up, world space: trans included), skinned "
-                "with the graph's skinning (LBS or DQS) as segadeform.body.BodyModel.forward does",
+    "with the graph's skinning (LBS or DQS) as segadeform.body.BodyModel.forward does",
     "joints": "float32 (B, S, 3): the posed joints (world space)",
     "rest_joints": "float32 (S, 3): the rest-pose joints for betas (what the deformers' joints input "
-                   "repeats per frame)",
+    "repeats per frame)",
     "faces": "int32 (F, 3): the body's triangles (constant), so the graph alone describes the mesh",
 }
 #: by role, every input name a runtime must know how to feed (the encoder's ``betas``: older packages),
 #: besides the deformer's encoder output (``g``, or ``P``: :func:`code_name`)
-FEEDS = {"encoder": ("features", "nbr", "mask", "descriptor", "betas"),
-         "deformer": ("window", "betas", "rest", "nbr", "mask", "joints", "trans", "log_wbody"),
-         "body": ("betas", "poses", "trans")}
+FEEDS = {
+    "encoder": ("features", "nbr", "mask", "descriptor", "betas"),
+    "deformer": ("window", "betas", "rest", "nbr", "mask", "joints", "trans", "log_wbody"),
+    "body": ("betas", "poses", "trans"),
+}
 
 
 class PackageError(FileFormatError):
@@ -183,10 +222,14 @@ def encoder_spec(cfg) -> dict:
     """Inputs and outputs of the garment encoder for ``cfg`` (a ModelConfig or a config dict)."""
     s = int(_cfg(cfg, "n_joints"))
     return {
-        "role": ROLES[ENCODER], "file": graph_file(ENCODER),
-        "inputs": [_io("features", "float32", ["B", "N", int(_cfg(cfg, "feat_dim"))]),
-                   _io("nbr", "int32", ["N", "K"]), _io("mask", "float32", ["N", "K"]),
-                   _io("descriptor", "float32", ["B", int(_cfg(cfg, "n_star"))])],
+        "role": ROLES[ENCODER],
+        "file": graph_file(ENCODER),
+        "inputs": [
+            _io("features", "float32", ["B", "N", int(_cfg(cfg, "feat_dim"))]),
+            _io("nbr", "int32", ["N", "K"]),
+            _io("mask", "float32", ["N", "K"]),
+            _io("descriptor", "float32", ["B", int(_cfg(cfg, "n_star"))]),
+        ],
         "outputs": [_io("g", "float32", ["B", "N", s])],
     }
 
@@ -196,15 +239,31 @@ def deformer_spec(cfg, effects: Mapping | None = None) -> dict:
     eff = dict(default_effects(cfg) if effects is None else effects)
     s, nb = int(_cfg(cfg, "n_joints")), int(_cfg(cfg, "n_betas"))
     t = int(_cfg(cfg, "window")) if eff["dynamics"] else 1
-    inputs = [_io("g", "float32", ["N", s]), _io("window", "float32", ["B", t, 3 * s]),
-              _io("betas", "float32", ["B", nb]), _io("rest", "float32", ["N", 3]), _io("nbr", "int32", ["N", "K"]),
-              _io("mask", "float32", ["N", "K"]), _io("joints", "float32", ["B", s, 3]), _io("trans", "float32", ["B", 3])]
+    inputs = [
+        _io("g", "float32", ["N", s]),
+        _io("window", "float32", ["B", t, 3 * s]),
+        _io("betas", "float32", ["B", nb]),
+        _io("rest", "float32", ["N", 3]),
+        _io("nbr", "int32", ["N", "K"]),
+        _io("mask", "float32", ["N", "K"]),
+        _io("joints", "float32", ["B", s, 3]),
+        _io("trans", "float32", ["B", 3]),
+    ]
     if _cfg(cfg, "weights", "free") == "residual":
         inputs.append(_io("log_wbody", "float32", ["N", s]))
     name = deformer_name(eff)
-    return {"role": ROLES[DEFORMER], "file": graph_file(name), "effects": eff, "window": t, "inputs": inputs,
-            "outputs": [_io("vertices", "float32", ["B", "N", 3]), _io("weights", "float32", ["B", "N", s]),
-                        _io("blend_shapes", "float32", ["B", "N", 3])]}
+    return {
+        "role": ROLES[DEFORMER],
+        "file": graph_file(name),
+        "effects": eff,
+        "window": t,
+        "inputs": inputs,
+        "outputs": [
+            _io("vertices", "float32", ["B", "N", 3]),
+            _io("weights", "float32", ["B", "N", s]),
+            _io("blend_shapes", "float32", ["B", "N", 3]),
+        ],
+    }
 
 
 def body_name(skinning: str) -> str:
@@ -214,16 +273,28 @@ def body_name(skinning: str) -> str:
     return f"{BODY}_{skinning}"
 
 
-def body_spec(*, n_vertices: int, n_faces: int, n_betas: int, n_joints: int, skinning: str,
-              body: Mapping | None = None) -> dict:
+def body_spec(
+    *, n_vertices: int, n_faces: int, n_betas: int, n_joints: int, skinning: str, body: Mapping | None = None
+) -> dict:
     """Inputs, outputs and skinning of a body graph (the manifest entry without its hash); ``body``: what
     identifies the body (``name``, ``sha256`` of its arrays: :func:`segadeform.body.identity.body_sha256`)."""
     v, f, nb, s = int(n_vertices), int(n_faces), int(n_betas), int(n_joints)
-    out = {"role": ROLES[BODY], "file": graph_file(body_name(skinning)), "skinning": skinning,
-           "inputs": [_io("betas", "float32", [nb]), _io("poses", "float32", ["B", s, 3]),
-                      _io("trans", "float32", ["B", 3])],
-           "outputs": [_io("vertices", "float32", ["B", v, 3]), _io("joints", "float32", ["B", s, 3]),
-                       _io("rest_joints", "float32", [s, 3]), _io("faces", "int32", [f, 3])]}
+    out = {
+        "role": ROLES[BODY],
+        "file": graph_file(body_name(skinning)),
+        "skinning": skinning,
+        "inputs": [
+            _io("betas", "float32", [nb]),
+            _io("poses", "float32", ["B", s, 3]),
+            _io("trans", "float32", ["B", 3]),
+        ],
+        "outputs": [
+            _io("vertices", "float32", ["B", v, 3]),
+            _io("joints", "float32", ["B", s, 3]),
+            _io("rest_joints", "float32", [s, 3]),
+            _io("faces", "int32", [f, 3]),
+        ],
+    }
     if body is not None:
         out["body"] = dict(body)
     return out
@@ -261,8 +332,11 @@ def graph_file(name: str) -> str:
 
 def default_effects(cfg) -> dict:
     """The effects of the model as trained: its skinning, its blend shapes, dynamics on."""
-    return {"skinning": str(_cfg(cfg, "skinning", "lbs")), "wrinkles": bool(_cfg(cfg, "use_blend_shapes", True)),
-            "dynamics": True}
+    return {
+        "skinning": str(_cfg(cfg, "skinning", "lbs")),
+        "wrinkles": bool(_cfg(cfg, "use_blend_shapes", True)),
+        "dynamics": True,
+    }
 
 
 def effect_sets(cfg) -> list[dict]:
@@ -299,8 +373,9 @@ def select_body(manifest: Mapping, skinning: str, *, path=None) -> str | None:
     for name, g in bodies.items():
         if g.get("skinning") == skinning:
             return name
-    raise PackageError("package has no body graph for this skinning", path=path, expected=", ".join(sorted(bodies)),
-                       got=skinning)
+    raise PackageError(
+        "package has no body graph for this skinning", path=path, expected=", ".join(sorted(bodies)), got=skinning
+    )
 
 
 def select_deformer(manifest: Mapping, effects, *, path=None) -> str:
@@ -320,16 +395,37 @@ def code_name(manifest: Mapping) -> str:
 
 
 # ---- manifests ---------------------------------------------------------------------------------------
-def make_manifest(*, config: dict, graphs: dict, default_deformer: str, producer: str, joint_names, parents,
-                  units: str, up_axis: str, ops: dict | None = None, weights: dict | None = None,
-                  **extra) -> dict:
+def make_manifest(
+    *,
+    config: dict,
+    graphs: dict,
+    default_deformer: str,
+    producer: str,
+    joint_names,
+    parents,
+    units: str,
+    up_axis: str,
+    ops: dict | None = None,
+    weights: dict | None = None,
+    **extra,
+) -> dict:
     """A schema-3 manifest.  ``graphs``: name -> entry (role, file, sha256, inputs, outputs; deformers
     also effects and window, body graphs skinning and body); ``weights``: ``{"file", "sha256", "bytes"}`` when
     the graphs share one."""
-    m = {"format": FORMAT, "schema_version": SCHEMA_VERSION, "opset": OPSET, "producer": producer,
-         "config": dict(config), "joint_names": list(joint_names), "parents": [int(p) for p in parents],
-         "units": units, "up_axis": up_axis, "graphs": dict(graphs), "default_deformer": default_deformer,
-         "ops": dict(ops or {})}
+    m = {
+        "format": FORMAT,
+        "schema_version": SCHEMA_VERSION,
+        "opset": OPSET,
+        "producer": producer,
+        "config": dict(config),
+        "joint_names": list(joint_names),
+        "parents": [int(p) for p in parents],
+        "units": units,
+        "up_axis": up_axis,
+        "graphs": dict(graphs),
+        "default_deformer": default_deformer,
+        "ops": dict(ops or {}),
+    }
     if weights is not None:
         m["weights"] = dict(weights)
     m.update(extra)
@@ -371,8 +467,7 @@ def upgrade_manifest(m, *, path=None) -> dict:
             raise PackageError(f"manifest has no '{key}'", path=path)
     old, cfg = m["graphs"], m["config"]
     if ENCODER not in old or DEFORMER not in old:
-        raise PackageError("manifest must describe 'garment_encoder' and 'deformer'", path=path,
-                           got=", ".join(old))
+        raise PackageError("manifest must describe 'garment_encoder' and 'deformer'", path=path, got=", ".join(old))
     graphs = {ENCODER: dict(old[ENCODER], role=ROLES[ENCODER])}
     ops = dict(m.get("ops", {}))
     dflt = dict(old[DEFORMER])
@@ -389,8 +484,7 @@ def upgrade_manifest(m, *, path=None) -> dict:
     if DEFORMER in ops:
         ops.setdefault(default, ops.pop(DEFORMER))
     out = {k: v for k, v in m.items() if k not in ("variants", "graphs", "ops")}
-    out.update(schema_version=SCHEMA_VERSION, graphs=graphs, default_deformer=default, ops=ops,
-               upgraded_from=1)
+    out.update(schema_version=SCHEMA_VERSION, graphs=graphs, default_deformer=default, ops=ops, upgraded_from=1)
     out.setdefault("format", FORMAT)
     return out
 
@@ -399,30 +493,56 @@ def upgrade_manifest(m, *, path=None) -> dict:
 # docs/manifest.schema.json and validate_manifest() checks values against (_conforms), adding what a schema
 # cannot say (its messages and the rules between fields).
 _DIM = {"oneOf": [{"type": "integer", "minimum": 1}, {"type": "string", "minLength": 1}]}
-_TENSOR = {"type": "object", "required": ["name", "dtype", "shape"], "additionalProperties": False,
-           "properties": {"name": {"type": "string", "minLength": 1},
-                          "dtype": {"enum": list(DTYPES)},
-                          "shape": {"type": "array", "items": _DIM}}}
+_TENSOR = {
+    "type": "object",
+    "required": ["name", "dtype", "shape"],
+    "additionalProperties": False,
+    "properties": {
+        "name": {"type": "string", "minLength": 1},
+        "dtype": {"enum": list(DTYPES)},
+        "shape": {"type": "array", "items": _DIM},
+    },
+}
 _SHA = {"type": "string", "pattern": "^[0-9a-f]{64}$"}
 _GRAPH_FILE = {"type": "string", "pattern": r"^[^./\\][^/\\]*\.onnx$"}
 _WEIGHTS_FILE = {"type": "string", "pattern": r"^[^./\\][^/\\]*$"}
-_EFFECTS = {"type": "object", "required": list(EFFECT_KEYS), "additionalProperties": False,
-            "properties": {"skinning": {"enum": list(SKINNING)}, "wrinkles": {"type": "boolean"},
-                           "dynamics": {"type": "boolean"}}}
+_EFFECTS = {
+    "type": "object",
+    "required": list(EFFECT_KEYS),
+    "additionalProperties": False,
+    "properties": {
+        "skinning": {"enum": list(SKINNING)},
+        "wrinkles": {"type": "boolean"},
+        "dynamics": {"type": "boolean"},
+    },
+}
 _OPSET = {"type": "integer", "minimum": SUPPORTED_OPSETS.start, "maximum": SUPPORTED_OPSETS.stop - 1}
 _POSITIVE = {"type": "integer", "minimum": 1}
 _TRAINING_GARMENTS = {
-    "type": "object", "required": ["metric", "threshold", "garments"], "additionalProperties": False,
+    "type": "object",
+    "required": ["metric", "threshold", "garments"],
+    "additionalProperties": False,
     "description": "descriptors of the training garments; a runtime warns when a garment's nearest "
-                   "one (Eq. 19) is further than threshold",
-    "properties": {"metric": {"const": "eq19"},
-                   "threshold": {"oneOf": [{"type": "number", "minimum": 0}, {"type": "null"}]},
-                   "garments": {"type": "array", "minItems": 1, "items": {
-                       "type": "object", "required": ["name", "descriptor"], "additionalProperties": False,
-                       "properties": {"name": {"type": "string"},
-                                      "descriptor": {"type": "array", "items": {"type": "number"},
-                                                     "minItems": 1},
-                                      "openings": {"type": "integer", "minimum": 0}}}}}}
+    "one (Eq. 19) is further than threshold",
+    "properties": {
+        "metric": {"const": "eq19"},
+        "threshold": {"oneOf": [{"type": "number", "minimum": 0}, {"type": "null"}]},
+        "garments": {
+            "type": "array",
+            "minItems": 1,
+            "items": {
+                "type": "object",
+                "required": ["name", "descriptor"],
+                "additionalProperties": False,
+                "properties": {
+                    "name": {"type": "string"},
+                    "descriptor": {"type": "array", "items": {"type": "number"}, "minItems": 1},
+                    "openings": {"type": "integer", "minimum": 0},
+                },
+            },
+        },
+    },
+}
 
 _JSON_TYPES = {"object": dict, "array": list, "string": str, "boolean": bool, "null": type(None)}
 
@@ -473,17 +593,26 @@ def _check_io(name, kind, entries, path) -> None:
     seen = set()
     for e in entries:
         if not isinstance(e, dict) or not _conforms(e.get("name"), _TENSOR["properties"]["name"]):
-            raise PackageError(f"graph '{name}' has a malformed {kind[:-1]}", path=path,
-                               expected="{name, dtype, shape}", got=e)
+            raise PackageError(
+                f"graph '{name}' has a malformed {kind[:-1]}", path=path, expected="{name, dtype, shape}", got=e
+            )
         if e["name"] in seen:
             raise PackageError(f"graph '{name}' names {kind[:-1]} '{e['name']}' twice", path=path)
         seen.add(e["name"])
         if not _conforms(e.get("dtype"), _TENSOR["properties"]["dtype"]):
-            raise PackageError(f"graph '{name}' {kind[:-1]} '{e['name']}' has an unknown dtype", path=path,
-                               expected=" | ".join(DTYPES), got=e.get("dtype"))
+            raise PackageError(
+                f"graph '{name}' {kind[:-1]} '{e['name']}' has an unknown dtype",
+                path=path,
+                expected=" | ".join(DTYPES),
+                got=e.get("dtype"),
+            )
         if not _conforms(e.get("shape"), _TENSOR["properties"]["shape"]):
-            raise PackageError(f"graph '{name}' {kind[:-1]} '{e['name']}' has a malformed shape", path=path,
-                               expected="a list of positive sizes and axis names", got=e.get("shape"))
+            raise PackageError(
+                f"graph '{name}' {kind[:-1]} '{e['name']}' has a malformed shape",
+                path=path,
+                expected="a list of positive sizes and axis names",
+                got=e.get("shape"),
+            )
 
 
 def validate_manifest(m, *, path=None) -> None:
@@ -500,11 +629,19 @@ def validate_manifest(m, *, path=None) -> None:
     if m["format"] != FORMAT:
         raise PackageError("not a segadeform model package", path=path, expected=FORMAT, got=m["format"])
     if m["schema_version"] not in READABLE_SCHEMAS:
-        raise PackageError("unsupported manifest schema version", path=path,
-                           expected=" or ".join(map(str, READABLE_SCHEMAS)), got=m["schema_version"])
+        raise PackageError(
+            "unsupported manifest schema version",
+            path=path,
+            expected=" or ".join(map(str, READABLE_SCHEMAS)),
+            got=m["schema_version"],
+        )
     if not _conforms(m["opset"], _OPSET):
-        raise PackageError("unsupported ONNX opset", path=path,
-                           expected=f"{SUPPORTED_OPSETS.start}..{SUPPORTED_OPSETS.stop - 1}", got=m["opset"])
+        raise PackageError(
+            "unsupported ONNX opset",
+            path=path,
+            expected=f"{SUPPORTED_OPSETS.start}..{SUPPORTED_OPSETS.stop - 1}",
+            got=m["opset"],
+        )
     cfg, graphs = m["config"], m["graphs"]
     if not isinstance(cfg, dict):
         raise PackageError("manifest config must be an object", path=path, got=type(cfg).__name__)
@@ -512,27 +649,34 @@ def validate_manifest(m, *, path=None) -> None:
         if not _conforms(cfg.get(key), _POSITIVE):
             raise PackageError(f"manifest config.{key} must be a positive integer", path=path, got=cfg.get(key))
     if not isinstance(m["joint_names"], list) or len(m["joint_names"]) != cfg["n_joints"]:
-        raise PackageError("manifest joint_names do not match config.n_joints", path=path,
-                           expected=cfg["n_joints"], got=len(m["joint_names"]) if isinstance(m["joint_names"], list)
-                           else m["joint_names"])
+        raise PackageError(
+            "manifest joint_names do not match config.n_joints",
+            path=path,
+            expected=cfg["n_joints"],
+            got=len(m["joint_names"]) if isinstance(m["joint_names"], list) else m["joint_names"],
+        )
     if not isinstance(graphs, dict) or ENCODER not in graphs:
-        raise PackageError(f"manifest must describe '{ENCODER}'", path=path,
-                           got=", ".join(graphs) if isinstance(graphs, dict) else graphs)
+        raise PackageError(
+            f"manifest must describe '{ENCODER}'",
+            path=path,
+            got=", ".join(graphs) if isinstance(graphs, dict) else graphs,
+        )
     files = {}
     for name, g in graphs.items():
         if not isinstance(g, dict):
             raise PackageError(f"graph '{name}' must be an object", path=path, got=g)
         f = g.get("file")
         if not _conforms(f, _GRAPH_FILE):
-            raise PackageError(f"graph '{name}' file must be a .onnx file name in the package folder", path=path,
-                               got=f)
+            raise PackageError(f"graph '{name}' file must be a .onnx file name in the package folder", path=path, got=f)
         if f in files:
-            raise PackageError(f"graphs '{files[f]}' and '{name}' name the same file (one name per graph)",
-                               path=path, got=f)
+            raise PackageError(
+                f"graphs '{files[f]}' and '{name}' name the same file (one name per graph)", path=path, got=f
+            )
         files[f] = name
         role = g.get("role")
-        want_role = ROLES[ENCODER] if name == ENCODER else ROLES[BODY] if name.startswith(BODY + "_") \
-            else ROLES[DEFORMER]
+        want_role = (
+            ROLES[ENCODER] if name == ENCODER else ROLES[BODY] if name.startswith(BODY + "_") else ROLES[DEFORMER]
+        )
         if role != want_role:
             raise PackageError(f"graph '{name}' has the wrong role", path=path, expected=want_role, got=role)
         _check_io(name, "inputs", g.get("inputs"), path)
@@ -540,13 +684,16 @@ def validate_manifest(m, *, path=None) -> None:
         if not m.get("upgraded_from"):  # schema 3 as written: WebGPU's and engines' input dtypes only
             bad = [f"{i['name']} {i['dtype']}" for i in g["inputs"] if i["dtype"] not in PORTABLE_INPUT_DTYPES]
             if bad:
-                raise PackageError(f"graph '{name}' has inputs of a dtype schema {SCHEMA_VERSION} does not allow",
-                                   path=path, expected=" or ".join(PORTABLE_INPUT_DTYPES), got=", ".join(bad))
+                raise PackageError(
+                    f"graph '{name}' has inputs of a dtype schema {SCHEMA_VERSION} does not allow",
+                    path=path,
+                    expected=" or ".join(PORTABLE_INPUT_DTYPES),
+                    got=", ".join(bad),
+                )
         if role == ROLES[BODY]:
             _check_body(name, g, m, path)
     if len(graphs[ENCODER]["outputs"]) != 1:
-        raise PackageError("the garment encoder must have one output", path=path,
-                           got=len(graphs[ENCODER]["outputs"]))
+        raise PackageError("the garment encoder must have one output", path=path, got=len(graphs[ENCODER]["outputs"]))
     code = code_name(m)
     seen_effects = {}
     decs = deformers(m)
@@ -555,26 +702,37 @@ def validate_manifest(m, *, path=None) -> None:
     for name, g in decs.items():
         e = g.get("effects")
         if not _conforms(e, _EFFECTS):
-            raise PackageError(f"deformer '{name}' has malformed effects", path=path,
-                               expected="{skinning: lbs|dqs, wrinkles: bool, dynamics: bool}", got=e)
+            raise PackageError(
+                f"deformer '{name}' has malformed effects",
+                path=path,
+                expected="{skinning: lbs|dqs, wrinkles: bool, dynamics: bool}",
+                got=e,
+            )
         if name != deformer_name(e):
-            raise PackageError(f"deformer '{name}' is not named by its effects", path=path,
-                               expected=deformer_name(e), got=name)
+            raise PackageError(
+                f"deformer '{name}' is not named by its effects", path=path, expected=deformer_name(e), got=name
+            )
         key = (e["skinning"], e["wrinkles"], e["dynamics"])
         if key in seen_effects:
-            raise PackageError(f"deformers '{seen_effects[key]}' and '{name}' have the same effects", path=path,
-                               got=e)
+            raise PackageError(f"deformers '{seen_effects[key]}' and '{name}' have the same effects", path=path, got=e)
         seen_effects[key] = name
         win = next((i["shape"] for i in g["inputs"] if i["name"] == "window"), None)
         if win is None or len(win) != 3 or g.get("window") != win[1] or (not e["dynamics"] and win[1] != 1):
-            raise PackageError(f"deformer '{name}' window does not match its window input", path=path,
-                               expected="window = T of input window (B, T, 3S), T = 1 without dynamics",
-                               got=f"window {g.get('window')}, input {win}")
+            raise PackageError(
+                f"deformer '{name}' window does not match its window input",
+                path=path,
+                expected="window = T of input window (B, T, 3S), T = 1 without dynamics",
+                got=f"window {g.get('window')}, input {win}",
+            )
         if code not in [i["name"] for i in g["inputs"]]:
             raise PackageError(f"deformer '{name}' does not take the encoder's output '{code}'", path=path)
     if m["default_deformer"] not in decs:
-        raise PackageError("default_deformer is not a deformer graph", path=path, expected=", ".join(sorted(decs)),
-                           got=m["default_deformer"])
+        raise PackageError(
+            "default_deformer is not a deformer graph",
+            path=path,
+            expected=", ".join(sorted(decs)),
+            got=m["default_deformer"],
+        )
     w = m.get("weights")
     if w is not None and (not isinstance(w, dict) or not _conforms(w.get("file"), _WEIGHTS_FILE)):
         raise PackageError("manifest weights must name a file in the package folder", path=path, got=w)
@@ -587,57 +745,105 @@ def validate_manifest(m, *, path=None) -> None:
 def _check_body(name, g, m, path) -> None:
     """A body graph's entry: named by its skinning, the body's inputs and outputs in order."""
     if g.get("skinning") not in SKINNING or name != body_name(g["skinning"]):
-        raise PackageError(f"body graph '{name}' is not named by its skinning", path=path,
-                           expected="body_lbs (skinning lbs) or body_dqs (skinning dqs)", got=g.get("skinning"))
+        raise PackageError(
+            f"body graph '{name}' is not named by its skinning",
+            path=path,
+            expected="body_lbs (skinning lbs) or body_dqs (skinning dqs)",
+            got=g.get("skinning"),
+        )
     ins, outs = [i["name"] for i in g["inputs"]], [o["name"] for o in g["outputs"]]
     if ins != list(BODY_INPUTS) or outs != list(BODY_OUTPUTS):
-        raise PackageError(f"body graph '{name}' has other inputs or outputs than a body graph", path=path,
-                           expected=f"{', '.join(BODY_INPUTS)} -> {', '.join(BODY_OUTPUTS)}",
-                           got=f"{', '.join(ins)} -> {', '.join(outs)}")
+        raise PackageError(
+            f"body graph '{name}' has other inputs or outputs than a body graph",
+            path=path,
+            expected=f"{', '.join(BODY_INPUTS)} -> {', '.join(BODY_OUTPUTS)}",
+            got=f"{', '.join(ins)} -> {', '.join(outs)}",
+        )
     joints = g["inputs"][1]["shape"]
     if len(joints) != 3 or joints[1] != len(m["joint_names"]):
-        raise PackageError(f"body graph '{name}' poses another skeleton than the model's", path=path,
-                           expected=f"poses (B, {len(m['joint_names'])}, 3)", got=joints)
+        raise PackageError(
+            f"body graph '{name}' poses another skeleton than the model's",
+            path=path,
+            expected=f"poses (B, {len(m['joint_names'])}, 3)",
+            got=joints,
+        )
 
 
 def _check_training_garments(t, n_star: int, path) -> None:
     ok = _conforms(t, _TRAINING_GARMENTS) and all(len(g["descriptor"]) == n_star for g in t["garments"])
     if not ok:
-        raise PackageError(f"manifest {TRAINING_GARMENTS} is malformed", path=path,
-                           expected=f'{{"metric": "eq19", "threshold": number >= 0 or null, "garments": '
-                                    f'[{{"name": str, "descriptor": [{n_star} numbers], "openings": int >= 0 (optional)}}, ...]}}',
-                           got=str(t)[:200])
+        raise PackageError(
+            f"manifest {TRAINING_GARMENTS} is malformed",
+            path=path,
+            expected=f'{{"metric": "eq19", "threshold": number >= 0 or null, "garments": '
+            f'[{{"name": str, "descriptor": [{n_star} numbers], "openings": int >= 0 (optional)}}, ...]}}',
+            got=str(t)[:200],
+        )
 
 
 def manifest_schema() -> dict:
     """The JSON Schema (draft 2020-12) of a schema-3 ``manifest.json`` (``docs/manifest.schema.json``); input
     dtypes are float32 or int32 (manifests upgraded from schema 2, ``upgraded_from``, may keep int64 and bool)."""
     tensor, sha, fname = _TENSOR, _SHA, _GRAPH_FILE
-    graph_common = {"file": fname, "sha256": sha,
-                    "inputs": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/tensor"}},
-                    "outputs": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/tensor"}}}
+    graph_common = {
+        "file": fname,
+        "sha256": sha,
+        "inputs": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/tensor"}},
+        "outputs": {"type": "array", "minItems": 1, "items": {"$ref": "#/$defs/tensor"}},
+    }
     effects = _EFFECTS
-    encoder = {"type": "object", "required": ["role", "file", "inputs", "outputs"],
-               "properties": dict(graph_common, role={"const": ROLES[ENCODER]},
-                                  outputs=dict(graph_common["outputs"], maxItems=1))}
-    deformer = {"type": "object", "required": ["role", "file", "inputs", "outputs", "effects", "window"],
-                "properties": dict(graph_common, role={"const": ROLES[DEFORMER]}, effects={"$ref": "#/$defs/effects"},
-                                   window={"type": "integer", "minimum": 1})}
-    body = {"type": "object", "required": ["role", "file", "inputs", "outputs", "skinning"],
-            "properties": dict(graph_common, role={"const": ROLES[BODY]}, skinning={"enum": list(SKINNING)},
-                               body={"type": "object", "description": "the body posed: its name and the sha256 of "
-                                                                      "its arrays (segadeform.body.identity)",
-                                     "properties": {"name": {"type": "string"}, "sha256": sha}})}
+    encoder = {
+        "type": "object",
+        "required": ["role", "file", "inputs", "outputs"],
+        "properties": dict(
+            graph_common, role={"const": ROLES[ENCODER]}, outputs=dict(graph_common["outputs"], maxItems=1)
+        ),
+    }
+    deformer = {
+        "type": "object",
+        "required": ["role", "file", "inputs", "outputs", "effects", "window"],
+        "properties": dict(
+            graph_common,
+            role={"const": ROLES[DEFORMER]},
+            effects={"$ref": "#/$defs/effects"},
+            window={"type": "integer", "minimum": 1},
+        ),
+    }
+    body = {
+        "type": "object",
+        "required": ["role", "file", "inputs", "outputs", "skinning"],
+        "properties": dict(
+            graph_common,
+            role={"const": ROLES[BODY]},
+            skinning={"enum": list(SKINNING)},
+            body={
+                "type": "object",
+                "description": "the body posed: its name and the sha256 of its arrays (segadeform.body.identity)",
+                "properties": {"name": {"type": "string"}, "sha256": sha},
+            },
+        ),
+    }
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "$id": "https://segadeform.invalid/manifest.schema.json",
         "title": f"segadeform model package manifest (schema {SCHEMA_VERSION})",
         "description": "manifest.json of a segadeform model package; docs/package.md says what each field and "
-                       # (the module's name when the published schema was made: kept so the file stays the same)
-                       "each graph input means. Generated by segadeform.package_spec.manifest_schema().",
+        # (the module's name when the published schema was made: kept so the file stays the same)
+        "each graph input means. Generated by segadeform.package_spec.manifest_schema().",
         "type": "object",
-        "required": ["format", "schema_version", "opset", "producer", "config", "joint_names", "parents", "units",
-                     "up_axis", "graphs", "default_deformer"],
+        "required": [
+            "format",
+            "schema_version",
+            "opset",
+            "producer",
+            "config",
+            "joint_names",
+            "parents",
+            "units",
+            "up_axis",
+            "graphs",
+            "default_deformer",
+        ],
         "properties": {
             "format": {"const": FORMAT},
             "schema_version": {"const": SCHEMA_VERSION},
@@ -647,29 +853,43 @@ def manifest_schema() -> dict:
             "torch": {"type": "string"},
             "precision": {"enum": ["fp32", "fp16-weights", "int8"]},
             "upgraded_from": {"type": "integer"},
-            "config": {"type": "object",
-                       "required": ["n_joints", "n_betas", "n_star", "feat_dim", "window", "skinning",
-                                    "use_blend_shapes"],
-                       "properties": {k: _POSITIVE for k in ("n_joints", "n_betas", "n_star", "feat_dim", "window")}
-                       | {"skinning": {"enum": list(SKINNING)}, "use_blend_shapes": {"type": "boolean"},
-                          "weights": {"enum": ["free", "residual"]},
-                          "weight_prior": {"enum": list(WEIGHT_PRIORS)}}},
+            "config": {
+                "type": "object",
+                "required": ["n_joints", "n_betas", "n_star", "feat_dim", "window", "skinning", "use_blend_shapes"],
+                "properties": {k: _POSITIVE for k in ("n_joints", "n_betas", "n_star", "feat_dim", "window")}
+                | {
+                    "skinning": {"enum": list(SKINNING)},
+                    "use_blend_shapes": {"type": "boolean"},
+                    "weights": {"enum": ["free", "residual"]},
+                    "weight_prior": {"enum": list(WEIGHT_PRIORS)},
+                },
+            },
             "joint_names": {"type": "array", "items": {"type": "string"}, "minItems": 1},
             "parents": {"type": "array", "items": {"type": "integer", "minimum": -1}, "minItems": 1},
             "units": {"const": "m"},
             "up_axis": {"const": "y"},
-            "graphs": {"type": "object", "required": [ENCODER],
-                       "properties": {ENCODER: {"$ref": "#/$defs/encoder"}},
-                       "patternProperties": {"^deformer_(lbs|dqs)(_nowrinkles)?(_static)?$":
-                                             {"$ref": "#/$defs/deformer"},
-                                             "^body_(lbs|dqs)$": {"$ref": "#/$defs/body"}},
-                       "additionalProperties": False, "minProperties": 2},
+            "graphs": {
+                "type": "object",
+                "required": [ENCODER],
+                "properties": {ENCODER: {"$ref": "#/$defs/encoder"}},
+                "patternProperties": {
+                    "^deformer_(lbs|dqs)(_nowrinkles)?(_static)?$": {"$ref": "#/$defs/deformer"},
+                    "^body_(lbs|dqs)$": {"$ref": "#/$defs/body"},
+                },
+                "additionalProperties": False,
+                "minProperties": 2,
+            },
             "default_deformer": {"type": "string", "pattern": "^deformer_"},
-            "weights": {"type": "object", "required": ["file", "sha256", "bytes"], "additionalProperties": False,
-                        "properties": {"file": _WEIGHTS_FILE, "sha256": sha,
-                                       "bytes": {"type": "integer", "minimum": 0}}},
-            "ops": {"type": "object", "additionalProperties": {"type": "object",
-                                                               "additionalProperties": {"type": "integer"}}},
+            "weights": {
+                "type": "object",
+                "required": ["file", "sha256", "bytes"],
+                "additionalProperties": False,
+                "properties": {"file": _WEIGHTS_FILE, "sha256": sha, "bytes": {"type": "integer", "minimum": 0}},
+            },
+            "ops": {
+                "type": "object",
+                "additionalProperties": {"type": "object", "additionalProperties": {"type": "integer"}},
+            },
             TRAINING_GARMENTS: _TRAINING_GARMENTS,
         },
         "$defs": {"tensor": tensor, "effects": effects, "encoder": encoder, "deformer": deformer, "body": body},

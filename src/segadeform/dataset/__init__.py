@@ -5,5 +5,14 @@ from .make import make_dataset, sample_plan
 from .quality import QualityReport, quality_check
 from .store import Sample, list_samples, load_sample
 
-__all__ = ["DatasetConfig", "load_dataset_config", "make_dataset", "sample_plan", "QualityReport", "quality_check",
-           "Sample", "load_sample", "list_samples"]
+__all__ = [
+    "DatasetConfig",
+    "load_dataset_config",
+    "make_dataset",
+    "sample_plan",
+    "QualityReport",
+    "quality_check",
+    "Sample",
+    "load_sample",
+    "list_samples",
+]

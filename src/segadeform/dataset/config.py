@@ -111,7 +111,7 @@ class MotionEntry:
     file: Path | None = None
     start: float = 0.0  # seconds into the file where the clip begins
     ease_in: float = 1.0  # procedural: seconds blending in from the rest pose
-    family: str = ""    # what splits hold out together (default: the file's stem, or the procedural entry)
+    family: str = ""  # what splits hold out together (default: the file's stem, or the procedural entry)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,7 +131,7 @@ class QualitySpec:
 @dataclasses.dataclass(frozen=True)
 class DatasetConfig:
     garments: tuple
-    bodies: tuple          # tuples of betas
+    bodies: tuple  # tuples of betas
     motions: tuple
     simulate: SimSettings
     quality: QualitySpec = QualitySpec()
@@ -141,13 +141,13 @@ class DatasetConfig:
     path: Path | None = None
     text: str = ""
     body_splits: tuple = ()  # "train" | "test" per body (default: all train)
-    held_out_kinds: tuple = ()    # garment kinds only held-out (test) entries use
+    held_out_kinds: tuple = ()  # garment kinds only held-out (test) entries use
     held_out_motions: tuple = ()  # motion families only held-out (test) entries use
-    order: str = "body-major"     # "body-major" | "spread": the order samples are made in
-    val_kinds: tuple = ()         # garment kinds only validation entries use
-    val_motions: tuple = ()       # motion families only validation entries use
-    roots: tuple = ()             # read-only dataset roots (packs ...) read where they exist
-    spread: int = 0               # order "spread": training samples between two held-out ones (0: 2)
+    order: str = "body-major"  # "body-major" | "spread": the order samples are made in
+    val_kinds: tuple = ()  # garment kinds only validation entries use
+    val_motions: tuple = ()  # motion families only validation entries use
+    roots: tuple = ()  # read-only dataset roots (packs ...) read where they exist
+    spread: int = 0  # order "spread": training samples between two held-out ones (0: 2)
 
     def digest(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()[:16]
@@ -165,8 +165,14 @@ def _split(d, where, what):
 
 
 #: garment parameters that may be ranges, and whether they are integers
-_GARMENT_RANGED = {"length": False, "flare": False, "ease": False, "sleeve": False, "resolution": True,
-                   "subdivisions": True}
+_GARMENT_RANGED = {
+    "length": False,
+    "flare": False,
+    "ease": False,
+    "sleeve": False,
+    "resolution": True,
+    "subdivisions": True,
+}
 
 
 def _entry_seed(seed, name: str) -> int:
@@ -194,12 +200,20 @@ def _ranges(d: dict, allowed: dict, p, what: str) -> dict:
     for name in [k for k, v in d.items() if isinstance(v, list)]:
         v = d.pop(name)
         if name not in allowed:
-            raise FileFormatError(f"{what}.{name} cannot be a range", path=p,
-                                  expected=" | ".join(sorted(allowed)) or "no range here", got=v)
+            raise FileFormatError(
+                f"{what}.{name} cannot be a range",
+                path=p,
+                expected=" | ".join(sorted(allowed)) or "no range here",
+                got=v,
+            )
         num = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
         if len(v) != 2 or not num or v[0] > v[1] or (allowed[name] and not all(isinstance(x, int) for x in v)):
-            raise FileFormatError(f"{what}.{name} must be a range [lo, hi] with lo <= hi", path=p,
-                                  expected="two integers" if allowed[name] else "two numbers", got=v)
+            raise FileFormatError(
+                f"{what}.{name} must be a range [lo, hi] with lo <= hi",
+                path=p,
+                expected="two integers" if allowed[name] else "two numbers",
+                got=v,
+            )
         out[name] = (v[0], v[1])
     return out
 
@@ -242,15 +256,19 @@ def load_dataset_config(path) -> DatasetConfig:
     val_motions = tuple(ds.get("val_motions", ()))
     for field, kinds in (("held_out_kinds", held_kinds), ("val_kinds", val_kinds)):
         if not all(isinstance(k, str) and k in GARMENT_KINDS for k in kinds):
-            raise FileFormatError(f"dataset.{field} must list garment kinds", path=p,
-                                  expected=" | ".join(GARMENT_KINDS), got=list(kinds))
+            raise FileFormatError(
+                f"dataset.{field} must list garment kinds", path=p, expected=" | ".join(GARMENT_KINDS), got=list(kinds)
+            )
     for field, fams in (("held_out_motions", held_motions), ("val_motions", val_motions)):
         if not all(isinstance(k, str) for k in fams):
             raise FileFormatError(f"dataset.{field} must list motion kinds or families", path=p, got=list(fams))
     both = sorted((set(held_kinds) & set(val_kinds)) | (set(held_motions) & set(val_motions)))
     if both:
-        raise FileFormatError(f"{both[0]!r} is held out for both validation and test", path=p,
-                              expected="validation and test kinds and motion families apart")
+        raise FileFormatError(
+            f"{both[0]!r} is held out for both validation and test",
+            path=p,
+            expected="validation and test kinds and motion families apart",
+        )
     roots = ds.get("roots", [])
     if isinstance(roots, str):
         roots = [roots]
@@ -264,8 +282,9 @@ def load_dataset_config(path) -> DatasetConfig:
         g = dict(g)
         kind = g.pop("kind", None)
         if kind not in GARMENT_KINDS:
-            raise FileFormatError(f"garments[{i}].kind is not a garment kind", path=p,
-                                  expected=" | ".join(GARMENT_KINDS), got=kind)
+            raise FileFormatError(
+                f"garments[{i}].kind is not a garment kind", path=p, expected=" | ".join(GARMENT_KINDS), got=kind
+            )
         split = _split(g, p, f"garments[{i}]")
         g.pop("split", None)
         name = g.pop("name", None) or f"{kind}-{i}"
@@ -281,21 +300,33 @@ def load_dataset_config(path) -> DatasetConfig:
             if not mhclo.is_file():
                 raise FileFormatError(f"garments[{i}].mhclo does not exist", path=p, got=str(mhclo))
             if ranged or (count or 1) > 1:
-                raise FileFormatError(f"garments[{i}]: a MakeHuman garment has no parameters to draw", path=p,
-                                      expected="no ranges and no count with mhclo")
+                raise FileFormatError(
+                    f"garments[{i}]: a MakeHuman garment has no parameters to draw",
+                    path=p,
+                    expected="no ranges and no count with mhclo",
+                )
         if pin is not None and pin not in ("waistband", "top"):
             raise FileFormatError(f"garments[{i}].pin must be 'waistband' or 'top'", path=p, got=pin)
         if split != "test" and kind in held_kinds:
-            raise FileFormatError(f"garments[{i}] is a {split} garment of the held-out kind {kind!r}", path=p,
-                                  expected="split = 'test' for kinds in dataset.held_out_kinds")
+            raise FileFormatError(
+                f"garments[{i}] is a {split} garment of the held-out kind {kind!r}",
+                path=p,
+                expected="split = 'test' for kinds in dataset.held_out_kinds",
+            )
         if split != "val" and kind in val_kinds:
-            raise FileFormatError(f"garments[{i}] is a {split} garment of the validation kind {kind!r}", path=p,
-                                  expected="split = 'val' for kinds in dataset.val_kinds")
+            raise FileFormatError(
+                f"garments[{i}] is a {split} garment of the validation kind {kind!r}",
+                path=p,
+                expected="split = 'val' for kinds in dataset.val_kinds",
+            )
         if count is None and not ranged:
             draws = [(name, {})]
         elif not ranged and count > 1:
-            raise FileFormatError(f"garments[{i}]: count = {count} with no range draws {count} identical garments",
-                                  path=p, expected="at least one parameter as a range [lo, hi]")
+            raise FileFormatError(
+                f"garments[{i}]: count = {count} with no range draws {count} identical garments",
+                path=p,
+                expected="at least one parameter as a range [lo, hi]",
+            )
         else:
             es = _entry_seed(seed, name)
             draws = [(f"{name}-{k}", draw_values(ranged, _GARMENT_RANGED, es, k)) for k in range(count or 1)]
@@ -312,8 +343,7 @@ def load_dataset_config(path) -> DatasetConfig:
     for i, b in enumerate(data.get("bodies", [{"betas": []}])):
         betas = b.get("betas", [])
         if set(b) - {"betas", "split"} or not all(isinstance(x, (int, float)) for x in betas):
-            raise FileFormatError(f"bodies[{i}] must be {{betas = [numbers], split = train|val|test}}", path=p,
-                                  got=b)
+            raise FileFormatError(f"bodies[{i}] must be {{betas = [numbers], split = train|val|test}}", path=p, got=b)
         bodies.append(tuple(float(x) for x in betas))
         body_splits.append(_split(b, p, f"bodies[{i}]"))
     motions, mnames = [], set()
@@ -325,14 +355,17 @@ def load_dataset_config(path) -> DatasetConfig:
         if ("kind" in m) == ("file" in m):
             raise FileFormatError(f"{what} needs exactly one of kind or file", path=p)
         if "kind" in m and m["kind"] not in MOTION_KINDS:
-            raise FileFormatError(f"{what}.kind is not a motion kind", path=p,
-                                  expected=" | ".join(MOTION_KINDS), got=m["kind"])
-        allowed = {"kind", "seed", "speed", "amplitude", "name", "count", "ease_in", "family"} if "kind" in m \
+            raise FileFormatError(
+                f"{what}.kind is not a motion kind", path=p, expected=" | ".join(MOTION_KINDS), got=m["kind"]
+            )
+        allowed = (
+            {"kind", "seed", "speed", "amplitude", "name", "count", "ease_in", "family"}
+            if "kind" in m
             else {"file", "name", "start", "count", "seed", "family"}
+        )
         extra = set(m) - allowed
         if extra:
-            raise FileFormatError(f"unknown key {what}.{sorted(extra)[0]}", path=p,
-                                  expected=", ".join(sorted(allowed)))
+            raise FileFormatError(f"unknown key {what}.{sorted(extra)[0]}", path=p, expected=", ".join(sorted(allowed)))
         count = _count(m, p, what)
         ranged = _ranges(m, {"speed": False, "amplitude": False} if "kind" in m else {"start": False}, p, what)
         f = (p.parent / m["file"]).resolve() if "file" in m else None
@@ -345,16 +378,25 @@ def load_dataset_config(path) -> DatasetConfig:
             raise FileFormatError(f"{what}.family must be a name", path=p, got=family)
         names_of = {family, *((f.stem, f.name) if f is not None else (m["kind"],))}
         if split != "test" and names_of & set(held_motions):
-            raise FileFormatError(f"{what} is a {split} motion of the held-out family {family!r}", path=p,
-                                  expected="split = 'test' for motions in dataset.held_out_motions")
+            raise FileFormatError(
+                f"{what} is a {split} motion of the held-out family {family!r}",
+                path=p,
+                expected="split = 'test' for motions in dataset.held_out_motions",
+            )
         if split != "val" and names_of & set(val_motions):
-            raise FileFormatError(f"{what} is a {split} motion of the validation family {family!r}", path=p,
-                                  expected="split = 'val' for motions in dataset.val_motions")
+            raise FileFormatError(
+                f"{what} is a {split} motion of the validation family {family!r}",
+                path=p,
+                expected="split = 'val' for motions in dataset.val_motions",
+            )
         if count is None and not ranged:
             draws = [(base, 0, {})]
         elif not ranged and f is not None and (count or 1) > 1:
-            raise FileFormatError(f"{what}: count = {count} of one file with no start range repeats one clip",
-                                  path=p, expected="start = [lo, hi]")
+            raise FileFormatError(
+                f"{what}: count = {count} of one file with no start range repeats one clip",
+                path=p,
+                expected="start = [lo, hi]",
+            )
         else:
             es = _entry_seed(m.get("seed"), base)
             draws = [(f"{base}-{k}", k, draw_values(ranged, {}, es, k)) for k in range(count or 1)]
@@ -363,39 +405,73 @@ def load_dataset_config(path) -> DatasetConfig:
                 raise FileFormatError(f"motion name {dname!r} is used twice", path=p)
             mnames.add(dname)
             try:
-                kw = dict(speed=float(vals.get("speed", m.get("speed", 1.0))),
-                          amplitude=float(vals.get("amplitude", m.get("amplitude", 1.0))),
-                          start=float(vals.get("start", m.get("start", 0.0))),
-                          ease_in=float(m.get("ease_in", 1.0)))
+                kw = dict(
+                    speed=float(vals.get("speed", m.get("speed", 1.0))),
+                    amplitude=float(vals.get("amplitude", m.get("amplitude", 1.0))),
+                    start=float(vals.get("start", m.get("start", 0.0))),
+                    ease_in=float(m.get("ease_in", 1.0)),
+                )
             except (TypeError, ValueError):
                 raise FileFormatError(f"{what}: speed, amplitude, start and ease_in must be numbers", path=p) from None
             if kw["start"] < 0 or kw["ease_in"] < 0:
-                raise FileFormatError(f"{what}: start and ease_in must be >= 0", path=p, got=(kw["start"], kw["ease_in"]))
-            motions.append(MotionEntry(name=dname, split=split, kind=m.get("kind"),
-                                       seed=seed + k if f is None else 0, file=f, family=family, **kw))
+                raise FileFormatError(
+                    f"{what}: start and ease_in must be >= 0", path=p, got=(kw["start"], kw["ease_in"])
+                )
+            motions.append(
+                MotionEntry(
+                    name=dname,
+                    split=split,
+                    kind=m.get("kind"),
+                    seed=seed + k if f is None else 0,
+                    file=f,
+                    family=family,
+                    **kw,
+                )
+            )
     # one source, one side: a motion file or a MakeHuman garment is either trained on or held out
-    for what, items in (("motion file", [(mo.file, mo.split) for mo in motions if mo.file is not None]),
-                        ("MakeHuman garment", [(g.mhclo, g.split) for g in garments if g.mhclo is not None])):
+    for what, items in (
+        ("motion file", [(mo.file, mo.split) for mo in motions if mo.file is not None]),
+        ("MakeHuman garment", [(g.mhclo, g.split) for g in garments if g.mhclo is not None]),
+    ):
         sides = {}
         for src, sp in items:
             sides.setdefault(src, set()).add(sp)
         both = sorted(str(k) for k, v in sides.items() if len(v) > 1)
         if both:
-            raise FileFormatError(f"the {what} {both[0]} is used by entries of two splits", path=p,
-                                  expected="each source in one split")
+            raise FileFormatError(
+                f"the {what} {both[0]} is used by entries of two splits", path=p, expected="each source in one split"
+            )
     fam_sides = {}
     for mo in motions:
         fam_sides.setdefault(mo.family, set()).add(mo.split)
     both = sorted(k for k, v in fam_sides.items() if len(v) > 1)
     if both:
-        raise FileFormatError(f"the motion family {both[0]!r} has entries in two splits", path=p,
-                              expected="a family trained on or held out whole")
+        raise FileFormatError(
+            f"the motion family {both[0]!r} has entries in two splits",
+            path=p,
+            expected="a family trained on or held out whole",
+        )
     if not garments or not motions:
         raise FileFormatError("a dataset needs at least one [[garments]] and one [[motions]]", path=p)
     sim = parse_simulate_table(data.get("simulate"), where=p)
     fps, seconds = float(ds.get("fps", 30.0)), float(ds.get("seconds", 3.0))
-    return DatasetConfig(garments=tuple(garments), bodies=tuple(bodies), motions=tuple(motions), simulate=sim,
-                         body_splits=tuple(body_splits), held_out_kinds=held_kinds, held_out_motions=held_motions,
-                         val_kinds=val_kinds, val_motions=val_motions, roots=roots, spread=spread,
-                         quality=q, fps=fps, seconds=seconds, cross_splits=bool(ds.get("cross_splits", False)),
-                         order=order, path=p, text=json.dumps(data, sort_keys=True, default=str))
+    return DatasetConfig(
+        garments=tuple(garments),
+        bodies=tuple(bodies),
+        motions=tuple(motions),
+        simulate=sim,
+        body_splits=tuple(body_splits),
+        held_out_kinds=held_kinds,
+        held_out_motions=held_motions,
+        val_kinds=val_kinds,
+        val_motions=val_motions,
+        roots=roots,
+        spread=spread,
+        quality=q,
+        fps=fps,
+        seconds=seconds,
+        cross_splits=bool(ds.get("cross_splits", False)),
+        order=order,
+        path=p,
+        text=json.dumps(data, sort_keys=True, default=str),
+    )

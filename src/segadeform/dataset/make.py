@@ -58,8 +58,17 @@ from .config import DatasetConfig, GarmentSpec, MotionEntry
 from .quality import BodyParts, on_body_at_rest, quality_check
 from .store import Sample, load_sample, save_sample
 
-__all__ = ["PlannedSample", "sample_plan", "make_dataset", "DatasetSummary", "sample_spec", "check_splits", "make_order", "regate",
-           "RegateSummary"]
+__all__ = [
+    "PlannedSample",
+    "sample_plan",
+    "make_dataset",
+    "DatasetSummary",
+    "sample_spec",
+    "check_splits",
+    "make_order",
+    "regate",
+    "RegateSummary",
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -120,8 +129,8 @@ def make_order(cfg: DatasetConfig, plan: list[PlannedSample]) -> list[PlannedSam
     out, k = [], cfg.spread or SPREAD_TRAIN_PER_HELD_OUT
     for i, p in enumerate(held):
         out.append(p)
-        out.extend(train[i * k:(i + 1) * k])
-    return out + train[len(held) * k:]
+        out.extend(train[i * k : (i + 1) * k])
+    return out + train[len(held) * k :]
 
 
 def _family(m: MotionEntry) -> str:
@@ -137,10 +146,14 @@ def check_splits(cfg: DatasetConfig, plan: list[PlannedSample]) -> None:
     * a ``val`` sample uses anything of the test split (garment, motion, body, kind, family, file).
     """
     bsplit = cfg.body_splits or ("train",) * len(cfg.bodies)
-    held = {sp: ({m.file for m in cfg.motions if m.split == sp and m.file is not None},
-                 {g.mhclo for g in cfg.garments if g.split == sp and g.mhclo is not None},
-                 {_family(m) for m in cfg.motions if m.split == sp})
-            for sp in ("val", "test")}
+    held = {
+        sp: (
+            {m.file for m in cfg.motions if m.split == sp and m.file is not None},
+            {g.mhclo for g in cfg.garments if g.split == sp and g.mhclo is not None},
+            {_family(m) for m in cfg.motions if m.split == sp},
+        )
+        for sp in ("val", "test")
+    }
     kinds = {"val": set(cfg.val_kinds), "test": set(cfg.held_out_kinds)}
     families = {"val": set(cfg.val_motions), "test": set(cfg.held_out_motions)}
     for p in plan:
@@ -148,15 +161,22 @@ def check_splits(cfg: DatasetConfig, plan: list[PlannedSample]) -> None:
             continue
         g, m = cfg.garments[p.garment], cfg.motions[p.motion]
         names = {_family(m), *((m.file.stem, m.file.name) if m.file is not None else (m.kind,))}
-        for other in (("val", "test") if p.split == "train" else ("test",)):
+        for other in ("val", "test") if p.split == "train" else ("test",):
             files, mhclo, fams = held[other]
             what = "held-out" if other == "test" else "validation"
-            bad = [why for why, leak in (
-                (f"a {what} garment", g.split == other), (f"a {what} motion", m.split == other),
-                (f"a {what} body", bsplit[p.body] == other), (f"a {what} garment kind", g.kind in kinds[other]),
-                (f"a {what} motion family", bool(names & (families[other] | fams))),
-                (f"a {what} motion file", m.file is not None and m.file in files),
-                (f"a {what} MakeHuman garment", g.mhclo is not None and g.mhclo in mhclo)) if leak]
+            bad = [
+                why
+                for why, leak in (
+                    (f"a {what} garment", g.split == other),
+                    (f"a {what} motion", m.split == other),
+                    (f"a {what} body", bsplit[p.body] == other),
+                    (f"a {what} garment kind", g.kind in kinds[other]),
+                    (f"a {what} motion family", bool(names & (families[other] | fams))),
+                    (f"a {what} motion file", m.file is not None and m.file in files),
+                    (f"a {what} MakeHuman garment", g.mhclo is not None and g.mhclo in mhclo),
+                )
+                if leak
+            ]
             if bad:
                 raise InputError(f"{'training' if p.split == 'train' else 'validation'} sample {p.id} uses {bad[0]}")
 
@@ -166,8 +186,12 @@ def _digest(obj) -> str:
 
 
 def _garment_key(g: GarmentSpec) -> dict:
-    return {"kind": g.kind, "params": dataclasses.asdict(g.params), "pin": g.pin,
-            "mhclo": str(g.mhclo) if g.mhclo else None}
+    return {
+        "kind": g.kind,
+        "params": dataclasses.asdict(g.params),
+        "pin": g.pin,
+        "mhclo": str(g.mhclo) if g.mhclo else None,
+    }
 
 
 def sample_spec(cfg: DatasetConfig, p: PlannedSample) -> str:
@@ -178,8 +202,16 @@ def sample_spec(cfg: DatasetConfig, p: PlannedSample) -> str:
     mo.pop("split")
     mo.pop("family")  # a label for splitting, not data
     st = cfg.simulate.replace(pin=g.pin) if g.pin else cfg.simulate
-    return _digest({"garment": _garment_key(g), "betas": list(cfg.bodies[p.body]), "motion": mo,
-                    "fps": cfg.fps, "seconds": cfg.seconds, "simulate": st.to_dict()})
+    return _digest(
+        {
+            "garment": _garment_key(g),
+            "betas": list(cfg.bodies[p.body]),
+            "motion": mo,
+            "fps": cfg.fps,
+            "seconds": cfg.seconds,
+            "simulate": st.to_dict(),
+        }
+    )
 
 
 LEAD_SECONDS = 1.0  # of a motion file, simulated before a clip and dropped: the cloth enters it in motion
@@ -198,8 +230,15 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
         # a procedural motion with no ease-in starts at full speed: it gets the same lead, its first
         # LEAD_SECONDS simulated and dropped (one that eases in from rest needs none)
         lead = int(round(LEAD_SECONDS * cfg.fps)) if with_lead and m.ease_in == 0 else 0
-        mo = make_motion(m.kind, seconds=cfg.seconds + lead / cfg.fps, fps=cfg.fps, speed=m.speed,
-                         amplitude=m.amplitude, seed=m.seed, ease_in=m.ease_in)
+        mo = make_motion(
+            m.kind,
+            seconds=cfg.seconds + lead / cfg.fps,
+            fps=cfg.fps,
+            speed=m.speed,
+            amplitude=m.amplitude,
+            seed=m.seed,
+            ease_in=m.ease_in,
+        )
         if not with_lead:  # the clip itself (what a sample stores), as with the lead dropped
             return dataclasses.replace(mo, poses=mo.poses[lead:], trans=mo.trans[lead:])
         return mo, lead
@@ -222,7 +261,7 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
     else:
         lead = min(a, full) if with_lead else 0
     # the lead's first frame is where the simulation's rest pose stands: facing +Z above x = z = 0
-    clip = face_forward(dataclasses.replace(mo, poses=mo.poses[a - lead:a + n], trans=mo.trans[a - lead:a + n]), 0)
+    clip = face_forward(dataclasses.replace(mo, poses=mo.poses[a - lead : a + n], trans=mo.trans[a - lead : a + n]), 0)
     return (clip, lead) if with_lead else clip
 
 
@@ -231,7 +270,7 @@ def _garment_rel(cfg: DatasetConfig, gi: int, bi: int) -> str:
 
 
 def _cloth_rel(rel: str) -> str:
-    return rel[:-len(".obj")] + ".cloth.obj"
+    return rel[: -len(".obj")] + ".cloth.obj"
 
 
 def _garment_file(out, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) -> str:
@@ -243,14 +282,18 @@ def _garment_file(out, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) ->
     loc = open_location(out)
     g = cfg.garments[gi]
     rel = _garment_rel(cfg, gi, bi)
-    key_rel = rel[:-len(".obj")] + ".json"
+    key_rel = rel[: -len(".obj")] + ".json"
     key = {"garment": _garment_key(g), "betas": list(cfg.bodies[bi]), "cloth_pose": cfg.simulate.rest_pose}
     if loc.exists(rel) and loc.exists(key_rel):
         old = json.loads(loc.read_text(key_rel))
         if old != json.loads(json.dumps(key)):
-            raise InputError(f"garment {g.name} (body {bi}) in this dataset was made from other parameters; "
-                             f"give the changed entry a new name (or use a new folder)", path=f"{loc}/{key_rel}",
-                             expected=json.dumps(key, sort_keys=True), got=json.dumps(old, sort_keys=True))
+            raise InputError(
+                f"garment {g.name} (body {bi}) in this dataset was made from other parameters; "
+                f"give the changed entry a new name (or use a new folder)",
+                path=f"{loc}/{key_rel}",
+                expected=json.dumps(key, sort_keys=True),
+                got=json.dumps(old, sort_keys=True),
+            )
     if not loc.exists(rel):
         if g.mhclo is not None:  # a MakeHuman garment: fitted to this body, 3 mm off the skin
             from ..body.placement import push_off_body
@@ -263,15 +306,21 @@ def _garment_file(out, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) ->
             v, _ = push_off_body(v, body.shaped_vertices(betas)[0], body.faces, 0.003)
             faces = read_mesh(binding.obj_path()).faces
             with loc.writing(rel) as tmp:
-                write_obj(tmp, Mesh(vertices=v, faces=faces), header=f"MakeHuman garment {binding.name} (CC0), "
-                                                                      f"fitted by segadeform")
+                write_obj(
+                    tmp,
+                    Mesh(vertices=v, faces=faces),
+                    header=f"MakeHuman garment {binding.name} (CC0), fitted by segadeform",
+                )
         else:
             a_pose = cfg.simulate.rest_pose == "a"
             gar = make_garment(g.kind, body, cfg.bodies[bi] or None, g.params, cloth_pose=A_POSE if a_pose else None)
             if a_pose:  # the cloth file first: the rest-pose OBJ is what marks the garment done
                 with loc.writing(_cloth_rel(rel)) as tmp:
-                    write_obj(tmp, Mesh(vertices=gar.cloth_rest, faces=gar.faces),
-                              header=gar.header() + "\nthe same garment made in the A-pose (the cloth's rest)")
+                    write_obj(
+                        tmp,
+                        Mesh(vertices=gar.cloth_rest, faces=gar.faces),
+                        header=gar.header() + "\nthe same garment made in the A-pose (the cloth's rest)",
+                    )
             with loc.writing(rel) as tmp:
                 write_obj(tmp, Mesh(vertices=gar.vertices, faces=gar.faces), header=gar.header())
         loc.put_bytes(key_rel, json.dumps(key, indent=1, sort_keys=True).encode("utf-8"))
@@ -279,8 +328,26 @@ def _garment_file(out, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) ->
 
 
 #: what a sample's log record holds (its committed ``.json`` holds these and more)
-_REC_KEYS = ("id", "split", "garment", "kind", "type", "body", "motion", "vertices", "frames", "spec", "status",
-             "reasons", "quality", "seconds_per_frame", "blender", "sim_seconds", "preroll_frames", "seconds")
+_REC_KEYS = (
+    "id",
+    "split",
+    "garment",
+    "kind",
+    "type",
+    "body",
+    "motion",
+    "vertices",
+    "frames",
+    "spec",
+    "status",
+    "reasons",
+    "quality",
+    "seconds_per_frame",
+    "blender",
+    "sim_seconds",
+    "preroll_frames",
+    "seconds",
+)
 
 
 def _committed(loc: Location, sid: str) -> dict | None:
@@ -292,8 +359,9 @@ def _committed(loc: Location, sid: str) -> dict | None:
     return None
 
 
-def _run_one(root, cfg: DatasetConfig, ps: PlannedSample, body_path: str | None, sim_python,
-             provision: bool = False) -> dict:
+def _run_one(
+    root, cfg: DatasetConfig, ps: PlannedSample, body_path: str | None, sim_python, provision: bool = False
+) -> dict:
     """Simulate, gate and commit one sample (in a worker); returns its log record.  Idempotent: a
     sample committed already is not made again (its record comes back with ``resumed``)."""
     from ..body.identity import body_sha256
@@ -321,14 +389,24 @@ def _run_one(root, cfg: DatasetConfig, ps: PlannedSample, body_path: str | None,
     motion, lead = _motion(m, cfg, body.rest_joints(betas or None)[0], with_lead=True)
     full_motion = motion
     motion = dataclasses.replace(motion, poses=motion.poses[lead:], trans=motion.trans[lead:])
-    rec = {"id": ps.id, "split": ps.split, "garment": g.name, "kind": g.kind, "type": GARMENT_TYPES[g.kind],
-           "body": ps.body, "motion": m.name, "vertices": len(mesh.vertices), "frames": motion.n_frames,
-           "spec": sample_spec(cfg, ps)}
+    rec = {
+        "id": ps.id,
+        "split": ps.split,
+        "garment": g.name,
+        "kind": g.kind,
+        "type": GARMENT_TYPES[g.kind],
+        "body": ps.body,
+        "motion": m.name,
+        "vertices": len(mesh.vertices),
+        "frames": motion.n_frames,
+        "spec": sample_spec(cfg, ps),
+    }
     try:
         st = cfg.simulate.replace(pin=g.pin) if g.pin else cfg.simulate
         kw = {} if cloth is None else {"cloth_rest": cloth, "start_pose": A_POSE}
-        res = simulate(mesh.vertices, mesh.faces, body, full_motion, betas=betas or None, settings=st,
-                       sim_python=sim_python, **kw)
+        res = simulate(
+            mesh.vertices, mesh.faces, body, full_motion, betas=betas or None, settings=st, sim_python=sim_python, **kw
+        )
         if lead:
             res = dataclasses.replace(res, frames=res.frames[lead:], preroll_frames=res.preroll_frames + lead)
     except SegadeformError as e:
@@ -339,24 +417,57 @@ def _run_one(root, cfg: DatasetConfig, ps: PlannedSample, body_path: str | None,
     # strain against the cloth's own rest (the A-posed garment when the simulation rests there)
     strain_rest = res.cloth_rest if res.cloth_rest is not None else mesh.vertices
     parts = BodyParts.of(body, betas or None)
-    q = quality_check(res.frames, strain_rest, mesh.faces, posed, body.faces, cfg.quality, contact=contact,
-                      parts=parts, on_body=on_body_at_rest(mesh.vertices, parts.rest, body.faces))
-    rec.update(quality=q.to_dict(), seconds_per_frame=res.seconds_per_frame, blender=res.blender["blender_version"],
-               sim_seconds=res.blender["simulate_seconds"], preroll_frames=res.preroll_frames)
+    q = quality_check(
+        res.frames,
+        strain_rest,
+        mesh.faces,
+        posed,
+        body.faces,
+        cfg.quality,
+        contact=contact,
+        parts=parts,
+        on_body=on_body_at_rest(mesh.vertices, parts.rest, body.faces),
+    )
+    rec.update(
+        quality=q.to_dict(),
+        seconds_per_frame=res.seconds_per_frame,
+        blender=res.blender["blender_version"],
+        sim_seconds=res.blender["simulate_seconds"],
+        preroll_frames=res.preroll_frames,
+    )
     # a rejected sample keeps its arrays too: another gate can be applied later without simulating (regate)
     rec.update(status="kept" if q.ok else "rejected", **({} if q.ok else {"reasons": q.reasons}))
-    meta = dict(rec, fps=motion.fps, betas=list(betas), settings=res.settings,
-                garment_params=dataclasses.asdict(g.params), config_digest=cfg.digest(), blender_info=res.blender,
-                sim_bridge=SIM_BRIDGE_VERSION, body_sha256=body_sha256(body))
+    meta = dict(
+        rec,
+        fps=motion.fps,
+        betas=list(betas),
+        settings=res.settings,
+        garment_params=dataclasses.asdict(g.params),
+        config_digest=cfg.digest(),
+        blender_info=res.blender,
+        sim_bridge=SIM_BRIDGE_VERSION,
+        body_sha256=body_sha256(body),
+    )
     finite = np.isfinite(res.frames).all()
-    committed = save_sample(loc, Sample(id=ps.id, rest=mesh.vertices, faces=mesh.faces,
-                                        betas=np.asarray(betas, np.float64), poses=motion.poses,
-                                        trans=motion.trans, frames=res.frames.astype(np.float32), meta=meta,
-                                        contact_p=contact["closest"] if finite else None,
-                                        contact_n=contact["normal"] if finite else None,
-                                        cloth_rest=None if res.cloth_rest is None or strain_rest is mesh.vertices
-                                        else np.asarray(res.cloth_rest, np.float64)),
-                            folder="samples" if q.ok else "rejected")
+    committed = save_sample(
+        loc,
+        Sample(
+            id=ps.id,
+            rest=mesh.vertices,
+            faces=mesh.faces,
+            betas=np.asarray(betas, np.float64),
+            poses=motion.poses,
+            trans=motion.trans,
+            frames=res.frames.astype(np.float32),
+            meta=meta,
+            contact_p=contact["closest"] if finite else None,
+            contact_n=contact["normal"] if finite else None,
+            cloth_rest=None
+            if res.cloth_rest is None or strain_rest is mesh.vertices
+            else np.asarray(res.cloth_rest, np.float64),
+        ),
+        folder="samples" if q.ok else "rejected",
+    )
     if not committed:  # another attempt of this task committed it first: its record is the one
         return _committed(loc, ps.id)
     rec["seconds"] = time.perf_counter() - t0
@@ -396,9 +507,12 @@ def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample], roots=None) 
                 if old is not None and old != sample_spec(cfg, p):
                     bad.append(p.id)
     if bad:
-        raise InputError(f"{len(bad)} finished samples of this dataset were made from other settings than this "
-                         f"config gives them (first: {bad[0]}); give changed entries new names, keep bodies in "
-                         f"order, or use a new folder", path=str(loc))
+        raise InputError(
+            f"{len(bad)} finished samples of this dataset were made from other settings than this "
+            f"config gives them (first: {bad[0]}); give changed entries new names, keep bodies in "
+            f"order, or use a new folder",
+            path=str(loc),
+        )
 
 
 def _keep_config(out, cfg: DatasetConfig) -> None:
@@ -461,14 +575,15 @@ class DatasetSummary:
 
 @dataclasses.dataclass(frozen=True)
 class RegateSummary:
-    kept: int            # samples that pass the gate now
-    rejected: int        # samples that fail it now
-    moved: list          # (id, "kept" | "rejected") of the samples whose status changed
-    skipped: list        # ids of rejected samples with no arrays (rejected before arrays were kept)
+    kept: int  # samples that pass the gate now
+    rejected: int  # samples that fail it now
+    moved: list  # (id, "kept" | "rejected") of the samples whose status changed
+    skipped: list  # ids of rejected samples with no arrays (rejected before arrays were kept)
 
 
-def regate(out, cfg: DatasetConfig, *, body_path: Path | None = None,
-           progress: Callable[[str], None] | None = None) -> RegateSummary:
+def regate(
+    out, cfg: DatasetConfig, *, body_path: Path | None = None, progress: Callable[[str], None] | None = None
+) -> RegateSummary:
     """Apply ``cfg``'s quality gate again to every sample of the dataset folder ``out`` that has its
     arrays, kept or rejected, and move those whose status changes (``samples/`` <-> ``rejected/``: the
     arrays and the ``.json`` that marks the sample are committed in the new place, then removed from the
@@ -495,8 +610,16 @@ def regate(out, cfg: DatasetConfig, *, body_path: Path | None = None,
             posed = body.forward(s.poses, betas, s.trans).vertices
             rest = s.cloth_rest if s.cloth_rest is not None else s.rest
             parts = BodyParts.of(body, betas)
-            q = quality_check(s.frames, rest, s.faces, posed, body.faces, cfg.quality, parts=parts,
-                              on_body=on_body_at_rest(s.rest, parts.rest, body.faces))
+            q = quality_check(
+                s.frames,
+                rest,
+                s.faces,
+                posed,
+                body.faces,
+                cfg.quality,
+                parts=parts,
+                on_body=on_body_at_rest(s.rest, parts.rest, body.faces),
+            )
             kept += q.ok
             rejected += not q.ok
             now = "samples" if q.ok else "rejected"
@@ -514,9 +637,18 @@ def regate(out, cfg: DatasetConfig, *, body_path: Path | None = None,
     return RegateSummary(kept=kept, rejected=rejected, moved=moved, skipped=skipped)
 
 
-def make_dataset(cfg: DatasetConfig, out, *, body_path: Path | None = None, jobs: int = 1, sim_python=None,
-                 progress: Callable[[dict], None] | None = None, limit: int | None = None,
-                 executor: Executor | None = None, roots=()) -> DatasetSummary:
+def make_dataset(
+    cfg: DatasetConfig,
+    out,
+    *,
+    body_path: Path | None = None,
+    jobs: int = 1,
+    sim_python=None,
+    progress: Callable[[dict], None] | None = None,
+    limit: int | None = None,
+    executor: Executor | None = None,
+    roots=(),
+) -> DatasetSummary:
     """Make (or continue) the dataset ``cfg`` in ``out`` (a folder, an fsspec URL or a
     :class:`~segadeform.io.location.Location`); see the module docstring.
 
@@ -539,7 +671,7 @@ def make_dataset(cfg: DatasetConfig, out, *, body_path: Path | None = None, jobs
     _check_done(loc, cfg, plan, extra)
     _keep_config(loc, cfg)
     order = make_order(cfg, plan)
-    finished = {n[:-len(".json")] for d in ("samples", "rejected") for n in loc.listdir(d) if n.endswith(".json")}
+    finished = {n[: -len(".json")] for d in ("samples", "rejected") for n in loc.listdir(d) if n.endswith(".json")}
     if extra is not None:
         finished |= {p.id for p in plan if extra.has(p.id)}
     todo = [p for p in order if p.id not in finished]
@@ -551,9 +683,17 @@ def make_dataset(cfg: DatasetConfig, out, *, body_path: Path | None = None, jobs
         _garment_file(loc, cfg, gi, bi, body)
     own = executor is None
     ex = LocalExecutor(jobs) if own else executor
-    tasks = [_SampleTask(loc, cfg, p, None if body_path is None else str(body_path),
-                         None if sim_python is None else str(sim_python), ex.remote)
-             for p in todo]
+    tasks = [
+        _SampleTask(
+            loc,
+            cfg,
+            p,
+            None if body_path is None else str(body_path),
+            None if sim_python is None else str(sim_python),
+            ex.remote,
+        )
+        for p in todo
+    ]
     records = []
     run = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime())
     run_t0 = time.time()

@@ -50,8 +50,17 @@ from ..errors import FileFormatError, InputError, file_error
 from ..io.atomic import atomic_path
 from .store import SAMPLE_FOLDERS, Sample, load_sample
 
-__all__ = ["PACK_SUFFIX", "PACK_VERSION", "FRAME_STEP", "Pack", "open_pack", "write_pack", "encode_frames",
-           "decode_frames", "PackSummary"]
+__all__ = [
+    "PACK_SUFFIX",
+    "PACK_VERSION",
+    "FRAME_STEP",
+    "Pack",
+    "open_pack",
+    "write_pack",
+    "encode_frames",
+    "decode_frames",
+    "PackSummary",
+]
 
 PACK_FORMAT = "segadeform-pack"
 PACK_VERSION = 1
@@ -62,6 +71,7 @@ FRAME_STEP = 1e-4
 
 # ------------------------------------------------------------------------------------------------------
 # frame codec
+
 
 def _shuffle(a: np.ndarray) -> np.ndarray:
     """int32 array -> its bytes, plane by plane (all first bytes, then all second bytes ...)."""
@@ -85,7 +95,7 @@ def encode_frames(frames: np.ndarray, step: float = FRAME_STEP) -> dict:
         raise InputError("frames must be (T, N, 3)", got=x.shape)
     if not (np.isfinite(step) and step > 0):
         raise InputError("frame step must be positive", got=step)
-    if not np.isfinite(x).all() or np.abs(x).max(initial=0.0) / step > 2.0 ** 29:
+    if not np.isfinite(x).all() or np.abs(x).max(initial=0.0) / step > 2.0**29:
         return {"frames": x.astype(np.float32)}
     q = np.rint(x / step).astype(np.int64)
     r = q.copy()
@@ -93,10 +103,13 @@ def encode_frames(frames: np.ndarray, step: float = FRAME_STEP) -> dict:
         r[1] = q[1] - q[0]
     if len(q) >= 3:
         r[2:] = q[2:] - 2 * q[1:-1] + q[:-2]
-    if np.abs(r).max(initial=0) >= 2 ** 31:
+    if np.abs(r).max(initial=0) >= 2**31:
         return {"frames": x.astype(np.float32)}
-    return {"frames_q": _shuffle(r.astype(np.int32)), "frames_shape": np.array(q.shape, np.int64),
-            "frames_step": np.float64(step)}
+    return {
+        "frames_q": _shuffle(r.astype(np.int32)),
+        "frames_shape": np.array(q.shape, np.int64),
+        "frames_step": np.float64(step),
+    }
 
 
 def decode_frames(arrays: dict) -> np.ndarray:
@@ -108,7 +121,7 @@ def decode_frames(arrays: dict) -> np.ndarray:
         raise InputError("frames_shape must be (T, N, 3)", got=shape)
     r = _unshuffle(arrays["frames_q"], shape).astype(np.int64)
     if len(r) >= 2:
-        d = np.cumsum(r[1:], axis=0)             # first differences q_t - q_{t-1}, t >= 1
+        d = np.cumsum(r[1:], axis=0)  # first differences q_t - q_{t-1}, t >= 1
         q = np.concatenate([r[:1], r[:1] + np.cumsum(d, axis=0)])
     else:
         q = r
@@ -118,10 +131,16 @@ def decode_frames(arrays: dict) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------------
 # writing
 
+
 def _sample_bytes(s: Sample, step: float) -> bytes:
-    arrays = {"rest": np.asarray(s.rest, np.float32), "faces": np.asarray(s.faces, np.int32),
-              "betas": np.asarray(s.betas, np.float64), "poses": np.asarray(s.poses, np.float32),
-              "trans": np.asarray(s.trans, np.float32), **encode_frames(s.frames, step)}
+    arrays = {
+        "rest": np.asarray(s.rest, np.float32),
+        "faces": np.asarray(s.faces, np.int32),
+        "betas": np.asarray(s.betas, np.float64),
+        "poses": np.asarray(s.poses, np.float32),
+        "trans": np.asarray(s.trans, np.float32),
+        **encode_frames(s.frames, step),
+    }
     if s.cloth_rest is not None:
         arrays["cloth_rest"] = np.asarray(s.cloth_rest, np.float32)
     buf = io.BytesIO()
@@ -132,14 +151,22 @@ def _sample_bytes(s: Sample, step: float) -> bytes:
 @dataclasses.dataclass(frozen=True)
 class PackSummary:
     path: Path
-    samples: int       # kept samples packed
-    rejected: int      # rejected samples packed
-    skipped: int       # samples left out because a pack given in ``skip`` holds them already
+    samples: int  # kept samples packed
+    rejected: int  # rejected samples packed
+    skipped: int  # samples left out because a pack given in ``skip`` holds them already
     bytes: int
 
 
-def write_pack(folder, out, *, body, skip: Iterable[Pack] = (), include_rejected: bool = True,
-               step: float = FRAME_STEP, progress=None) -> PackSummary:
+def write_pack(
+    folder,
+    out,
+    *,
+    body,
+    skip: Iterable[Pack] = (),
+    include_rejected: bool = True,
+    step: float = FRAME_STEP,
+    progress=None,
+) -> PackSummary:
     """Pack the dataset folder ``folder`` into the new file ``out`` (atomically; never over a file).
 
     Args:
@@ -155,8 +182,7 @@ def write_pack(folder, out, *, body, skip: Iterable[Pack] = (), include_rejected
     if not (root / "samples").is_dir():
         raise InputError("not a dataset folder (no samples/ in it)", path=root)
     if out.exists():
-        raise InputError("the pack exists already; packs are never overwritten", path=out,
-                         expected="a new file name")
+        raise InputError("the pack exists already; packs are never overwritten", path=out, expected="a new file name")
     if out.suffix != PACK_SUFFIX:
         raise InputError("a pack's name ends in .sgdpack", path=out, got=out.suffix or "no suffix")
     have = set()
@@ -186,33 +212,53 @@ def write_pack(folder, out, *, body, skip: Iterable[Pack] = (), include_rejected
                         blender_versions.add(str(m["blender"]))
                     if m.get("config_digest"):
                         digests.add(str(m["config_digest"]))
-                    entries[sid] = {"folder": folder_name, "split": m.get("split"), "kind": m.get("kind"),
-                                    "garment": m.get("garment"), "motion": m.get("motion"), "spec": m.get("spec"),
-                                    "sim_bridge": m.get("sim_bridge", 1),
-                                    "sha256": hashlib.sha256(data).hexdigest()}
+                    entries[sid] = {
+                        "folder": folder_name,
+                        "split": m.get("split"),
+                        "kind": m.get("kind"),
+                        "garment": m.get("garment"),
+                        "motion": m.get("motion"),
+                        "spec": m.get("spec"),
+                        "sim_bridge": m.get("sim_bridge", 1),
+                        "sha256": hashlib.sha256(data).hexdigest(),
+                    }
                     counts[folder_name] += 1
                     if progress is not None:
                         progress(sid)
             for cfg in sorted((root / "configs").glob("*.toml")) if (root / "configs").is_dir() else []:
                 z.write(cfg, f"configs/{cfg.name}")
             if len(blender_versions) > 1:
-                raise InputError("the dataset mixes samples of several Blender versions; pack each apart",
-                                 path=root, got=", ".join(sorted(blender_versions)))
+                raise InputError(
+                    "the dataset mixes samples of several Blender versions; pack each apart",
+                    path=root,
+                    got=", ".join(sorted(blender_versions)),
+                )
             bridges = {e["sim_bridge"] for e in entries.values()}
             if len(bridges) > 1:
-                raise InputError("the dataset mixes samples of several simulator bridge versions", path=root,
-                                 got=sorted(bridges))
-            head = {"format": PACK_FORMAT, "version": PACK_VERSION, "frame_step": step, "body": body_label(body),
-                    "simulator": {"blender": next(iter(blender_versions), None),
-                                  "bridge": next(iter(bridges), SIM_BRIDGE_VERSION)},
-                    "config_digests": sorted(digests), "samples": entries}
+                raise InputError(
+                    "the dataset mixes samples of several simulator bridge versions", path=root, got=sorted(bridges)
+                )
+            head = {
+                "format": PACK_FORMAT,
+                "version": PACK_VERSION,
+                "frame_step": step,
+                "body": body_label(body),
+                "simulator": {
+                    "blender": next(iter(blender_versions), None),
+                    "bridge": next(iter(bridges), SIM_BRIDGE_VERSION),
+                },
+                "config_digests": sorted(digests),
+                "samples": entries,
+            }
             z.writestr("pack.json", json.dumps(head, indent=1, sort_keys=True))
-    return PackSummary(path=out, samples=counts["samples"], rejected=counts["rejected"], skipped=skipped,
-                       bytes=out.stat().st_size)
+    return PackSummary(
+        path=out, samples=counts["samples"], rejected=counts["rejected"], skipped=skipped, bytes=out.stat().st_size
+    )
 
 
 # ------------------------------------------------------------------------------------------------------
 # reading
+
 
 class Pack:
     """A pack opened for reading (never written).  ``entries``: id -> its line of ``pack.json``."""
@@ -232,14 +278,20 @@ class Pack:
         except (ValueError, zipfile.BadZipFile, EOFError) as e:
             raise FileFormatError(f"pack.json is unreadable ({e})", path=self.path) from None
         if not isinstance(head, dict) or head.get("format") != PACK_FORMAT:
-            raise FileFormatError("not a dataset pack", path=self.path, expected=PACK_FORMAT,
-                                  got=head.get("format") if isinstance(head, dict) else type(head).__name__)
+            raise FileFormatError(
+                "not a dataset pack",
+                path=self.path,
+                expected=PACK_FORMAT,
+                got=head.get("format") if isinstance(head, dict) else type(head).__name__,
+            )
         if head.get("version") != PACK_VERSION:
-            raise FileFormatError("unsupported pack version", path=self.path, expected=PACK_VERSION,
-                                  got=head.get("version"))
+            raise FileFormatError(
+                "unsupported pack version", path=self.path, expected=PACK_VERSION, got=head.get("version")
+            )
         ent = head.get("samples")
-        if not isinstance(ent, dict) or not all(isinstance(v, dict) and v.get("folder") in SAMPLE_FOLDERS
-                                                for v in ent.values()):
+        if not isinstance(ent, dict) or not all(
+            isinstance(v, dict) and v.get("folder") in SAMPLE_FOLDERS for v in ent.values()
+        ):
             raise FileFormatError("pack.json lists no valid samples", path=self.path)
         self.head = head
         self.entries: dict = ent
@@ -270,8 +322,9 @@ class Pack:
         except (KeyError, zipfile.BadZipFile, EOFError, OSError) as err:
             raise FileFormatError(f"sample {sid} is unreadable ({err})", path=self.path) from None
         if hashlib.sha256(data).hexdigest() != e.get("sha256"):
-            raise FileFormatError(f"sample {sid} does not match its recorded SHA-256 (the pack is damaged)",
-                                  path=self.path)
+            raise FileFormatError(
+                f"sample {sid} does not match its recorded SHA-256 (the pack is damaged)", path=self.path
+            )
         try:
             z = dict(np.load(io.BytesIO(data), allow_pickle=False))
             frames = decode_frames(z)
@@ -280,10 +333,17 @@ class Pack:
         missing = [k for k in ("rest", "faces", "betas", "poses", "trans") if k not in z]
         if missing:
             raise FileFormatError(f"sample {sid} lacks {missing[0]!r}", path=self.path)
-        return Sample(id=sid, rest=z["rest"].astype(np.float64), faces=z["faces"].astype(np.int64),
-                      betas=z["betas"], poses=z["poses"].astype(np.float64), trans=z["trans"].astype(np.float64),
-                      frames=frames, meta=self.read_meta(sid),
-                      cloth_rest=z["cloth_rest"].astype(np.float64) if "cloth_rest" in z else None)
+        return Sample(
+            id=sid,
+            rest=z["rest"].astype(np.float64),
+            faces=z["faces"].astype(np.int64),
+            betas=z["betas"],
+            poses=z["poses"].astype(np.float64),
+            trans=z["trans"].astype(np.float64),
+            frames=frames,
+            meta=self.read_meta(sid),
+            cloth_rest=z["cloth_rest"].astype(np.float64) if "cloth_rest" in z else None,
+        )
 
     def configs(self) -> list[str]:
         return sorted(n for n in self._zip.namelist() if n.startswith("configs/") and n.endswith(".toml"))

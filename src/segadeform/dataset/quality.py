@@ -46,14 +46,14 @@ class QualityReport:
     finite: bool
     max_strain: float
     p99_strain: float
-    max_penetrating: float       # fraction of vertices, worst frame
-    jitter: float                # fraction of vertex-frames
+    max_penetrating: float  # fraction of vertices, worst frame
+    jitter: float  # fraction of vertex-frames
     reasons: list
     strained_edges: float = 0.0  # fraction of edges past max_strain in some frame (pinches not counted)
-    detached: float = 0.0        # fraction of vertices in a detached piece or too far, worst frame
-    pinched: float = 0.0         # fraction of vertices inside the body where two body parts touch, worst frame
-    pinched_edges: float = 0.0   # fraction of edges past max_strain only where pinched
-    slipped: float = 0.0         # fraction of the on-body vertices far from the body, worst frame
+    detached: float = 0.0  # fraction of vertices in a detached piece or too far, worst frame
+    pinched: float = 0.0  # fraction of vertices inside the body where two body parts touch, worst frame
+    pinched_edges: float = 0.0  # fraction of edges past max_strain only where pinched
+    slipped: float = 0.0  # fraction of the on-body vertices far from the body, worst frame
 
     @property
     def ok(self) -> bool:
@@ -84,8 +84,9 @@ class BodyParts:
         return cls(rest=np.asarray(body.shaped_vertices(betas)[0], np.float64), part=part)
 
 
-def pinched(points, depth, body_posed, parts: BodyParts, *, gap: float = 0.01, separation: float = 0.08,
-            k: int = 32) -> np.ndarray:
+def pinched(
+    points, depth, body_posed, parts: BodyParts, *, gap: float = 0.01, separation: float = 0.08, k: int = 32
+) -> np.ndarray:
     """Which ``points`` lie where two parts of the posed body touch: within ``depth + gap`` of the point
     (``depth``: how far inside the body it is, 0 outside) lie body vertices of two different parts
     (torso, arms, legs) that are more than ``separation`` apart in the rest pose -- an arm pressed
@@ -118,8 +119,18 @@ def on_body_at_rest(rest, body_rest, body_faces, *, within: float = 0.015) -> np
     return np.abs(q.signed_distance) < within
 
 
-def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact: dict | None = None,
-                  parts: BodyParts | None = None, on_body=None) -> QualityReport:
+def quality_check(
+    frames,
+    rest,
+    faces,
+    body_frames,
+    body_faces,
+    spec,
+    *,
+    contact: dict | None = None,
+    parts: BodyParts | None = None,
+    on_body=None,
+) -> QualityReport:
     """Shapes: frames (T, N, 3), rest (N, 3), faces (F, 3), body_frames (T, V, 3) -> report.
 
     ``contact``: a dict that receives ``closest`` and ``normal`` (T, N, 3) float32, the closest
@@ -131,8 +142,9 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
     """
     x = np.asarray(frames, np.float64)
     if not np.isfinite(x).all():
-        return QualityReport(False, float("nan"), float("nan"), float("nan"), float("nan"), ["non-finite positions"],
-                             float("nan"))
+        return QualityReport(
+            False, float("nan"), float("nan"), float("nan"), float("nan"), ["non-finite positions"], float("nan")
+        )
     e = unique_edges(faces, len(rest))
     l0 = np.linalg.norm(rest[e[:, 0]] - rest[e[:, 1]], axis=1)
     length = np.linalg.norm(x[:, e[:, 0]] - x[:, e[:, 1]], axis=2)
@@ -147,7 +159,7 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
         on_body = np.asarray(on_body, bool)
         if on_body.shape != (len(rest),):
             raise InputError("on_body must be (N,) bool", expected=(len(rest),), got=on_body.shape)
-    tear = np.zeros(len(e), bool)   # edges over the limit in some frame where neither end is pinched
+    tear = np.zeros(len(e), bool)  # edges over the limit in some frame where neither end is pinched
     pinch_e = np.zeros(len(e), bool)
     if contact is not None:
         contact["closest"] = np.empty(x.shape, np.float32)
@@ -188,9 +200,14 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
     over = float(tear.mean())  # edges strained past the bound in some frame, pinches aside
     pinch_edges = float((pinch_e & ~tear).mean())
     if over > spec.max_strained_edges:
-        reasons.append(f"strain {strain.max():.2f} > {spec.max_strain}"
-                       + (f" on {100 * over:.2f}% of edges > {100 * spec.max_strained_edges:.2f}%"
-                          if spec.max_strained_edges > 0 else ""))
+        reasons.append(
+            f"strain {strain.max():.2f} > {spec.max_strain}"
+            + (
+                f" on {100 * over:.2f}% of edges > {100 * spec.max_strained_edges:.2f}%"
+                if spec.max_strained_edges > 0
+                else ""
+            )
+        )
     if pen > spec.max_penetrating:
         reasons.append(f"penetration {100 * pen:.2f}% of vertices > {100 * spec.max_penetrating:.2f}%")
     if pinch > spec.max_pinched:
@@ -198,10 +215,25 @@ def quality_check(frames, rest, faces, body_frames, body_faces, spec, *, contact
     if jit > spec.max_jitter:
         reasons.append(f"jitter {100 * jit:.3f}% > {100 * spec.max_jitter:.3f}%")
     if slip > spec.max_slipped:
-        reasons.append(f"slipped: {100 * slip:.1f}% of the vertices on the body at rest farther than "
-                       f"{spec.slip_distance} m from it > {100 * spec.max_slipped:.1f}%")
+        reasons.append(
+            f"slipped: {100 * slip:.1f}% of the vertices on the body at rest farther than "
+            f"{spec.slip_distance} m from it > {100 * spec.max_slipped:.1f}%"
+        )
     if far > 0:
-        reasons.append(f"detached: {100 * far:.2f}% of vertices in a piece farther than {spec.max_body_distance} m "
-                       f"from the body or farther than {spec.max_vertex_distance} m themselves")
-    return QualityReport(True, float(strain.max()), float(np.percentile(strain, 99)), pen, jit, reasons, over, far,
-                         pinch, pinch_edges, slip)
+        reasons.append(
+            f"detached: {100 * far:.2f}% of vertices in a piece farther than {spec.max_body_distance} m "
+            f"from the body or farther than {spec.max_vertex_distance} m themselves"
+        )
+    return QualityReport(
+        True,
+        float(strain.max()),
+        float(np.percentile(strain, 99)),
+        pen,
+        jit,
+        reasons,
+        over,
+        far,
+        pinch,
+        pinch_edges,
+        slip,
+    )

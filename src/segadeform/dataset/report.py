@@ -33,6 +33,7 @@ def dataset_stats(folder) -> dict:
     for r in recs:
         if "seconds_per_frame" in r:
             by[(r["garment"], r["vertices"])].append(r["seconds_per_frame"])
+
     def rates(key):
         groups = collections.defaultdict(lambda: [0, 0])
         for r in recs:
@@ -43,12 +44,22 @@ def dataset_stats(folder) -> dict:
     for r in recs:  # what drove the body: motion capture (CMU clips, named cmu-...) or procedural motion
         r["source"] = "mocap" if str(r.get("motion", "")).startswith("cmu-") else "procedural"
         r["kind_source"] = f"{r.get('kind')} / {r['source']}"
-    return {"kept": len(kept), "rejected": len(rej), "rejection_rate": len(rej) / max(len(recs), 1),
-            "by_kind": rates("kind"), "by_motion": rates("motion"), "by_source": rates("source"),
-            "by_kind_source": rates("kind_source"), "throughput": _throughput(recs),
-            "splits": dict(collections.Counter(r["split"] for r in kept)), "reasons": dict(reasons),
-            "by_size": [{"garment": g, "vertices": v, "seconds_per_frame": float(np.mean(s)), "samples": len(s)}
-                        for (g, v), s in sorted(by.items(), key=lambda kv: kv[0][1])]}
+    return {
+        "kept": len(kept),
+        "rejected": len(rej),
+        "rejection_rate": len(rej) / max(len(recs), 1),
+        "by_kind": rates("kind"),
+        "by_motion": rates("motion"),
+        "by_source": rates("source"),
+        "by_kind_source": rates("kind_source"),
+        "throughput": _throughput(recs),
+        "splits": dict(collections.Counter(r["split"] for r in kept)),
+        "reasons": dict(reasons),
+        "by_size": [
+            {"garment": g, "vertices": v, "seconds_per_frame": float(np.mean(s)), "samples": len(s)}
+            for (g, v), s in sorted(by.items(), key=lambda kv: kv[0][1])
+        ],
+    }
 
 
 def _throughput(recs: list) -> dict:
@@ -61,6 +72,11 @@ def _throughput(recs: list) -> dict:
     wall = sum(max(x["finished"] for x in rs) - start for start, rs in runs.items())
     timed = [r for rs in runs.values() for r in rs]
     kept = sum(r["status"] == "kept" for r in timed)
-    return {"runs": len(runs), "samples": len(timed), "kept": kept, "wall_hours": wall / 3600,
-            "kept_per_hour": kept / (wall / 3600) if wall > 0 else None,
-            "samples_per_hour": len(timed) / (wall / 3600) if wall > 0 else None}
+    return {
+        "runs": len(runs),
+        "samples": len(timed),
+        "kept": kept,
+        "wall_hours": wall / 3600,
+        "kept_per_hour": kept / (wall / 3600) if wall > 0 else None,
+        "samples_per_hour": len(timed) / (wall / 3600) if wall > 0 else None,
+    }

@@ -37,8 +37,9 @@ def expand_root(path) -> list:
     if p.is_file():
         return [Pack(p)]
     if not p.is_dir():
-        raise InputError("dataset root does not exist", path=p,
-                         expected="a dataset folder, a .sgdpack file or a folder of packs")
+        raise InputError(
+            "dataset root does not exist", path=p, expected="a dataset folder, a .sgdpack file or a folder of packs"
+        )
     if (p / "samples").is_dir() or (p / "rejected").is_dir():
         return [p]
     packs = sorted(p.glob(f"*{PACK_SUFFIX}"))
@@ -46,8 +47,9 @@ def expand_root(path) -> list:
         return [Pack(q) for q in packs]
     if not any(p.iterdir()):  # an empty folder: a dataset not begun yet, or a store with no packs yet
         return []
-    raise InputError("not a dataset root", path=p,
-                     expected="a dataset folder (samples/), a .sgdpack file or a folder of packs")
+    raise InputError(
+        "not a dataset root", path=p, expected="a dataset folder (samples/), a .sgdpack file or a folder of packs"
+    )
 
 
 class DatasetRoots:
@@ -74,23 +76,31 @@ class DatasetRoots:
         if not order and not roots and not self.skipped:
             raise InputError("no dataset root given")
         self._where: dict[tuple, object] = {}  # (folder name, id) -> Path | Pack
-        self._spec: dict[str, tuple] = {}      # id -> (spec, source) of the serving root
+        self._spec: dict[str, tuple] = {}  # id -> (spec, source) of the serving root
         for src in order:
             if isinstance(src, Pack):
                 self.packs.append(src)
                 listing = ((e["folder"], sid, e.get("spec")) for sid, e in src.entries.items())
             else:
                 self.folders.append(src)
-                listing = ((f, m.stem, None) for f in SAMPLE_FOLDERS
-                           for m in sorted((src / f).glob("*.json")) if (src / f / f"{m.stem}.npz").is_file())
+                listing = (
+                    (f, m.stem, None)
+                    for f in SAMPLE_FOLDERS
+                    for m in sorted((src / f).glob("*.json"))
+                    if (src / f / f"{m.stem}.npz").is_file()
+                )
             for folder, sid, spec in listing:
                 if spec is None and not isinstance(src, Pack):
                     spec = _folder_spec(src, folder, sid)
                 prev = self._spec.get(sid)
                 if prev is not None:
                     if prev[0] is not None and spec is not None and prev[0] != spec:
-                        raise InputError(f"sample {sid} differs between two dataset roots", path=str(_name(src)),
-                                         expected=f"the sample of {_name(prev[1])} (spec {prev[0]})", got=spec)
+                        raise InputError(
+                            f"sample {sid} differs between two dataset roots",
+                            path=str(_name(src)),
+                            expected=f"the sample of {_name(prev[1])} (spec {prev[0]})",
+                            got=spec,
+                        )
                     continue
                 self._spec[sid] = (spec, src)
                 self._where[(folder, sid)] = src
@@ -101,14 +111,18 @@ class DatasetRoots:
     def _check_compatible(self) -> None:
         bodies = {p.body_sha256 for p in self.packs if p.body_sha256}
         if len(bodies) > 1:
-            raise InputError("these packs were simulated on different bodies and cannot be mixed",
-                             path=", ".join(str(p.path) for p in self.packs),
-                             got=", ".join(sorted(b[:12] for b in bodies)))
+            raise InputError(
+                "these packs were simulated on different bodies and cannot be mixed",
+                path=", ".join(str(p.path) for p in self.packs),
+                got=", ".join(sorted(b[:12] for b in bodies)),
+            )
         sims = {(p.simulator.get("blender"), p.simulator.get("bridge")) for p in self.packs}
         if len(sims) > 1:
-            raise InputError("these packs were made by different simulators and cannot be mixed",
-                             path=", ".join(str(p.path) for p in self.packs),
-                             got="; ".join(f"Blender {b}, bridge {v}" for b, v in sorted(sims, key=str)))
+            raise InputError(
+                "these packs were made by different simulators and cannot be mixed",
+                path=", ".join(str(p.path) for p in self.packs),
+                got="; ".join(f"Blender {b}, bridge {v}" for b, v in sorted(sims, key=str)),
+            )
 
     # ------------------------------------------------------------------------------------------------
     @property

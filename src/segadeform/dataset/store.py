@@ -52,12 +52,23 @@ def save_sample(root, s: Sample, folder: str = "samples") -> bool:
         return False
     with loc.writing(f"{folder}/{s.id}.npz") as tmp:
         with open(tmp, "wb") as fh:
-            extra = {} if s.contact_p is None else {"contact_p": s.contact_p.astype(np.float32),
-                                                     "contact_n": s.contact_n.astype(np.float32)}
+            extra = (
+                {}
+                if s.contact_p is None
+                else {"contact_p": s.contact_p.astype(np.float32), "contact_n": s.contact_n.astype(np.float32)}
+            )
             if s.cloth_rest is not None:
                 extra["cloth_rest"] = np.asarray(s.cloth_rest, np.float64)
-            np.savez(fh, rest=s.rest, faces=s.faces, betas=s.betas, poses=s.poses, trans=s.trans,
-                     frames=s.frames.astype(np.float32), **extra)
+            np.savez(
+                fh,
+                rest=s.rest,
+                faces=s.faces,
+                betas=s.betas,
+                poses=s.poses,
+                trans=s.trans,
+                frames=s.frames.astype(np.float32),
+                **extra,
+            )
     return loc.put_bytes(meta_rel, json.dumps(s.meta, indent=1, sort_keys=True).encode("utf-8"), once=True)
 
 
@@ -85,8 +96,12 @@ def load_sample(root: Path, sid: str, folder: str = "samples") -> Sample:
         contact = {"contact_p": z["contact_p"], "contact_n": z["contact_n"]}
     if "cloth_rest" in z:
         if z["cloth_rest"].shape != z["rest"].shape:
-            raise FileFormatError("sample array 'cloth_rest' is not shaped like 'rest'", path=d / f"{sid}.npz",
-                                  expected=z["rest"].shape, got=z["cloth_rest"].shape)
+            raise FileFormatError(
+                "sample array 'cloth_rest' is not shaped like 'rest'",
+                path=d / f"{sid}.npz",
+                expected=z["rest"].shape,
+                got=z["cloth_rest"].shape,
+            )
         contact["cloth_rest"] = z["cloth_rest"]
     return Sample(id=sid, meta=meta, **{k: z[k] for k in _ARRAYS}, **contact)
 

@@ -89,8 +89,10 @@ class LocalExecutor(Executor):
                     try:
                         yield f.result()
                     except cf.process.BrokenProcessPool:
-                        raise ExecutorError("a worker process died (killed?) while running a task (expected it "
-                                            "to finish; run again to resume: finished tasks are kept)") from None
+                        raise ExecutorError(
+                            "a worker process died (killed?) while running a task (expected it "
+                            "to finish; run again to resume: finished tasks are kept)"
+                        ) from None
             finally:
                 for f in futs:
                     f.cancel()
@@ -100,8 +102,9 @@ def _import_ray():
     try:
         import ray
     except ImportError as e:
-        raise ExecutorError(f"the ray executor needs Ray (expected ray installed: pip install segadeform[ray], "
-                            f"got {e})") from None
+        raise ExecutorError(
+            f"the ray executor needs Ray (expected ray installed: pip install segadeform[ray], got {e})"
+        ) from None
     return ray
 
 
@@ -124,8 +127,15 @@ class RayExecutor(Executor):
     name = "ray"
     remote = True
 
-    def __init__(self, address: str | None = None, workers: int | None = None, *, max_retries: int = 3,
-                 cpus_per_task: float = 1.0, runtime_env: dict | None = None) -> None:
+    def __init__(
+        self,
+        address: str | None = None,
+        workers: int | None = None,
+        *,
+        max_retries: int = 3,
+        cpus_per_task: float = 1.0,
+        runtime_env: dict | None = None,
+    ) -> None:
         if workers is not None and workers < 1:
             raise InputError("the number of workers must be at least 1", got=workers)
         if max_retries < 0:
@@ -154,9 +164,11 @@ class RayExecutor(Executor):
                 else:
                     ray.init(address=self.address, **kw)
             except (ConnectionError, RuntimeError, ValueError) as e:
-                raise ExecutorError(f"cannot reach the Ray cluster (expected one at "
-                                    f"{self.address or 'a new local instance'}, got {type(e).__name__}: "
-                                    f"{str(e).splitlines()[0] if str(e) else ''})") from None
+                raise ExecutorError(
+                    f"cannot reach the Ray cluster (expected one at "
+                    f"{self.address or 'a new local instance'}, got {type(e).__name__}: "
+                    f"{str(e).splitlines()[0] if str(e) else ''})"
+                ) from None
             self._own = True
         self._ray = ray
         return ray
@@ -168,8 +180,12 @@ class RayExecutor(Executor):
         ray = self.connect()
         from ray import exceptions as rex
 
-        remote = ray.remote(_apply).options(num_cpus=self.cpus_per_task, max_retries=self.max_retries,
-                                            retry_exceptions=False, name=getattr(fn, "__name__", "task"))
+        remote = ray.remote(_apply).options(
+            num_cpus=self.cpus_per_task,
+            max_retries=self.max_retries,
+            retry_exceptions=False,
+            name=getattr(fn, "__name__", "task"),
+        )
         window = _Window(ray, self.workers, self.cpus_per_task)
         pending: dict = {}
         nxt = 0
@@ -190,10 +206,12 @@ class RayExecutor(Executor):
                         raise cause from None
                     raise ExecutorError(f"task {i} failed on a Ray worker: {str(e).splitlines()[0]}") from None
                 except rex.RayError as e:  # the worker or its node died more often than the retries allow
-                    raise ExecutorError(f"task {i} did not finish on Ray (expected it to within "
-                                        f"{self.max_retries} retries of a dead worker, got "
-                                        f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}); run "
-                                        f"again to resume: finished tasks are kept") from None
+                    raise ExecutorError(
+                        f"task {i} did not finish on Ray (expected it to within "
+                        f"{self.max_retries} retries of a dead worker, got "
+                        f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}); run "
+                        f"again to resume: finished tasks are kept"
+                    ) from None
                 yield result
         finally:
             for ref in pending:
@@ -246,5 +264,5 @@ def make_executor(spec: str = "local", workers: int | None = None, **ray_options
     if s.startswith("ray://") and len(s) > len("ray://"):
         return RayExecutor(s, workers, **ray_options)
     if s.startswith("ray:") and len(s) > len("ray:") and not s.startswith("ray:/"):
-        return RayExecutor(s[len("ray:"):], workers, **ray_options)
+        return RayExecutor(s[len("ray:") :], workers, **ray_options)
     raise InputError("unknown executor", expected=EXECUTOR_HELP, got=spec)

@@ -54,23 +54,39 @@ from ..errors import InputError
 from ..geometry.mesh_ops import boundary_loops, connected_components, mean_edge_length, unique_edges, vertex_normals
 from .resample import subdivide
 
-__all__ = ["GARMENT_KINDS", "GARMENT_TYPES", "GarmentParams", "Garment", "make_garment", "check_garment",
-           "boundary_turning"]
+__all__ = [
+    "GARMENT_KINDS",
+    "GARMENT_TYPES",
+    "GarmentParams",
+    "Garment",
+    "make_garment",
+    "check_garment",
+    "boundary_turning",
+]
 
-GARMENT_TYPES = {"skirt": "skirt", "dress": "dress", "sleeved-dress": "dress", "tshirt": "top", "tank": "top",
-                 "jacket": "open-front", "trousers": "trousers", "shorts": "trousers", "jumpsuit": "jumpsuit"}
+GARMENT_TYPES = {
+    "skirt": "skirt",
+    "dress": "dress",
+    "sleeved-dress": "dress",
+    "tshirt": "top",
+    "tank": "top",
+    "jacket": "open-front",
+    "trousers": "trousers",
+    "shorts": "trousers",
+    "jumpsuit": "jumpsuit",
+}
 GARMENT_KINDS = tuple(GARMENT_TYPES)
 _J = {n: i for i, n in enumerate(SMPL_JOINT_NAMES)}
 
 
 @dataclasses.dataclass(frozen=True)
 class GarmentParams:
-    length: float | None = None     # kind-specific default
+    length: float | None = None  # kind-specific default
     flare: float = 0.25
     ease: float = 0.015
-    sleeve: float | None = None     # fraction of the arm (shoulder to wrist) the sleeve covers
+    sleeve: float | None = None  # fraction of the arm (shoulder to wrist) the sleeve covers
     subdivisions: int = 0
-    resolution: int | None = None   # target vertex count: picks the subdivisions closest to it
+    resolution: int | None = None  # target vertex count: picks the subdivisions closest to it
 
     def __post_init__(self):
         if self.resolution is not None and not (isinstance(self.resolution, int) and 100 <= self.resolution <= 200_000):
@@ -98,9 +114,13 @@ class Garment:
 
     def header(self) -> str:
         p = dataclasses.asdict(self.params)
-        return "\n".join([f"segadeform garment: kind={self.kind} type={self.type}",
-                          "params: " + " ".join(f"{k}={v}" for k, v in p.items() if v is not None),
-                          "betas: " + " ".join(f"{b:g}" for b in self.betas)])
+        return "\n".join(
+            [
+                f"segadeform garment: kind={self.kind} type={self.type}",
+                "params: " + " ".join(f"{k}={v}" for k, v in p.items() if v is not None),
+                "betas: " + " ".join(f"{b:g}" for b in self.betas),
+            ]
+        )
 
 
 # ---------------------------------------------------------------- mesh helpers
@@ -195,7 +215,7 @@ def _extrude_skirt(v, f, hem_y, flare, proxy: BodyProxy, ease):
     for k in range(1, n_rings + 1):
         t = k / n_rings
         y = y0 + (hem_y - y0) * t
-        scale = max(prev_scale, 1.0 + flare * t ** 1.2)
+        scale = max(prev_scale, 1.0 + flare * t**1.2)
         for _ in range(60):  # widen until the ring clears the body by `ease`
             pts = centre + scale * base
             pts[:, 1] = y + (ring0[:, 1] - y0) * (1 - t)
@@ -328,7 +348,7 @@ def _region(kind: str, p: GarmentParams, j: np.ndarray, bv: np.ndarray):
     arm = wrist[0] - shoulder[0]
     # neckline: an elliptic scoop (front and back) down to 10 cm below the neck joint, joined to a
     # cut across the shoulders 2 cm below it; all of it rounded by the smooth min/max
-    scoop = (np.sqrt(x ** 2 / 0.09 ** 2 + (z - neck[2]) ** 2 / 0.10 ** 2) - 1.0) * 0.09
+    scoop = (np.sqrt(x**2 / 0.09**2 + (z - neck[2]) ** 2 / 0.10**2) - 1.0) * 0.09
     not_neck_hole = _smax([scoop, (neck[1] - 0.10) - y], r)
     neck_cut = (neck[1] - 0.02) - y
     leg_len = hip[1] - ankle[1]
@@ -344,7 +364,7 @@ def _region(kind: str, p: GarmentParams, j: np.ndarray, bv: np.ndarray):
     elif kind == "tank":
         # 4 cm straps over the shoulders between a deep scoop neck and wide armholes that reach
         # 15 cm below the shoulder joint at the torso's side (no cloth in the armpit)
-        scoop_t = (np.sqrt(x ** 2 / 0.075 ** 2 + (z - neck[2]) ** 2 / 0.12 ** 2) - 1.0) * 0.075
+        scoop_t = (np.sqrt(x**2 / 0.075**2 + (z - neck[2]) ** 2 / 0.12**2) - 1.0) * 0.075
         cx, rx, ry = shoulder[0] + 0.05, shoulder[0] + 0.05 - 0.115, 0.16
         armhole = ((((ax - cx) / rx) ** 4 + ((y - shoulder[1]) / ry) ** 4) ** 0.25 - 1.0) * rx
         fields = [y - cut_y, _smax([scoop_t, (neck[1] - 0.14) - y], r), armhole, (neck[1] + 0.03) - y, cx - ax]
@@ -376,8 +396,9 @@ def _smooth_body(verts, faces, passes: int = 60, lam: float = 0.5, mu: float = -
 
     v = np.asarray(verts, np.float64)
     e = unique_edges(faces, len(v))
-    a = sp.coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
-                      shape=(len(v), len(v))).tocsr()
+    a = sp.coo_matrix(
+        (np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), shape=(len(v), len(v))
+    ).tocsr()
     deg = np.maximum(np.asarray(a.sum(1)).ravel(), 1.0)[:, None]
     for _ in range(passes):
         for coef in (lam, mu):
@@ -393,7 +414,7 @@ def _loop_plane(p):
     """
     c = p.mean(0)
     _, sv, vt = np.linalg.svd(p - c, full_matrices=False)
-    return c, vt[2], float(sv[2] / max(np.sqrt((sv ** 2).sum()), 1e-15))
+    return c, vt[2], float(sv[2] / max(np.sqrt((sv**2).sum()), 1e-15))
 
 
 #: loops flatter than this (see _loop_plane) are hems, waistbands and cuffs: made convex
@@ -474,8 +495,9 @@ def _smooth_boundary(v, f, proxy: BodyProxy, ease, passes: int = 20, lam: float 
     return v
 
 
-def make_garment(kind: str, body: BodyModel, betas=None, params: GarmentParams = GarmentParams(), *,
-                 cloth_pose=None) -> Garment:
+def make_garment(
+    kind: str, body: BodyModel, betas=None, params: GarmentParams = GarmentParams(), *, cloth_pose=None
+) -> Garment:
     """Make a ``kind`` garment for ``body`` with shape ``betas`` (see the module docstring).
 
     ``cloth_pose`` (72,) axis-angle, e.g. an A-pose: the same garment (vertex for vertex, the same
@@ -505,14 +527,14 @@ def make_garment(kind: str, body: BodyModel, betas=None, params: GarmentParams =
     x = np.concatenate([(1 - t)[:, None] * sv[a] + t[:, None] * sv[b] for sv in smooth], axis=1)
     x, f = _largest_component(x, f)
     x, f = _clean_patch(x, f)
-    out = [_offset(x[:, 3 * k:3 * k + 3].copy(), f, BodyProxy(pv, body.faces), params.ease)
-           for k, pv in enumerate(poses)]
+    out = [
+        _offset(x[:, 3 * k : 3 * k + 3].copy(), f, BodyProxy(pv, body.faces), params.ease) for k, pv in enumerate(poses)
+    ]
     if hem is not None:  # the skirt is extruded in the rest pose; other poses move it with its waist
         n0 = len(out[0])
         v0, f2, loop = _extrude_skirt(out[0], f, hem, params.flare, BodyProxy(bv, body.faces), params.ease)
         rings = v0[n0:].reshape(-1, len(loop), 3)
-        out = [v0] + [np.concatenate([o, (rings + (o[loop] - out[0][loop])[None]).reshape(-1, 3)])
-                      for o in out[1:]]
+        out = [v0] + [np.concatenate([o, (rings + (o[loop] - out[0][loop])[None]).reshape(-1, 3)]) for o in out[1:]]
         f = f2
     x = np.concatenate(out, axis=1)
     # refine last, so skirts are refined too; flat midpoints sit < 1 mm inside the offset surface
@@ -521,9 +543,15 @@ def make_garment(kind: str, body: BodyModel, betas=None, params: GarmentParams =
         levels = int(np.clip(np.round(np.log(params.resolution / len(x)) / np.log(4.0)), 0, 2))
     for _ in range(levels):
         x, f = subdivide(x, f)
-    g = Garment(vertices=x[:, :3].copy(), faces=f, kind=kind, type=GARMENT_TYPES[kind], params=params,
-                betas=tuple(float(b) for b in np.ravel(betas if betas is not None else [])),
-                cloth_rest=x[:, 3:6].copy() if cloth_pose is not None else None)
+    g = Garment(
+        vertices=x[:, :3].copy(),
+        faces=f,
+        kind=kind,
+        type=GARMENT_TYPES[kind],
+        params=params,
+        betas=tuple(float(b) for b in np.ravel(betas if betas is not None else [])),
+        cloth_rest=x[:, 3:6].copy() if cloth_pose is not None else None,
+    )
     check_garment(g.vertices, g.faces, body, betas)
     return g
 

@@ -51,14 +51,20 @@ def fit_mhclo(binding: MhcloBinding, body, betas=None, *, return_apose: bool = F
     """
     mh = getattr(body, "makehuman", None)
     if mh is None:
-        raise InputError("this body has no MakeHuman binding, so .mhclo garments cannot be fitted to it",
-                         expected="the default body, or one baked with `segadeform body bake`")
+        raise InputError(
+            "this body has no MakeHuman binding, so .mhclo garments cannot be fitted to it",
+            expected="the default body, or one baked with `segadeform body bake`",
+        )
     n_hm = len(mh["hm08_index"]) + len(mh["extra_index"])
     idx = binding.verts
     used = np.concatenate([idx.ravel(), np.array([a for s in binding.scales.values() for a in s[:2]], np.int64)])
     if used.max() >= n_hm:
-        raise FileFormatError("binding names a base-mesh vertex the body does not have", path=binding.path,
-                              expected=f"indices < {n_hm}", got=int(used.max()))
+        raise FileFormatError(
+            "binding names a base-mesh vertex the body does not have",
+            path=binding.path,
+            expected=f"indices < {n_hm}",
+            got=int(used.max()),
+        )
     H = makehuman_vertices(body, mh, betas)  # (19158, 3), A-pose, metres
     s = np.ones(3)
     for ax, (a, b, ref) in binding.scales.items():
@@ -106,9 +112,18 @@ def _local_frames(v: np.ndarray, faces: np.ndarray, face_idx: np.ndarray):
     return t1, np.cross(n, t1), n
 
 
-def fit_to_body_mesh(garment_vertices, source_vertices, source_faces, body, betas=None, *,
-                     samples: int = 1500, rounds: int = 8, seed: int = 0,
-                     scale: float | None = None) -> BodyFit:
+def fit_to_body_mesh(
+    garment_vertices,
+    source_vertices,
+    source_faces,
+    body,
+    betas=None,
+    *,
+    samples: int = 1500,
+    rounds: int = 8,
+    seed: int = 0,
+    scale: float | None = None,
+) -> BodyFit:
     """Carry a garment modelled on another body mesh (any topology and pose, +Y up, metres) onto ``body``.
 
     1. **register** the body to the source mesh: scale (``None``: free, from the height ratio; a number
@@ -151,8 +166,8 @@ def fit_to_body_mesh(garment_vertices, source_vertices, source_faces, body, beta
 
     def unpack(x):
         th = np.zeros(72)
-        th.reshape(24, 3)[joints_free] = x[4 + nb:].reshape(-1, 3)
-        return float(np.exp(x[0])), x[1:4], x[4:4 + nb], th
+        th.reshape(24, 3)[joints_free] = x[4 + nb :].reshape(-1, 3)
+        return float(np.exp(x[0])), x[1:4], x[4 : 4 + nb], th
 
     def body_points(x):
         sc, t, beta, th = unpack(x)
@@ -165,13 +180,16 @@ def fit_to_body_mesh(garment_vertices, source_vertices, source_faces, body, beta
         if x is None:
             x = np.zeros(4 + nb + n_th)
             x[0] = np.log(height_s / height_b) if scale is None else np.log(scale)
-            x[4 + nb:] = init_pose.reshape(24, 3)[joints_free].ravel()
+            x[4 + nb :] = init_pose.reshape(24, 3)[joints_free].ravel()
             p = body_points(x)
-            x[1:4] = [sv[:, 0].mean() - p[:, 0].mean(), sv[:, 1].min() - p[:, 1].min(),
-                      sv[:, 2].mean() - p[:, 2].mean()]
+            x[1:4] = [
+                sv[:, 0].mean() - p[:, 0].mean(),
+                sv[:, 1].min() - p[:, 1].min(),
+                sv[:, 2].mean() - p[:, 2].mean(),
+            ]
         lo = np.full_like(x, -np.inf)
         hi = np.full_like(x, np.inf)
-        lo[4:4 + nb], hi[4:4 + nb] = -BETA_LIMIT, BETA_LIMIT  # the shape space (segadeform.bounds)
+        lo[4 : 4 + nb], hi[4 : 4 + nb] = -BETA_LIMIT, BETA_LIMIT  # the shape space (segadeform.bounds)
         if scale is not None:  # a fixed scale: bounds pin it
             lo[0], hi[0] = np.log(scale) - 1e-9, np.log(scale) + 1e-9
             x[0] = np.log(scale)
@@ -182,8 +200,9 @@ def fit_to_body_mesh(garment_vertices, source_vertices, source_faces, body, beta
 
             def res(xx, q=q, near_b=near_b):  # this round's pairs
                 pp = body_points(xx)
-                return np.concatenate([(pp - q).ravel(), (pp[near_b] - s_pts).ravel(),
-                                       0.01 * xx[4:4 + nb], 0.02 * xx[4 + nb:]])
+                return np.concatenate(
+                    [(pp - q).ravel(), (pp[near_b] - s_pts).ravel(), 0.01 * xx[4 : 4 + nb], 0.02 * xx[4 + nb :]]
+                )
 
             x = least_squares(res, x, max_nfev=20, method="trf", x_scale="jac", bounds=(lo, hi)).x
         p = body_points(x)

@@ -52,8 +52,10 @@ def subdivide(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
 
     a, b, c = f[:, 0], f[:, 1], f[:, 2]
     ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
-    out = np.stack([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1), np.stack([ca, bc, c], 1),
-                    np.stack([ab, bc, ca], 1)], axis=1).reshape(-1, 3)
+    out = np.stack(
+        [np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1), np.stack([ca, bc, c], 1), np.stack([ab, bc, ca], 1)],
+        axis=1,
+    ).reshape(-1, 3)
     return np.concatenate([v, 0.5 * (v[e[:, 0]] + v[e[:, 1]])]), out
 
 
@@ -241,8 +243,11 @@ class SurfaceMap:
         """The points on posed copies of the mesh.  Shapes: frames (..., N, 3) -> (..., P, 3)."""
         x = np.asarray(frames, np.float64)
         if x.ndim < 2 or x.shape[-1] != 3 or x.shape[-2] <= int(self.faces.max()):
-            raise InputError("frames must be (..., N, 3) for the mapped mesh",
-                             expected=f"(..., >{int(self.faces.max())}, 3)", got=x.shape)
+            raise InputError(
+                "frames must be (..., N, 3) for the mapped mesh",
+                expected=f"(..., >{int(self.faces.max())}, 3)",
+                got=x.shape,
+            )
         tri = x[..., self.faces[self.face], :]  # (..., P, 3, 3)
         on = np.einsum("pk,...pkd->...pd", self.bary, tri)
         n = np.cross(tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :])

@@ -3,13 +3,13 @@ geodesics, sampling, the garment type descriptor, vertex features and the garmen
 
 from ..io.garment_asset import ASSET_SCHEMA_VERSION, GarmentAsset
 from .descriptor import (
-                         DEFAULT_N_STAR,
-                         Descriptor,
-                         dissimilarity,
-                         furthest_point_sampling,
-                         garment_descriptor,
-                         gaussian_affinity,
-                         nystrom_eigen,
+    DEFAULT_N_STAR,
+    Descriptor,
+    dissimilarity,
+    furthest_point_sampling,
+    garment_descriptor,
+    gaussian_affinity,
+    nystrom_eigen,
 )
 from .features import feature_dim, vertex_features
 from .geodesic import DEFAULT_GEODESIC, GEODESIC_METHODS, GeodesicSolver, geodesic_distances
@@ -19,12 +19,33 @@ from .mesh_ops import boundary_loops, connected_components, face_areas, mean_edg
 from .precompute import precompute_garment
 
 __all__ = [
-    "ASSET_SCHEMA_VERSION", "GarmentAsset", "precompute_garment",
-    "DEFAULT_N_STAR", "Descriptor", "dissimilarity", "furthest_point_sampling", "gaussian_affinity",
-    "garment_descriptor", "nystrom_eigen", "feature_dim", "vertex_features",
-    "DEFAULT_GEODESIC", "GEODESIC_METHODS", "GeodesicSolver", "geodesic_distances",
-    "DEFAULT_MAX_K", "neighbour_graph", "valence",
-    "SpectralBasis", "cotangent_laplacian", "lumped_mass", "spectral_bands",
-    "boundary_loops", "connected_components", "face_areas", "mean_edge_length", "unique_edges",
+    "ASSET_SCHEMA_VERSION",
+    "GarmentAsset",
+    "precompute_garment",
+    "DEFAULT_N_STAR",
+    "Descriptor",
+    "dissimilarity",
+    "furthest_point_sampling",
+    "gaussian_affinity",
+    "garment_descriptor",
+    "nystrom_eigen",
+    "feature_dim",
+    "vertex_features",
+    "DEFAULT_GEODESIC",
+    "GEODESIC_METHODS",
+    "GeodesicSolver",
+    "geodesic_distances",
+    "DEFAULT_MAX_K",
+    "neighbour_graph",
+    "valence",
+    "SpectralBasis",
+    "cotangent_laplacian",
+    "lumped_mass",
+    "spectral_bands",
+    "boundary_loops",
+    "connected_components",
+    "face_areas",
+    "mean_edge_length",
+    "unique_edges",
     "vertex_normals",
 ]

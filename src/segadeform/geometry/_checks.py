@@ -27,8 +27,11 @@ def check_faces(faces, n_vertices: int) -> np.ndarray:
         raise InputError("faces must be integers", got=f.dtype)
     f = f.astype(np.int64, copy=False)
     if f.size and (f.min() < 0 or f.max() >= n_vertices):
-        raise InputError("face index out of range", expected=f"0..{n_vertices - 1}",
-                         got=int(f.min()) if f.min() < 0 else int(f.max()))
+        raise InputError(
+            "face index out of range",
+            expected=f"0..{n_vertices - 1}",
+            got=int(f.min()) if f.min() < 0 else int(f.max()),
+        )
     return f
 
 

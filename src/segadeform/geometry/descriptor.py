@@ -50,9 +50,19 @@ from ..errors import InputError
 from ._checks import check_mesh
 from .geodesic import DEFAULT_GEODESIC, GeodesicSolver
 
-__all__ = ["DEFAULT_N_STAR", "furthest_point_sampling", "furthest_point_sampling_naive",
-           "gaussian_affinity", "Descriptor", "garment_descriptor", "nystrom_eigen", "dissimilarity",
-           "rescale_descriptor", "dissimilarities", "novelty_threshold"]
+__all__ = [
+    "DEFAULT_N_STAR",
+    "furthest_point_sampling",
+    "furthest_point_sampling_naive",
+    "gaussian_affinity",
+    "Descriptor",
+    "garment_descriptor",
+    "nystrom_eigen",
+    "dissimilarity",
+    "rescale_descriptor",
+    "dissimilarities",
+    "novelty_threshold",
+]
 
 DEFAULT_N_STAR = 32
 
@@ -169,8 +179,14 @@ class Descriptor:
         return gaussian_affinity(0.5 * (d + d.T), self.radius)
 
 
-def garment_descriptor(vertices, faces, *, n_star: int = DEFAULT_N_STAR, method: str = DEFAULT_GEODESIC,
-                       solver: GeodesicSolver | None = None) -> Descriptor:
+def garment_descriptor(
+    vertices,
+    faces,
+    *,
+    n_star: int = DEFAULT_N_STAR,
+    method: str = DEFAULT_GEODESIC,
+    solver: GeodesicSolver | None = None,
+) -> Descriptor:
     """The garment type descriptor lambda of §4.3 (see the module notes for the choices)."""
     v, f = check_mesh(vertices, faces)
     if int(n_star) < 1:

@@ -113,8 +113,9 @@ class GeodesicSolver:
                 rows.append(np.arange(F) * 3 + k)
                 cols.append(fg[:, c])
                 vals.append(g[:, k])
-        self._grad = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                                   shape=(3 * F, n))
+        self._grad = sp.csr_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * F, n)
+        )
         self._area = np.repeat(0.5 * area2, 3)
         self._div = (self._grad.T @ sp.diags(self._area)).tocsr()  # integrated divergence (N x 3F)
         # Poisson solve: L is singular per component; a tiny mass shift pins the constant.

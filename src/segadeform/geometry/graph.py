@@ -27,9 +27,15 @@ def valence(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return np.bincount(e.ravel(), minlength=n_vertices).astype(np.int64)
 
 
-def neighbour_graph(faces: np.ndarray, n_vertices: int, *, k: int | None = None,
-                    vertices: np.ndarray | None = None, max_k: int = DEFAULT_MAX_K,
-                    self_loops: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def neighbour_graph(
+    faces: np.ndarray,
+    n_vertices: int,
+    *,
+    k: int | None = None,
+    vertices: np.ndarray | None = None,
+    max_k: int = DEFAULT_MAX_K,
+    self_loops: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
     """Padded 1-ring neighbour lists.
 
     K is ``k`` when given; otherwise ``min(max valence, max_k)`` (at least 1).

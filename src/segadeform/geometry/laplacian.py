@@ -12,8 +12,18 @@ from ..errors import InputError
 from ._checks import check_mesh
 from .mesh_ops import face_cross, mean_edge_length
 
-__all__ = ["COT_CLAMP", "cotangents", "cotangent_laplacian", "lumped_mass", "nondegenerate_faces",
-           "SpectralBasis", "spectral_bands", "BAND_LOW", "BAND_MID", "MAX_DENSE_VERTICES"]
+__all__ = [
+    "COT_CLAMP",
+    "cotangents",
+    "cotangent_laplacian",
+    "lumped_mass",
+    "nondegenerate_faces",
+    "SpectralBasis",
+    "spectral_bands",
+    "BAND_LOW",
+    "BAND_MID",
+    "MAX_DENSE_VERTICES",
+]
 
 #: |cot| is clamped here (an angle of ~0.057 deg).  Needle triangles below it
 #: are numerically degenerate and would otherwise give weights of 1e12+.
@@ -141,15 +151,19 @@ class SpectralBasis:
     n_mid: int
 
     @classmethod
-    def from_mesh(cls, vertices, faces, *, low: float = BAND_LOW, mid: float = BAND_MID,
-                  allow_large: bool = False) -> SpectralBasis:
+    def from_mesh(
+        cls, vertices, faces, *, low: float = BAND_LOW, mid: float = BAND_MID, allow_large: bool = False
+    ) -> SpectralBasis:
         v, f = check_mesh(vertices, faces)
         n = v.shape[0]
         if not (0 < low <= mid <= 1):
             raise InputError("band fractions must satisfy 0 < low <= mid <= 1", got=(low, mid))
         if n > MAX_DENSE_VERTICES and not allow_large:
-            raise InputError("mesh too large for the dense band split",
-                             expected=f"<= {MAX_DENSE_VERTICES} vertices (or allow_large=True)", got=n)
+            raise InputError(
+                "mesh too large for the dense band split",
+                expected=f"<= {MAX_DENSE_VERTICES} vertices (or allow_large=True)",
+                got=n,
+            )
         n_low = min(n, max(1, int(round(low * n))))
         n_mid = min(n, max(n_low, int(round(mid * n))))
         L = cotangent_laplacian(v, f).toarray()
@@ -171,11 +185,10 @@ class SpectralBasis:
         phi = self.eigenvectors
         coef = phi.T @ (self.mass.reshape((-1,) + (1,) * (f.ndim - 1)) * f)
         low = phi[:, : self.n_low] @ coef[: self.n_low]
-        mid = phi[:, self.n_low:] @ coef[self.n_low:]
+        mid = phi[:, self.n_low :] @ coef[self.n_low :]
         return low, mid, f - low - mid
 
 
-def spectral_bands(vertices, faces, signal, *, low: float = BAND_LOW, mid: float = BAND_MID,
-                   allow_large: bool = False):
+def spectral_bands(vertices, faces, signal, *, low: float = BAND_LOW, mid: float = BAND_MID, allow_large: bool = False):
     """One-shot :meth:`SpectralBasis.split`; build the basis once when splitting many signals."""
     return SpectralBasis.from_mesh(vertices, faces, low=low, mid=mid, allow_large=allow_large).split(signal)

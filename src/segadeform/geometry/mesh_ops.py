@@ -8,8 +8,18 @@ from scipy.sparse import csgraph
 
 from ._checks import check_faces, check_mesh
 
-__all__ = ["face_cross", "face_areas", "vertex_normals", "unique_edges", "edge_lengths",
-           "mean_edge_length", "boundary_vertices", "boundary_loops", "connected_components", "adjacency"]
+__all__ = [
+    "face_cross",
+    "face_areas",
+    "vertex_normals",
+    "unique_edges",
+    "edge_lengths",
+    "mean_edge_length",
+    "boundary_vertices",
+    "boundary_loops",
+    "connected_components",
+    "adjacency",
+]
 
 
 def face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -89,8 +99,9 @@ def mean_edge_length(vertices, faces) -> float:
     return float(edge_lengths(vertices, e).mean())
 
 
-def adjacency(faces: np.ndarray, n_vertices: int, weights: np.ndarray | None = None,
-              vertices: np.ndarray | None = None) -> sp.csr_matrix:
+def adjacency(
+    faces: np.ndarray, n_vertices: int, weights: np.ndarray | None = None, vertices: np.ndarray | None = None
+) -> sp.csr_matrix:
     """Symmetric sparse adjacency ``(N, N)``; entries are edge lengths if ``vertices`` is given, else 1."""
     e = unique_edges(faces, n_vertices)
     if weights is None:

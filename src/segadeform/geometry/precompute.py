@@ -17,9 +17,18 @@ from .mesh_ops import vertex_normals
 __all__ = ["precompute_garment"]
 
 
-def precompute_garment(vertices, faces, joints, *, k: int | None = None, max_k: int = DEFAULT_MAX_K,
-                       n_star: int = DEFAULT_N_STAR, geodesic: str = DEFAULT_GEODESIC,
-                       source_name: str = "", source_sha256: str = "") -> GarmentAsset:
+def precompute_garment(
+    vertices,
+    faces,
+    joints,
+    *,
+    k: int | None = None,
+    max_k: int = DEFAULT_MAX_K,
+    n_star: int = DEFAULT_N_STAR,
+    geodesic: str = DEFAULT_GEODESIC,
+    source_name: str = "",
+    source_sha256: str = "",
+) -> GarmentAsset:
     """Run every precompute step on a garment and return the asset.
 
     Memory is O(N K + N* N): no step forms an N x N matrix.
@@ -34,11 +43,26 @@ def precompute_garment(vertices, faces, joints, *, k: int | None = None, max_k: 
     nbr, mask = neighbour_graph(f, v.shape[0], k=k, vertices=v, max_k=max_k)
     solver = GeodesicSolver(v, f, method=geodesic)
     desc = garment_descriptor(v, f, n_star=n_star, solver=solver)
-    params = {"k": int(nbr.shape[1]), "max_k": int(max_k), "n_star": int(n_star), "geodesic": geodesic,
-              "segadeform_version": __version__, "n_components": int(solver.n_components)}
+    params = {
+        "k": int(nbr.shape[1]),
+        "max_k": int(max_k),
+        "n_star": int(n_star),
+        "geodesic": geodesic,
+        "segadeform_version": __version__,
+        "n_components": int(solver.n_components),
+    }
     return GarmentAsset(
-        vertices=v, faces=f, normals=normals.astype(np.float32), features=feats, nbr=nbr, mask=mask,
-        joints=j.astype(np.float64), descriptor=desc.eigenvalues.astype(np.float64),
-        fps_samples=desc.samples.astype(np.int64), geodesic_radius=float(desc.radius), params=params,
-        source_name=source_name, source_sha256=source_sha256,
+        vertices=v,
+        faces=f,
+        normals=normals.astype(np.float32),
+        features=feats,
+        nbr=nbr,
+        mask=mask,
+        joints=j.astype(np.float64),
+        descriptor=desc.eigenvalues.astype(np.float64),
+        fps_samples=desc.samples.astype(np.int64),
+        geodesic_radius=float(desc.radius),
+        params=params,
+        source_name=source_name,
+        source_sha256=source_sha256,
     )

@@ -7,8 +7,9 @@ import numpy as np
 __all__ = ["grid_plane", "cylinder", "frustum", "fan"]
 
 
-def grid_plane(nx: int, ny: int, size: tuple[float, float] = (1.0, 1.0), *, jitter: float = 0.0,
-               seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def grid_plane(
+    nx: int, ny: int, size: tuple[float, float] = (1.0, 1.0), *, jitter: float = 0.0, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
     """A flat ``nx x ny``-vertex grid in the XZ plane, triangulated with alternating diagonals.
 
     Returns ``vertices (nx*ny, 3)``, ``faces (2 (nx-1)(ny-1), 3)``.  ``jitter``
@@ -32,8 +33,9 @@ def grid_plane(nx: int, ny: int, size: tuple[float, float] = (1.0, 1.0), *, jitt
     return v, np.concatenate([t1, t2]).astype(np.int64)
 
 
-def frustum(n_around: int, n_height: int, r_top: float, r_bottom: float, y_top: float, y_bottom: float,
-            *, center=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+def frustum(
+    n_around: int, n_height: int, r_top: float, r_bottom: float, y_top: float, y_bottom: float, *, center=(0.0, 0.0)
+) -> tuple[np.ndarray, np.ndarray]:
     """An open tube (truncated cone) around +Y, open at both ends, outward-facing.
 
     ``n_around`` vertices per ring, ``n_height`` rings from ``y_top`` down to
@@ -42,11 +44,14 @@ def frustum(n_around: int, n_height: int, r_top: float, r_bottom: float, y_top: 
     th = np.linspace(0.0, 2 * np.pi, n_around, endpoint=False)
     ys = np.linspace(y_top, y_bottom, n_height)
     rs = np.linspace(r_top, r_bottom, n_height)
-    v = np.stack([
-        (center[0] + rs[:, None] * np.cos(th)[None, :]).ravel(),
-        np.repeat(ys, n_around),
-        (center[1] + rs[:, None] * np.sin(th)[None, :]).ravel(),
-    ], axis=1)
+    v = np.stack(
+        [
+            (center[0] + rs[:, None] * np.cos(th)[None, :]).ravel(),
+            np.repeat(ys, n_around),
+            (center[1] + rs[:, None] * np.sin(th)[None, :]).ravel(),
+        ],
+        axis=1,
+    )
     idx = np.arange(n_around * n_height).reshape(n_height, n_around)
     nxt = np.roll(idx, -1, axis=1)
     a, b, c, d = idx[:-1], nxt[:-1], nxt[1:], idx[1:]

@@ -43,13 +43,41 @@ from .sequence import (
 from .writer import UP_AXES, Y_TO_Z, SequenceWriter, to_up
 
 __all__ = [
-    "Mesh", "read_mesh", "write_mesh", "MESH_READERS", "MESH_WRITERS",
-    "read_obj", "write_obj", "read_off", "read_pc2", "read_pc2_header", "write_pc2", "PC2Writer", "PointCache",
-    "read_obj_sequence", "write_obj_sequence", "read_xdmf_sequence", "write_xdmf_sequence", "ObjSequenceWriter",
+    "Mesh",
+    "read_mesh",
+    "write_mesh",
+    "MESH_READERS",
+    "MESH_WRITERS",
+    "read_obj",
+    "write_obj",
+    "read_off",
+    "read_pc2",
+    "read_pc2_header",
+    "write_pc2",
+    "PC2Writer",
+    "PointCache",
+    "read_obj_sequence",
+    "write_obj_sequence",
+    "read_xdmf_sequence",
+    "write_xdmf_sequence",
+    "ObjSequenceWriter",
     "XdmfSequenceWriter",
-    "SEQUENCE_FORMATS", "SequenceFormat", "SequenceWriter", "open_sequence_writer", "read_sequence",
-    "register_sequence_format", "sequence_format", "format_for_path", "UP_AXES", "Y_TO_Z", "to_up", "SceneOutput",
-    "atomic_path", "atomic_open", "atomic_directory", "validate_mesh_arrays",
+    "SEQUENCE_FORMATS",
+    "SequenceFormat",
+    "SequenceWriter",
+    "open_sequence_writer",
+    "read_sequence",
+    "register_sequence_format",
+    "sequence_format",
+    "format_for_path",
+    "UP_AXES",
+    "Y_TO_Z",
+    "to_up",
+    "SceneOutput",
+    "atomic_path",
+    "atomic_open",
+    "atomic_directory",
+    "validate_mesh_arrays",
 ]
 
 MESH_READERS: dict[str, Callable[[Path], Mesh]] = {".obj": read_obj, ".off": read_off}
@@ -65,8 +93,12 @@ def read_mesh(path: str | os.PathLike) -> Mesh:
         return MESH_READERS[ext](p)
     if ext in _MESHIO_EXTS:
         return read_meshio(p)
-    raise InputError("unknown mesh file extension", path=p,
-                     expected=", ".join(sorted(set(MESH_READERS) | set(_MESHIO_EXTS))), got=ext or "none")
+    raise InputError(
+        "unknown mesh file extension",
+        path=p,
+        expected=", ".join(sorted(set(MESH_READERS) | set(_MESHIO_EXTS))),
+        got=ext or "none",
+    )
 
 
 def write_mesh(path: str | os.PathLike, mesh: Mesh, **kw) -> None:

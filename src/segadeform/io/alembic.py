@@ -57,8 +57,17 @@ def _ints(imath, a: np.ndarray):
 class AlembicSequenceWriter(SequenceWriter):
     """Stream frames into an ``.abc`` file; the file appears when :meth:`close` succeeds."""
 
-    def __init__(self, path: str | os.PathLike, faces: np.ndarray, num_points: int, *, fps: float = 30.0,
-                 start_frame: int = 0, name: str = "garment", up: str = "y") -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        faces: np.ndarray,
+        num_points: int,
+        *,
+        fps: float = 30.0,
+        start_frame: int = 0,
+        name: str = "garment",
+        up: str = "y",
+    ) -> None:
         super().__init__(path, num_points, up=up)
         Abc, AbcGeom, AbcCoreAbstract, self._imath = _modules()
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
@@ -74,8 +83,9 @@ class AlembicSequenceWriter(SequenceWriter):
         im = self._imath
         for k, fr in enumerate(frames.astype(np.float32)):
             if self.num_samples + k == 0:
-                s = self._sample(_v3(im, fr), _ints(im, self.faces[:, ::-1].ravel()),
-                                 _ints(im, np.full(len(self.faces), 3)))
+                s = self._sample(
+                    _v3(im, fr), _ints(im, self.faces[:, ::-1].ravel()), _ints(im, np.full(len(self.faces), 3))
+                )
             else:
                 s = self._sample(_v3(im, fr))
             self._schema.set(s)
@@ -101,8 +111,11 @@ def read_alembic_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarr
     Abc, AbcGeom, _, _ = _modules()
     try:
         top = Abc.IArchive(str(p)).getTop()
-        meshes = [top.getChild(i) for i in range(top.getNumChildren())
-                  if AbcGeom.IPolyMesh.matches(top.getChild(i).getMetaData())]
+        meshes = [
+            top.getChild(i)
+            for i in range(top.getNumChildren())
+            if AbcGeom.IPolyMesh.matches(top.getChild(i).getMetaData())
+        ]
         if not meshes:
             raise FileFormatError("Alembic file has no polygon mesh at its top level", path=p)
         schema = AbcGeom.IPolyMesh(top, meshes[0].getName()).getSchema()
@@ -114,8 +127,9 @@ def read_alembic_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarr
             raise FileFormatError("Alembic mesh is not all triangles", path=p)
         faces = np.array(memoryview(first.getFaceIndices())).reshape(-1, 3)[:, ::-1].astype(np.int64)
         times = np.array([ts.getSampleTime(i) for i in range(n)])
-        frames = np.stack([np.array(memoryview(schema.getValue(Abc.ISampleSelector(t)).getPositions()))
-                           for t in times]).astype(np.float64)
+        frames = np.stack(
+            [np.array(memoryview(schema.getValue(Abc.ISampleSelector(t)).getPositions())) for t in times]
+        ).astype(np.float64)
     except FileFormatError:
         raise
     except Exception as e:

@@ -19,8 +19,15 @@ from typing import IO, cast
 
 from ..errors import SegadeformError
 
-__all__ = ["atomic_path", "atomic_open", "atomic_directory", "remove_temporaries", "merge_directory", "WriteError",
-           "write_error"]
+__all__ = [
+    "atomic_path",
+    "atomic_open",
+    "atomic_directory",
+    "remove_temporaries",
+    "merge_directory",
+    "WriteError",
+    "write_error",
+]
 
 
 class WriteError(SegadeformError, OSError):
@@ -38,10 +45,13 @@ class WriteError(SegadeformError, OSError):
 
 
 _WHY: dict[int | None, str] = {
-        errno.ENOSPC: "no space left on the device", errno.EFBIG: "the file-size limit is reached (ulimit -f)",
-        errno.EDQUOT: "the disk quota is exceeded", errno.EROFS: "the file system is read-only",
-        errno.EACCES: "permission denied (is the folder read-only?)",
-        errno.EPERM: "permission denied (is the folder read-only?)"}
+    errno.ENOSPC: "no space left on the device",
+    errno.EFBIG: "the file-size limit is reached (ulimit -f)",
+    errno.EDQUOT: "the disk quota is exceeded",
+    errno.EROFS: "the file system is read-only",
+    errno.EACCES: "permission denied (is the folder read-only?)",
+    errno.EPERM: "permission denied (is the folder read-only?)",
+}
 
 
 def write_error(e: OSError, target) -> SegadeformError:

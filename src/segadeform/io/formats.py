@@ -30,9 +30,21 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["SequenceFormat", "SEQUENCE_FORMATS", "register_sequence_format", "sequence_format",
-           "format_for_path", "sequence_format_of", "open_sequence_writer", "read_sequence", "inspect_sequence",
-           "FileFormat", "FILE_FORMATS", "register_file_format", "file_format_for"]
+__all__ = [
+    "SequenceFormat",
+    "SEQUENCE_FORMATS",
+    "register_sequence_format",
+    "sequence_format",
+    "format_for_path",
+    "sequence_format_of",
+    "open_sequence_writer",
+    "read_sequence",
+    "inspect_sequence",
+    "FileFormat",
+    "FILE_FORMATS",
+    "register_file_format",
+    "file_format_for",
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -107,11 +119,21 @@ def sequence_format_of(path: str | os.PathLike) -> SequenceFormat | None:
     return None if f is None or f.folder else f
 
 
-def open_sequence_writer(path, fmt: str, *, faces: np.ndarray, num_points: int, fps: float = 30.0,
-                         start_frame: int = 0, rest: np.ndarray | None = None, up: str = "y"):
+def open_sequence_writer(
+    path,
+    fmt: str,
+    *,
+    faces: np.ndarray,
+    num_points: int,
+    fps: float = 30.0,
+    start_frame: int = 0,
+    rest: np.ndarray | None = None,
+    up: str = "y",
+):
     """A streaming writer (:class:`~segadeform.io.writer.SequenceWriter`) for the format called ``fmt``."""
-    return sequence_format(fmt).open(path, faces=faces, num_points=num_points, fps=fps, start_frame=start_frame,
-                                     rest=rest, up=up)
+    return sequence_format(fmt).open(
+        path, faces=faces, num_points=num_points, fps=fps, start_frame=start_frame, rest=rest, up=up
+    )
 
 
 def read_sequence(path: str | os.PathLike, *, faces: np.ndarray | None = None) -> np.ndarray:
@@ -122,8 +144,9 @@ def read_sequence(path: str | os.PathLike, *, faces: np.ndarray | None = None) -
         f = format_for_path(p)
     if f is None:
         known = ", ".join(e for f2 in SEQUENCE_FORMATS.values() for e in f2.extensions)
-        raise InputError("unknown sequence format", path=p, expected=f"{known} or a folder of OBJ frames",
-                         got=p.suffix or "none")
+        raise InputError(
+            "unknown sequence format", path=p, expected=f"{known} or a folder of OBJ frames", got=p.suffix or "none"
+        )
     return np.asarray(f.read(p, faces), np.float64)
 
 
@@ -133,8 +156,9 @@ def inspect_sequence(path: str | os.PathLike) -> tuple[SequenceFormat, str, np.n
     p = Path(path)
     f = sequence_format_of(p)
     if f is None:
-        raise InputError("not a registered sequence format", path=p,
-                         expected=", ".join(SEQUENCE_FORMATS), got=p.suffix or "none")
+        raise InputError(
+            "not a registered sequence format", path=p, expected=", ".join(SEQUENCE_FORMATS), got=p.suffix or "none"
+        )
     if f.inspect is not None:
         summary, frames = f.inspect(p)
     else:
@@ -161,8 +185,11 @@ def _pc2_inspect(path):
 
     pc = read_pc2(path, check_finite=False)
     h = pc.header
-    return (f"{h.num_samples} samples x {h.num_points} points, start frame {h.start_frame:g}, "
-            f"sample rate {h.sample_rate:g}", pc.frames)
+    return (
+        f"{h.num_samples} samples x {h.num_points} points, start frame {h.start_frame:g}, "
+        f"sample rate {h.sample_rate:g}",
+        pc.frames,
+    )
 
 
 def _objseq_open(path, *, faces, num_points, fps, start_frame, rest, up):
@@ -208,14 +235,27 @@ def _abc_read(path, faces):
     return read_alembic_sequence(path)[1]
 
 
-register_sequence_format(SequenceFormat("pc2", (".pc2",), _pc2_open, _pc2_read,
-                                        "point cache (3ds Max, Blender Mesh Cache, Houdini)", inspect=_pc2_inspect))
-register_sequence_format(SequenceFormat("obj-seq", (), _objseq_open, _objseq_read, "a folder of OBJ frames",
-                                        inspect=_objseq_inspect))
-register_sequence_format(SequenceFormat("xdmf", (".xdmf", ".xmf"), _xdmf_open, _xdmf_read,
-                                        "XDMF time series (ParaView)"))
-register_sequence_format(SequenceFormat("abc", (".abc",), _abc_open, _abc_read,
-                                        "Alembic polygon mesh (Blender, Maya, Houdini)", extra="alembic"))
+register_sequence_format(
+    SequenceFormat(
+        "pc2",
+        (".pc2",),
+        _pc2_open,
+        _pc2_read,
+        "point cache (3ds Max, Blender Mesh Cache, Houdini)",
+        inspect=_pc2_inspect,
+    )
+)
+register_sequence_format(
+    SequenceFormat("obj-seq", (), _objseq_open, _objseq_read, "a folder of OBJ frames", inspect=_objseq_inspect)
+)
+register_sequence_format(
+    SequenceFormat("xdmf", (".xdmf", ".xmf"), _xdmf_open, _xdmf_read, "XDMF time series (ParaView)")
+)
+register_sequence_format(
+    SequenceFormat(
+        "abc", (".abc",), _abc_open, _abc_read, "Alembic polygon mesh (Blender, Maya, Houdini)", extra="alembic"
+    )
+)
 
 
 def _usd_open(path, *, faces, num_points, fps, start_frame, rest, up):
@@ -239,14 +279,25 @@ def _usd_inspect(path):
     from .usd import read_usd_sequence
 
     faces, frames, times, info = read_usd_sequence(path)
-    return (f"{frames.shape[0]} time samples x {frames.shape[1]} points, {len(faces)} faces ({info['prim']}), "
-            f"upAxis {info['up']}, {info['meters_per_unit']:g} m per unit, {info['fps']:g} fps, time codes "
-            f"{times[0]:g}..{times[-1]:g}", frames)
+    return (
+        f"{frames.shape[0]} time samples x {frames.shape[1]} points, {len(faces)} faces ({info['prim']}), "
+        f"upAxis {info['up']}, {info['meters_per_unit']:g} m per unit, {info['fps']:g} fps, time codes "
+        f"{times[0]:g}..{times[-1]:g}",
+        frames,
+    )
 
 
-register_sequence_format(SequenceFormat("usd", (".usd", ".usda", ".usdc"), _usd_open, _usd_read,
-                                        "USD mesh with time-sampled points (Blender, Houdini, usdview)", extra="usd",
-                                        inspect=_usd_inspect))
+register_sequence_format(
+    SequenceFormat(
+        "usd",
+        (".usd", ".usda", ".usdc"),
+        _usd_open,
+        _usd_read,
+        "USD mesh with time-sampled points (Blender, Houdini, usdview)",
+        extra="usd",
+        inspect=_usd_inspect,
+    )
+)
 
 
 # ---- portable and input files (not frame sequences) -------------------------------------------------------------
@@ -293,12 +344,29 @@ def _register_file_formats() -> None:
     def write_asset(path, asset):
         return asset.save(path)
 
-    register_file_format(FileFormat("sgdb", (BUNDLE_SUFFIX,), read_bundle, "scene bundle: named little-endian arrays "
-                                    "and JSON meta (the container of .sgda and .sgdm)", write_bundle))
-    register_file_format(FileFormat("sgda", (PORTABLE_SUFFIX,), GarmentAsset.load,
-                                    "garment asset, portable form (other runtimes)", write_asset))
-    register_file_format(FileFormat("sgdm", (MOTION_SUFFIX,), read_motion_arrays,
-                                    "motion file: poses and translations on one body's skeleton", write_motion_arrays))
+    register_file_format(
+        FileFormat(
+            "sgdb",
+            (BUNDLE_SUFFIX,),
+            read_bundle,
+            "scene bundle: named little-endian arrays and JSON meta (the container of .sgda and .sgdm)",
+            write_bundle,
+        )
+    )
+    register_file_format(
+        FileFormat(
+            "sgda", (PORTABLE_SUFFIX,), GarmentAsset.load, "garment asset, portable form (other runtimes)", write_asset
+        )
+    )
+    register_file_format(
+        FileFormat(
+            "sgdm",
+            (MOTION_SUFFIX,),
+            read_motion_arrays,
+            "motion file: poses and translations on one body's skeleton",
+            write_motion_arrays,
+        )
+    )
     register_file_format(FileFormat("mhclo", (MHCLO_SUFFIX,), read_mhclo, "MakeHuman garment binding (read only)"))
 
 

@@ -68,17 +68,32 @@ READABLE_ASSET_SCHEMAS = (1, 2)
 ASSET_KIND = "segadeform-garment-asset"
 PORTABLE_SUFFIX = ".sgda"
 #: the portable form's array dtypes (bundle dtype names)
-_PORTABLE = {"vertices": "f64", "faces": "i32", "normals": "f32", "features": "f32", "nbr": "i32", "mask": "u8",
-             "joints": "f64", "descriptor": "f64", "fps_samples": "i32"}
+_PORTABLE = {
+    "vertices": "f64",
+    "faces": "i32",
+    "normals": "f32",
+    "features": "f32",
+    "nbr": "i32",
+    "mask": "u8",
+    "joints": "f64",
+    "descriptor": "f64",
+    "fps_samples": "i32",
+}
 _NP_OF = {"f64": np.float64, "f32": np.float32, "i32": np.int32, "u8": np.uint8}
 #: the optional fields of an asset prepared for a body shape (portable dtypes); ``body`` is in ``meta``
 _BODY_PORTABLE = {"betas": "f64", "log_wbody": "f32"}
 _BODY_ARRAYS = {"betas": (np.float64, 1), "log_wbody": (np.float32, 2)}
 
 _ARRAYS = {
-    "vertices": (np.float64, 2), "faces": (np.int64, 2), "normals": (np.float32, 2),
-    "features": (np.float32, 2), "nbr": (np.int64, 2), "mask": (np.bool_, 2),
-    "joints": (np.float64, 2), "descriptor": (np.float64, 1), "fps_samples": (np.int64, 1),
+    "vertices": (np.float64, 2),
+    "faces": (np.int64, 2),
+    "normals": (np.float32, 2),
+    "features": (np.float32, 2),
+    "nbr": (np.int64, 2),
+    "mask": (np.bool_, 2),
+    "joints": (np.float64, 2),
+    "descriptor": (np.float64, 1),
+    "fps_samples": (np.int64, 1),
 }
 
 
@@ -114,8 +129,10 @@ class GarmentAsset:
 
     def __repr__(self) -> str:
         shape = f", betas={np.round(self.betas, 3).tolist()}" if self.betas is not None else ""  # for_a_body
-        return (f"GarmentAsset(N={self.n_vertices}, F={len(self.faces)}, K={self.nbr.shape[1]}, "
-                f"S={len(self.joints)}, N*={len(self.descriptor)}, source={self.source_name!r}{shape})")
+        return (
+            f"GarmentAsset(N={self.n_vertices}, F={len(self.faces)}, K={self.nbr.shape[1]}, "
+            f"S={len(self.joints)}, N*={len(self.descriptor)}, source={self.source_name!r}{shape})"
+        )
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the asset atomically: an uncompressed ``.npz``, or the portable form for a ``.sgda`` path."""
@@ -133,19 +150,28 @@ class GarmentAsset:
                     source_name=np.str_(self.source_name),
                     source_sha256=np.str_(self.source_sha256),
                     **{k: getattr(self, k) for k in _ARRAYS},
-                    **({k: getattr(self, k) for k in _BODY_ARRAYS} | {"body": np.str_(json.dumps(self.body))}
-                       if self.for_a_body else {}),
+                    **(
+                        {k: getattr(self, k) for k in _BODY_ARRAYS} | {"body": np.str_(json.dumps(self.body))}
+                        if self.for_a_body
+                        else {}
+                    ),
                 )
         return p
 
     def _save_portable(self, p: Path) -> Path:
         if self.n_vertices >= 2**31 - 1:
-            raise InputError("garment too large for the portable asset's int32 indices", expected="N < 2^31 - 1",
-                             got=self.n_vertices)
+            raise InputError(
+                "garment too large for the portable asset's int32 indices", expected="N < 2^31 - 1", got=self.n_vertices
+            )
         arrays = {k: getattr(self, k).astype(_NP_OF[dt]) for k, dt in _PORTABLE.items()}
-        meta = {"kind": ASSET_KIND, "schema_version": ASSET_SCHEMA_VERSION,
-                "geodesic_radius": float(self.geodesic_radius), "params": self.params,
-                "source_name": self.source_name, "source_sha256": self.source_sha256}
+        meta = {
+            "kind": ASSET_KIND,
+            "schema_version": ASSET_SCHEMA_VERSION,
+            "geodesic_radius": float(self.geodesic_radius),
+            "params": self.params,
+            "source_name": self.source_name,
+            "source_sha256": self.source_sha256,
+        }
         if self.for_a_body:
             arrays.update({k: getattr(self, k).astype(_NP_OF[dt]) for k, dt in _BODY_PORTABLE.items()})
             meta["body"] = self.body
@@ -155,18 +181,27 @@ class GarmentAsset:
     def _load_portable(cls, p: Path) -> GarmentAsset:
         arrays, meta = read_bundle(p)
         if meta.get("kind") != ASSET_KIND:
-            raise FileFormatError("not a garment asset", path=p, expected=f"meta.kind {ASSET_KIND!r}",
-                                  got=meta.get("kind"))
+            raise FileFormatError(
+                "not a garment asset", path=p, expected=f"meta.kind {ASSET_KIND!r}", got=meta.get("kind")
+            )
         if meta.get("schema_version") not in READABLE_ASSET_SCHEMAS:
-            raise FileFormatError("unsupported garment asset schema version", path=p,
-                                  expected=" or ".join(map(str, READABLE_ASSET_SCHEMAS)), got=meta.get("schema_version"))
+            raise FileFormatError(
+                "unsupported garment asset schema version",
+                path=p,
+                expected=" or ".join(map(str, READABLE_ASSET_SCHEMAS)),
+                got=meta.get("schema_version"),
+            )
         fields = {}
         optional = {k: dt for k, dt in _BODY_PORTABLE.items() if k in arrays or "body" in meta}
         for k, dt in (_PORTABLE | optional).items():
             a = arrays.get(k)
             if a is None or a.dtype != np.dtype(_NP_OF[dt]).newbyteorder("<"):
-                raise FileFormatError(f"garment asset field {k!r} is missing or has the wrong dtype", path=p,
-                                      expected=dt, got=None if a is None else a.dtype)
+                raise FileFormatError(
+                    f"garment asset field {k!r} is missing or has the wrong dtype",
+                    path=p,
+                    expected=dt,
+                    got=None if a is None else a.dtype,
+                )
             fields[k] = a.astype((_ARRAYS | _BODY_ARRAYS)[k][0])
         try:
             radius = float(meta["geodesic_radius"])
@@ -175,8 +210,13 @@ class GarmentAsset:
             raise FileFormatError("garment asset meta lacks geodesic_radius or params", path=p) from None
         if optional:
             fields["body"] = meta.get("body")
-        return cls(geodesic_radius=radius, params=params, source_name=str(meta.get("source_name", "")),
-                   source_sha256=str(meta.get("source_sha256", "")), **fields)
+        return cls(
+            geodesic_radius=radius,
+            params=params,
+            source_name=str(meta.get("source_name", "")),
+            source_sha256=str(meta.get("source_sha256", "")),
+            **fields,
+        )
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> GarmentAsset:
@@ -202,13 +242,21 @@ class GarmentAsset:
         required = set(_ARRAYS) | {"schema_version", "geodesic_radius", "params"}
         missing = sorted(required - names)
         if missing:
-            raise FileFormatError("garment asset is missing fields", path=p, expected=", ".join(sorted(required)),
-                                  got="missing " + ", ".join(missing))
+            raise FileFormatError(
+                "garment asset is missing fields",
+                path=p,
+                expected=", ".join(sorted(required)),
+                got="missing " + ", ".join(missing),
+            )
         try:
             version = int(z["schema_version"])
             if version not in READABLE_ASSET_SCHEMAS:
-                raise FileFormatError("unsupported garment asset schema version", path=p,
-                                      expected=" or ".join(map(str, READABLE_ASSET_SCHEMAS)), got=version)
+                raise FileFormatError(
+                    "unsupported garment asset schema version",
+                    path=p,
+                    expected=" or ".join(map(str, READABLE_ASSET_SCHEMAS)),
+                    got=version,
+                )
             fields: dict[str, Any] = {k: z[k] for k in _ARRAYS}
             if version >= 2 and ({"betas", "log_wbody", "body"} & names):
                 fields.update({k: z[k] for k in _BODY_ARRAYS if k in names})
@@ -233,9 +281,11 @@ class GarmentAsset:
         for k, (dt, nd) in _ARRAYS.items():
             a = getattr(self, k)
             if not isinstance(a, np.ndarray) or a.dtype != dt or a.ndim != nd:
-                raise InputError(f"asset field {k!r} has the wrong type",
-                                 expected=f"{np.dtype(dt).name} array with {nd} dims",
-                                 got=f"{getattr(a, 'dtype', type(a).__name__)} with shape {getattr(a, 'shape', '?')}")
+                raise InputError(
+                    f"asset field {k!r} has the wrong type",
+                    expected=f"{np.dtype(dt).name} array with {nd} dims",
+                    got=f"{getattr(a, 'dtype', type(a).__name__)} with shape {getattr(a, 'shape', '?')}",
+                )
         n = self.vertices.shape[0]
         s = self.joints.shape[0]
         checks = [
@@ -251,34 +301,41 @@ class GarmentAsset:
         ]
         for name, ok, exp in checks:
             if not ok:
-                raise InputError(f"asset field {name!r} has the wrong shape", expected=exp,
-                                 got=getattr(self, name).shape)
+                raise InputError(
+                    f"asset field {name!r} has the wrong shape", expected=exp, got=getattr(self, name).shape
+                )
         for name, arr in (("faces", self.faces), ("nbr", self.nbr), ("fps_samples", self.fps_samples)):
             if arr.size and (arr.min() < 0 or arr.max() >= n):
-                raise InputError(f"asset field {name!r} has an index out of range", expected=f"0..{n - 1}",
-                                 got=int(arr.max()) if arr.max() >= n else int(arr.min()))
+                raise InputError(
+                    f"asset field {name!r} has an index out of range",
+                    expected=f"0..{n - 1}",
+                    got=int(arr.max()) if arr.max() >= n else int(arr.min()),
+                )
         for name in ("vertices", "normals", "features", "joints", "descriptor"):
             if not np.isfinite(getattr(self, name)).all():
                 raise InputError(f"asset field {name!r} contains NaN or inf")
         given = [k for k in ("betas", "log_wbody", "body") if getattr(self, k) is not None]
         if given and len(given) != 3:
-            raise InputError("an asset prepared for a body needs betas, log_wbody and body together",
-                             expected="all three or none", got=", ".join(given))
+            raise InputError(
+                "an asset prepared for a body needs betas, log_wbody and body together",
+                expected="all three or none",
+                got=", ".join(given),
+            )
         if given:
             for k, (dt, nd) in _BODY_ARRAYS.items():
                 a = getattr(self, k)
                 if not isinstance(a, np.ndarray) or a.dtype != dt or a.ndim != nd or not np.isfinite(a).all():
-                    raise InputError(f"asset field {k!r} has the wrong type or is not finite",
-                                     expected=f"finite {np.dtype(dt).name} array with {nd} dims",
-                                     got=f"{getattr(a, 'dtype', type(a).__name__)} {getattr(a, 'shape', '')}")
+                    raise InputError(
+                        f"asset field {k!r} has the wrong type or is not finite",
+                        expected=f"finite {np.dtype(dt).name} array with {nd} dims",
+                        got=f"{getattr(a, 'dtype', type(a).__name__)} {getattr(a, 'shape', '')}",
+                    )
             log_wbody = cast(np.ndarray, self.log_wbody)  # given: checked above
             if log_wbody.shape != (n, s):
-                raise InputError("asset field 'log_wbody' has the wrong shape", expected=(n, s),
-                                 got=log_wbody.shape)
+                raise InputError("asset field 'log_wbody' has the wrong shape", expected=(n, s), got=log_wbody.shape)
             if not isinstance(self.body, dict) or not isinstance(self.body.get("sha256"), str):
-                raise InputError("asset field 'body' must name the body", expected='{"name": str, "sha256": str}',
-                                 got=self.body)
+                raise InputError(
+                    "asset field 'body' must name the body", expected='{"name": str, "sha256": str}', got=self.body
+                )
         if not (np.isfinite(self.geodesic_radius) and self.geodesic_radius > 0):
             raise InputError("asset geodesic_radius must be positive", got=self.geodesic_radius)
-
-

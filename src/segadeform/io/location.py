@@ -45,8 +45,7 @@ def is_url(x) -> bool:
 def _check_rel(rel: str) -> str:
     parts = rel.split("/")
     if not rel or rel.startswith("/") or any(p in ("", ".", "..") for p in parts):
-        raise InputError("a path inside a location must be relative and plain", expected="e.g. samples/ID.npz",
-                         got=rel)
+        raise InputError("a path inside a location must be relative and plain", expected="e.g. samples/ID.npz", got=rel)
     return rel
 
 
@@ -200,8 +199,10 @@ def _fsspec():
     try:
         import fsspec
     except ImportError:
-        raise SegadeformError("a URL output needs fsspec (expected fsspec installed: pip install "
-                              "segadeform[ray], got no module named fsspec)") from None
+        raise SegadeformError(
+            "a URL output needs fsspec (expected fsspec installed: pip install "
+            "segadeform[ray], got no module named fsspec)"
+        ) from None
     return fsspec
 
 
@@ -214,8 +215,11 @@ class FsspecLocation(Location):
         try:
             self.fs, root = fsspec.core.url_to_fs(url, **storage_options)
         except (ValueError, ImportError) as e:
-            raise InputError("cannot open this output URL", expected="a path, or a URL of a protocol fsspec "
-                             "knows with its package installed (s3:// needs s3fs)", got=f"{url} ({e})") from None
+            raise InputError(
+                "cannot open this output URL",
+                expected="a path, or a URL of a protocol fsspec knows with its package installed (s3:// needs s3fs)",
+                got=f"{url} ({e})",
+            ) from None
         self.root = root.rstrip("/")
 
     def __reduce__(self):  # rebuilt from its URL in each worker (file system objects hold connections)
@@ -262,8 +266,9 @@ class FsspecLocation(Location):
         try:
             self.fs.put_file(str(local), tmp)
             if self.fs.size(tmp) != size:
-                raise SegadeformError(f"{self.url}: upload of {rel} is incomplete (expected {size} bytes, "
-                                      f"got {self.fs.size(tmp)})")
+                raise SegadeformError(
+                    f"{self.url}: upload of {rel} is incomplete (expected {size} bytes, got {self.fs.size(tmp)})"
+                )
             if once and self.fs.isfile(key):
                 raise FileExistsError(f"{self.url}/{rel}: exists already (an exclusive commit)")
             self.fs.mv(tmp, key)
@@ -274,8 +279,9 @@ class FsspecLocation(Location):
             raise
         got = self.fs.size(key)
         if got != size:
-            raise SegadeformError(f"{self.url}: {rel} after the move is not what was uploaded (expected {size} "
-                                  f"bytes, got {got})")
+            raise SegadeformError(
+                f"{self.url}: {rel} after the move is not what was uploaded (expected {size} bytes, got {got})"
+            )
 
     def local_copy(self, rel: str, into: Path) -> Path:
         p = Path(into) / posixpath.basename(rel)

@@ -88,7 +88,9 @@ def validate_mesh_arrays(vertices, faces, *, path=None, allow_no_faces: bool = F
         lo, hi = int(f.min()), int(f.max())
         if lo < 0 or hi >= v.shape[0]:
             raise InputError(
-                "face index out of range", path=path,
-                expected=f"0..{v.shape[0] - 1}", got=lo if lo < 0 else hi,
+                "face index out of range",
+                path=path,
+                expected=f"0..{v.shape[0] - 1}",
+                got=lo if lo < 0 else hi,
             )
     return v, f

@@ -54,8 +54,7 @@ def read_meshio(path: str | os.PathLike, file_format: str | None = None) -> Mesh
         if ctype in _IGNORED_CELLS:
             continue
         if ctype not in _SURFACE_CELLS and not ctype.startswith("polygon"):
-            raise FileFormatError(f"unsupported cell type {ctype!r}", path=p,
-                                  expected="triangles, quads or polygons")
+            raise FileFormatError(f"unsupported cell type {ctype!r}", path=p, expected="triangles, quads or polygons")
         if isinstance(data, list):  # ragged polygons
             polys = [np.asarray(x, dtype=np.int64) for x in data]
         else:
@@ -77,8 +76,9 @@ def read_meshio(path: str | os.PathLike, file_format: str | None = None) -> Mesh
             n_poly += 1
     f = np.concatenate(faces) if faces else np.zeros((0, 3), np.int64)
     v, f = validate_mesh_arrays(pts, f, path=p)
-    return Mesh(vertices=v, faces=f, path=str(p),
-                face_origin=np.concatenate(origin) if origin else np.zeros(0, np.int64))
+    return Mesh(
+        vertices=v, faces=f, path=str(p), face_origin=np.concatenate(origin) if origin else np.zeros(0, np.int64)
+    )
 
 
 def write_meshio(path: str | os.PathLike, mesh: Mesh, *, vertices=None, file_format: str | None = None) -> None:

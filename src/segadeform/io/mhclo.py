@@ -83,8 +83,13 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
                 weights.append(tuple(_float(t, p, ln) for t in tok[3:6]))
                 offsets.append(tuple(_float(t, p, ln) for t in tok[6:9]) if len(tok) == 9 else (0.0, 0.0, 0.0))
             else:
-                raise FileFormatError("a binding line needs 1, 6 or 9 numbers", path=p, line=ln,
-                                      expected="v1 v2 v3 w1 w2 w3 [d1 d2 d3] or v", got=len(tok))
+                raise FileFormatError(
+                    "a binding line needs 1, 6 or 9 numbers",
+                    path=p,
+                    line=ln,
+                    expected="v1 v2 v3 w1 w2 w3 [d1 d2 d3] or v",
+                    got=len(tok),
+                )
             continue
         if section == "delete" and (key[0].isdigit() or key[0] == "-"):
             i = 0
@@ -123,8 +128,9 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
             section = "header"
         elif key in ("x_scale", "y_scale", "z_scale"):
             if len(tok) != 4:
-                raise FileFormatError(f"{key} needs 3 values", path=p, line=ln, expected="vertex vertex reference",
-                                      got=len(tok) - 1)
+                raise FileFormatError(
+                    f"{key} needs 3 values", path=p, line=ln, expected="vertex vertex reference", got=len(tok) - 1
+                )
             ref = _float(tok[3], p, ln)
             if not ref > 0:
                 raise FileFormatError(f"{key} reference must be positive", path=p, line=ln, got=ref)
@@ -147,15 +153,25 @@ def read_mhclo(path: str | os.PathLike) -> MhcloBinding:
     bad = np.flatnonzero(np.abs(w.sum(axis=1) - 1.0) > 0.01)
     if bad.size:  # barycentric: every MakeHuman binding sums to 1 (to 1e-5)
         k = int(bad[0])
-        raise FileFormatError("binding weights must sum to 1", path=p, line=lines[k], expected="w1 + w2 + w3 = 1",
-                              got=f"{w[k].sum():g}")
-    return MhcloBinding(path=p, name=name, verts=v, weights=w, offsets=d, scales=scales,
-                        delete_verts=np.array(sorted(set(deletes)), np.int64), obj_file=obj_file, basemesh=basemesh)
+        raise FileFormatError(
+            "binding weights must sum to 1", path=p, line=lines[k], expected="w1 + w2 + w3 = 1", got=f"{w[k].sum():g}"
+        )
+    return MhcloBinding(
+        path=p,
+        name=name,
+        verts=v,
+        weights=w,
+        offsets=d,
+        scales=scales,
+        delete_verts=np.array(sorted(set(deletes)), np.int64),
+        obj_file=obj_file,
+        basemesh=basemesh,
+    )
 
 
 #: the largest base-mesh index a binding may name (hm08 has 19,158 vertices with its helpers; found by fuzzing:
 #: a 30-digit index overflowed numpy's int64, and a delete range of 10^12 would fill memory)
-_MAX_INDEX = 10 ** 6
+_MAX_INDEX = 10**6
 
 
 def _int(t, p, ln) -> int:
@@ -164,8 +180,7 @@ def _int(t, p, ln) -> int:
     except ValueError:
         raise FileFormatError("expected an integer", path=p, line=ln, got=t[:30]) from None
     if abs(i) > _MAX_INDEX:
-        raise FileFormatError("base-mesh index out of range", path=p, line=ln, expected=f"0..{_MAX_INDEX}",
-                              got=t[:30])
+        raise FileFormatError("base-mesh index out of range", path=p, line=ln, expected=f"0..{_MAX_INDEX}", got=t[:30])
     return i
 
 

@@ -45,10 +45,14 @@ def load_npz(path: str | os.PathLike, *, what: str = ".npz") -> dict[str, np.nda
                     header_len = fh.tell()
                     stored = info.file_size - header_len
                     if declared != stored:
-                        raise FileFormatError(f"array '{name}' declares more data than the file holds"
-                                              if declared > stored else f"array '{name}' has trailing data", path=p,
-                                              expected=f"{declared} bytes for shape {tuple(shape)} {dtype}",
-                                              got=f"{stored} bytes")
+                        raise FileFormatError(
+                            f"array '{name}' declares more data than the file holds"
+                            if declared > stored
+                            else f"array '{name}' has trailing data",
+                            path=p,
+                            expected=f"{declared} bytes for shape {tuple(shape)} {dtype}",
+                            got=f"{stored} bytes",
+                        )
                     data = fh.read(stored)
                 a = np.frombuffer(data, dtype=dtype)
                 a = a.reshape(shape, order="F" if fortran else "C").copy()

@@ -28,10 +28,41 @@ from .mesh import Mesh, validate_mesh_arrays
 
 __all__ = ["read_obj", "write_obj", "write_obj_positions", "obj_text", "obj_logical_lines"]
 
-_IGNORED = {"vp", "l", "p", "g", "o", "s", "usemtl", "mtllib", "cstype", "deg", "bmat",
-            "step", "curv", "curv2", "surf", "parm", "trim", "hole", "scrv", "sp", "end",
-            "con", "mg", "bevel", "c_interp", "d_interp", "lod", "shadow_obj", "trace_obj",
-            "ctech", "stech", "call", "csh"}
+_IGNORED = {
+    "vp",
+    "l",
+    "p",
+    "g",
+    "o",
+    "s",
+    "usemtl",
+    "mtllib",
+    "cstype",
+    "deg",
+    "bmat",
+    "step",
+    "curv",
+    "curv2",
+    "surf",
+    "parm",
+    "trim",
+    "hole",
+    "scrv",
+    "sp",
+    "end",
+    "con",
+    "mg",
+    "bevel",
+    "c_interp",
+    "d_interp",
+    "lod",
+    "shadow_obj",
+    "trace_obj",
+    "ctech",
+    "stech",
+    "call",
+    "csh",
+}
 
 
 def _logical_lines(text: str):
@@ -76,7 +107,9 @@ def _resolve(tok: str, count: int, kind: str, path, lineno) -> int:
     if i > 0:
         if i > count:
             raise FileFormatError(
-                f"{kind} index out of range", path=path, line=lineno,
+                f"{kind} index out of range",
+                path=path,
+                line=lineno,
                 expected=f"1..{count} or -{count}..-1" if count else f"a {kind} defined before this line",
                 got=i,
             )
@@ -84,8 +117,11 @@ def _resolve(tok: str, count: int, kind: str, path, lineno) -> int:
     if i < 0:
         if -i > count:
             raise FileFormatError(
-                f"relative {kind} index out of range", path=path, line=lineno,
-                expected=f"-{count}..-1" if count else f"a {kind} defined before this line", got=i,
+                f"relative {kind} index out of range",
+                path=path,
+                line=lineno,
+                expected=f"-{count}..-1" if count else f"a {kind} defined before this line",
+                got=i,
             )
         return count + i
     raise FileFormatError(f"{kind} index 0 is not valid (OBJ indices start at 1)", path=path, line=lineno)
@@ -123,8 +159,11 @@ def read_obj(path: str | os.PathLike) -> Mesh:
             vals = parts[1:]
             if len(vals) not in (3, 4, 6, 7):
                 raise FileFormatError(
-                    "vertex line needs x y z, x y z w, or x y z r g b", path=p, line=lineno,
-                    expected="3, 4 or 6 numbers", got=f"{len(vals)}",
+                    "vertex line needs x y z, x y z w, or x y z r g b",
+                    path=p,
+                    line=lineno,
+                    expected="3, 4 or 6 numbers",
+                    got=f"{len(vals)}",
                 )
             try:
                 nums = [float(x) for x in vals]
@@ -154,8 +193,9 @@ def read_obj(path: str | os.PathLike) -> Mesh:
             for c in corners:
                 sub = c.split("/")
                 if len(sub) > 3 or sub[0] == "":
-                    raise FileFormatError(f"bad face corner {c!r}", path=p, line=lineno,
-                                          expected="v, v/vt, v//vn or v/vt/vn")
+                    raise FileFormatError(
+                        f"bad face corner {c!r}", path=p, line=lineno, expected="v, v/vt, v//vn or v/vt/vn"
+                    )
                 idx.append(_resolve(sub[0], len(verts), "vertex", p, lineno))
                 if len(sub) > 1 and sub[1] != "":
                     _resolve(sub[1], n_vt, "texture coordinate", p, lineno)
@@ -189,8 +229,14 @@ def _format_block(fmt: str, rows: np.ndarray) -> str:
     return (fmt + "\n") * rows.shape[0] % tuple(rows.ravel())
 
 
-def write_obj(path: str | os.PathLike, mesh: Mesh, *, vertices: np.ndarray | None = None,
-              precision: int = 9, header: str | None = None) -> None:
+def write_obj(
+    path: str | os.PathLike,
+    mesh: Mesh,
+    *,
+    vertices: np.ndarray | None = None,
+    precision: int = 9,
+    header: str | None = None,
+) -> None:
     """Write ``mesh`` (or its faces with other ``vertices``) as OBJ, atomically.
 
     Vertices are written in order, faces as triangles with 1-based indices.
@@ -305,6 +351,5 @@ def _obj_index(tok: str, count: int, path, line: int) -> int:
         raise FileFormatError(f"bad index {tok!r}", path=path, line=line) from None
     j = i - 1 if i > 0 else count + i
     if i == 0 or not 0 <= j < count:
-        raise FileFormatError("index out of range", path=path, line=line, expected=f"1..{count} or -{count}..-1",
-                              got=i)
+        raise FileFormatError("index out of range", path=path, line=line, expected=f"1..{count} or -{count}..-1", got=i)
     return j

@@ -31,13 +31,20 @@ def read_off(path: str | os.PathLike) -> Mesh:
     lines = [(i, ln.split("#", 1)[0].split()) for i, ln in enumerate(text.splitlines(), start=1)]
     lines = [(i, t) for i, t in lines if t]
     if not lines or not lines[0][1][0].endswith("OFF"):
-        raise FileFormatError("not an OFF file", path=p, line=lines[0][0] if lines else None,
-                              expected="'OFF' header", got=" ".join(lines[0][1])[:40] if lines else "empty file")
+        raise FileFormatError(
+            "not an OFF file",
+            path=p,
+            line=lines[0][0] if lines else None,
+            expected="'OFF' header",
+            got=" ".join(lines[0][1])[:40] if lines else "empty file",
+        )
     head = lines[0][1]
     if head[0] not in ("OFF", "COFF", "NOFF", "CNOFF"):
         raise FileFormatError("unsupported OFF variant", path=p, line=lines[0][0], got=head[0])
     rest = lines[1:]
-    counts_tokens, counts_line = (head[1:], lines[0][0]) if len(head) > 1 else (rest[0][1], rest[0][0]) if rest else ([], lines[0][0])
+    counts_tokens, counts_line = (
+        (head[1:], lines[0][0]) if len(head) > 1 else (rest[0][1], rest[0][0]) if rest else ([], lines[0][0])
+    )
     if len(head) == 1:
         rest = rest[1:]
     try:
@@ -45,11 +52,13 @@ def read_off(path: str | os.PathLike) -> Mesh:
     except (IndexError, ValueError):
         raise FileFormatError("bad OFF counts line", path=p, line=counts_line, expected="nv nf ne") from None
     if nv < 1 or nf < 1:
-        raise FileFormatError("OFF mesh is empty", path=p, line=counts_line, expected="nv >= 1 and nf >= 1",
-                              got=f"nv={nv}, nf={nf}")
+        raise FileFormatError(
+            "OFF mesh is empty", path=p, line=counts_line, expected="nv >= 1 and nf >= 1", got=f"nv={nv}, nf={nf}"
+        )
     if len(rest) < nv + nf:
-        raise FileFormatError("OFF file is truncated", path=p, expected=f"{nv} vertex and {nf} face lines",
-                              got=f"{len(rest)} lines")
+        raise FileFormatError(
+            "OFF file is truncated", path=p, expected=f"{nv} vertex and {nf} face lines", got=f"{len(rest)} lines"
+        )
     verts = np.empty((nv, 3))
     for k in range(nv):
         i, t = rest[k]
@@ -66,12 +75,17 @@ def read_off(path: str | os.PathLike) -> Mesh:
         i, t = rest[nv + k]
         try:
             cnt = int(t[0])
-            idx = [int(x) for x in t[1:1 + cnt]]
+            idx = [int(x) for x in t[1 : 1 + cnt]]
         except ValueError:
             raise FileFormatError("bad face line", path=p, line=i) from None
         if cnt < 3 or len(idx) != cnt:
-            raise FileFormatError("face needs at least 3 vertex indices", path=p, line=i,
-                                  expected=">= 3 indices as declared", got=f"{len(idx)} of {cnt}")
+            raise FileFormatError(
+                "face needs at least 3 vertex indices",
+                path=p,
+                line=i,
+                expected=">= 3 indices as declared",
+                got=f"{len(idx)} of {cnt}",
+            )
         for x in idx:
             if not 0 <= x < nv:
                 raise FileFormatError("face index out of range", path=p, line=i, expected=f"0..{nv - 1}", got=x)

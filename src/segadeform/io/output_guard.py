@@ -75,14 +75,20 @@ def read_manifest(folder: str | os.PathLike) -> dict:
         raise OutputRefused(f"cannot read the outputs manifest ({e.strerror or e})", path=p) from None
     try:
         m = json.loads(raw.decode("utf-8"))
-        if not isinstance(m, dict) or m.get("segadeform_outputs") != _MANIFEST_VERSION \
-                or not isinstance(m.get("files"), dict) \
-                or not all(isinstance(v, dict) and isinstance(v.get("kind"), str) for v in m["files"].values()):
+        if (
+            not isinstance(m, dict)
+            or m.get("segadeform_outputs") != _MANIFEST_VERSION
+            or not isinstance(m.get("files"), dict)
+            or not all(isinstance(v, dict) and isinstance(v.get("kind"), str) for v in m["files"].values())
+        ):
             raise ValueError
     except (ValueError, UnicodeDecodeError):
-        raise OutputRefused("not a segadeform outputs manifest, and segadeform does not overwrite it", path=p,
-                            expected=f'JSON with "segadeform_outputs": {_MANIFEST_VERSION}',
-                            got=repr(raw[:40])) from None
+        raise OutputRefused(
+            "not a segadeform outputs manifest, and segadeform does not overwrite it",
+            path=p,
+            expected=f'JSON with "segadeform_outputs": {_MANIFEST_VERSION}',
+            got=repr(raw[:40]),
+        ) from None
     return m
 
 
@@ -100,8 +106,12 @@ def _entry(kind: str, st: os.stat_result) -> dict:
 def _unchanged(entry: dict, st: os.stat_result | None) -> bool:
     import stat as stat_mod
 
-    return (st is not None and stat_mod.S_ISREG(st.st_mode) and entry.get("size") == st.st_size
-            and entry.get("mtime_ns") == st.st_mtime_ns)
+    return (
+        st is not None
+        and stat_mod.S_ISREG(st.st_mode)
+        and entry.get("size") == st.st_size
+        and entry.get("mtime_ns") == st.st_mtime_ns
+    )
 
 
 def written_by(path: str | os.PathLike) -> str | None:
@@ -138,13 +148,14 @@ def _update_manifest(folder: Path, add: dict, drop: Iterable[str] = (), mark: st
         for n in drop:
             files.pop(n, None)
         files.update(add)
-        out = {"segadeform_outputs": _MANIFEST_VERSION,
-               "note": "files segadeform wrote here (name: command, size, mtime); see segadeform.io.output_guard"}
+        out = {
+            "segadeform_outputs": _MANIFEST_VERSION,
+            "note": "files segadeform wrote here (name: command, size, mtime); see segadeform.io.output_guard",
+        }
         if mark or m.get("folder"):
             out["folder"] = m.get("folder") or mark
         out["files"] = dict(sorted(files.items()))
-        if m.get("folder") == out.get("folder") and m["files"] == out["files"] \
-                and (folder / MANIFEST_NAME).is_file():
+        if m.get("folder") == out.get("folder") and m["files"] == out["files"] and (folder / MANIFEST_NAME).is_file():
             return  # nothing new: the manifest is left as it is (a resumed run with nothing to do touches nothing)
         with atomic_path(folder / MANIFEST_NAME) as tmp:
             Path(tmp).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
@@ -154,11 +165,11 @@ def _update_manifest(folder: Path, add: dict, drop: Iterable[str] = (), mark: st
 @dataclasses.dataclass
 class _Claim:
     path: Path
-    what: str                        # "file" | "folder" | "resumable"
-    names: tuple | None = None    # folder: globs of the names the output writes
+    what: str  # "file" | "folder" | "resumable"
+    names: tuple | None = None  # folder: globs of the names the output writes
     existed: bool = False
     snapshot: dict = dataclasses.field(default_factory=dict)  # folder: name -> (size, mtime_ns, ino) before
-    location: object = None          # resumable: the Location
+    location: object = None  # resumable: the Location
     layout: tuple = ()
     #: resumable: names (all present), or a function (location, names) -> bool
     legacy: Sequence[str] | Callable[..., bool] = ()
@@ -216,8 +227,12 @@ class OutputGuard:
             if st is None:
                 continue
             if not os.path.isdir(a):
-                raise OutputRefused(f"{a} is a file, so nothing can be written inside it", path=p,
-                                    expected="a path in a folder", got=f"{a.name} (a file)")
+                raise OutputRefused(
+                    f"{a} is a file, so nothing can be written inside it",
+                    path=p,
+                    expected="a path in a folder",
+                    got=f"{a.name} (a file)",
+                )
             return
 
     # -- file outputs ------------------------------------------------------------------------------------------
@@ -226,8 +241,12 @@ class OutputGuard:
         self._check_parent(p)
         inp = self._input_at(p)
         if inp is not None:
-            raise OutputRefused(f"is an input of this command, and {self._cmd} never writes over its inputs",
-                                path=p, expected="an output path that is not an input", got=str(inp))
+            raise OutputRefused(
+                f"is an input of this command, and {self._cmd} never writes over its inputs",
+                path=p,
+                expected="an output path that is not an input",
+                got=str(inp),
+            )
         files = read_manifest(p.parent)["files"]  # (a manifest that is not one is refused before any work)
         st = _stat(p)
         if st is None:
@@ -237,15 +256,26 @@ class OutputGuard:
         entry = files.get(p.name)
         if entry is None or not _unchanged(entry, st):
             why = "segadeform did not write it" if entry is None else "it changed since segadeform wrote it"
-            raise OutputRefused(f"exists and {why}; segadeform never overwrites such a file", path=p,
-                                expected="a new path, or remove the file yourself", got="an existing file")
+            raise OutputRefused(
+                f"exists and {why}; segadeform never overwrites such a file",
+                path=p,
+                expected="a new path, or remove the file yourself",
+                got="an existing file",
+            )
         if entry["kind"] != self.kind:
-            raise OutputRefused(f"exists, written by `{_label(entry['kind'])}`; {self._cmd} does not replace "
-                                "another command's output", path=p, expected="another path",
-                                got=f"an output of {_label(entry['kind'])}")
+            raise OutputRefused(
+                f"exists, written by `{_label(entry['kind'])}`; {self._cmd} does not replace another command's output",
+                path=p,
+                expected="another path",
+                got=f"an output of {_label(entry['kind'])}",
+            )
         if not self.replaces:
-            raise OutputRefused(f"exists (the output of an earlier `{self._cmd}`), and its outputs are never "
-                                "overwritten", path=p, expected="a new path", got="an existing output")
+            raise OutputRefused(
+                f"exists (the output of an earlier `{self._cmd}`), and its outputs are never overwritten",
+                path=p,
+                expected="a new path",
+                got="an existing output",
+            )
         return True  # an earlier run's output of this command: replaced
 
     def file(self, path: str | os.PathLike) -> Path:
@@ -260,14 +290,19 @@ class OutputGuard:
         self._check_parent(p)
         inp = self._input_at(p)
         if inp is not None:
-            raise OutputRefused(f"is an input of this command, and {self._cmd} never writes over its inputs",
-                                path=p, expected="an output folder that is not an input", got=str(inp))
+            raise OutputRefused(
+                f"is an input of this command, and {self._cmd} never writes over its inputs",
+                path=p,
+                expected="an output folder that is not an input",
+                got=str(inp),
+            )
         st = _stat(p)
         if st is None:
             return False, {}
         if not os.path.isdir(p):
-            raise OutputRefused("is a file", path=p, expected="a folder for this output (a new or empty one)",
-                                got="a file")
+            raise OutputRefused(
+                "is a file", path=p, expected="a folder for this output (a new or empty one)", got="a file"
+            )
         listing = _listing(p)
         if not listing:
             return True, {}
@@ -288,16 +323,23 @@ class OutputGuard:
         if not other:
             return True, snap  # only an earlier output of this command: replaced
         if not self.force or names is None:
-            raise OutputRefused(f"the folder holds {len(other)} file(s) {self._cmd} did not write "
-                                f"({_names(other)})", path=p,
-                                expected="a new or empty folder, or --force to write beside them, untouched"
-                                if names is not None else "a new or empty folder, or one holding only an earlier "
-                                f"output of {self._cmd}", got="a folder in use")
+            raise OutputRefused(
+                f"the folder holds {len(other)} file(s) {self._cmd} did not write ({_names(other)})",
+                path=p,
+                expected="a new or empty folder, or --force to write beside them, untouched"
+                if names is not None
+                else f"a new or empty folder, or one holding only an earlier output of {self._cmd}",
+                got="a folder in use",
+            )
         if taken:
-            raise OutputRefused(f"the folder holds {len(taken)} file(s) named like this output's "
-                                f"({', '.join(names)}) that "
-                                f"{self._cmd} did not write ({_names(taken)})", path=p,
-                                expected="another folder", got="files in the way")
+            raise OutputRefused(
+                f"the folder holds {len(taken)} file(s) named like this output's "
+                f"({', '.join(names)}) that "
+                f"{self._cmd} did not write ({_names(taken)})",
+                path=p,
+                expected="another folder",
+                got="files in the way",
+            )
         return True, snap
 
     def folder(self, path: str | os.PathLike, *, names=None) -> Path:
@@ -323,13 +365,23 @@ class OutputGuard:
             p = loc.root
             self._check_parent(p)
             if self._input_at(p) is not None:
-                raise OutputRefused(f"is an input of this command, and {self._cmd} never writes over its inputs",
-                                    path=p, expected="an output folder that is not an input", got=str(p))
+                raise OutputRefused(
+                    f"is an input of this command, and {self._cmd} never writes over its inputs",
+                    path=p,
+                    expected="an output folder that is not an input",
+                    got=str(p),
+                )
             if _stat(p) is not None and not os.path.isdir(p):
                 raise OutputRefused("is a file", path=p, expected="a folder for this output", got="a file")
         names = self._top_names(loc)
-        c = _Claim(Path(str(loc)), "resumable", location=loc, layout=tuple(layout),
-                   legacy=legacy if callable(legacy) else tuple(legacy), existed=names is not None)
+        c = _Claim(
+            Path(str(loc)),
+            "resumable",
+            location=loc,
+            layout=tuple(layout),
+            legacy=legacy if callable(legacy) else tuple(legacy),
+            existed=names is not None,
+        )
         self._check_resumable(c, names or [])
         self.claims.append(c)
         return loc
@@ -387,21 +439,38 @@ class OutputGuard:
             return
         where = Path(str(loc))
         if owner is not None:
-            raise OutputRefused(f"the folder is the output of `{_label(owner)}`", path=where,
-                                expected=f"a new or empty folder for {self._cmd}", got=f"a {owner} folder")
-        if callable(c.legacy) and c.legacy(loc, names) or \
-                not callable(c.legacy) and c.legacy and all(self._has(loc, n, names) for n in c.legacy):
+            raise OutputRefused(
+                f"the folder is the output of `{_label(owner)}`",
+                path=where,
+                expected=f"a new or empty folder for {self._cmd}",
+                got=f"a {owner} folder",
+            )
+        if (
+            callable(c.legacy)
+            and c.legacy(loc, names)
+            or not callable(c.legacy)
+            and c.legacy
+            and all(self._has(loc, n, names) for n in c.legacy)
+        ):
             return  # made by this command before folders had manifests
         other = [n for n in names]
         if not self.force:
-            raise OutputRefused(f"the folder holds {len(other)} item(s) {self._cmd} did not write "
-                                f"({_names(other)})", path=where,
-                                expected="a new or empty folder, or --force to write beside them, untouched"
-                                if self.replaces else f"a folder made by {self._cmd}", got="a folder in use")
+            raise OutputRefused(
+                f"the folder holds {len(other)} item(s) {self._cmd} did not write ({_names(other)})",
+                path=where,
+                expected="a new or empty folder, or --force to write beside them, untouched"
+                if self.replaces
+                else f"a folder made by {self._cmd}",
+                got="a folder in use",
+            )
         taken = [n for n in names if any(fnmatch.fnmatchcase(n, pat) for pat in c.layout)]
         if taken:
-            raise OutputRefused(f"the folder holds {len(taken)} item(s) where {self._cmd} writes ({_names(taken)})",
-                                path=where, expected="another folder", got="files in the way")
+            raise OutputRefused(
+                f"the folder holds {len(taken)} item(s) where {self._cmd} writes ({_names(taken)})",
+                path=where,
+                expected="another folder",
+                got="files in the way",
+            )
 
     def start(self) -> None:
         """Mark claimed resumable folders as this kind's now (before the first task commits), so a stopped run
@@ -485,7 +554,7 @@ class OutputGuard:
                     if _unchanged(e, s) and self._input_at(q) is None:
                         stale.append(n)  # an earlier run's, not written again: replaced means removed
                     else:
-                        drop.append(n)   # edited since: no longer ours, kept
+                        drop.append(n)  # edited since: no longer ours, kept
             for n in stale:
                 with contextlib.suppress(FileNotFoundError):
                     (p / n).unlink()

@@ -53,22 +53,41 @@ class SceneOutput:
             recorded after it.
     """
 
-    def __init__(self, *, path: str | os.PathLike, fmt: str, up: str = "y", fps: float = 30.0, start_frame: int = 0,
-                 garment_faces: np.ndarray, garment_rest: np.ndarray, body_path: os.PathLike | None = None,
-                 body_faces: np.ndarray | None = None, body_rest: np.ndarray | None = None,
-                 guard=None) -> None:
+    def __init__(
+        self,
+        *,
+        path: str | os.PathLike,
+        fmt: str,
+        up: str = "y",
+        fps: float = 30.0,
+        start_frame: int = 0,
+        garment_faces: np.ndarray,
+        garment_rest: np.ndarray,
+        body_path: os.PathLike | None = None,
+        body_faces: np.ndarray | None = None,
+        body_rest: np.ndarray | None = None,
+        guard=None,
+    ) -> None:
         sequence_format(fmt)  # unknown formats fail before anything is opened
         self.fmt, self.up, self.guard = fmt, up, guard
         rest = np.asarray(garment_rest, np.float64)
-        self.garment = open_sequence_writer(path, fmt, faces=garment_faces, num_points=len(rest), fps=fps,
-                                            start_frame=start_frame, rest=rest, up=up)
+        self.garment = open_sequence_writer(
+            path, fmt, faces=garment_faces, num_points=len(rest), fps=fps, start_frame=start_frame, rest=rest, up=up
+        )
         self.body = None
         self._body_rest = None
         if body_path is not None:
             try:
-                self.body = open_sequence_writer(body_path, fmt, faces=cast(np.ndarray, body_faces),
-                                                 num_points=len(cast(np.ndarray, body_rest)), fps=fps,
-                                                 start_frame=start_frame, rest=np.asarray(body_rest), up=up)
+                self.body = open_sequence_writer(
+                    body_path,
+                    fmt,
+                    faces=cast(np.ndarray, body_faces),
+                    num_points=len(cast(np.ndarray, body_rest)),
+                    fps=fps,
+                    start_frame=start_frame,
+                    rest=np.asarray(body_rest),
+                    up=up,
+                )
             except BaseException:
                 self.garment.abort()
                 raise
@@ -92,8 +111,13 @@ class SceneOutput:
             written.append(self.body.close())
             if self.fmt == "pc2":  # the rest mesh the cache animates (Blender's Mesh Cache, 3ds Max)
                 obj = Path(self.body.path).with_suffix(".obj")
-                write_obj(obj, Mesh(vertices=to_up(cast(np.ndarray, self._body_rest), self.up),
-                                    faces=cast(np.ndarray, self._body_faces)))
+                write_obj(
+                    obj,
+                    Mesh(
+                        vertices=to_up(cast(np.ndarray, self._body_rest), self.up),
+                        faces=cast(np.ndarray, self._body_faces),
+                    ),
+                )
                 written.append(obj)
         if self.guard is not None:
             self.guard.record()

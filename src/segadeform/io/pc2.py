@@ -27,8 +27,16 @@ from ..errors import FileFormatError, InputError, file_error
 from .atomic import _tmp_sibling
 from .writer import SequenceWriter
 
-__all__ = ["PC2_HEADER", "PC2_MAGIC", "PC2Header", "PointCache", "PC2Writer",
-           "read_pc2_header", "read_pc2", "write_pc2"]
+__all__ = [
+    "PC2_HEADER",
+    "PC2_MAGIC",
+    "PC2Header",
+    "PointCache",
+    "PC2Writer",
+    "read_pc2_header",
+    "read_pc2",
+    "write_pc2",
+]
 
 PC2_HEADER = struct.Struct("<12siiffi")
 PC2_MAGIC = b"POINTCACHE2\0"
@@ -84,14 +92,18 @@ def read_pc2_header(path: str | os.PathLike) -> PC2Header:
     if size != expected:
         raise FileFormatError(
             f"PC2 size does not match its header ({n_samples} samples x {n_points} points)",
-            path=p, expected=f"{expected} bytes", got=f"{size} bytes",
+            path=p,
+            expected=f"{expected} bytes",
+            got=f"{size} bytes",
         )
-    return PC2Header(num_points=n_points, start_frame=float(start), sample_rate=float(rate),
-                     num_samples=n_samples, version=version)
+    return PC2Header(
+        num_points=n_points, start_frame=float(start), sample_rate=float(rate), num_samples=n_samples, version=version
+    )
 
 
-def read_pc2(path: str | os.PathLike, *, mmap: bool = True, check_finite: bool = False,
-             num_points: int | None = None) -> PointCache:
+def read_pc2(
+    path: str | os.PathLike, *, mmap: bool = True, check_finite: bool = False, num_points: int | None = None
+) -> PointCache:
     """Read a PC2 file; frames are memory-mapped (no copy) unless ``mmap=False``.
 
     Args:
@@ -105,8 +117,7 @@ def read_pc2(path: str | os.PathLike, *, mmap: bool = True, check_finite: bool =
     p = Path(path)
     h = read_pc2_header(p)
     if num_points is not None and h.num_points != num_points:
-        raise FileFormatError("PC2 point count does not match the mesh", path=p,
-                              expected=num_points, got=h.num_points)
+        raise FileFormatError("PC2 point count does not match the mesh", path=p, expected=num_points, got=h.num_points)
     shape = (h.num_samples, h.num_points, 3)
     if h.num_samples == 0:
         frames = np.zeros(shape, np.float32)
@@ -117,7 +128,7 @@ def read_pc2(path: str | os.PathLike, *, mmap: bool = True, check_finite: bool =
     if check_finite:
         step = max(1, (1 << 22) // max(1, h.num_points * 3))
         for s in range(0, h.num_samples, step):
-            block = np.asarray(frames[s:s + step])
+            block = np.asarray(frames[s : s + step])
             if not np.isfinite(block).all():
                 bad = s + int(np.flatnonzero(~np.isfinite(block).reshape(len(block), -1).all(axis=1))[0])
                 raise FileFormatError(f"PC2 sample {bad} has a non-finite coordinate", path=p)
@@ -140,8 +151,15 @@ class PC2Writer(SequenceWriter):
 
     needs_frames = False  # a PC2 with zero samples is a valid file
 
-    def __init__(self, path: str | os.PathLike, num_points: int, *, start_frame: float = 0.0,
-                 sample_rate: float = 1.0, up: str = "y") -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        num_points: int,
+        *,
+        start_frame: float = 0.0,
+        sample_rate: float = 1.0,
+        up: str = "y",
+    ) -> None:
         super().__init__(path, num_points, up=up)
         if not np.isfinite(start_frame):
             raise InputError("start_frame must be finite", got=start_frame)
@@ -181,8 +199,9 @@ class PC2Writer(SequenceWriter):
             pass
 
 
-def write_pc2(path: str | os.PathLike, frames: np.ndarray, *, start_frame: float = 0.0,
-              sample_rate: float = 1.0) -> Path:
+def write_pc2(
+    path: str | os.PathLike, frames: np.ndarray, *, start_frame: float = 0.0, sample_rate: float = 1.0
+) -> Path:
     """Write all ``frames (S, N, 3)`` at once (S >= 1)."""
     a = np.asarray(frames)
     if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 1:

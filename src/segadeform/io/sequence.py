@@ -32,8 +32,14 @@ from .mesh import validate_mesh_arrays
 from .obj import read_obj, write_obj_positions
 from .writer import SequenceWriter, to_up
 
-__all__ = ["ObjSequenceWriter", "XdmfSequenceWriter", "read_obj_sequence", "read_xdmf_sequence",
-           "write_obj_sequence", "write_xdmf_sequence"]
+__all__ = [
+    "ObjSequenceWriter",
+    "XdmfSequenceWriter",
+    "read_obj_sequence",
+    "read_xdmf_sequence",
+    "write_obj_sequence",
+    "write_xdmf_sequence",
+]
 
 _NUM = re.compile(r"(\d+)(?!.*\d)")
 
@@ -43,8 +49,17 @@ class ObjSequenceWriter(SequenceWriter):
 
     needs_frames = False
 
-    def __init__(self, directory: str | os.PathLike, faces: np.ndarray, num_points: int, *,
-                 prefix: str = "frame", start: int = 0, precision: int = 9, up: str = "y") -> None:
+    def __init__(
+        self,
+        directory: str | os.PathLike,
+        faces: np.ndarray,
+        num_points: int,
+        *,
+        prefix: str = "frame",
+        start: int = 0,
+        precision: int = 9,
+        up: str = "y",
+    ) -> None:
         super().__init__(directory, num_points, up=up)
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
         if self.path.exists() and not self.path.is_dir():
@@ -54,8 +69,9 @@ class ObjSequenceWriter(SequenceWriter):
 
     def _append(self, frames: np.ndarray) -> None:
         for frame in frames:
-            write_obj_positions(self._tmp / f"{self.prefix}_{self.index:05d}.obj", self.faces, frame,
-                                precision=self.precision)
+            write_obj_positions(
+                self._tmp / f"{self.prefix}_{self.index:05d}.obj", self.faces, frame, precision=self.precision
+            )
             self.index += 1
 
     def _commit(self) -> None:
@@ -106,9 +122,12 @@ def read_obj_sequence(directory: str | os.PathLike) -> tuple[np.ndarray, np.ndar
     for i, (_, f) in enumerate(keyed[1:], start=1):
         mesh = read_obj(f)
         if mesh.n_vertices != first.n_vertices or not np.array_equal(mesh.faces, first.faces):
-            raise FileFormatError("frame topology differs from the first frame", path=f,
-                                  expected=f"{first.n_vertices} vertices, {first.n_faces} faces as in {keyed[0][1].name}",
-                                  got=f"{mesh.n_vertices} vertices, {mesh.n_faces} faces")
+            raise FileFormatError(
+                "frame topology differs from the first frame",
+                path=f,
+                expected=f"{first.n_vertices} vertices, {first.n_faces} faces as in {keyed[0][1].name}",
+                got=f"{mesh.n_vertices} vertices, {mesh.n_faces} faces",
+            )
         frames[i] = mesh.vertices
     return first.faces, frames
 
@@ -116,8 +135,17 @@ def read_obj_sequence(directory: str | os.PathLike) -> tuple[np.ndarray, np.ndar
 class XdmfSequenceWriter(SequenceWriter):
     """Collect frames and write an XDMF time series on close (see module notes)."""
 
-    def __init__(self, path: str | os.PathLike, faces: np.ndarray, num_points: int, *,
-                 rest: np.ndarray | None = None, fps: float = 30.0, start: int = 0, up: str = "y") -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        faces: np.ndarray,
+        num_points: int,
+        *,
+        rest: np.ndarray | None = None,
+        fps: float = 30.0,
+        start: int = 0,
+        up: str = "y",
+    ) -> None:
         super().__init__(path, num_points, up=up)
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
         self.rest = None if rest is None else to_up(self.check(rest)[0].astype(np.float64), up)

@@ -59,8 +59,13 @@ __all__ = ["BUNDLE_MAGIC", "BUNDLE_SUFFIX", "write_bundle", "read_bundle", "DTYP
 BUNDLE_MAGIC = b"SEGADEFORM-BUNDLE 1\n"
 BUNDLE_SUFFIX = ".sgdb"
 #: the container's dtype names
-DTYPES: dict[str, np.dtype] = {"f32": np.dtype("<f4"), "f64": np.dtype("<f8"), "i32": np.dtype("<i4"),
-                               "i64": np.dtype("<i8"), "u8": np.dtype("u1")}
+DTYPES: dict[str, np.dtype] = {
+    "f32": np.dtype("<f4"),
+    "f64": np.dtype("<f8"),
+    "i32": np.dtype("<i4"),
+    "i64": np.dtype("<i8"),
+    "u8": np.dtype("u1"),
+}
 _NAMES = {v: k for k, v in DTYPES.items()}
 _ALIGN = 64
 
@@ -77,14 +82,21 @@ def write_bundle(path: str | os.PathLike, arrays: dict, meta: dict | None = None
         dt = a.dtype.newbyteorder("<") if a.dtype.byteorder == ">" else a.dtype
         key = _NAMES.get(np.dtype(dt))
         if key is None or not name.isidentifier():
-            raise InputError(f"bundle array {name!r} has an unsupported dtype or name", expected="f32 f64 i32 i64 u8",
-                             got=a.dtype)
+            raise InputError(
+                f"bundle array {name!r} has an unsupported dtype or name", expected="f32 f64 i32 i64 u8", got=a.dtype
+            )
         a = a.astype(DTYPES[key], copy=False)
         entries.append(f"{name} {key} {a.ndim} {' '.join(map(str, a.shape))}{' ' if a.ndim else ''}{off} {a.nbytes}")
         blobs.append((off, a.tobytes()))
         off += -(-a.nbytes // _ALIGN) * _ALIGN
-    header = BUNDLE_MAGIC + f"{len(entries)}\n".encode() + "".join(e + "\n" for e in entries).encode() \
-        + b"meta " + json.dumps(meta or {}, sort_keys=True).encode() + b"\nEND\n"
+    header = (
+        BUNDLE_MAGIC
+        + f"{len(entries)}\n".encode()
+        + "".join(e + "\n" for e in entries).encode()
+        + b"meta "
+        + json.dumps(meta or {}, sort_keys=True).encode()
+        + b"\nEND\n"
+    )
     header += b"\0" * (-len(header) % _ALIGN)
     with atomic_open(p, "wb") as fh:
         fh.write(header)
@@ -105,12 +117,13 @@ def read_bundle(path: str | os.PathLike) -> tuple[dict, dict]:
     except OSError as e:
         raise file_error(e, p) from None
     if not data.startswith(BUNDLE_MAGIC):
-        raise FileFormatError("not a segadeform bundle", path=p, expected=BUNDLE_MAGIC.decode().strip(),
-                              got=repr(data[:20]))
+        raise FileFormatError(
+            "not a segadeform bundle", path=p, expected=BUNDLE_MAGIC.decode().strip(), got=repr(data[:20])
+        )
     end = data.find(b"\nEND\n")
     if end < 0:
         raise FileFormatError("bundle header has no END line", path=p)
-    lines = data[len(BUNDLE_MAGIC):end].decode("utf-8", "replace").split("\n")
+    lines = data[len(BUNDLE_MAGIC) : end].decode("utf-8", "replace").split("\n")
     start = -(-(end + 5) // _ALIGN) * _ALIGN
     try:
         n = int(lines[0])
@@ -120,14 +133,15 @@ def read_bundle(path: str | os.PathLike) -> tuple[dict, dict]:
     except (ValueError, IndexError, RecursionError):
         raise FileFormatError("malformed bundle header", path=p) from None
     if not isinstance(meta, dict):
-        raise FileFormatError("bundle meta must be a JSON object", path=p, expected="meta {...}",
-                              got=f"a JSON {type(meta).__name__}")
+        raise FileFormatError(
+            "bundle meta must be a JSON object", path=p, expected="meta {...}", got=f"a JSON {type(meta).__name__}"
+        )
     arrays = {}
-    for ln in lines[1:n + 1]:
+    for ln in lines[1 : n + 1]:
         t = ln.split()
         try:
             name, dt, nd = t[0], DTYPES[t[1]], int(t[2])
-            shape = tuple(int(x) for x in t[3:3 + nd])
+            shape = tuple(int(x) for x in t[3 : 3 + nd])
             off, nbytes = int(t[3 + nd]), int(t[4 + nd])
         except (KeyError, ValueError, IndexError):
             raise FileFormatError(f"malformed bundle entry {ln[:60]!r}", path=p) from None
@@ -135,10 +149,18 @@ def read_bundle(path: str | os.PathLike) -> tuple[dict, dict]:
         for d in shape:  # Python integers: a huge shape cannot wrap around to a small size
             count *= d
         if min(shape, default=1) < 0 or count * dt.itemsize != nbytes:
-            raise FileFormatError(f"bundle array {name!r} declares a size its shape does not have", path=p,
-                                  expected=f"{count * dt.itemsize} bytes for shape {shape}", got=f"{nbytes} bytes")
+            raise FileFormatError(
+                f"bundle array {name!r} declares a size its shape does not have",
+                path=p,
+                expected=f"{count * dt.itemsize} bytes for shape {shape}",
+                got=f"{nbytes} bytes",
+            )
         if off < 0 or start + off + nbytes > len(data):
-            raise FileFormatError(f"bundle array {name!r} runs past the end of the file (truncated?)", path=p,
-                                  expected=f"at least {start + off + nbytes} bytes", got=f"{len(data)} bytes")
+            raise FileFormatError(
+                f"bundle array {name!r} runs past the end of the file (truncated?)",
+                path=p,
+                expected=f"at least {start + off + nbytes} bytes",
+                got=f"{len(data)} bytes",
+            )
         arrays[name] = np.frombuffer(data, dt, count, start + off).reshape(shape)
     return arrays, meta

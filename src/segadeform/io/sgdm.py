@@ -32,14 +32,30 @@ MOTION_SUFFIX = ".sgdm"
 MOTION_SCHEMA_VERSION = 1
 
 
-def write_motion_arrays(path: str | os.PathLike, poses, trans, *, fps: float, name: str, joint_names: Sequence[str],
-                        source: str = "", body: dict | None = None, betas=None) -> Path:
+def write_motion_arrays(
+    path: str | os.PathLike,
+    poses,
+    trans,
+    *,
+    fps: float,
+    name: str,
+    joint_names: Sequence[str],
+    source: str = "",
+    body: dict | None = None,
+    betas=None,
+) -> Path:
     """Write a motion file: ``poses`` (T, S, 3) local axis-angle and ``trans`` (T, 3), as float32 (what the graphs
     take), ``fps``, ``name``, the S ``joint_names`` and ``source`` in ``meta``; ``body`` (``{"name", "sha256"}``)
     and ``betas``: the body it was retargeted onto."""
     poses = np.asarray(poses, np.float64)
-    meta = {"kind": MOTION_KIND, "schema_version": MOTION_SCHEMA_VERSION, "fps": float(fps),
-            "name": str(name), "joint_names": list(joint_names), "source": str(source)}
+    meta = {
+        "kind": MOTION_KIND,
+        "schema_version": MOTION_SCHEMA_VERSION,
+        "fps": float(fps),
+        "name": str(name),
+        "joint_names": list(joint_names),
+        "source": str(source),
+    }
     if body is not None:
         meta["body"] = dict(body)
     if betas is not None:
@@ -55,15 +71,27 @@ def read_motion_arrays(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray,
     if meta.get("kind") != MOTION_KIND:
         raise FileFormatError("not a motion file", path=p, expected=f"meta.kind {MOTION_KIND!r}", got=meta.get("kind"))
     if meta.get("schema_version") != MOTION_SCHEMA_VERSION:
-        raise FileFormatError("unsupported motion file schema version", path=p, expected=MOTION_SCHEMA_VERSION,
-                              got=meta.get("schema_version"))
+        raise FileFormatError(
+            "unsupported motion file schema version",
+            path=p,
+            expected=MOTION_SCHEMA_VERSION,
+            got=meta.get("schema_version"),
+        )
     poses, trans = arrays.get("poses"), arrays.get("trans")
     if poses is None or poses.dtype != DTYPES["f32"] or poses.ndim != 3 or poses.shape[2] != 3 or not len(poses):
-        raise FileFormatError("motion file poses must be f32 (T, S, 3), T >= 1", path=p, expected="f32 (T, S, 3)",
-                              got=None if poses is None else f"{poses.dtype} {poses.shape}")
+        raise FileFormatError(
+            "motion file poses must be f32 (T, S, 3), T >= 1",
+            path=p,
+            expected="f32 (T, S, 3)",
+            got=None if poses is None else f"{poses.dtype} {poses.shape}",
+        )
     if trans is None or trans.dtype != DTYPES["f32"] or trans.shape != (len(poses), 3):
-        raise FileFormatError("motion file trans must be f32 (T, 3) matching poses", path=p,
-                              expected=f"f32 ({len(poses)}, 3)", got=None if trans is None else f"{trans.dtype} {trans.shape}")
+        raise FileFormatError(
+            "motion file trans must be f32 (T, 3) matching poses",
+            path=p,
+            expected=f"f32 ({len(poses)}, 3)",
+            got=None if trans is None else f"{trans.dtype} {trans.shape}",
+        )
     try:
         fps = float(meta["fps"])
     except (KeyError, TypeError, ValueError):

@@ -70,15 +70,29 @@ def config_path(text: str, *, path=None) -> Path:
         raise FileFormatError("cannot expand '~' in a path", path=path, got=text[:60]) from None
 
 
-def key(default=dataclasses.MISSING, *, types: tuple | None = None, range: tuple | None = None,
-        choices: tuple | None = None, default_factory=dataclasses.MISSING):
+def key(
+    default=dataclasses.MISSING,
+    *,
+    types: tuple | None = None,
+    range: tuple | None = None,
+    choices: tuple | None = None,
+    default_factory=dataclasses.MISSING,
+):
     """A dataclass field with what :func:`read_table` checks beyond its type (see the module docstring)."""
     meta = {k: v for k, v in (("types", types), ("range", range), ("choices", choices)) if v is not None}
     return dataclasses.field(default=default, default_factory=default_factory, metadata=meta)
 
 
-_BY_TYPE = {bool: (bool,), int: (int,), float: (int, float), str: (str,), Path: (str,), tuple: (list,),
-            list: (list,), dict: (dict,)}
+_BY_TYPE = {
+    bool: (bool,),
+    int: (int,),
+    float: (int, float),
+    str: (str,),
+    Path: (str,),
+    tuple: (list,),
+    list: (list,),
+    dict: (dict,),
+}
 
 
 def toml_types(annotation) -> tuple:
@@ -100,8 +114,9 @@ def toml_types(annotation) -> tuple:
 
 
 def _names(ts: tuple) -> str:
-    return " or ".join("float" if t is float else "list" if t is list else "table" if t is dict else t.__name__
-                       for t in ts)
+    return " or ".join(
+        "float" if t is float else "list" if t is list else "table" if t is dict else t.__name__ for t in ts
+    )
 
 
 def read_table(table, cls, *, where: str, path=None, skip: tuple = ()) -> dict:
@@ -122,8 +137,9 @@ def read_table(table, cls, *, where: str, path=None, skip: tuple = ()) -> dict:
     fields = {f.name: f for f in dataclasses.fields(cls) if f.name not in skip and f.init}
     bad = sorted(set(table) - set(fields))
     if bad:
-        raise FileFormatError(f"unknown key {where}.{bad[0]}", path=path, expected=", ".join(sorted(fields)),
-                              got=", ".join(bad))
+        raise FileFormatError(
+            f"unknown key {where}.{bad[0]}", path=path, expected=", ".join(sorted(fields)), got=", ".join(bad)
+        )
     for name, f in fields.items():
         if name not in table:
             if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
@@ -132,13 +148,21 @@ def read_table(table, cls, *, where: str, path=None, skip: tuple = ()) -> dict:
         v = table[name]
         accepted = f.metadata.get("types") or toml_types(hints[name])
         if not isinstance(v, accepted) or (isinstance(v, bool) and bool not in accepted):
-            raise FileFormatError(f"{where}.{name} has the wrong type", path=path, expected=_names(accepted),
-                                  got=f"{type(v).__name__} {v!r}"[:60])
+            raise FileFormatError(
+                f"{where}.{name} has the wrong type",
+                path=path,
+                expected=_names(accepted),
+                got=f"{type(v).__name__} {v!r}"[:60],
+            )
         if "range" in f.metadata:
             lo, hi = f.metadata["range"]
             if not lo <= v <= hi or (isinstance(v, float) and math.isnan(v)):
                 raise FileFormatError(f"{where}.{name} out of range", path=path, expected=f"{lo}..{hi}", got=v)
         if "choices" in f.metadata and v not in f.metadata["choices"]:
-            raise FileFormatError(f"{where}.{name} must be one of {', '.join(map(str, f.metadata['choices']))}",
-                                  path=path, expected=" | ".join(map(str, f.metadata["choices"])), got=v)
+            raise FileFormatError(
+                f"{where}.{name} must be one of {', '.join(map(str, f.metadata['choices']))}",
+                path=path,
+                expected=" | ".join(map(str, f.metadata["choices"])),
+                got=v,
+            )
     return dict(table)

@@ -56,8 +56,16 @@ class UsdSequenceWriter(SequenceWriter):
         up: "y" (as computed) or "z" (points turned to Z-up, ``upAxis = Z``).
     """
 
-    def __init__(self, path: str | os.PathLike, faces: np.ndarray, num_points: int, *, fps: float = 30.0,
-                 start_frame: int = 0, up: str = "y") -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        faces: np.ndarray,
+        num_points: int,
+        *,
+        fps: float = 30.0,
+        start_frame: int = 0,
+        up: str = "y",
+    ) -> None:
         super().__init__(path, num_points, up=up)
         ext = self.path.suffix.lower()
         if ext not in USD_EXTENSIONS:
@@ -133,8 +141,12 @@ def read_usd_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, 
     counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get() or [], np.int64)
     idx = np.asarray(mesh.GetFaceVertexIndicesAttr().Get() or [], np.int64)
     if counts.size == 0 or (counts != 3).any() or idx.size != 3 * counts.size:
-        raise FileFormatError("USD mesh is not all triangles", path=p, expected="faceVertexCounts all 3",
-                              got=f"{counts.size} faces, counts {sorted(set(counts.tolist()))[:5]}")
+        raise FileFormatError(
+            "USD mesh is not all triangles",
+            path=p,
+            expected="faceVertexCounts all 3",
+            got=f"{counts.size} faces, counts {sorted(set(counts.tolist()))[:5]}",
+        )
     attr = mesh.GetPointsAttr()
     times = np.asarray(attr.GetTimeSamples(), np.float64)
     if times.size:
@@ -147,9 +159,15 @@ def read_usd_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, 
     if frames.ndim != 3 or frames.shape[2] != 3:
         raise FileFormatError("USD points are not 3-vectors", path=p, got=frames.shape)
     if idx.size and (idx.min() < 0 or idx.max() >= frames.shape[1]):
-        raise FileFormatError("USD face index out of range", path=p, expected=f"0..{frames.shape[1] - 1}",
-                              got=f"{idx.min()}..{idx.max()}")
-    info = {"up": str(UsdGeom.GetStageUpAxis(stage)), "meters_per_unit": float(UsdGeom.GetStageMetersPerUnit(stage)),
-            "fps": float(stage.GetTimeCodesPerSecond()), "start": float(stage.GetStartTimeCode()),
-            "end": float(stage.GetEndTimeCode()), "prim": str(mesh.GetPath())}
+        raise FileFormatError(
+            "USD face index out of range", path=p, expected=f"0..{frames.shape[1] - 1}", got=f"{idx.min()}..{idx.max()}"
+        )
+    info = {
+        "up": str(UsdGeom.GetStageUpAxis(stage)),
+        "meters_per_unit": float(UsdGeom.GetStageMetersPerUnit(stage)),
+        "fps": float(stage.GetTimeCodesPerSecond()),
+        "start": float(stage.GetStartTimeCode()),
+        "end": float(stage.GetEndTimeCode()),
+        "prim": str(mesh.GetPath()),
+    }
     return idx.reshape(-1, 3), frames, times, info

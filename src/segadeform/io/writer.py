@@ -85,8 +85,12 @@ class SequenceWriter:
         if a.ndim == 2:
             a = a[None]
         if a.ndim != 3 or a.shape[1:] != (self.num_points, 3):
-            raise InputError("frames have the wrong shape", path=self.path,
-                             expected=f"(N, 3) or (B, N, 3) with N = {self.num_points}", got=a.shape)
+            raise InputError(
+                "frames have the wrong shape",
+                path=self.path,
+                expected=f"(N, 3) or (B, N, 3) with N = {self.num_points}",
+                got=a.shape,
+            )
         if not np.isfinite(a).all():
             raise InputError("frames contain NaN or inf", path=self.path)
         return a

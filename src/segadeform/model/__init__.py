@@ -5,5 +5,4 @@ from .config import ModelConfig
 from .network import SEGANet, load_checkpoint, save_checkpoint
 from .sega import SEGABlock, TauLinear, theorem2_bound
 
-__all__ = ["ModelConfig", "SEGANet", "load_checkpoint", "save_checkpoint", "SEGABlock", "TauLinear",
-           "theorem2_bound"]
+__all__ = ["ModelConfig", "SEGANet", "load_checkpoint", "save_checkpoint", "SEGABlock", "TauLinear", "theorem2_bound"]

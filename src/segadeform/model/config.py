@@ -65,8 +65,19 @@ class ModelConfig:
     weight_prior: str = "nearest"
 
     def __post_init__(self):
-        ints = ("n_joints", "n_betas", "n_star", "feat_dim", "hidden", "heads", "enc_layers", "dec_layers",
-                "f_enc", "window", "lstm_hidden")
+        ints = (
+            "n_joints",
+            "n_betas",
+            "n_star",
+            "feat_dim",
+            "hidden",
+            "heads",
+            "enc_layers",
+            "dec_layers",
+            "f_enc",
+            "window",
+            "lstm_hidden",
+        )
         for name in ints:
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
@@ -84,8 +95,11 @@ class ModelConfig:
         from ..body.transfer import WEIGHT_PRIORS
 
         if self.weight_prior not in WEIGHT_PRIORS:
-            raise InputError("ModelConfig.weight_prior is not a weight prior", expected=" | ".join(WEIGHT_PRIORS),
-                             got=self.weight_prior)
+            raise InputError(
+                "ModelConfig.weight_prior is not a weight prior",
+                expected=" | ".join(WEIGHT_PRIORS),
+                got=self.weight_prior,
+            )
 
     def to_json(self) -> str:
         return json.dumps(dataclasses.asdict(self), sort_keys=True)

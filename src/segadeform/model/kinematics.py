@@ -11,8 +11,7 @@ import torch
 
 from ..contracts.model_package import MAX_NODE_TENSORS
 
-__all__ = ["axis_angle_to_matrix", "forward_kinematics", "skinning_transforms", "lbs", "dqs",
-           "matrix_to_quaternion"]
+__all__ = ["axis_angle_to_matrix", "forward_kinematics", "skinning_transforms", "lbs", "dqs", "matrix_to_quaternion"]
 
 _SMALL = 1e-4
 
@@ -32,8 +31,9 @@ def axis_angle_to_matrix(r: torch.Tensor) -> torch.Tensor:
     return eye + a[..., None, None] * K + b[..., None, None] * torch.matmul(K, K)
 
 
-def forward_kinematics(rot: torch.Tensor, joints: torch.Tensor, parents: list[int],
-                       trans: torch.Tensor | None = None) -> torch.Tensor:
+def forward_kinematics(
+    rot: torch.Tensor, joints: torch.Tensor, parents: list[int], trans: torch.Tensor | None = None
+) -> torch.Tensor:
     """Global transforms ``(B, S, 4, 4)`` from local rotations ``(B, S, 3, 3)`` and rest joints ``(B, S, 3)``."""
     b, s = rot.shape[:2]
     par = torch.tensor(list(parents[1:s]), dtype=torch.long, device=joints.device)
@@ -53,7 +53,7 @@ def stack_narrow(ts: list, dim: int) -> torch.Tensor:
     width = MAX_NODE_TENSORS - 1
     if len(ts) <= width:
         return torch.stack(ts, dim=dim)
-    return torch.cat([torch.stack(ts[i:i + width], dim=dim) for i in range(0, len(ts), width)], dim=dim)
+    return torch.cat([torch.stack(ts[i : i + width], dim=dim) for i in range(0, len(ts), width)], dim=dim)
 
 
 def _matrix3(rows) -> torch.Tensor:
@@ -104,14 +104,42 @@ def matrix_to_quaternion(R: torch.Tensor) -> torch.Tensor:
 
     s0, s1 = safe_s(tr), safe_s(m00 - m11 - m22)
     s2, s3 = safe_s(m11 - m00 - m22), safe_s(m22 - m00 - m11)
-    q0 = torch.stack([0.25 * s0, (R[..., 2, 1] - R[..., 1, 2]) / s0, (R[..., 0, 2] - R[..., 2, 0]) / s0,
-                      (R[..., 1, 0] - R[..., 0, 1]) / s0], -1)
-    q1 = torch.stack([(R[..., 2, 1] - R[..., 1, 2]) / s1, 0.25 * s1, (R[..., 0, 1] + R[..., 1, 0]) / s1,
-                      (R[..., 0, 2] + R[..., 2, 0]) / s1], -1)
-    q2 = torch.stack([(R[..., 0, 2] - R[..., 2, 0]) / s2, (R[..., 0, 1] + R[..., 1, 0]) / s2, 0.25 * s2,
-                      (R[..., 1, 2] + R[..., 2, 1]) / s2], -1)
-    q3 = torch.stack([(R[..., 1, 0] - R[..., 0, 1]) / s3, (R[..., 0, 2] + R[..., 2, 0]) / s3,
-                      (R[..., 1, 2] + R[..., 2, 1]) / s3, 0.25 * s3], -1)
+    q0 = torch.stack(
+        [
+            0.25 * s0,
+            (R[..., 2, 1] - R[..., 1, 2]) / s0,
+            (R[..., 0, 2] - R[..., 2, 0]) / s0,
+            (R[..., 1, 0] - R[..., 0, 1]) / s0,
+        ],
+        -1,
+    )
+    q1 = torch.stack(
+        [
+            (R[..., 2, 1] - R[..., 1, 2]) / s1,
+            0.25 * s1,
+            (R[..., 0, 1] + R[..., 1, 0]) / s1,
+            (R[..., 0, 2] + R[..., 2, 0]) / s1,
+        ],
+        -1,
+    )
+    q2 = torch.stack(
+        [
+            (R[..., 0, 2] - R[..., 2, 0]) / s2,
+            (R[..., 0, 1] + R[..., 1, 0]) / s2,
+            0.25 * s2,
+            (R[..., 1, 2] + R[..., 2, 1]) / s2,
+        ],
+        -1,
+    )
+    q3 = torch.stack(
+        [
+            (R[..., 1, 0] - R[..., 0, 1]) / s3,
+            (R[..., 0, 2] + R[..., 2, 0]) / s3,
+            (R[..., 1, 2] + R[..., 2, 1]) / s3,
+            0.25 * s3,
+        ],
+        -1,
+    )
     bb = best[..., None]
     q = torch.where(bb == 0, q0, torch.where(bb == 1, q1, torch.where(bb == 2, q2, q3)))
     return q / torch.linalg.vector_norm(q, dim=-1, keepdim=True)
@@ -120,8 +148,15 @@ def matrix_to_quaternion(R: torch.Tensor) -> torch.Tensor:
 def _qmul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     aw, ax, ay, az = a.unbind(-1)
     bw, bx, by, bz = b.unbind(-1)
-    return torch.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                        aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], -1)
+    return torch.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        -1,
+    )
 
 
 def dqs(verts: torch.Tensor, weights: torch.Tensor, a: torch.Tensor, eps: float = 1e-8) -> torch.Tensor:

@@ -8,8 +8,16 @@ from torch import nn
 from .config import ModelConfig
 from .sega import SEGABlock, TauLinear
 
-__all__ = ["elu", "MLP", "UnrolledLSTM", "GarmentTypeParser", "BodyShapeParser", "GraphEncoder", "GraphDecoder",
-           "MotionProcessor"]
+__all__ = [
+    "elu",
+    "MLP",
+    "UnrolledLSTM",
+    "GarmentTypeParser",
+    "BodyShapeParser",
+    "GraphEncoder",
+    "GraphDecoder",
+    "MotionProcessor",
+]
 
 
 def elu(x: torch.Tensor) -> torch.Tensor:
@@ -52,12 +60,12 @@ class UnrolledLSTM(nn.Module):
         self.reset_parameters()
 
     def reset_parameters(self) -> None:
-        k = 1.0 / self.hidden_size ** 0.5
+        k = 1.0 / self.hidden_size**0.5
         for p in (self.w_ih, self.w_hh):
             nn.init.uniform_(p, -k, k)
         nn.init.zeros_(self.bias)
         with torch.no_grad():  # forget-gate bias 1: remember by default
-            self.bias[self.hidden_size:2 * self.hidden_size].fill_(1.0)
+            self.bias[self.hidden_size : 2 * self.hidden_size].fill_(1.0)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         b, t, _ = x.shape
@@ -68,9 +76,9 @@ class UnrolledLSTM(nn.Module):
         for step in range(t - 1, -1, -1):  # oldest frame first, the current frame last
             g = gx[:, step] + torch.matmul(h, self.w_hh.t())
             i = torch.sigmoid(g[:, :hs])
-            f = torch.sigmoid(g[:, hs:2 * hs])
-            gg = torch.tanh(g[:, 2 * hs:3 * hs])
-            o = torch.sigmoid(g[:, 3 * hs:])
+            f = torch.sigmoid(g[:, hs : 2 * hs])
+            gg = torch.tanh(g[:, 2 * hs : 3 * hs])
+            o = torch.sigmoid(g[:, 3 * hs :])
             c = f * c + i * gg
             h = o * torch.tanh(c)
         return h
@@ -122,8 +130,15 @@ class GraphEncoder(nn.Module):
             blocks.append(blk)
             width = blk.out_features
         self.blocks = nn.ModuleList(blocks)
-        self.last = SEGABlock(width, cfg.f_enc, cfg.n_joints, cfg.f_enc * cfg.n_joints, alpha=cfg.alpha,
-                              tau=cfg.tau, use_sega=cfg.use_sega)
+        self.last = SEGABlock(
+            width,
+            cfg.f_enc,
+            cfg.n_joints,
+            cfg.f_enc * cfg.n_joints,
+            alpha=cfg.alpha,
+            tau=cfg.tau,
+            use_sega=cfg.use_sega,
+        )
 
     def forward(self, x, nbr, mask):
         for blk in self.blocks:

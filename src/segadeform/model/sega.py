@@ -20,7 +20,7 @@ _NEG = -1e9
 
 def theorem2_bound(alpha: float, tau: float) -> float:
     """Eq. 14: ``sqrt((tau e^alpha + sqrt(2)(alpha + alpha tau))^2 + tau^2)``."""
-    return math.sqrt((tau * math.exp(alpha) + math.sqrt(2.0) * (alpha + alpha * tau)) ** 2 + tau ** 2)
+    return math.sqrt((tau * math.exp(alpha) + math.sqrt(2.0) * (alpha + alpha * tau)) ** 2 + tau**2)
 
 
 def _safe_norm(x: torch.Tensor, dim: int) -> torch.Tensor:
@@ -85,8 +85,9 @@ class TauLinear(nn.Module):
         x: (..., in_features) -> (..., out_features)
     """
 
-    def __init__(self, in_features: int, out_features: int, tau: float | None, bias: bool = True,
-                 n_blocks: int = 1) -> None:
+    def __init__(
+        self, in_features: int, out_features: int, tau: float | None, bias: bool = True, n_blocks: int = 1
+    ) -> None:
         super().__init__()
         self.in_features, self.out_features, self.tau, self.n_blocks = in_features, out_features, tau, n_blocks
         self.weight = nn.Parameter(torch.empty(out_features, in_features))
@@ -177,8 +178,17 @@ class SEGABlock(nn.Module):
         x: (B, N, F), nbr: (N, K) int64, mask: (N, K) bool -> (B, N, H F' + F'')
     """
 
-    def __init__(self, in_features: int, head_features: int, heads: int, self_features: int, *,
-                 alpha: float = 2.0, tau: float = 2.0, use_sega: bool = True) -> None:
+    def __init__(
+        self,
+        in_features: int,
+        head_features: int,
+        heads: int,
+        self_features: int,
+        *,
+        alpha: float = 2.0,
+        tau: float = 2.0,
+        use_sega: bool = True,
+    ) -> None:
         super().__init__()
         self.in_features, self.head_features, self.heads = in_features, head_features, heads
         self.self_features, self.alpha, self.tau, self.use_sega = self_features, alpha, tau, use_sega
@@ -207,8 +217,9 @@ class SEGABlock(nn.Module):
         if self.self_stream is not None:
             self.self_stream.freeze()
 
-    def forward(self, x: torch.Tensor, nbr: torch.Tensor, mask: torch.Tensor,
-                lift: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(
+        self, x: torch.Tensor, nbr: torch.Tensor, mask: torch.Tensor, lift: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """``x (B, N, F) -> (B, N, out)``.  With ``lift (B, R, F)``, ``x`` is ``(N, R)`` shared by the
         batch and the block sees ``x @ lift[b]``, never formed: every linear map is applied as
         ``x @ (lift[b] @ W^T)`` (the decoder's blend features, Eq. 17, are ``g @ lift`` with ``R = S``
@@ -241,7 +252,7 @@ class SEGABlock(nn.Module):
         else:
             b = lift.shape[0]
             y = torch.matmul(x, torch.matmul(lift, w_all.t()))  # (N, R) @ (B, R, O)
-        z, v = y[..., :fp], y[..., fp:fp + h * fp]  # (B, N, F'), (B, N, H F')
+        z, v = y[..., :fp], y[..., fp : fp + h * fp]  # (B, N, F'), (B, N, H F')
         e = torch.matmul(z, torch.cat([self.att_src, self.att_dst], 0).t())  # (B, N, 2H): e_src | e_dst
         idx = nbr.t().reshape(-1)  # slot-major
         mf = mask.t().to(y.dtype)[:, :, None].expand(k, n, h)[None]  # (1, K, N, H)
@@ -274,10 +285,11 @@ class SEGABlock(nn.Module):
         phi = num / torch.matmul(ex.sum(dim=1).clamp_min(1e-30), expand)
         if self.self_stream is None:
             return phi
-        return torch.cat([phi, y[..., fp + h * fp:]], dim=-1)
+        return torch.cat([phi, y[..., fp + h * fp :]], dim=-1)
 
-    def forward_reference(self, x: torch.Tensor, nbr: torch.Tensor, mask: torch.Tensor,
-                          lift: torch.Tensor | None = None) -> torch.Tensor:
+    def forward_reference(
+        self, x: torch.Tensor, nbr: torch.Tensor, mask: torch.Tensor, lift: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """The slow, obvious form of :meth:`forward` (the lifted input formed, vertex-major
         ``(B, N, K, H)`` tensors, a per-row overflow-safe norm, a masked softmax): kept as the
         reference the tests compare with."""
@@ -318,5 +330,4 @@ class SEGABlock(nn.Module):
 
     def extra_repr(self) -> str:
         kind = f"alpha={self.alpha}, tau={self.tau}" if self.use_sega else "PlainGAT"
-        return (f"in={self.in_features}, heads={self.heads}x{self.head_features}, self={self.self_features}, "
-                f"{kind}")
+        return f"in={self.in_features}, heads={self.heads}x{self.head_features}, self={self.self_features}, {kind}"

@@ -23,13 +23,39 @@ from .motion import (
 from .procedural import MOTION_KINDS, make_motion
 from .spec import MotionSpec, build_motion, frame_range, select_frames
 
-__all__ = ["Motion", "N_POSE", "load_motion", "load_motion_npz", "feet_on_floor", "face_forward", "read_bvh", "write_bvh", "resample",
-           "motion_windows", "MOTION_KINDS", "make_motion", "MotionSpec", "build_motion", "frame_range",
-           "select_frames", "read_motion_file", "write_motion_file"]
+__all__ = [
+    "Motion",
+    "N_POSE",
+    "load_motion",
+    "load_motion_npz",
+    "feet_on_floor",
+    "face_forward",
+    "read_bvh",
+    "write_bvh",
+    "resample",
+    "motion_windows",
+    "MOTION_KINDS",
+    "make_motion",
+    "MotionSpec",
+    "build_motion",
+    "frame_range",
+    "select_frames",
+    "read_motion_file",
+    "write_motion_file",
+]
 
 
-def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", units=None, joint_map=None,
-                floor: bool = False, skeleton: str | os.PathLike | None = None, animation: str | None = None) -> Motion:
+def load_motion(
+    path: str | os.PathLike,
+    *,
+    rest_joints=None,
+    up: str = "auto",
+    units=None,
+    joint_map=None,
+    floor: bool = False,
+    skeleton: str | os.PathLike | None = None,
+    animation: str | None = None,
+) -> Motion:
     """Read a motion by extension onto the SMPL skeleton of a body.
 
     Args:
@@ -58,15 +84,27 @@ def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", 
 
         rest_joints = default_rest_joints()
     if skeleton is not None and ext != ".amc":
-        raise FileFormatError("a skeleton (.asf) applies to AMC motions only", path=p,
-                              expected=".amc with --skeleton", got=ext or "no extension")
+        raise FileFormatError(
+            "a skeleton (.asf) applies to AMC motions only",
+            path=p,
+            expected=".amc with --skeleton",
+            got=ext or "no extension",
+        )
     if animation is not None and ext not in (".glb", ".gltf"):
-        raise FileFormatError("an animation name applies to glTF files only", path=p,
-                              expected=".glb or .gltf with --animation", got=ext or "no extension")
+        raise FileFormatError(
+            "an animation name applies to glTF files only",
+            path=p,
+            expected=".glb or .gltf with --animation",
+            got=ext or "no extension",
+        )
     if ext == ".npz":
         if units is not None or joint_map is not None:
-            raise FileFormatError("units and joint maps apply to BVH files only", path=p,
-                                  expected=".bvh for --units / --joint-map", got=ext)
+            raise FileFormatError(
+                "units and joint maps apply to BVH files only",
+                path=p,
+                expected=".bvh for --units / --joint-map",
+                got=ext,
+            )
         m = load_motion_npz(p, up=up, rest_joints=rest_joints)
     elif ext == ".bvh":
         m = read_bvh(p, rest_joints=rest_joints, up=up, units=units, joint_map=joint_map)
@@ -78,17 +116,28 @@ def load_motion(path: str | os.PathLike, *, rest_joints=None, up: str = "auto", 
         from .asf import read_amc
 
         if units is not None:
-            raise FileFormatError("units apply to BVH files only: an ASF states its own (:units length)", path=p,
-                                  expected="no --units for .amc", got=units)
+            raise FileFormatError(
+                "units apply to BVH files only: an ASF states its own (:units length)",
+                path=p,
+                expected="no --units for .amc",
+                got=units,
+            )
         m = read_amc(p, skeleton, rest_joints=rest_joints, up=up, joint_map=joint_map)
     elif ext == ".sgdm":  # a motion file (segadeform motion export): already on the skeleton, y-up, retargeted
         if units is not None or joint_map is not None or up not in ("auto", "y"):
-            raise FileFormatError("a motion file (.sgdm) is already retargeted, y-up: units, joint maps and up "
-                                  "axes do not apply", path=p, expected="no --units, --joint-map or --motion-up z",
-                                  got=", ".join(k for k, v in (("units", units), ("joint map", joint_map),
-                                                               ("up " + str(up), up not in ("auto", "y"))) if v))
+            raise FileFormatError(
+                "a motion file (.sgdm) is already retargeted, y-up: units, joint maps and up axes do not apply",
+                path=p,
+                expected="no --units, --joint-map or --motion-up z",
+                got=", ".join(
+                    k
+                    for k, v in (("units", units), ("joint map", joint_map), ("up " + str(up), up not in ("auto", "y")))
+                    if v
+                ),
+            )
         m, _ = read_motion_file(p)
     else:
-        raise FileFormatError("unknown motion file type", path=p, expected=".npz, .bvh, .amc, .glb, .gltf or .sgdm",
-                              got=ext or "none")
+        raise FileFormatError(
+            "unknown motion file type", path=p, expected=".npz, .bvh, .amc, .glb, .gltf or .sgdm", got=ext or "none"
+        )
     return feet_on_floor(m, rest_joints) if floor else m

@@ -48,8 +48,18 @@ from ..errors import FileFormatError, file_error
 from .bvh import BVHSkeleton, skeleton_motion, to_y_up
 from .motion import Motion
 
-__all__ = ["ASFSkeleton", "AMCValues", "read_asf", "read_amc_values", "amc_skeleton", "read_amc", "find_asf",
-           "asf_forward_kinematics", "metres_per_unit", "CMU_FPS"]
+__all__ = [
+    "ASFSkeleton",
+    "AMCValues",
+    "read_asf",
+    "read_amc_values",
+    "amc_skeleton",
+    "read_amc",
+    "find_asf",
+    "asf_forward_kinematics",
+    "metres_per_unit",
+    "CMU_FPS",
+]
 
 #: CMU's capture rate (frames per second); AMC files do not state one.
 CMU_FPS = 120.0
@@ -117,6 +127,7 @@ def metres_per_unit(length_unit: float) -> float:
 # ---------------------------------------------------------------------------------------------------------
 # ASF
 
+
 def _read_text(path: Path, what: str) -> str:
     try:
         data = path.read_bytes()
@@ -132,7 +143,7 @@ def _asf_lines(text: str):
     table = str.maketrans({",": " ", "(": " ", ")": " "})
     for ln, line in enumerate(text.splitlines(), 1):
         if "#" in line:
-            line = line[:line.index("#")]
+            line = line[: line.index("#")]
         toks = line.translate(table).split()
         if toks:
             yield ln, toks
@@ -140,8 +151,9 @@ def _asf_lines(text: str):
 
 def _floats(toks, n, what, path, ln, *, allow_inf=False):
     if len(toks) != n:
-        raise FileFormatError(f"{what} takes {n} number{'s' if n != 1 else ''}", path=path, line=ln,
-                              expected=n, got=len(toks))
+        raise FileFormatError(
+            f"{what} takes {n} number{'s' if n != 1 else ''}", path=path, line=ln, expected=n, got=len(toks)
+        )
     out = []
     for t in toks:
         try:
@@ -157,8 +169,9 @@ def _floats(toks, n, what, path, ln, *, allow_inf=False):
 def _rotation_order(tok: str, path, ln, what) -> str:
     order = tok.lower()
     if sorted(order) != ["x", "y", "z"]:
-        raise FileFormatError(f"{what} order must be a permutation of XYZ", path=path, line=ln,
-                              expected="XYZ, ZYX, ...", got=tok)
+        raise FileFormatError(
+            f"{what} order must be a permutation of XYZ", path=path, line=ln, expected="XYZ, ZYX, ...", got=tok
+        )
     return order
 
 
@@ -204,8 +217,9 @@ def read_asf(path: str | os.PathLike) -> ASFSkeleton:
         key = toks[0].lower()
         if key.startswith(":"):
             if key not in _SECTIONS:
-                raise FileFormatError(f"unknown ASF keyword {toks[0]!r}", path=p, line=ln,
-                                      expected=" ".join(_SECTIONS), got=toks[0])
+                raise FileFormatError(
+                    f"unknown ASF keyword {toks[0]!r}", path=p, line=ln, expected=" ".join(_SECTIONS), got=toks[0]
+                )
             if bone is not None:
                 raise FileFormatError("bone block not closed", path=p, line=ln, expected="end", got=toks[0])
             if key in seen_sections and key in (":units", ":root", ":bonedata", ":hierarchy"):
@@ -216,8 +230,13 @@ def read_asf(path: str | os.PathLike) -> ASFSkeleton:
                 root["line"] = ln
             continue
         if section is None:
-            raise FileFormatError("ASF data before any keyword", path=p, line=ln,
-                                  expected=":version, :units, :root, :bonedata ...", got=toks[0])
+            raise FileFormatError(
+                "ASF data before any keyword",
+                path=p,
+                line=ln,
+                expected=":version, :units, :root, :bonedata ...",
+                got=toks[0],
+            )
         if section in (":version", ":name", ":documentation", ":skin"):
             continue
         if section == ":units":
@@ -228,30 +247,50 @@ def read_asf(path: str | os.PathLike) -> ASFSkeleton:
                 units[key] = v
             elif key == "angle":
                 if len(toks) != 2 or toks[1].lower() not in ("deg", "rad"):
-                    raise FileFormatError("units angle must be deg or rad", path=p, line=ln,
-                                          expected="deg | rad", got=" ".join(toks[1:]) or "nothing")
+                    raise FileFormatError(
+                        "units angle must be deg or rad",
+                        path=p,
+                        line=ln,
+                        expected="deg | rad",
+                        got=" ".join(toks[1:]) or "nothing",
+                    )
                 units["angle"] = toks[1].lower()
             else:
-                raise FileFormatError(f"unknown unit {toks[0]!r}", path=p, line=ln, expected="mass, length, angle",
-                                      got=toks[0])
+                raise FileFormatError(
+                    f"unknown unit {toks[0]!r}", path=p, line=ln, expected="mass, length, angle", got=toks[0]
+                )
         elif section == ":root":
             if key == "order":
                 order = tuple(t.lower() for t in toks[1:])
                 if not order or any(t not in _ROOT_DOFS for t in order) or len(set(order)) != len(order):
-                    raise FileFormatError("root order must list TX TY TZ RX RY RZ, each at most once", path=p,
-                                          line=ln, expected="e.g. TX TY TZ RX RY RZ",
-                                          got=" ".join(toks[1:]) or "nothing")
+                    raise FileFormatError(
+                        "root order must list TX TY TZ RX RY RZ, each at most once",
+                        path=p,
+                        line=ln,
+                        expected="e.g. TX TY TZ RX RY RZ",
+                        got=" ".join(toks[1:]) or "nothing",
+                    )
                 root["order"] = order
             elif key == "axis":
                 if len(toks) != 2:
-                    raise FileFormatError("root axis takes one rotation order", path=p, line=ln, expected="e.g. XYZ",
-                                          got=" ".join(toks[1:]) or "nothing")
+                    raise FileFormatError(
+                        "root axis takes one rotation order",
+                        path=p,
+                        line=ln,
+                        expected="e.g. XYZ",
+                        got=" ".join(toks[1:]) or "nothing",
+                    )
                 root["axis"] = _rotation_order(toks[1], p, ln, "root axis")
             elif key in ("position", "orientation"):
                 root[key] = _floats(toks[1:], 3, f"root {key}", p, ln)
             else:
-                raise FileFormatError(f"unknown root entry {toks[0]!r}", path=p, line=ln,
-                                      expected="order, axis, position, orientation", got=toks[0])
+                raise FileFormatError(
+                    f"unknown root entry {toks[0]!r}",
+                    path=p,
+                    line=ln,
+                    expected="order, axis, position, orientation",
+                    got=toks[0],
+                )
         elif section == ":bonedata":
             if bone is None:
                 if key != "begin":
@@ -272,8 +311,9 @@ def read_asf(path: str | os.PathLike) -> ASFSkeleton:
                     raise FileFormatError("id takes one value", path=p, line=ln, expected=1, got=len(toks) - 1)
             elif key == "name":
                 if len(toks) != 2:
-                    raise FileFormatError("bone name must be one word", path=p, line=ln,
-                                          got=" ".join(toks[1:]) or "nothing")
+                    raise FileFormatError(
+                        "bone name must be one word", path=p, line=ln, got=" ".join(toks[1:]) or "nothing"
+                    )
                 bone.name = toks[1]
             elif key == "direction":
                 bone.direction = _floats(toks[1:], 3, "direction", p, ln)
@@ -283,17 +323,26 @@ def read_asf(path: str | os.PathLike) -> ASFSkeleton:
                     raise FileFormatError("bone length is negative", path=p, line=ln, expected=">= 0", got=bone.length)
             elif key == "axis":
                 if len(toks) != 5:
-                    raise FileFormatError("axis takes three angles and an order", path=p, line=ln,
-                                          expected="e.g. axis 0 0 20 XYZ", got=" ".join(toks[1:]) or "nothing")
+                    raise FileFormatError(
+                        "axis takes three angles and an order",
+                        path=p,
+                        line=ln,
+                        expected="e.g. axis 0 0 20 XYZ",
+                        got=" ".join(toks[1:]) or "nothing",
+                    )
                 bone.axis = tuple(_floats(toks[1:4], 3, "axis", p, ln))
                 bone.order = _rotation_order(toks[4], p, ln, "axis")
             elif key == "dof":
                 dofs = tuple(t.lower() for t in toks[1:])
                 bad = [d for d in dofs if d not in _ROT_DOFS]
                 if not dofs or bad or len(set(dofs)) != len(dofs):
-                    raise FileFormatError("dof must list rotations rx, ry, rz, each at most once", path=p, line=ln,
-                                          expected="e.g. dof rx ry rz (translation and length dofs are not read)",
-                                          got=" ".join(toks[1:]) or "nothing")
+                    raise FileFormatError(
+                        "dof must list rotations rx, ry, rz, each at most once",
+                        path=p,
+                        line=ln,
+                        expected="e.g. dof rx ry rz (translation and length dofs are not read)",
+                        got=" ".join(toks[1:]) or "nothing",
+                    )
                 bone.dofs = dofs
             elif key == "limits":
                 limits_open = True
@@ -302,34 +351,54 @@ def read_asf(path: str | os.PathLike) -> ASFSkeleton:
             elif key in ("bodymass", "cofmass"):
                 _floats(toks[1:], 1, key, p, ln)
             else:
-                raise FileFormatError(f"unknown bone entry {toks[0]!r}", path=p, line=ln,
-                                      expected="id, name, direction, length, axis, dof, limits, bodymass, cofmass",
-                                      got=toks[0])
+                raise FileFormatError(
+                    f"unknown bone entry {toks[0]!r}",
+                    path=p,
+                    line=ln,
+                    expected="id, name, direction, length, axis, dof, limits, bodymass, cofmass",
+                    got=toks[0],
+                )
         elif section == ":hierarchy":
             if not in_block:
                 if key != "begin":
-                    raise FileFormatError("expected 'begin' of the hierarchy", path=p, line=ln, expected="begin",
-                                          got=toks[0])
+                    raise FileFormatError(
+                        "expected 'begin' of the hierarchy", path=p, line=ln, expected="begin", got=toks[0]
+                    )
                 in_block = True
                 continue
             if key == "end":
                 section = None
                 continue
             if len(toks) < 2:
-                raise FileFormatError("hierarchy line names a parent and no children", path=p, line=ln,
-                                      expected="parent child [child ...]", got=toks[0])
+                raise FileFormatError(
+                    "hierarchy line names a parent and no children",
+                    path=p,
+                    line=ln,
+                    expected="parent child [child ...]",
+                    got=toks[0],
+                )
             hier.append((ln, toks))
     if bone is not None:
         raise FileFormatError("the file ends inside a bone block", path=p, expected="end", got="end of file")
     if section is None and not seen_sections:
-        raise FileFormatError("ASF is empty", path=p, expected="an ASF skeleton (:units, :root, :bonedata, :hierarchy)",
-                              got="no keywords" if text.strip() else "an empty file")
+        raise FileFormatError(
+            "ASF is empty",
+            path=p,
+            expected="an ASF skeleton (:units, :root, :bonedata, :hierarchy)",
+            got="no keywords" if text.strip() else "an empty file",
+        )
     if root["order"] is None:
-        raise FileFormatError("ASF has no :root order", path=p, line=root["line"],
-                              expected="a :root section with order TX TY TZ RX RY RZ", got="none")
+        raise FileFormatError(
+            "ASF has no :root order",
+            path=p,
+            line=root["line"],
+            expected="a :root section with order TX TY TZ RX RY RZ",
+            got="none",
+        )
     if not bones:
-        raise FileFormatError("ASF has no bones", path=p, expected="a :bonedata section with begin/end blocks",
-                              got="none")
+        raise FileFormatError(
+            "ASF has no bones", path=p, expected="a :bonedata section with begin/end blocks", got="none"
+        )
     if not hier:
         raise FileFormatError("ASF has no :hierarchy", path=p, expected="a :hierarchy section", got="none")
     return _assemble(p, units, root, bones, hier)
@@ -352,8 +421,13 @@ def _finish_bone(b: _Bone, path, ln) -> None:
     d = np.asarray(b.direction, np.float64)
     n = float(np.linalg.norm(d))
     if n < 1e-9:
-        raise FileFormatError(f"bone {b.name!r} has a zero direction", path=path, line=b.line,
-                              expected="a non-zero vector", got=b.direction)
+        raise FileFormatError(
+            f"bone {b.name!r} has a zero direction",
+            path=path,
+            line=b.line,
+            expected="a non-zero vector",
+            got=b.direction,
+        )
     b.direction = d / n
     lims = []
     for lln, toks in b.limits:
@@ -362,8 +436,13 @@ def _finish_bone(b: _Bone, path, ln) -> None:
             raise FileFormatError("limits come in (min max) pairs", path=path, line=lln, got=len(vals))
         lims += [(vals[k], vals[k + 1]) for k in range(0, len(vals), 2)]
     if lims and len(lims) != len(b.dofs):
-        raise FileFormatError(f"bone {b.name!r} has {len(b.dofs)} dofs and {len(lims)} limits", path=path,
-                              line=b.limits[0][0], expected=f"{len(b.dofs)} (min max) pairs", got=len(lims))
+        raise FileFormatError(
+            f"bone {b.name!r} has {len(b.dofs)} dofs and {len(lims)} limits",
+            path=path,
+            line=b.limits[0][0],
+            expected=f"{len(b.dofs)} (min max) pairs",
+            got=len(lims),
+        )
     b.limits = tuple(lims)
 
 
@@ -371,36 +450,57 @@ def _assemble(p: Path, units, root, bones: list, hier) -> ASFSkeleton:
     by_name: dict[str, int] = {}
     for i, b in enumerate(bones):
         if b.name in by_name:
-            raise FileFormatError(f"bone {b.name!r} is defined twice", path=p, line=b.line,
-                                  expected="unique bone names", got=b.name)
+            raise FileFormatError(
+                f"bone {b.name!r} is defined twice", path=p, line=b.line, expected="unique bone names", got=b.name
+            )
         by_name[b.name] = i
     parent: dict[str, tuple[str, int]] = {}
     children: dict[str, list[str]] = {"root": []}
     for ln, toks in hier:
         par, kids = toks[0], toks[1:]
         if par != "root" and par not in by_name:
-            raise FileFormatError(f"unknown bone {par!r} in the hierarchy", path=p, line=ln,
-                                  expected="root or a bone of :bonedata", got=par)
+            raise FileFormatError(
+                f"unknown bone {par!r} in the hierarchy",
+                path=p,
+                line=ln,
+                expected="root or a bone of :bonedata",
+                got=par,
+            )
         for k in kids:
             if k not in by_name:
-                raise FileFormatError(f"unknown bone {k!r} in the hierarchy", path=p, line=ln,
-                                      expected="a bone of :bonedata", got=k)
+                raise FileFormatError(
+                    f"unknown bone {k!r} in the hierarchy", path=p, line=ln, expected="a bone of :bonedata", got=k
+                )
             if k in parent:
-                raise FileFormatError(f"bone {k!r} has two parents in the hierarchy", path=p, line=ln,
-                                      expected="one parent per bone", got=f"{parent[k][0]} and {par}")
+                raise FileFormatError(
+                    f"bone {k!r} has two parents in the hierarchy",
+                    path=p,
+                    line=ln,
+                    expected="one parent per bone",
+                    got=f"{parent[k][0]} and {par}",
+                )
             parent[k] = (par, ln)
             children.setdefault(par, []).append(k)
     for b in bones:  # every bone hangs from the root, through no cycle
         seen, cur = [b.name], b.name
         while cur != "root":
             if cur not in parent:
-                raise FileFormatError(f"bone {cur!r} is not connected to the root in the hierarchy", path=p,
-                                      line=bones[by_name[cur]].line, expected="a chain of parents up to root",
-                                      got=" <- ".join(seen))
+                raise FileFormatError(
+                    f"bone {cur!r} is not connected to the root in the hierarchy",
+                    path=p,
+                    line=bones[by_name[cur]].line,
+                    expected="a chain of parents up to root",
+                    got=" <- ".join(seen),
+                )
             cur, ln = parent[cur]
             if cur in seen:
-                raise FileFormatError("the hierarchy has a cycle", path=p, line=ln, expected="a tree under root",
-                                      got=" -> ".join([cur] + seen[seen.index(cur):][::-1]))
+                raise FileFormatError(
+                    "the hierarchy has a cycle",
+                    path=p,
+                    line=ln,
+                    expected="a tree under root",
+                    got=" -> ".join([cur] + seen[seen.index(cur) :][::-1]),
+                )
             seen.append(cur)
     order: list[str] = []
     stack = ["root"]
@@ -422,14 +522,25 @@ def _assemble(p: Path, units, root, bones: list, hier) -> ASFSkeleton:
         dofs.append(b.dofs)
         limits.append(b.limits)
         lines.append(b.line)
-    return ASFSkeleton(path=p, names=tuple(order), parents=parents, directions=directions, lengths=lengths,
-                       axes=axes, dofs=tuple(dofs), limits=tuple(limits),
-                       position=np.asarray(root["position"], np.float64), length_unit=float(units["length"]),
-                       angle=units["angle"], lines=tuple(lines))
+    return ASFSkeleton(
+        path=p,
+        names=tuple(order),
+        parents=parents,
+        directions=directions,
+        lengths=lengths,
+        axes=axes,
+        dofs=tuple(dofs),
+        limits=tuple(limits),
+        position=np.asarray(root["position"], np.float64),
+        length_unit=float(units["length"]),
+        angle=units["angle"],
+        lines=tuple(lines),
+    )
 
 
 # ---------------------------------------------------------------------------------------------------------
 # AMC
+
 
 @dataclasses.dataclass(frozen=True)
 class AMCValues:
@@ -458,17 +569,20 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
     def close_frame():
         if fully and len(seen) != len(required):
             missing = sorted(required - seen, key=skeleton.names.index)
-            raise FileFormatError(f"frame {first + len(frame_lines) - 1} lacks bone {missing[0]!r}", path=p,
-                                  line=frame_lines[-1],
-                                  expected="every bone with dofs in each frame (:FULLY-SPECIFIED)",
-                                  got=f"{len(seen)} of {len(required)} bones; missing {', '.join(missing[:4])}")
+            raise FileFormatError(
+                f"frame {first + len(frame_lines) - 1} lacks bone {missing[0]!r}",
+                path=p,
+                line=frame_lines[-1],
+                expected="every bone with dofs in each frame (:FULLY-SPECIFIED)",
+                got=f"{len(seen)} of {len(required)} bones; missing {', '.join(missing[:4])}",
+            )
 
     for ln, line in enumerate(text.splitlines(), 1):
         parts = line.split()
         if not parts:
             continue
         if "#" in line:
-            parts = line[:line.index("#")].split()
+            parts = line[: line.index("#")].split()
             if not parts:
                 continue
         head = parts[0]
@@ -476,11 +590,21 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
         if k is not None and first is not None:  # a bone's values: most lines
             if len(parts) - 1 != k:
                 dof = " ".join(skeleton.dofs[skeleton.names.index(head)]) or "none"
-                raise FileFormatError(f"wrong number of values for bone {head!r}", path=p, line=ln,
-                                      expected=f"{k} (dof {dof} in {skeleton.path.name})", got=len(parts) - 1)
+                raise FileFormatError(
+                    f"wrong number of values for bone {head!r}",
+                    path=p,
+                    line=ln,
+                    expected=f"{k} (dof {dof} in {skeleton.path.name})",
+                    got=len(parts) - 1,
+                )
             if head in seen:
-                raise FileFormatError(f"bone {head!r} given twice in frame {first + len(frame_lines) - 1}", path=p,
-                                      line=ln, expected="each bone once per frame", got=head)
+                raise FileFormatError(
+                    f"bone {head!r} given twice in frame {first + len(frame_lines) - 1}",
+                    path=p,
+                    line=ln,
+                    expected="each bone once per frame",
+                    got=head,
+                )
             seen.add(head)
             tokens[head] += parts[1:]
             line_of[head].append(ln)
@@ -490,33 +614,58 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
             if first is None:
                 first = num
             elif num != first + len(frame_lines):
-                raise FileFormatError("frame numbers are not consecutive", path=p, line=ln,
-                                      expected=f"frame {first + len(frame_lines)}", got=f"frame {num}")
+                raise FileFormatError(
+                    "frame numbers are not consecutive",
+                    path=p,
+                    line=ln,
+                    expected=f"frame {first + len(frame_lines)}",
+                    got=f"frame {num}",
+                )
             else:
                 close_frame()
             frame_lines.append(ln)
             seen = set()
         elif head.startswith(":"):
             if first is not None:
-                raise FileFormatError(f"header keyword {head!r} among the frames", path=p, line=ln,
-                                      expected="a bone line or a frame number", got=head)
+                raise FileFormatError(
+                    f"header keyword {head!r} among the frames",
+                    path=p,
+                    line=ln,
+                    expected="a bone line or a frame number",
+                    got=head,
+                )
             kw = head.upper()
             if kw == ":FULLY-SPECIFIED":
                 fully = True
             elif kw in (":DEGREES", ":RADIANS"):
                 angle = "deg" if kw == ":DEGREES" else "rad"
             else:
-                raise FileFormatError(f"unknown AMC keyword {head!r}", path=p, line=ln,
-                                      expected=":FULLY-SPECIFIED, :DEGREES or :RADIANS", got=head)
+                raise FileFormatError(
+                    f"unknown AMC keyword {head!r}",
+                    path=p,
+                    line=ln,
+                    expected=":FULLY-SPECIFIED, :DEGREES or :RADIANS",
+                    got=head,
+                )
         elif first is None:
-            raise FileFormatError("AMC data before the first frame number", path=p, line=ln,
-                                  expected="a frame number (e.g. 1)", got=head)
+            raise FileFormatError(
+                "AMC data before the first frame number", path=p, line=ln, expected="a frame number (e.g. 1)", got=head
+            )
         else:
-            raise FileFormatError(f"bone {head!r} is not in the skeleton", path=p, line=ln,
-                                  expected=f"a bone of {skeleton.path.name}", got=head)
+            raise FileFormatError(
+                f"bone {head!r} is not in the skeleton",
+                path=p,
+                line=ln,
+                expected=f"a bone of {skeleton.path.name}",
+                got=head,
+            )
     if first is None:
-        raise FileFormatError("AMC has no frames", path=p, expected="frame numbers followed by bone values",
-                              got="an empty file" if not text.strip() else "no frame numbers")
+        raise FileFormatError(
+            "AMC has no frames",
+            path=p,
+            expected="frame numbers followed by bone values",
+            got="an empty file" if not text.strip() else "no frame numbers",
+        )
     close_frame()
     n_frames = len(frame_lines)
     values = {}
@@ -529,13 +678,23 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
             v = np.fromiter(map(float, toks), np.float64, len(toks)).reshape(-1, k)
         except ValueError:
             bad = next(i for i, t in enumerate(toks) if not _isnum(t))
-            raise FileFormatError(f"bone {n!r} has a value that is not a number", path=p, line=line_of[n][bad // k],
-                                  expected="a number", got=toks[bad]) from None
+            raise FileFormatError(
+                f"bone {n!r} has a value that is not a number",
+                path=p,
+                line=line_of[n][bad // k],
+                expected="a number",
+                got=toks[bad],
+            ) from None
         ok = np.isfinite(v)
         if not ok.all():
             r, c = (int(x[0]) for x in np.nonzero(~ok))
-            raise FileFormatError(f"bone {n!r} has a value that is not finite", path=p, line=line_of[n][r],
-                                  expected="finite numbers", got=toks[r * k + c])
+            raise FileFormatError(
+                f"bone {n!r} has a value that is not finite",
+                path=p,
+                line=line_of[n][r],
+                expected="finite numbers",
+                got=toks[r * k + c],
+            )
         if len(v) == n_frames:
             values[n] = v
             continue
@@ -547,12 +706,14 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
         out = np.zeros((n_frames, k))
         out[last >= 0] = v[last[last >= 0]]
         values[n] = out
-    return AMCValues(path=p, values=values, first_frame=int(first), n_frames=n_frames, angle=angle,
-                     fully_specified=fully)
+    return AMCValues(
+        path=p, values=values, first_frame=int(first), n_frames=n_frames, angle=angle, fully_specified=fully
+    )
 
 
 # ---------------------------------------------------------------------------------------------------------
 # forward kinematics
+
 
 def asf_forward_kinematics(skeleton: ASFSkeleton, amc: AMCValues) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Global bone rotations and bone start and end positions per frame (module docstring).
@@ -638,6 +799,7 @@ def _fk_reference(skeleton: ASFSkeleton, amc: AMCValues) -> tuple[np.ndarray, np
 # ---------------------------------------------------------------------------------------------------------
 # onto SMPL
 
+
 def find_asf(amc_path: str | os.PathLike) -> Path:
     """The ASF skeleton of an AMC when none is given: the one ``.asf`` in the AMC's folder, or, among
     several, ``SUBJECT.asf`` for ``SUBJECT_TRIAL.amc`` (CMU's naming)."""
@@ -653,13 +815,21 @@ def find_asf(amc_path: str | os.PathLike) -> Path:
     named = [q for q in found if q.stem == subject]
     if len(named) == 1:
         return named[0]
-    raise FileFormatError("cannot tell which skeleton this AMC uses", path=p,
-                          expected=f"one .asf in {folder} (or {subject}.asf), or --skeleton SUBJECT.asf",
-                          got=", ".join(q.name for q in found[:6]) if found else "no .asf there")
+    raise FileFormatError(
+        "cannot tell which skeleton this AMC uses",
+        path=p,
+        expected=f"one .asf in {folder} (or {subject}.asf), or --skeleton SUBJECT.asf",
+        got=", ".join(q.name for q in found[:6]) if found else "no .asf there",
+    )
 
 
-def amc_skeleton(path: str | os.PathLike, skeleton: str | os.PathLike | ASFSkeleton | None = None, *,
-                 fps: float = CMU_FPS, up: str = "y") -> BVHSkeleton:
+def amc_skeleton(
+    path: str | os.PathLike,
+    skeleton: str | os.PathLike | ASFSkeleton | None = None,
+    *,
+    fps: float = CMU_FPS,
+    up: str = "y",
+) -> BVHSkeleton:
     """An AMC motion on its ASF skeleton by forward kinematics, as a :class:`BVHSkeleton` in file units
     (one joint per bone at the bone's start, end sites at the bone ends; ``up``: the files' up axis,
     CMU's is y).  ``skeleton``: the ASF (a path or a parsed :class:`ASFSkeleton`); default: :func:`find_asf`."""
@@ -672,14 +842,24 @@ def amc_skeleton(path: str | os.PathLike, skeleton: str | os.PathLike | ASFSkele
     G, starts, ends = asf_forward_kinematics(skeleton, amc)
     rest_start, rest_end = skeleton.rest()
     if not (np.isfinite(rest_end).all() and np.isfinite(ends).all()):
-        raise FileFormatError("bone lengths or root positions are too large: positions overflow", path=p,
-                              expected="lengths and translations below 1e300", got="inf")
+        raise FileFormatError(
+            "bone lengths or root positions are too large: positions overflow",
+            path=p,
+            expected="lengths and translations below 1e300",
+            got="inf",
+        )
     return to_y_up(skeleton.names, skeleton.parents, rest_start, rest_end, G, starts, fps, up)
 
 
-def read_amc(path: str | os.PathLike, skeleton: str | os.PathLike | ASFSkeleton | None = None, *,
-             rest_joints: np.ndarray | None = None, fps: float = CMU_FPS, up: str = "y",
-             joint_map=None) -> Motion:
+def read_amc(
+    path: str | os.PathLike,
+    skeleton: str | os.PathLike | ASFSkeleton | None = None,
+    *,
+    rest_joints: np.ndarray | None = None,
+    fps: float = CMU_FPS,
+    up: str = "y",
+    joint_map=None,
+) -> Motion:
     """Read an AMC (with its ASF) onto the 24-joint SMPL skeleton, as :func:`~segadeform.motion.read_bvh`
     reads a BVH: the same mapping and retargeting.
 
@@ -694,7 +874,13 @@ def read_amc(path: str | os.PathLike, skeleton: str | os.PathLike | ASFSkeleton 
     p = Path(path)
     asf = skeleton if isinstance(skeleton, ASFSkeleton) else read_asf(find_asf(p) if skeleton is None else skeleton)
     sk = amc_skeleton(p, asf, fps=fps, up=up)
-    m = skeleton_motion(sk, p, rest_joints=rest_joints, scale="auto" if rest_joints is not None else asf.metres,
-                        joint_map=joint_map, fmt="amc")
+    m = skeleton_motion(
+        sk,
+        p,
+        rest_joints=rest_joints,
+        scale="auto" if rest_joints is not None else asf.metres,
+        joint_map=joint_map,
+        fmt="amc",
+    )
     m.meta.update(skeleton=str(asf.path), length_unit=asf.length_unit, metres_per_unit=asf.metres)
     return m

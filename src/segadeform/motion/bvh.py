@@ -46,8 +46,17 @@ from ..errors import FileFormatError, InputError, file_error
 from ..io.atomic import atomic_open
 from .motion import Motion
 
-__all__ = ["read_bvh", "write_bvh", "read_bvh_skeleton", "BVHSkeleton", "skeleton_motion", "to_y_up", "UNITS",
-           "MIXAMO_TO_SMPL", "SMPL_SHORT_NAMES"]
+__all__ = [
+    "read_bvh",
+    "write_bvh",
+    "read_bvh_skeleton",
+    "BVHSkeleton",
+    "skeleton_motion",
+    "to_y_up",
+    "UNITS",
+    "MIXAMO_TO_SMPL",
+    "SMPL_SHORT_NAMES",
+]
 
 #: metres per file unit of the units a BVH file may be in (``units=`` in :func:`read_bvh`).
 UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "cmu": 0.0254 / 0.45}
@@ -149,9 +158,12 @@ def _parse(text: str, path: Path):
     if n_frames < 1:
         raise FileFormatError("BVH has no frames", path=path, got=n_frames)
     if len(rest) != n_frames * n_ch:
-        raise FileFormatError("BVH motion data does not match its declared size", path=path,
-                              expected=f"{n_frames} frames x {n_ch} channels = {n_frames * n_ch} numbers",
-                              got=len(rest))
+        raise FileFormatError(
+            "BVH motion data does not match its declared size",
+            path=path,
+            expected=f"{n_frames} frames x {n_ch} channels = {n_frames * n_ch} numbers",
+            got=len(rest),
+        )
     try:
         data = np.array([float(t) for _, t in rest], np.float64).reshape(n_frames, n_ch)
     except ValueError:
@@ -264,8 +276,16 @@ def to_y_up(names, parents, rest, ends, rotations, positions, fps, up: str = "au
         Q = Z_UP_TO_Y_UP
         rest, ends, pos = rest @ Q.T, ends @ Q.T, pos @ Q.T
         glob = Q @ glob @ Q.T
-    return BVHSkeleton(names=tuple(names), parents=np.asarray(parents, np.int64), rest=rest, ends=ends,
-                       rotations=glob, positions=pos, fps=float(fps), up=up)
+    return BVHSkeleton(
+        names=tuple(names),
+        parents=np.asarray(parents, np.int64),
+        rest=rest,
+        ends=ends,
+        rotations=glob,
+        positions=pos,
+        fps=float(fps),
+        up=up,
+    )
 
 
 def guess_units(leg_length: float) -> str:
@@ -273,8 +293,15 @@ def guess_units(leg_length: float) -> str:
     return min(UNITS, key=lambda u: abs(np.log(max(leg_length, 1e-12) * UNITS[u] / _TYPICAL_LEGS_M)))
 
 
-def read_bvh(path: str | os.PathLike, *, rest_joints: np.ndarray | None = None, scale: float | str = "auto",
-             units: str | float | None = None, up: str = "auto", joint_map=None) -> Motion:
+def read_bvh(
+    path: str | os.PathLike,
+    *,
+    rest_joints: np.ndarray | None = None,
+    scale: float | str = "auto",
+    units: str | float | None = None,
+    up: str = "auto",
+    joint_map=None,
+) -> Motion:
     """Read a BVH onto the 24-joint SMPL skeleton (see the module docstring).
 
     Args:
@@ -291,13 +318,21 @@ def read_bvh(path: str | os.PathLike, *, rest_joints: np.ndarray | None = None, 
     joints left out, the guessed unit and the scale used.
     """
     p = Path(path)
-    return skeleton_motion(read_bvh_skeleton(p, up=up), p, rest_joints=rest_joints, scale=scale, units=units,
-                           joint_map=joint_map)
+    return skeleton_motion(
+        read_bvh_skeleton(p, up=up), p, rest_joints=rest_joints, scale=scale, units=units, joint_map=joint_map
+    )
 
 
-def skeleton_motion(sk: BVHSkeleton, path: Path, *, rest_joints: np.ndarray | None = None,
-                    scale: float | str = "auto", units: str | float | None = None, joint_map=None,
-                    fmt: str = "bvh") -> Motion:
+def skeleton_motion(
+    sk: BVHSkeleton,
+    path: Path,
+    *,
+    rest_joints: np.ndarray | None = None,
+    scale: float | str = "auto",
+    units: str | float | None = None,
+    joint_map=None,
+    fmt: str = "bvh",
+) -> Motion:
     """A mocap skeleton's motion (:class:`BVHSkeleton`, from a BVH or an ASF/AMC) mapped onto SMPL's joints
     (:func:`~segadeform.body.skeleton_map.map_skeleton`) and retargeted onto ``rest_joints``
     (:func:`~segadeform.body.retarget.retarget_to_smpl`); the arguments as for :func:`read_bvh`, ``path``
@@ -344,10 +379,18 @@ def skeleton_motion(sk: BVHSkeleton, path: Path, *, rest_joints: np.ndarray | No
                 raise FileFormatError(e.problem, path=p, got=e.got) from None
     rot, trans = retarget_to_smpl(src, sk.rest, sk.rotations, sk.positions, target, scale_f)
     poses = matrix_to_axis_angle(rot).reshape(len(rot), 72)
-    meta = {"format": fmt, "scheme": mapping.scheme, "mapped": mapping.mapped(), "found_by": mapping.how(),
-            "virtual": mapping.virtual,
-            "ignored": mapping.ignored, "units_guess": unit_guess, "scale": float(scale_f), "up": sk.up,
-            "source_fps": float(sk.fps)}
+    meta = {
+        "format": fmt,
+        "scheme": mapping.scheme,
+        "mapped": mapping.mapped(),
+        "found_by": mapping.how(),
+        "virtual": mapping.virtual,
+        "ignored": mapping.ignored,
+        "units_guess": unit_guess,
+        "scale": float(scale_f),
+        "up": sk.up,
+        "source_fps": float(sk.fps),
+    }
     try:  # the frame rate and root travel within physical bounds (segadeform.bounds), naming the file
         return Motion(poses=poses, trans=trans, fps=sk.fps, name=p.stem, meta=meta)
     except InputError as e:
@@ -374,8 +417,15 @@ def _own_rest(rest: np.ndarray, src: np.ndarray) -> np.ndarray:
     return out
 
 
-def write_bvh(path: str | os.PathLike, motion: Motion, rest_joints: np.ndarray, *, scale: float = 1.0,
-              order: str = "zyx", precision: int = 6) -> Path:
+def write_bvh(
+    path: str | os.PathLike,
+    motion: Motion,
+    rest_joints: np.ndarray,
+    *,
+    scale: float = 1.0,
+    order: str = "zyx",
+    precision: int = 6,
+) -> Path:
     """Write ``motion`` on the SMPL skeleton with ``rest_joints (24, 3)`` as a BVH, atomically.
 
     ``scale`` converts metres to file units (100 for centimetres).

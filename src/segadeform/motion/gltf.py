@@ -40,8 +40,14 @@ from ..errors import FileFormatError, InputError, check_readable, unreadable_err
 from .bvh import BVHSkeleton, skeleton_motion, to_y_up
 from .motion import Motion
 
-__all__ = ["read_gltf", "read_gltf_skeleton", "gltf_animations", "sample_channel", "sample_channel_reference",
-           "GLTF_EXTENSIONS"]
+__all__ = [
+    "read_gltf",
+    "read_gltf_skeleton",
+    "gltf_animations",
+    "sample_channel",
+    "sample_channel_reference",
+    "GLTF_EXTENSIONS",
+]
 
 GLTF_EXTENSIONS = (".glb", ".gltf")
 _DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
@@ -81,8 +87,9 @@ class _File:
     def buffer(self, i: int) -> bytes:
         if i not in self._buffers:
             if not 0 <= i < len(self.g.buffers):
-                raise self.error("bufferView names a buffer that is not there", expected=f"0..{len(self.g.buffers) - 1}",
-                                 got=i)
+                raise self.error(
+                    "bufferView names a buffer that is not there", expected=f"0..{len(self.g.buffers) - 1}", got=i
+                )
             uri = self.g.buffers[i].uri
             if uri is None:  # the GLB's own binary chunk
                 data = self.g.binary_blob()
@@ -96,8 +103,9 @@ class _File:
                 try:
                     data = f.read_bytes()
                 except OSError:
-                    raise self.error(f"buffer {i}'s file is missing", expected="a readable file beside it",
-                                     got=uri) from None
+                    raise self.error(
+                        f"buffer {i}'s file is missing", expected="a readable file beside it", got=uri
+                    ) from None
             if data is None:
                 raise self.error(f"buffer {i} has no data")
             self._buffers[i] = bytes(data)
@@ -125,8 +133,11 @@ class _File:
         stride = int(bv.byteStride or elem)
         need = start + (count - 1) * stride + elem if count else start
         if need > int(bv.byteOffset or 0) + int(bv.byteLength) or need > len(data) or stride < elem:
-            raise self.error(f"{what} reaches outside its buffer", expected=f"<= {min(len(data), bv.byteLength)} bytes",
-                             got=f"{need} bytes")
+            raise self.error(
+                f"{what} reaches outside its buffer",
+                expected=f"<= {min(len(data), bv.byteLength)} bytes",
+                got=f"{need} bytes",
+            )
         raw = np.ndarray((count, width), dtype=dt, buffer=data, offset=start, strides=(stride, dt.itemsize))
         out = raw.astype(np.float64)
         if a.normalized and dt.kind in "iu":
@@ -141,8 +152,9 @@ def gltf_animations(path: str | os.PathLike) -> list[str]:
 
 
 # ---- sampling ----------------------------------------------------------------------------------------------
-def sample_channel(times: np.ndarray, values: np.ndarray, t: np.ndarray, interpolation: str,
-                   rotation: bool = False) -> np.ndarray:
+def sample_channel(
+    times: np.ndarray, values: np.ndarray, t: np.ndarray, interpolation: str, rotation: bool = False
+) -> np.ndarray:
     """A glTF sampler evaluated at times ``t`` (fast path: all times at once).
 
     Shapes:
@@ -169,8 +181,12 @@ def sample_channel(times: np.ndarray, values: np.ndarray, t: np.ndarray, interpo
     elif cubic:
         s2, s3 = s * s, s * s * s
         dtc = dt[:, None]
-        out = ((2 * s3 - 3 * s2 + 1) * vals[k] + (s3 - 2 * s2 + s) * dtc * b_tan[k]
-               + (-2 * s3 + 3 * s2) * vals[k1] + (s3 - s2) * dtc * a_tan[k1])
+        out = (
+            (2 * s3 - 3 * s2 + 1) * vals[k]
+            + (s3 - 2 * s2 + s) * dtc * b_tan[k]
+            + (-2 * s3 + 3 * s2) * vals[k1]
+            + (s3 - s2) * dtc * a_tan[k1]
+        )
     elif rotation:
         q = quaternion_slerp(vals[k][:, [3, 0, 1, 2]], vals[k1][:, [3, 0, 1, 2]], s[:, 0])
         out = q[:, [1, 2, 3, 0]]
@@ -207,8 +223,12 @@ def sample_channel_reference(times, values, t, interpolation, rotation=False) ->
                 r = val(i)
             elif interpolation == "CUBICSPLINE":
                 p0, m0, p1, m1 = v[i, 1], d * v[i, 2], v[i + 1, 1], d * v[i + 1, 0]
-                r = ((2 * s ** 3 - 3 * s ** 2 + 1) * p0 + (s ** 3 - 2 * s ** 2 + s) * m0
-                     + (-2 * s ** 3 + 3 * s ** 2) * p1 + (s ** 3 - s ** 2) * m1)
+                r = (
+                    (2 * s**3 - 3 * s**2 + 1) * p0
+                    + (s**3 - 2 * s**2 + s) * m0
+                    + (-2 * s**3 + 3 * s**2) * p1
+                    + (s**3 - s**2) * m1
+                )
             elif rotation:
                 a, b = val(i), val(i + 1)
                 if a @ b < 0:
@@ -283,13 +303,13 @@ def _pick_animation(f: _File, name: str | None):
     if name is None:
         return anims[0], names[0], names
     if name not in names:
-        raise f.error(f"no animation named {name!r}", expected="one of " + ", ".join(repr(n) for n in names),
-                      got=name)
+        raise f.error(f"no animation named {name!r}", expected="one of " + ", ".join(repr(n) for n in names), got=name)
     return anims[names.index(name)], name, names
 
 
-def read_gltf_skeleton(path: str | os.PathLike, *, animation: str | None = None,
-                       up: str = "auto") -> tuple[BVHSkeleton, dict]:
+def read_gltf_skeleton(
+    path: str | os.PathLike, *, animation: str | None = None, up: str = "auto"
+) -> tuple[BVHSkeleton, dict]:
     """A glTF file's skinned skeleton and one animation as a :class:`~segadeform.motion.bvh.BVHSkeleton`
     (metres unless the file's nodes scale it, +Y up; see the module docstring), and what was read
     (``{"animation", "animations", "skin", "joints", "keys"}``)."""
@@ -327,17 +347,23 @@ def read_gltf_skeleton(path: str | os.PathLike, *, animation: str | None = None,
         smp = anim.samplers[ch.sampler]
         interp = smp.interpolation or "LINEAR"
         if interp not in ("LINEAR", "STEP", "CUBICSPLINE"):
-            raise f.error(f"animation {anim_name!r}: unknown interpolation", expected="LINEAR, STEP or CUBICSPLINE",
-                          got=interp)
+            raise f.error(
+                f"animation {anim_name!r}: unknown interpolation", expected="LINEAR, STEP or CUBICSPLINE", got=interp
+            )
         times = f.accessor(smp.input, f"animation {anim_name!r} sampler {ch.sampler} input")[:, 0]
         vals = f.accessor(smp.output, f"animation {anim_name!r} sampler {ch.sampler} output")
         width = _PATH_WIDTH[tgt.path]
         if vals.shape[1] != width or len(vals) != len(times) * (3 if interp == "CUBICSPLINE" else 1) or not len(times):
-            raise f.error(f"animation {anim_name!r} sampler {ch.sampler} does not fit its {tgt.path} channel",
-                          expected=f"{width} values per key, one key per time", got=f"{vals.shape} for {len(times)} times")
+            raise f.error(
+                f"animation {anim_name!r} sampler {ch.sampler} does not fit its {tgt.path} channel",
+                expected=f"{width} values per key, one key per time",
+                got=f"{vals.shape} for {len(times)} times",
+            )
         if not (np.isfinite(times).all() and np.isfinite(vals).all()):
-            raise f.error(f"animation {anim_name!r} has NaN or infinite keys (node {nodes[tgt.node].name!r}, "
-                          f"{tgt.path})", expected="finite numbers")
+            raise f.error(
+                f"animation {anim_name!r} has NaN or infinite keys (node {nodes[tgt.node].name!r}, {tgt.path})",
+                expected="finite numbers",
+            )
         if (np.diff(times) <= 0).any():
             raise f.error(f"animation {anim_name!r}: key times do not increase (sampler {ch.sampler})")
         channels.append((tgt.node, tgt.path, times, vals, interp))
@@ -371,8 +397,11 @@ def read_gltf_skeleton(path: str | os.PathLike, *, animation: str | None = None,
         tr = np.asarray(nd.translation if nd.translation is not None else [0, 0, 0], np.float64)
         ro = np.asarray(nd.rotation if nd.rotation is not None else [0, 0, 0, 1], np.float64)
         sc = np.asarray(nd.scale if nd.scale is not None else [1, 1, 1], np.float64)
-        cur = {"translation": np.broadcast_to(tr, (nf, 3)), "rotation": np.broadcast_to(ro, (nf, 4)),
-               "scale": np.broadcast_to(sc, (nf, 3))}
+        cur = {
+            "translation": np.broadcast_to(tr, (nf, 3)),
+            "rotation": np.broadcast_to(ro, (nf, 4)),
+            "scale": np.broadcast_to(sc, (nf, 3)),
+        }
         for pth, (times, vals, interp) in anim_k.items():
             cur[pth] = sample_channel(times, vals, t, interp, rotation=pth == "rotation")
         local[k] = _trs_matrix(cur["translation"], cur["rotation"], cur["scale"])
@@ -412,8 +441,11 @@ def read_gltf_skeleton(path: str | os.PathLike, *, animation: str | None = None,
                 k = int(parent[k])
             anc = chain if anc is None else [a for a in anc if a in chain]
         if not anc:
-            raise f.error("the skin's joints form several separate trees", expected="one skeleton",
-                          got=", ".join(str(nodes[r].name) for r in roots[:6]))
+            raise f.error(
+                "the skin's joints form several separate trees",
+                expected="one skeleton",
+                got=", ".join(str(nodes[r].name) for r in roots[:6]),
+            )
         joints = [anc[0]] + joints
         jset.add(anc[0])
     ibm = None
@@ -444,13 +476,27 @@ def read_gltf_skeleton(path: str | os.PathLike, *, animation: str | None = None,
     if up not in ("auto", "y", "z"):
         raise InputError("up must be 'auto', 'y' or 'z'", got=up)
     sk = to_y_up(names, parents, rest, rest.copy(), G, P, fps, "y" if up == "auto" else up)
-    info = {"animation": anim_name, "animations": anim_names, "skin": skin.name or f"skin{g.skins.index(skin)}",
-            "joints": len(joints), "keys": int(len(longest)), "start_time": t0}
+    info = {
+        "animation": anim_name,
+        "animations": anim_names,
+        "skin": skin.name or f"skin{g.skins.index(skin)}",
+        "joints": len(joints),
+        "keys": int(len(longest)),
+        "start_time": t0,
+    }
     return sk, info
 
 
-def read_gltf(path: str | os.PathLike, *, rest_joints: np.ndarray | None = None, scale: float | str = "auto",
-              units=None, up: str = "auto", joint_map=None, animation: str | None = None) -> Motion:
+def read_gltf(
+    path: str | os.PathLike,
+    *,
+    rest_joints: np.ndarray | None = None,
+    scale: float | str = "auto",
+    units=None,
+    up: str = "auto",
+    joint_map=None,
+    animation: str | None = None,
+) -> Motion:
     """A glTF/GLB character animation on the 24-joint SMPL skeleton (see the module docstring).
 
     Args as :func:`~segadeform.motion.bvh.read_bvh`; ``animation``: its name when the file has several

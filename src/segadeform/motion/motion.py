@@ -14,8 +14,20 @@ from ..errors import FileFormatError, InputError
 from ..io.atomic import atomic_path
 from ..io.sgdm import read_motion_arrays, write_motion_arrays
 
-__all__ = ["Motion", "load_motion_npz", "feet_on_floor", "face_forward", "resample", "motion_windows", "N_POSE", "SMPL_PELVIS",
-           "sample_frames", "drop_leading_jumps", "drop_leading_tpose", "ramp_in"]
+__all__ = [
+    "Motion",
+    "load_motion_npz",
+    "feet_on_floor",
+    "face_forward",
+    "resample",
+    "motion_windows",
+    "N_POSE",
+    "SMPL_PELVIS",
+    "sample_frames",
+    "drop_leading_jumps",
+    "drop_leading_tpose",
+    "ramp_in",
+]
 
 N_POSE = 72  # 24 SMPL joints x axis-angle
 
@@ -84,10 +96,16 @@ class Motion:
         p = Path(path)
         with atomic_path(p) as tmp:
             with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, poses=self.poses.astype(np.float32), trans=self.trans.astype(np.float32),
-                                    betas=(np.zeros(10) if self.betas is None else self.betas).astype(np.float32),
-                                    mocap_framerate=np.float64(self.fps), name=np.str_(self.name),
-                                    trans_convention=np.str_(_TRANS_CONVENTION), up=np.str_("y"))
+                np.savez_compressed(
+                    fh,
+                    poses=self.poses.astype(np.float32),
+                    trans=self.trans.astype(np.float32),
+                    betas=(np.zeros(10) if self.betas is None else self.betas).astype(np.float32),
+                    mocap_framerate=np.float64(self.fps),
+                    name=np.str_(self.name),
+                    trans_convention=np.str_(_TRANS_CONVENTION),
+                    up=np.str_("y"),
+                )
         return p
 
 
@@ -134,18 +152,27 @@ def load_motion_npz(path: str | os.PathLike, *, up: str = "auto", rest_joints: n
     elif "root_orient" in d and "pose_body" in d:
         ro, pb = d["root_orient"], d["pose_body"]
         if ro.ndim != 2 or pb.ndim != 2 or ro.shape[0] != pb.shape[0] or ro.shape[1] != 3 or pb.shape[1] != 63:
-            raise FileFormatError("root_orient and pose_body do not fit", path=p,
-                                  expected="(T, 3) and (T, 63)", got=f"{ro.shape} and {pb.shape}")
+            raise FileFormatError(
+                "root_orient and pose_body do not fit",
+                path=p,
+                expected="(T, 3) and (T, 63)",
+                got=f"{ro.shape} and {pb.shape}",
+            )
         poses = np.concatenate([ro, pb], axis=1)
     else:
-        raise FileFormatError("motion file has no 'poses' array", path=p,
-                              expected="'poses' or 'root_orient' + 'pose_body'", got=", ".join(sorted(d)) or "no arrays")
+        raise FileFormatError(
+            "motion file has no 'poses' array",
+            path=p,
+            expected="'poses' or 'root_orient' + 'pose_body'",
+            got=", ".join(sorted(d)) or "no arrays",
+        )
     if poses.dtype.kind not in "biuf":  # complex numbers are not rotations
         raise FileFormatError("poses must be real numeric values", path=p, expected="float", got=poses.dtype)
     if poses.ndim == 3:
         if poses.shape[2] != 3 or poses.shape[1] not in (22, 24, 52, 55):
-            raise FileFormatError("poses have an unknown layout", path=p,
-                                  expected="(T, J, 3) with J = 22, 24, 52 or 55", got=poses.shape)
+            raise FileFormatError(
+                "poses have an unknown layout", path=p, expected="(T, J, 3) with J = 22, 24, 52 or 55", got=poses.shape
+            )
         poses = poses.reshape(poses.shape[0], -1)
     if poses.ndim != 2:
         raise FileFormatError("poses must be a (T, D) or (T, J, 3) array", path=p, got=poses.shape)
@@ -157,21 +184,28 @@ def load_motion_npz(path: str | os.PathLike, *, up: str = "auto", rest_joints: n
     elif d_in in (66, 156, 165):
         body = np.concatenate([poses[:, :66], np.zeros((poses.shape[0], 6))], axis=1).astype(np.float64)
     else:
-        raise FileFormatError("poses have an unknown width", path=p,
-                              expected="72 (SMPL), 66, 156 (SMPL-H) or 165 (SMPL-X)", got=d_in)
+        raise FileFormatError(
+            "poses have an unknown width", path=p, expected="72 (SMPL), 66, 156 (SMPL-H) or 165 (SMPL-X)", got=d_in
+        )
     if not np.isfinite(body).all():
         raise FileFormatError("poses contain NaN or inf", path=p)
     trans = d.get("trans", np.zeros((poses.shape[0], 3)))
     if trans.shape != (poses.shape[0], 3) or trans.dtype.kind not in "biuf":
-        raise FileFormatError("trans must be (T, 3) matching poses", path=p, expected=(poses.shape[0], 3), got=trans.shape)
+        raise FileFormatError(
+            "trans must be (T, 3) matching poses", path=p, expected=(poses.shape[0], 3), got=trans.shape
+        )
     trans = trans.astype(np.float64)
     if not np.isfinite(trans).all():
         raise FileFormatError("trans contains NaN or inf", path=p)
     fps_key = next((k for k in ("mocap_framerate", "mocap_frame_rate", "fps") if k in d), None)
     fps_arr = np.asarray(d[fps_key]) if fps_key else np.float64(30.0)
     if fps_arr.size != 1 or fps_arr.dtype.kind not in "biuf":  # [30, 60] is two rates, not the first of them
-        raise FileFormatError(f"{fps_key} must be one number", path=p, expected="a scalar frame rate",
-                              got=f"{fps_arr.dtype} {fps_arr.shape}")
+        raise FileFormatError(
+            f"{fps_key} must be one number",
+            path=p,
+            expected="a scalar frame rate",
+            got=f"{fps_arr.dtype} {fps_arr.shape}",
+        )
     fps = float(fps_arr.ravel()[0])
     if not (np.isfinite(fps) and fps > 0):
         raise FileFormatError("fps (mocap_framerate) must be positive", path=p, got=fps)
@@ -183,8 +217,9 @@ def load_motion_npz(path: str | os.PathLike, *, up: str = "auto", rest_joints: n
     name = _text(d["name"]) if "name" in d else p.stem
     # segadeform's own files; those written before the convention was recorded have a 'name' and no
     # 'gender' (AMASS files always carry a gender and never a name)
-    ours = ("trans_convention" in d and _text(d["trans_convention"]) == _TRANS_CONVENTION) or \
-        ("trans_convention" not in d and "name" in d and "gender" not in d)
+    ours = ("trans_convention" in d and _text(d["trans_convention"]) == _TRANS_CONVENTION) or (
+        "trans_convention" not in d and "name" in d and "gender" not in d
+    )
     from ..body.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
     if up == "auto":
@@ -195,8 +230,7 @@ def load_motion_npz(path: str | os.PathLike, *, up: str = "auto", rest_joints: n
             up = "z" if abs(body_up[2]) > abs(body_up[1]) else "y"
     if up not in ("y", "z"):
         raise InputError("up must be 'auto', 'y' or 'z'", got=up)
-    target_pelvis = (np.asarray(rest_joints, np.float64)[0] if rest_joints is not None
-                     else _default_pelvis())
+    target_pelvis = np.asarray(rest_joints, np.float64)[0] if rest_joints is not None else _default_pelvis()
     if ours:
         pelvis = trans + target_pelvis
     else:
@@ -299,8 +333,14 @@ def resample(motion: Motion, fps: float) -> Motion:
     duration = (motion.n_frames - 1) / motion.fps
     n_out = int(np.floor(duration * fps + 1e-9)) + 1
     poses, trans = sample_frames(motion, np.arange(n_out) / fps * motion.fps)
-    return Motion(poses=poses, trans=trans, fps=float(fps), betas=motion.betas, name=motion.name,
-                  meta=dict(motion.meta, resampled_from=motion.fps))
+    return Motion(
+        poses=poses,
+        trans=trans,
+        fps=float(fps),
+        betas=motion.betas,
+        name=motion.name,
+        meta=dict(motion.meta, resampled_from=motion.fps),
+    )
 
 
 def drop_leading_jumps(motion: Motion, max_degrees: float = 60.0, *, max_frames: int = 3) -> tuple[Motion, int]:
@@ -327,8 +367,9 @@ def drop_leading_jumps(motion: Motion, max_degrees: float = 60.0, *, max_frames:
     return m, dropped
 
 
-def drop_leading_tpose(motion: Motion, *, max_degrees: float = 25.0, settle_seconds: float = 0.5,
-                       within_seconds: float = 5.0) -> tuple[Motion, int]:
+def drop_leading_tpose(
+    motion: Motion, *, max_degrees: float = 25.0, settle_seconds: float = 0.5, within_seconds: float = 5.0
+) -> tuple[Motion, int]:
     """Drop a calibration T-pose held at the start of a capture, and ``settle_seconds`` of the move out of it:
     when both upper arms are within ``max_degrees`` of the T-pose in the first frame (SMPL's rest pose is the
     T-pose), every frame up to the first where one leaves it (within ``within_seconds``) goes, then the settling
@@ -344,8 +385,9 @@ def drop_leading_tpose(motion: Motion, *, max_degrees: float = 25.0, settle_seco
     if len(out) == 0:  # a T-pose throughout (or past the window): nothing to tell capture from calibration
         return motion, 0
     k = min(int(out[0]) + int(round(settle_seconds * motion.fps)), motion.n_frames - 2)
-    m = dataclasses.replace(motion, poses=motion.poses[k:], trans=motion.trans[k:],
-                            meta=dict(motion.meta, dropped_leading_tpose_frames=k))
+    m = dataclasses.replace(
+        motion, poses=motion.poses[k:], trans=motion.trans[k:], meta=dict(motion.meta, dropped_leading_tpose_frames=k)
+    )
     return m, k
 
 
@@ -363,8 +405,9 @@ def ramp_in(motion: Motion, seconds: float) -> Motion:
     fps = motion.fps
     k = int(round(seconds * fps))  # input frames the ramp plays
     if k < 1 or k >= motion.n_frames:
-        raise InputError("the ramp must be shorter than the motion", expected=f"< {motion.n_frames / fps:.3f} s",
-                         got=seconds)
+        raise InputError(
+            "the ramp must be shorter than the motion", expected=f"< {motion.n_frames / fps:.3f} s", got=seconds
+        )
     n = 2 * k  # output frames of the ramp
     t = np.arange(n)  # output frame index
     tau = t * t / (4.0 * k)  # input frame index: tau(2k) = k, tau'(2k) = 1
@@ -403,8 +446,17 @@ def write_motion_file(path, motion: Motion, *, body: dict | None = None, betas=N
     was made from."""
     poses = np.asarray(motion.poses, np.float64)
     s = poses.shape[1] // 3
-    return write_motion_arrays(path, poses.reshape(len(poses), s, 3), motion.trans, fps=motion.fps, name=motion.name,
-                               joint_names=SMPL_JOINT_NAMES[:s], source=source, body=body, betas=betas)
+    return write_motion_arrays(
+        path,
+        poses.reshape(len(poses), s, 3),
+        motion.trans,
+        fps=motion.fps,
+        name=motion.name,
+        joint_names=SMPL_JOINT_NAMES[:s],
+        source=source,
+        body=body,
+        betas=betas,
+    )
 
 
 def read_motion_file(path) -> tuple[Motion, dict]:
@@ -413,9 +465,13 @@ def read_motion_file(path) -> tuple[Motion, dict]:
     p = Path(path)
     poses, trans, fps, meta = read_motion_arrays(p)
     try:
-        m = Motion(poses=poses.reshape(len(poses), -1).astype(np.float64), trans=trans.astype(np.float64), fps=fps,
-                   name=str(meta.get("name", p.stem)),
-                   meta={"format": "sgdm", "body": meta.get("body"), "betas": meta.get("betas")})
+        m = Motion(
+            poses=poses.reshape(len(poses), -1).astype(np.float64),
+            trans=trans.astype(np.float64),
+            fps=fps,
+            name=str(meta.get("name", p.stem)),
+            meta={"format": "sgdm", "body": meta.get("body"), "betas": meta.get("betas")},
+        )
     except InputError as e:
         raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
     return m, meta

@@ -112,7 +112,9 @@ def _run(p, t, w, rng, speed, amp):
 def _jump(p, t, w, rng, speed, amp):
     period = 1.6 / speed
     ph = (t % period) / period  # 0..1 per jump: crouch 0-0.35, air 0.35-0.7, land 0.7-1
-    crouch = np.where(ph < 0.35, np.sin(np.pi * ph / 0.35), 0.0) + np.where(ph > 0.7, np.sin(np.pi * (ph - 0.7) / 0.3), 0.0)
+    crouch = np.where(ph < 0.35, np.sin(np.pi * ph / 0.35), 0.0) + np.where(
+        ph > 0.7, np.sin(np.pi * (ph - 0.7) / 0.3), 0.0
+    )
     air = np.where((ph >= 0.35) & (ph <= 0.7), np.sin(np.pi * (ph - 0.35) / 0.35), 0.0)
     c = crouch * w * amp
     for side in ("left", "right"):
@@ -199,13 +201,28 @@ def _dance(p, t, w, rng, speed, amp):
 
 
 MOTION_KINDS: dict[str, Callable] = {
-    "idle": _idle, "walk": _walk, "walk_arms_down": _walk_arms_down, "run": _run, "jump": _jump, "arm_swing": _arm_swing,
-    "touch_high": _touch_high, "torso_twist": _torso_twist, "dance": _dance,
+    "idle": _idle,
+    "walk": _walk,
+    "walk_arms_down": _walk_arms_down,
+    "run": _run,
+    "jump": _jump,
+    "arm_swing": _arm_swing,
+    "touch_high": _touch_high,
+    "torso_twist": _torso_twist,
+    "dance": _dance,
 }
 
 
-def make_motion(kind: str, *, seconds: float = 3.0, fps: float = 30.0, speed: float = 1.0, amplitude: float = 1.0,
-                seed: int = 0, ease_in: float = 1.0) -> Motion:
+def make_motion(
+    kind: str,
+    *,
+    seconds: float = 3.0,
+    fps: float = 30.0,
+    speed: float = 1.0,
+    amplitude: float = 1.0,
+    seed: int = 0,
+    ease_in: float = 1.0,
+) -> Motion:
     """A procedural motion (see the module docstring); deterministic per seed.
 
     Args:
@@ -215,8 +232,13 @@ def make_motion(kind: str, *, seconds: float = 3.0, fps: float = 30.0, speed: fl
     """
     if kind not in MOTION_KINDS:
         raise InputError("unknown motion kind", expected=" | ".join(MOTION_KINDS), got=kind)
-    for name, val, lo, hi in (("seconds", seconds, 1e-3, 3600), ("fps", fps, 1, 1000), ("speed", speed, 0.05, 5),
-                              ("amplitude", amplitude, 0, 2), ("ease_in", ease_in, 0, 3600)):
+    for name, val, lo, hi in (
+        ("seconds", seconds, 1e-3, 3600),
+        ("fps", fps, 1, 1000),
+        ("speed", speed, 0.05, 5),
+        ("amplitude", amplitude, 0, 2),
+        ("ease_in", ease_in, 0, 3600),
+    ):
         if not (np.isfinite(val) and lo <= val <= hi):
             raise InputError(f"{name} out of range", expected=f"{lo}..{hi}", got=val)
     from ..bounds import check_seed
@@ -230,5 +252,9 @@ def make_motion(kind: str, *, seconds: float = 3.0, fps: float = 30.0, speed: fl
     p = _Pose(n)
     trans = MOTION_KINDS[kind](p, t, w, rng, float(speed), float(amplitude))
     poses = euler_to_pose(clip_to_limits(p.a))
-    return Motion(poses=poses, trans=np.asarray(trans, np.float64), fps=float(fps),
-                  name=f"{kind}(speed={speed:g}, amplitude={amplitude:g}, seed={seed})")
+    return Motion(
+        poses=poses,
+        trans=np.asarray(trans, np.float64),
+        fps=float(fps),
+        name=f"{kind}(speed={speed:g}, amplitude={amplitude:g}, seed={seed})",
+    )

@@ -32,11 +32,25 @@ def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
                 units = float(units)
             except ValueError:
                 pass
-        m = load_motion(spec.file, rest_joints=rest_joints, up=spec.up, units=units, joint_map=spec.joint_map,
-                        floor=spec.floor, skeleton=spec.skeleton, animation=spec.animation)
+        m = load_motion(
+            spec.file,
+            rest_joints=rest_joints,
+            up=spec.up,
+            units=units,
+            joint_map=spec.joint_map,
+            floor=spec.floor,
+            skeleton=spec.skeleton,
+            animation=spec.animation,
+        )
     else:
-        m = make_motion(spec.kind, seconds=spec.seconds, fps=spec.fps or 30.0, speed=spec.speed,
-                        amplitude=spec.amplitude, seed=spec.seed)
+        m = make_motion(
+            spec.kind,
+            seconds=spec.seconds,
+            fps=spec.fps or 30.0,
+            speed=spec.speed,
+            amplitude=spec.amplitude,
+            seed=spec.seed,
+        )
         if spec.floor and rest_joints is not None:
             m = feet_on_floor(m, rest_joints)
     if spec.fps is not None and abs(spec.fps - m.fps) > 1e-9:
@@ -54,8 +68,11 @@ def frame_range(frames: tuple[int, int | None] | None, n_frames: int) -> tuple[i
     stop = n_frames if b is None else b
     if not 0 <= a < stop <= n_frames:
         given = f"{a}:{'' if b is None else b}"
-        raise InputError(f"frame range {given} is outside the motion's {n_frames} frames",
-                         expected=f"0 <= A < B <= {n_frames}", got=given)
+        raise InputError(
+            f"frame range {given} is outside the motion's {n_frames} frames",
+            expected=f"0 <= A < B <= {n_frames}",
+            got=given,
+        )
     return int(a), int(stop)
 
 

@@ -7,16 +7,29 @@ through a subprocess (see its docstring), :mod:`.settings` turns a scene's
 
 from ..settings.simulation import DEFAULT_EFFECTS, EFFECTS, MATERIALS, Material, SimSettings, parse_simulate_table
 from .blender import (
-                      A_POSE,
-                      SimResult,
-                      blender_settings,
-                      find_sim_python,
-                      pin_weights,
-                      preroll_poses,
-                      simulate,
-                      unpose_lbs,
+    A_POSE,
+    SimResult,
+    blender_settings,
+    find_sim_python,
+    pin_weights,
+    preroll_poses,
+    simulate,
+    unpose_lbs,
 )
 
-__all__ = ["SimResult", "simulate", "find_sim_python", "pin_weights", "preroll_poses", "unpose_lbs", "A_POSE",
-           "SimSettings", "Material",
-           "MATERIALS", "EFFECTS", "DEFAULT_EFFECTS", "blender_settings", "parse_simulate_table"]
+__all__ = [
+    "SimResult",
+    "simulate",
+    "find_sim_python",
+    "pin_weights",
+    "preroll_poses",
+    "unpose_lbs",
+    "A_POSE",
+    "SimSettings",
+    "Material",
+    "MATERIALS",
+    "EFFECTS",
+    "DEFAULT_EFFECTS",
+    "blender_settings",
+    "parse_simulate_table",
+]

@@ -41,8 +41,17 @@ from ..motion.motion import Motion
 from ..settings.scene import Y_TO_Z
 from ..settings.simulation import EFFECTS, MATERIALS, SimSettings
 
-__all__ = ["SimResult", "simulate", "find_sim_python", "preroll_poses", "pin_weights", "unpose_lbs", "A_POSE",
-           "WORKER", "SIM_BRIDGE_VERSION"]
+__all__ = [
+    "SimResult",
+    "simulate",
+    "find_sim_python",
+    "preroll_poses",
+    "pin_weights",
+    "unpose_lbs",
+    "A_POSE",
+    "WORKER",
+    "SIM_BRIDGE_VERSION",
+]
 
 WORKER = Path(__file__).with_name("blender_worker.py")
 #: the version of this bridge (how a scene becomes a Blender simulation): recorded by every dataset sample
@@ -73,8 +82,10 @@ def find_sim_python(explicit: str | os.PathLike | None = None) -> Path:
             return p
         if src != ".venv-sim":
             raise SimulationError(f"the simulator Python given by {src} does not exist: {p}")
-    raise SimulationError("no simulator environment: run `python -m segadeform.physics.setup` (creates "
-                          f"{_repo_root() / '.venv-sim'} with Blender's bpy), or set SEGADEFORM_SIM_PYTHON")
+    raise SimulationError(
+        "no simulator environment: run `python -m segadeform.physics.setup` (creates "
+        f"{_repo_root() / '.venv-sim'} with Blender's bpy), or set SEGADEFORM_SIM_PYTHON"
+    )
 
 
 @dataclasses.dataclass
@@ -100,8 +111,9 @@ A_POSE[3 * 16 + 2] = -np.pi / 4
 A_POSE[3 * 17 + 2] = np.pi / 4
 
 
-def preroll_poses(motion: Motion, drape_frames: int, blend_frames: int,
-                  start_pose: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def preroll_poses(
+    motion: Motion, drape_frames: int, blend_frames: int, start_pose: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Drape in ``start_pose`` (default: the rest pose), then a slerp into the first frame, then the motion.
 
     Shapes: start_pose (72,) -> poses (drape + blend + T, 72), trans (drape + blend + T, 3)
@@ -110,10 +122,13 @@ def preroll_poses(motion: Motion, drape_frames: int, blend_frames: int,
     p0 = np.zeros(72) if start_pose is None else np.asarray(start_pose, np.float64).reshape(72)
     q1 = axis_angle_to_quaternion(motion.poses[0].reshape(24, 3))
     q0 = axis_angle_to_quaternion(p0.reshape(24, 3))
-    t = (np.arange(1, b + 1) / (b + 1))
+    t = np.arange(1, b + 1) / (b + 1)
     s = 0.5 - 0.5 * np.cos(np.pi * t)  # ease in and out: no velocity jump at either end
-    blend = np.stack([quaternion_to_axis_angle(quaternion_slerp(q0, q1, si)).reshape(72) for si in s]) \
-        if b else np.zeros((0, 72))
+    blend = (
+        np.stack([quaternion_to_axis_angle(quaternion_slerp(q0, q1, si)).reshape(72) for si in s])
+        if b
+        else np.zeros((0, 72))
+    )
     poses = np.concatenate([np.repeat(p0[None], d, axis=0), blend, motion.poses])
     trans = np.concatenate([np.zeros((d, 3)), s[:, None] * motion.trans[:1], motion.trans])
     return poses, trans
@@ -146,9 +161,22 @@ def pin_weights(vertices, faces, group: str, width: float = 0.025) -> np.ndarray
     return (d <= width).astype(np.float64)
 
 
-def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, settings: SimSettings = SimSettings(),
-             sim_python=None, progress: Callable[[int, int], None] | None = None, keep_job: Path | None = None,
-             timeout: float | None = None, cloth_rest=None, start_pose=None, rest_lengths_from=None) -> SimResult:
+def simulate(
+    vertices,
+    faces,
+    body: BodyModel,
+    motion: Motion,
+    *,
+    betas=None,
+    settings: SimSettings = SimSettings(),
+    sim_python=None,
+    progress: Callable[[int, int], None] | None = None,
+    keep_job: Path | None = None,
+    timeout: float | None = None,
+    cloth_rest=None,
+    start_pose=None,
+    rest_lengths_from=None,
+) -> SimResult:
     """Simulate a rest-pose garment on ``body`` (shape ``betas``) playing ``motion``.
 
     Args:
@@ -183,8 +211,10 @@ def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, se
     blend = int(round(settings.blend_seconds * fps))
     a_pose = settings.rest_pose == "a"
     if cloth_rest is not None and (not a_pose or start_pose is None or np.shape(cloth_rest) != v.shape):
-        raise InputError("cloth_rest needs rest_pose = 'a', a start_pose and the garment's vertex count",
-                         got=(settings.rest_pose, start_pose is None, np.shape(cloth_rest)))
+        raise InputError(
+            "cloth_rest needs rest_pose = 'a', a start_pose and the garment's vertex count",
+            got=(settings.rest_pose, start_pose is None, np.shape(cloth_rest)),
+        )
     p0 = (A_POSE if start_pose is None else np.asarray(start_pose, np.float64).reshape(72)) if a_pose else None
     poses, trans = preroll_poses(motion, drape, blend, p0)
     posed = body.forward(poses, betas, trans)
@@ -205,8 +235,9 @@ def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, se
         if rest_lengths_from is not None:
             rl = np.asarray(rest_lengths_from, np.float64)
             if rl.shape != v.shape or not np.isfinite(rl).all():
-                raise InputError("rest_lengths_from must be finite and shaped like the garment", expected=v.shape,
-                                 got=rl.shape)
+                raise InputError(
+                    "rest_lengths_from must be finite and shaped like the garment", expected=v.shape, got=rl.shape
+                )
             np.save(job_dir / "garment_rest_shape.npy", z(rl))
         np.save(job_dir / "garment_faces.npy", f.astype(np.int64))
         np.save(job_dir / "body_rest.npy", z(rest_body))
@@ -215,11 +246,20 @@ def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, se
             w.write(z(posed.vertices))
         check = sorted({1, drape + blend + 1, len(poses)})
         np.save(job_dir / "body_check.npy", z(posed.vertices[[c - 1 for c in check]]))
-        job = {"fps": fps, "total_frames": len(poses), "record_start": drape + blend + 1,
-               "garment_rest": "garment_rest.npy", "garment_faces": "garment_faces.npy",
-               "body_rest": "body_rest.npy", "body_faces": "body_faces.npy", "body_cache": "body.pc2",
-               "garment_rest_shape": "garment_rest_shape.npy" if rest_lengths_from is not None else None,
-               "check_body_frames": check, "body_check": "body_check.npy", **bs}
+        job = {
+            "fps": fps,
+            "total_frames": len(poses),
+            "record_start": drape + blend + 1,
+            "garment_rest": "garment_rest.npy",
+            "garment_faces": "garment_faces.npy",
+            "body_rest": "body_rest.npy",
+            "body_faces": "body_faces.npy",
+            "body_cache": "body.pc2",
+            "garment_rest_shape": "garment_rest_shape.npy" if rest_lengths_from is not None else None,
+            "check_body_frames": check,
+            "body_check": "body_check.npy",
+            **bs,
+        }
         if bs["wind"]:
             job["wind"]["direction"] = list(map(float, np.asarray(settings.wind) @ _Y_TO_Z.T))
         if settings.has("pinning"):
@@ -242,14 +282,23 @@ def simulate(vertices, faces, body: BodyModel, motion: Motion, *, betas=None, se
         if keep_job is not None:
             shutil.copytree(job_dir, keep_job, dirs_exist_ok=True)
     if frames.shape != (motion.n_frames, len(v), 3):
-        raise SimulationError(f"the simulator returned frames of shape {frames.shape}, "
-                              f"expected {(motion.n_frames, len(v), 3)}")
+        raise SimulationError(
+            f"the simulator returned frames of shape {frames.shape}, expected {(motion.n_frames, len(v), 3)}"
+        )
     if info.get("body_playback_max_error", 0.0) > 1e-4:
-        raise SimulationError("Blender played the body back wrongly (max error "
-                              f"{info['body_playback_max_error']:.3g} m): check the Mesh Cache settings")
-    return SimResult(frames=frames, fps=fps, settings={"segadeform": settings.to_dict(), "blender": bs},
-                     blender=info, preroll_frames=drape + blend, wall_seconds=time.perf_counter() - t0,
-                     cloth_rest=cloth_rest if rest_lengths_from is None else np.asarray(rest_lengths_from, np.float64))
+        raise SimulationError(
+            "Blender played the body back wrongly (max error "
+            f"{info['body_playback_max_error']:.3g} m): check the Mesh Cache settings"
+        )
+    return SimResult(
+        frames=frames,
+        fps=fps,
+        settings={"segadeform": settings.to_dict(), "blender": bs},
+        blender=info,
+        preroll_frames=drape + blend,
+        wall_seconds=time.perf_counter() - t0,
+        cloth_rest=cloth_rest if rest_lengths_from is None else np.asarray(rest_lengths_from, np.float64),
+    )
 
 
 def _run_worker(exe: Path, job_dir: Path, total: int, progress, timeout) -> None:
@@ -277,8 +326,9 @@ def _run_worker(exe: Path, job_dir: Path, total: int, progress, timeout) -> None
             raise
     if rc != 0 or not (job_dir / "frames.npy").is_file():
         tail = log_path.read_text(errors="replace").strip().splitlines()[-8:]
-        raise SimulationError(f"Blender's cloth solver failed (exit {rc}) at frame {done}/{total}:\n  "
-                              + "\n  ".join(tail))
+        raise SimulationError(
+            f"Blender's cloth solver failed (exit {rc}) at frame {done}/{total}:\n  " + "\n  ".join(tail)
+        )
 
 
 def blender_settings(s: SimSettings) -> dict:
@@ -292,22 +342,41 @@ def blender_settings(s: SimSettings) -> dict:
     """
     m = MATERIALS[s.material]
     cloth = {
-        "quality": s.quality, "mass": m.mass, "air_damping": m.air_damping if s.has("air_damping") else 0.0,
-        "tension_stiffness": m.tension, "compression_stiffness": m.compression, "shear_stiffness": m.shear,
+        "quality": s.quality,
+        "mass": m.mass,
+        "air_damping": m.air_damping if s.has("air_damping") else 0.0,
+        "tension_stiffness": m.tension,
+        "compression_stiffness": m.compression,
+        "shear_stiffness": m.shear,
         "bending_stiffness": m.bending if s.has("bending") else 0.0,
-        "tension_damping": m.tension_damping, "compression_damping": m.compression_damping,
-        "shear_damping": m.shear_damping, "bending_damping": m.bending_damping if s.has("bending") else 0.0,
+        "tension_damping": m.tension_damping,
+        "compression_damping": m.compression_damping,
+        "shear_damping": m.shear_damping,
+        "bending_damping": m.bending_damping if s.has("bending") else 0.0,
     }
     if s.has("pinning"):
         cloth["pin_stiffness"] = s.pin_stiffness
-    collision = {"collision_quality": s.collision_quality, "distance_min": s.collision_distance,
-                 "friction": m.friction, "impulse_clamp": s.impulse_clamp}
+    collision = {
+        "collision_quality": s.collision_quality,
+        "distance_min": s.collision_distance,
+        "friction": m.friction,
+        "impulse_clamp": s.impulse_clamp,
+    }
     if s.has("self_collision"):
         collision.update(self_distance_min=s.self_collision_distance, self_friction=m.self_friction)
-    body = {"thickness_outer": s.collision_distance, "thickness_inner": s.collision_inner, "cloth_friction": m.friction,
-            "damping": 0.0}
+    body = {
+        "thickness_outer": s.collision_distance,
+        "thickness_inner": s.collision_inner,
+        "cloth_friction": m.friction,
+        "damping": 0.0,
+    }
     if s.collision_normals:  # push cloth out along the body's normals (recovers cloth that got inside)
         body.update(use_culling=True, use_normal=True)
     effects = {e: s.has(e) for e in EFFECTS}
-    return {"effects": effects, "cloth": cloth, "collision": collision, "body_collision": body,
-            "wind": {"strength": s.wind_strength, "direction": list(s.wind)} if s.has("wind") else None}
+    return {
+        "effects": effects,
+        "cloth": cloth,
+        "collision": collision,
+        "body_collision": body,
+        "wind": {"strength": s.wind_strength, "direction": list(s.wind)} if s.has("wind") else None,
+    }

@@ -163,15 +163,25 @@ def main(job_dir):
         "use_gravity": bool(scene.use_gravity),
         "cloth": {k: getattr(s, k) for k in job["cloth"]},
         "collision": {k: getattr(c, k) for k in job["collision"]},
-        "use_collision": bool(c.use_collision), "use_self_collision": bool(c.use_self_collision),
-        "effector_gravity": float(s.effector_weights.gravity), "effector_wind": float(s.effector_weights.wind),
+        "use_collision": bool(c.use_collision),
+        "use_self_collision": bool(c.use_self_collision),
+        "effector_gravity": float(s.effector_weights.gravity),
+        "effector_wind": float(s.effector_weights.wind),
         "vertex_group_mass": s.vertex_group_mass,
-        "body_modifiers": [m.type for m in body.modifiers], "garment_modifiers": [m.type for m in garment.modifiers],
+        "body_modifiers": [m.type for m in body.modifiers],
+        "garment_modifiers": [m.type for m in garment.modifiers],
         "objects": sorted(o.name for o in scene.objects),
     }
-    res = {"blender_version": bpy.app.version_string, "applied": applied, "setup_seconds": t_setup, "simulate_seconds": t_sim,
-           "seconds_per_frame": t_sim / total, "simulated_frames": total, "recorded_frames": int(len(out)),
-           "body_playback_max_error": body_err}
+    res = {
+        "blender_version": bpy.app.version_string,
+        "applied": applied,
+        "setup_seconds": t_setup,
+        "simulate_seconds": t_sim,
+        "seconds_per_frame": t_sim / total,
+        "simulated_frames": total,
+        "recorded_frames": int(len(out)),
+        "body_playback_max_error": body_err,
+    }
     with open(os.path.join(job_dir, "result.json"), "w") as fh:
         json.dump(res, fh)
 

@@ -19,6 +19,7 @@ from .blender import SimResult, simulate
 
 __all__ = ["SimSummary", "simulate_scene"]
 
+
 @dataclasses.dataclass
 class SimSummary:
     frames: int
@@ -29,9 +30,16 @@ class SimSummary:
     written: list = dataclasses.field(default_factory=list)
 
 
-def simulate_scene(scene: Scene, *, output: Path | None = None, settings: SimSettings | None = None,
-                   sim_python=None, progress: Callable[[int, int], None] | None = None, guard=None,
-                   frames_from_scene: bool = True) -> SimSummary:
+def simulate_scene(
+    scene: Scene,
+    *,
+    output: Path | None = None,
+    settings: SimSettings | None = None,
+    sim_python=None,
+    progress: Callable[[int, int], None] | None = None,
+    guard=None,
+    frames_from_scene: bool = True,
+) -> SimSummary:
     """Simulate ``scene`` (its ``[simulate]`` table, or ``settings``) and write its output like ``segadeform run``.
 
     The frames written are the motion's frames (the scene's frame range, if
@@ -50,18 +58,38 @@ def simulate_scene(scene: Scene, *, output: Path | None = None, settings: SimSet
     out = Path(output) if output is not None else scene.output
     if guard is not None:  # refused before minutes of simulation, not after
         claim_scene_outputs(guard, out, scene.output_format, scene.body_output)
-    res = simulate(mesh.vertices, mesh.faces, body, motion, betas=scene.betas or None, settings=st,
-                   sim_python=sim_python, progress=progress)
+    res = simulate(
+        mesh.vertices,
+        mesh.faces,
+        body,
+        motion,
+        betas=scene.betas or None,
+        settings=st,
+        sim_python=sim_python,
+        progress=progress,
+    )
     if not np.isfinite(res.frames).all():
         raise InputError("the simulation produced NaN or inf; try a higher quality")
-    posed = body.forward(motion.poses, scene.betas or None, motion.trans).vertices \
-        if scene.body_output is not None else None
-    with SceneOutput(path=out, fmt=scene.output_format, up=scene.up, fps=motion.fps, start_frame=start,
-                     garment_faces=mesh.faces, garment_rest=mesh.vertices, body_path=scene.body_output,
-                     body_faces=body.faces,
-                     body_rest=body.shaped_vertices(scene.betas or None)[0] if posed is not None else None,
-                     guard=guard) as w:
+    posed = (
+        body.forward(motion.poses, scene.betas or None, motion.trans).vertices
+        if scene.body_output is not None
+        else None
+    )
+    with SceneOutput(
+        path=out,
+        fmt=scene.output_format,
+        up=scene.up,
+        fps=motion.fps,
+        start_frame=start,
+        garment_faces=mesh.faces,
+        garment_rest=mesh.vertices,
+        body_path=scene.body_output,
+        body_faces=body.faces,
+        body_rest=body.shaped_vertices(scene.betas or None)[0] if posed is not None else None,
+        guard=guard,
+    ) as w:
         w.write(res.frames, posed)
         written = w.close()
-    return SimSummary(frames=motion.n_frames, output=out, body_output=scene.body_output, settings=st, result=res,
-                      written=written)
+    return SimSummary(
+        frames=motion.n_frames, output=out, body_output=scene.body_output, settings=st, result=res, written=written
+    )

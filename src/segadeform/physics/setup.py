@@ -88,8 +88,10 @@ def ensure_sim_python(explicit=None, *, target: Path | None = None, setup=None) 
             try:
                 made = (setup or setup_sim_env)(target)
             except (subprocess.CalledProcessError, OSError) as e:
-                raise SimulationError(f"could not make the simulator environment in {target} (expected "
-                                      f"`python -m segadeform.physics.setup {target}` to succeed, got {e})") from None
+                raise SimulationError(
+                    f"could not make the simulator environment in {target} (expected "
+                    f"`python -m segadeform.physics.setup {target}` to succeed, got {e})"
+                ) from None
             if made is not None:
                 exe = Path(made)
             if not exe.is_file():

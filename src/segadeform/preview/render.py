@@ -47,8 +47,16 @@ def view_rotation(azimuth_deg: float, elevation_deg: float = 10.0) -> np.ndarray
     return rx @ ry
 
 
-def render(layers: Sequence[MeshLayer], *, azimuth: float = 0.0, elevation: float = 10.0, size=(480, 640),
-           bounds=None, background=(1.0, 1.0, 1.0), title: str | None = None) -> np.ndarray:
+def render(
+    layers: Sequence[MeshLayer],
+    *,
+    azimuth: float = 0.0,
+    elevation: float = 10.0,
+    size=(480, 640),
+    bounds=None,
+    background=(1.0, 1.0, 1.0),
+    title: str | None = None,
+) -> np.ndarray:
     """Render ``layers`` seen from ``azimuth`` degrees about +Y (0: from the front, +Z).
 
     Args:
@@ -92,7 +100,10 @@ def render(layers: Sequence[MeshLayer], *, azimuth: float = 0.0, elevation: floa
         lo, hi = P.reshape(-1, 2).min(0), P.reshape(-1, 2).max(0)
         c, r = (lo + hi) / 2, (hi - lo).max() / 2 * 1.08
         aspect = w / h
-        bounds = ((c[0] - r * max(aspect, 1), c[0] + r * max(aspect, 1)), (c[1] - r / min(aspect, 1), c[1] + r / min(aspect, 1)))
+        bounds = (
+            (c[0] - r * max(aspect, 1), c[0] + r * max(aspect, 1)),
+            (c[1] - r / min(aspect, 1), c[1] + r / min(aspect, 1)),
+        )
     (x0, x1), (y0, y1) = bounds
     # equal scale on both axes
     sx, sy = (x1 - x0) / w, (y1 - y0) / h
@@ -109,8 +120,9 @@ def render(layers: Sequence[MeshLayer], *, azimuth: float = 0.0, elevation: floa
     return img
 
 
-def fit_bounds(points: np.ndarray, *, azimuth: float = 0.0, elevation: float = 10.0, size=(480, 640),
-               margin: float = 1.08):
+def fit_bounds(
+    points: np.ndarray, *, azimuth: float = 0.0, elevation: float = 10.0, size=(480, 640), margin: float = 1.08
+):
     """Camera-space bounds that hold ``points (..., 3)`` from this view (one framing for a whole animation)."""
     v = np.asarray(points, np.float64).reshape(-1, 3) @ view_rotation(azimuth, elevation).T
     lo, hi = v[:, :2].min(0), v[:, :2].max(0)
@@ -145,8 +157,9 @@ def save_animation(path: str | os.PathLike, frames: Sequence[np.ndarray], fps: f
             from PIL import Image
 
             ims = [Image.fromarray(f) for f in frames]
-            ims[0].save(tmp, format="GIF", save_all=True, append_images=ims[1:], duration=int(round(1000 / fps)),
-                        loop=0)
+            ims[0].save(
+                tmp, format="GIF", save_all=True, append_images=ims[1:], duration=int(round(1000 / fps)), loop=0
+            )
         elif ext == ".mp4":
             import shutil
             import subprocess
@@ -154,11 +167,32 @@ def save_animation(path: str | os.PathLike, frames: Sequence[np.ndarray], fps: f
             if shutil.which("ffmpeg") is None:
                 raise InputError("writing .mp4 needs ffmpeg on PATH", expected=".gif or .png, or install ffmpeg")
             h, w = frames[0].shape[:2]
-            cmd = ["ffmpeg", "-loglevel", "error", "-y", "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{w}x{h}",
-                   "-r", f"{fps}", "-i", "-", "-pix_fmt", "yuv420p", "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2",
-                   "-f", "mp4", str(tmp)]
-            proc = subprocess.run(cmd, input=b"".join(np.ascontiguousarray(f).tobytes() for f in frames),
-                                  capture_output=True)
+            cmd = [
+                "ffmpeg",
+                "-loglevel",
+                "error",
+                "-y",
+                "-f",
+                "rawvideo",
+                "-pix_fmt",
+                "rgb24",
+                "-s",
+                f"{w}x{h}",
+                "-r",
+                f"{fps}",
+                "-i",
+                "-",
+                "-pix_fmt",
+                "yuv420p",
+                "-vf",
+                "pad=ceil(iw/2)*2:ceil(ih/2)*2",
+                "-f",
+                "mp4",
+                str(tmp),
+            ]
+            proc = subprocess.run(
+                cmd, input=b"".join(np.ascontiguousarray(f).tobytes() for f in frames), capture_output=True
+            )
             if proc.returncode != 0:
                 raise InputError(f"ffmpeg failed: {proc.stderr.decode(errors='replace')[-300:]}")
         else:

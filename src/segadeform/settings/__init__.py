@@ -8,7 +8,26 @@ from .presets import QUALITY_PRESETS, Preset, is_change_list, preset_effects
 from .scene import Y_TO_Z, MotionSpec, Scene, load_scene, parse_frames
 from .simulation import MATERIALS, Material, SimSettings, parse_sim_effects, parse_simulate_table
 
-__all__ = ["CLOTH_KNOBS", "ClothSettings", "DEFAULT_EFFECTS", "EffectList", "Effects", "parse_effect_list",
-           "parse_effects", "QUALITY_PRESETS", "Preset", "is_change_list", "preset_effects", "Y_TO_Z", "MotionSpec",
-           "Scene", "load_scene", "parse_frames", "MATERIALS", "Material", "SimSettings", "parse_sim_effects",
-           "parse_simulate_table"]
+__all__ = [
+    "CLOTH_KNOBS",
+    "ClothSettings",
+    "DEFAULT_EFFECTS",
+    "EffectList",
+    "Effects",
+    "parse_effect_list",
+    "parse_effects",
+    "QUALITY_PRESETS",
+    "Preset",
+    "is_change_list",
+    "preset_effects",
+    "Y_TO_Z",
+    "MotionSpec",
+    "Scene",
+    "load_scene",
+    "parse_frames",
+    "MATERIALS",
+    "Material",
+    "SimSettings",
+    "parse_sim_effects",
+    "parse_simulate_table",
+]

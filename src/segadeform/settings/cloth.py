@@ -54,8 +54,10 @@ class ClothSettings:
             if typ is int:
                 ok = ok and float(v) == int(v)
             if not ok:
-                raise ValueError(f"cloth {name} must be {'an integer' if typ is int else 'a number'} in "
-                                 f"[{lo:g}, {hi:g}] ({what}), got {v!r}")
+                raise ValueError(
+                    f"cloth {name} must be {'an integer' if typ is int else 'a number'} in "
+                    f"[{lo:g}, {hi:g}] ({what}), got {v!r}"
+                )
             object.__setattr__(self, name, typ(v))
 
     def label(self) -> str:
@@ -63,8 +65,11 @@ class ClothSettings:
         d = ClothSettings.__new__(ClothSettings)  # the defaults without validating twice
         for f in dataclasses.fields(self):
             object.__setattr__(d, f.name, f.default)
-        return ",".join(f"{f.name}={getattr(self, f.name):g}" for f in dataclasses.fields(self)
-                        if getattr(self, f.name) != getattr(d, f.name))
+        return ",".join(
+            f"{f.name}={getattr(self, f.name):g}"
+            for f in dataclasses.fields(self)
+            if getattr(self, f.name) != getattr(d, f.name)
+        )
 
     @classmethod
     def parse(cls, text: str, base: ClothSettings | None = None) -> ClothSettings:
@@ -78,8 +83,10 @@ class ClothSettings:
             name, eq, value = item.partition("=")
             name = name.strip()
             if not eq or name not in CLOTH_KNOBS:
-                raise ValueError(f"unknown cloth setting (expected NAME=VALUE with NAME one of "
-                                 f"{', '.join(CLOTH_KNOBS)}, got {item!r})")
+                raise ValueError(
+                    f"unknown cloth setting (expected NAME=VALUE with NAME one of "
+                    f"{', '.join(CLOTH_KNOBS)}, got {item!r})"
+                )
             try:
                 changes[name] = float(value)  # integers are checked and converted by __post_init__
             except ValueError:

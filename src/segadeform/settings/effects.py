@@ -37,8 +37,9 @@ class EffectList:
     complete: bool
 
 
-def parse_effect_list(text: str, names: Sequence[str], base: Iterable[str] = (), *,
-                      choices: Sequence[str] = ()) -> EffectList:
+def parse_effect_list(
+    text: str, names: Sequence[str], base: Iterable[str] = (), *, choices: Sequence[str] = ()
+) -> EffectList:
     """Apply ``text`` (see the module docstring) to ``base``, the effects on before it.
 
     Args:
@@ -53,9 +54,11 @@ def parse_effect_list(text: str, names: Sequence[str], base: Iterable[str] = (),
     named = [i for i in items if i not in choices]
     signed = [i[:1] in ("+", "-") for i in named]
     if named and any(signed) and not all(signed):
-        raise FileFormatError("effects mix a complete list with changes", got=text,
-                              expected="either names only (a complete list: the rest off) or signed changes "
-                                       "only (-name,+name)")
+        raise FileFormatError(
+            "effects mix a complete list with changes",
+            got=text,
+            expected="either names only (a complete list: the rest off) or signed changes only (-name,+name)",
+        )
     complete = not any(signed)
     on = set() if complete else set(base)
     for item in named:
@@ -114,7 +117,6 @@ def parse_effects(text: str, base: Effects = DEFAULT_EFFECTS) -> Effects:
 
     ``collision_margin`` and the cloth stage's knobs are kept from ``base`` in both forms.
     """
-    lst = parse_effect_list(text, EFFECT_NAMES, [n for n in EFFECT_NAMES if getattr(base, n)],
-                            choices=("lbs", "dqs"))
+    lst = parse_effect_list(text, EFFECT_NAMES, [n for n in EFFECT_NAMES if getattr(base, n)], choices=("lbs", "dqs"))
     skinning = lst.choices[-1] if lst.choices else ("lbs" if lst.complete else base.skinning)
     return dataclasses.replace(base, skinning=skinning, **{n: n in lst.on for n in EFFECT_NAMES})

@@ -42,17 +42,23 @@ class Preset:
 #: it; on the fast graph it is not (5.56 against the push-out's 5.53), so balanced keeps the push-out.  A model
 #: whose dynamics pay should run the bench again and revise this table.
 QUALITY_PRESETS = {
-    "fast": Preset(Effects(dynamics=False, wrinkles=False, collisions=False),
-                   "the fastest frontier point of the full-resolution garment: skinning weights from the current "
-                   "pose, no blend shapes, no collision stage (a few % of the vertices stay more than 2 mm "
-                   "inside the body)"),
-    "balanced": Preset(Effects(dynamics=False, wrinkles=False, collisions=True, collision_margin=0.004),
-                       "the cheapest point with the collision stage: the fast preset plus the push-out at a 4 mm "
-                       "margin (no body penetration left)"),
-    "best": Preset(Effects(dynamics=False, wrinkles=True, collisions=True, collision_margin=0.004, cloth=True),
-                   "the frontier point with the lowest vertex error: blend shapes on, temporal weights off, the "
-                   "cloth stage at its defaults with contact at 4 mm (it replaces the push-out; --effects=-cloth "
-                   "gives the push-out back; about twice balanced's time)"),
+    "fast": Preset(
+        Effects(dynamics=False, wrinkles=False, collisions=False),
+        "the fastest frontier point of the full-resolution garment: skinning weights from the current "
+        "pose, no blend shapes, no collision stage (a few % of the vertices stay more than 2 mm "
+        "inside the body)",
+    ),
+    "balanced": Preset(
+        Effects(dynamics=False, wrinkles=False, collisions=True, collision_margin=0.004),
+        "the cheapest point with the collision stage: the fast preset plus the push-out at a 4 mm "
+        "margin (no body penetration left)",
+    ),
+    "best": Preset(
+        Effects(dynamics=False, wrinkles=True, collisions=True, collision_margin=0.004, cloth=True),
+        "the frontier point with the lowest vertex error: blend shapes on, temporal weights off, the "
+        "cloth stage at its defaults with contact at 4 mm (it replaces the push-out; --effects=-cloth "
+        "gives the push-out back; about twice balanced's time)",
+    ),
 }
 
 
@@ -71,6 +77,9 @@ def preset_effects(name: str, effects: str | None = None) -> Effects:
     if not effects:
         return base
     if not is_change_list(effects):
-        raise InputError("a quality preset takes effect changes (+name/-name), not a complete effects list",
-                         expected="e.g. --quality fast --effects=+collisions", got=effects)
+        raise InputError(
+            "a quality preset takes effect changes (+name/-name), not a complete effects list",
+            expected="e.g. --quality fast --effects=+collisions",
+            got=effects,
+        )
     return parse_effects(effects, base)

@@ -103,9 +103,6 @@ class MotionSpec:
     animation: str | None = None  # a glTF file's animation (default: the first)
 
 
-
-
-
 @dataclasses.dataclass(frozen=True)
 class Scene:
     garment: Path
@@ -173,12 +170,24 @@ class _OutputTable:
 
 #: ``[effects]``: the fields of Effects but the cloth settings, which are ``cloth_<knob>`` keys
 _EffectsTable = dataclasses.make_dataclass(
-    "_EffectsTable", [(f.name, f.type, dataclasses.field(default=f.default)) for f in dataclasses.fields(Effects)
-                      if f.name != "cloth_settings"]
-    + [(f"cloth_{k}", float, dataclasses.field(default=None)) for k in CLOTH_KNOBS], frozen=True)
+    "_EffectsTable",
+    [
+        (f.name, f.type, dataclasses.field(default=f.default))
+        for f in dataclasses.fields(Effects)
+        if f.name != "cloth_settings"
+    ]
+    + [(f"cloth_{k}", float, dataclasses.field(default=None)) for k in CLOTH_KNOBS],
+    frozen=True,
+)
 
-_TABLES = {"garment": _GarmentTable, "body": _BodyTable, "motion": _MotionTable, "model": _ModelTable,
-           "output": _OutputTable, "effects": _EffectsTable}
+_TABLES = {
+    "garment": _GarmentTable,
+    "body": _BodyTable,
+    "motion": _MotionTable,
+    "model": _ModelTable,
+    "output": _OutputTable,
+    "effects": _EffectsTable,
+}
 
 
 def parse_frames(text: str, *, where=None) -> tuple[int, int | None]:
@@ -202,8 +211,12 @@ def load_scene(path: str | os.PathLike) -> Scene:
     data, _ = read_toml(p, "scene")
     unknown = sorted(set(data) - set(_TABLES) - {"simulate"})
     if unknown:
-        raise FileFormatError(f"unknown table [{unknown[0]}]", path=p,
-                              expected=", ".join(sorted(set(_TABLES) | {"simulate"})), got=", ".join(unknown))
+        raise FileFormatError(
+            f"unknown table [{unknown[0]}]",
+            path=p,
+            expected=", ".join(sorted(set(_TABLES) | {"simulate"})),
+            got=", ".join(unknown),
+        )
     for table, cls in _TABLES.items():
         if table in data or table in ("garment", "output"):
             read_table(data.get(table, {}), cls, where=table, path=p)
@@ -223,13 +236,20 @@ def load_scene(path: str | os.PathLike) -> Scene:
     if "kind" in m and any(k in m for k in ("up", "units", "joint_map", "skeleton", "animation")):
         raise FileFormatError("motion.up/units/joint_map/skeleton/animation apply to motion files only", path=p)
     motion = MotionSpec(
-        file=rel(m["file"]) if "file" in m else None, kind=m.get("kind"), seconds=float(m.get("seconds", 3.0)),
-        speed=float(m.get("speed", 1.0)), amplitude=float(m.get("amplitude", 1.0)), seed=int(m.get("seed", 0)),
+        file=rel(m["file"]) if "file" in m else None,
+        kind=m.get("kind"),
+        seconds=float(m.get("seconds", 3.0)),
+        speed=float(m.get("speed", 1.0)),
+        amplitude=float(m.get("amplitude", 1.0)),
+        seed=int(m.get("seed", 0)),
         fps=float(m["fps"]) if "fps" in m else None,
         frames=parse_frames(m["frames"], where=p) if "frames" in m else None,
-        up=m.get("up", "auto"), units=str(m["units"]) if "units" in m else None,
-        joint_map=rel(m["joint_map"]) if "joint_map" in m else None, floor=bool(m.get("floor", False)),
-        skeleton=rel(m["skeleton"]) if "skeleton" in m else None, animation=m.get("animation"),
+        up=m.get("up", "auto"),
+        units=str(m["units"]) if "units" in m else None,
+        joint_map=rel(m["joint_map"]) if "joint_map" in m else None,
+        floor=bool(m.get("floor", False)),
+        skeleton=rel(m["skeleton"]) if "skeleton" in m else None,
+        animation=m.get("animation"),
     )
     out = data["output"]
     out_path = rel(out["path"])
@@ -237,8 +257,9 @@ def load_scene(path: str | os.PathLike) -> Scene:
 
     fmt = out.get("format") or getattr(format_for_path(out_path), "name", None)
     if fmt not in SEQUENCE_FORMATS:
-        raise FileFormatError("output.format must be " + ", ".join(SEQUENCE_FORMATS), path=p,
-                              got=out.get("format", out_path.suffix))
+        raise FileFormatError(
+            "output.format must be " + ", ".join(SEQUENCE_FORMATS), path=p, got=out.get("format", out_path.suffix)
+        )
     up = out.get("up", "y")
     if up not in UP_AXES:
         raise FileFormatError("unknown output.up axis", path=p, expected=" | ".join(UP_AXES), got=up)
@@ -251,10 +272,12 @@ def load_scene(path: str | os.PathLike) -> Scene:
         raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
     if "effects" in data:  # what is not named is off
         eff = dict({n: False for n in EFFECT_NAMES}, **data["effects"])
-        knobs = {k[len("cloth_"):]: eff.pop(k) for k in list(eff) if k.startswith("cloth_")}
+        knobs = {k[len("cloth_") :]: eff.pop(k) for k in list(eff) if k.startswith("cloth_")}
         try:
-            effects = Effects(**{k: (float(v) if k == "collision_margin" else v) for k, v in eff.items()},
-                              cloth_settings=ClothSettings(**knobs))
+            effects = Effects(
+                **{k: (float(v) if k == "collision_margin" else v) for k, v in eff.items()},
+                cloth_settings=ClothSettings(**knobs),
+            )
         except ValueError as e:
             raise FileFormatError(f"[effects]: {e}", path=p) from None
     else:
@@ -262,8 +285,15 @@ def load_scene(path: str | os.PathLike) -> Scene:
     sim = parse_simulate_table(data["simulate"], where=p) if "simulate" in data else None
     return Scene(
         simulate=sim,
-        garment=rel(data["garment"]["mesh"]), motion=motion, output=out_path, output_format=fmt, up=up,
-        body=rel(data["body"]["model"]) if "model" in data.get("body", {}) else None, betas=tuple(float(b) for b in betas),
+        garment=rel(data["garment"]["mesh"]),
+        motion=motion,
+        output=out_path,
+        output_format=fmt,
+        up=up,
+        body=rel(data["body"]["model"]) if "model" in data.get("body", {}) else None,
+        betas=tuple(float(b) for b in betas),
         model=rel(data["model"]["package"]) if "package" in data.get("model", {}) else None,
-        body_output=rel(out["body"]) if "body" in out else None, effects=effects, path=p,
+        body_output=rel(out["body"]) if "body" in out else None,
+        effects=effects,
+        path=p,
     )

@@ -65,8 +65,16 @@ from ..errors import FileFormatError, InputError
 from ..io.toml import read_table
 from .effects import parse_effect_list
 
-__all__ = ["EFFECTS", "DEFAULT_EFFECTS", "MATERIALS", "PIN_GROUPS", "Material", "SimSettings",
-           "parse_simulate_table", "parse_sim_effects"]
+__all__ = [
+    "EFFECTS",
+    "DEFAULT_EFFECTS",
+    "MATERIALS",
+    "PIN_GROUPS",
+    "Material",
+    "SimSettings",
+    "parse_simulate_table",
+    "parse_sim_effects",
+]
 
 EFFECTS = ("gravity", "body_collision", "self_collision", "bending", "air_damping", "pinning", "wind")
 #: what a scene without a [simulate] table gets
@@ -147,18 +155,25 @@ class SimSettings:
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= hi:
                 raise InputError(f"{name} must be an integer in {lo}..{hi}", got=v)
-        for name, lo, hi in (("collision_distance", 1e-4, 0.1), ("self_collision_distance", 1e-4, 0.1),
-                             ("pin_stiffness", 0.0, 50.0), ("wind_strength", 0.0, 100.0),
-                             ("drape_seconds", 0.0, 10.0), ("blend_seconds", 0.0, 10.0), ("impulse_clamp", 0.0, 1.0),
-                             ("collision_inner", 1e-3, 1.0)):
+        for name, lo, hi in (
+            ("collision_distance", 1e-4, 0.1),
+            ("self_collision_distance", 1e-4, 0.1),
+            ("pin_stiffness", 0.0, 50.0),
+            ("wind_strength", 0.0, 100.0),
+            ("drape_seconds", 0.0, 10.0),
+            ("blend_seconds", 0.0, 10.0),
+            ("impulse_clamp", 0.0, 1.0),
+            ("collision_inner", 1e-3, 1.0),
+        ):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and not isinstance(v, bool) and lo <= v <= hi):
                 raise InputError(f"{name} must be a number in {lo}..{hi}", got=v)
         if not isinstance(self.collision_normals, bool):
             raise InputError("collision_normals must be true or false", got=self.collision_normals)
         if self.rest_pose not in ("t", "a"):
-            raise InputError("rest_pose must be 't' (the garment's own T-pose) or 'a' (arms lowered)",
-                             got=self.rest_pose)
+            raise InputError(
+                "rest_pose must be 't' (the garment's own T-pose) or 'a' (arms lowered)", got=self.rest_pose
+            )
         w = tuple(float(x) for x in self.wind)
         if len(w) != 3 or sum(x * x for x in w) < 1e-12:
             raise InputError("wind must be a non-zero 3-vector", got=self.wind)
@@ -193,14 +208,25 @@ def parse_simulate_table(table: dict | None, *, where=None) -> SimSettings:
         return SimSettings()
     read_table(table, SimSettings, where="simulate", path=where)  # keys and types: the fields of SimSettings
     if "effects" not in table:
-        raise FileFormatError("[simulate] must name its effects", path=where,
-                              expected=f"effects = [...] from {', '.join(EFFECTS)} (an empty list is allowed)")
+        raise FileFormatError(
+            "[simulate] must name its effects",
+            path=where,
+            expected=f"effects = [...] from {', '.join(EFFECTS)} (an empty list is allowed)",
+        )
     kw = dict(table)
     if not all(isinstance(e, str) for e in kw["effects"]):
         raise FileFormatError("simulate.effects must be a list of names", path=where, got=kw["effects"])
     kw["effects"] = tuple(kw["effects"])
-    for k in ("collision_distance", "self_collision_distance", "pin_stiffness", "wind_strength",
-              "drape_seconds", "blend_seconds", "impulse_clamp", "collision_inner"):
+    for k in (
+        "collision_distance",
+        "self_collision_distance",
+        "pin_stiffness",
+        "wind_strength",
+        "drape_seconds",
+        "blend_seconds",
+        "impulse_clamp",
+        "collision_inner",
+    ):
         if k in kw:
             kw[k] = float(kw[k])
     try:

@@ -76,9 +76,9 @@ class LossWeights:
     gravity: float = 0.0
     collision: float = 1.0
     collision_margin: float = 0.002
-    collision_power: int = 2         # 2: mean squared depth below the margin; 1: mean depth (m)
-    skin_prior: float = 1.0         # mean squared distance of the skinning weights to the body's, transferred
-    skin_prior_until: float = 0.5   # ... decaying linearly to 0 at this fraction of the steps
+    collision_power: int = 2  # 2: mean squared depth below the margin; 1: mean depth (m)
+    skin_prior: float = 1.0  # mean squared distance of the skinning weights to the body's, transferred
+    skin_prior_until: float = 0.5  # ... decaying linearly to 0 at this fraction of the steps
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,8 +109,13 @@ class PhysicsConfig:
     def material(self):
         from .energies import Material
 
-        return Material(density=self.density, stretch=self.stretch, bending=self.bending, collision=self.collision,
-                        margin=self.margin)
+        return Material(
+            density=self.density,
+            stretch=self.stretch,
+            bending=self.bending,
+            collision=self.collision,
+            margin=self.margin,
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -118,11 +123,11 @@ class OptimConfig:
     steps: int = 3000
     lr: float = 1e-3
     frames: int = 8
-    garments: int = 1           # garments per step
+    garments: int = 1  # garments per step
     seed: int = 0
     checkpoint_every: int = 200
     device: str = "auto"
-    lr_final: float = 0.1       # cosine decay to lr * lr_final
+    lr_final: float = 0.1  # cosine decay to lr * lr_final
     grad_clip: float = 1.0
 
 
@@ -131,13 +136,13 @@ class TrainConfig:
     model: ModelConfig
     loss: LossWeights
     optim: OptimConfig
-    dataset: tuple            # dataset roots (folders, packs, folders of packs)
+    dataset: tuple  # dataset roots (folders, packs, folders of packs)
     split: str = "train"
-    optional: tuple = ()      # roots read where they exist
+    optional: tuple = ()  # roots read where they exist
     val_split: str | None = None  # the split whose vertex error chooses the checkpoint
     physics: PhysicsConfig = PhysicsConfig()
-    exclude: tuple = ()      # globs of sample ids left out of training
-    fraction: float = 1.0    # share of the (remaining) samples trained on, by a hash of their ids
+    exclude: tuple = ()  # globs of sample ids left out of training
+    fraction: float = 1.0  # share of the (remaining) samples trained on, by a hash of their ids
     pairs: Path | None = None  # physics.pairs resolved against the config's folder
     path: Path | None = None
     text: str = ""
@@ -153,15 +158,22 @@ class TrainConfig:
         keep = [i for i in ids if not any(fnmatch.fnmatchcase(i, g) for g in self.exclude)]
         if self.fraction < 1.0:
             keep = sorted(keep, key=lambda i: hashlib.sha256(i.encode()).hexdigest())
-            keep = sorted(keep[:max(1, int(round(self.fraction * len(keep))))])
+            keep = sorted(keep[: max(1, int(round(self.fraction * len(keep))))])
         return keep
 
     def to_dict(self) -> dict:
-        return {"model": dataclasses.asdict(self.model), "loss": dataclasses.asdict(self.loss),
-                "optim": dataclasses.asdict(self.optim), "dataset": [str(d) for d in self.dataset],
-                "optional": [str(d) for d in self.optional], "val_split": self.val_split, "split": self.split,
-                "physics": dataclasses.asdict(self.physics), "exclude": list(self.exclude),
-                "fraction": self.fraction}
+        return {
+            "model": dataclasses.asdict(self.model),
+            "loss": dataclasses.asdict(self.loss),
+            "optim": dataclasses.asdict(self.optim),
+            "dataset": [str(d) for d in self.dataset],
+            "optional": [str(d) for d in self.optional],
+            "val_split": self.val_split,
+            "split": self.split,
+            "physics": dataclasses.asdict(self.physics),
+            "exclude": list(self.exclude),
+            "fraction": self.fraction,
+        }
 
 
 def _table(data, name, cls, where):
@@ -191,8 +203,13 @@ def _read_with_base(p: Path, seen=()) -> dict:
     for key in ("dataset", "optional"):
         if key in d:
             v = d[key]
-            d[key] = [str((bp.parent / x).resolve()) for x in v] if isinstance(v, list) else \
-                str((bp.parent / v).resolve()) if isinstance(v, str) else v
+            d[key] = (
+                [str((bp.parent / x).resolve()) for x in v]
+                if isinstance(v, list)
+                else str((bp.parent / v).resolve())
+                if isinstance(v, str)
+                else v
+            )
     ph = under.get("physics", {})
     if isinstance(ph.get("pairs"), str):
         ph["pairs"] = str((bp.parent / ph["pairs"]).resolve())
@@ -227,6 +244,7 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
     fraction = d.get("fraction", 1.0)
     if not isinstance(fraction, (int, float)) or isinstance(fraction, bool) or not 0 < fraction <= 1:
         raise FileFormatError("data.fraction must be in (0, 1]", path=p, got=fraction)
+
     def paths(v, key):
         v = [v] if isinstance(v, str) else v
         if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
@@ -256,6 +274,18 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
         raise FileFormatError("optim.device must be auto, cpu or cuda", path=p, got=optim.device)
     if optim.steps < 1 or optim.frames < 1 or optim.garments < 1 or not optim.lr > 0:
         raise FileFormatError("optim.steps, optim.frames, optim.garments and optim.lr must be positive", path=p)
-    return TrainConfig(model=model, loss=loss, optim=optim, dataset=dataset, split=d.get("split", "train"),
-                       optional=optional, val_split=val_split,
-                       physics=physics, pairs=pairs, exclude=tuple(exclude), fraction=float(fraction), path=p, text=json.dumps(data, sort_keys=True, default=str))
+    return TrainConfig(
+        model=model,
+        loss=loss,
+        optim=optim,
+        dataset=dataset,
+        split=d.get("split", "train"),
+        optional=optional,
+        val_split=val_split,
+        physics=physics,
+        pairs=pairs,
+        exclude=tuple(exclude),
+        fraction=float(fraction),
+        path=p,
+        text=json.dumps(data, sort_keys=True, default=str),
+    )

@@ -37,20 +37,20 @@ class TrainItem:
 
     id: str
     meta: dict
-    features: torch.Tensor    # (1, N, F)
-    nbr: torch.Tensor         # (N, K) int64
-    mask: torch.Tensor        # (N, K) bool
+    features: torch.Tensor  # (1, N, F)
+    nbr: torch.Tensor  # (N, K) int64
+    mask: torch.Tensor  # (N, K) bool
     descriptor: torch.Tensor  # (1, N*)
-    betas: torch.Tensor       # (1, B)
-    joints: torch.Tensor      # (S, 3)
-    rest: torch.Tensor        # (N, 3)
-    faces: torch.Tensor       # (F, 3) int64
-    edges: torch.Tensor       # (E, 2) int64
-    windows: torch.Tensor     # (T, W, 3 S)
-    trans: torch.Tensor       # (T, 3)
-    frames: torch.Tensor      # (T, N, 3)
-    contact_p: torch.Tensor   # (T, N, 3) closest body point to the simulated vertex
-    contact_n: torch.Tensor   # (T, N, 3) outward body normal there
+    betas: torch.Tensor  # (1, B)
+    joints: torch.Tensor  # (S, 3)
+    rest: torch.Tensor  # (N, 3)
+    faces: torch.Tensor  # (F, 3) int64
+    edges: torch.Tensor  # (E, 2) int64
+    windows: torch.Tensor  # (T, W, 3 S)
+    trans: torch.Tensor  # (T, 3)
+    frames: torch.Tensor  # (T, N, 3)
+    contact_p: torch.Tensor  # (T, N, 3) closest body point to the simulated vertex
+    contact_n: torch.Tensor  # (T, N, 3) outward body normal there
     body_weights: torch.Tensor  # (N, S) the body's skinning weights carried to the garment (weight_prior)
     asset: GarmentAsset
 
@@ -59,8 +59,14 @@ class TrainItem:
         return int(self.frames.shape[0])
 
     def to(self, device) -> TrainItem:
-        kw = {f.name: (getattr(self, f.name).to(device) if isinstance(getattr(self, f.name), torch.Tensor)
-                       else getattr(self, f.name)) for f in dataclasses.fields(self)}
+        kw = {
+            f.name: (
+                getattr(self, f.name).to(device)
+                if isinstance(getattr(self, f.name), torch.Tensor)
+                else getattr(self, f.name)
+            )
+            for f in dataclasses.fields(self)
+        }
         return TrainItem(**kw)
 
 
@@ -121,8 +127,17 @@ def _contact(root, s: Sample, body: BodyModel, collider=None):
     return cp, cn
 
 
-def load_items(root, body: BodyModel, *, n_star: int, window: int, n_betas: int, split: str | None = "train",
-               ids=None, weight_prior: str = "nearest") -> list[TrainItem]:
+def load_items(
+    root,
+    body: BodyModel,
+    *,
+    n_star: int,
+    window: int,
+    n_betas: int,
+    split: str | None = "train",
+    ids=None,
+    weight_prior: str = "nearest",
+) -> list[TrainItem]:
     """Load every kept sample of ``split`` (or the given ``ids``) of ``root`` (a dataset folder, a pack, a list
     of roots or :class:`DatasetRoots`) as :class:`TrainItem`; ``body_weights`` by ``weight_prior``
     (:func:`~segadeform.body.transfer.garment_weights`)."""
@@ -130,7 +145,7 @@ def load_items(root, body: BodyModel, *, n_star: int, window: int, n_betas: int,
     roots = as_roots(root)
     out = []
     collider = None
-    for sid in (ids if ids is not None else roots.ids(split)):
+    for sid in ids if ids is not None else roots.ids(split):
         s = roots.load(sid)
         if s.contact_p is None and collider is None:
             collider = BodyCollider(body.v_template, body.faces)
@@ -141,11 +156,26 @@ def load_items(root, body: BodyModel, *, n_star: int, window: int, n_betas: int,
         joints = body.rest_joints(s.betas if s.betas.size else None)[0]
         win = motion_windows(s.poses, window)
         bw = garment_weights(s.rest, s.faces, body, s.betas if s.betas.size else None, weight_prior)
-        out.append(TrainItem(
-            id=sid, meta=s.meta, features=f32(a.features)[None], nbr=torch.as_tensor(a.nbr, dtype=torch.int64),
-            mask=torch.as_tensor(a.mask, dtype=torch.bool), descriptor=f32(a.descriptor)[None], betas=f32(b)[None],
-            joints=f32(joints), rest=f32(s.rest), faces=torch.as_tensor(s.faces, dtype=torch.int64),
-            edges=torch.as_tensor(unique_edges(s.faces, len(s.rest)), dtype=torch.int64), windows=f32(win),
-            trans=f32(s.trans), frames=f32(s.frames), contact_p=f32(cp), contact_n=f32(cn), body_weights=f32(bw),
-            asset=a))
+        out.append(
+            TrainItem(
+                id=sid,
+                meta=s.meta,
+                features=f32(a.features)[None],
+                nbr=torch.as_tensor(a.nbr, dtype=torch.int64),
+                mask=torch.as_tensor(a.mask, dtype=torch.bool),
+                descriptor=f32(a.descriptor)[None],
+                betas=f32(b)[None],
+                joints=f32(joints),
+                rest=f32(s.rest),
+                faces=torch.as_tensor(s.faces, dtype=torch.int64),
+                edges=torch.as_tensor(unique_edges(s.faces, len(s.rest)), dtype=torch.int64),
+                windows=f32(win),
+                trans=f32(s.trans),
+                frames=f32(s.frames),
+                contact_p=f32(cp),
+                contact_n=f32(cn),
+                body_weights=f32(bw),
+                asset=a,
+            )
+        )
     return out

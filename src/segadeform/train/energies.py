@@ -17,7 +17,8 @@ minimises, with the two previous frames (the network's own, detached) as the his
 with ``A_e`` a third of the rest area of the faces at edge ``e``, ``A_v`` likewise per vertex and
 ``m_v = rho A / N`` (the garment's mass ``rho A`` shared equally, as Blender's cloth shares it).  The
 stiffnesses and drag need not be guessed: :func:`calibrate_material` fits them to simulated frames
-(the frames should be stationary points of E given their history).  The loss is ``E / (M g)`` (M the garment's mass): metres of equivalent height,
+(the frames should be stationary points of E given their history).  The loss is ``E / (M g)`` (M the garment's mass):
+metres of equivalent height,
 the unit of the supervised vertex term, so one weight balances the two.  ``d_v`` is measured against
 the posed body at the detached prediction (closest point and outward normal, then linearised), as the
 supervised collision term does with the simulated vertex.
@@ -46,8 +47,17 @@ from ..io import read_mesh
 from ..io.location import open_location
 from ..motion.motion import motion_windows
 
-__all__ = ["Material", "ClothTopology", "cloth_topology", "cloth_energy", "dihedral_angles", "PhysicsPairs",
-           "PairItem", "body_contact", "vertex_masses"]
+__all__ = [
+    "Material",
+    "ClothTopology",
+    "cloth_topology",
+    "cloth_energy",
+    "dihedral_angles",
+    "PhysicsPairs",
+    "PairItem",
+    "body_contact",
+    "vertex_masses",
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -81,11 +91,11 @@ class Material:
 class ClothTopology:
     """What the energies need of a rest garment (torch tensors; float32, int64)."""
 
-    edges: torch.Tensor        # (E, 2)
-    rest_len: torch.Tensor     # (E,)
-    edge_area: torch.Tensor    # (E,) a third of the adjacent faces' rest area
-    hinges: torch.Tensor       # (H, 4): the shared edge (i, j) and the two opposite vertices (k, l)
-    hinge_rest: torch.Tensor   # (H,) rest dihedral angles
+    edges: torch.Tensor  # (E, 2)
+    rest_len: torch.Tensor  # (E,)
+    edge_area: torch.Tensor  # (E,) a third of the adjacent faces' rest area
+    hinges: torch.Tensor  # (H, 4): the shared edge (i, j) and the two opposite vertices (k, l)
+    hinge_rest: torch.Tensor  # (H,) rest dihedral angles
     hinge_stiff: torch.Tensor  # (H,) 3 l0^2 / (A_1 + A_2)
     vertex_area: torch.Tensor  # (N,)
 
@@ -122,12 +132,18 @@ def cloth_topology(rest: np.ndarray, faces: np.ndarray) -> ClothTopology:
     # orient each hinge along the first face's edge so that the normals below are consistent
     hinges = np.stack([fe[a, 0], fe[a, 1], opp[a], opp[b]], axis=1)
     l0 = np.linalg.norm(v[hinges[:, 0]] - v[hinges[:, 1]], axis=1)
-    hs = 3.0 * l0 ** 2 / np.maximum(area[fid[a]] + area[fid[b]], 1e-20)
+    hs = 3.0 * l0**2 / np.maximum(area[fid[a]] + area[fid[b]], 1e-20)
     rest_len = np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1)
     t = lambda x, dt=torch.float32: torch.as_tensor(np.ascontiguousarray(x), dtype=dt)  # noqa: E731
-    topo = ClothTopology(edges=t(edges, torch.int64), rest_len=t(np.maximum(rest_len, 1e-9)), edge_area=t(earea),
-                         hinges=t(hinges, torch.int64), hinge_rest=torch.zeros(len(hinges)), hinge_stiff=t(hs),
-                         vertex_area=t(varea))
+    topo = ClothTopology(
+        edges=t(edges, torch.int64),
+        rest_len=t(np.maximum(rest_len, 1e-9)),
+        edge_area=t(earea),
+        hinges=t(hinges, torch.int64),
+        hinge_rest=torch.zeros(len(hinges)),
+        hinge_stiff=t(hs),
+        vertex_area=t(varea),
+    )
     topo.hinge_rest = dihedral_angles(t(v)[None], topo.hinges)[0]
     return topo
 
@@ -151,9 +167,18 @@ def dihedral_angles(x: torch.Tensor, hinges: torch.Tensor) -> torch.Tensor:
     return torch.atan2(sin, cos)
 
 
-def cloth_energy(x: torch.Tensor, topo: ClothTopology, mat: Material, *, prev: torch.Tensor | None = None,
-                 prev2: torch.Tensor | None = None, dt: float = 1 / 30, contact_p: torch.Tensor | None = None,
-                 contact_n: torch.Tensor | None = None, height_ref: torch.Tensor | None = None) -> dict:
+def cloth_energy(
+    x: torch.Tensor,
+    topo: ClothTopology,
+    mat: Material,
+    *,
+    prev: torch.Tensor | None = None,
+    prev2: torch.Tensor | None = None,
+    dt: float = 1 / 30,
+    contact_p: torch.Tensor | None = None,
+    contact_n: torch.Tensor | None = None,
+    height_ref: torch.Tensor | None = None,
+) -> dict:
     """Every energy term of frames ``x (B, N, 3)`` divided by ``M g`` (metres), and their sum ``total``.
 
     ``prev``/``prev2 (B, N, 3)``: the two frames before each (detached history; the inertia term is
@@ -168,14 +193,14 @@ def cloth_energy(x: torch.Tensor, topo: ClothTopology, mat: Material, *, prev: t
     if len(topo.hinges):
         dth = dihedral_angles(x, topo.hinges) - topo.hinge_rest
         dth = torch.remainder(dth + np.pi, 2 * np.pi) - np.pi
-        out["bend"] = 0.5 * mat.bending * (topo.hinge_stiff * dth ** 2).sum(-1)
+        out["bend"] = 0.5 * mat.bending * (topo.hinge_stiff * dth**2).sum(-1)
     else:
         out["bend"] = x.new_zeros(x.shape[0])
     y = x[..., 1] if height_ref is None else x[..., 1] - height_ref[:, None]
     out["gravity"] = mat.gravity * (m * y).sum(-1)
     if prev is not None and prev2 is not None:
         acc = x - 2 * prev + prev2
-        out["inertia"] = (m * (acc ** 2).sum(-1)).sum(-1) / (2 * dt * dt)
+        out["inertia"] = (m * (acc**2).sum(-1)).sum(-1) / (2 * dt * dt)
     else:
         out["inertia"] = x.new_zeros(x.shape[0])
     if prev is not None and mat.damping:
@@ -214,17 +239,17 @@ class PairItem:
     """A garment x body x motion pair with no simulation: what the network and the energies need."""
 
     id: str
-    features: torch.Tensor     # (1, N, F)
-    nbr: torch.Tensor          # (N, K)
-    mask: torch.Tensor         # (N, K)
-    descriptor: torch.Tensor   # (1, N*)
-    betas: torch.Tensor        # (1, |beta|)
-    joints: torch.Tensor       # (S, 3)
-    rest: torch.Tensor         # (N, 3)
-    windows: torch.Tensor      # (T, W, 3 S)
-    trans: torch.Tensor        # (T, 3)
+    features: torch.Tensor  # (1, N, F)
+    nbr: torch.Tensor  # (N, K)
+    mask: torch.Tensor  # (N, K)
+    descriptor: torch.Tensor  # (1, N*)
+    betas: torch.Tensor  # (1, |beta|)
+    joints: torch.Tensor  # (S, 3)
+    rest: torch.Tensor  # (N, 3)
+    windows: torch.Tensor  # (T, W, 3 S)
+    trans: torch.Tensor  # (T, 3)
     body_weights: torch.Tensor  # (N, S)
-    posed_body: np.ndarray     # (T, V, 3) float32
+    posed_body: np.ndarray  # (T, V, 3) float32
     topo: ClothTopology
     fps: float
 
@@ -243,15 +268,27 @@ class PairItem:
 class PhysicsPairs:
     """The training pairs of a dataset config, for self-supervised steps (none of them need be simulated).
 
-    Only ``train`` pairs of the plan are used, less those matching an ``exclude`` glob (:func:`~segadeform.dataset.make.check_splits` refuses a
+    Only ``train`` pairs of the plan are used, less those matching an ``exclude`` glob
+    (:func:`~segadeform.dataset.make.check_splits` refuses a
     config that would leak a held-out garment kind, motion family or body into them).  Garments are
     made once per (garment, body) into ``cache`` (the same files ``dataset make`` writes); the last
     ``keep`` pairs, garments and motions used are kept in memory (a plan of thousands of pairs, each
     motion's posed body ~10 MB, does not fit).
     """
 
-    def __init__(self, config, cache, body: BodyModel, *, n_star: int, window: int, n_betas: int,
-                 weight_prior: str = "nearest", exclude=(), keep: int = 48) -> None:
+    def __init__(
+        self,
+        config,
+        cache,
+        body: BodyModel,
+        *,
+        n_star: int,
+        window: int,
+        n_betas: int,
+        weight_prior: str = "nearest",
+        exclude=(),
+        keep: int = 48,
+    ) -> None:
         self.cfg: DatasetConfig = config if isinstance(config, DatasetConfig) else load_dataset_config(config)
         plan = sample_plan(self.cfg)
         check_splits(self.cfg, plan)
@@ -284,19 +321,24 @@ class PhysicsPairs:
             mesh = read_mesh(self.cache / rel)
             betas = self.cfg.bodies[bi] or None
             joints = self.body.rest_joints(betas)[0]
-            h = hashlib.sha256(np.ascontiguousarray(mesh.vertices).tobytes() + np.ascontiguousarray(mesh.faces).tobytes()
-                               + np.ascontiguousarray(joints).tobytes() + str(self.n_star).encode()).hexdigest()[:24]
+            h = hashlib.sha256(
+                np.ascontiguousarray(mesh.vertices).tobytes()
+                + np.ascontiguousarray(mesh.faces).tobytes()
+                + np.ascontiguousarray(joints).tobytes()
+                + str(self.n_star).encode()
+            ).hexdigest()[:24]
             p = self.cache / "assets" / f"asset-{h}.npz"
             if p.is_file():
                 asset = GarmentAsset.load(p)
             else:
-                asset = precompute_garment(mesh.vertices, mesh.faces, joints, n_star=self.n_star,
-                                           source_name=self.cfg.garments[gi].name)
+                asset = precompute_garment(
+                    mesh.vertices, mesh.faces, joints, n_star=self.n_star, source_name=self.cfg.garments[gi].name
+                )
                 p.parent.mkdir(exist_ok=True)
                 asset.save(p)
             bw = garment_weights(mesh.vertices, mesh.faces, self.body, betas, self.weight_prior)
             # the cloth's own rest (the A-posed garment the simulator drapes, when made) sets the rest lengths
-            cloth = self.cache / (rel[:-len(".obj")] + ".cloth.obj")
+            cloth = self.cache / (rel[: -len(".obj")] + ".cloth.obj")
             cloth_rest = read_mesh(cloth).vertices if cloth.is_file() else mesh.vertices
             self._garments[key] = (mesh, asset, joints, bw, cloth_topology(cloth_rest, mesh.faces))
         return _lru(self._garments, key, self.keep)
@@ -320,11 +362,21 @@ class PhysicsPairs:
             b[: betas.size] = betas[: self.n_betas]
             f32 = lambda x: torch.as_tensor(np.asarray(x, np.float32))  # noqa: E731
             self._items[p.id] = PairItem(
-                id=p.id, features=f32(a.features)[None], nbr=torch.as_tensor(a.nbr, dtype=torch.int64),
-                mask=torch.as_tensor(a.mask, dtype=torch.bool), descriptor=f32(a.descriptor)[None],
-                betas=f32(b)[None], joints=f32(joints), rest=f32(mesh.vertices),
-                windows=f32(motion_windows(mo.poses, self.window)), trans=f32(mo.trans), body_weights=f32(bw),
-                posed_body=posed, topo=topo, fps=float(mo.fps))
+                id=p.id,
+                features=f32(a.features)[None],
+                nbr=torch.as_tensor(a.nbr, dtype=torch.int64),
+                mask=torch.as_tensor(a.mask, dtype=torch.bool),
+                descriptor=f32(a.descriptor)[None],
+                betas=f32(b)[None],
+                joints=f32(joints),
+                rest=f32(mesh.vertices),
+                windows=f32(motion_windows(mo.poses, self.window)),
+                trans=f32(mo.trans),
+                body_weights=f32(bw),
+                posed_body=posed,
+                topo=topo,
+                fps=float(mo.fps),
+            )
         return _lru(self._items, p.id, self.keep)
 
 
@@ -334,4 +386,3 @@ def _lru(cache: OrderedDict, key, keep: int):
     while len(cache) > keep:
         cache.popitem(last=False)
     return cache[key]
-

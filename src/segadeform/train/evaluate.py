@@ -69,8 +69,9 @@ class _Acc:
         return self.sums[key] / max(self.counts[key], 1)
 
 
-def push_out_frames(x: np.ndarray, ref: Reference, collider: BodyCollider, margin: float, *,
-                    batch: int = 8) -> np.ndarray:
+def push_out_frames(
+    x: np.ndarray, ref: Reference, collider: BodyCollider, margin: float, *, batch: int = 8
+) -> np.ndarray:
     """The runtime's collision stage on a prediction: ``collider`` (:class:`BodyCollider`, built once)
     pushes ``batch`` frames at a time out of the posed body, as ``segadeform run`` does.
     Shapes: x (T, N, 3) -> (T, N, 3)."""
@@ -78,7 +79,7 @@ def push_out_frames(x: np.ndarray, ref: Reference, collider: BodyCollider, margi
         raise InputError("this reference has no posed body", expected="reference(...) of this module")
     out = np.empty(x.shape, np.float64)
     for lo in range(0, len(x), batch):
-        out[lo:lo + batch] = collider.push_out(x[lo:lo + batch], ref.posed[lo:lo + batch], margin)[0]
+        out[lo : lo + batch] = collider.push_out(x[lo : lo + batch], ref.posed[lo : lo + batch], margin)[0]
     return out
 
 
@@ -97,8 +98,9 @@ def push_out_names(margins) -> dict:
     return {" + push-out": ms[0]} if one else {f" + push-out {1e3 * m:g} mm": m for m in ms}
 
 
-def cloth_frames(x: np.ndarray, s: Sample, ref: Reference, body: BodyModel, settings, *, margin: float = 0.004,
-                 batch: int = 8) -> np.ndarray:
+def cloth_frames(
+    x: np.ndarray, s: Sample, ref: Reference, body: BodyModel, settings, *, margin: float = 0.004, batch: int = 8
+) -> np.ndarray:
     """The runtime's cloth stage (:class:`segadeform.body.cloth.ClothStage`, as ``segadeform run --effects=+cloth``)
     on a prediction of sample ``s``: the garment's setup on the body at rest of the sample's shape, then ``batch``
     frames at a time against the posed body, one stage (its state) over the whole sample.
@@ -106,9 +108,17 @@ def cloth_frames(x: np.ndarray, s: Sample, ref: Reference, body: BodyModel, sett
     if ref.posed is None:
         raise InputError("this reference has no posed body", expected="reference(...) of this module")
     rest_body = body.shaped_vertices(s.betas if s.betas.size else None)[0]
-    stage = ClothStage(garment_setup(s.rest, s.faces, rest_body, body.faces, settings), body.v_template, body.faces,
-                       settings, margin=margin, dt=1.0 / float(s.meta.get("fps", 30.0)))
-    return np.concatenate([stage.step(x[lo:lo + batch], ref.posed[lo:lo + batch]) for lo in range(0, len(x), batch)])
+    stage = ClothStage(
+        garment_setup(s.rest, s.faces, rest_body, body.faces, settings),
+        body.v_template,
+        body.faces,
+        settings,
+        margin=margin,
+        dt=1.0 / float(s.meta.get("fps", 30.0)),
+    )
+    return np.concatenate(
+        [stage.step(x[lo : lo + batch], ref.posed[lo : lo + batch]) for lo in range(0, len(x), batch)]
+    )
 
 
 def cloth_names(settings) -> dict:
@@ -116,7 +126,7 @@ def cloth_names(settings) -> dict:
     text form (``iterations=8,stiffness=0.5``; ``default`` or ``""``: the defaults), named ``" + cloth"`` for
     the defaults and ``" + cloth iterations=8,..."`` otherwise."""
     out = {}
-    for item in ([] if settings is None else [settings] if isinstance(settings, (str, ClothSettings)) else settings):
+    for item in [] if settings is None else [settings] if isinstance(settings, (str, ClothSettings)) else settings:
         if isinstance(item, str):
             try:
                 item = ClothSettings.parse("" if item.strip() == "default" else item)
@@ -127,9 +137,19 @@ def cloth_names(settings) -> dict:
     return out
 
 
-def evaluate(dataset: Path, body: BodyModel, predictors: dict[str, Predictor], *, split: str = "test", n_star: int = 32,
-             frame_step: int = 1, progress: Callable[[str], None] | None = None, push_out_margin=None,
-             cloth=None, cloth_margin: float = 0.004) -> dict:
+def evaluate(
+    dataset: Path,
+    body: BodyModel,
+    predictors: dict[str, Predictor],
+    *,
+    split: str = "test",
+    n_star: int = 32,
+    frame_step: int = 1,
+    progress: Callable[[str], None] | None = None,
+    push_out_margin=None,
+    cloth=None,
+    cloth_margin: float = 0.004,
+) -> dict:
     """Evaluate ``predictors`` ({name: :class:`~segadeform.train.predictors.Predictor`}) on ``split`` of ``dataset``.
 
     Returns ``{"models": {name: {metric: value}}, "by_type": {name: {type: {metric: value}}},
@@ -149,8 +169,11 @@ def evaluate(dataset: Path, body: BodyModel, predictors: dict[str, Predictor], *
     pushes = push_out_names(push_out_margin)
     cloths = cloth_names(cloth)
     learned = [n for n, s in models.items() if s not in ("lbs", "lbs-inpaint")]
-    names = list(preds) + [f"{n}{sfx}" for sfx in pushes for n, s in models.items() if s != "lbs"] + \
-        [f"{n}{sfx}" for sfx in cloths for n in learned]
+    names = (
+        list(preds)
+        + [f"{n}{sfx}" for sfx in pushes for n, s in models.items() if s != "lbs"]
+        + [f"{n}{sfx}" for sfx in cloths for n in learned]
+    )
     collider = BodyCollider(body.v_template, body.faces) if pushes else None
     acc = {n: _Acc.new() for n in names}
     by_type = {n: {} for n in names}
@@ -195,9 +218,14 @@ def evaluate(dataset: Path, body: BodyModel, predictors: dict[str, Predictor], *
                 by_type[n].setdefault(typ, _Acc.new()).add(k, v)
             for t, v in enumerate(100 * d.mean(axis=1)):
                 per_frame[n].add(t, v)
-    res = {"split": split, "samples": ids, "metrics": list(METRICS),
-           "models": {n: {k: acc[n].mean(k) for k in METRICS + ("ms_per_frame",)} for n in names},
-           "by_type": {n: {t: {k: a.mean(k) for k in METRICS} for t, a in sorted(by_type[n].items())} for n in names},
-           "per_frame": {n: [per_frame[n].mean(t) for t in sorted(per_frame[n].sums)] for n in names},
-           "specs": dict(models), "n_star": n_star}
+    res = {
+        "split": split,
+        "samples": ids,
+        "metrics": list(METRICS),
+        "models": {n: {k: acc[n].mean(k) for k in METRICS + ("ms_per_frame",)} for n in names},
+        "by_type": {n: {t: {k: a.mean(k) for k in METRICS} for t, a in sorted(by_type[n].items())} for n in names},
+        "per_frame": {n: [per_frame[n].mean(t) for t in sorted(per_frame[n].sums)] for n in names},
+        "specs": dict(models),
+        "n_star": n_star,
+    }
     return res

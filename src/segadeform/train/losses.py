@@ -7,8 +7,17 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["vertex_normals", "vertex_loss", "normal_loss", "edge_loss", "stretch_loss", "shear_loss",
-           "gravity_loss", "collision_loss", "corner_angles"]
+__all__ = [
+    "vertex_normals",
+    "vertex_loss",
+    "normal_loss",
+    "edge_loss",
+    "stretch_loss",
+    "shear_loss",
+    "gravity_loss",
+    "collision_loss",
+    "corner_angles",
+]
 
 
 def vertex_normals(x: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:

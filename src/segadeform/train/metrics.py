@@ -15,8 +15,18 @@ from ..geometry.mesh_ops import unique_edges, vertex_normals
 
 __all__ = ["METRICS", "PEAK_METRICS", "PEN_DEPTH", "Reference", "reference", "sample_metrics"]
 
-METRICS = ("vertex_cm", "normal_deg", "edge_mm", "low_cm", "mid_cm", "high_cm", "penetration_pct", "jitter_mm",
-           "max_strain_pct", "p99_strain_pct")
+METRICS = (
+    "vertex_cm",
+    "normal_deg",
+    "edge_mm",
+    "low_cm",
+    "mid_cm",
+    "high_cm",
+    "penetration_pct",
+    "jitter_mm",
+    "max_strain_pct",
+    "p99_strain_pct",
+)
 #: metrics aggregated over samples by their largest value, not their mean
 PEAK_METRICS = ("max_strain_pct",)
 PEN_DEPTH = 0.002
@@ -58,10 +68,18 @@ def reference(s: Sample, body: BodyModel, basis: SpectralBasis | None = None) ->
     for t in range(len(posed)):
         proxy = BodyProxy(posed[t], body.faces) if proxy is None else proxy.moved(posed[t])
         proxies.append(proxy)
-    return Reference(gt=gt, faces=s.faces, edges=edges, basis=basis, n_gt=_normals(gt, s.faces),
-                     l_gt=np.linalg.norm(gt[:, edges[:, 0]] - gt[:, edges[:, 1]], axis=2),
-                     acc_gt=gt[2:] - 2 * gt[1:-1] + gt[:-2], proxies=proxies, posed=posed,
-                     l_rest=np.linalg.norm(s.rest[edges[:, 0]] - s.rest[edges[:, 1]], axis=1))
+    return Reference(
+        gt=gt,
+        faces=s.faces,
+        edges=edges,
+        basis=basis,
+        n_gt=_normals(gt, s.faces),
+        l_gt=np.linalg.norm(gt[:, edges[:, 0]] - gt[:, edges[:, 1]], axis=2),
+        acc_gt=gt[2:] - 2 * gt[1:-1] + gt[:-2],
+        proxies=proxies,
+        posed=posed,
+        l_rest=np.linalg.norm(s.rest[edges[:, 0]] - s.rest[edges[:, 1]], axis=1),
+    )
 
 
 def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
@@ -75,15 +93,29 @@ def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
     bands = np.zeros(3)
     for t in frames:
         lo, mid, hi = ref.basis.split(x[t] - gt[t])
-        bands += [np.linalg.norm(lo, axis=1).mean(), np.linalg.norm(mid, axis=1).mean(),
-                  np.linalg.norm(hi, axis=1).mean()]
+        bands += [
+            np.linalg.norm(lo, axis=1).mean(),
+            np.linalg.norm(mid, axis=1).mean(),
+            np.linalg.norm(hi, axis=1).mean(),
+        ]
     bands /= len(frames)
     pen = np.mean([(ref.proxies[t].query(x[t]).signed_distance < -PEN_DEPTH).mean() for t in frames])
     jit = np.linalg.norm((x[2:] - 2 * x[1:-1] + x[:-2]) - ref.acc_gt, axis=2).mean() if len(gt) > 2 else 0.0
     # stretch (compression counts as 0): what a stretch limit bounds
-    strain = (np.maximum(l_x / np.maximum(ref.l_rest, 1e-12) - 1, 0) if ref.l_rest is not None and len(edges)
-              else np.zeros((1, 1)))
-    return {"vertex_cm": 100 * d.mean(), "normal_deg": np.degrees(np.arccos(cosang)).mean(),
-            "edge_mm": 1000 * np.abs(l_x - ref.l_gt).mean(), "low_cm": 100 * bands[0], "mid_cm": 100 * bands[1],
-            "high_cm": 100 * bands[2], "penetration_pct": 100 * pen, "jitter_mm": 1000 * jit,
-            "max_strain_pct": 100 * float(strain.max()), "p99_strain_pct": 100 * float(np.percentile(strain, 99))}
+    strain = (
+        np.maximum(l_x / np.maximum(ref.l_rest, 1e-12) - 1, 0)
+        if ref.l_rest is not None and len(edges)
+        else np.zeros((1, 1))
+    )
+    return {
+        "vertex_cm": 100 * d.mean(),
+        "normal_deg": np.degrees(np.arccos(cosang)).mean(),
+        "edge_mm": 1000 * np.abs(l_x - ref.l_gt).mean(),
+        "low_cm": 100 * bands[0],
+        "mid_cm": 100 * bands[1],
+        "high_cm": 100 * bands[2],
+        "penetration_pct": 100 * pen,
+        "jitter_mm": 1000 * jit,
+        "max_strain_pct": 100 * float(strain.max()),
+        "p99_strain_pct": 100 * float(np.percentile(strain, 99)),
+    }

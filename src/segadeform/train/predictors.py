@@ -74,8 +74,9 @@ class CheckpointPredictor(Predictor):
         feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
         lw = None
         if self.model.residual:
-            lw = t32(residual_log_weights(garment_weights(asset.vertices, asset.faces, body, betas,
-                                                          self.cfg.weight_prior)))
+            lw = t32(
+                residual_log_weights(garment_weights(asset.vertices, asset.faces, body, betas, self.cfg.weight_prior))
+            )
         with torch.no_grad():
             g = self.model.garment_encoder(t32(feats)[None], nbr, mask, t32(asset.descriptor)[None])[0]
             win = motion_windows(s.poses, c.window)
@@ -83,8 +84,17 @@ class CheckpointPredictor(Predictor):
             for lo in range(0, len(s.poses), 16):
                 hi = min(lo + 16, len(s.poses))
                 n = hi - lo
-                v, _, _ = self.model.deformer(g, t32(win[lo:hi]), t32(b)[None].expand(n, -1), t32(s.rest), nbr, mask,
-                                              t32(joints)[None].expand(n, -1, -1), t32(s.trans[lo:hi]), lw)
+                v, _, _ = self.model.deformer(
+                    g,
+                    t32(win[lo:hi]),
+                    t32(b)[None].expand(n, -1),
+                    t32(s.rest),
+                    nbr,
+                    mask,
+                    t32(joints)[None].expand(n, -1, -1),
+                    t32(s.trans[lo:hi]),
+                    lw,
+                )
                 out.append(v.numpy())
         return np.concatenate(out).astype(np.float64)
 
@@ -109,15 +119,21 @@ def make_predictor(name: str, spec: str, *, package: Callable[[str, str], Predic
         p = LBSPredictor(spec[4:])
     elif folder is not None:
         if package is None:
-            raise InputError("a model package needs the runtime's predictor",
-                             expected="make_predictor(..., package=segadeform.runtime.predictor.PackagePredictor)",
-                             got=spec)
+            raise InputError(
+                "a model package needs the runtime's predictor",
+                expected="make_predictor(..., package=segadeform.runtime.predictor.PackagePredictor)",
+                got=spec,
+            )
         p = package(folder, eff)
     elif Path(spec).suffix == ".pt":
         p = CheckpointPredictor(spec)
     else:
-        raise InputError("a model must be 'lbs', 'lbs-PRIOR' (" + ", ".join(f"lbs-{w}" for w in WEIGHT_PRIORS[1:])
-                         + "), a model package folder or a .pt checkpoint", got=spec)
+        raise InputError(
+            "a model must be 'lbs', 'lbs-PRIOR' ("
+            + ", ".join(f"lbs-{w}" for w in WEIGHT_PRIORS[1:])
+            + "), a model package folder or a .pt checkpoint",
+            got=spec,
+        )
     p.name, p.spec = name, spec
     return p
 

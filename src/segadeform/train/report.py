@@ -18,10 +18,19 @@ from .predictors import Predictor
 __all__ = ["markdown_table", "write_report"]
 
 
-_HEAD = {"vertex_cm": "vertex (cm)", "normal_deg": "normal (°)", "edge_mm": "edge (mm)", "low_cm": "low band (cm)",
-         "mid_cm": "mid band (cm)", "high_cm": "high band (cm)", "penetration_pct": "penetrating (%)",
-         "jitter_mm": "jitter (mm/f²)", "ms_per_frame": "ms/frame", "max_strain_pct": "max stretch (%)",
-         "p99_strain_pct": "p99 stretch (%)"}
+_HEAD = {
+    "vertex_cm": "vertex (cm)",
+    "normal_deg": "normal (°)",
+    "edge_mm": "edge (mm)",
+    "low_cm": "low band (cm)",
+    "mid_cm": "mid band (cm)",
+    "high_cm": "high band (cm)",
+    "penetration_pct": "penetrating (%)",
+    "jitter_mm": "jitter (mm/f²)",
+    "ms_per_frame": "ms/frame",
+    "max_strain_pct": "max stretch (%)",
+    "p99_strain_pct": "p99 stretch (%)",
+}
 #: the per-type table's columns
 _TYPE_COLS = ("vertex_cm", "normal_deg", "edge_mm", "penetration_pct", "max_strain_pct", "p99_strain_pct")
 
@@ -30,26 +39,39 @@ def markdown_table(res: dict) -> str:
     cols = METRICS + ("ms_per_frame",)
     lines = ["| model | " + " | ".join(_HEAD[k] for k in cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for n, m in res["models"].items():
-        lines.append(f"| {n} | " + " | ".join(f"{m[k]:.3f}" if k != "ms_per_frame" else f"{m[k]:.1f}"
-                                             for k in cols) + " |")
+        lines.append(
+            f"| {n} | " + " | ".join(f"{m[k]:.3f}" if k != "ms_per_frame" else f"{m[k]:.1f}" for k in cols) + " |"
+        )
     out = ["\n".join(lines), "", "Per garment type (vertex error, cm):", ""]
     types = sorted({t for n in res["by_type"] for t in res["by_type"][n]})
     out.append("| model | " + " | ".join(types) + " |")
     out.append("|---" * (len(types) + 1) + "|")
     for n, bt in res["by_type"].items():
         out.append(f"| {n} | " + " | ".join(f"{bt[t]['vertex_cm']:.3f}" if t in bt else "-" for t in types) + " |")
-    out += ["", "Per garment type, every metric:", "",
-            "| type | model | " + " | ".join(_HEAD[k] for k in _TYPE_COLS) + " |", "|---" * (len(_TYPE_COLS) + 2) + "|"]
+    out += [
+        "",
+        "Per garment type, every metric:",
+        "",
+        "| type | model | " + " | ".join(_HEAD[k] for k in _TYPE_COLS) + " |",
+        "|---" * (len(_TYPE_COLS) + 2) + "|",
+    ]
     for t in types:
         for n, bt in res["by_type"].items():
             if t in bt:
-                out.append(f"| {t} | {n} | " + " | ".join(f"{bt[t][k]:.3f}" if k in bt[t] else "-"
-                                                        for k in _TYPE_COLS) + " |")
+                out.append(
+                    f"| {t} | {n} | " + " | ".join(f"{bt[t][k]:.3f}" if k in bt[t] else "-" for k in _TYPE_COLS) + " |"
+                )
     return "\n".join(out)
 
 
-def write_report(res: dict, out_dir: Path, *, dataset: Path | None = None, body: BodyModel | None = None,
-                 heatmap: Predictor | None = None) -> None:
+def write_report(
+    res: dict,
+    out_dir: Path,
+    *,
+    dataset: Path | None = None,
+    body: BodyModel | None = None,
+    heatmap: Predictor | None = None,
+) -> None:
     """Write ``eval.json``, ``eval.md`` and the PNG plots into ``out_dir``; with ``dataset``, ``body`` and a
     predictor ``heatmap`` (one of those evaluated), also its per-vertex error map."""
     import matplotlib

@@ -62,8 +62,18 @@ def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_sc
     ``prior_scale`` multiplies the skinning-weight prior's weight (the trainer fades it out)."""
     b = len(t)
     lw = torch.log(item.body_weights + RESIDUAL_EPS) if model.residual else None
-    verts, weights, _ = model(item.features, item.nbr, item.mask, item.descriptor, item.betas.expand(b, -1),
-                              item.windows[t], item.rest, item.joints[None].expand(b, -1, -1), item.trans[t], lw)
+    verts, weights, _ = model(
+        item.features,
+        item.nbr,
+        item.mask,
+        item.descriptor,
+        item.betas.expand(b, -1),
+        item.windows[t],
+        item.rest,
+        item.joints[None].expand(b, -1, -1),
+        item.trans[t],
+        lw,
+    )
     y = item.frames[t]
     out = {
         "vertex": L.vertex_loss(verts, y),
@@ -72,8 +82,9 @@ def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_sc
         "stretch": L.stretch_loss(verts, item.rest, item.edges),
         "shear": L.shear_loss(verts, item.rest, item.faces),
         "gravity": L.gravity_loss(verts, item.rest),
-        "collision": L.collision_loss(verts, item.contact_p[t], item.contact_n[t], w.collision_margin,
-                                      w.collision_power),
+        "collision": L.collision_loss(
+            verts, item.contact_p[t], item.contact_n[t], w.collision_margin, w.collision_power
+        ),
         "skin_prior": ((weights - item.body_weights[None]) ** 2).sum(-1).mean(),
     }
     scale = {"skin_prior": prior_scale}
@@ -88,13 +99,31 @@ def physics_losses(model: SEGANet, pair, t0: int, frames: int, mat, body_faces, 
 
     t = torch.arange(t0, t0 + frames, device=device)
     lw = torch.log(pair.body_weights + RESIDUAL_EPS) if model.residual else None
-    x, _, _ = model(pair.features, pair.nbr, pair.mask, pair.descriptor, pair.betas.expand(frames, -1),
-                    pair.windows[t], pair.rest, pair.joints[None].expand(frames, -1, -1), pair.trans[t], lw)
-    cp, cn = body_contact(x[2:].detach().cpu().numpy(), pair.posed_body[t0 + 2:t0 + frames], body_faces, collider)
+    x, _, _ = model(
+        pair.features,
+        pair.nbr,
+        pair.mask,
+        pair.descriptor,
+        pair.betas.expand(frames, -1),
+        pair.windows[t],
+        pair.rest,
+        pair.joints[None].expand(frames, -1, -1),
+        pair.trans[t],
+        lw,
+    )
+    cp, cn = body_contact(x[2:].detach().cpu().numpy(), pair.posed_body[t0 + 2 : t0 + frames], body_faces, collider)
     h = x.detach()
-    return cloth_energy(x[2:], pair.topo.to(device), mat, prev=h[1:-1], prev2=h[:-2], dt=1.0 / pair.fps,
-                        contact_p=torch.as_tensor(cp, device=device), contact_n=torch.as_tensor(cn, device=device),
-                        height_ref=pair.trans[t[2:], 1])
+    return cloth_energy(
+        x[2:],
+        pair.topo.to(device),
+        mat,
+        prev=h[1:-1],
+        prev2=h[:-2],
+        dt=1.0 / pair.fps,
+        contact_p=torch.as_tensor(cp, device=device),
+        contact_n=torch.as_tensor(cn, device=device),
+        height_ref=pair.trans[t[2:], 1],
+    )
 
 
 def plot_losses(csv_path: Path, png_path: Path) -> None:
@@ -131,15 +160,28 @@ def plot_losses(csv_path: Path, png_path: Path) -> None:
 
 
 def _hardware(device: torch.device) -> dict:
-    hw = {"device": str(device), "cpu": platform.processor() or platform.machine(), "cpu_count": os.cpu_count(),
-          "torch_threads": torch.get_num_threads(), "torch": torch.__version__, "python": platform.python_version()}
+    hw = {
+        "device": str(device),
+        "cpu": platform.processor() or platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "torch_threads": torch.get_num_threads(),
+        "torch": torch.__version__,
+        "python": platform.python_version(),
+    }
     if device.type == "cuda":
         hw["gpu"] = torch.cuda.get_device_name(device)
     return hw
 
 
-def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Callable[[int, dict], None] | None = None,
-          val_ids=None, log_every: int = 10) -> Path:
+def train(
+    cfg: TrainConfig,
+    run_dir: Path,
+    body: BodyModel,
+    *,
+    progress: Callable[[int, dict], None] | None = None,
+    val_ids=None,
+    log_every: int = 10,
+) -> Path:
     """Train (or resume) into ``run_dir``; returns the final ``model.pt``."""
     run = Path(run_dir)
     run.mkdir(parents=True, exist_ok=True)
@@ -153,32 +195,53 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Callabl
 
     roots = DatasetRoots(list(cfg.dataset), optional=cfg.optional, cache_dir=run / "cache")
     ids = cfg.select(roots.ids(cfg.split))
-    items = load_items(roots, body, n_star=m.n_star, window=m.window, n_betas=m.n_betas, ids=ids,
-                       weight_prior=m.weight_prior)
+    items = load_items(
+        roots, body, n_star=m.n_star, window=m.window, n_betas=m.n_betas, ids=ids, weight_prior=m.weight_prior
+    )
     if not items:
-        raise InputError(f"no '{cfg.split}' samples in the dataset", expected="segadeform dataset make first",
-                         got=", ".join(str(r) for r in roots.roots) or "no dataset root")
+        raise InputError(
+            f"no '{cfg.split}' samples in the dataset",
+            expected="segadeform dataset make first",
+            got=", ".join(str(r) for r in roots.roots) or "no dataset root",
+        )
     if cfg.val_split and not val_ids:
         val_ids = roots.ids(cfg.val_split)
     if items[0].features.shape[-1] != m.feat_dim:
-        raise InputError("model.feat_dim does not match the garment features", expected=items[0].features.shape[-1],
-                         got=m.feat_dim)
+        raise InputError(
+            "model.feat_dim does not match the garment features", expected=items[0].features.shape[-1], got=m.feat_dim
+        )
     items = [it.to(device) for it in items]
-    val = [it.to(device) for it in load_items(roots, body, n_star=m.n_star, window=m.window,
-                                              n_betas=m.n_betas, split=None, ids=val_ids,
-                                              weight_prior=m.weight_prior)] if val_ids else []
+    val = (
+        [
+            it.to(device)
+            for it in load_items(
+                roots,
+                body,
+                n_star=m.n_star,
+                window=m.window,
+                n_betas=m.n_betas,
+                split=None,
+                ids=val_ids,
+                weight_prior=m.weight_prior,
+            )
+        ]
+        if val_ids
+        else []
+    )
     model = SEGANet(m).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=o.lr)
     sched = torch.optim.lr_scheduler.LambdaLR(
-        opt, lambda s: o.lr_final + (1 - o.lr_final) * 0.5 * (1 + np.cos(np.pi * min(s, o.steps) / o.steps)))
+        opt, lambda s: o.lr_final + (1 - o.lr_final) * 0.5 * (1 + np.cos(np.pi * min(s, o.steps) / o.steps))
+    )
     rng = np.random.default_rng(o.seed)
     step, elapsed = 0, 0.0
     last = run / "last.pt"
     if last.is_file():
         ck = torch.load(last, map_location=device, weights_only=False)
         if ck.get("config_digest") != cfg.digest():
-            raise InputError("the run folder holds a run of a different config", expected=cfg.digest(),
-                             got=ck.get("config_digest"))
+            raise InputError(
+                "the run folder holds a run of a different config", expected=cfg.digest(), got=ck.get("config_digest")
+            )
         model.load_state_dict(ck["state_dict"])
         opt.load_state_dict(ck["optimizer"])
         sched.load_state_dict(ck["scheduler"])
@@ -203,10 +266,22 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Callabl
 
     def save_last():
         with atomic_path(last) as tmp:
-            torch.save({"config": dataclasses.asdict(m), "state_dict": model.state_dict(), "optimizer": opt.state_dict(),
-                        "scheduler": sched.state_dict(), "rng": rng.bit_generator.state,
-                        "torch_rng": torch.get_rng_state(), "step": step, "elapsed": elapsed,
-                        "config_digest": cfg.digest(), "best_val": best_val[0], "best_step": best_val[1]}, tmp)
+            torch.save(
+                {
+                    "config": dataclasses.asdict(m),
+                    "state_dict": model.state_dict(),
+                    "optimizer": opt.state_dict(),
+                    "scheduler": sched.state_dict(),
+                    "rng": rng.bit_generator.state,
+                    "torch_rng": torch.get_rng_state(),
+                    "step": step,
+                    "elapsed": elapsed,
+                    "config_digest": cfg.digest(),
+                    "best_val": best_val[0],
+                    "best_step": best_val[1],
+                },
+                tmp,
+            )
 
     def validate() -> float:
         if not val:
@@ -226,9 +301,16 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Callabl
         from .energies import PhysicsPairs
 
         # the pairs' garments are made once into the dataset's cache (the same files `dataset make` writes)
-        pairs = PhysicsPairs(cfg.pairs, (roots.cache_dir or run / "cache") / "pairs", body, n_star=m.n_star,
-                             window=m.window, n_betas=m.n_betas, weight_prior=m.weight_prior,
-                             exclude=cfg.exclude)
+        pairs = PhysicsPairs(
+            cfg.pairs,
+            (roots.cache_dir or run / "cache") / "pairs",
+            body,
+            n_star=m.n_star,
+            window=m.window,
+            n_betas=m.n_betas,
+            weight_prior=m.weight_prior,
+            exclude=cfg.exclude,
+        )
         mat = ph.material()
         body_faces = np.asarray(body.faces)
         from ..body.collision import BodyCollider
@@ -250,8 +332,7 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Callabl
         ls = {}
         for _ in range(o.garments):  # one batch: each garment's loss backpropagated as it is made (memory)
             it = items[int(rng.integers(len(items)))]
-            t = torch.as_tensor(rng.choice(it.n_frames, size=min(o.frames, it.n_frames), replace=False),
-                                device=device)
+            t = torch.as_tensor(rng.choice(it.n_frames, size=min(o.frames, it.n_frames), replace=False), device=device)
             one = step_losses(model, it, t, cfg.loss, prior_scale=max(0.0, 1.0 - step / until) if until > 0 else 0.0)
             if not torch.isfinite(one["total"]):
                 raise InputError(f"the loss became {float(one['total'])} at step {step} on {it.id}; lower optim.lr")
@@ -266,8 +347,9 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Callabl
                 first = int(rng.integers(pair.n_frames - f + 1))
                 phys = ph.weight * physics_losses(model, pair, first, f, mat, body_faces, device, collider)["total"]
                 if not torch.isfinite(phys):
-                    raise InputError(f"the physics loss became {float(phys)} at step {step} on {pair.id}; "
-                                     f"lower optim.lr")
+                    raise InputError(
+                        f"the physics loss became {float(phys)} at step {step} on {pair.id}; lower optim.lr"
+                    )
                 phys.backward()
                 ls[PHYSICS_TERM] = phys.detach()
                 ls["total"] = ls["total"] + ls[PHYSICS_TERM]
@@ -291,8 +373,13 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Callabl
             now = time.perf_counter()
             elapsed += now - t0
             t0 = now
-            row = {"step": step, **{k: acc[k] / n_acc for k in acc}, "lr": sched.get_last_lr()[0],
-                   "seconds": round(elapsed, 2), "val_vertex": val_err}
+            row = {
+                "step": step,
+                **{k: acc[k] / n_acc for k in acc},
+                "lr": sched.get_last_lr()[0],
+                "seconds": round(elapsed, 2),
+                "val_vertex": val_err,
+            }
             with open(log_path, "a", newline="") as fh:
                 csv.DictWriter(fh, fields).writerow(row)
             if progress is not None:
@@ -310,17 +397,34 @@ def train(cfg: TrainConfig, run_dir: Path, body: BodyModel, *, progress: Callabl
     if val and best_path.is_file():  # the checkpoint the validation split chose
         best = torch.load(best_path, map_location=device, weights_only=False)
         model.load_state_dict(best["state_dict"])
-        chosen = {"step": int(best["step"]), "val_vertex": float(best["val_vertex"]),
-                  "val_split": cfg.val_split, "val_samples": len(val)}
+        chosen = {
+            "step": int(best["step"]),
+            "val_vertex": float(best["val_vertex"]),
+            "val_split": cfg.val_split,
+            "val_samples": len(val),
+        }
     garments = {(i.asset.source_name or i.id, i.asset.descriptor.tobytes()): i.asset for i in items}
-    save_checkpoint(final, model, train_config=cfg.to_dict(), steps=step,
-                    training_garments={"names": [k[0] for k in garments],
-                                       "descriptors": [[float(x) for x in a.descriptor] for a in garments.values()],
-                                       "openings": [len(boundary_loops(a.faces, a.n_vertices))
-                                                    for a in garments.values()]})
-    info = {"config": cfg.to_dict(), "config_digest": cfg.digest(), "steps": step, "train_seconds": round(elapsed, 1),
-            "chosen": chosen, "sample_frames_seen": step * o.garments * o.frames,
-            "samples": [i.id for i in items], "hardware": _hardware(device)}
+    save_checkpoint(
+        final,
+        model,
+        train_config=cfg.to_dict(),
+        steps=step,
+        training_garments={
+            "names": [k[0] for k in garments],
+            "descriptors": [[float(x) for x in a.descriptor] for a in garments.values()],
+            "openings": [len(boundary_loops(a.faces, a.n_vertices)) for a in garments.values()],
+        },
+    )
+    info = {
+        "config": cfg.to_dict(),
+        "config_digest": cfg.digest(),
+        "steps": step,
+        "train_seconds": round(elapsed, 1),
+        "chosen": chosen,
+        "sample_frames_seen": step * o.garments * o.frames,
+        "samples": [i.id for i in items],
+        "hardware": _hardware(device),
+    }
     with atomic_path(run / "train.json") as tmp:
         Path(tmp).write_text(json.dumps(info, indent=1))
     plot_losses(log_path, run / "loss.png")

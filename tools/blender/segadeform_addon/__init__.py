@@ -35,15 +35,23 @@ bl_info = {
 }
 
 _PC2 = struct.Struct("<12siiffi")
-QUALITY = [("NONE", "Effects only", "use the effects field as it is"), ("fast", "fast", "quality preset fast"),
-           ("balanced", "balanced", "quality preset balanced"), ("best", "best", "quality preset best")]
+QUALITY = [
+    ("NONE", "Effects only", "use the effects field as it is"),
+    ("fast", "fast", "quality preset fast"),
+    ("balanced", "balanced", "quality preset balanced"),
+    ("best", "best", "quality preset best"),
+]
 
 
 class SegadeformPreferences(bpy.types.AddonPreferences):
     bl_idname = __package__ or __name__
 
-    executable: bpy.props.StringProperty(name="segadeform executable", subtype="FILE_PATH", default="segadeform",
-                                         description="The segadeform command (a path, or a name found on PATH)")
+    executable: bpy.props.StringProperty(
+        name="segadeform executable",
+        subtype="FILE_PATH",
+        default="segadeform",
+        description="The segadeform command (a path, or a name found on PATH)",
+    )
 
     def draw(self, context):
         self.layout.prop(self, "executable")
@@ -59,8 +67,11 @@ def _selection(context):
     meshes = [o for o in sel if o.type == "MESH"]
     arms = [o for o in sel if o.type == "ARMATURE"]
     if len(meshes) != 1 or len(arms) != 1:
-        return None, None, (f"select one garment mesh and one armature (got {len(meshes)} meshes and "
-                            f"{len(arms)} armatures)")
+        return (
+            None,
+            None,
+            (f"select one garment mesh and one armature (got {len(meshes)} meshes and {len(arms)} armatures)"),
+        )
     arm = arms[0]
     if arm.animation_data is None or arm.animation_data.action is None:
         return None, None, f"the armature {arm.name!r} has no action (expected an animated armature)"
@@ -155,8 +166,14 @@ class SEGADEFORM_OT_animate_garment(bpy.types.Operator):
         for o in context.selected_objects:
             o.select_set(o == arm)
         context.view_layer.objects.active = arm
-        bpy.ops.export_anim.bvh(filepath=bvh_path, frame_start=first, frame_end=last, global_scale=1.0,
-                                rotate_mode="NATIVE", root_transform_only=False)
+        bpy.ops.export_anim.bvh(
+            filepath=bvh_path,
+            frame_start=first,
+            frame_end=last,
+            global_scale=1.0,
+            rotate_mode="NATIVE",
+            root_transform_only=False,
+        )
         garment.select_set(True)
         args = ["run", "--garment", obj_path, "--motion", bvh_path, "-o", pc2_path, "--force"]
         if settings.quality != "NONE":
@@ -198,11 +215,16 @@ class SEGADEFORM_OT_animate_garment(bpy.types.Operator):
 
 
 class SegadeformSettings(bpy.types.PropertyGroup):
-    effects: bpy.props.StringProperty(name="Effects", default="",
-                                      description="segadeform run --effects (e.g. lbs,dynamics,collisions or -wrinkles)")
+    effects: bpy.props.StringProperty(
+        name="Effects", default="", description="segadeform run --effects (e.g. lbs,dynamics,collisions or -wrinkles)"
+    )
     quality: bpy.props.EnumProperty(name="Quality", items=QUALITY, default="NONE")
-    output_dir: bpy.props.StringProperty(name="Output folder", subtype="DIR_PATH", default="//segadeform",
-                                         description="Where the garment, motion and caches are written")
+    output_dir: bpy.props.StringProperty(
+        name="Output folder",
+        subtype="DIR_PATH",
+        default="//segadeform",
+        description="Where the garment, motion and caches are written",
+    )
 
 
 class SEGADEFORM_PT_panel(bpy.types.Panel):

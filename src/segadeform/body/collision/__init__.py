@@ -47,5 +47,15 @@ from .compiled import compiled_available, load_extension
 from .numpy_bvh import closest_point_fast
 from .reference import BodyProxy, ProximityResult, closest_point_on_triangles, push_out, winding_number
 
-__all__ = ["BodyProxy", "BodyCollider", "ReferenceCollider", "ProximityResult", "closest_point_on_triangles",
-           "closest_point_fast", "winding_number", "push_out", "compiled_available", "load_extension"]
+__all__ = [
+    "BodyProxy",
+    "BodyCollider",
+    "ReferenceCollider",
+    "ProximityResult",
+    "closest_point_on_triangles",
+    "closest_point_fast",
+    "winding_number",
+    "push_out",
+    "compiled_available",
+    "load_extension",
+]

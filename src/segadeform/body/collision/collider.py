@@ -58,8 +58,9 @@ class BodyCollider:
             number).
     """
 
-    def __init__(self, vertices, faces, *, leaf_size: int = 4, step: int = 2, backend: str = "auto",
-                 threads: int = 1) -> None:
+    def __init__(
+        self, vertices, faces, *, leaf_size: int = 4, step: int = 2, backend: str = "auto", threads: int = 1
+    ) -> None:
         v, f = check_mesh(vertices, faces)
         if len(f) == 0:
             raise InputError("the body has no faces", expected="F >= 1", got=0)
@@ -71,20 +72,29 @@ class BodyCollider:
         self.faces = f
         self.n_vertices = len(v)
         self.threads = int(threads)
-        self._args = (v, f, {"leaf_size": int(leaf_size), "step": int(step), "backend": backend,
-                             "threads": self.threads})
+        self._args = (
+            v,
+            f,
+            {"leaf_size": int(leaf_size), "step": int(step), "backend": backend, "threads": self.threads},
+        )
         kernel = None
         if backend != "numpy":  # the backend is chosen here, once: every call goes to it
             kernel, why = load_kernel()
             if kernel is None and backend == "compiled":
-                raise InputError("the compiled collision kernel is not available (reinstall segadeform with a C "
-                                 "compiler, or use backend='numpy')", expected="segadeform.body._collide",
-                                 got=why)
+                raise InputError(
+                    "the compiled collision kernel is not available (reinstall segadeform with a C "
+                    "compiler, or use backend='numpy')",
+                    expected="segadeform.body._collide",
+                    got=why,
+                )
             if kernel is None:
                 warn_fallback(why)
         self.backend = "numpy" if kernel is None else "compiled"
-        self._impl = CompiledBVH(kernel, v, f, int(leaf_size)) if kernel is not None else \
-            NumpyBVH(v, f, int(leaf_size), int(step))
+        self._impl = (
+            CompiledBVH(kernel, v, f, int(leaf_size))
+            if kernel is not None
+            else NumpyBVH(v, f, int(leaf_size), int(step))
+        )
         self.closed, self.depth = self._impl.closed, self._impl.depth
 
     def __reduce__(self):
@@ -99,8 +109,11 @@ class BodyCollider:
         batched = p.ndim == 3
         want = (p.shape[0], self.n_vertices, 3) if batched else (self.n_vertices, 3)
         if v.shape != want:
-            raise InputError("the posed body must have the body's vertices, one frame per frame of points",
-                             expected=want, got=v.shape)
+            raise InputError(
+                "the posed body must have the body's vertices, one frame per frame of points",
+                expected=want,
+                got=v.shape,
+            )
         if not np.isfinite(p).all():
             raise InputError("points contain NaN or inf")
         if not np.isfinite(v).all():

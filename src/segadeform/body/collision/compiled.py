@@ -54,11 +54,20 @@ def load_kernel():
     with _KERNEL_LOCK:
         if not _KERNEL:
             p, i64 = ctypes.c_void_p, ctypes.c_int64
-            lib, why = load_extension("_collide", lambda lib: lib.sdc_abi() == _ABI, (
-                ("sdc_create", p, (p, i64, p, i64, i64)), ("sdc_free", None, (p,)), ("sdc_n_nodes", i64, (p,)),
-                ("sdc_depth", i64, (p,)), ("sdc_closed", i64, (p,)), ("sdc_refit", None, (p, p, p)),
-                ("sdc_query", None, (p, p, p, p, i64, i64, p, p, p, p)),
-                ("sdc_push_out", i64, (p, p, p, i64, p, i64, i64, i64, ctypes.c_double, i64, p))))
+            lib, why = load_extension(
+                "_collide",
+                lambda lib: lib.sdc_abi() == _ABI,
+                (
+                    ("sdc_create", p, (p, i64, p, i64, i64)),
+                    ("sdc_free", None, (p,)),
+                    ("sdc_n_nodes", i64, (p,)),
+                    ("sdc_depth", i64, (p,)),
+                    ("sdc_closed", i64, (p,)),
+                    ("sdc_refit", None, (p, p, p)),
+                    ("sdc_query", None, (p, p, p, p, i64, i64, p, p, p, p)),
+                    ("sdc_push_out", i64, (p, p, p, i64, p, i64, i64, i64, ctypes.c_double, i64, p)),
+                ),
+            )
             _KERNEL.update(lib=lib, why=why)
         return _KERNEL["lib"], _KERNEL["why"]
 
@@ -74,8 +83,9 @@ def warn_fallback(why: str) -> None:
         if _KERNEL.get("warned"):
             return
         _KERNEL["warned"] = True
-    log.warning("the compiled collision kernel is not available (%s): using the numpy BodyCollider, "
-                "several times slower", why)
+    log.warning(
+        "the compiled collision kernel is not available (%s): using the numpy BodyCollider, several times slower", why
+    )
 
 
 class CompiledBVH:
@@ -122,8 +132,13 @@ class CompiledBVH:
         boxes = np.empty((len(verts), self.n_nodes, 6))
         lib, h = self._lib, self._h
         vs, bs = verts.strides[0], boxes.strides[0]
-        self._run([functools.partial(lib.sdc_refit, h, verts.ctypes.data + i * vs, boxes.ctypes.data + i * bs)
-                   for i in range(len(verts))], threads)
+        self._run(
+            [
+                functools.partial(lib.sdc_refit, h, verts.ctypes.data + i * vs, boxes.ctypes.data + i * bs)
+                for i in range(len(verts))
+            ],
+            threads,
+        )
         return boxes
 
     def query(self, p, v, threads: int) -> ProximityResult:
@@ -134,9 +149,25 @@ class CompiledBVH:
         n = len(pts)
         sd, closest, normal, face = np.empty(n), np.empty((n, 3)), np.empty((n, 3)), np.empty(n, np.int64)
         lib, h = self._lib, self._h
-        self._run([functools.partial(lib.sdc_query, h, verts.ctypes.data, boxes.ctypes.data, pts.ctypes.data, a, b,
-                                     sd.ctypes.data, closest.ctypes.data, normal.ctypes.data, face.ctypes.data)
-                   for a, b in self._ranges(n, threads)], threads)
+        self._run(
+            [
+                functools.partial(
+                    lib.sdc_query,
+                    h,
+                    verts.ctypes.data,
+                    boxes.ctypes.data,
+                    pts.ctypes.data,
+                    a,
+                    b,
+                    sd.ctypes.data,
+                    closest.ctypes.data,
+                    normal.ctypes.data,
+                    face.ctypes.data,
+                )
+                for a, b in self._ranges(n, threads)
+            ],
+            threads,
+        )
         return ProximityResult(signed_distance=sd, closest=closest, normal=normal, face=face)
 
     def push_out(self, p, v, margin: float, iterations: int, threads: int):
@@ -147,7 +178,24 @@ class CompiledBVH:
         nb, n = out.shape[:2]
         moved = np.zeros((nb, n), np.uint8)
         lib, h = self._lib, self._h
-        self._run([functools.partial(lib.sdc_push_out, h, verts.ctypes.data, boxes.ctypes.data, nb, out.ctypes.data,
-                                     n, a, b, float(margin), int(iterations), moved.ctypes.data)
-                   for a, b in self._ranges(n, threads)], threads)
+        self._run(
+            [
+                functools.partial(
+                    lib.sdc_push_out,
+                    h,
+                    verts.ctypes.data,
+                    boxes.ctypes.data,
+                    nb,
+                    out.ctypes.data,
+                    n,
+                    a,
+                    b,
+                    float(margin),
+                    int(iterations),
+                    moved.ctypes.data,
+                )
+                for a, b in self._ranges(n, threads)
+            ],
+            threads,
+        )
         return out, int(moved.sum())

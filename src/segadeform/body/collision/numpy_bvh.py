@@ -99,7 +99,7 @@ def _build_bvh(vertices, faces, leaf_size: int):
     depth = max(0, int(np.ceil(np.log2(max(nf / leaf_size, 1.0)))))
     order = np.arange(nf)
     for level in range(depth):
-        n = 2 ** level
+        n = 2**level
         bounds = (np.arange(n + 1) * nf) // n  # node i holds order[bounds[i]:bounds[i + 1]]
         cc = c[order]
         lo = np.minimum.reduceat(cc, bounds[:-1], axis=0)
@@ -110,7 +110,7 @@ def _build_bvh(vertices, faces, leaf_size: int):
         valid = slot < bounds[1:, None]
         rows = np.argsort(np.where(valid, key[np.minimum(slot, nf - 1)], np.inf), axis=1)
         order = order[(bounds[:-1, None] + rows)[valid]]  # padding sorts last, so `valid` keeps each row's faces
-    n = 2 ** depth
+    n = 2**depth
     bounds = (np.arange(n + 1) * nf) // n  # every leaf holds at least one face (n <= nf)
     width = int(np.diff(bounds).max())
     slot = bounds[:-1, None] + np.arange(width)[None, :]
@@ -199,9 +199,11 @@ class NumpyBVH:
         if nb not in self._gather:
             base = np.arange(nb) * nv
             n_leaf = self._dense.shape[1]
-            self._gather[nb] = ((self._dense[:, None, :] + base[None, :, None]).reshape(len(self._dense), -1),
-                                (self._overflow[:, None, :] + base[None, :, None]).reshape(len(self._overflow), -1),
-                                ((np.arange(nb) * n_leaf)[:, None] + self._over).ravel())
+            self._gather[nb] = (
+                (self._dense[:, None, :] + base[None, :, None]).reshape(len(self._dense), -1),
+                (self._overflow[:, None, :] + base[None, :, None]).reshape(len(self._overflow), -1),
+                ((np.arange(nb) * n_leaf)[:, None] + self._over).ravel(),
+            )
         dense, over, at = self._gather[nb]
         lo, hi = np.empty((3, dense.shape[1])), np.empty((3, dense.shape[1]))
         for k in range(3):  # leaf boxes, one axis at a time from contiguous rows
@@ -222,13 +224,20 @@ class NumpyBVH:
         slack = 1e-5 * max(scale, float(np.abs(verts).max()), 1e-30)
         lo32 = [(x - slack).astype(np.float32) for x in los[::-1]]
         hi32 = [(x + slack).astype(np.float32) for x in his[::-1]]
-        return _Frames(verts=verts, lo=lo32, hi=hi32, centre=verts.reshape(3, nb, nv).mean(axis=2),
-                       axis=int(np.argmax(ext)), scale=scale, slack=slack)
+        return _Frames(
+            verts=verts,
+            lo=lo32,
+            hi=hi32,
+            centre=verts.reshape(3, nb, nv).mean(axis=2),
+            axis=int(np.argmax(ext)),
+            scale=scale,
+            slack=slack,
+        )
 
     def _descend(self, pt, nd, level):
         """The children of the nodes ``nd`` at ``level`` on the next level walked, paired with ``pt``."""
         step = self._levels[self._levels.index(level) + 1] - level
-        k = 2 ** step
+        k = 2**step
         return np.repeat(pt, k), ((nd[:, None] << step) | np.arange(k, dtype=nd.dtype)).ravel()
 
     def _groups(self, P, frame):
@@ -238,15 +247,25 @@ class NumpyBVH:
         and the box of its points (3, R) twice."""
         lo, ext = P.min(axis=1, keepdims=True), np.maximum(np.ptp(P, axis=1).max(), 1e-30)
         q = np.clip(((P - lo) * (1023.0 / ext)).astype(np.int64), 0, 1023)
-        code = (np.asarray(frame, np.int64) << 30) | (_spread_bits(q[0]) << 2) | (_spread_bits(q[1]) << 1) \
+        code = (
+            (np.asarray(frame, np.int64) << 30)
+            | (_spread_bits(q[0]) << 2)
+            | (_spread_bits(q[1]) << 1)
             | _spread_bits(q[2])
+        )
         order = np.argsort(code, kind="stable")
         f = np.asarray(frame)[order]
         first = np.flatnonzero(np.concatenate([[True], f[1:] != f[:-1]]))  # where each frame's points start
         pos = np.arange(len(order)) - np.repeat(first, np.diff(np.append(first, len(order))))
         starts = np.flatnonzero(pos % self.group == 0)
         Ps = np.take(P, order, axis=1)
-        return order, starts, f[starts], np.minimum.reduceat(Ps, starts, axis=1), np.maximum.reduceat(Ps, starts, axis=1)
+        return (
+            order,
+            starts,
+            f[starts],
+            np.minimum.reduceat(Ps, starts, axis=1),
+            np.maximum.reduceat(Ps, starts, axis=1),
+        )
 
     def _seed(self, fr: _Frames, order, starts, run_frame, keep):
         """Walk the top of the tree with the runs of :meth:`_groups` instead of single points:
@@ -254,7 +273,7 @@ class NumpyBVH:
         Returns (point, node) pairs at level ``self._levels[self._split]``, grouped by point."""
         run, nd = np.arange(len(starts), dtype=np.int32), np.asarray(run_frame, np.int32)
         prev = 0
-        for level in self._levels[:self._split + 1]:
+        for level in self._levels[: self._split + 1]:
             if level:
                 run, nd = self._descend(run, nd, prev)
             prev = level
@@ -288,12 +307,17 @@ class NumpyBVH:
             rub2 = np.maximum.reduceat(ub2[order], starts)
 
             def keep(level, run, nd):  # the gap between the run's box and the node's
-                gap = np.maximum(np.maximum(np.take(fr.lo[level], nd, axis=1) - np.take(rhi, run, axis=1),
-                                            np.take(rlo, run, axis=1) - np.take(fr.hi[level], nd, axis=1)), 0.0)
+                gap = np.maximum(
+                    np.maximum(
+                        np.take(fr.lo[level], nd, axis=1) - np.take(rhi, run, axis=1),
+                        np.take(rlo, run, axis=1) - np.take(fr.hi[level], nd, axis=1),
+                    ),
+                    0.0,
+                )
                 return _dot(gap, gap) <= rub2[run]
 
             pt, nd = self._seed(fr, order, starts, run_frame, keep)
-            levels = levels[self._split:]
+            levels = levels[self._split :]
         else:
             pt, nd = np.arange(P.shape[1], dtype=np.int32), np.asarray(frame, np.int32)
         prev = levels[0]
@@ -367,6 +391,7 @@ class NumpyBVH:
         closed mesh, 1 inside, more where the posed body overlaps itself; whether the ray grazed an edge or
         a vertex or started on a triangle (the count is then unreliable); and where along the ray it first
         meets the surface (inf: nowhere), a bound on the distance to the surface."""
+
         def direction(x, f):
             d = x - np.take(centre, f, axis=1)
             d[fr.axis] *= 0.25  # sideways: fewer boxes on the way
@@ -395,7 +420,7 @@ class NumpyBVH:
                 return np.minimum(np.minimum(far_end[0], far_end[1]), far_end[2]) >= t_in
 
             pt, nd = self._seed(fr, order, starts, run_frame, keep)
-            levels = levels[self._split:]
+            levels = levels[self._split :]
         else:
             d = direction(P, frame)
             pt, nd = np.arange(P.shape[1], dtype=np.int32), np.asarray(frame, np.int32)
@@ -476,7 +501,8 @@ class NumpyBVH:
 
             e1, e2 = pick(1) - pick(0), pick(2) - pick(0)
             cosang = np.einsum("...i,...i", e1, e2) / np.maximum(
-                np.linalg.norm(e1, axis=-1) * np.linalg.norm(e2, axis=-1), 1e-300)
+                np.linalg.norm(e1, axis=-1) * np.linalg.norm(e2, axis=-1), 1e-300
+            )
             ang = np.arccos(np.clip(cosang, -1, 1)) * (fan >= 0)
             vn = (ang[..., None] * n).sum(axis=1)
             normal[vert] = vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
@@ -510,8 +536,9 @@ class NumpyBVH:
                 g = np.flatnonzero(graze)
                 if not len(g):
                     break
-                wind[g], graze[g], reach[g] = self._winding(fr, P[:, rest[g]], frame[rest[g]],
-                                                            fr.centre + tilt[:, None])
+                wind[g], graze[g], reach[g] = self._winding(
+                    fr, P[:, rest[g]], frame[rest[g]], fr.centre + tilt[:, None]
+                )
             inside = (wind != 0) | graze
             rest, reach = rest[inside], np.where(graze, np.inf, reach)[inside]
         if len(rest):
@@ -533,7 +560,6 @@ class NumpyBVH:
         normal, sd = self._signed(fr, P, frame, found, closest, face, bary)
         return ProximityResult(signed_distance=sd, closest=closest.T.copy(), normal=normal, face=face)
 
-
     def push_out(self, p, v, margin: float, iterations: int):
         """:func:`~segadeform.body.collision.reference.push_out` of ``p (B, N, 3)`` against ``v (B, V, 3)``: the moved
         points (3, B N) transposed back by the caller, and how many moved."""
@@ -546,7 +572,7 @@ class NumpyBVH:
         for _ in range(max(1, int(iterations))):
             hits = []
             for lo in range(0, len(idx), self.chunk):  # a few thousand points at a time stay in cache
-                part = idx[lo:lo + self.chunk]
+                part = idx[lo : lo + self.chunk]
                 sel, closest, normal, sd = self._within(fr, out[:, part], frame[part], margin)
                 hit = sd < margin
                 h = part[sel[hit]]
@@ -557,5 +583,3 @@ class NumpyBVH:
                 break
             moved[idx] = True
         return out.T.copy(), int(moved.sum())
-
-

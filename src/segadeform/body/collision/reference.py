@@ -80,14 +80,18 @@ def winding_number(points, vertices, faces) -> np.ndarray:
     v = np.asarray(vertices, np.float64)
     out = np.zeros(len(points))
     for lo in range(0, len(points), 256):
-        p = np.asarray(points[lo:lo + 256], np.float64)[:, None, None, :]
+        p = np.asarray(points[lo : lo + 256], np.float64)[:, None, None, :]
         abc = v[faces][None] - p  # (P, F, 3, 3)
         a, b, c = abc[..., 0, :], abc[..., 1, :], abc[..., 2, :]
         la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
         num = np.einsum("...i,...i", a, np.cross(b, c))
-        den = la * lb * lc + np.einsum("...i,...i", a, b) * lc + np.einsum("...i,...i", b, c) * la \
+        den = (
+            la * lb * lc
+            + np.einsum("...i,...i", a, b) * lc
+            + np.einsum("...i,...i", b, c) * la
             + np.einsum("...i,...i", c, a) * lb
-        out[lo:lo + 256] = np.arctan2(num, den).sum(-1) / (2 * np.pi)
+        )
+        out[lo : lo + 256] = np.arctan2(num, den).sum(-1) / (2 * np.pi)
     return out
 
 
@@ -114,7 +118,8 @@ class BodyProxy:
             e1 = v[f[:, (c + 1) % 3]] - v[f[:, c]]
             e2 = v[f[:, (c + 2) % 3]] - v[f[:, c]]
             cosang = np.einsum("ij,ij->i", e1, e2) / np.maximum(
-                np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), 1e-300)
+                np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), 1e-300
+            )
             ang[:, c] = np.arccos(np.clip(cosang, -1, 1))
         contrib = (ang[:, :, None] * self.face_normals[:, None, :]).reshape(-1, 3)  # (3F, 3) per corner
         vn = t["corner_to_vertex"] @ contrib
@@ -142,8 +147,14 @@ class BodyProxy:
         slot_to_edge = sp.csr_matrix((np.ones(3 * nf), (inv, np.arange(3 * nf))), shape=(len(uk), 3 * nf))
         order = np.argsort(f.ravel(), kind="stable")
         vf_ptr = np.concatenate([[0], np.cumsum(np.bincount(f.ravel(), minlength=nv))])
-        return {"corner_to_vertex": corner_to_vertex, "slot_to_edge": slot_to_edge, "edge_of_slot": inv,
-                "vf_faces": order // 3, "vf_ptr": vf_ptr, "max_valence": int(np.diff(vf_ptr).max())}
+        return {
+            "corner_to_vertex": corner_to_vertex,
+            "slot_to_edge": slot_to_edge,
+            "edge_of_slot": inv,
+            "vf_faces": order // 3,
+            "vf_ptr": vf_ptr,
+            "max_valence": int(np.diff(vf_ptr).max()),
+        }
 
     def moved(self, vertices) -> BodyProxy:
         """The same body surface at new vertex positions (topology reused: cheaper per frame)."""
@@ -194,7 +205,9 @@ class BodyProxy:
         return ProximityResult(signed_distance=sign * dist, closest=closest, normal=normal, face=face)
 
 
-def push_out(points: np.ndarray, proxy: BodyProxy, margin: float = 0.0, *, iterations: int = 3) -> tuple[np.ndarray, int]:
+def push_out(
+    points: np.ndarray, proxy: BodyProxy, margin: float = 0.0, *, iterations: int = 3
+) -> tuple[np.ndarray, int]:
     """Move points that are inside the body, or closer than ``margin`` to it, out along the body normal.
 
     ``p' = closest + margin * n`` for every point with signed distance below
@@ -225,5 +238,3 @@ def push_out(points: np.ndarray, proxy: BodyProxy, margin: float = 0.0, *, itera
         moved[idx[hit]] = True
         idx = idx[hit]
     return out, int(moved.sum())
-
-
