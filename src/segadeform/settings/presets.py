@@ -35,12 +35,12 @@ class Preset:
 
 #: name -> preset, fastest first.  Measured figures: docs/accuracy-vs-time.md ("Presets").  All three are
 #: points of the shipped model's measured frontier on the held-out split of samples/datasets/continuum.toml
-#: (a product setting read off that table, not a model choice).  With this model the temporal weights
-#: (dynamics) raise the held-out error (all effects 5.49 cm, without dynamics 5.27 on the doc's 4 samples) and
-#: the blend shapes (wrinkles) lower it when dynamics are off (5.54 without them).  The cloth stage after that
-#: graph is the frontier's lowest error (5.19 cm, against 5.26 with the push-out, for ~0.4 ms more), so best uses
-#: it; on the fast graph it is not (5.56 against the push-out's 5.53), so balanced keeps the push-out.  A model
-#: whose dynamics pay should run the bench again and revise this table.
+#: (a product setting read off that table, not a model choice).  With the model retrained in issue #27 the
+#: temporal weights (dynamics) pay (all effects 4.549 cm, without dynamics 4.671 on the doc's 4 samples), and the
+#: cloth stage after all effects is the lowest error there is (4.435-4.446 cm over 1-16 sweeps and stiffness 0.2-1,
+#: against 4.541 with the push-out); its settings differ by under 0.01 cm and under the doc's ~2 ms/frame timing
+#: noise, so best runs it at its defaults.  Fast and balanced are unchanged (the cheapest points without and with
+#: the collision stage).  A new model should run the bench again and revise this table.
 QUALITY_PRESETS = {
     "fast": Preset(
         Effects(dynamics=False, wrinkles=False, collisions=False),
@@ -54,10 +54,10 @@ QUALITY_PRESETS = {
         "margin (no body penetration left)",
     ),
     "best": Preset(
-        Effects(dynamics=False, wrinkles=True, collisions=True, collision_margin=0.004, cloth=True),
-        "the frontier point with the lowest vertex error: blend shapes on, temporal weights off, the "
-        "cloth stage at its defaults with contact at 4 mm (it replaces the push-out; --effects=-cloth "
-        "gives the push-out back; about twice balanced's time)",
+        Effects(dynamics=True, wrinkles=True, collisions=True, collision_margin=0.004, cloth=True),
+        "the lowest vertex error measured: every effect of the model (blend shapes and temporal "
+        "weights) and the cloth stage at its defaults with contact at 4 mm (it replaces the push-out; "
+        "--effects=-cloth gives the push-out back; about twice balanced's time)",
     ),
 }
 
