@@ -399,9 +399,9 @@ def test_every_writing_command_claims_its_outputs():
         text = f.read_text()
         for cmd in re.split(r"\n@[a-z_]+\.command\(", text)[1:]:  # each command's source
             if '"--output"' in cmd or '"--to"' in cmd:
-                kinds = re.findall(r'OutputGuard\("([a-z ]+)"', cmd) + re.findall(r"_package_guard\(", cmd)
+                kinds = re.findall(r'OutputGuard\(\s*"([a-z ]+)"', cmd) + re.findall(r"_package_guard\(", cmd)
                 assert kinds, f"{f.name}: a command with an output option claims none: {cmd[:80]!r}"
-        guarded |= set(re.findall(r'OutputGuard\("([a-z ]+)"', text))
+        guarded |= set(re.findall(r'OutputGuard\(\s*"([a-z ]+)"', text))
     assert guarded <= covered, guarded - covered
     assert {
         "run",
