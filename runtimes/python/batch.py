@@ -49,8 +49,8 @@ from segadeform.errors import FileFormatError, InputError, file_error
 from segadeform.io.atomic import WriteError
 from segadeform.io.location import Location, is_url, open_location
 from segadeform.io.toml import config_path, key, read_table, read_toml
-from segadeform.settings import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects, parse_frames
-from segadeform.settings.scene import MotionTable
+from segadeform.settings import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects
+from segadeform.settings.scene import MotionTable, motion_spec_from_table
 
 __all__ = ["BatchConfig", "BatchJob", "BatchSummary", "load_batch", "batch_jobs", "run_batch", "run_job"]
 
@@ -174,19 +174,7 @@ def load_batch(path) -> BatchConfig:
                     expected=", ".join(sorted(MOTION_KINDS)),
                     got=m["kind"],
                 )
-        spec = MotionSpec(
-            file=rel(m["file"]) if "file" in m else None,
-            kind=m.get("kind"),
-            seconds=float(m.get("seconds", 3.0)),
-            speed=float(m.get("speed", 1.0)),
-            amplitude=float(m.get("amplitude", 1.0)),
-            seed=int(m.get("seed", 0)),
-            fps=float(m["fps"]) if "fps" in m else None,
-            frames=parse_frames(m["frames"], where=p) if "frames" in m else None,
-            up=m.get("up", "auto"),
-            units=str(m["units"]) if "units" in m else None,
-            floor=bool(m.get("floor", False)),
-        )
+        spec = motion_spec_from_table(m, rel, where=p)
         default = Path(m["file"]).stem if "file" in m else m["kind"]
         motions.append(BatchMotion(_name_ok(m.get("name", default), "motion", p), spec))
     for what, items in (("garment", garments), ("motion", motions)):

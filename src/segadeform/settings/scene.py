@@ -148,6 +148,28 @@ class MotionTable:
     floor: bool = False
 
 
+def motion_spec_from_table(m: dict, rel, *, where) -> MotionSpec:
+    """The :class:`MotionSpec` of a checked motion table ``m`` (a scene's ``[motion]``, a jobs file's
+    ``[[motions]]``); ``rel`` resolves a path against the file's folder, ``where`` names the file in errors.
+    Keys the table does not have take their defaults."""
+    return MotionSpec(
+        file=rel(m["file"]) if "file" in m else None,
+        kind=m.get("kind"),
+        seconds=float(m.get("seconds", 3.0)),
+        speed=float(m.get("speed", 1.0)),
+        amplitude=float(m.get("amplitude", 1.0)),
+        seed=int(m.get("seed", 0)),
+        fps=float(m["fps"]) if "fps" in m else None,
+        frames=parse_frames(m["frames"], where=where) if "frames" in m else None,
+        up=m.get("up", "auto"),
+        units=str(m["units"]) if "units" in m else None,
+        joint_map=rel(m["joint_map"]) if "joint_map" in m else None,
+        floor=bool(m.get("floor", False)),
+        skeleton=rel(m["skeleton"]) if "skeleton" in m else None,
+        animation=m.get("animation"),
+    )
+
+
 @dataclasses.dataclass(frozen=True)
 class _MotionTable(MotionTable):
     joint_map: str | None = None
@@ -235,22 +257,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
         raise FileFormatError("motion.seconds/speed/amplitude/seed apply to procedural motions (kind) only", path=p)
     if "kind" in m and any(k in m for k in ("up", "units", "joint_map", "skeleton", "animation")):
         raise FileFormatError("motion.up/units/joint_map/skeleton/animation apply to motion files only", path=p)
-    motion = MotionSpec(
-        file=rel(m["file"]) if "file" in m else None,
-        kind=m.get("kind"),
-        seconds=float(m.get("seconds", 3.0)),
-        speed=float(m.get("speed", 1.0)),
-        amplitude=float(m.get("amplitude", 1.0)),
-        seed=int(m.get("seed", 0)),
-        fps=float(m["fps"]) if "fps" in m else None,
-        frames=parse_frames(m["frames"], where=p) if "frames" in m else None,
-        up=m.get("up", "auto"),
-        units=str(m["units"]) if "units" in m else None,
-        joint_map=rel(m["joint_map"]) if "joint_map" in m else None,
-        floor=bool(m.get("floor", False)),
-        skeleton=rel(m["skeleton"]) if "skeleton" in m else None,
-        animation=m.get("animation"),
-    )
+    motion = motion_spec_from_table(m, rel, where=p)
     out = data["output"]
     out_path = rel(out["path"])
     from ..io.formats import SEQUENCE_FORMATS, format_for_path
