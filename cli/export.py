@@ -9,6 +9,24 @@ import click
 
 from .main import cli
 
+_inline_weights_option = click.option(
+    "--inline-weights",
+    is_flag=True,
+    help="Self-contained graph files (each with its own weights) instead of one shared weights.bin.",
+)
+
+
+def _training_garments_option(default: str):
+    """``--training-garments`` (export and repack), its default named in the help."""
+    return click.option(
+        "--training-garments",
+        "training_files",
+        multiple=True,
+        type=click.Path(dir_okay=False, exists=True, path_type=Path),
+        help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
+        f"warn about garments far from all of them.  Default: {default}.",
+    )
+
 
 @cli.command("export")
 @click.argument("checkpoint", required=False, type=click.Path(dir_okay=False, path_type=Path))
@@ -34,19 +52,8 @@ from .main import cli
     help="Compare torch and onnxruntime on random inputs and print the errors.",
 )
 @click.option("--legacy", is_flag=True, help="Use the legacy (TorchScript) exporter instead of dynamo.")
-@click.option(
-    "--inline-weights",
-    is_flag=True,
-    help="Self-contained graph files (each with its own weights) instead of one shared weights.bin.",
-)
-@click.option(
-    "--training-garments",
-    "training_files",
-    multiple=True,
-    type=click.Path(dir_okay=False, exists=True, path_type=Path),
-    help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
-    "warn about garments far from all of them.  Default: what the checkpoint records.",
-)
+@_inline_weights_option
+@_training_garments_option("what the checkpoint records")
 def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy, inline_weights, training_files):
     """Export CHECKPOINT (or --random-init) to an ONNX model package (needs the 'torch' extra)."""
     try:
@@ -133,19 +140,8 @@ def quantize_cmd(package, output, precision):
 @click.option(
     "-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path), help="The new package folder."
 )
-@click.option(
-    "--inline-weights",
-    is_flag=True,
-    help="Self-contained graph files (each with its own weights) instead of one shared weights.bin.",
-)
-@click.option(
-    "--training-garments",
-    "training_files",
-    multiple=True,
-    type=click.Path(dir_okay=False, exists=True, path_type=Path),
-    help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
-    "warn about garments far from all of them.  Default: the package's own list.",
-)
+@_inline_weights_option
+@_training_garments_option("the package's own list")
 @click.option(
     "--opset",
     type=click.IntRange(15, 21),
