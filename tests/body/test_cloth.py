@@ -5,6 +5,7 @@ streams give the frames of one long call, a jump resets the state once with one 
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 
 import numpy as np
@@ -14,7 +15,6 @@ from segadeform.body import default_body_path, load_body
 from segadeform.body.cloth import (
     CONTACT_BAND,
     ClothSettings,
-    ClothSetup,
     ClothStage,
     cloth_reference,
     cloth_setup,
@@ -71,7 +71,7 @@ def test_setup_is_the_reference_on_hard_meshes(body):
         sd = rest_signed_distance(vv, rest_body, body.faces)
         for s in (ClothSettings(), ClothSettings(attachment=0.0, max_distance=0.2)):
             a, b = cloth_setup(vv, ff, sd, s), cloth_setup_reference(vv, ff, sd, s)
-            for k in ("edges", "rest_len", "nptr", "nidx", "radius"):
+            for k in ("edges", "rest_len", "nptr", "nidx", "radius", "anchor", "tether"):
                 np.testing.assert_array_equal(getattr(a, k), getattr(b, k), err_msg=f"{name} {k}")
             a.validate()
             assert (a.edges[:, 0] < a.edges[:, 1]).all() and len(np.unique(a.edges, axis=0)) == len(a.edges)
@@ -79,6 +79,45 @@ def test_setup_is_the_reference_on_hard_meshes(body):
     # the isolated vertex has no neighbours
     a = cloth_setup(*meshes["degenerate"], rest_signed_distance(meshes["degenerate"][0], rest_body, body.faces))
     assert a.nptr[-1] - a.nptr[-2] == 0
+
+
+def test_tethers_anchor_free_vertices_to_the_nearest_attached_one():
+    """Each free vertex's anchor is the attached vertex nearest along the edges (ties: the smaller index), its tether
+    that path's rest length; attached vertices and those no attached vertex reaches have none."""
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [5, 5, 5], [6, 5, 5], [5, 6, 5]])
+    f = np.array([[0, 1, 2], [1, 3, 2], [4, 5, 6]])
+    sd = np.array([0.0, 0.03, 0.5, -1.0, 0.5, 0.5, 0.5])
+    for a in (cloth_setup(v, f, sd), cloth_setup_reference(v, f, sd)):
+        np.testing.assert_array_equal(a.anchor, [-1, 0, 0, -1, -1, -1, -1])
+        np.testing.assert_array_equal(a.tether, [0, 1, 1, 0, 0, 0, 0])
+    # a strip 30 edges long hanging from its attached top row: the tethers run the length of the strip
+    v, f = grid_plane(2, 30, size=(0.02, 0.3))
+    v = v[:, [0, 2, 1]]  # upright: y from 0 to 0.3
+    sd = np.where(v[:, 1] >= v[:, 1].max() - 1e-9, 0.0, 1.0)
+    a = cloth_setup(v, f, sd)
+    free = sd > 0
+    assert (a.anchor[free] >= 0).all() and (sd[a.anchor[free]] == 0).all()
+    np.testing.assert_allclose(a.tether[free], v[:, 1].max() - v[free, 1], atol=1e-12)  # straight up the strip
+
+
+def test_tethers_hold_a_hanging_strip_within_the_stretch_limit():
+    """A strip hanging still from its attached top row far from any body: gravity sags the free part every frame;
+    four sweeps of edges alone leave it stretched well over the limit, the tethers hold it near the limit."""
+    v, f = grid_plane(3, 30, size=(0.04, 0.3))
+    v = v[:, [0, 2, 1]]  # upright: y from 0 to 0.3
+    body_v = np.array([[10.0, 0, 0], [11.0, 0, 0], [10.0, 1, 0], [10.0, 0, 1]])
+    body_f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    sd = np.where(v[:, 1] >= v[:, 1].max() - 1e-9, 0.0, 1.0)
+    setup = cloth_setup(v, f, sd)
+    T = 30
+    still, posed = np.repeat(v[None], T, 0), np.repeat(body_v[None], T, 0)
+    untethered = dataclasses.replace(setup, anchor=np.full_like(setup.anchor, -1))
+
+    def strain(s):
+        x = ClothStage(s, body_v, body_f).step(still, posed)[-1]
+        return (np.linalg.norm(x[s.edges[:, 1]] - x[s.edges[:, 0]], axis=-1) / s.rest_len - 1).max()
+
+    assert strain(setup) < 0.04 < 0.1 < strain(untethered), (strain(setup), strain(untethered))
 
 
 def test_kernel_is_the_reference(walk, body):
@@ -227,9 +266,10 @@ def test_bad_input_is_refused(walk, body):
     with pytest.raises(InputError, match="time step"):
         settings_array(ClothSettings(), margin=MARGIN, dt=0.0)
     with pytest.raises(InputError, match="inconsistent cloth setup"):
-        ClothSetup(
-            edges=setup.edges, rest_len=setup.rest_len, nptr=setup.nptr[:-1], nidx=setup.nidx, radius=setup.radius
-        ).validate()
+        dataclasses.replace(setup, nptr=setup.nptr[:-1]).validate()
+    with pytest.raises(InputError, match="inconsistent cloth setup"):  # a tether anchored at a free vertex
+        free = np.flatnonzero(setup.anchor >= 0)
+        dataclasses.replace(setup, anchor=np.where(setup.anchor >= 0, free[0], -1)).validate()
 
 
 def test_setup_is_cached_with_the_garment(tmp_path, body, monkeypatch):
@@ -246,7 +286,7 @@ def test_setup_is_cached_with_the_garment(tmp_path, body, monkeypatch):
 
     monkeypatch.setattr(cloth, "cloth_setup", boom)
     b = garment_setup(v, f, rest, body.faces, cache_dir=tmp_path)
-    for k in ("edges", "rest_len", "nptr", "nidx", "radius"):
+    for k in ("edges", "rest_len", "nptr", "nidx", "radius", "anchor", "tether"):
         np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
     with pytest.raises(AssertionError, match="computed again"):  # other knobs of the setup: another entry
         garment_setup(v, f, rest, body.faces, ClothSettings(attachment=0.03), cache_dir=tmp_path)

@@ -75,6 +75,8 @@ def cloth_vector(request, tmp_path_factory):
             "nptr": setup.nptr.astype(np.int32),
             "nidx": setup.nidx.astype(np.int32),
             "radius": setup.radius,
+            "anchor": setup.anchor.astype(np.int32),
+            "tether": setup.tether,
             "expected": out,
         },
         {"settings": dataclasses.asdict(settings), "margin": MARGIN, "dt": 1 / 30, "batch": batch},
@@ -88,7 +90,8 @@ def test_javascript_cloth_is_the_compiled_kernel(cloth_vector, node):
     path, py = cloth_vector
     r = _node_vectors("cloth_vectors.mjs", path, "CLOTH")
     _report("javascript stage vs ClothStage", **r, python=py)
-    assert r["edges"] == r["nptr"] == r["nidx"] == 0 and r["restLen"] == 0 and r["radius"] == 0, r
+    assert r["edges"] == r["nptr"] == r["nidx"] == r["anchor"] == 0 and r["restLen"] == r["radius"] == 0, r
+    assert r["tether"] == 0, r
     assert r["frames"] <= 1e-12 and r["identical"] == r["coordinates"], r
     assert (r["contacts"], r["pushed"], r["resets"]) == (py["contacts"], py["pushed"], py["resets"]), (r, py)
 

@@ -1,7 +1,7 @@
 // The cloth stage in JavaScript: a line-for-line port of src/segadeform/body/_cloth.c (the compiled kernel the
 // Python and C++ runtimes call), shared by the Node runtime and the browser page (plain ES module, no Node or DOM
 // APIs).  The method, the order of its constraints and why each is there are in that file's header: position-based
-// dynamics with strain limiting, smoothing of the deviation from the network's frame, max-distance attachments and
+// dynamics with strain limiting, tethers to the nearest attached vertex, smoothing of the deviation from the network's frame, max-distance attachments and
 // contact planes against the posed body, then the collision stage's exact push-out (collide.js).  This port keeps the
 // C file's functions, their order of operations and its float64 arithmetic (only + - * / and Math.sqrt, which
 // JavaScript rounds as C does), so on the same inputs it gives the kernel's frames bit for bit
@@ -55,7 +55,8 @@ export function checkCloth(s) {
 /**
  * The per-garment data (scl_setup) from the rest garment rest (N*3, Float64Array), faces (F*3 indices) and each
  * vertex's signed distance from the body at rest restSd (N): { edges (Int32Array 2E, a < b, sorted by (a, b)),
- * restLen (E), nptr (Int32Array N + 1), nidx (Int32Array 2E: each vertex's neighbours, ascending), radius (N) }.
+ * restLen (E), nptr (Int32Array N + 1), nidx (Int32Array 2E: each vertex's neighbours, ascending), radius (N),
+ * anchor (Int32Array N: each free vertex's tether anchor, -1 for none), tether (N: its path's rest length) }.
  */
 export function clothSetup(rest, faces, restSd, attachment, maxDistance) {
   const n = Math.floor(rest.length / 3), nf = Math.floor(faces.length / 3);
@@ -101,7 +102,79 @@ export function clothSetup(rest, faces, restSd, attachment, maxDistance) {
     const d = restSd[i] - attachment;
     radius[i] = d > 0 ? (d < maxDistance ? d : maxDistance) : 0.0;
   }
-  return { edges, restLen, nptr, nidx, radius, n, ne };
+  const { anchor, tether } = tethers(rest, n, nptr, nidx, radius);
+  return { edges, restLen, nptr, nidx, radius, anchor, tether, n, ne };
+}
+
+/* the heap's order: by distance, then by vertex (a total order: every heap pops the same sequence) */
+function itemLess(hd, hv, i, d, v) { return hd[i] < d || (hd[i] === d && hv[i] < v); }
+
+function heapPush(h, d, v) {
+  let c = h.len++;
+  while (c > 0) {
+    const up = (c - 1) >> 1;
+    if (!(d < h.d[up] || (d === h.d[up] && v < h.v[up]))) break;
+    h.d[c] = h.d[up];
+    h.v[c] = h.v[up];
+    c = up;
+  }
+  h.d[c] = d;
+  h.v[c] = v;
+}
+
+function heapPop(h) {
+  const topD = h.d[0], topV = h.v[0];
+  h.len--;
+  const lastD = h.d[h.len], lastV = h.v[h.len];
+  let c = 0;
+  for (;;) {
+    const l = 2 * c + 1, r = l + 1;
+    let s = c, bd = lastD, bv = lastV;
+    if (l < h.len && itemLess(h.d, h.v, l, bd, bv)) { s = l; bd = h.d[l]; bv = h.v[l]; }
+    if (r < h.len && itemLess(h.d, h.v, r, bd, bv)) s = r;
+    if (s === c) break;
+    h.d[c] = h.d[s];
+    h.v[c] = h.v[s];
+    c = s;
+  }
+  if (h.len > 0) {
+    h.d[c] = lastD;
+    h.v[c] = lastV;
+  }
+  return [topD, topV];
+}
+
+/* The tethers (scl_tethers): Dijkstra from every attached vertex at once over the edges' rest lengths, a vertex
+ * settled in (distance, index) order; a neighbour takes the settled vertex's anchor when its path is shorter, or as
+ * short with a smaller anchor. */
+function tethers(rest, n, nptr, nidx, radius) {
+  const cap = n + nptr[n];
+  const h = { d: new Float64Array(cap), v: new Int32Array(cap), len: 0 };
+  const done = new Uint8Array(n), anchor = new Int32Array(n), tether = new Float64Array(n);
+  for (let i = 0; i < n; i++) {
+    anchor[i] = radius[i] > 0 ? -1 : i;
+    if (anchor[i] >= 0) heapPush(h, 0.0, i);
+  }
+  while (h.len > 0) {
+    const [d, v] = heapPop(h);
+    if (done[v] || d > tether[v]) continue; // settled, or a longer path found before a shorter one
+    done[v] = 1;
+    for (let j = nptr[v]; j < nptr[v + 1]; j++) {
+      const w = nidx[j], a = v < w ? v : w, b = v < w ? w : v;
+      if (done[w]) continue;
+      const dx = rest[3 * b] - rest[3 * a], dy = rest[3 * b + 1] - rest[3 * a + 1], dz = rest[3 * b + 2] - rest[3 * a + 2];
+      const c = d + Math.sqrt(dx * dx + dy * dy + dz * dz);
+      if (anchor[w] < 0 || c < tether[w]) {
+        tether[w] = c;
+        anchor[w] = anchor[v];
+        heapPush(h, c, w);
+      } else if (c === tether[w] && anchor[v] < anchor[w]) {
+        anchor[w] = anchor[v];
+      }
+    }
+  }
+  for (let i = 0; i < n; i++) if (!(radius[i] > 0)) anchor[i] = -1; // attached: no tether (its distance is 0)
+  return { anchor, tether };
 }
 
 // ---- per frame -----------------------------------------------------------------------------------------------
@@ -155,6 +228,20 @@ function stretchEdge(x, xo, edges, restLen, radius, e, loF, hiF, k) {
   x[q] -= wb * s * d0;
   x[q + 1] -= wb * s * d1;
   x[q + 2] -= wb * s * d2;
+}
+
+/* One free vertex's tether: pulled toward its anchor when farther from it than hiF times the tether's rest length. */
+function tetherVertex(x, xo, anchor, tether, i, hiF, k) {
+  const a = anchor[i];
+  if (a < 0) return;
+  const p = xo + 3 * i, o = xo + 3 * a, lim = hiF * tether[i];
+  const d0 = x[p] - x[o], d1 = x[p + 1] - x[o + 1], d2 = x[p + 2] - x[o + 2];
+  const l2 = d0 * d0 + d1 * d1 + d2 * d2;
+  if (l2 <= lim * lim) return; // within (most vertices): no square root
+  const s = k * (1.0 - lim / Math.sqrt(l2));
+  x[p] -= s * d0;
+  x[p + 1] -= s * d1;
+  x[p + 2] -= s * d2;
 }
 
 /* One vertex's smoothing: its deviation from the target moved toward its neighbours' mean deviation. */
@@ -212,7 +299,7 @@ export class ClothStage {
   }
 
   step(target, body, nb) {
-    const { n, ne, edges, restLen, nptr, nidx, radius } = this.setup;
+    const { n, ne, edges, restLen, nptr, nidx, radius, anchor, tether } = this.setup;
     const nv = this.collider.nv, st = this.settings, col = this.collider;
     if (target.length !== nb * n * 3 || body.length !== nb * nv * 3) {
       throw new Error(`the cloth stage takes ${nb} frames of ${n} garment and ${nv} body vertices (got ${target.length} ` +
@@ -280,6 +367,7 @@ export class ClothStage {
       for (let it = 0; it < iters; it++) {
         const fwd = it % 2 === 0;
         for (let e = 0; e < ne; e++) stretchEdge(x, 0, edges, restLen, radius, fwd ? e : ne - 1 - e, loF, hiF, ks);
+        if (ks > 0) for (let i = 0; i < n; i++) tetherVertex(x, 0, anchor, tether, i, hiF, ks);
         if (kb > 0) for (let i = 0; i < n; i++) smoothVertex(x, 0, yf, 0, nptr, nidx, radius, fwd ? i : n - 1 - i, kb);
         for (let i = 0; i < n; i++) {
           const p = 3 * i;

@@ -23,7 +23,7 @@ test("the per-sweep stiffness gives the stiffness after the sweeps", () => {
   }
 });
 
-test("setup: distinct sorted edges, ascending neighbours, radii from the rest distance", () => {
+test("setup: distinct sorted edges, ascending neighbours, radii from the rest distance, tethers", () => {
   // two triangles sharing an edge, a repeated-vertex face and a duplicate face
   const rest = new Float64Array([0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0]);
   const faces = new Int32Array([0, 1, 2, 1, 3, 2, 2, 1, 0, 3, 3, 1]);
@@ -34,6 +34,9 @@ test("setup: distinct sorted edges, ascending neighbours, radii from the rest di
   assert.deepEqual(Array.from(s.nidx), [1, 2, 0, 2, 3, 0, 1, 3, 1, 2]);
   assert.ok(Math.abs(s.radius[1] - 0.01) < 1e-15);
   assert.deepEqual([s.radius[0], s.radius[2], s.radius[3]], [0, 0.05, 0]);
+  // tethers: each free vertex to the nearest attached one along the edges (a tie: the smaller index)
+  assert.deepEqual(Array.from(s.anchor), [-1, 0, 0, -1]);
+  assert.deepEqual(Array.from(s.tether), [0, 1, 1, 0]);
   assert.throws(() => clothSetup(rest, new Int32Array([0, 1, 7]), new Float64Array(4), 0.02, 0.05), /out of range/);
 });
 

@@ -18,6 +18,12 @@
  *   stretch       every edge's length kept within [(1 - compress) L0, (1 + stretch) L0] of its rest length L0:
  *                 strain limiting (Provot, "Deformation constraints in a mass-spring model to describe rigid
  *                 cloth behavior", Graphics Interface 1995), stiffness `stiffness`;
+ *   tethers       every free vertex kept within (1 + stretch) G of its anchor, the attached vertex nearest to it
+ *                 along the rest mesh's edges (G: that path's rest length; scl_setup), stiffness `stiffness`: long
+ *                 range attachments (Kim, Chentanez & Mueller, "Long range attachments - a method to simulate
+ *                 inextensible clothing in computer games", SCA 2012).  A few sweeps of edges alone cannot carry a
+ *                 pull along a hanging chain of many edges, so without them gravity and inertia stretch the cloth
+ *                 below the attached vertices every frame;
  *   smoothing     each free vertex's deviation from the target (x - y) moved toward the mean deviation of its
  *                 neighbours, stiffness `bending`: the target's Laplacian coordinates are kept (Sorkine et al.,
  *                 "Laplacian surface editing", SGP 2004), so the network's folds stay while a displacement made
@@ -32,7 +38,7 @@
  * After the sweeps, the vertices that may be inside the body or closer than the margin -- found so, or moved
  * farther than their clearance since the contacts were found (no other can be) -- are pushed out of the body
  * exactly as the collision stage does (sdc_push_out, SCL_PASSES passes): contact wins over the attachment.  Attached vertices
- * (radius 0) have infinite mass: edges and smoothing move only free vertices.
+ * (radius 0) have infinite mass: edges, tethers and smoothing move only free vertices.
  *
  * State (the caller keeps it between calls; calls may hold any number of frames): the last two output frames and
  * the last target.  Inertia: p = x1 + (1 - damping)(x1 - x0) - (0, gravity dt^2, 0), from the frames before, then
@@ -63,7 +69,7 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 1
+#define SCL_ABI 2
 #define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
 #define SCL_TINY 1e-300
@@ -109,12 +115,97 @@ static int cmp_edge(const void *x, const void *y) {
  *   rest_len (E,)    their rest lengths;
  *   nptr (N + 1), nidx (2E)  each vertex's neighbours nidx[nptr[i]:nptr[i + 1]], ascending;
  *   radius (N,)      how far each vertex may leave its target: 0 within `attachment` of the body at rest, else
- *                    min(max_distance, rest_sd - attachment).
+ *                    min(max_distance, rest_sd - attachment);
+ *   anchor (N,)      each free vertex's tether anchor: the attached vertex (radius 0) nearest to it along the edges
+ *                    (Dijkstra's shortest paths from all attached vertices at once, scl_tethers), -1 for attached
+ *                    vertices and those no attached vertex reaches;
+ *   tether (N,)      the rest length of that path (0 where anchor is -1).
  * The caller sizes edges for 3F pairs, rest_len for 3F, nidx for 6F.  Returns E, -1 when out of memory, -2 for a
  * face index outside [0, N). */
+typedef struct {
+    double d;
+    int64_t v;
+} scl_item;
+
+/* the heap's order: by distance, then by vertex (a total order: every heap pops the same sequence) */
+static int item_less(const scl_item *p, const scl_item *q) { return p->d < q->d || (p->d == q->d && p->v < q->v); }
+
+static void heap_push(scl_item *h, int64_t *len, double d, int64_t v) {
+    int64_t c = (*len)++;
+    while (c > 0) {
+        int64_t up = (c - 1) / 2;
+        scl_item it;
+        it.d = d;
+        it.v = v;
+        if (!item_less(&it, &h[up])) break;
+        h[c] = h[up];
+        c = up;
+    }
+    h[c].d = d;
+    h[c].v = v;
+}
+
+static scl_item heap_pop(scl_item *h, int64_t *len) {
+    scl_item top = h[0], last = h[--(*len)];
+    int64_t c = 0;
+    for (;;) {
+        int64_t l = 2 * c + 1, r = l + 1, s = c;
+        const scl_item *best = &last;
+        if (l < *len && item_less(&h[l], best)) { s = l; best = &h[l]; }
+        if (r < *len && item_less(&h[r], best)) s = r;
+        if (s == c) break;
+        h[c] = h[s];
+        c = s;
+    }
+    if (*len > 0) h[c] = last;
+    return top;
+}
+
+/* The tethers: Dijkstra from every attached vertex at once over the edges' rest lengths (|rest[b] - rest[a]|,
+ * a < b, as rest_len), a vertex settled in (distance, index) order; a neighbour takes the settled vertex's anchor
+ * when its path is shorter, or as short with a smaller anchor.  Returns 0, -1 when out of memory. */
+static int64_t scl_tethers(const double *rest, int64_t n, const int64_t *nptr, const int64_t *nidx,
+                           const double *radius, int64_t *anchor, double *tether) {
+    scl_item *h = (scl_item *)malloc(sizeof(scl_item) * (size_t)(n + nptr[n]));
+    uint8_t *done = (uint8_t *)malloc((size_t)n);
+    int64_t i, j, len = 0;
+    if (!h || !done) { free(h); free(done); return -1; }
+    for (i = 0; i < n; i++) {
+        done[i] = 0;
+        tether[i] = 0.0;
+        anchor[i] = radius[i] > 0 ? -1 : i;
+        if (anchor[i] >= 0) heap_push(h, &len, 0.0, i);
+    }
+    while (len > 0) {
+        scl_item it = heap_pop(h, &len);
+        int64_t v = it.v;
+        if (done[v] || it.d > tether[v]) continue; /* settled, or a longer path found before a shorter one */
+        done[v] = 1;
+        for (j = nptr[v]; j < nptr[v + 1]; j++) {
+            int64_t w = nidx[j], a = v < w ? v : w, b = v < w ? w : v;
+            double dx = rest[3 * b] - rest[3 * a], dy = rest[3 * b + 1] - rest[3 * a + 1];
+            double dz = rest[3 * b + 2] - rest[3 * a + 2], c;
+            if (done[w]) continue;
+            c = it.d + sqrt(dx * dx + dy * dy + dz * dz);
+            if (anchor[w] < 0 || c < tether[w]) {
+                tether[w] = c;
+                anchor[w] = anchor[v];
+                heap_push(h, &len, c, w);
+            } else if (c == tether[w] && anchor[v] < anchor[w]) {
+                anchor[w] = anchor[v];
+            }
+        }
+    }
+    for (i = 0; i < n; i++)
+        if (!(radius[i] > 0)) anchor[i] = -1; /* attached: no tether (its distance is 0) */
+    free(h);
+    free(done);
+    return 0;
+}
+
 SCL_API int64_t scl_setup(const double *rest, int64_t n, const int64_t *faces, int64_t nf, const double *rest_sd,
                           double attachment, double max_distance, int64_t *edges, double *rest_len, int64_t *nptr,
-                          int64_t *nidx, double *radius) {
+                          int64_t *nidx, double *radius, int64_t *anchor, double *tether) {
     scl_edge *e;
     int64_t *fill;
     int64_t i, k, ne = 0, m = 0;
@@ -161,6 +252,7 @@ SCL_API int64_t scl_setup(const double *rest, int64_t n, const int64_t *faces, i
     }
     free(e);
     free(fill);
+    if (scl_tethers(rest, n, nptr, nidx, radius, anchor, tether) < 0) return -1;
     return ne;
 }
 
@@ -225,6 +317,25 @@ static void stretch_edge(double *x, const int64_t *edges, const double *rest_len
     q[2] -= wb * s * d2;
 }
 
+/* One free vertex's tether: pulled toward its anchor (attached: never moved by edges, smoothing or tethers) when
+ * farther from it than hi_f times the tether's rest length. */
+static void tether_vertex(double *x, const int64_t *anchor, const double *tether, int64_t i, double hi_f, double k) {
+    int64_t a = anchor[i];
+    double *p = x + 3 * i, *o, d0, d1, d2, l2, lim, s;
+    if (a < 0) return;
+    o = x + 3 * a;
+    lim = hi_f * tether[i];
+    d0 = p[0] - o[0];
+    d1 = p[1] - o[1];
+    d2 = p[2] - o[2];
+    l2 = d0 * d0 + d1 * d1 + d2 * d2;
+    if (l2 <= lim * lim) return; /* within (most vertices): no square root */
+    s = k * (1.0 - lim / sqrt(l2));
+    p[0] -= s * d0;
+    p[1] -= s * d1;
+    p[2] -= s * d2;
+}
+
 /* One vertex's smoothing: its deviation from the target moved toward its neighbours' mean deviation. */
 static void smooth_vertex(double *x, const double *y, const int64_t *nptr, const int64_t *nidx, const double *radius,
                           int64_t i, double k) {
@@ -246,7 +357,8 @@ static void smooth_vertex(double *x, const double *y, const int64_t *nptr, const
 }
 
 /* The cloth stage on nb frames: targets (B, N, 3) -> out (B, N, 3), against the posed body (B, V, 3) through the
- * collider (sdc_create on the body's faces), with the per-garment data of scl_setup and settings (S_COUNT,).
+ * collider (sdc_create on the body's faces), with the per-garment data of scl_setup (edges to tether) and settings
+ * (S_COUNT,).
  * state (3, N, 3): the last output, the one before it and the last target; info (I_COUNT,): I_HAVE how many of
  * the state's frames are set (0: none, the next frame starts from its target), counts added to (I_RESETS,
  * I_CONTACTS: vertex-frames with a contact plane, I_PUSHED: vertex-frames the final push-out moved by more than
@@ -255,7 +367,8 @@ static void smooth_vertex(double *x, const double *y, const int64_t *nptr, const
  * Returns 0; -1 when out of memory; 1 + f when frame f's target or body holds NaN or inf (the frames before it
  * are done, the state is theirs). */
 SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const double *rest_len, const int64_t *nptr,
-                         const int64_t *nidx, const double *radius, const double *settings, const void *collider,
+                         const int64_t *nidx, const double *radius, const int64_t *anchor, const double *tether,
+                         const double *settings, const void *collider,
                          int64_t nv, const double *body, int64_t nb, const double *target, double *out, double *state,
                          int64_t *info) {
     int64_t iters = (int64_t)settings[S_ITERATIONS], n_nodes = sdc_n_nodes(collider), f, i, it, e;
@@ -324,6 +437,8 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         for (it = 0; it < iters; it++) {
             int fwd = it % 2 == 0;
             for (e = 0; e < ne; e++) stretch_edge(x, edges, rest_len, radius, fwd ? e : ne - 1 - e, lo_f, hi_f, ks);
+            if (ks > 0)
+                for (i = 0; i < n; i++) tether_vertex(x, anchor, tether, i, hi_f, ks);
             if (kb > 0)
                 for (i = 0; i < n; i++) smooth_vertex(x, y, nptr, nidx, radius, fwd ? i : n - 1 - i, kb);
             for (i = 0; i < n; i++) {

@@ -4,7 +4,8 @@ It takes the network's frames as targets and returns frames that behave like clo
 edges held within a stretch limit, contact with the body resolved with the neighbours moving along, inertia and
 gravity from the previous output frames, and every vertex within a bounded distance of its target (zero where
 the garment lies on the body at rest, so there it follows the network exactly).  The method -- position-based
-dynamics (Mueller et al. 2007) with strain limiting (Provot 1995), smoothing of the deviation from the target,
+dynamics (Mueller et al. 2007) with strain limiting (Provot 1995), tethers to the nearest attached vertex (long
+range attachments, Kim et al. 2012), smoothing of the deviation from the target,
 max-distance attachments and contact planes, then the collision stage's exact push-out -- and the meaning of
 every knob are in the kernel's header, ``src/segadeform/body/_cloth.c``.
 
@@ -15,8 +16,9 @@ Side by side:
   ``runtimes/node/src/cloth.js`` ports it) through ctypes.  It keeps the state between calls, so batches of any
   size and a stream of any length give the frames of one long call; memory is O(N).
 * :func:`garment_setup` -- the per-garment data (edges, rest lengths, neighbours, each vertex's attachment
-  radius from its distance to the body at rest), computed once and cached on disk with the garment
-  (``C-<hash>.npz`` in the user cache, :mod:`segadeform.io.cache`), as the garment's encoding is.
+  radius from its distance to the body at rest, its tether's anchor and rest length), computed once and cached
+  on disk with the garment (``C-<hash>.npz`` in the user cache, :mod:`segadeform.io.cache`), as the garment's
+  encoding is.
 * :func:`cloth_setup_reference` and :func:`cloth_reference` -- the slow, obvious references: the same rule in
   numpy and Python loops, contacts and the final push-out from the numpy :class:`BodyCollider`; tests compare
   them with the kernel.
@@ -30,11 +32,13 @@ ends over its limit (1) where the network puts the garment deep inside the body 
 each vertex is kept out along its own closest body point, neighbours land on different sides of the limb and
 the edges between them stretch by several hundred percent, which no number of sweeps undoes in one frame; (2)
 where both ends are attached and the network's frame is itself stretched (on a dress 12 % of the network's
-edge-frames are over a 3 % limit; Blender's own frames reach 149 %); (3) where gravity makes loose vertices
-sag a steady ``gravity dt^2 (1 - follow) / follow`` below the network's frame (1.1 cm at 30 fps) beside
-vertices whose attachment radius is a few millimetres.  Prototypes tried and not kept: contact planes from the
-previous output, strain limiting measured against the network's own edge lengths, strain-limit and push-out
-rounds after the sweeps, gravity 0 (the numbers are in ``docs/cloth-eval.md``).
+edge-frames are over a 3 % limit; Blender's own frames reach 149 %).  A third cause, loose vertices sagging a
+steady ``gravity dt^2 (1 - follow) / follow`` below the network's frame (1.1 cm at 30 fps) below the attached
+ones while four sweeps of edges cannot carry the pull down a hanging chain, is what the tethers remove (issue
+#26: the 99th percentile of stretch on held-out skirts 13.1 -> 7.8 % and 26.8 -> 22.1 %, a dress 17.7 -> 16.4 %).
+Prototypes tried and not kept: contact planes from the previous output, strain limiting measured against the
+network's own edge lengths, strain-limit and push-out rounds after the sweeps, gravity 0 (the numbers are in
+``docs/cloth-eval.md``).
 """
 
 from __future__ import annotations
@@ -76,8 +80,8 @@ PASSES = 3
 #: metres: a final push-out move counted in ``pushed`` (_cloth.c's SCL_MOVED; a vertex already at the margin is not)
 MOVED = 1e-6
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
-SETUP_VERSION = 1
-_ABI = 1
+SETUP_VERSION = 2
+_ABI = 2
 #: the order of _cloth.c's settings array
 _SETTINGS = (
     "iterations",
@@ -126,9 +130,9 @@ def _load_kernel():
                 (
                     ("sdc_create", p, (p, i64, p, i64, i64)),
                     ("sdc_free", None, (p,)),
-                    ("scl_setup", i64, (p, i64, p, i64, p, f64, f64, p, p, p, p, p)),
+                    ("scl_setup", i64, (p, i64, p, i64, p, f64, f64, p, p, p, p, p, p, p)),
                     ("scl_per_sweep", f64, (f64, i64)),
-                    ("scl_step", i64, (i64, i64, p, p, p, p, p, p, p, i64, p, i64, p, p, p, p)),
+                    ("scl_step", i64, (i64, i64, p, p, p, p, p, p, p, p, p, i64, p, i64, p, p, p, p)),
                 ),
             )
             _KERNEL.update(lib=lib, why=why)
@@ -162,13 +166,17 @@ class ClothSetup:
     """The per-garment data of the cloth stage (``_cloth.c``'s ``scl_setup``).
 
     Shapes: edges (E, 2) int64, a < b, sorted; rest_len (E,); nptr (N + 1,) int64 and nidx (2E,) int64: vertex i's
-    neighbours ``nidx[nptr[i]:nptr[i + 1]]``, ascending; radius (N,): how far vertex i may leave its target."""
+    neighbours ``nidx[nptr[i]:nptr[i + 1]]``, ascending; radius (N,): how far vertex i may leave its target;
+    anchor (N,) int64: free vertex i's tether anchor, the attached vertex nearest to it along the edges (-1: none);
+    tether (N,): the rest length of that path."""
 
     edges: np.ndarray
     rest_len: np.ndarray
     nptr: np.ndarray
     nidx: np.ndarray
     radius: np.ndarray
+    anchor: np.ndarray
+    tether: np.ndarray
 
     @property
     def n_vertices(self) -> int:
@@ -187,6 +195,10 @@ class ClothSetup:
             and self.radius.dtype == np.float64
             and n >= 1
             and self.rest_len.dtype == np.float64
+            and self.anchor.dtype == np.int64
+            and self.anchor.shape == (n,)
+            and self.tether.dtype == np.float64
+            and self.tether.shape == (n,)
         )
         ok = ok and (
             e == 0 or (self.edges.min() >= 0 and self.edges.max() < n and (self.edges[:, 0] < self.edges[:, 1]).all())
@@ -194,11 +206,15 @@ class ClothSetup:
         ok = ok and self.nptr[0] == 0 and self.nptr[-1] == 2 * e and (np.diff(self.nptr) >= 0).all()
         ok = ok and (2 * e == 0 or (self.nidx.min() >= 0 and self.nidx.max() < n))
         ok = ok and np.isfinite(self.rest_len).all() and np.isfinite(self.radius).all() and (self.radius >= 0).all()
+        ok = ok and self.anchor.min() >= -1 and self.anchor.max() < n
+        ok = ok and np.isfinite(self.tether).all() and (self.tether >= 0).all()
+        ok = ok and (self.radius[self.anchor[self.anchor >= 0]] == 0).all()  # anchors are attached vertices
         if not ok:
             raise InputError(
                 "inconsistent cloth setup",
                 expected="scl_setup's arrays",
-                got=f"edges {self.edges.shape}, nptr {self.nptr.shape}, radius {self.radius.shape}",
+                got=f"edges {self.edges.shape}, nptr {self.nptr.shape}, radius {self.radius.shape}, "
+                f"anchor {self.anchor.shape}, tether {self.tether.shape}",
             )
         return self
 
@@ -242,6 +258,8 @@ def cloth_setup(rest, faces, rest_sd, settings: ClothSettings = ClothSettings())
     nptr = np.empty(n + 1, np.int64)
     nidx = np.empty(max(6 * nf, 1), np.int64)
     radius = np.empty(n)
+    anchor = np.empty(n, np.int64)
+    tether = np.empty(n)
     ne = lib.scl_setup(
         _ptr(v),
         n,
@@ -255,13 +273,21 @@ def cloth_setup(rest, faces, rest_sd, settings: ClothSettings = ClothSettings())
         _ptr(nptr),
         _ptr(nidx),
         _ptr(radius),
+        _ptr(anchor),
+        _ptr(tether),
     )
     if ne == -1:
         raise MemoryError("out of memory in the cloth stage's setup")
     if ne < 0:
         raise InputError("a face index is out of range", expected=f"0..{n - 1}")
     return ClothSetup(
-        edges=edges[:ne].copy(), rest_len=rest_len[:ne].copy(), nptr=nptr, nidx=nidx[: 2 * ne].copy(), radius=radius
+        edges=edges[:ne].copy(),
+        rest_len=rest_len[:ne].copy(),
+        nptr=nptr,
+        nidx=nidx[: 2 * ne].copy(),
+        radius=radius,
+        anchor=anchor,
+        tether=tether,
     )
 
 
@@ -279,14 +305,48 @@ def cloth_setup_reference(rest, faces, rest_sd, settings: ClothSettings = ClothS
     order = np.lexsort((dst, src))
     nptr = np.concatenate([[0], np.cumsum(np.bincount(src, minlength=n))]).astype(np.int64)
     over = sd - settings.attachment
-    radius = np.where(over > 0, np.minimum(over, settings.max_distance), 0.0)
+    radius = np.where(over > 0, np.minimum(over, settings.max_distance), 0.0).astype(np.float64)
+    nidx = dst[order].astype(np.int64)
+    anchor, tether = _tethers_reference(v, nptr, nidx, radius)
     return ClothSetup(
         edges=pairs.astype(np.int64).reshape(-1, 2),
         rest_len=rest_len,
         nptr=nptr,
-        nidx=dst[order].astype(np.int64),
-        radius=radius.astype(np.float64),
+        nidx=nidx,
+        radius=radius,
+        anchor=anchor,
+        tether=tether,
     )
+
+
+def _tethers_reference(v, nptr, nidx, radius):
+    """Each free vertex's tether anchor and rest length (``scl_tethers``): Dijkstra from every attached vertex at
+    once (heapq, settled in (distance, index) order), ties between paths of equal length to the smaller anchor."""
+    import heapq
+
+    n = len(radius)
+    anchor = np.where(radius > 0, -1, np.arange(n)).astype(np.int64)
+    dist = np.zeros(n)
+    done = np.zeros(n, bool)
+    heap = [(0.0, int(i)) for i in np.flatnonzero(anchor >= 0)]
+    heapq.heapify(heap)
+    while heap:
+        d, i = heapq.heappop(heap)
+        if done[i] or d > dist[i]:
+            continue
+        done[i] = True
+        for j in nidx[nptr[i] : nptr[i + 1]]:
+            if done[j]:
+                continue
+            e = v[max(i, j)] - v[min(i, j)]
+            c = d + np.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+            if anchor[j] < 0 or c < dist[j]:
+                dist[j], anchor[j] = c, anchor[i]
+                heapq.heappush(heap, (float(c), int(j)))
+            elif c == dist[j] and anchor[i] < anchor[j]:
+                anchor[j] = anchor[i]
+    anchor[~(radius > 0)] = -1
+    return anchor, np.where(anchor >= 0, dist, 0.0)
 
 
 def rest_signed_distance(rest, rest_body, body_faces) -> np.ndarray:
@@ -378,7 +438,8 @@ class ClothStage:
         self._lib, self._h = lib, h
         self._free = weakref.finalize(self, lib.sdc_free, h)
         self._arrays = [
-            np.ascontiguousarray(a) for a in (setup.edges, setup.rest_len, setup.nptr, setup.nidx, setup.radius)
+            np.ascontiguousarray(a)
+            for a in (setup.edges, setup.rest_len, setup.nptr, setup.nidx, setup.radius, setup.anchor, setup.tether)
         ]
         self._state = np.zeros((3, self.n_vertices, 3))
         self._info = np.zeros(5, np.int64)  # have, resets, contacts, pushed, first reset of the last call
@@ -433,7 +494,7 @@ class ClothStage:
         bv = np.ascontiguousarray(bv, np.float64)
         out = np.empty_like(y)
         before, last = self.resets, self._state[2].copy()  # the last target, for the reset's message
-        e, rl, nptr, nidx, rad = self._arrays
+        e, rl, nptr, nidx, rad, anc, teth = self._arrays
         status = self._lib.scl_step(
             self.n_vertices,
             len(e),
@@ -442,6 +503,8 @@ class ClothStage:
             _ptr(nptr),
             _ptr(nidx),
             _ptr(rad),
+            _ptr(anc),
+            _ptr(teth),
             _ptr(self._settings),
             self._h,
             self.n_body,
@@ -567,6 +630,14 @@ def cloth_reference(
                 sc = ks * c / (length * (wa + wb))
                 x[a] = x[a] + wa * sc * d
                 x[b] = x[b] - wb * sc * d
+            if ks > 0:
+                for i in np.flatnonzero(setup.anchor >= 0):
+                    o = x[setup.anchor[i]]
+                    d = x[i] - o
+                    l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+                    lim = hi_f * setup.tether[i]
+                    if l2 > lim * lim:
+                        x[i] = x[i] - ks * (1.0 - lim / np.sqrt(l2)) * d
             if kb > 0:
                 for i in range(n) if fwd else reversed(range(n)):
                     nb = setup.nidx[setup.nptr[i] : setup.nptr[i + 1]]
