@@ -119,3 +119,21 @@ def test_unposing_then_skinning_gives_back_the_a_posed_garment(body):
     back = skin_garment(unpose_lbs(g.cloth_rest, w, body.forward(A_POSE[None]).transforms[0]), w, body, A_POSE[None])[0]
     assert np.abs(back - g.cloth_rest).max() < 1e-9
     assert np.abs(skin_garment(g.vertices, w, body, A_POSE[None])[0] - g.cloth_rest).max() > 1e-3
+
+
+def test_a_fast_clip_gets_more_solver_steps(sim_python, body, coarse_skirt):
+    g = coarse_skirt
+    n = 6
+    trans = np.zeros((n, 3))
+    trans[3:, 0] = 0.25  # the body jumps 25 cm between frames 2 and 3 of the motion
+    mo = Motion(poses=np.zeros((n, 72)), trans=trans, fps=30.0)
+    st = SimSettings(
+        effects=("gravity", "body_collision"), drape_seconds=0.1, blend_seconds=0.0, quality=4, max_step_motion=0.06
+    )
+    fast = simulate(g.vertices, g.faces, body, mo, settings=st)
+    plain = simulate(g.vertices, g.faces, body, mo, settings=st.replace(max_step_motion=0.0))
+    same = simulate(g.vertices, g.faces, body, mo, settings=st.replace(max_step_motion=0.0, quality=5))
+    # ceil(25 cm / 6 cm) = 5 steps per frame for the whole clip, read back from Blender, and the frames are
+    # those of quality 5 (not of 4: the steps reach the solver)
+    assert fast.blender["applied"]["cloth"]["quality"] == 5 and plain.blender["applied"]["cloth"]["quality"] == 4
+    assert np.array_equal(fast.frames, same.frames) and not np.array_equal(fast.frames, plain.frames)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from segadeform.errors import FileFormatError, InputError
@@ -78,3 +79,27 @@ def test_impulse_clamp_reaches_the_cloth_collision_settings(tmp_path):
     assert blender_settings(SimSettings())["collision"]["impulse_clamp"] == 0.0  # Blender's own default: off
     with pytest.raises(FileFormatError, match="impulse_clamp"):
         _scene(tmp_path, "[simulate]\neffects = []\nimpulse_clamp = 2.0\n")
+
+
+def test_max_step_motion_is_read_and_leaves_older_digests_alone(tmp_path):
+    s = _scene(tmp_path, '[simulate]\neffects = ["body_collision"]\nmax_step_motion = 0.01\n').simulate
+    assert s.max_step_motion == 0.01 and s.to_dict()["max_step_motion"] == 0.01
+    assert "max_step_motion" not in SimSettings().to_dict()  # off: the settings of datasets made before it
+    with pytest.raises(FileFormatError, match="max_step_motion"):
+        _scene(tmp_path, "[simulate]\neffects = []\nmax_step_motion = -0.01\n")
+
+
+def test_clip_quality_follows_the_fastest_frame():
+    from segadeform.physics.blender import clip_quality
+
+    b = np.zeros((4, 3, 3))
+    b[2:, 1, 0] = 0.05  # 5 cm between frames 1 and 2
+    assert clip_quality(b, 10, 0.01) == 10 and clip_quality(b, 2, 0.01) == 5
+    b[3:, 2, 2] = 0.5  # 50 cm between frames 2 and 3
+    assert clip_quality(b, 10, 0.01) == 50
+    b[3:, 0, 1] = 5.0  # 5 m: more than the cap allows
+    assert clip_quality(b, 10, 0.01) == 80 and clip_quality(b[:1], 10, 0.01) == 10
+    with pytest.raises(InputError, match="max_step_motion"):
+        clip_quality(b, 10, 0.0)
+    with pytest.raises(InputError, match="body frames"):
+        clip_quality(b[0], 10, 0.01)

@@ -10,7 +10,10 @@ does not name is off in the solver::
     quality = 10                   # solver steps per frame (5 left edges snagged 100 %+ in tests)
     collision_quality = 2          # collision passes per step
     collision_distance = 0.005     # metres kept between cloth and body
-    impulse_clamp = 0.0            # largest move (metres) one collision response may make; 0: no limit
+    impulse_clamp = 0.0            # metres: Blender drops (does not shorten) a collision response larger
+                                   # than this; 0: none is dropped
+    max_step_motion = 0.0          # metres the body may move in one solver step: a clip where it moves
+                                   # farther in a frame gets more steps (quality raised, at most 80); 0: off
     self_collision_distance = 0.005
     pin = "waistband"              # which vertices "pinning" holds (PIN_GROUPS)
     wind = [0.0, 0.0, 1.0]         # direction of the "wind" effect (y-up, like the garment)
@@ -45,9 +48,16 @@ vertices through to the other side of the arm (edges stretched 200-400 %,
 measured on a T-shirt under a CMU walk).  What made sleeves pass the gate
 there (``samples/datasets/kinds.toml``): ``rest_pose = "a"`` with the garment
 made in the A-pose (``make_garment(..., cloth_pose=A_POSE)``), a 2 mm
-``collision_distance``, ``impulse_clamp = 0.02`` (a collision response moves a
-vertex at most 2 cm per step; 0.01 left 2 % of vertices inside the body,
-0.005 up to 29 %) and a 1 s blend.
+``collision_distance``, ``impulse_clamp = 0.02`` and a 1 s blend.  Blender
+does not shorten a response past the clamp, it drops it (``collision.cc``,
+``cloth_collision_impulse_vert``: an impulse longer than the clamp is not
+applied), so the clamp stops cloth squeezed between two body parts from being
+shot through, and 0.01 left 2 % of vertices inside the body, 0.005 up to 29 %.
+The same rule drops the responses a fast limb needs: a thigh moving 3-4 cm per
+step in a run goes through a skirt.  ``max_step_motion`` gives such a clip more
+steps per frame (each step's motion, and so its responses, smaller) instead of
+raising the clamp, which shoots squeezed cloth through again (issue #27,
+``docs/simulator-gate.md``).
 
 Why a drape and a blend: garments are modelled in the rest pose, without
 gravity; the drape lets the cloth settle on the body before anything moves,
@@ -138,6 +148,7 @@ class SimSettings:
     impulse_clamp: float = 0.0
     collision_inner: float = 0.02
     collision_normals: bool = False
+    max_step_motion: float = 0.0
 
     def __post_init__(self):
         eff = tuple(self.effects)
@@ -164,6 +175,7 @@ class SimSettings:
             ("blend_seconds", 0.0, 10.0),
             ("impulse_clamp", 0.0, 1.0),
             ("collision_inner", 1e-3, 1.0),
+            ("max_step_motion", 0.0, 1.0),
         ):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and not isinstance(v, bool) and lo <= v <= hi):
@@ -199,7 +211,7 @@ class SimSettings:
 
 
 #: settings added after datasets were made with this module: left out of ``to_dict`` at these values
-_LATER_DEFAULTS = {"collision_inner": 0.02, "collision_normals": False}
+_LATER_DEFAULTS = {"collision_inner": 0.02, "collision_normals": False, "max_step_motion": 0.0}
 
 
 def parse_simulate_table(table: dict | None, *, where=None) -> SimSettings:
@@ -226,6 +238,7 @@ def parse_simulate_table(table: dict | None, *, where=None) -> SimSettings:
         "blend_seconds",
         "impulse_clamp",
         "collision_inner",
+        "max_step_motion",
     ):
         if k in kw:
             kw[k] = float(kw[k])
