@@ -203,9 +203,19 @@ def main(argv=None, *, _simulate: Callable | None = None) -> int:
         ("--repeats", a.repeats, 3),
         ("--samples", a.samples, ""),
         ("--threads-all", a.threads_all, os.cpu_count() or 1),
+        ("--ks", a.ks, "4,6,12"),
+        ("--n-stars", a.n_stars, "8,16,64"),
+        ("--batches", a.batches, "1,32"),
+        ("--resolutions", a.resolutions, "1/4,1/2,4x"),
+        ("--cloth-iterations", a.cloth_iterations, "1,2,4,8,16"),
+        ("--cloth-stiffness", a.cloth_stiffness, "0.5,0.2"),
+        ("--sim", a.sim, None),
+        ("--sim-qualities", a.sim_qualities, "2,5,10,20"),
+        ("--sim-reference", a.sim_reference, 40),
     ):
         if val != default:
             shown += [flag, str(val)]
+    shown += [flag for flag, on in (("--no-int8", a.no_int8), ("--no-fp16", a.no_fp16), ("--no-sim", a.no_sim)) if on]
     md = write_docs(
         res,
         a.output,
