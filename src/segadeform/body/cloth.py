@@ -631,7 +631,7 @@ def cloth_reference(
                 x[a] = x[a] + wa * sc * d
                 x[b] = x[b] - wb * sc * d
             if ks > 0:
-                for i in np.flatnonzero(setup.anchor >= 0):
+                for i in np.flatnonzero(setup.anchor >= 0).tolist():
                     o = x[setup.anchor[i]]
                     d = x[i] - o
                     l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
