@@ -136,4 +136,5 @@ def test_a_fast_clip_gets_more_solver_steps(sim_python, body, coarse_skirt):
     # ceil(25 cm / 6 cm) = 5 steps per frame for the whole clip, read back from Blender, and the frames are
     # those of quality 5 (not of 4: the steps reach the solver)
     assert fast.blender["applied"]["cloth"]["quality"] == 5 and plain.blender["applied"]["cloth"]["quality"] == 4
-    assert np.array_equal(fast.frames, same.frames) and not np.array_equal(fast.frames, plain.frames)
+    to_same, to_plain = np.abs(fast.frames - same.frames).max(), np.abs(fast.frames - plain.frames).max()
+    assert to_same < 1e-5 < to_plain, (to_same, to_plain)
