@@ -39,7 +39,7 @@ from ..geometry.mesh_ops import adjacency, boundary_loops
 from ..io.pc2 import PC2Writer
 from ..motion.motion import Motion
 from ..settings.scene import Y_TO_Z
-from ..settings.simulation import EFFECTS, MATERIALS, SimSettings
+from ..settings.simulation import EFFECTS, MATERIALS, MAX_QUALITY, SimSettings
 
 __all__ = [
     "SimResult",
@@ -61,8 +61,6 @@ WORKER = Path(__file__).with_name("blender_worker.py")
 #: a T-pose in front and ramped up from rest where the capture before a clip is short (issue #27)
 SIM_BRIDGE_VERSION = 3
 _Y_TO_Z = np.array(Y_TO_Z)
-#: the most solver steps per frame a frame may get (SimSettings' bound on quality)
-MAX_QUALITY = 80
 
 
 def _repo_root() -> Path:

@@ -128,6 +128,10 @@ MATERIALS = {
 }
 
 
+#: the most solver steps per frame (Blender's ``quality``) a simulation may ask for
+MAX_QUALITY = 80
+
+
 @dataclasses.dataclass(frozen=True)
 class SimSettings:
     """Everything one simulation needs besides the inputs."""
@@ -162,7 +166,7 @@ class SimSettings:
             raise InputError("unknown material", expected=" | ".join(MATERIALS), got=self.material)
         if self.pin not in PIN_GROUPS:
             raise InputError("unknown pin group", expected=" | ".join(PIN_GROUPS), got=self.pin)
-        for name, lo, hi in (("quality", 1, 80), ("collision_quality", 1, 20)):
+        for name, lo, hi in (("quality", 1, MAX_QUALITY), ("collision_quality", 1, 20)):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= hi:
                 raise InputError(f"{name} must be an integer in {lo}..{hi}", got=v)
