@@ -69,10 +69,10 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
     interactive = sys.stderr.isatty()
 
     def progress(step, row):
-        if interactive or step % 100 == 0 or step == cfg.optim.steps:
+        if interactive or step % 100 == 0 or step == row.get('of', cfg.optim.steps):
             val = f" held-out {100 * float(row['val_vertex']):.2f} cm" if row.get("val_vertex") != "" else ""
             click.echo(
-                f"step {step}/{cfg.optim.steps} loss {row['total']:.4g} vertex {100 * row['vertex']:.2f} cm"
+                f"step {step}/{row.get('of', cfg.optim.steps)} loss {row['total']:.4g} vertex {100 * row['vertex']:.2f} cm"
                 f"{val} ({row['seconds']:.0f} s)",
                 err=True,
             )
@@ -82,7 +82,10 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
         final = train(cfg, output, _body(body), progress=progress, val_ids=list(val_ids) or None)
     finally:
         guard.abandon()
-    click.echo(f"trained {cfg.optim.steps} steps -> {final}")
+    import json
+
+    info = json.loads((output / "train.json").read_text())
+    click.echo(f"trained {info['steps']} steps in {info['train_seconds']:.0f} s -> {final}")
 
 
 @cli.command("eval")

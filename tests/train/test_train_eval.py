@@ -208,3 +208,46 @@ def test_train_on_a_pack_with_a_validation_split_and_batches_of_garments(synthet
     final_sd = torch.load(final, weights_only=True)["state_dict"]
     assert all(torch.equal(chosen["state_dict"][k], final_sd[k]) for k in final_sd)
     assert sorted(info["samples"]) == ["shorts__b0__walk", "skirt__b0__walk"]  # validation never trained on
+
+
+def test_warmup_then_cosine_and_a_time_budget_that_fixes_the_step_count(synthetic_dataset, tmp_path, body):
+    """optim.warmup ramps the rate linearly, then the cosine decays it; optim.seconds times the warm-up and
+    fixes the step count (recorded), and --steps with that count reruns the same schedule."""
+    from segadeform.errors import FileFormatError
+    from segadeform.train.config import OptimConfig
+
+    o = OptimConfig(steps=100, lr=1.0, warmup=10, lr_final=0.1)
+    assert o.lr_factor(0, 100) == pytest.approx(0.1) and o.lr_factor(9, 100) == pytest.approx(1.0)
+    assert o.lr_factor(10, 100) == pytest.approx(1.0) and o.lr_factor(100, 100) == pytest.approx(0.1)
+    assert o.lr_factor(55, 100) == pytest.approx(0.55)  # half-way through the decay
+    assert o.lr_factor(5, 30) == o.lr_factor(5, 1000)  # the warm-up never depends on the count
+    plain = OptimConfig(steps=50)
+    assert plain.lr_factor(25, 50) == pytest.approx(0.1 + 0.9 * 0.5)  # no warm-up: the cosine as before
+    # the count that fits: 20 steps took 10 s, one more takes 0.5 s, 30 s in all -> 20 + 40
+    b = OptimConfig(steps=1000, seconds=30.0, warmup=20)
+    assert b.budget_steps(20, 10.0, 0.5) == 60
+    assert b.budget_steps(20, 40.0, 0.5) == 20  # already over: stop at the end of the warm-up
+    assert OptimConfig(steps=50, seconds=30.0, warmup=20).budget_steps(20, 10.0, 0.5) == 50  # capped at steps
+
+    cfg_path = tmp_path / "budget.toml"
+    cfg_path.write_text(
+        "[model]\nhidden = 16\nlstm_hidden = 16\n"
+        "[optim]\nsteps = 500\nframes = 3\ncheckpoint_every = 10\nlr = 0.003\nwarmup = 20\nseconds = 4\n"
+    )
+    cfg = load_train_config(cfg_path, dataset=synthetic_dataset)
+    train(cfg, tmp_path / "b", body, log_every=10)
+    info = json.loads((tmp_path / "b" / "train.json").read_text())
+    n = info["time_budget"]["steps_chosen"]
+    assert info["steps"] == n and 20 <= n < 500 and info["time_budget"]["seconds"] == 4
+    rows = list(csv.DictReader(open(tmp_path / "b" / "loss.csv")))
+    assert int(rows[-1]["step"]) == n
+    # the same count without the budget: the same schedule, the same learning rates logged
+    again = load_train_config(cfg_path, dataset=synthetic_dataset, overrides={"optim.seconds": 0, "optim.steps": n})
+    train(again, tmp_path / "c", body, log_every=10)
+    rows_c = list(csv.DictReader(open(tmp_path / "c" / "loss.csv")))
+    assert [r["lr"] for r in rows] == [r["lr"] for r in rows_c]
+    # a budget needs a warm-up to time the machine
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[optim]\nsteps = 50\nseconds = 10\nwarmup = 5\n")
+    with pytest.raises(FileFormatError, match="warmup >= 20"):
+        load_train_config(bad, dataset=synthetic_dataset)

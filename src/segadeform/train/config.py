@@ -39,6 +39,10 @@ the previous one's)::
     seed = 0
     checkpoint_every = 200
     device = "auto"                # auto | cpu | cuda
+    warmup = 0                     # linear learning-rate warm-up over this many steps, then the cosine decay
+    seconds = 0                    # a time budget for the training loop (0: off): the warm-up steps time the
+                                   # machine and fix the step count (at most `steps`) so the loop ends by then;
+                                   # needs warmup >= 20; train.json records the count (rerun it with --steps)
 
     [physics]                      # self-supervision on pairs never simulated (segadeform.train.energies)
     pairs = "../datasets/continuum.toml"   # a dataset config: its training garments x bodies x motions
@@ -46,6 +50,7 @@ the previous one's)::
     weight = 0.002                 # its weight; the energies are in metres of equivalent height
     frames = 5                     # consecutive frames per term (the first two are the history)
     density = 0.2                  # the cloth (segadeform.train.energies.Material)
+    prefetch = false               # build the next pair in a background thread (own random stream)
 """
 
 from __future__ import annotations
@@ -55,11 +60,15 @@ import hashlib
 import json
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import FileFormatError, InputError
 from ..io.toml import read_table, read_toml
 from ..model.config import ModelConfig
 
-__all__ = ["LossWeights", "OptimConfig", "PhysicsConfig", "TrainConfig", "load_train_config"]
+BUDGET_PROBE_STEPS = 20  # warm-up steps that time the machine under optim.seconds (the first 5 are not counted)
+
+__all__ = ["BUDGET_PROBE_STEPS", "LossWeights", "OptimConfig", "PhysicsConfig", "TrainConfig", "load_train_config"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,6 +104,9 @@ class PhysicsConfig:
     bending: float = 4.0e-5
     collision: float = 1.0e7
     margin: float = 0.003
+    # build the next pair in a background thread while the current step runs (a GPU waits on the CPU's pair
+    # otherwise); the pairs are then drawn from a stream of their own (seeded by optim.seed), one ahead
+    prefetch: bool = False
 
     def __post_init__(self):
         if not isinstance(self.every, int) or isinstance(self.every, bool) or self.every < 0:
@@ -129,6 +141,24 @@ class OptimConfig:
     device: str = "auto"
     lr_final: float = 0.1  # cosine decay to lr * lr_final
     grad_clip: float = 1.0
+    warmup: int = 0  # linear warm-up steps before the cosine decay (0: none)
+    seconds: float = 0.0  # time budget of the training loop (0: off); the warm-up steps time the machine
+
+    def lr_factor(self, step: int, total: int) -> float:
+        """The learning rate at ``step`` as a fraction of ``lr``: a linear ramp over ``warmup`` steps, then a
+        cosine decay to ``lr_final`` at ``total`` steps.  With ``warmup = 0`` it is the cosine alone."""
+        if step < self.warmup:
+            return (step + 1) / self.warmup
+        span = max(total - self.warmup, 1)
+        x = min(max(step - self.warmup, 0), span) / span
+        return self.lr_final + (1 - self.lr_final) * 0.5 * (1 + float(np.cos(np.pi * x)))
+
+    def budget_steps(self, done: int, seconds_so_far: float, per_step: float) -> int:
+        """The step count that fits :attr:`seconds` when ``done`` steps took ``seconds_so_far`` and one more
+        takes ``per_step`` seconds: at least ``done``, at most :attr:`steps`."""
+        if not per_step > 0:
+            return self.steps
+        return int(min(self.steps, max(done, done + int((self.seconds - seconds_so_far) / per_step))))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -274,6 +304,15 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
         raise FileFormatError("optim.device must be auto, cpu or cuda", path=p, got=optim.device)
     if optim.steps < 1 or optim.frames < 1 or optim.garments < 1 or not optim.lr > 0:
         raise FileFormatError("optim.steps, optim.frames, optim.garments and optim.lr must be positive", path=p)
+    if optim.warmup < 0 or optim.warmup > optim.steps:
+        raise FileFormatError("optim.warmup must be >= 0 and at most optim.steps", path=p, got=optim.warmup)
+    if optim.seconds < 0 or (optim.seconds > 0 and optim.warmup < BUDGET_PROBE_STEPS):
+        raise FileFormatError(
+            f"optim.seconds (a time budget) needs optim.warmup >= {BUDGET_PROBE_STEPS}: the warm-up steps time "
+            "the machine before the step count is fixed",
+            path=p,
+            got=f"seconds {optim.seconds}, warmup {optim.warmup}",
+        )
     return TrainConfig(
         model=model,
         loss=loss,

@@ -159,6 +159,39 @@ def plot_losses(csv_path: Path, png_path: Path) -> None:
     plt.close(fig)
 
 
+class _PairPrefetch:
+    """The physics pairs one ahead: pair ``k + 1`` is built in a background thread while step ``k`` trains.
+
+    The pairs are drawn from a stream of their own (seeded by the training seed), so the sequence does not
+    depend on timing; :meth:`state` holds the stream and the index drawn ahead, so a resumed run draws the
+    same pairs as one that was never stopped."""
+
+    def __init__(self, pairs, seed: int, state: dict | None = None) -> None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.pairs = pairs
+        self.rng = np.random.default_rng([int(seed), 1])
+        ahead = None
+        if state is not None:
+            self.rng.bit_generator.state = state["rng"]
+            ahead = state.get("ahead")
+        self.pool = ThreadPoolExecutor(1, thread_name_prefix="segadeform-pairs")
+        self.ahead = int(ahead) if ahead is not None else int(self.rng.integers(len(pairs)))
+        self.future = self.pool.submit(pairs.item, self.ahead)
+
+    def next(self):
+        item = self.future.result()
+        self.ahead = int(self.rng.integers(len(self.pairs)))
+        self.future = self.pool.submit(self.pairs.item, self.ahead)
+        return item
+
+    def state(self) -> dict:
+        return {"rng": self.rng.bit_generator.state, "ahead": self.ahead}
+
+    def close(self) -> None:
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
 def _hardware(device: torch.device) -> dict:
     hw = {
         "device": str(device),
@@ -230,11 +263,13 @@ def train(
     )
     model = SEGANet(m).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=o.lr)
-    sched = torch.optim.lr_scheduler.LambdaLR(
-        opt, lambda s: o.lr_final + (1 - o.lr_final) * 0.5 * (1 + np.cos(np.pi * min(s, o.steps) / o.steps))
-    )
+    # the step count: optim.steps, or under a time budget the count the warm-up's timing fixes (below)
+    total = [o.steps]
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda s: o.lr_factor(s, total[0]))
     rng = np.random.default_rng(o.seed)
     step, elapsed = 0, 0.0
+    ck_pairs = None  # the prefetched pairs' stream, when resumed
+    budget = {"seconds": o.seconds, "probe": [], "steps": None} if o.seconds > 0 else None
     last = run / "last.pt"
     if last.is_file():
         ck = torch.load(last, map_location=device, weights_only=False)
@@ -248,6 +283,10 @@ def train(
         rng.bit_generator.state = ck["rng"]
         torch.set_rng_state(ck["torch_rng"])
         step, elapsed = int(ck["step"]), float(ck["elapsed"])
+        total[0] = int(ck.get("total_steps", o.steps))
+        ck_pairs = ck.get("pairs")
+        if budget is not None and ck.get("budget_steps"):
+            budget["steps"] = int(ck["budget_steps"])
         best_val = (float(ck.get("best_val", float("inf"))), int(ck.get("best_step", -1)))
     else:
         best_val = (float("inf"), -1)  # (vertex error on the validation split, step)
@@ -279,6 +318,9 @@ def train(
                     "config_digest": cfg.digest(),
                     "best_val": best_val[0],
                     "best_step": best_val[1],
+                    "total_steps": total[0],
+                    "budget_steps": budget["steps"] if budget is not None else None,
+                    "pairs": prefetch.state() if prefetch is not None else None,
                 },
                 tmp,
             )
@@ -316,24 +358,30 @@ def train(
         from ..body.collision import BodyCollider
 
         collider = BodyCollider(body.v_template, body.faces)  # exact closest points, built once
+    prefetch = _PairPrefetch(pairs, o.seed, ck_pairs) if pairs is not None and ph.prefetch else None
     acc = {k: 0.0 for k in ("total", *TERMS, PHYSICS_TERM)}
     n_acc = 0
+    val_seconds = 0.0
     if val and step == 0 and best_val[1] < 0:
         # the untrained model is a candidate too (a residual model at step 0 is its weight prior's LBS):
         # the validation split never chooses a model worse than where training started
+        v0 = time.perf_counter()
         best_val = (validate(), 0)
+        val_seconds = time.perf_counter() - v0
         with atomic_path(best_path) as tmp:
             torch.save({"state_dict": model.state_dict(), "step": 0, "val_vertex": best_val[0]}, tmp)
     t0 = time.perf_counter()
     model.train()
-    while step < o.steps:
-        until = cfg.loss.skin_prior_until * o.steps
+    while step < total[0]:
+        # the skinning-weight prior fades out after the warm-up (the warm-up's steps never depend on the count)
+        until = cfg.loss.skin_prior_until * total[0] - o.warmup
+        fade = 1.0 if step < o.warmup else max(0.0, 1.0 - (step - o.warmup) / until) if until > 0 else 0.0
         opt.zero_grad(set_to_none=True)
         ls = {}
         for _ in range(o.garments):  # one batch: each garment's loss backpropagated as it is made (memory)
             it = items[int(rng.integers(len(items)))]
             t = torch.as_tensor(rng.choice(it.n_frames, size=min(o.frames, it.n_frames), replace=False), device=device)
-            one = step_losses(model, it, t, cfg.loss, prior_scale=max(0.0, 1.0 - step / until) if until > 0 else 0.0)
+            one = step_losses(model, it, t, cfg.loss, prior_scale=fade)
             if not torch.isfinite(one["total"]):
                 raise InputError(f"the loss became {float(one['total'])} at step {step} on {it.id}; lower optim.lr")
             (one["total"] / o.garments).backward()
@@ -341,7 +389,7 @@ def train(
                 ls[k] = ls.get(k, 0.0) + v.detach() / o.garments
         ls[PHYSICS_TERM] = torch.zeros(())
         if pairs is not None and step % ph.every == 0:
-            pair = pairs.item(int(rng.integers(len(pairs)))).to(device)
+            pair = (prefetch.next() if prefetch is not None else pairs.item(int(rng.integers(len(pairs))))).to(device)
             f = min(ph.frames, pair.n_frames)
             if f >= 3:
                 first = int(rng.integers(pair.n_frames - f + 1))
@@ -357,11 +405,23 @@ def train(
         opt.step()
         sched.step()
         step += 1
-        for k in acc:
-            acc[k] += float(ls[k].detach())
+        if budget is not None and budget["steps"] is None:
+            # the warm-up times the machine (its first 5 steps, which compile and allocate, left out); at its end
+            # the step count is fixed so that the loop ends within the budget, and never changes again
+            if device.type == "cuda":
+                torch.cuda.synchronize(device)
+            budget["probe"].append(time.perf_counter())
+            if step >= o.warmup:
+                probe = budget["probe"]
+                so_far = elapsed + probe[-1] - t0
+                per_step = (probe[-1] - probe[4]) / (len(probe) - 5) if len(probe) > 6 else so_far / step
+                per_step += val_seconds / o.checkpoint_every  # the validations still to come
+                budget["steps"] = total[0] = o.budget_steps(step, so_far, per_step)
+        for k in acc:  # summed on the device in float64 (as Python floats would be): no sync per step
+            acc[k] = acc[k] + ls[k].detach().to(torch.float64)
         n_acc += 1
         val_err = ""
-        if step % o.checkpoint_every == 0 or step == o.steps:
+        if step % o.checkpoint_every == 0 or step == total[0]:
             if val:
                 val_err = validate()
                 if val_err < best_val[0]:  # the model the validation split chooses
@@ -369,13 +429,13 @@ def train(
                     with atomic_path(best_path) as tmp:
                         torch.save({"state_dict": model.state_dict(), "step": step, "val_vertex": val_err}, tmp)
             save_last()
-        if step % log_every == 0 or step == o.steps:
+        if step % log_every == 0 or step == total[0]:
             now = time.perf_counter()
             elapsed += now - t0
             t0 = now
             row = {
                 "step": step,
-                **{k: acc[k] / n_acc for k in acc},
+                **{k: float(acc[k]) / n_acc for k in acc},
                 "lr": sched.get_last_lr()[0],
                 "seconds": round(elapsed, 2),
                 "val_vertex": val_err,
@@ -383,10 +443,12 @@ def train(
             with open(log_path, "a", newline="") as fh:
                 csv.DictWriter(fh, fields).writerow(row)
             if progress is not None:
-                progress(step, row)
+                progress(step, {**row, "of": total[0]})
             acc = {k: 0.0 for k in acc}
             n_acc = 0
     elapsed += time.perf_counter() - t0
+    if prefetch is not None:
+        prefetch.close()
     final = run / "model.pt"
     # the garments it saw, by descriptor: export writes them to the manifest, and runtimes warn about garments
     # far from all of them (segadeform.contracts.model_package.TRAINING_GARMENTS)
@@ -422,6 +484,11 @@ def train(
         "train_seconds": round(elapsed, 1),
         "chosen": chosen,
         "sample_frames_seen": step * o.garments * o.frames,
+        **(
+            {"time_budget": {"seconds": o.seconds, "warmup": o.warmup, "steps_chosen": budget["steps"]}}
+            if budget is not None
+            else {}
+        ),
         "samples": [i.id for i in items],
         "hardware": _hardware(device),
     }
