@@ -69,10 +69,11 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
     interactive = sys.stderr.isatty()
 
     def progress(step, row):
-        if interactive or step % 100 == 0 or step == row.get('of', cfg.optim.steps):
+        of = row.get("of", cfg.optim.steps)  # the step count (under a time budget: the one it fixed)
+        if interactive or step % 100 == 0 or step == of:
             val = f" held-out {100 * float(row['val_vertex']):.2f} cm" if row.get("val_vertex") != "" else ""
             click.echo(
-                f"step {step}/{row.get('of', cfg.optim.steps)} loss {row['total']:.4g} vertex {100 * row['vertex']:.2f} cm"
+                f"step {step}/{of} loss {row['total']:.4g} vertex {100 * row['vertex']:.2f} cm"
                 f"{val} ({row['seconds']:.0f} s)",
                 err=True,
             )
