@@ -33,6 +33,12 @@ def _body(path):
 )
 @click.option("--steps", type=click.IntRange(min=1), help="Overrides optim.steps.")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), help="Overrides optim.device.")
+@click.option(
+    "--seconds",
+    type=click.FloatRange(min=0),
+    help="Overrides optim.seconds: a time budget for the training loop (the config's warm-up, >= 20 steps, "
+    "times the machine and fixes the step count, at most optim.steps).",
+)
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option("--val", "val_ids", multiple=True, help="Sample id to validate on at each checkpoint (repeatable).")
 @click.option("--threads", type=click.IntRange(min=1), help="torch CPU threads (default: torch's choice).")
@@ -42,7 +48,7 @@ def _body(path):
     help="Write into a run folder that holds other files (beside them, never over "
     "them); a run folder of the same config is resumed without it.",
 )
-def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, force):
+def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, threads, force):
     """Train the SEGA model on a simulated dataset (CONFIG.toml; see segadeform.train.config)."""
     from segadeform.io.output_guard import OutputGuard
 
@@ -65,6 +71,8 @@ def train_cmd(config, output, dataset, steps, device, body, val_ids, threads, fo
         ov["optim.steps"] = steps
     if device:
         ov["optim.device"] = device
+    if seconds is not None:
+        ov["optim.seconds"] = seconds
     cfg = load_train_config(config, dataset=list(dataset) or None, overrides=ov)
     interactive = sys.stderr.isatty()
 

@@ -264,6 +264,37 @@ def test_growing_keeps_every_finished_sample_and_its_meaning(tmp_path):
     assert set(plan_x) == set(plan_a) and all(plan_x[k] != plan_a[k] for k in plan_a if k.startswith("tee"))
 
 
+def test_a_sample_spec_names_its_files_by_content_not_by_where_they_lie(tmp_path):
+    """A dataset made beside one checkout is the same dataset beside another: the spec of a motion-capture
+    sample holds the capture file's name and a hash of its bytes, not its path (packs made on one machine
+    were refused as 'made from other settings' on a machine whose ../shared lies elsewhere)."""
+    import shutil
+
+    from segadeform.dataset.make import sample_spec
+
+    bvh = SAMPLES / "motions" / "cmu" / "02_01_walk.bvh"
+    text = (
+        "[dataset]\nfps = 30.0\nseconds = 0.5\n"
+        '[[garments]]\nname = "skirt"\nkind = "skirt"\n'
+        '[[motions]]\nname = "walk"\nfile = "mocap/02_01_walk.bvh"\nstart = 0.5\n'
+    )
+    specs = []
+    for where in ("here", "elsewhere/deeper"):
+        d = tmp_path / where
+        (d / "mocap").mkdir(parents=True)
+        shutil.copyfile(bvh, d / "mocap" / "02_01_walk.bvh")
+        cfg = load_dataset_config(_write(d, "c.toml", text))
+        specs.append({p.id: sample_spec(cfg, p) for p in sample_plan(cfg)})
+    assert specs[0] == specs[1] and specs[0]
+    # the same name with other bytes is another sample
+    d = tmp_path / "edited"
+    (d / "mocap").mkdir(parents=True)
+    (d / "mocap" / "02_01_walk.bvh").write_bytes(bvh.read_bytes().replace(b"Frame Time", b"Frame  Time", 1))
+    cfg = load_dataset_config(_write(d, "c.toml", text))
+    edited = {p.id: sample_spec(cfg, p) for p in sample_plan(cfg)}
+    assert edited.keys() == specs[0].keys() and all(edited[k] != specs[0][k] for k in edited)
+
+
 def _write(tmp_path, name, text):
     p = tmp_path / name
     p.write_text(text)

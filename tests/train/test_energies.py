@@ -268,3 +268,26 @@ def test_prefetched_pairs_resume_to_the_same_model(synthetic_dataset, pairs_conf
     rows_b = list(csv.DictReader(open(tmp_path / "b" / "loss.csv")))
     assert [r["physics"] for r in rows_a] == [r["physics"] for r in rows_b]
     assert all(float(r["physics"]) != 0 for r in rows_a)
+
+
+def test_pair_motions_are_cached_and_serve_a_machine_without_the_capture_file(tmp_path, body):
+    """A pair's motion clip is made once into the cache's motions/; with the capture file gone (a machine
+    without ../shared) the cached clip is what the pair gets, the same numbers."""
+    import shutil
+
+    from segadeform.train.energies import PhysicsPairs
+
+    from ..conftest import SAMPLES
+
+    (tmp_path / "mocap").mkdir()
+    shutil.copyfile(SAMPLES / "motions" / "cmu" / "02_01_walk.bvh", tmp_path / "mocap" / "02_01_walk.bvh")
+    cfg = tmp_path / "pairs.toml"
+    cfg.write_text(
+        _PAIRS.replace('[[motions]]\nkind = "walk"\nease_in = 0.0\n', '[[motions]]\nfile = "mocap/02_01_walk.bvh"\n')
+    )
+    a = PhysicsPairs(cfg, tmp_path / "cache", body, n_star=16, window=3, n_betas=10).item(0)
+    assert len(list((tmp_path / "cache" / "motions").glob("motion-*.npz"))) == 1
+    (tmp_path / "mocap" / "02_01_walk.bvh").unlink()
+    b = PhysicsPairs(cfg, tmp_path / "cache", body, n_star=16, window=3, n_betas=10).item(0)
+    assert torch.equal(a.windows, b.windows) and torch.equal(a.trans, b.trans)
+    assert np.array_equal(a.posed_body, b.posed_body) and a.fps == b.fps

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import functools
 import json
 import tempfile
 import time
@@ -185,12 +186,32 @@ def _digest(obj) -> str:
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
+@functools.lru_cache(maxsize=4096)
+def _content_id(path: str, size: int, mtime_ns: int) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return f"{Path(path).name}:{h.hexdigest()[:16]}"
+
+
+def file_identity(path) -> str:
+    """A file as a sample's spec names it: its name and a hash of its bytes, never where it lies, so a dataset
+    (and its packs) made beside one checkout is the same dataset beside another (``../shared`` elsewhere)."""
+    p = Path(path)
+    try:
+        st = p.stat()
+    except OSError as e:
+        raise InputError(f"a file the dataset config names cannot be read ({e.strerror})", path=p) from None
+    return _content_id(str(p), st.st_size, st.st_mtime_ns)
+
+
 def _garment_key(g: GarmentSpec) -> dict:
     return {
         "kind": g.kind,
         "params": dataclasses.asdict(g.params),
         "pin": g.pin,
-        "mhclo": str(g.mhclo) if g.mhclo else None,
+        "mhclo": file_identity(g.mhclo) if g.mhclo else None,
     }
 
 
@@ -201,6 +222,8 @@ def sample_spec(cfg: DatasetConfig, p: PlannedSample) -> str:
     mo = dataclasses.asdict(m)
     mo.pop("split")
     mo.pop("family")  # a label for splitting, not data
+    if m.file is not None:
+        mo["file"] = file_identity(m.file)  # what the file holds, not where this machine keeps it
     st = cfg.simulate.replace(pin=g.pin) if g.pin else cfg.simulate
     return _digest(
         {

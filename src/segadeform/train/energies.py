@@ -343,11 +343,39 @@ class PhysicsPairs:
             self._garments[key] = (mesh, asset, joints, bw, cloth_topology(cloth_rest, mesh.faces))
         return _lru(self._garments, key, self.keep)
 
+    def _clip(self, mi: int, rest_joints: np.ndarray):
+        """The pair's motion clip, read from ``cache/motions`` when it is there (keyed by the motion entry, the
+        dataset's clip length and rate and the body's joints), else made from the entry and stored: a capture
+        file is read once per body, and a machine that holds the cache trains without the capture files.  A
+        capture file is named by its file name here: one changed in place needs MOTION_CACHE_VERSION bumped
+        or the cache's ``motions/`` removed."""
+        from ..io.atomic import atomic_path
+        from ..motion.motion import Motion
+
+        m = self.cfg.motions[mi]
+        entry = dataclasses.asdict(m)
+        if m.file is not None:  # by name (the capture files need not be on a machine that holds the cache)
+            entry["file"] = m.file.name
+        key = repr((entry, self.cfg.fps, self.cfg.seconds, MOTION_CACHE_VERSION)).encode()
+        h = hashlib.sha256(key + np.ascontiguousarray(rest_joints, np.float64).tobytes()).hexdigest()[:24]
+        p = self.cache / "motions" / f"motion-{h}.npz"
+        if p.is_file():
+            try:
+                with np.load(p) as z:
+                    return Motion(poses=z["poses"], trans=z["trans"], fps=float(z["fps"]), name=m.name)
+            except (OSError, ValueError, KeyError):
+                pass  # a broken entry is made again below
+        mo = _motion(m, self.cfg, rest_joints)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(p) as tmp, open(tmp, "wb") as fh:
+            np.savez(fh, poses=np.asarray(mo.poses), trans=np.asarray(mo.trans), fps=np.float64(mo.fps))
+        return mo
+
     def _motion(self, mi: int, bi: int):
         key = (mi, bi)
         if key not in self._motions:
             betas = self.cfg.bodies[bi] or None
-            mo = _motion(self.cfg.motions[mi], self.cfg, self.body.rest_joints(betas)[0])
+            mo = self._clip(mi, self.body.rest_joints(betas)[0])
             posed = self.body.forward(mo.poses, betas, mo.trans).vertices.astype(np.float32)
             self._motions[key] = (mo, posed)
         return _lru(self._motions, key, self.keep)
@@ -378,6 +406,10 @@ class PhysicsPairs:
                 fps=float(mo.fps),
             )
         return _lru(self._items, p.id, self.keep)
+
+
+#: bump when the clips PhysicsPairs makes from a motion entry change (old cache entries are then not read)
+MOTION_CACHE_VERSION = 1
 
 
 def _lru(cache: OrderedDict, key, keep: int):
