@@ -81,9 +81,8 @@ def main() -> None:
         n = sum(ex.map(_samples, [(a.config, roots, c) for c in chunks]))
         print(f"{n} samples cached in {time.perf_counter() - t0:.0f} s", flush=True)
         if cfg.physics.every:
-            from segadeform.dataset.make import sample_plan
-
             from segadeform.dataset.config import load_dataset_config
+            from segadeform.dataset.make import sample_plan
 
             plan = sample_plan(load_dataset_config(cfg.pairs))
             keys = sorted({(p.garment, p.body) for p in plan if p.split == "train"})

@@ -37,8 +37,8 @@ before simulating anything and names the ids -- rename the entry instead.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import functools
+import hashlib
 import json
 import tempfile
 import time
