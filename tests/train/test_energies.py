@@ -291,3 +291,33 @@ def test_pair_motions_are_cached_and_serve_a_machine_without_the_capture_file(tm
     b = PhysicsPairs(cfg, tmp_path / "cache", body, n_star=16, window=3, n_betas=10).item(0)
     assert torch.equal(a.windows, b.windows) and torch.equal(a.trans, b.trans)
     assert np.array_equal(a.posed_body, b.posed_body) and a.fps == b.fps
+
+
+def test_pairs_of_a_makehuman_garment_train_from_the_cache_without_its_files(tmp_path, body):
+    """A machine without ../shared: the MakeHuman garment made beside it is in the cache, the config loads
+    without the .mhclo and the pair is the same garment."""
+    import shutil
+
+    from segadeform.dataset.config import load_dataset_config
+    from segadeform.errors import FileFormatError
+    from segadeform.train.energies import PhysicsPairs
+
+    from ..conftest import SAMPLES
+
+    mh = tmp_path / "mh"
+    mh.mkdir()
+    for f in ("skirt_short_f.mhclo", "skirt_short_f.obj"):
+        shutil.copyfile(SAMPLES / "garments" / "makehuman" / f, mh / f)
+    cfg = tmp_path / "pairs.toml"
+    cfg.write_text(
+        _PAIRS.replace(
+            '[[garments]]\nkind = "skirt"\nresolution = 600\n',
+            '[[garments]]\nname = "mh-skirt"\nkind = "skirt"\nmhclo = "mh/skirt_short_f.mhclo"\n',
+        )
+    )
+    a = PhysicsPairs(cfg, tmp_path / "cache", body, n_star=16, window=3, n_betas=10).item(0)
+    shutil.rmtree(mh)
+    with pytest.raises(FileFormatError, match="mhclo does not exist"):
+        load_dataset_config(cfg)  # making a dataset still needs the file
+    b = PhysicsPairs(cfg, tmp_path / "cache", body, n_star=16, window=3, n_betas=10).item(0)
+    assert torch.equal(a.rest, b.rest) and torch.equal(a.features, b.features)

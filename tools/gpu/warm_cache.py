@@ -5,7 +5,11 @@ contacts and the physics pairs' garments itself, one process each; on a lent GPU
 a short lease.  This computes them once, in parallel, into ``CACHE_ROOT/cache`` (an empty dataset folder given
 first to ``segadeform train --dataset``, so every run reads and writes that cache).
 
-    python tools/gpu/warm_cache.py CONFIG.toml CACHE_ROOT --dataset PACK [--dataset ...] [-j 14]
+    python tools/gpu/warm_cache.py CONFIG.toml CACHE_ROOT --dataset PACK [--dataset ...] [-j 14] [--pairs-only]
+
+``--pairs-only`` makes only the pairs' part (``CACHE_ROOT/cache/pairs``: garments, their precompute, motion
+clips), which needs ``../shared`` (MakeHuman garments, capture files): made beside the checkout and carried
+as a tar to a machine without it.
 """
 
 from __future__ import annotations
@@ -54,7 +58,10 @@ def _pair_garments(args):
         exclude=cfg.exclude,
     )
     for gi, bi in keys:
-        pairs._garment(gi, bi)
+        if gi is None:  # a motion clip for body bi
+            pairs._clip(bi[0], body.rest_joints(pairs.cfg.bodies[bi[1]] or None)[0])
+        else:
+            pairs._garment(gi, bi)
     return len(keys)
 
 
@@ -64,6 +71,7 @@ def main() -> None:
     ap.add_argument("cache_root", help="an empty dataset folder (made here): its cache/ is filled")
     ap.add_argument("--dataset", action="append", required=True)
     ap.add_argument("-j", "--jobs", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--pairs-only", action="store_true", help="only the physics pairs' garments and motion clips")
     a = ap.parse_args()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     root = Path(a.cache_root)
@@ -78,17 +86,20 @@ def main() -> None:
     t0 = time.perf_counter()
     chunks = [ids[i :: a.jobs] for i in range(a.jobs) if ids[i :: a.jobs]]
     with ProcessPoolExecutor(a.jobs) as ex:
-        n = sum(ex.map(_samples, [(a.config, roots, c) for c in chunks]))
-        print(f"{n} samples cached in {time.perf_counter() - t0:.0f} s", flush=True)
+        if not a.pairs_only:
+            n = sum(ex.map(_samples, [(a.config, roots, c) for c in chunks]))
+            print(f"{n} samples cached in {time.perf_counter() - t0:.0f} s", flush=True)
         if cfg.physics.every:
             from segadeform.dataset.config import load_dataset_config
             from segadeform.dataset.make import sample_plan
 
-            plan = sample_plan(load_dataset_config(cfg.pairs))
-            keys = sorted({(p.garment, p.body) for p in plan if p.split == "train"})
+            plan = sample_plan(load_dataset_config(cfg.pairs, require_files=False))
+            train = [p for p in plan if p.split == "train"]
+            keys = sorted({(p.garment, p.body) for p in train})
+            keys += [(None, k) for k in sorted({(p.motion, p.body) for p in train})]
             t1 = time.perf_counter()
             n = sum(ex.map(_pair_garments, [(a.config, roots, keys[i :: a.jobs]) for i in range(a.jobs)]))
-            print(f"{n} pair garments cached in {time.perf_counter() - t1:.0f} s", flush=True)
+            print(f"{n} pair garments and motion clips cached in {time.perf_counter() - t1:.0f} s", flush=True)
 
 
 if __name__ == "__main__":

@@ -241,7 +241,9 @@ class _DatasetTable:
     spread: int = key(0, range=(0, 1000))
 
 
-def load_dataset_config(path) -> DatasetConfig:
+def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
+    """Read and check a dataset config.  ``require_files=False`` lets MakeHuman files be absent (training's
+    physics pairs on a machine without ``../shared``, whose garments were made elsewhere into its cache)."""
     p = Path(path)
     data, text = read_toml(p, "dataset config")
     known = {"dataset", "quality", "simulate", "garments", "bodies", "motions"}
@@ -297,7 +299,7 @@ def load_dataset_config(path) -> DatasetConfig:
         ranged = _ranges(g, _GARMENT_RANGED, p, f"garments[{i}]")
         if mhclo is not None:
             mhclo = (p.parent / mhclo).resolve()
-            if not mhclo.is_file():
+            if require_files and not mhclo.is_file():
                 raise FileFormatError(f"garments[{i}].mhclo does not exist", path=p, got=str(mhclo))
             if ranged or (count or 1) > 1:
                 raise FileFormatError(

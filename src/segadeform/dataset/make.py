@@ -306,6 +306,8 @@ def _garment_file(out, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) ->
     g = cfg.garments[gi]
     rel = _garment_rel(cfg, gi, bi)
     key_rel = rel[: -len(".obj")] + ".json"
+    if g.mhclo is not None and not Path(g.mhclo).is_file() and loc.exists(rel) and loc.exists(key_rel):
+        return rel  # made where the MakeHuman file was (a cache carried to a machine without ../shared): as is
     key = {"garment": _garment_key(g), "betas": list(cfg.bodies[bi]), "cloth_pose": cfg.simulate.rest_pose}
     if loc.exists(rel) and loc.exists(key_rel):
         old = json.loads(loc.read_text(key_rel))

@@ -289,7 +289,10 @@ class PhysicsPairs:
         exclude=(),
         keep: int = 48,
     ) -> None:
-        self.cfg: DatasetConfig = config if isinstance(config, DatasetConfig) else load_dataset_config(config)
+        # MakeHuman files may be absent: garments made beside ../shared are read from the cache (_garment_file)
+        self.cfg: DatasetConfig = (
+            config if isinstance(config, DatasetConfig) else load_dataset_config(config, require_files=False)
+        )
         plan = sample_plan(self.cfg)
         check_splits(self.cfg, plan)
         import fnmatch

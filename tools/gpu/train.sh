@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# Train several configs side by side on a lent CUDA machine within one command's time limit, and leave
+# their run folders in $OUT/runs.tgz.  The machine needs no ../shared: the training samples come as a pack
+# and the physics pairs' garments and motion clips as a cache made beside the checkout (tools/gpu/README.md).
+#
+#   tools/gpu/train.sh DEADLINE_SECONDS DEVICE CONFIG...      (DEVICE: cuda, or cpu to rehearse it here)
+#
+# Inputs in .gpu/ (ignored by git): train.sgdpack (the training and validation samples), pairs.tar (the
+# cache's pairs/: garments, their precompute, motion clips) and the wheels the machine lacks (*.whl).
+set -u
+start=$(date +%s)
+deadline=$1
+device=$2
+shift 2
+export PYTHONUNBUFFERED=1 OMP_NUM_THREADS=2
+out=${OUT:-/tmp/gpu-out}
+mkdir -p "$out"
+say() { echo "[$(($(date +%s) - start)) s] $*"; }
+py=python3
+command -v nvidia-smi >/dev/null && nvidia-smi -L
+if ! $py -c "import segadeform" 2>/dev/null; then
+  $py -m pip install -q --no-index --no-deps .gpu/*.whl 2>&1 | tail -n 2
+  $py -m pip install -q --no-index --no-deps --no-build-isolation -e . 2>&1 | tail -n 2
+fi
+$py -c "import segadeform, torch; print('torch', torch.__version__, 'cuda', torch.cuda.is_available())" || exit 1
+ds=${GPU_DS:-/tmp/gpu-ds}
+mkdir -p "$ds/samples" "$ds/cache"
+[ -f .gpu/pairs.tar ] && tar xf .gpu/pairs.tar -C "$ds/cache"
+say "warming the cache"
+$py tools/gpu/warm_cache.py "$1" "$ds" --dataset .gpu/train.sgdpack -j "$(nproc)" || exit 1
+mkdir -p runs
+run_all() {  # run_all DEVICE SECONDS CONFIG...: every config side by side, in the background
+  local dev=$1 secs=$2
+  shift 2
+  pids=()
+  for cfg in "$@"; do
+    name=$(basename "$cfg" .toml)
+    segadeform train "$cfg" -o "runs/$name" --dataset "$ds" --dataset .gpu/train.sgdpack --device "$dev" \
+      --seconds "$secs" --threads 2 >"runs/$name.log" 2>&1 &
+    pids+=($!)
+  done
+}
+left=$((start + deadline - $(date +%s)))
+secs=$((left - 90))  # loading the samples and the final save take the rest
+say "training $# configs on $device for ${secs} s each"
+run_all "$device" "$secs" "$@"
+fallback=0
+declare -A code=()
+while :; do
+  sleep 5
+  alive=0
+  for p in "${pids[@]}"; do
+    if [ -n "${code[$p]:-}" ]; then continue; fi
+    if kill -0 "$p" 2>/dev/null; then alive=$((alive + 1)); else wait "$p"; code[$p]=$?; fi
+  done
+  failed=0
+  for p in "${pids[@]}"; do [ "${code[$p]:-0}" -ne 0 ] && failed=$((failed + 1)); done
+  now=$(date +%s)
+  if [ "$alive" -eq 0 ]; then
+    if [ "$failed" -eq "$#" ] && [ "$device" != cpu ] && [ "$fallback" -eq 0 ]; then
+      say "every run failed on $device:"; tail -n 5 runs/*.log
+      fallback=1
+      secs=$((start + deadline - now - 90))
+      [ "$secs" -lt 60 ] && break
+      mkdir -p "runs-failed-$device" && mv runs/* "runs-failed-$device/"
+      say "training on cpu for ${secs} s instead"
+      device=cpu
+      run_all cpu "$secs" "$@"
+      continue
+    fi
+    break
+  fi
+  if [ "$now" -gt $((start + deadline - 15)) ]; then
+    say "deadline: stopping $alive runs"; kill -INT "${pids[@]}" 2>/dev/null; sleep 5; break
+  fi
+done
+for f in runs/*.log; do echo "== $f"; tail -n 3 "$f"; done
+tar czf "$out/runs.tgz" runs runs-failed-* 2>/dev/null
+say "done: $(du -h "$out/runs.tgz" | cut -f1)"
