@@ -36,8 +36,8 @@ def _body(path):
 @click.option(
     "--seconds",
     type=click.FloatRange(min=0),
-    help="Overrides optim.seconds: a time budget for the training loop (the config's warm-up, >= 20 steps, "
-    "times the machine and fixes the step count, at most optim.steps).",
+    help="Overrides optim.seconds: a time budget for the run, loading included (the config's warm-up, >= 20 "
+    "steps, times the machine and fixes the step count, at most optim.steps; 0: off).",
 )
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option("--val", "val_ids", multiple=True, help="Sample id to validate on at each checkpoint (repeatable).")

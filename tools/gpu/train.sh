@@ -41,7 +41,7 @@ run_all() {  # run_all DEVICE SECONDS CONFIG...: every config side by side, in t
   done
 }
 left=$((start + deadline - $(date +%s)))
-secs=$((left - 90))  # loading the samples and the final save take the rest
+secs=$((left - 40))  # a run's budget holds its loading; the final save and packing take the rest
 say "training $# configs on $device for ${secs} s each"
 run_all "$device" "$secs" "$@"
 fallback=0
@@ -60,7 +60,7 @@ while :; do
     if [ "$failed" -eq "$#" ] && [ "$device" != cpu ] && [ "$fallback" -eq 0 ]; then
       say "every run failed on $device:"; tail -n 5 runs/*.log
       fallback=1
-      secs=$((start + deadline - now - 90))
+      secs=$((start + deadline - now - 40))
       [ "$secs" -lt 60 ] && break
       mkdir -p "runs-failed-$device" && mv runs/* "runs-failed-$device/"
       say "training on cpu for ${secs} s instead"

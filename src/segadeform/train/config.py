@@ -40,9 +40,10 @@ the previous one's)::
     checkpoint_every = 200
     device = "auto"                # auto | cpu | cuda
     warmup = 0                     # linear learning-rate warm-up over this many steps, then the cosine decay
-    seconds = 0                    # a time budget for the training loop (0: off): the warm-up steps time the
-                                   # machine and fix the step count (at most `steps`) so the loop ends by then;
-                                   # needs warmup >= 20; train.json records the count (rerun it with --steps)
+    seconds = 0                    # a time budget for the run, loading included (0: off): the warm-up steps
+                                   # time the machine and fix the step count (at most `steps`) so the run ends
+                                   # by then; needs warmup >= 20; train.json records the count (rerun it with
+                                   # --steps N --seconds 0)
 
     [physics]                      # self-supervision on pairs never simulated (segadeform.train.energies)
     pairs = "../datasets/continuum.toml"   # a dataset config: its training garments x bodies x motions
@@ -142,7 +143,7 @@ class OptimConfig:
     lr_final: float = 0.1  # cosine decay to lr * lr_final
     grad_clip: float = 1.0
     warmup: int = 0  # linear warm-up steps before the cosine decay (0: none)
-    seconds: float = 0.0  # time budget of the training loop (0: off); the warm-up steps time the machine
+    seconds: float = 0.0  # time budget of a run, loading included (0: off); the warm-up steps time the machine
 
     def lr_factor(self, step: int, total: int) -> float:
         """The learning rate at ``step`` as a fraction of ``lr``: a linear ramp over ``warmup`` steps, then a

@@ -369,10 +369,12 @@ class PhysicsPairs:
             except (OSError, ValueError, KeyError):
                 pass  # a broken entry is made again below
         mo = _motion(m, self.cfg, rest_joints)
+        # stored as float32 (what training reads) and returned as stored: a hit and a miss give the same pair
+        poses, trans = np.asarray(mo.poses, np.float32), np.asarray(mo.trans, np.float32)
         p.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(p) as tmp, open(tmp, "wb") as fh:
-            np.savez(fh, poses=np.asarray(mo.poses), trans=np.asarray(mo.trans), fps=np.float64(mo.fps))
-        return mo
+            np.savez_compressed(fh, poses=poses, trans=trans, fps=np.float64(mo.fps))
+        return Motion(poses=poses, trans=trans, fps=float(mo.fps), name=m.name)
 
     def _motion(self, mi: int, bi: int):
         key = (mi, bi)
@@ -412,7 +414,7 @@ class PhysicsPairs:
 
 
 #: bump when the clips PhysicsPairs makes from a motion entry change (old cache entries are then not read)
-MOTION_CACHE_VERSION = 1
+MOTION_CACHE_VERSION = 2
 
 
 def _lru(cache: OrderedDict, key, keep: int):

@@ -215,7 +215,11 @@ def train(
     val_ids=None,
     log_every: int = 10,
 ) -> Path:
-    """Train (or resume) into ``run_dir``; returns the final ``model.pt``."""
+    """Train (or resume) into ``run_dir``; returns the final ``model.pt``.
+
+    Under a time budget (``optim.seconds``) this call -- loading the samples, training and validating -- ends
+    within the budget of its start (a resumed run gets the budget again); writing the final model follows."""
+    started = time.perf_counter()
     run = Path(run_dir)
     run.mkdir(parents=True, exist_ok=True)
     if cfg.path is not None and cfg.path.resolve() != (run / "config.toml").resolve():
@@ -413,7 +417,7 @@ def train(
             budget["probe"].append(time.perf_counter())
             if step >= o.warmup:
                 probe = budget["probe"]
-                so_far = elapsed + probe[-1] - t0
+                so_far = probe[-1] - started  # this call's time: loading, validation and the warm-up
                 per_step = (probe[-1] - probe[4]) / (len(probe) - 5) if len(probe) > 6 else so_far / step
                 per_step += val_seconds / o.checkpoint_every  # the validations still to come
                 budget["steps"] = total[0] = o.budget_steps(step, so_far, per_step)
