@@ -17,6 +17,7 @@ out=${OUT:-/tmp/gpu-out}
 mkdir -p "$out"
 say() { echo "[$(($(date +%s) - start)) s] $*"; }
 py=python3
+cli='import sys; from segadeform.cli.main import main; sys.exit(main())'  # the command, wherever pip put its script
 command -v nvidia-smi >/dev/null && nvidia-smi -L
 if ! $py -c "import segadeform" 2>/dev/null; then
   $py -m pip install -q --no-index --no-deps .gpu/*.whl 2>&1 | tail -n 2
@@ -35,7 +36,7 @@ run_all() {  # run_all DEVICE SECONDS CONFIG...: every config side by side, in t
   pids=()
   for cfg in "$@"; do
     name=$(basename "$cfg" .toml)
-    segadeform train "$cfg" -o "runs/$name" --dataset "$ds" --dataset .gpu/train.sgdpack --device "$dev" \
+    $py -c "$cli" train "$cfg" -o "runs/$name" --dataset "$ds" --dataset .gpu/train.sgdpack --device "$dev" \
       --seconds "$secs" --threads 2 >"runs/$name.log" 2>&1 &
     pids+=($!)
   done
