@@ -244,6 +244,12 @@ def test_prefetched_pairs_resume_to_the_same_model(synthetic_dataset, pairs_conf
     from segadeform.train.config import load_train_config
     from segadeform.train.trainer import train
 
+    # three training pairs (the fixture's one, two more motions): a stream that lost its place draws others
+    pairs_config.write_text(
+        _PAIRS
+        + '[[motions]]\nname = "walk-fast"\nkind = "walk"\nspeed = 1.4\nease_in = 0.0\n'
+        + '[[motions]]\nkind = "dance"\nease_in = 0.0\n'
+    )
     cfg_path = tmp_path / "train.toml"
     cfg_path.write_text(
         "[model]\nhidden = 16\nlstm_hidden = 16\nwindow = 3\nn_star = 16\n"
@@ -268,6 +274,16 @@ def test_prefetched_pairs_resume_to_the_same_model(synthetic_dataset, pairs_conf
     rows_b = list(csv.DictReader(open(tmp_path / "b" / "loss.csv")))
     assert [r["physics"] for r in rows_a] == [r["physics"] for r in rows_b]
     assert all(float(r["physics"]) != 0 for r in rows_a)
+    # the stream draws several pairs (so the equality above is about which pairs, not only one pair's energy)
+    from segadeform.train.energies import PhysicsPairs
+    from segadeform.train.trainer import _PairPrefetch
+
+    pairs = PhysicsPairs(pairs_config, tmp_path / "cache", body, n_star=16, window=3, n_betas=10)
+    assert len(pairs) == 3
+    pf = _PairPrefetch(pairs, 0)
+    drawn = [pf.next().id for _ in range(6)]
+    pf.close()
+    assert len(set(drawn)) >= 2
 
 
 def test_pair_motions_are_cached_and_serve_a_machine_without_the_capture_file(tmp_path, body):
@@ -321,3 +337,11 @@ def test_pairs_of_a_makehuman_garment_train_from_the_cache_without_its_files(tmp
         load_dataset_config(cfg)  # making a dataset still needs the file
     b = PhysicsPairs(cfg, tmp_path / "cache", body, n_star=16, window=3, n_betas=10).item(0)
     assert torch.equal(a.rest, b.rest) and torch.equal(a.features, b.features)
+    # a cached garment made for another body shape is refused, not used (its file is not here to remake it)
+    from segadeform.errors import InputError
+
+    other = tmp_path / "other.toml"
+    other.write_text(cfg.read_text().replace("[[bodies]]\nbetas = []", "[[bodies]]\nbetas = [0.5]", 1))
+    shutil.copytree(tmp_path / "cache", tmp_path / "cache2")
+    with pytest.raises(InputError, match="made from another garment, body or file"):
+        PhysicsPairs(other, tmp_path / "cache2", body, n_star=16, window=3, n_betas=10).item(0)

@@ -43,6 +43,7 @@ run_all() {  # run_all DEVICE SECONDS CONFIG...: every config side by side, in t
 }
 left=$((start + deadline - $(date +%s)))
 secs=$((left - 40))  # a run's budget holds its loading; the final save and packing take the rest
+if [ "$secs" -lt 60 ]; then say "only ${secs} s left for training: stopping"; exit 1; fi
 say "training $# configs on $device for ${secs} s each"
 run_all "$device" "$secs" "$@"
 fallback=0
@@ -66,15 +67,17 @@ while :; do
       mkdir -p "runs-failed-$device" && mv runs/* "runs-failed-$device/"
       say "training on cpu for ${secs} s instead"
       device=cpu
+      code=()
       run_all cpu "$secs" "$@"
       continue
     fi
     break
   fi
   if [ "$now" -gt $((start + deadline - 15)) ]; then
-    say "deadline: stopping $alive runs"; kill -INT "${pids[@]}" 2>/dev/null; sleep 5; break
+    # (background jobs of a script ignore SIGINT: TERM; a stopped run keeps its best.pt and last.pt)
+    say "deadline: stopping $alive runs"; kill -TERM "${pids[@]}" 2>/dev/null; sleep 3; break
   fi
 done
 for f in runs/*.log; do echo "== $f"; tail -n 3 "$f"; done
-tar czf "$out/runs.tgz" runs runs-failed-* 2>/dev/null
+tar czf "$out/runs.tgz" runs $(ls -d runs-failed-* 2>/dev/null)
 say "done: $(du -h "$out/runs.tgz" | cut -f1)"

@@ -52,6 +52,7 @@ from ..distributed.executors import Executor, LocalExecutor
 from ..errors import InputError, SegadeformError
 from ..garments import GARMENT_TYPES, make_garment
 from ..io import Mesh, read_mesh, write_obj
+from ..io.hashing import file_sha256
 from ..io.location import LocalLocation, Location, open_location
 from ..motion import face_forward, load_motion, make_motion, resample
 from ..motion.motion import drop_leading_jumps, drop_leading_tpose, ramp_in
@@ -188,11 +189,7 @@ def _digest(obj) -> str:
 
 @functools.lru_cache(maxsize=4096)
 def _content_id(path: str, size: int, mtime_ns: int) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return f"{Path(path).name}:{h.hexdigest()[:16]}"
+    return f"{Path(path).name}:{file_sha256(path)[:16]}"
 
 
 def file_identity(path) -> str:
@@ -201,9 +198,13 @@ def file_identity(path) -> str:
     p = Path(path)
     try:
         st = p.stat()
+        if not p.is_file():
+            raise IsADirectoryError(21, "not a file")
+        return _content_id(str(p), st.st_size, st.st_mtime_ns)
     except OSError as e:
-        raise InputError(f"a file the dataset config names cannot be read ({e.strerror})", path=p) from None
-    return _content_id(str(p), st.st_size, st.st_mtime_ns)
+        raise InputError(
+            f"a file the dataset config names cannot be read ({e.strerror})", path=p, expected="a readable file"
+        ) from None
 
 
 def _garment_key(g: GarmentSpec) -> dict:
@@ -307,7 +308,22 @@ def _garment_file(out, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) ->
     rel = _garment_rel(cfg, gi, bi)
     key_rel = rel[: -len(".obj")] + ".json"
     if g.mhclo is not None and not Path(g.mhclo).is_file() and loc.exists(rel) and loc.exists(key_rel):
-        return rel  # made where the MakeHuman file was (a cache carried to a machine without ../shared): as is
+        # made where the MakeHuman file was (a cache carried to a machine without ../shared): used as it is when
+        # its key says the same garment, body and pose, the file named alike (its bytes cannot be checked here)
+        old = json.loads(loc.read_text(key_rel))
+        want = {"garment": {**_garment_key(dataclasses.replace(g, mhclo=None)), "mhclo": None}}
+        want.update(betas=list(cfg.bodies[bi]), cloth_pose=cfg.simulate.rest_pose)
+        got = {**old, "garment": {**old.get("garment", {}), "mhclo": None}}
+        made_from = str(old.get("garment", {}).get("mhclo") or "")
+        if got == json.loads(json.dumps(want)) and made_from.split(":")[0] == Path(g.mhclo).name:
+            return rel
+        raise InputError(
+            f"garment {g.name} (body {bi}) in this cache was made from another garment, body or file, and "
+            f"its MakeHuman file is not here to make it again",
+            path=f"{loc}/{key_rel}",
+            expected=f"{Path(g.mhclo).name}, betas {list(cfg.bodies[bi])}",
+            got=f"{made_from or 'no file'}, betas {old.get('betas')}",
+        )
     key = {"garment": _garment_key(g), "betas": list(cfg.bodies[bi]), "cloth_pose": cfg.simulate.rest_pose}
     if loc.exists(rel) and loc.exists(key_rel):
         old = json.loads(loc.read_text(key_rel))

@@ -59,6 +59,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -145,14 +146,43 @@ class OptimConfig:
     warmup: int = 0  # linear warm-up steps before the cosine decay (0: none)
     seconds: float = 0.0  # time budget of a run, loading included (0: off); the warm-up steps time the machine
 
+    def __post_init__(self):
+        if not (isinstance(self.warmup, int) and not isinstance(self.warmup, bool) and 0 <= self.warmup):
+            raise InputError("optim.warmup must be an integer >= 0", got=self.warmup)
+        if self.warmup > self.steps:
+            raise InputError("optim.warmup must be at most optim.steps", expected=f"<= {self.steps}", got=self.warmup)
+        if not (math.isfinite(self.seconds) and self.seconds >= 0):
+            raise InputError("optim.seconds must be a finite number of seconds >= 0", got=self.seconds)
+        if self.seconds > 0 and self.warmup < BUDGET_PROBE_STEPS:
+            raise InputError(
+                "optim.seconds (a time budget) needs the warm-up to time the machine before the step count is fixed",
+                expected=f"optim.warmup >= {BUDGET_PROBE_STEPS}",
+                got=self.warmup,
+            )
+
     def lr_factor(self, step: int, total: int) -> float:
         """The learning rate at ``step`` as a fraction of ``lr``: a linear ramp over ``warmup`` steps, then a
-        cosine decay to ``lr_final`` at ``total`` steps.  With ``warmup = 0`` it is the cosine alone."""
+        cosine decay to ``lr_final`` at ``total`` steps.  With ``warmup = 0`` it is the cosine alone, computed
+        as it always was (the same bits: older runs resume and rerun exactly)."""
         if step < self.warmup:
             return (step + 1) / self.warmup
         span = max(total - self.warmup, 1)
-        x = min(max(step - self.warmup, 0), span) / span
-        return self.lr_final + (1 - self.lr_final) * 0.5 * (1 + float(np.cos(np.pi * x)))
+        return self.lr_final + (1 - self.lr_final) * 0.5 * (
+            1 + np.cos(np.pi * min(max(step - self.warmup, 0), span) / span)
+        )
+
+    def prior_fade(self, step: int, total: int, until: float) -> float:
+        """The skinning-weight prior's weight at ``step`` as a fraction of its own (``until``: the fraction of
+        the ``total`` steps at which it reaches 0).  It holds through the warm-up (whose steps never depend on the
+        count), then falls linearly to 0 at ``until * total`` (at once when that comes before the warm-up ends);
+        with ``warmup = 0`` it is the fade it always was."""
+        end = until * total
+        if not end > 0:
+            return 0.0
+        if step < self.warmup:
+            return 1.0
+        span = end - self.warmup
+        return max(0.0, 1.0 - (step - self.warmup) / span) if span > 0 else 0.0
 
     def budget_steps(self, done: int, seconds_so_far: float, per_step: float) -> int:
         """The step count that fits :attr:`seconds` when ``done`` steps took ``seconds_so_far`` and one more
@@ -305,15 +335,6 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
         raise FileFormatError("optim.device must be auto, cpu or cuda", path=p, got=optim.device)
     if optim.steps < 1 or optim.frames < 1 or optim.garments < 1 or not optim.lr > 0:
         raise FileFormatError("optim.steps, optim.frames, optim.garments and optim.lr must be positive", path=p)
-    if optim.warmup < 0 or optim.warmup > optim.steps:
-        raise FileFormatError("optim.warmup must be >= 0 and at most optim.steps", path=p, got=optim.warmup)
-    if optim.seconds < 0 or (optim.seconds > 0 and optim.warmup < BUDGET_PROBE_STEPS):
-        raise FileFormatError(
-            f"optim.seconds (a time budget) needs optim.warmup >= {BUDGET_PROBE_STEPS}: the warm-up steps time "
-            "the machine before the step count is fixed",
-            path=p,
-            got=f"seconds {optim.seconds}, warmup {optim.warmup}",
-        )
     return TrainConfig(
         model=model,
         loss=loss,

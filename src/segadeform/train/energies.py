@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import os
 from collections import OrderedDict
 from pathlib import Path
 
@@ -350,15 +351,16 @@ class PhysicsPairs:
         """The pair's motion clip, read from ``cache/motions`` when it is there (keyed by the motion entry, the
         dataset's clip length and rate and the body's joints), else made from the entry and stored: a capture
         file is read once per body, and a machine that holds the cache trains without the capture files.  A
-        capture file is named by its file name here: one changed in place needs MOTION_CACHE_VERSION bumped
-        or the cache's ``motions/`` removed."""
+        capture file is named by its path relative to the config here, not by its bytes: one changed in place
+        needs MOTION_CACHE_VERSION bumped or the cache's ``motions/`` removed."""
         from ..io.atomic import atomic_path
         from ..motion.motion import Motion
 
         m = self.cfg.motions[mi]
         entry = dataclasses.asdict(m)
-        if m.file is not None:  # by name (the capture files need not be on a machine that holds the cache)
-            entry["file"] = m.file.name
+        if m.file is not None:  # by its path from the config (the same wherever the checkout and ../shared lie;
+            # the capture files need not be on a machine that holds the cache)
+            entry["file"] = os.path.relpath(m.file, self.cfg.path.parent) if self.cfg.path else m.file.name
         key = repr((entry, self.cfg.fps, self.cfg.seconds, MOTION_CACHE_VERSION)).encode()
         h = hashlib.sha256(key + np.ascontiguousarray(rest_joints, np.float64).tobytes()).hexdigest()[:24]
         p = self.cache / "motions" / f"motion-{h}.npz"
@@ -414,7 +416,7 @@ class PhysicsPairs:
 
 
 #: bump when the clips PhysicsPairs makes from a motion entry change (old cache entries are then not read)
-MOTION_CACHE_VERSION = 2
+MOTION_CACHE_VERSION = 3
 
 
 def _lru(cache: OrderedDict, key, keep: int):

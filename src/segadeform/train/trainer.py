@@ -189,7 +189,9 @@ class _PairPrefetch:
         return {"rng": self.rng.bit_generator.state, "ahead": self.ahead}
 
     def close(self) -> None:
-        self.pool.shutdown(wait=True, cancel_futures=True)
+        """Stop: the pair being built is dropped (not waited for)."""
+        self.future.cancel()
+        self.pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _hardware(device: torch.device) -> dict:
@@ -218,7 +220,8 @@ def train(
     """Train (or resume) into ``run_dir``; returns the final ``model.pt``.
 
     Under a time budget (``optim.seconds``) this call -- loading the samples, training and validating -- ends
-    within the budget of its start (a resumed run gets the budget again); writing the final model follows."""
+    within the budget of its start; writing the final model follows.  The step count is fixed once, at the end of
+    the warm-up, and kept in the checkpoint: a run resumed after that trains to it whatever the time."""
     started = time.perf_counter()
     run = Path(run_dir)
     run.mkdir(parents=True, exist_ok=True)
@@ -376,83 +379,94 @@ def train(
             torch.save({"state_dict": model.state_dict(), "step": 0, "val_vertex": best_val[0]}, tmp)
     t0 = time.perf_counter()
     model.train()
-    while step < total[0]:
-        # the skinning-weight prior fades out after the warm-up (the warm-up's steps never depend on the count)
-        until = cfg.loss.skin_prior_until * total[0] - o.warmup
-        fade = 1.0 if step < o.warmup else max(0.0, 1.0 - (step - o.warmup) / until) if until > 0 else 0.0
-        opt.zero_grad(set_to_none=True)
-        ls = {}
-        for _ in range(o.garments):  # one batch: each garment's loss backpropagated as it is made (memory)
-            it = items[int(rng.integers(len(items)))]
-            t = torch.as_tensor(rng.choice(it.n_frames, size=min(o.frames, it.n_frames), replace=False), device=device)
-            one = step_losses(model, it, t, cfg.loss, prior_scale=fade)
-            if not torch.isfinite(one["total"]):
-                raise InputError(f"the loss became {float(one['total'])} at step {step} on {it.id}; lower optim.lr")
-            (one["total"] / o.garments).backward()
-            for k, v in one.items():
-                ls[k] = ls.get(k, 0.0) + v.detach() / o.garments
-        ls[PHYSICS_TERM] = torch.zeros(())
-        if pairs is not None and step % ph.every == 0:
-            pair = (prefetch.next() if prefetch is not None else pairs.item(int(rng.integers(len(pairs))))).to(device)
-            f = min(ph.frames, pair.n_frames)
-            if f >= 3:
-                first = int(rng.integers(pair.n_frames - f + 1))
-                phys = ph.weight * physics_losses(model, pair, first, f, mat, body_faces, device, collider)["total"]
-                if not torch.isfinite(phys):
-                    raise InputError(
-                        f"the physics loss became {float(phys)} at step {step} on {pair.id}; lower optim.lr"
+    try:
+        while step < total[0]:
+            fade = o.prior_fade(step, total[0], cfg.loss.skin_prior_until)
+            opt.zero_grad(set_to_none=True)
+            ls = {}
+            for _ in range(o.garments):  # one batch: each garment's loss backpropagated as it is made (memory)
+                it = items[int(rng.integers(len(items)))]
+                t = torch.as_tensor(
+                    rng.choice(it.n_frames, size=min(o.frames, it.n_frames), replace=False), device=device
+                )
+                one = step_losses(model, it, t, cfg.loss, prior_scale=fade)
+                if not torch.isfinite(one["total"]):
+                    raise InputError(f"the loss became {float(one['total'])} at step {step} on {it.id}; lower optim.lr")
+                (one["total"] / o.garments).backward()
+                for k, v in one.items():
+                    ls[k] = ls.get(k, 0.0) + v.detach() / o.garments
+            ls[PHYSICS_TERM] = torch.zeros(())
+            if pairs is not None and step % ph.every == 0:
+                pair = (prefetch.next() if prefetch is not None else pairs.item(int(rng.integers(len(pairs))))).to(
+                    device
+                )
+                f = min(ph.frames, pair.n_frames)
+                if f >= 3:
+                    first = int(rng.integers(pair.n_frames - f + 1))
+                    phys = ph.weight * physics_losses(model, pair, first, f, mat, body_faces, device, collider)["total"]
+                    if not torch.isfinite(phys):
+                        raise InputError(
+                            f"the physics loss became {float(phys)} at step {step} on {pair.id}; lower optim.lr"
+                        )
+                    phys.backward()
+                    ls[PHYSICS_TERM] = phys.detach()
+                    ls["total"] = ls["total"] + ls[PHYSICS_TERM]
+            torch.nn.utils.clip_grad_norm_(model.parameters(), o.grad_clip)
+            opt.step()
+            sched.step()
+            step += 1
+            if budget is not None and budget["steps"] is None:
+                # the warm-up times the machine (its first 5 steps, which compile and allocate, left out); at its end
+                # the step count is fixed so that the loop ends within the budget, and never changes again
+                if device.type == "cuda":
+                    torch.cuda.synchronize(device)
+                budget["probe"].append(time.perf_counter())
+                if step >= o.warmup:
+                    probe = budget["probe"]
+                    so_far = probe[-1] - started  # this call's time: loading, validation and the warm-up
+                    # a run resumed near the warm-up's end has few timed steps: this call's steps alone, then
+                    per_step = (
+                        (probe[-1] - probe[4]) / (len(probe) - 5)
+                        if len(probe) > 6
+                        else (probe[-1] - started) / len(probe)
                     )
-                phys.backward()
-                ls[PHYSICS_TERM] = phys.detach()
-                ls["total"] = ls["total"] + ls[PHYSICS_TERM]
-        torch.nn.utils.clip_grad_norm_(model.parameters(), o.grad_clip)
-        opt.step()
-        sched.step()
-        step += 1
-        if budget is not None and budget["steps"] is None:
-            # the warm-up times the machine (its first 5 steps, which compile and allocate, left out); at its end
-            # the step count is fixed so that the loop ends within the budget, and never changes again
-            if device.type == "cuda":
-                torch.cuda.synchronize(device)
-            budget["probe"].append(time.perf_counter())
-            if step >= o.warmup:
-                probe = budget["probe"]
-                so_far = probe[-1] - started  # this call's time: loading, validation and the warm-up
-                per_step = (probe[-1] - probe[4]) / (len(probe) - 5) if len(probe) > 6 else so_far / step
-                per_step += val_seconds / o.checkpoint_every  # the validations still to come
-                budget["steps"] = total[0] = o.budget_steps(step, so_far, per_step)
-        for k in acc:  # summed on the device in float64 (as Python floats would be): no sync per step
-            acc[k] = acc[k] + ls[k].detach().to(torch.float64)
-        n_acc += 1
-        val_err = ""
-        if step % o.checkpoint_every == 0 or step == total[0]:
-            if val:
-                val_err = validate()
-                if val_err < best_val[0]:  # the model the validation split chooses
-                    best_val = (val_err, step)
-                    with atomic_path(best_path) as tmp:
-                        torch.save({"state_dict": model.state_dict(), "step": step, "val_vertex": val_err}, tmp)
-            save_last()
-        if step % log_every == 0 or step == total[0]:
-            now = time.perf_counter()
-            elapsed += now - t0
-            t0 = now
-            row = {
-                "step": step,
-                **{k: float(acc[k]) / n_acc for k in acc},
-                "lr": sched.get_last_lr()[0],
-                "seconds": round(elapsed, 2),
-                "val_vertex": val_err,
-            }
-            with open(log_path, "a", newline="") as fh:
-                csv.DictWriter(fh, fields).writerow(row)
-            if progress is not None:
-                progress(step, {**row, "of": total[0]})
-            acc = {k: 0.0 for k in acc}
-            n_acc = 0
+                    per_step += val_seconds / o.checkpoint_every  # the validations still to come
+                    budget["steps"] = total[0] = o.budget_steps(step, so_far, per_step)
+            for k in acc:  # summed on the device in float64 (as Python floats would be): no sync per step
+                acc[k] = acc[k] + ls[k].detach().to(torch.float64)
+            n_acc += 1
+            val_err = ""
+            if step % o.checkpoint_every == 0 or step == total[0]:
+                if val:
+                    v0 = time.perf_counter()
+                    val_err = validate()
+                    val_seconds = time.perf_counter() - v0  # the budget counts the validations still to come
+                    if val_err < best_val[0]:  # the model the validation split chooses
+                        best_val = (val_err, step)
+                        with atomic_path(best_path) as tmp:
+                            torch.save({"state_dict": model.state_dict(), "step": step, "val_vertex": val_err}, tmp)
+                save_last()
+            if step % log_every == 0 or step == total[0]:
+                now = time.perf_counter()
+                elapsed += now - t0
+                t0 = now
+                row = {
+                    "step": step,
+                    **{k: float(acc[k]) / n_acc for k in acc},
+                    "lr": sched.get_last_lr()[0],
+                    "seconds": round(elapsed, 2),
+                    "val_vertex": val_err,
+                }
+                with open(log_path, "a", newline="") as fh:
+                    csv.DictWriter(fh, fields).writerow(row)
+                if progress is not None:
+                    progress(step, {**row, "of": total[0]})
+                acc = {k: 0.0 for k in acc}
+                n_acc = 0
+    finally:  # the pair thread ends however the loop does (an error, a KeyboardInterrupt)
+        if prefetch is not None:
+            prefetch.close()
     elapsed += time.perf_counter() - t0
-    if prefetch is not None:
-        prefetch.close()
     final = run / "model.pt"
     # the garments it saw, by descriptor: export writes them to the manifest, and runtimes warn about garments
     # far from all of them (segadeform.contracts.model_package.TRAINING_GARMENTS)
