@@ -348,7 +348,7 @@ class PhysicsPairs:
         return _lru(self._garments, key, self.keep)
 
     def _clip(self, mi: int, rest_joints: np.ndarray):
-        """The pair's motion clip, read from ``cache/motions`` when it is there (keyed by the motion entry, the
+        """The pair's motion clip; a capture's is read from ``cache/motions`` when it is there (keyed by the entry, the
         dataset's clip length and rate and the body's joints), else made from the entry and stored: a capture
         file is read once per body, and a machine that holds the cache trains without the capture files.  A
         capture file is named by its path relative to the config here, not by its bytes: one changed in place
@@ -357,10 +357,15 @@ class PhysicsPairs:
         from ..motion.motion import Motion
 
         m = self.cfg.motions[mi]
+        if m.file is None:  # procedural: made in a moment anywhere, never stored (float32, as a stored clip is)
+            mo = _motion(m, self.cfg, rest_joints)
+            return Motion(
+                poses=np.asarray(mo.poses, np.float32), trans=np.asarray(mo.trans, np.float32), fps=mo.fps, name=m.name
+            )
         entry = dataclasses.asdict(m)
-        if m.file is not None:  # by its path from the config (the same wherever the checkout and ../shared lie;
-            # the capture files need not be on a machine that holds the cache)
-            entry["file"] = os.path.relpath(m.file, self.cfg.path.parent) if self.cfg.path else m.file.name
+        # the file by its path from the config (the same wherever the checkout and ../shared lie; the capture files
+        # need not be on a machine that holds the cache)
+        entry["file"] = os.path.relpath(m.file, self.cfg.path.parent) if self.cfg.path else m.file.name
         key = repr((entry, self.cfg.fps, self.cfg.seconds, MOTION_CACHE_VERSION)).encode()
         h = hashlib.sha256(key + np.ascontiguousarray(rest_joints, np.float64).tobytes()).hexdigest()[:24]
         p = self.cache / "motions" / f"motion-{h}.npz"
