@@ -79,5 +79,7 @@ while :; do
   fi
 done
 for f in runs/*.log; do echo "== $f"; tail -n 3 "$f"; done
+# a finished run's last.pt (weights and optimiser state) stays behind: what comes back is bounded (16 MiB a file)
+for d in runs/*/; do [ -f "$d/model.pt" ] && rm -f "$d/last.pt"; done
 tar czf "$out/runs.tgz" runs $(ls -d runs-failed-* 2>/dev/null)
 say "done: $(du -h "$out/runs.tgz" | cut -f1)"
