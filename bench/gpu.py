@@ -57,6 +57,12 @@ def _inputs(package, n: int, frames: int):
         "joints": joints.astype(np.float32),
         "betas": np.zeros(10, np.float32),
     }
+    if any(i["name"] == "log_wbody" for i in package.spec(package.default_deformer)["inputs"]):
+        # a residual-weights model: the body's weights at the garment by the package's prior
+        from segadeform.body.transfer import garment_weights, residual_log_weights
+
+        prior = str(package.config.get("weight_prior", "nearest"))
+        const["log_wbody"] = residual_log_weights(garment_weights(a.vertices, a.faces, body, None, prior))
     return enc, per_frame, const
 
 
@@ -82,6 +88,8 @@ def run(pkg_dir, providers, enc, per_frame, const, batch) -> tuple[np.ndarray, f
             "joints": np.repeat(const["joints"][None], b, 0),
             "betas": np.repeat(const["betas"][None], b, 0),
         }
+        if "log_wbody" in const:
+            f["log_wbody"] = const["log_wbody"]
         return {i["name"]: f[i["name"]] for i in d["inputs"]}
 
     pkg.run(name, feeds(0, min(batch, t)))  # warm-up (kernels, arenas)
