@@ -138,3 +138,21 @@ def test_a_fast_clip_gets_more_solver_steps(sim_python, body, coarse_skirt):
     assert fast.blender["applied"]["cloth"]["quality"] == 5 and plain.blender["applied"]["cloth"]["quality"] == 4
     to_same, to_plain = np.abs(fast.frames - same.frames).max(), np.abs(fast.frames - plain.frames).max()
     assert to_same < 1e-5 < to_plain, (to_same, to_plain)
+
+
+def test_an_untangled_body_is_what_blender_collides_with(sim_python, body, coarse_skirt, tmp_path):
+    from segadeform.body.untangle import untangle, vertex_parts
+    from segadeform.io.pc2 import read_pc2
+    from segadeform.settings.scene import Y_TO_Z
+
+    g = coarse_skirt
+    n = 3
+    poses = np.zeros((n, 72))
+    poses[:, 1 * 3 + 2], poses[:, 2 * 3 + 2] = -0.25, 0.25  # the thighs cross each other
+    mo = Motion(poses=poses, trans=np.zeros((n, 3)), fps=30.0)
+    st = SimSettings(effects=("body_collision",), drape_seconds=0.1, blend_seconds=0.0, quality=2, untangle_body=True)
+    simulate(g.vertices, g.faces, body, mo, settings=st, keep_job=tmp_path / "job")
+    played = np.asarray(read_pc2(tmp_path / "job" / "body.pc2", mmap=False).frames[-1], np.float64) @ np.array(Y_TO_Z)
+    posed = body.forward(poses[-1:]).vertices[0]
+    want = untangle(posed, body.faces, vertex_parts(body.weights), body.shaped_vertices()[0])
+    assert np.abs(played - want).max() < 1e-5 < np.abs(played - posed).max()

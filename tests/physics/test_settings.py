@@ -89,6 +89,16 @@ def test_max_step_motion_is_read_and_leaves_older_digests_alone(tmp_path):
         _scene(tmp_path, "[simulate]\neffects = []\nmax_step_motion = -0.01\n")
 
 
+def test_untangle_body_is_read_and_leaves_older_digests_alone(tmp_path):
+    s = _scene(tmp_path, '[simulate]\neffects = ["body_collision"]\nuntangle_body = true\n').simulate
+    assert s.untangle_body is True and s.to_dict()["untangle_body"] is True
+    assert "untangle_body" not in SimSettings().to_dict()  # off: the settings of datasets made before it
+    with pytest.raises(FileFormatError, match="untangle_body"):
+        _scene(tmp_path, "[simulate]\neffects = []\nuntangle_body = 1\n")
+    with pytest.raises(InputError, match="untangle_body"):
+        SimSettings(untangle_body="yes")
+
+
 def test_clip_quality_follows_the_fastest_frame():
     from segadeform.physics.blender import clip_quality
 

@@ -35,6 +35,7 @@ import dataclasses
 import numpy as np
 
 from ..body.collision import BodyProxy
+from ..body.untangle import vertex_parts
 from ..errors import InputError
 from ..geometry.mesh_ops import connected_components, unique_edges
 
@@ -65,10 +66,6 @@ class QualityReport:
         return d
 
 
-#: body parts for telling a pinch: SMPL joint -> part (torso 0, left arm 1, right arm 2, left leg 3, right leg 4)
-_PART_OF_JOINT = np.array([0, 3, 4, 0, 3, 4, 0, 3, 4, 0, 3, 4, 0, 0, 0, 0, 1, 2, 1, 2, 1, 2, 1, 2])
-
-
 @dataclasses.dataclass(frozen=True)
 class BodyParts:
     """What :func:`pinched` needs of a body: ``rest (V, 3)`` its vertices in the rest pose (the shape
@@ -79,9 +76,7 @@ class BodyParts:
 
     @classmethod
     def of(cls, body, betas=None) -> BodyParts:
-        w = np.asarray(body.weights)
-        part = _PART_OF_JOINT[w.argmax(axis=1)] if w.shape[1] == 24 else np.zeros(len(w), np.int64)
-        return cls(rest=np.asarray(body.shaped_vertices(betas)[0], np.float64), part=part)
+        return cls(rest=np.asarray(body.shaped_vertices(betas)[0], np.float64), part=vertex_parts(body.weights))
 
 
 def pinched(

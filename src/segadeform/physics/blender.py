@@ -34,6 +34,7 @@ import numpy as np
 from ..body.model import BodyModel
 from ..body.rotations import axis_angle_to_quaternion, quaternion_slerp, quaternion_to_axis_angle
 from ..body.transfer import skin_garment, transfer_weights
+from ..body.untangle import untangle, vertex_parts
 from ..errors import InputError, SimulationError
 from ..geometry.mesh_ops import adjacency, boundary_loops
 from ..io.pc2 import PC2Writer
@@ -249,6 +250,9 @@ def simulate(
         bs["cloth"]["quality"] = clip_quality(posed.vertices, settings.quality, settings.max_step_motion)
     z = lambda a: (np.asarray(a) @ _Y_TO_Z.T).astype(np.float32)  # noqa: E731
     rest_body = body.shaped_vertices(betas)[0]
+    collider = posed.vertices
+    if settings.untangle_body:  # the collider without the body's self-intersection (arm in torso, thigh in thigh)
+        collider = untangle(collider, body.faces, vertex_parts(body.weights), rest_body)
     wts = transfer_weights(v, rest_body, body.faces, body.weights) if (a_pose or settings.has("pinning")) else None
     # the cloth's rest: the garment as given (T-pose), as designed in an A-pose, or skinned into one
     if cloth_rest is not None:
@@ -272,9 +276,9 @@ def simulate(
         np.save(job_dir / "body_rest.npy", z(rest_body))
         np.save(job_dir / "body_faces.npy", body.faces.astype(np.int64))
         with PC2Writer(job_dir / "body.pc2", body.n_vertices, start_frame=1, sample_rate=1) as w:
-            w.write(z(posed.vertices))
+            w.write(z(collider))
         check = sorted({1, drape + blend + 1, len(poses)})
-        np.save(job_dir / "body_check.npy", z(posed.vertices[[c - 1 for c in check]]))
+        np.save(job_dir / "body_check.npy", z(collider[[c - 1 for c in check]]))
         job = {
             "fps": fps,
             "total_frames": len(poses),

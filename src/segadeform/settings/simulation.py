@@ -24,6 +24,9 @@ does not name is off in the solver::
     collision_normals = false      # push cloth out along the body's normals (Blender's "single sided"
                                    # and "override normals"): cloth that got inside comes out the side it
                                    # came in from, not the nearest side
+    untangle_body = false          # the collider is the posed body with the parts that pass into each
+                                   # other (arm into torso, thigh into thigh) moved apart
+                                   # (segadeform.body.untangle); the gate still measures the true body
     rest_pose = "t"                # t: the cloth's rest is the garment as given (T-pose); a: the garment
                                    # skinned to an A-pose (arms 45 deg down) is the cloth's rest and the
                                    # drape starts there -- T-posed garments are too short over the shoulders
@@ -153,6 +156,7 @@ class SimSettings:
     collision_inner: float = 0.02
     collision_normals: bool = False
     max_step_motion: float = 0.0
+    untangle_body: bool = False
 
     def __post_init__(self):
         eff = tuple(self.effects)
@@ -184,8 +188,9 @@ class SimSettings:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and not isinstance(v, bool) and lo <= v <= hi):
                 raise InputError(f"{name} must be a number in {lo}..{hi}", got=v)
-        if not isinstance(self.collision_normals, bool):
-            raise InputError("collision_normals must be true or false", got=self.collision_normals)
+        for name in ("collision_normals", "untangle_body"):
+            if not isinstance(getattr(self, name), bool):
+                raise InputError(f"{name} must be true or false", got=getattr(self, name))
         if self.rest_pose not in ("t", "a"):
             raise InputError(
                 "rest_pose must be 't' (the garment's own T-pose) or 'a' (arms lowered)", got=self.rest_pose
@@ -215,7 +220,12 @@ class SimSettings:
 
 
 #: settings added after datasets were made with this module: left out of ``to_dict`` at these values
-_LATER_DEFAULTS = {"collision_inner": 0.02, "collision_normals": False, "max_step_motion": 0.0}
+_LATER_DEFAULTS = {
+    "collision_inner": 0.02,
+    "collision_normals": False,
+    "max_step_motion": 0.0,
+    "untangle_body": False,
+}
 
 
 def parse_simulate_table(table: dict | None, *, where=None) -> SimSettings:
