@@ -8,14 +8,14 @@ either shoots it through (large responses) or, with the impulse clamp that the d
 responses that a fast thigh needs and lets the thigh through the cloth.  With the parts moved apart the cloth
 has a place between them, at the cost of a collider that is thinner than the body where two parts touch.
 
-The rule, per frame: each vertex of a part that lies inside another part (the signed distance to that part's
-triangles is negative) and whose closest point there is more than ``separation`` away at rest (so not the
-joint where a limb meets the torso) is moved out along that part's normal -- by the whole depth when the other
-part ranks higher (:data:`RANK`: the torso never moves, a hand gives way to a thigh), by half of it between two
-parts of one rank (thigh and thigh both move).  Only a vertex
-that faces the other part's closest triangle (not one beside an open edge of the part, where the sign of the
-distance means nothing) and is less than ``max_depth`` inside is moved.  The gate keeps
-measuring penetration against the true posed body (:mod:`segadeform.dataset.quality`).
+The rule, per frame: each vertex of a part that lies inside another part or closer to it than ``gap`` (the
+signed distance to that part's triangles is below ``gap``) and whose closest point there is more than
+``separation`` away at rest (so not the joint where a limb meets the torso) is moved out along that part's
+normal to ``gap`` outside it -- the whole way when the other part ranks higher (:data:`RANK`: the torso never
+moves, a hand gives way to a thigh), half of it between two parts of one rank (thigh and thigh both move).  Only
+a vertex that faces the other part's closest triangle (not one beside an open edge of the part, where the sign
+of the distance means nothing) and is less than ``max_depth`` inside is moved.  The gate keeps measuring
+penetration against the true posed body (:mod:`segadeform.dataset.quality`).
 
 Parts are the pinch test's: torso, left and right arm, left and right leg, each vertex by its largest SMPL
 skinning weight (:func:`vertex_parts`); a triangle belongs to a part when its three corners do.
@@ -75,7 +75,9 @@ def untangle(
         separation: metres at rest below which a vertex and the closest point are one joint, not two parts.
         max_depth: metres; a vertex deeper than this inside another part is left alone (no limb passes that
             far into another: what looks so is a wrong side of an open part's edge).
-        gap: metres; a moved vertex ends this far outside the other part.
+        gap: metres of room left between two parts: a vertex inside another part or closer to it than this
+            is moved out to this distance (room for cloth caught between them, e.g. twice the simulator's
+            collision distance and a bit).
         passes: rounds of moves per frame, each from where the last one left the body (two limbs that both
             move meet in the middle only after a few).
         threads: threads for the collider.
@@ -130,7 +132,7 @@ def _untangle_frame(v, parts, rest_v, faces_of, verts_of, ia_of, colliders, sepa
                 if b == a or RANK[a] > RANK[b]:  # the higher-ranked part stays where it is
                     continue
                 vb = v[verts_of[b]]
-                near = ia[((v[ia] >= vb.min(axis=0)) & (v[ia] <= vb.max(axis=0))).all(axis=1)]
+                near = ia[((v[ia] >= vb.min(axis=0) - gap) & (v[ia] <= vb.max(axis=0) + gap)).all(axis=1)]
                 if len(near) == 0:
                     continue
                 q = colliders[b].query(v[near], v)
@@ -139,7 +141,7 @@ def _untangle_frame(v, parts, rest_v, faces_of, verts_of, ia_of, colliders, sepa
                 # inside, facing the triangle (not beside an open edge of the part, where the sign means nothing)
                 off = v[near] - q.closest
                 facing = np.abs(np.einsum("ij,ij->i", off, q.normal)) >= 0.9 * np.linalg.norm(off, axis=1)
-                hit = (q.signed_distance < 0) & (q.signed_distance > -max_depth) & apart & facing
+                hit = (q.signed_distance < gap) & (q.signed_distance > -max_depth) & apart & facing
                 if not hit.any():
                     continue
                 share = 1.0 if RANK[b] > RANK[a] else 0.5

@@ -252,7 +252,9 @@ def simulate(
     rest_body = body.shaped_vertices(betas)[0]
     collider = posed.vertices
     if settings.untangle_body:  # the collider without the body's self-intersection (arm in torso, thigh in thigh)
-        collider = untangle(collider, body.faces, vertex_parts(body.weights), rest_body)
+        # room between two parts for cloth kept the collision distance from both, and a millimetre
+        room = 2 * settings.collision_distance + 0.001
+        collider = untangle(collider, body.faces, vertex_parts(body.weights), rest_body, gap=room)
     wts = transfer_weights(v, rest_body, body.faces, body.weights) if (a_pose or settings.has("pinning")) else None
     # the cloth's rest: the garment as given (T-pose), as designed in an A-pose, or skinned into one
     if cloth_rest is not None:
