@@ -7,6 +7,8 @@ parts touch.  Cloth caught there is inside one part whichever way it goes, so Bl
 either shoots it through (large responses) or, with the impulse clamp that the datasets use, drops the
 responses that a fast thigh needs and lets the thigh through the cloth.  With the parts moved apart the cloth
 has a place between them, at the cost of a collider that is thinner than the body where two parts touch.
+Measured (``docs/simulator-gate.md``, third study): the simulator keeps no more samples with it (30 of 58
+against 31 of 58), so no dataset config turns it on (``simulate.untangle_body``).
 
 The rule, per frame: each vertex of a part that lies inside another part or closer to it than ``gap`` (the
 signed distance to that part's triangles is below ``gap``) and whose closest point there is more than
@@ -101,10 +103,10 @@ def untangle(
         raise InputError("separation must be a non-negative number of metres", got=separation)
     if isinstance(passes, bool) or not isinstance(passes, (int, np.integer)) or passes < 1:
         raise InputError("passes must be a positive integer", got=passes)
-    if not (np.isfinite(gap) and 0 <= gap < max_depth):
-        raise InputError("gap must be a number of metres in [0, max_depth)", got=gap)
     if not (np.isfinite(max_depth) and max_depth > 0):
         raise InputError("max_depth must be a positive number of metres", got=max_depth)
+    if not (np.isfinite(gap) and 0 <= gap < max_depth):
+        raise InputError("gap must be a number of metres in [0, max_depth)", got=gap)
     face_part = np.where((p[f] == p[f[:, :1]]).all(axis=1), p[f[:, 0]], -1)
     parts = [int(q) for q in np.unique(p) if (face_part == q).any()]
     if len(parts) < 2:

@@ -26,7 +26,8 @@ does not name is off in the solver::
                                    # came in from, not the nearest side
     untangle_body = false          # the collider is the posed body with the parts that pass into each
                                    # other (arm into torso, thigh into thigh) moved apart, room for cloth
-                                   # between them (segadeform.body.untangle); the gate measures the true body
+                                   # between them (segadeform.body.untangle); the gate measures the true body;
+                                   # kept no more samples in docs/simulator-gate.md's third study
     rest_pose = "t"                # t: the cloth's rest is the garment as given (T-pose); a: the garment
                                    # skinned to an A-pose (arms 45 deg down) is the cloth's rest and the
                                    # drape starts there -- T-posed garments are too short over the shoulders
