@@ -179,8 +179,9 @@ def dataset_regate_cmd(config, output, body):
     "--skip",
     "skip",
     multiple=True,
-    type=click.Path(exists=True, path_type=Path),
-    help="Packs (or a folder of packs) whose samples are left out: pack only what is new. Repeatable.",
+    type=click.Path(path_type=Path),
+    help="Packs (or a folder of packs) whose samples are left out: pack only what is new; a folder that is not "
+    "there yet (a store with no pack) leaves nothing out. Repeatable.",
 )
 @click.option("--no-rejected", is_flag=True, help="Leave out the samples the quality gate rejected.")
 @click.option(
@@ -193,13 +194,18 @@ def dataset_pack_cmd(folder, output, skip, no_rejected, body):
     to 0.1 mm steps (error <= 0.05 mm), LZMA-compressed; train, eval and dataset make read it beside
     folders (--dataset PACK)."""
     from segadeform.body.model import default_body_path, load_body
-    from segadeform.dataset.pack import write_pack
+    from segadeform.dataset.pack import PACK_SUFFIX, write_pack
     from segadeform.dataset.roots import expand_root
+    from segadeform.errors import InputError
     from segadeform.io.output_guard import OutputGuard
 
+    absent = [s for s in skip if not s.exists()]
+    for a in absent:  # a pack named that is not there is a mistake; a folder of packs may not be made yet
+        if a.suffix == PACK_SUFFIX:
+            raise InputError("--skip names a pack that does not exist", path=a)
     guard = OutputGuard("dataset pack", replaces=False, inputs=(folder, body, *skip))
     guard.file(output)
-    packs = [p for s in skip for p in expand_root(s) if not isinstance(p, Path)]
+    packs = [p for s in skip if s.exists() for p in expand_root(s) if not isinstance(p, Path)]
     s = write_pack(
         folder, output, body=load_body(body or default_body_path()), skip=packs, include_rejected=not no_rejected
     )
@@ -208,3 +214,5 @@ def dataset_pack_cmd(folder, output, skip, no_rejected, body):
         f"{s.samples} kept and {s.rejected} rejected samples ({s.skipped} already in the packs given) "
         f"-> {s.path} ({s.bytes / 1e6:.1f} MB)"
     )
+    for a in absent:
+        click.echo(f"--skip {a}: not there yet, so no sample was left out for it")

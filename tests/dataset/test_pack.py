@@ -201,6 +201,26 @@ def test_dataset_pack_command(tmp_path, body, capsys):
     assert "never overwritten" in capsys.readouterr().err and out.read_bytes() == before
 
 
+def test_dataset_pack_into_a_store_that_is_not_there_yet(tmp_path, body, capsys):
+    """The first pack of the durable store: the README's command names the store in --skip before it exists."""
+    ds = tmp_path / "ds"
+    _save(ds, "a", body)
+    store = tmp_path / "shared" / "data" / "sim"
+    out = store / "continuum-001.sgdpack"
+    assert main(["dataset", "pack", str(ds), "-o", str(out), "--skip", str(store)]) == 0
+    printed = capsys.readouterr().out
+    assert "1 kept and 0 rejected" in printed and "not there yet" in printed and out.is_file()
+    # the second pack skips what the first holds
+    assert main(["dataset", "pack", str(ds), "-o", str(store / "continuum-002.sgdpack"), "--skip", str(store)]) == 0
+    assert "(1 already in the packs given)" in capsys.readouterr().out
+    # a missing pack named in --skip is a mistake: one line, exit 1, nothing written
+    third = store / "continuum-003.sgdpack"
+    assert main(["dataset", "pack", str(ds), "-o", str(third), "--skip", str(store / "nope.sgdpack")]) == 1
+    err = capsys.readouterr().err
+    assert "nope.sgdpack" in err and "does not exist" in err and len(err.strip().splitlines()) == 1
+    assert not third.exists()
+
+
 def test_dataset_make_skips_what_a_pack_holds_and_never_writes_it(tmp_path, body):
     """A fresh machine with the durable packs beside it: `dataset make` finds every sample done in the
     pack (nothing simulated, so no simulator is needed here) and writes nothing into it; a pack whose
