@@ -29,7 +29,8 @@ def _body(path):
     "--dataset",
     multiple=True,
     type=click.Path(exists=True, path_type=Path),
-    help="A dataset root (a folder, a .sgdpack, a folder of packs); repeatable; overrides [data] dataset.",
+    help="A dataset root (a folder, a .sgdpack, a folder of packs); repeatable; replaces the config's [data] "
+    "dataset and optional roots.",
 )
 @click.option("--steps", type=click.IntRange(min=1), help="Overrides optim.steps.")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), help="Overrides optim.device.")

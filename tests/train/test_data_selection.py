@@ -59,3 +59,37 @@ def test_a_config_changes_its_base(tmp_path):
     (tmp_path / "b.toml").write_text("base = 'a.toml'\n")
     with pytest.raises(FileFormatError, match="each other"):
         load_train_config(tmp_path / "a.toml")
+
+
+def test_the_shipped_recipe_reads_the_local_dataset_and_the_durable_store_where_they_are(tmp_path, capsys):
+    """A fresh checkout beside ../shared/data/sim trains with the shipped configs as they are: neither the local
+    dataset folder nor the store is required, both are read where they exist; with neither, a run says where it
+    looked and leaves no output behind."""
+    from segadeform.cli.main import main
+    from tests.conftest import SAMPLES
+
+    root = SAMPLES.parent
+    for name in ("full.toml", "gpu.toml", "plaingat_seed1.toml"):
+        cfg = load_train_config(SAMPLES / "train" / "continuum" / name)
+        assert cfg.dataset == ()
+        assert cfg.optional == (
+            (root / "data" / "continuum").resolve(),
+            (root.parent / "shared" / "data" / "sim").resolve(),
+        )
+    # roots given on the command line are the data: the config's own are not read beside them
+    given = load_train_config(SAMPLES / "train" / "continuum" / "full.toml", dataset=tmp_path)
+    assert given.dataset == (tmp_path,) and given.optional == ()
+    text = (SAMPLES / "train" / "continuum" / "full.toml").read_text()
+    nowhere = f'optional = ["{tmp_path / "no-data"}", "{tmp_path / "no-store"}"]'
+    cfg = tmp_path / "cfg" / "full.toml"
+    cfg.parent.mkdir()
+    cfg.write_text(
+        text.replace('optional = ["../../../data/continuum", "../../../../shared/data/sim"]', nowhere).replace(
+            '"../../datasets/continuum.toml"', f'"{SAMPLES / "datasets" / "continuum.toml"}"'
+        )
+    )
+    out = tmp_path / "run"
+    assert main(["train", str(cfg), "-o", str(out), "--steps", "1", "--threads", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "no-data is not there" in err and "no-store is not there" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()

@@ -283,7 +283,8 @@ def _read_with_base(p: Path, seen=()) -> dict:
 
 
 def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> TrainConfig:
-    """Read a training config; ``dataset`` (a root or a list of roots) overrides ``[data] dataset``;
+    """Read a training config; ``dataset`` (a root or a list of roots) replaces ``[data] dataset`` and
+    ``optional`` (the roots given are the data);
     ``overrides`` maps ``"table.key"`` to values (e.g. ``{"optim.steps": 10}``).  A config may name a
     ``base`` config whose tables it changes (``base = "full.toml"`` and ``[optim] seed = 1``)."""
     p = Path(path)
@@ -316,9 +317,10 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
         if "dataset" not in d and "optional" not in d:
             raise FileFormatError("missing data.dataset (or pass a dataset folder)", path=p)
         dataset = paths(d.get("dataset", []), "dataset")
-    else:
+        optional = paths(d.get("optional", []), "optional")
+    else:  # the roots given are the data: the config's own (required and optional) are not read
         dataset = tuple(Path(x) for x in ([dataset] if isinstance(dataset, (str, Path)) else dataset))
-    optional = paths(d.get("optional", []), "optional")
+        optional = ()
     val_split = d.get("val_split")
     if val_split is not None and (not isinstance(val_split, str) or val_split == d.get("split", "train")):
         raise FileFormatError("data.val_split must name a split other than the training one", path=p, got=val_split)

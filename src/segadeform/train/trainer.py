@@ -225,8 +225,6 @@ def train(
     started = time.perf_counter()
     run = Path(run_dir)
     run.mkdir(parents=True, exist_ok=True)
-    if cfg.path is not None and cfg.path.resolve() != (run / "config.toml").resolve():
-        shutil.copyfile(cfg.path, run / "config.toml")
     o = cfg.optim
     device = pick_device(o.device)
     torch.manual_seed(o.seed)
@@ -242,8 +240,12 @@ def train(
         raise InputError(
             f"no '{cfg.split}' samples in the dataset",
             expected="segadeform dataset make first",
-            got=", ".join(str(r) for r in roots.roots) or "no dataset root",
+            got=", ".join(str(r) for r in roots.roots)
+            or "no dataset root: " + (", ".join(f"{r} is not there" for r in roots.skipped) or "none given"),
         )
+    # the config beside the run once there is something to train (a run that finds no data leaves no file)
+    if cfg.path is not None and cfg.path.resolve() != (run / "config.toml").resolve():
+        shutil.copyfile(cfg.path, run / "config.toml")
     if cfg.val_split and not val_ids:
         val_ids = roots.ids(cfg.val_split)
     if items[0].features.shape[-1] != m.feat_dim:
