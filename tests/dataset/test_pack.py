@@ -221,6 +221,26 @@ def test_dataset_pack_into_a_store_that_is_not_there_yet(tmp_path, body, capsys)
     assert not third.exists()
 
 
+def test_packing_into_a_store_leaves_a_users_files_alone(tmp_path, body):
+    """A user's file beside the packs survives a new pack and a refused one, byte for byte."""
+    ds = tmp_path / "ds"
+    _save(ds, "a", body)
+    store = tmp_path / "store"
+    store.mkdir()
+    (store / "notes.txt").write_text("mine")
+    (store / "continuum-001.sgdpack").write_bytes(b"not ours")  # a file where the pack would go
+
+    def digest():
+        return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(store.iterdir()) if p.is_file()}
+
+    before = digest()
+    assert main(["dataset", "pack", str(ds), "-o", str(store / "continuum-001.sgdpack")]) == 1  # never over it
+    assert digest() == before
+    assert main(["dataset", "pack", str(ds), "-o", str(store / "continuum-002.sgdpack")]) == 0
+    after = digest()
+    assert {k: after[k] for k in before} == before and "continuum-002.sgdpack" in after
+
+
 def test_dataset_make_skips_what_a_pack_holds_and_never_writes_it(tmp_path, body):
     """A fresh machine with the durable packs beside it: `dataset make` finds every sample done in the
     pack (nothing simulated, so no simulator is needed here) and writes nothing into it; a pack whose

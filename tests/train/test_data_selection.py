@@ -93,3 +93,10 @@ def test_the_shipped_recipe_reads_the_local_dataset_and_the_durable_store_where_
     err = capsys.readouterr().err
     assert "no-data is not there" in err and "no-store is not there" in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+    # a folder of the user's own: the failed run leaves it as it was, with and without --force
+    out.mkdir()
+    (out / "mine.txt").write_text("mine")
+    for extra in ([], ["--force"]):
+        assert main(["train", str(cfg), "-o", str(out), "--steps", "1", "--threads", "1", *extra]) == 1
+        capsys.readouterr()
+        assert sorted(p.name for p in out.iterdir()) == ["mine.txt"] and (out / "mine.txt").read_text() == "mine"

@@ -173,6 +173,9 @@ class _Claim:
     layout: tuple = ()
     #: resumable: names (all present), or a function (location, names) -> bool
     legacy: Sequence[str] | Callable[..., bool] = ()
+    #: resumable, local: the top-level names before the run and whether the manifest was there
+    before: tuple | None = None
+    had_manifest: bool = False
 
 
 def _same_file(a: Path, b: Path) -> bool:
@@ -382,6 +385,8 @@ class OutputGuard:
             legacy=legacy if callable(legacy) else tuple(legacy),
             existed=names is not None,
         )
+        if isinstance(loc, LocalLocation) and names is not None:
+            c.before, c.had_manifest = tuple(names), (loc.root / MANIFEST_NAME).is_file()
         self._check_resumable(c, names or [])
         self.claims.append(c)
         return loc
@@ -498,13 +503,18 @@ class OutputGuard:
 
     def abandon(self) -> None:
         """After a run that made nothing: remove the resumable folders this run created that hold nothing but
-        its manifest (a failed run leaves no empty output folder behind)."""
+        its manifest, and the manifest it added to a folder that was there (a failed run leaves no trace)."""
         from .location import LocalLocation
 
         for c in self.claims:
-            if c.what != "resumable" or c.existed or not isinstance(c.location, LocalLocation):
+            if c.what != "resumable" or not isinstance(c.location, LocalLocation):
                 continue
             root = c.location.root
+            if c.existed:  # the user's folder: only the manifest this run added goes, if it added nothing else
+                with contextlib.suppress(OSError):
+                    if not c.had_manifest and c.before is not None and tuple(_listing(root)) == c.before:
+                        (root / MANIFEST_NAME).unlink(missing_ok=True)
+                continue
             with contextlib.suppress(OSError):
                 if not _listing(root):
                     for sub in [MANIFEST_NAME]:
