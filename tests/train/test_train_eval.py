@@ -261,3 +261,32 @@ def test_warmup_then_cosine_and_a_time_budget_that_fixes_the_step_count(syntheti
     bad.write_text("[optim]\nsteps = 50\nseconds = inf\nwarmup = 20\n")
     with pytest.raises(FileFormatError, match="finite"):
         load_train_config(bad, dataset=synthetic_dataset)
+
+
+def test_weight_decay_is_decoupled_and_off_by_default(synthetic_dataset, tmp_path, body):
+    """optim.weight_decay > 0 trains with AdamW at that decay (the residual shrinks towards the prior); 0 keeps
+    plain Adam, the optimiser of every earlier run; a bad value is refused with what was expected."""
+    from segadeform.errors import FileFormatError
+
+    cfgs = {}
+    for name, wd in (("plain", None), ("decay", 0.5)):
+        p = tmp_path / f"{name}.toml"
+        extra = f"weight_decay = {wd}\n" if wd is not None else ""
+        p.write_text("[model]\nhidden = 16\nlstm_hidden = 16\n[optim]\nsteps = 3\nframes = 2\n" + extra)
+        cfgs[name] = load_train_config(p, dataset=synthetic_dataset)
+        train(cfgs[name], tmp_path / name, body, log_every=10)
+    assert cfgs["plain"].optim.weight_decay == 0.0 and cfgs["decay"].optim.weight_decay == 0.5
+    opt = {n: torch.load(tmp_path / n / "last.pt", weights_only=False)["optimizer"] for n in cfgs}
+    assert opt["plain"]["param_groups"][0]["weight_decay"] == 0.0
+    assert opt["decay"]["param_groups"][0]["weight_decay"] == 0.5
+    assert (
+        "decoupled_weight_decay" not in opt["plain"]["param_groups"][0]
+        or not opt["plain"]["param_groups"][0]["decoupled_weight_decay"]
+    )
+    sd = {n: torch.load(tmp_path / n / "last.pt", weights_only=False)["state_dict"] for n in cfgs}
+    assert any(not torch.equal(sd["plain"][k], sd["decay"][k]) for k in sd["plain"])
+    bad = tmp_path / "bad.toml"
+    for v in ("-0.1", "1.5", "nan", "true"):
+        bad.write_text(f"[optim]\nsteps = 5\nweight_decay = {v}\n")
+        with pytest.raises(FileFormatError, match="weight_decay"):
+            load_train_config(bad, dataset=synthetic_dataset)

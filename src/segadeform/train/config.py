@@ -44,6 +44,8 @@ the previous one's)::
                                    # time the machine and fix the step count (at most `steps`) so the run ends
                                    # by then; needs warmup >= 20; train.json records the count (rerun it with
                                    # --steps N --seconds 0)
+    weight_decay = 0.0             # decoupled weight decay (AdamW; 0: Adam as before): a residual model's
+                                   # corrections shrink towards 0, which is its non-learned prior
 
     [physics]                      # self-supervision on pairs never simulated (segadeform.train.energies)
     pairs = "../datasets/continuum.toml"   # a dataset config: its training garments x bodies x motions
@@ -145,8 +147,16 @@ class OptimConfig:
     grad_clip: float = 1.0
     warmup: int = 0  # linear warm-up steps before the cosine decay (0: none)
     seconds: float = 0.0  # time budget of a run, loading included (0: off); the warm-up steps time the machine
+    weight_decay: float = 0.0  # decoupled weight decay (AdamW): pulls the residual towards 0, i.e. the prior
 
     def __post_init__(self):
+        if not (
+            isinstance(self.weight_decay, (int, float))
+            and not isinstance(self.weight_decay, bool)
+            and math.isfinite(self.weight_decay)
+            and 0 <= self.weight_decay < 1
+        ):
+            raise InputError("optim.weight_decay must be a number in [0, 1)", got=self.weight_decay)
         if not (isinstance(self.warmup, int) and not isinstance(self.warmup, bool) and 0 <= self.warmup):
             raise InputError("optim.warmup must be an integer >= 0", got=self.warmup)
         if self.warmup > self.steps:

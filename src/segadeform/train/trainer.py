@@ -271,7 +271,12 @@ def train(
         else []
     )
     model = SEGANet(m).to(device)
-    opt = torch.optim.Adam(model.parameters(), lr=o.lr)
+    # weight decay 0 keeps plain Adam (the optimiser every earlier run used, so its last.pt resumes)
+    opt = (
+        torch.optim.AdamW(model.parameters(), lr=o.lr, weight_decay=o.weight_decay)
+        if o.weight_decay > 0
+        else torch.optim.Adam(model.parameters(), lr=o.lr)
+    )
     # the step count: optim.steps, or under a time budget the count the warm-up's timing fixes (below)
     total = [o.steps]
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda s: o.lr_factor(s, total[0]))
