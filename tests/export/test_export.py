@@ -27,6 +27,7 @@ VARIANTS = {
     "lbs": dict(skinning="lbs"),
     "dqs": dict(skinning="dqs"),
     "lbs-noblend": dict(skinning="lbs", use_blend_shapes=False),
+    "lbs-drape": dict(skinning="lbs", static_blend=True),  # the motion-independent blend shape
 }
 
 
@@ -39,6 +40,8 @@ def packages(tmp_path_factory):
         with torch.no_grad():  # residual corrections on, so the exported graphs run every path
             net.weight_gate.fill_(0.7)
             net.blend_gate.fill_(0.5)
+            if net.cfg.static_blend:
+                net.static_gate.fill_(0.3)
         d = tmp_path_factory.mktemp(name)
         manifest = export_package(net, d / "pkg", check=False, variants=False, body=None)
         sessions = {

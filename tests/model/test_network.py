@@ -181,3 +181,42 @@ def test_residual_gates_learn_and_old_configs_load_free():
     assert ModelConfig.from_dict({"hidden": 32}).weights == "free"
     with pytest.raises(InputError, match="needs log_wbody"):
         net.deformer(*(d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans")))
+
+
+def test_static_blend_is_one_drape_for_every_frame_gated_from_zero_and_absent_from_old_configs():
+    """``static_blend``: B gains f^s([g, T]), the same (N, 3) for every frame and every motion window, added
+    before skinning; residual models start with its gate at 0 (exactly the model without it), the gate learns,
+    and configs saved before the field have none."""
+    torch.manual_seed(0)
+    cfg = ModelConfig(hidden=16, lstm_hidden=16, static_blend=True)
+    net = SEGANet(cfg).eval()
+    assert net.static_gate.item() == 0.0
+    plain = SEGANet(cfg.replace(static_blend=False)).eval()
+    plain.load_state_dict({k: v for k, v in net.state_dict().items() if not k.startswith("static")})
+    _, (v0, _, b0) = run(net)
+    _, (v1, _, b1) = run(plain)
+    assert torch.equal(b0, b1) and torch.allclose(v0, v1, atol=1e-6)  # gate 0: the model without the drape
+    with torch.no_grad():
+        net.static_gate.fill_(0.5)
+    d = {k: torch.as_tensor(x) for k, x in sample_inputs(cfg, "deformer", n=20, k=5, b=3).items()}
+    args = [d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans", "log_wbody")]
+    with torch.no_grad():
+        _, _, b_on = net.deformer(*args)
+        net.static_gate.zero_()
+        _, _, b_off = net.deformer(*args)
+        args[1] = torch.randn_like(args[1])  # another motion window: the drape is the same
+        net.static_gate.fill_(0.5)
+        _, _, b_on2 = net.deformer(*args)
+        net.static_gate.zero_()
+        _, _, b_off2 = net.deformer(*args)
+        drape = 0.5 * net.static(torch.cat([args[0], args[3]], dim=-1))
+    assert drape.abs().max() > 1e-4
+    for on, off in ((b_on, b_off), (b_on2, b_off2)):
+        assert torch.allclose(on - off, drape.expand_as(on), atol=1e-6)
+    net.train()
+    v, _, _ = net.deformer(*args)
+    v.sum().backward()
+    assert net.static_gate.grad.abs() > 0
+    assert ModelConfig.from_dict({"hidden": 32}).static_blend is False
+    with pytest.raises(InputError, match="static_blend"):
+        ModelConfig(static_blend=1)

@@ -42,6 +42,10 @@ class ModelConfig:
             "nearest" (closest body point) or "inpaint" (closest point where the garment lies on the
             body, harmonic inpainting elsewhere: segadeform.body.transfer).  Checkpoints and manifests
             without the field are "nearest".
+        static_blend: add a motion-independent blend shape ``B_s = f^s([g, T])`` (an MLP of each vertex's
+            garment code and rest position) to the decoder's ``B``: the garment's drape on the body, which the
+            decoder could reach only through the motion processors (its features are products with them).
+            Gated from 0 in residual models.  Checkpoints and manifests without the field have none.
     """
 
     n_joints: int = 24
@@ -63,6 +67,7 @@ class ModelConfig:
     use_blend_shapes: bool = True
     weights: str = "residual"
     weight_prior: str = "nearest"
+    static_blend: bool = False
 
     def __post_init__(self):
         ints = (
@@ -88,6 +93,8 @@ class ModelConfig:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and v > 0):
                 raise InputError(f"ModelConfig.{name} must be positive", got=v)
+        if not isinstance(self.static_blend, bool):
+            raise InputError("ModelConfig.static_blend must be true or false", got=self.static_blend)
         if self.skinning not in ("lbs", "dqs"):
             raise InputError("ModelConfig.skinning must be 'lbs' or 'dqs'", got=self.skinning)
         if self.weights not in ("residual", "free"):

@@ -49,7 +49,7 @@ from ..body.skeleton import SMPL_PARENTS
 from ..errors import FileFormatError, InputError
 from .config import ModelConfig
 from .kinematics import axis_angle_to_matrix, dqs, forward_kinematics, lbs, skinning_transforms
-from .modules import BodyShapeParser, GarmentTypeParser, GraphDecoder, GraphEncoder, MotionProcessor
+from .modules import MLP, BodyShapeParser, GarmentTypeParser, GraphDecoder, GraphEncoder, MotionProcessor
 from .sega import SEGABlock, TauLinear
 
 __all__ = ["SEGANet", "save_checkpoint", "load_checkpoint"]
@@ -80,9 +80,16 @@ class SEGANet(nn.Module):
         self.mo2 = MotionProcessor(cfg, cfg.f_enc * cfg.n_joints, with_betas=True) if cfg.use_blend_shapes else None
         self.dec = GraphDecoder(cfg) if cfg.use_blend_shapes else None
         self.residual = cfg.weights == "residual"
+        self.static = (
+            MLP([cfg.n_joints + 3, cfg.hidden, cfg.hidden, 3], cfg.tau if cfg.use_sega else None)
+            if cfg.static_blend
+            else None
+        )
         if self.residual:  # ReZero-style gates: the corrections start at exactly zero and still learn
             self.weight_gate = nn.Parameter(torch.zeros(()))
             self.blend_gate = nn.Parameter(torch.zeros(()))
+            if cfg.static_blend:
+                self.static_gate = nn.Parameter(torch.zeros(()))
 
     def freeze(self) -> SEGANet:
         """Fold every tau scaling into its weight (exact spectral norms); use before export."""
@@ -125,6 +132,9 @@ class SEGANet(nn.Module):
                 blend = self.blend_gate * blend
         else:
             blend = torch.zeros(b, g.shape[0], 3, dtype=g.dtype, device=g.device)
+        if self.static is not None:  # the drape: one (N, 3) blend shape for every frame
+            drape = self.static(torch.cat([g, rest], dim=-1))
+            blend = blend + (self.static_gate * drape if self.residual else drape)[None]
         verts = rest[None] + blend
         rot = axis_angle_to_matrix(window[:, 0].reshape(b, s, 3))
         g_fk = forward_kinematics(rot, joints, self.parents, trans)
