@@ -12,7 +12,7 @@ import pytest
 from segadeform.cli.main import main
 from segadeform.dataset import load_dataset_config, load_sample, quality_check, sample_plan
 from segadeform.dataset.config import QualitySpec
-from segadeform.errors import FileFormatError
+from segadeform.errors import FileFormatError, InputError
 from segadeform.geometry.primitives import grid_plane
 
 from ..conftest import SAMPLES
@@ -689,3 +689,39 @@ def test_gate_rejects_a_garment_that_slipped_off_the_body():
     r = quality_check(down, g.vertices, g.faces, bf, b.faces, spec, on_body=on)
     assert r.slipped > 0.5 and any(s.startswith("slipped") for s in r.reasons)
     assert not any(s.startswith("slipped") for s in quality_check(down, g.vertices, g.faces, bf, b.faces, spec).reasons)
+
+
+def test_the_gate_on_every_prefix_equals_judging_the_cut_clip_and_finds_the_longest_that_passes():
+    """FrameStats.report(spec, k) against quality_check on frames[:k] (the slow, obvious reference), for every
+    k of a clip whose cloth is clean for 6 frames, then sinks into the body, then jitters."""
+
+    from segadeform.dataset.quality import frame_stats, kept_frames
+
+    t = 10
+    b, bf = _body_frames(t)
+    v, f, x = _cloth(t)
+    x = x + np.random.default_rng(1).normal(0, 2e-4, x.shape)
+    x[6:] = b.rest_joints()[0][0] + (x[6:] - x[6:].mean(1, keepdims=True)) * 0.1  # inside from frame 6 on
+    x[8, 3] += [0.3, 0, 0]  # and a spike
+    spec = QualitySpec()
+    st = frame_stats(x, v, f, bf, b.faces, spec)
+    for k in range(1, t + 1):
+        want = dataclasses.asdict(quality_check(x[:k], v, f, bf[:k], b.faces, spec))
+        got = dataclasses.asdict(st.report(spec, k))
+        assert got.keys() == want.keys()
+        for key in want:
+            assert np.allclose(got[key], want[key]) if isinstance(want[key], float) else got[key] == want[key], key
+    whole = st.report(spec)
+    longest = max(k for k in range(1, t + 1) if quality_check(x[:k], v, f, bf[:k], b.faces, spec).ok)
+    assert not whole.ok and longest == 6 and whole.passing_frames == 6 and whole.frames == t
+    assert kept_frames(whole, spec) == 0  # whole clips only, by default
+    assert kept_frames(whole, dataclasses.replace(spec, min_frames=6)) == 6
+    assert kept_frames(whole, dataclasses.replace(spec, min_frames=7)) == 0
+    clean = frame_stats(x[:6], v, f, bf[:6], b.faces, spec).report(spec)
+    assert clean.ok and clean.passing_frames == 6 and kept_frames(clean, spec) == 6
+    y = x.copy()
+    y[0, 0] = np.nan
+    bad = frame_stats(y, v, f, bf, b.faces, spec).report(spec)
+    assert bad.reasons == ["non-finite positions"] and bad.passing_frames == 0
+    with pytest.raises(InputError, match="expected 1..10, got 11"):
+        st.report(spec, 11)

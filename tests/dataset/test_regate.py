@@ -9,7 +9,8 @@ from segadeform.body.model import default_body_path, load_body
 from segadeform.cli.main import main
 from segadeform.dataset import load_dataset_config
 from segadeform.dataset.make import regate
-from segadeform.dataset.store import Sample, list_samples, save_sample
+from segadeform.dataset.report import dataset_stats
+from segadeform.dataset.store import Sample, list_samples, load_sample, save_sample
 from segadeform.garments import make_garment
 
 _CFG = """
@@ -75,3 +76,34 @@ def test_regate_command(tmp_path, body, capsys):
     assert main(["dataset", "regate", str(cfg), "-o", str(root)]) == 0
     out = capsys.readouterr().out
     assert "stretched: now kept" in out and "1 pass the gate" in out
+
+
+def test_regate_keeps_the_leading_frames_that_pass_when_the_config_allows_a_cut_clip(tmp_path, body):
+    """[quality] min_frames: a clip that fails from frame 4 on is kept as its first 4 frames (arrays cut alike),
+    the log says so, and `dataset info` counts it; with min_frames above 4 it stays rejected."""
+    root = tmp_path / "ds"
+    calm, stretched = _sample(body, "late", 0.0), _sample(body, "late", 0.3)
+    s = Sample(**{**calm.__dict__, "frames": np.concatenate([calm.frames[:4], stretched.frames[4:]])})
+    save_sample(root, s, folder="rejected")
+    (root / "log.jsonl").write_text(
+        json.dumps({"id": "late", "split": "train", "kind": "skirt", "motion": "cmu-1", "status": "rejected"}) + "\n"
+    )
+    cfg = tmp_path / "cut.toml"
+    cfg.write_text(_CFG.format(strain=0.1) + "\n")
+    too_long = tmp_path / "too_long.toml"
+    too_long.write_text(_CFG.format(strain=0.1).replace("max_jitter = 1.0", "max_jitter = 1.0\nmin_frames = 5"))
+    assert regate(root, load_dataset_config(too_long)).moved == [] and list_samples(root) == []
+    ok = tmp_path / "ok.toml"
+    ok.write_text(_CFG.format(strain=0.1).replace("max_jitter = 1.0", "max_jitter = 1.0\nmin_frames = 3"))
+    r = regate(root, load_dataset_config(ok))
+    assert r.moved == [("late", "kept, 4 of 6 frames")] and list_samples(root) == ["late"]
+    kept = load_sample(root, "late")
+    assert kept.frames.shape[0] == kept.poses.shape[0] == kept.trans.shape[0] == 4
+    np.testing.assert_array_equal(kept.frames, s.frames[:4])
+    assert kept.meta["trimmed"]["clip_frames"] == 6 and any("strain" in x for x in kept.meta["trimmed"]["reasons"])
+    assert kept.meta["quality"]["ok"] and kept.meta["frames"] == 4 and not (root / "rejected" / "late.npz").exists()
+    st = dataset_stats(root)
+    assert (st["kept"], st["trimmed"], st["rejected"]) == (1, 1, 0)
+    assert st["by_kind_source"]["skirt / mocap"] == {"samples": 1, "rejected": 0, "rejection_rate": 0.0, "trimmed": 1}
+    # the same gate again changes nothing: the 4 frames pass whole
+    assert regate(root, load_dataset_config(ok)).moved == [] and load_sample(root, "late").frames.shape[0] == 4

@@ -52,3 +52,21 @@ def test_collision_loss_pushes_out_along_the_normal():
     g = x.grad[0]
     assert g[0].abs().sum() == 0  # clear of the margin: no force
     assert g[1, 1] < 0 and g[2, 1] < 0  # inside or too close: descent moves it up (out)
+
+
+def test_collision_loss_near_counts_only_vertices_simulated_near_the_body():
+    """collision_near: the tangent plane at a far simulated vertex's closest body point is no stand-in for the
+    body, so such vertices are left out (the mean stays over every vertex); 0 keeps every vertex."""
+    p = torch.zeros(1, 2, 3)
+    n = torch.tensor([0.0, 1.0, 0.0]).expand(1, 2, 3)
+    x = torch.tensor([[[0, -0.01, 0], [0, -0.01, 0]]], requires_grad=True)  # both below their planes
+    y = torch.tensor([[[0, 0.005, 0], [0, 0.2, 0]]])  # simulated: one touching the body, one 20 cm off it
+    full = L.collision_loss(x, p, n, margin=0.002, power=1)
+    near = L.collision_loss(x, p, n, margin=0.002, power=1, near=0.02, y=y)
+    assert abs(float(full) - 0.012) < 1e-6 and abs(float(near) - 0.006) < 1e-6
+    near.backward()
+    assert x.grad[0, 0, 1] < 0 and x.grad[0, 1].abs().sum() == 0
+    from segadeform.errors import InputError
+
+    with pytest.raises(InputError, match="needs the simulated vertices"):
+        L.collision_loss(x, p, n, near=0.02)

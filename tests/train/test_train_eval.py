@@ -290,3 +290,27 @@ def test_weight_decay_is_decoupled_and_off_by_default(synthetic_dataset, tmp_pat
         bad.write_text(f"[optim]\nsteps = 5\nweight_decay = {v}\n")
         with pytest.raises(FileFormatError, match="weight_decay"):
             load_train_config(bad, dataset=synthetic_dataset)
+
+
+def test_collision_near_trains_and_a_bad_value_is_refused(synthetic_dataset, tmp_path, body):
+    """loss.collision_near reaches the loss (a run with it differs from one without) and must be >= 0 metres."""
+    from segadeform.errors import FileFormatError
+
+    sd = {}
+    for name, near in (("all", None), ("near", 0.001)):
+        p = tmp_path / f"{name}.toml"
+        extra = f"collision_near = {near}\n" if near is not None else ""
+        p.write_text(
+            "[model]\nhidden = 16\nlstm_hidden = 16\n[loss]\ncollision = 1000.0\ncollision_power = 1\n"
+            "collision_margin = 0.05\n" + extra + "[optim]\nsteps = 3\nframes = 2\n"
+        )
+        cfg = load_train_config(p, dataset=synthetic_dataset)
+        assert cfg.loss.collision_near == (near or 0.0)
+        train(cfg, tmp_path / name, body, log_every=10)
+        sd[name] = torch.load(tmp_path / name / "last.pt", weights_only=False)["state_dict"]
+    assert any(not torch.equal(sd["all"][k], sd["near"][k]) for k in sd["all"])
+    bad = tmp_path / "bad.toml"
+    for v in ("-0.01", "nan"):
+        bad.write_text(f"[loss]\ncollision_near = {v}\n")
+        with pytest.raises(FileFormatError, match="collision_near"):
+            load_train_config(bad, dataset=synthetic_dataset)

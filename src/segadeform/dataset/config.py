@@ -26,6 +26,9 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
                               # on thigh), counted apart from penetration: largest fraction, any frame
     max_slipped = 0.05        # of the vertices on the body at rest (waistband, shoulders, cuffs), the
     slip_distance = 0.08      # largest fraction farther than slip_distance (m) from it in any frame
+    min_frames = 0            # a clip that fails keeps its leading frames that pass when there are at least
+                              # this many (the simulation is causal: they are the shorter clip's ground
+                              # truth); 0: a clip is kept whole or not at all
 
     [simulate]                # as in a scene (segadeform.settings.simulation)
     effects = ["gravity", "body_collision", "bending", "air_damping"]
@@ -126,6 +129,9 @@ class QualitySpec:
     max_pinched: float = 0.05  # largest fraction of vertices inside the body where two body parts touch
     max_slipped: float = 0.05  # largest fraction of the vertices on the body at rest ...
     slip_distance: float = 0.08  # ... farther than this from it (m), any frame
+    # a clip that fails keeps its longest passing run of leading frames when it is at least this long (0: whole
+    # clips only); the simulation is causal, so those frames are the ground truth of the shorter clip
+    min_frames: int = dataclasses.field(default=0, metadata={"range": (0, 100_000)})
 
 
 @dataclasses.dataclass(frozen=True)

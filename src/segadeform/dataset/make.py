@@ -57,7 +57,7 @@ from ..io.location import LocalLocation, Location, open_location
 from ..motion import face_forward, load_motion, make_motion, resample
 from ..motion.motion import drop_leading_jumps, drop_leading_tpose, ramp_in
 from .config import DatasetConfig, GarmentSpec, MotionEntry
-from .quality import BodyParts, on_body_at_rest, quality_check
+from .quality import BodyParts, frame_stats, kept_frames, on_body_at_rest
 from .store import Sample, load_sample, save_sample
 
 __all__ = [
@@ -400,6 +400,20 @@ def _committed(loc: Location, sid: str) -> dict | None:
     return None
 
 
+def _trim_record(full) -> dict:
+    """What a kept sample records of the whole clip it was cut from (its ``trimmed`` metadata)."""
+    return {"clip_frames": full.frames, "reasons": list(full.reasons), "quality": full.to_dict()}
+
+
+def trim_sample(s: Sample, frames: int) -> Sample:
+    """Sample ``s`` cut to its first ``frames`` frames (frames, poses, translations and contacts alike)."""
+    cut = {k: getattr(s, k)[:frames] for k in ("poses", "trans", "frames")}
+    for k in ("contact_p", "contact_n"):
+        if getattr(s, k) is not None:
+            cut[k] = getattr(s, k)[:frames]
+    return dataclasses.replace(s, **cut)
+
+
 def _run_one(
     root, cfg: DatasetConfig, ps: PlannedSample, body_path: str | None, sim_python, provision: bool = False
 ) -> dict:
@@ -458,7 +472,7 @@ def _run_one(
     # strain against the cloth's own rest (the A-posed garment when the simulation rests there)
     strain_rest = res.cloth_rest if res.cloth_rest is not None else mesh.vertices
     parts = BodyParts.of(body, betas or None)
-    q = quality_check(
+    st = frame_stats(
         res.frames,
         strain_rest,
         mesh.faces,
@@ -469,6 +483,13 @@ def _run_one(
         parts=parts,
         on_body=on_body_at_rest(mesh.vertices, parts.rest, body.faces),
     )
+    q = st.report(cfg.quality)
+    keep = kept_frames(q, cfg.quality)
+    trimmed = None
+    if 0 < keep < q.frames:  # a clip that fails later on keeps the leading frames that pass
+        trimmed = _trim_record(q)
+        q = st.report(cfg.quality, keep)
+        rec["frames"] = keep
     rec.update(
         quality=q.to_dict(),
         seconds_per_frame=res.seconds_per_frame,
@@ -478,6 +499,8 @@ def _run_one(
     )
     # a rejected sample keeps its arrays too: another gate can be applied later without simulating (regate)
     rec.update(status="kept" if q.ok else "rejected", **({} if q.ok else {"reasons": q.reasons}))
+    if trimmed is not None:
+        rec["trimmed"] = trimmed
     meta = dict(
         rec,
         fps=motion.fps,
@@ -490,25 +513,24 @@ def _run_one(
         body_sha256=body_sha256(body),
     )
     finite = np.isfinite(res.frames).all()
-    committed = save_sample(
-        loc,
-        Sample(
-            id=ps.id,
-            rest=mesh.vertices,
-            faces=mesh.faces,
-            betas=np.asarray(betas, np.float64),
-            poses=motion.poses,
-            trans=motion.trans,
-            frames=res.frames.astype(np.float32),
-            meta=meta,
-            contact_p=contact["closest"] if finite else None,
-            contact_n=contact["normal"] if finite else None,
-            cloth_rest=None
-            if res.cloth_rest is None or strain_rest is mesh.vertices
-            else np.asarray(res.cloth_rest, np.float64),
-        ),
-        folder="samples" if q.ok else "rejected",
+    sample = Sample(
+        id=ps.id,
+        rest=mesh.vertices,
+        faces=mesh.faces,
+        betas=np.asarray(betas, np.float64),
+        poses=motion.poses,
+        trans=motion.trans,
+        frames=res.frames.astype(np.float32),
+        meta=meta,
+        contact_p=contact["closest"] if finite else None,
+        contact_n=contact["normal"] if finite else None,
+        cloth_rest=None
+        if res.cloth_rest is None or strain_rest is mesh.vertices
+        else np.asarray(res.cloth_rest, np.float64),
     )
+    if trimmed is not None:
+        sample = trim_sample(sample, keep)
+    committed = save_sample(loc, sample, folder="samples" if q.ok else "rejected")
     if not committed:  # another attempt of this task committed it first: its record is the one
         return _committed(loc, ps.id)
     rec["seconds"] = time.perf_counter() - t0
@@ -622,6 +644,14 @@ class RegateSummary:
     skipped: list  # ids of rejected samples with no arrays (rejected before arrays were kept)
 
 
+def _rewrite_sample(root: Path, s: Sample, folder: str) -> None:
+    """Replace a committed sample of the local dataset ``root`` by ``s`` (regate's trim of a sample it keeps in
+    place): its metadata goes first, so that a run stopped in between leaves a sample to make again, never
+    metadata that names arrays of another length."""
+    (root / folder / f"{s.id}.json").unlink()
+    save_sample(root, s, folder=folder)
+
+
 def regate(
     out, cfg: DatasetConfig, *, body_path: Path | None = None, progress: Callable[[str], None] | None = None
 ) -> RegateSummary:
@@ -651,7 +681,7 @@ def regate(
             posed = body.forward(s.poses, betas, s.trans).vertices
             rest = s.cloth_rest if s.cloth_rest is not None else s.rest
             parts = BodyParts.of(body, betas)
-            q = quality_check(
+            st = frame_stats(
                 s.frames,
                 rest,
                 s.faces,
@@ -661,20 +691,42 @@ def regate(
                 parts=parts,
                 on_body=on_body_at_rest(s.rest, parts.rest, body.faces),
             )
+            q = st.report(cfg.quality)
+            keep = kept_frames(q, cfg.quality)
+            meta = {k: v for k, v in s.meta.items() if k != "reasons"}
+            trim = 0 < keep < q.frames
+            if trim:  # kept as its leading frames that pass (the tail that failed is not kept)
+                meta["trimmed"] = {
+                    **_trim_record(q),
+                    "clip_frames": s.meta.get("trimmed", {}).get("clip_frames", q.frames),
+                }
+                q = st.report(cfg.quality, keep)
+                meta["frames"] = keep
             kept += q.ok
             rejected += not q.ok
             now = "samples" if q.ok else "rejected"
-            meta = {k: v for k, v in s.meta.items() if k != "reasons"}
             meta.update(quality=q.to_dict(), status="kept" if q.ok else "rejected")
             if not q.ok:
                 meta["reasons"] = q.reasons
-            if now == folder:
+            if now != folder or trim:  # the log follows (dataset info reads it): what changed, merged by id
+                upd = {k: meta[k] for k in ("id", "status", "quality", "frames", "reasons", "trimmed") if k in meta}
+                loc.append_text("log.jsonl", json.dumps({**upd, "regated": True}) + "\n")
+            if now == folder and not trim:
                 loc.put_bytes(f"{folder}/{sid}.json", json.dumps(meta, indent=1, sort_keys=True).encode("utf-8"))
                 continue
-            save_sample(root, dataclasses.replace(s, meta=meta), folder=now)
+            s = dataclasses.replace(s, meta=meta)
+            if trim:
+                s = trim_sample(s, keep)
+            if now == folder:  # trimmed in place: the arrays first, then the metadata that names their length
+                _rewrite_sample(root, s, folder)
+                moved.append((sid, "kept, trimmed"))
+                continue
+            save_sample(root, s, folder=now)
             meta_p.unlink()
             (d / f"{sid}.npz").unlink()
-            moved.append((sid, meta["status"]))
+            moved.append(
+                (sid, meta["status"] + (f", {keep} of {meta['trimmed']['clip_frames']} frames" if trim else ""))
+            )
     return RegateSummary(kept=kept, rejected=rejected, moved=moved, skipped=skipped)
 
 

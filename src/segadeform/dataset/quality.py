@@ -39,7 +39,16 @@ from ..body.untangle import vertex_parts
 from ..errors import InputError
 from ..geometry.mesh_ops import connected_components, unique_edges
 
-__all__ = ["QualityReport", "quality_check", "BodyParts", "pinched", "on_body_at_rest"]
+__all__ = [
+    "QualityReport",
+    "FrameStats",
+    "frame_stats",
+    "quality_check",
+    "kept_frames",
+    "BodyParts",
+    "pinched",
+    "on_body_at_rest",
+]
 
 
 @dataclasses.dataclass
@@ -55,6 +64,8 @@ class QualityReport:
     pinched: float = 0.0  # fraction of vertices inside the body where two body parts touch, worst frame
     pinched_edges: float = 0.0  # fraction of edges past max_strain only where pinched
     slipped: float = 0.0  # fraction of the on-body vertices far from the body, worst frame
+    passing_frames: int = 0  # how many leading frames pass the gate (all of them when ok)
+    frames: int = 0  # how many frames were judged
 
     @property
     def ok(self) -> bool:
@@ -114,6 +125,204 @@ def on_body_at_rest(rest, body_rest, body_faces, *, within: float = 0.015) -> np
     return np.abs(q.signed_distance) < within
 
 
+@dataclasses.dataclass(frozen=True)
+class FrameStats:
+    """What the gate measured of each frame of a clip, from which the verdict on any leading run of its frames
+    (a prefix) follows without measuring again (:meth:`report`, :meth:`passing_prefix`).
+
+    Shapes: strain (T, E) ``|l / l_rest - 1|``; pen, pinch, far, slip (T,) the fractions of the checks of
+    :func:`quality_check`; tear_from, pinch_from (E,) the first frame an edge is over the strain limit where
+    neither end is pinched / only where one is (T: never); jitter (T - 2,) acceleration outliers per frame
+    (vertex count).  ``finite``: no NaN or inf anywhere; ``n`` vertices."""
+
+    finite: bool
+    strain: np.ndarray
+    pen: np.ndarray
+    pinch: np.ndarray
+    far: np.ndarray
+    slip: np.ndarray
+    tear_from: np.ndarray
+    pinch_from: np.ndarray
+    jitter: np.ndarray
+    n: int
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.pen)
+
+    def _prefix_ok(self, spec) -> np.ndarray:
+        """(T + 1,) bool: whether the first k frames pass the gate, k = 0 .. T (cheap: running maxima)."""
+        t = self.n_frames
+        ks = np.arange(t + 1)
+        ok = np.ones(t + 1, bool)
+        for series, bound in (
+            (self.pen, spec.max_penetrating),
+            (self.pinch, spec.max_pinched),
+            (self.slip, spec.max_slipped),
+        ):
+            worst = np.concatenate([[0.0], np.maximum.accumulate(series)]) if t else np.zeros(1)
+            ok &= worst <= bound
+        far = np.concatenate([[0.0], np.maximum.accumulate(self.far)]) if t else np.zeros(1)
+        ok &= far <= 0
+        n_e = max(len(self.tear_from), 1)
+        torn = np.searchsorted(np.sort(self.tear_from), ks, side="left") / n_e  # edges torn before frame k
+        ok &= torn <= spec.max_strained_edges
+        jit = np.zeros(t + 1)
+        if t >= 3:
+            c = np.cumsum(self.jitter)  # outliers of the frames 1 .. k-2 (second differences of the first k)
+            k = ks[3:]
+            jit[3:] = c[k - 3] / ((k - 2) * max(self.n, 1))
+        ok &= jit <= spec.max_jitter
+        ok[0] = False
+        return ok
+
+    def passing_prefix(self, spec, within: int | None = None) -> int:
+        """The largest k (at most ``within``, the whole clip by default) for which the clip's first k frames pass
+        the gate; 0 when none does.  The simulation is causal, so those frames are exactly what a clip k frames
+        long gives."""
+        if not self.finite:
+            return 0
+        ok = self._prefix_ok(spec)[: (self.n_frames if within is None else within) + 1]
+        good = np.flatnonzero(ok)
+        return int(good[-1]) if len(good) else 0
+
+    def report(self, spec, frames: int | None = None) -> QualityReport:
+        """The gate's verdict on the first ``frames`` frames (all by default)."""
+        if not self.finite:
+            return QualityReport(
+                False, float("nan"), float("nan"), float("nan"), float("nan"), ["non-finite positions"], float("nan")
+            )
+        k = self.n_frames if frames is None else int(frames)
+        if not 1 <= k <= self.n_frames:
+            raise InputError("frames must be within the clip", expected=f"1..{self.n_frames}", got=k)
+        strain = self.strain[:k]
+        pen = float(self.pen[:k].max())
+        pinch = float(self.pinch[:k].max())
+        far = float(self.far[:k].max())
+        slip = float(self.slip[:k].max())
+        tear = self.tear_from < k
+        pinch_e = self.pinch_from < k
+        jit = float(self.jitter[: k - 2].sum() / ((k - 2) * max(self.n, 1))) if k >= 3 else 0.0
+        reasons = []
+        over = float(tear.mean()) if len(tear) else 0.0  # edges strained past the bound in some frame, pinches aside
+        pinch_edges = float((pinch_e & ~tear).mean()) if len(tear) else 0.0
+        if over > spec.max_strained_edges:
+            reasons.append(
+                f"strain {strain.max():.2f} > {spec.max_strain}"
+                + (
+                    f" on {100 * over:.2f}% of edges > {100 * spec.max_strained_edges:.2f}%"
+                    if spec.max_strained_edges > 0
+                    else ""
+                )
+            )
+        if pen > spec.max_penetrating:
+            reasons.append(f"penetration {100 * pen:.2f}% of vertices > {100 * spec.max_penetrating:.2f}%")
+        if pinch > spec.max_pinched:
+            reasons.append(f"pinched {100 * pinch:.2f}% of vertices > {100 * spec.max_pinched:.2f}%")
+        if jit > spec.max_jitter:
+            reasons.append(f"jitter {100 * jit:.3f}% > {100 * spec.max_jitter:.3f}%")
+        if slip > spec.max_slipped:
+            reasons.append(
+                f"slipped: {100 * slip:.1f}% of the vertices on the body at rest farther than "
+                f"{spec.slip_distance} m from it > {100 * spec.max_slipped:.1f}%"
+            )
+        if far > 0:
+            reasons.append(
+                f"detached: {100 * far:.2f}% of vertices in a piece farther than {spec.max_body_distance} m "
+                f"from the body or farther than {spec.max_vertex_distance} m themselves"
+            )
+        size = strain.size
+        return QualityReport(
+            True,
+            float(strain.max()) if size else 0.0,
+            float(np.percentile(strain, 99)) if size else 0.0,
+            pen,
+            jit,
+            reasons,
+            over,
+            far,
+            pinch,
+            pinch_edges,
+            slip,
+            passing_frames=self.passing_prefix(spec, k),
+            frames=k,
+        )
+
+
+def frame_stats(
+    frames,
+    rest,
+    faces,
+    body_frames,
+    body_faces,
+    spec,
+    *,
+    contact: dict | None = None,
+    parts: BodyParts | None = None,
+    on_body=None,
+) -> FrameStats:
+    """The gate's measurements of every frame (:class:`FrameStats`); arguments as :func:`quality_check`'s.
+
+    Shapes: frames (T, N, 3), rest (N, 3), faces (F, 3), body_frames (T, V, 3) -> FrameStats."""
+    x = np.asarray(frames, np.float64)
+    e = unique_edges(faces, len(rest))
+    t_n = len(x)
+    if not np.isfinite(x).all():
+        z = np.zeros(t_n)
+        return FrameStats(
+            False, np.zeros((t_n, len(e))), z, z, z, z, np.full(len(e), t_n), np.full(len(e), t_n), z, x.shape[1]
+        )
+    l0 = np.linalg.norm(rest[e[:, 0]] - rest[e[:, 1]], axis=1)
+    length = np.linalg.norm(x[:, e[:, 0]] - x[:, e[:, 1]], axis=2)
+    strain = np.abs(length / np.maximum(l0, 1e-12) - 1)
+    over_t = strain > spec.max_strain  # (T, E)
+    proxy = None
+    pen, pinch, far, slip = (np.zeros(t_n) for _ in range(4))
+    n_comp, comp = connected_components(faces, len(rest))
+    if on_body is not None:
+        on_body = np.asarray(on_body, bool)
+        if on_body.shape != (len(rest),):
+            raise InputError("on_body must be (N,) bool", expected=(len(rest),), got=on_body.shape)
+    tear_from = np.full(len(e), t_n)  # first frame an edge is over the limit where neither end is pinched
+    pinch_from = np.full(len(e), t_n)  # ... where one end is
+    if contact is not None:
+        contact["closest"] = np.empty(x.shape, np.float32)
+        contact["normal"] = np.empty(x.shape, np.float32)
+    for t in range(t_n):
+        proxy = BodyProxy(body_frames[t], body_faces) if proxy is None else proxy.moved(body_frames[t])
+        q = proxy.query(x[t])
+        inside = q.signed_distance < -spec.penetration_depth
+        hot = np.flatnonzero(over_t[t])
+        if parts is not None and (inside.any() or len(hot)):
+            ask = np.union1d(np.flatnonzero(inside), e[hot].ravel())
+            pin = np.zeros(len(x[t]), bool)
+            pin[ask] = pinched(x[t][ask], np.maximum(-q.signed_distance[ask], 0.0), body_frames[t], parts)
+            pinch[t] = float((inside & pin).mean())
+            inside &= ~pin
+            by_pinch = pin[e[hot, 0]] | pin[e[hot, 1]]
+            pinch_from[hot[by_pinch]] = np.minimum(pinch_from[hot[by_pinch]], t)
+            tear_from[hot[~by_pinch]] = np.minimum(tear_from[hot[~by_pinch]], t)
+        else:
+            tear_from[hot] = np.minimum(tear_from[hot], t)
+        pen[t] = float(inside.mean())
+        dist = np.abs(q.signed_distance)
+        near = np.full(n_comp, np.inf)
+        np.minimum.at(near, comp, dist)  # each piece's nearest vertex to the body
+        lost = (near[comp] > spec.max_body_distance) | (dist > spec.max_vertex_distance)
+        far[t] = float(lost.mean())
+        if on_body is not None and on_body.any():
+            slip[t] = float((dist[on_body] > spec.slip_distance).mean())
+        if contact is not None:
+            contact["closest"][t], contact["normal"][t] = q.closest, q.normal
+    jitter = np.zeros(max(t_n - 2, 0))
+    if t_n >= 3:
+        acc = np.linalg.norm(x[2:] - 2 * x[1:-1] + x[:-2], axis=2)  # (T-2, N)
+        b = np.asarray(body_frames, np.float64)
+        bacc = np.linalg.norm(b[2:] - 2 * b[1:-1] + b[:-2], axis=2).max(axis=1)  # (T-2,)
+        jitter = (acc > 3 * bacc[:, None] + 0.01).sum(axis=1).astype(np.float64)
+    return FrameStats(True, strain, pen, pinch, far, slip, tear_from, pinch_from, jitter, x.shape[1])
+
+
 def quality_check(
     frames,
     rest,
@@ -134,101 +343,20 @@ def quality_check(
     every penetrating vertex and strained edge counts.
     ``on_body``: (N,) bool, the vertices that lie on the body at rest (:func:`on_body_at_rest`), for the
     slipped check; without it the check is skipped.
+
+    The report is the verdict on the whole clip; its ``passing_frames`` is how many leading frames pass
+    (:meth:`FrameStats.passing_prefix`), which a dataset with ``[quality] min_frames`` keeps of a clip that
+    fails later on.
     """
-    x = np.asarray(frames, np.float64)
-    if not np.isfinite(x).all():
-        return QualityReport(
-            False, float("nan"), float("nan"), float("nan"), float("nan"), ["non-finite positions"], float("nan")
-        )
-    e = unique_edges(faces, len(rest))
-    l0 = np.linalg.norm(rest[e[:, 0]] - rest[e[:, 1]], axis=1)
-    length = np.linalg.norm(x[:, e[:, 0]] - x[:, e[:, 1]], axis=2)
-    strain = np.abs(length / np.maximum(l0, 1e-12) - 1)
-    over_t = strain > spec.max_strain  # (T, E)
-    proxy = None
-    pen = pinch = 0.0
-    far = 0.0
-    n_comp, comp = connected_components(faces, len(rest))
-    slip = 0.0
-    if on_body is not None:
-        on_body = np.asarray(on_body, bool)
-        if on_body.shape != (len(rest),):
-            raise InputError("on_body must be (N,) bool", expected=(len(rest),), got=on_body.shape)
-    tear = np.zeros(len(e), bool)  # edges over the limit in some frame where neither end is pinched
-    pinch_e = np.zeros(len(e), bool)
-    if contact is not None:
-        contact["closest"] = np.empty(x.shape, np.float32)
-        contact["normal"] = np.empty(x.shape, np.float32)
-    for t in range(len(x)):
-        proxy = BodyProxy(body_frames[t], body_faces) if proxy is None else proxy.moved(body_frames[t])
-        q = proxy.query(x[t])
-        inside = q.signed_distance < -spec.penetration_depth
-        hot = np.flatnonzero(over_t[t])
-        if parts is not None and (inside.any() or len(hot)):
-            ask = np.union1d(np.flatnonzero(inside), e[hot].ravel())
-            pin = np.zeros(len(x[t]), bool)
-            pin[ask] = pinched(x[t][ask], np.maximum(-q.signed_distance[ask], 0.0), body_frames[t], parts)
-            pinch = max(pinch, float((inside & pin).mean()))
-            inside &= ~pin
-            by_pinch = pin[e[hot, 0]] | pin[e[hot, 1]]
-            pinch_e[hot[by_pinch]] = True
-            tear[hot[~by_pinch]] = True
-        else:
-            tear[hot] = True
-        pen = max(pen, float(inside.mean()))
-        dist = np.abs(q.signed_distance)
-        near = np.full(n_comp, np.inf)
-        np.minimum.at(near, comp, dist)  # each piece's nearest vertex to the body
-        lost = (near[comp] > spec.max_body_distance) | (dist > spec.max_vertex_distance)
-        far = max(far, float(lost.mean()))
-        if on_body is not None and on_body.any():
-            slip = max(slip, float((dist[on_body] > spec.slip_distance).mean()))
-        if contact is not None:
-            contact["closest"][t], contact["normal"][t] = q.closest, q.normal
-    jit = 0.0
-    if len(x) >= 3:
-        acc = np.linalg.norm(x[2:] - 2 * x[1:-1] + x[:-2], axis=2)  # (T-2, N)
-        b = np.asarray(body_frames, np.float64)
-        bacc = np.linalg.norm(b[2:] - 2 * b[1:-1] + b[:-2], axis=2).max(axis=1)  # (T-2,)
-        jit = float((acc > 3 * bacc[:, None] + 0.01).mean())
-    reasons = []
-    over = float(tear.mean())  # edges strained past the bound in some frame, pinches aside
-    pinch_edges = float((pinch_e & ~tear).mean())
-    if over > spec.max_strained_edges:
-        reasons.append(
-            f"strain {strain.max():.2f} > {spec.max_strain}"
-            + (
-                f" on {100 * over:.2f}% of edges > {100 * spec.max_strained_edges:.2f}%"
-                if spec.max_strained_edges > 0
-                else ""
-            )
-        )
-    if pen > spec.max_penetrating:
-        reasons.append(f"penetration {100 * pen:.2f}% of vertices > {100 * spec.max_penetrating:.2f}%")
-    if pinch > spec.max_pinched:
-        reasons.append(f"pinched {100 * pinch:.2f}% of vertices > {100 * spec.max_pinched:.2f}%")
-    if jit > spec.max_jitter:
-        reasons.append(f"jitter {100 * jit:.3f}% > {100 * spec.max_jitter:.3f}%")
-    if slip > spec.max_slipped:
-        reasons.append(
-            f"slipped: {100 * slip:.1f}% of the vertices on the body at rest farther than "
-            f"{spec.slip_distance} m from it > {100 * spec.max_slipped:.1f}%"
-        )
-    if far > 0:
-        reasons.append(
-            f"detached: {100 * far:.2f}% of vertices in a piece farther than {spec.max_body_distance} m "
-            f"from the body or farther than {spec.max_vertex_distance} m themselves"
-        )
-    return QualityReport(
-        True,
-        float(strain.max()),
-        float(np.percentile(strain, 99)),
-        pen,
-        jit,
-        reasons,
-        over,
-        far,
-        pinch,
-        pinch_edges,
-        slip,
-    )
+    st = frame_stats(frames, rest, faces, body_frames, body_faces, spec, contact=contact, parts=parts, on_body=on_body)
+    return st.report(spec)
+
+
+def kept_frames(report: QualityReport, spec) -> int:
+    """How many leading frames of a judged clip a dataset keeps: all when the whole clip passes, else its passing
+    prefix when ``spec.min_frames`` (> 0) allows one that long, else 0 (rejected)."""
+    if report.ok:
+        return report.frames
+    if spec.min_frames > 0 and report.passing_frames >= spec.min_frames:
+        return report.passing_frames
+    return 0

@@ -1,5 +1,6 @@
 """Statistics of a dataset folder from its log (what `segadeform dataset info` prints): kept and
-rejected samples, rejection rates per garment kind and per motion, reasons, seconds per frame by
+rejected samples (and the kept ones cut to the frames that pass: ``[quality] min_frames``), rejection rates per
+garment kind and per motion, reasons, seconds per frame by
 size, and kept samples per hour of the runs that made it."""
 
 from __future__ import annotations
@@ -24,6 +25,9 @@ def dataset_stats(folder) -> dict:
     for line in p.read_text().splitlines():
         if line.strip():
             r = json.loads(line)
+            if r.get("regated") and r["id"] in last:  # `dataset regate`'s verdict on a sample made before
+                r = {**last[r["id"]], **r}
+                r.pop("reasons" if r["status"] == "kept" else "trimmed", None)
             last[r["id"]] = r  # a re-run sample counts once, as last finished
     recs = list(last.values())
     kept = [r for r in recs if r["status"] == "kept"]
@@ -35,17 +39,22 @@ def dataset_stats(folder) -> dict:
             by[(r["garment"], r["vertices"])].append(r["seconds_per_frame"])
 
     def rates(key):
-        groups = collections.defaultdict(lambda: [0, 0])
+        groups = collections.defaultdict(lambda: [0, 0, 0])
         for r in recs:
             groups[r.get(key)][0] += 1
             groups[r.get(key)][1] += r["status"] != "kept"
-        return {str(k): {"samples": n, "rejected": b, "rejection_rate": b / n} for k, (n, b) in sorted(groups.items())}
+            groups[r.get(key)][2] += r["status"] == "kept" and "trimmed" in r
+        return {
+            str(k): {"samples": n, "rejected": b, "rejection_rate": b / n, "trimmed": c}
+            for k, (n, b, c) in sorted(groups.items())
+        }
 
     for r in recs:  # what drove the body: motion capture (CMU clips, named cmu-...) or procedural motion
         r["source"] = "mocap" if str(r.get("motion", "")).startswith("cmu-") else "procedural"
         r["kind_source"] = f"{r.get('kind')} / {r['source']}"
     return {
         "kept": len(kept),
+        "trimmed": sum("trimmed" in r for r in kept),  # kept as the leading frames of a clip that failed later
         "rejected": len(rej),
         "rejection_rate": len(rej) / max(len(recs), 1),
         "by_kind": rates("kind"),

@@ -28,6 +28,8 @@ the previous one's)::
     collision = 1.0                # depth inside the body plus a margin (physics)
     collision_margin = 0.002
     collision_power = 2            # 2: mean squared depth (as before); 1: mean depth (m), the vertex term's unit
+    collision_near = 0.0           # > 0: only vertices whose simulated position lies within this of the body (m),
+                                   # where the plane at its closest body point stands for the body; 0: every vertex
     skin_prior = 1.0               # pull the skinning weights towards the body's (nearest point) ...
     skin_prior_until = 0.5         # ... fading out by half-way (NCS notes transferred weights speed convergence)
 
@@ -90,6 +92,9 @@ class LossWeights:
     collision: float = 1.0
     collision_margin: float = 0.002
     collision_power: int = 2  # 2: mean squared depth below the margin; 1: mean depth (m)
+    # > 0: the term counts only vertices whose simulated position is within this of the body (m): the tangent
+    # plane at a far vertex's closest body point is no stand-in for the body (0: every vertex, as before)
+    collision_near: float = 0.0
     skin_prior: float = 1.0  # mean squared distance of the skinning weights to the body's, transferred
     skin_prior_until: float = 0.5  # ... decaying linearly to 0 at this fraction of the steps
 
@@ -343,6 +348,8 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
         raise FileFormatError("physics.pairs is not a file", path=p, got=str(pairs))
     if loss.collision_power not in (1, 2):
         raise FileFormatError("loss.collision_power must be 1 or 2", path=p, got=loss.collision_power)
+    if not loss.collision_near >= 0:
+        raise FileFormatError("loss.collision_near must be >= 0 (m)", path=p, got=loss.collision_near)
     if optim.device not in ("auto", "cpu", "cuda"):
         raise FileFormatError("optim.device must be auto, cpu or cuda", path=p, got=optim.device)
     if optim.steps < 1 or optim.frames < 1 or optim.garments < 1 or not optim.lr > 0:

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import torch
 
+from ..errors import InputError
+
 __all__ = [
     "vertex_normals",
     "vertex_loss",
@@ -75,8 +77,20 @@ def gravity_loss(x, rest, g: float = 9.81):
     return (g * (x[..., 1] - rest[None, :, 1])).mean()
 
 
-def collision_loss(x, body_p, body_n, margin: float = 0.002, power: int = 2):
+def collision_loss(x, body_p, body_n, margin: float = 0.002, power: int = 2, near: float = 0.0, y=None):
     """Mean depth below ``margin`` above the body surface (closest point and normal given), squared
-    (``power`` 2) or not (1: metres, the unit of :func:`vertex_loss`)."""
+    (``power`` 2) or not (1: metres, the unit of :func:`vertex_loss`).
+
+    ``body_p``, ``body_n`` are the closest body point to each *simulated* vertex ``y`` and the normal there: the
+    body is replaced by that tangent plane, which stands for it only near the contact.  ``near`` > 0 counts only
+    the vertices whose simulated position is within ``near`` of the plane (``y`` required); the mean is still
+    over every vertex, so the term's scale does not depend on how many are near.
+
+    Shapes: x, body_p, body_n, y (..., N, 3) -> ()"""
     d = ((x - body_p) * body_n).sum(-1)
-    return torch.relu(margin - d).pow(power).mean()
+    depth = torch.relu(margin - d).pow(power)
+    if near > 0:
+        if y is None:
+            raise InputError("collision_loss with near > 0 needs the simulated vertices y")
+        depth = depth * (((y - body_p) * body_n).sum(-1) < near)
+    return depth.mean()

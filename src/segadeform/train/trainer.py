@@ -83,7 +83,7 @@ def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_sc
         "shear": L.shear_loss(verts, item.rest, item.faces),
         "gravity": L.gravity_loss(verts, item.rest),
         "collision": L.collision_loss(
-            verts, item.contact_p[t], item.contact_n[t], w.collision_margin, w.collision_power
+            verts, item.contact_p[t], item.contact_n[t], w.collision_margin, w.collision_power, w.collision_near, y
         ),
         "skin_prior": ((weights - item.body_weights[None]) ** 2).sum(-1).mean(),
     }
