@@ -725,3 +725,61 @@ def test_the_gate_on_every_prefix_equals_judging_the_cut_clip_and_finds_the_long
     assert bad.reasons == ["non-finite positions"] and bad.passing_frames == 0
     with pytest.raises(InputError, match="expected 1..10, got 11"):
         st.report(spec, 11)
+
+
+def test_dataset_make_keeps_the_frames_before_a_clip_fails_when_min_frames_allows(tmp_path, monkeypatch):
+    """`dataset make` with [quality] min_frames: a clip whose last 10 frames tear is stored as its first frames
+    (arrays cut alike, the whole clip's verdict in `trimmed`); without min_frames the same clip is rejected whole.
+    The simulator is replaced by one that holds the garment still and stretches it for the last 10 frames."""
+    from segadeform.dataset import make_dataset
+    from segadeform.physics import blender
+
+    def fake_simulate(vertices, faces, body, motion, **kw):
+        x = np.repeat(np.asarray(vertices, np.float64)[None], motion.n_frames, axis=0)
+        x[-10:, :, 1] *= 1.5  # every vertical edge 50 % longer: past max_strain
+        return blender.SimResult(
+            frames=x,
+            fps=motion.fps,
+            settings={},
+            blender={"blender_version": "fake", "simulate_seconds": 0.0, "seconds_per_frame": 0.0},
+            preroll_frames=0,
+            wall_seconds=0.0,
+        )
+
+    monkeypatch.setattr(blender, "simulate", fake_simulate)
+    text = """
+[dataset]
+fps = 30.0
+seconds = 1.0
+[quality]
+max_strain = 0.1
+max_penetrating = 1.0
+max_jitter = 1.0
+max_body_distance = 100.0
+max_vertex_distance = 100.0
+max_pinched = 1.0
+max_slipped = 1.0
+{extra}
+[[garments]]
+kind = "skirt"
+resolution = 300
+[[motions]]
+kind = "walk"
+"""
+    body = SAMPLES / "bodies" / "default_body.npz"
+    made = {}
+    for name, extra in (("whole", ""), ("cut", "min_frames = 12")):
+        cfg = load_dataset_config(_write(tmp_path, f"{name}.toml", text.format(extra=extra)))
+        made[name] = tmp_path / name
+        s = make_dataset(cfg, made[name], body_path=body)
+        assert s.kept + s.rejected == 1
+    rec = json.loads((made["whole"] / "log.jsonl").read_text())
+    assert rec["status"] == "rejected" and "trimmed" not in rec and rec["frames"] == rec["quality"]["frames"]
+    assert any(p.suffix == ".npz" for p in (made["whole"] / "rejected").iterdir())
+    rec = json.loads((made["cut"] / "log.jsonl").read_text())
+    assert rec["status"] == "kept" and rec["frames"] == rec["trimmed"]["clip_frames"] - 10
+    assert any(r.startswith("strain") for r in rec["trimmed"]["reasons"]) and rec["quality"]["ok"]
+    s = load_sample(made["cut"], rec["id"])
+    n = rec["frames"]
+    assert s.frames.shape[0] == s.poses.shape[0] == s.trans.shape[0] == s.contact_p.shape[0] == n >= 12
+    np.testing.assert_allclose(s.frames, np.repeat(s.rest[None], n, axis=0).astype(np.float32))
