@@ -107,3 +107,18 @@ def test_regate_keeps_the_leading_frames_that_pass_when_the_config_allows_a_cut_
     assert st["by_kind_source"]["skirt / mocap"] == {"samples": 1, "rejected": 0, "rejection_rate": 0.0, "trimmed": 1}
     # the same gate again changes nothing: the 4 frames pass whole
     assert regate(root, load_dataset_config(ok)).moved == [] and load_sample(root, "late").frames.shape[0] == 4
+
+
+def test_regate_cuts_a_kept_sample_shorter_in_place_when_a_stricter_gate_fails_its_tail(tmp_path, body):
+    """A kept clip that a stricter gate fails from frame 4 on is cut to 4 frames where it lies (samples/)."""
+    root = tmp_path / "ds"
+    calm, stretched = _sample(body, "tail", 0.0), _sample(body, "tail", 0.3)
+    s = Sample(**{**calm.__dict__, "frames": np.concatenate([calm.frames[:4], stretched.frames[4:]])})
+    save_sample(root, s)
+    strict = tmp_path / "strict.toml"
+    strict.write_text(_CFG.format(strain=0.1).replace("max_jitter = 1.0", "max_jitter = 1.0\nmin_frames = 3"))
+    r = regate(root, load_dataset_config(strict))
+    assert r.moved == [("tail", "kept, 4 of 6 frames")] and list_samples(root) == ["tail"]
+    kept = load_sample(root, "tail")
+    assert kept.frames.shape[0] == 4 and kept.meta["trimmed"]["clip_frames"] == 6
+    assert sorted(p.name for p in (root / "samples").iterdir()) == ["tail.json", "tail.npz"]

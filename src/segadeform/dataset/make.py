@@ -717,13 +717,12 @@ def regate(
             s = dataclasses.replace(s, meta=meta)
             if trim:
                 s = trim_sample(s, keep)
-            if now == folder:  # trimmed in place: the arrays first, then the metadata that names their length
+            if now == folder:  # a kept sample cut shorter, in place
                 _rewrite_sample(root, s, folder)
-                moved.append((sid, "kept, trimmed"))
-                continue
-            save_sample(root, s, folder=now)
-            meta_p.unlink()
-            (d / f"{sid}.npz").unlink()
+            else:
+                save_sample(root, s, folder=now)
+                meta_p.unlink()
+                (d / f"{sid}.npz").unlink()
             moved.append(
                 (sid, meta["status"] + (f", {keep} of {meta['trimmed']['clip_frames']} frames" if trim else ""))
             )
