@@ -117,8 +117,13 @@ def test_regate_cuts_a_kept_sample_shorter_in_place_when_a_stricter_gate_fails_i
     save_sample(root, s)
     strict = tmp_path / "strict.toml"
     strict.write_text(_CFG.format(strain=0.1).replace("max_jitter = 1.0", "max_jitter = 1.0\nmin_frames = 3"))
+    (root / "notes.txt").write_text("the user's own file")
     r = regate(root, load_dataset_config(strict))
     assert r.moved == [("tail", "kept, 4 of 6 frames")] and list_samples(root) == ["tail"]
     kept = load_sample(root, "tail")
     assert kept.frames.shape[0] == 4 and kept.meta["trimmed"]["clip_frames"] == 6
     assert sorted(p.name for p in (root / "samples").iterdir()) == ["tail.json", "tail.npz"]
+    assert (root / "notes.txt").read_text() == "the user's own file"
+    # a dataset whose log never had the sample (made before logs) still reads: the regate's record is whole
+    st = dataset_stats(root)
+    assert (st["kept"], st["trimmed"], st["splits"]) == (1, 1, {"train": 1})

@@ -709,7 +709,8 @@ def regate(
             if not q.ok:
                 meta["reasons"] = q.reasons
             if now != folder or trim:  # the log follows (dataset info reads it): what changed, merged by id
-                upd = {k: meta[k] for k in ("id", "status", "quality", "frames", "reasons", "trimmed") if k in meta}
+                keys = ("id", "split", "garment", "kind", "type", "body", "motion", "vertices", "status", "quality")
+                upd = {k: meta[k] for k in (*keys, "frames", "reasons", "trimmed") if k in meta}
                 loc.append_text("log.jsonl", json.dumps({**upd, "regated": True}) + "\n")
             if now == folder and not trim:
                 loc.put_bytes(f"{folder}/{sid}.json", json.dumps(meta, indent=1, sort_keys=True).encode("utf-8"))
