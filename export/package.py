@@ -13,6 +13,7 @@ from segadeform import UNITS, UP_AXIS, __version__
 from segadeform.body.skeleton import SMPL_JOINT_NAMES, SMPL_PARENTS
 from segadeform.contracts import model_package as contract
 from segadeform.contracts.model_package import OPSET, graph_specs
+from segadeform.errors import InputError
 from segadeform.io.atomic import atomic_directory
 
 from ..io.hashing import file_sha256
@@ -257,6 +258,12 @@ def export_package(
 
     from .verify import parity
 
+    if model.cfg.rest_drape:
+        raise InputError(
+            "the model package format has no garment drape yet: a model trained with rest_drape does not export",
+            expected="ModelConfig.rest_drape = 0",
+            got=model.cfg.rest_drape,
+        )
     net = copy.deepcopy(model).eval().float().freeze()
     cfg = net.cfg
     body_model = _load_body(body)

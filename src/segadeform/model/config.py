@@ -46,6 +46,10 @@ class ModelConfig:
             garment code and rest position) to the decoder's ``B``: the garment's drape on the body, which the
             decoder could reach only through the motion processors (its features are products with them).
             Gated from 0 in residual models.  Checkpoints and manifests without the field have none.
+        rest_drape: how far the garment's rest that the deformer skins is moved toward its drape on the body at
+            rest (``segadeform.body.drape``; computed on the host, as the rest joints are): 0 skins the rest as
+            designed, 1 the drape.  The network is unchanged; the model package format has no drape yet, so
+            only 0 exports.  Checkpoints without the field have 0.
     """
 
     n_joints: int = 24
@@ -68,6 +72,7 @@ class ModelConfig:
     weights: str = "residual"
     weight_prior: str = "nearest"
     static_blend: bool = False
+    rest_drape: float = 0.0
 
     def __post_init__(self):
         ints = (
@@ -95,6 +100,9 @@ class ModelConfig:
                 raise InputError(f"ModelConfig.{name} must be positive", got=v)
         if not isinstance(self.static_blend, bool):
             raise InputError("ModelConfig.static_blend must be true or false", got=self.static_blend)
+        d = self.rest_drape
+        if not (isinstance(d, (int, float)) and not isinstance(d, bool) and 0.0 <= d <= 1.0):
+            raise InputError("ModelConfig.rest_drape must be a number in [0, 1]", got=d)
         if self.skinning not in ("lbs", "dqs"):
             raise InputError("ModelConfig.skinning must be 'lbs' or 'dqs'", got=self.skinning)
         if self.weights not in ("residual", "free"):

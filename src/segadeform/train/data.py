@@ -18,6 +18,7 @@ import numpy as np
 import torch
 
 from ..body.collision import BodyCollider
+from ..body.drape import skinned_rest
 from ..body.model import BodyModel
 from ..body.transfer import garment_weights
 from ..dataset.roots import DatasetRoots, as_roots
@@ -43,7 +44,8 @@ class TrainItem:
     descriptor: torch.Tensor  # (1, N*)
     betas: torch.Tensor  # (1, B)
     joints: torch.Tensor  # (S, 3)
-    rest: torch.Tensor  # (N, 3)
+    rest: torch.Tensor  # (N, 3) the garment as designed (rest lengths, stretch and shear)
+    skin_rest: torch.Tensor  # (N, 3) the rest the deformer skins: ``rest`` moved toward its drape (rest_drape)
     faces: torch.Tensor  # (F, 3) int64
     edges: torch.Tensor  # (E, 2) int64
     windows: torch.Tensor  # (T, W, 3 S)
@@ -137,10 +139,13 @@ def load_items(
     split: str | None = "train",
     ids=None,
     weight_prior: str = "nearest",
+    rest_drape: float = 0.0,
 ) -> list[TrainItem]:
     """Load every kept sample of ``split`` (or the given ``ids``) of ``root`` (a dataset folder, a pack, a list
     of roots or :class:`DatasetRoots`) as :class:`TrainItem`; ``body_weights`` by ``weight_prior``
-    (:func:`~segadeform.body.transfer.garment_weights`)."""
+    (:func:`~segadeform.body.transfer.garment_weights`), ``skin_rest`` by ``rest_drape``
+    (:func:`segadeform.body.drape.skinned_rest`)."""
+    memo: dict = {}
     f32 = lambda a: torch.as_tensor(np.asarray(a, np.float32))  # noqa: E731
     roots = as_roots(root)
     out = []
@@ -167,6 +172,7 @@ def load_items(
                 betas=f32(b)[None],
                 joints=f32(joints),
                 rest=f32(s.rest),
+                skin_rest=f32(skinned_rest(s.rest, s.faces, body, s.betas, rest_drape, memo)),
                 faces=torch.as_tensor(s.faces, dtype=torch.int64),
                 edges=torch.as_tensor(unique_edges(s.faces, len(s.rest)), dtype=torch.int64),
                 windows=f32(win),

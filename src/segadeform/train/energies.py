@@ -38,6 +38,7 @@ import numpy as np
 import torch
 
 from ..body.collision import BodyProxy
+from ..body.drape import skinned_rest
 from ..body.model import BodyModel
 from ..body.transfer import garment_weights
 from ..dataset.config import DatasetConfig, load_dataset_config
@@ -246,7 +247,7 @@ class PairItem:
     descriptor: torch.Tensor  # (1, N*)
     betas: torch.Tensor  # (1, |beta|)
     joints: torch.Tensor  # (S, 3)
-    rest: torch.Tensor  # (N, 3)
+    rest: torch.Tensor  # (N, 3) the rest the deformer skins (moved toward its drape by rest_drape)
     windows: torch.Tensor  # (T, W, 3 S)
     trans: torch.Tensor  # (T, 3)
     body_weights: torch.Tensor  # (N, S)
@@ -287,6 +288,7 @@ class PhysicsPairs:
         window: int,
         n_betas: int,
         weight_prior: str = "nearest",
+        rest_drape: float = 0.0,
         exclude=(),
         keep: int = 48,
     ) -> None:
@@ -306,6 +308,8 @@ class PhysicsPairs:
         self.body = body
         self.n_star, self.window, self.n_betas = int(n_star), int(window), int(n_betas)
         self.weight_prior = weight_prior
+        self.rest_drape = float(rest_drape)
+        self._drapes: dict = {}
         self.keep = int(keep)
         self._items: OrderedDict = OrderedDict()
         self._garments: OrderedDict = OrderedDict()
@@ -409,7 +413,7 @@ class PhysicsPairs:
                 descriptor=f32(a.descriptor)[None],
                 betas=f32(b)[None],
                 joints=f32(joints),
-                rest=f32(mesh.vertices),
+                rest=f32(skinned_rest(mesh.vertices, mesh.faces, self.body, betas, self.rest_drape, self._drapes)),
                 windows=f32(motion_windows(mo.poses, self.window)),
                 trans=f32(mo.trans),
                 body_weights=f32(bw),

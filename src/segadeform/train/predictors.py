@@ -1,6 +1,7 @@
 """The models ``segadeform eval`` compares, as predictors: ``predict(sample, body, asset) -> (T, N, 3)``.
 
-* :class:`LBSPredictor`: the body's skinning weights carried to the garment by a non-learned prior (baseline (a));
+* :class:`LBSPredictor`: the body's skinning weights carried to the garment by a non-learned prior (baseline (a)),
+  optionally on the garment draped at rest (``lbs-drape``);
 * :class:`CheckpointPredictor`: a ``.pt`` checkpoint run by torch;
 * a model package: the runtime's :class:`segadeform.runtime.predictor.PackagePredictor` (onnxruntime), which the
   caller passes to :func:`make_predictor` (the runtime is a layer this one does not import).
@@ -14,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..body.drape import skinned_rest
 from ..body.model import BodyModel
 from ..body.transfer import WEIGHT_PRIORS, garment_weights, residual_log_weights, skin_garment
 from ..dataset.store import Sample
@@ -41,15 +43,18 @@ class Predictor(abc.ABC):
 class LBSPredictor(Predictor):
     """LBS with the body's weights carried to the garment by ``prior`` (``lbs``: the closest body point,
     baseline (a); ``lbs-<prior>`` for every other prior of :data:`segadeform.body.transfer.WEIGHT_PRIORS`:
-    ``lbs-inpaint``, ``lbs-idw``, ``lbs-gaussian``, ``lbs-smooth``: the non-learned priors)."""
+    ``lbs-inpaint``, ``lbs-idw``, ``lbs-gaussian``, ``lbs-smooth``: the non-learned priors).  ``drape``: skin the
+    garment moved that far toward its drape on the body at rest (:mod:`segadeform.body.drape`; ``lbs-drape`` is
+    ``smooth`` with ``drape = 1``)."""
 
-    def __init__(self, prior: str = "nearest"):
-        self.prior = prior
+    def __init__(self, prior: str = "nearest", drape: float = 0.0):
+        self.prior, self.drape = prior, float(drape)
 
     def predict(self, s, body, asset):
         betas = s.betas if s.betas.size else None
         w = garment_weights(s.rest, s.faces, body, betas, self.prior)
-        return skin_garment(s.rest, w, body, s.poses, betas, s.trans)
+        rest = skinned_rest(s.rest, s.faces, body, betas, self.drape)
+        return skin_garment(rest, w, body, s.poses, betas, s.trans)
 
 
 class CheckpointPredictor(Predictor):
@@ -60,6 +65,7 @@ class CheckpointPredictor(Predictor):
 
         self.model = load_checkpoint(path).eval()
         self.cfg = self.model.cfg
+        self._drapes: dict = {}
 
     def predict(self, s, body, asset):
         import torch
@@ -88,7 +94,7 @@ class CheckpointPredictor(Predictor):
                     g,
                     t32(win[lo:hi]),
                     t32(b)[None].expand(n, -1),
-                    t32(s.rest),
+                    t32(skinned_rest(s.rest, s.faces, body, betas, c.rest_drape, self._drapes)),
                     nbr,
                     mask,
                     t32(joints)[None].expand(n, -1, -1),
@@ -115,6 +121,8 @@ def make_predictor(name: str, spec: str, *, package: Callable[[str, str], Predic
         folder, eff = spec.rsplit(":", 1)
     if spec == "lbs":
         p: Predictor = LBSPredictor()
+    elif spec == "lbs-drape":
+        p = LBSPredictor("smooth", drape=1.0)
     elif spec.startswith("lbs-") and spec[4:] in WEIGHT_PRIORS and spec[4:] != "nearest":
         p = LBSPredictor(spec[4:])
     elif folder is not None:
@@ -131,7 +139,7 @@ def make_predictor(name: str, spec: str, *, package: Callable[[str, str], Predic
         raise InputError(
             "a model must be 'lbs', 'lbs-PRIOR' ("
             + ", ".join(f"lbs-{w}" for w in WEIGHT_PRIORS[1:])
-            + "), a model package folder or a .pt checkpoint",
+            + ", lbs-drape), a model package folder or a .pt checkpoint",
             got=spec,
         )
     p.name, p.spec = name, spec

@@ -69,7 +69,7 @@ def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_sc
         item.descriptor,
         item.betas.expand(b, -1),
         item.windows[t],
-        item.rest,
+        item.skin_rest,
         item.joints[None].expand(b, -1, -1),
         item.trans[t],
         lw,
@@ -234,7 +234,14 @@ def train(
     roots = DatasetRoots(list(cfg.dataset), optional=cfg.optional, cache_dir=run / "cache")
     ids = cfg.select(roots.ids(cfg.split))
     items = load_items(
-        roots, body, n_star=m.n_star, window=m.window, n_betas=m.n_betas, ids=ids, weight_prior=m.weight_prior
+        roots,
+        body,
+        n_star=m.n_star,
+        window=m.window,
+        n_betas=m.n_betas,
+        ids=ids,
+        weight_prior=m.weight_prior,
+        rest_drape=m.rest_drape,
     )
     if not items:
         raise InputError(
@@ -265,6 +272,7 @@ def train(
                 split=None,
                 ids=val_ids,
                 weight_prior=m.weight_prior,
+                rest_drape=m.rest_drape,
             )
         ]
         if val_ids
@@ -365,6 +373,7 @@ def train(
             window=m.window,
             n_betas=m.n_betas,
             weight_prior=m.weight_prior,
+            rest_drape=m.rest_drape,
             exclude=cfg.exclude,
         )
         mat = ph.material()
