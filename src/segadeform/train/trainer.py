@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import json
 import os
 import platform
@@ -233,16 +234,18 @@ def train(
 
     roots = DatasetRoots(list(cfg.dataset), optional=cfg.optional, cache_dir=run / "cache")
     ids = cfg.select(roots.ids(cfg.split))
-    items = load_items(
+    # training and validation samples alike: the model's garment precompute, motion window, prior and drape
+    load = functools.partial(
+        load_items,
         roots,
         body,
         n_star=m.n_star,
         window=m.window,
         n_betas=m.n_betas,
-        ids=ids,
         weight_prior=m.weight_prior,
         rest_drape=m.rest_drape,
     )
+    items = load(ids=ids)
     if not items:
         raise InputError(
             f"no '{cfg.split}' samples in the dataset",
@@ -260,24 +263,7 @@ def train(
             "model.feat_dim does not match the garment features", expected=items[0].features.shape[-1], got=m.feat_dim
         )
     items = [it.to(device) for it in items]
-    val = (
-        [
-            it.to(device)
-            for it in load_items(
-                roots,
-                body,
-                n_star=m.n_star,
-                window=m.window,
-                n_betas=m.n_betas,
-                split=None,
-                ids=val_ids,
-                weight_prior=m.weight_prior,
-                rest_drape=m.rest_drape,
-            )
-        ]
-        if val_ids
-        else []
-    )
+    val = [it.to(device) for it in load(split=None, ids=val_ids)] if val_ids else []
     model = SEGANet(m).to(device)
     # weight decay 0 keeps plain Adam (the optimiser every earlier run used, so its last.pt resumes)
     opt = (
