@@ -49,11 +49,12 @@ class LBSPredictor(Predictor):
 
     def __init__(self, prior: str = "nearest", drape: float = 0.0):
         self.prior, self.drape = prior, float(drape)
+        self._drapes: dict = {}  # per garment and shape, as the checkpoint predictor keeps them
 
     def predict(self, s, body, asset):
         betas = s.betas if s.betas.size else None
         w = garment_weights(s.rest, s.faces, body, betas, self.prior)
-        rest = skinned_rest(s.rest, s.faces, body, betas, self.drape)
+        rest = skinned_rest(s.rest, s.faces, body, betas, self.drape, self._drapes)
         return skin_garment(rest, w, body, s.poses, betas, s.trans)
 
 
