@@ -234,17 +234,12 @@ def train(
 
     roots = DatasetRoots(list(cfg.dataset), optional=cfg.optional, cache_dir=run / "cache")
     ids = cfg.select(roots.ids(cfg.split))
-    # training and validation samples alike: the model's garment precompute, motion window, prior and drape
-    load = functools.partial(
-        load_items,
-        roots,
-        body,
-        n_star=m.n_star,
-        window=m.window,
-        n_betas=m.n_betas,
-        weight_prior=m.weight_prior,
-        rest_drape=m.rest_drape,
+    # training and validation samples and the physics pairs alike: the model's garment precompute, motion window,
+    # shape coefficients, weight prior and drape
+    model_inputs = dict(
+        n_star=m.n_star, window=m.window, n_betas=m.n_betas, weight_prior=m.weight_prior, rest_drape=m.rest_drape
     )
+    load = functools.partial(load_items, roots, body, **model_inputs)
     items = load(ids=ids)
     if not items:
         raise InputError(
@@ -355,12 +350,8 @@ def train(
             cfg.pairs,
             (roots.cache_dir or run / "cache") / "pairs",
             body,
-            n_star=m.n_star,
-            window=m.window,
-            n_betas=m.n_betas,
-            weight_prior=m.weight_prior,
-            rest_drape=m.rest_drape,
             exclude=cfg.exclude,
+            **model_inputs,
         )
         mat = ph.material()
         body_faces = np.asarray(body.faces)
