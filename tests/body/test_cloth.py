@@ -155,8 +155,9 @@ def test_batches_and_streams_give_the_frames_of_one_call(walk, body):
 
 
 def test_attachment_contact_and_the_bound(walk, body):
-    """Attached vertices (radius 0) follow the target exactly unless the body pushes them; free ones stay within
-    their radius of it unless the body pushes them; nothing is left inside the body deeper than rounding."""
+    """Attached vertices (radius 0) follow the target exactly unless the body pushes them or an edge to them; free
+    ones stay within their radius of it unless the body pushes them or an edge to them; nothing is left inside the
+    body deeper than rounding."""
     v, f, targets, posed, setup = walk
     stage = _stage(setup, body)
     out = stage.step(targets, posed)
@@ -169,11 +170,52 @@ def test_attachment_contact_and_the_bound(walk, body):
         sd_target = col.query(targets[t], posed[t]).signed_distance
         sd_out = col.query(out[t], posed[t]).signed_distance
         inside_before += int((sd_target < 0).sum())
-        free_of_body = sd_target > MARGIN + CONTACT_BAND + setup.radius  # the body cannot have moved these
+        # the body cannot have moved these: neither they nor a neighbour (an edge's contact moves both ends) can
+        # have been near it
+        near = ~(sd_target > MARGIN + CONTACT_BAND + setup.radius)
+        e = setup.edges
+        reached = near.copy()
+        reached[e[near[e[:, 0]], 1]] = True
+        reached[e[near[e[:, 1]], 0]] = True
+        free_of_body = ~reached
         assert (dev[t][att & free_of_body] == 0).all()
         assert (dev[t][free_of_body] <= setup.radius[free_of_body] + 1e-12).all()
         assert (sd_out > -1e-6).mean() >= 0.999, (t, (sd_out <= -1e-6).sum())
     assert inside_before > 100  # the targets went through the body
+
+
+def _cube(half: float):
+    """A closed box centred at the origin, faces wound outward: (8, 3), (12, 3)."""
+    v = np.array([[x, y, z] for x in (-half, half) for y in (-half, half) for z in (-half, half)], float)
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    f = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+    return v, f
+
+
+def test_an_edge_across_the_body_is_pushed_out_with_both_ends():
+    """An edge whose two ends are outside the body and whose middle is inside it (a chord across a box's corner, as
+    a skirt's edge across a thigh): vertex contacts alone leave it there; the edge's contact moves both ends alike
+    until its middle is the margin outside, in the kernel and the reference."""
+    body_v, body_f = _cube(0.1)
+    col = BodyCollider(body_v, body_f)
+    assert (col.query(body_v * 0.5, body_v).signed_distance < 0).all()  # the box is closed and wound outward
+    v = np.array([[0.09, 0.106, 0.0], [0.106, 0.09, 0.0], [0.16, 0.16, 0.02]])
+    f = np.array([[0, 1, 2]])
+    mid = 0.5 * (v[0] + v[1])
+    assert (col.query(v[:2], body_v).signed_distance > MARGIN).all()
+    assert col.query(mid[None], body_v).signed_distance[0] < -0.001  # the target's chord is inside
+    setup = cloth_setup(v, f, np.zeros(3), ClothSettings())  # every vertex attached: only contact moves it
+    targets = np.repeat(v[None], 3, 0)
+    posed = np.repeat(body_v[None], 3, 0)
+    out = ClothStage(setup, body_v, body_f, ClothSettings(), margin=MARGIN).step(targets, posed)
+    ref, _ = cloth_reference(targets, posed, body_f, setup, ClothSettings(), margin=MARGIN)
+    assert np.abs(out - ref).max() <= 1e-12
+    for x in out:
+        m = 0.5 * (x[0] + x[1])
+        assert col.query(m[None], body_v).signed_distance[0] >= MARGIN - 1e-9
+        assert (col.query(x, body_v).signed_distance >= MARGIN - 1e-9).all()
+        np.testing.assert_allclose(x[1] - x[0], v[1] - v[0], atol=1e-12)  # both ends moved alike
+        assert x[2].tolist() == v[2].tolist()  # the far vertex is not moved
 
 
 def test_strain_is_limited_and_inertia_and_gravity_act():

@@ -46,7 +46,7 @@ def cloth_vector(request, tmp_path_factory):
     assert compiled_available(), "the compiled cloth kernel is not built (pip install -e . builds it)"
     body = load_body(default_body_path())
     settings = ClothSettings.parse("" if request.param == "default" else request.param)
-    v, f = frustum(24, 9, 0.15, 0.3, 1.0, 0.5)  # partly inside the hips, the thighs swinging through it
+    v, f = frustum(24, 9, 0.13, 0.3, 1.0, 0.5)  # partly inside the hips, the thighs swinging through it
     m = make_motion("walk", seconds=0.8, seed=1)
     trans = m.trans.copy()
     trans[14:] += [2.0, 0.0, 1.0]  # a teleport: the stage resets

@@ -2,7 +2,7 @@
 // Python and C++ runtimes call), shared by the Node runtime and the browser page (plain ES module, no Node or DOM
 // APIs).  The method, the order of its constraints and why each is there are in that file's header: position-based
 // dynamics with strain limiting, tethers to the nearest attached vertex, smoothing of the deviation from the network's frame, max-distance attachments and
-// contact planes against the posed body, then the collision stage's exact push-out (collide.js).  This port keeps the
+// contact planes at vertices and edge middles against the posed body, then the collision stage's exact push-out (collide.js).  This port keeps the
 // C file's functions, their order of operations and its float64 arithmetic (only + - * / and Math.sqrt, which
 // JavaScript rounds as C does), so on the same inputs it gives the kernel's frames bit for bit
 // (tests/runtimes/test_cloth.py holds it to Python's ClothStage on shared vectors).
@@ -264,6 +264,23 @@ function smoothVertex(x, xo, y, yo, nptr, nidx, radius, i, k) {
   x[p + 2] += k * (m2 - (x[p + 2] - y[t + 2]));
 }
 
+/* One edge's contact: both ends of edge e moved alike along the plane's normal until the edge's middle is margin
+ * outside the plane (when the middle was found within margin + band of the body). */
+function edgeContact(x, edges, e, sd, cp, cn, k, margin, band) {
+  if (!(sd[k] < margin + band)) return;
+  const a = 3 * edges[2 * e], b = 3 * edges[2 * e + 1], c = 3 * k;
+  const s = cn[c] * (0.5 * (x[a] + x[b]) - cp[c]) + cn[c + 1] * (0.5 * (x[a + 1] + x[b + 1]) - cp[c + 1]) +
+    cn[c + 2] * (0.5 * (x[a + 2] + x[b + 2]) - cp[c + 2]) - margin;
+  if (s < 0) {
+    x[a] -= s * cn[c];
+    x[a + 1] -= s * cn[c + 1];
+    x[a + 2] -= s * cn[c + 2];
+    x[b] -= s * cn[c];
+    x[b + 1] -= s * cn[c + 1];
+    x[b + 2] -= s * cn[c + 2];
+  }
+}
+
 /**
  * The cloth stage for one garment on one body, keeping its state between calls (scl_step):
  *   new ClothStage(setup (clothSetup), collider (a BodyCollider over the body's faces), settings, { margin, dt })
@@ -296,6 +313,12 @@ export class ClothStage {
     this.q = new Float64Array(3 * n);
     this.pick = new Int32Array(n);
     this.moved = new Uint8Array(n);
+    const me = setup.ne > 0 ? setup.ne : 1; // the edges with an end in contact: their middles' contact planes
+    this.eidx = new Int32Array(me);
+    this.mid = new Float64Array(3 * me);
+    this.esd = new Float64Array(me);
+    this.ecp = new Float64Array(3 * me);
+    this.ecn = new Float64Array(3 * me);
   }
 
   step(target, body, nb) {
@@ -311,7 +334,7 @@ export class ClothStage {
     const keep = 1.0 - st.damping, drop = st.gravity * this.dt * this.dt;
     const margin = this.margin, reset = st.reset, band = CONTACT_BAND, follow = st.follow;
     const S = this.state, x1 = 0, x0 = 3 * n, yp = 6 * n;
-    const { box, sd, cp, cn, q, pick, moved } = this;
+    const { box, sd, cp, cn, q, pick, moved, eidx, mid, esd, ecp, ecn } = this;
     const y = target instanceof Float64Array ? target : new Float64Array(target);
     const B = body instanceof Float64Array ? body : new Float64Array(body);
     const out = new Float64Array(nb * n * 3);
@@ -362,6 +385,18 @@ export class ClothStage {
       const bv = B.subarray(bo, bo + 3 * nv), x = out.subarray(xo, xo + 3 * n), yf = y.subarray(yo, yo + 3 * n);
       col.refitInto(bv, box);
       col.near(bv, box, x, 0, n, margin + band, sd, cp, cn);
+      // and for the middle of every edge with an end in contact (only those)
+      let nec = 0;
+      for (let e = 0; e < ne; e++) {
+        const a = 3 * edges[2 * e], b = 3 * edges[2 * e + 1];
+        if (!(sd[edges[2 * e]] < margin + band) && !(sd[edges[2 * e + 1]] < margin + band)) continue;
+        eidx[nec] = e;
+        mid[3 * nec] = 0.5 * (x[a] + x[b]);
+        mid[3 * nec + 1] = 0.5 * (x[a + 1] + x[b + 1]);
+        mid[3 * nec + 2] = 0.5 * (x[a + 2] + x[b + 2]);
+        nec++;
+      }
+      if (nec > 0) col.near(bv, box, mid, 0, nec, margin + band, esd, ecp, ecn);
       q.set(x);
       // the sweeps, alternating direction
       for (let it = 0; it < iters; it++) {
@@ -380,6 +415,7 @@ export class ClothStage {
             x[p + 2] -= s * cn[p + 2];
           }
         }
+        for (let k = 0; k < nec; k++) edgeContact(x, edges, eidx[k], esd, ecp, ecn, k, margin, band);
       }
       // the exact push-out of every vertex that may be inside or closer than the margin: those found inside or
       // within it, and those that moved farther than their clearance since the contacts were found

@@ -33,11 +33,17 @@
  *                 rest (it follows the network exactly), growing with the rest distance from the body to at
  *                 most max_distance on hems and loose parts (scl_setup);
  *   contact       every vertex found at the frame's start inside the body or within margin + SCL_CONTACT_BAND
- *                 of it kept on the outer side of the plane through its closest body point: n . (x - c) >= margin.
+ *                 of it kept on the outer side of the plane through its closest body point: n . (x - c) >= margin;
+ *   edge contact  the same for the middle of every edge with an end in contact: both ends moved alike along the
+ *                 plane's normal, n . ((xa + xb) / 2 - c) >= margin (a vertex-edge contact with equal masses: Bridson,
+ *                 Fedkiw & Anderson, "Robust treatment of collisions, contact and friction for cloth animation",
+ *                 SIGGRAPH 2002, sec. 7).  Without it two ends pushed out to either side of a limb leave the edge
+ *                 between them across it: the holes of a thigh through a skirt, every vertex outside.
  *
  * After the sweeps, the vertices that may be inside the body or closer than the margin -- found so, or moved
  * farther than their clearance since the contacts were found (no other can be) -- are pushed out of the body
- * exactly as the collision stage does (sdc_push_out, SCL_PASSES passes): contact wins over the attachment.  Attached vertices
+ * exactly as the collision stage does (sdc_push_out, SCL_PASSES passes): contact wins over the attachment (edge
+ * middles are not pushed there: the planes above hold them).  Attached vertices
  * (radius 0) have infinite mass: edges, tethers and smoothing move only free vertices.
  *
  * State (the caller keeps it between calls; calls may hold any number of frames): the last two output frames and
@@ -69,7 +75,7 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 2
+#define SCL_ABI 3
 #define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
 #define SCL_TINY 1e-300
@@ -356,6 +362,24 @@ static void smooth_vertex(double *x, const double *y, const int64_t *nptr, const
     x[3 * i + 2] += k * (m2 - (x[3 * i + 2] - y[3 * i + 2]));
 }
 
+/* One edge's contact: both ends of edge e moved alike along the plane's normal n until the edge's middle is margin
+ * outside the plane through c (when the middle was found within margin + band of the body: sd). */
+static void edge_contact(double *x, const int64_t *edges, int64_t e, double sd, const double *c, const double *nrm,
+                         double margin, double band) {
+    double *p = x + 3 * edges[2 * e], *q = x + 3 * edges[2 * e + 1], s;
+    if (!(sd < margin + band)) return;
+    s = nrm[0] * (0.5 * (p[0] + q[0]) - c[0]) + nrm[1] * (0.5 * (p[1] + q[1]) - c[1]) +
+        nrm[2] * (0.5 * (p[2] + q[2]) - c[2]) - margin;
+    if (s < 0) {
+        p[0] -= s * nrm[0];
+        p[1] -= s * nrm[1];
+        p[2] -= s * nrm[2];
+        q[0] -= s * nrm[0];
+        q[1] -= s * nrm[1];
+        q[2] -= s * nrm[2];
+    }
+}
+
 /* The cloth stage on nb frames: targets (B, N, 3) -> out (B, N, 3), against the posed body (B, V, 3) through the
  * collider (sdc_create on the body's faces), with the per-garment data of scl_setup (edges to tether) and settings
  * (S_COUNT,).
@@ -385,10 +409,17 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
     double *q = (double *)malloc(sizeof(double) * 3 * (size_t)n);
     int64_t *pick = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
     uint8_t *moved = (uint8_t *)malloc((size_t)n);
+    size_t me = (size_t)(ne > 0 ? ne : 1);
+    int64_t *eidx = (int64_t *)malloc(sizeof(int64_t) * me), nec;
+    double *mid = (double *)malloc(sizeof(double) * 3 * me), *esd = (double *)malloc(sizeof(double) * me);
+    double *ecp = (double *)malloc(sizeof(double) * 3 * me), *ecn = (double *)malloc(sizeof(double) * 3 * me);
     int64_t status = 0;
     if (iters < 1) iters = 1;
     info[I_FIRST_RESET] = -1;
-    if (!box || !sd || !cp || !cn || !q || !pick || !moved) { status = -1; goto done; }
+    if (!box || !sd || !cp || !cn || !q || !pick || !moved || !eidx || !mid || !esd || !ecp || !ecn) {
+        status = -1;
+        goto done;
+    }
     for (f = 0; f < nb; f++) {
         const double *y = target + 3 * n * f, *bv = body + 3 * nv * f;
         double *x = out + 3 * n * f;
@@ -432,6 +463,19 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         /* contacts: a plane for every vertex inside the body or near it */
         sdc_refit(collider, bv, box);
         sdc_near(collider, bv, box, x, 0, n, margin + band, sd, cp, cn);
+        /* and for the middle of every edge with an end in contact (only those: an edge whose ends are both clear
+         * of the body is left unchecked, which keeps the extra queries to the few edges near it) */
+        nec = 0;
+        for (e = 0; e < ne; e++) {
+            const double *pa = x + 3 * edges[2 * e], *pb = x + 3 * edges[2 * e + 1];
+            if (!(sd[edges[2 * e]] < margin + band) && !(sd[edges[2 * e + 1]] < margin + band)) continue;
+            eidx[nec] = e;
+            mid[3 * nec] = 0.5 * (pa[0] + pb[0]);
+            mid[3 * nec + 1] = 0.5 * (pa[1] + pb[1]);
+            mid[3 * nec + 2] = 0.5 * (pa[2] + pb[2]);
+            nec++;
+        }
+        if (nec > 0) sdc_near(collider, bv, box, mid, 0, nec, margin + band, esd, ecp, ecn);
         memcpy(q, x, sizeof(double) * 3 * (size_t)n);
         /* the sweeps, alternating direction */
         for (it = 0; it < iters; it++) {
@@ -453,6 +497,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
                     p[2] -= s * cn[3 * i + 2];
                 }
             }
+            for (e = 0; e < nec; e++) edge_contact(x, edges, eidx[e], esd[e], ecp + 3 * e, ecn + 3 * e, margin, band);
         }
         /* the exact push-out of every vertex that may be inside or closer than the margin: those found inside or
          * within it, and those that moved farther than their clearance (the distance from the body less the
@@ -490,6 +535,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
     }
 done:
     free(box); free(sd); free(cp); free(cn); free(q); free(pick); free(moved);
+    free(eidx); free(mid); free(esd); free(ecp); free(ecn);
     return status;
 }
 

@@ -5,9 +5,9 @@ edges held within a stretch limit, contact with the body resolved with the neigh
 gravity from the previous output frames, and every vertex within a bounded distance of its target (zero where
 the garment lies on the body at rest, so there it follows the network exactly).  The method -- position-based
 dynamics (Mueller et al. 2007) with strain limiting (Provot 1995), tethers to the nearest attached vertex (long
-range attachments, Kim et al. 2012), smoothing of the deviation from the target,
-max-distance attachments and contact planes, then the collision stage's exact push-out -- and the meaning of
-every knob are in the kernel's header, ``src/segadeform/body/_cloth.c``.
+range attachments, Kim et al. 2012), smoothing of the deviation from the target, max-distance attachments and
+contact planes at vertices and edge middles (Bridson et al. 2002), then the collision stage's exact push-out -- and
+the meaning of every knob are in the kernel's header, ``src/segadeform/body/_cloth.c``.
 
 Side by side:
 
@@ -81,7 +81,7 @@ PASSES = 3
 MOVED = 1e-6
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
 SETUP_VERSION = 2
-_ABI = 2
+_ABI = 3
 #: the order of _cloth.c's settings array
 _SETTINGS = (
     "iterations",
@@ -610,6 +610,8 @@ def cloth_reference(
         # contacts
         q = col.query(x, bv)
         contact = q.signed_distance < margin + CONTACT_BAND
+        e_near = np.flatnonzero(contact[setup.edges[:, 0]] | contact[setup.edges[:, 1]])
+        eq = col.query(0.5 * (x[setup.edges[e_near, 0]] + x[setup.edges[e_near, 1]]), bv) if len(e_near) else None
         x_query = x.copy()
         for it in range(iters):
             fwd = it % 2 == 0
@@ -655,6 +657,16 @@ def cloth_reference(
                     sep = nrm[0] * (x[i, 0] - cp[0]) + nrm[1] * (x[i, 1] - cp[1]) + nrm[2] * (x[i, 2] - cp[2]) - margin
                     if sep < 0:
                         x[i] = x[i] - sep * nrm
+            for k, e in enumerate(e_near.tolist()):
+                if not eq.signed_distance[k] < margin + CONTACT_BAND:
+                    continue
+                a, b = setup.edges[e]
+                nrm, cp = eq.normal[k], eq.closest[k]
+                m = 0.5 * (x[a] + x[b])
+                sep = nrm[0] * (m[0] - cp[0]) + nrm[1] * (m[1] - cp[1]) + nrm[2] * (m[2] - cp[2]) - margin
+                if sep < 0:
+                    x[a] = x[a] - sep * nrm
+                    x[b] = x[b] - sep * nrm
         clear = np.where(contact, q.signed_distance, margin + CONTACT_BAND) - margin
         moved = np.sum((x - x_query) ** 2, axis=1) >= clear * clear
         pick = np.flatnonzero(~(clear > 0) | moved)
