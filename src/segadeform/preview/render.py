@@ -1,8 +1,8 @@
 """A small software renderer for previews: shaded triangle meshes, orthographic, no Blender, no GPU.
 
-:func:`render` draws meshes (painter's algorithm: triangles sorted back to
-front, Lambert shading with a head light) with matplotlib's 2-D polygon
-collections into an RGB array, and :func:`save_image` / :func:`save_animation`
+:func:`render` draws meshes (a depth buffer in numpy: each pixel shows the
+nearest triangle at its centre; flat Lambert shading with a head light) into
+an RGB array, and :func:`save_image` / :func:`save_animation`
 write PNG, GIF or MP4 (MP4 needs ffmpeg on PATH).  Needs the ``plot`` extra
 (matplotlib) and nothing else.
 """
@@ -17,12 +17,13 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["MeshLayer", "render", "save_image", "save_animation", "view_rotation"]
+__all__ = ["MeshLayer", "rasterize", "render", "save_image", "save_animation", "view_rotation"]
 
 
 class MeshLayer:
-    """One mesh to draw: vertices (V, 3), faces (F, 3), an RGB colour in 0..1, optional alpha, and a
-    depth bias (metres towards the camera, for sorting only: cloth a few mm over skin wins the tie)."""
+    """One mesh to draw: vertices (V, 3), faces (F, 3), an RGB colour in 0..1, optional alpha (blended with the
+    background, not with what is behind), and a depth bias (metres towards the camera, for the depth test only:
+    cloth a few mm over skin wins the tie)."""
 
     def __init__(self, vertices, faces, color=(0.8, 0.8, 0.8), alpha: float = 1.0, depth_bias: float = 0.0):
         v = np.asarray(vertices, np.float64)
@@ -59,45 +60,38 @@ def render(
 ) -> np.ndarray:
     """Render ``layers`` seen from ``azimuth`` degrees about +Y (0: from the front, +Z).
 
+    Each pixel shows the nearest triangle at its centre (a depth buffer, :func:`rasterize`): cloth a few
+    millimetres over the skin covers it wherever it is outside the body, and the body shows through only where the
+    garment really is behind it.  (A painter's algorithm, sorting whole triangles by their mean depth, draws
+    skin over cloth that is outside it wherever a large body triangle's centre is nearer than a small cloth
+    triangle's: speckles that are not in the geometry.)
+
     Args:
         size: (width, height) in pixels.
         bounds: ((xmin, xmax), (ymin, ymax)) in camera space; default: fit every layer.
     Returns:
         (height, width, 3) uint8 image.
     """
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-    from matplotlib.collections import PolyCollection
-
     R = view_rotation(azimuth, elevation)
     light = np.array([0.3, 0.4, 1.0])
     light /= np.linalg.norm(light)
-    polys, colors, depth = [], [], []
+    tris, colors, bias = [], [], []
     for layer in layers:
-        v = layer.vertices @ R.T
-        tri = v[layer.faces]  # (F, 3, 3)
+        tri = (layer.vertices @ R.T)[layer.faces]  # (F, 3, 3)
         n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-20)
         shade = 0.35 + 0.65 * np.abs(n @ light)  # two-sided: garments are open surfaces
         rgb = np.clip(layer.color[None] * shade[:, None], 0, 1)
-        polys.append(tri[:, :, :2])
-        colors.append(np.concatenate([rgb, np.full((len(rgb), 1), layer.alpha)], axis=1))
-        depth.append(tri[:, :, 2].mean(axis=1) + layer.depth_bias)
-    if not polys:
+        bg = np.asarray(background, np.float64)
+        tris.append(tri)
+        colors.append(layer.alpha * rgb + (1.0 - layer.alpha) * bg[None])
+        bias.append(np.full(len(tri), layer.depth_bias))
+    if not tris:
         raise InputError("nothing to render")
-    P = np.concatenate(polys)
-    C = np.concatenate(colors)
-    order = np.argsort(np.concatenate(depth))  # far (small z) first
+    T = np.concatenate(tris)
     w, h = size
-    fig = plt.figure(figsize=(w / 100, h / 100), dpi=100)
-    ax = fig.add_axes([0, 0, 1, 1])
-    ax.set_facecolor(background)
-    fig.patch.set_facecolor(background)
-    ax.add_collection(PolyCollection(P[order], facecolors=C[order], edgecolors="none", antialiased=False))
     if bounds is None:
-        lo, hi = P.reshape(-1, 2).min(0), P.reshape(-1, 2).max(0)
+        lo, hi = T[:, :, :2].reshape(-1, 2).min(0), T[:, :, :2].reshape(-1, 2).max(0)
         c, r = (lo + hi) / 2, (hi - lo).max() / 2 * 1.08
         aspect = w / h
         bounds = (
@@ -105,19 +99,91 @@ def render(
             (c[1] - r / min(aspect, 1), c[1] + r / min(aspect, 1)),
         )
     (x0, x1), (y0, y1) = bounds
-    # equal scale on both axes
-    sx, sy = (x1 - x0) / w, (y1 - y0) / h
-    s = max(sx, sy)
+    s = max((x1 - x0) / w, (y1 - y0) / h)  # equal scale on both axes
     cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
-    ax.set_xlim(cx - s * w / 2, cx + s * w / 2)
-    ax.set_ylim(cy - s * h / 2, cy + s * h / 2)
-    ax.axis("off")
-    if title:
-        ax.text(0.02, 0.98, title, transform=ax.transAxes, va="top", ha="left", fontsize=9, color="0.2")
-    fig.canvas.draw()
-    img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-    plt.close(fig)
-    return img
+    pix = np.empty_like(T)  # pixel coordinates: x right, y down, depth (larger: nearer)
+    pix[..., 0] = (T[..., 0] - (cx - s * w / 2)) / s
+    pix[..., 1] = ((cy + s * h / 2) - T[..., 1]) / s
+    pix[..., 2] = T[..., 2] + np.concatenate(bias)[:, None]
+    face = rasterize(pix, w, h)
+    img = np.empty((h * w, 3), np.float64)
+    img[:] = np.asarray(background, np.float64)
+    hit = face >= 0
+    img[hit] = np.concatenate(colors)[face[hit]]
+    img = np.round(255 * img.reshape(h, w, 3)).astype(np.uint8)
+    return _titled(img, title) if title else img
+
+
+def rasterize(pix: np.ndarray, width: int, height: int, *, chunk: int = 2_000_000) -> np.ndarray:
+    """The nearest triangle at every pixel centre: a depth buffer, vectorised over (triangle, pixel) pairs.
+
+    ``pix (F, 3, 3)``: each triangle's corners in pixel coordinates (x right, y down; pixel (i, j) covers
+    [i, i + 1) x [j, j + 1) and is sampled at its centre) and a depth, larger = nearer.  A centre on an edge
+    belongs to both triangles; the nearer wins, ties to the lower index.  Returns ``(height * width,)`` int64:
+    the winning triangle per pixel (row-major), -1 where none covers it.  Degenerate triangles (zero area in the
+    image plane) and non-finite corners cover nothing.
+    """
+    pix = np.asarray(pix, np.float64)
+    best = np.full(height * width, -1, np.int64)
+    depth = np.full(height * width, -np.inf)
+    if not len(pix):
+        return best
+    x, y, z = pix[..., 0], pix[..., 1], pix[..., 2]
+    ok = np.isfinite(pix).all(axis=(1, 2))
+    area = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+    ok &= area != 0
+    with np.errstate(invalid="ignore"):
+        i0 = np.clip(np.ceil(np.nanmin(x, 1) - 0.5), 0, width).astype(np.int64)
+        i1 = np.clip(np.floor(np.nanmax(x, 1) - 0.5), -1, width - 1).astype(np.int64)
+        j0 = np.clip(np.ceil(np.nanmin(y, 1) - 0.5), 0, height).astype(np.int64)
+        j1 = np.clip(np.floor(np.nanmax(y, 1) - 0.5), -1, height - 1).astype(np.int64)
+    nx, ny = np.maximum(i1 - i0 + 1, 0), np.maximum(j1 - j0 + 1, 0)
+    count = np.where(ok, nx * ny, 0)
+    faces = np.flatnonzero(count)
+    # chunks of whole triangles whose pairs fit in `chunk`
+    ends = np.cumsum(count[faces])
+    lo = 0
+    while lo < len(faces):
+        hi = max(int(np.searchsorted(ends, (ends[lo - 1] if lo else 0) + chunk, side="right")), lo + 1)
+        f = faces[lo:hi]
+        t = np.repeat(f, count[f])
+        k = np.arange(len(t)) - np.repeat(np.cumsum(count[f]) - count[f], count[f])
+        px = i0[t] + k % nx[t] + 0.5
+        py = j0[t] + k // nx[t] + 0.5
+        # barycentric coordinates from the edge functions, normalised by the signed area
+        a = area[t]
+        w0 = ((x[t, 1] - px) * (y[t, 2] - py) - (x[t, 2] - px) * (y[t, 1] - py)) / a
+        w1 = ((x[t, 2] - px) * (y[t, 0] - py) - (x[t, 0] - px) * (y[t, 2] - py)) / a
+        w2 = 1.0 - w0 - w1
+        inside = (w0 >= 0) & (w1 >= 0) & (w2 >= 0)
+        t, w0, w1, w2 = t[inside], w0[inside], w1[inside], w2[inside]
+        d = w0 * z[t, 0] + w1 * z[t, 1] + w2 * z[t, 2]
+        p = ((j0[t] + k[inside] // nx[t]) * width + i0[t] + k[inside] % nx[t]).astype(np.int64)
+        # per pixel: the nearest candidate of this chunk (ties: the lower triangle index), then against the buffer
+        order = np.lexsort((t, -d, p))
+        p, d, t = p[order], d[order], t[order]
+        first = np.ones(len(p), bool)
+        first[1:] = p[1:] != p[:-1]
+        p, d, t = p[first], d[first], t[first]
+        win = (d > depth[p]) | ((d == depth[p]) & (t < best[p]))
+        depth[p[win]], best[p[win]] = d[win], t[win]
+        lo = hi
+    return best
+
+
+def _titled(img: np.ndarray, title: str) -> np.ndarray:
+    """``img`` with ``title`` written in its top left corner (matplotlib's text, as before)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    h, w = img.shape[:2]
+    fig = Figure(figsize=(w / 100, h / 100), dpi=100)  # no pyplot: no global figure state
+    canvas = FigureCanvasAgg(fig)
+    fig.figimage(img, 0, 0, origin="upper")
+    fig.text(0.02, 0.98, title, va="top", ha="left", fontsize=9, color="0.2")
+    canvas.draw()
+    out = np.asarray(canvas.buffer_rgba())[..., :3].copy()
+    return out
 
 
 def fit_bounds(
