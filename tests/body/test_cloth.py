@@ -194,8 +194,9 @@ def _cube(half: float):
 
 def test_an_edge_across_the_body_is_pushed_out_with_both_ends():
     """An edge whose two ends are outside the body and whose middle is inside it (a chord across a box's corner, as
-    a skirt's edge across a thigh): vertex contacts alone leave it there; the edge's contact moves both ends alike
-    until its middle is the margin outside, in the kernel and the reference."""
+    a skirt's edge across a thigh): vertex contacts alone leave it there; the edge's contact moves both (free) ends
+    alike until its middle is the margin outside, in the kernel and the reference.  An edge with both ends attached
+    is left to the vertex contacts (it follows the network where the garment lies on the body)."""
     body_v, body_f = _cube(0.1)
     col = BodyCollider(body_v, body_f)
     assert (col.query(body_v * 0.5, body_v).signed_distance < 0).all()  # the box is closed and wound outward
@@ -204,18 +205,25 @@ def test_an_edge_across_the_body_is_pushed_out_with_both_ends():
     mid = 0.5 * (v[0] + v[1])
     assert (col.query(v[:2], body_v).signed_distance > MARGIN).all()
     assert col.query(mid[None], body_v).signed_distance[0] < -0.001  # the target's chord is inside
-    setup = cloth_setup(v, f, np.zeros(3), ClothSettings())  # every vertex attached: only contact moves it
     targets = np.repeat(v[None], 3, 0)
     posed = np.repeat(body_v[None], 3, 0)
-    out = ClothStage(setup, body_v, body_f, ClothSettings(), margin=MARGIN).step(targets, posed)
-    ref, _ = cloth_reference(targets, posed, body_f, setup, ClothSettings(), margin=MARGIN)
+    # the chord's ends free (radius 5 cm), the far vertex attached; only contact and the drive act
+    knobs = ClothSettings(stiffness=0.0, bending=0.0, gravity=0.0)
+    setup = cloth_setup(v, f, np.array([1.0, 1.0, 0.0]), knobs)
+    assert setup.radius.tolist() == [0.05, 0.05, 0.0]
+    out = ClothStage(setup, body_v, body_f, knobs, margin=MARGIN).step(targets, posed)
+    ref, _ = cloth_reference(targets, posed, body_f, setup, knobs, margin=MARGIN)
     assert np.abs(out - ref).max() <= 1e-12
     for x in out:
         m = 0.5 * (x[0] + x[1])
         assert col.query(m[None], body_v).signed_distance[0] >= MARGIN - 1e-9
         assert (col.query(x, body_v).signed_distance >= MARGIN - 1e-9).all()
         np.testing.assert_allclose(x[1] - x[0], v[1] - v[0], atol=1e-12)  # both ends moved alike
-        assert x[2].tolist() == v[2].tolist()  # the far vertex is not moved
+        assert x[2].tolist() == v[2].tolist()  # the attached far vertex is not moved
+    # every vertex attached: the chord stays where the network put it (its ends are outside the margin)
+    pinned = cloth_setup(v, f, np.zeros(3), knobs)
+    out = ClothStage(pinned, body_v, body_f, knobs, margin=MARGIN).step(targets, posed)
+    np.testing.assert_array_equal(out, targets)
 
 
 def test_strain_is_limited_and_inertia_and_gravity_act():

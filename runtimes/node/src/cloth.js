@@ -385,11 +385,12 @@ export class ClothStage {
       const bv = B.subarray(bo, bo + 3 * nv), x = out.subarray(xo, xo + 3 * n), yf = y.subarray(yo, yo + 3 * n);
       col.refitInto(bv, box);
       col.near(bv, box, x, 0, n, margin + band, sd, cp, cn);
-      // and for the middle of every edge with an end in contact (only those)
+      // and for the middle of every edge with an end in contact and a free end (only those)
       let nec = 0;
       for (let e = 0; e < ne; e++) {
         const a = 3 * edges[2 * e], b = 3 * edges[2 * e + 1];
         if (!(sd[edges[2 * e]] < margin + band) && !(sd[edges[2 * e + 1]] < margin + band)) continue;
+        if (!(radius[edges[2 * e]] > 0) && !(radius[edges[2 * e + 1]] > 0)) continue;
         eidx[nec] = e;
         mid[3 * nec] = 0.5 * (x[a] + x[b]);
         mid[3 * nec + 1] = 0.5 * (x[a + 1] + x[b + 1]);

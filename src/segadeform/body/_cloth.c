@@ -34,11 +34,13 @@
  *                 most max_distance on hems and loose parts (scl_setup);
  *   contact       every vertex found at the frame's start inside the body or within margin + SCL_CONTACT_BAND
  *                 of it kept on the outer side of the plane through its closest body point: n . (x - c) >= margin;
- *   edge contact  the same for the middle of every edge with an end in contact: both ends moved alike along the
- *                 plane's normal, n . ((xa + xb) / 2 - c) >= margin (a vertex-edge contact with equal masses: Bridson,
- *                 Fedkiw & Anderson, "Robust treatment of collisions, contact and friction for cloth animation",
- *                 SIGGRAPH 2002, sec. 7).  Without it two ends pushed out to either side of a limb leave the edge
- *                 between them across it: the holes of a thigh through a skirt, every vertex outside.
+ *   edge contact  the same for the middle of every edge with an end in contact and a free end: both ends moved
+ *                 alike along the plane's normal, n . ((xa + xb) / 2 - c) >= margin (a vertex-edge contact with
+ *                 equal masses: Bridson, Fedkiw & Anderson, "Robust treatment of collisions, contact and friction
+ *                 for cloth animation", SIGGRAPH 2002, sec. 7).  Without it two ends pushed out to either side of a
+ *                 limb leave the edge between them across it: the holes of a thigh through a skirt, every vertex
+ *                 outside.  Edges with both ends attached are left to the vertex contacts: they follow the network
+ *                 where the garment lies on the body, and there (an arm against the torso) no side is the outside.
  *
  * After the sweeps, the vertices that may be inside the body or closer than the margin -- found so, or moved
  * farther than their clearance since the contacts were found (no other can be) -- are pushed out of the body
@@ -463,12 +465,13 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         /* contacts: a plane for every vertex inside the body or near it */
         sdc_refit(collider, bv, box);
         sdc_near(collider, bv, box, x, 0, n, margin + band, sd, cp, cn);
-        /* and for the middle of every edge with an end in contact (only those: an edge whose ends are both clear
-         * of the body is left unchecked, which keeps the extra queries to the few edges near it) */
+        /* and for the middle of every edge with an end in contact and a free end (only those: an edge whose ends
+         * are both clear of the body is left unchecked, which keeps the extra queries to the few edges near it) */
         nec = 0;
         for (e = 0; e < ne; e++) {
             const double *pa = x + 3 * edges[2 * e], *pb = x + 3 * edges[2 * e + 1];
             if (!(sd[edges[2 * e]] < margin + band) && !(sd[edges[2 * e + 1]] < margin + band)) continue;
+            if (!(radius[edges[2 * e]] > 0) && !(radius[edges[2 * e + 1]] > 0)) continue;
             eidx[nec] = e;
             mid[3 * nec] = 0.5 * (pa[0] + pb[0]);
             mid[3 * nec + 1] = 0.5 * (pa[1] + pb[1]);

@@ -610,7 +610,8 @@ def cloth_reference(
         # contacts
         q = col.query(x, bv)
         contact = q.signed_distance < margin + CONTACT_BAND
-        e_near = np.flatnonzero(contact[setup.edges[:, 0]] | contact[setup.edges[:, 1]])
+        ea, eb = setup.edges[:, 0], setup.edges[:, 1]
+        e_near = np.flatnonzero((contact[ea] | contact[eb]) & ((setup.radius[ea] > 0) | (setup.radius[eb] > 0)))
         eq = col.query(0.5 * (x[setup.edges[e_near, 0]] + x[setup.edges[e_near, 1]]), bv) if len(e_near) else None
         x_query = x.copy()
         for it in range(iters):
