@@ -612,7 +612,10 @@ def cloth_reference(
         contact = q.signed_distance < margin + CONTACT_BAND
         ea, eb = setup.edges[:, 0], setup.edges[:, 1]
         e_near = np.flatnonzero((contact[ea] | contact[eb]) & ((setup.radius[ea] > 0) | (setup.radius[eb] > 0)))
-        eq = col.query(0.5 * (x[setup.edges[e_near, 0]] + x[setup.edges[e_near, 1]]), bv) if len(e_near) else None
+        e_sd, e_cp, e_n = np.full(len(e_near), np.inf), np.zeros((len(e_near), 3)), np.zeros((len(e_near), 3))
+        if len(e_near):
+            eq = col.query(0.5 * (x[ea[e_near]] + x[eb[e_near]]), bv)
+            e_sd, e_cp, e_n = eq.signed_distance, eq.closest, eq.normal
         x_query = x.copy()
         for it in range(iters):
             fwd = it % 2 == 0
@@ -658,11 +661,11 @@ def cloth_reference(
                     sep = nrm[0] * (x[i, 0] - cp[0]) + nrm[1] * (x[i, 1] - cp[1]) + nrm[2] * (x[i, 2] - cp[2]) - margin
                     if sep < 0:
                         x[i] = x[i] - sep * nrm
-            for k, e in enumerate(e_near.tolist()):
-                if not eq.signed_distance[k] < margin + CONTACT_BAND:
+            for slot, ei in enumerate(e_near.tolist()):
+                if not e_sd[slot] < margin + CONTACT_BAND:
                     continue
-                a, b = setup.edges[e]
-                nrm, cp = eq.normal[k], eq.closest[k]
+                a, b = setup.edges[ei]
+                nrm, cp = e_n[slot], e_cp[slot]
                 m = 0.5 * (x[a] + x[b])
                 sep = nrm[0] * (m[0] - cp[0]) + nrm[1] * (m[1] - cp[1]) + nrm[2] * (m[2] - cp[2]) - margin
                 if sep < 0:
