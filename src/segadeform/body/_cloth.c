@@ -46,7 +46,8 @@
  * farther than their clearance since the contacts were found (no other can be) -- are pushed out of the body
  * exactly as the collision stage does (sdc_push_out, SCL_PASSES passes): contact wins over the attachment (edge
  * middles are not pushed there: the planes above hold them).  Attached vertices
- * (radius 0) have infinite mass: edges, tethers and smoothing move only free vertices.
+ * (radius 0) have infinite mass for the stretch limits, tethers and smoothing, which move only free vertices;
+ * contacts, at vertices and edge middles, move any vertex.
  *
  * State (the caller keeps it between calls; calls may hold any number of frames): the last two output frames and
  * the last target.  Inertia: p = x1 + (1 - damping)(x1 - x0) - (0, gravity dt^2, 0), from the frames before, then
