@@ -264,6 +264,12 @@ function smoothVertex(x, xo, y, yo, nptr, nidx, radius, i, k) {
   x[p + 2] += k * (m2 - (x[p + 2] - y[t + 2]));
 }
 
+/* Whether edge e gets a contact plane at its middle: an end in contact (sd within `near`) and an end free (1 or 0). */
+function edgeNear(edges, e, sd, radius, near) {
+  const a = edges[2 * e], b = edges[2 * e + 1];
+  return (sd[a] < near || sd[b] < near) && (radius[a] > 0 || radius[b] > 0) ? 1 : 0;
+}
+
 /* One edge's contact: both ends of edge e moved alike along the plane's normal until the edge's middle is margin
  * outside the plane (when the middle was found within margin + band of the body). */
 function edgeContact(x, edges, e, sd, cp, cn, k, margin, band) {
@@ -313,12 +319,16 @@ export class ClothStage {
     this.q = new Float64Array(3 * n);
     this.pick = new Int32Array(n);
     this.moved = new Uint8Array(n);
-    const me = setup.ne > 0 ? setup.ne : 1; // the edges with an end in contact: their middles' contact planes
-    this.eidx = new Int32Array(me);
-    this.mid = new Float64Array(3 * me);
-    this.esd = new Float64Array(me);
-    this.ecp = new Float64Array(3 * me);
-    this.ecn = new Float64Array(3 * me);
+    this.growEdges(0); // the edge contacts' buffers, grown to the most edges near the body in one frame
+  }
+
+  growEdges(count) {
+    const c = Math.max(count, 1);
+    this.eidx = new Int32Array(c);
+    this.mid = new Float64Array(3 * c);
+    this.esd = new Float64Array(c);
+    this.ecp = new Float64Array(3 * c);
+    this.ecn = new Float64Array(3 * c);
   }
 
   step(target, body, nb) {
@@ -334,7 +344,7 @@ export class ClothStage {
     const keep = 1.0 - st.damping, drop = st.gravity * this.dt * this.dt;
     const margin = this.margin, reset = st.reset, band = CONTACT_BAND, follow = st.follow;
     const S = this.state, x1 = 0, x0 = 3 * n, yp = 6 * n;
-    const { box, sd, cp, cn, q, pick, moved, eidx, mid, esd, ecp, ecn } = this;
+    const { box, sd, cp, cn, q, pick, moved } = this;
     const y = target instanceof Float64Array ? target : new Float64Array(target);
     const B = body instanceof Float64Array ? body : new Float64Array(body);
     const out = new Float64Array(nb * n * 3);
@@ -387,10 +397,13 @@ export class ClothStage {
       col.near(bv, box, x, 0, n, margin + band, sd, cp, cn);
       // and for the middle of every edge with an end in contact and a free end (only those)
       let nec = 0;
+      for (let e = 0; e < ne; e++) nec += edgeNear(edges, e, sd, radius, margin + band);
+      if (nec > this.eidx.length) this.growEdges(nec);
+      const { eidx, mid, esd, ecp, ecn } = this;
+      nec = 0;
       for (let e = 0; e < ne; e++) {
         const a = 3 * edges[2 * e], b = 3 * edges[2 * e + 1];
-        if (!(sd[edges[2 * e]] < margin + band) && !(sd[edges[2 * e + 1]] < margin + band)) continue;
-        if (!(radius[edges[2 * e]] > 0) && !(radius[edges[2 * e + 1]] > 0)) continue;
+        if (!edgeNear(edges, e, sd, radius, margin + band)) continue;
         eidx[nec] = e;
         mid[3 * nec] = 0.5 * (x[a] + x[b]);
         mid[3 * nec + 1] = 0.5 * (x[a + 1] + x[b + 1]);

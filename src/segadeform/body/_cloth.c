@@ -365,6 +365,12 @@ static void smooth_vertex(double *x, const double *y, const int64_t *nptr, const
     x[3 * i + 2] += k * (m2 - (x[3 * i + 2] - y[3 * i + 2]));
 }
 
+/* Whether edge e gets a contact plane at its middle: an end in contact (sd within `near`) and an end free. */
+static int edge_near(const int64_t *edges, int64_t e, const double *sd, const double *radius, double near) {
+    int64_t a = edges[2 * e], b = edges[2 * e + 1];
+    return (sd[a] < near || sd[b] < near) && (radius[a] > 0 || radius[b] > 0);
+}
+
 /* One edge's contact: both ends of edge e moved alike along the plane's normal n until the edge's middle is margin
  * outside the plane through c (when the middle was found within margin + band of the body: sd). */
 static void edge_contact(double *x, const int64_t *edges, int64_t e, double sd, const double *c, const double *nrm,
@@ -412,17 +418,14 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
     double *q = (double *)malloc(sizeof(double) * 3 * (size_t)n);
     int64_t *pick = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
     uint8_t *moved = (uint8_t *)malloc((size_t)n);
-    size_t me = (size_t)(ne > 0 ? ne : 1);
-    int64_t *eidx = (int64_t *)malloc(sizeof(int64_t) * me), nec;
-    double *mid = (double *)malloc(sizeof(double) * 3 * me), *esd = (double *)malloc(sizeof(double) * me);
-    double *ecp = (double *)malloc(sizeof(double) * 3 * me), *ecn = (double *)malloc(sizeof(double) * 3 * me);
+    /* the edge contacts' buffers, grown to the most edges near the body in one frame (not sized by every edge:
+     * memory stays O(vertices + contacts)) */
+    int64_t *eidx = NULL, nec, cap = 0;
+    double *mid = NULL, *esd = NULL, *ecp = NULL, *ecn = NULL;
     int64_t status = 0;
     if (iters < 1) iters = 1;
     info[I_FIRST_RESET] = -1;
-    if (!box || !sd || !cp || !cn || !q || !pick || !moved || !eidx || !mid || !esd || !ecp || !ecn) {
-        status = -1;
-        goto done;
-    }
+    if (!box || !sd || !cp || !cn || !q || !pick || !moved) { status = -1; goto done; }
     for (f = 0; f < nb; f++) {
         const double *y = target + 3 * n * f, *bv = body + 3 * nv * f;
         double *x = out + 3 * n * f;
@@ -469,10 +472,26 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         /* and for the middle of every edge with an end in contact and a free end (only those: an edge whose ends
          * are both clear of the body is left unchecked, which keeps the extra queries to the few edges near it) */
         nec = 0;
+        for (e = 0; e < ne; e++) nec += edge_near(edges, e, sd, radius, margin + band);
+        if (nec > cap) {
+            size_t c = (size_t)nec;
+            void *a = realloc(eidx, sizeof(int64_t) * c), *b, *d, *g, *h;
+            if (a) eidx = (int64_t *)a;
+            b = realloc(mid, sizeof(double) * 3 * c);
+            if (b) mid = (double *)b;
+            d = realloc(esd, sizeof(double) * c);
+            if (d) esd = (double *)d;
+            g = realloc(ecp, sizeof(double) * 3 * c);
+            if (g) ecp = (double *)g;
+            h = realloc(ecn, sizeof(double) * 3 * c);
+            if (h) ecn = (double *)h;
+            if (!a || !b || !d || !g || !h) { status = -1; goto done; }
+            cap = nec;
+        }
+        nec = 0;
         for (e = 0; e < ne; e++) {
             const double *pa = x + 3 * edges[2 * e], *pb = x + 3 * edges[2 * e + 1];
-            if (!(sd[edges[2 * e]] < margin + band) && !(sd[edges[2 * e + 1]] < margin + band)) continue;
-            if (!(radius[edges[2 * e]] > 0) && !(radius[edges[2 * e + 1]] > 0)) continue;
+            if (!edge_near(edges, e, sd, radius, margin + band)) continue;
             eidx[nec] = e;
             mid[3 * nec] = 0.5 * (pa[0] + pb[0]);
             mid[3 * nec + 1] = 0.5 * (pa[1] + pb[1]);
