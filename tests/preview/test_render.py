@@ -74,3 +74,16 @@ def test_bad_layers_are_refused():
         render([])
     with pytest.raises(InputError):
         MeshLayer(np.zeros((3, 2)), [[0, 1, 2]])
+
+
+def test_hard_triangles_cover_what_they_should():
+    """A triangle far larger than the image covers every pixel; one smaller than a pixel covers at most one; a
+    degenerate one and one with a non-finite corner cover nothing; huge coordinates do not overflow the pair count."""
+    w, h = 16, 12
+    huge = [[[-1e9, -1e9, 0.0], [3e9, -1e9, 0.0], [-1e9, 3e9, 0.0]]]
+    assert (rasterize(np.array(huge), w, h) == 0).all()
+    tiny = [[[5.4, 5.4, 0.0], [5.6, 5.4, 0.0], [5.4, 5.6, 0.0]]]
+    assert (rasterize(np.array(tiny), w, h) >= 0).sum() == 1
+    bad = [[[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [9.0, 9.0, 0.0]], [[1.0, 1.0, 0.0], [np.nan, 2.0, 0.0], [9.0, 1.0, 0.0]]]
+    assert (rasterize(np.array(bad), w, h) == -1).all()
+    assert (rasterize(np.zeros((0, 3, 3)), w, h) == -1).all()
