@@ -75,6 +75,7 @@ def render(
     R = view_rotation(azimuth, elevation)
     light = np.array([0.3, 0.4, 1.0])
     light /= np.linalg.norm(light)
+    bg = np.asarray(background, np.float64)
     tris, colors, bias = [], [], []
     for layer in layers:
         tri = (layer.vertices @ R.T)[layer.faces]  # (F, 3, 3)
@@ -82,7 +83,6 @@ def render(
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-20)
         shade = 0.35 + 0.65 * np.abs(n @ light)  # two-sided: garments are open surfaces
         rgb = np.clip(layer.color[None] * shade[:, None], 0, 1)
-        bg = np.asarray(background, np.float64)
         tris.append(tri)
         colors.append(layer.alpha * rgb + (1.0 - layer.alpha) * bg[None])
         bias.append(np.full(len(tri), layer.depth_bias))
@@ -107,7 +107,7 @@ def render(
     pix[..., 2] = T[..., 2] + np.concatenate(bias)[:, None]
     face = rasterize(pix, w, h)
     img = np.empty((h * w, 3), np.float64)
-    img[:] = np.asarray(background, np.float64)
+    img[:] = bg
     hit = face >= 0
     img[hit] = np.concatenate(colors)[face[hit]]
     img = np.round(255 * img.reshape(h, w, 3)).astype(np.uint8)
