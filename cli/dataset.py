@@ -74,7 +74,13 @@ def dataset_group():
     help="Write into a folder that holds other files (beside them, never over "
     "them); a dataset folder is continued without it.",
 )
-def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, roots, force):
+@click.option(
+    "--retry-rejected",
+    is_flag=True,
+    help="First simulate again the rejected samples whose clip motion loading now prepares differently "
+    "(after a fix to it); their old files move to rejected/retried/.",
+)
+def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, roots, force, retry_rejected):
     """Simulate every garment x body x motion of CONFIG.toml into OUTPUT (resumable)."""
     from segadeform.dataset import load_dataset_config, make_dataset
     from segadeform.distributed.executors import make_executor
@@ -107,6 +113,7 @@ def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, ro
                 limit=limit,
                 executor=ex,
                 roots=roots,
+                retry_rejected=retry_rejected,
             )
     finally:
         guard.abandon()  # a run that made nothing leaves no empty folder

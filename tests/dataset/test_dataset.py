@@ -783,3 +783,97 @@ kind = "walk"
     n = rec["frames"]
     assert s.frames.shape[0] == s.poses.shape[0] == s.trans.shape[0] == s.contact_p.shape[0] == n >= 12
     np.testing.assert_allclose(s.frames, np.repeat(s.rest[None], n, axis=0).astype(np.float32))
+
+
+def test_a_samples_motion_loses_the_frames_a_capture_settles_from_and_its_glitches(tmp_path):
+    """A capture whose first frames throw a thigh about and whose markers swap mid-clip is played to the
+    simulator without either: every joint of the motion it gets (lead included) moves slower than a person can."""
+    from segadeform.body.skeleton import default_rest_joints
+    from segadeform.dataset.make import _motion
+    from segadeform.motion import make_motion
+    from segadeform.motion.motion import joint_speeds
+
+    j = default_rest_joints()
+    m = make_motion("walk", seconds=3.0, fps=120.0, seed=0, ease_in=0.0)
+    bad = m.poses.copy()
+    bad[[0, 2], 3 * 1] += 0.9  # the solve settling: a thigh thrown 52 degrees forward on frames 0 and 2
+    bad[[60, 61], 3 * 18 + 1] += 2.5  # a forearm swung away for two frames (inside the lead)
+    dataclasses.replace(m, poses=bad).save(tmp_path / "cap.npz")
+    assert joint_speeds(load_motion_npz_at(tmp_path / "cap.npz"), j).max() > 80  # m/s: no person moves so
+    text = (
+        "[dataset]\nfps = 30.0\nseconds = 1.0\n"
+        '[[garments]]\nname = "skirt"\nkind = "skirt"\n'
+        '[[motions]]\nname = "cap"\nfile = "cap.npz"\nstart = 1.0\n'
+    )
+    cfg = load_dataset_config(_write(tmp_path, "c.toml", text))
+    mo, lead = _motion(cfg.motions[0], cfg, j, with_lead=True)
+    assert lead == 30 and mo.n_frames == 60
+    assert joint_speeds(mo, j).max() < 20.0  # the lead starts on the file's first frame that is kept
+    assert mo.meta["dropped_leading_glitch_frames"] == 3 and mo.meta["repaired_glitch_frames"] == 2
+    # the clip is the capture's from 1 s after its first kept frame: the same walk, not another
+    ref = make_motion("walk", seconds=3.0, fps=120.0, seed=0, ease_in=0.0)
+    clip = _motion(cfg.motions[0], cfg, j)
+    assert clip.n_frames == 30
+    np.testing.assert_allclose(clip.poses[:, 3:], ref.poses[123 : 123 + 120 : 4, 3:], atol=1e-6)
+
+
+def load_motion_npz_at(path):
+    from segadeform.motion import load_motion
+
+    return load_motion(path)
+
+
+class _Recorder:
+    """An executor that simulates nothing: it notes which samples a run would make and reports them rejected."""
+
+    name, remote, workers = "recorder", False, 1
+
+    def __init__(self):
+        self.ids = []
+
+    def map_unordered(self, fn, tasks):
+        for t in tasks:
+            self.ids.append(t.sample.id)
+            yield {"id": t.sample.id, "status": "rejected", "reasons": ["not simulated"], "vertices": 0}
+
+    def close(self):
+        pass
+
+
+def test_retry_rejected_makes_again_only_samples_simulated_with_a_motion_loading_no_longer_gives(tmp_path):
+    """After a fix to motion loading, `dataset make --retry-rejected` simulates again the rejected samples whose
+    stored clip differs from what loading gives now, first and within --limit; their old files are kept aside."""
+    from segadeform.body.model import default_body_path, load_body
+    from segadeform.dataset.make import _motion, make_dataset
+    from segadeform.dataset.store import Sample, save_sample
+    from segadeform.motion import make_motion
+
+    make_motion("walk", seconds=3.0, fps=120.0, seed=0, ease_in=0.0).save(tmp_path / "a.npz")
+    make_motion("dance", seconds=3.0, fps=120.0, seed=1, ease_in=0.0).save(tmp_path / "b.npz")
+    text = (
+        "[dataset]\nfps = 30.0\nseconds = 0.5\n"
+        '[[garments]]\nname = "skirt"\nkind = "skirt"\n'
+        '[[motions]]\nname = "a"\nfile = "a.npz"\nstart = 1.0\n'
+        '[[motions]]\nname = "b"\nfile = "b.npz"\nstart = 1.0\n'
+    )
+    cfg = load_dataset_config(_write(tmp_path, "c.toml", text))
+    plan = sample_plan(cfg)
+    body = load_body(default_body_path())
+    root = tmp_path / "ds"
+    gv, gf = grid_plane(2, 2)
+    for p in plan:  # both rejected; a's with the clip loading gives now, b's with another (an older loader's)
+        clip = _motion(cfg.motions[p.motion], cfg, body.rest_joints(None)[0])
+        poses = clip.poses if cfg.motions[p.motion].name == "a" else clip.poses + 0.01
+        frames = np.repeat(gv[None], clip.n_frames, axis=0).astype(np.float32)
+        s = Sample(p.id, gv, gf, np.zeros(0), poses, clip.trans, frames, {"id": p.id, "status": "rejected"})
+        save_sample(root, s, folder="rejected")
+    a_id, b_id = (p.id for p in plan)
+    before = {n: (root / "rejected" / n).read_bytes() for n in (f"{b_id}.json", f"{b_id}.npz")}
+    rec = _Recorder()
+    s = make_dataset(cfg, root, executor=rec)
+    assert rec.ids == [] and s.skipped == 2  # without the flag: both done
+    s = make_dataset(cfg, root, executor=rec, retry_rejected=True, limit=1)
+    assert rec.ids == [b_id] and s.skipped == 1
+    assert not (root / "rejected" / f"{b_id}.json").exists()  # put aside, byte for byte, not lost
+    assert {n: (root / "rejected" / "retried" / n.replace(b_id, f"{b_id}.1")).read_bytes() for n in before} == before
+    assert (root / "rejected" / f"{a_id}.json").exists()

@@ -222,6 +222,71 @@ def test_drop_leading_jumps_removes_a_tpose_put_in_front():
     assert out.meta["dropped_leading_frames"] == 1
 
 
+def _joint_speeds_by_hand(m, joints):
+    """The obvious reference: every frame posed on its own, the fastest joint's step times the frame rate."""
+    posed = []
+    for t in range(m.n_frames):
+        rot = axis_angle_to_matrix(m.poses[t].reshape(1, 24, 3))
+        posed.append(forward_kinematics(rot, joints, SMPL_PARENTS, m.trans[t : t + 1])[1][0])
+    return np.array([np.linalg.norm(posed[t + 1] - posed[t], axis=1).max() * m.fps for t in range(m.n_frames - 1)])
+
+
+def test_joint_speeds_are_the_fastest_joints_step_per_second():
+    from segadeform.motion import make_motion
+    from segadeform.motion.motion import joint_speeds
+
+    j = default_rest_joints()
+    m = make_motion("dance", seconds=0.5, fps=30.0, seed=1)
+    np.testing.assert_allclose(joint_speeds(m, j), _joint_speeds_by_hand(m, j), rtol=1e-10, atol=1e-12)
+    still = dataclasses.replace(m, poses=np.zeros_like(m.poses), trans=np.outer(np.arange(m.n_frames), [0.1, 0, 0]))
+    np.testing.assert_allclose(joint_speeds(still, j), 3.0)  # 0.1 m a frame at 30 fps: every joint at 3 m/s
+    with pytest.raises(InputError, match="rest joints"):
+        joint_speeds(m, j[:10])
+
+
+def test_drop_leading_glitches_drops_the_frames_a_capture_settles_from():
+    from segadeform.motion import make_motion
+    from segadeform.motion.motion import drop_leading_glitches
+
+    j = default_rest_joints()
+    m = make_motion("walk", seconds=2.0, fps=120.0, seed=0)
+    assert drop_leading_glitches(m, j)[1] == 0  # a motion that flows is left alone
+    bad = m.poses.copy()
+    bad[[0, 2], 3 * 1 + 0] += 1.2  # the first frames of the solve: a thigh thrown forward and back
+    g = dataclasses.replace(m, poses=bad)
+    out, k = drop_leading_glitches(g, j)
+    assert k == 3 and out.n_frames == m.n_frames - 3 and np.array_equal(out.poses, m.poses[3:])
+    assert out.meta["dropped_leading_glitch_frames"] == 3
+    late = m.poses.copy()
+    late[100, 3 * 1 + 0] += 1.2  # a jump after the first tenth of a second is no settling: left here
+    assert drop_leading_glitches(dataclasses.replace(m, poses=late), j)[1] == 0
+
+
+def test_repair_glitches_rebuilds_a_frame_the_capture_jumps_to_and_back_from():
+    from segadeform.motion import make_motion
+    from segadeform.motion.motion import joint_speeds, repair_glitches
+
+    j = default_rest_joints()
+    m = make_motion("walk", seconds=2.0, fps=120.0, seed=0)
+    assert repair_glitches(m, j)[1] == 0
+    bad = m.poses.copy()
+    bad[[100, 101], 3 * 18 + 1] += 2.5  # two frames of a forearm swung 143 degrees away (swapped markers)
+    out, k = repair_glitches(dataclasses.replace(m, poses=bad), j)
+    assert k == 2 and out.meta["repaired_glitch_frames"] == 2
+    assert joint_speeds(out, j).max() < 20.0
+    np.testing.assert_allclose(out.poses[:100], m.poses[:100])  # nothing else moves
+    np.testing.assert_allclose(out.poses[102:], m.poses[102:])
+    # the rebuilt frames lie where the walk was (it is smooth at 120 fps): millimetres, not the 0.4 m jump
+    _, was = forward_kinematics(axis_angle_to_matrix(m.poses[100:102].reshape(2, 24, 3)), j, SMPL_PARENTS)
+    _, now = forward_kinematics(axis_angle_to_matrix(out.poses[100:102].reshape(2, 24, 3)), j, SMPL_PARENTS)
+    assert np.linalg.norm(now - was, axis=2).max() < 0.005
+    cut = m.poses.copy()
+    cut[100:, 3 * 18 + 1] += 2.5  # one step over the bound and no way back: a cut, nothing to rebuild
+    assert repair_glitches(dataclasses.replace(m, poses=cut), j)[1] == 0
+    with pytest.raises(InputError, match="max_speed"):
+        repair_glitches(m, j, max_speed=0.0)
+
+
 def test_ramp_in_starts_from_rest_and_joins_the_motion_at_full_speed():
     from segadeform.motion import make_motion
     from segadeform.motion.motion import ramp_in

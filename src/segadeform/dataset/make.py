@@ -40,6 +40,7 @@ import dataclasses
 import functools
 import hashlib
 import json
+import os
 import tempfile
 import time
 from collections.abc import Callable
@@ -48,6 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from ..body.model import BodyModel, default_body_path, load_body
+from ..body.skeleton import default_rest_joints
 from ..distributed.executors import Executor, LocalExecutor
 from ..errors import InputError, SegadeformError
 from ..garments import GARMENT_TYPES, make_garment
@@ -55,7 +57,7 @@ from ..io import Mesh, read_mesh, write_obj
 from ..io.hashing import file_sha256
 from ..io.location import LocalLocation, Location, open_location
 from ..motion import face_forward, load_motion, make_motion, resample
-from ..motion.motion import drop_leading_jumps, drop_leading_tpose, ramp_in
+from ..motion.motion import drop_leading_glitches, drop_leading_jumps, drop_leading_tpose, ramp_in, repair_glitches
 from .config import DatasetConfig, GarmentSpec, MotionEntry
 from .quality import BodyParts, frame_stats, kept_frames, on_body_at_rest
 from .store import Sample, load_sample, save_sample
@@ -248,8 +250,10 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
     cloth blended from rest straight into a running body lags and ends up inside it; the lead frames are
     simulated and dropped.  A clip with less capture before it starts at least RAMP_MIN_SECONDS in, and its
     lead is that capture played from rest with the speed ramping up (:func:`~segadeform.motion.motion.ramp_in`).
-    A T-pose frame in front of a capture and a calibration T-pose held at its start are dropped first
-    (:func:`~segadeform.motion.motion.drop_leading_jumps`, :func:`~segadeform.motion.motion.drop_leading_tpose`)."""
+    A T-pose frame in front of a capture, the frames its solve settles from and a calibration T-pose held at its
+    start are dropped first, and frames it jumps to and back from are rebuilt
+    (:func:`~segadeform.motion.motion.drop_leading_jumps`, :func:`~segadeform.motion.motion.drop_leading_glitches`,
+    :func:`~segadeform.motion.motion.drop_leading_tpose`, :func:`~segadeform.motion.motion.repair_glitches`)."""
     if m.kind is not None:
         # a procedural motion with no ease-in starts at full speed: it gets the same lead, its first
         # LEAD_SECONDS simulated and dropped (one that eases in from rest needs none)
@@ -267,8 +271,11 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
             return dataclasses.replace(mo, poses=mo.poses[lead:], trans=mo.trans[lead:])
         return mo, lead
     mo = load_motion(m.file, rest_joints=rest_joints, floor=True)
+    joints = default_rest_joints() if rest_joints is None else np.asarray(rest_joints, np.float64)
     mo, _ = drop_leading_jumps(mo)  # a T-pose put in front of the capture (cgspeed's CMU BVH)
+    mo, _ = drop_leading_glitches(mo, joints)  # frames the capture's solve settles from
     mo, _ = drop_leading_tpose(mo)  # a calibration T-pose held at the start of the capture
+    mo, _ = repair_glitches(mo, joints)  # frames it jumps to and back from (swapped markers)
     if abs(mo.fps - cfg.fps) > 1e-9:
         mo = resample(mo, cfg.fps)
     a = min(int(round(m.start * cfg.fps)), mo.n_frames - 1)
@@ -730,6 +737,37 @@ def regate(
     return RegateSummary(kept=kept, rejected=rejected, moved=moved, skipped=skipped)
 
 
+def _stale_rejected(loc: Location, cfg: DatasetConfig, order: list[PlannedSample], body: BodyModel) -> list:
+    """The planned samples of ``loc``'s ``rejected/`` (in make order) whose stored clip differs from what
+    :func:`_motion` now gives their motion entry: simulated with a motion that loading no longer gives."""
+    names = set(loc.listdir("rejected"))
+    out = []
+    for p in order:
+        if f"{p.id}.json" not in names or f"{p.id}.npz" not in names:
+            continue
+        betas = cfg.bodies[p.body]
+        clip = _motion(cfg.motions[p.motion], cfg, body.rest_joints(betas or None)[0])
+        with tempfile.TemporaryDirectory(prefix="segadeform-retry-") as d:
+            z = np.load(loc.local_copy(f"rejected/{p.id}.npz", Path(d)))
+            poses, trans = z["poses"], z["trans"]
+        same = poses.shape == clip.poses.shape and np.allclose(poses, clip.poses, atol=1e-6)
+        if not (same and np.allclose(trans, clip.trans, atol=1e-6)):
+            out.append(p)
+    return out
+
+
+def _retire_rejected(root: Path, sid: str) -> None:
+    """Move rejected sample ``sid``'s files to ``rejected/retried/`` (numbered, never over an earlier one): its
+    ``.json`` first, so that an interrupted move leaves a sample that is simply not done."""
+    d = root / "rejected" / "retried"
+    d.mkdir(parents=True, exist_ok=True)
+    n = 1
+    while (d / f"{sid}.{n}.json").exists() or (d / f"{sid}.{n}.npz").exists():
+        n += 1
+    for ext in ("json", "npz"):
+        os.replace(root / "rejected" / f"{sid}.{ext}", d / f"{sid}.{n}.{ext}")
+
+
 def make_dataset(
     cfg: DatasetConfig,
     out,
@@ -741,6 +779,7 @@ def make_dataset(
     limit: int | None = None,
     executor: Executor | None = None,
     roots=(),
+    retry_rejected: bool = False,
 ) -> DatasetSummary:
     """Make (or continue) the dataset ``cfg`` in ``out`` (a folder, an fsspec URL or a
     :class:`~segadeform.io.location.Location`); see the module docstring.
@@ -751,6 +790,10 @@ def make_dataset(
     ``roots``: read-only dataset roots (packs, folders; :mod:`segadeform.dataset.roots`), and the
     config's own ``dataset.roots`` where they exist: a sample one of them holds is done and is not
     made again (new samples always go to ``out``).
+    ``retry_rejected``: simulate again, before new samples, the rejected samples of ``out`` whose clip the
+    motion loader now prepares differently from the one they were simulated with (after a fix to motion
+    loading, e.g. :func:`~segadeform.motion.motion.repair_glitches`); each one's old files move to
+    ``rejected/retried/`` first (nothing is deleted), and the new attempt is committed as any sample is.
     """
     from .roots import DatasetRoots
 
@@ -769,9 +812,16 @@ def make_dataset(
         finished |= {p.id for p in plan if extra.has(p.id)}
     todo = [p for p in order if p.id not in finished]
     skipped = len(plan) - len(todo)
+    body = load_body(body_path or default_body_path())
+    if retry_rejected and not isinstance(loc, LocalLocation):
+        raise InputError("retrying rejected samples works on a dataset folder on this machine", got=str(out))
+    retry = _stale_rejected(loc, cfg, order, body) if retry_rejected else []
+    todo = retry + todo
     if limit is not None:
         todo = todo[:limit]
-    body = load_body(body_path or default_body_path())
+    for p in todo[: len(retry)]:  # the old attempt is put aside, not lost; this run makes the sample anew
+        _retire_rejected(loc.root, p.id)  # type: ignore[attr-defined]  (a LocalLocation: checked above)
+    skipped -= min(len(retry), len(todo))
     for gi, bi in sorted({(p.garment, p.body) for p in todo}):  # garments first, in this process: no races
         _garment_file(loc, cfg, gi, bi, body)
     own = executor is None

@@ -26,6 +26,9 @@ __all__ = [
     "sample_frames",
     "drop_leading_jumps",
     "drop_leading_tpose",
+    "joint_speeds",
+    "drop_leading_glitches",
+    "repair_glitches",
     "ramp_in",
 ]
 
@@ -365,6 +368,104 @@ def drop_leading_jumps(motion: Motion, max_degrees: float = 60.0, *, max_frames:
     if dropped:
         m = dataclasses.replace(m, meta=dict(m.meta, dropped_leading_frames=dropped))
     return m, dropped
+
+
+def joint_speeds(motion: Motion, rest_joints) -> np.ndarray:
+    """How fast the fastest joint moves between each pair of frames, in m/s (forward kinematics on the
+    24-joint skeleton with ``rest_joints``, translation included).
+
+    Shapes: rest_joints (24, 3) -> (T - 1,)
+    """
+    from ..body.kinematics import forward_kinematics
+    from ..body.rotations import axis_angle_to_matrix
+    from ..body.skeleton import SMPL_PARENTS
+
+    j = np.asarray(rest_joints, np.float64)
+    if j.shape != (24, 3) or not np.isfinite(j).all():
+        raise InputError("rest joints must be finite (24, 3)", expected=(24, 3), got=j.shape)
+    if motion.n_frames < 2:
+        return np.zeros(0)
+    rot = axis_angle_to_matrix(motion.poses.reshape(-1, 24, 3))
+    _, posed = forward_kinematics(rot, j, SMPL_PARENTS, motion.trans)
+    return np.linalg.norm(np.diff(posed, axis=0), axis=2).max(axis=1) * motion.fps
+
+
+def drop_leading_glitches(
+    motion: Motion,
+    rest_joints,
+    *,
+    within_seconds: float = 0.1,
+    factor: float = 4.0,
+    min_speed: float = 6.0,
+) -> tuple[Motion, int]:
+    """Drop the frames a capture settles from: every frame up to the last jump in its first ``within_seconds``,
+    a jump being a step where the fastest joint moves faster than ``max(factor x`` the motion's median speed,
+    ``min_speed)`` m/s.  Many CMU trials open with a few frames where the solve has not settled (the BVH of
+    07_03, 08_08, 10_02, 135_xx, 60_03: joints at 30-90 m/s over the first 3-5 frames at 120 fps; 16_15, 16_23:
+    one frame at 100 m/s): a lead that starts there throws the body's legs through the garment before the clip
+    begins.  A motion that is fast from its first frame (a sprint captured mid-stride) loses at most
+    ``within_seconds``.  Returns the motion and how many frames went (also in ``meta``).
+
+    Shapes: rest_joints (24, 3)
+    """
+    sp = joint_speeds(motion, rest_joints)
+    if len(sp) < 3:
+        return motion, 0
+    bound = max(factor * float(np.median(sp)), min_speed)
+    window = max(1, int(np.ceil(within_seconds * motion.fps)))
+    jumps = np.flatnonzero(sp[:window] > bound)
+    if len(jumps) == 0:
+        return motion, 0
+    k = min(int(jumps[-1]) + 1, motion.n_frames - 2)  # the frame after the last jump is the first one kept
+    m = dataclasses.replace(
+        motion,
+        poses=motion.poses[k:],
+        trans=motion.trans[k:],
+        meta=dict(motion.meta, dropped_leading_glitch_frames=k),
+    )
+    return m, k
+
+
+def repair_glitches(motion: Motion, rest_joints, *, max_speed: float = 20.0) -> tuple[Motion, int]:
+    """Replace the frames a capture jumps to and back from by the motion interpolated over them.
+
+    A glitch is a run of steps where some joint moves faster than ``max_speed`` m/s (no joint of a person
+    does: CMU's dance trials 05_05 .. 05_20 jump to 43-54 m/s and back where markers were swapped); the frames
+    inside the run (after its first step, up to its last) are rebuilt from the frames on either side by slerp
+    on every joint's rotation and linear translation (:func:`sample_frames`).  A single step over the bound
+    (a cut in the capture, nothing in between to rebuild) and a run that reaches either end of the motion are
+    left as they are.  Returns the motion and how many frames were rebuilt (also in ``meta``).
+    """
+    if not (np.isfinite(max_speed) and max_speed > 0):
+        raise InputError("max_speed must be positive", got=max_speed)
+    sp = joint_speeds(motion, rest_joints)
+    fast = sp > max_speed
+    if not fast.any():
+        return motion, 0
+    poses, trans = motion.poses.copy(), motion.trans.copy()
+    fixed = 0
+    steps = np.flatnonzero(fast)
+    runs = np.split(steps, np.flatnonzero(np.diff(steps) > 1) + 1)
+    # the jump out and the jump back may be a few calm steps apart: runs closer than 1/10 s are one glitch
+    gap = max(1, int(round(0.1 * motion.fps)))
+    merged: list[list[int]] = []
+    for r in runs:
+        if merged and r[0] - merged[-1][1] <= gap:
+            merged[-1][1] = int(r[-1])
+        else:
+            merged.append([int(r[0]), int(r[-1])])
+    for a, b in merged:  # steps a..b: frames a+1..b are rebuilt from frames a and b+1
+        if b == a or a == 0 or b + 1 >= motion.n_frames - 1:
+            continue
+        t = np.arange(a + 1, b + 1, dtype=np.float64)
+        anchor = dataclasses.replace(motion, poses=motion.poses[[a, b + 1]], trans=motion.trans[[a, b + 1]])
+        p, tr = sample_frames(anchor, (t - a) / (b + 1 - a))
+        poses[a + 1 : b + 1], trans[a + 1 : b + 1] = p, tr
+        fixed += b - a
+    if not fixed:
+        return motion, 0
+    m = dataclasses.replace(motion, poses=poses, trans=trans, meta=dict(motion.meta, repaired_glitch_frames=fixed))
+    return m, fixed
 
 
 def drop_leading_tpose(
