@@ -862,7 +862,8 @@ def test_retry_rejected_makes_again_only_samples_simulated_with_a_motion_loading
     root = tmp_path / "ds"
     gv, gf = grid_plane(2, 2)
     for p in plan:  # both rejected; a's with the clip loading gives now, b's with another (an older loader's)
-        clip = _motion(cfg.motions[p.motion], cfg, body.rest_joints(None)[0])
+        full, lead = _motion(cfg.motions[p.motion], cfg, body.rest_joints(None)[0], with_lead=True)
+        clip = dataclasses.replace(full, poses=full.poses[lead:], trans=full.trans[lead:])  # as a sample stores it
         poses = clip.poses if cfg.motions[p.motion].name == "a" else clip.poses + 0.01
         frames = np.repeat(gv[None], clip.n_frames, axis=0).astype(np.float32)
         s = Sample(p.id, gv, gf, np.zeros(0), poses, clip.trans, frames, {"id": p.id, "status": "rejected"})

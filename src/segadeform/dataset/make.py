@@ -296,6 +296,11 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
     return (clip, lead) if with_lead else clip
 
 
+def _without_lead(motion, lead: int):
+    """The clip a sample stores: the motion simulated (:func:`_motion` with its lead) less its lead frames."""
+    return dataclasses.replace(motion, poses=motion.poses[lead:], trans=motion.trans[lead:])
+
+
 def _garment_rel(cfg: DatasetConfig, gi: int, bi: int) -> str:
     return f"garments/{cfg.garments[gi].name}-b{bi}.obj"
 
@@ -448,9 +453,8 @@ def _run_one(
         mesh = read_mesh(loc.local_copy(grel, Path(d)))
         crel = _cloth_rel(grel)
         cloth = read_mesh(loc.local_copy(crel, Path(d))).vertices if loc.exists(crel) else None
-    motion, lead = _motion(m, cfg, body.rest_joints(betas or None)[0], with_lead=True)
-    full_motion = motion
-    motion = dataclasses.replace(motion, poses=motion.poses[lead:], trans=motion.trans[lead:])
+    full_motion, lead = _motion(m, cfg, body.rest_joints(betas or None)[0], with_lead=True)
+    motion = _without_lead(full_motion, lead)
     rec = {
         "id": ps.id,
         "split": ps.split,
@@ -746,7 +750,7 @@ def _stale_rejected(loc: Location, cfg: DatasetConfig, order: list[PlannedSample
         if f"{p.id}.json" not in names or f"{p.id}.npz" not in names:
             continue
         betas = cfg.bodies[p.body]
-        clip = _motion(cfg.motions[p.motion], cfg, body.rest_joints(betas or None)[0])
+        clip = _without_lead(*_motion(cfg.motions[p.motion], cfg, body.rest_joints(betas or None)[0], with_lead=True))
         with tempfile.TemporaryDirectory(prefix="segadeform-retry-") as d:
             z = np.load(loc.local_copy(f"rejected/{p.id}.npz", Path(d)))
             poses, trans = z["poses"], z["trans"]
