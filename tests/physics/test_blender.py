@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from segadeform.body import BodyProxy
-from segadeform.errors import SimulationError
+from segadeform.errors import InputError, SimulationError
 from segadeform.motion import make_motion
 from segadeform.motion.motion import Motion
 from segadeform.physics import SimSettings, pin_weights, preroll_poses, simulate
@@ -71,6 +71,26 @@ def test_pinned_waistband_follows_the_body(sim_python, body, coarse_skirt):
     assert pins.sum() > 10 and r.blender["applied"]["vertex_group_mass"] == "pin"
     assert np.abs(r.frames[:, pins] - skinned[:, pins]).max() < 5e-3
     assert r.blender["body_playback_max_error"] < 1e-5
+
+
+def test_every_piece_of_a_garment_is_held_by_a_pin(coarse_skirt):
+    """A button beside the skirt is pinned whole; a second large piece by its own waistband; the skirt as alone."""
+    from segadeform.geometry.primitives import grid_plane
+
+    g = coarse_skirt
+    alone = pin_weights(g.vertices, g.faces, "waistband")
+    bv, bf = grid_plane(4, 4)
+    button = np.asarray(bv, np.float64) * 0.02 + g.vertices.mean(0) + [0.0, 0.0, 0.3]  # a 2 cm square, lower down
+    low = g.vertices - [0.0, 0.5, 0.0]  # a second skirt 0.5 m lower: its waistband is no longer the highest
+    n = len(g.vertices)
+    v = np.concatenate([g.vertices, button, low])
+    f = np.concatenate([g.faces, np.asarray(bf) + n, g.faces + n + len(bv)])
+    w = pin_weights(v, f, "waistband")
+    assert np.array_equal(w[:n], alone)  # the piece the rule pins is pinned as when alone
+    assert np.all(w[n : n + len(bv)] == 1.0)  # sewn on: follows the garment whole
+    np.testing.assert_array_equal(w[n + len(bv) :], alone)  # pinned by the rule on itself
+    with pytest.raises(InputError, match="pin group"):
+        pin_weights(v, f, "sleeves")
 
 
 def test_preroll_starts_at_rest_and_ends_at_the_first_frame():
