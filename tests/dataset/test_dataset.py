@@ -96,6 +96,26 @@ def _body_frames(t=5):
     return b, np.repeat(b.shaped_vertices()[0][None], t, axis=0)
 
 
+def test_min_stretch_forgives_a_tiny_edge_stretched_by_millimetres_not_a_tear():
+    """A 1 mm seam edge pulled to 3 mm is 200 % strain and 2 mm of stretch: not counted with min_stretch = 5 mm;
+    an ordinary edge torn to twice its length (10 cm of stretch) still is."""
+    b, bf = _body_frames()
+    v, f, x = _cloth()
+    v2 = np.concatenate([v, v[:2] + [0.0, 0.0, 0.001]])  # a 1 mm edge: vertex n 1 mm off vertex 0
+    f2 = np.concatenate([f, [[0, len(v), len(v) + 1]]])
+    x2 = np.concatenate([x, np.repeat(v2[None, len(v) :], len(x), axis=0)], axis=1)
+    x2[:, len(v), 2] += 0.002  # 1 mm -> 3 mm
+    strict = QualitySpec(max_jitter=1.0)
+    r = quality_check(x2, v2, f2, bf, b.faces, strict)
+    assert not r.ok and r.reasons[0].startswith("strain")
+    lenient = dataclasses.replace(strict, min_stretch=0.005)
+    assert quality_check(x2, v2, f2, bf, b.faces, lenient).ok
+    torn = x2.copy()
+    torn[:, 0] -= [0.1, 0.0, 0.0]  # an edge of the sheet pulled 10 cm
+    r = quality_check(torn, v2, f2, bf, b.faces, lenient)
+    assert not r.ok and r.reasons[0].startswith("strain")
+
+
 def test_quality_gate_accepts_clean_and_names_each_failure():
     b, bf = _body_frames()
     v, f, x = _cloth()

@@ -16,6 +16,8 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     [quality]                 # the gate every sample must pass (see segadeform.dataset.quality)
     max_strain = 1.0          # largest |edge length / rest - 1| ...
     max_strained_edges = 0.0  # ... that more than this share of the edges may reach (0: no edge)
+    min_stretch = 0.0         # an edge counts past max_strain only when also longer than its rest by more
+                              # than this (m): a 1 mm edge stretched to 3 mm is the solver's resolution, not a tear
     max_penetrating = 0.01    # largest fraction of vertices deeper than `penetration_depth`, any frame
     penetration_depth = 0.005
     max_jitter = 0.001        # largest fraction of (frame, vertex) acceleration outliers
@@ -121,6 +123,7 @@ class MotionEntry:
 class QualitySpec:
     max_strain: float = 1.0
     max_strained_edges: float = 0.0  # share of edges allowed past max_strain (a few local snags)
+    min_stretch: float = dataclasses.field(default=0.0, metadata={"range": (0.0, 1.0)})  # m: see the docstring
     max_penetrating: float = 0.01
     penetration_depth: float = 0.005
     max_jitter: float = 0.001
