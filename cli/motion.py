@@ -129,5 +129,16 @@ def info_cmd(motion, body, up, units, joint_map, skeleton, animation):
     )
     click.echo(f"  largest joint rotation: {np.rad2deg(ang[:, 1:].max()):.1f} deg")
     click.echo(f"  outside joint limits by: {np.rad2deg(limit_violation(m.poses)):.2f} deg")
+    from segadeform.motion.motion import drop_leading_glitches, joint_speeds, repair_glitches
+
+    sp = joint_speeds(m, J)
+    if len(sp):
+        _, settle = drop_leading_glitches(m, J)
+        _, jumps = repair_glitches(m, J)
+        click.echo(
+            f"  fastest joint: {sp.max():.1f} m/s (frames {int(sp.argmax())}-{int(sp.argmax()) + 1}); "
+            f"glitches: {settle} leading frames the capture settles from, {jumps} frames it jumps to and back "
+            f"from (> 20 m/s)" + ("; repair_glitches = true repairs them" if settle or jumps else "")
+        )
     if m.betas is not None:
         click.echo(f"  betas: {np.round(m.betas[:10], 3).tolist()}")

@@ -106,6 +106,13 @@ def _quality_choice():
 @click.option("--animation", help="glTF motions (.glb/.gltf): the animation to play (default: the first).")
 @click.option("--floor", is_flag=True, default=None, help="Move the motion so the feet touch the floor.")
 @click.option(
+    "--repair-glitches",
+    is_flag=True,
+    default=None,
+    help="Motion capture: hold the first settled pose over the frames the capture settles from and rebuild "
+    "frames it jumps to and back from (faster than 20 m/s); the frame count is kept.",
+)
+@click.option(
     "--force",
     is_flag=True,
     help="Write into an output folder that holds other files (beside them, never "
@@ -146,6 +153,7 @@ def run_cmd(
     skeleton,
     animation,
     floor,
+    repair_glitches,
     force,
     body_backend,
     cloth=None,
@@ -196,6 +204,7 @@ def run_cmd(
                 ("skeleton", skeleton),
                 ("animation", animation),
                 ("floor", floor),
+                ("repair_glitches", repair_glitches),
             )
             if v is not None
         }
@@ -226,6 +235,7 @@ def run_cmd(
                 skeleton=skeleton,
                 animation=animation,
                 floor=bool(floor),
+                repair_glitches=bool(repair_glitches),
             ),
             output=output,
             output_format=_fmt_from(output, fmt),

@@ -58,3 +58,25 @@ def test_run_simulate_and_bundle_refuse_frames_past_the_motion_alike(scene, tmp_
         assert r.exit_code == 1, (args, r.output, r.exception)
         assert r.output.strip().splitlines()[-1] == WANT, args
     assert not (tmp_path / "out").exists() and not (tmp_path / "b.sgdb").exists()
+
+
+def test_run_repairs_a_captures_glitches_when_asked_and_keeps_its_frames(tmp_path):
+    """`run --repair-glitches` (the scene's `[motion] repair_glitches`): the same frame count, other frames where
+    the capture jumped; without it the capture plays as it is."""
+    import dataclasses
+
+    from segadeform.io.pc2 import read_pc2
+
+    m = make_motion("walk", seconds=1.0, fps=120.0, seed=0, ease_in=0.0)
+    bad = m.poses.copy()
+    bad[[60, 61], 3 * 1] += 1.0  # a thigh thrown forward for two frames
+    dataclasses.replace(m, poses=bad).save(tmp_path / "cap.npz")
+    out = {}
+    for name, extra in (("as_is", []), ("repaired", ["--repair-glitches"])):
+        args = ["run", "--garment", str(SAMPLES / "garments" / "skirt.obj"), "--motion", str(tmp_path / "cap.npz")]
+        r = CliRunner().invoke(cli, [*args, "-o", str(tmp_path / f"{name}.pc2"), *extra])
+        assert r.exit_code == 0, r.output
+        out[name] = np.array(read_pc2(tmp_path / f"{name}.pc2").frames)
+    assert out["as_is"].shape == out["repaired"].shape and out["as_is"].shape[0] == m.n_frames
+    moved = np.abs(out["as_is"] - out["repaired"]).max(axis=(1, 2))
+    assert moved[60:62].min() > 0.01 and moved[:50].max() == 0.0  # the jump is gone; the frames before are the file's

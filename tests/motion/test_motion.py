@@ -287,6 +287,33 @@ def test_repair_glitches_rebuilds_a_frame_the_capture_jumps_to_and_back_from():
         repair_glitches(m, j, max_speed=0.0)
 
 
+def test_a_scene_can_repair_a_captures_glitches_keeping_its_frames(tmp_path):
+    """``[motion] repair_glitches``: the settling frames hold the first settled pose and a two-frame jump is
+    rebuilt; the frame count and every other frame are the file's (a user's timeline does not move)."""
+    from segadeform.motion import make_motion
+    from segadeform.motion.motion import joint_speeds
+    from segadeform.motion.spec import build_motion
+    from segadeform.settings.scene import MotionSpec
+
+    j = default_rest_joints()
+    m = make_motion("walk", seconds=2.0, fps=120.0, seed=0, ease_in=0.0)
+    bad = m.poses.copy()
+    bad[[0, 2], 3 * 1] += 0.9
+    bad[[100, 101], 3 * 18 + 1] += 2.5
+    dataclasses.replace(m, poses=bad).save(tmp_path / "cap.npz")
+    as_is = build_motion(MotionSpec(file=tmp_path / "cap.npz"), j)
+    assert joint_speeds(as_is, j).max() > 80
+    fixed = build_motion(MotionSpec(file=tmp_path / "cap.npz", repair_glitches=True), j)
+    assert fixed.n_frames == m.n_frames and joint_speeds(fixed, j).max() < 20.0
+    np.testing.assert_allclose(fixed.poses[:3], np.repeat(m.poses[3:4], 3, axis=0), atol=1e-6)  # held
+    np.testing.assert_allclose(fixed.poses[3:100], m.poses[3:100], atol=1e-6)
+    np.testing.assert_allclose(fixed.poses[102:], m.poses[102:], atol=1e-6)
+    assert fixed.meta["held_leading_glitch_frames"] == 3 and fixed.meta["repaired_glitch_frames"] == 2
+    assert "dropped_leading_glitch_frames" not in fixed.meta
+    r = CliRunner().invoke(cli, ["motion", "info", str(tmp_path / "cap.npz")])
+    assert r.exit_code == 0 and "3 leading frames the capture settles from, 2 frames it jumps to" in r.output
+
+
 def test_ramp_in_starts_from_rest_and_joins_the_motion_at_full_speed():
     from segadeform.motion import make_motion
     from segadeform.motion.motion import ramp_in

@@ -29,6 +29,7 @@ __all__ = [
     "joint_speeds",
     "drop_leading_glitches",
     "repair_glitches",
+    "repair_capture",
     "ramp_in",
 ]
 
@@ -426,12 +427,14 @@ def drop_leading_glitches(
     return m, k
 
 
-def repair_glitches(motion: Motion, rest_joints, *, max_speed: float = 20.0) -> tuple[Motion, int]:
+def repair_glitches(
+    motion: Motion, rest_joints, *, max_speed: float = 20.0, max_seconds: float = 0.05
+) -> tuple[Motion, int]:
     """Replace the frames a capture jumps to and back from by the motion interpolated over them.
 
-    A glitch is a run of steps where some joint moves faster than ``max_speed`` m/s (no joint of a person
-    does: CMU's dance trials 05_05 .. 05_20 jump to 43-54 m/s and back where markers were swapped); the frames
-    inside the run (after its first step, up to its last) are rebuilt from the frames on either side by slerp
+    A glitch is a jump out and a jump back at most ``max_seconds`` apart, each a step where some joint moves
+    faster than ``max_speed`` m/s (no joint of a person does: CMU's 05_14 throws a knee about at 47 m/s for
+    three frames); the frames between them are rebuilt from the frames on either side by slerp
     on every joint's rotation and linear translation (:func:`sample_frames`).  A single step over the bound
     (a cut in the capture, nothing in between to rebuild) and a run that reaches either end of the motion are
     left as they are.  Returns the motion and how many frames were rebuilt (also in ``meta``).
@@ -446,8 +449,10 @@ def repair_glitches(motion: Motion, rest_joints, *, max_speed: float = 20.0) -> 
     fixed = 0
     steps = np.flatnonzero(fast)
     runs = np.split(steps, np.flatnonzero(np.diff(steps) > 1) + 1)
-    # the jump out and the jump back may be a few calm steps apart: runs closer than 1/10 s are one glitch
-    gap = max(1, int(round(0.1 * motion.fps)))
+    # the jump out and the jump back may be a few calm steps apart: runs closer than ``max_seconds`` are one
+    # glitch; farther apart they are two cuts (a capture that flips a limb between two solves for longer is
+    # left as it is: which of the two is the person cannot be told from speeds)
+    gap = max(1, int(round(max_seconds * motion.fps)))
     merged: list[list[int]] = []
     for r in runs:
         if merged and r[0] - merged[-1][1] <= gap:
@@ -455,7 +460,7 @@ def repair_glitches(motion: Motion, rest_joints, *, max_speed: float = 20.0) -> 
         else:
             merged.append([int(r[0]), int(r[-1])])
     for a, b in merged:  # steps a..b: frames a+1..b are rebuilt from frames a and b+1
-        if b == a or a == 0 or b + 1 >= motion.n_frames - 1:
+        if b == a or b - a > gap or a == 0 or b + 1 >= motion.n_frames - 1:
             continue
         t = np.arange(a + 1, b + 1, dtype=np.float64)
         anchor = dataclasses.replace(motion, poses=motion.poses[[a, b + 1]], trans=motion.trans[[a, b + 1]])
@@ -466,6 +471,25 @@ def repair_glitches(motion: Motion, rest_joints, *, max_speed: float = 20.0) -> 
         return motion, 0
     m = dataclasses.replace(motion, poses=poses, trans=trans, meta=dict(motion.meta, repaired_glitch_frames=fixed))
     return m, fixed
+
+
+def repair_capture(motion: Motion, rest_joints, *, max_speed: float = 20.0) -> Motion:
+    """A capture's glitches repaired with its frame count and timing kept (a scene's ``repair_glitches``): the
+    frames its solve settles from (:func:`drop_leading_glitches`) hold its first settled pose, and frames it
+    jumps to and back from are rebuilt (:func:`repair_glitches`).  ``meta`` says how many of each."""
+    m, k = drop_leading_glitches(motion, rest_joints)
+    if k:
+        m = dataclasses.replace(
+            m,
+            poses=np.concatenate([np.repeat(m.poses[:1], k, axis=0), m.poses]),
+            trans=np.concatenate([np.repeat(m.trans[:1], k, axis=0), m.trans]),
+            meta={
+                **{a: b for a, b in m.meta.items() if a != "dropped_leading_glitch_frames"},
+                "held_leading_glitch_frames": k,
+            },
+        )
+    m, _ = repair_glitches(m, rest_joints, max_speed=max_speed)
+    return m
 
 
 def drop_leading_tpose(

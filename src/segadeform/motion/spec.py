@@ -11,7 +11,7 @@ import dataclasses
 
 from ..errors import InputError
 from ..settings.scene import MotionSpec
-from .motion import Motion, feet_on_floor, resample
+from .motion import Motion, feet_on_floor, repair_capture, resample
 from .procedural import make_motion
 
 __all__ = ["MotionSpec", "build_motion", "frame_range", "select_frames"]
@@ -53,6 +53,10 @@ def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
         )
         if spec.floor and rest_joints is not None:
             m = feet_on_floor(m, rest_joints)
+    if spec.repair_glitches and spec.file is not None:  # at the file's own rate, before any resampling
+        from ..body.skeleton import default_rest_joints
+
+        m = repair_capture(m, default_rest_joints() if rest_joints is None else rest_joints)
     if spec.fps is not None and abs(spec.fps - m.fps) > 1e-9:
         m = resample(m, spec.fps)
     return m

@@ -22,6 +22,9 @@ are required; relative paths are relative to the scene file)::
     skeleton = "16.asf"            # AMC: its ASF skeleton (default: the one .asf beside the .amc)
     animation = "Walk"             # glTF (.glb/.gltf): which animation (default: the first)
     floor = false                  # move the motion so the feet touch the floor
+    repair_glitches = false        # motion capture: hold the first settled pose over the frames its solve
+                                   # settles from, rebuild frames it jumps to and back from (faster than
+                                   # 20 m/s); the frame count is kept (segadeform motion info lists them)
 
     [model]                        # optional; the shipped default model when absent
     package = "../models/default"
@@ -101,6 +104,7 @@ class MotionSpec:
     floor: bool = False
     skeleton: Path | None = None  # an AMC's ASF (default: the one .asf beside it)
     animation: str | None = None  # a glTF file's animation (default: the first)
+    repair_glitches: bool = False  # motion capture's settling frames and jumps repaired (frame count kept)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -146,6 +150,7 @@ class MotionTable:
     up: str = key("auto", choices=("auto", "y", "z"))
     units: str | None = key(None, types=(str, int, float))
     floor: bool = False
+    repair_glitches: bool = False
 
 
 def motion_spec_from_table(m: dict, rel, *, where) -> MotionSpec:
@@ -165,6 +170,7 @@ def motion_spec_from_table(m: dict, rel, *, where) -> MotionSpec:
         units=str(m["units"]) if "units" in m else None,
         joint_map=rel(m["joint_map"]) if "joint_map" in m else None,
         floor=bool(m.get("floor", False)),
+        repair_glitches=bool(m.get("repair_glitches", False)),
         skeleton=rel(m["skeleton"]) if "skeleton" in m else None,
         animation=m.get("animation"),
     )
