@@ -80,7 +80,15 @@ def dataset_group():
     help="First simulate again the rejected samples whose clip motion loading now prepares differently "
     "(after a fix to it); their old files move to rejected/retried/.",
 )
-def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, roots, force, retry_rejected):
+@click.option(
+    "--retry",
+    "retry",
+    multiple=True,
+    metavar="GLOB",
+    help="First simulate again the rejected samples whose ids match GLOB (after a change to the simulator "
+    "that a sample's spec does not record); their old files move to rejected/retried/. Repeatable.",
+)
+def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, roots, force, retry_rejected, retry):
     """Simulate every garment x body x motion of CONFIG.toml into OUTPUT (resumable)."""
     from segadeform.dataset import load_dataset_config, make_dataset
     from segadeform.distributed.executors import make_executor
@@ -114,6 +122,7 @@ def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, ro
                 executor=ex,
                 roots=roots,
                 retry_rejected=retry_rejected,
+                retry=tuple(retry),
             )
     finally:
         guard.abandon()  # a run that made nothing leaves no empty folder

@@ -898,3 +898,6 @@ def test_retry_rejected_makes_again_only_samples_simulated_with_a_motion_loading
     assert not (root / "rejected" / f"{b_id}.json").exists()  # put aside, byte for byte, not lost
     assert {n: (root / "rejected" / "retried" / n.replace(b_id, f"{b_id}.1")).read_bytes() for n in before} == before
     assert (root / "rejected" / f"{a_id}.json").exists()
+    rec.ids.clear()  # --retry GLOB: a matching rejected sample again, whatever its motion (b is no longer rejected)
+    s = make_dataset(cfg, root, executor=rec, retry=("*__a*", "*__nothing*"))
+    assert rec.ids == [a_id, b_id] and (root / "rejected" / "retried" / f"{a_id}.1.json").exists()

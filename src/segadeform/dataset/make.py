@@ -37,6 +37,7 @@ before simulating anything and names the ids -- rename the entry instead.
 from __future__ import annotations
 
 import dataclasses
+import fnmatch
 import functools
 import hashlib
 import json
@@ -784,6 +785,7 @@ def make_dataset(
     executor: Executor | None = None,
     roots=(),
     retry_rejected: bool = False,
+    retry: tuple = (),
 ) -> DatasetSummary:
     """Make (or continue) the dataset ``cfg`` in ``out`` (a folder, an fsspec URL or a
     :class:`~segadeform.io.location.Location`); see the module docstring.
@@ -798,6 +800,8 @@ def make_dataset(
     motion loader now prepares differently from the one they were simulated with (after a fix to motion
     loading, e.g. :func:`~segadeform.motion.motion.repair_glitches`); each one's old files move to
     ``rejected/retried/`` first (nothing is deleted), and the new attempt is committed as any sample is.
+    ``retry``: glob patterns of sample ids: the rejected samples of ``out`` that match are simulated again the
+    same way (after a change to the simulator that a sample's spec does not record, e.g. how pins are chosen).
     """
     from .roots import DatasetRoots
 
@@ -817,15 +821,26 @@ def make_dataset(
     todo = [p for p in order if p.id not in finished]
     skipped = len(plan) - len(todo)
     body = load_body(body_path or default_body_path())
-    if retry_rejected and not isinstance(loc, LocalLocation):
+    if (retry_rejected or retry) and not isinstance(loc, LocalLocation):
         raise InputError("retrying rejected samples works on a dataset folder on this machine", got=str(out))
-    retry = _stale_rejected(loc, cfg, order, body) if retry_rejected else []
-    todo = retry + todo
+    again = _stale_rejected(loc, cfg, order, body) if retry_rejected else []
+    if retry:
+        names = set(loc.listdir("rejected"))
+        chosen = {p.id for p in again}
+        again += [
+            p
+            for p in order
+            if p.id not in chosen
+            and f"{p.id}.json" in names
+            and f"{p.id}.npz" in names
+            and any(fnmatch.fnmatchcase(p.id, g) for g in retry)
+        ]
+    todo = again + todo
     if limit is not None:
         todo = todo[:limit]
-    for p in todo[: len(retry)]:  # the old attempt is put aside, not lost; this run makes the sample anew
+    for p in todo[: len(again)]:  # the old attempt is put aside, not lost; this run makes the sample anew
         _retire_rejected(loc.root, p.id)  # type: ignore[attr-defined]  (a LocalLocation: checked above)
-    skipped -= min(len(retry), len(todo))
+    skipped -= min(len(again), len(todo))
     for gi, bi in sorted({(p.garment, p.body) for p in todo}):  # garments first, in this process: no races
         _garment_file(loc, cfg, gi, bi, body)
     own = executor is None
