@@ -746,12 +746,15 @@ def _stale_rejected(loc: Location, cfg: DatasetConfig, order: list[PlannedSample
     """The planned samples of ``loc``'s ``rejected/`` (in make order) whose stored clip differs from what
     :func:`_motion` now gives their motion entry: simulated with a motion that loading no longer gives."""
     names = set(loc.listdir("rejected"))
+    clips: dict = {}  # (motion, body) -> the clip as stored: a motion file is read once, not once per garment
     out = []
     for p in order:
         if f"{p.id}.json" not in names or f"{p.id}.npz" not in names:
             continue
-        betas = cfg.bodies[p.body]
-        clip = _without_lead(*_motion(cfg.motions[p.motion], cfg, body.rest_joints(betas or None)[0], with_lead=True))
+        if (p.motion, p.body) not in clips:
+            joints = body.rest_joints(cfg.bodies[p.body] or None)[0]
+            clips[p.motion, p.body] = _without_lead(*_motion(cfg.motions[p.motion], cfg, joints, with_lead=True))
+        clip = clips[p.motion, p.body]
         with tempfile.TemporaryDirectory(prefix="segadeform-retry-") as d:
             z = np.load(loc.local_copy(f"rejected/{p.id}.npz", Path(d)))
             poses, trans = z["poses"], z["trans"]
