@@ -890,6 +890,11 @@ def test_retry_rejected_makes_again_only_samples_simulated_with_a_motion_loading
         save_sample(root, s, folder="rejected")
     a_id, b_id = (p.id for p in plan)
     before = {n: (root / "rejected" / n).read_bytes() for n in (f"{b_id}.json", f"{b_id}.npz")}
+    import hashlib
+
+    users = {root / "notes.txt": b"mine", root / "rejected" / "keep.me": b"also mine"}  # a user's files
+    for f, data in users.items():
+        f.write_bytes(data)
     rec = _Recorder()
     s = make_dataset(cfg, root, executor=rec)
     assert rec.ids == [] and s.skipped == 2  # without the flag: both done
@@ -901,3 +906,6 @@ def test_retry_rejected_makes_again_only_samples_simulated_with_a_motion_loading
     rec.ids.clear()  # --retry GLOB: a matching rejected sample again, whatever its motion (b is no longer rejected)
     s = make_dataset(cfg, root, executor=rec, retry=("*__a*", "*__nothing*"))
     assert rec.ids == [a_id, b_id] and (root / "rejected" / "retried" / f"{a_id}.1.json").exists()
+    assert {f: hashlib.sha256(f.read_bytes()).digest() for f in users} == {
+        f: hashlib.sha256(d).digest() for f, d in users.items()
+    }  # every retry left the user's files as they were
