@@ -107,7 +107,8 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
     multiple=True,
     required=True,
     help="NAME=SPEC with SPEC a model package folder, a .pt checkpoint, 'lbs' or 'lbs-PRIOR' (lbs-inpaint, "
-    "lbs-idw, lbs-gaussian, lbs-smooth, lbs-drape: smooth weights on the garment draped at rest; repeatable).",
+    "lbs-idw, lbs-gaussian, lbs-smooth, lbs-smooth-light, lbs-drape: smooth weights on the garment draped at "
+    "rest; repeatable).",
 )
 @click.option(
     "-o",

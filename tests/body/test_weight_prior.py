@@ -67,7 +67,7 @@ def test_a_tight_garment_keeps_the_body_weights_and_a_skirt_hem_blends_both_legs
     assert np.median(both(near[hem])) < 0.05 and np.median(both(inp[hem])) > 0.1
 
 
-KERNEL_PRIORS = ("idw", "gaussian", "smooth")
+KERNEL_PRIORS = ("idw", "gaussian", "smooth", "smooth-light")
 
 
 @pytest.mark.parametrize("prior", ("nearest", "inpaint") + KERNEL_PRIORS)

@@ -43,9 +43,9 @@ class Predictor(abc.ABC):
 class LBSPredictor(Predictor):
     """LBS with the body's weights carried to the garment by ``prior`` (``lbs``: the closest body point,
     baseline (a); ``lbs-<prior>`` for every other prior of :data:`segadeform.body.transfer.WEIGHT_PRIORS`:
-    ``lbs-inpaint``, ``lbs-idw``, ``lbs-gaussian``, ``lbs-smooth``: the non-learned priors).  ``drape``: skin the
-    garment moved that far toward its drape on the body at rest (:mod:`segadeform.body.drape`; ``lbs-drape`` is
-    ``smooth`` with ``drape = 1``)."""
+    ``lbs-inpaint``, ``lbs-idw``, ``lbs-gaussian``, ``lbs-smooth``, ``lbs-smooth-light``: the non-learned
+    priors).  ``drape``: skin the garment moved that far toward its drape on the body at rest
+    (:mod:`segadeform.body.drape`; ``lbs-drape`` is ``smooth`` with ``drape = 1``)."""
 
     def __init__(self, prior: str = "nearest", drape: float = 0.0):
         self.prior, self.drape = prior, float(drape)
