@@ -116,3 +116,27 @@ def test_unknown_prior_is_refused(body):
     skirt = make_garment("skirt", body)
     with pytest.raises(InputError, match="unknown skinning-weight prior"):
         garment_weights(skirt.vertices, skirt.faces, body, None, "magic")
+
+
+def test_smooth_light_is_between_the_closest_point_and_smooth(body):
+    """``smooth-light`` smooths with a quarter of ``smooth``'s strength: on a loose skirt its weights move away
+    from the closest point's, but less far than ``smooth``'s, vertex by vertex on the hem and in all."""
+    skirt = make_garment("skirt", body)
+    v, f = skirt.vertices, skirt.faces
+    near = garment_weights(v, f, body, None, "nearest")
+    light = garment_weights(v, f, body, None, "smooth-light")
+    full = garment_weights(v, f, body, None, "smooth")
+    d_light, d_full = np.abs(light - near).sum(1), np.abs(full - near).sum(1)
+    hem = v[:, 1] < v[:, 1].min() + 0.03
+    assert d_light[hem].mean() > 0.1  # it smooths ...
+    assert (d_light[hem] <= d_full[hem] + 1e-9).mean() > 0.9 and d_light.sum() < d_full.sum()  # ... less
+
+
+@pytest.mark.parametrize("bad", (-1.0, float("nan"), float("inf")))
+def test_smoothing_strength_must_be_finite_and_non_negative(body, bad):
+    from segadeform.body.transfer import smooth_transfer_weights
+
+    skirt = make_garment("skirt", body)
+    rest = body.shaped_vertices()[0]
+    with pytest.raises(InputError, match="smoothing strength"):
+        smooth_transfer_weights(skirt.vertices, skirt.faces, rest, body.faces, body.weights, strength=bad)
