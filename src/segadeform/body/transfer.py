@@ -21,12 +21,12 @@ summing to 1, equal to the closest body point's where the garment lies on the sk
   Cloth Simulation* (NCS, 2022) recommend for skirts.
 * ``"smooth-light"``: the same with a quarter of the strength (:data:`SMOOTH_LIGHT_STRENGTH`): a vertex
   twice as far from the body is smoothed as much as a ``smooth`` one.  On the motion capture of
-  ``data/continuum`` it is closer to Blender than ``smooth`` (LBS vertex error 3.462 against 3.618 cm on
-  every 8th training sample, 5.083 against 5.300 on the validation split) and puts fewer vertices inside
-  the body (3.5 against 9.6 %, 2.2 against 7.0 %): ``smooth`` carries a trouser leg or a dress's front
-  away from the thigh it lies on.  Not on the test split's held-out dresses and tops, where it is 3.2 %
-  farther from Blender (5.923 against 5.740 cm) with 2.6 against 6.9 % inside: ``smooth`` stays the default
-  recipe's prior (``docs/gpu-training.md``, "A lighter prior").
+  ``data/continuum`` it is closer to Blender than ``smooth`` (LBS vertex error 3.675 against 3.841 cm on
+  every 8th training sample, 5.083 against 5.300 on the validation split: ``tools/prior_strength.py``) and
+  puts fewer vertices inside the body (3.1 against 9.9 %, 2.2 against 7.0 %): ``smooth`` carries a trouser
+  leg or a dress's front away from the thigh it lies on.  Not on the test split's held-out dresses and tops,
+  where it is 3.2 % farther from Blender (5.923 against 5.740 cm) with 2.6 against 6.9 % inside: ``smooth``
+  stays the default recipe's prior (``docs/gpu-training.md``, "A lighter prior").
 
 The three kernel priors take the closest point's weights within :data:`ON_SKIN` of the body and blend
 into their own over the next :data:`ON_SKIN` (a continuous prior that is exact on the skin).  Their
