@@ -31,7 +31,12 @@ def garment_group():
 @click.option("--ease", type=float, default=0.015, show_default=True, help="Metres between skin and cloth.")
 @click.option("--sleeve", type=float, help="Sleeve length, 0..1 of shoulder-to-wrist.")
 @click.option("--resolution", type=int, help="Target vertex count (picks the refinement level).")
-def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, resolution):
+@click.option(
+    "--waist-ease",
+    type=float,
+    help="Trousers, shorts, skirts: metres at the waistband, tapering to --ease 8 cm below it (default: --ease).",
+)
+def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, resolution, waist_ease):
     """Make a KIND garment dressed on the body in rest pose (kinds: see `segadeform garment kinds`)."""
     from segadeform.body import default_body_path, load_body
     from segadeform.garments import GarmentParams, check_garment, make_garment
@@ -43,7 +48,12 @@ def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, res
     b = _betas(betas)
     bm = load_body(body or default_body_path())
     g = make_garment(
-        kind, bm, b, GarmentParams(length=length, flare=flare, ease=ease, sleeve=sleeve, resolution=resolution)
+        kind,
+        bm,
+        b,
+        GarmentParams(
+            length=length, flare=flare, ease=ease, sleeve=sleeve, resolution=resolution, waist_ease=waist_ease
+        ),
     )
     info = check_garment(g.vertices, g.faces, bm, b)
     write_obj(output, Mesh(vertices=g.vertices, faces=g.faces), header=g.header())

@@ -284,6 +284,30 @@ def test_growing_keeps_every_finished_sample_and_its_meaning(tmp_path):
     assert set(plan_x) == set(plan_a) and all(plan_x[k] != plan_a[k] for k in plan_a if k.startswith("tee"))
 
 
+def test_a_garment_parameter_added_later_enters_the_spec_only_when_set(tmp_path):
+    """``waist_ease`` came after datasets were made: an entry without it keeps its samples' specs (the
+    continuum's stored specs still match), one with it is a different garment."""
+    from segadeform.dataset.make import _garment_params, sample_spec
+
+    a = _cfg(tmp_path, "a.toml")
+    plan_a = {p.id: sample_spec(a, p) for p in sample_plan(a)}
+    assert all("waist_ease" not in _garment_params(g) for g in a.garments)
+    fitted = load_dataset_config(
+        _write(
+            tmp_path,
+            "w.toml",
+            RANGED.format(dataset="", count=4, seed="", mcount=2).replace(
+                'kind = "skirt"', 'kind = "skirt"\nwaist_ease = 0.005'
+            ),
+        )
+    )
+    skirt = [g for g in fitted.garments if g.kind == "skirt"][0]
+    assert _garment_params(skirt)["waist_ease"] == 0.005
+    plan_w = {p.id: sample_spec(fitted, p) for p in sample_plan(fitted)}
+    assert set(plan_w) == set(plan_a)
+    assert all((plan_w[k] != v) == k.startswith("skirt") for k, v in plan_a.items())
+
+
 def test_a_sample_spec_names_its_files_by_content_not_by_where_they_lie(tmp_path):
     """A dataset made beside one checkout is the same dataset beside another: the spec of a motion-capture
     sample holds the capture file's name and a hash of its bytes, not its path (packs made on one machine

@@ -102,6 +102,9 @@ def test_cli_garment_make(tmp_path, capsys):
     m = read_obj(out)
     assert len(m.vertices) > 1000
     assert "kind=dress type=dress" in out.read_text()[:300]
+    fitted = tmp_path / "t.obj"
+    assert main(["garment", "make", "trousers", "--ease", "0.04", "--waist-ease", "0.005", "-o", str(fitted)]) == 0
+    assert "waist_ease=0.005" in fitted.read_text()[:300]
     assert main(["garment", "make", "cape", "-o", str(tmp_path / "x.obj")]) == 1
     assert not (tmp_path / "x.obj").exists()
     assert "unknown garment kind" in capsys.readouterr().err
@@ -167,3 +170,40 @@ def test_the_a_posed_garment_is_the_same_garment(body, made):
     assert np.abs(skirt.cloth_rest[low] - skirt.vertices[low]).max() < 1e-6
     with pytest.raises(InputError, match="cloth_pose"):
         make_garment("skirt", body, cloth_pose=np.zeros(5))
+
+
+def test_waist_ease_fits_the_waistband_and_keeps_the_legs_room(body):
+    """``waist_ease``: trousers sit on the waist (the pinned waistband a hanging forearm passed through stood
+    off the body by the legs' 4 cm) and keep ``ease`` in the legs; the same cut, smooth edges, clean."""
+    proxy = BodyProxy(body.shaped_vertices()[0], body.faces)
+    loose = make_garment("trousers", body, params=GarmentParams(ease=0.04), cloth_pose=A_POSE)
+    fitted = make_garment("trousers", body, params=GarmentParams(ease=0.04, waist_ease=0.005), cloth_pose=A_POSE)
+    assert fitted.faces.shape == loose.faces.shape and (fitted.faces == loose.faces).all()
+    y = fitted.vertices[:, 1]
+    top = y > y.max() - 0.01  # the waistband
+    legs = y < y.max() - 0.3
+    d_fit = proxy.query(fitted.vertices).signed_distance
+    d_loose = proxy.query(loose.vertices).signed_distance
+    assert np.median(d_fit[top]) < 0.012 < 0.025 < np.median(d_loose[top])
+    assert np.median(d_fit[legs]) == pytest.approx(np.median(d_loose[legs]), abs=0.003)
+    assert (d_fit > 0).all()
+    turn_max, turn_p95, _ = _smoothness(fitted.vertices, fitted.faces)
+    assert turn_max <= MAX_TURN_DEG and turn_p95 <= P95_TURN_DEG
+    # the A-posed cloth rest is the same garment, fitted the same way
+    a_proxy = BodyProxy(body.forward(A_POSE.reshape(1, 72)).vertices[0], body.faces)
+    assert np.median(a_proxy.query(fitted.cloth_rest).signed_distance[top]) < 0.012
+
+
+def test_waist_ease_is_the_ease_profile_and_leaves_other_garments_alone(body):
+    from segadeform.garments.make import WAIST_TAPER, waistband_ease
+
+    rest = np.stack([np.zeros(5), [1.0, 0.99, 1.0 - WAIST_TAPER / 2, 1.0 - WAIST_TAPER, 0.2], np.zeros(5)], 1)
+    e = waistband_ease(rest, 0.04, 0.005)
+    assert e[0] == pytest.approx(0.005) and e[3] == pytest.approx(0.04) and e[4] == pytest.approx(0.04)
+    assert e[2] == pytest.approx(0.0225) and 0.005 < e[1] < 0.0225
+    # a top has no waistband: waist_ease changes nothing; None is the garment as before
+    t0 = make_garment("tshirt", body, params=GarmentParams(ease=0.02))
+    t1 = make_garment("tshirt", body, params=GarmentParams(ease=0.02, waist_ease=0.005))
+    assert np.array_equal(t0.vertices, t1.vertices)
+    with pytest.raises(InputError, match="waist_ease"):
+        GarmentParams(waist_ease=0.5)

@@ -210,10 +210,19 @@ def file_identity(path) -> str:
         ) from None
 
 
+def _garment_params(g: GarmentSpec) -> dict:
+    """The garment's parameters as plain data; ``waist_ease`` (added later) only when set, so the specs of
+    samples made before it do not change."""
+    d = dataclasses.asdict(g.params)
+    if d.get("waist_ease") is None:
+        d.pop("waist_ease", None)
+    return d
+
+
 def _garment_key(g: GarmentSpec) -> dict:
     return {
         "kind": g.kind,
-        "params": dataclasses.asdict(g.params),
+        "params": _garment_params(g),
         "pin": g.pin,
         "mhclo": file_identity(g.mhclo) if g.mhclo else None,
     }
@@ -518,7 +527,7 @@ def _run_one(
         fps=motion.fps,
         betas=list(betas),
         settings=res.settings,
-        garment_params=dataclasses.asdict(g.params),
+        garment_params=_garment_params(g),
         config_digest=cfg.digest(),
         blender_info=res.blender,
         sim_bridge=SIM_BRIDGE_VERSION,

@@ -36,9 +36,13 @@ jumpsuit       jumpsuit      neck to the ankles, short sleeves
 ``length``: skirts: hem height as a fraction of hip-to-ankle (0.3 short,
 0.8 long); trousers/shorts: leg covered, 0..1 of hip-to-ankle.  ``flare``:
 how much wider than the hips the hem is (0 = straight).  ``ease``: metres
-between skin and cloth.  ``subdivisions``: each multiplies the vertex count
-by about 4 (0 gives roughly 1k-4k vertices on the default body, 1 gives
-4k-16k).
+between skin and cloth.  ``waist_ease`` (trousers, shorts, skirts; None: ``ease``
+everywhere): metres between skin and cloth at the waistband, tapering to ``ease``
+over :data:`WAIST_TAPER` below it -- trousers sit on the waist and have their
+room in the hips and legs, and a waistband standing off the body by the legs'
+ease is what a hanging forearm passes through when the waistband is pinned.
+``subdivisions``: each multiplies the vertex count by about 4 (0 gives roughly
+1k-4k vertices on the default body, 1 gives 4k-16k).
 """
 
 from __future__ import annotations
@@ -62,6 +66,9 @@ __all__ = [
     "make_garment",
     "check_garment",
     "boundary_turning",
+    "waistband_ease",
+    "WAIST_TAPER",
+    "WAISTBAND_KINDS",
 ]
 
 GARMENT_TYPES = {
@@ -77,6 +84,10 @@ GARMENT_TYPES = {
 }
 GARMENT_KINDS = tuple(GARMENT_TYPES)
 _J = {n: i for i, n in enumerate(SMPL_JOINT_NAMES)}
+#: metres below the waistband over which ``waist_ease`` tapers to ``ease``
+WAIST_TAPER = 0.08
+#: kinds whose top edge is a waistband (``waist_ease`` applies)
+WAISTBAND_KINDS = ("skirt", "trousers", "shorts")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,11 +98,18 @@ class GarmentParams:
     sleeve: float | None = None  # fraction of the arm (shoulder to wrist) the sleeve covers
     subdivisions: int = 0
     resolution: int | None = None  # target vertex count: picks the subdivisions closest to it
+    waist_ease: float | None = None  # metres at the waistband, tapering to `ease` (None: `ease` everywhere)
 
     def __post_init__(self):
         if self.resolution is not None and not (isinstance(self.resolution, int) and 100 <= self.resolution <= 200_000):
             raise InputError("garment resolution out of range", expected="100..200000 vertices", got=self.resolution)
-        for name, lo, hi in (("length", 0.05, 1.0), ("flare", 0.0, 2.0), ("ease", 0.002, 0.1), ("sleeve", 0.0, 1.0)):
+        for name, lo, hi in (
+            ("length", 0.05, 1.0),
+            ("flare", 0.0, 2.0),
+            ("ease", 0.002, 0.1),
+            ("sleeve", 0.0, 1.0),
+            ("waist_ease", 0.002, 0.1),
+        ):
             v = getattr(self, name)
             if v is not None and not (isinstance(v, (int, float)) and lo <= v <= hi):
                 raise InputError(f"garment {name} out of range", expected=f"{lo}..{hi}", got=v)
@@ -176,6 +194,7 @@ def _relax(v, f, proxy: BodyProxy, ease, passes: int = 10, step: float = 0.5):
     (``ease / 4`` on the boundary)."""
     from ..geometry.mesh_ops import boundary_vertices
 
+    ease = _per_vertex(ease, len(v))
     e = unique_edges(f, len(v))
     deg = np.bincount(e.ravel(), minlength=len(v)).astype(np.float64)
     interior = np.ones(len(v), bool)
@@ -455,14 +474,35 @@ def _convexify_loops(v, f):
     return v
 
 
+def _per_vertex(ease, n: int) -> np.ndarray:
+    """``ease``: one number or one per vertex -> (n,) metres."""
+    return np.broadcast_to(np.asarray(ease, np.float64), (n,))
+
+
+def waistband_ease(rest, ease: float, waist_ease: float, taper: float = WAIST_TAPER) -> np.ndarray:
+    """Per-vertex ease of a garment whose top edge is a waistband: ``waist_ease`` at the top (the highest
+    point of ``rest``), ``ease`` from ``taper`` metres below it down, a smoothstep between (no crease where
+    the fitted waist meets the looser hips).
+
+    Shapes: rest (N, 3) y-up, the patch on the body's rest pose -> (N,)
+    """
+    y = np.asarray(rest, np.float64)[:, 1]
+    s = np.clip((y.max() - y) / taper, 0.0, 1.0)
+    s = s * s * (3.0 - 2.0 * s)
+    return waist_ease + (ease - waist_ease) * s
+
+
 def _offset(v, f, proxy: BodyProxy, ease):
-    """Offset a patch of the body surface by ``ease`` along its smoothed normals, push what lands
-    inside back out, and even the triangles (see :func:`_relax`).  Shapes: v (N, 3) -> (N, 3)"""
-    v = v + ease * _smooth_normals(v, f, rounds=12)
+    """Offset a patch of the body surface by ``ease`` (metres: one number or one per vertex) along its
+    smoothed normals, push what lands inside back out, and even the triangles (see :func:`_relax`).
+
+    Shapes: v (N, 3), ease () or (N,) -> (N, 3)"""
+    ease = _per_vertex(ease, len(v))
+    v = v + ease[:, None] * _smooth_normals(v, f, rounds=12)
     # where the offset lands inside (concave creases), push out along the body normal
     q = proxy.query(v)
     bad = q.signed_distance < 0.5 * ease
-    v[bad] = q.closest[bad] + ease * q.normal[bad]
+    v[bad] = q.closest[bad] + ease[bad, None] * q.normal[bad]
     # crease vertices pushed out above bunch up (armpits: 3 mm edges that the simulator then
     # stretched 300 %); a few smoothing passes even the triangles, each followed by the push-out
     v = _relax(v, f, proxy, ease)
@@ -482,6 +522,7 @@ def _smooth_boundary(v, f, proxy: BodyProxy, ease, passes: int = 20, lam: float 
     if not loops:
         return v
     every = np.concatenate(loops)
+    ease = _per_vertex(ease, len(v))[every]
     for _ in range(passes):
         for coef in (lam, mu):
             for loop in loops:
@@ -491,7 +532,7 @@ def _smooth_boundary(v, f, proxy: BodyProxy, ease, passes: int = 20, lam: float 
         # ease / 2 of its walls, and pushing it along their normals would fold it into the crease
         q = proxy.query(v[every])
         bad = q.signed_distance < 0.25 * ease
-        v[every[bad]] = q.closest[bad] + 0.25 * ease * q.normal[bad]
+        v[every[bad]] = q.closest[bad] + (0.25 * ease[bad])[:, None] * q.normal[bad]
     return v
 
 
@@ -527,9 +568,10 @@ def make_garment(
     x = np.concatenate([(1 - t)[:, None] * sv[a] + t[:, None] * sv[b] for sv in smooth], axis=1)
     x, f = _largest_component(x, f)
     x, f = _clean_patch(x, f)
-    out = [
-        _offset(x[:, 3 * k : 3 * k + 3].copy(), f, BodyProxy(pv, body.faces), params.ease) for k, pv in enumerate(poses)
-    ]
+    ease = params.ease
+    if params.waist_ease is not None and kind in WAISTBAND_KINDS:  # fitted at the waist, room below
+        ease = waistband_ease(x[:, :3], params.ease, params.waist_ease)
+    out = [_offset(x[:, 3 * k : 3 * k + 3].copy(), f, BodyProxy(pv, body.faces), ease) for k, pv in enumerate(poses)]
     if hem is not None:  # the skirt is extruded in the rest pose; other poses move it with its waist
         n0 = len(out[0])
         v0, f2, loop = _extrude_skirt(out[0], f, hem, params.flare, BodyProxy(bv, body.faces), params.ease)
