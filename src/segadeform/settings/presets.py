@@ -35,10 +35,10 @@ class Preset:
 
 #: name -> preset, fastest first.  Measured figures: docs/accuracy-vs-time.md ("Presets").  All three are
 #: points of the shipped model's measured frontier on the held-out split of samples/datasets/continuum.toml
-#: (a product setting read off that table, not a model choice).  With the model retrained in issue #27 the
-#: temporal weights (dynamics) pay (all effects 4.549 cm, without dynamics 4.671 on the doc's 4 samples), and the
-#: cloth stage after all effects is the lowest error there is (4.435-4.446 cm over 1-16 sweeps and stiffness 0.2-1,
-#: against 4.541 with the push-out); its settings differ by under 0.01 cm and under the doc's ~2 ms/frame timing
+#: (a product setting read off that table, not a model choice).  With the model shipped in issue #27 the
+#: temporal weights (dynamics) pay (all effects 4.423 cm, without dynamics 4.596 on the doc's 4 samples), and the
+#: cloth stage after all effects is the lowest error there is (4.334-4.358 cm over 1-16 sweeps and stiffness 0.2-1,
+#: against 4.416 with the push-out); its settings differ by under 0.025 cm and under the doc's ~2 ms/frame timing
 #: noise, so best runs it at its defaults.  Fast and balanced are unchanged (the cheapest points without and with
 #: the collision stage).  A new model should run the bench again and revise this table.
 QUALITY_PRESETS = {
