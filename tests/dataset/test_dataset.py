@@ -306,6 +306,17 @@ def test_a_garment_parameter_added_later_enters_the_spec_only_when_set(tmp_path)
     plan_w = {p.id: sample_spec(fitted, p) for p in sample_plan(fitted)}
     assert set(plan_w) == set(plan_a)
     assert all((plan_w[k] != v) == k.startswith("skirt") for k, v in plan_a.items())
+    # a top has no waistband: the config says so when it is read, not when the garment is made
+    with pytest.raises(FileFormatError, match="waist_ease is for garments with a waistband"):
+        load_dataset_config(
+            _write(
+                tmp_path,
+                "t.toml",
+                RANGED.format(dataset="", count=4, seed="", mcount=2).replace(
+                    "flare = 0.4", "flare = 0.4\nwaist_ease = 0.005"
+                ),
+            )
+        )
 
 
 def test_a_sample_spec_names_its_files_by_content_not_by_where_they_lie(tmp_path):

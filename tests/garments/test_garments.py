@@ -194,16 +194,15 @@ def test_waist_ease_fits_the_waistband_and_keeps_the_legs_room(body):
     assert np.median(a_proxy.query(fitted.cloth_rest).signed_distance[top]) < 0.012
 
 
-def test_waist_ease_is_the_ease_profile_and_leaves_other_garments_alone(body):
+def test_waist_ease_is_the_ease_profile_and_only_for_waistbands(body):
     from segadeform.garments.make import WAIST_TAPER, waistband_ease
 
     rest = np.stack([np.zeros(5), [1.0, 0.99, 1.0 - WAIST_TAPER / 2, 1.0 - WAIST_TAPER, 0.2], np.zeros(5)], 1)
     e = waistband_ease(rest, 0.04, 0.005)
     assert e[0] == pytest.approx(0.005) and e[3] == pytest.approx(0.04) and e[4] == pytest.approx(0.04)
     assert e[2] == pytest.approx(0.0225) and 0.005 < e[1] < 0.0225
-    # a top has no waistband: waist_ease changes nothing; None is the garment as before
-    t0 = make_garment("tshirt", body, params=GarmentParams(ease=0.02))
-    t1 = make_garment("tshirt", body, params=GarmentParams(ease=0.02, waist_ease=0.005))
-    assert np.array_equal(t0.vertices, t1.vertices)
+    # a top has no waistband: asking for one is an error, not ignored
+    with pytest.raises(InputError, match="waist_ease is for garments with a waistband.*got.*tshirt"):
+        make_garment("tshirt", body, params=GarmentParams(ease=0.02, waist_ease=0.005))
     with pytest.raises(InputError, match="waist_ease"):
         GarmentParams(waist_ease=0.5)

@@ -86,6 +86,7 @@ import numpy as np
 
 from ..errors import FileFormatError, InputError
 from ..garments import GARMENT_KINDS, GarmentParams
+from ..garments.make import WAISTBAND_KINDS
 from ..io.toml import key, read_table, read_toml
 from ..motion.procedural import MOTION_KINDS
 from ..settings.simulation import SimSettings, parse_simulate_table
@@ -349,6 +350,13 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
                 params = GarmentParams(**g, **vals)
             except (TypeError, InputError) as e:
                 raise FileFormatError(f"garments[{i}] ({dname}): {e}", path=p) from None
+            if params.waist_ease is not None and kind not in WAISTBAND_KINDS:
+                raise FileFormatError(
+                    f"garments[{i}] ({dname}): waist_ease is for garments with a waistband",
+                    path=p,
+                    expected=" | ".join(WAISTBAND_KINDS),
+                    got=kind,
+                )
             garments.append(GarmentSpec(dname, kind, params, split, pin, mhclo))
     bodies, body_splits = [], []
     for i, b in enumerate(data.get("bodies", [{"betas": []}])):

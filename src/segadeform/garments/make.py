@@ -550,6 +550,8 @@ def make_garment(
     """
     if kind not in GARMENT_TYPES:
         raise InputError("unknown garment kind", expected=" | ".join(GARMENT_KINDS), got=kind)
+    if params.waist_ease is not None and kind not in WAISTBAND_KINDS:
+        raise InputError("waist_ease is for garments with a waistband", expected=" | ".join(WAISTBAND_KINDS), got=kind)
     bv = body.shaped_vertices(betas)[0]
     j = body.rest_joints(betas)[0]
     poses = [bv]
@@ -569,7 +571,7 @@ def make_garment(
     x, f = _largest_component(x, f)
     x, f = _clean_patch(x, f)
     ease = params.ease
-    if params.waist_ease is not None and kind in WAISTBAND_KINDS:  # fitted at the waist, room below
+    if params.waist_ease is not None:  # fitted at the waist, room below
         ease = waistband_ease(x[:, :3], params.ease, params.waist_ease)
     out = [_offset(x[:, 3 * k : 3 * k + 3].copy(), f, BodyProxy(pv, body.faces), ease) for k, pv in enumerate(poses)]
     if hem is not None:  # the skirt is extruded in the rest pose; other poses move it with its waist
