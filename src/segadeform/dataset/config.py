@@ -85,8 +85,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from ..garments import GARMENT_KINDS, GarmentParams
-from ..garments.make import WAISTBAND_KINDS
+from ..garments import GARMENT_KINDS, WAISTBAND_KINDS, GarmentParams
 from ..io.toml import key, read_table, read_toml
 from ..motion.procedural import MOTION_KINDS
 from ..settings.simulation import SimSettings, parse_simulate_table

@@ -3,6 +3,14 @@
 See :mod:`.make` for the kinds and their parameters.
 """
 
-from .make import GARMENT_KINDS, GARMENT_TYPES, Garment, GarmentParams, check_garment, make_garment
+from .make import GARMENT_KINDS, GARMENT_TYPES, WAISTBAND_KINDS, Garment, GarmentParams, check_garment, make_garment
 
-__all__ = ["GARMENT_KINDS", "GARMENT_TYPES", "Garment", "GarmentParams", "make_garment", "check_garment"]
+__all__ = [
+    "GARMENT_KINDS",
+    "GARMENT_TYPES",
+    "WAISTBAND_KINDS",
+    "Garment",
+    "GarmentParams",
+    "make_garment",
+    "check_garment",
+]
