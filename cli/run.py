@@ -58,7 +58,7 @@ def _quality_choice():
     "cloth",
     metavar="NAME=VALUE,..",
     help="The cloth stage's knobs (iterations, stiffness, stretch, compress, bending, damping, follow, "
-    "gravity, attachment, max_distance, reset: segadeform.settings.cloth) over the scene's; the "
+    "gravity, attachment, max_distance, reset, backstop: segadeform.settings.cloth) over the scene's; the "
     "stage is on when the scene or --effects names it (--effects=+cloth).",
 )
 @click.option(
@@ -300,8 +300,8 @@ def run_cmd(
         c = summary.cloth
         click.echo(
             f"  cloth: {c['contacts']} vertex-frames in contact, {c['pushed']} pushed out after the sweeps, "
-            f"{c['resets']} reset(s), {1e3 * summary.stage_seconds['cloth'] / max(summary.frames, 1):.2f} "
-            f"ms/frame"
+            f"{c['traced']} traced out by the backstop, {c['resets']} reset(s), "
+            f"{1e3 * summary.stage_seconds['cloth'] / max(summary.frames, 1):.2f} ms/frame"
         )
     for path in summary.written:
         click.echo(f"  wrote {path}")

@@ -102,7 +102,8 @@ class RunSummary:
     stage_seconds: dict
     #: how the body was posed: "graph" (the package's body graph), "numpy", or None (not posed)
     body_backend: str | None = None
-    #: the cloth stage's counts (vertex-frames in ``contacts`` and ``pushed``, ``resets``), None when it was off
+    #: the cloth stage's counts (vertex-frames in ``contacts``, ``pushed`` and ``traced`` by the backstop, ``resets``),
+    #: None when it was off
     cloth: dict | None = None
 
     @property
@@ -344,7 +345,7 @@ class Run:
             body_backend=cast(BodyPoser, self.body_poser).backend if need_body else None,
             cloth=None
             if cloth is None
-            else {"contacts": cloth.contacts, "pushed": cloth.pushed, "resets": cloth.resets},
+            else {"contacts": cloth.contacts, "pushed": cloth.pushed, "traced": cloth.traced, "resets": cloth.resets},
         )
 
 

@@ -35,7 +35,9 @@ def _report(name: str, **figures) -> None:
     print(f"CLOTH {name} " + json.dumps(figures))
 
 
-@pytest.fixture(scope="module", params=["default", "iterations=3,stiffness=0.6,bending=0,follow=0,gravity=20"])
+@pytest.fixture(
+    scope="module", params=["default", "iterations=3,stiffness=0.6,bending=0,follow=0,gravity=20", "backstop=0"]
+)
 def cloth_vector(request, tmp_path_factory):
     from segadeform.body import default_body_path, load_body
     from segadeform.body.cloth import ClothSettings, ClothStage, compiled_available, garment_setup
@@ -46,12 +48,16 @@ def cloth_vector(request, tmp_path_factory):
     assert compiled_available(), "the compiled cloth kernel is not built (pip install -e . builds it)"
     body = load_body(default_body_path())
     settings = ClothSettings.parse("" if request.param == "default" else request.param)
-    v, f = frustum(24, 9, 0.13, 0.3, 1.0, 0.5)  # partly inside the hips, the thighs swinging through it
+    v, f = frustum(24, 9, 0.13, 0.2, 1.0, 0.5)  # partly inside the hips, the thighs swinging through it
     m = make_motion("walk", seconds=0.8, seed=1)
     trans = m.trans.copy()
     trans[14:] += [2.0, 0.0, 1.0]  # a teleport: the stage resets
     posed = body.forward(m.poses, None, trans).vertices
-    targets = skin_garment(v, garment_weights(v, f, body, None, "nearest"), body, m.poses, None, trans)
+    # skinned to the nearest body vertex above the hem, carried by the root alone below (the swinging thighs go
+    # deep through the free hem there: the backstop's work)
+    skinned = skin_garment(v, garment_weights(v, f, body, None, "nearest"), body, m.poses, None, trans)
+    rigid = v[None] + trans[:, None]
+    targets = np.where((v[:, 1] < 0.75)[None, :, None], rigid, skinned)
     rest_body = body.shaped_vertices()[0]
     setup = garment_setup(v, f, rest_body, body.faces, settings)
     stage = ClothStage(setup, body.v_template, body.faces, settings, margin=MARGIN, dt=1 / 30)
@@ -59,7 +65,8 @@ def cloth_vector(request, tmp_path_factory):
     out = np.concatenate(
         [stage.step(targets[lo : lo + batch], posed[lo : lo + batch]) for lo in range(0, len(targets), batch)]
     )
-    assert stage.resets == 1 and stage.contacts > 200 and stage.pushed > 0  # the vector means something
+    assert stage.resets == 1 and stage.contacts > 200  # the vector means something: contact, a reset,
+    assert stage.pushed > 0 if settings.backstop == 0 else stage.traced > 0  # the push-out or the backstop at work
     path = tmp_path_factory.mktemp("cloth") / "vec.sgdb"
     write_bundle(
         path,
@@ -81,7 +88,8 @@ def cloth_vector(request, tmp_path_factory):
         },
         {"settings": dataclasses.asdict(settings), "margin": MARGIN, "dt": 1 / 30, "batch": batch},
     )
-    return path, {"contacts": stage.contacts, "pushed": stage.pushed, "resets": stage.resets, "settings": request.param}
+    counts = {"contacts": stage.contacts, "pushed": stage.pushed, "resets": stage.resets, "traced": stage.traced}
+    return path, counts | {"settings": request.param}
 
 
 def test_javascript_cloth_is_the_compiled_kernel(cloth_vector, node):
@@ -93,7 +101,8 @@ def test_javascript_cloth_is_the_compiled_kernel(cloth_vector, node):
     assert r["edges"] == r["nptr"] == r["nidx"] == r["anchor"] == 0 and r["restLen"] == r["radius"] == 0, r
     assert r["tether"] == 0, r
     assert r["frames"] <= 1e-12 and r["identical"] == r["coordinates"], r
-    assert (r["contacts"], r["pushed"], r["resets"]) == (py["contacts"], py["pushed"], py["resets"]), (r, py)
+    names = ("contacts", "pushed", "resets", "traced")
+    assert [r[k] for k in names] == [py[k] for k in names], (r, py)
 
 
 @pytest.fixture(scope="module")
@@ -165,15 +174,15 @@ def test_runtime_cloth_matches_segadeform_run(runtime, request, clothed, tmp_pat
     )
     assert p.returncode == 0, p.stdout + p.stderr
     m = re.search(
-        r"cloth: (\d+) vertex-frames in contact, (\d+) pushed out after the sweeps, (\d+) reset\(s\), "
-        r"([\d.]+) ms/frame",
+        r"cloth: (\d+) vertex-frames in contact, (\d+) pushed out after the sweeps, (\d+) traced out by the "
+        r"backstop, (\d+) reset\(s\), ([\d.]+) ms/frame",
         p.stdout,
     )
     assert m, p.stdout
-    counts = {"contacts": int(m.group(1)), "pushed": int(m.group(2)), "resets": int(m.group(3))}
+    counts = {k: int(m.group(i + 1)) for i, k in enumerate(("contacts", "pushed", "traced", "resets"))}
     got = read_pc2(tmp_path / "g.pc2").frames
     a = _agree(got, c["frames"], c["cloth"]["contacts"])
-    _report(runtime, **a, **counts, python=c["cloth"], ms_per_frame=float(m.group(4)), python_ms_per_frame=c["ms"])
+    _report(runtime, **a, **counts, python=c["cloth"], ms_per_frame=float(m.group(5)), python_ms_per_frame=c["ms"])
     assert a["exact"] and a["max_rel"] <= 1e-5, a
     assert counts == c["cloth"], (counts, c["cloth"])
 

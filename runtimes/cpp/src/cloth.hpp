@@ -20,7 +20,7 @@ int64_t sdc_n_nodes(const void* h);
 void sdc_refit(const void* h, const double* verts, double* box);
 void sdc_query(const void* h, const double* verts, const double* box, const double* pts, int64_t i0, int64_t i1,
                double* sd, double* closest, double* normal, int64_t* face);
-// _cloth.c's (its ABI 3)
+// _cloth.c's (its ABI 4)
 int64_t scl_abi(void);
 int64_t scl_n_settings(void);
 int64_t scl_setup(const double* rest, int64_t n, const int64_t* faces, int64_t nf, const double* rest_sd,
@@ -28,7 +28,7 @@ int64_t scl_setup(const double* rest, int64_t n, const int64_t* faces, int64_t n
                   int64_t* nidx, double* radius, int64_t* anchor, double* tether);
 int64_t scl_step(int64_t n, int64_t ne, const int64_t* edges, const double* rest_len, const int64_t* nptr,
                  const int64_t* nidx, const double* radius, const int64_t* anchor, const double* tether,
-                 const double* settings, const void* collider, int64_t nv,
+                 int64_t nf, const int64_t* faces, const double* settings, const void* collider, int64_t nv,
                  const double* body, int64_t nb, const double* target, double* out, double* state, int64_t* info);
 }
 
@@ -38,13 +38,15 @@ namespace sgd {
 struct ClothSettings {
   std::map<std::string, double> v{{"iterations", 4},   {"stiffness", 1.0}, {"stretch", 0.03},  {"compress", 0.03},
                                   {"bending", 0.9},    {"damping", 0.1},   {"follow", 0.5},    {"gravity", 9.81},
-                                  {"attachment", 0.02}, {"max_distance", 0.05}, {"reset", 0.25}};
+                                  {"attachment", 0.02}, {"max_distance", 0.05}, {"reset", 0.25},
+                                  {"backstop", 0.03}};
 
   void parse(const std::string& text) {
     static const std::map<std::string, std::pair<double, double>> range{
         {"iterations", {1, 64}}, {"stiffness", {0, 1}}, {"stretch", {0, 1}},    {"compress", {0, 1}},
         {"bending", {0, 1}},     {"damping", {0, 1}},   {"follow", {0, 1}},     {"gravity", {0, 100}},
-        {"attachment", {0, 1}},  {"max_distance", {0, 1}}, {"reset", {1e-6, 1e3}}};
+        {"attachment", {0, 1}},  {"max_distance", {0, 1}}, {"reset", {1e-6, 1e3}},
+        {"backstop", {0, 1}}};
     std::stringstream ss(text);
     std::string item;
     while (std::getline(ss, item, ',')) {
@@ -54,7 +56,7 @@ struct ClothSettings {
       if (eq == std::string::npos || !range.count(name))
         throw std::runtime_error("unknown cloth setting (expected NAME=VALUE with NAME one of iterations, stiffness, "
                                  "stretch, compress, bending, damping, follow, gravity, attachment, max_distance, "
-                                 "reset, got '" + item + "')");
+                                 "reset, backstop, got '" + item + "')");
       size_t used = 0;
       double x = 0;
       try {
@@ -75,7 +77,7 @@ struct ClothSettings {
   std::vector<double> array(double margin, double dt) const {
     return {v.at("iterations"), v.at("stiffness"), v.at("stretch"), v.at("compress"), v.at("bending"),
             v.at("damping"),    v.at("gravity"),   dt,              margin,            v.at("reset"),
-            v.at("follow")};
+            v.at("follow"),     v.at("backstop")};
   }
 };
 
@@ -86,8 +88,8 @@ class Cloth {
   Cloth(const double* rest, int64_t n, const int32_t* faces, int64_t nf, const float* rest_body, int64_t nv,
         const int32_t* body_faces, int64_t nbf, const ClothSettings& settings, double margin, double dt)
       : n_(n), nv_(nv) {
-    if (scl_abi() != 3 || scl_n_settings() != 11)
-      throw std::runtime_error("the cloth kernel is from another version (expected ABI 3, 11 settings)");
+    if (scl_abi() != 4 || scl_n_settings() != 12)
+      throw std::runtime_error("the cloth kernel is from another version (expected ABI 4, 12 settings)");
     if (n < 1 || nv < 1 || nbf < 1) throw std::runtime_error("the cloth stage needs a garment and a body");
     std::vector<double> rb(rest_body, rest_body + 3 * nv);
     std::vector<int64_t> bf(body_faces, body_faces + 3 * nbf), gf(faces, faces + 3 * nf);
@@ -113,6 +115,8 @@ class Cloth {
                     tether_.data());
     if (ne_ == -1) throw std::runtime_error("out of memory in the cloth stage's setup");
     if (ne_ < 0) throw std::runtime_error("garment face index out of range");
+    faces_ = gf;  // checked by scl_setup; the backstop's normals
+    nf_ = nf;
     settings_ = settings.array(margin, dt);
     state_.assign(static_cast<size_t>(9 * n), 0.0);
   }
@@ -125,7 +129,8 @@ class Cloth {
   void step(float* frames, int64_t nb, const float* body) {
     std::vector<double> y(frames, frames + nb * n_ * 3), b(body, body + nb * nv_ * 3), out(y.size());
     const int64_t status = scl_step(n_, ne_, edges_.data(), rest_len_.data(), nptr_.data(), nidx_.data(),
-                                    radius_.data(), anchor_.data(), tether_.data(), settings_.data(), h_, nv_, b.data(),
+                                    radius_.data(), anchor_.data(), tether_.data(), nf_, faces_.data(), settings_.data(),
+                                    h_, nv_, b.data(),
                                     nb, y.data(), out.data(), state_.data(), info_);
     if (status == -1) throw std::runtime_error("out of memory in the cloth stage");
     if (status > 0)
@@ -138,14 +143,15 @@ class Cloth {
   int64_t resets() const { return info_[1]; }
   int64_t contacts() const { return info_[2]; }
   int64_t pushed() const { return info_[3]; }
+  int64_t traced() const { return info_[5]; }
   int64_t first_reset() const { return first_reset_; }
 
  private:
   void* h_ = nullptr;
-  int64_t n_ = 0, nv_ = 0, ne_ = 0, frames_ = 0, first_reset_ = -1;
-  std::vector<int64_t> edges_, nptr_, nidx_, anchor_;
+  int64_t n_ = 0, nv_ = 0, ne_ = 0, nf_ = 0, frames_ = 0, first_reset_ = -1;
+  std::vector<int64_t> edges_, nptr_, nidx_, anchor_, faces_;
   std::vector<double> rest_len_, radius_, tether_, settings_, state_;
-  int64_t info_[5] = {0, 0, 0, 0, -1};
+  int64_t info_[6] = {0, 0, 0, 0, -1, 0};
 };
 
 }  // namespace sgd

@@ -680,8 +680,9 @@ int main(int argc, char** argv) {
       std::printf("; collisions: %lld vertex-frames pushed out (margin %g m), %.2f ms/frame",
                   static_cast<long long>(moved), margin, col_ms);
     if (stage)
-      std::printf("; cloth: %lld vertex-frames in contact, %lld pushed out after the sweeps, %lld reset(s), %.2f "
-                  "ms/frame", static_cast<long long>(stage->contacts()), static_cast<long long>(stage->pushed()),
+      std::printf("; cloth: %lld vertex-frames in contact, %lld pushed out after the sweeps, %lld traced out by the "
+                  "backstop, %lld reset(s), %.2f ms/frame", static_cast<long long>(stage->contacts()),
+                  static_cast<long long>(stage->pushed()), static_cast<long long>(stage->traced()),
                   static_cast<long long>(stage->resets()), cloth_ms);
     std::printf("\n");
     if (do_check) {

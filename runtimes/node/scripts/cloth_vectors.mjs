@@ -36,5 +36,5 @@ console.log(`CLOTH ${JSON.stringify({
   nptr: maxDiff(setup.nptr, A.nptr.data), nidx: maxDiff(setup.nidx, A.nidx.data), radius: maxDiff(setup.radius, A.radius.data),
   anchor: maxDiff(setup.anchor, A.anchor.data), tether: maxDiff(setup.tether, A.tether.data),
   frames: maxDiff(out, A.expected.data), identical, coordinates: out.length, contacts: stage.contacts,
-  pushed: stage.pushed, resets: stage.resets, msPerFrame: ms,
+  pushed: stage.pushed, resets: stage.resets, traced: stage.traced, msPerFrame: ms,
 })}`);

@@ -49,7 +49,8 @@ try {
     `${e.cloth ? ", cloth" : ""}) -> ${out}` +
     (bodyOut ? `; body ${r.body.V} vertices, ${r.body.msPerFrame.toFixed(2)} ms/frame (${r.body.graph}) -> ${bodyOut}` : "") +
     (c ? `; collisions: ${c.moved} vertex-frames pushed out (margin ${c.margin} m), ${c.msPerFrame.toFixed(2)} ms/frame` : "") +
-    (k ? `; cloth: ${k.contacts} vertex-frames in contact, ${k.pushed} pushed out after the sweeps, ${k.resets} reset(s), ` +
+    (k ? `; cloth: ${k.contacts} vertex-frames in contact, ${k.pushed} pushed out after the sweeps, ${k.traced} traced ` +
+      `out by the backstop, ${k.resets} reset(s), ` +
       `${k.msPerFrame.toFixed(2)} ms/frame` : ""));
   if (k && k.resets) console.error(`cloth: the stage started again from the network's frame at frame ${k.firstReset} (the garment jumped)`);
 } catch (e) {

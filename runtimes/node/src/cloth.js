@@ -13,18 +13,22 @@ const CONTACT_BAND = 0.005; // metres beyond the margin within which a vertex ge
 const PASSES = 3; // the final push-out's passes (SCL_PASSES)
 const TINY = 1e-300;
 const MOVED = 1e-6; // metres: a final push-out move counted as one (SCL_MOVED)
+const TRACE = 8; // the backstop's sphere-tracing steps (SCL_TRACE)
+const OVERSHOOT = 0.001; // metres past the margin each tracing step aims (SCL_OVERSHOOT)
+const SPREAD = 40; // Jacobi sweeps spreading the traced moves (SCL_SPREAD)
+const SPREAD_RADIUS = 0.2; // metres along the garment from a traced vertex that its move spreads to (SCL_SPREAD_RADIUS)
 
 /** The cloth stage's knobs when none are given: segadeform.cloth_settings.ClothSettings' defaults. */
 export const DEFAULT_CLOTH = Object.freeze({
   iterations: 4, stiffness: 1.0, stretch: 0.03, compress: 0.03, bending: 0.9, damping: 0.1, follow: 0.5, gravity: 9.81,
-  attachment: 0.02, max_distance: 0.05, reset: 0.25,
+  attachment: 0.02, max_distance: 0.05, reset: 0.25, backstop: 0.03,
 });
 
 /** knob -> [integer?, lowest, highest] (segadeform.cloth_settings.CLOTH_KNOBS) */
 const KNOBS = {
   iterations: [true, 1, 64], stiffness: [false, 0, 1], stretch: [false, 0, 1], compress: [false, 0, 1],
   bending: [false, 0, 1], damping: [false, 0, 1], follow: [false, 0, 1], gravity: [false, 0, 100],
-  attachment: [false, 0, 1], max_distance: [false, 0, 1], reset: [false, 1e-6, 1e3],
+  attachment: [false, 0, 1], max_distance: [false, 0, 1], reset: [false, 1e-6, 1e3], backstop: [false, 0, 1],
 };
 
 /** The knobs from "NAME=VALUE,..." over `base` (DEFAULT_CLOTH), checked as ClothSettings checks them. */
@@ -56,7 +60,8 @@ export function checkCloth(s) {
  * The per-garment data (scl_setup) from the rest garment rest (N*3, Float64Array), faces (F*3 indices) and each
  * vertex's signed distance from the body at rest restSd (N): { edges (Int32Array 2E, a < b, sorted by (a, b)),
  * restLen (E), nptr (Int32Array N + 1), nidx (Int32Array 2E: each vertex's neighbours, ascending), radius (N),
- * anchor (Int32Array N: each free vertex's tether anchor, -1 for none), tether (N: its path's rest length) }.
+ * anchor (Int32Array N: each free vertex's tether anchor, -1 for none), tether (N: its path's rest length), faces
+ * (Int32Array 3F: the garment's faces, the backstop's normals) }.
  */
 export function clothSetup(rest, faces, restSd, attachment, maxDistance) {
   const n = Math.floor(rest.length / 3), nf = Math.floor(faces.length / 3);
@@ -103,7 +108,7 @@ export function clothSetup(rest, faces, restSd, attachment, maxDistance) {
     radius[i] = d > 0 ? (d < maxDistance ? d : maxDistance) : 0.0;
   }
   const { anchor, tether } = tethers(rest, n, nptr, nidx, radius);
-  return { edges, restLen, nptr, nidx, radius, anchor, tether, n, ne };
+  return { edges, restLen, nptr, nidx, radius, anchor, tether, faces: Int32Array.from(faces), n, ne, nf };
 }
 
 /* the heap's order: by distance, then by vertex (a total order: every heap pops the same sequence) */
@@ -287,12 +292,147 @@ function edgeContact(x, edges, e, sd, cp, cn, k, margin, band) {
   }
 }
 
+/*
+ * The backstop (backstop in _cloth.c): when a free vertex's prediction x (radius > 0) is deeper than `deep` inside
+ * the body (sd, from the frame's contacts with normals cn), the target y's deep free vertices traced out along the
+ * garment's outward normal, the moves spread over the free vertices near them (attached ones keep theirs: 0);
+ * yt = y + the spread move and x moved alike.  w: the stage's buffers.  Returns how many vertices were
+ * traced out (0: yt and x are untouched).
+ */
+function backstop(col, bv, box, n, nf, faces, nptr, nidx, radius, y, x, sd, cn, margin, band, deep, w) {
+  let nd = 0, nt = 0, vote = 0;
+  if (!(deep > 0)) return 0; // off
+  for (let i = 0; i < n; i++) if (sd[i] < -deep && radius[i] > 0) w.deep[nd++] = i;
+  if (nd === 0) return 0;
+  // the target's vertex normals (area-weighted face normals) and their orientation: outward where the vertices just
+  // outside the body agree with the body's normal
+  const vn = w.vn;
+  vn.fill(0);
+  for (let j = 0; j < nf; j++) {
+    const a = 3 * faces[3 * j], b = 3 * faces[3 * j + 1], c = 3 * faces[3 * j + 2];
+    const u0 = y[b] - y[a], u1 = y[b + 1] - y[a + 1], u2 = y[b + 2] - y[a + 2];
+    const v0 = y[c] - y[a], v1 = y[c + 1] - y[a + 1], v2 = y[c + 2] - y[a + 2];
+    const f0 = u1 * v2 - u2 * v1, f1 = u2 * v0 - u0 * v2, f2 = u0 * v1 - u1 * v0;
+    for (const k of [a, b, c]) {
+      vn[k] += f0;
+      vn[k + 1] += f1;
+      vn[k + 2] += f2;
+    }
+  }
+  for (let i = 0; i < n; i++) {
+    if (sd[i] >= 0 && sd[i] < margin + band) vote += vn[3 * i] * cn[3 * i] + vn[3 * i + 1] * cn[3 * i + 1] + vn[3 * i + 2] * cn[3 * i + 2];
+  }
+  const sign = vote < 0 ? -1.0 : 1.0;
+  const { g, pts, fixed, tsd, tcp, tcn } = w;
+  // sphere-trace each deep target along its unit outward normal
+  for (let j = 0; j < nd; j++) {
+    const q = 3 * w.deep[j];
+    const l2 = vn[q] * vn[q] + vn[q + 1] * vn[q + 1] + vn[q + 2] * vn[q + 2], s = l2 > TINY ? sign / Math.sqrt(l2) : 0.0;
+    g[3 * j] = s * vn[q];
+    g[3 * j + 1] = s * vn[q + 1];
+    g[3 * j + 2] = s * vn[q + 2];
+    pts[3 * j] = y[q];
+    pts[3 * j + 1] = y[q + 1];
+    pts[3 * j + 2] = y[q + 2];
+    fixed[j] = 0; // 1 once traced out of the body
+  }
+  let k = 0;
+  for (; k < TRACE; k++) {
+    let left = 0;
+    col.near(bv, box, pts, 0, nd, margin, tsd, tcp, tcn);
+    for (let j = 0; j < nd; j++) {
+      if (fixed[j]) continue;
+      if (tsd[j] >= margin) {
+        fixed[j] = 1;
+        continue;
+      }
+      const step = margin - tsd[j] + OVERSHOOT;
+      pts[3 * j] += step * g[3 * j];
+      pts[3 * j + 1] += step * g[3 * j + 1];
+      pts[3 * j + 2] += step * g[3 * j + 2];
+      left++;
+    }
+    if (left === 0) break;
+  }
+  if (k === TRACE) { // the last step's points: out or not
+    col.near(bv, box, pts, 0, nd, margin, tsd, tcp, tcn);
+    for (let j = 0; j < nd; j++) if (tsd[j] >= margin) fixed[j] = 1;
+  }
+  // the moves of the traced-out ones (with a normal), held; spread to the others
+  const d = w.d, d2 = w.d2;
+  const held = w.held;
+  d.fill(0);
+  held.fill(0);
+  for (let j = 0; j < nd; j++) {
+    if (!fixed[j] || (g[3 * j] === 0 && g[3 * j + 1] === 0 && g[3 * j + 2] === 0)) continue;
+    const i = 3 * w.deep[j];
+    d[i] = pts[3 * j] - y[i];
+    d[i + 1] = pts[3 * j + 1] - y[i + 1];
+    d[i + 2] = pts[3 * j + 2] - y[i + 2];
+    held[w.deep[j]] = 1;
+    nt++;
+  }
+  if (nt === 0) return 0;
+  // the region the moves spread over: the vertices within SPREAD_RADIUS of a held one along the target's edges
+  // (Dijkstra from every held vertex at once); outside it the move is 0
+  const { dist, done, region, heap } = w;
+  heap.len = 0;
+  for (let i = 0; i < n; i++) {
+    dist[i] = held[i] ? 0.0 : Infinity;
+    done[i] = 0;
+    if (held[i]) heapPush(heap, 0.0, i);
+  }
+  let nr = 0;
+  while (heap.len > 0) {
+    const [dv, v] = heapPop(heap);
+    if (done[v] || dv > dist[v]) continue;
+    done[v] = 1;
+    if (!held[v] && radius[v] > 0 && nptr[v + 1] > nptr[v]) region[nr++] = v;
+    for (let j = nptr[v]; j < nptr[v + 1]; j++) {
+      const u = nidx[j];
+      const e0 = y[3 * u] - y[3 * v], e1 = y[3 * u + 1] - y[3 * v + 1], e2 = y[3 * u + 2] - y[3 * v + 2];
+      const c = dv + Math.sqrt(e0 * e0 + e1 * e1 + e2 * e2);
+      if (done[u] || !(c <= SPREAD_RADIUS) || !(c < dist[u])) continue;
+      dist[u] = c;
+      heapPush(heap, c, u);
+    }
+  }
+  w.nr = nr;
+  // Jacobi sweeps over the region: each move the mean of its neighbours' (held ones and those outside fixed)
+  for (let s = 0; s < SPREAD; s++) {
+    for (let r = 0; r < nr; r++) {
+      const i = region[r], deg = nptr[i + 1] - nptr[i];
+      let m0 = 0, m1 = 0, m2 = 0;
+      for (let j = nptr[i]; j < nptr[i + 1]; j++) {
+        m0 += d[3 * nidx[j]];
+        m1 += d[3 * nidx[j] + 1];
+        m2 += d[3 * nidx[j] + 2];
+      }
+      d2[3 * r] = m0 / deg;
+      d2[3 * r + 1] = m1 / deg;
+      d2[3 * r + 2] = m2 / deg;
+    }
+    for (let r = 0; r < nr; r++) {
+      const i = region[r];
+      d[3 * i] = d2[3 * r];
+      d[3 * i + 1] = d2[3 * r + 1];
+      d[3 * i + 2] = d2[3 * r + 2];
+    }
+  }
+  for (let i = 0; i < 3 * n; i++) {
+    w.yt[i] = y[i] + d[i];
+    x[i] += d[i];
+  }
+  return nt;
+}
+
 /**
  * The cloth stage for one garment on one body, keeping its state between calls (scl_step):
  *   new ClothStage(setup (clothSetup), collider (a BodyCollider over the body's faces), settings, { margin, dt })
  *   stage.step(targets (B*N*3), body (B*V*3), B) -> Float64Array (B*N*3)
  * Counters: frames, resets (the state reset because the garment jumped more than settings.reset on average),
- * contacts (vertex-frames given a contact plane), pushed (vertex-frames moved by the final push-out, more than 1 um).
+ * contacts (vertex-frames given a contact plane), pushed (vertex-frames moved by the final push-out, more than 1 um),
+ * traced (vertex-frames whose deep target the backstop traced out of the body).
  */
 export class ClothStage {
   constructor(setup, collider, settings = DEFAULT_CLOTH, { margin = 0.004, dt = 1 / 30 } = {}) {
@@ -310,6 +450,7 @@ export class ClothStage {
     this.resets = 0;
     this.contacts = 0;
     this.pushed = 0;
+    this.traced = 0;
     this.frames = 0;
     this.firstReset = -1; // the first frame (counted from the stage's start) that reset the state
     this.box = new Float64Array(6 * collider.nNodes);
@@ -319,6 +460,13 @@ export class ClothStage {
     this.q = new Float64Array(3 * n);
     this.pick = new Int32Array(n);
     this.moved = new Uint8Array(n);
+    this.work = { // the backstop's buffers
+      vn: new Float64Array(3 * n), d: new Float64Array(3 * n), d2: new Float64Array(3 * n), yt: new Float64Array(3 * n),
+      pts: new Float64Array(3 * n), g: new Float64Array(3 * n), tsd: new Float64Array(n), tcp: new Float64Array(3 * n),
+      tcn: new Float64Array(3 * n), deep: new Int32Array(n), fixed: new Uint8Array(n), held: new Uint8Array(n),
+      dist: new Float64Array(n), done: new Uint8Array(n), region: new Int32Array(n),
+      heap: { d: new Float64Array(n + setup.nptr[n]), v: new Int32Array(n + setup.nptr[n]), len: 0 },
+    };
     this.growEdges(0); // the edge contacts' buffers, grown to the most edges near the body in one frame
   }
 
@@ -332,7 +480,7 @@ export class ClothStage {
   }
 
   step(target, body, nb) {
-    const { n, ne, edges, restLen, nptr, nidx, radius, anchor, tether } = this.setup;
+    const { n, ne, nf, faces, edges, restLen, nptr, nidx, radius, anchor, tether } = this.setup;
     const nv = this.collider.nv, st = this.settings, col = this.collider;
     if (target.length !== nb * n * 3 || body.length !== nb * nv * 3) {
       throw new Error(`the cloth stage takes ${nb} frames of ${n} garment and ${nv} body vertices (got ${target.length} ` +
@@ -392,9 +540,36 @@ export class ClothStage {
         attach(out, p, y, t, radius[i]);
       }
       // contacts: a plane for every vertex inside the body or near it
-      const bv = B.subarray(bo, bo + 3 * nv), x = out.subarray(xo, xo + 3 * n), yf = y.subarray(yo, yo + 3 * n);
+      const bv = B.subarray(bo, bo + 3 * nv), x = out.subarray(xo, xo + 3 * n), yr = y.subarray(yo, yo + 3 * n);
       col.refitInto(bv, box);
       col.near(bv, box, x, 0, n, margin + band, sd, cp, cn);
+      // deep targets: traced out along the garment's normal (the backstop), then the contacts found again
+      let yf = yr;
+      const nt = backstop(col, bv, box, n, nf, faces, nptr, nidx, radius, yr, x, sd, cn, margin, band, st.backstop,
+        this.work);
+      if (nt > 0) { // only the vertices it moved (held and in the region) are looked up again
+        const w = this.work;
+        let nm = 0;
+        this.traced += nt;
+        yf = w.yt;
+        for (let i = 0; i < n; i++) if (w.held[i]) w.deep[nm++] = i;
+        for (let r = 0; r < w.nr; r++) w.deep[nm++] = w.region[r];
+        for (let r = 0; r < nm; r++) {
+          const i = 3 * w.deep[r];
+          w.pts[3 * r] = x[i];
+          w.pts[3 * r + 1] = x[i + 1];
+          w.pts[3 * r + 2] = x[i + 2];
+        }
+        col.near(bv, box, w.pts, 0, nm, margin + band, w.tsd, w.tcp, w.tcn);
+        for (let r = 0; r < nm; r++) {
+          const i = w.deep[r];
+          sd[i] = w.tsd[r];
+          for (let c = 0; c < 3; c++) {
+            cp[3 * i + c] = w.tcp[3 * r + c];
+            cn[3 * i + c] = w.tcn[3 * r + c];
+          }
+        }
+      }
       // and for the middle of every edge with an end in contact and a free end (only those)
       let nec = 0;
       for (let e = 0; e < ne; e++) nec += edgeNear(edges, e, sd, radius, margin + band);
@@ -461,7 +636,7 @@ export class ClothStage {
       if (have === 0) S.set(x, x0);
       else S.copyWithin(x0, x1, x1 + 3 * n);
       S.set(x, x1);
-      S.set(yf, yp);
+      S.set(yr, yp);
       this.have = have === 0 ? 1 : 2;
     }
     this.frames += nb;
@@ -474,7 +649,7 @@ export class ClothStage {
  * setup on the body at rest, then `batch` frames at a time against the posed body.  frames (T*N*3 float32, changed in
  * place: computed in float64, rounded back), bodyVertices (T*V*3), faces (the body's, F*3), restBody (V*3: the body
  * graph at zero pose), rest (N*3 float64: the garment asset's vertices), garmentFaces (F'*3).
- * Returns { contacts, pushed, resets, firstReset, msPerFrame (setup and steps), settings }.
+ * Returns { contacts, pushed, traced, resets, firstReset, msPerFrame (setup and steps), settings }.
  */
 export function clothFrames(frames, T, N, bodyVertices, V, faces, restBody, rest, garmentFaces,
   { settings = DEFAULT_CLOTH, margin = 0.004, dt = 1 / 30, batch = 8 } = {}) {
@@ -494,6 +669,6 @@ export function clothFrames(frames, T, N, bodyVertices, V, faces, restBody, rest
       new Float64Array(bodyVertices.subarray(lo * V * 3, hi * V * 3)), hi - lo);
     frames.set(out, lo * N * 3); // float64 -> float32, rounded to nearest
   }
-  return { contacts: stage.contacts, pushed: stage.pushed, resets: stage.resets, firstReset: stage.firstReset,
+  return { contacts: stage.contacts, pushed: stage.pushed, traced: stage.traced, resets: stage.resets, firstReset: stage.firstReset,
     msPerFrame: (performance.now() - t0) / Math.max(T, 1), settings, margin };
 }

@@ -67,7 +67,7 @@ function sessions(dir, options) {
  * options.body, body: { vertices (T*V*3), joints, restJoints, faces, V, T, msPerFrame, graph } (the package's body
  * graph, with the garment's skinning); with collisions in the effects, the frames pushed out of that body and
  * collisions: { moved (vertex-frames moved), msPerFrame, margin }; with cloth in the effects, the cloth stage's frames
- * instead (cloth.js; contact included, no push-out) and cloth: { contacts, pushed, resets, firstReset, msPerFrame }.
+ * instead (cloth.js; contact included, no push-out) and cloth: { contacts, pushed, traced, resets, firstReset, msPerFrame }.
  * options: { effects (an object or "dqs,dynamics,wrinkles,collisions[,cloth]"; default: a bundle's, else the model's
  * own and collisions when the package has a body graph), collisionMargin (metres, 0.004), cloth (the stage's knobs:
  * an object or "iterations=8,..."; DEFAULT_CLOTH), batch (8), threads (1), body (false) }.

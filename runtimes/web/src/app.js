@@ -164,7 +164,8 @@ async function runScene(source, expected = null) {
   const colLine = r.collisions ? `\ncollisions: ${r.collisions.moved} vertex-frames pushed out of the body (margin ` +
     `${r.collisions.margin} m), ${r.collisions.msPerFrame.toFixed(1)} ms/frame` : "";
   const clothLine = r.cloth ? `\ncloth: ${r.cloth.contacts} vertex-frames in contact, ${r.cloth.pushed} pushed out after ` +
-    `the sweeps, ${r.cloth.resets} reset(s), ${r.cloth.msPerFrame.toFixed(1)} ms/frame` : "";
+    `the sweeps, ${r.cloth.traced} traced out by the backstop, ${r.cloth.resets} reset(s), ` +
+    `${r.cloth.msPerFrame.toFixed(1)} ms/frame` : "";
   say(`${r.T} frames x ${r.N} vertices, ${r.msPerFrame.toFixed(1)} ms/frame on ${ep} (${r.variant})${bodyLine}${colLine}` +
       clothLine +
       (result.rel !== undefined ? `\nagainst Python: max abs ${result.maxAbs.toExponential(2)}, rel ${result.rel.toExponential(2)}` : "") +

@@ -42,6 +42,18 @@
  *                 outside.  Edges with both ends attached are left to the vertex contacts: they follow the network
  *                 where the garment lies on the body, and there (an arm against the torso) no side is the outside.
  *
+ * Deep targets (the backstop, after the engines' backstop of Unreal Chaos Cloth: the cloth kept on the outer side
+ * of the body along the skinned normal): where the network puts the garment deep inside the body (a thigh 3-8 cm
+ * through a skirt), the closest body point sends the vertices on either side of the limb's middle to opposite
+ * sides of it and the edges between them across it.  So when a free vertex's prediction is deeper than `backstop`
+ * inside, the frame's start moves the target instead: each such vertex's target is sphere-traced out of the body along the
+ * garment's outward normal there (one side for a whole panel: the normal of the target's faces, oriented by a
+ * vote of the vertices just outside the body, n . body normal), at most SCL_TRACE steps of (margin - sd + 1 mm);
+ * the moves of those that came out are spread over the garment within SCL_SPREAD_RADIUS of them (along the
+ * target's edges) by SCL_SPREAD Jacobi sweeps of the mean over each vertex's neighbours (the traced ones held, the
+ * move 0 beyond the radius: a smooth, harmonic falloff, so that the cloth around a thigh moves with it as a tent); the target and the prediction both take the spread move, and the contacts are
+ * found again.  Frames with no deep vertex pay one comparison per vertex.
+ *
  * After the sweeps, the vertices that may be inside the body or closer than the margin -- found so, or moved
  * farther than their clearance since the contacts were found (no other can be) -- are pushed out of the body
  * exactly as the collision stage does (sdc_push_out, SCL_PASSES passes): contact wins over the attachment (edge
@@ -78,11 +90,15 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 3
+#define SCL_ABI 4
 #define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
 #define SCL_TINY 1e-300
 #define SCL_MOVED 1e-6        /* metres: a final push-out move counted as one (not a vertex already at the margin) */
+#define SCL_TRACE 8           /* the backstop's sphere-tracing steps */
+#define SCL_OVERSHOOT 0.001   /* metres past the margin each tracing step aims */
+#define SCL_SPREAD 40         /* Jacobi sweeps spreading the traced moves over the garment */
+#define SCL_SPREAD_RADIUS 0.2 /* metres along the garment from a traced vertex that its move spreads to */
 
 /* the settings array's entries (segadeform.body.cloth.ClothSettings.array) */
 enum {
@@ -97,11 +113,12 @@ enum {
     S_MARGIN,     /* metres kept between garment and body */
     S_RESET,      /* metres of mean target motion in one frame that reset the state */
     S_FOLLOW,     /* fraction of the predicted deviation from the target removed per frame */
+    S_BACKSTOP,   /* metres: a prediction deeper than this inside the body has its target traced out (0: off) */
     S_COUNT
 };
 
 /* info array entries (in and out) */
-enum { I_HAVE, I_RESETS, I_CONTACTS, I_PUSHED, I_FIRST_RESET, I_COUNT };
+enum { I_HAVE, I_RESETS, I_CONTACTS, I_PUSHED, I_FIRST_RESET, I_TRACED, I_COUNT };
 
 SCL_API int64_t scl_abi(void) { return SCL_ABI; }
 
@@ -389,19 +406,168 @@ static void edge_contact(double *x, const int64_t *edges, int64_t e, double sd, 
     }
 }
 
+/* The backstop's buffers (scl_step allocates them once per call). */
+typedef struct {
+    double *vn, *d, *d2, *yt, *pts, *g, *tsd, *tcp, *tcn;
+    int64_t *deep, *region, nr;
+    uint8_t *fixed, *held, *done;
+    double *dist;
+    scl_item *heap;
+} scl_work;
+
+/* The backstop (see the header): when a free vertex's prediction x (radius > 0) is deeper than `deep` (S_BACKSTOP)
+ * inside the body (sd, from the frame's contacts with normals cn), the target y's deep free vertices traced out
+ * along the garment's outward normal, the moves spread over the free vertices near them (attached ones keep theirs:
+ * 0); yt = y + the spread move and x moved alike.  Returns how many vertices were traced out (0: yt and x are
+ * untouched). */
+static int64_t backstop(const void *collider, const double *bv, const double *box, int64_t n, int64_t nf,
+                        const int64_t *faces, const int64_t *nptr, const int64_t *nidx, const double *radius,
+                        const double *y, double *x, const double *sd, const double *cn, double margin, double band,
+                        double deep, scl_work *w) {
+    int64_t i, j, k, nd = 0, nt = 0;
+    double vote = 0, sign;
+    if (!(deep > 0)) return 0; /* off */
+    for (i = 0; i < n; i++)
+        if (sd[i] < -deep && radius[i] > 0) w->deep[nd++] = i;
+    if (nd == 0) return 0;
+    /* the target's vertex normals (area-weighted face normals) and their orientation: outward where the vertices
+     * just outside the body agree with the body's normal */
+    for (i = 0; i < 3 * n; i++) w->vn[i] = 0;
+    for (j = 0; j < nf; j++) {
+        const int64_t a = faces[3 * j], b = faces[3 * j + 1], c = faces[3 * j + 2];
+        const double *pa = y + 3 * a, *pb = y + 3 * b, *pc = y + 3 * c;
+        double u0 = pb[0] - pa[0], u1 = pb[1] - pa[1], u2 = pb[2] - pa[2];
+        double v0 = pc[0] - pa[0], v1 = pc[1] - pa[1], v2 = pc[2] - pa[2];
+        double f0 = u1 * v2 - u2 * v1, f1 = u2 * v0 - u0 * v2, f2 = u0 * v1 - u1 * v0;
+        const int64_t abc[3] = {a, b, c};
+        for (k = 0; k < 3; k++) {
+            w->vn[3 * abc[k]] += f0;
+            w->vn[3 * abc[k] + 1] += f1;
+            w->vn[3 * abc[k] + 2] += f2;
+        }
+    }
+    for (i = 0; i < n; i++)
+        if (sd[i] >= 0 && sd[i] < margin + band)
+            vote += w->vn[3 * i] * cn[3 * i] + w->vn[3 * i + 1] * cn[3 * i + 1] + w->vn[3 * i + 2] * cn[3 * i + 2];
+    sign = vote < 0 ? -1.0 : 1.0;
+    /* sphere-trace each deep target along its unit outward normal */
+    for (j = 0; j < nd; j++) {
+        const double *q = w->vn + 3 * w->deep[j];
+        double l2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2], s = l2 > SCL_TINY ? sign / sqrt(l2) : 0.0;
+        w->g[3 * j] = s * q[0];
+        w->g[3 * j + 1] = s * q[1];
+        w->g[3 * j + 2] = s * q[2];
+        w->pts[3 * j] = y[3 * w->deep[j]];
+        w->pts[3 * j + 1] = y[3 * w->deep[j] + 1];
+        w->pts[3 * j + 2] = y[3 * w->deep[j] + 2];
+        w->fixed[j] = 0; /* 1 once traced out of the body */
+    }
+    for (k = 0; k < SCL_TRACE; k++) {
+        int64_t left = 0;
+        sdc_near(collider, bv, box, w->pts, 0, nd, margin, w->tsd, w->tcp, w->tcn);
+        for (j = 0; j < nd; j++) {
+            double step;
+            if (w->fixed[j]) continue;
+            if (w->tsd[j] >= margin) {
+                w->fixed[j] = 1;
+                continue;
+            }
+            step = margin - w->tsd[j] + SCL_OVERSHOOT;
+            w->pts[3 * j] += step * w->g[3 * j];
+            w->pts[3 * j + 1] += step * w->g[3 * j + 1];
+            w->pts[3 * j + 2] += step * w->g[3 * j + 2];
+            left++;
+        }
+        if (left == 0) break;
+    }
+    if (k == SCL_TRACE) { /* the last step's points: out or not */
+        sdc_near(collider, bv, box, w->pts, 0, nd, margin, w->tsd, w->tcp, w->tcn);
+        for (j = 0; j < nd; j++)
+            if (w->tsd[j] >= margin) w->fixed[j] = 1;
+    }
+    /* the moves of the traced-out ones (with a normal), held; spread to the others */
+    for (i = 0; i < 3 * n; i++) w->d[i] = 0;
+    for (i = 0; i < n; i++) w->held[i] = 0;
+    for (j = 0; j < nd; j++) {
+        if (!w->fixed[j] || (w->g[3 * j] == 0 && w->g[3 * j + 1] == 0 && w->g[3 * j + 2] == 0)) continue;
+        i = w->deep[j];
+        w->d[3 * i] = w->pts[3 * j] - y[3 * i];
+        w->d[3 * i + 1] = w->pts[3 * j + 1] - y[3 * i + 1];
+        w->d[3 * i + 2] = w->pts[3 * j + 2] - y[3 * i + 2];
+        w->held[i] = 1;
+        nt++;
+    }
+    if (nt == 0) return 0;
+    /* the region the moves spread over: the vertices within SCL_SPREAD_RADIUS of a held one along the target's
+     * edges (Dijkstra from every held vertex at once); outside it the move is 0 */
+    {
+        int64_t len = 0;
+        for (i = 0; i < n; i++) {
+            w->dist[i] = w->held[i] ? 0.0 : INFINITY;
+            w->done[i] = 0;
+            if (w->held[i]) heap_push(w->heap, &len, 0.0, i);
+        }
+        w->nr = 0;
+        while (len > 0) {
+            scl_item it = heap_pop(w->heap, &len);
+            int64_t v = it.v;
+            if (w->done[v] || it.d > w->dist[v]) continue;
+            w->done[v] = 1;
+            if (!w->held[v] && radius[v] > 0 && nptr[v + 1] > nptr[v]) w->region[w->nr++] = v;
+            for (j = nptr[v]; j < nptr[v + 1]; j++) {
+                int64_t u = nidx[j];
+                double e0 = y[3 * u] - y[3 * v], e1 = y[3 * u + 1] - y[3 * v + 1], e2 = y[3 * u + 2] - y[3 * v + 2];
+                double c = it.d + sqrt(e0 * e0 + e1 * e1 + e2 * e2);
+                if (w->done[u] || !(c <= SCL_SPREAD_RADIUS) || !(c < w->dist[u])) continue;
+                w->dist[u] = c;
+                heap_push(w->heap, &len, c, u);
+            }
+        }
+    }
+    /* Jacobi sweeps over the region: each move the mean of its neighbours' (held ones and those outside fixed) */
+    for (k = 0; k < SCL_SPREAD; k++) {
+        int64_t r;
+        for (r = 0; r < w->nr; r++) {
+            int64_t deg;
+            double m0 = 0, m1 = 0, m2 = 0;
+            i = w->region[r];
+            deg = nptr[i + 1] - nptr[i];
+            for (j = nptr[i]; j < nptr[i + 1]; j++) {
+                m0 += w->d[3 * nidx[j]];
+                m1 += w->d[3 * nidx[j] + 1];
+                m2 += w->d[3 * nidx[j] + 2];
+            }
+            w->d2[3 * r] = m0 / (double)deg;
+            w->d2[3 * r + 1] = m1 / (double)deg;
+            w->d2[3 * r + 2] = m2 / (double)deg;
+        }
+        for (r = 0; r < w->nr; r++) {
+            i = w->region[r];
+            w->d[3 * i] = w->d2[3 * r];
+            w->d[3 * i + 1] = w->d2[3 * r + 1];
+            w->d[3 * i + 2] = w->d2[3 * r + 2];
+        }
+    }
+    for (i = 0; i < 3 * n; i++) {
+        w->yt[i] = y[i] + w->d[i];
+        x[i] += w->d[i];
+    }
+    return nt;
+}
+
 /* The cloth stage on nb frames: targets (B, N, 3) -> out (B, N, 3), against the posed body (B, V, 3) through the
- * collider (sdc_create on the body's faces), with the per-garment data of scl_setup (edges to tether) and settings
- * (S_COUNT,).
+ * collider (sdc_create on the body's faces), with the per-garment data of scl_setup (edges to tether), the
+ * garment's faces (nf, 3) (the backstop's normals; their indices checked by scl_setup) and settings (S_COUNT,).
  * state (3, N, 3): the last output, the one before it and the last target; info (I_COUNT,): I_HAVE how many of
  * the state's frames are set (0: none, the next frame starts from its target), counts added to (I_RESETS,
  * I_CONTACTS: vertex-frames with a contact plane, I_PUSHED: vertex-frames the final push-out moved by more than
- * SCL_MOVED), and
+ * SCL_MOVED, I_TRACED: vertex-frames whose deep target the backstop traced out), and
  * I_FIRST_RESET set to the first frame of this call that reset the state (-1: none).
  * Returns 0; -1 when out of memory; 1 + f when frame f's target or body holds NaN or inf (the frames before it
  * are done, the state is theirs). */
 SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const double *rest_len, const int64_t *nptr,
                          const int64_t *nidx, const double *radius, const int64_t *anchor, const double *tether,
-                         const double *settings, const void *collider,
+                         int64_t nf, const int64_t *faces, const double *settings, const void *collider,
                          int64_t nv, const double *body, int64_t nb, const double *target, double *out, double *state,
                          int64_t *info) {
     int64_t iters = (int64_t)settings[S_ITERATIONS], n_nodes = sdc_n_nodes(collider), f, i, it, e;
@@ -422,14 +588,36 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
      * memory stays O(vertices + contacts)) */
     int64_t *eidx = NULL, nec, cap = 0;
     double *mid = NULL, *esd = NULL, *ecp = NULL, *ecn = NULL;
+    scl_work w;
     int64_t status = 0;
+    w.vn = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w.d = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w.d2 = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w.yt = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w.pts = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w.g = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w.tsd = (double *)malloc(sizeof(double) * (size_t)n);
+    w.tcp = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w.tcn = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w.deep = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
+    w.fixed = (uint8_t *)malloc((size_t)n);
+    w.held = (uint8_t *)malloc((size_t)n);
+    w.done = (uint8_t *)malloc((size_t)n);
+    w.region = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
+    w.dist = (double *)malloc(sizeof(double) * (size_t)n);
+    w.heap = (scl_item *)malloc(sizeof(scl_item) * (size_t)(n + nptr[n]));
     if (iters < 1) iters = 1;
     info[I_FIRST_RESET] = -1;
     if (!box || !sd || !cp || !cn || !q || !pick || !moved) { status = -1; goto done; }
+    if (!w.vn || !w.d || !w.d2 || !w.yt || !w.pts || !w.g || !w.tsd || !w.tcp || !w.tcn || !w.deep || !w.fixed || !w.held ||
+        !w.done || !w.region || !w.dist || !w.heap) {
+        status = -1;
+        goto done;
+    }
     for (f = 0; f < nb; f++) {
-        const double *y = target + 3 * n * f, *bv = body + 3 * nv * f;
+        const double *y = target + 3 * n * f, *bv = body + 3 * nv * f, *yc = y;
         double *x = out + 3 * n * f;
-        int64_t have = info[I_HAVE], m;
+        int64_t have = info[I_HAVE], m, nt;
         if (!all_finite(y, 3 * n) || !all_finite(bv, 3 * nv)) { status = 1 + f; goto done; }
         if (have > 0) { /* a teleport: the target moved more than `reset` on average */
             double s = 0;
@@ -469,6 +657,29 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         /* contacts: a plane for every vertex inside the body or near it */
         sdc_refit(collider, bv, box);
         sdc_near(collider, bv, box, x, 0, n, margin + band, sd, cp, cn);
+        /* deep targets: traced out along the garment's normal (the backstop), then the contacts found again */
+        nt = backstop(collider, bv, box, n, nf, faces, nptr, nidx, radius, y, x, sd, cn, margin, band, settings[S_BACKSTOP],
+                      &w);
+        if (nt > 0) { /* only the vertices it moved (held and in the region) are looked up again */
+            int64_t r, nm = 0;
+            info[I_TRACED] += nt;
+            yc = w.yt;
+            for (i = 0; i < n; i++)
+                if (w.held[i]) w.deep[nm++] = i;
+            for (r = 0; r < w.nr; r++) w.deep[nm++] = w.region[r];
+            for (r = 0; r < nm; r++) {
+                w.pts[3 * r] = x[3 * w.deep[r]];
+                w.pts[3 * r + 1] = x[3 * w.deep[r] + 1];
+                w.pts[3 * r + 2] = x[3 * w.deep[r] + 2];
+            }
+            sdc_near(collider, bv, box, w.pts, 0, nm, margin + band, w.tsd, w.tcp, w.tcn);
+            for (r = 0; r < nm; r++) {
+                i = w.deep[r];
+                sd[i] = w.tsd[r];
+                memcpy(cp + 3 * i, w.tcp + 3 * r, sizeof(double) * 3);
+                memcpy(cn + 3 * i, w.tcn + 3 * r, sizeof(double) * 3);
+            }
+        }
         /* and for the middle of every edge with an end in contact and a free end (only those: an edge whose ends
          * are both clear of the body is left unchecked, which keeps the extra queries to the few edges near it) */
         nec = 0;
@@ -507,10 +718,10 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
             if (ks > 0)
                 for (i = 0; i < n; i++) tether_vertex(x, anchor, tether, i, hi_f, ks);
             if (kb > 0)
-                for (i = 0; i < n; i++) smooth_vertex(x, y, nptr, nidx, radius, fwd ? i : n - 1 - i, kb);
+                for (i = 0; i < n; i++) smooth_vertex(x, yc, nptr, nidx, radius, fwd ? i : n - 1 - i, kb);
             for (i = 0; i < n; i++) {
                 double *p = x + 3 * i, s;
-                attach(p, y + 3 * i, radius[i]);
+                attach(p, yc + 3 * i, radius[i]);
                 if (!(sd[i] < margin + band)) continue;
                 s = cn[3 * i] * (p[0] - cp[3 * i]) + cn[3 * i + 1] * (p[1] - cp[3 * i + 1]) +
                     cn[3 * i + 2] * (p[2] - cp[3 * i + 2]) - margin;
@@ -559,6 +770,8 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
 done:
     free(box); free(sd); free(cp); free(cn); free(q); free(pick); free(moved);
     free(eidx); free(mid); free(esd); free(ecp); free(ecn);
+    free(w.vn); free(w.d); free(w.d2); free(w.yt); free(w.pts); free(w.g); free(w.tsd); free(w.tcp); free(w.tcn);
+    free(w.deep); free(w.fixed); free(w.held); free(w.done); free(w.region); free(w.dist); free(w.heap);
     return status;
 }
 

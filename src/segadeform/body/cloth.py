@@ -6,8 +6,10 @@ gravity from the previous output frames, and every vertex within a bounded dista
 the garment lies on the body at rest, so there it follows the network exactly).  The method -- position-based
 dynamics (Mueller et al. 2007) with strain limiting (Provot 1995), tethers to the nearest attached vertex (long
 range attachments, Kim et al. 2012), smoothing of the deviation from the target, max-distance attachments and
-contact planes at vertices and edge middles (Bridson et al. 2002), then the collision stage's exact push-out -- and
-the meaning of every knob are in the kernel's header, ``src/segadeform/body/_cloth.c``.
+contact planes at vertices and edge middles (Bridson et al. 2002), a backstop for deep targets (a free vertex the
+network put deeper than ``backstop`` inside the body is traced out along the garment's normal, one side for a
+whole panel, and the move spread to its free neighbours), then the collision stage's exact push-out -- and the
+meaning of every knob are in the kernel's header, ``src/segadeform/body/_cloth.c``.
 
 Side by side:
 
@@ -29,8 +31,11 @@ Without the compiled kernel (no C compiler at install) the stage is not availabl
 What the stretch limit does not hold (measured on held-out skirts and dresses, ``bench/cloth_strain.py`` and
 ``docs/cloth-eval.md``): contact wins over the stretch limit and attached vertices follow the network, so an edge
 ends over its limit (1) where the network puts the garment deep inside the body (a thigh 3-7 cm through a skirt):
-each vertex is kept out along its own closest body point, neighbours land on different sides of the limb and
-the edges between them stretch by several hundred percent, which no number of sweeps undoes in one frame; (2)
+kept out along its own closest body point, each vertex lands on the side of the limb nearest to it, neighbours on
+different sides, and the edges between them stretch by several hundred percent, which no number of sweeps undoes
+in one frame -- the backstop takes the free ones out on one side (on held-out skirts under the motion families
+where thighs go through, the 99th percentile of stretch 27-81 % -> 14-22 %), but a traced vertex next to an
+attached one (which keeps the network's place) still stretches the edge between them; (2)
 where both ends are attached and the network's frame is itself stretched (on a dress 12 % of the network's
 edge-frames are over a 3 % limit; Blender's own frames reach 149 %).  A third cause, loose vertices sagging a
 steady ``gravity dt^2 (1 - follow) / follow`` below the network's frame (1.1 cm at 30 fps) below the attached
@@ -79,9 +84,12 @@ CONTACT_BAND = 0.005
 PASSES = 3
 #: metres: a final push-out move counted in ``pushed`` (_cloth.c's SCL_MOVED; a vertex already at the margin is not)
 MOVED = 1e-6
+#: the backstop's sphere-tracing steps (SCL_TRACE), metres past the margin each aims (SCL_OVERSHOOT), Jacobi
+#: sweeps spreading the traced moves (SCL_SPREAD) and how far along the garment they spread (SCL_SPREAD_RADIUS, m)
+TRACE, OVERSHOOT, SPREAD, SPREAD_RADIUS = 8, 0.001, 40, 0.2
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
-SETUP_VERSION = 2
-_ABI = 3
+SETUP_VERSION = 3
+_ABI = 4
 #: the order of _cloth.c's settings array
 _SETTINGS = (
     "iterations",
@@ -95,12 +103,13 @@ _SETTINGS = (
     "margin",
     "reset",
     "follow",
+    "backstop",
 )
 
 
 def settings_array(settings: ClothSettings, *, margin: float, dt: float) -> np.ndarray:
     """The kernel's settings array (``_cloth.c``'s ``S_*`` order) for ``settings``, the collision ``margin`` (m)
-    and the time step ``dt`` (s per frame).  Shapes: -> (11,)"""
+    and the time step ``dt`` (s per frame).  Shapes: -> (12,)"""
     if not isinstance(settings, ClothSettings):
         raise InputError("cloth settings must be a ClothSettings", got=type(settings).__name__)
     margin, dt = float(margin), float(dt)
@@ -132,7 +141,7 @@ def _load_kernel():
                     ("sdc_free", None, (p,)),
                     ("scl_setup", i64, (p, i64, p, i64, p, f64, f64, p, p, p, p, p, p, p)),
                     ("scl_per_sweep", f64, (f64, i64)),
-                    ("scl_step", i64, (i64, i64, p, p, p, p, p, p, p, p, p, i64, p, i64, p, p, p, p)),
+                    ("scl_step", i64, (i64, i64, p, p, p, p, p, p, p, i64, p, p, p, i64, p, i64, p, p, p, p)),
                 ),
             )
             _KERNEL.update(lib=lib, why=why)
@@ -168,7 +177,7 @@ class ClothSetup:
     Shapes: edges (E, 2) int64, a < b, sorted; rest_len (E,); nptr (N + 1,) int64 and nidx (2E,) int64: vertex i's
     neighbours ``nidx[nptr[i]:nptr[i + 1]]``, ascending; radius (N,): how far vertex i may leave its target;
     anchor (N,) int64: free vertex i's tether anchor, the attached vertex nearest to it along the edges (-1: none);
-    tether (N,): the rest length of that path."""
+    tether (N,): the rest length of that path; faces (F, 3) int64: the garment's faces (the backstop's normals)."""
 
     edges: np.ndarray
     rest_len: np.ndarray
@@ -177,6 +186,7 @@ class ClothSetup:
     radius: np.ndarray
     anchor: np.ndarray
     tether: np.ndarray
+    faces: np.ndarray
 
     @property
     def n_vertices(self) -> int:
@@ -199,7 +209,11 @@ class ClothSetup:
             and self.anchor.shape == (n,)
             and self.tether.dtype == np.float64
             and self.tether.shape == (n,)
+            and self.faces.dtype == np.int64
+            and self.faces.ndim == 2
+            and self.faces.shape[1] == 3
         )
+        ok = ok and (self.faces.size == 0 or (self.faces.min() >= 0 and self.faces.max() < n))
         ok = ok and (
             e == 0 or (self.edges.min() >= 0 and self.edges.max() < n and (self.edges[:, 0] < self.edges[:, 1]).all())
         )
@@ -288,6 +302,7 @@ def cloth_setup(rest, faces, rest_sd, settings: ClothSettings = ClothSettings())
         radius=radius,
         anchor=anchor,
         tether=tether,
+        faces=f.copy(),
     )
 
 
@@ -316,6 +331,7 @@ def cloth_setup_reference(rest, faces, rest_sd, settings: ClothSettings = ClothS
         radius=radius,
         anchor=anchor,
         tether=tether,
+        faces=f.copy(),
     )
 
 
@@ -407,7 +423,8 @@ class ClothStage:
 
     Counters (vertex-frames unless said): ``frames``, ``resets`` (frames where the state was reset because the
     garment jumped, :attr:`ClothSettings.reset`; the first is logged), ``contacts`` (given a contact plane),
-    ``pushed`` (moved by the final push-out, more than :data:`MOVED`).
+    ``pushed`` (moved by the final push-out, more than :data:`MOVED`), ``traced`` (deep targets the backstop
+    traced out of the body, ``_cloth.c``).
     """
 
     def __init__(
@@ -439,10 +456,19 @@ class ClothStage:
         self._free = weakref.finalize(self, lib.sdc_free, h)
         self._arrays = [
             np.ascontiguousarray(a)
-            for a in (setup.edges, setup.rest_len, setup.nptr, setup.nidx, setup.radius, setup.anchor, setup.tether)
+            for a in (
+                setup.edges,
+                setup.rest_len,
+                setup.nptr,
+                setup.nidx,
+                setup.radius,
+                setup.anchor,
+                setup.tether,
+                setup.faces,
+            )
         ]
         self._state = np.zeros((3, self.n_vertices, 3))
-        self._info = np.zeros(5, np.int64)  # have, resets, contacts, pushed, first reset of the last call
+        self._info = np.zeros(6, np.int64)  # have, resets, contacts, pushed, first reset of the last call, traced
         self.frames = 0
         self.first_frame = int(first_frame)
 
@@ -457,6 +483,10 @@ class ClothStage:
     @property
     def pushed(self) -> int:
         return int(self._info[3])
+
+    @property
+    def traced(self) -> int:
+        return int(self._info[5])
 
     def reset(self) -> None:
         """Forget the previous frames: the next one starts from its target with no velocity."""
@@ -494,7 +524,7 @@ class ClothStage:
         bv = np.ascontiguousarray(bv, np.float64)
         out = np.empty_like(y)
         before, last = self.resets, self._state[2].copy()  # the last target, for the reset's message
-        e, rl, nptr, nidx, rad, anc, teth = self._arrays
+        e, rl, nptr, nidx, rad, anc, teth, fc = self._arrays
         status = self._lib.scl_step(
             self.n_vertices,
             len(e),
@@ -505,6 +535,8 @@ class ClothStage:
             _ptr(rad),
             _ptr(anc),
             _ptr(teth),
+            len(fc),
+            _ptr(fc),
             _ptr(self._settings),
             self._h,
             self.n_body,
@@ -587,7 +619,7 @@ def cloth_reference(
     n = setup.n_vertices
     st = state if state is not None else {}
     st.setdefault("have", 0)
-    for k in ("resets", "contacts", "pushed"):
+    for k in ("resets", "contacts", "pushed", "traced"):
         st.setdefault(k, 0)
     col = BodyCollider(b_all[0], body_faces, backend="numpy")
     w = (setup.radius > 0).astype(np.float64)
@@ -607,8 +639,12 @@ def cloth_reference(
             x = x + s["follow"] * (y - x)
         for i in range(n):
             _attach(x, y, i, setup.radius[i])
-        # contacts
+        # contacts; deep targets traced out (the backstop), then the contacts again
         q = col.query(x, bv)
+        yc, nt = _backstop_reference(col, bv, setup, y, x, q.signed_distance, q.normal, margin, s["backstop"])
+        if nt:
+            st["traced"] += nt
+            q = col.query(x, bv)
         contact = q.signed_distance < margin + CONTACT_BAND
         ea, eb = setup.edges[:, 0], setup.edges[:, 1]
         e_near = np.flatnonzero((contact[ea] | contact[eb]) & ((setup.radius[ea] > 0) | (setup.radius[eb] > 0)))
@@ -651,11 +687,11 @@ def cloth_reference(
                         continue
                     m = np.zeros(3)
                     for j in nb:
-                        m = m + (x[j] - y[j])
+                        m = m + (x[j] - yc[j])
                     m = m / float(len(nb))
-                    x[i] = x[i] + kb * (m - (x[i] - y[i]))
+                    x[i] = x[i] + kb * (m - (x[i] - yc[i]))
             for i in range(n):
-                _attach(x, y, i, setup.radius[i])
+                _attach(x, yc, i, setup.radius[i])
                 if contact[i]:
                     nrm, cp = q.normal[i], q.closest[i]
                     sep = nrm[0] * (x[i, 0] - cp[0]) + nrm[1] * (x[i, 1] - cp[1]) + nrm[2] * (x[i, 2] - cp[2]) - margin
@@ -683,6 +719,86 @@ def cloth_reference(
         st["x1"], st["yp"], st["have"] = x.copy(), y.copy(), 1 if have == 0 else 2
         out[f] = x
     return out, st
+
+
+def _backstop_reference(col, bv, setup: ClothSetup, y, x, sd, normal, margin: float, deep_at: float):
+    """``backstop`` in _cloth.c, obviously: when a free vertex's prediction is deeper than ``deep_at`` inside (0:
+    off), each such vertex's target traced out of the body along the target's outward vertex normal (oriented by
+    the vote of the vertices just outside), the traced moves held and spread by :data:`SPREAD` Jacobi sweeps over
+    the free vertices within :data:`SPREAD_RADIUS` of them along the target's edges (attached ones keep 0); ``x`` is
+    moved in place.  Returns the target to use (``y`` when nothing was traced) and how many were traced out."""
+    n = len(y)
+    deep = [i for i in range(n) if deep_at > 0 and sd[i] < -deep_at and setup.radius[i] > 0]
+    if not deep:
+        return y, 0
+    vn = np.zeros((n, 3))
+    for a, b, c in setup.faces.tolist():
+        u, v = y[b] - y[a], y[c] - y[a]
+        fn = np.array([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]])
+        for k in (a, b, c):
+            vn[k] = vn[k] + fn
+    vote = 0.0
+    for i in range(n):
+        if 0 <= sd[i] < margin + CONTACT_BAND:
+            vote += vn[i, 0] * normal[i, 0] + vn[i, 1] * normal[i, 1] + vn[i, 2] * normal[i, 2]
+    sign = -1.0 if vote < 0 else 1.0
+    g = np.zeros((len(deep), 3))
+    for j, i in enumerate(deep):
+        l2 = vn[i, 0] * vn[i, 0] + vn[i, 1] * vn[i, 1] + vn[i, 2] * vn[i, 2]
+        g[j] = (sign / np.sqrt(l2) if l2 > 1e-300 else 0.0) * vn[i]
+    pts = y[deep].copy()
+    out = np.zeros(len(deep), bool)
+    for _ in range(TRACE):
+        tsd = col.query(pts, bv).signed_distance
+        out |= tsd >= margin
+        if out.all():
+            break
+        step = np.where(out, 0.0, margin - tsd + OVERSHOOT)
+        pts = pts + step[:, None] * g
+    else:
+        out |= col.query(pts, bv).signed_distance >= margin
+    held = np.zeros(n, bool)
+    d = np.zeros((n, 3))
+    for j, i in enumerate(deep):
+        if out[j] and g[j].any():
+            held[i] = True
+            d[i] = pts[j] - y[i]
+    if not held.any():
+        return y, 0
+    # the region: within SPREAD_RADIUS of a held vertex along the target's edges (Dijkstra, heapq)
+    import heapq
+
+    dist = np.where(held, 0.0, np.inf)
+    done = np.zeros(n, bool)
+    heap = [(0.0, int(i)) for i in np.flatnonzero(held)]
+    heapq.heapify(heap)
+    region = []
+    while heap:
+        dv, v = heapq.heappop(heap)
+        if done[v] or dv > dist[v]:
+            continue
+        done[v] = True
+        nb = setup.nidx[setup.nptr[v] : setup.nptr[v + 1]]
+        if not held[v] and setup.radius[v] > 0 and len(nb):
+            region.append(v)
+        for u in nb.tolist():
+            e = y[u] - y[v]
+            c = dv + np.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+            if done[u] or not c <= SPREAD_RADIUS or not c < dist[u]:
+                continue
+            dist[u] = c
+            heapq.heappush(heap, (float(c), u))
+    for _ in range(SPREAD):
+        d2 = d.copy()
+        for i in region:
+            nb = setup.nidx[setup.nptr[i] : setup.nptr[i + 1]]
+            m = np.zeros(3)
+            for j in nb:
+                m = m + d[j]
+            d2[i] = m / float(len(nb))
+        d = d2
+    x += d
+    return y + d, int(held.sum())
 
 
 def _attach(x, y, i, r):

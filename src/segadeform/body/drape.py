@@ -29,9 +29,10 @@ from .cloth import ClothStage, garment_setup
 
 __all__ = ["DRAPE_SETTINGS", "DRAPE_FRAMES", "drape_rest", "partial_drape", "skinned_rest"]
 
-#: the cloth stage's settings for a drape: 16 sweeps a frame, no drive toward the designed shape, loose parts free.
+#: the cloth stage's settings for a drape: 16 sweeps a frame, no drive toward the designed shape, loose parts free,
+#: no backstop (the drapes from before it existed).
 #: A checkpoint trained with ``rest_drape`` was trained on drapes made with these: changing them changes its input.
-DRAPE_SETTINGS = ClothSettings(iterations=16, damping=0.2, follow=0.0, max_distance=1.0)
+DRAPE_SETTINGS = ClothSettings(iterations=16, damping=0.2, follow=0.0, max_distance=1.0, backstop=0.0)
 #: frames of 1/30 s the drape runs (3 s: settled to well under a millimetre a frame on the continuum's garments)
 DRAPE_FRAMES = 90
 

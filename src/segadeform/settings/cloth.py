@@ -27,6 +27,12 @@ CLOTH_KNOBS = {
     "attachment": (float, 0.0, 1.0, "metres: vertices this close to the body at rest follow the network exactly"),
     "max_distance": (float, 0.0, 1.0, "metres: the farthest a loose vertex may leave the network's frame"),
     "reset": (float, 1e-6, 1e3, "metres of mean garment motion in one frame that reset the stage (a teleport)"),
+    "backstop": (
+        float,
+        0.0,
+        1.0,
+        "metres: a target deeper than this inside the body is traced out along the garment's normal (0: off)",
+    ),
 }
 
 
@@ -46,6 +52,7 @@ class ClothSettings:
     attachment: float = 0.02
     max_distance: float = 0.05
     reset: float = 0.25
+    backstop: float = 0.03
 
     def __post_init__(self):
         for name, (typ, lo, hi, what) in CLOTH_KNOBS.items():

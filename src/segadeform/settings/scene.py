@@ -46,7 +46,8 @@ are required; relative paths are relative to the scene file)::
                                    # unless named; it resolves contact itself (at collision_margin)
     cloth_iterations = 4           # its knobs (segadeform.settings.cloth.CLOTH_KNOBS): cloth_stiffness,
                                    # cloth_stretch, cloth_compress, cloth_bending, cloth_damping, cloth_follow,
-                                   # cloth_gravity, cloth_attachment, cloth_max_distance, cloth_reset
+                                   # cloth_gravity, cloth_attachment, cloth_max_distance, cloth_reset,
+                                   # cloth_backstop
 
     [simulate]                     # for `segadeform simulate` (ground truth); see segadeform.settings.simulation
     effects = ["gravity", "body_collision", "bending", "air_damping"]   # all others are off
