@@ -23,9 +23,9 @@ process, one after another (errors against the Blender simulation stored in the 
   :class:`SurfaceMap` and compared there;
 * models: each ``NAME=SPEC`` (e.g. width/depth variants trained on the same data);
 * cloth: the runtime's cloth stage (:mod:`segadeform.body.cloth`, as ``segadeform run --effects=+cloth``) on
-  "all effects" at 1, 2, 4, 8 and 16 sweeps per frame (the other knobs at their defaults) and at two other
-  stiffnesses, and at its defaults on every other effects row, contact at 4 mm (``--cloth-iterations``,
-  ``--cloth-stiffness``);
+  "all effects" at 1, 2, 4, 8 and 16 sweeps per frame (the other knobs at their defaults), at two other
+  stiffnesses and with the backstop off, and at its defaults on every other effects row, contact at 4 mm
+  (``--cloth-iterations``, ``--cloth-stiffness``, ``--cloth-backstop``);
 * presets: ``segadeform run --quality`` (:mod:`segadeform.settings.presets`), each the row with its effects and margin
   (and cloth settings).
 
@@ -88,6 +88,7 @@ def main(argv=None, *, _simulate: Callable | None = None) -> int:
     ap.add_argument("--resolutions", default="1/4,1/2,4x")
     ap.add_argument("--cloth-iterations", default="1,2,4,8,16", help="the cloth stage's sweeps per frame, one row each")
     ap.add_argument("--cloth-stiffness", default="0.5,0.2", help="its other stiffnesses, one row each")
+    ap.add_argument("--cloth-backstop", default="0", help="its other backstop depths (m; 0: off), one row each")
     ap.add_argument("--no-int8", action="store_true")
     ap.add_argument("--no-fp16", action="store_true")
     ap.add_argument("--samples", default="", help="comma-separated sample ids (default: the whole split)")
@@ -165,6 +166,7 @@ def main(argv=None, *, _simulate: Callable | None = None) -> int:
             resolutions=tuple(x for x in a.resolutions.split(",") if x.strip()),
             cloth_iterations=ints(a.cloth_iterations),
             cloth_stiffness=tuple(float(x) for x in a.cloth_stiffness.split(",") if x.strip()),
+            cloth_backstop=tuple(float(x) for x in a.cloth_backstop.split(",") if x.strip()),
         )
         res = measure(
             a.dataset,
@@ -209,6 +211,7 @@ def main(argv=None, *, _simulate: Callable | None = None) -> int:
         ("--resolutions", a.resolutions, "1/4,1/2,4x"),
         ("--cloth-iterations", a.cloth_iterations, "1,2,4,8,16"),
         ("--cloth-stiffness", a.cloth_stiffness, "0.5,0.2"),
+        ("--cloth-backstop", a.cloth_backstop, "0"),
         ("--sim", a.sim, None),
         ("--sim-qualities", a.sim_qualities, "2,5,10,20"),
         ("--sim-reference", a.sim_reference, 40),

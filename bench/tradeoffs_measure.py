@@ -126,6 +126,7 @@ def plan_rows(
     resolutions=("1/4", "1/2", "4x"),
     cloth_iterations=(1, 2, 4, 8, 16),
     cloth_stiffness=(0.5, 0.2),
+    cloth_backstop=(0.0,),
 ) -> tuple[list[Row], dict]:
     """Every row, bases before what is derived from them, and ``{preset: row name}``."""
     from segadeform.settings.presets import QUALITY_PRESETS
@@ -164,9 +165,11 @@ def plan_rows(
             )
     from segadeform.settings.cloth import ClothSettings
 
-    cloths = [f"iterations={k}" if k != ClothSettings().iterations else "default" for k in cloth_iterations] + [
-        f"stiffness={k:g}" for k in cloth_stiffness
-    ]
+    cloths = (
+        [f"iterations={k}" if k != ClothSettings().iterations else "default" for k in cloth_iterations]
+        + [f"stiffness={k:g}" for k in cloth_stiffness]
+        + [f"backstop={k:g}" for k in cloth_backstop if k != ClothSettings().backstop]
+    )
     # every setting on "all effects"; the defaults on every other effects row (as the push-out at 4 mm), so that
     # the stage can be compared with the push-out on the rows the presets use
     for r in [r for r in rows if r.knob == "effects"]:

@@ -36,8 +36,8 @@ def test_every_preset_is_a_planned_row_with_its_effects_and_margin():
         assert r.margin == (e.collision_margin if e.collisions or e.cloth else None)
         assert r.cloth == b.cloth_key(e)
     assert {"K=4", "N*=16", "batch 1", "garment 1/4 res", "wide + push-out 4 mm", "int8", "fp16 weights"} <= set(names)
-    # the cloth stage: sweeps 1, 2, 4 (its default), 8, 16 and two stiffnesses on all effects, its defaults on
-    # every other effects row
+    # the cloth stage: sweeps 1, 2, 4 (its default), 8, 16, two stiffnesses and the backstop off on all effects, its
+    # defaults on every other effects row
     cloth = {r.name: r.cloth for r in rows if r.knob == "cloth"}
     assert cloth == {
         f"all effects + cloth {c}": c
@@ -49,6 +49,7 @@ def test_every_preset_is_a_planned_row_with_its_effects_and_margin():
             "iterations=16",
             "stiffness=0.5",
             "stiffness=0.2",
+            "backstop=0",
         )
     } | {f"{n} + cloth default": "default" for n in ("no wrinkles", "no dynamics", "static, no wrinkles", "dqs")}
     assert all(by[n].base == n.split(" + cloth")[0] and by[n].margin == 0.004 for n in cloth)
