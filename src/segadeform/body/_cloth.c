@@ -415,11 +415,36 @@ typedef struct {
     scl_item *heap;
 } scl_work;
 
+/* The backstop's buffers for n vertices with nptr[n] neighbour entries (once per scl_step call, on first need).
+ * Returns 0, -1 when out of memory (what was allocated is freed by the caller). */
+static int work_alloc(scl_work *w, int64_t n, const int64_t *nptr) {
+    w->vn = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w->d = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w->d2 = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w->yt = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w->pts = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w->g = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w->tsd = (double *)malloc(sizeof(double) * (size_t)n);
+    w->tcp = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w->tcn = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    w->deep = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
+    w->region = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
+    w->fixed = (uint8_t *)malloc((size_t)n);
+    w->held = (uint8_t *)malloc((size_t)n);
+    w->done = (uint8_t *)malloc((size_t)n);
+    w->dist = (double *)malloc(sizeof(double) * (size_t)n);
+    w->heap = (scl_item *)malloc(sizeof(scl_item) * (size_t)(n + nptr[n]));
+    return w->vn && w->d && w->d2 && w->yt && w->pts && w->g && w->tsd && w->tcp && w->tcn && w->deep && w->region &&
+                   w->fixed && w->held && w->done && w->dist && w->heap
+               ? 0
+               : -1;
+}
+
 /* The backstop (see the header): when a free vertex's prediction x (radius > 0) is deeper than `deep` (S_BACKSTOP)
  * inside the body (sd, from the frame's contacts with normals cn), the target y's deep free vertices traced out
  * along the garment's outward normal, the moves spread over the free vertices near them (attached ones keep theirs:
  * 0); yt = y + the spread move and x moved alike.  Returns how many vertices were traced out (0: yt and x are
- * untouched). */
+ * untouched), -1 when out of memory. */
 static int64_t backstop(const void *collider, const double *bv, const double *box, int64_t n, int64_t nf,
                         const int64_t *faces, const int64_t *nptr, const int64_t *nidx, const double *radius,
                         const double *y, double *x, const double *sd, const double *cn, double margin, double band,
@@ -427,9 +452,12 @@ static int64_t backstop(const void *collider, const double *bv, const double *bo
     int64_t i, j, k, nd = 0, nt = 0;
     double vote = 0, sign;
     if (!(deep > 0)) return 0; /* off */
+    for (i = 0; i < n; i++) nd += sd[i] < -deep && radius[i] > 0;
+    if (nd == 0) return 0;
+    if (!w->vn && work_alloc(w, n, nptr) < 0) return -1;
+    nd = 0;
     for (i = 0; i < n; i++)
         if (sd[i] < -deep && radius[i] > 0) w->deep[nd++] = i;
-    if (nd == 0) return 0;
     /* the target's vertex normals (area-weighted face normals) and their orientation: outward where the vertices
      * just outside the body agree with the body's normal */
     for (i = 0; i < 3 * n; i++) w->vn[i] = 0;
@@ -590,30 +618,10 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
     double *mid = NULL, *esd = NULL, *ecp = NULL, *ecn = NULL;
     scl_work w;
     int64_t status = 0;
-    w.vn = (double *)malloc(sizeof(double) * 3 * (size_t)n);
-    w.d = (double *)malloc(sizeof(double) * 3 * (size_t)n);
-    w.d2 = (double *)malloc(sizeof(double) * 3 * (size_t)n);
-    w.yt = (double *)malloc(sizeof(double) * 3 * (size_t)n);
-    w.pts = (double *)malloc(sizeof(double) * 3 * (size_t)n);
-    w.g = (double *)malloc(sizeof(double) * 3 * (size_t)n);
-    w.tsd = (double *)malloc(sizeof(double) * (size_t)n);
-    w.tcp = (double *)malloc(sizeof(double) * 3 * (size_t)n);
-    w.tcn = (double *)malloc(sizeof(double) * 3 * (size_t)n);
-    w.deep = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
-    w.fixed = (uint8_t *)malloc((size_t)n);
-    w.held = (uint8_t *)malloc((size_t)n);
-    w.done = (uint8_t *)malloc((size_t)n);
-    w.region = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
-    w.dist = (double *)malloc(sizeof(double) * (size_t)n);
-    w.heap = (scl_item *)malloc(sizeof(scl_item) * (size_t)(n + nptr[n]));
+    memset(&w, 0, sizeof(w)); /* the backstop's buffers: allocated when a frame first needs them */
     if (iters < 1) iters = 1;
     info[I_FIRST_RESET] = -1;
     if (!box || !sd || !cp || !cn || !q || !pick || !moved) { status = -1; goto done; }
-    if (!w.vn || !w.d || !w.d2 || !w.yt || !w.pts || !w.g || !w.tsd || !w.tcp || !w.tcn || !w.deep || !w.fixed || !w.held ||
-        !w.done || !w.region || !w.dist || !w.heap) {
-        status = -1;
-        goto done;
-    }
     for (f = 0; f < nb; f++) {
         const double *y = target + 3 * n * f, *bv = body + 3 * nv * f, *yc = y;
         double *x = out + 3 * n * f;
@@ -660,6 +668,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         /* deep targets: traced out along the garment's normal (the backstop), then the contacts found again */
         nt = backstop(collider, bv, box, n, nf, faces, nptr, nidx, radius, y, x, sd, cn, margin, band, settings[S_BACKSTOP],
                       &w);
+        if (nt < 0) { status = -1; goto done; }
         if (nt > 0) { /* only the vertices it moved (held and in the region) are looked up again */
             int64_t r, nm = 0;
             info[I_TRACED] += nt;
