@@ -59,9 +59,10 @@ def test_off_unless_named():
 def test_scene_keys(tmp_path):
     base = f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\n[output]\npath = "{tmp_path / "o.pc2"}"\n'
     p = tmp_path / "s.toml"
-    p.write_text(base + "[effects]\ncloth = true\ncloth_iterations = 8\ncloth_stretch = 0.05\n")
+    p.write_text(base + "[effects]\ncloth = true\ncloth_iterations = 8\ncloth_stretch = 0.05\ncloth_backstop = 0.0\n")
     e = load_scene(p).effects
-    assert e.cloth and not e.collisions and e.cloth_settings == ClothSettings(iterations=8, stretch=0.05)
+    assert e.cloth and not e.collisions
+    assert e.cloth_settings == ClothSettings(iterations=8, stretch=0.05, backstop=0.0)
     p.write_text(base + "[effects]\ncollisions = true\n")
     assert not load_scene(p).effects.cloth
     from segadeform.errors import FileFormatError
@@ -71,6 +72,7 @@ def test_scene_keys(tmp_path):
         ("cloth = true\ncloth_wind = 1", "unknown key effects.cloth_wind"),
         ("cloth = 1", "effects.cloth has the wrong type"),
         ('cloth = true\ncloth_stiffness = "high"', "effects.cloth_stiffness has the wrong type"),
+        ("cloth = true\ncloth_backstop = -0.01", "cloth backstop must be a number in"),
     ):
         p.write_text(base + f"[effects]\n{bad}\n")
         with pytest.raises(FileFormatError, match=msg) as ei:
@@ -135,6 +137,7 @@ def test_command_line(tmp_path, random_package):
         "+cloth(iterations=2,stiffness=0.5)" in r.output
         and "cloth: " in r.output
         and "vertex-frames in contact" in r.output
+        and "traced out by the backstop" in r.output
     )
     r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "b.pc2"), "--cloth", "iterations=2"])
     assert r.exit_code == 2 and "the stage is off" in r.output and not (tmp_path / "b.pc2").exists()
