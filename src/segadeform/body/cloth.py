@@ -731,12 +731,12 @@ def _backstop_reference(col, bv, setup: ClothSetup, y, x, sd, normal, margin: fl
     deep = [i for i in range(n) if deep_at > 0 and sd[i] < -deep_at and setup.radius[i] > 0]
     if not deep:
         return y, 0
-    vn = np.zeros((n, 3))
-    for a, b, c in setup.faces.tolist():
-        u, v = y[b] - y[a], y[c] - y[a]
-        fn = np.array([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]])
-        for k in (a, b, c):
-            vn[k] = vn[k] + fn
+    from ..geometry.mesh_ops import face_cross
+
+    vn = np.zeros((n, 3))  # area-weighted, unnormalised vertex normals of the target
+    fc = face_cross(y, setup.faces)
+    for corner in range(3):
+        np.add.at(vn, setup.faces[:, corner], fc)
     vote = 0.0
     for i in range(n):
         if 0 <= sd[i] < margin + CONTACT_BAND:
