@@ -3,6 +3,7 @@ result or a clear error."""
 
 from __future__ import annotations
 
+import gc
 import logging
 import tracemalloc
 
@@ -52,7 +53,9 @@ def test_cloth_200k_vertices(body):
 
 def test_cloth_stream_10000_frames(body):
     """10,000 frames through one stage, 100 at a time, beside a second stage given each hundred in two calls of
-    37 and 63: the same frames every time (state across calls), and the traced memory after each hundred flat."""
+    37 and 63: the same frames every time (state across calls), and the traced memory after each hundred flat
+    (measured after a garbage collection, so that garbage the collector frees at times of its own choosing does not
+    count: this check failed once when it ran after other files, not reproduced; that was the likeliest cause)."""
     v, f = _skirt(12, 4)
     m = make_motion("dance", seconds=10000 / 30.0, seed=2)
     assert m.n_frames == 10000
@@ -69,6 +72,7 @@ def test_cloth_stream_10000_frames(body):
             np.testing.assert_array_equal(np.concatenate([b.step(y[:37], posed[:37]), b.step(y[37:], posed[37:])]), out)
             assert np.isfinite(out).all()
             del posed, y, out
+            gc.collect()
             held.append(tracemalloc.get_traced_memory()[0])
     finally:
         tracemalloc.stop()

@@ -317,23 +317,25 @@ static void attach(double *x, const double *y, double r) {
     }
 }
 
-/* One edge's strain limit: move the free ends of edge e along it (Provot 1995 with PBD's stiffness). */
-static void stretch_edge(double *x, const int64_t *edges, const double *rest_len, const double *radius, int64_t e,
-                         double lo_f, double hi_f, double k) {
-    int64_t a = edges[2 * e], b = edges[2 * e + 1];
-    double *p = x + 3 * a, *q = x + 3 * b;
-    double wa = radius[a] > 0 ? 1.0 : 0.0, wb = radius[b] > 0 ? 1.0 : 0.0, d0, d1, d2, l2, hi, lo, len, c, s;
-    if (wa + wb == 0) return;
+/* An edge with a free end, as the sweeps read it (scl_step packs them once per call, in edge order, leaving out
+ * the edges whose ends are both attached, which no sweep moves): its ends, their weights (1 free, 0 attached), its
+ * limits hi = hi_f L0 and lo = lo_f L0 and their squares.  One memory read per edge instead of five. */
+typedef struct {
+    int64_t a, b;
+    double wa, wb, hi, lo, hi2, lo2;
+} scl_pedge;
+
+/* One edge's strain limit: move the free ends of edge pe along it (Provot 1995 with PBD's stiffness k). */
+static void stretch_edge(double *x, const scl_pedge *pe, double k) {
+    double *p = x + 3 * pe->a, *q = x + 3 * pe->b, d0, d1, d2, l2, len, c, s, wa = pe->wa, wb = pe->wb;
     d0 = q[0] - p[0];
     d1 = q[1] - p[1];
     d2 = q[2] - p[2];
     l2 = d0 * d0 + d1 * d1 + d2 * d2;
-    hi = hi_f * rest_len[e];
-    lo = lo_f * rest_len[e];
-    if (l2 <= hi * hi && l2 >= lo * lo) return; /* within the limits (most edges): no square root */
+    if (l2 <= pe->hi2 && l2 >= pe->lo2) return; /* within the limits (most edges): no square root */
     len = sqrt(l2);
     if (len < SCL_TINY) return; /* no direction: left to the other constraints */
-    c = l2 > hi * hi ? len - hi : len - lo; /* the side decided as above (the root may round onto hi) */
+    c = l2 > pe->hi2 ? len - pe->hi : len - pe->lo; /* the side decided as above (the root may round onto hi) */
     s = k * c / (len * (wa + wb));
     p[0] += wa * s * d0;
     p[1] += wa * s * d1;
@@ -611,6 +613,11 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
     double *cn = (double *)malloc(sizeof(double) * 3 * (size_t)n);
     double *q = (double *)malloc(sizeof(double) * 3 * (size_t)n);
     int64_t *pick = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
+    /* what the sweeps visit, in their order: the edges with a free end (pe), the free vertices with neighbours (fv:
+     * smoothing) and those with a tether (tv); the constraints they leave out would move nothing */
+    scl_pedge *pe = (scl_pedge *)malloc(sizeof(scl_pedge) * (size_t)(ne > 0 ? ne : 1));
+    int64_t *fv = (int64_t *)malloc(sizeof(int64_t) * (size_t)n), *tv = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
+    int64_t npe = 0, nfv = 0, ntv = 0;
     uint8_t *moved = (uint8_t *)malloc((size_t)n);
     /* the edge contacts' buffers, grown to the most edges near the body in one frame (not sized by every edge:
      * memory stays O(vertices + contacts)) */
@@ -621,7 +628,25 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
     memset(&w, 0, sizeof(w)); /* the backstop's buffers: allocated when a frame first needs them */
     if (iters < 1) iters = 1;
     info[I_FIRST_RESET] = -1;
-    if (!box || !sd || !cp || !cn || !q || !pick || !moved) { status = -1; goto done; }
+    if (!box || !sd || !cp || !cn || !q || !pick || !moved || !pe || !fv || !tv) { status = -1; goto done; }
+    for (e = 0; e < ne; e++) {
+        int64_t a = edges[2 * e], b = edges[2 * e + 1];
+        double wa = radius[a] > 0 ? 1.0 : 0.0, wb = radius[b] > 0 ? 1.0 : 0.0;
+        if (wa + wb == 0) continue;
+        pe[npe].a = a;
+        pe[npe].b = b;
+        pe[npe].wa = wa;
+        pe[npe].wb = wb;
+        pe[npe].hi = hi_f * rest_len[e];
+        pe[npe].lo = lo_f * rest_len[e];
+        pe[npe].hi2 = pe[npe].hi * pe[npe].hi;
+        pe[npe].lo2 = pe[npe].lo * pe[npe].lo;
+        npe++;
+    }
+    for (i = 0; i < n; i++) {
+        if (nptr[i + 1] > nptr[i] && radius[i] > 0) fv[nfv++] = i;
+        if (anchor[i] >= 0) tv[ntv++] = i;
+    }
     for (f = 0; f < nb; f++) {
         const double *y = target + 3 * n * f, *bv = body + 3 * nv * f, *yc = y;
         double *x = out + 3 * n * f;
@@ -723,11 +748,11 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         /* the sweeps, alternating direction */
         for (it = 0; it < iters; it++) {
             int fwd = it % 2 == 0;
-            for (e = 0; e < ne; e++) stretch_edge(x, edges, rest_len, radius, fwd ? e : ne - 1 - e, lo_f, hi_f, ks);
+            for (e = 0; e < npe; e++) stretch_edge(x, pe + (fwd ? e : npe - 1 - e), ks);
             if (ks > 0)
-                for (i = 0; i < n; i++) tether_vertex(x, anchor, tether, i, hi_f, ks);
+                for (i = 0; i < ntv; i++) tether_vertex(x, anchor, tether, tv[i], hi_f, ks);
             if (kb > 0)
-                for (i = 0; i < n; i++) smooth_vertex(x, yc, nptr, nidx, radius, fwd ? i : n - 1 - i, kb);
+                for (i = 0; i < nfv; i++) smooth_vertex(x, yc, nptr, nidx, radius, fv[fwd ? i : nfv - 1 - i], kb);
             for (i = 0; i < n; i++) {
                 double *p = x + 3 * i, s;
                 attach(p, yc + 3 * i, radius[i]);
@@ -777,6 +802,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         info[I_HAVE] = have == 0 ? 1 : 2;
     }
 done:
+    free(pe); free(fv); free(tv);
     free(box); free(sd); free(cp); free(cn); free(q); free(pick); free(moved);
     free(eidx); free(mid); free(esd); free(ecp); free(ecn);
     free(w.vn); free(w.d); free(w.d2); free(w.yt); free(w.pts); free(w.g); free(w.tsd); free(w.tcp); free(w.tcn);

@@ -489,14 +489,16 @@ static void feature_normal(const sdc_body *b, const double *verts, int64_t f, co
 
 /* Squared distance from p to the box (lo xyz, hi xyz). */
 static inline double box_dist2(const double *box, const double *p) {
-    double d = 0, g;
-    int k;
-    for (k = 0; k < 3; k++) {
-        g = box[k] - p[k];
-        if (p[k] - box[3 + k] > g) g = p[k] - box[3 + k];
-        if (g > 0) d += g * g;
-    }
-    return d;
+    /* branch-free (the comparisons are unpredictable): max(lo - p, p - hi, 0) per axis; adding 0 changes no bit */
+    double g0 = box[0] - p[0], h0 = p[0] - box[3], g1 = box[1] - p[1], h1 = p[1] - box[4];
+    double g2 = box[2] - p[2], h2 = p[2] - box[5];
+    g0 = h0 > g0 ? h0 : g0;
+    g1 = h1 > g1 ? h1 : g1;
+    g2 = h2 > g2 ? h2 : g2;
+    g0 = g0 > 0 ? g0 : 0;
+    g1 = g1 > 0 ? g1 : 0;
+    g2 = g2 > 0 ? g2 : 0;
+    return g0 * g0 + g1 * g1 + g2 * g2;
 }
 
 /* Per frame: the posed vertices, the refitted boxes and the slack of the pruning tests. */
