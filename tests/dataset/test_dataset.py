@@ -319,6 +319,52 @@ def test_a_garment_parameter_added_later_enters_the_spec_only_when_set(tmp_path)
         )
 
 
+def test_a_makehuman_garment_decimated_is_another_garment_and_the_plain_one_keeps_its_spec(tmp_path):
+    """``decimate`` (issue #27's ninth simulator study): a MakeHuman entry may keep a share of its vertices, its
+    shortest edges collapsed first; the entry without it keeps its samples' specs, the decimated one is another
+    garment with about that share of vertices, and the option is refused where it means nothing."""
+    from segadeform.body import default_body_path, load_body
+    from segadeform.dataset.make import _garment_file, _garment_key, sample_spec
+    from segadeform.io import read_obj
+
+    d = tmp_path / "cfg"
+    (d / "mh").mkdir(parents=True)
+    for f in ("skirt_short_f.mhclo", "skirt_short_f.obj"):
+        shutil.copyfile(SAMPLES / "garments" / "makehuman" / f, d / "mh" / f)
+    entry = '[[garments]]\nname = "{name}"\nkind = "skirt"\nmhclo = "mh/skirt_short_f.mhclo"\n{extra}'
+    head = '[dataset]\nfps = 30.0\nseconds = 0.5\n[[motions]]\nkind = "walk"\n'
+    plain = load_dataset_config(_write(d, "a.toml", head + entry.format(name="mh", extra="")))
+    both = load_dataset_config(
+        _write(
+            d,
+            "b.toml",
+            head + entry.format(name="mh", extra="") + entry.format(name="mh-coarse", extra="decimate = 0.85\n"),
+        )
+    )
+    assert [g.decimate for g in both.garments] == [None, 0.85]
+    assert "decimate" not in _garment_key(both.garments[0]) and _garment_key(both.garments[1])["decimate"] == 0.85
+    spec_a = {p.id: sample_spec(plain, p) for p in sample_plan(plain)}
+    spec_b = {p.id: sample_spec(both, p) for p in sample_plan(both)}
+    assert all(spec_b[k] == v for k, v in spec_a.items())  # the plain entry's samples are the ones made before
+    coarse = [k for k in spec_b if k.startswith("mh-coarse")]
+    assert coarse and all(spec_b[k] not in spec_a.values() for k in coarse)
+    body = load_body(default_body_path())
+    out = tmp_path / "ds"
+    out.mkdir()
+    n_plain = len(read_obj(out / _garment_file(out, both, 0, 0, body)).vertices)
+    n_coarse = len(read_obj(out / _garment_file(out, both, 1, 0, body)).vertices)
+    assert n_plain == len(read_obj(d / "mh" / "skirt_short_f.obj").vertices)
+    assert abs(n_coarse - 0.85 * n_plain) <= 0.02 * n_plain, (n_coarse, n_plain)
+    for extra, msg in (
+        ("decimate = 1.5\n", r"decimate must be the share of vertices kept.*\(0, 1\).*1\.5"),
+        ("decimate = true\n", "decimate must be the share of vertices kept"),
+    ):
+        with pytest.raises(FileFormatError, match=msg):
+            load_dataset_config(_write(d, "x.toml", head + entry.format(name="mh", extra=extra)))
+    with pytest.raises(FileFormatError, match="decimate is for MakeHuman garments"):
+        load_dataset_config(_write(d, "y.toml", head + '[[garments]]\nname = "s"\nkind = "skirt"\ndecimate = 0.8\n'))
+
+
 def test_a_sample_spec_names_its_files_by_content_not_by_where_they_lie(tmp_path):
     """A dataset made beside one checkout is the same dataset beside another: the spec of a motion-capture
     sample holds the capture file's name and a hash of its bytes, not its path (packs made on one machine

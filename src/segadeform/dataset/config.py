@@ -103,6 +103,7 @@ class GarmentSpec:
     split: str
     pin: str | None = None  # overrides simulate.pin for this garment
     mhclo: Path | None = None  # a MakeHuman garment fitted to each body (instead of a procedural one)
+    decimate: float | None = None  # a MakeHuman garment's share of vertices kept (shortest edges collapsed first)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -301,6 +302,7 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
         name = g.pop("name", None) or f"{kind}-{i}"
         pin = g.pop("pin", None)
         mhclo = g.pop("mhclo", None)
+        decimate = g.pop("decimate", None)
         count = _count(g, p, f"garments[{i}]")
         seed = g.pop("seed", None)
         if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool)):
@@ -316,6 +318,23 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
                     path=p,
                     expected="no ranges and no count with mhclo",
                 )
+        if decimate is not None:
+            if mhclo is None:
+                raise FileFormatError(
+                    f"garments[{i}].decimate is for MakeHuman garments (a procedural garment's resolution is its own "
+                    "parameter)",
+                    path=p,
+                    expected="mhclo = ... beside decimate",
+                )
+            ok = isinstance(decimate, (int, float)) and not isinstance(decimate, bool)
+            if not (ok and 0 < decimate < 1):
+                raise FileFormatError(
+                    f"garments[{i}].decimate must be the share of vertices kept",
+                    path=p,
+                    expected="a number in (0, 1)",
+                    got=decimate,
+                )
+            decimate = float(decimate)
         if pin is not None and pin not in ("waistband", "top"):
             raise FileFormatError(f"garments[{i}].pin must be 'waistband' or 'top'", path=p, got=pin)
         if split != "test" and kind in held_kinds:
@@ -356,7 +375,7 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
                     expected=" | ".join(WAISTBAND_KINDS),
                     got=kind,
                 )
-            garments.append(GarmentSpec(dname, kind, params, split, pin, mhclo))
+            garments.append(GarmentSpec(dname, kind, params, split, pin, mhclo, decimate))
     bodies, body_splits = [], []
     for i, b in enumerate(data.get("bodies", [{"betas": []}])):
         betas = b.get("betas", [])

@@ -220,12 +220,17 @@ def _garment_params(g: GarmentSpec) -> dict:
 
 
 def _garment_key(g: GarmentSpec) -> dict:
-    return {
+    """What makes the garment; ``decimate`` (added later) only when set, so the specs of samples made before it
+    do not change."""
+    key = {
         "kind": g.kind,
         "params": _garment_params(g),
         "pin": g.pin,
         "mhclo": file_identity(g.mhclo) if g.mhclo else None,
     }
+    if g.decimate is not None:
+        key["decimate"] = g.decimate
+    return key
 
 
 def sample_spec(cfg: DatasetConfig, p: PlannedSample) -> str:
@@ -358,16 +363,19 @@ def _garment_file(out, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) ->
                 got=json.dumps(old, sort_keys=True),
             )
     if not loc.exists(rel):
-        if g.mhclo is not None:  # a MakeHuman garment: fitted to this body, 3 mm off the skin
+        if g.mhclo is not None:  # a MakeHuman garment: fitted to this body (decimated), 3 mm off the skin
             from ..body.placement import push_off_body
             from ..garments.registration import fit_mhclo
+            from ..garments.resample import decimate
             from ..io.mhclo import read_mhclo
 
             binding = read_mhclo(g.mhclo)
             betas = cfg.bodies[bi] or None
             v = fit_mhclo(binding, body, betas)
-            v, _ = push_off_body(v, body.shaped_vertices(betas)[0], body.faces, 0.003)
             faces = read_mesh(binding.obj_path()).faces
+            if g.decimate is not None:  # the shortest edges (the narrow hem rows) collapsed first
+                v, faces = decimate(v, faces, max(3, int(round(g.decimate * len(v)))))
+            v, _ = push_off_body(v, body.shaped_vertices(betas)[0], body.faces, 0.003)
             with loc.writing(rel) as tmp:
                 write_obj(
                     tmp,
