@@ -88,7 +88,17 @@ def dataset_group():
     help="First simulate again the rejected samples whose ids match GLOB (after a change to the simulator "
     "that a sample's spec does not record); their old files move to rejected/retried/. Repeatable.",
 )
-def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, roots, force, retry_rejected, retry):
+@click.option(
+    "--split",
+    "splits",
+    multiple=True,
+    type=click.Choice(["train", "val", "test"]),
+    help="Make only the samples of this split (repeatable; default: every split), in the config's order: "
+    "'--split test' makes the held-out split a fresh machine needs to repeat an evaluation.",
+)
+def dataset_make_cmd(
+    config, output, jobs, executor, body, limit, sim_python, roots, force, retry_rejected, retry, splits
+):
     """Simulate every garment x body x motion of CONFIG.toml into OUTPUT (resumable)."""
     from segadeform.dataset import load_dataset_config, make_dataset
     from segadeform.distributed.executors import make_executor
@@ -123,6 +133,7 @@ def dataset_make_cmd(config, output, jobs, executor, body, limit, sim_python, ro
                 roots=roots,
                 retry_rejected=retry_rejected,
                 retry=tuple(retry),
+                splits=tuple(splits),
             )
     finally:
         guard.abandon()  # a run that made nothing leaves no empty folder

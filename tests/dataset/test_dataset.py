@@ -200,6 +200,28 @@ def test_resume_skips_done_and_redoes_missing(tiny_dataset, tmp_path, capsys):
     assert victim.is_file()
 
 
+def test_split_makes_only_that_split(tiny_dataset, tmp_path, capsys):
+    """``dataset make --split``: the samples of the other splits are neither made nor counted (the held-out
+    split of a fresh machine first); the tiny plan has one training sample and three held-out ones."""
+    from segadeform.dataset import make_dataset
+
+    out = tmp_path / "copy"
+    shutil.copytree(tiny_dataset, out)
+    plan = sample_plan(load_dataset_config(TINY))
+    assert sorted(p.split for p in plan) == ["test", "test-garment", "test-motion", "train"]
+    held = [out / "samples" / f"{p.id}.json" for p in plan if p.split != "train"]
+    held = [p for p in held if p.is_file()]  # (a rejected one lies in rejected/)
+    assert held
+    for p in held:
+        p.unlink()  # as if never made
+    capsys.readouterr()
+    assert main(["dataset", "make", str(TINY), "-o", str(out), "--split", "train"]) == 0
+    assert "1 planned, 1 already done, 0 kept, 0 rejected" in capsys.readouterr().out
+    assert not any(p.is_file() for p in held)  # the test splits were left alone
+    with pytest.raises(InputError, match="unknown dataset split.*got.*tests"):
+        make_dataset(load_dataset_config(TINY), out, splits=("tests",))
+
+
 # ---------------------------------------------------------------- ranges, counts, splits, growth
 RANGED = """
 [dataset]

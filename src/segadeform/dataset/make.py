@@ -110,6 +110,15 @@ def sample_plan(cfg: DatasetConfig) -> list[PlannedSample]:
     return out
 
 
+#: the splits ``dataset make --split`` chooses among (a ``test-*`` split of ``cross_splits`` is ``test``)
+SPLIT_GROUPS = ("train", "val", "test")
+
+
+def split_group(split: str) -> str:
+    """``train``, ``val`` or ``test`` for a planned sample's split."""
+    return "test" if split.startswith("test") else split
+
+
 #: with ``order = "spread"``: training samples made between two held-out ones
 SPREAD_TRAIN_PER_HELD_OUT = 2
 
@@ -806,6 +815,7 @@ def make_dataset(
     roots=(),
     retry_rejected: bool = False,
     retry: tuple = (),
+    splits: tuple = (),
 ) -> DatasetSummary:
     """Make (or continue) the dataset ``cfg`` in ``out`` (a folder, an fsspec URL or a
     :class:`~segadeform.io.location.Location`); see the module docstring.
@@ -822,8 +832,15 @@ def make_dataset(
     ``rejected/retried/`` first (nothing is deleted), and the new attempt is committed as any sample is.
     ``retry``: glob patterns of sample ids: the rejected samples of ``out`` that match are simulated again the
     same way (after a change to the simulator that a sample's spec does not record, e.g. how pins are chosen).
+    ``splits``: make only the samples of these splits (``"train"``, ``"val"``, ``"test"``; the ``test-*`` splits
+    of ``cross_splits`` count as ``"test"``), in the config's order -- the held-out split of a fresh machine first,
+    so that an evaluation can be repeated without the training data; empty: every split.
     """
     from .roots import DatasetRoots
+
+    bad = [sp for sp in splits if sp not in SPLIT_GROUPS]
+    if bad:
+        raise InputError("unknown dataset split", expected=" | ".join(SPLIT_GROUPS), got=bad[0])
 
     extra = DatasetRoots(list(roots), optional=cfg.roots) if (roots or cfg.roots) else None
     loc = open_location(out)
@@ -834,6 +851,8 @@ def make_dataset(
     check_splits(cfg, plan)
     _check_done(loc, cfg, plan, extra)
     _keep_config(loc, cfg)
+    if splits:  # the whole plan was checked and ordered as always; only the chosen splits are made
+        plan = [p for p in plan if split_group(p.split) in splits]
     order = make_order(cfg, plan)
     finished = {n[: -len(".json")] for d in ("samples", "rejected") for n in loc.listdir(d) if n.endswith(".json")}
     if extra is not None:
