@@ -8,7 +8,8 @@ frames (the target), the cloth stage on them (as ``segadeform eval --cloth``, co
 frames.  Stretch is length / rest length - 1 of every edge in every frame (compression counts as 0), as
 ``segadeform eval``'s ``max_strain_pct``.  Per sample: the largest stretch of the simulation, the target and the
 stage's output; the stage's largest stretch over ``max(rest length, the target's length)`` (what it adds to the
-network's own stretch); the share of edge-frames over the stretch limit; and where the edge-frames over twice
+network's own stretch); the 99th percentile of stretch over edge-frames of each; the share of edge-frames over the
+stretch limit (the simulation's, the target's, the stage's); and where the edge-frames over twice
 the limit are: by how deep the target puts the deeper end inside the posed body (the body's exact closest
 point), and how many have both ends attached (radius 0: they follow the target and only contact moves them).
 """
@@ -72,6 +73,10 @@ def sample_rows(dataset, sid: str, body, predictor, settings) -> dict:
         "target_max": 100 * s_y.max(),
         "cloth_max": 100 * s_out.max(),
         "cloth_added_max": 100 * added.max(),
+        "gt_p99": 100 * np.percentile(s_gt, 99),
+        "target_p99": 100 * np.percentile(s_y, 99),
+        "cloth_p99": 100 * np.percentile(s_out, 99),
+        "gt_over_limit_pct": 100 * (s_gt > settings.stretch + 1e-9).mean(),
         "over_limit_pct": 100 * (s_out > settings.stretch + 1e-9).mean(),
         "target_over_limit_pct": 100 * (s_y > settings.stretch + 1e-9).mean(),
         "bad": int(bad.sum()),
@@ -120,7 +125,8 @@ def main(argv=None) -> int:
         print(f"  {sid}", file=sys.stderr)
         rows.append(sample_rows(ds, sid, body, pred, settings))
     cols = (
-        ["gt_max", "target_max", "cloth_max", "cloth_added_max", "target_over_limit_pct", "over_limit_pct"]
+        ["gt_max", "target_max", "cloth_max", "cloth_added_max", "gt_p99", "target_p99", "cloth_p99"]
+        + ["gt_over_limit_pct", "target_over_limit_pct", "over_limit_pct"]
         + [f"bad in {n} %" for _, _, n in DEPTHS]
         + ["bad_attached_pct"]
     )
