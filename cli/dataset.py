@@ -143,7 +143,8 @@ def dataset_make_cmd(
 @dataset_group.command("info")
 @click.argument("folder", type=click.Path(file_okay=False, exists=True, path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print the statistics as JSON.")
-def dataset_info_cmd(folder, as_json):
+@click.option("--by-garment", is_flag=True, help="Also kept / made per garment (each drawn or MakeHuman garment).")
+def dataset_info_cmd(folder, as_json, by_garment):
     """Statistics of a dataset folder: samples per split, rejection reasons, seconds per frame by size."""
     from segadeform.dataset.report import dataset_stats
 
@@ -160,6 +161,10 @@ def dataset_info_cmd(folder, as_json):
     for k, v in st["by_kind_source"].items():
         cut = f"  ({v['trimmed']} trimmed)" if v["trimmed"] else ""
         click.echo(f"  kept {v['samples'] - v['rejected']:4d} / {v['samples']:4d} made  {k}{cut}")
+    if by_garment:
+        for k, v in st["by_garment"].items():
+            cut = f"  ({v['trimmed']} trimmed)" if v["trimmed"] else ""
+            click.echo(f"  kept {v['samples'] - v['rejected']:4d} / {v['samples']:4d} made  {k}{cut}")
     for row in st["by_size"]:
         click.echo(f"  {row['garment']:24s} {row['vertices']:6d} v  {row['seconds_per_frame']:.3f} s/frame")
 

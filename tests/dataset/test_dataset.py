@@ -186,6 +186,14 @@ def test_tiny_dataset_end_to_end(tiny_dataset, capsys):
     assert main(["dataset", "info", str(out), "--json"]) == 0
     st = json.loads(capsys.readouterr().out)
     assert st["kept"] == len(ids) and st["by_size"]
+    assert sum(v["samples"] for v in st["by_garment"].values()) == 4 and set(st["by_garment"]) == {
+        "skirt-0",
+        "shorts-1",
+    }
+    assert main(["dataset", "info", str(out), "--by-garment"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    for g, v in st["by_garment"].items():  # kept / made per garment, as the JSON says
+        assert f"kept {v['samples'] - v['rejected']:4d} / {v['samples']:4d} made  {g}" in "\n".join(lines)
 
 
 def test_resume_skips_done_and_redoes_missing(tiny_dataset, tmp_path, capsys):

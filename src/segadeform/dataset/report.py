@@ -1,6 +1,6 @@
 """Statistics of a dataset folder from its log (what `segadeform dataset info` prints): kept and
 rejected samples (and the kept ones cut to the frames that pass: ``[quality] min_frames``), rejection rates per
-garment kind and per motion, reasons, seconds per frame by
+garment kind, garment and motion, reasons, seconds per frame by
 size, and kept samples per hour of the runs that made it."""
 
 from __future__ import annotations
@@ -58,6 +58,7 @@ def dataset_stats(folder) -> dict:
         "rejected": len(rej),
         "rejection_rate": len(rej) / max(len(recs), 1),
         "by_kind": rates("kind"),
+        "by_garment": rates("garment"),
         "by_motion": rates("motion"),
         "by_source": rates("source"),
         "by_kind_source": rates("kind_source"),
