@@ -1,0 +1,47 @@
+"""The simulator-study tools: the study config is what its writer writes, and the paired count is right."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+from ..conftest import SAMPLES
+
+TOOLS = SAMPLES.parent / "tools"
+
+
+def test_the_mh_shirt_study_config_is_what_its_tool_writes():
+    out = subprocess.run(
+        [sys.executable, str(TOOLS / "mh_shirt_study.py")], check=True, capture_output=True, text=True
+    ).stdout
+    assert out == (SAMPLES / "datasets" / "studies" / "mh_shirts.toml").read_text()
+
+
+def test_study_pairs_counts_pairs_and_tests_the_discordant_ones(tmp_path):
+    """Two garments in two arms on four motions; one sample made twice counts as last finished; a garment made in
+    one arm only has no pair."""
+    rows = []
+    kept = {  # (garment, motion) -> kept
+        **{("a", m): m in ("m0", "m1") for m in ("m0", "m1", "m2", "m3")},
+        **{("a-coarse", m): m != "m3" for m in ("m0", "m1", "m2", "m3")},
+        **{("b", m): False for m in ("m0", "m1", "m2", "m3")},
+        **{("b-coarse", m): True for m in ("m0", "m1", "m2", "m3")},
+        ("c", "m0"): True,
+    }
+    for (g, m), k in kept.items():
+        rows.append(
+            {"id": f"{g}__b0__{m}", "garment": g, "body": 0, "motion": m, "status": "kept" if k else "rejected"}
+            | ({} if k else {"reasons": ["strain 2.1 > 1.0 on 0.3% of edges > 0.1%"]})
+        )
+    rows.insert(0, {**rows[8], "status": "kept"})  # b__m0 first kept, then rejected: rejected counts
+    (tmp_path / "log.jsonl").write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+    out = subprocess.run(
+        [sys.executable, str(TOOLS / "study_pairs.py"), str(tmp_path)], check=True, capture_output=True, text=True
+    ).stdout
+    lines = {ln.split()[0]: ln.split()[1:] for ln in out.splitlines() if ln and not ln.startswith(("garment", "rej"))}
+    assert lines["a"] == ["4", "2", "3", "0", "1", "1.000"]
+    assert lines["b"] == ["4", "0", "4", "0", "4", "0.125"]  # 4 of 4 discordant one way: p = 2 / 2^4
+    assert lines["(all)"] == ["8", "2", "7", "0", "5", "0.062"]
+    assert "c" not in lines
+    assert "rejections (plain): strain # 6" in out and "rejections (changed): strain # 1" in out
