@@ -387,6 +387,13 @@ def test_dataset_make_beside_a_users_file_with_force(tmp_path):
     after = folder_hash(d)
     assert {k: after[k] for k in before} == before and "config.toml" in after
     assert any(k.startswith(("samples/", "rejected/")) for k in after)
+    # --split continues the same folder (a dataset folder now: no --force needed) and leaves the user's file too
+    r = invoke(["dataset", "make", tiny, "-o", d, "--limit", "1", "--split", "test"])
+    assert r.exit_code == 0, r.output
+    again = folder_hash(d)
+    assert {k: again[k] for k in before} == before
+    new = {k for k in again if k.startswith(("samples/", "rejected/")) and k.endswith(".json")} - set(after)
+    assert len(new) == 1 and "skirt-0__b0__walk-s0" not in next(iter(new))  # a held-out sample, not the training one
 
 
 def test_every_writing_command_claims_its_outputs():
