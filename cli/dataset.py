@@ -158,13 +158,9 @@ def dataset_info_cmd(folder, as_json, by_garment):
         click.echo(f"  split {k}: {v} samples")
     for r, c in st["reasons"].items():
         click.echo(f"  rejected: {c} x {r}")
-    for k, v in st["by_kind_source"].items():
+    for k, v in [*st["by_kind_source"].items(), *(st["by_garment"].items() if by_garment else ())]:
         cut = f"  ({v['trimmed']} trimmed)" if v["trimmed"] else ""
         click.echo(f"  kept {v['samples'] - v['rejected']:4d} / {v['samples']:4d} made  {k}{cut}")
-    if by_garment:
-        for k, v in st["by_garment"].items():
-            cut = f"  ({v['trimmed']} trimmed)" if v["trimmed"] else ""
-            click.echo(f"  kept {v['samples'] - v['rejected']:4d} / {v['samples']:4d} made  {k}{cut}")
     for row in st["by_size"]:
         click.echo(f"  {row['garment']:24s} {row['vertices']:6d} v  {row['seconds_per_frame']:.3f} s/frame")
 
