@@ -3,8 +3,8 @@
     .venv/bin/python tools/study_pairs.py DATASET [--suffix -coarse]
 
 A study config (``samples/datasets/studies/``) makes every garment entry twice, as it is (``NAME``) and changed
-(``NAME<suffix>``), on the same bodies and motions.  This reads the dataset's ``log.jsonl`` (a sample made again
-counts as last finished, as ``dataset info`` counts it) and prints, over the (garment, body, motion) pairs made in
+(``NAME<suffix>``), on the same bodies and motions.  This reads the dataset's ``log.jsonl`` as ``dataset info`` does
+(``segadeform.dataset.report.finished_records``) and prints, over the (garment, body, motion) pairs made in
 both arms: how many each arm kept, the pairs kept by one arm only, the two-sided exact sign test on those
 (the chance of a split at least that uneven if the change did nothing), per garment, and the gate's reasons per arm.
 """
@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import json
 import re
 from math import comb
 from pathlib import Path
@@ -32,14 +31,11 @@ def main() -> None:
     ap.add_argument("dataset", type=Path)
     ap.add_argument("--suffix", default="-coarse", help="what the changed arm's entry names end with")
     a = ap.parse_args()
-    last = {}
-    for line in (a.dataset / "log.jsonl").read_text().splitlines():
-        if line.strip():
-            r = json.loads(line)
-            last[r["id"]] = {**last.get(r["id"], {}), **r} if r.get("regated") else r
+    from segadeform.dataset.report import finished_records
+
     arms: dict = collections.defaultdict(dict)
     reasons: dict = collections.defaultdict(collections.Counter)
-    for r in last.values():
+    for r in finished_records(a.dataset):
         changed = r["garment"].endswith(a.suffix)
         base = r["garment"][: -len(a.suffix)] if changed else r["garment"]
         arm = "changed" if changed else "plain"

@@ -14,22 +14,28 @@ import numpy as np
 
 from ..errors import FileFormatError
 
-__all__ = ["dataset_stats"]
+__all__ = ["dataset_stats", "finished_records"]
 
 
-def dataset_stats(folder) -> dict:
+def finished_records(folder) -> list[dict]:
+    """Every sample of a dataset folder's log once, as last finished (a re-run sample counts once; `dataset
+    regate`'s verdict merged into the record of the sample it judged)."""
     p = Path(folder) / "log.jsonl"
     if not p.is_file():
         raise FileFormatError("not a dataset folder (no log.jsonl)", path=folder)
-    last = {}
+    last: dict = {}
     for line in p.read_text().splitlines():
         if line.strip():
             r = json.loads(line)
             if r.get("regated") and r["id"] in last:  # `dataset regate`'s verdict on a sample made before
                 r = {**last[r["id"]], **r}
                 r.pop("reasons" if r["status"] == "kept" else "trimmed", None)
-            last[r["id"]] = r  # a re-run sample counts once, as last finished
-    recs = list(last.values())
+            last[r["id"]] = r
+    return list(last.values())
+
+
+def dataset_stats(folder) -> dict:
+    recs = finished_records(folder)
     kept = [r for r in recs if r["status"] == "kept"]
     rej = [r for r in recs if r["status"] != "kept"]
     reasons = collections.Counter(re.sub(r"[\d.]+", "#", x).split(" > ")[0] for r in rej for x in r.get("reasons", []))
