@@ -113,3 +113,13 @@ def test_clip_quality_follows_the_fastest_frame():
         clip_quality(b, 10, 0.0)
     with pytest.raises(InputError, match="body frames"):
         clip_quality(b[0], 10, 0.01)
+
+
+def test_the_collider_is_single_sided_either_way_and_normals_only_when_asked():
+    """Blender's "single sided" (``use_culling``) is named in both modes (its default, with which every dataset
+    was made); ``collision_normals`` adds "override normals" and nothing else."""
+    plain = blender_settings(SimSettings(effects=("body_collision",)))["body_collision"]
+    normals = blender_settings(SimSettings(effects=("body_collision",), collision_normals=True))["body_collision"]
+    assert plain["use_culling"] is True and normals["use_culling"] is True
+    assert "use_normal" not in plain and normals["use_normal"] is True
+    assert {k: v for k, v in normals.items() if k != "use_normal"} == plain

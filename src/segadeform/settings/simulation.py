@@ -20,10 +20,11 @@ does not name is off in the solver::
     wind_strength = 2.0
     drape_seconds = 0.5            # settle in the rest pose before the motion
     blend_seconds = 0.5            # blend from the rest pose into the motion's first frame
-    collision_inner = 0.02         # metres inside the body from which cloth is still pushed out
-    collision_normals = false      # push cloth out along the body's normals (Blender's "single sided"
-                                   # and "override normals"): cloth that got inside comes out the side it
-                                   # came in from, not the nearest side
+    collision_inner = 0.02         # the collider's inner thickness (Blender's thickness_inner): Blender reads
+                                   # it for soft bodies only, cloth frames do not change with it (measured)
+    collision_normals = false      # push cloth out along the body's normals (Blender's "override normals";
+                                   # its "single sided" is on either way): cloth that got inside comes out
+                                   # the side it came in from, not the nearest side
     untangle_body = false          # the collider is the posed body with the parts that pass into each
                                    # other (arm into torso, thigh into thigh) moved apart, room for cloth
                                    # between them (segadeform.body.untangle); the gate measures the true body;
