@@ -84,6 +84,24 @@ def test_shipped_package_knows_its_training_garments(body):
     assert pkg.familiarity(far, 2).outside
 
 
+def test_the_readme_dress_is_what_its_command_makes_and_familiar_to_the_shipped_model(body, tmp_path):
+    """The README's first command animates samples/garments/dress.obj; a copy made by an older generator lay
+    outside the shipped model's training garments (nearest: shorts) and the first thing a user saw was that
+    warning.  The file must be what its header's command makes today, and familiar to the shipped model."""
+    from segadeform.geometry.mesh_ops import boundary_loops
+    from segadeform.io import read_mesh
+
+    sample = SAMPLES / "garments" / "dress.obj"
+    assert "resolution=2500" in sample.read_text().splitlines()[2]
+    assert main(["garment", "make", "dress", "--resolution", "2500", "-o", str(tmp_path / "dress.obj")]) == 0
+    made, shipped = read_mesh(tmp_path / "dress.obj"), read_mesh(sample)
+    assert np.array_equal(made.faces, shipped.faces)
+    np.testing.assert_allclose(made.vertices, shipped.vertices, atol=1e-6)
+    a = precompute_garment(shipped.vertices, shipped.faces, body.rest_joints()[0], source_name="dress")
+    fam = ModelPackage(SHIPPED).familiarity(a.descriptor, len(boundary_loops(shipped.faces, len(shipped.vertices))))
+    assert not fam.outside and fam.nearest.startswith("dress-"), str(fam)
+
+
 def test_run_warns_once_about_an_unfamiliar_garment(body, caplog):
     pkg = ModelPackage(SHIPPED)
     dec = Deformer(pkg)
