@@ -12,53 +12,28 @@ samples one after another, so any prefix of a run is paired: both arms on the sa
 
 from __future__ import annotations
 
-import random
 import sys
-from pathlib import Path
 
-import tomllib
+from study_config import continuum, head, table, training_captures
 
-CONFIG_DIR = Path(__file__).resolve().parents[1] / "samples" / "datasets"
 SHIRTS = ("mh-tshirt-m", "mh-tshirt-long-m", "mh-shirt-striped-m")
 DECIMATE = 0.85
 N_MOTIONS = 24
 SEED = 7
 
 
-def _value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, list):
-        return "[" + ", ".join(_value(x) for x in v) + "]"
-    return repr(v)
-
-
-def _table(name: str, d: dict, rebase=()) -> list[str]:
-    out = [f"[{name}]"]
-    for k, v in d.items():
-        if k in rebase:  # a path relative to samples/datasets, one folder deeper here
-            v = "../" + v
-        out.append(f"{k} = {_value(v)}")
-    return out + [""]
-
-
 def main() -> None:
-    src = tomllib.loads((CONFIG_DIR / "continuum.toml").read_text())
+    src = continuum()
     by_name = {g["name"]: g for g in src["garments"] if "name" in g}
-    capture = [m for m in src["motions"] if "file" in m and m.get("split", "train") == "train"]
-    motions = random.Random(SEED).sample(capture, N_MOTIONS)
-    lines = [
-        "# Issue #27's ninth simulator study: the MakeHuman shirts as the continuum makes them and decimated to 85 %",
-        "# of their vertices, paired on the same motions (written by tools/mh_shirt_study.py; see its docstring).",
-        "#   segadeform dataset make samples/datasets/studies/mh_shirts.toml -o data/mh-shirts -j 1",
-        "",
-    ]
-    ds = {"fps": src["dataset"]["fps"], "seconds": src["dataset"]["seconds"], "order": "body-major"}
-    lines += _table("dataset", ds)
-    lines += _table("quality", src["quality"])
-    lines += _table("simulate", src["simulate"])
+    motions = training_captures(src, N_MOTIONS, SEED)
+    lines = head(
+        src,
+        [
+            "Issue #27's ninth simulator study: the MakeHuman shirts as the continuum makes them and decimated to 85 %",
+            "of their vertices, paired on the same motions (written by tools/mh_shirt_study.py; see its docstring).",
+            "  segadeform dataset make samples/datasets/studies/mh_shirts.toml -o data/mh-shirts -j 1",
+        ],
+    )
     for name in SHIRTS:
         for coarse in (False, True):
             g = dict(by_name[name])
@@ -66,10 +41,10 @@ def main() -> None:
             if coarse:
                 g["name"] = name + "-coarse"
                 g["decimate"] = DECIMATE
-            lines += _table("[garments]", g, rebase=("mhclo",))
-    lines += _table("[bodies]", {"betas": []})
+            lines += table("[garments]", g, rebase=("mhclo",))
+    lines += table("[bodies]", {"betas": []})
     for m in motions:
-        lines += _table("[motions]", m, rebase=("file",))
+        lines += table("[motions]", m, rebase=("file",))
     sys.stdout.write("\n".join(lines))
 
 

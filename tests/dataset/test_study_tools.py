@@ -6,16 +6,27 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from ..conftest import SAMPLES
 
 TOOLS = SAMPLES.parent / "tools"
 
 
-def test_the_mh_shirt_study_config_is_what_its_tool_writes():
-    out = subprocess.run(
-        [sys.executable, str(TOOLS / "mh_shirt_study.py")], check=True, capture_output=True, text=True
-    ).stdout
-    assert out == (SAMPLES / "datasets" / "studies" / "mh_shirts.toml").read_text()
+@pytest.mark.parametrize("tool, config", [("mh_shirt_study.py", "mh_shirts.toml"), ("kind_study.py", "kinds.toml")])
+def test_a_study_config_is_what_its_tool_writes(tool, config):
+    out = subprocess.run([sys.executable, str(TOOLS / tool)], check=True, capture_output=True, text=True).stdout
+    assert out == (SAMPLES / "datasets" / "studies" / config).read_text()
+
+
+def test_the_kind_study_has_every_kind_once_on_the_same_training_captures():
+    from segadeform.dataset.config import load_dataset_config
+
+    cfg = load_dataset_config(SAMPLES / "datasets" / "studies" / "kinds.toml")
+    kinds = [g.kind for g in cfg.garments]
+    assert {"dress", "sleeved-dress", "skirt", "tshirt", "tank", "trousers", "shorts", "jumpsuit"} <= set(kinds)
+    assert all(g.split == "train" for g in cfg.garments) and all(m.split == "train" for m in cfg.motions)
+    assert all(m.file for m in cfg.motions) and cfg.order == "body-major"
 
 
 def test_study_pairs_counts_pairs_and_tests_the_discordant_ones(tmp_path):
