@@ -92,7 +92,7 @@ def dataset_group():
     "--split",
     "splits",
     multiple=True,
-    type=click.Choice(["train", "val", "test"]),
+    type=click.Choice(["train", "val", "test"]),  # segadeform.dataset.config.SPLITS (not imported: a lazy CLI)
     help="Make only the samples of this split (repeatable; default: every split), in the config's order: "
     "'--split test' makes the held-out split a fresh machine needs to repeat an evaluation.",
 )

@@ -228,6 +228,12 @@ def test_split_makes_only_that_split(tiny_dataset, tmp_path, capsys):
     assert not any(p.is_file() for p in held)  # the test splits were left alone
     with pytest.raises(InputError, match="unknown dataset split.*got.*tests"):
         make_dataset(load_dataset_config(TINY), out, splits=("tests",))
+    # the command line spells the choices itself (it imports the library lazily): they are the library's
+    from segadeform.cli.dataset import dataset_make_cmd
+    from segadeform.dataset.config import SPLITS
+
+    (opt,) = [o for o in dataset_make_cmd.params if o.name == "splits"]
+    assert tuple(opt.type.choices) == SPLITS
 
 
 # ---------------------------------------------------------------- ranges, counts, splits, growth

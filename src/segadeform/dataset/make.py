@@ -59,7 +59,7 @@ from ..io.hashing import file_sha256
 from ..io.location import LocalLocation, Location, open_location
 from ..motion import face_forward, load_motion, make_motion, resample
 from ..motion.motion import drop_leading_glitches, drop_leading_jumps, drop_leading_tpose, ramp_in, repair_glitches
-from .config import DatasetConfig, GarmentSpec, MotionEntry
+from .config import SPLITS, DatasetConfig, GarmentSpec, MotionEntry
 from .quality import BodyParts, frame_stats, kept_frames, on_body_at_rest
 from .store import Sample, load_sample, save_sample
 
@@ -110,12 +110,9 @@ def sample_plan(cfg: DatasetConfig) -> list[PlannedSample]:
     return out
 
 
-#: the splits ``dataset make --split`` chooses among (a ``test-*`` split of ``cross_splits`` is ``test``)
-SPLIT_GROUPS = ("train", "val", "test")
-
-
 def split_group(split: str) -> str:
-    """``train``, ``val`` or ``test`` for a planned sample's split."""
+    """The split of :data:`.config.SPLITS` (what ``dataset make --split`` chooses among) that a planned sample's
+    split belongs to: a ``test-*`` split of ``cross_splits`` is ``test``."""
     return "test" if split.startswith("test") else split
 
 
@@ -838,9 +835,9 @@ def make_dataset(
     """
     from .roots import DatasetRoots
 
-    bad = [sp for sp in splits if sp not in SPLIT_GROUPS]
+    bad = [sp for sp in splits if sp not in SPLITS]
     if bad:
-        raise InputError("unknown dataset split", expected=" | ".join(SPLIT_GROUPS), got=bad[0])
+        raise InputError("unknown dataset split", expected=" | ".join(SPLITS), got=bad[0])
 
     extra = DatasetRoots(list(roots), optional=cfg.roots) if (roots or cfg.roots) else None
     loc = open_location(out)
