@@ -9,12 +9,21 @@ garment of each kind as the continuum makes it today (a procedural entry's first
 validation and held-out designs without their split; the decimated MakeHuman shirt) on the default body and the
 same ``N_MOTIONS`` motion-capture entries of the continuum's training families drawn at random (``SEED``), with the
 continuum's simulation settings and gate; ``order = "body-major"``, so any prefix of a run has every kind on the
-same clips.  ``segadeform dataset info DIR --by-garment`` counts it.
+same clips.
+
+    .venv/bin/python tools/kind_study.py --report data/kinds
+
+counts a run of it (``dataset info``'s records, ``segadeform.dataset.report.finished_records``) over the clips every
+garment has finished: kept / made (clips cut to their leading frames that pass counted as kept, as ``dataset info``
+counts them) per garment and per kind of issue #27, and the gate's reasons.
 """
 
 from __future__ import annotations
 
+import argparse
+import collections
 import sys
+from pathlib import Path
 
 from study_config import continuum, head, table, training_captures
 
@@ -34,7 +43,48 @@ N_MOTIONS = 12
 SEED = 11
 
 
+def _entry(garment: str, entries) -> str | None:
+    """The study entry a sample's garment was made from (a procedural entry's draw is ``NAME-0``)."""
+    for name in (garment, garment.rsplit("-", 1)[0]):
+        if name in entries:
+            return name
+    return None
+
+
+def report(dataset: Path) -> None:
+    from segadeform.dataset.report import finished_records
+
+    kind_of = dict(GARMENTS)
+    recs = [(r, _entry(r["garment"], kind_of)) for r in finished_records(dataset)]
+    recs = [(r, e) for r, e in recs if e is not None]
+    clips = collections.defaultdict(set)
+    for r, e in recs:
+        clips[(r["body"], r["motion"])].add(e)
+    full = {c for c, got in clips.items() if len(got) == len(kind_of)}
+    print(f"{len(full)} clips finished by all {len(kind_of)} garments")
+    rows: dict = collections.defaultdict(lambda: [0, 0, collections.Counter()])
+    for r, e in recs:
+        if (r["body"], r["motion"]) not in full:
+            continue
+        for key in (("garment", e), ("kind", kind_of[e])):
+            rows[key][0] += r["status"] == "kept"
+            rows[key][1] += 1
+            rows[key][2].update(x.split()[0].rstrip(":") for x in r.get("reasons", []))
+    for level in ("garment", "kind"):
+        print(f"{level:<22} kept / made     %  rejected for")
+        for (lv, name), (k, n, why) in rows.items():
+            if lv == level:
+                reasons = ", ".join(f"{w} {c}" for w, c in why.most_common())
+                print(f"{name:<22} {k:>4} / {n:<4} {100 * k / n:>5.0f}  {reasons}")
+
+
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--report", type=Path, metavar="DATASET", help="count a run of the study instead of writing it")
+    a = ap.parse_args()
+    if a.report is not None:
+        report(a.report)
+        return
     src = continuum()
     by_name = {g["name"]: g for g in src["garments"] if "name" in g}
     lines = head(

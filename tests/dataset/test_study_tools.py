@@ -56,3 +56,36 @@ def test_study_pairs_counts_pairs_and_tests_the_discordant_ones(tmp_path):
     assert lines["(all)"] == ["8", "2", "7", "0", "5", "0.062"]
     assert "c" not in lines
     assert "rejections (plain): strain # 6" in out and "rejections (changed): strain # 1" in out
+
+
+def test_kind_study_report_counts_only_clips_every_garment_finished(tmp_path):
+    """Two clips made for all ten garments, a third for one only (left out); a procedural entry's draw
+    (``dress-0``) counts as its entry; kinds sum their garments."""
+    sys.path.insert(0, str(TOOLS))
+    try:
+        from kind_study import GARMENTS
+    finally:
+        sys.path.remove(str(TOOLS))
+    procedural = {"dress", "skirt", "tshirt", "jacket", "trousers-fit", "shorts-fit"}
+    rows = []
+    for m in ("m0", "m1"):
+        for name, _ in GARMENTS:
+            g = f"{name}-0" if name in procedural else name
+            kept = not (m == "m1" and name in ("tank", "trousers-fit"))
+            rows.append(
+                {"id": f"{g}__b0__{m}", "garment": g, "body": 0, "motion": m, "status": "kept" if kept else "rejected"}
+                | ({} if kept else {"reasons": ["penetration 2.1% of vertices > 1.00%"]})
+            )
+    rows.append({"id": "tank__b0__m2", "garment": "tank", "body": 0, "motion": "m2", "status": "rejected"})
+    (tmp_path / "log.jsonl").write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+    out = subprocess.run(
+        [sys.executable, str(TOOLS / "kind_study.py"), "--report", str(tmp_path)],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    assert out.startswith("2 clips finished by all 10 garments")
+    lines = {ln[:22].strip(): ln[22:].split() for ln in out.splitlines()[1:] if "kept / made" not in ln}
+    assert lines["dress"][:3] == ["2", "/", "2"]
+    assert lines["tank"][:4] == ["1", "/", "2", "50"] and lines["tank"][4:] == ["penetration", "1"]
+    assert lines["tops"][:3] == ["7", "/", "8"] and lines["trousers"][:3] == ["3", "/", "4"]
