@@ -152,14 +152,18 @@ def dataset_info_cmd(folder, as_json, by_garment):
     if as_json:
         click.echo(json.dumps(st, indent=1))
         return
-    cut = f" ({st['trimmed']} of them their leading frames that pass)" if st["trimmed"] else ""
+    notes = [f"{st['trimmed']} of them their leading frames that pass"] if st["trimmed"] else []
+    notes += [f"{st['fallback']} on a fallback attempt"] if st["fallback"] else []
+    cut = f" ({'; '.join(notes)})" if notes else ""
     click.echo(f"{folder}: {st['kept']} kept{cut}, {st['rejected']} rejected ({100 * st['rejection_rate']:.1f} %)")
     for k, v in st["splits"].items():
         click.echo(f"  split {k}: {v} samples")
     for r, c in st["reasons"].items():
         click.echo(f"  rejected: {c} x {r}")
     for k, v in [*st["by_kind_source"].items(), *(st["by_garment"].items() if by_garment else ())]:
-        cut = f"  ({v['trimmed']} trimmed)" if v["trimmed"] else ""
+        notes = [f"{v['trimmed']} trimmed"] if v["trimmed"] else []
+        notes += [f"{v['fallback']} on a fallback"] if v["fallback"] else []
+        cut = f"  ({', '.join(notes)})" if notes else ""
         click.echo(f"  kept {v['samples'] - v['rejected']:4d} / {v['samples']:4d} made  {k}{cut}")
     for row in st["by_size"]:
         click.echo(f"  {row['garment']:24s} {row['vertices']:6d} v  {row['seconds_per_frame']:.3f} s/frame")

@@ -922,6 +922,137 @@ kind = "walk"
     np.testing.assert_allclose(s.frames, np.repeat(s.rest[None], n, axis=0).astype(np.float32))
 
 
+_FALLBACK_TEXT = """
+[dataset]
+fps = 30.0
+seconds = 0.5
+[quality]
+max_strain = 0.1
+max_penetrating = 1.0
+max_jitter = 1.0
+max_body_distance = 100.0
+max_vertex_distance = 100.0
+max_pinched = 1.0
+max_slipped = 1.0
+[simulate]
+effects = ["gravity", "body_collision"]
+quality = 10
+{fallback}
+[[garments]]
+name = "skirt"
+kind = "skirt"
+resolution = 300
+[[motions]]
+name = "walk"
+kind = "walk"
+[[motions]]
+name = "dance"
+kind = "dance"
+"""
+
+
+def test_a_fallback_is_a_further_attempt_with_only_the_solvers_accuracy_changed(tmp_path):
+    """[[fallback]] tables: read as later attempts on top of [simulate] (and a garment's own pin); anything but the
+    solver's accuracy, an empty table, a repeat or a bad value is refused naming the table; attempt 0's spec (every
+    dataset's digest so far) is the same with and without fallbacks, each later attempt's is its own."""
+    from segadeform.dataset.make import sample_spec, sample_specs
+
+    fb = "[[fallback]]\nquality = 20\ncollision_quality = 4\n[[fallback]]\nimpulse_clamp = 1\n"
+    cfg = load_dataset_config(_write(tmp_path, "f.toml", _FALLBACK_TEXT.format(fallback=fb)))
+    plain = load_dataset_config(_write(tmp_path, "p.toml", _FALLBACK_TEXT.format(fallback="")))
+    g = cfg.garments[0]
+    assert cfg.attempts == 3 and plain.attempts == 1
+    s0, s1, s2 = (cfg.attempt_settings(g, a) for a in range(3))
+    assert (s0.quality, s0.collision_quality) == (10, 2) and s0 == plain.attempt_settings(g)
+    assert (s1.quality, s1.collision_quality, s1.impulse_clamp) == (20, 4, 0.0) and s1.effects == s0.effects
+    assert s2 == s0.replace(impulse_clamp=1.0) and isinstance(s2.impulse_clamp, float)
+    with pytest.raises(InputError, match="expected 0..2, got 3"):
+        cfg.attempt_settings(g, 3)
+    p = sample_plan(cfg)[0]
+    specs = sample_specs(cfg, p)
+    assert specs[0] == sample_spec(plain, p) == sample_spec(cfg, p) and len(set(specs)) == 3
+    for bad, match in (
+        ('[[fallback]]\nmaterial = "silk"\n', "fallback\\[0\\] may not change material"),
+        ("[[fallback]]\nquality = 20\n[[fallback]]\neffects = []\n", "fallback\\[1\\] may not change effects"),
+        ("[[fallback]]\n", "changes nothing"),
+        ("[[fallback]]\nquality = 10\n", "repeats an earlier attempt"),
+        ("[[fallback]]\nquality = 20\n[[fallback]]\nquality = 20\n", "repeats an earlier attempt"),
+        ("[[fallback]]\nquality = 0\n", "fallback\\[0\\]: quality must be an integer"),
+    ):
+        with pytest.raises(FileFormatError, match=match):
+            load_dataset_config(_write(tmp_path, "bad.toml", _FALLBACK_TEXT.format(fallback=bad)))
+    with pytest.raises(FileFormatError, match="must be \\[\\[fallback\\]\\] tables"):
+        load_dataset_config(_write(tmp_path, "bad.toml", "fallback = 3\n" + _FALLBACK_TEXT.format(fallback="")))
+
+
+def test_dataset_make_tries_the_fallbacks_on_a_rejected_sample_and_keeps_the_first_that_passes(
+    tmp_path, monkeypatch, capsys
+):
+    """A simulator that tears the skirt on the dance unless it takes 20 steps: with a fallback of 20 steps the dance
+    is kept on its second attempt (its spec and settings that attempt's) and the walk on its first (no second
+    simulation); a dataset made without the fallback gets it when the config gains it -- only the untried attempt
+    is simulated, the old rejection put aside -- and a config that drops it again is refused."""
+    from segadeform.body.model import load_body
+    from segadeform.dataset import make_dataset
+    from segadeform.dataset.make import _motion, sample_specs
+    from segadeform.physics import blender
+
+    calls = []
+
+    def fake_simulate(vertices, faces, body, motion, *, settings, **kw):
+        calls.append((motion.n_frames, settings.quality))
+        x = np.repeat(np.asarray(vertices, np.float64)[None], motion.n_frames, axis=0)
+        if motion.poses.shape == dance.shape and np.allclose(motion.poses, dance) and settings.quality < 20:
+            x[:, :, 1] *= 1.5  # every vertical edge 50 % longer: past max_strain
+        return blender.SimResult(
+            frames=x,
+            fps=motion.fps,
+            settings={"quality": settings.quality},
+            blender={"blender_version": "fake", "simulate_seconds": 0.0, "seconds_per_frame": 0.0},
+            preroll_frames=0,
+            wall_seconds=0.0,
+        )
+
+    monkeypatch.setattr(blender, "simulate", fake_simulate)
+    body = SAMPLES / "bodies" / "default_body.npz"
+    fb = "[[fallback]]\nquality = 20\n"
+    with_fb = load_dataset_config(_write(tmp_path, "f.toml", _FALLBACK_TEXT.format(fallback=fb)))
+    plain = load_dataset_config(_write(tmp_path, "p.toml", _FALLBACK_TEXT.format(fallback="")))
+    walk, twirl = sample_plan(with_fb)
+    assert "walk" in walk.id and "dance" in twirl.id
+    dance = _motion(plain.motions[1], plain, load_body(body).rest_joints(None)[0], with_lead=True)[0].poses
+
+    def records(root):
+        return {r["id"]: r for r in map(json.loads, (root / "log.jsonl").read_text().splitlines())}
+
+    s = make_dataset(with_fb, tmp_path / "a", body_path=body)
+    assert (s.kept, s.rejected) == (2, 0) and sorted(q for _, q in calls) == [10, 10, 20]
+    rec = records(tmp_path / "a")
+    assert (rec[walk.id]["attempt"], rec[twirl.id]["attempt"]) == (0, 1)
+    assert rec[twirl.id]["spec"] == sample_specs(with_fb, twirl)[1] != sample_specs(with_fb, twirl)[0]
+    meta = json.loads((tmp_path / "a" / "samples" / f"{twirl.id}.json").read_text())
+    assert meta["settings"] == {"quality": 20} and meta["attempt"] == 1 and meta["quality"]["ok"]
+    assert main(["dataset", "info", str(tmp_path / "a")]) == 0
+    out = capsys.readouterr().out
+    assert "2 kept (1 on a fallback attempt)" in out
+    assert "kept    2 /    2 made  skirt / procedural  (1 on a fallback)" in out
+
+    calls.clear()
+    s = make_dataset(plain, tmp_path / "b", body_path=body)
+    assert (s.kept, s.rejected) == (1, 1) and sorted(q for _, q in calls) == [10, 10]
+    old = (tmp_path / "b" / "rejected" / f"{twirl.id}.npz").read_bytes()
+    calls.clear()
+    s = make_dataset(with_fb, tmp_path / "b", body_path=body)
+    assert (s.kept, s.rejected) == (1, 0) and [q for _, q in calls] == [20]  # the twirl's fallback only
+    assert (tmp_path / "b" / "samples" / f"{twirl.id}.json").exists()
+    assert (tmp_path / "b" / "rejected" / "retried" / f"{twirl.id}.1.npz").read_bytes() == old  # put aside
+    calls.clear()
+    s = make_dataset(with_fb, tmp_path / "b", body_path=body)
+    assert calls == [] and s.skipped == 2
+    with pytest.raises(InputError, match="made from other settings"):
+        make_dataset(plain, tmp_path / "b", body_path=body)
+
+
 def test_a_samples_motion_loses_the_frames_a_capture_settles_from_and_its_glitches(tmp_path):
     """A capture whose first frames throw a thigh about and whose markers swap mid-clip is played to the
     simulator without either: every joint of the motion it gets (lead included) moves slower than a person can."""

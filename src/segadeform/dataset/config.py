@@ -35,6 +35,11 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     [simulate]                # as in a scene (segadeform.settings.simulation)
     effects = ["gravity", "body_collision", "bending", "air_damping"]
 
+    [[fallback]]              # optional, any number, tried in order: a sample the gate rejects is simulated
+    quality = 20              # again with these [simulate] keys changed (only the solver's accuracy:
+    collision_quality = 4     # quality, collision_quality, impulse_clamp, max_step_motion), and the first
+                              # attempt that passes is kept (its settings recorded in the sample)
+
     held_out_kinds = []       # garment kinds that only held-out entries may use (never trained on)
     held_out_motions = []     # motion kinds / motion file names likewise
 
@@ -158,9 +163,54 @@ class DatasetConfig:
     val_motions: tuple = ()  # motion families only validation entries use
     roots: tuple = ()  # read-only dataset roots (packs ...) read where they exist
     spread: int = 0  # order "spread": training samples between two held-out ones (0: 2)
+    fallbacks: tuple = ()  # [[fallback]] tables, as sorted (key, value) pairs: see attempt_settings
 
     def digest(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()[:16]
+
+    @property
+    def attempts(self) -> int:
+        """How many simulations a sample may take: the [simulate] settings, then each [[fallback]]."""
+        return 1 + len(self.fallbacks)
+
+    def attempt_settings(self, garment: GarmentSpec, attempt: int = 0) -> SimSettings:
+        """The settings of ``garment``'s samples on attempt ``attempt`` (0: [simulate] with the garment's own pin;
+        k > 0: that with the k-th [[fallback]]'s keys changed)."""
+        if not 0 <= attempt < self.attempts:
+            raise InputError("no such simulation attempt", expected=f"0..{self.attempts - 1}", got=attempt)
+        st = self.simulate.replace(pin=garment.pin) if garment.pin else self.simulate
+        return st.replace(**dict(self.fallbacks[attempt - 1])) if attempt else st
+
+
+#: the [simulate] keys a [[fallback]] may change: how accurately the solver steps and collides, not the cloth, the
+#: body or the scene (a sample kept on a fallback is the same physics, solved more finely)
+FALLBACK_KEYS = ("quality", "collision_quality", "impulse_clamp", "max_step_motion")
+
+
+def _fallbacks(tables, sim: SimSettings, p) -> tuple:
+    """``[[fallback]]`` tables -> sorted (key, value) pairs each, checked against ``sim``."""
+    if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
+        raise FileFormatError("fallback must be [[fallback]] tables", path=p, got=tables)
+    out = []
+    for i, t in enumerate(tables):
+        bad = sorted(set(t) - set(FALLBACK_KEYS))
+        if bad:
+            raise FileFormatError(
+                f"fallback[{i}] may not change {bad[0]}", path=p, expected=" | ".join(FALLBACK_KEYS), got=bad[0]
+            )
+        if not t:
+            raise FileFormatError(f"fallback[{i}] changes nothing", path=p, expected=" | ".join(FALLBACK_KEYS))
+        floats = ("impulse_clamp", "max_step_motion")
+        kw = {k: float(v) if k in floats and type(v) is int else v for k, v in t.items()}
+        try:
+            sim.replace(**kw)
+        except InputError as e:
+            raise FileFormatError(f"fallback[{i}]: {e}", path=p) from None
+        pairs = tuple(sorted(kw.items()))
+        if pairs in out or all(getattr(sim, k) == v for k, v in pairs):
+            raise FileFormatError(f"fallback[{i}] repeats an earlier attempt", path=p, got=dict(pairs))
+        out.append(pairs)
+    return tuple(out)
 
 
 #: the splits an entry may name: trained on, held out for choosing the model, held out for the report
@@ -256,7 +306,7 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
     physics pairs on a machine without ``../shared``, whose garments were made elsewhere into its cache)."""
     p = Path(path)
     data, text = read_toml(p, "dataset config")
-    known = {"dataset", "quality", "simulate", "garments", "bodies", "motions"}
+    known = {"dataset", "quality", "simulate", "fallback", "garments", "bodies", "motions"}
     bad = sorted(set(data) - known)
     if bad:
         raise FileFormatError(f"unknown table [{bad[0]}]", path=p, expected=", ".join(sorted(known)))
@@ -491,12 +541,14 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
     if not garments or not motions:
         raise FileFormatError("a dataset needs at least one [[garments]] and one [[motions]]", path=p)
     sim = parse_simulate_table(data.get("simulate"), where=p)
+    fallbacks = _fallbacks(data.get("fallback", []), sim, p)
     fps, seconds = float(ds.get("fps", 30.0)), float(ds.get("seconds", 3.0))
     return DatasetConfig(
         garments=tuple(garments),
         bodies=tuple(bodies),
         motions=tuple(motions),
         simulate=sim,
+        fallbacks=fallbacks,
         body_splits=tuple(body_splits),
         held_out_kinds=held_kinds,
         held_out_motions=held_motions,

@@ -29,7 +29,8 @@ every worker, and a worker without the simulator environment makes one on first 
 A dataset grows over many runs: run again with more entries or a larger
 ``count`` and only the new samples are made.  Each sample records a digest of
 everything that defines it (garment, body shape, motion, clip, simulation
-settings); a run whose config gives a finished sample id another meaning
+settings of the attempt that made it: the ``[simulate]`` table or one of the ``[[fallback]]``
+tables tried in turn on a sample the gate rejects); a run whose config gives a finished sample id another meaning
 (an entry's parameters changed under the same name, bodies reordered) stops
 before simulating anything and names the ids -- rename the entry instead.
 """
@@ -69,6 +70,7 @@ __all__ = [
     "make_dataset",
     "DatasetSummary",
     "sample_spec",
+    "sample_specs",
     "check_splits",
     "make_order",
     "regate",
@@ -239,16 +241,17 @@ def _garment_key(g: GarmentSpec) -> dict:
     return key
 
 
-def sample_spec(cfg: DatasetConfig, p: PlannedSample) -> str:
+def sample_spec(cfg: DatasetConfig, p: PlannedSample, attempt: int = 0) -> str:
     """A digest of everything that defines sample ``p``'s data: garment, body shape, motion and clip,
-    frame rate and length, simulation settings (not the quality gate, which only keeps or rejects)."""
+    frame rate and length, the simulation settings of its attempt ``attempt`` (:meth:`DatasetConfig.attempt_settings`;
+    not the quality gate, which only keeps or rejects).  Attempt 0's digest does not depend on the fallbacks."""
     g, m = cfg.garments[p.garment], cfg.motions[p.motion]
     mo = dataclasses.asdict(m)
     mo.pop("split")
     mo.pop("family")  # a label for splitting, not data
     if m.file is not None:
         mo["file"] = file_identity(m.file)  # what the file holds, not where this machine keeps it
-    st = cfg.simulate.replace(pin=g.pin) if g.pin else cfg.simulate
+    st = cfg.attempt_settings(g, attempt)
     return _digest(
         {
             "garment": _garment_key(g),
@@ -259,6 +262,11 @@ def sample_spec(cfg: DatasetConfig, p: PlannedSample) -> str:
             "simulate": st.to_dict(),
         }
     )
+
+
+def sample_specs(cfg: DatasetConfig, p: PlannedSample) -> list[str]:
+    """:func:`sample_spec` of each attempt of sample ``p``, in order."""
+    return [sample_spec(cfg, p, a) for a in range(cfg.attempts)]
 
 
 LEAD_SECONDS = 1.0  # of a motion file, simulated before a clip and dropped: the cloth enters it in motion
@@ -423,6 +431,7 @@ _REC_KEYS = (
     "blender",
     "sim_seconds",
     "preroll_frames",
+    "attempt",
     "seconds",
 )
 
@@ -451,12 +460,21 @@ def trim_sample(s: Sample, frames: int) -> Sample:
 
 
 def _run_one(
-    root, cfg: DatasetConfig, ps: PlannedSample, body_path: str | None, sim_python, provision: bool = False
+    root,
+    cfg: DatasetConfig,
+    ps: PlannedSample,
+    body_path: str | None,
+    sim_python,
+    provision: bool = False,
+    first_attempt: int = 0,
 ) -> dict:
     """Simulate, gate and commit one sample (in a worker); returns its log record.  Idempotent: a
-    sample committed already is not made again (its record comes back with ``resumed``)."""
+    sample committed already is not made again (its record comes back with ``resumed``).
+
+    Attempts ``first_attempt`` .. ``cfg.attempts - 1`` are simulated in turn (:meth:`DatasetConfig.attempt_settings`)
+    until one passes the gate; the kept one, or the last one rejected, is committed with its attempt and spec."""
     from ..body.identity import body_sha256
-    from ..physics.blender import A_POSE, SIM_BRIDGE_VERSION, simulate
+    from ..physics.blender import SIM_BRIDGE_VERSION
 
     t0 = time.perf_counter()
     loc = open_location(root)
@@ -479,7 +497,7 @@ def _run_one(
         cloth = read_mesh(loc.local_copy(crel, Path(d))).vertices if loc.exists(crel) else None
     full_motion, lead = _motion(m, cfg, body.rest_joints(betas or None)[0], with_lead=True)
     motion = _without_lead(full_motion, lead)
-    rec = {
+    base = {
         "id": ps.id,
         "split": ps.split,
         "garment": g.name,
@@ -488,11 +506,44 @@ def _run_one(
         "body": ps.body,
         "motion": m.name,
         "vertices": len(mesh.vertices),
-        "frames": motion.n_frames,
-        "spec": sample_spec(cfg, ps),
     }
+    for attempt in range(first_attempt, cfg.attempts):
+        rec = dict(base, frames=motion.n_frames, spec=sample_spec(cfg, ps, attempt), attempt=attempt)
+        sample = _attempt(rec, cfg, ps, body, mesh, cloth, full_motion, motion, lead, attempt, sim_python)
+        if sample is None:  # the simulator failed: nothing is committed, a later run tries again
+            rec["seconds"] = time.perf_counter() - t0
+            return rec
+        if rec["status"] == "kept":
+            break
+    sample.meta.update(sim_bridge=SIM_BRIDGE_VERSION, body_sha256=body_sha256(body))
+    committed = save_sample(loc, sample, folder="samples" if rec["status"] == "kept" else "rejected")
+    if not committed:  # another attempt of this task committed it first: its record is the one
+        return _committed(loc, ps.id)
+    rec["seconds"] = time.perf_counter() - t0
+    return rec
+
+
+def _attempt(
+    rec: dict,
+    cfg: DatasetConfig,
+    ps: PlannedSample,
+    body,
+    mesh,
+    cloth,
+    full_motion,
+    motion,
+    lead: int,
+    attempt: int,
+    sim_python,
+) -> Sample | None:
+    """Simulate and gate sample ``ps`` with the settings of ``attempt``: fills ``rec`` (status, reasons, quality
+    ...) and returns the sample to commit, or None when the simulator failed (``rec``'s reasons say how)."""
+    from ..physics.blender import A_POSE, simulate
+
+    g = cfg.garments[ps.garment]
+    betas = cfg.bodies[ps.body]
     try:
-        st = cfg.simulate.replace(pin=g.pin) if g.pin else cfg.simulate
+        st = cfg.attempt_settings(g, attempt)
         kw = {} if cloth is None else {"cloth_rest": cloth, "start_pose": A_POSE}
         res = simulate(
             mesh.vertices, mesh.faces, body, full_motion, betas=betas or None, settings=st, sim_python=sim_python, **kw
@@ -500,14 +551,14 @@ def _run_one(
         if lead:
             res = dataclasses.replace(res, frames=res.frames[lead:], preroll_frames=res.preroll_frames + lead)
     except SegadeformError as e:
-        rec.update(status="rejected", reasons=[f"simulation failed: {e}"], seconds=time.perf_counter() - t0)
-        return rec
+        rec.update(status="rejected", reasons=[f"simulation failed: {e}"])
+        return None
     posed = body.forward(motion.poses, betas or None, motion.trans).vertices
-    contact = {}
+    contact: dict = {}
     # strain against the cloth's own rest (the A-posed garment when the simulation rests there)
     strain_rest = res.cloth_rest if res.cloth_rest is not None else mesh.vertices
     parts = BodyParts.of(body, betas or None)
-    st = frame_stats(
+    fs = frame_stats(
         res.frames,
         strain_rest,
         mesh.faces,
@@ -518,12 +569,12 @@ def _run_one(
         parts=parts,
         on_body=on_body_at_rest(mesh.vertices, parts.rest, body.faces),
     )
-    q = st.report(cfg.quality)
+    q = fs.report(cfg.quality)
     keep = kept_frames(q, cfg.quality)
     trimmed = None
     if 0 < keep < q.frames:  # a clip that fails later on keeps the leading frames that pass
         trimmed = _trim_record(q)
-        q = st.report(cfg.quality, keep)
+        q = fs.report(cfg.quality, keep)
         rec["frames"] = keep
     rec.update(
         quality=q.to_dict(),
@@ -544,8 +595,6 @@ def _run_one(
         garment_params=_garment_params(g),
         config_digest=cfg.digest(),
         blender_info=res.blender,
-        sim_bridge=SIM_BRIDGE_VERSION,
-        body_sha256=body_sha256(body),
     )
     finite = np.isfinite(res.frames).all()
     sample = Sample(
@@ -563,13 +612,7 @@ def _run_one(
         if res.cloth_rest is None or strain_rest is mesh.vertices
         else np.asarray(res.cloth_rest, np.float64),
     )
-    if trimmed is not None:
-        sample = trim_sample(sample, keep)
-    committed = save_sample(loc, sample, folder="samples" if q.ok else "rejected")
-    if not committed:  # another attempt of this task committed it first: its record is the one
-        return _committed(loc, ps.id)
-    rec["seconds"] = time.perf_counter() - t0
-    return rec
+    return trim_sample(sample, keep) if trimmed is not None else sample
 
 
 @dataclasses.dataclass(frozen=True)
@@ -582,10 +625,11 @@ class _SampleTask:
     body_path: str | None  # None: the shipped body of the worker's own installation
     sim_python: str | None
     provision: bool
+    first_attempt: int = 0  # > 0: a rejected sample given the config's later fallbacks
 
 
 def _run_task(t: _SampleTask) -> dict:
-    return _run_one(t.out, t.cfg, t.sample, t.body_path, t.sim_python, t.provision)
+    return _run_one(t.out, t.cfg, t.sample, t.body_path, t.sim_python, t.provision, t.first_attempt)
 
 
 def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample], roots=None) -> None:
@@ -598,11 +642,11 @@ def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample], roots=None) 
         for d in ("samples", "rejected"):
             if f"{p.id}.json" in names[d]:
                 old = json.loads(loc.read_text(f"{d}/{p.id}.json")).get("spec")
-                if old is not None and old != sample_spec(cfg, p):
+                if old is not None and old not in sample_specs(cfg, p):
                     bad.append(p.id)
             elif roots is not None and roots.has(p.id):
                 old = roots.spec(p.id)
-                if old is not None and old != sample_spec(cfg, p):
+                if old is not None and old not in sample_specs(cfg, p):
                     bad.append(p.id)
     if bad:
         raise InputError(
@@ -787,6 +831,23 @@ def _stale_rejected(loc: Location, cfg: DatasetConfig, order: list[PlannedSample
     return out
 
 
+def _untried_fallbacks(loc: Location, cfg: DatasetConfig, order: list[PlannedSample]) -> dict:
+    """{sample id: its next attempt} for the rejected samples of ``loc`` (in make order) whose recorded attempt was
+    not the config's last: made before a [[fallback]] was added, they are given the fallbacks they have not had."""
+    if cfg.attempts == 1:
+        return {}
+    names = set(loc.listdir("rejected"))
+    out = {}
+    for p in order:
+        if f"{p.id}.json" not in names or f"{p.id}.npz" not in names:
+            continue
+        specs = sample_specs(cfg, p)
+        old = json.loads(loc.read_text(f"rejected/{p.id}.json")).get("spec")
+        if old in specs[:-1]:
+            out[p.id] = specs.index(old) + 1
+    return out
+
+
 def _retire_rejected(root: Path, sid: str) -> None:
     """Move rejected sample ``sid``'s files to ``rejected/retried/`` (numbered, never over an earlier one): its
     ``.json`` first, so that an interrupted move leaves a sample that is simply not done."""
@@ -832,6 +893,9 @@ def make_dataset(
     ``splits``: make only the samples of these splits (``"train"``, ``"val"``, ``"test"``; the ``test-*`` splits
     of ``cross_splits`` count as ``"test"``), in the config's order -- the held-out split of a fresh machine first,
     so that an evaluation can be repeated without the training data; empty: every split.
+    A config's ``[[fallback]]`` tables are further attempts: a sample the gate rejects is simulated again with
+    each in turn, and the first that passes is kept.  A rejected sample of ``out`` made before a fallback was
+    added is given the ones it has not had, before new samples (its old files move to ``rejected/retried/``).
     """
     from .roots import DatasetRoots
 
@@ -871,6 +935,11 @@ def make_dataset(
             and f"{p.id}.npz" in names
             and any(fnmatch.fnmatchcase(p.id, g) for g in retry)
         ]
+    first = {}  # the rejected samples given the fallbacks they have not had (on a folder here; read-only roots and
+    if isinstance(loc, LocalLocation):  # object stores keep what they hold)
+        chosen = {p.id for p in again}
+        first = {k: v for k, v in _untried_fallbacks(loc, cfg, order).items() if k not in chosen}
+        again += [p for p in order if p.id in first]
     todo = again + todo
     if limit is not None:
         todo = todo[:limit]
@@ -889,6 +958,7 @@ def make_dataset(
             None if body_path is None else str(body_path),
             None if sim_python is None else str(sim_python),
             ex.remote,
+            first.get(p.id, 0),
         )
         for p in todo
     ]

@@ -1,5 +1,6 @@
 """Statistics of a dataset folder from its log (what `segadeform dataset info` prints): kept and
-rejected samples (and the kept ones cut to the frames that pass: ``[quality] min_frames``), rejection rates per
+rejected samples (and the kept ones cut to the frames that pass: ``[quality] min_frames``; those kept on a
+``[[fallback]]`` attempt), rejection rates per
 garment kind, garment and motion, reasons, seconds per frame by
 size, and kept samples per hour of the runs that made it."""
 
@@ -45,14 +46,15 @@ def dataset_stats(folder) -> dict:
             by[(r["garment"], r["vertices"])].append(r["seconds_per_frame"])
 
     def rates(key):
-        groups = collections.defaultdict(lambda: [0, 0, 0])
+        groups = collections.defaultdict(lambda: [0, 0, 0, 0])
         for r in recs:
             groups[r.get(key)][0] += 1
             groups[r.get(key)][1] += r["status"] != "kept"
             groups[r.get(key)][2] += r["status"] == "kept" and "trimmed" in r
+            groups[r.get(key)][3] += r["status"] == "kept" and r.get("attempt", 0) > 0
         return {
-            str(k): {"samples": n, "rejected": b, "rejection_rate": b / n, "trimmed": c}
-            for k, (n, b, c) in sorted(groups.items())
+            str(k): {"samples": n, "rejected": b, "rejection_rate": b / n, "trimmed": c, "fallback": f}
+            for k, (n, b, c, f) in sorted(groups.items())
         }
 
     for r in recs:  # what drove the body: motion capture (CMU clips, named cmu-...) or procedural motion
@@ -61,6 +63,7 @@ def dataset_stats(folder) -> dict:
     return {
         "kept": len(kept),
         "trimmed": sum("trimmed" in r for r in kept),  # kept as the leading frames of a clip that failed later
+        "fallback": sum(r.get("attempt", 0) > 0 for r in kept),  # kept on a [[fallback]] attempt
         "rejected": len(rej),
         "rejection_rate": len(rej) / max(len(recs), 1),
         "by_kind": rates("kind"),
