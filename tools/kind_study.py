@@ -11,6 +11,12 @@ same ``N_MOTIONS`` motion-capture entries of the continuum's training families d
 continuum's simulation settings and gate; ``order = "body-major"``, so any prefix of a run has every kind on the
 same clips.
 
+    .venv/bin/python tools/kind_study.py --fallback quality=20,collision_quality=4 \
+        > samples/datasets/studies/kinds_fallback.toml
+
+writes the same study with ``[[fallback]]`` attempts (each ``--fallback`` one table, in order): run on a copy of a
+finished ``data/kinds``, ``dataset make`` simulates only the rejected samples again, with the fallbacks.
+
     .venv/bin/python tools/kind_study.py --report data/kinds
 
 counts a run of it (``dataset info``'s records, ``segadeform.dataset.report.finished_records``) over the clips every
@@ -22,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import json
 import sys
 from pathlib import Path
 
@@ -81,21 +88,37 @@ def report(dataset: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--report", type=Path, metavar="DATASET", help="count a run of the study instead of writing it")
+    ap.add_argument(
+        "--fallback",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE,..",
+        help="a [[fallback]] table of the [simulate] keys it changes (repeatable: attempts in order)",
+    )
     a = ap.parse_args()
     if a.report is not None:
         report(a.report)
         return
     src = continuum()
     by_name = {g["name"]: g for g in src["garments"] if "name" in g}
-    lines = head(
-        src,
-        [
+    fallbacks = [{k: json.loads(v) for k, v in (kv.split("=", 1) for kv in f.split(","))} for f in a.fallback]
+    if fallbacks:
+        what = [
+            "Issue #27: the kind study (kinds.toml) with fallback attempts on the samples the gate rejects (written by",
+            f"tools/kind_study.py {' '.join('--fallback ' + f for f in a.fallback)}; see its docstring).",
+            "  cp -a data/kinds data/kinds-fallback",
+            "  segadeform dataset make samples/datasets/studies/kinds_fallback.toml -o data/kinds-fallback -j 2",
+        ]
+    else:
+        what = [
             "Issue #27: one garment of every kind as the continuum makes it, on the same motion-capture clips of its",
             "training families (written by tools/kind_study.py; see its docstring).",
             "  segadeform dataset make samples/datasets/studies/kinds.toml -o data/kinds -j 2",
             "  segadeform dataset info data/kinds --by-garment",
-        ],
-    )
+        ]
+    lines = head(src, what)
+    for f in fallbacks:
+        lines += table("[fallback]", f)
     for name, _ in GARMENTS:
         g = dict(by_name[name])
         g.pop("split", None)

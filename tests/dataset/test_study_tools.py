@@ -13,10 +13,32 @@ from ..conftest import SAMPLES
 TOOLS = SAMPLES.parent / "tools"
 
 
-@pytest.mark.parametrize("tool, config", [("mh_shirt_study.py", "mh_shirts.toml"), ("kind_study.py", "kinds.toml")])
-def test_a_study_config_is_what_its_tool_writes(tool, config):
-    out = subprocess.run([sys.executable, str(TOOLS / tool)], check=True, capture_output=True, text=True).stdout
+@pytest.mark.parametrize(
+    "tool, args, config",
+    [
+        ("mh_shirt_study.py", [], "mh_shirts.toml"),
+        ("kind_study.py", [], "kinds.toml"),
+        ("kind_study.py", ["--fallback", "quality=20,collision_quality=4"], "kinds_fallback.toml"),
+    ],
+)
+def test_a_study_config_is_what_its_tool_writes(tool, args, config):
+    cmd = [sys.executable, str(TOOLS / tool), *args]
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
     assert out == (SAMPLES / "datasets" / "studies" / config).read_text()
+
+
+def test_the_fallback_study_is_the_kind_study_with_its_fallbacks():
+    """Same samples, same attempt-0 specs (a copy of data/kinds is continued, only its rejections simulated again)."""
+    from segadeform.dataset import sample_plan
+    from segadeform.dataset.config import load_dataset_config
+    from segadeform.dataset.make import sample_spec
+
+    base = load_dataset_config(SAMPLES / "datasets" / "studies" / "kinds.toml")
+    fb = load_dataset_config(SAMPLES / "datasets" / "studies" / "kinds_fallback.toml")
+    assert fb.fallbacks == ((("collision_quality", 4), ("quality", 20)),) and fb.simulate == base.simulate
+    plan = sample_plan(fb)
+    assert [p.id for p in plan] == [p.id for p in sample_plan(base)]
+    assert all(sample_spec(fb, p) == sample_spec(base, p) for p in plan)
 
 
 def test_the_kind_study_has_every_kind_once_on_the_same_training_captures():
