@@ -104,7 +104,13 @@ def test_regate_keeps_the_leading_frames_that_pass_when_the_config_allows_a_cut_
     assert kept.meta["quality"]["ok"] and kept.meta["frames"] == 4 and not (root / "rejected" / "late.npz").exists()
     st = dataset_stats(root)
     assert (st["kept"], st["trimmed"], st["rejected"]) == (1, 1, 0)
-    assert st["by_kind_source"]["skirt / mocap"] == {"samples": 1, "rejected": 0, "rejection_rate": 0.0, "trimmed": 1}
+    assert st["by_kind_source"]["skirt / mocap"] == {
+        "samples": 1,
+        "rejected": 0,
+        "rejection_rate": 0.0,
+        "trimmed": 1,
+        "fallback": 0,
+    }
     # the same gate again changes nothing: the 4 frames pass whole
     assert regate(root, load_dataset_config(ok)).moved == [] and load_sample(root, "late").frames.shape[0] == 4
 
