@@ -106,8 +106,10 @@ def main() -> None:
         what = [
             "Issue #27: the kind study (kinds.toml) with fallback attempts on the samples the gate rejects (written by",
             f"tools/kind_study.py {' '.join('--fallback ' + f for f in a.fallback)}; see its docstring).",
+            "Run on a copy of a finished run of kinds.toml (or of an earlier fallback study), which only its rejected",
+            "samples are simulated again in:",
             "  cp -a data/kinds data/kinds-fallback",
-            "  segadeform dataset make samples/datasets/studies/kinds_fallback.toml -o data/kinds-fallback -j 2",
+            "  segadeform dataset make samples/datasets/studies/THIS_FILE.toml -o data/kinds-fallback -j 2",
         ]
     else:
         what = [

@@ -19,6 +19,11 @@ TOOLS = SAMPLES.parent / "tools"
         ("mh_shirt_study.py", [], "mh_shirts.toml"),
         ("kind_study.py", [], "kinds.toml"),
         ("kind_study.py", ["--fallback", "quality=20,collision_quality=4"], "kinds_fallback.toml"),
+        (
+            "kind_study.py",
+            ["--fallback", "quality=20,collision_quality=4", "--fallback", "quality=40,collision_quality=4"],
+            "kinds_fallback2.toml",
+        ),
     ],
 )
 def test_a_study_config_is_what_its_tool_writes(tool, args, config):
