@@ -864,6 +864,17 @@ def test_the_gate_on_every_prefix_equals_judging_the_cut_clip_and_finds_the_long
         st.report(spec, 11)
 
 
+_LENIENT_GATE = """[quality]
+max_strain = 0.1
+max_penetrating = 1.0
+max_jitter = 1.0
+max_body_distance = 100.0
+max_vertex_distance = 100.0
+max_pinched = 1.0
+max_slipped = 1.0
+"""  # a gate that only strain can fail
+
+
 def test_dataset_make_keeps_the_frames_before_a_clip_fails_when_min_frames_allows(tmp_path, monkeypatch):
     """`dataset make` with [quality] min_frames: a clip whose last 10 frames tear is stored as its first frames
     (arrays cut alike, the whole clip's verdict in `trimmed`); without min_frames the same clip is rejected whole.
@@ -884,25 +895,21 @@ def test_dataset_make_keeps_the_frames_before_a_clip_fails_when_min_frames_allow
         )
 
     monkeypatch.setattr(blender, "simulate", fake_simulate)
-    text = """
+    text = (
+        """
 [dataset]
 fps = 30.0
 seconds = 1.0
-[quality]
-max_strain = 0.1
-max_penetrating = 1.0
-max_jitter = 1.0
-max_body_distance = 100.0
-max_vertex_distance = 100.0
-max_pinched = 1.0
-max_slipped = 1.0
-{extra}
+"""
+        + _LENIENT_GATE
+        + """{extra}
 [[garments]]
 kind = "skirt"
 resolution = 300
 [[motions]]
 kind = "walk"
 """
+    )
     body = SAMPLES / "bodies" / "default_body.npz"
     made = {}
     for name, extra in (("whole", ""), ("cut", "min_frames = 12")):
@@ -922,19 +929,14 @@ kind = "walk"
     np.testing.assert_allclose(s.frames, np.repeat(s.rest[None], n, axis=0).astype(np.float32))
 
 
-_FALLBACK_TEXT = """
+_FALLBACK_TEXT = (
+    """
 [dataset]
 fps = 30.0
 seconds = 0.5
-[quality]
-max_strain = 0.1
-max_penetrating = 1.0
-max_jitter = 1.0
-max_body_distance = 100.0
-max_vertex_distance = 100.0
-max_pinched = 1.0
-max_slipped = 1.0
-[simulate]
+"""
+    + _LENIENT_GATE
+    + """[simulate]
 effects = ["gravity", "body_collision"]
 quality = 10
 {fallback}
@@ -949,6 +951,7 @@ kind = "walk"
 name = "dance"
 kind = "dance"
 """
+)
 
 
 def test_a_fallback_is_a_further_attempt_with_only_the_solvers_accuracy_changed(tmp_path):
@@ -1018,8 +1021,8 @@ def test_dataset_make_tries_the_fallbacks_on_a_rejected_sample_and_keeps_the_fir
     fb = "[[fallback]]\nquality = 20\n"
     with_fb = load_dataset_config(_write(tmp_path, "f.toml", _FALLBACK_TEXT.format(fallback=fb)))
     plain = load_dataset_config(_write(tmp_path, "p.toml", _FALLBACK_TEXT.format(fallback="")))
-    walk, twirl = sample_plan(with_fb)
-    assert "walk" in walk.id and "dance" in twirl.id
+    walk, dance_s = sample_plan(with_fb)
+    assert "walk" in walk.id and "dance" in dance_s.id
     dance = _motion(plain.motions[1], plain, load_body(body).rest_joints(None)[0], with_lead=True)[0].poses
 
     def records(root):
@@ -1028,9 +1031,9 @@ def test_dataset_make_tries_the_fallbacks_on_a_rejected_sample_and_keeps_the_fir
     s = make_dataset(with_fb, tmp_path / "a", body_path=body)
     assert (s.kept, s.rejected) == (2, 0) and sorted(q for _, q in calls) == [10, 10, 20]
     rec = records(tmp_path / "a")
-    assert (rec[walk.id]["attempt"], rec[twirl.id]["attempt"]) == (0, 1)
-    assert rec[twirl.id]["spec"] == sample_specs(with_fb, twirl)[1] != sample_specs(with_fb, twirl)[0]
-    meta = json.loads((tmp_path / "a" / "samples" / f"{twirl.id}.json").read_text())
+    assert (rec[walk.id]["attempt"], rec[dance_s.id]["attempt"]) == (0, 1)
+    assert rec[dance_s.id]["spec"] == sample_specs(with_fb, dance_s)[1] != sample_specs(with_fb, dance_s)[0]
+    meta = json.loads((tmp_path / "a" / "samples" / f"{dance_s.id}.json").read_text())
     assert meta["settings"] == {"quality": 20} and meta["attempt"] == 1 and meta["quality"]["ok"]
     assert main(["dataset", "info", str(tmp_path / "a")]) == 0
     out = capsys.readouterr().out
@@ -1040,12 +1043,15 @@ def test_dataset_make_tries_the_fallbacks_on_a_rejected_sample_and_keeps_the_fir
     calls.clear()
     s = make_dataset(plain, tmp_path / "b", body_path=body)
     assert (s.kept, s.rejected) == (1, 1) and sorted(q for _, q in calls) == [10, 10]
-    old = (tmp_path / "b" / "rejected" / f"{twirl.id}.npz").read_bytes()
+    old = (tmp_path / "b" / "rejected" / f"{dance_s.id}.npz").read_bytes()
+    mine = tmp_path / "b" / "rejected" / "notes.txt"  # a user's file beside the samples
+    mine.write_bytes(b"mine")
     calls.clear()
     s = make_dataset(with_fb, tmp_path / "b", body_path=body)
-    assert (s.kept, s.rejected) == (1, 0) and [q for _, q in calls] == [20]  # the twirl's fallback only
-    assert (tmp_path / "b" / "samples" / f"{twirl.id}.json").exists()
-    assert (tmp_path / "b" / "rejected" / "retried" / f"{twirl.id}.1.npz").read_bytes() == old  # put aside
+    assert (s.kept, s.rejected) == (1, 0) and [q for _, q in calls] == [20]  # the dance's fallback only
+    assert mine.read_bytes() == b"mine"
+    assert (tmp_path / "b" / "samples" / f"{dance_s.id}.json").exists()
+    assert (tmp_path / "b" / "rejected" / "retried" / f"{dance_s.id}.1.npz").read_bytes() == old  # put aside
     calls.clear()
     s = make_dataset(with_fb, tmp_path / "b", body_path=body)
     assert calls == [] and s.skipped == 2
