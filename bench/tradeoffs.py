@@ -151,7 +151,9 @@ def main(argv=None, *, _simulate: Callable | None = None) -> int:
             sim_sid = a.sim
         else:
             sizes = {i: load_sample(a.dataset, i) for i in ids}
-            sim_sid = min(ids, key=lambda i: (sizes[i].frames.shape[0] * sizes[i].frames.shape[1], i))
+            # the smallest sample kept on its first simulation attempt (the config's own settings)
+            first = [i for i in ids if not sizes[i].meta.get("attempt", 0)] or ids
+            sim_sid = min(first, key=lambda i: (sizes[i].frames.shape[0] * sizes[i].frames.shape[1], i))
     with tempfile.TemporaryDirectory() as tmp:
         q8 = None if a.no_int8 else str(convert_package(pkg, Path(tmp) / "int8", "int8"))
         h16 = None if a.no_fp16 else str(convert_package(pkg, Path(tmp) / "fp16", "fp16-weights"))
@@ -191,8 +193,11 @@ def main(argv=None, *, _simulate: Callable | None = None) -> int:
             sim = simulator_axis(
                 run, sim_sid, s.frames.astype(np.float64), ints(a.sim_qualities), a.sim_reference, learned
             )
-            sim["dataset_quality"] = getattr(
-                run, "quality", s.meta.get("settings", {}).get("segadeform", {}).get("quality", "")
+            quality_of = getattr(run, "quality_of", None)  # the attempt the sample was kept on
+            sim["dataset_quality"] = (
+                quality_of(sim_sid)
+                if quality_of
+                else getattr(run, "quality", s.meta.get("settings", {}).get("segadeform", {}).get("quality", ""))
             )
         except Exception as e:  # the simulator is optional: a machine without it still gets the rest
             sim_error = f"{type(e).__name__}: {e}"

@@ -1,7 +1,7 @@
 """What ``bench/tradeoffs.py`` measures: the rows (every knob's settings, :func:`plan_rows`), the presets they
 match (:func:`match_presets`), each row's errors and times on a dataset's split (:func:`measure`) and the
-simulator's quality axis (:func:`simulator_axis`, :func:`blender_resimulate`).  Nothing here writes a file;
-:mod:`bench.tradeoffs_render` turns the results into the docs, ``bench/tradeoffs.py`` is the command.
+simulator's quality axis (:func:`simulator_axis`, :func:`blender_resimulate`, :func:`resimulate`).  Nothing here
+writes a file; :mod:`bench.tradeoffs_render` turns the results into the docs, ``bench/tradeoffs.py`` is the command.
 
 Importable (``from bench import tradeoffs_measure`` from the repository root).
 """
@@ -26,6 +26,7 @@ __all__ = [
     "match_presets",
     "plan_rows",
     "measure",
+    "resimulate",
     "blender_resimulate",
     "simulator_axis",
 ]
@@ -436,35 +437,70 @@ def measure(
     return {"rows": out, "samples": ids, "per_sample": per_sample, "kept": kept, "metrics": list(METRICS)}
 
 
-def blender_resimulate(config: Path, dataset: Path, body, sim_python=None):
-    """A function ``(sample_id, quality) -> (frames (T, N, 3), Blender seconds per simulated frame)`` that
-    makes a dataset sample again as ``segadeform dataset make`` did (its garment files, the motion with
-    its simulated lead, the config's settings) at another cloth quality."""
-    from segadeform.dataset.config import load_dataset_config
-    from segadeform.dataset.make import _motion, sample_plan
+def resimulate(
+    cfg, dataset: Path, body, sid: str, *, attempt: int = 0, quality=None, offset=None, lead=None, sim_python=None
+):
+    """Sample ``sid`` of ``dataset`` made again by Blender as ``segadeform dataset make`` made it from ``cfg``
+    (its garment files, the motion with its simulated lead, the settings of simulation ``attempt``: 0, or the
+    [[fallback]] the sample was kept on), changed where asked: ``quality`` replaces the solver's steps per frame,
+    ``offset`` (N, 3, metres) moves the garment's rest vertices (and its A-posed cloth's), ``lead`` keeps only the
+    last ``lead`` frames of the simulated lead (the capture before the clip, which no model input shows).
+
+    Shapes: -> frames (T, N, 3) of the clip (float64), Blender's seconds per simulated frame."""
+    from segadeform.dataset.make import _cloth_rel, _garment_rel, _motion, sample_plan
     from segadeform.io import read_mesh
     from segadeform.physics.blender import A_POSE, simulate
 
+    ps = next((p for p in sample_plan(cfg) if p.id == sid), None)
+    if ps is None:
+        raise SystemExit(f"{sid} is not a sample of the dataset config")
+    g, m, betas = cfg.garments[ps.garment], cfg.motions[ps.motion], cfg.bodies[ps.body]
+    st = cfg.attempt_settings(g, int(attempt))
+    if quality is not None:
+        st = st.replace(quality=int(quality))
+    rel = _garment_rel(cfg, ps.garment, ps.body)
+    mesh = read_mesh(Path(dataset) / rel)
+    cpath = Path(dataset) / _cloth_rel(rel)
+    verts = mesh.vertices.astype(np.float64)
+    cloth = read_mesh(cpath).vertices.astype(np.float64) if cpath.is_file() else None
+    if offset is not None:
+        verts = verts + offset
+        cloth = None if cloth is None else cloth + offset
+    kw = {} if cloth is None else {"cloth_rest": cloth, "start_pose": A_POSE}
+    motion, n_lead = _motion(m, cfg, body.rest_joints(betas or None)[0], with_lead=True)
+    if lead is not None:
+        cut = max(0, n_lead - int(lead))
+        motion = dataclasses.replace(motion, poses=motion.poses[cut:], trans=motion.trans[cut:])
+        n_lead -= cut
+    res = simulate(verts, mesh.faces, body, motion, betas=betas or None, settings=st, sim_python=sim_python, **kw)
+    return res.frames[n_lead:].astype(np.float64), res.seconds_per_frame
+
+
+def blender_resimulate(config: Path, dataset: Path, body, sim_python=None):
+    """A function ``(sample_id, quality) -> (frames (T, N, 3), Blender seconds per simulated frame)`` that
+    makes a dataset sample again as ``segadeform dataset make`` did (:func:`resimulate`: the settings of the
+    attempt the sample was kept on) at another cloth quality.  ``run.quality_of(sample_id)``: the quality the
+    dataset made it at."""
+    from segadeform.dataset.config import load_dataset_config
+    from segadeform.dataset.make import sample_plan
+    from segadeform.dataset.store import load_sample
+
     cfg = load_dataset_config(config)
 
+    def attempt(sid: str) -> int:
+        return int(load_sample(dataset, sid).meta.get("attempt", 0))
+
     def run(sid: str, quality: int):
+        return resimulate(cfg, dataset, body, sid, attempt=attempt(sid), quality=quality, sim_python=sim_python)
+
+    def quality_of(sid: str) -> int:
         ps = next((p for p in sample_plan(cfg) if p.id == sid), None)
-        if ps is None:
-            raise SystemExit(f"{sid} is not a sample of {config}")
-        g, m, betas = cfg.garments[ps.garment], cfg.motions[ps.motion], cfg.bodies[ps.body]
-        gfile = dataset / "garments" / f"{g.name}-b{ps.body}.obj"
-        cfile = gfile.with_name(gfile.stem + ".cloth.obj")
-        mesh = read_mesh(gfile)
-        kw = {"cloth_rest": read_mesh(cfile).vertices, "start_pose": A_POSE} if cfile.is_file() else {}
-        motion, lead = _motion(m, cfg, body.rest_joints(betas or None)[0], with_lead=True)
-        st = (cfg.simulate.replace(pin=g.pin) if g.pin else cfg.simulate).replace(quality=int(quality))
-        res = simulate(
-            mesh.vertices, mesh.faces, body, motion, betas=betas or None, settings=st, sim_python=sim_python, **kw
-        )
-        return res.frames[lead:].astype(np.float64), res.seconds_per_frame
+        g = cfg.garments[ps.garment] if ps is not None else None
+        return cfg.attempt_settings(g, attempt(sid)).quality if g is not None else cfg.simulate.quality
 
     run.digest = cfg.digest()
     run.quality = cfg.simulate.quality
+    run.quality_of = quality_of
     return run
 
 

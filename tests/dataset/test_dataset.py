@@ -196,6 +196,25 @@ def test_tiny_dataset_end_to_end(tiny_dataset, capsys):
         assert f"kept {v['samples'] - v['rejected']:4d} / {v['samples']:4d} made  {g}" in "\n".join(lines)
 
 
+def test_resimulate_repeats_a_sample_and_changes_only_what_it_is_asked_to(tiny_dataset):
+    """bench's resimulate (the simulator's quality axis, tools/gt_spread.py) makes a kept sample again as `dataset
+    make` made it: the same frames; a moved rest garment or a shorter lead give other frames of the same shape."""
+    from bench.tradeoffs_measure import resimulate
+    from segadeform.body import default_body_path, load_body
+
+    body = load_body(default_body_path())
+    cfg = load_dataset_config(tiny_dataset / "config.toml")
+    sid = sorted(p.stem for p in (tiny_dataset / "samples").glob("*.json"))[0]
+    s = load_sample(tiny_dataset, sid)
+    x, sec = resimulate(cfg, tiny_dataset, body, sid, attempt=s.meta["attempt"])
+    assert sec > 0 and x.shape == s.frames.shape
+    np.testing.assert_allclose(x, s.frames, atol=1e-6)  # Blender repeats itself
+    moved, _ = resimulate(cfg, tiny_dataset, body, sid, offset=np.full((len(s.rest), 3), 1e-3))
+    assert moved.shape == x.shape and np.abs(moved - x).max() > 1e-4
+    with pytest.raises(SystemExit, match="not a sample"):
+        resimulate(cfg, tiny_dataset, body, "no-such-sample")
+
+
 def test_resume_skips_done_and_redoes_missing(tiny_dataset, tmp_path, capsys):
     out = tmp_path / "copy"
     shutil.copytree(tiny_dataset, out)
