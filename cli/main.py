@@ -9,6 +9,7 @@ either.
 
 from __future__ import annotations
 
+import os
 import sys
 
 import click
@@ -25,9 +26,27 @@ class _Group(click.Group):
             raise click.ClickException(str(e)) from None
         except MemoryError:
             raise click.ClickException("out of memory (is the input much larger than expected?)") from None
+        except BrokenPipeError:
+            if not _stdout_closed():  # a pipe of ours (the simulator's) broke: an error like any other
+                raise click.ClickException("broken pipe") from None
+            # the reader of our output stopped (`segadeform inspect X | head -1`): stop quietly, as Unix tools do
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            raise SystemExit(141) from None  # 128 + SIGPIPE
         except OSError as e:
             where = f"{e.filename}: " if getattr(e, "filename", None) else ""
             raise click.ClickException(f"{where}{e.strerror or e}") from None
+
+
+def _stdout_closed() -> bool:
+    """Whether nothing reads standard output any more (its pipe's reader has closed it)."""
+    try:
+        import select
+
+        poll = select.poll()
+        poll.register(sys.stdout.fileno(), select.POLLERR)
+        return any(ev & select.POLLERR for _, ev in poll.poll(0))
+    except (AttributeError, OSError, ValueError):  # no poll (Windows), or stdout is not a file
+        return False
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})

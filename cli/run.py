@@ -13,12 +13,11 @@ from .main import cli
 
 
 def _fmt_from(path: Path, fmt: str | None) -> str:
-    from segadeform.io import format_for_path
+    """-o's format: --format, else the extension's; an error naming the writable ones when neither says (glTF
+    is read, not written), or when --format contradicts the extension."""
+    from segadeform.io.outputs import output_format_for
 
-    f = fmt or getattr(format_for_path(path), "name", None)
-    if f is None:
-        raise click.UsageError(f"cannot tell the output format from {path.name!r}; pass --format")
-    return f
+    return output_format_for(path, fmt)
 
 
 def _format_choice():
@@ -79,7 +78,12 @@ def _quality_choice():
 )
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help="onnxruntime threads.")
 @click.option("--providers", help="Comma-separated onnxruntime providers, or 'auto' (default: CPU).")
-@click.option("--body-out", type=click.Path(path_type=Path), help="Also write the posed body sequence here.")
+@click.option(
+    "--body-out",
+    type=click.Path(path_type=Path),
+    help="Also write the posed body sequence here, in the format its extension names (.pc2 also writes the "
+    "body's rest mesh beside it as .obj; no extension: a folder of OBJ frames).",
+)
 @click.option("--up", type=click.Choice(UP_AXES), help="Up axis of the written coordinates (default y).")
 @click.option(
     "--no-cache",
@@ -183,10 +187,8 @@ def run_cmd(
             changes["effects"] = preset
         elif effects:
             changes["effects"] = parse_effects(effects, sc.effects)
-        if fmt:
-            changes["output_format"] = fmt
-        elif output:
-            changes["output_format"] = _fmt_from(output, None)
+        if fmt or output:
+            changes["output_format"] = _fmt_from(output or sc.output, fmt)
         if up:
             changes["up"] = up
         if body_out:

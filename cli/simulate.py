@@ -37,7 +37,7 @@ from .main import cli
 )
 def simulate_cmd(scene, output, effects, material, quality, frames, sim_python, force):
     """Simulate SCENE.toml's garment on its body with Blender's cloth solver; write it like `run`."""
-    from segadeform.io import format_for_path
+    from segadeform.io.outputs import output_format_for
     from segadeform.physics import SimSettings
     from segadeform.physics.scene_sim import simulate_scene
     from segadeform.settings import load_scene, parse_frames
@@ -57,10 +57,7 @@ def simulate_cmd(scene, output, effects, material, quality, frames, sim_python, 
     if frames:
         changes["motion"] = dataclasses.replace(sc.motion, frames=parse_frames(frames))
     if output is not None:
-        fmt = getattr(format_for_path(output), "name", None)
-        if fmt is None:
-            raise click.UsageError(f"cannot tell the output format from {output.name!r}")
-        changes["output_format"] = fmt
+        changes["output_format"] = output_format_for(output)
     sc = dataclasses.replace(sc, **changes)
     interactive = sys.stderr.isatty()
     with click.progressbar(length=1, label="simulating", file=sys.stderr, hidden=not interactive) as bar:

@@ -1,6 +1,7 @@
 """Alembic (``.abc``) mesh sequences through the optional ``alembic3d`` package (extra ``alembic``).
 
-One ``OPolyMesh`` named after the garment: topology written once with the
+One ``OPolyMesh`` named after the file (``out/dress_walk.abc`` -> ``dress_walk``, as the USD writer names its
+prim; a body written beside the garment is then its own object on import): topology written once with the
 first frame, positions per frame, uniform time sampling ``1 / fps`` from
 ``start / fps``.  Alembic (as Maya writes it) winds faces clockwise, so
 triangles are stored reversed and reversed back on reading; DCC importers
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import gc
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -65,7 +67,7 @@ class AlembicSequenceWriter(SequenceWriter):
         *,
         fps: float = 30.0,
         start_frame: int = 0,
-        name: str = "garment",
+        name: str | None = None,
         up: str = "y",
     ) -> None:
         super().__init__(path, num_points, up=up)
@@ -76,6 +78,8 @@ class AlembicSequenceWriter(SequenceWriter):
         self._tmp = _tmp_sibling(self.path, directory=False)
         self._archive = Abc.OArchive(str(self._tmp))
         ts = self._archive.addTimeSampling(AbcCoreAbstract.TimeSampling(1.0 / fps, start_frame / fps))
+        if name is None:  # the file's name, as an identifier (Alembic object names are paths' parts)
+            name = re.sub(r"[^0-9A-Za-z_]", "_", self.path.stem) or "mesh"
         self._schema = AbcGeom.OPolyMesh(self._archive.getTop(), name, ts).getSchema()
         self._sample = AbcGeom.OPolyMeshSchemaSample
 

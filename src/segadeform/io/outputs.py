@@ -15,27 +15,81 @@ from typing import cast
 
 import numpy as np
 
-from .formats import open_sequence_writer, sequence_format
+from ..errors import InputError
+from .formats import SEQUENCE_FORMATS, format_for_path, open_sequence_writer, sequence_format
 from .writer import to_up
 
-__all__ = ["SceneOutput", "claim_scene_outputs"]
+__all__ = ["SceneOutput", "claim_scene_outputs", "body_output_format", "output_format_for"]
+
+
+def _extensions() -> str:
+    return " | ".join(e for f in SEQUENCE_FORMATS.values() for e in f.extensions) + " | a folder (no extension)"
+
+
+def output_format_for(path, fmt: str | None = None) -> str:
+    """The format a sequence output at ``path`` is written in: ``fmt`` where given, else the one its extension
+    names (no extension: the folder format).  An error when neither says, or when ``fmt`` contradicts the
+    extension (``out.usda`` with ``fmt = "pc2"`` would be a point cache no USD reader opens)."""
+    named = format_for_path(path)
+    if fmt is None:
+        if named is None:
+            raise InputError(
+                "cannot tell the output format from the file extension",
+                path=path,
+                expected=_extensions(),
+                got=Path(path).suffix,
+            )
+        return named.name
+    f = sequence_format(fmt)
+    if named is not None and Path(path).suffix and named.name != f.name:
+        raise InputError(
+            f"the extension says {named.name}, the format asked for is {f.name}",
+            path=path,
+            expected=" | ".join(f.extensions) or "no extension (a folder)",
+            got=Path(path).suffix,
+        )
+    return f.name
+
+
+def body_output_format(body_path) -> str:
+    """The format the posed body is written in: the one ``body_path``'s own extension names (no extension: a
+    folder of OBJ frames), whatever the garment's output is (``--body-out body.pc2`` beside ``-o dress.usd``
+    writes a point cache)."""
+    return output_format_for(body_path)
+
+
+def _targets(path, fmt: str, body_path=None) -> list[tuple[Path, bool]]:
+    """Every path a scene output writes, each with whether it is a folder of frames; an error when two are the
+    same path (the body would overwrite the garment, or a point cache's rest mesh the body)."""
+    out = [(Path(path), sequence_format(fmt).folder)]
+    if body_path is not None:
+        bf = body_output_format(body_path)
+        out.append((Path(body_path), sequence_format(bf).folder))
+        if bf == "pc2":  # the rest mesh the body's cache animates
+            out.append((Path(body_path).with_suffix(".obj"), False))
+    seen: set = set()
+    for p, _ in out:
+        key = os.path.normcase(os.path.abspath(p))
+        if key in seen:
+            raise InputError(
+                "two outputs of this run would be written to this one path",
+                path=p,
+                expected="a garment output and a body output at different paths",
+            )
+        seen.add(key)
+    return out
 
 
 def claim_scene_outputs(guard, path, fmt: str, body_path=None) -> None:
     """Claim with ``guard`` (:class:`~segadeform.io.output_guard.OutputGuard`) every path a scene output writes:
-    the garment output (a file, or for a folder format a folder of ``frame_*.obj``), the body output and, for
-    point caches, the body's rest mesh beside it (``.obj``)."""
-    f = sequence_format(fmt)
-    for p in (path, body_path):
-        if p is None:
-            continue
-        p = Path(p)
-        if f.folder:
+    the garment output (a file, or for a folder format a folder of ``frame_*.obj``), the body output (in the
+    format its own extension names: :func:`body_output_format`) and, for a point-cached body, its rest mesh
+    beside it (``.obj``).  Two outputs at one path are an error, before anything is claimed."""
+    for p, folder in _targets(path, fmt, body_path):
+        if folder:
             guard.folder(p, names="frame_*.obj")
         else:
             guard.file(p)
-    if body_path is not None and fmt == "pc2":
-        guard.file(Path(body_path).with_suffix(".obj"))
 
 
 class SceneOutput:
@@ -46,8 +100,9 @@ class SceneOutput:
         up: axes of the written coordinates ("y" as computed, "z" turned to Z-up).
         fps, start_frame: timing of the first written frame.
         garment_faces (F, 3), garment_rest (N, 3): the garment mesh.
-        body_path: also write the posed body here (same format), with ``body_faces`` and ``body_rest``
-            (V, 3) -- for PC2 the rest mesh goes beside it as ``.obj``.
+        body_path: also write the posed body here, in the format its extension names
+            (:func:`body_output_format`), with ``body_faces`` and ``body_rest`` (V, 3) -- for PC2 the rest mesh
+            goes beside it as ``.obj``.
         guard: the command's :class:`~segadeform.io.output_guard.OutputGuard` that claimed these outputs
             (:func:`claim_scene_outputs`; None: no rule, library use): checked again before the commit and
             recorded after it.
@@ -68,8 +123,9 @@ class SceneOutput:
         body_rest: np.ndarray | None = None,
         guard=None,
     ) -> None:
-        sequence_format(fmt)  # unknown formats fail before anything is opened
+        _targets(path, fmt, body_path)  # unknown formats and clashing paths fail before anything is opened
         self.fmt, self.up, self.guard = fmt, up, guard
+        self.body_fmt = body_output_format(body_path) if body_path is not None else None
         rest = np.asarray(garment_rest, np.float64)
         self.garment = open_sequence_writer(
             path, fmt, faces=garment_faces, num_points=len(rest), fps=fps, start_frame=start_frame, rest=rest, up=up
@@ -80,7 +136,7 @@ class SceneOutput:
             try:
                 self.body = open_sequence_writer(
                     body_path,
-                    fmt,
+                    cast(str, self.body_fmt),
                     faces=cast(np.ndarray, body_faces),
                     num_points=len(cast(np.ndarray, body_rest)),
                     fps=fps,
@@ -109,7 +165,7 @@ class SceneOutput:
         written = [self.garment.close()]
         if self.body is not None:
             written.append(self.body.close())
-            if self.fmt == "pc2":  # the rest mesh the cache animates (Blender's Mesh Cache, 3ds Max)
+            if self.body_fmt == "pc2":  # the rest mesh the cache animates (Blender's Mesh Cache, 3ds Max)
                 obj = Path(self.body.path).with_suffix(".obj")
                 write_obj(
                     obj,

@@ -267,13 +267,22 @@ def load_scene(path: str | os.PathLike) -> Scene:
     motion = motion_spec_from_table(m, rel, where=p)
     out = data["output"]
     out_path = rel(out["path"])
-    from ..io.formats import SEQUENCE_FORMATS, format_for_path
+    from ..io.formats import SEQUENCE_FORMATS
+    from ..io.outputs import body_output_format, output_format_for
 
-    fmt = out.get("format") or getattr(format_for_path(out_path), "name", None)
-    if fmt not in SEQUENCE_FORMATS:
+    if "format" in out and out["format"] not in SEQUENCE_FORMATS:
+        raise FileFormatError("output.format must be " + ", ".join(SEQUENCE_FORMATS), path=p, got=out["format"])
+    try:
+        fmt = output_format_for(out_path, out.get("format"))
+    except InputError as e:  # output.format names it where the extension does not
         raise FileFormatError(
-            "output.format must be " + ", ".join(SEQUENCE_FORMATS), path=p, got=out.get("format", out_path.suffix)
-        )
+            f"output.path: {e.problem} (output.format: {', '.join(SEQUENCE_FORMATS)})", path=p, got=e.got
+        ) from None
+    if "body" in out:
+        try:
+            body_output_format(rel(out["body"]))
+        except InputError as e:
+            raise FileFormatError(f"output.body: {e.problem}", path=p, expected=e.expected, got=e.got) from None
     up = out.get("up", "y")
     if up not in UP_AXES:
         raise FileFormatError("unknown output.up axis", path=p, expected=" | ".join(UP_AXES), got=up)
