@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
+import numpy as np
 
 from .main import cli
 
@@ -84,7 +85,8 @@ def garment_kinds_cmd():
 @click.option(
     "--from-body",
     type=click.Path(dir_okay=False, path_type=Path),
-    help="The body mesh the garment was modelled on (any topology, pose and units).",
+    help="The body mesh the garment was modelled on: any topology and units, standing near a T- or A-pose "
+    "(its units and up axis, y or z, are read from its height unless --units/--up say).",
 )
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Target body .npz (default: shipped).")
 @click.option("--betas", help="Target body shape, comma-separated coefficients.")
@@ -92,9 +94,7 @@ def garment_kinds_cmd():
 @click.option(
     "--up",
     type=click.Choice(["y", "z", "-z", "x"]),
-    default="y",
-    show_default=True,
-    help="Up axis of the garment (and --from-body) file.",
+    help="Up axis of the garment (and --from-body) file (default y; with --from-body, read from the body).",
 )
 @click.option("--scale", type=float, default=1.0, show_default=True, help="Extra scale factor.")
 @click.option(
@@ -106,19 +106,32 @@ def garment_kinds_cmd():
     help="Push vertices out of the body to this clearance, metres "
     "(default 0.003 for --mhclo/--from-body fits, none for plain unit/axis fixes).",
 )
-def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, scale, offset, margin):
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Write the garment even when it does not sit on the body, or when a --from-body fit tore it.",
+)
+def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, scale, offset, margin, force):
     """Bring GARMENT (OBJ or .mhclo) onto the body: a MakeHuman binding, --from-body, or --units/--up/--scale.
 
     Vertex order and count are kept; faces (quads and polygons as they are), UVs and groups are copied from the
     input OBJ, and its normals recomputed for the fitted vertices.  --offset moves the result (after a fit, or
-    after --units/--up/--scale); --betas reshapes only what can be refitted (--mhclo, --from-body).
+    after --units/--up/--scale); --betas reshapes only what can be refitted (--mhclo, --from-body).  A result that
+    does not sit on the body (a plain fix of a file in other units or axes), or that a --from-body fit tore (a
+    source body whose pose was not found), is refused with the fix, unless --force.
     """
     import numpy as np
 
     from segadeform.body import default_body_path, load_body
-    from segadeform.body.placement import fix_units_and_axes, placement_report, push_off_body
+    from segadeform.body.placement import (
+        PlacementError,
+        check_placement,
+        fix_units_and_axes,
+        placement_report,
+        push_off_body,
+    )
     from segadeform.errors import InputError
-    from segadeform.garments.registration import fit_mhclo, fit_to_body_mesh
+    from segadeform.garments.registration import edge_distortion, fit_mhclo, fit_to_body_mesh, guess_units_and_up
     from segadeform.io import read_mesh
     from segadeform.io.mhclo import read_mhclo
     from segadeform.io.obj import rewrite_obj_vertices
@@ -141,7 +154,9 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         if from_body is not None:
             raise click.UsageError("give --mhclo or --from-body, not both")
         fixes = [
-            f for f, given in (("--units", units is not None), ("--up", up != "y"), ("--scale", scale != 1.0)) if given
+            f
+            for f, given in (("--units", units is not None), ("--up", up not in (None, "y")), ("--scale", scale != 1.0))
+            if given
         ]
         if fixes:  # the binding places every vertex on the body itself: these cannot apply
             raise InputError(
@@ -183,20 +198,32 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     elif from_body is not None:
         src = read_mesh(from_body)
         g = read_mesh(obj)
-        fit = fit_to_body_mesh(
-            fix_units_and_axes(g.vertices, units=units_v, up=up, scale=scale),
-            fix_units_and_axes(src.vertices, units=units_v, up=up, scale=scale),
-            src.faces,
-            bm,
-            b,
-        )
+        try:
+            u_read, up_read, height = guess_units_and_up(src.vertices, units=units_v, up=up)
+        except InputError as e:
+            raise e.with_path(from_body) from None
+        read_as = "" if units_v is not None and up is not None else f", read in {u_read} with +{up_read} up"
+        if units_v is None:
+            units_v = u_read
+        src_v = fix_units_and_axes(src.vertices, units=units_v, up=up_read, scale=scale)
+        g_v = fix_units_and_axes(g.vertices, units=units_v, up=up_read, scale=scale)
+        fit = fit_to_body_mesh(g_v, src_v, src.faces, bm, b)
         v = fit.vertices
-        how = f"registered to {from_body.name} (body fit {100 * fit.body_error:.1f} cm mean)"
+        torn, worst = edge_distortion(g_v, v, g.faces)
+        if torn > 0.05 and not force:  # a carried garment keeps most edges within tens of percent (armpits may tear)
+            raise InputError(
+                f"the fit tore the garment: {100 * torn:.1f} % of its edges changed length more than 2x (worst "
+                f"{worst:.0f}x), so the body's pose in {from_body.name} was not found (a pose far from a T- or "
+                "A-pose, or other units or up axis)",
+                path=garment,
+                expected="a source body standing near a T- or A-pose (--units/--up if they were misread), or --force",
+            )
+        how = f"registered to {from_body.name}{read_as} (body fit {100 * fit.body_error:.1f} cm mean)"
         default_margin = 0.003
     else:
         g = read_mesh(obj)
-        v = fix_units_and_axes(g.vertices, units=units_v, up=up, scale=scale)
-        how = f"units {units or 'm'}, up {up}, scale {scale:g}"
+        v = fix_units_and_axes(g.vertices, units=units_v, up=up or "y", scale=scale)
+        how = f"units {units or 'm'}, up {up or 'y'}, scale {scale:g}"
         default_margin = None
     if off is not None:  # after the fit (a binding's, another body's) or the unit/axis fix
         v = v + np.asarray(off, np.float64)
@@ -209,6 +236,8 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
             expected=f"{len(mesh.vertices)} binding lines",
             got=len(v),
         )
+    if binding is None and from_body is None and not force:
+        _check_plain_fix(g.vertices, v, rest, bm.faces, garment, how, check_placement, PlacementError)
     m = default_margin if margin is None else margin
     pushed = 0
     if m is not None:
@@ -219,3 +248,30 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     click.echo(f"{obj.name}: {len(v)} vertices, {how}" + (f", {pushed} pushed to {1e3 * m:.0f} mm" if m else ""))
     click.echo(f"  {rep.line()}")
     click.echo(f"  -> {output}")
+
+
+def _check_plain_fix(original, fixed, rest, faces, path, how, check_placement, PlacementError) -> None:
+    """Refuse a plain unit/axis fix whose result does not sit on the body, with the options that make the
+    original file sit (check_placement's suggestion is for the file as given, not for this fix's result)."""
+    from segadeform.errors import InputError
+
+    try:
+        check_placement(fixed, rest, faces, path=path)
+        return
+    except PlacementError as e:
+        failed = e
+    if not np.array_equal(np.asarray(original, np.float64), np.asarray(fixed, np.float64)):
+        try:
+            check_placement(original, rest, faces, path=path)
+        except PlacementError as e:  # the suggestion for the file itself
+            raise InputError(
+                f"the garment does not sit on the body with {how}; as given, {e.problem}",
+                path=path,
+                expected=e.expected,
+            ) from None
+        raise InputError(
+            f"the garment sits on the body as it is, and not with {how}",
+            path=path,
+            expected="no unit, axis or scale fix (or --force)",
+        )
+    raise failed

@@ -191,11 +191,37 @@ def test_garment_fit_cli(tmp_path):
     # an OBJ with its .mhclo beside it is found; plain fixes otherwise
     r = CliRunner().invoke(cli, ["garment", "fit", str(SAMPLES / "skirt_short_f.obj"), "-o", str(tmp_path / "s.obj")])
     assert r.exit_code == 0 and "skirt_short_f.mhclo" in r.output
-    r = CliRunner().invoke(
-        cli, ["garment", "fit", str(tmp_path / "t.obj"), "-o", str(tmp_path / "u.obj"), "--units", "cm"]
-    )
+    # a fix that leaves a garment off the body is refused, and written with --force (t.obj is made for betas 1,0.5)
+    args = ["garment", "fit", str(tmp_path / "t.obj"), "-o", str(tmp_path / "u.obj"), "--units", "cm"]
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 1 and "does not sit on the body with units cm" in r.output, r.output
+    assert not (tmp_path / "u.obj").exists()
+    r = CliRunner().invoke(cli, [*args, "--force"])
     assert r.exit_code == 0 and "units cm" in r.output
     np.testing.assert_allclose(read_mesh(tmp_path / "u.obj").vertices, m.vertices * 0.01, atol=1e-6)
+
+
+def test_garment_fit_refuses_a_file_in_other_units_and_names_the_fix(tmp_path, body):
+    """A plain `garment fit` of a garment modelled in centimetres wrote it 92 m off the body, exit 0."""
+    from segadeform.io import Mesh, write_obj
+
+    faces = read_mesh(SAMPLES / "skirt_short_f.obj").faces
+    on_body = fit_mhclo(read_mhclo(SAMPLES / "skirt_short_f.mhclo"), body)
+    write_obj(tmp_path / "cm.obj", Mesh(vertices=on_body * 100, faces=faces))
+    out = tmp_path / "fixed.obj"
+
+    def fit(*extra):
+        return CliRunner().invoke(cli, ["garment", "fit", str(tmp_path / "cm.obj"), "-o", str(out), *extra])
+
+    r = fit()
+    assert r.exit_code == 1 and "it does once read in cm" in r.output and "--units cm`" in r.output, r.output
+    assert not out.exists()
+    r = fit("--units", "mm")  # the wrong fix: the suggestion is still the one for the file as given
+    assert r.exit_code == 1 and "with units mm" in r.output and "--units cm`" in r.output, r.output
+    assert not out.exists()
+    r = fit("--units", "cm")
+    assert r.exit_code == 0, r.output
+    np.testing.assert_allclose(read_mesh(out).vertices, on_body, atol=1e-6)
 
 
 @pytest.mark.parametrize(
@@ -299,3 +325,76 @@ def test_fit_to_another_body_mesh(body, tmp_path):
     assert res.exit_code == 0, res.output
     assert "registered to b.obj" in res.output
     check_placement(read_mesh(tmp_path / "f.obj").vertices, body.shaped_vertices()[0], body.faces)
+    # without --units and --up: both read from the source body's height (it is 1.8 m along z, in cm)
+    res = CliRunner().invoke(
+        cli,
+        [
+            "garment",
+            "fit",
+            str(tmp_path / "g.obj"),
+            "--from-body",
+            str(tmp_path / "b.obj"),
+            "-o",
+            str(tmp_path / "a.obj"),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert "read in cm with +z up" in res.output
+    np.testing.assert_allclose(
+        read_mesh(tmp_path / "a.obj").vertices, read_mesh(tmp_path / "f.obj").vertices, atol=1e-9
+    )
+
+
+def test_units_and_up_of_a_body_mesh(body):
+    from segadeform.garments.registration import guess_units_and_up
+
+    v = body.shaped_vertices()[0]  # T-pose: the arm span along x is about the height
+    assert guess_units_and_up(v)[:2] == ("m", "y")
+    assert guess_units_and_up(fix_units_and_axes(v, up="-z") * 100)[:2] == ("cm", "z")  # +y -> +z
+    assert guess_units_and_up(v * 1000)[:2] == ("mm", "y") and guess_units_and_up(v / 0.0254)[:2] == ("inch", "y")
+    assert guess_units_and_up(v * 100, units="m")[0] == "m"  # given units are kept
+    with pytest.raises(InputError, match="no human's height"):
+        guess_units_and_up(v * 1e5)
+
+
+def test_a_fit_that_tears_the_garment_is_refused(tmp_path, monkeypatch):
+    """A source body in a walk's pose registered to the wrong pose: 13 % of the jeans' edges 2-55x their length,
+    and `garment fit` said it succeeded.  The tear is measured on the edges, and refused unless --force."""
+    import dataclasses
+
+    from segadeform.garments import registration
+    from segadeform.garments.registration import edge_distortion
+    from segadeform.io import Mesh, write_obj
+
+    tri = np.array([[0, 1, 2], [0, 2, 3]])
+    sq = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    assert edge_distortion(sq, sq * 1.5, tri) == (0.0, 1.5)  # carried to a larger body: kept
+    torn, worst = edge_distortion(sq, sq + [[0, 0, 0], [0, 0, 0], [0, 0, 0], [0, 0, 9]], tri)
+    assert torn == pytest.approx(2 / 5) and worst > 9  # the two edges of the thrown corner
+    body_v = load_body(default_body_path()).shaped_vertices()[0]
+    write_obj(tmp_path / "b.obj", Mesh(vertices=body_v, faces=load_body(default_body_path()).faces))
+    g = read_mesh(ROOT / "samples" / "garments" / "skirt.obj")
+    write_obj(tmp_path / "g.obj", g)
+    real = registration.fit_to_body_mesh
+
+    def scrambled(*a, **k):  # a registration that found the wrong pose: a tenth of the vertices thrown
+        fit = real(*a, **k)
+        v = fit.vertices.copy()
+        v[::10] += [0.0, 0.0, 0.5]
+        return dataclasses.replace(fit, vertices=v)
+
+    monkeypatch.setattr(registration, "fit_to_body_mesh", scrambled)
+    args = [
+        "garment",
+        "fit",
+        str(tmp_path / "g.obj"),
+        "--from-body",
+        str(tmp_path / "b.obj"),
+        "-o",
+        str(tmp_path / "o.obj"),
+    ]
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 1 and "the fit tore the garment" in r.output and "--force" in r.output, r.output
+    assert not (tmp_path / "o.obj").exists()
+    r = CliRunner().invoke(cli, [*args, "--force"])
+    assert r.exit_code == 0 and (tmp_path / "o.obj").exists(), r.output

@@ -34,7 +34,7 @@ from ..errors import FileFormatError, InputError
 from ..geometry.mesh_ops import adjacency
 from ..io.mhclo import MhcloBinding
 
-__all__ = ["fit_mhclo", "fit_to_body_mesh", "BodyFit"]
+__all__ = ["fit_mhclo", "fit_to_body_mesh", "BodyFit", "guess_units_and_up", "edge_distortion"]
 
 _MH_TO_M = 0.1  # MakeHuman mesh units are decimetres
 
@@ -247,3 +247,63 @@ def fit_to_body_mesh(
     r1, r2, rn = _local_frames(R, body.faces, q.face)
     out = c_r + coef[:, :1] * r1 + coef[:, 1:2] * r2 + coef[:, 2:] * rn
     return BodyFit(vertices=out, body_error=body_error, scale=scale_f, trans=np.asarray(t), pose=th, betas=beta)
+
+
+#: a standing adult's height in metres: the range :func:`guess_units_and_up` reads a body mesh's units from
+HUMAN_HEIGHT_M = (0.9, 2.5)
+
+
+def guess_units_and_up(vertices, *, units=None, up=None) -> tuple[str, str, float]:
+    """The units and up axis of a human body mesh, where not given: up is ``y`` or ``z`` (whichever the body is
+    longer along: a T-pose's arm span lies along x in both conventions), the units those in which its height
+    along up is a standing adult's (:data:`HUMAN_HEIGHT_M`; m, then cm, dm, mm, inch).
+
+    Returns ``(units, up, height in the file's units)``.
+
+    Raises:
+        InputError: no unit makes the height a human's (pass the units).
+
+    Shapes:
+        vertices: (V, 3)
+    """
+    from ..body.placement import UNIT_SCALES
+
+    v = np.asarray(vertices, np.float64)
+    if v.ndim != 2 or v.shape[1] != 3 or not len(v) or not np.isfinite(v).all():
+        raise InputError("a body mesh needs finite (V, 3) vertices", got=v.shape)
+    ext = np.ptp(v, axis=0)
+    if up is None:
+        up = "z" if ext[2] > ext[1] else "y"
+    height = float(ext[{"y": 1, "z": 2, "-z": 2, "x": 0}[up]])
+    if units is None:
+        lo, hi = HUMAN_HEIGHT_M
+        units = next((u for u in ("m", "cm", "dm", "mm", "inch") if lo <= height * UNIT_SCALES[u] <= hi), None)
+        if units is None:
+            raise InputError(
+                f"cannot tell the body mesh's units: it is {height:g} units tall along {up}, no human's height in "
+                "m, cm, dm, mm or inches",
+                expected="--units (and --up)",
+                got=f"{height:g}",
+            )
+    return str(units), up, height
+
+
+def edge_distortion(before, after, faces, *, factor: float = 2.0) -> tuple[float, float]:
+    """How far a fit moved a garment's edges from their lengths: the fraction of edges now more than ``factor``
+    times longer or shorter, and the largest such ratio.  A garment carried from one body to another keeps its
+    edges within a few tens of percent; a registration that found the wrong pose tears it (edges 10-60x).
+
+    Shapes:
+        before, after: (N, 3); faces: (F, 3)
+    """
+    f = np.asarray(faces, np.int64)
+    e = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    a, b = np.asarray(before, np.float64), np.asarray(after, np.float64)
+    la = np.linalg.norm(a[e[:, 0]] - a[e[:, 1]], axis=1)
+    lb = np.linalg.norm(b[e[:, 0]] - b[e[:, 1]], axis=1)
+    ok = (la > 1e-9) & (lb > 1e-9)  # zero-length edges (welds, duplicates) carry no length to keep
+    if not ok.any():
+        return 0.0, 1.0
+    r = lb[ok] / la[ok]
+    r = np.maximum(r, 1.0 / r)
+    return float((r > factor).mean()), float(r.max())
