@@ -33,7 +33,10 @@ from .main import cli
     type=click.Path(dir_okay=False, path_type=Path),
     help="preview.png (a strip of frames), .gif or .mp4 (needs ffmpeg).",
 )
-@click.option("--frames", help="Frame range A:B of the result (default: all).")
+@click.option(
+    "--frames",
+    help="Frame range A:B, in the result's own frame numbers (a run of --frames 10:40 starts at 10; default: all).",
+)
 @click.option("--every", type=click.IntRange(min=1), default=1, show_default=True, help="Render every Nth frame.")
 @click.option(
     "--view",
@@ -51,12 +54,15 @@ from .main import cli
     help="Up axis the result was written with (run --up).",
 )
 def preview_cmd(result, garment, body_seq, body_model, output, frames, every, view, size, fps, up):
-    """Render RESULT (PC2, OBJ sequence folder, XDMF or Alembic) with its garment and, if given, the body."""
+    """Render RESULT (PC2, OBJ sequence folder, XDMF, Alembic or USD) with its garment and, if given, the body.
+
+    Frames are numbered as the result numbers them (a PC2's start frame, USD time codes, OBJ frame names)."""
     import numpy as np
 
     from segadeform.body import default_body_path, load_body
     from segadeform.errors import InputError
     from segadeform.io import read_mesh, read_sequence
+    from segadeform.io.formats import sequence_start_frame
     from segadeform.io.output_guard import OutputGuard
     from segadeform.preview.render import MeshLayer, fit_bounds, render, save_animation, save_image
     from segadeform.settings import Y_TO_Z, parse_frames
@@ -93,15 +99,16 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         R = np.array(Y_TO_Z)
         G = G @ R
         B = None if B is None else B @ R
-    a, b = parse_frames(frames) if frames else (0, None)
-    b = len(G) if b is None else b
-    if not 0 <= a < b <= len(G):
+    first = sequence_start_frame(result)  # the motion frame the result starts at
+    a, b = parse_frames(frames) if frames else (first, None)
+    b = first + len(G) if b is None else b
+    if not first <= a < b <= first + len(G):
         raise InputError(
-            f"frame range {a}:{b} is outside the result's {len(G)} frames",
+            f"frame range {a}:{b} is outside the result's frames {first}..{first + len(G) - 1}",
             path=result,
-            expected=f"0 <= A < B <= {len(G)}",
+            expected=f"{first} <= A < B <= {first + len(G)}",
         )
-    idx = list(range(a, b, every))
+    idx = list(range(a - first, b - first, every))
     az = {"front": 0.0, "side": 90.0, "back": 180.0, "three-quarter": 30.0, "turntable": 0.0}[view]
     pts = G[idx] if B is None else np.concatenate([G[idx], B[idx]], axis=1)
     # one scale for the whole animation (the largest frame), the camera following the subject
@@ -115,7 +122,9 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         bounds = ((cx - half * w, cx + half * w), (cy - half * h, cy + half * h))
         layers = [] if B is None else [MeshLayer(B[t], bf, (0.86, 0.72, 0.62))]
         layers.append(MeshLayer(G[t], g.faces, (0.28, 0.45, 0.82), depth_bias=0.004))
-        images.append(render(layers, azimuth=angles[k], size=(w, h), bounds=bounds, title=f"{result.name}  frame {t}"))
+        images.append(
+            render(layers, azimuth=angles[k], size=(w, h), bounds=bounds, title=f"{result.name}  frame {first + t}")
+        )
     ext = output.suffix.lower()
     if ext == ".png":
         if len(images) > 8:

@@ -66,7 +66,33 @@ def test_preview_png_and_gif(tmp_path):
             "2:9",
         ],
     )
-    assert r.exit_code == 1 and "outside the result's 4 frames" in r.output and not (tmp_path / "q.png").exists()
+    assert r.exit_code == 1 and "outside the result's frames 0..3" in r.output and not (tmp_path / "q.png").exists()
+
+
+def test_preview_counts_frames_as_the_result_does(tmp_path):
+    """A run of --frames 10:40 writes a PC2 starting at frame 10; preview labelled its frames 0, 1, ... and took
+    --frames from the file's start.  Now both are the result's own frame numbers, in every format that keeps one."""
+    from segadeform.io import write_obj_sequence
+    from segadeform.io.formats import sequence_start_frame
+
+    frames = _scene(tmp_path)
+    write_pc2(tmp_path / "s.pc2", frames, start_frame=10)
+    f = np.array([[0, 1, 2], [1, 3, 2]])
+    write_obj_sequence(tmp_path / "seq", f, frames, start=10)
+    assert [sequence_start_frame(tmp_path / n) for n in ("g.pc2", "s.pc2", "seq")] == [0, 10, 10]
+
+    def preview(result, rng):
+        return CliRunner().invoke(
+            cli,
+            ["preview", str(tmp_path / result), "--garment", str(tmp_path / "g.obj"), "-o", str(tmp_path / "q.png")]
+            + ["--frames", rng, "--size", "40x30"],
+        )
+
+    for result in ("s.pc2", "seq"):
+        r = preview(result, "0:2")
+        assert r.exit_code == 1 and "outside the result's frames 10..13" in r.output, r.output
+        r = preview(result, "11:13")
+        assert r.exit_code == 0 and "2 frames rendered" in r.output, r.output
 
 
 def test_inspect_pc2_bounds_nan_motion(tmp_path):

@@ -40,6 +40,7 @@ __all__ = [
     "open_sequence_writer",
     "read_sequence",
     "inspect_sequence",
+    "sequence_start_frame",
     "FileFormat",
     "FILE_FORMATS",
     "register_file_format",
@@ -61,6 +62,8 @@ class SequenceFormat:
         inspect: optional ``inspect(path) -> (summary, frames)`` for ``segadeform inspect``: a one-line
             summary of the file (its header: counts, start frame ...) and its frames ``(S, N, 3)`` with
             non-finite values kept (inspect reports them).  None: ``read`` and a summary of the counts.
+        start: optional ``start(path) -> int``: the frame number of the file's first frame (``run --frames
+            10:40`` writes 10), for :func:`sequence_start_frame`.  None: the format keeps none (0).
     """
 
     name: str
@@ -70,6 +73,7 @@ class SequenceFormat:
     description: str
     extra: str | None = None
     inspect: Callable | None = None
+    start: Callable | None = None
 
     @property
     def folder(self) -> bool:
@@ -150,6 +154,14 @@ def read_sequence(path: str | os.PathLike, *, faces: np.ndarray | None = None) -
     return np.asarray(f.read(p, faces), np.float64)
 
 
+def sequence_start_frame(path: str | os.PathLike) -> int:
+    """The frame number of a written sequence's first frame: the motion frame its run started at (the PC2 header's
+    start frame, the first USD time code, the first OBJ frame's number); 0 for a format that keeps none."""
+    p = Path(path)
+    f = sequence_format_of(p)
+    return 0 if f is None or f.start is None else int(round(f.start(p)))
+
+
 def inspect_sequence(path: str | os.PathLike) -> tuple[SequenceFormat, str, np.ndarray]:
     """``(format, summary, frames (S, N, 3))`` of an output of any registered format, for ``segadeform inspect``:
     the format's ``inspect`` hook, else its reader and the counts.  Non-finite values are kept, not refused."""
@@ -190,6 +202,18 @@ def _pc2_inspect(path):
         f"sample rate {h.sample_rate:g}",
         pc.frames,
     )
+
+
+def _pc2_start(path):
+    from .pc2 import read_pc2_header
+
+    return read_pc2_header(path).start_frame
+
+
+def _objseq_start(path):
+    from .sequence import obj_sequence_files
+
+    return obj_sequence_files(path)[0][0]
 
 
 def _objseq_open(path, *, faces, num_points, fps, start_frame, rest, up):
@@ -243,10 +267,19 @@ register_sequence_format(
         _pc2_read,
         "point cache (3ds Max, Blender Mesh Cache, Houdini)",
         inspect=_pc2_inspect,
+        start=_pc2_start,
     )
 )
 register_sequence_format(
-    SequenceFormat("obj-seq", (), _objseq_open, _objseq_read, "a folder of OBJ frames", inspect=_objseq_inspect)
+    SequenceFormat(
+        "obj-seq",
+        (),
+        _objseq_open,
+        _objseq_read,
+        "a folder of OBJ frames",
+        inspect=_objseq_inspect,
+        start=_objseq_start,
+    )
 )
 register_sequence_format(
     SequenceFormat("xdmf", (".xdmf", ".xmf"), _xdmf_open, _xdmf_read, "XDMF time series (ParaView)")
@@ -275,6 +308,12 @@ def _usd_read(path, faces):
     return frames
 
 
+def _usd_start(path):
+    from .usd import read_usd_sequence
+
+    return read_usd_sequence(path)[2][0]
+
+
 def _usd_inspect(path):
     from .usd import read_usd_sequence
 
@@ -296,6 +335,7 @@ register_sequence_format(
         "USD mesh with time-sampled points (Blender, Houdini, usdview)",
         extra="usd",
         inspect=_usd_inspect,
+        start=_usd_start,
     )
 )
 

@@ -36,6 +36,7 @@ __all__ = [
     "ObjSequenceWriter",
     "XdmfSequenceWriter",
     "read_obj_sequence",
+    "obj_sequence_files",
     "read_xdmf_sequence",
     "write_obj_sequence",
     "write_xdmf_sequence",
@@ -93,12 +94,8 @@ def write_obj_sequence(directory, faces, frames, **kw) -> Path:
     return Path(directory)
 
 
-def read_obj_sequence(directory: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
-    """Read a folder of per-frame OBJ files, ordered by the last number in each name.
-
-    Returns:
-        faces ``(F, 3) int64`` and frames ``(S, N, 3) float64``.
-    """
+def obj_sequence_files(directory: str | os.PathLike) -> list[tuple[int, Path]]:
+    """The frames of a folder of OBJ frames, ``(frame number, file)`` in frame order (the number in each name)."""
     d = Path(directory)
     if not d.is_dir():
         raise FileFormatError("not a folder of OBJ frames", path=d)
@@ -116,6 +113,17 @@ def read_obj_sequence(directory: str | os.PathLike) -> tuple[np.ndarray, np.ndar
     if len(set(nums)) != len(nums):
         dup = next(k for k in nums if nums.count(k) > 1)
         raise FileFormatError(f"two frame files have the number {dup}", path=d)
+    return keyed
+
+
+def read_obj_sequence(directory: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """Read a folder of per-frame OBJ files, ordered by the last number in each name.
+
+    Returns:
+        faces ``(F, 3) int64`` and frames ``(S, N, 3) float64``.
+    """
+    d = Path(directory)
+    keyed = obj_sequence_files(d)
     first = read_obj(keyed[0][1])
     frames = np.empty((len(keyed), first.n_vertices, 3))
     frames[0] = first.vertices
