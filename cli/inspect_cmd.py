@@ -66,11 +66,30 @@ def inspect_cmd(path):
         fmt, summary, frames = inspect_sequence(path)
         click.echo(f"{path}: {fmt.name} sequence, {summary}")
         _frames_summary(path, np.asarray(frames))
-    elif ext == ".bvh":
+    elif ext in (".bvh", ".amc", ".glb", ".gltf"):  # motions `run --motion` takes (an AMC with its ASF beside it)
         from segadeform.motion import load_motion
 
         m = load_motion(path)
-        click.echo(f"{path}: BVH motion, {m.n_frames} frames at {m.fps:g} fps")
+        what = {".bvh": "BVH", ".amc": "CMU AMC", ".glb": "glTF", ".gltf": "glTF"}[ext]
+        click.echo(f"{path}: {what} motion, {m.n_frames} frames at {m.fps:g} fps")
+    elif ext == ".asf":
+        from segadeform.motion.asf import metres_per_unit, read_asf
+
+        sk = read_asf(path)
+        click.echo(
+            f"{path}: CMU ASF skeleton, {len(sk.names)} bones (root first), {metres_per_unit(sk.length_unit):g} m "
+            f"per unit, angles in {sk.angle}"
+        )
+    elif ext == ".mhclo":
+        from segadeform.io.mhclo import read_mhclo
+
+        b = read_mhclo(path)
+        obj = b.obj_path()
+        click.echo(
+            f"{path}: MakeHuman binding {b.name!r}, {len(b.verts)} garment vertices bound to the hm08 base mesh, "
+            f"mesh {obj.name if obj is not None else 'not named'}"
+            + ("" if obj is None or obj.is_file() else " (missing)")
+        )
     elif ext == ".toml":
         from segadeform.settings import load_scene
 

@@ -44,7 +44,7 @@ from segadeform.geometry import GarmentAsset, precompute_garment
 from segadeform.io import SceneOutput, read_mesh
 from segadeform.io.garment_asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
-from segadeform.io.outputs import claim_scene_outputs
+from segadeform.io.outputs import claim_scene_outputs, garment_surface
 from segadeform.motion import Motion, build_motion, frame_range, motion_windows
 from segadeform.settings import Effects, Scene
 
@@ -275,6 +275,7 @@ class Run:
             start_frame=self.start,
             garment_faces=asset.faces,
             garment_rest=asset.vertices,
+            garment_surface=garment_surface(self.garment, asset.n_vertices),
             body_path=self.body_output,
             body_faces=self.body.faces,
             body_rest=self.body.shaped_vertices(self.betas)[0] if self.body_output else None,

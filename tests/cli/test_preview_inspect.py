@@ -107,3 +107,25 @@ def test_inspect_pc2_bounds_nan_motion(tmp_path):
     (tmp_path / "n.pc2").write_bytes(bytes(raw))
     r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "n.pc2")])
     assert r.exit_code == 1 and "1 non-finite values (NaN or inf), in 1 frames (2)" in r.output
+
+
+def test_inspect_reads_the_inputs_run_and_garment_fit_take(tmp_path):
+    """`inspect` refused CMU's .amc and .asf and MakeHuman's .mhclo ("unknown mesh file extension"), though `run`
+    and `garment fit` read them."""
+    from pathlib import Path
+
+    from ..motion.asf_build import write_trial
+
+    asf, amc = write_trial(tmp_path, n_frames=12)
+    mhclo = Path(__file__).resolve().parents[2] / "samples" / "garments" / "makehuman" / "skirt_short_f.mhclo"
+    out = {}
+    for p in (amc, asf, mhclo):
+        r = CliRunner().invoke(cli, ["inspect", str(p)])
+        assert r.exit_code == 0, r.output
+        out[p.suffix] = r.output
+    assert "CMU AMC motion, 12 frames at 120 fps" in out[".amc"]
+    assert "CMU ASF skeleton" in out[".asf"] and "bones" in out[".asf"]
+    assert "MakeHuman binding 'skirt_short_f', 395 garment vertices" in out[".mhclo"]
+    (tmp_path / "cut.amc").write_text(amc.read_text()[: len(amc.read_text()) // 2])
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "cut.amc")])
+    assert r.exit_code == 1 and "cut.amc" in r.output and "Traceback" not in r.output, r.output

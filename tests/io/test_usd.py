@@ -63,7 +63,7 @@ def test_aborted_writer_leaves_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_reader_refuses_what_is_not_a_triangle_mesh(tmp_path):
+def test_reader_refuses_what_is_not_a_polygon_mesh(tmp_path):
     from pxr import Usd, UsdGeom
 
     stage = Usd.Stage.CreateNew(str(tmp_path / "empty.usda"))
@@ -77,7 +77,11 @@ def test_reader_refuses_what_is_not_a_triangle_mesh(tmp_path):
     m.CreateFaceVertexCountsAttr([4])
     m.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
     stage.GetRootLayer().Save()
-    with pytest.raises(FileFormatError, match="quad.usda: USD mesh is not all triangles"):
+    faces = read_usd_sequence(tmp_path / "quad.usda")[0]  # a quad is read as two triangles (a fan)
+    np.testing.assert_array_equal(faces, [[0, 1, 2], [0, 2, 3]])
+    m.GetFaceVertexCountsAttr().Set([2, 2])  # not polygons
+    stage.GetRootLayer().Save()
+    with pytest.raises(FileFormatError, match="quad.usda: USD mesh faces are not polygons of 3 or more corners"):
         read_usd_sequence(tmp_path / "quad.usda")
     (tmp_path / "junk.usd").write_bytes(b"PXR-USDC" + b"\0" * 40)
     with pytest.raises(FileFormatError, match="junk.usd: not a readable USD file"):

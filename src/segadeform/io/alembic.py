@@ -1,10 +1,11 @@
 """Alembic (``.abc``) mesh sequences through the optional ``alembic3d`` package (extra ``alembic``).
 
-One ``OPolyMesh`` named after the file (``out/dress_walk.abc`` -> ``dress_walk``, as the USD writer names its
-prim; a body written beside the garment is then its own object on import): topology written once with the
-first frame, positions per frame, uniform time sampling ``1 / fps`` from
+One ``OPolyMesh`` (triangles, or the garment file's own polygons and texture coordinates -- a face-varying
+``uv`` -- when given its :class:`~segadeform.io.surface.Surface`) named after the file (``out/dress_walk.abc``
+-> ``dress_walk``, as the USD writer names its prim; a body written beside the garment is then its own object on
+import): topology written once with the first frame, positions per frame, uniform time sampling ``1 / fps`` from
 ``start / fps``.  Alembic (as Maya writes it) winds faces clockwise, so
-triangles are stored reversed and reversed back on reading; DCC importers
+faces are stored reversed and reversed back on reading; DCC importers
 (Blender, Maya, Houdini) then show outward normals.  Vertex order is the
 garment file's.  The archive is written under a temporary name and renamed
 when closed.
@@ -22,6 +23,7 @@ import numpy as np
 from ..errors import FileFormatError, InputError, check_readable, unreadable_error
 from .atomic import _tmp_sibling
 from .mesh import validate_mesh_arrays
+from .surface import fan_triangles
 from .writer import SequenceWriter
 
 __all__ = ["AlembicSequenceWriter", "read_alembic_sequence", "alembic_available"]
@@ -42,6 +44,14 @@ def alembic_available() -> bool:
         return True
     except InputError:
         return False
+
+
+def _reversed_corners(counts) -> np.ndarray:
+    """The corner order that reverses every polygon (``counts`` corners each, face after face)."""
+    c = np.asarray(counts, np.int64)
+    end = np.cumsum(c)
+    k = np.arange(int(c.sum())) - np.repeat(end - c, c)
+    return np.repeat(end, c) - 1 - k
 
 
 def _v3(imath, a: np.ndarray):
@@ -69,6 +79,7 @@ class AlembicSequenceWriter(SequenceWriter):
         start_frame: int = 0,
         name: str | None = None,
         up: str = "y",
+        surface=None,
     ) -> None:
         super().__init__(path, num_points, up=up)
         Abc, AbcGeom, AbcCoreAbstract, self._imath = _modules()
@@ -82,14 +93,27 @@ class AlembicSequenceWriter(SequenceWriter):
             name = re.sub(r"[^0-9A-Za-z_]", "_", self.path.stem) or "mesh"
         self._schema = AbcGeom.OPolyMesh(self._archive.getTop(), name, ts).getSchema()
         self._sample = AbcGeom.OPolyMeshSchemaSample
+        self._uvs = None
+        if surface is None:
+            self._counts, self._corners = np.full(len(self.faces), 3), self.faces[:, ::-1].ravel()
+        else:  # the garment's own polygons, each reversed (Alembic's winding), and its texture coordinates
+            if surface.n_vertices_used > num_points:
+                raise InputError("the surface indexes more vertices than the frames have", path=self.path)
+            self._counts = np.asarray(surface.counts, np.int64)
+            order = _reversed_corners(self._counts)
+            self._corners = np.asarray(surface.indices, np.int64)[order]
+            if surface.uvs is not None:  # one per corner (face-varying, not indexed), in the reversed order
+                per_corner = np.asarray(surface.uvs, np.float32)[np.asarray(surface.uv_indices)[order]]
+                uv = self._imath.V2fArray(len(per_corner))
+                np.asarray(memoryview(uv))[:] = per_corner
+                self._uvs = AbcGeom.OV2fGeomParamSample(uv, AbcGeom.GeometryScope.kFacevaryingScope)
 
     def _append(self, frames: np.ndarray) -> None:
         im = self._imath
         for k, fr in enumerate(frames.astype(np.float32)):
             if self.num_samples + k == 0:
-                s = self._sample(
-                    _v3(im, fr), _ints(im, self.faces[:, ::-1].ravel()), _ints(im, np.full(len(self.faces), 3))
-                )
+                args = (_v3(im, fr), _ints(im, self._corners), _ints(im, self._counts))
+                s = self._sample(*args) if self._uvs is None else self._sample(*args, self._uvs)
             else:
                 s = self._sample(_v3(im, fr))
             self._schema.set(s)
@@ -126,10 +150,11 @@ def read_alembic_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarr
         ts = schema.getTimeSampling()
         n = schema.getNumSamples()
         first = schema.getValue(Abc.ISampleSelector(ts.getSampleTime(0)))
-        counts = np.array(memoryview(first.getFaceCounts()))
-        if (counts != 3).any():
-            raise FileFormatError("Alembic mesh is not all triangles", path=p)
-        faces = np.array(memoryview(first.getFaceIndices())).reshape(-1, 3)[:, ::-1].astype(np.int64)
+        counts = np.array(memoryview(first.getFaceCounts())).astype(np.int64)
+        corners = np.array(memoryview(first.getFaceIndices())).astype(np.int64)
+        if not counts.size or (counts < 3).any() or corners.size != counts.sum():
+            raise FileFormatError("Alembic mesh faces are not polygons of 3 or more corners", path=p)
+        faces = fan_triangles(counts, corners[_reversed_corners(counts)])  # back to counter-clockwise
         times = np.array([ts.getSampleTime(i) for i in range(n)])
         frames = np.stack(
             [np.array(memoryview(schema.getValue(Abc.ISampleSelector(t)).getPositions())) for t in times]

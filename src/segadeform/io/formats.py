@@ -55,7 +55,9 @@ class SequenceFormat:
     Attributes:
         name: what scenes and ``--format`` call it.
         extensions: file extensions (lower case, with the dot); empty for a folder format.
-        open: ``open(path, *, faces, num_points, fps, start_frame, rest, up) -> SequenceWriter``.
+        open: ``open(path, *, faces, num_points, fps, start_frame, rest, up, surface) -> SequenceWriter``;
+            ``surface``: the garment file's own polygons and texture coordinates
+            (:class:`~segadeform.io.surface.Surface`, or None), which a format keeps where it can.
         read: ``read(path, faces) -> frames (S, N, 3)``.
         description: one line for help texts.
         extra: the optional dependency group it needs, if any.
@@ -133,11 +135,24 @@ def open_sequence_writer(
     start_frame: int = 0,
     rest: np.ndarray | None = None,
     up: str = "y",
+    surface=None,
 ):
-    """A streaming writer (:class:`~segadeform.io.writer.SequenceWriter`) for the format called ``fmt``."""
-    return sequence_format(fmt).open(
-        path, faces=faces, num_points=num_points, fps=fps, start_frame=start_frame, rest=rest, up=up
-    )
+    """A streaming writer (:class:`~segadeform.io.writer.SequenceWriter`) for the format called ``fmt``;
+    ``surface``: polygons and texture coordinates to keep (:class:`~segadeform.io.surface.Surface`; OBJ frames,
+    USD and Alembic keep them, the others write ``faces``)."""
+    f = sequence_format(fmt)
+    kw = {"surface": surface} if surface is not None and _takes_surface(f.open) else {}  # formats from before it
+    return f.open(path, faces=faces, num_points=num_points, fps=fps, start_frame=start_frame, rest=rest, up=up, **kw)
+
+
+def _takes_surface(open_fn) -> bool:
+    import inspect
+
+    try:
+        params = inspect.signature(open_fn).parameters
+    except (TypeError, ValueError):
+        return False
+    return "surface" in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
 
 
 def read_sequence(path: str | os.PathLike, *, faces: np.ndarray | None = None) -> np.ndarray:
@@ -180,7 +195,7 @@ def inspect_sequence(path: str | os.PathLike) -> tuple[SequenceFormat, str, np.n
 
 
 # ---- the built-in formats ----------------------------------------------------------------------------------
-def _pc2_open(path, *, faces, num_points, fps, start_frame, rest, up):
+def _pc2_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
     from .pc2 import PC2Writer
 
     return PC2Writer(path, num_points, start_frame=float(start_frame), sample_rate=1.0, up=up)
@@ -216,10 +231,10 @@ def _objseq_start(path):
     return obj_sequence_files(path)[0][0]
 
 
-def _objseq_open(path, *, faces, num_points, fps, start_frame, rest, up):
+def _objseq_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
     from .sequence import ObjSequenceWriter
 
-    return ObjSequenceWriter(path, faces, num_points, start=start_frame, up=up)
+    return ObjSequenceWriter(path, faces, num_points, start=start_frame, up=up, surface=surface)
 
 
 def _objseq_read(path, faces):
@@ -235,7 +250,7 @@ def _objseq_inspect(path):
     return f"{frames.shape[0]} frames x {frames.shape[1]} vertices, {len(faces)} faces", frames
 
 
-def _xdmf_open(path, *, faces, num_points, fps, start_frame, rest, up):
+def _xdmf_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
     from .sequence import XdmfSequenceWriter
 
     return XdmfSequenceWriter(path, faces, num_points, rest=rest, fps=fps, start=start_frame, up=up)
@@ -247,10 +262,10 @@ def _xdmf_read(path, faces):
     return read_xdmf_sequence(path)[1]
 
 
-def _abc_open(path, *, faces, num_points, fps, start_frame, rest, up):
+def _abc_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
     from .alembic import AlembicSequenceWriter
 
-    return AlembicSequenceWriter(path, faces, num_points, fps=fps, start_frame=start_frame, up=up)
+    return AlembicSequenceWriter(path, faces, num_points, fps=fps, start_frame=start_frame, up=up, surface=surface)
 
 
 def _abc_read(path, faces):
@@ -291,10 +306,10 @@ register_sequence_format(
 )
 
 
-def _usd_open(path, *, faces, num_points, fps, start_frame, rest, up):
+def _usd_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
     from .usd import UsdSequenceWriter
 
-    return UsdSequenceWriter(path, faces, num_points, fps=fps, start_frame=start_frame, up=up)
+    return UsdSequenceWriter(path, faces, num_points, fps=fps, start_frame=start_frame, up=up, surface=surface)
 
 
 def _usd_read(path, faces):

@@ -19,7 +19,7 @@ from ..errors import InputError
 from .formats import SEQUENCE_FORMATS, format_for_path, open_sequence_writer, sequence_format
 from .writer import to_up
 
-__all__ = ["SceneOutput", "claim_scene_outputs", "body_output_format", "output_format_for"]
+__all__ = ["SceneOutput", "claim_scene_outputs", "body_output_format", "output_format_for", "garment_surface"]
 
 
 def _extensions() -> str:
@@ -49,6 +49,18 @@ def output_format_for(path, fmt: str | None = None) -> str:
             got=Path(path).suffix,
         )
     return f.name
+
+
+def garment_surface(path, n_vertices: int):
+    """The polygons and texture coordinates of garment file ``path`` for the writers that keep them: an OBJ's own
+    (:func:`~segadeform.io.surface.obj_surface`) when its faces index ``n_vertices`` vertices or fewer (the frames'
+    vertices are the file's, in its order), else None (other formats, precomputed assets)."""
+    from .surface import obj_surface
+
+    if Path(path).suffix.lower() != ".obj":
+        return None
+    s = obj_surface(path)
+    return s if s.n_vertices_used <= n_vertices else None
 
 
 def body_output_format(body_path) -> str:
@@ -100,6 +112,8 @@ class SceneOutput:
         up: axes of the written coordinates ("y" as computed, "z" turned to Z-up).
         fps, start_frame: timing of the first written frame.
         garment_faces (F, 3), garment_rest (N, 3): the garment mesh.
+        garment_surface: the garment file's own polygons and texture coordinates
+            (:class:`~segadeform.io.surface.Surface`; :func:`garment_surface`), kept by the formats that can.
         body_path: also write the posed body here, in the format its extension names
             (:func:`body_output_format`), with ``body_faces`` and ``body_rest`` (V, 3) -- for PC2 the rest mesh
             goes beside it as ``.obj``.
@@ -122,13 +136,22 @@ class SceneOutput:
         body_faces: np.ndarray | None = None,
         body_rest: np.ndarray | None = None,
         guard=None,
+        garment_surface=None,
     ) -> None:
         _targets(path, fmt, body_path)  # unknown formats and clashing paths fail before anything is opened
         self.fmt, self.up, self.guard = fmt, up, guard
         self.body_fmt = body_output_format(body_path) if body_path is not None else None
         rest = np.asarray(garment_rest, np.float64)
         self.garment = open_sequence_writer(
-            path, fmt, faces=garment_faces, num_points=len(rest), fps=fps, start_frame=start_frame, rest=rest, up=up
+            path,
+            fmt,
+            faces=garment_faces,
+            num_points=len(rest),
+            fps=fps,
+            start_frame=start_frame,
+            rest=rest,
+            up=up,
+            surface=garment_surface,
         )
         self.body = None
         self._body_rest = None

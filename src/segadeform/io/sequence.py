@@ -45,6 +45,26 @@ __all__ = [
 _NUM = re.compile(r"(\d+)(?!.*\d)")
 
 
+def _surface_obj_text(surface, num_points: int) -> str:
+    """The ``vt`` and ``f`` lines of a :class:`~segadeform.io.surface.Surface` (written after each frame's ``v``)."""
+    if surface.n_vertices_used > num_points:
+        raise InputError(
+            "the surface indexes more vertices than the frames have", expected=num_points, got=surface.n_vertices_used
+        )
+    lines = []
+    if surface.uvs is not None:
+        lines += [f"vt {u:.9g} {v:.9g}" for u, v in surface.uvs]
+    idx = np.asarray(surface.indices) + 1
+    uv = None if surface.uv_indices is None else np.asarray(surface.uv_indices) + 1
+    at = 0
+    for c in np.asarray(surface.counts):
+        ids = idx[at : at + c]
+        corners = ids if uv is None else [f"{a}/{b}" for a, b in zip(ids, uv[at : at + c], strict=True)]
+        lines.append("f " + " ".join(str(x) for x in corners))
+        at += c
+    return "\n".join(lines) + "\n"
+
+
 class ObjSequenceWriter(SequenceWriter):
     """Write frames as ``DIR/{prefix}_{i:05d}.obj``; the folder appears on close."""
 
@@ -60,9 +80,11 @@ class ObjSequenceWriter(SequenceWriter):
         start: int = 0,
         precision: int = 9,
         up: str = "y",
+        surface=None,
     ) -> None:
         super().__init__(directory, num_points, up=up)
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
+        self._surface_text = None if surface is None else _surface_obj_text(surface, num_points)
         if self.path.exists() and not self.path.is_dir():
             raise InputError("output for an OBJ sequence must be a folder", path=self.path)
         self.prefix, self.index, self.precision = prefix, int(start), precision
@@ -70,9 +92,14 @@ class ObjSequenceWriter(SequenceWriter):
 
     def _append(self, frames: np.ndarray) -> None:
         for frame in frames:
-            write_obj_positions(
-                self._tmp / f"{self.prefix}_{self.index:05d}.obj", self.faces, frame, precision=self.precision
-            )
+            out = self._tmp / f"{self.prefix}_{self.index:05d}.obj"
+            if self._surface_text is None:
+                write_obj_positions(out, self.faces, frame, precision=self.precision)
+            else:  # the garment's own polygons and texture coordinates
+                v = "".join(
+                    f"v {x:.{self.precision}g} {y:.{self.precision}g} {z:.{self.precision}g}\n" for x, y, z in frame
+                )
+                out.write_text(v + self._surface_text, encoding="utf-8", newline="\n")
             self.index += 1
 
     def _commit(self) -> None:

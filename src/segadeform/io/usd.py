@@ -1,15 +1,16 @@
 """USD (``.usd``, ``.usda``, ``.usdc``) mesh sequences through the optional ``usd-core`` package (extra ``usd``).
 
-One ``UsdGeom.Mesh`` named after the file (``out/dress_walk.usd`` -> ``/dress_walk``, the stage's default
-prim): faces written once (``faceVertexCounts`` all 3, ``faceVertexIndices`` in the garment file's order,
-counter-clockwise = ``rightHanded``, no subdivision), ``points`` and ``extent`` as time samples at time codes
-``start_frame, start_frame + 1, ...``.  The stage says how to read them: ``upAxis`` (``Y`` as computed, or
-``Z`` for ``--up z``), ``metersPerUnit = 1`` and ``timeCodesPerSecond = framesPerSecond = fps``, with
-``startTimeCode``/``endTimeCode`` spanning the frames.  ``.usd`` and ``.usdc`` are written binary (crate),
-``.usda`` as text.
+One ``UsdGeom.Mesh`` named after the file (``out/dress_walk.usd`` -> ``/dress_walk``, the stage's default prim):
+faces written once (``faceVertexCounts`` all 3, ``faceVertexIndices`` in the garment file's order -- or, given the
+garment file's own :class:`~segadeform.io.surface.Surface`, its quads and polygons and its texture coordinates as
+the face-varying ``st`` primvar -- counter-clockwise = ``rightHanded``, no subdivision), ``points`` and ``extent``
+as time samples at time codes ``start_frame, start_frame + 1, ...``. The stage says how to read them: ``upAxis``
+(``Y`` as computed, or ``Z`` for ``--up z``), ``metersPerUnit = 1`` and ``timeCodesPerSecond = framesPerSecond =
+fps``, with ``startTimeCode``/``endTimeCode`` spanning the frames. ``.usd`` and ``.usdc`` are written binary
+(crate), ``.usda`` as text.
 
-The stage is built in memory and exported under a temporary name when the writer closes, then renamed: a
-failed run leaves nothing.
+The stage is built in memory and exported under a temporary name when the writer closes, then renamed: a failed run
+leaves nothing.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import numpy as np
 from ..errors import FileFormatError, InputError, check_readable, unreadable_error
 from .atomic import WriteError, _tmp_sibling, write_error
 from .mesh import validate_mesh_arrays
+from .surface import fan_triangles
 from .writer import SequenceWriter
 
 __all__ = ["UsdSequenceWriter", "read_usd_sequence", "usd_available", "USD_EXTENSIONS"]
@@ -65,6 +67,7 @@ class UsdSequenceWriter(SequenceWriter):
         fps: float = 30.0,
         start_frame: int = 0,
         up: str = "y",
+        surface=None,
     ) -> None:
         super().__init__(path, num_points, up=up)
         ext = self.path.suffix.lower()
@@ -85,8 +88,20 @@ class UsdSequenceWriter(SequenceWriter):
         name = Tf.MakeValidIdentifier(self.path.stem) or "mesh"
         mesh = UsdGeom.Mesh.Define(self._stage, Sdf.Path("/" + name))
         self._stage.SetDefaultPrim(mesh.GetPrim())
-        mesh.CreateFaceVertexCountsAttr(self._Vt.IntArray.FromNumpy(np.full(len(self.faces), 3, np.int32)))
-        mesh.CreateFaceVertexIndicesAttr(self._Vt.IntArray.FromNumpy(self.faces.astype(np.int32).ravel()))
+        if surface is None:
+            counts, corners = np.full(len(self.faces), 3, np.int32), self.faces.astype(np.int32).ravel()
+        else:  # the garment's own polygons (and texture coordinates: the `st` primvar, face-varying)
+            if surface.n_vertices_used > num_points:
+                raise InputError("the surface indexes more vertices than the frames have", path=self.path)
+            counts, corners = np.asarray(surface.counts, np.int32), np.asarray(surface.indices, np.int32)
+        mesh.CreateFaceVertexCountsAttr(self._Vt.IntArray.FromNumpy(counts))
+        mesh.CreateFaceVertexIndicesAttr(self._Vt.IntArray.FromNumpy(corners))
+        if surface is not None and surface.uvs is not None:
+            st = UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
+                "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
+            )
+            st.Set(self._Vt.Vec2fArray.FromNumpy(np.asarray(surface.uvs, np.float32)))
+            st.SetIndices(self._Vt.IntArray.FromNumpy(np.asarray(surface.uv_indices, np.int32)))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
         mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
         self._points = mesh.CreatePointsAttr()
@@ -140,12 +155,12 @@ def read_usd_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, 
         raise FileFormatError("USD file has no mesh", path=p, expected="a UsdGeom.Mesh prim", got="none")
     counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get() or [], np.int64)
     idx = np.asarray(mesh.GetFaceVertexIndicesAttr().Get() or [], np.int64)
-    if counts.size == 0 or (counts != 3).any() or idx.size != 3 * counts.size:
+    if counts.size == 0 or (counts < 3).any() or idx.size != counts.sum():
         raise FileFormatError(
-            "USD mesh is not all triangles",
+            "USD mesh faces are not polygons of 3 or more corners",
             path=p,
-            expected="faceVertexCounts all 3",
-            got=f"{counts.size} faces, counts {sorted(set(counts.tolist()))[:5]}",
+            expected="faceVertexCounts >= 3 summing to the faceVertexIndices",
+            got=f"{counts.size} faces, counts {sorted(set(counts.tolist()))[:5]}, {idx.size} indices",
         )
     attr = mesh.GetPointsAttr()
     times = np.asarray(attr.GetTimeSamples(), np.float64)
@@ -170,4 +185,4 @@ def read_usd_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, 
         "end": float(stage.GetEndTimeCode()),
         "prim": str(mesh.GetPath()),
     }
-    return idx.reshape(-1, 3), frames, times, info
+    return fan_triangles(counts, idx), frames, times, info

@@ -11,7 +11,7 @@ import numpy as np
 from ..body.model import default_body_path, load_body
 from ..errors import InputError
 from ..io import SceneOutput, read_mesh
-from ..io.outputs import claim_scene_outputs
+from ..io.outputs import claim_scene_outputs, garment_surface
 from ..motion import build_motion, select_frames
 from ..settings import Scene
 from ..settings.simulation import SimSettings
@@ -83,6 +83,7 @@ def simulate_scene(
         start_frame=start,
         garment_faces=mesh.faces,
         garment_rest=mesh.vertices,
+        garment_surface=garment_surface(scene.garment, len(mesh.vertices)),
         body_path=scene.body_output,
         body_faces=body.faces,
         body_rest=body.shaped_vertices(scene.betas or None)[0] if posed is not None else None,
