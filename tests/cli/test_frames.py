@@ -3,6 +3,8 @@ and bundle, before any work (simulate: before the simulator starts, so no Blende
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -60,7 +62,7 @@ def test_run_simulate_and_bundle_refuse_frames_past_the_motion_alike(scene, tmp_
     assert not (tmp_path / "out").exists() and not (tmp_path / "b.sgdb").exists()
 
 
-def test_run_repairs_a_captures_glitches_when_asked_and_keeps_its_frames(tmp_path):
+def test_run_repairs_a_captures_glitches_when_asked_and_keeps_its_frames(tmp_path, caplog):
     """`run --repair-glitches` (the scene's `[motion] repair_glitches`): the same frame count, other frames where
     the capture jumped; without it the capture plays as it is."""
     import dataclasses
@@ -74,8 +76,13 @@ def test_run_repairs_a_captures_glitches_when_asked_and_keeps_its_frames(tmp_pat
     out = {}
     for name, extra in (("as_is", []), ("repaired", ["--repair-glitches"])):
         args = ["run", "--garment", str(SAMPLES / "garments" / "skirt.obj"), "--motion", str(tmp_path / "cap.npz")]
-        r = CliRunner().invoke(cli, [*args, "-o", str(tmp_path / f"{name}.pc2"), *extra])
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            r = CliRunner().invoke(cli, [*args, "-o", str(tmp_path / f"{name}.pc2"), *extra])
         assert r.exit_code == 0, r.output
+        said = [rec.getMessage() for rec in caplog.records if "jumps to and back from" in rec.getMessage()]
+        assert len(said) == (name == "as_is"), said  # a warning naming the fix, when it is not asked for
+        assert name == "repaired" or "cap.npz" in said[0] and "--repair-glitches" in said[0]
         out[name] = np.array(read_pc2(tmp_path / f"{name}.pc2").frames)
     assert out["as_is"].shape == out["repaired"].shape and out["as_is"].shape[0] == m.n_frames
     moved = np.abs(out["as_is"] - out["repaired"]).max(axis=(1, 2))

@@ -11,7 +11,7 @@ import dataclasses
 
 from ..errors import InputError
 from ..settings.scene import MotionSpec
-from .motion import Motion, feet_on_floor, repair_capture, resample
+from .motion import Motion, drop_leading_glitches, feet_on_floor, repair_capture, repair_glitches, resample
 from .procedural import make_motion
 
 __all__ = ["MotionSpec", "build_motion", "frame_range", "select_frames"]
@@ -53,10 +53,17 @@ def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
         )
         if spec.floor and rest_joints is not None:
             m = feet_on_floor(m, rest_joints)
-    if spec.repair_glitches and spec.file is not None:  # at the file's own rate, before any resampling
+    if spec.file is not None:  # at the file's own rate, before any resampling
         from ..body.skeleton import default_rest_joints
 
-        m = repair_capture(m, default_rest_joints() if rest_joints is None else rest_joints)
+        joints = default_rest_joints() if rest_joints is None else rest_joints
+        if spec.repair_glitches:
+            m = repair_capture(m, joints)
+        else:  # counted, for a warning: a capture's solve settling or jumping shows as cloth thrown about
+            _, settle = drop_leading_glitches(m, joints)
+            _, jumps = repair_glitches(m, joints)
+            if settle or jumps:
+                m = dataclasses.replace(m, meta=dict(m.meta, unrepaired_glitches=(int(settle), int(jumps))))
     if spec.fps is not None and abs(spec.fps - m.fps) > 1e-9:
         m = resample(m, spec.fps)
     return m
