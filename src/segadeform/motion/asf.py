@@ -565,6 +565,11 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
     line_of: dict[str, list] = {n: [] for n in skeleton.names}  # the line of each of a bone's rows
     frame_lines: list[int] = []  # the line of each frame number
     angle, fully, first, seen = skeleton.angle, False, None, set()
+    n_lines = len(text.splitlines())
+    cut_short = bool(text) and not text.endswith(("\n", "\r"))  # a download or copy that stopped mid-line
+
+    def at_end(ln: int) -> str:
+        return " (the file ends there without a line break: is it cut short?)" if cut_short and ln == n_lines else ""
 
     def close_frame():
         if fully and len(seen) != len(required):
@@ -591,7 +596,7 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
             if len(parts) - 1 != k:
                 dof = " ".join(skeleton.dofs[skeleton.names.index(head)]) or "none"
                 raise FileFormatError(
-                    f"wrong number of values for bone {head!r}",
+                    f"wrong number of values for bone {head!r}{at_end(ln)}",
                     path=p,
                     line=ln,
                     expected=f"{k} (dof {dof} in {skeleton.path.name})",
@@ -653,7 +658,7 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
             )
         else:
             raise FileFormatError(
-                f"bone {head!r} is not in the skeleton",
+                f"bone {head!r} is not in the skeleton{at_end(ln)}",
                 path=p,
                 line=ln,
                 expected=f"a bone of {skeleton.path.name}",
