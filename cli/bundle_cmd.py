@@ -33,3 +33,11 @@ def bundle_cmd(scene, output, model, no_expected, frames, force):
     p = scene_bundle(sc, output, model=model, expected=not no_expected, force=force)
     guard.record()
     click.echo(f"wrote {p}")
+    post = [n for n, on in (("collisions", sc.effects.collisions), ("cloth", sc.effects.cloth)) if on]
+    if post:  # the host runtime's post-processes: not in the bundle, named on its command line
+        click.echo(
+            f"note: the scene's {' and '.join(post)} are not in the bundle (the host runtime runs them): pass "
+            f"--effects {sc.effects.skinning},{'dynamics,' if sc.effects.dynamics else ''}"
+            f"{'wrinkles,' if sc.effects.wrinkles else ''}{','.join(post)} to segadeform-node or segadeform-run",
+            err=True,
+        )

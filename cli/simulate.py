@@ -25,6 +25,11 @@ from .main import cli
 @click.option("--quality", type=click.IntRange(1, 80), help="Solver steps per frame.")
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
 @click.option(
+    "--body-out",
+    type=click.Path(path_type=Path),
+    help="Write the posed body here (overrides the scene's output.body), in the format its extension names.",
+)
+@click.option(
     "--sim-python",
     type=click.Path(dir_okay=False, path_type=Path),
     help="The simulator environment's Python (default: SEGADEFORM_SIM_PYTHON or .venv-sim).",
@@ -35,7 +40,7 @@ from .main import cli
     help="Write into an output folder that holds other files (beside them, never "
     "over a file segadeform did not write).",
 )
-def simulate_cmd(scene, output, effects, material, quality, frames, sim_python, force):
+def simulate_cmd(scene, output, effects, material, quality, frames, body_out, sim_python, force):
     """Simulate SCENE.toml's garment on its body with Blender's cloth solver; write it like `run`."""
     from segadeform.io.outputs import output_format_for
     from segadeform.physics import SimSettings
@@ -58,6 +63,8 @@ def simulate_cmd(scene, output, effects, material, quality, frames, sim_python, 
         changes["motion"] = dataclasses.replace(sc.motion, frames=parse_frames(frames))
     if output is not None:
         changes["output_format"] = output_format_for(output)
+    if body_out is not None:  # (a scene's body path that `run` wrote is another command's output: move it)
+        changes["body_output"] = body_out
     sc = dataclasses.replace(sc, **changes)
     interactive = sys.stderr.isatty()
     with click.progressbar(length=1, label="simulating", file=sys.stderr, hidden=not interactive) as bar:

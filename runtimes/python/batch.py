@@ -4,7 +4,7 @@ A jobs file (TOML; relative paths are relative to it)::
 
     [batch]
     output = "../../out/batch"     # a folder or an fsspec URL (s3://bucket/prefix, ...)
-    format = "pc2"                 # pc2 | obj-seq | xdmf | abc (default pc2)
+    format = "pc2"                 # pc2 | obj-seq | xdmf | abc | usd (default pc2)
     model = "../models/default"    # optional (default: the shipped model)
     body = "../bodies/default_body.npz"   # optional (default: the shipped body)
     effects = "dqs,collisions"     # optional, as `run --effects` (default: every effect)

@@ -29,14 +29,15 @@ def scene_bundle(
     batch: int = 8,
     force: bool = False,
 ) -> Path:
-    """Write the bundle of ``scene`` (its effects without collisions: those are the host's post-process).
+    """Write the bundle of ``scene`` (its effects without collisions and the cloth stage: those are the host's
+    post-processes, named on the host runtime's command line).
 
     ``expected``: also run the deformer here and store its output (the parity vector)."""
     package = ModelPackage(model or scene.model or default_model_path())
     body = load_body(scene.body or default_body_path())
     joints = body.rest_joints(scene.betas)[0]
     motion, _ = select_frames(build_motion(scene.motion, joints), scene.motion.frames)
-    effects = dataclasses.replace(scene.effects, collisions=False)
+    effects = dataclasses.replace(scene.effects, collisions=False, cloth=False)
     run = Run(
         garment=scene.garment,
         motion=motion,

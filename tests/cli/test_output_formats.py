@@ -122,3 +122,18 @@ def test_a_closed_pipe_on_stdout_ends_quietly(tmp_path):
     p.stdout.close()  # the reader goes away at once, as `head -0` would
     err = p.stderr.read().decode()
     assert p.wait(timeout=120) in (0, 141) and "Error" not in err and "Traceback" not in err, err
+
+
+def test_bundle_says_which_effects_the_host_runs(tmp_path):
+    """`bundle` of a scene with the cloth stage said only "wrote X.sgdb": Node and C++ then ran it without cloth or
+    collisions (12.8 cm from `run`).  The bundle leaves both to the host and says how to name them there."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        f'[garment]\nmesh = "{DRESS.as_posix()}"\n[motion]\nfile = "{WALK.as_posix()}"\nframes = "0:3"\n'
+        '[output]\npath = "o.pc2"\n[effects]\nskinning = "lbs"\ndynamics = true\nwrinkles = true\n'
+        "collisions = true\ncloth = true\n"
+    )
+    r = CliRunner().invoke(cli, ["bundle", str(scene), "-o", str(tmp_path / "b.sgdb")])
+    assert r.exit_code == 0, r.output
+    assert "collisions and cloth are not in the bundle" in r.output
+    assert "--effects lbs,dynamics,wrinkles,collisions,cloth to segadeform-node or segadeform-run" in r.output

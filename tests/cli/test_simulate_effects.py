@@ -23,6 +23,7 @@ def captured(monkeypatch):
 
     def fake(scene, *, output=None, settings=None, sim_python=None, progress=None, guard=None, frames_from_scene=True):
         seen["settings"] = settings
+        seen["body_output"] = scene.body_output
         res = types.SimpleNamespace(preroll_frames=0, seconds_per_frame=0.0, blender={"blender_version": "-"})
         return types.SimpleNamespace(frames=0, result=res, written=[])
 
@@ -86,3 +87,13 @@ def test_parse_sim_effects():
     assert parse_sim_effects("+wind") == DEFAULT_EFFECTS[:2] + ("bending", "air_damping", "wind")
     assert parse_sim_effects("-gravity", ("gravity", "pinning")) == ("pinning",)
     assert parse_sim_effects("none", ("gravity",)) == ()
+
+
+def test_body_out_moves_the_body_a_scene_names(tmp_path, captured):
+    """A scene with [output] body that `run` had written could not be simulated: its body path was another command's
+    output and `-o` moves only the garment.  `--body-out` moves the body too."""
+    r, _ = _simulate(tmp_path, captured, 'body = "b.pc2"\n', "--body-out", str(tmp_path / "sim_body.usda"))
+    assert r.exit_code == 0, r.output
+    assert captured["body_output"] == tmp_path / "sim_body.usda"
+    r, _ = _simulate(tmp_path, captured, 'body = "b.pc2"\n')
+    assert r.exit_code == 0 and captured["body_output"].name == "b.pc2"

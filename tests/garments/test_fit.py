@@ -398,3 +398,19 @@ def test_a_fit_that_tears_the_garment_is_refused(tmp_path, monkeypatch):
     assert not (tmp_path / "o.obj").exists()
     r = CliRunner().invoke(cli, [*args, "--force"])
     assert r.exit_code == 0 and (tmp_path / "o.obj").exists(), r.output
+
+
+def test_a_makehuman_garment_given_to_run_is_sent_to_garment_fit(tmp_path):
+    """`run` took neither a MakeHuman `.mhclo` ("unknown mesh file extension") nor pointed from its raw OBJ to the
+    binding beside it (it suggested --from-body): both now name `segadeform garment fit`."""
+    walk = ROOT / "samples" / "motions" / "walk.npz"
+    for garment, says in (
+        (SAMPLES / "skirt_short_f.mhclo", "a MakeHuman binding is not a mesh"),
+        (SAMPLES / "skirt_short_f.obj", "it is a MakeHuman garment, placed on a body by the binding beside it"),
+    ):
+        r = CliRunner().invoke(
+            cli,
+            ["run", "--garment", str(garment), "--motion", str(walk), "--frames", "0:2", "-o", str(tmp_path / "o.pc2")],
+        )
+        assert r.exit_code == 1 and says in r.output and "segadeform garment fit" in r.output, r.output
+        assert not (tmp_path / "o.pc2").exists()

@@ -5,6 +5,7 @@ and ``bundle``'s), with the plain unit/axis fix they suggest (:func:`fix_units_a
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 
@@ -165,6 +166,15 @@ def check_placement(
         f"{100 * st['outside_height']:.1f} % above the head or below the feet"
     )
     g = path if path is not None else "GARMENT"
+    binding = Path(path).with_suffix(".mhclo") if path is not None else None
+    if binding is not None and binding.is_file():  # a MakeHuman garment's own OBJ: its binding places it
+        raise PlacementError(
+            f"the garment does not sit on the body ({what}); it is a MakeHuman garment, placed on a body by the "
+            f"binding beside it ({binding.name})",
+            path=path,
+            expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj` (add --betas for "
+            "a body shape), or pass --force",
+        )
     b = np.asarray(betas if betas is not None else (), np.float64).ravel()
     if template_vertices is not None and b.size and np.abs(b).max() > 0:
         tv = np.asarray(template_vertices, np.float64)

@@ -93,6 +93,13 @@ def read_mesh(path: str | os.PathLike) -> Mesh:
         return MESH_READERS[ext](p)
     if ext in _MESHIO_EXTS:
         return read_meshio(p)
+    if ext == ".mhclo":  # a binding, not a mesh: it places its OBJ on a body (at a body shape)
+        raise InputError(
+            "a MakeHuman binding is not a mesh: fit it to the body first",
+            path=p,
+            expected=f"a garment mesh: run `segadeform garment fit {p} -o {p.stem}.obj` (--betas for a body shape)",
+            got=".mhclo",
+        )
     raise InputError(
         "unknown mesh file extension",
         path=p,

@@ -31,10 +31,10 @@ are required; relative paths are relative to the scene file)::
 
     [output]
     path = "../../out/skirt.pc2"
-    format = "pc2"                 # pc2 | obj-seq | xdmf | abc (default: from the extension; abc needs
-                                   # the 'alembic' extra)
+    format = "pc2"                 # pc2 | obj-seq | xdmf | abc | usd (default: from the extension; abc and
+                                   # usd need the 'alembic' and 'usd' extras)
     up = "y"                       # y (as computed; what Blender's Mesh Cache on an imported OBJ wants) | z
-    body = "../../out/body.pc2"    # optional: the posed body too, same format
+    body = "../../out/body.pc2"    # optional: the posed body too, in the format its extension names
 
     [effects]                      # what is not named is off (skinning: lbs); no table: every effect on
     skinning = "lbs"               # lbs | dqs
