@@ -456,13 +456,19 @@ def run_scene(
     motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
     glitches = motion.meta.get("unrepaired_glitches")
     if glitches:
-        log.warning(
-            "motion %s: %d leading frames its capture settles from and %d frames it jumps to and back from "
-            "(joints faster than 20 m/s) throw the cloth about; --repair-glitches (repair_glitches = true in a "
-            "scene's [motion]) rebuilds them",
-            Path(scene.motion.file).name,
-            *glitches,
-        )
+        settle, jumps, file_fps = glitches
+        start = scene.motion.frames[0] if scene.motion.frames else 0
+        if start / motion.fps >= settle / file_fps:  # the range starts after the capture has settled
+            settle = 0
+        if settle or jumps:
+            log.warning(
+                "motion %s: %d leading frames its capture settles from and %d frames it jumps to and back from "
+                "(joints faster than 20 m/s) throw the cloth about; --repair-glitches (repair_glitches = true in a "
+                "scene's [motion]) rebuilds them",
+                Path(scene.motion.file).name,
+                settle,
+                jumps,
+            )
     check_motion_shape(motion, scene, body, force=force)
     try:  # a range past the motion's end is the scene's to fix: name it
         frame_range(scene.motion.frames, motion.n_frames)

@@ -63,7 +63,9 @@ def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
             _, settle = drop_leading_glitches(m, joints)
             _, jumps = repair_glitches(m, joints)
             if settle or jumps:
-                m = dataclasses.replace(m, meta=dict(m.meta, unrepaired_glitches=(int(settle), int(jumps))))
+                m = dataclasses.replace(
+                    m, meta=dict(m.meta, unrepaired_glitches=(int(settle), int(jumps), float(m.fps)))
+                )
     if spec.fps is not None and abs(spec.fps - m.fps) > 1e-9:
         m = resample(m, spec.fps)
     return m
