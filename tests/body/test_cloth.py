@@ -278,6 +278,40 @@ def test_the_backstop_takes_a_limb_through_a_panel_out_on_one_side():
     assert res[on][3] < 0.75 * res[0.0][3], res
 
 
+def test_the_backstop_leaves_cloth_that_lies_on_the_body_to_its_contacts():
+    """A sleeve's hem the network put deep inside the arm, its panel across the arm: the garment's normal runs along
+    the arm, so the traced ray came out 10-30 cm away and the stage threw those vertices there for a few frames (a
+    new user's T-shirt walking: 15-17 cm pops).  The hem lies on the arm at rest (attachment radius 1-7 mm), so it is
+    no cloth hanging in front of a limb: the backstop traces only loose vertices (radius >= LOOSE, 1 cm), and these
+    keep their closest-point contact (out through the arm's side).  The same panel hanging loose is traced.  Kernel
+    and reference agree."""
+    from segadeform.body.cloth import LOOSE
+
+    arm_v, arm_f = _box((-0.3, -0.06, -0.06), (0.5, 0.06, 0.06))
+    col = BodyCollider(arm_v, arm_f)
+    g = np.arange(-0.04, 0.04001, 0.01)
+    # a panel across the arm, its normal along +x (off the arm's axis: no vertex equally near two of its faces)
+    v = np.array([[0.2, y + 0.0037, z - 0.0021] for z in g for y in g])
+    n = len(g)
+    f = np.array([[a, b, c] for j in range(n - 1) for i in range(n - 1) for a, b, c in _quad(j * n + i, n)])
+    deep = col.query(v, arm_v).signed_distance < -ClothSettings().backstop
+    assert deep.sum() >= 9
+    targets, posed = np.repeat(v[None], 3, 0), np.repeat(arm_v[None], 3, 0)
+    knobs = ClothSettings(gravity=0.0)
+    moved = {}
+    for rest_sd, loose in ((knobs.attachment + 0.005, False), (1.0, True)):  # on the arm at rest / hanging away
+        setup = cloth_setup(v, f, np.full(len(v), rest_sd), knobs)
+        assert ((setup.radius >= LOOSE) == loose).all() and (setup.radius > 0).all()
+        stage = ClothStage(setup, arm_v, arm_f, knobs, margin=MARGIN)
+        out = stage.step(targets, posed)
+        ref, st = cloth_reference(targets, posed, arm_f, setup, knobs, margin=MARGIN)
+        assert np.abs(out - ref).max() <= 1e-9 and stage.traced == st["traced"]
+        assert (stage.traced > 0) == loose
+        assert (col.query(out[-1], arm_v).signed_distance >= MARGIN - 1e-9).all()
+        moved[loose] = np.abs(out[..., 0] - 0.2).max()  # how far along the arm
+    assert moved[False] < 0.05 and moved[True] > 0.25, moved  # out through the arm's side, not 30 cm along it
+
+
 def _quad(a, nx):
     """The two triangles of the grid cell with corner a in a grid nx wide, wound so that the normal is +z."""
     b, c, d = a + 1, a + nx + 1, a + nx

@@ -14,6 +14,7 @@ const PASSES = 3; // the final push-out's passes (SCL_PASSES)
 const TINY = 1e-300;
 const MOVED = 1e-6; // metres: a final push-out move counted as one (SCL_MOVED)
 const TRACE = 8; // the backstop's sphere-tracing steps (SCL_TRACE)
+const LOOSE = 0.01; // the backstop traces vertices whose attachment radius is at least this (SCL_LOOSE)
 const OVERSHOOT = 0.001; // metres past the margin each tracing step aims (SCL_OVERSHOOT)
 const SPREAD = 40; // Jacobi sweeps spreading the traced moves (SCL_SPREAD)
 const SPREAD_RADIUS = 0.2; // metres along the garment from a traced vertex that its move spreads to (SCL_SPREAD_RADIUS)
@@ -293,7 +294,7 @@ function edgeContact(x, edges, e, sd, cp, cn, k, margin, band) {
 }
 
 /*
- * The backstop (backstop in _cloth.c): when a free vertex's prediction x (radius > 0) is deeper than `deep` inside
+ * The backstop (backstop in _cloth.c): when a loose vertex's prediction x (radius >= LOOSE) is deeper than `deep` inside
  * the body (sd, from the frame's contacts with normals cn), the target y's deep free vertices traced out along the
  * garment's outward normal, the moves spread over the free vertices near them (attached ones keep theirs: 0);
  * yt = y + the spread move and x moved alike.  w: the stage's buffers.  Returns how many vertices were
@@ -302,7 +303,7 @@ function edgeContact(x, edges, e, sd, cp, cn, k, margin, band) {
 function backstop(col, bv, box, n, nf, faces, nptr, nidx, radius, y, x, sd, cn, margin, band, deep, w) {
   let nd = 0, nt = 0, vote = 0;
   if (!(deep > 0)) return 0; // off
-  for (let i = 0; i < n; i++) if (sd[i] < -deep && radius[i] > 0) w.deep[nd++] = i;
+  for (let i = 0; i < n; i++) if (sd[i] < -deep && radius[i] >= LOOSE) w.deep[nd++] = i;
   if (nd === 0) return 0;
   // the target's vertex normals (area-weighted face normals) and their orientation: outward where the vertices just
   // outside the body agree with the body's normal

@@ -45,8 +45,10 @@
  * Deep targets (the backstop, after the engines' backstop of Unreal Chaos Cloth: the cloth kept on the outer side
  * of the body along the skinned normal): where the network puts the garment deep inside the body (a thigh 3-8 cm
  * through a skirt), the closest body point sends the vertices on either side of the limb's middle to opposite
- * sides of it and the edges between them across it.  So when a free vertex's prediction is deeper than `backstop`
- * inside, the frame's start moves the target instead: each such vertex's target is sphere-traced out of the body along the
+ * sides of it and the edges between them across it.  So when a loose vertex's prediction (attachment radius at
+ * least SCL_LOOSE: cloth that hangs away from the body at rest; a sleeve's hem lying on the arm, radius 1-7 mm,
+ * keeps the closest-point rule -- traced along its normal it ran along the arm and popped 10-17 cm for a few
+ * frames) is deeper than `backstop` inside, the frame's start moves the target instead: each such vertex's target is sphere-traced out of the body along the
  * garment's outward normal there (one side for a whole panel: the normal of the target's faces, oriented by a
  * vote of the vertices just outside the body, n . body normal), at most SCL_TRACE steps of (margin - sd + 1 mm);
  * the moves of those that came out are spread over the garment within SCL_SPREAD_RADIUS of them (along the
@@ -90,12 +92,13 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 4
+#define SCL_ABI 5
 #define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
 #define SCL_TINY 1e-300
 #define SCL_MOVED 1e-6        /* metres: a final push-out move counted as one (not a vertex already at the margin) */
 #define SCL_TRACE 8           /* the backstop's sphere-tracing steps */
+#define SCL_LOOSE 0.01        /* the backstop traces vertices whose attachment radius is at least this (m) */
 #define SCL_OVERSHOOT 0.001   /* metres past the margin each tracing step aims */
 #define SCL_SPREAD 40         /* Jacobi sweeps spreading the traced moves over the garment */
 #define SCL_SPREAD_RADIUS 0.2 /* metres along the garment from a traced vertex that its move spreads to */
@@ -442,7 +445,7 @@ static int work_alloc(scl_work *w, int64_t n, const int64_t *nptr) {
                : -1;
 }
 
-/* The backstop (see the header): when a free vertex's prediction x (radius > 0) is deeper than `deep` (S_BACKSTOP)
+/* The backstop (see the header): when a loose vertex's prediction x (radius >= SCL_LOOSE) is deeper than `deep` (S_BACKSTOP)
  * inside the body (sd, from the frame's contacts with normals cn), the target y's deep free vertices traced out
  * along the garment's outward normal, the moves spread over the free vertices near them (attached ones keep theirs:
  * 0); yt = y + the spread move and x moved alike.  Returns how many vertices were traced out (0: yt and x are
@@ -454,12 +457,12 @@ static int64_t backstop(const void *collider, const double *bv, const double *bo
     int64_t i, j, k, nd = 0, nt = 0;
     double vote = 0, sign;
     if (!(deep > 0)) return 0; /* off */
-    for (i = 0; i < n; i++) nd += sd[i] < -deep && radius[i] > 0;
+    for (i = 0; i < n; i++) nd += sd[i] < -deep && radius[i] >= SCL_LOOSE;
     if (nd == 0) return 0;
     if (!w->vn && work_alloc(w, n, nptr) < 0) return -1;
     nd = 0;
     for (i = 0; i < n; i++)
-        if (sd[i] < -deep && radius[i] > 0) w->deep[nd++] = i;
+        if (sd[i] < -deep && radius[i] >= SCL_LOOSE) w->deep[nd++] = i;
     /* the target's vertex normals (area-weighted face normals) and their orientation: outward where the vertices
      * just outside the body agree with the body's normal */
     for (i = 0; i < 3 * n; i++) w->vn[i] = 0;

@@ -87,9 +87,12 @@ MOVED = 1e-6
 #: the backstop's sphere-tracing steps (SCL_TRACE), metres past the margin each aims (SCL_OVERSHOOT), Jacobi
 #: sweeps spreading the traced moves (SCL_SPREAD) and how far along the garment they spread (SCL_SPREAD_RADIUS, m)
 TRACE, OVERSHOOT, SPREAD, SPREAD_RADIUS = 8, 0.001, 40, 0.2
+#: the backstop traces only vertices whose attachment radius is at least this (SCL_LOOSE, metres): cloth lying on the
+#: body at rest (a sleeve's hem on the arm) keeps the closest-point rule
+LOOSE = 0.01
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
 SETUP_VERSION = 3
-_ABI = 4
+_ABI = 5
 #: the order of _cloth.c's settings array
 _SETTINGS = (
     "iterations",
@@ -722,13 +725,14 @@ def cloth_reference(
 
 
 def _backstop_reference(col, bv, setup: ClothSetup, y, x, sd, normal, margin: float, deep_at: float):
-    """``backstop`` in _cloth.c, obviously: when a free vertex's prediction is deeper than ``deep_at`` inside (0:
+    """``backstop`` in _cloth.c, obviously: when a loose vertex's prediction (attachment radius >= :data:`LOOSE`) is
+    deeper than ``deep_at`` inside (0:
     off), each such vertex's target traced out of the body along the target's outward vertex normal (oriented by
     the vote of the vertices just outside), the traced moves held and spread by :data:`SPREAD` Jacobi sweeps over
     the free vertices within :data:`SPREAD_RADIUS` of them along the target's edges (attached ones keep 0); ``x`` is
     moved in place.  Returns the target to use (``y`` when nothing was traced) and how many were traced out."""
     n = len(y)
-    deep = [i for i in range(n) if deep_at > 0 and sd[i] < -deep_at and setup.radius[i] > 0]
+    deep = [i for i in range(n) if deep_at > 0 and sd[i] < -deep_at and setup.radius[i] >= LOOSE]
     if not deep:
         return y, 0
     from ..geometry.mesh_ops import face_cross
