@@ -33,7 +33,8 @@ BATCH_LAYOUT = ("jobs", "*__*")
     "--force",
     is_flag=True,
     help="Write into an output folder that holds other files (beside them, "
-    "never over them); a folder an earlier batch made is resumed without it.",
+    "never over them; a folder an earlier batch made is resumed without it), and animate garments that do not "
+    "sit on the body (as run --force).",
 )
 def batch_cmd(jobs_file, output, jobs, executor, limit, force):
     """Animate every garment x motion of JOBS.toml (resumable: done jobs are skipped)."""
@@ -55,13 +56,26 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
 
     def progress(rec):
         n[0] += 1
+        if "failed" in rec:
+            click.echo(f"[{n[0]}] {rec['id']}: FAILED: {rec['failed']}", err=True)
+            return
         how = "already done" if rec.get("resumed") else f"{rec['frames']} frames, {rec['ms_per_frame']:.1f} ms/frame"
         click.echo(f"[{n[0]}] {rec['id']}: {how} -> {rec['output']}", err=True)
 
     try:
         with make_executor(executor, jobs) as ex:
             guard.start()
-            s = run_batch(cfg, out=output, executor=ex, limit=limit, progress=progress)
+            s = run_batch(cfg, out=output, executor=ex, limit=limit, progress=progress, force=force)
     finally:
         guard.abandon()  # a run that made nothing leaves no empty output folder
-    click.echo(f"{s.planned} jobs, {s.skipped} already done, {s.made} made -> {s.output}")
+    click.echo(
+        f"{s.planned} jobs, {s.skipped} already done, {s.made} made"
+        + (f", {len(s.failed)} failed" if s.failed else "")
+        + f" -> {s.output}"
+    )
+    if s.failed:  # every job that could run did; the failed ones run again next time
+        f0 = s.failed[0]
+        raise click.ClickException(
+            f"{len(s.failed)} of {s.planned} jobs failed (first: job {f0['id']}, garment {f0['garment']!r}, motion "
+            f"{f0['motion']!r}: {f0['failed']}); fix the jobs file or pass --force, then run again to make them"
+        )

@@ -45,7 +45,7 @@ from typing import cast
 
 from segadeform.bounds import check_betas
 from segadeform.distributed.executors import Executor, LocalExecutor
-from segadeform.errors import FileFormatError, InputError, file_error
+from segadeform.errors import FileFormatError, InputError, SegadeformError, file_error
 from segadeform.io.atomic import WriteError
 from segadeform.io.location import Location, is_url, open_location
 from segadeform.io.toml import config_path, key, read_table, read_toml
@@ -229,6 +229,7 @@ class BatchJob:
     up: str
     frames_per_call: int
     spec: str
+    force: bool = False  # accept a garment that does not sit on the body (`batch --force`; not part of the spec)
 
     @property
     def output_name(self) -> str:
@@ -298,9 +299,8 @@ def _record(loc: Location, jid: str) -> dict | None:
 
 
 def run_job(job: BatchJob) -> dict:
-    """Run one job and commit its output and then its record (see the module docstring); returns the record."""
-    from .pipeline import run_scene
-
+    """Run one job and commit its output and then its record (see the module docstring); returns the record, or
+    ``{"id", "garment", "motion", "failed"}`` when the job's inputs were refused (nothing is committed)."""
     loc = job.out
     done = _record(loc, job.id)
     if done is not None:
@@ -309,6 +309,17 @@ def run_job(job: BatchJob) -> dict:
     name = job.output_name
     loc.remove_temporaries(name)  # what a killed attempt of this job left
     loc.remove_temporaries(f"jobs/{job.id}.json")
+    try:
+        return _run_job(job, loc, name, t0)
+    except WriteError:
+        raise  # the output is the whole batch's: stop
+    except SegadeformError as e:  # this job's inputs: the others still run; no record, so a later run tries again
+        return {"id": job.id, "garment": job.garment.name, "motion": job.motion.name, "failed": str(e)}
+
+
+def _run_job(job: BatchJob, loc, name: str, t0: float) -> dict:
+    from .pipeline import run_scene
+
     try:
         with loc.scratch(name) as d:
             scene = Scene(
@@ -322,7 +333,7 @@ def run_job(job: BatchJob) -> dict:
                 model=job.model,
                 effects=job.effects,
             )
-            s = run_scene(scene, batch=job.frames_per_call, threads=1)
+            s = run_scene(scene, batch=job.frames_per_call, threads=1, force=job.force)
             written = loc.commit_tree(Path(d))
     except WriteError as e:  # disk full, read-only: name the job's output, not its scratch folder
         raise WriteError(f"{loc}/{name}", e.reason, e.errno) from None
@@ -351,6 +362,7 @@ class BatchSummary:
     made: int
     records: list
     output: str
+    failed: list = dataclasses.field(default_factory=list)  # the records of jobs whose inputs were refused
 
 
 def run_batch(
@@ -361,10 +373,16 @@ def run_batch(
     jobs: int = 1,
     limit: int | None = None,
     progress: Callable[[dict], None] | None = None,
+    force: bool = False,
 ) -> BatchSummary:
     """Run every job of ``cfg`` not done yet in ``out`` (see the module docstring) on ``executor``
-    (default: a local pool of ``jobs`` processes; one given here is left open)."""
+    (default: a local pool of ``jobs`` processes; one given here is left open).  A job whose inputs are refused
+    (a garment off the body, a frame range past its motion ...) does not stop the others: it is in the summary's
+    ``failed`` with its message, and a later run tries it again.  ``force``: accept garments that do not sit on the
+    body, as ``run --force``."""
     plan = batch_jobs(cfg, out)
+    if force:
+        plan = [dataclasses.replace(j, force=True) for j in plan]
     if not plan:
         raise InputError("the jobs file makes no jobs", path=cfg.path)
     loc = plan[0].out
@@ -387,12 +405,15 @@ def run_batch(
     own = executor is None
     ex = LocalExecutor(jobs) if executor is None else executor
     records = []
+    failed = []
     try:
         for rec in ex.map_unordered(run_job, todo):
-            records.append(rec)
+            (failed if "failed" in rec else records).append(rec)
             if progress is not None:
                 progress(rec)
     finally:
         if own:
             ex.close()
-    return BatchSummary(planned=len(plan), skipped=skipped, made=len(records), records=records, output=str(loc))
+    return BatchSummary(
+        planned=len(plan), skipped=skipped, made=len(records), records=records, output=str(loc), failed=failed
+    )

@@ -133,3 +133,30 @@ def test_batch_to_a_url_in_frame_folders(tmp_path):
     local = tmp_path / "copy"
     fs.get(f"/segadeform-batch-test/out/{jid}", str(local), recursive=True)
     assert read_sequence(local).shape[0] == s.records[0]["frames"]
+
+
+def test_a_job_whose_garment_is_refused_does_not_stop_the_others(tmp_path, capsys):
+    """One garment off the body stopped the whole batch, naming neither the job nor the jobs file's entry, and
+    `batch --force` was refused the same way.  Now the other jobs are made, the failed one is named (and made by a
+    later run once fixed, or with --force), and the exit status says that not everything was made."""
+    import numpy as np
+
+    from segadeform.io import read_mesh, write_obj
+
+    m = read_mesh(SAMPLES / "garments" / "skirt.obj")
+    write_obj(tmp_path / "cm.obj", type(m)(vertices=m.vertices * 100, faces=m.faces))  # in cm: off the body
+    text = JOBS.replace(
+        f'mesh = "{SAMPLES / "garments" / "skirt.obj"}"\nbetas = [0.1]', f'mesh = "{tmp_path / "cm.obj"}"'
+    )
+    assert text != JOBS
+    jf = jobs_file(tmp_path, text)
+    assert main(["batch", str(jf), "-j", "1"]) == 1
+    cap = capsys.readouterr()
+    assert "4 jobs, 0 already done, 2 made, 2 failed" in cap.out
+    assert "2 of 4 jobs failed (first: job big-skirt__" in cap.err and "garment 'big-skirt'" in cap.err
+    assert "it does once read in cm" in cap.err and "--force" in cap.err
+    done = sorted(p.stem for p in (tmp_path / "out" / "jobs").glob("*.json"))
+    assert done == ["skirt__dance", "skirt__walk"]
+    assert main(["batch", str(jf), "-j", "1", "--force"]) == 0  # the refused ones, accepted
+    assert "4 jobs, 2 already done, 2 made -> " in capsys.readouterr().out
+    assert np.isfinite(read_pc2(tmp_path / "out" / "big-skirt__walk.pc2").frames).all()
