@@ -236,3 +236,21 @@ def test_runtimes_still_run_older_packages(runtime, schema, request, portable_sc
     assert _rel(read_pc2(tmp_path / "g.pc2").frames, s["frames"]) <= RTOL
     p = subprocess.run(args + ["--body-out", str(tmp_path / "b.pc2")], capture_output=True, text=True, timeout=600)
     assert p.returncode == 1 and "no body graph" in p.stderr and not (tmp_path / "b.pc2").exists()
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_a_motion_made_for_another_body_shape_plays_with_a_warning(
+    runtime, request, portable_scene, random_package, tmp_path
+):
+    """The garment asset is prepared for betas 0.5,-0.3; a motion exported for the mean shape plays, and both
+    runtimes say so (the C++ runtime compared only the body files, and said nothing)."""
+    from segadeform.cli.main import main
+
+    assert main(["motion", "export", "dance", "--seconds", "0.2", "--seed", "2", "-o", str(tmp_path / "m0.sgdm")]) == 0
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    args = ["--package", str(random_package), "--garment", str(s["garment"]), "-o", str(tmp_path / "g.pc2")]
+    for motion, warns in ((tmp_path / "m0.sgdm", True), (s["motion"], False)):
+        p = subprocess.run(exe + args + ["--motion", str(motion)], capture_output=True, text=True, timeout=600)
+        assert p.returncode == 0, p.stdout + p.stderr
+        assert ("another body shape (betas)" in p.stderr) == warns, p.stderr

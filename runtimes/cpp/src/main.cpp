@@ -408,6 +408,16 @@ Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::
   s.fps = m.meta.has("fps") ? m.meta["fps"].num : 0;
   if (m.meta.has("body") && m.meta["body"]["sha256"].str != s.body_sha)
     std::cerr << "warning: the motion was retargeted onto another body than the garment asset's\n";
+  if (m.meta.has("betas")) {  // as the Node runtime: a motion made for another shape plays, with a warning
+    const std::vector<sgd::Json>& mb = m.meta["betas"].arr;
+    for (size_t i = 0; i < mb.size(); ++i) {
+      const double ab = i < s.betas.size() ? static_cast<double>(s.betas[i]) : 0.0;
+      if (std::fabs(mb[i].num - ab) > 1e-6) {
+        std::cerr << "warning: the motion was retargeted onto another body shape (betas) than the garment asset's\n";
+        break;
+      }
+    }
+  }
   return s;
 }
 
