@@ -14,7 +14,7 @@ import pytest
 from segadeform.errors import FileFormatError
 from segadeform.io import read_pc2
 from segadeform.io.sgdb import read_bundle, write_bundle
-from tests.conftest import REPO
+from tests.conftest import REPO, SAMPLES
 
 RTOL = 1e-5
 NODE = REPO / "runtimes" / "node"
@@ -254,3 +254,37 @@ def test_a_motion_made_for_another_body_shape_plays_with_a_warning(
         p = subprocess.run(exe + args + ["--motion", str(motion)], capture_output=True, text=True, timeout=600)
         assert p.returncode == 0, p.stdout + p.stderr
         assert ("another body shape (betas)" in p.stderr) == warns, p.stderr
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_a_mesh_or_a_motion_file_given_to_a_runtime_names_the_export(
+    runtime, request, portable_scene, random_package, tmp_path
+):
+    """`--garment G.obj` or `--motion M.bvh` said only "not a segadeform bundle"; they now name the export command
+    that makes what these runtimes read."""
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    base = ["--package", str(random_package), "-o", str(tmp_path / "o.pc2")]
+    for garment, motion, says in (
+        (SAMPLES / "garments" / "dress.obj", s["motion"], "segadeform garment export"),
+        (s["garment"], SAMPLES / "motions" / "cmu" / "02_01_walk.bvh", "segadeform motion export"),
+    ):
+        p = subprocess.run(
+            exe + base + ["--garment", str(garment), "--motion", str(motion)],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+        assert p.returncode != 0 and "not a segadeform bundle" in p.stderr and says in p.stderr, p.stderr
+        assert not (tmp_path / "o.pc2").exists()
+
+
+def test_node_says_what_is_wrong_with_its_command_line(node, random_package, tmp_path):
+    """A misspelled flag or a missing --motion printed the usage alone."""
+    for extra, says in (
+        (["--motion", "m.sgdm", "--efects", "lbs"], "unknown option --efects"),
+        ([], "--motion is missing"),
+    ):
+        args = ["--package", str(random_package), "--garment", "g.sgda", "-o", str(tmp_path / "o.pc2"), *extra]
+        p = subprocess.run(node + args, capture_output=True, text=True, timeout=120)
+        assert p.returncode == 2 and p.stderr.startswith(f"error: {says}\nusage: "), p.stderr

@@ -1,5 +1,6 @@
 // Scene bundles (.sgdb): the format is specified in src/segadeform/bundle.py and docs/package.md.
 #pragma once
+#include <cctype>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
@@ -36,12 +37,25 @@ struct Bundle {
   bool has(const std::string& k) const { return arrays.count(k) > 0; }
 };
 
+// What to make of a file that is not a bundle, by its extension: a mesh or a motion these runtimes cannot read.
+inline std::string not_bundle_hint(const std::string& path) {
+  const size_t dot = path.find_last_of('.');
+  const size_t slash = path.find_last_of("/\\");
+  std::string ext = (dot == std::string::npos || (slash != std::string::npos && dot < slash)) ? "" : path.substr(dot);
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  for (const char* m : {".obj", ".ply", ".stl", ".off", ".mhclo"})
+    if (ext == m) return " (a mesh: these runtimes read a garment asset, `segadeform garment export GARMENT -o G.sgda`)";
+  for (const char* m : {".bvh", ".amc", ".npz", ".glb", ".gltf", ".fbx"})
+    if (ext == m) return " (a motion file: these runtimes read one made by `segadeform motion export MOTION -o M.sgdm`)";
+  return "";
+}
+
 inline Bundle read_bundle(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw std::runtime_error(path + ": no such file");
   std::string data((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   const std::string magic = "SEGADEFORM-BUNDLE 1\n";
-  if (data.compare(0, magic.size(), magic) != 0) throw std::runtime_error(path + ": not a segadeform bundle");
+  if (data.compare(0, magic.size(), magic) != 0) throw std::runtime_error(path + ": not a segadeform bundle" + not_bundle_hint(path));
   size_t end = data.find("\nEND\n");
   if (end == std::string::npos) throw std::runtime_error(path + ": bundle header has no END line");
   size_t start = ((end + 5 + 63) / 64) * 64;

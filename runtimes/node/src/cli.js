@@ -24,10 +24,23 @@ const bodyOut = opt("--body-out"), effects = opt("--effects"), marginText = opt(
 const cloth = opt("--cloth");
 const margin = marginText === undefined ? undefined : Number(marginText);
 const flagForm = pkg || garment || motion;
-if (!out || !(batch >= 1) || !(threads >= 1) || (flagForm ? !(pkg && garment && motion) || args.length : args.length !== 2) ||
-    (!flagForm && (bodyOut || effects || cloth || marginText !== undefined)) ||
-    (marginText !== undefined && !Number.isFinite(margin))) {
-  console.error(USAGE);
+// what is wrong, in one line before the usage (a misspelled flag printed the usage alone)
+const problem =
+  args.find((a) => a.startsWith("-")) !== undefined ? `unknown option ${args.find((a) => a.startsWith("-"))}`
+  : !out ? "-o OUT.pc2 is missing"
+  : !(batch >= 1) ? "--batch must be an integer >= 1"
+  : !(threads >= 1) ? "--threads must be an integer >= 1"
+  : flagForm && !pkg ? "--package is missing"
+  : flagForm && !garment ? "--garment is missing"
+  : flagForm && !motion ? "--motion is missing"
+  : flagForm && args.length ? `unexpected argument ${args[0]}`
+  : !flagForm && args.length !== 2 ? "give PACKAGE_DIR BUNDLE.sgdb, or --package, --garment and --motion"
+  : !flagForm && (bodyOut || effects || cloth || marginText !== undefined)
+    ? "--body-out, --effects, --cloth and --collision-margin go with --package/--garment/--motion"
+  : marginText !== undefined && !Number.isFinite(margin) ? `--collision-margin must be a number, got ${marginText}`
+  : null;
+if (problem) {
+  console.error(`error: ${problem}\n${USAGE}`);
   process.exit(2);
 }
 if (cloth && !(effects || "").split(",").map((s) => s.trim()).includes("cloth")) {

@@ -16,11 +16,23 @@ const DTYPES = {
   f32: [Float32Array, 4], f64: [Float64Array, 8], i32: [Int32Array, 4], i64: [BigInt64Array, 8], u8: [Uint8Array, 1],
 };
 
+/** What to make of a file that is not a bundle, by its extension: a mesh or a motion the runtimes cannot read. */
+export function notBundleHint(where) {
+  const ext = (String(where).match(/\.[^./\\]+$/) || [""])[0].toLowerCase();
+  if ([".obj", ".ply", ".stl", ".off", ".mhclo"].includes(ext)) {
+    return " (a mesh: these runtimes read a garment asset, `segadeform garment export GARMENT -o G.sgda`)";
+  }
+  if ([".bvh", ".amc", ".npz", ".glb", ".gltf", ".fbx"].includes(ext)) {
+    return " (a motion file: these runtimes read one made by `segadeform motion export MOTION -o M.sgdm`)";
+  }
+  return "";
+}
+
 /** Parse a bundle from bytes: { arrays: {name: {dtype, shape, data}}, meta }. */
 export function parseBundle(bytes, where = "bundle") {
   const buf = bytes instanceof Uint8Array ? bytes : new Uint8Array(bytes);
   const head = new TextDecoder().decode(buf.subarray(0, Math.min(buf.length, 1 << 20)));
-  if (!head.startsWith(MAGIC)) throw new Error(`${where}: not a segadeform bundle`);
+  if (!head.startsWith(MAGIC)) throw new Error(`${where}: not a segadeform bundle${notBundleHint(where)}`);
   const end = head.indexOf("\nEND\n");
   if (end < 0) throw new Error(`${where}: bundle header has no END line`);
   const lines = head.slice(MAGIC.length, end).split("\n");
