@@ -93,6 +93,12 @@ def test_quality_replaces_a_scenes_effects(tmp_path, random_package):
     r = CliRunner().invoke(cli, ["run", str(scene), "--model", str(random_package), "--no-cache", "--quality", "best"])
     assert r.exit_code == 0, r.output
     assert f"(quality best: {_label(QUALITY_PRESETS['best'].effects)};" in r.output
+    # the scene's own cloth knobs stay when the preset runs the stage too (--quality best dropped iterations = 6)
+    assert QUALITY_PRESETS["best"].effects.cloth
+    scene.write_text(scene.read_text() + "cloth = true\ncloth_iterations = 6\n")
+    r = CliRunner().invoke(cli, ["run", str(scene), "--model", str(random_package), "--no-cache", "--quality", "best"])
+    assert r.exit_code == 0, r.output
+    assert "cloth(iterations=6)" in r.output, r.output
 
 
 def test_best_is_the_lowest_error_the_docs_measured():
