@@ -82,10 +82,10 @@ def motion_export_cmd(
             got=source,
         )
     b = load_body(body or default_body_path())
-    m, _ = select_frames(build_motion(spec, b.rest_joints(beta_vals)[0]), parse_frames(frames) if frames else None)
+    m, first = select_frames(build_motion(spec, b.rest_joints(beta_vals)[0]), parse_frames(frames) if frames else None)
     full = [0.0] * b.n_betas
     full[: len(beta_vals)] = beta_vals
-    write_motion_file(output, m, body=body_label(b), betas=full, source=str(source))
+    write_motion_file(output, m, body=body_label(b), betas=full, source=str(source), start_frame=first)
     guard.record()
     click.echo(
         f"{m.name}: {m.n_frames} frames at {m.fps:g} fps ({m.seconds:.2f} s) on "

@@ -272,7 +272,7 @@ class Run:
             fmt=self.output_format,
             up=self.up,
             fps=self.motion.fps,
-            start_frame=self.start,
+            start_frame=self.start + int(self.motion.meta.get("start_frame", 0)),  # a cut motion file's numbers
             garment_faces=asset.faces,
             garment_rest=asset.vertices,
             garment_surface=garment_surface(self.garment, asset.n_vertices),

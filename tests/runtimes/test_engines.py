@@ -288,3 +288,30 @@ def test_node_says_what_is_wrong_with_its_command_line(node, random_package, tmp
         args = ["--package", str(random_package), "--garment", "g.sgda", "-o", str(tmp_path / "o.pc2"), *extra]
         p = subprocess.run(node + args, capture_output=True, text=True, timeout=120)
         assert p.returncode == 2 and p.stderr.startswith(f"error: {says}\nusage: "), p.stderr
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_a_cut_motion_file_keeps_its_frame_numbers(runtime, request, portable_scene, random_package, tmp_path):
+    """`motion export ... --frames 10:14` made a file whose Node and C++ point caches started at frame 0, while `run
+    --frames 10:14` writes 10: in Blender the two were 10 frames apart."""
+    from segadeform.cli.main import main
+
+    m = tmp_path / "cut.sgdm"
+    assert (
+        main(
+            ["motion", "export", "dance", "--seconds", "0.6", "--betas", "0.5,-0.3", "--frames", "10:14", "-o", str(m)]
+        )
+        == 0
+    )
+    exe = request.getfixturevalue(runtime)
+    args = ["--package", str(random_package), "--garment", str(portable_scene["garment"]), "--motion", str(m)]
+    p = subprocess.run(
+        exe + args + ["-o", str(tmp_path / "g.pc2"), "--body-out", str(tmp_path / "b.pc2")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert p.returncode == 0, p.stdout + p.stderr
+    for f in ("g.pc2", "b.pc2"):
+        pc = read_pc2(tmp_path / f)
+        assert pc.header.start_frame == 10.0 and pc.frames.shape[0] == 4, (f, pc.header)

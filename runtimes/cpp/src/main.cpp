@@ -194,14 +194,14 @@ std::vector<float> floats(const sgd::Array& a) {
   return out;
 }
 
-void write_pc2(const std::string& path, const float* frames, int32_t T, int32_t N) {
+void write_pc2(const std::string& path, const float* frames, int32_t T, int32_t N, float start = 0.f) {
   std::string tmp = path + ".tmp";
   {
     std::ofstream f(tmp, std::ios::binary);
     if (!f) throw std::runtime_error(path + ": cannot write");
     f.write("POINTCACHE2\0", 12);
     int32_t version = 1;
-    float start = 0.f, rate = 1.f;
+    float rate = 1.f;
     f.write(reinterpret_cast<const char*>(&version), 4);
     f.write(reinterpret_cast<const char*>(&N), 4);
     f.write(reinterpret_cast<const char*>(&start), 4);
@@ -326,6 +326,7 @@ struct Scene {
   std::string weight_prior;  // how its weights reached the garment (log_wbody): nearest | inpaint
   const sgd::Array *vertices64 = nullptr, *faces = nullptr;  // a garment asset's rest vertices and faces (cloth)
   double fps = 0;  // a motion file's frame rate
+  float start_frame = 0.f;  // a motion file's first frame number in its source (motion export --frames A:B: A)
 };
 
 Scene scene_of_bundle(const sgd::Bundle& b) {
@@ -406,6 +407,7 @@ Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::
   s.vertices64 = &v;
   s.faces = &need(a, apath, "faces", "i32", 2);
   s.fps = m.meta.has("fps") ? m.meta["fps"].num : 0;
+  s.start_frame = m.meta.has("start_frame") ? static_cast<float>(m.meta["start_frame"].num) : 0.f;
   if (m.meta.has("body") && m.meta["body"]["sha256"].str != s.body_sha)
     std::cerr << "warning: the motion was retargeted onto another body than the garment asset's\n";
   if (m.meta.has("betas")) {  // as the Node runtime: a motion made for another shape plays, with a warning
@@ -679,8 +681,9 @@ int main(int argc, char** argv) {
     } else if (eff.collisions) {
       moved = collide(frames, sc.T, sc.N, body, V, body_faces, margin, batch, threads, &col_ms);
     }
-    write_pc2(out, frames.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(sc.N));
-    if (!body_out.empty()) write_pc2(body_out, body.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(V));
+    write_pc2(out, frames.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(sc.N), sc.start_frame);
+    if (!body_out.empty())
+      write_pc2(body_out, body.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(V), sc.start_frame);
     std::printf("%lld frames, %.2f ms/frame (%s%s%s%s%s) -> %s", static_cast<long long>(sc.T), ms,
                 eff.skinning.c_str(), eff.dynamics ? ", dynamics" : "", eff.wrinkles ? ", wrinkles" : "",
                 eff.collisions ? ", collisions" : "", eff.cloth ? ", cloth" : "", out.c_str());

@@ -53,8 +53,10 @@ try {
     : await animate(args[0], args[1], { batch, threads });
   for (const w of r.warnings || []) console.error(`warning: ${w}`);
   // PC2 in frames, as `segadeform run` writes it: start 0, one sample per frame
-  writePC2(out, r.frames, r.T, r.N);
-  if (bodyOut) writePC2(bodyOut, r.body.vertices, r.body.T, r.body.V);
+  // a motion file cut from a longer one (motion export --frames 10:70) starts at its first frame's number, as run's
+  const startFrame = (r.motionMeta && Number.isInteger(r.motionMeta.start_frame)) ? r.motionMeta.start_frame : 0;
+  writePC2(out, r.frames, r.T, r.N, { startFrame });
+  if (bodyOut) writePC2(bodyOut, r.body.vertices, r.body.T, r.body.V, { startFrame });
   const e = r.effects;
   const c = r.collisions, k = r.cloth;
   console.log(`${r.T} frames, ${r.msPerFrame.toFixed(2)} ms/frame (${r.variant}: ${e.skinning}` +

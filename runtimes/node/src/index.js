@@ -89,6 +89,7 @@ export async function animate(dir, garment, motion, options = {}) {
   const manifest = loadManifest(dir);
   const session = sessions(dir, options);
   const r = await animateWith(ort, manifest, source, session, options);
+  if (source.motion) r.motionMeta = source.motion.meta;
   if (options.body || r.effects.collisions || r.effects.cloth) {
     const body = await poseBodyWith(ort, manifest, source, session, { skinning: r.effects.skinning, batch: options.batch });
     if (options.body) r.body = body;

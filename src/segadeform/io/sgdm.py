@@ -43,10 +43,12 @@ def write_motion_arrays(
     source: str = "",
     body: dict | None = None,
     betas=None,
+    start_frame: int = 0,
 ) -> Path:
     """Write a motion file: ``poses`` (T, S, 3) local axis-angle and ``trans`` (T, 3), as float32 (what the graphs
     take), ``fps``, ``name``, the S ``joint_names`` and ``source`` in ``meta``; ``body`` (``{"name", "sha256"}``)
-    and ``betas``: the body it was retargeted onto."""
+    and ``betas``: the body it was retargeted onto; ``start_frame``: the source's frame number of its first frame
+    (``motion export --frames 10:70``: 10; the runtimes write it as their point caches' start frame)."""
     poses = np.asarray(poses, np.float64)
     meta = {
         "kind": MOTION_KIND,
@@ -60,6 +62,8 @@ def write_motion_arrays(
         meta["body"] = dict(body)
     if betas is not None:
         meta["betas"] = [float(x) for x in np.asarray(betas, np.float64).ravel()]
+    if start_frame:
+        meta["start_frame"] = int(start_frame)
     arrays = {"poses": poses.astype(np.float32), "trans": np.asarray(trans, np.float32)}
     return write_bundle(path, arrays, meta)
 

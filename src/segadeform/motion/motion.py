@@ -564,11 +564,13 @@ def motion_windows(poses: np.ndarray, window: int, *, start: int = 0, stop: int 
     return p[np.maximum(t, 0)]
 
 
-def write_motion_file(path, motion: Motion, *, body: dict | None = None, betas=None, source: str = ""):
+def write_motion_file(
+    path, motion: Motion, *, body: dict | None = None, betas=None, source: str = "", start_frame: int = 0
+):
     """Write ``motion`` as a motion file (``.sgdm``, :mod:`segadeform.io.sgdm`): poses ``(T, S, 3)`` and trans
     ``(T, 3)`` as float32, ``fps`` and the rest in ``meta``.  ``body``: the ``{"name", "sha256"}`` of the body it was
     retargeted onto (:func:`segadeform.body.identity.body_label`), ``betas`` that body's shape; ``source``: what it
-    was made from."""
+    was made from; ``start_frame``: the source's frame number of the first frame written."""
     poses = np.asarray(motion.poses, np.float64)
     s = poses.shape[1] // 3
     return write_motion_arrays(
@@ -581,6 +583,7 @@ def write_motion_file(path, motion: Motion, *, body: dict | None = None, betas=N
         source=source,
         body=body,
         betas=betas,
+        start_frame=start_frame,
     )
 
 
@@ -595,7 +598,12 @@ def read_motion_file(path) -> tuple[Motion, dict]:
             trans=trans.astype(np.float64),
             fps=fps,
             name=str(meta.get("name", p.stem)),
-            meta={"format": "sgdm", "body": meta.get("body"), "betas": meta.get("betas")},
+            meta={
+                "format": "sgdm",
+                "body": meta.get("body"),
+                "betas": meta.get("betas"),
+                "start_frame": int(meta.get("start_frame", 0)),
+            },
         )
     except InputError as e:
         raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
