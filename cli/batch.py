@@ -37,7 +37,17 @@ BATCH_LAYOUT = ("jobs", "*__*")
     "sit on the body (as run --force).",
 )
 def batch_cmd(jobs_file, output, jobs, executor, limit, force):
-    """Animate every garment x motion of JOBS.toml (resumable: done jobs are skipped)."""
+    """Animate every garment x motion of JOBS.toml (resumable: done jobs are skipped).
+
+    \b
+    JOBS.toml (relative paths are relative to it):
+      [batch]        output = "out/batch", format = "pc2" (| obj-seq | xdmf | abc | usd), and optionally
+                     model, body, effects ("dqs,collisions", as run --effects), up, frames_per_call
+      [[garments]]   mesh = "skirt.obj", and optionally name, betas = [0.0, 0.5]
+      [[motions]]    file = "walk.bvh" or kind = "walk" (with seconds, speed, amplitude, seed), and
+                     optionally name, fps, frames = "0:60"
+    Each garment x motion is the job GARMENT__MOTION; a job whose inputs are refused is named and the others
+    are made (exit 1); run again to resume."""
     from segadeform.distributed.executors import make_executor
     from segadeform.runtime.batch import load_batch, run_batch
 
