@@ -123,13 +123,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     import numpy as np
 
     from segadeform.body import default_body_path, load_body
-    from segadeform.body.placement import (
-        PlacementError,
-        check_placement,
-        fix_units_and_axes,
-        placement_report,
-        push_off_body,
-    )
+    from segadeform.body.placement import fix_units_and_axes, placement_report, push_off_body
     from segadeform.errors import InputError
     from segadeform.garments.registration import edge_distortion, fit_mhclo, fit_to_body_mesh, guess_units_and_up
     from segadeform.io import read_mesh
@@ -199,7 +193,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         src = read_mesh(from_body)
         g = read_mesh(obj)
         try:
-            u_read, up_read, height = guess_units_and_up(src.vertices, units=units_v, up=up)
+            u_read, up_read, _ = guess_units_and_up(src.vertices, units=units_v, up=up)
         except InputError as e:
             raise e.with_path(from_body) from None
         read_as = "" if units_v is not None and up is not None else f", read in {u_read} with +{up_read} up"
@@ -237,7 +231,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
             got=len(v),
         )
     if binding is None and from_body is None and not force:
-        _check_plain_fix(g.vertices, v, rest, bm.faces, garment, how, check_placement, PlacementError)
+        _check_plain_fix(g.vertices, v, rest, bm.faces, garment, how)
     m = default_margin if margin is None else margin
     pushed = 0
     if m is not None:
@@ -250,9 +244,10 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     click.echo(f"  -> {output}")
 
 
-def _check_plain_fix(original, fixed, rest, faces, path, how, check_placement, PlacementError) -> None:
+def _check_plain_fix(original, fixed, rest, faces, path, how: str) -> None:
     """Refuse a plain unit/axis fix whose result does not sit on the body, with the options that make the
     original file sit (check_placement's suggestion is for the file as given, not for this fix's result)."""
+    from segadeform.body.placement import PlacementError, check_placement
     from segadeform.errors import InputError
 
     try:

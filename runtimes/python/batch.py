@@ -404,8 +404,8 @@ def run_batch(
         todo = todo[:limit]
     own = executor is None
     ex = LocalExecutor(jobs) if executor is None else executor
-    records = []
-    failed = []
+    records: list[dict] = []
+    failed: list[dict] = []
     try:
         for rec in ex.map_unordered(run_job, todo):
             (failed if "failed" in rec else records).append(rec)

@@ -272,7 +272,7 @@ class Run:
             fmt=self.output_format,
             up=self.up,
             fps=self.motion.fps,
-            start_frame=self.start + int(self.motion.meta.get("start_frame", 0)),  # a cut motion file's numbers
+            start_frame=self.start + int((self.motion.meta or {}).get("start_frame", 0)),  # a cut motion file's numbers
             garment_faces=asset.faces,
             garment_rest=asset.vertices,
             garment_surface=garment_surface(self.garment, asset.n_vertices),
@@ -454,7 +454,7 @@ def run_scene(
     if betas != tuple(scene.betas):
         scene = dataclasses.replace(scene, betas=betas)
     motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
-    glitches = motion.meta.get("unrepaired_glitches")
+    glitches = (motion.meta or {}).get("unrepaired_glitches")
     if glitches:
         settle, jumps, file_fps = glitches
         start = scene.motion.frames[0] if scene.motion.frames else 0
@@ -465,7 +465,7 @@ def run_scene(
                 "motion %s: %d leading frames its capture settles from and %d frames it jumps to and back from "
                 "(joints faster than 20 m/s) throw the cloth about; --repair-glitches (repair_glitches = true in a "
                 "scene's [motion]) rebuilds them",
-                Path(scene.motion.file).name,
+                Path(scene.motion.file or "motion").name,
                 settle,
                 jumps,
             )
