@@ -109,3 +109,25 @@ def test_the_format_registry_knows_the_portable_and_garment_files(tmp_path):
     assert arrays["a"].tolist() == [0, 1, 2, 3, 4] and meta == {"k": 1}
     with pytest.raises(FileFormatError, match="not a motion file"):
         fmt.read(tmp_path / "t.sgdb")
+
+
+def test_errors_name_the_line_of_the_key_or_table(tmp_path):
+    """Scene and jobs-file errors named the file but no line, though errors promise FILE[:LINE]."""
+    from segadeform.io.toml import key_line
+    from segadeform.settings import load_scene
+
+    p = tmp_path / "s.toml"
+    p.write_text(
+        '# a scene\n[garment]\nmesh = "g.obj"\n\n[motion]\nkind = "walk"\nseconds = 0.2\nspeeed = 2\n'
+        '[output]\npath = "o.pc2"\n[[garments]]\nmesh = "a"\n[[garments]]  # the second\nmesh = "b"\n'
+    )
+    assert key_line(p, "motion") == 5 and key_line(p, "motion", "speeed") == 8
+    assert key_line(p, "garments[1]") == 13 and key_line(p, "garments[1]", "mesh") == 14
+    assert key_line(p, "motion", "nope") is None and key_line(p, "nope") is None
+    assert key_line(tmp_path / "missing.toml", "motion") is None
+    p.write_text(p.read_text().split("[[garments]]")[0])
+    with pytest.raises(FileFormatError, match=r"s\.toml:8: unknown key motion\.speeed"):
+        load_scene(p)
+    p.write_text(p.read_text().replace("speeed = 2\n", "").replace("[output]", "[outputs]"))
+    with pytest.raises(FileFormatError, match=r"s\.toml:8: unknown table \[outputs\]"):
+        load_scene(p)

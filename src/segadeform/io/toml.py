@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import sys
 import types
 import typing
@@ -37,7 +38,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["read_toml", "read_table", "key", "toml_types", "config_path"]
+__all__ = ["read_toml", "read_table", "key", "toml_types", "config_path", "key_line"]
 
 
 def read_toml(path, what: str) -> tuple[dict, str]:
@@ -119,6 +120,39 @@ def _names(ts: tuple) -> str:
     )
 
 
+_HEADER = re.compile(r"^\s*\[\[?\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
+
+
+def key_line(path, where: str, name: str | None = None) -> int | None:
+    """The line (1-based) of table ``where`` in TOML file ``path`` -- ``garments[2]``: the third ``[[garments]]``
+    -- or of key ``name`` in it, for errors that name ``FILE:LINE``; None where it cannot be found (a key set
+    inline or by a dotted name, a path that is not a readable file)."""
+    try:
+        lines = Path(path).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError, TypeError, ValueError):
+        return None
+    m = re.fullmatch(r"(.+?)(?:\[(\d+)\])?", where)
+    if m is None:
+        return None
+    table, index = m.group(1), None if m.group(2) is None else int(m.group(2))
+    seen, inside = -1, False
+    for i, line in enumerate(lines, 1):
+        h = _HEADER.match(line)
+        if h:
+            if inside:  # the table ended without the key
+                return None
+            if h.group(1) == table:
+                seen += 1
+                if index is None or seen == index:
+                    if name is None:
+                        return i
+                    inside = True
+            continue
+        if inside and re.match(rf"^\s*{re.escape(name or '')}\s*=", line):
+            return i
+    return None
+
+
 def read_table(table, cls, *, where: str, path=None, skip: tuple = ()) -> dict:
     """Check ``table`` (a TOML table, as read) against the fields of dataclass ``cls`` and return it.
 
@@ -136,9 +170,17 @@ def read_table(table, cls, *, where: str, path=None, skip: tuple = ()) -> dict:
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.name not in skip and f.init}
     bad = sorted(set(table) - set(fields))
+
+    def line(name):
+        return None if path is None else key_line(path, where, name)
+
     if bad:
         raise FileFormatError(
-            f"unknown key {where}.{bad[0]}", path=path, expected=", ".join(sorted(fields)), got=", ".join(bad)
+            f"unknown key {where}.{bad[0]}",
+            path=path,
+            line=line(bad[0]),
+            expected=", ".join(sorted(fields)),
+            got=", ".join(bad),
         )
     for name, f in fields.items():
         if name not in table:
@@ -151,17 +193,21 @@ def read_table(table, cls, *, where: str, path=None, skip: tuple = ()) -> dict:
             raise FileFormatError(
                 f"{where}.{name} has the wrong type",
                 path=path,
+                line=line(name),
                 expected=_names(accepted),
                 got=f"{type(v).__name__} {v!r}"[:60],
             )
         if "range" in f.metadata:
             lo, hi = f.metadata["range"]
             if not lo <= v <= hi or (isinstance(v, float) and math.isnan(v)):
-                raise FileFormatError(f"{where}.{name} out of range", path=path, expected=f"{lo}..{hi}", got=v)
+                raise FileFormatError(
+                    f"{where}.{name} out of range", path=path, line=line(name), expected=f"{lo}..{hi}", got=v
+                )
         if "choices" in f.metadata and v not in f.metadata["choices"]:
             raise FileFormatError(
                 f"{where}.{name} must be one of {', '.join(map(str, f.metadata['choices']))}",
                 path=path,
+                line=line(name),
                 expected=" | ".join(map(str, f.metadata["choices"])),
                 got=v,
             )

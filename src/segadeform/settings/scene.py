@@ -74,7 +74,7 @@ from pathlib import Path
 
 from ..bounds import SEED_RANGE, check_betas
 from ..errors import FileFormatError, InputError
-from ..io.toml import config_path, key, read_table, read_toml
+from ..io.toml import config_path, key, key_line, read_table, read_toml
 from ..io.writer import UP_AXES, Y_TO_Z
 from .cloth import CLOTH_KNOBS, ClothSettings
 from .effects import DEFAULT_EFFECTS, EFFECT_NAMES, Effects
@@ -243,6 +243,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
         raise FileFormatError(
             f"unknown table [{unknown[0]}]",
             path=p,
+            line=key_line(p, unknown[0]),
             expected=", ".join(sorted(set(_TABLES) | {"simulate"})),
             got=", ".join(unknown),
         )
