@@ -36,8 +36,10 @@ def bundle_cmd(scene, output, model, no_expected, frames, force):
     post = [n for n, on in (("collisions", sc.effects.collisions), ("cloth", sc.effects.cloth)) if on]
     if post:  # the host runtime's post-processes: not in the bundle, named on its command line
         click.echo(
-            f"note: the scene's {' and '.join(post)} are not in the bundle (the host runtime runs them): pass "
-            f"--effects {sc.effects.skinning},{'dynamics,' if sc.effects.dynamics else ''}"
-            f"{'wrinkles,' if sc.effects.wrinkles else ''}{','.join(post)} to segadeform-node or segadeform-run",
+            f"note: the scene's {' and '.join(post)} are not in the bundle (a bundle plays the network alone): to "
+            "run them in Node or C++, export the garment and motion (`segadeform garment export`, `segadeform "
+            "motion export`) and pass segadeform-node or segadeform-run --package/--garment/--motion with --effects "
+            f"{sc.effects.skinning},{'dynamics,' if sc.effects.dynamics else ''}"
+            f"{'wrinkles,' if sc.effects.wrinkles else ''}{','.join(post)}",
             err=True,
         )

@@ -85,6 +85,7 @@ def motion_export_cmd(
     m, first = select_frames(build_motion(spec, b.rest_joints(beta_vals)[0]), parse_frames(frames) if frames else None)
     full = [0.0] * b.n_betas
     full[: len(beta_vals)] = beta_vals
+    first += int((m.meta or {}).get("start_frame", 0))  # a motion file cut before: numbers of its source
     write_motion_file(output, m, body=body_label(b), betas=full, source=str(source), start_frame=first)
     guard.record()
     click.echo(

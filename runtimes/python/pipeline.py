@@ -275,7 +275,7 @@ class Run:
             start_frame=self.start + int((self.motion.meta or {}).get("start_frame", 0)),  # a cut motion file's numbers
             garment_faces=asset.faces,
             garment_rest=asset.vertices,
-            garment_surface=garment_surface(self.garment, asset.n_vertices),
+            garment_surface=garment_surface(self.garment, asset.n_vertices, self.output_format),
             body_path=self.body_output,
             body_faces=self.body.faces,
             body_rest=self.body.shaped_vertices(self.betas)[0] if self.body_output else None,

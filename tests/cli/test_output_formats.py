@@ -50,6 +50,7 @@ def test_the_body_is_written_in_the_format_its_extension_names(tmp_path):
     ("out", "body", "says"),
     [
         ("e.pc2", "e_body.obj", "cannot tell the output format"),  # an OBJ file is no frame sequence
+        ("e.pc2", "e_body.png", "cannot tell the output format"),
         ("same.pc2", "same.pc2", "two outputs of this run"),  # the body would replace the garment
         ("g.abc", "b.pc2", None),  # fine: a control that the cases above fail for their own reason
     ],
@@ -78,7 +79,10 @@ def test_format_and_extension_must_agree_and_read_only_formats_are_not_offered(t
 
 def test_format_rules_as_functions():
     assert output_format_for("a/b.usdc") == "usd" and output_format_for("a/frames") == "obj-seq"
-    assert output_format_for("a/b.bin", "pc2") == "pc2" and body_output_format("b.abc") == "abc"
+    assert output_format_for("a/b.bin", "pc2") == "pc2" and body_output_format("b.abc", "pc2") == "abc"
+    # no extension, or one no format claims: the garment's format, as before (a body.cache beside a .cache)
+    assert body_output_format("out/body", "pc2") == "pc2" and body_output_format("b.cache", "pc2") == "pc2"
+    assert body_output_format("out/body", "obj-seq") == "obj-seq"
     with pytest.raises(ValueError, match="extension says xdmf"):
         output_format_for("b.xmf", "abc")
 
@@ -136,4 +140,4 @@ def test_bundle_says_which_effects_the_host_runs(tmp_path):
     r = CliRunner().invoke(cli, ["bundle", str(scene), "-o", str(tmp_path / "b.sgdb")])
     assert r.exit_code == 0, r.output
     assert "collisions and cloth are not in the bundle" in r.output
-    assert "--effects lbs,dynamics,wrinkles,collisions,cloth to segadeform-node or segadeform-run" in r.output
+    assert "segadeform garment export" in r.output and "--effects lbs,dynamics,wrinkles,collisions,cloth" in r.output

@@ -122,3 +122,14 @@ def test_alembic_keeps_quads_and_face_varying_uvs(textured_run):
     assert uv.getScope() == AbcGeom.GeometryScope.kFacevaryingScope
     vals = np.array(memoryview(uv.getExpandedValue().getVals()))
     np.testing.assert_allclose(vals, src.uvs[src.uv_indices][rev], atol=1e-6)
+
+
+def test_a_garment_whose_uvs_cannot_be_read_still_runs(tmp_path):
+    """The surface is read only for a format that keeps it, and an OBJ whose texture lines `read_obj` tolerates but
+    the surface reader cannot use is written as triangles, not refused (a bare `vt` line failed every run)."""
+    src = (SAMPLES / "garments" / "skirt.obj").read_text()
+    (tmp_path / "g.obj").write_text("vt\n" + src)
+    for out in ("o.pc2", "o.usda"):
+        args = ["run", "--garment", str(tmp_path / "g.obj"), "--motion", str(SAMPLES / "motions" / "walk.npz")]
+        r = CliRunner().invoke(cli, [*args, "--frames", "0:2", "--no-cache", "-o", str(tmp_path / out)])
+        assert r.exit_code == 0, r.output

@@ -344,3 +344,16 @@ def test_drop_leading_tpose_removes_a_calibration_pose_and_the_move_out_of_it():
     assert k == 10 + 15 and out.n_frames == m.n_frames - k and np.allclose(out.poses, poses[k:])
     still = dataclasses.replace(m, poses=np.zeros_like(m.poses))  # a T-pose throughout: nothing to tell apart
     assert drop_leading_tpose(still)[1] == 0
+
+
+def test_a_motion_file_cut_twice_counts_frames_from_its_source(tmp_path):
+    """`motion export a.sgdm --frames 5:10` of a file cut at 10 recorded 5 (its source's frame is 15)."""
+    from segadeform.cli.main import main
+    from segadeform.io.sgdm import read_motion_arrays
+
+    assert (
+        main(["motion", "export", "dance", "--seconds", "2", "--frames", "10:40", "-o", str(tmp_path / "a.sgdm")]) == 0
+    )
+    assert main(["motion", "export", str(tmp_path / "a.sgdm"), "--frames", "5:10", "-o", str(tmp_path / "b.sgdm")]) == 0
+    assert read_motion_arrays(tmp_path / "a.sgdm")[3]["start_frame"] == 10
+    assert read_motion_arrays(tmp_path / "b.sgdm")[3]["start_frame"] == 15

@@ -97,7 +97,7 @@ def read_mesh(path: str | os.PathLike) -> Mesh:
         raise InputError(
             "a MakeHuman binding is not a mesh: fit it to the body first",
             path=p,
-            expected=f"a garment mesh: run `segadeform garment fit {p} -o {p.stem}.obj` (--betas for a body shape)",
+            expected=f"a garment mesh: run `segadeform garment fit {p} -o FITTED.obj` (--betas for a body shape)",
             got=".mhclo",
         )
     raise InputError(

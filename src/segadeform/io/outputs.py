@@ -15,7 +15,7 @@ from typing import cast
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import FileFormatError, InputError
 from .formats import SEQUENCE_FORMATS, format_for_path, open_sequence_writer, sequence_format
 from .writer import to_up
 
@@ -51,23 +51,40 @@ def output_format_for(path, fmt: str | None = None) -> str:
     return f.name
 
 
-def garment_surface(path, n_vertices: int):
-    """The polygons and texture coordinates of garment file ``path`` for the writers that keep them: an OBJ's own
-    (:func:`~segadeform.io.surface.obj_surface`) when its faces index ``n_vertices`` vertices or fewer (the frames'
-    vertices are the file's, in its order), else None (other formats, precomputed assets)."""
+def garment_surface(path, n_vertices: int, fmt: str):
+    """The polygons and texture coordinates of garment file ``path`` for a writer of format ``fmt`` that keeps
+    them: an OBJ's own (:func:`~segadeform.io.surface.obj_surface`) when its faces index ``n_vertices`` vertices or
+    fewer (the frames' vertices are the file's, in its order); else None (formats that write triangles only, other
+    garment files, precomputed assets, an OBJ whose polygons or UVs cannot be read: the triangles then)."""
+    from .formats import _takes_surface
     from .surface import obj_surface
 
-    if Path(path).suffix.lower() != ".obj":
+    if Path(path).suffix.lower() != ".obj" or not _takes_surface(sequence_format(fmt).open):
         return None
-    s = obj_surface(path)
+    try:
+        s = obj_surface(path)
+    except FileFormatError:
+        return None
     return s if s.n_vertices_used <= n_vertices else None
 
 
-def body_output_format(body_path) -> str:
-    """The format the posed body is written in: the one ``body_path``'s own extension names (no extension: a
-    folder of OBJ frames), whatever the garment's output is (``--body-out body.pc2`` beside ``-o dress.usd``
-    writes a point cache)."""
-    return output_format_for(body_path)
+#: extensions of files that are not frame sequences (meshes, motions): a body output named so is an error, not
+#: the garment's format under a misleading name
+_NOT_SEQUENCES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf", ".fbx", ".npz", ".bvh", ".amc", ".png", ".gif")
+
+
+def body_output_format(body_path, fmt: str | None = None) -> str:
+    """The format the posed body is written in: the one ``body_path``'s own extension names, whatever the
+    garment's output is (``--body-out body.pc2`` beside ``-o dress.usd`` writes a point cache); with no extension
+    or one no format claims (``body.cache``), the garment's format ``fmt``, as before; an error for the extension
+    of a mesh or another kind of file (``body.obj``)."""
+    p = Path(body_path)
+    named = format_for_path(p)
+    if p.suffix and named is not None:
+        return named.name
+    if fmt is not None and p.suffix.lower() not in _NOT_SEQUENCES:
+        return sequence_format(fmt).name
+    return output_format_for(p)
 
 
 def _targets(path, fmt: str, body_path=None) -> list[tuple[Path, bool]]:
@@ -75,7 +92,7 @@ def _targets(path, fmt: str, body_path=None) -> list[tuple[Path, bool]]:
     same path (the body would overwrite the garment, or a point cache's rest mesh the body)."""
     out = [(Path(path), sequence_format(fmt).folder)]
     if body_path is not None:
-        bf = body_output_format(body_path)
+        bf = body_output_format(body_path, fmt)
         out.append((Path(body_path), sequence_format(bf).folder))
         if bf == "pc2":  # the rest mesh the body's cache animates
             out.append((Path(body_path).with_suffix(".obj"), False))
@@ -140,7 +157,7 @@ class SceneOutput:
     ) -> None:
         _targets(path, fmt, body_path)  # unknown formats and clashing paths fail before anything is opened
         self.fmt, self.up, self.guard = fmt, up, guard
-        self.body_fmt = body_output_format(body_path) if body_path is not None else None
+        self.body_fmt = body_output_format(body_path, fmt) if body_path is not None else None
         rest = np.asarray(garment_rest, np.float64)
         self.garment = open_sequence_writer(
             path,

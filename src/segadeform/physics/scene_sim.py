@@ -80,10 +80,10 @@ def simulate_scene(
         fmt=scene.output_format,
         up=scene.up,
         fps=motion.fps,
-        start_frame=start,
+        start_frame=start + int((motion.meta or {}).get("start_frame", 0)),  # a cut motion file's numbers
         garment_faces=mesh.faces,
         garment_rest=mesh.vertices,
-        garment_surface=garment_surface(scene.garment, len(mesh.vertices)),
+        garment_surface=garment_surface(scene.garment, len(mesh.vertices), scene.output_format),
         body_path=scene.body_output,
         body_faces=body.faces,
         body_rest=body.shaped_vertices(scene.betas or None)[0] if posed is not None else None,

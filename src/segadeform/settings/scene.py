@@ -281,7 +281,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
         ) from None
     if "body" in out:
         try:
-            body_output_format(rel(out["body"]))
+            body_output_format(rel(out["body"]), fmt)
         except InputError as e:
             raise FileFormatError(f"output.body: {e.problem}", path=p, expected=e.expected, got=e.got) from None
     up = out.get("up", "y")
