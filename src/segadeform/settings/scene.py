@@ -34,7 +34,7 @@ are required; relative paths are relative to the scene file)::
     format = "pc2"                 # pc2 | obj-seq | xdmf | abc | usd (default: from the extension; abc and
                                    # usd need the 'alembic' and 'usd' extras)
     up = "y"                       # y (as computed; what Blender's Mesh Cache on an imported OBJ wants) | z
-    body = "../../out/body.pc2"    # optional: the posed body too, in the format its extension names
+    body = "../../out/body.pc2"    # optional: the posed body too, in the format its extension names (else path's)
 
     [effects]                      # what is not named is off (skinning: lbs); no table: every effect on
     skinning = "lbs"               # lbs | dqs
