@@ -2,9 +2,10 @@
 # Make .gpu/ (ignored by git) for tools/gpu/train.sh: what a lent GPU machine, which has no ../shared and
 # reaches no registry, needs to train on this checkout's dataset.
 #
-#   tools/gpu/prepare.sh DATASET_DIR TRAIN_CONFIG [MAX_MB]   (e.g. data/continuum samples/train/continuum/gpu.toml 38)
+#   tools/gpu/prepare.sh DATASET_DIR TRAIN_CONFIG [MAX_MB [MAX2_MB]]   (e.g. data/continuum samples/train/continuum/gpu.toml 38 48)
 #
 # MAX_MB (default: no limit) bounds the pack: a call to the machine carries 64 MiB in all, the checkout included.
+# MAX2_MB puts the samples that do not fit into a second pack, .gpu2/train2.sgdpack, for a second call.
 # Every validation sample goes in, then training samples in the order of their ids' hashes (a fixed subset that
 # grows with the limit) while the pack stays under it.
 #
@@ -15,11 +16,10 @@ set -euo pipefail
 ds=$1
 cfg=$2
 max_mb=${3:-0}
+max2_mb=${4:-0}
 py=${PYTHON:-.venv/bin/python}
 mkdir -p .gpu
 links=$(mktemp -d)
-mkdir -p "$links/samples" "$links/configs"
-cp "$ds"/configs/*.toml "$links/configs/" 2>/dev/null || true
 # validation samples first, then training samples by the hash of their ids
 $py - "$ds" >"$links/order.txt" <<'PY'
 import hashlib, json, pathlib, sys
@@ -31,35 +31,44 @@ for j in sorted(pathlib.Path(sys.argv[1], "samples").glob("*.json")):
 print("\n".join(r[2] for r in sorted(rows)))
 PY
 rm -f .gpu/train.sgdpack
-n=0
-while read -r id; do
-  ln -s "$(realpath "$ds/samples/$id.json")" "$links/samples/$id.json"
-  ln -s "$(realpath "$ds/samples/$id.npz")" "$links/samples/$id.npz"
-  n=$((n + 1))
-done <"$links/order.txt"
-.venv/bin/segadeform dataset pack "$links" -o .gpu/train.sgdpack --no-rejected
-size=$(($(stat -c %s .gpu/train.sgdpack) / 1048576))
-if [ "$max_mb" -gt 0 ] && [ "$size" -gt "$max_mb" ]; then
-  # keep the prefix of the order that fits: the pack's size is about proportional to the samples' arrays
-  keep=$($py - "$links" "$max_mb" "$size" <<'PY'
+rm -rf .gpu2
+n=$(wc -l <"$links/order.txt")
+# the prefix of the order that fits in MAX_MB goes to .gpu/, the next MAX2_MB to .gpu2/; a pack's size is about
+# proportional to its samples' arrays, and a pack over its limit is made again with 8 % fewer of them
+pack_part() {  # pack_part FIRST LIMIT_MB OUT: pack samples FIRST.. of the order within LIMIT_MB; prints the count
+  local first=$1 limit=$2 outp=$3 scale=0.075 k
+  while :; do
+    k=$($py - "$links" "$ds" "$first" "$limit" "$scale" <<'PY'
 import os, pathlib, sys
-links, limit, size = pathlib.Path(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3])
-ids = (links / "order.txt").read_text().split()
-sizes = [os.path.getsize(os.path.realpath(links / "samples" / f"{i}.npz")) for i in ids]
-budget = sum(sizes) * limit / size * 0.92
+links, ds, first, limit, scale = pathlib.Path(sys.argv[1]), sys.argv[2], int(sys.argv[3]), float(sys.argv[4]), float(sys.argv[5])
+ids = (links / "order.txt").read_text().split()[first:]
 total = k = 0
-while k < len(ids) and total + sizes[k] <= budget:
-    total += sizes[k]
+while k < len(ids) and (limit <= 0 or total + scale * os.path.getsize(f"{ds}/samples/{ids[k]}.npz") <= limit * 1048576):
+    total += scale * os.path.getsize(f"{ds}/samples/{ids[k]}.npz")
     k += 1
 print(k)
 PY
 )
-  tail -n +"$((keep + 1))" "$links/order.txt" | while read -r id; do rm "$links/samples/$id.json" "$links/samples/$id.npz"; done
-  rm .gpu/train.sgdpack
-  .venv/bin/segadeform dataset pack "$links" -o .gpu/train.sgdpack --no-rejected
-  echo "$keep of $n training and validation samples fit in ${max_mb} MB"
-else
-  echo "$n training and validation samples"
+    [ "$k" -eq 0 ] && { echo 0; return; }
+    rm -rf "$links/part"
+    mkdir -p "$links/part/samples" "$links/part/configs"
+    cp "$ds"/configs/*.toml "$links/part/configs/" 2>/dev/null || true
+    tail -n +"$((first + 1))" "$links/order.txt" | head -n "$k" | while read -r id; do
+      ln -s "$(realpath "$ds/samples/$id.json")" "$links/part/samples/$id.json"
+      ln -s "$(realpath "$ds/samples/$id.npz")" "$links/part/samples/$id.npz"
+    done
+    rm -f "$outp"
+    .venv/bin/segadeform dataset pack "$links/part" -o "$outp" --no-rejected >&2
+    if [ "$limit" = 0 ] || [ "$(stat -c %s "$outp")" -le $((limit * 1048576)) ]; then echo "$k"; return; fi
+    scale=$($py -c "print($scale * 1.08)")
+  done
+}
+k1=$(pack_part 0 "$max_mb" .gpu/train.sgdpack)
+echo "$k1 of $n training and validation samples in .gpu/train.sgdpack"
+if [ "$k1" -lt "$n" ] && [ "${max2_mb:-0}" -gt 0 ]; then
+  mkdir -p .gpu2
+  k2=$(pack_part "$k1" "$max2_mb" .gpu2/train2.sgdpack)
+  echo "$k2 more in .gpu2/train2.sgdpack (carried by a second call: tools/gpu/README.md)"
 fi
 rm -rf "$links"
 pairs=${PAIRS_CACHE:-data/gpu-pairs}  # kept between runs: a second prepare makes nothing again
