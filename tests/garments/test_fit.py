@@ -353,6 +353,13 @@ def test_units_and_up_of_a_body_mesh(body):
     assert guess_units_and_up(fix_units_and_axes(v, up="-z") * 100)[:2] == ("cm", "z")  # +y -> +z
     assert guess_units_and_up(v * 1000)[:2] == ("mm", "y") and guess_units_and_up(v / 0.0254)[:2] == ("inch", "y")
     assert guess_units_and_up(v * 100, units="m")[0] == "m"  # given units are kept
+    # Z-up facing +x: the arm span (1.87 m, longer than the height) along y, the height along z
+    zx = np.stack([v[:, 2], v[:, 0] * 1.05, v[:, 1]], axis=1)
+    assert np.ptp(zx[:, 1]) > np.ptp(zx[:, 2])
+    assert guess_units_and_up(zx * 100)[:2] == ("cm", "z")
+    # Y-up facing +x: the span along z
+    yx = np.stack([v[:, 2], v[:, 1], v[:, 0] * 1.05], axis=1)
+    assert guess_units_and_up(yx)[:2] == ("m", "y")
     with pytest.raises(InputError, match="no human's height"):
         guess_units_and_up(v * 1e5)
 

@@ -254,9 +254,12 @@ HUMAN_HEIGHT_M = (0.9, 2.5)
 
 
 def guess_units_and_up(vertices, *, units=None, up=None) -> tuple[str, str, float]:
-    """The units and up axis of a human body mesh, where not given: up is ``y`` or ``z`` (whichever the body is
-    longer along: a T-pose's arm span lies along x in both conventions), the units those in which its height
-    along up is a standing adult's (:data:`HUMAN_HEIGHT_M`; m, then cm, dm, mm, inch).
+    """The units and up axis of a human body mesh, where not given: up is ``y`` or ``z``, whichever the body is
+    longer along; where it is about as long along both (a T-pose whose arm span lies along one of them: a Z-up
+    body facing +x, an arm span longer than the height), the one its vertices spread farther along for their
+    extent (a standing body's vertices fill its height; along the arm span most of them -- torso, legs, head --
+    lie in the middle quarter, between the arms).  The units are those in which its height along up is a
+    standing adult's (:data:`HUMAN_HEIGHT_M`; m, then cm, dm, mm, inch).
 
     Returns ``(units, up, height in the file's units)``.
 
@@ -273,7 +276,11 @@ def guess_units_and_up(vertices, *, units=None, up=None) -> tuple[str, str, floa
         raise InputError("a body mesh needs finite (V, 3) vertices", got=v.shape)
     ext = np.ptp(v, axis=0)
     if up is None:
-        up = "z" if ext[2] > ext[1] else "y"
+        if min(ext[1], ext[2]) < 0.6 * max(ext[1], ext[2]):
+            up = "z" if ext[2] > ext[1] else "y"
+        else:  # height and arm span: the vertices' spread for the extent (about 0.33 along the height, 0.24 the span)
+            spread = v.std(axis=0) / np.maximum(ext, 1e-300)
+            up = "z" if spread[2] > spread[1] else "y"
     height = float(ext[{"y": 1, "z": 2, "-z": 2, "x": 0}[up]])
     if units is None:
         lo, hi = HUMAN_HEIGHT_M
