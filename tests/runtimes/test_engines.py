@@ -284,6 +284,8 @@ def test_node_says_what_is_wrong_with_its_command_line(node, random_package, tmp
     for extra, says in (
         (["--motion", "m.sgdm", "--efects", "lbs"], "unknown option --efects"),
         ([], "--motion is missing"),
+        (["--motion", "m.sgdm", "--batch", "2", "--batch", "4"], "--batch is given more than once"),
+        (["--motion"], "--motion needs a value"),
     ):
         args = ["--package", str(random_package), "--garment", "g.sgda", "-o", str(tmp_path / "o.pc2"), *extra]
         p = subprocess.run(node + args, capture_output=True, text=True, timeout=120)

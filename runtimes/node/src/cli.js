@@ -12,9 +12,14 @@ const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.
   "[--threads N]\n" +
   "       segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]";
 const args = process.argv.slice(2);
+const repeated = [], noValue = [];
 const opt = (name, dflt) => {
   const i = args.indexOf(name);
-  return i >= 0 ? args.splice(i, 2)[1] : dflt;
+  if (i < 0) return dflt;
+  const [, value] = args.splice(i, 2);
+  if (args.includes(name)) repeated.push(name);
+  if (value === undefined || (value.startsWith("-") && !/^-\.?\d/.test(value))) noValue.push(name);
+  return value;
 };
 const out = opt("-o");
 const batch = parseInt(opt("--batch", "8"), 10);
@@ -26,7 +31,9 @@ const margin = marginText === undefined ? undefined : Number(marginText);
 const flagForm = pkg || garment || motion;
 // what is wrong, in one line before the usage (a misspelled flag printed the usage alone)
 const problem =
-  args.find((a) => a.startsWith("-")) !== undefined ? `unknown option ${args.find((a) => a.startsWith("-"))}`
+  repeated.length ? `${repeated[0]} is given more than once`
+  : noValue.length ? `${noValue[0]} needs a value`
+  : args.find((a) => a.startsWith("-")) !== undefined ? `unknown option ${args.find((a) => a.startsWith("-"))}`
   : !out ? "-o OUT.pc2 is missing"
   : !(batch >= 1) ? "--batch must be an integer >= 1"
   : !(threads >= 1) ? "--threads must be an integer >= 1"
