@@ -456,10 +456,14 @@ def run_scene(
     motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
     glitches = (motion.meta or {}).get("unrepaired_glitches")
     if glitches:
-        settle, jumps, file_fps = glitches
-        start = scene.motion.frames[0] if scene.motion.frames else 0
+        settle, jump_times, file_fps = glitches
+        start, stop = scene.motion.frames or (0, None)
+        stop = motion.n_frames if stop is None else stop
         if start / motion.fps >= settle / file_fps:  # the range starts after the capture has settled
             settle = 0
+        # the frames it jumps to and back from inside the range (its ends in seconds: the file's rate may differ)
+        t0, t1 = (start - 0.5) / motion.fps, (stop - 0.5) / motion.fps
+        jumps = sum(1 for t in jump_times if t0 <= t < t1)
         if settle or jumps:
             log.warning(
                 "motion %s: %d leading frames its capture settles from and %d frames it jumps to and back from "

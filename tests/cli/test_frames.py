@@ -85,5 +85,14 @@ def test_run_repairs_a_captures_glitches_when_asked_and_keeps_its_frames(tmp_pat
         assert name == "repaired" or "cap.npz" in said[0] and "--repair-glitches" in said[0]
         out[name] = np.array(read_pc2(tmp_path / f"{name}.pc2").frames)
     assert out["as_is"].shape == out["repaired"].shape and out["as_is"].shape[0] == m.n_frames
+    # a frame range counts the jumps inside it: none before frame 60, the two at 60-61 in 50:80
+    for frames, n in (("0:50", 0), ("50:80", 2)):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            r = CliRunner().invoke(cli, [*args, "--frames", frames, "-o", str(tmp_path / "r.pc2")])
+        assert r.exit_code == 0, r.output
+        said = [rec.getMessage() for rec in caplog.records if "jumps to and back from" in rec.getMessage()]
+        assert len(said) == (n > 0), (frames, said)
+        assert not n or "0 leading frames its capture settles from and 2 frames it jumps" in said[0], said
     moved = np.abs(out["as_is"] - out["repaired"]).max(axis=(1, 2))
     assert moved[60:62].min() > 0.01 and moved[:50].max() == 0.0  # the jump is gone; the frames before are the file's

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from ..errors import InputError
 from ..settings.scene import MotionSpec
 from .motion import Motion, drop_leading_glitches, feet_on_floor, repair_capture, repair_glitches, resample
@@ -61,10 +63,13 @@ def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
             m = repair_capture(m, joints)
         else:  # counted, for a warning: a capture's solve settling or jumping shows as cloth thrown about
             _, settle = drop_leading_glitches(m, joints)
-            _, jumps = repair_glitches(m, joints)
-            if settle or jumps:
+            fixed, jumps = repair_glitches(m, joints)
+            if settle or jumps:  # the frames it would rebuild, in seconds: a frame range counts its own
+                moved = (fixed.poses != m.poses).reshape(m.n_frames, -1).any(axis=1)
+                at = np.flatnonzero(moved | (fixed.trans != m.trans).any(axis=1))
                 m = dataclasses.replace(
-                    m, meta=dict(m.meta, unrepaired_glitches=(int(settle), int(jumps), float(m.fps)))
+                    m,
+                    meta=dict(m.meta, unrepaired_glitches=(int(settle), [float(i / m.fps) for i in at], float(m.fps))),
                 )
     if spec.fps is not None and abs(spec.fps - m.fps) > 1e-9:
         m = resample(m, spec.fps)
