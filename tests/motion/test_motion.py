@@ -357,3 +357,6 @@ def test_a_motion_file_cut_twice_counts_frames_from_its_source(tmp_path):
     assert main(["motion", "export", str(tmp_path / "a.sgdm"), "--frames", "5:10", "-o", str(tmp_path / "b.sgdm")]) == 0
     assert read_motion_arrays(tmp_path / "a.sgdm")[3]["start_frame"] == 10
     assert read_motion_arrays(tmp_path / "b.sgdm")[3]["start_frame"] == 15
+    # resampled, its first frame keeps its time: frame 10 at 30 fps is frame 20 at 60
+    assert main(["motion", "export", str(tmp_path / "a.sgdm"), "--fps", "60", "-o", str(tmp_path / "c.sgdm")]) == 0
+    assert read_motion_arrays(tmp_path / "c.sgdm")[3]["start_frame"] == 20

@@ -328,7 +328,8 @@ def resample(motion: Motion, fps: float) -> Motion:
     """Resample to ``fps``: slerp on each joint's rotation, linear on translation.
 
     The first frame is kept; the last output frame is the last time <= the
-    input's last frame time.
+    input's last frame time.  A motion cut from a longer one (``meta["start_frame"]``, the source's number of
+    its first frame) keeps its first frame's time: the number is counted again at the new rate.
     """
     if not (np.isfinite(fps) and fps > 0):
         raise InputError("target fps must be positive", got=fps)
@@ -343,8 +344,15 @@ def resample(motion: Motion, fps: float) -> Motion:
         fps=float(fps),
         betas=motion.betas,
         name=motion.name,
-        meta=dict(motion.meta, resampled_from=motion.fps),
+        meta=_renumbered(dict(motion.meta, resampled_from=motion.fps), motion.fps, fps),
     )
+
+
+def _renumbered(meta: dict, fps_from: float, fps_to: float) -> dict:
+    """``meta`` with its ``start_frame`` (a frame number at ``fps_from``) counted at ``fps_to``."""
+    if meta.get("start_frame"):
+        meta["start_frame"] = int(round(int(meta["start_frame"]) * fps_to / fps_from))
+    return meta
 
 
 def drop_leading_jumps(motion: Motion, max_degrees: float = 60.0, *, max_frames: int = 3) -> tuple[Motion, int]:
