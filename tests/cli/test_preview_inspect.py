@@ -80,6 +80,13 @@ def test_preview_counts_frames_as_the_result_does(tmp_path):
     f = np.array([[0, 1, 2], [1, 3, 2]])
     write_obj_sequence(tmp_path / "seq", f, frames, start=10)
     assert [sequence_start_frame(tmp_path / n) for n in ("g.pc2", "s.pc2", "seq")] == [0, 10, 10]
+    from segadeform.io.formats import open_sequence_writer
+
+    for name, fmt in (("s.xdmf", "xdmf"), ("s.abc", "abc"), ("s.usda", "usd")):  # they keep times; not at 30 fps
+        n = frames.shape[1]
+        with open_sequence_writer(tmp_path / name, fmt, faces=f, num_points=n, fps=24.0, start_frame=10) as w:
+            w.write(frames)
+        assert sequence_start_frame(tmp_path / name) == 10, name
 
     def preview(result, rng):
         return CliRunner().invoke(
@@ -88,7 +95,7 @@ def test_preview_counts_frames_as_the_result_does(tmp_path):
             + ["--frames", rng, "--size", "40x30"],
         )
 
-    for result in ("s.pc2", "seq"):
+    for result in ("s.pc2", "seq", "s.xdmf", "s.abc"):
         r = preview(result, "0:2")
         assert r.exit_code == 1 and "outside the result's frames 10..13" in r.output, r.output
         r = preview(result, "11:13")

@@ -132,6 +132,31 @@ class AlembicSequenceWriter(SequenceWriter):
         self._tmp.unlink(missing_ok=True)
 
 
+def alembic_start_frame(path: str | os.PathLike) -> float:
+    """The frame number of an ``.abc`` mesh's first sample: its first sample time over the time per frame of its
+    time sampling (written as ``start_frame / fps`` and ``1 / fps``)."""
+    p = Path(path)
+    check_readable(p)
+    Abc, AbcGeom, _, _ = _modules()
+    try:
+        top = Abc.IArchive(str(p)).getTop()
+        meshes = [
+            top.getChild(i)
+            for i in range(top.getNumChildren())
+            if AbcGeom.IPolyMesh.matches(top.getChild(i).getMetaData())
+        ]
+        if not meshes:
+            raise FileFormatError("Alembic file has no polygon mesh at its top level", path=p)
+        ts = AbcGeom.IPolyMesh(top, meshes[0].getName()).getSchema().getTimeSampling()
+        per_frame = float(ts.getTimeSamplingType().getTimePerCycle())
+        first = float(ts.getSampleTime(0))
+    except FileFormatError:
+        raise
+    except Exception as e:
+        raise unreadable_error(e, p, "Alembic") from None
+    return first / per_frame if per_frame > 0 else 0.0
+
+
 def read_alembic_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read the first PolyMesh of an ``.abc`` file: faces ``(F, 3)``, frames ``(S, N, 3)``, times ``(S,)``."""
     p = Path(path)

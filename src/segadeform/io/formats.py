@@ -171,7 +171,8 @@ def read_sequence(path: str | os.PathLike, *, faces: np.ndarray | None = None) -
 
 def sequence_start_frame(path: str | os.PathLike) -> int:
     """The frame number of a written sequence's first frame: the motion frame its run started at (the PC2 header's
-    start frame, the first USD time code, the first OBJ frame's number); 0 for a format that keeps none."""
+    start frame, the first USD time code, the first OBJ frame's number, the first XDMF or Alembic time over the
+    time per frame); 0 for a format that keeps none."""
     p = Path(path)
     f = sequence_format_of(p)
     return 0 if f is None or f.start is None else int(round(f.start(p)))
@@ -262,6 +263,22 @@ def _xdmf_read(path, faces):
     return read_xdmf_sequence(path)[1]
 
 
+def _xdmf_start(path):
+    """Times are ``(start + i) / fps``; the file keeps no rate, so it is the step between the first two (a single
+    step is taken at 30 fps, the writer's default)."""
+    from .sequence import read_xdmf_sequence
+
+    t = read_xdmf_sequence(path)[2]
+    step = t[1] - t[0] if len(t) > 1 and t[1] > t[0] else 1.0 / 30.0
+    return t[0] / step
+
+
+def _abc_start(path):
+    from .alembic import alembic_start_frame
+
+    return alembic_start_frame(path)
+
+
 def _abc_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
     from .alembic import AlembicSequenceWriter
 
@@ -297,11 +314,19 @@ register_sequence_format(
     )
 )
 register_sequence_format(
-    SequenceFormat("xdmf", (".xdmf", ".xmf"), _xdmf_open, _xdmf_read, "XDMF time series (ParaView)")
+    SequenceFormat(
+        "xdmf", (".xdmf", ".xmf"), _xdmf_open, _xdmf_read, "XDMF time series (ParaView)", start=_xdmf_start
+    )
 )
 register_sequence_format(
     SequenceFormat(
-        "abc", (".abc",), _abc_open, _abc_read, "Alembic polygon mesh (Blender, Maya, Houdini)", extra="alembic"
+        "abc",
+        (".abc",),
+        _abc_open,
+        _abc_read,
+        "Alembic polygon mesh (Blender, Maya, Houdini)",
+        extra="alembic",
+        start=_abc_start,
     )
 )
 
