@@ -314,9 +314,7 @@ register_sequence_format(
     )
 )
 register_sequence_format(
-    SequenceFormat(
-        "xdmf", (".xdmf", ".xmf"), _xdmf_open, _xdmf_read, "XDMF time series (ParaView)", start=_xdmf_start
-    )
+    SequenceFormat("xdmf", (".xdmf", ".xmf"), _xdmf_open, _xdmf_read, "XDMF time series (ParaView)", start=_xdmf_start)
 )
 register_sequence_format(
     SequenceFormat(
