@@ -454,13 +454,20 @@ def run_scene(
     if betas != tuple(scene.betas):
         scene = dataclasses.replace(scene, betas=betas)
     motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
+    check_motion_shape(motion, scene, body, force=force)
+    try:  # a range past the motion's end is the scene's to fix: name it
+        frame_range(scene.motion.frames, motion.n_frames)
+    except InputError as e:
+        raise e.with_path(scene.path) if scene.path is not None and frames_from_scene else e from None
     glitches = (motion.meta or {}).get("unrepaired_glitches")
     if glitches:
         settle, jump_times, file_fps = glitches
         start, stop = scene.motion.frames or (0, None)
         stop = motion.n_frames if stop is None else stop
-        if start / motion.fps >= settle / file_fps:  # the range starts after the capture has settled
-            settle = 0
+        # the settling frames inside the range (counted at the file's rate)
+        settle = max(
+            0, min(settle, int(round(stop / motion.fps * file_fps))) - int(round(start / motion.fps * file_fps))
+        )
         # the frames it jumps to and back from inside the range (its ends in seconds: the file's rate may differ)
         t0, t1 = (start - 0.5) / motion.fps, (stop - 0.5) / motion.fps
         jumps = sum(1 for t in jump_times if t0 <= t < t1)
@@ -473,11 +480,6 @@ def run_scene(
                 settle,
                 jumps,
             )
-    check_motion_shape(motion, scene, body, force=force)
-    try:  # a range past the motion's end is the scene's to fix: name it
-        frame_range(scene.motion.frames, motion.n_frames)
-    except InputError as e:
-        raise e.with_path(scene.path) if scene.path is not None and frames_from_scene else e from None
     out = Path(output) if output is not None else scene.output
     run = Run(
         garment=scene.garment,

@@ -13,6 +13,7 @@
 #   .gpu/pairs.tar       the physics pairs' MakeHuman garments and motion-capture clips (tools/gpu/warm_cache.py)
 #   .gpu/*.whl           meshio, which the machine's Python lacks
 set -euo pipefail
+shopt -s inherit_errexit  # a failure inside $(...) stops the script too
 ds=$1
 cfg=$2
 max_mb=${3:-0}
@@ -34,7 +35,8 @@ rm -f .gpu/train.sgdpack
 rm -rf .gpu2
 n=$(wc -l <"$links/order.txt")
 # the prefix of the order that fits in MAX_MB goes to .gpu/, the next MAX2_MB to .gpu2/; a pack's size is about
-# proportional to its samples' arrays, and a pack over its limit is made again with 8 % fewer of them
+# proportional to its samples' arrays, and a pack over its limit is made again from an estimate 8 % larger per
+# sample (so fewer of them)
 pack_part() {  # pack_part FIRST LIMIT_MB OUT: pack samples FIRST.. of the order within LIMIT_MB; prints the count
   local first=$1 limit=$2 outp=$3 scale=0.075 k
   while :; do
@@ -49,7 +51,8 @@ while k < len(ids) and (limit <= 0 or total + scale * os.path.getsize(f"{ds}/sam
 print(k)
 PY
 )
-    [ "$k" -eq 0 ] && { echo 0; return; }
+    [ -n "$k" ] || return 1
+    if [ "$k" -eq 0 ]; then rm -f "$outp"; echo 0; return; fi
     rm -rf "$links/part"
     mkdir -p "$links/part/samples" "$links/part/configs"
     cp "$ds"/configs/*.toml "$links/part/configs/" 2>/dev/null || true
@@ -58,17 +61,24 @@ PY
       ln -s "$(realpath "$ds/samples/$id.npz")" "$links/part/samples/$id.npz"
     done
     rm -f "$outp"
-    .venv/bin/segadeform dataset pack "$links/part" -o "$outp" --no-rejected >&2
+    .venv/bin/segadeform dataset pack "$links/part" -o "$outp" --no-rejected >&2 || return 1
+    [ -f "$outp" ] || return 1
     if [ "$limit" = 0 ] || [ "$(stat -c %s "$outp")" -le $((limit * 1048576)) ]; then echo "$k"; return; fi
     scale=$($py -c "print($scale * 1.08)")
   done
 }
+[ "$n" -gt 0 ] && [ -n "$(head -c 1 "$links/order.txt" | tr -d '\n')" ] || { echo "$ds: no training or validation sample" >&2; exit 1; }
 k1=$(pack_part 0 "$max_mb" .gpu/train.sgdpack)
+[ "$k1" -gt 0 ] || { echo "not one sample fits in ${max_mb} MB" >&2; exit 1; }
 echo "$k1 of $n training and validation samples in .gpu/train.sgdpack"
 if [ "$k1" -lt "$n" ] && [ "${max2_mb:-0}" -gt 0 ]; then
   mkdir -p .gpu2
   k2=$(pack_part "$k1" "$max2_mb" .gpu2/train2.sgdpack)
   echo "$k2 more in .gpu2/train2.sgdpack (carried by a second call: tools/gpu/README.md)"
+  left=$((n - k1 - k2))
+  [ "$left" -gt 0 ] && echo "$left samples fit in neither pack: left out" >&2
+elif [ "$k1" -lt "$n" ]; then
+  echo "$((n - k1)) samples do not fit in ${max_mb} MB: left out (MAX2_MB puts them into a second pack)" >&2
 fi
 rm -rf "$links"
 pairs=${PAIRS_CACHE:-data/gpu-pairs}  # kept between runs: a second prepare makes nothing again

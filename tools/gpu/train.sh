@@ -34,8 +34,8 @@ mkdir -p "$ds/samples" "$ds/cache"
 [ -f .gpu/pairs.tar ] && [ ! -d "$ds/cache/pairs/motions" ] && tar xf .gpu/pairs.tar -C "$ds/cache"
 packs=()
 for p in .gpu/*.sgdpack .gpu2/*.sgdpack; do [ -f "$p" ] && packs+=(--dataset "$p"); done
-say "packs: ${packs[*]}"
 [ "${#packs[@]}" -eq 0 ] && { say "no pack in .gpu/ or .gpu2/"; exit 1; }
+say "packs: ${packs[*]}"
 say "warming the cache"
 $py tools/gpu/warm_cache.py "$1" "$ds" "${packs[@]}" -j "$(nproc)" || exit 1
 if [ "$device" = stage ]; then say "staged"; exit 0; fi

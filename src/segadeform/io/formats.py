@@ -264,13 +264,9 @@ def _xdmf_read(path, faces):
 
 
 def _xdmf_start(path):
-    """Times are ``(start + i) / fps``; the file keeps no rate, so it is the step between the first two (a single
-    step is taken at 30 fps, the writer's default)."""
-    from .sequence import read_xdmf_sequence
+    from .sequence import xdmf_start_frame
 
-    t = read_xdmf_sequence(path)[2]
-    step = t[1] - t[0] if len(t) > 1 and t[1] > t[0] else 1.0 / 30.0
-    return t[0] / step
+    return xdmf_start_frame(path)
 
 
 def _abc_start(path):

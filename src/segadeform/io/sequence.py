@@ -204,10 +204,53 @@ class XdmfSequenceWriter(SequenceWriter):
                 for i, fr in enumerate(self._frames):
                     disp = (fr.astype(np.float64) - cast(np.ndarray, self.rest)).astype(np.float32)
                     w.write_data((self.start + i) / self.fps, point_data={"displacement": disp})
+            _add_rate(tmp, self.fps)
         self._frames.clear()
 
     def _discard(self) -> None:
         self._frames.clear()
+
+
+#: the name of the ``<Information>`` element (a child of ``<Domain>``, which readers skip) that keeps the frame rate:
+#: the times alone give it only from two steps on
+XDMF_RATE = "segadeform.fps"
+
+
+def _add_rate(path, fps: float) -> None:
+    """Write ``fps`` into the XDMF file at ``path`` as an ``<Information>`` element of its ``<Domain>``."""
+    import xml.etree.ElementTree as ET
+
+    tree = ET.parse(path)
+    domain = tree.getroot().find("Domain")
+    if domain is not None:
+        domain.insert(0, ET.Element("Information", Name=XDMF_RATE, Value=repr(float(fps))))
+        tree.write(path)
+
+
+def xdmf_start_frame(path: str | os.PathLike) -> float:
+    """The frame number of an XDMF time series' first step: its time times the rate the writer recorded
+    (:data:`XDMF_RATE`); for a file without it, over the step between its first two times (30 fps for a single
+    step).  Reads the XML's times alone, not the frames."""
+    import xml.etree.ElementTree as ET
+
+    p = Path(path)
+    if not p.is_file():
+        raise FileFormatError("no such file", path=p)
+    try:
+        root = ET.parse(p).getroot()
+    except ET.ParseError as e:
+        raise FileFormatError(f"cannot parse XDMF time series: {e}", path=p) from None
+    times = [float(t.get("Value", "nan")) for t in root.iter("Time")]
+    if not times or not np.isfinite(times[0]):
+        raise FileFormatError("XDMF file has no time steps", path=p)
+    rate = next((i.get("Value") for i in root.iter("Information") if i.get("Name") == XDMF_RATE), None)
+    try:
+        fps = float(rate) if rate is not None else None
+    except ValueError:
+        fps = None
+    if fps is None or not (np.isfinite(fps) and fps > 0):
+        fps = 1.0 / (times[1] - times[0]) if len(times) > 1 and times[1] > times[0] else 30.0
+    return times[0] * fps
 
 
 def write_xdmf_sequence(path, faces, frames, *, rest=None, fps: float = 30.0) -> Path:
