@@ -201,10 +201,13 @@ class OptimConfig:
 
     def budget_steps(self, done: int, seconds_so_far: float, per_step: float) -> int:
         """The step count that fits :attr:`seconds` when ``done`` steps took ``seconds_so_far`` and one more
-        takes ``per_step`` seconds: at least ``done``, at most :attr:`steps`."""
+        takes ``per_step`` seconds, with 10 % of the time left kept in reserve (steps slow down when other
+        processes share the machine; the trainer stops a run that would overrun all the same): at least
+        ``done``, at most :attr:`steps`."""
         if not per_step > 0:
             return self.steps
-        return int(min(self.steps, max(done, done + int((self.seconds - seconds_so_far) / per_step))))
+        left = 0.9 * (self.seconds - seconds_so_far)
+        return int(min(self.steps, max(done, done + int(left / per_step))))
 
 
 @dataclasses.dataclass(frozen=True)

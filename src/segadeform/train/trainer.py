@@ -222,7 +222,10 @@ def train(
 
     Under a time budget (``optim.seconds``) this call -- loading the samples, training and validating -- ends
     within the budget of its start; writing the final model follows.  The step count is fixed once, at the end of
-    the warm-up, and kept in the checkpoint: a run resumed after that trains to it whatever the time."""
+    the warm-up, and kept in the checkpoint (a run resumed after that trains toward it).  Steps slower than the
+    warm-up's (other processes sharing the machine) do not overrun the budget: the loop stops before a step that
+    would not end within it, the validation split's choice so far is the model, and ``train.json`` records the step
+    (``stopped_at_budget``)."""
     started = time.perf_counter()
     run = Path(run_dir)
     run.mkdir(parents=True, exist_ok=True)
@@ -372,8 +375,16 @@ def train(
             torch.save({"state_dict": model.state_dict(), "step": 0, "val_vertex": best_val[0]}, tmp)
     t0 = time.perf_counter()
     model.train()
+    stopped_at = None  # the step the budget stopped the loop at, when it did
+    step_seconds = 0.0  # the last step's time (a validation's left out)
     try:
         while step < total[0]:
+            if budget is not None and budget["steps"] is not None:
+                nxt = step_seconds + (val_seconds if val and (step + 1) % o.checkpoint_every == 0 else 0.0)
+                if time.perf_counter() - started + nxt > o.seconds:
+                    stopped_at = step
+                    break
+            s0 = time.perf_counter()
             fade = o.prior_fade(step, total[0], cfg.loss.skin_prior_until)
             opt.zero_grad(set_to_none=True)
             ls = {}
@@ -425,6 +436,7 @@ def train(
                     )
                     per_step += val_seconds / o.checkpoint_every  # the validations still to come
                     budget["steps"] = total[0] = o.budget_steps(step, so_far, per_step)
+            step_seconds = time.perf_counter() - s0
             for k in acc:  # summed on the device in float64 (as Python floats would be): no sync per step
                 acc[k] = acc[k] + ls[k].detach().to(torch.float64)
             n_acc += 1
@@ -496,7 +508,10 @@ def train(
         "chosen": chosen,
         "sample_frames_seen": step * o.garments * o.frames,
         **(
-            {"time_budget": {"seconds": o.seconds, "warmup": o.warmup, "steps_chosen": budget["steps"]}}
+            {
+                "time_budget": {"seconds": o.seconds, "warmup": o.warmup, "steps_chosen": budget["steps"]},
+                "stopped_at_budget": stopped_at,
+            }
             if budget is not None
             else {}
         ),
