@@ -132,22 +132,25 @@ class AlembicSequenceWriter(SequenceWriter):
         self._tmp.unlink(missing_ok=True)
 
 
+def _first_mesh_schema(p: Path):
+    """The schema of the first polygon mesh at the top level of archive ``p``; FileFormatError when there is none."""
+    Abc, AbcGeom, _, _ = _modules()
+    top = Abc.IArchive(str(p)).getTop()
+    meshes = [
+        top.getChild(i) for i in range(top.getNumChildren()) if AbcGeom.IPolyMesh.matches(top.getChild(i).getMetaData())
+    ]
+    if not meshes:
+        raise FileFormatError("Alembic file has no polygon mesh at its top level", path=p)
+    return AbcGeom.IPolyMesh(top, meshes[0].getName()).getSchema()
+
+
 def alembic_start_frame(path: str | os.PathLike) -> float:
     """The frame number of an ``.abc`` mesh's first sample: its first sample time over the time per frame of its
     time sampling (written as ``start_frame / fps`` and ``1 / fps``)."""
     p = Path(path)
     check_readable(p)
-    Abc, AbcGeom, _, _ = _modules()
     try:
-        top = Abc.IArchive(str(p)).getTop()
-        meshes = [
-            top.getChild(i)
-            for i in range(top.getNumChildren())
-            if AbcGeom.IPolyMesh.matches(top.getChild(i).getMetaData())
-        ]
-        if not meshes:
-            raise FileFormatError("Alembic file has no polygon mesh at its top level", path=p)
-        ts = AbcGeom.IPolyMesh(top, meshes[0].getName()).getSchema().getTimeSampling()
+        ts = _first_mesh_schema(p).getTimeSampling()
         per_frame = float(ts.getTimeSamplingType().getTimePerCycle())
         first = float(ts.getSampleTime(0))
     except FileFormatError:
@@ -161,17 +164,9 @@ def read_alembic_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarr
     """Read the first PolyMesh of an ``.abc`` file: faces ``(F, 3)``, frames ``(S, N, 3)``, times ``(S,)``."""
     p = Path(path)
     check_readable(p)  # a missing file is worded like every reader's, with or without the extra
-    Abc, AbcGeom, _, _ = _modules()
+    Abc, _, _, _ = _modules()
     try:
-        top = Abc.IArchive(str(p)).getTop()
-        meshes = [
-            top.getChild(i)
-            for i in range(top.getNumChildren())
-            if AbcGeom.IPolyMesh.matches(top.getChild(i).getMetaData())
-        ]
-        if not meshes:
-            raise FileFormatError("Alembic file has no polygon mesh at its top level", path=p)
-        schema = AbcGeom.IPolyMesh(top, meshes[0].getName()).getSchema()
+        schema = _first_mesh_schema(p)
         ts = schema.getTimeSampling()
         n = schema.getNumSamples()
         first = schema.getValue(Abc.ISampleSelector(ts.getSampleTime(0)))
