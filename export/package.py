@@ -264,6 +264,12 @@ def export_package(
             expected="ModelConfig.rest_drape = 0",
             got=model.cfg.rest_drape,
         )
+    if model.cfg.history:
+        raise InputError(
+            "the model package format has no motion-history graph yet: a model trained with a history does not export",
+            expected="ModelConfig.history = 0",
+            got=model.cfg.history,
+        )
     net = copy.deepcopy(model).eval().float().freeze()
     cfg = net.cfg
     body_model = _load_body(body)

@@ -59,6 +59,8 @@ def _save(root, sid, body, *, folder="samples", split="train", seed=0, spec=None
             **meta,
         },
         cloth_rest=g.vertices + 0.001,
+        lead_poses=m.poses[:7] * 0.5,  # the motion simulated before the clip (any 7 frames here)
+        lead_trans=m.trans[:7] - 0.1,
     )
     save_sample(root, s, folder=folder)
     return s
@@ -99,7 +101,10 @@ def test_pack_round_trip_within_its_stated_error_and_size(tmp_path, body):
     assert np.abs(b.frames - a.frames).max() <= FRAME_STEP / 2 + 1e-6
     assert np.abs(b.rest - a.rest).max() < 1e-6 and np.array_equal(b.faces, a.faces)
     assert np.abs(b.cloth_rest - a.cloth_rest).max() < 1e-6 and np.allclose(b.poses, a.poses, atol=1e-6)
+    assert np.allclose(b.lead_poses, a.lead_poses, atol=1e-6) and np.allclose(b.lead_trans, a.lead_trans, atol=1e-6)
     assert b.meta == a.meta
+    f = load_sample(root, "skirt__b0__walk")  # the folder keeps the lead too
+    assert f.lead_poses.shape == (7, 72) and np.allclose(f.lead_trans, a.lead_trans, atol=1e-6)
 
 
 def test_roots_read_packs_beside_folders_and_never_write_them(tmp_path, body):

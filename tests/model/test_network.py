@@ -220,3 +220,59 @@ def test_static_blend_is_one_drape_for_every_frame_gated_from_zero_and_absent_fr
     assert ModelConfig.from_dict({"hidden": 32}).static_blend is False
     with pytest.raises(InputError, match="static_blend"):
         ModelConfig(static_blend=1)
+
+
+def test_history_encoder_is_the_window_lstm_stepped_in_time_order():
+    """HistoryEncoder.forward's last state over a sequence = UnrolledLSTM (the window's LSTM, current frame
+    first) over the same frames reversed, with the same weights; every state = stepping one frame at a time."""
+    from segadeform.model.modules import HistoryEncoder, UnrolledLSTM
+
+    torch.manual_seed(0)
+    enc = HistoryEncoder(7, 5)
+    win = UnrolledLSTM(7, 5)
+    win.load_state_dict(enc.cell.state_dict())
+    x = torch.randn(3, 11, 7)
+    with torch.no_grad():
+        hs = enc(x)
+        torch.testing.assert_close(hs[:, -1], win(x.flip(1)))
+        h = c = torch.zeros(3, 5)
+        for t in range(11):
+            h, c = enc.step(x[:, t], h, c)
+            torch.testing.assert_close(hs[:, t], h)
+
+
+def test_a_history_model_starts_as_its_prior_and_its_state_changes_the_frames_once_trained():
+    """ModelConfig.history: the residual gates at 0 make the state irrelevant (the model is its prior); with
+    the gates open another history gives other frames; the history is an input exactly when the model has one,
+    and configs saved before the field have none."""
+    torch.manual_seed(0)
+    cfg = ModelConfig(hidden=16, lstm_hidden=16, history=6)
+    net = SEGANet(cfg).eval()
+    d = {k: torch.as_tensor(v) for k, v in sample_inputs(cfg, "deformer", n=20, k=5, b=2).items()}
+    args = [d[k] for k in ("g", "window", "betas", "rest", "nbr", "mask", "joints", "trans", "log_wbody")]
+    h1, h2 = torch.zeros(2, 6), torch.randn(2, 6)
+    with torch.no_grad():
+        v1, _, _ = net.deformer(*args, h1)
+        v2, _, _ = net.deformer(*args, h2)
+        assert torch.equal(v1, v2)
+        net.weight_gate.fill_(1.0)
+        net.blend_gate.fill_(1.0)
+        v1, w1, _ = net.deformer(*args, h1)
+        v2, w2, _ = net.deformer(*args, h2)
+    assert not torch.allclose(v1, v2) and not torch.allclose(w1, w2)
+    with pytest.raises(InputError, match="history"):
+        net.deformer(*args)
+    with pytest.raises(InputError, match="history"):
+        SEGANet(cfg.replace(history=0)).deformer(*args, h1)
+    with pytest.raises(InputError, match="history"):
+        ModelConfig(history=-1)
+    assert ModelConfig.from_dict({"hidden": 32}).history == 0
+    states = net.history_states(torch.randn(1, 9, 75))
+    assert states.shape == (1, 9, 6) and torch.isfinite(states).all()
+
+
+def test_a_history_model_does_not_export_until_the_package_has_its_graph(tmp_path):
+    from segadeform.export.package import export_package
+
+    with pytest.raises(InputError, match="motion-history"):
+        export_package(SEGANet(ModelConfig(hidden=16, lstm_hidden=16, history=4)), tmp_path / "pkg")

@@ -12,6 +12,7 @@ from segadeform.errors import FileFormatError, InputError
 from segadeform.motion import (
     MOTION_KINDS,
     Motion,
+    history_inputs,
     load_motion,
     make_motion,
     motion_windows,
@@ -65,6 +66,26 @@ def test_save_load_round_trip(tmp_path):
     back = load_motion(tmp_path / "w.npz")
     np.testing.assert_allclose(back.poses, m.poses, atol=1e-6)
     assert back.fps == m.fps
+
+
+def test_history_inputs_are_the_pose_and_the_roots_velocity_in_its_own_frame():
+    """A body facing +x (root yawed 90 degrees about y) walking along +x at 1.5 m/s moves forward (+z) in its
+    own frame; the same walk turned to face +z gives the same inputs but for the root's rotation; the first
+    frame is at rest."""
+    t = np.arange(6) / 30.0
+    poses = np.zeros((6, 72))
+    poses[:, 1] = np.pi / 2  # yaw 90 degrees: the body's +z is the world's +x
+    poses[:, 5] = 0.3  # some other joint, passed through
+    trans = np.stack([1.5 * t, np.full(6, 0.9), np.zeros(6)], axis=1)
+    x = history_inputs(poses, trans, 30.0)
+    assert x.shape == (6, 75) and np.array_equal(x[:, :72], poses)
+    np.testing.assert_allclose(x[0, 72:], 0.0)
+    np.testing.assert_allclose(x[1:, 72:], np.tile([0.0, 0.0, 1.5], (5, 1)), atol=1e-9)
+    straight = history_inputs(np.zeros((6, 72)), trans[:, [2, 1, 0]], 30.0)  # facing +z, walking +z
+    np.testing.assert_allclose(straight[:, 72:], x[:, 72:], atol=1e-9)
+    for bad in ((np.zeros((6, 71)), trans, 30.0), (poses, trans[:5], 30.0), (poses, trans, 0.0)):
+        with pytest.raises(InputError):
+            history_inputs(*bad)
 
 
 # ---- resampling and windows ----------------------------------------------

@@ -17,7 +17,7 @@ def body():
     return load_body(SAMPLES / "bodies" / "default_body.npz")
 
 
-def _write(root, sid, split, body, garment, motion, wave, type_):
+def _write(root, sid, split, body, garment, motion, wave, type_, lead=0):
     from segadeform.body.transfer import skin_garment, transfer_weights
     from segadeform.dataset.store import Sample, save_sample
 
@@ -37,6 +37,9 @@ def _write(root, sid, split, body, garment, motion, wave, type_):
             trans=motion.trans,
             frames=frames.astype(np.float32),
             meta=meta,
+            # the motion simulated before the clip: here its first pose held, stepping back in x
+            lead_poses=np.repeat(motion.poses[:1], lead, axis=0) if lead else None,
+            lead_trans=motion.trans[:1] - 0.01 * np.arange(lead, 0, -1)[:, None] * [1.0, 0.0, 0.0] if lead else None,
         ),
     )
 
@@ -51,7 +54,7 @@ def synthetic_dataset(tmp_path_factory, body):
     shorts = make_garment("shorts", body)
     walk = make_motion("walk", seconds=0.4, fps=30, ease_in=0)
     swing = make_motion("arm_swing", seconds=0.4, fps=30, ease_in=0, seed=1)
-    _write(root, "skirt__b0__walk", "train", body, skirt, walk, 0.01, "skirt")
+    _write(root, "skirt__b0__walk", "train", body, skirt, walk, 0.01, "skirt", lead=4)
     _write(root, "shorts__b0__walk", "train", body, shorts, walk, 0.01, "trousers")
     _write(root, "skirt__b0__swing", "test", body, skirt, swing, 0.0, "skirt")  # exactly LBS
     return root

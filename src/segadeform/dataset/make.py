@@ -611,6 +611,8 @@ def _attempt(
         cloth_rest=None
         if res.cloth_rest is None or strain_rest is mesh.vertices
         else np.asarray(res.cloth_rest, np.float64),
+        lead_poses=np.asarray(full_motion.poses[:lead], np.float32),
+        lead_trans=np.asarray(full_motion.trans[:lead], np.float32),
     )
     return trim_sample(sample, keep) if trimmed is not None else sample
 

@@ -23,7 +23,8 @@ Arrays of a sample (``ID.npz`` inside the archive, LZMA-compressed by the zip):
   error does not grow along the frames.  A sample whose frames are not finite (a rejected one) keeps
   them as float32.
 * ``rest``, ``cloth_rest`` float32 (7 significant digits: < 0.1 micrometre on a garment); ``faces`` int32;
-  ``poses``, ``trans`` float32; ``betas`` float64.
+  ``poses``, ``trans`` and the lead (``lead_poses``, ``lead_trans``: the motion simulated before the first
+  frame, where the sample records it) float32; ``betas`` float64.
 * the closest body point and normal of every vertex (training's collision term) are not stored: they
   are recomputed from the body and the frames when the sample is read for training.
 
@@ -143,6 +144,9 @@ def _sample_bytes(s: Sample, step: float) -> bytes:
     }
     if s.cloth_rest is not None:
         arrays["cloth_rest"] = np.asarray(s.cloth_rest, np.float32)
+    if s.lead_poses is not None and s.lead_trans is not None:
+        arrays["lead_poses"] = np.asarray(s.lead_poses, np.float32)
+        arrays["lead_trans"] = np.asarray(s.lead_trans, np.float32)
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     return buf.getvalue()
@@ -343,6 +347,8 @@ class Pack:
             frames=frames,
             meta=self.read_meta(sid),
             cloth_rest=z["cloth_rest"].astype(np.float64) if "cloth_rest" in z else None,
+            lead_poses=z["lead_poses"].astype(np.float64) if "lead_poses" in z and "lead_trans" in z else None,
+            lead_trans=z["lead_trans"].astype(np.float64) if "lead_poses" in z and "lead_trans" in z else None,
         )
 
     def configs(self) -> list[str]:

@@ -23,7 +23,8 @@ _ARRAYS = {"rest": 2, "faces": 2, "betas": 1, "poses": 2, "trans": 2, "frames": 
 @dataclasses.dataclass
 class Sample:
     """rest (N, 3), faces (F, 3), betas (B,), poses (T, 72), trans (T, 3), frames (T, N, 3) float32, meta;
-    optional contact_p, contact_n (T, N, 3) and cloth_rest (N, 3)."""
+    optional contact_p, contact_n (T, N, 3), cloth_rest (N, 3) and the lead: lead_poses (L, 72), lead_trans (L, 3),
+    the motion simulated before the first stored frame (what a model's motion history starts from)."""
 
     id: str
     rest: np.ndarray
@@ -36,6 +37,8 @@ class Sample:
     contact_p: np.ndarray | None = None  # (T, N, 3) closest body point to each simulated vertex
     contact_n: np.ndarray | None = None  # (T, N, 3) outward body normal there
     cloth_rest: np.ndarray | None = None  # (N, 3) the cloth's rest shape when it was not ``rest`` (A-pose)
+    lead_poses: np.ndarray | None = None  # (L, 72) the motion simulated before frame 0 (dropped from the clip)
+    lead_trans: np.ndarray | None = None  # (L, 3)
 
 
 def save_sample(root, s: Sample, folder: str = "samples") -> bool:
@@ -59,6 +62,9 @@ def save_sample(root, s: Sample, folder: str = "samples") -> bool:
             )
             if s.cloth_rest is not None:
                 extra["cloth_rest"] = np.asarray(s.cloth_rest, np.float64)
+            if s.lead_poses is not None and s.lead_trans is not None:
+                extra["lead_poses"] = np.asarray(s.lead_poses, np.float32)
+                extra["lead_trans"] = np.asarray(s.lead_trans, np.float32)
             np.savez(
                 fh,
                 rest=s.rest,
@@ -103,6 +109,15 @@ def load_sample(root: Path, sid: str, folder: str = "samples") -> Sample:
                 got=z["cloth_rest"].shape,
             )
         contact["cloth_rest"] = z["cloth_rest"]
+    if "lead_poses" in z and "lead_trans" in z:
+        lp, lt = z["lead_poses"], z["lead_trans"]
+        if lp.ndim != 2 or lp.shape[1:] != z["poses"].shape[1:] or lt.shape != (lp.shape[0], 3):
+            raise FileFormatError(
+                "sample arrays 'lead_poses', 'lead_trans' are not (L, 72), (L, 3)",
+                path=d / f"{sid}.npz",
+                got=(lp.shape, lt.shape),
+            )
+        contact["lead_poses"], contact["lead_trans"] = lp, lt
     return Sample(id=sid, meta=meta, **{k: z[k] for k in _ARRAYS}, **contact)
 
 

@@ -46,6 +46,12 @@ class ModelConfig:
             garment code and rest position) to the decoder's ``B``: the garment's drape on the body, which the
             decoder could reach only through the motion processors (its features are products with them).
             Gated from 0 in residual models.  Checkpoints and manifests without the field have none.
+        history: H, the size of a recurrent motion state carried over the whole clip (0: none, the paper's
+            window alone).  A step ``(x_t, h_{t-1}, c_{t-1}) -> (h_t, c_t)`` of an LSTM over every frame from the
+            first simulated one (:class:`~segadeform.model.modules.HistoryEncoder`; ``x_t``: the pose and the
+            root's velocity in the root's frame, :func:`segadeform.motion.motion.history_inputs`); ``h_t`` joins
+            the window's code in both motion processors.  The window covers 0.17 s, a skirt's swing lags the hips by
+            most of a second.  Checkpoints without the field have 0.
         rest_drape: how far the garment's rest that the deformer skins is moved toward its drape on the body at
             rest (``segadeform.body.drape``; computed on the host, as the rest joints are): 0 skins the rest as
             designed, 1 the drape.  The network is unchanged; the model package format has no drape yet, so
@@ -73,6 +79,7 @@ class ModelConfig:
     weight_prior: str = "nearest"
     static_blend: bool = False
     rest_drape: float = 0.0
+    history: int = 0
 
     def __post_init__(self):
         ints = (
@@ -100,6 +107,9 @@ class ModelConfig:
                 raise InputError(f"ModelConfig.{name} must be positive", got=v)
         if not isinstance(self.static_blend, bool):
             raise InputError("ModelConfig.static_blend must be true or false", got=self.static_blend)
+        h = self.history
+        if not isinstance(h, int) or isinstance(h, bool) or h < 0:
+            raise InputError("ModelConfig.history must be a non-negative integer", got=h)
         d = self.rest_drape
         if not (isinstance(d, (int, float)) and not isinstance(d, bool) and 0.0 <= d <= 1.0):
             raise InputError("ModelConfig.rest_drape must be a number in [0, 1]", got=d)

@@ -84,6 +84,42 @@ class UnrolledLSTM(nn.Module):
         return h
 
 
+class HistoryEncoder(nn.Module):
+    """The clip's motion history: one LSTM stepped over every frame in time order (the same gates and
+    weight layout as :class:`UnrolledLSTM`), the state carried from one frame to the next::
+
+        (i, f, g, o) = (sigma, sigma, tanh, sigma)(W_ih x_t + W_hh h_{t-1} + b)
+        c_t = f c_{t-1} + i g,   h_t = o tanh(c_t),   h_{-1} = c_{-1} = 0
+
+    :meth:`forward` runs a whole sequence (training, offline); :meth:`step` is one frame (what a
+    streaming runtime calls, carrying ``(h, c)``).
+
+    Shapes:
+        forward: x (B, L, I), oldest frame first -> h (B, L, H), every frame's state
+        step: x (B, I), h (B, H), c (B, H) -> (h (B, H), c (B, H))
+    """
+
+    def __init__(self, input_size: int, hidden_size: int) -> None:
+        super().__init__()
+        self.cell = UnrolledLSTM(input_size, hidden_size)
+
+    def step(self, x: torch.Tensor, h: torch.Tensor, c: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        m, hs = self.cell, self.cell.hidden_size
+        g = torch.matmul(x, m.w_ih.t()) + m.bias + torch.matmul(h, m.w_hh.t())
+        c = torch.sigmoid(g[:, hs : 2 * hs]) * c + torch.sigmoid(g[:, :hs]) * torch.tanh(g[:, 2 * hs : 3 * hs])
+        return torch.sigmoid(g[:, 3 * hs :]) * torch.tanh(c), c
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        b, length, _ = x.shape
+        h = x.new_zeros(b, self.cell.hidden_size)
+        c = x.new_zeros(b, self.cell.hidden_size)
+        out = []
+        for t in range(length):
+            h, c = self.step(x[:, t], h, c)
+            out.append(h)
+        return torch.stack(out, dim=1)
+
+
 class GarmentTypeParser(nn.Module):
     """f^gp: descriptor lambda (B, N*) -> (B, F_enc); a learned constant without the descriptor."""
 
@@ -181,11 +217,16 @@ class MotionProcessor(nn.Module):
         super().__init__()
         self.with_betas = with_betas
         self.lstm = UnrolledLSTM(3 * cfg.n_joints, cfg.lstm_hidden)
-        extra = cfg.n_betas if with_betas else 0
+        extra = (cfg.n_betas if with_betas else 0) + cfg.history
         self.head = MLP([cfg.lstm_hidden + extra, cfg.hidden, out], cfg.tau if cfg.use_sega else None)
 
-    def forward(self, window: torch.Tensor, betas: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(
+        self, window: torch.Tensor, betas: torch.Tensor | None = None, history: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """``window (B, T, 3 S)``, ``betas (B, |beta|)`` for f^mo2, ``history (B, H)`` when the config has one."""
         h = self.lstm(window)
         if self.with_betas:
             h = torch.cat([h, betas], dim=-1)
+        if history is not None:
+            h = torch.cat([h, history], dim=-1)
         return self.head(h)

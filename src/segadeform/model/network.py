@@ -49,7 +49,15 @@ from ..body.skeleton import SMPL_PARENTS
 from ..errors import FileFormatError, InputError
 from .config import ModelConfig
 from .kinematics import axis_angle_to_matrix, dqs, forward_kinematics, lbs, skinning_transforms
-from .modules import MLP, BodyShapeParser, GarmentTypeParser, GraphDecoder, GraphEncoder, MotionProcessor
+from .modules import (
+    MLP,
+    BodyShapeParser,
+    GarmentTypeParser,
+    GraphDecoder,
+    GraphEncoder,
+    HistoryEncoder,
+    MotionProcessor,
+)
 from .sega import SEGABlock, TauLinear
 
 __all__ = ["SEGANet", "save_checkpoint", "load_checkpoint"]
@@ -63,7 +71,7 @@ class SEGANet(nn.Module):
     Shapes (deformer):
         g (N, S), window (B, T, 3 S) with window[:, 0] the current pose, betas (B, |beta|),
         rest (N, 3), nbr (N, K), mask (N, K), joints (B, S, 3), trans (B, 3)
-        [, log_wbody (N, S) for residual weights]
+        [, log_wbody (N, S) for residual weights] [, history (B, H): :meth:`history_states` at each frame]
         -> vertices (B, N, 3), weights (B, N, S), blend_shapes (B, N, 3)
     """
 
@@ -80,6 +88,8 @@ class SEGANet(nn.Module):
         self.mo2 = MotionProcessor(cfg, cfg.f_enc * cfg.n_joints, with_betas=True) if cfg.use_blend_shapes else None
         self.dec = GraphDecoder(cfg) if cfg.use_blend_shapes else None
         self.residual = cfg.weights == "residual"
+        #: the clip's motion history (cfg.history > 0): input (pose, root velocity) per frame
+        self.hist = HistoryEncoder(3 * cfg.n_joints + 3, cfg.history) if cfg.history else None
         self.static = (
             MLP([cfg.n_joints + 3, cfg.hidden, cfg.hidden, 3], cfg.tau if cfg.use_sega else None)
             if cfg.static_blend
@@ -110,12 +120,25 @@ class SEGANet(nn.Module):
         bp = self.bp(betas)  # (B, F_enc, S)
         return g[..., None] * bp.permute(0, 2, 1)[:, None, :, :]
 
-    def deformer(self, g, window, betas, rest, nbr, mask, joints, trans, log_wbody=None):
+    def history_states(self, x: torch.Tensor) -> torch.Tensor:
+        """The motion history ``h_t`` at every frame of ``x (B, L, 3 S + 3)`` (:func:`segadeform.motion.motion.
+        history_inputs`, oldest first, from the first frame simulated) -> ``(B, L, H)``."""
+        if self.hist is None:
+            raise InputError("this model has no motion history (ModelConfig.history = 0)")
+        return self.hist(x)
+
+    def deformer(self, g, window, betas, rest, nbr, mask, joints, trans, log_wbody=None, history=None):
         cfg = self.cfg
         b = window.shape[0]
         s, f = cfg.n_joints, cfg.f_enc
+        if (history is None) != (self.hist is None):
+            raise InputError(
+                "the motion history is an input exactly when the model has one",
+                expected=f"history (B, {cfg.history})" if cfg.history else "no history",
+                got=None if history is None else tuple(history.shape),
+            )
         bp = self.bp(betas).permute(0, 2, 1)  # f^bp(beta)[i, j] as (B, S, F_enc)
-        mo1 = self.mo1(window)  # (B, F_enc)
+        mo1 = self.mo1(window, history=history)  # (B, F_enc)
         w_raw = g[None] * torch.matmul(bp, mo1[:, :, None])[:, None, :, 0]  # Eq. 16: (B, N, S)
         if self.residual:
             if log_wbody is None:
@@ -123,7 +146,7 @@ class SEGANet(nn.Module):
             w_raw = log_wbody[None] + self.weight_gate * w_raw
         weights = torch.softmax(w_raw, dim=-1)
         if self.dec is not None:
-            mo2 = self.mo2(window, betas)  # (B, S F_enc)
+            mo2 = self.mo2(window, betas, history)  # (B, S F_enc)
             # X^mid = P * mo2 (Eq. 17) = g @ lift, lift block-diagonal (B, S, S F_enc): never formed as (B, N, S F_enc)
             diag = torch.eye(s, dtype=g.dtype, device=g.device)[None, :, :, None]
             lift = (diag * (bp.reshape(b, 1, s, f) * mo2.reshape(b, 1, s, f))).reshape(b, s, s * f)
@@ -142,10 +165,12 @@ class SEGANet(nn.Module):
         skin = dqs if cfg.skinning == "dqs" else lbs
         return skin(verts, weights, a), weights, blend
 
-    def forward(self, features, nbr, mask, descriptor, betas, window, rest, joints, trans, log_wbody=None):
+    def forward(
+        self, features, nbr, mask, descriptor, betas, window, rest, joints, trans, log_wbody=None, history=None
+    ):
         """Encoder and deformer in one call (training); the garment batch must be 1."""
         g = self.garment_encoder(features, nbr, mask, descriptor)[0]
-        return self.deformer(g, window, betas, rest, nbr, mask, joints, trans, log_wbody)
+        return self.deformer(g, window, betas, rest, nbr, mask, joints, trans, log_wbody, history)
 
 
 def save_checkpoint(path: str | os.PathLike, model: SEGANet, **extra) -> Path:

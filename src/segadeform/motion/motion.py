@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..body.rotations import axis_angle_to_quaternion, quaternion_slerp, quaternion_to_axis_angle
+from ..body.rotations import axis_angle_to_matrix, axis_angle_to_quaternion, quaternion_slerp, quaternion_to_axis_angle
 from ..body.skeleton import SMPL_JOINT_NAMES
 from ..errors import FileFormatError, InputError
 from ..io.atomic import atomic_path
@@ -21,6 +21,7 @@ __all__ = [
     "face_forward",
     "resample",
     "motion_windows",
+    "history_inputs",
     "N_POSE",
     "SMPL_PELVIS",
     "sample_frames",
@@ -570,6 +571,27 @@ def motion_windows(poses: np.ndarray, window: int, *, start: int = 0, stop: int 
         raise InputError("frame range out of bounds", expected=f"0 <= start <= stop <= {p.shape[0]}", got=(start, stop))
     t = np.arange(start, stop)[:, None] - np.arange(int(window))[None, :]
     return p[np.maximum(t, 0)]
+
+
+def history_inputs(poses: np.ndarray, trans: np.ndarray, fps: float) -> np.ndarray:
+    """Per-frame inputs of a model's motion history (``ModelConfig.history``): the pose and the root's
+    velocity in the root's own frame, ``x_t = (theta_t, R_0(theta_t)^T (p_t - p_{t-1}) fps)`` with the first
+    frame's velocity 0 (the body starts at rest).  In the root's frame, so a walk is the same walk whichever
+    way it heads.
+
+    Shapes:
+        poses (L, 3 S), trans (L, 3) -> (L, 3 S + 3)
+    """
+    p = np.asarray(poses, np.float64)
+    t = np.asarray(trans, np.float64)
+    if p.ndim != 2 or p.shape[0] < 1 or p.shape[1] % 3 or t.shape != (p.shape[0], 3):
+        raise InputError("expected poses (L, 3 S) and trans (L, 3), L >= 1", got=(p.shape, t.shape))
+    if not (np.isfinite(fps) and fps > 0):
+        raise InputError("fps must be a positive number", got=fps)
+    v = np.zeros_like(t)
+    v[1:] = (t[1:] - t[:-1]) * float(fps)
+    r = axis_angle_to_matrix(p[:, :3])  # (L, 3, 3) the root's rotation
+    return np.concatenate([p, np.einsum("lji,lj->li", r, v)], axis=1)
 
 
 def write_motion_file(

@@ -27,7 +27,7 @@ from ..geometry.mesh_ops import unique_edges
 from ..geometry.precompute import precompute_garment
 from ..io.atomic import atomic_path
 from ..io.garment_asset import GarmentAsset
-from ..motion.motion import motion_windows
+from ..motion.motion import history_inputs, motion_windows
 
 __all__ = ["TrainItem", "load_items", "sample_asset"]
 
@@ -49,6 +49,8 @@ class TrainItem:
     faces: torch.Tensor  # (F, 3) int64
     edges: torch.Tensor  # (E, 2) int64
     windows: torch.Tensor  # (T, W, 3 S)
+    history_in: torch.Tensor  # (L + T, 3 S + 3) the motion history's inputs from the lead's first frame
+    lead: int  # L, frames simulated before frame 0 (history_in[lead + t] is frame t)
     trans: torch.Tensor  # (T, 3)
     frames: torch.Tensor  # (T, N, 3)
     contact_p: torch.Tensor  # (T, N, 3) closest body point to the simulated vertex
@@ -160,6 +162,11 @@ def load_items(
         b[: s.betas.size] = s.betas[:n_betas]
         joints = body.rest_joints(s.betas if s.betas.size else None)[0]
         win = motion_windows(s.poses, window)
+        lead_p = np.zeros((0, s.poses.shape[1])) if s.lead_poses is None else s.lead_poses
+        lead_t = np.zeros((0, 3)) if s.lead_trans is None else s.lead_trans
+        hist = history_inputs(
+            np.concatenate([lead_p, s.poses]), np.concatenate([lead_t, s.trans]), float(s.meta.get("fps", 30.0))
+        )
         bw = garment_weights(s.rest, s.faces, body, s.betas if s.betas.size else None, weight_prior)
         out.append(
             TrainItem(
@@ -176,6 +183,8 @@ def load_items(
                 faces=torch.as_tensor(s.faces, dtype=torch.int64),
                 edges=torch.as_tensor(unique_edges(s.faces, len(s.rest)), dtype=torch.int64),
                 windows=f32(win),
+                history_in=f32(hist),
+                lead=len(lead_p),
                 trans=f32(s.trans),
                 frames=f32(s.frames),
                 contact_p=f32(cp),

@@ -47,7 +47,7 @@ from ..errors import InputError
 from ..geometry.mesh_ops import unique_edges
 from ..io import read_mesh
 from ..io.location import open_location
-from ..motion.motion import motion_windows
+from ..motion.motion import history_inputs, motion_windows
 
 __all__ = [
     "Material",
@@ -249,6 +249,7 @@ class PairItem:
     joints: torch.Tensor  # (S, 3)
     rest: torch.Tensor  # (N, 3) the rest the deformer skins (moved toward its drape by rest_drape)
     windows: torch.Tensor  # (T, W, 3 S)
+    history_in: torch.Tensor  # (T, 3 S + 3) the motion history's inputs (no lead: the pair starts at rest)
     trans: torch.Tensor  # (T, 3)
     body_weights: torch.Tensor  # (N, S)
     posed_body: np.ndarray  # (T, V, 3) float32
@@ -415,6 +416,7 @@ class PhysicsPairs:
                 joints=f32(joints),
                 rest=f32(skinned_rest(mesh.vertices, mesh.faces, self.body, betas, self.rest_drape, self._drapes)),
                 windows=f32(motion_windows(mo.poses, self.window)),
+                history_in=f32(history_inputs(mo.poses, mo.trans, mo.fps)),
                 trans=f32(mo.trans),
                 body_weights=f32(bw),
                 posed_body=posed,

@@ -57,12 +57,21 @@ def pick_device(name: str) -> torch.device:
     return torch.device(name)
 
 
+def _history(model: SEGANet, history_in: torch.Tensor, rows: torch.Tensor) -> torch.Tensor | None:
+    """The model's motion history at ``rows`` of ``history_in (L, 3 S + 3)`` (None without one): the recurrence
+    runs from the first row to the last one asked for."""
+    if model.hist is None:
+        return None
+    return model.history_states(history_in[None, : int(rows.max()) + 1])[0, rows]
+
+
 def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_scale: float = 1.0) -> dict:
     """Every loss term for frames ``t (B,)`` of ``item``; returns {term: tensor} and 'total'.
 
     ``prior_scale`` multiplies the skinning-weight prior's weight (the trainer fades it out)."""
     b = len(t)
     lw = torch.log(item.body_weights + RESIDUAL_EPS) if model.residual else None
+    hist = _history(model, item.history_in, item.lead + t)
     verts, weights, _ = model(
         item.features,
         item.nbr,
@@ -74,6 +83,7 @@ def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_sc
         item.joints[None].expand(b, -1, -1),
         item.trans[t],
         lw,
+        hist,
     )
     y = item.frames[t]
     out = {
@@ -100,6 +110,7 @@ def physics_losses(model: SEGANet, pair, t0: int, frames: int, mat, body_faces, 
 
     t = torch.arange(t0, t0 + frames, device=device)
     lw = torch.log(pair.body_weights + RESIDUAL_EPS) if model.residual else None
+    hist = _history(model, pair.history_in, t)
     x, _, _ = model(
         pair.features,
         pair.nbr,
@@ -111,6 +122,7 @@ def physics_losses(model: SEGANet, pair, t0: int, frames: int, mat, body_faces, 
         pair.joints[None].expand(frames, -1, -1),
         pair.trans[t],
         lw,
+        hist,
     )
     cp, cn = body_contact(x[2:].detach().cpu().numpy(), pair.posed_body[t0 + 2 : t0 + frames], body_faces, collider)
     h = x.detach()
