@@ -369,11 +369,54 @@ def test_a_history_model_runs_from_the_lead_trains_and_evaluates(synthetic_datas
         full = net.history_states(it.history_in[None])[0]
         torch.testing.assert_close(_history(net, it.history_in, rows), full[rows])
         assert _history(SEGANet(ModelConfig(hidden=16, lstm_hidden=16)), it.history_in, rows) is None
+    # the training step and the checkpoint predictor read the state at lead + t (gates open: the state matters)
+    from segadeform.body.transfer import RESIDUAL_EPS
+    from segadeform.model.network import save_checkpoint
+    from segadeform.train.config import LossWeights
+    from segadeform.train.data import sample_asset
+    from segadeform.train.predictors import CheckpointPredictor
+    from segadeform.train.trainer import step_losses
+
+    net.eval()  # (training mode steps the spectral norms' power iteration at every call)
+    with torch.no_grad():
+        net.weight_gate.fill_(1.0)
+        net.blend_gate.fill_(1.0)
+    t = torch.arange(it.n_frames)
+
+    def by_hand(rows):
+        with torch.no_grad():
+            v, _, _ = net(
+                it.features,
+                it.nbr,
+                it.mask,
+                it.descriptor,
+                it.betas.expand(len(t), -1),
+                it.windows[t],
+                it.skin_rest,
+                it.joints[None].expand(len(t), -1, -1),
+                it.trans[t],
+                torch.log(it.body_weights + RESIDUAL_EPS),
+                full[rows],
+            )
+        return v
+
+    with torch.no_grad():
+        full = net.history_states(it.history_in[None])[0]
+        got = float(step_losses(net, it, t, LossWeights())["vertex"])
+    right, wrong = by_hand(4 + t), by_hand(t)
+    assert (right - wrong).abs().max() > 1e-3  # the offset shows in the frames (far above the tolerances below)
+    assert abs(got - float((right - it.frames).norm(dim=-1).mean())) < 1e-6
+    pred = CheckpointPredictor(save_checkpoint(tmp_path / "h.pt", net)).predict(
+        s, body, sample_asset(roots, s, body, 32)
+    )
+    np.testing.assert_allclose(pred, right.numpy(), atol=1e-5)
     cfg_p = tmp_path / "h.toml"
     cfg_p.write_text(
         "[model]\nhidden = 16\nlstm_hidden = 16\nhistory = 4\n"
         "[optim]\nsteps = 4\nframes = 3\ncheckpoint_every = 2\nlr = 0.003\n"
     )
     ck = train(load_train_config(cfg_p, dataset=synthetic_dataset), tmp_path / "run", body)
+    info = json.loads((tmp_path / "run" / "train.json").read_text())
+    assert info["history_without_lead"] == ["shorts__b0__walk"]  # the sample that records none
     res = evaluate(synthetic_dataset, body, make_predictors({"lbs": "lbs", "hist": str(ck)}))
     assert np.isfinite(res["models"]["hist"]["vertex_cm"])

@@ -337,6 +337,17 @@ class Pack:
         missing = [k for k in ("rest", "faces", "betas", "poses", "trans") if k not in z]
         if missing:
             raise FileFormatError(f"sample {sid} lacks {missing[0]!r}", path=self.path)
+        lead = "lead_poses" in z and "lead_trans" in z
+        if lead and (
+            z["lead_poses"].ndim != 2
+            or z["lead_poses"].shape[1:] != z["poses"].shape[1:]
+            or z["lead_trans"].shape != (z["lead_poses"].shape[0], 3)
+        ):
+            raise FileFormatError(
+                f"sample {sid}'s lead is not (L, 72), (L, 3)",
+                path=self.path,
+                got=(z["lead_poses"].shape, z["lead_trans"].shape),
+            )
         return Sample(
             id=sid,
             rest=z["rest"].astype(np.float64),
@@ -347,8 +358,8 @@ class Pack:
             frames=frames,
             meta=self.read_meta(sid),
             cloth_rest=z["cloth_rest"].astype(np.float64) if "cloth_rest" in z else None,
-            lead_poses=z["lead_poses"].astype(np.float64) if "lead_poses" in z and "lead_trans" in z else None,
-            lead_trans=z["lead_trans"].astype(np.float64) if "lead_poses" in z and "lead_trans" in z else None,
+            lead_poses=z["lead_poses"].astype(np.float64) if lead else None,
+            lead_trans=z["lead_trans"].astype(np.float64) if lead else None,
         )
 
     def configs(self) -> list[str]:

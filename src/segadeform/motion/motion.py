@@ -575,9 +575,9 @@ def motion_windows(poses: np.ndarray, window: int, *, start: int = 0, stop: int 
 
 def history_inputs(poses: np.ndarray, trans: np.ndarray, fps: float) -> np.ndarray:
     """Per-frame inputs of a model's motion history (``ModelConfig.history``): the pose and the root's
-    velocity in the root's own frame, ``x_t = (theta_t, R_0(theta_t)^T (p_t - p_{t-1}) fps)`` with the first
-    frame's velocity 0 (the body starts at rest).  In the root's frame, so a walk is the same walk whichever
-    way it heads.
+    velocity in the root's own frame, ``x_t = (theta_t, R_0(theta_t)^T (p_t - p_{t-1}) fps)``; the first frame's
+    velocity is 0 (nothing before it is known: pass the lead first where there is one).  The velocity does not
+    depend on the heading (a walk forward reads forward whichever way it heads); the pose's root rotation does.
 
     Shapes:
         poses (L, 3 S), trans (L, 3) -> (L, 3 S + 3)

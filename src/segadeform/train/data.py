@@ -51,6 +51,7 @@ class TrainItem:
     windows: torch.Tensor  # (T, W, 3 S)
     history_in: torch.Tensor  # (L + T, 3 S + 3) the motion history's inputs from the lead's first frame
     lead: int  # L, frames simulated before frame 0 (history_in[lead + t] is frame t)
+    lead_known: bool  # the sample records its lead (samples made before leads were recorded do not: L = 0)
     trans: torch.Tensor  # (T, 3)
     frames: torch.Tensor  # (T, N, 3)
     contact_p: torch.Tensor  # (T, N, 3) closest body point to the simulated vertex
@@ -185,6 +186,7 @@ def load_items(
                 windows=f32(win),
                 history_in=f32(hist),
                 lead=len(lead_p),
+                lead_known=s.lead_poses is not None,
                 trans=f32(s.trans),
                 frames=f32(s.frames),
                 contact_p=f32(cp),

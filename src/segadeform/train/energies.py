@@ -249,7 +249,8 @@ class PairItem:
     joints: torch.Tensor  # (S, 3)
     rest: torch.Tensor  # (N, 3) the rest the deformer skins (moved toward its drape by rest_drape)
     windows: torch.Tensor  # (T, W, 3 S)
-    history_in: torch.Tensor  # (T, 3 S + 3) the motion history's inputs (no lead: the pair starts at rest)
+    history_in: torch.Tensor  # (L + T, 3 S + 3) the motion history's inputs from the lead's first frame
+    lead: int  # L, the lead's frames (history_in[lead + t] is frame t), as a sample's
     trans: torch.Tensor  # (T, 3)
     body_weights: torch.Tensor  # (N, S)
     posed_body: np.ndarray  # (T, V, 3) float32
@@ -353,7 +354,8 @@ class PhysicsPairs:
         return _lru(self._garments, key, self.keep)
 
     def _clip(self, mi: int, rest_joints: np.ndarray):
-        """The pair's motion clip; a capture's is read from ``cache/motions`` when it is there (keyed by the entry, the
+        """``(clip, lead_poses, lead_trans)``: the pair's motion clip and the lead ``dataset make`` would simulate
+        before it (what a model's motion history starts from, as a sample's does); a capture's is read from ``cache/motions`` when it is there (keyed by the entry, the
         dataset's clip length and rate and the body's joints), else made from the entry and stored: a capture
         file is read once per body, and a machine that holds the cache trains without the capture files.  A
         capture file is named by its path relative to the config here, not by its bytes: one changed in place
@@ -363,9 +365,12 @@ class PhysicsPairs:
 
         m = self.cfg.motions[mi]
         if m.file is None:  # procedural: made in a moment anywhere, never stored (float32, as a stored clip is)
-            mo = _motion(m, self.cfg, rest_joints)
-            return Motion(
-                poses=np.asarray(mo.poses, np.float32), trans=np.asarray(mo.trans, np.float32), fps=mo.fps, name=m.name
+            mo, lead = _motion(m, self.cfg, rest_joints, with_lead=True)
+            f32 = np.asarray(mo.poses, np.float32), np.asarray(mo.trans, np.float32)
+            return (
+                Motion(poses=f32[0][lead:], trans=f32[1][lead:], fps=mo.fps, name=m.name),
+                f32[0][:lead],
+                f32[1][:lead],
             )
         entry = dataclasses.asdict(m)
         # the file by its path from the config (the same wherever the checkout and ../shared lie; the capture files
@@ -377,31 +382,44 @@ class PhysicsPairs:
         if p.is_file():
             try:
                 with np.load(p) as z:
-                    return Motion(poses=z["poses"], trans=z["trans"], fps=float(z["fps"]), name=m.name)
+                    clip = Motion(poses=z["poses"], trans=z["trans"], fps=float(z["fps"]), name=m.name)
+                    return clip, z["lead_poses"], z["lead_trans"]
             except (OSError, ValueError, KeyError):
                 pass  # a broken entry is made again below
-        mo = _motion(m, self.cfg, rest_joints)
+        mo, lead = _motion(m, self.cfg, rest_joints, with_lead=True)
         # stored as float32 (what training reads) and returned as stored: a hit and a miss give the same pair
         poses, trans = np.asarray(mo.poses, np.float32), np.asarray(mo.trans, np.float32)
         p.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(p) as tmp, open(tmp, "wb") as fh:
-            np.savez_compressed(fh, poses=poses, trans=trans, fps=np.float64(mo.fps))
-        return Motion(poses=poses, trans=trans, fps=float(mo.fps), name=m.name)
+            np.savez_compressed(
+                fh,
+                poses=poses[lead:],
+                trans=trans[lead:],
+                lead_poses=poses[:lead],
+                lead_trans=trans[:lead],
+                fps=np.float64(mo.fps),
+            )
+        return (
+            Motion(poses=poses[lead:], trans=trans[lead:], fps=float(mo.fps), name=m.name),
+            poses[:lead],
+            trans[:lead],
+        )
 
     def _motion(self, mi: int, bi: int):
         key = (mi, bi)
         if key not in self._motions:
             betas = self.cfg.bodies[bi] or None
-            mo = self._clip(mi, self.body.rest_joints(betas)[0])
+            mo, lead_p, lead_t = self._clip(mi, self.body.rest_joints(betas)[0])
             posed = self.body.forward(mo.poses, betas, mo.trans).vertices.astype(np.float32)
-            self._motions[key] = (mo, posed)
+            hist = history_inputs(np.concatenate([lead_p, mo.poses]), np.concatenate([lead_t, mo.trans]), mo.fps)
+            self._motions[key] = (mo, posed, hist, len(lead_p))
         return _lru(self._motions, key, self.keep)
 
     def item(self, i: int) -> PairItem:
         p = self.plan[int(i)]
         if p.id not in self._items:
             mesh, a, joints, bw, topo = self._garment(p.garment, p.body)
-            mo, posed = self._motion(p.motion, p.body)
+            mo, posed, hist, lead = self._motion(p.motion, p.body)
             b = np.zeros(self.n_betas)
             betas = np.asarray(self.cfg.bodies[p.body], np.float64)
             b[: betas.size] = betas[: self.n_betas]
@@ -416,7 +434,8 @@ class PhysicsPairs:
                 joints=f32(joints),
                 rest=f32(skinned_rest(mesh.vertices, mesh.faces, self.body, betas, self.rest_drape, self._drapes)),
                 windows=f32(motion_windows(mo.poses, self.window)),
-                history_in=f32(history_inputs(mo.poses, mo.trans, mo.fps)),
+                history_in=f32(hist),
+                lead=lead,
                 trans=f32(mo.trans),
                 body_weights=f32(bw),
                 posed_body=posed,
@@ -427,7 +446,7 @@ class PhysicsPairs:
 
 
 #: bump when the clips PhysicsPairs makes from a motion entry change (old cache entries are then not read)
-MOTION_CACHE_VERSION = 3
+MOTION_CACHE_VERSION = 4
 
 
 def _lru(cache: OrderedDict, key, keep: int):

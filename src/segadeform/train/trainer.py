@@ -23,6 +23,7 @@ import csv
 import dataclasses
 import functools
 import json
+import logging
 import os
 import platform
 import shutil
@@ -43,6 +44,8 @@ from .config import TrainConfig
 from .data import TrainItem, load_items
 
 __all__ = ["train", "step_losses", "TERMS", "pick_device", "plot_losses"]
+
+log = logging.getLogger(__name__)
 
 TERMS = ("vertex", "normal", "edge", "stretch", "shear", "gravity", "collision", "skin_prior")
 #: logged beside TERMS: the self-supervised cloth energy of a pair never simulated (weighted already)
@@ -110,7 +113,7 @@ def physics_losses(model: SEGANet, pair, t0: int, frames: int, mat, body_faces, 
 
     t = torch.arange(t0, t0 + frames, device=device)
     lw = torch.log(pair.body_weights + RESIDUAL_EPS) if model.residual else None
-    hist = _history(model, pair.history_in, t)
+    hist = _history(model, pair.history_in, pair.lead + t)
     x, _, _ = model(
         pair.features,
         pair.nbr,
@@ -274,6 +277,15 @@ def train(
         )
     items = [it.to(device) for it in items]
     val = [it.to(device) for it in load(split=None, ids=val_ids)] if val_ids else []
+    # a history runs from the lead's first frame: samples made before leads were recorded start at their first
+    no_lead = sorted(it.id for it in items + val if not it.lead_known) if m.history else []
+    if no_lead:
+        log.warning(
+            "%d of %d samples record no lead: their motion history starts at their first frame "
+            "(tools/add_leads.py DATASET CONFIG records it)",
+            len(no_lead),
+            len(items) + len(val),
+        )
     model = SEGANet(m).to(device)
     # weight decay 0 keeps plain Adam (the optimiser every earlier run used, so its last.pt resumes)
     opt = (
@@ -528,6 +540,7 @@ def train(
             else {}
         ),
         "samples": [i.id for i in items],
+        **({"history_without_lead": no_lead} if m.history else {}),
         "hardware": _hardware(device),
     }
     with atomic_path(run / "train.json") as tmp:
