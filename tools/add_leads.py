@@ -3,10 +3,10 @@
 ``dataset make`` simulates up to a second of motion before each clip (the lead, so that the cloth enters the clip
 in motion) and drops it; since the motion-history experiment (``ModelConfig.history``) a sample keeps it as
 ``lead_poses`` / ``lead_trans``.  For each sample of the dataset folder DATASET (made from CONFIG; kept and
-rejected, since ``regate`` may keep a rejected one later) without them, this rebuilds the motion ``dataset make`` simulated from CONFIG's motion entry, checks that dropping the
-lead gives the stored clip (poses and translations to 1e-4), and rewrites the sample with its lead (metadata
-first: a run stopped in between leaves a sample to make again).  A sample whose clip does not match is left as it
-is and named.  Packs are never written.
+rejected, since ``regate`` may keep a rejected one later) without them, this rebuilds the motion ``dataset make``
+simulated from CONFIG's motion entry, checks that dropping the lead gives the stored clip (poses and translations
+to 1e-4), and rewrites the sample with its lead (metadata first: a run stopped in between leaves a sample to make
+again).  A sample whose clip does not match is left as it is and named.  Packs are never written.
 
     .venv/bin/python tools/add_leads.py data/continuum samples/datasets/continuum.toml [--body BODY.npz]
 

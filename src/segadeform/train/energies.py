@@ -355,11 +355,12 @@ class PhysicsPairs:
 
     def _clip(self, mi: int, rest_joints: np.ndarray):
         """``(clip, lead_poses, lead_trans)``: the pair's motion clip and the lead ``dataset make`` would simulate
-        before it (what a model's motion history starts from, as a sample's does); a capture's is read from ``cache/motions`` when it is there (keyed by the entry, the
-        dataset's clip length and rate and the body's joints), else made from the entry and stored: a capture
-        file is read once per body, and a machine that holds the cache trains without the capture files.  A
-        capture file is named by its path relative to the config here, not by its bytes: one changed in place
-        needs MOTION_CACHE_VERSION bumped or the cache's ``motions/`` removed."""
+        before it (what a model's motion history starts from, as a sample's does).  A capture's is read from
+        ``cache/motions`` when it is there (keyed by the entry, the dataset's clip length and rate and the body's
+        joints), else made from the entry and stored: a capture file is read once per body, and a machine that
+        holds the cache trains without the capture files.  A capture file is named by its path relative to the
+        config here, not by its bytes: one changed in place needs MOTION_CACHE_VERSION bumped or the cache's
+        ``motions/`` removed."""
         from ..io.atomic import atomic_path
         from ..motion.motion import Motion
 
