@@ -29,7 +29,16 @@ from ..io.atomic import atomic_path
 from ..io.garment_asset import GarmentAsset
 from ..motion.motion import history_inputs, motion_windows
 
-__all__ = ["TrainItem", "load_items", "sample_asset"]
+__all__ = ["TrainItem", "load_items", "sample_asset", "sample_history_inputs"]
+
+
+def sample_history_inputs(s: Sample) -> tuple[np.ndarray, int]:
+    """``(x (L + T, 3 S + 3), L)``: a model's motion-history inputs (:func:`~segadeform.motion.history_inputs`)
+    from the first frame of sample ``s``'s lead (L = 0 when it records none); ``x[L + t]`` is frame t."""
+    lead_p = np.zeros((0, s.poses.shape[1])) if s.lead_poses is None else s.lead_poses
+    lead_t = np.zeros((0, 3)) if s.lead_trans is None else s.lead_trans
+    x = history_inputs(np.concatenate([lead_p, s.poses]), np.concatenate([lead_t, s.trans]), s.meta.get("fps", 30.0))
+    return x, len(lead_p)
 
 
 @dataclasses.dataclass
@@ -163,11 +172,7 @@ def load_items(
         b[: s.betas.size] = s.betas[:n_betas]
         joints = body.rest_joints(s.betas if s.betas.size else None)[0]
         win = motion_windows(s.poses, window)
-        lead_p = np.zeros((0, s.poses.shape[1])) if s.lead_poses is None else s.lead_poses
-        lead_t = np.zeros((0, 3)) if s.lead_trans is None else s.lead_trans
-        hist = history_inputs(
-            np.concatenate([lead_p, s.poses]), np.concatenate([lead_t, s.trans]), float(s.meta.get("fps", 30.0))
-        )
+        hist, lead = sample_history_inputs(s)
         bw = garment_weights(s.rest, s.faces, body, s.betas if s.betas.size else None, weight_prior)
         out.append(
             TrainItem(
@@ -185,7 +190,7 @@ def load_items(
                 edges=torch.as_tensor(unique_edges(s.faces, len(s.rest)), dtype=torch.int64),
                 windows=f32(win),
                 history_in=f32(hist),
-                lead=len(lead_p),
+                lead=lead,
                 lead_known=s.lead_poses is not None,
                 trans=f32(s.trans),
                 frames=f32(s.frames),

@@ -21,7 +21,7 @@ from ..body.transfer import WEIGHT_PRIORS, garment_weights, residual_log_weights
 from ..dataset.store import Sample
 from ..errors import InputError
 from ..geometry.features import vertex_features
-from ..motion.motion import history_inputs, motion_windows
+from ..motion.motion import motion_windows
 
 __all__ = ["Predictor", "LBSPredictor", "CheckpointPredictor", "make_predictor", "make_predictors"]
 
@@ -89,12 +89,10 @@ class CheckpointPredictor(Predictor):
             win = motion_windows(s.poses, c.window)
             hist = None
             if self.model.hist is not None:  # the history runs from the lead's first frame where the sample has one
-                lp = np.zeros((0, s.poses.shape[1])) if s.lead_poses is None else s.lead_poses
-                lt = np.zeros((0, 3)) if s.lead_trans is None else s.lead_trans
-                x = history_inputs(
-                    np.concatenate([lp, s.poses]), np.concatenate([lt, s.trans]), float(s.meta.get("fps", 30.0))
-                )
-                hist = self.model.history_states(t32(x)[None])[0, len(lp) :]
+                from .data import sample_history_inputs
+
+                x, lead = sample_history_inputs(s)
+                hist = self.model.history_states(t32(x)[None])[0, lead:]
             out = []
             for lo in range(0, len(s.poses), 16):
                 hi = min(lo + 16, len(s.poses))
