@@ -367,12 +367,8 @@ class PhysicsPairs:
         m = self.cfg.motions[mi]
         if m.file is None:  # procedural: made in a moment anywhere, never stored (float32, as a stored clip is)
             mo, lead = _motion(m, self.cfg, rest_joints, with_lead=True)
-            f32 = np.asarray(mo.poses, np.float32), np.asarray(mo.trans, np.float32)
-            return (
-                Motion(poses=f32[0][lead:], trans=f32[1][lead:], fps=mo.fps, name=m.name),
-                f32[0][:lead],
-                f32[1][:lead],
-            )
+            p32, t32 = np.asarray(mo.poses, np.float32), np.asarray(mo.trans, np.float32)
+            return Motion(poses=p32[lead:], trans=t32[lead:], fps=mo.fps, name=m.name), p32[:lead], t32[:lead]
         entry = dataclasses.asdict(m)
         # the file by its path from the config (the same wherever the checkout and ../shared lie; the capture files
         # need not be on a machine that holds the cache)
