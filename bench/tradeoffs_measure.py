@@ -83,14 +83,16 @@ def _mm(m: float) -> str:
 
 
 def _model_setting(spec: str) -> str:
-    """A model row's setting: its width and depth when the spec is a package."""
+    """A model row's setting: its width and depth (and ensemble size) when the spec is a package."""
     mpath = Path(spec) / "manifest.json"
     if not mpath.is_file():
         return spec
     c = json.loads(mpath.read_text())["config"]
     return (
         f"hidden {c['hidden']}, {c['enc_layers']}+{c['dec_layers']} graph blocks, {c.get('heads', '?')} heads, "
-        f"window T = {c.get('window', '?')} ({spec})"
+        f"window T = {c.get('window', '?')}"
+        + (f", {c['ensemble']} networks averaged" if c.get("ensemble", 1) > 1 else "")
+        + f" ({spec})"
     )
 
 

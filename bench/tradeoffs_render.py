@@ -178,7 +178,9 @@ def write_docs(
         "* **models**: variants of the package's recipe in width, depth, heads or window T (the setting "
         "column, read from each package's manifest), each trained on the training split of the same dataset "
         "with the same steps and seed (`segadeform train CONFIG -o runs/NAME --dataset DATASET --threads 1`, "
-        "then `segadeform export runs/NAME/model.pt -o runs/NAME/pkg`)." + _training_note(rows),
+        "then `segadeform export runs/NAME/model.pt -o runs/NAME/pkg`), or an ensemble of trained networks "
+        "(`segadeform ensemble A.pt B.pt -o E.pt`, then `segadeform export`: the mean of their frames at the "
+        "sum of their costs)." + _training_note(rows),
         "",
     ]
     if sim is not None:

@@ -62,7 +62,8 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
         raise click.ClickException("export needs the 'torch' extra: pip install 'segadeform[torch]'") from None
     from segadeform.errors import InputError
     from segadeform.export import export_package
-    from segadeform.model import ModelConfig, SEGANet, load_checkpoint
+    from segadeform.model import ModelConfig, load_checkpoint
+    from segadeform.model.ensemble import build_model
 
     if (checkpoint is None) == (not random_init):
         raise click.UsageError("give a CHECKPOINT or --random-init (not both)")
@@ -78,7 +79,7 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
 
         cfg = ModelConfig.from_dict({**dataclasses.asdict(ModelConfig()), **overrides})
         torch.manual_seed(seed)
-        model = SEGANet(cfg)
+        model = build_model(cfg)
     else:
         if config_json:
             raise click.UsageError("--config applies to --random-init only (a checkpoint carries its config)")

@@ -177,3 +177,50 @@ def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, 
     guard.record()
     click.echo(markdown_table(res))
     click.echo(f"-> {output}")
+
+
+@cli.command("ensemble")
+@click.argument("checkpoints", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Ensemble checkpoint (.pt) to write.",
+)
+def ensemble_cmd(checkpoints, output):
+    """Average two or more trained CHECKPOINTS of one configuration into one model (a .pt that eval, export and
+    every runtime take like one network; it costs its members' time).  The members' training garments are
+    recorded together."""
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise click.ClickException("ensemble needs the 'torch' extra: pip install 'segadeform[torch]'") from None
+    from segadeform.io.output_guard import OutputGuard
+    from segadeform.model import load_checkpoint, save_checkpoint
+    from segadeform.model.ensemble import combine
+    from segadeform.model.network import checkpoint_training_garments
+
+    if output.suffix != ".pt":
+        raise click.UsageError(f"the ensemble is a checkpoint: expected OUTPUT.pt, got {output}")
+    guard = OutputGuard("ensemble", inputs=checkpoints)
+    guard.file(output)
+    ens = combine([load_checkpoint(p) for p in checkpoints])
+    seen: dict = {}  # (name, descriptor) -> openings, in the members' order
+    for p in checkpoints:
+        t = checkpoint_training_garments(p)
+        if t is None:  # a member that does not say: the ensemble does not either
+            seen = {}
+            break
+        for i, n in enumerate(t[0]):
+            seen.setdefault((n, tuple(float(x) for x in t[1][i])), None if t[2] is None else t[2][i])
+    extra = {"members": [str(p) for p in checkpoints]}
+    if seen:
+        extra["training_garments"] = {
+            "names": [k[0] for k in seen],
+            "descriptors": [list(k[1]) for k in seen],
+            "openings": None if None in seen.values() else list(seen.values()),
+        }
+    save_checkpoint(output, ens, **extra)
+    guard.record()
+    click.echo(f"{output}: {ens.cfg.ensemble} networks averaged")

@@ -173,9 +173,9 @@ def deformer_variants(cfg) -> dict:
 
 def _variant_model(net, vcfg):
     """A network for ``vcfg`` carrying ``net``'s (frozen) weights; the dropped parts are left out."""
-    from segadeform.model import SEGANet
+    from segadeform.model.ensemble import build_model
 
-    v = SEGANet(vcfg).eval()
+    v = build_model(vcfg).eval()
     missing, unexpected = v.load_state_dict(net.state_dict(), strict=False)
     if missing:
         raise RuntimeError(f"variant is missing weights: {missing[:5]}")

@@ -143,8 +143,8 @@ INPUTS = {
     "mask": "float32 (N, K): 1 where nbr is a real neighbour, 0 in padded slots (an isolated vertex "
     "has an all-zero row; schema-2 packages: bool, true and false)",
     "descriptor": "float32 (B, N*): the garment type descriptor (the precompute's descriptor, N* values)",
-    "g": "float32 (N, S): the encoder's output for this garment without its batch axis, the same array "
-    "for every deformer call",
+    "g": "float32 (N, K S): the encoder's output for this garment without its batch axis, the same array "
+    "for every deformer call (K = config.ensemble, the networks averaged; absent: 1)",
     "window": "float32 (B, T, 3 S): motion windows; window[b, k] = the pose k frames before frame b "
     "(window[b, 0] is the frame itself), each pose the S joints' local axis-angle rotations "
     "(radians, SMPL joint order, joint-major: x, y, z of joint 0, then joint 1, ...); frames "
@@ -170,7 +170,8 @@ LEGACY_INPUTS = {
     "betas (encoder)": "float32 (B, |beta|): those encoders also took the body shape; their output depends on it",
 }
 OUTPUTS = {
-    "g": "float32 (B, N, S): the garment's per-joint code (older encoders: P (B, N, S, F_enc))",
+    "g": "float32 (B, N, K S): the garment's per-joint code, K networks' side by side (K = config.ensemble, "
+    "absent: 1; older encoders: P (B, N, S, F_enc))",
     "vertices": "float32 (B, N, 3): the deformed garment per frame (metres, +Y up, world space: includes trans)",
     "weights": "float32 (B, N, S): the skinning weights used (positive, each row sums to 1)",
     "blend_shapes": "float32 (B, N, 3): the pose-dependent offsets added to rest before skinning "
@@ -221,6 +222,7 @@ def _io(name: str, dtype: str, shape: list) -> dict:
 def encoder_spec(cfg) -> dict:
     """Inputs and outputs of the garment encoder for ``cfg`` (a ModelConfig or a config dict)."""
     s = int(_cfg(cfg, "n_joints"))
+    k = int(_cfg(cfg, "ensemble", 1) or 1)
     return {
         "role": ROLES[ENCODER],
         "file": graph_file(ENCODER),
@@ -230,7 +232,7 @@ def encoder_spec(cfg) -> dict:
             _io("mask", "float32", ["N", "K"]),
             _io("descriptor", "float32", ["B", int(_cfg(cfg, "n_star"))]),
         ],
-        "outputs": [_io("g", "float32", ["B", "N", s])],
+        "outputs": [_io("g", "float32", ["B", "N", k * s])],
     }
 
 
@@ -239,8 +241,9 @@ def deformer_spec(cfg, effects: Mapping | None = None) -> dict:
     eff = dict(default_effects(cfg) if effects is None else effects)
     s, nb = int(_cfg(cfg, "n_joints")), int(_cfg(cfg, "n_betas"))
     t = int(_cfg(cfg, "window")) if eff["dynamics"] else 1
+    k = int(_cfg(cfg, "ensemble", 1) or 1)
     inputs = [
-        _io("g", "float32", ["N", s]),
+        _io("g", "float32", ["N", k * s]),
         _io("window", "float32", ["B", t, 3 * s]),
         _io("betas", "float32", ["B", nb]),
         _io("rest", "float32", ["N", 3]),
@@ -856,7 +859,9 @@ def manifest_schema() -> dict:
             "config": {
                 "type": "object",
                 "required": ["n_joints", "n_betas", "n_star", "feat_dim", "window", "skinning", "use_blend_shapes"],
-                "properties": {k: _POSITIVE for k in ("n_joints", "n_betas", "n_star", "feat_dim", "window")}
+                "properties": {
+                    k: _POSITIVE for k in ("n_joints", "n_betas", "n_star", "feat_dim", "window", "ensemble")
+                }
                 | {
                     "skinning": {"enum": list(SKINNING)},
                     "use_blend_shapes": {"type": "boolean"},

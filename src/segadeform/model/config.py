@@ -56,6 +56,9 @@ class ModelConfig:
             rest (``segadeform.body.drape``; computed on the host, as the rest joints are): 0 skins the rest as
             designed, 1 the drape.  The network is unchanged; the model package format has no drape yet, so
             only 0 exports.  Checkpoints without the field have 0.
+        ensemble: K, the networks run side by side and averaged (:class:`~segadeform.model.ensemble.SEGAEnsemble`,
+            made from trained checkpoints by :func:`~segadeform.model.ensemble.combine`); 1 is one network.  The
+            garment code ``g`` is then (N, K S).  Checkpoints and manifests without the field have 1.
     """
 
     n_joints: int = 24
@@ -80,6 +83,7 @@ class ModelConfig:
     static_blend: bool = False
     rest_drape: float = 0.0
     history: int = 0
+    ensemble: int = 1
 
     def __post_init__(self):
         ints = (
@@ -94,6 +98,7 @@ class ModelConfig:
             "f_enc",
             "window",
             "lstm_hidden",
+            "ensemble",
         )
         for name in ints:
             v = getattr(self, name)

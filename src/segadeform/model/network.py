@@ -79,6 +79,10 @@ class SEGANet(nn.Module):
         super().__init__()
         if cfg.n_joints != len(SMPL_PARENTS):
             raise InputError("only the 24-joint SMPL skeleton is supported", got=cfg.n_joints)
+        if cfg.ensemble != 1:
+            raise InputError(
+                "one SEGANet is one network (segadeform.model.ensemble builds ensembles)", got=cfg.ensemble
+            )
         self.cfg = cfg
         self.parents = [int(p) for p in SMPL_PARENTS]
         self.gp = GarmentTypeParser(cfg)
@@ -194,7 +198,10 @@ def checkpoint_training_garments(path: str | os.PathLike):
 
 
 def load_checkpoint(path: str | os.PathLike) -> SEGANet:
-    """Read a checkpoint with ``torch.load(weights_only=True)`` and rebuild the model."""
+    """Read a checkpoint with ``torch.load(weights_only=True)`` and rebuild the model (a
+    :class:`~segadeform.model.ensemble.SEGAEnsemble` when its config has ``ensemble > 1``)."""
+    from .ensemble import build_model
+
     p = Path(path)
     try:
         ck = torch.load(p, map_location="cpu", weights_only=True)
@@ -205,7 +212,7 @@ def load_checkpoint(path: str | os.PathLike) -> SEGANet:
     if not isinstance(ck, dict) or "config" not in ck or "state_dict" not in ck:
         raise FileFormatError("checkpoint must hold 'config' and 'state_dict'", path=p)
     try:
-        model = SEGANet(ModelConfig.from_dict(ck["config"]))
+        model = build_model(ModelConfig.from_dict(ck["config"]))
         model.load_state_dict(ck["state_dict"])
     except (InputError, RuntimeError, TypeError) as e:
         raise FileFormatError(f"checkpoint does not fit its config ({e})", path=p) from None

@@ -343,6 +343,12 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
     if val_split is not None and (not isinstance(val_split, str) or val_split == d.get("split", "train")):
         raise FileFormatError("data.val_split must name a split other than the training one", path=p, got=val_split)
     model = _table(data, "model", ModelConfig, p)
+    if model.ensemble != 1:
+        raise FileFormatError(
+            "model.ensemble: a run trains one network (segadeform ensemble A.pt B.pt ... averages trained ones)",
+            path=p,
+            got=model.ensemble,
+        )
     loss = _table(data, "loss", LossWeights, p)
     optim = _table(data, "optim", OptimConfig, p)
     physics = _table(data, "physics", PhysicsConfig, p)

@@ -1,0 +1,148 @@
+"""An ensemble of trained networks: the mean of its members, saved, loaded, trained never, exported like one."""
+
+import numpy as np
+import pytest
+import torch
+
+from segadeform.errors import FileFormatError, InputError
+from segadeform.export.package import sample_inputs
+from segadeform.model import ModelConfig, SEGANet, load_checkpoint, save_checkpoint
+from segadeform.model.ensemble import SEGAEnsemble, build_model, combine
+
+
+def trained(seed, cfg=None):
+    """A network as after training: its own weights and the residual corrections switched on."""
+    torch.manual_seed(seed)
+    net = SEGANet(cfg or ModelConfig(hidden=16, lstm_hidden=16)).eval()
+    with torch.no_grad():
+        net.weight_gate.fill_(0.6 + 0.1 * seed)
+        net.blend_gate.fill_(0.4 + 0.1 * seed)
+    return net
+
+
+def inputs(cfg, n=33, k=5, b=4):
+    enc = sample_inputs(cfg, "garment_encoder", n=n, k=k, b=1)
+    dec = sample_inputs(cfg, "deformer", n=n, k=k, b=b)
+    return {k_: torch.as_tensor(v) for k_, v in {**enc, **dec}.items()}
+
+
+def run(net, t):
+    with torch.no_grad():
+        g = net.garment_encoder(t["features"], t["nbr"], t["mask"], t["descriptor"])
+        out = net.deformer(
+            g[0], t["window"], t["betas"], t["rest"], t["nbr"], t["mask"], t["joints"], t["trans"], t["log_wbody"]
+        )
+    return g, out
+
+
+def test_an_ensemble_is_its_members_side_by_side_and_the_mean_of_their_outputs():
+    nets = [trained(s) for s in range(3)]
+    ens = combine(nets)
+    assert isinstance(ens, SEGAEnsemble) and ens.cfg.ensemble == 3 and ens.residual
+    t = inputs(nets[0].cfg)
+    g, (v, w, b) = run(ens, t)
+    assert g.shape == (1, 33, 3 * 24)
+    outs = [run(n, t) for n in nets]
+    for i, (gi, _) in enumerate(outs):
+        torch.testing.assert_close(g[..., 24 * i : 24 * (i + 1)], gi, rtol=0, atol=0)
+    for got, j in ((v, 0), (w, 1), (b, 2)):
+        want = torch.stack([o[1][j] for o in outs]).mean(0)
+        torch.testing.assert_close(got, want, rtol=0, atol=1e-6)
+    # the members differ (else the mean proves nothing), and the weights stay a partition of unity
+    assert (outs[0][1][0] - outs[1][1][0]).abs().max() > 1e-3
+    assert (w >= 0).all() and torch.allclose(w.sum(-1), torch.ones(4, 33), atol=1e-6)
+    # an ensemble of ensembles is flat
+    again = combine([combine(nets[:2]), nets[2]])
+    assert again.cfg.ensemble == 3
+    torch.testing.assert_close(run(again, t)[1][0], v, rtol=0, atol=0)
+
+
+def test_an_ensemble_checkpoint_round_trips(tmp_path):
+    ens = combine([trained(0), trained(1)])
+    save_checkpoint(tmp_path / "e.pt", ens)
+    back = load_checkpoint(tmp_path / "e.pt").eval()
+    assert isinstance(back, SEGAEnsemble) and back.cfg == ens.cfg
+    t = inputs(ens.cfg)
+    torch.testing.assert_close(run(back, t)[1][0], run(ens, t)[1][0], rtol=0, atol=0)
+    assert isinstance(build_model(ModelConfig()), SEGANet)
+
+
+def test_what_an_ensemble_refuses(tmp_path):
+    with pytest.raises(InputError, match="two or more"):
+        combine([trained(0)])
+    with pytest.raises(InputError, match=r"network 1 differs.*hidden: 16 vs 8"):
+        combine([trained(0), trained(1, ModelConfig(hidden=8, heads=4, lstm_hidden=16))])
+    with pytest.raises(InputError, match="motion-history"):
+        SEGAEnsemble(ModelConfig(history=4, ensemble=2))
+    with pytest.raises(InputError, match="one SEGANet is one network"):
+        SEGANet(ModelConfig(ensemble=2))
+    with pytest.raises(InputError, match="ensemble must be a positive integer"):
+        ModelConfig(ensemble=0)
+    ens = combine([trained(0), trained(1)])
+    t = inputs(ens.cfg)
+    with pytest.raises(InputError, match=r"expected \(N, 48\)"):
+        ens.deformer(t["log_wbody"], t["window"], t["betas"], t["rest"], t["nbr"], t["mask"], t["joints"], t["trans"])
+    # a training config cannot ask for one
+    from segadeform.train.config import load_train_config
+
+    (tmp_path / "t.toml").write_text('[data]\ndataset = "d"\n[model]\nensemble = 2\n')
+    with pytest.raises(FileFormatError, match="a run trains one network"):
+        load_train_config(tmp_path / "t.toml")
+
+
+def test_an_exported_ensemble_matches_torch_and_runs_in_the_python_runtime(tmp_path):
+    """Export checks torch against onnxruntime on every graph, and the runtime's package runs the ensemble's
+    encoder and deformer with the single network's interface (the code only wider)."""
+    from segadeform.export import export_package
+    from segadeform.runtime.package import ModelPackage
+
+    ens = combine([trained(0), trained(1)])
+    m = export_package(ens, tmp_path / "pkg", body=None)
+    assert m["config"]["ensemble"] == 2
+    assert m["graphs"]["garment_encoder"]["outputs"][0]["shape"] == ["B", "N", 48]
+    worst = max(r["max_rel"] for g in m["parity"].values() for r in g.values())
+    assert worst < 1e-4, m["parity"]
+    pkg = ModelPackage(tmp_path / "pkg")
+    t = inputs(ens.cfg)
+    f32 = {k: v.numpy() for k, v in t.items()}
+    (g,) = pkg.run("garment_encoder", {k: f32[k] for k in ("features", "nbr", "mask", "descriptor")})
+    dec = pkg.default_deformer
+    names = [i["name"] for i in pkg.spec(dec)["inputs"]]
+    v = pkg.run(dec, {k: (g[0] if k == "g" else f32[k]) for k in names})[0]
+    g_t, (v_t, _, _) = run(ens.freeze(), t)
+    np.testing.assert_allclose(g, g_t.numpy(), rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose(v, v_t.numpy(), rtol=1e-4, atol=1e-5)
+
+
+def test_the_ensemble_command_writes_one_checkpoint_and_never_over_a_file_it_did_not_write(tmp_path, capsys):
+    from segadeform.cli.main import main
+    from segadeform.model.network import checkpoint_training_garments
+
+    desc = [[0.1 * i for i in range(32)], [0.2 * i for i in range(32)]]
+    save_checkpoint(
+        tmp_path / "a.pt", trained(0), training_garments={"names": ["skirt"], "descriptors": desc[:1], "openings": [2]}
+    )
+    save_checkpoint(
+        tmp_path / "b.pt",
+        trained(1),
+        training_garments={"names": ["skirt", "dress"], "descriptors": desc, "openings": [2, 2]},
+    )
+    assert main(["ensemble", str(tmp_path / "a.pt"), str(tmp_path / "b.pt"), "-o", str(tmp_path / "e.pt")]) == 0
+    assert "2 networks averaged" in capsys.readouterr().out
+    e = load_checkpoint(tmp_path / "e.pt")
+    assert isinstance(e, SEGAEnsemble) and e.cfg.ensemble == 2
+    names, descs, openings = checkpoint_training_garments(tmp_path / "e.pt")
+    assert names == ["skirt", "dress"] and openings == [2, 2] and np.allclose(descs, desc)
+    # run again: it replaces its own output; a file it did not write stays as it was
+    assert main(["ensemble", str(tmp_path / "a.pt"), str(tmp_path / "b.pt"), "-o", str(tmp_path / "e.pt")]) == 0
+    (tmp_path / "mine.pt").write_bytes(b"user data")
+    assert main(["ensemble", str(tmp_path / "a.pt"), str(tmp_path / "b.pt"), "-o", str(tmp_path / "mine.pt")]) == 1
+    assert (tmp_path / "mine.pt").read_bytes() == b"user data"
+    # one network, or networks of different configurations: one line, exit 1, nothing written
+    save_checkpoint(tmp_path / "c.pt", trained(2, ModelConfig(hidden=8, lstm_hidden=16)))
+    for args in (["a.pt"], ["a.pt", "c.pt"]):
+        out = tmp_path / "x.pt"
+        assert main(["ensemble", *(str(tmp_path / a) for a in args), "-o", str(out)]) == 1
+        assert not out.exists()
+    err = capsys.readouterr().err
+    assert "two or more" in err and "differs" in err

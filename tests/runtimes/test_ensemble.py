@@ -1,0 +1,61 @@
+"""An ensemble package (two networks averaged, `segadeform ensemble`) through the Node and C++ runtimes: the same
+frames as `segadeform run` (Python), with no change to either runtime -- the package keeps one network's interface."""
+
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import pytest
+
+from segadeform.io import read_pc2
+
+RTOL = 1e-5
+
+
+@pytest.fixture(scope="module")
+def ensemble_scene(tmp_path_factory, portable_scene):
+    torch = pytest.importorskip("torch", reason="exporting a package needs the 'torch' extra")
+    from segadeform.cli.main import main
+    from segadeform.export import export_package
+    from segadeform.model import ModelConfig, SEGANet
+    from segadeform.model.ensemble import combine
+
+    nets = []
+    for seed in (5, 6):
+        torch.manual_seed(seed)
+        net = SEGANet(ModelConfig()).eval()
+        with torch.no_grad():
+            net.weight_gate.fill_(0.5 + 0.2 * (seed - 5))
+            net.blend_gate.fill_(0.5)
+        nets.append(net)
+    d = tmp_path_factory.mktemp("ensemble")
+    export_package(combine(nets), d / "pkg", check=False)
+    s = portable_scene
+    scene = d / "s.toml"
+    scene.write_text((s["dir"] / "s.toml").read_text().replace(str(s["dir"] / "python"), str(d / "python")))
+    assert main(["run", str(scene), "--model", str(d / "pkg"), "--force", "--no-cache"]) == 0
+    frames = read_pc2(d / "python.pc2").frames
+    # the ensemble's frames are not the single network's (else the test could not tell them apart)
+    assert np.abs(frames - s["frames"]).max() > 1e-3
+    return {"pkg": d / "pkg", "frames": frames}
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_an_ensemble_package_runs_in_node_and_cpp_as_in_python(
+    runtime, request, portable_scene, ensemble_scene, tmp_path
+):
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    p = subprocess.run(
+        exe
+        + ["--package", str(ensemble_scene["pkg"]), "--garment", str(s["garment"]), "--motion", str(s["motion"])]
+        + ["--effects", s["effects"], "-o", str(tmp_path / "g.pc2")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert p.returncode == 0, p.stderr
+    got, want = read_pc2(tmp_path / "g.pc2").frames, ensemble_scene["frames"]
+    assert got.shape == want.shape and np.isfinite(got).all()
+    assert np.abs(got - want).max() / np.abs(want).max() <= RTOL
