@@ -196,6 +196,7 @@ def ensemble_cmd(checkpoints, output):
         import torch  # noqa: F401
     except ImportError:
         raise click.ClickException("ensemble needs the 'torch' extra: pip install 'segadeform[torch]'") from None
+    from segadeform.errors import InputError
     from segadeform.io.output_guard import OutputGuard
     from segadeform.model import load_checkpoint, save_checkpoint
     from segadeform.model.ensemble import combine
@@ -205,7 +206,29 @@ def ensemble_cmd(checkpoints, output):
         raise click.UsageError(f"the ensemble is a checkpoint: expected OUTPUT.pt, got {output}")
     guard = OutputGuard("ensemble", inputs=checkpoints)
     guard.file(output)
-    ens = combine([load_checkpoint(p) for p in checkpoints])
+    first: dict = {}
+    for p in checkpoints:
+        if p.resolve() in first:
+            raise InputError(
+                "a checkpoint given twice averages with itself at twice the cost",
+                path=p,
+                expected="distinct checkpoints",
+                got=f"{first[p.resolve()]} and {p}",
+            )
+        first[p.resolve()] = p
+    models = [load_checkpoint(p) for p in checkpoints]
+    base = models[0].cfg.replace(ensemble=1)
+    for p, m in zip(checkpoints[1:], models[1:], strict=True):
+        c = m.cfg.replace(ensemble=1)
+        if c != base:
+            diff = [k for k, v in vars(base).items() if getattr(c, k) != v]
+            raise InputError(
+                f"its network's configuration differs from {checkpoints[0]}'s (an ensemble's share one)",
+                path=p,
+                expected=", ".join(f"{k} = {getattr(base, k)!r}" for k in diff),
+                got=", ".join(f"{k} = {getattr(c, k)!r}" for k in diff),
+            )
+    ens = combine(models)
     seen: dict = {}  # (name, descriptor) -> openings, in the members' order
     for p in checkpoints:
         t = checkpoint_training_garments(p)

@@ -57,7 +57,8 @@ class Deformer:
         self.needs_body_weights = any(i["name"] == "log_wbody" for i in spec["inputs"])
         enc = package.spec("garment_encoder")
         #: the encoder's output, fed to every deformer call under the same name without its batch axis:
-        #: ``g (N, S)`` (older packages: ``P (N, S, F_enc)``, from an encoder that also took betas)
+        #: ``g (N, K S)``, K = config.ensemble (older packages: ``P (N, S, F_enc)``, from an encoder that also
+        #: took betas)
         self.code_name = enc["outputs"][0]["name"]
         self._encoder_inputs = [i["name"] for i in enc["inputs"]]
 
@@ -77,7 +78,7 @@ class Deformer:
     def encode(
         self, asset: GarmentAsset, joints: np.ndarray, betas=None, *, cache_dir: str | os.PathLike | None = None
     ) -> np.ndarray:
-        """The garment code the deformer takes, ``g (N, S)`` (``P (N, S, F_enc)`` for older packages).
+        """The garment code the deformer takes, ``g (N, K S)`` (``P (N, S, F_enc)`` for older packages).
 
         Vertex features are recomputed for ``joints`` (the body's rest joints
         for ``betas``).  Results are cached in memory and, when ``cache_dir``
@@ -227,7 +228,7 @@ class Deformer:
         """Deform a batch of frames.
 
         Shapes:
-            P: the output of :meth:`encode`, (N, S) (or (N, S, F_enc)), windows: (B, T, 3 S) (T = the variant's
+            P: the output of :meth:`encode`, (N, K S) (or (N, S, F_enc)), windows: (B, T, 3 S) (T = the variant's
             window; window[:, 0] is the current pose), joints: (S, 3) rest joints, trans: (B, 3),
             log_wbody: (N, S) for residual-weights models (:meth:`body_log_weights`)
             -> vertices (B, N, 3); with ``outputs=True`` also weights (B, N, S) and blend shapes (B, N, 3)

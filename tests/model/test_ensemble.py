@@ -70,7 +70,7 @@ def test_an_ensemble_checkpoint_round_trips(tmp_path):
 def test_what_an_ensemble_refuses(tmp_path):
     with pytest.raises(InputError, match="two or more"):
         combine([trained(0)])
-    with pytest.raises(InputError, match=r"network 1 differs.*hidden: 16 vs 8"):
+    with pytest.raises(InputError, match=r"network 1 \(from 0.*differs.*hidden: 16 vs 8"):
         combine([trained(0), trained(1, ModelConfig(hidden=8, heads=4, lstm_hidden=16))])
     with pytest.raises(InputError, match="motion-history"):
         SEGAEnsemble(ModelConfig(history=4, ensemble=2))
@@ -140,9 +140,17 @@ def test_the_ensemble_command_writes_one_checkpoint_and_never_over_a_file_it_did
     assert (tmp_path / "mine.pt").read_bytes() == b"user data"
     # one network, or networks of different configurations: one line, exit 1, nothing written
     save_checkpoint(tmp_path / "c.pt", trained(2, ModelConfig(hidden=8, lstm_hidden=16)))
-    for args in (["a.pt"], ["a.pt", "c.pt"]):
+    capsys.readouterr()
+    for args, says in (
+        (["a.pt"], "two or more"),
+        (["a.pt", "c.pt"], "c.pt: its network's configuration differs from"),
+        (["e.pt", "c.pt"], "c.pt: its network's configuration differs from"),  # an ensemble and one network
+        (["a.pt", "a.pt"], "a.pt: a checkpoint given twice"),
+    ):
         out = tmp_path / "x.pt"
         assert main(["ensemble", *(str(tmp_path / a) for a in args), "-o", str(out)]) == 1
         assert not out.exists()
-    err = capsys.readouterr().err
-    assert "two or more" in err and "differs" in err
+        assert says in capsys.readouterr().err
+    # an ensemble and another network make one flat ensemble
+    assert main(["ensemble", str(tmp_path / "e.pt"), str(tmp_path / "a.pt"), "-o", str(tmp_path / "f.pt")]) == 0
+    assert load_checkpoint(tmp_path / "f.pt").cfg.ensemble == 3

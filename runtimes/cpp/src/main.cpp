@@ -459,7 +459,7 @@ std::vector<float> animate(OrtEnv* env, const Package& pkg, const sgd::Json& dec
     else if (name == "betas") ein.push_back(input_floats(name, betas, {1, NB}));
     else throw std::runtime_error("the garment encoder takes '" + name + "', which this runtime cannot feed");
   }
-  // its one output, without the batch axis, is the deformer input of the same name (g (N, S); older: P (N, S, F))
+  // its one output, without the batch axis, is the deformer input of the same name (g (N, K S) for K networks; older: P (N, S, F))
   const std::string code_name = enc_spec["outputs"].arr[0]["name"].str;
   Output code = std::move(enc.run(ein, {code_name})[0]);
   release(ein);

@@ -305,7 +305,7 @@ export async function animateWith(ort, manifest, source, session, options = {}) 
     encFeeds[i.name] = feed(ort, i, ...encArrays[i.name]);
   }
   const encOut = await enc.run(encFeeds);
-  // its one output, without the batch axis, is a deformer input of the same name: g (N, S) (older: P (N, S, F_enc))
+  // its one output, without the batch axis, is a deformer input of the same name: g (N, K S), K networks of an ensemble (older: P (N, S, F_enc))
   const codeName = encSpec.outputs[0].name;
   const code = encOut[codeName];
   const codeT = new ort.Tensor("float32", await code.getData(), code.dims.slice(1));

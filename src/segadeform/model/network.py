@@ -40,6 +40,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -59,6 +60,9 @@ from .modules import (
     MotionProcessor,
 )
 from .sega import SEGABlock, TauLinear
+
+if TYPE_CHECKING:
+    from .ensemble import SEGAEnsemble
 
 __all__ = ["SEGANet", "save_checkpoint", "load_checkpoint"]
 
@@ -197,7 +201,7 @@ def checkpoint_training_garments(path: str | os.PathLike):
     return list(t["names"]), np.asarray(t["descriptors"], np.float64), t.get("openings")
 
 
-def load_checkpoint(path: str | os.PathLike) -> SEGANet:
+def load_checkpoint(path: str | os.PathLike) -> SEGANet | SEGAEnsemble:
     """Read a checkpoint with ``torch.load(weights_only=True)`` and rebuild the model (a
     :class:`~segadeform.model.ensemble.SEGAEnsemble` when its config has ``ensemble > 1``)."""
     from .ensemble import build_model

@@ -347,6 +347,7 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
         raise FileFormatError(
             "model.ensemble: a run trains one network (segadeform ensemble A.pt B.pt ... averages trained ones)",
             path=p,
+            expected=1,
             got=model.ensemble,
         )
     loss = _table(data, "loss", LossWeights, p)
