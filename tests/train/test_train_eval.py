@@ -420,3 +420,56 @@ def test_a_history_model_runs_from_the_lead_trains_and_evaluates(synthetic_datas
     assert info["history_without_lead"] == ["shorts__b0__walk"]  # the sample that records none
     res = evaluate(synthetic_dataset, body, make_predictors({"lbs": "lbs", "hist": str(ck)}))
     assert np.isfinite(res["models"]["hist"]["vertex_cm"])
+
+
+def test_late_terms_count_only_the_vertex_error_and_the_prior_before_their_start(
+    synthetic_dataset, tmp_path, body, monkeypatch
+):
+    """``loss.terms_from``: before that fraction of the steps the total is the vertex error (and the fading
+    skin-weight prior) alone, from it on every term at its weight; 0 (the default) is the total as before."""
+    import torch
+
+    from segadeform.dataset.roots import DatasetRoots
+    from segadeform.errors import FileFormatError
+    from segadeform.model import ModelConfig, SEGANet
+    from segadeform.train import trainer as trainer_mod
+    from segadeform.train.config import LossWeights
+    from segadeform.train.data import load_items
+    from segadeform.train.trainer import TERMS, step_losses
+
+    (it,) = load_items(
+        DatasetRoots([synthetic_dataset]), body, n_star=32, window=5, n_betas=10, ids=["skirt__b0__walk"]
+    )
+    net = SEGANet(ModelConfig(hidden=16, lstm_hidden=16)).eval()
+    w = LossWeights(collision_margin=0.05)
+    t = torch.arange(3)
+    with torch.no_grad():
+        full = step_losses(net, it, t, w, prior_scale=0.5)
+        early = step_losses(net, it, t, w, prior_scale=0.5, terms_scale=0.0)
+    others = sum(getattr(w, k) * full[k] for k in TERMS if k not in ("vertex", "skin_prior") and getattr(w, k))
+    assert float(others) > 1e-4  # the other terms are not zero here, so the test can tell
+    assert (
+        abs(float(early["total"]) - float(w.vertex * full["vertex"] + 0.5 * w.skin_prior * full["skin_prior"])) < 1e-6
+    )
+    assert abs(float(full["total"]) - float(early["total"] + others)) < 1e-5
+    # the trainer: the step's scale is 0 before terms_from * steps and 1 from there on
+    seen = []
+
+    def spy(*a, **kw):
+        seen.append(kw.get("terms_scale", 1.0))
+        return step_losses(*a, **kw)
+
+    p = tmp_path / "late.toml"
+    for frac, want in (("0.5", [0.0, 0.0, 1.0, 1.0]), ("0.0", [1.0] * 4)):
+        seen.clear()
+        p.write_text(
+            f"[model]\nhidden = 16\nlstm_hidden = 16\n[loss]\nterms_from = {frac}\n[optim]\nsteps = 4\nframes = 2\n"
+        )
+        with monkeypatch.context() as mp:
+            mp.setattr(trainer_mod, "step_losses", spy)
+            train(load_train_config(p, dataset=synthetic_dataset), tmp_path / f"run{frac}", body, log_every=10)
+        assert seen == want
+    for bad in ("1.0", "-0.1"):
+        p.write_text(f"[loss]\nterms_from = {bad}\n")
+        with pytest.raises(FileFormatError, match="terms_from"):
+            load_train_config(p, dataset=synthetic_dataset)

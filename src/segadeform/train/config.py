@@ -32,6 +32,8 @@ the previous one's)::
                                    # where the plane at its closest body point stands for the body; 0: every vertex
     skin_prior = 1.0               # pull the skinning weights towards the body's (nearest point) ...
     skin_prior_until = 0.5         # ... fading out by half-way (NCS notes transferred weights speed convergence)
+    terms_from = 0.0               # > 0: every term but vertex and skin_prior, and the physics pairs, counts only
+                                   # from this fraction of the steps on (the vertex fit first; 0: from the start)
 
     [optim]
     steps = 3000
@@ -97,6 +99,9 @@ class LossWeights:
     collision_near: float = 0.0
     skin_prior: float = 1.0  # mean squared distance of the skinning weights to the body's, transferred
     skin_prior_until: float = 0.5  # ... decaying linearly to 0 at this fraction of the steps
+    # > 0: every term but ``vertex`` and ``skin_prior``, and the physics self-supervision, is off before this fraction
+    # of the steps and at its weight from there on (the vertex fit first, the physical terms late)
+    terms_from: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -356,6 +361,10 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
     pairs = (p.parent / physics.pairs).resolve() if physics.pairs else None
     if physics.every and not pairs.is_file():
         raise FileFormatError("physics.pairs is not a file", path=p, got=str(pairs))
+    if not 0.0 <= loss.terms_from < 1.0:
+        raise FileFormatError(
+            "loss.terms_from must be a fraction of the steps", path=p, expected="0 <= x < 1", got=loss.terms_from
+        )
     if loss.collision_power not in (1, 2):
         raise FileFormatError("loss.collision_power must be 1 or 2", path=p, got=loss.collision_power)
     if not loss.collision_near >= 0:

@@ -68,10 +68,13 @@ def _history(model: SEGANet, history_in: torch.Tensor, rows: torch.Tensor) -> to
     return model.history_states(history_in[None, : int(rows.max()) + 1])[0, rows]
 
 
-def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_scale: float = 1.0) -> dict:
+def step_losses(
+    model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_scale: float = 1.0, terms_scale: float = 1.0
+) -> dict:
     """Every loss term for frames ``t (B,)`` of ``item``; returns {term: tensor} and 'total'.
 
-    ``prior_scale`` multiplies the skinning-weight prior's weight (the trainer fades it out)."""
+    ``prior_scale`` multiplies the skinning-weight prior's weight (the trainer fades it out), ``terms_scale`` every
+    other term's but the vertex error's (``loss.terms_from``: 0 before that fraction of the steps)."""
     b = len(t)
     lw = torch.log(item.body_weights + RESIDUAL_EPS) if model.residual else None
     hist = _history(model, item.history_in, item.lead + t)
@@ -101,8 +104,8 @@ def step_losses(model: SEGANet, item: TrainItem, t: torch.Tensor, w, *, prior_sc
         ),
         "skin_prior": ((weights - item.body_weights[None]) ** 2).sum(-1).mean(),
     }
-    scale = {"skin_prior": prior_scale}
-    out["total"] = sum(getattr(w, k) * scale.get(k, 1.0) * out[k] for k in TERMS if getattr(w, k) != 0)
+    scale = {"vertex": 1.0, "skin_prior": prior_scale}
+    out["total"] = sum(getattr(w, k) * scale.get(k, terms_scale) * out[k] for k in TERMS if getattr(w, k) != 0)
     return out
 
 
@@ -410,6 +413,7 @@ def train(
                     break
             s0 = time.perf_counter()
             fade = o.prior_fade(step, total[0], cfg.loss.skin_prior_until)
+            late = 1.0 if step >= cfg.loss.terms_from * total[0] else 0.0  # the physical terms, from terms_from on
             opt.zero_grad(set_to_none=True)
             ls = {}
             for _ in range(o.garments):  # one batch: each garment's loss backpropagated as it is made (memory)
@@ -417,14 +421,14 @@ def train(
                 t = torch.as_tensor(
                     rng.choice(it.n_frames, size=min(o.frames, it.n_frames), replace=False), device=device
                 )
-                one = step_losses(model, it, t, cfg.loss, prior_scale=fade)
+                one = step_losses(model, it, t, cfg.loss, prior_scale=fade, terms_scale=late)
                 if not torch.isfinite(one["total"]):
                     raise InputError(f"the loss became {float(one['total'])} at step {step} on {it.id}; lower optim.lr")
                 (one["total"] / o.garments).backward()
                 for k, v in one.items():
                     ls[k] = ls.get(k, 0.0) + v.detach() / o.garments
             ls[PHYSICS_TERM] = torch.zeros(())
-            if pairs is not None and step % ph.every == 0:
+            if pairs is not None and step % ph.every == 0 and late:
                 pair = (prefetch.next() if prefetch is not None else pairs.item(int(rng.integers(len(pairs))))).to(
                     device
                 )
