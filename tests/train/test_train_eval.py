@@ -473,3 +473,34 @@ def test_late_terms_count_only_the_vertex_error_and_the_prior_before_their_start
         p.write_text(f"[loss]\nterms_from = {bad}\n")
         with pytest.raises(FileFormatError, match="terms_from"):
             load_train_config(p, dataset=synthetic_dataset)
+
+
+def test_with_late_terms_validation_chooses_among_checkpoints_trained_on_the_whole_loss(
+    synthetic_dataset, tmp_path, body
+):
+    """``loss.terms_from``: a checkpoint of the vertex error alone is never the chosen model (only the untrained
+    model and those after terms_from are candidates), even where one of them has the lowest validation error."""
+    import shutil
+
+    ds = tmp_path / "ds"
+    shutil.copytree(synthetic_dataset / "samples", ds / "samples")
+    for p in (ds / "samples").glob("*__swing.json"):  # the test sample serves as the validation split here
+        meta = json.loads(p.read_text())
+        meta["split"] = "val"
+        p.write_text(json.dumps(meta))
+    cfg_p = tmp_path / "t.toml"
+    cfg_p.write_text(
+        f"[data]\ndataset = '{ds}'\nval_split = 'val'\n[model]\nhidden = 16\nlstm_hidden = 16\nweights = 'free'\n"
+        "[loss]\nterms_from = 0.5\ncollision = 300.0\ncollision_margin = 0.2\nedge = 30.0\n"
+        "[optim]\nsteps = 8\nframes = 3\ncheckpoint_every = 1\nlr = 0.01\n"
+    )
+    run = tmp_path / "run"
+    train(load_train_config(cfg_p), run, body, log_every=1)
+    info = json.loads((run / "train.json").read_text())
+    vals = {int(r["step"]): float(r["val_vertex"]) for r in csv.DictReader(open(run / "loss.csv")) if r["val_vertex"]}
+    assert sorted(vals) == list(range(1, 9))
+    early = min(vals[s] for s in range(1, 5))  # checkpoints 1-4 saw the vertex error alone
+    eligible = [vals[s] for s in range(5, 9)]
+    assert early < min(eligible)  # so the rule decides here: without it step 1-4 would be chosen
+    assert info["chosen"]["step"] >= 5  # (free weights: the untrained model is far off, never chosen here)
+    assert info["chosen"]["val_vertex"] <= min(eligible) + 1e-12

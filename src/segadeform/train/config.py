@@ -100,7 +100,8 @@ class LossWeights:
     skin_prior: float = 1.0  # mean squared distance of the skinning weights to the body's, transferred
     skin_prior_until: float = 0.5  # ... decaying linearly to 0 at this fraction of the steps
     # > 0: every term but ``vertex`` and ``skin_prior``, and the physics self-supervision, is off before this fraction
-    # of the steps and at its weight from there on (the vertex fit first, the physical terms late)
+    # of the steps and at its weight from there on (the vertex fit first, the physical terms late); the validation
+    # split chooses among the checkpoints after it (and the untrained model)
     terms_from: float = 0.0
 
 

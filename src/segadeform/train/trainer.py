@@ -474,7 +474,9 @@ def train(
                     v0 = time.perf_counter()
                     val_err = validate()
                     val_seconds = time.perf_counter() - v0  # the budget counts the validations still to come
-                    if val_err < best_val[0]:  # the model the validation split chooses
+                    # the model the validation split chooses, among those trained on the whole loss (loss.terms_from:
+                    # a checkpoint of the vertex error alone is not a candidate)
+                    if val_err < best_val[0] and step > cfg.loss.terms_from * total[0]:
                         best_val = (val_err, step)
                         with atomic_path(best_path) as tmp:
                             torch.save({"state_dict": model.state_dict(), "step": step, "val_vertex": val_err}, tmp)
