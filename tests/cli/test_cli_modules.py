@@ -10,7 +10,7 @@ from segadeform.cli.main import cli
 from ..conftest import SAMPLES
 
 #: top-level commands that live beside the command whose output they take
-SIBLINGS = {"quantize": "export", "repack": "export", "eval": "train"}
+SIBLINGS = {"quantize": "export", "repack": "export", "eval": "train", "ensemble": "train"}
 
 
 def _commands(group, prefix=()):

@@ -81,8 +81,25 @@ def pc2_result(tmp_path) -> Path:
     return p
 
 
+def member_checkpoints(tmp_path) -> list[str]:
+    """Two small trained-network checkpoints of one configuration (the inputs of `segadeform ensemble`)."""
+    import torch
+
+    from segadeform.model import ModelConfig, SEGANet, save_checkpoint
+
+    out = []
+    for i in range(2):
+        p = tmp_path / f"member{i}.pt"
+        if not p.exists():
+            torch.manual_seed(i)
+            save_checkpoint(p, SEGANet(ModelConfig(hidden=16, lstm_hidden=16)))
+        out.append(str(p))
+    return out
+
+
 # (command, output name in the user's folder, args(tmp_path, out) -> list); the output is a single file
 FILE_COMMANDS = {
+    "ensemble": ("e.pt", lambda t, o: ["ensemble", *member_checkpoints(t), "-o", o]),
     "run": (
         "x.pc2",
         lambda t, o: ["run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:3", "--no-cache", "-o", o],
