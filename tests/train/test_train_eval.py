@@ -165,20 +165,26 @@ def test_push_out_frames_is_the_runtime_collider_and_matches_the_reference(synth
         push_out_names([-0.001])
 
 
+def _with_val_split(synthetic_dataset, ds):
+    """A copy of the synthetic dataset at ``ds`` whose test sample (the swing) serves as the validation split."""
+    import shutil
+
+    shutil.copytree(synthetic_dataset / "samples", ds / "samples")
+    for p in (ds / "samples").glob("*__swing.json"):
+        meta = json.loads(p.read_text())
+        meta["split"] = "val"
+        p.write_text(json.dumps(meta))
+    return ds
+
+
 def test_train_on_a_pack_with_a_validation_split_and_batches_of_garments(synthetic_dataset, tmp_path, body):
     """Training reads a read-only pack (caches go to the run folder, the pack is never written), takes
     several garments per step, and the validation split picks the checkpoint that becomes model.pt."""
     import hashlib
-    import shutil
 
     from segadeform.dataset.pack import write_pack
 
-    ds = tmp_path / "ds"
-    shutil.copytree(synthetic_dataset / "samples", ds / "samples")
-    for p in (ds / "samples").glob("*__swing.json"):  # the test sample serves as the validation split here
-        meta = json.loads(p.read_text())
-        meta["split"] = "val"
-        p.write_text(json.dumps(meta))
+    ds = _with_val_split(synthetic_dataset, tmp_path / "ds")
     pack = tmp_path / "store" / "a.sgdpack"
     pack.parent.mkdir()
     write_pack(ds, pack, body=body)
@@ -480,14 +486,7 @@ def test_with_late_terms_validation_chooses_among_checkpoints_trained_on_the_who
 ):
     """``loss.terms_from``: a checkpoint of the vertex error alone is never the chosen model (only the untrained
     model and those after terms_from are candidates), even where one of them has the lowest validation error."""
-    import shutil
-
-    ds = tmp_path / "ds"
-    shutil.copytree(synthetic_dataset / "samples", ds / "samples")
-    for p in (ds / "samples").glob("*__swing.json"):  # the test sample serves as the validation split here
-        meta = json.loads(p.read_text())
-        meta["split"] = "val"
-        p.write_text(json.dumps(meta))
+    ds = _with_val_split(synthetic_dataset, tmp_path / "ds")
     cfg_p = tmp_path / "t.toml"
     cfg_p.write_text(
         f"[data]\ndataset = '{ds}'\nval_split = 'val'\n[model]\nhidden = 16\nlstm_hidden = 16\nweights = 'free'\n"
