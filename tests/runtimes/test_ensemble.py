@@ -1,5 +1,6 @@
-"""An ensemble package (two networks averaged, `segadeform ensemble`) through the Node and C++ runtimes: the same
-frames as `segadeform run` (Python), with no change to either runtime -- the package keeps one network's interface."""
+"""An ensemble package (two networks averaged, `segadeform ensemble`) through the Node, C++ and browser runtimes: the
+same frames as `segadeform run` (Python), with no change to any runtime -- the package keeps one network's
+interface."""
 
 from __future__ import annotations
 
@@ -38,7 +39,11 @@ def ensemble_scene(tmp_path_factory, portable_scene):
     frames = read_pc2(d / "python.pc2").frames
     # the ensemble's frames are not the single network's (else the test could not tell them apart)
     assert np.abs(frames - s["frames"]).max() > 1e-3
-    return {"pkg": d / "pkg", "frames": frames}
+    from segadeform.io.sgdb import write_bundle
+
+    body = read_pc2(d / "python_body.pc2").frames
+    write_bundle(d / "check.sgdb", {"expected": frames, "body": body}, {"effects": s["effects"]})
+    return {"pkg": d / "pkg", "frames": frames, "check": d / "check.sgdb"}
 
 
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
@@ -59,3 +64,32 @@ def test_an_ensemble_package_runs_in_node_and_cpp_as_in_python(
     got, want = read_pc2(tmp_path / "g.pc2").frames, ensemble_scene["frames"]
     assert got.shape == want.shape and np.isfinite(got).all()
     assert np.abs(got - want).max() / np.abs(want).max() <= RTOL
+
+
+def test_an_ensemble_package_runs_in_the_browser_page_as_in_python(portable_scene, ensemble_scene, tmp_path):
+    """The viewer page (headless Chromium, onnxruntime-web on wasm) on the ensemble package."""
+    from tests.conftest import REPO
+    from tests.runtimes.test_web import _assert_matches, _page
+
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "runtimes").symlink_to(REPO / "runtimes")
+    (site / "pkg").symlink_to(ensemble_scene["pkg"])
+    (site / "check.sgdb").symlink_to(ensemble_scene["check"])
+    for k in ("garment", "motion"):
+        (site / portable_scene[k].name).symlink_to(portable_scene[k])
+    r = _page(
+        site,
+        "wasm",
+        tmp_path,
+        "--garment",
+        "garment.sgda",
+        "--motion",
+        "motion.sgdm",
+        "--check",
+        "check.sgdb",
+        "--effects",
+        portable_scene["effects"],
+        shot=False,
+    )
+    _assert_matches(r, len(ensemble_scene["frames"]), "wasm")
