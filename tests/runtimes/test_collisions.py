@@ -40,7 +40,7 @@ import pytest
 from segadeform.io import read_pc2
 from segadeform.io.sgdb import read_bundle, write_bundle
 from tests.conftest import REPO, SAMPLES
-from tests.runtimes.test_web import CHROMIUM, _page
+from tests.runtimes.test_web import CHROMIUM, _asset_args, _page
 
 NODE = REPO / "runtimes" / "node"
 #: the browser's every frame (the page reports only the largest error)
@@ -371,18 +371,7 @@ def collided_site(tmp_path_factory, collided):
 def test_page_pushes_out_by_default_like_segadeform_run_on_wasm(collided_site, collided, tmp_path):
     """The browser page (onnxruntime-web on wasm, collide.js) with no effects named: the model's own and collisions
     at the default margin (the package has a body graph), as `segadeform run`; the same frames and moves."""
-    r = _page(
-        collided_site,
-        "wasm",
-        tmp_path,
-        "--garment",
-        "garment.sgda",
-        "--motion",
-        "motion.sgdm",
-        "--check",
-        "collided.sgdb",
-        shot=False,
-    )
+    r = _page(collided_site, "wasm", tmp_path, *_asset_args("collided.sgdb"), shot=False)
     col = r["collisions"]
     assert r["effects"] == {
         "skinning": "lbs",

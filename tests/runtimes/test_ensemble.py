@@ -69,7 +69,7 @@ def test_an_ensemble_package_runs_in_node_and_cpp_as_in_python(
 def test_an_ensemble_package_runs_in_the_browser_page_as_in_python(portable_scene, ensemble_scene, tmp_path):
     """The viewer page (headless Chromium, onnxruntime-web on wasm) on the ensemble package."""
     from tests.conftest import REPO
-    from tests.runtimes.test_web import _assert_matches, _page
+    from tests.runtimes.test_web import _assert_matches, _asset_args, _page
 
     site = tmp_path / "site"
     site.mkdir()
@@ -78,18 +78,5 @@ def test_an_ensemble_package_runs_in_the_browser_page_as_in_python(portable_scen
     (site / "check.sgdb").symlink_to(ensemble_scene["check"])
     for k in ("garment", "motion"):
         (site / portable_scene[k].name).symlink_to(portable_scene[k])
-    r = _page(
-        site,
-        "wasm",
-        tmp_path,
-        "--garment",
-        "garment.sgda",
-        "--motion",
-        "motion.sgdm",
-        "--check",
-        "check.sgdb",
-        "--effects",
-        portable_scene["effects"],
-        shot=False,
-    )
+    r = _page(site, "wasm", tmp_path, *_asset_args("check.sgdb", portable_scene["effects"]), shot=False)
     _assert_matches(r, len(ensemble_scene["frames"]), "wasm")

@@ -54,6 +54,13 @@ def _page(site, ep, tmp_path, *extra, shot=True):
     return json.loads(line[5:])
 
 
+def _asset_args(check: str, effects: str | None = None, motion: str = "motion.sgdm") -> list[str]:
+    """The page's arguments for the garment asset and a motion in its site, the check vector and the effects."""
+    return ["--garment", "garment.sgda", "--motion", motion, "--check", check] + (
+        ["--effects", effects] if effects else []
+    )
+
+
 @pytest.fixture(scope="module")
 def site(tmp_path_factory, shared_bundle, portable_scene, random_package):
     """A folder the page's server roots at: the runtimes, the package, the bundle, the asset, the motion and the
@@ -91,40 +98,14 @@ def _assert_matches(r, frames, ep):
 
 
 def test_page_runs_asset_and_motion_on_wasm_like_segadeform_run(site, portable_scene, tmp_path):
-    r = _page(
-        site,
-        "wasm",
-        tmp_path,
-        "--garment",
-        "garment.sgda",
-        "--motion",
-        "motion.sgdm",
-        "--check",
-        "check.sgdb",
-        "--effects",
-        portable_scene["effects"],
-    )
+    r = _page(site, "wasm", tmp_path, *_asset_args("check.sgdb", portable_scene["effects"]))
     _assert_matches(r, len(portable_scene["frames"]), "wasm")
     assert (tmp_path / "wasm.png").stat().st_size > 10_000  # the viewer drew the garment and the body
 
 
 def test_page_runs_dropped_package_asset_and_motion(site, portable_scene, tmp_path):
     """Drag and drop: the package's files dropped first, then the asset and the motion together."""
-    r = _page(
-        site,
-        "wasm",
-        tmp_path,
-        "--drop",
-        "--garment",
-        "garment.sgda",
-        "--motion",
-        "motion.sgdm",
-        "--check",
-        "check.sgdb",
-        "--effects",
-        portable_scene["effects"],
-        shot=False,
-    )
+    r = _page(site, "wasm", tmp_path, "--drop", *_asset_args("check.sgdb", portable_scene["effects"]), shot=False)
     _assert_matches(r, len(portable_scene["frames"]), "wasm")
 
 
@@ -135,19 +116,6 @@ def test_page_runs_a_bundle_on_wasm(site, tmp_path):
 
 
 def test_page_on_webgpu_matches_segadeform_run(site, portable_scene, tmp_path):
-    r = _page(
-        site,
-        "webgpu",
-        tmp_path,
-        "--garment",
-        "garment.sgda",
-        "--motion",
-        "short.sgdm",
-        "--check",
-        "short.sgdb",
-        "--effects",
-        portable_scene["effects"],
-        shot=False,
-    )
+    r = _page(site, "webgpu", tmp_path, *_asset_args("short.sgdb", portable_scene["effects"], "short.sgdm"), shot=False)
     assert r["webgpu"], "Chromium offered no WebGPU adapter (flags in runtimes/web/test/page.mjs)"
     _assert_matches(r, WEBGPU_FRAMES, "webgpu")
