@@ -8,7 +8,10 @@ For every kept sample of DATASET (a folder, pack or several roots):
   residual mapped back through its LBS linear part and averaged over the frames, ``D = mean_t M_t^-1 (gt_t - x_t)``
   (``M_t = sum_j w_j R_j(t)``), then skinned again: the best any per-sample blend shape can do;
 * ``mlp``: ``D`` predicted by a small MLP from per-vertex rest geometry (position, normal, signed distance to the
-  body at rest), trained on the training split's ``D`` and applied to the other splits.
+  body at rest), trained on the training split's ``D`` and applied to the other splits;
+* ``others``: the mean ``D`` of the *other* samples of the same garment design and body (their other motions;
+  samples alone in their group are left out of this column's means): what a predictor that knew the garment's
+  drape on this body exactly, but not the motion, could do with one static correction.
 
     .venv/bin/python tools/drape_oracle.py data/continuum [--steps 3000] [--seed 0]
 
@@ -77,7 +80,10 @@ def main() -> None:
         opt.zero_grad()
         loss.backward()
         opt.step()
-    table = {}
+    groups: dict = {}
+    for r in rows:
+        groups.setdefault(tuple(r["id"].split("__")[:2]), []).append(r)
+    table, others = {}, {}
     for r in rows:
         with torch.no_grad():
             dp = net(torch.tensor(r["feats"])).numpy().astype(np.float64)
@@ -88,12 +94,25 @@ def main() -> None:
         )
         table.setdefault(r["split"], []).append(e)
         name = f"{r['split']:5s} {r['id'][:40]:40s} {r['type']:10s}"
-        print(f"{name} prior {e[0]:6.2f} oracle {e[1]:6.2f} mlp {e[2]:6.2f}")
+        rest = [o["d"] for o in groups[tuple(r["id"].split("__")[:2])] if o is not r]
+        line = f"{name} prior {e[0]:6.2f} oracle {e[1]:6.2f} mlp {e[2]:6.2f}"
+        if rest:
+            eo = error_cm(r["x"] + np.einsum("tnij,nj->tni", r["m"], np.mean(rest, axis=0)), r["gt"])
+            others.setdefault(r["split"], []).append((e[0], e[1], eo))
+            line += f" others {eo:6.2f}"
+        print(line)
     for split, es in table.items():
         p, o, m = np.mean(es, axis=0)
         print(
             f"{split:5s} ({len(es)}): prior {p:.3f} cm, static oracle {o:.3f} ({100 * (o / p - 1):+.1f} %), "
             f"rest-geometry MLP {m:.3f} ({100 * (m / p - 1):+.1f} %)"
+        )
+    for split, es in others.items():
+        p, o, g = np.mean(es, axis=0)
+        print(
+            f"{split:5s} ({len(es)} with another motion of the same design and body): prior {p:.3f} cm, static "
+            f"oracle {o:.3f} ({100 * (o / p - 1):+.1f} %), the other motions' static correction {g:.3f} "
+            f"({100 * (g / p - 1):+.1f} %)"
         )
 
 

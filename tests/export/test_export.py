@@ -28,6 +28,7 @@ VARIANTS = {
     "dqs": dict(skinning="dqs"),
     "lbs-noblend": dict(skinning="lbs", use_blend_shapes=False),
     "lbs-drape": dict(skinning="lbs", static_blend=True),  # the motion-independent blend shape
+    "lbs-heading": dict(skinning="lbs", motion_input="heading"),  # the root's rotation relative to the heading
 }
 
 
@@ -134,8 +135,9 @@ def test_parity_on_hard_garments_and_twists(packages, variant, mesh):
     assert_parity(net, sessions["deformer"], "deformer", dict(dec, **{enc_spec["outputs"][0]["name"]: code}))
 
 
-def test_manifest_matches_the_graphs(packages):
-    net, path, manifest, _ = packages["dqs"]
+@pytest.mark.parametrize("variant", ["dqs", "lbs-heading"])
+def test_manifest_matches_the_graphs(packages, variant):
+    net, path, manifest, _ = packages[variant]
     on_disk = json.loads((path / "manifest.json").read_text())
     assert on_disk["schema_version"] == 3 and on_disk["opset"] == 18
     assert ModelConfig.from_dict(on_disk["config"]) == net.cfg

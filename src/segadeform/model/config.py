@@ -56,6 +56,11 @@ class ModelConfig:
             rest (``segadeform.body.drape``; computed on the host, as the rest joints are): 0 skins the rest as
             designed, 1 the drape.  The network is unchanged; the model package format has no drape yet, so
             only 0 exports.  Checkpoints without the field have 0.
+        motion_input: what the motion processors read of the window: "pose" (the paper: every joint's axis-angle,
+            the root's rotation in the world, so the same motion facing another way reads differently) or "heading"
+            (the root's rotation relative to the current frame's heading, as its 9 matrix entries, the other joints
+            as axis-angle: :func:`~segadeform.model.kinematics.heading_free_window`; the frames then turn with the
+            motion exactly).  Skinning uses the world rotation either way.  Checkpoints without the field have "pose".
         ensemble: K, the networks run side by side and averaged (:class:`~segadeform.model.ensemble.SEGAEnsemble`,
             made from trained checkpoints by :func:`~segadeform.model.ensemble.combine`); 1 is one network.  The
             garment code ``g`` is then (N, K S).  Checkpoints and manifests without the field have 1.
@@ -83,6 +88,7 @@ class ModelConfig:
     static_blend: bool = False
     rest_drape: float = 0.0
     history: int = 0
+    motion_input: str = "pose"
     ensemble: int = 1
 
     def __post_init__(self):
@@ -120,6 +126,8 @@ class ModelConfig:
             raise InputError("ModelConfig.rest_drape must be a number in [0, 1]", got=d)
         if self.skinning not in ("lbs", "dqs"):
             raise InputError("ModelConfig.skinning must be 'lbs' or 'dqs'", got=self.skinning)
+        if self.motion_input not in ("pose", "heading"):
+            raise InputError("ModelConfig.motion_input must be 'pose' or 'heading'", got=self.motion_input)
         if self.weights not in ("residual", "free"):
             raise InputError("ModelConfig.weights must be 'residual' or 'free'", got=self.weights)
         from ..body.transfer import WEIGHT_PRIORS

@@ -11,7 +11,15 @@ import torch
 
 from ..contracts.model_package import MAX_NODE_TENSORS
 
-__all__ = ["axis_angle_to_matrix", "forward_kinematics", "skinning_transforms", "lbs", "dqs", "matrix_to_quaternion"]
+__all__ = [
+    "axis_angle_to_matrix",
+    "heading_free_window",
+    "forward_kinematics",
+    "skinning_transforms",
+    "lbs",
+    "dqs",
+    "matrix_to_quaternion",
+]
 
 _SMALL = 1e-4
 
@@ -29,6 +37,34 @@ def axis_angle_to_matrix(r: torch.Tensor) -> torch.Tensor:
     K = _matrix3([[zero, -z, y], [z, zero, -x], [-y, x, zero]])
     eye = torch.eye(3, dtype=r.dtype, device=r.device).expand(K.shape)
     return eye + a[..., None, None] * K + b[..., None, None] * torch.matmul(K, K)
+
+
+def heading_free_window(window: torch.Tensor, eps: float = 1e-6) -> torch.Tensor:
+    """The motion window with the root's rotation taken relative to the current frame's heading.
+
+    The heading is the turn about the vertical (+Y) axis that takes the current root's left axis
+    ``x = R_0 e_x`` (horizontal while the body stands, bends or lies on its front or back) onto +X::
+
+        a = (x_x, x_z) / sqrt(x_x^2 + x_z^2 + eps),   H = [[a_0, 0, a_1], [0, 1, 0], [-a_1, 0, a_0]],
+        R'_t = H R_t   for every frame t of the window.
+
+    Turning the whole motion about +Y by ``Q`` maps ``R_t -> Q R_t`` and ``H -> H Q^T``, so ``R'_t`` does not
+    change: what reads the result sees the same motion whichever way it faces.  Where the left axis is vertical
+    (the body on its side) ``H`` degrades to a bounded, non-rotation matrix instead of dividing by zero.
+
+    Shapes:
+        window (B, T, 3 S) axis-angle, window[:, 0] the current frame -> (B, T, 3 S + 6): the 9 entries of
+        ``R'_t`` (row-major) followed by the other ``S - 1`` joints' axis-angle as given.
+    """
+    b, t, d = window.shape
+    rot = axis_angle_to_matrix(window[:, :, :3])  # (B, T, 3, 3)
+    x = rot[:, 0, :, 0]  # (B, 3): the current root's left axis in the world
+    n = torch.sqrt(x[:, 0] * x[:, 0] + x[:, 2] * x[:, 2] + eps)
+    c, s = x[:, 0] / n, x[:, 2] / n
+    zero, one = torch.zeros_like(c), torch.ones_like(c)
+    h = _matrix3([[c, zero, s], [zero, one, zero], [-s, zero, c]])  # (B, 3, 3)
+    rel = torch.matmul(h[:, None], rot).reshape(b, t, 9)
+    return torch.cat([rel, window[:, :, 3:]], dim=-1)
 
 
 def forward_kinematics(

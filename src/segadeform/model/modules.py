@@ -216,7 +216,8 @@ class MotionProcessor(nn.Module):
     def __init__(self, cfg: ModelConfig, out: int, with_betas: bool) -> None:
         super().__init__()
         self.with_betas = with_betas
-        self.lstm = UnrolledLSTM(3 * cfg.n_joints, cfg.lstm_hidden)
+        # the window as the deformer gives it: axis-angle, or the root's 9 heading-free entries (cfg.motion_input)
+        self.lstm = UnrolledLSTM(3 * cfg.n_joints + (6 if cfg.motion_input == "heading" else 0), cfg.lstm_hidden)
         extra = (cfg.n_betas if with_betas else 0) + cfg.history
         self.head = MLP([cfg.lstm_hidden + extra, cfg.hidden, out], cfg.tau if cfg.use_sega else None)
 

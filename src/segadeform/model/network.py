@@ -49,7 +49,14 @@ from torch import nn
 from ..body.skeleton import SMPL_PARENTS
 from ..errors import FileFormatError, InputError
 from .config import ModelConfig
-from .kinematics import axis_angle_to_matrix, dqs, forward_kinematics, lbs, skinning_transforms
+from .kinematics import (
+    axis_angle_to_matrix,
+    dqs,
+    forward_kinematics,
+    heading_free_window,
+    lbs,
+    skinning_transforms,
+)
 from .modules import (
     MLP,
     BodyShapeParser,
@@ -146,7 +153,8 @@ class SEGANet(nn.Module):
                 got=None if history is None else tuple(history.shape),
             )
         bp = self.bp(betas).permute(0, 2, 1)  # f^bp(beta)[i, j] as (B, S, F_enc)
-        mo1 = self.mo1(window, history=history)  # (B, F_enc)
+        mwin = heading_free_window(window) if cfg.motion_input == "heading" else window  # what f^mo reads
+        mo1 = self.mo1(mwin, history=history)  # (B, F_enc)
         w_raw = g[None] * torch.matmul(bp, mo1[:, :, None])[:, None, :, 0]  # Eq. 16: (B, N, S)
         if self.residual:
             if log_wbody is None:
@@ -154,7 +162,7 @@ class SEGANet(nn.Module):
             w_raw = log_wbody[None] + self.weight_gate * w_raw
         weights = torch.softmax(w_raw, dim=-1)
         if self.dec is not None:
-            mo2 = self.mo2(window, betas, history)  # (B, S F_enc)
+            mo2 = self.mo2(mwin, betas, history)  # (B, S F_enc)
             # X^mid = P * mo2 (Eq. 17) = g @ lift, lift block-diagonal (B, S, S F_enc): never formed as (B, N, S F_enc)
             diag = torch.eye(s, dtype=g.dtype, device=g.device)[None, :, :, None]
             lift = (diag * (bp.reshape(b, 1, s, f) * mo2.reshape(b, 1, s, f))).reshape(b, s, s * f)
