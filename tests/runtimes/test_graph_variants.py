@@ -1,6 +1,8 @@
-"""An ensemble package (two networks averaged, `segadeform ensemble`) through the Node, C++ and browser runtimes: the
-same frames as `segadeform run` (Python), with no change to any runtime -- the package keeps one network's
-interface."""
+"""Packages whose graphs change inside but keep one network's interface, through the Node, C++ and browser runtimes:
+the same frames as `segadeform run` (Python), with no change to any runtime.
+
+* ``ensemble``: two networks averaged (`segadeform ensemble`);
+* ``heading``: the motion processors read the root's rotation relative to the heading (``motion_input``)."""
 
 from __future__ import annotations
 
@@ -14,8 +16,8 @@ from segadeform.io import read_pc2
 RTOL = 1e-5
 
 
-@pytest.fixture(scope="module")
-def ensemble_scene(tmp_path_factory, portable_scene):
+@pytest.fixture(scope="module", params=["ensemble", "heading"])
+def ensemble_scene(request, tmp_path_factory, portable_scene):
     torch = pytest.importorskip("torch", reason="exporting a package needs the 'torch' extra")
     from segadeform.cli.main import main
     from segadeform.export import export_package
@@ -23,21 +25,21 @@ def ensemble_scene(tmp_path_factory, portable_scene):
     from segadeform.model.ensemble import combine
 
     nets = []
-    for seed in (5, 6):
+    for seed in (5, 6) if request.param == "ensemble" else (5,):
         torch.manual_seed(seed)
-        net = SEGANet(ModelConfig()).eval()
+        net = SEGANet(ModelConfig(motion_input="heading" if request.param == "heading" else "pose")).eval()
         with torch.no_grad():
             net.weight_gate.fill_(0.5 + 0.2 * (seed - 5))
             net.blend_gate.fill_(0.5)
         nets.append(net)
-    d = tmp_path_factory.mktemp("ensemble")
-    export_package(combine(nets), d / "pkg", check=False)
+    d = tmp_path_factory.mktemp(request.param)
+    export_package(combine(nets) if len(nets) > 1 else nets[0], d / "pkg", check=False)
     s = portable_scene
     scene = d / "s.toml"
     scene.write_text((s["dir"] / "s.toml").read_text().replace(str(s["dir"] / "python"), str(d / "python")))
     assert main(["run", str(scene), "--model", str(d / "pkg"), "--force", "--no-cache"]) == 0
     frames = read_pc2(d / "python.pc2").frames
-    # the ensemble's frames are not the single network's (else the test could not tell them apart)
+    # the variant's frames are not the portable scene's network's (else the test could not tell them apart)
     assert np.abs(frames - s["frames"]).max() > 1e-3
     from segadeform.io.sgdb import write_bundle
 
