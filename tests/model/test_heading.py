@@ -96,3 +96,34 @@ def test_motion_input_is_checked_and_old_configs_read_pose():
         ModelConfig(motion_input="world")
     net = SEGANet(ModelConfig(hidden=16, lstm_hidden=16, motion_input="heading"))
     assert net.mo1.lstm.input_size == 78 and net.mo2.lstm.input_size == 78
+
+
+def test_extreme_root_orientations_give_finite_bounded_frames():
+    """The heading is undefined or flips where the root's left axis is vertical or the body is upside down; a
+    heading model still gives finite frames whose weights are a partition of unity and whose vertices stay within
+    the blend-shaped rest's reach of the posed joints (no division by a vanishing horizontal axis blows up)."""
+    torch.manual_seed(4)
+    net = SEGANet(ModelConfig(hidden=16, lstm_hidden=16, motion_input="heading")).eval()
+    with torch.no_grad():
+        net.weight_gate.fill_(0.7)
+        net.blend_gate.fill_(0.5)
+    d = {k: torch.as_tensor(v) for k, v in sample_inputs(net.cfg, "deformer", n=30, k=5, b=6, seed=5).items()}
+    roots = torch.tensor(
+        [
+            [0.0, 0.0, np.pi / 2],  # on its side: the left axis vertical
+            [0.0, 0.0, -np.pi / 2],
+            [np.pi, 0.0, 0.0],  # upside down
+            [np.pi / 2, 0.0, 0.0],  # face down
+            [0.0, np.pi, 0.0],  # facing backwards (axis-angle at pi)
+            [0.0, 0.0, np.pi / 2 + 1e-7],  # a hair past the side
+        ],
+        dtype=torch.float32,
+    )
+    w = d["window"].clone()
+    w[:, :, :3] = roots[:, None, :]
+    w[:, 1::2, :3] = -roots[:, None, :]  # the window flips between frames
+    v, weights, blend = _deformer(net, d, w, torch.zeros(6, 3))
+    assert torch.isfinite(v).all() and torch.isfinite(weights).all() and torch.isfinite(blend).all()
+    assert torch.allclose(weights.sum(-1), torch.ones(6, 30), atol=1e-5) and (weights >= 0).all()
+    reach = float((d["rest"] + blend).norm(dim=-1).max() + d["joints"].norm(dim=-1).max() * 4)
+    assert float(v.norm(dim=-1).max()) <= reach
