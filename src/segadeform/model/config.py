@@ -60,7 +60,9 @@ class ModelConfig:
             the root's rotation in the world, so the same motion facing another way reads differently) or "heading"
             (the root's rotation relative to the current frame's heading, as its 9 matrix entries, the other joints
             as axis-angle: :func:`~segadeform.model.kinematics.heading_free_window`; the frames then turn with the
-            motion exactly).  Skinning uses the world rotation either way.  Checkpoints without the field have "pose".
+            motion exactly).  Skinning uses the world rotation either way, and so does the clip-long ``history``
+            (its inputs are made on the host), so only a model without one turns exactly.  Checkpoints without the
+            field have "pose".
         ensemble: K, the networks run side by side and averaged (:class:`~segadeform.model.ensemble.SEGAEnsemble`,
             made from trained checkpoints by :func:`~segadeform.model.ensemble.combine`); 1 is one network.  The
             garment code ``g`` is then (N, K S).  Checkpoints and manifests without the field have 1.
