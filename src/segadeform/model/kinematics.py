@@ -39,28 +39,32 @@ def axis_angle_to_matrix(r: torch.Tensor) -> torch.Tensor:
     return eye + a[..., None, None] * K + b[..., None, None] * torch.matmul(K, K)
 
 
-def heading_free_window(window: torch.Tensor, eps: float = 1e-6) -> torch.Tensor:
+def heading_free_window(window: torch.Tensor, eps: float = 1e-8) -> torch.Tensor:
     """The motion window with the root's rotation taken relative to the current frame's heading.
 
-    The heading is the turn about the vertical (+Y) axis that takes the current root's left axis
-    ``x = R_0 e_x`` (horizontal while the body stands, bends or lies on its front or back) onto +X::
+    The heading is the turn about the vertical (+Y) axis left when the current root rotation ``R_0`` is split into
+    a turn about +Y and a tilt of the vertical (swing-twist); its cosine and sine are proportional to
+    ``(R_00 + R_22, R_20 - R_02)``::
 
-        a = (x_x, x_z) / sqrt(x_x^2 + x_z^2 + eps),   H = [[a_0, 0, a_1], [0, 1, 0], [-a_1, 0, a_0]],
-        R'_t = H R_t   for every frame t of the window.
+        a = (R_00 + R_22, R_20 - R_02) / sqrt((R_00 + R_22)^2 + (R_20 - R_02)^2 + eps),
+        H = [[a_0, 0, a_1], [0, 1, 0], [-a_1, 0, a_0]],   R'_t = H R_t   for every frame t of the window.
 
-    Turning the whole motion about +Y by ``Q`` maps ``R_t -> Q R_t`` and ``H -> H Q^T``, so ``R'_t`` does not
-    change: what reads the result sees the same motion whichever way it faces.  Where the left axis is vertical
-    (the body on its side) ``H`` degrades to a bounded, non-rotation matrix instead of dividing by zero.
+    Turning the whole motion about +Y by ``Q`` maps ``R_t -> Q R_t`` and ``a`` by the same turn, so ``H -> H Q^T``
+    and ``R'_t`` does not change: what reads the result sees the same motion whichever way it faces.  ``a`` is
+    defined whether the body stands, bends, or lies on its front, back or side; it vanishes only where the body's
+    vertical axis points straight down (upside down), where ``H`` degrades to a bounded, non-rotation matrix
+    instead of dividing by zero.
 
     Shapes:
         window (B, T, 3 S) axis-angle, window[:, 0] the current frame -> (B, T, 3 S + 6): the 9 entries of
         ``R'_t`` (row-major) followed by the other ``S - 1`` joints' axis-angle as given.
     """
-    b, t, d = window.shape
+    b, t, _ = window.shape
     rot = axis_angle_to_matrix(window[:, :, :3])  # (B, T, 3, 3)
-    x = rot[:, 0, :, 0]  # (B, 3): the current root's left axis in the world
-    n = torch.sqrt(x[:, 0] * x[:, 0] + x[:, 2] * x[:, 2] + eps)
-    c, s = x[:, 0] / n, x[:, 2] / n
+    r0 = rot[:, 0]  # the current root's rotation
+    ca, sa = r0[:, 0, 0] + r0[:, 2, 2], r0[:, 2, 0] - r0[:, 0, 2]
+    n = torch.sqrt(ca * ca + sa * sa + eps)
+    c, s = ca / n, sa / n
     zero, one = torch.zeros_like(c), torch.ones_like(c)
     h = _matrix3([[c, zero, s], [zero, one, zero], [-s, zero, c]])  # (B, 3, 3)
     rel = torch.matmul(h[:, None], rot).reshape(b, t, 9)

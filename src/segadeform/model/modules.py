@@ -224,7 +224,9 @@ class MotionProcessor(nn.Module):
     def forward(
         self, window: torch.Tensor, betas: torch.Tensor | None = None, history: torch.Tensor | None = None
     ) -> torch.Tensor:
-        """``window (B, T, 3 S)``, ``betas (B, |beta|)`` for f^mo2, ``history (B, H)`` when the config has one."""
+        """``window (B, T, 3 S)`` (``(B, T, 3 S + 6)`` for ``motion_input = "heading"``:
+        :func:`~segadeform.model.kinematics.heading_free_window`), ``betas (B, |beta|)`` for f^mo2, ``history (B, H)``
+        when the config has one."""
         h = self.lstm(window)
         if self.with_betas:
             h = torch.cat([h, betas], dim=-1)
