@@ -59,6 +59,15 @@ def rerun(cfg, dataset: Path, body, sid: str, meta: dict, variant: str, sim_pyth
     return resimulate(cfg, dataset, body, sid, **kw)[0]
 
 
+def emit(md: list[str], rows: list[dict], output: Path | None) -> None:
+    """Print the markdown lines ``md``; with ``output``, write them there and ``rows`` as JSON beside it."""
+    text = "\n".join(md)
+    print(text)
+    if output is not None:
+        output.write_text(text + "\n")
+        output.with_suffix(".json").write_text(json.dumps(rows, indent=1) + "\n")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("dataset", type=Path)
@@ -132,11 +141,7 @@ def main(argv=None) -> int:
     md += ["", "| type | samples | " + " | ".join(cols) + " |", "|---" * (2 + len(cols)) + "|"]
     for k, rs in groups.items():
         md.append(f"| {k} | {len(rs)} | " + " | ".join(f"{np.mean([r[c] for r in rs]):.3f}" for c in cols) + " |")
-    text = "\n".join(md)
-    print(text)
-    if a.output is not None:
-        a.output.write_text(text + "\n")
-        a.output.with_suffix(".json").write_text(json.dumps(rows, indent=1) + "\n")
+    emit(md, rows, a.output)
     return 0
 
 

@@ -53,6 +53,8 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if a.output is not None and (a.output.exists() or a.output.with_suffix(".json").exists()):
         ap.error(f"{a.output}: exists; choose another name")
+    from gt_spread import emit  # this folder (the script's own) is on the path
+
     from segadeform.body import default_body_path, load_body
     from segadeform.dataset.roots import as_roots
     from segadeform.runtime.predictor import PackagePredictor
@@ -90,11 +92,7 @@ def main(argv=None) -> int:
     for name in models:
         rs = [r for r in rows if r["model"] == name]
         md.append(f"| {name} | {len(rs)} | " + " | ".join(f"{np.mean([r[c] for r in rs]):.3f}" for c in cols) + " |")
-    text = "\n".join(md)
-    print(text)
-    if a.output is not None:
-        a.output.write_text(text + "\n")
-        a.output.with_suffix(".json").write_text(json.dumps(rows, indent=1) + "\n")
+    emit(md, rows, a.output)
     return 0
 
 
