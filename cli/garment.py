@@ -85,7 +85,7 @@ def garment_kinds_cmd():
 @click.option(
     "--from-body",
     type=click.Path(dir_okay=False, path_type=Path),
-    help="The body mesh the garment was modelled on: any topology and units, standing near a T- or A-pose "
+    help="The body mesh the garment was modelled on: any topology and units, in a T- or A-pose or walking "
     "(its units and up axis, y or z, are read from its height unless --units/--up say).",
 )
 @click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Target body .npz (default: shipped).")
@@ -201,16 +201,16 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
             units_v = u_read
         src_v = fix_units_and_axes(src.vertices, units=units_v, up=up_read, scale=scale)
         g_v = fix_units_and_axes(g.vertices, units=units_v, up=up_read, scale=scale)
-        fit = fit_to_body_mesh(g_v, src_v, src.faces, bm, b)
+        fit = fit_to_body_mesh(g_v, src_v, src.faces, bm, b, garment_faces=g.faces)
         v = fit.vertices
         torn, worst = edge_distortion(g_v, v, g.faces)
         if torn > 0.05 and not force:  # a carried garment keeps most edges within tens of percent (armpits may tear)
             raise InputError(
                 f"the fit tore the garment: {100 * torn:.1f} % of its edges changed length more than 2x (worst "
-                f"{worst:.0f}x), so the body's pose in {from_body.name} was not found (a pose far from a T- or "
-                "A-pose, or other units or up axis)",
+                f"{worst:.0f}x), so the body's pose in {from_body.name} was not found (a pose far from standing, "
+                "walking or a T- or A-pose -- a leg raised high, a deep crouch -- or other units or up axis)",
                 path=garment,
-                expected="a source body standing near a T- or A-pose (--units/--up if they were misread), or --force",
+                expected="a source body standing, walking or near a T- or A-pose (--units/--up if misread), or --force",
             )
         how = f"registered to {from_body.name}{read_as} (body fit {100 * fit.body_error:.1f} cm mean)"
         default_margin = 0.003

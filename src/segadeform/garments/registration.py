@@ -31,7 +31,7 @@ from ..body.makehuman import makehuman_vertices, makehuman_weights
 from ..body.skinning import linear_blend_skinning
 from ..bounds import BETA_LIMIT
 from ..errors import FileFormatError, InputError
-from ..geometry.mesh_ops import adjacency
+from ..geometry.mesh_ops import adjacency, face_areas, face_cross, vertex_normals
 from ..io.mhclo import MhcloBinding
 
 __all__ = ["fit_mhclo", "fit_to_body_mesh", "BodyFit", "guess_units_and_up", "edge_distortion"]
@@ -102,6 +102,110 @@ class BodyFit:
     betas: np.ndarray
 
 
+#: limbs tried from other directions by :func:`fit_to_body_mesh`: (joint, its child, the joints below it, the first
+#: one's bends about x to try); shoulders, then hips
+_LIMBS = (
+    (16, 18, (18, 20), (0.0,)),
+    (17, 19, (19, 21), (0.0,)),
+    (1, 4, (4, 7), (0.0, 1.2)),
+    (2, 5, (5, 8), (0.0, 1.2)),
+)
+#: directions (x outward from the body's side, y up, z forward) a limb is tried in: arms, legs
+_LIMB_DIRECTIONS = (
+    ((0.3, -1, 0), (0.3, -1, 1), (0, 0, 1), (0.3, 1, 0.5), (0.3, -1, -0.7), (1, -0.4, 0), (1, 0.2, 0.6)),
+    ((0, -1, 0), (0, -1, 1), (0, -0.2, 1), (0, -1, -0.6), (0.6, -1, 0)),
+)
+
+
+def _turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The shortest rotation (axis-angle, (3,)) taking direction ``a`` to direction ``b``."""
+    a = a / np.linalg.norm(a)
+    b = b / np.linalg.norm(b)
+    axis = np.cross(a, b)
+    s, c = np.linalg.norm(axis), float(np.dot(a, b))
+    if s < 1e-9:
+        return np.zeros(3) if c > 0 else np.array([0.0, 0.0, np.pi])
+    return axis / s * np.arctan2(s, c)
+
+
+def _compatible_nearest(tree, normals, points, point_normals, k: int = 8) -> np.ndarray:
+    """Index of each point's nearest tree point whose normal faces the same side (dot > 0) among its ``k``
+    nearest, else its nearest: the inner side of one thigh is not matched to the inner side of the other, nor
+    an arm held against the torso to the torso.  Without normals (zero vectors) the nearest.
+
+    Shapes:
+        normals: (M, 3) of the tree's points; points, point_normals: (P, 3) -> (P,) int
+    """
+    _, nn = tree.query(points, k=min(k, tree.n))
+    nn = nn.reshape(len(points), -1)
+    ok = np.einsum("pc,pkc->pk", point_normals, normals[nn]) > 0.0
+    first = np.where(ok.any(axis=1), ok.argmax(axis=1), 0)
+    return nn[np.arange(len(points)), first]
+
+
+def _attach(
+    g: np.ndarray, g_faces, v: np.ndarray, faces: np.ndarray, k: int = 48, margin: float = 0.02, face_labels=None
+):
+    """Each garment vertex's body triangle and closest point on it: the closest triangle among the ``k`` nearest
+    (by centre) whose normal faces the garment's normal there (dot > 0) and that is at most ``margin`` farther
+    than the closest of all, else the closest of all.  With ``face_labels`` (the body part of each triangle), a
+    vertex whose part is not its neighbours' (two rings on the garment) takes the closest triangle facing its way
+    of the parts more than twice as many of them attach to, where there is one: a waistband that a registered
+    elbow passes through stays on the hip.  The garment's normals are turned to face the body's way where most of
+    them face the other; without ``g_faces`` the closest.
+
+    Shapes:
+        g: (N, 3); g_faces: (G, 3) or None; v: (V, 3); faces: (F, 3); face_labels: (F,) int -> (N,) int, (N, 3)
+    """
+    from scipy.spatial import cKDTree
+
+    q = BodyProxy(v, faces).query(g)
+    if g_faces is None or not len(g_faces):
+        return q.face, q.closest
+    f_n = face_cross(v, faces)
+    f_n /= np.maximum(np.linalg.norm(f_n, axis=1, keepdims=True), 1e-300)
+    g_n = vertex_normals(g, np.asarray(g_faces, np.int64))
+    if np.einsum("nc,nc->", g_n, f_n[q.face]) < 0:  # the garment is wound inward
+        g_n = -g_n
+    tree = cKDTree(v[faces].mean(axis=1))
+
+    def candidates(rows, kk):  # the kk nearest triangles of g[rows], their closest points, distances (inf: facing away)
+        kk = min(kk, len(faces))
+        cand = tree.query(g[rows], k=kk)[1].reshape(len(rows), kk)
+        tri = v[faces[cand.ravel()]]
+        cp = closest_point_on_triangles(np.repeat(g[rows], kk, axis=0), tri[:, 0], tri[:, 1], tri[:, 2])[0]
+        cp = cp.reshape(len(rows), kk, 3)
+        d = np.linalg.norm(cp - g[rows, None], axis=2)
+        d[np.einsum("nc,nkc->nk", g_n[rows], f_n[cand]) <= 0] = np.inf
+        return cand, cp, d
+
+    n = len(g)
+    rows = np.arange(n)
+    cand, cp, d = candidates(rows, k)
+    d[d > np.linalg.norm(q.closest - g, axis=1)[:, None] + margin] = np.inf  # a far triangle's frame turns the offset
+    best = d.argmin(axis=1)
+    ok = np.isfinite(d[rows, best])
+    face = np.where(ok, cand[rows, best], q.face)
+    closest = np.where(ok[:, None], cp[rows, best], q.closest)
+    if face_labels is not None:
+        lab = face_labels[face]
+        near = adjacency(np.asarray(g_faces, np.int64), n)
+        near = (near @ near).tolil()  # two rings, without the vertex itself
+        near.setdiag(0)
+        near = near.tocsr()
+        votes = np.asarray(near @ np.eye(int(face_labels.max()) + 1)[lab])  # (N, parts): neighbours attached to each
+        liked = votes > 2 * votes[rows, lab][:, None]  # parts more than twice as many neighbours attach to
+        odd = np.flatnonzero(liked.any(axis=1))
+        if len(odd):
+            c2, p2, d2 = candidates(odd, 16 * k)
+            d2[~np.take_along_axis(liked[odd], face_labels[c2], axis=1)] = np.inf
+            b2 = d2.argmin(axis=1)
+            ok2 = np.isfinite(d2[np.arange(len(odd)), b2])
+            face[odd[ok2]] = c2[np.arange(len(odd)), b2][ok2]
+            closest[odd[ok2]] = p2[np.arange(len(odd)), b2][ok2]
+    return face, closest
+
+
 def _local_frames(v: np.ndarray, faces: np.ndarray, face_idx: np.ndarray):
     """Per-face orthonormal frames (t1, t2, n), each (M, 3), of faces ``face_idx``."""
     tri = v[faces[face_idx]]
@@ -123,18 +227,23 @@ def fit_to_body_mesh(
     rounds: int = 8,
     seed: int = 0,
     scale: float | None = None,
+    garment_faces=None,
 ) -> BodyFit:
     """Carry a garment modelled on another body mesh (any topology and pose, +Y up, metres) onto ``body``.
 
-    1. **register** the body to the source mesh: scale (``None``: free, from the height ratio; a number
-       fixes it), translation, shape and joint rotations by iterative closest points in both
-       directions (body samples -> source, source samples -> body), with priors pulling pose and shape
-       to zero; two rounds from each of the T-pose, MakeHuman's A-pose (when the body file has it) and
-       arms down, then the best one to the end;
-    2. **correct the surface**: every registered body vertex within 3 cm of the source moves onto it,
-       the displacement smoothed over the mesh;
+    1. **register** the body to the source mesh: scale (``None``: from the ratio of surface areas, which a pose
+       changes little, or of heights for a point cloud; a number fixes it), translation, shape and joint rotations
+       by iterative closest points in both directions (body samples -> source, source samples -> body), each
+       point paired with the nearest one facing the same way, with priors pulling pose and shape to zero: pose and
+       placement alone from each of the T-pose, MakeHuman's A-pose (when the body file has it) and arms down; from
+       the best, each arm and leg tried in a few directions (a stride, an arm raised forward) and kept where the
+       body fits closer; then everything, shape included, to the end;
+    2. **correct the surface**: every registered body vertex within 3 cm of the source moves onto it (the
+       closest point facing its way), the displacement smoothed over the mesh;
     3. **attach** each garment vertex to the closest point of that surface: triangle, barycentric
-       weights and the offset in the triangle's own frame;
+       weights and the offset in the triangle's own frame; with ``garment_faces``, the closest facing the same
+       way as the garment there (a sleeve on an arm held against the torso attaches to the arm) and on a body part
+       its neighbours attach to (:func:`_attach`);
     4. **carry** it to the body's rest at ``betas``: the same triangle point and local offset.
 
     Shapes:
@@ -156,7 +265,7 @@ def fit_to_body_mesh(
     sidx = rng.choice(len(sv), size=min(samples, len(sv)), replace=False)
     s_pts = sv[sidx]
     s_tree = cKDTree(sv)
-    joints_free = [0, 1, 2, 3, 4, 5, 6, 9, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21]
+    joints_free = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21]
     W = body.weights[bidx]
     n_th = 3 * len(joints_free)
     v0 = body.shaped_vertices()[0]
@@ -176,35 +285,66 @@ def fit_to_body_mesh(
         g4, _ = forward_kinematics(poses_to_rotmats(th[None], 24), J, body.parents)
         return linear_blend_skinning(rest, W, relative_transforms(g4, J))[0] * sc + t
 
-    def fit_from(init_pose: np.ndarray, n_rounds: int, x=None):
-        if x is None:
-            x = np.zeros(4 + nb + n_th)
-            x[0] = np.log(height_s / height_b) if scale is None else np.log(scale)
-            x[4 + nb :] = init_pose.reshape(24, 3)[joints_free].ravel()
-            p = body_points(x)
-            x[1:4] = [
-                sv[:, 0].mean() - p[:, 0].mean(),
-                sv[:, 1].min() - p[:, 1].min(),
-                sv[:, 2].mean() - p[:, 2].mean(),
-            ]
-        lo = np.full_like(x, -np.inf)
-        hi = np.full_like(x, np.inf)
-        lo[4 : 4 + nb], hi[4 : 4 + nb] = -BETA_LIMIT, BETA_LIMIT  # the shape space (segadeform.bounds)
-        if scale is not None:  # a fixed scale: bounds pin it
-            lo[0], hi[0] = np.log(scale) - 1e-9, np.log(scale) + 1e-9
-            x[0] = np.log(scale)
+    # the scale from the surface areas where the source has faces (a pose changes a body's area little, its height a
+    # lot: arms raised, knees bent), else from the heights
+    area_s = float(face_areas(sv, sf).sum()) if len(sf) else 0.0
+    scale0 = np.sqrt(area_s / face_areas(v0, body.faces).sum()) if area_s > 0 else height_s / height_b
+    # outward normals of the source (zero without faces: plain nearest points), turned outward if its winding is inward
+    s_n = vertex_normals(sv, sf) if len(sf) else np.zeros_like(sv)
+    if len(sf) and np.einsum("vc,vc->", sv - sv.mean(axis=0), s_n) < 0:
+        s_n = -s_n
+
+    # the pose prior's weight per angle: five times the limbs' on the spine, neck and head, whose chain of three
+    # joints can twist one way and back for the same torso surface (a root 9 cm off on a CMU walk's first frame)
+    prior = np.full(n_th, 0.02)
+    for k, j in enumerate(joints_free):
+        if j in (3, 6, 9, 12, 15):
+            prior[3 * k : 3 * k + 3] = 0.1
+    dominant = np.asarray(body.weights[bidx]).argmax(axis=1)  # the joint that moves each body sample most
+    slot = {j: 4 + nb + 3 * k for k, j in enumerate(joints_free)}
+
+    def start(init_pose: np.ndarray) -> np.ndarray:
+        x = np.zeros(4 + nb + n_th)
+        x[0] = np.log(scale0) if scale is None else np.log(scale)
+        x[4 + nb :] = init_pose.reshape(24, 3)[joints_free].ravel()
+        p = body_points(x)
+        x[1:4] = [sv[:, 0].mean() - p[:, 0].mean(), sv[:, 1].min() - p[:, 1].min(), sv[:, 2].mean() - p[:, 2].mean()]
+        return x
+
+    def fit(x, n_rounds: int, *, joints=None, shape: bool = True, nfev: int = 20):
+        """``n_rounds`` of closest points from ``x``: the joints in ``joints`` (all: None) turn, the body samples
+        they move are matched (and, with every joint, the source's samples to the body's); shape and scale
+        move with ``shape`` (the scale only where not given)."""
+        free = np.zeros(len(x), bool)
+        free[1:4] = True
+        if shape:
+            free[0] = scale is None and not area_s > 0  # the area gives the scale whatever the pose
+            free[4 : 4 + nb] = True
+        for j in joints_free if joints is None else joints:
+            free[slot[j] : slot[j] + 3] = True
+        use = np.ones(len(bidx), bool) if joints is None else np.isin(dominant, list(joints))
+        lo = np.full(int(free.sum()), -np.inf)
+        hi = np.full(int(free.sum()), np.inf)
+        in_beta = (np.flatnonzero(free) >= 4) & (np.flatnonzero(free) < 4 + nb)
+        lo[in_beta], hi[in_beta] = -BETA_LIMIT, BETA_LIMIT  # the shape space (segadeform.bounds)
         for _ in range(n_rounds):
             p = body_points(x)
-            q = sv[s_tree.query(p)[1]]  # body sample -> nearest source vertex
-            near_b = cKDTree(p).query(s_pts)[1]  # source sample -> nearest body sample
+            _, _, beta_, th_ = unpack(x)
+            p_n = vertex_normals(body.forward(th_[None], beta_).vertices[0], body.faces)[bidx]
+            q = sv[_compatible_nearest(s_tree, s_n, p[use], p_n[use])]  # body sample -> source vertex facing its way
+            near_b = _compatible_nearest(cKDTree(p), p_n, s_pts, s_n[sidx])  # source sample -> body sample
+            mine = use[near_b]  # the pairs whose body sample the free joints move
 
-            def res(xx, q=q, near_b=near_b):  # this round's pairs
+            def res(xf, x=x, q=q, near_b=near_b[mine], s_mine=s_pts[mine]):  # this round's pairs
+                xx = x.copy()
+                xx[free] = xf
                 pp = body_points(xx)
                 return np.concatenate(
-                    [(pp - q).ravel(), (pp[near_b] - s_pts).ravel(), 0.01 * xx[4 : 4 + nb], 0.02 * xx[4 + nb :]]
+                    [(pp[use] - q).ravel(), (pp[near_b] - s_mine).ravel(), 0.05 * xx[4 : 4 + nb], prior * xx[4 + nb :]]
                 )
 
-            x = least_squares(res, x, max_nfev=20, method="trf", x_scale="jac", bounds=(lo, hi)).x
+            x = x.copy()
+            x[free] = least_squares(res, x[free], max_nfev=nfev, method="trf", x_scale="jac", bounds=(lo, hi)).x
         p = body_points(x)
         return x, 0.5 * (s_tree.query(p)[0].mean() + cKDTree(p).query(s_pts)[0].mean())
 
@@ -216,15 +356,32 @@ def fit_to_body_mesh(
     down[16] = [0, 0, -1.2]
     down[17] = [0, 0, 1.2]
     starts.append(down.ravel())
-    trials = [fit_from(s0, 2) for s0 in starts]  # a short fit from each start, then the best one to the end
-    x, _ = min(trials, key=lambda r: r[1])
-    x, _ = fit_from(None, rounds, x)
+    # From each start, pose and placement alone (shape and scale held: free, they bend to fit a wrong pose), with
+    # the pairs found again every few steps; the best start on.
+    trials = [fit(start(s0), 12, shape=False, nfev=5) for s0 in starts]
+    x, err = min(trials, key=lambda r: r[1])
+    # Then each limb from a few directions (closest points alone leave an arm or a leg where it started when the
+    # source holds it far from there -- a stride, an arm raised forward), kept where the whole body fits closer.
+    J0 = body.rest_joints()[0]
+    for root, child, chain, bends in _LIMBS:
+        rest_dir = J0[child] - J0[root]
+        side = float(np.sign(rest_dir[0]))
+        for d in _LIMB_DIRECTIONS[root in (1, 2)]:
+            for bend in bends:
+                x2 = x.copy()
+                x2[slot[root] : slot[root] + 3] = _turn(rest_dir, np.array([d[0] * side, d[1], d[2]]))
+                for j in chain:
+                    x2[slot[j] : slot[j] + 3] = 0.0
+                x2[slot[chain[0]]] = bend
+                x2, e2 = fit(x2, 3, joints=[root, *chain], shape=False, nfev=5)
+                if e2 < err:
+                    x, err = x2, e2
+    x, _ = fit(x, rounds)
     scale_f, t, beta, th = unpack(x)
     B1 = body.forward(th[None], beta).vertices[0] * scale_f + t
     # surface correction: registered vertices near the source move onto it, smoothed
-    sp_proxy = BodyProxy(sv, sf) if len(sf) else None
-    if sp_proxy is not None:
-        c = sp_proxy.query(B1).closest
+    if len(sf):  # the closest source point facing the same way (an arm next to the hip is not pulled onto the hip)
+        c = _attach(B1, body.faces, sv, sf, margin=0.03)[1]
     else:
         c = sv[s_tree.query(B1)[1]]
     d = c - B1
@@ -236,15 +393,16 @@ def fit_to_body_mesh(
     B2 = B1 + d
     body_error = float(BodyProxy(B2, body.faces).query(s_pts).signed_distance.__abs__().mean())
     # attach the garment to B2 and carry it to the rest body
-    q = BodyProxy(B2, body.faces).query(g)
-    tri = B2[body.faces[q.face]]
+    part = np.asarray(body.weights)[body.faces].sum(axis=1).argmax(axis=1)  # (F,): the joint moving each triangle most
+    face, closest = _attach(g, garment_faces, B2, body.faces, face_labels=part)
+    tri = B2[body.faces[face]]
     _, bary = closest_point_on_triangles(g, tri[:, 0], tri[:, 1], tri[:, 2])
-    t1, t2, n = _local_frames(B2, body.faces, q.face)
-    o = g - q.closest
+    t1, t2, n = _local_frames(B2, body.faces, face)
+    o = g - closest
     coef = np.stack([np.einsum("ij,ij->i", o, t1), np.einsum("ij,ij->i", o, t2), np.einsum("ij,ij->i", o, n)], 1)
     R = body.shaped_vertices(betas)[0]
-    c_r = np.einsum("mk,mkc->mc", bary, R[body.faces[q.face]])
-    r1, r2, rn = _local_frames(R, body.faces, q.face)
+    c_r = np.einsum("mk,mkc->mc", bary, R[body.faces[face]])
+    r1, r2, rn = _local_frames(R, body.faces, face)
     out = c_r + coef[:, :1] * r1 + coef[:, 1:2] * r2 + coef[:, 2:] * rn
     return BodyFit(vertices=out, body_error=body_error, scale=scale_f, trans=np.asarray(t), pose=th, betas=beta)
 
