@@ -378,6 +378,23 @@ def test_a_body_in_a_stride_is_registered(body):
     assert torn < 0.05, torn
 
 
+def test_a_mesh_wound_inward_gives_the_same_fit(body):
+    """The pairing and the attachment read normals: a source body and a garment whose triangles are all wound the
+    other way (normals inward, as some exporters write them) give the same fit."""
+    from segadeform.garments.registration import fit_to_body_mesh
+
+    g, g_src, sv, sf = _other_body_scene(body, [1.5, -1.0])
+    gv = fix_units_and_axes(g_src, units="cm", up="z")
+    bv = fix_units_and_axes(sv, units="cm", up="z")
+    a = fit_to_body_mesh(gv, bv, sf, body, None, samples=600, rounds=3, garment_faces=g.faces)
+    b = fit_to_body_mesh(gv, bv, sf[:, ::-1], body, None, samples=600, rounds=3, garment_faces=g.faces[:, ::-1])
+    np.testing.assert_allclose(b.pose, a.pose, atol=1e-6)  # the same registration
+    d = np.linalg.norm(a.vertices - b.vertices, axis=1)
+    # the same attachment but where a tie (a normal at right angles to the other's, a point on an edge between two
+    # triangles) is decided by rounding: measured 2.3 % of vertices moved more than 1 mm, 0.17 mm on average
+    assert np.median(d) < 1e-9 and (d > 1e-3).mean() < 0.05 and d.mean() < 1e-3, (np.median(d), d.mean())
+
+
 def _walls(spec, n: int = 6, width: float = 0.1):
     """Square walls across x, each n x n vertices ``width`` wide: ``spec`` = [(x, +1 or -1: the way it faces along
     x), ...].  Returns vertices, faces and each face's wall (its index in ``spec``)."""
