@@ -481,6 +481,7 @@ def test_a_fit_that_tears_the_garment_is_refused(tmp_path, monkeypatch):
     from segadeform.garments import registration
     from segadeform.garments.registration import edge_distortion
     from segadeform.io import Mesh, write_obj
+    from tests.cli.test_output_safety import folder_hash
 
     tri = np.array([[0, 1, 2], [0, 2, 3]])
     sq = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
@@ -509,11 +510,21 @@ def test_a_fit_that_tears_the_garment_is_refused(tmp_path, monkeypatch):
         "-o",
         str(tmp_path / "o.obj"),
     ]
+    (tmp_path / "notes.txt").write_text("a user's notes\n")
+    (tmp_path / "u.obj").write_text("a user's file\n")
+    before = folder_hash(tmp_path)  # the user's garment, body and other files beside the output
     r = CliRunner().invoke(cli, args)
     assert r.exit_code == 1 and "the fit tore the garment" in r.output and "--force" in r.output, r.output
     assert not (tmp_path / "o.obj").exists()
+    assert folder_hash(tmp_path) == before  # refused: nothing written, nothing touched
+    for force in ([], ["--force"]):  # a user's file at the output path survives either way
+        r = CliRunner().invoke(cli, [*args[:-1], str(tmp_path / "u.obj"), *force])
+        assert r.exit_code == 1 and "segadeform did not write it" in r.output, r.output
+        assert folder_hash(tmp_path) == before
     r = CliRunner().invoke(cli, [*args, "--force"])
     assert r.exit_code == 0 and (tmp_path / "o.obj").exists(), r.output
+    after = folder_hash(tmp_path)
+    assert {k: v for k, v in after.items() if k in before} == before and set(after) - set(before) == {"o.obj"}
 
 
 def test_a_makehuman_garment_given_to_run_is_sent_to_garment_fit(tmp_path):
