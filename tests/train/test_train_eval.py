@@ -352,6 +352,38 @@ def test_collision_near_trains_and_a_bad_value_is_refused(synthetic_dataset, tmp
             load_train_config(bad, dataset=synthetic_dataset)
 
 
+def test_collision_types_weigh_each_garment_type_and_bad_entries_are_refused(synthetic_dataset, tmp_path, body):
+    """loss.collision_types: naming every type's weight trains exactly as the same global weight does, a type
+    set apart trains differently, and an unknown type or a bad weight is refused naming the key."""
+    from segadeform.errors import FileFormatError
+
+    head = "[model]\nhidden = 16\nlstm_hidden = 16\n[loss]\ncollision_power = 1\ncollision_margin = 0.05\n"
+    runs = {
+        "global": "collision = 1000.0\n",
+        "by_type": "collision = 0.0\ncollision_types = { skirt = 1000.0, trousers = 1000.0 }\n",
+        "apart": "collision = 1000.0\ncollision_types = { trousers = 0.0 }\n",
+    }
+    sd = {}
+    for name, loss in runs.items():
+        p = tmp_path / f"{name}.toml"
+        p.write_text(head + loss + "[optim]\nsteps = 3\nframes = 2\n")
+        cfg = load_train_config(p, dataset=synthetic_dataset)
+        train(cfg, tmp_path / name, body, log_every=10)
+        sd[name] = torch.load(tmp_path / name / "last.pt", weights_only=False)["state_dict"]
+    assert cfg.loss.collision_for("trousers") == 0.0 and cfg.loss.collision_for("skirt") == 1000.0
+    assert all(torch.equal(sd["global"][k], sd["by_type"][k]) for k in sd["global"])
+    assert any(not torch.equal(sd["global"][k], sd["apart"][k]) for k in sd["global"])
+    bad = tmp_path / "bad.toml"
+    for entry, match in (
+        ("shirt = 1.0", "unknown garment type"),
+        ("top = -1.0", "collision_types.top"),
+        ("top = nan", "collision_types.top"),
+    ):
+        bad.write_text(f"[loss]\ncollision_types = {{ {entry} }}\n")
+        with pytest.raises(FileFormatError, match=match):
+            load_train_config(bad, dataset=synthetic_dataset)
+
+
 def test_a_history_model_runs_from_the_lead_trains_and_evaluates(synthetic_dataset, tmp_path, body):
     """ModelConfig.history: a sample's history inputs are its lead's frames then its own (history_in[lead + t]
     is frame t), the training step reads the state at lead + t, and a trained history model evaluates."""

@@ -34,6 +34,7 @@ the previous one's)::
     skin_prior_until = 0.5         # ... fading out by half-way (NCS notes transferred weights speed convergence)
     terms_from = 0.0               # > 0: every term but vertex and skin_prior, and the physics pairs, counts only
                                    # from this fraction of the steps on (the vertex fit first; 0: from the start)
+    collision_types = {}           # a garment type's own collision weight, e.g. { top = 10.0 } (others: collision)
 
     [optim]
     steps = 3000
@@ -71,6 +72,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError
+from ..garments.make import GARMENT_TYPES
 from ..io.toml import read_table, read_toml
 from ..model.config import ModelConfig
 
@@ -103,6 +105,14 @@ class LossWeights:
     # of the steps and at its weight from there on (the vertex fit first, the physical terms late); the validation
     # split chooses among the checkpoints after it (and the untrained model)
     terms_from: float = 0.0
+    # garment type (``skirt``, ``dress``, ``top``, ``trousers``, ``jumpsuit``, ``open-front``) -> the collision weight
+    # for samples of that type, in place of ``collision`` (types not named keep it): a tight top pays for every
+    # millimetre inside the body, a skirt's hem for contact the tangent plane only stands in for
+    collision_types: dict[str, float] = dataclasses.field(default_factory=dict)
+
+    def collision_for(self, garment_type) -> float:
+        """The collision weight for a sample of ``garment_type`` (``collision`` unless ``collision_types`` names it)."""
+        return float(self.collision_types.get(garment_type, self.collision))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -370,6 +380,14 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
         raise FileFormatError("loss.collision_power must be 1 or 2", path=p, got=loss.collision_power)
     if not loss.collision_near >= 0:
         raise FileFormatError("loss.collision_near must be >= 0 (m)", path=p, got=loss.collision_near)
+    known = sorted(set(GARMENT_TYPES.values()))
+    for typ, v in loss.collision_types.items():
+        if typ not in known:
+            raise FileFormatError(
+                "loss.collision_types: unknown garment type", path=p, expected=", ".join(known), got=typ
+            )
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            raise FileFormatError(f"loss.collision_types.{typ} must be a weight >= 0", path=p, got=v)
     if optim.device not in ("auto", "cpu", "cuda"):
         raise FileFormatError("optim.device must be auto, cpu or cuda", path=p, got=optim.device)
     if optim.steps < 1 or optim.frames < 1 or optim.garments < 1 or not optim.lr > 0:

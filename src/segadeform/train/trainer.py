@@ -105,7 +105,9 @@ def step_losses(
         "skin_prior": ((weights - item.body_weights[None]) ** 2).sum(-1).mean(),
     }
     scale = {"vertex": 1.0, "skin_prior": prior_scale}
-    out["total"] = sum(getattr(w, k) * scale.get(k, terms_scale) * out[k] for k in TERMS if getattr(w, k) != 0)
+    weight = {k: getattr(w, k) for k in TERMS}
+    weight["collision"] = w.collision_for(item.meta.get("type"))
+    out["total"] = sum(weight[k] * scale.get(k, terms_scale) * out[k] for k in TERMS if weight[k] != 0)
     return out
 
 
