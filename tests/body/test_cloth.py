@@ -205,7 +205,8 @@ def test_an_edge_across_the_body_is_pushed_out_with_both_ends():
     """An edge whose two ends are outside the body and whose middle is inside it (a chord across a box's corner, as
     a skirt's edge across a thigh): vertex contacts alone leave it there; the edge's contact moves both (free) ends
     alike until its middle is the margin outside, in the kernel and the reference.  An edge with both ends attached
-    is left to the vertex contacts (it follows the network where the garment lies on the body)."""
+    across the corner is left to the vertex contacts (it follows the network where the garment lies on the body;
+    the ends' normals are 90 degrees apart, so no side is the outside)."""
     body_v, body_f = _cube(0.1)
     col = BodyCollider(body_v, body_f)
     assert (col.query(body_v * 0.5, body_v).signed_distance < 0).all()  # the box is closed and wound outward
@@ -233,6 +234,64 @@ def test_an_edge_across_the_body_is_pushed_out_with_both_ends():
     pinned = cloth_setup(v, f, np.zeros(3), knobs)
     out = ClothStage(pinned, body_v, body_f, knobs, margin=MARGIN).step(targets, posed)
     np.testing.assert_array_equal(out, targets)
+
+
+def _roof(width, height, length):
+    """A closed prism whose top is a ridge along z (two roof faces sloping down to y = 0 at x = +-width, a knee's
+    front as the cloth sees it), faces wound outward: (6, 3), (8, 3)."""
+    v = np.array(
+        [
+            [-width, 0, -length],
+            [width, 0, -length],
+            [0, height, -length],
+            [-width, 0, length],
+            [width, 0, length],
+            [0, height, length],
+        ],
+        float,
+    )
+    f = np.array([[0, 2, 1], [3, 4, 5], [0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4], [2, 0, 3], [2, 3, 5]])
+    return v, f
+
+
+def test_an_attached_edge_across_a_ridge_is_lifted_where_both_ends_lie_on_it():
+    """A tight garment's long edge across a bent knee: both ends attached and lying on the body (6 mm over the two
+    roof faces of a ridge whose normals are 23 degrees apart), the middle 8 mm inside it.  The middle's contact
+    lifts both ends alike until it is the margin outside (kernel = reference); the same edge across a box's corner
+    (normals 90 degrees apart: a pinch, no side is the outside) is left where the network put it."""
+    w, h = 0.2, 0.04
+    body_v, body_f = _roof(w, h, 0.2)
+    col = BodyCollider(body_v, body_f)
+    assert (col.query(np.array([[0.0, 0.01, 0.0]]), body_v).signed_distance < 0).all()  # closed, wound outward
+    lift = 0.006 * np.hypot(h, w) / w  # 6 mm along a roof face's normal, as a height
+    ends = np.array([-0.07, 0.09])  # the middle off the ridge (x = 1 cm: one face is nearest, no tie)
+    v = np.array([[ends[0], h * (1 - 0.35) + lift, 0.0], [ends[1], h * (1 - 0.45) + lift, 0.0], [0.0, h + lift, 0.05]])
+    f = np.array([[0, 1, 2]])
+    d = col.query(v[:2], body_v)
+    assert (d.signed_distance > MARGIN).all() and (d.signed_distance < MARGIN + CONTACT_BAND).all()
+    assert d.normal[0] @ d.normal[1] > 0.9  # the same side of the body
+    assert col.query(0.5 * (v[:1] + v[1:2]), body_v).signed_distance[0] < -0.001  # the chord's middle is inside
+    targets = np.repeat(v[None], 3, 0)
+    posed = np.repeat(body_v[None], 3, 0)
+    knobs = ClothSettings(stiffness=0.0, bending=0.0, gravity=0.0)
+    pinned = cloth_setup(v, f, np.zeros(3), knobs)  # every vertex attached: it lies on the body
+    assert pinned.radius.tolist() == [0.0, 0.0, 0.0]
+    out = ClothStage(pinned, body_v, body_f, knobs, margin=MARGIN).step(targets, posed)
+    ref, _ = cloth_reference(targets, posed, body_f, pinned, knobs, margin=MARGIN)
+    assert np.abs(out - ref).max() <= 1e-12
+    for x in out:
+        assert col.query(0.5 * (x[:1] + x[1:2]), body_v).signed_distance[0] >= MARGIN - 1e-9
+        np.testing.assert_allclose(x[1] - x[0], v[1] - v[0], atol=1e-12)  # both ends moved alike
+        assert x[2].tolist() == v[2].tolist()  # the third vertex, clear of the body, follows the network
+    # across a box's corner the ends' normals are 90 degrees apart: left to the vertex contacts
+    cube_v, cube_f = _cube(0.1)
+    c = np.array([[0.09, 0.106, 0.0], [0.106, 0.09, 0.0], [0.16, 0.16, 0.02]])
+    assert BodyCollider(cube_v, cube_f).query(0.5 * (c[:1] + c[1:2]), cube_v).signed_distance[0] < -0.001
+    corner = np.repeat(c[None], 3, 0)
+    out = ClothStage(cloth_setup(c, f, np.zeros(3), knobs), cube_v, cube_f, knobs, margin=MARGIN).step(
+        corner, np.repeat(cube_v[None], 3, 0)
+    )
+    np.testing.assert_array_equal(out, corner)
 
 
 def _box(lo, hi):

@@ -18,6 +18,7 @@ const LOOSE = 0.01; // the backstop traces vertices whose attachment radius is a
 const OVERSHOOT = 0.001; // metres past the margin each tracing step aims (SCL_OVERSHOOT)
 const SPREAD = 40; // Jacobi sweeps spreading the traced moves (SCL_SPREAD)
 const SPREAD_RADIUS = 0.2; // metres along the garment from a traced vertex that its move spreads to (SCL_SPREAD_RADIUS)
+const AGREE = 0.5; // cosine: contact normals within 60 degrees are on the same side of the body (SCL_AGREE)
 
 /** The cloth stage's knobs when none are given: segadeform.cloth_settings.ClothSettings' defaults. */
 export const DEFAULT_CLOTH = Object.freeze({
@@ -270,10 +271,30 @@ function smoothVertex(x, xo, y, yo, nptr, nidx, radius, i, k) {
   x[p + 2] += k * (m2 - (x[p + 2] - y[t + 2]));
 }
 
-/* Whether edge e gets a contact plane at its middle: an end in contact (sd within `near`) and an end free (1 or 0). */
-function edgeNear(edges, e, sd, radius, near) {
+/* u . v for the 3-vectors at offsets i of u and j of v, summed left to right (dot3 in _cloth.c). */
+function dot3(u, i, v, j) {
+  return u[i] * v[j] + u[i + 1] * v[j + 1] + u[i + 2] * v[j + 2];
+}
+
+/* Whether edge e gets a contact plane at its middle (1 or 0): an end in contact (sd within `near`) and an end free; or
+ * both ends attached, both in contact, on the same side of the body (their contact normals cn within AGREE), where the
+ * body may bulge into the middle by more than the ends' room and a quarter of the margin (edge_near in _cloth.c). */
+function edgeNear(edges, e, x, sd, cn, radius, margin, near) {
   const a = edges[2 * e], b = edges[2 * e + 1];
-  return (sd[a] < near || sd[b] < near) && (radius[a] > 0 || radius[b] > 0) ? 1 : 0;
+  if (radius[a] > 0 || radius[b] > 0) return sd[a] < near || sd[b] < near ? 1 : 0;
+  if (!(sd[a] < near && sd[b] < near)) return 0;
+  const c = dot3(cn, 3 * a, cn, 3 * b);
+  if (!(c > AGREE)) return 0;
+  const d0 = x[3 * b] - x[3 * a], d1 = x[3 * b + 1] - x[3 * a + 1], d2 = x[3 * b + 2] - x[3 * a + 2];
+  const room = 0.5 * ((sd[a] > margin ? sd[a] : margin) + (sd[b] > margin ? sd[b] : margin)) - margin + 0.25 * margin;
+  return 0.25 * (d0 * d0 + d1 * d1 + d2 * d2) * (1.0 - c) > room * room * (1.0 + c) ? 1 : 0;
+}
+
+/* Whether the middle's contact normal (n at offset k) agrees with both ends' (edge_agrees in _cloth.c). */
+function edgeAgrees(edges, e, cn, radius, n, k) {
+  const a = edges[2 * e], b = edges[2 * e + 1];
+  if (radius[a] > 0 || radius[b] > 0) return true;
+  return dot3(n, k, cn, 3 * a) > AGREE && dot3(n, k, cn, 3 * b) > AGREE;
 }
 
 /* One edge's contact: both ends of edge e moved alike along the plane's normal until the edge's middle is margin
@@ -571,15 +592,16 @@ export class ClothStage {
           }
         }
       }
-      // and for the middle of every edge with an end in contact and a free end (only those)
+      // and for the middle of every edge with an end in contact and a free end, or both ends attached, in contact and
+      // agreeing (edgeNear; only those)
       let nec = 0;
-      for (let e = 0; e < ne; e++) nec += edgeNear(edges, e, sd, radius, margin + band);
+      for (let e = 0; e < ne; e++) nec += edgeNear(edges, e, x, sd, cn, radius, margin, margin + band);
       if (nec > this.eidx.length) this.growEdges(nec);
       const { eidx, mid, esd, ecp, ecn } = this;
       nec = 0;
       for (let e = 0; e < ne; e++) {
         const a = 3 * edges[2 * e], b = 3 * edges[2 * e + 1];
-        if (!edgeNear(edges, e, sd, radius, margin + band)) continue;
+        if (!edgeNear(edges, e, x, sd, cn, radius, margin, margin + band)) continue;
         eidx[nec] = e;
         mid[3 * nec] = 0.5 * (x[a] + x[b]);
         mid[3 * nec + 1] = 0.5 * (x[a + 1] + x[b + 1]);
@@ -587,6 +609,7 @@ export class ClothStage {
         nec++;
       }
       if (nec > 0) col.near(bv, box, mid, 0, nec, margin + band, esd, ecp, ecn);
+      for (let e = 0; e < nec; e++) if (!edgeAgrees(edges, eidx[e], cn, radius, ecn, 3 * e)) esd[e] = Infinity;
       q.set(x);
       // the sweeps, alternating direction
       for (let it = 0; it < iters; it++) {

@@ -39,8 +39,13 @@
  *                 equal masses: Bridson, Fedkiw & Anderson, "Robust treatment of collisions, contact and friction
  *                 for cloth animation", SIGGRAPH 2002, sec. 7).  Without it two ends pushed out to either side of a
  *                 limb leave the edge between them across it: the holes of a thigh through a skirt, every vertex
- *                 outside.  Edges with both ends attached are left to the vertex contacts: they follow the network
- *                 where the garment lies on the body, and there (an arm against the torso) no side is the outside.
+ *                 outside.  An edge with both ends attached gets the plane only where both ends are in contact on
+ *                 the same side of the body and its middle too (the three contact normals within 60 degrees of each
+ *                 other, SCL_AGREE), and the body may bulge into its middle by more than the ends' room and a
+ *                 quarter of the margin (edge_near): a tight garment's long edge across a bent knee, whose middle
+ *                 the knee comes through while both ends lie on it.  Elsewhere such an edge is left to the vertex contacts: it
+ *                 follows the network where the garment lies on the body, and in a pinch (an arm against the
+ *                 torso, ends or middle closest to different parts) no side is the outside.
  *
  * Deep targets (the backstop, after the engines' backstop of Unreal Chaos Cloth: the cloth kept on the outer side
  * of the body along the skinned normal): where the network puts the garment deep inside the body (a thigh 3-8 cm
@@ -92,7 +97,7 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 5
+#define SCL_ABI 6
 #define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
 #define SCL_TINY 1e-300
@@ -102,6 +107,7 @@ int64_t sdc_push_out(const void *h, const double *verts, const double *box, int6
 #define SCL_OVERSHOOT 0.001   /* metres past the margin each tracing step aims */
 #define SCL_SPREAD 40         /* Jacobi sweeps spreading the traced moves over the garment */
 #define SCL_SPREAD_RADIUS 0.2 /* metres along the garment from a traced vertex that its move spreads to */
+#define SCL_AGREE 0.5         /* cosine: contact normals within 60 degrees are on the same side of the body */
 
 /* the settings array's entries (segadeform.body.cloth.ClothSettings.array) */
 enum {
@@ -388,9 +394,35 @@ static void smooth_vertex(double *x, const double *y, const int64_t *nptr, const
 }
 
 /* Whether edge e gets a contact plane at its middle: an end in contact (sd within `near`) and an end free. */
-static int edge_near(const int64_t *edges, int64_t e, const double *sd, const double *radius, double near) {
+static double dot3(const double *u, const double *v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; }
+
+/* Whether edge e gets a contact plane at its middle: an end in contact (sd within `near`) and an end free; or both
+ * ends attached, both in contact, on the same side of the body (their contact normals cn within SCL_AGREE), where
+ * the body may bulge between them into the edge's middle: the sag of a ridge whose sides have those normals, under
+ * the edge's chord of length l, (l / 2) tan(phi / 2) with cos(phi) = na . nb, more than the room the ends leave
+ * (their mean distance over the margin) plus a quarter of the margin.  A flat stretch of skin (phi ~ 0) asks for no
+ * query: on a tight garment that is most of its edges. */
+static int edge_near(const int64_t *edges, int64_t e, const double *x, const double *sd, const double *cn,
+                     const double *radius, double margin, double near) {
     int64_t a = edges[2 * e], b = edges[2 * e + 1];
-    return (sd[a] < near || sd[b] < near) && (radius[a] > 0 || radius[b] > 0);
+    double c, d0, d1, d2, room;
+    if (radius[a] > 0 || radius[b] > 0) return sd[a] < near || sd[b] < near;
+    if (!(sd[a] < near && sd[b] < near)) return 0;
+    c = dot3(cn + 3 * a, cn + 3 * b);
+    if (!(c > SCL_AGREE)) return 0;
+    d0 = x[3 * b] - x[3 * a];
+    d1 = x[3 * b + 1] - x[3 * a + 1];
+    d2 = x[3 * b + 2] - x[3 * a + 2];
+    room = 0.5 * ((sd[a] > margin ? sd[a] : margin) + (sd[b] > margin ? sd[b] : margin)) - margin + 0.25 * margin;
+    return 0.25 * (d0 * d0 + d1 * d1 + d2 * d2) * (1.0 - c) > room * room * (1.0 + c);
+}
+
+/* Whether the middle's contact normal n agrees with both ends' (an edge with both ends attached keeps its middle's
+ * plane only then: a middle whose closest point is on another body part, an arm against the torso, is left alone). */
+static int edge_agrees(const int64_t *edges, int64_t e, const double *cn, const double *radius, const double *n) {
+    int64_t a = edges[2 * e], b = edges[2 * e + 1];
+    if (radius[a] > 0 || radius[b] > 0) return 1;
+    return dot3(n, cn + 3 * a) > SCL_AGREE && dot3(n, cn + 3 * b) > SCL_AGREE;
 }
 
 /* One edge's contact: both ends of edge e moved alike along the plane's normal n until the edge's middle is margin
@@ -717,10 +749,11 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
                 memcpy(cn + 3 * i, w.tcn + 3 * r, sizeof(double) * 3);
             }
         }
-        /* and for the middle of every edge with an end in contact and a free end (only those: an edge whose ends
-         * are both clear of the body is left unchecked, which keeps the extra queries to the few edges near it) */
+        /* and for the middle of every edge with an end in contact and a free end, or both ends attached, in contact
+         * and agreeing (edge_near; only those: an edge whose ends are both clear of the body is left unchecked, which
+         * keeps the extra queries to the edges near it) */
         nec = 0;
-        for (e = 0; e < ne; e++) nec += edge_near(edges, e, sd, radius, margin + band);
+        for (e = 0; e < ne; e++) nec += edge_near(edges, e, x, sd, cn, radius, margin, margin + band);
         if (nec > cap) {
             size_t c = (size_t)nec;
             void *a = realloc(eidx, sizeof(int64_t) * c), *b, *d, *g, *h;
@@ -739,7 +772,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         nec = 0;
         for (e = 0; e < ne; e++) {
             const double *pa = x + 3 * edges[2 * e], *pb = x + 3 * edges[2 * e + 1];
-            if (!edge_near(edges, e, sd, radius, margin + band)) continue;
+            if (!edge_near(edges, e, x, sd, cn, radius, margin, margin + band)) continue;
             eidx[nec] = e;
             mid[3 * nec] = 0.5 * (pa[0] + pb[0]);
             mid[3 * nec + 1] = 0.5 * (pa[1] + pb[1]);
@@ -747,6 +780,8 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
             nec++;
         }
         if (nec > 0) sdc_near(collider, bv, box, mid, 0, nec, margin + band, esd, ecp, ecn);
+        for (e = 0; e < nec; e++)
+            if (!edge_agrees(edges, eidx[e], cn, radius, ecn + 3 * e)) esd[e] = INFINITY;
         memcpy(q, x, sizeof(double) * 3 * (size_t)n);
         /* the sweeps, alternating direction */
         for (it = 0; it < iters; it++) {

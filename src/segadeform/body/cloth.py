@@ -90,9 +90,12 @@ TRACE, OVERSHOOT, SPREAD, SPREAD_RADIUS = 8, 0.001, 40, 0.2
 #: the backstop traces only vertices whose attachment radius is at least this (SCL_LOOSE, metres): cloth lying on the
 #: body at rest (a sleeve's hem on the arm) keeps the closest-point rule
 LOOSE = 0.01
+#: cosine: contact normals within 60 degrees are on the same side of the body (SCL_AGREE); an edge with both ends
+#: attached gets a contact plane at its middle only where its ends' and its middle's normals agree so
+AGREE = 0.5
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
 SETUP_VERSION = 3
-_ABI = 5
+_ABI = 6
 #: the order of _cloth.c's settings array
 _SETTINGS = (
     "iterations",
@@ -650,11 +653,26 @@ def cloth_reference(
             q = col.query(x, bv)
         contact = q.signed_distance < margin + CONTACT_BAND
         ea, eb = setup.edges[:, 0], setup.edges[:, 1]
-        e_near = np.flatnonzero((contact[ea] | contact[eb]) & ((setup.radius[ea] > 0) | (setup.radius[eb] > 0)))
+        free = (setup.radius[ea] > 0) | (setup.radius[eb] > 0)
+        # both ends attached: both in contact, on the same side of the body, and the body may bulge into the middle
+        # by more than the ends' room and a quarter of the margin (the kernel's edge_near)
+        c = _dot3(q.normal[ea], q.normal[eb])
+        d = x[eb] - x[ea]
+        sd = q.signed_distance
+        room = 0.5 * (np.where(sd[ea] > margin, sd[ea], margin) + np.where(sd[eb] > margin, sd[eb], margin))
+        room = room - margin + 0.25 * margin
+        bulge = 0.25 * _dot3(d, d) * (1.0 - c) > room * room * (1.0 + c)
+        e_near = np.flatnonzero(
+            np.where(free, contact[ea] | contact[eb], contact[ea] & contact[eb] & (c > AGREE) & bulge)
+        )
         e_sd, e_cp, e_n = np.full(len(e_near), np.inf), np.zeros((len(e_near), 3)), np.zeros((len(e_near), 3))
         if len(e_near):
             eq = col.query(0.5 * (x[ea[e_near]] + x[eb[e_near]]), bv)
-            e_sd, e_cp, e_n = eq.signed_distance, eq.closest, eq.normal
+            e_sd, e_cp, e_n = eq.signed_distance.copy(), eq.closest, eq.normal
+            a_, b_ = ea[e_near], eb[e_near]
+            # ... and its middle on that side too (the kernel's edge_agrees)
+            off = ~free[e_near] & ~((_dot3(e_n, q.normal[a_]) > AGREE) & (_dot3(e_n, q.normal[b_]) > AGREE))
+            e_sd[off] = np.inf
         x_query = x.copy()
         for it in range(iters):
             fwd = it % 2 == 0
@@ -803,6 +821,11 @@ def _backstop_reference(col, bv, setup: ClothSetup, y, x, sd, normal, margin: fl
         d = d2
     x += d
     return y + d, int(held.sum())
+
+
+def _dot3(u, v):
+    """Row-wise dot products, summed left to right as the kernel's dot3.  Shapes: (..., 3) twice -> (...)"""
+    return u[..., 0] * v[..., 0] + u[..., 1] * v[..., 1] + u[..., 2] * v[..., 2]
 
 
 def _attach(x, y, i, r):
