@@ -495,3 +495,21 @@ def test_setup_is_cached_with_the_garment(tmp_path, body, monkeypatch):
     monkeypatch.undo()
     c = garment_setup(v, f, rest, body.faces, cache_dir=tmp_path)
     np.testing.assert_array_equal(c.radius, a.radius)
+
+
+def test_the_holes_bench_counts_a_chord_across_a_corner():
+    """bench/cloth_holes.py's count: a triangle whose corners are outside a box, one edge across the box's corner
+    with its middle 5 mm inside and the centre 1.7 mm inside, is one edge middle and one face centre and no vertex;
+    lifted clear of the box, none."""
+    from bench.cloth_holes import holes
+    from segadeform.geometry.mesh_ops import unique_edges
+
+    body_v, body_f = _cube(0.1)
+    col = BodyCollider(body_v, body_f)
+    v = np.array([[0.07, 0.12, 0.0], [0.12, 0.07, 0.0], [0.105, 0.105, 0.0]])
+    assert (col.query(v, body_v).signed_distance > 0).all()
+    f = np.array([[0, 1, 2]])
+    x = np.stack([v, v + [0.05, 0.05, 0.0]])
+    out = holes(x, f, unique_edges(f), np.repeat(body_v[None], 2, 0), col)
+    assert out.tolist() == [[0.0, 1.0, 1.0], [0.0, 0.0, 0.0]]
+
