@@ -512,4 +512,3 @@ def test_the_holes_bench_counts_a_chord_across_a_corner():
     x = np.stack([v, v + [0.05, 0.05, 0.0]])
     out = holes(x, f, unique_edges(f), np.repeat(body_v[None], 2, 0), col)
     assert out.tolist() == [[0.0, 1.0, 1.0], [0.0, 0.0, 0.0]]
-
