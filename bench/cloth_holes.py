@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from bench._heldout import add_sample_args, open_samples
 
 #: metres: a middle counts as inside when it is deeper than this (a hole one can see, not a graze)
 DEEP = 0.001
@@ -74,30 +75,13 @@ def sample_rows(dataset, sid: str, body, predictor, settings, margin: float) -> 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("dataset", type=Path)
-    ap.add_argument("--split", default="test")
-    ap.add_argument("--types", default="skirt,dress,top")
-    ap.add_argument("--sample", action="append", default=[])
-    ap.add_argument("--package", default=str(REPO / "samples" / "models" / "default"))
-    ap.add_argument("--cloth", default="default")
+    add_sample_args(ap, "skirt,dress,top")
     ap.add_argument("--push-out", type=float, default=0.004)
-    ap.add_argument("-o", "--output", type=Path)
     a = ap.parse_args(argv)
     if a.output is not None and a.output.exists():
         print(f"{a.output}: exists; give a new path", file=sys.stderr)
         return 1
-    from segadeform.body import default_body_path, load_body
-    from segadeform.dataset.roots import DatasetRoots
-    from segadeform.runtime.predictor import PackagePredictor
-    from segadeform.settings.cloth import ClothSettings
-    from segadeform.train.predictors import make_predictor
-
-    body = load_body(default_body_path())
-    ds = DatasetRoots([a.dataset])
-    settings = ClothSettings.parse("" if a.cloth == "default" else a.cloth)
-    types = {t for t in a.types.split(",") if t}
-    ids = a.sample or [i for i in ds.ids(a.split) if ds.load(i).meta.get("type") in types]
-    pred = make_predictor("shipped", a.package, package=PackagePredictor)
+    body, ds, settings, ids, pred = open_samples(a)
     md = [
         f"Mean per frame; cloth settings `{a.cloth}`, push-out {1e3 * a.push_out:g} mm; inside = deeper than "
         f"{1e3 * DEEP:g} mm for middles and centres, any depth for vertices.",

@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from bench._heldout import add_sample_args, open_samples
 
 #: bins of the deeper end's signed distance from the posed body in the target (m; negative inside)
 DEPTHS = (
@@ -100,26 +101,9 @@ def sample_rows(dataset, sid: str, body, predictor, settings) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("dataset", type=Path)
-    ap.add_argument("--split", default="test")
-    ap.add_argument("--types", default="skirt,dress,sleeved-dress")
-    ap.add_argument("--sample", action="append", default=[])
-    ap.add_argument("--package", default=str(REPO / "samples" / "models" / "default"))
-    ap.add_argument("--cloth", default="default")
-    ap.add_argument("-o", "--output", type=Path)
+    add_sample_args(ap, "skirt,dress,sleeved-dress")
     a = ap.parse_args(argv)
-    from segadeform.body import default_body_path, load_body
-    from segadeform.dataset.roots import DatasetRoots
-    from segadeform.runtime.predictor import PackagePredictor
-    from segadeform.settings.cloth import ClothSettings
-    from segadeform.train.predictors import make_predictor
-
-    body = load_body(default_body_path())
-    ds = DatasetRoots([a.dataset])
-    settings = ClothSettings.parse("" if a.cloth == "default" else a.cloth)
-    types = {t for t in a.types.split(",") if t}
-    ids = a.sample or [i for i in ds.ids(a.split) if ds.load(i).meta.get("type") in types]
-    pred = make_predictor("shipped", a.package, package=PackagePredictor)
+    body, ds, settings, ids, pred = open_samples(a)
     rows = []
     for sid in ids:
         print(f"  {sid}", file=sys.stderr)
