@@ -36,3 +36,16 @@ def open_samples(a: argparse.Namespace):
     types = {t for t in a.types.split(",") if t}
     ids = a.sample or [i for i in ds.ids(a.split) if ds.load(i).meta.get("type") in types]
     return body, ds, settings, ids, make_predictor("shipped", a.package, package=PackagePredictor)
+
+
+def refuse_existing_output(a: argparse.Namespace) -> None:
+    """``SystemExit`` (one line, exit 1) when ``-o`` names a file that exists: a bench never overwrites a file."""
+    if a.output is not None and a.output.exists():
+        raise SystemExit(f"{a.output}: exists; give a new path")
+
+
+def emit(text: str, output: Path | None) -> None:
+    """Print the report and write it to ``output`` (a new file: :func:`refuse_existing_output` ran first)."""
+    print(text)
+    if output is not None:
+        output.write_text(text)

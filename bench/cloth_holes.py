@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from bench._heldout import add_sample_args, open_samples
+from bench._heldout import add_sample_args, emit, open_samples, refuse_existing_output
 
 #: metres: a middle counts as inside when it is deeper than this (a hole one can see, not a graze)
 DEEP = 0.001
@@ -78,9 +78,7 @@ def main(argv=None) -> int:
     add_sample_args(ap, "skirt,dress,top")
     ap.add_argument("--push-out", type=float, default=0.004)
     a = ap.parse_args(argv)
-    if a.output is not None and a.output.exists():
-        print(f"{a.output}: exists; give a new path", file=sys.stderr)
-        return 1
+    refuse_existing_output(a)
     body, ds, settings, ids, pred = open_samples(a)
     md = [
         f"Mean per frame; cloth settings `{a.cloth}`, push-out {1e3 * a.push_out:g} mm; inside = deeper than "
@@ -100,9 +98,7 @@ def main(argv=None) -> int:
     for (typ, name), vs in sorted(by_type.items(), key=lambda kv: kv[0][0]):
         md.append(f"| {typ} | {len(vs)} | {name} | " + " | ".join(f"{x:.1f}" for x in np.mean(vs, axis=0)) + " |")
     text = "\n".join(md) + "\n"
-    print(text)
-    if a.output is not None:
-        a.output.write_text(text)
+    emit(text, a.output)
     return 0
 
 

@@ -1,7 +1,7 @@
 """Where the cloth stage's edge stretch comes from: the shipped model, then the stage, on held-out samples.
 
     .venv/bin/python bench/cloth_strain.py DATASET [--split test] [--types skirt,dress,sleeved-dress]
-        [--sample ID ...] [--package samples/models/default] [--cloth default|K=V,..] [-o OUT.md]
+        [--sample ID ...] [--package samples/models/default] [--cloth default|K=V,..] [-o NEW.md]
 
 For every sample (of ``--split`` whose garment type is one of ``--types``, or each ``--sample``): the package's
 frames (the target), the cloth stage on them (as ``segadeform eval --cloth``, contact at 4 mm) and the Blender
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from bench._heldout import add_sample_args, open_samples
+from bench._heldout import add_sample_args, emit, open_samples, refuse_existing_output
 
 #: bins of the deeper end's signed distance from the posed body in the target (m; negative inside)
 DEPTHS = (
@@ -103,6 +103,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     add_sample_args(ap, "skirt,dress,sleeved-dress")
     a = ap.parse_args(argv)
+    refuse_existing_output(a)
     body, ds, settings, ids, pred = open_samples(a)
     rows = []
     for sid in ids:
@@ -126,9 +127,7 @@ def main(argv=None) -> int:
         md.append(f"| {r['sample']} | {r['type']} | " + " | ".join(f"{r[c]:.1f}" for c in cols) + " |")
     md += [""] + [f"* {r['sample']}: worst edge at {r['worst']}" for r in rows] + [""]
     text = "\n".join(md)
-    print(text)
-    if a.output is not None:
-        a.output.write_text(text)
+    emit(text, a.output)
     return 0
 
 
