@@ -43,9 +43,9 @@
  *                 the same side of the body and its middle too (the three contact normals within 60 degrees of each
  *                 other, SCL_AGREE), and the body may bulge into its middle by more than the ends' room and a
  *                 quarter of the margin (edge_near): a tight garment's long edge across a bent knee, whose middle
- *                 the knee comes through while both ends lie on it.  Elsewhere such an edge is left to the vertex contacts: it
- *                 follows the network where the garment lies on the body, and in a pinch (an arm against the
- *                 torso, ends or middle closest to different parts) no side is the outside.
+ *                 the knee comes through while both ends lie on it.  Elsewhere such an edge is left to the vertex
+ *                 contacts: it follows the network where the garment lies on the body, and in a pinch (an arm
+ *                 against the torso, ends or middle closest to different parts) no side is the outside.
  *
  * Deep targets (the backstop, after the engines' backstop of Unreal Chaos Cloth: the cloth kept on the outer side
  * of the body along the skinned normal): where the network puts the garment deep inside the body (a thigh 3-8 cm
