@@ -440,13 +440,24 @@ def measure(
 
 
 def resimulate(
-    cfg, dataset: Path, body, sid: str, *, attempt: int = 0, quality=None, offset=None, lead=None, sim_python=None
+    cfg,
+    dataset: Path,
+    body,
+    sid: str,
+    *,
+    attempt: int = 0,
+    quality=None,
+    offset=None,
+    lead=None,
+    effects=(),
+    sim_python=None,
 ):
     """Sample ``sid`` of ``dataset`` made again by Blender as ``segadeform dataset make`` made it from ``cfg``
     (its garment files, the motion with its simulated lead, the settings of simulation ``attempt``: 0, or the
     [[fallback]] the sample was kept on), changed where asked: ``quality`` replaces the solver's steps per frame,
     ``offset`` (N, 3, metres) moves the garment's rest vertices (and its A-posed cloth's), ``lead`` keeps only the
-    last ``lead`` frames of the simulated lead (the capture before the clip, which no model input shows).
+    last ``lead`` frames of the simulated lead (the capture before the clip, which no model input shows),
+    ``effects`` names simulation effects to turn on as well (e.g. ``("self_collision",)``).
 
     Shapes: -> frames (T, N, 3) of the clip (float64), Blender's seconds per simulated frame."""
     from segadeform.dataset.make import _cloth_rel, _garment_rel, _motion, sample_plan
@@ -460,6 +471,9 @@ def resimulate(
     st = cfg.attempt_settings(g, int(attempt))
     if quality is not None:
         st = st.replace(quality=int(quality))
+    extra = tuple(e for e in effects if e not in st.effects)
+    if extra:
+        st = st.replace(effects=tuple(st.effects) + extra)
     rel = _garment_rel(cfg, ps.garment, ps.body)
     mesh = read_mesh(Path(dataset) / rel)
     cpath = Path(dataset) / _cloth_rel(rel)

@@ -215,6 +215,59 @@ def test_resimulate_repeats_a_sample_and_changes_only_what_it_is_asked_to(tiny_d
         resimulate(cfg, tiny_dataset, body, "no-such-sample")
 
 
+def test_resimulate_turns_on_the_effects_it_is_given(tiny_dataset, monkeypatch):
+    """tools/gt_spread.py's `self-collision` variant: the settings Blender gets are the sample's plus self
+    collision, nothing else changed; an effect already on is not named twice."""
+    import segadeform.physics.blender as blender
+    from bench.tradeoffs_measure import resimulate
+    from segadeform.body import default_body_path, load_body
+
+    seen = []
+
+    def fake_simulate(*args, settings=None, **kw):
+        seen.append(settings)
+        raise KeyboardInterrupt  # stop before Blender runs
+
+    monkeypatch.setattr(blender, "simulate", fake_simulate)
+    body = load_body(default_body_path())
+    cfg = load_dataset_config(tiny_dataset / "config.toml")
+    sid = sorted(p.stem for p in (tiny_dataset / "samples").glob("*.json"))[0]
+    attempt = load_sample(tiny_dataset, sid).meta["attempt"]
+    for effects in ((), ("self_collision",), ("self_collision", "gravity")):
+        with pytest.raises(KeyboardInterrupt):
+            resimulate(cfg, tiny_dataset, body, sid, attempt=attempt, effects=effects)
+    base, with_self, again = seen
+    assert "self_collision" not in base.effects
+    assert with_self.effects == tuple(e for e in blender.EFFECTS if e in base.effects + ("self_collision",))
+    assert again == with_self and with_self.replace(effects=base.effects) == base
+
+
+def test_hem_rise_reads_a_hem_lifted_in_the_rest_pose(tiny_dataset):
+    """tools/hem_rise.py: frames that are the prior's own skinning have the hem at rest (0 cm); the same with the
+    lowest tenth of the rest vertices lifted 15 cm give 15 cm in every frame, whatever the pose."""
+    import importlib.util
+
+    from segadeform.body import default_body_path, load_body
+    from segadeform.body.transfer import garment_weights, skin_garment
+
+    spec = importlib.util.spec_from_file_location("hem_rise", SAMPLES.parent / "tools" / "hem_rise.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    body = load_body(default_body_path())
+    sid = next(p.stem for p in sorted((tiny_dataset / "samples").glob("skirt*.json")))
+    s = load_sample(tiny_dataset, sid)
+    betas = s.betas if s.betas.size else None
+    w = garment_weights(s.rest, s.faces, body, betas, "smooth")
+    at_rest = dataclasses.replace(s, frames=skin_garment(s.rest, w, body, s.poses, betas, s.trans))
+    np.testing.assert_allclose(tool.hem_rise(at_rest, body), 0.0, atol=1e-6)
+    lifted = s.rest.astype(np.float64).copy()
+    lifted[s.rest[:, 1] < np.quantile(s.rest[:, 1], 0.1), 1] += 0.15
+    up = dataclasses.replace(s, frames=skin_garment(lifted, w, body, s.poses, betas, s.trans))
+    rise = tool.hem_rise(up, body)
+    assert rise.shape == (len(s.frames),)
+    np.testing.assert_allclose(rise, 15.0, atol=1e-4)
+
+
 def test_resume_skips_done_and_redoes_missing(tiny_dataset, tmp_path, capsys):
     out = tmp_path / "copy"
     shutil.copytree(tiny_dataset, out)
