@@ -124,11 +124,12 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
 
     from segadeform.body import default_body_path, load_body
     from segadeform.body.placement import fix_units_and_axes, placement_report, push_off_body
+    from segadeform.bounds import check_body_height
     from segadeform.errors import InputError
     from segadeform.garments.registration import edge_distortion, fit_mhclo, fit_to_body_mesh, guess_units_and_up
     from segadeform.io import read_mesh
     from segadeform.io.mhclo import read_mhclo
-    from segadeform.io.obj import rewrite_obj_vertices
+    from segadeform.io.obj import OWN_COMMENT, betas_record, rewrite_obj_vertices
     from segadeform.io.output_guard import OutputGuard
 
     b = _betas(betas)
@@ -140,6 +141,8 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         raise click.UsageError(f"--offset must be dx,dy,dz, got {offset!r}") from None
     obj = garment
     if garment.suffix.lower() == ".mhclo":
+        if mhclo is not None and Path(mhclo).resolve() != Path(garment).resolve():
+            raise click.UsageError(f"GARMENT {garment} is a binding itself: give it, or --mhclo {mhclo}, not both")
         mhclo, obj = garment, None
     elif mhclo is None and from_body is None and garment.with_suffix(".mhclo").is_file():
         mhclo = garment.with_suffix(".mhclo")
@@ -180,6 +183,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     guard = OutputGuard("garment fit", inputs=(garment, mhclo, obj, from_body, body))
     guard.file(output)
     bm = load_body(body or default_body_path())
+    check_body_height(bm, b, force=force)  # a shape no human has (--betas 4: a 2.9 m body), unless meant
     try:
         units_v = float(units) if units is not None else None
     except ValueError:
@@ -236,7 +240,10 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     pushed = 0
     if m is not None:
         v, pushed = push_off_body(v, rest, bm.faces, m)
-    rewrite_obj_vertices(obj, v, output)
+    # a refit records the body shape it was fitted for (`run` refuses the garment on another); a unit/axis fix
+    # keeps the shape, and whatever record the file has
+    header = () if binding is None and from_body is None else (f"{OWN_COMMENT} fit: {how}", betas_record(b or ()))
+    rewrite_obj_vertices(obj, v, output, header=header)
     guard.record()
     rep = placement_report(v, rest, bm.faces)
     click.echo(f"{obj.name}: {len(v)} vertices, {how}" + (f", {pushed} pushed to {1e3 * m:.0f} mm" if m else ""))

@@ -50,6 +50,7 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
     from segadeform.io import read_mesh
     from segadeform.io.garment_asset import PORTABLE_SUFFIX
     from segadeform.io.hashing import file_sha256
+    from segadeform.io.obj import recorded_betas
     from segadeform.io.output_guard import OutputGuard
 
     guard = OutputGuard("garment export", inputs=(garment, body, model))
@@ -84,6 +85,7 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
             path=garment,
             template_vertices=b.v_template,
             betas=beta_vals,
+            recorded_betas=recorded_betas(garment),
         )
     asset = prepare_for_body(asset, b, beta_vals, weight_prior=config.get("weight_prior", "nearest"))
     asset.save(output)

@@ -43,6 +43,9 @@ from .main import cli
     type=click.Choice(["front", "side", "back", "three-quarter", "turntable"]),
     default="three-quarter",
     show_default=True,
+    help="Camera about the vertical axis, fixed in the world: front looks at the +Z side (a body facing +Z shows "
+    "its front; a motion that faces -Z shows its back), side and back a quarter and a half turn round, "
+    "three-quarter 30 degrees round, turntable once round over the frames.",
 )
 @click.option("--size", default="360x480", show_default=True, help="WIDTHxHEIGHT of one view in pixels.")
 @click.option("--fps", type=float, help="Animation rate (default: the result's 30 fps over --every).")
@@ -67,6 +70,11 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     from segadeform.preview.render import MeshLayer, fit_bounds, render, save_animation, save_image
     from segadeform.settings import Y_TO_Z, parse_frames
 
+    ext = output.suffix.lower()
+    if ext not in (".png", ".gif", ".mp4"):  # before any rendering
+        raise InputError("unknown preview format", path=output, expected=".png, .gif or .mp4", got=ext or "none")
+    if fps is not None and not (np.isfinite(fps) and 0 < fps <= 1000):
+        raise click.UsageError(f"--fps must be a frame rate in (0, 1000], got {fps!r}")
     guard = OutputGuard("preview", inputs=(result, garment, body_seq, body_model))
     guard.file(output)
     try:
@@ -125,13 +133,12 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         images.append(
             render(layers, azimuth=angles[k], size=(w, h), bounds=bounds, title=f"{result.name}  frame {first + t}")
         )
-    ext = output.suffix.lower()
     if ext == ".png":
         if len(images) > 8:
             pick = np.linspace(0, len(images) - 1, 8).round().astype(int)
             images = [images[i] for i in pick]
         save_image(output, np.concatenate(images, axis=1))
     else:
-        save_animation(output, images, fps or 30.0 / every)
+        save_animation(output, images, fps if fps is not None else 30.0 / every)
     guard.record()
     click.echo(f"{len(images)} frames rendered -> {output}")

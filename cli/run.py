@@ -213,11 +213,11 @@ def run_cmd(
             )
             if v is not None
         }
-        if frames or fps or mchanges:
+        if frames or fps is not None or mchanges:
             changes["motion"] = dataclasses.replace(
                 sc.motion,
                 frames=parse_frames(frames) if frames else sc.motion.frames,
-                fps=fps or sc.motion.fps,
+                fps=fps if fps is not None else sc.motion.fps,
                 **mchanges,
             )
         sc = dataclasses.replace(sc, **changes)

@@ -488,3 +488,31 @@ def test_clearing_the_cache_never_deletes_a_users_file(tmp_path, monkeypatch):
     assert r.exit_code == 0, r.output
     assert invoke("cache", "clear").exit_code == 0
     assert sorted(p.name for p in d.iterdir()) == ["P-notes.npy", "thesis.pdf"]
+
+
+def test_a_frame_rate_that_is_not_a_number_is_refused(tmp_path):
+    """`run --fps nan` ran at the motion's own rate (NaN compared unequal to nothing) and wrote its output; a
+    scene's [motion] fps and `run --fps` now go through one range check, and `--fps 0` with a scene is no longer
+    read as "not given"."""
+    for fps in ("nan", "inf", "0", "-30", "2000"):
+        out = tmp_path / f"o{fps}.pc2"
+        refused("frame rate is out of range", "run", "--garment", SKIRT, "--motion", WALK, "--fps", fps, "-o", out)
+        assert not out.exists()
+    scene = SAMPLES / "scenes" / "dress_dance.toml"
+    out = tmp_path / "scene.pc2"
+    refused("frame rate is out of range", "run", scene, "--fps", "0", "-o", out)
+    assert not out.exists()
+
+
+def test_the_garment_cache_does_not_take_a_file_that_cannot_be_read(tmp_path):
+    """The asset cache is keyed by the file's bytes: a garment OBJ run once and copied to `skirt.txt` ran from the
+    cache, where `--no-cache` refused it; the file is now read (and so checked) either way."""
+    ok = tmp_path / "o.pc2"
+    assert invoke("run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:2", "-o", ok).exit_code == 0
+    for suffix, words in ((".txt", "unknown mesh file extension"), (".stl", "")):
+        renamed = tmp_path / f"skirt{suffix}"
+        shutil.copy(SKIRT, renamed)
+        out = tmp_path / f"o{suffix}.pc2"
+        r = invoke("run", "--garment", renamed, "--motion", WALK, "--frames", "0:2", "-o", out)
+        assert r.exit_code == 1 and words in r.output and "skirt" + suffix in r.output, r.output
+        assert not out.exists()

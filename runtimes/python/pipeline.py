@@ -44,6 +44,7 @@ from segadeform.geometry import GarmentAsset, precompute_garment
 from segadeform.io import SceneOutput, read_mesh
 from segadeform.io.garment_asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
+from segadeform.io.obj import recorded_betas
 from segadeform.io.outputs import claim_scene_outputs, garment_surface
 from segadeform.motion import Motion, build_motion, frame_range, motion_windows
 from segadeform.settings import Effects, Scene
@@ -199,17 +200,19 @@ class Run:
         if self.garment.suffix.lower() in (".npz", PORTABLE_SUFFIX):
             return GarmentAsset.load(self.garment)
         n_star = int(self.package.config["n_star"])
+        # read (and so checked: its extension, its contents) whether or not the cache has it: a cache entry is
+        # keyed by the file's bytes, and must not make a file that fails to read (an OBJ renamed .txt) run
+        mesh = read_mesh(self.garment)
         sha = file_sha256(self.garment) if self.garment.is_file() else ""
         cdir = self._cache_dir()
         cpath = cdir / f"asset-{sha[:32]}-n{n_star}.npz" if cdir is not None and sha else None
         if cpath is not None and cpath.is_file():
             try:
                 a = GarmentAsset.load(cpath)
-                if a.source_sha256 == sha:
+                if a.source_sha256 == sha and a.n_vertices == len(mesh.vertices):
                     return a
             except Exception:  # a stale or broken cache entry is recomputed
                 log.warning("ignoring unreadable asset cache %s", cpath)
-        mesh = read_mesh(self.garment)
         a = precompute_garment(
             mesh.vertices, mesh.faces, joints, n_star=n_star, source_name=self.garment.name, source_sha256=sha
         )
@@ -256,6 +259,7 @@ class Run:
                 path=self.garment,
                 template_vertices=self.body.v_template,
                 betas=self.betas,
+                recorded_betas=recorded_betas(self.garment),
             )
         stage["precompute"] += time.perf_counter() - t
         t = time.perf_counter()

@@ -52,6 +52,7 @@ def scene_bundle(
     asset = run.load_asset(joints)
     if not force:
         from segadeform.body.placement import check_placement
+        from segadeform.io.obj import recorded_betas
 
         check_placement(
             asset.vertices,
@@ -60,6 +61,7 @@ def scene_bundle(
             path=scene.garment,
             template_vertices=body.v_template,
             betas=scene.betas,
+            recorded_betas=recorded_betas(scene.garment),
         )
     d = run.deformer
     feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))

@@ -144,3 +144,19 @@ def test_inspect_reads_the_inputs_run_and_garment_fit_take(tmp_path):
     (tmp_path / "cut.amc").write_text(amc.read_text()[: len(amc.read_text()) // 2])
     r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "cut.amc")])
     assert r.exit_code == 1 and "cut.amc" in r.output and "is it cut short?" in r.output, r.output
+
+
+def test_preview_refuses_an_unknown_format_and_a_rate_that_is_not_one_before_rendering(tmp_path):
+    """`preview -o x.obj` rendered every frame, then said "expected .gif or .mp4" (the default is .png);
+    `--fps nan` reached the animation writer."""
+    _scene(tmp_path)
+    base = ["preview", str(tmp_path / "g.pc2"), "--garment", str(tmp_path / "g.obj"), "--size", "40x30"]
+    r = CliRunner().invoke(cli, [*base, "-o", str(tmp_path / "x.obj")])
+    assert r.exit_code == 1 and "expected .png, .gif or .mp4, got .obj" in r.output, r.output
+    assert not (tmp_path / "x.obj").exists()
+    for fps in ("nan", "0", "-5"):
+        r = CliRunner().invoke(cli, [*base, "-o", str(tmp_path / "x.gif"), "--fps", fps])
+        assert r.exit_code == 2 and "--fps must be a frame rate" in r.output, r.output
+    assert not (tmp_path / "x.gif").exists()
+    r = CliRunner().invoke(cli, [*base, "-o", str(tmp_path / "x.gif"), "--fps", "12"])
+    assert r.exit_code == 0 and (tmp_path / "x.gif").is_file(), r.output

@@ -541,3 +541,67 @@ def test_a_makehuman_garment_given_to_run_is_sent_to_garment_fit(tmp_path):
         )
         assert r.exit_code == 1 and says in r.output and "segadeform garment fit" in r.output, r.output
         assert not (tmp_path / "o.pc2").exists()
+
+
+def test_a_garment_records_the_shape_it_was_fitted_for_and_run_holds_it(tmp_path):
+    """A garment fitted for betas (1, 0.5) sat on the default body's chest and `run` took it silently (a new user's
+    MakeHuman skirt): `garment fit` and `garment make` now record the shape in the OBJ, and `run` refuses the
+    garment on another shape -- both ways -- with the shape to use, unless --force."""
+    from segadeform.io.obj import betas_record, recorded_betas
+
+    walk = ROOT / "samples" / "motions" / "walk.npz"
+    fitted = tmp_path / "s.obj"
+    r = CliRunner().invoke(
+        cli, ["garment", "fit", str(SAMPLES / "skirt_short_f.mhclo"), "--betas", "1,0.5", "-o", str(fitted)]
+    )
+    assert r.exit_code == 0, r.output
+    assert recorded_betas(fitted) == (1.0, 0.5)
+
+    def run(garment, *extra):
+        out = tmp_path / f"o{len(list(tmp_path.glob('o*.pc2')))}.pc2"
+        args = ["run", "--garment", str(garment), "--motion", str(walk), "--frames", "0:2", "-o", str(out), *extra]
+        res = CliRunner().invoke(cli, args)
+        return res, out
+
+    res, out = run(fitted)
+    assert res.exit_code == 1 and "made for body shape betas 1,0.5, not for this body's betas 0" in res.output
+    assert "--betas 1,0.5" in res.output and not out.exists()
+    for extra in (("--betas", "1,0.5,0"), ("--force",)):
+        res, out = run(fitted, *extra)
+        assert res.exit_code == 0 and out.is_file(), res.output
+    made = tmp_path / "m.obj"
+    assert CliRunner().invoke(cli, ["garment", "make", "skirt", "-o", str(made)]).exit_code == 0
+    assert recorded_betas(made) == ()
+    res, out = run(made, "--betas", "1")
+    assert res.exit_code == 1 and "made for body shape betas 0 (the default shape)" in res.output
+    assert "no --betas" in res.output and not out.exists()
+    # fitted again: the new record replaces the old one, the rest of the file is kept
+    again = tmp_path / "again.obj"
+    rewrite_obj_vertices(fitted, read_mesh(fitted).vertices, again, header=("segadeform garment fit: x", "betas: 2"))
+    text = again.read_text()
+    assert recorded_betas(again) == (2.0,) and text.count("betas:") == 1 and "MakeHuman" in text
+    assert betas_record((1.5, -1)) == "betas: 1.5 -1" and betas_record(None) == "betas:"
+
+
+def test_garment_fit_refuses_a_second_binding_and_a_body_no_human_has(tmp_path):
+    """`garment fit X.mhclo --mhclo Y.mhclo` used X and ignored Y; `--betas 4` made a 2.9 m body without a word."""
+    skirt, shirt = SAMPLES / "skirt_short_f.mhclo", SAMPLES / "tshirt_short_sleeve_m.mhclo"
+    r = CliRunner().invoke(cli, ["garment", "fit", str(skirt), "--mhclo", str(shirt), "-o", str(tmp_path / "a.obj")])
+    assert r.exit_code == 2 and "is a binding itself" in r.output and not (tmp_path / "a.obj").exists()
+    r = CliRunner().invoke(cli, ["garment", "fit", str(skirt), "--mhclo", str(skirt), "-o", str(tmp_path / "b.obj")])
+    assert r.exit_code == 0, r.output  # the same binding twice is what was meant
+    tall = ["garment", "fit", str(skirt), "--betas", "4", "-o", str(tmp_path / "c.obj")]
+    r = CliRunner().invoke(cli, tall)
+    assert r.exit_code == 1 and "not a human's height" in r.output and not (tmp_path / "c.obj").exists()
+    r = CliRunner().invoke(cli, [*tall, "--force"])
+    assert r.exit_code == 0 and (tmp_path / "c.obj").is_file()
+
+
+def test_check_recorded_shape_pads_with_zeros_and_ignores_a_garment_without_a_record():
+    from segadeform.body.placement import check_recorded_shape
+
+    check_recorded_shape(None, (3.0,))  # no record: nothing to hold the garment to
+    check_recorded_shape((1.0, 0.0), (1.0,))  # the same shape, written shorter
+    check_recorded_shape((), np.zeros(10))
+    with pytest.raises(PlacementError, match=r"betas 0\.5, not for this body's betas 0\.5,0\.001"):
+        check_recorded_shape((0.5,), (0.5, 0.001), path="g.obj")

@@ -253,3 +253,27 @@ def test_a_byte_order_mark_does_not_hide_the_first_vertex(tmp_path):
     np.testing.assert_array_equal(m.vertices[0], [0, 0, 0])
     out = rewrite_obj_vertices(p, m.vertices + 1, tmp_path / "o.obj")
     assert read_obj(out).n_vertices == 4 and not out.read_bytes().startswith(b"\xef\xbb\xbf")
+
+
+def test_the_body_shape_record_is_read_only_where_segadeform_wrote_it(tmp_path):
+    """`recorded_betas`: the leading `# betas:` comment under a `# segadeform garment` one; a file from elsewhere
+    with a comment that happens to say `betas:` records nothing; a record that is not numbers is refused."""
+    from segadeform.errors import FileFormatError
+    from segadeform.io.obj import recorded_betas
+
+    body = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+    cases = {
+        "own.obj": ("# segadeform garment: kind=skirt\n# betas: 1.5 -1\n" + body, (1.5, -1.0)),
+        "default.obj": ("# segadeform OBJ\n# segadeform garment fit: x\n# betas:\n" + body, ()),
+        "bom.obj": ("\ufeff# segadeform garment: kind=skirt\n# betas: 2\n" + body, (2.0,)),
+        "foreign.obj": ("# exported by a tool\n# betas: 3\n" + body, None),
+        "late.obj": ("# segadeform garment: kind=skirt\n" + body + "# betas: 3\n", None),  # not a leading comment
+    }
+    for name, (text, want) in cases.items():
+        (tmp_path / name).write_text(text, encoding="utf-8")
+        assert recorded_betas(tmp_path / name) == want, name
+    assert recorded_betas(tmp_path / "own.off") is None  # not an OBJ: nothing to read
+    (tmp_path / "bad.obj").write_text("# segadeform garment: kind=skirt\n# betas: 1 x\n" + body)
+    with pytest.raises(FileFormatError, match="recorded body shape") as e:
+        recorded_betas(tmp_path / "bad.obj")
+    assert "bad.obj:2:" in str(e.value)

@@ -20,6 +20,7 @@ __all__ = [
     "push_off_body",
     "PlacementError",
     "check_placement",
+    "check_recorded_shape",
 ]
 
 UNIT_SCALES = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "ft": 0.3048}
@@ -132,8 +133,47 @@ def _fits(st) -> bool:
     return st["p20"] <= 0.05 and st["deep"] <= 0.05 and st["outside_height"] <= 0.02
 
 
+def _shape_text(b) -> str:
+    return ",".join(f"{x:g}" for x in b) if np.abs(b).max(initial=0.0) > 0 else "0 (the default shape)"
+
+
+def check_recorded_shape(recorded, betas, *, path=None) -> None:
+    """Refuse a garment whose file records another body shape than ``betas`` (``recorded``: what
+    :func:`segadeform.io.obj.recorded_betas` read; None: the file records none, nothing to check).  Shapes are
+    compared with zeros appended to the shorter, to 1e-4: a garment made or fitted for one shape sits wrongly on
+    another however well its geometry passes :func:`check_placement` (a skirt for a tall body lands on a short
+    body's chest).
+
+    Raises:
+        PlacementError
+    """
+    if recorded is None:
+        return
+    a = np.asarray(recorded, np.float64).ravel()
+    b = np.asarray(betas if betas is not None else (), np.float64).ravel()
+    n = max(a.size, b.size)
+    if np.allclose(np.pad(a, (0, n - a.size)), np.pad(b, (0, n - b.size)), rtol=0.0, atol=1e-4):
+        return
+    made, want = _shape_text(a), _shape_text(b)
+    flag = f"--betas {','.join(f'{x:g}' for x in a)}" if np.abs(a).max(initial=0.0) > 0 else "no --betas"
+    raise PlacementError(
+        f"the garment was made for body shape betas {made}, not for this body's betas {want}",
+        path=path,
+        expected=f"{flag} (the shape it was made for), the garment made or fitted again for this shape "
+        "(`segadeform garment fit SOURCE --betas ...`, `segadeform garment make KIND --betas ...`), or --force",
+    )
+
+
 def check_placement(
-    vertices, body_vertices, body_faces, *, path=None, max_points: int = 4000, template_vertices=None, betas=()
+    vertices,
+    body_vertices,
+    body_faces,
+    *,
+    path=None,
+    max_points: int = 4000,
+    template_vertices=None,
+    betas=(),
+    recorded_betas=None,
 ) -> dict:
     """Refuse a garment that does not sit on the (rest) body, naming the likely cause and the fix.
 
@@ -144,13 +184,15 @@ def check_placement(
     in the error with its ``segadeform garment fit`` command, else the garment was made for another body
     or pose (``--mhclo`` or ``--from-body``).  With ``template_vertices`` (the body at betas 0) and ``betas`` (the
     shape ``body_vertices`` has), a garment that sits on the default shape is named as made for it: it needs
-    making (or fitting) again for ``betas``, not another origin or units.
+    making (or fitting) again for ``betas``, not another origin or units.  ``recorded_betas``: the shape the
+    garment's file records (:func:`check_recorded_shape`), checked first.
 
     Returns the statistics (``p20``, ``median`` distance in m, ``deep`` and ``outside_height`` fractions).
 
     Raises:
         PlacementError
     """
+    check_recorded_shape(recorded_betas, betas, path=path)
     v = np.asarray(vertices, np.float64)
     if len(v) > max_points:
         v = v[np.linspace(0, len(v) - 1, max_points).astype(np.int64)]

@@ -56,6 +56,7 @@ from ..body.model import BodyModel
 from ..body.skeleton import SMPL_JOINT_NAMES
 from ..errors import InputError
 from ..geometry.mesh_ops import boundary_loops, connected_components, mean_edge_length, unique_edges, vertex_normals
+from ..io.obj import betas_record
 from .resample import subdivide
 
 __all__ = [
@@ -136,7 +137,7 @@ class Garment:
             [
                 f"segadeform garment: kind={self.kind} type={self.type}",
                 "params: " + " ".join(f"{k}={v}" for k, v in p.items() if v is not None),
-                "betas: " + " ".join(f"{b:g}" for b in self.betas),
+                betas_record(self.betas),
             ]
         )
 

@@ -26,7 +26,16 @@ from ..errors import FileFormatError, InputError, file_error
 from .atomic import atomic_open
 from .mesh import Mesh, validate_mesh_arrays
 
-__all__ = ["read_obj", "write_obj", "write_obj_positions", "obj_text", "obj_logical_lines"]
+__all__ = [
+    "read_obj",
+    "write_obj",
+    "write_obj_positions",
+    "obj_text",
+    "obj_logical_lines",
+    "BETAS_RECORD",
+    "betas_record",
+    "recorded_betas",
+]
 
 _IGNORED = {
     "vp",
@@ -223,6 +232,58 @@ def read_obj(path: str | os.PathLike) -> Mesh:
     return Mesh(vertices=v, faces=f, path=str(p), colors=col, face_origin=np.asarray(origin, dtype=np.int64))
 
 
+#: the leading OBJ comment that records the body shape a garment was made or fitted for (``garment make``,
+#: ``garment fit``): ``# betas: 1.5 -1 0.5``; ``# betas:`` alone, or zeros, is the default shape.  It is read only
+#: where the leading comments are segadeform's own (one of them starts with :data:`OWN_COMMENT`).
+BETAS_RECORD = "betas:"
+OWN_COMMENT = "segadeform garment"
+#: the leading comment lines read for the record, at most
+_RECORD_LINES = 200
+
+
+def betas_record(betas) -> str:
+    """The comment (without ``#``) recording body shape ``betas``: ``betas: 1.5 -1 0.5``."""
+    b = np.asarray(betas if betas is not None else (), np.float64).ravel()
+    return " ".join([BETAS_RECORD] + [f"{x:.9g}" for x in b])
+
+
+def recorded_betas(path: str | os.PathLike) -> tuple[float, ...] | None:
+    """The body shape recorded in the leading comments of OBJ ``path`` (:func:`betas_record`, under a comment
+    starting ``segadeform garment``): a tuple (``()``: the default shape), or None -- a file that is not an OBJ,
+    or an OBJ that records none (a garment from elsewhere).
+
+    Raises:
+        FileFormatError: a segadeform record whose values are not finite numbers.
+    """
+    p = Path(path)
+    if p.suffix.lower() != ".obj":
+        return None
+    comments: list[tuple[int, str]] = []
+    try:
+        with open(p, encoding="utf-8", errors="replace") as fh:
+            for no, line in enumerate(fh, 1):
+                s = line.strip().lstrip("\ufeff")  # a byte-order mark before the first line
+                if not s:
+                    continue
+                if not s.startswith("#") or no > _RECORD_LINES:
+                    break
+                comments.append((no, s.lstrip("#").strip()))
+    except OSError as e:
+        raise file_error(e, p) from None
+    if not any(c.startswith(OWN_COMMENT) for _, c in comments):
+        return None
+    for no, c in comments:
+        if c.split()[:1] == [BETAS_RECORD]:
+            try:
+                b = tuple(float(x) for x in c.split()[1:])
+            except ValueError:
+                b = (float("nan"),)
+            if not np.isfinite(b).all():
+                raise FileFormatError("the recorded body shape is not a list of numbers", path=p, line=no, got=c[:60])
+            return b
+    return None
+
+
 def _format_block(fmt: str, rows: np.ndarray) -> str:
     if rows.size == 0:
         return ""
@@ -260,10 +321,13 @@ def write_obj_positions(path, faces: np.ndarray, vertices: np.ndarray, **kw) -> 
     write_obj(path, Mesh(vertices=np.asarray(vertices, np.float64), faces=faces), **kw)
 
 
-def rewrite_obj_vertices(src: str | os.PathLike, vertices: np.ndarray, dst: str | os.PathLike) -> Path:
+def rewrite_obj_vertices(
+    src: str | os.PathLike, vertices: np.ndarray, dst: str | os.PathLike, *, header: tuple[str, ...] = ()
+) -> Path:
     """Copy an OBJ file with its ``v`` lines replaced by ``vertices`` (same order) and its ``vn`` lines
     recomputed for them (:func:`corner_normals`), keeping faces (quads and polygons as they are), UVs, groups,
-    materials and every other line; written atomically.
+    materials and every other line; written atomically.  ``header``: comment lines written first; with them, the
+    source's own body-shape record and ``segadeform garment fit`` lines (a garment fitted before) are dropped.
 
     Shapes:
         vertices: (N, 3), N = the file's ``v`` lines
@@ -281,9 +345,14 @@ def rewrite_obj_vertices(src: str | os.PathLike, vertices: np.ndarray, dst: str 
         raise InputError("fitted vertices are not finite", path=src)
     normals = corner_normals(lines, v, path=src)
     it, k = iter(v), 0
+    superseded = (BETAS_RECORD, OWN_COMMENT + " fit:")
     with atomic_open(dst, "w", encoding="utf-8", newline="\n") as fh:
+        for line in header:
+            fh.write(f"# {line}\n")
         for _, ln in lines:
             key = ln.split()[:1]
+            if header and ln.lstrip().startswith("#") and ln.lstrip().lstrip("#").strip().startswith(superseded):
+                continue
             if key == ["v"]:
                 x = next(it)
                 extra = ln.split()[4:]  # vertex colours stay

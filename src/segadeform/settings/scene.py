@@ -83,6 +83,10 @@ from .simulation import parse_simulate_table
 __all__ = ["Y_TO_Z", "MotionSpec", "Scene", "load_scene", "parse_frames"]
 
 
+#: the frame rates a motion may be resampled to (``fps``: a scene's [motion] key, ``run --fps``)
+FPS_RANGE = (1.0, 1000.0)
+
+
 @dataclasses.dataclass(frozen=True)
 class MotionSpec:
     """A motion file or a procedural kind, with how to play it (a scene's ``[motion]``;
@@ -106,6 +110,13 @@ class MotionSpec:
     skeleton: Path | None = None  # an AMC's ASF (default: the one .asf beside it)
     animation: str | None = None  # a glTF file's animation (default: the first)
     repair_glitches: bool = False  # motion capture's settling frames and jumps repaired (frame count kept)
+
+    def __post_init__(self):
+        fps = self.fps
+        if fps is not None:  # NaN compares false with everything: checked here, not left to a resample that skips it
+            lo, hi = FPS_RANGE
+            if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not lo <= fps <= hi:
+                raise InputError("the motion's frame rate is out of range", expected=f"{lo:g}..{hi:g} fps", got=fps)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -146,7 +157,7 @@ class MotionTable:
     speed: float = key(1.0, range=(0.05, 5))
     amplitude: float = key(1.0, range=(0, 2))
     seed: int = key(0, range=SEED_RANGE)
-    fps: float | None = key(None, range=(1, 1000))
+    fps: float | None = key(None, range=FPS_RANGE)
     frames: str | None = None
     up: str = key("auto", choices=("auto", "y", "z"))
     units: str | None = key(None, types=(str, int, float))
