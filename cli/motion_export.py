@@ -42,12 +42,33 @@ from .motion import motion_group
     help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).",
 )
 @click.option("--floor", is_flag=True, help="Move the motion so the feet touch the floor.")
+@click.option(
+    "--repair-glitches",
+    is_flag=True,
+    help="Motion capture: hold the first settled pose over the frames the capture settles from and rebuild frames "
+    "it jumps to and back from, as `segadeform run --repair-glitches` does (the frame count is kept).",
+)
 @click.option("--seconds", type=float, default=3.0, show_default=True, help="Procedural motions: duration.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Procedural motions: seed.")
 @click.option("--speed", type=float, default=1.0, show_default=True, help="Procedural motions: cycle rate.")
 @click.option("--amplitude", type=float, default=1.0, show_default=True, help="Procedural motions: joint angle scale.")
 def motion_export_cmd(
-    source, output, body, betas, fps, frames, up, units, joint_map, skeleton, floor, seconds, seed, speed, amplitude
+    source,
+    output,
+    body,
+    betas,
+    fps,
+    frames,
+    up,
+    units,
+    joint_map,
+    skeleton,
+    floor,
+    repair_glitches,
+    seconds,
+    seed,
+    speed,
+    amplitude,
 ):
     """Write SOURCE (a .bvh, .amc or .npz motion, or a procedural kind: idle, walk, dance, ...) as a motion file:
     poses (T, 24, 3) and translations (T, 3) on the body's skeleton, as `segadeform run` would play it."""
@@ -55,7 +76,14 @@ def motion_export_cmd(
     from segadeform.body.identity import body_label
     from segadeform.errors import InputError
     from segadeform.io.sgdm import MOTION_SUFFIX
-    from segadeform.motion import MOTION_KINDS, MotionSpec, build_motion, select_frames, write_motion_file
+    from segadeform.motion import (
+        MOTION_KINDS,
+        MotionSpec,
+        build_motion,
+        glitches_in_range,
+        select_frames,
+        write_motion_file,
+    )
     from segadeform.settings import parse_frames
 
     if output.suffix.lower() != MOTION_SUFFIX:
@@ -70,7 +98,16 @@ def motion_export_cmd(
     guard = OutputGuard("motion export", inputs=(path, body, joint_map, skeleton))
     guard.file(output)
     if path.suffix.lower() in (".bvh", ".npz", ".amc") or path.exists():
-        spec = MotionSpec(file=path, fps=fps, up=up, units=units, joint_map=joint_map, floor=floor, skeleton=skeleton)
+        spec = MotionSpec(
+            file=path,
+            fps=fps,
+            up=up,
+            units=units,
+            joint_map=joint_map,
+            floor=floor,
+            skeleton=skeleton,
+            repair_glitches=repair_glitches,
+        )
     elif source in MOTION_KINDS:
         spec = MotionSpec(
             kind=source, seconds=seconds, fps=fps, seed=seed, speed=speed, amplitude=amplitude, floor=floor
@@ -81,13 +118,24 @@ def motion_export_cmd(
             expected=".bvh, .amc, .npz or one of " + ", ".join(MOTION_KINDS),
             got=source,
         )
+    if repair_glitches and spec.file is None:
+        raise click.UsageError("--repair-glitches repairs motion capture; a procedural motion has no glitches")
     b = load_body(body or default_body_path())
-    m, first = select_frames(build_motion(spec, b.rest_joints(beta_vals)[0]), parse_frames(frames) if frames else None)
+    built = build_motion(spec, b.rest_joints(beta_vals)[0])
+    settle, jumps = glitches_in_range(built, parse_frames(frames) if frames else None)
+    m, first = select_frames(built, parse_frames(frames) if frames else None)
     full = [0.0] * b.n_betas
     full[: len(beta_vals)] = beta_vals
     first += int((m.meta or {}).get("start_frame", 0))  # a motion file cut before: numbers of its source
     write_motion_file(output, m, body=body_label(b), betas=full, source=str(source), start_frame=first)
     guard.record()
+    if settle or jumps:  # what `run` warns of, said where the file is made
+        click.echo(
+            f"warning: the capture has {settle} leading frames it settles from and {jumps} frames "
+            "it jumps to and back from (joints faster than 20 m/s), which throw the cloth about in every runtime; "
+            "--repair-glitches rebuilds them",
+            err=True,
+        )
     click.echo(
         f"{m.name}: {m.n_frames} frames at {m.fps:g} fps ({m.seconds:.2f} s) on "
         f"{body_label(b)['name'] or 'the body'} -> {output}"

@@ -266,11 +266,15 @@ def test_run_on_an_asset_uses_the_betas_it_was_exported_for(shaped_inputs, tmp_p
 def test_a_motion_file_for_another_shape_is_refused(shaped_inputs, walk_sgdm, tmp_path):
     """A .sgdm made for another body shape was played without a word; --force plays it."""
     args = ["run", "--garment", SKIRT, "--motion", shaped_inputs / "walk.sgdm", "--no-cache", "-o", tmp_path / "o.pc2"]
-    out = refused("retargeted onto another body shape", *args, name=shaped_inputs / "walk.sgdm")
-    assert "betas [0.5, -0.3]" in out
+    out = refused(
+        "retargeted onto body shape betas [0.5, -0.3], and this run's body has betas 0",
+        *args,
+        name=shaped_inputs / "walk.sgdm",
+    )
+    assert "got the run's betas 0 (the default shape)" in out  # expected: the motion's; got: the run's
     assert invoke(*args, "--force").exit_code == 0
     refused(
-        "retargeted onto another body shape",
+        "retargeted onto body shape betas 0 (the default shape), and this run's body has betas [0.5, -0.3]",
         "run",
         "--garment",
         shaped_inputs / "dress.sgda",
@@ -311,7 +315,7 @@ def test_the_readme_runtime_files_work_as_written(shaped_inputs, tmp_path):
     README now makes the dress for that shape (shaped_inputs ran its commands), and the sample dress is refused
     naming the shape it was made for."""
     out = refused(
-        "made for the default body shape (betas 0), not for betas 0.5,-0.3",
+        "made for body shape betas 0 (the default shape), not for this body's betas 0.5,-0.3",
         "garment",
         "export",
         SAMPLES / "garments" / "dress.obj",
@@ -339,7 +343,15 @@ def test_a_procedural_garment_for_other_betas_is_not_blamed_on_an_origin(tmp_pat
     g = tmp_path / "skirt.obj"
     assert invoke("garment", "make", "skirt", "-o", g).exit_code == 0
     out = refused(
-        "made for the default body shape", "garment", "export", g, "--betas", "1.5", "-o", tmp_path / "s.sgda", name=g
+        "made for body shape betas 0 (the default shape)",
+        "garment",
+        "export",
+        g,
+        "--betas",
+        "1.5",
+        "-o",
+        tmp_path / "s.sgda",
+        name=g,
     )
     assert "origin" not in out and "--offset" not in out
 

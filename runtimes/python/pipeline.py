@@ -46,7 +46,7 @@ from segadeform.io.garment_asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
 from segadeform.io.obj import recorded_betas
 from segadeform.io.outputs import claim_scene_outputs, garment_surface
-from segadeform.motion import Motion, build_motion, frame_range, motion_windows
+from segadeform.motion import Motion, build_motion, frame_range, glitches_in_range, motion_windows
 from segadeform.settings import Effects, Scene
 
 from .body import BODY_BACKENDS, BodyPoser
@@ -426,11 +426,12 @@ def check_motion_shape(motion: Motion, scene: Scene, body: BodyModel, *, force: 
         run_b = _padded(scene.betas, body.n_betas)
         if not np.allclose(mb_full, run_b, atol=1e-6):
             raise InputError(
-                "the motion file was retargeted onto another body shape than the run's",
+                f"the motion file was retargeted onto body shape betas {_label(mb_full)}, and this run's body has "
+                f"betas {_label(run_b)}",
                 path=f,
-                expected=f"betas {_label(mb_full)}: run with those, or export the motion again for "
-                "these betas; --force plays it anyway",
-                got=f"betas {_label(run_b)}",
+                expected=f"a run with the motion's betas {_label(mb_full)}, or the motion exported again for the "
+                "run's; --force plays it anyway",
+                got=f"the run's betas {_label(run_b)}",
             )
 
 
@@ -463,27 +464,16 @@ def run_scene(
         frame_range(scene.motion.frames, motion.n_frames)
     except InputError as e:
         raise e.with_path(scene.path) if scene.path is not None and frames_from_scene else e from None
-    glitches = (motion.meta or {}).get("unrepaired_glitches")
-    if glitches:
-        settle, jump_times, file_fps = glitches
-        start, stop = scene.motion.frames or (0, None)
-        stop = motion.n_frames if stop is None else stop
-        # the settling frames inside the range (counted at the file's rate)
-        settle = max(
-            0, min(settle, int(round(stop / motion.fps * file_fps))) - int(round(start / motion.fps * file_fps))
+    settle, jumps = glitches_in_range(motion, scene.motion.frames)  # inside the range the run plays
+    if settle or jumps:
+        log.warning(
+            "motion %s: %d leading frames its capture settles from and %d frames it jumps to and back from "
+            "(joints faster than 20 m/s) throw the cloth about; --repair-glitches (repair_glitches = true in a "
+            "scene's [motion]) rebuilds them",
+            Path(scene.motion.file or "motion").name,
+            settle,
+            jumps,
         )
-        # the frames it jumps to and back from inside the range (its ends in seconds: the file's rate may differ)
-        t0, t1 = (start - 0.5) / motion.fps, (stop - 0.5) / motion.fps
-        jumps = sum(1 for t in jump_times if t0 <= t < t1)
-        if settle or jumps:
-            log.warning(
-                "motion %s: %d leading frames its capture settles from and %d frames it jumps to and back from "
-                "(joints faster than 20 m/s) throw the cloth about; --repair-glitches (repair_glitches = true in a "
-                "scene's [motion]) rebuilds them",
-                Path(scene.motion.file or "motion").name,
-                settle,
-                jumps,
-            )
     out = Path(output) if output is not None else scene.output
     run = Run(
         garment=scene.garment,

@@ -333,6 +333,23 @@ def test_a_scene_can_repair_a_captures_glitches_keeping_its_frames(tmp_path):
     assert "dropped_leading_glitch_frames" not in fixed.meta
     r = CliRunner().invoke(cli, ["motion", "info", str(tmp_path / "cap.npz")])
     assert r.exit_code == 0 and "3 leading frames the capture settles from, 2 frames it jumps to" in r.output
+    # `motion export` (the other runtimes' motion files) warns of them in its range, and repairs them when asked
+    from segadeform.io.sgdm import read_motion_arrays
+
+    def export(name, *extra):
+        out = tmp_path / name
+        args = ["motion", "export", str(tmp_path / "cap.npz"), "--fps", "120", "-o", str(out), *extra]
+        res = CliRunner().invoke(cli, args)
+        assert res.exit_code == 0, res.output
+        return read_motion_arrays(out)[0], res.output
+
+    raw, said = export("raw.sgdm")
+    assert "3 leading frames it settles from and 2 frames it jumps to" in said and "--repair-glitches" in said
+    _, said = export("late.sgdm", "--frames", "110:200")  # none inside this range: nothing to say
+    assert "warning" not in said
+    rep, said = export("rep.sgdm", "--repair-glitches")
+    assert "warning" not in said and rep.shape == raw.shape
+    np.testing.assert_allclose(rep.reshape(m.n_frames, -1), fixed.poses, atol=1e-5)
 
 
 def test_ramp_in_starts_from_rest_and_joins_the_motion_at_full_speed():

@@ -292,6 +292,31 @@ def test_node_says_what_is_wrong_with_its_command_line(node, random_package, tmp
         assert p.returncode == 2 and p.stderr.startswith(f"error: {says}\nusage: "), p.stderr
 
 
+def test_cpp_says_what_is_wrong_with_its_command_line(cpp, random_package, tmp_path):
+    """`--batch 0`, a missing -o or --package printed the usage alone (a user's trial)."""
+    o = ["-o", str(tmp_path / "o.pc2")]
+    for args, says in (
+        (
+            ["--package", str(random_package), "--garment", "g.sgda", *o, "--motion", "m.sgdm", "--efects", "lbs"],
+            "unknown option --efects",
+        ),
+        (["--package", str(random_package), "--garment", "g.sgda", *o], "--motion is missing"),
+        (["--garment", "g.sgda", "--motion", "m.sgdm", *o], "--package is missing"),
+        (["--package", str(random_package), "--garment", "g.sgda", "--motion", "m.sgdm"], "-o OUT.pc2 is missing"),
+        (
+            ["--package", str(random_package), "--garment", "g.sgda", "--motion", "m.sgdm", *o, "--batch", "0"],
+            "--batch must be an integer >= 1",
+        ),
+        (
+            ["--package", str(random_package), "--garment", "g.sgda", "--motion", "m.sgdm", *o, "--batch", "x"],
+            "--batch has a bad value",
+        ),
+        (["--package", str(random_package), "--garment", "g.sgda", *o, "--motion"], "--motion needs a value"),
+    ):
+        p = subprocess.run(cpp + args, capture_output=True, text=True, timeout=120)
+        assert p.returncode == 2 and p.stderr.startswith(f"error: {says}\nusage: "), (args, p.stderr)
+
+
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
 def test_a_cut_motion_file_keeps_its_frame_numbers(runtime, request, portable_scene, random_package, tmp_path):
     """`motion export ... --frames 10:14` made a file whose Node and C++ point caches started at frame 0, while `run

@@ -31,6 +31,7 @@
 #include "cloth.hpp"
 #include "collide.hpp"
 #include "json.hpp"
+#include "outputs.hpp"
 
 namespace {
 
@@ -194,8 +195,9 @@ std::vector<float> floats(const sgd::Array& a) {
   return out;
 }
 
+// `path`'s PC2 point cache, written to its temporary (sgd::temporary; sgd::commit_outputs puts it in place)
 void write_pc2(const std::string& path, const float* frames, int32_t T, int32_t N, float start = 0.f) {
-  std::string tmp = path + ".tmp";
+  const std::string tmp = sgd::temporary(path);
   {
     std::ofstream f(tmp, std::ios::binary);
     if (!f) throw std::runtime_error(path + ": cannot write");
@@ -214,10 +216,6 @@ void write_pc2(const std::string& path, const float* frames, int32_t T, int32_t 
       throw std::runtime_error(path + ": write failed");
     }
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot rename");
-  }
 }
 
 struct Effects {
@@ -229,23 +227,46 @@ struct Effects {
 const double DEFAULT_COLLISION_MARGIN = 0.004;
 
 // --effects: a complete list, as `segadeform run --effects` (what is not named is off; lbs unless dqs is named).
-Effects parse_effects(const std::string& text) {
-  Effects e;
-  bool lbs = false, dqs = false;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    if (item == "lbs") lbs = true;
-    else if (item == "dqs") dqs = true;
-    else if (item == "dynamics") e.dynamics = true;
-    else if (item == "wrinkles") e.wrinkles = true;
-    else if (item == "collisions") e.collisions = true;
-    else if (item == "cloth") e.cloth = true;
-    else if (!item.empty())
-      throw std::runtime_error("unknown effect '" + item + "' (expected lbs, dqs, dynamics, wrinkles, collisions, cloth)");
+// Effects as `segadeform run --effects` reads them (src/segadeform/settings/effects.py): a complete list such as
+// "dqs,dynamics,wrinkles,collisions" (what is not named is off; lbs unless dqs is named), "none" (every effect off),
+// or signed changes to `base` (the run's default effects) such as "+cloth" or "dqs,-wrinkles".
+Effects parse_effects(const std::string& text, const Effects& base) {
+  std::vector<std::string> items;
+  {
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+      const size_t a = item.find_first_not_of(" \t"), b = item.find_last_not_of(" \t");
+      if (a != std::string::npos) items.push_back(item.substr(a, b - a + 1));
+    }
   }
+  Effects off;
+  off.skinning = "lbs";
+  if (items.size() == 1 && items[0] == "none") return off;
+  std::vector<std::string> picked, named;
+  for (const auto& i : items) (i == "lbs" || i == "dqs" ? picked : named).push_back(i);
+  size_t n_signed = 0;
+  for (const auto& i : named) n_signed += (i[0] == '+' || i[0] == '-');
+  if (n_signed && n_signed != named.size())
+    throw std::runtime_error("effects mix a complete list with changes (expected names only or signed changes only, "
+                             "got " + text + ")");
+  const bool complete = n_signed == 0;
+  Effects e = complete ? off : base;
+  for (const auto& i : named) {
+    const bool on = i[0] != '-';
+    const std::string name = (i[0] == '+' || i[0] == '-') ? i.substr(1) : i;
+    if (name == "dynamics") e.dynamics = on;
+    else if (name == "wrinkles") e.wrinkles = on;
+    else if (name == "collisions") e.collisions = on;
+    else if (name == "cloth") e.cloth = on;
+    else
+      throw std::runtime_error("unknown effect '" + i + "' (expected lbs, dqs, [+-]dynamics, [+-]wrinkles, "
+                               "[+-]collisions, [+-]cloth or none)");
+  }
+  const bool lbs = std::find(picked.begin(), picked.end(), "lbs") != picked.end();
+  const bool dqs = std::find(picked.begin(), picked.end(), "dqs") != picked.end();
   if (lbs && dqs) throw std::runtime_error("name one skinning (expected lbs or dqs, got both)");
-  e.skinning = dqs ? "dqs" : "lbs";
+  e.skinning = !picked.empty() ? picked.back() : complete ? "lbs" : base.skinning;
   return e;
 }
 
@@ -569,16 +590,33 @@ const char* USAGE =
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::vector<std::string> args(argv + 1, argv + argc);
+  std::vector<std::string> args;  // --name=value is --name value (as click reads `segadeform run --effects=+cloth`)
+  for (int k = 1; k < argc; ++k) {
+    const std::string a = argv[k];
+    const size_t eq = a.find('=');
+    if (a.rfind("--", 0) == 0 && eq != std::string::npos) {
+      args.push_back(a.substr(0, eq));
+      args.push_back(a.substr(eq + 1));
+    } else {
+      args.push_back(a);
+    }
+  }
+  for (const auto& a : args)
+    if (a == "--help" || a == "-h") {
+      std::cout << USAGE;
+      return 0;
+    }
   std::string out, package, garment, motion, body_out, effects, cloth;
   int batch = 8, threads = 1;
   double margin = DEFAULT_COLLISION_MARGIN;
   bool margin_given = false;
   bool do_check = false;
   std::vector<std::string> pos;
+  std::string current;  // the option being read (a bad value names it)
   try {
     for (size_t i = 0; i < args.size(); ++i) {
       const bool more = i + 1 < args.size();
+      current = args[i];
       if (args[i] == "-o" && more) out = args[++i];
       else if (args[i] == "--batch" && more) batch = std::stoi(args[++i]);
       else if (args[i] == "--threads" && more) threads = std::stoi(args[++i]);
@@ -595,18 +633,49 @@ int main(int argc, char** argv) {
         margin_given = true;
       }
       else if (args[i] == "--check") do_check = true;
+      else if (!more && (args[i] == "-o" || (args[i].rfind("--", 0) == 0 &&
+                                               std::string(USAGE).find(args[i] + " ") != std::string::npos)))
+        throw std::invalid_argument(args[i] + " needs a value");  // a known option given last, with no value
       else pos.push_back(args[i]);
     }
-  } catch (const std::exception&) {
-    std::cerr << USAGE;
+  } catch (const std::exception& e) {
+    const std::string what = e.what();
+    std::cerr << "error: " << (what.find("needs a value") != std::string::npos ? what : current + " has a bad value")
+              << "\n" << USAGE;
     return 2;
   }
   const bool flag_form = !package.empty() || !garment.empty() || !motion.empty();
-  const bool ok = flag_form ? (!package.empty() && !garment.empty() && !motion.empty() && pos.empty() && !do_check)
-                            : (pos.size() == 2 && body_out.empty() && effects.empty() && !margin_given && cloth.empty());
-  if (!ok || out.empty() || batch < 1 || threads < 1) {
-    std::cerr << USAGE;
+  // what is wrong, in one line before the usage (the usage alone said nothing of it)
+  std::string problem;
+  for (const auto& p : pos)
+    if (problem.empty() && p.size() > 1 && p[0] == '-') problem = "unknown option " + p;
+  if (problem.empty()) {
+    if (out.empty()) problem = "-o OUT.pc2 is missing";
+    else if (batch < 1) problem = "--batch must be an integer >= 1";
+    else if (threads < 1) problem = "--threads must be an integer >= 1";
+    else if (flag_form && package.empty()) problem = "--package is missing";
+    else if (flag_form && garment.empty()) problem = "--garment is missing";
+    else if (flag_form && motion.empty()) problem = "--motion is missing";
+    else if (flag_form && !pos.empty()) problem = "unexpected argument " + pos[0];
+    else if (flag_form && do_check) problem = "--check goes with PACKAGE_DIR BUNDLE.sgdb";
+    else if (!flag_form && pos.size() != 2) problem = "give PACKAGE_DIR BUNDLE.sgdb, or --package, --garment and --motion";
+    else if (!flag_form && (!body_out.empty() || !effects.empty() || margin_given || !cloth.empty()))
+      problem = "--body-out, --effects, --cloth and --collision-margin go with --package/--garment/--motion";
+  }
+  if (!problem.empty()) {
+    std::cerr << "error: " << problem << "\n" << USAGE;
     return 2;
+  }
+  // the outputs are claimed before any work, as `segadeform run` claims them (outputs.hpp)
+  std::vector<std::string> outputs{out};
+  if (!body_out.empty()) outputs.push_back(body_out);
+  const std::vector<std::string> inputs =
+      flag_form ? std::vector<std::string>{package, garment, motion} : std::vector<std::string>{pos[0], pos[1]};
+  try {
+    sgd::claim_outputs(outputs, inputs);
+  } catch (const std::exception& e) {
+    std::cerr << "Error: " << e.what() << "\n";
+    return 1;
   }
   try {
     api = OrtGetApiBase()->GetApi(ORT_API_VERSION);
@@ -620,7 +689,7 @@ int main(int argc, char** argv) {
       asset = sgd::read_bundle(garment);
       mot = sgd::read_bundle(motion);
       sc = scene_of_asset(asset, garment, mot, motion);
-      eff = effects.empty() ? pkg.default_effects() : parse_effects(effects);
+      eff = effects.empty() ? pkg.default_effects() : parse_effects(effects, pkg.default_effects());
     } else {
       bundle = sgd::read_bundle(pos[1]);
       sc = scene_of_bundle(bundle);
@@ -684,6 +753,7 @@ int main(int argc, char** argv) {
     write_pc2(out, frames.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(sc.N), sc.start_frame);
     if (!body_out.empty())
       write_pc2(body_out, body.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(V), sc.start_frame);
+    sgd::commit_outputs(outputs, inputs);  // all or none
     std::printf("%lld frames, %.2f ms/frame (%s%s%s%s%s) -> %s", static_cast<long long>(sc.T), ms,
                 eff.skinning.c_str(), eff.dynamics ? ", dynamics" : "", eff.wrinkles ? ", wrinkles" : "",
                 eff.collisions ? ", collisions" : "", eff.cloth ? ", cloth" : "", out.c_str());
@@ -713,6 +783,7 @@ int main(int argc, char** argv) {
     }
     api->ReleaseEnv(env);
   } catch (const std::exception& e) {
+    for (const auto& o : outputs) std::remove(sgd::temporary_name(o).c_str());  // a failed run leaves no output
     std::cerr << "Error: " << e.what() << "\n";
     return 1;
   }

@@ -5,20 +5,30 @@
 // (without --effects: the model's own effects, and collisions when the package has a body graph; margin 0.004 m;
 // cloth, the cloth stage, only when named; --cloth sets its knobs, as segadeform run --cloth)
 // segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]      (a scene bundle)
-import { animate, writePC2 } from "./index.js";
+import { animate } from "./index.js";
+import { pc2Bytes } from "./core.js";
+import { claimOutputs, commitOutputs } from "./outputs.js";
 
 const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
   "[--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M] [--cloth K=V,..] [--batch N] " +
   "[--threads N]\n" +
   "       segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]";
-const args = process.argv.slice(2);
+// --name=value is --name value (as click reads `segadeform run --effects=+cloth`)
+const args = process.argv.slice(2).flatMap((a) => (/^--[a-z-]+=/.test(a) ? [a.slice(0, a.indexOf("=")), a.slice(a.indexOf("=") + 1)] : [a]));
+if (args.includes("--help") || args.includes("-h")) {
+  console.log(USAGE);
+  process.exit(0);
+}
 const repeated = [], noValue = [];
 const opt = (name, dflt) => {
   const i = args.indexOf(name);
   if (i < 0) return dflt;
   const [, value] = args.splice(i, 2);
   if (args.includes(name)) repeated.push(name);
-  if (value === undefined || (value.startsWith("-") && !/^-\.?\d/.test(value))) noValue.push(name);
+  // a value may start with "-": a negative number, or an effect switched off ("-wrinkles")
+  if (value === undefined || (value.startsWith("-") && !/^-\.?\d/.test(value) && !(name === "--effects" && /^-[a-z]/.test(value)))) {
+    noValue.push(name);
+  }
   return value;
 };
 const out = opt("-o");
@@ -50,9 +60,19 @@ if (problem) {
   console.error(`error: ${problem}\n${USAGE}`);
   process.exit(2);
 }
-if (cloth && !(effects || "").split(",").map((s) => s.trim()).includes("cloth")) {
+if (cloth && !(effects || "").split(",").map((s) => s.trim()).some((s) => s === "cloth" || s === "+cloth")) {
   console.error("--cloth sets the cloth stage's knobs, but the stage is off (name cloth in --effects)");
   process.exit(2);
+}
+// the outputs are claimed before any work, as `segadeform run` claims them (outputs.js): never over a file
+// segadeform did not write, an input, or each other
+const outputs = bodyOut ? [out, bodyOut] : [out];
+const inputs = flagForm ? [pkg, garment, motion] : [args[0], args[1]];
+try {
+  claimOutputs(outputs, inputs);
+} catch (e) {
+  console.error(`Error: ${e.message}`);
+  process.exit(1);
 }
 try {
   const r = flagForm
@@ -62,8 +82,9 @@ try {
   // PC2 in frames, as `segadeform run` writes it: start 0, one sample per frame
   // a motion file cut from a longer one (motion export --frames 10:70) starts at its first frame's number, as run's
   const startFrame = (r.motionMeta && Number.isInteger(r.motionMeta.start_frame)) ? r.motionMeta.start_frame : 0;
-  writePC2(out, r.frames, r.T, r.N, { startFrame });
-  if (bodyOut) writePC2(bodyOut, r.body.vertices, r.body.T, r.body.V, { startFrame });
+  const items = [{ path: out, bytes: pc2Bytes(r.frames, r.T, r.N, { startFrame }) }];
+  if (bodyOut) items.push({ path: bodyOut, bytes: pc2Bytes(r.body.vertices, r.body.T, r.body.V, { startFrame }) });
+  commitOutputs(items, inputs); // all or none
   const e = r.effects;
   const c = r.collisions, k = r.cloth;
   console.log(`${r.T} frames, ${r.msPerFrame.toFixed(2)} ms/frame (${r.variant}: ${e.skinning}` +

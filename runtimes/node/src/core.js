@@ -120,20 +120,37 @@ export function defaultEffects(manifest) {
 }
 
 /**
- * Effects from a complete list such as "dqs,dynamics,wrinkles,collisions" (what is not named is off; lbs unless dqs
- * is named), as `segadeform run --effects`.  Collisions are not a graph: the push-out out of the body posed by the
- * package's body graph (collide.js), after the deformer; cloth (off unless named) is the cloth stage (cloth.js),
- * which resolves contact itself: with it the push-out is not run.
+ * Effects as `segadeform run --effects` reads them (src/segadeform/settings/effects.py): a complete list such as
+ * "dqs,dynamics,wrinkles,collisions" (what is not named is off; lbs unless dqs is named), `none` (every effect off),
+ * or signed changes to `base` (the run's default effects: the model's own and collisions with a body graph) such as
+ * "+cloth" or "dqs,-wrinkles" (lbs/dqs may join either form).  Collisions are not a graph: the push-out out of the
+ * body posed by the package's body graph (collide.js), after the deformer; cloth (off unless named) is the cloth stage
+ * (cloth.js), which resolves contact itself: with it the push-out is not run.
  */
-export function parseEffects(text) {
-  const names = text.split(",").map((s) => s.trim()).filter(Boolean);
-  const known = ["lbs", "dqs", "dynamics", "wrinkles", "collisions", "cloth"];
-  for (const n of names) {
-    if (!known.includes(n)) throw new Error(`unknown effect '${n}' (expected ${known.join(", ")})`);
+export function parseEffects(text, base = null) {
+  const items = text.split(",").map((s) => s.trim()).filter(Boolean);
+  const names = ["dynamics", "wrinkles", "collisions", "cloth"];
+  const off = { skinning: "lbs", wrinkles: false, dynamics: false, collisions: false, cloth: false };
+  if (items.length === 1 && items[0] === "none") return off;
+  const picked = items.filter((i) => i === "lbs" || i === "dqs");
+  const named = items.filter((i) => i !== "lbs" && i !== "dqs");
+  const signed = named.map((i) => i[0] === "+" || i[0] === "-");
+  if (signed.some(Boolean) && !signed.every(Boolean)) {
+    throw new Error(`effects mix a complete list with changes (expected names only or signed changes only, got ${text})`);
   }
-  if (names.includes("lbs") && names.includes("dqs")) throw new Error("name one skinning (expected lbs or dqs, got both)");
-  return { skinning: names.includes("dqs") ? "dqs" : "lbs", wrinkles: names.includes("wrinkles"),
-    dynamics: names.includes("dynamics"), collisions: names.includes("collisions"), cloth: names.includes("cloth") };
+  const complete = !signed.some(Boolean);
+  if (!complete && !base) throw new Error(`signed effect changes need the run's default effects (got ${text})`);
+  const on = complete ? { ...off } : { ...off, ...base };
+  for (const item of named) {
+    const name = item.replace(/^[+-]/, "");
+    if (!names.includes(name)) {
+      throw new Error(`unknown effect '${item}' (expected lbs, dqs, ${names.map((n) => `[+-]${n}`).join(", ")} or none)`);
+    }
+    on[name] = item[0] !== "-";
+  }
+  if (picked.includes("lbs") && picked.includes("dqs")) throw new Error("name one skinning (expected lbs or dqs, got both)");
+  on.skinning = picked.length ? picked[picked.length - 1] : complete ? "lbs" : base.skinning;
+  return on;
 }
 
 /** Whether a package has body graphs (schema 3 with `segadeform export-body`): what collisions need. */

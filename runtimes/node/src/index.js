@@ -85,8 +85,11 @@ export async function animate(dir, garment, motion, options = {}) {
     if (motion && !motion.arrays) options = motion;
     source = garment;
   }
-  if (typeof options.effects === "string") options = { ...options, effects: parseEffects(options.effects) };
   const manifest = loadManifest(dir);
+  // signed changes ("+cloth", "-wrinkles") are to the run's default effects, as in `segadeform run`
+  if (typeof options.effects === "string") {
+    options = { ...options, effects: parseEffects(options.effects, defaultEffects(manifest)) };
+  }
   const session = sessions(dir, options);
   const r = await animateWith(ort, manifest, source, session, options);
   if (source.motion) r.motionMeta = source.motion.meta;

@@ -22,6 +22,14 @@ test("effects lists read as `segadeform run --effects` reads them", () => {
   assert.deepEqual(parseEffects("lbs,cloth"), { ...off, skinning: "lbs", wrinkles: false, dynamics: false, cloth: true });
   assert.throws(() => parseEffects("lbs,dqs"), /one skinning/);
   assert.throws(() => parseEffects("lbs,wind"), /unknown effect 'wind'/);
+  // signed changes to the run's defaults, and none, as `segadeform run --effects` reads them
+  const base = { skinning: "dqs", wrinkles: true, dynamics: true, collisions: true, cloth: false };
+  assert.deepEqual(parseEffects("+cloth", base), { ...base, cloth: true });
+  assert.deepEqual(parseEffects("lbs,-wrinkles", base), { ...base, skinning: "lbs", wrinkles: false });
+  assert.deepEqual(parseEffects("none", base), { ...off, skinning: "lbs", wrinkles: false, dynamics: false });
+  assert.throws(() => parseEffects("+cloth,dynamics", base), /mix a complete list with changes/);
+  assert.throws(() => parseEffects("+cloth"), /need the run's default effects/);
+  assert.throws(() => parseEffects("+wind", base), /unknown effect '\+wind'/);
 });
 
 test("bundle frames match the Python runtime", { skip: !pkg || !bundlePath ? "set SEGADEFORM_PACKAGE and SEGADEFORM_BUNDLE" : false }, async () => {

@@ -10,7 +10,7 @@
 // Dropping files works as well: a package's files or folder, a .sgda and a .sgdm, a .sgdb, OBJ + PC2.
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
-import { parseEffects, parseOBJ, parsePC2 } from "../../node/src/core.js";
+import { defaultEffects, parseEffects, parseOBJ, parsePC2 } from "../../node/src/core.js";
 import { animate, compareFrames, loadOrt, loadPackage, openContainer, packageFromFiles } from "./runtime.js";
 
 const q = new URLSearchParams(location.search);
@@ -137,7 +137,8 @@ async function runScene(source, expected = null) {
   const o = await getOrt();
   const p = await getPackage();
   say(`running ${p.url} on ${ep} ...`);
-  const effects = q.get("effects") ? parseEffects(q.get("effects")) : undefined;
+  // signed changes ("+cloth", "-wrinkles") are to the package's default effects, as in `segadeform run`
+  const effects = q.get("effects") ? parseEffects(q.get("effects"), defaultEffects(p.manifest)) : undefined;
   const collisionMargin = q.has("margin") ? Number(q.get("margin")) : undefined;
   lastScene = [source, expected];
   if (effects && effects.cloth) clothSwitch.checked = true;

@@ -156,11 +156,12 @@ def check_recorded_shape(recorded, betas, *, path=None) -> None:
         return
     made, want = _shape_text(a), _shape_text(b)
     flag = f"--betas {','.join(f'{x:g}' for x in a)}" if np.abs(a).max(initial=0.0) > 0 else "no --betas"
+    again = f" --betas {','.join(f'{x:g}' for x in b)}" if np.abs(b).max(initial=0.0) > 0 else ""
     raise PlacementError(
         f"the garment was made for body shape betas {made}, not for this body's betas {want}",
         path=path,
         expected=f"{flag} (the shape it was made for), the garment made or fitted again for this shape "
-        "(`segadeform garment fit SOURCE --betas ...`, `segadeform garment make KIND --betas ...`), or --force",
+        f"(`segadeform garment fit SOURCE{again}`, `segadeform garment make KIND{again}`), or --force",
     )
 
 

@@ -22,7 +22,7 @@ from .motion import (
     write_motion_file,
 )
 from .procedural import MOTION_KINDS, make_motion
-from .spec import MotionSpec, build_motion, frame_range, select_frames
+from .spec import MotionSpec, build_motion, frame_range, glitches_in_range, select_frames
 
 __all__ = [
     "Motion",
@@ -42,6 +42,7 @@ __all__ = [
     "build_motion",
     "frame_range",
     "select_frames",
+    "glitches_in_range",
     "read_motion_file",
     "write_motion_file",
 ]

@@ -16,7 +16,7 @@ from ..settings.scene import MotionSpec
 from .motion import Motion, drop_leading_glitches, feet_on_floor, repair_capture, repair_glitches, resample
 from .procedural import make_motion
 
-__all__ = ["MotionSpec", "build_motion", "frame_range", "select_frames"]
+__all__ = ["MotionSpec", "build_motion", "frame_range", "select_frames", "glitches_in_range"]
 
 
 def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
@@ -100,3 +100,19 @@ def select_frames(motion: Motion, frames: tuple[int, int | None] | None) -> tupl
     if (a, b) == (0, motion.n_frames):
         return motion, 0
     return dataclasses.replace(motion, poses=motion.poses[a:b], trans=motion.trans[a:b]), a
+
+
+def glitches_in_range(motion: Motion, frames: tuple[int, int | None] | None = None) -> tuple[int, int]:
+    """``(settling frames, frames jumped to and back from)`` of a capture built without ``repair_glitches``
+    (:func:`build_motion` records them in ``meta["unrepaired_glitches"]``) that fall inside ``frames`` (``(A, B)``
+    of the built motion, B exclusive; None: all).  The settling frames are counted at the file's rate, the jumps
+    by their time; ``(0, 0)`` for a motion with none or built with the repair."""
+    glitches = (motion.meta or {}).get("unrepaired_glitches")
+    if not glitches:
+        return 0, 0
+    settle, jump_times, file_fps = glitches
+    start, stop = frames or (0, None)
+    stop = motion.n_frames if stop is None else stop
+    settle = max(0, min(settle, int(round(stop / motion.fps * file_fps))) - int(round(start / motion.fps * file_fps)))
+    t0, t1 = (start - 0.5) / motion.fps, (stop - 0.5) / motion.fps
+    return settle, sum(1 for t in jump_times if t0 <= t < t1)

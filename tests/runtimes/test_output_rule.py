@@ -1,0 +1,99 @@
+"""The Node and C++ command lines keep `segadeform run`'s output rule (src/segadeform/io/output_guard.py): they
+wrote over any path they were given -- a user's file, their own motion input, the garment's output with the body's
+-- and a run that failed on its second output left the first (a user's trial).  Now: a file segadeform did not
+write, an input, one path twice, a folder, a path inside a file or another extension are refused before any work,
+untouched; outputs go in all at once; the folder's manifest is the one Python keeps, so each runtime replaces the
+other's output of a run and nothing else."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+
+import pytest
+
+from segadeform.cli.main import main
+from segadeform.io.output_guard import MANIFEST_NAME, written_by
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_the_runtime_writes_only_where_segadeform_may(runtime, request, portable_scene, random_package, tmp_path):
+    exe = request.getfixturevalue(runtime)
+    g, m = tmp_path / "g.sgda", tmp_path / "m.sgdm"
+    shutil.copy(portable_scene["garment"], g)
+    shutil.copy(portable_scene["motion"], m)
+    effects = portable_scene["effects"]
+    base = [*exe, "--package", str(random_package), "--garment", str(g), "--motion", str(m), "--effects", effects]
+
+    def go(*extra):
+        return subprocess.run([*base, *map(str, extra)], capture_output=True, text=True, timeout=300)
+
+    out = tmp_path / "a.pc2"
+    for _ in range(2):  # written, then replaced: an earlier run's output
+        r = go("-o", out)
+        assert r.returncode == 0, r.stderr
+        assert written_by(out) == "run"
+    mine = tmp_path / "mine.pc2"
+    mine.write_bytes(b"a user's file")
+    (tmp_path / "d.pc2").mkdir()
+    kept = {p: p.read_bytes() for p in (mine, g, m, out)}
+    refusals = [
+        (("-o", mine), "mine.pc2: exists and segadeform did not write it"),
+        (("-o", random_package / "x.pc2"), "is an input of this run"),
+        (("-o", tmp_path / "s.pc2", "--body-out", tmp_path / "s.pc2"), "two outputs of this run"),
+        (("-o", tmp_path / "x.obj"), "writes PC2 point caches only (expected .pc2, got .obj)"),
+        (("-o", tmp_path / "d.pc2"), "is a folder"),
+        # the garment's output first, then the body's inside a file: neither is written
+        (("-o", tmp_path / "q.pc2", "--body-out", mine / "b.pc2"), "is a path inside a file"),
+    ]
+    for extra, words in refusals:
+        r = go(*extra)
+        assert r.returncode == 1 and words in r.stderr, (extra, r.stderr)
+        assert r.stderr.count("\n") == 1  # one line
+    assert {p: p.read_bytes() for p in kept} == kept
+    assert not (tmp_path / "q.pc2").exists() and not (tmp_path / "s.pc2").exists()
+    assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name]
+    # a file edited since a run wrote it is a user's file now
+    out.write_bytes(out.read_bytes() + b"\0")
+    r = go("-o", out)
+    assert r.returncode == 1 and "it changed since segadeform wrote it" in r.stderr
+    # Python's `run` and this runtime replace each other's output, in the one manifest
+    both = tmp_path / "both.pc2"
+    args = ["run", "--garment", str(g), "--motion", str(m), "--model", str(random_package), "--effects", effects]
+    assert main([*args, "-o", str(both), "--force"]) == 0
+    assert go("-o", both).returncode == 0 and written_by(both) == "run"
+    assert main([*args, "-o", str(both), "--force"]) == 0
+    assert (tmp_path / MANIFEST_NAME).is_file()
+    # missing folders are made, as `segadeform run` makes them
+    assert go("-o", tmp_path / "new" / "dir" / "o.pc2").returncode == 0
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_signed_effects_change_the_runs_defaults_as_in_segadeform_run(
+    runtime, request, portable_scene, random_package, tmp_path
+):
+    """`--effects=+cloth`, `-wrinkles` and `none` are what `segadeform run` takes; the runtimes took complete lists
+    only ("unknown option", "unknown effect '+cloth'", "unknown effect 'none'": a user's trial)."""
+    import numpy as np
+
+    from segadeform.io import read_pc2
+
+    exe = request.getfixturevalue(runtime)
+    g, m = portable_scene["garment"], portable_scene["motion"]
+    for effects in ("+cloth", "-wrinkles", "dqs,-dynamics", "none"):
+        name = effects.replace(",", "_").replace("+", "p").replace("-", "m")
+        py, rt = tmp_path / f"py_{name}.pc2", tmp_path / f"rt_{name}.pc2"
+        args = ["run", "--garment", str(g), "--motion", str(m), "--model", str(random_package), "--force"]
+        assert main([*args, f"--effects={effects}", "-o", str(py)]) == 0
+        base = [*exe, "--package", str(random_package), "--garment", str(g), "--motion", str(m)]
+        r = subprocess.run([*base, f"--effects={effects}", "-o", str(rt)], capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, (effects, r.stderr)
+        a, b = read_pc2(py).frames, read_pc2(rt).frames
+        assert a.shape == b.shape and np.abs(a - b).max() <= 1e-5 * np.abs(a).max(), effects
+    r = subprocess.run(
+        [*base, "--effects", "+cloth,lbs,dynamics", "-o", str(tmp_path / "x.pc2")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 1 and "mix a complete list with changes" in r.stderr
