@@ -36,7 +36,9 @@ def scene_bundle(
     package = ModelPackage(model or scene.model or default_model_path())
     body = load_body(scene.body or default_body_path())
     joints = body.rest_joints(scene.betas)[0]
-    motion, _ = select_frames(build_motion(scene.motion, joints), scene.motion.frames)
+    # frames A:B: the bundle's motion starts at A (its first window does too: no look-back before A, as a motion
+    # file cut with `motion export --frames A:B`), and its point cache is numbered from A (meta start_frame)
+    motion, first = select_frames(build_motion(scene.motion, joints), scene.motion.frames)
     effects = dataclasses.replace(scene.effects, collisions=False, cloth=False)
     run = Run(
         garment=scene.garment,
@@ -98,5 +100,6 @@ def scene_bundle(
         "motion": motion.name,
         "betas": [float(x) for x in betas],
         "package_config": package.config,
+        "start_frame": int(first) + int((motion.meta or {}).get("start_frame", 0)),
     }
     return write_bundle(out, arrays, meta)

@@ -342,3 +342,28 @@ def test_a_cut_motion_file_keeps_its_frame_numbers(runtime, request, portable_sc
     for f in ("g.pc2", "b.pc2"):
         pc = read_pc2(tmp_path / f)
         assert pc.header.start_frame == 10.0 and pc.frames.shape[0] == 4, (f, pc.header)
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_a_bundle_of_a_scene_with_frames_keeps_its_frame_numbers(runtime, request, random_package, tmp_path):
+    """A bundle of a scene with `frames = "2:6"` gave point caches starting at frame 0 (a user's trial): the bundle
+    now records where its motion starts, and every runtime numbers its frames from there."""
+    from segadeform.runtime.scene_bundle import scene_bundle
+    from segadeform.settings import load_scene
+
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        f'[garment]\nmesh = "{SAMPLES / "garments" / "skirt.obj"}"\n[motion]\nkind = "walk"\nseconds = 0.3\n'
+        f'frames = "2:6"\n[output]\npath = "{tmp_path / "py.pc2"}"\n'
+    )
+    b = scene_bundle(load_scene(scene), tmp_path / "s.sgdb", model=random_package, batch=3)
+    exe = request.getfixturevalue(runtime)
+    p = subprocess.run(
+        exe + [str(random_package), str(b), "-o", str(tmp_path / "o.pc2")], capture_output=True, text=True, timeout=600
+    )
+    assert p.returncode == 0, p.stdout + p.stderr
+    pc = read_pc2(tmp_path / "o.pc2")
+    assert pc.header.start_frame == 2.0 and pc.frames.shape[0] == 4, pc.header
+    arrays, meta = read_bundle(b)
+    assert meta["start_frame"] == 2
+    np.testing.assert_allclose(pc.frames, arrays["expected"], rtol=0, atol=1e-5)

@@ -367,6 +367,8 @@ Scene scene_of_bundle(const sgd::Bundle& b) {
   s.S = b.at("joints").shape[0];
   s.T = b.at("poses").shape[0];
   s.D = b.at("poses").shape[1];
+  // a scene with frames A:B: its motion starts at A, and so does the point cache (as `segadeform run` numbers it)
+  s.start_frame = b.meta.has("start_frame") ? static_cast<float>(b.meta["start_frame"].num) : 0.f;
   return s;
 }
 

@@ -93,6 +93,7 @@ export async function animate(dir, garment, motion, options = {}) {
   const session = sessions(dir, options);
   const r = await animateWith(ort, manifest, source, session, options);
   if (source.motion) r.motionMeta = source.motion.meta;
+  else if (source.meta && Number.isInteger(source.meta.start_frame)) r.motionMeta = { start_frame: source.meta.start_frame };
   if (options.body || r.effects.collisions || r.effects.cloth) {
     const body = await poseBodyWith(ort, manifest, source, session, { skinning: r.effects.skinning, batch: options.batch });
     if (options.body) r.body = body;
