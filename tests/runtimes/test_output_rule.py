@@ -16,6 +16,14 @@ from segadeform.cli.main import main
 from segadeform.io.output_guard import MANIFEST_NAME, written_by
 
 
+def _hashes(folder):
+    import hashlib
+
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest() for p in folder.rglob("*") if p.is_file()
+    }
+
+
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
 def test_the_runtime_writes_only_where_segadeform_may(runtime, request, portable_scene, random_package, tmp_path):
     exe = request.getfixturevalue(runtime)
@@ -37,6 +45,7 @@ def test_the_runtime_writes_only_where_segadeform_may(runtime, request, portable
     mine.write_bytes(b"a user's file")
     (tmp_path / "d.pc2").mkdir()
     kept = {p: p.read_bytes() for p in (mine, g, m, out)}
+    before = _hashes(tmp_path)  # every file there, the manifest included
     refusals = [
         (("-o", mine), "mine.pc2: exists and segadeform did not write it"),
         (("-o", random_package / "x.pc2"), "is an input of this run"),
@@ -51,6 +60,7 @@ def test_the_runtime_writes_only_where_segadeform_may(runtime, request, portable
         assert r.returncode == 1 and words in r.stderr, (extra, r.stderr)
         assert r.stderr.count("\n") == 1  # one line
     assert {p: p.read_bytes() for p in kept} == kept
+    assert _hashes(tmp_path) == before  # a refused run changes nothing, anywhere in the folder
     assert not (tmp_path / "q.pc2").exists() and not (tmp_path / "s.pc2").exists()
     assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name]
     # a file edited since a run wrote it is a user's file now
