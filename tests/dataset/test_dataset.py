@@ -71,6 +71,16 @@ def test_plan_and_held_out_splits():
             "[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n[simulate]\neffects = ['fire']\n",
             "unknown simulation",
         ),
+        # a typo in a garment entry gave Python's TypeError (a user's trial)
+        (
+            "[[garments]]\nkind = 'skirt'\nspilt = 'val'\n[[motions]]\nkind = 'walk'\n",
+            r"unknown key garments\[0\]\.spilt",
+        ),
+        # a misspelt capture was found only after the other samples were simulated (a user's trial)
+        (
+            "[[garments]]\nkind = 'skirt'\n[[motions]]\nkind = 'walk'\n[[motions]]\nfile = 'wlak.bvh'\n",
+            r"motions\[1\]\.file does not exist",
+        ),
     ],
 )
 def test_bad_configs(tmp_path, text, msg):
@@ -1235,3 +1245,20 @@ def test_retry_rejected_makes_again_only_samples_simulated_with_a_motion_loading
     assert {f: hashlib.sha256(f.read_bytes()).digest() for f in users} == {
         f: hashlib.sha256(d).digest() for f, d in users.items()
     }  # every retry left the user's files as they were
+
+
+def test_dataset_info_tells_capture_from_procedural_motion_by_the_record(tmp_path):
+    """`dataset info` called every motion not named `cmu-...` procedural (a user's CMU clip named walk-16_31):
+    records now say where the motion came from; records written before keep the name rule."""
+    from segadeform.dataset.report import dataset_stats
+
+    base = {"split": "train", "garment": "g", "kind": "skirt", "type": "skirt", "body": 0, "vertices": 10}
+    recs = [
+        dict(base, id="a", motion="walk-16_31", motion_source="mocap", status="kept"),
+        dict(base, id="b", motion="walk-s0", motion_source="procedural", status="kept"),
+        dict(base, id="c", motion="cmu-02_01", status="rejected"),  # an older record: by its name
+    ]
+    (tmp_path / "log.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs))
+    st = dataset_stats(tmp_path)
+    assert st["by_source"]["mocap"]["samples"] == 2 and st["by_source"]["mocap"]["rejected"] == 1
+    assert st["by_source"]["procedural"]["samples"] == 1

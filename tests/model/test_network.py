@@ -71,8 +71,14 @@ def test_checkpoint_round_trip(tmp_path):
 
 def test_bad_checkpoints_and_configs(tmp_path):
     (tmp_path / "x.pt").write_bytes(b"garbage")
-    with pytest.raises(FileFormatError, match="not a readable checkpoint"):
+    with pytest.raises(FileFormatError, match=r"not a model checkpoint \(\w+\) \(expected a run's model.pt") as e:
         load_checkpoint(tmp_path / "x.pt")
+    assert "\n" not in str(e.value)  # one line, not torch's advice to unpickle it anyway
+    run = tmp_path / "run"
+    run.mkdir()
+    torch.save({"optimizer": {}, "rng": np.zeros(2)}, run / "last.pt")  # a resume state: numpy inside
+    with pytest.raises(FileFormatError, match="a training run's resume state"):
+        load_checkpoint(run / "last.pt")
     torch.save({"config": {"nope": 1}, "state_dict": {}}, tmp_path / "y.pt")
     with pytest.raises(FileFormatError, match="unknown ModelConfig fields"):
         load_checkpoint(tmp_path / "y.pt")

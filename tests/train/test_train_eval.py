@@ -66,6 +66,28 @@ def test_resume_refuses_another_config(synthetic_dataset, tiny_config, tmp_path,
         train(other, tmp_path / "r", body)
 
 
+def test_resume_refuses_other_samples(synthetic_dataset, tiny_config, tmp_path, body):
+    """A run trained on two datasets, run again on one of them, said it had trained and rewrote train.json to name
+    the one dataset while model.pt kept the first run's weights (a user's trial): the samples are the run's too."""
+    import shutil
+
+    from segadeform.errors import InputError
+
+    fewer = tmp_path / "fewer"
+    shutil.copytree(synthetic_dataset, fewer)
+    for p in (fewer / "samples").glob("shorts__b0__walk.*"):
+        p.unlink()  # a copy with one training sample less
+    cfg = load_train_config(tiny_config, dataset=synthetic_dataset, overrides={"optim.steps": 3})
+    run = tmp_path / "r"
+    train(cfg, run, body)
+    before = {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()}
+    with pytest.raises(InputError, match="trained on other samples") as e:
+        train(load_train_config(tiny_config, dataset=fewer, overrides={"optim.steps": 3}), run, body)
+    assert "1 training and 0 validation samples now" in str(e.value)
+    assert {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()} == before  # train.json, model.pt as they were
+    train(cfg, run, body)  # the run's own samples: nothing to do, and no refusal
+
+
 def test_training_lowers_the_error(synthetic_dataset, tmp_path, body):
     """Free (paper) weights start far off and learn; residual weights start at the body's LBS, which is
     what the synthetic samples are, so their first logged error is already small."""

@@ -410,6 +410,11 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
         else:
             es = _entry_seed(seed, name)
             draws = [(f"{name}-{k}", draw_values(ranged, _GARMENT_RANGED, es, k)) for k in range(count or 1)]
+        known = {f.name for f in dataclasses.fields(GarmentParams)}
+        extra = sorted(set(g) - known)
+        if extra:  # a typo (`mhcl`, `spilt`) said as the other tables say it, not as Python's TypeError
+            allowed = sorted(known | {"kind", "name", "split", "pin", "mhclo", "decimate", "count", "seed"})
+            raise FileFormatError(f"unknown key garments[{i}].{extra[0]}", path=p, expected=", ".join(allowed))
         for dname, vals in draws:
             if dname in names:
                 raise FileFormatError(f"garment name {dname!r} is used twice", path=p)
@@ -456,6 +461,8 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
         count = _count(m, p, what)
         ranged = _ranges(m, {"speed": False, "amplitude": False} if "kind" in m else {"start": False}, p, what)
         f = (p.parent / m["file"]).resolve() if "file" in m else None
+        if f is not None and require_files and not f.is_file():  # found now, not hours into `dataset make`
+            raise FileFormatError(f"{what}.file does not exist", path=p, got=str(f))
         seed = m.get("seed", 0)
         if not isinstance(seed, int) or isinstance(seed, bool):
             raise FileFormatError(f"{what}.seed must be an integer", path=p, got=seed)

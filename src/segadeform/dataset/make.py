@@ -505,6 +505,7 @@ def _run_one(
         "type": GARMENT_TYPES[g.kind],
         "body": ps.body,
         "motion": m.name,
+        "motion_source": "mocap" if m.file is not None else "procedural",  # what drove the body (dataset info)
         "vertices": len(mesh.vertices),
     }
     for attempt in range(first_attempt, cfg.attempts):

@@ -57,8 +57,14 @@ def dataset_stats(folder) -> dict:
             for k, (n, b, c, f) in sorted(groups.items())
         }
 
-    for r in recs:  # what drove the body: motion capture (CMU clips, named cmu-...) or procedural motion
-        r["source"] = "mocap" if str(r.get("motion", "")).startswith("cmu-") else "procedural"
+    for r in recs:  # what drove the body: motion capture (a file) or procedural motion, as the record says
+        # (records written before it said: by name, the CMU clips named cmu-... being the captures)
+        src = r.get("motion_source")
+        r["source"] = (
+            src
+            if src in ("mocap", "procedural")
+            else ("mocap" if str(r.get("motion", "")).startswith("cmu-") else "procedural")
+        )
         r["kind_source"] = f"{r.get('kind')} / {r['source']}"
     return {
         "kept": len(kept),

@@ -220,7 +220,14 @@ def load_checkpoint(path: str | os.PathLike) -> SEGANet | SEGAEnsemble:
     except FileNotFoundError:
         raise FileFormatError("no such file", path=p) from None
     except Exception as e:
-        raise FileFormatError(f"not a readable checkpoint ({type(e).__name__}: {e})", path=p) from None
+        what = (
+            "a training run's resume state (optimiser and random state), not its model"
+            if p.name == "last.pt"
+            else f"not a model checkpoint ({type(e).__name__})"  # torch's many lines, said in one
+        )
+        raise FileFormatError(
+            what, path=p, expected="a run's model.pt (or best.pt): the model `segadeform train` writes", got=p.name
+        ) from None
     if not isinstance(ck, dict) or "config" not in ck or "state_dict" not in ck:
         raise FileFormatError("checkpoint must hold 'config' and 'state_dict'", path=p)
     try:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import functools
+import hashlib
 import json
 import logging
 import os
@@ -271,9 +272,6 @@ def train(
             got=", ".join(str(r) for r in roots.roots)
             or "no dataset root: " + (", ".join(f"{r} is not there" for r in roots.skipped) or "none given"),
         )
-    # the config beside the run once there is something to train (a run that finds no data leaves no file)
-    if cfg.path is not None and cfg.path.resolve() != (run / "config.toml").resolve():
-        shutil.copyfile(cfg.path, run / "config.toml")
     if cfg.val_split and not val_ids:
         val_ids = roots.ids(cfg.val_split)
     if items[0].features.shape[-1] != m.feat_dim:
@@ -306,11 +304,26 @@ def train(
     ck_pairs = None  # the prefetched pairs' stream, when resumed
     budget = {"seconds": o.seconds, "probe": [], "steps": None} if o.seconds > 0 else None
     last = run / "last.pt"
+    # what the run trains on: a run resumes only on the samples it started with (the dataset roots are not part of
+    # the config's digest; a grown or other dataset under the same run folder was taken as the run finished)
+    trained_on = json.dumps([sorted(i.id for i in items), sorted(val_ids or [])])
+    data_digest = hashlib.sha256(trained_on.encode()).hexdigest()[:16]
     if last.is_file():
         ck = torch.load(last, map_location=device, weights_only=False)
         if ck.get("config_digest") != cfg.digest():
             raise InputError(
-                "the run folder holds a run of a different config", expected=cfg.digest(), got=ck.get("config_digest")
+                "the run folder holds a run of a different config (a run resumes only with the config it started with)",
+                path=run,
+                expected=f"config {ck.get('config_digest')} (the run's config.toml), or a new -o folder",
+                got=f"config {cfg.digest()}",
+            )
+        if ck.get("data_digest") not in (None, data_digest):  # (runs saved before it was recorded: not checked)
+            raise InputError(
+                "the run folder holds a run trained on other samples (a run resumes only on the samples it "
+                "started with)",
+                path=run,
+                expected="the --dataset roots and samples the run started with (its train.json), or a new -o folder",
+                got=f"{len(items)} training and {len(val_ids or [])} validation samples now",
             )
         model.load_state_dict(ck["state_dict"])
         opt.load_state_dict(ck["optimizer"])
@@ -325,6 +338,10 @@ def train(
         best_val = (float(ck.get("best_val", float("inf"))), int(ck.get("best_step", -1)))
     else:
         best_val = (float("inf"), -1)  # (vertex error on the validation split, step)
+    # the config beside the run once there is something to train and it is this run's (a run that finds no data,
+    # or that another run's folder refuses, leaves no file)
+    if cfg.path is not None and cfg.path.resolve() != (run / "config.toml").resolve():
+        shutil.copyfile(cfg.path, run / "config.toml")
     best_path = run / "best.pt"
     log_path = run / "loss.csv"
     fields = ["step", "total", *TERMS, PHYSICS_TERM, "lr", "seconds", "val_vertex"]
@@ -351,6 +368,7 @@ def train(
                     "step": step,
                     "elapsed": elapsed,
                     "config_digest": cfg.digest(),
+                    "data_digest": data_digest,
                     "best_val": best_val[0],
                     "best_step": best_val[1],
                     "total_steps": total[0],
