@@ -121,6 +121,11 @@ def test_evaluate_lbs_is_exact_on_skinned_data_and_models_are_measured(synthetic
     assert all(np.isfinite(sega[k]) for k in METRICS) and sega["vertex_cm"] > lbs["vertex_cm"]
     assert res["models"]["sega + push-out"]["penetration_pct"] <= sega["penetration_pct"]
     assert set(res["by_type"]["sega"]) == {"skirt"} and len(res["per_frame"]["sega"]) == 12
+    # a split the dataset does not have: the ones it has are named (a user's `test-motion` split went unsaid)
+    from segadeform.errors import InputError
+
+    with pytest.raises(InputError, match=r"no 'val' samples in the dataset \(expected --split test \| train"):
+        evaluate(synthetic_dataset, body, make_predictors({"lbs": "lbs"}), split="val")
 
 
 def test_cli_train_and_eval(synthetic_dataset, tiny_config, tmp_path, capsys):

@@ -163,7 +163,12 @@ def evaluate(
     dataset = as_roots(dataset)  # a folder, a pack, or several roots
     ids = dataset.ids(split)
     if not ids:
-        raise InputError(f"no '{split}' samples in the dataset", got=str(dataset))
+        have = sorted({str(dataset.meta(s).get("split")) for s in dataset.ids()})
+        raise InputError(
+            f"no '{split}' samples in the dataset",
+            expected="--split " + (" | ".join(have) if have else "of a dataset with samples (it has none kept)"),
+            got=str(dataset),
+        )
     preds = dict(predictors)
     models = {n: p.spec for n, p in preds.items()}
     pushes = push_out_names(push_out_margin)
