@@ -123,6 +123,9 @@ def dress():
         (lambda v: v * 100, "once read in cm"),
         (lambda v: v @ np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]).T, r"once read with \+z up"),
         (lambda v: v - [0, 0.95, 0], "0.95 m higher"),
+        # moved sideways: sent back onto the body's axis, not down onto the floor by a foot (a user's trial)
+        (lambda v: v + [0.4, 0, 0], r"--offset -0\.40,0\.00,0\.00"),
+        (lambda v: v + [0.3, -0.5, 0], r"--offset -0\.30,0\.50,0\.00"),
     ],
 )
 def test_off_body_garments_are_refused_with_the_cause(body, dress, transform, words):

@@ -248,17 +248,29 @@ def check_placement(
                 )
     size = np.ptp(v, axis=0)
     if size.max() < 2.0 * (top - floor):  # a plausible size: try moving it
-        for dy in np.arange(-1.5, 1.51, 0.05):
-            w = v + np.array([0.0, dy, 0.0])
-            if abs(dy) >= 0.25 and _fits(_stats(w, proxy, top, floor)):  # an origin, not a shape, is off
-                raise PlacementError(
-                    f"the garment does not sit on the body ({what}); it does {abs(dy):.2f} m "
-                    f"{'higher' if dy > 0 else 'lower'}: it was placed for another body's "
-                    "origin (SMPL-fitted garments sit around SMPL's pelvis at y = 0)",
-                    path=path,
-                    expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
-                    f"--offset 0,{dy:.2f},0` or `--from-body THEIR_BODY.obj`, or pass --force",
-                )
+        # beside the body's vertical axis first (a garment moved sideways is not fixed by moving it down: a user's
+        # skirt 0.4 m to the side was sent 0.65 m down, onto the floor by a foot), then up or down alone
+        side = np.zeros(3)  # across the body only: its left-right middle is its axis (front to back it is not:
+        side[0] = (bv[:, 0].min() + bv[:, 0].max() - v[:, 0].min() - v[:, 0].max()) / 2  # the feet point forward)
+        shifts = ([side] if np.abs(side).max() >= 0.1 else []) + [np.zeros(3)]
+        for s in shifts:
+            for dy in np.arange(-1.5, 1.51, 0.05):
+                w = v + s + np.array([0.0, dy, 0.0])
+                if (abs(dy) >= 0.25 or s.any()) and _fits(_stats(w, proxy, top, floor)):  # an origin is off
+                    off = s + np.array([0.0, dy, 0.0])
+                    where = (
+                        f"{abs(dy):.2f} m {'higher' if dy > 0 else 'lower'}"
+                        if not s.any()
+                        else f"once moved by {off[0]:.2f}, {off[1]:.2f}, {off[2]:.2f} m, onto the body's axis"
+                    )
+                    raise PlacementError(
+                        f"the garment does not sit on the body ({what}); it does {where}: it was placed for "
+                        "another body's origin (SMPL-fitted garments sit around SMPL's pelvis at y = 0)",
+                        path=path,
+                        expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
+                        f"--offset {off[0]:.2f},{off[1]:.2f},{off[2]:.2f}` or `--from-body THEIR_BODY.obj`, "
+                        "or pass --force",
+                    )
     raise PlacementError(
         f"the garment does not sit on the body ({what}); it was made for another body, pose or body shape (betas)",
         path=path,
