@@ -141,11 +141,11 @@ def dataset_make_cmd(
 
 
 @dataset_group.command("info")
-@click.argument("folder", type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.argument("folder", type=click.Path(exists=True, path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print the statistics as JSON.")
 @click.option("--by-garment", is_flag=True, help="Also kept / made per garment (each drawn or MakeHuman garment).")
 def dataset_info_cmd(folder, as_json, by_garment):
-    """Statistics of a dataset folder: samples per split, rejection reasons, seconds per frame by size."""
+    """Statistics of a dataset folder or pack: samples per split, rejection reasons, seconds per frame by size."""
     from segadeform.dataset.report import dataset_stats
 
     st = dataset_stats(folder)

@@ -279,3 +279,31 @@ def test_dataset_make_skips_what_a_pack_holds_and_never_writes_it(tmp_path, body
     cfg_p.write_text(cfg_p.read_text().replace("kind = 'run'", "kind = 'run'\nspeed = 1.5"))
     with pytest.raises(InputError, match="made from other settings"):
         make_dataset(load_dataset_config(cfg_p), tmp_path / "new")
+
+
+def test_dataset_info_reads_a_pack(tmp_path, body, capsys):
+    """`dataset info PACK` said "Directory ... is a file" (a user's trial): a pack's samples are counted from their
+    metadata, as the folder's log counts them."""
+    ds = tmp_path / "ds"
+    _save(ds, "a", body, garment="g", vertices=10, motion="walk", status="kept")
+    _save(
+        ds,
+        "b",
+        body,
+        folder="rejected",
+        seed=1,
+        garment="g",
+        vertices=10,
+        motion="walk",
+        status="rejected",
+        quality={"reasons": ["max_strain 1.5 > 1.0"]},
+    )
+    out = tmp_path / "p.sgdpack"
+    assert main(["dataset", "pack", str(ds), "-o", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["dataset", "info", str(out), "--json"]) == 0
+    st = json.loads(capsys.readouterr().out)
+    assert (st["kept"], st["rejected"]) == (1, 1) and st["splits"] == {"train": 1}
+    assert st["reasons"] == {"max_strain #": 1}  # the rejected sample's quality verdict
+    assert main(["dataset", "info", str(out)]) == 0
+    assert "1 kept" in capsys.readouterr().out

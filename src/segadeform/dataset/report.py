@@ -35,8 +35,28 @@ def finished_records(folder) -> list[dict]:
     return list(last.values())
 
 
+def pack_records(path) -> list[dict]:
+    """The records of a dataset pack's samples, kept and rejected, from their metadata (a pack keeps no log: no
+    timing of the runs that made it, and a rejected sample's reasons are its quality verdict's)."""
+    from .pack import open_pack
+
+    pack = open_pack(path)
+    try:
+        recs = []
+        for folder in ("samples", "rejected"):
+            for sid in pack.ids(folder):
+                r = dict(pack.read_meta(sid))
+                r.setdefault("status", "kept" if folder == "samples" else "rejected")
+                r.setdefault("reasons", list((r.get("quality") or {}).get("reasons", [])))
+                recs.append(r)
+        return recs
+    finally:
+        pack.close()
+
+
 def dataset_stats(folder) -> dict:
-    recs = finished_records(folder)
+    """Statistics of a dataset folder (its log) or a dataset pack (its samples' metadata)."""
+    recs = pack_records(folder) if Path(folder).is_file() else finished_records(folder)
     kept = [r for r in recs if r["status"] == "kept"]
     rej = [r for r in recs if r["status"] != "kept"]
     reasons = collections.Counter(re.sub(r"[\d.]+", "#", x).split(" > ")[0] for r in rej for x in r.get("reasons", []))
