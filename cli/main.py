@@ -83,13 +83,29 @@ def _register() -> None:
 _register()
 
 
+def _terminated(signum, frame):
+    """SIGTERM (`timeout`, `kill`, a job scheduler) stops a command as Ctrl-C does: the exception unwinds it, so the
+    simulator's process is killed and its temporary folder removed, and nothing half-written is committed (the
+    default action ended the process on the spot and left both behind)."""
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the exit status instead of raising SystemExit."""
+    import signal
+    import threading
+
+    previous = None
+    if threading.current_thread() is threading.main_thread() and hasattr(signal, "SIGTERM"):
+        previous = signal.signal(signal.SIGTERM, _terminated)
     try:
         cli.main(args=argv, prog_name="segadeform", standalone_mode=True)
     except SystemExit as e:  # click exits; turn it into a return value
         code = e.code
         return code if isinstance(code, int) else (0 if code is None else 1)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     return 0
 
 

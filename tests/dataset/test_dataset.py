@@ -1262,3 +1262,43 @@ def test_dataset_info_tells_capture_from_procedural_motion_by_the_record(tmp_pat
     st = dataset_stats(tmp_path)
     assert st["by_source"]["mocap"]["samples"] == 2 and st["by_source"]["mocap"]["rejected"] == 1
     assert st["by_source"]["procedural"]["samples"] == 1
+
+
+def test_sigterm_stops_dataset_make_as_ctrl_c_does(tmp_path):
+    """`timeout` or `kill` (SIGTERM) ended `dataset make` on the spot: the simulator's temporary folder stayed in
+    /tmp and Blender ran on (a user's trial).  Now it unwinds as Ctrl-C does: nothing of it is left in the
+    temporary folder, no Blender runs on, and the dataset folder resumes."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    _need_simulator()
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    out = tmp_path / "out"
+    exe = Path(sys.executable).with_name("segadeform")
+    p = subprocess.Popen(
+        [str(exe), "dataset", "make", str(TINY), "-o", str(out), "-j", "1"],
+        env={**os.environ, "TMPDIR": str(tmp)},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while not any(tmp.glob("segadeform-sim-*/job.json")):  # Blender is running a sample
+            assert p.poll() is None and time.monotonic() < deadline, "no simulation started"
+            time.sleep(0.1)
+        time.sleep(1.0)
+        p.send_signal(signal.SIGTERM)
+        p.wait(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode != 0
+    assert list(tmp.iterdir()) == []  # the job's folder and Blender's own (inside it) are gone
+    ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
+    assert str(tmp) not in ps  # no Blender worker of this run is left
+    assert main(["dataset", "make", str(TINY), "-o", str(out), "-j", "2"]) == 0  # it resumes
