@@ -368,7 +368,7 @@ def _run_worker(exe: Path, job_dir: Path, total: int, progress, timeout) -> None
     cmd = [str(exe), str(WORKER), str(job_dir)]
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
     # Blender's own temporary folder inside the job's: removed with it even when Blender is killed (a stopped
-    # `dataset make` left blender_XXXXXX folders in the system's temporary folder)
+    # `dataset make` left Blender's own blender_* folders in the system's temporary folder)
     (job_dir / "tmp").mkdir(exist_ok=True)
     env.update(TMPDIR=str(job_dir / "tmp"), TEMP=str(job_dir / "tmp"), TMP=str(job_dir / "tmp"))
     log_path = job_dir / "worker.log"
