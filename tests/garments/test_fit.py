@@ -9,8 +9,17 @@ import pytest
 from click.testing import CliRunner
 
 from segadeform.body import default_body_path, load_body
+from segadeform.body.collision import BodyProxy
 from segadeform.body.makehuman import makehuman_vertices, makehuman_weights
-from segadeform.body.placement import PlacementError, check_placement, fix_units_and_axes, placement_report
+from segadeform.body.placement import (
+    PlacementError,
+    _centre_offset,
+    _fits,
+    _stats,
+    check_placement,
+    fix_units_and_axes,
+    placement_report,
+)
 from segadeform.cli.main import cli
 from segadeform.errors import FileFormatError, InputError
 from segadeform.garments.registration import fit_mhclo
@@ -133,6 +142,22 @@ def test_off_body_garments_are_refused_with_the_cause(body, dress, transform, wo
     with pytest.raises(PlacementError, match=words) as ei:
         check_placement(transform(dress.vertices), rest, body.faces, path=Path("g.obj"))
     assert "segadeform garment fit g.obj" in str(ei.value)
+
+
+def test_wrong_offset_that_passes_the_lenient_test_is_refused(body, dress):
+    """A user's trial: a dress 25 cm in front of the body has its back panel on the belly (the closest fifth within
+    5 cm, nothing deep), so the lenient test passed it; it is now refused as off the body's middle, with the
+    offset that moves it back."""
+    rest = body.shaped_vertices()[0]
+    moved = dress.vertices + [0.0, 0.0, 0.25]
+    st = _stats(moved, BodyProxy(rest, body.faces), float(rest[:, 1].max()), float(rest[:, 1].min()))
+    assert _fits(st)  # what the lenient test alone says
+    with pytest.raises(PlacementError, match=r"23 cm in front.*--offset 0\.00,0\.00,-0\.23"):
+        check_placement(moved, rest, body.faces, path=Path("g.obj"))
+    # one side of a garment (a sleeve, a bag) is off the middle by its nature: moved there it would be inside
+    side = dress.vertices[dress.vertices[:, 0] > 0.12]
+    assert np.abs(_centre_offset(side, rest)).max() > 0.08
+    check_placement(side, rest, body.faces)
 
 
 def test_garment_for_another_body_is_refused(body):

@@ -165,6 +165,44 @@ def check_recorded_shape(recorded, betas, *, path=None) -> None:
     )
 
 
+def _centre_offset(v, bv) -> np.ndarray:
+    """How far the middle of the garment's bounding box lies from the middle of the body's, across (x) and front
+    to back (z), the body taken between the garment's lowest and highest vertex.  Shapes: v (N, 3), bv (M, 3) ->
+    (3,) with y = 0."""
+    band = bv[(bv[:, 1] >= v[:, 1].min()) & (bv[:, 1] <= v[:, 1].max())]
+    if len(band) == 0:
+        return np.zeros(3)
+    off = (v.min(axis=0) + v.max(axis=0)) / 2 - (band.min(axis=0) + band.max(axis=0)) / 2
+    off[1] = 0.0
+    return off
+
+
+def _check_centred(v, bv, proxy, top, floor, st, path) -> None:
+    """Refuse a garment that passes the lenient test but sits off the body's middle by a wrong offset: its box's
+    middle 8 cm or more from the body's (every garment made or fitted here is within 2 cm), and moved back it
+    fits and lies clearly closer to the skin (median distance 2 cm or more less).  A garment that cannot be moved
+    onto the middle (one sleeve, a bag on one side) is left alone: moved there it would sit inside the body."""
+    off = _centre_offset(v, bv)
+    if np.abs(off).max() < 0.08:
+        return
+    back = _stats(v - off, proxy, top, floor)
+    if not (_fits(back) and back["median"] <= st["median"] - 0.02):
+        return
+    g = path if path is not None else "GARMENT"
+    where = ", ".join(
+        f"{100 * abs(d):.0f} cm {name[int(d > 0)]}"
+        for d, name in ((off[0], ("to the body's right", "to the body's left")), (off[2], ("behind", "in front")))
+        if abs(d) >= 0.01
+    )
+    raise PlacementError(
+        f"the garment sits off the body's middle ({where}; median distance to the skin {100 * st['median']:.1f} cm, "
+        f"{100 * back['median']:.1f} cm once moved back): it was placed with a wrong offset",
+        path=path,
+        expected=f"a garment around the body: run `segadeform garment fit {g} -o FIXED.obj --offset "
+        f"{-off[0]:.2f},0.00,{-off[2]:.2f}`, or pass --force",
+    )
+
+
 def check_placement(
     vertices,
     body_vertices,
@@ -179,7 +217,8 @@ def check_placement(
     """Refuse a garment that does not sit on the (rest) body, naming the likely cause and the fix.
 
     A garment sits on the body when the closest fifth of its vertices are within 5 cm of the skin, at
-    most 5 % are more than 1 cm inside the body, and at most 2 % lie above the head or below the feet.
+    most 5 % are more than 1 cm inside the body, and at most 2 % lie above the head or below the feet, and it
+    is not 8 cm or more off the body's middle when moved back it would fit closer (a wrong ``--offset``).
     Otherwise the garment is tried in other units (dm, cm, mm, inch), with other up axes (z, -z) and moved
     up or down (another body's origin, e.g. SMPL's pelvis at y = 0); the first of those that fits is named
     in the error with its ``segadeform garment fit`` command, else the garment was made for another body
@@ -202,6 +241,7 @@ def check_placement(
     top, floor = float(bv[:, 1].max()), float(bv[:, 1].min())
     st = _stats(v, proxy, top, floor)
     if _fits(st):
+        _check_centred(v, bv, proxy, top, floor, st, path)
         return st
     what = (
         f"median distance to the body {100 * st['median']:.1f} cm (closest fifth beyond "
