@@ -8,6 +8,10 @@
 * ``int8``: onnxruntime's dynamic quantisation (``quantize_dynamic``): MatMul/Gemm weights stored as
   int8, activations quantised per call; inputs and outputs stay float32.
 
+The body graphs (``body_lbs``, ``body_dqs``: the body's own skinning, which collisions and ``--body-out`` use)
+stay float32 at every precision: rounding the body's blend shapes and weights moves the posed body by centimetres
+(int8) and millimetres (fp16) for no gain in the model.
+
 The manifest gets the new files' SHA-256, ``"precision"`` and the current layout (schema 3: one file per
 graph, the weights shared in ``weights.bin``, int32/float32 inputs); nothing else changes. Error and speed
 of each precision are measured by ``bench/tradeoffs.py`` (docs/accuracy-vs-time.md).
@@ -132,7 +136,9 @@ def convert_package(src: str | os.PathLike, dst: str | os.PathLike, precision: s
         graphs = {}
         for name, spec in m["graphs"].items():
             f = contract.graph_file(name)
-            convert_graph(src / spec["file"], tmp / f, precision)
+            # the body graphs pose the body, not the learned model: kept float32 (int8 moved the posed body by up
+            # to 5 cm, and the collisions with it; a user's trial)
+            convert_graph(src / spec["file"], tmp / f, "fp32" if "body" in spec else precision)
             retyped = _portable_inputs(tmp / f)
             graphs[name] = dict(
                 spec, file=f, inputs=[dict(i, dtype=retyped.get(i["name"], i["dtype"])) for i in spec["inputs"]]

@@ -1264,10 +1264,12 @@ def test_dataset_info_tells_capture_from_procedural_motion_by_the_record(tmp_pat
     assert st["by_source"]["procedural"]["samples"] == 1
 
 
-def test_sigterm_stops_dataset_make_as_ctrl_c_does(tmp_path):
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_sigterm_stops_dataset_make_as_ctrl_c_does(tmp_path, jobs):
     """`timeout` or `kill` (SIGTERM) ended `dataset make` on the spot: the simulator's temporary folder stayed in
     /tmp and Blender ran on (a user's trial).  Now it unwinds as Ctrl-C does: nothing of it is left in the
-    temporary folder, no Blender runs on, and the dataset folder resumes."""
+    temporary folder, no Blender runs on, and the dataset folder resumes.  With worker processes (``-j 2``) the
+    signal reaches the parent only: it stops its workers' samples too, rather than wait for them to finish."""
     import os
     import signal
     import subprocess
@@ -1281,7 +1283,7 @@ def test_sigterm_stops_dataset_make_as_ctrl_c_does(tmp_path):
     out = tmp_path / "out"
     exe = Path(sys.executable).with_name("segadeform")
     p = subprocess.Popen(
-        [str(exe), "dataset", "make", str(TINY), "-o", str(out), "-j", "1"],
+        [str(exe), "dataset", "make", str(TINY), "-o", str(out), "-j", str(jobs)],
         env={**os.environ, "TMPDIR": str(tmp)},
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -1292,12 +1294,16 @@ def test_sigterm_stops_dataset_make_as_ctrl_c_does(tmp_path):
             assert p.poll() is None and time.monotonic() < deadline, "no simulation started"
             time.sleep(0.1)
         time.sleep(1.0)
+        done = sorted(x.name for x in out.glob("samples/*.npz"))  # what was finished when the signal came
         p.send_signal(signal.SIGTERM)
         p.wait(timeout=60)
     finally:
         if p.poll() is None:
             p.kill()
     assert p.returncode != 0
+    # stopped, not waited out: with -j 2 the workers used to finish the samples they had started and the ones the
+    # pool had queued for them (three of the tiny config's, 9 s after the signal)
+    assert sorted(x.name for x in out.glob("samples/*.npz")) == done
     assert list(tmp.iterdir()) == []  # the job's folder and Blender's own (inside it) are gone
     ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
     assert str(tmp) not in ps  # no Blender worker of this run is left

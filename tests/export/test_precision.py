@@ -73,12 +73,20 @@ def test_fp16_weights_package_is_half_the_weights_and_rounds_them_only(tmp_path,
     assert m["precision"] == "fp16-weights"
     ModelPackage(out, verify_hashes=True)
     w0, w1 = (json.loads((p / "manifest.json").read_text())["weights"]["bytes"] for p in (random_package, out))
-    assert w1 < 0.55 * w0  # the shared weights file: half the bytes
-    g = onnx.load(str(out / "garment_encoder.onnx"), load_external_data=True).graph
-    for init in g.initializer:  # every big float weight is fp16 now, and read through a Cast
-        big = int(np.prod(init.dims)) >= FP16_MIN_ELEMENTS
-        assert init.data_type != TensorProto.FLOAT or not big, init.name
-    assert sum(n.op_type == "Cast" and n.name.endswith("__to_fp32") for n in g.node) >= 4
+    assert w1 < w0  # the shared weights file is smaller (the learned graphs' weights: half the bytes)
+    learned = 0
+    for name, spec in m["graphs"].items():
+        g = onnx.load(str(out / spec["file"]), load_external_data=True).graph
+        for init in g.initializer:  # every big float weight of a learned graph is fp16 now, read through a Cast
+            big = int(np.prod(init.dims)) >= FP16_MIN_ELEMENTS
+            if "body" in spec:  # the body's own skinning stays float32 (test_body_graphs_stay_float32)
+                assert init.data_type != TensorProto.FLOAT16, (name, init.name)
+            else:
+                assert init.data_type != TensorProto.FLOAT or not big, (name, init.name)
+        learned += "body" not in spec
+        if name == "garment_encoder":
+            assert sum(n.op_type == "Cast" and n.name.endswith("__to_fp32") for n in g.node) >= 4
+    assert learned >= 2
     a, b = _deform(random_package, skirt_asset, body), _deform(out, skirt_asset, body)
     disp = np.abs(a - skirt_asset.vertices[None]).max()
     err = np.abs(a - b).max()
@@ -102,3 +110,30 @@ def test_quantize_cli_and_bad_precision(tmp_path, random_package):
     with pytest.raises(InputError, match="unknown precision"):
         convert_package(random_package, tmp_path / "x", "fp4")
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("precision", ["int8", "fp16-weights"])
+def test_body_graphs_stay_float32(tmp_path, body, precision):
+    """A user's trial: `segadeform quantize` rounded the body graphs too, and the int8 package posed the body up to
+    49 mm away from the float package (collisions pushed the garment out of that body).  The body graphs are the
+    body's own skinning, not the learned model: they are kept at float32, and pose the body as fp32 does."""
+    from segadeform.export.precision import convert_package
+    from segadeform.runtime import ModelPackage
+    from segadeform.runtime.body import BodyPoser
+
+    from ..conftest import SAMPLES
+
+    src = SAMPLES / "models" / "default"
+    out = convert_package(src, tmp_path / precision, precision)
+    rng = np.random.default_rng(0)
+    poses = rng.normal(0.0, 0.4, (4, 3 * body.n_joints))
+    trans = rng.normal(0.0, 0.1, (4, 3))
+    betas = np.array([1.0, -0.5])
+    for skinning in ("lbs", "dqs"):
+        ref = BodyPoser(ModelPackage(src), body, skinning=skinning, backend="graph").pose(poses, betas, trans)
+        got = BodyPoser(ModelPackage(out), body, skinning=skinning, backend="graph").pose(poses, betas, trans)
+        assert np.abs(got - ref).max() < 1e-6, (skinning, np.abs(got - ref).max())
+    # the learned graphs are still converted (int8: quantised nodes; fp16: half-size weights)
+    m_src, m_out = (json.loads((p / "manifest.json").read_text()) for p in (src, out))
+    assert m_out["precision"] == precision
+    assert m_out["graphs"]["deformer_lbs"]["sha256"] != m_src["graphs"]["deformer_lbs"]["sha256"]

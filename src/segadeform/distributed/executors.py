@@ -82,8 +82,10 @@ class LocalExecutor(Executor):
             for t in tasks:
                 yield fn(t)
             return
-        with cf.ProcessPoolExecutor(max_workers=min(self.workers, max(len(tasks), 1))) as ex:
-            futs = [ex.submit(fn, t) for t in tasks]
+        with cf.ProcessPoolExecutor(
+            max_workers=min(self.workers, max(len(tasks), 1)), initializer=_stop_on_signal
+        ) as ex:
+            futs = [ex.submit(_unless_stopped, fn, t) for t in tasks]
             try:
                 for f in cf.as_completed(futs):
                     try:
@@ -93,9 +95,51 @@ class LocalExecutor(Executor):
                             "a worker process died (killed?) while running a task (expected it "
                             "to finish; run again to resume: finished tasks are kept)"
                         ) from None
+            except BaseException:
+                # stopped (Ctrl-C, or SIGTERM, which reaches this process only): the workers stop their tasks
+                # too, each unwinding as on Ctrl-C (a task's temporary files and subprocesses go), rather than
+                # being waited out; a task they finished before is kept, as the contract says
+                for f in futs:
+                    f.cancel()
+                for proc in list(getattr(ex, "_processes", {}).values()):
+                    if proc.is_alive():
+                        proc.terminate()
+                raise
             finally:
                 for f in futs:
                     f.cancel()
+
+
+# A local worker process's own state: set once it was told to stop (the tasks the pool had already queued for it
+# must not start: the pool cannot take them back).
+_STOPPING = False
+
+
+def _interrupted(signum, frame):
+    import signal
+
+    global _STOPPING
+    _STOPPING = True
+    for s in (signal.SIGINT, signal.SIGTERM):  # once: a second signal must not break the unwinding of the first
+        signal.signal(s, signal.SIG_IGN)
+    raise KeyboardInterrupt
+
+
+def _stop_on_signal() -> None:
+    """A local worker's start: SIGTERM (sent by :meth:`LocalExecutor.map_unordered` when the run is stopped) and
+    SIGINT (Ctrl-C in a terminal reaches every process of the group) raise KeyboardInterrupt once, so the task
+    unwinds as on Ctrl-C, and no task starts in this worker after that (:func:`_unless_stopped`)."""
+    import signal
+
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, _interrupted)
+
+
+def _unless_stopped(fn, task):
+    """``fn(task)`` in a local worker, unless the worker was told to stop."""
+    if _STOPPING:
+        raise KeyboardInterrupt
+    return fn(task)
 
 
 def _import_ray():
