@@ -11,6 +11,9 @@ from segadeform.body.skeleton import SMPL_PARENTS, default_rest_joints
 from segadeform.errors import FileFormatError
 from segadeform.motion import feet_on_floor, load_motion, make_motion
 from segadeform.motion.motion import SMPL_PELVIS
+from tests.conftest import SAMPLES
+
+SAMPLES_WALK = SAMPLES / "motions" / "walk.npz"
 
 Y_UP_TO_Z_UP = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])  # (x, y, z) -> (x, -z, y)
 
@@ -128,3 +131,31 @@ def test_malformed_amass_layouts(tmp_path, arrays, words):
     with pytest.raises(FileFormatError, match=words) as ei:
         load_motion(tmp_path / "m.npz")
     assert "m.npz" in str(ei.value)
+
+
+def test_equal_rotations_written_otherwise_are_the_same_motion(tmp_path):
+    """A user's trial: walk.npz with the left hip's axis-angle turned 720 degrees further (or about the opposite axis
+    by 2 pi minus its angle) posed the same body but moved the garment by 4.7 mm to 7 cm, since the network reads
+    axis-angle.  Every motion now holds its rotations with angles in [0, pi]; those already there are kept bit for
+    bit."""
+    from segadeform.body.rotations import canonical_axis_angle
+
+    rng = np.random.default_rng(0)
+    r = rng.normal(0.0, 1.0, (200, 3))
+    r *= (rng.uniform(0.0, np.pi, 200) / np.linalg.norm(r, axis=1))[:, None]  # angles in [0, pi)
+    assert canonical_axis_angle(r) is r or np.array_equal(canonical_axis_angle(r), r)
+    u = r / np.linalg.norm(r, axis=1, keepdims=True)
+    t = np.linalg.norm(r, axis=1, keepdims=True)
+    for other in (r + 4 * np.pi * u, -u * (2 * np.pi - t), r + 1000 * 2 * np.pi * u):
+        np.testing.assert_allclose(axis_angle_to_matrix(other), axis_angle_to_matrix(r), atol=1e-9)
+        np.testing.assert_allclose(canonical_axis_angle(other), r, atol=1e-9 * (1 + np.abs(other).max()))
+    m = load_motion(SAMPLES_WALK)
+    d = dict(np.load(SAMPLES_WALK, allow_pickle=False))
+    hip = d["poses"][:, 3:6].astype(np.float64)
+    th = np.maximum(np.linalg.norm(hip, axis=1, keepdims=True), 1e-12)
+    for name, new in (("720", hip + 4 * np.pi * hip / th), ("flip", -hip / th * (2 * np.pi - th))):
+        d2 = dict(d, poses=np.concatenate([d["poses"][:, :3], new, d["poses"][:, 6:]], axis=1))
+        np.savez(tmp_path / f"{name}.npz", **d2)
+        m2 = load_motion(tmp_path / f"{name}.npz")
+        np.testing.assert_allclose(m2.poses, m.poses, atol=1e-9)
+        assert np.array_equal(m2.poses[:, 6:], m.poses[:, 6:])  # the other joints: untouched

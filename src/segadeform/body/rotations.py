@@ -12,6 +12,7 @@ import numpy as np
 __all__ = [
     "axis_angle_to_matrix",
     "matrix_to_axis_angle",
+    "canonical_axis_angle",
     "matrix_to_quaternion",
     "quaternion_to_matrix",
     "quaternion_multiply",
@@ -154,6 +155,30 @@ def quaternion_to_axis_angle(q: np.ndarray) -> np.ndarray:
         small, 2.0 / np.maximum(w, 1e-300) * (1.0 - s * s / (3.0 * np.maximum(w * w, 1e-300))), theta / ss
     )
     return v * factor[..., None]
+
+
+def canonical_axis_angle(r: np.ndarray) -> np.ndarray:
+    """The same rotations with every angle in ``[0, pi]``: an angle above pi is taken modulo 2 pi, and one still
+    above pi becomes 2 pi minus it about the opposite axis.  Vectors already in range are returned bit for bit
+    (the network reads axis-angle, so equal rotations must be written alike: a user's hip turned by 720 degrees
+    more moved the garment by centimetres).
+
+    Shapes:
+        r: (..., 3) -> (..., 3)
+    """
+    r = np.asarray(r, np.float64)
+    t = np.linalg.norm(r, axis=-1)
+    over = t > np.pi
+    if not over.any():
+        return r
+    out = r.copy()
+    ro, to = r[over], t[over]
+    axis = ro / to[:, None]
+    a = np.mod(to, 2.0 * np.pi)
+    flip = a > np.pi
+    a = np.where(flip, 2.0 * np.pi - a, a)
+    out[over] = np.where(flip[:, None], -axis, axis) * a[:, None]
+    return out
 
 
 def matrix_to_axis_angle(R: np.ndarray) -> np.ndarray:

@@ -8,7 +8,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..body.rotations import axis_angle_to_matrix, axis_angle_to_quaternion, quaternion_slerp, quaternion_to_axis_angle
+from ..body.rotations import (
+    axis_angle_to_matrix,
+    axis_angle_to_quaternion,
+    canonical_axis_angle,
+    quaternion_slerp,
+    quaternion_to_axis_angle,
+)
 from ..body.skeleton import SMPL_JOINT_NAMES
 from ..errors import FileFormatError, InputError
 from ..io.atomic import atomic_path
@@ -42,7 +48,8 @@ class Motion:
     """A body motion on the 24-joint SMPL skeleton.
 
     Attributes:
-        poses: (T, 72) axis-angle per joint, root first, relative to the rest pose
+        poses: (T, 72) axis-angle per joint, root first, relative to the rest pose (angles in [0, pi]: others
+            are rewritten as the same rotation, :func:`~segadeform.body.rotations.canonical_axis_angle`)
         trans: (T, 3) root translation, metres
         fps: frames per second
         betas: (B,) body shape the motion was captured with, or None
@@ -72,7 +79,9 @@ class Motion:
             raise InputError("motion contains NaN or inf")
         check_fps(self.fps)
         check_translation(t)
-        object.__setattr__(self, "poses", p.astype(np.float64))
+        # equal rotations written alike (angles in [0, pi]): the network reads axis-angle; in range, bit for bit
+        poses = canonical_axis_angle(p.astype(np.float64).reshape(-1, 24, 3)).reshape(p.shape)
+        object.__setattr__(self, "poses", poses)
         object.__setattr__(self, "trans", t.astype(np.float64))
         object.__setattr__(self, "meta", dict(self.meta or {}))
         if self.betas is not None:
