@@ -82,6 +82,7 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
             asset.vertices,
             b.shaped_vertices(beta_vals)[0],
             b.faces,
+            faces=asset.faces,
             path=garment,
             template_vertices=b.v_template,
             betas=beta_vals,

@@ -271,6 +271,7 @@ class Run:
                 asset.vertices,
                 self.body.shaped_vertices(self.betas)[0],
                 self.body.faces,
+                faces=asset.faces,
                 path=self.garment,
                 template_vertices=self.body.v_template,
                 betas=self.betas,

@@ -60,6 +60,7 @@ def scene_bundle(
             asset.vertices,
             body.shaped_vertices(scene.betas)[0],
             body.faces,
+            faces=asset.faces,
             path=scene.garment,
             template_vertices=body.v_template,
             betas=scene.betas,

@@ -160,6 +160,27 @@ def test_wrong_offset_that_passes_the_lenient_test_is_refused(body, dress):
     check_placement(side, rest, body.faces)
 
 
+def test_a_garment_scaled_down_is_named_so(body, dress):
+    """A user's trial: a skirt at 1/1000 got the advice of another origin (--offset 0,0.75,0), and the 0.7 mm garment
+    that fit wrote then passed.  A garment under 3 cm across never sits; one scaled down is named with --scale."""
+    rest = body.shaped_vertices()[0]
+    with pytest.raises(PlacementError, match=r"\d\.\d mm across.*once scaled by 1000.*--scale 1000"):
+        check_placement(dress.vertices * 0.001, rest, body.faces, path=Path("g.obj"))
+    with pytest.raises(PlacementError, match="mm across"):  # moved onto the body, still no garment
+        check_placement(dress.vertices * 0.001 + [0.0, 1.0, 0.1], rest, body.faces)
+
+
+def test_vertices_in_no_face_are_left_out(body):
+    """A user's trial: 100 stray vertices (in no face) tipped the check and got the advice of another origin."""
+    skirt = read_mesh(ROOT / "samples" / "garments" / "skirt.obj")
+    rest = body.shaped_vertices()[0]
+    pelvis = rest.mean(axis=0)
+    v = np.concatenate([skirt.vertices, np.repeat(pelvis[None], 300, axis=0)])  # deep inside the body
+    with pytest.raises(PlacementError):
+        check_placement(v, rest, body.faces)
+    check_placement(v, rest, body.faces, faces=skirt.faces)
+
+
 def test_garment_for_another_body_is_refused(body):
     from segadeform.garments import GarmentParams, make_garment
 

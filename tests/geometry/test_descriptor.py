@@ -117,3 +117,17 @@ def test_rescaled_descriptor_at_other_n_star_approximates_the_trained_one(sample
             rescale_descriptor(bad, 32)
     with pytest.raises(InputError):
         rescale_descriptor(ref, 0)
+
+
+def test_vertices_in_no_face_are_never_sampled():
+    """A user's trial: 100 stray copies of a skirt's waistband vertices (in no face) were each sampled as a part of
+    their own and took the descriptor 150x the model's threshold away.  Now it is the garment's own."""
+    from segadeform.io import read_mesh
+    from tests.conftest import SAMPLES
+
+    m = read_mesh(SAMPLES / "garments" / "skirt.obj")
+    v = np.concatenate([m.vertices, m.vertices[:100]])
+    clean = garment_descriptor(m.vertices, m.faces)
+    stray = garment_descriptor(v, m.faces)
+    np.testing.assert_allclose(stray.eigenvalues, clean.eigenvalues, rtol=0, atol=1e-9)
+    assert not np.isin(stray.samples, np.arange(len(m.vertices), len(v))).any()

@@ -126,11 +126,22 @@ def _stats(v, proxy, top, floor):
         "median": float(np.median(np.abs(d))),
         "deep": float((d < -0.01).mean()),
         "outside_height": float(((v[:, 1] > top + 0.02) | (v[:, 1] < floor - 0.02)).mean()),
+        "size": float(np.ptp(v, axis=0).max()),
     }
 
 
+#: a garment smaller than this across (m) is no garment of a human's: a file scaled wrongly (a user's skirt at 1/1000
+#: passed the check once moved onto the body)
+MIN_GARMENT_SIZE = 0.03
+
+
 def _fits(st) -> bool:
-    return st["p20"] <= 0.05 and st["deep"] <= 0.05 and st["outside_height"] <= 0.02
+    return (
+        st["p20"] <= 0.05
+        and st["deep"] <= 0.05
+        and st["outside_height"] <= 0.02
+        and st.get("size", MIN_GARMENT_SIZE) >= MIN_GARMENT_SIZE
+    )
 
 
 def _shape_text(b) -> str:
@@ -213,6 +224,7 @@ def check_placement(
     template_vertices=None,
     betas=(),
     recorded_betas=None,
+    faces=None,
 ) -> dict:
     """Refuse a garment that does not sit on the (rest) body, naming the likely cause and the fix.
 
@@ -225,7 +237,8 @@ def check_placement(
     or pose (``--mhclo`` or ``--from-body``).  With ``template_vertices`` (the body at betas 0) and ``betas`` (the
     shape ``body_vertices`` has), a garment that sits on the default shape is named as made for it: it needs
     making (or fitting) again for ``betas``, not another origin or units.  ``recorded_betas``: the shape the
-    garment's file records (:func:`check_recorded_shape`), checked first.
+    garment's file records (:func:`check_recorded_shape`), checked first.  ``faces``: the garment's; vertices in no
+    face are then left out (stray vertices tipped the check and got the advice of another origin).
 
     Returns the statistics (``p20``, ``median`` distance in m, ``deep`` and ``outside_height`` fractions).
 
@@ -234,6 +247,12 @@ def check_placement(
     """
     check_recorded_shape(recorded_betas, betas, path=path)
     v = np.asarray(vertices, np.float64)
+    if faces is not None:
+        fi = np.asarray(faces, np.int64).ravel()
+        if fi.size and fi.min() >= 0 and fi.max() < len(v):
+            used = np.zeros(len(v), bool)
+            used[fi] = True
+            v = v[used]
     if len(v) > max_points:
         v = v[np.linspace(0, len(v) - 1, max_points).astype(np.int64)]
     bv = np.asarray(body_vertices, np.float64)
@@ -243,7 +262,12 @@ def check_placement(
     if _fits(st):
         _check_centred(v, bv, proxy, top, floor, st, path)
         return st
-    what = (
+    small = (
+        f"{1000 * st['size']:.1f} mm across (a garment is at least {100 * MIN_GARMENT_SIZE:.0f} cm), "
+        if st["size"] < MIN_GARMENT_SIZE
+        else ""
+    )
+    what = small + (
         f"median distance to the body {100 * st['median']:.1f} cm (closest fifth beyond "
         f"{100 * st['p20']:.1f} cm), {100 * st['deep']:.1f} % of vertices more than 1 cm inside it, "
         f"{100 * st['outside_height']:.1f} % above the head or below the feet"
@@ -286,8 +310,19 @@ def check_placement(
                     path=path,
                     expected=f"metres, +Y up: run `segadeform garment fit {g} -o FIXED.obj{opts}`, or pass --force",
                 )
+    for scale in (10.0, 100.0, 1000.0):  # a file scaled down (the units above scale it the other way)
+        for up in ("y", "z", "-z"):
+            w = fix_units_and_axes(v, up=up, scale=scale)
+            if _fits(_stats(w, proxy, top, floor)):
+                opts = f" --scale {scale:g}" + (f" --up {up}" if up != "y" else "")
+                raise PlacementError(
+                    f"the garment does not sit on the body ({what}); it does once scaled by {scale:g}"
+                    + (f" with +{up.lstrip('-')} up" if up != "y" else ""),
+                    path=path,
+                    expected=f"metres, +Y up: run `segadeform garment fit {g} -o FIXED.obj{opts}`, or pass --force",
+                )
     size = np.ptp(v, axis=0)
-    if size.max() < 2.0 * (top - floor):  # a plausible size: try moving it
+    if MIN_GARMENT_SIZE <= size.max() < 2.0 * (top - floor):  # a plausible size: try moving it
         # beside the body's vertical axis first (a garment moved sideways is not fixed by moving it down: a user's
         # skirt 0.4 m to the side was sent 0.65 m down, onto the floor by a foot), then up or down alone
         side = np.zeros(3)  # across the body only: its left-right middle is its axis (front to back it is not:

@@ -81,17 +81,21 @@ def _argmax_tied(x: np.ndarray, scale: float) -> int:
     return int(np.flatnonzero(x >= top - TIE_TOLERANCE * scale)[0])
 
 
-def _start_vertex(vertices: np.ndarray, solver: GeodesicSolver) -> int:
-    c = vertices.mean(axis=0)
+def _start_vertex(vertices: np.ndarray, solver: GeodesicSolver, exclude: np.ndarray | None = None) -> int:
+    keep = np.ones(len(vertices), bool) if exclude is None else ~exclude
+    c = vertices[keep].mean(axis=0)
     dc = np.linalg.norm(vertices - c, axis=1)
-    centre = _argmax_tied(-dc, float(dc.max()) or 1.0)
+    dc = np.where(keep, dc, np.inf)
+    centre = _argmax_tied(-dc, float(dc[keep].max()) or 1.0)
     d = solver([centre])[0]
     # the furthest vertex in the centre's component (other parts are inf and lose)
-    finite = np.where(np.isfinite(d), d, -1.0)
+    finite = np.where(np.isfinite(d) & keep, d, -1.0)
     return _argmax_tied(finite, float(finite.max()) or 1.0)
 
 
-def furthest_point_sampling(distance_fn, n_vertices: int, n_samples: int, start: int = 0):
+def furthest_point_sampling(
+    distance_fn, n_vertices: int, n_samples: int, start: int = 0, exclude: np.ndarray | None = None
+):
     """Greedy furthest point sampling.
 
     Args:
@@ -99,6 +103,7 @@ def furthest_point_sampling(distance_fn, n_vertices: int, n_samples: int, start:
         n_vertices: N.
         n_samples: how many samples; clipped to N.
         start: first sample.
+        exclude: (N,) bool, vertices never sampled while others remain (vertices in no face).
 
     Returns:
         samples ``(m,) int64`` and their distance rows ``(m, N) float64``,
@@ -121,6 +126,8 @@ def furthest_point_sampling(distance_fn, n_vertices: int, n_samples: int, start:
     scale = float(finite.max()) if finite.size and finite.max() > 0 else 1.0
     for i in range(1, m):
         nearest[samples[:i]] = -1.0  # never pick a sample twice (duplicates sit at distance 0)
+        if exclude is not None:
+            nearest[exclude] = -1.0
         nxt = _argmax_tied(nearest, scale)
         samples[i] = nxt
         rows[i] = distance_fn(np.array([nxt]))[0]
@@ -192,8 +199,15 @@ def garment_descriptor(
     if int(n_star) < 1:
         raise InputError("n_star must be at least 1", got=n_star)
     solver = solver or GeodesicSolver(v, f, method=method)
-    start = _start_vertex(v, solver)
-    samples, rows = furthest_point_sampling(solver, v.shape[0], n_star, start)
+    # vertices in no face are not of the garment's surface: never sampled (100 stray copies of a skirt's waistband
+    # vertices were each sampled as a part of their own, taking the descriptor 150x the model's threshold away)
+    used = np.zeros(v.shape[0], bool)
+    used[f.ravel()] = True
+    exclude = None if used.all() or not used.any() else ~used
+    start = _start_vertex(v, solver, exclude)
+    samples, rows = furthest_point_sampling(
+        solver, v.shape[0], min(int(n_star), int(used.sum()) or v.shape[0]), start, exclude
+    )
     finite = rows[np.isfinite(rows)]
     r = float(finite.max()) if finite.size else 0.0
     if not (r > 0 and np.isfinite(r)):
