@@ -114,3 +114,26 @@ def test_scene_only_parses_and_uses_the_io_axes(tmp_path, monkeypatch):
         load_scene(write(tmp_path, BASE.replace('path = "o.pc2"', 'path = "o.pc2"\nup = "x"')))
     monkeypatch.setattr(scene_mod, "UP_AXES", ("y", "z", "x"))
     assert load_scene(write(tmp_path, BASE.replace('path = "o.pc2"', 'path = "o.pc2"\nup = "x"'))).up == "x"
+
+
+@pytest.mark.parametrize(
+    "motion, line, words",
+    [
+        ('kind = "moonwalk"', 4, "unknown motion kind"),
+        (f'file = "{SAMPLES / "motions" / "cmu" / "02_01_walk.bvh"}"\nunits = "furlong"', 5, "unknown units"),
+    ],
+)
+def test_a_bad_motion_value_names_the_scene_and_line(tmp_path, motion, line, words):
+    """A user's trial: `unknown motion kind` and `unknown units` from a scene named neither file nor line."""
+    from click.testing import CliRunner
+
+    from segadeform.cli.main import cli
+
+    p = tmp_path / "s.toml"
+    p.write_text(
+        f'[garment]\nmesh = "{SAMPLES / "garments" / "skirt.obj"}"\n[motion]\n{motion}\n'
+        f'[output]\npath = "{tmp_path / "o.pc2"}"\n'
+    )
+    r = CliRunner().invoke(cli, ["run", str(p), "--no-cache"])
+    assert r.exit_code == 1 and f"{p}:{line}: [motion]: {words}" in r.output, r.output
+    assert not (tmp_path / "o.pc2").exists()

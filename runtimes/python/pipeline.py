@@ -46,6 +46,7 @@ from segadeform.io.garment_asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
 from segadeform.io.obj import recorded_betas
 from segadeform.io.outputs import claim_scene_outputs, garment_surface
+from segadeform.io.toml import key_line
 from segadeform.motion import Motion, build_motion, frame_range, glitches_in_range, motion_windows
 from segadeform.settings import Effects, Scene
 
@@ -484,7 +485,20 @@ def run_scene(
     betas = shape_for_inputs(scene, body, force=force)
     if betas != tuple(scene.betas):
         scene = dataclasses.replace(scene, betas=betas)
-    motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
+    try:
+        motion = build_motion(scene.motion, body.rest_joints(scene.betas)[0])
+    except InputError as e:  # a value of the scene's [motion] (kind, units): name the file and the key's line
+        if scene.path is None or e.path is not None:
+            raise
+        k = "kind" if "kind" in e.problem else "units" if ("unit" in e.problem or "scale" in e.problem) else None
+        line = key_line(scene.path, "motion", k) if k else None
+        raise type(e)(
+            f"[motion]: {e.problem}",
+            path=scene.path,
+            line=line or key_line(scene.path, "motion"),
+            expected=e.expected,
+            got=e.got,
+        ) from None
     check_motion_shape(motion, scene, body, force=force)
     try:  # a range past the motion's end is the scene's to fix: name it
         frame_range(scene.motion.frames, motion.n_frames)

@@ -78,6 +78,13 @@ def test_scene_keys(tmp_path):
         with pytest.raises(FileFormatError, match=msg) as ei:
             load_scene(p)
         assert str(p) in str(ei.value)
+        if "unknown key" not in msg and "wrong type" not in msg:  # a refused value names its line (a user's trial)
+            assert ei.value.line == 8 + bad.count("\n"), (bad, ei.value.line)
+    # knobs with the stage off did nothing, silently (a user's trial): refused as --cloth K=V is
+    p.write_text(base + "[effects]\ncollisions = true\ncloth_iterations = 8\n")
+    with pytest.raises(FileFormatError, match="sets cloth_iterations but the cloth stage is off") as ei:
+        load_scene(p)
+    assert ei.value.line == 9
 
 
 def test_a_run_without_cloth_pays_nothing(tmp_path, random_package, body, monkeypatch):
@@ -150,3 +157,28 @@ def test_command_line(tmp_path, random_package):
     assert r.exit_code == 2 and "cloth iterations must be an integer" in r.output and not (tmp_path / "c.pc2").exists()
     r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "d.pc2"), "--quality", "fast", "--effects=+cloth"])
     assert r.exit_code == 0 and "+cloth" in r.output, r.output
+    # --quality replaces the scene's [effects], its cloth knobs included (a user's trial: "best" kept a scene's
+    # iterations = 2 and stiffness = 0.5, though the docs say the preset replaces the table); --cloth still applies
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        f'[garment]\nmesh = "{SKIRT}"\n[motion]\nfile = "{SAMPLES / "motions" / "walk.npz"}"\nframes = "0:4"\n'
+        f'[output]\npath = "{tmp_path / "e.pc2"}"\n[model]\npackage = "{random_package}"\n'
+        "[effects]\ncloth = true\ncloth_iterations = 2\ncloth_stiffness = 0.5\n"
+    )
+    r = CliRunner().invoke(cli, ["run", str(scene), "--no-cache", "--quality", "best"])
+    assert r.exit_code == 0 and "+cloth" in r.output and "iterations=2" not in r.output, r.output
+    r = CliRunner().invoke(
+        cli,
+        [
+            "run",
+            str(scene),
+            "--no-cache",
+            "--quality",
+            "best",
+            "--cloth",
+            "iterations=3",
+            "-o",
+            str(tmp_path / "f.pc2"),
+        ],
+    )
+    assert r.exit_code == 0 and "+cloth(iterations=3)" in r.output, r.output

@@ -208,6 +208,21 @@ class _OutputTable:
     body: str | None = None
 
 
+def _effects_line(p, plain: dict, knobs: dict) -> int | None:
+    """The line of the ``[effects]`` key whose value is refused (each tried alone), else the table's."""
+    for k, v in knobs.items():
+        try:
+            ClothSettings(**{k: v})
+        except ValueError:
+            return key_line(p, "effects", f"cloth_{k}")
+    for k, v in plain.items():
+        try:
+            Effects(**{k: v})
+        except ValueError:
+            return key_line(p, "effects", k)
+    return key_line(p, "effects")
+
+
 #: ``[effects]``: the fields of Effects but the cloth settings, which are ``cloth_<knob>`` keys
 _EffectsTable = dataclasses.make_dataclass(
     "_EffectsTable",
@@ -308,13 +323,19 @@ def load_scene(path: str | os.PathLike) -> Scene:
     if "effects" in data:  # what is not named is off
         eff = dict({n: False for n in EFFECT_NAMES}, **data["effects"])
         knobs = {k[len("cloth_") :]: eff.pop(k) for k in list(eff) if k.startswith("cloth_")}
+        plain = {k: (float(v) if k == "collision_margin" else v) for k, v in eff.items()}
         try:
-            effects = Effects(
-                **{k: (float(v) if k == "collision_margin" else v) for k, v in eff.items()},
-                cloth_settings=ClothSettings(**knobs),
-            )
+            effects = Effects(**plain, cloth_settings=ClothSettings(**knobs))
         except ValueError as e:
-            raise FileFormatError(f"[effects]: {e}", path=p) from None
+            raise FileFormatError(f"[effects]: {e}", path=p, line=_effects_line(p, plain, knobs)) from None
+        if knobs and not effects.cloth:  # as --cloth K=V with the stage off: the knobs would do nothing
+            first = sorted(knobs)[0]
+            raise FileFormatError(
+                f"[effects] sets cloth_{first} but the cloth stage is off",
+                path=p,
+                line=key_line(p, "effects", f"cloth_{first}"),
+                expected="cloth = true in [effects], or no cloth_ keys",
+            )
     else:
         effects = DEFAULT_EFFECTS
     sim = parse_simulate_table(data["simulate"], where=p) if "simulate" in data else None
