@@ -201,6 +201,11 @@ def test_load_motion_reads_amc_as_bvh(trial, tmp_path):
     trial[0].rename(trial[0].with_name("03.asf"))
     with pytest.raises(FileFormatError, match="cannot tell which skeleton.*02.asf, 03.asf"):
         load_motion(trial[1])
+    # a missing AMC is a missing file, not a missing skeleton (a user's trial), with or without an .asf beside it
+    for folder in (trial[1].parent, tmp_path / "empty"):
+        folder.mkdir(exist_ok=True)
+        with pytest.raises(FileFormatError, match="nope.amc: no such file"):
+            load_motion(folder / "nope.amc")
 
 
 def test_scene_and_dataset_config_take_amc(trial, tmp_path):

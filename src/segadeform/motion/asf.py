@@ -810,6 +810,11 @@ def find_asf(amc_path: str | os.PathLike) -> Path:
     several, ``SUBJECT.asf`` for ``SUBJECT_TRIAL.amc`` (CMU's naming)."""
     p = Path(amc_path)
     folder = p.parent
+    if not p.is_file():  # the AMC itself first: a missing one was reported as a missing skeleton (a user's trial)
+        try:
+            p.open("rb").close()
+        except OSError as e:
+            raise file_error(e, p) from None
     try:
         found = sorted(q for q in folder.iterdir() if q.suffix.lower() == ".asf" and q.is_file())
     except OSError as e:
