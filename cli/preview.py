@@ -99,6 +99,19 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
             else load_body(body_model or default_body_path()).faces
         )
         B = np.asarray(read_sequence(body_seq, faces=bf), np.float64)
+        n_rest = int(np.asarray(bf).max()) + 1 if np.asarray(bf).size else 0
+        if B.shape[1] != n_rest:  # a garment's cache given as the body, or another body's (a user's trial)
+            rest = (
+                f"the OBJ beside it ({side.name})"
+                if side.is_file() and body_seq.suffix.lower() != ".obj"
+                else ("the body model")
+            )
+            raise InputError(
+                f"the body sequence does not match its rest mesh, {rest}",
+                path=body_seq,
+                expected=f"{n_rest} vertices (the posed body `run --body-out` writes)",
+                got=f"{B.shape[1]} vertices",
+            )
         if len(B) != len(G):
             raise InputError(
                 "the body and garment sequences have different frame counts", path=body_seq, expected=len(G), got=len(B)

@@ -160,3 +160,19 @@ def test_preview_refuses_an_unknown_format_and_a_rate_that_is_not_one_before_ren
     assert not (tmp_path / "x.gif").exists()
     r = CliRunner().invoke(cli, [*base, "-o", str(tmp_path / "x.gif"), "--fps", "12"])
     assert r.exit_code == 0 and (tmp_path / "x.gif").is_file(), r.output
+
+
+def test_preview_names_a_body_sequence_that_is_not_the_body(tmp_path):
+    """A user's trial: a garment's cache given as --body said `face indices out of range (..., got (np.int64(0),
+    np.int64(13717)))`, naming no file.  Now: the file, what it has and what the body needs."""
+    _scene(tmp_path)
+    (tmp_path / "h.pc2").write_bytes((tmp_path / "g.pc2").read_bytes())  # no OBJ beside it: the body model's faces
+    r = CliRunner().invoke(
+        cli,
+        ["preview", str(tmp_path / "g.pc2"), "--garment", str(tmp_path / "g.obj"), "--body", str(tmp_path / "h.pc2")]
+        + ["-o", str(tmp_path / "p.png")],
+    )
+    assert r.exit_code == 1 and not (tmp_path / "p.png").exists()
+    line = r.output.strip().splitlines()[-1]
+    assert line.startswith(f"Error: {tmp_path / 'h.pc2'}: the body sequence does not match its rest mesh"), line
+    assert "expected 13718 vertices" in line and "got 4 vertices" in line and "np.int64" not in line
