@@ -52,6 +52,7 @@ from .motion import motion_group
 @click.option("--seed", type=int, default=0, show_default=True, help="Procedural motions: seed.")
 @click.option("--speed", type=float, default=1.0, show_default=True, help="Procedural motions: cycle rate.")
 @click.option("--amplitude", type=float, default=1.0, show_default=True, help="Procedural motions: joint angle scale.")
+@click.option("--force", is_flag=True, help="Write it for a body shape no human has (as run and garment export take).")
 def motion_export_cmd(
     source,
     output,
@@ -69,6 +70,7 @@ def motion_export_cmd(
     seed,
     speed,
     amplitude,
+    force,
 ):
     """Write SOURCE (a .bvh, .amc or .npz motion, or a procedural kind: idle, walk, dance, ...) as a motion file:
     poses (T, 24, 3) and translations (T, 3) on the body's skeleton, as `segadeform run` would play it."""
@@ -121,6 +123,10 @@ def motion_export_cmd(
     if repair_glitches and spec.file is None:
         raise click.UsageError("--repair-glitches repairs motion capture; a procedural motion has no glitches")
     b = load_body(body or default_body_path())
+    if not force:  # a shape no human has (--betas 4: a 2.86 m body), refused as run and garment export refuse it
+        from segadeform.bounds import check_body_height
+
+        check_body_height(b, beta_vals)
     built = build_motion(spec, b.rest_joints(beta_vals)[0])
     settle, jumps = glitches_in_range(built, parse_frames(frames) if frames else None)
     m, first = select_frames(built, parse_frames(frames) if frames else None)

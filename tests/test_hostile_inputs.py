@@ -528,3 +528,15 @@ def test_the_garment_cache_does_not_take_a_file_that_cannot_be_read(tmp_path):
         r = invoke("run", "--garment", renamed, "--motion", WALK, "--frames", "0:2", "-o", out)
         assert r.exit_code == 1 and words in r.output and "skirt" + suffix in r.output, r.output
         assert not out.exists()
+
+
+def test_motion_export_refuses_a_body_no_human_has_unless_forced(tmp_path):
+    """A user's trial: `garment export --betas=4` was refused (a 2.86 m body, --force to mean it) and `motion export
+    --betas=4` wrote its file silently and had no --force."""
+    refused("not a human's height", "motion", "export", WALK, "--betas=4", "-o", tmp_path / "m.sgdm")
+    assert not (tmp_path / "m.sgdm").exists()
+    assert (
+        invoke("motion", "export", WALK, "--betas=4", "--force", "--frames", "0:4", "-o", tmp_path / "m.sgdm").exit_code
+        == 0
+    )
+    assert (tmp_path / "m.sgdm").is_file()
