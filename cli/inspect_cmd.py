@@ -120,6 +120,22 @@ def inspect_cmd(path):
             f"  root translation {np.round(m.trans.min(0), 4).tolist()} .. {np.round(m.trans.max(0), 4).tolist()} m; "
             f"largest joint rotation {float(rot.max()):.3f} rad"
         )
+    elif ext == ".sgdb":  # a scene bundle (`segadeform bundle`): what the Node, C++ and browser runtimes run
+        from segadeform.io.sgdb import read_bundle
+
+        arrays, meta = read_bundle(path)
+        rest, poses = arrays.get("rest"), arrays.get("poses")
+        n_v = "?" if rest is None else len(rest)
+        n_f = "?" if poses is None else len(poses)
+        eff = meta.get("effects")
+        if isinstance(eff, dict):  # the deformer's effects the bundle was made with (post-processes are the runner's)
+            eff = ",".join([str(eff.get("skinning", "?"))] + [k for k, v in eff.items() if v is True])
+        click.echo(
+            f"{path}: scene bundle, garment {meta.get('garment', '?')} ({n_v} vertices), motion {meta.get('motion', '?')}"
+            f" ({n_f} frames at {meta.get('fps', '?')} fps, from frame {meta.get('start_frame', 0)}), graph "
+            f"{meta.get('graph', '?')}, effects {eff}"
+        )
+        click.echo("  arrays: " + ", ".join(f"{k} {tuple(v.shape)} {v.dtype}" for k, v in arrays.items()))
     elif ext == ".sgda":
         from segadeform.geometry import GarmentAsset
 

@@ -176,3 +176,16 @@ def test_preview_names_a_body_sequence_that_is_not_the_body(tmp_path):
     line = r.output.strip().splitlines()[-1]
     assert line.startswith(f"Error: {tmp_path / 'h.pc2'}: the body sequence does not match its rest mesh"), line
     assert "expected 13718 vertices" in line and "got 4 vertices" in line and "np.int64" not in line
+
+
+def test_inspect_reads_a_scene_bundle(tmp_path):
+    """A user's trial: `inspect` read .sgda and .sgdm but not the bundle `segadeform bundle` writes."""
+    from segadeform.io.sgdb import write_bundle
+
+    meta = {"garment": "skirt.obj", "motion": "walk", "fps": 30.0, "start_frame": 10, "graph": "deformer_lbs"}
+    meta["effects"] = {"skinning": "lbs", "dynamics": True, "wrinkles": False}
+    write_bundle(tmp_path / "s.sgdb", {"rest": np.zeros((7, 3), np.float32), "poses": np.zeros((5, 72))}, meta)
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "s.sgdb")])
+    assert r.exit_code == 0, r.output
+    assert "scene bundle, garment skirt.obj (7 vertices), motion walk (5 frames at 30.0 fps, from frame 10)" in r.output
+    assert "effects lbs,dynamics" in r.output and "poses (5, 72) float64" in r.output
