@@ -131,9 +131,9 @@ def inspect_cmd(path):
         if isinstance(eff, dict):  # the deformer's effects the bundle was made with (post-processes are the runner's)
             eff = ",".join([str(eff.get("skinning", "?"))] + [k for k, v in eff.items() if v is True])
         click.echo(
-            f"{path}: scene bundle, garment {meta.get('garment', '?')} ({n_v} vertices), motion {meta.get('motion', '?')}"
-            f" ({n_f} frames at {meta.get('fps', '?')} fps, from frame {meta.get('start_frame', 0)}), graph "
-            f"{meta.get('graph', '?')}, effects {eff}"
+            f"{path}: scene bundle, garment {meta.get('garment', '?')} ({n_v} vertices), "
+            f"motion {meta.get('motion', '?')} ({n_f} frames at {meta.get('fps', '?')} fps, "
+            f"from frame {meta.get('start_frame', 0)}), graph {meta.get('graph', '?')}, effects {eff}"
         )
         click.echo("  arrays: " + ", ".join(f"{k} {tuple(v.shape)} {v.dtype}" for k, v in arrays.items()))
     elif ext == ".sgda":

@@ -251,6 +251,26 @@ def test_given_units_are_used_as_is(tmp_path):
     assert m2.meta["scale"] == pytest.approx(0.012)
 
 
+def test_given_units_no_adult_has_are_said(tmp_path, caplog):
+    """A user's trial: a CMU clip read with --units m put the body 16 m up, with no word about the units."""
+    names, parents, rest, _ = _skeleton("game")
+    T = 3
+    loc = smooth_local_rotations(T, len(names), amplitude=0.0)
+    f = write_skeleton_bvh(
+        tmp_path / "g.bvh", names, np.array(parents), rest, loc, np.tile(rest[0], (T, 1)), scale=100.0
+    )
+    with caplog.at_level("WARNING", logger="segadeform.motion.bvh"):
+        read_bvh(f, rest_joints=default_rest_joints(), units="cm")
+    assert not caplog.records  # right units: nothing said
+    for wrong in ("m", "mm"):
+        caplog.clear()
+        with caplog.at_level("WARNING", logger="segadeform.motion.bvh"):
+            read_bvh(f, rest_joints=default_rest_joints(), units=wrong)
+        assert len(caplog.records) == 1, wrong
+        msg = caplog.records[0].getMessage()
+        assert f"g.bvh: units {wrong} make the legs" in msg and "look like units cm" in msg, msg
+
+
 def test_joint_map_file(tmp_path):
     """Names the rule cannot read, swapped sides: a user map fixes them (either direction of entry)."""
     names, parents, rest, _ = _skeleton("nonames")

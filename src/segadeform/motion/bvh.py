@@ -33,6 +33,7 @@ Yrotation Xrotation``) and the others with 3.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 from pathlib import Path
 
@@ -60,6 +61,8 @@ __all__ = [
 
 #: metres per file unit of the units a BVH file may be in (``units=`` in :func:`read_bvh`).
 UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "cmu": 0.0254 / 0.45}
+log = logging.getLogger(__name__)
+
 _TYPICAL_LEGS_M = 1.64  # hip-knee-ankle, both legs, of an adult (metres); only for reporting the unit
 Z_UP_TO_Y_UP = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # (x, y, z) -> (x, z, -y)
 
@@ -365,6 +368,18 @@ def skeleton_motion(
         scale_f = float(scale)
     if scale_f is not None and not (np.isfinite(scale_f) and scale_f > 0):
         raise InputError("scale must be positive", got=scale_f)
+    if units is not None and scale_f is not None:  # given units that make no adult's legs: said, not refused
+        legs_m = legs * scale_f
+        if not (_TYPICAL_LEGS_M / 3 <= legs_m <= 3 * _TYPICAL_LEGS_M):
+            log.warning(
+                "%s: units %s make the legs %.3g m long (an adult's are about %.1f m, both legs); the skeleton's "
+                "legs look like units %s (leave --units out to fit them)",
+                p.name,
+                units,
+                legs_m,
+                _TYPICAL_LEGS_M,
+                unit_guess,
+            )
     if rest_joints is None:
         # the file's own skeleton: mapped joints, virtual ones between their neighbours
         target = _own_rest(sk.rest, src) * scale_f
