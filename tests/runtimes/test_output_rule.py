@@ -76,6 +76,14 @@ def test_the_runtime_writes_only_where_segadeform_may(runtime, request, portable
     assert (tmp_path / MANIFEST_NAME).is_file()
     # missing folders are made, as `segadeform run` makes them
     assert go("-o", tmp_path / "new" / "dir" / "o.pc2").returncode == 0
+    # a manifest that is not one (text with a line break) is refused in one line (C++ printed the break)
+    odd = tmp_path / "odd"
+    odd.mkdir()
+    (odd / MANIFEST_NAME).write_text("not json {\n")
+    r = go("-o", odd / "o.pc2")
+    assert r.returncode == 1 and "not a segadeform outputs manifest" in r.stderr, r.stderr
+    assert r.stderr.count("\n") == 1, r.stderr
+    assert (odd / MANIFEST_NAME).read_text() == "not json {\n" and not (odd / "o.pc2").exists()
 
 
 @pytest.mark.parametrize("runtime", ["node", "cpp"])

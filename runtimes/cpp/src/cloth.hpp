@@ -34,6 +34,13 @@ int64_t scl_step(int64_t n, int64_t ne, const int64_t* edges, const double* rest
 
 namespace sgd {
 
+// A bound as Python and Node print it (1, 0.03, 1e-06): the shortest of %g
+inline std::string shortest(double x) {
+  std::ostringstream s;
+  s << x;
+  return s.str();
+}
+
 // The knobs, as segadeform.cloth_settings.ClothSettings (defaults and ranges); `--cloth K=V,...` changes them.
 struct ClothSettings {
   std::map<std::string, double> v{{"iterations", 4},   {"stiffness", 1.0}, {"stretch", 0.03},  {"compress", 0.03},
@@ -68,7 +75,7 @@ struct ClothSettings {
       if (used == 0 || used != item.size() - eq - 1 || !(std::isfinite(x) && x >= r.first && x <= r.second) ||
           (name == "iterations" && x != std::floor(x)))
         throw std::runtime_error("cloth " + name + " must be " + (name == "iterations" ? "an integer" : "a number") +
-                                 " in [" + std::to_string(r.first) + ", " + std::to_string(r.second) + "] (got '" +
+                                 " in [" + shortest(r.first) + ", " + shortest(r.second) + "] (got '" +
                                  item.substr(eq + 1) + "')");
       v[name] = x;
     }

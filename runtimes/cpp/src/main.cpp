@@ -676,7 +676,7 @@ int main(int argc, char** argv) {
   try {
     sgd::claim_outputs(outputs, inputs);
   } catch (const std::exception& e) {
-    std::cerr << "Error: " << e.what() << "\n";
+    std::cerr << "Error: " << sgd::outputs_detail::one_line(e.what()) << "\n";
     return 1;
   }
   try {
@@ -786,7 +786,7 @@ int main(int argc, char** argv) {
     api->ReleaseEnv(env);
   } catch (const std::exception& e) {
     for (const auto& o : outputs) std::remove(sgd::temporary_name(o).c_str());  // a failed run leaves no output
-    std::cerr << "Error: " << e.what() << "\n";
+    std::cerr << "Error: " << sgd::outputs_detail::one_line(e.what()) << "\n";
     return 1;
   }
   return 0;

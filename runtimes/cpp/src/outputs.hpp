@@ -44,9 +44,21 @@ struct Manifest {
   std::map<std::string, Entry> files;
 };
 
+// An error is one line (the README's rule): control characters of a file's text shown as \n, \r, \t
+inline std::string one_line(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    if (c == '\n') o += "\\n";
+    else if (c == '\r') o += "\\r";
+    else if (c == '\t') o += "\\t";
+    else o += c;
+  }
+  return o;
+}
+
 inline std::runtime_error refused(const std::string& path, const std::string& problem, const std::string& expected,
                                   const std::string& got) {
-  return std::runtime_error(path + ": " + problem + " (expected " + expected + ", got " + got + ")");
+  return std::runtime_error(path + ": " + problem + " (expected " + expected + ", got " + one_line(got) + ")");
 }
 
 inline std::string parent_of(const std::string& p) {

@@ -42,6 +42,12 @@ export function parseCloth(text, base = DEFAULT_CLOTH) {
       throw new Error(`unknown cloth setting (expected NAME=VALUE with NAME one of ${Object.keys(KNOBS).join(", ")}, got '${item}')`);
     }
     out[name] = Number(value);
+    const [int, lo, hi] = KNOBS[name];
+    const v = out[name];
+    if (value === "" || !(Number.isFinite(v) && v >= lo && v <= hi && (!int || Number.isInteger(v)))) {
+      // the text as given: Number("abc") is NaN, which says nothing of what was typed
+      throw new Error(`cloth ${name} must be ${int ? "an integer" : "a number"} in [${lo}, ${hi}] (got '${value}')`);
+    }
   }
   return checkCloth(out);
 }

@@ -13,6 +13,9 @@ test("knobs parse over the defaults and are checked", () => {
   assert.throws(() => parseCloth("iterations=2.5"), /an integer/);
   assert.throws(() => parseCloth("wind=1"), /unknown cloth setting/);
   assert.throws(() => parseCloth("stretch=x"), /cloth stretch must be a number/);
+  // what was typed, not NaN (a user's trial)
+  assert.throws(() => parseCloth("iterations=abc"), /must be an integer in \[1, 64\] \(got 'abc'\)/);
+  assert.throws(() => parseCloth("stretch="), /\(got ''\)/);
   assert.throws(() => checkCloth({ ...DEFAULT_CLOTH, gravity: NaN }), /cloth gravity/);
 });
 
