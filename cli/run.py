@@ -305,5 +305,10 @@ def run_cmd(
             f"{c['traced']} traced out by the backstop, {c['resets']} reset(s), "
             f"{1e3 * summary.stage_seconds['cloth'] / max(summary.frames, 1):.2f} ms/frame"
         )
+    elif summary.effects.collisions:  # as the Node and C++ runtimes say it
+        click.echo(
+            f"  collisions: {summary.pushed_vertices} vertex-frames pushed out, "
+            f"{1e3 * summary.stage_seconds['collisions'] / max(summary.frames, 1):.2f} ms/frame"
+        )
     for path in summary.written:
         click.echo(f"  wrote {path}")

@@ -25,6 +25,14 @@ def test_scene_runs_only_named_effects(tmp_path, random_package):
         cli, ["run", str(scene), "--model", str(random_package), "--no-cache", "--effects=+dynamics"]
     )
     assert r.exit_code == 0 and "effects dqs+dynamics; off: wrinkles, collisions" in r.output
+    assert "collisions:" not in r.output  # a stage that did not run reports nothing
+    # the push-out's count, as the Node and C++ runtimes report it (a user's trial: Python said nothing)
+    r = CliRunner().invoke(
+        cli, ["run", str(scene), "--model", str(random_package), "--no-cache", "--effects=+collisions"]
+    )
+    assert r.exit_code == 0 and "vertex-frames pushed out" in r.output, r.output
+    n = int(r.output.split("collisions: ")[1].split()[0])
+    assert n > 0  # the walk's skirt, pushed out of the body in some frames
 
 
 def test_frames_past_the_motion_are_an_error(tmp_path, random_package):
