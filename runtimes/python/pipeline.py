@@ -47,7 +47,7 @@ from segadeform.io.hashing import file_sha256
 from segadeform.io.obj import recorded_betas
 from segadeform.io.outputs import claim_scene_outputs, garment_surface
 from segadeform.io.toml import key_line
-from segadeform.motion import Motion, build_motion, frame_range, glitches_in_range, motion_windows
+from segadeform.motion import Motion, build_motion, floor_shift, frame_range, glitches_in_range, motion_windows
 from segadeform.settings import Effects, Scene
 
 from .body import BODY_BACKENDS, BodyPoser
@@ -65,6 +65,10 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+
+#: a motion whose feet are further than this (m) from the floor in its median frame is warned of
+#: (a user's AMASS file re-saved without its 'name' was read in SMPL's convention: 1.26 m below the floor)
+FLOOR_WARN_M = 0.5  # (CMU 03_01, a walk over a raised platform, stands 0.33 m up in its median frame)
 
 #: the most vertex-frames (batch x garment vertices) one deformer call takes
 MAX_VERTEX_FRAMES = 32_768
@@ -504,6 +508,16 @@ def run_scene(
         frame_range(scene.motion.frames, motion.n_frames)
     except InputError as e:
         raise e.with_path(scene.path) if scene.path is not None and frames_from_scene else e from None
+    if not scene.motion.floor:  # feet far from the floor all clip long: another origin, convention or units
+        shift = floor_shift(motion, body.rest_joints(scene.betas)[0], typical=True)
+        if abs(shift) > FLOOR_WARN_M:
+            log.warning(
+                "motion %s: its feet are %.2f m %s the floor in most frames (another origin, translation convention "
+                "or units?); --floor (floor = true in a scene's [motion]) stands it on the floor",
+                Path(scene.motion.file or scene.motion.kind or "motion").name,
+                abs(shift),
+                "below" if shift > 0 else "above",
+            )
     settle, jumps = glitches_in_range(motion, scene.motion.frames)  # inside the range the run plays
     if settle or jumps:
         log.warning(

@@ -55,3 +55,27 @@ def test_frames_past_the_motion_are_an_error(tmp_path, random_package):
     )
     assert r.exit_code == 1 and "frame range" in r.output and "90" in r.output
     assert not (tmp_path / "o.pc2").exists()
+
+
+def test_a_motion_far_from_the_floor_is_said(tmp_path, random_package, caplog):
+    """A user's trial: walk.npz re-saved without its 'name' is read in SMPL's translation convention and the body
+    ran 1.26 m below the floor, silently.  A run now says so, and --floor stands it on the floor."""
+    import numpy as np
+
+    d = dict(np.load(SAMPLES / "motions" / "walk.npz", allow_pickle=False))
+    d.pop("name")
+    np.savez(tmp_path / "m.npz", **d)
+    base = ["run", "--garment", str(SAMPLES / "garments" / "skirt.obj"), "--model", str(random_package), "--no-cache"]
+    base += ["--frames", "0:2", "--force"]
+
+    def said(*args):
+        caplog.clear()
+        with caplog.at_level("WARNING", logger="segadeform.runtime.pipeline"):
+            r = CliRunner().invoke(cli, base + list(args))
+        assert r.exit_code == 0, r.output
+        return " ".join(x.getMessage() for x in caplog.records if "the floor in most frames" in x.getMessage())
+
+    msg = said("--motion", str(tmp_path / "m.npz"), "-o", str(tmp_path / "a.pc2"))
+    assert "m.npz: its feet are 1.2" in msg and "m below the floor" in msg, msg
+    assert said("--motion", str(tmp_path / "m.npz"), "--floor", "-o", str(tmp_path / "b.pc2")) == ""
+    assert said("--motion", str(SAMPLES / "motions" / "walk.npz"), "-o", str(tmp_path / "c.pc2")) == ""

@@ -24,6 +24,7 @@ __all__ = [
     "Motion",
     "load_motion_npz",
     "feet_on_floor",
+    "floor_shift",
     "face_forward",
     "resample",
     "motion_windows",
@@ -294,10 +295,11 @@ def face_forward(motion: Motion, frame: int = 0) -> Motion:
     return dataclasses.replace(motion, poses=poses, trans=trans, meta=dict(motion.meta, turned_deg=np.degrees(-yaw)))
 
 
-def feet_on_floor(motion: Motion, rest_joints: np.ndarray, *, floor: float = 0.0) -> Motion:
-    """Shift the whole motion vertically so its lowest foot joint (ankles, toes) over all frames is as
-    high above ``floor`` as in the rest pose (where the body stands on the floor).  One constant shift:
-    jumps stay jumps.
+def floor_shift(motion: Motion, rest_joints: np.ndarray, *, floor: float = 0.0, typical: bool = False) -> float:
+    """How far (m, up positive) the whole motion must move for its lowest foot joint (ankles, toes) over all frames
+    to be as high above ``floor`` as in the rest pose: what :func:`feet_on_floor` applies.  ``typical``: the lowest
+    foot of the median frame instead of all frames' lowest (a few glitched frames of a capture do not count); far
+    from 0, the motion came from another origin, convention or units (a run warns).
 
     Shapes:
         rest_joints: (24, 3)
@@ -310,7 +312,19 @@ def feet_on_floor(motion: Motion, rest_joints: np.ndarray, *, floor: float = 0.0
         raise InputError("rest_joints must be (24, 3)", got=J.shape)
     feet = [7, 8, 10, 11]
     _, posed = forward_kinematics(poses_to_rotmats(motion.poses, 24), J, SMPL_PARENTS, motion.trans)
-    shift = (J[feet, 1].min() + floor) - posed[:, feet, 1].min()
+    lowest = posed[:, feet, 1].min(axis=1)
+    return float((J[feet, 1].min() + floor) - (np.median(lowest) if typical else lowest.min()))
+
+
+def feet_on_floor(motion: Motion, rest_joints: np.ndarray, *, floor: float = 0.0) -> Motion:
+    """Shift the whole motion vertically so its lowest foot joint (ankles, toes) over all frames is as
+    high above ``floor`` as in the rest pose (where the body stands on the floor).  One constant shift:
+    jumps stay jumps.
+
+    Shapes:
+        rest_joints: (24, 3)
+    """
+    shift = floor_shift(motion, rest_joints, floor=floor)
     trans = motion.trans + np.array([0.0, shift, 0.0])
     meta = dict(motion.meta, floor_shift=float(shift))
     return dataclasses.replace(motion, trans=trans, meta=meta)
