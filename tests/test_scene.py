@@ -96,6 +96,13 @@ def test_cli_effects_complete_list_or_changes():
     assert parse_effects("lbs,collisions", base).collision_margin == 0.01
     with pytest.raises(FileFormatError, match="mix a complete list"):
         parse_effects("collisions,-wrinkles")
+    # two skinnings, or one effect twice, are refused, as the Node and C++ runtimes refuse them (a user's trial:
+    # "lbs,dqs" ran dqs and "+wrinkles,-wrinkles" ran without wrinkles, silently)
+    with pytest.raises(FileFormatError, match="name one skinning"):
+        parse_effects("lbs,dqs")
+    for twice in ("+wrinkles,-wrinkles", "cloth,cloth", "dqs,-collisions,-collisions"):
+        with pytest.raises(FileFormatError, match="effects name .* twice"):
+            parse_effects(twice, base)
     assert parse_effects("none", base) == Effects(
         dynamics=False, wrinkles=False, collisions=False, collision_margin=0.01
     )  # as `simulate --effects none`

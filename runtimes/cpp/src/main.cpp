@@ -251,6 +251,13 @@ Effects parse_effects(const std::string& text, const Effects& base) {
     throw std::runtime_error("effects mix a complete list with changes (expected names only or signed changes only, "
                              "got " + text + ")");
   const bool complete = n_signed == 0;
+  std::vector<std::string> seen;
+  for (const auto& i : named) {
+    const std::string name = (i[0] == '+' || i[0] == '-') ? i.substr(1) : i;
+    if (std::find(seen.begin(), seen.end(), name) != seen.end())
+      throw std::runtime_error("effects name " + name + " twice (expected each effect once, got " + text + ")");
+    seen.push_back(name);
+  }
   Effects e = complete ? off : base;
   for (const auto& i : named) {
     const bool on = i[0] != '-';

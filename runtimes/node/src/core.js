@@ -140,6 +140,9 @@ export function parseEffects(text, base = null) {
   }
   const complete = !signed.some(Boolean);
   if (!complete && !base) throw new Error(`signed effect changes need the run's default effects (got ${text})`);
+  const stripped = named.map((i) => i.replace(/^[+-]/, ""));
+  const twice = stripped.find((n, k) => stripped.indexOf(n) !== k);
+  if (twice !== undefined) throw new Error(`effects name ${twice} twice (expected each effect once, got ${text})`);
   const on = complete ? { ...off } : { ...off, ...base };
   for (const item of named) {
     const name = item.replace(/^[+-]/, "");

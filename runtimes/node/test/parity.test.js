@@ -30,6 +30,9 @@ test("effects lists read as `segadeform run --effects` reads them", () => {
   assert.throws(() => parseEffects("+cloth,dynamics", base), /mix a complete list with changes/);
   assert.throws(() => parseEffects("+cloth"), /need the run's default effects/);
   assert.throws(() => parseEffects("+wind", base), /unknown effect '\+wind'/);
+  // one effect named twice: which is meant? (Python, Node and C++ refuse it alike)
+  assert.throws(() => parseEffects("+wrinkles,-wrinkles", base), /effects name wrinkles twice/);
+  assert.throws(() => parseEffects("cloth,cloth"), /effects name cloth twice/);
 });
 
 test("bundle frames match the Python runtime", { skip: !pkg || !bundlePath ? "set SEGADEFORM_PACKAGE and SEGADEFORM_BUNDLE" : false }, async () => {

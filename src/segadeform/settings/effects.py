@@ -60,6 +60,12 @@ def parse_effect_list(
             expected="either names only (a complete list: the rest off) or signed changes only (-name,+name)",
         )
     complete = not any(signed)
+    if len(set(picked)) > 1:  # as the Node and C++ runtimes refuse it (the last one won here, silently)
+        raise FileFormatError("name one skinning", expected=" or ".join(choices), got=text)
+    stripped = [i.lstrip("+-") for i in named]
+    twice = sorted({n for n in stripped if stripped.count(n) > 1})
+    if twice:  # "+wrinkles,-wrinkles": which one is meant?
+        raise FileFormatError(f"effects name {twice[0]} twice", expected="each effect once", got=text)
     on = set() if complete else set(base)
     for item in named:
         name = item.lstrip("+-")
