@@ -65,6 +65,8 @@ def test_bad_simulate_tables_name_the_file(tmp_path, table, msg):
     with pytest.raises(FileFormatError) as e:
         _scene(tmp_path, table)
     assert msg in str(e.value) and "s.toml" in str(e.value)
+    if msg in ("unknown material", "quality", "non-zero"):  # a refused value names its key's line (a user's trial)
+        assert e.value.line == 9, (table, e.value.line)
 
 
 def test_parse_none_is_default():

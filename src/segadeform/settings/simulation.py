@@ -77,7 +77,7 @@ from __future__ import annotations
 import dataclasses
 
 from ..errors import FileFormatError, InputError
-from ..io.toml import read_table
+from ..io.toml import key_line, read_table
 from .effects import parse_effect_list
 
 __all__ = [
@@ -261,7 +261,16 @@ def parse_simulate_table(table: dict | None, *, where=None) -> SimSettings:
     try:
         return SimSettings(**kw)
     except InputError as e:
-        raise FileFormatError(f"[simulate]: {e}", path=where) from None
+        line = None  # the refused key's line (each tried alone; a user's trial: only the file was named)
+        for k, v in kw.items():
+            try:
+                SimSettings(**{k: v})
+            except InputError:
+                line = key_line(where, "simulate", k) if where is not None else None
+                break
+        if line is None and where is not None:
+            line = key_line(where, "simulate")
+        raise FileFormatError(f"[simulate]: {e}", path=where, line=line) from None
 
 
 def parse_sim_effects(text: str, base=DEFAULT_EFFECTS) -> tuple:
