@@ -75,6 +75,10 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         raise InputError("unknown preview format", path=output, expected=".png, .gif or .mp4", got=ext or "none")
     if fps is not None and not (np.isfinite(fps) and 0 < fps <= 1000):
         raise click.UsageError(f"--fps must be a frame rate in (0, 1000], got {fps!r}")
+    try:  # the titles and image files are matplotlib's: said before any rendering (a traceback after it, before)
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise click.ClickException("preview needs matplotlib: pip install 'segadeform[plot]'") from None
     guard = OutputGuard("preview", inputs=(result, garment, body_seq, body_model))
     guard.file(output)
     try:

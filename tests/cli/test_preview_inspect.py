@@ -189,3 +189,17 @@ def test_inspect_reads_a_scene_bundle(tmp_path):
     assert r.exit_code == 0, r.output
     assert "scene bundle, garment skirt.obj (7 vertices), motion walk (5 frames at 30.0 fps, from frame 10)" in r.output
     assert "effects lbs,dynamics" in r.output and "poses (5, 72) float64" in r.output
+
+
+def test_preview_without_matplotlib_says_which_extra(tmp_path, monkeypatch):
+    """A fresh clone's base install (`pip install -e .`) rendered the README's preview, then died in a traceback
+    (`No module named 'matplotlib'`).  Now one line naming the extra, before any rendering, and no file."""
+    import sys
+
+    _scene(tmp_path)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # as if not installed: `import matplotlib` raises
+    r = CliRunner().invoke(
+        cli, ["preview", str(tmp_path / "g.pc2"), "--garment", str(tmp_path / "g.obj"), "-o", str(tmp_path / "p.png")]
+    )
+    assert r.exit_code == 1 and r.output.strip() == "Error: preview needs matplotlib: pip install 'segadeform[plot]'"
+    assert not (tmp_path / "p.png").exists()
