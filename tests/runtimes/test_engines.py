@@ -239,19 +239,42 @@ def test_runtimes_still_run_older_packages(runtime, schema, request, portable_sc
 
 
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
-def test_a_motion_made_for_another_body_shape_plays_with_a_warning(
+def test_a_motion_made_for_another_body_shape_is_refused_unless_forced(
     runtime, request, portable_scene, random_package, tmp_path
 ):
-    """The garment asset is prepared for betas 0.5,-0.3; a motion exported for the mean shape plays, and both
-    runtimes say so (the C++ runtime compared only the body files, and said nothing)."""
+    """The garment asset is prepared for betas 0.5,-0.3; a motion exported for the mean shape is refused, as
+    `segadeform run` refuses it (the runtimes played it with a warning: a new user's trial), and nothing is
+    written; `--force` plays it, with the warning (the C++ runtime once compared only the body files)."""
     from segadeform.cli.main import main
 
     assert main(["motion", "export", "dance", "--seconds", "0.2", "--seed", "2", "-o", str(tmp_path / "m0.sgdm")]) == 0
     exe = request.getfixturevalue(runtime)
     s = portable_scene
     args = ["--package", str(random_package), "--garment", str(s["garment"]), "-o", str(tmp_path / "g.pc2")]
-    for motion, warns in ((tmp_path / "m0.sgdm", True), (s["motion"], False)):
-        p = subprocess.run(exe + args + ["--motion", str(motion)], capture_output=True, text=True, timeout=600)
+    p = subprocess.run(
+        exe + args + ["--motion", str(tmp_path / "m0.sgdm")], capture_output=True, text=True, timeout=600
+    )
+    assert p.returncode == 1 and p.stderr.count("\n") == 1, p.stdout + p.stderr
+    assert p.stderr.startswith(f"Error: {tmp_path / 'm0.sgdm'}: the motion was retargeted onto another body shape")
+    assert "or --force" in p.stderr and not (tmp_path / "g.pc2").exists()
+    assert (
+        main(
+            [
+                "run",
+                "--garment",
+                str(s["garment"]),
+                "--motion",
+                str(tmp_path / "m0.sgdm"),
+                "--model",
+                str(random_package),
+                "-o",
+                str(tmp_path / "py.pc2"),
+            ]
+        )
+        == 1
+    )  # as Python refuses it
+    for motion, extra, warns in ((tmp_path / "m0.sgdm", ["--force"], True), (s["motion"], [], False)):
+        p = subprocess.run(exe + args + ["--motion", str(motion), *extra], capture_output=True, text=True, timeout=600)
         assert p.returncode == 0, p.stdout + p.stderr
         assert ("another body shape (betas)" in p.stderr) == warns, p.stderr
 

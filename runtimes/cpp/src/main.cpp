@@ -387,7 +387,8 @@ const sgd::Array& need(const sgd::Bundle& b, const std::string& path, const std:
   return b.at(name);
 }
 
-Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::Bundle& m, const std::string& mpath) {
+Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::Bundle& m, const std::string& mpath,
+                     bool force) {
   if (!a.meta.has("kind") || a.meta["kind"].str != "segadeform-garment-asset")
     throw std::runtime_error(apath + ": not a garment asset (expected meta.kind 'segadeform-garment-asset')");
   const int av = static_cast<int>(a.meta["schema_version"].num);
@@ -438,14 +439,21 @@ Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::
   s.faces = &need(a, apath, "faces", "i32", 2);
   s.fps = m.meta.has("fps") ? m.meta["fps"].num : 0;
   s.start_frame = m.meta.has("start_frame") ? static_cast<float>(m.meta["start_frame"].num) : 0.f;
-  if (m.meta.has("body") && m.meta["body"]["sha256"].str != s.body_sha)
-    std::cerr << "warning: the motion was retargeted onto another body than the garment asset's\n";
-  if (m.meta.has("betas")) {  // as the Node runtime: a motion made for another shape plays, with a warning
+  // a motion made for another body or shape is refused, as `segadeform run` refuses it; --force plays it, warned
+  const auto mismatch = [&](const std::string& what) {
+    const std::string msg = "the motion was retargeted onto another " + what + " than the garment asset's";
+    if (!force)
+      throw std::runtime_error(mpath + ": " + msg + " (expected a motion exported for the asset's body and --betas: " +
+                               "segadeform motion export ... --betas ..., or --force)");
+    std::cerr << "warning: " << msg << "\n";
+  };
+  if (m.meta.has("body") && m.meta["body"]["sha256"].str != s.body_sha) mismatch("body");
+  if (m.meta.has("betas")) {
     const std::vector<sgd::Json>& mb = m.meta["betas"].arr;
     for (size_t i = 0; i < mb.size(); ++i) {
       const double ab = i < s.betas.size() ? static_cast<double>(s.betas[i]) : 0.0;
       if (std::fabs(mb[i].num - ab) > 1e-6) {
-        std::cerr << "warning: the motion was retargeted onto another body shape (betas) than the garment asset's\n";
+        mismatch("body shape (betas)");
         break;
       }
     }
@@ -593,7 +601,7 @@ int64_t collide(std::vector<float>& frames, int64_t T, int64_t N, const std::vec
 const char* USAGE =
     "usage: segadeform-run --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]\n"
     "                      [--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M]\n"
-    "                      [--cloth K=V,..] [--batch N] [--threads N]\n"
+    "                      [--cloth K=V,..] [--batch N] [--threads N] [--force]\n"
     "       segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--check]\n";
 
 }  // namespace
@@ -620,6 +628,7 @@ int main(int argc, char** argv) {
   double margin = DEFAULT_COLLISION_MARGIN;
   bool margin_given = false;
   bool do_check = false;
+  bool force = false;  // a motion made for another body or shape: played, with a warning
   std::vector<std::string> pos;
   std::string current;  // the option being read (a bad value names it)
   try {
@@ -642,6 +651,7 @@ int main(int argc, char** argv) {
         margin_given = true;
       }
       else if (args[i] == "--check") do_check = true;
+      else if (args[i] == "--force") force = true;
       else if (!more && (args[i] == "-o" || (args[i].rfind("--", 0) == 0 &&
                                                std::string(USAGE).find(args[i] + " ") != std::string::npos)))
         throw std::invalid_argument(args[i] + " needs a value");  // a known option given last, with no value
@@ -668,8 +678,8 @@ int main(int argc, char** argv) {
     else if (flag_form && !pos.empty()) problem = "unexpected argument " + pos[0];
     else if (flag_form && do_check) problem = "--check goes with PACKAGE_DIR BUNDLE.sgdb";
     else if (!flag_form && pos.size() != 2) problem = "give PACKAGE_DIR BUNDLE.sgdb, or --package, --garment and --motion";
-    else if (!flag_form && (!body_out.empty() || !effects.empty() || margin_given || !cloth.empty()))
-      problem = "--body-out, --effects, --cloth and --collision-margin go with --package/--garment/--motion";
+    else if (!flag_form && (!body_out.empty() || !effects.empty() || margin_given || !cloth.empty() || force))
+      problem = "--body-out, --effects, --cloth, --collision-margin and --force go with --package/--garment/--motion";
   }
   if (!problem.empty()) {
     std::cerr << "error: " << problem << "\n" << USAGE;
@@ -697,7 +707,7 @@ int main(int argc, char** argv) {
     if (flag_form) {
       asset = sgd::read_bundle(garment);
       mot = sgd::read_bundle(motion);
-      sc = scene_of_asset(asset, garment, mot, motion);
+      sc = scene_of_asset(asset, garment, mot, motion, force);
       eff = effects.empty() ? pkg.default_effects() : parse_effects(effects, pkg.default_effects());
     } else {
       bundle = sgd::read_bundle(pos[1]);

@@ -11,7 +11,7 @@ import { claimOutputs, commitOutputs } from "./outputs.js";
 
 const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
   "[--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M] [--cloth K=V,..] [--batch N] " +
-  "[--threads N]\n" +
+  "[--threads N] [--force]\n" +
   "       segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]";
 // --name=value is --name value (as click reads `segadeform run --effects=+cloth`)
 const args = process.argv.slice(2).flatMap((a) => (/^--[a-z-]+=/.test(a) ? [a.slice(0, a.indexOf("=")), a.slice(a.indexOf("=") + 1)] : [a]));
@@ -37,6 +37,9 @@ const threads = parseInt(opt("--threads", "1"), 10);
 const pkg = opt("--package"), garment = opt("--garment"), motion = opt("--motion");
 const bodyOut = opt("--body-out"), effects = opt("--effects"), marginText = opt("--collision-margin");
 const cloth = opt("--cloth");
+const forceAt = args.indexOf("--force"); // a motion made for another body or shape: played, with a warning
+const force = forceAt >= 0;
+if (force) args.splice(forceAt, 1);
 const margin = marginText === undefined ? undefined : Number(marginText);
 const flagForm = pkg || garment || motion;
 // what is wrong, in one line before the usage (a misspelled flag printed the usage alone)
@@ -52,8 +55,8 @@ const problem =
   : flagForm && !motion ? "--motion is missing"
   : flagForm && args.length ? `unexpected argument ${args[0]}`
   : !flagForm && args.length !== 2 ? "give PACKAGE_DIR BUNDLE.sgdb, or --package, --garment and --motion"
-  : !flagForm && (bodyOut || effects || cloth || marginText !== undefined)
-    ? "--body-out, --effects, --cloth and --collision-margin go with --package/--garment/--motion"
+  : !flagForm && (bodyOut || effects || cloth || marginText !== undefined || force)
+    ? "--body-out, --effects, --cloth, --collision-margin and --force go with --package/--garment/--motion"
   : marginText !== undefined && !Number.isFinite(margin) ? `--collision-margin must be a number, got ${marginText}`
   : null;
 if (problem) {
@@ -78,6 +81,13 @@ try {
   const r = flagForm
     ? await animate(pkg, garment, motion, { batch, threads, effects, body: !!bodyOut, collisionMargin: margin, cloth })
     : await animate(args[0], args[1], { batch, threads });
+  // a motion made for another body or shape is refused, as `segadeform run` refuses it (nothing is written)
+  const other = (r.warnings || []).find((w) => w.startsWith("the motion was retargeted onto another"));
+  if (other && !force) {
+    console.error(`Error: ${motion}: ${other} (expected a motion exported for the asset's body and --betas: ` +
+      "segadeform motion export ... --betas ..., or --force)");
+    process.exit(1);
+  }
   for (const w of r.warnings || []) console.error(`warning: ${w}`);
   // PC2 in frames, as `segadeform run` writes it: start 0, one sample per frame
   // a motion file cut from a longer one (motion export --frames 10:70) starts at its first frame's number, as run's
