@@ -39,10 +39,12 @@ DEFAULT_GEODESIC = "heat"
 def _factor(a: sp.csc_matrix):
     """Sparse LU with SuperLU's default COLAMD ordering.
 
-    Minimum degree on A^T + A (``MMD_AT_PLUS_A``) gives 25-30 % less fill on these symmetric matrices, but its
-    ordering time can explode: on a user's 38,866-vertex subdivided dress it took 83.6 s against COLAMD's 0.18 s
-    (and solved 8 right-hand sides in 0.51 s against 0.019 s), and a 154,790-vertex one did not finish in 12 minutes,
-    uninterruptible inside SuperLU.
+    Minimum degree on A^T + A (``MMD_AT_PLUS_A``) gives 25-30 % less fill on these symmetric matrices and a faster
+    precompute on a regular grid (the 64k-vertex frustum of ``bench/scaling.py``: 2.9 s against 4.0 s, 16k: 0.51
+    against 0.69 s), but its ordering time can explode: on a user's 38,866-vertex subdivided dress it took 83.6 s
+    against COLAMD's 0.18 s (and solved 8 right-hand sides in 0.51 s against 0.019 s), and a 154,790-vertex one did
+    not finish in 12 minutes, uninterruptible inside SuperLU.  COLAMD's cost is bounded; the precompute runs once per
+    garment (cached).
     """
     return spla.splu(a, permc_spec="COLAMD")
 
