@@ -183,8 +183,11 @@ def run_cmd(
             raise click.UsageError("give a SCENE or --garment/--motion, not both")
         sc = load_scene(scene)
         changes = {}
-        if preset is not None:  # the preset's effects replace the scene's [effects], knobs included (as documented:
-            changes["effects"] = preset  # the preset is the measured point; --cloth K=V still changes it)
+        if preset is not None:  # the preset's effects; a scene's own cloth knobs kept when both run the stage
+            keep = preset.cloth and sc.effects.cloth  # (an earlier user's trial: best dropped iterations = 6)
+            changes["effects"] = (
+                dataclasses.replace(preset, cloth_settings=sc.effects.cloth_settings) if keep else preset
+            )
         elif effects:
             changes["effects"] = parse_effects(effects, sc.effects)
         if fmt or output:

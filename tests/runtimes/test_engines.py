@@ -150,7 +150,8 @@ def test_runtime_refuses_what_it_cannot_run(runtime, request, portable_scene, ra
                 "--body-out",
                 str(tmp_path / "b.pc2"),
             ],
-            "prepared for another body",
+            # the asset is for another body than the package's, and so than the motion's: either refusal names it
+            ("prepared for another body", "retargeted onto another body than the garment asset's"),
         ),
         (
             ["--garment", str(tmp_path / "inpaint.sgda"), "--motion", str(s["motion"])],
@@ -159,7 +160,8 @@ def test_runtime_refuses_what_it_cannot_run(runtime, request, portable_scene, ra
     ]
     for args, words in cases:
         p = run(*args)
-        assert p.returncode == 1 and words in p.stderr, (args, p.stderr)
+        either = (words,) if isinstance(words, str) else words
+        assert p.returncode == 1 and any(w in p.stderr for w in either), (args, p.stderr)
         assert not (tmp_path / "x.pc2").exists()
     assert run("--garment", str(s["garment"])).returncode == 2  # usage: no motion
     assert not (tmp_path / "b.pc2").exists()

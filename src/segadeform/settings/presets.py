@@ -8,7 +8,9 @@ the collision margin only; ``--batch``, ``--threads`` and ``--model`` stay separ
 
 How presets meet other effect settings (``segadeform run``):
 
-* ``--quality`` replaces a scene's ``[effects]`` table (the command line wins over the file);
+* ``--quality`` replaces a scene's ``[effects]`` table (the command line wins over the file), but for the cloth
+  stage's knobs (``cloth_iterations`` ...): when the scene and the preset both run the stage, the scene's knobs are
+  kept (a user tuned them; the preset's measured error is at the defaults); ``--cloth K=V`` applies on top;
 * ``--effects`` with signed changes only (``+collisions``, ``-dynamics``; ``lbs``/``dqs`` may join
   them) applies on top of the preset;
 * ``--effects`` with a complete list (``dqs,collisions``) names every effect itself, so giving it with
