@@ -246,23 +246,8 @@ class Run:
             self.effects.cloth_settings,
             margin=self.effects.collision_margin,
             dt=1.0 / float(self.motion.fps),
-            first_frame=0,  # it steps from the motion's first frame (:meth:`_warm_cloth`)
+            first_frame=0,  # it steps from the motion's first frame (:meth:`execute`: frames A:B warm it up)
         )
-
-    def _warm_cloth(self, cloth, P, asset, joints, lw, batch: int) -> dict:
-        """Step the cloth stage over the frames before the run's first one (``frames A:B``), writing nothing, so
-        that its state at A is a whole run's: its frames then equal those of a run from frame 0 (a user's trial:
-        a run in chunks popped by up to 7 mm at each chunk's first frames).  Costs the network, the body and the
-        stage on those A frames.  Returns the stage's counts after them (the run reports its own frames')."""
-        poser = cast(BodyPoser, self.body_poser)
-        for lo in range(0, self.start, batch):
-            hi = min(lo + batch, self.start)
-            win = motion_windows(self.motion.poses, self.deformer.window, start=lo, stop=hi)
-            verts = self.deformer.deform(P, asset, win, joints, self.motion.trans[lo:hi], self.betas, log_wbody=lw)
-            if not np.isfinite(verts).all():
-                raise InputError(f"the deformer produced NaN or inf at frames {lo}..{hi - 1}")
-            cloth.step(verts, poser.pose(self.motion.poses[lo:hi], self.betas, self.motion.trans[lo:hi]))
-        return {"contacts": cloth.contacts, "pushed": cloth.pushed, "traced": cloth.traced, "resets": cloth.resets}
 
     def execute(self, progress: Callable[[int], None] | None = None) -> RunSummary:
         t_all = time.perf_counter()
@@ -314,11 +299,16 @@ class Run:
             if self.effects.cloth:  # built once per run (its cost counts here); its state spans the batches
                 t = time.perf_counter()
                 cloth = self._cloth_stage(asset)
-                if self.start > 0:
-                    warm = self._warm_cloth(cloth, P, asset, joints, lw, batch)
                 stage["cloth"] += time.perf_counter() - t
-            for lo in range(self.start, self.stop, batch):
-                hi = min(lo + batch, self.stop)
+            # with the cloth stage, frames A:B step it over the frames before A first, writing nothing, so that its
+            # state at A is a whole run's and so are its frames (a user's trial: a render in chunks popped by up to
+            # 7 mm at each chunk's start); it costs those A frames.  Without it every frame stands alone.
+            warm_up = range(0, self.start, batch) if cloth is not None else range(0)
+            for lo in [*warm_up, *range(self.start, self.stop, batch)]:
+                writing = lo >= self.start
+                if writing and lo == self.start and cloth is not None:  # the run reports its own frames' counts
+                    warm = {k: getattr(cloth, k) for k in warm}
+                hi = min(lo + batch, self.stop if writing else self.start)
                 t = time.perf_counter()
                 win = motion_windows(self.motion.poses, self.deformer.window, start=lo, stop=hi)
                 verts = self.deformer.deform(P, asset, win, joints, self.motion.trans[lo:hi], self.betas, log_wbody=lw)
@@ -346,6 +336,8 @@ class Run:
                     verts, n = collider.push_out(verts, posed, self.effects.collision_margin)
                     pushed += n
                     stage["collisions"] += time.perf_counter() - t
+                if not writing:
+                    continue
                 t = time.perf_counter()
                 out.write(verts, posed if self.body_output is not None else None)
                 stage["write"] += time.perf_counter() - t
