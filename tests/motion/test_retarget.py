@@ -391,3 +391,25 @@ def test_real_cmu_file(path, default_joints):
     feet = posed[:, [7, 8, 10, 11], 1]
     assert feet.min() == pytest.approx(default_joints[[7, 8, 10, 11], 1].min(), abs=1e-6)
     assert np.isfinite(m.poses).all() and m.fps == pytest.approx(120.0, rel=1e-3)
+
+
+def test_bad_motion_data_names_its_line(tmp_path):
+    """A user's trial: a NaN row and a cut-short file named the BVH but not where."""
+    names, parents, rest, _ = _skeleton("game")
+    T = 4
+    loc = smooth_local_rotations(T, len(names), amplitude=0.0)
+    f = write_skeleton_bvh(tmp_path / "g.bvh", names, np.array(parents), rest, loc, np.tile(rest[0], (T, 1)))
+    lines = f.read_text().splitlines()
+    first = next(i for i, s in enumerate(lines) if s.startswith("Frame Time")) + 1  # 0-based index of frame 0's row
+    frame2 = lines[first + 2].split()
+    frame2[4] = "nan"
+    bad = lines[: first + 2] + [" ".join(frame2)] + lines[first + 3 :]
+    (tmp_path / "n.bvh").write_text("\n".join(bad) + "\n")
+    with pytest.raises(FileFormatError, match=r"NaN or inf \(got nan \(frame 2\)\)") as e:
+        read_bvh(tmp_path / "n.bvh")
+    assert e.value.line == first + 3  # 1-based
+    (tmp_path / "t.bvh").write_text("\n".join(lines[:-1]) + "\n")  # the last frame cut off
+    frames_line = next(i for i, s in enumerate(lines) if s.startswith("Frames:")) + 1
+    with pytest.raises(FileFormatError, match=r"got \d+ numbers, 3 frames \(cut short\?\)") as e:
+        read_bvh(tmp_path / "t.bvh")
+    assert e.value.line == frames_line

@@ -164,16 +164,21 @@ def _parse(text: str, path: Path):
         raise FileFormatError(
             "BVH motion data does not match its declared size",
             path=path,
+            line=f_ln,  # the Frames: line, which the data contradicts
             expected=f"{n_frames} frames x {n_ch} channels = {n_frames * n_ch} numbers",
-            got=len(rest),
+            got=f"{len(rest)} numbers"
+            + (f", {len(rest) / n_ch:g} frames (cut short?)" if len(rest) < n_frames * n_ch else ""),
         )
     try:
         data = np.array([float(t) for _, t in rest], np.float64).reshape(n_frames, n_ch)
     except ValueError:
         bad = next((ln, t) for ln, t in rest if not _isfloat(t))
         raise FileFormatError("motion data has a non-numeric value", path=path, line=bad[0], got=bad[1]) from None
-    if not np.isfinite(data).all():
-        raise FileFormatError("motion data contains NaN or inf", path=path)
+    if not np.isfinite(data).all():  # the first such number's line (a user's trial: the file alone was named)
+        k = int(np.flatnonzero(~np.isfinite(data.ravel()))[0])
+        raise FileFormatError(
+            "motion data contains NaN or inf", path=path, line=rest[k][0], got=f"{rest[k][1]} (frame {k // n_ch})"
+        )
     return joints, data, ft
 
 
