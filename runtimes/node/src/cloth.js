@@ -33,6 +33,14 @@ const KNOBS = {
   attachment: [false, 0, 1], max_distance: [false, 0, 1], reset: [false, 1e-6, 1e3], backstop: [false, 0, 1],
 };
 
+/** One knob's value checked (finite, in range, iterations an integer); `shown`: what the error quotes. */
+function checkKnob(name, v, shown = String(v)) {
+  const [int, lo, hi] = KNOBS[name];
+  if (!(typeof v === "number" && Number.isFinite(v) && v >= lo && v <= hi && (!int || Number.isInteger(v)))) {
+    throw new Error(`cloth ${name} must be ${int ? "an integer" : "a number"} in [${lo}, ${hi}] (got ${shown})`);
+  }
+}
+
 /** The knobs from "NAME=VALUE,..." over `base` (DEFAULT_CLOTH), checked as ClothSettings checks them. */
 export function parseCloth(text, base = DEFAULT_CLOTH) {
   const out = { ...base };
@@ -41,25 +49,16 @@ export function parseCloth(text, base = DEFAULT_CLOTH) {
     if (!(name in KNOBS) || value === undefined) {
       throw new Error(`unknown cloth setting (expected NAME=VALUE with NAME one of ${Object.keys(KNOBS).join(", ")}, got '${item}')`);
     }
+    // the text as typed in the error: Number("abc") is NaN, and Number("") is 0
+    checkKnob(name, value === "" ? NaN : Number(value), `'${value}'`);
     out[name] = Number(value);
-    const [int, lo, hi] = KNOBS[name];
-    const v = out[name];
-    if (value === "" || !(Number.isFinite(v) && v >= lo && v <= hi && (!int || Number.isInteger(v)))) {
-      // the text as given: Number("abc") is NaN, which says nothing of what was typed
-      throw new Error(`cloth ${name} must be ${int ? "an integer" : "a number"} in [${lo}, ${hi}] (got '${value}')`);
-    }
   }
   return checkCloth(out);
 }
 
 /** Check every knob (finite, in range, iterations an integer); returns the settings. */
 export function checkCloth(s) {
-  for (const [name, [int, lo, hi]] of Object.entries(KNOBS)) {
-    const v = s[name];
-    if (!(typeof v === "number" && Number.isFinite(v) && v >= lo && v <= hi && (!int || Number.isInteger(v)))) {
-      throw new Error(`cloth ${name} must be ${int ? "an integer" : "a number"} in [${lo}, ${hi}] (got ${v})`);
-    }
-  }
+  for (const name of Object.keys(KNOBS)) checkKnob(name, s[name]);
   return s;
 }
 
