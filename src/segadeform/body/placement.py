@@ -325,8 +325,8 @@ def check_placement(
     if MIN_GARMENT_SIZE <= size.max() < 2.0 * (top - floor):  # a plausible size: try moving it
         # beside the body's vertical axis first (a garment moved sideways is not fixed by moving it down: a user's
         # skirt 0.4 m to the side was sent 0.65 m down, onto the floor by a foot), then up or down alone
-        side = np.zeros(3)  # across the body only: its left-right middle is its axis (front to back it is not:
-        side[0] = (bv[:, 0].min() + bv[:, 0].max() - v[:, 0].min() - v[:, 0].max()) / 2  # the feet point forward)
+        side = -_centre_offset(v, bv)  # across the body only: its left-right middle is its axis (front to back
+        side[2] = 0.0  # it is not: the feet point forward)
         shifts = ([side] if np.abs(side).max() >= 0.1 else []) + [np.zeros(3)]
         for s in shifts:
             for dy in np.arange(-1.5, 1.51, 0.05):
