@@ -135,6 +135,8 @@ def dress():
         # moved sideways: sent back onto the body's axis, not down onto the floor by a foot (a user's trial)
         (lambda v: v + [0.4, 0, 0], r"--offset -0\.40,0\.00,0\.00"),
         (lambda v: v + [0.3, -0.5, 0], r"--offset -0\.30,0\.50,0\.00"),
+        # 1 m to the side once passed as "read in dm, +z up" (a 10 cm dress on the hips): the move is asked first
+        (lambda v: v + [1.0, 0, 0], r"--offset -1\.00,0\.00,0\.00"),
     ],
 )
 def test_off_body_garments_are_refused_with_the_cause(body, dress, transform, words):

@@ -214,6 +214,31 @@ def _check_centred(v, bv, proxy, top, floor, st, path) -> None:
     )
 
 
+def _offset_fix(v, bv, proxy, top, floor) -> tuple[np.ndarray, str] | None:
+    """The move that puts a garment of a human's size onto the body, and its words; None when none does.
+
+    Beside the body's vertical axis first (a garment moved sideways is not fixed by moving it down: a user's skirt
+    0.4 m to the side was sent 0.65 m down, onto the floor by a foot), then up or down alone."""
+    size = np.ptp(v, axis=0)
+    if not MIN_GARMENT_SIZE <= size.max() < 2.0 * (top - floor):
+        return None
+    side = -_centre_offset(v, bv)  # across the body only: its left-right middle is its axis (front to back it is
+    side[2] = 0.0  # not: the feet point forward)
+    shifts = ([side] if np.abs(side).max() >= 0.1 else []) + [np.zeros(3)]
+    for s in shifts:
+        for dy in np.arange(-1.5, 1.51, 0.05):
+            w = v + s + np.array([0.0, dy, 0.0])
+            if (abs(dy) >= 0.25 or s.any()) and _fits(_stats(w, proxy, top, floor)):  # an origin is off
+                off = s + np.array([0.0, dy, 0.0])
+                where = (
+                    f"{abs(dy):.2f} m {'higher' if dy > 0 else 'lower'}"
+                    if not s.any()
+                    else f"once moved by {off[0]:.2f}, {off[1]:.2f}, {off[2]:.2f} m, onto the body's axis"
+                )
+                return off, where
+    return None
+
+
 def check_placement(
     vertices,
     body_vertices,
@@ -293,6 +318,19 @@ def check_placement(
                 expected=f"a garment made for betas {shape}: `segadeform garment make KIND --betas "
                 f"{shape}`, `segadeform garment fit G.mhclo --betas {shape}`, or --force",
             )
+    # a garment of a human's size that a move puts on the body is off by its origin: asked before units, which a
+    # garment 1 m to the side also passed once read in dm (a 10 cm dress then sat on the hips: a user's trial)
+    moved = _offset_fix(v, bv, proxy, top, floor)
+    if moved is not None:
+        off, where = moved
+        raise PlacementError(
+            f"the garment does not sit on the body ({what}); it does {where}: it was placed for "
+            "another body's origin (SMPL-fitted garments sit around SMPL's pelvis at y = 0)",
+            path=path,
+            expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
+            f"--offset {off[0]:.2f},{off[1]:.2f},{off[2]:.2f}` or `--from-body THEIR_BODY.obj`, "
+            "or pass --force",
+        )
     for units in (None, "dm", "cm", "mm", "inch"):
         for up in ("y", "z", "-z"):
             if units is None and up == "y":
@@ -321,31 +359,6 @@ def check_placement(
                     path=path,
                     expected=f"metres, +Y up: run `segadeform garment fit {g} -o FIXED.obj{opts}`, or pass --force",
                 )
-    size = np.ptp(v, axis=0)
-    if MIN_GARMENT_SIZE <= size.max() < 2.0 * (top - floor):  # a plausible size: try moving it
-        # beside the body's vertical axis first (a garment moved sideways is not fixed by moving it down: a user's
-        # skirt 0.4 m to the side was sent 0.65 m down, onto the floor by a foot), then up or down alone
-        side = -_centre_offset(v, bv)  # across the body only: its left-right middle is its axis (front to back
-        side[2] = 0.0  # it is not: the feet point forward)
-        shifts = ([side] if np.abs(side).max() >= 0.1 else []) + [np.zeros(3)]
-        for s in shifts:
-            for dy in np.arange(-1.5, 1.51, 0.05):
-                w = v + s + np.array([0.0, dy, 0.0])
-                if (abs(dy) >= 0.25 or s.any()) and _fits(_stats(w, proxy, top, floor)):  # an origin is off
-                    off = s + np.array([0.0, dy, 0.0])
-                    where = (
-                        f"{abs(dy):.2f} m {'higher' if dy > 0 else 'lower'}"
-                        if not s.any()
-                        else f"once moved by {off[0]:.2f}, {off[1]:.2f}, {off[2]:.2f} m, onto the body's axis"
-                    )
-                    raise PlacementError(
-                        f"the garment does not sit on the body ({what}); it does {where}: it was placed for "
-                        "another body's origin (SMPL-fitted garments sit around SMPL's pelvis at y = 0)",
-                        path=path,
-                        expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
-                        f"--offset {off[0]:.2f},{off[1]:.2f},{off[2]:.2f}` or `--from-body THEIR_BODY.obj`, "
-                        "or pass --force",
-                    )
     raise PlacementError(
         f"the garment does not sit on the body ({what}); it was made for another body, pose or body shape (betas)",
         path=path,
