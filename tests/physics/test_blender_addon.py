@@ -87,7 +87,7 @@ def test_addon_zip_runs_headless_and_matches_run(sim_python, tmp_path):
         env=env,
     )
     assert got["result"] == ["FINISHED"] and got["modifiers"] == ["MESH_CACHE"] and got["frames"] == [1, 12]
-    assert got["error"] and "cannot start segadeform (/nonexistent/segadeform)" in got["error"]
+    assert got["error"] and "cannot start segadeform (/nonexistent/segadeform): no such program" in got["error"]
     folder = tmp_path / "out" / "dress_walk"
     ref = tmp_path / "ref.pc2"
     r = CliRunner().invoke(
@@ -173,3 +173,129 @@ def test_usd_in_blender_matches_the_pc2_path(sim_python, tmp_path):
     print(f"USD in Blender vs the PC2 path: {want.shape[0]} vertices at frames {frames}: max {err:.3g} m")
     assert err <= 1e-6
     assert np.abs(np.array(got["usd"]["15"]) - want).max() <= 1e-6  # and both are segadeform's frame 15
+
+
+ADDON_CASES = r"""
+import sys, json, os
+import numpy as np
+import bpy
+import addon_utils
+zip_path, exe, bvh, garment, out = sys.argv[1:6]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.preferences.addon_install(filepath=zip_path)
+addon_utils.enable("segadeform_addon", default_set=True)
+prefs = bpy.context.preferences.addons["segadeform_addon"].preferences
+addon_utils.enable("io_anim_bvh", default_set=True)
+bpy.ops.import_anim.bvh(filepath=bvh, global_scale=0.01, update_scene_fps=True)
+arm = bpy.context.object
+bpy.ops.wm.obj_import(filepath=garment)
+g = next(o for o in bpy.data.objects if o.type == "MESH")
+s = bpy.context.scene.segadeform
+s.quality = "fast"
+res = {}
+
+def animate(folder):
+    arm.select_set(True); g.select_set(True)
+    bpy.context.view_layer.objects.active = g
+    s.output_dir = folder
+    try:
+        return sorted(bpy.ops.segadeform.animate_garment())
+    except RuntimeError as e:
+        return str(e)
+
+# a segadeform that cannot be found: said before anything is written
+prefs.executable = "/nonexistent/segadeform"
+res["missing"] = animate(os.path.join(out, "missing"))
+res["missing_wrote"] = os.path.exists(os.path.join(out, "missing"))
+prefs.executable = exe
+# a user's file at one of the add-on's names: refused, untouched, nothing else written
+mine = os.path.join(out, "foreign", "dress_walk")
+os.makedirs(mine)
+with open(os.path.join(mine, "garment.obj"), "w") as fh:
+    fh.write("mine\n")
+res["foreign"] = animate(os.path.join(out, "foreign"))
+res["foreign_after"] = [open(os.path.join(mine, "garment.obj")).read(), sorted(os.listdir(mine))]
+# the garment parented to the root bone (it moves with it every frame) and a Subdivision Surface on it
+mw = g.matrix_world.copy()
+g.parent, g.parent_type, g.parent_bone = arm, "BONE", arm.pose.bones[0].name
+bpy.context.view_layer.update()
+g.matrix_world = mw
+bpy.context.view_layer.update()
+g.modifiers.new("smooth", "SUBSURF")
+res["main"] = animate(os.path.join(out, "main"))
+res["again"] = animate(os.path.join(out, "main"))  # its own files are replaced
+res["modifiers"] = [m.type for m in g.modifiers]
+res["path"] = g.modifiers["segadeform"].filepath
+g.modifiers["smooth"].show_viewport = False
+res["world"] = {}
+for f in (1, 6, 12):
+    bpy.context.scene.frame_set(f)
+    ev = g.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    co = np.empty(len(ev.data.vertices) * 3); ev.data.vertices.foreach_get("co", co)
+    m = np.array(ev.matrix_world)
+    res["world"][str(f)] = (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]).tolist()
+# a garment 1 m off segadeform's body: segadeform's refusal shows, and the panel's Force runs it
+g.modifiers.remove(g.modifiers["segadeform"])
+g.parent = None
+bpy.context.scene.frame_set(1)
+g.matrix_world = mw
+g.location.x += 1.0
+bpy.context.view_layer.update()
+res["off"] = animate(os.path.join(out, "off"))
+s.force = True
+res["forced"] = animate(os.path.join(out, "off"))
+print("RESULT" + json.dumps(res))
+"""
+
+
+def test_addon_follows_a_bone_parent_keeps_the_users_files_and_the_modifier_stack(sim_python, tmp_path):
+    """A Blender user's trial: a garment parented to a bone got one world matrix for every frame (3.3 m off at the
+    walk's end), the add-on overwrote a user's garment.obj, passed --force always (a garment 1 m off the body
+    animated silently), put the cache after a Subdivision Surface (a vertex-count mismatch Blender only logs) and
+    said nothing useful when segadeform could not be found.  Now: the bone-parented garment is `segadeform run`'s
+    output on the exported files at frames 1, 6, 12; a user's file is refused and left as it was; the cache sits
+    before the Subdivision Surface; the off-body garment shows segadeform's refusal unless Force is on; a missing
+    program names the preferences and writes nothing."""
+    sys.path.insert(0, str(TOOLS))
+    try:
+        from build_addon import build
+    finally:
+        sys.path.remove(str(TOOLS))
+    zip_path = build(tmp_path / "segadeform_addon.zip")
+    r = CliRunner().invoke(
+        cli, ["motion", "make", "walk", "--seconds", "0.4", "--fps", "30", "-o", str(tmp_path / "walk.bvh")]
+    )
+    assert r.exit_code == 0, r.output
+    env = dict(os.environ, BLENDER_USER_SCRIPTS=str(tmp_path / "blender-scripts"))
+    out = tmp_path / "out"
+    got = _blender(
+        sim_python,
+        ADDON_CASES,
+        zip_path,
+        SEGADEFORM,
+        tmp_path / "walk.bvh",
+        SAMPLES / "garments" / "dress.obj",
+        out,
+        env=env,
+    )
+    assert "no such program" in got["missing"] and "preferences" in got["missing"], got["missing"]
+    assert not got["missing_wrote"]
+    assert "exists and segadeform did not write it" in got["foreign"], got["foreign"]
+    assert got["foreign_after"] == ["mine\n", ["garment.obj"]]
+    assert got["main"] == ["FINISHED"] and got["again"] == ["FINISHED"]
+    assert got["modifiers"] == ["MESH_CACHE", "SUBSURF"]
+    assert os.path.isabs(got["path"])  # the .blend is not saved: no '//' path to resolve against
+    folder = out / "main" / "dress_walk"
+    r = CliRunner().invoke(
+        cli,
+        ["run", "--garment", str(folder / "garment.obj"), "--motion", str(folder / "motion.bvh"), "-o",
+         str(tmp_path / "ref.pc2"), "--quality", "fast"],
+    )  # fmt: skip
+    assert r.exit_code == 0, r.output
+    want = read_pc2(tmp_path / "ref.pc2").frames.astype(np.float64) @ np.array(Y_TO_Z).T
+    err = max(float(np.abs(np.array(got["world"][str(f)]) - want[f - 1]).max()) for f in (1, 6, 12))
+    print(f"bone-parented garment vs segadeform run: max {err:.3g} m")
+    assert err <= 1e-5
+    assert np.abs(want[-1] - want[0]).max() > 1e-3
+    assert "does not sit on the body" in got["off"] and "Force" in got["off"], got["off"]
+    assert got["forced"] == ["FINISHED"]

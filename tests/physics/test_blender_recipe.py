@@ -173,3 +173,61 @@ def test_real_run_output_through_the_import_script(sim_python, tmp_path):
     assert measured["body"]["max_error_m"] < 1e-6, measured
     # motion is really played (not the rest mesh everywhere): frames differ by far more than the error
     assert np.abs(np.asarray(garment.frames[5]) - np.asarray(garment.frames[0])).max() > 1e-3
+
+
+SAVED_CHECK = r"""
+import json, os, sys, runpy
+import numpy as np
+import bpy
+tool, workdir, garment, blend = sys.argv[1:5]
+bpy.ops.wm.read_factory_settings()  # the startup scene, with its cube
+os.chdir(workdir)
+sys.argv = ["blender", "--python", tool, "--", "--garment", garment, "--cache", "out/dress.pc2", "--fps", "30"]
+runpy.run_path(tool, run_name="__main__")
+out = {"cube": "Cube" in bpy.data.objects, "fps": bpy.context.scene.render.fps / bpy.context.scene.render.fps_base}
+bpy.ops.wm.save_as_mainfile(filepath=blend)
+os.chdir("/")
+bpy.ops.wm.open_mainfile(filepath=blend)
+ob = next(o for o in bpy.context.scene.objects if o.modifiers)
+out["path"] = ob.modifiers[0].filepath
+bpy.context.scene.frame_set(12)
+ev = ob.evaluated_get(bpy.context.evaluated_depsgraph_get())
+co = np.empty(len(ev.data.vertices) * 3); ev.data.vertices.foreach_get("co", co)
+mw = np.array(ev.matrix_world)
+out["world"] = (co.reshape(-1, 3) @ mw[:3, :3].T + mw[:3, 3]).tolist()
+print("RESULT" + json.dumps(out))
+"""
+
+
+def test_import_script_keeps_a_relative_cache_through_a_saved_blend(sim_python, tmp_path):
+    """A Blender user's trial: `--cache out/dress.pc2` (the README's relative style) was stored as given, and the
+    .blend saved in another folder lost it (Blender remapped it to '//../../out/dress.pc2': no such file, 5.5 cm
+    off); the startup cube stood where the body's legs are; the scene stayed at 24 fps.  Now the cache is found
+    after the .blend is saved elsewhere and reopened from another working folder (frame 12 where segadeform put
+    it), the untouched cube is gone, and --fps 30 sets the scene's rate."""
+    from click.testing import CliRunner
+
+    from segadeform.cli.main import cli
+    from segadeform.io import read_pc2
+
+    from ..conftest import SAMPLES
+
+    work = tmp_path / "work"
+    r = CliRunner().invoke(
+        cli,
+        ["run", str(SAMPLES / "scenes" / "dress_dance.toml"), "--frames", "10:16", "-o",
+         str(work / "out" / "dress.pc2"), "--no-cache"],
+    )  # fmt: skip
+    assert r.exit_code == 0, r.output
+    (tmp_path / "elsewhere").mkdir()
+    p = subprocess.run(
+        [str(sim_python), "-c", SAVED_CHECK, str(TOOL), str(work), str(SAMPLES / "garments" / "dress.obj"),
+         str(tmp_path / "elsewhere" / "scene.blend")],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr[-2000:]
+    got = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+    assert not got["cube"] and got["fps"] == 30
+    want = np.asarray(read_pc2(work / "out" / "dress.pc2").frames[2], np.float64) @ np.array(Y_TO_Z).T
+    err = float(np.abs(np.array(got["world"]) - want).max())
+    assert err < 1e-6, (err, got["path"])

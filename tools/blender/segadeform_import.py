@@ -3,7 +3,7 @@
 Runs inside Blender (GPL-3.0; this script is a separate program, not part of the segadeform package):
 
     blender --python tools/blender/segadeform_import.py -- --garment out/tshirt.obj --cache out/tshirt_walk.pc2 \\
-        [--body out/body_walk.obj --body-cache out/body_walk.pc2] [--frame-start F]
+        [--body out/body_walk.obj --body-cache out/body_walk.pc2] [--frame-start F] [--fps 30]
 
 or from Blender's Python console / another script: ``import_result(...)``.
 
@@ -18,11 +18,19 @@ rotation: do not use it for this.
 Timing: by default each cache starts at the start frame in its PC2 header (``segadeform run --frames 10:40``
 writes 10, so Blender's frame 10 shows the motion's frame 10) and advances one sample per
 ``sampleRate`` frames; ``--frame-start`` puts the first sample of every cache at that scene frame
-instead.  The scene's frame range is set to cover all caches.
+instead.  The scene's frame range is set to cover all caches.  A PC2 file does not say its frame rate:
+``--fps`` sets the scene's to the run's (the motion's, or ``run --fps``); without it the scene keeps its own
+(Blender's default is 24) and the script says so.
+
+Paths: each cache is stored by its absolute path, or relative to the .blend when the file is saved and
+Blender's *Default to relative paths* is on, so saving the .blend elsewhere or copying the project keeps it.
+In a file not saved yet, Blender's untouched default cube (8 vertices at the origin, no modifiers) is removed:
+it stands where the body's legs are.
 """
 
 from __future__ import annotations
 
+import os
 import struct
 import sys
 
@@ -54,6 +62,38 @@ def _import_obj(path: str):
     return new[0]
 
 
+def _stored_path(path: str) -> str:
+    """``path`` as a modifier keeps it: absolute, or relative to the saved .blend (``//...``) when Blender's
+    *Default to relative paths* is on."""
+    path = os.path.abspath(path)
+    if bpy.data.filepath and bpy.context.preferences.filepaths.use_relative_paths:
+        try:
+            return bpy.path.relpath(path)
+        except ValueError:  # another drive than the .blend's
+            pass
+    return path
+
+
+def _remove_default_cube() -> bool:
+    """Remove Blender's untouched default cube from a file not saved yet; whether there was one."""
+    cube = bpy.data.objects.get("Cube")
+    if (
+        bpy.data.filepath
+        or cube is None
+        or cube.type != "MESH"
+        or len(cube.data.vertices) != 8
+        or cube.modifiers
+        or cube.parent is not None
+        or any(abs(x) > 1e-9 for x in cube.location)
+    ):
+        return False
+    mesh = cube.data
+    bpy.data.objects.remove(cube)
+    if mesh.users == 0:
+        bpy.data.meshes.remove(mesh)
+    return True
+
+
 def _attach_cache(obj, pc2: str, frame_start: float | None):
     """A Mesh Cache modifier on ``obj`` playing ``pc2``; returns (modifier, first frame, last frame)."""
     h = pc2_header(pc2)
@@ -64,7 +104,7 @@ def _attach_cache(obj, pc2: str, frame_start: float | None):
     start = h["start_frame"] if frame_start is None else float(frame_start)
     mod = obj.modifiers.new(name="segadeform cache", type="MESH_CACHE")
     mod.cache_format = "PC2"
-    mod.filepath = pc2
+    mod.filepath = _stored_path(pc2)
     mod.frame_start = start
     mod.frame_scale = 1.0 / h["sample_rate"]  # scene frames -> samples
     return mod, start, start + max(h["samples"] - 1, 0) * h["sample_rate"]
@@ -77,13 +117,19 @@ def import_result(
     body_cache: str | None = None,
     frame_start: float | None = None,
     frames: int | None = None,
+    fps: float | None = None,
 ):
-    """Import the garment (and body) OBJ, attach the PC2 caches, set the scene's frame range.
+    """Import the garment (and body) OBJ, attach the PC2 caches, set the scene's frame range (and rate).
 
     ``frame_start``: the scene frame of every cache's first sample (None: each cache's header start frame).
     ``frames``: the scene's number of frames (None: up to the last sample of the caches).
+    ``fps``: the scene's frame rate, the run's (None: the scene's is kept).
     Returns the objects, garment first.
     """
+    if fps is not None and not (fps > 0 and fps < 1000):
+        raise RuntimeError(f"fps must be in (0, 1000) (got {fps})")
+    if _remove_default_cube():
+        print("segadeform_import: removed Blender's default cube (it stood where the body's legs are)")
     objs, spans = [], []
     g = _import_obj(garment)
     spans.append(_attach_cache(g, cache, frame_start)[1:])
@@ -96,6 +142,15 @@ def import_result(
     first = min(s for s, _ in spans)
     last = max(e for _, e in spans) if frames is None else first + int(frames) - 1
     scene = bpy.context.scene
+    if fps is not None:
+        scene.render.fps = max(1, int(round(fps)))
+        scene.render.fps_base = scene.render.fps / fps
+    else:
+        rate = scene.render.fps / scene.render.fps_base
+        print(
+            f"segadeform_import: the scene plays at {rate:g} fps; pass --fps with the run's frame rate "
+            "(a PC2 file does not record it) if that is not it"
+        )
     scene.frame_start = int(round(first))
     scene.frame_end = int(round(last))
     scene.frame_set(scene.frame_start)
@@ -116,8 +171,11 @@ def _main(argv):
         default=None,
         help="scene frame of the first sample (default: the PC2 header's start frame)",
     )
+    ap.add_argument(
+        "--fps", type=float, default=None, help="the scene's frame rate: the run's (default: the scene's is kept)"
+    )
     a = ap.parse_args(argv)
-    return import_result(a.garment, a.cache, a.body, a.body_cache, a.frame_start)
+    return import_result(a.garment, a.cache, a.body, a.body_cache, a.frame_start, fps=a.fps)
 
 
 if __name__ == "__main__":

@@ -9,7 +9,18 @@ view's sidebar (tab *segadeform*).  The operator
    effects and the quality preset in the panel -- showing its progress in the status bar and any error
    (segadeform's one ``Error: ...`` line) in Blender's interface;
 3. attaches the result to the garment: a Mesh Cache modifier playing a PC2 in the garment object's own
-   coordinates, its first frame at the action's first frame.
+   coordinates (per frame, so a garment parented to a bone or animated itself gets its frames right), its
+   first frame at the action's first frame, placed after the garment's leading deform modifiers and before
+   the first that changes its vertices (a Subdivision Surface then smooths the result).
+
+The garment is dressed on segadeform's body (its default body, posed by the action), not on the user's own
+mesh: the garment has to sit on that body, as ``segadeform run`` checks; its refusal shows in Blender and the
+panel's *Force* runs it anyway.  Like every segadeform command, the add-on never overwrites a file it did not
+write: its folder's ``.segadeform-outputs.json`` lists what it and ``segadeform run`` wrote there, and any
+other file at one of its names is refused before anything is written.  In a file not saved yet, a relative
+output folder (the default ``//segadeform``) lies in Blender's temporary folder, which Blender empties on
+exit: save the .blend first to keep the result beside it; the cache's path is stored relative to the .blend
+when Blender's *Default to relative paths* is on (so a copied project folder still plays).
 
 Runs inside Blender (GPL-3.0); a separate program, not part of the segadeform package.  Install the zip made
 by ``python tools/blender/build_addon.py`` (Edit > Preferences > Add-ons > Install from Disk).
@@ -17,7 +28,9 @@ by ``python tools/blender/build_addon.py`` (Edit > Preferences > Add-ons > Insta
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import struct
 import subprocess
 import time
@@ -35,6 +48,16 @@ bl_info = {
 }
 
 _PC2 = struct.Struct("<12siiffi")
+#: segadeform's outputs manifest (segadeform.io.output_guard; the Node and C++ runtimes keep the same one)
+MANIFEST = ".segadeform-outputs.json"
+KIND = "blender add-on"
+#: modifiers that move vertices and keep their count: the cache goes after the leading ones (it replaces their
+#: positions) and before the first other one (a Subdivision Surface, a Mirror ...), which then gets its vertices
+DEFORM_ONLY = {
+    "ARMATURE", "CAST", "CLOTH", "CORRECTIVE_SMOOTH", "CURVE", "DISPLACE", "HOOK", "LAPLACIANDEFORM",
+    "LAPLACIANSMOOTH", "LATTICE", "MESH_CACHE", "MESH_DEFORM", "MESH_SEQUENCE_CACHE", "SHRINKWRAP",
+    "SIMPLE_DEFORM", "SMOOTH", "SOFT_BODY", "SURFACE_DEFORM", "WARP", "WAVE",
+}  # fmt: skip
 QUALITY = [
     ("NONE", "Effects only", "use the effects field as it is"),
     ("fast", "fast", "quality preset fast"),
@@ -104,19 +127,119 @@ def read_pc2(path):
     return data, start, rate
 
 
-def write_local_pc2(obj, frames, start, path):
-    """segadeform's frames (world, +Y up) as positions in ``obj``'s own coordinates, which a Mesh Cache
-    modifier replaces: (x, y, z) -> Blender's (x, -z, y), then the inverse of the object's world matrix."""
+def world_inverses(scene, obj, first, count):
+    """(count, 4, 4): the inverse of ``obj``'s world matrix at scene frames first, first + 1, ...; one matrix
+    repeated when nothing can move the object (no parent, animation or constraint)."""
+    import numpy as np
+
+    if obj.parent is None and obj.animation_data is None and not obj.constraints:
+        return np.repeat(np.array(obj.matrix_world.inverted(), np.float64)[None], count, axis=0)
+    here, sub = scene.frame_current, scene.frame_subframe
+    out = np.empty((count, 4, 4))
+    try:
+        for k in range(count):
+            scene.frame_set(first + k)
+            out[k] = np.array(obj.matrix_world.inverted(), np.float64)
+    finally:
+        scene.frame_set(here, subframe=sub)
+    return out
+
+
+def write_local_pc2(inverses, frames, start, path):
+    """segadeform's frames (world, +Y up) as positions in the object's own coordinates, which a Mesh Cache
+    modifier replaces: (x, y, z) -> Blender's (x, -z, y), then ``inverses[k]`` (the inverse of the object's world
+    matrix at the frame sample k shows at; :func:`world_inverses`)."""
     import numpy as np
 
     world = np.stack([frames[..., 0], -frames[..., 2], frames[..., 1]], axis=-1).astype(np.float64)
-    inv = np.array(obj.matrix_world.inverted(), np.float64)
-    local = world @ inv[:3, :3].T + inv[:3, 3]
+    local = np.einsum("kij,knj->kni", inverses[:, :3, :3], world) + inverses[:, None, :3, 3]
     tmp = path + ".tmp"
     with open(tmp, "wb") as fh:
         fh.write(_PC2.pack(b"POINTCACHE2\0", 1, local.shape[1], float(start), 1.0, local.shape[0]))
         fh.write(local.astype("<f4").tobytes())
     os.replace(tmp, path)
+
+
+def _manifest(folder):
+    try:
+        with open(os.path.join(folder, MANIFEST), encoding="utf-8") as fh:
+            m = json.load(fh)
+    except FileNotFoundError:
+        return {"segadeform_outputs": 1, "files": {}}
+    except (OSError, ValueError):
+        m = None
+    if not isinstance(m, dict) or m.get("segadeform_outputs") != 1 or not isinstance(m.get("files"), dict):
+        where = os.path.join(folder, MANIFEST)
+        raise RuntimeError(f"{where}: not a segadeform outputs manifest; choose another output folder")
+    return m
+
+
+def refuse_foreign(folder, names):
+    """Raise unless every file of ``names`` in ``folder`` is missing or was written there by the add-on or
+    ``segadeform run`` (the manifest lists it, unchanged since): nothing else is ever overwritten."""
+    files = _manifest(folder)["files"]
+    for name in names:
+        path = os.path.join(folder, name)
+        if not os.path.lexists(path):
+            continue
+        e, st = files.get(name), os.lstat(path)
+        ours = (
+            isinstance(e, dict)
+            and e.get("kind") in (KIND, "run")
+            and os.path.isfile(path)
+            and (e.get("size"), e.get("mtime_ns")) == (st.st_size, st.st_mtime_ns)
+        )
+        if not ours:
+            raise RuntimeError(
+                f"{path} exists and segadeform did not write it (or it changed since); the add-on never overwrites "
+                "such a file: choose another output folder, or move the file"
+            )
+
+
+def record(folder, names):
+    """List ``names`` (just written) in the folder's manifest as the add-on's; written atomically."""
+    m = _manifest(folder)
+    for name in names:
+        st = os.stat(os.path.join(folder, name))
+        m["files"][name] = {"kind": KIND, "size": int(st.st_size), "mtime_ns": int(st.st_mtime_ns)}
+    m["files"] = dict(sorted(m["files"].items()))
+    tmp = os.path.join(folder, MANIFEST + ".tmp")
+    with open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(json.dumps(m, indent=1) + "\n")
+    os.replace(tmp, os.path.join(folder, MANIFEST))
+
+
+def find_executable(exe):
+    """The segadeform program to run (a path, or a name on PATH), or None."""
+    if os.path.dirname(exe):
+        return exe if os.path.isfile(exe) and os.access(exe, os.X_OK) else None
+    return shutil.which(exe)
+
+
+def output_root(output_dir):
+    """(folder, warning or None) for the panel's output folder.  A relative one (``//...``) in a file not saved
+    yet lies in Blender's temporary folder (Blender's own ``//`` would be the current directory)."""
+    if not output_dir:
+        return bpy.app.tempdir, "written to Blender's temporary folder, which Blender empties on exit"
+    if output_dir.startswith("//") and not bpy.data.filepath:
+        return (
+            os.path.join(bpy.app.tempdir, output_dir[2:]),
+            "the file is not saved, so the result is in Blender's temporary folder, which Blender empties on exit: "
+            "save the .blend and animate again to keep it beside it",
+        )
+    return bpy.path.abspath(output_dir), None
+
+
+def place_modifier(obj, mod):
+    """Move ``mod`` after ``obj``'s leading deform-only modifiers; returns the names of the modifiers after it
+    that move vertices again (they would change segadeform's result)."""
+    mods = list(obj.modifiers)
+    mods.remove(mod)
+    at = 0
+    while at < len(mods) and mods[at].type in DEFORM_ONLY:
+        at += 1
+    obj.modifiers.move(list(obj.modifiers).index(mod), at)
+    return [m.name for m in mods[at:] if m.type in DEFORM_ONLY and m.show_viewport]
 
 
 def run_segadeform(exe, args, report_progress=None):
@@ -156,11 +279,24 @@ class SEGADEFORM_OT_animate_garment(bpy.types.Operator):
         settings = scene.segadeform
         action = arm.animation_data.action
         first, last = (int(round(x)) for x in action.frame_range)
-        folder = bpy.path.abspath(settings.output_dir) if settings.output_dir else bpy.app.tempdir
-        folder = os.path.join(folder, bpy.path.clean_name(f"{garment.name}_{action.name}"))
-        os.makedirs(folder, exist_ok=True)
-        obj_path, bvh_path = os.path.join(folder, "garment.obj"), os.path.join(folder, "motion.bvh")
-        pc2_path = os.path.join(folder, "garment.pc2")
+        exe = bpy.path.abspath(_prefs(context).executable)
+        if find_executable(exe) is None:  # before anything is written
+            self.report(
+                {"ERROR"},
+                f"cannot start segadeform ({exe}): no such program; set the segadeform executable in the add-on's "
+                "preferences (Edit > Preferences > Add-ons > segadeform)",
+            )
+            return {"CANCELLED"}
+        root, warning = output_root(settings.output_dir)
+        folder = os.path.join(root, bpy.path.clean_name(f"{garment.name}_{action.name}"))
+        names = ("garment.obj", "motion.bvh", "garment.pc2", "garment_local.pc2")
+        obj_path, bvh_path, pc2_path, local_path = (os.path.join(folder, n) for n in names)
+        try:
+            os.makedirs(folder, exist_ok=True)
+            refuse_foreign(folder, names)
+        except (OSError, RuntimeError) as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
         write_garment_obj(garment, obj_path)
         # Blender's own BVH exporter, for the armature alone over the action's frames
         for o in context.selected_objects:
@@ -175,7 +311,10 @@ class SEGADEFORM_OT_animate_garment(bpy.types.Operator):
             root_transform_only=False,
         )
         garment.select_set(True)
-        args = ["run", "--garment", obj_path, "--motion", bvh_path, "-o", pc2_path, "--force"]
+        record(folder, names[:2])
+        args = ["run", "--garment", obj_path, "--motion", bvh_path, "-o", pc2_path]
+        if settings.force:
+            args.append("--force")
         if settings.quality != "NONE":
             args += ["--quality", settings.quality]
         if settings.effects.strip():
@@ -190,26 +329,41 @@ class SEGADEFORM_OT_animate_garment(bpy.types.Operator):
 
         wm.progress_begin(0, 100)
         try:
-            rc, message = run_segadeform(bpy.path.abspath(_prefs(context).executable), args, progress)
+            rc, message = run_segadeform(exe, args, progress)
         finally:
             wm.progress_end()
             if workspace is not None:
                 workspace.status_text_set(None)
         if rc != 0:
+            if "--force" in message and not settings.force:
+                message += " (the panel's Force runs it anyway)"
             self.report({"ERROR"}, f"segadeform failed: {message}")
             return {"CANCELLED"}
         frames, start, _ = read_pc2(pc2_path)
         if frames.shape[1] != len(garment.data.vertices):
             self.report({"ERROR"}, f"{pc2_path}: {frames.shape[1]} points for {len(garment.data.vertices)} vertices")
             return {"CANCELLED"}
-        local_path = os.path.join(folder, "garment_local.pc2")
-        write_local_pc2(garment, frames, start, local_path)
+        write_local_pc2(world_inverses(scene, garment, first, frames.shape[0]), frames, start, local_path)
+        record(folder, names[3:])
         mod = garment.modifiers.get("segadeform") or garment.modifiers.new("segadeform", "MESH_CACHE")
         mod.cache_format = "PC2"
-        mod.filepath = local_path
+        relative = bool(bpy.data.filepath) and context.preferences.filepaths.use_relative_paths
+        try:
+            mod.filepath = bpy.path.relpath(local_path) if relative else local_path
+        except ValueError:  # another drive than the .blend's
+            mod.filepath = local_path
         mod.frame_start = first  # sample k shows at the action's frame first + k
         mod.frame_scale = 1.0
-        scene.frame_start, scene.frame_end = first, first + frames.shape[0] - 1
+        after = place_modifier(garment, mod)
+        span = (first, first + frames.shape[0] - 1)
+        if (scene.frame_start, scene.frame_end) != span:
+            self.report({"INFO"}, f"segadeform: the scene's frames set to {span[0]}-{span[1]}, the action's")
+            scene.frame_start, scene.frame_end = span
+        if after:
+            moved = ", ".join(after)
+            self.report({"WARNING"}, f"segadeform: the modifiers {moved} after the cache move the garment again")
+        if warning:
+            self.report({"WARNING"}, f"segadeform: {warning} ({folder})")
         self.report({"INFO"}, f"segadeform: {frames.shape[0]} frames attached to {garment.name} ({pc2_path})")
         return {"FINISHED"}
 
@@ -219,6 +373,12 @@ class SegadeformSettings(bpy.types.PropertyGroup):
         name="Effects", default="", description="segadeform run --effects (e.g. lbs,dynamics,collisions or -wrinkles)"
     )
     quality: bpy.props.EnumProperty(name="Quality", items=QUALITY, default="NONE")
+    force: bpy.props.BoolProperty(
+        name="Force",
+        default=False,
+        description="segadeform run --force: animate a garment that does not sit on segadeform's body, or a motion "
+        "it refuses (the result is then likely wrong)",
+    )
     output_dir: bpy.props.StringProperty(
         name="Output folder",
         subtype="DIR_PATH",
@@ -239,6 +399,7 @@ class SEGADEFORM_PT_panel(bpy.types.Panel):
         col.prop(s, "quality")
         col.prop(s, "effects")
         col.prop(s, "output_dir")
+        col.prop(s, "force")
         col.operator(SEGADEFORM_OT_animate_garment.bl_idname, icon="MOD_CLOTH")
 
 
