@@ -99,7 +99,11 @@ def dataset_group():
 def dataset_make_cmd(
     config, output, jobs, executor, body, limit, sim_python, roots, force, retry_rejected, retry, splits
 ):
-    """Simulate every garment x body x motion of CONFIG.toml into OUTPUT (resumable)."""
+    """Simulate every garment x body x motion of CONFIG.toml into OUTPUT (resumable).
+
+    CONFIG's format: the docstring of segadeform.dataset.config (samples/datasets/tiny.toml is a complete one);
+    a garment OBJ of your own is an entry with mesh = "FILE.obj".
+    """
     from segadeform.dataset import load_dataset_config, make_dataset
     from segadeform.distributed.executors import make_executor
     from segadeform.io.output_guard import OutputGuard

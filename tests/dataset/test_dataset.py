@@ -1308,3 +1308,68 @@ def test_sigterm_stops_dataset_make_as_ctrl_c_does(tmp_path, jobs):
     ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
     assert str(tmp) not in ps  # no Blender worker of this run is left
     assert main(["dataset", "make", str(TINY), "-o", str(out), "-j", "2"]) == 0  # it resumes
+
+
+def test_a_garment_obj_of_the_users_is_a_dataset_garment_on_the_shape_it_was_made_for(tmp_path, capsys):
+    """A user's trial: a garment OBJ (`garment fit -o my.obj`, the README's own path) could not go into a dataset
+    (`unknown key garments[0].mesh`), and `mhclo = "my.obj"` failed only after the first samples were simulated.
+    Now `mesh = FILE` is a garment as it is, planned on the [[bodies]] of the shape it records alone, checked on
+    the body before simulating, named by content in its key; `dataset make` simulates it; a wrong file is refused
+    when the config is read."""
+    from segadeform.body import default_body_path, load_body
+    from segadeform.body.placement import PlacementError
+    from segadeform.dataset.make import _garment_file, _garment_key
+    from segadeform.io import read_mesh, read_obj
+
+    d = tmp_path / "cfg"
+    d.mkdir()
+    shutil.copyfile(SAMPLES / "garments" / "dress.obj", d / "my_dress.obj")  # records the default shape
+    head = (
+        "[dataset]\nfps = 30.0\nseconds = 0.2\n[simulate]\neffects = ['gravity', 'body_collision']\nquality = 2\n[[motions]]\nkind = 'walk'\n"
+        "[[bodies]]\nbetas = []\n[[bodies]]\nbetas = [1.0, 0.0]\n[[garments]]\nkind = 'skirt'\nresolution = 300\n"
+    )
+    cfg = load_dataset_config(
+        _write(d, "a.toml", head + "[[garments]]\nname = 'mine'\nkind = 'dress'\nmesh = 'my_dress.obj'\n")
+    )
+    g = cfg.garments[1]
+    assert g.mesh == (d / "my_dress.obj").resolve() and g.mesh_betas == ()
+    plan = {p.id for p in sample_plan(cfg)}
+    assert plan == {"skirt-0__b0__walk-s0", "skirt-0__b1__walk-s0", "mine__b0__walk-s0"}, plan  # not on betas 1,0
+    assert _garment_key(g)["mesh"].startswith("my_dress.obj:") and "mesh" not in _garment_key(cfg.garments[0])
+    body = load_body(default_body_path())
+    out = tmp_path / "ds"
+    out.mkdir()
+    made = read_obj(out / _garment_file(out, cfg, 1, 0, body))
+    mine = read_mesh(d / "my_dress.obj")
+    assert made.vertices.shape == mine.vertices.shape and np.array_equal(made.faces, mine.faces)
+    assert np.abs(made.vertices - mine.vertices).max() < 0.02  # as it is, moved off the skin by at most the margin
+    # a garment OBJ off the body is refused before anything is simulated, naming the file
+    moved = mine.vertices + [1.0, 0.0, 0.0]
+    from segadeform.io import write_obj
+    from segadeform.io.mesh import Mesh
+
+    write_obj(d / "off.obj", Mesh(vertices=moved, faces=mine.faces))
+    off = load_dataset_config(
+        _write(d, "b.toml", head + "[[garments]]\nname = 'off'\nkind = 'dress'\nmesh = 'off.obj'\n")
+    )
+    with pytest.raises(PlacementError, match=r"off\.obj.*--offset -1\.00"):
+        _garment_file(out, off, 1, 0, body)
+    for extra, msg in (
+        ("mesh = 'nope.obj'\n", r"garments\[1\]\.mesh does not exist"),
+        ("mesh = 'my_dress.obj'\ncount = 2\n", "one garment OBJ, as it is"),
+        ("mesh = 'my_dress.obj'\nmhclo = 'x.mhclo'\n", "one garment OBJ, as it is"),
+        ("mhclo = 'my_dress.obj'\n", r"garments\[1\]\.mhclo: .*my_dress\.obj"),  # read now, not mid-run
+    ):
+        with pytest.raises(FileFormatError, match=msg):
+            load_dataset_config(_write(d, "c.toml", head + "[[garments]]\nname = 'x'\nkind = 'dress'\n" + extra))
+    # fitted for another shape, and no body of it listed
+    text = (d / "my_dress.obj").read_text().replace("# betas: \n", "# betas: 0.5 0.5\n", 1)
+    (d / "tall.obj").write_text(text)
+    with pytest.raises(FileFormatError, match=r"made for betas 0\.5,0\.5, and no \[\[bodies\]\] entry has that shape"):
+        load_dataset_config(_write(d, "e.toml", head + "[[garments]]\nname = 't'\nkind = 'dress'\nmesh = 'tall.obj'\n"))
+    # and it is simulated, end to end
+    only = head.split("[[garments]]")[0] + "[[garments]]\nname = 'mine'\nkind = 'dress'\nmesh = 'my_dress.obj'\n"
+    assert main(["dataset", "make", str(_write(d, "m.toml", only)), "-o", str(tmp_path / "made"), "-j", "1"]) == 0
+    capsys.readouterr()
+    done = [p.name for sub in ("samples", "rejected") for p in (tmp_path / "made" / sub).glob("*.json")]
+    assert done == ["mine__b0__walk-s0.json"], done

@@ -6,6 +6,8 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     fps = 30.0
     seconds = 3.0             # every motion is cut or generated to this length
     cross_splits = false      # also simulate held-out garments on training motions and vice versa
+    held_out_kinds = []       # garment kinds that only held-out entries may use (never trained on)
+    held_out_motions = []     # motion kinds / motion file names likewise
     order = "body-major"      # the order samples are made in: "body-major" (held-out ones first,
                               # then body, motion, garment: a run stopped early has every garment and
                               # motion of the bodies it reached) or "spread" (a fixed pseudo-random
@@ -40,9 +42,6 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     collision_quality = 4     # quality, collision_quality, impulse_clamp, max_step_motion), and the first
                               # attempt that passes is kept (its settings recorded in the sample)
 
-    held_out_kinds = []       # garment kinds that only held-out entries may use (never trained on)
-    held_out_motions = []     # motion kinds / motion file names likewise
-
     [[garments]]
     kind = "skirt"            # segadeform.garments kinds; other keys are GarmentParams
     # length = [0.3, 0.8]     # a range [lo, hi] instead of a value: each of `count` draws samples it
@@ -50,6 +49,10 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     # seed = 0                #     (default: from the name) and its draw number k; named NAME-k
     # mhclo = "../../shared/data/garments/makehuman_split/jeans_m/jeans_m.mhclo"   # a MakeHuman garment
     #                         # fitted to each body instead (kind then only gives its type label)
+    # mesh = "my_skirt.obj"   # or a garment OBJ of your own (`garment fit`, `garment make`, any OBJ in metres,
+    #                         # +Y up, on the body): simulated on the [[bodies]] of the shape it was made
+    #                         # for (its `# betas:` line; the default shape when it has none); kind gives
+    #                         # its type label and pin group
     pin = "waistband"         # optional: the pin group of this garment (with the "pinning" effect)
     resolution = 2500
     split = "train"           # train | test (held out)
@@ -109,6 +112,19 @@ class GarmentSpec:
     pin: str | None = None  # overrides simulate.pin for this garment
     mhclo: Path | None = None  # a MakeHuman garment fitted to each body (instead of a procedural one)
     decimate: float | None = None  # a MakeHuman garment's share of vertices kept (shortest edges collapsed first)
+    #: a garment OBJ of the user's (instead of a procedural one), simulated on the bodies of the shape it was made
+    #: for: ``mesh_betas``, its ``# betas:`` record (``()``: the default shape, also when it records none)
+    mesh: Path | None = None
+    mesh_betas: tuple[float, ...] = ()
+
+    def sits_on(self, betas) -> bool:
+        """Whether this garment is simulated on a body of shape ``betas``: every garment is but a garment OBJ
+        (``mesh``), which sits on the shape it was made for alone (compared with zeros appended, to 1e-4)."""
+        if self.mesh is None:
+            return True
+        a, b = np.asarray(self.mesh_betas, np.float64), np.asarray(betas, np.float64)
+        n = max(a.size, b.size)
+        return bool(np.allclose(np.pad(a, (0, n - a.size)), np.pad(b, (0, n - b.size)), rtol=0.0, atol=1e-4))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -352,6 +368,14 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
         name = g.pop("name", None) or f"{kind}-{i}"
         pin = g.pop("pin", None)
         mhclo = g.pop("mhclo", None)
+        mesh = g.pop("mesh", None)
+        if mesh is not None and mhclo is not None:
+            raise FileFormatError(
+                f"garments[{i}].mesh is one garment OBJ, as it is",
+                path=p,
+                expected="mesh = 'FILE.obj' or mhclo = 'FILE.mhclo', not both",
+                got="both",
+            )
         decimate = g.pop("decimate", None)
         count = _count(g, p, f"garments[{i}]")
         seed = g.pop("seed", None)
@@ -362,12 +386,40 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
             mhclo = (p.parent / mhclo).resolve()
             if require_files and not mhclo.is_file():
                 raise FileFormatError(f"garments[{i}].mhclo does not exist", path=p, got=str(mhclo))
+            if require_files:  # read now, not after the first samples of `dataset make` (an OBJ given as mhclo)
+                from ..io.mhclo import read_mhclo
+
+                try:
+                    read_mhclo(mhclo)
+                except InputError as e:
+                    raise FileFormatError(f"garments[{i}].mhclo: {e}", path=p) from None
             if ranged or (count or 1) > 1:
                 raise FileFormatError(
                     f"garments[{i}]: a MakeHuman garment has no parameters to draw",
                     path=p,
                     expected="no ranges and no count with mhclo",
                 )
+        mesh_betas: tuple[float, ...] = ()
+        if mesh is not None:
+            if not isinstance(mesh, str) or count is not None or ranged or decimate is not None:
+                raise FileFormatError(
+                    f"garments[{i}].mesh is one garment OBJ, as it is",
+                    path=p,
+                    expected="mesh = 'FILE.obj' without count, ranges or decimate",
+                    got=mesh if not isinstance(mesh, str) else "a count, range or decimate beside it",
+                )
+            mesh = (p.parent / mesh).resolve()
+            if require_files:  # found and read now, not hours into `dataset make`
+                from ..io import read_mesh
+                from ..io.obj import recorded_betas
+
+                if not mesh.is_file():
+                    raise FileFormatError(f"garments[{i}].mesh does not exist", path=p, got=str(mesh))
+                try:
+                    read_mesh(mesh)
+                    mesh_betas = recorded_betas(mesh) or ()
+                except InputError as e:
+                    raise FileFormatError(f"garments[{i}].mesh: {e}", path=p) from None
         if decimate is not None:
             if mhclo is None:
                 raise FileFormatError(
@@ -430,7 +482,9 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
                     expected=" | ".join(WAISTBAND_KINDS),
                     got=kind,
                 )
-            garments.append(GarmentSpec(dname, kind, params, split, pin, mhclo, decimate))
+            garments.append(
+                GarmentSpec(dname, kind, params, split, pin, mhclo, decimate, mesh=mesh, mesh_betas=mesh_betas)
+            )
     bodies, body_splits = [], []
     for i, b in enumerate(data.get("bodies", [{"betas": []}])):
         betas = b.get("betas", [])
@@ -438,6 +492,17 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
             raise FileFormatError(f"bodies[{i}] must be {{betas = [numbers], split = train|val|test}}", path=p, got=b)
         bodies.append(tuple(float(x) for x in betas))
         body_splits.append(_split(b, p, f"bodies[{i}]"))
+    for g in garments:
+        if not any(g.sits_on(b) for b in bodies):
+            shape = ",".join(f"{x:g}" for x in g.mesh_betas) or "0 (the default shape)"
+            raise FileFormatError(
+                f"garments ({g.name}): the garment mesh was made for betas {shape}, and no [[bodies]] entry has that "
+                "shape",
+                path=p,
+                expected=f"a [[bodies]] entry with betas = [{','.join(f'{x:g}' for x in g.mesh_betas)}], or the "
+                "garment fitted for a listed shape (`segadeform garment fit ... --betas ...`)",
+                got=", ".join(str(list(b)) for b in bodies),
+            )
     motions, mnames = [], set()
     for i, m in enumerate(data.get("motions", [])):
         m = dict(m)
@@ -526,6 +591,7 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
     for what, items in (
         ("motion file", [(mo.file, mo.split) for mo in motions if mo.file is not None]),
         ("MakeHuman garment", [(g.mhclo, g.split) for g in garments if g.mhclo is not None]),
+        ("garment mesh", [(g.mesh, g.split) for g in garments if g.mesh is not None]),
     ):
         sides = {}
         for src, sp in items:

@@ -92,7 +92,9 @@ def sample_plan(cfg: DatasetConfig) -> list[PlannedSample]:
     out = []
     bsplit = cfg.body_splits or ("train",) * len(cfg.bodies)
     for gi, g in enumerate(cfg.garments):
-        for bi, _ in enumerate(cfg.bodies):
+        for bi, betas in enumerate(cfg.bodies):
+            if not g.sits_on(betas):  # a garment OBJ: only on the shape it was made for
+                continue
             for mi, m in enumerate(cfg.motions):
                 if g.split == m.split == "test":
                     split = "test"
@@ -162,7 +164,8 @@ def check_splits(cfg: DatasetConfig, plan: list[PlannedSample]) -> None:
     held = {
         sp: (
             {m.file for m in cfg.motions if m.split == sp and m.file is not None},
-            {g.mhclo for g in cfg.garments if g.split == sp and g.mhclo is not None},
+            {g.mhclo for g in cfg.garments if g.split == sp and g.mhclo is not None}
+            | {g.mesh for g in cfg.garments if g.split == sp and g.mesh is not None},
             {_family(m) for m in cfg.motions if m.split == sp},
         )
         for sp in ("val", "test")
@@ -187,6 +190,7 @@ def check_splits(cfg: DatasetConfig, plan: list[PlannedSample]) -> None:
                     (f"a {what} motion family", bool(names & (families[other] | fams))),
                     (f"a {what} motion file", m.file is not None and m.file in files),
                     (f"a {what} MakeHuman garment", g.mhclo is not None and g.mhclo in mhclo),
+                    (f"a {what} garment mesh", g.mesh is not None and g.mesh in mhclo),
                 )
                 if leak
             ]
@@ -238,6 +242,8 @@ def _garment_key(g: GarmentSpec) -> dict:
     }
     if g.decimate is not None:
         key["decimate"] = g.decimate
+    if g.mesh is not None:
+        key["mesh"] = file_identity(g.mesh)
     return key
 
 
@@ -377,7 +383,17 @@ def _garment_file(out, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) ->
                 got=json.dumps(old, sort_keys=True),
             )
     if not loc.exists(rel):
-        if g.mhclo is not None:  # a MakeHuman garment: fitted to this body (decimated), 3 mm off the skin
+        if g.mesh is not None:  # the user's garment OBJ: checked on this body (its shape), 3 mm off the skin
+            from ..body.placement import check_placement, push_off_body
+
+            m = read_mesh(g.mesh)
+            betas = cfg.bodies[bi] or None
+            rest = body.shaped_vertices(betas)[0]
+            check_placement(m.vertices, rest, body.faces, path=g.mesh, faces=m.faces)
+            v, _ = push_off_body(m.vertices, rest, body.faces, 0.003)
+            with loc.writing(rel) as tmp:
+                write_obj(tmp, Mesh(vertices=v, faces=m.faces), header=f"garment {Path(g.mesh).name}, by segadeform")
+        elif g.mhclo is not None:  # a MakeHuman garment: fitted to this body (decimated), 3 mm off the skin
             from ..body.placement import push_off_body
             from ..garments.registration import fit_mhclo
             from ..garments.resample import decimate
