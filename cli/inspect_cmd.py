@@ -40,8 +40,8 @@ def _frames_summary(path, frames: np.ndarray) -> None:
 @cli.command("inspect")
 @click.argument("path", type=click.Path(path_type=Path))
 def inspect_cmd(path):
-    """Read PATH (mesh, point cache or any registered sequence format, body, motion, garment asset, scene or
-    model package), validate it fully, and print a summary."""
+    """Read PATH (mesh, point cache or any registered sequence format, body, motion, garment asset, scene,
+    scene bundle, dataset pack or model package), validate it fully, and print a summary."""
     from segadeform.errors import file_error
     from segadeform.io.formats import inspect_sequence, sequence_format_of
 
@@ -136,6 +136,31 @@ def inspect_cmd(path):
             f"from frame {meta.get('start_frame', 0)}), graph {meta.get('graph', '?')}, effects {eff}"
         )
         click.echo("  arrays: " + ", ".join(f"{k} {tuple(v.shape)} {v.dtype}" for k, v in arrays.items()))
+    elif ext == ".sgdpack":  # a dataset pack (`segadeform dataset pack`): every sample read and its SHA-256 checked
+        import collections
+
+        from segadeform.dataset.pack import open_pack
+
+        pack = open_pack(path)
+        try:
+            kept, rejected = pack.ids("samples"), pack.ids("rejected")
+            splits = collections.Counter(str(pack.read_meta(s).get("split")) for s in kept)
+            frames = vertices = 0
+            for s in kept:
+                smp = pack.load(s)
+                frames += len(smp.frames)
+                vertices = max(vertices, smp.frames.shape[1])
+            sim = pack.simulator
+            per_split = ", ".join(f"{k} {v}" for k, v in sorted(splits.items()))
+            click.echo(
+                f"{path}: dataset pack, {len(kept)} kept samples ({per_split}; "
+                f"{frames} frames, up to {vertices} vertices), {len(rejected)} rejected; "
+                f"{len(pack.configs())} configs, body sha256 {(pack.body_sha256 or '?')[:12]}, "
+                f"simulator {', '.join(f'{k} {v}' for k, v in sorted(sim.items())) or '?'}"
+            )
+            click.echo("  every sample read, its SHA-256 checked and its frames decoded")
+        finally:
+            pack.close()
     elif ext == ".sgda":
         from segadeform.geometry import GarmentAsset
 

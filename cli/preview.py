@@ -85,6 +85,8 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         w, h = (int(x) for x in size.lower().split("x"))
     except ValueError:
         raise click.UsageError(f"--size must be WIDTHxHEIGHT, got {size!r}") from None
+    if not (16 <= w <= 8192 and 16 <= h <= 8192):  # 0x10 was a traceback, 99999x99999 "out of memory"
+        raise click.UsageError(f"--size must be WIDTHxHEIGHT, each from 16 to 8192 pixels, got {size!r}")
     g = read_mesh(garment)
     G = np.asarray(read_sequence(result, faces=g.faces), np.float64)
     if G.shape[1] != g.n_vertices:

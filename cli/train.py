@@ -157,6 +157,8 @@ def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, 
         name, eq, s = m.partition("=")
         if not eq or not name or not s:
             raise click.UsageError(f"--model must be NAME=SPEC, got {m!r}")
+        if name in spec:  # the second silently replaced the first (a user's trial: lbs dropped from the table)
+            raise click.UsageError(f"--model names each model once: {name!r} is given twice ({spec[name]} and {s})")
         spec[name] = s
     b = _body(body)
     from segadeform.dataset.roots import DatasetRoots

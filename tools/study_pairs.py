@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import argparse
 import collections
-import re
 from math import comb
 from pathlib import Path
+
+from segadeform.dataset.report import reason_name
 
 
 def sign_test(a: int, b: int) -> float:
@@ -41,7 +42,7 @@ def main() -> None:
         arm = "changed" if changed else "plain"
         arms[(base, r.get("body"), r["motion"])][arm] = r["status"] == "kept"
         for x in r.get("reasons", []) if r["status"] != "kept" else []:
-            reasons[arm][re.sub(r"[\d.]+", "#", x).split(" > ")[0].split(":")[0]] += 1
+            reasons[arm][reason_name(x)] += 1
     per: dict = collections.defaultdict(collections.Counter)
     for (base, _, _), d in arms.items():
         if len(d) == 2:

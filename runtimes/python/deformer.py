@@ -141,7 +141,7 @@ class Deformer:
         if fam is not None and fam.outside:
             log.warning(
                 "garment %s lies outside the garments model %s was trained on (%s); results may be "
-                "less accurate than the model card reports",
+                "less accurate than on those (for the shipped model: its MODEL_CARD.md)",
                 asset.source_name or "(unnamed)",
                 self.package.path.name,
                 fam,

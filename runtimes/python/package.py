@@ -92,6 +92,13 @@ class ModelPackage:
         try:
             raw = mpath.read_bytes()
         except FileNotFoundError:  # the folder is there but is not a package
+            run = next((n for n in ("model.pt", "last.pt") if (self.path / n).is_file()), None)
+            if run is not None:  # a training run's folder (a user's trial: no hint what to do)
+                raise PackageError(
+                    "is a training run's folder, not a model package (it has no manifest.json)",
+                    path=self.path,
+                    expected=f"a package: `segadeform export {self.path / run} -o PACKAGE_DIR`, then --model it",
+                ) from None
             raise PackageError("model package has no manifest.json", path=self.path) from None
         except OSError as e:
             raise file_error(e, mpath, "manifest", cls=PackageError) from None

@@ -158,6 +158,11 @@ def test_preview_refuses_an_unknown_format_and_a_rate_that_is_not_one_before_ren
         r = CliRunner().invoke(cli, [*base, "-o", str(tmp_path / "x.gif"), "--fps", fps])
         assert r.exit_code == 2 and "--fps must be a frame rate" in r.output, r.output
     assert not (tmp_path / "x.gif").exists()
+    # a size with no pixels was a traceback (zero-size array), a huge one "out of memory" (a user's trial)
+    for size in ("0x10", "-5x10", "99999x99999"):
+        r = CliRunner().invoke(cli, [*base[:-1], size, "-o", str(tmp_path / "x.png")])
+        assert r.exit_code == 2 and "each from 16 to 8192 pixels" in r.output and size in r.output, r.output
+    assert not (tmp_path / "x.png").exists()
     r = CliRunner().invoke(cli, [*base, "-o", str(tmp_path / "x.gif"), "--fps", "12"])
     assert r.exit_code == 0 and (tmp_path / "x.gif").is_file(), r.output
 

@@ -1325,7 +1325,8 @@ def test_a_garment_obj_of_the_users_is_a_dataset_garment_on_the_shape_it_was_mad
     d.mkdir()
     shutil.copyfile(SAMPLES / "garments" / "dress.obj", d / "my_dress.obj")  # records the default shape
     head = (
-        "[dataset]\nfps = 30.0\nseconds = 0.2\n[simulate]\neffects = ['gravity', 'body_collision']\nquality = 2\n[[motions]]\nkind = 'walk'\n"
+        "[dataset]\nfps = 30.0\nseconds = 0.2\n[simulate]\neffects = ['gravity', 'body_collision']\nquality = 2\n"
+        "[[motions]]\nkind = 'walk'\n"
         "[[bodies]]\nbetas = []\n[[bodies]]\nbetas = [1.0, 0.0]\n[[garments]]\nkind = 'skirt'\nresolution = 300\n"
     )
     cfg = load_dataset_config(
@@ -1373,3 +1374,21 @@ def test_a_garment_obj_of_the_users_is_a_dataset_garment_on_the_shape_it_was_mad
     capsys.readouterr()
     done = [p.name for sub in ("samples", "rejected") for p in (tmp_path / "made" / sub).glob("*.json")]
     assert done == ["mine__b0__walk-s0.json"], done
+
+
+def test_a_gate_verdict_reads_its_share_apart_from_the_limit_and_info_counts_it_by_name():
+    """A user's trial: "strain 1.87 > 1.0 on 0.10% of edges > 0.10%" (0.104 % against 0.1 %), and `dataset info`
+    counted it as "strain #"."""
+    from segadeform.dataset.quality import _pair
+    from segadeform.dataset.report import reason_name
+
+    assert _pair(0.104, 0.1) == "0.104% > 0.100" and _pair(1.5, 1.0) == "1.50% > 1.00"
+    assert _pair(1e-6, 0.0, digits=3) == "0.000001% > 0.000000" and _pair(1e-9, 0.0) == "0.000000% > 0.000000"
+    for reason, name in (
+        ("strain 1.87 > 1.0 on 0.104% > 0.100% of edges", "strain"),
+        ("penetration 2.10% of vertices > 1.00%", "penetration"),
+        ("slipped: 10.0% of the vertices ...", "slipped"),
+        ("simulation failed: Blender exited 1", "simulation failed"),
+        ("max_strain 1.5 > 1.0", "max_strain"),
+    ):
+        assert reason_name(reason) == name

@@ -304,6 +304,10 @@ def test_dataset_info_reads_a_pack(tmp_path, body, capsys):
     assert main(["dataset", "info", str(out), "--json"]) == 0
     st = json.loads(capsys.readouterr().out)
     assert (st["kept"], st["rejected"]) == (1, 1) and st["splits"] == {"train": 1}
-    assert st["reasons"] == {"max_strain #": 1}  # the rejected sample's quality verdict
+    assert st["reasons"] == {"max_strain": 1}  # the rejected sample's quality verdict
     assert main(["dataset", "info", str(out)]) == 0
     assert "1 kept" in capsys.readouterr().out
+    # `inspect` reads a pack too (a user's trial: "unknown mesh file extension"), every sample checked
+    assert main(["inspect", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "dataset pack, 1 kept samples (train 1;" in said and "1 rejected" in said, said

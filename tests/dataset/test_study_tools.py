@@ -82,7 +82,7 @@ def test_study_pairs_counts_pairs_and_tests_the_discordant_ones(tmp_path):
     assert lines["b"] == ["4", "0", "4", "0", "4", "0.125"]  # 4 of 4 discordant one way: p = 2 / 2^4
     assert lines["(all)"] == ["8", "2", "7", "0", "5", "0.062"]
     assert "c" not in lines
-    assert "rejections (plain): strain # 6" in out and "rejections (changed): strain # 1" in out
+    assert "rejections (plain): strain 6" in out and "rejections (changed): strain 1" in out
 
 
 def test_kind_study_report_counts_only_clips_every_garment_finished(tmp_path):

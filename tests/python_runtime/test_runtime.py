@@ -444,3 +444,13 @@ def test_big_garments_take_fewer_frames_per_call(tmp_path, random_package, body,
     monkeypatch.setattr(pipeline, "MAX_VERTEX_FRAMES", 10**9)
     make_run(tmp_path, random_package, body, Effects(collisions=False), motion=motion, batch=8).execute()
     np.testing.assert_allclose(read_pc2(tmp_path / "out.pc2").frames, a, atol=1e-5)
+
+
+def test_a_training_runs_folder_given_as_a_package_names_export(tmp_path):
+    """A user's trial: `run --model runs/tiny` said only "model package has no manifest.json"."""
+    from segadeform.runtime import ModelPackage
+    from segadeform.runtime.package import PackageError
+
+    (tmp_path / "model.pt").write_bytes(b"")
+    with pytest.raises(PackageError, match=r"training run's folder.*segadeform export .*model\.pt -o PACKAGE_DIR`"):
+        ModelPackage(tmp_path)

@@ -62,7 +62,8 @@ def test_resume_refuses_another_config(synthetic_dataset, tiny_config, tmp_path,
     cfg = load_train_config(tiny_config, dataset=synthetic_dataset, overrides={"optim.steps": 3})
     train(cfg, tmp_path / "r", body)
     other = load_train_config(tiny_config, dataset=synthetic_dataset, overrides={"optim.lr": 0.1})
-    with pytest.raises(InputError, match="different config"):
+    # what changed is named (a user's trial: the same config.toml, the error blamed it; --seconds differed)
+    with pytest.raises(InputError, match=r"different config.*: optim\.lr \S+ -> 0\.1, optim\.steps 3 -> "):
         train(other, tmp_path / "r", body)
 
 
@@ -147,6 +148,9 @@ def test_cli_train_and_eval(synthetic_dataset, tiny_config, tmp_path, capsys):
     ):
         assert (out / f).stat().st_size > 100
     assert main(["eval", str(synthetic_dataset), "-m", "nonsense", "-o", str(out)]) == 2
+    # a name given twice dropped the first model from the table without a word (a user's trial)
+    assert main(["eval", str(synthetic_dataset), "-m", "a=lbs", "-m", "a=lbs-smooth", "-o", str(tmp_path / "d")]) == 2
+    assert "'a' is given twice (lbs and lbs-smooth)" in capsys.readouterr().err
     assert main(["train", str(tiny_config), "-o", str(tmp_path / "x")]) == 1  # no dataset named anywhere
 
 

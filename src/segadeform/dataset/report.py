@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import FileFormatError
 
-__all__ = ["dataset_stats", "finished_records"]
+__all__ = ["dataset_stats", "finished_records", "reason_name"]
 
 
 def finished_records(folder) -> list[dict]:
@@ -54,12 +54,19 @@ def pack_records(path) -> list[dict]:
         pack.close()
 
 
+def reason_name(reason: str) -> str:
+    """What a gate's reason is about, without its numbers: ``"strain 1.87 > 1.0 on ..."`` -> ``"strain"``,
+    ``"simulation failed: ..."`` -> ``"simulation failed"`` (``dataset info`` counts rejections by it)."""
+    m = re.match(r"\s*([^\d:]*?)\s*(?:[:\d]|$)", reason)
+    return (m.group(1) if m else "") or reason.split(" ")[0]
+
+
 def dataset_stats(folder) -> dict:
     """Statistics of a dataset folder (its log) or a dataset pack (its samples' metadata)."""
     recs = pack_records(folder) if Path(folder).is_file() else finished_records(folder)
     kept = [r for r in recs if r["status"] == "kept"]
     rej = [r for r in recs if r["status"] != "kept"]
-    reasons = collections.Counter(re.sub(r"[\d.]+", "#", x).split(" > ")[0] for r in rej for x in r.get("reasons", []))
+    reasons = collections.Counter(reason_name(x) for r in rej for x in r.get("reasons", []))
     by = collections.defaultdict(list)
     for r in recs:
         if "seconds_per_frame" in r:

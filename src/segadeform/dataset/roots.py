@@ -177,6 +177,9 @@ class DatasetRoots:
     def __repr__(self) -> str:
         return f"DatasetRoots({[str(_name(r)) for r in self.roots]})"
 
+    def __str__(self) -> str:  # as messages name the roots: the paths given
+        return ", ".join(str(_name(r)) for r in self.roots)
+
 
 def _name(src):
     return src.path if isinstance(src, Pack) else src

@@ -166,8 +166,9 @@ def evaluate(
         have = sorted({str(dataset.meta(s).get("split")) for s in dataset.ids()})
         raise InputError(
             f"no '{split}' samples in the dataset",
+            path=str(dataset),
             expected="--split " + (" | ".join(have) if have else "of a dataset with samples (it has none kept)"),
-            got=str(dataset),
+            got=f"the splits {', '.join(have)}" if have else "no kept samples",
         )
     preds = dict(predictors)
     models = {n: p.spec for n, p in preds.items()}

@@ -53,6 +53,23 @@ TERMS = ("vertex", "normal", "edge", "stretch", "shear", "gravity", "collision",
 PHYSICS_TERM = "physics"
 
 
+def config_changes(old: dict | None, new: dict, *, most: int = 4) -> str:
+    """The settings that differ between two :meth:`TrainConfig.to_dict` (``"optim.seconds 120 -> 0"``, at most
+    ``most``); empty when ``old`` is unknown (a run saved before it was recorded) or nothing differs there."""
+    if not isinstance(old, dict):
+        return ""
+
+    def flat(d, pre=""):
+        out = {}
+        for k, v in d.items():
+            out.update(flat(v, f"{pre}{k}.") if isinstance(v, dict) else {f"{pre}{k}": v})
+        return out
+
+    a, b = flat(old), flat(new)
+    diff = [f"{k} {a.get(k)!r} -> {b.get(k)!r}" for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+    return ", ".join(diff[:most]) + (f" and {len(diff) - most} more" if len(diff) > most else "")
+
+
 def pick_device(name: str) -> torch.device:
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
@@ -311,11 +328,13 @@ def train(
     if last.is_file():
         ck = torch.load(last, map_location=device, weights_only=False)
         if ck.get("config_digest") != cfg.digest():
+            changed = config_changes(ck.get("train_config"), cfg.to_dict())
             raise InputError(
-                "the run folder holds a run of a different config (a run resumes only with the config it started with)",
+                "the run folder holds a run of a different config (a run resumes only with the config it started "
+                "with, and the command line's --steps / --seconds / --dataset as it was then)",
                 path=run,
-                expected=f"config {ck.get('config_digest')} (the run's config.toml), or a new -o folder",
-                got=f"config {cfg.digest()}",
+                expected=f"config {ck.get('config_digest')} (the run's config.toml and options), or a new -o folder",
+                got=f"config {cfg.digest()}" + (f": {changed}" if changed else ""),
             )
         if ck.get("data_digest") not in (None, data_digest):  # (runs saved before it was recorded: not checked)
             raise InputError(
@@ -368,6 +387,7 @@ def train(
                     "step": step,
                     "elapsed": elapsed,
                     "config_digest": cfg.digest(),
+                    "train_config": cfg.to_dict(),  # what a refused resume names as changed
                     "data_digest": data_digest,
                     "best_val": best_val[0],
                     "best_step": best_val[1],
