@@ -87,15 +87,27 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
                 err=True,
             )
 
+    import json
+
+    def done_steps():
+        try:
+            return json.loads((output / "train.json").read_text()).get("steps")
+        except (OSError, ValueError):
+            return None
+
+    before = done_steps()
     guard.start()
     try:
         final = train(cfg, output, _body(body), progress=progress, val_ids=list(val_ids) or None)
     finally:
         guard.abandon()
-    import json
-
     info = json.loads((output / "train.json").read_text())
-    click.echo(f"trained {info['steps']} steps in {info['train_seconds']:.0f} s -> {final}")
+    if before is not None and before == info["steps"]:  # a finished run run again (a user read it as trained now)
+        click.echo(
+            f"already trained: {info['steps']} steps in {info['train_seconds']:.0f} s -> {final} (nothing to do)"
+        )
+    else:
+        click.echo(f"trained {info['steps']} steps in {info['train_seconds']:.0f} s -> {final}")
 
 
 @cli.command("eval")

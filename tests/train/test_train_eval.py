@@ -132,6 +132,10 @@ def test_evaluate_lbs_is_exact_on_skinned_data_and_models_are_measured(synthetic
 def test_cli_train_and_eval(synthetic_dataset, tiny_config, tmp_path, capsys):
     run = tmp_path / "run"
     assert main(["train", str(tiny_config), "--dataset", str(synthetic_dataset), "-o", str(run), "--steps", "2"]) == 0
+    assert "trained 2 steps" in capsys.readouterr().out
+    # the same command again: said to be done, not trained again (a user's trial read "trained 2 steps" as new)
+    assert main(["train", str(tiny_config), "--dataset", str(synthetic_dataset), "-o", str(run), "--steps", "2"]) == 0
+    assert "already trained: 2 steps" in capsys.readouterr().out
     out = tmp_path / "eval"
     assert (
         main(["eval", str(synthetic_dataset), "-m", "lbs=lbs", "-m", f"sega={run / 'model.pt'}", "-o", str(out)]) == 0
