@@ -281,6 +281,34 @@ def test_a_motion_made_for_another_body_shape_is_refused_unless_forced(
         assert ("another body shape (betas)" in p.stderr) == warns, p.stderr
 
 
+def test_the_node_api_refuses_a_motion_made_for_another_shape_unless_forced(
+    node, portable_scene, random_package, tmp_path
+):
+    """The command lines refused it; the API (`animate()`, and the browser's, which shares core.js) played it with a
+    warning (left over from a trial).  Now it throws unless `force: true`, which plays it with the warning."""
+    from segadeform.cli.main import main
+
+    assert main(["motion", "export", "dance", "--seconds", "0.2", "--seed", "2", "-o", str(tmp_path / "m0.sgdm")]) == 0
+    index = (REPO / "runtimes" / "node" / "src" / "index.js").as_uri()
+    script = (
+        f"import {{ animate }} from {json.dumps(index)};\n"
+        "const [pkg, g, m] = process.argv.slice(1);\n"
+        "let refused = null;\n"
+        "try { await animate(pkg, g, m); } catch (e) { refused = e.message; }\n"
+        "const r = await animate(pkg, g, m, { force: true });\n"
+        "console.log('RESULT' + JSON.stringify({ refused, warnings: r.warnings, T: r.T }));\n"
+    )
+    p = subprocess.run(
+        ["node", "--input-type=module", "-e", script, str(random_package), str(portable_scene["garment"]),
+         str(tmp_path / "m0.sgdm")],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stdout + p.stderr
+    got = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+    assert got["refused"] and "another body shape (betas)" in got["refused"] and "force: true" in got["refused"]
+    assert got["T"] > 0 and any("another body shape" in w for w in got["warnings"])
+
+
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
 def test_a_mesh_or_a_motion_file_given_to_a_runtime_names_the_export(
     runtime, request, portable_scene, random_package, tmp_path

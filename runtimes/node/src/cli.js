@@ -79,7 +79,9 @@ try {
 }
 try {
   const r = flagForm
-    ? await animate(pkg, garment, motion, { batch, threads, effects, body: !!bodyOut, collisionMargin: margin, cloth })
+    // force: the API's own refusal is this command's, below, naming the motion file
+    ? await animate(pkg, garment, motion, { batch, threads, effects, body: !!bodyOut, collisionMargin: margin, cloth,
+      force: true })
     : await animate(args[0], args[1], { batch, threads });
   // a motion made for another body or shape is refused, as `segadeform run` refuses it (nothing is written)
   const other = (r.warnings || []).find((w) => w.startsWith("the motion was retargeted onto another"));

@@ -289,11 +289,19 @@ function modelBetas(betas, nb) {
  * Animate a source with a package's graphs: a scene bundle, or { asset, motion } (parsed .sgda and .sgdm).
  * `session(spec)` returns an onnxruntime InferenceSession for a graph's manifest entry.
  * Returns { frames: Float32Array (T*N*3), T, N, msPerFrame, variant, effects, faces, fps, warnings }.
- * options: { effects (default: the bundle's, else defaultEffects), batch (8) }.  With effects.collisions the frames
+ * options: { effects (default: the bundle's, else defaultEffects), batch (8), force (false: a motion retargeted onto another
+ * body or shape than the asset's is refused; true: played, with a warning) }.  With effects.collisions the frames
  * are the deformer's: the host pushes them out of the posed body afterwards (poseBodyWith, collideWith).
  */
 export async function animateWith(ort, manifest, source, session, options = {}) {
   const I = sceneInputs(source);
+  // a motion made for another body or shape is refused, as `segadeform run` and the command lines refuse it (the
+  // API played it with a warning); options.force plays it, the warning kept
+  const other = I.warnings.find((w) => w.startsWith("the motion was retargeted onto another"));
+  if (other && !options.force) {
+    throw new Error(`${other} (expected a motion exported for the asset's body and betas: segadeform motion export ` +
+      "... --betas ..., or the option force: true)");
+  }
   const effects = { collisions: false, cloth: false, ...(options.effects || I.effects || defaultEffects(manifest)) };
   if (options.collisionMargin !== undefined) checkMargin(options.collisionMargin);
   if ((effects.collisions || effects.cloth) && !hasBody(manifest)) {

@@ -70,7 +70,8 @@ function sessions(dir, options) {
  * instead (cloth.js; contact included, no push-out) and cloth: { contacts, pushed, traced, resets, firstReset, msPerFrame }.
  * options: { effects (an object or "dqs,dynamics,wrinkles,collisions[,cloth]"; default: a bundle's, else the model's
  * own and collisions when the package has a body graph), collisionMargin (metres, 0.004), cloth (the stage's knobs:
- * an object or "iterations=8,..."; DEFAULT_CLOTH), batch (8), threads (1), body (false) }.
+ * an object or "iterations=8,..."; DEFAULT_CLOTH), batch (8), threads (1), body (false), force (false: a motion
+ * retargeted onto another body or shape than the asset's is refused, as `segadeform run` refuses it) }.
  */
 export async function animate(dir, garment, motion, options = {}) {
   let source;

@@ -144,7 +144,7 @@ async function runScene(source, expected = null) {
   if (effects && effects.cloth) clothSwitch.checked = true;
   const cloth = clothSwitch.checked ? (q.get("cloth") && q.get("cloth") !== "1" ? q.get("cloth") : true) : null;
   const r = await animate(o, p, source, { ep, batch: +(q.get("batch") || 8), effects: effects && { ...effects, cloth: false },
-    collisionMargin, cloth });
+    collisionMargin, cloth, force: q.has("force") });
   clearTracks();
   const faces = r.faces ? Uint32Array.from(r.faces) : new Uint32Array(0);
   addTrack(faces, r.frames, r.N, r.T, 0x3b64d8);

@@ -85,7 +85,7 @@ export async function openContainer(src, name = String(src)) {
  * the frames are then the stage's (core.clothWith, contact included: no push-out) and `cloth` is its counts.
  */
 export async function animate(ort, pkg, source, { ep = "wasm", batch = 8, effects, body = true,
-  collisionMargin = DEFAULT_COLLISION_MARGIN, cloth = null } = {}) {
+  collisionMargin = DEFAULT_COLLISION_MARGIN, cloth = null, force = false } = {}) {
   if (typeof source === "string") source = parseBundle(await fetchBytes(source), source);
   if (cloth) effects = { ...(effects || (source.asset ? defaultEffects(pkg.manifest) : source.meta.effects)), cloth: true };
   const external = pkg.manifest.weights
@@ -99,7 +99,7 @@ export async function animate(ort, pkg, source, { ep = "wasm", batch = 8, effect
     }
     return made.get(spec.file);
   };
-  const r = await animateWith(ort, pkg.manifest, source, session, { batch, effects, collisionMargin });
+  const r = await animateWith(ort, pkg.manifest, source, session, { batch, effects, collisionMargin, force });
   let posed = null;
   const need = r.effects.collisions || r.effects.cloth;
   if ((body || need) && Object.values(pkg.manifest.graphs).some((g) => g.role === "body")) {
