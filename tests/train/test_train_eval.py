@@ -570,3 +570,28 @@ def test_with_late_terms_validation_chooses_among_checkpoints_trained_on_the_who
     assert early < min(eligible)  # so the rule decides here: without it step 1-4 would be chosen
     assert info["chosen"]["step"] >= 5  # (free weights: the untrained model is far off, never chosen here)
     assert info["chosen"]["val_vertex"] <= min(eligible) + 1e-12
+
+
+def test_a_run_folders_copy_of_its_config_trains_as_the_original(synthetic_dataset, tmp_path, body):
+    """A user's trial: `train RUN/config.toml -o NEW` looked for the config's relative dataset beside the run folder
+    ("dataset root does not exist").  The copy now names the folder its relative paths are from on its first line:
+    it reads the same dataset, has the same digest (so it also resumes the run), and trains."""
+    import shutil
+
+    from segadeform.train.config import COPY_MARK
+
+    cfg_dir = tmp_path / "project"
+    shutil.copytree(synthetic_dataset, cfg_dir / "ds")
+    (cfg_dir / "my.toml").write_text(
+        '[data]\ndataset = "ds"\n[model]\nhidden = 16\nlstm_hidden = 16\n[optim]\nsteps = 2\nframes = 3\nlr = 0.003\n'
+    )
+    cfg = load_train_config(cfg_dir / "my.toml")
+    train(cfg, tmp_path / "runs" / "a", body)
+    copy = tmp_path / "runs" / "a" / "config.toml"
+    assert copy.read_text().startswith(COPY_MARK) and copy.read_text().endswith((cfg_dir / "my.toml").read_text())
+    again = load_train_config(copy)
+    assert again.dataset == cfg.dataset and again.digest() == cfg.digest()
+    train(again, tmp_path / "runs" / "a", body)  # the copy resumes the run (done: nothing to do)
+    train(again, tmp_path / "runs" / "b", body)  # and trains a new one
+    assert (tmp_path / "runs" / "b" / "model.pt").is_file()
+    assert (tmp_path / "runs" / "b" / "config.toml").read_text() == copy.read_text()  # a copy of a copy: one mark

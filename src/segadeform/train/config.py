@@ -279,6 +279,31 @@ def _table(data, name, cls, where):
         raise FileFormatError(f"[{name}]: {e}", path=where) from None
 
 
+#: the first line of a run folder's copy of its config: relative paths are the original's (a copy reused as a config
+#: looked for the dataset beside the run: a user's trial)
+COPY_MARK = "# segadeform: relative paths in this copy are from "
+
+
+def config_copy(path: Path) -> str:
+    """The text of training config ``path`` as a run folder keeps it: the file as it is, after a first line naming
+    the folder its relative paths are from (so the copy trains as the original does; the digest, of the tables,
+    is the same)."""
+    text = Path(path).read_text(encoding="utf-8")
+    if text.startswith(COPY_MARK):
+        return text
+    return f"{COPY_MARK}{Path(path).resolve().parent}\n{text}"
+
+
+def _folder(p: Path) -> Path:
+    """The folder ``p``'s relative paths are from: its own, or the original's for a run folder's copy."""
+    try:
+        with open(p, encoding="utf-8") as fh:
+            first = fh.readline().rstrip("\r\n")
+    except (OSError, UnicodeDecodeError):
+        return p.parent
+    return Path(first[len(COPY_MARK) :]) if first.startswith(COPY_MARK) else p.parent
+
+
 def _read_with_base(p: Path, seen=()) -> dict:
     """A config's tables with those of its ``base`` (another training config, relative to it) underneath:
     a table the config names replaces the base's keys it names, the rest stays the base's.  Paths in a
@@ -289,7 +314,7 @@ def _read_with_base(p: Path, seen=()) -> dict:
         return data
     if not isinstance(base, str):
         raise FileFormatError("base must be the path of another training config", path=p, got=base)
-    bp = (p.parent / base).resolve()
+    bp = (_folder(p) / base).resolve()
     if bp in seen or bp == p.resolve():
         raise FileFormatError("training configs name each other as base", path=p, got=str(bp))
     under = _read_with_base(bp, (*seen, p.resolve()))
@@ -299,15 +324,15 @@ def _read_with_base(p: Path, seen=()) -> dict:
         if key in d:
             v = d[key]
             d[key] = (
-                [str((bp.parent / x).resolve()) for x in v]
+                [str((_folder(bp) / x).resolve()) for x in v]
                 if isinstance(v, list)
-                else str((bp.parent / v).resolve())
+                else str((_folder(bp) / v).resolve())
                 if isinstance(v, str)
                 else v
             )
     ph = under.get("physics", {})
     if isinstance(ph.get("pairs"), str):
-        ph["pairs"] = str((bp.parent / ph["pairs"]).resolve())
+        ph["pairs"] = str((_folder(bp) / ph["pairs"]).resolve())
     for table, values in data.items():
         if isinstance(values, dict) and isinstance(under.get(table), dict):
             under[table] = {**under[table], **values}
@@ -323,6 +348,7 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
     ``base`` config whose tables it changes (``base = "full.toml"`` and ``[optim] seed = 1``)."""
     p = Path(path)
     data = _read_with_base(p)
+    root = _folder(p)
     for k, v in (overrides or {}).items():
         t, _, key = k.partition(".")
         data.setdefault(t, {})[key] = v
@@ -345,7 +371,7 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
         v = [v] if isinstance(v, str) else v
         if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
             raise FileFormatError(f"data.{key} must be a path or a list of paths", path=p, got=v)
-        return tuple((p.parent / x).resolve() for x in v)
+        return tuple((root / x).resolve() for x in v)
 
     if dataset is None:
         if "dataset" not in d and "optional" not in d:
@@ -369,7 +395,7 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
     loss = _table(data, "loss", LossWeights, p)
     optim = _table(data, "optim", OptimConfig, p)
     physics = _table(data, "physics", PhysicsConfig, p)
-    pairs = (p.parent / physics.pairs).resolve() if physics.pairs else None
+    pairs = (root / physics.pairs).resolve() if physics.pairs else None
     if physics.every and not pairs.is_file():
         raise FileFormatError("physics.pairs is not a file", path=p, got=str(pairs))
     if not 0.0 <= loss.terms_from < 1.0:

@@ -27,7 +27,6 @@ import json
 import logging
 import os
 import platform
-import shutil
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -41,7 +40,7 @@ from ..errors import InputError
 from ..io.atomic import atomic_path
 from ..model.network import SEGANet
 from . import losses as L
-from .config import TrainConfig
+from .config import TrainConfig, config_copy
 from .data import TrainItem, load_items
 
 __all__ = ["train", "step_losses", "TERMS", "pick_device", "plot_losses"]
@@ -360,7 +359,7 @@ def train(
     # the config beside the run once there is something to train and it is this run's (a run that finds no data,
     # or that another run's folder refuses, leaves no file)
     if cfg.path is not None and cfg.path.resolve() != (run / "config.toml").resolve():
-        shutil.copyfile(cfg.path, run / "config.toml")
+        (run / "config.toml").write_text(config_copy(cfg.path), encoding="utf-8")
     best_path = run / "best.pt"
     log_path = run / "loss.csv"
     fields = ["step", "total", *TERMS, PHYSICS_TERM, "lr", "seconds", "val_vertex"]
