@@ -273,16 +273,21 @@ def simulate(
         )
     p0 = (A_POSE if start_pose is None else np.asarray(start_pose, np.float64).reshape(72)) if a_pose else None
     poses, trans = preroll_poses(motion, drape, blend, p0)
-    posed = body.forward(poses, betas, trans)
-    if settings.max_step_motion > 0:  # a fast clip gets more solver steps per frame
-        bs["cloth"]["quality"] = clip_quality(posed.vertices, settings.quality, settings.max_step_motion)
     z = lambda a: (np.asarray(a) @ _Y_TO_Z.T).astype(np.float32)  # noqa: E731
     rest_body = body.shaped_vertices(betas)[0]
-    collider = posed.vertices
-    if settings.untangle_body:  # the collider without the body's self-intersection (arm in torso, thigh in thigh)
-        # room between two parts for cloth kept the collision distance from both, and a millimetre
-        room = 2 * settings.collision_distance + 0.001
-        collider = untangle(collider, body.faces, vertex_parts(body.weights), rest_body, gap=room)
+    # the posed body is the collider alone: without body_collision it is neither posed nor given to Blender, and
+    # its motion does not raise the solver's steps (it cannot reach the cloth)
+    collide = settings.has("body_collision")
+    collider = None
+    if collide:
+        posed = body.forward(poses, betas, trans)
+        if settings.max_step_motion > 0:  # a fast clip gets more solver steps per frame
+            bs["cloth"]["quality"] = clip_quality(posed.vertices, settings.quality, settings.max_step_motion)
+        collider = posed.vertices
+        if settings.untangle_body:  # the collider without the body's self-intersection (arm in torso, thigh in thigh)
+            # room between two parts for cloth kept the collision distance from both, and a millimetre
+            room = 2 * settings.collision_distance + 0.001
+            collider = untangle(collider, body.faces, vertex_parts(body.weights), rest_body, gap=room)
     wts = transfer_weights(v, rest_body, body.faces, body.weights) if (a_pose or settings.has("pinning")) else None
     # the cloth's rest: the garment as given (T-pose), as designed in an A-pose, or skinned into one
     if cloth_rest is not None:
@@ -303,24 +308,26 @@ def simulate(
                 )
             np.save(job_dir / "garment_rest_shape.npy", z(rl))
         np.save(job_dir / "garment_faces.npy", f.astype(np.int64))
-        np.save(job_dir / "body_rest.npy", z(rest_body))
-        np.save(job_dir / "body_faces.npy", body.faces.astype(np.int64))
-        with PC2Writer(job_dir / "body.pc2", body.n_vertices, start_frame=1, sample_rate=1) as w:
-            w.write(z(collider))
-        check = sorted({1, drape + blend + 1, len(poses)})
-        np.save(job_dir / "body_check.npy", z(collider[[c - 1 for c in check]]))
+        check = []
+        if collider is not None:
+            np.save(job_dir / "body_rest.npy", z(rest_body))
+            np.save(job_dir / "body_faces.npy", body.faces.astype(np.int64))
+            with PC2Writer(job_dir / "body.pc2", body.n_vertices, start_frame=1, sample_rate=1) as w:
+                w.write(z(collider))
+            check = sorted({1, drape + blend + 1, len(poses)})
+            np.save(job_dir / "body_check.npy", z(collider[[c - 1 for c in check]]))
         job = {
             "fps": fps,
             "total_frames": len(poses),
             "record_start": drape + blend + 1,
             "garment_rest": "garment_rest.npy",
             "garment_faces": "garment_faces.npy",
-            "body_rest": "body_rest.npy",
-            "body_faces": "body_faces.npy",
-            "body_cache": "body.pc2",
+            "body_rest": "body_rest.npy" if collide else None,
+            "body_faces": "body_faces.npy" if collide else None,
+            "body_cache": "body.pc2" if collide else None,
             "garment_rest_shape": "garment_rest_shape.npy" if rest_lengths_from is not None else None,
             "check_body_frames": check,
-            "body_check": "body_check.npy",
+            "body_check": "body_check.npy" if collide else None,
             **bs,
         }
         if bs["wind"]:

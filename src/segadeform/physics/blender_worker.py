@@ -69,12 +69,14 @@ def main(job_dir):
     scene.use_gravity = bool(eff["gravity"])
     scene.gravity = (0.0, 0.0, -9.81)
 
-    body = _mesh_object(bpy, "body", load("body_rest"), load("body_faces"))
-    _mesh_cache(body, os.path.join(job_dir, job["body_cache"]))
-    if eff["body_collision"]:
-        body.modifiers.new("collision", "COLLISION")
-        for k, v in job["body_collision"].items():
-            _set(body.collision, k, v)
+    body = None  # the collider: only with body_collision (the job names no body otherwise)
+    if job.get("body_cache"):
+        body = _mesh_object(bpy, "body", load("body_rest"), load("body_faces"))
+        _mesh_cache(body, os.path.join(job_dir, job["body_cache"]))
+        if eff["body_collision"]:
+            body.modifiers.new("collision", "COLLISION")
+            for k, v in job["body_collision"].items():
+                _set(body.collision, k, v)
 
     garment = _mesh_object(bpy, "garment", load("garment_rest"), load("garment_faces"))
     pins = job.get("pins")
@@ -147,7 +149,7 @@ def main(job_dir):
                 raise RuntimeError("the cloth modifier changed the vertex count")
             me.vertices.foreach_get("co", buf)
             out[f - record] = buf.reshape(n, 3)
-        if f in body_check:
+        if body is not None and f in body_check:
             bme = body.evaluated_get(dg).data
             bb = np.empty(len(bme.vertices) * 3, np.float32)
             bme.vertices.foreach_get("co", bb)
@@ -168,7 +170,7 @@ def main(job_dir):
         "effector_gravity": float(s.effector_weights.gravity),
         "effector_wind": float(s.effector_weights.wind),
         "vertex_group_mass": s.vertex_group_mass,
-        "body_modifiers": [m.type for m in body.modifiers],
+        "body_modifiers": [m.type for m in body.modifiers] if body is not None else [],
         "garment_modifiers": [m.type for m in garment.modifiers],
         "objects": sorted(o.name for o in scene.objects),
     }
