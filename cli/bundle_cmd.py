@@ -33,13 +33,17 @@ def bundle_cmd(scene, output, model, no_expected, frames, force):
     p = scene_bundle(sc, output, model=model, expected=not no_expected, force=force)
     guard.record()
     click.echo(f"wrote {p}")
-    post = [n for n, on in (("collisions", sc.effects.collisions), ("cloth", sc.effects.cloth)) if on]
-    if post:  # the host runtime's post-processes: not in the bundle, named on its command line
+    e = sc.effects
+    post = [n for n, on in (("collisions", e.collisions), ("cloth", e.cloth)) if on]
+    if post:  # the host runtime's post-processes: not in the bundle, named on its command line with their knobs
+        knobs = f" --collision-margin {e.collision_margin:g}" if e.collision_margin != 0.004 else ""
+        if e.cloth and e.cloth_settings.label():  # (a scene's margin and cloth knobs were left out: 6-7 mm off)
+            knobs += f" --cloth {e.cloth_settings.label()}"
         click.echo(
             f"note: the scene's {' and '.join(post)} are not in the bundle (a bundle plays the network alone): to "
             "run them in Node or C++, export the garment and motion (`segadeform garment export`, `segadeform "
             "motion export`) and pass segadeform-node or segadeform-run --package/--garment/--motion with --effects "
-            f"{sc.effects.skinning},{'dynamics,' if sc.effects.dynamics else ''}"
-            f"{'wrinkles,' if sc.effects.wrinkles else ''}{','.join(post)}",
+            f"{e.skinning},{'dynamics,' if e.dynamics else ''}"
+            f"{'wrinkles,' if e.wrinkles else ''}{','.join(post)}{knobs}",
             err=True,
         )
