@@ -99,12 +99,20 @@ class Effects:
             raise ValueError(f"collision_margin must be in [0, 1) metres, got {self.collision_margin!r}")
 
     def label(self) -> str:
-        on = [self.skinning] + [n for n in ("dynamics", "wrinkles", "collisions", "cloth") if getattr(self, n)]
+        """What runs: ``lbs+dynamics+collisions``; with the cloth stage, whose contact replaces the push-out,
+        ``collisions`` is not named apart (a scene's trial: ``lbs+collisions+cloth`` and ``lbs+cloth`` ran alike)."""
+        names = ("dynamics", "wrinkles", "cloth") if self.cloth else ("dynamics", "wrinkles", "collisions")
+        on = [self.skinning] + [n for n in names if getattr(self, n)]
         return "+".join(on) + (f"({self.cloth_settings.label()})" if self.cloth and self.cloth_settings.label() else "")
 
     def off(self) -> list[str]:
-        """The effects this set leaves off (the cloth stage, off unless named, is not listed)."""
-        return [n for n in ("dynamics", "wrinkles", "collisions") if not getattr(self, n)]
+        """The effects this set leaves off (the cloth stage, off unless named, is not listed; nor collisions when
+        it runs: its contact is the stage's)."""
+        return [
+            n
+            for n in ("dynamics", "wrinkles", "collisions")
+            if not getattr(self, n) and not (n == "collisions" and self.cloth)
+        ]
 
 
 #: the effects of a scene without an ``[effects]`` table (and of the command line's flag form)
