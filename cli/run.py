@@ -188,7 +188,7 @@ def run_cmd(
             changes["effects"] = (
                 dataclasses.replace(preset, cloth_settings=sc.effects.cloth_settings) if keep else preset
             )
-        elif effects:
+        elif effects is not None:  # (an empty one is refused by the parser, not taken as not given)
             changes["effects"] = parse_effects(effects, sc.effects)
         if fmt or output:
             changes["output_format"] = _fmt_from(output or sc.output, fmt)

@@ -9,6 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from segadeform.cli.main import cli
+from segadeform.errors import FileFormatError
 from segadeform.settings.simulation import DEFAULT_EFFECTS, EFFECTS, parse_sim_effects
 
 BASE = '[garment]\nmesh = "g.obj"\n[motion]\nkind = "walk"\nseconds = 0.2\n[output]\npath = "o.pc2"\n'
@@ -87,6 +88,10 @@ def test_parse_sim_effects():
     assert parse_sim_effects("+wind") == DEFAULT_EFFECTS[:2] + ("bending", "air_damping", "wind")
     assert parse_sim_effects("-gravity", ("gravity", "pinning")) == ("pinning",)
     assert parse_sim_effects("none", ("gravity",)) == ()
+    # an empty list is refused, as run's is (a scene's trial: simulate took "" as none, run kept the scene's)
+    for text in ("", " , "):
+        with pytest.raises(FileFormatError, match="an empty effects list"):
+            parse_sim_effects(text, ("gravity",))
 
 
 def test_body_out_moves_the_body_a_scene_names(tmp_path, captured):

@@ -21,6 +21,9 @@ def test_scene_runs_only_named_effects(tmp_path, random_package):
         cli, ["run", str(scene), "--model", str(random_package), "--no-cache", "--effects", "lbs,wrinkles"]
     )
     assert r.exit_code == 0 and "effects lbs+wrinkles; off: dynamics, collisions" in r.output
+    for empty in ("", " , "):  # "" kept the scene's effects and " , " turned every one off (a scene's trial)
+        r = CliRunner().invoke(cli, ["run", str(scene), "--model", str(random_package), "--effects", empty])
+        assert r.exit_code == 1 and "an empty effects list" in r.output, r.output
     r = CliRunner().invoke(
         cli, ["run", str(scene), "--model", str(random_package), "--no-cache", "--effects=+dynamics"]
     )

@@ -240,6 +240,9 @@ Effects parse_effects(const std::string& text, const Effects& base) {
       if (a != std::string::npos) items.push_back(item.substr(a, b - a + 1));
     }
   }
+  if (items.empty())
+    throw std::runtime_error("an empty effects list (expected effect names, signed changes (+name,-name) or none, got \"" +
+                             text + "\")");
   Effects off;
   off.skinning = "lbs";
   if (items.size() == 1 && items[0] == "none") return off;
@@ -624,6 +627,7 @@ int main(int argc, char** argv) {
       return 0;
     }
   std::string out, package, garment, motion, body_out, effects, cloth;
+  bool effects_given = false;  // `--effects ""` is an empty list (refused), not "not given"
   int batch = 8, threads = 1;
   double margin = DEFAULT_COLLISION_MARGIN;
   bool margin_given = false;
@@ -642,7 +646,7 @@ int main(int argc, char** argv) {
       else if (args[i] == "--garment" && more) garment = args[++i];
       else if (args[i] == "--motion" && more) motion = args[++i];
       else if (args[i] == "--body-out" && more) body_out = args[++i];
-      else if (args[i] == "--effects" && more) effects = args[++i];
+      else if (args[i] == "--effects" && more) effects = args[++i], effects_given = true;
       else if (args[i] == "--cloth" && more) cloth = args[++i];
       else if (args[i] == "--collision-margin" && more) {
         size_t used = 0;
@@ -678,7 +682,7 @@ int main(int argc, char** argv) {
     else if (flag_form && !pos.empty()) problem = "unexpected argument " + pos[0];
     else if (flag_form && do_check) problem = "--check goes with PACKAGE_DIR BUNDLE.sgdb";
     else if (!flag_form && pos.size() != 2) problem = "give PACKAGE_DIR BUNDLE.sgdb, or --package, --garment and --motion";
-    else if (!flag_form && (!body_out.empty() || !effects.empty() || margin_given || !cloth.empty() || force))
+    else if (!flag_form && (!body_out.empty() || effects_given || margin_given || !cloth.empty() || force))
       problem = "--body-out, --effects, --cloth, --collision-margin and --force go with --package/--garment/--motion";
   }
   if (!problem.empty()) {
@@ -708,7 +712,7 @@ int main(int argc, char** argv) {
       asset = sgd::read_bundle(garment);
       mot = sgd::read_bundle(motion);
       sc = scene_of_asset(asset, garment, mot, motion, force);
-      eff = effects.empty() ? pkg.default_effects() : parse_effects(effects, pkg.default_effects());
+      eff = !effects_given ? pkg.default_effects() : parse_effects(effects, pkg.default_effects());
     } else {
       bundle = sgd::read_bundle(pos[1]);
       sc = scene_of_bundle(bundle);

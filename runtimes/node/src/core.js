@@ -129,6 +129,9 @@ export function defaultEffects(manifest) {
  */
 export function parseEffects(text, base = null) {
   const items = text.split(",").map((s) => s.trim()).filter(Boolean);
+  if (!items.length) {
+    throw new Error(`an empty effects list (expected effect names, signed changes (+name,-name) or none, got "${text}")`);
+  }
   const names = ["dynamics", "wrinkles", "collisions", "cloth"];
   const off = { skinning: "lbs", wrinkles: false, dynamics: false, collisions: false, cloth: false };
   if (items.length === 1 && items[0] === "none") return off;

@@ -48,6 +48,12 @@ def parse_effect_list(
         choices: items that are not on/off effects (e.g. ``lbs``, ``dqs``), allowed in either form.
     """
     items = [t.strip() for t in str(text).split(",") if t.strip()]
+    if not items:  # "" kept the scene's effects, " , " turned every one off, simulate's "" too (a scene's trial)
+        raise FileFormatError(
+            "an empty effects list",
+            expected="effect names (a complete list), signed changes (+name,-name), or none (every effect off)",
+            got=repr(str(text)),
+        )
     if items == ["none"]:
         return EffectList((), (), True)
     picked = tuple(i for i in items if i in choices)
