@@ -145,6 +145,12 @@ def main() -> None:
         measure(Effects(cloth=True, cloth_settings=knobs)),
         measure(Effects(dynamics=False, wrinkles=False, cloth=True, cloth_settings=knobs)),
     ]
+    noisy = [r for r in rows if r[2] <= 0 or r[3] < 0]
+    if noisy:  # said before the table, not read off it
+        print(
+            f"warning: {len(noisy)} row(s) have a steady cost <= 0 or a negative fixed cost: the machine was too busy "
+            f"to time them (load average {os.getloadavg()[0]:.2f}); run again with more --repeats on an idle machine"
+        )
     base = next(r for r in rows if r[0] == Effects())
     print(
         f"garment: {len(v)} vertices; body: {body.n_vertices} vertices; {args.frames} and {args.steady} frames; "
@@ -155,12 +161,6 @@ def main() -> None:
         f"{'ms/frame@' + str(args.frames):>12s} {'steady':>7s} {'x all-on':>8s} {'fps':>6s} {'fixed ms':>8s} "
         f"{'deform':>7s} {'pose':>6s} {'collide':>8s} {'cloth':>6s}"
     )
-    noisy = [r for r in rows if r[2] <= 0 or r[3] < 0]
-    if noisy:  # said before the table, not read off it
-        print(
-            f"warning: {len(noisy)} row(s) have a steady cost <= 0 or a negative fixed cost: the machine was too busy "
-            f"to time them (load average {os.getloadavg()[0]:.2f}); run again with more --repeats on an idle machine"
-        )
     for e, ms, steady, fixed, st in rows:
         print(
             f"{e.skinning:8s} {str(e.dynamics):>8s} {str(e.wrinkles):>8s} "
