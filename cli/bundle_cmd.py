@@ -14,7 +14,12 @@ from .main import cli
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path), help="OUT.sgdb")
 @click.option("--model", type=click.Path(file_okay=False, path_type=Path), help="Model package directory.")
 @click.option("--no-expected", is_flag=True, help="Leave out the Python runtime's output.")
-@click.option("--frames", help="Frame range A:B of the motion.")
+@click.option(
+    "--frames",
+    help="Frame range A:B of the motion (B exclusive): the bundle's motion starts at A, with no look-back before it "
+    "(as `motion export --frames A:B`), so with dynamics its first frames differ from `run --frames A:B` (which "
+    "looks back) by up to about a millimetre; the bundle's own parity frames are computed the same way.",
+)
 @click.option("--force", is_flag=True, help="Bundle a garment even when it does not sit on the body.")
 def bundle_cmd(scene, output, model, no_expected, frames, force):
     """Write SCENE's garment, body-shape and motion inputs as a bundle (docs/package.md) for Node, browser
