@@ -91,7 +91,9 @@ def simulate_cmd(scene, output, effects, material, quality, frames, body_out, si
         )
     r = s.result
     ran = (r.blender.get("applied") or {}).get("cloth", {}).get("quality", st.quality)  # what Blender ran with
-    quality = f"quality {ran}" + (f" (raised from {st.quality} for the clip's fast frames)" if ran != st.quality else "")
+    quality = f"quality {ran}" + (
+        f" (raised from {st.quality} for the clip's fast frames)" if ran != st.quality else ""
+    )
     click.echo(
         f"{s.frames} frames (+{r.preroll_frames} pre-roll), {r.seconds_per_frame:.3f} s/frame in Blender "
         f"{r.blender['blender_version']} ({', '.join(st.effects) or 'no effects'}; {st.material}, {quality})"
