@@ -188,6 +188,36 @@ Input input_floats(const std::string& name, std::vector<float> v, std::vector<in
 }
 
 // A container array as float32 values (f32, f64, i32 or u8).
+// Throw unless every value of a float array is finite (field `name` of file `where`; other dtypes pass).
+void finite_values(const sgd::Array& a, const std::string& where, const std::string& name) {
+  bool bad = false;
+  if (a.dtype == "f32") {
+    const float* d = a.as<float>();
+    for (int64_t i = 0; i < a.count() && !bad; ++i) bad = !std::isfinite(d[i]);
+  } else if (a.dtype == "f64") {
+    const double* d = a.as<double>();
+    for (int64_t i = 0; i < a.count() && !bad; ++i) bad = !std::isfinite(d[i]);
+  }
+  if (bad) throw std::runtime_error(where + ": field '" + name + "' contains NaN or inf");
+}
+
+// The same rotations with every angle in [0, pi] (Python's canonical_axis_angle, segadeform.body.rotations): an
+// angle above pi is taken modulo 2 pi, one still above pi becomes 2 pi minus it about the opposite axis; a vector in
+// range is left bit for bit.  In place on axis-angle triples, computed in double as Python computes them.
+void canonical_axis_angle(std::vector<float>& r) {
+  const double pi = 3.141592653589793;
+  for (size_t i = 0; i + 2 < r.size(); i += 3) {
+    const double x = r[i], y = r[i + 1], z = r[i + 2];
+    const double t = std::sqrt(x * x + y * y + z * z);
+    if (!(t > pi)) continue;
+    double a = std::fmod(t, 2 * pi), sgn = 1.0;
+    if (a > pi) a = 2 * pi - a, sgn = -1.0;
+    r[i] = static_cast<float>((sgn * x / t) * a);
+    r[i + 1] = static_cast<float>((sgn * y / t) * a);
+    r[i + 2] = static_cast<float>((sgn * z / t) * a);
+  }
+}
+
 std::vector<float> floats(const sgd::Array& a) {
   std::vector<uint8_t> b = convert(a, "float32");
   std::vector<float> out(b.size() / 4);
@@ -424,8 +454,40 @@ Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::
     if (nb[i] < 0 || nb[i] >= s.N)
       throw std::runtime_error(apath + ": nbr index out of range (expected 0.." + std::to_string(s.N - 1) + ", got " +
                                std::to_string(nb[i]) + ")");
+  const auto& faces = need(a, apath, "faces", "i32", 2);
+  {
+    const int32_t* fa = faces.as<int32_t>();
+    if (faces.shape[1] != 3 || faces.shape[0] < 1)
+      throw std::runtime_error(apath + ": field 'faces' has the wrong shape (expected (F, 3), F >= 1)");
+    for (int64_t i = 0; i < faces.count(); ++i)
+      if (fa[i] < 0 || fa[i] >= s.N)
+        throw std::runtime_error(apath + ": face index out of range (expected 0.." + std::to_string(s.N - 1) +
+                                 ", got " + std::to_string(fa[i]) + ")");
+  }
+  // values, as the Python runtime checks them (NaN or inf here gave a cache of NaN with exit 0: a user's trial)
+  for (const char* k : {"vertices", "normals", "features", "joints", "descriptor", "betas", "log_wbody"})
+    if (a.has(k)) finite_values(a.at(k), apath, k);
   const auto& poses = need(m, mpath, "poses", "f32", 3);
   const auto& trans = need(m, mpath, "trans", "f32", 2);
+  finite_values(poses, mpath, "poses");
+  finite_values(trans, mpath, "trans");
+  {
+    const float* t = trans.as<float>();
+    for (int64_t i = 0; i < trans.count(); ++i)
+      if (std::fabs(t[i]) > 1e4f)
+        throw std::runtime_error(mpath + ": field 'trans' is beyond 10 km (expected |translation| <= 10000 m, got " +
+                                 std::to_string(t[i]) + ")");
+  }
+  if (!m.meta.has("fps") || !(m.meta["fps"].num >= 1 && m.meta["fps"].num <= 1000))
+    throw std::runtime_error(mpath + ": meta.fps must be a frame rate (expected 1..1000)");
+  if (m.meta.has("start_frame")) {
+    const double sf = m.meta["start_frame"].num;
+    if (!(std::isfinite(sf) && sf == std::floor(sf) && std::fabs(sf) <= 2147483647.0))
+      throw std::runtime_error(mpath + ": meta.start_frame must be a frame number (expected an integer of 32 bits)");
+  }
+  if (m.meta.has("betas"))
+    for (const auto& b : m.meta["betas"].arr)
+      if (!std::isfinite(b.num)) throw std::runtime_error(mpath + ": meta.betas contains NaN or inf");
   if (poses.shape[1] != s.S || poses.shape[2] != 3 || trans.shape[0] != poses.shape[0] || trans.shape[1] != 3 ||
       poses.shape[0] < 1)
     throw std::runtime_error(mpath + ": poses and trans do not fit the garment asset (expected (T, " +
@@ -433,14 +495,15 @@ Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::
   s.rest = floats(v);
   s.betas = floats(a.at("betas"));
   s.poses = floats(poses);
+  canonical_axis_angle(s.poses);  // every rotation written one way, as Python's motions hold them
   s.trans = floats(trans);
   s.T = poses.shape[0];
   s.D = 3 * s.S;
   s.body_sha = a.meta["body"]["sha256"].str;
   s.weight_prior = a.meta["body"].has("weight_prior") ? a.meta["body"]["weight_prior"].str : "nearest";
   s.vertices64 = &v;
-  s.faces = &need(a, apath, "faces", "i32", 2);
-  s.fps = m.meta.has("fps") ? m.meta["fps"].num : 0;
+  s.faces = &faces;
+  s.fps = m.meta["fps"].num;
   s.start_frame = m.meta.has("start_frame") ? static_cast<float>(m.meta["start_frame"].num) : 0.f;
   // a motion made for another body or shape is refused, as `segadeform run` refuses it; --force plays it, warned
   const auto mismatch = [&](const std::string& what) {

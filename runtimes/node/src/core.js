@@ -42,7 +42,12 @@ export function parseBundle(bytes, where = "bundle") {
   }
   const headerBytes = new TextEncoder().encode(head.slice(0, end + 5)).length;
   const start = Math.ceil(headerBytes / 64) * 64;
-  const meta = JSON.parse(lines[n + 1].slice(5));
+  let meta;
+  try {
+    meta = JSON.parse(lines[n + 1].slice(5));
+  } catch (e) { // (NaN or Infinity in the meta said "Unexpected token 'N'" and no file: a user's trial)
+    throw new Error(`${where}: the header's meta is not valid JSON (${e.message.split("\n")[0]})`);
+  }
   const arrays = {};
   for (const ln of lines.slice(1, n + 1)) {
     const t = ln.trim().split(/\s+/);
@@ -210,7 +215,50 @@ export function readAsset(parsed, where = "garment asset") {
   for (let i = 0; i < nbr.data.length; i++) {
     if (!(nbr.data[i] >= 0 && nbr.data[i] < N)) throw new Error(`${where}: nbr index out of range (expected 0..${N - 1}, got ${nbr.data[i]})`);
   }
+  const faces = parsed.arrays.faces;
+  if (faces.shape[1] !== 3 || faces.shape[0] < 1) {
+    throw new Error(`${where}: field 'faces' has the wrong shape (expected (F, 3), F >= 1, got ${JSON.stringify(faces.shape)})`);
+  }
+  for (let i = 0; i < faces.data.length; i++) {
+    if (!(faces.data[i] >= 0 && faces.data[i] < N)) throw new Error(`${where}: face index out of range (expected 0..${N - 1}, got ${faces.data[i]})`);
+  }
+  // values, as the Python runtime checks them (NaN or inf here gave a cache of NaN with exit 0: a user's trial)
+  for (const k of ["vertices", "normals", "features", "joints", "descriptor", "betas", "log_wbody"]) {
+    if (parsed.arrays[k]) finite(parsed.arrays[k], k, where);
+  }
   return parsed;
+}
+
+/** Throw unless every value of a parsed array is finite (a field named `name` of `where`). */
+function finite(a, name, where) {
+  const d = a.data;
+  for (let i = 0; i < d.length; i++) {
+    if (!Number.isFinite(d[i])) throw new Error(`${where}: field '${name}' contains NaN or inf (at value ${i})`);
+  }
+}
+
+/**
+ * The same rotations with every angle in [0, pi] (Python's canonical_axis_angle, segadeform.body.rotations): an
+ * angle above pi is taken modulo 2 pi, and one still above pi becomes 2 pi minus it about the opposite axis; a
+ * vector in range is left bit for bit.  In place on a Float32Array of axis-angle triples (computed in double, as
+ * Python computes them before the network's float32).
+ */
+export function canonicalAxisAngle(r) {
+  for (let i = 0; i < r.length; i += 3) {
+    const x = r[i], y = r[i + 1], z = r[i + 2];
+    const t = Math.sqrt(x * x + y * y + z * z);
+    if (!(t > Math.PI)) continue;
+    let a = t % (2 * Math.PI);
+    let s = 1;
+    if (a > Math.PI) {
+      a = 2 * Math.PI - a;
+      s = -1;
+    }
+    r[i] = (s * x / t) * a;
+    r[i + 1] = (s * y / t) * a;
+    r[i + 2] = (s * z / t) * a;
+  }
+  return r;
 }
 
 /** Check a parsed motion file (.sgdm): poses f32 (T, S, 3), trans f32 (T, 3), meta.fps. */
@@ -223,7 +271,23 @@ export function readMotion(parsed, where = "motion file") {
   if (p.shape[2] !== 3 || p.shape[0] < 1 || t.shape[0] !== p.shape[0] || t.shape[1] !== 3) {
     throw new Error(`${where}: poses and trans do not fit (expected (T, S, 3) and (T, 3), got ${JSON.stringify(p.shape)} and ${JSON.stringify(t.shape)})`);
   }
-  if (!(meta.fps > 0)) throw new Error(`${where}: meta.fps must be positive (got ${meta.fps})`);
+  if (!(typeof meta.fps === "number" && meta.fps >= 1 && meta.fps <= 1000)) {
+    throw new Error(`${where}: meta.fps must be a frame rate (expected 1..1000, got ${JSON.stringify(meta.fps)})`);
+  }
+  if (meta.start_frame !== undefined && !(Number.isInteger(meta.start_frame) && Math.abs(meta.start_frame) <= 2 ** 31 - 1)) {
+    throw new Error(`${where}: meta.start_frame must be a frame number (expected an integer of 32 bits, got ${meta.start_frame})`);
+  }
+  // values, as the Python runtime checks them: finite, translations within 10 km (segadeform.bounds), and every
+  // rotation written one way (a turn more about a joint's axis moved the garment 2 cm here, not in Python)
+  finite(p, "poses", where);
+  finite(t, "trans", where);
+  for (let i = 0; i < t.data.length; i++) {
+    if (Math.abs(t.data[i]) > 1e4) throw new Error(`${where}: field 'trans' is beyond 10 km (expected |translation| <= 10000 m, got ${t.data[i]})`);
+  }
+  if (Array.isArray(meta.betas) && !meta.betas.every((b) => Number.isFinite(b))) {
+    throw new Error(`${where}: meta.betas contains NaN or inf (got ${JSON.stringify(meta.betas)})`);
+  }
+  canonicalAxisAngle(p.data);
   return parsed;
 }
 
@@ -245,7 +309,7 @@ export function sceneInputs(source) {
     if (M.poses.shape[1] !== S) throw new Error(`the motion has ${M.poses.shape[1]} joints, the garment asset ${S}`);
     const warnings = [];
     if (mm.body && mm.body.sha256 !== am.body.sha256) warnings.push("the motion was retargeted onto another body than the garment asset's");
-    if (mm.betas && mm.betas.some((b, i) => Math.abs(b - (A.betas.data[i] || 0)) > 1e-9)) {
+    if (mm.betas && mm.betas.some((b, i) => Math.abs(b - (A.betas.data[i] || 0)) > 1e-6)) { // (C++'s tolerance)
       warnings.push("the motion was retargeted onto another body shape (betas) than the garment asset's");
     }
     return {
