@@ -116,6 +116,10 @@ def test_motion_file_round_trip_and_errors(tmp_path):
     write_bundle(tmp_path / "k.sgdm", dict(arrays), dict(meta, kind="segadeform-garment-asset"))
     with pytest.raises(FileFormatError, match="not a motion file"):
         read_motion_file(tmp_path / "k.sgdm")
+    for start in (1e300, 2.5, "ten"):  # 1e300 was a traceback in the PC2 writer (a user's trial)
+        write_bundle(tmp_path / "s.sgdm", dict(arrays), dict(meta, start_frame=start))
+        with pytest.raises(FileFormatError, match=r"s\.sgdm: meta\.start_frame must be a frame number"):
+            read_motion_file(tmp_path / "s.sgdm")
 
 
 def test_motion_export_is_what_run_plays(tmp_path, body):

@@ -645,6 +645,12 @@ def read_motion_file(path) -> tuple[Motion, dict]:
     ``meta``; every array and key checked."""
     p = Path(path)
     poses, trans, fps, meta = read_motion_arrays(p)
+    start = meta.get("start_frame", 0)
+    ok = isinstance(start, (int, float)) and not isinstance(start, bool) and np.isfinite(start)
+    if not (ok and start == int(start) and abs(start) <= 2**31 - 1):  # 1e300 was a traceback in the PC2 writer
+        raise FileFormatError(
+            "meta.start_frame must be a frame number", path=p, expected="an integer of 32 bits", got=start
+        )
     try:
         m = Motion(
             poses=poses.reshape(len(poses), -1).astype(np.float64),
