@@ -340,14 +340,24 @@ def test_collisions_refused_without_a_body_graph_or_with_a_bad_margin(node, cpp,
             timeout=600,
         )
         assert p.returncode == 1 and "collision margin must be in [0, 1)" in p.stderr, p.stderr
+        for text in ("x", ""):  # "" ran with margin 0 in Node (a user's trial)
+            p = subprocess.run(
+                base + ["--package", str(c["package"]), "--collision-margin", text],
+                capture_output=True,
+                text=True,
+                timeout=600,
+            )
+            assert p.returncode == 2, (text, p.stderr)  # usage
+        assert not (tmp_path / "x.pc2").exists()
+        # read as Python's float() reads it: 1e-400 is 0 (C++ refused it as usage), in both runtimes
         p = subprocess.run(
-            base + ["--package", str(c["package"]), "--collision-margin", "x"],
+            base + ["--package", str(c["package"]), "--collision-margin", "1e-400"],
             capture_output=True,
             text=True,
             timeout=600,
         )
-        assert p.returncode == 2, p.stderr  # usage
-        assert not (tmp_path / "x.pc2").exists()
+        assert p.returncode == 0 and "margin 0 m" in p.stderr + p.stdout, p.stderr + p.stdout
+        (tmp_path / "x.pc2").unlink()
 
 
 def _site(d, package, files):

@@ -712,9 +712,12 @@ int main(int argc, char** argv) {
       else if (args[i] == "--effects" && more) effects = args[++i], effects_given = true;
       else if (args[i] == "--cloth" && more) cloth = args[++i];
       else if (args[i] == "--collision-margin" && more) {
-        size_t used = 0;
-        margin = std::stod(args[++i], &used);
-        if (used != args[i].size()) throw std::invalid_argument(args[i]);
+        // read as Python's float() reads it: 1e-400 is 0 (std::stod refused the underflow: usage, exit 2)
+        const char* b = args[++i].c_str();
+        char* e = nullptr;
+        margin = std::strtod(b, &e);
+        while (e && (*e == ' ' || *e == '\t')) ++e;
+        if (e == b || *e != '\0') throw std::invalid_argument(args[i]);
         margin_given = true;
       }
       else if (args[i] == "--check") do_check = true;

@@ -40,7 +40,8 @@ const cloth = opt("--cloth");
 const forceAt = args.indexOf("--force"); // a motion made for another body or shape: played, with a warning
 const force = forceAt >= 0;
 if (force) args.splice(forceAt, 1);
-const margin = marginText === undefined ? undefined : Number(marginText);
+// as Python's float() reads it: "" is no number (Number("") is 0: an empty margin ran with 0)
+const margin = marginText === undefined ? undefined : marginText.trim() === "" ? NaN : Number(marginText);
 const flagForm = pkg || garment || motion;
 // what is wrong, in one line before the usage (a misspelled flag printed the usage alone)
 const problem =
