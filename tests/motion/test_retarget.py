@@ -408,6 +408,11 @@ def test_bad_motion_data_names_its_line(tmp_path):
     with pytest.raises(FileFormatError, match=r"NaN or inf \(got nan \(frame 2\)\)") as e:
         read_bvh(tmp_path / "n.bvh")
     assert e.value.line == first + 3  # 1-based
+    frame2[4] = "1e308"  # overflowed into inf later: named without a line, after numpy's warnings (a user's trial)
+    (tmp_path / "h.bvh").write_text("\n".join(lines[: first + 2] + [" ".join(frame2)] + lines[first + 3 :]) + "\n")
+    with pytest.raises(FileFormatError, match=r"a value no capture holds.*got 1e308 \(frame 2\)") as e:
+        read_bvh(tmp_path / "h.bvh")
+    assert e.value.line == first + 3
     (tmp_path / "t.bvh").write_text("\n".join(lines[:-1]) + "\n")  # the last frame cut off
     frames_line = next(i for i, s in enumerate(lines) if s.startswith("Frames:")) + 1
     with pytest.raises(FileFormatError, match=r"got \d+ numbers, 3 frames \(cut short\?\)") as e:

@@ -452,6 +452,14 @@ def test_a_motion_or_asset_holding_nan_is_refused_and_rotations_written_otherwis
     a["joints"][2, 1] = np.nan
     write_bundle(tmp_path / "nan.sgda", a, ameta)
     bad.append((tmp_path / "nan.sgda", s["motion"], "nan.sgda: field 'joints' contains NaN or inf"))
+    a = {k: v.copy() for k, v in asset.items()}
+    a["vertices"][0, 0] = 1e30  # finite, and NaN out of the encoder (Python named no file)
+    write_bundle(tmp_path / "far.sgda", a, ameta)
+    bad.append((tmp_path / "far.sgda", s["motion"], "far.sgda: field 'vertices' lies beyond 10 km"))
+    from segadeform.geometry import GarmentAsset
+
+    with pytest.raises(FileFormatError, match=r"far\.sgda.*'vertices' lies beyond 10 km"):
+        GarmentAsset.load(tmp_path / "far.sgda")
     base = [*exe, "--package", str(random_package)]
     for garment, motion, says in bad:
         p = subprocess.run(

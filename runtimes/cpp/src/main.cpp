@@ -467,6 +467,12 @@ Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::
   // values, as the Python runtime checks them (NaN or inf here gave a cache of NaN with exit 0: a user's trial)
   for (const char* k : {"vertices", "normals", "features", "joints", "descriptor", "betas", "log_wbody"})
     if (a.has(k)) finite_values(a.at(k), apath, k);
+  for (const char* k : {"vertices", "joints"}) {  // positions within 10 km, as Python's GarmentAsset holds them
+    const double* d = a.at(k).as<double>();
+    for (int64_t i = 0; i < a.at(k).count(); ++i)
+      if (std::fabs(d[i]) > 1e4)
+        throw std::runtime_error(apath + ": field '" + k + "' lies beyond 10 km (expected |x| <= 10000 m)");
+  }
   const auto& poses = need(m, mpath, "poses", "f32", 3);
   const auto& trans = need(m, mpath, "trans", "f32", 2);
   finite_values(poses, mpath, "poses");

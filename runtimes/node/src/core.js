@@ -226,6 +226,12 @@ export function readAsset(parsed, where = "garment asset") {
   for (const k of ["vertices", "normals", "features", "joints", "descriptor", "betas", "log_wbody"]) {
     if (parsed.arrays[k]) finite(parsed.arrays[k], k, where);
   }
+  for (const k of ["vertices", "joints"]) { // positions within 10 km, as Python's GarmentAsset holds them
+    const d = parsed.arrays[k].data;
+    for (let i = 0; i < d.length; i++) {
+      if (Math.abs(d[i]) > 1e4) throw new Error(`${where}: field '${k}' lies beyond 10 km (expected |x| <= 10000 m, got ${d[i]})`);
+    }
+  }
   return parsed;
 }
 

@@ -314,6 +314,10 @@ class GarmentAsset:
         for name in ("vertices", "normals", "features", "joints", "descriptor"):
             if not np.isfinite(getattr(self, name)).all():
                 raise InputError(f"asset field {name!r} contains NaN or inf")
+        for name in ("vertices", "joints"):  # positions, within the bounds of segadeform.bounds (10 km): 1e30 came
+            far = float(np.abs(getattr(self, name)).max())  # out of the encoder as NaN, the file unnamed
+            if far > 1.0e4:
+                raise InputError(f"asset field {name!r} lies beyond 10 km", expected="|x| <= 10000 m", got=far)
         given = [k for k in ("betas", "log_wbody", "body") if getattr(self, k) is not None]
         if given and len(given) != 3:
             raise InputError(

@@ -179,7 +179,21 @@ def _parse(text: str, path: Path):
         raise FileFormatError(
             "motion data contains NaN or inf", path=path, line=rest[k][0], got=f"{rest[k][1]} (frame {k // n_ch})"
         )
+    huge = np.abs(data) > MAX_CHANNEL  # 1e308 overflowed into inf later, named without a line and with warnings
+    if huge.any():
+        k = int(np.flatnonzero(huge.ravel())[0])
+        raise FileFormatError(
+            "motion data has a value no capture holds",
+            path=path,
+            line=rest[k][0],
+            expected=f"|value| <= {MAX_CHANNEL:g} (degrees or length units)",
+            got=f"{rest[k][1]} (frame {k // n_ch})",
+        )
     return joints, data, ft
+
+
+#: the largest channel value read (degrees, or the file's length unit): a thousand turns, or 1000 km in centimetres
+MAX_CHANNEL = 1.0e8
 
 
 def _isfloat(t):
