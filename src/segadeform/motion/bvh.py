@@ -179,20 +179,23 @@ def _parse(text: str, path: Path):
         raise FileFormatError(
             "motion data contains NaN or inf", path=path, line=rest[k][0], got=f"{rest[k][1]} (frame {k // n_ch})"
         )
-    huge = np.abs(data) > MAX_CHANNEL  # 1e308 overflowed into inf later, named without a line and with warnings
+    # a rotation past MAX_CHANNEL degrees: 1e308 overflowed into inf later, named without a line and with warnings
+    # (positions have their own bound, the root's translation, with its own words)
+    rot = np.array([c.endswith("rotation") for j in joints for c in j.channels], bool)
+    huge = (np.abs(data) > MAX_CHANNEL) & rot[None, :]
     if huge.any():
         k = int(np.flatnonzero(huge.ravel())[0])
         raise FileFormatError(
             "motion data has a value no capture holds",
             path=path,
             line=rest[k][0],
-            expected=f"|value| <= {MAX_CHANNEL:g} (degrees or length units)",
+            expected=f"|rotation| <= {MAX_CHANNEL:g} degrees",
             got=f"{rest[k][1]} (frame {k // n_ch})",
         )
     return joints, data, ft
 
 
-#: the largest channel value read (degrees, or the file's length unit): a thousand turns, or 1000 km in centimetres
+#: the largest rotation channel read, in degrees (about 280,000 turns)
 MAX_CHANNEL = 1.0e8
 
 
