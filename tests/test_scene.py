@@ -36,6 +36,8 @@ def test_minimal_scene_defaults(tmp_path):
         ('[effects]\nwrinkles = "yes"\n', "effects.wrinkles has the wrong type"),
         ('[effects]\nskinning = "blend"\n', "skinning must be"),
         ("[effects]\ncollision_margin = -1\n", "collision_margin"),
+        # a margin with collisions and the cloth stage off did nothing (a scene author's trial)
+        ("[effects]\ncollision_margin = 0.02\n", "sets collision_margin but neither collisions nor the cloth stage"),
         ("[output2]\n", "unknown table"),
         ('[body]\nbetas = [1, "a"]\n', "betas"),
     ],

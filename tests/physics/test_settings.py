@@ -59,13 +59,17 @@ def test_effects_are_canonical_and_defaults():
         ("[simulate]\neffects = []\nquality = 2.5\n", "wrong type"),
         ("[simulate]\neffects = []\nbogus = 1\n", "unknown key simulate.bogus"),
         ("[simulate]\neffects = []\nwind = [0, 0, 0]\n", "non-zero"),
+        # a knob of an effect that is off did nothing, silently (the cloth stage's were refused: a scene's trial)
+        ('[simulate]\neffects = ["gravity"]\nwind_strength = 50\n', "sets wind_strength but the effect wind is off"),
+        ('[simulate]\neffects = ["gravity"]\npin_stiffness = 2\n', "sets pin_stiffness but the effect pinning is off"),
+        ('[simulate]\neffects = ["gravity"]\nmax_step_motion = 0.05\n', "effect body_collision is off"),
     ],
 )
 def test_bad_simulate_tables_name_the_file(tmp_path, table, msg):
     with pytest.raises(FileFormatError) as e:
         _scene(tmp_path, table)
     assert msg in str(e.value) and "s.toml" in str(e.value)
-    if msg in ("unknown material", "quality", "non-zero"):  # a refused value names its key's line (a user's trial)
+    if msg in ("unknown material", "quality", "non-zero") or "is off" in msg:  # its key's line (a user's trial)
         assert e.value.line == 9, (table, e.value.line)
 
 

@@ -328,6 +328,13 @@ def load_scene(path: str | os.PathLike) -> Scene:
             effects = Effects(**plain, cloth_settings=ClothSettings(**knobs))
         except ValueError as e:
             raise FileFormatError(f"[effects]: {e}", path=p, line=_effects_line(p, plain, knobs)) from None
+        if "collision_margin" in plain and not (effects.collisions or effects.cloth):  # as the cloth knobs below
+            raise FileFormatError(
+                "[effects] sets collision_margin but neither collisions nor the cloth stage is on",
+                path=p,
+                line=key_line(p, "effects", "collision_margin"),
+                expected="collisions = true or cloth = true in [effects], or no collision_margin",
+            )
         if knobs and not effects.cloth:  # as --cloth K=V with the stage off: the knobs would do nothing
             first = sorted(knobs)[0]
             raise FileFormatError(

@@ -230,6 +230,19 @@ _LATER_DEFAULTS = {
 }
 
 
+#: ``[simulate]`` knobs that only an effect uses: set with that effect off, they are refused
+KNOB_EFFECT = {
+    "wind": "wind",
+    "wind_strength": "wind",
+    "pin": "pinning",
+    "pin_stiffness": "pinning",
+    "self_collision_distance": "self_collision",
+    "collision_distance": "body_collision",
+    "max_step_motion": "body_collision",
+    "untangle_body": "body_collision",
+}
+
+
 def parse_simulate_table(table: dict | None, *, where=None) -> SimSettings:
     """``[simulate]`` (a dict from TOML, or None when the scene has none) -> :class:`SimSettings`."""
     if table is None:
@@ -259,7 +272,7 @@ def parse_simulate_table(table: dict | None, *, where=None) -> SimSettings:
         if k in kw:
             kw[k] = float(kw[k])
     try:
-        return SimSettings(**kw)
+        st = SimSettings(**kw)
     except InputError as e:
         line = None  # the refused key's line (each tried alone; a user's trial: only the file was named)
         for k, v in kw.items():
@@ -271,6 +284,15 @@ def parse_simulate_table(table: dict | None, *, where=None) -> SimSettings:
         if line is None and where is not None:
             line = key_line(where, "simulate")
         raise FileFormatError(f"[simulate]: {e}", path=where, line=line) from None
+    for k, effect in KNOB_EFFECT.items():  # a knob of an effect that is off would do nothing: said, as [effects]
+        if k in kw and effect not in kw["effects"]:  # says it of the cloth stage's knobs (a scene author's trial)
+            raise FileFormatError(
+                f"[simulate] sets {k} but the effect {effect} is off",
+                path=where,
+                line=key_line(where, "simulate", k) if where is not None else None,
+                expected=f"{effect!r} in effects, or no {k}",
+            )
+    return st
 
 
 def parse_sim_effects(text: str, base=DEFAULT_EFFECTS) -> tuple:
