@@ -57,11 +57,9 @@ def _blender(sim_python, script, *args, env=None, timeout=600):
     return json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
 
 
-def test_addon_zip_runs_headless_and_matches_run(sim_python, tmp_path):
-    """Install the zip, register, select a garment and an armature with an action, run the operator: it
-    exports the garment and the action (Blender's BVH exporter), runs segadeform, and attaches a Mesh Cache.
-    The evaluated garment at three frames is `segadeform run`'s output on the same two files (seen in
-    Blender's Z-up world), within 1e-6 m; a segadeform that cannot start is reported as an error."""
+def _addon_and_walk(tmp_path):
+    """The add-on's zip built into ``tmp_path``, a 0.4 s walk as ``tmp_path/walk.bvh``, and the environment that
+    keeps Blender off the user's own add-ons."""
     sys.path.insert(0, str(TOOLS))
     try:
         from build_addon import build
@@ -72,7 +70,15 @@ def test_addon_zip_runs_headless_and_matches_run(sim_python, tmp_path):
         cli, ["motion", "make", "walk", "--seconds", "0.4", "--fps", "30", "-o", str(tmp_path / "walk.bvh")]
     )
     assert r.exit_code == 0, r.output
-    env = dict(os.environ, BLENDER_USER_SCRIPTS=str(tmp_path / "blender-scripts"))  # not the user's add-ons
+    return zip_path, dict(os.environ, BLENDER_USER_SCRIPTS=str(tmp_path / "blender-scripts"))
+
+
+def test_addon_zip_runs_headless_and_matches_run(sim_python, tmp_path):
+    """Install the zip, register, select a garment and an armature with an action, run the operator: it
+    exports the garment and the action (Blender's BVH exporter), runs segadeform, and attaches a Mesh Cache.
+    The evaluated garment at three frames is `segadeform run`'s output on the same two files (seen in
+    Blender's Z-up world), within 1e-6 m; a segadeform that cannot start is reported as an error."""
+    zip_path, env = _addon_and_walk(tmp_path)
     frames = [1, 6, 12]
     got = _blender(
         sim_python,
@@ -256,17 +262,7 @@ def test_addon_follows_a_bone_parent_keeps_the_users_files_and_the_modifier_stac
     output on the exported files at frames 1, 6, 12; a user's file is refused and left as it was; the cache sits
     before the Subdivision Surface; the off-body garment shows segadeform's refusal unless Force is on; a missing
     program names the preferences and writes nothing."""
-    sys.path.insert(0, str(TOOLS))
-    try:
-        from build_addon import build
-    finally:
-        sys.path.remove(str(TOOLS))
-    zip_path = build(tmp_path / "segadeform_addon.zip")
-    r = CliRunner().invoke(
-        cli, ["motion", "make", "walk", "--seconds", "0.4", "--fps", "30", "-o", str(tmp_path / "walk.bvh")]
-    )
-    assert r.exit_code == 0, r.output
-    env = dict(os.environ, BLENDER_USER_SCRIPTS=str(tmp_path / "blender-scripts"))
+    zip_path, env = _addon_and_walk(tmp_path)
     out = tmp_path / "out"
     got = _blender(
         sim_python,
