@@ -3,9 +3,12 @@ model input only Python computes, for the runtimes without Python (docs/package.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import click
+
+from segadeform.errors import SegadeformError
 
 from .garment import _betas, garment_group
 
@@ -76,7 +79,8 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
             source_name=garment.name,
             source_sha256=file_sha256(garment),
         )
-    if not force:
+    unfit = None
+    try:
         check_body_height(b, beta_vals)
         check_placement(
             asset.vertices,
@@ -88,7 +92,13 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
             betas=beta_vals,
             recorded_betas=recorded_betas(garment),
         )
+    except SegadeformError as e:
+        if not force:
+            raise
+        unfit = e.problem  # kept in the asset: the runtimes refuse it unless forced again, as `segadeform run` does
     asset = prepare_for_body(asset, b, beta_vals, weight_prior=config.get("weight_prior", "nearest"))
+    if unfit is not None:
+        asset = dataclasses.replace(asset, body={**asset.body, "unfit": unfit})
     asset.save(output)
     guard.record()
     click.echo(

@@ -91,10 +91,7 @@ def inspect_cmd(path):
             + ("" if obj is None or obj.is_file() else " (missing)")
         )
     elif ext == ".toml":
-        from segadeform.settings import load_scene
-
-        s = load_scene(path)
-        click.echo(f"{path}: scene, garment {s.garment.name}, effects {s.effects.label()}, output {s.output}")
+        _inspect_toml(path)
     elif ext == ".pkl":
         from segadeform.body import load_body
 
@@ -191,3 +188,57 @@ def inspect_cmd(path):
             f"{path}: mesh, {m.n_vertices} vertices, {m.n_faces} triangles, bounds "
             f"{np.round(v.min(0), 4).tolist()} .. {np.round(v.max(0), 4).tolist()}"
         )
+
+
+def _inspect_toml(path) -> None:
+    """A scene, a dataset config, a training config or a jobs file, told apart by their tables (a dataset config
+    was read as a scene: "unknown table [bodies]")."""
+    import tomllib
+
+    try:
+        with open(path, "rb") as f:
+            tables = set(tomllib.load(f))
+    except (OSError, tomllib.TOMLDecodeError, RecursionError):
+        tables = set()  # the scene reader says what is wrong, with the line
+    if tables & {"dataset", "bodies"}:
+        from collections import Counter
+
+        from segadeform.dataset.config import load_dataset_config
+        from segadeform.dataset.make import check_splits, sample_plan
+
+        cfg = load_dataset_config(path)
+        plan = sample_plan(cfg)
+        check_splits(cfg, plan)
+        per = Counter(p.split for p in plan)
+        splits = ", ".join(f"{n} {k}" for k, n in sorted(per.items()))
+        click.echo(
+            f"{path}: dataset config {cfg.digest()}, {len(cfg.garments)} garments x {len(cfg.bodies)} bodies x "
+            f"{len(cfg.motions)} motions: {len(plan)} planned samples ({splits or 'none'}), "
+            f"{cfg.seconds:g} s at {cfg.fps:g} fps"
+        )
+    elif tables & {"model", "loss", "optim", "base", "physics"} and not tables & {"garment", "motion", "output"}:
+        try:
+            from segadeform.train.config import load_train_config
+        except ImportError as e:  # the training layer needs torch
+            raise click.ClickException(
+                f"{path}: a training config; reading it needs the torch extra (pip install -e '.[torch]'): {e}"
+            ) from None
+        c = load_train_config(path)
+        roots = [str(r) for r in (*c.dataset, *c.optional)]
+        click.echo(
+            f"{path}: training config, {c.optim.steps} steps, hidden {c.model.hidden}, seed {c.optim.seed}, "
+            f"prior {c.model.weight_prior}, data {', '.join(roots) or 'given on the command line'}"
+        )
+    elif "batch" in tables:
+        from segadeform.runtime.batch import load_batch
+
+        b = load_batch(path)
+        click.echo(
+            f"{path}: jobs file, {len(b.garments)} garments x {len(b.motions)} motions, format {b.format}, "
+            f"output {b.output}"
+        )
+    else:
+        from segadeform.settings import load_scene
+
+        s = load_scene(path)
+        click.echo(f"{path}: scene, garment {s.garment.name}, effects {s.effects.label()}, output {s.output}")

@@ -249,7 +249,8 @@ def run_cmd(
             betas=beta_vals,
             model=None,
             body_output=body_out,
-            effects=preset if preset is not None else parse_effects(effects) if effects else Effects(),
+            # (an empty --effects is refused by the parser, not taken as not given: the scene path's rule)
+            effects=preset if preset is not None else parse_effects(effects) if effects is not None else Effects(),
         )
     if cloth:
         from segadeform.settings.cloth import ClothSettings

@@ -208,3 +208,34 @@ def test_preview_without_matplotlib_says_which_extra(tmp_path, monkeypatch):
     )
     assert r.exit_code == 1 and r.output.strip() == "Error: preview needs matplotlib: pip install 'segadeform[plot]'"
     assert not (tmp_path / "p.png").exists()
+
+
+def test_inspect_tells_toml_files_apart(tmp_path):
+    """`inspect` read every .toml as a scene: a dataset config failed with "unknown table [bodies]" (a docs audit).
+    Dataset configs, training configs and jobs files are read by their own readers; a bad one still names itself."""
+    from tests.conftest import REPO, SAMPLES
+
+    def inspect(p):
+        return CliRunner().invoke(cli, ["inspect", str(p)])
+
+    r = inspect(SAMPLES / "datasets" / "tiny.toml")
+    assert r.exit_code == 0, r.output
+    assert "dataset config" in r.output and "2 garments x 1 bodies x 2 motions: 4 planned samples" in r.output
+    assert "1 train" in r.output and "1 test," in r.output
+    r = inspect(REPO / "samples" / "train" / "default.toml")
+    assert r.exit_code == 0, r.output
+    assert "training config" in r.output and "steps" in r.output
+    jobs = tmp_path / "jobs.toml"
+    jobs.write_text(
+        f'[batch]\noutput = "out"\n[[garments]]\nmesh = "{SAMPLES / "garments" / "skirt.obj"}"\n'
+        '[[motions]]\nkind = "walk"\nseconds = 0.3\n'
+    )
+    r = inspect(jobs)
+    assert r.exit_code == 0, r.output
+    assert "jobs file, 1 garments x 1 motions" in r.output
+    r = inspect(SAMPLES / "scenes" / "dress_dance.toml")
+    assert r.exit_code == 0 and "scene, garment dress.obj" in r.output, r.output
+    bad = tmp_path / "bad.toml"
+    bad.write_text((SAMPLES / "datasets" / "tiny.toml").read_text().replace('kind = "skirt"', 'kind = "skirtt"'))
+    r = inspect(bad)
+    assert r.exit_code == 1 and str(bad) in r.output and "skirtt" in r.output, r.output

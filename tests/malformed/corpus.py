@@ -419,11 +419,6 @@ def asf_amc_cases(d: Path, cases: list) -> None:
     )
 
 
-if __name__ == "__main__":
-    target = Path(sys.argv[1] if len(sys.argv) > 1 else "malformed-corpus")
-    print(len(build(target)), "files in", target)
-
-
 def issue29_cases(d: Path, cases: list, package, base: str) -> None:
     """Issue 29's bad inputs that crashed or passed silently: runtime files (.sgdm/.sgda), .mhclo bindings, motion
     values past physical bounds, scenes, jobs files, and manifests (each must now give one line naming the file)."""
@@ -548,3 +543,8 @@ def issue29_cases(d: Path, cases: list, package, base: str) -> None:
                     scene_out,
                 )
             )
+
+
+if __name__ == "__main__":
+    target = Path(sys.argv[1] if len(sys.argv) > 1 else "malformed-corpus")
+    print(len(build(target)), "files in", target)

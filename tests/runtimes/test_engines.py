@@ -491,3 +491,49 @@ def test_a_motion_or_asset_holding_nan_is_refused_and_rotations_written_otherwis
     assert gap <= 1e-5 * np.abs(outs["turned"]).max()  # the runtime writes every rotation as Python does
     # and the turned motion is the plain one, up to the float32 rounding of the turned angles (1.7 cm before)
     assert np.abs(outs["turned"] - outs["plain"]).max() < 5e-3
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp", "api"])
+def test_an_asset_exported_with_force_is_refused_unless_forced_again(runtime, request, random_package, tmp_path):
+    """A garment 1 m beside the body, exported with `garment export --force`: `segadeform run` refuses the asset
+    (it checks the fit itself), Node and C++ played it silently (a runtimes trial).  The asset now records why it
+    needed --force (meta.body.unfit); every runtime refuses it, naming that, unless forced again (then warned)."""
+    from segadeform.cli.main import main
+    from segadeform.io import Mesh, read_mesh, write_obj
+
+    m = read_mesh(SAMPLES / "garments" / "skirt.obj")
+    write_obj(tmp_path / "off.obj", Mesh(m.vertices + np.array([1.0, 0.0, 0.0]), m.faces))
+    g, mo = tmp_path / "off.sgda", tmp_path / "m.sgdm"
+    export = ["garment", "export", str(tmp_path / "off.obj"), "--model", str(random_package), "-o", str(g)]
+    assert main(export) == 1 and not g.exists()
+    assert main([*export, "--force"]) == 0
+    assert main(["motion", "export", "walk", "--seconds", "0.2", "-o", str(mo)]) == 0
+    assert main(["run", "--garment", str(g), "--motion", str(mo), "--model", str(random_package), "-o",
+                 str(tmp_path / "py.pc2")]) == 1  # fmt: skip
+    out = tmp_path / "o.pc2"
+    if runtime == "api":
+        index = (REPO / "runtimes" / "node" / "src" / "index.js").as_uri()
+        script = (
+            f"import {{ animate }} from {json.dumps(index)};\n"
+            "const [pkg, g, m] = process.argv.slice(1);\n"
+            "let refused = null;\n"
+            "try { await animate(pkg, g, m); } catch (e) { refused = e.message; }\n"
+            "const r = await animate(pkg, g, m, { force: true });\n"
+            "console.log('RESULT' + JSON.stringify({ refused, warnings: r.warnings, T: r.T }));\n"
+        )
+        p = subprocess.run(["node", "--input-type=module", "-e", script, str(random_package), str(g), str(mo)],
+                           capture_output=True, text=True, timeout=600)  # fmt: skip
+        assert p.returncode == 0, p.stdout + p.stderr
+        got = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+        assert "exported with --force although the garment does not sit on the body" in got["refused"]
+        assert "force: true" in got["refused"] and got["T"] > 0 and any("--force" in w for w in got["warnings"])
+        return
+    exe = request.getfixturevalue(runtime)
+    base = [*exe, "--package", str(random_package), "--garment", str(g), "--motion", str(mo), "-o", str(out)]
+    p = subprocess.run(base, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 1 and not out.exists(), p.stdout + p.stderr
+    assert f"{g}: the garment asset was exported with --force although the garment does not sit" in p.stderr
+    assert "--force here too" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    p = subprocess.run([*base, "--force"], capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0 and out.exists(), p.stdout + p.stderr
+    assert "warning: the garment asset was exported with --force" in p.stderr

@@ -119,3 +119,55 @@ def test_page_on_webgpu_matches_segadeform_run(site, portable_scene, tmp_path):
     r = _page(site, "webgpu", tmp_path, *_asset_args("short.sgdb", portable_scene["effects"], "short.sgdm"), shot=False)
     assert r["webgpu"], "Chromium offered no WebGPU adapter (flags in runtimes/web/test/page.mjs)"
     _assert_matches(r, WEBGPU_FRAMES, "webgpu")
+
+
+def test_a_page_of_ones_own_runs_the_vendored_runtime_a_chunk_at_a_time(portable_scene, random_package, tmp_path):
+    """An integrator's trial: the viewer was the only page that ran (runtime.js imports the core by a path into the
+    repository; which onnxruntime-web files to serve was not said).  `npm run vendor -- SITE` makes one folder to
+    serve; runtimes/web/examples/embed.html on it plays the motion through a Player in chunks of 3 frames (not a
+    multiple of its batch) and matches `segadeform run`.  vendor never writes over a folder it did not write."""
+    if not os.path.exists(CHROMIUM):
+        pytest.fail(f"no Chromium at {CHROMIUM}: run runtimes/web/install-browser.sh (.ci/run does)")
+    site = tmp_path / "site"
+    (site / "segadeform").mkdir(parents=True)
+    (site / "segadeform" / "mine.js").write_text("// the user's")
+    v = subprocess.run(["node", str(WEB / "vendor.mjs"), str(site)], capture_output=True, text=True, timeout=120)
+    assert v.returncode == 1 and "was not written by vendor.mjs" in v.stderr, v.stderr
+    assert sorted(p.name for p in (site / "segadeform").iterdir()) == ["mine.js"]
+    shutil.rmtree(site / "segadeform")
+    for _ in range(2):  # a second vendor replaces its own files
+        v = subprocess.run(
+            ["npm", "run", "vendor", "--", str(site)], cwd=WEB, capture_output=True, text=True, timeout=120
+        )
+        assert v.returncode == 0, v.stdout + v.stderr
+    got = sorted(str(p.relative_to(site / "segadeform")) for p in (site / "segadeform").rglob("*") if p.is_file())
+    assert got == sorted(
+        ["VENDORED.json", "cloth.js", "collide.js", "core.js", "runtime.js", "ort/ort.wasm.min.mjs"]
+        + ["ort/ort-wasm-simd-threaded.mjs", "ort/ort-wasm-simd-threaded.wasm"]
+    )
+    shutil.copy(WEB / "examples" / "embed.html", site / "embed.html")
+    (site / "pkg").symlink_to(random_package)
+    for k in ("garment", "motion", "check"):
+        (site / portable_scene[k].name).symlink_to(portable_scene[k])
+    query = "package=pkg/&garment=garment.sgda&motion=motion.sgdm&check=check.sgdb&chunk=3"
+    query += f"&effects={portable_scene['effects']}"
+    p = subprocess.run(
+        [
+            "node",
+            str(WEB / "test" / "embed.mjs"),
+            "--root",
+            str(site),
+            "--page",
+            f"embed.html?{query}",
+            "--chromium",
+            CHROMIUM,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert p.returncode == 0, (p.stdout + p.stderr)[-3000:]
+    r = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("PAGE "))[5:])
+    assert "error" not in r, r
+    assert r["T"] == len(portable_scene["frames"]) and r["chunk"] == 3 and r["variant"] == "deformer_dqs", r
+    assert r["finite"] and r["sameLength"] and r["rel"] <= RTOL, r

@@ -225,27 +225,53 @@ std::vector<float> floats(const sgd::Array& a) {
   return out;
 }
 
-// `path`'s PC2 point cache, written to its temporary (sgd::temporary; sgd::commit_outputs puts it in place)
-void write_pc2(const std::string& path, const float* frames, int32_t T, int32_t N, float start = 0.f) {
-  const std::string tmp = sgd::temporary(path);
-  {
-    std::ofstream f(tmp, std::ios::binary);
-    if (!f) throw std::runtime_error(path + ": cannot write");
-    f.write("POINTCACHE2\0", 12);
-    int32_t version = 1;
-    float rate = 1.f;
-    f.write(reinterpret_cast<const char*>(&version), 4);
-    f.write(reinterpret_cast<const char*>(&N), 4);
-    f.write(reinterpret_cast<const char*>(&start), 4);
-    f.write(reinterpret_cast<const char*>(&rate), 4);
-    f.write(reinterpret_cast<const char*>(&T), 4);
-    f.write(reinterpret_cast<const char*>(frames), static_cast<std::streamsize>(sizeof(float)) * T * N * 3);
-    if (!f) {
-      f.close();
-      std::remove(tmp.c_str());
-      throw std::runtime_error(path + ": write failed");
+// `path`'s PC2 point cache of T frames of N points, written to its temporary (sgd::temporary; sgd::commit_outputs
+// puts it in place) a batch of frames at a time: append() the frames in order, then finish().
+class Pc2Writer {
+ public:
+  Pc2Writer(const std::string& path, int32_t T, int32_t N, float start = 0.f)
+      : path_(path), tmp_(sgd::temporary(path)), f_(tmp_, std::ios::binary), left_(static_cast<int64_t>(T) * N * 3) {
+    if (!f_) throw std::runtime_error(path + ": cannot write");
+    f_.write("POINTCACHE2\0", 12);
+    const int32_t version = 1;
+    const float rate = 1.f;
+    f_.write(reinterpret_cast<const char*>(&version), 4);
+    f_.write(reinterpret_cast<const char*>(&N), 4);
+    f_.write(reinterpret_cast<const char*>(&start), 4);
+    f_.write(reinterpret_cast<const char*>(&rate), 4);
+    f_.write(reinterpret_cast<const char*>(&T), 4);
+    check_stream();
+  }
+  // `count` floats (whole frames), the next ones of the cache
+  void append(const float* values, int64_t count) {
+    if (count > left_) throw std::runtime_error(path_ + ": more frames than the cache's header says");
+    f_.write(reinterpret_cast<const char*>(values), static_cast<std::streamsize>(sizeof(float) * count));
+    left_ -= count;
+    check_stream();
+  }
+  void finish() {
+    if (left_ != 0) throw std::runtime_error(path_ + ": fewer frames than the cache's header says");
+    f_.close();
+    check_stream();
+  }
+
+ private:
+  void check_stream() {
+    if (!f_) {
+      f_.close();
+      std::remove(tmp_.c_str());
+      throw std::runtime_error(path_ + ": write failed");
     }
   }
+  std::string path_, tmp_;
+  std::ofstream f_;
+  int64_t left_;
+};
+
+void write_pc2(const std::string& path, const float* frames, int32_t T, int32_t N, float start = 0.f) {
+  Pc2Writer w(path, T, N, start);
+  w.append(frames, static_cast<int64_t>(T) * N * 3);
+  w.finish();
 }
 
 struct Effects {
@@ -511,6 +537,14 @@ Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::
   s.faces = &faces;
   s.fps = m.meta["fps"].num;
   s.start_frame = m.meta.has("start_frame") ? static_cast<float>(m.meta["start_frame"].num) : 0.f;
+  // an asset exported with --force for a body it does not sit on: refused unless forced again, as `segadeform run`
+  // refuses it (it checks the fit itself)
+  if (a.meta["body"].has("unfit") && a.meta["body"]["unfit"].kind == sgd::Json::String) {
+    const std::string why = "the garment asset was exported with --force although " + a.meta["body"]["unfit"].str;
+    if (!force)
+      throw std::runtime_error(apath + ": " + why + " (expected a garment that sits on its body, or --force here too)");
+    std::cerr << "warning: " << why << "\n";
+  }
   // a motion made for another body or shape is refused, as `segadeform run` refuses it; --force plays it, warned
   const auto mismatch = [&](const std::string& what) {
     const std::string msg = "the motion was retargeted onto another " + what + " than the garment asset's";
@@ -619,56 +653,54 @@ std::vector<float> animate(OrtEnv* env, const Package& pkg, const sgd::Json& dec
   return frames;
 }
 
-// The body posed by the package's body graph (betas (|beta|,), poses (B, S, 3), trans (B, 3) -> vertices, ...);
-// its triangles (the graph's constant `faces` output) in *faces.
-std::vector<float> pose_body(OrtEnv* env, const Package& pkg, const sgd::Json& spec, const Scene& sc, int batch,
-                             int threads, int64_t* V, double* ms_per_frame, std::vector<int32_t>* faces) {
-  if (spec.has("body") && !sc.body_sha.empty() && spec["body"]["sha256"].str != sc.body_sha)
-    throw std::runtime_error("the garment asset was prepared for another body than the package's (" +
-                             spec["body"]["name"].str + ")");
-  Session sess(env, pkg.dir + "/" + spec["file"].str, threads);
-  const int64_t NB = static_cast<int64_t>(spec["inputs"].arr[0]["shape"].arr[0].num);
-  const int64_t S = static_cast<int64_t>(spec["inputs"].arr[1]["shape"].arr[1].num);
-  *V = static_cast<int64_t>(spec["outputs"].arr[0]["shape"].arr[1].num);
-  if (S != sc.S) throw std::runtime_error("the body graph poses " + std::to_string(S) + " joints, the motion has " +
-                                          std::to_string(sc.S));
-  std::vector<float> out(static_cast<size_t>(sc.T * *V * 3));
-  auto t0 = std::chrono::steady_clock::now();
-  std::vector<Input> fixed;
-  fixed.push_back(input_floats("betas", model_betas(sc.betas, NB), {NB}));
-  for (int64_t lo = 0; lo < sc.T; lo += batch) {
-    int64_t hi = std::min<int64_t>(lo + batch, sc.T), B = hi - lo;
-    std::vector<Input> din;
-    din.push_back(input_floats("poses", std::vector<float>(sc.poses.begin() + lo * S * 3, sc.poses.begin() + hi * S * 3),
-                               {B, S, 3}));
-    din.push_back(input_floats("trans", std::vector<float>(sc.trans.begin() + lo * 3, sc.trans.begin() + hi * 3), {B, 3}));
-    std::vector<Input> all{Input{"betas", {}, {NB}, fixed[0].value}};
-    for (auto& d : din) all.push_back(Input{d.name, {}, d.dims, d.value});
-    std::vector<Output> o = sess.run(all, lo == 0 ? std::vector<std::string>{"vertices", "faces"}
-                                                  : std::vector<std::string>{"vertices"});
-    std::copy(o[0].f.begin(), o[0].f.end(), out.begin() + lo * *V * 3);
-    if (lo == 0) *faces = std::move(o[1].i);
-    release(din);
+// The package's body graph (betas (|beta|,), poses (B, S, 3), trans (B, 3) -> vertices, ...) over a scene's motion
+// and shape, run a batch of frames at a time: pose(lo, hi) gives frames lo..hi-1 ((hi - lo) * V * 3), so that a long
+// clip never holds its posed body whole (21,000 frames of the default body held 3.5 GB); faces() its triangles (the
+// graph's constant `faces` output), rest() the body at zero pose and no translation.
+class BodyPoser {
+ public:
+  BodyPoser(OrtEnv* env, const Package& pkg, const sgd::Json& spec, const Scene& sc, int threads)
+      : sc_(sc), sess_(env, pkg.dir + "/" + spec["file"].str, threads) {
+    if (spec.has("body") && !sc.body_sha.empty() && spec["body"]["sha256"].str != sc.body_sha)
+      throw std::runtime_error("the garment asset was prepared for another body than the package's (" +
+                               spec["body"]["name"].str + ")");
+    nb_ = static_cast<int64_t>(spec["inputs"].arr[0]["shape"].arr[0].num);
+    s_ = static_cast<int64_t>(spec["inputs"].arr[1]["shape"].arr[1].num);
+    v_ = static_cast<int64_t>(spec["outputs"].arr[0]["shape"].arr[1].num);
+    if (s_ != sc.S) throw std::runtime_error("the body graph poses " + std::to_string(s_) + " joints, the motion has " +
+                                             std::to_string(sc.S));
+    betas_ = model_betas(sc.betas, nb_);
   }
-  release(fixed);
-  *ms_per_frame = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / sc.T;
-  return out;
-}
+  int64_t V() const { return v_; }
+  std::vector<float> pose(int64_t lo, int64_t hi) {
+    return run(std::vector<float>(sc_.poses.begin() + lo * s_ * 3, sc_.poses.begin() + hi * s_ * 3),
+               std::vector<float>(sc_.trans.begin() + lo * 3, sc_.trans.begin() + hi * 3), hi - lo);
+  }
+  std::vector<float> rest() { return run(std::vector<float>(static_cast<size_t>(3 * s_), 0.f), {0.f, 0.f, 0.f}, 1); }
+  const std::vector<int32_t>& faces() {
+    if (faces_.empty()) rest();
+    return faces_;
+  }
 
-// Collisions: the garment's frames (T * N * 3) pushed out of the posed body (T * V * 3), a batch of frames at a time.
-// Returns the number of (frame, vertex) pairs moved; *ms_per_frame: the collider's build, refits and push-outs.
-int64_t collide(std::vector<float>& frames, int64_t T, int64_t N, const std::vector<float>& body, int64_t V,
-                const std::vector<int32_t>& faces, double margin, int batch, int threads, double* ms_per_frame) {
-  auto t0 = std::chrono::steady_clock::now();
-  sgd::Collider col(body.data(), V, faces.data(), static_cast<int64_t>(faces.size() / 3));
-  int64_t moved = 0;
-  for (int64_t lo = 0; lo < T; lo += batch) {
-    const int64_t B = std::min<int64_t>(lo + batch, T) - lo;
-    moved += col.push_out(frames.data() + lo * N * 3, B, N, body.data() + lo * V * 3, margin, threads);
+ private:
+  std::vector<float> run(std::vector<float> poses, std::vector<float> trans, int64_t B) {
+    std::vector<Input> in;
+    in.push_back(input_floats("betas", betas_, {nb_}));
+    in.push_back(input_floats("poses", std::move(poses), {B, s_, 3}));
+    in.push_back(input_floats("trans", std::move(trans), {B, 3}));
+    std::vector<Output> o = sess_.run(in, faces_.empty() ? std::vector<std::string>{"vertices", "faces"}
+                                                         : std::vector<std::string>{"vertices"});
+    release(in);
+    if (faces_.empty()) faces_ = std::move(o[1].i);
+    return std::move(o[0].f);
   }
-  *ms_per_frame = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / T;
-  return moved;
-}
+  const Scene& sc_;
+  Session sess_;
+  int64_t nb_ = 0, s_ = 0, v_ = 0;
+  std::vector<float> betas_;
+  std::vector<int32_t> faces_;
+};
+
 
 const char* USAGE =
     "usage: segadeform-run --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]\n"
@@ -816,38 +848,54 @@ int main(int argc, char** argv) {
     double ms = 0, body_ms = 0, col_ms = 0;
     std::vector<float> frames = animate(env, pkg, dec_spec, sc, batch, threads, &ms);
     int64_t V = 0, moved = 0;
-    std::vector<float> body;
-    std::vector<int32_t> body_faces;
-    if (body_spec) body = pose_body(env, pkg, *body_spec, sc, batch, threads, &V, &body_ms, &body_faces);
     std::unique_ptr<sgd::Cloth> stage;
+    std::unique_ptr<sgd::Collider> collider;
     double cloth_ms = 0;
-    if (eff.cloth) {  // contact included: no push-out after it
-      auto t0 = std::chrono::steady_clock::now();
-      Scene rest_scene = sc;  // the body at rest: the body graph at zero pose, no translation
-      rest_scene.T = 1;
-      rest_scene.poses.assign(static_cast<size_t>(3 * sc.S), 0.f);
-      rest_scene.trans.assign(3, 0.f);
-      int64_t rv = 0;
-      double rms = 0;
-      std::vector<int32_t> rf;
-      const std::vector<float> rest = pose_body(env, pkg, *body_spec, rest_scene, 1, threads, &rv, &rms, &rf);
-      stage.reset(new sgd::Cloth(sc.vertices64->as<double>(), sc.N, sc.faces->as<int32_t>(), sc.faces->shape[0],
-                                 rest.data(), V, body_faces.data(), static_cast<int64_t>(body_faces.size() / 3), knobs,
-                                 margin, 1.0 / sc.fps));
+    using Clock = std::chrono::steady_clock;
+    const auto since = [](Clock::time_point t0) {
+      return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    };
+    if (body_spec) {  // the body a batch of frames at a time: posed, written, then the cloth stage or collisions
+      BodyPoser poser(env, pkg, *body_spec, sc, threads);
+      V = poser.V();
+      std::unique_ptr<Pc2Writer> body_pc2;
+      if (!body_out.empty())
+        body_pc2.reset(new Pc2Writer(body_out, static_cast<int32_t>(sc.T), static_cast<int32_t>(V), sc.start_frame));
+      if (eff.cloth) {  // contact included: no push-out after it
+        const auto t0 = Clock::now();
+        const std::vector<float> rest = poser.rest();
+        const std::vector<int32_t>& bf = poser.faces();
+        stage.reset(new sgd::Cloth(sc.vertices64->as<double>(), sc.N, sc.faces->as<int32_t>(), sc.faces->shape[0],
+                                   rest.data(), V, bf.data(), static_cast<int64_t>(bf.size() / 3), knobs, margin,
+                                   1.0 / sc.fps));
+        cloth_ms += since(t0);
+      }
       for (int64_t lo = 0; lo < sc.T; lo += batch) {
         const int64_t B = std::min<int64_t>(lo + batch, sc.T) - lo;
-        stage->step(frames.data() + lo * sc.N * 3, B, body.data() + lo * V * 3);
+        auto t0 = Clock::now();
+        const std::vector<float> body = poser.pose(lo, lo + B);
+        body_ms += since(t0);
+        if (body_pc2) body_pc2->append(body.data(), B * V * 3);
+        t0 = Clock::now();
+        if (stage) {
+          stage->step(frames.data() + lo * sc.N * 3, B, body.data());
+          cloth_ms += since(t0);
+        } else if (eff.collisions) {
+          const std::vector<int32_t>& bf = poser.faces();
+          if (!collider) collider.reset(new sgd::Collider(body.data(), V, bf.data(), static_cast<int64_t>(bf.size() / 3)));
+          moved += collider->push_out(frames.data() + lo * sc.N * 3, B, sc.N, body.data(), margin, threads);
+          col_ms += since(t0);
+        }
       }
-      cloth_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / sc.T;
-      if (stage->resets() > 0)
+      if (body_pc2) body_pc2->finish();
+      body_ms /= sc.T;
+      cloth_ms /= sc.T;
+      col_ms /= sc.T;
+      if (stage && stage->resets() > 0)
         std::cerr << "cloth: the stage started again from the network's frame at frame " << stage->first_reset()
                   << " (the garment jumped)\n";
-    } else if (eff.collisions) {
-      moved = collide(frames, sc.T, sc.N, body, V, body_faces, margin, batch, threads, &col_ms);
     }
     write_pc2(out, frames.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(sc.N), sc.start_frame);
-    if (!body_out.empty())
-      write_pc2(body_out, body.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(V), sc.start_frame);
     sgd::commit_outputs(outputs, inputs);  // all or none
     std::printf("%lld frames, %.2f ms/frame (%s%s%s%s%s) -> %s", static_cast<long long>(sc.T), ms,
                 eff.skinning.c_str(), eff.dynamics ? ", dynamics" : "", eff.wrinkles ? ", wrinkles" : "",

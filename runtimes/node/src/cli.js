@@ -5,8 +5,8 @@
 // (without --effects: the model's own effects, and collisions when the package has a body graph; margin 0.004 m;
 // cloth, the cloth stage, only when named; --cloth sets its knobs, as segadeform run --cloth)
 // segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]      (a scene bundle)
-import { animate } from "./index.js";
-import { pc2Bytes } from "./core.js";
+import { animate, readAsset } from "./index.js";
+import { pc2Parts } from "./core.js";
 import { claimOutputs, commitOutputs } from "./outputs.js";
 
 const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
@@ -79,6 +79,13 @@ try {
   process.exit(1);
 }
 try {
+  // an asset exported with --force for a body it does not sit on is refused, as `segadeform run` refuses it
+  const unfit = flagForm && !force ? (readAsset(garment).meta.body || {}).unfit : undefined;
+  if (typeof unfit === "string") {
+    console.error(`Error: ${garment}: the garment asset was exported with --force although ${unfit} (expected a ` +
+      "garment that sits on its body, or --force here too)");
+    process.exit(1);
+  }
   const r = flagForm
     // force: the API's own refusal is this command's, below, naming the motion file
     ? await animate(pkg, garment, motion, { batch, threads, effects, body: !!bodyOut, collisionMargin: margin, cloth,
@@ -95,8 +102,8 @@ try {
   // PC2 in frames, as `segadeform run` writes it: start 0, one sample per frame
   // a motion file cut from a longer one (motion export --frames 10:70) starts at its first frame's number, as run's
   const startFrame = (r.motionMeta && Number.isInteger(r.motionMeta.start_frame)) ? r.motionMeta.start_frame : 0;
-  const items = [{ path: out, bytes: pc2Bytes(r.frames, r.T, r.N, { startFrame }) }];
-  if (bodyOut) items.push({ path: bodyOut, bytes: pc2Bytes(r.body.vertices, r.body.T, r.body.V, { startFrame }) });
+  const items = [{ path: out, bytes: pc2Parts(r.frames, r.T, r.N, { startFrame }) }];
+  if (bodyOut) items.push({ path: bodyOut, bytes: pc2Parts(r.body.vertices, r.body.T, r.body.V, { startFrame }) });
   commitOutputs(items, inputs); // all or none
   const e = r.effects;
   const c = r.collisions, k = r.cloth;

@@ -674,6 +674,27 @@ export class ClothStage {
 }
 
 /**
+ * The cloth stage for one garment on one body, ready to step: the collider built on the body at rest (`restBody`
+ * V*3, `faces` F*3), each garment vertex's rest distance from it, and the per-garment set-up (clothSetup) of the
+ * garment's rest shape `rest` (N*3) and `garmentFaces`.  clothFrames' start, and the Node runtime's when it poses
+ * the body a batch of frames at a time (core.js Player).
+ */
+export function clothStart(restBody, faces, rest, garmentFaces, { settings = DEFAULT_CLOTH, margin = 0.004, dt = 1 / 30 } = {}) {
+  const rb = new Float64Array(restBody), rg = new Float64Array(rest);
+  const col = new BodyCollider(rb, faces);
+  const restSd = col.query(rb, rg).signedDistance;
+  const setup = clothSetup(rg, garmentFaces, restSd, settings.attachment, settings.max_distance);
+  return new ClothStage(setup, col, settings, { margin, dt });
+}
+
+/** Frames lo..hi-1 of `frames` (T*N*3 float32, changed in place) through `stage`; `bodyBatch`: the posed body of
+ * those frames ((hi - lo)*V*3). */
+export function clothStep(stage, frames, N, lo, hi, bodyBatch) {
+  const out = stage.step(new Float64Array(frames.subarray(lo * N * 3, hi * N * 3)), new Float64Array(bodyBatch), hi - lo);
+  frames.set(out, lo * N * 3); // float64 -> float32, rounded to nearest
+}
+
+/**
  * The cloth stage over a run's frames, as `segadeform run --effects=+cloth` does after the deformer: the garment's
  * setup on the body at rest, then `batch` frames at a time against the posed body.  frames (T*N*3 float32, changed in
  * place: computed in float64, rounded back), bodyVertices (T*V*3), faces (the body's, F*3), restBody (V*3: the body
@@ -687,16 +708,10 @@ export function clothFrames(frames, T, N, bodyVertices, V, faces, restBody, rest
       `${V * 3} and ${N * 3} values, got ${frames.length}, ${bodyVertices.length}, ${restBody.length} and ${rest.length})`);
   }
   const t0 = performance.now();
-  const rb = new Float64Array(restBody), rg = new Float64Array(rest);
-  const col = new BodyCollider(rb, faces);
-  const restSd = col.query(rb, rg).signedDistance;
-  const setup = clothSetup(rg, garmentFaces, restSd, settings.attachment, settings.max_distance);
-  const stage = new ClothStage(setup, col, settings, { margin, dt });
+  const stage = clothStart(restBody, faces, rest, garmentFaces, { settings, margin, dt });
   for (let lo = 0; lo < T; lo += batch) {
     const hi = Math.min(lo + batch, T);
-    const out = stage.step(new Float64Array(frames.subarray(lo * N * 3, hi * N * 3)),
-      new Float64Array(bodyVertices.subarray(lo * V * 3, hi * V * 3)), hi - lo);
-    frames.set(out, lo * N * 3); // float64 -> float32, rounded to nearest
+    clothStep(stage, frames, N, lo, hi, bodyVertices.subarray(lo * V * 3, hi * V * 3));
   }
   return { contacts: stage.contacts, pushed: stage.pushed, traced: stage.traced, resets: stage.resets, firstReset: stage.firstReset,
     msPerFrame: (performance.now() - t0) / Math.max(T, 1), settings, margin };

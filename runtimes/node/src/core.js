@@ -4,7 +4,7 @@
 // and motion files (.sgdm) is src/segadeform/bundle.py.  Collisions: collide.js (the port of the C kernel); the cloth
 // stage: cloth.js (the port of _cloth.c).
 
-import { clothFrames, DEFAULT_CLOTH, parseCloth } from "./cloth.js";
+import { clothFrames, clothStart, clothStep, DEFAULT_CLOTH, parseCloth } from "./cloth.js";
 import { BodyCollider, pushOutFrames } from "./collide.js";
 
 export { BodyCollider, clothFrames, DEFAULT_CLOTH, parseCloth, pushOutFrames };
@@ -300,39 +300,57 @@ export function readMotion(parsed, where = "motion file") {
 const f32 = (a) => (a instanceof Float32Array ? a : Float32Array.from(a));
 
 /**
- * The model inputs of a source, in one form: a scene bundle, or { asset, motion } (parsed .sgda and .sgdm).
- * Returns { features, nbr, mask, descriptor, betas, rest, joints, log_wbody, poses, trans, faces, N, K, S, T,
- * D, F, effects (the bundle's, else undefined), body (the asset's body label), fps }.
+ * The garment's model inputs of a source, in one form: a scene bundle, or { asset } (a parsed .sgda; a motion beside
+ * it is not read).  Returns { features, nbr, mask, descriptor, betas, rest, joints, log_wbody, faces, N, K, S, D (the
+ * values of one frame's pose), F, effects (the bundle's, else undefined), body (the asset's body label), asset }.
  */
-export function sceneInputs(source) {
+export function garmentInputs(source) {
   if (source.asset) {
-    const A = source.asset.arrays, M = source.motion.arrays, am = source.asset.meta, mm = source.motion.meta;
+    const A = source.asset.arrays, am = source.asset.meta;
     if (!A.betas || !A.log_wbody || !am.body) {
       throw new Error("the garment asset is not prepared for a body shape (expected a schema-2 asset with betas, " +
         "log_wbody and body: segadeform garment export GARMENT --betas ... -o G.sgda)");
     }
     const S = A.joints.shape[0];
-    if (M.poses.shape[1] !== S) throw new Error(`the motion has ${M.poses.shape[1]} joints, the garment asset ${S}`);
-    const warnings = [];
-    if (mm.body && mm.body.sha256 !== am.body.sha256) warnings.push("the motion was retargeted onto another body than the garment asset's");
-    if (mm.betas && mm.betas.some((b, i) => Math.abs(b - (A.betas.data[i] || 0)) > 1e-6)) { // (C++'s tolerance)
-      warnings.push("the motion was retargeted onto another body shape (betas) than the garment asset's");
-    }
     return {
       features: A.features.data, nbr: A.nbr.data, mask: A.mask.data, descriptor: f32(A.descriptor.data),
       betas: f32(A.betas.data), rest: f32(A.vertices.data), joints: f32(A.joints.data), log_wbody: A.log_wbody.data,
-      poses: M.poses.data, trans: M.trans.data, faces: A.faces.data, N: A.vertices.shape[0], K: A.nbr.shape[1], S,
-      T: M.poses.shape[0], D: 3 * S, F: A.features.shape[1], effects: undefined, body: am.body, fps: mm.fps, warnings,
+      faces: A.faces.data, N: A.vertices.shape[0], K: A.nbr.shape[1], S, D: 3 * S, F: A.features.shape[1],
+      effects: undefined, body: am.body, asset: source.asset,
     };
+  }
+  if (!source.arrays || !source.meta) {
+    throw new Error("expected a garment asset ({ asset }: readAsset(...)) or a scene bundle (parseBundle(...)), got " +
+      (source === null ? "null" : typeof source === "object" ? `an object with ${Object.keys(source).join(", ") || "no keys"}` : typeof source));
   }
   const { arrays: A, meta } = source;
   return {
     features: A.features.data, nbr: A.nbr.data, mask: A.mask.data, descriptor: A.descriptor.data, betas: A.betas.data,
-    rest: A.rest.data, joints: A.joints.data, log_wbody: A.log_wbody ? A.log_wbody.data : null, poses: A.poses.data,
-    trans: A.trans.data, faces: A.faces ? A.faces.data : null, N: A.rest.shape[0], K: A.nbr.shape[1],
-    S: A.joints.shape[0], T: A.poses.shape[0], D: A.poses.shape[1], F: A.features.shape[1], effects: meta.effects,
-    body: null, fps: meta.fps, warnings: [],
+    rest: A.rest.data, joints: A.joints.data, log_wbody: A.log_wbody ? A.log_wbody.data : null,
+    faces: A.faces ? A.faces.data : null, N: A.rest.shape[0], K: A.nbr.shape[1], S: A.joints.shape[0],
+    D: A.poses.shape[1], F: A.features.shape[1], effects: meta.effects, body: null, asset: null,
   };
+}
+
+/**
+ * The model inputs of a source, in one form: a scene bundle, or { asset, motion } (parsed .sgda and .sgdm).
+ * Returns garmentInputs' and { poses, trans, T, fps, warnings }.
+ */
+export function sceneInputs(source) {
+  const G = garmentInputs(source);
+  if (source.asset) {
+    if (!source.motion || !source.motion.arrays) throw new Error("a garment asset needs a motion (a parsed .sgdm)");
+    const M = source.motion.arrays, am = source.asset.meta, mm = source.motion.meta;
+    if (M.poses.shape[1] !== G.S) throw new Error(`the motion has ${M.poses.shape[1]} joints, the garment asset ${G.S}`);
+    const warnings = [];
+    if (mm.body && mm.body.sha256 !== am.body.sha256) warnings.push("the motion was retargeted onto another body than the garment asset's");
+    if (mm.betas && mm.betas.some((b, i) => Math.abs(b - (G.betas[i] || 0)) > 1e-6)) { // (C++'s tolerance)
+      warnings.push("the motion was retargeted onto another body shape (betas) than the garment asset's");
+    }
+    return { ...G, poses: M.poses.data, trans: M.trans.data, T: M.poses.shape[0], fps: mm.fps, warnings };
+  }
+  const { arrays: A, meta } = source;
+  return { ...G, poses: A.poses.data, trans: A.trans.data, T: A.poses.shape[0], fps: meta.fps, warnings: [] };
 }
 
 /** Feed for an input spec from a typed array, in the dtype the graph's manifest entry names (int32 indices become
@@ -358,111 +376,343 @@ function modelBetas(betas, nb) {
   return out;
 }
 
-/**
- * Animate a source with a package's graphs: a scene bundle, or { asset, motion } (parsed .sgda and .sgdm).
- * `session(spec)` returns an onnxruntime InferenceSession for a graph's manifest entry.
- * Returns { frames: Float32Array (T*N*3), T, N, msPerFrame, variant, effects, faces, fps, warnings }.
- * options: { effects (default: the bundle's, else defaultEffects), batch (8), force (false: a motion retargeted onto another
- * body or shape than the asset's is refused; true: played, with a warning) }.  With effects.collisions the frames
- * are the deformer's: the host pushes them out of the posed body afterwards (poseBodyWith, collideWith).
- */
-export async function animateWith(ort, manifest, source, session, options = {}) {
-  const I = sceneInputs(source);
-  // a motion made for another body or shape is refused, as `segadeform run` and the command lines refuse it (the
-  // API played it with a warning); options.force plays it, the warning kept
-  const other = I.warnings.find((w) => w.startsWith("the motion was retargeted onto another"));
-  if (other && !options.force) {
-    throw new Error(`${other} (expected a motion exported for the asset's body and betas: segadeform motion export ` +
-      "... --betas ..., or the option force: true)");
+/** Throw unless `options` holds only the keys of `allowed` (`where`: whose options), each of a usable value. */
+export function checkOptions(options, allowed, where) {
+  if (options === null || typeof options !== "object" || Array.isArray(options)) {
+    throw new Error(`${where}: options must be an object (got ${options === null ? "null" : typeof options})`);
   }
-  const effects = { collisions: false, cloth: false, ...(options.effects || I.effects || defaultEffects(manifest)) };
-  if (options.collisionMargin !== undefined) checkMargin(options.collisionMargin);
-  if ((effects.collisions || effects.cloth) && !hasBody(manifest)) {
-    throw new Error(`${effects.cloth ? "the cloth stage needs" : "collisions need"} the posed body, and the package has ` +
-      "no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
+  for (const k of Object.keys(options)) {
+    if (!allowed.includes(k)) throw new Error(`${where}: unknown option '${k}' (expected ${allowed.join(", ")})`);
   }
-  if (effects.cloth && !source.asset) {
-    throw new Error("the cloth stage needs a garment asset and a motion file (expected .sgda and .sgdm, got a scene bundle)");
-  }
-  const batch = options.batch || 8;
-  const encSpec = manifest.graphs.garment_encoder;
-  const { name: variant, spec: decSpec } = pickVariant(manifest, effects);
-  const enc = await session(encSpec);
-  const dec = await session(decSpec);
-  const { N, K, S, T, D } = I;
-  const inDec = Object.fromEntries(decSpec.inputs.map((i) => [i.name, i]));
-  const window = inDec.window.shape[1];
-  const nb = inDec.betas.shape[1];
-  const betasRow = modelBetas(I.betas, nb);
-  const t0 = performance.now();
-  // the encoder's inputs, fed by name (older encoders also take betas)
-  const encArrays = {
-    features: [I.features, [1, N, I.F]], nbr: [I.nbr, [N, K]], mask: [I.mask, [N, K]],
-    descriptor: [I.descriptor, [1, I.descriptor.length]], betas: [betasRow, [1, nb]],
-  };
-  const encFeeds = {};
-  for (const i of encSpec.inputs) {
-    if (!encArrays[i.name]) throw new Error(`the garment encoder takes '${i.name}', which this runtime cannot feed`);
-    encFeeds[i.name] = feed(ort, i, ...encArrays[i.name]);
-  }
-  const encOut = await enc.run(encFeeds);
-  // its one output, without the batch axis, is a deformer input of the same name: g (N, K S), K networks of an ensemble (older: P (N, S, F_enc))
-  const codeName = encSpec.outputs[0].name;
-  const code = encOut[codeName];
-  const codeT = new ort.Tensor("float32", await code.getData(), code.dims.slice(1));
-  const nbr = feed(ort, inDec.nbr, I.nbr, [N, K]);
-  const mask = feed(ort, inDec.mask, I.mask, [N, K]);
-  const rest = feed(ort, inDec.rest, I.rest, [N, 3]);
-  let lw = null;
-  if (inDec.log_wbody) {
-    if (!I.log_wbody) throw new Error("this model needs the body's weights at the garment (log_wbody), which the input lacks");
-    const want = manifest.config.weight_prior || "nearest", got = I.body ? I.body.weight_prior || "nearest" : want;
-    if (got !== want) {
-      throw new Error(`the garment asset's log_wbody was made with the ${got} weight prior, the model wants ${want} ` +
-        "(expected an asset from segadeform garment export --model PACKAGE)");
+  for (const k of ["batch", "threads"]) {
+    const v = options[k];
+    if (v !== undefined && !(Number.isInteger(v) && v >= 1 && v <= 1e6)) {
+      throw new Error(`${where}: option ${k} must be an integer >= 1 (got ${JSON.stringify(v)})`);
     }
-    lw = feed(ort, inDec.log_wbody, I.log_wbody, [N, S]);
   }
-  const frames = new Float32Array(T * N * 3);
-  for (let lo = 0; lo < T; lo += batch) {
-    const hi = Math.min(lo + batch, T);
-    const B = hi - lo;
-    // the motion window: frame t, t-1, ... t-window+1, frames before the first repeat the first
+  const m = options.collisionMargin;
+  if (m !== undefined && typeof m !== "number") {
+    throw new Error(`${where}: option collisionMargin must be a number of metres (got ${typeof m} ${JSON.stringify(m)})`);
+  }
+  const e = options.effects;
+  if (e !== undefined && e !== null && typeof e !== "string" && (typeof e !== "object" || Array.isArray(e))) {
+    throw new Error(`${where}: option effects must be a string such as "dqs,dynamics" or an object (got ${JSON.stringify(e)})`);
+  }
+  const f = options.fps;
+  if (f !== undefined && !(typeof f === "number" && f >= 1 && f <= 1000)) {
+    throw new Error(`${where}: option fps must be a frame rate (expected 1..1000, got ${JSON.stringify(f)})`);
+  }
+  return options;
+}
+
+/**
+ * A source's effects from options.effects: text as parseEffects reads it over the run's defaults (the bundle's, else
+ * defaultEffects), or an object naming what is on ({ skinning: "dqs", dynamics: true }: what it leaves out is off,
+ * lbs unless it names dqs).
+ */
+export function effectsOf(manifest, source, effects) {
+  const base = (source && !source.asset && source.meta && source.meta.effects) || defaultEffects(manifest);
+  if (typeof effects === "string") return { collisions: false, cloth: false, ...parseEffects(effects, base) };
+  if (!effects) return { collisions: false, cloth: false, ...base };
+  const keys = ["skinning", "dynamics", "wrinkles", "collisions", "cloth"];
+  for (const [k, v] of Object.entries(effects)) {
+    if (!keys.includes(k)) throw new Error(`unknown effect '${k}' (expected an object of ${keys.join(", ")})`);
+    if (k === "skinning" ? v !== "lbs" && v !== "dqs" : typeof v !== "boolean") {
+      throw new Error(`effect ${k} must be ${k === "skinning" ? '"lbs" or "dqs"' : "true or false"} (got ${JSON.stringify(v)})`);
+    }
+  }
+  return { skinning: "lbs", dynamics: false, wrinkles: false, collisions: false, cloth: false, ...effects };
+}
+
+/** The options Player.open takes (checkOptions). */
+export const PLAYER_OPTIONS = ["effects", "collisionMargin", "cloth", "fps", "batch", "body", "stages", "force"];
+
+/**
+ * A garment on a package, played a chunk of motion at a time: what a game loop, a network stream or a clip too long
+ * to hold needs.  The garment is encoded once; each push() runs the deformer on the motion window (the chunk's
+ * frames and the ones before it: the frames before the first repeat the first), then -- as the effects name them --
+ * the cloth stage or collisions against the body posed by the package's body graph, whose state (the stage's
+ * previous frames, the collider built on the first frame) carries over.  Pushing a motion in chunks gives the frames
+ * of one push of the whole, bit for bit when every chunk is a multiple of `batch` frames (batch 1 for a frame at a
+ * time); other chunks run the network on other batch sizes, which onnxruntime rounds differently (~1e-6 m), and a
+ * push-out in a crease of the body can turn that into another face (millimetres).  Memory is the chunk's, whatever
+ * the clip's length.
+ *
+ *   const p = await Player.open(ort, manifest, { asset }, session, { effects: "+cloth", fps: 30 });
+ *   const { frames } = await p.push(poses, trans);   // poses (B*S*3 axis-angle), trans (B*3) -> frames (B*N*3)
+ *   p.reset();                                       // a new clip: no history, the stage and collider anew
+ *
+ * `source`: { asset } (a checked .sgda; animate's { asset, motion } works too, its motion unused) or a scene bundle
+ * (its garment; push its poses).  `session(spec)`: an onnxruntime InferenceSession for a graph's manifest entry, made
+ * once by the caller.  options: effects (an object or "dqs,dynamics,..."/"+cloth"; default: the bundle's, else the
+ * model's own and collisions when the package has a body graph), collisionMargin (0.004 m), cloth (the stage's knobs:
+ * "iterations=8,..." or an object; DEFAULT_CLOTH), fps (the motion's frame rate: the cloth stage's time step; needed
+ * with cloth), batch (frames per graph run, 8), body (also return the posed body of every pushed frame), stages
+ * (false: the deformer alone, the host running collisions or cloth itself, as animateWith), force (play an asset
+ * exported with --force for a body it does not sit on; player.warnings says so).
+ */
+export class Player {
+  static async open(ort, manifest, source, session, options = {}) {
+    checkOptions(options, PLAYER_OPTIONS, "Player.open");
+    const p = new Player();
+    const G = garmentInputs(source);
+    // an asset exported with --force for a body it does not sit on: refused unless forced again, as `segadeform run`
+    // refuses it (it checks the fit itself)
+    p.warnings = [];
+    if (G.body && typeof G.body.unfit === "string") {
+      const why = `the garment asset was exported with --force although ${G.body.unfit}`;
+      if (!options.force) throw new Error(`${why} (expected a garment that sits on its body, or the option force: true)`);
+      p.warnings.push(why);
+    }
+    const effects = effectsOf(manifest, source, options.effects);
+    const margin = options.collisionMargin ?? DEFAULT_COLLISION_MARGIN;
+    if (options.collisionMargin !== undefined) checkMargin(options.collisionMargin);
+    if ((effects.collisions || effects.cloth) && !hasBody(manifest)) {
+      throw new Error(`${effects.cloth ? "the cloth stage needs" : "collisions need"} the posed body, and the package has ` +
+        "no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
+    }
+    if (effects.cloth && !source.asset) {
+      throw new Error("the cloth stage needs a garment asset and a motion file (expected .sgda and .sgdm, got a scene bundle)");
+    }
+    const stages = options.stages !== false;
+    if (options.cloth && !effects.cloth) {
+      throw new Error("the option cloth sets the cloth stage's knobs, but the stage is off (name cloth in the effects)");
+    }
+    if (stages && effects.cloth && options.fps === undefined) {
+      throw new Error("the cloth stage needs the motion's frame rate (expected the option fps, 1..1000)");
+    }
+    Object.assign(p, { ort, manifest, G, effects, margin, stages, batch: options.batch || 8, N: G.N, S: G.S, D: G.D,
+      faces: G.faces, fps: options.fps, wantBody: !!options.body });
+    p.settings = typeof options.cloth === "string" ? parseCloth(options.cloth) : options.cloth || DEFAULT_CLOTH;
+    const t0 = performance.now();
+    await p.#openDeformer(session);
+    p.msDeform = performance.now() - t0;
+    p.msBody = p.msAfter = 0;
+    p.frames = 0;
+    p.moved = 0;
+    p.poser = (stages && (effects.collisions || effects.cloth)) || p.wantBody
+      ? await bodyPoserWith(ort, manifest, G, session, { skinning: effects.skinning }) : null;
+    p.V = p.poser ? p.poser.V : 0;
+    if (stages && effects.cloth) p.rest = await p.poser.rest();
+    p.reset();
+    return p;
+  }
+
+  async #openDeformer(session) {
+    const { ort, manifest, G, effects } = this;
+    const { N, K, S } = G;
+    const encSpec = manifest.graphs.garment_encoder;
+    const { name: variant, spec: decSpec } = pickVariant(manifest, effects);
+    const enc = await session(encSpec);
+    this.dec = await session(decSpec);
+    this.variant = variant;
+    this.decSpec = decSpec;
+    const inDec = Object.fromEntries(decSpec.inputs.map((i) => [i.name, i]));
+    this.window = inDec.window.shape[1];
+    this.nb = inDec.betas.shape[1];
+    this.betasRow = modelBetas(G.betas, this.nb);
+    if (inDec.window.shape[2] !== undefined && typeof inDec.window.shape[2] === "number" && inDec.window.shape[2] !== G.D) {
+      throw new Error(`the deformer takes poses of ${inDec.window.shape[2]} values, the garment's body ${G.D}`);
+    }
+    // the encoder's inputs, fed by name (older encoders also take betas)
+    const encArrays = {
+      features: [G.features, [1, N, G.F]], nbr: [G.nbr, [N, K]], mask: [G.mask, [N, K]],
+      descriptor: [G.descriptor, [1, G.descriptor.length]], betas: [this.betasRow, [1, this.nb]],
+    };
+    const encFeeds = {};
+    for (const i of encSpec.inputs) {
+      if (!encArrays[i.name]) throw new Error(`the garment encoder takes '${i.name}', which this runtime cannot feed`);
+      encFeeds[i.name] = feed(ort, i, ...encArrays[i.name]);
+    }
+    const encOut = await enc.run(encFeeds);
+    // its one output, without the batch axis, is a deformer input of the same name: g (N, K S), K networks of an
+    // ensemble (older: P (N, S, F_enc))
+    this.codeName = encSpec.outputs[0].name;
+    const code = encOut[this.codeName];
+    const fixed = { [this.codeName]: new ort.Tensor("float32", await code.getData(), code.dims.slice(1)) };
+    fixed.nbr = feed(ort, inDec.nbr, G.nbr, [N, K]);
+    fixed.mask = feed(ort, inDec.mask, G.mask, [N, K]);
+    fixed.rest = feed(ort, inDec.rest, G.rest, [N, 3]);
+    if (inDec.log_wbody) {
+      if (!G.log_wbody) throw new Error("this model needs the body's weights at the garment (log_wbody), which the input lacks");
+      const want = manifest.config.weight_prior || "nearest", got = G.body ? G.body.weight_prior || "nearest" : want;
+      if (got !== want) {
+        throw new Error(`the garment asset's log_wbody was made with the ${got} weight prior, the model wants ${want} ` +
+          "(expected an asset from segadeform garment export --model PACKAGE)");
+      }
+      fixed.log_wbody = feed(ort, inDec.log_wbody, G.log_wbody, [N, S]);
+    }
+    this.fixed = fixed;
+  }
+
+  /** A new clip: no motion history; the cloth stage starts again from the network's frame, the collider anew. */
+  reset() {
+    this.prev = new Float32Array(0); // the last window - 1 poses pushed (fewer at the start)
+    this.seen = 0;
+    this.collider = null;
+    this.stage = null;
+    if (this.stages && this.effects.cloth) {
+      const t0 = performance.now();
+      const A = this.G.asset.arrays;
+      this.stage = clothStart(this.rest.vertices, this.rest.faces, A.vertices.data, A.faces.data,
+        { settings: this.settings, margin: this.margin, dt: 1.0 / this.fps });
+      this.msAfter += performance.now() - t0;
+    }
+  }
+
+  /**
+   * The next B frames of the motion: poses (B*D float32: axis-angle per joint, D = 3 S; written any way, they are
+   * read one way, as motion files are) and trans (B*3 metres).  Returns { frames (B*N*3), body (B*V*3) and joints
+   * (B*S*3: the posed body, with the option body; restJoints on the player), T: B }.
+   */
+  async push(poses, trans) {
+    const { D, N, V, ort } = this;
+    const P = Float32Array.from(poses), Tr = Float32Array.from(trans);
+    const B = P.length / D;
+    if (!Number.isInteger(B) || B < 1 || Tr.length !== 3 * B) {
+      throw new Error(`push: poses and trans do not fit (expected B*${D} and B*3 values, B >= 1, got ${P.length} and ` +
+        `${Tr.length})`);
+    }
+    for (let i = 0; i < P.length; i++) if (!Number.isFinite(P[i])) throw new Error(`push: poses contain NaN or inf (at value ${i})`);
+    for (let i = 0; i < Tr.length; i++) {
+      if (!(Math.abs(Tr[i]) <= 1e4)) throw new Error(`push: trans must be finite and within 10 km (got ${Tr[i]} at value ${i})`);
+    }
+    if (D === 3 * this.S) canonicalAxisAngle(P);
+    const frames = new Float32Array(B * N * 3);
+    const body = this.wantBody ? new Float32Array(B * V * 3) : null;
+    const joints = this.wantBody ? new Float32Array(B * this.S * 3) : null;
+    // the motion the windows read: the poses before this chunk, then the chunk (frame `first` at index 0)
+    const hist = this.prev.length / D, first = this.seen - hist;
+    const all = new Float32Array((hist + B) * D);
+    all.set(this.prev, 0);
+    all.set(P, hist * D);
+    for (let lo = 0; lo < B; lo += this.batch) {
+      const hi = Math.min(lo + this.batch, B);
+      let t0 = performance.now();
+      frames.set(await this.#deform(all, first, this.seen + lo, hi - lo, Tr.subarray(3 * lo, 3 * hi)), lo * N * 3);
+      this.msDeform += performance.now() - t0;
+      if (!this.poser) continue;
+      t0 = performance.now();
+      let b;
+      if (body) { // the joints too, as poseBodyWith gives them
+        const j = await this.poser.joints(P.subarray(lo * D, hi * D), Tr.subarray(3 * lo, 3 * hi), hi - lo);
+        b = j.vertices;
+        body.set(b, lo * V * 3);
+        joints.set(j.joints, lo * this.S * 3);
+        this.restJoints = j.restJoints;
+      } else {
+        b = await this.poser.pose(P.subarray(lo * D, hi * D), Tr.subarray(3 * lo, 3 * hi), hi - lo);
+      }
+      this.msBody += performance.now() - t0;
+      if (!this.stages) continue;
+      t0 = performance.now();
+      if (this.stage) {
+        clothStep(this.stage, frames, N, lo, hi, b);
+      } else if (this.effects.collisions) {
+        const c = pushOutFrames(frames.subarray(lo * N * 3, hi * N * 3), hi - lo, N, b, V, this.poser.faces(),
+          { margin: this.margin, iterations: 3, batch: hi - lo, collider: this.collider });
+        this.collider = c.collider;
+        this.moved += c.moved;
+      }
+      this.msAfter += performance.now() - t0;
+    }
+    this.seen += B;
+    const keep = Math.min(this.window - 1, hist + B);
+    this.prev = all.slice((hist + B - keep) * D);
+    this.frames += B;
+    return { frames, body, joints, T: B };
+  }
+
+  // B frames from global frame `g0`: the window of frame t is t, t-1, ... t-window+1 (before 0: frame 0)
+  async #deform(all, first, g0, B, trans) {
+    const { ort, D, S, nb, window } = this;
     const win = new Float32Array(B * window * D);
     for (let b = 0; b < B; b++) {
       for (let k = 0; k < window; k++) {
-        const src = Math.max(lo + b - k, 0);
-        win.set(I.poses.subarray(src * D, src * D + D), (b * window + k) * D);
+        const src = Math.max(g0 + b - k, 0) - first;
+        win.set(all.subarray(src * D, src * D + D), (b * window + k) * D);
       }
     }
     const betas = new Float32Array(B * nb);
     const joints = new Float32Array(B * S * 3);
     for (let b = 0; b < B; b++) {
-      betas.set(betasRow, b * nb);
-      joints.set(I.joints, b * S * 3);
+      betas.set(this.betasRow, b * nb);
+      joints.set(this.G.joints, b * S * 3);
     }
-    const feeds = {
-      [codeName]: codeT, window: new ort.Tensor("float32", win, [B, window, D]),
-      betas: new ort.Tensor("float32", betas, [B, nb]), rest, nbr, mask,
-      joints: new ort.Tensor("float32", joints, [B, S, 3]),
-      trans: new ort.Tensor("float32", I.trans.slice(lo * 3, hi * 3), [B, 3]),
-    };
-    if (lw) feeds.log_wbody = lw;
-    const out = await dec.run(feeds);
-    frames.set(await out[decSpec.outputs[0].name].getData(), lo * N * 3);
+    const out = await this.dec.run({
+      ...this.fixed, window: new ort.Tensor("float32", win, [B, window, D]),
+      betas: new ort.Tensor("float32", betas, [B, nb]), joints: new ort.Tensor("float32", joints, [B, S, 3]),
+      trans: new ort.Tensor("float32", Float32Array.from(trans), [B, 3]),
+    });
+    return out[this.decSpec.outputs[0].name].getData();
   }
-  const ms = (performance.now() - t0) / T;
-  return { frames, T, N, msPerFrame: ms, variant, effects, faces: I.faces, fps: I.fps, warnings: I.warnings };
+
+  /** What the stages did so far: { contacts, pushed, traced, resets, firstReset } of the cloth stage, or { moved }. */
+  get counts() {
+    const s = this.stage;
+    if (s) return { contacts: s.contacts, pushed: s.pushed, traced: s.traced, resets: s.resets, firstReset: s.firstReset };
+    return { moved: this.moved };
+  }
 }
 
 /**
- * Pose the body with the package's body graph for `skinning` (docs/package.md: betas (|beta|,), poses (B, S, 3),
- * trans (B, 3) in; vertices (B, V, 3), joints (B, S, 3), rest_joints (S, 3), faces (F, 3) out), over a source's
- * motion and body shape.  Returns { vertices (T*V*3), joints (T*S*3), restJoints, faces, V, T, msPerFrame, graph },
- * or throws when the package has no body graph or the garment asset was prepared for another body.
+ * Animate a source with a package's graphs: a scene bundle, or { asset, motion } (parsed .sgda and .sgdm): the
+ * deformer alone (a Player without its stages, the whole motion pushed).  `session(spec)` returns an onnxruntime
+ * InferenceSession for a graph's manifest entry.
+ * Returns { frames: Float32Array (T*N*3), T, N, msPerFrame, variant, effects, faces, fps, warnings }.
+ * options: { effects (default: the bundle's, else defaultEffects), collisionMargin (checked), batch (8), force
+ * (false: a motion retargeted onto another body or shape than the asset's is refused; true: played, with a
+ * warning) }.  With effects.collisions the frames are the deformer's: the host pushes them out of the posed body
+ * afterwards (poseBodyWith, collideWith); playWith runs them.
  */
-export async function poseBodyWith(ort, manifest, source, session, { skinning = "lbs", batch = 8 } = {}) {
+export async function animateWith(ort, manifest, source, session, options = {}) {
+  const { force, ...rest } = checkOptions(options, ["effects", "collisionMargin", "batch", "force"], "animateWith");
+  return playWith(ort, manifest, source, session, { ...rest, force, stages: false });
+}
+
+/**
+ * Animate a source with a package's graphs and run the stages its effects name (collisions, the cloth stage) a batch
+ * of frames at a time: the posed body is never held whole unless options.body asks for it.  options: Player.open's
+ * and force (animateWith's).  Returns animateWith's result, and body ({ vertices (T*V*3), joints (T*S*3), restJoints,
+ * faces, V, T, msPerFrame, graph }, with options.body), collisions ({ moved, msPerFrame, margin }) or cloth ({ contacts, pushed, traced,
+ * resets, firstReset, msPerFrame, settings, margin }).
+ */
+export async function playWith(ort, manifest, source, session, options = {}) {
+  const { force, ...rest } = checkOptions(options, PLAYER_OPTIONS, "playWith");
   const I = sceneInputs(source);
+  // a motion made for another body or shape is refused, as `segadeform run` and the command lines refuse it (the
+  // API played it with a warning); options.force plays it, the warning kept
+  const other = I.warnings.find((w) => w.startsWith("the motion was retargeted onto another"));
+  if (other && !force) {
+    throw new Error(`${other} (expected a motion exported for the asset's body and betas: segadeform motion export ` +
+      "... --betas ..., or the option force: true)");
+  }
+  const p = await Player.open(ort, manifest, source, session, { ...rest, force, fps: I.fps });
+  const r = await p.push(I.poses, I.trans);
+  const T = I.T, perFrame = (ms) => ms / Math.max(T, 1);
+  const out = { frames: r.frames, T, N: I.N, msPerFrame: perFrame(p.msDeform), variant: p.variant, effects: p.effects,
+    faces: I.faces, fps: I.fps, warnings: [...p.warnings, ...I.warnings] };
+  if (options.body) {
+    out.body = { vertices: r.body, joints: r.joints, restJoints: p.restJoints, V: p.V, T, faces: p.poser.faces(),
+      msPerFrame: perFrame(p.msBody), graph: p.poser.name };
+  }
+  if (p.stages && p.effects.cloth) {
+    out.cloth = { ...p.counts, msPerFrame: perFrame(p.msAfter), settings: p.settings, margin: p.margin };
+  } else if (p.stages && p.effects.collisions) {
+    out.collisions = { moved: p.moved, msPerFrame: perFrame(p.msAfter), margin: p.margin };
+  }
+  return out;
+}
+
+/**
+ * The package's body graph for `skinning` over a garment's body shape (`inputs`: garmentInputs' or sceneInputs'),
+ * run a batch of frames at a time.  Returns { name, V, S, pose(poses, trans, B) -> vertices (B*V*3), joints(poses,
+ * trans, B) -> { vertices, joints (B*S*3), restJoints (S*3) }, rest() -> { vertices (V*3), faces } (zero pose, no
+ * translation), faces() }.  Throws when the package has no body graph or the garment asset was prepared for another
+ * body.
+ */
+export async function bodyPoserWith(ort, manifest, inputs, session, { skinning = "lbs" } = {}) {
+  const I = inputs;
   const picked = pickBody(manifest, skinning);
   if (!picked) throw new Error("the package has no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
   const { name, spec } = picked;
@@ -475,24 +725,49 @@ export async function poseBodyWith(ort, manifest, source, session, { skinning = 
   const V = spec.outputs[0].shape[1], S = spec.inputs[1].shape[1];
   if (S !== I.S) throw new Error(`the body graph poses ${S} joints, the motion has ${I.S}`);
   const betas = feed(ort, spec.inputs[0], modelBetas(I.betas, nb), [nb]);
-  const { T } = I;
+  let faces = null;
+  const run = async (poses, trans, B) => {
+    const out = await sess.run({
+      betas, poses: new ort.Tensor("float32", Float32Array.from(poses), [B, S, 3]),
+      trans: new ort.Tensor("float32", Float32Array.from(trans), [B, 3]),
+    });
+    if (!faces) faces = Int32Array.from(await out.faces.getData());
+    return out;
+  };
+  const joints = async (poses, trans, B) => {
+    const out = await run(poses, trans, B);
+    return { vertices: await out.vertices.getData(), joints: await out.joints.getData(),
+      restJoints: Float32Array.from(await out.rest_joints.getData()) };
+  };
+  const pose = async (poses, trans, B) => (await run(poses, trans, B)).vertices.getData();
+  const rest = async () => ({ vertices: Float32Array.from(await pose(new Float32Array(S * 3), new Float32Array(3), 1)),
+    faces });
+  return { name, V, S, pose, joints, rest, faces: () => faces };
+}
+
+/**
+ * Pose the body with the package's body graph for `skinning` (docs/package.md: betas (|beta|,), poses (B, S, 3),
+ * trans (B, 3) in; vertices (B, V, 3), joints (B, S, 3), rest_joints (S, 3), faces (F, 3) out), over a source's
+ * motion and body shape.  Returns { vertices (T*V*3), joints (T*S*3), restJoints, faces, V, T, msPerFrame, graph },
+ * or throws when the package has no body graph or the garment asset was prepared for another body.  Every frame is
+ * held (T*V*3 float32: 1.6 GB for 10,000 frames of the default body); a Player keeps a batch at a time.
+ */
+export async function poseBodyWith(ort, manifest, source, session, { skinning = "lbs", batch = 8 } = {}) {
+  const I = sceneInputs(source);
+  const poser = await bodyPoserWith(ort, manifest, I, session, { skinning });
+  const { V, S } = poser, T = I.T;
   const vertices = new Float32Array(T * V * 3), joints = new Float32Array(T * S * 3);
-  let restJoints = null, faces = null;
+  let restJoints = null;
   const t0 = performance.now();
   for (let lo = 0; lo < T; lo += batch) {
     const hi = Math.min(lo + batch, T);
-    const out = await sess.run({
-      betas, poses: new ort.Tensor("float32", I.poses.slice(lo * S * 3, hi * S * 3), [hi - lo, S, 3]),
-      trans: new ort.Tensor("float32", I.trans.slice(lo * 3, hi * 3), [hi - lo, 3]),
-    });
-    vertices.set(await out.vertices.getData(), lo * V * 3);
-    joints.set(await out.joints.getData(), lo * S * 3);
-    if (!restJoints) {
-      restJoints = Float32Array.from(await out.rest_joints.getData());
-      faces = Int32Array.from(await out.faces.getData());
-    }
+    const b = await poser.joints(I.poses.subarray(lo * S * 3, hi * S * 3), I.trans.subarray(lo * 3, hi * 3), hi - lo);
+    vertices.set(b.vertices, lo * V * 3);
+    joints.set(b.joints, lo * S * 3);
+    restJoints = restJoints || b.restJoints;
   }
-  return { vertices, joints, restJoints, faces, V, T, msPerFrame: (performance.now() - t0) / T, graph: name };
+  return { vertices, joints, restJoints, faces: poser.faces(), V, T, msPerFrame: (performance.now() - t0) / T,
+    graph: poser.name };
 }
 
 /**
@@ -500,17 +775,8 @@ export async function poseBodyWith(ort, manifest, source, session, { skinning = 
  * betas), V*3 float32: what the cloth stage measures each garment vertex's rest distance from, as `segadeform run`.
  */
 export async function restBodyWith(ort, manifest, source, session, { skinning = "lbs" } = {}) {
-  const I = sceneInputs(source);
-  const picked = pickBody(manifest, skinning);
-  if (!picked) throw new Error("the package has no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
-  const sess = await session(picked.spec);
-  const nb = picked.spec.inputs[0].shape[0], S = picked.spec.inputs[1].shape[1];
-  const out = await sess.run({
-    betas: feed(ort, picked.spec.inputs[0], modelBetas(I.betas, nb), [nb]),
-    poses: new ort.Tensor("float32", new Float32Array(S * 3), [1, S, 3]),
-    trans: new ort.Tensor("float32", new Float32Array(3), [1, 3]),
-  });
-  return Float32Array.from(await out.vertices.getData());
+  const poser = await bodyPoserWith(ort, manifest, garmentInputs(source), session, { skinning });
+  return (await poser.rest()).vertices;
 }
 
 /**
@@ -562,9 +828,9 @@ export function compareFrames(got, expected) {
   return { maxAbs, rel: maxAbs / maxRef, finite, sameLength: got.length === expected.length };
 }
 
-/** PC2 point-cache bytes (header + T*N*3 float32 little-endian) for frames. */
-export function pc2Bytes(frames, T, N, { startFrame = 0, sampleRate = 1 } = {}) {
-  const out = new Uint8Array(32 + frames.byteLength);
+/** The 32-byte header of a PC2 point cache of T frames of N points. */
+export function pc2Header(T, N, { startFrame = 0, sampleRate = 1 } = {}) {
+  const out = new Uint8Array(32);
   const dv = new DataView(out.buffer);
   const sig = "POINTCACHE2\0";
   for (let i = 0; i < sig.length; i++) out[i] = sig.charCodeAt(i);
@@ -573,6 +839,19 @@ export function pc2Bytes(frames, T, N, { startFrame = 0, sampleRate = 1 } = {}) 
   dv.setFloat32(20, startFrame, true);
   dv.setFloat32(24, sampleRate, true);
   dv.setInt32(28, T, true);
+  return out;
+}
+
+/** A PC2 point cache of frames (T*N*3 float32, little-endian) as [header, the frames' bytes] (no copy: what the
+ * Node CLI writes part by part). */
+export function pc2Parts(frames, T, N, opts = {}) {
+  return [pc2Header(T, N, opts), new Uint8Array(frames.buffer, frames.byteOffset, frames.byteLength)];
+}
+
+/** PC2 point-cache bytes (header + T*N*3 float32 little-endian) for frames, in one buffer. */
+export function pc2Bytes(frames, T, N, opts = {}) {
+  const out = new Uint8Array(32 + frames.byteLength);
+  out.set(pc2Header(T, N, opts), 0);
   out.set(new Uint8Array(frames.buffer, frames.byteOffset, frames.byteLength), 32);
   return out;
 }

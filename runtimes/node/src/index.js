@@ -6,14 +6,14 @@ import { createHash } from "node:crypto";
 import { join } from "node:path";
 import * as ort from "onnxruntime-node";
 import {
-  animateWith, BodyCollider, clothWith, collideWith, compareFrames, DEFAULT_CLOTH, DEFAULT_COLLISION_MARGIN,
-  defaultEffects, parseBundle, parseCloth, parseEffects, pc2Bytes, pickBody, pickVariant, poseBodyWith, pushOutFrames,
-  readAsset as checkAsset, readManifest, readMotion as checkMotion, restBodyWith,
+  BodyCollider, checkOptions, compareFrames, DEFAULT_CLOTH, DEFAULT_COLLISION_MARGIN, defaultEffects, parseBundle,
+  parseCloth, parseEffects, pc2Bytes, pickBody, pickVariant, Player, PLAYER_OPTIONS, playWith, pushOutFrames,
+  readAsset as checkAsset, readManifest, readMotion as checkMotion,
 } from "./core.js";
 
 export { parseBundle, readBundle } from "./bundle.js";
 export {
-  BodyCollider, compareFrames, DEFAULT_CLOTH, DEFAULT_COLLISION_MARGIN, defaultEffects, parseCloth, parseEffects,
+  BodyCollider, compareFrames, DEFAULT_CLOTH, Player, DEFAULT_COLLISION_MARGIN, defaultEffects, parseCloth, parseEffects,
   pickBody, pickVariant, pushOutFrames,
 };
 
@@ -49,66 +49,110 @@ export function readMotion(path) {
   return checkMotion(readContainer(path), path);
 }
 
-function sessions(dir, options) {
-  const so = { intraOpNumThreads: options.threads || 1, interOpNumThreads: 1, executionProviders: ["cpu"] };
+// onnxruntime sessions of a package's graphs, each made once: session(spec) -> InferenceSession; release() frees
+// them all (they hold native memory the garbage collector does not see: 150 animate() calls grew to 1.8 GB before)
+function sessions(dir, { threads = 1 } = {}) {
+  const so = { intraOpNumThreads: threads, interOpNumThreads: 1, executionProviders: ["cpu"] };
   const made = new Map();
   // sessions from the file path: graphs may keep their weights in the package's shared weights.bin
-  return (spec) => {
+  const session = (spec) => {
     if (!made.has(spec.file)) made.set(spec.file, ort.InferenceSession.create(join(dir, spec.file), so));
     return made.get(spec.file);
   };
+  session.release = async () => {
+    const all = [...made.values()];
+    made.clear();
+    for (const p of all) {
+      try {
+        await (await p).release();
+      } catch {
+        // a session that failed to load has nothing to free
+      }
+    }
+  };
+  return session;
 }
+
+function garmentSource(garment, motion, options) {
+  if (typeof garment === "string" && !garment.endsWith(".sgdb")) garment = readAsset(garment);
+  if (typeof garment === "string") garment = readContainer(garment);
+  if (garment instanceof Uint8Array || garment === null || typeof garment !== "object") {
+    throw new Error("expected a garment asset (a .sgda path or readAsset(...)) or a scene bundle (a .sgdb path or " +
+      `readBundle(...)), got ${garment === null ? "null" : garment instanceof Uint8Array ? "bytes (parse them with " +
+      "parseBundle first)" : typeof garment}`);
+  }
+  if (garment.meta && garment.meta.kind === "segadeform-garment-asset") {
+    if (typeof motion === "string") motion = readMotion(motion);
+    else if (!motion || !motion.arrays) throw new Error("a garment asset needs a motion (a .sgdm path or readMotion(...))");
+    else checkMotion(motion);
+    return { source: { asset: checkAsset(garment), motion }, options };
+  }
+  if (!garment.arrays || !garment.meta) throw new Error("expected a garment asset or a scene bundle (readAsset, readBundle)");
+  return { source: garment, options: motion && !motion.arrays ? motion : options };
+}
+
+const ANIMATE_OPTIONS = ["effects", "collisionMargin", "cloth", "batch", "threads", "body", "force"];
 
 /**
  * Animate a garment with a package:
  *   animate(dir, garment, motion, options)  garment: a .sgda path or readAsset(...); motion: a .sgdm path or readMotion(...)
  *   animate(dir, bundle, options)           bundle: a .sgdb path or readBundle(...) (the Python runtime's scene)
  * Returns { frames: Float32Array (T*N*3), T, N, msPerFrame, variant, effects, faces, fps, warnings } and, with
- * options.body, body: { vertices (T*V*3), joints, restJoints, faces, V, T, msPerFrame, graph } (the package's body
- * graph, with the garment's skinning); with collisions in the effects, the frames pushed out of that body and
- * collisions: { moved (vertex-frames moved), msPerFrame, margin }; with cloth in the effects, the cloth stage's frames
- * instead (cloth.js; contact included, no push-out) and cloth: { contacts, pushed, traced, resets, firstReset, msPerFrame }.
+ * options.body, body: { vertices (T*V*3), joints, restJoints, faces, V, T, msPerFrame, graph } (the package's body graph, with the
+ * garment's skinning); with collisions in the effects, the frames pushed out of that body and collisions: { moved
+ * (vertex-frames moved), msPerFrame, margin }; with cloth in the effects, the cloth stage's frames instead (cloth.js;
+ * contact included, no push-out) and cloth: { contacts, pushed, traced, resets, firstReset, msPerFrame }.
  * options: { effects (an object or "dqs,dynamics,wrinkles,collisions[,cloth]"; default: a bundle's, else the model's
  * own and collisions when the package has a body graph), collisionMargin (metres, 0.004), cloth (the stage's knobs:
  * an object or "iterations=8,..."; DEFAULT_CLOTH), batch (8), threads (1), body (false), force (false: a motion
- * retargeted onto another body or shape than the asset's is refused, as `segadeform run` refuses it) }.
+ * retargeted onto another body or shape than the asset's is refused, as `segadeform run` refuses it) }; any other key
+ * is refused.  The package is loaded and its sessions freed on every call: to play many clips or a motion that
+ * arrives a chunk at a time, open() a Player once.  The posed body is held a batch of frames at a time (all of it
+ * only with options.body).
  */
 export async function animate(dir, garment, motion, options = {}) {
-  let source;
-  if (typeof garment === "string" && !garment.endsWith(".sgdb")) garment = readAsset(garment);
-  if (typeof garment === "string") garment = readContainer(garment);
-  if (garment.meta && garment.meta.kind === "segadeform-garment-asset") {
-    if (typeof motion === "string") motion = readMotion(motion);
-    else if (!motion || !motion.arrays) throw new Error("a garment asset needs a motion (a .sgdm path or readMotion(...))");
-    else checkMotion(motion);
-    source = { asset: checkAsset(garment), motion };
-  } else {
-    if (motion && !motion.arrays) options = motion;
-    source = garment;
-  }
+  const g = garmentSource(garment, motion, options);
+  const { source } = g;
+  const { threads, ...rest } = checkOptions(g.options, ANIMATE_OPTIONS, "animate");
   const manifest = loadManifest(dir);
-  // signed changes ("+cloth", "-wrinkles") are to the run's default effects, as in `segadeform run`
-  if (typeof options.effects === "string") {
-    options = { ...options, effects: parseEffects(options.effects, defaultEffects(manifest)) };
+  const session = sessions(dir, { threads });
+  try {
+    const r = await playWith(ort, manifest, source, session, rest);
+    if (source.motion) r.motionMeta = source.motion.meta;
+    else if (source.meta && Number.isInteger(source.meta.start_frame)) r.motionMeta = { start_frame: source.meta.start_frame };
+    return r;
+  } finally {
+    await session.release();
   }
-  const session = sessions(dir, options);
-  const r = await animateWith(ort, manifest, source, session, options);
-  if (source.motion) r.motionMeta = source.motion.meta;
-  else if (source.meta && Number.isInteger(source.meta.start_frame)) r.motionMeta = { start_frame: source.meta.start_frame };
-  if (options.body || r.effects.collisions || r.effects.cloth) {
-    const body = await poseBodyWith(ort, manifest, source, session, { skinning: r.effects.skinning, batch: options.batch });
-    if (options.body) r.body = body;
-    if (r.effects.cloth) {
-      const rest = await restBodyWith(ort, manifest, source, session, { skinning: r.effects.skinning });
-      const settings = typeof options.cloth === "string" ? parseCloth(options.cloth) : options.cloth || DEFAULT_CLOTH;
-      r.cloth = clothWith(r, body, rest, source, { settings, margin: options.collisionMargin ?? DEFAULT_COLLISION_MARGIN,
-        batch: options.batch });
-    } else if (r.effects.collisions) {
-      r.collisions = collideWith(r, body, { margin: options.collisionMargin ?? DEFAULT_COLLISION_MARGIN,
-        batch: options.batch });
-    }
+}
+
+/**
+ * A garment on a package, opened once and played a chunk of motion at a time (core.js Player: push(poses, trans) ->
+ * { frames }, reset(), counts), for a game loop, a stream, or many clips without loading the package each time:
+ *   const p = await open(dir, "skirt.sgda", { effects: "+cloth", fps: 30 });
+ *   const { frames } = await p.push(poses, trans);   // B frames: poses (B*S*3), trans (B*3) -> frames (B*N*3)
+ *   await p.close();                                 // frees the sessions
+ * garment: a .sgda path or readAsset(...), or a .sgdb path or readBundle(...) (its garment).  options: Player.open's
+ * (effects, collisionMargin, cloth, fps, batch, body) and threads (1).  A motion file's poses and fps fit as they are:
+ * readMotion(path).arrays.poses.data, .trans.data and .meta.fps.
+ */
+export async function open(dir, garment, options = {}) {
+  if (typeof garment === "string") garment = garment.endsWith(".sgdb") ? readContainer(garment) : readAsset(garment);
+  if (garment === null || typeof garment !== "object" || !garment.meta) {
+    throw new Error("expected a garment asset (a .sgda path or readAsset(...)) or a scene bundle (a .sgdb path or readBundle(...))");
   }
-  return r;
+  const source = garment.meta.kind === "segadeform-garment-asset" ? { asset: checkAsset(garment) } : garment;
+  const { threads, ...rest } = checkOptions(options, [...PLAYER_OPTIONS.filter((k) => k !== "stages"), "threads"], "open");
+  const manifest = loadManifest(dir);
+  const session = sessions(dir, { threads });
+  try {
+    const p = await Player.open(ort, manifest, source, session, rest);
+    p.close = () => session.release();
+    return p;
+  } catch (e) {
+    await session.release();
+    throw e;
+  }
 }
 
 /** Write frames (T*N*3 float32) as a PC2 point cache, atomically. */

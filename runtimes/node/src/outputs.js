@@ -8,7 +8,9 @@
 // * The outputs are written to hidden temporaries beside them and renamed only once every one is written, so a run
 //   that fails leaves none of them; then the manifest records them (the same format and kind as Python's `run`, so
 //   either runtime may replace the other's output).
-import { existsSync, lstatSync, mkdirSync, readFileSync, renameSync, statSync, unlinkSync, writeFileSync } from "node:fs";
+import {
+  closeSync, existsSync, lstatSync, mkdirSync, openSync, readFileSync, renameSync, statSync, unlinkSync, writeFileSync, writeSync,
+} from "node:fs";
 import { basename, dirname, join, resolve } from "node:path";
 
 export const MANIFEST_NAME = ".segadeform-outputs.json";
@@ -119,7 +121,8 @@ export function claimOutputs(outputs, inputs) {
 }
 
 /**
- * Write `items` ([{path, bytes}]) after claimOutputs: each to a hidden temporary beside it (missing folders made),
+ * Write `items` ([{path, bytes}]; bytes: a Uint8Array, or an array of them written one after another, so that a
+ * large cache is not copied into one buffer first) after claimOutputs: each to a hidden temporary beside it (missing folders made),
  * then, once all are written, each renamed into place and the folders' manifests updated.  A failure before the
  * renames leaves no output; the claims are checked again just before them (a file that appeared meanwhile).
  */
@@ -130,7 +133,16 @@ export function commitOutputs(items, inputs = []) {
       mkdirSync(dirname(resolve(path)), { recursive: true });
       const tmp = join(dirname(path), `.${basename(path)}.tmp-${process.pid}`);
       temps.push(tmp);
-      writeFileSync(tmp, bytes);
+      if (Array.isArray(bytes)) {
+        const fd = openSync(tmp, "w");
+        try {
+          for (const part of bytes) writeSync(fd, part);
+        } finally {
+          closeSync(fd);
+        }
+      } else {
+        writeFileSync(tmp, bytes);
+      }
     }
     claimOutputs(items.map((i) => i.path), inputs);
   } catch (e) {

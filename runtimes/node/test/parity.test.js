@@ -4,7 +4,7 @@
 // and SEGADEFORM_EFFECTS the second (tests/runtimes/test_engines.py sets them).
 import { test } from "node:test";
 import assert from "node:assert/strict";
-import { readBundle, animate, parseBundle, compareFrames, parseEffects } from "../src/index.js";
+import { readBundle, animate, open, parseBundle, compareFrames, parseEffects, readMotion } from "../src/index.js";
 
 const env = process.env;
 const pkg = env.SEGADEFORM_PACKAGE;
@@ -54,4 +54,71 @@ test("asset + motion frames and the posed body match `segadeform run`", { skip: 
   assert.ok(b.sameLength && b.finite && b.rel <= 1e-5, `body relative error ${b.rel}`);
   assert.equal(r.body.faces.length % 3, 0);
   assert.equal(r.body.restJoints.length, 72);
+});
+
+const assetSkip = !pkg || !env.SEGADEFORM_GARMENT ? "set SEGADEFORM_GARMENT, SEGADEFORM_MOTION, SEGADEFORM_CHECK" : false;
+
+test("a Player fed the motion in chunks gives animate's frames, and the stages' counts", { skip: assetSkip }, async () => {
+  const m = readMotion(env.SEGADEFORM_MOTION);
+  const P = m.arrays.poses.data, Tr = m.arrays.trans.data, T = m.arrays.poses.shape[0], D = m.arrays.poses.shape[1] * 3;
+  for (const effects of [env.SEGADEFORM_EFFECTS, `${env.SEGADEFORM_EFFECTS},collisions`, `${env.SEGADEFORM_EFFECTS},cloth`]) {
+    const whole = await animate(pkg, env.SEGADEFORM_GARMENT, env.SEGADEFORM_MOTION, { batch: 4, effects });
+    for (const chunk of [4, 8, 3, 1]) {
+      const p = await open(pkg, env.SEGADEFORM_GARMENT, { batch: 4, effects, fps: m.meta.fps });
+      const got = new Float32Array(T * p.N * 3);
+      for (let lo = 0; lo < T; lo += chunk) {
+        const hi = Math.min(lo + chunk, T);
+        const r = await p.push(P.subarray(lo * D, hi * D), Tr.subarray(lo * 3, hi * 3));
+        assert.equal(r.frames.length, (hi - lo) * p.N * 3);
+        got.set(r.frames, lo * p.N * 3);
+      }
+      const c = compareFrames(got, whole.frames);
+      // the same batches (chunks of a multiple of batch): bit for bit; others: onnxruntime's rounding of another
+      // batch size (~1e-6 m), which a push-out in a crease of the body can turn into another face (millimetres)
+      if (chunk % 4 === 0) assert.equal(c.maxAbs, 0, `${effects} in chunks of ${chunk}: ${c.maxAbs} m`);
+      else if (effects === env.SEGADEFORM_EFFECTS) assert.ok(c.finite && c.maxAbs < 2e-5, `${effects} in chunks of ${chunk}: ${c.maxAbs} m`);
+      else assert.ok(c.finite && c.maxAbs < 0.02, `${effects} in chunks of ${chunk}: ${c.maxAbs} m`);
+      if (whole.collisions) assert.equal(p.counts.moved, whole.collisions.moved);
+      if (whole.cloth && chunk % 4 === 0) assert.equal(p.counts.contacts, whole.cloth.contacts);
+      // a new clip after reset(): the first chunk's frames again
+      p.reset();
+      const again = await p.push(P.subarray(0, 4 * D), Tr.subarray(0, 12));
+      assert.equal(compareFrames(again.frames, whole.frames.subarray(0, again.frames.length)).maxAbs, 0);
+      await p.close();
+    }
+  }
+});
+
+test("a Player with batch 1 fed one frame at a time gives animate's frames with batch 1, stages included", { skip: assetSkip }, async () => {
+  const m = readMotion(env.SEGADEFORM_MOTION);
+  const P = m.arrays.poses.data, Tr = m.arrays.trans.data, T = m.arrays.poses.shape[0], D = m.arrays.poses.shape[1] * 3;
+  for (const effects of [`${env.SEGADEFORM_EFFECTS},collisions`, `${env.SEGADEFORM_EFFECTS},cloth`]) {
+    const whole = await animate(pkg, env.SEGADEFORM_GARMENT, env.SEGADEFORM_MOTION, { batch: 1, effects });
+    const p = await open(pkg, env.SEGADEFORM_GARMENT, { batch: 1, effects, fps: m.meta.fps });
+    const got = new Float32Array(T * p.N * 3);
+    for (let t = 0; t < T; t++) got.set((await p.push(P.subarray(t * D, t * D + D), Tr.subarray(t * 3, t * 3 + 3))).frames, t * p.N * 3);
+    await p.close();
+    assert.equal(compareFrames(got, whole.frames).maxAbs, 0, effects);
+  }
+});
+
+test("the API's options are checked: a typo or a wrong type is an error naming it", { skip: assetSkip }, async () => {
+  const run = (o) => animate(pkg, env.SEGADEFORM_GARMENT, env.SEGADEFORM_MOTION, o);
+  await assert.rejects(run({ efects: "lbs" }), /unknown option 'efects'/);
+  await assert.rejects(run({ batch: 0 }), /option batch must be an integer >= 1 \(got 0\)/);
+  await assert.rejects(run({ batch: 2.5 }), /option batch must be an integer/);
+  await assert.rejects(run({ threads: "2" }), /option threads must be an integer/);
+  await assert.rejects(run({ collisionMargin: "0.01" }), /collisionMargin must be a number of metres \(got string/);
+  await assert.rejects(run({ effects: ["lbs"] }), /option effects must be a string/);
+  await assert.rejects(run({ effects: { skinning: "lbs", wrinkle: true } }), /unknown effect 'wrinkle'/);
+  await assert.rejects(run({ effects: "lbs", cloth: "iterations=2" }), /cloth stage's knobs, but the stage is off/);
+  await assert.rejects(animate(pkg, new Uint8Array(8), env.SEGADEFORM_MOTION), /got bytes \(parse them with parseBundle/);
+  await assert.rejects(open(pkg, env.SEGADEFORM_GARMENT, { effects: "+cloth" }), /needs the motion's frame rate/);
+  // an effects object names what is on; what it leaves out is off (lbs unless dqs is named)
+  const r = await run({ effects: { dynamics: true } });
+  assert.deepEqual(r.effects, { skinning: "lbs", dynamics: true, wrinkles: false, collisions: false, cloth: false });
+  const p = await open(pkg, env.SEGADEFORM_GARMENT, { effects: "lbs" });
+  await assert.rejects(p.push(new Float32Array(71), new Float32Array(3)), /poses and trans do not fit/);
+  await assert.rejects(p.push(new Float32Array(72).fill(NaN), new Float32Array(3)), /poses contain NaN/);
+  await p.close();
 });

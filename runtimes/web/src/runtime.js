@@ -1,21 +1,30 @@
 // segadeform in the browser: a model package fetched over HTTP (or dropped on the page), its graphs run by
 // onnxruntime-web (wasm or WebGPU).  The animation logic is the Node runtime's core.js, shared as is.
 import {
-  animateWith, clothWith, collideWith, compareFrames, DEFAULT_CLOTH, DEFAULT_COLLISION_MARGIN, defaultEffects,
-  parseBundle, parseCloth, pickBody, pickVariant, poseBodyWith, readAsset, readManifest, readMotion, restBodyWith,
+  checkOptions, compareFrames, DEFAULT_COLLISION_MARGIN, effectsOf, hasBody, parseBundle, pickBody, pickVariant,
+  Player, playWith, readAsset, readManifest, readMotion,
 } from "../../node/src/core.js";
 
-export { compareFrames, parseBundle, pickBody, pickVariant, readAsset, readMotion };
+export { compareFrames, parseBundle, pickBody, pickVariant, Player, readAsset, readMotion };
 
 const ORT_BUILDS = { wasm: "ort.wasm.min.mjs", webgpu: "ort.webgpu.min.mjs" };
 
-/** Import onnxruntime-web for an execution provider ("wasm" or "webgpu"); `base` is its dist/ URL. */
-export async function loadOrt(ep, base) {
+/**
+ * Import onnxruntime-web for an execution provider ("wasm" or "webgpu"); `base` is the URL of its files (its dist/,
+ * or the ort/ folder `npm run vendor` makes).  `threads` (1): WebAssembly threads, which need a cross-origin
+ * isolated page (served with Cross-Origin-Opener-Policy: same-origin and Cross-Origin-Embedder-Policy: require-corp);
+ * more than one on a page that is not is refused here rather than silently run on one.
+ */
+export async function loadOrt(ep, base, { threads = 1 } = {}) {
   const file = ORT_BUILDS[ep];
   if (!file) throw new Error(`unknown execution provider '${ep}' (expected wasm or webgpu)`);
+  if (!(Number.isInteger(threads) && threads >= 1)) throw new Error(`threads must be an integer >= 1 (got ${threads})`);
+  if (threads > 1 && !globalThis.crossOriginIsolated) {
+    throw new Error(`${threads} threads need a cross-origin isolated page (COOP: same-origin, COEP: require-corp headers)`);
+  }
   const ort = await import(new URL(file, base).href);
-  ort.env.wasm.wasmPaths = base;
-  ort.env.wasm.numThreads = 1; // threads need cross-origin isolation; one thread works everywhere
+  ort.env.wasm.wasmPaths = base instanceof URL ? base.href : base;
+  ort.env.wasm.numThreads = threads; // one thread works everywhere
   return ort;
 }
 
@@ -75,19 +84,11 @@ export async function openContainer(src, name = String(src)) {
 }
 
 /**
- * Animate a scene bundle (parsed, or a URL) or { asset, motion } (parsed) with a loaded package on `ort` (from
- * loadOrt), and pose the body when the package has a body graph (options.body !== false) or collisions need it.
- * Returns core.animateWith's result plus the execution provider, `body` (core.poseBodyWith's result, or { error }
- * when the body cannot be posed: no body graph, another body) and, with collisions in the effects (named, or by
- * default when the package has a body graph), the frames pushed out of that body (the Node runtime's collide.js)
- * and `collisions` ({ moved, msPerFrame, margin }: core.collideWith's).  `cloth` (true, or the stage's knobs as
- * "iterations=8,..." or an object) turns the cloth stage on over the effects (the model's own when none are named):
- * the frames are then the stage's (core.clothWith, contact included: no push-out) and `cloth` is its counts.
+ * onnxruntime-web sessions of a loaded package's graphs, each made once: session(spec) -> InferenceSession;
+ * release() frees them (WebAssembly memory the garbage collector does not see: 25 animate() calls grew a page from
+ * 145 to 464 MB before).
  */
-export async function animate(ort, pkg, source, { ep = "wasm", batch = 8, effects, body = true,
-  collisionMargin = DEFAULT_COLLISION_MARGIN, cloth = null, force = false } = {}) {
-  if (typeof source === "string") source = parseBundle(await fetchBytes(source), source);
-  if (cloth) effects = { ...(effects || (source.asset ? defaultEffects(pkg.manifest) : source.meta.effects)), cloth: true };
+export function packageSessions(ort, pkg, { ep = "wasm" } = {}) {
   const external = pkg.manifest.weights
     ? [{ path: pkg.manifest.weights.file, data: pkg.files[pkg.manifest.weights.file] }] : [];
   const made = new Map();
@@ -99,24 +100,57 @@ export async function animate(ort, pkg, source, { ep = "wasm", batch = 8, effect
     }
     return made.get(spec.file);
   };
-  const r = await animateWith(ort, pkg.manifest, source, session, { batch, effects, collisionMargin, force });
-  let posed = null;
-  const need = r.effects.collisions || r.effects.cloth;
-  if ((body || need) && Object.values(pkg.manifest.graphs).some((g) => g.role === "body")) {
-    try {
-      posed = await poseBodyWith(ort, pkg.manifest, source, session, { skinning: r.effects.skinning, batch });
-    } catch (e) {
-      if (need) throw e; // collisions and the cloth stage cannot do without the body
-      posed = { error: e.message };
+  session.release = async () => {
+    const all = [...made.values()];
+    made.clear();
+    for (const p of all) {
+      try {
+        await (await p).release();
+      } catch {
+        // a session that failed to load has nothing to free
+      }
     }
+  };
+  return session;
+}
+
+/**
+ * Animate a scene bundle (parsed, or a URL) or { asset, motion } (parsed) with a loaded package on `ort` (from
+ * loadOrt), and pose the body when the package has a body graph (options.body !== false) or collisions need it.
+ * Returns core.playWith's result plus the execution provider and `body` (its posed body, or { error } when the body
+ * cannot be posed: another body; null without a body graph).  With collisions in the effects (named, or by default
+ * when the package has a body graph) the frames are pushed out of that body (the Node runtime's collide.js) and
+ * `collisions` is { moved, msPerFrame, margin }.  `effects`: an object or text as `segadeform run --effects` reads it
+ * ("dqs,dynamics", "+cloth").  `cloth` (true, or the stage's knobs as "iterations=8,..." or an object) turns the cloth
+ * stage on over the effects (the model's own when none are named): the frames are then the stage's (contact
+ * included: no push-out) and `cloth` is its counts.  Sessions are made and freed on each call; to play chunks of a
+ * motion as they come, open a core.Player on packageSessions(ort, pkg).
+ */
+export async function animate(ort, pkg, source, options = {}) {
+  checkOptions(options, ["ep", "batch", "effects", "body", "collisionMargin", "cloth", "force"], "animate");
+  const { ep = "wasm", batch = 8, body = true, collisionMargin = DEFAULT_COLLISION_MARGIN, cloth = null,
+    force = false } = options;
+  if (typeof source === "string") source = parseBundle(await fetchBytes(source), source);
+  let effects = effectsOf(pkg.manifest, source, options.effects);
+  if (cloth) effects = { ...effects, cloth: true };
+  const session = packageSessions(ort, pkg, { ep });
+  const knobs = typeof cloth === "string" || (cloth && typeof cloth === "object") ? cloth : null;
+  const run = (withBody) => playWith(ort, pkg.manifest, source, session, { batch, effects, collisionMargin,
+    cloth: knobs, force, body: withBody });
+  try {
+    const need = effects.collisions || effects.cloth;
+    const showBody = body && hasBody(pkg.manifest);
+    let r, bodyError = null;
+    try {
+      r = await run(showBody);
+    } catch (e) {
+      // collisions and the cloth stage cannot do without the body; a body only shown is left out, with why
+      if (need || !showBody || !/another body/.test(e.message)) throw e;
+      bodyError = e.message;
+      r = await run(false);
+    }
+    return { ...r, ep, source, body: bodyError ? { error: bodyError } : r.body || null };
+  } finally {
+    await session.release();
   }
-  let clothed = null, collisions = null;
-  if (r.effects.cloth) {
-    const rest = await restBodyWith(ort, pkg.manifest, source, session, { skinning: r.effects.skinning });
-    const settings = typeof cloth === "string" ? parseCloth(cloth) : typeof cloth === "object" && cloth ? cloth : DEFAULT_CLOTH;
-    clothed = clothWith(r, posed, rest, source, { settings, margin: collisionMargin, batch });
-  } else if (r.effects.collisions) {
-    collisions = collideWith(r, posed, { margin: collisionMargin, batch });
-  }
-  return { ...r, ep, source, body: body ? posed : null, collisions, cloth: clothed };
 }
