@@ -171,3 +171,6 @@ def test_a_page_of_ones_own_runs_the_vendored_runtime_a_chunk_at_a_time(portable
     assert "error" not in r, r
     assert r["T"] == len(portable_scene["frames"]) and r["chunk"] == 3 and r["variant"] == "deformer_dqs", r
     assert r["finite"] and r["sameLength"] and r["rel"] <= RTOL, r
+    # the package's files fetched when a run first needs them: the encoder, the one deformer and the shared weights
+    # (every graph was fetched before)
+    assert sorted(r["fetched"]) == ["deformer_dqs.onnx", "garment_encoder.onnx", "weights.bin"], r["fetched"]

@@ -39,22 +39,36 @@ async function sha256Hex(bytes) {
   return Array.from(h, (b) => b.toString(16).padStart(2, "0")).join("");
 }
 
-/** A package from its manifest and a function giving a file's bytes, every file checked against its SHA-256. */
-async function packageFrom(manifest, where, bytesOf) {
-  const files = {};
-  const want = Object.values(manifest.graphs).map((g) => [g.file, g.sha256]);
-  if (manifest.weights) want.push([manifest.weights.file, manifest.weights.sha256]);
-  for (const [file, sha] of want) {
-    const bytes = await bytesOf(file);
-    if (sha && (await sha256Hex(bytes)) !== sha) throw new Error(`${where}${file}: does not match its manifest hash`);
-    files[file] = bytes;
-  }
-  return { manifest, files, url: where };
+/**
+ * A package from its manifest and a function giving a file's bytes: { manifest, url, file(name) }.  file() gets a
+ * file the manifest lists (a graph, the shared weights) when a run first needs it, checks it against the manifest's
+ * SHA-256 and keeps it: a run fetches the two or three graphs it uses, not all of them.  `eager`: every file now
+ * (dropped files, which are at hand: a bad one is said when dropped).
+ */
+async function packageFrom(manifest, where, bytesOf, { eager = false } = {}) {
+  const want = new Map(Object.values(manifest.graphs).map((g) => [g.file, g.sha256]));
+  if (manifest.weights) want.set(manifest.weights.file, manifest.weights.sha256);
+  const got = new Map();
+  const file = (name) => {
+    if (!want.has(name)) throw new Error(`${where}${name}: not a file of the package's manifest`);
+    if (!got.has(name)) {
+      got.set(name, (async () => {
+        const bytes = await bytesOf(name);
+        const sha = want.get(name);
+        if (sha && (await sha256Hex(bytes)) !== sha) throw new Error(`${where}${name}: does not match its manifest hash`);
+        return bytes;
+      })());
+    }
+    return got.get(name);
+  };
+  if (eager) for (const name of want.keys()) await file(name);
+  return { manifest, url: where, file };
 }
 
 /**
- * Fetch a model package (its manifest, the graphs and the shared weights), checking every file against
- * the manifest's SHA-256.  Returns { manifest, files: {name: Uint8Array}, url }.
+ * A model package at `url`: its manifest now, its files (graphs, shared weights) fetched as runs need them, each
+ * checked against the manifest's SHA-256.  Returns { manifest, url, file(name) -> Promise<Uint8Array> }.  A package
+ * on another origin than the page needs CORS headers.
  */
 export async function loadPackage(url) {
   const base = new URL(url.endsWith("/") ? url : `${url}/`, location.href);
@@ -64,14 +78,14 @@ export async function loadPackage(url) {
   return packageFrom(manifest, base.href, (file) => fetchBytes(new URL(file, base)));
 }
 
-/** A package from dropped files ({name: Uint8Array}: manifest.json, the graphs, weights.bin). */
+/** A package from dropped files ({name: Uint8Array}: manifest.json, the graphs, weights.bin), every file checked now. */
 export async function packageFromFiles(files) {
   if (!files["manifest.json"]) throw new Error("the dropped files have no manifest.json (expected a model package's files)");
   const manifest = readManifest(JSON.parse(new TextDecoder().decode(files["manifest.json"])), "manifest.json");
   return packageFrom(manifest, "dropped package: ", async (file) => {
     if (!files[file]) throw new Error(`dropped package: ${file} is missing (the manifest lists it)`);
     return files[file];
-  });
+  }, { eager: true });
 }
 
 /** Parse a container (bytes or a URL) as a garment asset, a motion file or a scene bundle, by its meta.kind. */
@@ -89,14 +103,14 @@ export async function openContainer(src, name = String(src)) {
  * 145 to 464 MB before).
  */
 export function packageSessions(ort, pkg, { ep = "wasm" } = {}) {
-  const external = pkg.manifest.weights
-    ? [{ path: pkg.manifest.weights.file, data: pkg.files[pkg.manifest.weights.file] }] : [];
+  const w = pkg.manifest.weights;
   const made = new Map();
   const session = (spec) => {
     if (!made.has(spec.file)) {
-      made.set(spec.file, ort.InferenceSession.create(pkg.files[spec.file], {
-        executionProviders: [ep], externalData: external, graphOptimizationLevel: "all",
-      }));
+      made.set(spec.file, (async () => ort.InferenceSession.create(await pkg.file(spec.file), {
+        executionProviders: [ep], externalData: w ? [{ path: w.file, data: await pkg.file(w.file) }] : [],
+        graphOptimizationLevel: "all",
+      }))());
     }
     return made.get(spec.file);
   };

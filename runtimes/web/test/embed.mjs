@@ -16,11 +16,15 @@ try {
   page.on("console", (m) => logs.push(`${m.type()}: ${m.text()}`));
   page.on("pageerror", (e) => logs.push(`pageerror: ${e.message}`));
   page.on("requestfailed", (r) => logs.push(`requestfailed: ${r.url()}`));
-  page.on("response", (r) => { if (r.status() >= 400) logs.push(`${r.status()}: ${r.url()}`); });
+  const fetched = []; // the package's files the page fetched (a run needs two or three graphs, not every one)
+  page.on("response", (r) => {
+    if (r.status() >= 400) logs.push(`${r.status()}: ${r.url()}`);
+    else if (/\.(onnx|bin)$/.test(new URL(r.url()).pathname)) fetched.push(new URL(r.url()).pathname.split("/").pop());
+  });
   await page.goto(`http://127.0.0.1:${server.address().port}/${opt("--page")}`);
   await page.waitForFunction("window.segadeformResult !== undefined", { timeout: 540000, polling: 250 });
   const r = await page.evaluate(() => window.segadeformResult);
-  console.log(`PAGE ${JSON.stringify({ ...r, logs })}`);
+  console.log(`PAGE ${JSON.stringify({ ...r, fetched, logs })}`);
 } catch (e) {
   console.error(`error: ${e.message}`);
   code = 1;
