@@ -376,6 +376,22 @@ function modelBetas(betas, nb) {
   return out;
 }
 
+/**
+ * Free the onnxruntime sessions of `made` (a Map of file -> Promise<InferenceSession>) and empty it: they hold native
+ * or WebAssembly memory the garbage collector does not see.  A session that failed to load has nothing to free.
+ */
+export async function releaseSessions(made) {
+  const all = [...made.values()];
+  made.clear();
+  for (const p of all) {
+    try {
+      await (await p).release();
+    } catch {
+      // nothing was made
+    }
+  }
+}
+
 /** Throw unless `options` holds only the keys of `allowed` (`where`: whose options), each of a usable value. */
 export function checkOptions(options, allowed, where) {
   if (options === null || typeof options !== "object" || Array.isArray(options)) {

@@ -8,7 +8,7 @@ import * as ort from "onnxruntime-node";
 import {
   BodyCollider, checkOptions, compareFrames, DEFAULT_CLOTH, DEFAULT_COLLISION_MARGIN, defaultEffects, parseBundle,
   parseCloth, parseEffects, pc2Bytes, pickBody, pickVariant, Player, PLAYER_OPTIONS, playWith, pushOutFrames,
-  readAsset as checkAsset, readManifest, readMotion as checkMotion,
+  readAsset as checkAsset, readManifest, readMotion as checkMotion, releaseSessions,
 } from "./core.js";
 
 export { parseBundle, readBundle } from "./bundle.js";
@@ -59,17 +59,7 @@ function sessions(dir, { threads = 1 } = {}) {
     if (!made.has(spec.file)) made.set(spec.file, ort.InferenceSession.create(join(dir, spec.file), so));
     return made.get(spec.file);
   };
-  session.release = async () => {
-    const all = [...made.values()];
-    made.clear();
-    for (const p of all) {
-      try {
-        await (await p).release();
-      } catch {
-        // a session that failed to load has nothing to free
-      }
-    }
-  };
+  session.release = () => releaseSessions(made);
   return session;
 }
 

@@ -2,7 +2,7 @@
 // onnxruntime-web (wasm or WebGPU).  The animation logic is the Node runtime's core.js, shared as is.
 import {
   checkOptions, compareFrames, DEFAULT_COLLISION_MARGIN, effectsOf, hasBody, parseBundle, pickBody, pickVariant,
-  Player, playWith, readAsset, readManifest, readMotion,
+  Player, playWith, readAsset, readManifest, readMotion, releaseSessions,
 } from "../../node/src/core.js";
 
 export { compareFrames, parseBundle, pickBody, pickVariant, Player, readAsset, readMotion };
@@ -114,17 +114,7 @@ export function packageSessions(ort, pkg, { ep = "wasm" } = {}) {
     }
     return made.get(spec.file);
   };
-  session.release = async () => {
-    const all = [...made.values()];
-    made.clear();
-    for (const p of all) {
-      try {
-        await (await p).release();
-      } catch {
-        // a session that failed to load has nothing to free
-      }
-    }
-  };
+  session.release = () => releaseSessions(made);
   return session;
 }
 
