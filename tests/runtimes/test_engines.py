@@ -281,14 +281,9 @@ def test_a_motion_made_for_another_body_shape_is_refused_unless_forced(
         assert ("another body shape (betas)" in p.stderr) == warns, p.stderr
 
 
-def test_the_node_api_refuses_a_motion_made_for_another_shape_unless_forced(
-    node, portable_scene, random_package, tmp_path
-):
-    """The command lines refused it; the API (`animate()`, and the browser's, which shares core.js) played it with a
-    warning (left over from a trial).  Now it throws unless `force: true`, which plays it with the warning."""
-    from segadeform.cli.main import main
-
-    assert main(["motion", "export", "dance", "--seconds", "0.2", "--seed", "2", "-o", str(tmp_path / "m0.sgdm")]) == 0
+def _node_api_refused_then_forced(package, garment, motion) -> dict:
+    """The Node API's `animate(package, garment, motion)` without and with `force: true`: { refused (the error
+    message, or None), warnings and T of the forced run }."""
     index = (REPO / "runtimes" / "node" / "src" / "index.js").as_uri()
     script = (
         f"import {{ animate }} from {json.dumps(index)};\n"
@@ -298,13 +293,21 @@ def test_the_node_api_refuses_a_motion_made_for_another_shape_unless_forced(
         "const r = await animate(pkg, g, m, { force: true });\n"
         "console.log('RESULT' + JSON.stringify({ refused, warnings: r.warnings, T: r.T }));\n"
     )
-    p = subprocess.run(
-        ["node", "--input-type=module", "-e", script, str(random_package), str(portable_scene["garment"]),
-         str(tmp_path / "m0.sgdm")],
-        capture_output=True, text=True, timeout=600,
-    )  # fmt: skip
+    p = subprocess.run(["node", "--input-type=module", "-e", script, str(package), str(garment), str(motion)],
+                       capture_output=True, text=True, timeout=600)  # fmt: skip
     assert p.returncode == 0, p.stdout + p.stderr
-    got = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+    return json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+
+
+def test_the_node_api_refuses_a_motion_made_for_another_shape_unless_forced(
+    node, portable_scene, random_package, tmp_path
+):
+    """The command lines refused it; the API (`animate()`, and the browser's, which shares core.js) played it with a
+    warning (left over from a trial).  Now it throws unless `force: true`, which plays it with the warning."""
+    from segadeform.cli.main import main
+
+    assert main(["motion", "export", "dance", "--seconds", "0.2", "--seed", "2", "-o", str(tmp_path / "m0.sgdm")]) == 0
+    got = _node_api_refused_then_forced(random_package, portable_scene["garment"], tmp_path / "m0.sgdm")
     assert got["refused"] and "another body shape (betas)" in got["refused"] and "force: true" in got["refused"]
     assert got["T"] > 0 and any("another body shape" in w for w in got["warnings"])
 
@@ -512,19 +515,7 @@ def test_an_asset_exported_with_force_is_refused_unless_forced_again(runtime, re
                  str(tmp_path / "py.pc2")]) == 1  # fmt: skip
     out = tmp_path / "o.pc2"
     if runtime == "api":
-        index = (REPO / "runtimes" / "node" / "src" / "index.js").as_uri()
-        script = (
-            f"import {{ animate }} from {json.dumps(index)};\n"
-            "const [pkg, g, m] = process.argv.slice(1);\n"
-            "let refused = null;\n"
-            "try { await animate(pkg, g, m); } catch (e) { refused = e.message; }\n"
-            "const r = await animate(pkg, g, m, { force: true });\n"
-            "console.log('RESULT' + JSON.stringify({ refused, warnings: r.warnings, T: r.T }));\n"
-        )
-        p = subprocess.run(["node", "--input-type=module", "-e", script, str(random_package), str(g), str(mo)],
-                           capture_output=True, text=True, timeout=600)  # fmt: skip
-        assert p.returncode == 0, p.stdout + p.stderr
-        got = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+        got = _node_api_refused_then_forced(random_package, g, mo)
         assert "exported with --force although the garment does not sit on the body" in got["refused"]
         assert "force: true" in got["refused"] and got["T"] > 0 and any("--force" in w for w in got["warnings"])
         return

@@ -676,7 +676,7 @@ export class ClothStage {
 /**
  * The cloth stage for one garment on one body, ready to step: the collider built on the body at rest (`restBody`
  * V*3, `faces` F*3), each garment vertex's rest distance from it, and the per-garment set-up (clothSetup) of the
- * garment's rest shape `rest` (N*3) and `garmentFaces`.  clothFrames' start, and the Node runtime's when it poses
+ * garment's rest shape `rest` (N*3) and `garmentFaces`: the Node and browser runtimes' Player starts it and poses
  * the body a batch of frames at a time (core.js Player).
  */
 export function clothStart(restBody, faces, rest, garmentFaces, { settings = DEFAULT_CLOTH, margin = 0.004, dt = 1 / 30 } = {}) {
@@ -692,27 +692,4 @@ export function clothStart(restBody, faces, rest, garmentFaces, { settings = DEF
 export function clothStep(stage, frames, N, lo, hi, bodyBatch) {
   const out = stage.step(new Float64Array(frames.subarray(lo * N * 3, hi * N * 3)), new Float64Array(bodyBatch), hi - lo);
   frames.set(out, lo * N * 3); // float64 -> float32, rounded to nearest
-}
-
-/**
- * The cloth stage over a run's frames, as `segadeform run --effects=+cloth` does after the deformer: the garment's
- * setup on the body at rest, then `batch` frames at a time against the posed body.  frames (T*N*3 float32, changed in
- * place: computed in float64, rounded back), bodyVertices (T*V*3), faces (the body's, F*3), restBody (V*3: the body
- * graph at zero pose), rest (N*3 float64: the garment asset's vertices), garmentFaces (F'*3).
- * Returns { contacts, pushed, traced, resets, firstReset, msPerFrame (setup and steps), settings }.
- */
-export function clothFrames(frames, T, N, bodyVertices, V, faces, restBody, rest, garmentFaces,
-  { settings = DEFAULT_CLOTH, margin = 0.004, dt = 1 / 30, batch = 8 } = {}) {
-  if (frames.length !== T * N * 3 || bodyVertices.length !== T * V * 3 || restBody.length !== V * 3 || rest.length !== N * 3) {
-    throw new Error(`frames, the posed body and the rest shapes do not fit (expected ${T * N * 3}, ${T * V * 3}, ` +
-      `${V * 3} and ${N * 3} values, got ${frames.length}, ${bodyVertices.length}, ${restBody.length} and ${rest.length})`);
-  }
-  const t0 = performance.now();
-  const stage = clothStart(restBody, faces, rest, garmentFaces, { settings, margin, dt });
-  for (let lo = 0; lo < T; lo += batch) {
-    const hi = Math.min(lo + batch, T);
-    clothStep(stage, frames, N, lo, hi, bodyVertices.subarray(lo * V * 3, hi * V * 3));
-  }
-  return { contacts: stage.contacts, pushed: stage.pushed, traced: stage.traced, resets: stage.resets, firstReset: stage.firstReset,
-    msPerFrame: (performance.now() - t0) / Math.max(T, 1), settings, margin };
 }

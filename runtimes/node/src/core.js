@@ -4,10 +4,10 @@
 // and motion files (.sgdm) is src/segadeform/bundle.py.  Collisions: collide.js (the port of the C kernel); the cloth
 // stage: cloth.js (the port of _cloth.c).
 
-import { clothFrames, clothStart, clothStep, DEFAULT_CLOTH, parseCloth } from "./cloth.js";
+import { clothStart, clothStep, DEFAULT_CLOTH, parseCloth } from "./cloth.js";
 import { BodyCollider, pushOutFrames } from "./collide.js";
 
-export { BodyCollider, clothFrames, DEFAULT_CLOTH, parseCloth, pushOutFrames };
+export { BodyCollider, DEFAULT_CLOTH, parseCloth, pushOutFrames };
 export const FORMAT = "segadeform-model-package";
 /** The collision margin when none is given (metres): segadeform.scene.Effects.collision_margin's default. */
 export const DEFAULT_COLLISION_MARGIN = 0.004;
@@ -610,7 +610,7 @@ export class Player {
       if (!this.poser) continue;
       t0 = performance.now();
       let b;
-      if (body) { // the joints too, as poseBodyWith gives them
+      if (body) { // the joints too
         const j = await this.poser.joints(P.subarray(lo * D, hi * D), Tr.subarray(3 * lo, 3 * hi), hi - lo);
         b = j.vertices;
         body.set(b, lo * V * 3);
@@ -679,7 +679,7 @@ export class Player {
  * options: { effects (default: the bundle's, else defaultEffects), collisionMargin (checked), batch (8), force
  * (false: a motion retargeted onto another body or shape than the asset's is refused; true: played, with a
  * warning) }.  With effects.collisions the frames are the deformer's: the host pushes them out of the posed body
- * afterwards (poseBodyWith, collideWith); playWith runs them.
+ * afterwards; playWith runs them.
  */
 export async function animateWith(ort, manifest, source, session, options = {}) {
   const { force, ...rest } = checkOptions(options, ["effects", "collisionMargin", "batch", "force"], "animateWith");
@@ -761,75 +761,11 @@ export async function bodyPoserWith(ort, manifest, inputs, session, { skinning =
   return { name, V, S, pose, joints, rest, faces: () => faces };
 }
 
-/**
- * Pose the body with the package's body graph for `skinning` (docs/package.md: betas (|beta|,), poses (B, S, 3),
- * trans (B, 3) in; vertices (B, V, 3), joints (B, S, 3), rest_joints (S, 3), faces (F, 3) out), over a source's
- * motion and body shape.  Returns { vertices (T*V*3), joints (T*S*3), restJoints, faces, V, T, msPerFrame, graph },
- * or throws when the package has no body graph or the garment asset was prepared for another body.  Every frame is
- * held (T*V*3 float32: 1.6 GB for 10,000 frames of the default body); a Player keeps a batch at a time.
- */
-export async function poseBodyWith(ort, manifest, source, session, { skinning = "lbs", batch = 8 } = {}) {
-  const I = sceneInputs(source);
-  const poser = await bodyPoserWith(ort, manifest, I, session, { skinning });
-  const { V, S } = poser, T = I.T;
-  const vertices = new Float32Array(T * V * 3), joints = new Float32Array(T * S * 3);
-  let restJoints = null;
-  const t0 = performance.now();
-  for (let lo = 0; lo < T; lo += batch) {
-    const hi = Math.min(lo + batch, T);
-    const b = await poser.joints(I.poses.subarray(lo * S * 3, hi * S * 3), I.trans.subarray(lo * 3, hi * 3), hi - lo);
-    vertices.set(b.vertices, lo * V * 3);
-    joints.set(b.joints, lo * S * 3);
-    restJoints = restJoints || b.restJoints;
-  }
-  return { vertices, joints, restJoints, faces: poser.faces(), V, T, msPerFrame: (performance.now() - t0) / T,
-    graph: poser.name };
-}
-
-/**
- * The body at rest: the package's body graph for `skinning` at zero pose and no translation (the shape of the source's
- * betas), V*3 float32: what the cloth stage measures each garment vertex's rest distance from, as `segadeform run`.
- */
-export async function restBodyWith(ort, manifest, source, session, { skinning = "lbs" } = {}) {
-  const poser = await bodyPoserWith(ort, manifest, garmentInputs(source), session, { skinning });
-  return (await poser.rest()).vertices;
-}
-
-/**
- * The cloth stage on animateWith's frames (changed in place), as `segadeform run --effects=+cloth`: `body`
- * poseBodyWith's, `restBody` restBodyWith's, `source` the { asset, motion } animated.  Returns { contacts, pushed,
- * resets, firstReset, msPerFrame, settings, margin } (cloth.js clothFrames).
- */
-export function clothWith(r, body, restBody, source, { settings = DEFAULT_CLOTH, margin = DEFAULT_COLLISION_MARGIN,
-  batch = 8 } = {}) {
-  checkMargin(margin);
-  if (!body || body.error) throw new Error(`the cloth stage needs the posed body${body && body.error ? `: ${body.error}` : ""}`);
-  if (body.T !== r.T) throw new Error(`the posed body has ${body.T} frames, the garment ${r.T}`);
-  if (!source.asset) throw new Error("the cloth stage needs a garment asset (.sgda)");
-  const A = source.asset.arrays;
-  return clothFrames(r.frames, r.T, r.N, body.vertices, body.V, body.faces, restBody, A.vertices.data, A.faces.data,
-    { settings: typeof settings === "string" ? parseCloth(settings) : settings, margin, dt: 1.0 / r.fps, batch });
-}
-
 /** A collision margin must be in [0, 1) metres, as a scene's collision_margin. */
 export function checkMargin(margin) {
   if (!(typeof margin === "number" && margin >= 0 && margin < 1)) {
     throw new Error(`the collision margin must be in [0, 1) metres (got ${margin})`);
   }
-}
-
-/**
- * Collisions: push the garment's frames out of the posed body (`segadeform run`'s post-process: p' = closest +
- * margin * n for every vertex inside the body or closer than `margin`, up to 3 passes; collide.js).  `r` is
- * animateWith's result (its frames are changed in place), `body` poseBodyWith's.  Returns { moved (vertex-frames
- * moved), msPerFrame (collider build, refit and push-out), margin }.
- */
-export function collideWith(r, body, { margin = DEFAULT_COLLISION_MARGIN, iterations = 3, batch = 8 } = {}) {
-  checkMargin(margin);
-  if (!body || body.error) throw new Error(`collisions need the posed body${body && body.error ? `: ${body.error}` : ""}`);
-  if (body.T !== r.T) throw new Error(`the posed body has ${body.T} frames, the garment ${r.T}`);
-  const c = pushOutFrames(r.frames, r.T, r.N, body.vertices, body.V, body.faces, { margin, iterations, batch });
-  return { moved: c.moved, msPerFrame: c.msPerFrame, margin };
 }
 
 /** Parity of `got` against `expected` (same length): { maxAbs, rel (to the largest |expected|), finite, sameLength }. */
