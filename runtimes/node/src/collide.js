@@ -3,8 +3,9 @@
 // APIs).  The algorithm, its rules and why it is exact are in that file's header; this port keeps its functions,
 // their order of operations and its float64 arithmetic (JavaScript numbers are IEEE doubles and V8 fuses no
 // multiply-adds), so on the same inputs it gives the kernel's results: the same closest points, signed distances,
-// normals and push-out positions, up to the last bit of Math.acos against the C library's acos in vertex
-// pseudo-normals (tests/runtimes/test_collisions.py holds it to Python's BodyCollider on shared vectors).
+// normals and push-out positions, bit for bit (its acos is the kernel's sdc_acos, not Math.acos, which differs
+// from a C library's in the last bit; tests/runtimes/test_collisions.py holds it to Python's BodyCollider on
+// shared vectors).
 //
 //   closest point  the exact nearest point over every triangle, ties broken by the lowest face index;
 //   sign           the angle-weighted pseudo-normal of the feature (face, edge, vertex) the closest point lies on;
@@ -357,7 +358,7 @@ function featureNormal(b, V, vOff, f, bary, n) {
       const len = norm3(e1V, 0) * norm3(e2V, 0);
       let cosang = dot3(e1V, 0, e2V, 0) / (len > TINY ? len : TINY);
       cosang = cosang < -1 ? -1 : (cosang > 1 ? 1 : cosang);
-      const ang = Math.acos(cosang);
+      const ang = acos(cosang);
       faceNormal(b, V, vOff, g, fnV, 0);
       n[0] += ang * fnV[0];
       n[1] += ang * fnV[1];
@@ -365,6 +366,30 @@ function featureNormal(b, V, vOff, f, bary, n) {
     }
     normalize3(n, 0);
   }
+}
+
+/* acos from + - * / and Math.sqrt alone: the C file's sdc_acos, operation for operation (Math.acos differs from a C
+ * library's acos in the last bit on a few per cent of inputs; this gives the kernel's bits). */
+function asinR(z) {
+  const p = z * (1.66666666666666657415e-01 +
+    z * (-3.25565818622400915405e-01 +
+      z * (2.01212532134862925881e-01 +
+        z * (-4.00555345006794114027e-02 +
+          z * (7.91534994289814532176e-04 + z * 3.47933107596021167570e-05)))));
+  const q = 1.0 + z * (-2.40339491173441421878e+00 +
+    z * (2.02094576023350569471e+00 +
+      z * (-6.88283971605453293030e-01 + z * 7.70381505559019352791e-02)));
+  return p / q;
+}
+
+export function acos(x) {
+  if (x !== x) return x;
+  if (x > 1) x = 1;
+  if (x < -1) x = -1;
+  if (x <= 0.5 && x >= -0.5) return 1.57079632679489655800e+00 - (x + x * asinR(x * x));
+  let s = Math.sqrt((1.0 - (x < 0 ? -x : x)) * 0.5);
+  s = 2.0 * (s + s * asinR(s * s));
+  return x > 0 ? s : 3.14159265358979311600e+00 - s;
 }
 
 /* Squared distance from p (P at ip) to the box (box at o: lo xyz, hi xyz). */

@@ -24,7 +24,7 @@ _BODY_PACKAGE = "segadeform.body"
 
 _KERNEL_LOCK = threading.Lock()
 _KERNEL: dict = {}  # a cache of the loaded library, filled on first use: {"lib": CDLL | None, "why": str}
-_ABI = 1  # sdc_abi() of the kernel this wrapper speaks to
+_ABI = 2  # sdc_abi() of the kernel this wrapper speaks to
 
 
 def load_extension(module: str, current, signatures):
@@ -66,6 +66,7 @@ def load_kernel():
                     ("sdc_refit", None, (p, p, p)),
                     ("sdc_query", None, (p, p, p, p, i64, i64, p, p, p, p)),
                     ("sdc_push_out", i64, (p, p, p, i64, p, i64, i64, i64, ctypes.c_double, i64, p)),
+                    ("sdc_acos", ctypes.c_double, (ctypes.c_double,)),
                 ),
             )
             _KERNEL.update(lib=lib, why=why)
