@@ -584,8 +584,9 @@ def make_garment(
     x = np.concatenate(out, axis=1)
     # refine last, so skirts are refined too; flat midpoints sit < 1 mm inside the offset surface
     levels = params.subdivisions
-    if params.resolution is not None:  # each level multiplies the count by about 4
-        levels = int(np.clip(np.round(np.log(params.resolution / len(x)) / np.log(4.0)), 0, 2))
+    if params.resolution is not None:  # each level multiplies the count by about 4: the level nearest the target
+        # (in ratio; a target <= 200,000 gives at most twice it), not capped at 2 (150,000 gave 38,866 then)
+        levels = max(0, int(np.round(np.log(params.resolution / len(x)) / np.log(4.0))))
     for _ in range(levels):
         x, f = subdivide(x, f)
     g = Garment(
