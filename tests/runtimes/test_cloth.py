@@ -19,6 +19,7 @@ import dataclasses
 import json
 import re
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -326,3 +327,48 @@ def test_node_cloth_under_extreme_poses_is_segadeform_runs_bit_for_bit(node, tmp
     a, b = read_pc2(py).frames, read_pc2(tmp_path / "node.pc2").frames
     _report("node under extreme poses", contacts=int(m.group(1)), max_m=float(np.abs(a - b).max()))
     assert np.array_equal(a, b)
+
+
+def test_cpp_library_player_pushed_in_chunks_gives_segadeform_runs_frames(cpp, clothed, tmp_path):
+    """The C++ library (runtimes/cpp/include/segadeform/player.hpp) through its example program segadeform-play,
+    built beside segadeform-run: the tightened dress's dance pushed as it would arrive live, with the cloth stage.
+    Chunks of `batch` frames (8; and 1 frame at a time with batch 1) give `segadeform run`'s frames bit for bit and
+    its counts; chunks of 3 run other onnxruntime batch sizes and stay within the collision parity rule.  An existing
+    output is refused, and a cloth knob without the stage is a one-line error."""
+    play = str(Path(cpp[0]).with_name("segadeform-play"))
+    c = clothed
+    base = [play, str(c["package"]), str(c["garment"]), str(c["motion"]), "--effects", EFFECTS]
+
+    def run(out, *extra):
+        p = subprocess.run([*base, "-o", str(out), *extra], capture_output=True, text=True, timeout=600)
+        assert p.returncode == 0, p.stdout + p.stderr
+        m = re.search(r"cloth: (\d+) in contact, (\d+) reset", p.stdout)
+        assert m, p.stdout
+        return read_pc2(out).frames, {"contacts": int(m.group(1)), "resets": int(m.group(2))}
+
+    want = {k: c["cloth"][k] for k in ("contacts", "resets")}
+    for name, extra in (("chunk8", ["--chunk", "8"]), ("frame_at_a_time", ["--chunk", "1", "--batch", "1"])):
+        got, counts = run(tmp_path / f"{name}.pc2", *extra)
+        a = _agree(got, c["frames"], c["cloth"]["contacts"])
+        _report(f"cpp library {name}", **a, **counts)
+        if name == "chunk8":
+            assert np.array_equal(got, c["frames"]) and counts == want, (a, counts, want)
+        else:  # batch 1: onnxruntime's batch-1 kernels, so Python's batch-8 frames to the parity rule
+            assert a["ok"] and counts["resets"] == want["resets"], a
+    got, counts = run(tmp_path / "chunk3.pc2", "--chunk", "3")
+    a = _agree(got, c["frames"], c["cloth"]["contacts"])
+    _report("cpp library chunk3", **a, **counts)
+    assert a["ok"], a
+    # an existing output is refused, untouched; a knob without its stage is one line
+    (tmp_path / "mine.pc2").write_bytes(b"mine")
+    p = subprocess.run([*base, "-o", str(tmp_path / "mine.pc2")], capture_output=True, text=True, timeout=600)
+    assert p.returncode == 1 and "exists" in p.stderr and (tmp_path / "mine.pc2").read_bytes() == b"mine"
+    p = subprocess.run(
+        [play, str(c["package"]), str(c["garment"]), str(c["motion"]), "--effects", "lbs", "--cloth", "iterations=2"]
+        + ["-o", str(tmp_path / "x.pc2")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert p.returncode == 1 and p.stderr.count("\n") == 1 and "the stage is off" in p.stderr, p.stderr
+    assert not (tmp_path / "x.pc2").exists()

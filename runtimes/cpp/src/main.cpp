@@ -12,701 +12,21 @@
 // garment out of the posed body with the compiled kernel src/segadeform/body/_collide.c (collide.hpp; margin
 // 0.004 m unless --collision-margin).  The cloth stage (off unless named; cloth.hpp, the compiled kernel
 // src/segadeform/body/_cloth.c) replaces the push-out when named, its knobs from --cloth.  Built on the onnxruntime C
-// API (the shared library, C++17, no other dependency).  Formats: docs/package.md.
-#include <onnxruntime_c_api.h>
+// API (the shared library, C++17, no other dependency).  Formats: docs/package.md.  The engine (engine.hpp) is
+// the library's too: this program pushes the motion through a sgd::engine::Stream a batch at a time, as a
+// program of one's own pushes it through segadeform::Player (include/segadeform/player.hpp).
+#include "engine.hpp"
 
-#include <algorithm>
-#include <chrono>
-#include <cmath>
-#include <cstdio>
-#include <cstring>
-#include <fstream>
-#include <iostream>
-#include <memory>
-#include <sstream>
-#include <string>
-#include <vector>
-
-#include "bundle.hpp"
-#include "cloth.hpp"
-#include "collide.hpp"
-#include "json.hpp"
-#include "outputs.hpp"
+using namespace sgd::engine;
 
 namespace {
-
-const OrtApi* api = nullptr;
-
-void check(OrtStatus* s) {
-  if (s) {
-    std::string msg = api->GetErrorMessage(s);
-    api->ReleaseStatus(s);
-    throw std::runtime_error("onnxruntime: " + msg);
-  }
-}
-
-std::string read_text(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::runtime_error(path + ": no such file");
-  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-}
-
-// One owned input tensor: its storage and the OrtValue over it.
-struct Input {
-  std::string name;
-  std::vector<uint8_t> data;
-  std::vector<int64_t> dims;
-  OrtValue* value = nullptr;
-};
-
-ONNXTensorElementDataType ort_type(const std::string& dtype) {
-  if (dtype == "float32") return ONNX_TENSOR_ELEMENT_DATA_TYPE_FLOAT;
-  if (dtype == "int64") return ONNX_TENSOR_ELEMENT_DATA_TYPE_INT64;
-  if (dtype == "int32") return ONNX_TENSOR_ELEMENT_DATA_TYPE_INT32;
-  if (dtype == "bool") return ONNX_TENSOR_ELEMENT_DATA_TYPE_BOOL;
-  throw std::runtime_error("unsupported input dtype " + dtype);
-}
-
-size_t elem_size(const std::string& dtype) {
-  if (dtype == "int64") return 8;
-  if (dtype == "bool") return 1;
-  return 4;
-}
-
-// Converts a bundle array (f32, i32 or u8) to the dtype the graph input wants.
-std::vector<uint8_t> convert(const sgd::Array& a, const std::string& dtype) {
-  int64_t n = a.count();
-  std::vector<uint8_t> out(static_cast<size_t>(n) * elem_size(dtype));
-  for (int64_t i = 0; i < n; ++i) {
-    double v = a.dtype == "f32" ? a.as<float>()[i] : a.dtype == "i32" ? a.as<int32_t>()[i]
-             : a.dtype == "u8" ? a.as<uint8_t>()[i] : a.dtype == "i64" ? static_cast<double>(a.as<int64_t>()[i])
-             : a.as<double>()[i];
-    if (dtype == "float32") { float f = static_cast<float>(v); std::memcpy(&out[i * 4], &f, 4); }
-    else if (dtype == "int64") { int64_t k = static_cast<int64_t>(v); std::memcpy(&out[i * 8], &k, 8); }
-    else if (dtype == "int32") { int32_t k = static_cast<int32_t>(v); std::memcpy(&out[i * 4], &k, 4); }
-    else out[i] = v != 0;
-  }
-  return out;
-}
-
-// One output of a run: floats (float32 outputs) or ints (int32 outputs), and the shape.
-struct Output {
-  std::vector<float> f;
-  std::vector<int32_t> i;
-  std::vector<int64_t> shape;
-};
-
-class Session {
- public:
-  Session(OrtEnv* env, const std::string& path, int threads) {
-    OrtSessionOptions* so;
-    check(api->CreateSessionOptions(&so));
-    check(api->SetIntraOpNumThreads(so, threads));
-    check(api->SetInterOpNumThreads(so, 1));
-    check(api->CreateSession(env, path.c_str(), so, &s_));
-    api->ReleaseSessionOptions(so);
-  }
-  ~Session() { if (s_) api->ReleaseSession(s_); }
-  Session(const Session&) = delete;
-  Session& operator=(const Session&) = delete;
-
-  // Runs with named inputs; returns the named outputs (float32 or int32) with their shapes.
-  std::vector<Output> run(std::vector<Input>& ins, const std::vector<std::string>& out_names) {
-    std::vector<const char*> names;
-    std::vector<OrtValue*> values;
-    for (auto& in : ins) {
-      if (!in.value) throw std::runtime_error("input '" + in.name + "' has no value");
-      names.push_back(in.name.c_str());
-      values.push_back(in.value);
-    }
-    std::vector<const char*> on;
-    for (const auto& n : out_names) on.push_back(n.c_str());
-    std::vector<OrtValue*> outs(on.size(), nullptr);
-    check(api->Run(s_, nullptr, names.data(), values.data(), values.size(), on.data(), on.size(), outs.data()));
-    std::vector<Output> r(outs.size());
-    for (size_t k = 0; k < outs.size(); ++k) {
-      OrtTensorTypeAndShapeInfo* info;
-      check(api->GetTensorTypeAndShape(outs[k], &info));
-      size_t nd, count;
-      ONNXTensorElementDataType type;
-      check(api->GetDimensionsCount(info, &nd));
-      r[k].shape.resize(nd);
-      check(api->GetDimensions(info, r[k].shape.data(), nd));
-      check(api->GetTensorShapeElementCount(info, &count));
-      check(api->GetTensorElementType(info, &type));
-      api->ReleaseTensorTypeAndShapeInfo(info);
-      void* p;
-      check(api->GetTensorMutableData(outs[k], &p));
-      if (type == ONNX_TENSOR_ELEMENT_DATA_TYPE_FLOAT) r[k].f.assign(static_cast<float*>(p), static_cast<float*>(p) + count);
-      else if (type == ONNX_TENSOR_ELEMENT_DATA_TYPE_INT32)
-        r[k].i.assign(static_cast<int32_t*>(p), static_cast<int32_t*>(p) + count);
-      else throw std::runtime_error("output '" + out_names[k] + "' is neither float32 nor int32");
-      api->ReleaseValue(outs[k]);
-    }
-    return r;
-  }
-  OrtSession* s_ = nullptr;
-};
-
-// Inputs get their element type at creation: a small helper making the OrtValue eagerly.
-void make_value(Input& in, const std::string& dtype) {
-  OrtMemoryInfo* mem;
-  check(api->CreateCpuMemoryInfo(OrtArenaAllocator, OrtMemTypeDefault, &mem));
-  check(api->CreateTensorWithDataAsOrtValue(mem, in.data.data(), in.data.size(), in.dims.data(), in.dims.size(),
-                                            ort_type(dtype), &in.value));
-  api->ReleaseMemoryInfo(mem);
-}
-
-void release(std::vector<Input>& ins) {
-  for (auto& in : ins) if (in.value) { api->ReleaseValue(in.value); in.value = nullptr; }
-}
-
-const sgd::Json& find_input(const sgd::Json& spec, const std::string& name) {
-  for (const auto& i : spec["inputs"].arr) if (i["name"].str == name) return i;
-  throw std::runtime_error("graph has no input '" + name + "'");
-}
-
-bool has_input(const sgd::Json& spec, const std::string& name) {
-  for (const auto& i : spec["inputs"].arr) if (i["name"].str == name) return true;
-  return false;
-}
-
-// An input in the dtype the graph's manifest entry names (schema 3: int32 indices and float32 masks; schema 2:
-// int64 and bool), from a container array of any dtype.
-Input input_from(const sgd::Json& spec, const std::string& name, const sgd::Array& a, std::vector<int64_t> dims) {
-  const std::string dtype = find_input(spec, name)["dtype"].str;
-  Input in{name, convert(a, dtype), std::move(dims)};
-  make_value(in, dtype);
-  return in;
-}
-
-Input input_floats(const std::string& name, std::vector<float> v, std::vector<int64_t> dims) {
-  Input in{name, std::vector<uint8_t>(v.size() * 4), std::move(dims)};
-  std::memcpy(in.data.data(), v.data(), in.data.size());
-  make_value(in, "float32");
-  return in;
-}
-
-// A container array as float32 values (f32, f64, i32 or u8).
-// Throw unless every value of a float array is finite (field `name` of file `where`; other dtypes pass).
-void finite_values(const sgd::Array& a, const std::string& where, const std::string& name) {
-  bool bad = false;
-  if (a.dtype == "f32") {
-    const float* d = a.as<float>();
-    for (int64_t i = 0; i < a.count() && !bad; ++i) bad = !std::isfinite(d[i]);
-  } else if (a.dtype == "f64") {
-    const double* d = a.as<double>();
-    for (int64_t i = 0; i < a.count() && !bad; ++i) bad = !std::isfinite(d[i]);
-  }
-  if (bad) throw std::runtime_error(where + ": field '" + name + "' contains NaN or inf");
-}
-
-// The same rotations with every angle in [0, pi] (Python's canonical_axis_angle, segadeform.body.rotations): an
-// angle above pi is taken modulo 2 pi, one still above pi becomes 2 pi minus it about the opposite axis; a vector in
-// range is left bit for bit.  In place on axis-angle triples, computed in double as Python computes them.
-void canonical_axis_angle(std::vector<float>& r) {
-  const double pi = 3.141592653589793;
-  for (size_t i = 0; i + 2 < r.size(); i += 3) {
-    const double x = r[i], y = r[i + 1], z = r[i + 2];
-    const double t = std::sqrt(x * x + y * y + z * z);
-    if (!(t > pi)) continue;
-    double a = std::fmod(t, 2 * pi), sgn = 1.0;
-    if (a > pi) a = 2 * pi - a, sgn = -1.0;
-    r[i] = static_cast<float>((sgn * x / t) * a);
-    r[i + 1] = static_cast<float>((sgn * y / t) * a);
-    r[i + 2] = static_cast<float>((sgn * z / t) * a);
-  }
-}
-
-std::vector<float> floats(const sgd::Array& a) {
-  std::vector<uint8_t> b = convert(a, "float32");
-  std::vector<float> out(b.size() / 4);
-  std::memcpy(out.data(), b.data(), b.size());
-  return out;
-}
-
-// `path`'s PC2 point cache of T frames of N points, written to its temporary (sgd::temporary; sgd::commit_outputs
-// puts it in place) a batch of frames at a time: append() the frames in order, then finish().
-class Pc2Writer {
- public:
-  Pc2Writer(const std::string& path, int32_t T, int32_t N, float start = 0.f)
-      : path_(path), tmp_(sgd::temporary(path)), f_(tmp_, std::ios::binary), left_(static_cast<int64_t>(T) * N * 3) {
-    if (!f_) throw std::runtime_error(path + ": cannot write");
-    f_.write("POINTCACHE2\0", 12);
-    const int32_t version = 1;
-    const float rate = 1.f;
-    f_.write(reinterpret_cast<const char*>(&version), 4);
-    f_.write(reinterpret_cast<const char*>(&N), 4);
-    f_.write(reinterpret_cast<const char*>(&start), 4);
-    f_.write(reinterpret_cast<const char*>(&rate), 4);
-    f_.write(reinterpret_cast<const char*>(&T), 4);
-    check_stream();
-  }
-  // `count` floats (whole frames), the next ones of the cache
-  void append(const float* values, int64_t count) {
-    if (count > left_) throw std::runtime_error(path_ + ": more frames than the cache's header says");
-    f_.write(reinterpret_cast<const char*>(values), static_cast<std::streamsize>(sizeof(float) * count));
-    left_ -= count;
-    check_stream();
-  }
-  void finish() {
-    if (left_ != 0) throw std::runtime_error(path_ + ": fewer frames than the cache's header says");
-    f_.close();
-    check_stream();
-  }
-
- private:
-  void check_stream() {
-    if (!f_) {
-      f_.close();
-      std::remove(tmp_.c_str());
-      throw std::runtime_error(path_ + ": write failed");
-    }
-  }
-  std::string path_, tmp_;
-  std::ofstream f_;
-  int64_t left_;
-};
-
-void write_pc2(const std::string& path, const float* frames, int32_t T, int32_t N, float start = 0.f) {
-  Pc2Writer w(path, T, N, start);
-  w.append(frames, static_cast<int64_t>(T) * N * 3);
-  w.finish();
-}
-
-struct Effects {
-  std::string skinning = "lbs";
-  bool wrinkles = false, dynamics = false, collisions = false, cloth = false;
-};
-
-// segadeform.scene.Effects.collision_margin's default (metres)
-const double DEFAULT_COLLISION_MARGIN = 0.004;
-
-// --effects: a complete list, as `segadeform run --effects` (what is not named is off; lbs unless dqs is named).
-// Effects as `segadeform run --effects` reads them (src/segadeform/settings/effects.py): a complete list such as
-// "dqs,dynamics,wrinkles,collisions" (what is not named is off; lbs unless dqs is named), "none" (every effect off),
-// or signed changes to `base` (the run's default effects) such as "+cloth" or "dqs,-wrinkles".
-Effects parse_effects(const std::string& text, const Effects& base) {
-  std::vector<std::string> items;
-  {
-    std::stringstream ss(text);
-    std::string item;
-    while (std::getline(ss, item, ',')) {
-      const size_t a = item.find_first_not_of(" \t"), b = item.find_last_not_of(" \t");
-      if (a != std::string::npos) items.push_back(item.substr(a, b - a + 1));
-    }
-  }
-  if (items.empty())
-    throw std::runtime_error("an empty effects list (expected effect names, signed changes (+name,-name) or none, got \"" +
-                             text + "\")");
-  Effects off;
-  off.skinning = "lbs";
-  if (items.size() == 1 && items[0] == "none") return off;
-  std::vector<std::string> picked, named;
-  for (const auto& i : items) (i == "lbs" || i == "dqs" ? picked : named).push_back(i);
-  size_t n_signed = 0;
-  for (const auto& i : named) n_signed += (i[0] == '+' || i[0] == '-');
-  if (n_signed && n_signed != named.size())
-    throw std::runtime_error("effects mix a complete list with changes (expected names only or signed changes only, "
-                             "got " + text + ")");
-  const bool complete = n_signed == 0;
-  std::vector<std::string> seen;
-  for (const auto& i : named) {
-    const std::string name = (i[0] == '+' || i[0] == '-') ? i.substr(1) : i;
-    if (std::find(seen.begin(), seen.end(), name) != seen.end())
-      throw std::runtime_error("effects name " + name + " twice (expected each effect once, got " + text + ")");
-    seen.push_back(name);
-  }
-  Effects e = complete ? off : base;
-  for (const auto& i : named) {
-    const bool on = i[0] != '-';
-    const std::string name = (i[0] == '+' || i[0] == '-') ? i.substr(1) : i;
-    if (name == "dynamics") e.dynamics = on;
-    else if (name == "wrinkles") e.wrinkles = on;
-    else if (name == "collisions") e.collisions = on;
-    else if (name == "cloth") e.cloth = on;
-    else
-      throw std::runtime_error("unknown effect '" + i + "' (expected lbs, dqs, [+-]dynamics, [+-]wrinkles, "
-                               "[+-]collisions, [+-]cloth or none)");
-  }
-  const bool lbs = std::find(picked.begin(), picked.end(), "lbs") != picked.end();
-  const bool dqs = std::find(picked.begin(), picked.end(), "dqs") != picked.end();
-  if (lbs && dqs) throw std::runtime_error("name one skinning (expected lbs or dqs, got both)");
-  e.skinning = !picked.empty() ? picked.back() : complete ? "lbs" : base.skinning;
-  return e;
-}
-
-Effects effects_of(const sgd::Json& e) {
-  Effects r;
-  r.skinning = e["skinning"].str;
-  r.wrinkles = e["wrinkles"].b;
-  r.dynamics = e["dynamics"].b;
-  return r;
-}
-
-// The manifest, checked: schema 1, 2 or 3 (docs/package.md).
-struct Package {
-  std::string dir;
-  sgd::Json manifest;
-  int schema = 0;
-
-  explicit Package(const std::string& d) : dir(d), manifest(sgd::parse_json(read_text(d + "/manifest.json"))) {
-    if (!manifest.has("format") || manifest["format"].str != "segadeform-model-package")
-      throw std::runtime_error(dir + ": not a segadeform model package");
-    schema = static_cast<int>(manifest["schema_version"].num);
-    if (schema < 1 || schema > 3)
-      throw std::runtime_error(dir + "/manifest.json: unsupported manifest schema version (expected 1, 2 or 3, got " +
-                               std::to_string(schema) + ")");
-  }
-  // schema 1 listed the deformers in "variants"; 2 and 3 list every graph once in "graphs", with a role
-  const sgd::Json& deformer(const Effects& want) const {
-    for (const auto& kv : (schema == 1 ? manifest["variants"] : manifest["graphs"]).obj) {
-      if (schema > 1 && (!kv.second.has("role") || kv.second["role"].str != "deformer")) continue;
-      const auto& e = kv.second["effects"];
-      if (e["skinning"].str == want.skinning && e["wrinkles"].b == want.wrinkles && e["dynamics"].b == want.dynamics)
-        return kv.second;
-    }
-    throw std::runtime_error("the package has no deformer graph for effects " + want.skinning +
-                             (want.dynamics ? ", dynamics" : "") + (want.wrinkles ? ", wrinkles" : ""));
-  }
-  // the effects of a run that names none: the model's own and collisions when the package can pose the body
-  Effects default_effects() const {
-    if (schema == 1) {
-      const auto& c = manifest["config"];
-      Effects e;
-      e.skinning = c["skinning"].str;
-      e.wrinkles = c["use_blend_shapes"].b;
-      e.dynamics = true;
-      return e;
-    }
-    Effects e = effects_of(manifest["graphs"][manifest["default_deformer"].str]["effects"]);
-    e.collisions = has_body();
-    return e;
-  }
-  bool has_body() const {
-    if (schema < 3) return false;
-    for (const auto& kv : manifest["graphs"].obj)
-      if (kv.second.has("role") && kv.second["role"].str == "body") return true;
-    return false;
-  }
-  // the body graph posing with `skinning`, or nullptr when the package has none (packages before schema 3)
-  const sgd::Json* body(const std::string& skinning) const {
-    if (schema < 3) return nullptr;
-    bool any = false;
-    for (const auto& kv : manifest["graphs"].obj) {
-      if (!kv.second.has("role") || kv.second["role"].str != "body") continue;
-      any = true;
-      if (kv.second["skinning"].str == skinning) return &kv.second;
-    }
-    if (any) throw std::runtime_error("the package has no body graph for skinning " + skinning);
-    return nullptr;
-  }
-};
-
-// The model inputs of one scene: from a bundle, or from a garment asset and a motion file.
-struct Scene {
-  const sgd::Array *features = nullptr, *nbr = nullptr, *mask = nullptr, *descriptor = nullptr, *joints = nullptr,
-                   *log_wbody = nullptr;
-  std::vector<float> rest, betas, poses, trans;
-  int64_t N = 0, K = 0, S = 0, T = 0, D = 0;
-  std::string body_sha;  // the body a garment asset was prepared for
-  std::string weight_prior;  // how its weights reached the garment (log_wbody): nearest | inpaint
-  const sgd::Array *vertices64 = nullptr, *faces = nullptr;  // a garment asset's rest vertices and faces (cloth)
-  double fps = 0;  // a motion file's frame rate
-  float start_frame = 0.f;  // a motion file's first frame number in its source (motion export --frames A:B: A)
-};
-
-Scene scene_of_bundle(const sgd::Bundle& b) {
-  Scene s;
-  s.features = &b.at("features");
-  s.nbr = &b.at("nbr");
-  s.mask = &b.at("mask");
-  s.descriptor = &b.at("descriptor");
-  s.joints = &b.at("joints");
-  if (b.has("log_wbody")) s.log_wbody = &b.at("log_wbody");
-  s.rest = floats(b.at("rest"));
-  s.betas = floats(b.at("betas"));
-  s.poses = floats(b.at("poses"));
-  s.trans = floats(b.at("trans"));
-  s.N = b.at("rest").shape[0];
-  s.K = b.at("nbr").shape[1];
-  s.S = b.at("joints").shape[0];
-  s.T = b.at("poses").shape[0];
-  s.D = b.at("poses").shape[1];
-  // a scene with frames A:B: its motion starts at A, and so does the point cache (as `segadeform run` numbers it)
-  s.start_frame = b.meta.has("start_frame") ? static_cast<float>(b.meta["start_frame"].num) : 0.f;
-  return s;
-}
-
-const sgd::Array& need(const sgd::Bundle& b, const std::string& path, const std::string& name, const std::string& dtype,
-                       size_t ndim) {
-  if (!b.has(name) || b.at(name).dtype != dtype || b.at(name).shape.size() != ndim)
-    throw std::runtime_error(path + ": field '" + name + "' is missing or malformed (expected " + dtype + " with " +
-                             std::to_string(ndim) + " dims)");
-  return b.at(name);
-}
-
-Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::Bundle& m, const std::string& mpath,
-                     bool force) {
-  if (!a.meta.has("kind") || a.meta["kind"].str != "segadeform-garment-asset")
-    throw std::runtime_error(apath + ": not a garment asset (expected meta.kind 'segadeform-garment-asset')");
-  const int av = static_cast<int>(a.meta["schema_version"].num);
-  if (av != 1 && av != 2)
-    throw std::runtime_error(apath + ": unsupported garment asset schema version (expected 1 or 2, got " +
-                             std::to_string(av) + ")");
-  if (!a.has("betas") || !a.has("log_wbody") || !a.meta.has("body"))
-    throw std::runtime_error(apath + ": the garment asset is not prepared for a body shape (expected a schema-2 asset "
-                             "with betas, log_wbody and body: segadeform garment export GARMENT --betas ... -o G.sgda)");
-  if (!m.meta.has("kind") || m.meta["kind"].str != "segadeform-motion")
-    throw std::runtime_error(mpath + ": not a motion file (expected meta.kind 'segadeform-motion')");
-  if (static_cast<int>(m.meta["schema_version"].num) != 1)
-    throw std::runtime_error(mpath + ": unsupported motion file schema version (expected 1)");
-  const auto& v = need(a, apath, "vertices", "f64", 2);
-  Scene s;
-  s.features = &need(a, apath, "features", "f32", 2);
-  s.nbr = &need(a, apath, "nbr", "i32", 2);
-  s.mask = &need(a, apath, "mask", "u8", 2);
-  s.descriptor = &need(a, apath, "descriptor", "f64", 1);
-  s.joints = &need(a, apath, "joints", "f64", 2);
-  s.log_wbody = &need(a, apath, "log_wbody", "f32", 2);
-  s.N = v.shape[0];
-  s.K = s.nbr->shape[1];
-  s.S = s.joints->shape[0];
-  if (s.nbr->shape[0] != s.N || s.mask->shape != s.nbr->shape || s.features->shape[0] != s.N ||
-      s.features->shape[1] != 6 + s.S || s.log_wbody->shape[0] != s.N || s.log_wbody->shape[1] != s.S)
-    throw std::runtime_error(apath + ": fields do not agree (expected nbr, mask (N, K), features (N, 6 + S), log_wbody (N, S))");
-  const int32_t* nb = s.nbr->as<int32_t>();
-  for (int64_t i = 0; i < s.nbr->count(); ++i)
-    if (nb[i] < 0 || nb[i] >= s.N)
-      throw std::runtime_error(apath + ": nbr index out of range (expected 0.." + std::to_string(s.N - 1) + ", got " +
-                               std::to_string(nb[i]) + ")");
-  const auto& faces = need(a, apath, "faces", "i32", 2);
-  {
-    const int32_t* fa = faces.as<int32_t>();
-    if (faces.shape[1] != 3 || faces.shape[0] < 1)
-      throw std::runtime_error(apath + ": field 'faces' has the wrong shape (expected (F, 3), F >= 1)");
-    for (int64_t i = 0; i < faces.count(); ++i)
-      if (fa[i] < 0 || fa[i] >= s.N)
-        throw std::runtime_error(apath + ": face index out of range (expected 0.." + std::to_string(s.N - 1) +
-                                 ", got " + std::to_string(fa[i]) + ")");
-  }
-  // values, as the Python runtime checks them (NaN or inf here gave a cache of NaN with exit 0: a user's trial)
-  for (const char* k : {"vertices", "normals", "features", "joints", "descriptor", "betas", "log_wbody"})
-    if (a.has(k)) finite_values(a.at(k), apath, k);
-  for (const char* k : {"vertices", "joints"}) {  // positions within 10 km, as Python's GarmentAsset holds them
-    const double* d = a.at(k).as<double>();
-    for (int64_t i = 0; i < a.at(k).count(); ++i)
-      if (std::fabs(d[i]) > 1e4)
-        throw std::runtime_error(apath + ": field '" + k + "' lies beyond 10 km (expected |x| <= 10000 m)");
-  }
-  const auto& poses = need(m, mpath, "poses", "f32", 3);
-  const auto& trans = need(m, mpath, "trans", "f32", 2);
-  finite_values(poses, mpath, "poses");
-  finite_values(trans, mpath, "trans");
-  {
-    const float* t = trans.as<float>();
-    for (int64_t i = 0; i < trans.count(); ++i)
-      if (std::fabs(t[i]) > 1e4f)
-        throw std::runtime_error(mpath + ": field 'trans' is beyond 10 km (expected |translation| <= 10000 m, got " +
-                                 std::to_string(t[i]) + ")");
-  }
-  if (!m.meta.has("fps") || !(m.meta["fps"].num >= 1 && m.meta["fps"].num <= 1000))
-    throw std::runtime_error(mpath + ": meta.fps must be a frame rate (expected 1..1000)");
-  if (m.meta.has("start_frame")) {
-    const double sf = m.meta["start_frame"].num;
-    if (!(std::isfinite(sf) && sf == std::floor(sf) && std::fabs(sf) <= 2147483647.0))
-      throw std::runtime_error(mpath + ": meta.start_frame must be a frame number (expected an integer of 32 bits)");
-  }
-  if (m.meta.has("betas"))
-    for (const auto& b : m.meta["betas"].arr)
-      if (!std::isfinite(b.num)) throw std::runtime_error(mpath + ": meta.betas contains NaN or inf");
-  if (poses.shape[1] != s.S || poses.shape[2] != 3 || trans.shape[0] != poses.shape[0] || trans.shape[1] != 3 ||
-      poses.shape[0] < 1)
-    throw std::runtime_error(mpath + ": poses and trans do not fit the garment asset (expected (T, " +
-                             std::to_string(s.S) + ", 3) and (T, 3))");
-  s.rest = floats(v);
-  s.betas = floats(a.at("betas"));
-  s.poses = floats(poses);
-  canonical_axis_angle(s.poses);  // every rotation written one way, as Python's motions hold them
-  s.trans = floats(trans);
-  s.T = poses.shape[0];
-  s.D = 3 * s.S;
-  s.body_sha = a.meta["body"]["sha256"].str;
-  s.weight_prior = a.meta["body"].has("weight_prior") ? a.meta["body"]["weight_prior"].str : "nearest";
-  s.vertices64 = &v;
-  s.faces = &faces;
-  s.fps = m.meta["fps"].num;
-  s.start_frame = m.meta.has("start_frame") ? static_cast<float>(m.meta["start_frame"].num) : 0.f;
-  // an asset exported with --force for a body it does not sit on: refused unless forced again, as `segadeform run`
-  // refuses it (it checks the fit itself)
-  if (a.meta["body"].has("unfit") && a.meta["body"]["unfit"].kind == sgd::Json::String) {
-    const std::string why = "the garment asset was exported with --force although " + a.meta["body"]["unfit"].str;
-    if (!force)
-      throw std::runtime_error(apath + ": " + why + " (expected a garment that sits on its body, or --force here too)");
-    std::cerr << "warning: " << why << "\n";
-  }
-  // a motion made for another body or shape is refused, as `segadeform run` refuses it; --force plays it, warned
-  const auto mismatch = [&](const std::string& what) {
-    const std::string msg = "the motion was retargeted onto another " + what + " than the garment asset's";
-    if (!force)
-      throw std::runtime_error(mpath + ": " + msg + " (expected a motion exported for the asset's body and --betas: " +
-                               "segadeform motion export ... --betas ..., or --force)");
-    std::cerr << "warning: " << msg << "\n";
-  };
-  if (m.meta.has("body") && m.meta["body"]["sha256"].str != s.body_sha) mismatch("body");
-  if (m.meta.has("betas")) {
-    const std::vector<sgd::Json>& mb = m.meta["betas"].arr;
-    for (size_t i = 0; i < mb.size(); ++i) {
-      const double ab = i < s.betas.size() ? static_cast<double>(s.betas[i]) : 0.0;
-      if (std::fabs(mb[i].num - ab) > 1e-6) {
-        mismatch("body shape (betas)");
-        break;
-      }
-    }
-  }
-  return s;
-}
-
-// The model's betas: the scene's, zero-padded or cut to `nb` (a cut coefficient must be 0).
-std::vector<float> model_betas(const std::vector<float>& betas, int64_t nb) {
-  std::vector<float> out(static_cast<size_t>(nb), 0.f);
-  for (size_t i = 0; i < betas.size(); ++i) {
-    if (static_cast<int64_t>(i) < nb) out[i] = betas[i];
-    else if (betas[i] != 0.f)
-      throw std::runtime_error("too many shape coefficients for this model (expected <= " + std::to_string(nb) + ")");
-  }
-  return out;
-}
-
-// Encoder once, then the deformer over every frame in batches; returns the frames (T * N * 3) and ms per frame.
-std::vector<float> animate(OrtEnv* env, const Package& pkg, const sgd::Json& dec_spec, const Scene& sc, int batch,
-                           int threads, double* ms_per_frame) {
-  const sgd::Json& enc_spec = pkg.manifest["graphs"]["garment_encoder"];
-  // sessions from the file path: the graphs may keep their weights in the package's shared weights.bin
-  Session enc(env, pkg.dir + "/" + enc_spec["file"].str, threads);
-  Session dec(env, pkg.dir + "/" + dec_spec["file"].str, threads);
-  const int64_t N = sc.N, K = sc.K, S = sc.S, T = sc.T, D = sc.D;
-  const int64_t W = static_cast<int64_t>(find_input(dec_spec, "window")["shape"].arr[1].num);
-  const int64_t NB = static_cast<int64_t>(find_input(dec_spec, "betas")["shape"].arr[1].num);
-  const std::vector<float> betas = model_betas(sc.betas, NB);
-  const std::vector<float> joints = floats(*sc.joints);
-  auto t0 = std::chrono::steady_clock::now();
-  // the encoder's inputs, fed by name (older encoders also take betas)
-  std::vector<Input> ein;
-  for (const auto& i : enc_spec["inputs"].arr) {
-    const std::string& name = i["name"].str;
-    if (name == "features") ein.push_back(input_from(enc_spec, name, *sc.features, {1, N, sc.features->shape[1]}));
-    else if (name == "nbr") ein.push_back(input_from(enc_spec, name, *sc.nbr, {N, K}));
-    else if (name == "mask") ein.push_back(input_from(enc_spec, name, *sc.mask, {N, K}));
-    else if (name == "descriptor")
-      ein.push_back(input_from(enc_spec, name, *sc.descriptor, {1, sc.descriptor->shape[0]}));
-    else if (name == "betas") ein.push_back(input_floats(name, betas, {1, NB}));
-    else throw std::runtime_error("the garment encoder takes '" + name + "', which this runtime cannot feed");
-  }
-  // its one output, without the batch axis, is the deformer input of the same name (g (N, K S) for K networks; older: P (N, S, F))
-  const std::string code_name = enc_spec["outputs"].arr[0]["name"].str;
-  Output code = std::move(enc.run(ein, {code_name})[0]);
-  release(ein);
-  std::vector<Input> fixed;
-  fixed.push_back(input_floats(code_name, code.f, std::vector<int64_t>(code.shape.begin() + 1, code.shape.end())));
-  fixed.push_back(input_floats("rest", sc.rest, {N, 3}));
-  fixed.push_back(input_from(dec_spec, "nbr", *sc.nbr, {N, K}));
-  fixed.push_back(input_from(dec_spec, "mask", *sc.mask, {N, K}));
-  if (has_input(dec_spec, "log_wbody")) {
-    if (!sc.log_wbody) throw std::runtime_error("this model needs the body's weights at the garment (log_wbody)");
-    const sgd::Json& cfg = pkg.manifest["config"];
-    const std::string want = cfg.has("weight_prior") ? cfg["weight_prior"].str : "nearest";
-    if (!sc.weight_prior.empty() && sc.weight_prior != want)
-      throw std::runtime_error("the garment asset's log_wbody was made with the " + sc.weight_prior +
-                               " weight prior, the model wants " + want +
-                               " (expected an asset from segadeform garment export --model PACKAGE)");
-    fixed.push_back(input_from(dec_spec, "log_wbody", *sc.log_wbody, {N, S}));
-  }
-  std::vector<float> frames(static_cast<size_t>(T * N * 3));
-  const std::string out_name = dec_spec["outputs"].arr[0]["name"].str;
-  for (int64_t lo = 0; lo < T; lo += batch) {
-    int64_t hi = std::min<int64_t>(lo + batch, T), B = hi - lo;
-    std::vector<float> win(static_cast<size_t>(B * W * D)), bb(static_cast<size_t>(B * NB)),
-        jj(static_cast<size_t>(B * S * 3)), tt(sc.trans.begin() + lo * 3, sc.trans.begin() + hi * 3);
-    for (int64_t i = 0; i < B; ++i) {
-      for (int64_t k = 0; k < W; ++k) {  // window[:, k] = the pose k frames back, the first frame before it
-        int64_t src = std::max<int64_t>(lo + i - k, 0);
-        std::copy(sc.poses.begin() + src * D, sc.poses.begin() + src * D + D, win.begin() + (i * W + k) * D);
-      }
-      std::copy(betas.begin(), betas.end(), bb.begin() + i * NB);
-      std::copy(joints.begin(), joints.end(), jj.begin() + i * S * 3);
-    }
-    std::vector<Input> din;
-    din.push_back(input_floats("window", win, {B, W, D}));
-    din.push_back(input_floats("betas", bb, {B, NB}));
-    din.push_back(input_floats("joints", jj, {B, S, 3}));
-    din.push_back(input_floats("trans", tt, {B, 3}));
-    std::vector<Input> all;
-    for (auto& f : fixed) all.push_back(Input{f.name, {}, f.dims, f.value});
-    for (auto& d : din) all.push_back(Input{d.name, {}, d.dims, d.value});
-    Output v = std::move(dec.run(all, {out_name})[0]);
-    std::copy(v.f.begin(), v.f.end(), frames.begin() + lo * N * 3);
-    release(din);
-  }
-  *ms_per_frame = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / T;
-  release(fixed);
-  return frames;
-}
-
-// The package's body graph (betas (|beta|,), poses (B, S, 3), trans (B, 3) -> vertices, ...) over a scene's motion
-// and shape, run a batch of frames at a time: pose(lo, hi) gives frames lo..hi-1 ((hi - lo) * V * 3), so that a long
-// clip never holds its posed body whole (21,000 frames of the default body held 3.5 GB); faces() its triangles (the
-// graph's constant `faces` output), rest() the body at zero pose and no translation.
-class BodyPoser {
- public:
-  BodyPoser(OrtEnv* env, const Package& pkg, const sgd::Json& spec, const Scene& sc, int threads)
-      : sc_(sc), sess_(env, pkg.dir + "/" + spec["file"].str, threads) {
-    if (spec.has("body") && !sc.body_sha.empty() && spec["body"]["sha256"].str != sc.body_sha)
-      throw std::runtime_error("the garment asset was prepared for another body than the package's (" +
-                               spec["body"]["name"].str + ")");
-    nb_ = static_cast<int64_t>(spec["inputs"].arr[0]["shape"].arr[0].num);
-    s_ = static_cast<int64_t>(spec["inputs"].arr[1]["shape"].arr[1].num);
-    v_ = static_cast<int64_t>(spec["outputs"].arr[0]["shape"].arr[1].num);
-    if (s_ != sc.S) throw std::runtime_error("the body graph poses " + std::to_string(s_) + " joints, the motion has " +
-                                             std::to_string(sc.S));
-    betas_ = model_betas(sc.betas, nb_);
-  }
-  int64_t V() const { return v_; }
-  std::vector<float> pose(int64_t lo, int64_t hi) {
-    return run(std::vector<float>(sc_.poses.begin() + lo * s_ * 3, sc_.poses.begin() + hi * s_ * 3),
-               std::vector<float>(sc_.trans.begin() + lo * 3, sc_.trans.begin() + hi * 3), hi - lo);
-  }
-  std::vector<float> rest() { return run(std::vector<float>(static_cast<size_t>(3 * s_), 0.f), {0.f, 0.f, 0.f}, 1); }
-  const std::vector<int32_t>& faces() {
-    if (faces_.empty()) rest();
-    return faces_;
-  }
-
- private:
-  std::vector<float> run(std::vector<float> poses, std::vector<float> trans, int64_t B) {
-    std::vector<Input> in;
-    in.push_back(input_floats("betas", betas_, {nb_}));
-    in.push_back(input_floats("poses", std::move(poses), {B, s_, 3}));
-    in.push_back(input_floats("trans", std::move(trans), {B, 3}));
-    std::vector<Output> o = sess_.run(in, faces_.empty() ? std::vector<std::string>{"vertices", "faces"}
-                                                         : std::vector<std::string>{"vertices"});
-    release(in);
-    if (faces_.empty()) faces_ = std::move(o[1].i);
-    return std::move(o[0].f);
-  }
-  const Scene& sc_;
-  Session sess_;
-  int64_t nb_ = 0, s_ = 0, v_ = 0;
-  std::vector<float> betas_;
-  std::vector<int32_t> faces_;
-};
-
 
 const char* USAGE =
     "usage: segadeform-run --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]\n"
     "                      [--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M]\n"
     "                      [--cloth K=V,..] [--batch N] [--threads N] [--force]\n"
     "       segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--check]\n";
+
 
 }  // namespace
 
@@ -822,6 +142,7 @@ int main(int argc, char** argv) {
       sc = scene_of_bundle(bundle);
       eff = effects_of(bundle.meta["effects"]);
     }
+    for (const auto& w : sc.warnings) std::cerr << "warning: " << w << "\n";
     if (!(margin >= 0 && margin < 1))
       throw std::runtime_error("the collision margin must be in [0, 1) metres (got " + std::to_string(margin) + ")");
     sgd::ClothSettings knobs;
@@ -832,98 +153,67 @@ int main(int argc, char** argv) {
       }
       knobs.parse(cloth);
     }
-    if (eff.cloth && !sc.vertices64)
-      throw std::runtime_error("the cloth stage needs a garment asset and a motion file (expected .sgda and .sgdm, got a "
-                               "scene bundle)");
-    if (eff.cloth && !(sc.fps > 0)) throw std::runtime_error("the motion file's fps must be positive");
-    const sgd::Json& dec_spec = pkg.deformer(eff);
-    const bool need_body = !body_out.empty() || eff.collisions || eff.cloth;
-    const sgd::Json* body_spec = need_body ? pkg.body(eff.skinning) : nullptr;
-    if (need_body && !body_spec)
-      throw std::runtime_error(std::string(eff.cloth ? "the cloth stage needs the posed body, and "
-                                           : eff.collisions ? "collisions need the posed body, and " : "") +
-                               "the package has no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
+    StreamOptions so;
+    so.effects = eff;
+    so.cloth = knobs;
+    so.margin = margin;
+    so.fps = sc.fps;
+    so.batch = batch;
+    so.threads = threads;
+    so.body = !body_out.empty();
     OrtEnv* env;
     check(api->CreateEnv(ORT_LOGGING_LEVEL_WARNING, "segadeform", &env));
-    double ms = 0, body_ms = 0, col_ms = 0;
-    std::vector<float> frames = animate(env, pkg, dec_spec, sc, batch, threads, &ms);
-    int64_t V = 0, moved = 0;
-    std::unique_ptr<sgd::Cloth> stage;
-    std::unique_ptr<sgd::Collider> collider;
-    double cloth_ms = 0;
-    using Clock = std::chrono::steady_clock;
-    const auto since = [](Clock::time_point t0) {
-      return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-    };
-    if (body_spec) {  // the body a batch of frames at a time: posed, written, then the cloth stage or collisions
-      BodyPoser poser(env, pkg, *body_spec, sc, threads);
-      V = poser.V();
-      std::unique_ptr<Pc2Writer> body_pc2;
-      if (!body_out.empty())
-        body_pc2.reset(new Pc2Writer(body_out, static_cast<int32_t>(sc.T), static_cast<int32_t>(V), sc.start_frame));
-      if (eff.cloth) {  // contact included: no push-out after it
-        const auto t0 = Clock::now();
-        const std::vector<float> rest = poser.rest();
-        const std::vector<int32_t>& bf = poser.faces();
-        stage.reset(new sgd::Cloth(sc.vertices64->as<double>(), sc.N, sc.faces->as<int32_t>(), sc.faces->shape[0],
-                                   rest.data(), V, bf.data(), static_cast<int64_t>(bf.size() / 3), knobs, margin,
-                                   1.0 / sc.fps));
-        cloth_ms += since(t0);
-      }
-      for (int64_t lo = 0; lo < sc.T; lo += batch) {
-        const int64_t B = std::min<int64_t>(lo + batch, sc.T) - lo;
-        auto t0 = Clock::now();
-        const std::vector<float> body = poser.pose(lo, lo + B);
-        body_ms += since(t0);
-        if (body_pc2) body_pc2->append(body.data(), B * V * 3);
-        t0 = Clock::now();
-        if (stage) {
-          stage->step(frames.data() + lo * sc.N * 3, B, body.data());
-          cloth_ms += since(t0);
-        } else if (eff.collisions) {
-          const std::vector<int32_t>& bf = poser.faces();
-          if (!collider) collider.reset(new sgd::Collider(body.data(), V, bf.data(), static_cast<int64_t>(bf.size() / 3)));
-          moved += collider->push_out(frames.data() + lo * sc.N * 3, B, sc.N, body.data(), margin, threads);
-          col_ms += since(t0);
-        }
-      }
-      if (body_pc2) body_pc2->finish();
-      body_ms /= sc.T;
-      cloth_ms /= sc.T;
-      col_ms /= sc.T;
-      if (stage && stage->resets() > 0)
-        std::cerr << "cloth: the stage started again from the network's frame at frame " << stage->first_reset()
-                  << " (the garment jumped)\n";
+    Stream stream(env, pkg, sc, so);
+    const int64_t N = sc.N, V = stream.V(), T = sc.T;
+    // --check: the bundle's expected frames (the Python runtime's), compared a batch at a time
+    const float* expected = nullptr;
+    if (do_check) {
+      const auto& e = bundle.at("expected");
+      if (e.count() != T * N * 3) throw std::runtime_error("the bundle's expected frames have another size than the frames");
+      expected = e.as<float>();
     }
-    write_pc2(out, frames.data(), static_cast<int32_t>(sc.T), static_cast<int32_t>(sc.N), sc.start_frame);
+    double max_abs = 0, max_ref = 0;
+    // the motion pushed a batch at a time and written as it comes: neither the frames nor the body held whole
+    Pc2Writer pc2(out, static_cast<int32_t>(T), static_cast<int32_t>(N), sc.start_frame);
+    std::unique_ptr<Pc2Writer> body_pc2;
+    if (!body_out.empty()) body_pc2.reset(new Pc2Writer(body_out, static_cast<int32_t>(T), static_cast<int32_t>(V), sc.start_frame));
+    std::vector<float> chunk(static_cast<size_t>(batch * N * 3)), body(body_pc2 ? static_cast<size_t>(batch * V * 3) : 0);
+    for (int64_t lo = 0; lo < T; lo += batch) {
+      const int64_t B = std::min<int64_t>(lo + batch, T) - lo;
+      stream.push(sc.poses.data() + lo * sc.D, sc.trans.data() + lo * 3, B, chunk.data(), body_pc2 ? body.data() : nullptr);
+      pc2.append(chunk.data(), B * N * 3);
+      if (body_pc2) body_pc2->append(body.data(), B * V * 3);
+      for (int64_t i = 0; expected && i < B * N * 3; ++i) {
+        const float x = expected[lo * N * 3 + i];
+        max_abs = std::max(max_abs, static_cast<double>(std::fabs(chunk[i] - x)));
+        max_ref = std::max(max_ref, static_cast<double>(std::fabs(x)));
+      }
+    }
+    pc2.finish();
+    if (body_pc2) body_pc2->finish();
+    const sgd::Cloth* stage = stream.cloth();
+    if (stage && stage->resets() > 0)
+      std::cerr << "cloth: the stage started again from the network's frame at frame " << stage->first_reset()
+                << " (the garment jumped)\n";
     sgd::commit_outputs(outputs, inputs);  // all or none
-    std::printf("%lld frames, %.2f ms/frame (%s%s%s%s%s) -> %s", static_cast<long long>(sc.T), ms,
+    const double ms = stream.ms_deform() / T, body_ms = stream.ms_body() / T, stage_ms = stream.ms_stage() / T;
+    std::printf("%lld frames, %.2f ms/frame (%s%s%s%s%s) -> %s", static_cast<long long>(T), ms,
                 eff.skinning.c_str(), eff.dynamics ? ", dynamics" : "", eff.wrinkles ? ", wrinkles" : "",
                 eff.collisions ? ", collisions" : "", eff.cloth ? ", cloth" : "", out.c_str());
     if (!body_out.empty())
       std::printf("; body %lld vertices, %.2f ms/frame -> %s", static_cast<long long>(V), body_ms, body_out.c_str());
     if (eff.collisions && !eff.cloth)
       std::printf("; collisions: %lld vertex-frames pushed out (margin %g m), %.2f ms/frame",
-                  static_cast<long long>(moved), margin, col_ms);
+                  static_cast<long long>(stream.moved()), margin, stage_ms);
     if (stage)
       std::printf("; cloth: %lld vertex-frames in contact, %lld pushed out after the sweeps, %lld traced out by the "
                   "backstop, %lld reset(s), %.2f ms/frame", static_cast<long long>(stage->contacts()),
                   static_cast<long long>(stage->pushed()), static_cast<long long>(stage->traced()),
-                  static_cast<long long>(stage->resets()), cloth_ms);
+                  static_cast<long long>(stage->resets()), stage_ms);
     std::printf("\n");
-    if (do_check) {
-      const auto& e = bundle.at("expected");
-      const float* ex = e.as<float>();
-      if (static_cast<size_t>(e.count()) != frames.size())
-        throw std::runtime_error("the bundle's expected frames have another size than the frames");
-      double max_abs = 0, max_ref = 0;
-      for (size_t i = 0; i < frames.size(); ++i) {
-        max_abs = std::max(max_abs, static_cast<double>(std::fabs(frames[i] - ex[i])));
-        max_ref = std::max(max_ref, static_cast<double>(std::fabs(ex[i])));
-      }
+    if (do_check)
       std::printf("PARITY {\"max_abs\": %.9g, \"rel\": %.9g, \"ms_per_frame\": %.3f}\n", max_abs,
                   max_abs / max_ref, ms);
-    }
     api->ReleaseEnv(env);
   } catch (const std::exception& e) {
     for (const auto& o : outputs) std::remove(sgd::temporary_name(o).c_str());  // a failed run leaves no output
