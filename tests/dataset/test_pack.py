@@ -311,3 +311,45 @@ def test_dataset_info_reads_a_pack(tmp_path, body, capsys):
     assert main(["inspect", str(out)]) == 0
     said = capsys.readouterr().out
     assert "dataset pack, 1 kept samples (train 1;" in said and "1 rejected" in said, said
+
+
+_DAMAGE = {
+    "trans cut short": (lambda z: z.update(trans=z["trans"][:-5]), "'trans' does not match 'poses'"),
+    "a vertex missing from frames": (lambda z: z.update(frames=z["frames"][:, :-1]), "'frames' does not match"),
+    "a face index out of range": (
+        lambda z: z.update(faces=np.where(z["faces"] == 0, 99999, z["faces"])),
+        "'faces' has an index out of range",
+    ),
+    "NaN in frames": (lambda z: z["frames"].__setitem__((3, 5, 0), np.nan), "'frames' contains NaN or inf"),
+    "NaN betas": (lambda z: z.update(betas=np.full(10, np.nan)), "'betas' contains NaN or inf"),
+    "poses narrower than the lead": (lambda z: z.update(poses=z["poses"][:, :69]), "differ in width"),
+}
+
+
+@pytest.mark.parametrize("damage", list(_DAMAGE))
+def test_a_damaged_sample_is_one_line_naming_its_file_and_array(tmp_path, body, capsys, damage):
+    """A sample's arrays edited or damaged by hand: each is one error naming the file and the array (a researcher's
+    trial met tracebacks deep in training and evaluation, and messages naming no file or the wrong array), in
+    `eval` with exit 1 and no output, and in `dataset pack` (no pack written)."""
+    from segadeform.errors import FileFormatError
+
+    edit, words = _DAMAGE[damage]
+    root = tmp_path / "d"
+    _save(root, "s1", body, split="val")
+    p = root / "samples" / "s1.npz"
+    z = dict(np.load(p))
+    edit(z)
+    np.savez(p, **z)
+    with pytest.raises(FileFormatError) as e:
+        load_sample(root, "s1")
+    assert words in str(e.value) and "s1.npz" in str(e.value), str(e.value)
+    capsys.readouterr()
+    assert main(["eval", str(root), "--split", "val", "-m", "lbs=lbs", "-o", str(tmp_path / "ev")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "s1.npz" in err and words in err, err
+    assert not (tmp_path / "ev").exists()
+    if damage == "trans cut short":  # not packed either: the same error, and no pack
+        with pytest.raises(FileFormatError) as e:
+            write_pack(root, tmp_path / "d.sgdpack", body=body)
+        assert "s1.npz" in str(e.value) and words in str(e.value), str(e.value)
+        assert not (tmp_path / "d.sgdpack").exists()

@@ -49,7 +49,7 @@ import numpy as np
 
 from ..errors import FileFormatError, InputError, file_error
 from ..io.atomic import atomic_path
-from .store import SAMPLE_FOLDERS, Sample, load_sample
+from .store import SAMPLE_FOLDERS, Sample, check_sample, load_sample
 
 __all__ = [
     "PACK_SUFFIX",
@@ -338,17 +338,11 @@ class Pack:
         if missing:
             raise FileFormatError(f"sample {sid} lacks {missing[0]!r}", path=self.path)
         lead = "lead_poses" in z and "lead_trans" in z
-        if lead and (
-            z["lead_poses"].ndim != 2
-            or z["lead_poses"].shape[1:] != z["poses"].shape[1:]
-            or z["lead_trans"].shape != (z["lead_poses"].shape[0], 3)
-        ):
+        if not np.issubdtype(z["faces"].dtype, np.integer):
             raise FileFormatError(
-                f"sample {sid}'s lead is not (L, 72), (L, 3)",
-                path=self.path,
-                got=(z["lead_poses"].shape, z["lead_trans"].shape),
+                f"sample {sid} array 'faces' is not integer", path=self.path, got=str(z["faces"].dtype)
             )
-        return Sample(
+        s = Sample(
             id=sid,
             rest=z["rest"].astype(np.float64),
             faces=z["faces"].astype(np.int64),
@@ -361,6 +355,7 @@ class Pack:
             lead_poses=z["lead_poses"].astype(np.float64) if lead else None,
             lead_trans=z["lead_trans"].astype(np.float64) if lead else None,
         )
+        return check_sample(s, self.path, f"sample {sid}", finite_frames=e["folder"] == "samples")
 
     def configs(self) -> list[str]:
         return sorted(n for n in self._zip.namelist() if n.startswith("configs/") and n.endswith(".toml"))

@@ -12,7 +12,7 @@ from ..errors import FileFormatError, InputError, file_error, unreadable_error
 from ..io.location import open_location
 from ..io.npz import load_npz
 
-__all__ = ["Sample", "save_sample", "load_sample", "list_samples", "SAMPLE_FOLDERS"]
+__all__ = ["Sample", "save_sample", "load_sample", "list_samples", "check_sample", "SAMPLE_FOLDERS"]
 
 #: where a dataset keeps samples that passed its quality gate, and those that did not
 SAMPLE_FOLDERS = ("samples", "rejected")
@@ -78,6 +78,59 @@ def save_sample(root, s: Sample, folder: str = "samples") -> bool:
     return loc.put_bytes(meta_rel, json.dumps(s.meta, indent=1, sort_keys=True).encode("utf-8"), once=True)
 
 
+def check_sample(s: Sample, path, label: str = "sample", *, finite_frames: bool = True) -> Sample:
+    """``s`` with every array's shape, index range and values checked against the others (a sample file edited or
+    damaged by hand gave tracebacks deep in training or evaluation, or errors that named no file); each problem is
+    one :class:`FileFormatError` naming ``path``, ``label`` and the array.  Returns ``s``.
+
+    Shapes: rest (N, 3), faces (F, 3) in 0..N-1, betas (B,), poses (T, 3 S), trans (T, 3), frames (T, N, 3), T >= 1;
+    the lead (L, 3 S) and (L, 3); every float finite (the frames only with ``finite_frames``: a rejected sample's
+    simulation may have blown up, and is kept as it is)."""
+
+    def bad(what, expected, got):
+        raise FileFormatError(f"{label} array {what}", path=path, expected=expected, got=got)
+
+    n = s.rest.shape[0] if s.rest.ndim == 2 else -1
+    if s.rest.ndim != 2 or s.rest.shape[1] != 3 or n < 3:
+        bad("'rest' has the wrong shape", "(N, 3), N >= 3", s.rest.shape)
+    if s.faces.ndim != 2 or s.faces.shape[1] != 3 or len(s.faces) < 1:
+        bad("'faces' has the wrong shape", "(F, 3), F >= 1", s.faces.shape)
+    if not np.issubdtype(s.faces.dtype, np.integer):
+        bad("'faces' is not integer", "integer vertex indices", str(s.faces.dtype))
+    if s.faces.min() < 0 or s.faces.max() >= n:
+        bad(
+            "'faces' has an index out of range",
+            f"0..{n - 1}",
+            int(s.faces.max() if s.faces.max() >= n else s.faces.min()),
+        )
+    t = s.poses.shape[0] if s.poses.ndim == 2 else -1
+    if s.poses.ndim != 2 or t < 1 or s.poses.shape[1] < 3 or s.poses.shape[1] % 3:
+        bad("'poses' has the wrong shape", "(T, 3 S), T >= 1", s.poses.shape)
+    if s.trans.shape != (t, 3):
+        bad("'trans' does not match 'poses'", (t, 3), s.trans.shape)
+    if s.frames.shape != (t, n, 3):
+        bad("'frames' does not match 'poses' and 'rest'", (t, n, 3), s.frames.shape)
+    if s.betas.ndim != 1:
+        bad("'betas' has the wrong shape", "(B,)", s.betas.shape)
+    if s.lead_poses is not None:
+        if s.lead_poses.ndim != 2 or s.lead_poses.shape[1] != s.poses.shape[1]:
+            bad(
+                "'poses' and 'lead_poses' differ in width (one of them is damaged)",
+                s.poses.shape[1:],
+                s.lead_poses.shape[1:],
+            )
+        if s.lead_trans is None or s.lead_trans.shape != (len(s.lead_poses), 3):
+            bad(
+                "'lead_trans' does not match 'lead_poses'", (len(s.lead_poses), 3), getattr(s.lead_trans, "shape", None)
+            )
+    checked = ("rest", "betas", "poses", "trans", "cloth_rest", "lead_poses", "lead_trans")
+    for k in checked + (("frames",) if finite_frames else ()):
+        a = getattr(s, k)
+        if a is not None and not np.isfinite(a).all():
+            bad(f"{k!r} contains NaN or inf", "finite values", f"{int((~np.isfinite(a)).sum())} non-finite")
+    return s
+
+
 def load_sample(root: Path, sid: str, folder: str = "samples") -> Sample:
     if folder not in SAMPLE_FOLDERS:
         raise InputError("a sample lives in 'samples' or 'rejected'", got=folder)
@@ -110,15 +163,9 @@ def load_sample(root: Path, sid: str, folder: str = "samples") -> Sample:
             )
         contact["cloth_rest"] = z["cloth_rest"]
     if "lead_poses" in z and "lead_trans" in z:
-        lp, lt = z["lead_poses"], z["lead_trans"]
-        if lp.ndim != 2 or lp.shape[1:] != z["poses"].shape[1:] or lt.shape != (lp.shape[0], 3):
-            raise FileFormatError(
-                "sample arrays 'lead_poses', 'lead_trans' are not (L, 72), (L, 3)",
-                path=d / f"{sid}.npz",
-                got=(lp.shape, lt.shape),
-            )
-        contact["lead_poses"], contact["lead_trans"] = lp, lt
-    return Sample(id=sid, meta=meta, **{k: z[k] for k in _ARRAYS}, **contact)
+        contact["lead_poses"], contact["lead_trans"] = z["lead_poses"], z["lead_trans"]
+    s = Sample(id=sid, meta=meta, **{k: z[k] for k in _ARRAYS}, **contact)
+    return check_sample(s, d / f"{sid}.npz", finite_frames=folder == "samples")
 
 
 def list_samples(root: Path, split: str | None = None) -> list[str]:
