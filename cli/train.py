@@ -54,11 +54,13 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
     from segadeform.io.output_guard import OutputGuard
 
     guard = OutputGuard("train", force=force, inputs=(config, *dataset, body))
+    written = ("config.toml", "train.json", "last.pt", "best.pt", "model.pt", "loss.csv", "loss.png")
     guard.resumable(
         output,
         layout=("config.toml", "train.json", "last.pt", "model.pt", "loss.csv", "loss.png"),
         legacy=("config.toml", "loss.csv", "last.pt"),
     )
+    guard.check_files_in(output, written)  # a file of the run's that the user edited is never written over
     from segadeform.train import load_train_config
     from segadeform.train.trainer import train
 
@@ -101,6 +103,7 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
         final = train(cfg, output, _body(body), progress=progress, val_ids=list(val_ids) or None)
     finally:
         guard.abandon()
+    guard.record_files_in(output, written)
     info = json.loads((output / "train.json").read_text())
     if before is not None and before == info["steps"]:  # a finished run run again (a user read it as trained now)
         click.echo(

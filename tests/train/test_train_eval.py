@@ -136,6 +136,22 @@ def test_cli_train_and_eval(synthetic_dataset, tiny_config, tmp_path, capsys):
     # the same command again: said to be done, not trained again (a user's trial read "trained 2 steps" as new)
     assert main(["train", str(tiny_config), "--dataset", str(synthetic_dataset), "-o", str(run), "--steps", "2"]) == 0
     assert "already trained: 2 steps" in capsys.readouterr().out
+    # ... and nothing rewritten: the record's time is the run's (it read 0 s once), loss.csv's last row agrees
+    info = json.loads((run / "train.json").read_text())
+    last = list(csv.DictReader(open(run / "loss.csv")))[-1]
+    assert info["train_seconds"] == round(float(last["seconds"]), 1) and info["train_seconds"] > 0
+    snap = {f: (run / f).stat().st_mtime_ns for f in ("model.pt", "train.json", "loss.csv", "loss.png")}
+    assert main(["train", str(tiny_config), "--dataset", str(synthetic_dataset), "-o", str(run), "--steps", "2"]) == 0
+    assert snap == {f: (run / f).stat().st_mtime_ns for f in snap}
+    # a file of the run the user changed is never written over (a trial's own model.pt was replaced)
+    mine = (run / "model.pt").read_bytes()
+    (run / "model.pt").write_bytes(b"my fine-tuned weights")
+    capsys.readouterr()
+    assert main(["train", str(tiny_config), "--dataset", str(synthetic_dataset), "-o", str(run), "--steps", "3"]) == 1
+    err = capsys.readouterr().err
+    assert "model.pt: changed since segadeform train wrote it" in err and err.count("\n") == 1, err
+    assert (run / "model.pt").read_bytes() == b"my fine-tuned weights"
+    (run / "model.pt").write_bytes(mine)
     out = tmp_path / "eval"
     assert (
         main(["eval", str(synthetic_dataset), "-m", "lbs=lbs", "-m", f"sega={run / 'model.pt'}", "-o", str(out)]) == 0

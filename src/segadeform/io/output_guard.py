@@ -522,6 +522,37 @@ class OutputGuard:
                             (root / sub).unlink()
                     root.rmdir()
 
+    def check_files_in(self, folder, names: Sequence[str]) -> None:
+        """Refuse when a file of ``names`` in resumable ``folder`` that its manifest lists as this kind's was edited
+        since (the run would write it again: ``train``'s model.pt, train.json, loss.png ...).  Files the manifest
+        does not list (runs made before it recorded them) are the run's by the folder's mark."""
+        files = read_manifest(folder)["files"]
+        for n in names:
+            e, q = files.get(n), Path(folder) / n
+            st = _stat(q)
+            if e is not None and e.get("kind") == self.kind and st is not None and not _unchanged(e, st):
+                raise OutputRefused(
+                    f"changed since {self._cmd} wrote it, and this run would write it again; segadeform never "
+                    "overwrites such a file",
+                    path=q,
+                    expected="the run's own file (move yours out of the run folder to go on)",
+                    got="a file edited since",
+                )
+
+    def record_files_in(self, folder, names: Sequence[str]) -> list[Path]:
+        """After a run: list the files of ``names`` now in resumable ``folder`` in its manifest as this kind's (what
+        :meth:`check_files_in` holds the next run to).  Returns the files recorded."""
+        add, out = {}, []
+        for n in names:
+            q = Path(folder) / n
+            st = _stat(q)
+            if st is not None and os.path.isfile(q):
+                add[n] = _entry(self.kind, st)
+                out.append(q)
+        if add:
+            _update_manifest(Path(folder), add)
+        return out
+
     # -- before the commit, and after ----------------------------------------------------------------------------
     def recheck(self) -> None:
         """Check every file and folder claim again (just before committing: something may have appeared)."""

@@ -171,6 +171,16 @@ class OptimConfig:
     weight_decay: float = 0.0  # decoupled weight decay (AdamW): pulls the residual towards 0, i.e. the prior
 
     def __post_init__(self):
+        for k in ("steps", "frames", "garments", "checkpoint_every"):  # (checkpoint_every = 0: a modulo by zero)
+            v = getattr(self, k)
+            if not (isinstance(v, int) and not isinstance(v, bool) and v >= 1):
+                raise InputError(f"optim.{k} must be an integer >= 1", got=v)
+        for k in ("lr", "grad_clip"):
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0):
+                raise InputError(f"optim.{k} must be a number > 0", got=v)
+        if not (isinstance(self.lr_final, (int, float)) and 0 <= self.lr_final <= 1):
+            raise InputError("optim.lr_final must be a number in [0, 1]", got=self.lr_final)
         if not (
             isinstance(self.weight_decay, (int, float))
             and not isinstance(self.weight_decay, bool)

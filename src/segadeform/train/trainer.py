@@ -356,6 +356,9 @@ def train(
         best_val = (float(ck.get("best_val", float("inf"))), int(ck.get("best_step", -1)))
     else:
         best_val = (float("inf"), -1)  # (vertex error on the validation split, step)
+    final = run / "model.pt"
+    if step >= total[0] and final.is_file() and (run / "train.json").is_file():
+        return final  # a finished run run again: nothing to do, nothing rewritten (its record kept as it was)
     # the config beside the run once there is something to train and it is this run's (a run that finds no data,
     # or that another run's folder refuses, leaves no file)
     if cfg.path is not None and cfg.path.resolve() != (run / "config.toml").resolve():
@@ -384,7 +387,7 @@ def train(
                     "rng": rng.bit_generator.state,
                     "torch_rng": torch.get_rng_state(),
                     "step": step,
-                    "elapsed": elapsed,
+                    "elapsed": elapsed + (time.perf_counter() - t0),  # up to now (elapsed lags until the next log)
                     "config_digest": cfg.digest(),
                     "train_config": cfg.to_dict(),  # what a refused resume names as changed
                     "data_digest": data_digest,
@@ -541,7 +544,6 @@ def train(
         if prefetch is not None:
             prefetch.close()
     elapsed += time.perf_counter() - t0
-    final = run / "model.pt"
     # the garments it saw, by descriptor: export writes them to the manifest, and runtimes warn about garments
     # far from all of them (segadeform.contracts.model_package.TRAINING_GARMENTS)
     from ..geometry.mesh_ops import boundary_loops
