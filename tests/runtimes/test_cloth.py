@@ -372,3 +372,14 @@ def test_cpp_library_player_pushed_in_chunks_gives_segadeform_runs_frames(cpp, c
     )
     assert p.returncode == 1 and p.stderr.count("\n") == 1 and "the stage is off" in p.stderr, p.stderr
     assert not (tmp_path / "x.pc2").exists()
+    # the library's own checks (runtimes/cpp/test/player_test.cpp): misuse is one std::runtime_error line (sizes,
+    # no frame, 2^60 frames, NaN, a moved-from player, a folder or a motion as the garment ...), reset() and a
+    # second player in the process give the same frames, a moved player goes on
+    t = subprocess.run(
+        [str(Path(cpp[0]).with_name("segadeform-player-test")), str(c["package"]), str(c["garment"]), str(c["motion"])],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    checks = t.stdout.splitlines()
+    assert t.returncode == 0 and len(checks) >= 19 and all(ln.startswith("ok ") for ln in checks), t.stdout + t.stderr

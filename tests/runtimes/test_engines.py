@@ -157,11 +157,31 @@ def test_runtime_refuses_what_it_cannot_run(runtime, request, portable_scene, ra
             ["--garment", str(tmp_path / "inpaint.sgda"), "--motion", str(s["motion"])],
             "made with the inpaint weight prior, the model wants nearest",
         ),
+        # with no stage posing the body (effects none; the motion's mismatch forced): still refused (it played)
+        (
+            ["--garment", str(tmp_path / "other.sgda"), "--motion", str(s["motion"]), "--effects", "none", "--force"],
+            "prepared for another body than the package's",
+        ),
     ]
+    # damaged or crafted bundles (a C++ integrator's trial: std::invalid_argument from stoi, reads out of bounds
+    # under ASan, a stack overflow on deep nesting): one line naming the file, exit 1
+    head = b"SEGADEFORM-BUNDLE 1\n"
+    hostile = {
+        "count.sgda": head + b"abc\nmeta {}\nEND\n",
+        "bigcount.sgda": head + b"99999999999\nmeta {}\nEND\n",
+        "negoffset.sgda": head + b"1\nvertices f64 2 2 3 -5000 48\nmeta {}\nEND\n" + b"\0" * 80,
+        "negdim.sgda": head + b"1\nvertices f64 2 -1 3 0 -24\nmeta {}\nEND\n",
+        "hugedim.sgda": head + b"1\nvertices f64 2 4611686018427387904 4 0 0\nmeta {}\nEND\n",
+        "deep.sgda": head + b"0\nmeta " + b"[" * 200_000 + b"\nEND\n",
+    }
+    for name, data in hostile.items():
+        (tmp_path / name).write_bytes(data)
+        cases.append((["--garment", str(tmp_path / name), "--motion", str(s["motion"])], name))
     for args, words in cases:
         p = run(*args)
         either = (words,) if isinstance(words, str) else words
         assert p.returncode == 1 and any(w in p.stderr for w in either), (args, p.stderr)
+        assert len([ln for ln in p.stderr.splitlines() if not ln.startswith("warning:")]) == 1, (args, p.stderr)
         assert not (tmp_path / "x.pc2").exists()
     assert run("--garment", str(s["garment"])).returncode == 2  # usage: no motion
     assert not (tmp_path / "b.pc2").exists()

@@ -654,16 +654,28 @@ class Stream {
   // `sc`: the garment's fields (features, nbr, mask, descriptor, joints, log_wbody, rest, betas; vertices64 and faces
   // for the cloth stage), kept by reference: it must outlive the stream.
   Stream(OrtEnv* env, const Package& pkg, const Scene& sc, const StreamOptions& opt) : sc_(sc), opt_(opt) {
+    if (opt_.effects.cloth) opt_.effects.collisions = false;  // the stage's contact replaces the push-out
     if (opt.batch < 1) throw std::runtime_error("batch must be an integer >= 1 (got " + std::to_string(opt.batch) + ")");
     if (opt.threads < 1)
       throw std::runtime_error("threads must be an integer >= 1 (got " + std::to_string(opt.threads) + ")");
     if (!(opt.margin >= 0 && opt.margin < 1))
       throw std::runtime_error("the collision margin must be in [0, 1) metres (got " + std::to_string(opt.margin) + ")");
-    const Effects& eff = opt.effects;
+    const Effects& eff = opt_.effects;
     if (eff.cloth && !sc.vertices64)
       throw std::runtime_error("the cloth stage needs a garment asset and a motion file (expected .sgda and .sgdm, got a "
                                "scene bundle)");
     if (eff.cloth && !(opt.fps > 0)) throw std::runtime_error("the motion file's fps must be positive");
+    // an asset prepared for another body than the package's is refused whatever the effects (only the body graph's
+    // poser checked it, so `none` played it), as `segadeform run` refuses it
+    static const sgd::Json none;
+    for (const auto& kv : (pkg.manifest.has("graphs") ? pkg.manifest["graphs"] : none).obj) {
+      const sgd::Json& g = kv.second;
+      if (g.has("role") && g["role"].str == "body" && g.has("body") && !sc.body_sha.empty() &&
+          g["body"]["sha256"].str != sc.body_sha)
+        throw std::runtime_error("the garment asset was prepared for another body than the package's (expected " +
+                                 g["body"]["name"].str + " " + g["body"]["sha256"].str.substr(0, 12) + ", got " +
+                                 sc.body_sha.substr(0, 12) + ")");
+    }
     const sgd::Json& dec_spec = pkg.deformer(eff);
     const bool need_body = opt.body || eff.collisions || eff.cloth;
     const sgd::Json* body_spec = need_body ? pkg.body(eff.skinning) : nullptr;
@@ -671,16 +683,21 @@ class Stream {
       throw std::runtime_error(std::string(eff.cloth ? "the cloth stage needs the posed body, and "
                                            : eff.collisions ? "collisions need the posed body, and " : "") +
                                "the package has no body graph (segadeform export-body [BODY] -o PACKAGE adds one)");
-    open_deformer(env, pkg, dec_spec);
-    if (body_spec) {
-      poser_.reset(new BodyPoser(env, pkg, *body_spec, sc, opt.threads));
-      if (eff.cloth) {
-        const auto t1 = Clock::now();
-        rest_body_ = poser_->rest();
-        ms_stage_ += since(t1);
+    try {  // the deformer's fixed inputs are released if anything after them fails (the destructor does not run)
+      open_deformer(env, pkg, dec_spec);
+      if (body_spec) {
+        poser_.reset(new BodyPoser(env, pkg, *body_spec, sc, opt.threads));
+        if (eff.cloth) {
+          const auto t1 = Clock::now();
+          rest_body_ = poser_->rest();
+          ms_stage_ += since(t1);
+        }
       }
+      reset();
+    } catch (...) {
+      release(fixed_);
+      throw;
     }
-    reset();
   }
   ~Stream() { release(fixed_); }
   Stream(const Stream&) = delete;
@@ -793,7 +810,13 @@ class Stream {
     // its one output, without the batch axis, is the deformer input of the same name (g (N, K S) for K networks;
     // older: P (N, S, F))
     const std::string code_name = enc_spec["outputs"].arr[0]["name"].str;
-    Output code = std::move(enc.run(ein, {code_name})[0]);
+    Output code;
+    try {
+      code = std::move(enc.run(ein, {code_name})[0]);
+    } catch (...) {
+      release(ein);
+      throw;
+    }
     release(ein);
     fixed_.push_back(input_floats(code_name, code.f, std::vector<int64_t>(code.shape.begin() + 1, code.shape.end())));
     fixed_.push_back(input_floats("rest", sc.rest, {N, 3}));

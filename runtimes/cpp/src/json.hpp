@@ -29,18 +29,20 @@ class JsonParser {
  public:
   explicit JsonParser(const std::string& s) : s_(s) {}
   Json parse() {
-    Json v = value();
+    Json v = value(0);
     ws();
     if (i_ != s_.size()) fail("trailing characters");
     return v;
   }
 
  private:
+  static constexpr int MAX_DEPTH = 256;  // nesting deeper than any file here has (a crafted one overflowed the stack)
   const std::string& s_;
   size_t i_ = 0;
   [[noreturn]] void fail(const std::string& what) {
     throw std::runtime_error("JSON: " + what + " at offset " + std::to_string(i_));
   }
+  char peek() const { return i_ < s_.size() ? s_[i_] : '\0'; }  // '\0' at the end: never read past it
   void ws() {
     while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\n' || s_[i_] == '\r' || s_[i_] == '\t')) ++i_;
   }
@@ -49,35 +51,37 @@ class JsonParser {
     if (s_.compare(i_, n, w) == 0) { i_ += n; return true; }
     return false;
   }
-  Json value() {
+  Json value(int depth) {
     ws();
     if (i_ >= s_.size()) fail("unexpected end");
+    if (depth > MAX_DEPTH) fail("nested deeper than " + std::to_string(MAX_DEPTH));
     Json v;
     char c = s_[i_];
     if (c == '{') {
       v.kind = Json::Object; ++i_; ws();
-      if (s_[i_] == '}') { ++i_; return v; }
+      if (peek() == '}') { ++i_; return v; }
       for (;;) {
         ws();
-        Json k = value();
+        Json k = value(depth + 1);
         if (k.kind != Json::String) fail("object key must be a string");
         ws();
-        if (s_[i_++] != ':') fail("expected ':'");
-        v.obj[k.str] = value();
+        if (peek() != ':') fail("expected ':'");
+        ++i_;
+        v.obj[k.str] = value(depth + 1);
         ws();
-        if (s_[i_] == ',') { ++i_; continue; }
-        if (s_[i_] == '}') { ++i_; return v; }
+        if (peek() == ',') { ++i_; continue; }
+        if (peek() == '}') { ++i_; return v; }
         fail("expected ',' or '}'");
       }
     }
     if (c == '[') {
       v.kind = Json::Array; ++i_; ws();
-      if (s_[i_] == ']') { ++i_; return v; }
+      if (peek() == ']') { ++i_; return v; }
       for (;;) {
-        v.arr.push_back(value());
+        v.arr.push_back(value(depth + 1));
         ws();
-        if (s_[i_] == ',') { ++i_; continue; }
-        if (s_[i_] == ']') { ++i_; return v; }
+        if (peek() == ',') { ++i_; continue; }
+        if (peek() == ']') { ++i_; return v; }
         fail("expected ',' or ']'");
       }
     }
@@ -86,7 +90,7 @@ class JsonParser {
       while (i_ < s_.size() && s_[i_] != '"') {
         if (s_[i_] == '\\') {
           ++i_;
-          char e = s_[i_];
+          char e = peek();
           if (e == 'n') v.str += '\n'; else if (e == 't') v.str += '\t';
           else if (e == 'u') { v.str += '?'; i_ += 4; }  // names here are ASCII
           else v.str += e;

@@ -143,6 +143,7 @@ int main(int argc, char** argv) {
       eff = effects_of(bundle.meta["effects"]);
     }
     for (const auto& w : sc.warnings) std::cerr << "warning: " << w << "\n";
+    if (eff.cloth) eff.collisions = false;  // the stage's contact replaces the push-out (as `segadeform run` says)
     if (!(margin >= 0 && margin < 1))
       throw std::runtime_error("the collision margin must be in [0, 1) metres (got " + std::to_string(margin) + ")");
     sgd::ClothSettings knobs;

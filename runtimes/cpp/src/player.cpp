@@ -26,6 +26,13 @@ OrtEnv* environment() {
 
 }  // namespace
 
+namespace {
+void bad_count(const std::string& what, int64_t got, int64_t want) {
+  throw std::runtime_error("push: " + what + " has " + std::to_string(got) + " values (expected " + std::to_string(want) +
+                           ")");
+}
+}  // namespace
+
 struct Player::Impl {
   Package pkg;
   sgd::Bundle asset;
@@ -33,6 +40,8 @@ struct Player::Impl {
   std::unique_ptr<Stream> stream;
   PlayerOptions opt;
   std::vector<int32_t> faces;
+
+  std::vector<int32_t> body_faces;
 
   Impl(const std::string& package_dir, const std::string& garment, const PlayerOptions& o)
       : pkg(package_dir), asset(sgd::read_bundle(garment)), opt(o) {
@@ -59,8 +68,15 @@ struct Player::Impl {
     stream.reset(new Stream(environment(), pkg, sc, so));
     const int32_t* f = sc.faces->as<int32_t>();
     faces.assign(f, f + sc.faces->count());
+    if (o.body) body_faces = stream->body_faces();
   }
 };
+
+// the implementation, or the error of a moved-from Player (it has none)
+Player::Impl& Player::impl() const {
+  if (!impl_) throw std::runtime_error("this Player was moved from (expected a Player that holds a garment)");
+  return *impl_;
+}
 
 Player::Player(const std::string& package_dir, const std::string& garment_asset, const PlayerOptions& options)
     : impl_(new Impl(package_dir, garment_asset, options)) {}
@@ -68,10 +84,22 @@ Player::~Player() = default;
 Player::Player(Player&&) noexcept = default;
 Player& Player::operator=(Player&&) noexcept = default;
 
+std::vector<float> Player::push(const std::vector<float>& poses, const std::vector<float>& trans,
+                                std::vector<float>* body) {
+  const int64_t D = impl().sc.D, frames = static_cast<int64_t>(trans.size() / 3);
+  if (trans.size() % 3 != 0 || frames < 1)
+    throw std::runtime_error("push: trans has " + std::to_string(trans.size()) +
+                             " values (expected 3 per frame, at least one frame)");
+  if (static_cast<int64_t>(poses.size()) != frames * D) bad_count("poses", static_cast<int64_t>(poses.size()), frames * D);
+  return push(poses.data(), trans.data(), frames, body);
+}
+
 std::vector<float> Player::push(const float* poses, const float* trans, int64_t frames, std::vector<float>* body) {
-  Impl& m = *impl_;
+  Impl& m = impl();
   const int64_t D = m.sc.D, N = m.sc.N;
   if (frames < 1) throw std::runtime_error("push: expected at least one frame (got " + std::to_string(frames) + ")");
+  if (frames > (int64_t{1} << 31) / (N * 3 > D ? N * 3 : D))  // no count overflows, no output past 2^31 values
+    throw std::runtime_error("push: too many frames at once (got " + std::to_string(frames) + "; push fewer)");
   if (!poses || !trans) throw std::runtime_error("push: expected poses and trans (got a null pointer)");
   std::vector<float> p(poses, poses + frames * D);
   for (size_t i = 0; i < p.size(); ++i)
@@ -94,23 +122,24 @@ std::vector<float> Player::push(const float* poses, const float* trans, int64_t 
   return out;
 }
 
-void Player::reset() { impl_->stream->reset(); }
+void Player::reset() { impl().stream->reset(); }
 
-int64_t Player::vertices() const { return impl_->sc.N; }
-int64_t Player::joints() const { return impl_->sc.S; }
-int64_t Player::body_vertices() const { return impl_->stream->V(); }
-const std::vector<int32_t>& Player::faces() const { return impl_->faces; }
-const std::vector<std::string>& Player::warnings() const { return impl_->sc.warnings; }
+int64_t Player::vertices() const { return impl().sc.N; }
+int64_t Player::joints() const { return impl().sc.S; }
+int64_t Player::body_vertices() const { return impl().stream->V(); }
+const std::vector<int32_t>& Player::faces() const { return impl().faces; }
+const std::vector<int32_t>& Player::body_faces() const { return impl().body_faces; }
+const std::vector<std::string>& Player::warnings() const { return impl().sc.warnings; }
 
 std::string Player::effects() const {
-  const Effects& e = impl_->stream->effects();
+  const Effects& e = impl().stream->effects();
   return e.skinning + (e.dynamics ? ",dynamics" : "") + (e.wrinkles ? ",wrinkles" : "") +
          (e.collisions ? ",collisions" : "") + (e.cloth ? ",cloth" : "");
 }
 
 Counts Player::counts() const {
   Counts c;
-  const Stream& s = *impl_->stream;
+  const Stream& s = *impl().stream;
   c.frames = s.frames();
   c.moved = s.moved();
   if (const sgd::Cloth* st = s.cloth()) {

@@ -49,16 +49,19 @@ export function parseBundle(bytes, where = "bundle") {
     throw new Error(`${where}: the header's meta is not valid JSON (${e.message.split("\n")[0]})`);
   }
   const arrays = {};
+  const body = Math.max(buf.length - start, 0); // bytes of array data
+  // a whole decimal in 0..body (a crafted header's negative or huge sizes and offsets are refused here, never read)
+  const size = (x) => (/^\d+$/.test(x || "") && Number(x) <= body ? Number(x) : -1);
   for (const ln of lines.slice(1, n + 1)) {
     const t = ln.trim().split(/\s+/);
     const [name, dt] = t;
-    const nd = parseInt(t[2], 10);
-    const shape = t.slice(3, 3 + nd).map((x) => parseInt(x, 10));
-    const off = parseInt(t[3 + nd], 10);
-    const nbytes = parseInt(t[4 + nd], 10);
-    const [Ctor, size] = DTYPES[dt] || [];
-    const count = shape.reduce((a, b) => a * b, 1);
-    if (!Ctor || count * size !== nbytes || start + off + nbytes > buf.length) {
+    const nd = /^\d$/.test(t[2] || "") ? Number(t[2]) : -1;
+    const shape = nd >= 0 ? t.slice(3, 3 + nd).map(size) : [];
+    const off = size(t[3 + nd]), nbytes = size(t[4 + nd]);
+    const [Ctor, width] = DTYPES[dt] || [];
+    const count = shape.reduce((a, b) => (a < 0 || b < 0 || a > body ? -1 : a * b), 1);
+    if (!Ctor || nd < 0 || t.length !== 5 + nd || shape.some((d) => d < 0) || off < 0 || nbytes < 0 || count < 0 ||
+        count * width !== nbytes || off + nbytes > body) {
       throw new Error(`${where}: bundle array ${name} does not fit the file`);
     }
     // copy into an aligned buffer of the right type
@@ -479,6 +482,14 @@ export class Player {
       const why = `the garment asset was exported with --force although ${G.body.unfit}`;
       if (!options.force) throw new Error(`${why} (expected a garment that sits on its body, or the option force: true)`);
       p.warnings.push(why);
+    }
+    // an asset prepared for another body than the package's is refused whatever the effects (only the body graph's
+    // poser checked it, so effects "none" played it), as `segadeform run` refuses it
+    for (const spec of Object.values(manifest.graphs || {})) {
+      if (spec.role === "body" && spec.body && G.body && G.body.sha256 && G.body.sha256 !== spec.body.sha256) {
+        throw new Error(`the garment asset was prepared for another body than the package's (expected ${spec.body.name} ` +
+          `${spec.body.sha256.slice(0, 12)}, got ${G.body.name} ${G.body.sha256.slice(0, 12)})`);
+      }
     }
     const effects = effectsOf(manifest, source, options.effects);
     const margin = options.collisionMargin ?? DEFAULT_COLLISION_MARGIN;

@@ -145,10 +145,17 @@ def read_bundle(path: str | os.PathLike) -> tuple[dict, dict]:
             off, nbytes = int(t[3 + nd]), int(t[4 + nd])
         except (KeyError, ValueError, IndexError):
             raise FileFormatError(f"malformed bundle entry {ln[:60]!r}", path=p) from None
+        if min((*shape, off, nbytes, nd), default=0) < 0:  # (read as sizes that matched, or as "at least -4888")
+            raise FileFormatError(
+                f"bundle array {name!r} has a negative size or offset",
+                path=p,
+                expected="dimensions, offset and byte count >= 0",
+                got=f"shape {shape}, offset {off}, {nbytes} bytes",
+            )
         count = 1
         for d in shape:  # Python integers: a huge shape cannot wrap around to a small size
             count *= d
-        if min(shape, default=1) < 0 or count * dt.itemsize != nbytes:
+        if count * dt.itemsize != nbytes:
             raise FileFormatError(
                 f"bundle array {name!r} declares a size its shape does not have",
                 path=p,

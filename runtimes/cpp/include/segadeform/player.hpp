@@ -11,10 +11,21 @@
 //   segadeform::Player player("samples/models/default", "out/dress_b.sgda", opt);
 //   std::vector<float> frame = player.push(poses, trans, 1);   // poses 1 * joints() * 3, trans 1 * 3
 //
-// Frames are those of one call over the whole motion (segadeform-run's, and so `segadeform run`'s), bit for bit when
-// every push is a multiple of `batch` frames (batch = 1 for a frame at a time); other sizes run other onnxruntime
-// batch sizes (1e-6 m), which a push-out in a crease can turn into millimetres.  Errors are std::runtime_error with
-// one line saying what was expected and what came.  Build: link the CMake target `segadeform` (runtimes/cpp).
+// Frames are those of `segadeform-run --batch B` and `segadeform run --batch B` over the whole motion, bit for bit,
+// when every push is a multiple of options.batch = B (B = 1 for a frame at a time).  Another B, or pushes of other
+// sizes, run the network on other onnxruntime batch sizes, which round differently (1e-6 m); collisions' push-out and
+// above all the cloth stage, which carries its state from frame to frame, can grow that into millimetres or
+// centimetres (32 mm measured between --batch 1 and 8 with the cloth stage on a 120 fps CMU walk): compare with the
+// same B.  Errors are std::runtime_error with one line saying what was expected and what came.
+//
+// Conventions: metres, +Y up, the body's skeleton (docs/package.md: the 24 joints in SMPL order, the motion file's
+// joint_names); pose zero is the body's rest pose (a T-pose) and trans moves the root, as in the motion files that
+// `segadeform motion export` writes.  Vertices come in the garment asset's order.  One Player is not to be used by
+// two threads at once; separate Players may run in separate threads.  A moved-from Player throws on every call.
+//
+// Build: the CMake target `segadeform` (add_subdirectory(runtimes/cpp) with ONNXRUNTIME_INCLUDE_DIR and
+// ONNXRUNTIME_LIBRARY set, as tools/onnxruntime_cpp.sh sets them; SEGADEFORM_PROGRAMS=OFF leaves out segadeform-run
+// and segadeform-play).
 #pragma once
 #include <cstdint>
 #include <memory>
@@ -71,6 +82,10 @@ class Player {
   // read modulo 2 pi as motion files are) and trans (frames * 3, metres, within 10 km).  Returns the garment's
   // vertices (frames * vertices() * 3); with options.body, `body` gets the posed body (frames * body_vertices() * 3).
   std::vector<float> push(const float* poses, const float* trans, int64_t frames, std::vector<float>* body = nullptr);
+  // The same with the sizes checked: poses.size() must be frames * joints() * 3 and trans.size() frames * 3 (the
+  // pointer form trusts the caller's count).
+  std::vector<float> push(const std::vector<float>& poses, const std::vector<float>& trans,
+                          std::vector<float>* body = nullptr);
   // A new clip: no motion history; the cloth stage starts again from the network's frame, the collider anew.
   void reset();
 
@@ -78,12 +93,15 @@ class Player {
   int64_t joints() const;         // the skeleton's
   int64_t body_vertices() const;  // the posed body's (0 when no stage or option needs it)
   const std::vector<int32_t>& faces() const;  // the garment's triangles (F * 3)
-  std::string effects() const;    // the effects that run, as a list ("lbs,dynamics,wrinkles,cloth")
+  const std::vector<int32_t>& body_faces() const;  // the posed body's triangles (with options.body; else empty)
+  std::string effects() const;    // the effects that run, as a list ("lbs,dynamics,wrinkles,cloth": the cloth
+                                  // stage's contact replaces collisions)
   Counts counts() const;
   const std::vector<std::string>& warnings() const;  // what `force` let through
 
  private:
   struct Impl;
+  Impl& impl() const;  // throws on a moved-from Player
   std::unique_ptr<Impl> impl_;
 };
 
