@@ -442,7 +442,9 @@ def issue29_cases(d: Path, cases: list, package, base: str) -> None:
     )
     inspect("sgdm_truncated", good[:-64], "runs past the end of the file")
     # a crafted header (a C++ integrator's trial: out-of-bounds reads and a stack overflow in that runtime)
-    inspect("sgdm_negative_offset", good.replace(line, b" ".join([*t[:-2], b"-5000", t[-1]])), "negative size or offset")
+    inspect(
+        "sgdm_negative_offset", good.replace(line, b" ".join([*t[:-2], b"-5000", t[-1]])), "negative size or offset"
+    )
     inspect("sgdm_negative_dim", good.replace(line, b" ".join([*t[:3], b"-1", *t[4:]])), "negative size or offset")
     inspect("sgdm_deep_meta", good[:i] + b"meta " + b"[" * 200_000 + good[j:], "malformed bundle header")
     inspect("sgda_meta_list", good[:i] + b"meta [1]" + good[j:], "bundle meta must be a JSON object", ".sgda")

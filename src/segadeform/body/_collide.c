@@ -734,6 +734,55 @@ SDC_API int64_t sdc_near(const void *h, const double *verts, const double *box, 
     return found;
 }
 
+/* The body's winding number at the points [i0, i1) of pts against one frame (verts with its boxes from sdc_refit):
+ * 0 outside, 1 inside, 2 where two parts of a posed body that intersects itself overlap (an arm pressed into the
+ * torso).  The signed crossings of a ray along the shortest way out of the root box; when it grazes an edge or a
+ * vertex, the next of the six axis directions (the shortest first).  A point whose six rays all graze, or any point
+ * of a body that is not closed, gets the closest point's side instead (1 inside, 0 outside).  Unlike the signed
+ * distance's side, which the closest surface decides, this is inside for a point in the torso whose closest surface
+ * is the buried skin of an arm inside it.  Returns how many points took the closest point's side.  (The evaluation's
+ * penetration metric; not part of the push-out, so the JavaScript port has no need of it.) */
+SDC_API int64_t sdc_winding(const void *h, const double *verts, const double *box, const double *pts, int64_t i0,
+                            int64_t i1, int64_t *wind) {
+    sdc_frame fr;
+    int64_t i, fell = 0;
+    make_frame((const sdc_body *)h, verts, box, &fr);
+    for (i = i0; i < i1; i++) {
+        const double *p = pts + 3 * i;
+        int tried, done = 0;
+        double dist[6];
+        int used[6] = {0, 0, 0, 0, 0, 0};
+        if (fr.b->closed) {
+            int k;
+            for (k = 0; k < 3; k++) {
+                dist[2 * k] = fr.box[3 + k] - p[k];  /* +axis */
+                dist[2 * k + 1] = p[k] - fr.box[k]; /* -axis */
+            }
+            for (tried = 0; tried < 6 && !done; tried++) {
+                int best = -1, graze;
+                double first;
+                int64_t w;
+                for (k = 0; k < 6; k++)
+                    if (!used[k] && (best < 0 || dist[k] < dist[best])) best = k;
+                used[best] = 1;
+                w = ray_count(&fr, p, best / 2, best % 2 ? -1 : 1, &graze, &first);
+                if (!graze) {
+                    wind[i] = w < 0 ? -w : w;
+                    done = 1;
+                }
+            }
+        }
+        if (!done) {
+            double bary[3], closest[3], n[3];
+            int64_t face;
+            nearest(&fr, p, INFINITY, &face, bary, closest);
+            wind[i] = signed_at(&fr, p, face, bary, closest, n) < 0 ? 1 : 0;
+            fell++;
+        }
+    }
+    return fell;
+}
+
 /* push_out of the points [i0, i1) of every frame: pts (B, N, 3) moved in place against verts (B, V, 3)
  * with boxes (B, n_nodes, 6) from sdc_refit; moved (B, N) set to 1 for every point moved (others are left
  * as they are).  Returns the number of points moved. */

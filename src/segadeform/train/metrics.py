@@ -7,13 +7,13 @@ import dataclasses
 
 import numpy as np
 
-from ..body.collision import BodyProxy
+from ..body.collision import BodyCollider, BodyProxy
 from ..body.model import BodyModel
 from ..dataset.store import Sample
 from ..geometry.laplacian import SpectralBasis
 from ..geometry.mesh_ops import unique_edges, vertex_normals
 
-__all__ = ["METRICS", "PEAK_METRICS", "PEN_DEPTH", "Reference", "reference", "sample_metrics"]
+__all__ = ["METRICS", "PEAK_METRICS", "PEN_DEPTH", "Reference", "penetrating", "reference", "sample_metrics"]
 
 METRICS = (
     "vertex_cm",
@@ -53,6 +53,8 @@ class Reference:
     acc_gt: np.ndarray
     proxies: list
     posed: np.ndarray | None = None
+    #: the posed body's exact collider (the penetration metric: winding number and distance)
+    collider: BodyCollider | None = None
     #: (E,) the edges' lengths on the garment's rest mesh (the strain metrics' reference)
     l_rest: np.ndarray | None = None
 
@@ -79,7 +81,21 @@ def reference(s: Sample, body: BodyModel, basis: SpectralBasis | None = None) ->
         proxies=proxies,
         posed=posed,
         l_rest=np.linalg.norm(s.rest[edges[:, 0]] - s.rest[edges[:, 1]], axis=1),
+        collider=BodyCollider(posed[0], body.faces),
     )
+
+
+def penetrating(ref: Reference, points: np.ndarray, t: int) -> np.ndarray:
+    """Which of ``points`` (N, 3) lie more than :data:`PEN_DEPTH` inside the body posed at frame ``t``: inside by the
+    body's winding number (so inside the torso counts where an arm pressed into it is the closest surface -- the
+    closest surface's side, used before 30 Nov 2026, called such a point outside), and farther than PEN_DEPTH from
+    every surface of the body.  Shapes: points (N, 3) -> (N,) bool."""
+    inside = ref.collider.winding(points, ref.posed[t]) > 0
+    out = np.zeros(len(points), bool)
+    if inside.any():
+        d = np.abs(ref.collider.query(points[inside], ref.posed[t]).signed_distance)
+        out[np.flatnonzero(inside)] = d > PEN_DEPTH
+    return out
 
 
 def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
@@ -99,7 +115,7 @@ def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
             np.linalg.norm(hi, axis=1).mean(),
         ]
     bands /= len(frames)
-    pen = np.mean([(ref.proxies[t].query(x[t]).signed_distance < -PEN_DEPTH).mean() for t in frames])
+    pen = np.mean([penetrating(ref, x[t], t).mean() for t in frames])
     jit = np.linalg.norm((x[2:] - 2 * x[1:-1] + x[:-2]) - ref.acc_gt, axis=2).mean() if len(gt) > 2 else 0.0
     # stretch (compression counts as 0): what a stretch limit bounds
     strain = (

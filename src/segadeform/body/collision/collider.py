@@ -10,7 +10,7 @@ from ...errors import InputError
 from ...geometry._checks import check_mesh
 from .compiled import CompiledBVH, load_kernel, warn_fallback
 from .numpy_bvh import NumpyBVH
-from .reference import BodyProxy, ProximityResult, push_out
+from .reference import BodyProxy, ProximityResult, push_out, winding_number
 
 __all__ = ["BodyCollider", "ReferenceCollider"]
 
@@ -134,6 +134,23 @@ class BodyCollider:
         if isinstance(self._impl, CompiledBVH):  # self.backend == "compiled"
             return self._impl.query(p[0], v[0], self.threads)
         return self._impl.query(p, v)
+
+    def winding(self, points, posed) -> np.ndarray:
+        """The body's winding number at every point: 0 outside, 1 inside, 2 where two parts of a posed body that
+        intersects itself overlap.  Unlike :meth:`query`'s sign, which the closest surface decides, a point inside
+        the torso whose closest surface is the buried skin of an arm pressed into it is inside here.  Compiled: a
+        ray's signed crossings (``sdc_winding``); numpy: the reference's generalised winding number, rounded
+        (exact, O(P F): slow).
+
+        Shapes:
+            points: (P, 3), posed: (V, 3) -> (P,) int64
+        """
+        p, v = self._check(points, posed)
+        if p.shape[0] != 1 or np.ndim(points) != 2:
+            raise InputError("winding takes one frame of points", expected="(P, 3)", got=np.shape(points))
+        if isinstance(self._impl, CompiledBVH):
+            return self._impl.winding(p[0], v[0], self.threads)
+        return np.rint(np.abs(winding_number(p[0], v[0], self.faces))).astype(np.int64)
 
     def push_out(self, points, posed, margin: float = 0.0, *, iterations: int = 3):
         """:func:`push_out` against the body at ``posed``: the same rule, moves and passes, with exact

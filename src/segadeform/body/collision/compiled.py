@@ -67,6 +67,7 @@ def load_kernel():
                     ("sdc_query", None, (p, p, p, p, i64, i64, p, p, p, p)),
                     ("sdc_push_out", i64, (p, p, p, i64, p, i64, i64, i64, ctypes.c_double, i64, p)),
                     ("sdc_acos", ctypes.c_double, (ctypes.c_double,)),
+                    ("sdc_winding", i64, (p, p, p, p, i64, i64, p)),
                 ),
             )
             _KERNEL.update(lib=lib, why=why)
@@ -170,6 +171,25 @@ class CompiledBVH:
             threads,
         )
         return ProximityResult(signed_distance=sd, closest=closest, normal=normal, face=face)
+
+    def winding(self, p, v, threads: int) -> np.ndarray:
+        """The body's winding number (P,) int64 at ``p (P, 3)`` against ``v (V, 3)``: 0 outside, 1 inside, 2 where
+        two parts of a self-intersecting body overlap (``sdc_winding``: a ray's signed crossings)."""
+        pts = np.ascontiguousarray(p, np.float64)
+        verts = np.ascontiguousarray(v[None], np.float64)
+        boxes = self._refit(verts, threads)
+        wind = np.empty(len(pts), np.int64)
+        lib, h = self._lib, self._h
+        self._run(
+            [
+                functools.partial(
+                    lib.sdc_winding, h, verts.ctypes.data, boxes.ctypes.data, pts.ctypes.data, a, b, wind.ctypes.data
+                )
+                for a, b in self._ranges(len(pts), threads)
+            ],
+            threads,
+        )
+        return wind
 
     def push_out(self, p, v, margin: float, iterations: int, threads: int):
         """:func:`push_out` of ``p (B, N, 3)`` against ``v (B, V, 3)``: the moved points and how many moved."""
