@@ -67,6 +67,49 @@ def test_resume_refuses_another_config(synthetic_dataset, tiny_config, tmp_path,
         train(other, tmp_path / "r", body)
 
 
+def test_what_a_run_leaves_that_is_not_a_model_is_named_in_one_line(synthetic_dataset, tiny_config, tmp_path, body):
+    """A researcher's trial: a run's best.pt was refused as "must hold 'config'" after the last.pt message had
+    pointed at it; weights that do not fit their config printed torch's 42 lines; optim.checkpoint_every = 0 was a
+    modulo by zero after files were written; a validation split with no samples went unsaid."""
+    import logging
+
+    import torch
+
+    from segadeform.errors import FileFormatError, InputError
+    from segadeform.model.network import load_checkpoint
+
+    run = tmp_path / "r"
+    cfg = load_train_config(tiny_config, dataset=synthetic_dataset, overrides={"optim.steps": 2})
+    train(cfg, run, body)
+    ck = torch.load(run / "model.pt", weights_only=True)
+    if not (run / "best.pt").is_file():  # what the trainer writes there when a validation split chooses
+        torch.save({"state_dict": ck["state_dict"], "step": 1, "val_vertex": 0.01}, run / "best.pt")
+    for name, words in (("best.pt", "best checkpoint so far"), ("last.pt", "resume state")):
+        with pytest.raises(FileFormatError, match=words) as e:
+            load_checkpoint(run / name)
+        assert "\n" not in str(e.value) and "or best.pt" not in str(e.value)
+    ck["config"] = dict(ck["config"], hidden=2 * ck["config"]["hidden"])
+    torch.save(ck, tmp_path / "mix.pt")
+    with pytest.raises(FileFormatError, match=r"weights do not fit its config \(size mismatch for .*; \d+ more\)") as e:
+        load_checkpoint(tmp_path / "mix.pt")
+    assert "\n" not in str(e.value)
+    with pytest.raises(InputError, match=r"optim.checkpoint_every must be an integer >= 1"):
+        load_train_config(tiny_config, dataset=synthetic_dataset, overrides={"optim.checkpoint_every": 0})
+    # a validation split the dataset does not have: said (model.pt is then the last step)
+    quiet = load_train_config(
+        tiny_config, dataset=synthetic_dataset, overrides={"optim.steps": 1, "data.val_split": "nowhere"}
+    )
+    records = []
+    handler = logging.Handler()
+    handler.emit = records.append
+    logging.getLogger("segadeform.train.trainer").addHandler(handler)
+    try:
+        train(quiet, tmp_path / "q", body)
+    finally:
+        logging.getLogger("segadeform.train.trainer").removeHandler(handler)
+    assert any("no 'nowhere' samples" in r.getMessage() for r in records)
+
+
 def test_resume_refuses_other_samples(synthetic_dataset, tiny_config, tmp_path, body):
     """A run trained on two datasets, run again on one of them, said it had trained and rewrote train.json to name
     the one dataset while model.pt kept the first run's weights (a user's trial): the samples are the run's too."""

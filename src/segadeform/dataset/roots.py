@@ -65,6 +65,7 @@ class DatasetRoots:
         self.folders: list[Path] = []
         self.packs: list[Pack] = []
         self.skipped: list[Path] = []  # optional roots that did not exist
+        self.given = [Path(r) for r in roots]  # as given (an empty folder is no root, but messages name it)
         order: list = []
         for r in roots:
             order.extend(expand_root(r))
@@ -177,8 +178,8 @@ class DatasetRoots:
     def __repr__(self) -> str:
         return f"DatasetRoots({[str(_name(r)) for r in self.roots]})"
 
-    def __str__(self) -> str:  # as messages name the roots: the paths given
-        return ", ".join(str(_name(r)) for r in self.roots)
+    def __str__(self) -> str:  # as messages name the roots: the paths given (an empty folder's too)
+        return ", ".join(str(_name(r)) for r in self.roots) or ", ".join(str(r) for r in self.given)
 
 
 def _name(src):

@@ -226,13 +226,25 @@ def load_checkpoint(path: str | os.PathLike) -> SEGANet | SEGAEnsemble:
             else f"not a model checkpoint ({type(e).__name__})"  # torch's many lines, said in one
         )
         raise FileFormatError(
-            what, path=p, expected="a run's model.pt (or best.pt): the model `segadeform train` writes", got=p.name
+            what, path=p, expected="a run's model.pt: the model `segadeform train` writes", got=p.name
         ) from None
     if not isinstance(ck, dict) or "config" not in ck or "state_dict" not in ck:
-        raise FileFormatError("checkpoint must hold 'config' and 'state_dict'", path=p)
+        what = (
+            "a run's best checkpoint so far: its weights without their config (`segadeform train` writes the model "
+            "chosen from it, model.pt, when the run ends: run the same command again to finish it)"
+            if isinstance(ck, dict) and "state_dict" in ck and "val_vertex" in ck
+            else "checkpoint must hold 'config' and 'state_dict'"
+        )
+        raise FileFormatError(what, path=p, expected="a run's model.pt")
     try:
         model = build_model(ModelConfig.from_dict(ck["config"]))
         model.load_state_dict(ck["state_dict"])
     except (InputError, RuntimeError, TypeError) as e:
-        raise FileFormatError(f"checkpoint does not fit its config ({e})", path=p) from None
+        # torch lists every tensor that does not fit, a line each: the first and how many, in one line
+        lines = [ln.strip() for ln in str(e).splitlines() if ln.strip()]
+        detail = (
+            lines[1] if len(lines) > 1 and lines[0].startswith("Error(s) in loading") else lines[0] if lines else ""
+        )
+        more = f"; {len(lines) - 2} more" if len(lines) > 2 and lines[0].startswith("Error(s) in loading") else ""
+        raise FileFormatError(f"checkpoint's weights do not fit its config ({detail}{more})", path=p) from None
     return model

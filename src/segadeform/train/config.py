@@ -1,7 +1,7 @@
 """Training configuration (TOML): model dimensions, loss weights, optimisation, data.
 
-Example (``samples/train/continuum/full.toml`` is the shipped model's recipe, ``samples/train/default.toml``
-the previous one's)::
+Example (``samples/train/continuum/light_prior_seed1.toml`` is the shipped model's recipe: ``full.toml`` on the
+``smooth-light`` prior, seed 1; ``samples/train/default.toml`` an early model's)::
 
     [data]
     dataset = "../../data/train"   # relative to this file; or a list of roots: folders and packs

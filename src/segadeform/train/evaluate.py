@@ -1,6 +1,8 @@
 """``segadeform eval``: the paper's metrics (§5) against the simulation, for the model and its baselines.
 
-Metrics, averaged over every frame and vertex of the evaluated samples:
+Metrics, each sample's averaged over its frames and vertices, then averaged over the samples with equal weight (a
+short clip of a small garment counts as much as a long clip of a large one; per garment type, the mean of that
+type's samples):
 
 * ``vertex_cm``     mean vertex distance (cm)
 * ``normal_deg``    mean angle between predicted and simulated vertex normals (degrees)
@@ -8,7 +10,8 @@ Metrics, averaged over every frame and vertex of the evaluated samples:
 * ``low_cm`` / ``mid_cm`` / ``high_cm``  the error field ``pred - sim`` split into the
   low / mid / high spectral bands of the rest garment (§5.2, Table 2;
   :class:`~segadeform.geometry.laplacian.SpectralBasis`), mean vertex norm of each (cm)
-* ``penetration_pct``  vertices deeper than 2 mm inside the posed body (%)
+* ``penetration_pct``  vertices deeper than 2 mm inside the posed body (%): inside by the body's winding number,
+  more than 2 mm from every surface of it (:func:`~segadeform.train.metrics.penetrating`)
 * ``max_strain_pct``  the largest edge stretch, length / rest length - 1 against the garment's rest mesh, over
   every edge and frame (%; over samples, the largest), and ``p99_strain_pct`` its 99th percentile (averaged)
 * ``jitter_mm``     mean |second difference of pred - second difference of sim| (mm/frame^2)

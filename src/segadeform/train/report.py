@@ -83,7 +83,15 @@ def write_report(
     out.mkdir(parents=True, exist_ok=True)
     with atomic_path(out / "eval.json") as tmp:
         Path(tmp).write_text(json.dumps(res, indent=1))
-    md = [f"# Evaluation on the '{res['split']}' split ({len(res['samples'])} samples)", "", markdown_table(res), ""]
+    md = [
+        f"# Evaluation on the '{res['split']}' split ({len(res['samples'])} samples)",
+        "",
+        "Each sample's metrics averaged over its frames and vertices, then the samples averaged with equal weight "
+        "(max strain: the largest); penetrating: inside the posed body by its winding number, deeper than 2 mm.",
+        "",
+        markdown_table(res),
+        "",
+    ]
     with atomic_path(out / "eval.md") as tmp:
         Path(tmp).write_text("\n".join(md))
     fig, ax = plt.subplots(figsize=(7, 4))

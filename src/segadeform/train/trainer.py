@@ -290,6 +290,12 @@ def train(
         )
     if cfg.val_split and not val_ids:
         val_ids = roots.ids(cfg.val_split)
+        if not val_ids:  # (it went unsaid: model.pt was the last step, not a validated choice)
+            log.warning(
+                "no '%s' samples in the dataset: nothing validates the run, and model.pt is its last step "
+                "(data.val_split names the split that chooses the model)",
+                cfg.val_split,
+            )
     if items[0].features.shape[-1] != m.feat_dim:
         raise InputError(
             "model.feat_dim does not match the garment features", expected=items[0].features.shape[-1], got=m.feat_dim
