@@ -139,7 +139,7 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
     "push_margin",
     type=float,
     multiple=True,
-    help="Also report learned models with the runtime's collision post-process at this margin (m); "
+    help="Also report every model but plain lbs with the runtime's collision post-process at this margin (m); "
     "repeatable (rows 'NAME + push-out N mm').",
 )
 @click.option(
@@ -147,8 +147,8 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
     "cloth",
     multiple=True,
     metavar="NAME=VALUE,..|default",
-    help="Also report learned models with the runtime's cloth stage at these settings (as run --cloth; "
-    "'default' for its defaults); repeatable (rows 'NAME + cloth [settings]').",
+    help="Also report every model but lbs and lbs-inpaint with the runtime's cloth stage at these settings (as run "
+    "--cloth; 'default' for its defaults); repeatable (rows 'NAME + cloth [settings]').",
 )
 @click.option("--heatmap", help="Model NAME whose per-vertex error map is rendered (default: the first).")
 @click.option(
