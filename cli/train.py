@@ -103,7 +103,7 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
         final = train(cfg, output, _body(body), progress=progress, val_ids=list(val_ids) or None)
     finally:
         guard.abandon()
-    guard.record_files_in(output, written)
+        guard.record_files_in(output, written)  # whatever the run wrote, stopped or not: the next run resumes
     info = json.loads((output / "train.json").read_text())
     if before is not None and before == info["steps"]:  # a finished run run again (a user read it as trained now)
         click.echo(

@@ -59,7 +59,7 @@ int main(int argc, char** argv) {
     {
       std::ofstream f(tmp, std::ios::binary);
       const int32_t version = 1, n = static_cast<int32_t>(N), t = static_cast<int32_t>(m.frames);
-      const float start = 0.f, rate = 1.f;
+      const float start = static_cast<float>(m.start_frame), rate = 1.f;  // numbered as segadeform-run numbers it
       f.write("POINTCACHE2\0", 12);
       f.write(reinterpret_cast<const char*>(&version), 4);
       f.write(reinterpret_cast<const char*>(&n), 4);

@@ -107,7 +107,8 @@ inline Bundle read_bundle_unchecked(const std::string& path) {
     }
     const int64_t off = bundle_detail::integer(w[3 + nd], 0, limit, fits);
     const int64_t nbytes = bundle_detail::integer(w[4 + nd], 0, limit, fits);
-    if (count > limit || count * sz->second != nbytes || off > limit - nbytes) throw std::runtime_error(fits);
+    if (body < 0 || count > limit || count * sz->second != nbytes || off > limit - nbytes)  // (body < 0: no data
+      throw std::runtime_error(fits);                                                       // at all, not even 0 B)
     a.bytes.assign(data.begin() + start + off, data.begin() + start + off + nbytes);
     b.arrays[name] = std::move(a);
   }

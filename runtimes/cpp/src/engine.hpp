@@ -705,6 +705,7 @@ class Stream {
 
   // A new clip: no motion history; the cloth stage starts again from the network's frame, the collider anew.
   void reset() {
+    broken_ = false;
     prev_.clear();
     seen_ = 0;
     collider_.reset();
@@ -724,6 +725,10 @@ class Stream {
   void push(const float* poses, const float* trans, int64_t B, float* frames, float* body) {
     const int64_t N = sc_.N, D = sc_.D, V = this->V();
     if (B < 1) throw std::runtime_error("push: expected at least one frame (got " + std::to_string(B) + ")");
+    if (broken_)
+      throw std::runtime_error("push: an earlier push failed part-way, leaving the stages' state behind the motion "
+                               "(expected reset() first)");
+    broken_ = true;  // until this push ends: a batch that throws leaves the cloth stage ahead of the history
     // the motion the windows read: the poses kept from earlier chunks, then this one (frame `first` at index 0)
     const int64_t hist = static_cast<int64_t>(prev_.size()) / D, first = seen_ - hist;
     std::vector<float> all(prev_);
@@ -754,6 +759,7 @@ class Stream {
     frames_ += B;
     const int64_t keep = std::min<int64_t>(window_ - 1, hist + B);
     prev_.assign(all.end() - keep * D, all.end());
+    broken_ = false;
   }
 
   int64_t V() const { return poser_ ? poser_->V() : 0; }
@@ -874,6 +880,7 @@ class Stream {
   std::vector<float> betas_, joints_, rest_body_, prev_;
   std::string out_name_;
   int64_t window_ = 1, nb_ = 0, seen_ = 0, frames_ = 0, moved_ = 0;
+  bool broken_ = false;  // a push threw part-way: refused until reset()
   std::unique_ptr<BodyPoser> poser_;
   std::unique_ptr<sgd::Cloth> stage_;
   std::unique_ptr<sgd::Collider> collider_;

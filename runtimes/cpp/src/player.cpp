@@ -98,7 +98,8 @@ std::vector<float> Player::push(const float* poses, const float* trans, int64_t 
   Impl& m = impl();
   const int64_t D = m.sc.D, N = m.sc.N;
   if (frames < 1) throw std::runtime_error("push: expected at least one frame (got " + std::to_string(frames) + ")");
-  if (frames > (int64_t{1} << 31) / (N * 3 > D ? N * 3 : D))  // no count overflows, no output past 2^31 values
+  const int64_t widest = std::max<int64_t>({N * 3, D, m.opt.body ? m.stream->V() * 3 : 0});
+  if (frames > (int64_t{1} << 31) / widest)  // no count overflows, no output (the body's too) past 2^31 values
     throw std::runtime_error("push: too many frames at once (got " + std::to_string(frames) + "; push fewer)");
   if (!poses || !trans) throw std::runtime_error("push: expected poses and trans (got a null pointer)");
   std::vector<float> p(poses, poses + frames * D);
@@ -157,11 +158,13 @@ Motion read_motion(const std::string& motion_file, const std::string& garment_as
   s.warnings.clear();
   motion_into(s, m, motion_file, force);
   Motion r;
-  r.poses = std::move(s.poses);
+  r.poses = floats(m.at("poses"));  // as written: push() makes them canonical, once (a second pass can flip a
+                                    // rotation just above pi back: not what segadeform-run plays)
   r.trans = std::move(s.trans);
   r.frames = s.T;
   r.joints = s.S;
   r.fps = s.fps;
+  r.start_frame = static_cast<int64_t>(s.start_frame);
   r.warnings = std::move(s.warnings);
   return r;
 }

@@ -42,7 +42,8 @@ int main(int argc, char** argv) {
   const std::string pkg = argv[1], garment = argv[2];
   try {
     const segadeform::Motion m = segadeform::read_motion(argv[3], garment);
-    const int64_t D = 3 * m.joints, T = m.frames < 12 ? m.frames : 12;
+    if (m.frames < 12) throw std::runtime_error("the test needs a motion of at least 12 frames");
+    const int64_t D = 3 * m.joints, T = 12;
     segadeform::PlayerOptions o;
     o.batch = 4;
     segadeform::Player a(pkg, garment, o);
@@ -65,14 +66,24 @@ int main(int argc, char** argv) {
     // reset: a new clip gives a fresh player's frames; a second player in the same process the same again
     a.reset();
     check("reset gives the first frames again", a.push(m.poses.data(), m.trans.data(), T) == first);
+    // a second player, pushed in alternation with the first, chunk by chunk: each gives the first frames
     segadeform::Player b(pkg, garment, o);
     a.reset();
-    const std::vector<float> fa = a.push(m.poses.data(), m.trans.data(), 4), fb = b.push(m.poses.data(), m.trans.data(), 4);
+    std::vector<float> fa, fb;
+    for (int64_t t = 0; t < 8; t += 4) {
+      const std::vector<float> x = a.push(m.poses.data() + t * D, m.trans.data() + t * 3, 4);
+      const std::vector<float> y = b.push(m.poses.data() + t * D, m.trans.data() + t * 3, 4);
+      fa.insert(fa.end(), x.begin(), x.end());
+      fb.insert(fb.end(), y.begin(), y.end());
+    }
     check("two players interleaved", fa == fb && fa == std::vector<float>(first.begin(), first.begin() + fa.size()));
+    a.reset();
+    (void)a.push(m.poses.data(), m.trans.data(), 4);
     // moving: the new owner goes on; the moved-from player refuses every call
     segadeform::Player c(std::move(a));
+    const size_t four = static_cast<size_t>(4 * c.vertices() * 3);  // four frames' values
     check("a moved player goes on", c.push(m.poses.data() + 4 * D, m.trans.data() + 12, 4) ==
-                                        std::vector<float>(first.begin() + fa.size(), first.begin() + 2 * fa.size()));
+                                        std::vector<float>(first.begin() + four, first.begin() + 2 * four));
     refuses("a moved-from player's push", [&] { a.push(p1, t1); }, "moved from");
     refuses("a moved-from player's vertices()", [&] { (void)a.vertices(); }, "moved from");
     // opening: every problem one line

@@ -61,7 +61,7 @@ export function parseBundle(bytes, where = "bundle") {
     const [Ctor, width] = DTYPES[dt] || [];
     const count = shape.reduce((a, b) => (a < 0 || b < 0 || a > body ? -1 : a * b), 1);
     if (!Ctor || nd < 0 || t.length !== 5 + nd || shape.some((d) => d < 0) || off < 0 || nbytes < 0 || count < 0 ||
-        count * width !== nbytes || off + nbytes > body) {
+        count * width !== nbytes || off + nbytes > body || start > buf.length) {
       throw new Error(`${where}: bundle array ${name} does not fit the file`);
     }
     // copy into an aligned buffer of the right type

@@ -97,7 +97,7 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 6
+#define SCL_ABI 7 /* 7: the collision kernel it embeds takes its own acos (30 Nov 2026) */
 #define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
 #define SCL_TINY 1e-300

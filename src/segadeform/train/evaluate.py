@@ -157,10 +157,10 @@ def evaluate(
 
     Returns ``{"models": {name: {metric: value}}, "by_type": {name: {type: {metric: value}}},
     "per_frame": {name: [vertex_cm per frame index]}, "samples": [...]}``.
-    ``push_out_margin``: also report every learned model with the runtime's collision post-process
+    ``push_out_margin``: also report every model but plain ``lbs`` with the runtime's collision post-process
     (:class:`BodyCollider`, as ``segadeform run``): one margin in metres (``name + push-out``) or a list
     (``name + push-out 2 mm``, ... ; :func:`push_out_names`).  Its time is the model's plus the push-out's.
-    ``cloth``: also report every learned model (a package or checkpoint) with the runtime's cloth stage at each
+    ``cloth``: also report every model but ``lbs`` and ``lbs-inpaint`` with the runtime's cloth stage at each
     of these settings (:func:`cloth_names`, :func:`cloth_frames`; contact at ``cloth_margin``), timed the same way.
     """
     dataset = as_roots(dataset)  # a folder, a pack, or several roots

@@ -65,6 +65,7 @@ struct Motion {
   std::vector<float> poses, trans;
   int64_t frames = 0, joints = 0;
   double fps = 0;
+  int64_t start_frame = 0;  // the first frame's number in its source (`motion export --frames A:B`: A)
   std::vector<std::string> warnings;
 };
 Motion read_motion(const std::string& motion_file, const std::string& garment_asset, bool force = false);
@@ -86,7 +87,8 @@ class Player {
   // pointer form trusts the caller's count).
   std::vector<float> push(const std::vector<float>& poses, const std::vector<float>& trans,
                           std::vector<float>* body = nullptr);
-  // A new clip: no motion history; the cloth stage starts again from the network's frame, the collider anew.
+  // A new clip: no motion history; the cloth stage starts again from the network's frame, the collider anew.  After
+  // a push that threw part-way (onnxruntime ran out of memory ...), every push is refused until reset().
   void reset();
 
   int64_t vertices() const;       // the garment's
