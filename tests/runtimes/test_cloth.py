@@ -333,8 +333,8 @@ def test_cpp_library_player_pushed_in_chunks_gives_segadeform_runs_frames(cpp, c
     """The C++ library (runtimes/cpp/include/segadeform/player.hpp) through its example program segadeform-play,
     built beside segadeform-run: the tightened dress's dance pushed as it would arrive live, with the cloth stage.
     Chunks of `batch` frames (8) give `segadeform run`'s frames (batch 8) bit for bit and its counts; a frame at
-    a time with batch 1 (onnxruntime's batch-1 kernels) and chunks of 3 stay within the collision parity rule.  An existing
-    output is refused, and a cloth knob without the stage is a one-line error."""
+    a time with batch 1 (onnxruntime's batch-1 kernels) and chunks of 3 stay within the collision parity rule.  An
+    existing output is refused, and a cloth knob without the stage is a one-line error."""
     play = str(Path(cpp[0]).with_name("segadeform-play"))
     c = clothed
     base = [play, str(c["package"]), str(c["garment"]), str(c["motion"]), "--effects", EFFECTS]
