@@ -178,9 +178,11 @@ int main(int argc, char** argv) {
     Pc2Writer pc2(out, static_cast<int32_t>(T), static_cast<int32_t>(N), sc.start_frame);
     std::unique_ptr<Pc2Writer> body_pc2;
     if (!body_out.empty()) body_pc2.reset(new Pc2Writer(body_out, static_cast<int32_t>(T), static_cast<int32_t>(V), sc.start_frame));
-    std::vector<float> chunk(static_cast<size_t>(batch * N * 3)), body(body_pc2 ? static_cast<size_t>(batch * V * 3) : 0);
-    for (int64_t lo = 0; lo < T; lo += batch) {
-      const int64_t B = std::min<int64_t>(lo + batch, T) - lo;
+    // chunks of whole batches, about 256 frames: the frames of one push of the whole motion, in bounded memory
+    const int64_t step = batch * std::max<int64_t>(1, 256 / batch);
+    std::vector<float> chunk(static_cast<size_t>(step * N * 3)), body(body_pc2 ? static_cast<size_t>(step * V * 3) : 0);
+    for (int64_t lo = 0; lo < T; lo += step) {
+      const int64_t B = std::min<int64_t>(lo + step, T) - lo;
       stream.push(sc.poses.data() + lo * sc.D, sc.trans.data() + lo * 3, B, chunk.data(), body_pc2 ? body.data() : nullptr);
       pc2.append(chunk.data(), B * N * 3);
       if (body_pc2) body_pc2->append(body.data(), B * V * 3);
