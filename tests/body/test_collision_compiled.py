@@ -367,6 +367,21 @@ def _torus(n=24, m=12, big=1.0, small=0.35):
     return v, f
 
 
+def acos_inputs(rng, n: int) -> np.ndarray:
+    """``n`` float64 inputs for an acos: nine tenths uniform on [-1, 1], the rest within 1e-6 of +-1 and 1e-8 of 0,
+    then the branch points +-1/2 (and their neighbours), +-1 and +-0."""
+    k = n // 20
+    return np.concatenate(
+        [
+            rng.uniform(-1, 1, n - 2 * k - k // 2),
+            1 - rng.uniform(0, 1e-6, k),
+            -1 + rng.uniform(0, 1e-6, k),
+            rng.uniform(-1e-8, 1e-8, k // 2),
+            [0.5, -0.5, np.nextafter(0.5, 1), np.nextafter(-0.5, -1), 1.0, -1.0, 0.0, -0.0],
+        ]
+    )
+
+
 def test_the_kernels_acos_is_within_two_ulp_of_acos_and_needs_no_c_library():
     """``sdc_acos`` (vertex pseudo-normals' angles: + - * / and sqrt only, so that the JavaScript port gives its
     bits) against numpy's long double acos: within 2 ulp everywhere on [-1, 1], endpoints and the branch points
@@ -376,16 +391,7 @@ def test_the_kernels_acos_is_within_two_ulp_of_acos_and_needs_no_c_library():
     lib, why = load_kernel()
     if lib is None:
         pytest.fail(f"the compiled kernel is not built: {why}")
-    rng = np.random.default_rng(7)
-    xs = np.concatenate(
-        [
-            rng.uniform(-1, 1, 50_000),
-            1 - rng.uniform(0, 1e-6, 5_000),
-            -1 + rng.uniform(0, 1e-6, 5_000),
-            rng.uniform(-1e-8, 1e-8, 2_000),
-            [0.5, -0.5, np.nextafter(0.5, 1), np.nextafter(-0.5, -1), 1.0, -1.0, 0.0, -0.0],
-        ]
-    )
+    xs = acos_inputs(np.random.default_rng(7), 62_000)
     got = np.array([lib.sdc_acos(float(x)) for x in xs])
     ref = np.arccos(xs.astype(np.longdouble))
     ulps = np.abs(got.astype(np.longdouble) - ref) / np.spacing(np.abs(ref.astype(np.float64)))

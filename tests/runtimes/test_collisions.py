@@ -136,16 +136,9 @@ def test_javascript_acos_is_the_kernels_bit_for_bit(node, tmp_path):
     lib, why = load_kernel()
     if lib is None:
         pytest.fail(f"the compiled kernel is not built: {why}")
-    rng = np.random.default_rng(3)
-    xs = np.concatenate(
-        [
-            rng.uniform(-1, 1, 90_000),
-            1 - rng.uniform(0, 1e-6, 4_000),
-            -1 + rng.uniform(0, 1e-6, 4_000),
-            rng.uniform(-1e-8, 1e-8, 1_992),
-            [0.5, -0.5, np.nextafter(0.5, 1), np.nextafter(-0.5, -1), 1.0, -1.0, 0.0, -0.0],
-        ]
-    )
+    from tests.body.test_collision_compiled import acos_inputs
+
+    xs = acos_inputs(np.random.default_rng(3), 100_000)
     xs.tofile(tmp_path / "x.f64")
     script = (
         f'import {{ acos }} from "{(NODE / "src" / "collide.js").as_uri()}";\n'

@@ -369,7 +369,7 @@ function featureNormal(b, V, vOff, f, bary, n) {
 }
 
 /* acos from + - * / and Math.sqrt alone: the C file's sdc_acos, operation for operation (Math.acos differs from a C
- * library's acos in the last bit on 6.8 % of 100,000 random inputs; this gives the kernel's bits). */
+ * library's acos in the last bit on about 7 % of inputs; this gives the kernel's bits). */
 function asinR(z) {
   const p = z * (1.66666666666666657415e-01 +
     z * (-3.25565818622400915405e-01 +

@@ -105,9 +105,9 @@ static void normalize3(double *a) {
 }
 
 /* acos(x), x in [-1, 1], from + - * / and sqrt alone (all correctly rounded in IEEE 754), so that this file and its
- * JavaScript port give the same bits: a C library's acos and JavaScript's Math.acos disagree in the last bit on 6.8 %
- * of 100,000 random inputs (tests/runtimes/test_collisions.py reports it), and a push-out in a crease, carried from frame to frame by the cloth stage, can turn one
- * bit into centimetres.  asin(y) = y + y r(y^2) on |y| <= 1/2, r(z) = z P(z) / Q(z) the minimax rational of
+ * JavaScript port give the same bits: a C library's acos and JavaScript's Math.acos disagree in the last bit on
+ * about 7 % of inputs (tests/runtimes/test_collisions.py reports it), and a push-out in a crease, carried from
+ * frame to frame by the cloth stage, can turn one bit into centimetres.  asin(y) = y + y r(y^2) on |y| <= 1/2, r(z) = z P(z) / Q(z) the minimax rational of
  * fdlibm's e_asin.c (Sun Microsystems, 1993; the coefficients only); acos(x) = pi/2 - asin(x) for |x| <= 1/2 and
  * 2 asin(s) (x > 1/2) or pi - 2 asin(s) (x < -1/2) with s = sqrt((1 - |x|) / 2).  Within 1.2 ulp (5.2e-16 rad)
  * of acos over [-1, 1] (measured once against numpy's long double acos, glibc's being within 0.52;
