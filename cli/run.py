@@ -181,7 +181,8 @@ def run_cmd(
     if scene is not None:
         if garment or motion_path:
             raise click.UsageError("give a SCENE or --garment/--motion, not both")
-        sc = load_scene(scene)
+        # the scene's knobs judged against the effects that will run (--effects=+cloth may use its cloth_ knobs)
+        sc = load_scene(scene, effects=effects if preset is None else None)
         changes = {}
         if preset is not None:  # the preset's effects; a scene's own cloth knobs kept when both run the stage
             keep = preset.cloth and sc.effects.cloth  # (an earlier user's trial: best dropped iterations = 6)

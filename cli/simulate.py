@@ -48,7 +48,7 @@ def simulate_cmd(scene, output, effects, material, quality, frames, body_out, si
     from segadeform.settings import load_scene, parse_frames
     from segadeform.settings.simulation import parse_sim_effects
 
-    sc = load_scene(scene)
+    sc = load_scene(scene, sim_effects=effects)  # its [simulate] knobs judged against the effects that will run
     st = sc.simulate or SimSettings()
     kw = {}
     if effects is not None:

@@ -49,6 +49,28 @@ def test_invalid_scenes(tmp_path, extra, words):
     assert str(p) in str(ei.value)
 
 
+def test_knobs_of_an_effect_the_command_line_turns_on_are_the_scenes(tmp_path):
+    """A scene may keep the knobs of an effect it leaves off when the command line turns it on: `simulate
+    --effects=+wind` with wind_strength in [simulate], `run --effects=+cloth` with cloth_ knobs in [effects] (both
+    refused before: the knob rule read the scene's own effects).  Without the change they are refused as before;
+    the scene keeps its own effects, and the change keeps its knobs."""
+    from segadeform.settings.simulation import parse_sim_effects
+
+    p = write(tmp_path, BASE + '[simulate]\neffects = ["gravity", "body_collision"]\nwind_strength = 50\n')
+    with pytest.raises(FileFormatError, match=r"sets wind_strength but the effect wind is off.*--effects=\+wind"):
+        load_scene(p)
+    with pytest.raises(FileFormatError, match="sets wind_strength"):
+        load_scene(p, sim_effects="-body_collision")
+    sc = load_scene(p, sim_effects="+wind")
+    assert sc.simulate.effects == ("gravity", "body_collision") and sc.simulate.wind_strength == 50
+    assert "wind" in parse_sim_effects("+wind", sc.simulate.effects)
+    q = write(tmp_path, BASE + "[effects]\ndynamics = true\ncloth_iterations = 6\n")
+    with pytest.raises(FileFormatError, match=r"cloth stage is off.*--effects=\+cloth"):
+        load_scene(q)
+    sc = load_scene(q, effects="+cloth")
+    assert not sc.effects.cloth and parse_effects("+cloth", sc.effects).cloth_settings.iterations == 6
+
+
 @pytest.mark.parametrize(
     "text, words",
     [

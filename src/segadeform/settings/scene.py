@@ -77,7 +77,7 @@ from ..errors import FileFormatError, InputError
 from ..io.toml import config_path, key, key_line, read_table, read_toml
 from ..io.writer import UP_AXES, Y_TO_Z
 from .cloth import CLOTH_KNOBS, ClothSettings
-from .effects import DEFAULT_EFFECTS, EFFECT_NAMES, Effects
+from .effects import DEFAULT_EFFECTS, EFFECT_NAMES, Effects, parse_effects
 from .simulation import parse_simulate_table
 
 __all__ = ["Y_TO_Z", "MotionSpec", "Scene", "load_scene", "parse_frames"]
@@ -260,8 +260,15 @@ def parse_frames(text: str, *, where=None) -> tuple[int, int | None]:
     return a, b
 
 
-def load_scene(path: str | os.PathLike) -> Scene:
-    """Read and validate a scene file (see the module docstring)."""
+def load_scene(path: str | os.PathLike, *, effects: str | None = None, sim_effects: str | None = None) -> Scene:
+    """Read and validate a scene file (see the module docstring).
+
+    ``effects`` / ``sim_effects``: the command line's ``--effects`` of ``run`` / ``simulate``, which change the scene's
+    ``[effects]`` / ``[simulate]`` effects.  A knob of an effect that is off is refused; with these, "off" is judged
+    after the change, so a scene may keep the knobs of an effect that the command line turns on (``--effects=+wind``
+    with ``wind_strength`` in ``[simulate]``).  The returned scene keeps its own effects (the command applies its
+    change)."""
+    effects_text = effects
     p = Path(path)
     data, _ = read_toml(p, "scene")
     unknown = sorted(set(data) - set(_TABLES) - {"simulate"})
@@ -328,24 +335,26 @@ def load_scene(path: str | os.PathLike) -> Scene:
             effects = Effects(**plain, cloth_settings=ClothSettings(**knobs))
         except ValueError as e:
             raise FileFormatError(f"[effects]: {e}", path=p, line=_effects_line(p, plain, knobs)) from None
-        if "collision_margin" in plain and not (effects.collisions or effects.cloth):  # as the cloth knobs below
+        on = parse_effects(effects_text, effects) if effects_text is not None else effects  # what will run
+        if "collision_margin" in plain and not (on.collisions or on.cloth):  # as the cloth knobs below
             raise FileFormatError(
                 "[effects] sets collision_margin but neither collisions nor the cloth stage is on",
                 path=p,
                 line=key_line(p, "effects", "collision_margin"),
-                expected="collisions = true or cloth = true in [effects], or no collision_margin",
+                expected="collisions = true or cloth = true in [effects] (or --effects=+collisions), or no "
+                "collision_margin",
             )
-        if knobs and not effects.cloth:  # as --cloth K=V with the stage off: the knobs would do nothing
+        if knobs and not on.cloth:  # as --cloth K=V with the stage off: the knobs would do nothing
             first = sorted(knobs)[0]
             raise FileFormatError(
                 f"[effects] sets cloth_{first} but the cloth stage is off",
                 path=p,
                 line=key_line(p, "effects", f"cloth_{first}"),
-                expected="cloth = true in [effects], or no cloth_ keys",
+                expected="cloth = true in [effects] (or --effects=+cloth), or no cloth_ keys",
             )
     else:
         effects = DEFAULT_EFFECTS
-    sim = parse_simulate_table(data["simulate"], where=p) if "simulate" in data else None
+    sim = parse_simulate_table(data["simulate"], where=p, effects=sim_effects) if "simulate" in data else None
     return Scene(
         simulate=sim,
         garment=rel(data["garment"]["mesh"]),

@@ -243,8 +243,12 @@ KNOB_EFFECT = {
 }
 
 
-def parse_simulate_table(table: dict | None, *, where=None) -> SimSettings:
-    """``[simulate]`` (a dict from TOML, or None when the scene has none) -> :class:`SimSettings`."""
+def parse_simulate_table(table: dict | None, *, where=None, effects: str | None = None) -> SimSettings:
+    """``[simulate]`` (a dict from TOML, or None when the scene has none) -> :class:`SimSettings`.
+
+    ``effects``: ``simulate --effects`` (changes to the table's effects, :func:`parse_sim_effects`): a knob of an effect
+    is refused when the effect is off after that change (a scene may keep wind's knobs for ``--effects=+wind``).  The
+    settings returned keep the table's own effects."""
     if table is None:
         return SimSettings()
     read_table(table, SimSettings, where="simulate", path=where)  # keys and types: the fields of SimSettings
@@ -284,13 +288,14 @@ def parse_simulate_table(table: dict | None, *, where=None) -> SimSettings:
         if line is None and where is not None:
             line = key_line(where, "simulate")
         raise FileFormatError(f"[simulate]: {e}", path=where, line=line) from None
+    on = parse_sim_effects(effects, kw["effects"]) if effects is not None else kw["effects"]  # what will run
     for k, effect in KNOB_EFFECT.items():  # a knob of an effect that is off would do nothing: said, as [effects]
-        if k in kw and effect not in kw["effects"]:  # says it of the cloth stage's knobs (a scene author's trial)
+        if k in kw and effect not in on:  # says it of the cloth stage's knobs (a scene author's trial)
             raise FileFormatError(
                 f"[simulate] sets {k} but the effect {effect} is off",
                 path=where,
                 line=key_line(where, "simulate", k) if where is not None else None,
-                expected=f"{effect!r} in effects, or no {k}",
+                expected=f"{effect!r} in effects (or --effects=+{effect}), or no {k}",
             )
     return st
 
