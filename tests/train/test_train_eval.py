@@ -238,7 +238,7 @@ def test_evaluate_packages_with_effects_off(synthetic_dataset, random_package, b
 def test_push_out_frames_is_the_runtime_collider_and_matches_the_reference(synthetic_dataset, body):
     """Evaluation pushes out with the runtime's BodyCollider, batched; the result agrees with the per-frame
     reference (BodyProxy + push_out); margins given as a list name one row each."""
-    from segadeform.body.collision import BodyCollider, push_out
+    from segadeform.body.collision import BodyCollider, BodyProxy, push_out
     from segadeform.dataset.store import load_sample
     from segadeform.errors import InputError
     from segadeform.train.evaluate import push_out_frames, push_out_names
@@ -249,7 +249,7 @@ def test_push_out_frames_is_the_runtime_collider_and_matches_the_reference(synth
     assert ref.posed.shape == (len(s.frames), len(body.v_template), 3)
     x = ref.gt - 0.01 * ref.n_gt  # 1 cm inwards: many vertices inside or within the margin
     fast = push_out_frames(x, ref, BodyCollider(body.v_template, body.faces), 0.004, batch=5)
-    slow = np.stack([push_out(x[t], ref.proxies[t], 0.004)[0] for t in range(len(x))])
+    slow = np.stack([push_out(x[t], BodyProxy(ref.posed[t], body.faces), 0.004)[0] for t in range(len(x))])
     assert np.abs(fast - x).max() > 1e-3  # something moved
     np.testing.assert_allclose(fast, slow, atol=1e-6)
     assert push_out_names(0.004) == {" + push-out": 0.004}

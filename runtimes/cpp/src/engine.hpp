@@ -261,11 +261,6 @@ class Pc2Writer {
   int64_t left_;
 };
 
-inline void write_pc2(const std::string& path, const float* frames, int32_t T, int32_t N, float start = 0.f) {
-  Pc2Writer w(path, T, N, start);
-  w.append(frames, static_cast<int64_t>(T) * N * 3);
-  w.finish();
-}
 
 struct Effects {
   std::string skinning = "lbs";
@@ -767,7 +762,6 @@ class Stream {
   }
 
   int64_t V() const { return poser_ ? poser_->V() : 0; }
-  int64_t N() const { return sc_.N; }
   const std::vector<int32_t>& body_faces() {
     if (!poser_) throw std::runtime_error("the stream poses no body");
     return poser_->faces();

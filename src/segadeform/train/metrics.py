@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 
-from ..body.collision import BodyCollider, BodyProxy
+from ..body.collision import BodyCollider
 from ..body.model import BodyModel
 from ..dataset.store import Sample
 from ..geometry.laplacian import SpectralBasis
@@ -41,8 +41,7 @@ class Reference:
     """What every prediction of one sample is compared with, computed once per sample.
 
     Shapes: gt (T, N, 3); n_gt (T, N, 3) vertex normals; l_gt (T, E) edge lengths; acc_gt (T-2, N, 3)
-    second differences; proxies: one posed-body proxy per frame (the penetration metric's reference
-    query); posed (T, V, 3): the posed body (what the runtime's collider pushes out of)."""
+    second differences; posed (T, V, 3): the posed body (what the runtime's collider pushes out of)."""
 
     gt: np.ndarray
     faces: np.ndarray
@@ -51,7 +50,6 @@ class Reference:
     n_gt: np.ndarray
     l_gt: np.ndarray
     acc_gt: np.ndarray
-    proxies: list
     posed: np.ndarray | None = None
     #: the posed body's exact collider (the penetration metric: winding number and distance)
     collider: BodyCollider | None = None
@@ -66,10 +64,6 @@ def reference(s: Sample, body: BodyModel, basis: SpectralBasis | None = None) ->
     edges = unique_edges(s.faces, len(s.rest))
     basis = basis if basis is not None else SpectralBasis.from_mesh(s.rest, s.faces)
     posed = body.forward(s.poses, s.betas if s.betas.size else None, s.trans).vertices
-    proxies, proxy = [], None
-    for t in range(len(posed)):
-        proxy = BodyProxy(posed[t], body.faces) if proxy is None else proxy.moved(posed[t])
-        proxies.append(proxy)
     return Reference(
         gt=gt,
         faces=s.faces,
@@ -78,7 +72,6 @@ def reference(s: Sample, body: BodyModel, basis: SpectralBasis | None = None) ->
         n_gt=_normals(gt, s.faces),
         l_gt=np.linalg.norm(gt[:, edges[:, 0]] - gt[:, edges[:, 1]], axis=2),
         acc_gt=gt[2:] - 2 * gt[1:-1] + gt[:-2],
-        proxies=proxies,
         posed=posed,
         l_rest=np.linalg.norm(s.rest[edges[:, 0]] - s.rest[edges[:, 1]], axis=1),
         collider=BodyCollider(posed[0], body.faces),
