@@ -28,3 +28,10 @@ def sphere(n=24, m=16):
     for j in range(n):
         f.append([last, base + j, base + (j + 1) % n])
     return v, np.array(f)
+
+
+def pressed_spheres(n=32, m=24):
+    """One closed mesh that intersects itself, as a posed body with an arm pressed into its torso: a unit sphere
+    (the torso) and a sphere of radius 0.3 centred at x = 0.9 (the arm), a third of it inside the first."""
+    v, f = sphere(n, m)
+    return np.concatenate([v, v * 0.3 + [0.9, 0.0, 0.0]]), np.concatenate([f, f + len(v)])

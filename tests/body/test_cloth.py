@@ -337,6 +337,34 @@ def test_the_backstop_takes_a_limb_through_a_panel_out_on_one_side():
     assert res[on][3] < 0.75 * res[0.0][3], res
 
 
+def test_cloth_in_the_torso_next_to_a_buried_arm_is_taken_out_of_the_body():
+    """A body that intersects itself (an arm pressed into the torso: two spheres, one mesh) and a panel inside the
+    torso, 5 cm from the arm's buried skin: by its closest surface every vertex is outside (the arm's), by the
+    winding number inside.  The stage takes every one out of the body (the rule for buried skin, in its contact
+    lookups for points this deep and in its final push-out), kernel and reference alike; the closest-surface rule
+    alone left the panel where it was."""
+    from tests.body._shapes import pressed_spheres
+
+    body_v, body_f = pressed_spheres(24, 16)
+    col = BodyCollider(body_v, body_f)
+    ys = np.arange(-0.2, 0.2001, 0.05)
+    v = np.array([[0.55, y, z] for z in ys for y in ys])
+    nx = len(ys)
+    f = np.array([t for j in range(nx - 1) for i in range(nx - 1) for t in _quad(j * nx + i, nx)])
+    q = col.query(v, body_v)
+    assert ((col.winding(v, body_v) > 0) & (q.signed_distance > 0)).all()
+    targets, posed = np.repeat(v[None], 2, 0), np.repeat(body_v[None], 2, 0)
+    knobs = ClothSettings(gravity=0.0)
+    setup = cloth_setup(v, f, np.ones(len(v)), knobs)
+    stage = ClothStage(setup, body_v, body_f, knobs, margin=MARGIN)
+    out = stage.step(targets, posed)
+    ref, st = cloth_reference(targets, posed, body_f, setup, knobs, margin=MARGIN)
+    assert np.abs(out - ref).max() <= 1e-9
+    assert stage.contacts == st["contacts"] and stage.pushed == st["pushed"] and stage.traced == st["traced"]
+    for x in out:
+        assert not (col.winding(x, body_v) > 0).any()
+
+
 def test_the_backstop_leaves_cloth_that_lies_on_the_body_to_its_contacts():
     """A sleeve's hem the network put deep inside the arm, its panel across the arm: the garment's normal runs along
     the arm, so the traced ray came out 10-30 cm away and the stage threw those vertices there for a few frames (a

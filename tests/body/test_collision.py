@@ -4,7 +4,7 @@ import pytest
 from segadeform.body import BodyProxy
 from segadeform.body.collision import closest_point_on_triangles, push_out, winding_number
 from segadeform.errors import SegadeformError
-from tests.body._shapes import sphere
+from tests.body._shapes import pressed_spheres, sphere
 
 
 def brute_force(p, v, f):
@@ -260,10 +260,16 @@ def test_fast_collider_finds_points_deep_inside_the_body(dancing, frame, backend
     assert (r.signed_distance < 0).mean() > 0.9
     ref = exhaustive_rows(proxy, p, r.face)
     np.testing.assert_array_equal(np.sign(r.signed_distance), np.sign(ref))
+    # every one is inside by the winding number, so every one is moved: those nearest a buried piece of skin
+    # too, to the nearest skin that is not buried (the rule for buried surfaces)
     out, n = fast.push_out(p, v, 0.004)
     ref_out, n_ref = push_out(p, proxy, 0.004)
-    assert n == n_ref == (r.signed_distance < 0.004).sum()
+    assert n == n_ref == len(p)
+    buried = r.signed_distance >= 0
+    if buried.any():  # moved off the buried skin, not onto it (its closest point's side said outside)
+        assert (np.linalg.norm(out[buried] - p[buried], axis=1) > r.signed_distance[buried]).all()
     assert (fast.query(out, v).signed_distance > 0).mean() >= (fast.query(ref_out, v).signed_distance > 0).mean()
+    np.testing.assert_array_equal(fast.winding(out, v) > 0, fast.winding(ref_out, v) > 0)
 
 
 def exhaustive_rows(proxy, p, face, normals=False):
@@ -375,3 +381,46 @@ def _icosphere():
             nf += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
         v, f = np.array(nv), np.array(nf)
     return v / np.linalg.norm(v, axis=1, keepdims=True), f
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("scale", [1.0, 1e-3, 1e3])
+def test_push_out_leaves_buried_skin_for_the_skin_outside(backend, scale):
+    """A body that intersects itself (an arm pressed into the torso: two spheres, one mesh): points inside the
+    torso whose closest surface is the arm's buried skin -- its side says outside -- are inside by the winding
+    number, and the push-out takes them to the nearest skin that is not buried, as the reference does, so none is
+    left inside; the closest-surface rule alone left every one of them where it was."""
+    v, f = pressed_spheres()
+    v = v * scale
+    rng = np.random.default_rng(0)
+    p = rng.uniform([0.3, -0.4, -0.4], [1.3, 0.4, 0.4], (200, 3)) * scale
+    col = BodyCollider(v, f, backend=backend)
+    inside = col.winding(p, v) > 0
+    q = col.query(p, v)
+    conflict = inside & (q.signed_distance > 0)
+    assert conflict.sum() > 50 and (inside & ~conflict).sum() > 25  # both kinds of inside point are there
+    margin = 0.01 * scale
+    out, n = col.push_out(p, v, margin, iterations=3)
+    ref, n_ref = push_out(p, BodyProxy(v, f, k=len(f)), margin, iterations=3)
+    assert n == n_ref == (inside | (q.signed_distance < margin)).sum()
+    np.testing.assert_allclose(out, ref, rtol=0, atol=1e-9 * scale)
+    assert not (col.winding(out, v) > 0).any()
+    # each conflicted point went past the buried skin it was nearest to, not onto it
+    moved = np.linalg.norm(out[conflict] - p[conflict], axis=1)
+    assert (moved > q.signed_distance[conflict] + margin).all()
+    # points outside both spheres are left alone or only lifted to the margin
+    far = ~inside & (q.signed_distance >= margin)
+    np.testing.assert_array_equal(out[far], p[far])
+
+
+def test_numpy_backend_with_every_ray_missing_the_body():
+    """A cluster of points beside the body, many enough that the numpy walk casts its rays run by run: every run's
+    rays miss the body (an empty walk once crashed with an IndexError); nothing is inside or moved."""
+    v, f = sphere(16, 12)
+    col = BodyCollider(v, f, backend="numpy")
+    p = np.random.default_rng(1).uniform(-0.2, 0.2, (200, 3)) + [3.0, 0.0, 0.0]
+    out, n = col.push_out(p, v, 0.01)
+    assert n == 0 and np.array_equal(out, p)
+    fr = col._impl._frames(v[None])
+    wind, graze = col._impl._winding_retry(fr, np.ascontiguousarray(p.T), np.zeros(len(p), int))
+    assert not wind.any() and not graze.any()

@@ -59,36 +59,53 @@ def _report(name: str, **figures) -> None:
     print(f"COLLISIONS {name} " + json.dumps(figures))
 
 
-@pytest.fixture(scope="module")
-def collider_vector(tmp_path_factory):
-    """Points near, on and inside the default body in two frames of a dance, and far away, with the compiled
-    kernel's answers: the test vector of the JavaScript collider."""
-    from segadeform.body import default_body_path, load_body
+@pytest.fixture(scope="module", params=["dance", "pressed"])
+def collider_vector(request, tmp_path_factory):
+    """The test vector of the JavaScript collider, with the compiled kernel's answers.  ``dance``: points near, on
+    and inside the default body in two frames of a dance, and far away.  ``pressed``: a body that intersects
+    itself (an arm pressed into the torso: two spheres, one mesh, the arm deeper in the second frame), points all
+    over the overlap, so that the push-out's rule for buried skin decides many of them."""
     from segadeform.body.collision import BodyCollider, compiled_available
-    from segadeform.motion import make_motion
 
     assert compiled_available(), "the compiled collision kernel is not built (pip install -e . builds it)"
-    body = load_body(default_body_path())
-    m = make_motion("dance", seconds=0.5, seed=1)
-    posed = body.forward(m.poses[[4, 12]], None, m.trans[[4, 12]]).vertices
     rng = np.random.default_rng(5)
-    v = posed[1]
-    near = v[rng.integers(0, len(v), 3000)] + rng.normal(scale=0.015, size=(3000, 3))  # both sides of the skin
-    on = v[rng.integers(0, len(v), 200)]  # exactly on vertices
-    far = rng.uniform(v.min(0) - 0.2, v.max(0) + 0.2, size=(800, 3))  # inside deep, and outside far
-    points = np.concatenate([near, on, far])
-    col = BodyCollider(body.v_template, body.faces)
+    if request.param == "dance":
+        from segadeform.body import default_body_path, load_body
+        from segadeform.motion import make_motion
+
+        body = load_body(default_body_path())
+        m = make_motion("dance", seconds=0.5, seed=1)
+        rest, faces = body.v_template, body.faces
+        posed = body.forward(m.poses[[4, 12]], None, m.trans[[4, 12]]).vertices
+        v = posed[1]
+        near = v[rng.integers(0, len(v), 3000)] + rng.normal(scale=0.015, size=(3000, 3))  # both sides of the skin
+        on = v[rng.integers(0, len(v), 200)]  # exactly on vertices
+        far = rng.uniform(v.min(0) - 0.2, v.max(0) + 0.2, size=(800, 3))  # inside deep, and outside far
+        points = np.concatenate([near, on, far])
+    else:
+        from tests.body._shapes import pressed_spheres
+
+        rest, faces = pressed_spheres()
+        arm = np.arange(len(rest)) >= len(rest) // 2
+        posed = np.stack([rest, rest - 0.1 * arm[:, None] * [1.0, 0.0, 0.0]])
+        points = rng.uniform([0.2, -0.45, -0.45], [1.3, 0.45, 0.45], size=(4000, 3))
+    col = BodyCollider(rest, faces)
     assert col.backend == "compiled"
-    q = col.query(points, v)
-    push_in = np.stack([points[:2000], points[2000:]])
+    q = col.query(points, posed[1])
+    half = len(points) // 2
+    push_in = np.stack([points[:half], points[half:]])
+    buried = sum(
+        int(((col.winding(push_in[k], posed[k]) > 0) & (col.query(push_in[k], posed[k]).signed_distance > 0)).sum())
+        for k in range(2)
+    )
     iterations = 3
     push_out, moved = col.push_out(push_in, posed, 0.01, iterations=iterations)
     path = tmp_path_factory.mktemp("collide") / "vec.sgdb"
     write_bundle(
         path,
         {
-            "rest": body.v_template,
-            "faces": body.faces.astype(np.int32),
+            "rest": rest,
+            "faces": faces.astype(np.int32),
             "posed": posed,
             "points": points,
             "sd": q.signed_distance,
@@ -100,7 +117,8 @@ def collider_vector(tmp_path_factory):
         },
         {"margin": 0.01, "iterations": iterations, "moved": moved, "query_frame": 1},
     )
-    return path, {"moved": moved, "inside": int((q.signed_distance < 0).sum()), "points": len(points)}
+    info = {"moved": moved, "inside": int((q.signed_distance < 0).sum()), "points": len(points), "buried": buried}
+    return path, request.param, info
 
 
 def _node_vectors(script: str, vector, tag: str) -> dict:
@@ -117,10 +135,12 @@ def test_javascript_collider_is_the_compiled_kernel(collider_vector, node):
     positions and the points moved (the vertex pseudo-normals' angles come from the kernel's own acos, not from
     Math.acos and the C library's, which disagree in the last bit).  Face ids are reported, not compared (a tie
     may pick another face at the same distance)."""
-    path, py = collider_vector
+    path, kind, py = collider_vector
     r = _node_vectors("collide_vectors.mjs", path, "COLLIDE")
-    _report("javascript collider vs BodyCollider", **r, python=py)
+    _report(f"javascript collider vs BodyCollider ({kind})", **r, python=py)
     assert r["closed"] and r["points"] == py["points"] and py["inside"] > 500 and py["moved"] > 1000
+    if kind == "pressed":  # the rule for buried skin decides many points: in the torso, nearest the arm's skin
+        assert py["buried"] > 500, py
     assert r["sd"] == 0 and r["closest"] == 0 and r["normal"] == 0, r
     assert r["pushOut"] == 0 and r["identical"] == r["coordinates"] and r["moved"] == py["moved"], r
 

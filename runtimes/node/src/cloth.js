@@ -636,13 +636,14 @@ export class ClothStage {
         for (let k = 0; k < nec; k++) edgeContact(x, edges, eidx[k], esd, ecp, ecn, k, margin, band);
       }
       // the exact push-out of every vertex that may be inside or closer than the margin: those found inside or
-      // within it, and those that moved farther than their clearance since the contacts were found
+      // within it, those in contact (one may be inside the torso by a buried arm's skin, which only the push-out's
+      // rule for buried skin tells), and those that moved farther than their clearance since the contacts were found
       let m = 0;
       for (let i = 0; i < n; i++) {
         const d0 = x[3 * i] - q[3 * i], d1 = x[3 * i + 1] - q[3 * i + 1], d2 = x[3 * i + 2] - q[3 * i + 2];
         const clear = (sd[i] < margin + band ? sd[i] : margin + band) - margin;
         if (sd[i] < margin + band) this.contacts++;
-        if (!(clear > 0) || d0 * d0 + d1 * d1 + d2 * d2 >= clear * clear) {
+        if (!(clear > 0) || sd[i] < margin + band || d0 * d0 + d1 * d1 + d2 * d2 >= clear * clear) {
           pick[m] = i;
           q[3 * m] = x[3 * i];
           q[3 * m + 1] = x[3 * i + 1];

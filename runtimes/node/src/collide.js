@@ -9,6 +9,8 @@
 //
 //   closest point  the exact nearest point over every triangle, ties broken by the lowest face index;
 //   sign           the angle-weighted pseudo-normal of the feature (face, edge, vertex) the closest point lies on;
+//   buried         a point the closest feature's side calls outside but the body's winding number inside (in the
+//                  torso next to an arm's skin buried in it) takes the nearest point that is not buried;
 //   push-out       p' = closest + margin * n for points with signed distance < margin, again for the points moved,
 //                  up to `iterations` passes (segadeform.body.collision.push_out's rule).
 //
@@ -19,6 +21,8 @@
 const STACK = 256; // traversal stack; the median split keeps the depth under log2(F) + 1
 const TINY = 1e-300;
 const FEATURE = 1e-9; // a barycentric weight at or under this is zero (the reference's rule)
+// a surface point is buried if the point this far out along its face's normal (times scale) is inside the body
+const BURY = 1e-6;
 
 // ---- small vector helpers (on 3-vectors stored at an offset of a Float64Array) -------------------------------
 function dot3(a, ia, b, ib) { return a[ia] * b[ib] + a[ia + 1] * b[ib + 1] + a[ia + 2] * b[ib + 2]; }
@@ -531,6 +535,103 @@ function rayCount(fr, P, ip, axis, dir) {
   return wind;
 }
 
+// the winding number found by the last windingAt() that returned true: the C function's *w
+let windW = 0;
+
+/* The body's winding number at p when a ray decides it: the six axis directions, the shortest way out of the root box
+ * first, until one does not graze.  Returns true with windW = |signed crossings|, or false when all six graze or the
+ * body is not closed. */
+const distW = new Float64Array(6), usedW = new Uint8Array(6);
+function windingAt(fr, P, ip) {
+  if (!fr.b.closed) return false;
+  for (let k = 0; k < 3; k++) {
+    distW[2 * k] = fr.box[fr.boxOff + 3 + k] - P[ip + k]; // +axis
+    distW[2 * k + 1] = P[ip + k] - fr.box[fr.boxOff + k]; // -axis
+  }
+  usedW.fill(0);
+  for (let tried = 0; tried < 6; tried++) {
+    let best = -1;
+    for (let k = 0; k < 6; k++) if (!usedW[k] && (best < 0 || distW[k] < distW[best])) best = k;
+    usedW[best] = 1;
+    const c = rayCount(fr, P, ip, (best / 2) | 0, best % 2 ? -1 : 1);
+    if (!rayGraze) {
+      windW = c < 0 ? -c : c;
+      return true;
+    }
+  }
+  return false;
+}
+
+const nB = new Float64Array(3), qB = new Float64Array(3);
+
+/* Whether the point c (C at ic) of face f is buried: the point BURY * scale out from it along the face's normal is
+ * inside the body by its winding number (undecided: not buried). */
+function buried(fr, C, ic, f) {
+  const h = BURY * fr.scale;
+  faceNormal(fr.b, fr.verts, fr.vOff, f, nB, 0);
+  qB[0] = C[ic] + h * nB[0];
+  qB[1] = C[ic + 1] + h * nB[1];
+  qB[2] = C[ic + 2] + h * nB[2];
+  return windingAt(fr, qB, 0) && windW !== 0;
+}
+
+// nearestOpen's own traversal stacks: buried() walks the tree (rayCount, on the shared stacks) in the middle of it
+let stackO = new Int32Array(STACK), stackOL = new Float64Array(STACK);
+function growO() {
+  const n = new Int32Array(2 * stackO.length), l = new Float64Array(2 * stackOL.length);
+  n.set(stackO);
+  l.set(stackOL);
+  stackO = n;
+  stackOL = l;
+}
+const tbO = new Float64Array(3), tcO = new Float64Array(3);
+
+/* As nearest (no bound), over the faces whose nearest point to p is not buried: the minimum of (squared distance,
+ * face index) over them.  nearestFace = -1 when every one is buried. */
+function nearestOpen(fr, P, ip, bary, closest) {
+  const b = fr.b, V = fr.verts, vOff = fr.vOff, box = fr.box, boxOff = fr.boxOff;
+  const left = b.left, right = b.right, first = b.first, count = b.count, leafFace = b.leafFace, faces = b.faces;
+  let top = 0, best = Infinity, slack = fr.slack, bestf = -1, bound2 = Infinity;
+  for (let k = 0; k < 3; k++) {
+    if (1e-12 * Math.abs(P[ip + k]) > slack) slack = 1e-12 * Math.abs(P[ip + k]);
+  }
+  stackO[top] = 0;
+  stackOL[top++] = boxDist2(box, boxOff, P, ip);
+  while (top > 0) {
+    top--;
+    if (stackOL[top] > bound2) continue;
+    const node = stackO[top];
+    if (left[node] < 0) {
+      for (let j = first[node]; j < first[node] + count[node]; j++) {
+        const f = leafFace[j];
+        const d2 = closestOnTriangle(P, ip, V, vOff + 3 * faces[3 * f], vOff + 3 * faces[3 * f + 1],
+          vOff + 3 * faces[3 * f + 2], tbO, tcO);
+        if ((d2 < best || (d2 === best && f < bestf) || bestf < 0) && !buried(fr, tcO, 0, f)) {
+          best = d2;
+          bestf = f;
+          bary[0] = tbO[0]; bary[1] = tbO[1]; bary[2] = tbO[2];
+          closest[0] = tcO[0]; closest[1] = tcO[1]; closest[2] = tcO[2];
+          const r = Math.sqrt(best) + slack;
+          if (r * r < bound2) bound2 = r * r;
+        }
+      }
+    } else {
+      const l = left[node], r = right[node];
+      const dl = boxDist2(box, boxOff + 6 * l, P, ip), dr = boxDist2(box, boxOff + 6 * r, P, ip);
+      if (top + 2 > stackO.length) growO();
+      if (dl <= dr) {
+        if (dr <= bound2) { stackO[top] = r; stackOL[top++] = dr; }
+        if (dl <= bound2) { stackO[top] = l; stackOL[top++] = dl; }
+      } else {
+        if (dl <= bound2) { stackO[top] = l; stackOL[top++] = dl; }
+        if (dr <= bound2) { stackO[top] = r; stackOL[top++] = dr; }
+      }
+    }
+  }
+  nearestFace = bestf;
+  return best;
+}
+
 const diffS = new Float64Array(3);
 
 /* Signed distance at the closest point found (face f, weights bary, point closest) and the normal (into n). */
@@ -541,23 +642,43 @@ function signedAt(fr, P, ip, f, bary, closest, n) {
   return dot3(diffS, 0, n, 0) < 0 ? -d : d;
 }
 
-const baryN = new Float64Array(3);
+const baryN = new Float64Array(3), baryU = new Float64Array(3), cU = new Float64Array(3);
+
+/* A point whose closest feature's side says outside (nearSd > BURY * scale) but whose winding number (wind, -1: not
+ * known yet) says inside: its closest point becomes the nearest point that is not buried, nearSd minus the distance
+ * to it and n that feature's pseudo-normal.  Otherwise unchanged. */
+function unbury(fr, P, ip, wind, closest, n) {
+  if (wind < 0) {
+    if (!windingAt(fr, P, ip)) return;
+    wind = windW;
+  }
+  if (wind === 0) return;
+  const d2 = nearestOpen(fr, P, ip, baryU, cU);
+  if (nearestFace < 0) return;
+  nearFace = nearestFace;
+  closest[0] = cU[0]; closest[1] = cU[1]; closest[2] = cU[2];
+  featureNormal(fr.b, fr.verts, fr.vOff, nearFace, baryU, n);
+  nearSd = -Math.sqrt(d2);
+}
 
 // the signed distance and face found by the last nearOrInside() that returned true: the C function's *sd and *face
 let nearSd = 0, nearFace = -1;
 
 /* The exact closest point of p if it is inside the body or within `radius` of it.  Returns true with the signed
  * distance and face in nearSd and nearFace and the closest point and normal written to closest and n, or false
- * when p is outside and farther than radius. */
-function nearOrInside(fr, P, ip, radius, closest, n) {
+ * when p is outside and farther than radius.  The rule for buried skin: always for a point farther than radius, for a
+ * nearer one only with `check` (the push-out checks, the cloth stage's contact lookups do not). */
+function nearOrInside(fr, P, ip, radius, check, closest, n) {
   const b = fr.b;
   let bound = Infinity;
   const d2 = nearest(fr, P, ip, radius, baryN, closest);
   if (nearestFace >= 0 && d2 < radius * radius) {
     nearFace = nearestFace;
     nearSd = signedAt(fr, P, ip, nearFace, baryN, closest, n);
+    if (check && nearSd > BURY * fr.scale) unbury(fr, P, ip, -1, closest, n);
     return true;
   }
+  let wind = -1; // -1: not known
   if (b.closed) {
     // the shortest way out of the root box, along an axis
     let axis = 0, dir = 1, best = Infinity;
@@ -566,8 +687,9 @@ function nearOrInside(fr, P, ip, radius, closest, n) {
       if (up < best) { best = up; axis = k; dir = 1; }
       if (down < best) { best = down; axis = k; dir = -1; }
     }
-    const wind = rayCount(fr, P, ip, axis, dir);
+    wind = rayCount(fr, P, ip, axis, dir);
     if (wind === 0 && !rayGraze) return false;
+    wind = rayGraze ? -1 : (wind < 0 ? -wind : wind); // |signed crossings|; -1: not known
     bound = rayFirst;
   }
   nearest(fr, P, ip, bound, baryN, closest);
@@ -575,6 +697,7 @@ function nearOrInside(fr, P, ip, radius, closest, n) {
   if (nearestFace < 0) nearest(fr, P, ip, Infinity, baryN, closest);
   nearFace = nearestFace;
   nearSd = signedAt(fr, P, ip, nearFace, baryN, closest, n);
+  if (nearSd > BURY * fr.scale) unbury(fr, P, ip, wind, closest, n);
   return true;
 }
 
@@ -590,7 +713,7 @@ function pushFrame(fr, pts, off, i0, i1, margin, iterations, mask) {
   for (let i = i0; i < i1; i++) {
     const ip = 3 * (off + i);
     for (let it = 0; it < iterations; it++) {
-      if (!nearOrInside(fr, pts, ip, radius, cP, nP) || !(nearSd < margin)) break;
+      if (!nearOrInside(fr, pts, ip, radius, true, cP, nP) || !(nearSd < margin)) break;
       pts[ip] = cP[0] + margin * nP[0];
       pts[ip + 1] = cP[1] + margin * nP[1];
       pts[ip + 2] = cP[2] + margin * nP[2];
@@ -701,7 +824,7 @@ export class BodyCollider {
     const c = new Float64Array(3), nrm = new Float64Array(3);
     let found = 0;
     for (let i = i0; i < i1; i++) {
-      if (nearOrInside(fr, pts, 3 * i, radius, c, nrm)) {
+      if (nearOrInside(fr, pts, 3 * i, radius, false, c, nrm)) {
         sd[i] = nearSd;
         closest[3 * i] = c[0]; closest[3 * i + 1] = c[1]; closest[3 * i + 2] = c[2];
         normal[3 * i] = nrm[0]; normal[3 * i + 1] = nrm[1]; normal[3 * i + 2] = nrm[2];

@@ -97,7 +97,7 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 7 /* 7: the collision kernel it embeds takes its own acos (30 Nov 2026) */
+#define SCL_ABI 8 /* 8: the collision kernel it embeds pushes off buried surfaces (1 Dec 2026); 7: its own acos */
 #define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
 #define SCL_TINY 1e-300
@@ -806,14 +806,16 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
             for (e = 0; e < nec; e++) edge_contact(x, edges, eidx[e], esd[e], ecp + 3 * e, ecn + 3 * e, margin, band);
         }
         /* the exact push-out of every vertex that may be inside or closer than the margin: those found inside or
-         * within it, and those that moved farther than their clearance (the distance from the body less the
-         * margin, at least the band for vertices not found) since the contacts were found */
+         * within it, those in contact (within the band: one of them may be inside the torso by a buried arm's
+         * skin, which only the push-out's rule for buried skin tells), and those that moved farther than their
+         * clearance (the distance from the body less the margin, at least the band for vertices not found) since
+         * the contacts were found */
         m = 0;
         for (i = 0; i < n; i++) {
             double d0 = x[3 * i] - q[3 * i], d1 = x[3 * i + 1] - q[3 * i + 1], d2 = x[3 * i + 2] - q[3 * i + 2];
             double clear = (sd[i] < margin + band ? sd[i] : margin + band) - margin;
             info[I_CONTACTS] += sd[i] < margin + band;
-            if (!(clear > 0) || d0 * d0 + d1 * d1 + d2 * d2 >= clear * clear) {
+            if (!(clear > 0) || sd[i] < margin + band || d0 * d0 + d1 * d1 + d2 * d2 >= clear * clear) {
                 pick[m] = i;
                 q[3 * m] = x[3 * i];
                 q[3 * m + 1] = x[3 * i + 1];

@@ -17,6 +17,17 @@
  *                  normalised sum of the normals of the faces sharing it) or a vertex (one: the normalised
  *                  sum of the face normals around it, each weighted by the face's angle at the vertex);
  *                  exact for a closed, consistently oriented mesh;
+ *   buried         where the posed body intersects itself (an arm pressed into the torso) the closest surface of
+ *                  a point inside the torso can be the arm's skin buried in it, whose side says outside.  A point
+ *                  that the closest feature's side calls outside but the body's winding number (a ray's signed
+ *                  crossings, below) calls inside (a point farther than SDC_BURY * scale from its closest
+ *                  point: a nearer one is on the surface) takes instead the nearest point of the faces whose own
+ *                  nearest point to it is not buried -- a surface point is buried when the point SDC_BURY * scale
+ *                  out from it along its face's normal is inside the body -- with signed distance minus its
+ *                  distance (a face's centroid instead left a quarter of such points inside after three passes on
+ *                  the test's two pressed spheres, where faces straddle the crease): it is
+ *                  pushed to the skin that is really outside, never onto the buried one (issue #26: a dress's
+ *                  vertices in the torso next to a buried arm stayed there);
  *   push-out       p' = closest + margin * n for points with signed distance < margin, again for the
  *                  points moved, up to `iterations` passes.
  *
@@ -60,6 +71,8 @@
 #define SDC_STACK 256 /* traversal stack; the median split keeps the depth under log2(F) + 1 */
 #define SDC_TINY 1e-300
 #define SDC_FEATURE 1e-9 /* a barycentric weight at or under this is zero (the reference's rule) */
+#define SDC_BURY 1e-6    /* a surface point is buried if the point this far out along its face's normal (times the
+                            * body's largest coordinate magnitude) is inside the body */
 
 typedef struct {
     int64_t nv, nf, n_nodes, depth;
@@ -346,7 +359,7 @@ SDC_API void *sdc_create(const double *verts, int64_t nv, const int64_t *faces, 
 SDC_API void sdc_free(void *h) { free_body((sdc_body *)h); }
 
 /* The version of this interface (the Python wrapper refuses a library built from another one). */
-SDC_API int64_t sdc_abi(void) { return 2; }
+SDC_API int64_t sdc_abi(void) { return 3; }
 
 SDC_API int64_t sdc_n_nodes(const void *h) { return ((const sdc_body *)h)->n_nodes; }
 
@@ -659,6 +672,96 @@ static int64_t ray_count(const sdc_frame *fr, const double *p, int axis, int dir
     return wind;
 }
 
+/* The body's winding number at p when a ray decides it: the six axis directions, the shortest way out of the root box
+ * first, until one does not graze.  Returns 1 with *w = |signed crossings| (0 outside, 1 inside, 2 where two parts
+ * overlap), or 0 when all six graze or the body is not closed. */
+static int winding_at(const sdc_frame *fr, const double *p, int64_t *w) {
+    double dist[6], first;
+    int used[6] = {0, 0, 0, 0, 0, 0}, tried, k, graze;
+    if (!fr->b->closed) return 0;
+    for (k = 0; k < 3; k++) {
+        dist[2 * k] = fr->box[3 + k] - p[k];  /* +axis */
+        dist[2 * k + 1] = p[k] - fr->box[k]; /* -axis */
+    }
+    for (tried = 0; tried < 6; tried++) {
+        int best = -1;
+        int64_t c;
+        for (k = 0; k < 6; k++)
+            if (!used[k] && (best < 0 || dist[k] < dist[best])) best = k;
+        used[best] = 1;
+        c = ray_count(fr, p, best / 2, best % 2 ? -1 : 1, &graze, &first);
+        if (!graze) {
+            *w = c < 0 ? -c : c;
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* Whether the point c of face f is buried: the point SDC_BURY * scale out from it along the face's normal is inside
+ * the body by its winding number (undecided: not buried). */
+static int buried(const sdc_frame *fr, const double *c, int64_t f) {
+    double n[3], q[3], h = SDC_BURY * fr->scale;
+    int64_t w;
+    face_normal(fr->b, fr->verts, f, n);
+    q[0] = c[0] + h * n[0];
+    q[1] = c[1] + h * n[1];
+    q[2] = c[2] + h * n[2];
+    return winding_at(fr, q, &w) && w != 0;
+}
+
+/* As nearest (no bound), over the faces whose nearest point to p is not buried: the minimum of (squared distance,
+ * face index) over them, whatever the traversal.  *face = -1 when every one is buried. */
+static double nearest_open(const sdc_frame *fr, const double *p, int64_t *face, double *bary, double *closest) {
+    const sdc_body *b = fr->b;
+    int64_t stack[SDC_STACK];
+    double lbs[SDC_STACK];
+    int top = 0;
+    double best = INFINITY, slack = fr->slack, tb[3], tc[3], bound2 = INFINITY;
+    int64_t bestf = -1;
+    int k;
+    for (k = 0; k < 3; k++)
+        if (1e-12 * fabs(p[k]) > slack) slack = 1e-12 * fabs(p[k]);
+    stack[top] = 0;
+    lbs[top++] = box_dist2(fr->box, p);
+    while (top > 0) {
+        int64_t node;
+        top--;
+        if (lbs[top] > bound2) continue;
+        node = stack[top];
+        if (b->left[node] < 0) {
+            int64_t j;
+            for (j = b->first[node]; j < b->first[node] + b->count[node]; j++) {
+                int64_t f = b->leaf_face[j];
+                const int64_t *t = b->faces + 3 * f;
+                double d2 = closest_on_triangle(p, fr->verts + 3 * t[0], fr->verts + 3 * t[1],
+                                                fr->verts + 3 * t[2], tb, tc);
+                if ((d2 < best || (d2 == best && f < bestf) || bestf < 0) && !buried(fr, tc, f)) {
+                    double r;
+                    best = d2;
+                    bestf = f;
+                    bary[0] = tb[0]; bary[1] = tb[1]; bary[2] = tb[2];
+                    closest[0] = tc[0]; closest[1] = tc[1]; closest[2] = tc[2];
+                    r = sqrt(best) + slack;
+                    if (r * r < bound2) bound2 = r * r;
+                }
+            }
+        } else {
+            int64_t l = b->left[node], r = b->right[node];
+            double dl = box_dist2(fr->box + 6 * l, p), dr = box_dist2(fr->box + 6 * r, p);
+            if (dl <= dr) {
+                if (dr <= bound2) { stack[top] = r; lbs[top++] = dr; }
+                if (dl <= bound2) { stack[top] = l; lbs[top++] = dl; }
+            } else {
+                if (dl <= bound2) { stack[top] = l; lbs[top++] = dl; }
+                if (dr <= bound2) { stack[top] = r; lbs[top++] = dr; }
+            }
+        }
+    }
+    *face = bestf;
+    return best;
+}
+
 /* Signed distance at the closest point found (face f, weights bary, point closest) and the normal. */
 static double signed_at(const sdc_frame *fr, const double *p, int64_t f, const double *bary, const double *closest,
                         double *n) {
@@ -669,15 +772,38 @@ static double signed_at(const sdc_frame *fr, const double *p, int64_t f, const d
     return dot3(diff, n) < 0 ? -d : d;
 }
 
+/* A point p whose closest feature's side says outside (sd > SDC_BURY * scale: a point nearer the surface than that
+ * is on it, as in buried) but whose winding number (wind, -1: not known yet)
+ * says inside: its closest point becomes the nearest point that is not buried, sd minus the distance to it and n that
+ * feature's pseudo-normal (module comment, "buried").  Otherwise (outside, undecided, or nothing open) unchanged. */
+static void unbury(const sdc_frame *fr, const double *p, int64_t wind, double *sd, double *closest, double *n,
+                   int64_t *face) {
+    double bary[3], c[3], d2;
+    int64_t g;
+    if (wind < 0 && !winding_at(fr, p, &wind)) return;
+    if (wind == 0) return;
+    d2 = nearest_open(fr, p, &g, bary, c);
+    if (g < 0) return;
+    *face = g;
+    closest[0] = c[0]; closest[1] = c[1]; closest[2] = c[2];
+    feature_normal(fr->b, fr->verts, g, bary, n);
+    *sd = -sqrt(d2);
+}
+
 /* The exact closest point of p if it is inside the body or within `radius` of it.  Returns 1 with the
- * signed distance, closest point, normal and face, or 0 when p is outside and farther than radius. */
-static int near_or_inside(const sdc_frame *fr, const double *p, double radius, double *sd, double *closest,
-                          double *n, int64_t *face) {
+ * signed distance, closest point, normal and face, or 0 when p is outside and farther than radius.  The rule for
+ * buried skin: always for a point farther than radius (the ray that found it inside is already cast), and for a
+ * nearer one only with `check` (a ray more per point near the body: the push-out checks, the cloth stage's
+ * contact lookups do not, and its final push-out does). */
+static int near_or_inside(const sdc_frame *fr, const double *p, double radius, int check, double *sd,
+                          double *closest, double *n, int64_t *face) {
     const sdc_body *b = fr->b;
     double bary[3], d2, bound = INFINITY;
+    int64_t wind = -1; /* -1: not known */
     d2 = nearest(fr, p, radius, face, bary, closest);
     if (*face >= 0 && d2 < radius * radius) {
         *sd = signed_at(fr, p, *face, bary, closest, n);
+        if (check && *sd > SDC_BURY * fr->scale) unbury(fr, p, wind, sd, closest, n, face);
         return 1;
     }
     if (b->closed) {
@@ -692,12 +818,14 @@ static int near_or_inside(const sdc_frame *fr, const double *p, double radius, d
         }
         wind = ray_count(fr, p, axis, dir, &graze, &first);
         if (wind == 0 && !graze) return 0;
+        wind = graze ? -1 : (wind < 0 ? -wind : wind); /* |signed crossings|; -1: not known */
         bound = first;
     }
     nearest(fr, p, bound, face, bary, closest);
     /* none within the bound: the ray's first hit, measured on a nearly edge-on triangle, came out short */
     if (*face < 0) nearest(fr, p, INFINITY, face, bary, closest);
     *sd = signed_at(fr, p, *face, bary, closest, n);
+    if (*sd > SDC_BURY * fr->scale) unbury(fr, p, wind, sd, closest, n, face);
     return 1;
 }
 
@@ -719,14 +847,14 @@ SDC_API void sdc_query(const void *h, const double *verts, const double *box, co
 /* The exact signed distance, closest point and outward normal of every point of pts [i0, i1) that is inside the
  * body or within `radius` of it, against one frame (verts with its boxes from sdc_refit); the others get
  * sd = +inf (their closest point and normal are not defined).  Returns how many were found.  The cloth stage's
- * contacts (_cloth.c). */
+ * contacts (_cloth.c): the rule for buried skin only for the points farther than radius (near_or_inside). */
 SDC_API int64_t sdc_near(const void *h, const double *verts, const double *box, const double *pts, int64_t i0,
                          int64_t i1, double radius, double *sd, double *closest, double *normal) {
     sdc_frame fr;
     int64_t i, face, found = 0;
     make_frame((const sdc_body *)h, verts, box, &fr);
     for (i = i0; i < i1; i++) {
-        if (near_or_inside(&fr, pts + 3 * i, radius, sd + i, closest + 3 * i, normal + 3 * i, &face))
+        if (near_or_inside(&fr, pts + 3 * i, radius, 0, sd + i, closest + 3 * i, normal + 3 * i, &face))
             found++;
         else
             sd[i] = INFINITY;
@@ -741,7 +869,7 @@ SDC_API int64_t sdc_near(const void *h, const double *verts, const double *box, 
  * of a body that is not closed, gets the closest point's side instead (1 inside, 0 outside).  Unlike the signed
  * distance's side, which the closest surface decides, this is inside for a point in the torso whose closest surface
  * is the buried skin of an arm inside it.  Returns how many points took the closest point's side.  (The evaluation's
- * penetration metric; not part of the push-out, so the JavaScript port has no need of it.) */
+ * penetration metric; the push-out's rule for buried surfaces decides inside the same way, by winding_at.) */
 SDC_API int64_t sdc_winding(const void *h, const double *verts, const double *box, const double *pts, int64_t i0,
                             int64_t i1, int64_t *wind) {
     sdc_frame fr;
@@ -749,30 +877,7 @@ SDC_API int64_t sdc_winding(const void *h, const double *verts, const double *bo
     make_frame((const sdc_body *)h, verts, box, &fr);
     for (i = i0; i < i1; i++) {
         const double *p = pts + 3 * i;
-        int tried, done = 0;
-        double dist[6];
-        int used[6] = {0, 0, 0, 0, 0, 0};
-        if (fr.b->closed) {
-            int k;
-            for (k = 0; k < 3; k++) {
-                dist[2 * k] = fr.box[3 + k] - p[k];  /* +axis */
-                dist[2 * k + 1] = p[k] - fr.box[k]; /* -axis */
-            }
-            for (tried = 0; tried < 6 && !done; tried++) {
-                int best = -1, graze;
-                double first;
-                int64_t w;
-                for (k = 0; k < 6; k++)
-                    if (!used[k] && (best < 0 || dist[k] < dist[best])) best = k;
-                used[best] = 1;
-                w = ray_count(&fr, p, best / 2, best % 2 ? -1 : 1, &graze, &first);
-                if (!graze) {
-                    wind[i] = w < 0 ? -w : w;
-                    done = 1;
-                }
-            }
-        }
-        if (!done) {
+        if (!winding_at(&fr, p, wind + i)) {
             double bary[3], closest[3], n[3];
             int64_t face;
             nearest(&fr, p, INFINITY, &face, bary, closest);
@@ -803,7 +908,7 @@ SDC_API int64_t sdc_push_out(const void *h, const double *verts, const double *b
             for (it = 0; it < iterations; it++) {
                 double sd, c[3], nrm[3];
                 int64_t face;
-                if (!near_or_inside(&fr, p, radius, &sd, c, nrm, &face) || !(sd < margin)) break;
+                if (!near_or_inside(&fr, p, radius, 1, &sd, c, nrm, &face) || !(sd < margin)) break;
                 p[0] = c[0] + margin * nrm[0];
                 p[1] = c[1] + margin * nrm[1];
                 p[2] = c[2] + margin * nrm[2];

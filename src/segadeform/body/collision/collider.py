@@ -33,6 +33,12 @@ class BodyCollider:
        outside a closed mesh.  A ray that grazes an edge or a vertex is cast again in another direction.
     3. points whose count is not zero (inside, deep or not) get the exact closest point by branch and
        bound with no radius (the radius shrinking to the farthest corner of the nearest box).
+    4. *buried skin* (``push_out`` only; ``query`` keeps the closest surface): where the posed body
+       intersects itself (an arm pressed into the torso), a point in the torso can be nearest the arm's skin
+       buried in it, whose side says outside.  A point whose closest feature says outside but whose winding
+       number (the ray's count) says inside is moved to the nearest point that is not buried instead (a
+       surface point is buried when the point just outside it is inside the body): out of the torso, not onto
+       the buried arm (:func:`~segadeform.body.collision.reference.unbury`, issue #26).
 
     So every point closer than ``margin`` or inside gets the brute-force closest point (over every
     triangle), which :class:`BodyProxy` -- the slow, obvious reference beside it -- approximates with its

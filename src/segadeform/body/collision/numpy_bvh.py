@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 
-from .reference import ProximityResult
+from .reference import BURY, ProximityResult, nearest_unburied
 
 __all__ = ["NumpyBVH", "closest_point_fast"]
 
@@ -150,6 +150,7 @@ class NumpyBVH:
     def __init__(self, v, f, leaf_size: int, step: int) -> None:
         """The tree, adjacency and gathers of the body ``v (V, 3)``, ``f (F, 3)``."""
         self.faces, self.n_vertices = f, len(v)
+        self._used = np.unique(f)  # the vertices the faces use: the root box's
         nv = np.int64(len(v)) + 1
         # per face slot (edge opposite corner c): the face across that edge, -1 on a boundary
         e = np.sort(np.stack([f[:, [1, 2]], f[:, [2, 0]], f[:, [0, 1]]], axis=1), axis=2).reshape(-1, 2)
@@ -279,6 +280,8 @@ class NumpyBVH:
             prev = level
             k = keep(level, run, nd)
             run, nd = run[k], nd[k]
+        if not len(run):  # every run's rays (or boxes) miss the body
+            return np.zeros(0, np.int32), np.zeros(0, np.int32)
         # every point of a run with every node kept for the run, point after point
         size = np.diff(np.append(starts, len(order)))
         g = _group_starts(run)  # the runs' node lists, one after another
@@ -549,7 +552,55 @@ class NumpyBVH:
             closest, face = np.concatenate([closest, c2], axis=1), np.concatenate([face, fa2])
             bary = np.concatenate([bary, b2], axis=1)
         normal, sd = self._signed(fr, P, frame, found, closest, face, bary)
+        if self.closed and len(found):
+            self._unbury(fr, P, frame, found, closest, normal, sd)
         return found, closest.T, normal, sd
+
+    def _unbury(self, fr: _Frames, P, frame, found, closest, normal, sd) -> None:
+        """The rule for buried surfaces (:func:`~segadeform.body.collision.reference.unbury`), in place on the
+        points ``found`` with their closest (3, K), normal (K, 3) and sd (K,): those the closest feature calls
+        outside but the winding number inside take the nearest point that is not buried (the reference's brute
+        force with this walk's winding number: such points are few, only where the posed body intersects
+        itself)."""
+        nv = self.n_vertices
+        nb = fr.verts.shape[1] // nv
+        h = np.array([BURY * np.abs(fr.verts[:, b * nv + self._used]).max() for b in range(nb)])
+        cand = np.flatnonzero(sd > h[frame[found]])
+        if not len(cand):
+            return
+        pts = found[cand]
+        wind, graze = self._winding_retry(fr, P[:, pts], frame[pts])
+        cand = cand[(wind != 0) & ~graze]
+        for j in cand:
+            b = int(frame[found[j]])
+            r = nearest_unburied(
+                P[:, found[j]],
+                fr.verts[:, b * nv : (b + 1) * nv].T,
+                self.faces,
+                winding=lambda q, b=b: self._decided(fr, q, b),
+            )
+            if r is None:
+                continue
+            g_face, c, bary, d2 = r
+            closest[:, j] = c
+            normal[j] = self._normals(fr.verts, np.array([g_face]), bary[:, None], np.array([b * nv]))[0]
+            sd[j] = -np.sqrt(d2)
+
+    def _decided(self, fr: _Frames, q, b: int) -> tuple[np.ndarray, np.ndarray]:
+        """The winding number of the points ``q (K, 3)`` in frame ``b`` and whether a ray decided it."""
+        wind, graze = self._winding_retry(fr, np.ascontiguousarray(q.T), np.full(len(q), b))
+        return wind, ~graze
+
+    def _winding_retry(self, fr: _Frames, P, frame) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_winding` of ``P (3, M)``, a grazing ray cast again in two other directions: (wind, graze)."""
+        wind, graze, _ = self._winding(fr, P, frame, fr.centre)
+        tilts = np.array([[0.071, -0.113, 0.097], [-0.131, 0.089, 0.053]]) * fr.scale
+        for tilt in tilts:
+            g = np.flatnonzero(graze)
+            if not len(g):
+                break
+            wind[g], graze[g], _ = self._winding(fr, P[:, g], frame[g], fr.centre + tilt[:, None])
+        return wind, graze
 
     def query(self, p, v) -> ProximityResult:
         """Exact closest point and signed distance of every point ``p (P, 3)`` against ``v (1, V, 3)``."""
