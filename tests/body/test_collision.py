@@ -390,7 +390,7 @@ def test_push_out_leaves_buried_skin_for_the_skin_outside(backend, scale):
     torso whose closest surface is the arm's buried skin -- its side says outside -- are inside by the winding
     number, and the push-out takes them to the nearest skin that is not buried, as the reference does, so none is
     left inside; the closest-surface rule alone left every one of them where it was."""
-    v, f = pressed_spheres()
+    v, f = pressed_spheres(16, 12)  # coarse: every point finds open skin within the faces it may test
     v = v * scale
     rng = np.random.default_rng(0)
     p = rng.uniform([0.3, -0.4, -0.4], [1.3, 0.4, 0.4], (200, 3)) * scale
@@ -424,3 +424,63 @@ def test_numpy_backend_with_every_ray_missing_the_body():
     fr = col._impl._frames(v[None])
     wind, graze = col._impl._winding_retry(fr, np.ascontiguousarray(p.T), np.zeros(len(p), int))
     assert not wind.any() and not graze.any()
+
+
+def test_the_rule_for_buried_skin_tests_a_bounded_number_of_faces():
+    """A fine arm buried deep in the torso: a point in the torso next to it has more buried faces nearer than any
+    open one than the rule may test (``BURY_TRIES``), so it keeps its closest surface (the arm's: outside), as before
+    the rule -- in bounded time, kernel and reference alike; a coarse arm, the same point goes out of the torso."""
+    from segadeform.body.collision.reference import BURY_TRIES
+
+    for (n, m), kept in (((64, 48), True), ((16, 12), False)):
+        v, f = pressed_spheres(n, m)
+        p = np.array([[0.55, 0.0, 0.0]])  # 5 cm from the arm's buried skin, 45 cm from the torso's
+        col = BodyCollider(v, f)
+        assert col.winding(p, v)[0] == 1 and col.query(p, v).signed_distance[0] > 0
+        out, moved = col.push_out(p, v, 0.01)
+        ref, ref_moved = push_out(p, BodyProxy(v, f, k=len(f)), 0.01)
+        assert moved == ref_moved == (0 if kept else 1), (n, m, moved, ref_moved)
+        np.testing.assert_allclose(out, ref, atol=1e-9)
+        assert len(f) // 2 > BURY_TRIES or not kept
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_zero_area_face_in_buried_skin_is_never_taken(backend):
+    """A face of zero area in the arm's buried skin (a buried triangle split at the middle of an edge, the mesh still
+    closed): its normal is zero, so whether it is buried cannot be told; it is never taken as open skin (once, every
+    point nearest it was pushed onto it and left inside the torso).  Same result as without it, as the reference."""
+    v, f = pressed_spheres(24, 16)
+    half = len(v) // 2
+    arm = np.flatnonzero(f.min(axis=1) >= half)
+    fi = arm[np.argmin(np.linalg.norm(v[f[arm]].mean(axis=1), axis=1))]  # the buried face deepest in the torso
+    a, b, c = f[fi]
+    m = len(v)
+    v2 = np.vstack([v, v[b] + 0.5 * (v[c] - v[b])])
+    f2 = np.vstack([np.delete(f, fi, 0), [[a, b, m], [a, m, c], [m, b, c]]])
+    cr = np.cross(v2[f2[:, 1]] - v2[f2[:, 0]], v2[f2[:, 2]] - v2[f2[:, 0]])
+    assert (cr[-1] == 0).all() and (np.abs(cr[:-1]).max(axis=1) > 0).all()  # one face of zero area, exactly
+    p = v[[a, b, c]].mean(axis=0) + np.random.default_rng(0).normal(scale=0.05, size=(200, 3))
+    col = BodyCollider(v2, f2, backend=backend)
+    assert col.closed and (col.winding(p, v2) > 0).all() and (col.query(p, v2).signed_distance > 0).sum() > 50
+    out, n = col.push_out(p, v2, 0.01)
+    ref, n_ref = push_out(p, BodyProxy(v2, f2, k=len(f2)), 0.01)
+    assert n == n_ref == len(p)
+    np.testing.assert_allclose(out, ref, atol=1e-9)
+    assert not (col.winding(out, v2) > 0).any()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_no_rule_for_buried_skin_on_a_body_that_is_not_closed(backend):
+    """Without a closed mesh there is no winding number: the pressed spheres with one face gone get the closest
+    surface's answer alone, in both backends and the reference alike (the reference once cast its rays anyway)."""
+    v, f = pressed_spheres(16, 12)
+    f = f[1:]  # a face at the torso's pole, far from the arm
+    p = np.random.default_rng(0).uniform([0.3, -0.4, -0.4], [1.3, 0.4, 0.4], (200, 3))
+    col = BodyCollider(v, f, backend=backend)
+    assert not col.closed
+    out, n = col.push_out(p, v, 0.01)
+    ref, n_ref = push_out(p, BodyProxy(v, f, k=len(f)), 0.01)
+    old, n_old = push_out(p, BodyProxy(v, f, k=len(f)), 0.01, buried=False)
+    assert n == n_ref == n_old
+    np.testing.assert_allclose(out, ref, atol=1e-9)
+    np.testing.assert_array_equal(ref, old)

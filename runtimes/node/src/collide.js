@@ -23,6 +23,7 @@ const TINY = 1e-300;
 const FEATURE = 1e-9; // a barycentric weight at or under this is zero (the reference's rule)
 // a surface point is buried if the point this far out along its face's normal (times scale) is inside the body
 const BURY = 1e-6;
+const BURY_TRIES = 512; // at most this many faces tested for one point (nearestOpen)
 
 // ---- small vector helpers (on 3-vectors stored at an offset of a Float64Array) -------------------------------
 function dot3(a, ia, b, ib) { return a[ia] * b[ib] + a[ia + 1] * b[ib + 1] + a[ia + 2] * b[ib + 2]; }
@@ -518,7 +519,17 @@ function rayCount(fr, P, ip, axis, dir) {
       const neg = (ea < 0 ? 1 : 0) + (eb < 0 ? 1 : 0) + (ec < 0 ? 1 : 0);
       if (pos && neg) continue; // p's line misses the triangle
       const s = ea + eb + ec;
-      if (s === 0) { graze = true; continue; } // the triangle is edge-on to the ray
+      if (s === 0) { // the triangle is edge-on to the ray: a graze if the ray meets its own box
+        let loU = au < bu ? au : bu, hiU = au > bu ? au : bu, loV = av < bv ? av : bv;
+        let hiV = av > bv ? av : bv;
+        const ea_ = V[a + axis], eb_ = V[bb + axis], ec_ = V[c + axis];
+        let far = dir > 0 ? (ea_ > eb_ ? ea_ : eb_) : (ea_ < eb_ ? ea_ : eb_);
+        loU = cu < loU ? cu : loU; hiU = cu > hiU ? cu : hiU;
+        loV = cv < loV ? cv : loV; hiV = cv > hiV ? cv : hiV;
+        far = dir > 0 ? (ec_ > far ? ec_ : far) : (ec_ < far ? ec_ : far);
+        if (loU <= 0 && hiU >= 0 && loV <= 0 && hiV >= 0 && (dir > 0 ? far >= pa : far <= pa)) graze = true;
+        continue;
+      }
       const num = ea * (V[a + axis] - pa) + eb * (V[bb + axis] - pa) + ec * (V[c + axis] - pa);
       const depth = dir * num / s;
       if (depth < 0) continue;
@@ -565,10 +576,11 @@ function windingAt(fr, P, ip) {
 const nB = new Float64Array(3), qB = new Float64Array(3);
 
 /* Whether the point c (C at ic) of face f is buried: the point BURY * scale out from it along the face's normal is
- * inside the body by its winding number (undecided: not buried). */
+ * inside the body by its winding number (undecided: not buried; a face of zero area: buried, never taken). */
 function buried(fr, C, ic, f) {
   const h = BURY * fr.scale;
   faceNormal(fr.b, fr.verts, fr.vOff, f, nB, 0);
+  if (nB[0] === 0 && nB[1] === 0 && nB[2] === 0) return true; // zero area: never open (its edges are its neighbours')
   qB[0] = C[ic] + h * nB[0];
   qB[1] = C[ic + 1] + h * nB[1];
   qB[2] = C[ic + 2] + h * nB[2];
@@ -587,11 +599,12 @@ function growO() {
 const tbO = new Float64Array(3), tcO = new Float64Array(3);
 
 /* As nearest (no bound), over the faces whose nearest point to p is not buried: the minimum of (squared distance,
- * face index) over them.  nearestFace = -1 when every one is buried. */
+ * face index) over them.  nearestFace = -1 when every one is buried or more than BURY_TRIES faces were tested (the
+ * C file's nearest_open). */
 function nearestOpen(fr, P, ip, bary, closest) {
   const b = fr.b, V = fr.verts, vOff = fr.vOff, box = fr.box, boxOff = fr.boxOff;
   const left = b.left, right = b.right, first = b.first, count = b.count, leafFace = b.leafFace, faces = b.faces;
-  let top = 0, best = Infinity, slack = fr.slack, bestf = -1, bound2 = Infinity;
+  let top = 0, best = Infinity, slack = fr.slack, bestf = -1, bound2 = Infinity, tries = 0;
   for (let k = 0; k < 3; k++) {
     if (1e-12 * Math.abs(P[ip + k]) > slack) slack = 1e-12 * Math.abs(P[ip + k]);
   }
@@ -606,7 +619,12 @@ function nearestOpen(fr, P, ip, bary, closest) {
         const f = leafFace[j];
         const d2 = closestOnTriangle(P, ip, V, vOff + 3 * faces[3 * f], vOff + 3 * faces[3 * f + 1],
           vOff + 3 * faces[3 * f + 2], tbO, tcO);
-        if ((d2 < best || (d2 === best && f < bestf) || bestf < 0) && !buried(fr, tcO, 0, f)) {
+        if (!(d2 < best || (d2 === best && f < bestf) || bestf < 0)) continue;
+        if (++tries > BURY_TRIES) { // bounded: the point keeps its closest surface
+          nearestFace = -1;
+          return Infinity;
+        }
+        if (!buried(fr, tcO, 0, f)) {
           best = d2;
           bestf = f;
           bary[0] = tbO[0]; bary[1] = tbO[1]; bary[2] = tbO[2];
@@ -645,7 +663,7 @@ function signedAt(fr, P, ip, f, bary, closest, n) {
 const baryN = new Float64Array(3), baryU = new Float64Array(3), cU = new Float64Array(3);
 
 /* A point whose closest feature's side says outside (nearSd > BURY * scale) but whose winding number (wind, -1: not
- * known yet) says inside: its closest point becomes the nearest point that is not buried, nearSd minus the distance
+ * known yet) says inside: its closest point becomes the nearest point that is not buried, nearSd = minus the distance
  * to it and n that feature's pseudo-normal.  Otherwise unchanged. */
 function unbury(fr, P, ip, wind, closest, n) {
   if (wind < 0) {

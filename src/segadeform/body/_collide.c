@@ -27,7 +27,10 @@
  *                  distance (a face's centroid instead left a quarter of such points inside after three passes on
  *                  the test's two pressed spheres, where faces straddle the crease): it is
  *                  pushed to the skin that is really outside, never onto the buried one (issue #26: a dress's
- *                  vertices in the torso next to a buried arm stayed there);
+ *                  vertices in the torso next to a buried arm stayed there).  A face of zero area is never taken;
+ *                  at most SDC_BURY_TRIES faces are tested for one point (past that it keeps its closest surface);
+ *                  a body that is not closed has no winding number and no such rule.  The push-out applies it to
+ *                  every point; sdc_near (the cloth stage's contacts) only to points farther than its radius;
  *   push-out       p' = closest + margin * n for points with signed distance < margin, again for the
  *                  points moved, up to `iterations` passes.
  *
@@ -73,6 +76,7 @@
 #define SDC_FEATURE 1e-9 /* a barycentric weight at or under this is zero (the reference's rule) */
 #define SDC_BURY 1e-6    /* a surface point is buried if the point this far out along its face's normal (times the
                             * body's largest coordinate magnitude) is inside the body */
+#define SDC_BURY_TRIES 512 /* at most this many faces tested for one point (nearest_open) */
 
 typedef struct {
     int64_t nv, nf, n_nodes, depth;
@@ -656,7 +660,17 @@ static int64_t ray_count(const sdc_frame *fr, const double *p, int axis, int dir
                 int pos = (ea > 0) + (eb > 0) + (ec > 0), neg = (ea < 0) + (eb < 0) + (ec < 0);
                 if (pos && neg) continue; /* p's line misses the triangle */
                 s = ea + eb + ec;
-                if (s == 0) { *graze = 1; continue; } /* the triangle is edge-on to the ray */
+                if (s == 0) { /* the triangle is edge-on to the ray: a graze if the ray meets its own box */
+                    double lo_u = au < bu ? au : bu, hi_u = au > bu ? au : bu, lo_v = av < bv ? av : bv;
+                    double hi_v = av > bv ? av : bv, ea_ = a[axis], eb_ = bb[axis], ec_ = c[axis];
+                    double far_ = dir > 0 ? (ea_ > eb_ ? ea_ : eb_) : (ea_ < eb_ ? ea_ : eb_);
+                    lo_u = cu < lo_u ? cu : lo_u; hi_u = cu > hi_u ? cu : hi_u;
+                    lo_v = cv < lo_v ? cv : lo_v; hi_v = cv > hi_v ? cv : hi_v;
+                    far_ = dir > 0 ? (ec_ > far_ ? ec_ : far_) : (ec_ < far_ ? ec_ : far_);
+                    if (lo_u <= 0 && hi_u >= 0 && lo_v <= 0 && hi_v >= 0 && (dir > 0 ? far_ >= p[axis] : far_ <= p[axis]))
+                        *graze = 1;
+                    continue;
+                }
                 num = ea * (a[axis] - p[axis]) + eb * (bb[axis] - p[axis]) + ec * (c[axis] - p[axis]);
                 depth = dir * num / s;
                 if (depth < 0) continue;
@@ -699,11 +713,12 @@ static int winding_at(const sdc_frame *fr, const double *p, int64_t *w) {
 }
 
 /* Whether the point c of face f is buried: the point SDC_BURY * scale out from it along the face's normal is inside
- * the body by its winding number (undecided: not buried). */
+ * the body by its winding number (undecided: not buried; a face of zero area: buried, never taken). */
 static int buried(const sdc_frame *fr, const double *c, int64_t f) {
     double n[3], q[3], h = SDC_BURY * fr->scale;
     int64_t w;
     face_normal(fr->b, fr->verts, f, n);
+    if (n[0] == 0 && n[1] == 0 && n[2] == 0) return 1; /* zero area: never open (its edges are its neighbours') */
     q[0] = c[0] + h * n[0];
     q[1] = c[1] + h * n[1];
     q[2] = c[2] + h * n[2];
@@ -711,14 +726,18 @@ static int buried(const sdc_frame *fr, const double *c, int64_t f) {
 }
 
 /* As nearest (no bound), over the faces whose nearest point to p is not buried: the minimum of (squared distance,
- * face index) over them, whatever the traversal.  *face = -1 when every one is buried. */
+ * face index) over them, whatever the traversal.  *face = -1 when every one is buried, or when more than
+ * SDC_BURY_TRIES faces were tested (each test casts up to six rays: the cost per point is bounded; the point then
+ * keeps its closest surface, as before the rule).  The reference tests the faces nearest first, stopping at the same
+ * count; the kernel tests at least those (every face nearer than the answer is buried and tested), so the two can
+ * differ only where the kernel reaches the cap. */
 static double nearest_open(const sdc_frame *fr, const double *p, int64_t *face, double *bary, double *closest) {
     const sdc_body *b = fr->b;
     int64_t stack[SDC_STACK];
     double lbs[SDC_STACK];
     int top = 0;
     double best = INFINITY, slack = fr->slack, tb[3], tc[3], bound2 = INFINITY;
-    int64_t bestf = -1;
+    int64_t bestf = -1, tries = 0;
     int k;
     for (k = 0; k < 3; k++)
         if (1e-12 * fabs(p[k]) > slack) slack = 1e-12 * fabs(p[k]);
@@ -736,7 +755,12 @@ static double nearest_open(const sdc_frame *fr, const double *p, int64_t *face, 
                 const int64_t *t = b->faces + 3 * f;
                 double d2 = closest_on_triangle(p, fr->verts + 3 * t[0], fr->verts + 3 * t[1],
                                                 fr->verts + 3 * t[2], tb, tc);
-                if ((d2 < best || (d2 == best && f < bestf) || bestf < 0) && !buried(fr, tc, f)) {
+                if (!(d2 < best || (d2 == best && f < bestf) || bestf < 0)) continue;
+                if (++tries > SDC_BURY_TRIES) { /* bounded: the point keeps its closest surface */
+                    *face = -1;
+                    return INFINITY;
+                }
+                if (!buried(fr, tc, f)) {
                     double r;
                     best = d2;
                     bestf = f;
@@ -774,8 +798,8 @@ static double signed_at(const sdc_frame *fr, const double *p, int64_t f, const d
 
 /* A point p whose closest feature's side says outside (sd > SDC_BURY * scale: a point nearer the surface than that
  * is on it, as in buried) but whose winding number (wind, -1: not known yet)
- * says inside: its closest point becomes the nearest point that is not buried, sd minus the distance to it and n that
- * feature's pseudo-normal (module comment, "buried").  Otherwise (outside, undecided, or nothing open) unchanged. */
+ * says inside: its closest point becomes the nearest point that is not buried, sd = minus the distance to it and n
+ * that feature's pseudo-normal (module comment, "buried").  Otherwise (outside, undecided, or nothing open) unchanged. */
 static void unbury(const sdc_frame *fr, const double *p, int64_t wind, double *sd, double *closest, double *n,
                    int64_t *face) {
     double bary[3], c[3], d2;
@@ -810,7 +834,6 @@ static int near_or_inside(const sdc_frame *fr, const double *p, double radius, i
         /* the shortest way out of the root box, along an axis */
         int axis = 0, dir = 1, k, graze;
         double best = INFINITY, first;
-        int64_t wind;
         for (k = 0; k < 3; k++) {
             double up = fr->box[3 + k] - p[k], down = p[k] - fr->box[k];
             if (up < best) { best = up; axis = k; dir = 1; }

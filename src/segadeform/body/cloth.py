@@ -756,7 +756,7 @@ def _near_reference(col, pts, bv, body_faces, radius: float):
 
     q = col.query(pts, bv)
     far = np.flatnonzero(q.signed_distance >= radius)
-    if not len(far):
+    if not len(far) or not col.closed:  # (not closed: no winding number, as in the kernel)
         return q
     fr = col._impl._frames(np.asarray(bv, np.float64)[None])  # the numpy collider's tree: its winding number
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .collision import BodyCollider, BodyProxy
+from .collision import BodyProxy, push_out
 
 __all__ = [
     "UNIT_SCALES",
@@ -105,16 +105,15 @@ def placement_report(vertices, body_vertices, body_faces) -> FitReport:
 
 
 def push_off_body(vertices, body_vertices, body_faces, margin: float) -> tuple[np.ndarray, int]:
-    """Move vertices inside the (rest) body, or closer than ``margin`` (m), out along its normal: the collision
-    stage's push-out (:meth:`BodyCollider.push_out <segadeform.body.collision.BodyCollider.push_out>`).
+    """Move vertices inside the (rest) body, or closer than ``margin`` (m), out along its normal.
 
     Shapes:
         vertices: (N, 3) -> (N, 3), and the number moved
     """
     if not (np.isfinite(margin) and 0 <= margin < 0.1):
         raise InputError("margin must be in [0, 0.1) metres", got=margin)
-    bv = np.asarray(body_vertices, np.float64)
-    return BodyCollider(bv, body_faces).push_out(np.asarray(vertices, np.float64), bv, float(margin))
+    # without the push-out's rule for buried skin (30 Nov 2026): garments made before it are made again the same
+    return push_out(np.asarray(vertices, np.float64), BodyProxy(body_vertices, body_faces), float(margin), buried=False)
 
 
 class PlacementError(InputError):

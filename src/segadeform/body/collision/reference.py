@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -20,6 +21,7 @@ __all__ = [
     "nearest_unburied",
     "unbury",
     "BURY",
+    "BURY_TRIES",
     "BodyProxy",
     "push_out",
 ]
@@ -28,6 +30,9 @@ __all__ = [
 #: magnitude, is inside the body (``_collide.c``'s SDC_BURY); a point nearer its closest point than that is on the
 #: surface
 BURY = 1e-6
+#: at most this many faces tested for one point (``_collide.c``'s SDC_BURY_TRIES): past it the point keeps its closest
+#: surface
+BURY_TRIES = 512
 
 
 @dataclasses.dataclass(frozen=True)
@@ -116,6 +121,23 @@ def _root_box(vertices, faces) -> np.ndarray:
     return np.concatenate([used.min(axis=0), used.max(axis=0)])
 
 
+def _closed(faces) -> bool:
+    """Whether the mesh is closed as ``_collide.c`` counts it: every edge has exactly two faces, which run along it in
+    opposite directions (only then does a ray's count of crossings tell inside from outside)."""
+    f = np.ascontiguousarray(faces, np.int64)
+    return _closed_cached(f.tobytes(), len(f))
+
+
+@functools.lru_cache(maxsize=8)
+def _closed_cached(data: bytes, n: int) -> bool:
+    f = np.frombuffer(data, np.int64).reshape(n, 3)
+    d = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])  # directed edges
+    if len(np.unique(d, axis=0)) != len(d):  # an edge run twice the same way (or by more than two faces)
+        return False
+    fwd = {(int(a), int(b)) for a, b in d}
+    return all((b, a) in fwd for a, b in fwd)
+
+
 def _ray_count(p, a, b, c, axis: int, sign: int) -> tuple[np.ndarray, np.ndarray]:
     """Signed crossings of the rays from ``p (P, 3)`` along ``sign`` * ``axis`` with the triangles ``a, b, c (F,
     3)``, and whether each grazed (through an edge or a vertex, from a triangle's plane, or along an edge-on
@@ -129,12 +151,19 @@ def _ray_count(p, a, b, c, axis: int, sign: int) -> tuple[np.ndarray, np.ndarray
     neg = (ea < 0).astype(np.int8) + (eb < 0) + (ec < 0)
     line = ~((pos > 0) & (neg > 0))  # the ray's line meets the triangle
     s = ea + eb + ec
-    # an edge-on triangle counts as a graze only where the tree would reach it (not wholly behind the ray)
+    # an edge-on triangle counts as a graze only where it is not wholly behind the ray
     if sign > 0:
         ahead = np.maximum(np.maximum(a[:, axis], b[:, axis]), c[:, axis]) >= pa
     else:
         ahead = np.minimum(np.minimum(a[:, axis], b[:, axis]), c[:, axis]) <= pa
-    graze = (line & (s == 0) & ahead).any(axis=1)
+    # ... and whose own (u, v) box the ray meets (every edge function is 0 along the line of its projection)
+    box = (
+        (np.minimum(np.minimum(au, bu), cu) <= 0)
+        & (np.maximum(np.maximum(au, bu), cu) >= 0)
+        & (np.minimum(np.minimum(av, bv), cv) <= 0)
+        & (np.maximum(np.maximum(av, bv), cv) >= 0)
+    )
+    graze = (line & (s == 0) & ahead & box).any(axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         num = ea * (a[:, axis] - pa) + eb * (b[:, axis] - pa) + ec * (c[:, axis] - pa)
         depth = sign * num / s
@@ -150,10 +179,14 @@ def ray_winding(points, vertices, faces, *, chunk: int = 64) -> tuple[np.ndarray
     triangle (the slow reference).  0 outside a closed mesh, 1 inside, 2 where two parts overlap.
 
     Shapes:
-        points: (P, 3) -> winding (P,) int64 and decided (P,) bool (False: all six rays grazed)
+        points: (P, 3) -> winding (P,) int64 and decided (P,) bool (False: all six rays grazed, or the mesh is not
+        closed)
     """
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.int64)
+    if not _closed(f):
+        n = len(np.asarray(points).reshape(-1, 3))
+        return np.zeros(n, np.int64), np.zeros(n, bool)
     a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
     box = _root_box(v, f)
     pts = np.asarray(points, np.float64).reshape(-1, 3)
@@ -176,7 +209,8 @@ def nearest_unburied(point, vertices, faces, *, batch: int = 64, winding=None):
     """The nearest point to ``point (3,)`` over the faces whose own nearest point to it is not buried (the point
     ``BURY`` * scale out from it along the face's normal is inside the body by its winding number; undecided: not
     buried), as ``_collide.c``'s nearest_open: the minimum of (squared distance, face index) over them, by brute
-    force (the faces tried nearest first, in batches that double).  ``winding(points (K, 3)) -> (wind, decided)``:
+    force (the faces tried nearest first, in batches that double; a face of zero area is never taken; after
+    ``BURY_TRIES`` faces, None: the point keeps its closest surface).  ``winding(points (K, 3)) -> (wind, decided)``:
     how the winding number is found (default :func:`ray_winding`, brute force).  Returns (face, closest (3,),
     barycentric weights (3,), squared distance), or None when every face's point is buried."""
     v = np.asarray(vertices, np.float64)
@@ -189,11 +223,13 @@ def nearest_unburied(point, vertices, faces, *, batch: int = 64, winding=None):
     cr = face_cross(v, f)
     n = cr / np.maximum(np.linalg.norm(cr, axis=1), 1e-300)[:, None]
     winding = winding if winding is not None else (lambda q: ray_winding(q, v, f))
+    order = order[:BURY_TRIES]  # past that many faces tested the point keeps its closest surface
     lo = 0
     while lo < len(order):  # the nearest first, in batches that double
         g = order[lo : lo + batch]
         wind, decided = winding(cp[g] + h * n[g])
-        open_ = ~(decided & (wind != 0))
+        # a face of zero area is never taken (its edges are its neighbours')
+        open_ = ~(decided & (wind != 0)) & np.any(n[g] != 0, axis=1)
         if open_.any():
             k = g[np.argmax(open_)]
             return int(k), cp[k], bary[k], float(d2[k])
@@ -350,7 +386,7 @@ class BodyProxy:
 
 
 def push_out(
-    points: np.ndarray, proxy: BodyProxy, margin: float = 0.0, *, iterations: int = 3
+    points: np.ndarray, proxy: BodyProxy, margin: float = 0.0, *, iterations: int = 3, buried: bool = True
 ) -> tuple[np.ndarray, int]:
     """Move points that are inside the body, or closer than ``margin`` to it, out along the body normal.
 
@@ -361,7 +397,9 @@ def push_out(
     Where the posed body penetrates itself (an arm pressed into the torso), a
     point inside the torso whose closest surface is the arm's buried skin is
     found by the body's winding number and moved to the nearest skin that is
-    not buried (:func:`unbury`), never onto the buried one.  Where two body
+    not buried (:func:`unbury`), never onto the buried one (``buried=False``:
+    the closest surface alone, the rule before 30 Nov 2026, which the garment
+    placement of ``dataset make`` keeps).  Where two body
     surfaces are closer than ``2 margin`` no point satisfies both.  A
     point exactly on the surface has a finite unit normal (see
     :class:`BodyProxy`), so it moves to ``margin`` along it, never to NaN.
@@ -376,8 +414,9 @@ def push_out(
     for _ in range(max(1, int(iterations))):
         r = proxy.query(out[idx])
         sd, closest, normal = r.signed_distance.copy(), r.closest.copy(), r.normal.copy()
-        k, face, c, bary, dist = unbury(out[idx], sd, proxy.vertices, proxy.faces)
-        sd[k], closest[k], normal[k] = -dist, c, proxy.feature_normals(face, bary)
+        if buried:
+            k, face, c, bary, dist = unbury(out[idx], sd, proxy.vertices, proxy.faces)
+            sd[k], closest[k], normal[k] = -dist, c, proxy.feature_normals(face, bary)
         r = ProximityResult(signed_distance=sd, closest=closest, normal=normal, face=r.face)
         hit = r.signed_distance < margin
         if not hit.any():
