@@ -139,11 +139,12 @@ def _closed_cached(data: bytes, n: int) -> bool:
 
 
 def _ray_count(p, a, b, c, axis: int, sign: int) -> tuple[np.ndarray, np.ndarray]:
-    """Signed crossings of the rays from ``p (P, 3)`` along ``sign`` * ``axis`` with the triangles ``a, b, c (F,
-    3)``, and whether each grazed (through an edge or a vertex, from a triangle's plane, or along an edge-on
-    triangle): the 2-D edge functions of ``_collide.c``'s ray_count, operation for operation.  -> (P,), (P,)"""
+    """Per pair of a ray from ``p (K, 3)`` along ``sign`` * ``axis`` and a triangle ``a, b, c (K, 3)``: its signed
+    crossing (-1, 0, 1) and whether it grazed (through an edge or a vertex, from the triangle's plane, or along an
+    edge-on triangle whose own box the ray meets and which is not wholly behind it): the 2-D edge functions of
+    ``_collide.c``'s ray_count, operation for operation.  -> (K,), (K,)"""
     u, w = (axis + 1) % 3, (axis + 2) % 3
-    pu, pw, pa = p[:, u, None], p[:, w, None], p[:, axis, None]
+    pu, pw, pa = p[:, u], p[:, w], p[:, axis]
     au, av, bu, bv = a[:, u] - pu, a[:, w] - pw, b[:, u] - pu, b[:, w] - pw
     cu, cv = c[:, u] - pu, c[:, w] - pw
     ea, eb, ec = bu * cv - bv * cu, cu * av - cv * au, au * bv - av * bu
@@ -151,32 +152,67 @@ def _ray_count(p, a, b, c, axis: int, sign: int) -> tuple[np.ndarray, np.ndarray
     neg = (ea < 0).astype(np.int8) + (eb < 0) + (ec < 0)
     line = ~((pos > 0) & (neg > 0))  # the ray's line meets the triangle
     s = ea + eb + ec
-    # an edge-on triangle counts as a graze only where it is not wholly behind the ray
     if sign > 0:
         ahead = np.maximum(np.maximum(a[:, axis], b[:, axis]), c[:, axis]) >= pa
     else:
         ahead = np.minimum(np.minimum(a[:, axis], b[:, axis]), c[:, axis]) <= pa
-    # ... and whose own (u, v) box the ray meets (every edge function is 0 along the line of its projection)
     box = (
         (np.minimum(np.minimum(au, bu), cu) <= 0)
         & (np.maximum(np.maximum(au, bu), cu) >= 0)
         & (np.minimum(np.minimum(av, bv), cv) <= 0)
         & (np.maximum(np.maximum(av, bv), cv) >= 0)
     )
-    graze = (line & (s == 0) & ahead & box).any(axis=1)
+    graze = line & (s == 0) & ahead & box
     with np.errstate(divide="ignore", invalid="ignore"):
         num = ea * (a[:, axis] - pa) + eb * (b[:, axis] - pa) + ec * (c[:, axis] - pa)
         depth = sign * num / s
     valid = line & (s != 0) & (depth >= 0)
     hit = valid & ((pos == 3) | (neg == 3)) & (depth > 0)
-    graze |= (valid & ~hit).any(axis=1)
-    return (np.where(hit, np.where(s > 0, 1, -1), 0).sum(axis=1) * sign).astype(np.int64), graze
+    graze |= valid & ~hit
+    return np.where(hit, np.where(s > 0, 1, -1), 0) * sign, graze
 
 
-def ray_winding(points, vertices, faces, *, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
+def _column_grid(a, b, c, axis: int):
+    """The triangles binned by their box across ``axis`` (the plane of the other two coordinates) on a uniform grid:
+    a ray along ``axis`` can meet only the triangles of its own cell (every test of ``_ray_count`` that can count or
+    graze needs the ray inside the triangle's box).  Returns a function: points (K, 3) -> (point, triangle) pairs."""
+    u, w = (axis + 1) % 3, (axis + 2) % 3
+    lo = np.stack([np.minimum(np.minimum(a[:, x], b[:, x]), c[:, x]) for x in (u, w)], axis=1)
+    hi = np.stack([np.maximum(np.maximum(a[:, x], b[:, x]), c[:, x]) for x in (u, w)], axis=1)
+    origin, extent = lo.min(axis=0), np.maximum(hi.max(axis=0) - lo.min(axis=0), 1e-300)
+    g = max(1, int(np.sqrt(len(a)) / 2))  # about four triangles a cell
+    size = extent / g
+
+    def cell(x):
+        return np.clip(np.floor((x - origin) / size).astype(np.int64), 0, g - 1)
+
+    c0, c1 = cell(lo), cell(hi)
+    nu, nw = c1[:, 0] - c0[:, 0] + 1, c1[:, 1] - c0[:, 1] + 1
+    n = nu * nw
+    tri = np.repeat(np.arange(len(a)), n)
+    j = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+    iu, iw = c0[tri, 0] + j // np.repeat(nw, n), c0[tri, 1] + j % np.repeat(nw, n)
+    key = iu * g + iw
+    order = np.argsort(key, kind="stable")
+    tri, key = tri[order], key[order]
+    start = np.searchsorted(key, np.arange(g * g + 1))
+
+    def pairs(pts):
+        q = cell(np.stack([pts[:, u], pts[:, w]], axis=1))
+        k = q[:, 0] * g + q[:, 1]
+        m = start[k + 1] - start[k]
+        pt = np.repeat(np.arange(len(pts)), m)
+        t = tri[np.repeat(start[k], m) + np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m)]
+        return pt, t
+
+    return pairs
+
+
+def ray_winding(points, vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     """The body's winding number at ``points`` by a ray's signed crossings, as ``_collide.c``'s winding_at: the six
-    axis directions, the shortest way out of the root box first, until one does not graze.  Brute force over every
-    triangle (the slow reference).  0 outside a closed mesh, 1 inside, 2 where two parts overlap.
+    axis directions, the shortest way out of the root box first, until one does not graze.  Every triangle whose box
+    the ray meets is tested (found on a uniform grid across the ray's axis: the slow reference, without the kernel's
+    tree).  0 outside a closed mesh, 1 inside, 2 where two parts overlap.
 
     Shapes:
         points: (P, 3) -> winding (P,) int64 and decided (P,) bool (False: all six rays grazed, or the mesh is not
@@ -192,16 +228,23 @@ def ray_winding(points, vertices, faces, *, chunk: int = 64) -> tuple[np.ndarray
     pts = np.asarray(points, np.float64).reshape(-1, 3)
     wind = np.zeros(len(pts), np.int64)
     decided = np.zeros(len(pts), bool)
+    grids: dict = {}
     # each point's six directions (+x, -x, +y, -y, +z, -z), the shortest way out first (ties: that order)
     dist = np.stack([box[3:] - pts, pts - box[:3]], axis=2).reshape(-1, 6)
     order = np.argsort(dist, axis=1, kind="stable")
     for tried in range(6):
         for k in range(6):
-            sel = np.flatnonzero(~decided & (order[:, tried] == k))
-            for lo in range(0, len(sel), chunk):
-                i = sel[lo : lo + chunk]
-                w, graze = _ray_count(pts[i], a, b, c, k // 2, -1 if k % 2 else 1)
-                wind[i[~graze]], decided[i[~graze]] = np.abs(w[~graze]), True
+            i = np.flatnonzero(~decided & (order[:, tried] == k))
+            if not len(i):
+                continue
+            axis = k // 2
+            if axis not in grids:
+                grids[axis] = _column_grid(a, b, c, axis)
+            pt, t = grids[axis](pts[i])
+            cross, graze = _ray_count(pts[i][pt], a[t], b[t], c[t], axis, -1 if k % 2 else 1)
+            w = np.bincount(pt, weights=cross, minlength=len(i)).astype(np.int64)
+            g = np.bincount(pt, weights=graze, minlength=len(i)) > 0
+            wind[i[~g]], decided[i[~g]] = np.abs(w[~g]), True
     return wind, decided
 
 
