@@ -430,6 +430,15 @@ function grow() {
   stackL = l;
 }
 
+// nearestOpen's own traversal stacks: buried() walks the tree (rayCount, on the shared stacks) in the middle of it
+let stackO = new Int32Array(STACK), stackOL = new Float64Array(STACK);
+function growO() {
+  const n = new Int32Array(2 * stackO.length), l = new Float64Array(2 * stackOL.length);
+  n.set(stackO);
+  l.set(stackOL);
+  stackO = n;
+  stackOL = l;
+}
 const tb = new Float64Array(3), tc = new Float64Array(3);
 
 // the face found by the last nearest() (-1: none within the bound): the C function's *face
@@ -437,52 +446,67 @@ let nearestFace = -1;
 
 /* The nearest triangle to p (P at ip) with squared distance under the bound: branch and bound over the tree.
  * ub: the distance bound (Infinity: none).  On return nearestFace is the winner (-1: none within the bound),
- * bary/closest its barycentric weights and point, and the squared distance is returned (Infinity: none). */
-function nearest(fr, P, ip, ub, bary, closest) {
+ * bary/closest its barycentric weights and point, and the squared distance is returned (Infinity: none).
+ * open: only faces whose nearest point to p is not buried, at most BURY_TRIES of them tested (nearestOpen; it walks
+ * its own stacks: buried() walks the tree on the shared ones in the middle of it). */
+function nearestIn(fr, P, ip, ub, open, bary, closest) {
   const b = fr.b, V = fr.verts, vOff = fr.vOff, box = fr.box, boxOff = fr.boxOff;
   const left = b.left, right = b.right, first = b.first, count = b.count, leafFace = b.leafFace, faces = b.faces;
-  let top = 0, best = Infinity, slack = fr.slack, bestf = -1;
+  let top = 0, best = Infinity, slack = fr.slack, bestf = -1, tries = 0;
+  let sN = open ? stackO : stackN, sL = open ? stackOL : stackL;
   for (let k = 0; k < 3; k++) { // a point far from the body rounds at its own magnitude
     if (1e-12 * Math.abs(P[ip + k]) > slack) slack = 1e-12 * Math.abs(P[ip + k]);
   }
   let bound2 = (ub + slack) * (ub + slack); // Infinity stays Infinity
-  stackN[top] = 0;
-  stackL[top++] = boxDist2(box, boxOff, P, ip);
+  sN[top] = 0;
+  sL[top++] = boxDist2(box, boxOff, P, ip);
   while (top > 0) {
     top--;
-    if (stackL[top] > bound2) continue;
-    const node = stackN[top];
+    if (sL[top] > bound2) continue;
+    const node = sN[top];
     if (left[node] < 0) {
       for (let j = first[node]; j < first[node] + count[node]; j++) {
         const f = leafFace[j];
         const d2 = closestOnTriangle(P, ip, V, vOff + 3 * faces[3 * f], vOff + 3 * faces[3 * f + 1],
           vOff + 3 * faces[3 * f + 2], tb, tc);
-        if (d2 < best || (d2 === best && f < bestf) || bestf < 0) { // (bestf < 0: d2 overflowed)
-          best = d2;
-          bestf = f;
-          bary[0] = tb[0]; bary[1] = tb[1]; bary[2] = tb[2];
-          closest[0] = tc[0]; closest[1] = tc[1]; closest[2] = tc[2];
-          const r = Math.sqrt(best) + slack;
-          if (r * r < bound2) bound2 = r * r;
+        if (!(d2 < best || (d2 === best && f < bestf) || bestf < 0)) continue; // (bestf < 0: d2 overflowed)
+        if (open) {
+          if (++tries > BURY_TRIES) { // bounded: the point keeps its closest surface
+            nearestFace = -1;
+            return Infinity;
+          }
+          if (buried(fr, tc, 0, f)) continue;
         }
+        best = d2;
+        bestf = f;
+        bary[0] = tb[0]; bary[1] = tb[1]; bary[2] = tb[2];
+        closest[0] = tc[0]; closest[1] = tc[1]; closest[2] = tc[2];
+        const r = Math.sqrt(best) + slack;
+        if (r * r < bound2) bound2 = r * r;
       }
     } else {
       const l = left[node], r = right[node];
       const dl = boxDist2(box, boxOff + 6 * l, P, ip), dr = boxDist2(box, boxOff + 6 * r, P, ip);
-      if (top + 2 > stackN.length) grow();
+      if (top + 2 > sN.length) {
+        if (open) growO(); else grow();
+        sN = open ? stackO : stackN;
+        sL = open ? stackOL : stackL;
+      }
       // the nearer child is popped first
       if (dl <= dr) {
-        if (dr <= bound2) { stackN[top] = r; stackL[top++] = dr; }
-        if (dl <= bound2) { stackN[top] = l; stackL[top++] = dl; }
+        if (dr <= bound2) { sN[top] = r; sL[top++] = dr; }
+        if (dl <= bound2) { sN[top] = l; sL[top++] = dl; }
       } else {
-        if (dl <= bound2) { stackN[top] = l; stackL[top++] = dl; }
-        if (dr <= bound2) { stackN[top] = r; stackL[top++] = dr; }
+        if (dl <= bound2) { sN[top] = l; sL[top++] = dl; }
+        if (dr <= bound2) { sN[top] = r; sL[top++] = dr; }
       }
     }
   }
   nearestFace = bestf;
   return best;
 }
+
+function nearest(fr, P, ip, ub, bary, closest) { return nearestIn(fr, P, ip, ub, false, bary, closest); }
 
 // what the last rayCount() found besides its count: the C function's *graze and *first
 let rayGraze = false, rayFirst = Infinity;
@@ -587,68 +611,10 @@ function buried(fr, C, ic, f) {
   return windingAt(fr, qB, 0) && windW !== 0;
 }
 
-// nearestOpen's own traversal stacks: buried() walks the tree (rayCount, on the shared stacks) in the middle of it
-let stackO = new Int32Array(STACK), stackOL = new Float64Array(STACK);
-function growO() {
-  const n = new Int32Array(2 * stackO.length), l = new Float64Array(2 * stackOL.length);
-  n.set(stackO);
-  l.set(stackOL);
-  stackO = n;
-  stackOL = l;
-}
-const tbO = new Float64Array(3), tcO = new Float64Array(3);
-
 /* As nearest (no bound), over the faces whose nearest point to p is not buried: the minimum of (squared distance,
  * face index) over them.  nearestFace = -1 when every one is buried or more than BURY_TRIES faces were tested (the
  * C file's nearest_open). */
-function nearestOpen(fr, P, ip, bary, closest) {
-  const b = fr.b, V = fr.verts, vOff = fr.vOff, box = fr.box, boxOff = fr.boxOff;
-  const left = b.left, right = b.right, first = b.first, count = b.count, leafFace = b.leafFace, faces = b.faces;
-  let top = 0, best = Infinity, slack = fr.slack, bestf = -1, bound2 = Infinity, tries = 0;
-  for (let k = 0; k < 3; k++) {
-    if (1e-12 * Math.abs(P[ip + k]) > slack) slack = 1e-12 * Math.abs(P[ip + k]);
-  }
-  stackO[top] = 0;
-  stackOL[top++] = boxDist2(box, boxOff, P, ip);
-  while (top > 0) {
-    top--;
-    if (stackOL[top] > bound2) continue;
-    const node = stackO[top];
-    if (left[node] < 0) {
-      for (let j = first[node]; j < first[node] + count[node]; j++) {
-        const f = leafFace[j];
-        const d2 = closestOnTriangle(P, ip, V, vOff + 3 * faces[3 * f], vOff + 3 * faces[3 * f + 1],
-          vOff + 3 * faces[3 * f + 2], tbO, tcO);
-        if (!(d2 < best || (d2 === best && f < bestf) || bestf < 0)) continue;
-        if (++tries > BURY_TRIES) { // bounded: the point keeps its closest surface
-          nearestFace = -1;
-          return Infinity;
-        }
-        if (!buried(fr, tcO, 0, f)) {
-          best = d2;
-          bestf = f;
-          bary[0] = tbO[0]; bary[1] = tbO[1]; bary[2] = tbO[2];
-          closest[0] = tcO[0]; closest[1] = tcO[1]; closest[2] = tcO[2];
-          const r = Math.sqrt(best) + slack;
-          if (r * r < bound2) bound2 = r * r;
-        }
-      }
-    } else {
-      const l = left[node], r = right[node];
-      const dl = boxDist2(box, boxOff + 6 * l, P, ip), dr = boxDist2(box, boxOff + 6 * r, P, ip);
-      if (top + 2 > stackO.length) growO();
-      if (dl <= dr) {
-        if (dr <= bound2) { stackO[top] = r; stackOL[top++] = dr; }
-        if (dl <= bound2) { stackO[top] = l; stackOL[top++] = dl; }
-      } else {
-        if (dl <= bound2) { stackO[top] = l; stackOL[top++] = dl; }
-        if (dr <= bound2) { stackO[top] = r; stackOL[top++] = dr; }
-      }
-    }
-  }
-  nearestFace = bestf;
-  return best;
-}
+function nearestOpen(fr, P, ip, bary, closest) { return nearestIn(fr, P, ip, Infinity, true, bary, closest); }
 
 const diffS = new Float64Array(3);
 

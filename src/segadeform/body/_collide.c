@@ -572,15 +572,18 @@ static void make_frame(const sdc_body *b, const double *verts, const double *box
 
 /* The nearest triangle to p with squared distance under the bound: branch and bound over the tree.
  * ub: the distance bound (inf: none).  On return *face is the winner (-1: none within the bound),
- * bary/closest its barycentric weights and point, and the squared distance is returned (inf: none). */
-static double nearest(const sdc_frame *fr, const double *p, double ub, int64_t *face, double *bary,
-                      double *closest) {
+ * bary/closest its barycentric weights and point, and the squared distance is returned (inf: none).
+ * open: only faces whose nearest point to p is not buried (nearest_open, below; buried is defined after
+ * winding_at), at most SDC_BURY_TRIES of them tested. */
+static int buried(const sdc_frame *fr, const double *c, int64_t f);
+static double nearest_in(const sdc_frame *fr, const double *p, double ub, int open, int64_t *face, double *bary,
+                         double *closest) {
     const sdc_body *b = fr->b;
     int64_t stack[SDC_STACK];
     double lbs[SDC_STACK];
     int top = 0;
     double best = INFINITY, slack = fr->slack, tb[3], tc[3], bound2;
-    int64_t bestf = -1;
+    int64_t bestf = -1, tries = 0;
     int k;
     for (k = 0; k < 3; k++) /* a point far from the body rounds at its own magnitude */
         if (1e-12 * fabs(p[k]) > slack) slack = 1e-12 * fabs(p[k]);
@@ -597,17 +600,22 @@ static double nearest(const sdc_frame *fr, const double *p, double ub, int64_t *
             for (j = b->first[node]; j < b->first[node] + b->count[node]; j++) {
                 int64_t f = b->leaf_face[j];
                 const int64_t *t = b->faces + 3 * f;
-                double d2 = closest_on_triangle(p, fr->verts + 3 * t[0], fr->verts + 3 * t[1],
-                                                fr->verts + 3 * t[2], tb, tc);
-                if (d2 < best || (d2 == best && f < bestf) || bestf < 0) { /* (bestf < 0: d2 overflowed) */
-                    double r;
-                    best = d2;
-                    bestf = f;
-                    bary[0] = tb[0]; bary[1] = tb[1]; bary[2] = tb[2];
-                    closest[0] = tc[0]; closest[1] = tc[1]; closest[2] = tc[2];
-                    r = sqrt(best) + slack;
-                    if (r * r < bound2) bound2 = r * r;
+                double r, d2 = closest_on_triangle(p, fr->verts + 3 * t[0], fr->verts + 3 * t[1],
+                                                   fr->verts + 3 * t[2], tb, tc);
+                if (!(d2 < best || (d2 == best && f < bestf) || bestf < 0)) continue; /* (bestf < 0: d2 overflowed) */
+                if (open) {
+                    if (++tries > SDC_BURY_TRIES) { /* bounded: the point keeps its closest surface */
+                        *face = -1;
+                        return INFINITY;
+                    }
+                    if (buried(fr, tc, f)) continue;
                 }
+                best = d2;
+                bestf = f;
+                bary[0] = tb[0]; bary[1] = tb[1]; bary[2] = tb[2];
+                closest[0] = tc[0]; closest[1] = tc[1]; closest[2] = tc[2];
+                r = sqrt(best) + slack;
+                if (r * r < bound2) bound2 = r * r;
             }
         } else {
             int64_t l = b->left[node], r = b->right[node];
@@ -624,6 +632,11 @@ static double nearest(const sdc_frame *fr, const double *p, double ub, int64_t *
     }
     *face = bestf;
     return best;
+}
+
+static double nearest(const sdc_frame *fr, const double *p, double ub, int64_t *face, double *bary,
+                      double *closest) {
+    return nearest_in(fr, p, ub, 0, face, bary, closest);
 }
 
 /* A ray from p along +axis (dir 1) or -axis (dir -1) through the mesh: the signed count of its crossings
@@ -732,58 +745,7 @@ static int buried(const sdc_frame *fr, const double *c, int64_t f) {
  * count; the kernel tests at least those (every face nearer than the answer is buried and tested), so the two can
  * differ only where the kernel reaches the cap. */
 static double nearest_open(const sdc_frame *fr, const double *p, int64_t *face, double *bary, double *closest) {
-    const sdc_body *b = fr->b;
-    int64_t stack[SDC_STACK];
-    double lbs[SDC_STACK];
-    int top = 0;
-    double best = INFINITY, slack = fr->slack, tb[3], tc[3], bound2 = INFINITY;
-    int64_t bestf = -1, tries = 0;
-    int k;
-    for (k = 0; k < 3; k++)
-        if (1e-12 * fabs(p[k]) > slack) slack = 1e-12 * fabs(p[k]);
-    stack[top] = 0;
-    lbs[top++] = box_dist2(fr->box, p);
-    while (top > 0) {
-        int64_t node;
-        top--;
-        if (lbs[top] > bound2) continue;
-        node = stack[top];
-        if (b->left[node] < 0) {
-            int64_t j;
-            for (j = b->first[node]; j < b->first[node] + b->count[node]; j++) {
-                int64_t f = b->leaf_face[j];
-                const int64_t *t = b->faces + 3 * f;
-                double d2 = closest_on_triangle(p, fr->verts + 3 * t[0], fr->verts + 3 * t[1],
-                                                fr->verts + 3 * t[2], tb, tc);
-                if (!(d2 < best || (d2 == best && f < bestf) || bestf < 0)) continue;
-                if (++tries > SDC_BURY_TRIES) { /* bounded: the point keeps its closest surface */
-                    *face = -1;
-                    return INFINITY;
-                }
-                if (!buried(fr, tc, f)) {
-                    double r;
-                    best = d2;
-                    bestf = f;
-                    bary[0] = tb[0]; bary[1] = tb[1]; bary[2] = tb[2];
-                    closest[0] = tc[0]; closest[1] = tc[1]; closest[2] = tc[2];
-                    r = sqrt(best) + slack;
-                    if (r * r < bound2) bound2 = r * r;
-                }
-            }
-        } else {
-            int64_t l = b->left[node], r = b->right[node];
-            double dl = box_dist2(fr->box + 6 * l, p), dr = box_dist2(fr->box + 6 * r, p);
-            if (dl <= dr) {
-                if (dr <= bound2) { stack[top] = r; lbs[top++] = dr; }
-                if (dl <= bound2) { stack[top] = l; lbs[top++] = dl; }
-            } else {
-                if (dl <= bound2) { stack[top] = l; lbs[top++] = dl; }
-                if (dr <= bound2) { stack[top] = r; lbs[top++] = dr; }
-            }
-        }
-    }
-    *face = bestf;
-    return best;
+    return nearest_in(fr, p, INFINITY, 1, face, bary, closest);
 }
 
 /* Signed distance at the closest point found (face f, weights bary, point closest) and the normal. */
