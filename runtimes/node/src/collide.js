@@ -421,23 +421,22 @@ function makeFrame(b, verts, vOff, box, boxOff) {
 }
 
 // traversal stacks (grown if a tree is ever deeper than STACK allows)
+function doubled(a) {
+  const x = new a.constructor(2 * a.length);
+  x.set(a);
+  return x;
+}
 let stackN = new Int32Array(STACK), stackL = new Float64Array(STACK);
 function grow() {
-  const n = new Int32Array(2 * stackN.length), l = new Float64Array(2 * stackL.length);
-  n.set(stackN);
-  l.set(stackL);
-  stackN = n;
-  stackL = l;
+  stackN = doubled(stackN);
+  stackL = doubled(stackL);
 }
 
 // nearestOpen's own traversal stacks: buried() walks the tree (rayCount, on the shared stacks) in the middle of it
 let stackO = new Int32Array(STACK), stackOL = new Float64Array(STACK);
 function growO() {
-  const n = new Int32Array(2 * stackO.length), l = new Float64Array(2 * stackOL.length);
-  n.set(stackO);
-  l.set(stackOL);
-  stackO = n;
-  stackOL = l;
+  stackO = doubled(stackO);
+  stackOL = doubled(stackOL);
 }
 const tb = new Float64Array(3), tc = new Float64Array(3);
 
