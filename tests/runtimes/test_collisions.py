@@ -100,6 +100,7 @@ def collider_vector(request, tmp_path_factory):
     )
     iterations = 3
     push_out, moved = col.push_out(push_in, posed, 0.01, iterations=iterations)
+    near = _kernel_near(rest, faces, posed[1], points, NEAR_RADIUS)
     path = tmp_path_factory.mktemp("collide") / "vec.sgdb"
     write_bundle(
         path,
@@ -114,11 +115,60 @@ def collider_vector(request, tmp_path_factory):
             "face": q.face.astype(np.int32),
             "push_in": push_in,
             "push_out": push_out,
+            "near_sd": near[0],
+            "near_closest": near[1],
+            "near_normal": near[2],
         },
-        {"margin": 0.01, "iterations": iterations, "moved": moved, "query_frame": 1},
+        {"margin": 0.01, "iterations": iterations, "moved": moved, "query_frame": 1, "near_radius": NEAR_RADIUS},
     )
-    info = {"moved": moved, "inside": int((q.signed_distance < 0).sum()), "points": len(points), "buried": buried}
+    info = {
+        "moved": moved,
+        "inside": int((q.signed_distance < 0).sum()),
+        "points": len(points),
+        "buried": buried,
+        "near_found": int(np.isfinite(near[0]).sum()),
+        # found farther than the radius with the closest surface's side saying outside: pinched, kept so by the lookup
+        "near_pinched": int((np.isfinite(near[0]) & (near[0] >= NEAR_RADIUS)).sum()),
+    }
     return path, request.param, info
+
+
+NEAR_RADIUS = 0.009  # the cloth stage's contact lookups' radius at its default margin (4 mm + the 5 mm band)
+
+
+def _kernel_near(rest, faces, posed, points, radius):
+    """The compiled kernel's contact lookup (``sdc_near``, which the cloth stage calls) of ``points`` against one
+    frame: (sd, closest, normal), sd = inf for the points outside and farther than ``radius``."""
+    import ctypes
+
+    from segadeform.body.cloth import _kernel
+
+    lib, p, i64 = _kernel(), ctypes.c_void_p, ctypes.c_int64
+    lib.sdc_n_nodes.restype, lib.sdc_n_nodes.argtypes = i64, (p,)
+    lib.sdc_refit.restype, lib.sdc_refit.argtypes = None, (p, p, p)
+    lib.sdc_near.restype, lib.sdc_near.argtypes = i64, (p, p, p, p, i64, i64, ctypes.c_double, p, p, p)
+    v, f = np.ascontiguousarray(rest, np.float64), np.ascontiguousarray(faces, np.int64)
+    h = lib.sdc_create(v.ctypes.data, len(v), f.ctypes.data, len(f), 4)
+    try:
+        bv, pts = np.ascontiguousarray(posed, np.float64), np.ascontiguousarray(points, np.float64)
+        box = np.empty((lib.sdc_n_nodes(h), 6))
+        lib.sdc_refit(h, bv.ctypes.data, box.ctypes.data)
+        sd, closest, normal = np.empty(len(pts)), np.zeros((len(pts), 3)), np.zeros((len(pts), 3))
+        lib.sdc_near(
+            h,
+            bv.ctypes.data,
+            box.ctypes.data,
+            pts.ctypes.data,
+            0,
+            len(pts),
+            radius,
+            sd.ctypes.data,
+            closest.ctypes.data,
+            normal.ctypes.data,
+        )
+    finally:
+        lib.sdc_free(h)
+    return sd, closest, normal
 
 
 def _node_vectors(script: str, vector, tag: str) -> dict:
@@ -143,6 +193,10 @@ def test_javascript_collider_is_the_compiled_kernel(collider_vector, node):
         assert py["buried"] > 500, py
     assert r["sd"] == 0 and r["closest"] == 0 and r["normal"] == 0, r
     assert r["pushOut"] == 0 and r["identical"] == r["coordinates"] and r["moved"] == py["moved"], r
+    # the cloth stage's contact lookup (near): the same points found, the same answers bit for bit
+    assert r["nearFound"] == py["near_found"] and r["nearDiffer"] == 0, r
+    if kind == "pressed":  # pinched points (in the torso, nearest the arm's skin) keep that skin in the lookup
+        assert py["near_pinched"] > 500, py
 
 
 def test_javascript_acos_is_the_kernels_bit_for_bit(node, tmp_path):

@@ -13,14 +13,14 @@
 #include <vector>
 
 extern "C" {
-// _collide.c's entry points used here (its ABI 2)
+// _collide.c's entry points used here (its ABI 4)
 void* sdc_create(const double* verts, int64_t nv, const int64_t* faces, int64_t nf, int64_t leaf_size);
 void sdc_free(void* h);
 int64_t sdc_n_nodes(const void* h);
 void sdc_refit(const void* h, const double* verts, double* box);
 void sdc_query(const void* h, const double* verts, const double* box, const double* pts, int64_t i0, int64_t i1,
                double* sd, double* closest, double* normal, int64_t* face);
-// _cloth.c's (its ABI 7)
+// _cloth.c's (its ABI 9)
 int64_t scl_abi(void);
 int64_t scl_n_settings(void);
 int64_t scl_setup(const double* rest, int64_t n, const int64_t* faces, int64_t nf, const double* rest_sd,
@@ -95,8 +95,8 @@ class Cloth {
   Cloth(const double* rest, int64_t n, const int32_t* faces, int64_t nf, const float* rest_body, int64_t nv,
         const int32_t* body_faces, int64_t nbf, const ClothSettings& settings, double margin, double dt)
       : n_(n), nv_(nv) {
-    if (scl_abi() != 8 || scl_n_settings() != 12)
-      throw std::runtime_error("the cloth kernel is from another version (expected ABI 8, 12 settings)");
+    if (scl_abi() != 9 || scl_n_settings() != 12)
+      throw std::runtime_error("the cloth kernel is from another version (expected ABI 9, 12 settings)");
     if (n < 1 || nv < 1 || nbf < 1) throw std::runtime_error("the cloth stage needs a garment and a body");
     std::vector<double> rb(rest_body, rest_body + 3 * nv);
     std::vector<int64_t> bf(body_faces, body_faces + 3 * nbf), gf(faces, faces + 3 * nf);

@@ -4,7 +4,8 @@
 // VEC.sgdb (tests/runtimes/test_collisions.py writes it): rest (V, 3) f64 and faces (F, 3) i32 of the body, posed
 // (B, V, 3) f64, points (P, 3) f64 queried against posed[query_frame] with Python's sd (P), closest (P, 3),
 // normal (P, 3) and face (P), and push_in (B, N, 3) pushed out of the B frames with meta.margin into push_out
-// (B, N, 3), meta.moved points moved.
+// (B, N, 3), meta.moved points moved; near_sd (P), near_closest and near_normal (P, 3): the kernel's contact lookup
+// (sdc_near) of the points against posed[query_frame] with radius meta.near_radius (sd = inf: not found).
 import { readBundle } from "../src/bundle.js";
 import { BodyCollider } from "../src/collide.js";
 
@@ -27,8 +28,25 @@ const r = col.pushOut(A.posed.data, pts, B, N, meta.margin, meta.iterations);
 const ms = performance.now() - t0;
 let identical = 0;
 for (let i = 0; i < pts.length; i++) if (pts[i] === A.push_out.data[i]) identical++;
+// the cloth stage's contact lookup (sdc_near) of the same points, frame query_frame, radius meta.near_radius
+let nearFound = 0, nearDiffer = 0;
+if (A.near_sd) {
+  const P = q.face.length, vf = A.posed.data.subarray(f * V * 3, (f + 1) * V * 3);
+  const box = new Float64Array(6 * col.nNodes);
+  col.refitInto(vf, box);
+  const sd = new Float64Array(P), cl = new Float64Array(3 * P), nr = new Float64Array(3 * P);
+  nearFound = col.near(vf, box, A.points.data, 0, P, meta.near_radius, sd, cl, nr);
+  for (let i = 0; i < P; i++) {
+    let same = sd[i] === A.near_sd.data[i] || (Number.isNaN(sd[i]) && Number.isNaN(A.near_sd.data[i]));
+    if (same && Number.isFinite(sd[i])) {
+      for (let k = 0; k < 3; k++) same = same && cl[3 * i + k] === A.near_closest.data[3 * i + k] && nr[3 * i + k] === A.near_normal.data[3 * i + k];
+    }
+    if (!same) nearDiffer++;
+  }
+}
 console.log(`COLLIDE ${JSON.stringify({
   closed: col.closed, nodes: col.nNodes, points: q.face.length, sd: maxDiff(q.signedDistance, A.sd.data),
   closest: maxDiff(q.closest, A.closest.data), normal: maxDiff(q.normal, A.normal.data), facesDiffer: faces,
   pushOut: maxDiff(pts, A.push_out.data), identical, coordinates: pts.length, moved: r.moved, pushMs: ms,
+  nearFound, nearDiffer,
 })}`);

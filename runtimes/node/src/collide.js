@@ -649,8 +649,9 @@ let nearSd = 0, nearFace = -1;
 
 /* The exact closest point of p if it is inside the body or within `radius` of it.  Returns true with the signed
  * distance and face in nearSd and nearFace and the closest point and normal written to closest and n, or false
- * when p is outside and farther than radius.  The rule for buried skin: always for a point farther than radius, for a
- * nearer one only with `check` (the push-out checks, the cloth stage's contact lookups do not). */
+ * when p is outside and farther than radius (a farther point inside by the winding number is found, with its closest
+ * surface).  The rule for buried skin only with `check`: the push-out applies it, the cloth stage's contact lookups
+ * (near) do not (the C function's comment says why). */
 function nearOrInside(fr, P, ip, radius, check, closest, n) {
   const b = fr.b;
   let bound = Infinity;
@@ -680,7 +681,7 @@ function nearOrInside(fr, P, ip, radius, check, closest, n) {
   if (nearestFace < 0) nearest(fr, P, ip, Infinity, baryN, closest);
   nearFace = nearestFace;
   nearSd = signedAt(fr, P, ip, nearFace, baryN, closest, n);
-  if (nearSd > BURY * fr.scale) unbury(fr, P, ip, wind, closest, n);
+  if (check && nearSd > BURY * fr.scale) unbury(fr, P, ip, wind, closest, n);
   return true;
 }
 

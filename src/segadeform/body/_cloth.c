@@ -64,7 +64,11 @@
  * After the sweeps, the vertices that may be inside the body or closer than the margin -- found so, or moved
  * farther than their clearance since the contacts were found (no other can be) -- are pushed out of the body
  * exactly as the collision stage does (sdc_push_out, SCL_PASSES passes): contact wins over the attachment (edge
- * middles are not pushed there: the planes above hold them).  Attached vertices
+ * middles are not pushed there: the planes above hold them).  The contact lookups (sdc_near) do not apply the
+ * collider's rule for buried skin: cloth pinched where an arm presses into the torso, inside by the body's winding
+ * number but outside the skin nearest it, stays pinched, as the simulator leaves it, instead of being taken across
+ * the arm one vertex at a time (flaps at a dress's armholes); the final push-out applies the rule to the vertices
+ * it moves (those in contact among them).  Attached vertices
  * (radius 0) have infinite mass for the stretch limits, tethers and smoothing, which move only free vertices;
  * contacts, at vertices and edge middles, move any vertex.
  *
@@ -97,7 +101,8 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 8 /* 8: the collision kernel it embeds pushes off buried surfaces (1 Dec 2026); 7: its own acos */
+#define SCL_ABI 9 /* 9: its contact lookups leave pinched cloth pinched (the rule for buried skin only in the final
+                       * push-out, 30 Nov 2026); 8: the collision kernel it embeds pushes off buried surfaces (1 Dec 2026); 7: its own acos */
 #define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
 #define SCL_TINY 1e-300

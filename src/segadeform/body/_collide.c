@@ -30,7 +30,7 @@
  *                  vertices in the torso next to a buried arm stayed there).  A face of zero area is never taken;
  *                  at most SDC_BURY_TRIES faces are tested for one point (past that it keeps its closest surface);
  *                  a body that is not closed has no winding number and no such rule.  The push-out applies it to
- *                  every point; sdc_near (the cloth stage's contacts) only to points farther than its radius;
+ *                  every point; sdc_near (the cloth stage's contacts) to none (near_or_inside);
  *   push-out       p' = closest + margin * n for points with signed distance < margin, again for the
  *                  points moved, up to `iterations` passes.
  *
@@ -363,7 +363,7 @@ SDC_API void *sdc_create(const double *verts, int64_t nv, const int64_t *faces, 
 SDC_API void sdc_free(void *h) { free_body((sdc_body *)h); }
 
 /* The version of this interface (the Python wrapper refuses a library built from another one). */
-SDC_API int64_t sdc_abi(void) { return 3; }
+SDC_API int64_t sdc_abi(void) { return 4; } /* 4: sdc_near without the rule for buried skin */
 
 SDC_API int64_t sdc_n_nodes(const void *h) { return ((const sdc_body *)h)->n_nodes; }
 
@@ -777,10 +777,12 @@ static void unbury(const sdc_frame *fr, const double *p, int64_t wind, double *s
 }
 
 /* The exact closest point of p if it is inside the body or within `radius` of it.  Returns 1 with the
- * signed distance, closest point, normal and face, or 0 when p is outside and farther than radius.  The rule for
- * buried skin: always for a point farther than radius (the ray that found it inside is already cast), and for a
- * nearer one only with `check` (a ray more per point near the body: the push-out checks, the cloth stage's
- * contact lookups do not, and its final push-out does). */
+ * signed distance, closest point, normal and face, or 0 when p is outside and farther than radius (a point farther
+ * than radius that the winding number calls inside is found, with its closest surface).  The rule for buried skin
+ * only with `check`: the push-out applies it, the cloth stage's contact lookups (sdc_near) do not -- cloth pinched
+ * where an arm presses into the torso stays pinched in its sweeps, as in the simulator, instead of each vertex
+ * taken alone across the arm (issue #26: flaps at a dress's armholes); its final push-out applies it to the
+ * vertices in contact. */
 static int near_or_inside(const sdc_frame *fr, const double *p, double radius, int check, double *sd,
                           double *closest, double *n, int64_t *face) {
     const sdc_body *b = fr->b;
@@ -810,7 +812,7 @@ static int near_or_inside(const sdc_frame *fr, const double *p, double radius, i
     /* none within the bound: the ray's first hit, measured on a nearly edge-on triangle, came out short */
     if (*face < 0) nearest(fr, p, INFINITY, face, bary, closest);
     *sd = signed_at(fr, p, *face, bary, closest, n);
-    if (*sd > SDC_BURY * fr->scale) unbury(fr, p, wind, sd, closest, n, face);
+    if (check && *sd > SDC_BURY * fr->scale) unbury(fr, p, wind, sd, closest, n, face);
     return 1;
 }
 
@@ -832,7 +834,8 @@ SDC_API void sdc_query(const void *h, const double *verts, const double *box, co
 /* The exact signed distance, closest point and outward normal of every point of pts [i0, i1) that is inside the
  * body or within `radius` of it, against one frame (verts with its boxes from sdc_refit); the others get
  * sd = +inf (their closest point and normal are not defined).  Returns how many were found.  The cloth stage's
- * contacts (_cloth.c): the rule for buried skin only for the points farther than radius (near_or_inside). */
+ * contacts (_cloth.c), without the rule for buried skin (near_or_inside): a point farther than radius that the
+ * winding number calls inside gets its closest surface, whose side may say outside. */
 SDC_API int64_t sdc_near(const void *h, const double *verts, const double *box, const double *pts, int64_t i0,
                          int64_t i1, double radius, double *sd, double *closest, double *normal) {
     sdc_frame fr;

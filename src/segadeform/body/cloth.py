@@ -11,9 +11,10 @@ network put deeper than ``backstop`` inside the body is traced out along the gar
 whole panel, and the move spread to its free neighbours), then the collision stage's exact push-out -- and the
 meaning of every knob are in the kernel's header, ``src/segadeform/body/_cloth.c``.  Where the posed body intersects
 itself (an arm pressed into the torso), a vertex inside the torso whose closest surface is the arm's buried skin is
-taken to the skin outside by the collider's rule for buried skin (``_collide.c``): in the final push-out, which
-every vertex in contact goes through, and in the contact lookups for vertices deeper than the contact band (nearer
-ones would cost a ray in every lookup; measured on the bench's 3,916-vertex skirt, the rule costs the stage 3 %).
+taken to the skin outside by the collider's rule for buried skin (``_collide.c``) only in the final push-out, which
+every vertex in contact goes through.  Cloth deeper in such a pinch is left there, as the simulator leaves it
+(Blender's frames of the held-out dresses hold 0.42-0.48 % of their vertices there): taken out one vertex at a time,
+across the arm, it made flaps at a dress's armholes (measured and rendered 30 Nov 2026, ``docs/cloth-eval.md``).
 
 Side by side:
 
@@ -99,7 +100,7 @@ LOOSE = 0.01
 AGREE = 0.5
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
 SETUP_VERSION = 3
-_ABI = 8
+_ABI = 9
 #: the order of _cloth.c's settings array
 _SETTINGS = (
     "iterations",
@@ -650,11 +651,11 @@ def cloth_reference(
         for i in range(n):
             _attach(x, y, i, setup.radius[i])
         # contacts; deep targets traced out (the backstop), then the contacts again
-        q = _near_reference(col, x, bv, body_faces, margin + CONTACT_BAND)
+        q = _near_reference(col, x, bv)
         yc, nt = _backstop_reference(col, bv, setup, y, x, q.signed_distance, q.normal, margin, s["backstop"])
         if nt:
             st["traced"] += nt
-            q = _near_reference(col, x, bv, body_faces, margin + CONTACT_BAND)
+            q = _near_reference(col, x, bv)
         contact = q.signed_distance < margin + CONTACT_BAND
         ea, eb = setup.edges[:, 0], setup.edges[:, 1]
         free = (setup.radius[ea] > 0) | (setup.radius[eb] > 0)
@@ -671,7 +672,7 @@ def cloth_reference(
         )
         e_sd, e_cp, e_n = np.full(len(e_near), np.inf), np.zeros((len(e_near), 3)), np.zeros((len(e_near), 3))
         if len(e_near):
-            eq = _near_reference(col, 0.5 * (x[ea[e_near]] + x[eb[e_near]]), bv, body_faces, margin + CONTACT_BAND)
+            eq = _near_reference(col, 0.5 * (x[ea[e_near]] + x[eb[e_near]]), bv)
             e_sd, e_cp, e_n = eq.signed_distance.copy(), eq.closest, eq.normal
             a_, b_ = ea[e_near], eb[e_near]
             # ... and its middle on that side too (the kernel's edge_agrees)
@@ -746,30 +747,12 @@ def cloth_reference(
     return out, st
 
 
-def _near_reference(col, pts, bv, body_faces, radius: float):
-    """The collider's exact query of ``pts`` as the kernel's contact lookup (``sdc_near``) sees it: a point farther
-    than ``radius`` from the body that its winding number calls inside but its closest surface outside (in the
-    torso, nearest an arm's buried skin) takes the nearest skin that is not buried (the push-out's rule for buried
-    skin, which the lookup applies to such points only; :func:`segadeform.body.collision.reference.unbury`)."""
-    from .collision import BodyProxy, ProximityResult
-    from .collision.reference import unbury
-
-    q = col.query(pts, bv)
-    far = np.flatnonzero(q.signed_distance >= radius)
-    if not len(far) or not col.closed:  # (not closed: no winding number, as in the kernel)
-        return q
-    fr = col._impl._frames(np.asarray(bv, np.float64)[None])  # the numpy collider's tree: its winding number
-
-    def winding(p):
-        return col._impl._decided(fr, p, 0)
-
-    k, face, c, bary, dist = unbury(pts[far], q.signed_distance[far], bv, body_faces, winding=winding)
-    if not len(k):
-        return q
-    sd, closest, normal = q.signed_distance.copy(), q.closest.copy(), q.normal.copy()
-    sd[far[k]], closest[far[k]] = -dist, c
-    normal[far[k]] = BodyProxy(bv, body_faces).feature_normals(face, bary)
-    return ProximityResult(signed_distance=sd, closest=closest, normal=normal, face=q.face)
+def _near_reference(col, pts, bv):
+    """The collider's exact query of ``pts`` as the kernel's contact lookup (``sdc_near``) sees it: every point's
+    closest surface, without the push-out's rule for buried skin (cloth pinched where an arm presses into the torso
+    keeps the arm's skin nearest it, whose side says outside); the caller reads the points within the lookup's
+    radius, as the kernel's caller does."""
+    return col.query(pts, bv)
 
 
 def _backstop_reference(col, bv, setup: ClothSetup, y, x, sd, normal, margin: float, deep_at: float):
@@ -801,14 +784,14 @@ def _backstop_reference(col, bv, setup: ClothSetup, y, x, sd, normal, margin: fl
     pts = y[deep].copy()
     out = np.zeros(len(deep), bool)
     for _ in range(TRACE):
-        tsd = _near_reference(col, pts, bv, col.faces, margin).signed_distance
+        tsd = _near_reference(col, pts, bv).signed_distance
         out |= tsd >= margin
         if out.all():
             break
         step = np.where(out, 0.0, margin - tsd + OVERSHOOT)
         pts = pts + step[:, None] * g
     else:
-        out |= _near_reference(col, pts, bv, col.faces, margin).signed_distance >= margin
+        out |= _near_reference(col, pts, bv).signed_distance >= margin
     held = np.zeros(n, bool)
     d = np.zeros((n, 3))
     for j, i in enumerate(deep):
