@@ -123,7 +123,7 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
     required=True,
     help="NAME=SPEC with SPEC a model package folder, a .pt checkpoint, 'lbs' or 'lbs-PRIOR' (lbs-inpaint, "
     "lbs-idw, lbs-gaussian, lbs-smooth, lbs-smooth-light, lbs-drape: smooth weights on the garment draped at "
-    "rest; repeatable).",
+    "rest; 'simulation': the simulator's own frames, for its penetration and stretch; repeatable).",
 )
 @click.option(
     "-o",
@@ -139,16 +139,16 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
     "push_margin",
     type=float,
     multiple=True,
-    help="Also report every model but plain lbs with the runtime's collision post-process at this margin (m); "
-    "repeatable (rows 'NAME + push-out N mm').",
+    help="Also report every model but plain lbs and simulation with the runtime's collision post-process at this "
+    "margin (m); repeatable (rows 'NAME + push-out N mm').",
 )
 @click.option(
     "--cloth",
     "cloth",
     multiple=True,
     metavar="NAME=VALUE,..|default",
-    help="Also report every model but lbs and lbs-inpaint with the runtime's cloth stage at these settings (as run "
-    "--cloth; 'default' for its defaults); repeatable (rows 'NAME + cloth [settings]').",
+    help="Also report every model but lbs, lbs-inpaint and simulation with the runtime's cloth stage at these "
+    "settings (as run --cloth; 'default' for its defaults); repeatable (rows 'NAME + cloth [settings]').",
 )
 @click.option("--heatmap", help="Model NAME whose per-vertex error map is rendered (default: the first).")
 @click.option(

@@ -37,12 +37,16 @@ def test_evaluate_with_the_cloth_stage(synthetic_dataset, random_package, body):
     res = evaluate(
         synthetic_dataset,
         body,
-        make_predictors({"lbs": "lbs", "lbs-inpaint": "lbs-inpaint", "model": pkg}, package=PackagePredictor),
+        make_predictors(
+            {"blender": "simulation", "lbs": "lbs", "lbs-inpaint": "lbs-inpaint", "model": pkg},
+            package=PackagePredictor,
+        ),
         push_out_margin=0.004,
         cloth=["default", "iterations=1,stiffness=0.2"],
     )
     m = res["models"]
     want = {
+        "blender",  # the simulator's own frames: no push-out or cloth rows
         "lbs",
         "lbs-inpaint",
         "model",
@@ -53,6 +57,8 @@ def test_evaluate_with_the_cloth_stage(synthetic_dataset, random_package, body):
     }
     assert set(m) == want
     assert all(np.isfinite(m[n][k]) for n in m for k in METRICS)
+    assert m["blender"]["vertex_cm"] == m["blender"]["edge_mm"] == m["blender"]["jitter_mm"] == 0
+    assert all(m[n]["pinched_pct"] <= m[n]["penetration_pct"] for n in m)
     for n in ("model + cloth", "model + cloth iterations=1,stiffness=0.2"):
         assert m[n]["penetration_pct"] <= m["model"]["penetration_pct"] + 1e-9
         assert m[n]["ms_per_frame"] > m["model"]["ms_per_frame"]
@@ -65,6 +71,25 @@ def test_evaluate_with_the_cloth_stage(synthetic_dataset, random_package, body):
     assert "| skirt | model + cloth |" in md and "max stretch (%)" in md
     with pytest.raises(Exception, match="--cloth"):
         evaluate(synthetic_dataset, body, make_predictors({"x": f"{pkg}:+cloth"}, package=PackagePredictor))
+
+
+def test_pinched_cloth_is_penetrating_and_told_apart():
+    """Where the body intersects itself (an arm pressed into the torso: two spheres, one mesh), a point in the torso
+    whose nearest surface is the arm's buried skin is penetrating and pinched; a point in the torso nearer its own
+    skin, or in the arm outside the torso, is penetrating and not pinched; a point outside is neither."""
+    from types import SimpleNamespace
+
+    from segadeform.body.collision import BodyCollider
+    from segadeform.train.metrics import penetrating, penetrating_and_pinched
+    from tests.body._shapes import pressed_spheres
+
+    v, f = pressed_spheres(24, 16)
+    ref = SimpleNamespace(collider=BodyCollider(v, f), posed=v[None])
+    pts = np.array([[0.55, 0.0, 0.0], [-0.5, 0.0, 0.0], [1.1, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 0.999, 0.0]])
+    pen, pinched = penetrating_and_pinched(ref, pts, 0)
+    assert pen.tolist() == [True, True, True, False, False]  # the last: within 2 mm of the skin
+    assert pinched.tolist() == [True, False, False, False, False]
+    assert penetrating(ref, pts, 0).tolist() == pen.tolist()
 
 
 def test_cli_eval_cloth(synthetic_dataset, random_package, tmp_path, capsys):

@@ -11,7 +11,9 @@ type's samples):
   low / mid / high spectral bands of the rest garment (§5.2, Table 2;
   :class:`~segadeform.geometry.laplacian.SpectralBasis`), mean vertex norm of each (cm)
 * ``penetration_pct``  vertices deeper than 2 mm inside the posed body (%): inside by the body's winding number,
-  more than 2 mm from every surface of it (:func:`~segadeform.train.metrics.penetrating`)
+  more than 2 mm from every surface of it (:func:`~segadeform.train.metrics.penetrating`); ``pinched_pct`` those of
+  them in a pinch where the body intersects itself (an arm pressed into the torso: the surface nearest them, the
+  arm's skin buried in the torso, says outside; :func:`~segadeform.train.metrics.penetrating_and_pinched`)
 * ``max_strain_pct``  the largest edge stretch, length / rest length - 1 against the garment's rest mesh, over
   every edge and frame (%; over samples, the largest), and ``p99_strain_pct`` its 99th percentile (averaged)
 * ``jitter_mm``     mean |second difference of pred - second difference of sim| (mm/frame^2)
@@ -157,11 +159,11 @@ def evaluate(
 
     Returns ``{"models": {name: {metric: value}}, "by_type": {name: {type: {metric: value}}},
     "per_frame": {name: [vertex_cm per frame index]}, "samples": [...]}``.
-    ``push_out_margin``: also report every model but plain ``lbs`` with the runtime's collision post-process
-    (:class:`BodyCollider`, as ``segadeform run``): one margin in metres (``name + push-out``) or a list
+    ``push_out_margin``: also report every model but plain ``lbs`` and ``simulation`` with the runtime's collision
+    post-process (:class:`BodyCollider`, as ``segadeform run``): one margin in metres (``name + push-out``) or a list
     (``name + push-out 2 mm``, ... ; :func:`push_out_names`).  Its time is the model's plus the push-out's.
-    ``cloth``: also report every model but ``lbs`` and ``lbs-inpaint`` with the runtime's cloth stage at each
-    of these settings (:func:`cloth_names`, :func:`cloth_frames`; contact at ``cloth_margin``), timed the same way.
+    ``cloth``: also report every model but ``lbs``, ``lbs-inpaint`` and ``simulation`` with the runtime's cloth stage at
+    each of these settings (:func:`cloth_names`, :func:`cloth_frames`; contact at ``cloth_margin``), timed the same way.
     """
     dataset = as_roots(dataset)  # a folder, a pack, or several roots
     ids = dataset.ids(split)
@@ -177,10 +179,10 @@ def evaluate(
     models = {n: p.spec for n, p in preds.items()}
     pushes = push_out_names(push_out_margin)
     cloths = cloth_names(cloth)
-    learned = [n for n, s in models.items() if s not in ("lbs", "lbs-inpaint")]
+    learned = [n for n, s in models.items() if s not in ("lbs", "lbs-inpaint", "simulation")]
     names = (
         list(preds)
-        + [f"{n}{sfx}" for sfx in pushes for n, s in models.items() if s != "lbs"]
+        + [f"{n}{sfx}" for sfx in pushes for n, s in models.items() if s not in ("lbs", "simulation")]
         + [f"{n}{sfx}" for sfx in cloths for n in learned]
     )
     collider = BodyCollider(body.v_template, body.faces) if pushes else None
@@ -205,7 +207,7 @@ def evaluate(
             ms = 1e3 * (time.perf_counter() - t0) / len(gt)
             acc[n].add("ms_per_frame", ms)
             for sfx, margin in pushes.items():
-                if models[n] == "lbs":
+                if models[n] in ("lbs", "simulation"):
                     continue
                 t0 = time.perf_counter()
                 outs[f"{n}{sfx}"] = push_out_frames(outs[n], ref, collider, margin)

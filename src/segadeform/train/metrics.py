@@ -23,6 +23,7 @@ METRICS = (
     "mid_cm",
     "high_cm",
     "penetration_pct",
+    "pinched_pct",
     "jitter_mm",
     "max_strain_pct",
     "p99_strain_pct",
@@ -83,12 +84,23 @@ def penetrating(ref: Reference, points: np.ndarray, t: int) -> np.ndarray:
     body's winding number (so inside the torso counts where an arm pressed into it is the closest surface -- the
     closest surface's side, used before 30 Nov 2026, called such a point outside), and farther than PEN_DEPTH from
     every surface of the body.  Shapes: points (N, 3) -> (N,) bool."""
+    return penetrating_and_pinched(ref, points, t)[0]
+
+
+def penetrating_and_pinched(ref: Reference, points: np.ndarray, t: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`penetrating`, and which of those are pinched: in a pinch where the posed body intersects itself (an
+    arm pressed into the torso), inside by the winding number while the side of the surface nearest them -- the
+    skin of the arm buried in the torso -- says outside.  Cloth there has no outside nearer than across the arm;
+    the simulator's own frames hold some (``segadeform eval -m blender=simulation``).
+    Shapes: points (N, 3) -> (N,) bool, (N,) bool."""
     inside = ref.collider.winding(points, ref.posed[t]) > 0
-    out = np.zeros(len(points), bool)
+    out, pinched = np.zeros(len(points), bool), np.zeros(len(points), bool)
     if inside.any():
-        d = np.abs(ref.collider.query(points[inside], ref.posed[t]).signed_distance)
-        out[np.flatnonzero(inside)] = d > PEN_DEPTH
-    return out
+        sd = ref.collider.query(points[inside], ref.posed[t]).signed_distance
+        k = np.flatnonzero(inside)
+        out[k] = np.abs(sd) > PEN_DEPTH
+        pinched[k] = sd > PEN_DEPTH
+    return out, pinched
 
 
 def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
@@ -108,7 +120,8 @@ def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
             np.linalg.norm(hi, axis=1).mean(),
         ]
     bands /= len(frames)
-    pen = np.mean([penetrating(ref, x[t], t).mean() for t in frames])
+    pen_pinch = np.array([[a.mean() for a in penetrating_and_pinched(ref, x[t], t)] for t in frames])
+    pen, pinch = pen_pinch.mean(axis=0)
     jit = np.linalg.norm((x[2:] - 2 * x[1:-1] + x[:-2]) - ref.acc_gt, axis=2).mean() if len(gt) > 2 else 0.0
     # stretch (compression counts as 0): what a stretch limit bounds
     strain = (
@@ -124,6 +137,7 @@ def sample_metrics(x: np.ndarray, ref: Reference, frame_step: int = 1) -> dict:
         "mid_cm": 100 * bands[1],
         "high_cm": 100 * bands[2],
         "penetration_pct": 100 * pen,
+        "pinched_pct": 100 * pinch,
         "jitter_mm": 1000 * jit,
         "max_strain_pct": 100 * float(strain.max()),
         "p99_strain_pct": 100 * float(np.percentile(strain, 99)),

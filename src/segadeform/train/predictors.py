@@ -23,7 +23,14 @@ from ..errors import InputError
 from ..geometry.features import vertex_features
 from ..motion.motion import motion_windows
 
-__all__ = ["Predictor", "LBSPredictor", "CheckpointPredictor", "make_predictor", "make_predictors"]
+__all__ = [
+    "Predictor",
+    "LBSPredictor",
+    "CheckpointPredictor",
+    "SimulationPredictor",
+    "make_predictor",
+    "make_predictors",
+]
 
 
 class Predictor(abc.ABC):
@@ -56,6 +63,16 @@ class LBSPredictor(Predictor):
         w = garment_weights(s.rest, s.faces, body, betas, self.prior)
         rest = skinned_rest(s.rest, s.faces, body, betas, self.drape, self._drapes)
         return skin_garment(rest, w, body, s.poses, betas, s.trans)
+
+
+class SimulationPredictor(Predictor):
+    """The simulator's own frames (spec ``simulation``): no model, zero error by definition.  In an evaluation it
+    puts the ground truth's penetration, pinched cloth and stretch in the same table as the models', so that a
+    model's are read against what the simulator itself leaves (the cloth it keeps pinched where the body
+    intersects itself, the edges it stretches)."""
+
+    def predict(self, s, body, asset):
+        return np.asarray(s.frames, np.float64).copy()
 
 
 class CheckpointPredictor(Predictor):
@@ -114,7 +131,8 @@ class CheckpointPredictor(Predictor):
 
 
 def make_predictor(name: str, spec: str, *, package: Callable[[str, str], Predictor] | None = None) -> Predictor:
-    """``spec``: ``lbs`` (closest-point weights) or ``lbs-<prior>`` (a non-learned weight prior of
+    """``spec``: ``simulation`` (the simulator's own frames: :class:`SimulationPredictor`), ``lbs`` (closest-point
+    weights) or ``lbs-<prior>`` (a non-learned weight prior of
     :data:`~segadeform.body.transfer.WEIGHT_PRIORS`: ``lbs-inpaint``, ``lbs-idw`` ...), a model package
     folder (optionally ``FOLDER:EFFECTS`` with effects as for ``segadeform run --effects``, e.g.
     ``pkg:-wrinkles``), or a ``.pt`` checkpoint.
@@ -129,6 +147,8 @@ def make_predictor(name: str, spec: str, *, package: Callable[[str, str], Predic
         folder, eff = spec.rsplit(":", 1)
     if spec == "lbs":
         p: Predictor = LBSPredictor()
+    elif spec == "simulation":
+        p = SimulationPredictor()
     elif spec == "lbs-drape":
         p = LBSPredictor("smooth", drape=1.0)
     elif spec.startswith("lbs-") and spec[4:] in WEIGHT_PRIORS and spec[4:] != "nearest":
@@ -145,7 +165,7 @@ def make_predictor(name: str, spec: str, *, package: Callable[[str, str], Predic
         p = CheckpointPredictor(spec)
     else:
         raise InputError(
-            "a model must be 'lbs', 'lbs-PRIOR' ("
+            "a model must be 'simulation', 'lbs', 'lbs-PRIOR' ("
             + ", ".join(f"lbs-{w}" for w in WEIGHT_PRIORS[1:])
             + ", lbs-drape), a model package folder or a .pt checkpoint",
             got=spec,

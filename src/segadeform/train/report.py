@@ -26,13 +26,22 @@ _HEAD = {
     "mid_cm": "mid band (cm)",
     "high_cm": "high band (cm)",
     "penetration_pct": "penetrating (%)",
+    "pinched_pct": "of which pinched (%)",
     "jitter_mm": "jitter (mm/f²)",
     "ms_per_frame": "ms/frame",
     "max_strain_pct": "max stretch (%)",
     "p99_strain_pct": "p99 stretch (%)",
 }
 #: the per-type table's columns
-_TYPE_COLS = ("vertex_cm", "normal_deg", "edge_mm", "penetration_pct", "max_strain_pct", "p99_strain_pct")
+_TYPE_COLS = (
+    "vertex_cm",
+    "normal_deg",
+    "edge_mm",
+    "penetration_pct",
+    "pinched_pct",
+    "max_strain_pct",
+    "p99_strain_pct",
+)
 
 
 def markdown_table(res: dict) -> str:
