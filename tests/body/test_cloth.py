@@ -365,9 +365,9 @@ def test_cloth_pinched_by_a_buried_arm_stays_unless_in_contact():
         ref, st = cloth_reference(targets, posed, body_f, setup, knobs, margin=MARGIN)
         assert np.abs(out - ref).max() <= 1e-9
         assert stage.contacts == st["contacts"] and stage.pushed == st["pushed"] and stage.traced == st["traced"]
-        assert stage.contacts == stage.pushed == 2 * near.sum()
-        # pinched: left where it is (after the first frame, the panel's neighbours of a vertex taken out follow it)
-        np.testing.assert_array_equal(out[: 2 if stays else 1, ~near], targets[: 2 if stays else 1, ~near])
+        assert (stage.contacts == stage.pushed == 0) if stays else (stage.contacts >= 2 and stage.pushed >= 2)
+        if stays:  # pinched: left where it is (else the settling sweeps carry the neighbours of the vertex taken out)
+            np.testing.assert_array_equal(out, targets)
         for x in out:
             assert not (col.winding(x[near], body_v) > 0).any()
 

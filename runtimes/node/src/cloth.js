@@ -652,14 +652,47 @@ export class ClothStage {
           m++;
         }
       }
+      let npushed = 0;
       if (m > 0) {
         col.pushOutFrame(bv, box, q, 0, m, margin, PASSES, moved);
         for (let i = 0; i < m; i++) {
           const p = 3 * pick[i], d0 = q[3 * i] - x[p], d1 = q[3 * i + 1] - x[p + 1], d2 = q[3 * i + 2] - x[p + 2];
-          if (d0 * d0 + d1 * d1 + d2 * d2 > MOVED * MOVED) this.pushed++;
+          if (d0 * d0 + d1 * d1 + d2 * d2 > MOVED * MOVED) npushed++;
           x[p] = q[3 * i];
           x[p + 1] = q[3 * i + 1];
           x[p + 2] = q[3 * i + 2];
+        }
+        this.pushed += npushed;
+      }
+      // settling: when the push-out moved a vertex, the stretch limits and attachment again (no contact planes), then
+      // the vertices these sweeps moved pushed out again (scl_step)
+      if (npushed > 0) {
+        q.set(x.subarray(0, 3 * n));
+        for (let it = 0; it < iters; it++) {
+          const fwd = it % 2 === 0;
+          for (let e = 0; e < ne; e++) stretchEdge(x, 0, edges, restLen, radius, fwd ? e : ne - 1 - e, loF, hiF, ks);
+          for (let i = 0; i < n; i++) attach(x, 3 * i, yf, 3 * i, radius[i]);
+        }
+        m = 0;
+        for (let i = 0; i < n; i++) {
+          const d0 = x[3 * i] - q[3 * i], d1 = x[3 * i + 1] - q[3 * i + 1], d2 = x[3 * i + 2] - q[3 * i + 2];
+          if (d0 * d0 + d1 * d1 + d2 * d2 > 0) {
+            pick[m] = i;
+            q[3 * m] = x[3 * i];
+            q[3 * m + 1] = x[3 * i + 1];
+            q[3 * m + 2] = x[3 * i + 2];
+            moved[m] = 0;
+            m++;
+          }
+        }
+        if (m > 0) {
+          col.pushOutFrame(bv, box, q, 0, m, margin, PASSES, moved);
+          for (let i = 0; i < m; i++) {
+            const p = 3 * pick[i];
+            x[p] = q[3 * i];
+            x[p + 1] = q[3 * i + 1];
+            x[p + 2] = q[3 * i + 2];
+          }
         }
       }
       // the state: this frame, the one before, this target

@@ -681,23 +681,7 @@ def cloth_reference(
         x_query = x.copy()
         for it in range(iters):
             fwd = it % 2 == 0
-            for e in range(len(setup.edges)) if fwd else reversed(range(len(setup.edges))):
-                a, b = setup.edges[e]
-                wa, wb = w[a], w[b]
-                if wa + wb == 0:
-                    continue
-                d = x[b] - x[a]
-                l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
-                hi, lo = hi_f * setup.rest_len[e], lo_f * setup.rest_len[e]
-                if lo * lo <= l2 <= hi * hi:
-                    continue
-                length = np.sqrt(l2)
-                if length < 1e-300:
-                    continue
-                c = length - hi if l2 > hi * hi else length - lo
-                sc = ks * c / (length * (wa + wb))
-                x[a] = x[a] + wa * sc * d
-                x[b] = x[b] - wb * sc * d
+            _stretch_sweep(x, setup, w, ks, hi_f, lo_f, fwd)
             if ks > 0:
                 for i in np.flatnonzero(setup.anchor >= 0).tolist():
                     o = x[setup.anchor[i]]
@@ -737,14 +721,47 @@ def cloth_reference(
         moved = np.sum((x - x_query) ** 2, axis=1) >= clear * clear
         pick = np.flatnonzero(~(clear > 0) | contact | moved)  # contact: the rule for buried skin may move it
         st["contacts"] += int(contact.sum())
+        n_pushed = 0
         if len(pick):
             pushed, _ = col.push_out(x[pick], bv, margin, iterations=PASSES)
-            st["pushed"] += int((np.sum((pushed - x[pick]) ** 2, axis=1) > MOVED**2).sum())
+            n_pushed = int((np.sum((pushed - x[pick]) ** 2, axis=1) > MOVED**2).sum())
+            st["pushed"] += n_pushed
             x[pick] = pushed
+        if n_pushed:  # settling: the stretch limits and attachment again, then what they moved pushed out again
+            before = x.copy()
+            for it in range(iters):
+                _stretch_sweep(x, setup, w, ks, hi_f, lo_f, it % 2 == 0)
+                for i in range(n):
+                    _attach(x, yc, i, setup.radius[i])
+            again = np.flatnonzero(np.sum((x - before) ** 2, axis=1) > 0)
+            if len(again):
+                x[again] = col.push_out(x[again], bv, margin, iterations=PASSES)[0]
         st["x0"] = x.copy() if have == 0 else st["x1"]
         st["x1"], st["yp"], st["have"] = x.copy(), y.copy(), 1 if have == 0 else 2
         out[f] = x
     return out, st
+
+
+def _stretch_sweep(x, setup: ClothSetup, w, ks: float, hi_f: float, lo_f: float, fwd: bool) -> None:
+    """One sweep of the strain limits over the edges (forward or backward), free ends moved (``w``: 1 free, 0
+    attached), in place."""
+    for e in range(len(setup.edges)) if fwd else reversed(range(len(setup.edges))):
+        a, b = setup.edges[e]
+        wa, wb = w[a], w[b]
+        if wa + wb == 0:
+            continue
+        d = x[b] - x[a]
+        l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        hi, lo = hi_f * setup.rest_len[e], lo_f * setup.rest_len[e]
+        if lo * lo <= l2 <= hi * hi:
+            continue
+        length = np.sqrt(l2)
+        if length < 1e-300:
+            continue
+        c = length - hi if l2 > hi * hi else length - lo
+        sc = ks * c / (length * (wa + wb))
+        x[a] = x[a] + wa * sc * d
+        x[b] = x[b] - wb * sc * d
 
 
 def _near_reference(col, pts, bv):
