@@ -220,11 +220,12 @@ function attach(x, ix, y, iy, r) {
   }
 }
 
-/* One edge's strain limit: move the free ends of edge e along it (x at offset xo). */
-function stretchEdge(x, xo, edges, restLen, radius, e, loF, hiF, k) {
+/* One edge's strain limit: move the free ends of edge e along it (x at offset xo); `held` (optional, the settling
+ * after the push-out: scl_step's settle_edge): ends that do not move either. */
+function stretchEdge(x, xo, edges, restLen, radius, e, loF, hiF, k, held) {
   const a = edges[2 * e], b = edges[2 * e + 1];
   const p = xo + 3 * a, q = xo + 3 * b;
-  const wa = radius[a] > 0 ? 1.0 : 0.0, wb = radius[b] > 0 ? 1.0 : 0.0;
+  const wa = radius[a] > 0 && !(held && held[a]) ? 1.0 : 0.0, wb = radius[b] > 0 && !(held && held[b]) ? 1.0 : 0.0;
   if (wa + wb === 0) return;
   const d0 = x[q] - x[p], d1 = x[q + 1] - x[p + 1], d2 = x[q + 2] - x[p + 2];
   const l2 = d0 * d0 + d1 * d1 + d2 * d2;
@@ -485,8 +486,10 @@ export class ClothStage {
     this.cp = new Float64Array(3 * n);
     this.cn = new Float64Array(3 * n);
     this.q = new Float64Array(3 * n);
+    this.xc = new Float64Array(3 * n); // the positions the contacts were found at
     this.pick = new Int32Array(n);
     this.moved = new Uint8Array(n);
+    this.held = new Uint8Array(n); // moved by this frame's final push-out: held by the settling
     this.work = { // the backstop's buffers
       vn: new Float64Array(3 * n), d: new Float64Array(3 * n), d2: new Float64Array(3 * n), yt: new Float64Array(3 * n),
       pts: new Float64Array(3 * n), g: new Float64Array(3 * n), tsd: new Float64Array(n), tcp: new Float64Array(3 * n),
@@ -519,7 +522,7 @@ export class ClothStage {
     const keep = 1.0 - st.damping, drop = st.gravity * this.dt * this.dt;
     const margin = this.margin, reset = st.reset, band = CONTACT_BAND, follow = st.follow;
     const S = this.state, x1 = 0, x0 = 3 * n, yp = 6 * n;
-    const { box, sd, cp, cn, q, pick, moved } = this;
+    const { box, sd, cp, cn, q, xc, pick, moved, held } = this;
     const y = target instanceof Float64Array ? target : new Float64Array(target);
     const B = body instanceof Float64Array ? body : new Float64Array(body);
     const out = new Float64Array(nb * n * 3);
@@ -616,6 +619,7 @@ export class ClothStage {
       if (nec > 0) col.near(bv, box, mid, 0, nec, margin + band, esd, ecp, ecn);
       for (let e = 0; e < nec; e++) if (!edgeAgrees(edges, eidx[e], cn, radius, ecn, 3 * e)) esd[e] = Infinity;
       q.set(x);
+      xc.set(x);
       // the sweeps, alternating direction
       for (let it = 0; it < iters; it++) {
         const fwd = it % 2 === 0;
@@ -653,30 +657,40 @@ export class ClothStage {
         }
       }
       let npushed = 0;
+      held.fill(0);
       if (m > 0) {
         col.pushOutFrame(bv, box, q, 0, m, margin, PASSES, moved);
         for (let i = 0; i < m; i++) {
           const p = 3 * pick[i], d0 = q[3 * i] - x[p], d1 = q[3 * i + 1] - x[p + 1], d2 = q[3 * i + 2] - x[p + 2];
-          if (d0 * d0 + d1 * d1 + d2 * d2 > MOVED * MOVED) npushed++;
+          if (d0 * d0 + d1 * d1 + d2 * d2 > MOVED * MOVED) {
+            held[pick[i]] = 1;
+            npushed++;
+          }
           x[p] = q[3 * i];
           x[p + 1] = q[3 * i + 1];
           x[p + 2] = q[3 * i + 2];
         }
         this.pushed += npushed;
       }
-      // settling: when the push-out moved a vertex, the stretch limits and attachment again (no contact planes), then
-      // the vertices these sweeps moved pushed out again (scl_step)
+      // settling: when the push-out moved a vertex, the stretch limits and attachment again (no contact planes) with
+      // the vertices it moved held, then those these sweeps moved that may be inside or within the margin (the final
+      // push-out's test, from where the contacts were found) pushed out again (scl_step)
       if (npushed > 0) {
-        q.set(x.subarray(0, 3 * n));
+        q.set(x);
         for (let it = 0; it < iters; it++) {
           const fwd = it % 2 === 0;
-          for (let e = 0; e < ne; e++) stretchEdge(x, 0, edges, restLen, radius, fwd ? e : ne - 1 - e, loF, hiF, ks);
-          for (let i = 0; i < n; i++) attach(x, 3 * i, yf, 3 * i, radius[i]);
+          for (let e = 0; e < ne; e++) {
+            stretchEdge(x, 0, edges, restLen, radius, fwd ? e : ne - 1 - e, loF, hiF, ks, held);
+          }
+          for (let i = 0; i < n; i++) if (!held[i]) attach(x, 3 * i, yf, 3 * i, radius[i]);
         }
         m = 0;
         for (let i = 0; i < n; i++) {
           const d0 = x[3 * i] - q[3 * i], d1 = x[3 * i + 1] - q[3 * i + 1], d2 = x[3 * i + 2] - q[3 * i + 2];
-          if (d0 * d0 + d1 * d1 + d2 * d2 > 0) {
+          const c0 = x[3 * i] - xc[3 * i], c1 = x[3 * i + 1] - xc[3 * i + 1], c2 = x[3 * i + 2] - xc[3 * i + 2];
+          const clear = (sd[i] < margin + band ? sd[i] : margin + band) - margin;
+          if (d0 * d0 + d1 * d1 + d2 * d2 > 0 &&
+              (!(clear > 0) || sd[i] < margin + band || c0 * c0 + c1 * c1 + c2 * c2 >= clear * clear)) {
             pick[m] = i;
             q[3 * m] = x[3 * i];
             q[3 * m + 1] = x[3 * i + 1];

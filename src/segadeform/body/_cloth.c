@@ -65,10 +65,11 @@
  * farther than their clearance since the contacts were found (no other can be) -- are pushed out of the body
  * exactly as the collision stage does (sdc_push_out, SCL_PASSES passes): contact wins over the attachment (edge
  * middles are not pushed there: the planes above hold them).  When it moved a vertex, the frame settles:
- * `iterations` more sweeps of the stretch limits, each followed by the attachment (no contact planes), carry the
- * free neighbours of a pushed vertex along instead of leaving the edges between them stretched (on the held-out
- * dresses and skirts of issue #26: 13-45 % fewer edges stretched more than 10 points past the limit and the
- * network's own stretch), and the vertices they moved are pushed out again.  The contact lookups (sdc_near) do not apply the
+ * `iterations` more sweeps of the stretch limits, each followed by the attachment (no contact planes), with the
+ * vertices it moved held where it put them, carry their free neighbours along instead of leaving the edges between
+ * them stretched (on held-out dresses, a skirt and a sleeved dress of issue #26: 10-26 % fewer edge-frames
+ * stretched more than 10 points past both the limit and the network's own stretch), and the vertices they moved
+ * that may be inside or within the margin (the final push-out's test) are pushed out again.  The contact lookups (sdc_near) do not apply the
  * collider's rule for buried skin: cloth pinched where an arm presses into the torso, inside by the body's winding
  * number but outside the skin nearest it, stays pinched, as the simulator leaves it, instead of being taken across
  * the arm one vertex at a time (flaps at a dress's armholes); the final push-out applies the rule to the vertices
@@ -361,6 +362,14 @@ static void stretch_edge(double *x, const scl_pedge *pe, double k) {
     q[0] -= wb * s * d0;
     q[1] -= wb * s * d1;
     q[2] -= wb * s * d2;
+}
+
+/* One edge's strain limit in the settling after the push-out: an end the push-out moved (held) does not move. */
+static void settle_edge(double *x, const scl_pedge *pe, const uint8_t *held, double k) {
+    scl_pedge p = *pe;
+    if (held[p.a]) p.wa = 0;
+    if (held[p.b]) p.wb = 0;
+    if (p.wa + p.wb > 0) stretch_edge(x, &p, k);
 }
 
 /* One free vertex's tether: pulled toward its anchor (attached: never moved by edges, smoothing or tethers) when
@@ -656,6 +665,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
     double *cp = (double *)malloc(sizeof(double) * 3 * (size_t)n);
     double *cn = (double *)malloc(sizeof(double) * 3 * (size_t)n);
     double *q = (double *)malloc(sizeof(double) * 3 * (size_t)n);
+    double *xc = (double *)malloc(sizeof(double) * 3 * (size_t)n); /* the positions the contacts were found at */
     int64_t *pick = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
     /* what the sweeps visit, in their order: the edges with a free end (pe), the free vertices with neighbours (fv:
      * smoothing) and those with a tether (tv); the constraints they leave out would move nothing */
@@ -663,6 +673,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
     int64_t *fv = (int64_t *)malloc(sizeof(int64_t) * (size_t)n), *tv = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
     int64_t npe = 0, nfv = 0, ntv = 0;
     uint8_t *moved = (uint8_t *)malloc((size_t)n);
+    uint8_t *held = (uint8_t *)malloc((size_t)n); /* moved by this frame's final push-out: held by the settling */
     /* the edge contacts' buffers, grown to the most edges near the body in one frame (not sized by every edge:
      * memory stays O(vertices + contacts)) */
     int64_t *eidx = NULL, nec, cap = 0;
@@ -672,7 +683,10 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
     memset(&w, 0, sizeof(w)); /* the backstop's buffers: allocated when a frame first needs them */
     if (iters < 1) iters = 1;
     info[I_FIRST_RESET] = -1;
-    if (!box || !sd || !cp || !cn || !q || !pick || !moved || !pe || !fv || !tv) { status = -1; goto done; }
+    if (!box || !sd || !cp || !cn || !q || !xc || !pick || !moved || !held || !pe || !fv || !tv) {
+        status = -1;
+        goto done;
+    }
     for (e = 0; e < ne; e++) {
         int64_t a = edges[2 * e], b = edges[2 * e + 1];
         double wa = radius[a] > 0 ? 1.0 : 0.0, wb = radius[b] > 0 ? 1.0 : 0.0;
@@ -792,6 +806,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         for (e = 0; e < nec; e++)
             if (!edge_agrees(edges, eidx[e], cn, radius, ecn + 3 * e)) esd[e] = INFINITY;
         memcpy(q, x, sizeof(double) * 3 * (size_t)n);
+        memcpy(xc, x, sizeof(double) * 3 * (size_t)n);
         /* the sweeps, alternating direction */
         for (it = 0; it < iters; it++) {
             int fwd = it % 2 == 0;
@@ -834,11 +849,13 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
             }
         }
         npushed = 0;
+        for (i = 0; i < n; i++) held[i] = 0;
         if (m > 0) {
             sdc_push_out(collider, bv, box, 1, q, m, 0, m, margin, SCL_PASSES, moved);
             for (i = 0; i < m; i++) {
                 double *p = x + 3 * pick[i], d0 = q[3 * i] - p[0], d1 = q[3 * i + 1] - p[1], d2 = q[3 * i + 2] - p[2];
-                npushed += d0 * d0 + d1 * d1 + d2 * d2 > SCL_MOVED * SCL_MOVED;
+                held[pick[i]] = d0 * d0 + d1 * d1 + d2 * d2 > SCL_MOVED * SCL_MOVED;
+                npushed += held[pick[i]];
                 p[0] = q[3 * i];
                 p[1] = q[3 * i + 1];
                 p[2] = q[3 * i + 2];
@@ -846,19 +863,26 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
             info[I_PUSHED] += npushed;
         }
         /* settling: when the push-out moved a vertex, the sweeps' stretch limits and attachment again (no contact
-         * planes), so that the free neighbours of a vertex it moved follow it instead of leaving the edges between
-         * them stretched; the vertices these sweeps moved are pushed out again (they may have been pulled in) */
+         * planes) with the vertices it moved held where it put them, so that their free neighbours follow them
+         * instead of leaving the edges between them stretched; the vertices these sweeps moved that may now be inside
+         * or within the margin -- by the final push-out's test: in contact, or farther than their clearance from
+         * where the contacts were found (a vertex nearer that place is on the same side of the skin as it was
+         * there) -- are pushed out again */
         if (npushed > 0) {
             memcpy(q, x, sizeof(double) * 3 * (size_t)n);
             for (it = 0; it < iters; it++) {
                 int fwd = it % 2 == 0;
-                for (e = 0; e < npe; e++) stretch_edge(x, pe + (fwd ? e : npe - 1 - e), ks);
-                for (i = 0; i < n; i++) attach(x + 3 * i, yc + 3 * i, radius[i]);
+                for (e = 0; e < npe; e++) settle_edge(x, pe + (fwd ? e : npe - 1 - e), held, ks);
+                for (i = 0; i < n; i++)
+                    if (!held[i]) attach(x + 3 * i, yc + 3 * i, radius[i]);
             }
             m = 0;
             for (i = 0; i < n; i++) {
                 double d0 = x[3 * i] - q[3 * i], d1 = x[3 * i + 1] - q[3 * i + 1], d2 = x[3 * i + 2] - q[3 * i + 2];
-                if (d0 * d0 + d1 * d1 + d2 * d2 > 0) {
+                double c0 = x[3 * i] - xc[3 * i], c1 = x[3 * i + 1] - xc[3 * i + 1], c2 = x[3 * i + 2] - xc[3 * i + 2];
+                double clear = (sd[i] < margin + band ? sd[i] : margin + band) - margin;
+                if (d0 * d0 + d1 * d1 + d2 * d2 > 0 &&
+                    (!(clear > 0) || sd[i] < margin + band || c0 * c0 + c1 * c1 + c2 * c2 >= clear * clear)) {
                     pick[m] = i;
                     q[3 * m] = x[3 * i];
                     q[3 * m + 1] = x[3 * i + 1];
@@ -881,7 +905,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
     }
 done:
     free(pe); free(fv); free(tv);
-    free(box); free(sd); free(cp); free(cn); free(q); free(pick); free(moved);
+    free(box); free(sd); free(cp); free(cn); free(q); free(xc); free(pick); free(moved); free(held);
     free(eidx); free(mid); free(esd); free(ecp); free(ecn);
     free(w.vn); free(w.d); free(w.d2); free(w.yt); free(w.pts); free(w.g); free(w.tsd); free(w.tcp); free(w.tcn);
     free(w.deep); free(w.fixed); free(w.held); free(w.done); free(w.region); free(w.dist); free(w.heap);

@@ -721,19 +721,21 @@ def cloth_reference(
         moved = np.sum((x - x_query) ** 2, axis=1) >= clear * clear
         pick = np.flatnonzero(~(clear > 0) | contact | moved)  # contact: the rule for buried skin may move it
         st["contacts"] += int(contact.sum())
-        n_pushed = 0
+        held = np.zeros(n, bool)
         if len(pick):
             pushed, _ = col.push_out(x[pick], bv, margin, iterations=PASSES)
-            n_pushed = int((np.sum((pushed - x[pick]) ** 2, axis=1) > MOVED**2).sum())
-            st["pushed"] += n_pushed
+            held[pick] = np.sum((pushed - x[pick]) ** 2, axis=1) > MOVED**2
+            st["pushed"] += int(held.sum())
             x[pick] = pushed
-        if n_pushed:  # settling: the stretch limits and attachment again, then what they moved pushed out again
+        if held.any():  # settling: the stretch limits and attachment again, the pushed vertices held
             before = x.copy()
             for it in range(iters):
-                _stretch_sweep(x, setup, w, ks, hi_f, lo_f, it % 2 == 0)
-                for i in range(n):
+                _stretch_sweep(x, setup, w * ~held, ks, hi_f, lo_f, it % 2 == 0)
+                for i in np.flatnonzero(~held).tolist():
                     _attach(x, yc, i, setup.radius[i])
-            again = np.flatnonzero(np.sum((x - before) ** 2, axis=1) > 0)
+            # ... then those they moved that may be inside or within the margin (the final push-out's test) pushed out
+            moved = np.sum((x - x_query) ** 2, axis=1) >= clear * clear
+            again = np.flatnonzero((np.sum((x - before) ** 2, axis=1) > 0) & (~(clear > 0) | contact | moved))
             if len(again):
                 x[again] = col.push_out(x[again], bv, margin, iterations=PASSES)[0]
         st["x0"] = x.copy() if have == 0 else st["x1"]
