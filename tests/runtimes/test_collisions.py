@@ -146,7 +146,7 @@ def _kernel_near(rest, faces, posed, points, radius):
     lib, p, i64 = _kernel(), ctypes.c_void_p, ctypes.c_int64
     lib.sdc_n_nodes.restype, lib.sdc_n_nodes.argtypes = i64, (p,)
     lib.sdc_refit.restype, lib.sdc_refit.argtypes = None, (p, p, p)
-    lib.sdc_near.restype, lib.sdc_near.argtypes = i64, (p, p, p, p, i64, i64, ctypes.c_double, p, p, p)
+    lib.sdc_near.restype, lib.sdc_near.argtypes = i64, (p, p, p, p, i64, i64, ctypes.c_double, p, p, p, i64)
     v, f = np.ascontiguousarray(rest, np.float64), np.ascontiguousarray(faces, np.int64)
     h = lib.sdc_create(v.ctypes.data, len(v), f.ctypes.data, len(f), 4)
     try:
@@ -165,6 +165,7 @@ def _kernel_near(rest, faces, posed, points, radius):
             sd.ctypes.data,
             closest.ctypes.data,
             normal.ctypes.data,
+            0,  # the contact lookups' form: no rule for buried skin
         )
     finally:
         lib.sdc_free(h)

@@ -243,6 +243,18 @@ function stretchEdge(x, xo, edges, restLen, radius, e, loF, hiF, k, held) {
   x[q + 2] -= wb * s * d2;
 }
 
+/* The attachment in the settling after the push-out (scl_step's settle_attach): x within r of its target y, or within
+ * the distance from y at which the sweeps and the push-out left it (x0) if that is farther; all at offset p. */
+function settleAttach(x, y, x0, p, r) {
+  const e0 = x[p] - y[p], e1 = x[p + 1] - y[p + 1], e2 = x[p + 2] - y[p + 2], l2 = e0 * e0 + e1 * e1 + e2 * e2;
+  const f0 = x0[p] - y[p], f1 = x0[p + 1] - y[p + 1], f2 = x0[p + 2] - y[p + 2], m2 = f0 * f0 + f1 * f1 + f2 * f2;
+  if (l2 <= r * r || l2 <= m2) return;
+  const s = (r * r >= m2 ? r : Math.sqrt(m2)) / Math.sqrt(l2);
+  x[p] = y[p] + s * e0;
+  x[p + 1] = y[p + 1] + s * e1;
+  x[p + 2] = y[p + 2] + s * e2;
+}
+
 /* One free vertex's tether: pulled toward its anchor when farther from it than hiF times the tether's rest length. */
 function tetherVertex(x, xo, anchor, tether, i, hiF, k) {
   const a = anchor[i];
@@ -367,7 +379,7 @@ function backstop(col, bv, box, n, nf, faces, nptr, nidx, radius, y, x, sd, cn, 
   let k = 0;
   for (; k < TRACE; k++) {
     let left = 0;
-    col.near(bv, box, pts, 0, nd, margin, tsd, tcp, tcn);
+    col.near(bv, box, pts, 0, nd, margin, tsd, tcp, tcn, true);
     for (let j = 0; j < nd; j++) {
       if (fixed[j]) continue;
       if (tsd[j] >= margin) {
@@ -383,7 +395,7 @@ function backstop(col, bv, box, n, nf, faces, nptr, nidx, radius, y, x, sd, cn, 
     if (left === 0) break;
   }
   if (k === TRACE) { // the last step's points: out or not
-    col.near(bv, box, pts, 0, nd, margin, tsd, tcp, tcn);
+    col.near(bv, box, pts, 0, nd, margin, tsd, tcp, tcn, true);
     for (let j = 0; j < nd; j++) if (tsd[j] >= margin) fixed[j] = 1;
   }
   // the moves of the traced-out ones (with a normal), held; spread to the others
@@ -682,7 +694,7 @@ export class ClothStage {
           for (let e = 0; e < ne; e++) {
             stretchEdge(x, 0, edges, restLen, radius, fwd ? e : ne - 1 - e, loF, hiF, ks, held);
           }
-          for (let i = 0; i < n; i++) if (!held[i]) attach(x, 3 * i, yf, 3 * i, radius[i]);
+          for (let i = 0; i < n; i++) if (!held[i] && radius[i] > 0) settleAttach(x, yf, q, 3 * i, radius[i]);
         }
         m = 0;
         for (let i = 0; i < n; i++) {

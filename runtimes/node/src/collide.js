@@ -650,8 +650,8 @@ let nearSd = 0, nearFace = -1;
 /* The exact closest point of p if it is inside the body or within `radius` of it.  Returns true with the signed
  * distance and face in nearSd and nearFace and the closest point and normal written to closest and n, or false
  * when p is outside and farther than radius (a farther point inside by the winding number is found, with its closest
- * surface).  The rule for buried skin only with `check`: the push-out applies it, the cloth stage's contact lookups
- * (near) do not (the C function's comment says why). */
+ * surface).  The rule for buried skin by `check`: 2 every point (the push-out), 1 the points farther than radius
+ * only (the cloth stage's backstop traces), 0 none (its contact lookups; the C function's comment says why). */
 function nearOrInside(fr, P, ip, radius, check, closest, n) {
   const b = fr.b;
   let bound = Infinity;
@@ -659,7 +659,7 @@ function nearOrInside(fr, P, ip, radius, check, closest, n) {
   if (nearestFace >= 0 && d2 < radius * radius) {
     nearFace = nearestFace;
     nearSd = signedAt(fr, P, ip, nearFace, baryN, closest, n);
-    if (check && nearSd > BURY * fr.scale) unbury(fr, P, ip, -1, closest, n);
+    if (check === 2 && nearSd > BURY * fr.scale) unbury(fr, P, ip, -1, closest, n);
     return true;
   }
   let wind = -1; // -1: not known
@@ -681,7 +681,7 @@ function nearOrInside(fr, P, ip, radius, check, closest, n) {
   if (nearestFace < 0) nearest(fr, P, ip, Infinity, baryN, closest);
   nearFace = nearestFace;
   nearSd = signedAt(fr, P, ip, nearFace, baryN, closest, n);
-  if (check && nearSd > BURY * fr.scale) unbury(fr, P, ip, wind, closest, n);
+  if (check >= 1 && nearSd > BURY * fr.scale) unbury(fr, P, ip, wind, closest, n);
   return true;
 }
 
@@ -697,7 +697,7 @@ function pushFrame(fr, pts, off, i0, i1, margin, iterations, mask) {
   for (let i = i0; i < i1; i++) {
     const ip = 3 * (off + i);
     for (let it = 0; it < iterations; it++) {
-      if (!nearOrInside(fr, pts, ip, radius, true, cP, nP) || !(nearSd < margin)) break;
+      if (!nearOrInside(fr, pts, ip, radius, 2, cP, nP) || !(nearSd < margin)) break;
       pts[ip] = cP[0] + margin * nP[0];
       pts[ip + 1] = cP[1] + margin * nP[1];
       pts[ip + 2] = cP[2] + margin * nP[2];
@@ -801,14 +801,15 @@ export class BodyCollider {
   /**
    * The exact signed distance, closest point and normal of every point of pts [i0, i1) (Float64Array) inside the
    * body or within `radius` of it, against one frame (verts with its boxes from refitInto), written to sd (P),
-   * closest and normal (P*3); the others get sd = Infinity (sdc_near).  Returns how many were found.
+   * closest and normal (P*3); the others get sd = Infinity (sdc_near).  Returns how many were found.  `rule`: the
+   * rule for buried skin for the points farther than radius (the cloth stage's backstop), else none (its contacts).
    */
-  near(verts, box, pts, i0, i1, radius, sd, closest, normal) {
+  near(verts, box, pts, i0, i1, radius, sd, closest, normal, rule = false) {
     const fr = makeFrame(this, verts, 0, box, 0);
     const c = new Float64Array(3), nrm = new Float64Array(3);
     let found = 0;
     for (let i = i0; i < i1; i++) {
-      if (nearOrInside(fr, pts, 3 * i, radius, false, c, nrm)) {
+      if (nearOrInside(fr, pts, 3 * i, radius, rule ? 1 : 0, c, nrm)) {
         sd[i] = nearSd;
         closest[3 * i] = c[0]; closest[3 * i + 1] = c[1]; closest[3 * i + 2] = c[2];
         normal[3 * i] = nrm[0]; normal[3 * i + 1] = nrm[1]; normal[3 * i + 2] = nrm[2];

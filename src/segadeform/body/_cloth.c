@@ -62,11 +62,13 @@
  * found again.  Frames with no deep vertex pay one comparison per vertex.
  *
  * After the sweeps, the vertices that may be inside the body or closer than the margin -- found so, or moved
- * farther than their clearance since the contacts were found (no other can be) -- are pushed out of the body
- * exactly as the collision stage does (sdc_push_out, SCL_PASSES passes): contact wins over the attachment (edge
- * middles are not pushed there: the planes above hold them).  When it moved a vertex, the frame settles:
- * `iterations` more sweeps of the stretch limits, each followed by the attachment (no contact planes), with the
- * vertices it moved held where it put them, carry their free neighbours along instead of leaving the edges between
+ * farther than their clearance since the contacts were found (no other can be, except a vertex pinched where the
+ * body intersects itself, below, which stays where it was found) -- are pushed out of the body exactly as the
+ * collision stage does (sdc_push_out, SCL_PASSES passes): contact wins over the attachment (edge middles are not
+ * pushed there: the planes above hold them).  When it moved a vertex, the frame settles:
+ * `iterations` more sweeps of the stretch limits, each followed by the attachment (no contact planes; a free vertex
+ * may stay as far from its target as the sweeps and the push-out left it), with the vertices it moved held where
+ * it put them, carry their free neighbours along instead of leaving the edges between
  * them stretched (on held-out dresses, a skirt and a sleeved dress of issue #26: 10-26 % fewer edge-frames
  * stretched more than 10 points past both the limit and the network's own stretch), and the vertices they moved
  * that may be inside or within the margin (the final push-out's test) are pushed out again.  The contact lookups (sdc_near) do not apply the
@@ -102,12 +104,12 @@
 int64_t sdc_n_nodes(const void *h);
 void sdc_refit(const void *h, const double *verts, double *box);
 int64_t sdc_near(const void *h, const double *verts, const double *box, const double *pts, int64_t i0, int64_t i1,
-                 double radius, double *sd, double *closest, double *normal);
+                 double radius, double *sd, double *closest, double *normal, int64_t rule);
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
 #define SCL_ABI 9 /* 9: its contact lookups leave pinched cloth pinched (the rule for buried skin only in the final
-                       * push-out), and settling sweeps after the push-out (30 Nov 2026); 8: the collision kernel it embeds pushes off buried surfaces (1 Dec 2026); 7: its own acos */
+                       * push-out and the backstop's traces), and settling sweeps after the push-out; 8: the collision kernel it embeds pushes off buried surfaces (1 Dec 2026); 7: its own acos */
 #define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
 #define SCL_TINY 1e-300
@@ -364,6 +366,19 @@ static void stretch_edge(double *x, const scl_pedge *pe, double k) {
     q[2] -= wb * s * d2;
 }
 
+/* The attachment in the settling after the push-out: x kept within r of its target y, or within the distance from y
+ * at which the sweeps and the push-out left it (x0) if that is farther -- a contact's move (an edge lifted off a
+ * ridge, a vertex pushed out) is not undone. */
+static void settle_attach(double *x, const double *y, const double *x0, double r) {
+    double e0 = x[0] - y[0], e1 = x[1] - y[1], e2 = x[2] - y[2], l2 = e0 * e0 + e1 * e1 + e2 * e2;
+    double f0 = x0[0] - y[0], f1 = x0[1] - y[1], f2 = x0[2] - y[2], m2 = f0 * f0 + f1 * f1 + f2 * f2, s;
+    if (l2 <= r * r || l2 <= m2) return;
+    s = (r * r >= m2 ? r : sqrt(m2)) / sqrt(l2);
+    x[0] = y[0] + s * e0;
+    x[1] = y[1] + s * e1;
+    x[2] = y[2] + s * e2;
+}
+
 /* One edge's strain limit in the settling after the push-out: an end the push-out moved (held) does not move. */
 static void settle_edge(double *x, const scl_pedge *pe, const uint8_t *held, double k) {
     scl_pedge p = *pe;
@@ -547,7 +562,7 @@ static int64_t backstop(const void *collider, const double *bv, const double *bo
     }
     for (k = 0; k < SCL_TRACE; k++) {
         int64_t left = 0;
-        sdc_near(collider, bv, box, w->pts, 0, nd, margin, w->tsd, w->tcp, w->tcn);
+        sdc_near(collider, bv, box, w->pts, 0, nd, margin, w->tsd, w->tcp, w->tcn, 1);
         for (j = 0; j < nd; j++) {
             double step;
             if (w->fixed[j]) continue;
@@ -564,7 +579,7 @@ static int64_t backstop(const void *collider, const double *bv, const double *bo
         if (left == 0) break;
     }
     if (k == SCL_TRACE) { /* the last step's points: out or not */
-        sdc_near(collider, bv, box, w->pts, 0, nd, margin, w->tsd, w->tcp, w->tcn);
+        sdc_near(collider, bv, box, w->pts, 0, nd, margin, w->tsd, w->tcp, w->tcn, 1);
         for (j = 0; j < nd; j++)
             if (w->tsd[j] >= margin) w->fixed[j] = 1;
     }
@@ -747,7 +762,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         }
         /* contacts: a plane for every vertex inside the body or near it */
         sdc_refit(collider, bv, box);
-        sdc_near(collider, bv, box, x, 0, n, margin + band, sd, cp, cn);
+        sdc_near(collider, bv, box, x, 0, n, margin + band, sd, cp, cn, 0);
         /* deep targets: traced out along the garment's normal (the backstop), then the contacts found again */
         nt = backstop(collider, bv, box, n, nf, faces, nptr, nidx, radius, y, x, sd, cn, margin, band, settings[S_BACKSTOP],
                       &w);
@@ -764,7 +779,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
                 w.pts[3 * r + 1] = x[3 * w.deep[r] + 1];
                 w.pts[3 * r + 2] = x[3 * w.deep[r] + 2];
             }
-            sdc_near(collider, bv, box, w.pts, 0, nm, margin + band, w.tsd, w.tcp, w.tcn);
+            sdc_near(collider, bv, box, w.pts, 0, nm, margin + band, w.tsd, w.tcp, w.tcn, 0);
             for (r = 0; r < nm; r++) {
                 i = w.deep[r];
                 sd[i] = w.tsd[r];
@@ -802,7 +817,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
             mid[3 * nec + 2] = 0.5 * (pa[2] + pb[2]);
             nec++;
         }
-        if (nec > 0) sdc_near(collider, bv, box, mid, 0, nec, margin + band, esd, ecp, ecn);
+        if (nec > 0) sdc_near(collider, bv, box, mid, 0, nec, margin + band, esd, ecp, ecn, 0);
         for (e = 0; e < nec; e++)
             if (!edge_agrees(edges, eidx[e], cn, radius, ecn + 3 * e)) esd[e] = INFINITY;
         memcpy(q, x, sizeof(double) * 3 * (size_t)n);
@@ -874,7 +889,7 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
                 int fwd = it % 2 == 0;
                 for (e = 0; e < npe; e++) settle_edge(x, pe + (fwd ? e : npe - 1 - e), held, ks);
                 for (i = 0; i < n; i++)
-                    if (!held[i]) attach(x + 3 * i, yc + 3 * i, radius[i]);
+                    if (!held[i] && radius[i] > 0) settle_attach(x + 3 * i, yc + 3 * i, q + 3 * i, radius[i]);
             }
             m = 0;
             for (i = 0; i < n; i++) {

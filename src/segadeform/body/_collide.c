@@ -30,7 +30,8 @@
  *                  vertices in the torso next to a buried arm stayed there).  A face of zero area is never taken;
  *                  at most SDC_BURY_TRIES faces are tested for one point (past that it keeps its closest surface);
  *                  a body that is not closed has no winding number and no such rule.  The push-out applies it to
- *                  every point; sdc_near (the cloth stage's contacts) to none (near_or_inside);
+ *                  every point; sdc_near to none for the cloth stage's contacts, to points farther than its
+ *                  radius for its backstop's traces (near_or_inside);
  *   push-out       p' = closest + margin * n for points with signed distance < margin, again for the
  *                  points moved, up to `iterations` passes.
  *
@@ -779,10 +780,11 @@ static void unbury(const sdc_frame *fr, const double *p, int64_t wind, double *s
 /* The exact closest point of p if it is inside the body or within `radius` of it.  Returns 1 with the
  * signed distance, closest point, normal and face, or 0 when p is outside and farther than radius (a point farther
  * than radius that the winding number calls inside is found, with its closest surface).  The rule for buried skin
- * only with `check`: the push-out applies it, the cloth stage's contact lookups (sdc_near) do not -- cloth pinched
- * where an arm presses into the torso stays pinched in its sweeps, as in the simulator, instead of each vertex
- * taken alone across the arm (issue #26: flaps at a dress's armholes); its final push-out applies it to the
- * vertices in contact. */
+ * by `check`: 2 for every point (the push-out), 1 for the points farther than radius only (the ray that found them
+ * inside is already cast: the cloth stage's backstop, which must not take a point in the torso for traced out), 0
+ * for none (the cloth stage's contact lookups -- cloth pinched where an arm presses into the torso stays pinched in
+ * its sweeps, as in the simulator, instead of each vertex taken alone across the arm: issue #26, flaps at a
+ * dress's armholes; its final push-out applies the rule to the vertices in contact). */
 static int near_or_inside(const sdc_frame *fr, const double *p, double radius, int check, double *sd,
                           double *closest, double *n, int64_t *face) {
     const sdc_body *b = fr->b;
@@ -791,7 +793,7 @@ static int near_or_inside(const sdc_frame *fr, const double *p, double radius, i
     d2 = nearest(fr, p, radius, face, bary, closest);
     if (*face >= 0 && d2 < radius * radius) {
         *sd = signed_at(fr, p, *face, bary, closest, n);
-        if (check && *sd > SDC_BURY * fr->scale) unbury(fr, p, wind, sd, closest, n, face);
+        if (check == 2 && *sd > SDC_BURY * fr->scale) unbury(fr, p, wind, sd, closest, n, face);
         return 1;
     }
     if (b->closed) {
@@ -812,7 +814,7 @@ static int near_or_inside(const sdc_frame *fr, const double *p, double radius, i
     /* none within the bound: the ray's first hit, measured on a nearly edge-on triangle, came out short */
     if (*face < 0) nearest(fr, p, INFINITY, face, bary, closest);
     *sd = signed_at(fr, p, *face, bary, closest, n);
-    if (check && *sd > SDC_BURY * fr->scale) unbury(fr, p, wind, sd, closest, n, face);
+    if (check >= 1 && *sd > SDC_BURY * fr->scale) unbury(fr, p, wind, sd, closest, n, face);
     return 1;
 }
 
@@ -834,15 +836,16 @@ SDC_API void sdc_query(const void *h, const double *verts, const double *box, co
 /* The exact signed distance, closest point and outward normal of every point of pts [i0, i1) that is inside the
  * body or within `radius` of it, against one frame (verts with its boxes from sdc_refit); the others get
  * sd = +inf (their closest point and normal are not defined).  Returns how many were found.  The cloth stage's
- * contacts (_cloth.c), without the rule for buried skin (near_or_inside): a point farther than radius that the
- * winding number calls inside gets its closest surface, whose side may say outside. */
+ * lookups (_cloth.c): with `rule` 0 (its contacts) no rule for buried skin -- a point farther than radius that the
+ * winding number calls inside gets its closest surface, whose side may say outside; with 1 (its backstop's traces)
+ * the rule for the points farther than radius (near_or_inside). */
 SDC_API int64_t sdc_near(const void *h, const double *verts, const double *box, const double *pts, int64_t i0,
-                         int64_t i1, double radius, double *sd, double *closest, double *normal) {
+                         int64_t i1, double radius, double *sd, double *closest, double *normal, int64_t rule) {
     sdc_frame fr;
     int64_t i, face, found = 0;
     make_frame((const sdc_body *)h, verts, box, &fr);
     for (i = i0; i < i1; i++) {
-        if (near_or_inside(&fr, pts + 3 * i, radius, 0, sd + i, closest + 3 * i, normal + 3 * i, &face))
+        if (near_or_inside(&fr, pts + 3 * i, radius, rule ? 1 : 0, sd + i, closest + 3 * i, normal + 3 * i, &face))
             found++;
         else
             sd[i] = INFINITY;
@@ -896,7 +899,7 @@ SDC_API int64_t sdc_push_out(const void *h, const double *verts, const double *b
             for (it = 0; it < iterations; it++) {
                 double sd, c[3], nrm[3];
                 int64_t face;
-                if (!near_or_inside(&fr, p, radius, 1, &sd, c, nrm, &face) || !(sd < margin)) break;
+                if (!near_or_inside(&fr, p, radius, 2, &sd, c, nrm, &face) || !(sd < margin)) break;
                 p[0] = c[0] + margin * nrm[0];
                 p[1] = c[1] + margin * nrm[1];
                 p[2] = c[2] + margin * nrm[2];

@@ -610,10 +610,12 @@ def cloth_reference(
     margin: float = 0.004,
     dt: float = 1.0 / 30.0,
     state: dict | None = None,
+    settle: bool = True,
 ):
     """The cloth stage's rule, slowly and obviously: every frame, vertex and edge in Python, in the kernel's order;
     contacts and the final push-out by the numpy :class:`BodyCollider` (exact closest points).  ``state`` (from a
-    previous call, or None) is updated in place and returned.
+    previous call, or None) is updated in place and returned.  ``settle=False`` leaves out the settling after the
+    push-out (what the kernel did before 30 Nov 2026: for tests that show what it changes).
 
     Shapes:
         targets: (B, N, 3); posed: (B, V, 3); body_faces: (F, 3) -> (B, N, 3), state dict
@@ -727,12 +729,12 @@ def cloth_reference(
             held[pick] = np.sum((pushed - x[pick]) ** 2, axis=1) > MOVED**2
             st["pushed"] += int(held.sum())
             x[pick] = pushed
-        if held.any():  # settling: the stretch limits and attachment again, the pushed vertices held
+        if settle and held.any():  # settling: the stretch limits and attachment again, the pushed vertices held
             before = x.copy()
             for it in range(iters):
                 _stretch_sweep(x, setup, w * ~held, ks, hi_f, lo_f, it % 2 == 0)
-                for i in np.flatnonzero(~held).tolist():
-                    _attach(x, yc, i, setup.radius[i])
+                for i in np.flatnonzero(~held & (setup.radius > 0)).tolist():
+                    _settle_attach(x, yc, before, i, setup.radius[i])
             # ... then those they moved that may be inside or within the margin (the final push-out's test) pushed out
             moved = np.sum((x - x_query) ** 2, axis=1) >= clear * clear
             again = np.flatnonzero((np.sum((x - before) ** 2, axis=1) > 0) & (~(clear > 0) | contact | moved))
@@ -742,6 +744,16 @@ def cloth_reference(
         st["x1"], st["yp"], st["have"] = x.copy(), y.copy(), 1 if have == 0 else 2
         out[f] = x
     return out, st
+
+
+def _settle_attach(x, y, x0, i, r):
+    """The settling's attachment (``settle_attach``): x[i] within r of y[i], or within the distance from y[i] at which
+    the sweeps and the push-out left it (x0[i]) if farther."""
+    e, f = x[i] - y[i], x0[i] - y[i]
+    l2, m2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2], f[0] * f[0] + f[1] * f[1] + f[2] * f[2]
+    if l2 <= r * r or l2 <= m2:
+        return
+    x[i] = y[i] + ((r if r * r >= m2 else np.sqrt(m2)) / np.sqrt(l2)) * e
 
 
 def _stretch_sweep(x, setup: ClothSetup, w, ks: float, hi_f: float, lo_f: float, fwd: bool) -> None:
@@ -766,12 +778,32 @@ def _stretch_sweep(x, setup: ClothSetup, w, ks: float, hi_f: float, lo_f: float,
         x[b] = x[b] - wb * sc * d
 
 
-def _near_reference(col, pts, bv):
-    """The collider's exact query of ``pts`` as the kernel's contact lookup (``sdc_near``) sees it: every point's
-    closest surface, without the push-out's rule for buried skin (cloth pinched where an arm presses into the torso
-    keeps the arm's skin nearest it, whose side says outside); the caller reads the points within the lookup's
-    radius, as the kernel's caller does."""
-    return col.query(pts, bv)
+def _near_reference(col, pts, bv, radius: float = 0.0, rule: bool = False):
+    """The collider's exact query of ``pts`` as the kernel's lookup (``sdc_near``) sees it: every point's closest
+    surface (the caller reads the points within the lookup's radius, as the kernel's caller does).  Without
+    ``rule`` (the contact lookups) no rule for buried skin: cloth pinched where an arm presses into the torso keeps the
+    arm's skin nearest it, whose side says outside.  With it (the backstop's traces) a point farther than ``radius``
+    that the winding number calls inside but its closest surface outside takes the nearest skin that is not buried
+    (:func:`segadeform.body.collision.reference.unbury`)."""
+    from .collision import BodyProxy, ProximityResult
+    from .collision.reference import unbury
+
+    q = col.query(pts, bv)
+    far = np.flatnonzero(q.signed_distance >= radius)
+    if not rule or not len(far) or not col.closed:  # (not closed: no winding number, as in the kernel)
+        return q
+    fr = col._impl._frames(np.asarray(bv, np.float64)[None])  # the numpy collider's tree: its winding number
+
+    def winding(p):
+        return col._impl._decided(fr, p, 0)
+
+    k, face, c, bary, dist = unbury(pts[far], q.signed_distance[far], bv, col.faces, winding=winding)
+    if not len(k):
+        return q
+    sd, closest, normal = q.signed_distance.copy(), q.closest.copy(), q.normal.copy()
+    sd[far[k]], closest[far[k]] = -dist, c
+    normal[far[k]] = BodyProxy(bv, col.faces).feature_normals(face, bary)
+    return ProximityResult(signed_distance=sd, closest=closest, normal=normal, face=q.face)
 
 
 def _backstop_reference(col, bv, setup: ClothSetup, y, x, sd, normal, margin: float, deep_at: float):
@@ -803,14 +835,14 @@ def _backstop_reference(col, bv, setup: ClothSetup, y, x, sd, normal, margin: fl
     pts = y[deep].copy()
     out = np.zeros(len(deep), bool)
     for _ in range(TRACE):
-        tsd = _near_reference(col, pts, bv).signed_distance
+        tsd = _near_reference(col, pts, bv, margin, rule=True).signed_distance
         out |= tsd >= margin
         if out.all():
             break
         step = np.where(out, 0.0, margin - tsd + OVERSHOOT)
         pts = pts + step[:, None] * g
     else:
-        out |= _near_reference(col, pts, bv).signed_distance >= margin
+        out |= _near_reference(col, pts, bv, margin, rule=True).signed_distance >= margin
     held = np.zeros(n, bool)
     d = np.zeros((n, 3))
     for j, i in enumerate(deep):

@@ -35,9 +35,9 @@ __all__ = [
 
 class Predictor(abc.ABC):
     """``predict(sample, body, asset) -> (T, N, 3)``; see :func:`make_predictor`.  ``name``: its row in the report;
-    ``spec``: what it was made from (``lbs``, ``lbs-PRIOR``, ``FOLDER[:EFFECTS]``, ``X.pt``).  Anything with these
-    three members is a predictor (the runtime's :class:`segadeform.runtime.predictor.PackagePredictor`, which
-    cannot import this torch layer, is one)."""
+    ``spec``: what it was made from (``simulation``, ``lbs``, ``lbs-PRIOR``, ``FOLDER[:EFFECTS]``, ``X.pt``).
+    Anything with these three members is a predictor (the runtime's
+    :class:`segadeform.runtime.predictor.PackagePredictor`, which cannot import this torch layer, is one)."""
 
     name: str = ""
     spec: str = ""
