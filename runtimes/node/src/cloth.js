@@ -243,6 +243,24 @@ function stretchEdge(x, xo, edges, restLen, radius, e, loF, hiF, k, held) {
   x[q + 2] -= wb * s * d2;
 }
 
+/* Whether vertex i at x may be inside the body or closer than the margin (scl_step's may_be_near): in contact or
+ * found inside (sd, at xc), or farther from xc than its clearance. */
+function mayBeNear(x, xc, sd, i, margin, band) {
+  const d0 = x[3 * i] - xc[3 * i], d1 = x[3 * i + 1] - xc[3 * i + 1], d2 = x[3 * i + 2] - xc[3 * i + 2];
+  const clear = (sd[i] < margin + band ? sd[i] : margin + band) - margin;
+  return !(clear > 0) || sd[i] < margin + band || d0 * d0 + d1 * d1 + d2 * d2 >= clear * clear;
+}
+
+/* Vertex i appended to the push-out's list (scl_step's pick_vertex); returns the list's new length. */
+function pickVertex(x, i, q, pick, moved, m) {
+  pick[m] = i;
+  q[3 * m] = x[3 * i];
+  q[3 * m + 1] = x[3 * i + 1];
+  q[3 * m + 2] = x[3 * i + 2];
+  moved[m] = 0;
+  return m + 1;
+}
+
 /* The attachment in the settling after the push-out (scl_step's settle_attach): x within r of its target y, or within
  * the distance from y at which the sweeps and the push-out left it (x0) if that is farther; all at offset p. */
 function settleAttach(x, y, x0, p, r) {
@@ -630,7 +648,6 @@ export class ClothStage {
       }
       if (nec > 0) col.near(bv, box, mid, 0, nec, margin + band, esd, ecp, ecn);
       for (let e = 0; e < nec; e++) if (!edgeAgrees(edges, eidx[e], cn, radius, ecn, 3 * e)) esd[e] = Infinity;
-      q.set(x);
       xc.set(x);
       // the sweeps, alternating direction
       for (let it = 0; it < iters; it++) {
@@ -656,17 +673,8 @@ export class ClothStage {
       // rule for buried skin tells), and those that moved farther than their clearance since the contacts were found
       let m = 0;
       for (let i = 0; i < n; i++) {
-        const d0 = x[3 * i] - q[3 * i], d1 = x[3 * i + 1] - q[3 * i + 1], d2 = x[3 * i + 2] - q[3 * i + 2];
-        const clear = (sd[i] < margin + band ? sd[i] : margin + band) - margin;
         if (sd[i] < margin + band) this.contacts++;
-        if (!(clear > 0) || sd[i] < margin + band || d0 * d0 + d1 * d1 + d2 * d2 >= clear * clear) {
-          pick[m] = i;
-          q[3 * m] = x[3 * i];
-          q[3 * m + 1] = x[3 * i + 1];
-          q[3 * m + 2] = x[3 * i + 2];
-          moved[m] = 0;
-          m++;
-        }
+        if (mayBeNear(x, xc, sd, i, margin, band)) m = pickVertex(x, i, q, pick, moved, m);
       }
       let npushed = 0;
       held.fill(0);
@@ -699,16 +707,8 @@ export class ClothStage {
         m = 0;
         for (let i = 0; i < n; i++) {
           const d0 = x[3 * i] - q[3 * i], d1 = x[3 * i + 1] - q[3 * i + 1], d2 = x[3 * i + 2] - q[3 * i + 2];
-          const c0 = x[3 * i] - xc[3 * i], c1 = x[3 * i + 1] - xc[3 * i + 1], c2 = x[3 * i + 2] - xc[3 * i + 2];
-          const clear = (sd[i] < margin + band ? sd[i] : margin + band) - margin;
-          if (d0 * d0 + d1 * d1 + d2 * d2 > 0 &&
-              (!(clear > 0) || sd[i] < margin + band || c0 * c0 + c1 * c1 + c2 * c2 >= clear * clear)) {
-            pick[m] = i;
-            q[3 * m] = x[3 * i];
-            q[3 * m + 1] = x[3 * i + 1];
-            q[3 * m + 2] = x[3 * i + 2];
-            moved[m] = 0;
-            m++;
+          if (d0 * d0 + d1 * d1 + d2 * d2 > 0 && mayBeNear(x, xc, sd, i, margin, band)) {
+            m = pickVertex(x, i, q, pick, moved, m);
           }
         }
         if (m > 0) {

@@ -366,6 +366,26 @@ static void stretch_edge(double *x, const scl_pedge *pe, double k) {
     q[2] -= wb * s * d2;
 }
 
+/* Whether vertex i at x may be inside the body or closer than the margin: found so or in contact (sd, its signed
+ * distance where the contacts were found, at xc, within margin + band), or farther from xc than its clearance (that
+ * distance less the margin, at most the band: a vertex nearer xc is on the same side of the skin as there, and
+ * outside the margin if it was outside the band). */
+static int may_be_near(const double *x, const double *xc, const double *sd, int64_t i, double margin, double band) {
+    double d0 = x[3 * i] - xc[3 * i], d1 = x[3 * i + 1] - xc[3 * i + 1], d2 = x[3 * i + 2] - xc[3 * i + 2];
+    double clear = (sd[i] < margin + band ? sd[i] : margin + band) - margin;
+    return !(clear > 0) || sd[i] < margin + band || d0 * d0 + d1 * d1 + d2 * d2 >= clear * clear;
+}
+
+/* Vertex i appended to the push-out's list: its index to pick, its position to q, its flag in moved cleared. */
+static void pick_vertex(const double *x, int64_t i, double *q, int64_t *pick, uint8_t *moved, int64_t *m) {
+    pick[*m] = i;
+    q[3 * *m] = x[3 * i];
+    q[3 * *m + 1] = x[3 * i + 1];
+    q[3 * *m + 2] = x[3 * i + 2];
+    moved[*m] = 0;
+    (*m)++;
+}
+
 /* The attachment in the settling after the push-out: x kept within r of its target y, or within the distance from y
  * at which the sweeps and the push-out left it (x0) if that is farther -- a contact's move (an edge lifted off a
  * ridge, a vertex pushed out) is not undone. */
@@ -820,7 +840,6 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         if (nec > 0) sdc_near(collider, bv, box, mid, 0, nec, margin + band, esd, ecp, ecn, 0);
         for (e = 0; e < nec; e++)
             if (!edge_agrees(edges, eidx[e], cn, radius, ecn + 3 * e)) esd[e] = INFINITY;
-        memcpy(q, x, sizeof(double) * 3 * (size_t)n);
         memcpy(xc, x, sizeof(double) * 3 * (size_t)n);
         /* the sweeps, alternating direction */
         for (it = 0; it < iters; it++) {
@@ -851,17 +870,8 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
          * the contacts were found */
         m = 0;
         for (i = 0; i < n; i++) {
-            double d0 = x[3 * i] - q[3 * i], d1 = x[3 * i + 1] - q[3 * i + 1], d2 = x[3 * i + 2] - q[3 * i + 2];
-            double clear = (sd[i] < margin + band ? sd[i] : margin + band) - margin;
             info[I_CONTACTS] += sd[i] < margin + band;
-            if (!(clear > 0) || sd[i] < margin + band || d0 * d0 + d1 * d1 + d2 * d2 >= clear * clear) {
-                pick[m] = i;
-                q[3 * m] = x[3 * i];
-                q[3 * m + 1] = x[3 * i + 1];
-                q[3 * m + 2] = x[3 * i + 2];
-                moved[m] = 0;
-                m++;
-            }
+            if (may_be_near(x, xc, sd, i, margin, band)) pick_vertex(x, i, q, pick, moved, &m);
         }
         npushed = 0;
         for (i = 0; i < n; i++) held[i] = 0;
@@ -894,17 +904,8 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
             m = 0;
             for (i = 0; i < n; i++) {
                 double d0 = x[3 * i] - q[3 * i], d1 = x[3 * i + 1] - q[3 * i + 1], d2 = x[3 * i + 2] - q[3 * i + 2];
-                double c0 = x[3 * i] - xc[3 * i], c1 = x[3 * i + 1] - xc[3 * i + 1], c2 = x[3 * i + 2] - xc[3 * i + 2];
-                double clear = (sd[i] < margin + band ? sd[i] : margin + band) - margin;
-                if (d0 * d0 + d1 * d1 + d2 * d2 > 0 &&
-                    (!(clear > 0) || sd[i] < margin + band || c0 * c0 + c1 * c1 + c2 * c2 >= clear * clear)) {
-                    pick[m] = i;
-                    q[3 * m] = x[3 * i];
-                    q[3 * m + 1] = x[3 * i + 1];
-                    q[3 * m + 2] = x[3 * i + 2];
-                    moved[m] = 0;
-                    m++;
-                }
+                if (d0 * d0 + d1 * d1 + d2 * d2 > 0 && may_be_near(x, xc, sd, i, margin, band))
+                    pick_vertex(x, i, q, pick, moved, &m);
             }
             if (m > 0) {
                 sdc_push_out(collider, bv, box, 1, q, m, 0, m, margin, SCL_PASSES, moved);
