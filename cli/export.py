@@ -52,9 +52,18 @@ def _training_garments_option(default: str):
     help="Compare torch and onnxruntime on random inputs and print the errors.",
 )
 @click.option("--legacy", is_flag=True, help="Use the legacy (TorchScript) exporter instead of dynamo.")
+@click.option(
+    "--variants/--no-variants",
+    default=True,
+    show_default=True,
+    help="Also export a deformer for every other combination of skinning, dynamics and wrinkles (--no-variants: "
+    "the model's own only, a smaller package whose runtimes refuse the other effects).",
+)
 @_inline_weights_option
 @_training_garments_option("what the checkpoint records")
-def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy, inline_weights, training_files):
+def export_cmd(
+    checkpoint, output, random_init, config_json, seed, check, legacy, variants, inline_weights, training_files
+):
     """Export CHECKPOINT (or --random-init) to an ONNX model package (needs the 'torch' extra)."""
     try:
         import torch
@@ -95,7 +104,13 @@ def export_cmd(checkpoint, output, random_init, config_json, seed, check, legacy
 
         extra["training_garments"] = training_garments_entry(*garments)
     m = export_package(
-        model, output, dynamo=not legacy, check=check, shared_weights=not inline_weights, extra_manifest=extra
+        model,
+        output,
+        dynamo=not legacy,
+        check=check,
+        variants=variants,
+        shared_weights=not inline_weights,
+        extra_manifest=extra,
     )
     guard.record()
     click.echo(

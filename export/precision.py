@@ -131,6 +131,13 @@ def convert_package(src: str | os.PathLike, dst: str | os.PathLike, precision: s
     if not mpath.is_file():
         raise InputError("not a model package (no manifest.json)", path=src)
     m = contract.read_manifest_text(mpath.read_text(encoding="utf-8"), path=mpath)
+    if m.get("precision", "fp32") != "fp32":  # its weights are rounded already: again would round the rounding
+        raise InputError(
+            f"the package is at precision {m['precision']} already: convert the float32 package it was made from",
+            expected="a float32 package (manifest precision fp32 or none)",
+            got=m["precision"],
+            path=src,
+        )
     with atomic_directory(dst) as tmp:
         tmp = Path(tmp)
         graphs = {}

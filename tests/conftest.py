@@ -1,9 +1,19 @@
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
-import pytest
+# Under pytest-xdist (`.ci/run`: a worker per core) each worker gets its share of the cores for torch's and the BLAS's
+# threads, set before numpy or torch is first imported: two workers of two threads each on two cores ran the
+# BLAS- and torch-bound tests 3-5x slower than alone.  A variable the user set is kept.
+_WORKERS = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT") or 1)
+if _WORKERS > 1:
+    for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_var, str(max(1, (os.cpu_count() or 1) // _WORKERS)))
+
+import numpy as np  # noqa: E402 (after the thread counts above)
+import pytest  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLES = REPO / "samples"
@@ -17,6 +27,27 @@ def samples() -> Path:
 @pytest.fixture
 def rest_joints() -> np.ndarray:
     return np.load(SAMPLES / "skeletons" / "tpose_joints_24.npy")
+
+
+def made_once(tmp_path_factory, name: str, make: Callable[[Path], object]) -> Path:
+    """Folder ``name``, made by ``make(path)`` once per test run: in this process, or under pytest-xdist by the first
+    worker that asks while the others wait on a lock and then use it (a package export costs a minute or two; each
+    worker making its own doubled the suite's heaviest fixtures).  ``make`` must give the same folder whichever
+    worker runs it; a marker written after it returns says the folder is complete (a worker whose ``make`` failed
+    leaves none, and the next one to ask makes it again)."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        path = tmp_path_factory.mktemp(name) / name
+        make(path)
+        return path
+    from filelock import FileLock
+
+    root = tmp_path_factory.getbasetemp().parent  # the run's folder, above each worker's own
+    path, done = root / name, root / f"{name}.done"
+    with FileLock(str(root / f"{name}.lock")):
+        if not done.exists():
+            make(path)
+            done.touch()
+    return path
 
 
 def leftovers(directory: Path) -> list[str]:
@@ -48,8 +79,7 @@ def random_model(tmp_path_factory):
     with torch.no_grad():  # as after training: the residual corrections on, so every path is exercised
         net.weight_gate.fill_(0.7)
         net.blend_gate.fill_(0.5)
-    path = tmp_path_factory.mktemp("pkg") / "random"
-    export_package(net, path, check=False)
+    path = made_once(tmp_path_factory, "random", lambda p: export_package(net, p, check=False))
     return net.freeze(), path
 
 
@@ -71,3 +101,11 @@ def _user_cache(tmp_path_factory):
         os.environ.pop("SEGADEFORM_CACHE_DIR", None)
     else:
         os.environ["SEGADEFORM_CACHE_DIR"] = old
+
+
+def pytest_collection_modifyitems(config, items):
+    """Under pytest-xdist (`.ci/run`: ``-n auto --dist loadgroup``), the Ray tests share one worker: each starts a
+    local Ray cluster, and two at once on one machine contend for its ports and its /tmp/ray session."""
+    for item in items:
+        if "distributed" in item.path.parts:
+            item.add_marker(pytest.mark.xdist_group("ray"))

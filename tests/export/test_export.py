@@ -21,6 +21,7 @@ from segadeform.geometry import precompute_garment
 from segadeform.geometry.primitives import cylinder, grid_plane
 from segadeform.model import ModelConfig, SEGANet
 from segadeform.motion import make_motion, motion_windows
+from tests.conftest import made_once
 
 RTOL = 1e-5
 VARIANTS = {
@@ -43,13 +44,18 @@ def packages(tmp_path_factory):
             net.blend_gate.fill_(0.5)
             if net.cfg.static_blend:
                 net.static_gate.fill_(0.3)
-        d = tmp_path_factory.mktemp(name)
-        manifest = export_package(net, d / "pkg", check=False, variants=False, body=None)
+        # made once per run (made_once: under pytest-xdist this module's tests run on several workers)
+        pkg = made_once(
+            tmp_path_factory,
+            f"export-{name}",
+            lambda p, net=net: export_package(net, p, check=False, variants=False, body=None),
+        )
+        manifest = json.loads((pkg / "manifest.json").read_text())
         sessions = {
-            g: ort.InferenceSession(str(d / "pkg" / spec["file"]), providers=["CPUExecutionProvider"])
+            g: ort.InferenceSession(str(pkg / spec["file"]), providers=["CPUExecutionProvider"])
             for g, spec in graph_specs(net.cfg).items()
         }
-        out[name] = (net.freeze(), d / "pkg", manifest, sessions)
+        out[name] = (net.freeze(), pkg, manifest, sessions)
     return out
 
 
@@ -260,9 +266,17 @@ def test_stacks_in_the_model_stay_within_webgpus_buffers():
 def test_export_cli_random_init_with_check(tmp_path):
     r = CliRunner().invoke(
         cli,
-        ["export", "--random-init", "--config", '{"hidden": 16, "heads": 2}', "-o", str(tmp_path / "pkg"), "--check"],
+        ["export", "--random-init", "--config", '{"hidden": 16, "heads": 2}', "-o", str(tmp_path / "pkg"), "--check"]
+        + ["--no-variants"],  # the model's own deformer only (the variants' parity: tests/model/test_ensemble.py)
     )
     assert r.exit_code == 0, r.output
+    assert "4 graphs (default deformer_lbs)" in r.output  # encoder, deformer, the body's two
+    assert sorted(p.name for p in (tmp_path / "pkg").glob("*.onnx")) == [
+        "body_dqs.onnx",
+        "body_lbs.onnx",
+        "deformer_lbs.onnx",
+        "garment_encoder.onnx",
+    ]
     assert "deformer_lbs.vertices: max abs" in r.output and "max rel" in r.output
     rels = [float(line.rsplit("max rel ", 1)[1].split()[0]) for line in r.output.splitlines() if "max rel" in line]
     assert rels and max(rels) <= RTOL

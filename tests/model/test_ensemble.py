@@ -100,6 +100,7 @@ def test_an_exported_ensemble_matches_torch_and_runs_in_the_python_runtime(tmp_p
     m = export_package(ens, tmp_path / "pkg", body=None)
     assert m["config"]["ensemble"] == 2
     assert m["graphs"]["garment_encoder"]["outputs"][0]["shape"] == ["B", "N", 48]
+    assert len([g for g in m["parity"] if g.startswith("deformer_")]) == 8  # every effect combination checked
     worst = max(r["max_rel"] for g in m["parity"].values() for r in g.values())
     assert worst < 1e-4, m["parity"]
     pkg = ModelPackage(tmp_path / "pkg")

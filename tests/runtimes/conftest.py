@@ -7,7 +7,7 @@ import subprocess
 
 import pytest
 
-from tests.conftest import REPO, SAMPLES
+from tests.conftest import REPO, SAMPLES, made_once
 
 NODE = REPO / "runtimes" / "node"
 
@@ -27,16 +27,20 @@ def node():
 @pytest.fixture(scope="session")
 def cpp(tmp_path_factory):
     """`segadeform-run` (runtimes/cpp, with the collision kernel src/segadeform/body/_collide.c), built once per
-    session by tools/onnxruntime_cpp.sh, as an argv prefix."""
+    test run by tools/onnxruntime_cpp.sh (:func:`tests.conftest.made_once`), as an argv prefix."""
     for tool in ("go", "cmake", "g++"):
         if shutil.which(tool) is None:
             pytest.fail(f"{tool} is not on PATH (building the C++ runtime needs go, cmake and g++)")
-    build = tmp_path_factory.mktemp("cpp") / "build"
-    b = subprocess.run(
-        [str(REPO / "tools" / "onnxruntime_cpp.sh"), str(build)], capture_output=True, text=True, timeout=900
-    )
-    assert b.returncode == 0, (b.stdout + b.stderr)[-3000:]
-    return [b.stdout.strip().splitlines()[-1]]
+
+    def build(path):
+        b = subprocess.run(
+            [str(REPO / "tools" / "onnxruntime_cpp.sh"), str(path)], capture_output=True, text=True, timeout=900
+        )
+        assert b.returncode == 0, (b.stdout + b.stderr)[-3000:]
+
+    exe = made_once(tmp_path_factory, "cpp-build", build) / "segadeform-run"  # the script's output
+    assert exe.is_file(), exe
+    return [str(exe)]
 
 
 @pytest.fixture(scope="session")
