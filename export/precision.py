@@ -134,7 +134,7 @@ def convert_package(src: str | os.PathLike, dst: str | os.PathLike, precision: s
     if m.get("precision", "fp32") != "fp32":  # its weights are rounded already: again would round the rounding
         raise InputError(
             f"the package is at precision {m['precision']} already: convert the float32 package it was made from",
-            expected="a float32 package (manifest precision fp32 or none)",
+            expected="precision fp32 (or none)",
             got=m["precision"],
             path=src,
         )

@@ -10,7 +10,8 @@ from pathlib import Path
 _WORKERS = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT") or 1)
 if _WORKERS > 1:
     for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(_var, str(max(1, (os.cpu_count() or 1) // _WORKERS)))
+        _cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        os.environ.setdefault(_var, str(max(1, _cores // _WORKERS)))
 
 import numpy as np  # noqa: E402 (after the thread counts above)
 import pytest  # noqa: E402
@@ -101,11 +102,3 @@ def _user_cache(tmp_path_factory):
         os.environ.pop("SEGADEFORM_CACHE_DIR", None)
     else:
         os.environ["SEGADEFORM_CACHE_DIR"] = old
-
-
-def pytest_collection_modifyitems(config, items):
-    """Under pytest-xdist (`.ci/run`: ``-n auto --dist loadgroup``), the Ray tests share one worker: each starts a
-    local Ray cluster, and two at once on one machine contend for its ports and its /tmp/ray session."""
-    for item in items:
-        if "distributed" in item.path.parts:
-            item.add_marker(pytest.mark.xdist_group("ray"))

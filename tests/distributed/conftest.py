@@ -4,25 +4,41 @@ machine; and the rest of the suite forks worker processes, which a live Ray in t
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
 
 import pytest
 
 
+@contextlib.contextmanager
+def _one_ray_at_a_time(tmp_path_factory):
+    """Under pytest-xdist, a lock shared by the run's workers (beside their folders): one local Ray at a time on the
+    machine, as when the suite runs in one process."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        yield
+        return
+    from filelock import FileLock
+
+    with FileLock(str(tmp_path_factory.getbasetemp().parent / "ray.lock")):
+        yield
+
+
 @pytest.fixture(scope="package")
-def ray_cluster():
+def ray_cluster(tmp_path_factory):
     ray = pytest.importorskip("ray", reason="the Ray executor needs the 'ray' extra (pip install -e '.[ray]')")
-    started = not ray.is_initialized()
-    if started:
-        ray.init(
-            address="local",
-            num_cpus=2,
-            _node_ip_address="127.0.0.1",
-            include_dashboard=False,
-            log_to_driver=False,
-            logging_level=logging.WARNING,
-        )
-    assert ray.cluster_resources().get("CPU") == 2
-    yield ray
-    if started:
-        ray.shutdown()
+    with _one_ray_at_a_time(tmp_path_factory):
+        started = not ray.is_initialized()
+        if started:
+            ray.init(
+                address="local",
+                num_cpus=2,
+                _node_ip_address="127.0.0.1",
+                include_dashboard=False,
+                log_to_driver=False,
+                logging_level=logging.WARNING,
+            )
+        assert ray.cluster_resources().get("CPU") == 2
+        yield ray
+        if started:
+            ray.shutdown()
