@@ -1,7 +1,8 @@
 from __future__ import annotations
 
+import contextlib
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 # Under pytest-xdist (`.ci/run`: a worker per core) each worker gets its share of the cores for torch's and the BLAS's
@@ -9,8 +10,8 @@ from pathlib import Path
 # BLAS- and torch-bound tests 3-5x slower than alone.  A variable the user set is kept.
 _WORKERS = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT") or 1)
 if _WORKERS > 1:
+    _cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
     for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        _cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
         os.environ.setdefault(_var, str(max(1, _cores // _WORKERS)))
 
 import numpy as np  # noqa: E402 (after the thread counts above)
@@ -30,21 +31,32 @@ def rest_joints() -> np.ndarray:
     return np.load(SAMPLES / "skeletons" / "tpose_joints_24.npy")
 
 
+@contextlib.contextmanager
+def run_lock(tmp_path_factory, name: str) -> Iterator[Path | None]:
+    """Under pytest-xdist, held while no other worker of this run holds the lock ``name``; yields the run's folder
+    (above each worker's own, where the lock lies).  In one process there is nothing to wait for: yields None."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        yield None
+        return
+    from filelock import FileLock
+
+    root = tmp_path_factory.getbasetemp().parent
+    with FileLock(str(root / f"{name}.lock")):
+        yield root
+
+
 def made_once(tmp_path_factory, name: str, make: Callable[[Path], object]) -> Path:
     """Folder ``name``, made by ``make(path)`` once per test run: in this process, or under pytest-xdist by the first
     worker that asks while the others wait on a lock and then use it (a package export costs a minute or two; each
     worker making its own doubled the suite's heaviest fixtures).  ``make`` must give the same folder whichever
     worker runs it; a marker written after it returns says the folder is complete (a worker whose ``make`` failed
     leaves none, and the next one to ask makes it again)."""
-    if not os.environ.get("PYTEST_XDIST_WORKER"):
-        path = tmp_path_factory.mktemp(name) / name
-        make(path)
-        return path
-    from filelock import FileLock
-
-    root = tmp_path_factory.getbasetemp().parent  # the run's folder, above each worker's own
-    path, done = root / name, root / f"{name}.done"
-    with FileLock(str(root / f"{name}.lock")):
+    with run_lock(tmp_path_factory, name) as root:
+        if root is None:
+            path = tmp_path_factory.mktemp(name) / name
+            make(path)
+            return path
+        path, done = root / name, root / f"{name}.done"
         if not done.exists():
             make(path)
             done.touch()

@@ -4,30 +4,17 @@ machine; and the rest of the suite forks worker processes, which a live Ray in t
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import os
 
 import pytest
 
-
-@contextlib.contextmanager
-def _one_ray_at_a_time(tmp_path_factory):
-    """Under pytest-xdist, a lock shared by the run's workers (beside their folders): one local Ray at a time on the
-    machine, as when the suite runs in one process."""
-    if not os.environ.get("PYTEST_XDIST_WORKER"):
-        yield
-        return
-    from filelock import FileLock
-
-    with FileLock(str(tmp_path_factory.getbasetemp().parent / "ray.lock")):
-        yield
+from tests.conftest import run_lock
 
 
 @pytest.fixture(scope="package")
 def ray_cluster(tmp_path_factory):
     ray = pytest.importorskip("ray", reason="the Ray executor needs the 'ray' extra (pip install -e '.[ray]')")
-    with _one_ray_at_a_time(tmp_path_factory):
+    with run_lock(tmp_path_factory, "ray"):  # one local Ray at a time on the machine, as in one process
         started = not ray.is_initialized()
         if started:
             ray.init(

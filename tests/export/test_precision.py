@@ -108,6 +108,9 @@ def test_quantize_cli_and_bad_precision(tmp_path, random_package):
     )
     assert r.exit_code == 0 and "fp16-weights package" in r.output, r.output
     # a converted package is not converted again (int8 of int8 rounded the rounding): one line, exit 1, nothing written
+    from tests.cli.test_output_safety import folder_hash
+
+    before = {src: folder_hash(tmp_path / src) for src in ("q8", "h")}
     for src, precision in (("q8", "int8"), ("q8", "fp16-weights"), ("h", "int8")):
         out = tmp_path / f"again-{src}-{precision}"
         r = CliRunner().invoke(cli, ["quantize", str(tmp_path / src), "-o", str(out), "--precision", precision])
@@ -119,6 +122,7 @@ def test_quantize_cli_and_bad_precision(tmp_path, random_package):
     with pytest.raises(InputError, match="at precision fp16-weights already"):  # fp32 too: not a command's choice
         convert_package(tmp_path / "h", tmp_path / "back", "fp32")
     assert not (tmp_path / "back").exists()
+    assert {src: folder_hash(tmp_path / src) for src in ("q8", "h")} == before  # the packages given are untouched
     with pytest.raises(InputError, match="unknown precision"):
         convert_package(random_package, tmp_path / "x", "fp4")
     assert not (tmp_path / "x").exists()
