@@ -556,13 +556,16 @@ export class ClothStage {
     const y = target instanceof Float64Array ? target : new Float64Array(target);
     const B = body instanceof Float64Array ? body : new Float64Array(body);
     const out = new Float64Array(nb * n * 3);
+    // every frame checked before any is stepped (as scl_step does): a refused call leaves the state as it was
     for (let f = 0; f < nb; f++) {
-      const yo = 3 * n * f, xo = 3 * n * f, bo = 3 * nv * f;
-      let have = this.have;
-      if (!allFinite(y, yo, 3 * n) || !allFinite(B, bo, 3 * nv)) {
+      if (!allFinite(y, 3 * n * f, 3 * n) || !allFinite(B, 3 * nv * f, 3 * nv)) {
         throw new Error(`the cloth stage got NaN or inf at frame ${this.frames + f} (expected finite coordinates from ` +
           "the deformer and the body)");
       }
+    }
+    for (let f = 0; f < nb; f++) {
+      const yo = 3 * n * f, xo = 3 * n * f, bo = 3 * nv * f;
+      let have = this.have;
       if (have > 0) { // a teleport: the target moved more than `reset` on average
         let s = 0;
         for (let i = 0; i < n; i++) {

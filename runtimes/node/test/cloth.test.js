@@ -68,4 +68,13 @@ test("a stage far from the body: the first frame is its target, batches give the
   const bad = targets.slice(0, 3 * n);
   bad[4] = NaN;
   assert.throws(() => st.step(bad, bodies.slice(0, 12), 1), /NaN or inf/);
+  // and takes nothing, even when the bad frame is not the call's first: the stage goes on as if it had not been made
+  const st2 = new ClothStage(setup, new BodyCollider(body, bf), DEFAULT_CLOTH);
+  const first = st2.step(targets.slice(0, 2 * 3 * n), bodies.slice(0, 24), 2);
+  const late = targets.slice(2 * 3 * n, 4 * 3 * n);
+  late[3 * n + 4] = Infinity;
+  assert.throws(() => st2.step(late, bodies.slice(24, 48), 2), /NaN or inf at frame 3/);
+  assert.equal(st2.frames, 2);
+  const after = st2.step(targets.slice(2 * 3 * n), bodies.slice(24), 4);
+  assert.deepEqual(Array.from(first).concat(Array.from(after)), Array.from(one));
 });

@@ -108,7 +108,7 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 9 /* 9: its contact lookups leave pinched cloth pinched (the rule for buried skin only in the final
+#define SCL_ABI 10 /* 10: every frame checked for NaN and inf before any is stepped (the state unchanged on one); 9: its contact lookups leave pinched cloth pinched (the rule for buried skin only in the final
                        * push-out and the backstop's traces), and settling sweeps after the push-out; 8: the collision kernel it embeds pushes off buried surfaces (1 Dec 2026); 7: its own acos */
 #define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
@@ -321,10 +321,17 @@ SCL_API double scl_per_sweep(double k, int64_t sweeps) {
 }
 
 static int all_finite(const double *a, int64_t n) {
+    /* a[i] - a[i] is 0, or NaN for NaN and inf; four sums of them (no branch per element, independent adds) */
+    double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
     int64_t i;
-    for (i = 0; i < n; i++)
-        if (!(a[i] - a[i] == 0)) return 0; /* NaN and inf give NaN */
-    return 1;
+    for (i = 0; i + 4 <= n; i += 4) {
+        s0 += a[i] - a[i];
+        s1 += a[i + 1] - a[i + 1];
+        s2 += a[i + 2] - a[i + 2];
+        s3 += a[i + 3] - a[i + 3];
+    }
+    for (; i < n; i++) s0 += a[i] - a[i];
+    return s0 + s1 + s2 + s3 == 0;
 }
 
 /* Keep x within r of y (r = 0: x = y). */
@@ -681,8 +688,8 @@ static int64_t backstop(const void *collider, const double *bv, const double *bo
  * I_CONTACTS: vertex-frames with a contact plane, I_PUSHED: vertex-frames the final push-out moved by more than
  * SCL_MOVED, I_TRACED: vertex-frames whose deep target the backstop traced out), and
  * I_FIRST_RESET set to the first frame of this call that reset the state (-1: none).
- * Returns 0; -1 when out of memory; 1 + f when frame f's target or body holds NaN or inf (the frames before it
- * are done, the state is theirs). */
+ * Returns 0; -1 when out of memory; 1 + f for the first frame f whose target or body holds NaN or inf: every frame
+ * is checked before any is stepped, so then no frame is done and the state and the counts are as they were. */
 SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const double *rest_len, const int64_t *nptr,
                          const int64_t *nidx, const double *radius, const int64_t *anchor, const double *tether,
                          int64_t nf, const int64_t *faces, const double *settings, const void *collider,
@@ -740,11 +747,16 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         if (nptr[i + 1] > nptr[i] && radius[i] > 0) fv[nfv++] = i;
         if (anchor[i] >= 0) tv[ntv++] = i;
     }
+    /* every frame checked before any is stepped: a frame with NaN or inf leaves the state and the counts as they were */
+    for (f = 0; f < nb; f++)
+        if (!all_finite(target + 3 * n * f, 3 * n) || !all_finite(body + 3 * nv * f, 3 * nv)) {
+            status = 1 + f;
+            goto done;
+        }
     for (f = 0; f < nb; f++) {
         const double *y = target + 3 * n * f, *bv = body + 3 * nv * f, *yc = y;
         double *x = out + 3 * n * f;
         int64_t have = info[I_HAVE], m, nt, npushed;
-        if (!all_finite(y, 3 * n) || !all_finite(bv, 3 * nv)) { status = 1 + f; goto done; }
         if (have > 0) { /* a teleport: the target moved more than `reset` on average */
             double s = 0;
             for (i = 0; i < n; i++) {

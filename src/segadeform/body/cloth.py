@@ -100,7 +100,7 @@ LOOSE = 0.01
 AGREE = 0.5
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
 SETUP_VERSION = 3
-_ABI = 9
+_ABI = 10
 #: the order of _cloth.c's settings array
 _SETTINGS = (
     "iterations",
@@ -480,6 +480,7 @@ class ClothStage:
         ]
         self._state = np.zeros((3, self.n_vertices, 3))
         self._info = np.zeros(6, np.int64)  # have, resets, contacts, pushed, first reset of the last call, traced
+        self._buffers: list[np.ndarray | None] = [None, None]  # float64 copies of the frames and the body (_float64)
         self.frames = 0
         self.first_frame = int(first_frame)
 
@@ -503,6 +504,19 @@ class ClothStage:
         """Forget the previous frames: the next one starts from its target with no velocity."""
         self._info[0] = 0
 
+    def _float64(self, a: np.ndarray, k: int) -> np.ndarray:
+        """``a`` as C-contiguous float64: itself when it is, else a copy into the stage's own buffer ``k`` (kept
+        between calls: the frames of a stream are copied into memory already mapped, not into a new array each
+        call, whose pages the system would zero first)."""
+        if a.dtype == np.float64 and a.flags.c_contiguous:
+            return a
+        buf = self._buffers[k]
+        if buf is None or buf.shape[0] < len(a) or buf.shape[1:] != a.shape[1:]:
+            buf = self._buffers[k] = np.empty(a.shape, np.float64)
+        view = buf[: len(a)]
+        np.copyto(view, a)
+        return view
+
     def step(self, targets, posed) -> np.ndarray:
         """The next frames of the garment.
 
@@ -521,18 +535,8 @@ class ClothStage:
                 expected=(len(y), self.n_body, 3),
                 got=bv.shape,
             )
-        for what, a in (("garment frames", y), ("posed body", bv)):
-            if np.isfinite(np.add.reduce(a, axis=None)):  # quick: NaN and inf propagate into the sum
-                continue
-            bad = ~np.isfinite(a).reshape(len(a), -1).all(axis=1)
-            if bad.any():
-                raise InputError(
-                    f"the cloth stage got NaN or inf in the {what} at frame "
-                    f"{self.first_frame + self.frames + int(np.argmax(bad))}",
-                    expected="finite coordinates (from the deformer and the body)",
-                )
-        y = np.ascontiguousarray(y, np.float64)
-        bv = np.ascontiguousarray(bv, np.float64)
+        y = self._float64(y, 0)
+        bv = self._float64(bv, 1)
         out = np.empty_like(y)
         before, last = self.resets, self._state[2].copy()  # the last target, for the reset's message
         e, rl, nptr, nidx, rad, anc, teth, fc = self._arrays
@@ -560,11 +564,12 @@ class ClothStage:
         )
         if status == -1:
             raise MemoryError("out of memory in the cloth stage")
-        if status != 0:  # not reached: the inputs were checked above
+        if status != 0:  # the kernel checked every frame before stepping any: nothing changed
+            f = int(status) - 1
+            what = "garment frames" if not np.isfinite(y[f]).all() else "posed body"
             raise InputError(
-                "the cloth stage got NaN or inf",
-                expected="finite coordinates",
-                got=f"frame {self.first_frame + self.frames + status - 1}",
+                f"the cloth stage got NaN or inf in the {what} at frame {self.first_frame + self.frames + f}",
+                expected="finite coordinates (from the deformer and the body)",
             )
         if self.resets > before and before == 0:  # the first reset is said, once
             f = int(self._info[4])
