@@ -142,6 +142,11 @@ def dataset_make_cmd(
     finally:
         guard.abandon()  # a run that made nothing leaves no empty folder
     click.echo(f"{s.planned} planned, {s.skipped} already done, {s.kept} kept, {s.rejected} rejected -> {output}")
+    if s.unplanned:
+        click.echo(
+            f"note: {len(s.unplanned)} kept samples in {output} are not in this config (first: {s.unplanned[0]}): "
+            f"train and eval read every sample a folder holds; a training config's exclude leaves them out"
+        )
 
 
 @dataset_group.command("info")

@@ -1141,6 +1141,54 @@ def test_dataset_make_tries_the_fallbacks_on_a_rejected_sample_and_keeps_the_fir
         make_dataset(plain, tmp_path / "b", body_path=body)
 
 
+def test_a_sample_made_for_another_split_stops_the_run(tmp_path, monkeypatch, capsys):
+    """A sample keeps the split it was made for (train and eval read it from its record): when the config moves its
+    motion family to the held-out split, `dataset make` stops naming it, instead of leaving a sample the config now
+    holds out among the training samples; nothing is written.  An unchanged config goes on."""
+    from segadeform.dataset import make_dataset
+    from segadeform.dataset.store import list_samples
+    from segadeform.physics import blender
+
+    def fake_simulate(vertices, faces, body, motion, *, settings, **kw):
+        return blender.SimResult(
+            frames=np.repeat(np.asarray(vertices, np.float64)[None], motion.n_frames, axis=0),
+            fps=motion.fps,
+            settings={"quality": settings.quality},
+            blender={"blender_version": "fake", "simulate_seconds": 0.0, "seconds_per_frame": 0.0},
+            preroll_frames=0,
+            wall_seconds=0.0,
+        )
+
+    monkeypatch.setattr(blender, "simulate", fake_simulate)
+    body = SAMPLES / "bodies" / "default_body.npz"
+    text = _FALLBACK_TEXT.format(fallback="").replace("fps = 30.0", "fps = 30.0\ncross_splits = true")
+    before = load_dataset_config(_write(tmp_path, "a.toml", text))
+    out = tmp_path / "d"
+    assert make_dataset(before, out, body_path=body).kept == 2
+    assert list_samples(out, "train") == ["skirt__b0__dance", "skirt__b0__walk"]
+    assert make_dataset(before, out, body_path=body).skipped == 2  # unchanged: goes on
+    moved = load_dataset_config(
+        _write(tmp_path, "b.toml", text.replace('kind = "dance"', 'kind = "dance"\nsplit = "test"'))
+    )
+    files = sorted(p.relative_to(out) for p in out.rglob("*"))
+    with pytest.raises(
+        InputError, match=r"made for another split .*skirt__b0__dance, made as 'train', now 'test-motion'"
+    ):
+        make_dataset(moved, out, body_path=body)
+    assert sorted(p.relative_to(out) for p in out.rglob("*")) == files  # nothing written
+    # the same when the samples are in a read-only root and the run writes to another folder
+    with pytest.raises(InputError, match="made for another split"):
+        make_dataset(moved, tmp_path / "new", body_path=body, roots=[out])
+    # an entry removed from the config: its samples stay (train and eval read them), and the run says so
+    cut = text[: text.index("[[motions]]\nname = \"dance\"")]
+    fewer = _write(tmp_path, "c.toml", cut)
+    assert make_dataset(load_dataset_config(fewer), out, body_path=body).unplanned == ("skirt__b0__dance",)
+    assert main(["dataset", "make", str(fewer), "-o", str(out), "-j", "1"]) == 0
+    said = capsys.readouterr().out
+    assert "note: 1 kept samples in" in said and "not in this config (first: skirt__b0__dance)" in said, said
+    assert make_dataset(before, out, body_path=body).unplanned == ()
+
+
 def test_a_samples_motion_loses_the_frames_a_capture_settles_from_and_its_glitches(tmp_path):
     """A capture whose first frames throw a thigh about and whose markers swap mid-clip is played to the
     simulator without either: every joint of the motion it gets (lead included) moves slower than a person can."""

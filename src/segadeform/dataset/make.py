@@ -652,26 +652,43 @@ def _run_task(t: _SampleTask) -> dict:
 
 
 def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample], roots=None) -> None:
-    """Stop if a finished sample's recorded spec (in ``out`` or in the read-only ``roots``, a
-    :class:`~segadeform.dataset.roots.DatasetRoots`) differs from what the config now asks of its id."""
+    """Stop if a finished sample's record (in ``out`` or in the read-only ``roots``, a
+    :class:`~segadeform.dataset.roots.DatasetRoots`) differs from what the config now asks of its id: its spec (the
+    data), or its split (a garment, motion family or body moved between splits: ``train`` and ``eval`` take a
+    sample's split from its record, so a sample made for training whose family the config now holds out would be
+    trained on and tested on)."""
     loc = open_location(out)
-    bad = []
+    bad, moved = [], []
     names = {d: set(loc.listdir(d)) for d in ("samples", "rejected")}
     for p in plan:
+        rec, kept = None, False
         for d in ("samples", "rejected"):
             if f"{p.id}.json" in names[d]:
-                old = json.loads(loc.read_text(f"{d}/{p.id}.json")).get("spec")
-                if old is not None and old not in sample_specs(cfg, p):
-                    bad.append(p.id)
-            elif roots is not None and roots.has(p.id):
-                old = roots.spec(p.id)
-                if old is not None and old not in sample_specs(cfg, p):
-                    bad.append(p.id)
+                rec, kept = json.loads(loc.read_text(f"{d}/{p.id}.json")), d == "samples"
+                break
+        if rec is None and roots is not None:
+            rec, kept = roots.record(p.id)
+        if rec is None:
+            continue
+        old = rec.get("spec")
+        if old is not None and old not in sample_specs(cfg, p):
+            bad.append(p.id)
+        elif kept and rec.get("split") is not None and rec.get("split") != p.split:  # (a rejected one trains nothing)
+            moved.append((p.id, rec.get("split"), p.split))
     if bad:
         raise InputError(
             f"{len(bad)} finished samples of this dataset were made from other settings than this "
             f"config gives them (first: {bad[0]}); give changed entries new names, keep bodies in "
             f"order, or use a new folder",
+            path=str(loc),
+        )
+    if moved:
+        sid, was, now = moved[0]
+        raise InputError(
+            f"{len(moved)} finished samples of this dataset were made for another split than this config puts "
+            f"them in (first: {sid}, made as '{was}', now '{now}'): a garment, motion family or body moved between "
+            f"splits, and a sample keeps the split it was made for; give the moved entries new names or use a new "
+            f"folder",
             path=str(loc),
         )
 
@@ -732,6 +749,7 @@ class DatasetSummary:
     kept: int
     rejected: int
     records: list
+    unplanned: tuple = ()  # ids of kept samples in the folder that this config does not plan (an entry removed)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -930,6 +948,7 @@ def make_dataset(
     plan = sample_plan(cfg)
     check_splits(cfg, plan)
     _check_done(loc, cfg, plan, extra)
+    planned = {p.id for p in plan}  # the whole plan: what a kept sample not in it is told against
     _keep_config(loc, cfg)
     if splits:  # the whole plan was checked and ordered as always; only the chosen splits are made
         plan = [p for p in plan if split_group(p.split) in splits]
@@ -998,4 +1017,12 @@ def make_dataset(
         if own:
             ex.close()
     kept = sum(r["status"] == "kept" for r in records)
-    return DatasetSummary(planned=len(plan), skipped=skipped, kept=kept, rejected=len(records) - kept, records=records)
+    unplanned = tuple(sorted(n[:-5] for n in loc.listdir("samples") if n.endswith(".json") and n[:-5] not in planned))
+    return DatasetSummary(
+        planned=len(plan),
+        skipped=skipped,
+        kept=kept,
+        rejected=len(records) - kept,
+        records=records,
+        unplanned=unplanned,
+    )

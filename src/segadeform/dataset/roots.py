@@ -144,6 +144,14 @@ class DatasetRoots:
     def has(self, sid: str) -> bool:
         return any((f, sid) in self._where for f in SAMPLE_FOLDERS)
 
+    def record(self, sid: str) -> tuple[dict | None, bool]:
+        """The metadata of sample ``sid`` from the first of its folders (kept, then rejected) a root holds it in,
+        and whether that is the kept samples' folder; (None, False) when no root holds it."""
+        for f in SAMPLE_FOLDERS:
+            if (f, sid) in self._where:
+                return self.meta(sid, f), f == "samples"
+        return None, False
+
     def spec(self, sid: str) -> str | None:
         """The ``spec`` digest the serving root records for sample ``sid`` (None when it records none)."""
         got = self._spec.get(sid)
