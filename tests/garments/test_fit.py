@@ -170,6 +170,10 @@ def test_a_garment_scaled_down_is_named_so(body, dress):
         check_placement(dress.vertices * 0.001, rest, body.faces, path=Path("g.obj"))
     with pytest.raises(PlacementError, match="mm across"):  # moved onto the body, still no garment
         check_placement(dress.vertices * 0.001 + [0.0, 1.0, 0.1], rest, body.faces)
+    # a tenth: a move also puts it near the skin (between the thighs, 5 cm from it: a user's trial took that
+    # advice and ran a 7 cm "garment"), but scaled back it sits as a garment does: that is the fix named
+    with pytest.raises(PlacementError, match=r"once scaled by 10\b.*--scale 10\b"):
+        check_placement(dress.vertices * 0.1, rest, body.faces, path=Path("g.obj"))
 
 
 def test_vertices_in_no_face_are_left_out(body):

@@ -172,3 +172,23 @@ def test_failed_write_leaves_nothing(tmp_path):
         write_obj(tmp_path / "x.obj", Mesh(vertices=bad, faces=np.array([[0, 1, 2]])))
     assert not (tmp_path / "x.obj").exists()
     assert leftovers(tmp_path) == []
+
+
+def test_a_file_cut_short_is_refused_naming_its_last_line(tmp_path, samples):
+    """A user's trial: an OBJ cut at 90 % of its bytes (a copy that stopped) ran with a tenth of its faces gone, exit
+    0.  A file whose last element line has no line break is refused at that line; one that ends with a line break, or
+    whose last line without one is a comment or a group name, is read."""
+    whole = (samples / "garments" / "skirt.obj").read_text()
+    lines = whole.count("\n")
+    for cut in (0.9, 0.999):
+        p = write(tmp_path, whole[: int(cut * len(whole))], f"cut{cut}.obj")
+        with pytest.raises(FileFormatError, match=r"cut short") as ei:
+            read_mesh(p)
+        assert f"cut{cut}.obj" in str(ei.value) and "\n" not in str(ei.value)
+        assert ":" + str(whole[: int(cut * len(whole))].count("\n") + 1) in str(ei.value)  # the line it ends on
+    assert lines > 100 and read_obj(write(tmp_path, whole, "whole.obj")).n_faces == 2 * 64 * 23
+    quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4"
+    with pytest.raises(FileFormatError, match="last 'f' line"):
+        read_obj(write(tmp_path, quad, "q.obj"))
+    for tail in ("\n", "\n# end", "\ng skirt", "\r\n"):
+        assert read_obj(write(tmp_path, quad + tail, "q.obj")).n_faces == 2

@@ -319,47 +319,63 @@ def check_placement(
                 expected=f"a garment made for betas {shape}: `segadeform garment make KIND --betas "
                 f"{shape}`, `segadeform garment fit G.mhclo --betas {shape}`, or --force",
             )
-    # a garment of a human's size that a move puts on the body is off by its origin: asked before units, which a
-    # garment 1 m to the side also passed once read in dm (a 10 cm dress then sat on the hips: a user's trial)
+    # every fix that puts the garment on the body -- a move (another body's origin), other units or up axis, a scale
+    # -- and the one it sits closest to the skin after is named: the first that fit was named before, and a move
+    # was asked first because a dress 1 m to the side also fit once read in dm (a 10 cm dress on the hips), but then
+    # a top scaled by 0.1 fit once moved between the thighs (a 7 cm "garment" 5 cm from the skin: a user's trial);
+    # read right, each sits as a garment does (median ~1 cm)
+    fixes = []  # (median distance after, order, message, expected)
     moved = _offset_fix(v, bv, proxy, top, floor)
     if moved is not None:
         off, where = moved
-        raise PlacementError(
-            f"the garment does not sit on the body ({what}); it does {where}: it was placed for "
-            "another body's origin (SMPL-fitted garments sit around SMPL's pelvis at y = 0)",
-            path=path,
-            expected=f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
-            f"--offset {off[0]:.2f},{off[1]:.2f},{off[2]:.2f}` or `--from-body THEIR_BODY.obj`, "
-            "or pass --force",
+        fixes.append(
+            (
+                _stats(v + off, proxy, top, floor)["median"],
+                len(fixes),
+                f"the garment does not sit on the body ({what}); it does {where}: it was placed for "
+                "another body's origin (SMPL-fitted garments sit around SMPL's pelvis at y = 0)",
+                f"a garment on this body: run `segadeform garment fit {g} -o FIXED.obj "
+                f"--offset {off[0]:.2f},{off[1]:.2f},{off[2]:.2f}` or `--from-body THEIR_BODY.obj`, "
+                "or pass --force",
+            )
         )
     for units in (None, "dm", "cm", "mm", "inch"):
         for up in ("y", "z", "-z"):
             if units is None and up == "y":
                 continue
-            w = fix_units_and_axes(v, units=units, up=up)
-            if _fits(_stats(w, proxy, top, floor)):
+            fst = _stats(fix_units_and_axes(v, units=units, up=up), proxy, top, floor)
+            if _fits(fst):
                 opts = (f" --units {units}" if units else "") + (f" --up {up}" if up != "y" else "")
                 read = " and ".join(
                     x
                     for x in ((f"in {units}" if units else ""), (f"with +{up.lstrip('-')} up" if up != "y" else ""))
                     if x
                 )
-                raise PlacementError(
-                    f"the garment does not sit on the body ({what}); it does once read {read}",
-                    path=path,
-                    expected=f"metres, +Y up: run `segadeform garment fit {g} -o FIXED.obj{opts}`, or pass --force",
+                fixes.append(
+                    (
+                        fst["median"],
+                        len(fixes),
+                        f"the garment does not sit on the body ({what}); it does once read {read}",
+                        f"metres, +Y up: run `segadeform garment fit {g} -o FIXED.obj{opts}`, or pass --force",
+                    )
                 )
     for scale in (10.0, 100.0, 1000.0):  # a file scaled down (the units above scale it the other way)
         for up in ("y", "z", "-z"):
-            w = fix_units_and_axes(v, up=up, scale=scale)
-            if _fits(_stats(w, proxy, top, floor)):
+            fst = _stats(fix_units_and_axes(v, up=up, scale=scale), proxy, top, floor)
+            if _fits(fst):
                 opts = f" --scale {scale:g}" + (f" --up {up}" if up != "y" else "")
-                raise PlacementError(
-                    f"the garment does not sit on the body ({what}); it does once scaled by {scale:g}"
-                    + (f" with +{up.lstrip('-')} up" if up != "y" else ""),
-                    path=path,
-                    expected=f"metres, +Y up: run `segadeform garment fit {g} -o FIXED.obj{opts}`, or pass --force",
+                fixes.append(
+                    (
+                        fst["median"],
+                        len(fixes),
+                        f"the garment does not sit on the body ({what}); it does once scaled by {scale:g}"
+                        + (f" with +{up.lstrip('-')} up" if up != "y" else ""),
+                        f"metres, +Y up: run `segadeform garment fit {g} -o FIXED.obj{opts}`, or pass --force",
+                    )
                 )
+    if fixes:
+        _, _, message, expected = min(fixes)
+        raise PlacementError(message, path=path, expected=expected)
     raise PlacementError(
         f"the garment does not sit on the body ({what}); it was made for another body, pose or body shape (betas)",
         path=path,

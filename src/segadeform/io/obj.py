@@ -151,6 +151,16 @@ def read_obj(path: str | os.PathLike) -> Mesh:
         raise file_error(e, p) from None
     if "\x00" in text:
         raise FileFormatError("not a text OBJ file (contains NUL bytes)", path=p)
+    if text and not text.endswith(("\n", "\r")):  # a copy or download that stopped mid-line (a user's trial: an OBJ
+        last = list(_logical_lines(text))[-1]  # cut at 90 % ran with a tenth of its faces gone and exit 0)
+        key = last[1].split()[0] if last[1].split() else ""
+        if key in ("v", "vt", "vn", "vp", "f", "l", "p"):
+            raise FileFormatError(
+                f"the file ends in the middle of its last '{key}' line, with no line break: is it cut short? "
+                "(a whole file ends with a line break: add one if this one is whole)",
+                path=p,
+                line=last[0],
+            )
 
     verts: list[list[float]] = []
     colors: list[list[float] | None] = []
