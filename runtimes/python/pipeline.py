@@ -181,6 +181,7 @@ class Run:
         self.effects, self.output, self.output_format, self.up = effects, Path(output), output_format, up
         self.body_output = Path(body_output) if body_output else None
         self.batch, self.cache, self.force = int(batch), cache, bool(force)
+        self._asset: GarmentAsset | None = None  # checked_asset's
         self.start, self.stop = frame_range(frames, motion.n_frames)
         self.guard = guard
         if guard is not None:  # refused before any work: an output over a file segadeform did not write ...
@@ -228,6 +229,27 @@ class Run:
                 log.warning("cannot write the asset cache %s (%s)", cpath, e.strerror or e)
         return a
 
+    def checked_asset(self) -> GarmentAsset:
+        """The garment's asset (:meth:`load_asset`), its placement on the body checked (a garment that is not on it --
+        units, axes, another body -- and a body shape no human has are refused; ``force``: not checked).  Done once:
+        :func:`run_scene` asks before it says anything about the motion, so a bad garment is one line."""
+        if self._asset is None:
+            asset = self.load_asset(self.body.rest_joints(self.betas)[0])
+            if not self.force:
+                check_body_height(self.body, self.betas)
+                check_placement(
+                    asset.vertices,
+                    self.body.shaped_vertices(self.betas)[0],
+                    self.body.faces,
+                    faces=asset.faces,
+                    path=self.garment,
+                    template_vertices=self.body.v_template,
+                    betas=self.betas,
+                    recorded_betas=recorded_betas(self.garment),
+                )
+            self._asset = asset
+        return self._asset
+
     def _cloth_stage(self, asset: GarmentAsset):
         """The cloth stage for this run: the garment's per-garment data on the body at rest (posed as the run poses
         it, zero pose: the same float32 body the other runtimes use with the body graph), cached with the garment,
@@ -254,19 +276,7 @@ class Run:
         stage = {k: 0.0 for k in ("precompute", "encode", "deform", "pose body", "collisions", "cloth", "write")}
         t = time.perf_counter()
         joints = self.body.rest_joints(self.betas)[0]
-        asset = self.load_asset(joints)
-        if not self.force:  # refuse a garment that is not on the body (units, axes, another body)
-            check_body_height(self.body, self.betas)  # and a body shape no human has (--force: meant)
-            check_placement(
-                asset.vertices,
-                self.body.shaped_vertices(self.betas)[0],
-                self.body.faces,
-                faces=asset.faces,
-                path=self.garment,
-                template_vertices=self.body.v_template,
-                betas=self.betas,
-                recorded_betas=recorded_betas(self.garment),
-            )
+        asset = self.checked_asset()
         stage["precompute"] += time.perf_counter() - t
         t = time.perf_counter()
         P = self.deformer.encode(asset, joints, self.betas, cache_dir=self._cache_dir())
@@ -500,25 +510,30 @@ def run_scene(
         frame_range(scene.motion.frames, motion.n_frames)
     except InputError as e:
         raise e.with_path(scene.path) if scene.path is not None and frames_from_scene else e from None
+    said: list = []  # what the run says of the motion: after the garment is checked (a bad one is then one line)
     if not scene.motion.floor:  # feet far from the floor all clip long: another origin, convention or units
         shift = floor_shift(motion, body.rest_joints(scene.betas)[0], typical=True)
         if abs(shift) > FLOOR_WARN_M:
-            log.warning(
-                "motion %s: its feet are %.2f m %s the floor in most frames (another origin, translation convention "
-                "or units?); --floor (floor = true in a scene's [motion]) stands it on the floor",
-                Path(scene.motion.file or scene.motion.kind or "motion").name,
-                abs(shift),
-                "below" if shift > 0 else "above",
+            said.append(
+                (
+                    "motion %s: its feet are %.2f m %s the floor in most frames (another origin, translation "
+                    "convention or units?); --floor (floor = true in a scene's [motion]) stands it on the floor",
+                    Path(scene.motion.file or scene.motion.kind or "motion").name,
+                    abs(shift),
+                    "below" if shift > 0 else "above",
+                )
             )
     settle, jumps = glitches_in_range(motion, scene.motion.frames)  # inside the range the run plays
     if settle or jumps:
-        log.warning(
-            "motion %s: %d leading frames its capture settles from and %d frames it jumps to and back from "
-            "(joints faster than 20 m/s) throw the cloth about; --repair-glitches (repair_glitches = true in a "
-            "scene's [motion]) rebuilds them",
-            Path(scene.motion.file or "motion").name,
-            settle,
-            jumps,
+        said.append(
+            (
+                "motion %s: %d leading frames its capture settles from and %d frames it jumps to and back from "
+                "(joints faster than 20 m/s) throw the cloth about; --repair-glitches (repair_glitches = true in a "
+                "scene's [motion]) rebuilds them",
+                Path(scene.motion.file or "motion").name,
+                settle,
+                jumps,
+            )
         )
     out = Path(output) if output is not None else scene.output
     run = Run(
@@ -539,4 +554,7 @@ def run_scene(
         body_backend=body_backend,
         guard=guard,
     )
+    run.checked_asset()
+    for words in said:
+        log.warning(*words)
     return run.execute(progress)

@@ -11,6 +11,7 @@ from click.testing import CliRunner
 
 from segadeform.cli.main import cli
 from segadeform.errors import InputError
+from segadeform.io import read_mesh
 from segadeform.motion import frame_range, make_motion, select_frames
 
 from ..conftest import SAMPLES
@@ -96,3 +97,29 @@ def test_run_repairs_a_captures_glitches_when_asked_and_keeps_its_frames(tmp_pat
         assert not n or "0 leading frames its capture settles from and 2 frames it jumps" in said[0], said
     moved = np.abs(out["as_is"] - out["repaired"]).max(axis=(1, 2))
     assert moved[60:62].min() > 0.01 and moved[:50].max() == 0.0  # the jump is gone; the frames before are the file's
+    # a garment that is not on the body is refused in one line: nothing is said of the motion first (a user's trial
+    # got the glitches' warning above the garment's error)
+    (tmp_path / "small.obj").write_text(
+        "".join(
+            f"v {0.1 * x:.5f} {0.1 * y:.5f} {0.1 * z:.5f}\n"
+            for x, y, z in read_mesh(SAMPLES / "garments" / "skirt.obj").vertices
+        )
+        + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in read_mesh(SAMPLES / "garments" / "skirt.obj").faces)
+    )
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        r = CliRunner().invoke(
+            cli,
+            [
+                "run",
+                "--garment",
+                str(tmp_path / "small.obj"),
+                "--motion",
+                str(tmp_path / "cap.npz"),
+                "-o",
+                str(tmp_path / "s.pc2"),
+            ],
+        )
+    assert r.exit_code == 1 and "small.obj" in r.output and "does not sit on the body" in r.output, r.output
+    assert [rec.getMessage() for rec in caplog.records if rec.levelno >= logging.WARNING] == [], caplog.records
+    assert not (tmp_path / "s.pc2").exists()
