@@ -324,7 +324,7 @@ def check_placement(
     # was asked first because a dress 1 m to the side also fit once read in dm (a 10 cm dress on the hips), but then
     # a top scaled by 0.1 fit once moved between the thighs (a 7 cm "garment" 5 cm from the skin: a user's trial);
     # read right, each sits as a garment does (median ~1 cm)
-    fixes = []  # (median distance after, order, message, expected)
+    fixes: list[tuple[float, int, str, str]] = []  # (median distance after, order, message, expected)
     moved = _offset_fix(v, bv, proxy, top, floor)
     if moved is not None:
         off, where = moved
