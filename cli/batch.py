@@ -6,14 +6,14 @@ from pathlib import Path
 
 import click
 
-from .main import cli
+from .main import PathParam, cli
 
 #: the top-level names a batch writes: jobs/ (the records) and GARMENT__MOTION outputs
 BATCH_LAYOUT = ("jobs", "*__*")
 
 
 @cli.command("batch")
-@click.argument("jobs_file", metavar="JOBS.toml", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("jobs_file", metavar="JOBS.toml", type=PathParam(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", help="Folder or fsspec URL for the outputs (overrides [batch] output).")
 @click.option(
     "-j",

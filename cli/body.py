@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from .main import cli
+from .main import PathParam, cli
 
 
 @cli.group("body")
@@ -16,7 +16,7 @@ def body_group():
 
 
 @body_group.command("info")
-@click.argument("body", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("body", type=PathParam(dir_okay=False, path_type=Path))
 def info_cmd(body):
     """Print the size, skeleton and shape space of BODY (.npz or SMPL .pkl)."""
     from segadeform.body import load_body
@@ -39,7 +39,7 @@ def info_cmd(body):
 
 
 @body_group.command("bake")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=PathParam(dir_okay=False, path_type=Path))
 @click.option(
     "--n-train",
     type=click.IntRange(min=12),

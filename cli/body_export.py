@@ -6,22 +6,22 @@ from pathlib import Path
 
 import click
 
-from .main import cli
+from .main import PathParam, cli
 
 
 @cli.command("export-body")
-@click.argument("body", required=False, type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.argument("body", required=False, type=PathParam(dir_okay=False, exists=True, path_type=Path))
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(file_okay=False, exists=True, path_type=Path),
+    type=PathParam(file_okay=False, exists=True, path_type=Path),
     help="The model package to give the body graphs (replaced in place, atomically).",
 )
 @click.option(
     "--to",
     "copy_to",
-    type=click.Path(file_okay=False, path_type=Path),
+    type=PathParam(file_okay=False, path_type=Path),
     help="Write the package with the body graphs here instead of replacing it.",
 )
 def export_body_cmd(body, output, copy_to):

@@ -6,13 +6,13 @@ from pathlib import Path
 
 import click
 
-from .main import cli
+from .main import PathParam, cli
 
 
 @cli.command("bundle")
-@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path), help="OUT.sgdb")
-@click.option("--model", type=click.Path(file_okay=False, path_type=Path), help="Model package directory.")
+@click.argument("scene", type=PathParam(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=PathParam(dir_okay=False, path_type=Path), help="OUT.sgdb")
+@click.option("--model", type=PathParam(file_okay=False, path_type=Path), help="Model package directory.")
 @click.option("--no-expected", is_flag=True, help="Leave out the Python runtime's output.")
 @click.option(
     "--frames",

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from .main import cli
+from .main import PathParam, cli
 
 #: what `dataset make` writes at the top of its folder (segadeform.dataset.make), and what marks a dataset
 #: folder made before folders had an outputs manifest
@@ -37,7 +37,7 @@ def dataset_group():
 
 
 @dataset_group.command("make")
-@click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("config", type=PathParam(dir_okay=False, path_type=Path))
 @click.option(
     "-o",
     "--output",
@@ -57,14 +57,14 @@ def dataset_group():
     metavar="local|ray|ray://HOST:PORT|ray:ADDRESS",
     help="Where the samples are simulated: this machine's process pool or a Ray cluster (needs the 'ray' extra).",
 )
-@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
+@click.option("--body", type=PathParam(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option("--limit", type=click.IntRange(min=1), help="Make at most this many samples now.")
-@click.option("--sim-python", type=click.Path(dir_okay=False, path_type=Path), help="The simulator's Python.")
+@click.option("--sim-python", type=PathParam(dir_okay=False, path_type=Path), help="The simulator's Python.")
 @click.option(
     "--dataset",
     "roots",
     multiple=True,
-    type=click.Path(exists=True, path_type=Path),
+    type=PathParam(exists=True, path_type=Path),
     help="A read-only dataset root (a pack, a folder of packs, a dataset folder): samples it holds are "
     "done and not made again. Repeatable; the config's dataset.roots are read too.",
 )
@@ -150,7 +150,7 @@ def dataset_make_cmd(
 
 
 @dataset_group.command("info")
-@click.argument("folder", type=click.Path(exists=True, path_type=Path))
+@click.argument("folder", type=PathParam(exists=True, path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print the statistics as JSON.")
 @click.option("--by-garment", is_flag=True, help="Also kept / made per garment (each drawn or MakeHuman garment).")
 def dataset_info_cmd(folder, as_json, by_garment):
@@ -179,15 +179,15 @@ def dataset_info_cmd(folder, as_json, by_garment):
 
 
 @dataset_group.command("regate")
-@click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("config", type=PathParam(dir_okay=False, path_type=Path))
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(file_okay=False, exists=True, path_type=Path),
+    type=PathParam(file_okay=False, exists=True, path_type=Path),
     help="The dataset folder.",
 )
-@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
+@click.option("--body", type=PathParam(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 def dataset_regate_cmd(config, output, body):
     """Apply CONFIG's quality gate again to every sample of the dataset that kept its arrays (kept and
     rejected alike), moving those whose status changes; nothing is simulated."""
@@ -210,26 +210,26 @@ def dataset_regate_cmd(config, output, body):
 
 
 @dataset_group.command("pack")
-@click.argument("folder", type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.argument("folder", type=PathParam(file_okay=False, exists=True, path_type=Path))
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="The new pack (NAME.sgdpack); an existing file is never replaced.",
 )
 @click.option(
     "--skip",
     "skip",
     multiple=True,
-    type=click.Path(path_type=Path),
+    type=PathParam(path_type=Path),
     help="Packs (or a folder of packs) whose samples are left out: pack only what is new; a folder that is not "
     "there yet (a store with no pack) leaves nothing out. Repeatable.",
 )
 @click.option("--no-rejected", is_flag=True, help="Leave out the samples the quality gate rejected.")
 @click.option(
     "--body",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="Body .npz the dataset was made with (default: shipped body).",
 )
 def dataset_pack_cmd(folder, output, skip, no_rejected, body):

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from .main import cli
+from .main import PathParam, cli
 
 _inline_weights_option = click.option(
     "--inline-weights",
@@ -22,19 +22,19 @@ def _training_garments_option(default: str):
         "--training-garments",
         "training_files",
         multiple=True,
-        type=click.Path(dir_okay=False, exists=True, path_type=Path),
+        type=PathParam(dir_okay=False, exists=True, path_type=Path),
         help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
         f"warn about garments far from all of them.  Default: {default}.",
     )
 
 
 @cli.command("export")
-@click.argument("checkpoint", required=False, type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("checkpoint", required=False, type=PathParam(dir_okay=False, path_type=Path))
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(file_okay=False, path_type=Path),
+    type=PathParam(file_okay=False, path_type=Path),
     help="Model package directory to write.",
 )
 @click.option("--random-init", is_flag=True, help="Export a randomly initialised model (for tests).")
@@ -125,9 +125,9 @@ def export_cmd(
 
 
 @cli.command("quantize")
-@click.argument("package", type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.argument("package", type=PathParam(file_okay=False, exists=True, path_type=Path))
 @click.option(
-    "-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path), help="The new package folder."
+    "-o", "--output", required=True, type=PathParam(file_okay=False, path_type=Path), help="The new package folder."
 )
 @click.option(
     "--precision",
@@ -152,9 +152,9 @@ def quantize_cmd(package, output, precision):
 
 
 @cli.command("repack")
-@click.argument("package", type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.argument("package", type=PathParam(file_okay=False, exists=True, path_type=Path))
 @click.option(
-    "-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path), help="The new package folder."
+    "-o", "--output", required=True, type=PathParam(file_okay=False, path_type=Path), help="The new package folder."
 )
 @_inline_weights_option
 @_training_garments_option("the package's own list")

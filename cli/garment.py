@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from .main import cli
+from .main import PathParam, cli
 
 
 def _betas(betas):
@@ -24,8 +24,8 @@ def garment_group():
 
 @garment_group.command("make")
 @click.argument("kind")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path), help="Output OBJ.")
-@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
+@click.option("-o", "--output", required=True, type=PathParam(dir_okay=False, path_type=Path), help="Output OBJ.")
+@click.option("--body", type=PathParam(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option("--betas", help="Comma-separated body shape coefficients.")
 @click.option("--length", type=float, help="Skirt hem / trouser leg length, 0..1 of hip-to-ankle.")
 @click.option("--flare", type=float, default=0.25, show_default=True, help="Skirt widening at the hem.")
@@ -75,20 +75,20 @@ def garment_kinds_cmd():
 
 
 @garment_group.command("fit")
-@click.argument("garment", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path), help="Fitted OBJ.")
+@click.argument("garment", type=PathParam(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=PathParam(dir_okay=False, path_type=Path), help="Fitted OBJ.")
 @click.option(
     "--mhclo",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="MakeHuman binding (default: GARMENT itself if .mhclo, else a .mhclo of the same name beside it).",
 )
 @click.option(
     "--from-body",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="The body mesh the garment was modelled on: any topology and units, in a T- or A-pose or walking "
     "(its units and up axis, y or z, are read from its height unless --units/--up say).",
 )
-@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Target body .npz (default: shipped).")
+@click.option("--body", type=PathParam(dir_okay=False, path_type=Path), help="Target body .npz (default: shipped).")
 @click.option("--betas", help="Target body shape, comma-separated coefficients.")
 @click.option("--units", help="Units of the garment (and --from-body) file: m, dm, cm, mm, inch, ft or a number.")
 @click.option(

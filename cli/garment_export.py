@@ -11,26 +11,27 @@ import click
 from segadeform.errors import SegadeformError
 
 from .garment import _betas, garment_group
+from .main import PathParam
 
 
 @garment_group.command("export")
-@click.argument("garment", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.argument("garment", type=PathParam(dir_okay=False, exists=True, path_type=Path))
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="The asset to write: .sgda (portable) or .npz.",
 )
 @click.option(
     "--body",
-    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    type=PathParam(dir_okay=False, exists=True, path_type=Path),
     help="Body .npz (default: the shipped body): the body the model package's body graphs pose.",
 )
 @click.option("--betas", help="Comma-separated body shape coefficients.")
 @click.option(
     "--model",
-    type=click.Path(file_okay=False, exists=True, path_type=Path),
+    type=PathParam(file_okay=False, exists=True, path_type=Path),
     help="Model package the asset is for: its descriptor length N* and skinning-weight prior "
     "(default: the shipped model).",
 )

@@ -7,11 +7,11 @@ from pathlib import Path
 
 import click
 
-from .main import cli
+from .main import PathParam, cli
 
 
 @cli.command("info")
-@click.argument("package", type=click.Path(file_okay=False, path_type=Path))
+@click.argument("package", type=PathParam(file_okay=False, path_type=Path))
 def info_cmd(package):
     """Print a model package's manifest, I/O signature and op set."""
     from segadeform.runtime import ModelPackage

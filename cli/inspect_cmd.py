@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from .main import cli
+from .main import PathParam, cli
 
 
 def _frames_summary(path, frames: np.ndarray) -> None:
@@ -38,7 +38,7 @@ def _frames_summary(path, frames: np.ndarray) -> None:
 
 
 @cli.command("inspect")
-@click.argument("path", type=click.Path(path_type=Path))
+@click.argument("path", type=PathParam(path_type=Path))
 def inspect_cmd(path):
     """Read PATH (mesh, point cache or any registered sequence format, body, motion, garment asset, scene,
     scene bundle, dataset pack or model package), validate it fully, and print a summary."""

@@ -4,12 +4,14 @@ Every command is a thin layer over a library call.  Errors the library raises
 on bad input (:class:`~segadeform.errors.SegadeformError`) and operating
 system errors become one ``Error: ...`` line on stderr and exit status 1;
 usage errors exit with 2 (click's convention).  No traceback is printed for
-either.
+either.  A path option or argument is a :class:`PathParam`: a path that is not
+what it must be (a folder for a file) is bad input, not a usage error.
 """
 
 from __future__ import annotations
 
 import os
+import stat
 import sys
 
 import click
@@ -35,6 +37,30 @@ class _Group(click.Group):
         except OSError as e:
             where = f"{e.filename}: " if getattr(e, "filename", None) else ""
             raise click.ClickException(f"{where}{e.strerror or e}") from None
+
+
+class PathParam(click.Path):
+    """``click.Path`` whose checks of the path itself are bad input in the readers' one wording
+    (:func:`segadeform.errors.file_error`): a folder where a file is expected (``run --garment "some dir"``), a file
+    where a folder is, or a path that must exist and does not is one line naming the path, exit 1 -- click said it in
+    three lines of usage with exit 2, as for a command line it cannot read (an unknown option, which stays so)."""
+
+    def convert(self, value, param, ctx):
+        from segadeform.errors import FileFormatError, file_error
+
+        if not (self.file_okay and self.allow_dash and value in ("-", b"-")):
+            path = os.fsdecode(value)
+            try:
+                mode = os.stat(os.path.realpath(path) if self.resolve_path else path).st_mode
+            except OSError as e:
+                if self.exists:
+                    raise file_error(e, path) from None
+            else:
+                if not self.dir_okay and stat.S_ISDIR(mode):
+                    raise FileFormatError("is a directory, not a file", path=path)
+                if not self.file_okay and stat.S_ISREG(mode):
+                    raise FileFormatError("is a file, not a directory", path=path)
+        return super().convert(value, param, ctx)
 
 
 def _stdout_closed() -> bool:

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from .main import cli
+from .main import PathParam, cli
 
 
 @cli.group("motion")
@@ -27,14 +27,16 @@ def motion_group():
     "-o",
     "--output",
     required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="Motion file (.npz, .bvh or .sgdm).",
 )
 def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
     """Make a procedural motion of KIND (idle, walk, run, jump, arm_swing, touch_high, torso_twist, dance)."""
     from segadeform.io.output_guard import OutputGuard
     from segadeform.motion import make_motion, write_bvh
+    from segadeform.settings.scene import check_motion_fps
 
+    check_motion_fps(fps, option="--fps")  # naming the option, as `run --fps` does
     guard = OutputGuard("motion make")
     guard.file(output)
     m = make_motion(kind, seconds=seconds, fps=fps, seed=seed, speed=speed, amplitude=amplitude, ease_in=ease_in)
@@ -49,20 +51,20 @@ def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
 
 
 @motion_group.command("info")
-@click.argument("motion", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("motion", type=PathParam(dir_okay=False, path_type=Path))
 @click.option(
     "--body",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="Retarget onto this body (default: the shipped body).",
 )
 @click.option(
     "--up", type=click.Choice(["auto", "y", "z"]), default="auto", show_default=True, help="Up axis of the file."
 )
 @click.option("--units", help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).")
-@click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path), help="BVH/AMC joint map (TOML/JSON).")
+@click.option("--joint-map", type=PathParam(dir_okay=False, path_type=Path), help="BVH/AMC joint map (TOML/JSON).")
 @click.option(
     "--skeleton",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).",
 )
 @click.option("--animation", help="glTF motions (.glb/.gltf): the animation (default: the first).")

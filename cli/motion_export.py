@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from .main import PathParam
 from .motion import motion_group
 
 
@@ -16,12 +17,12 @@ from .motion import motion_group
     "-o",
     "--output",
     required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="The motion file to write (.sgdm).",
 )
 @click.option(
     "--body",
-    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    type=PathParam(dir_okay=False, exists=True, path_type=Path),
     help="Retarget onto this body (default: the shipped body); the body the garment asset is for.",
 )
 @click.option("--betas", help="Comma-separated body shape coefficients (as for the garment asset).")
@@ -35,10 +36,10 @@ from .motion import motion_group
     help="Up axis of a motion file (AMASS is z-up).",
 )
 @click.option("--units", help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).")
-@click.option("--joint-map", type=click.Path(dir_okay=False, path_type=Path), help="BVH/AMC joint map (TOML/JSON).")
+@click.option("--joint-map", type=PathParam(dir_okay=False, path_type=Path), help="BVH/AMC joint map (TOML/JSON).")
 @click.option(
     "--skeleton",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).",
 )
 @click.option("--floor", is_flag=True, help="Move the motion so the feet touch the floor.")
@@ -87,9 +88,12 @@ def motion_export_cmd(
         write_motion_file,
     )
     from segadeform.settings import parse_frames
+    from segadeform.settings.scene import check_motion_fps
 
     if output.suffix.lower() != MOTION_SUFFIX:
         raise click.UsageError(f"-o must end in {MOTION_SUFFIX}, got {output.name!r}")
+    if fps is not None:  # naming the option, as `run --fps` does
+        check_motion_fps(fps, option="--fps")
     try:
         beta_vals = tuple(float(x) for x in betas.split(",")) if betas else ()
     except ValueError:

@@ -7,28 +7,28 @@ from pathlib import Path
 
 import click
 
-from .main import cli
+from .main import PathParam, cli
 
 
 @cli.command("precompute")
-@click.argument("garment", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("garment", type=PathParam(dir_okay=False, path_type=Path))
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="Asset file to write: .npz, or .sgda (portable: read without Python; docs/package.md).",
 )
 @click.option(
     "--joints",
     "joints_path",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="Rest-pose joints, an (S, 3) .npy array (metres, +Y up).",
 )
 @click.option(
     "--body",
     "body_path",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="Body .npz to take the rest-pose joints from.",
 )
 @click.option("--k", type=click.IntRange(min=1), default=None, help="Neighbour slots K (default: max valence, capped).")

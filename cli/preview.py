@@ -8,29 +8,29 @@ import click
 
 from segadeform.io.writer import UP_AXES
 
-from .main import cli
+from .main import PathParam, cli
 
 
 @cli.command("preview")
-@click.argument("result", type=click.Path(path_type=Path))
+@click.argument("result", type=PathParam(path_type=Path))
 @click.option(
     "--garment",
     required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="The garment mesh the result animates (its faces; same vertex count and order).",
 )
 @click.option(
     "--body",
     "body_seq",
-    type=click.Path(path_type=Path),
+    type=PathParam(path_type=Path),
     help="The posed body sequence (`run --body-out`); its faces come from the OBJ beside it, else from --body-model.",
 )
-@click.option("--body-model", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped).")
+@click.option("--body-model", type=PathParam(dir_okay=False, path_type=Path), help="Body .npz (default: shipped).")
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="preview.png (a strip of frames), .gif or .mp4 (needs ffmpeg).",
 )
 @click.option(
@@ -67,12 +67,13 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     from segadeform.io import read_mesh, read_sequence
     from segadeform.io.formats import sequence_start_frame
     from segadeform.io.output_guard import OutputGuard
-    from segadeform.preview.render import MeshLayer, fit_bounds, render, save_animation, save_image
+    from segadeform.preview.render import MeshLayer, check_encoder, fit_bounds, render, save_animation, save_image
     from segadeform.settings import Y_TO_Z, parse_frames
 
     ext = output.suffix.lower()
     if ext not in (".png", ".gif", ".mp4"):  # before any rendering
         raise InputError("unknown preview format", path=output, expected=".png, .gif or .mp4", got=ext or "none")
+    check_encoder(output)  # MP4's ffmpeg, before any rendering (it rendered every frame, then refused)
     if fps is not None and not (np.isfinite(fps) and 0 < fps <= 1000):
         raise click.UsageError(f"--fps must be a frame rate in (0, 1000], got {fps!r}")
     try:  # the titles and image files are matplotlib's: said before any rendering (a traceback after it, before)

@@ -9,7 +9,7 @@ import click
 
 from segadeform.io.writer import UP_AXES
 
-from .main import cli
+from .main import PathParam, cli
 
 
 def _fmt_from(path: Path, fmt: str | None) -> str:
@@ -33,16 +33,16 @@ def _quality_choice():
 
 
 @cli.command("run")
-@click.argument("scene", required=False, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", type=click.Path(path_type=Path), help="Output (overrides the scene's).")
-@click.option("--garment", type=click.Path(dir_okay=False, path_type=Path), help="Garment mesh (flag form).")
+@click.argument("scene", required=False, type=PathParam(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", type=PathParam(path_type=Path), help="Output (overrides the scene's).")
+@click.option("--garment", type=PathParam(dir_okay=False, path_type=Path), help="Garment mesh (flag form).")
 @click.option(
     "--motion",
     "motion_path",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="Motion .npz/.bvh/.amc/.glb/.gltf/.sgdm (flag form; CMU's .amc is read at 120 fps).",
 )
-@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz/.pkl (default: shipped body).")
+@click.option("--body", type=PathParam(dir_okay=False, path_type=Path), help="Body .npz/.pkl (default: shipped body).")
 @click.option("--betas", help="Comma-separated body shape coefficients.")
 @click.option("--effects", help="e.g. 'dqs,-wrinkles,-collisions' (default: lbs, all effects on).")
 @click.option(
@@ -66,7 +66,7 @@ def _quality_choice():
     type=_format_choice(),
     help="Output format (see segadeform.io.formats; abc needs the 'alembic' extra).",
 )
-@click.option("--model", type=click.Path(file_okay=False, path_type=Path), help="Model package directory.")
+@click.option("--model", type=PathParam(file_okay=False, path_type=Path), help="Model package directory.")
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
 @click.option("--fps", type=float, help="Resample the motion to this frame rate.")
 @click.option(
@@ -80,7 +80,7 @@ def _quality_choice():
 @click.option("--providers", help="Comma-separated onnxruntime providers, or 'auto' (default: CPU).")
 @click.option(
     "--body-out",
-    type=click.Path(path_type=Path),
+    type=PathParam(path_type=Path),
     help="Also write the posed body sequence here, in the format its extension names (.pc2 also writes the "
     "body's rest mesh beside it as .obj; no extension: a folder of OBJ frames).",
 )
@@ -99,12 +99,12 @@ def _quality_choice():
 @click.option("--units", help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).")
 @click.option(
     "--joint-map",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help='BVH joint map (TOML/JSON: smpl_name = "FileJoint") for skeletons not recognised.',
 )
 @click.option(
     "--skeleton",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).",
 )
 @click.option("--animation", help="glTF motions (.glb/.gltf): the animation to play (default: the first).")
@@ -167,7 +167,10 @@ def run_cmd(
 
     from segadeform.runtime.pipeline import run_scene
     from segadeform.settings import Effects, MotionSpec, Scene, load_scene, parse_effects, parse_frames
+    from segadeform.settings.scene import check_motion_fps
 
+    if fps is not None:  # said first, naming the option (the motion's own check named nothing)
+        check_motion_fps(fps, option="--fps")
     preset = None
     if quality:
         from segadeform.settings.presets import is_change_list, preset_effects

@@ -8,12 +8,12 @@ from pathlib import Path
 
 import click
 
-from .main import cli
+from .main import PathParam, cli
 
 
 @cli.command("simulate")
-@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", type=click.Path(path_type=Path), help="Output (overrides the scene's).")
+@click.argument("scene", type=PathParam(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", type=PathParam(path_type=Path), help="Output (overrides the scene's).")
 @click.option(
     "--effects",
     help="Simulation effects, as for run: a complete list replaces the scene's "
@@ -26,12 +26,12 @@ from .main import cli
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
 @click.option(
     "--body-out",
-    type=click.Path(path_type=Path),
+    type=PathParam(path_type=Path),
     help="Write the posed body here (overrides the scene's output.body), in the format its extension names.",
 )
 @click.option(
     "--sim-python",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="The simulator environment's Python (default: SEGADEFORM_SIM_PYTHON or .venv-sim).",
 )
 @click.option(

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from .main import cli
+from .main import PathParam, cli
 
 
 def _body(path):
@@ -17,18 +17,18 @@ def _body(path):
 
 
 @cli.command("train")
-@click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("config", type=PathParam(dir_okay=False, path_type=Path))
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(file_okay=False, path_type=Path),
+    type=PathParam(file_okay=False, path_type=Path),
     help="Run folder (an existing run of the same config is resumed).",
 )
 @click.option(
     "--dataset",
     multiple=True,
-    type=click.Path(exists=True, path_type=Path),
+    type=PathParam(exists=True, path_type=Path),
     help="A dataset root (a folder, a .sgdpack, a folder of packs); repeatable; replaces the config's [data] "
     "dataset and optional roots.",
 )
@@ -40,7 +40,7 @@ def _body(path):
     help="Overrides optim.seconds: a time budget for the run, loading included (the config's warm-up, >= 20 "
     "steps, times the machine and fixes the step count, at most optim.steps; 0: off).",
 )
-@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
+@click.option("--body", type=PathParam(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option("--val", "val_ids", multiple=True, help="Sample id to validate on at each checkpoint (repeatable).")
 @click.option("--threads", type=click.IntRange(min=1), help="torch CPU threads (default: torch's choice).")
 @click.option(
@@ -114,7 +114,7 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
 
 
 @cli.command("eval")
-@click.argument("dataset", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
+@click.argument("dataset", nargs=-1, required=True, type=PathParam(exists=True, path_type=Path))
 @click.option(
     "-m",
     "--model",
@@ -129,11 +129,11 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
     "-o",
     "--output",
     required=True,
-    type=click.Path(file_okay=False, path_type=Path),
+    type=PathParam(file_okay=False, path_type=Path),
     help="Report folder (eval.md, eval.json, PNG plots).",
 )
 @click.option("--split", default="test", show_default=True, help="Dataset split to evaluate.")
-@click.option("--body", type=click.Path(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
+@click.option("--body", type=PathParam(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option(
     "--push-out",
     "push_margin",
@@ -197,12 +197,12 @@ def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, 
 
 
 @cli.command("ensemble")
-@click.argument("checkpoints", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("checkpoints", nargs=-1, required=True, type=PathParam(dir_okay=False, path_type=Path))
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PathParam(dir_okay=False, path_type=Path),
     help="Ensemble checkpoint (.pt) to write.",
 )
 def ensemble_cmd(checkpoints, output):

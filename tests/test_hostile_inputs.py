@@ -505,15 +505,19 @@ def test_clearing_the_cache_never_deletes_a_users_file(tmp_path, monkeypatch):
 def test_a_frame_rate_that_is_not_a_number_is_refused(tmp_path):
     """`run --fps nan` ran at the motion's own rate (NaN compared unequal to nothing) and wrote its output; a
     scene's [motion] fps and `run --fps` now go through one range check, and `--fps 0` with a scene is no longer
-    read as "not given"."""
+    read as "not given".  The error names the option (a user's trial: "the motion's frame rate is out of range"
+    named nothing), in `motion export` and `motion make` too."""
+    said = "--fps: the motion's frame rate is out of range (expected 1..1000 fps, got "
     for fps in ("nan", "inf", "0", "-30", "2000"):
         out = tmp_path / f"o{fps}.pc2"
-        refused("frame rate is out of range", "run", "--garment", SKIRT, "--motion", WALK, "--fps", fps, "-o", out)
+        refused(said, "run", "--garment", SKIRT, "--motion", WALK, "--fps", fps, "-o", out)
         assert not out.exists()
     scene = SAMPLES / "scenes" / "dress_dance.toml"
     out = tmp_path / "scene.pc2"
-    refused("frame rate is out of range", "run", scene, "--fps", "0", "-o", out)
-    assert not out.exists()
+    refused(said + "0.0)", "run", scene, "--fps", "0", "-o", out)
+    refused(said + "0.0)", "motion", "export", WALK, "--fps", "0", "-o", tmp_path / "m.sgdm")
+    refused(said + "0.0)", "motion", "make", "walk", "--fps", "0", "-o", tmp_path / "m.npz")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
 def test_the_garment_cache_does_not_take_a_file_that_cannot_be_read(tmp_path):

@@ -1,9 +1,11 @@
 """`segadeform preview` renders results without Blender; `inspect` summarises point caches."""
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from segadeform.cli.main import cli
+from segadeform.errors import InputError
 from segadeform.io import Mesh, write_obj, write_pc2
 
 
@@ -165,6 +167,30 @@ def test_preview_refuses_an_unknown_format_and_a_rate_that_is_not_one_before_ren
     assert not (tmp_path / "x.png").exists()
     r = CliRunner().invoke(cli, [*base, "-o", str(tmp_path / "x.gif"), "--fps", "12"])
     assert r.exit_code == 0 and (tmp_path / "x.gif").is_file(), r.output
+
+
+def test_preview_mp4_without_ffmpeg_is_refused_before_rendering(tmp_path, monkeypatch):
+    """A user's trial: `preview -o x.mp4` on a machine without ffmpeg rendered every frame (6.8 s), then refused.
+    Now the encoder is checked first: one line naming the output, exit 1, nothing rendered or written."""
+    import shutil
+
+    import segadeform.preview.render as render_module
+
+    _scene(tmp_path)
+    which = shutil.which
+    monkeypatch.setattr(shutil, "which", lambda name, *a, **k: None if name == "ffmpeg" else which(name, *a, **k))
+    rendered = []
+    monkeypatch.setattr(render_module, "render", lambda *a, **k: rendered.append(1) or np.zeros((30, 40, 3), np.uint8))
+    out = tmp_path / "x.mp4"
+    r = CliRunner().invoke(
+        cli, ["preview", str(tmp_path / "g.pc2"), "--garment", str(tmp_path / "g.obj"), "-o", str(out)]
+    )
+    assert not rendered and r.exit_code == 1 and r.output.count("\n") == 1, r.output
+    assert f"{out}: writing .mp4 needs ffmpeg on PATH (expected" in r.output and "got no ffmpeg" in r.output, r.output
+    assert not out.exists() and not (tmp_path / ".segadeform-outputs.json").exists()
+    with pytest.raises(InputError, match="needs ffmpeg"):  # the writer refuses it too, before writing anything
+        render_module.save_animation(out, [np.zeros((30, 40, 3), np.uint8)], 30.0)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.obj", "g.pc2"]
 
 
 def test_preview_names_a_body_sequence_that_is_not_the_body(tmp_path):

@@ -1180,7 +1180,7 @@ def test_a_sample_made_for_another_split_stops_the_run(tmp_path, monkeypatch, ca
     with pytest.raises(InputError, match="made for another split"):
         make_dataset(moved, tmp_path / "new", body_path=body, roots=[out])
     # an entry removed from the config: its samples stay (train and eval read them), and the run says so
-    cut = text[: text.index("[[motions]]\nname = \"dance\"")]
+    cut = text[: text.index('[[motions]]\nname = "dance"')]
     fewer = _write(tmp_path, "c.toml", cut)
     assert make_dataset(load_dataset_config(fewer), out, body_path=body).unplanned == ("skirt__b0__dance",)
     assert main(["dataset", "make", str(fewer), "-o", str(out), "-j", "1"]) == 0

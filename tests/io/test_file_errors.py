@@ -94,3 +94,50 @@ def test_missing_file_same_wording_from_every_command(tmp_path):
             assert line.startswith(f"Error: {missing}.") and line.endswith(": no such file"), (args, line)
         else:
             assert line == f"Error: {path}: no such file", (args, line)
+
+
+def test_a_folder_for_a_file_same_wording_from_every_command(tmp_path):
+    """A user's trial: `run --garment "some dir"` printed click's three lines of usage ("File 'some dir' is a
+    directory") and exit 2.  A path option or argument that is not what it must be -- a folder for a file, a file for
+    a folder, a path that must exist and does not -- is bad input: one line naming the path, exit 1, nothing written;
+    a command line click cannot read (an unknown option) stays a usage error, exit 2."""
+    import click
+
+    from segadeform.cli.main import PathParam
+
+    folder, afile, missing = tmp_path / "some dir", tmp_path / "g.obj", tmp_path / "nope"
+    folder.mkdir()
+    afile.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    out = tmp_path / "o.pc2"
+    cases = [
+        (
+            ["run", "--garment", str(folder), "--motion", "walk.bvh", "-o", str(out)],
+            f"{folder}: is a directory, not a file",
+        ),
+        (
+            ["run", "--garment", str(afile), "--motion", str(folder), "-o", str(out)],
+            f"{folder}: is a directory, not a file",
+        ),
+        (["run", str(folder)], f"{folder}: is a directory, not a file"),
+        (["preview", str(out), "--garment", str(folder), "-o", str(tmp_path / "p.png")], f"{folder}: is a directory"),
+        (["info", str(afile)], f"{afile}: is a file, not a directory"),
+        (["garment", "export", f"{missing}.obj", "-o", str(tmp_path / "g.sgda")], f"{missing}.obj: no such file"),
+    ]
+    for args, said in cases:
+        r = CliRunner().invoke(cli, args)
+        assert r.exit_code == 1 and r.output.startswith(f"Error: {said}") and r.output.count("\n") == 1, (
+            args,
+            r.output,
+        )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.obj", "some dir"]
+    r = CliRunner().invoke(cli, ["run", "--garment", str(afile), "--no-such-option"])
+    assert r.exit_code == 2 and "Usage:" in r.output, r.output
+
+    def params(group):
+        for cmd in group.commands.values():
+            yield from params(cmd) if isinstance(cmd, click.Group) else ((cmd.name, p) for p in cmd.params)
+
+    plain = [
+        (name, p.name) for name, p in params(cli) if isinstance(p.type, click.Path) and type(p.type) is not PathParam
+    ]
+    assert plain == [], "path parameters of the commands must be segadeform.cli.main.PathParam"

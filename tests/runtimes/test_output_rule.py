@@ -86,12 +86,54 @@ def test_the_runtime_writes_only_where_segadeform_may(runtime, request, portable
     assert (odd / MANIFEST_NAME).read_text() == "not json {\n" and not (odd / "o.pc2").exists()
 
 
+def test_segadeform_play_keeps_the_output_rule(cpp, portable_scene, random_package, tmp_path):
+    """The C++ example segadeform-play (runtimes/cpp/examples/play.cpp) under segadeform-run's rule and manifest: it
+    refused to run again into its own output ("exists (expected a new file)"), recorded nothing, and printed the
+    cloth stage's counts with the stage off (a user's trial)."""
+    from pathlib import Path
+
+    play = str(Path(cpp[0]).with_name("segadeform-play"))
+    g, m = portable_scene["garment"], portable_scene["motion"]
+
+    def go(out, effects=portable_scene["effects"]):
+        return subprocess.run(
+            [play, str(random_package), str(g), str(m), "--effects", effects, "-o", str(out)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+
+    out = tmp_path / "a.pc2"
+    for _ in range(2):  # written and recorded, then replaced: its own earlier output
+        r = go(out)
+        assert r.returncode == 0, r.stderr
+        assert written_by(out) == "run" and "cloth:" not in r.stdout, r.stdout
+    r = go(out, "+cloth")
+    assert r.returncode == 0 and "; cloth: " in r.stdout and "collisions" not in r.stdout, r.stdout + r.stderr
+    mine = tmp_path / "mine.pc2"
+    mine.write_bytes(b"a user's file")
+    before = _hashes(tmp_path)
+    refusals = ((mine, "mine.pc2: exists and segadeform did not write it"), (random_package / "x.pc2", "an input"))
+    for bad, words in refusals:
+        r = go(bad)
+        assert r.returncode == 1 and words in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    assert _hashes(tmp_path) == before and not (random_package / "x.pc2").exists()
+    # `segadeform run` replaces its output, and it run's, in the one manifest
+    args = ["run", "--garment", str(g), "--motion", str(m), "--model", str(random_package), "--force"]
+    assert main([*args, "--effects", portable_scene["effects"], "-o", str(out)]) == 0
+    assert go(out).returncode == 0 and written_by(out) == "run"
+
+
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
 def test_signed_effects_change_the_runs_defaults_as_in_segadeform_run(
-    runtime, request, portable_scene, random_package, tmp_path
+    runtime, request, portable_scene, random_package, tmp_path, capsys
 ):
     """`--effects=+cloth`, `-wrinkles` and `none` are what `segadeform run` takes; the runtimes took complete lists
-    only ("unknown option", "unknown effect '+cloth'", "unknown effect 'none'": a user's trial)."""
+    only ("unknown option", "unknown effect '+cloth'", "unknown effect 'none'": a user's trial).  Each names the
+    effects that ran as `segadeform run` names them (Node printed "..., collisions, cloth" for +cloth, where the
+    cloth stage's contact replaces collisions: a user's trial)."""
+    import re
+
     import numpy as np
 
     from segadeform.io import read_pc2
@@ -102,10 +144,14 @@ def test_signed_effects_change_the_runs_defaults_as_in_segadeform_run(
         name = effects.replace(",", "_").replace("+", "p").replace("-", "m")
         py, rt = tmp_path / f"py_{name}.pc2", tmp_path / f"rt_{name}.pc2"
         args = ["run", "--garment", str(g), "--motion", str(m), "--model", str(random_package), "--force"]
+        capsys.readouterr()
         assert main([*args, f"--effects={effects}", "-o", str(py)]) == 0
+        said = re.search(r"effects ([a-z+]+)", capsys.readouterr().out)
         base = [*exe, "--package", str(random_package), "--garment", str(g), "--motion", str(m)]
         r = subprocess.run([*base, f"--effects={effects}", "-o", str(rt)], capture_output=True, text=True, timeout=300)
         assert r.returncode == 0, (effects, r.stderr)
+        named = re.search(r"\((?:\w+: )?([a-z, ]+)\) -> ", r.stdout)
+        assert said and named and named.group(1).split(", ") == said.group(1).split("+"), (effects, r.stdout)
         a, b = read_pc2(py).frames, read_pc2(rt).frames
         assert a.shape == b.shape and np.abs(a - b).max() <= 1e-5 * np.abs(a).max(), effects
     r = subprocess.run(

@@ -1,10 +1,14 @@
 // segadeform-play: a program of one's own on the C++ library (include/segadeform/player.hpp, the CMake target
 // `segadeform`), and the library's test driver.  It plays a motion file as if it arrived live, `--chunk` frames at a
-// time, and writes the garment's frames as a PC2 point cache (a new file: an existing one is refused).
+// time, and writes the garment's frames as a PC2 point cache under the output rule of segadeform-run and `segadeform
+// run` (src/outputs.hpp, the command lines' and not the library's): a new path, or a file an earlier run wrote (the
+// folder's .segadeform-outputs.json records it), is written; a file segadeform did not write, or an input, is refused.
 //
 //   segadeform-play PACKAGE G.sgda M.sgdm -o OUT.pc2 [--chunk N] [--batch N] [--effects E] [--cloth K=V,..]
 //                   [--margin M] [--threads N] [--force]
 #include <segadeform/player.hpp>
+
+#include "outputs.hpp"  // the command lines' output rule and manifest (segadeform-run's)
 
 #include <algorithm>
 #include <cstdio>
@@ -40,8 +44,15 @@ int main(int argc, char** argv) {
     std::cerr << "error: " << e.what() << "\n";
     return 2;
   }
+  // the output is claimed before any work, as segadeform-run claims it
+  const std::vector<std::string> outputs{out}, inputs{pos[0], pos[1], pos[2]};
   try {
-    if (std::ifstream(out).good()) throw std::runtime_error(out + ": exists (expected a new file)");
+    sgd::claim_outputs(outputs, inputs);
+  } catch (const std::exception& e) {
+    std::cerr << "Error: " << sgd::outputs_detail::one_line(e.what()) << "\n";
+    return 1;
+  }
+  try {
     const segadeform::Motion m = segadeform::read_motion(pos[2], pos[1], opt.force);
     opt.fps = m.fps;
     segadeform::Player player(pos[0], pos[1], opt);
@@ -55,7 +66,7 @@ int main(int argc, char** argv) {
       const std::vector<float> f = player.push(m.poses.data() + lo * D, m.trans.data() + lo * 3, B);
       all.insert(all.end(), f.begin(), f.end());
     }
-    const std::string tmp = out + ".part";
+    const std::string tmp = sgd::temporary(out);
     {
       std::ofstream f(tmp, std::ios::binary);
       const int32_t version = 1, n = static_cast<int32_t>(N), t = static_cast<int32_t>(m.frames);
@@ -72,14 +83,23 @@ int main(int argc, char** argv) {
         throw std::runtime_error(out + ": write failed");
       }
     }
-    if (std::rename(tmp.c_str(), out.c_str()) != 0) throw std::runtime_error(out + ": cannot write");
+    sgd::commit_outputs(outputs, inputs);  // into place, and recorded in the folder's manifest
     const segadeform::Counts c = player.counts();
-    std::printf("%lld frames in chunks of %lld (%s) -> %s; collisions moved %lld; cloth: %lld in contact, %lld "
-                "reset(s)\n", static_cast<long long>(c.frames), static_cast<long long>(chunk), player.effects().c_str(),
-                out.c_str(), static_cast<long long>(c.moved), static_cast<long long>(c.contacts),
-                static_cast<long long>(c.resets));
+    const std::string effects = player.effects();  // "lbs,dynamics,wrinkles,cloth": cloth in collisions' place
+    const auto on = [&](const std::string& name) {
+      return ("," + effects + ",").find("," + name + ",") != std::string::npos;
+    };
+    std::printf("%lld frames in chunks of %lld (%s) -> %s", static_cast<long long>(c.frames),
+                static_cast<long long>(chunk), effects.c_str(), out.c_str());
+    if (on("cloth"))  // the stage's counts only when it runs, as segadeform-run and `segadeform run` print them
+      std::printf("; cloth: %lld in contact, %lld reset(s)", static_cast<long long>(c.contacts),
+                  static_cast<long long>(c.resets));
+    else if (on("collisions"))
+      std::printf("; collisions moved %lld", static_cast<long long>(c.moved));
+    std::printf("\n");
   } catch (const std::exception& e) {
-    std::cerr << "Error: " << e.what() << "\n";
+    std::remove(sgd::temporary_name(out).c_str());  // a failed run leaves no output
+    std::cerr << "Error: " << sgd::outputs_detail::one_line(e.what()) << "\n";
     return 1;
   }
   return 0;

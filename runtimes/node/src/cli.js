@@ -6,7 +6,7 @@
 // cloth, the cloth stage, only when named; --cloth sets its knobs, as segadeform run --cloth)
 // segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]      (a scene bundle)
 import { animate, readAsset } from "./index.js";
-import { pc2Parts } from "./core.js";
+import { effectsLabel, pc2Parts } from "./core.js";
 import { claimOutputs, commitOutputs } from "./outputs.js";
 
 const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
@@ -105,11 +105,8 @@ try {
   const items = [{ path: out, bytes: pc2Parts(r.frames, r.T, r.N, { startFrame }) }];
   if (bodyOut) items.push({ path: bodyOut, bytes: pc2Parts(r.body.vertices, r.body.T, r.body.V, { startFrame }) });
   commitOutputs(items, inputs); // all or none
-  const e = r.effects;
   const c = r.collisions, k = r.cloth;
-  console.log(`${r.T} frames, ${r.msPerFrame.toFixed(2)} ms/frame (${r.variant}: ${e.skinning}` +
-    `${e.dynamics ? ", dynamics" : ""}${e.wrinkles ? ", wrinkles" : ""}${e.collisions ? ", collisions" : ""}` +
-    `${e.cloth ? ", cloth" : ""}) -> ${out}` +
+  console.log(`${r.T} frames, ${r.msPerFrame.toFixed(2)} ms/frame (${r.variant}: ${effectsLabel(r.effects)}) -> ${out}` +
     (bodyOut ? `; body ${r.body.V} vertices, ${r.body.msPerFrame.toFixed(2)} ms/frame (${r.body.graph}) -> ${bodyOut}` : "") +
     (c ? `; collisions: ${c.moved} vertex-frames pushed out (margin ${c.margin} m), ${c.msPerFrame.toFixed(2)} ms/frame` : "") +
     (k ? `; cloth: ${k.contacts} vertex-frames in contact, ${k.pushed} pushed out after the sweeps, ${k.traced} traced ` +

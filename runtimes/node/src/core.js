@@ -167,6 +167,18 @@ export function parseEffects(text, base = null) {
   return on;
 }
 
+/**
+ * The effects that run, named by the rule of `segadeform run` (Effects.label in src/segadeform/settings/effects.py)
+ * and segadeform-run: the skinning, then dynamics, wrinkles and collisions that are on -- with the cloth stage, cloth
+ * in collisions' place (its contact replaces the push-out, so collisions is not named apart).
+ * effectsLabel({ skinning: "lbs", dynamics: true, wrinkles: true, collisions: true, cloth: true })
+ * is "lbs, dynamics, wrinkles, cloth".
+ */
+export function effectsLabel(effects, separator = ", ") {
+  const names = effects.cloth ? ["dynamics", "wrinkles", "cloth"] : ["dynamics", "wrinkles", "collisions"];
+  return [effects.skinning, ...names.filter((n) => effects[n])].join(separator);
+}
+
 /** Whether a package has body graphs (schema 3 with `segadeform export-body`): what collisions need. */
 export function hasBody(manifest) {
   return Object.values(manifest.graphs).some((g) => g.role === "body");

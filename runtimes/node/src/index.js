@@ -6,15 +6,15 @@ import { createHash } from "node:crypto";
 import { join } from "node:path";
 import * as ort from "onnxruntime-node";
 import {
-  BodyCollider, checkOptions, compareFrames, DEFAULT_CLOTH, DEFAULT_COLLISION_MARGIN, defaultEffects, parseBundle,
-  parseCloth, parseEffects, pc2Bytes, pickBody, pickVariant, Player, PLAYER_OPTIONS, playWith, pushOutFrames,
-  readAsset as checkAsset, readManifest, readMotion as checkMotion, releaseSessions,
+  BodyCollider, checkOptions, compareFrames, DEFAULT_CLOTH, DEFAULT_COLLISION_MARGIN, defaultEffects, effectsLabel,
+  parseBundle, parseCloth, parseEffects, pc2Bytes, pickBody, pickVariant, Player, PLAYER_OPTIONS, playWith,
+  pushOutFrames, readAsset as checkAsset, readManifest, readMotion as checkMotion, releaseSessions,
 } from "./core.js";
 
 export { parseBundle, readBundle } from "./bundle.js";
 export {
-  BodyCollider, compareFrames, DEFAULT_CLOTH, Player, DEFAULT_COLLISION_MARGIN, defaultEffects, parseCloth, parseEffects,
-  pickBody, pickVariant, pushOutFrames,
+  BodyCollider, compareFrames, DEFAULT_CLOTH, Player, DEFAULT_COLLISION_MARGIN, defaultEffects, effectsLabel, parseCloth,
+  parseEffects, pickBody, pickVariant, pushOutFrames,
 };
 
 /** Read a model package's manifest (docs/package.md) and check every file against its sha256. */

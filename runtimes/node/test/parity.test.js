@@ -4,7 +4,9 @@
 // and SEGADEFORM_EFFECTS the second (tests/runtimes/test_engines.py sets them).
 import { test } from "node:test";
 import assert from "node:assert/strict";
-import { readBundle, animate, open, parseBundle, compareFrames, parseEffects, readMotion } from "../src/index.js";
+import {
+  readBundle, animate, open, parseBundle, compareFrames, effectsLabel, parseEffects, readMotion,
+} from "../src/index.js";
 
 const env = process.env;
 const pkg = env.SEGADEFORM_PACKAGE;
@@ -33,6 +35,18 @@ test("effects lists read as `segadeform run --effects` reads them", () => {
   // one effect named twice: which is meant? (Python, Node and C++ refuse it alike)
   assert.throws(() => parseEffects("+wrinkles,-wrinkles", base), /effects name wrinkles twice/);
   assert.throws(() => parseEffects("cloth,cloth"), /effects name cloth twice/);
+});
+
+test("effects are named by `segadeform run`'s rule: the cloth stage in collisions' place", () => {
+  // Effects.label (src/segadeform/settings/effects.py): with the cloth stage, collisions (its contact) is not named
+  // apart -- the command line printed "lbs, dynamics, wrinkles, collisions, cloth" for --effects=+cloth
+  const all = { skinning: "lbs", dynamics: true, wrinkles: true, collisions: true, cloth: false };
+  assert.equal(effectsLabel(all), "lbs, dynamics, wrinkles, collisions");
+  assert.equal(effectsLabel({ ...all, cloth: true }), "lbs, dynamics, wrinkles, cloth");
+  assert.equal(effectsLabel({ ...all, collisions: false, cloth: true }), "lbs, dynamics, wrinkles, cloth");
+  assert.equal(effectsLabel(parseEffects("dqs,collisions,cloth"), "+"), "dqs+cloth");
+  assert.equal(effectsLabel(parseEffects("dqs,-dynamics", all)), "dqs, wrinkles, collisions");
+  assert.equal(effectsLabel(parseEffects("none")), "lbs");
 });
 
 test("bundle frames match the Python runtime", { skip: !pkg || !bundlePath ? "set SEGADEFORM_PACKAGE and SEGADEFORM_BUNDLE" : false }, async () => {

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["MeshLayer", "rasterize", "render", "save_image", "save_animation", "view_rotation"]
+__all__ = ["MeshLayer", "rasterize", "render", "save_image", "save_animation", "check_encoder", "view_rotation"]
 
 
 class MeshLayer:
@@ -210,6 +210,17 @@ def save_image(path: str | os.PathLike, image: np.ndarray) -> Path:
     return p
 
 
+def check_encoder(path: str | os.PathLike) -> None:
+    """Refuse an animation whose encoder is missing (MP4 needs ffmpeg on PATH): a caller checks before rendering."""
+    import shutil
+
+    p = Path(path)
+    if p.suffix.lower() == ".mp4" and shutil.which("ffmpeg") is None:
+        raise InputError(
+            "writing .mp4 needs ffmpeg on PATH", path=p, expected="ffmpeg installed, or a .gif or .png", got="no ffmpeg"
+        )
+
+
 def save_animation(path: str | os.PathLike, frames: Sequence[np.ndarray], fps: float) -> Path:
     """Write frames as an animated GIF (pillow, through matplotlib's dependency) or MP4 (ffmpeg), atomically."""
     from ..io.atomic import atomic_path
@@ -218,6 +229,7 @@ def save_animation(path: str | os.PathLike, frames: Sequence[np.ndarray], fps: f
     ext = p.suffix.lower()
     if not frames:
         raise InputError("no frames to write")
+    check_encoder(p)
     with atomic_path(p) as tmp:
         if ext == ".gif":
             from PIL import Image
@@ -227,11 +239,8 @@ def save_animation(path: str | os.PathLike, frames: Sequence[np.ndarray], fps: f
                 tmp, format="GIF", save_all=True, append_images=ims[1:], duration=int(round(1000 / fps)), loop=0
             )
         elif ext == ".mp4":
-            import shutil
             import subprocess
 
-            if shutil.which("ffmpeg") is None:
-                raise InputError("writing .mp4 needs ffmpeg on PATH", expected=".gif or .png, or install ffmpeg")
             h, w = frames[0].shape[:2]
             cmd = [
                 "ffmpeg",

@@ -80,11 +80,20 @@ from .cloth import CLOTH_KNOBS, ClothSettings
 from .effects import DEFAULT_EFFECTS, EFFECT_NAMES, Effects, parse_effects
 from .simulation import parse_simulate_table
 
-__all__ = ["Y_TO_Z", "MotionSpec", "Scene", "load_scene", "parse_frames"]
+__all__ = ["Y_TO_Z", "MotionSpec", "Scene", "check_motion_fps", "load_scene", "parse_frames"]
 
 
 #: the frame rates a motion may be resampled to (``fps``: a scene's [motion] key, ``run --fps``)
 FPS_RANGE = (1.0, 1000.0)
+
+
+def check_motion_fps(fps, option: str | None = None) -> None:
+    """A motion's frame rate inside :data:`FPS_RANGE` (NaN fails too); the error names ``option`` (``"--fps"``) when
+    the value came from one."""
+    lo, hi = FPS_RANGE
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not lo <= fps <= hi:
+        problem = "the motion's frame rate is out of range"
+        raise InputError(f"{option}: {problem}" if option else problem, expected=f"{lo:g}..{hi:g} fps", got=fps)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -112,11 +121,8 @@ class MotionSpec:
     repair_glitches: bool = False  # motion capture's settling frames and jumps repaired (frame count kept)
 
     def __post_init__(self):
-        fps = self.fps
-        if fps is not None:  # NaN compares false with everything: checked here, not left to a resample that skips it
-            lo, hi = FPS_RANGE
-            if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not lo <= fps <= hi:
-                raise InputError("the motion's frame rate is out of range", expected=f"{lo:g}..{hi:g} fps", got=fps)
+        if self.fps is not None:  # NaN compares false with everything: checked here, not left to a resample
+            check_motion_fps(self.fps)
 
 
 @dataclasses.dataclass(frozen=True)
