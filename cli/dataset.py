@@ -144,7 +144,8 @@ def dataset_make_cmd(
     click.echo(f"{s.planned} planned, {s.skipped} already done, {s.kept} kept, {s.rejected} rejected -> {output}")
     if s.unplanned:
         click.echo(
-            f"note: {len(s.unplanned)} kept samples in {output} are not in this config (first: {s.unplanned[0]}): "
+            f"note: {len(s.unplanned)} kept sample{'s' if len(s.unplanned) != 1 else ''} in {output} "
+            f"{'are' if len(s.unplanned) != 1 else 'is'} not in this config (first: {s.unplanned[0]}): "
             f"train and eval read every sample a folder holds; a training config's exclude leaves them out"
         )
 

@@ -576,6 +576,8 @@ def test_bad_input_is_refused(walk, body):
         stage.step(targets[:2, :5], posed[:2])
     with pytest.raises(InputError, match="one frame per garment frame"):
         stage.step(targets[:2], posed[:3])
+    with pytest.raises(InputError, match=r"real coordinates \(expected float or integer arrays, got complex128\)"):
+        stage.step(targets[:2].astype(np.float32).astype(complex), posed[:2])
     for kw in (
         {"iterations": 0},
         {"iterations": 2.5},

@@ -1185,7 +1185,11 @@ def test_a_sample_made_for_another_split_stops_the_run(tmp_path, monkeypatch, ca
     assert make_dataset(load_dataset_config(fewer), out, body_path=body).unplanned == ("skirt__b0__dance",)
     assert main(["dataset", "make", str(fewer), "-o", str(out), "-j", "1"]) == 0
     said = capsys.readouterr().out
-    assert "note: 1 kept samples in" in said and "not in this config (first: skirt__b0__dance)" in said, said
+    assert (
+        "note: 1 kept sample in" in said
+        and "is not in this config" in said
+        and "not in this config (first: skirt__b0__dance)" in said
+    ), said
     assert make_dataset(before, out, body_path=body).unplanned == ()
 
 

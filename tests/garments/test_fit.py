@@ -137,6 +137,9 @@ def dress():
         (lambda v: v + [0.3, -0.5, 0], r"--offset -0\.30,0\.50,0\.00"),
         # 1 m to the side once passed as "read in dm, +z up" (a 10 cm dress on the hips): the move is asked first
         (lambda v: v + [1.0, 0, 0], r"--offset -1\.00,0\.00,0\.00"),
+        # 2 m to the side also sits on the skin once read in dm with -z up, a 10 cm dress closer to the skin than the
+        # dress moved back: the fixes named are those that leave a garment of a human's size (a review)
+        (lambda v: v + [2.0, 0, 0], r"--offset -2\.00,0\.00,0\.00"),
     ],
 )
 def test_off_body_garments_are_refused_with_the_cause(body, dress, transform, words):
@@ -172,8 +175,12 @@ def test_a_garment_scaled_down_is_named_so(body, dress):
         check_placement(dress.vertices * 0.001 + [0.0, 1.0, 0.1], rest, body.faces)
     # a tenth: a move also puts it near the skin (between the thighs, 5 cm from it: a user's trial took that
     # advice and ran a 7 cm "garment"), but scaled back it sits as a garment does: that is the fix named
-    with pytest.raises(PlacementError, match=r"once scaled by 10\b.*--scale 10\b"):
-        check_placement(dress.vertices * 0.1, rest, body.faces, path=Path("g.obj"))
+    skirt = read_mesh(ROOT / "samples" / "garments" / "skirt.obj").vertices
+    for v in (dress.vertices, skirt):
+        with pytest.raises(PlacementError, match=r"once scaled by 10\b.*--scale 10\b"):
+            check_placement(v * 0.1, rest, body.faces, path=Path("g.obj"))
+    with pytest.raises(PlacementError, match=r"--offset -1\.00,0\.00,0\.00"):  # not dm (7 cm), nor 0.4 m down
+        check_placement(skirt + [1.0, 0, 0], rest, body.faces, path=Path("g.obj"))
 
 
 def test_vertices_in_no_face_are_left_out(body):

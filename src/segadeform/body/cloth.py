@@ -514,7 +514,12 @@ class ClothStage:
         if buf is None or buf.shape[0] < len(a) or buf.shape[1:] != a.shape[1:]:
             buf = self._buffers[k] = np.empty(a.shape, np.float64)
         view = buf[: len(a)]
-        np.copyto(view, a)
+        try:
+            np.copyto(view, a)
+        except TypeError:  # complex, object, strings
+            raise InputError(
+                "the cloth stage takes real coordinates", expected="float or integer arrays", got=str(a.dtype)
+            ) from None
         return view
 
     def step(self, targets, posed) -> np.ndarray:

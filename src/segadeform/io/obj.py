@@ -136,6 +136,15 @@ def _resolve(tok: str, count: int, kind: str, path, lineno) -> int:
     raise FileFormatError(f"{kind} index 0 is not valid (OBJ indices start at 1)", path=path, line=lineno)
 
 
+def _cut_short(path, line: int, key: str) -> FileFormatError:
+    return FileFormatError(
+        f"the file ends in the middle of its last '{key}' line, with no line break: is it cut short? "
+        "(a whole file ends with a line break: add one if this one is whole)",
+        path=path,
+        line=line,
+    )
+
+
 def read_obj(path: str | os.PathLike) -> Mesh:
     """Read an OBJ file into a :class:`Mesh` (vertex order kept).
 
@@ -151,16 +160,19 @@ def read_obj(path: str | os.PathLike) -> Mesh:
         raise file_error(e, p) from None
     if "\x00" in text:
         raise FileFormatError("not a text OBJ file (contains NUL bytes)", path=p)
-    if text and not text.endswith(("\n", "\r")):  # a copy or download that stopped mid-line (a user's trial: an OBJ
-        last = list(_logical_lines(text))[-1]  # cut at 90 % ran with a tenth of its faces gone and exit 0)
-        key = last[1].split()[0] if last[1].split() else ""
-        if key in ("v", "vt", "vn", "vp", "f", "l", "p"):
-            raise FileFormatError(
-                f"the file ends in the middle of its last '{key}' line, with no line break: is it cut short? "
-                "(a whole file ends with a line break: add one if this one is whole)",
-                path=p,
-                line=last[0],
-            )
+    # a copy or download that stopped mid-line (a user's trial: an OBJ cut at 90 % ran with a tenth of its faces gone,
+    # exit 0).  A last line with no line break is how some exporters end a whole file (pytorch3d's save_obj), so it is
+    # refused only when it looks cut: it ends in whitespace or a '/', or it is a face with another corner count than
+    # the face before it (a quad cut to a triangle); an error on that line says the file may be cut short
+    cut_at = None  # the line number of an element line the file ends in, unbroken
+    if text and not text.endswith(("\n", "\r")):
+        last = list(_logical_lines(text))[-1]
+        words = last[1].split()
+        if words and words[0] in ("v", "vt", "vn", "vp", "f", "l", "p"):
+            cut_at = last[0]
+            if text.splitlines()[-1][-1:].isspace() or last[1].rstrip().endswith("/"):
+                raise _cut_short(p, cut_at, words[0])
+    face_sizes: list[int] = []  # the corner counts of the last two faces
 
     verts: list[list[float]] = []
     colors: list[list[float] | None] = []
@@ -168,73 +180,88 @@ def read_obj(path: str | os.PathLike) -> Mesh:
     tris: list[tuple[int, int, int]] = []
     origin: list[int] = []
     n_poly = 0
-    for lineno, line in _logical_lines(text):
-        s = line.strip()
-        if not s or s[0] == "#":
-            continue
-        parts = s.split()
-        key = parts[0]
-        if key == "v":
-            vals = parts[1:]
-            if len(vals) not in (3, 4, 6, 7):
-                raise FileFormatError(
-                    "vertex line needs x y z, x y z w, or x y z r g b",
-                    path=p,
-                    line=lineno,
-                    expected="3, 4 or 6 numbers",
-                    got=f"{len(vals)}",
-                )
-            try:
-                nums = [float(x) for x in vals]
-            except ValueError:
-                raise FileFormatError(f"vertex has a non-numeric value in {s!r}", path=p, line=lineno) from None
-            xyz = nums[:3]
-            if len(nums) == 4:  # homogeneous weight
-                w = nums[3]
-                if w == 0 or not np.isfinite(w):
-                    raise FileFormatError("vertex weight w must be finite and non-zero", path=p, line=lineno, got=w)
-                xyz = [c / w for c in xyz]
-            if not all(np.isfinite(xyz)):
-                raise FileFormatError("vertex coordinate is not finite", path=p, line=lineno, got=vals[:3])
-            verts.append(xyz)
-            colors.append(nums[3:6] if len(nums) == 6 else (nums[4:7] if len(nums) == 7 else None))
-        elif key == "vt":
-            n_vt += 1
-        elif key == "vn":
-            n_vn += 1
-        elif key == "f":
-            corners = parts[1:]
-            if len(corners) < 3:
-                raise FileFormatError(
-                    "face has fewer than 3 vertices", path=p, line=lineno, expected=">= 3", got=len(corners)
-                )
-            idx = []
-            for c in corners:
-                sub = c.split("/")
-                if len(sub) > 3 or sub[0] == "":
+    try:
+        for lineno, line in _logical_lines(text):
+            s = line.strip()
+            if not s or s[0] == "#":
+                continue
+            parts = s.split()
+            key = parts[0]
+            if key == "v":
+                vals = parts[1:]
+                if len(vals) not in (3, 4, 6, 7):
                     raise FileFormatError(
-                        f"bad face corner {c!r}", path=p, line=lineno, expected="v, v/vt, v//vn or v/vt/vn"
+                        "vertex line needs x y z, x y z w, or x y z r g b",
+                        path=p,
+                        line=lineno,
+                        expected="3, 4 or 6 numbers",
+                        got=f"{len(vals)}",
                     )
-                idx.append(_resolve(sub[0], len(verts), "vertex", p, lineno))
-                if len(sub) > 1 and sub[1] != "":
-                    _resolve(sub[1], n_vt, "texture coordinate", p, lineno)
-                if len(sub) > 2 and sub[2] != "":
-                    _resolve(sub[2], n_vn, "normal", p, lineno)
-            for k in range(1, len(idx) - 1):
-                tris.append((idx[0], idx[k], idx[k + 1]))
-                origin.append(n_poly)
-            n_poly += 1
-        elif key in _IGNORED or key.startswith("#"):
-            continue
-        else:
-            # Unknown statements are rare vendor extensions; skipping them is
-            # what every OBJ importer does, and they cannot affect geometry.
-            continue
+                try:
+                    nums = [float(x) for x in vals]
+                except ValueError:
+                    raise FileFormatError(f"vertex has a non-numeric value in {s!r}", path=p, line=lineno) from None
+                xyz = nums[:3]
+                if len(nums) == 4:  # homogeneous weight
+                    w = nums[3]
+                    if w == 0 or not np.isfinite(w):
+                        raise FileFormatError("vertex weight w must be finite and non-zero", path=p, line=lineno, got=w)
+                    xyz = [c / w for c in xyz]
+                if not all(np.isfinite(xyz)):
+                    raise FileFormatError("vertex coordinate is not finite", path=p, line=lineno, got=vals[:3])
+                verts.append(xyz)
+                colors.append(nums[3:6] if len(nums) == 6 else (nums[4:7] if len(nums) == 7 else None))
+            elif key == "vt":
+                n_vt += 1
+            elif key == "vn":
+                n_vn += 1
+            elif key == "f":
+                corners = parts[1:]
+                face_sizes = [*face_sizes[-1:], len(corners)]
+                if lineno == cut_at and len(face_sizes) == 2 and face_sizes[0] != face_sizes[1]:
+                    raise _cut_short(p, cut_at, key)
+                if len(corners) < 3:
+                    raise FileFormatError(
+                        "face has fewer than 3 vertices", path=p, line=lineno, expected=">= 3", got=len(corners)
+                    )
+                idx = []
+                for c in corners:
+                    sub = c.split("/")
+                    if len(sub) > 3 or sub[0] == "":
+                        raise FileFormatError(
+                            f"bad face corner {c!r}", path=p, line=lineno, expected="v, v/vt, v//vn or v/vt/vn"
+                        )
+                    idx.append(_resolve(sub[0], len(verts), "vertex", p, lineno))
+                    if len(sub) > 1 and sub[1] != "":
+                        _resolve(sub[1], n_vt, "texture coordinate", p, lineno)
+                    if len(sub) > 2 and sub[2] != "":
+                        _resolve(sub[2], n_vn, "normal", p, lineno)
+                for k in range(1, len(idx) - 1):
+                    tris.append((idx[0], idx[k], idx[k + 1]))
+                    origin.append(n_poly)
+                n_poly += 1
+            elif key in _IGNORED or key.startswith("#"):
+                continue
+            else:
+                # Unknown statements are rare vendor extensions; skipping them is
+                # what every OBJ importer does, and they cannot affect geometry.
+                continue
+    except FileFormatError as e:  # on the last line of a file that ends unbroken there: say it may be cut short
+        if cut_at is None or e.line != cut_at or "cut short" in e.problem:
+            raise
+        raise FileFormatError(
+            f"{e.problem} (the file ends on this line with no line break: is it cut short?)",
+            path=p,
+            line=e.line,
+            expected=e.expected,
+            got=e.got,
+        ) from None
 
+    cut = "" if cut_at is None else f" (the file ends on line {cut_at} with no line break: is it cut short?)"
     if not verts:
-        raise FileFormatError("mesh has no vertices ('v' lines)", path=p)
+        raise FileFormatError(f"mesh has no vertices ('v' lines){cut}", path=p)
     if not tris:
-        raise FileFormatError("mesh has no faces ('f' lines)", path=p)
+        raise FileFormatError(f"mesh has no faces ('f' lines){cut}", path=p)
     v, f = validate_mesh_arrays(np.asarray(verts, dtype=np.float64), np.asarray(tris, dtype=np.int64), path=p)
     col = None
     if all(c is not None for c in colors):
