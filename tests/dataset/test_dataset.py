@@ -1036,6 +1036,20 @@ kind = "dance"
 )
 
 
+def _fake_result(frames, motion, settings):
+    """What a fake ``blender.simulate`` returns: ``frames`` as the simulated frames, no time taken."""
+    from segadeform.physics import blender
+
+    return blender.SimResult(
+        frames=frames,
+        fps=motion.fps,
+        settings={"quality": settings.quality},
+        blender={"blender_version": "fake", "simulate_seconds": 0.0, "seconds_per_frame": 0.0},
+        preroll_frames=0,
+        wall_seconds=0.0,
+    )
+
+
 def test_a_fallback_is_a_further_attempt_with_only_the_solvers_accuracy_changed(tmp_path):
     """[[fallback]] tables: read as later attempts on top of [simulate] (and a garment's own pin); anything but the
     solver's accuracy, an empty table, a repeat or a bad value is refused naming the table; attempt 0's spec (every
@@ -1089,14 +1103,7 @@ def test_dataset_make_tries_the_fallbacks_on_a_rejected_sample_and_keeps_the_fir
         x = np.repeat(np.asarray(vertices, np.float64)[None], motion.n_frames, axis=0)
         if motion.poses.shape == dance.shape and np.allclose(motion.poses, dance) and settings.quality < 20:
             x[:, :, 1] *= 1.5  # every vertical edge 50 % longer: past max_strain
-        return blender.SimResult(
-            frames=x,
-            fps=motion.fps,
-            settings={"quality": settings.quality},
-            blender={"blender_version": "fake", "simulate_seconds": 0.0, "seconds_per_frame": 0.0},
-            preroll_frames=0,
-            wall_seconds=0.0,
-        )
+        return _fake_result(x, motion, settings)
 
     monkeypatch.setattr(blender, "simulate", fake_simulate)
     body = SAMPLES / "bodies" / "default_body.npz"
@@ -1150,13 +1157,8 @@ def test_a_sample_made_for_another_split_stops_the_run(tmp_path, monkeypatch, ca
     from segadeform.physics import blender
 
     def fake_simulate(vertices, faces, body, motion, *, settings, **kw):
-        return blender.SimResult(
-            frames=np.repeat(np.asarray(vertices, np.float64)[None], motion.n_frames, axis=0),
-            fps=motion.fps,
-            settings={"quality": settings.quality},
-            blender={"blender_version": "fake", "simulate_seconds": 0.0, "seconds_per_frame": 0.0},
-            preroll_frames=0,
-            wall_seconds=0.0,
+        return _fake_result(
+            np.repeat(np.asarray(vertices, np.float64)[None], motion.n_frames, axis=0), motion, settings
         )
 
     monkeypatch.setattr(blender, "simulate", fake_simulate)
