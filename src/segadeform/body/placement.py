@@ -239,13 +239,16 @@ def _offset_fix(v, bv, proxy, top, floor) -> tuple[np.ndarray, str] | None:
         # a skirt 1 m to the side was sent back and 0.4 m down, onto the thighs, since that fit the lenient test);
         # no height when the move across alone fits
         fit = []
-        for dy in np.round(np.arange(-1.5, 1.51, 0.05), 2):
-            if abs(dy) >= 0.25 or s.any():  # an origin is off
-                st = _stats(v + s + np.array([0.0, dy, 0.0]), proxy, top, floor)
-                if _fits(st):
-                    fit.append((st["median"], abs(dy), dy))
-        if fit:  # the move across alone when it fits (a loose skirt sits nearer its median 10 cm higher)
-            dy = 0.0 if any(f[2] == 0 for f in fit) else min(fit)[2]
+        if s.any() and _fits(_stats(v + s, proxy, top, floor)):  # the move across alone (a loose skirt sits nearer
+            fit.append((0.0, 0.0, 0.0))  # its median 10 cm higher)
+        else:
+            for dy in np.round(np.arange(-1.5, 1.51, 0.05), 2):
+                if abs(dy) >= 0.25 or s.any():  # an origin is off
+                    st = _stats(v + s + np.array([0.0, dy, 0.0]), proxy, top, floor)
+                    if _fits(st):
+                        fit.append((st["median"], abs(dy), dy))
+        if fit:
+            dy = min(fit)[2]
             off = s + np.array([0.0, dy, 0.0])
             where = (
                 f"{abs(dy):.2f} m {'higher' if dy > 0 else 'lower'}"
