@@ -183,6 +183,21 @@ def test_a_garment_scaled_down_is_named_so(body, dress):
         check_placement(skirt + [1.0, 0, 0], rest, body.faces, path=Path("g.obj"))
 
 
+def test_a_loose_skirt_moved_gets_the_move_back(body):
+    """A review: the first height from below that passed the lenient test was named (a skirt 1 m to the side was sent
+    back and 0.4 m down, one 0.95 m down was sent 0.55 m up), and the median distance put a loose skirt 10 cm high.
+    The move across alone when it fits, else the height whose closest fifth of vertices lies closest to the skin."""
+    skirt = read_mesh(ROOT / "samples" / "garments" / "skirt.obj").vertices
+    rest = body.shaped_vertices()[0]
+    for move, words in (
+        ([0.0, -0.95, 0.0], "0.95 m higher"),
+        ([0.5, -0.5, 0.0], r"--offset -0\.50,0\.50,0\.00"),
+        ([1.5, 0.0, 0.0], r"--offset -1\.50,0\.00,0\.00"),
+    ):
+        with pytest.raises(PlacementError, match=words):
+            check_placement(skirt + move, rest, body.faces, path=Path("g.obj"))
+
+
 def test_vertices_in_no_face_are_left_out(body):
     """A user's trial: 100 stray vertices (in no face) tipped the check and got the advice of another origin."""
     skirt = read_mesh(ROOT / "samples" / "garments" / "skirt.obj")

@@ -235,18 +235,19 @@ def _offset_fix(v, bv, proxy, top, floor) -> tuple[np.ndarray, str] | None:
     side[2] = 0.0  # not: the feet point forward)
     shifts = ([side] if np.abs(side).max() >= 0.1 else []) + [np.zeros(3)]
     for s in shifts:
-        # of the heights that fit, the one the garment sits closest to the skin at (the first from below was named:
-        # a skirt 1 m to the side was sent back and 0.4 m down, onto the thighs, since that fit the lenient test);
-        # no height when the move across alone fits
+        # of the heights that fit, the one where its closest fifth lies closest to the skin (the first from below was
+        # named: a skirt 1 m to the side was sent back and 0.4 m down, onto the thighs, since that fit the lenient
+        # test; the median distance put a loose skirt 10 cm high, its hem nearer the hips), and no height when the
+        # move across alone fits
         fit = []
-        if s.any() and _fits(_stats(v + s, proxy, top, floor)):  # the move across alone (a loose skirt sits nearer
-            fit.append((0.0, 0.0, 0.0))  # its median 10 cm higher)
+        if s.any() and _fits(_stats(v + s, proxy, top, floor)):  # the move across alone
+            fit.append((0.0, 0.0, 0.0))
         else:
             for dy in np.round(np.arange(-1.5, 1.51, 0.05), 2):
                 if abs(dy) >= 0.25 or s.any():  # an origin is off
                     st = _stats(v + s + np.array([0.0, dy, 0.0]), proxy, top, floor)
                     if _fits(st):
-                        fit.append((st["median"], abs(dy), dy))
+                        fit.append((st["p20"], abs(dy), dy))
         if fit:
             dy = min(fit)[2]
             off = s + np.array([0.0, dy, 0.0])
