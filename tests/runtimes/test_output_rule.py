@@ -95,9 +95,9 @@ def test_segadeform_play_keeps_the_output_rule(cpp, portable_scene, random_packa
     play = str(Path(cpp[0]).with_name("segadeform-play"))
     g, m = portable_scene["garment"], portable_scene["motion"]
 
-    def go(out, effects=portable_scene["effects"]):
+    def go(out, effects=portable_scene["effects"], *extra):
         return subprocess.run(
-            [play, str(random_package), str(g), str(m), "--effects", effects, "-o", str(out)],
+            [play, str(random_package), str(g), str(m), "--effects", effects, "-o", str(out), *extra],
             capture_output=True,
             text=True,
             timeout=300,
@@ -115,8 +115,9 @@ def test_segadeform_play_keeps_the_output_rule(cpp, portable_scene, random_packa
     before = _hashes(tmp_path)
     refusals = ((mine, "mine.pc2: exists and segadeform did not write it"), (random_package / "x.pc2", "an input"))
     for bad, words in refusals:
-        r = go(bad)
-        assert r.returncode == 1 and words in r.stderr and r.stderr.count("\n") == 1, r.stderr
+        for extra in ((), ("--force",)):  # --force (a motion made for another shape) never replaces a user's file
+            r = go(bad, portable_scene["effects"], *extra)
+            assert r.returncode == 1 and words in r.stderr and r.stderr.count("\n") == 1, (extra, r.stderr)
     assert _hashes(tmp_path) == before and not (random_package / "x.pc2").exists()
     # `segadeform run` replaces its output, and it run's, in the one manifest
     args = ["run", "--garment", str(g), "--motion", str(m), "--model", str(random_package), "--force"]
