@@ -71,7 +71,9 @@ def inspect_cmd(path):
 
         m = load_motion(path)
         what = {".bvh": "BVH", ".amc": "CMU AMC", ".glb": "glTF", ".gltf": "glTF"}[ext]
-        click.echo(f"{path}: {what} motion, {m.n_frames} frames at {m.fps:g} fps")
+        from segadeform.io.writer import nominal_fps
+
+        click.echo(f"{path}: {what} motion, {m.n_frames} frames at {nominal_fps(m.fps):g} fps")
     elif ext == ".asf":
         from segadeform.motion.asf import metres_per_unit, read_asf
 

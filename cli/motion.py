@@ -84,7 +84,9 @@ def info_cmd(motion, body, up, units, joint_map, skeleton, animation):
         motion, rest_joints=J, up=up, units=units_v, joint_map=joint_map, skeleton=skeleton, animation=animation
     )
     ang = np.linalg.norm(m.poses.reshape(-1, 24, 3), axis=-1)
-    click.echo(f"{motion}: {m.n_frames} frames, {m.fps:g} fps, {m.seconds:.2f} s")
+    from segadeform.io.writer import nominal_fps
+
+    click.echo(f"{motion}: {m.n_frames} frames, {nominal_fps(m.fps):g} fps, {m.seconds:.2f} s")  # as outputs write it
     meta = m.meta
     if meta.get("format") == "amc":
         click.echo(

@@ -20,6 +20,26 @@ def _fmt_from(path: Path, fmt: str | None) -> str:
     return output_format_for(path, fmt)
 
 
+def _betas_from(betas: str, body, force: bool) -> tuple:
+    """--betas as numbers, checked as the run shapes ``body`` with them (within the shape space; unless ``force``, a
+    human's height and a skin that does not fold through itself): errors name the option."""
+    from segadeform.body import default_body_path, load_body
+    from segadeform.bounds import check_betas, check_body_height
+    from segadeform.errors import InputError
+
+    try:
+        vals = tuple(float(x) for x in betas.split(","))
+    except ValueError:
+        raise click.UsageError(f"--betas must be comma-separated numbers, got {betas!r}") from None
+    vals = check_betas(vals, what="--betas")
+    b = load_body(body or default_body_path())
+    try:
+        check_body_height(b, vals, force=force)
+    except InputError as e:
+        raise InputError(f"--betas: {e.problem}", expected=e.expected, got=e.got) from None
+    return vals
+
+
 def _format_choice():
     from segadeform.io import SEQUENCE_FORMATS
 
@@ -203,7 +223,7 @@ def run_cmd(
         if body:
             changes["body"] = body
         if betas:
-            changes["betas"] = tuple(float(x) for x in betas.split(","))
+            changes["betas"] = _betas_from(betas, body or sc.body, force)
         mchanges = {
             k: v
             for k, v in (
@@ -228,10 +248,7 @@ def run_cmd(
     else:
         if not (garment and motion_path and output):
             raise click.UsageError("give a SCENE, or --garment, --motion and -o")
-        try:
-            beta_vals = tuple(float(x) for x in betas.split(",")) if betas else ()
-        except ValueError:
-            raise click.UsageError(f"--betas must be comma-separated numbers, got {betas!r}") from None
+        beta_vals = _betas_from(betas, body, force) if betas else ()
         sc = Scene(
             garment=garment,
             motion=MotionSpec(

@@ -203,6 +203,25 @@ def test_a_body_no_human_has_needs_force(tmp_path):
     assert r.exit_code == 0, r.output
 
 
+def test_a_body_that_folds_through_itself_needs_force(tmp_path):
+    """betas 0,8 keep a human's height (1.87 m) but turn 67 of the body's faces over (a new user's trial: it ran with
+    no word and the preview showed a twisted torso): refused with the count, run with --force; a shape within +-3
+    is not refused."""
+    from segadeform.body import default_body_path, load_body
+    from segadeform.bounds import FOLDED_FACES, folded_faces
+
+    body = load_body(default_body_path())
+    assert folded_faces(body, (0, 8)) > FOLDED_FACES * len(body.faces) >= folded_faces(body, (1.5, -2, 3, 1))
+    assert folded_faces(body, None) == 0
+    out = tmp_path / "o.pc2"
+    args = ["run", "--garment", SKIRT, "--motion", WALK, "--frames", "0:2", "--betas", "0,8", "--no-cache", "-o", out]
+    refused("the body shape folds through itself (expected at most 27 of the body's 27420 faces", *args)
+    assert not out.exists()
+    refused("folds through itself", "motion", "export", WALK, "--betas=0,8", "-o", tmp_path / "m.sgdm")
+    r = invoke(*args, "--force")
+    assert r.exit_code == 0, r.output
+
+
 @pytest.fixture(scope="module")
 def shaped_inputs(tmp_path_factory):
     """The README's runtime files: a dress made and exported for betas 0.5,-0.3 and a walk retargeted onto them."""
@@ -226,6 +245,25 @@ def shaped_inputs(tmp_path_factory):
     )
     assert r.exit_code == 0, r.output
     return d
+
+
+def test_an_asset_exported_for_another_model_is_refused_naming_it(shaped_inputs, tmp_path):
+    """A garment asset exported for a model with another descriptor length gave `garment descriptor length does not
+    match the model`, naming no file and no fix (a new user's trial)."""
+    import dataclasses
+
+    from segadeform.io.garment_asset import GarmentAsset
+
+    a = GarmentAsset.load(shaped_inputs / "dress.sgda")
+    other = dataclasses.replace(a, descriptor=a.descriptor[:16], fps_samples=a.fps_samples[:16])
+    bad = other.save(tmp_path / "other.sgda")
+    out = tmp_path / "o.pc2"
+    said = refused(
+        "the garment asset was exported for another model; export it for this one: segadeform garment export dress.obj",
+        *("run", "--garment", bad, "--motion", shaped_inputs / "walk.sgdm", "-o", out),
+        name=bad,
+    )
+    assert "(expected a garment descriptor of 32 values, got 16)" in said and not out.exists()
 
 
 def test_run_on_an_asset_uses_the_betas_it_was_exported_for(shaped_inputs, tmp_path):

@@ -27,6 +27,7 @@ from segadeform.contracts import model_package as contract
 from segadeform.errors import InputError
 
 from .package import ModelPackage, PackageError
+from .translation import at_translation
 
 __all__ = ["BODY_BACKENDS", "BodyPoser", "graph_body_status"]
 
@@ -126,7 +127,8 @@ class BodyPoser:
 
         Shapes:
             poses: (B, 3 S) axis-angle, root first; betas: (B',) one shape for every frame; trans: (B, 3)
-            -> vertices (B, V, 3): float32 from the body graph, float64 from numpy
+            -> vertices (B, V, 3) float64 (the body graph runs at the root and the translation is added after it,
+            as :mod:`segadeform.runtime.translation` says)
         """
         if self.backend == "numpy":
             return self.body.forward(poses, betas, trans, skinning=self.skinning).vertices
@@ -142,7 +144,7 @@ class BodyPoser:
             {
                 "betas": self._graph_betas(betas),
                 "poses": p.reshape(len(p), s, 3).astype(np.float32),
-                "trans": t.astype(np.float32),
+                "trans": np.zeros((len(p), 3), np.float32),
             },
         )
-        return out[0]
+        return at_translation(out[0], t)

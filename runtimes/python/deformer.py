@@ -16,6 +16,7 @@ from segadeform.geometry.features import vertex_features
 from segadeform.settings import Effects
 
 from .package import ModelPackage
+from .translation import at_translation
 
 __all__ = ["Deformer"]
 
@@ -231,7 +232,12 @@ class Deformer:
             P: the output of :meth:`encode`, (N, K S) (or (N, S, F_enc)), windows: (B, T, 3 S) (T = the variant's
             window; window[:, 0] is the current pose), joints: (S, 3) rest joints, trans: (B, 3),
             log_wbody: (N, S) for residual-weights models (:meth:`body_log_weights`)
-            -> vertices (B, N, 3); with ``outputs=True`` also weights (B, N, S) and blend shapes (B, N, 3)
+            -> vertices (B, N, 3) float64; with ``outputs=True`` also weights (B, N, S) and blend shapes (B, N, 3)
+
+        The graph runs at the root (``trans`` zero) and the translation, rounded to float32 as motion files hold it,
+        is added after it in float64: the network's float32 arithmetic is then the same wherever the character
+        stands (1 km from the origin it rounded the garment by up to 0.1 mm, and a vertex deep in the body left it
+        on the other side: a garment 5.9 cm off at 100 m, a new user's trial), and every runtime adds it so.
         """
         w = np.asarray(windows, np.float32)
         if w.ndim != 3 or w.shape[1] != self.window or w.shape[2] != 3 * self.n_joints:
@@ -239,6 +245,8 @@ class Deformer:
                 "motion windows have the wrong shape", expected=f"(B, {self.window}, {3 * self.n_joints})", got=w.shape
             )
         bsz = w.shape[0]
+        if np.shape(trans) != (bsz, 3):
+            raise InputError("trans must be (batch, 3), one row per window", expected=(bsz, 3), got=np.shape(trans))
         b = np.repeat(self._betas(betas)[None], bsz, axis=0)
         j = np.repeat(np.asarray(joints, np.float32)[None], bsz, axis=0)
         feeds = {
@@ -249,7 +257,7 @@ class Deformer:
             "nbr": asset.nbr,
             "mask": asset.mask,
             "joints": j,
-            "trans": np.asarray(trans, np.float32),
+            "trans": np.zeros((bsz, 3), np.float32),
         }
         if self.needs_body_weights:
             lw = None if log_wbody is None else np.asarray(log_wbody, np.float32)
@@ -260,5 +268,6 @@ class Deformer:
                     got=None if lw is None else lw.shape,
                 )
             feeds["log_wbody"] = lw
-        out = self.package.run(self.variant, feeds)
+        out = list(self.package.run(self.variant, feeds))
+        out[0] = at_translation(out[0], trans)
         return out if outputs else out[0]

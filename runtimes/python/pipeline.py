@@ -53,6 +53,7 @@ from segadeform.settings import Effects, Scene
 from .body import BODY_BACKENDS, BodyPoser
 from .deformer import Deformer
 from .package import ModelPackage
+from .translation import at_translation
 
 __all__ = [
     "Run",
@@ -204,9 +205,18 @@ class Run:
         return cache_dir()
 
     def load_asset(self, joints: np.ndarray) -> GarmentAsset:
-        if self.garment.suffix.lower() in (".npz", PORTABLE_SUFFIX):
-            return GarmentAsset.load(self.garment)
         n_star = int(self.package.config["n_star"])
+        if self.garment.suffix.lower() in (".npz", PORTABLE_SUFFIX):
+            asset = GarmentAsset.load(self.garment)
+            if asset.descriptor.shape != (n_star,):  # an asset exported for another model (a new user's trial)
+                raise InputError(
+                    "the garment asset was exported for another model; export it for this one: segadeform garment "
+                    f"export {asset.source_name or 'GARMENT'} --model {self.package.path}",
+                    path=self.garment,
+                    expected=f"a garment descriptor of {n_star} values",
+                    got=asset.descriptor.shape[0],
+                )
+            return asset
         # read (and so checked: its extension, its contents) whether or not the cache has it: a cache entry is
         # keyed by the file's bytes, and must not make a file that fails to read (an OBJ renamed .txt) run
         mesh = read_mesh(self.garment)
@@ -292,6 +302,7 @@ class Run:
         )
         stage["encode"] += time.perf_counter() - t
         need_body = self.effects.collisions or self.effects.cloth or self.body_output is not None
+        at_root = self.effects.collisions and not self.effects.cloth
         out = SceneOutput(
             path=self.output,
             fmt=self.output_format,
@@ -326,15 +337,17 @@ class Run:
                 hi = min(lo + batch, self.stop if writing else self.start)
                 t = time.perf_counter()
                 win = motion_windows(self.motion.poses, self.deformer.window, start=lo, stop=hi)
-                verts = self.deformer.deform(P, asset, win, joints, self.motion.trans[lo:hi], self.betas, log_wbody=lw)
+                # collisions are resolved at the root, the translation added after them (runtime.translation: the
+                # same frames wherever the character stands); the cloth stage steps in world coordinates
+                trans = self.motion.trans[lo:hi]
+                at = np.zeros_like(trans) if at_root else trans
+                verts = self.deformer.deform(P, asset, win, joints, at, self.betas, log_wbody=lw)
                 stage["deform"] += time.perf_counter() - t
                 if not np.isfinite(verts).all():
                     raise InputError(f"the deformer produced NaN or inf at frames {lo}..{hi - 1}")
                 if need_body:
                     t = time.perf_counter()
-                    posed = cast(BodyPoser, self.body_poser).pose(
-                        self.motion.poses[lo:hi], self.betas, self.motion.trans[lo:hi]
-                    )
+                    posed = cast(BodyPoser, self.body_poser).pose(self.motion.poses[lo:hi], self.betas, at)
                     stage["pose body"] += time.perf_counter() - t
                 if self.effects.cloth:  # contact included: no push-out after it
                     t = time.perf_counter()
@@ -350,6 +363,9 @@ class Run:
                         )
                     verts, n = collider.push_out(verts, posed, self.effects.collision_margin)
                     pushed += n
+                    # rounded to float32 at the root, as the other runtimes hold their frames, then moved
+                    verts = at_translation(verts.astype(np.float32), trans)
+                    posed = at_translation(posed, trans)
                     stage["collisions"] += time.perf_counter() - t
                 if not writing:
                     continue

@@ -16,6 +16,10 @@ shape (betas)       |beta| <= 10 (hard)  the shape space is linear: past about 1
                                          turns it inside out)
 body height         0.9 .. 2.5 m         a human; betas of about +-3 on the default body reach it
                     (usual, --force)
+body surface        <= 0.1 % of faces    a shape whose skin folds through itself: within |beta| <= 10
+                    turned over (usual,  a shape can (betas 0,8: 67 of the default body's 27,420
+                    --force)             faces turned over; 0,5,...,5: 590); random shapes within
+                                         +-3 turn at most 12
 procedural seed     0 .. 2**32 - 1       numpy's seeds
 ==================  ===================  ==========================================================
 """
@@ -31,6 +35,8 @@ __all__ = [
     "MAX_TRANSLATION",
     "BETA_LIMIT",
     "HEIGHT_RANGE",
+    "FOLDED_FACES",
+    "folded_faces",
     "SEED_RANGE",
     "check_fps",
     "check_translation",
@@ -43,6 +49,8 @@ FPS_RANGE = (1.0, 1000.0)
 MAX_TRANSLATION = 1.0e4
 BETA_LIMIT = 10.0
 HEIGHT_RANGE = (0.9, 2.5)
+#: the share of the body's faces a shape may turn over (their normal against the template's) before it is refused
+FOLDED_FACES = 0.001
 SEED_RANGE = (0, 2**32 - 1)
 
 
@@ -90,7 +98,8 @@ def check_betas(betas, *, path=None, what: str = "betas") -> tuple:
         raise InputError(f"{what} must be finite", path=path, got=[float(x) for x in b[:10]])
     if b.size and np.abs(b).max() > BETA_LIMIT:
         raise InputError(
-            f"{what} out of range: past it the body model folds through itself",
+            f"{what} out of range: the shape space ends there (a shape within it may still fold through itself, "
+            "which is checked where the body is shaped)",
             path=path,
             expected=f"|beta| <= {BETA_LIMIT:g}",
             got=f"{float(b[np.abs(b).argmax()]):g}",
@@ -98,9 +107,24 @@ def check_betas(betas, *, path=None, what: str = "betas") -> tuple:
     return tuple(float(x) for x in b)
 
 
+def folded_faces(body, betas=None) -> int:
+    """How many of ``body``'s faces the shape ``betas`` turns over: their normal points against the same face's on
+    the template (the skin folded through itself)."""
+    f = np.asarray(body.faces)
+
+    def normals(v):
+        return np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+
+    shaped = normals(np.asarray(body.shaped_vertices(betas)[0], np.float64))
+    template = normals(np.asarray(body.v_template, np.float64))
+    return int((np.einsum("ij,ij->i", shaped, template) < 0).sum())
+
+
 def check_body_height(body, betas=None, *, force: bool = False, path=None) -> float:
-    """The rest height (m) of ``body`` shaped by ``betas``; outside :data:`HEIGHT_RANGE` refused unless ``force``
-    (a shape a user may mean, but no human has)."""
+    """The rest height (m) of ``body`` shaped by ``betas``.  Outside :data:`HEIGHT_RANGE`, or with more than
+    :data:`FOLDED_FACES` of the body's faces turned over (:func:`folded_faces`: the skin folds through itself, which
+    shapes well inside ``|beta| <= 10`` do), the shape is refused unless ``force`` (a shape a user may mean, but no
+    human has)."""
     h = float(np.ptp(body.shaped_vertices(betas)[0][:, 1]))
     lo, hi = HEIGHT_RANGE
     if not force and not lo <= h <= hi:
@@ -110,6 +134,16 @@ def check_body_height(body, betas=None, *, force: bool = False, path=None) -> fl
             expected=f"{lo:g}..{hi:g} m (betas within about +-3), or --force to use it anyway",
             got=f"{h:.2f} m",
         )
+    if not force:
+        n, total = folded_faces(body, betas), len(body.faces)
+        if n > FOLDED_FACES * total:
+            raise InputError(
+                "the body shape folds through itself",
+                path=path,
+                expected=f"at most {FOLDED_FACES * total:.0f} of the body's {total} faces turned over (betas within "
+                "about +-3), or --force to use it anyway",
+                got=f"{n} turned over",
+            )
     return h
 
 

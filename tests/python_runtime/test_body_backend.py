@@ -17,6 +17,7 @@ from segadeform.motion import make_motion
 from segadeform.runtime import ModelPackage
 from segadeform.runtime.body import BodyPoser, graph_body_status
 from segadeform.runtime.pipeline import Run
+from segadeform.runtime.translation import at_translation
 from segadeform.settings import Effects
 from tests.conftest import SAMPLES
 
@@ -62,7 +63,8 @@ def _run(tmp_path, package, body, effects, **kw):
 @pytest.mark.parametrize("skinning", ["lbs", "dqs"])
 def test_graph_body_is_the_numpy_body_within_a_micrometre(shipped, body, skinning):
     """The shipped package's body graphs pose the default body within 1e-6 m of BodyModel.forward, over a dance
-    with a body shape; and in float32, as the other runtimes' bodies."""
+    with a body shape; the graph's float32 numbers at the root, the translation added in float64, as the other
+    runtimes add it (segadeform.runtime.translation)."""
     m = make_motion("dance", seconds=1.0, seed=4)
     betas = np.array([0.8, -0.5, 0.3])
     graph = BodyPoser(shipped, body, skinning=skinning, backend="graph")
@@ -72,7 +74,9 @@ def test_graph_body_is_the_numpy_body_within_a_micrometre(shipped, body, skinnin
     for lo in range(0, m.n_frames, 8):
         g = graph.pose(m.poses[lo : lo + 8], betas, m.trans[lo : lo + 8])
         n = numpy.pose(m.poses[lo : lo + 8], betas, m.trans[lo : lo + 8])
-        assert g.dtype == np.float32 and n.dtype == np.float64 and g.shape == n.shape
+        assert g.dtype == n.dtype == np.float64 and g.shape == n.shape
+        at_root = g - m.trans[lo : lo + 8, None].astype(np.float32)
+        np.testing.assert_array_equal(at_root, at_root.astype(np.float32))
         np.testing.assert_allclose(g, n, rtol=0, atol=1e-6)
 
 
@@ -89,17 +93,18 @@ def test_run_poses_the_package_body_with_its_graph(tmp_path, shipped, body):
         {
             "betas": np.zeros(body.n_betas, np.float32),
             "poses": m.poses.reshape(len(m.poses), -1, 3).astype(np.float32),
-            "trans": m.trans.astype(np.float32),
+            "trans": np.zeros((len(m.poses), 3), np.float32),
         },
     )[0]
-    np.testing.assert_array_equal(posed, want)
+    np.testing.assert_array_equal(posed, at_translation(want, m.trans).astype(np.float32))
     g = _run(tmp_path / "g", shipped, body, eff, body_backend="graph").execute()
     assert g.body_backend == "graph" and g.pushed_vertices == s.pushed_vertices
     np.testing.assert_array_equal(read_pc2(tmp_path / "g" / "out.pc2").frames, frames)
     n = _run(tmp_path / "n", ModelPackage(SHIPPED), body, eff, body_backend="numpy").execute()  # its own sessions
     assert n.body_backend == "numpy" and "body_lbs" not in n.sessions
-    np.testing.assert_array_equal(
-        read_pc2(tmp_path / "n" / "body.pc2").frames, body.forward(m.poses, None, m.trans).vertices.astype(np.float32)
+    np.testing.assert_array_equal(  # posed at the root, then moved (the collisions are resolved there)
+        read_pc2(tmp_path / "n" / "body.pc2").frames,
+        at_translation(body.forward(m.poses, None, 0 * m.trans).vertices, m.trans).astype(np.float32),
     )
     np.testing.assert_allclose(read_pc2(tmp_path / "n" / "body.pc2").frames, posed, rtol=0, atol=1e-6)
 
@@ -133,7 +138,8 @@ def test_custom_body_falls_back_to_numpy(tmp_path, shipped, custom_body, caplog)
     assert s.body_backend == "numpy" and "body_lbs" not in s.sessions
     m = make_motion("dance", seconds=0.4, seed=2)
     np.testing.assert_array_equal(
-        read_pc2(tmp_path / "body.pc2").frames, custom_body.forward(m.poses, None, m.trans).vertices.astype(np.float32)
+        read_pc2(tmp_path / "body.pc2").frames,
+        at_translation(custom_body.forward(m.poses, None, 0 * m.trans).vertices, m.trans).astype(np.float32),
     )
     with pytest.raises(InputError, match="cannot pose the body with the package's body graph.*taller.npz"):
         _run(tmp_path, shipped, custom_body, eff, body_backend="graph")

@@ -123,6 +123,9 @@ def test_runtime_refuses_what_it_cannot_run(runtime, request, portable_scene, ra
     dataclasses.replace(a, betas=None, log_wbody=None, body=None).save(tmp_path / "plain.sgda")  # not for a body
     dataclasses.replace(a, body={"name": "other.npz", "sha256": "0" * 64}).save(tmp_path / "other.sgda")
     dataclasses.replace(a, body=dict(a.body, weight_prior="inpaint")).save(tmp_path / "inpaint.sgda")
+    # exported for another model (a shorter descriptor): onnxruntime's own error named neither file nor fix
+    dataclasses.replace(a, descriptor=a.descriptor[:16], fps_samples=a.fps_samples[:16]).save(tmp_path / "m16.sgda")
+    (tmp_path / "folder.sgda").mkdir()
 
     def run(*args):
         return subprocess.run(
@@ -137,6 +140,12 @@ def test_runtime_refuses_what_it_cannot_run(runtime, request, portable_scene, ra
         (["--garment", str(s["motion"]), "--motion", str(s["motion"])], "not a garment asset"),
         (["--garment", str(s["garment"]), "--motion", str(s["garment"])], "not a motion file"),
         (["--garment", str(s["garment"]), "--motion", str(tmp_path / "missing.sgdm")], "missing.sgdm: no such file"),
+        (
+            ["--garment", str(tmp_path / "m16.sgda"), "--motion", str(s["motion"])],
+            "m16.sgda: the garment asset was exported for another model; export it for this one: segadeform garment "
+            "export GARMENT --model PACKAGE (expected a garment descriptor of 32 values, got 16)",
+        ),
+        (["--garment", str(tmp_path / "folder.sgda"), "--motion", str(s["motion"])], "folder.sgda: is a directory"),
         (
             ["--garment", str(s["garment"]), "--motion", str(s["motion"]), "--effects", "lbs,wind"],
             "unknown effect 'wind'",

@@ -3,6 +3,7 @@
 #include <cctype>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -66,6 +67,8 @@ inline int64_t integer(const std::string& text, int64_t lo, int64_t hi, const st
 }  // namespace bundle_detail
 
 inline Bundle read_bundle_unchecked(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw std::runtime_error(path + ": is a directory, not a file");
   std::ifstream f(path, std::ios::binary);
   if (!f) throw std::runtime_error(path + ": no such file");
   std::string data((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());

@@ -133,8 +133,18 @@ class Cloth {
 
   // The next nb frames: frames (nb * N * 3 float32, changed in place: computed in float64 and rounded back, as
   // `segadeform run` writes them) against the posed body (nb * V * 3 float32).
-  void step(float* frames, int64_t nb, const float* body) {
+  // With `trans` (nb * 3), frames and body are at the root and the stage steps them at that translation, added in
+  // float64 (engine.hpp at_translation; Python's segadeform.runtime.translation).
+  void step(float* frames, int64_t nb, const float* body, const float* trans = nullptr) {
     std::vector<double> y(frames, frames + nb * n_ * 3), b(body, body + nb * nv_ * 3), out(y.size());
+    if (trans) {
+      for (int64_t f = 0; f < nb; ++f)
+        for (int c = 0; c < 3; ++c) {
+          const double t = trans[3 * f + c];
+          for (int64_t i = 0; i < n_; ++i) y[static_cast<size_t>((f * n_ + i) * 3 + c)] += t;
+          for (int64_t i = 0; i < nv_; ++i) b[static_cast<size_t>((f * nv_ + i) * 3 + c)] += t;
+        }
+    }
     const int64_t status = scl_step(n_, ne_, edges_.data(), rest_len_.data(), nptr_.data(), nidx_.data(),
                                     radius_.data(), anchor_.data(), tether_.data(), nf_, faces_.data(), settings_.data(),
                                     h_, nv_, b.data(),

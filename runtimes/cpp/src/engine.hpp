@@ -581,6 +581,19 @@ inline Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, cons
   return s;
 }
 
+// Frames computed at the root moved to the translation, in place: B frames of K points (B * K * 3) and trans (B * 3),
+// each coordinate the float64 sum rounded to float32.  Every graph runs at the root (trans zero) so that its float32
+// numbers are the same wherever the character stands (100 m from the origin a deep vertex left the body on the other
+// side: a garment 5.9 cm off); Python's segadeform.runtime.translation and Node's atTranslation do the same.
+inline void at_translation(float* frames, const float* trans, int64_t B, int64_t K) {
+  for (int64_t b = 0; b < B; ++b)
+    for (int64_t k = 0; k < K; ++k)
+      for (int c = 0; c < 3; ++c) {
+        float& x = frames[(b * K + k) * 3 + c];
+        x = static_cast<float>(static_cast<double>(x) + static_cast<double>(trans[3 * b + c]));
+      }
+}
+
 // The package's body graph (betas (|beta|,), poses (B, S, 3), trans (B, 3) -> vertices, ...), run a batch of frames at
 // a time: pose(poses, trans, B) gives B frames (B * V * 3), so that a long clip never holds its posed body whole
 // (21,000 frames of the default body held 3.5 GB); faces() its triangles (the graph's constant `faces` output),
@@ -600,8 +613,10 @@ class BodyPoser {
     betas_ = model_betas(sc.betas, nb_);
   }
   int64_t V() const { return v_; }
-  std::vector<float> pose(const float* poses, const float* trans, int64_t B) {
-    return run(std::vector<float>(poses, poses + B * s_ * 3), std::vector<float>(trans, trans + B * 3), B);
+  std::vector<float> pose(const float* poses, const float* trans, int64_t B) {  // run at the root, then moved
+    std::vector<float> v = run(std::vector<float>(poses, poses + B * s_ * 3), std::vector<float>(B * 3, 0.f), B);
+    at_translation(v.data(), trans, B, v_);
+    return v;
   }
   std::vector<float> rest() { return run(std::vector<float>(static_cast<size_t>(3 * s_), 0.f), {0.f, 0.f, 0.f}, 1); }
   const std::vector<int32_t>& faces() {
@@ -730,29 +745,39 @@ class Stream {
     all.insert(all.end(), poses, poses + B * D);
     // the deformer over the chunk's batches, then the body and the stages over the same batches (one graph at a time
     // runs faster than the two in alternation: 15-20 % of segadeform-run's CPU time, measured)
+    // the graphs run at the root (at_translation); collisions are resolved there, the cloth stage steps at the
+    // translation in float64, and the translation is added last
+    const std::vector<float> zero(static_cast<size_t>(opt_.batch * 3), 0.f);
     for (int64_t lo = 0; lo < B; lo += opt_.batch) {
       const int64_t hi = std::min<int64_t>(lo + opt_.batch, B), b = hi - lo;
       const auto t0 = Clock::now();
-      deform(all, first, seen_ + lo, b, trans + lo * 3, frames + lo * N * 3);
+      deform(all, first, seen_ + lo, b, zero.data(), frames + lo * N * 3);
       ms_deform_ += since(t0);
+      if (!poser_) at_translation(frames + lo * N * 3, trans + lo * 3, b, N);
     }
     for (int64_t lo = 0; poser_ && lo < B; lo += opt_.batch) {
       const int64_t hi = std::min<int64_t>(lo + opt_.batch, B), b = hi - lo;
       auto t0 = Clock::now();
-      const std::vector<float> posed = poser_->pose(poses + lo * D, trans + lo * 3, b);
+      const std::vector<float> posed = poser_->pose(poses + lo * D, zero.data(), b);
       ms_body_ += since(t0);
-      if (body) std::copy(posed.begin(), posed.end(), body + lo * V * 3);
+      if (body) {
+        std::copy(posed.begin(), posed.end(), body + lo * V * 3);
+        at_translation(body + lo * V * 3, trans + lo * 3, b, V);
+      }
       t0 = Clock::now();
       if (stage_) {
-        stage_->step(frames + lo * N * 3, b, posed.data());
+        stage_->step(frames + lo * N * 3, b, posed.data(), trans + lo * 3);
         ms_stage_ += since(t0);
-      } else if (opt_.effects.collisions) {
+        continue;
+      }
+      if (opt_.effects.collisions) {
         const std::vector<int32_t>& bf = poser_->faces();
         if (!collider_)
           collider_.reset(new sgd::Collider(posed.data(), V, bf.data(), static_cast<int64_t>(bf.size() / 3)));
         moved_ += collider_->push_out(frames + lo * N * 3, b, N, posed.data(), opt_.margin, opt_.threads);
-        ms_stage_ += since(t0);
       }
+      at_translation(frames + lo * N * 3, trans + lo * 3, b, N);
+      if (opt_.effects.collisions) ms_stage_ += since(t0);
     }
     seen_ += B;
     frames_ += B;
@@ -803,8 +828,18 @@ class Stream {
       if (name == "features") ein.push_back(input_from(enc_spec, name, *sc.features, {1, N, sc.features->shape[1]}));
       else if (name == "nbr") ein.push_back(input_from(enc_spec, name, *sc.nbr, {N, K}));
       else if (name == "mask") ein.push_back(input_from(enc_spec, name, *sc.mask, {N, K}));
-      else if (name == "descriptor")
+      else if (name == "descriptor") {
+        const sgd::Json& shape = i["shape"];
+        const int64_t want = shape.arr.size() == 2 ? static_cast<int64_t>(shape.arr[1].num) : -1;
+        if (want > 0 && want != sc.descriptor->shape[0]) {  // (onnxruntime's own error named neither)
+          release(ein);
+          throw std::runtime_error("the garment asset was exported for another model; export it for this one: "
+                                   "segadeform garment export GARMENT --model PACKAGE (expected a garment descriptor "
+                                   "of " + std::to_string(want) + " values, got " +
+                                   std::to_string(sc.descriptor->shape[0]) + ")");
+        }
         ein.push_back(input_from(enc_spec, name, *sc.descriptor, {1, sc.descriptor->shape[0]}));
+      }
       else if (name == "betas") ein.push_back(input_floats(name, betas_, {1, nb_}));
       else {
         release(ein);
@@ -844,7 +879,7 @@ class Stream {
   void deform(const std::vector<float>& all, int64_t first, int64_t g0, int64_t b, const float* trans, float* out) {
     const int64_t D = sc_.D, S = sc_.S, W = window_;
     std::vector<float> win(static_cast<size_t>(b * W * D)), bb(static_cast<size_t>(b * nb_)),
-        jj(static_cast<size_t>(b * S * 3)), tt(trans, trans + b * 3);
+        jj(static_cast<size_t>(b * S * 3)), tt(trans, trans + b * 3);  // at the root: push() passes zeros
     for (int64_t i = 0; i < b; ++i) {
       for (int64_t k = 0; k < W; ++k) {
         const int64_t src = std::max<int64_t>(g0 + i - k, 0) - first;

@@ -220,7 +220,9 @@ int main(int argc, char** argv) {
     api->ReleaseEnv(env);
   } catch (const std::exception& e) {
     for (const auto& o : outputs) std::remove(sgd::temporary_name(o).c_str());  // a failed run leaves no output
-    std::cerr << "Error: " << sgd::outputs_detail::one_line(e.what()) << "\n";
+    // the engine's refusals of the garment asset name no file: this command names the one it was given
+    const std::string what = e.what(), named = flag_form && what.rfind("the garment asset ", 0) == 0 ? garment + ": " : "";
+    std::cerr << "Error: " << named << sgd::outputs_detail::one_line(e.what()) << "\n";
     return 1;
   }
   return 0;

@@ -114,6 +114,8 @@ try {
       `${k.msPerFrame.toFixed(2)} ms/frame` : ""));
   if (k && k.resets) console.error(`cloth: the stage started again from the network's frame at frame ${k.firstReset} (the garment jumped)`);
 } catch (e) {
-  console.error(`Error: ${e.message}`);
+  // the API's refusals of the garment asset name no file: this command names the one it was given
+  const named = flagForm && e.message.startsWith("the garment asset ") ? `${garment}: ` : "";
+  console.error(`Error: ${named}${e.message}`);
   process.exit(1);
 }

@@ -751,8 +751,20 @@ export function clothStart(restBody, faces, rest, garmentFaces, { settings = DEF
 }
 
 /** Frames lo..hi-1 of `frames` (T*N*3 float32, changed in place) through `stage`; `bodyBatch`: the posed body of
- * those frames ((hi - lo)*V*3). */
-export function clothStep(stage, frames, N, lo, hi, bodyBatch) {
-  const out = stage.step(new Float64Array(frames.subarray(lo * N * 3, hi * N * 3)), new Float64Array(bodyBatch), hi - lo);
+ * those frames ((hi - lo)*V*3).  With `trans` ((hi - lo)*3), frames and body are at the root and the stage steps
+ * them at that translation, added in float64 (core.js atTranslation). */
+export function clothStep(stage, frames, N, lo, hi, bodyBatch, trans = null) {
+  const B = hi - lo, y = new Float64Array(frames.subarray(lo * N * 3, hi * N * 3)), b = new Float64Array(bodyBatch);
+  if (trans) {
+    const V = b.length / (3 * B);
+    for (let f = 0; f < B; f++) {
+      for (let c = 0; c < 3; c++) {
+        const t = trans[3 * f + c];
+        for (let i = 0; i < N; i++) y[(f * N + i) * 3 + c] += t;
+        for (let i = 0; i < V; i++) b[(f * V + i) * 3 + c] += t;
+      }
+    }
+  }
+  const out = stage.step(y, b, B);
   frames.set(out, lo * N * 3); // float64 -> float32, rounded to nearest
 }

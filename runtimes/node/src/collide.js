@@ -21,7 +21,8 @@
 const STACK = 256; // traversal stack; the median split keeps the depth under log2(F) + 1
 const TINY = 1e-300;
 const FEATURE = 1e-9; // a barycentric weight at or under this is zero (the reference's rule)
-// a surface point is buried if the point this far out along its face's normal (times scale) is inside the body
+// a surface point is buried if the point this far out along its face's normal (times the posed body's size) is inside
+// the body
 const BURY = 1e-6;
 const BURY_TRIES = 512; // at most this many faces tested for one point (nearestOpen)
 
@@ -416,8 +417,12 @@ function makeFrame(b, verts, vOff, box, boxOff) {
     const x = Math.abs(box[boxOff + k]);
     if (x > m) m = x;
   }
-  // scale: the largest coordinate magnitude of the posed body; slack: far above the rounding of a distance there
-  return { b, verts, vOff, box, boxOff, scale: m, slack: 1e-12 * m + TINY };
+  // scale: the posed body's size (its box's longest side: the same wherever the body stands), which the tolerances
+  // of the rules for buried skin and the push-out's radius are measured in; slack: far above the rounding of a
+  // distance at the largest coordinate magnitude
+  let scale = 0;
+  for (let k = 0; k < 3; k++) scale = Math.max(scale, box[boxOff + 3 + k] - box[boxOff + k]);
+  return { b, verts, vOff, box, boxOff, scale, slack: 1e-12 * m + TINY };
 }
 
 // traversal stacks (grown if a tree is ever deeper than STACK allows)

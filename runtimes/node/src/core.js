@@ -559,6 +559,11 @@ export class Player {
       descriptor: [G.descriptor, [1, G.descriptor.length]], betas: [this.betasRow, [1, this.nb]],
     };
     const encFeeds = {};
+    const want = (encSpec.inputs.find((i) => i.name === "descriptor") || { shape: [] }).shape[1];
+    if (typeof want === "number" && want !== G.descriptor.length) { // (onnxruntime's own error named neither)
+      throw new Error("the garment asset was exported for another model; export it for this one: segadeform garment " +
+        `export GARMENT --model PACKAGE (expected a garment descriptor of ${want} values, got ${G.descriptor.length})`);
+    }
     for (const i of encSpec.inputs) {
       if (!encArrays[i.name]) throw new Error(`the garment encoder takes '${i.name}', which this runtime cannot feed`);
       encFeeds[i.name] = feed(ort, i, ...encArrays[i.name]);
@@ -625,33 +630,43 @@ export class Player {
     const all = new Float32Array((hist + B) * D);
     all.set(this.prev, 0);
     all.set(P, hist * D);
+    // the graphs run at the root (the same float32 numbers wherever the character stands); collisions are resolved
+    // there, the cloth stage steps in world coordinates in float64, and the translation is added last (atTranslation:
+    // as Python's segadeform.runtime.translation)
     for (let lo = 0; lo < B; lo += this.batch) {
-      const hi = Math.min(lo + this.batch, B);
+      const hi = Math.min(lo + this.batch, B), n = hi - lo, tr = Tr.subarray(3 * lo, 3 * hi);
+      const rel = frames.subarray(lo * N * 3, hi * N * 3), zero = new Float32Array(3 * n);
       let t0 = performance.now();
-      frames.set(await this.#deform(all, first, this.seen + lo, hi - lo, Tr.subarray(3 * lo, 3 * hi)), lo * N * 3);
+      rel.set(await this.#deform(all, first, this.seen + lo, n, zero));
       this.msDeform += performance.now() - t0;
-      if (!this.poser) continue;
+      if (!this.poser || !this.stages) {
+        rel.set(atTranslation(rel, tr, n));
+        if (!this.poser) continue;
+      }
       t0 = performance.now();
       let b;
       if (body) { // the joints too
-        const j = await this.poser.joints(P.subarray(lo * D, hi * D), Tr.subarray(3 * lo, 3 * hi), hi - lo);
+        const j = await this.poser.joints(P.subarray(lo * D, hi * D), zero, n);
         b = j.vertices;
-        body.set(b, lo * V * 3);
-        joints.set(j.joints, lo * this.S * 3);
+        body.set(atTranslation(b, tr, n), lo * V * 3);
+        joints.set(atTranslation(j.joints, tr, n), lo * this.S * 3);
         this.restJoints = j.restJoints;
       } else {
-        b = await this.poser.pose(P.subarray(lo * D, hi * D), Tr.subarray(3 * lo, 3 * hi), hi - lo);
+        b = await this.poser.pose(P.subarray(lo * D, hi * D), zero, n);
       }
       this.msBody += performance.now() - t0;
       if (!this.stages) continue;
       t0 = performance.now();
       if (this.stage) {
-        clothStep(this.stage, frames, N, lo, hi, b);
-      } else if (this.effects.collisions) {
-        const c = pushOutFrames(frames.subarray(lo * N * 3, hi * N * 3), hi - lo, N, b, V, this.poser.faces(),
-          { margin: this.margin, iterations: 3, batch: hi - lo, collider: this.collider });
-        this.collider = c.collider;
-        this.moved += c.moved;
+        clothStep(this.stage, frames, N, lo, hi, b, tr);
+      } else {
+        if (this.effects.collisions) {
+          const c = pushOutFrames(rel, n, N, b, V, this.poser.faces(),
+            { margin: this.margin, iterations: 3, batch: n, collider: this.collider });
+          this.collider = c.collider;
+          this.moved += c.moved;
+        }
+        rel.set(atTranslation(rel, tr, n));
       }
       this.msAfter += performance.now() - t0;
     }
@@ -692,6 +707,21 @@ export class Player {
     if (s) return { contacts: s.contacts, pushed: s.pushed, traced: s.traced, resets: s.resets, firstReset: s.firstReset };
     return { moved: this.moved };
   }
+}
+
+/**
+ * Frames computed at the root moved to the translation: B frames of any number of points (B*K*3) and trans (B*3)
+ * -> a new Float32Array, each coordinate rounded from the float64 sum (Python's segadeform.runtime.translation).
+ */
+export function atTranslation(frames, trans, B) {
+  const out = new Float32Array(frames.length), K = frames.length / (3 * B);
+  for (let b = 0; b < B; b++) {
+    for (let c = 0; c < 3; c++) {
+      const t = trans[3 * b + c];
+      for (let k = 0; k < K; k++) out[(b * K + k) * 3 + c] = frames[(b * K + k) * 3 + c] + t;
+    }
+  }
+  return out;
 }
 
 /**
@@ -765,21 +795,24 @@ export async function bodyPoserWith(ort, manifest, inputs, session, { skinning =
   if (S !== I.S) throw new Error(`the body graph poses ${S} joints, the motion has ${I.S}`);
   const betas = feed(ort, spec.inputs[0], modelBetas(I.betas, nb), [nb]);
   let faces = null;
-  const run = async (poses, trans, B) => {
+  // the graph runs at the root; the translation is added after it (atTranslation: the same numbers wherever the
+  // character stands, as in Python)
+  const run = async (poses, B) => {
     const out = await sess.run({
       betas, poses: new ort.Tensor("float32", Float32Array.from(poses), [B, S, 3]),
-      trans: new ort.Tensor("float32", Float32Array.from(trans), [B, 3]),
+      trans: new ort.Tensor("float32", new Float32Array(3 * B), [B, 3]),
     });
     if (!faces) faces = Int32Array.from(await out.faces.getData());
     return out;
   };
   const joints = async (poses, trans, B) => {
-    const out = await run(poses, trans, B);
-    return { vertices: await out.vertices.getData(), joints: await out.joints.getData(),
+    const out = await run(poses, B);
+    return { vertices: atTranslation(await out.vertices.getData(), trans, B),
+      joints: atTranslation(await out.joints.getData(), trans, B),
       restJoints: Float32Array.from(await out.rest_joints.getData()) };
   };
-  const pose = async (poses, trans, B) => (await run(poses, trans, B)).vertices.getData();
-  const rest = async () => ({ vertices: Float32Array.from(await pose(new Float32Array(S * 3), new Float32Array(3), 1)),
+  const pose = async (poses, trans, B) => atTranslation(await (await run(poses, B)).vertices.getData(), trans, B);
+  const rest = async () => ({ vertices: await pose(new Float32Array(S * 3), new Float32Array(3), 1),
     faces });
   return { name, V, S, pose, joints, rest, faces: () => faces };
 }

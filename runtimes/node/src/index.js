@@ -1,7 +1,7 @@
 // segadeform's Node runtime: a model package (docs/package.md) and a garment asset (.sgda) with a motion file
 // (.sgdm) -- or a scene bundle (.sgdb) -- in, frames out; the package's body graph poses the body.
 // The logic is core.js (shared with the browser runtime, runtimes/web); this file adds files and hashes.
-import { readFileSync, writeFileSync, renameSync, existsSync, unlinkSync } from "node:fs";
+import { readFileSync, writeFileSync, renameSync, existsSync, statSync, unlinkSync } from "node:fs";
 import { createHash } from "node:crypto";
 import { join } from "node:path";
 import * as ort from "onnxruntime-node";
@@ -36,6 +36,7 @@ function checkHash(dir, file, sha256, what) {
 
 function readContainer(path) {
   if (!existsSync(path)) throw new Error(`${path}: no such file`);
+  if (statSync(path).isDirectory()) throw new Error(`${path}: is a directory, not a file`);
   return parseBundle(readFileSync(path), path);
 }
 

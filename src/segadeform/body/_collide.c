@@ -76,7 +76,7 @@
 #define SDC_TINY 1e-300
 #define SDC_FEATURE 1e-9 /* a barycentric weight at or under this is zero (the reference's rule) */
 #define SDC_BURY 1e-6    /* a surface point is buried if the point this far out along its face's normal (times the
-                            * body's largest coordinate magnitude) is inside the body */
+                            * posed body's size: its bounding box's longest side) is inside the body */
 #define SDC_BURY_TRIES 512 /* at most this many faces tested for one point (nearest_open) */
 
 typedef struct {
@@ -567,8 +567,14 @@ static void make_frame(const sdc_body *b, const double *verts, const double *box
         double x = fabs(box[k]);
         if (x > m) m = x;
     }
-    fr->scale = m;                    /* the largest coordinate magnitude of the posed body */
-    fr->slack = 1e-12 * m + SDC_TINY; /* far above the rounding of a distance at that magnitude (1e-16) */
+    /* scale: the posed body's size (its box's longest side), which the tolerances of the rules for buried skin and
+     * the push-out's radius are measured in: the same wherever the body stands (the largest coordinate magnitude
+     * made them 100x larger 100 m from the origin, and the cloth stage's frames 6.6 cm different there); slack: far
+     * above the rounding of a distance at the largest coordinate magnitude (1e-16 of it) */
+    fr->scale = 0;
+    for (k = 0; k < 3; k++)
+        if (box[3 + k] - box[k] > fr->scale) fr->scale = box[3 + k] - box[k];
+    fr->slack = 1e-12 * m + SDC_TINY;
 }
 
 /* The nearest triangle to p with squared distance under the bound: branch and bound over the tree.

@@ -4,8 +4,8 @@ One ``OPolyMesh`` (triangles, or the garment file's own polygons and texture coo
 ``uv`` -- when given its :class:`~segadeform.io.surface.Surface`) named after the file (``out/dress_walk.abc``
 -> ``dress_walk``, as the USD writer names its prim; a body written beside the garment is then its own object on
 import): topology written once with the first frame, positions per frame, uniform time sampling ``1 / fps`` from
-``start / fps``.  Alembic (as Maya writes it) winds faces clockwise, so
-faces are stored reversed and reversed back on reading; DCC importers
+``start / fps`` (``fps`` as :func:`~segadeform.io.writer.nominal_fps` rounds it).  Alembic (as Maya writes it)
+winds faces clockwise, so faces are stored reversed and reversed back on reading; DCC importers
 (Blender, Maya, Houdini) then show outward normals.  Vertex order is the
 garment file's.  The archive is written under a temporary name and renamed
 when closed.
@@ -24,7 +24,7 @@ from ..errors import FileFormatError, InputError, check_readable, unreadable_err
 from .atomic import _tmp_sibling
 from .mesh import validate_mesh_arrays
 from .surface import fan_triangles
-from .writer import SequenceWriter
+from .writer import SequenceWriter, nominal_fps
 
 __all__ = ["AlembicSequenceWriter", "read_alembic_sequence", "alembic_available"]
 
@@ -86,6 +86,7 @@ class AlembicSequenceWriter(SequenceWriter):
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
         if not (np.isfinite(fps) and fps > 0):
             raise InputError("fps must be positive", got=fps)
+        fps = nominal_fps(fps)  # 1 / 120, not 1 / 120.000048 (a BVH's Frame Time: 0.00833333)
         self._tmp = _tmp_sibling(self.path, directory=False)
         self._archive = Abc.OArchive(str(self._tmp))
         ts = self._archive.addTimeSampling(AbcCoreAbstract.TimeSampling(1.0 / fps, start_frame / fps))

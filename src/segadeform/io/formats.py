@@ -244,11 +244,20 @@ def _objseq_read(path, faces):
     return read_obj_sequence(path)[1]
 
 
+def _faces_said(polygons: int, triangles: int) -> str:
+    """The faces a file holds, and the triangles they make when those are more (quads: ``862 faces (1724
+    triangles)``)."""
+    return f"{polygons} faces" + (f" ({triangles} triangles)" if triangles != polygons else "")
+
+
 def _objseq_inspect(path):
-    from .sequence import read_obj_sequence
+    from .obj import read_obj
+    from .sequence import obj_sequence_files, read_obj_sequence
 
     faces, frames = read_obj_sequence(path)
-    return f"{frames.shape[0]} frames x {frames.shape[1]} vertices, {len(faces)} faces", frames
+    origin = read_obj(obj_sequence_files(path)[0][1]).face_origin  # the file's polygon of each triangle
+    polygons = len(faces) if origin is None else len(np.unique(origin))
+    return f"{frames.shape[0]} frames x {frames.shape[1]} vertices, {_faces_said(polygons, len(faces))}", frames
 
 
 def _xdmf_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
@@ -349,11 +358,13 @@ def _usd_start(path):
 
 
 def _usd_inspect(path):
-    from .usd import read_usd_sequence
+    from .surface import fan_triangles
+    from .usd import read_usd_mesh
 
-    faces, frames, times, info = read_usd_sequence(path)
+    counts, idx, frames, times, info = read_usd_mesh(path)
+    faces = _faces_said(len(counts), len(fan_triangles(counts, idx)))
     return (
-        f"{frames.shape[0]} time samples x {frames.shape[1]} points, {len(faces)} faces ({info['prim']}), "
+        f"{frames.shape[0]} time samples x {frames.shape[1]} points, {faces} ({info['prim']}), "
         f"upAxis {info['up']}, {info['meters_per_unit']:g} m per unit, {info['fps']:g} fps, time codes "
         f"{times[0]:g}..{times[-1]:g}",
         frames,

@@ -9,6 +9,7 @@ returns every path written, so callers can announce each one.  With an
 
 from __future__ import annotations
 
+import logging
 import os
 from pathlib import Path
 from typing import cast
@@ -21,15 +22,48 @@ from .writer import to_up
 
 __all__ = ["SceneOutput", "claim_scene_outputs", "body_output_format", "output_format_for", "garment_surface"]
 
+log = logging.getLogger(__name__)
+
+#: formats whose files say nothing of their up axis and whose importers (Blender's, Maya's, Houdini's) read them +Y up
+#: and turn them to their own world: ``up = "z"`` there lays the garment on its back (USD says ``upAxis``; PC2 is
+#: README's recipe, where a Z-up cache is for tools that read raw positions)
+Y_UP_FORMATS = ("abc", "obj-seq")
+
+
+def _warn_z_up(path, fmt: str, up: str) -> None:
+    if up == "z" and fmt in Y_UP_FORMATS:
+        log.warning(
+            "%s: up axis z (--up z) writes Z-up points into %s, which have no up-axis field; importers (Blender, "
+            "Maya, Houdini) read them Y-up and turn them themselves, so the mesh comes in on its back: use up y",
+            path,
+            "Alembic files" if fmt == "abc" else "OBJ files",
+        )
+
 
 def _extensions() -> str:
     return " | ".join(e for f in SEQUENCE_FORMATS.values() for e in f.extensions) + " | a folder (no extension)"
 
 
+def _check_name(path) -> None:
+    """An output's name must be more than an extension: ``nm/.usda`` has none (pathlib calls all of it the stem, so it
+    was a hidden OBJ-sequence folder named ``.usda``)."""
+    p = Path(path)
+    known = {e for f in SEQUENCE_FORMATS.values() for e in f.extensions} | set(_NOT_SEQUENCES)
+    if p.name.startswith(".") and p.name.lower() in known:
+        raise InputError(
+            "the output's file name is only an extension, with no name before it",
+            path=path,
+            expected=f"e.g. {p.with_name('out' + p.name)}",
+            got=p.name,
+        )
+
+
 def output_format_for(path, fmt: str | None = None) -> str:
     """The format a sequence output at ``path`` is written in: ``fmt`` where given, else the one its extension
-    names (no extension: the folder format).  An error when neither says, or when ``fmt`` contradicts the
-    extension (``out.usda`` with ``fmt = "pc2"`` would be a point cache no USD reader opens)."""
+    names (no extension: the folder format).  An error when neither says, when ``fmt`` contradicts the
+    extension (``out.usda`` with ``fmt = "pc2"`` would be a point cache no USD reader opens), when the name is only an
+    extension (``.usda``), or when a folder format's name has a mesh file's extension (``d.obj``)."""
+    _check_name(path)
     named = format_for_path(path)
     if fmt is None:
         if named is None:
@@ -41,6 +75,13 @@ def output_format_for(path, fmt: str | None = None) -> str:
             )
         return named.name
     f = sequence_format(fmt)
+    if f.folder and Path(path).suffix.lower() in _NOT_SEQUENCES:  # a folder called d.obj holding frame_00000.obj
+        raise InputError(
+            "an OBJ sequence is a folder",
+            path=path,
+            expected=f"a folder name without {Path(path).suffix}",
+            got=Path(path).name,
+        )
     if named is not None and Path(path).suffix and named.name != f.name:
         raise InputError(
             f"the extension says {named.name}, the format asked for is {f.name}",
@@ -79,6 +120,7 @@ def body_output_format(body_path, fmt: str | None = None) -> str:
     or one no format claims (``body.cache``), the garment's format ``fmt``, as before; an error for the extension
     of a mesh or another kind of file (``body.obj``)."""
     p = Path(body_path)
+    _check_name(p)
     named = format_for_path(p)
     if p.suffix and named is not None:
         return named.name
@@ -158,6 +200,9 @@ class SceneOutput:
         _targets(path, fmt, body_path)  # unknown formats and clashing paths fail before anything is opened
         self.fmt, self.up, self.guard = fmt, up, guard
         self.body_fmt = body_output_format(body_path, fmt) if body_path is not None else None
+        _warn_z_up(path, fmt, up)
+        if body_path is not None:
+            _warn_z_up(body_path, cast(str, self.body_fmt), up)
         rest = np.asarray(garment_rest, np.float64)
         self.garment = open_sequence_writer(
             path,

@@ -30,7 +30,7 @@ from ..errors import FileFormatError, InputError
 from .atomic import _tmp_sibling, atomic_path, merge_directory
 from .mesh import validate_mesh_arrays
 from .obj import read_obj, write_obj_positions
-from .writer import SequenceWriter, to_up
+from .writer import SequenceWriter, nominal_fps, to_up
 
 __all__ = [
     "ObjSequenceWriter",
@@ -186,7 +186,7 @@ class XdmfSequenceWriter(SequenceWriter):
         self.rest = None if rest is None else to_up(self.check(rest)[0].astype(np.float64), up)
         if not (np.isfinite(fps) and fps > 0):
             raise InputError("fps must be positive", got=fps)
-        self.fps, self.start = float(fps), int(start)
+        self.fps, self.start = nominal_fps(fps), int(start)
         self._frames: list[np.ndarray] = []
 
     def _append(self, frames: np.ndarray) -> None:

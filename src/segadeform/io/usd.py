@@ -1,6 +1,7 @@
 """USD (``.usd``, ``.usda``, ``.usdc``) mesh sequences through the optional ``usd-core`` package (extra ``usd``).
 
-One ``UsdGeom.Mesh`` named after the file (``out/dress_walk.usd`` -> ``/dress_walk``, the stage's default prim):
+One ``UsdGeom.Mesh`` named after the file (``out/dress_walk.usd`` -> ``/dress_walk``, ``07 walk.usd`` ->
+``/_07_walk``: :func:`usd_prim_name`; the stage's default prim):
 faces written once (``faceVertexCounts`` all 3, ``faceVertexIndices`` in the garment file's order -- or, given the
 garment file's own :class:`~segadeform.io.surface.Surface`, its quads and polygons and its texture coordinates as
 the face-varying ``st`` primvar -- counter-clockwise = ``rightHanded``, no subdivision), ``points`` and ``extent``
@@ -17,6 +18,8 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
+import unicodedata
 from pathlib import Path
 
 import numpy as np
@@ -25,9 +28,16 @@ from ..errors import FileFormatError, InputError, check_readable, unreadable_err
 from .atomic import WriteError, _tmp_sibling, write_error
 from .mesh import validate_mesh_arrays
 from .surface import fan_triangles
-from .writer import SequenceWriter
+from .writer import SequenceWriter, nominal_fps
 
-__all__ = ["UsdSequenceWriter", "read_usd_sequence", "usd_available", "USD_EXTENSIONS"]
+__all__ = [
+    "UsdSequenceWriter",
+    "read_usd_mesh",
+    "read_usd_sequence",
+    "usd_available",
+    "usd_prim_name",
+    "USD_EXTENSIONS",
+]
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc")
 
@@ -38,6 +48,21 @@ def _modules():
     except ImportError:
         raise InputError("USD output needs the 'usd' extra: pip install 'segadeform[usd]'") from None
     return Usd, UsdGeom, Sdf, Vt, Tf
+
+
+#: letters NFKD does not take apart into a Latin letter and marks
+_LATIN = str.maketrans(dict(zip("ßæÆøØœŒłŁđĐðÐþÞı", "ss ae AE o O oe OE l L d D d D th Th i".split(), strict=True)))
+
+
+def usd_prim_name(stem: str) -> str:
+    """A valid USD prim name (``[A-Za-z_][A-Za-z0-9_]*``) keeping ``stem``'s characters where it can: accented
+    letters lose their accents (``ümlaut`` -> ``umlaut``), other characters become ``_``, and a leading digit gets
+    a ``_`` before it (``07-walk crop`` -> ``_07_walk_crop``); ``mesh`` when nothing of the name is left."""
+    ascii_ = "".join(c for c in unicodedata.normalize("NFKD", stem.translate(_LATIN)) if not unicodedata.combining(c))
+    name = re.sub(r"[^0-9A-Za-z_]", "_", ascii_)
+    if not re.search(r"[0-9A-Za-z]", name):
+        return "mesh"
+    return "_" + name if name[0].isdigit() else name
 
 
 def usd_available() -> bool:
@@ -54,7 +79,8 @@ class UsdSequenceWriter(SequenceWriter):
     Args:
         path: ``.usd``, ``.usda`` or ``.usdc``.
         faces: (F, 3) triangles; num_points: N.
-        fps: frames per second (the stage's time codes per second); start_frame: the first frame's time code.
+        fps: frames per second (the stage's time codes per second, as :func:`~segadeform.io.writer.nominal_fps`
+            rounds it); start_frame: the first frame's time code.
         up: "y" (as computed) or "z" (points turned to Z-up, ``upAxis = Z``).
     """
 
@@ -73,20 +99,19 @@ class UsdSequenceWriter(SequenceWriter):
         ext = self.path.suffix.lower()
         if ext not in USD_EXTENSIONS:
             raise InputError("not a USD file name", path=self.path, expected=" | ".join(USD_EXTENSIONS), got=ext)
-        Usd, UsdGeom, Sdf, self._Vt, Tf = _modules()
+        Usd, UsdGeom, Sdf, self._Vt, _ = _modules()
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
         if not (np.isfinite(fps) and fps > 0):
             raise InputError("fps must be positive", got=fps)
         self._Usd = Usd
-        self.fps, self.start = float(fps), float(start_frame)
+        self.fps, self.start = nominal_fps(fps), float(start_frame)  # 120, not a BVH's 120.000048
         self._stage = Usd.Stage.CreateInMemory()
         UsdGeom.SetStageUpAxis(self._stage, UsdGeom.Tokens.z if up == "z" else UsdGeom.Tokens.y)
         UsdGeom.SetStageMetersPerUnit(self._stage, 1.0)
         self._stage.SetTimeCodesPerSecond(self.fps)
         self._stage.SetFramesPerSecond(self.fps)
         self._stage.SetStartTimeCode(self.start)
-        name = Tf.MakeValidIdentifier(self.path.stem) or "mesh"
-        mesh = UsdGeom.Mesh.Define(self._stage, Sdf.Path("/" + name))
+        mesh = UsdGeom.Mesh.Define(self._stage, Sdf.Path("/" + usd_prim_name(self.path.stem)))
         self._stage.SetDefaultPrim(mesh.GetPrim())
         if surface is None:
             counts, corners = np.full(len(self.faces), 3, np.int32), self.faces.astype(np.int32).ravel()
@@ -141,6 +166,13 @@ def read_usd_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, 
     """The first mesh of a USD file: faces ``(F, 3)``, frames ``(S, N, 3)`` (its points' time samples, or its
     one default value), time codes ``(S,)`` and the stage's ``{"up", "meters_per_unit", "fps", "start",
     "end", "prim"}``.  Non-finite points are returned as they are (``segadeform inspect`` reports them)."""
+    counts, idx, frames, times, info = read_usd_mesh(path)
+    return fan_triangles(counts, idx), frames, times, info
+
+
+def read_usd_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+    """:func:`read_usd_sequence` with the mesh's own polygons for its triangles: ``faceVertexCounts (F,)`` and
+    ``faceVertexIndices (C,)``, then frames, time codes and the stage's values."""
     p = Path(path)
     check_readable(p)
     Usd, UsdGeom, _, _, _ = _modules()
@@ -185,4 +217,4 @@ def read_usd_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, 
         "end": float(stage.GetEndTimeCode()),
         "prim": str(mesh.GetPath()),
     }
-    return fan_triangles(counts, idx), frames, times, info
+    return counts, idx, frames, times, info

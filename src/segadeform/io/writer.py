@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["SequenceWriter", "UP_AXES", "Y_TO_Z", "to_up"]
+__all__ = ["SequenceWriter", "UP_AXES", "Y_TO_Z", "to_up", "COMMON_FPS", "nominal_fps"]
 
 #: the up axes a writer can write (``--up``, a scene's ``output.up``, a jobs file's ``batch.up``)
 UP_AXES = ("y", "z")
@@ -26,6 +26,26 @@ UP_AXES = ("y", "z")
 #: +Y up -> +Z up as Blender's OBJ importer turns objects by default (forward -Z, up Y):
 #: (x, y, z) -> (x, -z, y).  Rows act on column vectors: row-vector points map as ``p @ Y_TO_Z.T``.
 Y_TO_Z = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
+
+
+#: the frame rates besides whole numbers that a rate within :data:`FPS_RTOL` of stands for (NTSC film and video)
+COMMON_FPS = (23.976, 29.97, 47.952, 59.94, 119.88)
+#: how far (relative) a rate may be from a common one and still be it: a BVH's ``Frame Time: 0.00833333`` is
+#: 120.000048 fps (4e-7 off), a ``0.041667`` one 23.99981 (8e-6)
+FPS_RTOL = 1e-4
+
+
+def nominal_fps(fps: float) -> float:
+    """The frame rate ``fps`` stands for: a whole number or one of :data:`COMMON_FPS` within :data:`FPS_RTOL`
+    (relative) of it, else ``fps`` itself.  What the writers write (USD's ``timeCodesPerSecond``, Alembic's time
+    sampling, XDMF's times) and ``segadeform motion info`` says, so a file read at 1 / 0.00833333 fps is 120 in both."""
+    f = float(fps)
+    if not (np.isfinite(f) and f > 0):
+        return f
+    for rate in (float(round(f)), *COMMON_FPS):
+        if rate > 0 and abs(f - rate) <= FPS_RTOL * rate:
+            return rate
+    return f
 
 
 def _write_error(e: OSError, path):

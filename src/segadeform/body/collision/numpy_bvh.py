@@ -564,7 +564,7 @@ class NumpyBVH:
         itself)."""
         nv = self.n_vertices
         nb = fr.verts.shape[1] // nv
-        h = np.array([BURY * np.abs(fr.verts[:, b * nv + self._used]).max() for b in range(nb)])
+        h = np.array([BURY * np.ptp(fr.verts[:, b * nv + self._used], axis=1).max() for b in range(nb)])
         cand = np.flatnonzero(sd > h[frame[found]])
         if not len(cand):
             return

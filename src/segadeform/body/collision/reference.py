@@ -26,9 +26,9 @@ __all__ = [
     "push_out",
 ]
 
-#: a surface point is buried if the point this far out along its face's normal, times the body's largest coordinate
-#: magnitude, is inside the body (``_collide.c``'s SDC_BURY); a point nearer its closest point than that is on the
-#: surface
+#: a surface point is buried if the point this far out along its face's normal, times the posed body's size (its
+#: bounding box's longest side: :func:`body_size`), is inside the body (``_collide.c``'s SDC_BURY); a point nearer its
+#: closest point than that is on the surface
 BURY = 1e-6
 #: at most this many faces tested for one point (``_collide.c``'s SDC_BURY_TRIES): past it the point keeps its closest
 #: surface
@@ -119,6 +119,13 @@ def _root_box(vertices, faces) -> np.ndarray:
     """The posed body's bounding box over the vertices its faces use (lo xyz, hi xyz), as the tree's root box."""
     used = np.asarray(vertices, np.float64)[np.unique(faces)]
     return np.concatenate([used.min(axis=0), used.max(axis=0)])
+
+
+def body_size(vertices, faces) -> float:
+    """The posed body's size, which the rules' tolerances are measured in: its bounding box's longest side (the same
+    wherever the body stands; the largest coordinate magnitude made them 100x larger 100 m from the origin)."""
+    box = _root_box(vertices, faces)
+    return float((box[3:] - box[:3]).max())
 
 
 def _closed(faces) -> bool:
@@ -262,7 +269,7 @@ def nearest_unburied(point, vertices, faces, *, batch: int = 64, winding=None):
     cp, bary = closest_point_on_triangles(p[None], v[f[:, 0]], v[f[:, 1]], v[f[:, 2]])
     d2 = ((cp - p) ** 2).sum(axis=1)
     order = np.lexsort((np.arange(len(f)), d2))
-    h = BURY * np.abs(_root_box(v, f)).max()
+    h = BURY * body_size(v, f)
     cr = face_cross(v, f)
     n = cr / np.maximum(np.linalg.norm(cr, axis=1), 1e-300)[:, None]
     winding = winding if winding is not None else (lambda q: ray_winding(q, v, f))
@@ -293,7 +300,7 @@ def unbury(points, signed_distance, vertices, faces, *, winding=None):
     """
     v = np.asarray(vertices, np.float64)
     p = np.asarray(points, np.float64)
-    h = BURY * np.abs(_root_box(v, faces)).max()
+    h = BURY * body_size(v, faces)
     cand = np.flatnonzero(np.asarray(signed_distance) > h)
     out: tuple[list, list, list, list, list] = ([], [], [], [], [])
     if len(cand):
