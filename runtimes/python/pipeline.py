@@ -302,7 +302,6 @@ class Run:
         )
         stage["encode"] += time.perf_counter() - t
         need_body = self.effects.collisions or self.effects.cloth or self.body_output is not None
-        at_root = self.effects.collisions and not self.effects.cloth
         out = SceneOutput(
             path=self.output,
             fmt=self.output_format,
@@ -337,40 +336,43 @@ class Run:
                 hi = min(lo + batch, self.stop if writing else self.start)
                 t = time.perf_counter()
                 win = motion_windows(self.motion.poses, self.deformer.window, start=lo, stop=hi)
-                # collisions are resolved at the root, the translation added after them (runtime.translation: the
-                # same frames wherever the character stands); the cloth stage steps in world coordinates
+                # the graphs run at the root and collisions are resolved there; the translation is added after them
+                # (runtime.translation: the same frames wherever the character stands, as Node and C++ compute them);
+                # the cloth stage steps in world coordinates
                 trans = self.motion.trans[lo:hi]
-                at = np.zeros_like(trans) if at_root else trans
-                verts = self.deformer.deform(P, asset, win, joints, at, self.betas, log_wbody=lw)
+                root = np.zeros_like(trans)
+                verts = self.deformer.deform(P, asset, win, joints, root, self.betas, log_wbody=lw)
                 stage["deform"] += time.perf_counter() - t
                 if not np.isfinite(verts).all():
                     raise InputError(f"the deformer produced NaN or inf at frames {lo}..{hi - 1}")
                 if need_body:
                     t = time.perf_counter()
-                    posed = cast(BodyPoser, self.body_poser).pose(self.motion.poses[lo:hi], self.betas, at)
+                    posed = cast(BodyPoser, self.body_poser).pose(self.motion.poses[lo:hi], self.betas, root)
                     stage["pose body"] += time.perf_counter() - t
                 if self.effects.cloth:  # contact included: no push-out after it
                     t = time.perf_counter()
-                    verts = cast(Any, cloth).step(verts, posed)
+                    verts = cast(Any, cloth).step(at_translation(verts, trans), at_translation(posed, trans))
                     stage["cloth"] += time.perf_counter() - t
-                elif self.effects.collisions:
-                    t = time.perf_counter()
-                    if collider is None:  # built once per run (its cost counts here), the session's threads
-                        collider = self.collider(
-                            self.body.v_template,
-                            self.body.faces,
-                            threads=max(1, int(getattr(self.package, "threads", 1))),
-                        )
-                    verts, n = collider.push_out(verts, posed, self.effects.collision_margin)
-                    pushed += n
+                else:
+                    if self.effects.collisions:
+                        t = time.perf_counter()
+                        if collider is None:  # built once per run (its cost counts here), the session's threads
+                            collider = self.collider(
+                                self.body.v_template,
+                                self.body.faces,
+                                threads=max(1, int(getattr(self.package, "threads", 1))),
+                            )
+                        verts, n = collider.push_out(verts, posed, self.effects.collision_margin)
+                        pushed += n
+                        stage["collisions"] += time.perf_counter() - t
                     # rounded to float32 at the root, as the other runtimes hold their frames, then moved
                     verts = at_translation(verts.astype(np.float32), trans)
-                    posed = at_translation(posed, trans)
-                    stage["collisions"] += time.perf_counter() - t
                 if not writing:
                     continue
                 t = time.perf_counter()
-                out.write(verts, posed if self.body_output is not None else None)
+                # float32, as every runtime writes them (an OBJ frame printed the float64 sum's extra digits)
+                body = at_translation(posed, trans).astype(np.float32) if self.body_output is not None else None
+                out.write(verts.astype(np.float32), body)
                 stage["write"] += time.perf_counter() - t
                 if progress is not None:
                     progress(hi - lo)

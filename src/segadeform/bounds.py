@@ -17,9 +17,10 @@ shape (betas)       |beta| <= 10 (hard)  the shape space is linear: past about 1
 body height         0.9 .. 2.5 m         a human; betas of about +-3 on the default body reach it
                     (usual, --force)
 body surface        <= 0.1 % of faces    a shape whose skin folds through itself: within |beta| <= 10
-                    turned over (usual,  a shape can (betas 0,8: 67 of the default body's 27,420
-                    --force)             faces turned over; 0,5,...,5: 590); random shapes within
-                                         +-3 turn at most 12
+                    turned over, at      a shape can (betas 0,8: 67 of the default body's 27,420
+                    least 8 (usual,      faces turned over; 0,5,...,5: 590); shapes drawn from the
+                    --force)             shape space's normal distribution turn at most 9, and 4 in
+                                         400 drawn uniformly within +-3 are refused (up to 114)
 procedural seed     0 .. 2**32 - 1       numpy's seeds
 ==================  ===================  ==========================================================
 """
@@ -36,6 +37,7 @@ __all__ = [
     "BETA_LIMIT",
     "HEIGHT_RANGE",
     "FOLDED_FACES",
+    "FOLDED_FACES_MIN",
     "folded_faces",
     "SEED_RANGE",
     "check_fps",
@@ -49,8 +51,10 @@ FPS_RANGE = (1.0, 1000.0)
 MAX_TRANSLATION = 1.0e4
 BETA_LIMIT = 10.0
 HEIGHT_RANGE = (0.9, 2.5)
-#: the share of the body's faces a shape may turn over (their normal against the template's) before it is refused
+#: the share of the body's faces a shape may turn over (their normal against the template's) before it is refused,
+#: and the fewest faces that share allows (a body of few faces is not refused for one)
 FOLDED_FACES = 0.001
+FOLDED_FACES_MIN = 8
 SEED_RANGE = (0, 2**32 - 1)
 
 
@@ -136,12 +140,13 @@ def check_body_height(body, betas=None, *, force: bool = False, path=None) -> fl
         )
     if not force:
         n, total = folded_faces(body, betas), len(body.faces)
-        if n > FOLDED_FACES * total:
+        limit = max(FOLDED_FACES * total, FOLDED_FACES_MIN)
+        if n > limit:
             raise InputError(
                 "the body shape folds through itself",
                 path=path,
-                expected=f"at most {FOLDED_FACES * total:.0f} of the body's {total} faces turned over (betas within "
-                "about +-3), or --force to use it anyway",
+                expected=f"at most {limit:.0f} of the body's {total} faces turned over (a shape nearer the mean), "
+                "or --force to use it anyway",
                 got=f"{n} turned over",
             )
     return h

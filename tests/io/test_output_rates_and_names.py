@@ -28,10 +28,14 @@ BVH_120 = 1.0 / 0.00833333  # 120.0000480000192
         (BVH_120, 120.0),
         (1.0 / 0.0333333, 30.0),
         (1.0 / 0.041667, 24.0),
-        (24000 / 1001, 23.976),
-        (30000 / 1001, 29.97),
-        (60000 / 1001, 59.94),
+        (1.0 / 0.008333, 120.0),
+        (24000 / 1001, 24000 / 1001),
+        (23.976, 24000 / 1001),
+        (29.97, 30000 / 1001),
+        (60000 / 1001, 60000 / 1001),
         (25.0, 25.0),
+        (119.99, 119.99),  # asked for on purpose: kept (a review)
+        (25.002, 25.002),
         (12.5, 12.5),  # no common rate near: kept
         (23.9, 23.9),
         (1000.0, 1000.0),
@@ -183,7 +187,8 @@ def test_usd_prim_names_keep_the_file_name(tmp_path, stem, prim):
 
 
 def test_motion_info_and_inspect_say_the_rate_the_writers_write(tmp_path):
-    """A BVH at ``Frame Time: 0.016683`` (59.9412 fps) is 59.94 in `motion info`, `inspect` and the written file."""
+    """A BVH at ``Frame Time: 0.016683`` (59.9412 fps) is NTSC's 60000 / 1001 (59.9401) in `motion info`, `inspect`
+    and the written file."""
     from ..conftest import SAMPLES
 
     lines = (SAMPLES / "motions" / "cmu" / "02_01_walk.bvh").read_text().splitlines()
@@ -192,7 +197,7 @@ def test_motion_info_and_inspect_say_the_rate_the_writers_write(tmp_path):
     bvh = tmp_path / "w.bvh"
     bvh.write_text("\n".join(lines[: k + 2 + 20]) + "\n")
     r = CliRunner().invoke(cli, ["motion", "info", str(bvh)])
-    assert r.exit_code == 0 and f"{bvh}: 20 frames, 59.94 fps," in r.output, r.output
+    assert r.exit_code == 0 and f"{bvh}: 20 frames, 59.9401 fps," in r.output, r.output
     r = CliRunner().invoke(cli, ["inspect", str(bvh)])
-    assert r.exit_code == 0 and "20 frames at 59.94 fps" in r.output, r.output
-    assert nominal_fps(1 / 0.016683) == 59.94
+    assert r.exit_code == 0 and "20 frames at 59.9401 fps" in r.output, r.output
+    assert nominal_fps(1 / 0.016683) == 60000 / 1001

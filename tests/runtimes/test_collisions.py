@@ -24,7 +24,7 @@ practice bit for bit), and move the same vertex-frames.  Two differences remain,
   graph's, 5e-7 m): measured here, 1 of the 18,883 pushed vertex-frames (54,792 in all) over 1e-5 relative
   (3.7e-5 m), caused by the deformer's rounding (its frames pushed out of Python's body differ there too, Python's
   frames pushed out of its body do not); given the browser's own deformer frames and body, Python's collider gives
-  its frames exactly.
+  its frames within :data:`OWN_INPUTS`.
 Both are held to at most one in 1,000 pushed vertex-frames over 1e-5 relative, none by more than the margin.
 """
 

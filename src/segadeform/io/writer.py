@@ -28,11 +28,13 @@ UP_AXES = ("y", "z")
 Y_TO_Z = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
 
 
-#: the frame rates besides whole numbers that a rate within :data:`FPS_RTOL` of stands for (NTSC film and video)
-COMMON_FPS = (23.976, 29.97, 47.952, 59.94, 119.88)
+#: the frame rates besides whole numbers that a rate within :data:`FPS_RTOL` of stands for: NTSC film and video,
+#: exactly (30000 / 1001, not 29.97)
+COMMON_FPS = (24000 / 1001, 30000 / 1001, 48000 / 1001, 60000 / 1001, 120000 / 1001)
 #: how far (relative) a rate may be from a common one and still be it: a BVH's ``Frame Time: 0.00833333`` is
-#: 120.000048 fps (4e-7 off), a ``0.041667`` one 23.99981 (8e-6)
-FPS_RTOL = 1e-4
+#: 120.000048 fps (4e-7 off), a ``0.008333`` one 120.0048 (4e-5); a rate asked for on purpose, 119.99 or 25.002
+#: (8e-5 off), is kept (a review)
+FPS_RTOL = 5e-5
 
 
 def nominal_fps(fps: float) -> float:
