@@ -86,6 +86,41 @@ def test_the_runtime_writes_only_where_segadeform_may(runtime, request, portable
     assert (odd / MANIFEST_NAME).read_text() == "not json {\n" and not (odd / "o.pc2").exists()
 
 
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_the_body_cache_comes_with_its_rest_mesh(runtime, request, portable_scene, random_package, tmp_path):
+    """`--body-out b.pc2` writes the body's rest mesh `b.obj` beside it, as `segadeform run` does (Blender's Mesh
+    Cache and 3ds Max animate that mesh; a new user's trial: Node and C++ wrote none); a user's `c.obj` beside `c.pc2`
+    is refused, untouched, and nothing is written."""
+    from segadeform.io import read_mesh
+
+    exe = request.getfixturevalue(runtime)
+    g, m, effects = portable_scene["garment"], portable_scene["motion"], portable_scene["effects"]
+    base = [*exe, "--package", str(random_package), "--garment", str(g), "--motion", str(m), "--effects", effects]
+    args = ["run", "--garment", str(g), "--motion", str(m), "--model", str(random_package), "--effects", effects]
+    assert main([*args, "-o", str(tmp_path / "py.pc2"), "--body-out", str(tmp_path / "pyb.pc2"), "--force"]) == 0
+    for _ in range(2):  # written, then replaced: its own output
+        r = subprocess.run(
+            [*base, "-o", str(tmp_path / "a.pc2"), "--body-out", str(tmp_path / "b.pc2")],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        assert r.returncode == 0, r.stderr
+    mine, want = read_mesh(tmp_path / "b.obj"), read_mesh(tmp_path / "pyb.obj")
+    assert written_by(tmp_path / "b.obj") == "run"
+    assert (mine.faces == want.faces).all() and abs(mine.vertices - want.vertices).max() < 1e-5
+    (tmp_path / "c.obj").write_text("a user's mesh\n")
+    before = _hashes(tmp_path)
+    r = subprocess.run(
+        [*base, "-o", str(tmp_path / "d.pc2"), "--body-out", str(tmp_path / "c.pc2")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 1 and "c.obj: exists and segadeform did not write it" in r.stderr, r.stderr
+    assert r.stderr.count("\n") == 1 and _hashes(tmp_path) == before
+
+
 def test_segadeform_play_keeps_the_output_rule(cpp, portable_scene, random_package, tmp_path):
     """The C++ example segadeform-play (runtimes/cpp/examples/play.cpp) under segadeform-run's rule and manifest: it
     refused to run again into its own output ("exists (expected a new file)"), recorded nothing, and printed the

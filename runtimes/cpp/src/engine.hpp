@@ -787,6 +787,11 @@ class Stream {
   }
 
   int64_t V() const { return poser_ ? poser_->V() : 0; }
+  // the body at zero pose and no translation (the rest mesh a body PC2 animates)
+  std::vector<float> rest_body() {
+    if (!poser_) throw std::runtime_error("the stream poses no body");
+    return poser_->rest();
+  }
   const std::vector<int32_t>& body_faces() {
     if (!poser_) throw std::runtime_error("the stream poses no body");
     return poser_->faces();

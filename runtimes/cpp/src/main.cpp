@@ -1,5 +1,6 @@
 // segadeform-run: the C++ runtime.  A model package and a garment asset (.sgda) with a motion file (.sgdm) in,
-// PC2 point caches of the garment (and, with --body-out, of the body posed by the package's body graph) out:
+// PC2 point caches of the garment (and, with --body-out, of the body posed by the package's body graph, its rest mesh
+// beside it as BODY.obj) out:
 //
 //   segadeform-run --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]
 //                  [--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M] [--cloth K=V,..]
@@ -26,6 +27,19 @@ const char* USAGE =
     "                      [--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M]\n"
     "                      [--cloth K=V,..] [--batch N] [--threads N] [--force]\n"
     "       segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--check]\n";
+
+// A triangle mesh as OBJ, as segadeform.io.obj.write_obj writes it (9 significant digits, 1-based faces).
+void write_obj(const std::string& path, const std::vector<float>& v, const std::vector<int32_t>& f) {
+  std::ofstream o(path, std::ios::binary);
+  o << "# segadeform OBJ: " << v.size() / 3 << " vertices, " << f.size() / 3 << " triangles\n";
+  char line[96];
+  for (size_t i = 0; i + 2 < v.size(); i += 3) {
+    std::snprintf(line, sizeof line, "v %.9g %.9g %.9g\n", v[i], v[i + 1], v[i + 2]);
+    o << line;
+  }
+  for (size_t i = 0; i + 2 < f.size(); i += 3) o << "f " << f[i] + 1 << " " << f[i + 1] + 1 << " " << f[i + 2] + 1 << "\n";
+  if (!o) throw std::runtime_error(path + ": cannot write");
+}
 
 
 }  // namespace
@@ -115,7 +129,13 @@ int main(int argc, char** argv) {
   }
   // the outputs are claimed before any work, as `segadeform run` claims them (outputs.hpp)
   std::vector<std::string> outputs{out};
-  if (!body_out.empty()) outputs.push_back(body_out);
+  // the body's rest mesh beside its PC2 (what Blender's Mesh Cache and 3ds Max animate), as `segadeform run` writes it
+  const std::string rest_obj =
+      body_out.empty() ? std::string() : std::filesystem::path(body_out).replace_extension(".obj").string();
+  if (!body_out.empty()) {
+    outputs.push_back(body_out);
+    outputs.push_back(rest_obj);
+  }
   const std::vector<std::string> inputs =
       flag_form ? std::vector<std::string>{package, garment, motion} : std::vector<std::string>{pos[0], pos[1]};
   try {
@@ -193,7 +213,10 @@ int main(int argc, char** argv) {
       }
     }
     pc2.finish();
-    if (body_pc2) body_pc2->finish();
+    if (body_pc2) {
+      body_pc2->finish();
+      write_obj(sgd::temporary(rest_obj), stream.rest_body(), stream.body_faces());
+    }
     const sgd::Cloth* stage = stream.cloth();
     if (stage && stage->resets() > 0)
       std::cerr << "cloth: the stage started again from the network's frame at frame " << stage->first_reset()

@@ -180,10 +180,21 @@ inline bool inside(const std::string& p, const std::string& folder) {
 inline void claim_outputs(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs) {
   using namespace outputs_detail;
   std::vector<std::string> seen;
-  for (const std::string& out : outputs) {
-    std::string ext = fs::path(out).extension().string();
+  const auto ext_of = [](const std::string& p) {
+    std::string ext = fs::path(p).extension().string();
     for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    if (ext != ".pc2") throw refused(out, "this runtime writes PC2 point caches only", ".pc2", ext.empty() ? "none" : ext);
+    return ext;
+  };
+  for (const std::string& out : outputs) {
+    const std::string ext = ext_of(out);
+    // the body's rest mesh (.obj) beside a body PC2 of the same run, as `segadeform run` writes it
+    bool rest_mesh = false;
+    for (const std::string& o : outputs)
+      rest_mesh = rest_mesh || (ext == ".obj" && ext_of(o) == ".pc2" &&
+                                fs::path(o).replace_extension(".obj").lexically_normal() ==
+                                    fs::path(out).lexically_normal());
+    if (ext != ".pc2" && !rest_mesh)
+      throw refused(out, "this runtime writes PC2 point caches only", ".pc2", ext.empty() ? "none" : ext);
     for (const std::string& s : seen)
       if (same_file(s, out))
         throw refused(out, "two outputs of this run would be written to this one path", "one path per output", out);

@@ -6,7 +6,7 @@
 // cloth, the cloth stage, only when named; --cloth sets its knobs, as segadeform run --cloth)
 // segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]      (a scene bundle)
 import { animate, readAsset } from "./index.js";
-import { effectsLabel, pc2Parts } from "./core.js";
+import { effectsLabel, objText, pc2Parts } from "./core.js";
 import { claimOutputs, commitOutputs } from "./outputs.js";
 
 const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
@@ -70,7 +70,9 @@ if (cloth && !(effects || "").split(",").map((s) => s.trim()).some((s) => s === 
 }
 // the outputs are claimed before any work, as `segadeform run` claims them (outputs.js): never over a file
 // segadeform did not write, an input, or each other
-const outputs = bodyOut ? [out, bodyOut] : [out];
+// the body's rest mesh beside its PC2 (what Blender's Mesh Cache and 3ds Max animate), as `segadeform run` writes it
+const restObj = bodyOut ? bodyOut.replace(/\.pc2$/i, ".obj") : null;
+const outputs = bodyOut ? [out, bodyOut, restObj] : [out];
 const inputs = flagForm ? [pkg, garment, motion] : [args[0], args[1]];
 try {
   claimOutputs(outputs, inputs);
@@ -103,7 +105,10 @@ try {
   // a motion file cut from a longer one (motion export --frames 10:70) starts at its first frame's number, as run's
   const startFrame = (r.motionMeta && Number.isInteger(r.motionMeta.start_frame)) ? r.motionMeta.start_frame : 0;
   const items = [{ path: out, bytes: pc2Parts(r.frames, r.T, r.N, { startFrame }) }];
-  if (bodyOut) items.push({ path: bodyOut, bytes: pc2Parts(r.body.vertices, r.body.T, r.body.V, { startFrame }) });
+  if (bodyOut) {
+    items.push({ path: bodyOut, bytes: pc2Parts(r.body.vertices, r.body.T, r.body.V, { startFrame }) });
+    items.push({ path: restObj, bytes: objText(r.body.rest, r.body.faces) });
+  }
   commitOutputs(items, inputs); // all or none
   const c = r.collisions, k = r.cloth;
   console.log(`${r.T} frames, ${r.msPerFrame.toFixed(2)} ms/frame (${r.variant}: ${effectsLabel(r.effects)}) -> ${out}` +

@@ -710,6 +710,18 @@ export class Player {
 }
 
 /**
+ * A triangle mesh as OBJ text, as segadeform.io.obj.write_obj writes it (9 significant digits, 1-based faces):
+ * vertices (V*3), faces (F*3, 0-based) -> a Uint8Array.
+ */
+export function objText(vertices, faces) {
+  const V = vertices.length / 3, F = faces.length / 3, g = (x) => String(Number(x.toPrecision(9)));
+  const lines = [`# segadeform OBJ: ${V} vertices, ${F} triangles`];
+  for (let i = 0; i < V; i++) lines.push(`v ${g(vertices[3 * i])} ${g(vertices[3 * i + 1])} ${g(vertices[3 * i + 2])}`);
+  for (let i = 0; i < F; i++) lines.push(`f ${faces[3 * i] + 1} ${faces[3 * i + 1] + 1} ${faces[3 * i + 2] + 1}`);
+  return new TextEncoder().encode(lines.join("\n") + "\n");
+}
+
+/**
  * Frames computed at the root moved to the translation: B frames of any number of points (B*K*3) and trans (B*3)
  * -> a new Float32Array, each coordinate rounded from the float64 sum (Python's segadeform.runtime.translation).
  */
@@ -762,7 +774,8 @@ export async function playWith(ort, manifest, source, session, options = {}) {
   const out = { frames: r.frames, T, N: I.N, msPerFrame: perFrame(p.msDeform), variant: p.variant, effects: p.effects,
     faces: I.faces, fps: I.fps, warnings: [...p.warnings, ...I.warnings] };
   if (options.body) {
-    out.body = { vertices: r.body, joints: r.joints, restJoints: p.restJoints, V: p.V, T, faces: p.poser.faces(),
+    out.body = { vertices: r.body, joints: r.joints, restJoints: p.restJoints, rest: (await p.poser.rest()).vertices,
+      V: p.V, T, faces: p.poser.faces(),
       msPerFrame: perFrame(p.msBody), graph: p.poser.name };
   }
   if (p.stages && p.effects.cloth) {

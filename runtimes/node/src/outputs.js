@@ -81,8 +81,10 @@ const samePath = (a, b) => {
  */
 export function claimOutputs(outputs, inputs) {
   const seen = [];
+  // the body's rest mesh (.obj) beside a body PC2 of the same run, as `segadeform run` writes it
+  const restMesh = (p) => /\.obj$/i.test(p) && outputs.some((o) => /\.pc2$/i.test(o) && samePath(o, p.slice(0, -4) + o.slice(-4)));
   for (const out of outputs) {
-    if (!out.toLowerCase().endsWith(".pc2")) {
+    if (!out.toLowerCase().endsWith(".pc2") && !restMesh(out)) {
       const ext = out.includes(".") ? out.slice(out.lastIndexOf(".")) : "none";
       throw refuse(out, "this runtime writes PC2 point caches only", ".pc2", ext);
     }
