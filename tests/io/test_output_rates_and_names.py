@@ -201,3 +201,13 @@ def test_motion_info_and_inspect_say_the_rate_the_writers_write(tmp_path):
     r = CliRunner().invoke(cli, ["inspect", str(bvh)])
     assert r.exit_code == 0 and "20 frames at 59.9401 fps" in r.output, r.output
     assert nominal_fps(1 / 0.016683) == 60000 / 1001
+
+
+def test_alembic_object_names_keep_the_file_name(tmp_path):
+    """Alembic's object named as USD's prim is: ``ümlaut.abc`` holds ``umlaut`` (it held ``_mlaut``)."""
+    pytest.importorskip("alembic3d", reason="Alembic output needs the 'alembic' extra")
+    from alembic3d import Abc
+
+    _write_quads(tmp_path / "ümlaut.abc", "abc")
+    top = Abc.IArchive(str(tmp_path / "ümlaut.abc")).getTop()
+    assert [top.getChild(i).getName() for i in range(top.getNumChildren())] == ["umlaut"]

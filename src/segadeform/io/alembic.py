@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import gc
 import os
-import re
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +23,7 @@ from ..errors import FileFormatError, InputError, check_readable, unreadable_err
 from .atomic import _tmp_sibling
 from .mesh import validate_mesh_arrays
 from .surface import fan_triangles
+from .usd import usd_prim_name
 from .writer import SequenceWriter, nominal_fps
 
 __all__ = ["AlembicSequenceWriter", "read_alembic_sequence", "alembic_available"]
@@ -91,7 +91,7 @@ class AlembicSequenceWriter(SequenceWriter):
         self._archive = Abc.OArchive(str(self._tmp))
         ts = self._archive.addTimeSampling(AbcCoreAbstract.TimeSampling(1.0 / fps, start_frame / fps))
         if name is None:  # the file's name, as an identifier (Alembic object names are paths' parts)
-            name = re.sub(r"[^0-9A-Za-z_]", "_", self.path.stem) or "mesh"
+            name = usd_prim_name(self.path.stem)  # accents dropped, not the letters (ümlaut -> umlaut)
         self._schema = AbcGeom.OPolyMesh(self._archive.getTop(), name, ts).getSchema()
         self._sample = AbcGeom.OPolyMeshSchemaSample
         self._uvs = None
