@@ -3,8 +3,9 @@ import pytest
 
 from segadeform.body import BodyProxy
 from segadeform.body.collision import closest_point_on_triangles, push_out, winding_number
+from segadeform.body.collision.reference import PINCH, body_size, nearest_unburied
 from segadeform.errors import SegadeformError
-from tests.body._shapes import pressed_spheres, sphere
+from tests.body._shapes import crease_points, pressed_spheres, sphere, with_reach
 
 
 def brute_force(p, v, f):
@@ -261,13 +262,23 @@ def test_fast_collider_finds_points_deep_inside_the_body(dancing, frame, backend
     ref = exhaustive_rows(proxy, p, r.face)
     np.testing.assert_array_equal(np.sign(r.signed_distance), np.sign(ref))
     # every one is inside by the winding number, so every one is moved: those nearest a buried piece of skin
-    # too, to the nearest skin that is not buried (the rule for buried surfaces)
+    # too, to the nearest skin that is not buried (the rule for buried surfaces) when it is within PINCH times the
+    # body's size; one pinched deeper keeps its buried skin's side (outside), and is moved only if within the margin
     out, n = fast.push_out(p, v, 0.004)
     ref_out, n_ref = push_out(p, proxy, 0.004)
-    assert n == n_ref == len(p)
     buried = r.signed_distance >= 0
-    if buried.any():  # moved off the buried skin, not onto it (its closest point's side said outside)
-        assert (np.linalg.norm(out[buried] - p[buried], axis=1) > r.signed_distance[buried]).all()
+    bound = PINCH * body_size(v, body.faces)
+    open_d = np.full(len(p), np.inf)
+    for i in np.flatnonzero(buried):
+        hit = nearest_unburied(p[i], v, body.faces, bound=np.inf)
+        open_d[i] = np.sqrt(hit[3]) if hit is not None else np.inf
+    pinched = buried & (open_d > bound)
+    assert n == n_ref == len(p) - (pinched & (r.signed_distance >= 0.004)).sum()
+    taken = buried & ~pinched
+    if taken.any():  # moved off the buried skin, not onto it (its closest point's side said outside)
+        assert (np.linalg.norm(out[taken] - p[taken], axis=1) > r.signed_distance[taken]).all()
+    # a point pinched deeper is lifted to the margin off the buried skin at most
+    assert (np.linalg.norm(out[pinched] - p[pinched], axis=1) <= 0.004 + 1e-9).all()
     assert (fast.query(out, v).signed_distance > 0).mean() >= (fast.query(ref_out, v).signed_distance > 0).mean()
     np.testing.assert_array_equal(fast.winding(out, v) > 0, fast.winding(ref_out, v) > 0)
 
@@ -388,26 +399,39 @@ def _icosphere():
 def test_push_out_leaves_buried_skin_for_the_skin_outside(backend, scale):
     """A body that intersects itself (an arm pressed into the torso: two spheres, one mesh): points inside the
     torso whose closest surface is the arm's buried skin -- its side says outside -- are inside by the winding
-    number, and the push-out takes them to the nearest skin that is not buried, as the reference does, so none is
-    left inside; the closest-surface rule alone left every one of them where it was."""
+    number.  The push-out takes those with skin that is not buried within PINCH times the body's size (2.6 cm here)
+    to that skin, as the reference does, so none of them is left inside (the closest-surface rule alone left every
+    one where it was); those pinched deeper stay pinched, lifted at most to the margin off the arm's skin."""
     v, f = pressed_spheres(16, 12)  # coarse: every point finds open skin within the faces it may test
-    v = v * scale
     rng = np.random.default_rng(0)
-    p = rng.uniform([0.3, -0.4, -0.4], [1.3, 0.4, 0.4], (200, 3)) * scale
+    # deep in the torso (pinched) and near the crease (taken out)
+    p0 = np.concatenate([rng.uniform([0.3, -0.4, -0.4], [1.3, 0.4, 0.4], (200, 3)), crease_points(rng, 300)])
+    bound = PINCH * body_size(v, f)
+    v, p = v * scale, p0 * scale
     col = BodyCollider(v, f, backend=backend)
     inside = col.winding(p, v) > 0
     q = col.query(p, v)
     conflict = inside & (q.signed_distance > 0)
-    assert conflict.sum() > 50 and (inside & ~conflict).sum() > 25  # both kinds of inside point are there
-    margin = 0.01 * scale
+    open_d = np.full(len(p), np.inf)
+    for i in np.flatnonzero(conflict):
+        open_d[i] = np.sqrt(nearest_unburied(p0[i], v / scale, f, bound=np.inf)[3])  # unbounded: every one has some
+    taken, pinched = conflict & (open_d < 0.99 * bound), conflict & (open_d > 1.01 * bound)
+    assert taken.sum() > 20 and pinched.sum() > 50 and (inside & ~conflict).sum() > 25  # every kind is there
+    margin = 0.002 * scale
     out, n = col.push_out(p, v, margin, iterations=3)
     ref, n_ref = push_out(p, BodyProxy(v, f, k=len(f)), margin, iterations=3)
-    assert n == n_ref == (inside | (q.signed_distance < margin)).sum()
+    assert n == n_ref
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-9 * scale)
-    assert not (col.winding(out, v) > 0).any()
-    # each conflicted point went past the buried skin it was nearest to, not onto it
-    moved = np.linalg.norm(out[conflict] - p[conflict], axis=1)
-    assert (moved > q.signed_distance[conflict] + margin).all()
+    after = col.winding(out, v) > 0
+    assert not after[taken].any()
+    # every point left in the torso is pinched: nearest the arm's skin, at least the margin outside it (a point in both
+    # spheres goes out of the arm onto its buried skin, and is then one pinched)
+    assert after[pinched].all() and (col.query(out[after], v).signed_distance >= margin * (1 - 1e-6)).all()
+    # each one taken went past the buried skin it was nearest to, not onto it
+    moved = np.linalg.norm(out - p, axis=1)
+    assert (moved[taken] > q.signed_distance[taken] + margin).all()
+    # each one pinched deeper stays where it was, at most lifted to the margin off the arm's skin
+    assert (moved[pinched] <= margin * (1 + 1e-9)).all()
     # points outside both spheres are left alone or only lifted to the margin
     far = ~inside & (q.signed_distance >= margin)
     np.testing.assert_array_equal(out[far], p[far])
@@ -429,12 +453,15 @@ def test_numpy_backend_with_every_ray_missing_the_body():
 def test_the_rule_for_buried_skin_tests_a_bounded_number_of_faces():
     """A fine arm buried deep in the torso: a point in the torso next to it has more buried faces nearer than any
     open one than the rule may test (``BURY_TRIES``), so it keeps its closest surface (the arm's: outside), as before
-    the rule -- in bounded time, kernel and reference alike; a coarse arm, the same point goes out of the torso."""
+    the rule -- in bounded time, kernel and reference alike; a coarse arm, the same point goes out of the torso.  (A
+    small sphere 30 units away, a hand at the end of a long reach, makes the body large enough that the torso's open
+    skin, 19 cm from the point, is within PINCH times its size: the cap, not the bound, decides.)"""
     from segadeform.body.collision.reference import BURY_TRIES
 
-    for (n, m), kept in (((64, 48), True), ((16, 12), False)):
-        v, f = pressed_spheres(n, m)
-        p = np.array([[0.55, 0.0, 0.0]])  # 5 cm from the arm's buried skin, 45 cm from the torso's
+    for (n, m), kept in (((96, 72), True), ((16, 12), False)):
+        v, f = with_reach(*pressed_spheres(n, m), 30.0)
+        p = np.array([[0.75, 0.3, 0.0]])  # 3.5-3.8 cm from the arm's buried skin, 19 cm from the torso's
+        assert 1 - np.linalg.norm(p) < PINCH * body_size(v, f)
         col = BodyCollider(v, f)
         assert col.winding(p, v)[0] == 1 and col.query(p, v).signed_distance[0] > 0
         out, moved = col.push_out(p, v, 0.01)
@@ -442,6 +469,8 @@ def test_the_rule_for_buried_skin_tests_a_bounded_number_of_faces():
         assert moved == ref_moved == (0 if kept else 1), (n, m, moved, ref_moved)
         np.testing.assert_allclose(out, ref, atol=1e-9)
         assert len(f) // 2 > BURY_TRIES or not kept
+        if not kept:
+            assert col.winding(out, v)[0] == 0
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -457,8 +486,11 @@ def test_a_zero_area_face_in_buried_skin_is_never_taken(backend):
     m = len(v)
     v2 = np.vstack([v, v[b] + 0.5 * (v[c] - v[b])])
     f2 = np.vstack([np.delete(f, fi, 0), [[a, b, m], [a, m, c], [m, b, c]]])
+    # a long reach: the torso's open skin, 30-60 cm from these points, within PINCH times the body's size (73 cm)
+    v2, f2 = with_reach(v2, f2, 60.0)
     cr = np.cross(v2[f2[:, 1]] - v2[f2[:, 0]], v2[f2[:, 2]] - v2[f2[:, 0]])
-    assert (cr[-1] == 0).all() and (np.abs(cr[:-1]).max(axis=1) > 0).all()  # one face of zero area, exactly
+    zero = np.flatnonzero((cr == 0).all(axis=1))
+    assert len(zero) == 1 and (np.abs(np.delete(cr, zero, 0)).max(axis=1) > 0).all()  # one face of zero area, exactly
     p = v[[a, b, c]].mean(axis=0) + np.random.default_rng(0).normal(scale=0.05, size=(200, 3))
     col = BodyCollider(v2, f2, backend=backend)
     assert col.closed and (col.winding(p, v2) > 0).all() and (col.query(p, v2).signed_distance > 0).sum() > 50

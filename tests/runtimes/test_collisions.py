@@ -83,23 +83,35 @@ def collider_vector(request, tmp_path_factory):
         far = rng.uniform(v.min(0) - 0.2, v.max(0) + 0.2, size=(800, 3))  # inside deep, and outside far
         points = np.concatenate([near, on, far])
     else:
-        from tests.body._shapes import pressed_spheres
+        from tests.body._shapes import crease_points, pressed_spheres
 
         rest, faces = pressed_spheres()
         arm = np.arange(len(rest)) >= len(rest) // 2
         posed = np.stack([rest, rest - 0.1 * arm[:, None] * [1.0, 0.0, 0.0]])
-        points = rng.uniform([0.2, -0.45, -0.45], [1.3, 0.45, 0.45], size=(4000, 3))
+        # each frame's half: all over the overlap, and near where its arm enters the torso
+        points = np.concatenate(
+            [
+                rng.uniform([0.2, -0.45, -0.45], [1.3, 0.45, 0.45], size=(1500, 3)),
+                crease_points(rng, 500, arm_x=0.9),
+                rng.uniform([0.2, -0.45, -0.45], [1.3, 0.45, 0.45], size=(1500, 3)),
+                crease_points(rng, 500, arm_x=0.8),
+            ]
+        )
     col = BodyCollider(rest, faces)
     assert col.backend == "compiled"
     q = col.query(points, posed[1])
     half = len(points) // 2
     push_in = np.stack([points[:half], points[half:]])
-    buried = sum(
-        int(((col.winding(push_in[k], posed[k]) > 0) & (col.query(push_in[k], posed[k]).signed_distance > 0)).sum())
+    conflict = [
+        (col.winding(push_in[k], posed[k]) > 0) & (col.query(push_in[k], posed[k]).signed_distance > 0)
         for k in range(2)
-    )
+    ]
+    buried = sum(int(c.sum()) for c in conflict)
     iterations = 3
     push_out, moved = col.push_out(push_in, posed, 0.01, iterations=iterations)
+    # of those, taken out by the rule (to open skin within PINCH times the body's size) and left pinched (deeper)
+    taken = sum(int((conflict[k] & (col.winding(push_out[k], posed[k]) == 0)).sum()) for k in range(2))
+    pinched = sum(int((conflict[k] & (col.winding(push_out[k], posed[k]) > 0)).sum()) for k in range(2))
     near = _kernel_near(rest, faces, posed[1], points, NEAR_RADIUS)
     path = tmp_path_factory.mktemp("collide") / "vec.sgdb"
     write_bundle(
@@ -126,6 +138,8 @@ def collider_vector(request, tmp_path_factory):
         "inside": int((q.signed_distance < 0).sum()),
         "points": len(points),
         "buried": buried,
+        "buried_taken": taken,
+        "buried_pinched": pinched,
         "near_found": int(np.isfinite(near[0]).sum()),
         # found farther than the radius with the closest surface's side saying outside: pinched, kept so by the lookup
         "near_pinched": int((np.isfinite(near[0]) & (near[0] >= NEAR_RADIUS)).sum()),
@@ -190,8 +204,9 @@ def test_javascript_collider_is_the_compiled_kernel(collider_vector, node):
     r = _node_vectors("collide_vectors.mjs", path, "COLLIDE")
     _report(f"javascript collider vs BodyCollider ({kind})", **r, python=py)
     assert r["closed"] and r["points"] == py["points"] and py["inside"] > 500 and py["moved"] > 1000
-    if kind == "pressed":  # the rule for buried skin decides many points: in the torso, nearest the arm's skin
-        assert py["buried"] > 500, py
+    if kind == "pressed":  # the rule for buried skin decides many points: in the torso, nearest the arm's skin,
+        # some taken out to open skin within its bound, more pinched deeper and left
+        assert py["buried"] > 500 and py["buried_taken"] > 50 and py["buried_pinched"] > 300, py
     assert r["sd"] == 0 and r["closest"] == 0 and r["normal"] == 0, r
     assert r["pushOut"] == 0 and r["identical"] == r["coordinates"] and r["moved"] == py["moved"], r
     # the cloth stage's contact lookup (near): the same points found, the same answers bit for bit

@@ -11,7 +11,7 @@
 #include <vector>
 
 extern "C" {
-// _collide.c's entry points (its ABI 4: sdc_abi(); 4 since the cloth stage's lookups leave pinched cloth, 3 since buried surfaces are skipped, 2 since its own acos).
+// _collide.c's entry points (its ABI 5: sdc_abi(); 5 since pinched points deeper than SDC_PINCH stay, 4 since the cloth stage's lookups leave pinched cloth, 3 since buried surfaces are skipped, 2 since its own acos).
 void* sdc_create(const double* verts, int64_t nv, const int64_t* faces, int64_t nf, int64_t leaf_size);
 void sdc_free(void* h);
 int64_t sdc_abi(void);
@@ -29,7 +29,7 @@ class Collider {
  public:
   // verts (V, 3) of one pose as float32 (the body graph's output), faces (F, 3) int32.
   Collider(const float* verts, int64_t nv, const int32_t* faces, int64_t nf) : nv_(nv) {
-    if (sdc_abi() != 4) throw std::runtime_error("the collision kernel is from another version (expected ABI 4)");
+    if (sdc_abi() != 5) throw std::runtime_error("the collision kernel is from another version (expected ABI 5)");
     if (nv < 1 || nf < 1) throw std::runtime_error("the body has no vertices or no faces");
     std::vector<double> v(verts, verts + 3 * nv);
     std::vector<int64_t> f(faces, faces + 3 * nf);

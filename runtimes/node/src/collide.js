@@ -25,6 +25,9 @@ const FEATURE = 1e-9; // a barycentric weight at or under this is zero (the refe
 // the body
 const BURY = 1e-6;
 const BURY_TRIES = 512; // at most this many faces tested for one point (nearestOpen)
+// a point inside by its winding number but outside by its closest surface goes to the nearest skin that is not buried
+// only within this distance (times the posed body's size); deeper in the crease it stays pinched (the C file's SDC_PINCH)
+const PINCH = 0.012;
 
 // ---- small vector helpers (on 3-vectors stored at an offset of a Float64Array) -------------------------------
 function dot3(a, ia, b, ib) { return a[ia] * b[ib] + a[ia + 1] * b[ib + 1] + a[ia + 2] * b[ib + 2]; }
@@ -615,10 +618,10 @@ function buried(fr, C, ic, f) {
   return windingAt(fr, qB, 0) && windW !== 0;
 }
 
-/* As nearest (no bound), over the faces whose nearest point to p is not buried: the minimum of (squared distance,
- * face index) over them.  nearestFace = -1 when every one is buried or more than BURY_TRIES faces were tested (the
+/* As nearest within ub, over the faces whose nearest point to p is not buried: the minimum of (squared distance,
+ * face index) over them (one past ub may be returned; the caller checks).  nearestFace = -1 when every one is buried or more than BURY_TRIES faces were tested (the
  * C file's nearest_open). */
-function nearestOpen(fr, P, ip, bary, closest) { return nearestIn(fr, P, ip, Infinity, true, bary, closest); }
+function nearestOpen(fr, P, ip, ub, bary, closest) { return nearestIn(fr, P, ip, ub, true, bary, closest); }
 
 const diffS = new Float64Array(3);
 
@@ -633,16 +636,16 @@ function signedAt(fr, P, ip, f, bary, closest, n) {
 const baryN = new Float64Array(3), baryU = new Float64Array(3), cU = new Float64Array(3);
 
 /* A point whose closest feature's side says outside (nearSd > BURY * scale) but whose winding number (wind, -1: not
- * known yet) says inside: its closest point becomes the nearest point that is not buried, nearSd = minus the distance
- * to it and n that feature's pseudo-normal.  Otherwise unchanged. */
+ * known yet) says inside: its closest point becomes the nearest point that is not buried within PINCH * scale, nearSd =
+ * minus the distance to it and n that feature's pseudo-normal.  Otherwise (deeper in the crease too) unchanged. */
 function unbury(fr, P, ip, wind, closest, n) {
   if (wind < 0) {
     if (!windingAt(fr, P, ip)) return;
     wind = windW;
   }
   if (wind === 0) return;
-  const d2 = nearestOpen(fr, P, ip, baryU, cU);
-  if (nearestFace < 0) return;
+  const d2 = nearestOpen(fr, P, ip, PINCH * fr.scale, baryU, cU);
+  if (nearestFace < 0 || d2 > PINCH * fr.scale * PINCH * fr.scale) return; // pinched deeper: left
   nearFace = nearestFace;
   closest[0] = cU[0]; closest[1] = cU[1]; closest[2] = cU[2];
   featureNormal(fr.b, fr.verts, fr.vOff, nearFace, baryU, n);

@@ -108,7 +108,9 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 10 /* 10: every frame checked for NaN and inf before any is stepped (the state unchanged on one); 9: its contact lookups leave pinched cloth pinched (the rule for buried skin only in the final
+#define SCL_ABI 11 /* 11: the collision kernel it embeds leaves cloth pinched deeper than SDC_PINCH; 10: every frame
+                       * checked for NaN and inf before any is stepped (the state unchanged on one); 9: its contact
+                       * lookups leave pinched cloth pinched (the rule for buried skin only in the final
                        * push-out and the backstop's traces), and settling sweeps after the push-out; 8: the collision kernel it embeds pushes off buried surfaces (1 Dec 2026); 7: its own acos */
 #define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */

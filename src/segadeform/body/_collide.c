@@ -27,7 +27,10 @@
  *                  distance (a face's centroid instead left a quarter of such points inside after three passes on
  *                  the test's two pressed spheres, where faces straddle the crease): it is
  *                  pushed to the skin that is really outside, never onto the buried one (issue #26: a dress's
- *                  vertices in the torso next to a buried arm stayed there).  A face of zero area is never taken;
+ *                  vertices in the torso next to a buried arm stayed there) -- but only to skin within SDC_PINCH *
+ *                  scale: a point deeper in the crease stays pinched, as the simulator leaves such cloth (the nearest
+ *                  open skin, 4-7 cm away there, was in front of the arm one frame and behind it the next: a
+ *                  T-shirt's armpit vertices jumped up to 16 cm between frames of a walk).  A face of zero area is never taken;
  *                  at most SDC_BURY_TRIES faces are tested for one point (past that it keeps its closest surface);
  *                  a body that is not closed has no winding number and no such rule.  The push-out applies it to
  *                  every point; sdc_near to none for the cloth stage's contacts, to points farther than its
@@ -78,6 +81,9 @@
 #define SDC_BURY 1e-6    /* a surface point is buried if the point this far out along its face's normal (times the
                             * posed body's size: its bounding box's longest side) is inside the body */
 #define SDC_BURY_TRIES 512 /* at most this many faces tested for one point (nearest_open) */
+#define SDC_PINCH 0.012    /* a point in the body by its winding number but outside by its closest surface is taken to
+                            * the nearest skin that is not buried only within this distance (times the posed body's
+                            * size: 2.1 cm on a body 1.75 m tall); deeper in the crease it stays pinched */
 
 typedef struct {
     int64_t nv, nf, n_nodes, depth;
@@ -364,7 +370,7 @@ SDC_API void *sdc_create(const double *verts, int64_t nv, const int64_t *faces, 
 SDC_API void sdc_free(void *h) { free_body((sdc_body *)h); }
 
 /* The version of this interface (the Python wrapper refuses a library built from another one). */
-SDC_API int64_t sdc_abi(void) { return 4; } /* 4: sdc_near without the rule for buried skin */
+SDC_API int64_t sdc_abi(void) { return 5; } /* 5: pinched points deeper than SDC_PINCH stay; 4: sdc_near without the rule for buried skin */
 
 SDC_API int64_t sdc_n_nodes(const void *h) { return ((const sdc_body *)h)->n_nodes; }
 
@@ -745,14 +751,16 @@ static int buried(const sdc_frame *fr, const double *c, int64_t f) {
     return winding_at(fr, q, &w) && w != 0;
 }
 
-/* As nearest (no bound), over the faces whose nearest point to p is not buried: the minimum of (squared distance,
- * face index) over them, whatever the traversal.  *face = -1 when every one is buried, or when more than
+/* As nearest within ub, over the faces whose nearest point to p is not buried: the minimum of (squared distance,
+ * face index) over them, whatever the traversal (a face a little past ub, in a box within it, may be returned: the
+ * caller checks the distance).  *face = -1 when every one is buried, or when more than
  * SDC_BURY_TRIES faces were tested (each test casts up to six rays: the cost per point is bounded; the point then
  * keeps its closest surface, as before the rule).  The reference tests the faces nearest first, stopping at the same
  * count; the kernel tests at least those (every face nearer than the answer is buried and tested), so the two can
  * differ only where the kernel reaches the cap. */
-static double nearest_open(const sdc_frame *fr, const double *p, int64_t *face, double *bary, double *closest) {
-    return nearest_in(fr, p, INFINITY, 1, face, bary, closest);
+static double nearest_open(const sdc_frame *fr, const double *p, double ub, int64_t *face, double *bary,
+                           double *closest) {
+    return nearest_in(fr, p, ub, 1, face, bary, closest);
 }
 
 /* Signed distance at the closest point found (face f, weights bary, point closest) and the normal. */
@@ -767,16 +775,17 @@ static double signed_at(const sdc_frame *fr, const double *p, int64_t f, const d
 
 /* A point p whose closest feature's side says outside (sd > SDC_BURY * scale: a point nearer the surface than that
  * is on it, as in buried) but whose winding number (wind, -1: not known yet)
- * says inside: its closest point becomes the nearest point that is not buried, sd = minus the distance to it and n
- * that feature's pseudo-normal (module comment, "buried").  Otherwise (outside, undecided, or nothing open) unchanged. */
+ * says inside: its closest point becomes the nearest point that is not buried within SDC_PINCH * scale, sd = minus
+ * the distance to it and n that feature's pseudo-normal (module comment, "buried").  Otherwise (outside, undecided,
+ * nothing open, or nothing open that near: pinched deeper) unchanged. */
 static void unbury(const sdc_frame *fr, const double *p, int64_t wind, double *sd, double *closest, double *n,
                    int64_t *face) {
     double bary[3], c[3], d2;
     int64_t g;
     if (wind < 0 && !winding_at(fr, p, &wind)) return;
     if (wind == 0) return;
-    d2 = nearest_open(fr, p, &g, bary, c);
-    if (g < 0) return;
+    d2 = nearest_open(fr, p, SDC_PINCH * fr->scale, &g, bary, c);
+    if (g < 0 || d2 > SDC_PINCH * fr->scale * SDC_PINCH * fr->scale) return; /* pinched deeper: left */
     *face = g;
     closest[0] = c[0]; closest[1] = c[1]; closest[2] = c[2];
     feature_normal(fr->b, fr->verts, g, bary, n);

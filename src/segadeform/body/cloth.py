@@ -100,7 +100,7 @@ LOOSE = 0.01
 AGREE = 0.5
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
 SETUP_VERSION = 3
-_ABI = 10
+_ABI = 11
 #: the order of _cloth.c's settings array
 _SETTINGS = (
     "iterations",

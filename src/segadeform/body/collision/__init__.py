@@ -28,12 +28,13 @@ One rule, three implementations side by side:
 
   Where the posed body intersects itself (an arm pressed into the torso), a point that the closest
   surface's side calls outside but the body's winding number calls inside -- in the torso, nearest the
-  arm's buried skin -- is pushed to the nearest skin that is not buried (all three implementations and the
-  JavaScript port; :func:`~.reference.unbury`).  ``python bench/buried_skin.py data/continuum --old-kernel
-  OLD.so`` (four held-out dresses' Blender frames, 3,555-3,841 vertices, against the kernel before the rule):
-  the vertex-frames left inside the body after the push-out fall to 0.15-0.33 of what they were, for 12-23 %
-  more CPU time (3.0 -> 3.4-4.0 ms/frame: these frames lie on the body, so most vertices are within the margin
-  and each costs one more ray).
+  arm's buried skin -- is pushed to the nearest skin that is not buried when that skin is within
+  :data:`~.reference.PINCH` times the body's size (2.1 cm at 1.75 m), and otherwise left pinched, as the simulator
+  leaves cloth there (all three implementations and the JavaScript port; :func:`~.reference.unbury`).
+  ``python bench/buried_skin.py data/continuum --old-kernel OLD.so`` (four held-out dresses' Blender frames,
+  3,555-3,841 vertices, against the kernel before the rule): the vertex-frames left inside the body after the push-
+  out fall to 0.15-0.33 of what they were, for 12-23 % more CPU time (3.0 -> 3.4-4.0 ms/frame: these frames lie on
+  the body, so most vertices are within the margin and each costs one more ray).
 
   Measured by ``bench/collisions.py`` (a 3,916-vertex skirt jittered into and out of the
   13,718-vertex default body, a dance, batches of 8 frames, one thread, passes interleaved on a

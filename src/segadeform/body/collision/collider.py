@@ -38,7 +38,9 @@ class BodyCollider:
        buried in it, whose side says outside.  A point whose closest feature says outside but whose winding
        number (the ray's count) says inside is moved to the nearest point that is not buried instead (a
        surface point is buried when the point just outside it is inside the body): out of the torso, not onto
-       the buried arm (:func:`~segadeform.body.collision.reference.unbury`, issue #26).
+       the buried arm (:func:`~segadeform.body.collision.reference.unbury`, issue #26) -- when that point is
+       within ``PINCH`` times the body's size; a point deeper in the crease keeps its closest surface (pinched:
+       the nearest open skin there flips from in front of the arm to behind it between frames).
 
     So every point closer than ``margin`` or inside gets the brute-force closest point (over every
     triangle), which :class:`BodyProxy` -- the slow, obvious reference beside it -- approximates with its

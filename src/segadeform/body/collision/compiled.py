@@ -24,7 +24,7 @@ _BODY_PACKAGE = "segadeform.body"
 
 _KERNEL_LOCK = threading.Lock()
 _KERNEL: dict = {}  # a cache of the loaded library, filled on first use: {"lib": CDLL | None, "why": str}
-_ABI = 4  # sdc_abi() of the kernel this wrapper speaks to
+_ABI = 5  # sdc_abi() of the kernel this wrapper speaks to
 
 
 def load_extension(module: str, current, signatures):
