@@ -367,7 +367,6 @@ def test_fit_to_another_body_mesh(body, tmp_path, monkeypatch):
     than 1 cm inside) and, carried back onto the shape it was made on, lands within a few cm of where it
     was made (mean <= 5 cm: the shape space and the scale trade off a little, so the surface slides).  The
     command's runs use the test's lighter registration (800 samples, 5 rounds), as the calls above do."""
-    import functools
 
     from segadeform.garments import registration
     from segadeform.garments.registration import fit_to_body_mesh
@@ -381,11 +380,14 @@ def test_fit_to_another_body_mesh(body, tmp_path, monkeypatch):
     assert back.body_error < 0.006
     err = np.linalg.norm(back.vertices - g.vertices, axis=1)
     assert err.mean() < 0.05, err.mean()
-    onto = fit_to_body_mesh(gv, bv, sf, body, None, samples=800, rounds=5)
-    r = placement_report(onto.vertices, body.shaped_vertices()[0], body.faces)
-    assert r.median_distance < 0.02 and r.deep_inside_fraction < 0.02, r.line()
-    # the same through the CLI, files in cm and z-up
-    monkeypatch.setattr(registration, "fit_to_body_mesh", functools.partial(fit_to_body_mesh, samples=800, rounds=5))
+    # onto the default body, through the CLI, files in cm and z-up (the fit of the call above without betas)
+    calls = []
+
+    def recorded(*args, **kw):  # the registration's inputs, and its result
+        calls.append((args, kw, fit_to_body_mesh(*args, samples=800, rounds=5, **kw)))
+        return calls[-1][2]
+
+    monkeypatch.setattr(registration, "fit_to_body_mesh", recorded)
     write_obj(tmp_path / "g.obj", Mesh(vertices=g_src, faces=g.faces))
     write_obj(tmp_path / "b.obj", Mesh(vertices=sv, faces=sf))
     res = CliRunner().invoke(
@@ -406,8 +408,18 @@ def test_fit_to_another_body_mesh(body, tmp_path, monkeypatch):
     )
     assert res.exit_code == 0, res.output
     assert "registered to b.obj" in res.output
-    check_placement(read_mesh(tmp_path / "f.obj").vertices, body.shaped_vertices()[0], body.faces)
-    # without --units and --up: both read from the source body's height (it is 1.8 m along z, in cm)
+    onto = read_mesh(tmp_path / "f.obj").vertices
+    r = placement_report(onto, body.shaped_vertices()[0], body.faces)
+    assert r.median_distance < 0.02 and r.deep_inside_fraction < 0.02, r.line()
+    check_placement(onto, body.shaped_vertices()[0], body.faces)
+
+    # without --units and --up: both read from the source body's height (it is 1.8 m along z, in cm).  The same
+    # inputs reach the registration (which is then not run again: its result is the one above)
+    def same(*args, **kw):
+        calls.append((args, kw, calls[0][2]))
+        return calls[0][2]
+
+    monkeypatch.setattr(registration, "fit_to_body_mesh", same)
     res = CliRunner().invoke(
         cli,
         [
@@ -422,6 +434,13 @@ def test_fit_to_another_body_mesh(body, tmp_path, monkeypatch):
     )
     assert res.exit_code == 0, res.output
     assert "read in cm with +z up" in res.output
+    (a1, k1, _), (a2, k2, _) = calls
+    assert len(a1) == len(a2) and k1.keys() == k2.keys()
+    for x, y in [*zip(a1, a2, strict=True), *((k1[k], k2[k]) for k in k1)]:
+        if isinstance(x, np.ndarray):
+            np.testing.assert_allclose(x, y, rtol=0, atol=1e-12)
+        elif not hasattr(x, "faces"):  # (the body model: the same default body, loaded again)
+            assert x == y
     np.testing.assert_allclose(
         read_mesh(tmp_path / "a.obj").vertices, read_mesh(tmp_path / "f.obj").vertices, atol=1e-9
     )
