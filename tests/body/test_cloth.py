@@ -212,12 +212,11 @@ def test_the_backstop_traces_out_of_a_torso_with_an_arm_pressed_in():
     traces keep the rule for buried skin, so a point in the torso nearest the arm's buried skin is not taken for
     outside (a review found the panel 'traced out' inside the torso when the rule left the stage's lookups).
     Kernel = reference."""
-    from tests.body._shapes import pressed_spheres, with_reach
+    from tests.body._shapes import pressed_spheres
 
-    # a long reach (a small sphere 60 units away): the rule for buried skin takes a point out to open skin within
-    # PINCH times the body's size, here 73 cm, which every point of the traces has (the torso's skin is 52 cm from
-    # where they pass the arm's buried tip; a point pinched deeper would count as out, as the push-out leaves it)
-    body_v, body_f = with_reach(*pressed_spheres(24, 16), 60.0)
+    # (the traces' rule has no bound: the torso's open skin is 52 cm from where they pass the arm's buried tip, past
+    # the push-out's PINCH times the body's size, 2.6 cm)
+    body_v, body_f = pressed_spheres(24, 16)
     col = BodyCollider(body_v, body_f)
     ys = np.arange(-0.05, 0.0501, 0.025)
     nx = len(ys)
@@ -440,8 +439,8 @@ def test_cloth_pinched_by_a_buried_arm_stays_unless_in_contact():
     as the simulator leaves cloth there, rather than taken alone across the arm (the flaps at a dress's armholes,
     30 Nov 2026) -- and one in contact (the panel 5 mm from the arm's tip) is taken out of the body by the final
     push-out's rule for buried skin when the torso's open skin is within PINCH times the body's size (a long reach
-    makes the body large enough: 40 cm here); without it, that vertex too stays pinched.  Kernel and reference
-    alike."""
+    makes the body large enough: the torso's skin is 40 cm away, the bound 49 cm); without it, that vertex too stays
+    pinched.  Kernel and reference alike."""
     from tests.body._shapes import pressed_spheres, with_reach
 
     ys = np.arange(-0.2, 0.2001, 0.05)

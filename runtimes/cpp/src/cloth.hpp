@@ -13,14 +13,14 @@
 #include <vector>
 
 extern "C" {
-// _collide.c's entry points used here (its ABI 4)
+// _collide.c's entry points used here (its ABI 5)
 void* sdc_create(const double* verts, int64_t nv, const int64_t* faces, int64_t nf, int64_t leaf_size);
 void sdc_free(void* h);
 int64_t sdc_n_nodes(const void* h);
 void sdc_refit(const void* h, const double* verts, double* box);
 void sdc_query(const void* h, const double* verts, const double* box, const double* pts, int64_t i0, int64_t i1,
                double* sd, double* closest, double* normal, int64_t* face);
-// _cloth.c's (its ABI 9)
+// _cloth.c's (its ABI 11)
 int64_t scl_abi(void);
 int64_t scl_n_settings(void);
 int64_t scl_setup(const double* rest, int64_t n, const int64_t* faces, int64_t nf, const double* rest_sd,

@@ -10,7 +10,8 @@
 //   closest point  the exact nearest point over every triangle, ties broken by the lowest face index;
 //   sign           the angle-weighted pseudo-normal of the feature (face, edge, vertex) the closest point lies on;
 //   buried         a point the closest feature's side calls outside but the body's winding number inside (in the
-//                  torso next to an arm's skin buried in it) takes the nearest point that is not buried;
+//                  torso next to an arm's skin buried in it) takes the nearest point that is not buried, in the
+//                  push-out only within PINCH times the body's size (deeper, it stays pinched);
 //   push-out       p' = closest + margin * n for points with signed distance < margin, again for the points moved,
 //                  up to `iterations` passes (segadeform.body.collision.push_out's rule).
 //
@@ -636,16 +637,17 @@ function signedAt(fr, P, ip, f, bary, closest, n) {
 const baryN = new Float64Array(3), baryU = new Float64Array(3), cU = new Float64Array(3);
 
 /* A point whose closest feature's side says outside (nearSd > BURY * scale) but whose winding number (wind, -1: not
- * known yet) says inside: its closest point becomes the nearest point that is not buried within PINCH * scale, nearSd =
- * minus the distance to it and n that feature's pseudo-normal.  Otherwise (deeper in the crease too) unchanged. */
-function unbury(fr, P, ip, wind, closest, n) {
+ * known yet) says inside: its closest point becomes the nearest point that is not buried within ub, nearSd = minus the
+ * distance to it and n that feature's pseudo-normal.  Otherwise (deeper in the crease too) unchanged.  ub: PINCH *
+ * scale for the push-out, Infinity for the backstop's traces (the C file's unbury). */
+function unbury(fr, P, ip, wind, ub, closest, n) {
   if (wind < 0) {
     if (!windingAt(fr, P, ip)) return;
     wind = windW;
   }
   if (wind === 0) return;
-  const d2 = nearestOpen(fr, P, ip, PINCH * fr.scale, baryU, cU);
-  if (nearestFace < 0 || d2 > PINCH * fr.scale * PINCH * fr.scale) return; // pinched deeper: left
+  const d2 = nearestOpen(fr, P, ip, ub, baryU, cU);
+  if (nearestFace < 0 || d2 > ub * ub) return; // pinched deeper: left
   nearFace = nearestFace;
   closest[0] = cU[0]; closest[1] = cU[1]; closest[2] = cU[2];
   featureNormal(fr.b, fr.verts, fr.vOff, nearFace, baryU, n);
@@ -667,7 +669,7 @@ function nearOrInside(fr, P, ip, radius, check, closest, n) {
   if (nearestFace >= 0 && d2 < radius * radius) {
     nearFace = nearestFace;
     nearSd = signedAt(fr, P, ip, nearFace, baryN, closest, n);
-    if (check === 2 && nearSd > BURY * fr.scale) unbury(fr, P, ip, -1, closest, n);
+    if (check === 2 && nearSd > BURY * fr.scale) unbury(fr, P, ip, -1, PINCH * fr.scale, closest, n);
     return true;
   }
   let wind = -1; // -1: not known
@@ -689,7 +691,9 @@ function nearOrInside(fr, P, ip, radius, check, closest, n) {
   if (nearestFace < 0) nearest(fr, P, ip, Infinity, baryN, closest);
   nearFace = nearestFace;
   nearSd = signedAt(fr, P, ip, nearFace, baryN, closest, n);
-  if (check >= 1 && nearSd > BURY * fr.scale) unbury(fr, P, ip, wind, closest, n);
+  if (check >= 1 && nearSd > BURY * fr.scale) {
+    unbury(fr, P, ip, wind, check === 2 ? PINCH * fr.scale : Infinity, closest, n);
+  }
   return true;
 }
 

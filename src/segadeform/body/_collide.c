@@ -775,17 +775,18 @@ static double signed_at(const sdc_frame *fr, const double *p, int64_t f, const d
 
 /* A point p whose closest feature's side says outside (sd > SDC_BURY * scale: a point nearer the surface than that
  * is on it, as in buried) but whose winding number (wind, -1: not known yet)
- * says inside: its closest point becomes the nearest point that is not buried within SDC_PINCH * scale, sd = minus
- * the distance to it and n that feature's pseudo-normal (module comment, "buried").  Otherwise (outside, undecided,
- * nothing open, or nothing open that near: pinched deeper) unchanged. */
-static void unbury(const sdc_frame *fr, const double *p, int64_t wind, double *sd, double *closest, double *n,
-                   int64_t *face) {
+ * says inside: its closest point becomes the nearest point that is not buried within ub, sd = minus the distance to
+ * it and n that feature's pseudo-normal (module comment, "buried").  Otherwise (outside, undecided, nothing open, or
+ * nothing open that near: pinched deeper) unchanged.  ub: SDC_PINCH * scale for the push-out, which leaves cloth
+ * pinched deeper where it is; none (inf) for the backstop's traces, which ask only whether a point is still inside. */
+static void unbury(const sdc_frame *fr, const double *p, int64_t wind, double ub, double *sd, double *closest,
+                   double *n, int64_t *face) {
     double bary[3], c[3], d2;
     int64_t g;
     if (wind < 0 && !winding_at(fr, p, &wind)) return;
     if (wind == 0) return;
-    d2 = nearest_open(fr, p, SDC_PINCH * fr->scale, &g, bary, c);
-    if (g < 0 || d2 > SDC_PINCH * fr->scale * SDC_PINCH * fr->scale) return; /* pinched deeper: left */
+    d2 = nearest_open(fr, p, ub, &g, bary, c);
+    if (g < 0 || d2 > ub * ub) return; /* pinched deeper: left */
     *face = g;
     closest[0] = c[0]; closest[1] = c[1]; closest[2] = c[2];
     feature_normal(fr->b, fr->verts, g, bary, n);
@@ -808,7 +809,8 @@ static int near_or_inside(const sdc_frame *fr, const double *p, double radius, i
     d2 = nearest(fr, p, radius, face, bary, closest);
     if (*face >= 0 && d2 < radius * radius) {
         *sd = signed_at(fr, p, *face, bary, closest, n);
-        if (check == 2 && *sd > SDC_BURY * fr->scale) unbury(fr, p, wind, sd, closest, n, face);
+        if (check == 2 && *sd > SDC_BURY * fr->scale)
+            unbury(fr, p, wind, SDC_PINCH * fr->scale, sd, closest, n, face);
         return 1;
     }
     if (b->closed) {
@@ -829,7 +831,8 @@ static int near_or_inside(const sdc_frame *fr, const double *p, double radius, i
     /* none within the bound: the ray's first hit, measured on a nearly edge-on triangle, came out short */
     if (*face < 0) nearest(fr, p, INFINITY, face, bary, closest);
     *sd = signed_at(fr, p, *face, bary, closest, n);
-    if (check >= 1 && *sd > SDC_BURY * fr->scale) unbury(fr, p, wind, sd, closest, n, face);
+    if (check >= 1 && *sd > SDC_BURY * fr->scale)
+        unbury(fr, p, wind, check == 2 ? SDC_PINCH * fr->scale : INFINITY, sd, closest, n, face);
     return 1;
 }
 

@@ -793,8 +793,9 @@ def _near_reference(col, pts, bv, radius: float = 0.0, rule: bool = False):
     surface (the caller reads the points within the lookup's radius, as the kernel's caller does).  Without
     ``rule`` (the contact lookups) no rule for buried skin: cloth pinched where an arm presses into the torso keeps the
     arm's skin nearest it, whose side says outside.  With it (the backstop's traces) a point farther than ``radius``
-    that the winding number calls inside but its closest surface outside takes the nearest skin that is not buried
-    (:func:`segadeform.body.collision.reference.unbury`)."""
+    that the winding number calls inside but its closest surface outside takes the nearest skin that is not buried,
+    however far (:func:`segadeform.body.collision.reference.unbury` with no bound: a trace asks only whether it is
+    still inside; the push-out's bound, ``PINCH``, would call a trace deep in a pinch out)."""
     from .collision import BodyProxy, ProximityResult
     from .collision.reference import unbury
 
@@ -807,7 +808,7 @@ def _near_reference(col, pts, bv, radius: float = 0.0, rule: bool = False):
     def winding(p):
         return col._impl._decided(fr, p, 0)
 
-    k, face, c, bary, dist = unbury(pts[far], q.signed_distance[far], bv, col.faces, winding=winding)
+    k, face, c, bary, dist = unbury(pts[far], q.signed_distance[far], bv, col.faces, winding=winding, bound=np.inf)
     if not len(k):
         return q
     sd, closest, normal = q.signed_distance.copy(), q.closest.copy(), q.normal.copy()

@@ -559,9 +559,9 @@ class NumpyBVH:
     def _unbury(self, fr: _Frames, P, frame, found, closest, normal, sd) -> None:
         """The rule for buried surfaces (:func:`~segadeform.body.collision.reference.unbury`), in place on the
         points ``found`` with their closest (3, K), normal (K, 3) and sd (K,): those the closest feature calls
-        outside but the winding number inside take the nearest point that is not buried (the reference's brute
-        force with this walk's winding number: such points are few, only where the posed body intersects
-        itself)."""
+        outside but the winding number inside take the nearest point that is not buried within ``PINCH`` times the
+        body's size (the reference's brute force with this walk's winding number: such points are few, only where
+        the posed body intersects itself)."""
         nv = self.n_vertices
         nb = fr.verts.shape[1] // nv
         h = np.array([BURY * np.ptp(fr.verts[:, b * nv + self._used], axis=1).max() for b in range(nb)])

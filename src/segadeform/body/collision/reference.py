@@ -283,8 +283,8 @@ def nearest_unburied(point, vertices, faces, *, batch: int = 64, winding=None, b
     cr = face_cross(v, f)
     n = cr / np.maximum(np.linalg.norm(cr, axis=1), 1e-300)[:, None]
     winding = winding if winding is not None else (lambda q: ray_winding(q, v, f))
-    limit2 = PINCH * size * PINCH * size if bound is None else float(bound) ** 2  # (the kernel's product)
-    order = order[d2[order] <= limit2]  # deeper in a crease: pinched
+    lim = PINCH * size if bound is None else float(bound)
+    order = order[d2[order] <= lim * lim]  # deeper in a crease: pinched (the kernel's ub * ub)
     order = order[:BURY_TRIES]  # past that many faces tested the point keeps its closest surface
     lo = 0
     while lo < len(order):  # the nearest first, in batches that double
@@ -299,11 +299,12 @@ def nearest_unburied(point, vertices, faces, *, batch: int = 64, winding=None, b
     return None
 
 
-def unbury(points, signed_distance, vertices, faces, *, winding=None):
+def unbury(points, signed_distance, vertices, faces, *, winding=None, bound: float | None = None):
     """The points that the closest feature's side calls outside (``signed_distance`` > ``BURY`` * scale) but
     the body's winding number calls inside -- in the torso next to the skin of an arm buried in it -- and the
-    nearest point of each that is not buried (:func:`nearest_unburied`), for those that have one within ``PINCH``
-    times the body's size: ``_collide.c``'s rule for them.
+    nearest point of each that is not buried (:func:`nearest_unburied`), for those that have one within ``bound``
+    (default ``PINCH`` times the body's size, the push-out's; ``inf`` for the cloth stage's backstop traces, which ask
+    only whether a point is still inside): ``_collide.c``'s rule for them.
 
     Shapes:
         points: (P, 3), signed_distance (P,) -> indices (K,), face (K,), closest (K, 3), bary (K, 3), distance (K,)
@@ -319,7 +320,7 @@ def unbury(points, signed_distance, vertices, faces, *, winding=None):
     if len(cand):
         wind, decided = ray_winding(p[cand], v, faces) if winding is None else winding(p[cand])
         for i in cand[decided & (wind != 0)]:
-            r = nearest_unburied(p[i], v, faces, winding=winding)
+            r = nearest_unburied(p[i], v, faces, winding=winding, bound=bound)
             if r is not None:
                 for lst, x in zip(out, (i, r[0], r[1], r[2], np.sqrt(r[3])), strict=True):
                     lst.append(x)
@@ -460,7 +461,8 @@ def push_out(
     Where the posed body penetrates itself (an arm pressed into the torso), a
     point inside the torso whose closest surface is the arm's buried skin is
     found by the body's winding number and moved to the nearest skin that is
-    not buried (:func:`unbury`), never onto the buried one (``buried=False``:
+    not buried (:func:`unbury`), never onto the buried one, when that skin is
+    within ``PINCH`` times the body's size (deeper, it stays pinched; ``buried=False``:
     the closest surface alone, the rule before 30 Nov 2026, which the garment
     placement of ``dataset make`` keeps).  Where two body
     surfaces are closer than ``2 margin`` no point satisfies both.  A
