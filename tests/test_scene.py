@@ -71,6 +71,23 @@ def test_knobs_of_an_effect_the_command_line_turns_on_are_the_scenes(tmp_path):
     assert not sc.effects.cloth and parse_effects("+cloth", sc.effects).cloth_settings.iterations == 6
 
 
+def test_knobs_of_an_effect_the_command_line_turns_off_are_kept_and_ignored(tmp_path):
+    """The other direction (a user's trial: `run scene.toml --effects=-cloth` on a scene with cloth = true and
+    cloth_iterations was refused with the hint to set cloth = true, which the file set): the knobs are kept and do
+    nothing, as `--quality fast` ignores them; the same for [simulate] and `simulate --effects=-wind`."""
+    from segadeform.settings.simulation import parse_sim_effects
+
+    q = write(tmp_path, BASE + "[effects]\ncloth = true\ncloth_iterations = 6\ncollision_margin = 0.006\n")
+    sc = load_scene(q, effects="-cloth")
+    assert sc.effects.cloth and not parse_effects("-cloth", sc.effects).cloth
+    assert sc.effects.cloth_settings.iterations == 6
+    sc = load_scene(q, effects="none")  # collision_margin too: both stages off
+    assert not parse_effects("none", sc.effects).collisions
+    p = write(tmp_path, BASE + '[simulate]\neffects = ["gravity", "wind"]\nwind_strength = 50\n')
+    sc = load_scene(p, sim_effects="-wind")
+    assert sc.simulate.wind_strength == 50 and "wind" not in parse_sim_effects("-wind", sc.simulate.effects)
+
+
 @pytest.mark.parametrize(
     "text, words",
     [

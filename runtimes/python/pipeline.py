@@ -136,7 +136,8 @@ class Run:
         force: animate a garment that does not sit on the body (see
             :func:`segadeform.body.placement.check_placement`) instead of refusing it.
         collider: the collider class, built once per run as ``collider(v_template, faces, threads=)`` and called
-            once per batch (``push_out(verts (B, N, 3), posed (B, V, 3), margin)``): by default
+            once per batch (``push_out(verts (B, N, 3), posed (B, V, 3), margin, carry=(N, 3))``, the correction
+            carried between consecutive frames, zeros at the run's first frame): by default
             :class:`~segadeform.body.collision.BodyCollider` (its compiled backend on the package's threads,
             numpy if it was not built); benchmarks pass :class:`~segadeform.body.collision.ReferenceCollider`.
         guard: the command's output rule (:class:`~segadeform.io.output_guard.OutputGuard`; None: none, library
@@ -325,10 +326,13 @@ class Run:
                 t = time.perf_counter()
                 cloth = self._cloth_stage(asset)
                 stage["cloth"] += time.perf_counter() - t
-            # with the cloth stage, frames A:B step it over the frames before A first, writing nothing, so that its
-            # state at A is a whole run's and so are its frames (a user's trial: a render in chunks popped by up to
-            # 7 mm at each chunk's start); it costs those A frames.  Without it every frame stands alone.
-            warm_up = range(0, self.start, batch) if cloth is not None else range(0)
+            # with the cloth stage or collisions (both carry state from frame to frame: the stage's velocities, the
+            # push-out's corrections), frames A:B step them over the frames before A first, writing nothing, so that
+            # their state at A is a whole run's and so are its frames (a user's trial: a render in chunks popped by
+            # up to 7 mm at each chunk's start); it costs those A frames.  Without either every frame stands alone.
+            stateful = cloth is not None or self.effects.collisions
+            warm_up = range(0, self.start, batch) if stateful else range(0)
+            carry = np.zeros((asset.n_vertices, 3)) if self.effects.collisions else None
             for lo in [*warm_up, *range(self.start, self.stop, batch)]:
                 writing = lo >= self.start
                 if writing and lo == self.start and cloth is not None:  # the run reports its own frames' counts
@@ -362,8 +366,10 @@ class Run:
                                 self.body.faces,
                                 threads=max(1, int(getattr(self.package, "threads", 1))),
                             )
-                        verts, n = collider.push_out(verts, posed, self.effects.collision_margin)
-                        pushed += n
+                        # the correction carried from frame to frame (BodyCollider.push_out): a vertex deep in a
+                        # limb keeps the side it was pushed to instead of flipping to the nearest one
+                        verts, n = collider.push_out(verts, posed, self.effects.collision_margin, carry=carry)
+                        pushed += n if writing else 0
                         stage["collisions"] += time.perf_counter() - t
                     # rounded to float32 at the root, as the other runtimes hold their frames, then moved
                     verts = at_translation(verts.astype(np.float32), trans)

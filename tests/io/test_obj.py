@@ -202,3 +202,21 @@ def test_a_file_cut_short_is_refused_naming_its_last_line(tmp_path, samples):
         with pytest.raises(FileFormatError, match=why) as ei:
             read_obj(write(tmp_path, bad, "b.obj"))
         assert "cut short" in str(ei.value), bad
+
+
+def test_a_file_cut_inside_a_face_corner_is_refused(tmp_path, samples):
+    """A user's trial: a garment cut in its faces inside a number ('... 1232/691 17', or '... 1794/6' where the whole
+    line is '... 1794/692') read as a whole garment with a third of its triangles, exit 0.  Refused: corners in mixed
+    forms on the last, unbroken line, or vertices in no face with the file ending unbroken on a face line.  The same
+    mesh with a line break at the end, or whole, is read."""
+    uv = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nvt 0 0\nvt 1 0\nvt 1 1\n"
+    for bad, why in (
+        (uv + "f 1/1 2/2 3/3\nf 1/1 3/3 4", "'f' line"),  # the last corner lost its '/vt'
+        (uv + "f 1/1 2/2 3/3\nf 1/1 3/3 4/2", "1 of its 5 vertices are in no face"),  # 'f 1/1 3/3 4/2 5/1' cut
+    ):
+        with pytest.raises(FileFormatError, match=why) as ei:
+            read_obj(write(tmp_path, bad, "b.obj"))
+        assert "cut short" in str(ei.value) and "\n" not in str(ei.value), bad
+        assert read_obj(write(tmp_path, bad + "\n", "ok.obj")).n_faces == 2  # a line break: whole, as it says
+    whole = (samples / "garments" / "skirt.obj").read_text().rstrip("\n")
+    assert read_obj(write(tmp_path, whole, "whole.obj")).n_faces == 2 * 64 * 23

@@ -359,6 +359,14 @@ def test_cpp_library_player_pushed_in_chunks_gives_segadeform_runs_frames(cpp, c
     a = _agree(got, c["frames"], c["cloth"]["contacts"])
     _report("cpp library chunk3", **a, **counts)
     assert a["ok"], a
+    # the --name=value form the docs use (a user's trial: refused as an unknown option); a number with more after it
+    # refused, not read as its leading digits
+    eq = [play, str(c["package"]), str(c["garment"]), str(c["motion"]), f"--effects={EFFECTS}", "--chunk=8"]
+    p = subprocess.run([*eq, "-o", str(tmp_path / "eq.pc2")], capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0 and np.array_equal(read_pc2(tmp_path / "eq.pc2").frames, c["frames"]), p.stderr
+    p = subprocess.run([*base, "-o", str(tmp_path / "b.pc2"), "--batch", "8x"], capture_output=True, text=True)
+    assert p.returncode == 2 and p.stderr.startswith("error: --batch must be an integer (got '8x')\nusage: "), p.stderr
+    assert not (tmp_path / "b.pc2").exists()
     # an existing output is refused, untouched; a knob without its stage is one line
     (tmp_path / "mine.pc2").write_bytes(b"mine")
     p = subprocess.run([*base, "-o", str(tmp_path / "mine.pc2")], capture_output=True, text=True, timeout=600)

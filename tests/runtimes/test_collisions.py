@@ -113,6 +113,22 @@ def collider_vector(request, tmp_path_factory):
     taken = sum(int((conflict[k] & (col.winding(push_out[k], posed[k]) == 0)).sum()) for k in range(2))
     pinched = sum(int((conflict[k] & (col.winding(push_out[k], posed[k]) > 0)).sum()) for k in range(2))
     near = _kernel_near(rest, faces, posed[1], points, NEAR_RADIUS)
+    # the push-out with the correction carried from frame to frame (sdc_push_out_carried): a limb jittering about a
+    # sheet of points (every point's closest exit flips side each frame) and a limb sweeping through it, in calls of
+    # 5 frames
+    from tests.body.test_carried_push_out import _limb_through_a_sheet
+
+    seq = [_limb_through_a_sheet(frames=12, jitter=0.01, extent=0.02), _limb_through_a_sheet(frames=25)]
+    c_rest, c_faces = seq[0][0], seq[0][1]
+    c_posed = np.concatenate([s[2] for s in seq])
+    c_in = np.concatenate([s[3] for s in seq])
+    c_col, carry, c_out, c_moved = BodyCollider(c_rest, c_faces), np.zeros((c_in.shape[1], 3)), [], 0
+    for lo in range(0, len(c_in), 5):
+        o, m = c_col.push_out(c_in[lo : lo + 5], c_posed[lo : lo + 5], 0.004, carry=carry)
+        c_out.append(o)
+        c_moved += m
+    c_out = np.concatenate(c_out)
+    plain = c_col.push_out(c_in, c_posed, 0.004)[0]
     path = tmp_path_factory.mktemp("collide") / "vec.sgdb"
     write_bundle(
         path,
@@ -130,8 +146,22 @@ def collider_vector(request, tmp_path_factory):
             "near_sd": near[0],
             "near_closest": near[1],
             "near_normal": near[2],
+            "carry_rest": c_rest,
+            "carry_faces": c_faces.astype(np.int32),
+            "carry_posed": c_posed,
+            "carry_in": c_in,
+            "carry_out": c_out,
         },
-        {"margin": 0.01, "iterations": iterations, "moved": moved, "query_frame": 1, "near_radius": NEAR_RADIUS},
+        {
+            "margin": 0.01,
+            "iterations": iterations,
+            "moved": moved,
+            "query_frame": 1,
+            "near_radius": NEAR_RADIUS,
+            "carry_margin": 0.004,
+            "carry_batch": 5,
+            "carry_moved": c_moved,
+        },
     )
     info = {
         "moved": moved,
@@ -143,6 +173,8 @@ def collider_vector(request, tmp_path_factory):
         "near_found": int(np.isfinite(near[0]).sum()),
         # found farther than the radius with the closest surface's side saying outside: pinched, kept so by the lookup
         "near_pinched": int((np.isfinite(near[0]) & (near[0] >= NEAR_RADIUS)).sum()),
+        # vertex-frames where carrying the correction changed the push-out
+        "carry_changed": int(np.any(c_out != plain, axis=2).sum()),
     }
     return path, request.param, info
 
@@ -211,6 +243,11 @@ def test_javascript_collider_is_the_compiled_kernel(collider_vector, node):
     assert r["pushOut"] == 0 and r["identical"] == r["coordinates"] and r["moved"] == py["moved"], r
     # the cloth stage's contact lookup (near): the same points found, the same answers bit for bit
     assert r["nearFound"] == py["near_found"] and r["nearDiffer"] == 0, r
+    # the carried push-out, in calls of 5 frames: bit for bit, on a sequence where carrying changes many points
+    assert py["carry_changed"] > 1000, py
+    assert (
+        r["carryOut"] == 0 and r["carryIdentical"] == r["carryCoordinates"] and r["carryMoved"] == r["carryMovedPy"]
+    ), r
     if kind == "pressed":  # pinched points (in the torso, nearest the arm's skin) keep that skin in the lookup
         assert py["near_pinched"] > 500, py
 

@@ -371,6 +371,9 @@ def test_node_says_what_is_wrong_with_its_command_line(node, random_package, tmp
         ([], "--motion is missing"),
         (["--motion", "m.sgdm", "--batch", "2", "--batch", "4"], "--batch is given more than once"),
         (["--motion"], "--motion needs a value"),
+        # not read as 8 and 2 (a user's trial: parseInt ran them, exit 0)
+        (["--motion", "m.sgdm", "--batch", "8x"], "--batch must be an integer >= 1"),
+        (["--motion", "m.sgdm", "--threads", "2.5"], "--threads must be an integer >= 1"),
     ):
         args = ["--package", str(random_package), "--garment", "g.sgda", "-o", str(tmp_path / "o.pc2"), *extra]
         p = subprocess.run(node + args, capture_output=True, text=True, timeout=120)
@@ -395,6 +398,14 @@ def test_cpp_says_what_is_wrong_with_its_command_line(cpp, random_package, tmp_p
         (
             ["--package", str(random_package), "--garment", "g.sgda", "--motion", "m.sgdm", *o, "--batch", "x"],
             "--batch has a bad value",
+        ),
+        (  # not read as 8 and 2 (a user's trial: std::stoi ran them, exit 0)
+            ["--package", str(random_package), "--garment", "g.sgda", "--motion", "m.sgdm", *o, "--batch", "8x"],
+            "--batch has a bad value",
+        ),
+        (
+            ["--package", str(random_package), "--garment", "g.sgda", "--motion", "m.sgdm", *o, "--threads", "2.5"],
+            "--threads has a bad value",
         ),
         (["--package", str(random_package), "--garment", "g.sgda", *o, "--motion"], "--motion needs a value"),
     ):

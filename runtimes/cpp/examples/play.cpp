@@ -18,30 +18,74 @@
 #include <string>
 #include <vector>
 
+static const char* USAGE =
+    "usage: segadeform-play PACKAGE G.sgda M.sgdm -o OUT.pc2 [--chunk N] [--batch N] [--effects E] [--cloth K=V,..]\n"
+    "                       [--margin M] [--threads N] [--force]\n";
+
+// The whole of t as a number (std::stoi/stod read "8x" as 8 and "abc" said only "stoi": a user's trial).
+static long long whole_int(const std::string& name, const std::string& t) {
+  size_t end = 0;
+  long long v = 0;
+  try {
+    v = std::stoll(t, &end);
+  } catch (const std::exception&) {
+    end = 0;
+  }
+  if (end == 0 || end != t.size()) throw std::invalid_argument(name + " must be an integer (got '" + t + "')");
+  return v;
+}
+
+static double whole_number(const std::string& name, const std::string& t) {
+  size_t end = 0;
+  double v = 0;
+  try {
+    v = std::stod(t, &end);
+  } catch (const std::exception&) {
+    end = 0;
+  }
+  if (end == 0 || end != t.size()) throw std::invalid_argument(name + " must be a number (got '" + t + "')");
+  return v;
+}
+
 int main(int argc, char** argv) {
   std::vector<std::string> pos;
   std::string out;
   int64_t chunk = 1;
   segadeform::PlayerOptions opt;
   try {
-    for (int i = 1; i < argc; ++i) {
+    std::vector<std::string> args;
+    for (int i = 1; i < argc; ++i) {  // --name=value as --name value (the form the docs use: --effects=+cloth)
       const std::string a = argv[i];
-      const bool more = i + 1 < argc;
-      if (a == "-o" && more) out = argv[++i];
-      else if (a == "--chunk" && more) chunk = std::stoll(argv[++i]);
-      else if (a == "--batch" && more) opt.batch = std::stoi(argv[++i]);
-      else if (a == "--threads" && more) opt.threads = std::stoi(argv[++i]);
-      else if (a == "--effects" && more) opt.effects = argv[++i];
-      else if (a == "--cloth" && more) opt.cloth = argv[++i];
-      else if (a == "--margin" && more) opt.collision_margin = std::stod(argv[++i]);
+      const size_t eq = a.find('=');
+      if (a.rfind("--", 0) == 0 && eq != std::string::npos) {
+        args.push_back(a.substr(0, eq));
+        args.push_back(a.substr(eq + 1));
+      } else {
+        args.push_back(a);
+      }
+    }
+    for (size_t i = 0; i < args.size(); ++i) {
+      const std::string& a = args[i];
+      const bool more = i + 1 < args.size();
+      if (a == "--help" || a == "-h") {
+        std::cout << USAGE;
+        return 0;
+      }
+      if (a == "-o" && more) out = args[++i];
+      else if (a == "--chunk" && more) chunk = whole_int(a, args[++i]);
+      else if (a == "--batch" && more) opt.batch = static_cast<int>(whole_int(a, args[++i]));
+      else if (a == "--threads" && more) opt.threads = static_cast<int>(whole_int(a, args[++i]));
+      else if (a == "--effects" && more) opt.effects = args[++i];
+      else if (a == "--cloth" && more) opt.cloth = args[++i];
+      else if (a == "--margin" && more) opt.collision_margin = whole_number(a, args[++i]);
       else if (a == "--force") opt.force = true;
       else if (a.size() > 1 && a[0] == '-') throw std::invalid_argument("unknown option or missing value: " + a);
       else pos.push_back(a);
     }
     if (pos.size() != 3 || out.empty() || chunk < 1)
-      throw std::invalid_argument("expected PACKAGE G.sgda M.sgdm -o OUT.pc2 [--chunk N >= 1]");
+      throw std::invalid_argument("expected PACKAGE G.sgda M.sgdm -o OUT.pc2 and --chunk N >= 1");
   } catch (const std::exception& e) {
-    std::cerr << "error: " << e.what() << "\n";
+    std::cerr << "error: " << e.what() << "\n" << USAGE;
     return 2;
   }
   // the output is claimed before any work, as segadeform-run claims it

@@ -13,7 +13,7 @@
 #include <vector>
 
 extern "C" {
-// _collide.c's entry points used here (its ABI 5)
+// _collide.c's entry points used here (its ABI 6)
 void* sdc_create(const double* verts, int64_t nv, const int64_t* faces, int64_t nf, int64_t leaf_size);
 void sdc_free(void* h);
 int64_t sdc_n_nodes(const void* h);

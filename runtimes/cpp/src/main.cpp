@@ -28,6 +28,14 @@ const char* USAGE =
     "                      [--cloth K=V,..] [--batch N] [--threads N] [--force]\n"
     "       segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--check]\n";
 
+// A whole decimal integer (std::stoi read "8x" as 8 and "2.5" as 2: a user's trial); else invalid_argument.
+int whole_int(const std::string& t) {
+  size_t end = 0;
+  const int v = std::stoi(t, &end);
+  if (end != t.size() || t.find_first_of(".eE") != std::string::npos) throw std::invalid_argument(t);
+  return v;
+}
+
 // A triangle mesh as OBJ, as segadeform.io.obj.write_obj writes it (9 significant digits, 1-based faces).
 void write_obj(const std::string& path, const std::vector<float>& v, const std::vector<int32_t>& f) {
   std::ofstream o(path, std::ios::binary);
@@ -75,8 +83,8 @@ int main(int argc, char** argv) {
       const bool more = i + 1 < args.size();
       current = args[i];
       if (args[i] == "-o" && more) out = args[++i];
-      else if (args[i] == "--batch" && more) batch = std::stoi(args[++i]);
-      else if (args[i] == "--threads" && more) threads = std::stoi(args[++i]);
+      else if (args[i] == "--batch" && more) batch = whole_int(args[++i]);
+      else if (args[i] == "--threads" && more) threads = whole_int(args[++i]);
       else if (args[i] == "--package" && more) package = args[++i];
       else if (args[i] == "--garment" && more) garment = args[++i];
       else if (args[i] == "--motion" && more) motion = args[++i];

@@ -5,7 +5,9 @@
 // (B, V, 3) f64, points (P, 3) f64 queried against posed[query_frame] with Python's sd (P), closest (P, 3),
 // normal (P, 3) and face (P), and push_in (B, N, 3) pushed out of the B frames with meta.margin into push_out
 // (B, N, 3), meta.moved points moved; near_sd (P), near_closest and near_normal (P, 3): the kernel's contact lookup
-// (sdc_near) of the points against posed[query_frame] with radius meta.near_radius (sd = inf: not found).
+// (sdc_near) of the points against posed[query_frame] with radius meta.near_radius (sd = inf: not found);
+// carry_in (T, N', 3) pushed out of carry_posed (T, V', 3) of the body carry_rest / carry_faces with the correction
+// carried, in calls of meta.carry_batch frames, into carry_out (meta.carry_moved points moved).
 import { readBundle } from "../src/bundle.js";
 import { BodyCollider } from "../src/collide.js";
 
@@ -44,9 +46,25 @@ if (A.near_sd) {
     if (!same) nearDiffer++;
   }
 }
+// the push-out with the correction carried from frame to frame (sdc_push_out_carried), in calls of meta.carry_batch
+// frames against carry_posed (T, V', 3) of the body carry_rest / carry_faces
+let carryOut = 0, carryIdentical = 0, carryCoordinates = 0, carryMoved = 0;
+if (A.carry_in) {
+  const [T, N2] = A.carry_in.shape, V2 = A.carry_rest.shape[0];
+  const c = new BodyCollider(A.carry_rest.data, A.carry_faces.data), carry = new Float64Array(3 * N2);
+  const p = new Float64Array(A.carry_in.data);
+  for (let lo = 0; lo < T; lo += meta.carry_batch) {
+    const hi = Math.min(lo + meta.carry_batch, T), part = p.subarray(lo * N2 * 3, hi * N2 * 3);
+    carryMoved += c.pushOut(A.carry_posed.data.subarray(lo * V2 * 3, hi * V2 * 3), part, hi - lo, N2, meta.carry_margin,
+      meta.iterations, carry).moved;
+  }
+  carryOut = maxDiff(p, A.carry_out.data);
+  carryCoordinates = p.length;
+  for (let i = 0; i < p.length; i++) if (p[i] === A.carry_out.data[i]) carryIdentical++;
+}
 console.log(`COLLIDE ${JSON.stringify({
   closed: col.closed, nodes: col.nNodes, points: q.face.length, sd: maxDiff(q.signedDistance, A.sd.data),
   closest: maxDiff(q.closest, A.closest.data), normal: maxDiff(q.normal, A.normal.data), facesDiffer: faces,
   pushOut: maxDiff(pts, A.push_out.data), identical, coordinates: pts.length, moved: r.moved, pushMs: ms,
-  nearFound, nearDiffer,
+  nearFound, nearDiffer, carryOut, carryIdentical, carryCoordinates, carryMoved, carryMovedPy: meta.carry_moved,
 })}`);

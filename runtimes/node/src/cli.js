@@ -32,8 +32,10 @@ const opt = (name, dflt) => {
   return value;
 };
 const out = opt("-o");
-const batch = parseInt(opt("--batch", "8"), 10);
-const threads = parseInt(opt("--threads", "1"), 10);
+// a whole decimal integer or NaN (parseInt read "8x" as 8 and "2.5" as 2: a user's trial)
+const integer = (t) => (/^\s*[+]?\d+\s*$/.test(t) ? Number(t) : NaN);
+const batch = integer(opt("--batch", "8"));
+const threads = integer(opt("--threads", "1"));
 const pkg = opt("--package"), garment = opt("--garment"), motion = opt("--motion");
 const bodyOut = opt("--body-out"), effects = opt("--effects"), marginText = opt("--collision-margin");
 const cloth = opt("--cloth");

@@ -29,6 +29,11 @@ const BURY_TRIES = 512; // at most this many faces tested for one point (nearest
 // a point inside by its winding number but outside by its closest surface goes to the nearest skin that is not buried
 // only within this distance (times the posed body's size); deeper in the crease it stays pinched (the C file's SDC_PINCH)
 const PINCH = 0.012;
+// the carried push-out (pushFrameCarried): another exit is taken only if its move is at most CARRY_LIMB times the
+// closest exit's plus PINCH * scale, and at most the frame before's plus CARRY_GROW * PINCH * scale (the C file's
+// SDC_CARRY_LIMB, SDC_CARRY_GROW)
+const CARRY_LIMB = 1.5;
+const CARRY_GROW = 0.25;
 
 // ---- small vector helpers (on 3-vectors stored at an offset of a Float64Array) -------------------------------
 function dot3(a, ia, b, ib) { return a[ia] * b[ib] + a[ia + 1] * b[ib + 1] + a[ia + 2] * b[ib + 2]; }
@@ -722,6 +727,76 @@ function pushFrame(fr, pts, off, i0, i1, margin, iterations, mask) {
   return total;
 }
 
+/* The push-out of the point at pts[ip ...] (moved in place), up to `iterations` passes; whether it moved (the C
+ * file's push_point). */
+function pushPoint(fr, pts, ip, radius, margin, iterations) {
+  let moved = false;
+  for (let it = 0; it < iterations; it++) {
+    if (!nearOrInside(fr, pts, ip, radius, 2, cP, nP) || !(nearSd < margin)) break;
+    pts[ip] = cP[0] + margin * nP[0];
+    pts[ip + 1] = cP[1] + margin * nP[1];
+    pts[ip + 2] = cP[2] + margin * nP[2];
+    moved = true;
+  }
+  return moved;
+}
+
+const qC = new Float64Array(3), kC = new Float64Array(3), dC = new Float64Array(3), aC = new Float64Array(3),
+  kaC = new Float64Array(3), pickC = new Float64Array(3);
+const GAIN = [1.0, 0.5];
+
+/* The rule for the correction carried from the frame before, for the point at pts[ip ...] (already pushed out; q its
+ * place before) with its carried correction carry[ic ...] (zero: none), both in place: the C file's carry_point --
+ * where the correction jumps by more than PINCH * scale, the push-out again from q + k0 and q + k0 / 2, the exit
+ * nearest k0 kept within the bounds; then carry = p - q. */
+function carryPoint(fr, q, pts, ip, carry, ic, radius, margin, iterations) {
+  const lim = PINCH * fr.scale;
+  sub3(pts, ip, q, 0, kC, 0);
+  if (carry[ic] !== 0.0 || carry[ic + 1] !== 0.0 || carry[ic + 2] !== 0.0) {
+    sub3(kC, 0, carry, ic, dC, 0);
+    let best = norm3(dC, 0);
+    if (best > lim) {
+      const kn = norm3(kC, 0), k0n = norm3(carry, ic);
+      pickC[0] = pts[ip]; pickC[1] = pts[ip + 1]; pickC[2] = pts[ip + 2];
+      for (let g = 0; g < 2; g++) {
+        aC[0] = q[0] + GAIN[g] * carry[ic];
+        aC[1] = q[1] + GAIN[g] * carry[ic + 1];
+        aC[2] = q[2] + GAIN[g] * carry[ic + 2];
+        pushPoint(fr, aC, 0, radius, margin, iterations);
+        sub3(aC, 0, q, 0, kaC, 0);
+        sub3(kaC, 0, carry, ic, dC, 0);
+        const dn = norm3(dC, 0), an = norm3(kaC, 0);
+        if (dn < best && an <= CARRY_LIMB * kn + lim && an <= k0n + CARRY_GROW * lim) {
+          best = dn;
+          pickC[0] = aC[0]; pickC[1] = aC[1]; pickC[2] = aC[2];
+        }
+      }
+      pts[ip] = pickC[0]; pts[ip + 1] = pickC[1]; pts[ip + 2] = pickC[2];
+    }
+  }
+  sub3(pts, ip, q, 0, carry, ic);
+}
+
+/* pushFrame with the correction carried from the frame before (the C file's sdc_push_out_carried for one frame):
+ * carry (n*3 Float64Array) in place; mask[off + i] set to 1 where the point's place changed.  Returns the number of
+ * points newly marked. */
+function pushFrameCarried(fr, pts, off, i0, i1, margin, iterations, mask, carry) {
+  let total = 0;
+  if (iterations < 1) iterations = 1;
+  const radius = margin * (1.0 + 1e-3) + 1e-9 * fr.scale;
+  for (let i = i0; i < i1; i++) {
+    const ip = 3 * (off + i);
+    qC[0] = pts[ip]; qC[1] = pts[ip + 1]; qC[2] = pts[ip + 2];
+    pushPoint(fr, pts, ip, radius, margin, iterations);
+    carryPoint(fr, qC, pts, ip, carry, 3 * i, radius, margin, iterations);
+    if ((pts[ip] !== qC[0] || pts[ip + 1] !== qC[1] || pts[ip + 2] !== qC[2]) && !mask[off + i]) {
+      mask[off + i] = 1;
+      total++;
+    }
+  }
+  return total;
+}
+
 // ---- the collider ---------------------------------------------------------------------------------------------
 /**
  * A collider for a body whose triangles stay the same while its vertices move (the posed body): the tree, built
@@ -786,21 +861,27 @@ export class BodyCollider {
 
   /**
    * push_out of every point of B frames: pts (B*N*3, Float64Array, moved in place) against verts (B*V*3, the posed
-   * body per frame) with `margin` (metres) and up to `iterations` passes (sdc_push_out).  Returns { moved: the number
-   * of (frame, point) pairs moved, mask: Uint8Array (B*N), 1 where moved }.
+   * body per frame) with `margin` (metres) and up to `iterations` passes (sdc_push_out).  With `carry` (N*3
+   * Float64Array, zeros at a stream's start, updated in place) the frames are consecutive and each point's correction
+   * is carried from frame to frame (sdc_push_out_carried; moved then counts the points whose place changed).  Returns
+   * { moved: the number of (frame, point) pairs moved, mask: Uint8Array (B*N), 1 where moved }.
    */
-  pushOut(verts, pts, B, N, margin, iterations = 3) {
+  pushOut(verts, pts, B, N, margin, iterations = 3, carry = null) {
     if (!(Number.isFinite(margin) && margin >= 0)) throw new Error(`margin must be finite and >= 0 (got ${margin})`);
     if (!(pts instanceof Float64Array) || pts.length !== B * N * 3) {
       throw new Error(`points must be a Float64Array (B, N, 3) (expected ${B * N * 3} values, got ${pts.length})`);
+    }
+    if (carry !== null && !(carry instanceof Float64Array && carry.length === N * 3)) {
+      throw new Error(`carry must be a Float64Array (N, 3) (expected ${N * 3} values, got ${carry.length})`);
     }
     const V = verts instanceof Float64Array ? verts : new Float64Array(verts);
     const box = this.refit(V, B);
     const mask = new Uint8Array(B * N);
     let total = 0;
     for (let f = 0; f < B; f++) {
-      total += pushFrame(makeFrame(this, V, 3 * this.nv * f, box, 6 * this.nNodes * f), pts, N * f, 0, N, margin,
-        iterations, mask);
+      const fr = makeFrame(this, V, 3 * this.nv * f, box, 6 * this.nNodes * f);
+      total += carry === null ? pushFrame(fr, pts, N * f, 0, N, margin, iterations, mask)
+        : pushFrameCarried(fr, pts, N * f, 0, N, margin, iterations, mask, carry);
     }
     return { moved: total, mask };
   }
@@ -847,10 +928,12 @@ export class BodyCollider {
  * The push-out of garment frames (T*N*3 float32, as the deformer gives them) against the posed body (T*V*3 float32,
  * the body graph's) with the body's faces: what `segadeform run` does with collisions on (float64 arithmetic, the
  * result rounded to float32 as its writers round it).  The frames are changed in place; `collider` (a BodyCollider
- * for these faces) is built from the first frame when not given.  Returns { moved, msPerFrame, collider }.
+ * for these faces) is built from the first frame when not given; `carry` (N*3 Float64Array, zeros at the clip's
+ * start, kept by the caller between calls) carries each vertex's correction from frame to frame, as `segadeform run`
+ * does (null: every frame stands alone).  Returns { moved, msPerFrame, collider }.
  */
 export function pushOutFrames(frames, T, N, bodyVertices, V, faces, { margin = 0.004, iterations = 3, collider = null,
-  batch = 8 } = {}) {
+  batch = 8, carry = null } = {}) {
   if (frames.length !== T * N * 3 || bodyVertices.length !== T * V * 3) {
     throw new Error(`frames and the posed body do not fit (expected ${T * N * 3} and ${T * V * 3} values, got ` +
       `${frames.length} and ${bodyVertices.length})`);
@@ -861,7 +944,8 @@ export function pushOutFrames(frames, T, N, bodyVertices, V, faces, { margin = 0
   for (let lo = 0; lo < T; lo += batch) {
     const hi = Math.min(lo + batch, T), B = hi - lo;
     const pts = new Float64Array(frames.subarray(lo * N * 3, hi * N * 3));
-    const r = col.pushOut(new Float64Array(bodyVertices.subarray(lo * V * 3, hi * V * 3)), pts, B, N, margin, iterations);
+    const r = col.pushOut(new Float64Array(bodyVertices.subarray(lo * V * 3, hi * V * 3)), pts, B, N, margin, iterations,
+      carry);
     moved += r.moved;
     frames.set(pts, lo * N * 3); // float64 -> float32, rounded to nearest
   }

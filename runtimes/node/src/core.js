@@ -589,11 +589,13 @@ export class Player {
     this.fixed = fixed;
   }
 
-  /** A new clip: no motion history; the cloth stage starts again from the network's frame, the collider anew. */
+  /** A new clip: no motion history; the cloth stage starts again from the network's frame, the collider anew, the
+   * push-out's carried corrections at zero. */
   reset() {
     this.prev = new Float32Array(0); // the last window - 1 poses pushed (fewer at the start)
     this.seen = 0;
     this.collider = null;
+    this.carry = new Float64Array(3 * this.N); // each vertex's push-out correction at the frame before
     this.stage = null;
     if (this.stages && this.effects.cloth) {
       const t0 = performance.now();
@@ -662,7 +664,7 @@ export class Player {
       } else {
         if (this.effects.collisions) {
           const c = pushOutFrames(rel, n, N, b, V, this.poser.faces(),
-            { margin: this.margin, iterations: 3, batch: n, collider: this.collider });
+            { margin: this.margin, iterations: 3, batch: n, collider: this.collider, carry: this.carry });
           this.collider = c.collider;
           this.moved += c.moved;
         }

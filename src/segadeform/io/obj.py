@@ -162,8 +162,9 @@ def read_obj(path: str | os.PathLike) -> Mesh:
         raise FileFormatError("not a text OBJ file (contains NUL bytes)", path=p)
     # a copy or download that stopped mid-line (a user's trial: an OBJ cut at 90 % ran with a tenth of its faces gone,
     # exit 0).  A last line with no line break is how some exporters end a whole file (pytorch3d's save_obj), so it is
-    # refused only when it looks cut: it ends in whitespace or a '/', or it is a face with another corner count than
-    # the face before it (a quad cut to a triangle); an error on that line says the file may be cut short
+    # refused only when it looks cut: it ends in whitespace or a '/', it is a face with another corner count than
+    # the face before it (a quad cut to a triangle) or with corners in mixed forms, or some vertices are in no face;
+    # an error on that line says the file may be cut short
     cut_at = None  # the line number of an element line the file ends in, unbroken
     if text and not text.endswith(("\n", "\r")):
         last = list(_logical_lines(text))[-1]
@@ -220,6 +221,9 @@ def read_obj(path: str | os.PathLike) -> Mesh:
                 face_sizes = [*face_sizes[-1:], len(corners)]
                 if lineno == cut_at and len(face_sizes) == 2 and face_sizes[0] != face_sizes[1]:
                     raise _cut_short(p, cut_at, key)
+                # corners in mixed forms (v/vt, v/vt, then v): a number cut off its '/vt' (a user's trial)
+                if lineno == cut_at and len({c.count("/") for c in corners}) > 1:
+                    raise _cut_short(p, cut_at, key)
                 if len(corners) < 3:
                     raise FileFormatError(
                         "face has fewer than 3 vertices", path=p, line=lineno, expected=">= 3", got=len(corners)
@@ -262,6 +266,16 @@ def read_obj(path: str | os.PathLike) -> Mesh:
         raise FileFormatError(f"mesh has no vertices ('v' lines){cut}", path=p)
     if not tris:
         raise FileFormatError(f"mesh has no faces ('f' lines){cut}", path=p)
+    if cut_at is not None and np.unique(np.asarray(tris, dtype=np.int64)).size < len(verts):
+        # unbroken on a face line with vertices no face uses: the faces that used them were cut off (a user's trial:
+        # an OBJ cut in its faces inside a number ran, a third of its triangles gone, exit 0)
+        raise FileFormatError(
+            f"{len(verts) - np.unique(np.asarray(tris)).size} of its {len(verts)} vertices are in no face and the file "
+            f"ends on line {cut_at} with no line break: is it cut short? (a whole file ends with a line break: add one "
+            "if this one is whole)",
+            path=p,
+            line=cut_at,
+        )
     v, f = validate_mesh_arrays(np.asarray(verts, dtype=np.float64), np.asarray(tris, dtype=np.int64), path=p)
     col = None
     if all(c is not None for c in colors):

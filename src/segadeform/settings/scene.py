@@ -271,9 +271,10 @@ def load_scene(path: str | os.PathLike, *, effects: str | None = None, sim_effec
 
     ``effects`` / ``sim_effects``: the command line's ``--effects`` of ``run`` / ``simulate``, which change the scene's
     ``[effects]`` / ``[simulate]`` effects.  A knob of an effect that is off is refused; with these, "off" is judged
-    after the change, so a scene may keep the knobs of an effect that the command line turns on (``--effects=+wind``
-    with ``wind_strength`` in ``[simulate]``).  The returned scene keeps its own effects (the command applies its
-    change)."""
+    both before and after the change, so a scene may keep the knobs of an effect that the command line turns on
+    (``--effects=+wind`` with ``wind_strength`` in ``[simulate]``) or, in ``[effects]``, off (``--effects=-cloth``
+    with ``cloth_iterations``: ignored, as ``--quality fast`` ignores them).  The returned scene keeps its own
+    effects (the command applies its change)."""
     effects_text = effects
     p = Path(path)
     data, _ = read_toml(p, "scene")
@@ -342,7 +343,10 @@ def load_scene(path: str | os.PathLike, *, effects: str | None = None, sim_effec
         except ValueError as e:
             raise FileFormatError(f"[effects]: {e}", path=p, line=_effects_line(p, plain, knobs)) from None
         on = parse_effects(effects_text, effects) if effects_text is not None else effects  # what will run
-        if "collision_margin" in plain and not (on.collisions or on.cloth):  # as the cloth knobs below
+        # a knob is refused only when its stage is off both in the scene and after the command line's change: a
+        # scene may keep the knobs of a stage the command line turns on (--effects=+cloth) or off (--effects=-cloth,
+        # as --quality fast does: a user's trial found -cloth refused with a hint to set what the file already set)
+        if "collision_margin" in plain and not (on.collisions or on.cloth or effects.collisions or effects.cloth):
             raise FileFormatError(
                 "[effects] sets collision_margin but neither collisions nor the cloth stage is on",
                 path=p,
@@ -350,7 +354,7 @@ def load_scene(path: str | os.PathLike, *, effects: str | None = None, sim_effec
                 expected="collisions = true or cloth = true in [effects] (or --effects=+collisions), or no "
                 "collision_margin",
             )
-        if knobs and not on.cloth:  # as --cloth K=V with the stage off: the knobs would do nothing
+        if knobs and not (on.cloth or effects.cloth):  # as --cloth K=V with the stage off: they would do nothing
             first = sorted(knobs)[0]
             raise FileFormatError(
                 f"[effects] sets cloth_{first} but the cloth stage is off",

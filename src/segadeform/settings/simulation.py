@@ -247,8 +247,9 @@ def parse_simulate_table(table: dict | None, *, where=None, effects: str | None 
     """``[simulate]`` (a dict from TOML, or None when the scene has none) -> :class:`SimSettings`.
 
     ``effects``: ``simulate --effects`` (changes to the table's effects, :func:`parse_sim_effects`): a knob of an effect
-    is refused when the effect is off after that change (a scene may keep wind's knobs for ``--effects=+wind``).  The
-    settings returned keep the table's own effects."""
+    is refused when the effect is off both in the table and after that change (a scene may keep wind's knobs for
+    ``--effects=+wind``, and for ``--effects=-wind``, which ignores them).  The settings returned keep the table's own
+    effects."""
     if table is None:
         return SimSettings()
     read_table(table, SimSettings, where="simulate", path=where)  # keys and types: the fields of SimSettings
@@ -290,7 +291,8 @@ def parse_simulate_table(table: dict | None, *, where=None, effects: str | None 
         raise FileFormatError(f"[simulate]: {e}", path=where, line=line) from None
     on = parse_sim_effects(effects, kw["effects"]) if effects is not None else kw["effects"]  # what will run
     for k, effect in KNOB_EFFECT.items():  # a knob of an effect that is off would do nothing: said, as [effects]
-        if k in kw and effect not in on:  # says it of the cloth stage's knobs (a scene author's trial)
+        if k in kw and effect not in on and effect not in kw["effects"]:  # as the cloth stage's knobs (a scene
+            # author's trial); a knob of an effect the command line turns off is kept, ignored (--effects=-wind)
             raise FileFormatError(
                 f"[simulate] sets {k} but the effect {effect} is off",
                 path=where,

@@ -78,13 +78,15 @@ def push_out_frames(
     x: np.ndarray, ref: Reference, collider: BodyCollider, margin: float, *, batch: int = 8
 ) -> np.ndarray:
     """The runtime's collision stage on a prediction: ``collider`` (:class:`BodyCollider`, built once)
-    pushes ``batch`` frames at a time out of the posed body, as ``segadeform run`` does.
+    pushes ``batch`` frames at a time out of the posed body, the correction carried from frame to frame from the
+    sample's first, as ``segadeform run`` does.
     Shapes: x (T, N, 3) -> (T, N, 3)."""
     if ref.posed is None:
         raise InputError("this reference has no posed body", expected="reference(...) of this module")
     out = np.empty(x.shape, np.float64)
+    carry = np.zeros((x.shape[1], 3))
     for lo in range(0, len(x), batch):
-        out[lo : lo + batch] = collider.push_out(x[lo : lo + batch], ref.posed[lo : lo + batch], margin)[0]
+        out[lo : lo + batch] = collider.push_out(x[lo : lo + batch], ref.posed[lo : lo + batch], margin, carry=carry)[0]
     return out
 
 

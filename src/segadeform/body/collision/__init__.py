@@ -57,7 +57,14 @@ feature's faces cancel out: zero-area triangles), never NaN.
 from .collider import BodyCollider, ReferenceCollider
 from .compiled import compiled_available, load_extension
 from .numpy_bvh import closest_point_fast
-from .reference import BodyProxy, ProximityResult, closest_point_on_triangles, push_out, winding_number
+from .reference import (
+    BodyProxy,
+    ProximityResult,
+    carry_correction,
+    closest_point_on_triangles,
+    push_out,
+    winding_number,
+)
 
 __all__ = [
     "BodyProxy",
@@ -68,6 +75,7 @@ __all__ = [
     "closest_point_fast",
     "winding_number",
     "push_out",
+    "carry_correction",
     "compiled_available",
     "load_extension",
 ]

@@ -10,7 +10,7 @@ from ...errors import InputError
 from ...geometry._checks import check_mesh
 from .compiled import CompiledBVH, load_kernel, warn_fallback
 from .numpy_bvh import NumpyBVH
-from .reference import BodyProxy, ProximityResult, push_out, winding_number
+from .reference import BodyProxy, ProximityResult, body_size, carry_correction, push_out, winding_number
 
 __all__ = ["BodyCollider", "ReferenceCollider"]
 
@@ -160,23 +160,63 @@ class BodyCollider:
             return self._impl.winding(p[0], v[0], self.threads)
         return np.rint(np.abs(winding_number(p[0], v[0], self.faces))).astype(np.int64)
 
-    def push_out(self, points, posed, margin: float = 0.0, *, iterations: int = 3):
+    def push_out(self, points, posed, margin: float = 0.0, *, iterations: int = 3, carry=None):
         """:func:`push_out` against the body at ``posed``: the same rule, moves and passes, with exact
         closest points (see the class docstring).  Frames can be batched.
+
+        With ``carry`` -- a writable (N, 3) float64 array, zeros at the start of a stream, kept by the caller between
+        calls -- the frames are consecutive and each point's correction (its place after the push-out minus before)
+        is carried from frame to frame: where the closest exit jumps to another side of a limb, the exit nearest the
+        frame before's correction is kept (:func:`~segadeform.body.collision.reference.carry_correction`); ``carry``
+        is left holding the last frame's corrections, so a stream cut into calls anywhere gives the frames of one
+        call.  The number moved then counts the points whose place changed.
 
         Shapes:
             points: (N, 3), posed: (V, 3) -> (N, 3), and the number of points moved
             points: (B, N, 3), posed: (B, V, 3) -> (B, N, 3), and the number of points moved in all frames
+            carry: (N, 3), updated in place
         """
         p, v = self._check(points, posed)
         margin = float(margin)
         if not np.isfinite(margin) or margin < 0:
             raise InputError("margin must be finite and >= 0", got=margin)
+        iterations = max(1, int(iterations))
+        carry = _check_carry(carry, p.shape[1])
         if isinstance(self._impl, CompiledBVH):  # self.backend == "compiled"
-            out, moved = self._impl.push_out(p, v, margin, max(1, int(iterations)), self.threads)
-        else:
-            out, moved = self._impl.push_out(p, v, margin, max(1, int(iterations)))
+            out, moved = self._impl.push_out(p, v, margin, iterations, self.threads, carry)
+        elif carry is None:
+            out, moved = self._impl.push_out(p, v, margin, iterations)
+        else:  # numpy: the frames pushed out together, then the rule frame by frame
+            impl = self._impl
+            out = impl.push_out(p, v, margin, iterations)[0].reshape(p.shape)
+            for f in range(len(p)):
+                out[f] = carry_correction(
+                    p[f],
+                    out[f],
+                    carry,
+                    body_size(v[f], self.faces),
+                    lambda x, f=f: impl.push_out(x[None], v[f : f + 1], margin, iterations)[0],
+                )
+            moved = int(np.any(out != p, axis=2).sum())
         return out.reshape(np.shape(points)), moved
+
+
+def _check_carry(carry, n: int):
+    """``carry`` for :meth:`BodyCollider.push_out`: None, or a writable C-contiguous (n, 3) float64 array of finite
+    values (it is updated in place, so it is not converted)."""
+    if carry is None:
+        return None
+    if not isinstance(carry, np.ndarray) or carry.dtype != np.float64 or carry.shape != (n, 3):
+        raise InputError(
+            "carry must be a float64 numpy array with a row per point",
+            expected=f"({n}, 3) float64",
+            got=f"{getattr(carry, 'shape', type(carry).__name__)} {getattr(carry, 'dtype', '')}".strip(),
+        )
+    if not (carry.flags.c_contiguous and carry.flags.writeable):
+        raise InputError("carry must be C-contiguous and writable (it is updated in place)", got=carry.flags)
+    if not np.isfinite(carry).all():
+        raise InputError("carry contains NaN or inf")
+    return carry
 
 
 def _rebuild_collider(vertices, faces, kwargs):
@@ -200,14 +240,23 @@ class ReferenceCollider:
         """Shapes: points (P, 3), posed (V, 3) -> fields (P,) / (P, 3)."""
         return self._proxy.moved(posed).query(points)
 
-    def push_out(self, points, posed, margin: float = 0.0, *, iterations: int = 3):
-        """Shapes: points (B, N, 3), posed (B, V, 3) -> (B, N, 3) float64, and the number of points moved."""
+    def push_out(self, points, posed, margin: float = 0.0, *, iterations: int = 3, carry=None):
+        """Shapes: points (B, N, 3), posed (B, V, 3) -> (B, N, 3) float64, and the number of points moved; ``carry``
+        (N, 3) as :meth:`BodyCollider.push_out`'s."""
         p = np.asarray(points, np.float64)
         if p.ndim == 2:
-            out, n = push_out(p, self._proxy.moved(posed), margin, iterations=iterations)
-            return out, n
+            out, n = self.push_out(p[None], np.asarray(posed)[None], margin, iterations=iterations, carry=carry)
+            return out[0], n
         fixed, moved = np.empty_like(p), 0
         for i in range(len(p)):
-            fixed[i], n = push_out(p[i], self._proxy.moved(posed[i]), margin, iterations=iterations)
+            proxy = self._proxy.moved(posed[i])
+            fixed[i], n = push_out(p[i], proxy, margin, iterations=iterations)
+            if carry is not None:
+
+                def push(x, proxy=proxy):
+                    return push_out(x, proxy, margin, iterations=iterations)[0]
+
+                fixed[i] = carry_correction(p[i], fixed[i], carry, body_size(proxy.vertices, proxy.faces), push)
+                n = int(np.any(fixed[i] != p[i], axis=1).sum())
             moved += n
         return fixed, moved

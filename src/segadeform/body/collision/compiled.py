@@ -24,7 +24,7 @@ _BODY_PACKAGE = "segadeform.body"
 
 _KERNEL_LOCK = threading.Lock()
 _KERNEL: dict = {}  # a cache of the loaded library, filled on first use: {"lib": CDLL | None, "why": str}
-_ABI = 5  # sdc_abi() of the kernel this wrapper speaks to
+_ABI = 6  # sdc_abi() of the kernel this wrapper speaks to
 
 
 def load_extension(module: str, current, signatures):
@@ -66,6 +66,7 @@ def load_kernel():
                     ("sdc_refit", None, (p, p, p)),
                     ("sdc_query", None, (p, p, p, p, i64, i64, p, p, p, p)),
                     ("sdc_push_out", i64, (p, p, p, i64, p, i64, i64, i64, ctypes.c_double, i64, p)),
+                    ("sdc_push_out_carried", i64, (p, p, p, i64, p, i64, i64, i64, ctypes.c_double, i64, p, p)),
                     ("sdc_acos", ctypes.c_double, (ctypes.c_double,)),
                     ("sdc_winding", i64, (p, p, p, p, i64, i64, p)),
                 ),
@@ -191,18 +192,22 @@ class CompiledBVH:
         )
         return wind
 
-    def push_out(self, p, v, margin: float, iterations: int, threads: int):
-        """:func:`push_out` of ``p (B, N, 3)`` against ``v (B, V, 3)``: the moved points and how many moved."""
+    def push_out(self, p, v, margin: float, iterations: int, threads: int, carry=None):
+        """:func:`push_out` of ``p (B, N, 3)`` against ``v (B, V, 3)``: the moved points and how many moved.  With
+        ``carry`` (N, 3) C-contiguous float64, updated in place: the frames are consecutive and the correction is
+        carried between them (``sdc_push_out_carried``)."""
         out = np.array(p, np.float64, order="C")
         verts = np.ascontiguousarray(v, np.float64)
         boxes = self._refit(verts, threads)
         nb, n = out.shape[:2]
         moved = np.zeros((nb, n), np.uint8)
         lib, h = self._lib, self._h
+        fn = lib.sdc_push_out if carry is None else lib.sdc_push_out_carried
+        tail = () if carry is None else (carry.ctypes.data,)
         self._run(
             [
                 functools.partial(
-                    lib.sdc_push_out,
+                    fn,
                     h,
                     verts.ctypes.data,
                     boxes.ctypes.data,
@@ -214,6 +219,7 @@ class CompiledBVH:
                     float(margin),
                     int(iterations),
                     moved.ctypes.data,
+                    *tail,
                 )
                 for a, b in self._ranges(n, threads)
             ],

@@ -23,8 +23,11 @@ __all__ = [
     "BURY",
     "BURY_TRIES",
     "PINCH",
+    "CARRY_LIMB",
+    "CARRY_GROW",
     "BodyProxy",
     "push_out",
+    "carry_correction",
 ]
 
 #: a surface point is buried if the point this far out along its face's normal, times the posed body's size (its
@@ -40,6 +43,11 @@ BURY_TRIES = 512
 #: the simulator leaves such cloth pinched.  Unbounded, the nearest open skin of a T-shirt's armpit vertex on a walk
 #: was 4-7 cm away, in front of the arm in one frame and behind it in the next: jumps of up to 16 cm.
 PINCH = 0.012
+#: the carried push-out (:func:`carry_correction`, ``_collide.c``'s SDC_CARRY_LIMB and SDC_CARRY_GROW): another exit
+#: is taken only if its move is at most CARRY_LIMB times the closest exit's plus PINCH times the body's size, and at
+#: most the frame before's plus CARRY_GROW times that
+CARRY_LIMB = 1.5
+CARRY_GROW = 0.25
 
 
 @dataclasses.dataclass(frozen=True)
@@ -447,6 +455,44 @@ class BodyProxy:
         dist = np.linalg.norm(diff, axis=1)
         sign = np.where(np.einsum("ij,ij->i", diff, normal) < 0, -1.0, 1.0)
         return ProximityResult(signed_distance=sign * dist, closest=closest, normal=normal, face=face)
+
+
+def carry_correction(before, after, carry, size: float, push) -> np.ndarray:
+    """The rule for the correction carried from the frame before (``_collide.c``'s carry_point), point by point.
+
+    ``before`` are the points before this frame's push-out, ``after`` after it, ``carry`` each point's correction
+    (after minus before) of the frame before, zero for none; ``push(points (M, 3)) -> (M, 3)`` is this frame's
+    push-out.  Where a point's correction ``k = after - before`` differs from its carried ``k0`` by more than
+    ``lim = PINCH * size`` (its closest exit is on another side of a limb than the frame before's), the push-out is
+    tried again from ``before + k0`` and ``before + k0 / 2``; the exit whose correction is nearest ``k0`` is kept if
+    it is nearer than ``k``'s, its move at most ``CARRY_LIMB |k| + lim`` and at most ``|k0| + CARRY_GROW lim`` (ties:
+    the earlier candidate).  Every candidate is a push-out's result, so no point is left inside that the push-out
+    takes out.  Returns the points after the rule; ``carry`` is set to their correction, in place.
+
+    Shapes:
+        before, after, carry: (P, 3) -> (P, 3)
+    """
+    q = np.asarray(before, np.float64)
+    out = np.array(after, np.float64)
+    lim = PINCH * float(size)
+    for i in range(len(q)):
+        k0 = carry[i].copy()
+        if not k0.any():
+            continue
+        k = out[i] - q[i]
+        best = float(np.sqrt(np.sum((k - k0) ** 2)))
+        if not best > lim:
+            continue
+        kn, k0n, pick = float(np.sqrt(np.sum(k * k))), float(np.sqrt(np.sum(k0 * k0))), out[i].copy()
+        for gain in (1.0, 0.5):
+            a = push((q[i] + gain * k0)[None])[0]
+            ka = a - q[i]
+            d, an = float(np.sqrt(np.sum((ka - k0) ** 2))), float(np.sqrt(np.sum(ka * ka)))
+            if d < best and an <= CARRY_LIMB * kn + lim and an <= k0n + CARRY_GROW * lim:
+                best, pick = d, a
+        out[i] = pick
+    carry[...] = out - q
+    return out
 
 
 def push_out(
