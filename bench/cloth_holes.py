@@ -59,8 +59,9 @@ def sample_rows(dataset, sid: str, body, predictor, settings, margin: float) -> 
     ref = reference(s, body)
     y = predictor.predict(s, body, sample_asset(dataset, s, body, 32))
     col = BodyCollider(body.v_template, body.faces)
+    carry = np.zeros((y.shape[1], 3))  # the correction carried from frame to frame, as run does
     pushed = np.concatenate(
-        [col.push_out(y[lo : lo + 8], ref.posed[lo : lo + 8], margin)[0] for lo in range(0, len(y), 8)]
+        [col.push_out(y[lo : lo + 8], ref.posed[lo : lo + 8], margin, carry=carry)[0] for lo in range(0, len(y), 8)]
     )
     frames = {
         "Blender": s.frames.astype(np.float64),

@@ -140,8 +140,9 @@ def python_row(pkg_dir: Path, files: dict, batch: int, repeats: int, margin=None
         for _ in range(repeats):
             t0 = time.perf_counter()
             col = BodyCollider(body.v_template, body.faces, threads=1)
+            carry = np.zeros((frames.shape[1], 3))  # the correction carried from frame to frame, as run does
             for lo in range(0, t, batch):
-                col.push_out(frames[lo : lo + batch], posed["graph"][lo : lo + batch], margin)
+                col.push_out(frames[lo : lo + batch], posed["graph"][lo : lo + batch], margin, carry=carry)
             col_ms.append((time.perf_counter() - t0) / t * 1e3)
         row.update(col_ms=min(col_ms), col_backend=col.backend)
     return row

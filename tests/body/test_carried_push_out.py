@@ -93,6 +93,33 @@ def test_a_point_a_limb_sweeps_through_is_carried_within_the_bounds():
     assert (move <= CARRY_LIMB * closest + lim + 1e-12).all()
 
 
+def test_a_carried_move_grows_at_most_the_bound_a_frame():
+    """A sphere sweeping through the sheet faster than the growth bound allows a carried move to grow (6 cm a frame
+    against 3 cm): the rule keeps carrying where it may, and where carrying would grow a vertex's move by more than
+    ``CARRY_GROW`` times the bound it takes the closest exit instead (a review: no test failed without that bound)."""
+    v, f, posed, points = _limb_through_a_sheet(frames=12)
+    col = BodyCollider(v, f)
+    plain, _ = _run(col, posed, points, batch=12, carry=False)
+    carried, _ = _run(col, posed, points, batch=12)
+    lim = PINCH * body_size(posed[0], f)
+    assert np.diff(posed[:, 0, 2]).min() > 1.5 * CARRY_GROW * lim
+    move = np.linalg.norm(carried - points, axis=2)
+    kept = np.any(carried != plain, axis=2)
+    assert kept.sum() > 20  # carried somewhere
+    assert (move[1:][kept[1:]] <= move[:-1][kept[1:]] + CARRY_GROW * lim + 1e-12).all()
+    # ... and the bound decided: exits nearer the carried correction, within the other bound, refused by this one
+    refused = 0
+    for t in range(1, len(points)):
+        k0, k = carried[t - 1] - points[t - 1], plain[t] - points[t]
+        active = (np.linalg.norm(k - k0, axis=1) > lim) & np.any(k0 != 0, axis=1) & ~kept[t]
+        a = col.push_out(points[t][active] + k0[active], posed[t], MARGIN)[0] - points[t][active]
+        near = np.linalg.norm(a - k0[active], axis=1) < np.linalg.norm(k[active] - k0[active], axis=1)
+        limb = np.linalg.norm(a, axis=1) <= CARRY_LIMB * np.linalg.norm(k[active], axis=1) + lim
+        grow = np.linalg.norm(a, axis=1) > np.linalg.norm(k0[active], axis=1) + CARRY_GROW * lim
+        refused += int((near & limb & grow).sum())
+    assert refused >= 3, refused
+
+
 @pytest.mark.parametrize("batch", [1, 4, 25])
 @pytest.mark.parametrize("case", ["sweep", "jitter"])
 def test_streams_backends_threads_and_the_reference_agree(batch, case):

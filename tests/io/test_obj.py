@@ -220,3 +220,6 @@ def test_a_file_cut_inside_a_face_corner_is_refused(tmp_path, samples):
         assert read_obj(write(tmp_path, bad + "\n", "ok.obj")).n_faces == 2  # a line break: whole, as it says
     whole = (samples / "garments" / "skirt.obj").read_text().rstrip("\n")
     assert read_obj(write(tmp_path, whole, "whole.obj")).n_faces == 2 * 64 * 23
+    # a loose vertex is no sign of a cut when the last line is not a face (a review: 'vn' and 'l' last were refused)
+    for tail in ("vn 0 0 1", "l 3 4"):
+        assert read_obj(write(tmp_path, uv + "f 1/1 2/2 3/3\n" + tail, "loose.obj")).n_faces == 1

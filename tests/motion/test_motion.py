@@ -212,6 +212,18 @@ def test_malformed_bvh(tmp_path, mutate, words):
     assert "b.bvh" in str(ei.value)
 
 
+def test_a_frame_line_with_a_value_missing_is_named(tmp_path):
+    """A user's trial: a value deleted from one frame line was reported at the Frames: line, six lines above."""
+    write_bvh(tmp_path / "a.bvh", make_motion("idle", seconds=0.2), default_rest_joints())
+    lines = (tmp_path / "a.bvh").read_text().splitlines()
+    k = len(lines) - 3  # a frame line
+    lines[k] = lines[k].rsplit(" ", 1)[0]
+    (tmp_path / "b.bvh").write_text("\n".join(lines) + "\n")
+    with pytest.raises(FileFormatError, match=r"this line has \d+ numbers, a frame \d+") as ei:
+        read_bvh(tmp_path / "b.bvh")
+    assert f"b.bvh:{k + 1}:" in str(ei.value)
+
+
 # ---- CLI -----------------------------------------------------------------
 def test_motion_cli(tmp_path):
     r = CliRunner().invoke(

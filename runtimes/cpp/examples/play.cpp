@@ -5,7 +5,7 @@
 // folder's .segadeform-outputs.json records it), is written; a file segadeform did not write, or an input, is refused.
 //
 //   segadeform-play PACKAGE G.sgda M.sgdm -o OUT.pc2 [--chunk N] [--batch N] [--effects E] [--cloth K=V,..]
-//                   [--margin M] [--threads N] [--force]
+//                   [--collision-margin M (or --margin M)] [--threads N] [--force]
 #include <segadeform/player.hpp>
 
 #include "outputs.hpp"  // the command lines' output rule and manifest (segadeform-run's)
@@ -20,7 +20,7 @@
 
 static const char* USAGE =
     "usage: segadeform-play PACKAGE G.sgda M.sgdm -o OUT.pc2 [--chunk N] [--batch N] [--effects E] [--cloth K=V,..]\n"
-    "                       [--margin M] [--threads N] [--force]\n";
+    "                       [--collision-margin M] [--threads N] [--force]\n";
 
 // The whole of t as a number (std::stoi/stod read "8x" as 8 and "abc" said only "stoi": a user's trial).
 static long long whole_int(const std::string& name, const std::string& t) {
@@ -33,6 +33,13 @@ static long long whole_int(const std::string& name, const std::string& t) {
   }
   if (end == 0 || end != t.size()) throw std::invalid_argument(name + " must be an integer (got '" + t + "')");
   return v;
+}
+
+// An int-sized whole_int (4294967297 would wrap to 1).
+static int small_int(const std::string& name, const std::string& t) {
+  const long long v = whole_int(name, t);
+  if (v < -2147483647LL || v > 2147483647LL) throw std::invalid_argument(name + " is out of range (got '" + t + "')");
+  return static_cast<int>(v);
 }
 
 static double whole_number(const std::string& name, const std::string& t) {
@@ -73,11 +80,12 @@ int main(int argc, char** argv) {
       }
       if (a == "-o" && more) out = args[++i];
       else if (a == "--chunk" && more) chunk = whole_int(a, args[++i]);
-      else if (a == "--batch" && more) opt.batch = static_cast<int>(whole_int(a, args[++i]));
-      else if (a == "--threads" && more) opt.threads = static_cast<int>(whole_int(a, args[++i]));
+      else if (a == "--batch" && more) opt.batch = small_int(a, args[++i]);
+      else if (a == "--threads" && more) opt.threads = small_int(a, args[++i]);
       else if (a == "--effects" && more) opt.effects = args[++i];
       else if (a == "--cloth" && more) opt.cloth = args[++i];
-      else if (a == "--margin" && more) opt.collision_margin = whole_number(a, args[++i]);
+      else if ((a == "--margin" || a == "--collision-margin") && more)
+        opt.collision_margin = whole_number(a, args[++i]);
       else if (a == "--force") opt.force = true;
       else if (a.size() > 1 && a[0] == '-') throw std::invalid_argument("unknown option or missing value: " + a);
       else pos.push_back(a);

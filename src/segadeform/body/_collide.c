@@ -994,7 +994,7 @@ static void carry_point(const sdc_frame *fr, const double *q, double *p, double 
  * point's push-out.  moved (B, N): 1 where the point's place changed.  Points are independent: disjoint ranges
  * [i0, i1) may run on as many threads as the caller likes, and a stream cut into batches anywhere gives the frames
  * of one call.  Returns the number of points moved.  Measured on ten garment x CMU-clip pairs of real motion
- * (docs/cloth-eval.md): the vertex-frames that step more than 3 cm and 3x the network's step 1,078 -> 508. */
+ * (docs/cloth-eval.md): the vertex-frames that step more than 3 cm and 3x the network's step 1,085 -> 519. */
 SDC_API int64_t sdc_push_out_carried(const void *h, const double *verts, const double *box, int64_t nb, double *pts,
                                      int64_t n, int64_t i0, int64_t i1, double margin, int64_t iterations,
                                      uint8_t *moved, double *carry) {

@@ -166,11 +166,12 @@ def read_obj(path: str | os.PathLike) -> Mesh:
     # the face before it (a quad cut to a triangle) or with corners in mixed forms, or some vertices are in no face;
     # an error on that line says the file may be cut short
     cut_at = None  # the line number of an element line the file ends in, unbroken
+    cut_key = ""  # its statement
     if text and not text.endswith(("\n", "\r")):
         last = list(_logical_lines(text))[-1]
         words = last[1].split()
         if words and words[0] in ("v", "vt", "vn", "vp", "f", "l", "p"):
-            cut_at = last[0]
+            cut_at, cut_key = last[0], words[0]
             if text.splitlines()[-1][-1:].isspace() or last[1].rstrip().endswith("/"):
                 raise _cut_short(p, cut_at, words[0])
     face_sizes: list[int] = []  # the corner counts of the last two faces
@@ -266,7 +267,7 @@ def read_obj(path: str | os.PathLike) -> Mesh:
         raise FileFormatError(f"mesh has no vertices ('v' lines){cut}", path=p)
     if not tris:
         raise FileFormatError(f"mesh has no faces ('f' lines){cut}", path=p)
-    if cut_at is not None and np.unique(np.asarray(tris, dtype=np.int64)).size < len(verts):
+    if cut_at is not None and cut_key == "f" and np.unique(np.asarray(tris, dtype=np.int64)).size < len(verts):
         # unbroken on a face line with vertices no face uses: the faces that used them were cut off (a user's trial:
         # an OBJ cut in its faces inside a number ran, a third of its triangles gone, exit 0)
         raise FileFormatError(

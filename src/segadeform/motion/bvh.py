@@ -161,10 +161,18 @@ def _parse(text: str, path: Path):
     if n_frames < 1:
         raise FileFormatError("BVH has no frames", path=path, got=n_frames)
     if len(rest) != n_frames * n_ch:
+        # a frame a line, as every exporter writes them: the first line with another count (a user's trial: a
+        # value deleted on line 192 was reported at the Frames: line); else the Frames: line, which the data contradicts
+        per_line: dict[int, int] = {}
+        for ln, _ in rest:
+            per_line[ln] = per_line.get(ln, 0) + 1
+        off = [ln for ln, k in per_line.items() if k != n_ch]
+        one_a_line = len(per_line) - len(off) >= len(per_line) / 2
         raise FileFormatError(
-            "BVH motion data does not match its declared size",
+            "BVH motion data does not match its declared size"
+            + (f" (this line has {per_line[off[0]]} numbers, a frame {n_ch})" if off and one_a_line else ""),
             path=path,
-            line=f_ln,  # the Frames: line, which the data contradicts
+            line=off[0] if off and one_a_line else f_ln,
             expected=f"{n_frames} frames x {n_ch} channels = {n_frames * n_ch} numbers",
             got=f"{len(rest)} numbers"
             + (f", {len(rest) / n_ch:g} frames (cut short?)" if len(rest) < n_frames * n_ch else ""),
