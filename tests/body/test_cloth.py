@@ -331,6 +331,38 @@ def test_an_edge_across_the_body_is_pushed_out_with_both_ends():
     np.testing.assert_array_equal(out, targets)
 
 
+def test_an_edge_a_limb_is_deep_through_is_left_to_its_ends():
+    """A chord across the box's corner with its ends just outside (in contact) and its middle 1.8 cm inside is pushed
+    out with both ends, as above; with its middle 2.8 cm inside (deeper than ``EDGE_DEEP``: a limb through the cloth,
+    whose middle's closest surface may be on either side of it from one frame to the next -- its plane moved a
+    T-shirt's vertices 7 cm one frame and not the next, 300 of 360 pops on a dance) it gets no plane: its ends stay
+    where their own contacts keep them.  Kernel = reference on both."""
+    from segadeform.body.cloth import EDGE_DEEP
+
+    body_v, body_f = _cube(0.1)
+    col = BodyCollider(body_v, body_f)
+    knobs = ClothSettings(stiffness=0.0, bending=0.0, gravity=0.0)
+    posed = np.repeat(body_v[None], 2, 0)
+    for near, deep in ((0.064, False), (0.044, True)):
+        v = np.array([[near, 0.104, 0.0], [0.104, near, 0.0], [0.16, 0.16, 0.02]])
+        f = np.array([[0, 1, 2]])
+        mid = 0.5 * (v[0] + v[1])
+        depth = -col.query(mid[None], body_v).signed_distance[0]
+        assert (depth > EDGE_DEEP) == deep and 0.015 < depth < 0.03, depth
+        setup = cloth_setup(v, f, np.array([1.0, 1.0, 0.0]), knobs)
+        targets = np.repeat(v[None], 2, 0)
+        out = ClothStage(setup, body_v, body_f, knobs, margin=MARGIN).step(targets, posed)
+        ref, _ = cloth_reference(targets, posed, body_f, setup, knobs, margin=MARGIN)
+        assert np.abs(out - ref).max() <= 1e-12
+        for x in out:
+            m_sd = col.query((0.5 * (x[0] + x[1]))[None], body_v).signed_distance[0]
+            moved = np.linalg.norm(x[:2] - v[:2], axis=1).max()
+            if deep:  # no plane: the ends where their contacts keep them (at most to the margin), the middle inside
+                assert moved < 0.001 and m_sd < -EDGE_DEEP, (moved, m_sd)
+            else:  # the plane: both ends moved until the middle is the margin outside
+                assert moved > 0.015 and m_sd >= MARGIN - 1e-9, (moved, m_sd)
+
+
 def _roof(width, height, length):
     """A closed prism whose top is a ridge along z (two roof faces sloping down to y = 0 at x = +-width, a knee's
     front as the cloth sees it), faces wound outward: (6, 3), (8, 3)."""
@@ -477,33 +509,37 @@ def test_the_backstop_leaves_cloth_that_lies_on_the_body_to_its_contacts():
     the arm, so the traced ray came out 10-30 cm away and the stage threw those vertices there for a few frames (a
     new user's T-shirt walking: 15-17 cm pops).  The hem lies on the arm at rest (attachment radius 1-7 mm), so it is
     no cloth hanging in front of a limb: the backstop traces only loose vertices (radius >= LOOSE, 1 cm), and these
-    keep their closest-point contact (out through the arm's side).  The same panel hanging loose is traced.  Kernel
-    and reference agree."""
-    from segadeform.body.cloth import LOOSE
+    keep their closest-point contact (out through the arm's side).  The same panel hanging loose is traced -- out of
+    the arm's end 15 cm away; not 30 cm away, farther than ``REACH`` (a trace through the torso: dropped, the panel
+    left to its contacts).  Kernel and reference agree."""
+    from segadeform.body.cloth import LOOSE, REACH
 
-    arm_v, arm_f = _box((-0.3, -0.06, -0.06), (0.5, 0.06, 0.06))
-    col = BodyCollider(arm_v, arm_f)
     g = np.arange(-0.04, 0.04001, 0.01)
     # a panel across the arm, its normal along +x (off the arm's axis: no vertex equally near two of its faces)
     v = np.array([[0.2, y + 0.0037, z - 0.0021] for z in g for y in g])
     n = len(g)
     f = np.array([[a, b, c] for j in range(n - 1) for i in range(n - 1) for a, b, c in _quad(j * n + i, n)])
-    deep = col.query(v, arm_v).signed_distance < -ClothSettings().backstop
-    assert deep.sum() >= 9
-    targets, posed = np.repeat(v[None], 3, 0), np.repeat(arm_v[None], 3, 0)
     knobs = ClothSettings(gravity=0.0)
     moved = {}
-    for rest_sd, loose in ((knobs.attachment + 0.005, False), (1.0, True)):  # on the arm at rest / hanging away
-        setup = cloth_setup(v, f, np.full(len(v), rest_sd), knobs)
-        assert ((setup.radius >= LOOSE) == loose).all() and (setup.radius > 0).all()
-        stage = ClothStage(setup, arm_v, arm_f, knobs, margin=MARGIN)
-        out = stage.step(targets, posed)
-        ref, st = cloth_reference(targets, posed, arm_f, setup, knobs, margin=MARGIN)
-        assert np.abs(out - ref).max() <= 1e-9 and stage.traced == st["traced"]
-        assert (stage.traced > 0) == loose
-        assert (col.query(out[-1], arm_v).signed_distance >= MARGIN - 1e-9).all()
-        moved[loose] = np.abs(out[..., 0] - 0.2).max()  # how far along the arm
-    assert moved[False] < 0.05 and moved[True] > 0.25, moved  # out through the arm's side, not 30 cm along it
+    for end in (0.35, 0.5):  # the arm's end 15 cm or 30 cm along the panel's normal
+        arm_v, arm_f = _box((-0.3, -0.06, -0.06), (end, 0.06, 0.06))
+        col = BodyCollider(arm_v, arm_f)
+        deep = col.query(v, arm_v).signed_distance < -ClothSettings().backstop
+        assert deep.sum() >= 9
+        targets, posed = np.repeat(v[None], 3, 0), np.repeat(arm_v[None], 3, 0)
+        for rest_sd, loose in ((knobs.attachment + 0.005, False), (1.0, True)):  # on the arm at rest / hanging away
+            setup = cloth_setup(v, f, np.full(len(v), rest_sd), knobs)
+            assert ((setup.radius >= LOOSE) == loose).all() and (setup.radius > 0).all()
+            stage = ClothStage(setup, arm_v, arm_f, knobs, margin=MARGIN)
+            out = stage.step(targets, posed)
+            ref, st = cloth_reference(targets, posed, arm_f, setup, knobs, margin=MARGIN)
+            assert np.abs(out - ref).max() <= 1e-9 and stage.traced == st["traced"]
+            assert (stage.traced > 0) == (loose and end - 0.2 < REACH), (end, loose, stage.traced)
+            assert (col.query(out[-1], arm_v).signed_distance >= MARGIN - 1e-9).all()
+            moved[end, loose] = np.abs(out[..., 0] - 0.2).max()  # how far along the arm
+    # out through the arm's side, not along it; loose, out of its near end; not through 30 cm of it
+    assert moved[0.35, False] < 0.05 and moved[0.5, False] < 0.05, moved
+    assert moved[0.35, True] > 0.14 and moved[0.5, True] < 0.05, moved
 
 
 def _quad(a, nx):

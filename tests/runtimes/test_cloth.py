@@ -106,6 +106,62 @@ def test_javascript_cloth_is_the_compiled_kernel(cloth_vector, node):
     assert [r[k] for k in names] == [py[k] for k in names], (r, py)
 
 
+def test_javascript_cloth_drops_a_trace_through_the_body_as_the_kernel(node, tmp_path):
+    """The backstop's reach (``REACH``: a trace longer than 20 cm went through the torso and is dropped) in the port: a
+    loose panel across a box arm whose end moves from 13 to 32 cm beyond it along the panel's normal, so that the
+    traces out of the end are kept in the first frames and dropped in the last; the JavaScript stage's frames are the
+    kernel's bit for bit (a port without the rule differs in the last frames)."""
+    from segadeform.body.cloth import REACH, ClothSettings, ClothStage, garment_setup
+    from tests.body.test_cloth import _box, _quad
+
+    g = np.arange(-0.04, 0.04001, 0.01)
+    v = np.array([[0.2, y + 0.0037, z - 0.0021] for z in g for y in g])
+    n = len(g)
+    f = np.array([[a, b, c] for j in range(n - 1) for i in range(n - 1) for a, b, c in _quad(j * n + i, n)])
+    ends = np.linspace(0.33, 0.52, 10)
+    arm_v, arm_f = _box((-0.3, -0.06, -0.06), (0.0, 0.06, 0.06))  # at rest 20 cm short of the panel: it hangs loose
+    posed = np.repeat(arm_v[None], len(ends), 0)
+    posed[:, arm_v[:, 0] > -0.1, 0] = ends[:, None]
+    assert (ends[:3] - 0.2 < REACH).all() and (ends[-3:] - 0.2 > REACH).all()
+    settings = ClothSettings(gravity=0.0)
+    setup = garment_setup(v, f, arm_v, arm_f, settings)  # as the port makes it, from the body at rest
+    assert (setup.radius == settings.max_distance).all()
+    targets = np.repeat(v[None], len(ends), 0)
+    traced = []
+    stage = ClothStage(setup, arm_v, arm_f, settings, margin=MARGIN, dt=1 / 30)
+    out = []
+    for t in range(len(ends)):
+        before = stage.traced
+        out.append(stage.step(targets[t : t + 1], posed[t : t + 1]))
+        traced.append(stage.traced - before)
+    out = np.concatenate(out)
+    assert traced[0] > 0 and traced[-1] == 0, traced  # kept, then dropped
+    path = tmp_path / "reach.sgdb"
+    write_bundle(
+        path,
+        {
+            "rest": v,
+            "faces": f.astype(np.int32),
+            "rest_body": arm_v,
+            "body_faces": arm_f.astype(np.int32),
+            "targets": targets,
+            "posed": posed,
+            "edges": setup.edges.astype(np.int32),
+            "rest_len": setup.rest_len,
+            "nptr": setup.nptr.astype(np.int32),
+            "nidx": setup.nidx.astype(np.int32),
+            "radius": setup.radius,
+            "anchor": setup.anchor.astype(np.int32),
+            "tether": setup.tether,
+            "expected": out,
+        },
+        {"settings": dataclasses.asdict(settings), "margin": MARGIN, "dt": 1 / 30, "batch": 1},
+    )
+    r = _node_vectors("cloth_vectors.mjs", path, "CLOTH")
+    _report("javascript stage, the backstop's reach", **r, python_traced=traced)
+    assert r["frames"] <= 1e-12 and r["identical"] == r["coordinates"] and r["traced"] == sum(traced), r
+
+
 @pytest.fixture(scope="module")
 def clothed(tmp_path_factory):
     """The shipped model's dress, tightened, on a dance, as the runtimes without Python read it, and `segadeform run`

@@ -20,7 +20,7 @@ int64_t sdc_n_nodes(const void* h);
 void sdc_refit(const void* h, const double* verts, double* box);
 void sdc_query(const void* h, const double* verts, const double* box, const double* pts, int64_t i0, int64_t i1,
                double* sd, double* closest, double* normal, int64_t* face);
-// _cloth.c's (its ABI 11)
+// _cloth.c's (its ABI 12)
 int64_t scl_abi(void);
 int64_t scl_n_settings(void);
 int64_t scl_setup(const double* rest, int64_t n, const int64_t* faces, int64_t nf, const double* rest_sd,
@@ -95,8 +95,8 @@ class Cloth {
   Cloth(const double* rest, int64_t n, const int32_t* faces, int64_t nf, const float* rest_body, int64_t nv,
         const int32_t* body_faces, int64_t nbf, const ClothSettings& settings, double margin, double dt)
       : n_(n), nv_(nv) {
-    if (scl_abi() != 11 || scl_n_settings() != 12)
-      throw std::runtime_error("the cloth kernel is from another version (expected ABI 11, 12 settings)");
+    if (scl_abi() != 12 || scl_n_settings() != 12)
+      throw std::runtime_error("the cloth kernel is from another version (expected ABI 12, 12 settings)");
     if (n < 1 || nv < 1 || nbf < 1) throw std::runtime_error("the cloth stage needs a garment and a body");
     std::vector<double> rb(rest_body, rest_body + 3 * nv);
     std::vector<int64_t> bf(body_faces, body_faces + 3 * nbf), gf(faces, faces + 3 * nf);

@@ -10,12 +10,14 @@
 import { BodyCollider } from "./collide.js";
 
 const CONTACT_BAND = 0.005; // metres beyond the margin within which a vertex gets a contact plane (SCL_CONTACT_BAND)
+const EDGE_DEEP = 0.02; // metres: an edge middle found deeper inside gets no contact plane (SCL_EDGE_DEEP)
 const PASSES = 3; // the final push-out's passes (SCL_PASSES)
 const TINY = 1e-300;
 const MOVED = 1e-6; // metres: a final push-out move counted as one (SCL_MOVED)
 const TRACE = 8; // the backstop's sphere-tracing steps (SCL_TRACE)
 const LOOSE = 0.01; // the backstop traces vertices whose attachment radius is at least this (SCL_LOOSE)
 const OVERSHOOT = 0.001; // metres past the margin each tracing step aims (SCL_OVERSHOOT)
+const REACH = 0.2; // metres: a backstop trace longer than this went through the torso: dropped (SCL_REACH)
 const SPREAD = 40; // Jacobi sweeps spreading the traced moves (SCL_SPREAD)
 const SPREAD_RADIUS = 0.2; // metres along the garment from a traced vertex that its move spreads to (SCL_SPREAD_RADIUS)
 const AGREE = 0.5; // cosine: contact normals within 60 degrees are on the same side of the body (SCL_AGREE)
@@ -336,7 +338,7 @@ function edgeAgrees(edges, e, cn, radius, n, k) {
 /* One edge's contact: both ends of edge e moved alike along the plane's normal until the edge's middle is margin
  * outside the plane (when the middle was found within margin + band of the body). */
 function edgeContact(x, edges, e, sd, cp, cn, k, margin, band) {
-  if (!(sd[k] < margin + band)) return;
+  if (!(sd[k] < margin + band) || sd[k] < -EDGE_DEEP) return;
   const a = 3 * edges[2 * e], b = 3 * edges[2 * e + 1], c = 3 * k;
   const s = cn[c] * (0.5 * (x[a] + x[b]) - cp[c]) + cn[c + 1] * (0.5 * (x[a + 1] + x[b + 1]) - cp[c + 1]) +
     cn[c + 2] * (0.5 * (x[a + 2] + x[b + 2]) - cp[c + 2]) - margin;
@@ -415,6 +417,12 @@ function backstop(col, bv, box, n, nf, faces, nptr, nidx, radius, y, x, sd, cn, 
   if (k === TRACE) { // the last step's points: out or not
     col.near(bv, box, pts, 0, nd, margin, tsd, tcp, tcn, true);
     for (let j = 0; j < nd; j++) if (tsd[j] >= margin) fixed[j] = 1;
+  }
+  // a trace longer than REACH went through the torso, not out of a limb: dropped
+  for (let j = 0; j < nd; j++) {
+    const t = 3 * j, o = 3 * w.deep[j];
+    const e0 = pts[t] - y[o], e1 = pts[t + 1] - y[o + 1], e2 = pts[t + 2] - y[o + 2];
+    if (fixed[j] && e0 * e0 + e1 * e1 + e2 * e2 > REACH * REACH) fixed[j] = 0;
   }
   // the moves of the traced-out ones (with a normal), held; spread to the others
   const d = w.d, d2 = w.d2;

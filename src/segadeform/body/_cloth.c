@@ -34,7 +34,10 @@
  *                 most max_distance on hems and loose parts (scl_setup);
  *   contact       every vertex found at the frame's start inside the body or within margin + SCL_CONTACT_BAND
  *                 of it kept on the outer side of the plane through its closest body point: n . (x - c) >= margin;
- *   edge contact  the same for the middle of every edge with an end in contact and a free end: both ends moved
+ *   edge contact  the same for the middle of every edge with an end in contact and a free end, found within the
+ *                 band and not deeper inside than SCL_EDGE_DEEP (2 cm; deeper, a limb is through the cloth and the
+ *                 middle's closest surface may be either side of it: its ends' contacts and the push-out take
+ *                 them out): both ends moved
  *                 alike along the plane's normal, n . ((xa + xb) / 2 - c) >= margin (a vertex-edge contact with
  *                 equal masses: Bridson, Fedkiw & Anderson, "Robust treatment of collisions, contact and friction
  *                 for cloth animation", SIGGRAPH 2002, sec. 7).  Without it two ends pushed out to either side of a
@@ -55,7 +58,8 @@
  * keeps the closest-point rule -- traced along its normal it ran along the arm and popped 10-17 cm for a few
  * frames) is deeper than `backstop` inside, the frame's start moves the target instead: each such vertex's target is sphere-traced out of the body along the
  * garment's outward normal there (one side for a whole panel: the normal of the target's faces, oriented by a
- * vote of the vertices just outside the body, n . body normal), at most SCL_TRACE steps of (margin - sd + 1 mm);
+ * vote of the vertices just outside the body, n . body normal), at most SCL_TRACE steps of (margin - sd + 1 mm),
+ * and no farther than SCL_REACH (20 cm: a longer trace went through the torso, not out of a limb: dropped);
  * the moves of those that came out are spread over the garment within SCL_SPREAD_RADIUS of them (along the
  * target's edges) by SCL_SPREAD Jacobi sweeps of the mean over each vertex's neighbours (the traced ones held, the
  * move 0 beyond the radius: a smooth, harmonic falloff, so that the cloth around a thigh moves with it as a tent); the target and the prediction both take the spread move, and the contacts are
@@ -108,17 +112,20 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 11 /* 11: the collision kernel it embeds leaves cloth pinched deeper than SDC_PINCH; 10: every frame
+#define SCL_ABI 12 /* 12: an edge middle deeper than SCL_EDGE_DEEP inside gets no contact plane, a backstop trace
+                       * longer than SCL_REACH is dropped; 11: the collision kernel it embeds leaves cloth pinched deeper than SDC_PINCH; 10: every frame
                        * checked for NaN and inf before any is stepped (the state unchanged on one); 9: its contact
                        * lookups leave pinched cloth pinched (the rule for buried skin only in the final
                        * push-out and the backstop's traces), and settling sweeps after the push-out; 8: the collision kernel it embeds pushes off buried surfaces (1 Dec 2026); 7: its own acos */
 #define SCL_CONTACT_BAND 0.005 /* metres beyond the margin within which a vertex gets a contact plane */
+#define SCL_EDGE_DEEP 0.02     /* metres: an edge middle found deeper inside than this gets no contact plane */
 #define SCL_PASSES 3          /* the final push-out's passes: segadeform.body.collision.push_out's */
 #define SCL_TINY 1e-300
 #define SCL_MOVED 1e-6        /* metres: a final push-out move counted as one (not a vertex already at the margin) */
 #define SCL_TRACE 8           /* the backstop's sphere-tracing steps */
 #define SCL_LOOSE 0.01        /* the backstop traces vertices whose attachment radius is at least this (m) */
 #define SCL_OVERSHOOT 0.001   /* metres past the margin each tracing step aims */
+#define SCL_REACH 0.2         /* metres: a backstop trace longer than this went through the torso: dropped */
 #define SCL_SPREAD 40         /* Jacobi sweeps spreading the traced moves over the garment */
 #define SCL_SPREAD_RADIUS 0.2 /* metres along the garment from a traced vertex that its move spreads to */
 #define SCL_AGREE 0.5         /* cosine: contact normals within 60 degrees are on the same side of the body */
@@ -488,11 +495,15 @@ static int edge_agrees(const int64_t *edges, int64_t e, const double *cn, const 
 }
 
 /* One edge's contact: both ends of edge e moved alike along the plane's normal n until the edge's middle is margin
- * outside the plane through c (when the middle was found within margin + band of the body: sd). */
+ * outside the plane through c (when the middle was found within margin + band of the body and not deeper inside than
+ * SCL_EDGE_DEEP: sd).  A middle deeper inside is not a contact but a limb through the cloth (or cloth in a pinch),
+ * whose closest surface may be on either side of it from one frame to the next: its plane moved both ends by up to
+ * 7 cm, one frame and not the next -- 300 of the 360 vertex-frames that popped on a T-shirt in a dance (issue #26,
+ * eighth session).  Its ends' own contacts and the push-out take them out. */
 static void edge_contact(double *x, const int64_t *edges, int64_t e, double sd, const double *c, const double *nrm,
                          double margin, double band) {
     double *p = x + 3 * edges[2 * e], *q = x + 3 * edges[2 * e + 1], s;
-    if (!(sd < margin + band)) return;
+    if (!(sd < margin + band) || sd < -SCL_EDGE_DEEP) return;
     s = nrm[0] * (0.5 * (p[0] + q[0]) - c[0]) + nrm[1] * (0.5 * (p[1] + q[1]) - c[1]) +
         nrm[2] * (0.5 * (p[2] + q[2]) - c[2]) - margin;
     if (s < 0) {
@@ -611,6 +622,14 @@ static int64_t backstop(const void *collider, const double *bv, const double *bo
         sdc_near(collider, bv, box, w->pts, 0, nd, margin, w->tsd, w->tcp, w->tcn, 1);
         for (j = 0; j < nd; j++)
             if (w->tsd[j] >= margin) w->fixed[j] = 1;
+    }
+    /* a trace longer than SCL_REACH went through the torso rather than out of a limb (a jacket's panel in the torso,
+     * traced 37 cm out of the back: a pop each frame it was traced and not the next): dropped, its vertex left to its
+     * contacts and the push-out */
+    for (j = 0; j < nd; j++) {
+        const double *t = w->pts + 3 * j, *o = y + 3 * w->deep[j];
+        double e0 = t[0] - o[0], e1 = t[1] - o[1], e2 = t[2] - o[2];
+        if (w->fixed[j] && e0 * e0 + e1 * e1 + e2 * e2 > SCL_REACH * SCL_REACH) w->fixed[j] = 0;
     }
     /* the moves of the traced-out ones (with a normal), held; spread to the others */
     for (i = 0; i < 3 * n; i++) w->d[i] = 0;

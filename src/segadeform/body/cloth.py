@@ -46,6 +46,12 @@ edge-frames are over a 3 % limit; Blender's own frames reach 149 %).  A third ca
 steady ``gravity dt^2 (1 - follow) / follow`` below the network's frame (1.1 cm at 30 fps) below the attached
 ones while four sweeps of edges cannot carry the pull down a hanging chain, is what the tethers remove (issue
 #26: the 99th percentile of stretch on held-out skirts 13.1 -> 7.8 % and 26.8 -> 22.1 %, a dress 17.7 -> 16.4 %).
+Pops (a vertex stepping more than 3 cm and 3x the network's step between frames; ten garment x CMU-clip pairs,
+``docs/cloth-eval.md``): an edge middle found deeper than ``EDGE_DEEP`` (2 cm) inside gets no contact plane -- its
+plane, from a closest surface that may be on either side of a limb through the cloth, moved a T-shirt's vertices 7 cm
+one frame and not the next (360 -> 107 pops on a dance) -- and a backstop trace longer than ``REACH`` (20 cm) is
+dropped -- it went through the torso (a jacket's panel traced 37 cm out of the back; 2,459 -> 1,682 on a karate form).
+Most pops left on dresses are the first step after a reset (the stage starts again from the network's frame).
 Prototypes tried and not kept: contact planes from the previous output, strain limiting measured against the
 network's own edge lengths, strain-limit and push-out rounds after the sweeps, gravity 0 (the numbers are in
 ``docs/cloth-eval.md``).
@@ -79,12 +85,17 @@ __all__ = [
     "compiled_available",
     "settings_array",
     "CONTACT_BAND",
+    "EDGE_DEEP",
+    "REACH",
 ]
 
 log = logging.getLogger(__name__)
 
 #: metres beyond the margin within which a vertex gets a contact plane (_cloth.c's SCL_CONTACT_BAND)
 CONTACT_BAND = 0.005
+#: metres: an edge middle found deeper inside than this gets no contact plane (_cloth.c's SCL_EDGE_DEEP): a limb is
+#: through the cloth there, and the middle's closest surface may be on either side of it from frame to frame
+EDGE_DEEP = 0.02
 #: the final push-out's passes (_cloth.c's SCL_PASSES: segadeform.body.collision.push_out's default)
 PASSES = 3
 #: metres: a final push-out move counted in ``pushed`` (_cloth.c's SCL_MOVED; a vertex already at the margin is not)
@@ -92,6 +103,9 @@ MOVED = 1e-6
 #: the backstop's sphere-tracing steps (SCL_TRACE), metres past the margin each aims (SCL_OVERSHOOT), Jacobi
 #: sweeps spreading the traced moves (SCL_SPREAD) and how far along the garment they spread (SCL_SPREAD_RADIUS, m)
 TRACE, OVERSHOOT, SPREAD, SPREAD_RADIUS = 8, 0.001, 40, 0.2
+#: metres: a backstop trace longer than this went through the torso, not out of a limb: dropped (SCL_REACH; a
+#: jacket's panel in the torso was traced 37 cm out of the back, a pop each frame it was traced and not the next)
+REACH = 0.2
 #: the backstop traces only vertices whose attachment radius is at least this (SCL_LOOSE, metres): cloth lying on the
 #: body at rest (a sleeve's hem on the arm) keeps the closest-point rule
 LOOSE = 0.01
@@ -100,7 +114,7 @@ LOOSE = 0.01
 AGREE = 0.5
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
 SETUP_VERSION = 3
-_ABI = 11
+_ABI = 12
 #: the order of _cloth.c's settings array
 _SETTINGS = (
     "iterations",
@@ -720,7 +734,7 @@ def cloth_reference(
                     if sep < 0:
                         x[i] = x[i] - sep * nrm
             for slot, ei in enumerate(e_near.tolist()):
-                if not e_sd[slot] < margin + CONTACT_BAND:
+                if not e_sd[slot] < margin + CONTACT_BAND or e_sd[slot] < -EDGE_DEEP:
                     continue
                 a, b = setup.edges[ei]
                 nrm, cp = e_n[slot], e_cp[slot]
@@ -854,6 +868,8 @@ def _backstop_reference(col, bv, setup: ClothSetup, y, x, sd, normal, margin: fl
         pts = pts + step[:, None] * g
     else:
         out |= _near_reference(col, pts, bv, margin, rule=True).signed_distance >= margin
+    e = pts - y[deep]  # a trace longer than REACH went through the torso: dropped
+    out &= ~(e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1] + e[:, 2] * e[:, 2] > REACH * REACH)
     held = np.zeros(n, bool)
     d = np.zeros((n, 3))
     for j, i in enumerate(deep):
