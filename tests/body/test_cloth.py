@@ -210,28 +210,33 @@ def test_the_backstop_traces_out_of_a_torso_with_an_arm_pressed_in():
     """A loose panel deep in the torso of a body that intersects itself (two spheres, one mesh), its outward normal
     toward the arm, then away from it: the backstop traces it along that normal until it is out of the body -- its
     traces keep the rule for buried skin, so a point in the torso nearest the arm's buried skin is not taken for
-    outside (a review found the panel 'traced out' inside the torso when the rule left the stage's lookups).
-    Kernel = reference."""
+    outside (a review found the panel 'traced out' inside the torso when the rule left the stage's lookups).  At a
+    human scale (0.13 of the unit shapes: traces of 11-19 cm, within ``REACH``); at the unit scale the traces would be
+    50-80 cm, through the torso, and are dropped: the push-out takes the panel out instead.  Kernel = reference."""
+    from segadeform.body.cloth import REACH
     from tests.body._shapes import pressed_spheres
 
-    # (the traces' rule has no bound: the torso's open skin is 52 cm from where they pass the arm's buried tip, past
-    # the push-out's PINCH times the body's size, 2.6 cm)
-    body_v, body_f = pressed_spheres(24, 16)
-    col = BodyCollider(body_v, body_f)
     ys = np.arange(-0.05, 0.0501, 0.025)
     nx = len(ys)
     f0 = np.array([t for j in range(nx - 1) for i in range(nx - 1) for t in _quad(j * nx + i, nx)])
-    v = np.array([[-0.25, y + 0.0031, z + 0.0017] for z in ys for y in ys])
     knobs = ClothSettings(gravity=0.0)
-    for f in (f0, f0[:, ::-1]):
-        setup = cloth_setup(v, f, np.ones(len(v)), knobs)
-        stage = ClothStage(setup, body_v, body_f, knobs, margin=MARGIN)
-        targets, posed = np.repeat(v[None], 2, 0), np.repeat(body_v[None], 2, 0)
-        out = stage.step(targets, posed)
-        ref, st = cloth_reference(targets, posed, body_f, setup, knobs, margin=MARGIN)
-        assert np.abs(out - ref).max() <= 1e-9 and stage.traced == st["traced"] > 0
-        for x in out:
-            assert not (col.winding(x, body_v) > 0).any()
+    for s, traced in ((0.13, True), (1.0, False)):
+        # (the traces' rule has no bound: the torso's open skin is 0.52 s from where they pass the arm's buried tip,
+        # past the push-out's PINCH times the body's size, 0.026 s)
+        body_v, body_f = pressed_spheres(24, 16)
+        body_v = s * body_v
+        col = BodyCollider(body_v, body_f)
+        v = s * np.array([[-0.25, y + 0.0031, z + 0.0017] for z in ys for y in ys])
+        assert (s * (0.9 + 0.3 + 0.25) < REACH) == traced  # out of the arm's far side within the reach
+        for f in (f0, f0[:, ::-1]):
+            setup = cloth_setup(v, f, np.ones(len(v)), knobs)
+            stage = ClothStage(setup, body_v, body_f, knobs, margin=MARGIN)
+            targets, posed = v[None], body_v[None]
+            out = stage.step(targets, posed)
+            ref, st = cloth_reference(targets, posed, body_f, setup, knobs, margin=MARGIN)
+            assert np.abs(out - ref).max() <= 1e-9 and stage.traced == st["traced"]
+            assert (stage.traced == len(v)) == traced and (stage.traced == 0) != traced, (s, stage.traced)
+            assert not (col.winding(out[0], body_v) > 0).any()
 
 
 def test_batches_and_streams_give_the_frames_of_one_call(walk, body):
