@@ -87,7 +87,8 @@ def test_the_same_clip_far_from_the_origin_gives_the_same_garment(tmp_path, tshi
         # contacts): at most one vertex-frame in 1,000 so, none farther than the margin
         over = int((err >= TOLERANCE).sum())
         assert over <= max(1, err.size // 1000) and err.max() < effects.collision_margin, (
-            f"{offset}: {over} of {err.size} vertex-frames over {TOLERANCE * 1e3:.2f} mm, the worst {err.max() * 1e3:.2f} mm"
+            f"{offset}: {over} of {err.size} vertex-frames over {TOLERANCE * 1e3:.2f} mm, "
+            f"the worst {err.max() * 1e3:.2f} mm"
         )
         if not cloth:  # the push-out at the root: every vertex-frame within the rounding
             assert over == 0, f"{offset}: {err.max() * 1e3:.2f} mm"
