@@ -36,6 +36,31 @@ def _report(name: str, **figures) -> None:
     print(f"CLOTH {name} " + json.dumps(figures))
 
 
+def _write_vector(path, v, f, rest_body, body_faces, targets, posed, setup, out, settings, batch) -> None:
+    """A test vector of the JavaScript stage (runtimes/node/scripts/cloth_vectors.mjs reads it): the garment and body
+    at rest, the targets and posed bodies, Python's setup and frames ``out``, stepped ``batch`` frames at a time."""
+    write_bundle(
+        path,
+        {
+            "rest": v,
+            "faces": f.astype(np.int32),
+            "rest_body": rest_body,
+            "body_faces": body_faces.astype(np.int32),
+            "targets": targets,
+            "posed": posed,
+            "edges": setup.edges.astype(np.int32),
+            "rest_len": setup.rest_len,
+            "nptr": setup.nptr.astype(np.int32),
+            "nidx": setup.nidx.astype(np.int32),
+            "radius": setup.radius,
+            "anchor": setup.anchor.astype(np.int32),
+            "tether": setup.tether,
+            "expected": out,
+        },
+        {"settings": dataclasses.asdict(settings), "margin": MARGIN, "dt": 1 / 30, "batch": batch},
+    )
+
+
 @pytest.fixture(
     scope="module", params=["default", "iterations=3,stiffness=0.6,bending=0,follow=0,gravity=20", "backstop=0"]
 )
@@ -69,26 +94,7 @@ def cloth_vector(request, tmp_path_factory):
     assert stage.resets == 1 and stage.contacts > 200  # the vector means something: contact, a reset,
     assert stage.pushed > 0 if settings.backstop == 0 else stage.traced > 0  # the push-out or the backstop at work
     path = tmp_path_factory.mktemp("cloth") / "vec.sgdb"
-    write_bundle(
-        path,
-        {
-            "rest": v,
-            "faces": f.astype(np.int32),
-            "rest_body": rest_body,
-            "body_faces": body.faces.astype(np.int32),
-            "targets": targets,
-            "posed": posed,
-            "edges": setup.edges.astype(np.int32),
-            "rest_len": setup.rest_len,
-            "nptr": setup.nptr.astype(np.int32),
-            "nidx": setup.nidx.astype(np.int32),
-            "radius": setup.radius,
-            "anchor": setup.anchor.astype(np.int32),
-            "tether": setup.tether,
-            "expected": out,
-        },
-        {"settings": dataclasses.asdict(settings), "margin": MARGIN, "dt": 1 / 30, "batch": batch},
-    )
+    _write_vector(path, v, f, rest_body, body.faces, targets, posed, setup, out, settings, batch)
     counts = {"contacts": stage.contacts, "pushed": stage.pushed, "resets": stage.resets, "traced": stage.traced}
     return path, counts | {"settings": request.param}
 
@@ -137,26 +143,7 @@ def test_javascript_cloth_drops_a_trace_through_the_body_as_the_kernel(node, tmp
     out = np.concatenate(out)
     assert traced[0] > 0 and traced[-1] == 0, traced  # kept, then dropped
     path = tmp_path / "reach.sgdb"
-    write_bundle(
-        path,
-        {
-            "rest": v,
-            "faces": f.astype(np.int32),
-            "rest_body": arm_v,
-            "body_faces": arm_f.astype(np.int32),
-            "targets": targets,
-            "posed": posed,
-            "edges": setup.edges.astype(np.int32),
-            "rest_len": setup.rest_len,
-            "nptr": setup.nptr.astype(np.int32),
-            "nidx": setup.nidx.astype(np.int32),
-            "radius": setup.radius,
-            "anchor": setup.anchor.astype(np.int32),
-            "tether": setup.tether,
-            "expected": out,
-        },
-        {"settings": dataclasses.asdict(settings), "margin": MARGIN, "dt": 1 / 30, "batch": 1},
-    )
+    _write_vector(path, v, f, arm_v, arm_f, targets, posed, setup, out, settings, 1)
     r = _node_vectors("cloth_vectors.mjs", path, "CLOTH")
     _report("javascript stage, the backstop's reach", **r, python_traced=traced)
     assert r["frames"] <= 1e-12 and r["identical"] == r["coordinates"] and r["traced"] == sum(traced), r

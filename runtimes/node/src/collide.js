@@ -29,7 +29,7 @@ const BURY_TRIES = 512; // at most this many faces tested for one point (nearest
 // a point inside by its winding number but outside by its closest surface goes to the nearest skin that is not buried
 // only within this distance (times the posed body's size); deeper in the crease it stays pinched (the C file's SDC_PINCH)
 const PINCH = 0.012;
-// the carried push-out (pushFrameCarried): another exit is taken only if its move is at most CARRY_LIMB times the
+// the carried push-out (carryPoint): another exit is taken only if its move is at most CARRY_LIMB times the
 // closest exit's plus PINCH * scale, and at most the frame before's plus CARRY_GROW * PINCH * scale (the C file's
 // SDC_CARRY_LIMB, SDC_CARRY_GROW)
 const CARRY_LIMB = 1.5;
@@ -704,29 +704,6 @@ function nearOrInside(fr, P, ip, radius, check, closest, n) {
 
 const cP = new Float64Array(3), nP = new Float64Array(3);
 
-/* The push-out of points [i0, i1) of one frame fr: pts[3 * (off + i) ...] moved in place, mask[off + i] set to 1 for
- * every point moved (sdc_push_out's loop over one frame).  Returns the number of points newly marked. */
-function pushFrame(fr, pts, off, i0, i1, margin, iterations, mask) {
-  let total = 0;
-  if (iterations < 1) iterations = 1;
-  // a little over the margin: a point just pushed out to the margin is found again by the radius
-  const radius = margin * (1.0 + 1e-3) + 1e-9 * fr.scale;
-  for (let i = i0; i < i1; i++) {
-    const ip = 3 * (off + i);
-    for (let it = 0; it < iterations; it++) {
-      if (!nearOrInside(fr, pts, ip, radius, 2, cP, nP) || !(nearSd < margin)) break;
-      pts[ip] = cP[0] + margin * nP[0];
-      pts[ip + 1] = cP[1] + margin * nP[1];
-      pts[ip + 2] = cP[2] + margin * nP[2];
-      if (!mask[off + i]) {
-        mask[off + i] = 1;
-        total++;
-      }
-    }
-  }
-  return total;
-}
-
 /* The push-out of the point at pts[ip ...] (moved in place), up to `iterations` passes; whether it moved (the C
  * file's push_point). */
 function pushPoint(fr, pts, ip, radius, margin, iterations) {
@@ -777,19 +754,24 @@ function carryPoint(fr, q, pts, ip, carry, ic, radius, margin, iterations) {
   sub3(pts, ip, q, 0, carry, ic);
 }
 
-/* pushFrame with the correction carried from the frame before (the C file's sdc_push_out_carried for one frame):
- * carry (n*3 Float64Array) in place; mask[off + i] set to 1 where the point's place changed.  Returns the number of
- * points newly marked. */
-function pushFrameCarried(fr, pts, off, i0, i1, margin, iterations, mask, carry) {
+/* The push-out of points [i0, i1) of one frame fr: pts[3 * (off + i) ...] moved in place, mask[off + i] set to 1 for
+ * every point moved (the C file's push_frames over one frame); with carry (n*3 Float64Array, in place) not null the
+ * correction carried from the frame before (carryPoint) and a point counted as moved where its place changed.
+ * Returns the number of points newly marked. */
+function pushFrame(fr, pts, off, i0, i1, margin, iterations, mask, carry = null) {
   let total = 0;
   if (iterations < 1) iterations = 1;
+  // a little over the margin: a point just pushed out to the margin is found again by the radius
   const radius = margin * (1.0 + 1e-3) + 1e-9 * fr.scale;
   for (let i = i0; i < i1; i++) {
     const ip = 3 * (off + i);
     qC[0] = pts[ip]; qC[1] = pts[ip + 1]; qC[2] = pts[ip + 2];
-    pushPoint(fr, pts, ip, radius, margin, iterations);
-    carryPoint(fr, qC, pts, ip, carry, 3 * i, radius, margin, iterations);
-    if ((pts[ip] !== qC[0] || pts[ip + 1] !== qC[1] || pts[ip + 2] !== qC[2]) && !mask[off + i]) {
+    let changed = pushPoint(fr, pts, ip, radius, margin, iterations);
+    if (carry !== null) {
+      carryPoint(fr, qC, pts, ip, carry, 3 * i, radius, margin, iterations);
+      changed = pts[ip] !== qC[0] || pts[ip + 1] !== qC[1] || pts[ip + 2] !== qC[2];
+    }
+    if (changed && !mask[off + i]) {
       mask[off + i] = 1;
       total++;
     }
@@ -880,8 +862,7 @@ export class BodyCollider {
     let total = 0;
     for (let f = 0; f < B; f++) {
       const fr = makeFrame(this, V, 3 * this.nv * f, box, 6 * this.nNodes * f);
-      total += carry === null ? pushFrame(fr, pts, N * f, 0, N, margin, iterations, mask)
-        : pushFrameCarried(fr, pts, N * f, 0, N, margin, iterations, mask, carry);
+      total += pushFrame(fr, pts, N * f, 0, N, margin, iterations, mask, carry);
     }
     return { moved: total, mask };
   }

@@ -920,31 +920,6 @@ static int push_point(const sdc_frame *fr, double *p, double radius, double marg
     return moved;
 }
 
-/* push_out of the points [i0, i1) of every frame: pts (B, N, 3) moved in place against verts (B, V, 3)
- * with boxes (B, n_nodes, 6) from sdc_refit; moved (B, N) set to 1 for every point moved (others are left
- * as they are).  Returns the number of points moved. */
-SDC_API int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts,
-                             int64_t n, int64_t i0, int64_t i1, double margin, int64_t iterations,
-                             uint8_t *moved) {
-    const sdc_body *b = (const sdc_body *)h;
-    int64_t f, i, total = 0;
-    if (iterations < 1) iterations = 1;
-    for (f = 0; f < nb; f++) {
-        sdc_frame fr;
-        double radius;
-        make_frame(b, verts + 3 * b->nv * f, box + 6 * b->n_nodes * f, &fr);
-        /* a little over the margin: a point just pushed out to the margin is found again by the radius */
-        radius = margin * (1.0 + 1e-3) + 1e-9 * fr.scale;
-        for (i = i0; i < i1; i++) {
-            if (push_point(&fr, pts + 3 * (n * f + i), radius, margin, iterations) && !moved[n * f + i]) {
-                moved[n * f + i] = 1;
-                total++;
-            }
-        }
-    }
-    return total;
-}
-
 /* The rule for the correction carried from the frame before (sdc_push_out_carried), for one point: q its place
  * before the push-out, p (in place) its place after it, k0 (in place) the correction p - q of the frame before
  * (zero: none).  Where the push-out's correction k = p - q differs from k0 by more than lim = SDC_PINCH * scale (the
@@ -988,8 +963,41 @@ static void carry_point(const sdc_frame *fr, const double *q, double *p, double 
     sub3(p, q, k0);
 }
 
-/* sdc_push_out with the correction carried from frame to frame (the collision stage's rule since 1 Dec 2026): the
- * frames of pts (B, N, 3) are consecutive, carry (N, 3) holds each point's correction (its place after minus before)
+/* The push-out of the points [i0, i1) of every frame of pts (B, N, 3), in place, against verts (B, V, 3) with boxes
+ * (B, n_nodes, 6) from sdc_refit; with carry (N, 3) not NULL the correction carried from frame to frame
+ * (carry_point) and a point counted as moved where its place changed, else where a pass moved it.  moved (B, N) set
+ * to 1 for every point moved (others are left as they are).  Returns the number of points newly marked. */
+static int64_t push_frames(const sdc_body *b, const double *verts, const double *box, int64_t nb, double *pts,
+                           int64_t n, int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved,
+                           double *carry) {
+    int64_t f, i, total = 0;
+    if (iterations < 1) iterations = 1;
+    for (f = 0; f < nb; f++) {
+        sdc_frame fr;
+        double radius;
+        make_frame(b, verts + 3 * b->nv * f, box + 6 * b->n_nodes * f, &fr);
+        /* a little over the margin: a point just pushed out to the margin is found again by the radius */
+        radius = margin * (1.0 + 1e-3) + 1e-9 * fr.scale;
+        for (i = i0; i < i1; i++) {
+            double *p = pts + 3 * (n * f + i), q[3];
+            int changed;
+            q[0] = p[0]; q[1] = p[1]; q[2] = p[2];
+            changed = push_point(&fr, p, radius, margin, iterations);
+            if (carry) {
+                carry_point(&fr, q, p, carry + 3 * i, radius, margin, iterations);
+                changed = p[0] != q[0] || p[1] != q[1] || p[2] != q[2];
+            }
+            if (changed && !moved[n * f + i]) {
+                moved[n * f + i] = 1;
+                total++;
+            }
+        }
+    }
+    return total;
+}
+
+/* sdc_push_out with the correction carried from frame to frame (the collision stage's rule since 30 Nov 2026,
+ * eighth session): the frames of pts (B, N, 3) are consecutive, carry (N, 3) holds each point's correction (its place after minus before)
  * of the frame before the first (zero: none) and is left holding the last frame's; carry_point's rule after each
  * point's push-out.  moved (B, N): 1 where the point's place changed.  Points are independent: disjoint ranges
  * [i0, i1) may run on as many threads as the caller likes, and a stream cut into batches anywhere gives the frames
@@ -998,26 +1006,16 @@ static void carry_point(const sdc_frame *fr, const double *q, double *p, double 
 SDC_API int64_t sdc_push_out_carried(const void *h, const double *verts, const double *box, int64_t nb, double *pts,
                                      int64_t n, int64_t i0, int64_t i1, double margin, int64_t iterations,
                                      uint8_t *moved, double *carry) {
-    const sdc_body *b = (const sdc_body *)h;
-    int64_t f, i, total = 0;
-    if (iterations < 1) iterations = 1;
-    for (f = 0; f < nb; f++) {
-        sdc_frame fr;
-        double radius;
-        make_frame(b, verts + 3 * b->nv * f, box + 6 * b->n_nodes * f, &fr);
-        radius = margin * (1.0 + 1e-3) + 1e-9 * fr.scale;
-        for (i = i0; i < i1; i++) {
-            double *p = pts + 3 * (n * f + i), q[3];
-            q[0] = p[0]; q[1] = p[1]; q[2] = p[2];
-            push_point(&fr, p, radius, margin, iterations);
-            carry_point(&fr, q, p, carry + 3 * i, radius, margin, iterations);
-            if ((p[0] != q[0] || p[1] != q[1] || p[2] != q[2]) && !moved[n * f + i]) {
-                moved[n * f + i] = 1;
-                total++;
-            }
-        }
-    }
-    return total;
+    return push_frames((const sdc_body *)h, verts, box, nb, pts, n, i0, i1, margin, iterations, moved, carry);
+}
+
+/* push_out of the points [i0, i1) of every frame: pts (B, N, 3) moved in place against verts (B, V, 3)
+ * with boxes (B, n_nodes, 6) from sdc_refit; moved (B, N) set to 1 for every point moved (others are left
+ * as they are).  Returns the number of points moved. */
+SDC_API int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts,
+                             int64_t n, int64_t i0, int64_t i1, double margin, int64_t iterations,
+                             uint8_t *moved) {
+    return push_frames((const sdc_body *)h, verts, box, nb, pts, n, i0, i1, margin, iterations, moved, NULL);
 }
 
 /* ---- the Python extension module ---------------------------------------------------------------- */
