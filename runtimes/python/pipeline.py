@@ -264,14 +264,19 @@ class Run:
             self._asset_seconds = time.perf_counter() - t  # counted in the run's precompute, whoever asked first
         return self._asset
 
+    def _body_rest(self) -> np.ndarray:
+        """The body at rest as its frames are posed (the poser's zero pose: the package's float32 body graph, as Node
+        and C++ write it beside their body point caches; a user's trial found Python's float64 rest 2.4e-7 m off)."""
+        poser = cast(BodyPoser, self.body_poser)
+        return poser.pose(np.zeros((1, 3 * self.body.n_joints)), self.betas, np.zeros((1, 3)))[0]
+
     def _cloth_stage(self, asset: GarmentAsset):
         """The cloth stage for this run: the garment's per-garment data on the body at rest (posed as the run poses
         it, zero pose: the same float32 body the other runtimes use with the body graph), cached with the garment,
         and the collider over the body."""
         from segadeform.body.cloth import ClothStage, garment_setup
 
-        poser = cast(BodyPoser, self.body_poser)  # the cloth stage needs the body
-        rest = poser.pose(np.zeros((1, 3 * self.body.n_joints)), self.betas, np.zeros((1, 3)))[0]
+        rest = self._body_rest()  # the cloth stage needs the body
         setup = garment_setup(
             asset.vertices, asset.faces, rest, self.body.faces, self.effects.cloth_settings, cache_dir=self._cache_dir()
         )
@@ -314,7 +319,7 @@ class Run:
             garment_surface=garment_surface(self.garment, asset.n_vertices, self.output_format),
             body_path=self.body_output,
             body_faces=self.body.faces,
-            body_rest=self.body.shaped_vertices(self.betas)[0] if self.body_output else None,
+            body_rest=self._body_rest() if self.body_output else None,
             guard=self.guard,
         )
         pushed = 0

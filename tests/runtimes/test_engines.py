@@ -87,6 +87,13 @@ def test_runtime_animates_the_garment_asset_and_motion_like_segadeform_run(
     assert "deformer" in p.stdout or "dqs" in p.stdout
     assert _rel(read_pc2(tmp_path / "g.pc2").frames, s["frames"]) <= RTOL
     assert _rel(read_pc2(tmp_path / "b.pc2").frames, s["body"]) <= RTOL
+    # the body's rest mesh beside its point cache: segadeform run's numbers (a user's trial: Python wrote its float64
+    # rest, 2.4e-7 m off the body graph's that Node and C++ write)
+    from segadeform.io import read_mesh
+
+    mine, theirs = read_mesh(s["dir"] / "python_body.obj"), read_mesh(tmp_path / "b.obj")
+    np.testing.assert_array_equal(theirs.faces, mine.faces)
+    np.testing.assert_allclose(theirs.vertices, mine.vertices, rtol=0, atol=1e-9)
     # the model's own effects when none are named (LBS, dynamics, wrinkles; and collisions, the package having a
     # body graph): runs, and differs from DQS
     p = subprocess.run(
