@@ -596,6 +596,7 @@ export class Player {
     this.seen = 0;
     this.collider = null;
     this.carry = new Float64Array(3 * this.N); // each vertex's push-out correction at the frame before
+    this.broken = false; // a push failed part-way: refused until reset() (as the C++ Player)
     this.stage = null;
     if (this.stages && this.effects.cloth) {
       const t0 = performance.now();
@@ -624,6 +625,11 @@ export class Player {
       if (!(Math.abs(Tr[i]) <= 1e4)) throw new Error(`push: trans must be finite and within 10 km (got ${Tr[i]} at value ${i})`);
     }
     if (D === 3 * this.S) canonicalAxisAngle(P);
+    if (this.broken) {
+      throw new Error("push: an earlier push failed part-way, leaving the stages' state behind the motion (expected " +
+        "reset() first)");
+    }
+    this.broken = true; // until this push ends: a batch that throws leaves the stages' state ahead of the history
     const frames = new Float32Array(B * N * 3);
     const body = this.wantBody ? new Float32Array(B * V * 3) : null;
     const joints = this.wantBody ? new Float32Array(B * this.S * 3) : null;
@@ -673,6 +679,7 @@ export class Player {
       this.msAfter += performance.now() - t0;
     }
     this.seen += B;
+    this.broken = false;
     const keep = Math.min(this.window - 1, hist + B);
     this.prev = all.slice((hist + B - keep) * D);
     this.frames += B;
