@@ -60,17 +60,7 @@ int main(int argc, char** argv) {
   int64_t chunk = 1;
   segadeform::PlayerOptions opt;
   try {
-    std::vector<std::string> args;
-    for (int i = 1; i < argc; ++i) {  // --name=value as --name value (the form the docs use: --effects=+cloth)
-      const std::string a = argv[i];
-      const size_t eq = a.find('=');
-      if (a.rfind("--", 0) == 0 && eq != std::string::npos) {
-        args.push_back(a.substr(0, eq));
-        args.push_back(a.substr(eq + 1));
-      } else {
-        args.push_back(a);
-      }
-    }
+    const std::vector<std::string> args = sgd::command_args(argc, argv);  // --effects=+cloth as the docs write it
     for (size_t i = 0; i < args.size(); ++i) {
       const std::string& a = args[i];
       const bool more = i + 1 < args.size();

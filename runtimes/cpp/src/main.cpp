@@ -53,17 +53,7 @@ void write_obj(const std::string& path, const std::vector<float>& v, const std::
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::vector<std::string> args;  // --name=value is --name value (as click reads `segadeform run --effects=+cloth`)
-  for (int k = 1; k < argc; ++k) {
-    const std::string a = argv[k];
-    const size_t eq = a.find('=');
-    if (a.rfind("--", 0) == 0 && eq != std::string::npos) {
-      args.push_back(a.substr(0, eq));
-      args.push_back(a.substr(eq + 1));
-    } else {
-      args.push_back(a);
-    }
-  }
+  const std::vector<std::string> args = sgd::command_args(argc, argv);  // --name=value is --name value
   for (const auto& a : args)
     if (a == "--help" || a == "-h") {
       std::cout << USAGE;

@@ -292,4 +292,21 @@ inline void commit_outputs(const std::vector<std::string>& outputs, const std::v
   }
 }
 
+// The command lines' arguments with --name=value read as --name value (as click reads `segadeform run
+// --effects=+cloth`): segadeform-run's and segadeform-play's.
+inline std::vector<std::string> command_args(int argc, char** argv) {
+  std::vector<std::string> args;
+  for (int k = 1; k < argc; ++k) {
+    const std::string a = argv[k];
+    const size_t eq = a.find('=');
+    if (a.rfind("--", 0) == 0 && eq != std::string::npos) {
+      args.push_back(a.substr(0, eq));
+      args.push_back(a.substr(eq + 1));
+    } else {
+      args.push_back(a);
+    }
+  }
+  return args;
+}
+
 }  // namespace sgd
