@@ -362,7 +362,23 @@ function edgeContact(x, edges, e, sd, cp, cn, k, margin, band) {
 function backstop(col, bv, box, n, nf, faces, nptr, nidx, radius, y, x, sd, cn, margin, band, deep, w) {
   let nd = 0, nt = 0, vote = 0;
   if (!(deep > 0)) return 0; // off
-  for (let i = 0; i < n; i++) if (sd[i] < -deep && radius[i] >= LOOSE) w.deep[nd++] = i;
+  // the loose vertices whose target is deeper than `deep` inside and whose prediction is inside: the network's depth
+  // decides, not the prediction's (which follows the frame before's output: deep one frame, traced out, shallow the
+  // next and left to its closest exit on the other side of the limb)
+  for (let i = 0; i < n; i++) {
+    if (radius[i] >= LOOSE) {
+      w.deep[nd] = i;
+      w.pts[3 * nd] = y[3 * i];
+      w.pts[3 * nd + 1] = y[3 * i + 1];
+      w.pts[3 * nd + 2] = y[3 * i + 2];
+      nd++;
+    }
+  }
+  if (nd === 0) return 0;
+  col.near(bv, box, w.pts, 0, nd, 0.0, w.tsd, w.tcp, w.tcn);
+  const nl = nd;
+  nd = 0;
+  for (let j = 0; j < nl; j++) if (w.tsd[j] < -deep && sd[w.deep[j]] < 0) w.deep[nd++] = w.deep[j];
   if (nd === 0) return 0;
   // the target's vertex normals (area-weighted face normals) and their orientation: outward where the vertices just
   // outside the body agree with the body's normal

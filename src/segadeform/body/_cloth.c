@@ -53,17 +53,22 @@
  * Deep targets (the backstop, after the engines' backstop of Unreal Chaos Cloth: the cloth kept on the outer side
  * of the body along the skinned normal): where the network puts the garment deep inside the body (a thigh 3-8 cm
  * through a skirt), the closest body point sends the vertices on either side of the limb's middle to opposite
- * sides of it and the edges between them across it.  So when a loose vertex's prediction (attachment radius at
+ * sides of it and the edges between them across it.  So when a loose vertex's target (attachment radius at
  * least SCL_LOOSE: cloth that hangs away from the body at rest; a sleeve's hem lying on the arm, radius 1-7 mm,
  * keeps the closest-point rule -- traced along its normal it ran along the arm and popped 10-17 cm for a few
- * frames) is deeper than `backstop` inside, the frame's start moves the target instead: each such vertex's target is sphere-traced out of the body along the
+ * frames) is deeper than `backstop` inside and its prediction inside too, the frame's start moves the target
+ * instead (the target's depth, looked up for the loose vertices every frame, not the prediction's: the prediction
+ * follows the frame before's output, so a vertex traced out one frame was predicted shallower the next, left to its
+ * closest exit on the other side of the limb, deep again the frame after -- a jacket's panel in a hip under a
+ * karate form flipped front to back every other frame, and a still panel in a still limb never settled): each such vertex's target is sphere-traced out of the body along the
  * garment's outward normal there (one side for a whole panel: the normal of the target's faces, oriented by a
  * vote of the vertices just outside the body, n . body normal), at most SCL_TRACE steps of (margin - sd + 1 mm),
  * and no farther than SCL_REACH (20 cm: a longer trace went through the torso, not out of a limb: dropped);
  * the moves of those that came out are spread over the garment within SCL_SPREAD_RADIUS of them (along the
  * target's edges) by SCL_SPREAD Jacobi sweeps of the mean over each vertex's neighbours (the traced ones held, the
  * move 0 beyond the radius: a smooth, harmonic falloff, so that the cloth around a thigh moves with it as a tent); the target and the prediction both take the spread move, and the contacts are
- * found again.  Frames with no deep vertex pay one comparison per vertex.
+ * found again.  Frames with no loose vertex pay one comparison per vertex; the others one lookup (inside or not) of
+ * each loose vertex's target.
  *
  * After the sweeps, the vertices that may be inside the body or closer than the margin -- found so, or moved
  * farther than their clearance since the contacts were found (no other can be, except a vertex pinched where the
@@ -112,7 +117,8 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 12 /* 12: an edge middle deeper than SCL_EDGE_DEEP inside gets no contact plane, a backstop trace
+#define SCL_ABI 13 /* 13: the backstop picks the loose vertices whose target (not prediction) is deeper than `backstop`
+                       * inside; 12: an edge middle deeper than SCL_EDGE_DEEP inside gets no contact plane, a backstop trace
                        * longer than SCL_REACH is dropped; 11: the collision kernel it embeds leaves cloth pinched deeper than SDC_PINCH; 10: every frame
                        * checked for NaN and inf before any is stepped (the state unchanged on one); 9: its contact
                        * lookups leave pinched cloth pinched (the rule for buried skin only in the final
@@ -550,8 +556,8 @@ static int work_alloc(scl_work *w, int64_t n, const int64_t *nptr) {
                : -1;
 }
 
-/* The backstop (see the header): when a loose vertex's prediction x (radius >= SCL_LOOSE) is deeper than `deep` (S_BACKSTOP)
- * inside the body (sd, from the frame's contacts with normals cn), the target y's deep free vertices traced out
+/* The backstop (see the header): when a loose vertex's target y (radius >= SCL_LOOSE) is deeper than `deep` (S_BACKSTOP)
+ * inside the body and its prediction x inside (sd, from the frame's contacts with normals cn), the deep targets traced out
  * along the garment's outward normal, the moves spread over the free vertices near them (attached ones keep theirs:
  * 0); yt = y + the spread move and x moved alike.  Returns how many vertices were traced out (0: yt and x are
  * untouched), -1 when out of memory. */
@@ -562,12 +568,27 @@ static int64_t backstop(const void *collider, const double *bv, const double *bo
     int64_t i, j, k, nd = 0, nt = 0;
     double vote = 0, sign;
     if (!(deep > 0)) return 0; /* off */
-    for (i = 0; i < n; i++) nd += sd[i] < -deep && radius[i] >= SCL_LOOSE;
+    for (i = 0; i < n; i++) nd += radius[i] >= SCL_LOOSE;
     if (nd == 0) return 0;
     if (!w->vn && work_alloc(w, n, nptr) < 0) return -1;
+    /* the loose vertices whose target is deeper than `deep` inside: the network's depth, not the prediction's (which
+     * follows the output of the frame before: deep one frame, traced out, shallow the next, left to its closest exit
+     * on the other side of the limb -- a jacket's panel in a hip flipped front to back every other frame) */
     nd = 0;
     for (i = 0; i < n; i++)
-        if (sd[i] < -deep && radius[i] >= SCL_LOOSE) w->deep[nd++] = i;
+        if (radius[i] >= SCL_LOOSE) {
+            w->deep[nd] = i;
+            w->pts[3 * nd] = y[3 * i];
+            w->pts[3 * nd + 1] = y[3 * i + 1];
+            w->pts[3 * nd + 2] = y[3 * i + 2];
+            nd++;
+        }
+    sdc_near(collider, bv, box, w->pts, 0, nd, 0.0, w->tsd, w->tcp, w->tcn, 0);
+    k = nd;
+    nd = 0;
+    for (j = 0; j < k; j++)
+        if (w->tsd[j] < -deep && sd[w->deep[j]] < 0) w->deep[nd++] = w->deep[j];
+    if (nd == 0) return 0;
     /* the target's vertex normals (area-weighted face normals) and their orientation: outward where the vertices
      * just outside the body agree with the body's normal */
     for (i = 0; i < 3 * n; i++) w->vn[i] = 0;

@@ -51,7 +51,8 @@ Pops (a vertex stepping more than 3 cm and 3x the network's step between frames;
 plane, from a closest surface that may be on either side of a limb through the cloth, moved a T-shirt's vertices 7 cm
 one frame and not the next (360 -> 107 pops on a dance) -- and a backstop trace longer than ``REACH`` (20 cm) is
 dropped -- it went through the torso (a jacket's panel traced 37 cm out of the back; 2,459 -> 1,682 on a karate form).
-Most pops left on dresses are the first step after a reset (the stage starts again from the network's frame).
+Most pops left on dresses are the first step out of a capture's leading T-pose frame, which the run warns about
+(``--repair-glitches`` holds the first settled pose there: the dress on the jumping jacks 537 -> 4 pops).
 Prototypes tried and not kept: contact planes from the previous output, strain limiting measured against the
 network's own edge lengths, strain-limit and push-out rounds after the sweeps, gravity 0 (the numbers are in
 ``docs/cloth-eval.md``).
@@ -114,7 +115,7 @@ LOOSE = 0.01
 AGREE = 0.5
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
 SETUP_VERSION = 3
-_ABI = 12
+_ABI = 13
 #: the order of _cloth.c's settings array
 _SETTINGS = (
     "iterations",
@@ -832,14 +833,20 @@ def _near_reference(col, pts, bv, radius: float = 0.0, rule: bool = False):
 
 
 def _backstop_reference(col, bv, setup: ClothSetup, y, x, sd, normal, margin: float, deep_at: float):
-    """``backstop`` in _cloth.c, obviously: when a loose vertex's prediction (attachment radius >= :data:`LOOSE`) is
-    deeper than ``deep_at`` inside (0:
-    off), each such vertex's target traced out of the body along the target's outward vertex normal (oriented by
+    """``backstop`` in _cloth.c, obviously: when a loose vertex's target (attachment radius >= :data:`LOOSE`) is
+    deeper than ``deep_at`` inside (0: off) and its prediction inside (``sd``), each such vertex's target traced out
+    of the body along the target's outward vertex normal (oriented by
     the vote of the vertices just outside), the traced moves held and spread by :data:`SPREAD` Jacobi sweeps over
     the free vertices within :data:`SPREAD_RADIUS` of them along the target's edges (attached ones keep 0); ``x`` is
     moved in place.  Returns the target to use (``y`` when nothing was traced) and how many were traced out."""
     n = len(y)
-    deep = [i for i in range(n) if deep_at > 0 and sd[i] < -deep_at and setup.radius[i] >= LOOSE]
+    loose = [i for i in range(n) if deep_at > 0 and setup.radius[i] >= LOOSE]
+    if not loose:
+        return y, 0
+    # the target's depth decides (its prediction inside too), not the prediction's: that follows the frame before's
+    # output, deep one frame, traced out, shallow the next and left to its closest exit on the other side of a limb
+    ysd = _near_reference(col, y[loose], bv).signed_distance
+    deep = [i for i, t in zip(loose, ysd, strict=True) if t < -deep_at and sd[i] < 0]
     if not deep:
         return y, 0
     from ..geometry.mesh_ops import face_cross
