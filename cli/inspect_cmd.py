@@ -12,6 +12,7 @@ from .main import PathParam, cli
 
 def _frames_summary(path, frames: np.ndarray) -> None:
     """Bounds, a NaN check and the motion per frame of a (S, N, 3) sequence; NaN/inf is an error."""
+    from segadeform.bounds import MAX_POSITION
     from segadeform.errors import FileFormatError
 
     bad = ~np.isfinite(frames).all(axis=(1, 2))
@@ -22,7 +23,19 @@ def _frames_summary(path, frames: np.ndarray) -> None:
             f"({', '.join(map(str, idx[:8]))}{' ...' if len(idx) > 8 else ''})",
             path=path,
         )
-    lo, hi = frames.reshape(-1, 3).min(0).astype(float), frames.reshape(-1, 3).max(0).astype(float)
+    if len(frames) == 0 or frames.shape[1] == 0:
+        click.echo(f"  no {'frames' if len(frames) == 0 else 'points'}")
+        return
+    frames = frames.astype(np.float64)  # steps of float32 frames near 1e38 overflow
+    far = np.abs(frames).max()
+    if far > MAX_POSITION:
+        raise FileFormatError(
+            "a point lies beyond 10 km of the origin (another unit?)",
+            path=path,
+            expected=f"|x| <= {MAX_POSITION:g} m",
+            got=f"{far:.3g}",
+        )
+    lo, hi = frames.reshape(-1, 3).min(0), frames.reshape(-1, 3).max(0)
     click.echo(f"  bounds {np.round(lo, 4).tolist()} .. {np.round(hi, 4).tolist()} (all frames); NaN/inf: none")
     if len(frames) > 1:
         step = np.linalg.norm(np.diff(frames, axis=0), axis=2)  # (S-1, N)

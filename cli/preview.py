@@ -127,6 +127,8 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         R = np.array(Y_TO_Z)
         G = G @ R
         B = None if B is None else B @ R
+    if len(G) == 0:
+        raise InputError("the result has no frames", path=result, expected="a sequence of at least 1 frame")
     first = sequence_start_frame(result)  # the motion frame the result starts at
     a, b = parse_frames(frames) if frames else (first, None)
     b = first + len(G) if b is None else b

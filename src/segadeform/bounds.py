@@ -11,6 +11,9 @@ frame rate          1 .. 1000 fps        motion capture runs at 24..480 fps; BVH
                                          1 ms .. 1 s
 root translation    |t| <= 10 km         float32 outputs keep 1 mm steps up to 16 km; a clip
                                          further away is in the wrong units
+mesh positions      |x| <= 10 km         the same: a garment or body vertex further out is in the
+                                         wrong units (a vertex at 1e30 came out of the encoder as
+                                         NaN, the file unnamed)
 shape (betas)       |beta| <= 10 (hard)  the shape space is linear: past about 10 standard
                                          deviations the body folds through itself (beta0 = -20
                                          turns it inside out)
@@ -34,6 +37,7 @@ from .errors import InputError
 __all__ = [
     "FPS_RANGE",
     "MAX_TRANSLATION",
+    "MAX_POSITION",
     "BETA_LIMIT",
     "HEIGHT_RANGE",
     "FOLDED_FACES",
@@ -49,6 +53,7 @@ __all__ = [
 
 FPS_RANGE = (1.0, 1000.0)
 MAX_TRANSLATION = 1.0e4
+MAX_POSITION = 1.0e4
 BETA_LIMIT = 10.0
 HEIGHT_RANGE = (0.9, 2.5)
 #: the share of the body's faces a shape may turn over (their normal against the template's) before it is refused,

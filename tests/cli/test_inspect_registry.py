@@ -67,6 +67,18 @@ def test_inspect_a_format_registered_at_run_time(tmp_path, npyseq):
     (tmp_path / "n.npy").rename(tmp_path / "n.npyseq")
     r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "n.npyseq")])
     assert r.exit_code == 1 and "1 non-finite values (NaN or inf), in 1 frames (3)" in r.output
+    # so is a point past 10 km (a user's trial: "mean inf mm" and numpy's overflow warning, exit 0), in one line
+    far = frames.astype(np.float32)
+    far[2, 0, 1] = 1e30
+    np.save(tmp_path / "f.npy", far)
+    (tmp_path / "f.npy").rename(tmp_path / "f.npyseq")
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "f.npyseq")])
+    assert r.exit_code == 1 and "beyond 10 km" in r.output and "Traceback" not in r.output and "inf mm" not in r.output
+    # and a sequence of no frames is summarised, not a traceback (zero-size reduction)
+    np.save(tmp_path / "z.npy", frames[:0].astype(np.float32))
+    (tmp_path / "z.npy").rename(tmp_path / "z.npyseq")
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "z.npyseq")])
+    assert r.exit_code == 0 and r.output.splitlines()[-1] == "  no frames", r.output
 
 
 def test_builtin_formats_through_the_registry(tmp_path):

@@ -169,6 +169,21 @@ def test_preview_refuses_an_unknown_format_and_a_rate_that_is_not_one_before_ren
     assert r.exit_code == 0 and (tmp_path / "x.gif").is_file(), r.output
 
 
+def test_a_point_cache_of_no_frames_is_said_so(tmp_path):
+    """A PC2 with a valid header and no frames: `inspect` was a traceback (a zero-size reduction), `preview` said
+    "frame range 0:0 is outside the result's frames 0..-1" (a user's trial)."""
+    _scene(tmp_path)
+    import struct
+
+    (tmp_path / "z.pc2").write_bytes(b"POINTCACHE2\0" + struct.pack("<iiffi", 1, 4, 0.0, 1.0, 0))
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "z.pc2")])
+    assert r.exit_code == 0 and r.output.splitlines()[-1] == "  no frames", r.output
+    out = tmp_path / "z.png"
+    r = CliRunner().invoke(cli, ["preview", str(tmp_path / "z.pc2"), "--garment", str(tmp_path / "g.obj"), "-o", str(out)])
+    assert r.exit_code == 1 and "the result has no frames" in r.output and "z.pc2" in r.output, r.output
+    assert not out.exists()
+
+
 def test_preview_mp4_without_ffmpeg_is_refused_before_rendering(tmp_path, monkeypatch):
     """A user's trial: `preview -o x.mp4` on a machine without ffmpeg rendered every frame (6.8 s), then refused.
     Now the encoder is checked first: one line naming the output, exit 1, nothing rendered or written."""

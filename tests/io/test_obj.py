@@ -4,6 +4,7 @@ import pytest
 from segadeform.errors import FileFormatError, InputError
 from segadeform.geometry.primitives import frustum
 from segadeform.io import Mesh, read_mesh, read_obj, write_obj
+from segadeform.io.mesh import validate_mesh_arrays
 from tests.conftest import leftovers
 
 
@@ -97,6 +98,8 @@ def test_homogeneous_w_divides(tmp_path):
         ("v 0 0 0\nv 1 0 0\nf 1 2\n", 3, "fewer than 3"),
         ("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", 2, "not finite"),
         ("v 0 0 0\nv inf 0 0\nv 0 1 0\nf 1 2 3\n", 2, "not finite"),
+        ("v 0 0 0\nv 0 1e30 0\nv 0 1 0\nf 1 2 3\n", 2, "beyond 10 km"),  # garment fit wrote it, run named no file
+        ("v 0 0 0\nv 0 0 -10000.5\nv 0 1 0\nf 1 2 3\n", 2, "beyond 10 km"),
         ("v 0 0 0\nv 1 0 x\nv 0 1 0\nf 1 2 3\n", 2, "non-numeric"),
         ("v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 1, "x y z"),
         ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/2 2/1 3/1\n", 5, "texture coordinate index out of range"),
@@ -223,3 +226,12 @@ def test_a_file_cut_inside_a_face_corner_is_refused(tmp_path, samples):
     # a loose vertex is no sign of a cut when the last line is not a face (a review: 'vn' and 'l' last were refused)
     for tail in ("vn 0 0 1", "l 3 4"):
         assert read_obj(write(tmp_path, uv + "f 1/1 2/2 3/3\n" + tail, "loose.obj")).n_faces == 1
+
+
+def test_mesh_arrays_beyond_10_km_are_refused_by_vertex():
+    """Every mesh reader's check (validate_mesh_arrays): a vertex further than 10 km (segadeform.bounds.MAX_POSITION)
+    is another unit; one at exactly 10 km is kept."""
+    v = np.array([[0.0, 0.0, 0.0], [1e4, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -2e4, 0.0]])
+    with pytest.raises(InputError, match=r"vertex 3 lies beyond 10 km"):
+        validate_mesh_arrays(v, np.array([[0, 1, 2], [0, 2, 3]]), path="m.ply")
+    validate_mesh_arrays(v[:3], np.array([[0, 1, 2]]))

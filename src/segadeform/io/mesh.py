@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 
+from ..bounds import MAX_POSITION
 from ..errors import InputError
 
 __all__ = ["Mesh", "validate_mesh_arrays", "triangulate_polygon"]
@@ -74,6 +75,14 @@ def validate_mesh_arrays(vertices, faces, *, path=None, allow_no_faces: bool = F
     if not np.isfinite(v).all():
         bad = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
         raise InputError(f"vertex {bad} has a non-finite coordinate", path=path, got=v[bad].tolist())
+    if v.size and np.abs(v).max() > MAX_POSITION:
+        bad = int(np.flatnonzero((np.abs(v) > MAX_POSITION).any(axis=1))[0])
+        raise InputError(
+            f"vertex {bad} lies beyond 10 km of the origin (another unit?)",
+            path=path,
+            expected=f"|x| <= {MAX_POSITION:g} m",
+            got=v[bad].tolist(),
+        )
     if f.size == 0 and f.ndim != 2:
         f = f.reshape(0, 3)
     if f.ndim != 2 or f.shape[1] != 3:

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..bounds import MAX_POSITION
 from ..errors import FileFormatError, InputError, file_error
 from .atomic import atomic_open
 from .mesh import Mesh, validate_mesh_arrays
@@ -211,6 +212,14 @@ def read_obj(path: str | os.PathLike) -> Mesh:
                     xyz = [c / w for c in xyz]
                 if not all(np.isfinite(xyz)):
                     raise FileFormatError("vertex coordinate is not finite", path=p, line=lineno, got=vals[:3])
+                if max(abs(c) for c in xyz) > MAX_POSITION:
+                    raise FileFormatError(
+                        "vertex lies beyond 10 km of the origin (another unit?)",
+                        path=p,
+                        line=lineno,
+                        expected=f"|x| <= {MAX_POSITION:g}",
+                        got=vals[:3],
+                    )
                 verts.append(xyz)
                 colors.append(nums[3:6] if len(nums) == 6 else (nums[4:7] if len(nums) == 7 else None))
             elif key == "vt":
