@@ -179,7 +179,8 @@ def test_a_point_cache_of_no_frames_is_said_so(tmp_path):
     r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "z.pc2")])
     assert r.exit_code == 0 and r.output.splitlines()[-1] == "  no frames", r.output
     out = tmp_path / "z.png"
-    r = CliRunner().invoke(cli, ["preview", str(tmp_path / "z.pc2"), "--garment", str(tmp_path / "g.obj"), "-o", str(out)])
+    args = ["preview", str(tmp_path / "z.pc2"), "--garment", str(tmp_path / "g.obj"), "-o", str(out)]
+    r = CliRunner().invoke(cli, args)
     assert r.exit_code == 1 and "the result has no frames" in r.output and "z.pc2" in r.output, r.output
     assert not out.exists()
 
