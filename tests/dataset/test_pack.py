@@ -353,3 +353,42 @@ def test_a_damaged_sample_is_one_line_naming_its_file_and_array(tmp_path, body, 
             write_pack(root, tmp_path / "d.sgdpack", body=body)
         assert "s1.npz" in str(e.value) and words in str(e.value), str(e.value)
         assert not (tmp_path / "d.sgdpack").exists()
+
+
+def test_samples_of_another_body_are_refused_wherever_they_are_read(tmp_path, body):
+    """Samples record the body they were simulated on (``body_sha256``).  A user's trial: a folder made on a body
+    scaled by 1.01 was packed with the default body's hash in the pack's head, read beside default-body packs by
+    `train`, evaluated against the default body (38.5 % penetrating instead of 12.3 %), and counted as done by
+    `dataset make --body`.  Now every reader compares: two roots of different bodies are not mixed, `check_body`
+    (train, eval, dataset make) refuses another body, and `dataset pack` refuses a `--body` its samples were not
+    made on, or a folder of two bodies."""
+    import dataclasses
+
+    from segadeform.body.identity import body_sha256
+    from segadeform.train.evaluate import evaluate
+    from segadeform.train.predictors import make_predictor
+
+    other = dataclasses.replace(body, v_template=body.v_template * 1.01)
+    ours, theirs = body_sha256(body), body_sha256(other)
+    _save(tmp_path / "ds", "a", body, split="test", body_sha256=ours)
+    _save(tmp_path / "ds2", "b", body, split="test", body_sha256=theirs)
+    DatasetRoots([tmp_path / "ds"]).check_body(body)
+    with pytest.raises(InputError, match="another body than the one given") as e:
+        DatasetRoots([tmp_path / "ds2"]).check_body(body)
+    assert theirs[:12] in str(e.value) and ours[:12] in str(e.value) and "ds2" in str(e.value)
+    with pytest.raises(InputError, match="different bodies"):
+        DatasetRoots([tmp_path / "ds", tmp_path / "ds2"])
+    with pytest.raises(InputError, match="another body than the one given"):
+        evaluate(tmp_path / "ds2", body, {"lbs": make_predictor("lbs", "lbs")})
+    out = tmp_path / "p" / "b.sgdpack"
+    out.parent.mkdir()
+    with pytest.raises(InputError, match="another body than the one given"):
+        write_pack(tmp_path / "ds2", out, body=body)
+    assert not out.exists()
+    write_pack(tmp_path / "ds2", out, body=other)  # the body it was made on: the head records it
+    assert Pack(out).body_sha256 == theirs
+    with pytest.raises(InputError, match="different bodies"):
+        DatasetRoots([tmp_path / "ds", out])
+    _save(tmp_path / "ds2", "c", body, split="test", body_sha256=ours)
+    with pytest.raises(InputError, match="mixes samples of several bodies"):
+        write_pack(tmp_path / "ds2", tmp_path / "p" / "c.sgdpack", body=body)

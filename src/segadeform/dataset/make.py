@@ -941,6 +941,12 @@ def make_dataset(
         raise InputError("unknown dataset split", expected=" | ".join(SPLITS), got=bad[0])
 
     extra = DatasetRoots(list(roots), optional=cfg.roots) if (roots or cfg.roots) else None
+    body = load_body(body_path or default_body_path())
+    # samples of another body neither count as done nor mix with new ones (checked before anything is written)
+    if extra is not None:
+        extra.check_body(body)
+    if isinstance(out, (str, Path)) and any(next(Path(out, d).glob("*.json"), None) for d in ("samples", "rejected")):
+        DatasetRoots([out]).check_body(body)
     loc = open_location(out)
     if isinstance(loc, LocalLocation):  # the folder's layout, even before anything is kept
         (loc.root / "samples").mkdir(parents=True, exist_ok=True)
@@ -958,7 +964,6 @@ def make_dataset(
         finished |= {p.id for p in plan if extra.has(p.id)}
     todo = [p for p in order if p.id not in finished]
     skipped = len(plan) - len(todo)
-    body = load_body(body_path or default_body_path())
     if (retry_rejected or retry) and not isinstance(loc, LocalLocation):
         raise InputError("retrying rejected samples works on a dataset folder on this machine", got=str(out))
     again = _stale_rejected(loc, cfg, order, body) if retry_rejected else []

@@ -192,7 +192,7 @@ def write_pack(
     have = set()
     for p in skip:
         have |= set(p.entries)
-    entries, blender_versions, digests = {}, set(), set()
+    entries, blender_versions, digests, bodies = {}, set(), set(), set()
     counts = {"samples": 0, "rejected": 0}
     skipped = 0
     with atomic_path(out) as tmp:
@@ -216,6 +216,8 @@ def write_pack(
                         blender_versions.add(str(m["blender"]))
                     if m.get("config_digest"):
                         digests.add(str(m["config_digest"]))
+                    if m.get("body_sha256"):
+                        bodies.add(str(m["body_sha256"]))
                     entries[sid] = {
                         "folder": folder_name,
                         "split": m.get("split"),
@@ -237,6 +239,20 @@ def write_pack(
                     path=root,
                     got=", ".join(sorted(blender_versions)),
                 )
+            label = body_label(body)
+            if len(bodies) > 1:
+                raise InputError(
+                    "the dataset mixes samples of several bodies; pack each apart",
+                    path=root,
+                    got=", ".join(sorted(b[:12] for b in bodies)),
+                )
+            if bodies and bodies != {label["sha256"]}:  # the head must say the body the samples were made on
+                raise InputError(
+                    "the samples were simulated on another body than the one given (--body)",
+                    path=root,
+                    expected=f"the body of sha256 {next(iter(bodies))[:12]}",
+                    got=f"{label['name'] or 'a body'} (sha256 {label['sha256'][:12]})",
+                )
             bridges = {e["sim_bridge"] for e in entries.values()}
             if len(bridges) > 1:
                 raise InputError(
@@ -246,7 +262,7 @@ def write_pack(
                 "format": PACK_FORMAT,
                 "version": PACK_VERSION,
                 "frame_step": step,
-                "body": body_label(body),
+                "body": label,
                 "simulator": {
                     "blender": next(iter(blender_versions), None),
                     "bridge": next(iter(bridges), SIM_BRIDGE_VERSION),

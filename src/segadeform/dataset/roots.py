@@ -78,9 +78,12 @@ class DatasetRoots:
             raise InputError("no dataset root given")
         self._where: dict[tuple, object] = {}  # (folder name, id) -> Path | Pack
         self._spec: dict[str, tuple] = {}  # id -> (spec, source) of the serving root
+        self._bodies: dict[str, object] = {}  # body sha256 -> the first root whose samples record it
         for src in order:
             if isinstance(src, Pack):
                 self.packs.append(src)
+                if src.body_sha256:
+                    self._bodies.setdefault(src.body_sha256, src)
                 listing = ((e["folder"], sid, e.get("spec")) for sid, e in src.entries.items())
             else:
                 self.folders.append(src)
@@ -92,7 +95,9 @@ class DatasetRoots:
                 )
             for folder, sid, spec in listing:
                 if spec is None and not isinstance(src, Pack):
-                    spec = _folder_spec(src, folder, sid)
+                    spec, body = _folder_record(src, folder, sid)
+                    if body:
+                        self._bodies.setdefault(body, src)
                 prev = self._spec.get(sid)
                 if prev is not None:
                     if prev[0] is not None and spec is not None and prev[0] != spec:
@@ -110,12 +115,11 @@ class DatasetRoots:
         self.cache_dir: Path | None = first if first is not None else (Path(cache_dir) if cache_dir else None)
 
     def _check_compatible(self) -> None:
-        bodies = {p.body_sha256 for p in self.packs if p.body_sha256}
-        if len(bodies) > 1:
+        if len(self._bodies) > 1:  # packs by their heads, folders by their samples' records
             raise InputError(
-                "these packs were simulated on different bodies and cannot be mixed",
-                path=", ".join(str(p.path) for p in self.packs),
-                got=", ".join(sorted(b[:12] for b in bodies)),
+                "these dataset roots were simulated on different bodies and cannot be mixed",
+                path=", ".join(str(_name(r)) for r in self._bodies.values()),
+                got=", ".join(f"body sha256 {b[:12]}" for b in self._bodies),
             )
         sims = {(p.simulator.get("blender"), p.simulator.get("bridge")) for p in self.packs}
         if len(sims) > 1:
@@ -124,6 +128,24 @@ class DatasetRoots:
                 path=", ".join(str(p.path) for p in self.packs),
                 got="; ".join(f"Blender {b}, bridge {v}" for b, v in sorted(sims, key=str)),
             )
+
+    def check_body(self, body) -> None:
+        """Refuse a body other than the one the samples were simulated on (their recorded
+        :func:`~segadeform.body.identity.body_sha256`; samples that record none are not checked): evaluating or
+        training them against another body counts the wrong penetration and poses the wrong skin."""
+        if not self._bodies:
+            return
+        from ..body.identity import body_label
+
+        given = body_label(body)
+        for h, src in self._bodies.items():
+            if h != given["sha256"]:
+                raise InputError(
+                    "the dataset was simulated on another body than the one given (--body)",
+                    path=str(_name(src)),
+                    expected=f"the body of sha256 {h[:12]}",
+                    got=f"{given['name'] or 'a body'} (sha256 {given['sha256'][:12]})",
+                )
 
     # ------------------------------------------------------------------------------------------------
     @property
@@ -194,11 +216,13 @@ def _name(src):
     return src.path if isinstance(src, Pack) else src
 
 
-def _folder_spec(root: Path, folder: str, sid: str) -> str | None:
+def _folder_record(root: Path, folder: str, sid: str) -> tuple[str | None, str | None]:
+    """``(spec, body_sha256)`` a folder's sample records (None for what it does not)."""
     try:
-        return json.loads((root / folder / f"{sid}.json").read_text()).get("spec")
+        m = json.loads((root / folder / f"{sid}.json").read_text())
     except (OSError, ValueError):
-        return None
+        return None, None
+    return (m.get("spec"), m.get("body_sha256")) if isinstance(m, dict) else (None, None)
 
 
 def as_roots(dataset, *, cache_dir=None) -> DatasetRoots:

@@ -168,6 +168,7 @@ def evaluate(
     each of these settings (:func:`cloth_names`, :func:`cloth_frames`; contact at ``cloth_margin``), timed the same way.
     """
     dataset = as_roots(dataset)  # a folder, a pack, or several roots
+    dataset.check_body(body)
     ids = dataset.ids(split)
     if not ids:
         have = sorted({str(dataset.meta(s).get("split")) for s in dataset.ids()})

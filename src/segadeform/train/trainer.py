@@ -273,6 +273,7 @@ def train(
     from ..dataset.roots import DatasetRoots
 
     roots = DatasetRoots(list(cfg.dataset), optional=cfg.optional, cache_dir=run / "cache")
+    roots.check_body(body)
     ids = cfg.select(roots.ids(cfg.split))
     # training and validation samples and the physics pairs alike: the model's garment precompute, motion window,
     # shape coefficients, weight prior and drape
