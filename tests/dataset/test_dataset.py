@@ -1446,3 +1446,41 @@ def test_a_gate_verdict_reads_its_share_apart_from_the_limit_and_info_counts_it_
         ("max_strain 1.5 > 1.0", "max_strain"),
     ):
         assert reason_name(reason) == name
+
+
+@pytest.mark.parametrize(
+    "edit, msg",
+    [
+        # [bodies] for [[bodies]], a number for the betas list: tracebacks (a user's trial)
+        (
+            ('[[motions]]\nkind = "walk"', '[bodies]\nbetas = [0.5]\n\n[[motions]]\nkind = "walk"'),
+            r"must be \[\[bodies\]\] tables",
+        ),
+        (('[[motions]]\nkind = "walk"', '[[bodies]]\nbetas = 0\n\n[[motions]]\nkind = "walk"'), r"bodies\[0\] must be"),
+        (('[[motions]]\nkind = "walk"', '[[bodies]]\nbetas = [true]\n\n[[motions]]\nkind = "walk"'), "bodies"),
+        # a string where a number goes was read as the number
+        (("speed = [0.8, 1.2]", 'speed = 1.0\namplitude = "1.0"'), "amplitude must be a number"),
+        # a file of another kind was found only when its sample came, after others were simulated
+        (('kind = "dance"', 'file = "walk.obj"'), "is not a motion file"),
+    ],
+)
+def test_bad_bodies_motion_numbers_and_files_are_refused_when_read(tmp_path, edit, msg):
+    (tmp_path / "walk.obj").write_text("v 0 0 0\n")
+    text = RANGED.format(dataset="", count=4, seed="", mcount=2)
+    assert edit[0] in text
+    with pytest.raises(FileFormatError, match=msg):
+        load_dataset_config(_write(tmp_path, "c.toml", text.replace(edit[0], edit[1], 1)))
+
+
+def test_a_clip_starting_past_the_end_of_its_file_is_an_error():
+    """`start = 100.0` on a 3.9 s capture was clamped to its last frame: a 1-frame sample, kept (a user's trial)."""
+    from segadeform.dataset.config import MotionEntry
+    from segadeform.dataset.make import _motion
+
+    cfg = load_dataset_config(SAMPLES / "datasets" / "tiny.toml")
+    walk = SAMPLES / "motions" / "cmu" / "02_01_walk.bvh"
+    m = MotionEntry(name="w", split="train", kind=None, seed=0, file=walk, family="walk", start=100.0)
+    with pytest.raises(InputError, match="start is past the end of its file") as e:
+        _motion(m, cfg)
+    assert "02_01_walk.bvh" in str(e.value) and "tiny.toml" in str(e.value)
+    assert len(_motion(dataclasses.replace(m, start=1.0), cfg).poses) > 1

@@ -103,6 +103,10 @@ __all__ = ["GarmentSpec", "MotionEntry", "QualitySpec", "DatasetConfig", "load_d
 SAMPLE_ORDERS = ("body-major", "spread")
 
 
+#: the motion files `segadeform.motion.load_motion` reads
+MOTION_FILE_TYPES = (".bvh", ".amc", ".npz", ".glb", ".gltf")
+
+
 @dataclasses.dataclass(frozen=True)
 class GarmentSpec:
     name: str
@@ -486,9 +490,16 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
                 GarmentSpec(dname, kind, params, split, pin, mhclo, decimate, mesh=mesh, mesh_betas=mesh_betas)
             )
     bodies, body_splits = [], []
-    for i, b in enumerate(data.get("bodies", [{"betas": []}])):
-        betas = b.get("betas", [])
-        if set(b) - {"betas", "split"} or not all(isinstance(x, (int, float)) for x in betas):
+    tables = data.get("bodies", [{"betas": []}])
+    if not isinstance(tables, list):  # [bodies] for [[bodies]]: a traceback (a user's trial)
+        raise FileFormatError("bodies must be [[bodies]] tables", path=p, got=f"[bodies] ({type(tables).__name__})")
+    for i, b in enumerate(tables):
+        betas = b.get("betas", []) if isinstance(b, dict) else None
+        if (
+            not isinstance(betas, list)
+            or set(b) - {"betas", "split"}
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in betas)
+        ):
             raise FileFormatError(f"bodies[{i}] must be {{betas = [numbers], split = train|val|test}}", path=p, got=b)
         bodies.append(tuple(float(x) for x in betas))
         body_splits.append(_split(b, p, f"bodies[{i}]"))
@@ -528,6 +539,13 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
         f = (p.parent / m["file"]).resolve() if "file" in m else None
         if f is not None and require_files and not f.is_file():  # found now, not hours into `dataset make`
             raise FileFormatError(f"{what}.file does not exist", path=p, got=str(f))
+        if f is not None and f.suffix.lower() not in MOTION_FILE_TYPES:  # not after other samples were simulated
+            raise FileFormatError(
+                f"{what}.file is not a motion file",
+                path=p,
+                expected=" | ".join(MOTION_FILE_TYPES),
+                got=f.suffix or f.name,
+            )
         seed = m.get("seed", 0)
         if not isinstance(seed, int) or isinstance(seed, bool):
             raise FileFormatError(f"{what}.seed must be an integer", path=p, got=seed)
@@ -563,15 +581,16 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
             if dname in mnames:
                 raise FileFormatError(f"motion name {dname!r} is used twice", path=p)
             mnames.add(dname)
-            try:
-                kw = dict(
-                    speed=float(vals.get("speed", m.get("speed", 1.0))),
-                    amplitude=float(vals.get("amplitude", m.get("amplitude", 1.0))),
-                    start=float(vals.get("start", m.get("start", 0.0))),
-                    ease_in=float(m.get("ease_in", 1.0)),
-                )
-            except (TypeError, ValueError):
-                raise FileFormatError(f"{what}: speed, amplitude, start and ease_in must be numbers", path=p) from None
+            kw = dict(
+                speed=vals.get("speed", m.get("speed", 1.0)),
+                amplitude=vals.get("amplitude", m.get("amplitude", 1.0)),
+                start=vals.get("start", m.get("start", 0.0)),
+                ease_in=m.get("ease_in", 1.0),
+            )
+            for name, v in kw.items():  # numbers, not strings of them ("1.0" was read as 1.0)
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise FileFormatError(f"{what}.{name} must be a number", path=p, got=repr(v)[:40])
+                kw[name] = float(v)
             if kw["start"] < 0 or kw["ease_in"] < 0:
                 raise FileFormatError(
                     f"{what}: start and ease_in must be >= 0", path=p, got=(kw["start"], kw["ease_in"])

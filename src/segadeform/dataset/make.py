@@ -313,7 +313,15 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
     mo, _ = repair_glitches(mo, joints)  # frames it jumps to and back from (swapped markers)
     if abs(mo.fps - cfg.fps) > 1e-9:
         mo = resample(mo, cfg.fps)
-    a = min(int(round(m.start * cfg.fps)), mo.n_frames - 1)
+    if int(round(m.start * cfg.fps)) >= mo.n_frames - 1:  # was clamped to the last frame: a 1-frame sample, kept
+        raise InputError(
+            f"motion {m.name!r}: start is past the end of its file",
+            path=cfg.path,
+            expected=f"start < {(mo.n_frames - 1) / cfg.fps:.2f} s (the clip {m.file.name} is "
+            f"{mo.n_frames / cfg.fps:.2f} s once its settling frames are dropped)",
+            got=f"start = {m.start:g}",
+        )
+    a = int(round(m.start * cfg.fps))
     full = int(round(LEAD_SECONDS * cfg.fps))
     short = a < full  # less capture before the clip than a lead needs
     if short:  # the clip starts at least RAMP_MIN_SECONDS in (the same clip with and without the lead)
