@@ -193,6 +193,19 @@ def test_damaged_pack_is_a_clear_error(tmp_path, body):
     (tmp_path / "junk.sgdpack").write_bytes(b"not a zip")
     with pytest.raises(FileFormatError, match="not a zip"):
         Pack(tmp_path / "junk.sgdpack")
+    # a byte flipped inside a member's LZMA stream: lzma's own error was a traceback (a user's trial)
+    with zipfile.ZipFile(p) as z:
+        info = z.getinfo("samples/a.npz")
+    raw = bytearray(p.read_bytes())
+    at = info.header_offset + 30 + len(info.filename) + len(info.extra) + info.compress_size // 2
+    raw[at] ^= 0xFF
+    flipped = tmp_path / "flipped.sgdpack"
+    flipped.write_bytes(bytes(raw))
+    with pytest.raises(FileFormatError, match="sample a is unreadable") as e:
+        Pack(flipped).load("a")
+    assert "flipped.sgdpack" in str(e.value)
+    r = _run_cli(["inspect", str(flipped)])
+    assert r[0] == 1 and "Traceback" not in r[1] and "sample a is unreadable" in r[1], r
 
 
 def test_dataset_pack_command(tmp_path, body, capsys):
@@ -392,3 +405,13 @@ def test_samples_of_another_body_are_refused_wherever_they_are_read(tmp_path, bo
     _save(tmp_path / "ds2", "c", body, split="test", body_sha256=ours)
     with pytest.raises(InputError, match="mixes samples of several bodies"):
         write_pack(tmp_path / "ds2", tmp_path / "p" / "c.sgdpack", body=body)
+
+
+def _run_cli(args):
+    """(exit code, output) of the command line, as a user sees it."""
+    from click.testing import CliRunner
+
+    from segadeform.cli.main import cli
+
+    r = CliRunner().invoke(cli, args)
+    return r.exit_code, r.output

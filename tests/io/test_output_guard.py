@@ -196,6 +196,23 @@ def test_a_run_that_made_nothing_leaves_no_folder(tmp_path):
     g.start()
     g.abandon()
     assert old.is_dir()  # it was there before
+    # a run that began its cache of derived data and then could not read its dataset (a damaged pack): the folder
+    # and the cache are both this run's, and go (a user's trial found them left behind)
+    d = tmp_path / "train"
+    g = OutputGuard("train")
+    g.resumable(d)
+    g.start()
+    (d / "cache").mkdir()
+    (d / "cache" / "asset-1.npz").write_bytes(b"x")
+    g.abandon()
+    assert not d.exists()
+    # a folder of the user's keeps its cache: only this run's manifest goes
+    (old / "cache").mkdir()
+    g = OutputGuard("train", force=True)
+    g.resumable(old)
+    g.start()
+    g.abandon()
+    assert (old / "cache").is_dir()
 
 
 def test_a_manifest_that_is_not_one_is_refused_not_overwritten(tmp_path):

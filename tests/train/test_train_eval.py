@@ -67,6 +67,22 @@ def test_resume_refuses_another_config(synthetic_dataset, tiny_config, tmp_path,
         train(other, tmp_path / "r", body)
 
 
+def test_a_split_the_dataset_lacks_names_the_config_and_the_splits_and_writes_nothing(
+    synthetic_dataset, tiny_config, tmp_path, body
+):
+    """`split = "trian"` said "no 'trian' samples (expected segadeform dataset make first, got Pack(...))" and left
+    the run's folder (a user's trial)."""
+    from segadeform.errors import InputError
+
+    cfg = load_train_config(tiny_config, dataset=synthetic_dataset, overrides={"data.split": "trian", "optim.steps": 3})
+    with pytest.raises(
+        InputError, match=r"no 'trian' samples in the dataset \(expected data.split = test \| train"
+    ) as e:
+        train(cfg, tmp_path / "r", body)
+    assert str(tiny_config) in str(e.value) and "Pack(" not in str(e.value)
+    assert not (tmp_path / "r").exists()
+
+
 def test_what_a_run_leaves_that_is_not_a_model_is_named_in_one_line(synthetic_dataset, tiny_config, tmp_path, body):
     """A researcher's trial: a run's best.pt was refused as "must hold 'config'" after the last.pt message had
     pointed at it; weights that do not fit their config printed torch's 42 lines; optim.checkpoint_every = 0 was a

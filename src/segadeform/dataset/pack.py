@@ -41,7 +41,9 @@ import dataclasses
 import hashlib
 import io
 import json
+import lzma
 import zipfile
+import zlib
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -50,6 +52,10 @@ import numpy as np
 from ..errors import FileFormatError, InputError, file_error
 from ..io.atomic import atomic_path
 from .store import SAMPLE_FOLDERS, Sample, check_sample, load_sample
+
+#: what reading a damaged member of the archive raises (a flipped byte in an LZMA stream: LZMAError, a traceback
+#: in `inspect`, `eval` and `train` before it was caught; a member of another compression: NotImplementedError)
+_DAMAGED = (zipfile.BadZipFile, EOFError, OSError, lzma.LZMAError, zlib.error, NotImplementedError)
 
 __all__ = [
     "PACK_SUFFIX",
@@ -295,7 +301,7 @@ class Pack:
             head = json.loads(self._zip.read("pack.json"))
         except KeyError:
             raise FileFormatError("not a dataset pack (no pack.json)", path=self.path) from None
-        except (ValueError, zipfile.BadZipFile, EOFError) as e:
+        except (ValueError, *_DAMAGED) as e:
             raise FileFormatError(f"pack.json is unreadable ({e})", path=self.path) from None
         if not isinstance(head, dict) or head.get("format") != PACK_FORMAT:
             raise FileFormatError(
@@ -332,14 +338,14 @@ class Pack:
         e = self._entry(sid)
         try:
             return json.loads(self._zip.read(f"{e['folder']}/{sid}.json"))
-        except (KeyError, ValueError, zipfile.BadZipFile) as err:
+        except (KeyError, ValueError, *_DAMAGED) as err:
             raise FileFormatError(f"sample {sid}'s metadata is unreadable ({err})", path=self.path) from None
 
     def load(self, sid: str) -> Sample:
         e = self._entry(sid)
         try:
             data = self._zip.read(f"{e['folder']}/{sid}.npz")
-        except (KeyError, zipfile.BadZipFile, EOFError, OSError) as err:
+        except (KeyError, *_DAMAGED) as err:
             raise FileFormatError(f"sample {sid} is unreadable ({err})", path=self.path) from None
         if hashlib.sha256(data).hexdigest() != e.get("sha256"):
             raise FileFormatError(

@@ -39,6 +39,7 @@ import dataclasses
 import fnmatch
 import json
 import os
+import shutil
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 
@@ -183,6 +184,10 @@ def _same_file(a: Path, b: Path) -> bool:
         return os.path.samefile(a, b)
     except OSError:
         return os.path.abspath(a) == os.path.abspath(b)
+
+
+#: the folder of derived data (garment precompute, contacts) a run keeps in its output folder
+DERIVED_CACHE = "cache"
 
 
 def _listing(folder: Path) -> list[str]:
@@ -516,6 +521,10 @@ class OutputGuard:
                         (root / MANIFEST_NAME).unlink(missing_ok=True)
                 continue
             with contextlib.suppress(OSError):
+                if _listing(root) == [DERIVED_CACHE] and (root / DERIVED_CACHE).is_dir():
+                    # the folder is this run's, so is the cache of derived data it began (a run that could not
+                    # read its dataset left it behind)
+                    shutil.rmtree(root / DERIVED_CACHE)
                 if not _listing(root):
                     for sub in [MANIFEST_NAME]:
                         with contextlib.suppress(FileNotFoundError):

@@ -265,16 +265,31 @@ def train(
     (``stopped_at_budget``)."""
     started = time.perf_counter()
     run = Path(run_dir)
-    run.mkdir(parents=True, exist_ok=True)
     o = cfg.optim
     device = pick_device(o.device)
     torch.manual_seed(o.seed)
     m = cfg.model
     from ..dataset.roots import DatasetRoots
 
+    # the roots, their body and the split first: a run that cannot start writes nothing (a damaged pack left the
+    # run's folder behind, a typo'd split said "segadeform dataset make first")
     roots = DatasetRoots(list(cfg.dataset), optional=cfg.optional, cache_dir=run / "cache")
     roots.check_body(body)
     ids = cfg.select(roots.ids(cfg.split))
+    if not ids:
+        have = sorted({str(roots.meta(s).get("split")) for s in roots.ids()})
+        raise InputError(
+            f"no '{cfg.split}' samples in the dataset",
+            path=cfg.path,
+            expected=(f"data.split = {' | '.join(have)}" if have else "segadeform dataset make first")
+            + (" (or samples that data.exclude and data.fraction leave)" if have and cfg.split in have else ""),
+            got=(f"the splits {', '.join(have)} in " if have else "")
+            + (
+                (str(roots) if roots.roots else "")
+                or "no dataset root: " + (", ".join(f"{r} is not there" for r in roots.skipped) or "none given")
+            ),
+        )
+    run.mkdir(parents=True, exist_ok=True)
     # training and validation samples and the physics pairs alike: the model's garment precompute, motion window,
     # shape coefficients, weight prior and drape
     model_inputs = dict(
