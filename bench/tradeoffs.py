@@ -24,8 +24,9 @@ process, one after another (errors against the Blender simulation stored in the 
 * models: each ``NAME=SPEC`` (e.g. width/depth variants trained on the same data);
 * cloth: the runtime's cloth stage (:mod:`segadeform.body.cloth`, as ``segadeform run --effects=+cloth``) on
   "all effects" at 1, 2, 4, 8 and 16 sweeps per frame (the other knobs at their defaults), at two other
-  stiffnesses and with the backstop off, and at its defaults on every other effects row, contact at 4 mm
-  (``--cloth-iterations``, ``--cloth-stiffness``, ``--cloth-backstop``);
+  stiffnesses, with the backstop off, at one other value of every other knob and at contact margins of 2 and 8 mm,
+  and at its defaults on every other effects row, contact at 4 mm (``--cloth-iterations``, ``--cloth-stiffness``,
+  ``--cloth-backstop``, ``--cloth-knobs``, ``--cloth-margins``);
 * presets: ``segadeform run --quality`` (:mod:`segadeform.settings.presets`), each the row with its effects and margin
   (and cloth settings).
 
@@ -54,6 +55,11 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
+#: the cloth stage's knobs beyond iterations, stiffness and backstop: one other value each (the defaults'
+#: neighbourhood; `segadeform run --cloth` takes them)
+CLOTH_KNOBS = (
+    "stretch=0.1;compress=0.1;bending=0.5;damping=0.3;follow=0.8;gravity=0;attachment=0.01;max_distance=0.1;reset=0.1"
+)
 sys.path.insert(0, str(REPO))
 
 # the measuring and the rendering live in importable modules beside this command (issue #30); their names are
@@ -89,6 +95,12 @@ def main(argv=None, *, _simulate: Callable | None = None) -> int:
     ap.add_argument("--cloth-iterations", default="1,2,4,8,16", help="the cloth stage's sweeps per frame, one row each")
     ap.add_argument("--cloth-stiffness", default="0.5,0.2", help="its other stiffnesses, one row each")
     ap.add_argument("--cloth-backstop", default="0", help="its other backstop depths (m; 0: off), one row each")
+    ap.add_argument(
+        "--cloth-knobs",
+        default=CLOTH_KNOBS,
+        help="its other knobs, one row per ';'-separated setting (NAME=VALUE[,NAME=VALUE]: run --cloth's form)",
+    )
+    ap.add_argument("--cloth-margins", default="0.002,0.008", help="its other contact margins (m), one row each")
     ap.add_argument("--no-int8", action="store_true")
     ap.add_argument("--no-fp16", action="store_true")
     ap.add_argument("--samples", default="", help="comma-separated sample ids (default: the whole split)")
@@ -169,6 +181,8 @@ def main(argv=None, *, _simulate: Callable | None = None) -> int:
             cloth_iterations=ints(a.cloth_iterations),
             cloth_stiffness=tuple(float(x) for x in a.cloth_stiffness.split(",") if x.strip()),
             cloth_backstop=tuple(float(x) for x in a.cloth_backstop.split(",") if x.strip()),
+            cloth_knobs=tuple(x.strip() for x in a.cloth_knobs.split(";") if x.strip()),
+            cloth_margins=tuple(float(x) for x in a.cloth_margins.split(",") if x.strip()),
         )
         res = measure(
             a.dataset,
@@ -217,6 +231,8 @@ def main(argv=None, *, _simulate: Callable | None = None) -> int:
         ("--cloth-iterations", a.cloth_iterations, "1,2,4,8,16"),
         ("--cloth-stiffness", a.cloth_stiffness, "0.5,0.2"),
         ("--cloth-backstop", a.cloth_backstop, "0"),
+        ("--cloth-knobs", a.cloth_knobs, CLOTH_KNOBS),
+        ("--cloth-margins", a.cloth_margins, "0.002,0.008"),
         ("--sim", a.sim, None),
         ("--sim-qualities", a.sim_qualities, "2,5,10,20"),
         ("--sim-reference", a.sim_reference, 40),

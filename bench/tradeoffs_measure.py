@@ -130,6 +130,8 @@ def plan_rows(
     cloth_iterations=(1, 2, 4, 8, 16),
     cloth_stiffness=(0.5, 0.2),
     cloth_backstop=(0.0,),
+    cloth_knobs=(),
+    cloth_margins=(0.002, 0.008),
 ) -> tuple[list[Row], dict]:
     """Every row, bases before what is derived from them, and ``{preset: row name}``."""
     from segadeform.settings.presets import QUALITY_PRESETS
@@ -172,6 +174,7 @@ def plan_rows(
         [f"iterations={k}" if k != ClothSettings().iterations else "default" for k in cloth_iterations]
         + [f"stiffness={k:g}" for k in cloth_stiffness]
         + [f"backstop={k:g}" for k in cloth_backstop if k != ClothSettings().backstop]
+        + [ClothSettings.parse(k).label() for k in cloth_knobs]
     )
     # every setting on "all effects"; the defaults on every other effects row (as the push-out at 4 mm), so that
     # the stage can be compared with the push-out on the rows the presets use
@@ -188,6 +191,19 @@ def plan_rows(
                     cloth=c,
                 )
             )
+    for m in cloth_margins:  # the contact margin (run --collision-margin with the stage), at the defaults
+        r = next(r for r in rows if r.name == "all effects")
+        rows.append(
+            dataclasses.replace(
+                r,
+                name=f"all effects + cloth default, contact {_mm(m)}",
+                knob="cloth",
+                setting=f"all effects, the cloth stage (default), contact at {_mm(m)}",
+                margin=m,
+                base=r.name,
+                cloth="default",
+            )
+        )
     presets = {}
     for name, p in QUALITY_PRESETS.items():
         key = preset_key(p.effects)

@@ -172,15 +172,25 @@ def write_docs(
         "* **collisions**: the push-out at the margin named, on the row named.",
         "* **cloth**: the runtime's cloth stage (`segadeform run --effects=+cloth --cloth ...`: stretch limit, "
         "contact with neighbours following, inertia and gravity, attachment to the network's frame; "
-        "`src/segadeform/body/_cloth.c`) on the row named, contact at 4 mm, its knobs at their defaults but the "
-        "one named (`iterations`: sweeps per frame; `stiffness`: of the stretch limit); ms/frame includes its "
-        "per-garment setup spread over the sample's frames.",
+        "`src/segadeform/body/_cloth.c`) on the row named, contact at 4 mm unless the row names another margin "
+        "(`run --collision-margin`), its knobs at their defaults but the one named (every knob `run --cloth` "
+        "takes: `iterations`, sweeps per frame; `stiffness`, of the stretch limit; `stretch`, `compress`, "
+        "`bending`, `damping`, `follow`, `gravity`, `attachment`, `max_distance`, `reset`, `backstop`: "
+        "`segadeform run --help`); ms/frame includes its per-garment setup spread over the sample's frames.",
+        "* **not in the table**: `run --body-backend graph|numpy` (the body's posing: the same frames to float32 "
+        "rounding, at the body's cost, not the garment's: `bench/effects.py`) and `run --providers` "
+        "(onnxruntime's execution providers: the CPU's is measured here; CUDA in `bench/gpu.py` where a GPU is).",
         "* **models**: variants of the package's recipe in width, depth, heads or window T (the setting "
         "column, read from each package's manifest), each trained on the training split of the same dataset "
         "with the same steps and seed (`segadeform train CONFIG -o runs/NAME --dataset DATASET --threads 1`, "
         "then `segadeform export runs/NAME/model.pt -o runs/NAME/pkg`), or an ensemble of trained networks "
         "(`segadeform ensemble A.pt B.pt -o E.pt`, then `segadeform export`: the mean of their frames at the "
-        "sum of their costs)." + _training_note(rows),
+        "sum of their costs)."
+        + (
+            _training_note(rows)
+            if any(r["knob"] == "model" for r in rows.values())
+            else " None in this run (`--model NAME=SPEC` adds them; none were trained on this model's data here)."
+        ),
         "",
     ]
     if sim is not None:

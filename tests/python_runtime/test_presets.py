@@ -103,14 +103,23 @@ def test_quality_replaces_a_scenes_effects(tmp_path, random_package):
 
 def test_best_is_the_lowest_error_the_docs_measured():
     """docs/accuracy-vs-time.json (bench/tradeoffs.py) maps every preset to its measured row: best's row is within
-    0.01 cm of the lowest vertex error of any learned row, and each row's effects are the preset's."""
+    0.01 cm of the lowest vertex error of any learned row at the cloth stage's default knobs (its sweeps may vary;
+    the rows that vary another knob are measured on test samples, and a default taken from them would be tuned on
+    the test split), and each row's effects are the preset's."""
     import json
 
     from tests.conftest import REPO
 
     doc = json.loads((REPO / "docs" / "accuracy-vs-time.json").read_text())
     assert set(doc["presets"]) == set(QUALITY_PRESETS)
-    learned = {k: r for k, r in doc["rows"].items() if k != "lbs" and r.get("knob") not in ("models", "simulator")}
+    learned = {
+        k: r
+        for k, r in doc["rows"].items()
+        if k != "lbs"
+        and r.get("knob") not in ("models", "simulator")
+        and (r.get("cloth") in (None, "default") or str(r.get("cloth")).startswith("iterations="))
+    }
+    assert len(learned) > 20 and any(str(r.get("cloth")).startswith("gravity=") for r in doc["rows"].values())
     best = learned[doc["presets"]["best"]]
     assert best["vertex_cm"] <= min(r["vertex_cm"] for r in learned.values()) + 0.01
     eff = QUALITY_PRESETS["best"].effects

@@ -51,8 +51,21 @@ def test_every_preset_is_a_planned_row_with_its_effects_and_margin():
             "stiffness=0.2",
             "backstop=0",
         )
-    } | {f"{n} + cloth default": "default" for n in ("no wrinkles", "no dynamics", "static, no wrinkles", "dqs")}
-    assert all(by[n].base == n.split(" + cloth")[0] and by[n].margin == 0.004 for n in cloth)
+    } | {f"{n} + cloth default": "default" for n in ("no wrinkles", "no dynamics", "static, no wrinkles", "dqs")} | {
+        f"all effects + cloth default, contact {m} mm": "default" for m in (2, 8)
+    }
+    assert all(by[n].base == n.split(" + cloth")[0] for n in cloth)
+    assert {n: by[n].margin for n in cloth if by[n].margin != 0.004} == {
+        "all effects + cloth default, contact 2 mm": 0.002,
+        "all effects + cloth default, contact 8 mm": 0.008,
+    }
+    # every other knob of the stage (run --cloth's) at one other value: the bench's default --cloth-knobs
+    from bench.tradeoffs import CLOTH_KNOBS
+    from segadeform.settings.cloth import CLOTH_KNOBS as KNOBS
+
+    more, _ = b.plan_rows("PKG", None, {}, cloth_knobs=tuple(CLOTH_KNOBS.split(";")))
+    varied = {r.cloth.split("=")[0] for r in more if r.knob == "cloth" and r.cloth != "default"}
+    assert varied == set(KNOBS), set(KNOBS) - varied
 
 
 def test_tradeoffs_runs_on_a_tiny_dataset(synthetic_dataset, random_package, tmp_path):
