@@ -136,9 +136,11 @@ class Deformer:
         return P
 
     def _warn_if_unfamiliar(self, asset: GarmentAsset) -> None:
-        from segadeform.geometry.mesh_ops import boundary_loops
+        from segadeform.geometry.mesh_ops import boundary_loops, surface_faces
 
-        fam = self.package.familiarity(asset.descriptor, len(boundary_loops(asset.faces, asset.n_vertices)))
+        fam = self.package.familiarity(
+            asset.descriptor, len(boundary_loops(surface_faces(asset.vertices, asset.faces), asset.n_vertices))
+        )
         if fam is not None and fam.outside:
             log.warning(
                 "garment %s lies outside the garments model %s was trained on (%s); results may be "

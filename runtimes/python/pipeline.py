@@ -41,6 +41,7 @@ from segadeform.body.placement import check_placement
 from segadeform.bounds import check_body_height
 from segadeform.errors import InputError
 from segadeform.geometry import GarmentAsset, precompute_garment
+from segadeform.geometry.precompute import PRECOMPUTE_VERSION
 from segadeform.io import SceneOutput, read_mesh
 from segadeform.io.garment_asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
@@ -223,7 +224,7 @@ class Run:
         mesh = read_mesh(self.garment)
         sha = file_sha256(self.garment) if self.garment.is_file() else ""
         cdir = self._cache_dir()
-        cpath = cdir / f"asset-{sha[:32]}-n{n_star}.npz" if cdir is not None and sha else None
+        cpath = cdir / f"asset-{sha[:32]}-n{n_star}-p{PRECOMPUTE_VERSION}.npz" if cdir is not None and sha else None
         if cpath is not None and cpath.is_file():
             try:
                 a = GarmentAsset.load(cpath)

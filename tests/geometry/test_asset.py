@@ -125,3 +125,36 @@ def test_precompute_validates_inputs(rest_joints):
         precompute_garment(v, f, rest_joints[:, :2])
     with pytest.raises(InputError, match="NaN"):
         precompute_garment(np.where(np.arange(40)[:, None] == 3, np.nan, v), f, rest_joints)
+
+
+def test_flat_broken_and_repeated_faces_leave_the_garments_shape_as_it_was(rest_joints):
+    """A face whose corners are collinear (on an existing edge), a face with a repeated corner and a repeated or
+    reversed copy of a face add no surface: the asset's normals, features and descriptor are those of the mesh
+    without them, and so is its count of openings (one flat face moved a user's descriptor 0.156, 3x the
+    training garments' threshold, and a false "lies outside" warning followed).  The asset keeps the faces it was
+    given (outputs are written with them)."""
+    from segadeform.geometry.mesh_ops import FLAT, boundary_loops, surface_faces
+
+    v, f = frustum(20, 8, 0.16, 0.3, 1.0, 0.6)
+    clean = precompute_garment(v, f, rest_joints, n_star=16)
+    a, b = f[5, 0], f[5, 1]
+    mid = len(v)
+    v2 = np.concatenate([v, 0.5 * (v[a] + v[b])[None]])  # a vertex on the edge a-b, in a flat face a, b, mid
+    bad = np.concatenate([f, [[a, b, mid], [a, a, b], f[7], f[9, ::-1]]])
+    got = precompute_garment(v2, bad, rest_joints, n_star=16)
+    assert got.faces.shape == (len(f) + 4, 3)  # kept as given
+    np.testing.assert_array_equal(surface_faces(v2, bad), f)
+    np.testing.assert_allclose(got.descriptor, clean.descriptor, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(got.features[: len(v)], clean.features)
+    # the graph is every face's: the flat face's vertex keeps its neighbours, the rest is the clean mesh's
+    assert got.mask[mid].any()
+    rows = np.setdiff1d(np.arange(len(v)), [a, b])
+    np.testing.assert_array_equal(got.nbr[rows][got.mask[rows]], clean.nbr[rows][clean.mask[rows]])
+    assert len(boundary_loops(surface_faces(v2, bad), len(v2))) == len(boundary_loops(f, len(v)))
+    assert len(boundary_loops(bad, len(v2))) != len(boundary_loops(f, len(v)))  # what the count was before
+    # a needle is surface, however thin; only collinear corners are flat
+    needle = np.array([[0.0, 0, 0], [1.0, 0, 0], [0.5, 1e-6, 0]])
+    assert len(surface_faces(needle, np.array([[0, 1, 2]]))) == 1
+    assert len(surface_faces(needle * [1, FLAT / 10, 1], np.array([[0, 1, 2]]))) == 0
+    with pytest.raises(InputError, match="no face with an area"):
+        precompute_garment(needle * [1, 0, 1], np.array([[0, 1, 2]]), rest_joints)

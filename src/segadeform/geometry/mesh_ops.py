@@ -17,6 +17,7 @@ __all__ = [
     "mean_edge_length",
     "boundary_vertices",
     "boundary_loops",
+    "surface_faces",
     "connected_components",
     "adjacency",
 ]
@@ -127,6 +128,35 @@ def boundary_vertices(faces: np.ndarray) -> np.ndarray:
     key = e[:, 0] * (np.int64(f.max()) + 1) + e[:, 1]
     _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
     return np.unique(e[counts[inv.ravel()] == 1])
+
+
+#: a face is flat (no surface) when twice its area is below this times its longest edge squared (its height under
+#: ~1e-9 of its length: collinear corners to float rounding); a needle with any height is kept
+FLAT = 1e-9
+
+
+def surface_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The faces that make the surface: without faces with a repeated corner, flat faces (collinear corners:
+    :data:`FLAT`) and repeats of an earlier face's corners in any order (a duplicated or reversed copy).  What the
+    garment's shape is computed from (its graph, geodesics, descriptor and openings): one such face on a user's
+    garment changed its count of openings and moved its descriptor 3x the training garments' threshold (a user's
+    trial), and nothing of it is surface.
+
+    Shapes:
+        vertices: (N, 3), faces: (F, 3) -> (F', 3) int64, the kept faces in their order, F' <= F
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    if f.size == 0:
+        return f.reshape(0, 3)
+    keep = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
+    p = v[f]
+    e2 = np.stack([np.sum((p[:, i] - p[:, (i + 1) % 3]) ** 2, axis=1) for i in range(3)], axis=1).max(axis=1)
+    keep &= np.linalg.norm(face_cross(v, f), axis=1) > FLAT * e2
+    # of repeats, the first kept one stays (a flat or broken first copy does not hide a good repeat)
+    idx = np.flatnonzero(keep)
+    _, first = np.unique(np.sort(f[idx], axis=1), axis=0, return_index=True)
+    return f[idx[np.sort(first)]]
 
 
 def boundary_loops(faces: np.ndarray, n_vertices: int | None = None) -> list[np.ndarray]:

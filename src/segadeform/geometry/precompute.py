@@ -6,15 +6,20 @@ from __future__ import annotations
 import numpy as np
 
 from .. import __version__
+from ..errors import InputError
 from ..io.garment_asset import GarmentAsset
 from ._checks import check_mesh, check_vertices
 from .descriptor import DEFAULT_N_STAR, garment_descriptor
 from .features import vertex_features
 from .geodesic import DEFAULT_GEODESIC, GeodesicSolver
 from .graph import DEFAULT_MAX_K, neighbour_graph
-from .mesh_ops import vertex_normals
+from .mesh_ops import surface_faces, vertex_normals
 
-__all__ = ["precompute_garment"]
+__all__ = ["precompute_garment", "PRECOMPUTE_VERSION"]
+
+#: the precompute's version: part of every cache key of an asset (2: the shape from the surface's faces only,
+#: ``mesh_ops.surface_faces``; a cache keyed by the garment's bytes alone kept a user's assets of the rule before)
+PRECOMPUTE_VERSION = 2
 
 
 def precompute_garment(
@@ -38,11 +43,17 @@ def precompute_garment(
     """
     v, f = check_mesh(vertices, faces)
     j = check_vertices(joints, "joints")
-    normals = vertex_normals(v, f)
-    feats = vertex_features(v, f, j, normals=normals)
+    # the shape from the faces that make the surface (no flat, broken or repeated faces: mesh_ops.surface_faces);
+    # the graph from every face (a vertex that only a flat face holds keeps its neighbours: with none, attention has
+    # nothing to read); the asset keeps the garment's own faces, which the outputs are written with
+    sf = surface_faces(v, f)
+    if len(sf) == 0:
+        raise InputError("the garment has no face with an area", expected="triangles whose corners are not collinear")
+    normals = vertex_normals(v, sf)
+    feats = vertex_features(v, sf, j, normals=normals)
     nbr, mask = neighbour_graph(f, v.shape[0], k=k, vertices=v, max_k=max_k)
-    solver = GeodesicSolver(v, f, method=geodesic)
-    desc = garment_descriptor(v, f, n_star=n_star, solver=solver)
+    solver = GeodesicSolver(v, sf, method=geodesic)
+    desc = garment_descriptor(v, sf, n_star=n_star, solver=solver)
     params = {
         "k": int(nbr.shape[1]),
         "max_k": int(max_k),
@@ -50,6 +61,7 @@ def precompute_garment(
         "geodesic": geodesic,
         "segadeform_version": __version__,
         "n_components": int(solver.n_components),
+        "precompute": PRECOMPUTE_VERSION,
     }
     return GarmentAsset(
         vertices=v,

@@ -24,7 +24,7 @@ from ..body.transfer import garment_weights
 from ..dataset.roots import DatasetRoots, as_roots
 from ..dataset.store import Sample
 from ..geometry.mesh_ops import unique_edges
-from ..geometry.precompute import precompute_garment
+from ..geometry.precompute import PRECOMPUTE_VERSION, precompute_garment
 from ..io.atomic import atomic_path
 from ..io.garment_asset import GarmentAsset
 from ..motion.motion import history_inputs, motion_windows
@@ -103,7 +103,7 @@ def _cache_dir(root) -> Path | None:
 def sample_asset(root, s: Sample, body: BodyModel, n_star: int) -> GarmentAsset:
     """The garment precompute of sample ``s`` (cached in ``root``'s cache folder when it has one)."""
     joints = body.rest_joints(s.betas if s.betas.size else None)[0]
-    key = _hash(s.rest, s.faces, joints, np.array([n_star]))
+    key = _hash(s.rest, s.faces, joints, np.array([n_star, PRECOMPUTE_VERSION]))
     cache = _cache_dir(root)
     p = None if cache is None else cache / f"asset-{key}.npz"
     if p is not None and p.is_file():

@@ -323,7 +323,7 @@ class PhysicsPairs:
     def _garment(self, gi: int, bi: int):
         key = (gi, bi)
         if key not in self._garments:
-            from ..geometry.precompute import precompute_garment
+            from ..geometry.precompute import PRECOMPUTE_VERSION, precompute_garment
             from ..io.garment_asset import GarmentAsset
 
             self.cache.mkdir(parents=True, exist_ok=True)
@@ -335,7 +335,7 @@ class PhysicsPairs:
                 np.ascontiguousarray(mesh.vertices).tobytes()
                 + np.ascontiguousarray(mesh.faces).tobytes()
                 + np.ascontiguousarray(joints).tobytes()
-                + str(self.n_star).encode()
+                + f"{self.n_star}-p{PRECOMPUTE_VERSION}".encode()
             ).hexdigest()[:24]
             p = self.cache / "assets" / f"asset-{h}.npz"
             if p.is_file():

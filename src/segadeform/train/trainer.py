@@ -568,7 +568,7 @@ def train(
     elapsed += time.perf_counter() - t0
     # the garments it saw, by descriptor: export writes them to the manifest, and runtimes warn about garments
     # far from all of them (segadeform.contracts.model_package.TRAINING_GARMENTS)
-    from ..geometry.mesh_ops import boundary_loops
+    from ..geometry.mesh_ops import boundary_loops, surface_faces
     from ..model.network import save_checkpoint
 
     chosen = {"step": step}
@@ -590,7 +590,9 @@ def train(
         training_garments={
             "names": [k[0] for k in garments],
             "descriptors": [[float(x) for x in a.descriptor] for a in garments.values()],
-            "openings": [len(boundary_loops(a.faces, a.n_vertices)) for a in garments.values()],
+            "openings": [
+                len(boundary_loops(surface_faces(a.vertices, a.faces), a.n_vertices)) for a in garments.values()
+            ],
         },
     )
     info = {
