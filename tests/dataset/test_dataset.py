@@ -1484,3 +1484,42 @@ def test_a_clip_starting_past_the_end_of_its_file_is_an_error():
         _motion(m, cfg)
     assert "02_01_walk.bvh" in str(e.value) and "tiny.toml" in str(e.value)
     assert len(_motion(dataclasses.replace(m, start=1.0), cfg).poses) > 1
+
+
+def test_a_run_stopped_before_simulating_leaves_the_folder_as_it_was(tmp_path):
+    """Errors found before any sample is simulated (a shape out of range, a garment mesh in centimetres) left the
+    output folder with config.toml, configs/001.toml, garments/ and samples/ (the failed config then stayed in the
+    dataset's history), named no file for the shape, and advised --force, which `dataset make` does not take (a
+    user's trial).  Now the folder is as it was, the config is named, and the advice is what works."""
+    from segadeform.dataset import make_dataset
+    from segadeform.garments import GarmentParams, make_garment
+    from segadeform.io import Mesh, write_obj
+
+    never = tmp_path / "no-simulator"  # nothing may be simulated
+    body = SAMPLES / "bodies" / "default_body.npz"
+    bad = _write(tmp_path, "big.toml", TINY.read_text().replace("[[bodies]]\nbetas = []", "[[bodies]]\nbetas = [1e9]"))
+    with pytest.raises(InputError, match="betas out of range") as e:
+        make_dataset(load_dataset_config(bad), tmp_path / "new", body_path=body, sim_python=never)
+    assert "big.toml" in str(e.value)
+    assert not (tmp_path / "new").exists()
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine")
+    with pytest.raises(InputError, match="betas out of range"):
+        make_dataset(load_dataset_config(bad), mine, body_path=body, sim_python=never)
+    assert sorted(p.name for p in mine.iterdir()) == ["notes.txt"]
+    from segadeform.body import load_body
+
+    g = make_garment("skirt", load_body(body), None, GarmentParams(resolution=400))
+    write_obj(tmp_path / "skirt_cm.obj", Mesh(vertices=g.vertices * 100.0, faces=g.faces))
+    cm = _write(
+        tmp_path,
+        "cm.toml",
+        TINY.read_text().replace(
+            '[[garments]]\nkind = "skirt"', '[[garments]]\nkind = "skirt"\nmesh = "skirt_cm.obj"\nname = "cm"'
+        ),
+    )
+    with pytest.raises(InputError, match="does not sit on the body") as e:
+        make_dataset(load_dataset_config(cm), tmp_path / "cm", body_path=body, sim_python=never)
+    assert "--units cm" in str(e.value) and "--force" not in str(e.value)
+    assert not (tmp_path / "cm").exists()

@@ -290,8 +290,14 @@ def test_dataset_make_skips_what_a_pack_holds_and_never_writes_it(tmp_path, body
     assert s.skipped == len(plan)
     # a changed entry under the same name is refused before anything is simulated
     cfg_p.write_text(cfg_p.read_text().replace("kind = 'run'", "kind = 'run'\nspeed = 1.5"))
-    with pytest.raises(InputError, match="made from other settings"):
+    with pytest.raises(InputError, match="made from other settings") as e:
         make_dataset(load_dataset_config(cfg_p), tmp_path / "new")
+    # the pack that holds it is named, not the output folder, whose "use a new folder" did not help (a user's trial)
+    assert "a.sgdpack" in str(e.value) and "leave out the root that holds it" in str(e.value)
+    # and a new output folder is not left behind by the refusal
+    with pytest.raises(InputError, match="made from other settings"):
+        make_dataset(load_dataset_config(cfg_p), tmp_path / "newer")
+    assert not (tmp_path / "newer").exists()
 
 
 def test_dataset_info_reads_a_pack(tmp_path, body, capsys):

@@ -260,7 +260,7 @@ def _offset_fix(v, bv, proxy, top, floor) -> tuple[np.ndarray, str] | None:
     return None
 
 
-def check_placement(
+def _check_placement(
     vertices,
     body_vertices,
     body_faces,
@@ -271,6 +271,7 @@ def check_placement(
     betas=(),
     recorded_betas=None,
     faces=None,
+    forceable: bool = True,
 ) -> dict:
     """Refuse a garment that does not sit on the (rest) body, naming the likely cause and the fix.
 
@@ -285,6 +286,8 @@ def check_placement(
     making (or fitting) again for ``betas``, not another origin or units.  ``recorded_betas``: the shape the
     garment's file records (:func:`check_recorded_shape`), checked first.  ``faces``: the garment's; vertices in no
     face are then left out (stray vertices tipped the check and got the advice of another origin).
+    ``forceable``: whether the caller's command skips the check with ``--force`` (``dataset make`` does not: its
+    error gave that advice, and ``--force`` failed the same way); without, the advice is left out.
 
     Returns the statistics (``p20``, ``median`` distance in m, ``deep`` and ``outside_height`` fractions).
 
@@ -409,3 +412,17 @@ def check_placement(
         "--from-body THEIR_BODY.obj` (MakeHuman clothes: --mhclo FILE), "
         "or pass --force",
     )
+
+
+def check_placement(vertices, body_vertices, body_faces, *, forceable: bool = True, **kw) -> dict:
+    # the rule and its docs: _check_placement; without ``forceable``, the advice to pass --force left out
+    try:
+        return _check_placement(vertices, body_vertices, body_faces, **kw)
+    except InputError as e:
+        if forceable:
+            raise
+        drop = lambda t: None if t is None else str(t).replace(", or pass --force", "").replace(", or --force", "")  # noqa: E731
+        raise type(e)(drop(e.problem), path=e.path, line=e.line, expected=drop(e.expected), got=e.got) from None
+
+
+check_placement.__doc__ = _check_placement.__doc__

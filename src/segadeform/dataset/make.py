@@ -37,6 +37,7 @@ before simulating anything and names the ids -- rename the entry instead.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import fnmatch
 import functools
@@ -397,7 +398,7 @@ def _garment_file(out, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) ->
             m = read_mesh(g.mesh)
             betas = cfg.bodies[bi] or None
             rest = body.shaped_vertices(betas)[0]
-            check_placement(m.vertices, rest, body.faces, path=g.mesh, faces=m.faces)
+            check_placement(m.vertices, rest, body.faces, path=g.mesh, faces=m.faces, forceable=False)
             v, _ = push_off_body(m.vertices, rest, body.faces, 0.003)
             with loc.writing(rel) as tmp:
                 write_obj(tmp, Mesh(vertices=v, faces=m.faces), header=f"garment {Path(g.mesh).name}, by segadeform")
@@ -666,38 +667,43 @@ def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample], roots=None) 
     sample's split from its record, so a sample made for training whose family the config now holds out would be
     trained on and tested on)."""
     loc = open_location(out)
-    bad, moved = [], []
+    bad, moved = [], []  # (id, the root that holds it: this folder or a read-only root), ...
     names = {d: set(loc.listdir(d)) for d in ("samples", "rejected")}
     for p in plan:
-        rec, kept = None, False
+        rec, kept, where = None, False, str(loc)
         for d in ("samples", "rejected"):
             if f"{p.id}.json" in names[d]:
                 rec, kept = json.loads(loc.read_text(f"{d}/{p.id}.json")), d == "samples"
                 break
         if rec is None and roots is not None:
             rec, kept = roots.record(p.id)
+            if rec is not None:  # a pack's or another folder's (the message named the new output folder)
+                src = roots.source(p.id, "samples" if kept else "rejected")
+                where = str(getattr(src, "path", src))
         if rec is None:
             continue
         old = rec.get("spec")
         if old is not None and old not in sample_specs(cfg, p):
-            bad.append(p.id)
+            bad.append((p.id, where))
         elif kept and rec.get("split") is not None and rec.get("split") != p.split:  # (a rejected one trains nothing)
-            moved.append((p.id, rec.get("split"), p.split))
+            moved.append((p.id, rec.get("split"), p.split, where))
+    mine = str(loc)
     if bad:
+        sid, where = bad[0]
         raise InputError(
             f"{len(bad)} finished samples of this dataset were made from other settings than this "
-            f"config gives them (first: {bad[0]}); give changed entries new names, keep bodies in "
-            f"order, or use a new folder",
-            path=str(loc),
+            f"config gives them (first: {sid}); give changed entries new names, keep bodies in "
+            + ("order, or use a new folder" if where == mine else "order, or leave out the root that holds it"),
+            path=where,
         )
     if moved:
-        sid, was, now = moved[0]
+        sid, was, now, where = moved[0]
         raise InputError(
             f"{len(moved)} finished samples of this dataset were made for another split than this config puts "
             f"them in (first: {sid}, made as '{was}', now '{now}'): a garment, motion family or body moved between "
-            f"splits, and a sample keeps the split it was made for; give the moved entries new names or use a new "
-            f"folder",
-            path=str(loc),
+            f"splits, and a sample keeps the split it was made for; give the moved entries new names or "
+            + ("use a new folder" if where == mine else "leave out the root that holds it"),
+            path=where,
         )
 
 
@@ -711,6 +717,39 @@ def _keep_config(out, cfg: DatasetConfig) -> None:
     if not old or loc.read_bytes(f"configs/{old[-1]}") != text:
         loc.put_bytes(f"configs/{len(old) + 1:03d}.toml", text)
     loc.put_bytes("config.toml", text)
+
+
+class _Undo:
+    """A local dataset folder as it was before a run: :meth:`rollback` removes what the run added (files, then the
+    folders it made, if empty) and puts back the ``config.toml`` it replaced.  For the checks that come before any
+    sample is simulated (the plan, a conflicting root, the garments on their bodies): a run they stop leaves the
+    folder as it found it (it left ``configs/NNN.toml``, ``garments/`` and ``samples/`` behind, and a later run
+    into the folder kept the failed config in the dataset's history)."""
+
+    def __init__(self, out) -> None:
+        if isinstance(out, LocalLocation):  # (the command line gives its output folder as a Location)
+            out = out.root
+        local = isinstance(out, Path) or (isinstance(out, str) and "://" not in out)
+        self.root = Path(out) if local else None
+        self.existed = self.root is not None and self.root.is_dir()
+        self.before = set(self.root.rglob("*")) if self.existed else set()  # type: ignore[union-attr]
+        c = None if self.root is None else self.root / "config.toml"
+        self.config = c.read_bytes() if c is not None and c.is_file() else None
+
+    def rollback(self) -> None:
+        if self.root is None or not self.root.is_dir():
+            return
+        with contextlib.suppress(OSError):
+            for q in sorted(set(self.root.rglob("*")) - self.before, key=lambda q: len(q.parts), reverse=True):
+                if q.is_dir() and not q.is_symlink():
+                    with contextlib.suppress(OSError):
+                        q.rmdir()
+                else:
+                    q.unlink(missing_ok=True)
+            if self.config is not None:
+                (self.root / "config.toml").write_bytes(self.config)
+            if not self.existed:
+                self.root.rmdir()
 
 
 class _Log:
@@ -955,50 +994,57 @@ def make_dataset(
         extra.check_body(body)
     if isinstance(out, (str, Path)) and any(next(Path(out, d).glob("*.json"), None) for d in ("samples", "rejected")):
         DatasetRoots([out]).check_body(body)
-    loc = open_location(out)
-    if isinstance(loc, LocalLocation):  # the folder's layout, even before anything is kept
-        (loc.root / "samples").mkdir(parents=True, exist_ok=True)
-        (loc.root / "garments").mkdir(exist_ok=True)
-    plan = sample_plan(cfg)
-    check_splits(cfg, plan)
-    _check_done(loc, cfg, plan, extra)
-    planned = {p.id for p in plan}  # the whole plan: what a kept sample not in it is told against
-    _keep_config(loc, cfg)
-    if splits:  # the whole plan was checked and ordered as always; only the chosen splits are made
-        plan = [p for p in plan if split_group(p.split) in splits]
-    order = make_order(cfg, plan)
-    finished = {n[: -len(".json")] for d in ("samples", "rejected") for n in loc.listdir(d) if n.endswith(".json")}
-    if extra is not None:
-        finished |= {p.id for p in plan if extra.has(p.id)}
-    todo = [p for p in order if p.id not in finished]
-    skipped = len(plan) - len(todo)
-    if (retry_rejected or retry) and not isinstance(loc, LocalLocation):
-        raise InputError("retrying rejected samples works on a dataset folder on this machine", got=str(out))
-    again = _stale_rejected(loc, cfg, order, body) if retry_rejected else []
-    if retry:
-        names = set(loc.listdir("rejected"))
-        chosen = {p.id for p in again}
-        again += [
-            p
-            for p in order
-            if p.id not in chosen
-            and f"{p.id}.json" in names
-            and f"{p.id}.npz" in names
-            and any(fnmatch.fnmatchcase(p.id, g) for g in retry)
-        ]
-    first = {}  # the rejected samples given the fallbacks they have not had (on a folder here; read-only roots and
-    if isinstance(loc, LocalLocation):  # object stores keep what they hold)
-        chosen = {p.id for p in again}
-        first = {k: v for k, v in _untried_fallbacks(loc, cfg, order).items() if k not in chosen}
-        again += [p for p in order if p.id in first]
-    todo = again + todo
-    if limit is not None:
-        todo = todo[:limit]
-    for p in todo[: len(again)]:  # the old attempt is put aside, not lost; this run makes the sample anew
-        _retire_rejected(loc.root, p.id)  # type: ignore[attr-defined]  (a LocalLocation: checked above)
-    skipped -= min(len(again), len(todo))
-    for gi, bi in sorted({(p.garment, p.body) for p in todo}):  # garments first, in this process: no races
-        _garment_file(loc, cfg, gi, bi, body)
+    undo = _Undo(out)  # what a run that stops before simulating anything leaves: nothing (a user's trial)
+    try:
+        loc = open_location(out)
+        if isinstance(loc, LocalLocation):  # the folder's layout, even before anything is kept
+            (loc.root / "samples").mkdir(parents=True, exist_ok=True)
+            (loc.root / "garments").mkdir(exist_ok=True)
+        plan = sample_plan(cfg)
+        check_splits(cfg, plan)
+        _check_done(loc, cfg, plan, extra)
+        planned = {p.id for p in plan}  # the whole plan: what a kept sample not in it is told against
+        _keep_config(loc, cfg)
+        if splits:  # the whole plan was checked and ordered as always; only the chosen splits are made
+            plan = [p for p in plan if split_group(p.split) in splits]
+        order = make_order(cfg, plan)
+        finished = {n[: -len(".json")] for d in ("samples", "rejected") for n in loc.listdir(d) if n.endswith(".json")}
+        if extra is not None:
+            finished |= {p.id for p in plan if extra.has(p.id)}
+        todo = [p for p in order if p.id not in finished]
+        skipped = len(plan) - len(todo)
+        if (retry_rejected or retry) and not isinstance(loc, LocalLocation):
+            raise InputError("retrying rejected samples works on a dataset folder on this machine", got=str(out))
+        again = _stale_rejected(loc, cfg, order, body) if retry_rejected else []
+        if retry:
+            names = set(loc.listdir("rejected"))
+            chosen = {p.id for p in again}
+            again += [
+                p
+                for p in order
+                if p.id not in chosen
+                and f"{p.id}.json" in names
+                and f"{p.id}.npz" in names
+                and any(fnmatch.fnmatchcase(p.id, g) for g in retry)
+            ]
+        first = {}  # the rejected samples given the fallbacks they have not had (on a folder here; read-only roots and
+        if isinstance(loc, LocalLocation):  # object stores keep what they hold)
+            chosen = {p.id for p in again}
+            first = {k: v for k, v in _untried_fallbacks(loc, cfg, order).items() if k not in chosen}
+            again += [p for p in order if p.id in first]
+        todo = again + todo
+        if limit is not None:
+            todo = todo[:limit]
+        for p in todo[: len(again)]:  # the old attempt is put aside, not lost; this run makes the sample anew
+            _retire_rejected(loc.root, p.id)  # type: ignore[attr-defined]  (a LocalLocation: checked above)
+        skipped -= min(len(again), len(todo))
+        for gi, bi in sorted({(p.garment, p.body) for p in todo}):  # garments first, in this process: no races
+            _garment_file(loc, cfg, gi, bi, body)
+    except BaseException as e:
+        undo.rollback()
+        if isinstance(e, InputError) and e.path is None and cfg.path is not None:
+            raise e.with_path(cfg.path) from None  # ("betas out of range" named no file)
+        raise
     own = executor is None
     ex = LocalExecutor(jobs) if own else executor
     tasks = [
