@@ -111,6 +111,19 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
         )
     else:
         click.echo(f"trained {info['steps']} steps in {info['train_seconds']:.0f} s -> {final}")
+    chosen = info.get("chosen") or {}
+    if chosen.get("step") is not None and chosen.get("val_vertex") is not None:  # which network model.pt is
+        split = chosen.get("val_split", "validation")
+        click.echo(
+            f"model.pt is step {chosen['step']}: the lowest '{split}' vertex error, "
+            f"{100 * float(chosen['val_vertex']):.2f} cm"
+            + (
+                " -- the untrained network: no step of this run did better on that split (more steps, another "
+                "learning rate, or more training data)"
+                if chosen["step"] == 0
+                else ""
+            )
+        )
 
 
 @cli.command("eval")

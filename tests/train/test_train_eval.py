@@ -56,6 +56,29 @@ def test_resume_continues_the_same_run(synthetic_dataset, tiny_config, tmp_path,
     assert steps == [3, 6]
 
 
+def test_a_run_resumed_between_two_logged_steps_logs_the_rows_of_one_run(
+    synthetic_dataset, tiny_config, tmp_path, body
+):
+    """Checkpoints every 3 steps, rows every 2: stopped at step 4, the run resumes from step 3, and its row 4 averaged
+    step 4 alone where one run's averages steps 3 and 4 (a user's trial: checkpoint 125, rows every 10).  The
+    checkpoint keeps the rows' running sums."""
+    cfg = load_train_config(tiny_config, dataset=synthetic_dataset)
+    train(cfg, tmp_path / "a", body, log_every=2)
+
+    def stop(step, row):
+        if step == 4:
+            raise KeyboardInterrupt  # after the step-3 checkpoint, at the step-4 row
+
+    with pytest.raises(KeyboardInterrupt):
+        train(cfg, tmp_path / "b", body, log_every=2, progress=stop)
+    assert torch.load(tmp_path / "b" / "last.pt", weights_only=False)["step"] == 3
+    train(cfg, tmp_path / "b", body, log_every=2)
+    ra, rb = (list(csv.DictReader(open(tmp_path / r / "loss.csv"))) for r in ("a", "b"))
+    assert [r["step"] for r in ra] == [r["step"] for r in rb] == ["2", "4", "6"]
+    for x, y in zip(ra, rb, strict=True):
+        assert abs(float(x["total"]) - float(y["total"])) <= 1e-6 * max(1.0, abs(float(x["total"]))), (x, y)
+
+
 def test_resume_refuses_another_config(synthetic_dataset, tiny_config, tmp_path, body):
     from segadeform.errors import InputError
 
@@ -191,7 +214,18 @@ def test_evaluate_lbs_is_exact_on_skinned_data_and_models_are_measured(synthetic
 def test_cli_train_and_eval(synthetic_dataset, tiny_config, tmp_path, capsys):
     run = tmp_path / "run"
     assert main(["train", str(tiny_config), "--dataset", str(synthetic_dataset), "-o", str(run), "--steps", "2"]) == 0
-    assert "trained 2 steps" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "trained 2 steps" in out and "model.pt is step" not in out  # no validation split: the last step
+    # with one, the last line says which step model.pt is, and when it is the untrained network (a user's trial got
+    # step 0 unsaid)
+    val_cfg = tmp_path / "val.toml"
+    val_cfg.write_text(tiny_config.read_text() + "[data]\nval_split = 'test'\n")
+    run_v = tmp_path / "run_v"
+    assert main(["train", str(val_cfg), "--dataset", str(synthetic_dataset), "-o", str(run_v), "--steps", "3"]) == 0
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    chosen = json.loads((run_v / "train.json").read_text())["chosen"]
+    assert last.startswith(f"model.pt is step {chosen['step']}: the lowest 'test' vertex error, ")
+    assert ("the untrained network" in last) == (chosen["step"] == 0)
     # the same command again: said to be done, not trained again (a user's trial read "trained 2 steps" as new)
     assert main(["train", str(tiny_config), "--dataset", str(synthetic_dataset), "-o", str(run), "--steps", "2"]) == 0
     assert "already trained: 2 steps" in capsys.readouterr().out

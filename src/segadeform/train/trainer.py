@@ -340,6 +340,7 @@ def train(
     rng = np.random.default_rng(o.seed)
     step, elapsed = 0, 0.0
     ck_pairs = None  # the prefetched pairs' stream, when resumed
+    ck_window = None  # the loss rows' running sums, when resumed
     budget = {"seconds": o.seconds, "probe": [], "steps": None} if o.seconds > 0 else None
     last = run / "last.pt"
     # what the run trains on: a run resumes only on the samples it started with (the dataset roots are not part of
@@ -373,6 +374,7 @@ def train(
         step, elapsed = int(ck["step"]), float(ck["elapsed"])
         total[0] = int(ck.get("total_steps", o.steps))
         ck_pairs = ck.get("pairs")
+        ck_window = ck.get("log_window")
         if budget is not None and ck.get("budget_steps"):
             budget["steps"] = int(ck["budget_steps"])
         best_val = (float(ck.get("best_val", float("inf"))), int(ck.get("best_step", -1)))
@@ -391,9 +393,10 @@ def train(
     if step == 0 or not log_path.is_file():
         with open(log_path, "w", newline="") as fh:
             csv.writer(fh).writerow(fields)
-    else:  # drop rows logged after the checkpoint we resume from
-        rows = [r for r in csv.DictReader(open(log_path)) if int(r["step"]) <= step]
-        with open(log_path, "w", newline="") as fh:
+    else:  # drop rows logged after the checkpoint we resume from (rewritten under a temporary name)
+        with open(log_path, newline="") as fh:
+            rows = [r for r in csv.DictReader(fh) if int(r["step"]) <= step]
+        with atomic_path(log_path) as tmp, open(tmp, "w", newline="") as fh:
             wr = csv.DictWriter(fh, fields)
             wr.writeheader()
             wr.writerows(rows)
@@ -418,6 +421,14 @@ def train(
                     "total_steps": total[0],
                     "budget_steps": budget["steps"] if budget is not None else None,
                     "pairs": prefetch.state() if prefetch is not None else None,
+                    # the loss rows' running sums since the last logged step (a checkpoint between two logged
+                    # steps: a resumed run's next row averaged only the steps after the checkpoint); a logged step
+                    # is written right after, so its window starts empty
+                    "log_window": (
+                        None
+                        if step % log_every == 0 or step == total[0]
+                        else ({k: float(v) for k, v in acc.items()}, n_acc)
+                    ),
                 },
                 tmp,
             )
@@ -455,6 +466,9 @@ def train(
     prefetch = _PairPrefetch(pairs, o.seed, ck_pairs) if pairs is not None and ph.prefetch else None
     acc = {k: 0.0 for k in ("total", *TERMS, PHYSICS_TERM)}
     n_acc = 0
+    if step > 0 and ck_window is not None:  # resumed between two logged steps: the window goes on
+        acc.update({k: v for k, v in ck_window[0].items() if k in acc})
+        n_acc = int(ck_window[1])
     val_seconds = 0.0
     if val and step == 0 and best_val[1] < 0:
         # the untrained model is a candidate too (a residual model at step 0 is its weight prior's LBS):
