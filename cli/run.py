@@ -52,6 +52,20 @@ def _quality_choice():
     return click.Choice(list(QUALITY_PRESETS))
 
 
+def _effects_option(text, base=None, *, check_only: bool = False):
+    """``--effects``: :func:`parse_effects`, its errors naming the option (an unknown effect named none);
+    ``check_only``: the list's own rule only (what a scene's reading then applies)."""
+    from segadeform.errors import InputError
+    from segadeform.settings.effects import DEFAULT_EFFECTS, EFFECT_NAMES, parse_effect_list, parse_effects
+
+    try:
+        if check_only:
+            return parse_effect_list(text, EFFECT_NAMES, choices=("lbs", "dqs"))
+        return parse_effects(text, DEFAULT_EFFECTS if base is None else base)
+    except InputError as e:
+        raise type(e)(f"--effects: {e.problem}", path=e.path, line=e.line, expected=e.expected, got=e.got) from None
+
+
 @cli.command("run")
 @click.argument("scene", required=False, type=PathParam(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", type=PathParam(path_type=Path), help="Output (overrides the scene's).")
@@ -195,7 +209,7 @@ def run_cmd(
     import dataclasses
 
     from segadeform.runtime.pipeline import run_scene
-    from segadeform.settings import Effects, MotionSpec, Scene, load_scene, parse_effects, parse_frames
+    from segadeform.settings import Effects, MotionSpec, Scene, load_scene, parse_frames
     from segadeform.settings.scene import check_motion_fps
 
     if fps is not None:  # said first, naming the option (the motion's own check named nothing)
@@ -214,6 +228,8 @@ def run_cmd(
         if garment or motion_path:
             raise click.UsageError("give a SCENE or --garment/--motion, not both")
         # the scene's knobs judged against the effects that will run (--effects=+cloth may use its cloth_ knobs)
+        if effects is not None and preset is None:  # its errors name the option before the scene's are read
+            _effects_option(effects, check_only=True)
         sc = load_scene(scene, effects=effects if preset is None else None)
         changes = {}
         if preset is not None:  # the preset's effects; a scene's own cloth knobs kept when both run the stage
@@ -222,7 +238,7 @@ def run_cmd(
                 dataclasses.replace(preset, cloth_settings=sc.effects.cloth_settings) if keep else preset
             )
         elif effects is not None:  # (an empty one is refused by the parser, not taken as not given)
-            changes["effects"] = parse_effects(effects, sc.effects)
+            changes["effects"] = _effects_option(effects, sc.effects)
         if fmt or output:
             changes["output_format"] = _fmt_from(output or sc.output, fmt)
         if up:
@@ -280,7 +296,7 @@ def run_cmd(
             model=None,
             body_output=body_out,
             # (an empty --effects is refused by the parser, not taken as not given: the scene path's rule)
-            effects=preset if preset is not None else parse_effects(effects) if effects is not None else Effects(),
+            effects=preset if preset is not None else _effects_option(effects) if effects is not None else Effects(),
         )
     if cloth:
         from segadeform.settings.cloth import ClothSettings

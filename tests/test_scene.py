@@ -141,7 +141,7 @@ def test_cli_effects_complete_list_or_changes():
     # "lbs,dqs" ran dqs and "+wrinkles,-wrinkles" ran without wrinkles, silently)
     with pytest.raises(FileFormatError, match="name one skinning"):
         parse_effects("lbs,dqs")
-    for twice in ("+wrinkles,-wrinkles", "cloth,cloth", "dqs,-collisions,-collisions"):
+    for twice in ("+wrinkles,-wrinkles", "cloth,cloth", "dqs,-collisions,-collisions", "dqs,dqs", "lbs,-cloth,lbs"):
         with pytest.raises(FileFormatError, match="effects name .* twice"):
             parse_effects(twice, base)
     assert parse_effects("none", base) == Effects(

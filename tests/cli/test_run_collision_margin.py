@@ -54,3 +54,35 @@ def test_a_bad_margin_or_no_stage_to_use_it_is_refused_before_any_output(tmp_pat
         r, out = _run(tmp_path, "x", *extra)
         assert r.exit_code == 2 and says in r.output, r.output
         assert not out.exists()
+
+
+def test_effects_option_errors_name_the_option_and_a_change_that_does_nothing_is_said(tmp_path, caplog):
+    """A user's trial: an unknown effect's error named neither the option nor a file, "dqs,dqs" ran, and
+    "+cloth,-collisions" ran as "+cloth" (the stage's contact replaces the push-out) without a word."""
+    import logging
+
+    from click.testing import CliRunner
+
+    from segadeform.cli.main import cli
+    from tests.conftest import SAMPLES
+
+    base = [
+        "run",
+        "--garment",
+        str(SAMPLES / "garments" / "dress.obj"),
+        "--motion",
+        str(SAMPLES / "motions" / "cmu" / "02_01_walk.bvh"),
+    ]
+    base += ["--fps", "30", "--frames", "0:2"]
+    for bad, words in (("+dqs", "--effects: unknown effect"), ("dqs,dqs", "--effects: effects name dqs twice")):
+        out = tmp_path / "x.pc2"
+        r = CliRunner().invoke(cli, [*base, "-o", str(out), f"--effects={bad}"])
+        assert r.exit_code == 1 and words in r.output and not out.exists(), r.output
+    r = CliRunner().invoke(
+        cli, ["run", str(SAMPLES / "scenes" / "dress_dance.toml"), "-o", str(tmp_path / "s.pc2"), "--effects=+dqs"]
+    )
+    assert r.exit_code == 1 and "--effects: unknown effect" in r.output, r.output
+    with caplog.at_level(logging.WARNING):
+        r = CliRunner().invoke(cli, [*base, "-o", str(tmp_path / "c.pc2"), "--effects=+cloth,-collisions"])
+    assert r.exit_code == 0, r.output
+    assert sum("-collisions changes nothing while the cloth stage runs" in m for m in caplog.messages) == 1

@@ -14,10 +14,13 @@ either form; the caller names them as ``choices`` and gets them back in order.
 from __future__ import annotations
 
 import dataclasses
+import logging
 from collections.abc import Iterable, Sequence
 
 from ..errors import FileFormatError
 from .cloth import ClothSettings
+
+log = logging.getLogger(__name__)
 
 __all__ = ["Effects", "DEFAULT_EFFECTS", "EFFECT_NAMES", "parse_effects", "EffectList", "parse_effect_list"]
 
@@ -68,6 +71,8 @@ def parse_effect_list(
     complete = not any(signed)
     if len(set(picked)) > 1:  # as the Node and C++ runtimes refuse it (the last one won here, silently)
         raise FileFormatError("name one skinning", expected=" or ".join(choices), got=text)
+    if len(picked) > 1:  # "dqs,dqs" went unsaid (a user's trial), as a repeated effect does not
+        raise FileFormatError(f"effects name {picked[0]} twice", expected="each effect once", got=text)
     stripped = [i.lstrip("+-") for i in named]
     twice = sorted({n for n in stripped if stripped.count(n) > 1})
     if twice:  # "+wrinkles,-wrinkles": which one is meant?
@@ -139,4 +144,11 @@ def parse_effects(text: str, base: Effects = DEFAULT_EFFECTS) -> Effects:
     """
     lst = parse_effect_list(text, EFFECT_NAMES, [n for n in EFFECT_NAMES if getattr(base, n)], choices=("lbs", "dqs"))
     skinning = lst.choices[-1] if lst.choices else ("lbs" if lst.complete else base.skinning)
-    return dataclasses.replace(base, skinning=skinning, **{n: n in lst.on for n in EFFECT_NAMES})
+    out = dataclasses.replace(base, skinning=skinning, **{n: n in lst.on for n in EFFECT_NAMES})
+    if out.cloth and not out.collisions and "-collisions" in [t.strip() for t in str(text).split(",")]:
+        # (a user's trial: "+cloth,-collisions" ran as "+cloth", unsaid)
+        log.warning(
+            "effects %s: -collisions changes nothing while the cloth stage runs (its contact replaces the push-out)",
+            text,
+        )
+    return out
