@@ -59,6 +59,12 @@ class PathParam(click.Path):
                 if not self.dir_okay and stat.S_ISDIR(mode):
                     raise FileFormatError("is a directory, not a file", path=path)
                 if not self.file_okay and stat.S_ISREG(mode):
+                    if path.endswith(".pt"):  # a checkpoint for --model: what makes a package of it
+                        raise FileFormatError(
+                            "is a training checkpoint, not a model package",
+                            path=path,
+                            expected=f"a package folder: segadeform export {path} -o PACKAGE",
+                        )
                     raise FileFormatError("is a file, not a directory", path=path)
         return super().convert(value, param, ctx)
 

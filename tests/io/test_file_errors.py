@@ -108,6 +108,7 @@ def test_a_folder_for_a_file_same_wording_from_every_command(tmp_path):
     folder, afile, missing = tmp_path / "some dir", tmp_path / "g.obj", tmp_path / "nope"
     folder.mkdir()
     afile.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "m.pt").write_bytes(b"a checkpoint")
     out = tmp_path / "o.pc2"
     cases = [
         (
@@ -121,6 +122,12 @@ def test_a_folder_for_a_file_same_wording_from_every_command(tmp_path):
         (["run", str(folder)], f"{folder}: is a directory, not a file"),
         (["preview", str(out), "--garment", str(folder), "-o", str(tmp_path / "p.png")], f"{folder}: is a directory"),
         (["info", str(afile)], f"{afile}: is a file, not a directory"),
+        # a checkpoint given as the model: what makes a package of it (a user's trial)
+        (
+            ["run", "--garment", str(afile), "--motion", "walk.bvh", "--model", str(tmp_path / "m.pt"), "-o", str(out)],
+            f"{tmp_path / 'm.pt'}: is a training checkpoint, not a model package (expected a package folder: "
+            f"segadeform export {tmp_path / 'm.pt'} -o PACKAGE)",
+        ),
         (["garment", "export", f"{missing}.obj", "-o", str(tmp_path / "g.sgda")], f"{missing}.obj: no such file"),
     ]
     for args, said in cases:
@@ -129,7 +136,7 @@ def test_a_folder_for_a_file_same_wording_from_every_command(tmp_path):
             args,
             r.output,
         )
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.obj", "some dir"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.obj", "m.pt", "some dir"]
     r = CliRunner().invoke(cli, ["run", "--garment", str(afile), "--no-such-option"])
     assert r.exit_code == 2 and "Usage:" in r.output, r.output
 

@@ -59,6 +59,11 @@ def test_a_config_changes_its_base(tmp_path):
     (tmp_path / "b.toml").write_text("base = 'a.toml'\n")
     with pytest.raises(FileFormatError, match="each other"):
         load_train_config(tmp_path / "a.toml")
+    # a base that is not there: the config that names it is named (the error named the missing base alone)
+    (tmp_path / "c.toml").write_text("base = 'nope.toml'\n")
+    with pytest.raises(FileFormatError, match="base names no training config") as e:
+        load_train_config(tmp_path / "c.toml")
+    assert str(e.value).startswith(str(tmp_path / "c.toml")) and "nope.toml" in str(e.value)
 
 
 def test_the_shipped_recipe_reads_the_local_dataset_and_the_durable_store_where_they_are(tmp_path, capsys):

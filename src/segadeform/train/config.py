@@ -327,6 +327,8 @@ def _read_with_base(p: Path, seen=()) -> dict:
     bp = (_folder(p) / base).resolve()
     if bp in seen or bp == p.resolve():
         raise FileFormatError("training configs name each other as base", path=p, got=str(bp))
+    if not bp.is_file():  # ("no such file" named the base, not the config that names it: a user's trial)
+        raise FileFormatError("base names no training config", path=p, expected="an existing file", got=str(bp))
     under = _read_with_base(bp, (*seen, p.resolve()))
     # the base's relative paths are the base's: make them absolute before merging
     d = under.get("data", {})
