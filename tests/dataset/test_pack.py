@@ -326,6 +326,10 @@ def test_dataset_info_reads_a_pack(tmp_path, body, capsys):
     assert st["reasons"] == {"max_strain": 1}  # the rejected sample's quality verdict
     assert main(["dataset", "info", str(out)]) == 0
     assert "1 kept" in capsys.readouterr().out
+    # a folder of packs, as train and eval read it ("not a dataset folder (no log.jsonl)": a user's trial)
+    assert main(["dataset", "info", str(tmp_path), "--json"]) == 0
+    st = json.loads(capsys.readouterr().out)
+    assert (st["kept"], st["rejected"]) == (1, 1)
     # `inspect` reads a pack too (a user's trial: "unknown mesh file extension"), every sample checked
     assert main(["inspect", str(out)]) == 0
     said = capsys.readouterr().out

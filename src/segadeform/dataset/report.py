@@ -62,8 +62,14 @@ def reason_name(reason: str) -> str:
 
 
 def dataset_stats(folder) -> dict:
-    """Statistics of a dataset folder (its log) or a dataset pack (its samples' metadata)."""
-    recs = pack_records(folder) if Path(folder).is_file() else finished_records(folder)
+    """Statistics of a dataset folder (its log), a dataset pack (its samples' metadata) or a folder of packs (all
+    of theirs, as train and eval read such a folder: `dataset info` said "no log.jsonl" of it)."""
+    f = Path(folder)
+    packs = sorted(f.glob("*.sgdpack")) if f.is_dir() and not (f / "log.jsonl").is_file() else []
+    if packs:
+        recs = [r for p in packs for r in pack_records(p)]
+    else:
+        recs = pack_records(folder) if f.is_file() else finished_records(folder)
     kept = [r for r in recs if r["status"] == "kept"]
     rej = [r for r in recs if r["status"] != "kept"]
     reasons = collections.Counter(reason_name(x) for r in rej for x in r.get("reasons", []))
