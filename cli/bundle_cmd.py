@@ -12,7 +12,7 @@ from .main import PathParam, cli
 @cli.command("bundle")
 @click.argument("scene", type=PathParam(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", required=True, type=PathParam(dir_okay=False, path_type=Path), help="OUT.sgdb")
-@click.option("--model", type=PathParam(file_okay=False, path_type=Path), help="Model package directory.")
+@click.option("--model", type=PathParam(file_okay=False, path_type=Path, package=True), help="Model package directory.")
 @click.option("--no-expected", is_flag=True, help="Leave out the Python runtime's output.")
 @click.option(
     "--frames",

@@ -125,7 +125,7 @@ def export_cmd(
 
 
 @cli.command("quantize")
-@click.argument("package", type=PathParam(file_okay=False, exists=True, path_type=Path))
+@click.argument("package", type=PathParam(file_okay=False, exists=True, path_type=Path, package=True))
 @click.option(
     "-o", "--output", required=True, type=PathParam(file_okay=False, path_type=Path), help="The new package folder."
 )
@@ -152,7 +152,7 @@ def quantize_cmd(package, output, precision):
 
 
 @cli.command("repack")
-@click.argument("package", type=PathParam(file_okay=False, exists=True, path_type=Path))
+@click.argument("package", type=PathParam(file_okay=False, exists=True, path_type=Path, package=True))
 @click.option(
     "-o", "--output", required=True, type=PathParam(file_okay=False, path_type=Path), help="The new package folder."
 )

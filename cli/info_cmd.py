@@ -11,7 +11,7 @@ from .main import PathParam, cli
 
 
 @cli.command("info")
-@click.argument("package", type=PathParam(file_okay=False, path_type=Path))
+@click.argument("package", type=PathParam(file_okay=False, path_type=Path, package=True))
 def info_cmd(package):
     """Print a model package's manifest, I/O signature and op set."""
     from segadeform.runtime import ModelPackage

@@ -45,6 +45,10 @@ class PathParam(click.Path):
     where a folder is, or a path that must exist and does not is one line naming the path, exit 1 -- click said it in
     three lines of usage with exit 2, as for a command line it cannot read (an unknown option, which stays so)."""
 
+    def __init__(self, *args, package: bool = False, **kw):
+        super().__init__(*args, **kw)
+        self.package = package  # a model package's folder: a checkpoint given instead is told how to make one
+
     def convert(self, value, param, ctx):
         from segadeform.errors import FileFormatError, file_error
 
@@ -59,7 +63,7 @@ class PathParam(click.Path):
                 if not self.dir_okay and stat.S_ISDIR(mode):
                     raise FileFormatError("is a directory, not a file", path=path)
                 if not self.file_okay and stat.S_ISREG(mode):
-                    if path.endswith(".pt"):  # a checkpoint for --model: what makes a package of it
+                    if self.package and path.endswith(".pt"):  # a checkpoint for --model: what makes a package
                         raise FileFormatError(
                             "is a training checkpoint, not a model package",
                             path=path,

@@ -108,7 +108,7 @@ def _effects_option(text, base=None, *, check_only: bool = False):
     type=_format_choice(),
     help="Output format (see segadeform.io.formats; abc needs the 'alembic' extra).",
 )
-@click.option("--model", type=PathParam(file_okay=False, path_type=Path), help="Model package directory.")
+@click.option("--model", type=PathParam(file_okay=False, path_type=Path, package=True), help="Model package directory.")
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")
 @click.option("--fps", type=float, help="Resample the motion to this frame rate.")
 @click.option(

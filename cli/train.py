@@ -113,7 +113,7 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
         click.echo(f"trained {info['steps']} steps in {info['train_seconds']:.0f} s -> {final}")
     chosen = info.get("chosen") or {}
     if chosen.get("step") is not None and chosen.get("val_vertex") is not None:  # which network model.pt is
-        split = chosen.get("val_split", "validation")
+        split = chosen.get("val_split") or "validation"
         click.echo(
             f"model.pt is step {chosen['step']}: the lowest '{split}' vertex error, "
             f"{100 * float(chosen['val_vertex']):.2f} cm"

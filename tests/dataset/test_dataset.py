@@ -1523,3 +1523,15 @@ def test_a_run_stopped_before_simulating_leaves_the_folder_as_it_was(tmp_path):
         make_dataset(load_dataset_config(cm), tmp_path / "cm", body_path=body, sim_python=never)
     assert "--units cm" in str(e.value) and "--force" not in str(e.value)
     assert not (tmp_path / "cm").exists()
+    # a retry stopped there keeps the rejected attempts where they were: they are put aside (rejected/retried/)
+    # only once the run goes on to simulate (a review: the rollback removed them, moved before the garments)
+    cfg = load_dataset_config(cm)
+    sid = sample_plan(cfg)[0].id
+    old = tmp_path / "old"
+    (old / "rejected").mkdir(parents=True)
+    (old / "rejected" / f"{sid}.json").write_text(json.dumps({"id": sid, "status": "rejected"}))
+    (old / "rejected" / f"{sid}.npz").write_bytes(b"an earlier attempt")
+    with pytest.raises(InputError, match="does not sit on the body"):
+        make_dataset(cfg, old, body_path=body, sim_python=never, retry=("*",))
+    assert (old / "rejected" / f"{sid}.npz").read_bytes() == b"an earlier attempt"
+    assert sorted(p.name for p in (old / "rejected").iterdir()) == [f"{sid}.json", f"{sid}.npz"]

@@ -412,6 +412,20 @@ def test_samples_of_another_body_are_refused_wherever_they_are_read(tmp_path, bo
     assert Pack(out).body_sha256 == theirs
     with pytest.raises(InputError, match="different bodies"):
         DatasetRoots([tmp_path / "ds", out])
+    # dataset make into a folder of another body's samples, given as the command line gives it (a Location): refused
+    # before anything is written (a review: the check looked at str and Path outputs only)
+    from segadeform.dataset import load_dataset_config, make_dataset
+    from segadeform.io.location import open_location
+    from tests.conftest import SAMPLES
+
+    before = sorted(p.name for p in (tmp_path / "ds2").rglob("*"))
+    with pytest.raises(InputError, match="another body than the one given"):
+        make_dataset(
+            load_dataset_config(SAMPLES / "datasets" / "tiny.toml"),
+            open_location(tmp_path / "ds2"),
+            sim_python=tmp_path / "no-simulator",
+        )
+    assert sorted(p.name for p in (tmp_path / "ds2").rglob("*")) == before
     _save(tmp_path / "ds2", "c", body, split="test", body_sha256=ours)
     with pytest.raises(InputError, match="mixes samples of several bodies"):
         write_pack(tmp_path / "ds2", tmp_path / "p" / "c.sgdpack", body=body)

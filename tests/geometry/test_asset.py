@@ -143,6 +143,7 @@ def test_flat_broken_and_repeated_faces_leave_the_garments_shape_as_it_was(rest_
     bad = np.concatenate([f, [[a, b, mid], [a, a, b], f[7], f[9, ::-1]]])
     got = precompute_garment(v2, bad, rest_joints, n_star=16)
     assert got.faces.shape == (len(f) + 4, 3)  # kept as given
+    assert got.params["n_components"] == clean.params["n_components"] == 1  # the flat face's vertex is no piece
     np.testing.assert_array_equal(surface_faces(v2, bad), f)
     np.testing.assert_allclose(got.descriptor, clean.descriptor, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(got.features[: len(v)], clean.features)

@@ -92,6 +92,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..bounds import check_betas
 from ..errors import FileFormatError, InputError
 from ..garments import GARMENT_KINDS, WAISTBAND_KINDS, GarmentParams
 from ..io.toml import key, read_table, read_toml
@@ -501,6 +502,7 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
             or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in betas)
         ):
             raise FileFormatError(f"bodies[{i}] must be {{betas = [numbers], split = train|val|test}}", path=p, got=b)
+        check_betas(betas, path=p, what=f"bodies[{i}].betas")  # (found when its garment was made, the file unnamed)
         bodies.append(tuple(float(x) for x in betas))
         body_splits.append(_split(b, p, f"bodies[{i}]"))
     for g in garments:

@@ -992,8 +992,9 @@ def make_dataset(
     # samples of another body neither count as done nor mix with new ones (checked before anything is written)
     if extra is not None:
         extra.check_body(body)
-    if isinstance(out, (str, Path)) and any(next(Path(out, d).glob("*.json"), None) for d in ("samples", "rejected")):
-        DatasetRoots([out]).check_body(body)
+    mine = out.root if isinstance(out, LocalLocation) else out  # (the command line gives a Location)
+    if isinstance(mine, (str, Path)) and any(next(Path(mine, d).glob("*.json"), None) for d in ("samples", "rejected")):
+        DatasetRoots([mine]).check_body(body)
     undo = _Undo(out)  # what a run that stops before simulating anything leaves: nothing (a user's trial)
     try:
         loc = open_location(out)
@@ -1035,16 +1036,16 @@ def make_dataset(
         todo = again + todo
         if limit is not None:
             todo = todo[:limit]
-        for p in todo[: len(again)]:  # the old attempt is put aside, not lost; this run makes the sample anew
-            _retire_rejected(loc.root, p.id)  # type: ignore[attr-defined]  (a LocalLocation: checked above)
         skipped -= min(len(again), len(todo))
         for gi, bi in sorted({(p.garment, p.body) for p in todo}):  # garments first, in this process: no races
             _garment_file(loc, cfg, gi, bi, body)
-    except BaseException as e:
+    except BaseException:
         undo.rollback()
-        if isinstance(e, InputError) and e.path is None and cfg.path is not None:
-            raise e.with_path(cfg.path) from None  # ("betas out of range" named no file)
         raise
+    # the old attempts are put aside, not lost, once nothing before the simulation can stop the run (the rollback
+    # above removes what the run added: a retired attempt moved under rejected/retried/ would be among it)
+    for p in todo[: len(again)]:  # this run makes the sample anew
+        _retire_rejected(loc.root, p.id)  # type: ignore[attr-defined]  (a LocalLocation: checked above)
     own = executor is None
     ex = LocalExecutor(jobs) if own else executor
     tasks = [

@@ -198,7 +198,31 @@ def write_pack(
     have = set()
     for p in skip:
         have |= set(p.entries)
-    entries, blender_versions, digests, bodies = {}, set(), set(), set()
+    entries, blender_versions, digests = {}, set(), set()
+    # the body the samples were simulated on, checked before anything is compressed (their records)
+    bodies = set()
+    for folder_name in SAMPLE_FOLDERS if include_rejected else ("samples",):
+        for meta_p in sorted((root / folder_name).glob("*.json")) if (root / folder_name).is_dir() else []:
+            try:
+                rec = json.loads(meta_p.read_text())
+            except (OSError, ValueError):
+                continue  # (load_sample names an unreadable record when the sample is packed)
+            if isinstance(rec, dict) and rec.get("body_sha256"):
+                bodies.add(str(rec["body_sha256"]))
+    label = body_label(body)
+    if len(bodies) > 1:
+        raise InputError(
+            "the dataset mixes samples of several bodies; pack each apart",
+            path=root,
+            got=", ".join(sorted(b[:12] for b in bodies)),
+        )
+    if bodies and bodies != {label["sha256"]}:  # the head must say the body the samples were made on
+        raise InputError(
+            "the samples were simulated on another body than the one given (--body)",
+            path=root,
+            expected=f"the body of sha256 {next(iter(bodies))[:12]}",
+            got=f"{label['name'] or 'a body'} (sha256 {label['sha256'][:12]})",
+        )
     counts = {"samples": 0, "rejected": 0}
     skipped = 0
     with atomic_path(out) as tmp:
@@ -222,8 +246,6 @@ def write_pack(
                         blender_versions.add(str(m["blender"]))
                     if m.get("config_digest"):
                         digests.add(str(m["config_digest"]))
-                    if m.get("body_sha256"):
-                        bodies.add(str(m["body_sha256"]))
                     entries[sid] = {
                         "folder": folder_name,
                         "split": m.get("split"),
@@ -244,20 +266,6 @@ def write_pack(
                     "the dataset mixes samples of several Blender versions; pack each apart",
                     path=root,
                     got=", ".join(sorted(blender_versions)),
-                )
-            label = body_label(body)
-            if len(bodies) > 1:
-                raise InputError(
-                    "the dataset mixes samples of several bodies; pack each apart",
-                    path=root,
-                    got=", ".join(sorted(b[:12] for b in bodies)),
-                )
-            if bodies and bodies != {label["sha256"]}:  # the head must say the body the samples were made on
-                raise InputError(
-                    "the samples were simulated on another body than the one given (--body)",
-                    path=root,
-                    expected=f"the body of sha256 {next(iter(bodies))[:12]}",
-                    got=f"{label['name'] or 'a body'} (sha256 {label['sha256'][:12]})",
                 )
             bridges = {e["sim_bridge"] for e in entries.values()}
             if len(bridges) > 1:

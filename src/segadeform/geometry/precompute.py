@@ -13,7 +13,7 @@ from .descriptor import DEFAULT_N_STAR, garment_descriptor
 from .features import vertex_features
 from .geodesic import DEFAULT_GEODESIC, GeodesicSolver
 from .graph import DEFAULT_MAX_K, neighbour_graph
-from .mesh_ops import surface_faces, vertex_normals
+from .mesh_ops import connected_components, surface_faces, vertex_normals
 
 __all__ = ["precompute_garment", "PRECOMPUTE_VERSION"]
 
@@ -60,7 +60,8 @@ def precompute_garment(
         "n_star": int(n_star),
         "geodesic": geodesic,
         "segadeform_version": __version__,
-        "n_components": int(solver.n_components),
+        # the garment's pieces by all its faces (a vertex that only a flat face holds is not a piece of its own)
+        "n_components": connected_components(f, v.shape[0])[0],
         "precompute": PRECOMPUTE_VERSION,
     }
     return GarmentAsset(

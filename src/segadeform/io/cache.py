@@ -27,7 +27,7 @@ DEFAULT_MAX_MB = 1024
 #: the names of the cache's entries (content hashes): garment assets, encoder outputs (P-), body weights at a
 #: garment (W-), cloth setups (C-).  prune and `cache clear` remove these only: $SEGADEFORM_CACHE_DIR may name
 #: a folder that holds the user's own files too, and no command deletes a file it did not write.
-_ENTRY = re.compile(r"^(?:asset-[0-9a-f]{16,}(?:-n\d+)?\.npz|[A-Z]-[0-9a-f]{16,}\.np[yz])$")
+_ENTRY = re.compile(r"^(?:asset-[0-9a-f]{16,}(?:-n\d+)?(?:-p\d+)?\.npz|[A-Z]-[0-9a-f]{16,}\.np[yz])$")
 
 
 def is_entry(name: str) -> bool:

@@ -56,8 +56,11 @@ def triangulate_polygon(poly: np.ndarray) -> np.ndarray:
     return np.stack([np.full(k - 2, poly[0]), poly[idx], poly[idx + 1]], axis=1)
 
 
-def validate_mesh_arrays(vertices, faces, *, path=None, allow_no_faces: bool = False):
+def validate_mesh_arrays(vertices, faces, *, path=None, allow_no_faces: bool = False, bounded: bool = False):
     """Check and convert mesh arrays; return ``(vertices float64, faces int64)``.
+
+    ``bounded`` (the readers): every coordinate within :data:`segadeform.bounds.MAX_POSITION` (10 km) of the origin;
+    the writers leave it out (a run's frames near a 10 km root translation are its own).
 
     Shapes:
         vertices: (N, 3), N >= 1, all finite
@@ -75,7 +78,7 @@ def validate_mesh_arrays(vertices, faces, *, path=None, allow_no_faces: bool = F
     if not np.isfinite(v).all():
         bad = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
         raise InputError(f"vertex {bad} has a non-finite coordinate", path=path, got=v[bad].tolist())
-    if v.size and np.abs(v).max() > MAX_POSITION:
+    if bounded and v.size and np.abs(v).max() > MAX_POSITION:  # (readers: a frame written near 10 km is the run's)
         bad = int(np.flatnonzero((np.abs(v) > MAX_POSITION).any(axis=1))[0])
         raise InputError(
             f"vertex {bad} lies beyond 10 km of the origin (another unit?)",

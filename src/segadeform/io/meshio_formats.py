@@ -75,7 +75,7 @@ def read_meshio(path: str | os.PathLike, file_format: str | None = None) -> Mesh
             origin.append(np.full(len(t), n_poly))
             n_poly += 1
     f = np.concatenate(faces) if faces else np.zeros((0, 3), np.int64)
-    v, f = validate_mesh_arrays(pts, f, path=p)
+    v, f = validate_mesh_arrays(pts, f, path=p, bounded=True)
     return Mesh(
         vertices=v, faces=f, path=str(p), face_origin=np.concatenate(origin) if origin else np.zeros(0, np.int64)
     )

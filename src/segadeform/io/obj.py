@@ -286,7 +286,9 @@ def read_obj(path: str | os.PathLike) -> Mesh:
             path=p,
             line=cut_at,
         )
-    v, f = validate_mesh_arrays(np.asarray(verts, dtype=np.float64), np.asarray(tris, dtype=np.int64), path=p)
+    v, f = validate_mesh_arrays(
+        np.asarray(verts, dtype=np.float64), np.asarray(tris, dtype=np.int64), path=p, bounded=True
+    )
     col = None
     if all(c is not None for c in colors):
         col = np.asarray(colors, dtype=np.float64)

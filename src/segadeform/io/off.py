@@ -92,5 +92,5 @@ def read_off(path: str | os.PathLike) -> Mesh:
         for j in range(1, cnt - 1):
             tris.append((idx[0], idx[j], idx[j + 1]))
             origin.append(k)
-    v, f = validate_mesh_arrays(verts, np.asarray(tris, np.int64), path=p)
+    v, f = validate_mesh_arrays(verts, np.asarray(tris, np.int64), path=p, bounded=True)
     return Mesh(vertices=v, faces=f, path=str(p), face_origin=np.asarray(origin, np.int64))

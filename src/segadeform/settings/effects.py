@@ -131,7 +131,7 @@ DEFAULT_EFFECTS = Effects()
 EFFECT_NAMES = ("dynamics", "wrinkles", "collisions", "cloth")
 
 
-def parse_effects(text: str, base: Effects = DEFAULT_EFFECTS) -> Effects:
+def parse_effects(text: str, base: Effects = DEFAULT_EFFECTS, *, warn: bool = True) -> Effects:
     """Parse a CLI effects list (the rule of this module's :func:`parse_effect_list`, shared with
     ``simulate --effects``).
 
@@ -140,12 +140,14 @@ def parse_effects(text: str, base: Effects = DEFAULT_EFFECTS) -> Effects:
     * every item signed (``"-wrinkles,+collisions"``, ``"dqs,-wrinkles"``: ``lbs``/``dqs`` may join
       either form): ``base`` with those effects switched on or off.
 
-    ``collision_margin`` and the cloth stage's knobs are kept from ``base`` in both forms.
+    ``collision_margin`` and the cloth stage's knobs are kept from ``base`` in both forms.  ``warn``: say a change
+    that does nothing (``-collisions`` with the cloth stage on; a caller that parses the same text again says it
+    there).
     """
     lst = parse_effect_list(text, EFFECT_NAMES, [n for n in EFFECT_NAMES if getattr(base, n)], choices=("lbs", "dqs"))
     skinning = lst.choices[-1] if lst.choices else ("lbs" if lst.complete else base.skinning)
     out = dataclasses.replace(base, skinning=skinning, **{n: n in lst.on for n in EFFECT_NAMES})
-    if out.cloth and not out.collisions and "-collisions" in [t.strip() for t in str(text).split(",")]:
+    if warn and out.cloth and not out.collisions and "-collisions" in [t.strip() for t in str(text).split(",")]:
         # (a user's trial: "+cloth,-collisions" ran as "+cloth", unsaid)
         log.warning(
             "effects %s: -collisions changes nothing while the cloth stage runs (its contact replaces the push-out)",

@@ -342,7 +342,7 @@ def load_scene(path: str | os.PathLike, *, effects: str | None = None, sim_effec
             effects = Effects(**plain, cloth_settings=ClothSettings(**knobs))
         except ValueError as e:
             raise FileFormatError(f"[effects]: {e}", path=p, line=_effects_line(p, plain, knobs)) from None
-        on = parse_effects(effects_text, effects) if effects_text is not None else effects  # what will run
+        on = parse_effects(effects_text, effects, warn=False) if effects_text is not None else effects  # what runs
         # a knob is refused only when its stage is off both in the scene and after the command line's change: a
         # scene may keep the knobs of a stage the command line turns on (--effects=+cloth) or off (--effects=-cloth,
         # as --quality fast does: a user's trial found -cloth refused with a hint to set what the file already set)
