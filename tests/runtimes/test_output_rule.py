@@ -198,7 +198,7 @@ def test_signed_effects_change_the_runs_defaults_as_in_segadeform_run(
     )
     assert r.returncode == 1 and "mix a complete list with changes" in r.stderr
     # refused by every runtime alike; an empty list too ("" kept the scene's effects, " , " turned all off)
-    for twice in ("+wrinkles,-wrinkles", "lbs,dqs", "", " , "):
+    for twice in ("+wrinkles,-wrinkles", "lbs,dqs", "dqs,dqs", "lbs,-cloth,lbs", "", " , "):
         r = subprocess.run(
             [*base, f"--effects={twice}", "-o", str(tmp_path / "x.pc2")], capture_output=True, text=True, timeout=300
         )

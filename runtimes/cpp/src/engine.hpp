@@ -320,6 +320,8 @@ inline Effects parse_effects(const std::string& text, const Effects& base) {
   const bool lbs = std::find(picked.begin(), picked.end(), "lbs") != picked.end();
   const bool dqs = std::find(picked.begin(), picked.end(), "dqs") != picked.end();
   if (lbs && dqs) throw std::runtime_error("name one skinning (expected lbs or dqs, got both)");
+  if (picked.size() > 1)
+    throw std::runtime_error("effects name " + picked.front() + " twice (expected each effect once, got " + text + ")");
   e.skinning = !picked.empty() ? picked.back() : complete ? "lbs" : base.skinning;
   return e;
 }

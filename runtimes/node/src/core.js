@@ -163,6 +163,7 @@ export function parseEffects(text, base = null) {
     on[name] = item[0] !== "-";
   }
   if (picked.includes("lbs") && picked.includes("dqs")) throw new Error("name one skinning (expected lbs or dqs, got both)");
+  if (picked.length > 1) throw new Error(`effects name ${picked[0]} twice (expected each effect once, got ${text})`);
   on.skinning = picked.length ? picked[picked.length - 1] : complete ? "lbs" : base.skinning;
   return on;
 }

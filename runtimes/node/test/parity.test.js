@@ -35,6 +35,7 @@ test("effects lists read as `segadeform run --effects` reads them", () => {
   // one effect named twice: which is meant? (Python, Node and C++ refuse it alike)
   assert.throws(() => parseEffects("+wrinkles,-wrinkles", base), /effects name wrinkles twice/);
   assert.throws(() => parseEffects("cloth,cloth"), /effects name cloth twice/);
+  assert.throws(() => parseEffects("dqs,dqs"), /effects name dqs twice/); // a skinning too (Python refused it first)
 });
 
 test("effects are named by `segadeform run`'s rule: the cloth stage in collisions' place", () => {
