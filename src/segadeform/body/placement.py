@@ -421,8 +421,12 @@ def check_placement(vertices, body_vertices, body_faces, *, forceable: bool = Tr
     except InputError as e:
         if forceable:
             raise
-        drop = lambda t: None if t is None else str(t).replace(", or pass --force", "").replace(", or --force", "")  # noqa: E731
-        raise type(e)(drop(e.problem), path=e.path, line=e.line, expected=drop(e.expected), got=e.got) from None
+
+        def drop(t: str) -> str:
+            return t.replace(", or pass --force", "").replace(", or --force", "")
+
+        expected = None if e.expected is None else drop(str(e.expected))
+        raise type(e)(drop(e.problem), path=e.path, line=e.line, expected=expected, got=e.got) from None
 
 
 check_placement.__doc__ = _check_placement.__doc__
