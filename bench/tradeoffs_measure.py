@@ -176,34 +176,25 @@ def plan_rows(
         + [f"backstop={k:g}" for k in cloth_backstop if k != ClothSettings().backstop]
         + [ClothSettings.parse(k).label() for k in cloth_knobs]
     )
+
+    def cloth_row(r: Row, c: str, m: float = 0.004, suffix: str = "") -> Row:
+        return dataclasses.replace(
+            r,
+            name=f"{r.name} + cloth {c}{suffix}",
+            knob="cloth",
+            setting=f"{r.name}, the cloth stage ({c}), contact at {_mm(m)}",
+            margin=m,
+            base=r.name,
+            cloth=c,
+        )
+
     # every setting on "all effects"; the defaults on every other effects row (as the push-out at 4 mm), so that
     # the stage can be compared with the push-out on the rows the presets use
     for r in [r for r in rows if r.knob == "effects"]:
-        for c in cloths if r.name == "all effects" else ["default"]:
-            rows.append(
-                dataclasses.replace(
-                    r,
-                    name=f"{r.name} + cloth {c}",
-                    knob="cloth",
-                    setting=f"{r.name}, the cloth stage ({c}), contact at 4 mm",
-                    margin=0.004,
-                    base=r.name,
-                    cloth=c,
-                )
-            )
-    for m in cloth_margins:  # the contact margin (run --collision-margin with the stage), at the defaults
-        r = next(r for r in rows if r.name == "all effects")
-        rows.append(
-            dataclasses.replace(
-                r,
-                name=f"all effects + cloth default, contact {_mm(m)}",
-                knob="cloth",
-                setting=f"all effects, the cloth stage (default), contact at {_mm(m)}",
-                margin=m,
-                base=r.name,
-                cloth="default",
-            )
-        )
+        rows += [cloth_row(r, c) for c in (cloths if r.name == "all effects" else ["default"])]
+    all_effects = next(r for r in rows if r.name == "all effects")
+    # the contact margin (run --collision-margin with the stage), at the defaults
+    rows += [cloth_row(all_effects, "default", m, f", contact {_mm(m)}") for m in cloth_margins]
     presets = {}
     for name, p in QUALITY_PRESETS.items():
         key = preset_key(p.effects)

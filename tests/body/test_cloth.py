@@ -432,6 +432,19 @@ def _box(lo, hi):
     return np.asarray(lo, float) + (v + 0.5) * (np.asarray(hi, float) - np.asarray(lo, float)), f
 
 
+def _panel_through_a_limb(bottom: float, top: float):
+    """A box "limb" (z from ``bottom`` to ``top``) through the middle of a flat panel at z = 0 (the network's skirt
+    through a thigh), a second box just under the panel's end at x < -0.15 (the body it lies on).
+    Shapes: -> body vertices (16, 3), body faces (24, 3), panel vertices (N, 3), panel faces (F, 3)."""
+    sv, sf = _box((-0.45, -0.25, -0.2), (-0.15, 0.25, -0.006))
+    lv, lf = _box((0.0, -0.1, bottom), (0.2, 0.1, top))
+    xs, ys = np.arange(-0.4, 0.3501, 0.025), np.arange(-0.2, 0.2001, 0.025)
+    v = np.array([[x, y, 0.0] for y in ys for x in xs])
+    nx = len(xs)
+    f = np.array([t for j in range(len(ys) - 1) for i in range(nx - 1) for t in _quad(j * nx + i, nx)])
+    return np.concatenate([sv, lv]), np.concatenate([sf, lf + 8]), v, f
+
+
 def test_the_backstop_takes_a_limb_through_a_panel_out_on_one_side():
     """A box "limb" through the middle of a still, flat panel (the network's skirt through a thigh), a second box
     just under the panel's attached end (the body it lies on).  Without the backstop every vertex is pushed out
@@ -441,14 +454,8 @@ def test_the_backstop_takes_a_limb_through_a_panel_out_on_one_side():
     limb's top, and the largest stretch falls (its mean over the frames after the first: in this still scene without
     gravity the panel over the limb's corner does not settle, and its largest stretch moves between 1.0 and 2.1 from
     frame to frame).  Kernel and reference agree."""
-    sv, sf = _box((-0.45, -0.25, -0.2), (-0.15, 0.25, -0.006))
-    lv, lf = _box((0.0, -0.1, -0.06), (0.2, 0.1, 0.14))
-    body_v, body_f = np.concatenate([sv, lv]), np.concatenate([sf, lf + 8])
+    body_v, body_f, v, f = _panel_through_a_limb(-0.06, 0.14)
     col = BodyCollider(body_v, body_f)
-    xs, ys = np.arange(-0.4, 0.3501, 0.025), np.arange(-0.2, 0.2001, 0.025)
-    v = np.array([[x, y, 0.0] for y in ys for x in xs])
-    nx = len(xs)
-    f = np.array([t for j in range(len(ys) - 1) for i in range(nx - 1) for t in _quad(j * nx + i, nx)])
     deep = col.query(v, body_v).signed_distance < -ClothSettings().backstop
     assert deep.sum() > 20
     targets, posed = np.repeat(v[None], 6, 0), np.repeat(body_v[None], 6, 0)
@@ -480,14 +487,8 @@ def test_the_backstop_goes_by_the_targets_depth_not_the_predictions():
     closest exits the next, over and over: 25-40 mm steps every frame of a still scene, never settling (a jacket's
     panel in a hip under a karate form flipped front to back every other frame).  By the target's depth every deep
     target is traced on every frame it is deep and the panel settles.  Kernel and reference agree."""
-    sv, sf = _box((-0.45, -0.25, -0.2), (-0.15, 0.25, -0.006))
-    lv, lf = _box((0.0, -0.1, -0.1), (0.2, 0.1, 0.06))
-    body_v, body_f = np.concatenate([sv, lv]), np.concatenate([sf, lf + 8])
+    body_v, body_f, v, f = _panel_through_a_limb(-0.1, 0.06)
     col = BodyCollider(body_v, body_f)
-    xs, ys = np.arange(-0.4, 0.3501, 0.025), np.arange(-0.2, 0.2001, 0.025)
-    v = np.array([[x, y, 0.0] for y in ys for x in xs])
-    nx = len(xs)
-    f = np.array([t for j in range(len(ys) - 1) for i in range(nx - 1) for t in _quad(j * nx + i, nx)])
     knobs = ClothSettings(gravity=0.0)
     setup = cloth_setup(v, f, np.where(v[:, 0] < -0.15, 0.0, 1.0), knobs)  # attached over the other box
     deep = (col.query(v, body_v).signed_distance < -knobs.backstop) & (setup.radius > 0)
