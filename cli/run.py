@@ -319,6 +319,12 @@ def run_cmd(
             sc = dataclasses.replace(sc, effects=dataclasses.replace(sc.effects, collision_margin=collision_margin))
         except ValueError as e:
             raise click.BadParameter(str(e), param_hint="--collision-margin") from None
+        if collision_margin > 0.05:  # metres: 0.5 held the cloth half a metre off the body, unsaid (a user's trial)
+            click.echo(
+                f"warning: --collision-margin {collision_margin:g} holds the garment {100 * collision_margin:g} cm off "
+                "the body (metres; the default is 0.004)",
+                err=True,
+            )
     prov = None
     if providers:
         prov = "auto" if providers == "auto" else [p.strip() for p in providers.split(",") if p.strip()]

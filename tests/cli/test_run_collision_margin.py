@@ -44,6 +44,10 @@ def test_the_margin_is_the_scenes_knob(tmp_path):
     )
     assert r.exit_code == 0, r.output
     np.testing.assert_array_equal(np.asarray(read_pc2(tmp_path / "sc4.pc2").frames), a)
+    assert "warning" not in r.output
+    # a margin a user would not mean is said (0.5 m held the garment half a metre off the body, unsaid: a user's trial)
+    r, _ = _run(tmp_path, "far", "--collision-margin", "0.5")
+    assert r.exit_code == 0 and "warning: --collision-margin 0.5 holds the garment 50 cm off the body" in r.output
 
 
 def test_a_bad_margin_or_no_stage_to_use_it_is_refused_before_any_output(tmp_path):
