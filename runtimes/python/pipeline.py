@@ -218,6 +218,18 @@ class Run:
                     expected=f"a garment descriptor of {n_star} values",
                     got=asset.descriptor.shape[0],
                 )
+            # its body weights made with another model's weight prior: refused, as the Node and C++ runtimes refuse
+            # it (this runtime recomputed them and played the file they refuse: a developer's trial)
+            if self.deformer.needs_body_weights and asset.log_wbody is not None and isinstance(asset.body, dict):
+                want = self.deformer.weight_prior
+                got = str(asset.body.get("weight_prior") or "nearest")
+                if got != want:
+                    raise InputError(
+                        f"the garment asset's log_wbody was made with the {got} weight prior, the model wants {want}",
+                        path=self.garment,
+                        expected=f"an asset from segadeform garment export {asset.source_name or 'GARMENT'} --model "
+                        f"{self.package.path}",
+                    )
             return asset
         # read (and so checked: its extension, its contents) whether or not the cache has it: a cache entry is
         # keyed by the file's bytes, and must not make a file that fails to read (an OBJ renamed .txt) run

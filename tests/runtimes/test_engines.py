@@ -118,6 +118,29 @@ def test_runtime_animates_the_garment_asset_and_motion_like_segadeform_run(
     assert own.shape == s["frames"].shape and np.isfinite(own).all() and not np.allclose(own, s["frames"])
 
 
+def test_segadeform_run_refuses_an_asset_of_another_weight_prior_as_the_runtimes_do(
+    portable_scene, random_package, tmp_path
+):
+    """An asset whose body weights were made with another model's weight prior: Node and C++ refuse it (below);
+    `segadeform run` recomputed them and played the file (a developer's trial: checked with the Python runtime,
+    refused by the embedded library)."""
+    import dataclasses
+
+    from click.testing import CliRunner
+
+    from segadeform.cli.main import cli
+    from segadeform.geometry import GarmentAsset
+
+    a = GarmentAsset.load(portable_scene["garment"])
+    dataclasses.replace(a, body=dict(a.body, weight_prior="inpaint")).save(tmp_path / "inpaint.sgda")
+    out = tmp_path / "x.pc2"
+    args = ["run", "--model", str(random_package), "--motion", str(portable_scene["motion"]), "-o", str(out)]
+    r = CliRunner().invoke(cli, [*args, "--garment", str(tmp_path / "inpaint.sgda")])
+    assert r.exit_code == 1 and "made with the inpaint weight prior, the model wants nearest" in r.output, r.output
+    assert "segadeform garment export" in r.output and not out.exists()
+    assert CliRunner().invoke(cli, [*args, "--garment", str(portable_scene["garment"])]).exit_code == 0
+
+
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
 def test_runtime_refuses_what_it_cannot_run(runtime, request, portable_scene, random_package, tmp_path):
     exe = request.getfixturevalue(runtime)
