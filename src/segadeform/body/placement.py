@@ -271,7 +271,6 @@ def _check_placement(
     betas=(),
     recorded_betas=None,
     faces=None,
-    forceable: bool = True,
 ) -> dict:
     """Refuse a garment that does not sit on the (rest) body, naming the likely cause and the fix.
 
