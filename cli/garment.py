@@ -41,6 +41,7 @@ def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, res
     """Make a KIND garment dressed on the body in rest pose (kinds: see `segadeform garment kinds`)."""
     from segadeform.body import default_body_path, load_body
     from segadeform.garments import GarmentParams, check_garment, make_garment
+    from segadeform.garments.make import GarmentCheckError
     from segadeform.io import Mesh, write_obj
     from segadeform.io.output_guard import OutputGuard
 
@@ -48,14 +49,17 @@ def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, res
     guard.file(output)
     b = _betas(betas)
     bm = load_body(body or default_body_path())
-    g = make_garment(
-        kind,
-        bm,
-        b,
-        GarmentParams(
-            length=length, flare=flare, ease=ease, sleeve=sleeve, resolution=resolution, waist_ease=waist_ease
-        ),
-    )
+    try:
+        g = make_garment(
+            kind,
+            bm,
+            b,
+            GarmentParams(
+                length=length, flare=flare, ease=ease, sleeve=sleeve, resolution=resolution, waist_ease=waist_ease
+            ),
+        )
+    except GarmentCheckError as e:  # the garment made failed its check: named by the file it was to be
+        raise e.with_path(output) from None
     info = check_garment(g.vertices, g.faces, bm, b)
     write_obj(output, Mesh(vertices=g.vertices, faces=g.faces), header=g.header())
     guard.record()

@@ -74,6 +74,35 @@ def test_resolution_picks_the_refinement(body):
     )
 
 
+def test_a_small_ease_stays_outside_the_body_at_every_resolution(body):
+    """A user's trial: `garment make jumpsuit --ease 0.005 --resolution 6000` was refused with 2 vertices inside the
+    body: flat midpoints of one subdivision sank 1.3 mm into the groin.  Midpoints inside are pushed out; every other
+    vertex is where it was."""
+    from segadeform.garments.resample import subdivide
+
+    proxy = BodyProxy(body.shaped_vertices()[0], body.faces)
+    coarse = make_garment("jumpsuit", body, params=GarmentParams(ease=0.005))
+    fine = make_garment("jumpsuit", body, params=GarmentParams(ease=0.005, resolution=6000))
+    flat, faces = subdivide(coarse.vertices, coarse.faces)
+    assert (fine.faces == faces).all() and fine.vertices.shape == flat.shape
+    assert (proxy.query(fine.vertices).signed_distance > 0).all()
+    moved = (fine.vertices != flat).any(1)
+    assert 0 < moved.sum() < 20 and (proxy.query(flat[moved]).signed_distance < 0).all()
+
+
+def test_cli_garment_make_names_a_garment_inside_the_body(tmp_path, capsys, monkeypatch):
+    """A garment that fails its check is one line naming the file it was to be, the kind, and what to change."""
+    import segadeform.garments.make as gm
+
+    monkeypatch.setattr(gm, "_offset", lambda v, f, proxy, ease: v)  # no ease at all: on the (smoothed) skin
+    out = tmp_path / "g" / "x.obj"
+    assert main(["garment", "make", "skirt", "--ease", "0.005", "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(out) in err and "skirt" in err, err
+    assert "inside the body" in err and "expected a larger ease than 0.005 m" in err, err
+    assert not out.exists()
+
+
 def test_garments_follow_the_body_shape(body):
     a = make_garment("trousers", body)
     b = make_garment("trousers", body, betas=[1.0, 0.5])
