@@ -27,24 +27,45 @@ def garment_group():
 @click.option("-o", "--output", required=True, type=PathParam(dir_okay=False, path_type=Path), help="Output OBJ.")
 @click.option("--body", type=PathParam(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option("--betas", help="Comma-separated body shape coefficients.")
-@click.option("--length", type=float, help="Skirt hem / trouser leg length, 0..1 of hip-to-ankle.")
-@click.option("--flare", type=float, default=0.25, show_default=True, help="Skirt widening at the hem.")
+@click.option(
+    "--length",
+    type=float,
+    help="Skirts and dresses: hem height; trousers, shorts, jumpsuit: leg covered; 0..1 of hip-to-ankle.",
+)
+@click.option("--flare", type=float, help="Skirts and dresses: widening at the hem (default 0.25).")
 @click.option("--ease", type=float, default=0.015, show_default=True, help="Metres between skin and cloth.")
-@click.option("--sleeve", type=float, help="Sleeve length, 0..1 of shoulder-to-wrist.")
-@click.option("--resolution", type=int, help="Target vertex count (picks the refinement level).")
+@click.option(
+    "--sleeve", type=float, help="tshirt, sleeved-dress, jacket, jumpsuit: sleeve length, 0..1 of shoulder-to-wrist."
+)
+@click.option(
+    "--resolution",
+    type=int,
+    help="Target vertex count: picks the refinement level nearest it (each about 4x the vertices); below the "
+    "kind's coarsest level (1,000-5,000 vertices) that level is made, with a warning.",
+)
 @click.option(
     "--waist-ease",
     type=float,
     help="Trousers, shorts, skirts: metres at the waistband, tapering to --ease 8 cm below it (default: --ease).",
 )
 def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, resolution, waist_ease):
-    """Make a KIND garment dressed on the body in rest pose (kinds: see `segadeform garment kinds`)."""
+    """Make a KIND garment dressed on the body in rest pose (kinds: see `segadeform garment kinds`).
+
+    An option the kind does not use (--sleeve for a tank, --flare for trousers) is refused."""
     from segadeform.body import default_body_path, load_body
-    from segadeform.garments import GarmentParams, check_garment, make_garment
+    from segadeform.errors import InputError
+    from segadeform.garments import KIND_PARAMS, GarmentParams, check_garment, make_garment
     from segadeform.garments.make import GarmentCheckError
     from segadeform.io import Mesh, write_obj
     from segadeform.io.output_guard import OutputGuard
 
+    shape = {"length": length, "flare": flare, "sleeve": sleeve, "waist_ease": waist_ease}
+    if kind in KIND_PARAMS:  # an unknown kind is the library's error
+        takes = ("ease", *KIND_PARAMS[kind], "resolution")
+        for name, value in shape.items():
+            if value is not None and name not in takes:  # it changed nothing, yet was recorded in the OBJ
+                opts = ", ".join("--" + n.replace("_", "-") for n in takes)
+                raise InputError(f"--{name.replace('_', '-')} does not apply to {kind}; it takes: {opts}")
     guard = OutputGuard("garment make", inputs=(body,))
     guard.file(output)
     b = _betas(betas)
@@ -54,15 +75,19 @@ def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, res
             kind,
             bm,
             b,
-            GarmentParams(
-                length=length, flare=flare, ease=ease, sleeve=sleeve, resolution=resolution, waist_ease=waist_ease
-            ),
+            GarmentParams(ease=ease, resolution=resolution, **{k: v for k, v in shape.items() if v is not None}),
         )
     except GarmentCheckError as e:  # the garment made failed its check: named by the file it was to be
         raise e.with_path(output) from None
     info = check_garment(g.vertices, g.faces, bm, b)
     write_obj(output, Mesh(vertices=g.vertices, faces=g.faces), header=g.header())
     guard.record()
+    if resolution is not None and info["vertices"] > 2 * resolution:  # the nearest level is within 2x of any other
+        click.echo(
+            f"warning: --resolution {resolution} is below the coarsest {kind} ({info['vertices']:,} vertices), "
+            "which was made",
+            err=True,
+        )
     click.echo(
         f"{kind} ({g.type}): {info['vertices']} vertices, {info['faces']} triangles, "
         f"{info['boundary_loops']} openings, clearance >= {1e3 * info['min_clearance']:.1f} mm -> {output}"

@@ -142,6 +142,43 @@ def test_cli_garment_make(tmp_path, capsys):
     assert "unknown garment kind" in capsys.readouterr().err
 
 
+def test_cli_garment_make_refuses_what_the_kind_does_not_use(tmp_path, capsys):
+    """A user's trial: `garment make tank --sleeve 0.5` and `trousers --flare 0.5` made the default garment and
+    recorded sleeve=0.5 / flare=0.5 in it.  One line naming the option and what the kind takes, nothing written."""
+    out = tmp_path / "x.obj"
+    for kind, opt, takes in (
+        ("tank", "--sleeve", "--ease, --resolution"),
+        ("trousers", "--flare", "--ease, --length, --waist-ease, --resolution"),
+        ("tshirt", "--length", "--ease, --sleeve, --resolution"),
+    ):
+        assert main(["garment", "make", kind, opt, "0.5", "-o", str(out)]) == 1
+        err = capsys.readouterr().err
+        assert err == f"Error: {opt} does not apply to {kind}; it takes: {takes}\n", err
+        assert not out.exists()
+    # the coarsest level is made for a smaller target, and said
+    assert main(["garment", "make", "tank", "--resolution", "200", "-o", str(out)]) == 0
+    n = len(read_obj(out).vertices)
+    assert f"warning: --resolution 200 is below the coarsest tank ({n:,} vertices)" in capsys.readouterr().err
+    assert "resolution=200" in out.read_text()[:300]
+
+
+def test_kind_params_are_what_each_kind_uses(body):
+    """:data:`KIND_PARAMS` (what `garment make` refuses by): a parameter a kind does not list leaves its garment as it
+    is, one it lists changes it."""
+    from segadeform.garments import KIND_PARAMS
+
+    assert set(KIND_PARAMS) == set(GARMENT_KINDS)
+    other = {"length": 0.5, "flare": 0.6, "sleeve": 0.6, "waist_ease": 0.006}
+    for kind, uses in KIND_PARAMS.items():
+        base = make_garment(kind, body).vertices
+        for name, value in other.items():
+            if name == "waist_ease" and name not in uses:
+                continue  # refused by make_garment itself
+            v = make_garment(kind, body, params=GarmentParams(**{name: value})).vertices
+            changed = v.shape != base.shape or not np.array_equal(v, base)
+            assert changed == (name in uses), (kind, name)
+
+
 #: bounds on the garment edges (hems, necklines, armholes, cuffs, waistbands): the turning angle at a
 #: boundary vertex (measured on the default body: at most 23 degrees, 28 on the jacket's front corners;
 #: a cut along the body's triangles turns 87-106 degrees) and, for planar loops, the total curvature

@@ -3,11 +3,21 @@
 See :mod:`.make` for the kinds and their parameters.
 """
 
-from .make import GARMENT_KINDS, GARMENT_TYPES, WAISTBAND_KINDS, Garment, GarmentParams, check_garment, make_garment
+from .make import (
+    GARMENT_KINDS,
+    GARMENT_TYPES,
+    KIND_PARAMS,
+    WAISTBAND_KINDS,
+    Garment,
+    GarmentParams,
+    check_garment,
+    make_garment,
+)
 
 __all__ = [
     "GARMENT_KINDS",
     "GARMENT_TYPES",
+    "KIND_PARAMS",
     "WAISTBAND_KINDS",
     "Garment",
     "GarmentParams",

@@ -71,6 +71,7 @@ __all__ = [
     "waistband_ease",
     "WAIST_TAPER",
     "WAISTBAND_KINDS",
+    "KIND_PARAMS",
 ]
 
 GARMENT_TYPES = {
@@ -90,6 +91,20 @@ _J = {n: i for i, n in enumerate(SMPL_JOINT_NAMES)}
 WAIST_TAPER = 0.08
 #: kinds whose top edge is a waistband (``waist_ease`` applies)
 WAISTBAND_KINDS = ("skirt", "trousers", "shorts")
+#: the shape parameters each kind uses besides ``ease``, ``resolution`` and ``subdivisions`` (every kind's); see
+#: :func:`_region` and the skirt's extrusion (``flare``).  :func:`make_garment` ignores the others (dataset configs
+#: draw ``length`` and ``flare`` for T-shirts, and their sample specs hold them); ``garment make`` refuses them
+KIND_PARAMS = {
+    "skirt": ("length", "flare", "waist_ease"),
+    "dress": ("length", "flare"),
+    "sleeved-dress": ("length", "flare", "sleeve"),
+    "tshirt": ("sleeve",),
+    "tank": (),
+    "jacket": ("sleeve",),
+    "trousers": ("length", "waist_ease"),
+    "shorts": ("length", "waist_ease"),
+    "jumpsuit": ("length", "sleeve"),
+}
 
 
 class GarmentCheckError(InputError):
