@@ -10,6 +10,9 @@ from segadeform.io.writer import UP_AXES
 
 from .main import PathParam, cli
 
+#: frames a PNG strip holds side by side (at the default size, 2,880 pixels wide); more are evenly spaced to these
+PNG_FRAMES = 8
+
 
 @cli.command("preview")
 @click.argument("result", type=PathParam(path_type=Path))
@@ -31,13 +34,20 @@ from .main import PathParam, cli
     "--output",
     required=True,
     type=PathParam(dir_okay=False, path_type=Path),
-    help="preview.png (a strip of frames), .gif or .mp4 (needs ffmpeg).",
+    help=f"preview.png (a strip of at most {PNG_FRAMES} frames, evenly spaced over those chosen), .gif or .mp4 "
+    "(needs ffmpeg; every frame chosen).",
 )
 @click.option(
     "--frames",
     help="Frame range A:B, in the result's own frame numbers (a run of --frames 10:40 starts at 10; default: all).",
 )
-@click.option("--every", type=click.IntRange(min=1), default=1, show_default=True, help="Render every Nth frame.")
+@click.option(
+    "--every",
+    type=click.IntRange(min=1),
+    default=1,
+    show_default=True,
+    help=f"Render every Nth frame (a PNG keeps {PNG_FRAMES} of them, evenly spaced, when there are more).",
+)
 @click.option(
     "--view",
     type=click.Choice(["front", "side", "back", "three-quarter", "turntable"]),
@@ -140,9 +150,13 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         )
     idx = list(range(a - first, b - first, every))
     az = {"front": 0.0, "side": 90.0, "back": 180.0, "three-quarter": 30.0, "turntable": 0.0}[view]
+    angles = [az + (360.0 * k / max(len(idx), 1) if view == "turntable" else 0.0) for k in range(len(idx))]
+    chosen = len(idx)
+    if ext == ".png" and chosen > PNG_FRAMES:  # chosen before rendering (all were rendered, then 8 kept, unsaid)
+        pick = np.linspace(0, chosen - 1, PNG_FRAMES).round().astype(int)
+        idx, angles = [idx[i] for i in pick], [angles[i] for i in pick]
     pts = G[idx] if B is None else np.concatenate([G[idx], B[idx]], axis=1)
     # one scale for the whole animation (the largest frame), the camera following the subject
-    angles = [az + (360.0 * k / max(len(idx), 1) if view == "turntable" else 0.0) for k in range(len(idx))]
     boxes = [fit_bounds(p, azimuth=ang, size=(w, h)) for p, ang in zip(pts, angles, strict=True)]
     half = max(max(bx[0][1] - bx[0][0], bx[1][1] - bx[1][0]) / np.array([w, h]).max() for bx in boxes) / 2
     images = []
@@ -156,11 +170,14 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
             render(layers, azimuth=angles[k], size=(w, h), bounds=bounds, title=f"{result.name}  frame {first + t}")
         )
     if ext == ".png":
-        if len(images) > 8:
-            pick = np.linspace(0, len(images) - 1, 8).round().astype(int)
-            images = [images[i] for i in pick]
         save_image(output, np.concatenate(images, axis=1))
     else:
         save_animation(output, images, fps if fps is not None else 30.0 / every)
     guard.record()
-    click.echo(f"{len(images)} frames rendered -> {output}")
+    if len(images) < chosen:
+        click.echo(
+            f"{len(images)} of the {chosen} frames chosen rendered, evenly spaced (a PNG strip holds {PNG_FRAMES}; "
+            f"a .gif or .mp4 holds them all): frames {', '.join(str(first + t) for t in idx)} -> {output}"
+        )
+    else:
+        click.echo(f"{len(images)} frames rendered -> {output}")

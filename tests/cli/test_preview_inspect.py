@@ -112,6 +112,24 @@ def test_preview_counts_frames_as_the_result_does(tmp_path):
         assert r.exit_code == 0 and "2 frames rendered" in r.output, r.output
 
 
+def test_a_png_strip_says_which_frames_it_keeps(tmp_path):
+    """A user's trial: `preview ... -o x.png --every 12` over 120 frames rendered 10 frames, kept 8 in the strip and
+    said "8 frames rendered": not every 12th frame, unsaid.  The strip's frames are chosen first and named."""
+    frames = _scene(tmp_path, n_frames=20)
+    write_pc2(tmp_path / "s.pc2", frames, start_frame=5)
+    args = ["preview", str(tmp_path / "s.pc2"), "--garment", str(tmp_path / "g.obj"), "--size", "40x30"]
+    r = CliRunner().invoke(cli, args + ["-o", str(tmp_path / "p.png"), "--every", "2"])
+    assert r.exit_code == 0, r.output
+    assert "8 of the 10 frames chosen rendered" in r.output and "frames 5, 7, 11, 13, 15, 17, 21, 23 ->" in r.output
+    from matplotlib.image import imread
+
+    assert imread(tmp_path / "p.png").shape[:2] == (30, 8 * 40)
+    r = CliRunner().invoke(cli, args + ["-o", str(tmp_path / "p.gif"), "--every", "2"])
+    assert r.exit_code == 0 and "10 frames rendered" in r.output, r.output
+    r = CliRunner().invoke(cli, ["preview", "--help"])
+    assert "at most 8 frames" in " ".join(r.output.split())
+
+
 def test_inspect_pc2_bounds_nan_motion(tmp_path):
     _scene(tmp_path)
     r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "g.pc2")])
