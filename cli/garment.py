@@ -17,6 +17,15 @@ def _betas(betas):
         raise click.UsageError(f"--betas must be comma-separated numbers, got {betas!r}") from None
 
 
+def _obj_output(output: Path) -> None:
+    """Refuse an output that is not named .obj (OBJ text went into a file named .pc2: a user's trial), as `preview`
+    refuses a format it does not write: one line, before anything is made."""
+    from segadeform.errors import InputError
+
+    if output.suffix.lower() != ".obj":
+        raise InputError("a garment is written as an OBJ", path=output, expected=".obj", got=output.suffix or "none")
+
+
 @cli.group("garment")
 def garment_group():
     """Procedural garments, and garments made for another body (fit)."""
@@ -59,6 +68,7 @@ def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, res
     from segadeform.io import Mesh, write_obj
     from segadeform.io.output_guard import OutputGuard
 
+    _obj_output(output)
     shape = {"length": length, "flare": flare, "sleeve": sleeve, "waist_ease": waist_ease}
     if kind in KIND_PARAMS:  # an unknown kind is the library's error
         takes = ("ease", *KIND_PARAMS[kind], "resolution")
@@ -161,6 +171,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     from segadeform.io.obj import OWN_COMMENT, betas_record, rewrite_obj_vertices
     from segadeform.io.output_guard import OutputGuard
 
+    _obj_output(output)
     b = _betas(betas)
     try:
         off = tuple(float(x) for x in offset.split(",")) if offset else None

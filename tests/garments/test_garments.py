@@ -162,6 +162,20 @@ def test_cli_garment_make_refuses_what_the_kind_does_not_use(tmp_path, capsys):
     assert "resolution=200" in out.read_text()[:300]
 
 
+def test_cli_garment_make_and_fit_write_only_obj(tmp_path, capsys):
+    """A user's trial: `garment make ... -o made.pc2` and `garment fit ... -o made.pc2` wrote OBJ text into a file
+    named .pc2.  Another name is one line, exit 1, nothing written, before anything is made."""
+    mhclo = SAMPLES / "garments" / "makehuman" / "skirt_short_f.mhclo"
+    for args in (["garment", "make", "skirt"], ["garment", "fit", str(mhclo)]):
+        for name, got in (("made.pc2", ".pc2"), ("made", "none")):
+            out = tmp_path / name
+            assert main([*args, "-o", str(out)]) == 1
+            err = capsys.readouterr().err
+            assert err == f"Error: {out}: a garment is written as an OBJ (expected .obj, got {got})\n", err
+            assert not out.exists()
+    assert main(["garment", "fit", str(mhclo), "-o", str(tmp_path / "made.OBJ")]) == 0
+
+
 def test_kind_params_are_what_each_kind_uses(body):
     """:data:`KIND_PARAMS` (what `garment make` refuses by): a parameter a kind does not list leaves its garment as it
     is, one it lists changes it."""
