@@ -163,7 +163,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
 
     from segadeform.body import default_body_path, load_body
     from segadeform.body.placement import fix_units_and_axes, placement_report, push_off_body
-    from segadeform.bounds import check_body_height
+    from segadeform.bounds import check_betas, check_body_height
     from segadeform.errors import InputError
     from segadeform.garments.registration import edge_distortion, fit_mhclo, fit_to_body_mesh, guess_units_and_up
     from segadeform.io import read_mesh
@@ -173,6 +173,8 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
 
     _obj_output(output)
     b = _betas(betas)
+    if b is not None:
+        b = check_betas(b, what="--betas")
     try:
         off = tuple(float(x) for x in offset.split(",")) if offset else None
         if off is not None and (len(off) != 3 or not np.isfinite(off).all()):
@@ -223,7 +225,10 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     guard = OutputGuard("garment fit", inputs=(garment, mhclo, obj, from_body, body))
     guard.file(output)
     bm = load_body(body or default_body_path())
-    check_body_height(bm, b, force=force)  # a shape no human has (--betas 4: a 2.9 m body), unless meant
+    try:  # a shape no human has (--betas 4: a 2.9 m body), unless meant; named as `run` names it
+        check_body_height(bm, b, force=force)
+    except InputError as e:
+        raise InputError(f"--betas: {e.problem}", expected=e.expected, got=e.got) from None
     try:
         units_v = float(units) if units is not None else None
     except ValueError:

@@ -17,8 +17,9 @@ mesh positions      |x| <= 10 km         the same: a garment or body vertex furt
 shape (betas)       |beta| <= 10 (hard)  the shape space is linear: past about 10 standard
                                          deviations the body folds through itself (beta0 = -20
                                          turns it inside out)
-body height         0.9 .. 2.5 m         a human; betas of about +-3 on the default body reach it
-                    (usual, --force)
+body height         0.9 .. 2.5 m         a human; on the default body beta0 alone reaches it from
+                    (usual, --force)     about -3.8 to +2.57 (the others barely change the height);
+                                         a refusal says how far the betas given may go
 body surface        <= 0.1 % of faces    a shape whose skin folds through itself: within |beta| <= 10
                     turned over, at      a shape can (betas 0,8: 67 of the default body's 27,420
                     least 8 (usual,      faces turned over; 0,5,...,5: 590); shapes drawn from the
@@ -48,6 +49,7 @@ __all__ = [
     "check_translation",
     "check_betas",
     "check_body_height",
+    "height_reach",
     "check_seed",
 ]
 
@@ -129,19 +131,58 @@ def folded_faces(body, betas=None) -> int:
     return int((np.einsum("ij,ij->i", shaped, template) < 0).sum())
 
 
+def _height(body, betas) -> float:
+    return float(np.ptp(body.shaped_vertices(betas)[0][:, 1]))
+
+
+def height_reach(body, betas) -> tuple | None:
+    """The farthest betas along ``betas`` (``t * betas``, ``0 <= t < 1``, each rounded towards 0 to 0.01) whose rest
+    height is within :data:`HEIGHT_RANGE`: what a refusal of ``betas`` states as the limit.  None when ``betas`` is
+    empty or the unshaped body is outside the range itself.
+
+    A vertex's height is linear in the betas, so the height (highest minus lowest) is convex along ``t``: the shapes
+    within the range from ``t = 0`` are one interval, whose end bisection finds.
+    """
+    b = np.asarray(betas if betas is not None else (), np.float64).ravel()
+    lo, hi = HEIGHT_RANGE
+
+    def ok(x) -> bool:
+        return lo <= _height(body, x) <= hi
+
+    if not b.size or not ok(np.zeros_like(b)):
+        return None
+    a, z = 0.0, 1.0
+    for _ in range(40):
+        m = 0.5 * (a + z)
+        a, z = (m, z) if ok(m * b) else (a, m)
+    for _ in range(100):  # rounded towards 0 and still within (rounding moves off the ray)
+        r = np.trunc(a * b * 100.0) / 100.0
+        if ok(r):
+            return tuple(float(x) for x in r)
+        a *= 0.99
+    return None
+
+
+def _betas_text(betas) -> str:
+    return ",".join(f"{float(x):g}" for x in np.ravel(betas))
+
+
 def check_body_height(body, betas=None, *, force: bool = False, path=None) -> float:
     """The rest height (m) of ``body`` shaped by ``betas``.  Outside :data:`HEIGHT_RANGE`, or with more than
     :data:`FOLDED_FACES` of the body's faces turned over (:func:`folded_faces`: the skin folds through itself, which
     shapes well inside ``|beta| <= 10`` do), the shape is refused unless ``force`` (a shape a user may mean, but no
     human has)."""
-    h = float(np.ptp(body.shaped_vertices(betas)[0][:, 1]))
+    h = _height(body, betas)
     lo, hi = HEIGHT_RANGE
     if not force and not lo <= h <= hi:
+        reach = height_reach(body, betas)  # the limit along the betas given (a fixed "+-3" was wrong: 3 is 2.61 m)
         raise InputError(
             "the body shape is not a human's height",
             path=path,
-            expected=f"{lo:g}..{hi:g} m (betas within about +-3), or --force to use it anyway",
-            got=f"{h:.2f} m",
+            expected=f"{lo:g}..{hi:g} m"
+            + (f" (at most betas {_betas_text(reach)} in the direction given)" if reach is not None else "")
+            + ", or --force to use it anyway",
+            got=f"{h:.2f} m" + (f" with betas {_betas_text(betas)}" if betas is not None and len(betas) else ""),
         )
     if not force:
         n, total = folded_faces(body, betas), len(body.faces)

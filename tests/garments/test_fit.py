@@ -698,6 +698,33 @@ def test_garment_fit_refuses_a_second_binding_and_a_body_no_human_has(tmp_path):
     assert r.exit_code == 0 and (tmp_path / "c.obj").is_file()
 
 
+def test_garment_fit_names_betas_no_human_has_and_how_far_they_may_go(tmp_path):
+    """A user's trial: `garment fit X.mhclo --betas 3` said "betas within about +-3" yet refused 3 (2.61 m), without
+    naming the option as `run` does.  The limit stated is the one along the betas given, checked here."""
+    from segadeform.bounds import HEIGHT_RANGE, height_reach
+
+    out = tmp_path / "x.obj"
+    r = CliRunner().invoke(
+        cli, ["garment", "fit", str(SAMPLES / "skirt_short_f.mhclo"), "--betas", "3", "-o", str(out)]
+    )
+    assert r.exit_code == 1 and not out.exists()
+    assert r.output == (
+        "Error: --betas: the body shape is not a human's height (expected 0.9..2.5 m (at most betas 2.57 in the "
+        "direction given), or --force to use it anyway, got 2.61 m with betas 3)\n"
+    ), r.output
+    r = CliRunner().invoke(
+        cli, ["garment", "fit", str(SAMPLES / "skirt_short_f.mhclo"), "--betas", "nan", "-o", str(out)]
+    )
+    assert r.exit_code == 1 and r.output.startswith("Error: --betas must be finite"), r.output
+    body = load_body(default_body_path())
+    height = lambda b: np.ptp(body.shaped_vertices(b)[0][:, 1])  # noqa: E731
+    for betas in ((3.0,), (-5.0, 2.0), (6.0, -6.0)):
+        reach = np.asarray(height_reach(body, betas))
+        assert HEIGHT_RANGE[0] <= height(reach) <= HEIGHT_RANGE[1], betas
+        assert not HEIGHT_RANGE[0] <= height(reach + 0.02 * np.sign(betas)) <= HEIGHT_RANGE[1], (betas, reach)
+    assert height_reach(body, ()) is None
+
+
 def test_check_recorded_shape_pads_with_zeros_and_ignores_a_garment_without_a_record():
     from segadeform.body.placement import check_recorded_shape
 
