@@ -203,6 +203,29 @@ def inspect_cmd(path):
             f"{path}: mesh, {m.n_vertices} vertices, {m.n_faces} triangles, bounds "
             f"{np.round(v.min(0), 4).tolist()} .. {np.round(v.max(0), 4).tolist()}"
         )
+        _mesh_defects(m.vertices, m.faces)
+
+
+def _mesh_defects(vertices, faces) -> None:
+    """One informational line: what of the mesh is not a clean surface (it was read; nothing here is an error)."""
+    from segadeform.geometry.mesh_ops import mesh_defects
+
+    d = mesh_defects(vertices, faces)
+    said = [
+        f"{n} {what}{'' if n == 1 else 's'}{why}"
+        for n, what, why in (
+            (d["duplicated"], "duplicated face", ""),
+            (d["degenerate"], "degenerate triangle", " (flat or a repeated corner)"),
+            (d["isolated"], "isolated vertex", " (in no face)"),
+            (d["non_manifold"], "non-manifold edge", " (in more than two faces)"),
+        )
+        if n
+    ]
+    click.echo(
+        "  " + ", ".join(said)
+        if said
+        else "  no duplicated or degenerate faces, isolated vertices or non-manifold edges"
+    )
 
 
 def _inspect_toml(path) -> None:

@@ -144,6 +144,34 @@ def test_inspect_pc2_bounds_nan_motion(tmp_path):
     assert r.exit_code == 1 and "1 non-finite values (NaN or inf), in 1 frames (2)" in r.output
 
 
+def test_inspect_counts_what_of_a_garment_is_not_a_clean_surface(tmp_path):
+    """A user's trial: `inspect` ("read and validate") said nothing of a duplicated face, a degenerate triangle, an
+    isolated vertex or a non-manifold edge on a garment OBJ.  Each is counted on one informational line (exit 0)."""
+    from segadeform.io import read_obj
+
+    from ..conftest import SAMPLES
+
+    clean = CliRunner().invoke(cli, ["inspect", str(SAMPLES / "garments" / "skirt.obj")])
+    assert clean.exit_code == 0 and clean.output.splitlines()[1] == (
+        "  no duplicated or degenerate faces, isolated vertices or non-manifold edges"
+    ), clean.output
+    g = read_obj(SAMPLES / "garments" / "skirt.obj")
+    v, f = g.vertices, g.faces
+    a, b, c = next(t for t in f.tolist() if ((f == t[0]).any(1) & (f == t[1]).any(1)).sum() == 2)  # a-b: inside
+    # a reversed copy of a face; a flat triangle (a corner at its edge's middle); a vertex of no face; a third face on
+    # its inner edge a-b
+    v = np.concatenate([v, [(v[a] + v[b]) / 2, [5.0, 5.0, 5.0], [0.0, 3.0, 0.0]]])
+    n = len(g.vertices)
+    f = np.concatenate([f, [[c, b, a], [a, b, n], [a, b, n + 2]]])
+    write_obj(tmp_path / "bad.obj", Mesh(vertices=v, faces=f))
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "bad.obj")])
+    assert r.exit_code == 0, r.output
+    assert r.output.splitlines()[1] == (
+        "  1 duplicated face, 1 degenerate triangle (flat or a repeated corner), 1 isolated vertex (in no face), "
+        "1 non-manifold edge (in more than two faces)"
+    ), r.output
+
+
 def test_inspect_reads_the_inputs_run_and_garment_fit_take(tmp_path):
     """`inspect` refused CMU's .amc and .asf and MakeHuman's .mhclo ("unknown mesh file extension"), though `run`
     and `garment fit` read them."""

@@ -93,3 +93,18 @@ def test_boundary_vertices_match_loops():
     v, f = cylinder(10, 5)
     np.testing.assert_array_equal(boundary_vertices(f), np.sort(np.concatenate(boundary_loops(f))))
     assert boundary_vertices(np.array([[0, 1, 2], [1, 0, 2]])).size == 0  # closed two-sided triangle
+
+
+def test_mesh_defects_counts_each_kind_once():
+    from segadeform.geometry.mesh_ops import mesh_defects, surface_faces
+
+    v, f = grid_plane(3, 3)
+    assert mesh_defects(v, f) == {"duplicated": 0, "degenerate": 0, "isolated": 0, "non_manifold": 0}
+    v2 = np.concatenate([v, [[9.0, 9.0, 9.0], [0.5, 0.5, 1.0]]])
+    a, b, c = next(t for t in f.tolist() if ((f == t[0]).any(1) & (f == t[1]).any(1)).sum() == 2)  # a-b: inside
+    # two repeats, a broken face, a third face on the inner edge a-b
+    f2 = np.concatenate([f, [[a, b, c], [c, b, a], [a, a, b], [a, b, len(v) + 1]]])
+    d = mesh_defects(v2, f2)
+    assert d == {"duplicated": 2, "degenerate": 1, "isolated": 1, "non_manifold": 1}, d
+    # the repeats and the broken face alone are no non-manifold edge: they are not surface
+    assert mesh_defects(v2, f2[:-1])["non_manifold"] == 0 and len(surface_faces(v2, f2[:-1])) == len(f)

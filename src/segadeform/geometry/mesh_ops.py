@@ -18,6 +18,7 @@ __all__ = [
     "boundary_vertices",
     "boundary_loops",
     "surface_faces",
+    "mesh_defects",
     "connected_components",
     "adjacency",
 ]
@@ -135,6 +136,39 @@ def boundary_vertices(faces: np.ndarray) -> np.ndarray:
 FLAT = 1e-9
 
 
+def _degenerate(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Faces with a repeated corner or flat (:data:`FLAT`): ``(F,) bool``."""
+    bad = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 2] == f[:, 0])
+    p = v[f]
+    e2 = np.stack([np.sum((p[:, i] - p[:, (i + 1) % 3]) ** 2, axis=1) for i in range(3)], axis=1).max(axis=1)
+    return bad | ~(np.linalg.norm(face_cross(v, f), axis=1) > FLAT * e2)
+
+
+def mesh_defects(vertices: np.ndarray, faces: np.ndarray) -> dict[str, int]:
+    """What of a triangle mesh is not a clean surface, counted (``segadeform inspect`` reports them):
+    ``duplicated`` faces (an earlier face's corners in any order), ``degenerate`` faces (a repeated corner, or flat:
+    :data:`FLAT`), ``isolated`` vertices (in no face) and ``non_manifold`` edges (in more than two faces of
+    :func:`surface_faces`, so a duplicated face alone makes none).
+
+    Shapes:
+        vertices: (N, 3), faces: (F, 3) -> {"duplicated", "degenerate", "isolated", "non_manifold"}: int
+    """
+    v, f = check_mesh(vertices, faces)
+    used = np.zeros(len(v), bool)
+    used[f.ravel()] = True
+    out = {"duplicated": 0, "degenerate": 0, "isolated": int((~used).sum()), "non_manifold": 0}
+    if f.size == 0:
+        return out
+    out["duplicated"] = len(f) - len(np.unique(np.sort(f, axis=1), axis=0))
+    out["degenerate"] = int(_degenerate(v, f).sum())
+    s = surface_faces(v, f)
+    if len(s):
+        e = np.sort(np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [2, 0]]]), axis=1)
+        _, counts = np.unique(e, axis=0, return_counts=True)
+        out["non_manifold"] = int((counts > 2).sum())
+    return out
+
+
 def surface_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """The faces that make the surface: without faces with a repeated corner, flat faces (collinear corners:
     :data:`FLAT`) and repeats of an earlier face's corners in any order (a duplicated or reversed copy).  What the
@@ -149,10 +183,7 @@ def surface_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     f = np.asarray(faces, dtype=np.int64)
     if f.size == 0:
         return f.reshape(0, 3)
-    keep = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
-    p = v[f]
-    e2 = np.stack([np.sum((p[:, i] - p[:, (i + 1) % 3]) ** 2, axis=1) for i in range(3)], axis=1).max(axis=1)
-    keep &= np.linalg.norm(face_cross(v, f), axis=1) > FLAT * e2
+    keep = ~_degenerate(v, f)
     # of repeats, the first kept one stays (a flat or broken first copy does not hide a good repeat)
     idx = np.flatnonzero(keep)
     _, first = np.unique(np.sort(f[idx], axis=1), axis=0, return_index=True)
