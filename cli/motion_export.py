@@ -27,7 +27,12 @@ from .motion import motion_group
 )
 @click.option("--betas", help="Comma-separated body shape coefficients (as for the garment asset).")
 @click.option("--fps", type=float, help="Resample to this frame rate (procedural motions: made at it; default 30).")
-@click.option("--frames", help="Keep frames A:B (B exclusive): the file starts at A, so motion windows start there.")
+@click.option(
+    "--frames",
+    help="Keep frames A:B (B exclusive): the file starts at A with nothing before it, so a player starts there "
+    "afresh: its frames differ from `run --frames A:B`, which looks back before A and steps the collision and cloth "
+    "stages over the frames before it (export from frame 0 for those).",
+)
 @click.option(
     "--up",
     type=click.Choice(["auto", "y", "z"]),
@@ -144,6 +149,13 @@ def motion_export_cmd(
             f"warning: the capture has {settle} leading frames it settles from and {jumps} frames "
             "it jumps to and back from (joints faster than 20 m/s), which throw the cloth about in every runtime; "
             "--repair-glitches rebuilds them",
+            err=True,
+        )
+    if first > int((built.meta or {}).get("start_frame", 0)):  # said, as a user took it for run --frames A:B
+        click.echo(
+            f"note: the file starts at frame {first} with no motion before it: played, its frames differ from "
+            f"`segadeform run --frames {first}:...`, which looks back before frame {first} and steps the collision "
+            "and cloth stages over the frames before it (export from frame 0 for those)",
             err=True,
         )
     click.echo(

@@ -250,3 +250,20 @@ def test_segadeform_reads_the_motion_file_it_exports(tmp_path, capsys):
     (tmp_path / "bad.sgdm").write_bytes(b"hello")
     assert main(["inspect", str(tmp_path / "bad.sgdm")]) == 1
     assert "not a segadeform bundle" in capsys.readouterr().err
+
+
+def test_motion_export_of_a_window_says_it_starts_afresh(tmp_path, capsys):
+    """A window cut by `motion export --frames A:B` has nothing before A, so its frames played are not
+    `run --frames A:B`'s (which looks back before A): said when the file is made, not when it starts at 0
+    (a user's trial took the two for the same)."""
+    from segadeform.cli.main import main
+
+    args = ["motion", "export", "walk", "--seconds", "0.5", "-o"]
+    assert main([*args, str(tmp_path / "a.sgdm"), "--frames", "5:12"]) == 0
+    err = capsys.readouterr().err
+    assert "starts at frame 5 with no motion before it" in err and "run --frames 5:" in err, err
+    assert main([*args, str(tmp_path / "b.sgdm"), "--frames", "0:12"]) == 0
+    assert main([*args, str(tmp_path / "c.sgdm")]) == 0
+    assert "no motion before it" not in capsys.readouterr().err
+    _, meta = read_motion_file(tmp_path / "a.sgdm")
+    assert meta["start_frame"] == 5
