@@ -556,8 +556,8 @@ def test_cloth_pinched_by_a_buried_arm_stays_unless_in_contact():
 def test_the_backstop_leaves_cloth_that_lies_on_the_body_to_its_contacts():
     """A sleeve's hem the network put deep inside the arm, its panel across the arm: the garment's normal runs along
     the arm, so the traced ray came out 10-30 cm away and the stage threw those vertices there for a few frames (a
-    new user's T-shirt walking: 15-17 cm pops).  The hem lies on the arm at rest (attachment radius 1-7 mm), so it is
-    no cloth hanging in front of a limb: the backstop traces only loose vertices (radius >= LOOSE, 1 cm), and these
+    new user's T-shirt walking: 15-17 cm pops).  The hem lies on the arm at rest (attachment radius 5 mm here), so it
+    is no cloth hanging in front of a limb: the backstop traces only loose vertices (radius >= LOOSE, 7 mm), and these
     keep their closest-point contact (out through the arm's side).  The same panel hanging loose is traced -- out of
     the arm's end 15 cm away; not 30 cm away, farther than ``REACH`` (a trace through the torso: dropped, the panel
     left to its contacts).  Kernel and reference agree."""
@@ -576,7 +576,9 @@ def test_the_backstop_leaves_cloth_that_lies_on_the_body_to_its_contacts():
         deep = col.query(v, arm_v).signed_distance < -ClothSettings().backstop
         assert deep.sum() >= 9
         targets, posed = np.repeat(v[None], 3, 0), np.repeat(arm_v[None], 3, 0)
-        for rest_sd, loose in ((knobs.attachment + 0.005, False), (1.0, True)):  # on the arm at rest / hanging away
+        # on the arm at rest / hanging 8 mm off it (loose since ABI 14, which traced it: 3,450 -> 3,315 pops on ten
+        # garment x clip pairs, docs/cloth-eval.md) / hanging away
+        for rest_sd, loose in ((knobs.attachment + 0.005, False), (knobs.attachment + 0.008, True), (1.0, True)):
             setup = cloth_setup(v, f, np.full(len(v), rest_sd), knobs)
             assert ((setup.radius >= LOOSE) == loose).all() and (setup.radius > 0).all()
             stage = ClothStage(setup, arm_v, arm_f, knobs, margin=MARGIN)
@@ -585,7 +587,7 @@ def test_the_backstop_leaves_cloth_that_lies_on_the_body_to_its_contacts():
             assert np.abs(out - ref).max() <= 1e-9 and stage.traced == st["traced"]
             assert (stage.traced > 0) == (loose and end - 0.2 < REACH), (end, loose, stage.traced)
             assert (col.query(out[-1], arm_v).signed_distance >= MARGIN - 1e-9).all()
-            moved[end, loose] = np.abs(out[..., 0] - 0.2).max()  # how far along the arm
+            moved[end, loose] = max(moved.get((end, loose), 0.0), np.abs(out[..., 0] - 0.2).max())  # along the arm
     # out through the arm's side, not along it; loose, out of its near end; not through 30 cm of it
     assert moved[0.35, False] < 0.05 and moved[0.5, False] < 0.05, moved
     assert moved[0.35, True] > 0.14 and moved[0.5, True] < 0.05, moved

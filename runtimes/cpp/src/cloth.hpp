@@ -95,8 +95,8 @@ class Cloth {
   Cloth(const double* rest, int64_t n, const int32_t* faces, int64_t nf, const float* rest_body, int64_t nv,
         const int32_t* body_faces, int64_t nbf, const ClothSettings& settings, double margin, double dt)
       : n_(n), nv_(nv) {
-    if (scl_abi() != 13 || scl_n_settings() != 12)
-      throw std::runtime_error("the cloth kernel is from another version (expected ABI 13, 12 settings)");
+    if (scl_abi() != 14 || scl_n_settings() != 12)
+      throw std::runtime_error("the cloth kernel is from another version (expected ABI 14, 12 settings)");
     if (n < 1 || nv < 1 || nbf < 1) throw std::runtime_error("the cloth stage needs a garment and a body");
     std::vector<double> rb(rest_body, rest_body + 3 * nv);
     std::vector<int64_t> bf(body_faces, body_faces + 3 * nbf), gf(faces, faces + 3 * nf);

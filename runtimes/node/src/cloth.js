@@ -15,7 +15,7 @@ const PASSES = 3; // the final push-out's passes (SCL_PASSES)
 const TINY = 1e-300;
 const MOVED = 1e-6; // metres: a final push-out move counted as one (SCL_MOVED)
 const TRACE = 8; // the backstop's sphere-tracing steps (SCL_TRACE)
-const LOOSE = 0.01; // the backstop traces vertices whose attachment radius is at least this (SCL_LOOSE)
+const LOOSE = 0.007; // the backstop traces vertices whose attachment radius is at least this (SCL_LOOSE)
 const OVERSHOOT = 0.001; // metres past the margin each tracing step aims (SCL_OVERSHOOT)
 const REACH = 0.2; // metres: a backstop trace longer than this went through the torso: dropped (SCL_REACH)
 const SPREAD = 40; // Jacobi sweeps spreading the traced moves (SCL_SPREAD)
@@ -353,8 +353,8 @@ function edgeContact(x, edges, e, sd, cp, cn, k, margin, band) {
 }
 
 /*
- * The backstop (backstop in _cloth.c): when a loose vertex's prediction x (radius >= LOOSE) is deeper than `deep` inside
- * the body (sd, from the frame's contacts with normals cn), the target y's deep free vertices traced out along the
+ * The backstop (backstop in _cloth.c): when a loose vertex's target y (radius >= LOOSE) is deeper than `deep` inside
+ * the body and its prediction x inside (sd, from the frame's contacts with normals cn), the deep targets traced out along the
  * garment's outward normal, the moves spread over the free vertices near them (attached ones keep theirs: 0);
  * yt = y + the spread move and x moved alike.  w: the stage's buffers.  Returns how many vertices were
  * traced out (0: yt and x are untouched).

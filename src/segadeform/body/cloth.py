@@ -108,14 +108,14 @@ TRACE, OVERSHOOT, SPREAD, SPREAD_RADIUS = 8, 0.001, 40, 0.2
 #: jacket's panel in the torso was traced 37 cm out of the back, a pop each frame it was traced and not the next)
 REACH = 0.2
 #: the backstop traces only vertices whose attachment radius is at least this (SCL_LOOSE, metres): cloth lying on the
-#: body at rest (a sleeve's hem on the arm) keeps the closest-point rule
-LOOSE = 0.01
+#: body at rest (a sleeve's hem on the arm, a few millimetres) keeps the closest-point rule (1 cm up to ABI 13)
+LOOSE = 0.007
 #: cosine: contact normals within 60 degrees are on the same side of the body (SCL_AGREE); an edge with both ends
 #: attached gets a contact plane at its middle only where its ends' and its middle's normals agree so
 AGREE = 0.5
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
 SETUP_VERSION = 3
-_ABI = 13
+_ABI = 14
 #: the order of _cloth.c's settings array
 _SETTINGS = (
     "iterations",
