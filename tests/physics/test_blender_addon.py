@@ -15,7 +15,7 @@ import pytest
 from click.testing import CliRunner
 
 from segadeform.cli.main import cli
-from segadeform.io import read_pc2
+from segadeform.io import read_obj, read_pc2
 from segadeform.settings import Y_TO_Z
 
 from ..conftest import REPO, SAMPLES
@@ -295,3 +295,53 @@ def test_addon_follows_a_bone_parent_keeps_the_users_files_and_the_modifier_stac
     assert np.abs(want[-1] - want[0]).max() > 1e-3
     assert "does not sit on the body" in got["off"] and "Force" in got["off"], got["off"]
     assert got["forced"] == ["FINISHED"]
+
+
+ADDON_FRAME = r"""
+import sys, json, os
+import numpy as np
+import bpy
+import addon_utils
+zip_path, exe, bvh, garment, out = sys.argv[1:6]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.preferences.addon_install(filepath=zip_path)
+addon_utils.enable("segadeform_addon", default_set=True)
+bpy.context.preferences.addons["segadeform_addon"].preferences.executable = exe
+addon_utils.enable("io_anim_bvh", default_set=True)
+bpy.ops.import_anim.bvh(filepath=bvh, global_scale=0.01, update_scene_fps=True)
+arm = bpy.context.object
+bpy.ops.wm.obj_import(filepath=garment)
+g = next(o for o in bpy.data.objects if o.type == "MESH")
+sc = bpy.context.scene
+sc.frame_set(sc.frame_start)
+mw = g.matrix_world.copy()
+g.parent, g.parent_type, g.parent_bone = arm, "BONE", arm.pose.bones[0].name
+bpy.context.view_layer.update()
+g.matrix_world = mw
+bpy.context.view_layer.update()
+res = {"placed": [list(mw @ v.co) for v in g.data.vertices]}
+sc.frame_set(12)  # the timeline left at the walk's last frame
+res["pressed_at"] = sc.frame_current
+arm.select_set(True); g.select_set(True)
+bpy.context.view_layer.objects.active = g
+sc.segadeform.output_dir, sc.segadeform.quality = out, "fast"
+res["result"] = sorted(bpy.ops.segadeform.animate_garment())
+res["frame_after"] = sc.frame_current
+print("RESULT" + json.dumps(res))
+"""
+
+
+def test_addon_writes_the_garment_as_placed_at_the_start_frame(sim_python, tmp_path):
+    """A Blender user's trial: a garment parented to a bone was written as it stood at the frame the timeline was on
+    (pressed at frame 20 of a walk: refused as off the body, or 0.28 m off with Force).  Now, pressed at the walk's
+    last frame, garment.obj holds the garment as placed at the scene's start frame (+Y up) and the timeline stays
+    where it was."""
+    zip_path, env = _addon_and_walk(tmp_path)
+    got = _blender(
+        sim_python, ADDON_FRAME, zip_path, SEGADEFORM, tmp_path / "walk.bvh", SAMPLES / "garments" / "dress.obj",
+        tmp_path / "out", env=env,
+    )  # fmt: skip
+    assert got["result"] == ["FINISHED"] and got["pressed_at"] == 12 and got["frame_after"] == 12
+    written = read_obj(tmp_path / "out" / "dress_walk" / "garment.obj").vertices
+    want = np.array(got["placed"]) @ np.array(Y_TO_Z)  # Blender's Z-up world back to +Y up
+    assert np.abs(written - want).max() <= 1e-6

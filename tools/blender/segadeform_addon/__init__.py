@@ -4,7 +4,9 @@ Select a garment mesh and an armature that carries an action, then press *Animat
 view's sidebar (tab *segadeform*).  The operator
 
 1. writes the garment as an OBJ in segadeform's convention (world positions, metres, +Y up, the mesh's
-   vertex order) and the action as a BVH through Blender's own BVH exporter (the action's frame range);
+   vertex order) as it is at the scene's start frame -- where it is placed on the body, whatever frame the
+   timeline shows (the timeline is left where it was) -- and the action as a BVH through Blender's own BVH
+   exporter (the action's frame range);
 2. runs ``segadeform run`` as a subprocess -- the executable is set in the add-on's preferences, the
    effects and the quality preset in the panel -- showing its progress in the status bar and any error
    (segadeform's one ``Error: ...`` line) in Blender's interface;
@@ -101,9 +103,27 @@ def _selection(context):
     return meshes[0], arm, None
 
 
-def write_garment_obj(obj, path):
-    """The mesh's vertices in world space turned to +Y up ((x, y, z) -> (x, z, -y)), faces as they are."""
-    mw = obj.matrix_world
+def _can_move(obj):
+    """Whether anything can move ``obj`` from frame to frame (a parent, animation or a constraint)."""
+    return obj.parent is not None or obj.animation_data is not None or bool(obj.constraints)
+
+
+def world_matrix_at(scene, obj, frame):
+    """``obj``'s world matrix at scene frame ``frame``; the scene's current frame is restored."""
+    if not _can_move(obj):
+        return obj.matrix_world.copy()
+    here, sub = scene.frame_current, scene.frame_subframe
+    try:
+        scene.frame_set(frame)
+        return obj.matrix_world.copy()
+    finally:
+        scene.frame_set(here, subframe=sub)
+
+
+def write_garment_obj(obj, path, matrix=None):
+    """The mesh's vertices in world space (``matrix``, default the object's world matrix now) turned to +Y up
+    ((x, y, z) -> (x, z, -y)), faces as they are."""
+    mw = obj.matrix_world if matrix is None else matrix
     lines = ["# segadeform garment from Blender object " + obj.name]
     for v in obj.data.vertices:
         w = mw @ v.co
@@ -132,7 +152,7 @@ def world_inverses(scene, obj, first, count):
     repeated when nothing can move the object (no parent, animation or constraint)."""
     import numpy as np
 
-    if obj.parent is None and obj.animation_data is None and not obj.constraints:
+    if not _can_move(obj):
         return np.repeat(np.array(obj.matrix_world.inverted(), np.float64)[None], count, axis=0)
     here, sub = scene.frame_current, scene.frame_subframe
     out = np.empty((count, 4, 4))
@@ -297,7 +317,9 @@ class SEGADEFORM_OT_animate_garment(bpy.types.Operator):
         except (OSError, RuntimeError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        write_garment_obj(garment, obj_path)
+        # the garment where it was placed on the body: at the scene's start frame, whatever frame the timeline is
+        # on (a garment parented to a bone moves with it; at frame 20 of a walk it was refused, or 0.28 m off)
+        write_garment_obj(garment, obj_path, world_matrix_at(scene, garment, scene.frame_start))
         # Blender's own BVH exporter, for the armature alone over the action's frames
         for o in context.selected_objects:
             o.select_set(o == arm)
