@@ -57,8 +57,8 @@ def _blender(sim_python, script, *args, env=None, timeout=600):
     return json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
 
 
-def _addon_and_walk(tmp_path):
-    """The add-on's zip built into ``tmp_path``, a 0.4 s walk as ``tmp_path/walk.bvh``, and the environment that
+def _addon_and_walk(tmp_path, seconds=0.4):
+    """The add-on's zip built into ``tmp_path``, a walk (0.4 s) as ``tmp_path/walk.bvh``, and the environment that
     keeps Blender off the user's own add-ons."""
     sys.path.insert(0, str(TOOLS))
     try:
@@ -67,7 +67,7 @@ def _addon_and_walk(tmp_path):
         sys.path.remove(str(TOOLS))
     zip_path = build(tmp_path / "segadeform_addon.zip")
     r = CliRunner().invoke(
-        cli, ["motion", "make", "walk", "--seconds", "0.4", "--fps", "30", "-o", str(tmp_path / "walk.bvh")]
+        cli, ["motion", "make", "walk", "--seconds", str(seconds), "--fps", "30", "-o", str(tmp_path / "walk.bvh")]
     )
     assert r.exit_code == 0, r.output
     return zip_path, dict(os.environ, BLENDER_USER_SCRIPTS=str(tmp_path / "blender-scripts"))
@@ -76,8 +76,9 @@ def _addon_and_walk(tmp_path):
 def test_addon_zip_runs_headless_and_matches_run(sim_python, tmp_path):
     """Install the zip, register, select a garment and an armature with an action, run the operator: it
     exports the garment and the action (Blender's BVH exporter), runs segadeform, and attaches a Mesh Cache.
-    The evaluated garment at three frames is `segadeform run`'s output on the same two files (seen in
-    Blender's Z-up world), within 1e-6 m; a segadeform that cannot start is reported as an error."""
+    The evaluated garment at three frames is `segadeform run`'s output on the same two files (the BVH's units and
+    up axis as the add-on passes them; seen in Blender's Z-up world), within 1e-6 m; a segadeform that cannot
+    start is reported as an error."""
     zip_path, env = _addon_and_walk(tmp_path)
     frames = [1, 6, 12]
     got = _blender(
@@ -108,6 +109,10 @@ def test_addon_zip_runs_headless_and_matches_run(sim_python, tmp_path):
             str(ref),
             "--quality",
             "fast",
+            "--units",
+            "1",
+            "--motion-up",
+            "z",
         ],
     )
     assert r.exit_code == 0, r.output
@@ -285,7 +290,7 @@ def test_addon_follows_a_bone_parent_keeps_the_users_files_and_the_modifier_stac
     r = CliRunner().invoke(
         cli,
         ["run", "--garment", str(folder / "garment.obj"), "--motion", str(folder / "motion.bvh"), "-o",
-         str(tmp_path / "ref.pc2"), "--quality", "fast"],
+         str(tmp_path / "ref.pc2"), "--quality", "fast", "--units", "1", "--motion-up", "z"],
     )  # fmt: skip
     assert r.exit_code == 0, r.output
     want = read_pc2(tmp_path / "ref.pc2").frames.astype(np.float64) @ np.array(Y_TO_Z).T
@@ -345,3 +350,82 @@ def test_addon_writes_the_garment_as_placed_at_the_start_frame(sim_python, tmp_p
     written = read_obj(tmp_path / "out" / "dress_walk" / "garment.obj").vertices
     want = np.array(got["placed"]) @ np.array(Y_TO_Z)  # Blender's Z-up world back to +Y up
     assert np.abs(written - want).max() <= 1e-6
+
+
+ADDON_RIG = r"""
+import sys, json, math, os
+import numpy as np
+import bpy
+import addon_utils
+from mathutils import Matrix
+zip_path, exe, bvh, garment, out = sys.argv[1:6]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.preferences.addon_install(filepath=zip_path)
+addon_utils.enable("segadeform_addon", default_set=True)
+bpy.context.preferences.addons["segadeform_addon"].preferences.executable = exe
+addon_utils.enable("io_anim_bvh", default_set=True)
+sc = bpy.context.scene
+res = {}
+
+def case(name, scale, move):
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o)
+    bpy.ops.import_anim.bvh(filepath=bvh, global_scale=0.01, update_scene_fps=True)
+    arm = bpy.context.object
+    bpy.ops.wm.obj_import(filepath=garment)
+    g = next(o for o in bpy.data.objects if o.type == "MESH")
+    sc.frame_set(1)
+    arm.matrix_world = move @ arm.matrix_world  # the rig and the garment on it moved and turned together
+    g.matrix_world = move @ g.matrix_world
+    arm.scale = scale  # a character of another size: the rig scaled, the garment not
+    bpy.context.view_layer.update()
+    for o in bpy.data.objects:
+        o.select_set(True)
+    bpy.context.view_layer.objects.active = g
+    sc.segadeform.output_dir, sc.segadeform.quality = os.path.join(out, name), "fast"
+    try:
+        res[name] = {"result": sorted(bpy.ops.segadeform.animate_garment())}
+    except RuntimeError as e:
+        res[name] = {"result": str(e)}
+    res[name]["wrote"] = os.path.exists(os.path.join(out, name))
+    turn = np.array(move.to_3x3())
+    for f in range(1, 31, 4):  # the garment's centroid from the hips, in the rig's turned axes
+        sc.frame_set(f)
+        ev = g.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        co = np.empty(len(ev.data.vertices) * 3); ev.data.vertices.foreach_get("co", co)
+        m = np.array(ev.matrix_world)
+        hips = np.array(arm.matrix_world @ arm.pose.bones[0].head)
+        centroid = (co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]).mean(0)
+        res[name].setdefault("offset", []).append(((centroid - hips) @ turn).tolist())
+        res[name].setdefault("hips", []).append(hips.tolist())
+
+case("plain", (1.0, 1.0, 1.0), Matrix())
+case("big", (1.3, 1.3, 1.3), Matrix.Translation((0.5, 0.3, 0.0)) @ Matrix.Rotation(math.radians(30), 4, "Z"))
+case("uneven", (1.0, 1.0, 1.2), Matrix())
+print("RESULT" + json.dumps(res))
+"""
+
+
+def test_addon_garment_follows_the_armatures_hips_at_its_scale(sim_python, tmp_path):
+    """A Blender user's trial: segadeform scaled the add-on's BVH root by the legs' length (1.0968 m per unit), so the
+    garment drifted off the rig (0.15 m at frame 1, 0.33 m after 2.9 s), and the armature's object scale, place and
+    turn were not taken.  Now the add-on passes its BVH's units (metres at the armature's scale) and up axis, and
+    writes the garment in the rig's frame: over a 1 s walk the garment's centroid keeps its offset from the
+    armature's hips within 1 cm, the same for a rig at 1.3 times the size, moved and turned (within 2 mm); a scale
+    that is not uniform is refused before anything is written."""
+    zip_path, env = _addon_and_walk(tmp_path, seconds=1.0)
+    got = _blender(
+        sim_python, ADDON_RIG, zip_path, SEGADEFORM, tmp_path / "walk.bvh", SAMPLES / "garments" / "dress.obj",
+        tmp_path / "out", env=env,
+    )  # fmt: skip
+    plain, big = (np.array(got[k]["offset"]) for k in ("plain", "big"))
+    assert got["plain"]["result"] == ["FINISHED"] and got["big"]["result"] == ["FINISHED"]
+    hips = np.array(got["big"]["hips"])
+    assert np.linalg.norm(hips[-1] - hips[0]) > 0.5  # the rig walks
+    for name, off in (("plain", plain), ("big", big)):
+        drift = np.linalg.norm(off - off[0], axis=1).max()
+        print(f"{name}: the garment's centroid from the hips drifts {drift:.3g} m over the walk")
+        assert drift <= 0.01, (name, off)
+    assert np.abs(big - plain).max() <= 0.002
+    assert "scale is not uniform" in got["uneven"]["result"] and "1.2" in got["uneven"]["result"]
+    assert not got["uneven"]["wrote"]

@@ -3,23 +3,32 @@
 Select a garment mesh and an armature that carries an action, then press *Animate garment* in the 3D
 view's sidebar (tab *segadeform*).  The operator
 
-1. writes the garment as an OBJ in segadeform's convention (world positions, metres, +Y up, the mesh's
-   vertex order) as it is at the scene's start frame -- where it is placed on the body, whatever frame the
-   timeline shows (the timeline is left where it was) -- and the action as a BVH through Blender's own BVH
-   exporter (the action's frame range);
-2. runs ``segadeform run`` as a subprocess -- the executable is set in the add-on's preferences, the
+1. writes the garment as an OBJ in segadeform's convention (metres, +Y up, the mesh's vertex order) in the
+   armature's frame (from its origin, in its turn) as it is at the scene's start frame -- where it is placed
+   on the body, whatever frame the timeline shows (the timeline is left where it was) -- and the action as a
+   BVH through Blender's own BVH exporter (the action's frame range, in the armature's own space);
+2. runs ``segadeform run`` as a subprocess with that BVH's units and up axis (``--units``: metres per unit,
+   the armature's world scale; ``--motion-up``) -- the executable is set in the add-on's preferences, the
    effects and the quality preset in the panel -- showing its progress in the status bar and any error
    (segadeform's one ``Error: ...`` line) in Blender's interface;
 3. attaches the result to the garment: a Mesh Cache modifier playing a PC2 in the garment object's own
-   coordinates (per frame, so a garment parented to a bone or animated itself gets its frames right), its
-   first frame at the action's first frame, placed after the garment's leading deform modifiers and before
-   the first that changes its vertices (a Subdivision Surface then smooths the result).
+   coordinates (per frame, so a garment parented to a bone or animated itself, or an armature moved as an
+   object, gets its frames right), its first frame at the action's first frame, placed after the garment's
+   leading deform modifiers and before the first that changes its vertices (a Subdivision Surface then
+   smooths the result).
 
-The garment is dressed on segadeform's body (its default body, posed by the action), not on the user's own
-mesh: the garment has to sit on that body, as ``segadeform run`` checks; its refusal shows in Blender and the
-panel's *Force* runs it anyway.  Like every segadeform command, the add-on never overwrites a file it did not
-write: its folder's ``.segadeform-outputs.json`` lists what it and ``segadeform run`` wrote there, and any
-other file at one of its names is refused before anything is written.  In a file not saved yet, a relative
+What follows what: segadeform poses *its own default body* with the action -- the body's pelvis on the
+armature's hips (the BVH's root, in metres at the armature's scale, so it travels as the hips do), its joints
+turned as the action turns the bones, on the default body's proportions -- and the garment follows that body.
+The user's character mesh is never read: where the character is built otherwise than the default body (longer
+legs, another girth) its skin can show through the garment or stand off it.  The garment has to sit on the
+default body at rest, standing at the armature's origin, as ``segadeform run`` checks; its refusal shows in
+Blender and the panel's *Force* runs it anyway.  An armature whose scale is not uniform, or that lies on its
+side (neither its +Z nor its +Y axis up), is refused before anything is written.
+
+Like every segadeform command, the add-on never overwrites a file it did not write: its folder's
+``.segadeform-outputs.json`` lists what it and ``segadeform run`` wrote there, and any other file at one of its
+names is refused before anything is written.  In a file not saved yet, a relative
 output folder (the default ``//segadeform``) lies in Blender's temporary folder, which Blender empties on
 exit: save the .blend first to keep the result beside it; the cache's path is stored relative to the .blend
 when Blender's *Default to relative paths* is on (so a copied project folder still plays).
@@ -121,8 +130,8 @@ def world_matrix_at(scene, obj, frame):
 
 
 def write_garment_obj(obj, path, matrix=None):
-    """The mesh's vertices in world space (``matrix``, default the object's world matrix now) turned to +Y up
-    ((x, y, z) -> (x, z, -y)), faces as they are."""
+    """The mesh's vertices through ``matrix`` (default: the object's world matrix now; the add-on's: into the
+    rig's frame, :func:`rig_frame`) turned to +Y up ((x, y, z) -> (x, z, -y)), faces as they are."""
     mw = obj.matrix_world if matrix is None else matrix
     lines = ["# segadeform garment from Blender object " + obj.name]
     for v in obj.data.vertices:
@@ -147,28 +156,68 @@ def read_pc2(path):
     return data, start, rate
 
 
-def world_inverses(scene, obj, first, count):
-    """(count, 4, 4): the inverse of ``obj``'s world matrix at scene frames first, first + 1, ...; one matrix
-    repeated when nothing can move the object (no parent, animation or constraint)."""
+def rig_units_up(matrix):
+    """(metres per unit of the armature's own space -- its world scale --, its up axis for ``segadeform run
+    --motion-up``) from the armature's world matrix: Blender's BVH exporter writes the armature's own space,
+    without the object's transform.  RuntimeError for a scale that is not uniform or an armature on its side."""
+    from mathutils import Vector
+
+    _loc, rot, scale = matrix.decompose()
+    big = max(abs(x) for x in scale)
+    if not min(scale) > 0 or big - min(scale) > 1e-4 * big:
+        got = ", ".join(f"{x:.6g}" for x in scale)
+        raise RuntimeError(
+            f"the armature's scale is not uniform (expected equal positive X, Y and Z scales, got {got}): apply "
+            "its scale (Ctrl+A > Scale) first"
+        )
+    up = rot.to_matrix().transposed() @ Vector((0.0, 0.0, 1.0))  # the world's up in the armature's axes
+    if up.z >= 0.9:
+        return big, "z"
+    if up.y >= 0.9:
+        return big, "y"
+    raise RuntimeError(
+        f"the armature lies on its side (expected its +Z or +Y axis up in the world, got the world's up along "
+        f"({up.x:.2f}, {up.y:.2f}, {up.z:.2f}) of its own axes): stand it up first"
+    )
+
+
+def rig_frame(matrix, up):
+    """segadeform's frame in Blender's world, Z up: the armature's origin and turn, without its scale (segadeform
+    is told the scale by ``--units``), and for an armature whose own +Y is up (``up`` "y") a quarter turn about X
+    (segadeform reads its own +Y as up: the inverse of (x, y, z) -> (x, z, -y))."""
+    from mathutils import Matrix
+
+    loc, rot, _scale = matrix.decompose()
+    m = Matrix.Translation(loc) @ rot.to_matrix().to_4x4()
+    return m @ Matrix(((1, 0, 0, 0), (0, 0, 1, 0), (0, -1, 0, 0), (0, 0, 0, 1))) if up == "y" else m
+
+
+def local_matrices(scene, obj, arm, up, first, count):
+    """(count, 4, 4): the inverse of ``obj``'s world matrix times the rig's frame (:func:`rig_frame` of ``arm``) at
+    scene frames first, first + 1, ...: segadeform's coordinates (Z up) to the object's own; one matrix repeated
+    when nothing can move the object or the armature (no parent, animation or constraint)."""
     import numpy as np
 
-    if not _can_move(obj):
-        return np.repeat(np.array(obj.matrix_world.inverted(), np.float64)[None], count, axis=0)
+    def now():
+        return np.array(obj.matrix_world.inverted() @ rig_frame(arm.matrix_world, up), np.float64)
+
+    if not (_can_move(obj) or _can_move(arm)):
+        return np.repeat(now()[None], count, axis=0)
     here, sub = scene.frame_current, scene.frame_subframe
     out = np.empty((count, 4, 4))
     try:
         for k in range(count):
             scene.frame_set(first + k)
-            out[k] = np.array(obj.matrix_world.inverted(), np.float64)
+            out[k] = now()
     finally:
         scene.frame_set(here, subframe=sub)
     return out
 
 
 def write_local_pc2(inverses, frames, start, path):
-    """segadeform's frames (world, +Y up) as positions in the object's own coordinates, which a Mesh Cache
-    modifier replaces: (x, y, z) -> Blender's (x, -z, y), then ``inverses[k]`` (the inverse of the object's world
-    matrix at the frame sample k shows at; :func:`world_inverses`)."""
+    """segadeform's frames (+Y up) as positions in the object's own coordinates, which a Mesh Cache modifier
+    replaces: (x, y, z) -> Blender's (x, -z, y), then ``inverses[k]`` (segadeform's frame to the object's own at
+    the frame sample k shows at; :func:`local_matrices`)."""
     import numpy as np
 
     world = np.stack([frames[..., 0], -frames[..., 2], frames[..., 1]], axis=-1).astype(np.float64)
@@ -307,6 +356,12 @@ class SEGADEFORM_OT_animate_garment(bpy.types.Operator):
                 "preferences (Edit > Preferences > Add-ons > segadeform)",
             )
             return {"CANCELLED"}
+        try:  # the armature's scale and up axis, for segadeform run's --units and --motion-up
+            rig_at_start = world_matrix_at(scene, arm, scene.frame_start)
+            units, up = rig_units_up(rig_at_start)
+        except RuntimeError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
         root, warning = output_root(settings.output_dir)
         folder = os.path.join(root, bpy.path.clean_name(f"{garment.name}_{action.name}"))
         names = ("garment.obj", "motion.bvh", "garment.pc2", "garment_local.pc2")
@@ -318,8 +373,10 @@ class SEGADEFORM_OT_animate_garment(bpy.types.Operator):
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         # the garment where it was placed on the body: at the scene's start frame, whatever frame the timeline is
-        # on (a garment parented to a bone moves with it; at frame 20 of a walk it was refused, or 0.28 m off)
-        write_garment_obj(garment, obj_path, world_matrix_at(scene, garment, scene.frame_start))
+        # on (a garment parented to a bone moves with it; at frame 20 of a walk it was refused, or 0.28 m off), in
+        # the rig's frame (segadeform's body stands at the armature's origin)
+        place = world_matrix_at(scene, garment, scene.frame_start)
+        write_garment_obj(garment, obj_path, rig_frame(rig_at_start, up).inverted() @ place)
         # Blender's own BVH exporter, for the armature alone over the action's frames
         for o in context.selected_objects:
             o.select_set(o == arm)
@@ -334,7 +391,10 @@ class SEGADEFORM_OT_animate_garment(bpy.types.Operator):
         )
         garment.select_set(True)
         record(folder, names[:2])
+        # the BVH's root in metres as it stands (segadeform otherwise rescales it by the legs' length, and the
+        # garment drifted off the rig: 0.33 m in 2.9 s)
         args = ["run", "--garment", obj_path, "--motion", bvh_path, "-o", pc2_path]
+        args += ["--units", f"{units:.9g}", "--motion-up", up]
         if settings.force:
             args.append("--force")
         if settings.quality != "NONE":
@@ -365,7 +425,8 @@ class SEGADEFORM_OT_animate_garment(bpy.types.Operator):
         if frames.shape[1] != len(garment.data.vertices):
             self.report({"ERROR"}, f"{pc2_path}: {frames.shape[1]} points for {len(garment.data.vertices)} vertices")
             return {"CANCELLED"}
-        write_local_pc2(world_inverses(scene, garment, first, frames.shape[0]), frames, start, local_path)
+        to_local = local_matrices(scene, garment, arm, up, first, frames.shape[0])
+        write_local_pc2(to_local, frames, start, local_path)
         record(folder, names[3:])
         mod = garment.modifiers.get("segadeform") or garment.modifiers.new("segadeform", "MESH_CACHE")
         mod.cache_format = "PC2"
