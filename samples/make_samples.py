@@ -21,10 +21,11 @@ HERE = Path(__file__).resolve().parent
 def write_skirt_obj(path: Path, n_around: int = 64, n_rings: int = 24) -> None:
     """A flared skirt (open tube from the waist to below the knee), written the way DCC
     tools export: quads, a UV seam (one more ``vt`` column than vertices around),
-    ``vn`` normals, groups, a material line, and negative (relative) indices for
-    the second half of the faces."""
+    ``vn`` normals, groups, a ``usemtl`` line, and negative (relative) indices for
+    the second half of the faces.  No ``mtllib`` line: it would name a file that is
+    not shipped (Blender's OBJ importer logs an error for it)."""
     v, _ = frustum(n_around, n_rings, 0.16, 0.34, 1.02, 0.50)
-    lines = ["# segadeform sample: flared skirt, metres, +Y up", "mtllib skirt.mtl", "o skirt", "g skirt_body"]
+    lines = ["# segadeform sample: flared skirt, metres, +Y up", "o skirt", "g skirt_body"]
     lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in v]
     for r in range(n_rings):
         for a in range(n_around + 1):  # UV seam: the first column is repeated at u = 1

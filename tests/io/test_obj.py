@@ -24,6 +24,15 @@ def test_sample_skirt_keeps_vertex_order_and_count(samples):
     assert m.faces.min() == 0 and m.faces.max() == m.n_vertices - 1
 
 
+def test_sample_garments_name_no_missing_file(samples):
+    """A Blender user's trial: skirt.obj named `mtllib skirt.mtl`, a file that is not there (Blender's OBJ importer
+    logs an error on every import).  No sample OBJ names a material library it does not ship."""
+    for obj in sorted((samples / "garments").rglob("*.obj")):
+        for line in obj.read_text(encoding="utf-8").splitlines():
+            if line.startswith("mtllib "):
+                assert (obj.parent / line.split(maxsplit=1)[1]).is_file(), (obj, line)
+
+
 def test_meshio_cannot_read_the_sample_but_we_can(samples):
     import meshio
 
