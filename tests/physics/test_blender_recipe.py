@@ -231,3 +231,82 @@ def test_import_script_keeps_a_relative_cache_through_a_saved_blend(sim_python, 
     want = np.asarray(read_pc2(work / "out" / "dress.pc2").frames[2], np.float64) @ np.array(Y_TO_Z).T
     err = float(np.abs(np.array(got["world"]) - want).max())
     assert err < 1e-6, (err, got["path"])
+
+
+# The script's command line, once per case, each on Blender's startup scene (its cube, light and camera): the exit
+# status, what it wrote to stderr, and the scene's objects (with their modifiers) and meshes afterwards.
+CASES_CHECK = r"""
+import contextlib, io, json, sys, runpy
+import bpy
+tool, cases = sys.argv[1], json.loads(sys.argv[2])
+out = []
+for args in cases:
+    bpy.ops.wm.read_factory_settings()
+    sys.argv = ["blender", "--background", "--python", tool, "--"] + args
+    err, code = io.StringIO(), 0
+    with contextlib.redirect_stderr(err):
+        try:
+            runpy.run_path(tool, run_name="__main__")
+        except SystemExit as e:
+            code = e.code
+    out.append({"exit": code, "stderr": err.getvalue(), "meshes": len(bpy.data.meshes),
+                "objects": sorted([o.name, [m.type for m in o.modifiers]] for o in bpy.data.objects)})
+print("RESULT" + json.dumps(out))
+"""
+
+
+def _import_cases(sim_python, cases):
+    p = subprocess.run(
+        [str(sim_python), "-c", CASES_CHECK, str(TOOL), json.dumps([[str(a) for a in c] for c in cases])],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert p.returncode == 0, p.stderr[-2000:]
+    return json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+
+
+def _strip(tmp_path, name="g", n=50, frames=4, loose=False):
+    """A strip of ``n`` vertices (``loose``: one more, in no face) as NAME.obj and its cache NAME.pc2."""
+    rng = np.random.default_rng(1)
+    v = rng.normal(size=(n + loose, 3))
+    f = np.array([[i, i + 1, i + 2] for i in range(n - 2)])
+    write_obj(tmp_path / f"{name}.obj", Mesh(vertices=v, faces=f))
+    write_pc2(tmp_path / f"{name}.pc2", np.stack([v + 0.01 * k for k in range(frames)]).astype(np.float32))
+    return tmp_path / f"{name}.obj", tmp_path / f"{name}.pc2"
+
+
+STARTUP = [["Camera", []], ["Cube", []], ["Light", []]]
+
+
+def test_import_script_checks_every_input_before_the_scene_changes(sim_python, tmp_path):
+    """A Blender user's trial: a missing cache gave a FileNotFoundError traceback; a cache of another garment's point
+    count, or a missing body cache, left the scene half changed (the default cube deleted, the garment imported
+    without its cache).  Now each is one line naming the file, exit status 1, and Blender's startup scene as it was --
+    also for a cut-short cache and for an OBJ whose vertex in no face Blender's importer drops (the import undone)."""
+    g, gc = _strip(tmp_path)
+    b, bc = _strip(tmp_path, "b", n=30)
+    loose, loose_pc2 = _strip(tmp_path, "loose", loose=True)
+    cut = tmp_path / "cut.pc2"
+    cut.write_bytes(gc.read_bytes()[:-5])
+    cases = {
+        "no cache": (["--garment", g, "--cache", tmp_path / "nope.pc2"], "nope.pc2: no such file"),
+        "no garment": (["--garment", tmp_path / "nope.obj", "--cache", gc], "nope.obj: no such file"),
+        "other count": (["--garment", g, "--cache", bc], "point count does not match"),
+        "no body cache": (
+            ["--garment", g, "--cache", gc, "--body", b, "--body-cache", tmp_path / "nobody.pc2"],
+            "nobody.pc2: no such file",
+        ),
+        "body count": (["--garment", g, "--cache", gc, "--body", b, "--body-cache", gc], "expected 30, got 50"),
+        "cut short": (["--garment", g, "--cache", cut], "PC2 cut short"),
+        "obj as cache": (["--garment", g, "--cache", g], "not a PC2 file"),
+        "loose vertex": (["--garment", loose, "--cache", loose_pc2], "Blender drops vertices that are in no face"),
+    }
+    got = _import_cases(sim_python, [args for args, _ in cases.values()])
+    for (name, (_, want)), res in zip(cases.items(), got, strict=True):
+        lines = res["stderr"].strip().splitlines()
+        assert res["exit"] == 1 and len(lines) == 1 and lines[0].startswith("Error: ") and want in lines[0], (name, res)
+        assert res["objects"] == STARTUP and res["meshes"] == 1, (name, res)  # the cube's mesh alone
+    ok = _import_cases(sim_python, [["--garment", g, "--cache", gc, "--body", b, "--body-cache", bc]])[0]
+    assert ok["exit"] == 0
+    assert ok["objects"] == [["Camera", []], ["Light", []], ["b", ["MESH_CACHE"]], ["g", ["MESH_CACHE"]]]

@@ -22,6 +22,10 @@ instead.  The scene's frame range is set to cover all caches.  A PC2 file does n
 ``--fps`` sets the scene's to the run's (the motion's, or ``run --fps``); without it the scene keeps its own
 (Blender's default is 24) and the script says so.
 
+Errors: every input is checked before the scene changes -- each file there, each cache a whole PC2 with the
+OBJ's vertex count -- and a problem is one line (``Error: FILE: problem (expected X, got Y)``) on stderr, the
+scene left as it was; run headless (``blender -b``) the script then exits with status 1.
+
 Paths: each cache is stored by its absolute path, or relative to the .blend when the file is saved and
 Blender's *Default to relative paths* is on, so saving the .blend elsewhere or copying the project keeps it.
 In a file not saved yet, Blender's untouched default cube (8 vertices at the origin, no modifiers) is removed:
@@ -39,8 +43,18 @@ import bpy
 _PC2_HEADER = struct.Struct("<12siiffi")
 
 
+def _need_file(path: str, what: str) -> None:
+    """RuntimeError unless ``path`` is a file (one line naming it)."""
+    if os.path.isdir(path):
+        raise RuntimeError(f"{path}: a folder (expected {what})")
+    if not os.path.isfile(path):
+        raise RuntimeError(f"{path}: no such file (expected {what})")
+
+
 def pc2_header(path: str) -> dict:
-    """``{"points", "start_frame", "sample_rate", "samples"}`` of a PC2 file."""
+    """``{"points", "start_frame", "sample_rate", "samples"}`` of a PC2 file, checked whole (the header's samples
+    of its points all there)."""
+    _need_file(path, "a PC2 point cache")
     with open(path, "rb") as fh:
         raw = fh.read(_PC2_HEADER.size)
     if len(raw) < _PC2_HEADER.size:
@@ -50,7 +64,38 @@ def pc2_header(path: str) -> dict:
         raise RuntimeError(f"{path}: not a PC2 file (expected magic b'POINTCACHE2\\x00', got {magic!r})")
     if not rate > 0:
         raise RuntimeError(f"{path}: PC2 sampleRate must be positive (expected > 0, got {rate})")
+    if points < 1 or samples < 1:
+        raise RuntimeError(
+            f"{path}: an empty PC2 (expected points and samples, got {points} points, {samples} samples)"
+        )
+    size, want = os.path.getsize(path), _PC2_HEADER.size + 12 * points * samples
+    if size < want:
+        raise RuntimeError(
+            f"{path}: PC2 cut short (expected {want} bytes for {samples} samples of {points} points, got {size})"
+        )
     return {"points": points, "start_frame": float(start), "sample_rate": float(rate), "samples": samples}
+
+
+def obj_vertex_count(path: str) -> int:
+    """The number of ``v`` lines of an OBJ file."""
+    _need_file(path, "an OBJ mesh")
+    with open(path, "rb") as fh:
+        n = sum(1 for line in fh if line[:2] in (b"v ", b"v\t"))
+    if n == 0:
+        raise RuntimeError(f"{path}: no vertices (expected an OBJ mesh, got no 'v' lines)")
+    return n
+
+
+def _check_pair(obj: str, pc2: str | None) -> dict | None:
+    """The OBJ and its cache (PC2 header), checked before anything is imported: files there, the cache whole, the
+    same vertex count."""
+    n = obj_vertex_count(obj)
+    if pc2 is None:
+        return None
+    h = pc2_header(pc2)
+    if h["points"] != n:
+        raise RuntimeError(f"{pc2}: point count does not match {obj} (expected {n}, got {h['points']})")
+    return h
 
 
 def _import_obj(path: str):
@@ -94,12 +139,13 @@ def _remove_default_cube() -> bool:
     return True
 
 
-def _attach_cache(obj, pc2: str, frame_start: float | None):
-    """A Mesh Cache modifier on ``obj`` playing ``pc2``; returns (modifier, first frame, last frame)."""
-    h = pc2_header(pc2)
-    if h["points"] != len(obj.data.vertices):
+def _attach_cache(obj, pc2: str, h: dict, frame_start: float | None):
+    """A Mesh Cache modifier on ``obj`` playing ``pc2`` (``h``: its header); returns (modifier, first frame, last
+    frame)."""
+    if h["points"] != len(obj.data.vertices):  # Blender's importer drops vertices in no face
         raise RuntimeError(
-            f"{pc2}: point count does not match {obj.name} (expected {len(obj.data.vertices)}, got {h['points']})"
+            f"{pc2}: point count does not match {obj.name} as Blender imports it (expected "
+            f"{len(obj.data.vertices)}, got {h['points']}; Blender drops vertices that are in no face)"
         )
     start = h["start_frame"] if frame_start is None else float(frame_start)
     mod = obj.modifiers.new(name="segadeform cache", type="MESH_CACHE")
@@ -128,17 +174,25 @@ def import_result(
     """
     if fps is not None and not (fps > 0 and fps < 1000):
         raise RuntimeError(f"fps must be in (0, 1000) (got {fps})")
+    # every input checked before the scene changes (a missing body cache left a garment without its cache)
+    pairs = [(garment, cache, _check_pair(garment, cache))]
+    if body:
+        pairs.append((body, body_cache, _check_pair(body, body_cache)))
+    objs, spans = [], []
+    before = {c: set(c) for c in (bpy.data.objects, bpy.data.meshes, bpy.data.materials)}
+    try:
+        for path, pc2, h in pairs:
+            ob = _import_obj(path)
+            if pc2 is not None:
+                spans.append(_attach_cache(ob, pc2, h, frame_start)[1:])
+            objs.append(ob)
+    except BaseException:  # what was imported is taken out again: the scene as it was
+        for c, had in before.items():
+            for item in [x for x in c if x not in had]:
+                c.remove(item)
+        raise
     if _remove_default_cube():
         print("segadeform_import: removed Blender's default cube (it stood where the body's legs are)")
-    objs, spans = [], []
-    g = _import_obj(garment)
-    spans.append(_attach_cache(g, cache, frame_start)[1:])
-    objs.append(g)
-    if body:
-        b = _import_obj(body)
-        if body_cache:
-            spans.append(_attach_cache(b, body_cache, frame_start)[1:])
-        objs.append(b)
     first = min(s for s, _ in spans)
     last = max(e for _, e in spans) if frames is None else first + int(frames) - 1
     scene = bpy.context.scene
@@ -179,4 +233,9 @@ def _main(argv):
 
 
 if __name__ == "__main__":
-    _main(sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:])
+    try:
+        _main(sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:])
+    except (RuntimeError, OSError) as e:  # one line; the scene as it was
+        print(f"Error: {e}", file=sys.stderr)
+        if bpy.app.background:
+            sys.exit(1)
