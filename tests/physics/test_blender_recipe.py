@@ -310,3 +310,14 @@ def test_import_script_checks_every_input_before_the_scene_changes(sim_python, t
     ok = _import_cases(sim_python, [["--garment", g, "--cache", gc, "--body", b, "--body-cache", bc]])[0]
     assert ok["exit"] == 0
     assert ok["objects"] == [["Camera", []], ["Light", []], ["b", ["MESH_CACHE"]], ["g", ["MESH_CACHE"]]]
+
+
+def test_import_script_refuses_a_body_cache_without_a_body(sim_python, tmp_path):
+    """A Blender user's trial: `--body-cache B.pc2` without `--body` was ignored without a word.  Refused, one line,
+    the scene as it was."""
+    g, gc = _strip(tmp_path)
+    _, bc = _strip(tmp_path, "b", n=30)
+    res = _import_cases(sim_python, [["--garment", g, "--cache", gc, "--body-cache", bc]])[0]
+    lines = res["stderr"].strip().splitlines()
+    assert res["exit"] == 1 and len(lines) == 1 and "--body-cache needs --body" in lines[0] and "b.pc2" in lines[0]
+    assert res["objects"] == STARTUP

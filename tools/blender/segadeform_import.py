@@ -174,6 +174,8 @@ def import_result(
     """
     if fps is not None and not (fps > 0 and fps < 1000):
         raise RuntimeError(f"fps must be in (0, 1000) (got {fps})")
+    if body_cache and not body:  # (it was ignored without a word)
+        raise RuntimeError(f"{body_cache}: --body-cache needs --body (expected the body OBJ too, got its cache alone)")
     # every input checked before the scene changes (a missing body cache left a garment without its cache)
     pairs = [(garment, cache, _check_pair(garment, cache))]
     if body:
