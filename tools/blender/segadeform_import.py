@@ -13,7 +13,7 @@ the file's +Y-up coordinates and turns the *object* 90 degrees about X), add a M
 the PC2 as segadeform writes it by default (``--up y``: the cache holds object-local positions, like the
 OBJ), frame start = the scene frame where the cache's first sample should show.  Vertex order, count and
 frames line up exactly.  A cache written with ``--up z`` would be rotated a second time by the object's
-rotation: do not use it for this.
+rotation: it is refused (its first frame fits the OBJ far better turned back to +Y up than as it is).
 
 Timing: by default each cache starts at the start frame in its PC2 header (``segadeform run --frames 10:40``
 writes 10, so Blender's frame 10 shows the motion's frame 10) and advances one sample per
@@ -39,6 +39,7 @@ import struct
 import sys
 
 import bpy
+import numpy as np
 
 _PC2_HEADER = struct.Struct("<12siiffi")
 
@@ -76,25 +77,61 @@ def pc2_header(path: str) -> dict:
     return {"points": points, "start_frame": float(start), "sample_rate": float(rate), "samples": samples}
 
 
-def obj_vertex_count(path: str) -> int:
-    """The number of ``v`` lines of an OBJ file."""
+def obj_vertices(path: str) -> np.ndarray:
+    """(N, 3): the ``v`` lines of an OBJ file, in order."""
     _need_file(path, "an OBJ mesh")
+    rows = []
     with open(path, "rb") as fh:
-        n = sum(1 for line in fh if line[:2] in (b"v ", b"v\t"))
-    if n == 0:
+        for no, line in enumerate(fh, 1):
+            if line[:2] in (b"v ", b"v\t"):
+                try:
+                    rows.append([float(x) for x in line.split()[1:4]])
+                except ValueError:
+                    rows.append([])
+                if len(rows[-1]) != 3:
+                    got = line.decode("utf-8", "replace").strip()
+                    raise RuntimeError(f"{path}:{no}: not a vertex (expected 'v X Y Z', got {got!r})")
+    if not rows:
         raise RuntimeError(f"{path}: no vertices (expected an OBJ mesh, got no 'v' lines)")
-    return n
+    return np.array(rows, np.float64)
+
+
+def _fit(rest: np.ndarray, frame: np.ndarray) -> float:
+    """The median distance of ``frame``'s vertices from ``rest``'s, both centred and ``frame`` turned about +Y to
+    fit best (a motion's first frame is posed, anywhere, facing anywhere, but stands as the OBJ does)."""
+    p, q = rest - rest.mean(0), frame - frame.mean(0)
+    u, _, vt = np.linalg.svd(p[:, [0, 2]].T @ q[:, [0, 2]])
+    turn = u @ np.diag([1.0, 1.0 if np.linalg.det(u @ vt) >= 0 else -1.0]) @ vt
+    d = np.concatenate([p[:, [0, 2]] @ turn - q[:, [0, 2]], (p[:, 1] - q[:, 1])[:, None]], axis=1)
+    return float(np.median(np.linalg.norm(d, axis=1)))
+
+
+def check_up_axis(obj: str, rest: np.ndarray, pc2: str, first: np.ndarray) -> None:
+    """Refuse a cache written with ``--up z``: its first frame fits the OBJ far better once turned from Z up to
+    +Y up than as it is (Blender would turn it a second time: metres off).  Measured on segadeform's own runs: a
+    garment's first frame fits its OBJ 7-15 times better the right way up, a body's (rest OBJ in the T-pose)
+    3.5 times."""
+    as_is = _fit(rest, first)
+    turned = _fit(rest, np.stack([first[:, 0], first[:, 2], -first[:, 1]], axis=1))  # (x, y, z) -> (x, z, -y)
+    if as_is > 0.05 and turned < 0.5 * as_is:
+        raise RuntimeError(
+            f"{pc2}: written with --up z (expected a +Y-up cache, as {os.path.basename(obj)}: its first frame lies "
+            f"{100 * turned:.1f} cm from it (median) turned from Z up to +Y up, {100 * as_is:.1f} cm as it is); "
+            "Blender's OBJ import turns the object itself: write the cache with segadeform run's default --up y"
+        )
 
 
 def _check_pair(obj: str, pc2: str | None) -> dict | None:
     """The OBJ and its cache (PC2 header), checked before anything is imported: files there, the cache whole, the
-    same vertex count."""
-    n = obj_vertex_count(obj)
+    same vertex count, the cache +Y up as the OBJ (:func:`check_up_axis`)."""
+    rest = obj_vertices(obj)
     if pc2 is None:
         return None
     h = pc2_header(pc2)
-    if h["points"] != n:
-        raise RuntimeError(f"{pc2}: point count does not match {obj} (expected {n}, got {h['points']})")
+    if h["points"] != len(rest):
+        raise RuntimeError(f"{pc2}: point count does not match {obj} (expected {len(rest)}, got {h['points']})")
+    first = np.fromfile(pc2, "<f4", count=3 * h["points"], offset=_PC2_HEADER.size).reshape(-1, 3)
+    check_up_axis(obj, rest, pc2, first.astype(np.float64))
     return h
 
 
