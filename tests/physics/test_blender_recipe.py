@@ -359,3 +359,34 @@ def test_import_script_refuses_a_cache_written_with_up_z(sim_python, tmp_path):
         assert res["exit"] == 1 and len(lines) == 1 and f"{bad}: written with --up z" in lines[0], res
         assert "--up y" in lines[0] and res["objects"] == STARTUP
     assert got[2]["exit"] == 0 and [m for _, m in got[2]["objects"]].count(["MESH_CACHE"]) == 2, got[2]
+
+
+def test_import_script_plays_a_cache_of_another_sample_rate_and_start(sim_python, tmp_path):
+    """A Blender user's trial: a PC2 with sampleRate 2 and startFrame 10 showed sample 0 at frame 20 (the modifier's
+    frame start was the header's start, while Blender subtracts it after scaling).  Now sample k shows at scene frame
+    start + k * sampleRate, as the header defines it -- for sampleRate 2 from frame 10, 0.5 from frame 3, and 2 from
+    --frame-start 1 -- and the scene's frames cover the samples."""
+    rng = np.random.default_rng(2)
+    v = rng.normal(size=(40, 3))
+    f = np.array([[i, i + 1, i + 2] for i in range(38)])
+    frames = np.stack([v + [0.1 * k, 0.0, 0.0] for k in range(6)]).astype(np.float32)
+    write_obj(tmp_path / "g.obj", Mesh(vertices=v, faces=f))
+    R = np.array(Y_TO_Z)
+    for start, rate, frame_start in ((10.0, 2.0, None), (3.0, 0.5, None), (10.0, 2.0, 1.0)):
+        pc2 = tmp_path / f"s{start:g}_r{rate:g}.pc2"
+        write_pc2(pc2, frames, start_frame=start, sample_rate=rate)
+        first = start if frame_start is None else frame_start
+        shows = [(int(first + k * rate), k) for k in range(6) if float(first + k * rate).is_integer()]
+        args = ["--garment", str(tmp_path / "g.obj"), "--cache", str(pc2)]
+        args += [] if frame_start is None else ["--frame-start", str(frame_start)]
+        p = subprocess.run(
+            [str(sim_python), "-c", CLI_CHECK, str(TOOL), json.dumps(args), json.dumps([s for s, _ in shows])],
+            capture_output=True, text=True, timeout=300,
+        )  # fmt: skip
+        assert p.returncode == 0, p.stderr[-2000:]
+        got = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+        assert (got["frame_start"], got["frame_end"]) == (int(first), int(np.ceil(first + 5 * rate))), got
+        world = got["objects"][str(pc2)]
+        for scene_frame, k in shows:
+            err = np.abs(np.array(world[str(scene_frame)]) @ R - frames).reshape(6, -1).max(1)
+            assert err.argmin() == k and err[k] < 1e-5, (start, rate, frame_start, scene_frame, k, err)

@@ -34,6 +34,7 @@ it stands where the body's legs are.
 
 from __future__ import annotations
 
+import math
 import os
 import struct
 import sys
@@ -188,8 +189,11 @@ def _attach_cache(obj, pc2: str, h: dict, frame_start: float | None):
     mod = obj.modifiers.new(name="segadeform cache", type="MESH_CACHE")
     mod.cache_format = "PC2"
     mod.filepath = _stored_path(pc2)
-    mod.frame_start = start
-    mod.frame_scale = 1.0 / h["sample_rate"]  # scene frames -> samples
+    # Blender shows sample frame_scale * scene frame - frame_start (measured in Blender 5.0; the header's start and
+    # rate are not read): sample k at scene frame start + k * sampleRate (frame_start = start was right only for
+    # a sampleRate of 1)
+    mod.frame_scale = 1.0 / h["sample_rate"]
+    mod.frame_start = start / h["sample_rate"]
     return mod, start, start + max(h["samples"] - 1, 0) * h["sample_rate"]
 
 
@@ -244,8 +248,8 @@ def import_result(
             f"segadeform_import: the scene plays at {rate:g} fps; pass --fps with the run's frame rate "
             "(a PC2 file does not record it) if that is not it"
         )
-    scene.frame_start = int(round(first))
-    scene.frame_end = int(round(last))
+    scene.frame_start = math.floor(first + 1e-6)  # the frames that hold every sample (round(6.5) was 6)
+    scene.frame_end = math.ceil(last - 1e-6)
     scene.frame_set(scene.frame_start)
     return objs
 
