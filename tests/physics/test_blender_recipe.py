@@ -390,3 +390,53 @@ def test_import_script_plays_a_cache_of_another_sample_rate_and_start(sim_python
         for scene_frame, k in shows:
             err = np.abs(np.array(world[str(scene_frame)]) @ R - frames).reshape(6, -1).max(1)
             assert err.argmin() == k and err[k] < 1e-5, (start, rate, frame_start, scene_frame, k, err)
+
+
+OPEN_CHECK = r"""
+import json, sys
+import numpy as np
+import bpy
+bpy.ops.wm.open_mainfile(filepath=sys.argv[1])
+sc = bpy.context.scene
+ob = next(o for o in sc.objects if o.modifiers)
+sc.frame_set(int(sys.argv[2]))
+ev = ob.evaluated_get(bpy.context.evaluated_depsgraph_get())
+co = np.empty(len(ev.data.vertices) * 3); ev.data.vertices.foreach_get("co", co)
+mw = np.array(ev.matrix_world)
+print("RESULT" + json.dumps({"frames": [sc.frame_start, sc.frame_end], "fps": sc.render.fps,
+                             "world": (co.reshape(-1, 3) @ mw[:3, :3].T + mw[:3, 3]).tolist()}))
+"""
+
+
+def test_import_script_saves_the_scene_headless_never_over_a_file(sim_python, tmp_path):
+    """`--save FILE.blend` (a Blender user's trial asked to make the .blend headless): the saved file opens with the
+    cache playing (frame 3 is the cache's sample 2) at the run's rate; a second --save to the same name is refused
+    (one line, exit 1, the file as it was), --force replaces it, with no .blend1 backup beside it; a name not ending
+    .blend, and --force without --save, are refused before the scene changes."""
+    from segadeform.io import read_pc2
+
+    g, gc = _strip(tmp_path, frames=5)
+    out = tmp_path / "saved"
+    out.mkdir()
+    blend = out / "scene.blend"
+    base = ["--garment", g, "--cache", gc, "--fps", "30", "--frame-start", "1"]
+    first, again, forced, not_blend, force_alone = _import_cases(
+        sim_python,
+        [base + ["--save", blend], base + ["--save", blend], base + ["--save", blend, "--force"],
+         base + ["--save", out / "scene.txt"], base + ["--force"]],
+    )  # fmt: skip
+    assert first["exit"] == 0 and again["exit"] == 1, (first, again)
+    lines = again["stderr"].strip().splitlines()
+    assert len(lines) == 1 and "scene.blend: exists; --save never overwrites a file" in lines[0]
+    assert again["objects"] == STARTUP
+    assert forced["exit"] == 0 and sorted(p.name for p in out.iterdir()) == ["scene.blend"]
+    for res, want in ((not_blend, "expected a name ending .blend"), (force_alone, "--force only lets --save")):
+        assert res["exit"] == 1 and want in res["stderr"] and res["objects"] == STARTUP, res
+    p = subprocess.run(
+        [str(sim_python), "-c", OPEN_CHECK, str(blend), "3"], capture_output=True, text=True, timeout=300
+    )
+    assert p.returncode == 0, p.stderr[-2000:]
+    got = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+    assert got["frames"] == [1, 5] and got["fps"] == 30
+    want = np.asarray(read_pc2(gc).frames[2], np.float64) @ np.array(Y_TO_Z).T
+    assert np.abs(np.array(got["world"]) - want).max() < 1e-6

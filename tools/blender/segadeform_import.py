@@ -3,9 +3,12 @@
 Runs inside Blender (GPL-3.0; this script is a separate program, not part of the segadeform package):
 
     blender --python tools/blender/segadeform_import.py -- --garment out/tshirt.obj --cache out/tshirt_walk.pc2 \\
-        [--body out/body_walk.obj --body-cache out/body_walk.pc2] [--frame-start F] [--fps 30]
+        [--body out/body_walk.obj --body-cache out/body_walk.pc2] [--frame-start F] [--fps 30] \\
+        [--save scene.blend [--force]]
 
-or from Blender's Python console / another script: ``import_result(...)``.
+or from Blender's Python console / another script: ``import_result(...)``.  ``blender -b ... --save scene.blend``
+makes the .blend headless (saved whole under a temporary name, then renamed); ``--save`` never replaces an
+existing file without ``--force``.
 
 The recipe (verified in Blender 5.0.1 by ``tests/physics/test_blender_recipe.py``, on synthetic caches and on a
 real ``segadeform run ... --body-out`` output): import the OBJ with Blender's default OBJ importer (it keeps
@@ -27,7 +30,8 @@ OBJ's vertex count -- and a problem is one line (``Error: FILE: problem (expecte
 scene left as it was; run headless (``blender -b``) the script then exits with status 1.
 
 Paths: each cache is stored by its absolute path, or relative to the .blend when the file is saved and
-Blender's *Default to relative paths* is on, so saving the .blend elsewhere or copying the project keeps it.
+Blender's *Default to relative paths* is on, so saving the .blend elsewhere or copying the project keeps it
+(``--save`` from a new file keeps them absolute).
 In a file not saved yet, Blender's untouched default cube (8 vertices at the origin, no modifiers) is removed:
 it stands where the body's legs are.
 """
@@ -205,16 +209,21 @@ def import_result(
     frame_start: float | None = None,
     frames: int | None = None,
     fps: float | None = None,
+    save: str | None = None,
+    force: bool = False,
 ):
     """Import the garment (and body) OBJ, attach the PC2 caches, set the scene's frame range (and rate).
 
     ``frame_start``: the scene frame of every cache's first sample (None: each cache's header start frame).
     ``frames``: the scene's number of frames (None: up to the last sample of the caches).
     ``fps``: the scene's frame rate, the run's (None: the scene's is kept).
+    ``save``: a .blend to save the scene to (an existing file only with ``force``).
     Returns the objects, garment first.
     """
     if fps is not None and not (fps > 0 and fps < 1000):
         raise RuntimeError(f"fps must be in (0, 1000) (got {fps})")
+    if save is not None:
+        _check_save(save, force)
     if body_cache and not body:  # (it was ignored without a word)
         raise RuntimeError(f"{body_cache}: --body-cache needs --body (expected the body OBJ too, got its cache alone)")
     # every input checked before the scene changes (a missing body cache left a garment without its cache)
@@ -251,7 +260,37 @@ def import_result(
     scene.frame_start = math.floor(first + 1e-6)  # the frames that hold every sample (round(6.5) was 6)
     scene.frame_end = math.ceil(last - 1e-6)
     scene.frame_set(scene.frame_start)
+    if save is not None:
+        _save_blend(save)
     return objs
+
+
+def _check_save(path: str, force: bool) -> None:
+    """RuntimeError unless ``path`` is a .blend the scene may be saved to: in a folder that exists, and not there
+    yet unless ``force``."""
+    if os.path.splitext(path)[1].lower() != ".blend":
+        raise RuntimeError(f"{path}: --save writes a .blend (expected a name ending .blend)")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise RuntimeError(f"{path}: no such folder {folder} (expected an existing folder)")
+    if os.path.isdir(path) or (os.path.lexists(path) and not os.path.isfile(path)):
+        raise RuntimeError(f"{path}: exists and is not a file (expected a .blend to write)")
+    if os.path.lexists(path) and not force:
+        raise RuntimeError(f"{path}: exists; --save never overwrites a file (pass --force to replace it)")
+
+
+def _save_blend(path: str) -> None:
+    """Save the scene as ``path`` whole or not at all: a copy under a temporary name beside it, then renamed (no
+    ``.blend1`` backup is made of a file replaced)."""
+    path = os.path.abspath(path)
+    tmp = os.path.join(os.path.dirname(path), f".{os.path.basename(path)}.tmp-{os.getpid()}.blend")
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=tmp, copy=True)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    print(f"segadeform_import: saved {path}")
 
 
 def _main(argv):
@@ -271,8 +310,12 @@ def _main(argv):
     ap.add_argument(
         "--fps", type=float, default=None, help="the scene's frame rate: the run's (default: the scene's is kept)"
     )
+    ap.add_argument("--save", metavar="FILE.blend", help="save the scene as FILE.blend (for a headless run)")
+    ap.add_argument("--force", action="store_true", help="--save may replace an existing file")
     a = ap.parse_args(argv)
-    return import_result(a.garment, a.cache, a.body, a.body_cache, a.frame_start, fps=a.fps)
+    if a.force and not a.save:
+        raise RuntimeError("--force only lets --save replace a file (expected --save FILE.blend, got no --save)")
+    return import_result(a.garment, a.cache, a.body, a.body_cache, a.frame_start, fps=a.fps, save=a.save, force=a.force)
 
 
 if __name__ == "__main__":
