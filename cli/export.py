@@ -59,10 +59,17 @@ def _training_garments_option(default: str):
     help="Also export a deformer for every other combination of skinning, dynamics and wrinkles (--no-variants: "
     "the model's own only, a smaller package whose runtimes refuse the other effects).",
 )
+@click.option(
+    "--body",
+    type=PathParam(dir_okay=False, exists=True, path_type=Path),
+    help="The body the model was trained on (.npz/.pkl), exported as the package's body graphs (default: the "
+    "shipped body).  A checkpoint that records another body is refused: runtimes take the package's body for "
+    "the model's.",
+)
 @_inline_weights_option
 @_training_garments_option("what the checkpoint records")
 def export_cmd(
-    checkpoint, output, random_init, config_json, seed, check, legacy, variants, inline_weights, training_files
+    checkpoint, output, random_init, config_json, seed, check, legacy, variants, body, inline_weights, training_files
 ):
     """Export CHECKPOINT (or --random-init) to an ONNX model package (needs the 'torch' extra)."""
     try:
@@ -76,7 +83,7 @@ def export_cmd(
 
     if (checkpoint is None) == (not random_init):
         raise click.UsageError("give a CHECKPOINT or --random-init (not both)")
-    guard = _package_guard(output, (checkpoint, *training_files))
+    guard = _package_guard(output, (checkpoint, body, *training_files))
     if random_init:
         try:
             overrides = json.loads(config_json) if config_json else {}
@@ -93,6 +100,7 @@ def export_cmd(
         if config_json:
             raise click.UsageError("--config applies to --random-init only (a checkpoint carries its config)")
         model = load_checkpoint(checkpoint)
+    body_model = _export_body(checkpoint, body)
     extra = {}
     garments = _training_garments(training_files, model.cfg.n_star)
     if garments is None and checkpoint is not None:
@@ -111,6 +119,7 @@ def export_cmd(
         variants=variants,
         shared_weights=not inline_weights,
         extra_manifest=extra,
+        body=body_model,
     )
     guard.record()
     click.echo(
@@ -190,6 +199,33 @@ def repack_cmd(package, output, inline_weights, training_files, opset):
         f"{output}: schema {m['schema_version']}, opset {m['opset']}, {len(m['graphs'])} graphs, "
         f"{before / 1e6:.2f} MB -> {_size(output) / 1e6:.2f} MB"
     )
+
+
+def _export_body(checkpoint, body):
+    """The body whose graphs the package gets: ``--body`` or the shipped one, refused when the checkpoint records
+    that it was trained on another (a model trained on a second body was exported with the first's graphs, and
+    runtimes posed the first under it).  A checkpoint that records no body (written before training recorded it,
+    or --random-init) takes the body given."""
+    from segadeform.body import default_body_path, load_body
+    from segadeform.body.identity import body_text, other_body
+    from segadeform.errors import InputError
+
+    b = load_body(body or default_body_path())
+    if checkpoint is None:
+        return b
+    from segadeform.model.network import checkpoint_body
+
+    trained = checkpoint_body(checkpoint)
+    mine = other_body(trained, b)
+    if mine is not None:
+        raise InputError(
+            "the checkpoint was trained on another body than "
+            + ("--body's" if body else "the shipped one (export's default; give its body with --body)"),
+            path=checkpoint,
+            expected=body_text(trained),
+            got=body_text(mine),
+        )
+    return b
 
 
 def _package_guard(output, inputs):

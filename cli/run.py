@@ -164,7 +164,7 @@ def _effects_option(text, base=None, *, check_only: bool = False):
     help="Write into an output folder that holds other files (beside them, never "
     "over a file segadeform did not write: segadeform.io.output_guard), and accept inputs that do not fit "
     "the body: a garment off it, a body no human's height, an asset or motion file made for another "
-    "shape.",
+    "shape, a model package made for another body (--body).",
 )
 @click.option(
     "--body-backend",

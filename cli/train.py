@@ -226,11 +226,12 @@ def ensemble_cmd(checkpoints, output):
         import torch  # noqa: F401
     except ImportError:
         raise click.ClickException("ensemble needs the 'torch' extra: pip install 'segadeform[torch]'") from None
+    from segadeform.body.identity import body_text
     from segadeform.errors import InputError
     from segadeform.io.output_guard import OutputGuard
     from segadeform.model import load_checkpoint, save_checkpoint
     from segadeform.model.ensemble import combine
-    from segadeform.model.network import checkpoint_training_garments
+    from segadeform.model.network import checkpoint_body, checkpoint_training_garments
 
     if output.suffix != ".pt":
         raise click.UsageError(f"the ensemble is a checkpoint: expected OUTPUT.pt, got {output}")
@@ -258,6 +259,16 @@ def ensemble_cmd(checkpoints, output):
                 expected=", ".join(f"{k} = {getattr(base, k)!r}" for k in diff),
                 got=", ".join(f"{k} = {getattr(c, k)!r}" for k in diff),
             )
+    bodies = [checkpoint_body(p) for p in checkpoints]  # the body each was trained on (None: not recorded)
+    known = [(p, b) for p, b in zip(checkpoints, bodies, strict=True) if b is not None]
+    for p, b in known[1:]:
+        if b["sha256"] != known[0][1]["sha256"]:
+            raise InputError(
+                f"it was trained on another body than {known[0][0]} (an ensemble's members share one)",
+                path=p,
+                expected=body_text(known[0][1]),
+                got=body_text(b),
+            )
     ens = combine(models)
     seen: dict = {}  # (name, descriptor) -> openings, in the members' order
     for p in checkpoints:
@@ -267,7 +278,9 @@ def ensemble_cmd(checkpoints, output):
             break
         for i, n in enumerate(t[0]):
             seen.setdefault((n, tuple(float(x) for x in t[1][i])), None if t[2] is None else t[2][i])
-    extra = {"members": [str(p) for p in checkpoints]}
+    extra: dict = {"members": [str(p) for p in checkpoints]}
+    if known and len(known) == len(checkpoints):  # a member that does not say: the ensemble does not either
+        extra["body"] = known[0][1]
     if seen:
         extra["training_garments"] = {
             "names": [k[0] for k in seen],

@@ -6,7 +6,9 @@ last bits of the posed body decide where a few pushed vertices go.  ``segadeform
 with the package's body graph whenever it can -- the package has a body graph for the run's skinning and the
 run's body is the one that graph poses (the body hash its manifest entry records) -- so that every runtime pushes
 out of the same float32 body.  Otherwise (a package without body graphs, another body file) it poses the body with
-numpy and says why, once.
+numpy and says why, once.  The body the graphs pose is the one the model was trained on (``segadeform export``
+gives a package its checkpoint's body: :func:`package_body`), so ``segadeform run`` refuses another body file
+before it gets here, unless ``--force`` (:func:`segadeform.runtime.pipeline.check_package_body`).
 
 ==========  =====================================================================================
 ``auto``    the body graph when it poses the run's body, else numpy (the reason logged once)
@@ -29,7 +31,7 @@ from segadeform.errors import InputError
 from .package import ModelPackage, PackageError
 from .translation import at_translation
 
-__all__ = ["BODY_BACKENDS", "BodyPoser", "graph_body_status"]
+__all__ = ["BODY_BACKENDS", "BodyPoser", "graph_body_status", "package_body"]
 
 log = logging.getLogger(__name__)
 
@@ -39,6 +41,17 @@ BODY_BACKENDS = ("auto", "graph", "numpy")
 
 def _short(label: dict) -> str:
     return f"{label.get('name') or 'unnamed body'} {str(label.get('sha256', ''))[:12]}".strip()
+
+
+def package_body(package: ModelPackage) -> dict | None:
+    """``{"name", "sha256"}`` of the body ``package``'s body graphs pose (their manifest entries'
+    :func:`segadeform.body.identity.body_label`), which ``segadeform export`` makes the body its model was trained
+    on; None for a package without body graphs or whose graphs do not record it."""
+    for g in contract.body_graphs(package.manifest).values():
+        b = g.get("body")
+        if isinstance(b, dict) and b.get("sha256"):
+            return {"name": str(b.get("name") or ""), "sha256": str(b["sha256"])}
+    return None
 
 
 def graph_body_status(package: ModelPackage, body: BodyModel, skinning: str) -> tuple[str | None, str | None]:

@@ -51,7 +51,7 @@ from segadeform.io.toml import key_line
 from segadeform.motion import Motion, build_motion, floor_shift, frame_range, glitches_in_range, motion_windows
 from segadeform.settings import Effects, Scene
 
-from .body import BODY_BACKENDS, BodyPoser
+from .body import BODY_BACKENDS, BodyPoser, package_body
 from .deformer import Deformer
 from .package import ModelPackage
 from .translation import at_translation
@@ -515,6 +515,25 @@ def check_motion_shape(motion: Motion, scene: Scene, body: BodyModel, *, force: 
             )
 
 
+def check_package_body(package: ModelPackage, body: BodyModel, *, force: bool = False) -> None:
+    """A model package poses the body its model was trained on (its body graphs record it: :func:`package_body`):
+    refuse a run on another body, unless ``force`` (then the model runs on a body it never saw, posed with numpy).
+    A package whose body graphs record no body (or that has none) is not checked."""
+    from segadeform.body.identity import body_text, other_body
+
+    recorded = package_body(package)
+    mine = other_body(recorded, body)
+    if mine is None or force:
+        return
+    raise InputError(
+        "the model package was made for another body than the run's (--body)",
+        path=package.path,
+        expected=f"{body_text(cast(dict, recorded))}, the body it was trained on and poses (a package exported for "
+        "this body; --force runs it anyway)",
+        got=body_text(mine),
+    )
+
+
 def run_scene(
     scene: Scene,
     *,
@@ -553,6 +572,7 @@ def run_scene(
             got=e.got,
         ) from None
     check_motion_shape(motion, scene, body, force=force)
+    check_package_body(package, body, force=force)
     try:  # a range past the motion's end is the scene's to fix: name it
         frame_range(scene.motion.frames, motion.n_frames)
     except InputError as e:

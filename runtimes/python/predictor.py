@@ -10,6 +10,7 @@ from segadeform.errors import InputError
 from segadeform.motion.motion import motion_windows
 from segadeform.settings import Effects, parse_effects
 
+from .body import package_body
 from .deformer import Deformer
 from .package import ModelPackage
 
@@ -18,7 +19,8 @@ __all__ = ["PackagePredictor"]
 
 class PackagePredictor:
     """``predict(sample, body, asset) -> (T, N, 3)`` of a model package folder with ``effects`` (as for
-    ``segadeform run --effects``: changes to the package's default, collisions and cloth excluded); one thread."""
+    ``segadeform run --effects``: changes to the package's default, collisions and cloth excluded); one thread.
+    ``body``: the body the package poses, its model's (:func:`~segadeform.runtime.body.package_body`)."""
 
     name = ""
     spec = ""
@@ -26,6 +28,7 @@ class PackagePredictor:
     def __init__(self, path, effects: str = ""):
         self.pkg = ModelPackage(path, threads=1)
         self.cfg = self.pkg.config
+        self.body = package_body(self.pkg)
         eff = Effects(skinning=self.cfg.get("skinning", "lbs"), collisions=False)
         if effects:
             eff = parse_effects(effects, eff)

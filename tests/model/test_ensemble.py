@@ -184,3 +184,23 @@ def test_the_ensemble_command_writes_one_checkpoint_and_never_over_a_file_it_did
     # an ensemble and another network make one flat ensemble
     assert main(["ensemble", str(tmp_path / "e.pt"), str(tmp_path / "a.pt"), "-o", str(tmp_path / "f.pt")]) == 0
     assert load_checkpoint(tmp_path / "f.pt").cfg.ensemble == 3
+
+
+def test_an_ensemble_records_its_members_body_and_refuses_members_of_two_bodies(tmp_path, capsys):
+    """The body each member was trained on (model.pt's ``body``): the ensemble records it when every member records
+    the same one, refuses members trained on two bodies, and records none when a member does not say."""
+    from segadeform.cli.main import main
+    from segadeform.model.network import checkpoint_body
+
+    one, two = {"name": "a.npz", "sha256": "1" * 64}, {"name": "b.npz", "sha256": "2" * 64}
+    for name, seed, body in (("a", 0, one), ("b", 1, one), ("c", 2, two)):
+        save_checkpoint(tmp_path / f"{name}.pt", trained(seed), body=body)
+    save_checkpoint(tmp_path / "old.pt", trained(3))
+    ens = lambda *names: ["ensemble", *(str(tmp_path / f"{n}.pt") for n in names[:-1]), "-o", str(tmp_path / names[-1])]  # noqa: E731
+    assert main(ens("a", "b", "ab.pt")) == 0 and checkpoint_body(tmp_path / "ab.pt") == one
+    assert main(ens("a", "old", "ao.pt")) == 0 and checkpoint_body(tmp_path / "ao.pt") is None
+    capsys.readouterr()
+    assert main(ens("a", "old", "c", "x.pt")) == 1 and not (tmp_path / "x.pt").exists()
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "c.pt: it was trained on another body than " in err, err
+    assert "(expected a.npz (sha256 111111111111), got b.npz (sha256 222222222222))" in err, err

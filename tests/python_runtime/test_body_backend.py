@@ -205,3 +205,20 @@ def test_cli_body_backend(tmp_path):
     g, n = read_pc2(tmp_path / "graph_b.pc2").frames, read_pc2(tmp_path / "numpy_b.pc2").frames
     assert not np.array_equal(g, n)
     np.testing.assert_allclose(g, n, rtol=0, atol=1e-6)
+
+
+def test_run_refuses_a_body_other_than_the_packages_unless_forced(tmp_path, custom_body, capsys):
+    """`run --model PKG --body OTHER` ran a model trained on the package's body on another without a word (a user's
+    trial): the package's body graphs record the body its model was trained on (export gives it the checkpoint's),
+    so another is refused in one line naming both, writing nothing; --force runs it (posed with numpy)."""
+    from segadeform.cli.main import main
+
+    args = ["run", "--garment", str(SKIRT), "--motion", str(SAMPLES / "motions" / "dance.npz")]
+    args += ["--model", str(SHIPPED), "--body", str(custom_body.path), "--frames", "0:3", "--no-cache"]
+    assert main([*args, "-o", str(tmp_path / "out.pc2")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"Error: {SHIPPED}: the model package was made for another body than the run's (--body)")
+    assert err.count("\n") == 1 and "expected default_body.npz (sha256 " in err and "got taller.npz (sha256 " in err
+    assert not (tmp_path / "out.pc2").exists() and not list(tmp_path.iterdir())
+    assert main([*args, "-o", str(tmp_path / "forced.pc2"), "--force"]) == 0
+    assert read_pc2(tmp_path / "forced.pc2").frames.shape[0] == 3

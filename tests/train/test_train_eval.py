@@ -19,6 +19,10 @@ from segadeform.train.metrics import METRICS  # noqa: E402
 from segadeform.train.predictors import make_predictors  # noqa: E402
 from segadeform.train.trainer import train  # noqa: E402
 
+from ..conftest import SAMPLES  # noqa: E402
+
+SHIPPED = SAMPLES / "models" / "default"
+
 
 def test_train_writes_run_folder(synthetic_dataset, tiny_config, tmp_path, body):
     cfg = load_train_config(tiny_config, dataset=synthetic_dataset)
@@ -169,6 +173,70 @@ def test_resume_refuses_other_samples(synthetic_dataset, tiny_config, tmp_path, 
     assert "1 training and 0 validation samples now" in str(e.value)
     assert {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()} == before  # train.json, model.pt as they were
     train(cfg, run, body)  # the run's own samples: nothing to do, and no refusal
+
+
+def test_a_model_records_its_body_and_eval_export_and_resume_refuse_another(
+    synthetic_dataset, tiny_config, tmp_path, body, capsys, monkeypatch
+):
+    """A model trained on a second body was evaluated on the first's data, exported with the first's body graphs
+    and resumed on the first without a word (a user's trial): model.pt, last.pt and train.json record the body,
+    and each of them refuses another in one line naming both; a checkpoint that records none keeps the old way."""
+    import dataclasses
+
+    from segadeform.body import load_body
+    from segadeform.body.identity import body_label
+    from segadeform.errors import InputError
+    from segadeform.model.network import checkpoint_body
+
+    other_path = tmp_path / "tall.npz"
+    dataclasses.replace(body, v_template=body.v_template * 1.01).save(other_path)
+    tall = load_body(other_path)
+    run = tmp_path / "r"
+    cfg = load_train_config(tiny_config, dataset=synthetic_dataset, overrides={"optim.steps": 2})
+    final = train(cfg, run, tall)
+    label = body_label(tall)
+    assert label["name"] == "tall.npz" and label["sha256"] != body_label(body)["sha256"]
+    assert checkpoint_body(final) == label and json.loads((run / "train.json").read_text())["body"] == label
+    assert torch.load(run / "last.pt", weights_only=False)["body"] == label
+    both = rf"expected default_body.npz \(sha256 {body_label(body)['sha256'][:12]}\), got tall.npz \(sha256 "
+    with pytest.raises(InputError, match=r"model tall was trained on another body than the dataset's.*" + both):
+        evaluate(synthetic_dataset, body, make_predictors({"tall": str(final)}))
+    with pytest.raises(InputError, match="model pkg was trained on another body"):  # a package: its body graphs'
+        evaluate(synthetic_dataset, tall, make_predictors({"pkg": str(SHIPPED)}, package=PackagePredictor))
+    assert main(["eval", str(synthetic_dataset), "-m", f"tall={final}", "-o", str(tmp_path / "ev")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "tall.npz" in err and "default_body.npz" in err, err
+    assert not (tmp_path / "ev").exists()
+    with pytest.raises(InputError, match=r"a run trained on another body .*expected tall.npz .*got default_body.npz"):
+        train(cfg, run, body)
+    # export: the shipped body (its default) and another --body are refused; the checkpoint's own body is exported
+    exported = []
+
+    class Exported(Exception):
+        pass
+
+    def export_package(model, out, **kw):  # the body it would export, without the minutes an export takes
+        exported.append(kw["body"])
+        raise Exported
+
+    monkeypatch.setattr("segadeform.export.export_package", export_package)
+    for extra, words in (([], "than the shipped one"), (["--body", str(body.path)], "than --body's")):
+        assert main(["export", str(final), "-o", str(tmp_path / "pkg"), *extra]) == 1
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and words in err and "expected tall.npz" in err and "default_body.npz" in err, err
+    assert not exported and not (tmp_path / "pkg").exists()
+    with pytest.raises(Exported):
+        main(["export", str(final), "-o", str(tmp_path / "pkg"), "--body", str(other_path)])
+    assert [body_label(b) for b in exported] == [label]
+    # a checkpoint written before bodies were recorded: taken on any body, as before
+    old = torch.load(final, weights_only=True)
+    del old["body"]
+    torch.save(old, tmp_path / "old.pt")
+    assert checkpoint_body(tmp_path / "old.pt") is None
+    with pytest.raises(Exported):
+        main(["export", str(tmp_path / "old.pt"), "-o", str(tmp_path / "pkg2")])
+    assert body_label(exported[-1]) == body_label(body)
+    evaluate(synthetic_dataset, body, make_predictors({"old": str(tmp_path / "old.pt")}))
 
 
 def test_training_lowers_the_error(synthetic_dataset, tmp_path, body):

@@ -8,7 +8,7 @@ import hashlib
 
 import numpy as np
 
-__all__ = ["body_sha256", "body_label"]
+__all__ = ["body_sha256", "body_label", "body_text", "other_body"]
 
 #: the arrays that decide where a posed body's vertices and joints are (in this order)
 _FIELDS = (
@@ -46,3 +46,17 @@ def body_label(body) -> dict:
     from pathlib import Path
 
     return {"name": Path(body.path).name if body.path else "", "sha256": body_sha256(body)}
+
+
+def body_text(label: dict) -> str:
+    """A :func:`body_label` in words, for an error that names two bodies: ``"body2.npz (sha256 0123456789ab)"``."""
+    return f"{label.get('name') or 'an unnamed body'} (sha256 {str(label.get('sha256') or '?')[:12]})"
+
+
+def other_body(recorded, body) -> dict | None:
+    """``body``'s :func:`body_label` when ``recorded`` (a label a checkpoint, a run or a package records) names
+    another body; None when it names ``body`` or records none (files written before bodies were recorded)."""
+    if not isinstance(recorded, dict) or not recorded.get("sha256"):
+        return None
+    mine = body_label(body)
+    return None if mine["sha256"] == str(recorded["sha256"]) else mine

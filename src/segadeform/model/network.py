@@ -209,6 +209,17 @@ def checkpoint_training_garments(path: str | os.PathLike):
     return list(t["names"]), np.asarray(t["descriptors"], np.float64), t.get("openings")
 
 
+def checkpoint_body(path: str | os.PathLike) -> dict | None:
+    """``{"name", "sha256"}`` of the body a checkpoint was trained on
+    (:func:`segadeform.body.identity.body_label`); None when it does not say (checkpoints written before training
+    recorded it, and networks never trained: ``segadeform export --random-init``)."""
+    ck = torch.load(Path(path), map_location="cpu", weights_only=True)
+    b = ck.get("body") if isinstance(ck, dict) else None
+    if not isinstance(b, dict) or not b.get("sha256"):
+        return None
+    return {"name": str(b.get("name") or ""), "sha256": str(b["sha256"])}
+
+
 def load_checkpoint(path: str | os.PathLike) -> SEGANet | SEGAEnsemble:
     """Read a checkpoint with ``torch.load(weights_only=True)`` and rebuild the model (a
     :class:`~segadeform.model.ensemble.SEGAEnsemble` when its config has ``ensemble > 1``)."""

@@ -169,6 +169,17 @@ def evaluate(
     """
     dataset = as_roots(dataset)  # a folder, a pack, or several roots
     dataset.check_body(body)
+    from ..body.identity import body_text, other_body
+
+    for n, p in predictors.items():  # a model trained on another body gave numbers as if it fitted this one
+        here = other_body(getattr(p, "body", None), body)
+        if here is not None:
+            raise InputError(
+                f"model {n} was trained on another body than the dataset's (eval --body)",
+                path=p.spec,
+                expected=body_text(here),
+                got=body_text(p.body),
+            )
     ids = dataset.ids(split)
     if not ids:
         have = sorted({str(dataset.meta(s).get("split")) for s in dataset.ids()})

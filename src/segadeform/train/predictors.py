@@ -37,10 +37,13 @@ class Predictor(abc.ABC):
     """``predict(sample, body, asset) -> (T, N, 3)``; see :func:`make_predictor`.  ``name``: its row in the report;
     ``spec``: what it was made from (``simulation``, ``lbs``, ``lbs-PRIOR``, ``FOLDER[:EFFECTS]``, ``X.pt``).
     Anything with these three members is a predictor (the runtime's
-    :class:`segadeform.runtime.predictor.PackagePredictor`, which cannot import this torch layer, is one)."""
+    :class:`segadeform.runtime.predictor.PackagePredictor`, which cannot import this torch layer, is one).
+    ``body``: the body a learned model was trained on (:func:`segadeform.body.identity.body_label`), None when it
+    does not say or learned nothing; :func:`~segadeform.train.evaluate.evaluate` refuses it on another body."""
 
     name: str = ""
     spec: str = ""
+    body: dict | None = None
 
     @abc.abstractmethod
     def predict(self, s: Sample, body: BodyModel, asset) -> np.ndarray:
@@ -79,9 +82,10 @@ class CheckpointPredictor(Predictor):
     """A ``.pt`` checkpoint run by torch, as the exported graphs would run it."""
 
     def __init__(self, path):
-        from ..model.network import load_checkpoint
+        from ..model.network import checkpoint_body, load_checkpoint
 
         self.model = load_checkpoint(path).eval()
+        self.body = checkpoint_body(path)
         self.cfg = self.model.cfg
         self._drapes: dict = {}
 

@@ -5,8 +5,9 @@ Run folder::
     RUN/config.toml        the config (copied) and RUN/train.json (resolved config, hardware, timings)
     RUN/last.pt            {config, state_dict, optimizer, step, rng} -- resumed from when present
     RUN/best.pt            the checkpoint with the lowest vertex error on the validation split so far
-    RUN/model.pt           {config, state_dict}: the best on the validation split when the config names
-                           one (``data.val_split``), else the final step
+    RUN/model.pt           {config, state_dict, body, ...}: the best on the validation split when the config
+                           names one (``data.val_split``), else the final step; ``body`` (in train.json and
+                           last.pt too) is the body it was trained on (``body_label``: file name and sha256)
     RUN/cache/             garment precomputes and contacts when no dataset folder is writable
     RUN/loss.csv           step, total and every term (one row per logged step)
     RUN/loss.png           the curves
@@ -275,6 +276,11 @@ def train(
     # run's folder behind, a typo'd split said "segadeform dataset make first")
     roots = DatasetRoots(list(cfg.dataset), optional=cfg.optional, cache_dir=run / "cache")
     roots.check_body(body)
+    from ..body.identity import body_label, body_text, other_body
+
+    # the body the model learns on: recorded in last.pt, model.pt and train.json (eval, export and run refuse the
+    # model on another one; a model trained on a second body was taken on the first without a word)
+    trained_body = body_label(body)
     ids = cfg.select(roots.ids(cfg.split))
     if not ids:
         have = sorted({str(roots.meta(s).get("split")) for s in roots.ids()})
@@ -366,6 +372,14 @@ def train(
                 expected="the --dataset roots and samples the run started with (its train.json), or a new -o folder",
                 got=f"{len(items)} training and {len(val_ids or [])} validation samples now",
             )
+        if other_body(ck.get("body"), body) is not None:  # (runs saved before it was recorded: not checked)
+            raise InputError(
+                "the run folder holds a run trained on another body (a run resumes only with the --body it started "
+                "with)",
+                path=run,
+                expected=body_text(ck["body"]),
+                got=body_text(trained_body),
+            )
         model.load_state_dict(ck["state_dict"])
         opt.load_state_dict(ck["optimizer"])
         sched.load_state_dict(ck["scheduler"])
@@ -416,6 +430,7 @@ def train(
                     "config_digest": cfg.digest(),
                     "train_config": cfg.to_dict(),  # what a refused resume names as changed
                     "data_digest": data_digest,
+                    "body": trained_body,
                     "best_val": best_val[0],
                     "best_step": best_val[1],
                     "total_steps": total[0],
@@ -601,6 +616,7 @@ def train(
         model,
         train_config=cfg.to_dict(),
         steps=step,
+        body=trained_body,
         training_garments={
             "names": [k[0] for k in garments],
             "descriptors": [[float(x) for x in a.descriptor] for a in garments.values()],
@@ -625,6 +641,7 @@ def train(
             else {}
         ),
         "samples": [i.id for i in items],
+        "body": trained_body,
         **({"history_without_lead": no_lead} if m.history else {}),
         "hardware": _hardware(device),
     }
