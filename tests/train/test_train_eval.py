@@ -239,6 +239,29 @@ def test_a_model_records_its_body_and_eval_export_and_resume_refuse_another(
     evaluate(synthetic_dataset, body, make_predictors({"old": str(tmp_path / "old.pt")}))
 
 
+def test_resume_refuses_other_dataset_roots_holding_the_same_samples(synthetic_dataset, tiny_config, tmp_path, body):
+    """A run resumed with other --dataset roots holding samples of the same names was taken, and train.json then
+    named the new roots alone, though the refusals say a run resumes with "--dataset as it was then" (a user's
+    trial): the roots are the run's too, shown both ways; the same roots by another path resume."""
+    import os
+    import shutil
+
+    from segadeform.errors import InputError
+
+    copy = tmp_path / "copy"
+    shutil.copytree(synthetic_dataset, copy)
+    cfg = load_train_config(tiny_config, dataset=synthetic_dataset, overrides={"optim.steps": 2})
+    run = tmp_path / "r"
+    train(cfg, run, body)
+    before = {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()}
+    with pytest.raises(InputError, match="trained on other dataset roots") as e:
+        train(load_train_config(tiny_config, dataset=copy, overrides={"optim.steps": 2}), run, body)
+    assert f"(expected {synthetic_dataset.resolve()} (the run's), or a new -o folder, got {copy})" in str(e.value)
+    assert {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()} == before
+    rel = os.path.relpath(synthetic_dataset)
+    train(load_train_config(tiny_config, dataset=rel, overrides={"optim.steps": 2}), run, body)  # the same root
+
+
 def test_training_lowers_the_error(synthetic_dataset, tmp_path, body):
     """Free (paper) weights start far off and learn; residual weights start at the body's LBS, which is
     what the synthetic samples are, so their first logged error is already small."""

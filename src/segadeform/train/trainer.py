@@ -353,6 +353,9 @@ def train(
     # the config's digest; a grown or other dataset under the same run folder was taken as the run finished)
     trained_on = json.dumps([sorted(i.id for i in items), sorted(val_ids or [])])
     data_digest = hashlib.sha256(trained_on.encode()).hexdigest()[:16]
+    # ... and the roots it read them from (other roots holding samples of the same names were taken, and train.json
+    # then named the new roots alone)
+    data_roots = [str(Path(r).resolve()) for r in (*cfg.dataset, *cfg.optional)]
     if last.is_file():
         ck = torch.load(last, map_location=device, weights_only=False)
         if ck.get("config_digest") != cfg.digest():
@@ -371,6 +374,14 @@ def train(
                 path=run,
                 expected="the --dataset roots and samples the run started with (its train.json), or a new -o folder",
                 got=f"{len(items)} training and {len(val_ids or [])} validation samples now",
+            )
+        if ck.get("data_roots") not in (None, data_roots):  # (runs saved before they were recorded: not checked)
+            raise InputError(
+                "the run folder holds a run trained on other dataset roots (a run resumes only with the --dataset "
+                "it started with)",
+                path=run,
+                expected=", ".join(ck["data_roots"]) + " (the run's), or a new -o folder",
+                got=", ".join(data_roots),
             )
         if other_body(ck.get("body"), body) is not None:  # (runs saved before it was recorded: not checked)
             raise InputError(
@@ -430,6 +441,7 @@ def train(
                     "config_digest": cfg.digest(),
                     "train_config": cfg.to_dict(),  # what a refused resume names as changed
                     "data_digest": data_digest,
+                    "data_roots": data_roots,
                     "body": trained_body,
                     "best_val": best_val[0],
                     "best_step": best_val[1],
