@@ -1535,3 +1535,44 @@ def test_a_run_stopped_before_simulating_leaves_the_folder_as_it_was(tmp_path):
         make_dataset(cfg, old, body_path=body, sim_python=never, retry=("*",))
     assert (old / "rejected" / f"{sid}.npz").read_bytes() == b"an earlier attempt"
     assert sorted(p.name for p in (old / "rejected").iterdir()) == [f"{sid}.json", f"{sid}.npz"]
+
+
+def test_a_clip_shorter_than_asked_is_refused_below_min_frames_and_said_otherwise_before_anything_is_written(
+    tmp_path,
+):
+    """`start = 2.0` with `seconds = 1.0` on a 2.5 s capture made 15-frame samples under `min_frames = 20`, and
+    `seconds = 5.0` 66-frame ones, without a word; `start = 10.0` was refused by the first sample's worker, the new
+    output folder left with config.toml, configs/, garments/ and log.jsonl (a user's trial).  Now every clip to make
+    is checked before anything is written: past the end or under min_frames refused in one line naming the entry's
+    table and line, shorter than [dataset] seconds said once per entry."""
+    from segadeform.body import load_body
+    from segadeform.dataset import make_dataset
+    from segadeform.dataset.make import check_clips
+
+    never = tmp_path / "no-simulator"  # nothing may be simulated
+    body = SAMPLES / "bodies" / "default_body.npz"
+    walk = SAMPLES / "motions" / "cmu" / "02_01_walk.bvh"  # 2.87 s once its settling frames are dropped
+    motion = f'[[motions]]\nfile = "{walk}"\nstart = {{start}}\nsplit = "train"\n'
+    text = TINY.read_text().replace("[quality]\n", "[quality]\nmin_frames = {least}\n", 1) + motion
+    line = len(text.format(start=0, least=0).splitlines()) - 3  # the file entry's [[motions]]
+    for start, least, words in (
+        (10.0, 0, r"start is past the end of its file \(expected start < 2\.8\d s"),
+        (
+            2.6,
+            12,
+            r"start = 2\.6 s leaves a clip of 8 frames \(0\.27 s of the 0\.5 s of \[dataset\] seconds\), "
+            r"fewer than \[quality\] min_frames = 12 \(expected start <= 2\.4\d s",
+        ),
+    ):
+        cfg = load_dataset_config(_write(tmp_path, "c.toml", text.format(start=start, least=least)))
+        with pytest.raises(InputError, match=words) as e:
+            make_dataset(cfg, tmp_path / "new", body_path=body, sim_python=never)
+        assert str(e.value).startswith(f"{tmp_path / 'c.toml'}:{line}: motions[2] (02_01_walk): "), str(e.value)
+        assert not (tmp_path / "new").exists()
+    cfg = load_dataset_config(_write(tmp_path, "c.toml", text.format(start=2.6, least=8)))
+    plan = [p for p in sample_plan(cfg) if cfg.motions[p.motion].file is not None]
+    said = check_clips(cfg, [(p.motion, p.body) for p in plan], load_body(body))
+    assert len(plan) > 1 and len(said) == 1, said
+    assert said[0].startswith(f"{tmp_path / 'c.toml'}:{line}: motions[2] (02_01_walk): start = 2.6 s leaves a clip ")
+    assert "of 8 frames (0.27 s), not the 15 of [dataset] seconds = 0.5" in said[0]
+    assert check_clips(cfg, [(p.motion, p.body) for p in sample_plan(cfg) if p not in plan], load_body(body)) == []

@@ -4,7 +4,9 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
 
     [dataset]
     fps = 30.0
-    seconds = 3.0             # every motion is cut or generated to this length
+    seconds = 3.0             # every motion is cut or generated to this length; a motion file with less
+                              # capture after `start` gives shorter clips, which `dataset make` says before
+                              # it simulates (and refuses below [quality] min_frames, or a start past the end)
     cross_splits = false      # also simulate held-out garments on training motions and vice versa
     held_out_kinds = []       # garment kinds that only held-out entries may use (never trained on)
     held_out_motions = []     # motion kinds / motion file names likewise
@@ -95,7 +97,7 @@ import numpy as np
 from ..bounds import check_betas
 from ..errors import FileFormatError, InputError
 from ..garments import GARMENT_KINDS, WAISTBAND_KINDS, GarmentParams
-from ..io.toml import key, read_table, read_toml
+from ..io.toml import key, key_line, read_table, read_toml
 from ..motion.procedural import MOTION_KINDS
 from ..settings.simulation import SimSettings, parse_simulate_table
 
@@ -185,6 +187,15 @@ class DatasetConfig:
     roots: tuple = ()  # read-only dataset roots (packs ...) read where they exist
     spread: int = 0  # order "spread": training samples between two held-out ones (0: 2)
     fallbacks: tuple = ()  # [[fallback]] tables, as sorted (key, value) pairs: see attempt_settings
+    motion_entries: tuple = ()  # the [[motions]] table (0-based) each of `motions` was drawn from
+
+    def motion_where(self, mi: int) -> tuple[str, int | None]:
+        """``("motions[i]", line)``: the ``[[motions]]`` table motion ``mi`` was drawn from and its line in the
+        config file (None where unknown), for errors found once the config is read."""
+        i = self.motion_entries[mi] if mi < len(self.motion_entries) else None
+        if i is None:
+            return f"motion {self.motions[mi].name!r}", None
+        return f"motions[{i}]", key_line(self.path, f"motions[{i}]") if self.path is not None else None
 
     def digest(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()[:16]
@@ -516,7 +527,7 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
                 "garment fitted for a listed shape (`segadeform garment fit ... --betas ...`)",
                 got=", ".join(str(list(b)) for b in bodies),
             )
-    motions, mnames = [], set()
+    motions, mnames, entries = [], set(), []
     for i, m in enumerate(data.get("motions", [])):
         m = dict(m)
         what = f"motions[{i}]"
@@ -597,6 +608,7 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
                 raise FileFormatError(
                     f"{what}: start and ease_in must be >= 0", path=p, got=(kw["start"], kw["ease_in"])
                 )
+            entries.append(i)
             motions.append(
                 MotionEntry(
                     name=dname,
@@ -643,6 +655,7 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
         motions=tuple(motions),
         simulate=sim,
         fallbacks=fallbacks,
+        motion_entries=tuple(entries),
         body_splits=tuple(body_splits),
         held_out_kinds=held_kinds,
         held_out_motions=held_motions,

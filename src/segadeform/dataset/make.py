@@ -43,6 +43,7 @@ import fnmatch
 import functools
 import hashlib
 import json
+import logging
 import os
 import tempfile
 import time
@@ -64,6 +65,8 @@ from ..motion.motion import drop_leading_glitches, drop_leading_jumps, drop_lead
 from .config import SPLITS, DatasetConfig, GarmentSpec, MotionEntry
 from .quality import BodyParts, frame_stats, kept_frames, on_body_at_rest
 from .store import Sample, load_sample, save_sample
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "PlannedSample",
@@ -280,6 +283,90 @@ LEAD_SECONDS = 1.0  # of a motion file, simulated before a clip and dropped: the
 RAMP_MIN_SECONDS = 0.3  # a clip with less capture before it starts this far in, the body ramped up from rest
 
 
+def _capture(m: MotionEntry, cfg: DatasetConfig, rest_joints=None):
+    """Motion file entry ``m`` as its clips are cut from it: retargeted onto ``rest_joints``, the frames in front
+    of the capture and its glitches dealt with (:func:`_motion`), at the dataset's frame rate."""
+    mo = load_motion(m.file, rest_joints=rest_joints, floor=True)
+    joints = default_rest_joints() if rest_joints is None else np.asarray(rest_joints, np.float64)
+    mo, _ = drop_leading_jumps(mo)  # a T-pose put in front of the capture (cgspeed's CMU BVH)
+    mo, _ = drop_leading_glitches(mo, joints)  # frames the capture's solve settles from
+    mo, _ = drop_leading_tpose(mo)  # a calibration T-pose held at the start of the capture
+    mo, _ = repair_glitches(mo, joints)  # frames it jumps to and back from (swapped markers)
+    if abs(mo.fps - cfg.fps) > 1e-9:
+        mo = resample(mo, cfg.fps)
+    return mo
+
+
+def _clip_start(m: MotionEntry, cfg: DatasetConfig, mo, mi: int | None = None) -> int:
+    """The frame of capture ``mo`` (:func:`_capture`) where entry ``m``'s clip begins: ``start``, or at least
+    RAMP_MIN_SECONDS in.  A start past the end of the file is refused (``mi``: the entry's index in
+    ``cfg.motions``, to name its table and line)."""
+    what, line = cfg.motion_where(mi) if mi is not None else (f"motion {m.name!r}", None)
+    if mi is not None:
+        what += f" ({m.name})"
+    if int(round(m.start * cfg.fps)) >= mo.n_frames - 1:  # was clamped to the last frame: a 1-frame sample, kept
+        raise InputError(
+            f"{what}: start is past the end of its file",
+            path=cfg.path,
+            line=line,
+            expected=f"start < {(mo.n_frames - 1) / cfg.fps:.2f} s (the clip {m.file.name} is "
+            f"{mo.n_frames / cfg.fps:.2f} s once its settling frames are dropped)",
+            got=f"start = {m.start:g}",
+        )
+    a = int(round(m.start * cfg.fps))
+    if a < int(round(LEAD_SECONDS * cfg.fps)):  # the clip starts at least RAMP_MIN_SECONDS in (with or without lead)
+        a = max(1, min(max(a, int(round(RAMP_MIN_SECONDS * cfg.fps))), mo.n_frames - 2))
+    return a
+
+
+def check_clips(cfg: DatasetConfig, pairs, body: BodyModel) -> list[str]:
+    """Check, before anything is simulated, the clip of each motion file entry on each body it is planned on
+    (``pairs``: ``(motion, body)`` indices of the samples to make; a file is read once per body shape).  A start
+    past the end of the file is refused, and so is a clip shorter than ``[quality] min_frames`` (the gate's own
+    shortest clip).  A clip shorter than ``[dataset] seconds`` otherwise is what the file holds (datasets have such
+    clips, made before this was checked): returned, one line per entry, for the caller to say (it went unsaid)."""
+    want = int(round(cfg.seconds * cfg.fps))
+    captures: dict = {}
+    short: dict = {}
+    for mi, bi in sorted(set(pairs)):
+        m = cfg.motions[mi]
+        if m.file is None:  # generated to the length
+            continue
+        betas = cfg.bodies[bi]
+        k = (str(m.file), tuple(betas))
+        if k not in captures:
+            captures[k] = _capture(m, cfg, body.rest_joints(betas or None)[0])
+        mo = captures[k]
+        a = _clip_start(m, cfg, mo, mi)
+        have = mo.n_frames - a
+        if have >= want:
+            continue
+        what, line = cfg.motion_where(mi)
+        length = f"{m.file.name} is {mo.n_frames / cfg.fps:.2f} s once its settling frames are dropped"
+        least = cfg.quality.min_frames
+        if have < least:
+            latest = mo.n_frames - least  # the last frame a clip of min_frames may start at
+            raise InputError(
+                f"{what} ({m.name}): start = {m.start:g} s leaves a clip of {have} frames ({have / cfg.fps:.2f} s of "
+                f"the {cfg.seconds:g} s of [dataset] seconds), fewer than [quality] min_frames = {least}",
+                path=cfg.path,
+                line=line,
+                expected=(
+                    f"start <= {latest / cfg.fps:.2f} s ({length})"
+                    if latest >= round(RAMP_MIN_SECONDS * cfg.fps)
+                    else f"a longer motion file ({length}), or a lower min_frames"
+                ),
+                got=f"{have} frames",
+            )
+        short.setdefault(
+            mi,
+            f"{cfg.path}{'' if line is None else f':{line}'}: {what} ({m.name}): start = {m.start:g} s leaves a clip "
+            f"of {have} frames ({have / cfg.fps:.2f} s), not the {want} of [dataset] seconds = {cfg.seconds:g} "
+            f"({length}): its samples are that much shorter",
+        )
+    return list(short.values())
+
+
 def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: bool = False):
     """The sample's motion.  ``with_lead``: ``(motion, lead)`` where the motion starts ``lead`` frames
     before the clip (LEAD_SECONDS of the file before ``start``): motion capture starts mid-stride, and
@@ -306,27 +393,12 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
         if not with_lead:  # the clip itself (what a sample stores), as with the lead dropped
             return dataclasses.replace(mo, poses=mo.poses[lead:], trans=mo.trans[lead:])
         return mo, lead
-    mo = load_motion(m.file, rest_joints=rest_joints, floor=True)
-    joints = default_rest_joints() if rest_joints is None else np.asarray(rest_joints, np.float64)
-    mo, _ = drop_leading_jumps(mo)  # a T-pose put in front of the capture (cgspeed's CMU BVH)
-    mo, _ = drop_leading_glitches(mo, joints)  # frames the capture's solve settles from
-    mo, _ = drop_leading_tpose(mo)  # a calibration T-pose held at the start of the capture
-    mo, _ = repair_glitches(mo, joints)  # frames it jumps to and back from (swapped markers)
-    if abs(mo.fps - cfg.fps) > 1e-9:
-        mo = resample(mo, cfg.fps)
-    if int(round(m.start * cfg.fps)) >= mo.n_frames - 1:  # was clamped to the last frame: a 1-frame sample, kept
-        raise InputError(
-            f"motion {m.name!r}: start is past the end of its file",
-            path=cfg.path,
-            expected=f"start < {(mo.n_frames - 1) / cfg.fps:.2f} s (the clip {m.file.name} is "
-            f"{mo.n_frames / cfg.fps:.2f} s once its settling frames are dropped)",
-            got=f"start = {m.start:g}",
-        )
-    a = int(round(m.start * cfg.fps))
+    mo = _capture(m, cfg, rest_joints)
+    a = _clip_start(m, cfg, mo)
     full = int(round(LEAD_SECONDS * cfg.fps))
-    short = a < full  # less capture before the clip than a lead needs
-    if short:  # the clip starts at least RAMP_MIN_SECONDS in (the same clip with and without the lead)
-        a = max(1, min(max(a, int(round(RAMP_MIN_SECONDS * cfg.fps))), mo.n_frames - 2))
+    short = int(round(m.start * cfg.fps)) < full  # less capture before the clip than a lead needs
+    # (a clip shorter than [dataset] seconds is refused before a run simulates anything: check_clips; a sample made
+    # before that has what its file held)
     n = min(mo.n_frames - a, int(round(cfg.seconds * cfg.fps)))
     if with_lead and short:
         # the body sets off from rest instead: the capture up to the clip's start played slowed (ramp_in),
@@ -1037,6 +1109,10 @@ def make_dataset(
         if limit is not None:
             todo = todo[:limit]
         skipped -= min(len(again), len(todo))
+        # the clips to simulate: a start past the end of the file was refused by the first sample's worker, the
+        # run's folder left behind; a clip shorter than [dataset] seconds was kept without a word (a user's trial)
+        for words in check_clips(cfg, [(p.motion, p.body) for p in todo], body):
+            log.warning("%s", words)
         for gi, bi in sorted({(p.garment, p.body) for p in todo}):  # garments first, in this process: no races
             _garment_file(loc, cfg, gi, bi, body)
     except BaseException:
@@ -1063,17 +1139,17 @@ def make_dataset(
     records = []
     run = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime())
     run_t0 = time.time()
-    log = _Log(loc)
+    sample_log = _Log(loc)
     try:
         for rec in ex.map_unordered(_run_task, tasks):
             # the run it belongs to and when it finished: `dataset info` measures samples per hour
             rec.update(run=run, run_started=run_t0, finished=time.time(), jobs=ex.workers, executor=ex.name)
             records.append(rec)
-            log.write(rec)
+            sample_log.write(rec)
             if progress is not None:
                 progress(rec)
     finally:
-        log.close()
+        sample_log.close()
         if own:
             ex.close()
     kept = sum(r["status"] == "kept" for r in records)
