@@ -145,7 +145,12 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
     type=PathParam(file_okay=False, path_type=Path),
     help="Report folder (eval.md, eval.json, PNG plots).",
 )
-@click.option("--split", default="test", show_default=True, help="Dataset split to evaluate.")
+@click.option(
+    "--split",
+    "splits",
+    multiple=True,
+    help="Dataset split to evaluate (default: test); one split a report, so given once.",
+)
 @click.option("--body", type=PathParam(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option(
     "--push-out",
@@ -169,7 +174,7 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
     is_flag=True,
     help="Write the report into a folder that holds other files (beside them, never over them).",
 )
-def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, cloth=()):
+def eval_cmd(dataset, models, output, splits, body, push_margin, heatmap, force, cloth=()):
     """Evaluate models against the simulation on DATASET (one or more roots: dataset folders, packs, folders of
     packs): the paper's metrics per model and garment type."""
     from segadeform.io.output_guard import OutputGuard
@@ -178,6 +183,12 @@ def eval_cmd(dataset, models, output, split, body, push_margin, heatmap, force, 
     from segadeform.train.predictors import make_predictors
     from segadeform.train.report import markdown_table, write_report
 
+    if len(splits) > 1:  # the last one was evaluated alone, the others dropped without a word (a user's trial)
+        raise click.UsageError(
+            f"--split names one split (a report is of one), got {len(splits)}: {', '.join(splits)}; run eval once "
+            "for each, each with its own -o"
+        )
+    split = splits[0] if splits else "test"
     guard = OutputGuard("eval", force=force, inputs=(*dataset, body))
     guard.folder(output, names=("eval.*", "*.png"))
     spec = {}

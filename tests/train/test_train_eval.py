@@ -355,6 +355,10 @@ def test_cli_train_and_eval(synthetic_dataset, tiny_config, tmp_path, capsys):
     # a name given twice dropped the first model from the table without a word (a user's trial)
     assert main(["eval", str(synthetic_dataset), "-m", "a=lbs", "-m", "a=lbs-smooth", "-o", str(tmp_path / "d")]) == 2
     assert "'a' is given twice (lbs and lbs-smooth)" in capsys.readouterr().err
+    # a second --split: the last one was evaluated alone (a user's trial); refused before anything is written
+    args = ["eval", str(synthetic_dataset), "-m", "lbs=lbs", "--split", "test", "--split", "train"]
+    assert main([*args, "-o", str(tmp_path / "two")]) == 2 and not (tmp_path / "two").exists()
+    assert "Error: --split names one split (a report is of one), got 2: test, train;" in capsys.readouterr().err
     assert main(["train", str(tiny_config), "-o", str(tmp_path / "x")]) == 1  # no dataset named anywhere
 
 
