@@ -110,6 +110,21 @@ def test_a_split_the_dataset_lacks_names_the_config_and_the_splits_and_writes_no
     assert not (tmp_path / "r").exists()
 
 
+def test_an_empty_dataset_folder_is_said_to_hold_no_samples(tiny_config, tmp_path, body):
+    """`--dataset empty` (a folder with nothing in it) said "got no dataset root: none given" (a user's trial)."""
+    from segadeform.errors import InputError
+
+    (tmp_path / "empty").mkdir()
+    cfg = load_train_config(tiny_config, dataset=tmp_path / "empty", overrides={"optim.steps": 1})
+    with pytest.raises(
+        InputError, match=r"no 'train' samples in the dataset \(expected segadeform dataset make first, "
+    ):
+        train(cfg, tmp_path / "r", body)
+    with pytest.raises(InputError, match=rf"got {tmp_path / 'empty'}, an empty folder: no samples\)$"):
+        train(cfg, tmp_path / "r", body)
+    assert not (tmp_path / "r").exists()
+
+
 def test_what_a_run_leaves_that_is_not_a_model_is_named_in_one_line(synthetic_dataset, tiny_config, tmp_path, body):
     """A researcher's trial: a run's best.pt was refused as "must hold 'config'" after the last.pt message had
     pointed at it; weights that do not fit their config printed torch's 42 lines; optim.checkpoint_every = 0 was a

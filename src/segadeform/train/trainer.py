@@ -233,6 +233,18 @@ class _PairPrefetch:
         self.pool.shutdown(wait=False, cancel_futures=True)
 
 
+def _roots_said(roots) -> str:
+    """The dataset roots as an error names them: the roots read, else the folders given that hold no samples (an
+    empty folder was said to be "no dataset root: none given": a user's trial), else the optional roots missing."""
+    if roots.roots:
+        return str(roots)
+    if roots.given:
+        return ", ".join(str(r) for r in roots.given) + (
+            ", an empty folder: no samples" if len(roots.given) == 1 else ", empty folders: no samples"
+        )
+    return "no dataset root: " + (", ".join(f"{r} is not there" for r in roots.skipped) or "none given")
+
+
 def _hardware(device: torch.device) -> dict:
     hw = {
         "device": str(device),
@@ -289,11 +301,7 @@ def train(
             path=cfg.path,
             expected=(f"data.split = {' | '.join(have)}" if have else "segadeform dataset make first")
             + (" (or samples that data.exclude and data.fraction leave)" if have and cfg.split in have else ""),
-            got=(f"the splits {', '.join(have)} in " if have else "")
-            + (
-                (str(roots) if roots.roots else "")
-                or "no dataset root: " + (", ".join(f"{r} is not there" for r in roots.skipped) or "none given")
-            ),
+            got=(f"the splits {', '.join(have)} in " if have else "") + _roots_said(roots),
         )
     run.mkdir(parents=True, exist_ok=True)
     # training and validation samples and the physics pairs alike: the model's garment precompute, motion window,
@@ -307,8 +315,7 @@ def train(
         raise InputError(
             f"no '{cfg.split}' samples in the dataset",
             expected="segadeform dataset make first",
-            got=", ".join(str(r) for r in roots.roots)
-            or "no dataset root: " + (", ".join(f"{r} is not there" for r in roots.skipped) or "none given"),
+            got=_roots_said(roots),
         )
     if cfg.val_split and not val_ids:
         val_ids = roots.ids(cfg.val_split)
