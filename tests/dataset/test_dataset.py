@@ -1456,7 +1456,10 @@ def test_a_gate_verdict_reads_its_share_apart_from_the_limit_and_info_counts_it_
             ('[[motions]]\nkind = "walk"', '[bodies]\nbetas = [0.5]\n\n[[motions]]\nkind = "walk"'),
             r"must be \[\[bodies\]\] tables",
         ),
-        (('[[motions]]\nkind = "walk"', '[[bodies]]\nbetas = 0\n\n[[motions]]\nkind = "walk"'), r"bodies\[0\] must be"),
+        (
+            ('[[motions]]\nkind = "walk"', '[[bodies]]\nbetas = 0\n\n[[motions]]\nkind = "walk"'),
+            r"bodies\[0\]\.betas must be a list of numbers \(expected betas = \[numbers\], got 0\)",
+        ),
         (('[[motions]]\nkind = "walk"', '[[bodies]]\nbetas = [true]\n\n[[motions]]\nkind = "walk"'), "bodies"),
         # a string where a number goes was read as the number
         (("speed = [0.8, 1.2]", 'speed = 1.0\namplitude = "1.0"'), "amplitude must be a number"),
@@ -1576,3 +1579,71 @@ def test_a_clip_shorter_than_asked_is_refused_below_min_frames_and_said_otherwis
     assert said[0].startswith(f"{tmp_path / 'c.toml'}:{line}: motions[2] (02_01_walk): start = 2.6 s leaves a clip ")
     assert "of 8 frames (0.27 s), not the 15 of [dataset] seconds = 0.5" in said[0]
     assert check_clips(cfg, [(p.motion, p.body) for p in sample_plan(cfg) if p not in plan], load_body(body)) == []
+
+
+ENTRIES = """[dataset]
+seconds = 1.0
+
+[[garments]]
+kind = "skirt"
+
+[[garments]]
+kind = "shorts"
+{garment}
+split = "test"
+
+[[bodies]]
+betas = []
+
+[[bodies]]
+{body}
+
+[[motions]]
+kind = "walk"
+
+[[motions]]
+kind = "dance"
+{motion}
+split = "test"
+"""
+
+
+@pytest.mark.parametrize(
+    "garment, body, motion, line, msg",
+    [
+        # unknown keys: the key's line and the key given, the whole list the entry takes (garments' lacked mesh)
+        (
+            "mhlco = 'x.mhclo'",
+            "betas = [0.5]",
+            "",
+            9,
+            "unknown key garments[1].mhlco (expected count, decimate, ease, flare, kind, length, mesh, mhclo, name, "
+            "pin, resolution, seed, sleeve, split, subdivisions, waist_ease, got mhlco)",
+        ),
+        # a key misspelt in [[bodies]] was said as a Python dict
+        ("", "beta = [0.5]", "", 16, "unknown key bodies[1].beta (expected betas, split, got beta)"),
+        ("", "betas = ['tall']", "", 16, "bodies[1].betas must be a list of numbers (expected betas = [numbers], "),
+        # a [dataset] key in an entry, and a motion file's key on a procedural motion: said where they belong
+        (
+            "",
+            "betas = [0.5]",
+            "seconds = 2.0",
+            23,
+            "unknown key motions[1].seconds (expected amplitude, count, ease_in, family, kind, name, seed, speed, "
+            "split, got seconds, a [dataset] key (one for every sample): put it in [dataset])",
+        ),
+        ("", "betas = [0.5]", "start = 2.0", 23, "got start, a key of motions with file, not kind)"),
+        # the other errors of an entry: the line of the key they name, else of the entry's table
+        ("mhclo = 'nowhere.mhclo'", "betas = [0.5]", "", 9, "garments[1].mhclo does not exist (got "),
+        ("", "betas = [0.5]\nsplit = 'hold'", "", 17, "bodies[1].split must be 'train', 'val' or 'test' (got hold)"),
+        ("", "betas = [0.5]", "file = 'x.bvh'", 21, "motions[1] needs exactly one of kind or file"),
+    ],
+)
+def test_an_entry_error_names_its_line_and_key_as_the_other_tables_do(tmp_path, garment, body, motion, line, msg):
+    """Errors in garments[i], bodies[i] and motions[i] had no line, their unknown keys no `got`, the garments' list
+    no `mesh`, `beta =` a Python dict and `seconds` in a motion no word of [dataset] (a user's trial)."""
+    p = _write(tmp_path, "c.toml", ENTRIES.format(garment=garment, body=body, motion=motion))
+    with pytest.raises(FileFormatError) as e:
+        load_dataset_config(p)
+    assert str(e.value).startswith(f"{p}:{line}: "), str(e.value)
+    assert msg in str(e.value) and "{" not in str(e.value), str(e.value)

@@ -90,6 +90,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -333,6 +334,44 @@ class _DatasetTable:
     spread: int = key(0, range=(0, 1000))
 
 
+#: the keys of a [[motions]] entry: a procedural one (kind) and a motion file's
+_MOTION_KEYS = {
+    "kind": frozenset({"kind", "seed", "speed", "amplitude", "name", "count", "ease_in", "family", "split"}),
+    "file": frozenset({"file", "name", "start", "count", "seed", "family", "split"}),
+}
+
+
+def _said(v) -> str:
+    """A value as an error quotes it: its TOML-ish repr, cut to 40 characters."""
+    r = repr(v)
+    return r if len(r) <= 40 else r[:37] + "..."
+
+
+def _unknown_key(where: str, name: str, allowed, p, hint: str = "") -> FileFormatError:
+    """``unknown key where.name`` as :func:`segadeform.io.toml.read_table` says it (the allowed keys, the one given),
+    with a hint where the key belongs elsewhere: a ``[dataset]`` key (``seconds``, ``fps``) in an entry is one for
+    every sample, not for the entry."""
+    if not hint and name in {f.name for f in dataclasses.fields(_DatasetTable)}:
+        hint = "a [dataset] key (one for every sample): put it in [dataset]"
+    return FileFormatError(
+        f"unknown key {where}.{name}",
+        path=p,
+        line=key_line(p, where, name),
+        expected=", ".join(sorted(allowed)),
+        got=name + (f", {hint}" if hint else ""),
+    )
+
+
+def _at_entry(e: InputError, p, where: str) -> InputError:
+    """Error ``e`` about entry ``where`` (``garments[2]``) of config ``p``, given the line of the key it names
+    (``garments[2].mhclo``) or else of the entry's table, as the [dataset] and [quality] errors name theirs."""
+    if e.line is not None or e.path is None or Path(e.path) != Path(p):
+        return e
+    m = re.search(rf"{re.escape(where)}\.(\w+)", e.problem)
+    line = (key_line(p, where, m.group(1)) if m else None) or key_line(p, where)
+    return type(e)(e.problem, path=e.path, line=line, expected=e.expected, got=e.got)
+
+
 def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
     """Read and check a dataset config.  ``require_files=False`` lets MakeHuman files be absent (training's
     physics pairs on a machine without ``../shared``, whose garments were made elsewhere into its cache)."""
@@ -373,149 +412,163 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
     q = QualitySpec(**read_table(data.get("quality", {}), QualitySpec, where="quality", path=p))
     garments, names = [], set()
     for i, g in enumerate(data.get("garments", [])):
-        g = dict(g)
-        kind = g.pop("kind", None)
-        if kind not in GARMENT_KINDS:
-            raise FileFormatError(
-                f"garments[{i}].kind is not a garment kind", path=p, expected=" | ".join(GARMENT_KINDS), got=kind
-            )
-        split = _split(g, p, f"garments[{i}]")
-        g.pop("split", None)
-        name = g.pop("name", None) or f"{kind}-{i}"
-        pin = g.pop("pin", None)
-        mhclo = g.pop("mhclo", None)
-        mesh = g.pop("mesh", None)
-        if mesh is not None and mhclo is not None:
-            raise FileFormatError(
-                f"garments[{i}].mesh is one garment OBJ, as it is",
-                path=p,
-                expected="mesh = 'FILE.obj' or mhclo = 'FILE.mhclo', not both",
-                got="both",
-            )
-        decimate = g.pop("decimate", None)
-        count = _count(g, p, f"garments[{i}]")
-        seed = g.pop("seed", None)
-        if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool)):
-            raise FileFormatError(f"garments[{i}].seed must be an integer", path=p, got=seed)
-        ranged = _ranges(g, _GARMENT_RANGED, p, f"garments[{i}]")
-        if mhclo is not None:
-            mhclo = (p.parent / mhclo).resolve()
-            if require_files and not mhclo.is_file():
-                raise FileFormatError(f"garments[{i}].mhclo does not exist", path=p, got=str(mhclo))
-            if require_files:  # read now, not after the first samples of `dataset make` (an OBJ given as mhclo)
-                from ..io.mhclo import read_mhclo
-
-                try:
-                    read_mhclo(mhclo)
-                except InputError as e:
-                    raise FileFormatError(f"garments[{i}].mhclo: {e}", path=p) from None
-            if ranged or (count or 1) > 1:
+        try:
+            g = dict(g)
+            kind = g.pop("kind", None)
+            if kind not in GARMENT_KINDS:
                 raise FileFormatError(
-                    f"garments[{i}]: a MakeHuman garment has no parameters to draw",
-                    path=p,
-                    expected="no ranges and no count with mhclo",
+                    f"garments[{i}].kind is not a garment kind", path=p, expected=" | ".join(GARMENT_KINDS), got=kind
                 )
-        mesh_betas: tuple[float, ...] = ()
-        if mesh is not None:
-            if not isinstance(mesh, str) or count is not None or ranged or decimate is not None:
+            split = _split(g, p, f"garments[{i}]")
+            g.pop("split", None)
+            name = g.pop("name", None) or f"{kind}-{i}"
+            pin = g.pop("pin", None)
+            mhclo = g.pop("mhclo", None)
+            mesh = g.pop("mesh", None)
+            if mesh is not None and mhclo is not None:
                 raise FileFormatError(
                     f"garments[{i}].mesh is one garment OBJ, as it is",
                     path=p,
-                    expected="mesh = 'FILE.obj' without count, ranges or decimate",
-                    got=mesh if not isinstance(mesh, str) else "a count, range or decimate beside it",
+                    expected="mesh = 'FILE.obj' or mhclo = 'FILE.mhclo', not both",
+                    got="both",
                 )
-            mesh = (p.parent / mesh).resolve()
-            if require_files:  # found and read now, not hours into `dataset make`
-                from ..io import read_mesh
-                from ..io.obj import recorded_betas
+            decimate = g.pop("decimate", None)
+            count = _count(g, p, f"garments[{i}]")
+            seed = g.pop("seed", None)
+            if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool)):
+                raise FileFormatError(f"garments[{i}].seed must be an integer", path=p, got=seed)
+            ranged = _ranges(g, _GARMENT_RANGED, p, f"garments[{i}]")
+            if mhclo is not None:
+                mhclo = (p.parent / mhclo).resolve()
+                if require_files and not mhclo.is_file():
+                    raise FileFormatError(f"garments[{i}].mhclo does not exist", path=p, got=str(mhclo))
+                if require_files:  # read now, not after the first samples of `dataset make` (an OBJ given as mhclo)
+                    from ..io.mhclo import read_mhclo
 
-                if not mesh.is_file():
-                    raise FileFormatError(f"garments[{i}].mesh does not exist", path=p, got=str(mesh))
+                    try:
+                        read_mhclo(mhclo)
+                    except InputError as e:
+                        raise FileFormatError(f"garments[{i}].mhclo: {e}", path=p) from None
+                if ranged or (count or 1) > 1:
+                    raise FileFormatError(
+                        f"garments[{i}]: a MakeHuman garment has no parameters to draw",
+                        path=p,
+                        expected="no ranges and no count with mhclo",
+                    )
+            mesh_betas: tuple[float, ...] = ()
+            if mesh is not None:
+                if not isinstance(mesh, str) or count is not None or ranged or decimate is not None:
+                    raise FileFormatError(
+                        f"garments[{i}].mesh is one garment OBJ, as it is",
+                        path=p,
+                        expected="mesh = 'FILE.obj' without count, ranges or decimate",
+                        got=mesh if not isinstance(mesh, str) else "a count, range or decimate beside it",
+                    )
+                mesh = (p.parent / mesh).resolve()
+                if require_files:  # found and read now, not hours into `dataset make`
+                    from ..io import read_mesh
+                    from ..io.obj import recorded_betas
+
+                    if not mesh.is_file():
+                        raise FileFormatError(f"garments[{i}].mesh does not exist", path=p, got=str(mesh))
+                    try:
+                        read_mesh(mesh)
+                        mesh_betas = recorded_betas(mesh) or ()
+                    except InputError as e:
+                        raise FileFormatError(f"garments[{i}].mesh: {e}", path=p) from None
+            if decimate is not None:
+                if mhclo is None:
+                    raise FileFormatError(
+                        f"garments[{i}].decimate is for MakeHuman garments (a procedural garment's resolution is its "
+                        "own parameter)",
+                        path=p,
+                        expected="mhclo = ... beside decimate",
+                    )
+                ok = isinstance(decimate, (int, float)) and not isinstance(decimate, bool)
+                if not (ok and 0 < decimate < 1):
+                    raise FileFormatError(
+                        f"garments[{i}].decimate must be the share of vertices kept",
+                        path=p,
+                        expected="a number in (0, 1)",
+                        got=decimate,
+                    )
+                decimate = float(decimate)
+            if pin is not None and pin not in ("waistband", "top"):
+                raise FileFormatError(f"garments[{i}].pin must be 'waistband' or 'top'", path=p, got=pin)
+            if split != "test" and kind in held_kinds:
+                raise FileFormatError(
+                    f"garments[{i}] is a {split} garment of the held-out kind {kind!r}",
+                    path=p,
+                    expected="split = 'test' for kinds in dataset.held_out_kinds",
+                )
+            if split != "val" and kind in val_kinds:
+                raise FileFormatError(
+                    f"garments[{i}] is a {split} garment of the validation kind {kind!r}",
+                    path=p,
+                    expected="split = 'val' for kinds in dataset.val_kinds",
+                )
+            if count is None and not ranged:
+                draws = [(name, {})]
+            elif not ranged and count > 1:
+                raise FileFormatError(
+                    f"garments[{i}]: count = {count} with no range draws {count} identical garments",
+                    path=p,
+                    expected="at least one parameter as a range [lo, hi]",
+                )
+            else:
+                es = _entry_seed(seed, name)
+                draws = [(f"{name}-{k}", draw_values(ranged, _GARMENT_RANGED, es, k)) for k in range(count or 1)]
+            known = {f.name for f in dataclasses.fields(GarmentParams)}
+            extra = sorted(set(g) - known)
+            if extra:  # a typo (`mhcl`, `spilt`) said as the other tables say it, not as Python's TypeError
+                allowed = known | {"kind", "name", "split", "pin", "mhclo", "mesh", "decimate", "count", "seed"}
+                raise _unknown_key(f"garments[{i}]", extra[0], allowed, p)
+            for dname, vals in draws:
+                if dname in names:
+                    raise FileFormatError(f"garment name {dname!r} is used twice", path=p)
+                names.add(dname)
                 try:
-                    read_mesh(mesh)
-                    mesh_betas = recorded_betas(mesh) or ()
-                except InputError as e:
-                    raise FileFormatError(f"garments[{i}].mesh: {e}", path=p) from None
-        if decimate is not None:
-            if mhclo is None:
-                raise FileFormatError(
-                    f"garments[{i}].decimate is for MakeHuman garments (a procedural garment's resolution is its own "
-                    "parameter)",
-                    path=p,
-                    expected="mhclo = ... beside decimate",
+                    params = GarmentParams(**g, **vals)
+                except (TypeError, InputError) as e:
+                    raise FileFormatError(f"garments[{i}] ({dname}): {e}", path=p) from None
+                if params.waist_ease is not None and kind not in WAISTBAND_KINDS:
+                    raise FileFormatError(
+                        f"garments[{i}] ({dname}): waist_ease is for garments with a waistband",
+                        path=p,
+                        expected=" | ".join(WAISTBAND_KINDS),
+                        got=kind,
+                    )
+                garments.append(
+                    GarmentSpec(dname, kind, params, split, pin, mhclo, decimate, mesh=mesh, mesh_betas=mesh_betas)
                 )
-            ok = isinstance(decimate, (int, float)) and not isinstance(decimate, bool)
-            if not (ok and 0 < decimate < 1):
-                raise FileFormatError(
-                    f"garments[{i}].decimate must be the share of vertices kept",
-                    path=p,
-                    expected="a number in (0, 1)",
-                    got=decimate,
-                )
-            decimate = float(decimate)
-        if pin is not None and pin not in ("waistband", "top"):
-            raise FileFormatError(f"garments[{i}].pin must be 'waistband' or 'top'", path=p, got=pin)
-        if split != "test" and kind in held_kinds:
-            raise FileFormatError(
-                f"garments[{i}] is a {split} garment of the held-out kind {kind!r}",
-                path=p,
-                expected="split = 'test' for kinds in dataset.held_out_kinds",
-            )
-        if split != "val" and kind in val_kinds:
-            raise FileFormatError(
-                f"garments[{i}] is a {split} garment of the validation kind {kind!r}",
-                path=p,
-                expected="split = 'val' for kinds in dataset.val_kinds",
-            )
-        if count is None and not ranged:
-            draws = [(name, {})]
-        elif not ranged and count > 1:
-            raise FileFormatError(
-                f"garments[{i}]: count = {count} with no range draws {count} identical garments",
-                path=p,
-                expected="at least one parameter as a range [lo, hi]",
-            )
-        else:
-            es = _entry_seed(seed, name)
-            draws = [(f"{name}-{k}", draw_values(ranged, _GARMENT_RANGED, es, k)) for k in range(count or 1)]
-        known = {f.name for f in dataclasses.fields(GarmentParams)}
-        extra = sorted(set(g) - known)
-        if extra:  # a typo (`mhcl`, `spilt`) said as the other tables say it, not as Python's TypeError
-            allowed = sorted(known | {"kind", "name", "split", "pin", "mhclo", "decimate", "count", "seed"})
-            raise FileFormatError(f"unknown key garments[{i}].{extra[0]}", path=p, expected=", ".join(allowed))
-        for dname, vals in draws:
-            if dname in names:
-                raise FileFormatError(f"garment name {dname!r} is used twice", path=p)
-            names.add(dname)
-            try:
-                params = GarmentParams(**g, **vals)
-            except (TypeError, InputError) as e:
-                raise FileFormatError(f"garments[{i}] ({dname}): {e}", path=p) from None
-            if params.waist_ease is not None and kind not in WAISTBAND_KINDS:
-                raise FileFormatError(
-                    f"garments[{i}] ({dname}): waist_ease is for garments with a waistband",
-                    path=p,
-                    expected=" | ".join(WAISTBAND_KINDS),
-                    got=kind,
-                )
-            garments.append(
-                GarmentSpec(dname, kind, params, split, pin, mhclo, decimate, mesh=mesh, mesh_betas=mesh_betas)
-            )
+        except InputError as e:  # the entry's line, as the other tables' errors name theirs
+            raise _at_entry(e, p, f"garments[{i}]") from None
     bodies, body_splits = [], []
     tables = data.get("bodies", [{"betas": []}])
     if not isinstance(tables, list):  # [bodies] for [[bodies]]: a traceback (a user's trial)
         raise FileFormatError("bodies must be [[bodies]] tables", path=p, got=f"[bodies] ({type(tables).__name__})")
     for i, b in enumerate(tables):
-        betas = b.get("betas", []) if isinstance(b, dict) else None
-        if (
-            not isinstance(betas, list)
-            or set(b) - {"betas", "split"}
-            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in betas)
-        ):
-            raise FileFormatError(f"bodies[{i}] must be {{betas = [numbers], split = train|val|test}}", path=p, got=b)
-        check_betas(betas, path=p, what=f"bodies[{i}].betas")  # (found when its garment was made, the file unnamed)
-        bodies.append(tuple(float(x) for x in betas))
-        body_splits.append(_split(b, p, f"bodies[{i}]"))
+        try:
+            if not isinstance(b, dict):
+                raise FileFormatError(f"bodies[{i}] must be a [[bodies]] table", path=p, got=type(b).__name__)
+            extra = sorted(set(b) - {"betas", "split"})
+            if extra:  # (said as a Python dict, without the key's line: a user's trial)
+                raise _unknown_key(f"bodies[{i}]", extra[0], ("betas", "split"), p)
+            betas = b.get("betas", [])
+            if not isinstance(betas, list) or not all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) for x in betas
+            ):
+                raise FileFormatError(
+                    f"bodies[{i}].betas must be a list of numbers",
+                    path=p,
+                    expected="betas = [numbers]",
+                    got=_said(betas),
+                )
+            check_betas(betas, path=p, what=f"bodies[{i}].betas")  # (found when its garment was made, the file unnamed)
+            bodies.append(tuple(float(x) for x in betas))
+            body_splits.append(_split(b, p, f"bodies[{i}]"))
+        except InputError as e:  # the entry's line, as the other tables' errors name theirs
+            raise _at_entry(e, p, f"bodies[{i}]") from None
     for g in garments:
         if not any(g.sits_on(b) for b in bodies):
             shape = ",".join(f"{x:g}" for x in g.mesh_betas) or "0 (the default shape)"
@@ -529,97 +582,102 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
             )
     motions, mnames, entries = [], set(), []
     for i, m in enumerate(data.get("motions", [])):
-        m = dict(m)
-        what = f"motions[{i}]"
-        split = _split(m, p, what)
-        m.pop("split", None)
-        if ("kind" in m) == ("file" in m):
-            raise FileFormatError(f"{what} needs exactly one of kind or file", path=p)
-        if "kind" in m and m["kind"] not in MOTION_KINDS:
-            raise FileFormatError(
-                f"{what}.kind is not a motion kind", path=p, expected=" | ".join(MOTION_KINDS), got=m["kind"]
-            )
-        allowed = (
-            {"kind", "seed", "speed", "amplitude", "name", "count", "ease_in", "family"}
-            if "kind" in m
-            else {"file", "name", "start", "count", "seed", "family"}
-        )
-        extra = set(m) - allowed
-        if extra:
-            raise FileFormatError(f"unknown key {what}.{sorted(extra)[0]}", path=p, expected=", ".join(sorted(allowed)))
-        count = _count(m, p, what)
-        ranged = _ranges(m, {"speed": False, "amplitude": False} if "kind" in m else {"start": False}, p, what)
-        f = (p.parent / m["file"]).resolve() if "file" in m else None
-        if f is not None and require_files and not f.is_file():  # found now, not hours into `dataset make`
-            raise FileFormatError(f"{what}.file does not exist", path=p, got=str(f))
-        if f is not None and f.suffix.lower() not in MOTION_FILE_TYPES:  # not after other samples were simulated
-            raise FileFormatError(
-                f"{what}.file is not a motion file",
-                path=p,
-                expected=" | ".join(MOTION_FILE_TYPES),
-                got=f.suffix or f.name,
-            )
-        seed = m.get("seed", 0)
-        if not isinstance(seed, int) or isinstance(seed, bool):
-            raise FileFormatError(f"{what}.seed must be an integer", path=p, got=seed)
-        base = m.get("name") or (f.stem if f else f"{m['kind']}-s{seed}")
-        family = m.get("family") or (f.stem if f else base)  # a procedural entry is its own family
-        if not isinstance(family, str):
-            raise FileFormatError(f"{what}.family must be a name", path=p, got=family)
-        names_of = {family, *((f.stem, f.name) if f is not None else (m["kind"],))}
-        if split != "test" and names_of & set(held_motions):
-            raise FileFormatError(
-                f"{what} is a {split} motion of the held-out family {family!r}",
-                path=p,
-                expected="split = 'test' for motions in dataset.held_out_motions",
-            )
-        if split != "val" and names_of & set(val_motions):
-            raise FileFormatError(
-                f"{what} is a {split} motion of the validation family {family!r}",
-                path=p,
-                expected="split = 'val' for motions in dataset.val_motions",
-            )
-        if count is None and not ranged:
-            draws = [(base, 0, {})]
-        elif not ranged and f is not None and (count or 1) > 1:
-            raise FileFormatError(
-                f"{what}: count = {count} of one file with no start range repeats one clip",
-                path=p,
-                expected="start = [lo, hi]",
-            )
-        else:
-            es = _entry_seed(m.get("seed"), base)
-            draws = [(f"{base}-{k}", k, draw_values(ranged, {}, es, k)) for k in range(count or 1)]
-        for dname, k, vals in draws:
-            if dname in mnames:
-                raise FileFormatError(f"motion name {dname!r} is used twice", path=p)
-            mnames.add(dname)
-            kw = dict(
-                speed=vals.get("speed", m.get("speed", 1.0)),
-                amplitude=vals.get("amplitude", m.get("amplitude", 1.0)),
-                start=vals.get("start", m.get("start", 0.0)),
-                ease_in=m.get("ease_in", 1.0),
-            )
-            for name, v in kw.items():  # numbers, not strings of them ("1.0" was read as 1.0)
-                if isinstance(v, bool) or not isinstance(v, (int, float)):
-                    raise FileFormatError(f"{what}.{name} must be a number", path=p, got=repr(v)[:40])
-                kw[name] = float(v)
-            if kw["start"] < 0 or kw["ease_in"] < 0:
+        try:
+            m = dict(m)
+            what = f"motions[{i}]"
+            split = _split(m, p, what)
+            m.pop("split", None)
+            if ("kind" in m) == ("file" in m):
+                raise FileFormatError(f"{what} needs exactly one of kind or file", path=p)
+            if "kind" in m and m["kind"] not in MOTION_KINDS:
                 raise FileFormatError(
-                    f"{what}: start and ease_in must be >= 0", path=p, got=(kw["start"], kw["ease_in"])
+                    f"{what}.kind is not a motion kind", path=p, expected=" | ".join(MOTION_KINDS), got=m["kind"]
                 )
-            entries.append(i)
-            motions.append(
-                MotionEntry(
-                    name=dname,
-                    split=split,
-                    kind=m.get("kind"),
-                    seed=seed + k if f is None else 0,
-                    file=f,
-                    family=family,
-                    **kw,
+            allowed = _MOTION_KEYS["kind" if "kind" in m else "file"]
+            extra = sorted(set(m) - allowed)
+            if extra:
+                other = "file" if "kind" in m else "kind"
+                hint = (
+                    f"a key of motions with {other}, not {'kind' if other == 'file' else 'file'}"
+                    if extra[0] in _MOTION_KEYS[other]
+                    else ""
                 )
-            )
+                raise _unknown_key(what, extra[0], allowed, p, hint)
+            count = _count(m, p, what)
+            ranged = _ranges(m, {"speed": False, "amplitude": False} if "kind" in m else {"start": False}, p, what)
+            f = (p.parent / m["file"]).resolve() if "file" in m else None
+            if f is not None and require_files and not f.is_file():  # found now, not hours into `dataset make`
+                raise FileFormatError(f"{what}.file does not exist", path=p, got=str(f))
+            if f is not None and f.suffix.lower() not in MOTION_FILE_TYPES:  # not after other samples were simulated
+                raise FileFormatError(
+                    f"{what}.file is not a motion file",
+                    path=p,
+                    expected=" | ".join(MOTION_FILE_TYPES),
+                    got=f.suffix or f.name,
+                )
+            seed = m.get("seed", 0)
+            if not isinstance(seed, int) or isinstance(seed, bool):
+                raise FileFormatError(f"{what}.seed must be an integer", path=p, got=seed)
+            base = m.get("name") or (f.stem if f else f"{m['kind']}-s{seed}")
+            family = m.get("family") or (f.stem if f else base)  # a procedural entry is its own family
+            if not isinstance(family, str):
+                raise FileFormatError(f"{what}.family must be a name", path=p, got=family)
+            names_of = {family, *((f.stem, f.name) if f is not None else (m["kind"],))}
+            if split != "test" and names_of & set(held_motions):
+                raise FileFormatError(
+                    f"{what} is a {split} motion of the held-out family {family!r}",
+                    path=p,
+                    expected="split = 'test' for motions in dataset.held_out_motions",
+                )
+            if split != "val" and names_of & set(val_motions):
+                raise FileFormatError(
+                    f"{what} is a {split} motion of the validation family {family!r}",
+                    path=p,
+                    expected="split = 'val' for motions in dataset.val_motions",
+                )
+            if count is None and not ranged:
+                draws = [(base, 0, {})]
+            elif not ranged and f is not None and (count or 1) > 1:
+                raise FileFormatError(
+                    f"{what}: count = {count} of one file with no start range repeats one clip",
+                    path=p,
+                    expected="start = [lo, hi]",
+                )
+            else:
+                es = _entry_seed(m.get("seed"), base)
+                draws = [(f"{base}-{k}", k, draw_values(ranged, {}, es, k)) for k in range(count or 1)]
+            for dname, k, vals in draws:
+                if dname in mnames:
+                    raise FileFormatError(f"motion name {dname!r} is used twice", path=p)
+                mnames.add(dname)
+                kw = dict(
+                    speed=vals.get("speed", m.get("speed", 1.0)),
+                    amplitude=vals.get("amplitude", m.get("amplitude", 1.0)),
+                    start=vals.get("start", m.get("start", 0.0)),
+                    ease_in=m.get("ease_in", 1.0),
+                )
+                for name, v in kw.items():  # numbers, not strings of them ("1.0" was read as 1.0)
+                    if isinstance(v, bool) or not isinstance(v, (int, float)):
+                        raise FileFormatError(f"{what}.{name} must be a number", path=p, got=repr(v)[:40])
+                    kw[name] = float(v)
+                if kw["start"] < 0 or kw["ease_in"] < 0:
+                    raise FileFormatError(
+                        f"{what}: start and ease_in must be >= 0", path=p, got=(kw["start"], kw["ease_in"])
+                    )
+                entries.append(i)
+                motions.append(
+                    MotionEntry(
+                        name=dname,
+                        split=split,
+                        kind=m.get("kind"),
+                        seed=seed + k if f is None else 0,
+                        file=f,
+                        family=family,
+                        **kw,
+                    )
+                )
+        except InputError as e:  # the entry's line, as the other tables' errors name theirs
+            raise _at_entry(e, p, f"motions[{i}]") from None
     # one source, one side: a motion file or a MakeHuman garment is either trained on or held out
     for what, items in (
         ("motion file", [(mo.file, mo.split) for mo in motions if mo.file is not None]),
