@@ -1647,3 +1647,23 @@ def test_an_entry_error_names_its_line_and_key_as_the_other_tables_do(tmp_path, 
         load_dataset_config(p)
     assert str(e.value).startswith(f"{p}:{line}: "), str(e.value)
     assert msg in str(e.value) and "{" not in str(e.value), str(e.value)
+
+
+def test_the_config_docstring_shows_every_key_the_parser_takes():
+    """The val split, val_kinds, val_motions, roots, spread, family and name were read and not documented (a user's
+    trial): every key of every table appears in the module docstring's example as `key =`."""
+    import re
+
+    from segadeform.dataset import config as c
+
+    doc = c.__doc__
+    tables = {
+        "dataset": {f.name for f in dataclasses.fields(c._DatasetTable)},
+        "quality": {f.name for f in dataclasses.fields(c.QualitySpec)},
+        "garments": {"kind", "name", "split", "pin", "mhclo", "mesh", "decimate", "count", "seed"},
+        "bodies": {"betas", "split"},
+        "motions": set(c._MOTION_KEYS["kind"] | c._MOTION_KEYS["file"]),
+    }
+    missing = sorted(f"{t}.{k}" for t, keys in tables.items() for k in keys if not re.search(rf"\b{k} =", doc))
+    assert not missing
+    assert "``val``" in doc and "val_split" in doc  # the split itself, and what it is for

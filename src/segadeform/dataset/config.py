@@ -9,13 +9,18 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
                               # it simulates (and refuses below [quality] min_frames, or a start past the end)
     cross_splits = false      # also simulate held-out garments on training motions and vice versa
     held_out_kinds = []       # garment kinds that only held-out entries may use (never trained on)
-    held_out_motions = []     # motion kinds / motion file names likewise
+    held_out_motions = []     # motion kinds / motion file names / families likewise
+    val_kinds = []            # garment kinds that only validation entries (split = "val") may use
+    val_motions = []          # motion kinds / motion file names / families likewise
+    roots = []                # read-only dataset roots (packs, folders of packs; relative to this config)
+                              # read where they exist: a sample one holds is done and not made again
     order = "body-major"      # the order samples are made in: "body-major" (held-out ones first,
                               # then body, motion, garment: a run stopped early has every garment and
                               # motion of the bodies it reached) or "spread" (a fixed pseudo-random
                               # order by sample name, a held-out sample after every two training ones:
                               # any prefix covers every garment, body and motion about evenly -- for
                               # datasets grown with --limit over many runs)
+    spread = 0                # order "spread": training samples made between two held-out ones (0: 2)
 
     [quality]                 # the gate every sample must pass (see segadeform.dataset.quality)
     max_strain = 1.0          # largest |edge length / rest - 1| ...
@@ -46,27 +51,36 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
 
     [[garments]]
     kind = "skirt"            # segadeform.garments kinds; other keys are GarmentParams
+    name = "skirt-long"       # optional: the entry's name in sample ids (default: KIND-INDEX); a changed
+                              # garment is a new name beside the old, never an edit of an entry with samples
     # length = [0.3, 0.8]     # a range [lo, hi] instead of a value: each of `count` draws samples it
     # count = 4               #     uniformly (integers for resolution), deterministically from `seed`
     # seed = 0                #     (default: from the name) and its draw number k; named NAME-k
     # mhclo = "../../shared/data/garments/makehuman_split/jeans_m/jeans_m.mhclo"   # a MakeHuman garment
     #                         # fitted to each body instead (kind then only gives its type label)
+    # decimate = 0.5          # a MakeHuman garment: the share of its vertices kept (shortest edges first)
     # mesh = "my_skirt.obj"   # or a garment OBJ of your own (`garment fit`, `garment make`, any OBJ in metres,
     #                         # +Y up, on the body): simulated on the [[bodies]] of the shape it was made
     #                         # for (its `# betas:` line; the default shape when it has none); kind gives
     #                         # its type label and pin group
     pin = "waistband"         # optional: the pin group of this garment (with the "pinning" effect)
     resolution = 2500
-    split = "train"           # train | test (held out)
+    split = "train"           # train | val (held out to choose the model) | test (held out)
 
     [[bodies]]
     betas = [0.0, 0.0]
-    split = "train"           # a "test" body is only used in held-out samples (unseen shape)
+    split = "train"           # a "test" body is only used in held-out samples (unseen shape), a "val" one
+                              # in validation and held-out ones (never trained on)
 
     [[motions]]
     kind = "walk"             # procedural kind ...
     seed = 0
-    split = "train"
+    split = "train"           # train | val | test, as garments
+    # name = "walk-slow"     # optional: the entry's name in sample ids (default: KIND-sSEED, or the file's stem)
+    # family = "walk"        # optional: what the splits hold out together (default: the file's stem, or the
+    #                        #     procedural entry itself); entries of one family share a split
+    # speed = 1.0            # procedural: speed and amplitude factors (either may be a range with count)
+    # amplitude = 1.0
     # file = "../motions/walk.npz"   # ... or a motion file (relative to this config; BVH retargeted
     # start = 2.0                    #     onto each body, feet on the floor), from `start` seconds
     # ease_in = 0.0          # procedural: seconds blending in from the rest pose (default 1.0)
@@ -74,11 +88,14 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     #                        # files: `start` may be a range (clips of one file); named NAME-k
 
 Splits: a sample is ``train`` when its garment, motion and body are all train,
-``test`` when garment and motion are both held out (any body); with
-``cross_splits`` the mixed ones are made too, as ``test-garment``,
-``test-motion`` and ``test-body``.  Every draw of an entry has the entry's split; a
-motion file or MakeHuman garment used by a held-out entry may not be used by a
-training one, nor a ``held_out_kinds`` / ``held_out_motions`` kind.
+``test`` when garment and motion are both held out (any body), and ``val`` (the split
+that chooses the model: a training config's ``data.val_split``) when garment and motion are
+both ``val`` and its body is not ``test``; with ``cross_splits`` the mixed ones of train and
+test are made too, as ``test-garment``, ``test-motion`` and ``test-body`` (mixes with ``val``
+are not made).  Every draw of an entry has the entry's split; a motion file, motion family
+or MakeHuman garment used by a held-out (or validation) entry may not be used by a
+training one, nor a ``held_out_kinds`` / ``held_out_motions`` (``val_kinds`` /
+``val_motions``) kind or family; a validation sample may use nothing of the test split.
 
 Growing a dataset: entries added to a config, or a larger ``count``, only add
 samples -- draw k of an entry depends on the entry and k alone, never on the
