@@ -98,9 +98,15 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
             return None
 
     before = done_steps()
+
+    def resumed(step, of):
+        click.echo(f"resuming at step {step}/{of} from {output / 'last.pt'}", err=True)
+
     guard.start()
     try:
-        final = train(cfg, output, _body(body), progress=progress, val_ids=list(val_ids) or None)
+        final = train(cfg, output, _body(body), progress=progress, val_ids=list(val_ids) or None, resumed=resumed)
+    except KeyboardInterrupt:  # Ctrl-C, SIGTERM: click said "Aborted!" alone (a user's trial)
+        raise click.ClickException(_interrupted(output)) from None
     finally:
         guard.abandon()
         guard.record_files_in(output, written)  # whatever the run wrote, stopped or not: the next run resumes
@@ -124,6 +130,19 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
                 else ""
             )
         )
+
+
+def _interrupted(output: Path) -> str:
+    """What a train run stopped by Ctrl-C (or SIGTERM) says: that the same command resumes it, and from where."""
+    import torch
+
+    try:
+        at = int(torch.load(output / "last.pt", map_location="cpu", weights_only=False)["step"])
+    except Exception:  # none written yet, or not a checkpoint of ours: nothing to resume from
+        at = 0
+    if at:
+        return f"interrupted: run the same command again to resume from step {at} (the checkpoint {output / 'last.pt'})"
+    return "interrupted before the run's first checkpoint: run the same command again to start it afresh"
 
 
 @cli.command("eval")

@@ -60,6 +60,37 @@ def test_resume_continues_the_same_run(synthetic_dataset, tiny_config, tmp_path,
     assert steps == [3, 6]
 
 
+def test_an_interrupted_train_says_the_same_command_resumes_it_and_the_resumed_run_says_from_where(
+    synthetic_dataset, tiny_config, tmp_path, capsys, monkeypatch
+):
+    """Ctrl-C during `train` printed "Aborted!" alone, and a resumed run did not say it resumed (a user's trial)."""
+    import segadeform.train.trainer as trainer_mod
+
+    steps = [0]
+    fast = trainer_mod.step_losses
+
+    def stopped(*a, **k):
+        if "prior_scale" in k:  # a training step
+            steps[0] += 1
+            if steps[0] == 5:  # the step after the step-3 checkpoint's next one
+                raise KeyboardInterrupt
+        return fast(*a, **k)
+
+    run = tmp_path / "run"
+    args = ["train", str(tiny_config), "--dataset", str(synthetic_dataset), "-o", str(run)]
+    monkeypatch.setattr(trainer_mod, "step_losses", stopped)
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert err == (
+        f"Error: interrupted: run the same command again to resume from step 3 (the checkpoint {run / 'last.pt'})\n"
+    )
+    assert main(args) == 0
+    captured = capsys.readouterr()
+    assert captured.err.startswith(f"resuming at step 3/6 from {run / 'last.pt'}\n"), captured.err
+    assert "trained 6 steps" in captured.out
+    assert main(args) == 0 and "resuming" not in capsys.readouterr().err  # a finished run: nothing resumed
+
+
 def test_a_run_resumed_between_two_logged_steps_logs_the_rows_of_one_run(
     synthetic_dataset, tiny_config, tmp_path, body
 ):

@@ -267,8 +267,11 @@ def train(
     progress: Callable[[int, dict], None] | None = None,
     val_ids=None,
     log_every: int = 10,
+    resumed: Callable[[int, int], None] | None = None,
 ) -> Path:
-    """Train (or resume) into ``run_dir``; returns the final ``model.pt``.
+    """Train (or resume) into ``run_dir``; returns the final ``model.pt``.  ``resumed(step, steps)``: called when the
+    run goes on from its checkpoint ``last.pt`` at ``step`` of ``steps``, once the checkpoint is found to be this
+    run's (before any step is trained).
 
     Under a time budget (``optim.seconds``) this call -- loading the samples, training and validating -- ends
     within the budget of its start; writing the final model follows.  The step count is fixed once, at the end of
@@ -415,6 +418,8 @@ def train(
     final = run / "model.pt"
     if step >= total[0] and final.is_file() and (run / "train.json").is_file():
         return final  # a finished run run again: nothing to do, nothing rewritten (its record kept as it was)
+    if step > 0 and resumed is not None:
+        resumed(step, total[0])
     # the config beside the run once there is something to train and it is this run's (a run that finds no data,
     # or that another run's folder refuses, leaves no file)
     if cfg.path is not None and cfg.path.resolve() != (run / "config.toml").resolve():
