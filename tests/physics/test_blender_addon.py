@@ -308,18 +308,25 @@ def test_addon_follows_a_bone_parent_keeps_the_users_files_and_the_modifier_stac
     assert got["forced"] == ["FINISHED"]
 
 
-ADDON_FRAME = r"""
-import sys, json, os
+#: the start of the bpy scripts below: an empty scene, the add-on built by _addon_and_walk installed and enabled with
+#: this checkout's segadeform, Blender's BVH importer on
+ADDON_SETUP = r"""
+import sys, json, math, os
 import numpy as np
 import bpy
 import addon_utils
+from mathutils import Matrix
 zip_path, exe, bvh, garment, out = sys.argv[1:6]
 bpy.ops.wm.read_factory_settings(use_empty=True)
 bpy.ops.preferences.addon_install(filepath=zip_path)
 addon_utils.enable("segadeform_addon", default_set=True)
 bpy.context.preferences.addons["segadeform_addon"].preferences.executable = exe
 addon_utils.enable("io_anim_bvh", default_set=True)
-bpy.ops.import_anim.bvh(filepath=bvh, global_scale=0.01, update_scene_fps=True)
+"""
+
+ADDON_FRAME = (
+    ADDON_SETUP
+    + r"""bpy.ops.import_anim.bvh(filepath=bvh, global_scale=0.01, update_scene_fps=True)
 arm = bpy.context.object
 bpy.ops.wm.obj_import(filepath=garment)
 g = next(o for o in bpy.data.objects if o.type == "MESH")
@@ -340,6 +347,7 @@ res["result"] = sorted(bpy.ops.segadeform.animate_garment())
 res["frame_after"] = sc.frame_current
 print("RESULT" + json.dumps(res))
 """
+)
 
 
 def test_addon_writes_the_garment_as_placed_at_the_start_frame(sim_python, tmp_path):
@@ -358,19 +366,9 @@ def test_addon_writes_the_garment_as_placed_at_the_start_frame(sim_python, tmp_p
     assert np.abs(written - want).max() <= 1e-6
 
 
-ADDON_RIG = r"""
-import sys, json, math, os
-import numpy as np
-import bpy
-import addon_utils
-from mathutils import Matrix
-zip_path, exe, bvh, garment, out = sys.argv[1:6]
-bpy.ops.wm.read_factory_settings(use_empty=True)
-bpy.ops.preferences.addon_install(filepath=zip_path)
-addon_utils.enable("segadeform_addon", default_set=True)
-bpy.context.preferences.addons["segadeform_addon"].preferences.executable = exe
-addon_utils.enable("io_anim_bvh", default_set=True)
-sc = bpy.context.scene
+ADDON_RIG = (
+    ADDON_SETUP
+    + r"""sc = bpy.context.scene
 res = {}
 
 def case(name, scale, move):
@@ -410,6 +408,7 @@ case("big", (1.3, 1.3, 1.3), Matrix.Translation((0.5, 0.3, 0.0)) @ Matrix.Rotati
 case("uneven", (1.0, 1.0, 1.2), Matrix())
 print("RESULT" + json.dumps(res))
 """
+)
 
 
 def test_addon_garment_follows_the_armatures_hips_at_its_scale(sim_python, tmp_path):
