@@ -76,7 +76,12 @@ def _effects_option(text, base=None, *, check_only: bool = False):
     type=PathParam(dir_okay=False, path_type=Path),
     help="Motion .npz/.bvh/.amc/.glb/.gltf/.sgdm (flag form; CMU's .amc is read at 120 fps).",
 )
-@click.option("--body", type=PathParam(dir_okay=False, path_type=Path), help="Body .npz/.pkl (default: shipped body).")
+@click.option(
+    "--body",
+    type=PathParam(dir_okay=False, path_type=Path),
+    help="Body .npz/.pkl (default: shipped body); a body other than the one the model package's body graphs pose "
+    "is refused without --force.",
+)
 @click.option("--betas", help="Comma-separated body shape coefficients.")
 @click.option("--effects", help="e.g. 'dqs,-wrinkles,-collisions' (default: lbs, all effects on).")
 @click.option(
