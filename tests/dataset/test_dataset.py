@@ -1540,14 +1540,14 @@ def test_a_run_stopped_before_simulating_leaves_the_folder_as_it_was(tmp_path):
     assert sorted(p.name for p in (old / "rejected").iterdir()) == [f"{sid}.json", f"{sid}.npz"]
 
 
-def test_a_clip_shorter_than_asked_is_refused_below_min_frames_and_said_otherwise_before_anything_is_written(
-    tmp_path,
-):
-    """`start = 2.0` with `seconds = 1.0` on a 2.5 s capture made 15-frame samples under `min_frames = 20`, and
-    `seconds = 5.0` 66-frame ones, without a word; `start = 10.0` was refused by the first sample's worker, the new
-    output folder left with config.toml, configs/, garments/ and log.jsonl (a user's trial).  Now every clip to make
-    is checked before anything is written: past the end or under min_frames refused in one line naming the entry's
-    table and line, shorter than [dataset] seconds said once per entry."""
+def test_a_clip_past_the_end_is_refused_and_a_short_one_said_before_anything_is_written(tmp_path):
+    """`start = 2.0` with `seconds = 1.0` on a 2.5 s capture made 15-frame samples, and `seconds = 5.0` 66-frame
+    ones, without a word; `start = 10.0` was refused by the first sample's worker, the new output folder left with
+    config.toml, configs/, garments/ and log.jsonl (a user's trial).  Now every clip to make is checked before
+    anything is written: a start past the end refused in one line naming the entry's table and line, a clip shorter
+    than [dataset] seconds said once per entry -- also under [quality] min_frames, which bounds only the leading
+    frames kept of a clip that fails (refusing it refused continuum.toml, which has a 19-frame clip, a review
+    found)."""
     from segadeform.body import load_body
     from segadeform.dataset import make_dataset
     from segadeform.dataset.make import check_clips
@@ -1558,27 +1558,21 @@ def test_a_clip_shorter_than_asked_is_refused_below_min_frames_and_said_otherwis
     motion = f'[[motions]]\nfile = "{walk}"\nstart = {{start}}\nsplit = "train"\n'
     text = TINY.read_text().replace("[quality]\n", "[quality]\nmin_frames = {least}\n", 1) + motion
     line = len(text.format(start=0, least=0).splitlines()) - 3  # the file entry's [[motions]]
-    for start, least, words in (
-        (10.0, 0, r"start is past the end of its file \(expected start < 2\.8\d s"),
-        (
-            2.6,
-            12,
-            r"start = 2\.6 s leaves a clip of 8 frames \(0\.27 s of the 0\.5 s of \[dataset\] seconds\), "
-            r"fewer than \[quality\] min_frames = 12 \(expected start <= 2\.4\d s",
-        ),
-    ):
-        cfg = load_dataset_config(_write(tmp_path, "c.toml", text.format(start=start, least=least)))
-        with pytest.raises(InputError, match=words) as e:
-            make_dataset(cfg, tmp_path / "new", body_path=body, sim_python=never)
-        assert str(e.value).startswith(f"{tmp_path / 'c.toml'}:{line}: motions[2] (02_01_walk): "), str(e.value)
-        assert not (tmp_path / "new").exists()
-    cfg = load_dataset_config(_write(tmp_path, "c.toml", text.format(start=2.6, least=8)))
-    plan = [p for p in sample_plan(cfg) if cfg.motions[p.motion].file is not None]
-    said = check_clips(cfg, [(p.motion, p.body) for p in plan], load_body(body))
-    assert len(plan) > 1 and len(said) == 1, said
-    assert said[0].startswith(f"{tmp_path / 'c.toml'}:{line}: motions[2] (02_01_walk): start = 2.6 s leaves a clip ")
-    assert "of 8 frames (0.27 s), not the 15 of [dataset] seconds = 0.5" in said[0]
-    assert check_clips(cfg, [(p.motion, p.body) for p in sample_plan(cfg) if p not in plan], load_body(body)) == []
+    cfg = load_dataset_config(_write(tmp_path, "c.toml", text.format(start=10.0, least=0)))
+    with pytest.raises(InputError, match=r"start is past the end of its file \(expected start < 2\.8\d s") as e:
+        make_dataset(cfg, tmp_path / "new", body_path=body, sim_python=never)
+    assert str(e.value).startswith(f"{tmp_path / 'c.toml'}:{line}: motions[2] (02_01_walk): "), str(e.value)
+    assert not (tmp_path / "new").exists()
+    for least in (8, 12):  # 8 frames left: at min_frames, and under it
+        cfg = load_dataset_config(_write(tmp_path, "c.toml", text.format(start=2.6, least=least)))
+        plan = [p for p in sample_plan(cfg) if cfg.motions[p.motion].file is not None]
+        said = check_clips(cfg, [(p.motion, p.body) for p in plan], load_body(body))
+        assert len(plan) > 1 and len(said) == 1, said
+        where = f"{tmp_path / 'c.toml'}:{line}: motions[2] (02_01_walk)"
+        assert said[0].startswith(f"{where}: start = 2.6 s leaves a clip "), said[0]
+        assert "of 8 frames (0.27 s), not the 15 of [dataset] seconds = 0.5" in said[0]
+        others = [(p.motion, p.body) for p in sample_plan(cfg) if p not in plan]
+        assert check_clips(cfg, others, load_body(body)) == []
 
 
 ENTRIES = """[dataset]
@@ -1667,3 +1661,39 @@ def test_the_config_docstring_shows_every_key_the_parser_takes():
     missing = sorted(f"{t}.{k}" for t, keys in tables.items() for k in keys if not re.search(rf"\b{k} =", doc))
     assert not missing
     assert "``val``" in doc and "val_split" in doc  # the split itself, and what it is for
+
+
+def test_dataset_make_names_three_entries_of_short_clips_and_counts_the_rest(tmp_path, monkeypatch, caplog):
+    """continuum.toml has 56 motion entries whose clips are shorter than [dataset] seconds: a run names three and
+    counts the others (a line each was a page every run).  The simulator is replaced by one holding the garment."""
+    import logging
+
+    from segadeform.dataset import make_dataset
+    from segadeform.physics import blender
+
+    def fake_simulate(vertices, faces, body, motion, **kw):
+        x = np.repeat(np.asarray(vertices, np.float64)[None], motion.n_frames, axis=0)
+        info = {"blender_version": "fake", "simulate_seconds": 0.0, "seconds_per_frame": 0.0}
+        return blender.SimResult(
+            frames=x, fps=motion.fps, settings={}, blender=info, preroll_frames=0, wall_seconds=0.0
+        )
+
+    monkeypatch.setattr(blender, "simulate", fake_simulate)
+    walk = SAMPLES / "motions" / "cmu" / "02_01_walk.bvh"  # 2.87 s once its settling frames are dropped
+    entries = "".join(
+        f'[[motions]]\nfile = "{walk}"\nstart = {s}\nname = "w{k}"\n' for k, s in enumerate((2.0, 2.1, 2.2, 2.3))
+    )
+    garment = '[[garments]]\nkind = "skirt"\nresolution = 300\n'
+    text = f"[dataset]\nfps = 30.0\nseconds = 1.0\n{_LENIENT_GATE}\n{garment}{entries}"
+    cfg = load_dataset_config(_write(tmp_path, "short.toml", text))
+    with caplog.at_level(logging.WARNING, logger="segadeform.dataset.make"):
+        make_dataset(cfg, tmp_path / "out", body_path=SAMPLES / "bodies" / "default_body.npz")
+    said = [
+        r.getMessage()
+        for r in caplog.records
+        if "shorter than [dataset] seconds" in r.getMessage() or "leaves a clip" in r.getMessage()
+    ]
+    assert len(said) == 4, said
+    assert all("leaves a clip of" in w for w in said[:3]) and said[3] == (
+        "... and 1 more motion entries whose clips are shorter than [dataset] seconds"
+    ), said

@@ -6,7 +6,7 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     fps = 30.0
     seconds = 3.0             # every motion is cut or generated to this length; a motion file with less
                               # capture after `start` gives shorter clips, which `dataset make` says before
-                              # it simulates (and refuses below [quality] min_frames, or a start past the end)
+                              # it simulates (and refuses a start past the end)
     cross_splits = false      # also simulate held-out garments on training motions and vice versa
     held_out_kinds = []       # garment kinds that only held-out entries may use (never trained on)
     held_out_motions = []     # motion kinds / motion file names / families likewise
