@@ -126,9 +126,10 @@ def check_up_axis(obj: str, rest: np.ndarray, pc2: str, first: np.ndarray) -> No
         )
 
 
-def _check_pair(obj: str, pc2: str | None) -> dict | None:
+def _check_pair(obj: str, pc2: str | None, up_check: bool = True) -> dict | None:
     """The OBJ and its cache (PC2 header), checked before anything is imported: files there, the cache whole, the
-    same vertex count, the cache +Y up as the OBJ (:func:`check_up_axis`)."""
+    same vertex count, the cache +Y up as the OBJ (:func:`check_up_axis`; ``up_check=False`` skips it: a cache
+    whose first frame lies down, head along +Z, fits the OBJ better turned and would be refused)."""
     rest = obj_vertices(obj)
     if pc2 is None:
         return None
@@ -136,7 +137,8 @@ def _check_pair(obj: str, pc2: str | None) -> dict | None:
     if h["points"] != len(rest):
         raise RuntimeError(f"{pc2}: point count does not match {obj} (expected {len(rest)}, got {h['points']})")
     first = np.fromfile(pc2, "<f4", count=3 * h["points"], offset=_PC2_HEADER.size).reshape(-1, 3)
-    check_up_axis(obj, rest, pc2, first.astype(np.float64))
+    if up_check:
+        check_up_axis(obj, rest, pc2, first.astype(np.float64))
     return h
 
 
@@ -211,6 +213,7 @@ def import_result(
     fps: float | None = None,
     save: str | None = None,
     force: bool = False,
+    up_check: bool = True,
 ):
     """Import the garment (and body) OBJ, attach the PC2 caches, set the scene's frame range (and rate).
 
@@ -218,6 +221,7 @@ def import_result(
     ``frames``: the scene's number of frames (None: up to the last sample of the caches).
     ``fps``: the scene's frame rate, the run's (None: the scene's is kept).
     ``save``: a .blend to save the scene to (an existing file only with ``force``).
+    ``up_check``: refuse a cache written with ``--up z`` (:func:`check_up_axis`; off for a first frame lying down).
     Returns the objects, garment first.
     """
     if fps is not None and not (fps > 0 and fps < 1000):
@@ -227,9 +231,9 @@ def import_result(
     if body_cache and not body:  # (it was ignored without a word)
         raise RuntimeError(f"{body_cache}: --body-cache needs --body (expected the body OBJ too, got its cache alone)")
     # every input checked before the scene changes (a missing body cache left a garment without its cache)
-    pairs = [(garment, cache, _check_pair(garment, cache))]
+    pairs = [(garment, cache, _check_pair(garment, cache, up_check))]
     if body:
-        pairs.append((body, body_cache, _check_pair(body, body_cache)))
+        pairs.append((body, body_cache, _check_pair(body, body_cache, up_check)))
     objs, spans = [], []
     before = {c: set(c) for c in (bpy.data.objects, bpy.data.meshes, bpy.data.materials)}
     try:
@@ -312,10 +316,25 @@ def _main(argv):
     )
     ap.add_argument("--save", metavar="FILE.blend", help="save the scene as FILE.blend (for a headless run)")
     ap.add_argument("--force", action="store_true", help="--save may replace an existing file")
+    ap.add_argument(
+        "--no-up-check",
+        action="store_true",
+        help="import a cache whose first frame lies down (head along +Z) without the --up z check, which refuses it",
+    )
     a = ap.parse_args(argv)
     if a.force and not a.save:
         raise RuntimeError("--force only lets --save replace a file (expected --save FILE.blend, got no --save)")
-    return import_result(a.garment, a.cache, a.body, a.body_cache, a.frame_start, fps=a.fps, save=a.save, force=a.force)
+    return import_result(
+        a.garment,
+        a.cache,
+        a.body,
+        a.body_cache,
+        a.frame_start,
+        fps=a.fps,
+        save=a.save,
+        force=a.force,
+        up_check=not a.no_up_check,
+    )
 
 
 if __name__ == "__main__":
