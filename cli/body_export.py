@@ -24,10 +24,16 @@ from .main import PathParam, cli
     type=PathParam(file_okay=False, path_type=Path),
     help="Write the package with the body graphs here instead of replacing it.",
 )
-def export_body_cmd(body, output, copy_to):
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Give the package another body than the one its body graphs record (its model's training body).",
+)
+def export_body_cmd(body, output, copy_to, force):
     """Export BODY (.npz or SMPL .pkl; default: the shipped body) as the package's body graphs body_lbs and
     body_dqs: betas, poses and translations in, posed vertices, joints, rest joints and triangles out, so
-    runtimes without Python pose the body (needs the 'torch' extra)."""
+    runtimes without Python pose the body (needs the 'torch' extra).  The body graphs record the body the
+    package's model was trained on (`segadeform run` refuses another): another body needs --force."""
     try:
         import torch  # noqa: F401
     except ImportError:
@@ -51,6 +57,25 @@ def export_body_cmd(body, output, copy_to):
                 got="a package segadeform did not write",
             ) from None
     b = load_body(body or default_body_path())
+    if not force:  # the body graphs are the record of the model's body (a review: this undid it without a word)
+        import json
+
+        from segadeform.body.identity import body_text, other_body
+        from segadeform.errors import InputError
+        from segadeform.runtime.body import manifest_body
+
+        try:
+            recorded = manifest_body(json.loads((output / "manifest.json").read_text()))
+        except (OSError, ValueError):
+            recorded = None  # not a package: add_body_to_package says so
+        mine = other_body(recorded, b)
+        if mine is not None:
+            raise InputError(
+                "the package's model was trained on another body than BODY (its body graphs record it)",
+                path=output,
+                expected=f"{body_text(recorded or {})}, or --force to give it another",
+                got=body_text(mine),
+            )
     m = add_body_to_package(output, b, copy_to)
     guard.record()
     names = sorted(k for k, g in m["graphs"].items() if g["role"] == "body")

@@ -47,7 +47,12 @@ def package_body(package: ModelPackage) -> dict | None:
     """``{"name", "sha256"}`` of the body ``package``'s body graphs pose (their manifest entries'
     :func:`segadeform.body.identity.body_label`), which ``segadeform export`` makes the body its model was trained
     on; None for a package without body graphs or whose graphs do not record it."""
-    for g in contract.body_graphs(package.manifest).values():
+    return manifest_body(package.manifest)
+
+
+def manifest_body(manifest: dict) -> dict | None:
+    """:func:`package_body` of a package's ``manifest.json`` as read (no graph loaded)."""
+    for g in contract.body_graphs(manifest).values():
         b = g.get("body")
         if isinstance(b, dict) and b.get("sha256"):
             return {"name": str(b.get("name") or ""), "sha256": str(b["sha256"])}

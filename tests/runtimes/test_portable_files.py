@@ -195,9 +195,11 @@ def test_export_body_gives_a_package_another_body(random_package, body, tmp_path
 
     other = dataclasses.replace(body, v_template=body.v_template * 1.1, path=str(tmp_path / "tall.npz"))
     other.save(tmp_path / "tall.npz")
-    assert (
-        main(["export-body", str(tmp_path / "tall.npz"), "-o", str(random_package), "--to", str(tmp_path / "pkg")]) == 0
-    )
+    args = ["export-body", str(tmp_path / "tall.npz"), "-o", str(random_package), "--to", str(tmp_path / "pkg")]
+    # the body graphs record the model's body: another is refused without --force, nothing written (a review)
+    assert ModelPackage(random_package).spec("body_lbs")["body"]["sha256"] == body_sha256(body)
+    assert main(args) == 1 and not (tmp_path / "pkg").exists()
+    assert main([*args, "--force"]) == 0
     old, new = ModelPackage(random_package), ModelPackage(tmp_path / "pkg")
     tall = load_body(tmp_path / "tall.npz")
     assert new.spec("body_lbs")["body"] == {"name": "tall.npz", "sha256": body_sha256(tall)}
