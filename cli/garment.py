@@ -49,8 +49,8 @@ def garment_group():
 @click.option(
     "--resolution",
     type=int,
-    help="Target vertex count: picks the refinement level nearest it (each about 4x the vertices); below the "
-    "kind's coarsest level (1,000-5,000 vertices) that level is made, with a warning.",
+    help="Target vertex count: picks the refinement level nearest it (each about 4x the vertices; the coarsest is "
+    "about 850-3,000 vertices by kind); a target under half the coarsest level makes that level, with a warning.",
 )
 @click.option(
     "--waist-ease",
