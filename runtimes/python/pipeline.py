@@ -526,7 +526,7 @@ def check_package_body(package: ModelPackage, body: BodyModel, *, force: bool = 
     if mine is None or force:
         return
     raise InputError(
-        "the model package was made for another body than the run's (--body)",
+        "the model package was made for another body than the run's (--body, or the scene's body)",
         path=package.path,
         expected=f"{body_text(cast(dict, recorded))}, the body it was trained on and poses (a package exported for "
         "this body; --force runs it anyway)",

@@ -217,7 +217,8 @@ def test_run_refuses_a_body_other_than_the_packages_unless_forced(tmp_path, cust
     args += ["--model", str(SHIPPED), "--body", str(custom_body.path), "--frames", "0:3", "--no-cache"]
     assert main([*args, "-o", str(tmp_path / "out.pc2")]) == 1
     err = capsys.readouterr().err
-    assert err.startswith(f"Error: {SHIPPED}: the model package was made for another body than the run's (--body)")
+    said = "the model package was made for another body than the run's (--body, or the scene's body)"
+    assert err.startswith(f"Error: {SHIPPED}: {said}"), err
     assert err.count("\n") == 1 and "expected default_body.npz (sha256 " in err and "got taller.npz (sha256 " in err
     assert not (tmp_path / "out.pc2").exists() and not list(tmp_path.iterdir())
     assert main([*args, "-o", str(tmp_path / "forced.pc2"), "--force"]) == 0
