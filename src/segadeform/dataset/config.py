@@ -352,6 +352,10 @@ class _DatasetTable:
 
 
 #: the keys of a [[motions]] entry: a procedural one (kind) and a motion file's
+#: the keys of a [[garments]] entry besides GarmentParams' fields, and of a [[bodies]] entry (the parser's and the
+#: docstring test's one list)
+_GARMENT_KEYS = frozenset({"kind", "name", "split", "pin", "mhclo", "mesh", "decimate", "count", "seed"})
+_BODY_KEYS = ("betas", "split")
 _MOTION_KEYS = {
     "kind": frozenset({"kind", "seed", "speed", "amplitude", "name", "count", "ease_in", "family", "split"}),
     "file": frozenset({"file", "name", "start", "count", "seed", "family", "split"}),
@@ -538,7 +542,7 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
             known = {f.name for f in dataclasses.fields(GarmentParams)}
             extra = sorted(set(g) - known)
             if extra:  # a typo (`mhcl`, `spilt`) said as the other tables say it, not as Python's TypeError
-                allowed = known | {"kind", "name", "split", "pin", "mhclo", "mesh", "decimate", "count", "seed"}
+                allowed = known | _GARMENT_KEYS
                 raise _unknown_key(f"garments[{i}]", extra[0], allowed, p)
             for dname, vals in draws:
                 if dname in names:
@@ -568,9 +572,9 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
         try:
             if not isinstance(b, dict):
                 raise FileFormatError(f"bodies[{i}] must be a [[bodies]] table", path=p, got=type(b).__name__)
-            extra = sorted(set(b) - {"betas", "split"})
+            extra = sorted(set(b) - set(_BODY_KEYS))
             if extra:  # (said as a Python dict, without the key's line: a user's trial)
-                raise _unknown_key(f"bodies[{i}]", extra[0], ("betas", "split"), p)
+                raise _unknown_key(f"bodies[{i}]", extra[0], _BODY_KEYS, p)
             betas = b.get("betas", [])
             if not isinstance(betas, list) or not all(
                 isinstance(x, (int, float)) and not isinstance(x, bool) for x in betas
