@@ -4,7 +4,7 @@ Every command is a thin layer over a library call.  Errors the library raises
 on bad input (:class:`~segadeform.errors.SegadeformError`) and operating
 system errors become one ``Error: ...`` line on stderr and exit status 1;
 usage errors exit with 2 (click's convention).  No traceback is printed for
-either.  A path option or argument is a :class:`PathParam`: a path that is not
+either.  An option of one value given twice is a usage error (click kept the last).  A path option or argument is a :class:`PathParam`: a path that is not
 what it must be (a folder for a file) is bad input, not a usage error.
 """
 
@@ -20,7 +20,38 @@ from segadeform import __version__
 from segadeform.errors import SegadeformError
 
 
+def _given_twice(cmd: click.Command, ctx: click.Context, args: list[str]) -> None:
+    """Refuse an option that takes one value given more than once: click keeps the last and drops the others
+    without a word (``run --batch 2 --batch 4`` ran at 4; ``--output a --output b`` wrote b alone).  Options declared
+    ``multiple``, counts and flags (``--force --force``) are not refused.  Raises click.UsageError (exit 2), before
+    anything runs."""
+    try:
+        _, _, order = cmd.make_parser(ctx).parse_args(args=list(args))
+    except click.UsageError:
+        return  # click's own parse says what is wrong with this command line
+    seen: set[str | None] = set()
+    for p in order:
+        if not isinstance(p, click.Option) or p.multiple or p.count or p.is_flag:
+            continue
+        if p.name in seen:
+            raise click.UsageError(f"{p.opts[-1]} is given more than once: give it once", ctx=ctx)
+        seen.add(p.name)
+
+
+class _Command(click.Command):
+    def parse_args(self, ctx, args):
+        _given_twice(self, ctx, args)
+        return super().parse_args(ctx, args)
+
+
 class _Group(click.Group):
+    command_class = _Command
+    group_class = type  # a subgroup (`dataset`, `garment` ...) is a _Group: its commands are _Commands
+
+    def parse_args(self, ctx, args):
+        _given_twice(self, ctx, args)
+        return super().parse_args(ctx, args)
+
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)

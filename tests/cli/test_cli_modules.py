@@ -45,3 +45,32 @@ def test_info_prints_the_package():
     assert lines[0].startswith(f"{SAMPLES / 'models' / 'default'}: segadeform-model-package schema ")
     assert lines[1].startswith("  units m, up +y, 24 joints") and lines[2].startswith("  config: {")
     assert any(ln.startswith("  ops (") for ln in lines)
+
+
+def test_every_command_refuses_an_option_of_one_value_given_twice(tmp_path, monkeypatch):
+    """Click kept the last of ``run --batch 2 --batch 4`` and dropped the first without a word (a user's trial: the
+    node runtime refused it, the Python CLI ran).  Every command and group refuses each of its single-value options
+    given twice, before it runs: usage error, exit 2, the option named.  Options of several values (``multiple``),
+    counts and flags stay as they are."""
+    cases = [
+        (path, p)
+        for path, cmd in [((), cli), *_commands(cli)]
+        for p in cmd.params
+        if isinstance(p, click.Option) and not (p.is_flag or p.count or p.is_eager)
+    ]
+    runner = CliRunner()
+    checked = 0
+    monkeypatch.chdir(tmp_path)  # a command that did run would write here only
+    for path, p in cases:
+        value = ["1"] * max(p.nargs, 1)
+        r = runner.invoke(cli, [*path, p.opts[0], *value, p.opts[0], *value], catch_exceptions=False)
+        if p.multiple:
+            assert "given more than once" not in r.output, (path, p.name, r.output)
+            continue
+        assert r.exit_code == 2, (path, p.name, r.exit_code, r.output)
+        assert f"{p.opts[-1]} is given more than once" in r.output, (path, p.name, r.output)
+        checked += 1
+    # a flag given twice is not refused
+    r = runner.invoke(cli, ["garment", "kinds", "--help", "--help"])
+    assert r.exit_code == 0 and "Usage:" in r.output, r.output
+    assert checked > 100
