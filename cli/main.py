@@ -4,7 +4,8 @@ Every command is a thin layer over a library call.  Errors the library raises
 on bad input (:class:`~segadeform.errors.SegadeformError`) and operating
 system errors become one ``Error: ...`` line on stderr and exit status 1;
 usage errors exit with 2 (click's convention).  No traceback is printed for
-either.  An option of one value given twice is a usage error (click kept the last).  A path option or argument is a :class:`PathParam`: a path that is not
+either.  An option of one value given twice is a usage error (click kept the
+last).  A path option or argument is a :class:`PathParam`: a path that is not
 what it must be (a folder for a file) is bad input, not a usage error.
 """
 
