@@ -52,11 +52,12 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
     from segadeform.contracts.model_package import read_manifest_text
     from segadeform.geometry import GarmentAsset, precompute_garment
     from segadeform.io import read_mesh
-    from segadeform.io.garment_asset import PORTABLE_SUFFIX
+    from segadeform.io.garment_asset import PORTABLE_SUFFIX, check_asset_path
     from segadeform.io.hashing import file_sha256
     from segadeform.io.obj import recorded_betas
     from segadeform.io.output_guard import OutputGuard
 
+    check_asset_path(output)  # before any work
     guard = OutputGuard("garment export", inputs=(garment, body, model))
     guard.file(output)
     b = load_body(body or default_body_path())

@@ -40,12 +40,14 @@ def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, ge
     from segadeform.body import load_rest_joints
     from segadeform.geometry import DEFAULT_GEODESIC, DEFAULT_MAX_K, DEFAULT_N_STAR, precompute_garment
     from segadeform.io import read_mesh
+    from segadeform.io.garment_asset import check_asset_path
     from segadeform.io.hashing import file_sha256
 
     if (joints_path is None) == (body_path is None):
         raise click.UsageError("give exactly one of --joints JOINTS.npy or --body BODY.npz")
     from segadeform.io.output_guard import OutputGuard
 
+    check_asset_path(output)  # before any work
     guard = OutputGuard("precompute", inputs=(garment, joints_path, body_path))
     guard.file(output)
     t0 = time.perf_counter()

@@ -6,8 +6,9 @@ import pytest
 from click.testing import CliRunner
 
 from segadeform.cli.main import cli, main
+from segadeform.errors import InputError
 from segadeform.geometry import GarmentAsset
-from tests.conftest import leftovers
+from tests.conftest import SAMPLES, leftovers
 
 
 def run(*args):
@@ -123,3 +124,27 @@ def test_console_script_runs_as_a_process(tmp_path, samples):
 
 def test_main_returns_status():
     assert main(["--version"]) == 0
+
+
+def test_an_asset_is_written_only_under_its_own_suffixes(tmp_path):
+    """``precompute`` and ``garment export`` wrote an .npz archive under any name (``-o skirt.obj``, ``-o out``): now
+    a name other than .npz / .sgda is one line naming it, exit 1, before any work, and nothing is written."""
+    body = SAMPLES / "bodies" / "default_body.npz"
+    garment = SAMPLES / "garments" / "skirt.obj"
+    for args in (
+        ["precompute", str(garment), "--body", str(body), "-o"],
+        ["garment", "export", str(garment), "-o"],
+    ):
+        for name in ("skirt.obj", "asset", "asset.npz.txt"):
+            out = tmp_path / name
+            r = CliRunner().invoke(cli, [*args, str(out)])
+            assert r.exit_code == 1, r.output
+            assert f"{out}: a garment asset is written as .npz or .sgda" in r.output, r.output
+            assert "got " + (out.suffix or "no suffix") in r.output, r.output
+            assert not out.exists()
+    r = CliRunner().invoke(cli, ["precompute", str(garment), "--body", str(body), "-o", str(tmp_path / "a.NPZ")])
+    assert r.exit_code == 0, r.output
+    GarmentAsset.load(tmp_path / "a.NPZ")
+    with pytest.raises(InputError, match=r"expected \.npz or \.sgda, got \.ply"):
+        GarmentAsset.load(tmp_path / "a.NPZ").save(tmp_path / "a.ply")
+    assert not (tmp_path / "a.ply").exists()

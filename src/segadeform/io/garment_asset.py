@@ -59,7 +59,14 @@ from ..errors import FileFormatError, InputError
 from .atomic import atomic_path
 from .sgdb import BUNDLE_MAGIC, read_bundle, write_bundle
 
-__all__ = ["ASSET_SCHEMA_VERSION", "READABLE_ASSET_SCHEMAS", "ASSET_KIND", "PORTABLE_SUFFIX", "GarmentAsset"]
+__all__ = [
+    "ASSET_SCHEMA_VERSION",
+    "READABLE_ASSET_SCHEMAS",
+    "ASSET_KIND",
+    "PORTABLE_SUFFIX",
+    "GarmentAsset",
+    "check_asset_path",
+]
 
 #: 2: optional ``betas``, ``log_wbody`` and ``body`` (an asset prepared for a body shape)
 ASSET_SCHEMA_VERSION = 2
@@ -67,6 +74,21 @@ READABLE_ASSET_SCHEMAS = (1, 2)
 #: ``meta.kind`` of the portable form, and its file suffix
 ASSET_KIND = "segadeform-garment-asset"
 PORTABLE_SUFFIX = ".sgda"
+
+
+def check_asset_path(path: str | os.PathLike) -> Path:
+    """``path`` as a garment asset's file name: ``.npz`` or ``.sgda`` (the portable form), else InputError.  Any
+    other name was written as an ``.npz`` under it (``-o skirt.obj`` replaced nothing of the user's, but left an
+    archive named as a mesh)."""
+    p = Path(path)
+    if p.suffix.lower() not in (".npz", PORTABLE_SUFFIX):
+        raise InputError(
+            "a garment asset is written as .npz or .sgda (portable)",
+            path=p,
+            expected=f".npz or {PORTABLE_SUFFIX}",
+            got=p.suffix or "no suffix",
+        )
+    return p
 #: the portable form's array dtypes (bundle dtype names)
 _PORTABLE = {
     "vertices": "f64",
@@ -136,8 +158,8 @@ class GarmentAsset:
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the asset atomically: an uncompressed ``.npz``, or the portable form for a ``.sgda`` path."""
+        p = check_asset_path(path)
         self.validate()
-        p = Path(path)
         if p.suffix.lower() == PORTABLE_SUFFIX:
             return self._save_portable(p)
         with atomic_path(p) as tmp:
