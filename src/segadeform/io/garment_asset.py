@@ -89,6 +89,8 @@ def check_asset_path(path: str | os.PathLike) -> Path:
             got=p.suffix or "no suffix",
         )
     return p
+
+
 #: the portable form's array dtypes (bundle dtype names)
 _PORTABLE = {
     "vertices": "f64",
