@@ -1697,3 +1697,32 @@ def test_dataset_make_names_three_entries_of_short_clips_and_counts_the_rest(tmp
     assert all("leaves a clip of" in w for w in said[:3]) and said[3] == (
         "... and 1 more motion entries whose clips are shorter than [dataset] seconds"
     ), said
+
+
+def test_retry_rejected_checks_the_rejected_samples_clips_in_the_words_that_name_their_line(tmp_path):
+    """`--retry-rejected` loaded the rejected samples' motions before the run's clip check: a start moved past the end
+    of its file was refused without the entry's table and line.  Now their clips are checked first, in the run's
+    words, and nothing is retired or written."""
+    from segadeform.dataset.make import make_dataset
+    from segadeform.dataset.store import Sample, save_sample
+
+    walk = SAMPLES / "motions" / "cmu" / "02_01_walk.bvh"  # 2.87 s once its settling frames are dropped
+    text = (
+        "[dataset]\nfps = 30.0\nseconds = 0.5\n"
+        '[[garments]]\nname = "skirt"\nkind = "skirt"\n'
+        f'[[motions]]\nname = "w"\nfile = "{walk}"\nstart = {{start}}\n'
+    )
+    cfg = load_dataset_config(_write(tmp_path, "c.toml", text.format(start=1.0)))
+    root = tmp_path / "ds"
+    gv, gf = grid_plane(2, 2)
+    (p,) = sample_plan(cfg)
+    poses = np.zeros((15, 24, 3))
+    frames = np.repeat(gv[None], 15, axis=0).astype(np.float32)
+    save_sample(root, Sample(p.id, gv, gf, np.zeros(0), poses, np.zeros((15, 3)), frames, {"id": p.id}), "rejected")
+    before = sorted(f.relative_to(root) for f in root.rglob("*"))
+    cfg = load_dataset_config(_write(tmp_path, "c.toml", text.format(start=10.0)))  # the entry's start moved
+    with pytest.raises(InputError, match=r"start is past the end of its file") as e:
+        make_dataset(cfg, root, executor=_Recorder(), retry_rejected=True)
+    line = text.splitlines().index("[[motions]]") + 1
+    assert str(e.value).startswith(f"{tmp_path / 'c.toml'}:{line}: motions[0] (w): "), str(e.value)
+    assert sorted(f.relative_to(root) for f in root.rglob("*")) == before

@@ -958,11 +958,13 @@ def _stale_rejected(loc: Location, cfg: DatasetConfig, order: list[PlannedSample
     """The planned samples of ``loc``'s ``rejected/`` (in make order) whose stored clip differs from what
     :func:`_motion` now gives their motion entry: simulated with a motion that loading no longer gives."""
     names = set(loc.listdir("rejected"))
+    rejected = [p for p in order if f"{p.id}.json" in names and f"{p.id}.npz" in names]
+    # their clips checked first, as the run's are: a start past the end of its file is refused in the words that
+    # name the entry's line (loading the motion refused it without them); what is short is said by the run
+    check_clips(cfg, [(p.motion, p.body) for p in rejected], body)
     clips: dict = {}  # (motion, body) -> the clip as stored: a motion file is read once, not once per garment
     out = []
-    for p in order:
-        if f"{p.id}.json" not in names or f"{p.id}.npz" not in names:
-            continue
+    for p in rejected:
         if (p.motion, p.body) not in clips:
             joints = body.rest_joints(cfg.bodies[p.body] or None)[0]
             clips[p.motion, p.body] = _without_lead(*_motion(cfg.motions[p.motion], cfg, joints, with_lead=True))
