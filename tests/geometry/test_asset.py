@@ -127,6 +127,57 @@ def test_precompute_validates_inputs(rest_joints):
         precompute_garment(np.where(np.arange(40)[:, None] == 3, np.nan, v), f, rest_joints)
 
 
+def _quad_at_an_opening(f, loops):
+    """Two faces of ``f`` that make a quad with an edge on an opening: its corners in order, diagonal 0-2."""
+    ring = {frozenset(e) for lp in loops for e in zip(lp.tolist(), np.roll(lp, -1).tolist(), strict=True)}
+    for i, x in enumerate(f.tolist()):
+        for j, y in enumerate(f.tolist()):
+            shared = set(x) & set(y)
+            if j <= i or len(shared) != 2:
+                continue
+            (p1,), (p3,) = set(x) - shared, set(y) - shared
+            k = x.index(p1)
+            p0, p2 = x[(k + 2) % 3], x[(k + 1) % 3]  # x = p1, p2, p0 in order: the quad p0, p1, p2, p3
+            if any(frozenset(e) in ring for e in ((p0, p1), (p1, p2), (p2, p3), (p3, p0))):
+                return p0, p1, p2, p3
+    raise AssertionError("no quad at an opening")
+
+
+@pytest.mark.parametrize("reversed_", [True, False])
+def test_a_quad_repeated_with_the_other_diagonal_leaves_the_garments_shape_and_openings_as_they_were(
+    rest_joints, reversed_
+):
+    """A quad at an opening given twice, the copy triangulated along the other diagonal (reversed or not): no face
+    of the copy repeats an earlier face's corners, so it was surface and closed the opening's edge -- the openings
+    changed (a user's trial: their count too).  Now the copy is no surface: the openings, descriptor and features are
+    the clean mesh's.  A closed tetrahedron, whose faces also pair up over the same four corners, keeps every face."""
+    from segadeform.geometry.mesh_ops import boundary_loops, surface_faces
+
+    v, f = frustum(20, 8, 0.16, 0.3, 1.0, 0.6)
+    loops = boundary_loops(f, len(v))
+    p0, p1, p2, p3 = _quad_at_an_opening(f, loops)
+    copy = [[p1, p2, p3], [p1, p3, p0]]  # the other diagonal
+    if reversed_:
+        copy = [c[::-1] for c in copy]
+    bad = np.concatenate([f, copy])
+
+    def edges(faces):  # the openings' edges: in one face
+        e, n = np.unique(np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0, return_counts=True)
+        return e[n == 1].tolist()
+
+    assert len(edges(bad)) < len(edges(f))  # what they were before: the quad's edge on the opening closed
+    np.testing.assert_array_equal(surface_faces(v, bad), f)
+    assert edges(surface_faces(v, bad)) == edges(f)
+    assert len(boundary_loops(surface_faces(v, bad), len(v))) == len(loops)
+    clean = precompute_garment(v, f, rest_joints, n_star=16)
+    got = precompute_garment(v, bad, rest_joints, n_star=16)
+    np.testing.assert_allclose(got.descriptor, clean.descriptor, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(got.features, clean.features)
+    tet = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    tf = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    np.testing.assert_array_equal(surface_faces(tet, tf), tf)
+
+
 def test_flat_broken_and_repeated_faces_leave_the_garments_shape_as_it_was(rest_joints):
     """A face whose corners are collinear (on an existing edge), a face with a repeated corner and a repeated or
     reversed copy of a face add no surface: the asset's normals, features and descriptor are those of the mesh

@@ -18,8 +18,9 @@ from .mesh_ops import connected_components, surface_faces, vertex_normals
 __all__ = ["precompute_garment", "PRECOMPUTE_VERSION"]
 
 #: the precompute's version: part of every cache key of an asset (2: the shape from the surface's faces only,
-#: ``mesh_ops.surface_faces``; a cache keyed by the garment's bytes alone kept a user's assets of the rule before)
-PRECOMPUTE_VERSION = 2
+#: ``mesh_ops.surface_faces``; a cache keyed by the garment's bytes alone kept a user's assets of the rule before;
+#: 3: a quad repeated along its other diagonal is no surface either)
+PRECOMPUTE_VERSION = 3
 
 
 def precompute_garment(
