@@ -27,13 +27,14 @@ from .main import PathParam, cli
 @click.option(
     "--force",
     is_flag=True,
-    help="Give the package another body than the one its body graphs record (its model's training body).",
+    help="Give the package another body than its model's training body (the manifest's training_body, else the "
+    "body its body graphs record).",
 )
 def export_body_cmd(body, output, copy_to, force):
     """Export BODY (.npz or SMPL .pkl; default: the shipped body) as the package's body graphs body_lbs and
     body_dqs: betas, poses and translations in, posed vertices, joints, rest joints and triangles out, so
-    runtimes without Python pose the body (needs the 'torch' extra).  The body graphs record the body the
-    package's model was trained on (`segadeform run` refuses another): another body needs --force."""
+    runtimes without Python pose the body (needs the 'torch' extra).  The package records the body its model was
+    trained on (`segadeform run` refuses another): another body needs --force, and the record stays."""
     try:
         import torch  # noqa: F401
     except ImportError:
@@ -57,7 +58,7 @@ def export_body_cmd(body, output, copy_to, force):
                 got="a package segadeform did not write",
             ) from None
     b = load_body(body or default_body_path())
-    if not force:  # the body graphs are the record of the model's body (a review: this undid it without a word)
+    if not force:  # the record of the model's body (a review: this replaced it without a word)
         import json
 
         from segadeform.body.identity import body_text, other_body

@@ -100,8 +100,10 @@ def export_cmd(
         if config_json:
             raise click.UsageError("--config applies to --random-init only (a checkpoint carries its config)")
         model = load_checkpoint(checkpoint)
-    body_model = _export_body(checkpoint, body)
+    body_model, trained = _export_body(checkpoint, body)
     extra = {}
+    if trained is not None:  # the record of the model's body, which export-body --force does not replace
+        extra["training_body"] = trained
     garments = _training_garments(training_files, model.cfg.n_star)
     if garments is None and checkpoint is not None:
         from segadeform.model.network import checkpoint_training_garments
@@ -202,17 +204,18 @@ def repack_cmd(package, output, inline_weights, training_files, opset):
 
 
 def _export_body(checkpoint, body):
-    """The body whose graphs the package gets: ``--body`` or the shipped one, refused when the checkpoint records
-    that it was trained on another (a model trained on a second body was exported with the first's graphs, and
-    runtimes posed the first under it).  A checkpoint that records no body (written before training recorded it,
-    or --random-init) takes the body given."""
+    """``(body, trained)``: the body whose graphs the package gets (``--body`` or the shipped one) and the body the
+    checkpoint records it was trained on (``{"name", "sha256"}``, or None).  Another body than the recorded one is
+    refused (a model trained on a second body was exported with the first's graphs, and runtimes posed the first under
+    it).  A checkpoint that records no body (written before training recorded it, or --random-init) takes the body
+    given."""
     from segadeform.body import default_body_path, load_body
     from segadeform.body.identity import body_text, other_body
     from segadeform.errors import InputError
 
     b = load_body(body or default_body_path())
     if checkpoint is None:
-        return b
+        return b, None
     from segadeform.model.network import checkpoint_body
 
     trained = checkpoint_body(checkpoint)
@@ -225,7 +228,7 @@ def _export_body(checkpoint, body):
             expected=body_text(trained),
             got=body_text(mine),
         )
-    return b
+    return b, trained
 
 
 def _package_guard(output, inputs):

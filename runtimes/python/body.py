@@ -44,14 +44,19 @@ def _short(label: dict) -> str:
 
 
 def package_body(package: ModelPackage) -> dict | None:
-    """``{"name", "sha256"}`` of the body ``package``'s body graphs pose (their manifest entries'
-    :func:`segadeform.body.identity.body_label`), which ``segadeform export`` makes the body its model was trained
-    on; None for a package without body graphs or whose graphs do not record it."""
+    """``{"name", "sha256"}`` of the body ``package``'s model was trained on: the manifest's ``training_body``
+    (``segadeform export`` writes it from the checkpoint; ``export-body --force`` gives the package another body's
+    graphs and leaves it), else the body its body graphs pose (their entries'
+    :func:`segadeform.body.identity.body_label`: ``export`` makes them the training body's); None for a package that
+    records neither."""
     return manifest_body(package.manifest)
 
 
 def manifest_body(manifest: dict) -> dict | None:
     """:func:`package_body` of a package's ``manifest.json`` as read (no graph loaded)."""
+    t = manifest.get("training_body")
+    if isinstance(t, dict) and t.get("sha256"):
+        return {"name": str(t.get("name") or ""), "sha256": str(t["sha256"])}
     for g in contract.body_graphs(manifest).values():
         b = g.get("body")
         if isinstance(b, dict) and b.get("sha256"):

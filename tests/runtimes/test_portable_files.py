@@ -220,6 +220,44 @@ def test_export_body_gives_a_package_another_body(random_package, body, tmp_path
     assert main(["export-body", "-o", str(tmp_path)]) == 1  # not a package
 
 
+def test_export_body_force_leaves_the_record_of_the_training_body(random_package, body, tmp_path):
+    """The body graphs were the only record of the model's body, and `export-body --force` replaced it: a run on the
+    forced body was then taken without a word, and export-body gave the training body back only with --force.  The
+    manifest's ``training_body`` (export writes it from the checkpoint) stays: runs on another body are refused
+    unless forced, and export-body gives the training body's graphs back without --force."""
+    import json
+    import shutil
+
+    from segadeform.cli.main import main
+    from segadeform.errors import InputError
+    from segadeform.runtime import ModelPackage
+    from segadeform.runtime.body import package_body
+    from segadeform.runtime.pipeline import check_package_body
+
+    pkg = tmp_path / "trained"
+    shutil.copytree(random_package, pkg)
+    m = json.loads((pkg / "manifest.json").read_text())
+    label = {"name": "default_body.npz", "sha256": body_sha256(body)}
+    (pkg / "manifest.json").write_text(json.dumps({**m, "training_body": label}, indent=2, sort_keys=True) + "\n")
+    other = dataclasses.replace(body, v_template=body.v_template * 1.1, path=str(tmp_path / "tall.npz"))
+    other.save(tmp_path / "tall.npz")
+    tall = load_body(tmp_path / "tall.npz")
+    assert main(["export-body", str(tmp_path / "tall.npz"), "-o", str(pkg), "--to", str(tmp_path / "t")]) == 1
+    assert (
+        main(["export-body", str(tmp_path / "tall.npz"), "-o", str(pkg), "--to", str(tmp_path / "t"), "--force"]) == 0
+    )
+    forced = ModelPackage(tmp_path / "t")
+    assert forced.spec("body_lbs")["body"]["sha256"] == body_sha256(tall)  # the graphs pose the body given
+    assert forced.manifest["training_body"] == label and package_body(forced) == label
+    with pytest.raises(InputError, match="made for another body than the run's"):
+        check_package_body(forced, tall)
+    check_package_body(forced, tall, force=True)
+    check_package_body(forced, body)
+    back = tmp_path / "back"  # the training body's graphs back, without --force
+    assert main(["export-body", str(body.path), "-o", str(tmp_path / "t"), "--to", str(back)]) == 0
+    assert ModelPackage(back).spec("body_lbs")["body"]["sha256"] == body_sha256(body)
+
+
 def test_segadeform_reads_the_motion_file_it_exports(tmp_path, capsys):
     """`segadeform run --motion M.sgdm` (scenes' motion.file too) and `segadeform inspect M.sgdm` read the motion
     file as the runtimes without Python do: its frames as they are (no retargeting, y-up); units, joint maps and a

@@ -263,7 +263,10 @@ def test_a_model_records_its_body_and_eval_export_and_resume_refuse_another(
 
     def export_package(model, out, **kw):  # the body it would export, without the minutes an export takes
         exported.append(kw["body"])
+        records.append(kw["extra_manifest"].get("training_body"))
         raise Exported
+
+    records = []  # the manifest's record of the training body, which export-body --force leaves as it is
 
     monkeypatch.setattr("segadeform.export.export_package", export_package)
     for extra, words in (([], "than the shipped one"), (["--body", str(body.path)], "than --body's")):
@@ -273,7 +276,7 @@ def test_a_model_records_its_body_and_eval_export_and_resume_refuse_another(
     assert not exported and not (tmp_path / "pkg").exists()
     with pytest.raises(Exported):
         main(["export", str(final), "-o", str(tmp_path / "pkg"), "--body", str(other_path)])
-    assert [body_label(b) for b in exported] == [label]
+    assert [body_label(b) for b in exported] == [label] and records == [label]
     # a checkpoint written before bodies were recorded: taken on any body, as before
     old = torch.load(final, weights_only=True)
     del old["body"]
@@ -281,7 +284,7 @@ def test_a_model_records_its_body_and_eval_export_and_resume_refuse_another(
     assert checkpoint_body(tmp_path / "old.pt") is None
     with pytest.raises(Exported):
         main(["export", str(tmp_path / "old.pt"), "-o", str(tmp_path / "pkg2")])
-    assert body_label(exported[-1]) == body_label(body)
+    assert body_label(exported[-1]) == body_label(body) and records[-1] is None
     evaluate(synthetic_dataset, body, make_predictors({"old": str(tmp_path / "old.pt")}))
 
 
