@@ -295,7 +295,7 @@ class Run:
         )
         return ClothStage(
             setup,
-            self.body.v_template,
+            rest,
             self.body.faces,
             self.effects.cloth_settings,
             margin=self.effects.collision_margin,
@@ -379,8 +379,10 @@ class Run:
                     if self.effects.collisions:
                         t = time.perf_counter()
                         if collider is None:  # built once per run (its cost counts here), the session's threads
+                            # from the body at rest as the run poses it, as Node and C++ build theirs (the tree's
+                            # shape decides between equally near triangles: the same tree, the same frames)
                             collider = self.collider(
-                                self.body.v_template,
+                                self._body_rest(),
                                 self.body.faces,
                                 threads=max(1, int(getattr(self.package, "threads", 1))),
                             )

@@ -598,3 +598,52 @@ def test_an_asset_exported_with_force_is_refused_unless_forced_again(runtime, re
     p = subprocess.run([*base, "--force"], capture_output=True, text=True, timeout=600)
     assert p.returncode == 0 and out.exists(), p.stdout + p.stderr
     assert "warning: the garment asset was exported with --force" in p.stderr
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_collisions_on_a_clip_of_extreme_poses_give_segadeform_runs_frames(
+    runtime, request, portable_scene, random_package, tmp_path
+):
+    """Node and C++ built the collider's tree from the clip's first posed frame, Python from the body at rest: the
+    tree decides between equally near triangles, and on a clip of random joint rotations (limbs through each other)
+    a user's trial found frames 2 cm apart.  Every runtime builds it from the body at rest as the run poses it; a
+    clip whose every frame is a random pose plays Python's frames (collisions on), and so does one garment of many
+    vertices whose batch the runtimes lower as Python does (MAX_VERTEX_FRAMES)."""
+    from segadeform.cli.main import main
+
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    arrays, meta = read_bundle(s["motion"])
+    rng = np.random.default_rng(7)
+    a = {k: v.copy() for k, v in arrays.items()}
+    axis = rng.normal(size=a["poses"].shape)
+    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+    a["poses"] = (axis * rng.uniform(0.0, np.pi, size=a["poses"].shape[:-1] + (1,))).astype(np.float32)
+    write_bundle(tmp_path / "wild.sgdm", a, meta)
+    common = ["--garment", str(s["garment"]), "--motion", str(tmp_path / "wild.sgdm"), "--effects", "lbs,collisions"]
+    assert main(["run", "--model", str(random_package), *common, "-o", str(tmp_path / "py.pc2"), "--no-cache"]) == 0
+    p = subprocess.run(
+        [*exe, "--package", str(random_package), *common, "-o", str(tmp_path / "rt.pc2")],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    want, got = read_pc2(tmp_path / "py.pc2").frames, read_pc2(tmp_path / "rt.pc2").frames
+    assert _rel(got, want) <= RTOL, np.abs(got - want).max()
+    # a garment over MAX_VERTEX_FRAMES / 8 vertices: the runtimes lower --batch 8 as segadeform run does (they ran 8
+    # frames a call: 7 GB at 69k vertices, frames 1e-7 m apart, millimetres after a push-out)
+    big = tmp_path / "big.obj"
+    assert main(["garment", "make", "dress", "--betas", "0.5,-0.3", "--resolution", "8000", "-o", str(big)]) == 0
+    export = ["garment", "export", str(big), "--betas", "0.5,-0.3", "--model", str(random_package)]
+    assert main([*export, "-o", str(tmp_path / "big.sgda")]) == 0
+    from segadeform.geometry import GarmentAsset
+
+    n = GarmentAsset.load(tmp_path / "big.sgda").n_vertices
+    assert n > 32768 // 8, n  # so batch 8 is lowered (10,318 vertices: 3 frames a call)
+    common = ["--garment", str(tmp_path / "big.sgda"), "--motion", str(s["motion"]), "--effects", "lbs", "--batch", "8"]
+    assert main(["run", "--model", str(random_package), *common, "-o", str(tmp_path / "pyb.pc2"), "--no-cache"]) == 0
+    p = subprocess.run(
+        [*exe, "--package", str(random_package), *common, "-o", str(tmp_path / "rtb.pc2")],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    np.testing.assert_array_equal(read_pc2(tmp_path / "rtb.pc2").frames, read_pc2(tmp_path / "pyb.pc2").frames)

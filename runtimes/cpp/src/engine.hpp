@@ -90,13 +90,20 @@ struct Output {
 
 class Session {
  public:
-  Session(OrtEnv* env, const std::string& path, int threads) {
+  // `arena`: onnxruntime's CPU memory arena, which keeps a run's peak for the session's life: off for the encoder
+  // (it runs once per garment), as segadeform run has it.  Over one thread, idle pool threads sleep instead of
+  // spinning, as segadeform run has them (spinning threads took the cores the rest of the run needs: 2 threads ran
+  // at half the speed of 1).
+  Session(OrtEnv* env, const std::string& path, int threads, bool arena = true) {
     OrtSessionOptions* so;
     check(api->CreateSessionOptions(&so));
-    check(api->SetIntraOpNumThreads(so, threads));
-    check(api->SetInterOpNumThreads(so, 1));
-    check(api->CreateSession(env, path.c_str(), so, &s_));
+    OrtStatus* st = api->SetIntraOpNumThreads(so, threads);
+    if (!st) st = api->SetInterOpNumThreads(so, 1);
+    if (!st && !arena) st = api->DisableCpuMemArena(so);
+    if (!st && threads > 1) st = api->AddSessionConfigEntry(so, "session.intra_op.allow_spinning", "0");
+    if (!st) st = api->CreateSession(env, path.c_str(), so, &s_);
     api->ReleaseSessionOptions(so);
+    check(st);
   }
   ~Session() { if (s_) api->ReleaseSession(s_); }
   Session(const Session&) = delete;
@@ -269,6 +276,16 @@ struct Effects {
 
 // segadeform.scene.Effects.collision_margin's default (metres)
 inline const double DEFAULT_COLLISION_MARGIN = 0.004;
+// the most vertex-frames (batch x garment vertices) one deformer call takes: a bigger garment runs fewer frames a
+// call, as segadeform run does (runtimes/python/pipeline.py MAX_VERTEX_FRAMES; at 69k vertices batch 8 took 7 GB
+// and its frames were not segadeform run's)
+inline const int64_t MAX_VERTEX_FRAMES = 32768;
+
+// Frames per deformer call for a garment of n vertices: batch, lowered (to at least 1) so that batch x n <=
+// MAX_VERTEX_FRAMES.
+inline int effective_batch(int batch, int64_t n) {
+  return static_cast<int>(std::max<int64_t>(1, std::min<int64_t>(batch, MAX_VERTEX_FRAMES / std::max<int64_t>(n, 1))));
+}
 
 // --effects: a complete list, as `segadeform run --effects` (what is not named is off; lbs unless dqs is named).
 // Effects as `segadeform run --effects` reads them (src/segadeform/settings/effects.py): a complete list such as
@@ -670,6 +687,7 @@ class Stream {
     if (opt.batch < 1) throw std::runtime_error("batch must be an integer >= 1 (got " + std::to_string(opt.batch) + ")");
     if (opt.threads < 1)
       throw std::runtime_error("threads must be an integer >= 1 (got " + std::to_string(opt.threads) + ")");
+    opt_.batch = effective_batch(opt.batch, sc.N);
     if (!(opt.margin >= 0 && opt.margin < 1))
       throw std::runtime_error("the collision margin must be in [0, 1) metres (got " + std::to_string(opt.margin) + ")");
     const Effects& eff = opt_.effects;
@@ -699,7 +717,7 @@ class Stream {
       open_deformer(env, pkg, dec_spec);
       if (body_spec) {
         poser_.reset(new BodyPoser(env, pkg, *body_spec, sc, opt.threads));
-        if (eff.cloth) {
+        if (eff.cloth || eff.collisions) {  // the stage's rest, and the body the collider's tree is built from
           const auto t1 = Clock::now();
           rest_body_ = poser_->rest();
           ms_stage_ += since(t1);
@@ -774,8 +792,9 @@ class Stream {
       }
       if (opt_.effects.collisions) {
         const std::vector<int32_t>& bf = poser_->faces();
-        if (!collider_)
-          collider_.reset(new sgd::Collider(posed.data(), V, bf.data(), static_cast<int64_t>(bf.size() / 3)));
+        if (!collider_)  // from the body at rest, as segadeform run builds it (the tree decides between equally
+          // near triangles: built from the clip's first pose, a frame moved 2 cm where Python's did not)
+          collider_.reset(new sgd::Collider(rest_body_.data(), V, bf.data(), static_cast<int64_t>(bf.size() / 3)));
         moved_ += collider_->push_out(frames + lo * N * 3, b, N, posed.data(), opt_.margin, opt_.threads);
       }
       at_translation(frames + lo * N * 3, trans + lo * 3, b, N);
@@ -819,7 +838,7 @@ class Stream {
   void open_deformer(OrtEnv* env, const Package& pkg, const sgd::Json& dec_spec) {
     const sgd::Json& enc_spec = pkg.manifest["graphs"]["garment_encoder"];
     const Scene& sc = sc_;
-    Session enc(env, pkg.dir + "/" + enc_spec["file"].str, opt_.threads);
+    Session enc(env, pkg.dir + "/" + enc_spec["file"].str, opt_.threads, /*arena=*/false);
     dec_.reset(new Session(env, pkg.dir + "/" + dec_spec["file"].str, opt_.threads));
     const auto t0 = Clock::now();  // the encoder's run and the deformer's (not the sessions' creation)
     const int64_t N = sc.N, K = sc.K, S = sc.S;

@@ -11,6 +11,16 @@ export { BodyCollider, DEFAULT_CLOTH, parseCloth, pushOutFrames };
 export const FORMAT = "segadeform-model-package";
 /** The collision margin when none is given (metres): segadeform.scene.Effects.collision_margin's default. */
 export const DEFAULT_COLLISION_MARGIN = 0.004;
+// the most vertex-frames (batch x garment vertices) one deformer call takes: a bigger garment runs fewer frames a
+// call, as segadeform run does (runtimes/python/pipeline.py MAX_VERTEX_FRAMES; at 69k vertices batch 8 took 10 GB
+// and its frames were not segadeform run's)
+export const MAX_VERTEX_FRAMES = 32768;
+
+/** Frames per deformer call for a garment of n vertices: batch, lowered (to at least 1) so that batch x n <=
+ * MAX_VERTEX_FRAMES. */
+export function effectiveBatch(batch, n) {
+  return Math.max(1, Math.min(batch, Math.floor(MAX_VERTEX_FRAMES / Math.max(n, 1))));
+}
 const MAGIC = "SEGADEFORM-BUNDLE 1\n";
 const DTYPES = {
   f32: [Float32Array, 4], f64: [Float64Array, 8], i32: [Int32Array, 4], i64: [BigInt64Array, 8], u8: [Uint8Array, 1],
@@ -521,8 +531,8 @@ export class Player {
     if (stages && effects.cloth && options.fps === undefined) {
       throw new Error("the cloth stage needs the motion's frame rate (expected the option fps, 1..1000)");
     }
-    Object.assign(p, { ort, manifest, G, effects, margin, stages, batch: options.batch || 8, N: G.N, S: G.S, D: G.D,
-      faces: G.faces, fps: options.fps, wantBody: !!options.body });
+    Object.assign(p, { ort, manifest, G, effects, margin, stages, batch: effectiveBatch(options.batch || 8, G.N), N: G.N,
+      S: G.S, D: G.D, faces: G.faces, fps: options.fps, wantBody: !!options.body });
     p.settings = typeof options.cloth === "string" ? parseCloth(options.cloth) : options.cloth || DEFAULT_CLOTH;
     const t0 = performance.now();
     await p.#openDeformer(session);
@@ -533,7 +543,9 @@ export class Player {
     p.poser = (stages && (effects.collisions || effects.cloth)) || p.wantBody
       ? await bodyPoserWith(ort, manifest, G, session, { skinning: effects.skinning }) : null;
     p.V = p.poser ? p.poser.V : 0;
-    if (stages && effects.cloth) p.rest = await p.poser.rest();
+    // the stage's rest, and the body the collider's tree is built from (as segadeform run builds it: the tree decides
+    // between equally near triangles, and built from the clip's first pose a frame moved 2 cm where Python's did not)
+    if (stages && (effects.cloth || effects.collisions)) p.rest = await p.poser.rest();
     p.reset();
     return p;
   }
@@ -670,6 +682,7 @@ export class Player {
         clothStep(this.stage, frames, N, lo, hi, b, tr);
       } else {
         if (this.effects.collisions) {
+          this.collider ||= new BodyCollider(this.rest.vertices, this.rest.faces);
           const c = pushOutFrames(rel, n, N, b, V, this.poser.faces(),
             { margin: this.margin, iterations: 3, batch: n, collider: this.collider, carry: this.carry });
           this.collider = c.collider;

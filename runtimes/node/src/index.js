@@ -52,12 +52,19 @@ export function readMotion(path) {
 
 // onnxruntime sessions of a package's graphs, each made once: session(spec) -> InferenceSession; release() frees
 // them all (they hold native memory the garbage collector does not see: 150 animate() calls grew to 1.8 GB before)
+// As segadeform run has them: the encoder (run once per garment) without onnxruntime's memory arena, which keeps a
+// run's peak for the session's life (a 69k-vertex garment held 10 GB); over one thread, idle pool threads sleep
+// instead of spinning (spinning took the cores the rest of the run needs: 2 threads ran slower than 1).
 function sessions(dir, { threads = 1 } = {}) {
   const so = { intraOpNumThreads: threads, interOpNumThreads: 1, executionProviders: ["cpu"] };
+  if (threads > 1) so.extra = { session: { intra_op: { allow_spinning: "0" } } };
   const made = new Map();
   // sessions from the file path: graphs may keep their weights in the package's shared weights.bin
   const session = (spec) => {
-    if (!made.has(spec.file)) made.set(spec.file, ort.InferenceSession.create(join(dir, spec.file), so));
+    if (!made.has(spec.file)) {
+      const opts = { ...so, enableCpuMemArena: spec.role !== "encoder" };
+      made.set(spec.file, ort.InferenceSession.create(join(dir, spec.file), opts));
+    }
     return made.get(spec.file);
   };
   session.release = () => releaseSessions(made);
