@@ -524,7 +524,10 @@ def test_collisions_refused_without_a_body_graph_or_with_a_bad_margin(node, cpp,
             text=True,
             timeout=600,
         )
-        assert p.returncode == 1 and "collision margin must be in [0, 1)" in p.stderr, p.stderr
+        # a command-line mistake, as `segadeform run` says it (it was exit 1, `Error:`)
+        assert p.returncode == 2 and p.stderr.startswith(
+            "error: --collision-margin must be in [0, 1) metres (got -1)"
+        ), p.stderr
         for text in ("x", ""):  # "" ran with margin 0 in Node (a user's trial)
             p = subprocess.run(
                 base + ["--package", str(c["package"]), "--collision-margin", text],

@@ -444,6 +444,37 @@ def test_cpp_says_what_is_wrong_with_its_command_line(cpp, random_package, tmp_p
 
 
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_a_bad_margin_or_cloth_knob_is_a_command_line_mistake(
+    runtime, request, portable_scene, random_package, tmp_path
+):
+    """A margin or a cloth knob out of range, an unknown knob, a knob of a stage that is off: one `error:` line and the
+    usage, exit 2, as `segadeform run` refuses them (a new user's trial: exit 1 with `Error:`, or no `error:` prefix;
+    C++ printed -1 as -1.000000 and 1e30 as 1000000000000000019884624838656.000000)."""
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    base = ["--package", str(random_package), "--garment", str(s["garment"]), "--motion", str(s["motion"])]
+    out = tmp_path / "o.pc2"
+    for extra, says in (
+        (["--collision-margin", "-1"], "--collision-margin must be in [0, 1) metres (got -1)"),
+        (["--collision-margin", "5"], "--collision-margin must be in [0, 1) metres (got 5)"),
+        (["--collision-margin", "1e30"], "--collision-margin must be in [0, 1) metres (got 1e30)"),
+        (
+            ["--effects=+cloth", "--cloth", "iterations=100"],
+            "--cloth: cloth iterations must be an integer in [1, 64] (got '100')",
+        ),
+        (["--effects=+cloth", "--cloth", "bogus=1"], "--cloth: unknown cloth setting (expected NAME=VALUE with NAME"),
+        (
+            ["--effects", "lbs", "--cloth", "iterations=4"],
+            "--cloth sets the cloth stage's knobs, but the stage is off (name cloth in --effects)",
+        ),
+    ):
+        p = subprocess.run(exe + base + ["-o", str(out), *extra], capture_output=True, text=True, timeout=120)
+        assert p.returncode == 2 and p.stderr.startswith(f"error: {says}"), (extra, p.stderr)
+        assert p.stderr.splitlines()[1].startswith("usage: "), (extra, p.stderr)
+        assert not out.exists()
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
 def test_a_cut_motion_file_keeps_its_frame_numbers(runtime, request, portable_scene, random_package, tmp_path):
     """`motion export ... --frames 10:14` made a file whose Node and C++ point caches started at frame 0, while `run
     --frames 10:14` writes 10: in Blender the two were 10 frames apart."""

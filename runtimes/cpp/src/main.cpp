@@ -64,6 +64,7 @@ int main(int argc, char** argv) {
   int batch = 8, threads = 1;
   double margin = DEFAULT_COLLISION_MARGIN;
   bool margin_given = false;
+  std::string margin_text;  // as the user wrote it (a message quotes it so)
   bool do_check = false;
   bool force = false;  // a motion made for another body or shape: played, with a warning
   std::vector<std::string> pos;
@@ -89,6 +90,7 @@ int main(int argc, char** argv) {
         while (e && (*e == ' ' || *e == '\t')) ++e;
         if (e == b || *e != '\0') throw std::invalid_argument(args[i]);
         margin_given = true;
+        margin_text = args[i];
       }
       else if (args[i] == "--check") do_check = true;
       else if (args[i] == "--force") force = true;
@@ -150,11 +152,30 @@ int main(int argc, char** argv) {
     sgd::Bundle bundle, asset, mot;
     Scene sc;
     Effects eff;
+    sgd::ClothSettings knobs;
     if (flag_form) {
+      // the effects first (the package's defaults and --effects): a knob of a stage that will not run, or out of its
+      // range, is a command-line mistake, said before the inputs are read, as `segadeform run` says it
+      eff = !effects_given ? pkg.default_effects() : parse_effects(effects, pkg.default_effects());
+      std::string problem;
+      if (!cloth.empty() && !eff.cloth) {
+        problem = "--cloth sets the cloth stage's knobs, but the stage is off (name cloth in --effects)";
+      } else if (!cloth.empty()) {
+        try {
+          knobs.parse(cloth);
+        } catch (const std::exception& e) {
+          problem = std::string("--cloth: ") + e.what();
+        }
+      }
+      if (problem.empty() && margin_given && !(margin >= 0 && margin < 1))
+        problem = "--collision-margin must be in [0, 1) metres (got " + margin_text + ")";
+      if (!problem.empty()) {
+        std::cerr << "error: " << problem << "\n" << USAGE;
+        return 2;
+      }
       asset = sgd::read_bundle(garment);
       mot = sgd::read_bundle(motion);
       sc = scene_of_asset(asset, garment, mot, motion, force);
-      eff = !effects_given ? pkg.default_effects() : parse_effects(effects, pkg.default_effects());
     } else {
       bundle = sgd::read_bundle(pos[1]);
       sc = scene_of_bundle(bundle);
@@ -162,16 +183,6 @@ int main(int argc, char** argv) {
     }
     for (const auto& w : sc.warnings) std::cerr << "warning: " << w << "\n";
     if (eff.cloth) eff.collisions = false;  // the stage's contact replaces the push-out (as `segadeform run` says)
-    if (!(margin >= 0 && margin < 1))
-      throw std::runtime_error("the collision margin must be in [0, 1) metres (got " + std::to_string(margin) + ")");
-    sgd::ClothSettings knobs;
-    if (!cloth.empty()) {
-      if (!eff.cloth) {
-        std::cerr << "--cloth sets the cloth stage's knobs, but the stage is off (name cloth in --effects)\n" << USAGE;
-        return 2;
-      }
-      knobs.parse(cloth);
-    }
     StreamOptions so;
     so.effects = eff;
     so.cloth = knobs;

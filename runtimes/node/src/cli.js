@@ -6,7 +6,7 @@
 // cloth, the cloth stage, only when named; --cloth sets its knobs, as segadeform run --cloth)
 // segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]      (a scene bundle)
 import { animate, readAsset } from "./index.js";
-import { effectsLabel, objText, pc2Parts } from "./core.js";
+import { effectsLabel, objText, parseCloth, pc2Parts } from "./core.js";
 import { claimOutputs, commitOutputs } from "./outputs.js";
 
 const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
@@ -45,6 +45,15 @@ if (force) args.splice(forceAt, 1);
 // as Python's float() reads it: "" is no number (Number("") is 0: an empty margin ran with 0)
 const margin = marginText === undefined ? undefined : marginText.trim() === "" ? NaN : Number(marginText);
 const flagForm = pkg || garment || motion;
+// what parseCloth refuses in --cloth, or null
+function clothProblem(text) {
+  try {
+    parseCloth(text);
+    return null;
+  } catch (e) {
+    return e.message;
+  }
+}
 // what is wrong, in one line before the usage (a misspelled flag printed the usage alone)
 const problem =
   repeated.length ? `${repeated[0]} is given more than once`
@@ -61,13 +70,16 @@ const problem =
   : !flagForm && (bodyOut || effects || cloth || marginText !== undefined || force)
     ? "--body-out, --effects, --cloth, --collision-margin and --force go with --package/--garment/--motion"
   : marginText !== undefined && !Number.isFinite(margin) ? `--collision-margin must be a number, got ${marginText}`
+  // a knob of a stage that will not run, or out of its range, is a command-line mistake, as `segadeform run` says it
+  // (its value as the user wrote it)
+  : cloth && !(effects || "").split(",").map((s) => s.trim()).some((s) => s === "cloth" || s === "+cloth")
+    ? "--cloth sets the cloth stage's knobs, but the stage is off (name cloth in --effects)"
+  : cloth && clothProblem(cloth) ? `--cloth: ${clothProblem(cloth)}`
+  : marginText !== undefined && !(margin >= 0 && margin < 1)
+    ? `--collision-margin must be in [0, 1) metres (got ${marginText.trim()})`
   : null;
 if (problem) {
   console.error(`error: ${problem}\n${USAGE}`);
-  process.exit(2);
-}
-if (cloth && !(effects || "").split(",").map((s) => s.trim()).some((s) => s === "cloth" || s === "+cloth")) {
-  console.error("--cloth sets the cloth stage's knobs, but the stage is off (name cloth in --effects)");
   process.exit(2);
 }
 // the outputs are claimed before any work, as `segadeform run` claims them (outputs.js): never over a file
