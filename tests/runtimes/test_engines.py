@@ -475,6 +475,33 @@ def test_a_bad_margin_or_cloth_knob_is_a_command_line_mistake(
 
 
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_a_collision_margin_without_collisions_or_cloth_is_a_command_line_mistake(
+    runtime, request, portable_scene, random_package, tmp_path
+):
+    """`--effects lbs --collision-margin 0.01` ran, the margin ignored (a new user's trial: exit 0); `segadeform run`
+    refuses a knob of an effect that will not run, and so do these command lines.  With collisions or the stage on
+    (named, or the package's defaults: it has a body graph) the margin is taken."""
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    base = ["--package", str(random_package), "--garment", str(s["garment"]), "--motion", str(s["motion"])]
+    out = tmp_path / "o.pc2"
+    says = "error: --collision-margin sets the push-out's margin, but neither collisions nor the cloth stage is on\n"
+    for effects in (["--effects", "lbs"], ["--effects", "none"], ["--effects=-collisions"]):
+        p = subprocess.run(
+            exe + base + ["-o", str(out), *effects, "--collision-margin", "0.01"], capture_output=True, text=True
+        )
+        assert p.returncode == 2 and p.stderr.startswith(says), (effects, p.stderr)
+        assert p.stderr.splitlines()[1].startswith("usage: "), (effects, p.stderr)
+        assert not out.exists()
+    for effects in (["--effects", "lbs,collisions"], []):
+        p = subprocess.run(
+            exe + base + ["-o", str(out), *effects, "--collision-margin", "0.01"], capture_output=True, text=True
+        )
+        assert p.returncode == 0 and "(margin 0.01 m)" in p.stdout, (effects, p.stdout + p.stderr)
+        out.unlink()
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
 def test_a_cut_motion_file_keeps_its_frame_numbers(runtime, request, portable_scene, random_package, tmp_path):
     """`motion export ... --frames 10:14` made a file whose Node and C++ point caches started at frame 0, while `run
     --frames 10:14` writes 10: in Blender the two were 10 frames apart."""

@@ -167,6 +167,8 @@ int main(int argc, char** argv) {
           problem = std::string("--cloth: ") + e.what();
         }
       }
+      if (problem.empty() && margin_given && !eff.collisions && !eff.cloth)
+        problem = "--collision-margin sets the push-out's margin, but neither collisions nor the cloth stage is on";
       if (problem.empty() && margin_given && !(margin >= 0 && margin < 1))
         problem = "--collision-margin must be in [0, 1) metres (got " + margin_text + ")";
       if (!problem.empty()) {

@@ -5,8 +5,10 @@
 // (without --effects: the model's own effects, and collisions when the package has a body graph; margin 0.004 m;
 // cloth, the cloth stage, only when named; --cloth sets its knobs, as segadeform run --cloth)
 // segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]      (a scene bundle)
+import { readFileSync } from "node:fs";
+import { join } from "node:path";
 import { animate, readAsset } from "./index.js";
-import { effectsLabel, objText, parseCloth, pc2Parts } from "./core.js";
+import { defaultEffects, effectsLabel, objText, parseCloth, parseEffects, pc2Parts, readManifest } from "./core.js";
 import { claimOutputs, commitOutputs } from "./outputs.js";
 
 const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
@@ -54,6 +56,23 @@ function clothProblem(text) {
     return e.message;
   }
 }
+// whether the run's effects (as animate resolves them: --effects over the package's defaults) have neither
+// collisions nor the cloth stage; false when they cannot be told here (a package or an effects list animate refuses,
+// saying why)
+function marginUnused() {
+  let base = null;
+  try {
+    base = defaultEffects(readManifest(JSON.parse(readFileSync(join(pkg, "manifest.json"), "utf8"))));
+  } catch {
+    // a complete list needs no defaults; otherwise animate names the package's problem
+  }
+  try {
+    const e = effects === undefined ? base : parseEffects(effects, base);
+    return !!e && !e.collisions && !e.cloth;
+  } catch {
+    return false;
+  }
+}
 // what is wrong, in one line before the usage (a misspelled flag printed the usage alone)
 const problem =
   repeated.length ? `${repeated[0]} is given more than once`
@@ -75,6 +94,8 @@ const problem =
   : cloth && !(effects || "").split(",").map((s) => s.trim()).some((s) => s === "cloth" || s === "+cloth")
     ? "--cloth sets the cloth stage's knobs, but the stage is off (name cloth in --effects)"
   : cloth && clothProblem(cloth) ? `--cloth: ${clothProblem(cloth)}`
+  : marginText !== undefined && marginUnused() ? "--collision-margin sets the push-out's margin, but neither " +
+    "collisions nor the cloth stage is on"
   : marginText !== undefined && !(margin >= 0 && margin < 1)
     ? `--collision-margin must be in [0, 1) metres (got ${marginText.trim()})`
   : null;
