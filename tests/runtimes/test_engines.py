@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -705,3 +706,25 @@ def test_collisions_on_a_clip_of_extreme_poses_give_segadeform_runs_frames(
     )  # fmt: skip
     assert p.returncode == 0, p.stderr
     np.testing.assert_array_equal(read_pc2(tmp_path / "rtb.pc2").frames, read_pc2(tmp_path / "pyb.pc2").frames)
+
+
+def test_cpp_library_says_its_numbers_as_written(cpp, portable_scene, random_package):
+    """The library's refusals printed numbers with %f (an fps of 20000 as 20000.000000, a margin of 5 as 5.000000: a
+    new user's trial): runtimes/cpp/test/player_test.cpp's checks of them, on the portable scene."""
+    s = portable_scene
+    test = Path(cpp[0]).with_name("segadeform-player-test")
+    t = subprocess.run(
+        [str(test), str(random_package), str(s["garment"]), str(s["motion"])],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    checks = t.stdout.splitlines()
+    for name in (
+        "trans beyond 10 km said as written",
+        "an fps out of range said as written",
+        "a margin out of range said as written",
+        "a huge margin said as written",
+    ):
+        assert f"ok {name}" in checks, t.stdout + t.stderr
+    assert t.returncode == 0 and all(ln.startswith("ok ") for ln in checks), t.stdout + t.stderr

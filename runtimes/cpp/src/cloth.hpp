@@ -6,6 +6,9 @@
 #pragma once
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <map>
 #include <sstream>
 #include <stdexcept>
@@ -34,12 +37,28 @@ int64_t scl_step(int64_t n, int64_t ne, const int64_t* edges, const double* rest
 
 namespace sgd {
 
-// A bound as Python and Node print it (1, 0.03, 1e-06): the shortest of %g
-inline std::string shortest(double x) {
-  std::ostringstream s;
-  s << x;
-  return s.str();
+// A number as Python and Node print it (1, 0.03, 1e-06, 20000, 0.123456789, 1e+30): the fewest significant digits
+// that read back as the same value, positional below 1e16 (std::to_string's %f printed 20000.000000, and 1e30 with
+// 31 digits; a bare %g, 2e+04).  `Real`: double, or float (0.1f is 0.1, not the double nearest it, 0.100000001).
+template <typename Real>
+inline std::string shortest_of(Real x) {
+  if (x != x) return "nan";  // (printf's -nan for some)
+  const int most = sizeof(Real) == sizeof(float) ? 9 : 17;
+  char b[48];
+  int p = 1;
+  for (; p < most; ++p) {
+    std::snprintf(b, sizeof b, "%.*e", p - 1, static_cast<double>(x));
+    if (static_cast<Real>(std::strtod(b, nullptr)) == x) break;
+  }
+  std::snprintf(b, sizeof b, "%.*e", p - 1, static_cast<double>(x));
+  const char* e = std::strchr(b, 'e');
+  const int exp = e ? std::atoi(e + 1) : 0;
+  if (exp >= p && exp < 16) p = exp + 1;  // 20000, not 2e+04
+  std::snprintf(b, sizeof b, "%.*g", p, static_cast<double>(x));
+  return b;
 }
+inline std::string shortest(double x) { return shortest_of(x); }
+inline std::string shortest(float x) { return shortest_of(x); }
 
 // The knobs, as segadeform.cloth_settings.ClothSettings (defaults and ranges); `--cloth K=V,...` changes them.
 struct ClothSettings {

@@ -59,7 +59,11 @@ struct Player::Impl {
     }
     if (so.effects.cloth && !(o.fps >= 1 && o.fps <= 1000))
       throw std::runtime_error("the cloth stage needs the motion's frame rate (expected the option fps, 1..1000, got " +
-                               std::to_string(o.fps) + ")");
+                               sgd::shortest(o.fps) + ")");
+    // said here, its number as written (the engine's own check prints it with %f: 5.000000)
+    if (!(o.collision_margin >= 0 && o.collision_margin < 1))
+      throw std::runtime_error("the collision margin must be in [0, 1) metres (got " + sgd::shortest(o.collision_margin) +
+                               ")");
     so.margin = o.collision_margin;
     so.fps = o.fps;
     so.batch = o.batch;
@@ -108,7 +112,7 @@ std::vector<float> Player::push(const float* poses, const float* trans, int64_t 
       throw std::runtime_error("push: poses contain NaN or inf (at value " + std::to_string(i) + ")");
   for (int64_t i = 0; i < frames * 3; ++i)
     if (!(std::fabs(trans[i]) <= 1e4f))
-      throw std::runtime_error("push: trans must be finite and within 10 km (got " + std::to_string(trans[i]) +
+      throw std::runtime_error("push: trans must be finite and within 10 km (got " + sgd::shortest(trans[i]) +
                                " at value " + std::to_string(i) + ")");
   canonical_axis_angle(p);  // every rotation written one way, as motion files are read
   std::vector<float> out(static_cast<size_t>(frames * N * 3));

@@ -63,6 +63,10 @@ int main(int argc, char** argv) {
     std::vector<float> nan = p1;
     nan[5] = 0.f / 0.f;
     refuses("NaN poses", [&] { a.push(nan, t1); }, "NaN");
+    // numbers said as written, not with %f (20000.000000, 5.000000: a new user's trial)
+    std::vector<float> far = t1;
+    far[1] = 20000.5f;
+    refuses("trans beyond 10 km said as written", [&] { a.push(p1, far); }, "(got 20000.5 at value 1)");
     // reset: a new clip gives a fresh player's frames; a second player in the same process the same again
     a.reset();
     check("reset gives the first frames again", a.push(m.poses.data(), m.trans.data(), T) == first);
@@ -95,6 +99,15 @@ int main(int argc, char** argv) {
     refuses("the cloth stage without fps", [&] { segadeform::Player x(pkg, garment, bad); }, "frame rate");
     bad.effects = "lbs,sparkles";
     refuses("an unknown effect", [&] { segadeform::Player x(pkg, garment, bad); }, "unknown effect");
+    bad.effects = "lbs,cloth";
+    bad.fps = 20000;
+    refuses("an fps out of range said as written", [&] { segadeform::Player x(pkg, garment, bad); }, "got 20000)");
+    bad = o;
+    bad.collision_margin = 5;
+    refuses("a margin out of range said as written", [&] { segadeform::Player x(pkg, garment, bad); },
+            "the collision margin must be in [0, 1) metres (got 5)");
+    bad.collision_margin = 1e30;
+    refuses("a huge margin said as written", [&] { segadeform::Player x(pkg, garment, bad); }, "(got 1e+30)");
     segadeform::PlayerOptions cl = o;
     cl.effects = "+cloth";
     cl.fps = m.fps;
