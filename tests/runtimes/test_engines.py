@@ -708,6 +708,33 @@ def test_collisions_on_a_clip_of_extreme_poses_give_segadeform_runs_frames(
     np.testing.assert_array_equal(read_pc2(tmp_path / "rtb.pc2").frames, read_pc2(tmp_path / "pyb.pc2").frames)
 
 
+def test_the_refusal_of_a_forced_asset_names_the_fit_of_its_mesh(tmp_path, capsys):
+    """A skirt in centimetres exported with --force: `segadeform run` refused the asset advising `segadeform garment
+    fit X100_FORCED.sgda -o FIXED.obj --units cm`, which fails (garment fit reads meshes, not assets: a new user's
+    trial).  The advice names the mesh the asset was exported from, and then its export; followed, it runs."""
+    from segadeform.cli.main import main
+    from segadeform.io import Mesh, read_mesh, write_obj
+
+    m = read_mesh(SAMPLES / "garments" / "skirt.obj")
+    (tmp_path / "g").mkdir()
+    mesh, forced = tmp_path / "g" / "x100.obj", tmp_path / "g" / "x100_forced.sgda"
+    write_obj(mesh, Mesh(m.vertices * 100, m.faces))
+    assert main(["garment", "export", str(mesh), "-o", str(forced), "--force"]) == 0
+    motion = SAMPLES / "motions" / "walk.npz"
+    capsys.readouterr()
+    assert main(["run", "--garment", str(forced), "--motion", str(motion), "-o", str(tmp_path / "o.pc2")]) == 1
+    err = capsys.readouterr().err
+    assert (
+        f"run `segadeform garment fit {mesh} -o FIXED.obj --units cm` on the mesh {forced} was exported from, then "
+        "`segadeform garment export FIXED.obj -o ASSET.sgda`, or pass --force" in err
+    ), err
+    assert f"garment fit {forced}" not in err
+    fixed, asset = tmp_path / "FIXED.obj", tmp_path / "ASSET.sgda"
+    assert main(["garment", "fit", str(mesh), "-o", str(fixed), "--units", "cm"]) == 0
+    assert main(["garment", "export", str(fixed), "-o", str(asset)]) == 0
+    assert main(["run", "--garment", str(asset), "--motion", str(motion), "-o", str(tmp_path / "o.pc2")]) == 0
+
+
 def test_cpp_library_says_its_numbers_as_written(cpp, portable_scene, random_package):
     """The library's refusals printed numbers with %f (an fps of 20000 as 20000.000000, a margin of 5 as 5.000000: a
     new user's trial): runtimes/cpp/test/player_test.cpp's checks of them, on the portable scene."""

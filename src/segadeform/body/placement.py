@@ -413,11 +413,64 @@ def _check_placement(
     )
 
 
+def _asset_source(path) -> tuple[str, tuple[float, ...]] | None:
+    """For a garment asset at ``path`` (``.sgda``, ``.npz``): the mesh it was exported from -- its recorded
+    ``source_name``, as a path beside the asset when that file is there with the recorded bytes, else the bare name
+    (``MESH`` when none is recorded) -- and the body shape it was prepared for; None for a mesh or an unreadable
+    file."""
+    if path is None or Path(path).suffix.lower() not in (".sgda", ".npz"):
+        return None
+    from ..io.garment_asset import GarmentAsset
+
+    try:
+        a = GarmentAsset.load(path)
+    except Exception:  # not an asset (or unreadable): the advice is left as it is
+        return None
+    name = a.source_name or "MESH"
+    beside = Path(path).parent / name
+    if a.source_name and a.source_sha256 and beside.is_file():
+        from ..io.hashing import file_sha256
+
+        try:
+            if file_sha256(beside) == a.source_sha256:
+                name = str(beside)
+        except OSError:
+            pass
+    betas = tuple(float(x) for x in np.asarray(a.betas if a.betas is not None else (), np.float64).ravel())
+    return name, betas
+
+
+def _advice_for_asset(expected: str, path) -> str:
+    """``expected`` with its ``segadeform garment fit`` command run on the mesh the garment asset at ``path`` was
+    exported from, then exported again: `garment fit` reads meshes, not assets (a new user's trial ran the advice on
+    a forced asset and got an error)."""
+    cmd = f"`segadeform garment fit {path} "
+    if cmd not in expected or "`" not in expected[expected.index(cmd) + len(cmd) :]:
+        return expected
+    found = _asset_source(path)
+    if found is None:
+        return expected
+    name, betas = found
+    shape = f" --betas {','.join(f'{x:g}' for x in betas)}" if any(betas) else ""
+    i = expected.index(cmd)
+    j = expected.index("`", i + len(cmd))  # the command's closing quote
+    return (
+        f"{expected[:i]}`segadeform garment fit {name} {expected[i + len(cmd) : j]}` on the mesh {path} was "
+        f"exported from, then `segadeform garment export FIXED.obj -o ASSET.sgda{shape}`{expected[j + 1 :]}"
+    )
+
+
 def check_placement(vertices, body_vertices, body_faces, *, forceable: bool = True, **kw) -> dict:
-    # the rule and its docs: _check_placement; without ``forceable``, the advice to pass --force left out
+    # the rule and its docs: _check_placement; without ``forceable``, the advice to pass --force left out; for a
+    # garment asset, the advice to fit it made advice to fit the mesh it was exported from
     try:
         return _check_placement(vertices, body_vertices, body_faces, **kw)
     except InputError as e:
+        advice = None if e.expected is None else _advice_for_asset(str(e.expected), kw.get("path"))
+        if advice is not None and advice != str(e.expected):
+            e = type(e)(e.problem, path=e.path, line=e.line, expected=advice, got=e.got)
+            if forceable:
+                raise e from None
         if forceable:
             raise
 
