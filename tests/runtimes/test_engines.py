@@ -755,3 +755,14 @@ def test_cpp_library_says_its_numbers_as_written(cpp, portable_scene, random_pac
     ):
         assert f"ok {name}" in checks, t.stdout + t.stderr
     assert t.returncode == 0 and all(ln.startswith("ok ") for ln in checks), t.stdout + t.stderr
+
+
+def test_the_readme_says_what_effects_none_runs():
+    """The README said `--effects none` turns every effect off; it runs LBS skinning (`run` prints `effects lbs`)."""
+    from segadeform.settings import parse_effects
+
+    e = parse_effects("none")
+    assert e.label() == "lbs" and not (e.dynamics or e.wrinkles or e.collisions or e.cloth)
+    text = " ".join((REPO / "README.md").read_text(encoding="utf-8").split())
+    assert "`none`: every effect off" not in text
+    assert "(`none`: LBS skinning alone, with dynamics, wrinkles, collisions and the cloth stage off" in text

@@ -136,7 +136,7 @@ def parse_effects(text: str, base: Effects = DEFAULT_EFFECTS, *, warn: bool = Tr
     ``simulate --effects``).
 
     * every item unsigned (``"dqs,collisions"``): exactly these -- what is not named is off, the
-      skinning is the one named (lbs if none); ``none`` alone: every effect off;
+      skinning is the one named (lbs if none); ``none`` alone: LBS skinning alone, every on/off effect off;
     * every item signed (``"-wrinkles,+collisions"``, ``"dqs,-wrinkles"``: ``lbs``/``dqs`` may join
       either form): ``base`` with those effects switched on or off.
 
