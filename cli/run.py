@@ -213,7 +213,7 @@ def run_cmd(
     """Animate a garment: SCENE.toml, or the flag form --garment G --motion M -o OUT."""
     import dataclasses
 
-    from segadeform.runtime.pipeline import run_scene
+    from segadeform.runtime.pipeline import MAX_VERTEX_FRAMES, run_scene
     from segadeform.settings import Effects, MotionSpec, Scene, load_scene, parse_frames
     from segadeform.settings.scene import check_motion_fps
 
@@ -368,6 +368,10 @@ def run_cmd(
         f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame ({q}effects {summary.effects.label()}"
         f"{'; off: ' + ', '.join(off) if off else ''}; graph {summary.variant})"
     )
+    if summary.batch < batch:  # a big garment: fewer frames a call (the runtimes lower it alike)
+        click.echo(
+            f"batch: {summary.batch} frames a call, not {batch} (at most {MAX_VERTEX_FRAMES} vertex-frames a call)"
+        )
     if summary.cloth is not None:
         c = summary.cloth
         click.echo(

@@ -113,6 +113,8 @@ class RunSummary:
     #: the cloth stage's counts (vertex-frames in ``contacts``, ``pushed`` and ``traced`` by the backstop, ``resets``),
     #: None when it was off
     cloth: dict | None = None
+    #: frames per deformer call (``batch``, lowered for a big garment: :func:`effective_batch`)
+    batch: int = 0
 
     @property
     def ms_per_frame(self) -> float:
@@ -425,6 +427,7 @@ class Run:
             pushed_vertices=pushed,
             stage_seconds=stage,
             body_backend=cast(BodyPoser, self.body_poser).backend if need_body else None,
+            batch=batch,
             cloth=None
             if cloth is None
             else {

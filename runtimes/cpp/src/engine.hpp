@@ -819,6 +819,7 @@ class Stream {
   }
   const sgd::Cloth* cloth() const { return stage_.get(); }
   int64_t moved() const { return moved_; }  // vertex-frames pushed out by collisions (no cloth stage)
+  int batch() const { return opt_.batch; }  // frames per deformer call (lowered for a big garment: effective_batch)
   int64_t frames() const { return frames_; }  // frames pushed since the stream opened (resets included)
   const Effects& effects() const { return opt_.effects; }
   // milliseconds spent since the stream opened: the encoder and deformer, the body graph, the cloth stage or

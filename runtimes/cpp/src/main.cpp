@@ -248,6 +248,9 @@ int main(int argc, char** argv) {
                   static_cast<long long>(stage->pushed()), static_cast<long long>(stage->traced()),
                   static_cast<long long>(stage->resets()), stage_ms);
     std::printf("\n");
+    if (stream.batch() < batch)  // a big garment: fewer frames a call, as segadeform run says
+      std::printf("batch: %d frames a call, not %d (at most %lld vertex-frames a call)\n", stream.batch(), batch,
+                  static_cast<long long>(sgd::engine::MAX_VERTEX_FRAMES));
     if (do_check)
       std::printf("PARITY {\"max_abs\": %.9g, \"rel\": %.9g, \"ms_per_frame\": %.3f}\n", max_abs,
                   max_abs / max_ref, ms);

@@ -8,7 +8,9 @@
 import { readFileSync } from "node:fs";
 import { join } from "node:path";
 import { animate, readAsset } from "./index.js";
-import { defaultEffects, effectsLabel, objText, parseCloth, parseEffects, pc2Parts, readManifest } from "./core.js";
+import {
+  MAX_VERTEX_FRAMES, defaultEffects, effectsLabel, objText, parseCloth, parseEffects, pc2Parts, readManifest,
+} from "./core.js";
 import { claimOutputs, commitOutputs } from "./outputs.js";
 
 const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
@@ -152,6 +154,9 @@ try {
     (k ? `; cloth: ${k.contacts} vertex-frames in contact, ${k.pushed} pushed out after the sweeps, ${k.traced} traced ` +
       `out by the backstop, ${k.resets} reset(s), ` +
       `${k.msPerFrame.toFixed(2)} ms/frame` : ""));
+  if (r.batch !== undefined && r.batch < batch) { // a big garment: fewer frames a call, as segadeform run says
+    console.log(`batch: ${r.batch} frames a call, not ${batch} (at most ${MAX_VERTEX_FRAMES} vertex-frames a call)`);
+  }
   if (k && k.resets) console.error(`cloth: the stage started again from the network's frame at frame ${k.firstReset} (the garment jumped)`);
 } catch (e) {
   // the API's refusals of the garment asset name no file: this command names the one it was given

@@ -794,8 +794,8 @@ export async function playWith(ort, manifest, source, session, options = {}) {
   const p = await Player.open(ort, manifest, source, session, { ...rest, force, fps: I.fps });
   const r = await p.push(I.poses, I.trans);
   const T = I.T, perFrame = (ms) => ms / Math.max(T, 1);
-  const out = { frames: r.frames, T, N: I.N, msPerFrame: perFrame(p.msDeform), variant: p.variant, effects: p.effects,
-    faces: I.faces, fps: I.fps, warnings: [...p.warnings, ...I.warnings] };
+  const out = { frames: r.frames, T, N: I.N, batch: p.batch, msPerFrame: perFrame(p.msDeform), variant: p.variant,
+    effects: p.effects, faces: I.faces, fps: I.fps, warnings: [...p.warnings, ...I.warnings] };
   if (options.body) {
     out.body = { vertices: r.body, joints: r.joints, restJoints: p.restJoints, rest: (await p.poser.rest()).vertices,
       V: p.V, T, faces: p.poser.faces(),
