@@ -101,15 +101,10 @@ int main(int argc, char** argv) {
     for (const auto& w : m.warnings) std::cerr << "warning: " << w << "\n";
     for (const auto& w : player.warnings()) std::cerr << "warning: " << w << "\n";
     const int64_t N = player.vertices(), D = 3 * player.joints();
-    std::vector<float> all;
-    all.reserve(static_cast<size_t>(m.frames * N * 3));
-    for (int64_t lo = 0; lo < m.frames; lo += chunk) {  // as the frames arrive
-      const int64_t B = std::min<int64_t>(chunk, m.frames - lo);
-      const std::vector<float> f = player.push(m.poses.data() + lo * D, m.trans.data() + lo * 3, B);
-      all.insert(all.end(), f.begin(), f.end());
-    }
+    // written as the frames arrive (a stream holds one chunk, not the clip: 10,002 frames held 468 MB), to a
+    // temporary file that the commit below puts in place (removed if anything fails first)
     const std::string tmp = sgd::temporary(out);
-    {
+    try {
       std::ofstream f(tmp, std::ios::binary);
       const int32_t version = 1, n = static_cast<int32_t>(N), t = static_cast<int32_t>(m.frames);
       const float start = static_cast<float>(m.start_frame), rate = 1.f;  // numbered as segadeform-run numbers it
@@ -119,11 +114,16 @@ int main(int argc, char** argv) {
       f.write(reinterpret_cast<const char*>(&start), 4);
       f.write(reinterpret_cast<const char*>(&rate), 4);
       f.write(reinterpret_cast<const char*>(&t), 4);
-      f.write(reinterpret_cast<const char*>(all.data()), static_cast<std::streamsize>(all.size() * sizeof(float)));
-      if (!f) {
-        std::remove(tmp.c_str());
-        throw std::runtime_error(out + ": write failed");
+      for (int64_t lo = 0; lo < m.frames && f; lo += chunk) {  // as the frames arrive
+        const int64_t B = std::min<int64_t>(chunk, m.frames - lo);
+        const std::vector<float> got = player.push(m.poses.data() + lo * D, m.trans.data() + lo * 3, B);
+        f.write(reinterpret_cast<const char*>(got.data()), static_cast<std::streamsize>(got.size() * sizeof(float)));
       }
+      f.close();
+      if (!f) throw std::runtime_error(out + ": write failed");
+    } catch (...) {
+      std::remove(tmp.c_str());
+      throw;
     }
     sgd::commit_outputs(outputs, inputs);  // into place, and recorded in the folder's manifest
     const segadeform::Counts c = player.counts();

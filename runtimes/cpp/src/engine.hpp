@@ -537,7 +537,7 @@ inline void motion_into(Scene& s, const sgd::Bundle& m, const std::string& mpath
     for (int64_t i = 0; i < trans.count(); ++i)
       if (std::fabs(t[i]) > 1e4f)
         throw std::runtime_error(mpath + ": field 'trans' is beyond 10 km (expected |translation| <= 10000 m, got " +
-                                 std::to_string(t[i]) + ")");
+                                 sgd::shortest(t[i]) + ")");
   }
   if (!m.meta.has("fps") || !(m.meta["fps"].num >= 1 && m.meta["fps"].num <= 1000))
     throw std::runtime_error(mpath + ": meta.fps must be a frame rate (expected 1..1000)");
@@ -689,7 +689,7 @@ class Stream {
       throw std::runtime_error("threads must be an integer >= 1 (got " + std::to_string(opt.threads) + ")");
     opt_.batch = effective_batch(opt.batch, sc.N);
     if (!(opt.margin >= 0 && opt.margin < 1))
-      throw std::runtime_error("the collision margin must be in [0, 1) metres (got " + std::to_string(opt.margin) + ")");
+      throw std::runtime_error("the collision margin must be in [0, 1) metres (got " + sgd::shortest(opt.margin) + ")");
     const Effects& eff = opt_.effects;
     if (eff.cloth && !sc.vertices64)
       throw std::runtime_error("the cloth stage needs a garment asset and a motion file (expected .sgda and .sgdm, got a "
