@@ -556,7 +556,7 @@ def test_a_bundle_of_a_scene_with_frames_keeps_its_frame_numbers(runtime, reques
 
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
 def test_a_motion_or_asset_holding_nan_is_refused_and_rotations_written_otherwise_play_alike(
-    runtime, request, portable_scene, random_package, tmp_path
+    runtime, request, portable_scene, random_package, tmp_path, capsys
 ):
     """A user's trial: the Node and C++ runtimes checked the shapes of a .sgdm / .sgda, not the values -- a NaN pose, a
     translation of 3e38 m, an fps of 0 or a NaN in the asset's joints gave a cache of NaN with exit 0 -- and fed a
@@ -580,6 +580,13 @@ def test_a_motion_or_asset_holding_nan_is_refused_and_rotations_written_otherwis
         change(a, m)
         write_bundle(tmp_path / f"{name}.sgdm", a, m)
         bad.append((s["garment"], tmp_path / f"{name}.sgdm", f"{name}.sgdm"))
+    # the first bad value named by its index, in every runtime (Python said "motion contains NaN or inf", Node "at
+    # value 3613": a user's trial)
+    said = "nan_pose.sgdm: field 'poses' contains NaN or inf (first at index [1, 5, 1])"
+    bad[0] = (*bad[0][:2], said)
+    assert main(["run", "--garment", str(s["garment"]), "--motion", str(tmp_path / "nan_pose.sgdm"), "-o",
+                 str(tmp_path / "x.pc2"), "--model", str(random_package)]) == 1  # fmt: skip
+    assert said in capsys.readouterr().err
     a = {k: v.copy() for k, v in asset.items()}
     a["joints"][2, 1] = np.nan
     write_bundle(tmp_path / "nan.sgda", a, ameta)

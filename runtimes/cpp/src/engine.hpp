@@ -189,15 +189,23 @@ inline Input input_floats(const std::string& name, std::vector<float> v, std::ve
 // A container array as float32 values (f32, f64, i32 or u8).
 // Throw unless every value of a float array is finite (field `name` of file `where`; other dtypes pass).
 inline void finite_values(const sgd::Array& a, const std::string& where, const std::string& name) {
-  bool bad = false;
+  int64_t bad = -1;  // the first value that is not finite, named by its index (a motion's poses: [frame, joint, axis])
   if (a.dtype == "f32") {
     const float* d = a.as<float>();
-    for (int64_t i = 0; i < a.count() && !bad; ++i) bad = !std::isfinite(d[i]);
+    for (int64_t i = 0; i < a.count() && bad < 0; ++i)
+      if (!std::isfinite(d[i])) bad = i;
   } else if (a.dtype == "f64") {
     const double* d = a.as<double>();
-    for (int64_t i = 0; i < a.count() && !bad; ++i) bad = !std::isfinite(d[i]);
+    for (int64_t i = 0; i < a.count() && bad < 0; ++i)
+      if (!std::isfinite(d[i])) bad = i;
   }
-  if (bad) throw std::runtime_error(where + ": field '" + name + "' contains NaN or inf");
+  if (bad < 0) return;
+  std::string index;
+  for (size_t k = a.shape.size(); k-- > 0;) {
+    index = std::to_string(bad % a.shape[k]) + (index.empty() ? "" : ", ") + index;
+    bad /= a.shape[k];
+  }
+  throw std::runtime_error(where + ": field '" + name + "' contains NaN or inf (first at index [" + index + "])");
 }
 
 // The same rotations with every angle in [0, pi] (Python's canonical_axis_angle, segadeform.body.rotations): an

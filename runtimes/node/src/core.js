@@ -261,11 +261,24 @@ export function readAsset(parsed, where = "garment asset") {
   return parsed;
 }
 
-/** Throw unless every value of a parsed array is finite (a field named `name` of `where`). */
+/** The index [i0, i1, ...] of flat position `i` in an array of `shape` (a motion's poses: [frame, joint, axis]). */
+function indexOf(i, shape) {
+  const out = [];
+  for (let k = shape.length - 1; k >= 0; k--) {
+    out.unshift(i % shape[k]);
+    i = Math.floor(i / shape[k]);
+  }
+  return `[${out.join(", ")}]`;
+}
+
+/** Throw unless every value of a parsed array is finite (a field named `name` of `where`); the first bad value's
+ * index is named, as segadeform run names it (a motion's poses: [frame, joint, axis]). */
 function finite(a, name, where) {
   const d = a.data;
   for (let i = 0; i < d.length; i++) {
-    if (!Number.isFinite(d[i])) throw new Error(`${where}: field '${name}' contains NaN or inf (at value ${i})`);
+    if (!Number.isFinite(d[i])) {
+      throw new Error(`${where}: field '${name}' contains NaN or inf (first at index ${indexOf(i, a.shape)})`);
+    }
   }
 }
 

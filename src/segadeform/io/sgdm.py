@@ -96,6 +96,11 @@ def read_motion_arrays(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray,
             expected=f"f32 ({len(poses)}, 3)",
             got=None if trans is None else f"{trans.dtype} {trans.shape}",
         )
+    for name, a in (("poses", poses), ("trans", trans)):  # the first bad value named, as the runtimes name it
+        bad = np.argwhere(~np.isfinite(a))
+        if len(bad):
+            where = ", ".join(str(int(i)) for i in bad[0])
+            raise FileFormatError(f"field {name!r} contains NaN or inf (first at index [{where}])", path=p)
     try:
         fps = float(meta["fps"])
     except (KeyError, TypeError, ValueError):
