@@ -460,7 +460,7 @@ def test_bvh_frame_time_and_translation_within_physical_bounds(good_bvh, tmp_pat
     rows = motion.strip().split("\n")
     far = tmp_path / "far.bvh"
     far.write_text(head + "MOTION\n" + "\n".join(rows[:2] + ["1e30 " + r.split(None, 1)[1] for r in rows[2:]]) + "\n")
-    refused(
+    said = refused(
         "the motion's root moves too far",
         "run",
         "--garment",
@@ -471,6 +471,7 @@ def test_bvh_frame_time_and_translation_within_physical_bounds(good_bvh, tmp_pat
         tmp_path / "o.pc2",
         name=far,
     )
+    assert re.search(r"got [0-9.e+]+ m, first at frame \d+\)", said), said  # the frame named (a user's trial)
     assert not (tmp_path / "o.pc2").exists()
 
 

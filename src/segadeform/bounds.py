@@ -90,15 +90,20 @@ def check_fps(fps, *, path=None, what: str = "frame rate") -> float:
 
 
 def check_translation(trans, *, path=None) -> None:
-    """Every root translation ``(T, 3)`` within :data:`MAX_TRANSLATION` metres of the origin."""
+    """Every root translation ``(T, 3)`` within :data:`MAX_TRANSLATION` metres of the origin; the refusal names the
+    first frame past it (of the motion as read: it named none, a user's trial)."""
     t = _real(trans, "translations", path)
     m = float(np.abs(t).max()) if t.size else 0.0
     if not m <= MAX_TRANSLATION:  # NaN fails too
+        at = ""
+        if t.ndim:
+            far = ~(np.abs(t.reshape(len(t), -1)) <= MAX_TRANSLATION).all(axis=1)
+            at = f", first at frame {int(np.argmax(far))}"
         raise InputError(
             "the motion's root moves too far: check the file's units",
             path=path,
             expected=f"|translation| <= {MAX_TRANSLATION:g} m",
-            got=f"{m:.3g} m",
+            got=f"{m:.3g} m{at}",
         )
 
 
