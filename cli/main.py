@@ -25,7 +25,10 @@ def _given_twice(cmd: click.Command, ctx: click.Context, args: list[str]) -> Non
     """Refuse an option that takes one value given more than once: click keeps the last and drops the others
     without a word (``run --batch 2 --batch 4`` ran at 4; ``--output a --output b`` wrote b alone).  Options declared
     ``multiple``, counts and flags (``--force --force``) are not refused.  Raises click.UsageError (exit 2), before
-    anything runs."""
+    anything runs.  Not while the shell completes a command line (``ctx.resilient_parsing``: a review found completion
+    failing with a traceback)."""
+    if ctx.resilient_parsing:
+        return
     try:
         _, _, order = cmd.make_parser(ctx).parse_args(args=list(args))
     except click.UsageError:

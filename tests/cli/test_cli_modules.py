@@ -73,4 +73,8 @@ def test_every_command_refuses_an_option_of_one_value_given_twice(tmp_path, monk
     # a flag given twice is not refused
     r = runner.invoke(cli, ["garment", "kinds", "--help", "--help"])
     assert r.exit_code == 0 and "Usage:" in r.output, r.output
+    # nor does the shell's completion fail on a line that gives one twice (a review: a traceback, exit 1)
+    env = {"COMP_WORDS": "segadeform run --batch 2 --batch 3 --b", "COMP_CWORD": "6"}
+    r = runner.invoke(cli, [], prog_name="segadeform", env={**env, "_SEGADEFORM_COMPLETE": "bash_complete"})
+    assert r.exit_code == 0 and "plain,--body" in r.output and "given more than once" not in r.output, r.output
     assert checked > 100

@@ -176,6 +176,18 @@ def test_a_quad_repeated_with_the_other_diagonal_leaves_the_garments_shape_and_o
     tet = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
     tf = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
     np.testing.assert_array_equal(surface_faces(tet, tf), tf)
+    # a flat tetrahedron of its own (a bead, a button) keeps its faces too: its pairs pass the flatness test up to a
+    # fold of 74 degrees, and it shares no edge with the rest (a review found z <= 1.5 stripped of two faces)
+    for z in (0.0, 0.5, 1.0, 1.5):
+        flat = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, z], [0, 1, 0]])
+        ff = np.array([[0, 1, 2], [0, 2, 3], [1, 0, 3], [1, 3, 2]])
+        np.testing.assert_array_equal(surface_faces(flat, ff), ff)
+        beside = np.concatenate([v, flat + 5.0]), np.concatenate([f, ff + len(v)])  # beside a garment, too
+        assert len(surface_faces(*beside)) == len(f) + 4
+    # `segadeform inspect` counts the copy as duplicated faces (it counted nothing once the copy was no surface)
+    from segadeform.geometry.mesh_ops import mesh_defects
+
+    assert mesh_defects(v, bad)["duplicated"] == 2 and mesh_defects(v, f)["duplicated"] == 0
 
 
 def test_flat_broken_and_repeated_faces_leave_the_garments_shape_as_it_was(rest_joints):

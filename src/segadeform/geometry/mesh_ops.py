@@ -146,7 +146,8 @@ def _degenerate(v: np.ndarray, f: np.ndarray) -> np.ndarray:
 
 def mesh_defects(vertices: np.ndarray, faces: np.ndarray) -> dict[str, int]:
     """What of a triangle mesh is not a clean surface, counted (``segadeform inspect`` reports them):
-    ``duplicated`` faces (an earlier face's corners in any order), ``degenerate`` faces (a repeated corner, or flat:
+    ``duplicated`` faces (an earlier face's corners in any order, or a quad's again along its other diagonal:
+    :func:`surface_faces`), ``degenerate`` faces (a repeated corner, or flat:
     :data:`FLAT`), ``isolated`` vertices (in no face) and ``non_manifold`` edges (in more than two faces of
     :func:`surface_faces`, so a duplicated face alone makes none).
 
@@ -161,7 +162,9 @@ def mesh_defects(vertices: np.ndarray, faces: np.ndarray) -> dict[str, int]:
         return out
     out["duplicated"] = len(f) - len(np.unique(np.sort(f, axis=1), axis=0))
     out["degenerate"] = int(_degenerate(v, f).sum())
-    s = surface_faces(v, f)
+    s, second = _surface(v, f)
+    out["duplicated"] += int(second.sum())  # a quad given again along its other diagonal (a review: it went unsaid)
+    s = s[~second]
     if len(s):
         e = np.sort(np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [2, 0]]]), axis=1)
         _, counts = np.unique(e, axis=0, return_counts=True)
@@ -183,16 +186,23 @@ def surface_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     f = np.asarray(faces, dtype=np.int64)
     if f.size == 0:
         return f.reshape(0, 3)
+    s, second = _surface(v, f)
+    return s[~second]
+
+
+def _surface(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(faces, second)``: the faces without broken, flat or repeated ones, and which of them cover a quad again
+    (:func:`_second_covers`)."""
     keep = ~_degenerate(v, f)
     # of repeats, the first kept one stays (a flat or broken first copy does not hide a good repeat)
     idx = np.flatnonzero(keep)
     _, first = np.unique(np.sort(f[idx], axis=1), axis=0, return_index=True)
     s = f[idx[np.sort(first)]]
-    return s[~_second_covers(v, s)]
+    return s, _second_covers(v, s)
 
 
 #: two faces sharing an edge are a flat pair when their summed area vector is at least this share of their areas
-#: (a fold under about 37 degrees); a tetrahedron's faces never are (about 0.58)
+#: (for equal areas, normals under about 74 degrees apart)
 FLAT_PAIR = 0.8
 
 
@@ -201,7 +211,9 @@ def _second_covers(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     repeated (reversed or not) and triangulated the other way round.  No face of it repeats an earlier face's corners,
     so the repeat check misses it; on a boundary it closed the opening's edge (a user's trial: the count of openings
     changed).  Among the flat pairs of faces (:data:`FLAT_PAIR`) sharing an edge over the same four corners, the pair
-    defined first stays; every other face of those pairs goes.  ``f``: faces without repeats."""
+    defined first stays; every other face of those pairs goes -- unless no face outside those four corners shares an
+    edge with them: then they are a closed tetrahedron of their own (a bead, a button), kept whatever its shape (a
+    review: flatness alone opened tetrahedra up to a fold of 74 degrees).  ``f``: faces without repeats."""
     out = np.zeros(len(f), dtype=bool)
     if len(f) < 4:
         return out
@@ -232,12 +244,24 @@ def _second_covers(v: np.ndarray, f: np.ndarray) -> np.ndarray:
         np.linalg.norm(n[a], axis=1) + np.linalg.norm(n[b], axis=1)
     )
     a, b, inv = a[flat], b[flat], inv[flat]
+    # a quad's faces joined to the rest of the mesh: an edge of theirs in a face outside its four corners
+    uses = dict(zip(*np.unique(key, return_counts=True), strict=True))  # edge key -> faces using it
+    n = np.int64(f.max()) + 1
+    joined: dict[int, bool] = {}
+    for q, i, j in zip(inv.tolist(), a.tolist(), b.tolist(), strict=True):
+        if q in joined:
+            continue
+        corners = set(f[i].tolist()) | set(f[j].tolist())
+        group = f[np.isin(f, list(corners)).all(axis=1)]  # every face over these corners
+        e = np.sort(np.concatenate([group[:, [0, 1]], group[:, [1, 2]], group[:, [2, 0]]]), axis=1)
+        k, c = np.unique(e[:, 0] * n + e[:, 1], return_counts=True)
+        joined[q] = any(uses[int(x)] > int(m) for x, m in zip(k, c, strict=True))
     kept: dict[int, tuple[int, int]] = {}
     for q, i, j in sorted(
         zip(inv.tolist(), a.tolist(), b.tolist(), strict=True), key=lambda t: (t[0], max(t[1], t[2]))
     ):
         first = kept.setdefault(q, (i, j))
-        if first != (i, j) and not ({i, j} & set(first)):  # a second covering, apart from the first
+        if joined[q] and first != (i, j) and not ({i, j} & set(first)):  # a second covering, apart from the first
             out[[i, j]] = True
     return out
 
