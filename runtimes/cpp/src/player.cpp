@@ -131,6 +131,7 @@ void Player::reset() { impl().stream->reset(); }
 
 int64_t Player::vertices() const { return impl().sc.N; }
 int64_t Player::joints() const { return impl().sc.S; }
+int Player::batch() const { return impl().stream->batch(); }
 int64_t Player::body_vertices() const { return impl().stream->V(); }
 const std::vector<int32_t>& Player::faces() const { return impl().faces; }
 const std::vector<int32_t>& Player::body_faces() const { return impl().body_faces; }

@@ -6,6 +6,7 @@
 //   segadeform-player-test PACKAGE G.sgda M.sgdm
 #include <segadeform/player.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <functional>
 #include <stdexcept>
@@ -86,6 +87,9 @@ int main(int argc, char** argv) {
     // moving: the new owner goes on; the moved-from player refuses every call
     segadeform::Player c(std::move(a));
     const size_t four = static_cast<size_t>(4 * c.vertices() * 3);  // four frames' values
+    // the batch it runs: the option's, lowered to at most 32,768 vertex-frames a call, as every runtime lowers it
+    check("batch() is the batch it runs",
+          c.batch() == static_cast<int>(std::max<int64_t>(1, std::min<int64_t>(4, 32768 / c.vertices()))));
     check("a moved player goes on", c.push(m.poses.data() + 4 * D, m.trans.data() + 12, 4) ==
                                         std::vector<float>(first.begin() + four, first.begin() + 2 * four));
     refuses("a moved-from player's push", [&] { a.push(p1, t1); }, "moved from");

@@ -487,8 +487,9 @@ export const PLAYER_OPTIONS = ["effects", "collisionMargin", "cloth", "fps", "ba
  * to hold needs.  The garment is encoded once; each push() runs the deformer on the motion window (the chunk's
  * frames and the ones before it: the frames before the first repeat the first), then -- as the effects name them --
  * the cloth stage or collisions against the body posed by the package's body graph, whose state (the stage's
- * previous frames, the collider built on the first frame) carries over.  Pushing a motion in chunks gives the frames
- * of one push of the whole, bit for bit when every chunk is a multiple of `batch` frames (batch 1 for a frame at a
+ * previous frames, the collider built on the body at rest) carries over.  Pushing a motion in chunks gives the frames
+ * of one push of the whole, bit for bit when every chunk is a multiple of `p.batch` frames (the option batch, lowered
+ * for a garment over MAX_VERTEX_FRAMES / batch vertices; batch 1 for a frame at a
  * time); other chunks run the network on other batch sizes, which onnxruntime rounds differently (~1e-6 m), and a
  * push-out in a crease of the body can turn that into another face (millimetres).  Memory is the chunk's, whatever
  * the clip's length.

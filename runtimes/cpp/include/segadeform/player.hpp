@@ -12,7 +12,8 @@
 //   std::vector<float> frame = player.push(poses, trans, 1);   // poses 1 * joints() * 3, trans 1 * 3
 //
 // Frames are those of `segadeform-run --batch B` and `segadeform run --batch B` over the whole motion, bit for bit,
-// when every push is a multiple of options.batch = B (B = 1 for a frame at a time).  Another B, or pushes of other
+// when every push is a multiple of batch() (options.batch = B, lowered for a garment over 32,768 / B vertices as every
+// runtime lowers it; B = 1 for a frame at a time).  Another B, or pushes of other
 // sizes, run the network on other onnxruntime batch sizes, which round differently (1e-6 m); collisions' push-out and
 // above all the cloth stage, which carries its state from frame to frame, can grow that into millimetres or
 // centimetres (32 mm measured between --batch 1 and 8 with the cloth stage on a 120 fps CMU walk): compare with the
@@ -93,6 +94,7 @@ class Player {
 
   int64_t vertices() const;       // the garment's
   int64_t joints() const;         // the skeleton's
+  int batch() const;              // frames per network call: options.batch, lowered for a big garment
   int64_t body_vertices() const;  // the posed body's (0 when no stage or option needs it)
   const std::vector<int32_t>& faces() const;  // the garment's triangles (F * 3)
   const std::vector<int32_t>& body_faces() const;  // the posed body's triangles (with options.body; else empty)
