@@ -246,15 +246,15 @@ def _second_covers(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     a, b, inv = a[flat], b[flat], inv[flat]
     # a quad's faces joined to the rest of the mesh: an edge of theirs in a face outside its four corners
     uses = dict(zip(*np.unique(key, return_counts=True), strict=True))  # edge key -> faces using it
-    n = np.int64(f.max()) + 1
+    base = np.int64(f.max()) + 1
     joined: dict[int, bool] = {}
     for q, i, j in zip(inv.tolist(), a.tolist(), b.tolist(), strict=True):
         if q in joined:
             continue
-        corners = set(f[i].tolist()) | set(f[j].tolist())
-        group = f[np.isin(f, list(corners)).all(axis=1)]  # every face over these corners
+        quad = set(f[i].tolist()) | set(f[j].tolist())
+        group = f[np.isin(f, list(quad)).all(axis=1)]  # every face over these corners
         e = np.sort(np.concatenate([group[:, [0, 1]], group[:, [1, 2]], group[:, [2, 0]]]), axis=1)
-        k, c = np.unique(e[:, 0] * n + e[:, 1], return_counts=True)
+        k, c = np.unique(e[:, 0] * base + e[:, 1], return_counts=True)
         joined[q] = any(uses[int(x)] > int(m) for x, m in zip(k, c, strict=True))
     kept: dict[int, tuple[int, int]] = {}
     for q, i, j in sorted(
