@@ -30,6 +30,7 @@ def test_exclude_globs_and_nested_fractions(tmp_path):
         ("[data]\nfraction = 1.5\n", "fraction"),
         ('[data]\nexclude = "cmu"\n', "exclude"),
         ("[data]\nsplits = 1\n", "unknown"),
+        ('[data]\nmirror = "yes"\n', "mirror"),
     ],
 )
 def test_bad_selections_are_refused(tmp_path, text, msg):

@@ -849,3 +849,64 @@ def test_a_run_folders_copy_of_its_config_trains_as_the_original(synthetic_datas
     train(again, tmp_path / "runs" / "b", body)  # and trains a new one
     assert (tmp_path / "runs" / "b" / "model.pt").is_file()
     assert (tmp_path / "runs" / "b" / "config.toml").read_text() == copy.read_text()  # a copy of a copy: one mark
+
+
+def test_mirror_trains_on_each_samples_mirror_image_and_needs_a_symmetric_body(
+    synthetic_dataset, tmp_path, body, monkeypatch
+):
+    """data.mirror: each training sample is followed by its left-right mirror image, which skinning poses as it
+    does the original (the same LBS error); validation samples are not mirrored; an asymmetric body is refused."""
+    import dataclasses
+
+    from segadeform.body.transfer import skin_garment
+    from segadeform.dataset.mirror import body_asymmetry
+    from segadeform.dataset.roots import DatasetRoots
+    from segadeform.errors import InputError
+    from segadeform.motion.mirror import mirror_joint_order, mirror_points, mirror_poses
+    from segadeform.train import trainer as T
+    from segadeform.train.data import load_items
+
+    roots = DatasetRoots([synthetic_dataset])
+    kw = dict(n_star=32, window=5, n_betas=10, weight_prior="nearest")
+    it, mi = load_items(roots, body, **kw, ids=["skirt__b0__walk"], mirror=True)
+    assert (it.id, mi.id) == ("skirt__b0__walk", "skirt__b0__walk~mirror") and mi.meta["mirror_of"] == it.id
+    np.testing.assert_allclose(mi.frames.numpy(), mirror_points(it.frames.numpy()))
+    assert mi.lead == it.lead == 4
+    # the prior's weights are the original's with left and right swapped (the body is symmetric) ...
+    perm = mirror_joint_order(body.joint_names)
+    assert np.abs(mi.body_weights.numpy()[:, perm] - it.body_weights.numpy()).mean() < 0.01
+    # ... and skinning the mirror image with them is as far from its frames as the original is from its own
+
+    poses = roots.load("skirt__b0__walk").poses
+
+    def lbs_error(x, p):
+        s = skin_garment(x.rest.numpy(), x.body_weights.numpy(), body, p, None, x.trans.numpy())
+        return float(np.linalg.norm(s - x.frames.numpy(), axis=-1).mean())
+
+    e, em = lbs_error(it, poses), lbs_error(mi, mirror_poses(poses, body.joint_names))
+    assert 0.002 < e and abs(em - e) < 0.05 * e, (e, em)
+    # a run with it trains on both and validates on the originals
+    p = tmp_path / "mirror.toml"
+    p.write_text(
+        "[data]\nmirror = true\nval_split = 'test'\n[model]\nhidden = 16\nlstm_hidden = 16\n[optim]\nsteps = 2\n"
+    )
+    cfg = load_train_config(p, dataset=synthetic_dataset)
+    assert cfg.mirror and cfg.to_dict()["mirror"] is True
+    seen = []
+    real = T.load_items
+    monkeypatch.setattr(T, "load_items", lambda *a, **k: seen.append(k.get("mirror", False)) or real(*a, **k))
+    train(cfg, tmp_path / "run", body, log_every=10)
+    assert seen == [True, False]  # the training samples mirrored, the validation ones not
+    # a body whose left side is not its right side's mirror image is refused before the run starts
+    jt = body.rest_joints()[0]
+    lopsided = dataclasses.replace(
+        body,
+        J_regressor=None,
+        joint_template=jt + np.where(jt[:, :1] > 0, 0.03, 0),
+        joint_shapedirs=np.zeros(jt.shape + (body.n_betas,)),
+    )
+    assert body_asymmetry(lopsided) > 0.02 and body_asymmetry(body) < T.MIRROR_TOLERANCE
+    monkeypatch.setattr(T, "body_asymmetry", lambda b: body_asymmetry(lopsided))
+    with pytest.raises(InputError, match="symmetric body"):
+        train(cfg, tmp_path / "run2", body, log_every=10)
+    assert not (tmp_path / "run2").exists()

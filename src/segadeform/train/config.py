@@ -12,6 +12,8 @@ Example (``samples/train/continuum/light_prior_seed1.toml`` is the shipped model
     exclude = []                   # sample ids matching any of these globs are not trained on
                                    # (e.g. ["*__cmu-*"]: no motion capture)
     fraction = 1.0                 # train on this share of the samples (a fixed subset by sample id)
+    mirror = false                 # also train on each sample's left-right mirror image (twice the samples, no
+                                   # simulation: segadeform.dataset.mirror; the body must be symmetric)
 
     [model]                        # any ModelConfig field; alpha = tau = 2 is Table 1's best
     hidden = 32
@@ -248,6 +250,7 @@ class TrainConfig:
     physics: PhysicsConfig = PhysicsConfig()
     exclude: tuple = ()  # globs of sample ids left out of training
     fraction: float = 1.0  # share of the (remaining) samples trained on, by a hash of their ids
+    mirror: bool = False  # each training sample is also trained on as its left-right mirror image
     pairs: Path | None = None  # physics.pairs resolved against the config's folder
     path: Path | None = None
     text: str = ""
@@ -278,6 +281,7 @@ class TrainConfig:
             "physics": dataclasses.asdict(self.physics),
             "exclude": list(self.exclude),
             "fraction": self.fraction,
+            "mirror": self.mirror,
         }
 
 
@@ -368,7 +372,7 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
     if bad:
         raise FileFormatError(f"unknown table [{bad[0]}]", path=p, expected="data, model, loss, optim, physics")
     d = data.get("data", {})
-    known = {"dataset", "split", "exclude", "fraction", "optional", "val_split"}
+    known = {"dataset", "split", "exclude", "fraction", "optional", "val_split", "mirror"}
     bad = sorted(set(d) - known)
     if bad:
         raise FileFormatError(f"unknown key data.{bad[0]}", path=p, expected=", ".join(sorted(known)))
@@ -378,6 +382,10 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
     fraction = d.get("fraction", 1.0)
     if not isinstance(fraction, (int, float)) or isinstance(fraction, bool) or not 0 < fraction <= 1:
         raise FileFormatError("data.fraction must be in (0, 1]", path=p, got=fraction)
+
+    mirror = d.get("mirror", False)
+    if not isinstance(mirror, bool):
+        raise FileFormatError("data.mirror must be true or false", path=p, got=mirror)
 
     def paths(v, key):
         v = [v] if isinstance(v, str) else v
@@ -442,6 +450,7 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
         pairs=pairs,
         exclude=tuple(exclude),
         fraction=float(fraction),
+        mirror=mirror,
         path=p,
         text=json.dumps(data, sort_keys=True, default=str),
     )

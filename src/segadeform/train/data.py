@@ -21,6 +21,7 @@ from ..body.collision import BodyCollider
 from ..body.drape import skinned_rest
 from ..body.model import BodyModel
 from ..body.transfer import garment_weights
+from ..dataset.mirror import mirror_sample
 from ..dataset.roots import DatasetRoots, as_roots
 from ..dataset.store import Sample
 from ..geometry.mesh_ops import unique_edges
@@ -152,18 +153,20 @@ def load_items(
     ids=None,
     weight_prior: str = "nearest",
     rest_drape: float = 0.0,
+    mirror: bool = False,
 ) -> list[TrainItem]:
     """Load every kept sample of ``split`` (or the given ``ids``) of ``root`` (a dataset folder, a pack, a list
     of roots or :class:`DatasetRoots`) as :class:`TrainItem`; ``body_weights`` by ``weight_prior``
     (:func:`~segadeform.body.transfer.garment_weights`), ``skin_rest`` by ``rest_drape``
-    (:func:`segadeform.body.drape.skinned_rest`)."""
+    (:func:`segadeform.body.drape.skinned_rest`).  ``mirror``: each sample is followed by its left-right mirror
+    image (:func:`~segadeform.dataset.mirror.mirror_sample`, id ``<id>~mirror``)."""
     memo: dict = {}
     f32 = lambda a: torch.as_tensor(np.asarray(a, np.float32))  # noqa: E731
     roots = as_roots(root)
     out = []
     collider = None
-    for sid in ids if ids is not None else roots.ids(split):
-        s = roots.load(sid)
+    for s in _samples(roots, ids if ids is not None else roots.ids(split), body.joint_names if mirror else None):
+        sid = s.id
         if s.contact_p is None and collider is None:
             collider = BodyCollider(body.v_template, body.faces)
         a = sample_asset(roots, s, body, n_star)
@@ -201,3 +204,13 @@ def load_items(
             )
         )
     return out
+
+
+def _samples(roots, ids, mirror_joints):
+    """The samples ``ids`` of ``roots``, each followed by its mirror image when ``mirror_joints`` names the
+    skeleton's joints."""
+    for sid in ids:
+        s = roots.load(sid)
+        yield s
+        if mirror_joints is not None:
+            yield mirror_sample(s, mirror_joints)

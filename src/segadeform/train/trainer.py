@@ -37,6 +37,7 @@ import torch
 
 from ..body.model import BodyModel
 from ..body.transfer import RESIDUAL_EPS
+from ..dataset.mirror import body_asymmetry
 from ..errors import InputError
 from ..io.atomic import atomic_path
 from ..model.network import SEGANet
@@ -51,6 +52,9 @@ log = logging.getLogger(__name__)
 TERMS = ("vertex", "normal", "edge", "stretch", "shear", "gravity", "collision", "skin_prior")
 #: logged beside TERMS: the self-supervised cloth energy of a pair never simulated (weighted already)
 PHYSICS_TERM = "physics"
+#: the most (m) a body's rest joints may be from their twins' mirror images for ``data.mirror`` (the default body:
+#: 4.3 mm, its collar joints; its vertices 0.06 mm on average)
+MIRROR_TOLERANCE = 0.01
 
 
 def config_changes(old: dict | None, new: dict, *, most: int = 4) -> str:
@@ -306,6 +310,15 @@ def train(
             + (" (or samples that data.exclude and data.fraction leave)" if have and cfg.split in have else ""),
             got=(f"the splits {', '.join(have)} in " if have else "") + _roots_said(roots),
         )
+    if cfg.mirror:  # a mirrored sample is trained on the body itself: it must be its own mirror image
+        asym = body_asymmetry(body)
+        if not asym <= MIRROR_TOLERANCE:
+            raise InputError(
+                "data.mirror needs a left-right symmetric body: its rest joints are not their twins' mirror images",
+                path=cfg.path,
+                expected=f"at most {MIRROR_TOLERANCE * 1000:g} mm apart",
+                got=f"{asym * 1000:.1f} mm",
+            )
     run.mkdir(parents=True, exist_ok=True)
     # training and validation samples and the physics pairs alike: the model's garment precompute, motion window,
     # shape coefficients, weight prior and drape
@@ -313,7 +326,7 @@ def train(
         n_star=m.n_star, window=m.window, n_betas=m.n_betas, weight_prior=m.weight_prior, rest_drape=m.rest_drape
     )
     load = functools.partial(load_items, roots, body, **model_inputs)
-    items = load(ids=ids)
+    items = load(ids=ids, mirror=cfg.mirror)
     if not items:
         raise InputError(
             f"no '{cfg.split}' samples in the dataset",
