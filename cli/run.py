@@ -9,7 +9,7 @@ import click
 
 from segadeform.io.writer import UP_AXES
 
-from .main import PathParam, cli
+from .main import PathParam, cli, usable_threads
 
 
 def _fmt_from(path: Path, fmt: str | None) -> str:
@@ -347,6 +347,9 @@ def run_cmd(
         force=force,
         inputs=(scene, sc.garment, sc.motion.file, sc.body, sc.motion.joint_map, sc.motion.skeleton, model or sc.model),
     )
+    threads, threads_note = usable_threads(threads)
+    if threads_note:
+        click.echo(threads_note)
     with click.progressbar(length=total or 1, label="deforming", file=sys.stderr, hidden=not interactive) as bar:
         summary = run_scene(
             sc,

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from .main import PathParam, cli
+from .main import PathParam, cli, usable_threads
 
 
 def _body(path):
@@ -67,6 +67,9 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
     if threads:
         import torch
 
+        threads, threads_note = usable_threads(threads)
+        if threads_note:
+            click.echo(threads_note)
         torch.set_num_threads(threads)
 
     ov = {}

@@ -341,6 +341,41 @@ def test_a_motion_made_for_another_body_shape_is_refused_unless_forced(
         assert ("another body shape (betas)" in p.stderr) == warns, p.stderr
 
 
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_a_package_whose_body_graph_is_not_its_training_body_is_refused_unless_forced(
+    runtime, request, portable_scene, random_package, tmp_path
+):
+    """`export-body --force` gives a package another body's graphs and keeps `training_body`; Python refused a run on
+    it, Node and C++ played it without a word (a review).  Now they refuse it (one line naming the package, nothing
+    written) unless `--force`, which plays it with a warning; the Node API likewise unless `force: true`."""
+    import shutil
+
+    pkg = tmp_path / "pkg"
+    shutil.copytree(random_package, pkg)
+    m = json.loads((pkg / "manifest.json").read_text())
+    (pkg / "manifest.json").write_text(json.dumps({**m, "training_body": {"name": "tall.npz", "sha256": "ab" * 32}}))
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    args = ["--package", str(pkg), "--garment", str(s["garment"]), "--motion", str(s["motion"])]
+    p = subprocess.run(exe + args + ["-o", str(tmp_path / "a.pc2")], capture_output=True, text=True, timeout=600)
+    assert p.returncode == 1 and p.stderr.count("\n") == 1, p.stdout + p.stderr
+    assert p.stderr.startswith(f"Error: {pkg}: the package's body graph 'body_") and "tall.npz abababababab" in p.stderr
+    assert "or --force" in p.stderr and not (tmp_path / "a.pc2").exists()
+    p = subprocess.run(
+        exe + args + ["-o", str(tmp_path / "b.pc2"), "--force"], capture_output=True, text=True, timeout=600
+    )
+    assert p.returncode == 0 and "warning: the package's body graph" in p.stderr, p.stdout + p.stderr
+    # the same package with its own record: played without a word
+    (pkg / "manifest.json").write_text(json.dumps(m))
+    p = subprocess.run(exe + args + ["-o", str(tmp_path / "c.pc2")], capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0 and "body graph" not in p.stderr, p.stdout + p.stderr
+    if runtime == "node":
+        (pkg / "manifest.json").write_text(json.dumps({**m, "training_body": {"name": "t", "sha256": "ab" * 32}}))
+        got = _node_api_refused_then_forced(pkg, s["garment"], s["motion"])
+        assert got["refused"] and "poses another body than its model was trained on" in got["refused"]
+        assert "force: true" in got["refused"] and any("trained on" in w for w in got["warnings"]) and got["T"] > 0
+
+
 def _node_api_refused_then_forced(package, garment, motion) -> dict:
     """The Node API's `animate(package, garment, motion)` without and with `force: true`: { refused (the error
     message, or None), warnings and T of the forced run }."""
@@ -459,6 +494,7 @@ def test_a_bad_margin_or_cloth_knob_is_a_command_line_mistake(
         (["--collision-margin", "-1"], "--collision-margin must be in [0, 1) metres (got -1)"),
         (["--collision-margin", "5"], "--collision-margin must be in [0, 1) metres (got 5)"),
         (["--collision-margin", "1e30"], "--collision-margin must be in [0, 1) metres (got 1e30)"),
+        (["--collision-margin", " -2 "], "--collision-margin must be in [0, 1) metres (got -2)"),  # quoted trimmed
         (
             ["--effects=+cloth", "--cloth", "iterations=100"],
             "--cloth: cloth iterations must be an integer in [1, 64] (got '100')",

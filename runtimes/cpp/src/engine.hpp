@@ -16,7 +16,12 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
+
+#ifdef __linux__
+#include <sched.h>
+#endif
 
 #include "bundle.hpp"
 #include "cloth.hpp"
@@ -35,6 +40,18 @@ inline void check(OrtStatus* s) {
     api->ReleaseStatus(s);
     throw std::runtime_error("onnxruntime: " + msg);
   }
+}
+
+// `asked` threads, at most the CPUs this process may use (its affinity on Linux: a container's share): more only
+// contend (1000 took about 6 s a frame: a user's trial).  Python's and Node's command lines lower it alike.
+inline int usable_threads(int asked) {
+  int cpus = static_cast<int>(std::thread::hardware_concurrency());
+#ifdef __linux__
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof(set), &set) == 0) cpus = CPU_COUNT(&set);
+#endif
+  return std::min(asked, std::max(1, cpus));
 }
 
 inline std::string read_text(const std::string& path) {
@@ -599,6 +616,29 @@ inline std::vector<float> model_betas(const std::vector<float>& betas, int64_t n
   return out;
 }
 
+
+// A package whose body graph poses another body than its model was trained on (manifest.training_body;
+// `segadeform export-body --force` gives it one) is refused unless `force`, as `segadeform run` refuses it; forced,
+// `warnings` says so.
+inline void check_training_body(const Package& pkg, bool force, std::vector<std::string>& warnings) {
+  const sgd::Json& m = pkg.manifest;
+  if (!m.has("training_body") || !m["training_body"].has("sha256") || m["training_body"]["sha256"].str.empty()) return;
+  const sgd::Json& want = m["training_body"];
+  static const sgd::Json none;
+  for (const auto& kv : (m.has("graphs") ? m["graphs"] : none).obj) {
+    const sgd::Json& g = kv.second;
+    if (!g.has("role") || g["role"].str != "body" || !g.has("body") || g["body"]["sha256"].str == want["sha256"].str)
+      continue;
+    const std::string why = "the package's body graph '" + kv.first + "' poses another body than its model was " +
+                            "trained on (expected " + want["name"].str + " " + want["sha256"].str.substr(0, 12) +
+                            ", got " + g["body"]["name"].str + " " + g["body"]["sha256"].str.substr(0, 12) + ")";
+    if (!force)
+      throw std::runtime_error(pkg.dir + ": " + why + ": the model never saw this body (segadeform export-body " +
+                               "without --force gives the package its training body back; or --force)");
+    warnings.push_back(why);
+    return;
+  }
+}
 
 // A garment asset and a motion file: the scene segadeform-run plays.
 inline Scene scene_of_asset(const sgd::Bundle& a, const std::string& apath, const sgd::Bundle& m, const std::string& mpath,

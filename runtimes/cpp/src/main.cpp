@@ -90,7 +90,10 @@ int main(int argc, char** argv) {
         while (e && (*e == ' ' || *e == '\t')) ++e;
         if (e == b || *e != '\0') throw std::invalid_argument(args[i]);
         margin_given = true;
-        margin_text = args[i];
+        // quoted as written, without the blanks around it that strtod reads past (as Node's trim())
+        const std::string& a = args[i];
+        const auto first = a.find_first_not_of(" \t\n\r\f\v"), last = a.find_last_not_of(" \t\n\r\f\v");
+        margin_text = a.substr(first, last - first + 1);
       }
       else if (args[i] == "--check") do_check = true;
       else if (args[i] == "--force") force = true;
@@ -178,6 +181,7 @@ int main(int argc, char** argv) {
       asset = sgd::read_bundle(garment);
       mot = sgd::read_bundle(motion);
       sc = scene_of_asset(asset, garment, mot, motion, force);
+      check_training_body(pkg, force, sc.warnings);
     } else {
       bundle = sgd::read_bundle(pos[1]);
       sc = scene_of_bundle(bundle);
@@ -191,7 +195,9 @@ int main(int argc, char** argv) {
     so.margin = margin;
     so.fps = sc.fps;
     so.batch = batch;
-    so.threads = threads;
+    so.threads = usable_threads(threads);
+    if (so.threads < threads)  // more threads than CPUs only contend (1000: about 6 s a frame), as segadeform run says
+      std::cout << "threads: " << so.threads << ", not " << threads << " (the CPUs this process may use)\n";
     so.body = !body_out.empty();
     OrtEnv* env;
     check(api->CreateEnv(ORT_LOGGING_LEVEL_WARNING, "segadeform", &env));

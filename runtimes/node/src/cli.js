@@ -7,9 +7,11 @@
 // segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]      (a scene bundle)
 import { readFileSync } from "node:fs";
 import { join } from "node:path";
+import { availableParallelism } from "node:os";
 import { animate, readAsset } from "./index.js";
 import {
-  MAX_VERTEX_FRAMES, defaultEffects, effectsLabel, objText, parseCloth, parseEffects, pc2Parts, readManifest,
+  MAX_VERTEX_FRAMES, defaultEffects, effectsLabel, objText, otherTrainingBody, parseCloth, parseEffects, pc2Parts,
+  readManifest,
 } from "./core.js";
 import { claimOutputs, commitOutputs } from "./outputs.js";
 
@@ -58,10 +60,9 @@ function clothProblem(text) {
     return e.message;
   }
 }
-// whether the run's effects (as animate resolves them: --effects over the package's defaults) have neither
-// collisions nor the cloth stage; false when they cannot be told here (a package or an effects list animate refuses,
-// saying why)
-function marginUnused() {
+// the run's effects as animate resolves them (--effects over the package's defaults), or null when they cannot be
+// told here (a package or an effects list animate refuses, saying why)
+function resolvedEffects() {
   let base = null;
   try {
     base = defaultEffects(readManifest(JSON.parse(readFileSync(join(pkg, "manifest.json"), "utf8"))));
@@ -69,11 +70,22 @@ function marginUnused() {
     // a complete list needs no defaults; otherwise animate names the package's problem
   }
   try {
-    const e = effects === undefined ? base : parseEffects(effects, base);
-    return !!e && !e.collisions && !e.cloth;
+    return (effects === undefined ? base : parseEffects(effects, base)) || null;
   } catch {
-    return false;
+    return null;
   }
+}
+// whether the run's effects have neither collisions nor the cloth stage (false when they cannot be told here)
+function marginUnused() {
+  const e = resolvedEffects();
+  return !!e && !e.collisions && !e.cloth;
+}
+// whether the cloth stage is off in the run's effects ("cloth,-cloth" too, as C++ and `segadeform run` read it);
+// without --effects it is off (a package's defaults never name it)
+function clothOff() {
+  if (effects === undefined) return true;
+  const e = resolvedEffects();
+  return !!e && !e.cloth;
 }
 // what is wrong, in one line before the usage (a misspelled flag printed the usage alone)
 const problem =
@@ -93,7 +105,7 @@ const problem =
   : marginText !== undefined && !Number.isFinite(margin) ? `--collision-margin must be a number, got ${marginText}`
   // a knob of a stage that will not run, or out of its range, is a command-line mistake, as `segadeform run` says it
   // (its value as the user wrote it)
-  : cloth && !(effects || "").split(",").map((s) => s.trim()).some((s) => s === "cloth" || s === "+cloth")
+  : cloth && clothOff()
     ? "--cloth sets the cloth stage's knobs, but the stage is off (name cloth in --effects)"
   : cloth && clothProblem(cloth) ? `--cloth: ${clothProblem(cloth)}`
   : marginText !== undefined && marginUnused() ? "--collision-margin sets the push-out's margin, but neither " +
@@ -105,6 +117,11 @@ if (problem) {
   console.error(`error: ${problem}\n${USAGE}`);
   process.exit(2);
 }
+// more threads than the CPUs this process may use only contend (1000 took about 6 s a frame: a user's trial):
+// lowered, and said, as `segadeform run` does
+const cpus = Math.max(1, availableParallelism());
+const usedThreads = Math.min(threads, cpus);
+if (usedThreads < threads) console.log(`threads: ${usedThreads}, not ${threads} (the CPUs this process may use)`);
 // the outputs are claimed before any work, as `segadeform run` claims them (outputs.js): never over a file
 // segadeform did not write, an input, or each other
 // the body's rest mesh beside its PC2 (what Blender's Mesh Cache and 3ds Max animate), as `segadeform run` writes it
@@ -125,11 +142,19 @@ try {
       "garment that sits on its body, or --force here too)");
     process.exit(1);
   }
+  // a package whose body graph poses another body than its model was trained on, as `segadeform run` refuses it
+  const otherBody = flagForm && !force ?
+    otherTrainingBody(JSON.parse(readFileSync(join(pkg, "manifest.json"), "utf8"))) : null;
+  if (otherBody) {
+    console.error(`Error: ${pkg}: ${otherBody}: the model never saw this body (segadeform export-body without ` +
+      "--force gives the package its training body back; or --force)");
+    process.exit(1);
+  }
   const r = flagForm
     // force: the API's own refusal is this command's, below, naming the motion file
-    ? await animate(pkg, garment, motion, { batch, threads, effects, body: !!bodyOut, collisionMargin: margin, cloth,
+    ? await animate(pkg, garment, motion, { batch, threads: usedThreads, effects, body: !!bodyOut, collisionMargin: margin, cloth,
       force: true })
-    : await animate(args[0], args[1], { batch, threads });
+    : await animate(args[0], args[1], { batch, threads: usedThreads });
   // a motion made for another body or shape is refused, as `segadeform run` refuses it (nothing is written)
   const other = (r.warnings || []).find((w) => w.startsWith("the motion was retargeted onto another"));
   if (other && !force) {

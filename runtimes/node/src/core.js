@@ -196,6 +196,22 @@ export function hasBody(manifest) {
 }
 
 /** The body graph posing with `skinning` ({name, spec}), or null when the package has no body graph. */
+/**
+ * Why a package's body graph poses another body than its model was trained on (manifest.training_body, which
+ * `segadeform export` writes and `segadeform export-body --force` keeps when it gives the package another body's
+ * graphs), or null when it poses that body (or the package records no training body).
+ */
+export function otherTrainingBody(manifest) {
+  const trained = manifest.training_body;
+  if (!trained || typeof trained.sha256 !== "string" || !trained.sha256) return null;
+  for (const [name, spec] of Object.entries(manifest.graphs || {})) {
+    if (spec.role !== "body" || !spec.body || spec.body.sha256 === trained.sha256) continue;
+    return `the package's body graph '${name}' poses another body than its model was trained on (expected ` +
+      `${trained.name} ${trained.sha256.slice(0, 12)}, got ${spec.body.name} ${String(spec.body.sha256).slice(0, 12)})`;
+  }
+  return null;
+}
+
 export function pickBody(manifest, skinning) {
   const bodies = Object.entries(manifest.graphs).filter(([, g]) => g.role === "body");
   if (!bodies.length) return null;
@@ -528,6 +544,14 @@ export class Player {
           `${spec.body.sha256.slice(0, 12)}, got ${G.body.name} ${G.body.sha256.slice(0, 12)})`);
       }
     }
+    // a package whose body graph poses another body than its model was trained on: refused unless forced, as
+    // `segadeform run` refuses it
+    const otherBody = otherTrainingBody(manifest);
+    if (otherBody && !options.force) {
+      throw new Error(`${otherBody}: the model never saw this body (segadeform export-body without --force gives ` +
+        "the package its training body back; or the option force: true)");
+    }
+    if (otherBody) p.warnings.push(otherBody);
     const effects = effectsOf(manifest, source, options.effects);
     const margin = options.collisionMargin ?? DEFAULT_COLLISION_MARGIN;
     if (options.collisionMargin !== undefined) checkMargin(options.collisionMargin);
