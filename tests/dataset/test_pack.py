@@ -219,6 +219,31 @@ def test_dataset_pack_command(tmp_path, body, capsys):
     assert "never overwritten" in capsys.readouterr().err and out.read_bytes() == before
 
 
+def test_nothing_to_pack_writes_no_pack_and_an_empty_pack_claims_no_simulator(tmp_path, body, capsys):
+    """A user's trial: `dataset pack ds -o store/new.sgdpack --skip store` with nothing new (and packing an empty
+    folder) wrote a pack of no samples whose head said "Blender None", and every command reading the store then
+    refused it as another simulator's.  Now nothing is written (one line, exit 1); a pack of no samples made before
+    is read beside the others."""
+    ds, store = tmp_path / "ds", tmp_path / "store"
+    _save(ds, "a", body)
+    store.mkdir()
+    first = store / "my-001.sgdpack"
+    assert main(["dataset", "pack", str(ds), "-o", str(first)]) == 0
+    capsys.readouterr()
+    again = store / "my-002.sgdpack"
+    assert main(["dataset", "pack", str(ds), "-o", str(again), "--skip", str(store)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "nothing to pack" in err and "1 samples, all in the packs given" in err, err
+    (tmp_path / "empty" / "samples").mkdir(parents=True)
+    assert main(["dataset", "pack", str(tmp_path / "empty"), "-o", str(again)]) == 1
+    assert "nothing to pack" in capsys.readouterr().err and sorted(p.name for p in store.glob("*.sgdpack")) == [first.name]
+    # a pack of no samples, as the earlier release wrote it, beside a real one: read, not refused
+    _rewrite_head(first, again, samples={}, simulator={"blender": None, "bridge": 3})
+    zipfile.ZipFile(again).close()
+    roots = DatasetRoots([store])
+    assert roots.ids() == ["a"]
+
+
 def test_dataset_pack_into_a_store_that_is_not_there_yet(tmp_path, body, capsys):
     """The first pack of the durable store: the README's command names the store in --skip before it exists."""
     ds = tmp_path / "ds"
@@ -229,8 +254,9 @@ def test_dataset_pack_into_a_store_that_is_not_there_yet(tmp_path, body, capsys)
     printed = capsys.readouterr().out
     assert "1 kept and 0 rejected" in printed and "not there yet" in printed and out.is_file()
     # the second pack skips what the first holds
+    _save(ds, "b", body, seed=1)
     assert main(["dataset", "pack", str(ds), "-o", str(store / "continuum-002.sgdpack"), "--skip", str(store)]) == 0
-    assert "(1 already in the packs given)" in capsys.readouterr().out
+    assert "1 kept and 0 rejected samples (1 already in the packs given)" in capsys.readouterr().out
     # a missing pack named in --skip is a mistake: one line, exit 1, nothing written
     third = store / "continuum-003.sgdpack"
     assert main(["dataset", "pack", str(ds), "-o", str(third), "--skip", str(store / "nope.sgdpack")]) == 1

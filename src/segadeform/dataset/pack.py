@@ -259,6 +259,14 @@ def write_pack(
                     counts[folder_name] += 1
                     if progress is not None:
                         progress(sid)
+            if not entries:  # a pack of nothing claims no simulator and broke every folder of packs it joined
+                raise InputError(
+                    "nothing to pack: no file is written",
+                    path=root,
+                    expected="samples that dataset make kept or rejected"
+                    + (", not already in the packs given (--skip)" if skipped else ""),
+                    got=f"{skipped} samples, all in the packs given" if skipped else "no samples",
+                )
             for cfg in sorted((root / "configs").glob("*.toml")) if (root / "configs").is_dir() else []:
                 z.write(cfg, f"configs/{cfg.name}")
             if len(blender_versions) > 1:

@@ -121,7 +121,8 @@ class DatasetRoots:
                 path=", ".join(str(_name(r)) for r in self._bodies.values()),
                 got=", ".join(f"body sha256 {b[:12]}" for b in self._bodies),
             )
-        sims = {(p.simulator.get("blender"), p.simulator.get("bridge")) for p in self.packs}
+        # a pack of no samples (written before `dataset pack` refused to) makes no claim about a simulator
+        sims = {(p.simulator.get("blender"), p.simulator.get("bridge")) for p in self.packs if p.entries}
         if len(sims) > 1:
             raise InputError(
                 "these packs were made by different simulators and cannot be mixed",
