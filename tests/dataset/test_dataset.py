@@ -908,6 +908,15 @@ def test_gate_rejects_a_garment_that_slipped_off_the_body():
     r = quality_check(down, g.vertices, g.faces, bf, b.faces, spec, on_body=on)
     assert r.slipped > 0.5 and any(s.startswith("slipped") for s in r.reasons)
     assert not any(s.startswith("slipped") for s in quality_check(down, g.vertices, g.faces, bf, b.faces, spec).reasons)
+    # a share just past its limit reads apart from it (a user's trial: "slipped: 5.0% ... > 5.0%")
+    import dataclasses
+    import re
+
+    near = dataclasses.replace(spec, max_slipped=r.slipped - 1e-4)
+    (why,) = [s for s in quality_check(down, g.vertices, g.faces, bf, b.faces, near, on_body=on).reasons
+              if s.startswith("slipped")]  # fmt: skip
+    a, b_ = re.match(r"slipped: ([0-9.]+)% .* > ([0-9.]+)%$", why).groups()
+    assert a != b_ and float(a) > float(b_), why
 
 
 def test_the_gate_on_every_prefix_equals_judging_the_cut_clip_and_finds_the_longest_that_passes():

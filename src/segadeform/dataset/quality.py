@@ -54,13 +54,19 @@ __all__ = [
 ]
 
 
-def _pair(value: float, limit: float, unit: str = "%", digits: int = 2) -> str:
-    """``"0.104% > 0.100"`` (then the caller's unit): ``value`` and the ``limit`` it passed, with as many decimals
-    as it takes (up to 6) for the two to read apart ("0.10% > 0.10%" was a gate's verdict once)."""
+def _apart(value: float, limit: float, digits: int = 2) -> tuple[str, str]:
+    """``value`` and the ``limit`` it passed as text, with as many decimals as it takes (``digits`` up to 6) for
+    the two to read apart ("0.10% > 0.10%" was a gate's verdict once, "5.0% > 5.0%" another)."""
     for d in range(digits, 7):
         a, b = f"{value:.{d}f}", f"{limit:.{d}f}"
         if a != b:
             break
+    return a, b
+
+
+def _pair(value: float, limit: float, unit: str = "%", digits: int = 2) -> str:
+    """``"0.104% > 0.100"`` (then the caller's unit): :func:`_apart`'s two."""
+    a, b = _apart(value, limit, digits)
     return f"{a}{unit} > {b}"
 
 
@@ -221,7 +227,7 @@ class FrameStats:
         pinch_edges = float((pinch_e & ~tear).mean()) if len(tear) else 0.0
         if over > spec.max_strained_edges:
             reasons.append(
-                f"strain {strain.max():.2f} > {spec.max_strain}"
+                "strain {} > {}".format(*_apart(float(strain.max()), float(spec.max_strain)))
                 + (
                     f" on {_pair(100 * over, 100 * spec.max_strained_edges)}% of edges"
                     if spec.max_strained_edges > 0
@@ -235,9 +241,9 @@ class FrameStats:
         if jit > spec.max_jitter:
             reasons.append(f"jitter {_pair(100 * jit, 100 * spec.max_jitter, '%', digits=3)}%")
         if slip > spec.max_slipped:
+            a, b = _apart(100 * slip, 100 * spec.max_slipped, digits=1)
             reasons.append(
-                f"slipped: {100 * slip:.1f}% of the vertices on the body at rest farther than "
-                f"{spec.slip_distance} m from it > {100 * spec.max_slipped:.1f}%"
+                f"slipped: {a}% of the vertices on the body at rest farther than {spec.slip_distance} m from it > {b}%"
             )
         if far > 0:
             reasons.append(
