@@ -42,6 +42,14 @@ def _given_twice(cmd: click.Command, ctx: click.Context, args: list[str]) -> Non
         seen.add(p.name)
 
 
+#: what a command stopped by Ctrl-C or SIGTERM says (train says its own: the step it resumes from); outputs are
+#: committed whole or not at all, and dataset make keeps each sample as it finishes
+INTERRUPTED = (
+    "interrupted: nothing half-written was left; run the same command again (dataset make goes on from the "
+    "samples it finished)"
+)
+
+
 class _Command(click.Command):
     def parse_args(self, ctx, args):
         _given_twice(self, ctx, args)
@@ -63,6 +71,8 @@ class _Group(click.Group):
             raise click.ClickException(str(e)) from None
         except MemoryError:
             raise click.ClickException("out of memory (is the input much larger than expected?)") from None
+        except KeyboardInterrupt:  # Ctrl-C, SIGTERM: click said "Aborted!" alone (a user's trial)
+            raise click.ClickException(INTERRUPTED) from None
         except BrokenPipeError:
             if not _stdout_closed():  # a pipe of ours (the simulator's) broke: an error like any other
                 raise click.ClickException("broken pipe") from None

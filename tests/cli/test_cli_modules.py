@@ -78,3 +78,19 @@ def test_every_command_refuses_an_option_of_one_value_given_twice(tmp_path, monk
     r = runner.invoke(cli, [], prog_name="segadeform", env={**env, "_SEGADEFORM_COMPLETE": "bash_complete"})
     assert r.exit_code == 0 and "plain,--body" in r.output and "given more than once" not in r.output, r.output
     assert checked > 100
+
+
+def test_a_command_interrupted_says_so_in_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys):
+    """Ctrl-C or SIGTERM in `dataset make` or `export` printed click's "Aborted!" alone (a user's trial); every
+    command now says what is left and what to do (train says its own: the step it resumes from)."""
+    import segadeform.motion
+    from segadeform.cli.main import INTERRUPTED, main
+
+    def stop(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(segadeform.motion, "make_motion", stop)
+    out = tmp_path / "walk.npz"
+    assert main(["motion", "make", "walk", "--seconds", "0.5", "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err == f"Error: {INTERRUPTED}\n" and "Aborted" not in err and not out.exists()
