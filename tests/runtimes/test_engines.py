@@ -365,6 +365,12 @@ def test_a_package_whose_body_graph_is_not_its_training_body_is_refused_unless_f
         exe + args + ["-o", str(tmp_path / "b.pc2"), "--force"], capture_output=True, text=True, timeout=600
     )
     assert p.returncode == 0 and "warning: the package's body graph" in p.stderr, p.stdout + p.stderr
+    # the scene-bundle form, which takes no --force, refuses it too and says which form forces it
+    bundle = request.getfixturevalue("shared_bundle")
+    p = subprocess.run(exe + [str(pkg), str(bundle), "-o", str(tmp_path / "d.pc2")], capture_output=True, text=True,
+                       timeout=600)  # fmt: skip
+    assert p.returncode == 1 and p.stderr.startswith(f"Error: {pkg}: the package's body graph"), p.stderr
+    assert "or --package/--garment/--motion with --force" in p.stderr and not (tmp_path / "d.pc2").exists()
     # the same package with its own record: played without a word
     (pkg / "manifest.json").write_text(json.dumps(m))
     p = subprocess.run(exe + args + ["-o", str(tmp_path / "c.pc2")], capture_output=True, text=True, timeout=600)

@@ -872,6 +872,26 @@ def test_mirror_trains_on_each_samples_mirror_image_and_needs_a_symmetric_body(
     assert (it.id, mi.id) == ("skirt__b0__walk", "skirt__b0__walk~mirror") and mi.meta["mirror_of"] == it.id
     np.testing.assert_allclose(mi.frames.numpy(), mirror_points(it.frames.numpy()))
     assert mi.lead == it.lead == 4
+    # the network's inputs are the mirrored motion's: its windows, and its history from the mirrored lead on
+    from segadeform.dataset.mirror import mirror_sample
+    from segadeform.motion import history_inputs, motion_windows
+
+    s = roots.load("skirt__b0__walk")
+    mp = mirror_poses(s.poses, body.joint_names)
+    np.testing.assert_allclose(mi.windows.numpy(), motion_windows(mp, 5), atol=1e-6)
+    ref = history_inputs(
+        np.concatenate([mirror_poses(s.lead_poses, body.joint_names), mp]),
+        np.concatenate([mirror_points(s.lead_trans), mirror_points(s.trans)]),
+        30.0,
+    )
+    np.testing.assert_allclose(mi.history_in.numpy(), ref, atol=1e-6)
+    assert np.abs(mi.windows.numpy() - it.windows.numpy()).max() > 0.1  # not the original's
+    # stored contacts (the synthetic samples store none) are mirrored points and normals
+    rng = np.random.default_rng(0)
+    cp, cn = rng.normal(size=s.frames.shape), rng.normal(size=s.frames.shape)
+    m = mirror_sample(dataclasses.replace(s, contact_p=cp, contact_n=cn), body.joint_names)
+    np.testing.assert_array_equal(m.contact_p, cp * [-1, 1, 1])
+    np.testing.assert_array_equal(m.contact_n, cn * [-1, 1, 1])
     # the prior's weights are the original's with left and right swapped (the body is symmetric) ...
     perm = mirror_joint_order(body.joint_names)
     assert np.abs(mi.body_weights.numpy()[:, perm] - it.body_weights.numpy()).mean() < 0.01
@@ -906,7 +926,7 @@ def test_mirror_trains_on_each_samples_mirror_image_and_needs_a_symmetric_body(
         joint_shapedirs=np.zeros(jt.shape + (body.n_betas,)),
     )
     assert body_asymmetry(lopsided) > 0.02 and body_asymmetry(body) < T.MIRROR_TOLERANCE
-    monkeypatch.setattr(T, "body_asymmetry", lambda b: body_asymmetry(lopsided))
+    monkeypatch.setattr(T, "body_asymmetry", lambda b, betas=None: body_asymmetry(lopsided, betas))
     with pytest.raises(InputError, match="symmetric body"):
         train(cfg, tmp_path / "run2", body, log_every=10)
     assert not (tmp_path / "run2").exists()

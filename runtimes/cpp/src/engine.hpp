@@ -620,21 +620,27 @@ inline std::vector<float> model_betas(const std::vector<float>& betas, int64_t n
 // A package whose body graph poses another body than its model was trained on (manifest.training_body;
 // `segadeform export-body --force` gives it one) is refused unless `force`, as `segadeform run` refuses it; forced,
 // `warnings` says so.
-inline void check_training_body(const Package& pkg, bool force, std::vector<std::string>& warnings) {
+// `hint`: what forces it where the caller is (the bundle form of segadeform-run cannot).
+inline void check_training_body(const Package& pkg, bool force, std::vector<std::string>& warnings,
+                                const std::string& hint = "--force") {
   const sgd::Json& m = pkg.manifest;
   if (!m.has("training_body") || !m["training_body"].has("sha256") || m["training_body"]["sha256"].str.empty()) return;
   const sgd::Json& want = m["training_body"];
   static const sgd::Json none;
   for (const auto& kv : (m.has("graphs") ? m["graphs"] : none).obj) {
     const sgd::Json& g = kv.second;
-    if (!g.has("role") || g["role"].str != "body" || !g.has("body") || g["body"]["sha256"].str == want["sha256"].str)
+    // a graph that records no body is not checked (the Python runtime poses with numpy there)
+    if (!g.has("role") || g["role"].str != "body" || !g.has("body") || !g["body"].has("sha256") ||
+        g["body"]["sha256"].str.empty() || g["body"]["sha256"].str == want["sha256"].str)
       continue;
+    const std::string got_name = g["body"].has("name") ? g["body"]["name"].str : std::string("a body");
+    const std::string want_name = want.has("name") ? want["name"].str : std::string("a body");
     const std::string why = "the package's body graph '" + kv.first + "' poses another body than its model was " +
-                            "trained on (expected " + want["name"].str + " " + want["sha256"].str.substr(0, 12) +
-                            ", got " + g["body"]["name"].str + " " + g["body"]["sha256"].str.substr(0, 12) + ")";
+                            "trained on (expected " + want_name + " " + want["sha256"].str.substr(0, 12) + ", got " +
+                            got_name + " " + g["body"]["sha256"].str.substr(0, 12) + ")";
     if (!force)
       throw std::runtime_error(pkg.dir + ": " + why + ": the model never saw this body (segadeform export-body " +
-                               "without --force gives the package its training body back; or --force)");
+                               "without --force gives the package its training body back; or " + hint + ")");
     warnings.push_back(why);
     return;
   }

@@ -185,6 +185,7 @@ int main(int argc, char** argv) {
     } else {
       bundle = sgd::read_bundle(pos[1]);
       sc = scene_of_bundle(bundle);
+      check_training_body(pkg, false, sc.warnings, "--package/--garment/--motion with --force");
       eff = effects_of(bundle.meta["effects"]);
     }
     for (const auto& w : sc.warnings) std::cerr << "warning: " << w << "\n";

@@ -46,7 +46,7 @@ struct Player::Impl {
   Impl(const std::string& package_dir, const std::string& garment, const PlayerOptions& o)
       : pkg(package_dir), asset(sgd::read_bundle(garment)), opt(o) {
     sc = garment_of_asset(asset, garment, o.force);
-    check_training_body(pkg, o.force, sc.warnings);
+    check_training_body(pkg, o.force, sc.warnings, "the option force");
     if (o.batch < 1) throw std::runtime_error("batch must be an integer >= 1 (got " + std::to_string(o.batch) + ")");
     if (o.threads < 1)
       throw std::runtime_error("threads must be an integer >= 1 (got " + std::to_string(o.threads) + ")");

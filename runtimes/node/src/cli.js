@@ -7,7 +7,7 @@
 // segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]      (a scene bundle)
 import { readFileSync } from "node:fs";
 import { join } from "node:path";
-import { availableParallelism } from "node:os";
+import * as os from "node:os";
 import { animate, readAsset } from "./index.js";
 import {
   MAX_VERTEX_FRAMES, defaultEffects, effectsLabel, objText, otherTrainingBody, parseCloth, parseEffects, pc2Parts,
@@ -119,7 +119,8 @@ if (problem) {
 }
 // more threads than the CPUs this process may use only contend (1000 took about 6 s a frame: a user's trial):
 // lowered, and said, as `segadeform run` does
-const cpus = Math.max(1, availableParallelism());
+// (availableParallelism is Node >= 18.14; package.json allows 18)
+const cpus = Math.max(1, os.availableParallelism ? os.availableParallelism() : os.cpus().length);
 const usedThreads = Math.min(threads, cpus);
 if (usedThreads < threads) console.log(`threads: ${usedThreads}, not ${threads} (the CPUs this process may use)`);
 // the outputs are claimed before any work, as `segadeform run` claims them (outputs.js): never over a file
@@ -143,11 +144,20 @@ try {
     process.exit(1);
   }
   // a package whose body graph poses another body than its model was trained on, as `segadeform run` refuses it
-  const otherBody = flagForm && !force ?
-    otherTrainingBody(JSON.parse(readFileSync(join(pkg, "manifest.json"), "utf8"))) : null;
+  // (a manifest that cannot be read is animate's to name)
+  const pkgDir = flagForm ? pkg : args[0];
+  let otherBody = null;
+  if (!force) {
+    try {
+      otherBody = otherTrainingBody(JSON.parse(readFileSync(join(pkgDir, "manifest.json"), "utf8")));
+    } catch {
+      otherBody = null;
+    }
+  }
   if (otherBody) {
-    console.error(`Error: ${pkg}: ${otherBody}: the model never saw this body (segadeform export-body without ` +
-      "--force gives the package its training body back; or --force)");
+    console.error(`Error: ${pkgDir}: ${otherBody}: the model never saw this body (segadeform export-body without ` +
+      `--force gives the package its training body back; or ${flagForm ? "" : "--package/--garment/--motion with "}` +
+      "--force)");
     process.exit(1);
   }
   const r = flagForm

@@ -195,7 +195,6 @@ export function hasBody(manifest) {
   return Object.values(manifest.graphs).some((g) => g.role === "body");
 }
 
-/** The body graph posing with `skinning` ({name, spec}), or null when the package has no body graph. */
 /**
  * Why a package's body graph poses another body than its model was trained on (manifest.training_body, which
  * `segadeform export` writes and `segadeform export-body --force` keeps when it gives the package another body's
@@ -205,13 +204,16 @@ export function otherTrainingBody(manifest) {
   const trained = manifest.training_body;
   if (!trained || typeof trained.sha256 !== "string" || !trained.sha256) return null;
   for (const [name, spec] of Object.entries(manifest.graphs || {})) {
-    if (spec.role !== "body" || !spec.body || spec.body.sha256 === trained.sha256) continue;
+    // a graph that records no body is not checked (the Python runtime poses with numpy there)
+    if (spec.role !== "body" || !spec.body || typeof spec.body.sha256 !== "string" || !spec.body.sha256 ||
+      spec.body.sha256 === trained.sha256) continue;
     return `the package's body graph '${name}' poses another body than its model was trained on (expected ` +
-      `${trained.name} ${trained.sha256.slice(0, 12)}, got ${spec.body.name} ${String(spec.body.sha256).slice(0, 12)})`;
+      `${trained.name} ${trained.sha256.slice(0, 12)}, got ${spec.body.name} ${spec.body.sha256.slice(0, 12)})`;
   }
   return null;
 }
 
+/** The body graph posing with `skinning` ({name, spec}), or null when the package has no body graph. */
 export function pickBody(manifest, skinning) {
   const bodies = Object.entries(manifest.graphs).filter(([, g]) => g.role === "body");
   if (!bodies.length) return null;

@@ -45,7 +45,8 @@ def mirror_sample(s: Sample, joint_names) -> Sample:
 
 
 def body_asymmetry(body, betas=None) -> float:
-    """How far (m) the shaped body at rest is from its own mirror image: the largest distance of a mirrored
-    rest joint from its twin (joints decide the skinning a mirrored sample is trained with)."""
+    """How far (m) the body shaped by ``betas`` (None: the template) is from its own mirror image at rest: the
+    largest distance of a mirrored rest joint from its twin (joints decide the skinning a mirrored sample is trained
+    with)."""
     j = np.asarray(body.rest_joints(betas)[0], np.float64)
-    return float(np.abs(mirror_points(j)[mirror_joint_order(body.joint_names)] - j).max())
+    return float(np.linalg.norm(mirror_points(j)[mirror_joint_order(body.joint_names)] - j, axis=-1).max())

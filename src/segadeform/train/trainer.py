@@ -53,7 +53,7 @@ TERMS = ("vertex", "normal", "edge", "stretch", "shear", "gravity", "collision",
 #: logged beside TERMS: the self-supervised cloth energy of a pair never simulated (weighted already)
 PHYSICS_TERM = "physics"
 #: the most (m) a body's rest joints may be from their twins' mirror images for ``data.mirror`` (the default body:
-#: 4.3 mm, its collar joints; its vertices 0.06 mm on average)
+#: 6.3 mm, its collar joints; 6.8 mm at betas of +-2; its vertices 0.06 mm on average)
 MIRROR_TOLERANCE = 0.01
 
 
@@ -310,8 +310,13 @@ def train(
             + (" (or samples that data.exclude and data.fraction leave)" if have and cfg.split in have else ""),
             got=(f"the splits {', '.join(have)} in " if have else "") + _roots_said(roots),
         )
-    if cfg.mirror:  # a mirrored sample is trained on the body itself: it must be its own mirror image
-        asym = body_asymmetry(body)
+    if cfg.mirror:  # a mirrored sample is trained on the body itself: it must be its own mirror image at every shape
+        # (a sample's record names its shape; a pack's index does not, and its sample is read)
+        recorded = {i: roots.meta(i).get("betas") for i in ids}
+        shapes = {
+            tuple(np.asarray(roots.load(i).betas if b is None else b, float).ravel()) for i, b in recorded.items()
+        }
+        asym = max(body_asymmetry(body, np.asarray(b)[None] if b else None) for b in shapes | {()})
         if not asym <= MIRROR_TOLERANCE:
             raise InputError(
                 "data.mirror needs a left-right symmetric body: its rest joints are not their twins' mirror images",
