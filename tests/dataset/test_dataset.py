@@ -310,6 +310,11 @@ def test_split_makes_only_that_split(tiny_dataset, tmp_path, capsys):
     assert not any(p.is_file() for p in held)  # the test splits were left alone
     with pytest.raises(InputError, match="unknown dataset split.*got.*tests"):
         make_dataset(load_dataset_config(TINY), out, splits=("tests",))
+    # a split the config plans nothing of made nothing and said "0 planned" (a user's trial): now a clear error
+    assert main(["dataset", "make", str(TINY), "-o", str(out), "--split", "val"]) == 1
+    err = capsys.readouterr().err
+    assert "plans no samples of the split asked for" in err and "expected --split test | train" in err, err
+    assert err.count("\n") == 1 and "got val" in err
     # the command line spells the choices itself (it imports the library lazily): they are the library's
     from segadeform.cli.dataset import dataset_make_cmd
     from segadeform.dataset.config import SPLITS

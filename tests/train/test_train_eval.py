@@ -24,10 +24,13 @@ from ..conftest import SAMPLES  # noqa: E402
 SHIPPED = SAMPLES / "models" / "default"
 
 
-def test_train_writes_run_folder(synthetic_dataset, tiny_config, tmp_path, body):
+def test_train_writes_run_folder(synthetic_dataset, tiny_config, tmp_path, body, caplog):
     cfg = load_train_config(tiny_config, dataset=synthetic_dataset)
     run = tmp_path / "run"
-    final = train(cfg, run, body, log_every=2, val_ids=["skirt__b0__swing"])
+    with caplog.at_level("WARNING", logger="segadeform.train.trainer"):
+        final = train(cfg, run, body, log_every=2, val_ids=["skirt__b0__swing"])
+    # a test-split sample given to choose the model is said (a user's trial: it went unsaid)
+    assert any("1 of the 1 samples that choose the model are of the test split" in r.message for r in caplog.records)
     rows = list(csv.DictReader(open(run / "loss.csv")))
     assert [int(r["step"]) for r in rows] == [2, 4, 6]
     assert all(np.isfinite(float(r["total"])) for r in rows) and rows[-1]["val_vertex"] != ""

@@ -1070,7 +1070,15 @@ def make_dataset(
         planned = {p.id for p in plan}  # the whole plan: what a kept sample not in it is told against
         _keep_config(loc, cfg)
         if splits:  # the whole plan was checked and ordered as always; only the chosen splits are made
+            have = sorted({split_group(p.split) for p in plan})
             plan = [p for p in plan if split_group(p.split) in splits]
+            if not plan:  # it made nothing and said "0 planned" (a user's trial)
+                raise InputError(
+                    f"the config plans no samples of the split{'s' if len(splits) > 1 else ''} asked for",
+                    path=cfg.path,
+                    expected=f"--split {' | '.join(have)} (the splits its entries name)" if have else "entries",
+                    got=", ".join(splits),
+                )
         order = make_order(cfg, plan)
         finished = {n[: -len(".json")] for d in ("samples", "rejected") for n in loc.listdir(d) if n.endswith(".json")}
         if extra is not None:

@@ -346,6 +346,16 @@ def train(
                 "(data.val_split names the split that chooses the model)",
                 cfg.val_split,
             )
+    elif val_ids:  # samples given by id (--val): choosing the model on the test split leaves nothing unseen to score
+        held = sorted(i for i in val_ids if str(roots.meta(i).get("split", "")).startswith("test"))
+        if held:
+            log.warning(
+                "%d of the %d samples that choose the model are of the test split (first: %s): the model is then "
+                "chosen on the data it is scored on (data.val_split or --val of validation samples keep them apart)",
+                len(held),
+                len(val_ids),
+                held[0],
+            )
     if items[0].features.shape[-1] != m.feat_dim:
         raise InputError(
             "model.feat_dim does not match the garment features", expected=items[0].features.shape[-1], got=m.feat_dim
