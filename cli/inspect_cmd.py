@@ -180,8 +180,21 @@ def inspect_cmd(path):
     elif ext == ".npz":
         from segadeform.io.npz import load_npz
 
-        keys = set(load_npz(path))
-        if "poses" in keys:
+        z = load_npz(path)
+        keys = set(z)
+        if {"rest", "faces", "frames", "poses"} <= keys:  # a dataset sample (it was read as a motion: a user's trial)
+            import json
+
+            rec = Path(path).with_suffix(".json")
+            meta = json.loads(rec.read_text()) if rec.is_file() else {}
+            t, n = np.asarray(z["frames"]).shape[:2]
+            nf = len(np.asarray(z["faces"]))
+            said = ", ".join(f"{k} {meta[k]}" for k in ("split", "kind", "garment", "motion", "status") if k in meta)
+            click.echo(
+                f"{path}: dataset sample, {t} frames of {n} garment vertices ({nf} triangle{'' if nf == 1 else 's'})"
+                f"{'; ' + said if said else ''} (segadeform dataset info FOLDER for the whole dataset)"
+            )
+        elif "poses" in keys:
             from segadeform.motion import load_motion
 
             m = load_motion(path)

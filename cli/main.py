@@ -119,8 +119,8 @@ class PathParam(click.Path):
 
 
 def usable_threads(asked: int) -> tuple[int, str]:
-    """``(threads, note)``: ``asked`` (a ``--threads``), at most the CPUs this process may use (its affinity:
-    a container's share), and the line that says so when it was lowered (``""`` otherwise).  More threads than CPUs
+    """``(threads, note)``: ``asked`` (a ``--threads``), at most the CPUs this process may run on (its CPU affinity;
+    a container's CPU quota is not read), and the line that says so when it was lowered (``""`` otherwise).  More threads than CPUs
     only contend: 1000 took about 6 s a frame (a user's trial); Node and C++ lower it alike."""
     try:
         cpus = len(os.sched_getaffinity(0))

@@ -327,3 +327,26 @@ def test_inspect_tells_toml_files_apart(tmp_path):
     bad.write_text((SAMPLES / "datasets" / "tiny.toml").read_text().replace('kind = "skirt"', 'kind = "skirtt"'))
     r = inspect(bad)
     assert r.exit_code == 1 and str(bad) in r.output and "skirtt" in r.output, r.output
+
+
+def test_inspect_names_a_dataset_sample_not_a_motion(tmp_path):
+    """A simulated sample's .npz (rest, faces, frames, poses, ...) was read as a motion ("motion, 30 frames at 30
+    fps": a user's trial); it is named a dataset sample, with its record's split and kind."""
+    from segadeform.dataset.store import Sample, save_sample
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    s = Sample(
+        id="g__b0__walk",
+        rest=v,
+        faces=np.array([[0, 1, 2]]),
+        betas=np.zeros(0),
+        poses=np.zeros((4, 72)),
+        trans=np.zeros((4, 3)),
+        frames=np.repeat(v[None], 4, axis=0).astype(np.float32),
+        meta={"id": "g__b0__walk", "split": "train", "kind": "skirt", "status": "kept"},
+    )
+    save_sample(tmp_path, s)
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "samples" / "g__b0__walk.npz")])
+    assert r.exit_code == 0, r.output
+    assert "dataset sample, 4 frames of 3 garment vertices (1 triangle); split train, kind skirt" in r.output
+    assert "motion" not in r.output.split(";")[0]

@@ -236,7 +236,9 @@ def test_nothing_to_pack_writes_no_pack_and_an_empty_pack_claims_no_simulator(tm
     assert err.count("\n") == 1 and "nothing to pack" in err and "1 samples, all in the packs given" in err, err
     (tmp_path / "empty" / "samples").mkdir(parents=True)
     assert main(["dataset", "pack", str(tmp_path / "empty"), "-o", str(again)]) == 1
-    assert "nothing to pack" in capsys.readouterr().err and sorted(p.name for p in store.glob("*.sgdpack")) == [first.name]
+    assert "nothing to pack" in capsys.readouterr().err and sorted(p.name for p in store.glob("*.sgdpack")) == [
+        first.name
+    ]
     # a pack of no samples, as the earlier release wrote it, beside a real one: read, not refused
     _rewrite_head(first, again, samples={}, simulator={"blender": None, "bridge": 3})
     zipfile.ZipFile(again).close()

@@ -104,8 +104,8 @@ def write_report(
     with atomic_path(out / "eval.md") as tmp:
         Path(tmp).write_text("\n".join(md))
     fig, ax = plt.subplots(figsize=(7, 4))
-    for n, v in res["per_frame"].items():
-        ax.plot(v, label=n)
+    for i, (n, v) in enumerate(res["per_frame"].items()):  # past 10 rows the colours repeat: the dashes tell them
+        ax.plot(v, label=n, linestyle=("-", "--", ":", "-.")[i // 10 % 4])
     ax.set_xlabel("frame")
     ax.set_ylabel("mean vertex error (cm)")
     ax.legend(fontsize=8)
