@@ -120,8 +120,8 @@ class PathParam(click.Path):
 
 def usable_threads(asked: int) -> tuple[int, str]:
     """``(threads, note)``: ``asked`` (a ``--threads``), at most the CPUs this process may run on (its CPU affinity;
-    a container's CPU quota is not read), and the line that says so when it was lowered (``""`` otherwise).  More threads than CPUs
-    only contend: 1000 took about 6 s a frame (a user's trial); Node and C++ lower it alike."""
+    a container's CPU quota is not read), and the line that says so when it was lowered (``""`` otherwise).  More
+    threads than CPUs only contend: 1000 took about 6 s a frame (a user's trial); Node and C++ lower it alike."""
     try:
         cpus = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):  # no affinity on this platform
