@@ -33,6 +33,12 @@ def _body(path):
     "dataset and optional roots.",
 )
 @click.option("--steps", type=click.IntRange(min=1), help="Overrides optim.steps.")
+@click.option(
+    "--init",
+    type=PathParam(exists=True, dir_okay=False, path_type=Path),
+    help="Overrides optim.init: a checkpoint (model.pt) whose weights a new run starts from, to fine-tune a trained "
+    "model on your own samples (its [model] must be the config's; a resumed run goes on from its own last.pt).",
+)
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), help="Overrides optim.device.")
 @click.option(
     "--seconds",
@@ -49,11 +55,11 @@ def _body(path):
     help="Write into a run folder that holds other files (beside them, never over "
     "them); a run folder of the same config is resumed without it.",
 )
-def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, threads, force):
+def train_cmd(config, output, dataset, steps, init, device, seconds, body, val_ids, threads, force):
     """Train the SEGA model on a simulated dataset (CONFIG.toml; see segadeform.train.config)."""
     from segadeform.io.output_guard import OutputGuard
 
-    guard = OutputGuard("train", force=force, inputs=(config, *dataset, body))
+    guard = OutputGuard("train", force=force, inputs=(config, *dataset, body, init))
     written = ("config.toml", "train.json", "last.pt", "best.pt", "model.pt", "loss.csv", "loss.png")
     guard.resumable(
         output,
@@ -79,6 +85,8 @@ def train_cmd(config, output, dataset, steps, device, seconds, body, val_ids, th
         ov["optim.device"] = device
     if seconds is not None:
         ov["optim.seconds"] = seconds
+    if init is not None:
+        ov["optim.init"] = str(init.resolve())
     cfg = load_train_config(config, dataset=list(dataset) or None, overrides=ov)
     interactive = sys.stderr.isatty()
 

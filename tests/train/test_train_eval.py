@@ -933,3 +933,47 @@ def test_mirror_trains_on_each_samples_mirror_image_and_needs_a_symmetric_body(
     with pytest.raises(InputError, match="symmetric body"):
         train(cfg, tmp_path / "run2", body, log_every=10)
     assert not (tmp_path / "run2").exists()
+
+
+def test_a_run_starts_from_a_checkpoint_to_fine_tune_and_refuses_another_models(
+    synthetic_dataset, tiny_config, tmp_path, body, capsys
+):
+    """optim.init / `train --init`: a new run starts from a trained model's weights (a user's trial: fine-tuning the
+    shipped model on one's own samples had no way); a checkpoint of another [model] is refused before anything is
+    written, naming the fields."""
+    from segadeform.cli.main import main
+
+    first = tmp_path / "first"
+    assert main(["train", str(tiny_config), "-o", str(first), "--dataset", str(synthetic_dataset)]) == 0
+    start = torch.load(first / "model.pt", weights_only=True)["state_dict"]
+    slow = tmp_path / "slow.toml"  # a step this small leaves the weights where they started
+    slow.write_text(tiny_config.read_text().replace("lr = 0.003", "lr = 1e-12").replace("steps = 6", "steps = 1"))
+    tuned = tmp_path / "tuned"
+    args = [
+        "train",
+        str(slow),
+        "-o",
+        str(tuned),
+        "--dataset",
+        str(synthetic_dataset),
+        "--init",
+        str(first / "model.pt"),
+    ]
+    assert main(args) == 0
+    got = torch.load(tuned / "last.pt", weights_only=False)["state_dict"]
+    weights = [k for k in start if not k.endswith("._u")]  # (the Lipschitz bounds' power iterations step on)
+    assert len(weights) > 20 and all(torch.allclose(got[k], start[k], atol=1e-6) for k in weights)
+    assert json.loads((tuned / "train.json").read_text())["config"]["optim"]["init"] == str(first / "model.pt")
+    fresh = tmp_path / "fresh"  # without it the run starts elsewhere
+    assert main(["train", str(slow), "-o", str(fresh), "--dataset", str(synthetic_dataset)]) == 0
+    other = torch.load(fresh / "last.pt", weights_only=False)["state_dict"]
+    assert any(not torch.allclose(other[k], start[k], atol=1e-3) for k in weights)
+    # a checkpoint of another [model]: one line naming the field, nothing written
+    wide = tmp_path / "wide.toml"
+    wide.write_text(tiny_config.read_text().replace("hidden = 16", "hidden = 8"))
+    capsys.readouterr()
+    args = ["train", str(wide), "-o", str(tmp_path / "w"), "--dataset", str(synthetic_dataset)]
+    assert main([*args, "--init", str(first / "model.pt")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "another [model] config" in err and "model.hidden 16 -> 8" in err, err
+    assert not (tmp_path / "w").exists()

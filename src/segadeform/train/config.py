@@ -39,6 +39,8 @@ Example (``samples/train/continuum/light_prior_seed1.toml`` is the shipped model
     collision_types = {}           # a garment type's own collision weight, e.g. { top = 10.0 } (others: collision)
 
     [optim]
+    init = ""                      # a checkpoint (model.pt) to start from: fine-tuning a trained model on your own
+                                   # samples (its [model] must be this config's; `train --init` gives it too)
     steps = 3000
     lr = 1e-3
     frames = 8                     # frames per garment per step
@@ -171,6 +173,7 @@ class OptimConfig:
     warmup: int = 0  # linear warm-up steps before the cosine decay (0: none)
     seconds: float = 0.0  # time budget of a run, loading included (0: off); the warm-up steps time the machine
     weight_decay: float = 0.0  # decoupled weight decay (AdamW): pulls the residual towards 0, i.e. the prior
+    init: str = ""  # a checkpoint (model.pt) whose weights the run starts from: fine-tuning (relative to the config)
 
     def __post_init__(self):
         for k in ("steps", "frames", "garments", "checkpoint_every"):  # (checkpoint_every = 0: a modulo by zero)
@@ -414,6 +417,11 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
         )
     loss = _table(data, "loss", LossWeights, p)
     optim = _table(data, "optim", OptimConfig, p)
+    if optim.init:  # resolved against the config's folder (the command line's --init is the caller's to resolve)
+        init = (root / optim.init).resolve()
+        if not init.is_file():
+            raise FileFormatError("optim.init is not a file", path=p, expected="a checkpoint (model.pt)", got=str(init))
+        optim = dataclasses.replace(optim, init=str(init))
     physics = _table(data, "physics", PhysicsConfig, p)
     pairs = (root / physics.pairs).resolve() if physics.pairs else None
     if physics.every and not pairs.is_file():

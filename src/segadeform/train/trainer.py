@@ -74,6 +74,44 @@ def config_changes(old: dict | None, new: dict, *, most: int = 4) -> str:
     return ", ".join(diff[:most]) + (f" and {len(diff) - most} more" if len(diff) > most else "")
 
 
+def _init_state(path: Path, m, body: BodyModel) -> dict:
+    """The state dict of checkpoint ``path`` (``optim.init``), which must be a model of config ``m`` (every field
+    but the ensemble's size) trained on ``body`` when it records one."""
+    from ..body.identity import body_text, other_body
+    from ..model.config import ModelConfig
+
+    try:
+        ck = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise InputError("optim.init: no such file", path=path) from None
+    except Exception as e:
+        raise InputError(
+            "optim.init: not a model checkpoint", path=path, expected="a run's model.pt", got=type(e).__name__
+        ) from None
+    if not isinstance(ck, dict) or "state_dict" not in ck or "config" not in ck:
+        raise InputError("optim.init: not a model checkpoint", path=path, expected="a run's model.pt (config, weights)")
+    theirs, mine = dataclasses.asdict(ModelConfig.from_dict(ck["config"])), dataclasses.asdict(m)
+    differ = [f"model.{k} {theirs[k]!r} -> {mine[k]!r}" for k in mine if k != "ensemble" and theirs.get(k) != mine[k]]
+    if differ or theirs.get("ensemble", 1) != 1:
+        raise InputError(
+            "optim.init: the checkpoint is a model of another [model] config than this run's",
+            path=path,
+            expected="the checkpoint's [model] (its train.json; the shipped model's is "
+            "samples/train/continuum/light_prior_seed1.toml)",
+            got=", ".join(differ[:4]) + (f" and {len(differ) - 4} more" if len(differ) > 4 else "")
+            or "an ensemble (fine-tune one of its networks)",
+        )
+    mine_body = other_body(ck.get("body"), body)
+    if mine_body is not None:
+        raise InputError(
+            "optim.init: the checkpoint was trained on another body than this run's",
+            path=path,
+            expected=body_text(ck["body"]),
+            got=body_text(mine_body),
+        )
+    return ck["state_dict"]
+
+
 def pick_device(name: str) -> torch.device:
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
@@ -324,6 +362,8 @@ def train(
                 expected=f"at most {MIRROR_TOLERANCE * 1000:g} mm apart",
                 got=f"{asym * 1000:.1f} mm",
             )
+    # the weights a fresh run starts from (optim.init: fine-tuning), checked before anything is written
+    init_state = _init_state(Path(o.init), m, body) if o.init and not (run / "last.pt").is_file() else None
     run.mkdir(parents=True, exist_ok=True)
     # training and validation samples and the physics pairs alike: the model's garment precompute, motion window,
     # shape coefficients, weight prior and drape
@@ -372,6 +412,8 @@ def train(
             len(items) + len(val),
         )
     model = SEGANet(m).to(device)
+    if init_state is not None:
+        model.load_state_dict(init_state)
     # weight decay 0 keeps plain Adam (the optimiser every earlier run used, so its last.pt resumes)
     opt = (
         torch.optim.AdamW(model.parameters(), lr=o.lr, weight_decay=o.weight_decay)
