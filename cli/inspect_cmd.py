@@ -225,12 +225,12 @@ def _mesh_defects(vertices, faces) -> None:
 
     d = mesh_defects(vertices, faces)
     said = [
-        f"{n} {what}{'' if n == 1 else 's'}{why}"
-        for n, what, why in (
-            (d["duplicated"], "duplicated face", ""),
-            (d["degenerate"], "degenerate triangle", " (flat or a repeated corner)"),
-            (d["isolated"], "isolated vertex", " (in no face)"),
-            (d["non_manifold"], "non-manifold edge", " (in more than two faces)"),
+        f"{n} {what if n == 1 else whats}{why}"
+        for n, what, whats, why in (
+            (d["duplicated"], "duplicated face", "duplicated faces", ""),
+            (d["degenerate"], "degenerate triangle", "degenerate triangles", " (flat or a repeated corner)"),
+            (d["isolated"], "isolated vertex", "isolated vertices", " (in no face)"),
+            (d["non_manifold"], "non-manifold edge", "non-manifold edges", " (in more than two faces)"),
         )
         if n
     ]

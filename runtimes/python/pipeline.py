@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -263,7 +264,7 @@ class Run:
         if self._asset is None:
             t = time.perf_counter()
             asset = self.load_asset(self.body.rest_joints(self.betas)[0])
-            if not self.force:
+            try:
                 check_body_height(self.body, self.betas)
                 check_placement(
                     asset.vertices,
@@ -275,6 +276,12 @@ class Run:
                     betas=self.betas,
                     recorded_betas=recorded_betas(self.garment),
                 )
+            except InputError as e:
+                if not self.force:
+                    raise
+                # played anyway, and said (--force left no word of it: a user's trial)
+                log.warning("--force: %s (played anyway)", e)
+            _warn_blender_import(self.garment, asset)
             self._asset = asset
             self._asset_seconds = time.perf_counter() - t  # counted in the run's precompute, whoever asked first
         return self._asset
@@ -449,6 +456,42 @@ def _padded(betas, n: int) -> np.ndarray:
 def _label(betas) -> str:
     b = np.trim_zeros(np.asarray(betas, np.float64), "b")
     return "[" + ", ".join(f"{x:g}" for x in b) + "]" if b.size else "0 (the default shape)"
+
+
+def _warn_blender_import(garment, asset: GarmentAsset) -> None:
+    """Say when the garment's OBJ is not what a DCC's import of it gives: vertices in no face (Blender's OBJ import
+    drops them) or several objects (imported apart).  The output has one point per vertex of the file, so a point
+    cache then fits no import of it (a user's trial: `Vertex count mismatch`, with no word from the run)."""
+    if not isinstance(garment, (str, os.PathLike)) or Path(garment).suffix.lower() != ".obj":
+        return
+    from segadeform.io.obj import obj_objects
+
+    name = Path(garment).name
+    used = np.zeros(len(asset.vertices), bool)
+    used[np.asarray(asset.faces).ravel()] = True
+    loose = int((~used).sum())
+    if loose:
+        log.warning(
+            "garment %s: %d vertices are in no face; Blender's OBJ import drops them, so the output's %d points fit "
+            "no import of the file (delete them and run again: Mesh > Clean Up > Delete Loose)",
+            name,
+            loose,
+            len(used),
+        )
+    try:
+        objects = obj_objects(garment)
+    except OSError:
+        return
+    if len(objects) > 1:
+        shown = ", ".join(repr(o) if o else "(unnamed)" for o in objects[:4]) + (" ..." if len(objects) > 4 else "")
+        log.warning(
+            "garment %s: holds %d objects (%s), deformed here as one garment; an import that splits them (Blender's "
+            "default) has objects the output's points fit none of: join them (import as one object) or export "
+            "the garment alone",
+            name,
+            len(objects),
+            shown,
+        )
 
 
 def shape_for_inputs(scene: Scene, body: BodyModel, *, force: bool = False) -> tuple:

@@ -33,6 +33,7 @@ __all__ = [
     "write_obj_positions",
     "obj_text",
     "obj_logical_lines",
+    "obj_objects",
     "BETAS_RECORD",
     "betas_record",
     "recorded_betas",
@@ -107,6 +108,24 @@ def obj_text(path: Path) -> str:
 def obj_logical_lines(path) -> list[tuple[int, str]]:
     """``(line number, logical line)`` of an OBJ file (:func:`obj_text`, ``\\`` continuations joined)."""
     return list(_logical_lines(obj_text(path)))
+
+
+def obj_objects(path) -> list[str]:
+    """The names of the OBJ file's objects (``o`` statements) that own faces, in file order: what Blender's OBJ
+    import makes separate objects of (faces before the first ``o`` make one more, named ``""``).  The file is read as
+    one mesh here, so a point cache of it fits none of them alone."""
+    names: list[str] = []
+    current, counted = "", False
+    for _, line in obj_logical_lines(path):
+        words = line.split(None, 1)
+        if not words:
+            continue
+        if words[0] == "o":
+            current, counted = (words[1].strip() if len(words) > 1 else ""), False
+        elif words[0] == "f" and not counted:
+            names.append(current)
+            counted = True
+    return names
 
 
 def _resolve(tok: str, count: int, kind: str, path, lineno) -> int:
