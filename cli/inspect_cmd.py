@@ -231,13 +231,14 @@ def _mesh_defects(vertices, faces) -> None:
             (d["degenerate"], "degenerate triangle", "degenerate triangles", " (flat or a repeated corner)"),
             (d["isolated"], "isolated vertex", "isolated vertices", " (in no face)"),
             (d["non_manifold"], "non-manifold edge", "non-manifold edges", " (in more than two faces)"),
+            (d["misoriented"], "misoriented edge", "misoriented edges", " (between faces wound against each other)"),
         )
         if n
     ]
     click.echo(
         "  " + ", ".join(said)
         if said
-        else "  no duplicated or degenerate faces, isolated vertices or non-manifold edges"
+        else "  no duplicated or degenerate faces, isolated vertices, non-manifold or misoriented edges"
     )
 
 

@@ -282,6 +282,7 @@ class Run:
                 # played anyway, and said (--force left no word of it: a user's trial)
                 log.warning("--force: %s (played anyway)", e)
             _warn_blender_import(self.garment, asset)
+            _warn_winding(self.garment, asset, self.body, self.betas)
             self._asset = asset
             self._asset_seconds = time.perf_counter() - t  # counted in the run's precompute, whoever asked first
         return self._asset
@@ -491,6 +492,46 @@ def _warn_blender_import(garment, asset: GarmentAsset) -> None:
             name,
             len(objects),
             shown,
+        )
+
+
+#: metres: garment vertices this close to the body at rest tell which way its faces are wound (their normals
+#: against the body's there)
+WINDING_NEAR = 0.03
+
+
+def _warn_winding(garment, asset: GarmentAsset, body: BodyModel, betas) -> None:
+    """Say when the garment's faces are not all wound outward: some against their neighbours
+    (:func:`~segadeform.geometry.mesh_ops.mesh_defects`' ``misoriented`` edges) or all of them inward (the normals of
+    most vertices near the body point into it).  The model reads the normals: a Blender artist's trial moved a
+    dress's frames 1.2 cm on average, 6.6 cm at most, with every face flipped, and nothing said so."""
+    from segadeform.body.collision import BodyCollider
+    from segadeform.geometry.mesh_ops import mesh_defects, vertex_normals
+
+    name = Path(str(garment)).name if isinstance(garment, (str, os.PathLike)) else "garment"
+    v, f = np.asarray(asset.vertices, np.float64), np.asarray(asset.faces)
+    bad = mesh_defects(v, f)["misoriented"]
+    if bad:
+        log.warning(
+            "garment %s: %d edges lie between faces wound against each other (their normals point opposite ways, "
+            "and the model reads them): wind them alike (Blender: Mesh > Normals > Recalculate Outside)",
+            name,
+            bad,
+        )
+        return
+    rest = body.shaped_vertices(betas)[0]
+    q = BodyCollider(body.v_template, body.faces).query(v, rest)
+    near = np.abs(q.signed_distance) < WINDING_NEAR
+    if near.sum() < 10:
+        return
+    n = vertex_normals(v, f)[near]
+    inward = float(((n * q.normal[near]).sum(axis=1) < 0).mean())
+    if inward > 0.5:
+        log.warning(
+            "garment %s: its faces are wound inward (the normals of %.0f %% of its vertices near the body point into "
+            "it), and the model reads them: flip them (Blender: Mesh > Normals > Recalculate Outside)",
+            name,
+            100 * inward,
         )
 
 

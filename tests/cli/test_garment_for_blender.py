@@ -64,3 +64,20 @@ def test_force_says_what_it_plays_anyway(tmp_path, caplog):
     r, said = _run(tmp_path, far, "--force", caplog=caplog)
     assert r.exit_code == 0, said
     assert "--force: " in said and "the garment does not sit on the body" in said and "(played anyway)" in said
+
+
+def test_faces_wound_against_their_neighbours_or_inward_are_said(tmp_path, caplog):
+    """Flipped faces moved a dress's frames up to 6.6 cm without a word (the model reads the normals)."""
+    from segadeform.io import Mesh, read_mesh, write_obj
+
+    m = read_mesh(SAMPLES / "garments" / "dress.obj")
+    some = m.faces.copy()
+    some[:150] = some[:150, ::-1]
+    write_obj(tmp_path / "some.obj", Mesh(m.vertices, some))
+    write_obj(tmp_path / "inward.obj", Mesh(m.vertices, m.faces[:, ::-1].copy()))
+    r, said = _run(tmp_path, tmp_path / "some.obj", caplog=caplog)
+    assert r.exit_code == 0 and "edges lie between faces wound against each other" in said, said
+    r, said = _run(tmp_path, tmp_path / "inward.obj", caplog=caplog)
+    assert r.exit_code == 0 and "its faces are wound inward (the normals of 100 %" in said, said
+    r, said = _run(tmp_path, SAMPLES / "garments" / "dress.obj", caplog=caplog)
+    assert "wound against" not in said and "wound inward" not in said, said

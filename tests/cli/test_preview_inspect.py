@@ -153,7 +153,7 @@ def test_inspect_counts_what_of_a_garment_is_not_a_clean_surface(tmp_path):
 
     clean = CliRunner().invoke(cli, ["inspect", str(SAMPLES / "garments" / "skirt.obj")])
     assert clean.exit_code == 0 and clean.output.splitlines()[1] == (
-        "  no duplicated or degenerate faces, isolated vertices or non-manifold edges"
+        "  no duplicated or degenerate faces, isolated vertices, non-manifold or misoriented edges"
     ), clean.output
     g = read_obj(SAMPLES / "garments" / "skirt.obj")
     v, f = g.vertices, g.faces

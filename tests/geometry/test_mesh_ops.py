@@ -99,12 +99,20 @@ def test_mesh_defects_counts_each_kind_once():
     from segadeform.geometry.mesh_ops import mesh_defects, surface_faces
 
     v, f = grid_plane(3, 3)
-    assert mesh_defects(v, f) == {"duplicated": 0, "degenerate": 0, "isolated": 0, "non_manifold": 0}
+    assert mesh_defects(v, f) == {"duplicated": 0, "degenerate": 0, "isolated": 0, "non_manifold": 0, "misoriented": 0}
     v2 = np.concatenate([v, [[9.0, 9.0, 9.0], [0.5, 0.5, 1.0]]])
     a, b, c = next(t for t in f.tolist() if ((f == t[0]).any(1) & (f == t[1]).any(1)).sum() == 2)  # a-b: inside
     # two repeats, a broken face, a third face on the inner edge a-b
     f2 = np.concatenate([f, [[a, b, c], [c, b, a], [a, a, b], [a, b, len(v) + 1]]])
     d = mesh_defects(v2, f2)
-    assert d == {"duplicated": 2, "degenerate": 1, "isolated": 1, "non_manifold": 1}, d
+    assert d == {"duplicated": 2, "degenerate": 1, "isolated": 1, "non_manifold": 1, "misoriented": 0}, d
     # the repeats and the broken face alone are no non-manifold edge: they are not surface
     assert mesh_defects(v2, f2[:-1])["non_manifold"] == 0 and len(surface_faces(v2, f2[:-1])) == len(f)
+    # a face wound against its neighbours: each of its edges (all inner here) is misoriented; every face flipped, none
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    _, inv, cnt = np.unique(e, axis=0, return_inverse=True, return_counts=True)
+    inner = int(np.flatnonzero((cnt[inv.ravel()].reshape(3, -1) == 2).all(0))[0])
+    g = f.copy()
+    g[inner] = g[inner, ::-1]
+    assert mesh_defects(v, g)["misoriented"] == 3
+    assert mesh_defects(v, f[:, ::-1])["misoriented"] == 0

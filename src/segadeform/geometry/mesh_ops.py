@@ -149,15 +149,17 @@ def mesh_defects(vertices: np.ndarray, faces: np.ndarray) -> dict[str, int]:
     ``duplicated`` faces (an earlier face's corners in any order, or a quad's again along its other diagonal:
     :func:`surface_faces`), ``degenerate`` faces (a repeated corner, or flat:
     :data:`FLAT`), ``isolated`` vertices (in no face) and ``non_manifold`` edges (in more than two faces of
-    :func:`surface_faces`, so a duplicated face alone makes none).
+    :func:`surface_faces`, so a duplicated face alone makes none) and ``misoriented`` edges (shared by two faces
+    wound against each other, so that one's normal points the other way: the model reads the normals; an artist's
+    flipped faces moved a garment's frames up to 6 cm without a word).
 
     Shapes:
-        vertices: (N, 3), faces: (F, 3) -> {"duplicated", "degenerate", "isolated", "non_manifold"}: int
+        vertices: (N, 3), faces: (F, 3) -> {"duplicated", "degenerate", "isolated", "non_manifold", "misoriented"}: int
     """
     v, f = check_mesh(vertices, faces)
     used = np.zeros(len(v), bool)
     used[f.ravel()] = True
-    out = {"duplicated": 0, "degenerate": 0, "isolated": int((~used).sum()), "non_manifold": 0}
+    out = {"duplicated": 0, "degenerate": 0, "isolated": int((~used).sum()), "non_manifold": 0, "misoriented": 0}
     if f.size == 0:
         return out
     out["duplicated"] = len(f) - len(np.unique(np.sort(f, axis=1), axis=0))
@@ -166,9 +168,14 @@ def mesh_defects(vertices: np.ndarray, faces: np.ndarray) -> dict[str, int]:
     out["duplicated"] += int(second.sum())  # a quad given again along its other diagonal (a review: it went unsaid)
     s = s[~second]
     if len(s):
-        e = np.sort(np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [2, 0]]]), axis=1)
-        _, counts = np.unique(e, axis=0, return_counts=True)
+        d = np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [2, 0]]])  # each face's edges, in its winding
+        e = np.sort(d, axis=1)
+        _, inv, counts = np.unique(e, axis=0, return_inverse=True, return_counts=True)
         out["non_manifold"] = int((counts > 2).sum())
+        # an edge of two faces is wound consistently when they run along it in opposite directions
+        two = np.flatnonzero(counts[inv.ravel()] == 2)
+        pair = two[np.argsort(inv.ravel()[two], kind="stable")].reshape(-1, 2)
+        out["misoriented"] = int((d[pair[:, 0]] == d[pair[:, 1]]).all(axis=1).sum())
     return out
 
 
