@@ -344,6 +344,9 @@ def test_import_script_refuses_a_cache_written_with_up_z(sim_python, tmp_path):
         c = read_pc2(tmp_path / f"{name}.pc2")
         write_pc2(tmp_path / f"{name}_z.pc2", (np.asarray(c.frames) @ R.T).astype(np.float32), start_frame=10)
     g = SAMPLES / "garments" / "dress.obj"
+    cm = [f"v {100 * float(a)} {100 * float(b)} {100 * float(c)}" if ln.startswith("v ") else ln
+          for ln in g.read_text().splitlines() for a, b, c in [(ln.split() + ["0"] * 4)[1:4]]]  # fmt: skip
+    (tmp_path / "dress_cm.obj").write_text("\n".join(cm) + "\n")
     body = ["--body", tmp_path / "body.obj", "--body-cache"]
     got = _import_cases(
         sim_python,
@@ -353,8 +356,13 @@ def test_import_script_refuses_a_cache_written_with_up_z(sim_python, tmp_path):
             ["--garment", g, "--cache", tmp_path / "dress.pc2", *body, tmp_path / "body.pc2"],
             # a first frame lying down fits turned too: --no-up-check imports it as it is (a review)
             ["--garment", g, "--cache", tmp_path / "dress_z.pc2", "--no-up-check"],
+            # the garment's own file in centimetres beside a cache in metres (a Blender artist's trial: taken)
+            ["--garment", tmp_path / "dress_cm.obj", "--cache", tmp_path / "dress.pc2"],
         ],
     )
+    lines = got[4]["stderr"].strip().splitlines()
+    assert got[4]["exit"] == 1 and len(lines) == 1 and "dress_cm.obj: 99.7 times the size of dress.pc2" in lines[0]
+    assert got[4]["objects"] == STARTUP
     for res, bad in zip(got[:2], ("dress_z.pc2", "body_z.pc2"), strict=True):
         lines = res["stderr"].strip().splitlines()
         assert res["exit"] == 1 and len(lines) == 1 and f"{bad}: written with --up z" in lines[0], res

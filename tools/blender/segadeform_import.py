@@ -126,6 +126,24 @@ def check_up_axis(obj: str, rest: np.ndarray, pc2: str, first: np.ndarray) -> No
         )
 
 
+#: the most the OBJ's size may differ from its cache's first frame (a garment moves and swings, but does not change
+#: size tenfold: an OBJ in centimetres beside a cache in metres is a 100-fold)
+SIZE_RATIO = 3.0
+
+
+def check_size(obj: str, rest: np.ndarray, pc2: str, first: np.ndarray) -> None:
+    """Refuse an OBJ of another size than its cache: the one given is not the one segadeform ran on (an artist's own
+    file in centimetres beside a cache of the file `segadeform garment fit` wrote: the animation played, the rest mesh
+    100 times too large, without a word)."""
+    a = float(np.sqrt(((rest - rest.mean(0)) ** 2).sum(1).mean()))
+    b = float(np.sqrt(((first - first.mean(0)) ** 2).sum(1).mean()))
+    if a > 0 and b > 0 and not 1 / SIZE_RATIO <= a / b <= SIZE_RATIO:
+        raise RuntimeError(
+            f"{obj}: {a / b:.3g} times the size of {os.path.basename(pc2)}'s first frame (expected the OBJ segadeform "
+            "ran on: after `segadeform garment fit`, the file it wrote, in metres)"
+        )
+
+
 def _check_pair(obj: str, pc2: str | None, up_check: bool = True) -> dict | None:
     """The OBJ and its cache (PC2 header), checked before anything is imported: files there, the cache whole, the
     same vertex count, the cache +Y up as the OBJ (:func:`check_up_axis`; ``up_check=False`` skips it: a cache
@@ -137,6 +155,7 @@ def _check_pair(obj: str, pc2: str | None, up_check: bool = True) -> dict | None
     if h["points"] != len(rest):
         raise RuntimeError(f"{pc2}: point count does not match {obj} (expected {len(rest)}, got {h['points']})")
     first = np.fromfile(pc2, "<f4", count=3 * h["points"], offset=_PC2_HEADER.size).reshape(-1, 3)
+    check_size(obj, rest, pc2, first.astype(np.float64))
     if up_check:
         check_up_axis(obj, rest, pc2, first.astype(np.float64))
     return h
