@@ -543,7 +543,15 @@ def test_a_changed_entry_under_an_old_name_stops_before_simulating(tmp_path):
         )
     )
     never = tmp_path / "no-simulator"  # nothing may be simulated: the check comes first
-    with pytest.raises(InputError, match="other settings"):
+    with pytest.raises(InputError, match="other settings") as e:
+        make_dataset(changed, out, body_path=SAMPLES / "bodies" / "default_body.npz", sim_python=never)
+    assert "changed)" not in str(e.value)  # a record from before the parts were kept: no part named
+    # a record with its spec's parts says which part changed (a user's trial was told only "other settings")
+    from segadeform.dataset.make import sample_spec_parts
+
+    rec = {"spec": sample_spec(a, p0), "spec_parts": sample_spec_parts(a, p0)}
+    (out / "samples" / f"{p0.id}.json").write_text(json.dumps(rec))
+    with pytest.raises(InputError, match=rf"first: {p0.id}: its garment \(its entry or file\) changed\)"):
         make_dataset(changed, out, body_path=SAMPLES / "bodies" / "default_body.npz", sim_python=never)
 
 

@@ -251,10 +251,8 @@ def _garment_key(g: GarmentSpec) -> dict:
     return key
 
 
-def sample_spec(cfg: DatasetConfig, p: PlannedSample, attempt: int = 0) -> str:
-    """A digest of everything that defines sample ``p``'s data: garment, body shape, motion and clip,
-    frame rate and length, the simulation settings of its attempt ``attempt`` (:meth:`DatasetConfig.attempt_settings`;
-    not the quality gate, which only keeps or rejects).  Attempt 0's digest does not depend on the fallbacks."""
+def _spec_dict(cfg: DatasetConfig, p: PlannedSample, attempt: int = 0) -> dict:
+    """What :func:`sample_spec` digests, by part."""
     g, m = cfg.garments[p.garment], cfg.motions[p.motion]
     mo = dataclasses.asdict(m)
     mo.pop("split")
@@ -262,16 +260,27 @@ def sample_spec(cfg: DatasetConfig, p: PlannedSample, attempt: int = 0) -> str:
     if m.file is not None:
         mo["file"] = file_identity(m.file)  # what the file holds, not where this machine keeps it
     st = cfg.attempt_settings(g, attempt)
-    return _digest(
-        {
-            "garment": _garment_key(g),
-            "betas": list(cfg.bodies[p.body]),
-            "motion": mo,
-            "fps": cfg.fps,
-            "seconds": cfg.seconds,
-            "simulate": st.to_dict(),
-        }
-    )
+    return {
+        "garment": _garment_key(g),
+        "betas": list(cfg.bodies[p.body]),
+        "motion": mo,
+        "fps": cfg.fps,
+        "seconds": cfg.seconds,
+        "simulate": st.to_dict(),
+    }
+
+
+def sample_spec(cfg: DatasetConfig, p: PlannedSample, attempt: int = 0) -> str:
+    """A digest of everything that defines sample ``p``'s data: garment, body shape, motion and clip,
+    frame rate and length, the simulation settings of its attempt ``attempt`` (:meth:`DatasetConfig.attempt_settings`;
+    not the quality gate, which only keeps or rejects).  Attempt 0's digest does not depend on the fallbacks."""
+    return _digest(_spec_dict(cfg, p, attempt))
+
+
+def sample_spec_parts(cfg: DatasetConfig, p: PlannedSample, attempt: int = 0) -> dict:
+    """A digest of each part of :func:`sample_spec` (``garment``, ``betas``, ``motion``, ``fps``, ``seconds``,
+    ``simulate``): a sample's record keeps them, so that a run told the config changed says what changed."""
+    return {k: _digest(v) for k, v in _spec_dict(cfg, p, attempt).items()}
 
 
 def sample_specs(cfg: DatasetConfig, p: PlannedSample) -> list[str]:
@@ -595,7 +604,13 @@ def _run_one(
         "vertices": len(mesh.vertices),
     }
     for attempt in range(first_attempt, cfg.attempts):
-        rec = dict(base, frames=motion.n_frames, spec=sample_spec(cfg, ps, attempt), attempt=attempt)
+        rec = dict(
+            base,
+            frames=motion.n_frames,
+            spec=sample_spec(cfg, ps, attempt),
+            spec_parts=sample_spec_parts(cfg, ps, attempt),
+            attempt=attempt,
+        )
         sample = _attempt(rec, cfg, ps, body, mesh, cloth, full_motion, motion, lead, attempt, sim_python)
         if sample is None:  # the simulator failed: nothing is committed, a later run tries again
             rec["seconds"] = time.perf_counter() - t0
@@ -745,15 +760,16 @@ def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample], roots=None) 
             continue
         old = rec.get("spec")
         if old is not None and old not in sample_specs(cfg, p):
-            bad.append((p.id, where))
+            bad.append((p.id, where, _changed_parts(cfg, p, rec)))
         elif kept and rec.get("split") is not None and rec.get("split") != p.split:  # (a rejected one trains nothing)
             moved.append((p.id, rec.get("split"), p.split, where))
     mine = str(loc)
     if bad:
-        sid, where = bad[0]
+        sid, where, parts = bad[0]
+        what = f": its {' and '.join(parts)} changed" if parts else ""
         raise InputError(
             f"{len(bad)} finished samples of this dataset were made from other settings than this "
-            f"config gives them (first: {sid}); give changed entries new names, keep bodies in "
+            f"config gives them (first: {sid}{what}); give changed entries new names, keep bodies in "
             + ("order, or use a new folder" if where == mine else "order, or leave out the root that holds it"),
             path=where,
         )
@@ -766,6 +782,27 @@ def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample], roots=None) 
             + ("use a new folder" if where == mine else "leave out the root that holds it"),
             path=where,
         )
+
+
+#: a spec part in words
+_PART_WORDS = {
+    "garment": "garment (its entry or file)",
+    "betas": "body shape",
+    "motion": "motion (its entry or file)",
+    "fps": "frame rate",
+    "seconds": "clip length",
+    "simulate": "simulation settings",
+}
+
+
+def _changed_parts(cfg: DatasetConfig, p: PlannedSample, rec: dict) -> list[str]:
+    """The parts of sample ``p``'s spec that differ from its record's (``spec_parts``, recorded since samples keep
+    them; empty for older records): what a user changed (a user's trial was told only "other settings")."""
+    old = rec.get("spec_parts")
+    if not isinstance(old, dict):
+        return []
+    now = sample_spec_parts(cfg, p, int(rec.get("attempt", 0) or 0))
+    return [_PART_WORDS.get(k, k) for k in now if old.get(k) != now[k]]
 
 
 def _keep_config(out, cfg: DatasetConfig) -> None:
