@@ -151,17 +151,24 @@ def dataset_make_cmd(
 
 
 @dataset_group.command("info")
-@click.argument("folder", type=PathParam(exists=True, path_type=Path))
-@click.option("--json", "as_json", is_flag=True, help="Print the statistics as JSON.")
+@click.argument("roots", nargs=-1, required=True, type=PathParam(exists=True, path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print the statistics as JSON (several roots: by root).")
 @click.option("--by-garment", is_flag=True, help="Also kept / made per garment (each drawn or MakeHuman garment).")
-def dataset_info_cmd(folder, as_json, by_garment):
-    """Statistics of a dataset folder or pack: samples per split, rejection reasons, seconds per frame by size."""
+def dataset_info_cmd(roots, as_json, by_garment):
+    """Statistics of dataset ROOTS (folders, packs, folders of packs; each on its own, as train and eval take
+    several): samples per split, rejection reasons, seconds per frame by size."""
     from segadeform.dataset.report import dataset_stats
 
-    st = dataset_stats(folder)
+    stats = {str(r): dataset_stats(r) for r in roots}  # every root read before anything is said
     if as_json:
-        click.echo(json.dumps(st, indent=1))
+        click.echo(json.dumps(stats[str(roots[0])] if len(roots) == 1 else stats, indent=1))
         return
+    for folder in roots:
+        _say_stats(folder, stats[str(folder)], by_garment)
+
+
+def _say_stats(folder, st: dict, by_garment: bool) -> None:
+    """`dataset info`'s lines for one root."""
     notes = [f"{st['trimmed']} of them their leading frames that pass"] if st["trimmed"] else []
     notes += [f"{st['fallback']} on a fallback attempt"] if st["fallback"] else []
     cut = f" ({'; '.join(notes)})" if notes else ""

@@ -358,6 +358,15 @@ def test_dataset_info_reads_a_pack(tmp_path, body, capsys):
     assert main(["dataset", "info", str(tmp_path), "--json"]) == 0
     st = json.loads(capsys.readouterr().out)
     assert (st["kept"], st["rejected"]) == (1, 1)
+    # several roots, as train and eval take them (it was a usage error: a user's trial): each on its own
+    assert main(["dataset", "info", str(out), str(tmp_path)]) == 0
+    said = capsys.readouterr().out
+    assert said.startswith(f"{out}: 1 kept") and f"\n{tmp_path}: 1 kept" in said
+    assert main(["dataset", "info", str(out), str(tmp_path), "--json"]) == 0
+    both = json.loads(capsys.readouterr().out)
+    assert list(both) == [str(out), str(tmp_path)] and both[str(out)]["kept"] == 1
+    assert main(["dataset", "info", str(out), str(ds)]) == 1  # a root that cannot be read: said, nothing else
+    assert "not a dataset folder" in capsys.readouterr().err
     # `inspect` reads a pack too (a user's trial: "unknown mesh file extension"), every sample checked
     assert main(["inspect", str(out)]) == 0
     said = capsys.readouterr().out

@@ -382,6 +382,28 @@ def test_a_package_whose_body_graph_is_not_its_training_body_is_refused_unless_f
         assert "force: true" in got["refused"] and any("trained on" in w for w in got["warnings"]) and got["T"] > 0
 
 
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_threads_past_the_cpus_are_lowered_and_said(runtime, request, portable_scene, random_package, tmp_path):
+    """`--threads 4096` ran 4096 threads (1000 took about 6 s a frame: a user's trial); the command lines lower it to
+    the CPUs the process may run on and say so, as `segadeform run` does, and the frames are those of that many."""
+    import os
+
+    cpus = len(os.sched_getaffinity(0))
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    base = ["--package", str(random_package), "--garment", str(s["garment"]), "--motion", str(s["motion"])]
+    got = {}
+    for asked in (cpus, 4096):
+        out = tmp_path / f"t{asked}.pc2"
+        p = subprocess.run(exe + base + ["-o", str(out), "--threads", str(asked)], capture_output=True, text=True,
+                           timeout=600)  # fmt: skip
+        assert p.returncode == 0, p.stdout + p.stderr
+        said = f"threads: {cpus}, not 4096 (the CPUs this process may use)"
+        assert (said in p.stdout) == (asked == 4096), p.stdout
+        got[asked] = out.read_bytes()
+    assert got[cpus] == got[4096]
+
+
 def _node_api_refused_then_forced(package, garment, motion) -> dict:
     """The Node API's `animate(package, garment, motion)` without and with `force: true`: { refused (the error
     message, or None), warnings and T of the forced run }."""
