@@ -1166,8 +1166,10 @@ def test_dataset_make_tries_the_fallbacks_on_a_rejected_sample_and_keeps_the_fir
     calls.clear()
     s = make_dataset(with_fb, tmp_path / "b", body_path=body)
     assert calls == [] and s.skipped == 2
-    with pytest.raises(InputError, match="made from other settings"):
+    with pytest.raises(InputError, match="made from other settings") as e:
         make_dataset(plain, tmp_path / "b", body_path=body)
+    # (the part that changed: the fallback it was kept on is gone; it broke the message once)
+    assert "its simulation settings (its attempt 1 is no [[fallback]] of the config now) changed" in str(e.value)
 
 
 def test_a_sample_made_for_another_split_stops_the_run(tmp_path, monkeypatch, capsys):

@@ -801,7 +801,13 @@ def _changed_parts(cfg: DatasetConfig, p: PlannedSample, rec: dict) -> list[str]
     old = rec.get("spec_parts")
     if not isinstance(old, dict):
         return []
-    now = sample_spec_parts(cfg, p, int(rec.get("attempt", 0) or 0))
+    attempt = int(rec.get("attempt", 0) or 0)
+    if attempt >= cfg.attempts:  # made on a fallback the config no longer has
+        now = sample_spec_parts(cfg, p, 0)
+        return [_PART_WORDS.get(k, k) for k in now if k != "simulate" and old.get(k) != now[k]] + [
+            f"simulation settings (its attempt {attempt} is no [[fallback]] of the config now)"
+        ]
+    now = sample_spec_parts(cfg, p, attempt)
     return [_PART_WORDS.get(k, k) for k in now if old.get(k) != now[k]]
 
 
