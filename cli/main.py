@@ -114,7 +114,14 @@ class PathParam(click.Path):
                             path=path,
                             expected=f"a package folder: segadeform export {path} -o PACKAGE",
                         )
-                    raise FileFormatError("is a file, not a directory", path=path)
+                    if path.endswith(".sgdpack"):  # (a user's trial: `dataset regate ... -o PACK`)
+                        raise FileFormatError(
+                            "is a dataset pack, which is only ever read",
+                            path=path,
+                            expected="a dataset folder (what dataset make writes)",
+                            got="a pack",
+                        )
+                    raise FileFormatError("is a file, not a directory", path=path, expected="a folder")
         return super().convert(value, param, ctx)
 
 

@@ -105,6 +105,10 @@ def test_preview_counts_frames_as_the_result_does(tmp_path):
             + ["--frames", rng, "--size", "40x30"],
         )
 
+    if (tmp_path / "s.abc").exists():  # `inspect` says an Alembic's rate and start, as a USD's (a user's trial)
+        for name, want in (("s.abc", "24 fps, start frame 10"), ("1s.abc", "24 fps, start frame 7")):
+            r = CliRunner().invoke(cli, ["inspect", str(tmp_path / name)])
+            assert r.exit_code == 0 and want in r.output.splitlines()[0], r.output
     for result in ["s.pc2", "seq", "s.xdmf"] + (["s.abc"] if (tmp_path / "s.abc").exists() else []):
         r = preview(result, "0:2")
         assert r.exit_code == 1 and "outside the result's frames 10..13" in r.output, r.output

@@ -109,6 +109,8 @@ def test_a_folder_for_a_file_same_wording_from_every_command(tmp_path):
     folder.mkdir()
     afile.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     (tmp_path / "m.pt").write_bytes(b"a checkpoint")
+    (tmp_path / "p.sgdpack").write_bytes(b"a pack")
+    (tmp_path / "c.toml").write_text("[dataset]\n")
     out = tmp_path / "o.pc2"
     cases = [
         (
@@ -121,7 +123,13 @@ def test_a_folder_for_a_file_same_wording_from_every_command(tmp_path):
         ),
         (["run", str(folder)], f"{folder}: is a directory, not a file"),
         (["preview", str(out), "--garment", str(folder), "-o", str(tmp_path / "p.png")], f"{folder}: is a directory"),
-        (["info", str(afile)], f"{afile}: is a file, not a directory"),
+        (["info", str(afile)], f"{afile}: is a file, not a directory (expected a folder)"),
+        # a pack where a dataset folder is written (a user's trial: "is a file, not a directory")
+        (
+            ["dataset", "regate", str(tmp_path / "c.toml"), "-o", str(tmp_path / "p.sgdpack")],
+            f"{tmp_path / 'p.sgdpack'}: is a dataset pack, which is only ever read (expected a dataset folder (what "
+            "dataset make writes), got a pack)",
+        ),
         # a checkpoint given as the model: what makes a package of it (a user's trial)
         (
             ["run", "--garment", str(afile), "--motion", "walk.bvh", "--model", str(tmp_path / "m.pt"), "-o", str(out)],
@@ -136,7 +144,7 @@ def test_a_folder_for_a_file_same_wording_from_every_command(tmp_path):
             args,
             r.output,
         )
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.obj", "m.pt", "some dir"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.toml", "g.obj", "m.pt", "p.sgdpack", "some dir"]
     r = CliRunner().invoke(cli, ["run", "--garment", str(afile), "--no-such-option"])
     assert r.exit_code == 2 and "Usage:" in r.output, r.output
 

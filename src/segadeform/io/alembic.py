@@ -145,9 +145,9 @@ def _first_mesh_schema(p: Path):
     return AbcGeom.IPolyMesh(top, meshes[0].getName()).getSchema()
 
 
-def alembic_start_frame(path: str | os.PathLike) -> float:
-    """The frame number of an ``.abc`` mesh's first sample: its first sample time over the time per frame of its
-    time sampling (written as ``start_frame / fps`` and ``1 / fps``)."""
+def alembic_timing(path: str | os.PathLike) -> tuple[float, float]:
+    """``(fps, start frame)`` of an ``.abc`` mesh: its time sampling's frames per second (0 when it has no uniform
+    step) and its first sample time over the time per frame (written as ``1 / fps`` and ``start_frame / fps``)."""
     p = Path(path)
     check_readable(p)
     try:
@@ -158,7 +158,12 @@ def alembic_start_frame(path: str | os.PathLike) -> float:
         raise
     except Exception as e:
         raise unreadable_error(e, p, "Alembic") from None
-    return first / per_frame if per_frame > 0 else 0.0
+    return (1.0 / per_frame, first / per_frame) if per_frame > 0 else (0.0, 0.0)
+
+
+def alembic_start_frame(path: str | os.PathLike) -> float:
+    """The frame number of an ``.abc`` mesh's first sample (:func:`alembic_timing`)."""
+    return alembic_timing(path)[1]
 
 
 def read_alembic_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

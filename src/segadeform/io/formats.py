@@ -284,6 +284,16 @@ def _abc_start(path):
     return alembic_start_frame(path)
 
 
+def _abc_inspect(path):
+    """A user's trial: `inspect X.abc` gave no frame rate or start frame (USD's did)."""
+    from .alembic import alembic_timing, read_alembic_sequence
+
+    faces, frames, _ = read_alembic_sequence(path)
+    fps, start = alembic_timing(path)
+    rate = f"{fps:g} fps, start frame {start:g}" if fps > 0 else "no uniform frame rate"
+    return f"{frames.shape[0]} samples x {frames.shape[1]} points, {len(faces)} triangles, {rate}", frames
+
+
 def _abc_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
     from .alembic import AlembicSequenceWriter
 
@@ -329,6 +339,7 @@ register_sequence_format(
         _abc_read,
         "Alembic polygon mesh (Blender, Maya, Houdini)",
         extra="alembic",
+        inspect=_abc_inspect,
         start=_abc_start,
     )
 )
