@@ -1312,8 +1312,17 @@ def test_retry_rejected_makes_again_only_samples_simulated_with_a_motion_loading
     rec = _Recorder()
     s = make_dataset(cfg, root, executor=rec)
     assert rec.ids == [] and s.skipped == 2  # without the flag: both done
-    s = make_dataset(cfg, root, executor=rec, retry_rejected=True, limit=1)
+    import segadeform.dataset.make as M
+
+    read = []  # each motion file is read once to check the rejected samples' clips, not twice (a review)
+    real = M._capture
+    M._capture = lambda m, *a, **k: read.append(m.name) or real(m, *a, **k)
+    try:
+        s = make_dataset(cfg, root, executor=rec, retry_rejected=True, limit=1)
+    finally:
+        M._capture = real
     assert rec.ids == [b_id] and s.skipped == 1
+    assert read.count("a") == 1, read  # (b, retried, is read again by the run's own clip check and its worker)
     assert not (root / "rejected" / f"{b_id}.json").exists()  # put aside, byte for byte, not lost
     assert {n: (root / "rejected" / "retried" / n.replace(b_id, f"{b_id}.1")).read_bytes() for n in before} == before
     assert (root / "rejected" / f"{a_id}.json").exists()

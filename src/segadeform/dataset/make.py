@@ -330,7 +330,7 @@ def _clip_start(m: MotionEntry, cfg: DatasetConfig, mo, mi: int | None = None) -
     return a
 
 
-def check_clips(cfg: DatasetConfig, pairs, body: BodyModel) -> list[str]:
+def check_clips(cfg: DatasetConfig, pairs, body: BodyModel, captures: dict | None = None) -> list[str]:
     """Check, before anything is simulated, the clip of each motion file entry on each body it is planned on
     (``pairs``: ``(motion, body)`` indices of the samples to make; a file is read once per body shape).  A start
     past the end of the file is refused.  A clip shorter than ``[dataset] seconds`` is what the file holds: returned,
@@ -339,7 +339,7 @@ def check_clips(cfg: DatasetConfig, pairs, body: BodyModel) -> list[str]:
     frames kept of a clip that fails), and the shipped datasets have such clips (a 19-frame clip of continuum.toml's
     ``cmu-127_02-1``, kept; refusing it refused the whole main job, a review found)."""
     want = int(round(cfg.seconds * cfg.fps))
-    captures: dict = {}
+    captures = {} if captures is None else captures  # (file, betas) -> the capture as read: a caller's to reuse
     short: dict = {}
     for mi, bi in sorted(set(pairs)):
         m = cfg.motions[mi]
@@ -365,7 +365,7 @@ def check_clips(cfg: DatasetConfig, pairs, body: BodyModel) -> list[str]:
     return list(short.values())
 
 
-def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: bool = False):
+def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: bool = False, captured=None):
     """The sample's motion.  ``with_lead``: ``(motion, lead)`` where the motion starts ``lead`` frames
     before the clip (LEAD_SECONDS of the file before ``start``): motion capture starts mid-stride, and
     cloth blended from rest straight into a running body lags and ends up inside it; the lead frames are
@@ -391,7 +391,7 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
         if not with_lead:  # the clip itself (what a sample stores), as with the lead dropped
             return dataclasses.replace(mo, poses=mo.poses[lead:], trans=mo.trans[lead:])
         return mo, lead
-    mo = _capture(m, cfg, rest_joints)
+    mo = _capture(m, cfg, rest_joints) if captured is None else captured  # (check_clips read it already)
     a = _clip_start(m, cfg, mo)
     full = int(round(LEAD_SECONDS * cfg.fps))
     short = int(round(m.start * cfg.fps)) < full  # less capture before the clip than a lead needs
@@ -1004,13 +1004,16 @@ def _stale_rejected(loc: Location, cfg: DatasetConfig, order: list[PlannedSample
     rejected = [p for p in order if f"{p.id}.json" in names and f"{p.id}.npz" in names]
     # their clips checked first, as the run's are: a start past the end of its file is refused in the words that
     # name the entry's line (loading the motion refused it without them); what is short is said by the run
-    check_clips(cfg, [(p.motion, p.body) for p in rejected], body)
+    captures: dict = {}  # the files check_clips reads, read once (they were read again below: a review)
+    check_clips(cfg, [(p.motion, p.body) for p in rejected], body, captures)
     clips: dict = {}  # (motion, body) -> the clip as stored: a motion file is read once, not once per garment
     out = []
     for p in rejected:
         if (p.motion, p.body) not in clips:
-            joints = body.rest_joints(cfg.bodies[p.body] or None)[0]
-            clips[p.motion, p.body] = _without_lead(*_motion(cfg.motions[p.motion], cfg, joints, with_lead=True))
+            m, betas = cfg.motions[p.motion], cfg.bodies[p.body]
+            joints = body.rest_joints(betas or None)[0]
+            got = captures.get((str(m.file), tuple(betas))) if m.file is not None else None
+            clips[p.motion, p.body] = _without_lead(*_motion(m, cfg, joints, with_lead=True, captured=got))
         clip = clips[p.motion, p.body]
         with tempfile.TemporaryDirectory(prefix="segadeform-retry-") as d:
             z = np.load(loc.local_copy(f"rejected/{p.id}.npz", Path(d)))
