@@ -264,9 +264,10 @@ class Run:
         if self._asset is None:
             t = time.perf_counter()
             asset = self.load_asset(self.body.rest_joints(self.betas)[0])
-            try:
-                check_body_height(self.body, self.betas)
-                check_placement(
+            # with --force each refusal is played anyway and said (--force left no word of it: a user's trial)
+            checks = (
+                lambda: check_body_height(self.body, self.betas),
+                lambda: check_placement(
                     asset.vertices,
                     self.body.shaped_vertices(self.betas)[0],
                     self.body.faces,
@@ -275,12 +276,16 @@ class Run:
                     template_vertices=self.body.v_template,
                     betas=self.betas,
                     recorded_betas=recorded_betas(self.garment),
-                )
-            except InputError as e:
-                if not self.force:
-                    raise
-                # played anyway, and said (--force left no word of it: a user's trial)
-                log.warning("--force: %s (played anyway)", e)
+                    forceable=not self.force,
+                ),
+            )
+            for check in checks:
+                try:
+                    check()
+                except InputError as e:
+                    if not self.force:
+                        raise
+                    log.warning("--force: %s (played anyway)", e)
             _warn_blender_import(self.garment, asset)
             _warn_winding(self.garment, asset, self.body, self.betas)
             self._asset = asset
@@ -465,11 +470,16 @@ def _warn_blender_import(garment, asset: GarmentAsset) -> None:
     cache then fits no import of it (a user's trial: `Vertex count mismatch`, with no word from the run)."""
     if not isinstance(garment, (str, os.PathLike)) or Path(garment).suffix.lower() != ".obj":
         return
-    from segadeform.io.obj import obj_objects
+    from segadeform.io.obj import obj_line_vertices, obj_objects
 
     name = Path(garment).name
     used = np.zeros(len(asset.vertices), bool)
     used[np.asarray(asset.faces).ravel()] = True
+    try:  # a vertex of a line element is kept by the import (as an edge): not loose (a review)
+        lines = [k for k in obj_line_vertices(garment) if 0 <= k < len(used)]
+    except OSError:
+        lines = []
+    used[lines] = True
     loose = int((~used).sum())
     if loose:
         log.warning(
@@ -498,6 +508,9 @@ def _warn_blender_import(garment, asset: GarmentAsset) -> None:
 #: metres: garment vertices this close to the body at rest tell which way its faces are wound (their normals
 #: against the body's there)
 WINDING_NEAR = 0.03
+#: the share of those whose normals point into the body past which the garment is said to be wound inward: a garment
+#: wound inward gives 100 %, a two-sided one (an inner shell facing the body) about half (a review: 50-53 %)
+INWARD = 0.8
 
 
 def _warn_winding(garment, asset: GarmentAsset, body: BodyModel, betas) -> None:
@@ -526,7 +539,7 @@ def _warn_winding(garment, asset: GarmentAsset, body: BodyModel, betas) -> None:
         return
     n = vertex_normals(v, f)[near]
     inward = float(((n * q.normal[near]).sum(axis=1) < 0).mean())
-    if inward > 0.5:
+    if inward > INWARD:
         log.warning(
             "garment %s: its faces are wound inward (the normals of %.0f %% of its vertices near the body point into "
             "it), and the model reads them: flip them (Blender: Mesh > Normals > Recalculate Outside)",

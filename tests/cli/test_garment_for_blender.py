@@ -4,6 +4,7 @@ garment off the body played with --force (which left no word of it)."""
 
 from __future__ import annotations
 
+import numpy as np
 from click.testing import CliRunner
 
 from segadeform.cli.main import cli
@@ -46,6 +47,26 @@ def test_loose_vertices_and_several_objects_are_said(tmp_path, caplog):
     assert r.exit_code == 0 and "in no face" not in said and "objects" not in said, said
     r, said = _run(tmp_path, _messy(tmp_path, loose=False), caplog=caplog)
     assert "in no face" not in said and "holds 2 objects" in said
+    # vertices of a line element are kept by the import, as edges: not loose (a review)
+    lined = _messy(tmp_path, label=False)
+    lined.write_text(lined.read_text() + "l -2 -1\n")
+    r, said = _run(tmp_path, lined, caplog=caplog)
+    assert r.exit_code == 0 and "in no face" not in said, said
+
+
+def test_a_two_sided_garment_is_not_said_to_be_wound_inward(tmp_path, caplog):
+    """An inner shell facing the body, under a garment wound outward: about half the vertices near the body face it,
+    which is no inward winding (a review: the rule said so at 50-53 %)."""
+    from segadeform.geometry.mesh_ops import vertex_normals
+    from segadeform.io import Mesh, read_mesh, write_obj
+
+    m = read_mesh(SAMPLES / "garments" / "dress.obj")
+    inner = m.vertices - 0.003 * vertex_normals(m.vertices, m.faces)
+    v = np.concatenate([m.vertices, inner])
+    f = np.concatenate([m.faces, m.faces[:, ::-1] + len(m.vertices)])
+    write_obj(tmp_path / "two.obj", Mesh(v, f))
+    r, said = _run(tmp_path, tmp_path / "two.obj", "--force", caplog=caplog)
+    assert r.exit_code == 0 and "wound inward" not in said, said
 
 
 def test_force_says_what_it_plays_anyway(tmp_path, caplog):
@@ -64,6 +85,7 @@ def test_force_says_what_it_plays_anyway(tmp_path, caplog):
     r, said = _run(tmp_path, far, "--force", caplog=caplog)
     assert r.exit_code == 0, said
     assert "--force: " in said and "the garment does not sit on the body" in said and "(played anyway)" in said
+    assert "or pass --force" not in said  # (it is passed)
 
 
 def test_faces_wound_against_their_neighbours_or_inward_are_said(tmp_path, caplog):

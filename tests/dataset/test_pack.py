@@ -292,7 +292,7 @@ def test_dataset_make_skips_what_a_pack_holds_and_never_writes_it(tmp_path, body
     pack (nothing simulated, so no simulator is needed here) and writes nothing into it; a pack whose
     sample was made from other settings than the config now gives stops the run."""
     from segadeform.dataset import load_dataset_config, sample_plan
-    from segadeform.dataset.make import make_dataset, sample_spec
+    from segadeform.dataset.make import make_dataset, sample_spec, sample_spec_parts
 
     cfg_p = tmp_path / "c.toml"
     cfg_p.write_text(
@@ -303,7 +303,7 @@ def test_dataset_make_skips_what_a_pack_holds_and_never_writes_it(tmp_path, body
     plan = sample_plan(cfg)
     old = tmp_path / "old"
     for ps in plan:
-        _save(old, ps.id, body, spec=sample_spec(cfg, ps))
+        _save(old, ps.id, body, spec=sample_spec(cfg, ps), spec_parts=sample_spec_parts(cfg, ps))
     store = tmp_path / "sim"
     store.mkdir()
     write_pack(old, store / "a.sgdpack", body=body)
@@ -322,6 +322,7 @@ def test_dataset_make_skips_what_a_pack_holds_and_never_writes_it(tmp_path, body
         make_dataset(load_dataset_config(cfg_p), tmp_path / "new")
     # the pack that holds it is named, not the output folder, whose "use a new folder" did not help (a user's trial)
     assert "a.sgdpack" in str(e.value) and "leave out the root that holds it" in str(e.value)
+    assert "its motion (its entry or file) changed" in str(e.value)  # read from the pack's record (a review)
     # and a new output folder is not left behind by the refusal
     with pytest.raises(InputError, match="made from other settings"):
         make_dataset(load_dataset_config(cfg_p), tmp_path / "newer")

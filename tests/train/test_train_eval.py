@@ -947,7 +947,10 @@ def test_a_run_starts_from_a_checkpoint_to_fine_tune_and_refuses_another_models(
     assert main(["train", str(tiny_config), "-o", str(first), "--dataset", str(synthetic_dataset)]) == 0
     start = torch.load(first / "model.pt", weights_only=True)["state_dict"]
     slow = tmp_path / "slow.toml"  # a step this small leaves the weights where they started
-    slow.write_text(tiny_config.read_text().replace("lr = 0.003", "lr = 1e-12").replace("steps = 6", "steps = 1"))
+    slow.write_text(  # fine-tuned on the skirt alone
+        '[data]\nexclude = ["shorts*"]\n'
+        + tiny_config.read_text().replace("lr = 0.003", "lr = 1e-12").replace("steps = 6", "steps = 1")
+    )
     tuned = tmp_path / "tuned"
     args = [
         "train",
@@ -963,7 +966,15 @@ def test_a_run_starts_from_a_checkpoint_to_fine_tune_and_refuses_another_models(
     got = torch.load(tuned / "last.pt", weights_only=False)["state_dict"]
     weights = [k for k in start if not k.endswith("._u")]  # (the Lipschitz bounds' power iterations step on)
     assert len(weights) > 20 and all(torch.allclose(got[k], start[k], atol=1e-6) for k in weights)
-    assert json.loads((tuned / "train.json").read_text())["config"]["optim"]["init"] == str(first / "model.pt")
+    import hashlib
+
+    info = json.loads((tuned / "train.json").read_text())
+    assert info["samples"] == ["skirt__b0__walk"] and info["config"]["optim"]["init"] == str(first / "model.pt")
+    assert info["init"]["sha256"] == hashlib.sha256((first / "model.pt").read_bytes()).hexdigest()
+    # the tuned model saw the first one's garments too (the runtime's familiarity check reads them: a review)
+    from segadeform.model.network import checkpoint_training_garments
+
+    assert sorted(checkpoint_training_garments(tuned / "model.pt")[0]) == ["shorts", "skirt"]
     fresh = tmp_path / "fresh"  # without it the run starts elsewhere
     assert main(["train", str(slow), "-o", str(fresh), "--dataset", str(synthetic_dataset)]) == 0
     other = torch.load(fresh / "last.pt", weights_only=False)["state_dict"]

@@ -746,7 +746,7 @@ def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample], roots=None) 
     bad, moved = [], []  # (id, the root that holds it: this folder or a read-only root), ...
     names = {d: set(loc.listdir(d)) for d in ("samples", "rejected")}
     for p in plan:
-        rec, kept, where = None, False, str(loc)
+        rec, kept, where, src = None, False, str(loc), None
         for d in ("samples", "rejected"):
             if f"{p.id}.json" in names[d]:
                 rec, kept = json.loads(loc.read_text(f"{d}/{p.id}.json")), d == "samples"
@@ -760,12 +760,16 @@ def _check_done(out, cfg: DatasetConfig, plan: list[PlannedSample], roots=None) 
             continue
         old = rec.get("spec")
         if old is not None and old not in sample_specs(cfg, p):
-            bad.append((p.id, where, _changed_parts(cfg, p, rec)))
+            bad.append((p, rec, where, src))
         elif kept and rec.get("split") is not None and rec.get("split") != p.split:  # (a rejected one trains nothing)
             moved.append((p.id, rec.get("split"), p.split, where))
     mine = str(loc)
     if bad:
-        sid, where, parts = bad[0]
+        p, rec, where, src = bad[0]
+        sid = p.id
+        if "spec_parts" not in rec and src is not None and hasattr(src, "read_meta"):  # a pack's index: its record
+            rec = src.read_meta(sid)
+        parts = _changed_parts(cfg, p, rec)
         what = f": its {' and '.join(parts)} changed" if parts else ""
         raise InputError(
             f"{len(bad)} finished samples of this dataset were made from other settings than this "

@@ -82,7 +82,7 @@ class DatasetRoots:
         for src in order:
             if isinstance(src, Pack):
                 self.packs.append(src)
-                if src.body_sha256:
+                if src.body_sha256 and src.entries:  # (a pack of no samples claims nothing: a review)
                     self._bodies.setdefault(src.body_sha256, src)
                 listing = ((e["folder"], sid, e.get("spec")) for sid, e in src.entries.items())
             else:

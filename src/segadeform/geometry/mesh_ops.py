@@ -253,16 +253,27 @@ def _second_covers(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     a, b, inv = a[flat], b[flat], inv[flat]
     # a quad's faces joined to the rest of the mesh: an edge of theirs in a face outside its four corners
     uses = dict(zip(*np.unique(key, return_counts=True), strict=True))  # edge key -> faces using it
-    base = np.int64(f.max()) + 1
+    base = int(f.max()) + 1
+    # the faces at each vertex (a CSR table), and small sets in Python: the faces over a quad's corners are among
+    # those at its corners (numpy over every face, for each of a 69k-vertex garment's 34,400 candidate quads, took two
+    # minutes: a review)
+    by_vertex = (np.argsort(f.ravel(), kind="stable") // 3).tolist()
+    start = np.searchsorted(np.sort(f.ravel()), np.arange(base + 1)).tolist()
+    fl = f.tolist()
     joined: dict[int, bool] = {}
     for q, i, j in zip(inv.tolist(), a.tolist(), b.tolist(), strict=True):
         if q in joined:
             continue
-        quad = set(f[i].tolist()) | set(f[j].tolist())
-        group = f[np.isin(f, list(quad)).all(axis=1)]  # every face over these corners
-        e = np.sort(np.concatenate([group[:, [0, 1]], group[:, [1, 2]], group[:, [2, 0]]]), axis=1)
-        k, c = np.unique(e[:, 0] * base + e[:, 1], return_counts=True)
-        joined[q] = any(uses[int(x)] > int(m) for x, m in zip(k, c, strict=True))
+        quad = set(fl[i]) | set(fl[j])
+        near = {k for c in quad for k in by_vertex[start[c] : start[c + 1]]}
+        counts: dict[int, int] = {}  # the edges of every face over these corners, and how many of them use each
+        for k in near:
+            x, y, z = fl[k]
+            if x in quad and y in quad and z in quad:
+                for u, w in ((x, y), (y, z), (z, x)):
+                    e = min(u, w) * base + max(u, w)
+                    counts[e] = counts.get(e, 0) + 1
+        joined[q] = any(uses[e] > c for e, c in counts.items())
     kept: dict[int, tuple[int, int]] = {}
     for q, i, j in sorted(
         zip(inv.tolist(), a.tolist(), b.tolist(), strict=True), key=lambda t: (t[0], max(t[1], t[2]))

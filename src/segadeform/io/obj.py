@@ -34,6 +34,7 @@ __all__ = [
     "obj_text",
     "obj_logical_lines",
     "obj_objects",
+    "obj_line_vertices",
     "BETAS_RECORD",
     "betas_record",
     "recorded_betas",
@@ -108,6 +109,28 @@ def obj_text(path: Path) -> str:
 def obj_logical_lines(path) -> list[tuple[int, str]]:
     """``(line number, logical line)`` of an OBJ file (:func:`obj_text`, ``\\`` continuations joined)."""
     return list(_logical_lines(obj_text(path)))
+
+
+def obj_line_vertices(path) -> set[int]:
+    """The (0-based) vertices the OBJ file's ``l`` (line) elements name: the reader keeps triangles alone, while an
+    import (Blender's) keeps these vertices as edges.  Indices as the file gives them (negative ones count back from
+    the vertices read so far); what is not a whole number is skipped."""
+    out: set[int] = set()
+    n = 0
+    for _, line in obj_logical_lines(path):
+        words = line.split()
+        if not words:
+            continue
+        if words[0] == "v":
+            n += 1
+        elif words[0] == "l":
+            for w in words[1:]:
+                try:
+                    k = int(w.split("/")[0])
+                except ValueError:
+                    continue
+                out.add(k - 1 if k > 0 else n + k)
+    return out
 
 
 def obj_objects(path) -> list[str]:

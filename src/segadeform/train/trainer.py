@@ -705,20 +705,26 @@ def train(
             "val_samples": len(val),
         }
     garments = {(i.asset.source_name or i.id, i.asset.descriptor.tobytes()): i.asset for i in items}
-    save_checkpoint(
-        final,
-        model,
-        train_config=cfg.to_dict(),
-        steps=step,
-        body=trained_body,
-        training_garments={
-            "names": [k[0] for k in garments],
-            "descriptors": [[float(x) for x in a.descriptor] for a in garments.values()],
-            "openings": [
-                len(boundary_loops(surface_faces(a.vertices, a.faces), a.n_vertices)) for a in garments.values()
-            ],
-        },
-    )
+    seen = {
+        "names": [k[0] for k in garments],
+        "descriptors": [[float(x) for x in a.descriptor] for a in garments.values()],
+        "openings": [len(boundary_loops(surface_faces(a.vertices, a.faces), a.n_vertices)) for a in garments.values()],
+    }
+    init_record = None
+    if o.init:  # a fine-tuned model saw its starting model's garments too (their familiarity is not lost: a review)
+        from ..model.network import checkpoint_training_garments
+
+        init_record = {"path": o.init, "sha256": hashlib.sha256(Path(o.init).read_bytes()).hexdigest()}
+        before = checkpoint_training_garments(o.init) if Path(o.init).is_file() else None
+        if before is not None and before[2] is not None:  # (a checkpoint that records no openings: not merged)
+            names, desc, openings = before
+            have = {tuple(d) for d in seen["descriptors"]}
+            for n, d, k in zip(names, np.asarray(desc).tolist(), openings, strict=True):
+                if tuple(float(x) for x in d) not in have:
+                    seen["names"].append(n)
+                    seen["descriptors"].append([float(x) for x in d])
+                    seen["openings"].append(int(k))
+    save_checkpoint(final, model, train_config=cfg.to_dict(), steps=step, body=trained_body, training_garments=seen)
     info = {
         "config": cfg.to_dict(),
         "config_digest": cfg.digest(),
@@ -735,6 +741,7 @@ def train(
             else {}
         ),
         "samples": [i.id for i in items],
+        **({"init": init_record} if init_record is not None else {}),
         "body": trained_body,
         **({"history_without_lead": no_lead} if m.history else {}),
         "hardware": _hardware(device),
