@@ -266,14 +266,14 @@ def _second_covers(v: np.ndarray, f: np.ndarray) -> np.ndarray:
             continue
         quad = set(fl[i]) | set(fl[j])
         near = {k for c in quad for k in by_vertex[start[c] : start[c + 1]]}
-        counts: dict[int, int] = {}  # the edges of every face over these corners, and how many of them use each
+        in_group: dict[int, int] = {}  # the edges of every face over these corners, and how many of them use each
         for k in near:
             x, y, z = fl[k]
             if x in quad and y in quad and z in quad:
                 for u, w in ((x, y), (y, z), (z, x)):
                     e = min(u, w) * base + max(u, w)
-                    counts[e] = counts.get(e, 0) + 1
-        joined[q] = any(uses[e] > c for e, c in counts.items())
+                    in_group[e] = in_group.get(e, 0) + 1
+        joined[q] = any(uses[e] > c for e, c in in_group.items())
     kept: dict[int, tuple[int, int]] = {}
     for q, i, j in sorted(
         zip(inv.tolist(), a.tolist(), b.tolist(), strict=True), key=lambda t: (t[0], max(t[1], t[2]))
