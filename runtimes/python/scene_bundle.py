@@ -51,21 +51,9 @@ def scene_bundle(
         cache=False,
         force=force,
     )
-    asset = run.load_asset(joints)
-    if not force:
-        from segadeform.body.placement import check_placement
-        from segadeform.io.obj import recorded_betas
-
-        check_placement(
-            asset.vertices,
-            body.shaped_vertices(scene.betas)[0],
-            body.faces,
-            faces=asset.faces,
-            path=scene.garment,
-            template_vertices=body.v_template,
-            betas=scene.betas,
-            recorded_betas=recorded_betas(scene.garment),
-        )
+    # the run's own checks: the body's height and the garment's placement (with force: played, and said as
+    # warnings; the bundle skipped them without a word: a review), and what a DCC's import of the garment would not fit
+    asset = run.checked_asset()
     d = run.deformer
     feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
     betas = d._betas(scene.betas)

@@ -103,3 +103,28 @@ def test_faces_wound_against_their_neighbours_or_inward_are_said(tmp_path, caplo
     assert r.exit_code == 0 and "its faces are wound inward (the normals of 100 %" in said, said
     r, said = _run(tmp_path, SAMPLES / "garments" / "dress.obj", caplog=caplog)
     assert "wound against" not in said and "wound inward" not in said, said
+
+
+def test_bundle_force_says_what_it_plays_anyway(tmp_path, caplog):
+    """`segadeform bundle --force` skipped the placement check without a word; it runs the run's checks now."""
+    lines = (SAMPLES / "garments" / "dress.obj").read_text().splitlines()
+    far = tmp_path / "far.obj"
+    far.write_text(
+        "\n".join(
+            f"v {float(ln.split()[1]) + 1.0} {ln.split()[2]} {ln.split()[3]}" if ln.startswith("v ") else ln
+            for ln in lines
+        )
+        + "\n"
+    )
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        f'[garment]\nmesh = "{far}"\n[motion]\nfile = "{WALK}"\nframes = "0:2"\n[output]\npath = "{tmp_path / "o.pc2"}"\n'
+    )
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        r = CliRunner().invoke(cli, ["bundle", str(scene), "-o", str(tmp_path / "b.sgdb")])
+    assert r.exit_code == 1 and "does not sit on the body" in r.output, r.output
+    with caplog.at_level("WARNING"):
+        r = CliRunner().invoke(cli, ["bundle", str(scene), "-o", str(tmp_path / "b.sgdb"), "--force"])
+    said = r.output + "\n".join(x.getMessage() for x in caplog.records)
+    assert r.exit_code == 0 and "--force: " in said and "does not sit on the body" in said, said
