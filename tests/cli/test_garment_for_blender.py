@@ -118,7 +118,8 @@ def test_bundle_force_says_what_it_plays_anyway(tmp_path, caplog):
     )
     scene = tmp_path / "s.toml"
     scene.write_text(
-        f'[garment]\nmesh = "{far}"\n[motion]\nfile = "{WALK}"\nframes = "0:2"\n[output]\npath = "{tmp_path / "o.pc2"}"\n'
+        f'[garment]\nmesh = "{far}"\n[motion]\nfile = "{WALK}"\nframes = "0:2"\n'
+        f'[output]\npath = "{tmp_path / "o.pc2"}"\n'
     )
     caplog.clear()
     with caplog.at_level("WARNING"):
