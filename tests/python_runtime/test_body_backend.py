@@ -109,6 +109,56 @@ def test_run_poses_the_package_body_with_its_graph(tmp_path, shipped, body):
     np.testing.assert_allclose(read_pc2(tmp_path / "n" / "body.pc2").frames, posed, rtol=0, atol=1e-6)
 
 
+def test_collider_and_cloth_stage_are_built_from_the_shaped_body_at_rest(tmp_path, shipped, body, monkeypatch):
+    """A run at betas far from 0 (2 m 36 tall) builds its collider and its cloth stage's body from the body at those
+    betas as its frames are posed -- the package's body graph at the zero pose, float32, as Node and C++ build theirs
+    -- not from the template (betas 0, up to 0.5 m away): the tree over the triangles decides between equally near
+    ones, so another tree can give other frames than the other runtimes'."""
+    import segadeform.body.cloth as cloth_mod
+    from segadeform.body.collision import BodyCollider
+
+    betas = (2.0,)
+    built: dict = {}
+
+    class Collider(BodyCollider):
+        def __init__(self, vertices, faces, **kw):
+            built["collider"] = np.array(vertices)
+            super().__init__(vertices, faces, **kw)
+
+    class Stage(cloth_mod.ClothStage):
+        def __init__(self, setup, body_vertices, body_faces, *a, **kw):
+            built["cloth"] = np.array(body_vertices)
+            super().__init__(setup, body_vertices, body_faces, *a, **kw)
+
+    monkeypatch.setattr(cloth_mod, "ClothStage", Stage)
+    for eff in (Effects(skinning="lbs", collisions=True), Effects(skinning="lbs", cloth=True)):
+        r = Run(
+            garment=SKIRT,
+            motion=make_motion("dance", seconds=0.2, seed=2),
+            package=shipped,
+            body=body,
+            betas=betas,
+            effects=eff,
+            output=tmp_path / "out.pc2",
+            batch=4,
+            cache=False,
+            force=True,  # the skirt was made for betas 0: played anyway
+            collider=Collider,
+        )
+        assert r.execute().body_backend == "graph"
+    rest = shipped.run(
+        "body_lbs",
+        {
+            "betas": np.array([*betas, *[0.0] * (body.n_betas - 1)], np.float32),
+            "poses": np.zeros((1, body.n_joints, 3), np.float32),
+            "trans": np.zeros((1, 3), np.float32),
+        },
+    )[0][0]
+    assert np.abs(rest - body.v_template).max() > 0.3  # the template is far from it
+    for k in ("collider", "cloth"):
+        np.testing.assert_array_equal(built[k], rest, err_msg=k)
+
+
 def test_no_body_needed_no_body_posed(tmp_path, body):
     eff = Effects(skinning="lbs", dynamics=False, wrinkles=False, collisions=False)
     r = Run(
