@@ -77,14 +77,22 @@ class Deformer:
         return b
 
     def encode(
-        self, asset: GarmentAsset, joints: np.ndarray, betas=None, *, cache_dir: str | os.PathLike | None = None
+        self,
+        asset: GarmentAsset,
+        joints: np.ndarray,
+        betas=None,
+        *,
+        cache_dir: str | os.PathLike | None = None,
+        surface: np.ndarray | None = None,
     ) -> np.ndarray:
         """The garment code the deformer takes, ``g (N, K S)`` (``P (N, S, F_enc)`` for older packages).
 
         Vertex features are recomputed for ``joints`` (the body's rest joints
         for ``betas``).  Results are cached in memory and, when ``cache_dir``
         is given and writable, on disk as ``P-<hash>.npy``, keyed by a hash of
-        every encoder input and the encoder graph.
+        every encoder input and the encoder graph.  ``surface``: the garment's
+        :func:`~segadeform.geometry.mesh_ops.surface_faces` for the check of its openings, when the caller has
+        them (a run shares them between its checks); None: computed when needed.
         """
         asset.validate()
         j = np.asarray(joints, np.float64)
@@ -109,7 +117,7 @@ class Deformer:
         )
         if key in self._memory:
             return self._memory[key]
-        self._warn_if_unfamiliar(asset)
+        self._warn_if_unfamiliar(asset, surface)
         path = Path(cache_dir) / f"P-{key}.npy" if cache_dir is not None else None
         if path is not None and path.is_file():
             try:
@@ -135,12 +143,12 @@ class Deformer:
             self._save(path, P)
         return P
 
-    def _warn_if_unfamiliar(self, asset: GarmentAsset) -> None:
+    def _warn_if_unfamiliar(self, asset: GarmentAsset, surface: np.ndarray | None = None) -> None:
         from segadeform.geometry.mesh_ops import boundary_loops, surface_faces
 
-        fam = self.package.familiarity(
-            asset.descriptor, len(boundary_loops(surface_faces(asset.vertices, asset.faces), asset.n_vertices))
-        )
+        if surface is None:
+            surface = surface_faces(asset.vertices, asset.faces)
+        fam = self.package.familiarity(asset.descriptor, len(boundary_loops(surface, asset.n_vertices)))
         if fam is not None and fam.outside:
             log.warning(
                 "garment %s lies outside the garments model %s was trained on (%s); results may be "

@@ -42,6 +42,7 @@ from segadeform.body.placement import check_placement
 from segadeform.bounds import check_body_height
 from segadeform.errors import InputError
 from segadeform.geometry import GarmentAsset, precompute_garment
+from segadeform.geometry.mesh_ops import surface_faces
 from segadeform.geometry.precompute import PRECOMPUTE_VERSION
 from segadeform.io import SceneOutput, read_mesh
 from segadeform.io.garment_asset import PORTABLE_SUFFIX
@@ -188,6 +189,7 @@ class Run:
         self.body_output = Path(body_output) if body_output else None
         self.batch, self.cache, self.force = int(batch), cache, bool(force)
         self._asset: GarmentAsset | None = None  # checked_asset's
+        self._surface: np.ndarray | None = None  # _surface_faces's
         self._asset_seconds = 0.0
         self.start, self.stop = frame_range(frames, motion.n_frames)
         self.guard = guard
@@ -248,7 +250,13 @@ class Run:
             except Exception:  # a stale or broken cache entry is recomputed
                 log.warning("ignoring unreadable asset cache %s", cpath)
         a = precompute_garment(
-            mesh.vertices, mesh.faces, joints, n_star=n_star, source_name=self.garment.name, source_sha256=sha
+            mesh.vertices,
+            mesh.faces,
+            joints,
+            n_star=n_star,
+            source_name=self.garment.name,
+            source_sha256=sha,
+            surface=self._surface_faces(mesh.vertices, mesh.faces),
         )
         if cpath is not None:
             try:
@@ -256,6 +264,14 @@ class Run:
             except OSError as e:
                 log.warning("cannot write the asset cache %s (%s)", cpath, e.strerror or e)
         return a
+
+    def _surface_faces(self, vertices, faces) -> np.ndarray:
+        """The garment's :func:`~segadeform.geometry.mesh_ops.surface_faces` (``vertices`` and ``faces``: the run's
+        garment, its mesh or its asset), computed once a run: the precompute, the winding check and the familiarity
+        check share them (each computed its own: 1.5 s apiece on a 69k-vertex garment)."""
+        if self._surface is None:
+            self._surface = surface_faces(vertices, faces)
+        return self._surface
 
     def checked_asset(self) -> GarmentAsset:
         """The garment's asset (:meth:`load_asset`), its placement on the body checked (a garment that is not on it --
@@ -287,7 +303,7 @@ class Run:
                         raise
                     log.warning("--force: %s (played anyway)", e)
             _warn_blender_import(self.garment, asset)
-            _warn_winding(self.garment, asset, self.body, self.betas)
+            _warn_winding(self.garment, asset, self.body, self.betas, self._surface_faces(asset.vertices, asset.faces))
             self._asset = asset
             self._asset_seconds = time.perf_counter() - t  # counted in the run's precompute, whoever asked first
         return self._asset
@@ -328,7 +344,13 @@ class Run:
         stage["precompute"] += (self._asset_seconds if asked else 0.0) + time.perf_counter() - t
         t_all -= self._asset_seconds if asked else 0.0  # the run's seconds include it, as when execute loads it
         t = time.perf_counter()
-        P = self.deformer.encode(asset, joints, self.betas, cache_dir=self._cache_dir())
+        P = self.deformer.encode(
+            asset,
+            joints,
+            self.betas,
+            cache_dir=self._cache_dir(),
+            surface=self._surface_faces(asset.vertices, asset.faces),
+        )
         lw = (
             self.deformer.body_log_weights(asset, self.body, self.betas, cache_dir=self._cache_dir())
             if self.deformer.needs_body_weights
@@ -513,17 +535,18 @@ WINDING_NEAR = 0.03
 INWARD = 0.8
 
 
-def _warn_winding(garment, asset: GarmentAsset, body: BodyModel, betas) -> None:
+def _warn_winding(garment, asset: GarmentAsset, body: BodyModel, betas, surface: np.ndarray | None = None) -> None:
     """Say when the garment's faces are not all wound outward: some against their neighbours
     (:func:`~segadeform.geometry.mesh_ops.mesh_defects`' ``misoriented`` edges) or all of them inward (the normals of
     most vertices near the body point into it).  The model reads the normals: a Blender artist's trial moved a
-    dress's frames 1.2 cm on average, 6.6 cm at most, with every face flipped, and nothing said so."""
+    dress's frames 1.2 cm on average, 6.6 cm at most, with every face flipped, and nothing said so.  ``surface``: the
+    garment's :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here)."""
     from segadeform.body.collision import BodyCollider
-    from segadeform.geometry.mesh_ops import mesh_defects, vertex_normals
+    from segadeform.geometry.mesh_ops import misoriented_edges, vertex_normals
 
     name = Path(str(garment)).name if isinstance(garment, (str, os.PathLike)) else "garment"
     v, f = np.asarray(asset.vertices, np.float64), np.asarray(asset.faces)
-    bad = mesh_defects(v, f)["misoriented"]
+    bad = misoriented_edges(surface_faces(v, f) if surface is None else surface, len(v))
     if bad:
         log.warning(
             "garment %s: %d edges lie between faces wound against each other (their normals point opposite ways, "
