@@ -488,6 +488,18 @@ def test_a_makehuman_garment_decimated_is_another_garment_and_the_plain_one_keep
         load_dataset_config(_write(d, "y.toml", head + '[[garments]]\nname = "s"\nkind = "skirt"\ndecimate = 0.8\n'))
 
 
+def test_a_garments_pin_group_is_read_and_an_unknown_one_refused(tmp_path):
+    """``pin = "top+waist"`` on a garment entry reaches the sample's simulation settings; a pin group the
+    simulator has not is refused when the config is read, naming the ones it has."""
+    head = '[dataset]\nfps = 30.0\nseconds = 0.5\n[[motions]]\nkind = "walk"\n'
+    entry = '[[garments]]\nname = "j"\nkind = "jumpsuit"\npin = "{pin}"\n'
+    cfg = load_dataset_config(_write(tmp_path, "ok.toml", head + entry.format(pin="top+waist")))
+    assert cfg.garments[0].pin == "top+waist"
+    assert cfg.attempt_settings(cfg.garments[0]).pin == "top+waist"
+    with pytest.raises(FileFormatError, match=r"pin is not a pin group.*waistband \| top \| top\+waist.*belt"):
+        load_dataset_config(_write(tmp_path, "bad.toml", head + entry.format(pin="belt")))
+
+
 def test_a_sample_spec_names_its_files_by_content_not_by_where_they_lie(tmp_path):
     """A dataset made beside one checkout is the same dataset beside another: the spec of a motion-capture
     sample holds the capture file's name and a hash of its bytes, not its path (packs made on one machine

@@ -9,7 +9,7 @@ from segadeform.body import BodyProxy
 from segadeform.errors import InputError, SimulationError
 from segadeform.motion import make_motion
 from segadeform.motion.motion import Motion
-from segadeform.physics import SimSettings, pin_weights, preroll_poses, simulate
+from segadeform.physics import SimSettings, pin_weights, preroll_poses, simulate, waist_height
 
 
 def _still(n=6):
@@ -92,6 +92,53 @@ def test_every_piece_of_a_garment_is_held_by_a_pin(coarse_skirt):
     np.testing.assert_array_equal(w[n + len(bv) :], alone)  # pinned by the rule on itself
     with pytest.raises(InputError, match="pin group"):
         pin_weights(v, f, "sleeves")
+
+
+def test_top_and_waist_pins_a_jumpsuit_at_the_shoulders_and_round_the_waist(body):
+    """``top+waist``: the top group and a closed ring at the body's waist height, nothing else (the
+    jumpsuit's legs hang from a belt, not from the shoulders: docs/simulator-gate.md, fourteenth study)."""
+    from segadeform.garments import make_garment
+
+    g = make_garment("jumpsuit", body)
+    v = g.vertices
+    wh = waist_height(body)
+    j = body.rest_joints()[0]
+    names = body.joint_names
+    assert j[names.index("pelvis"), 1] < wh < j[names.index("spine2"), 1]
+    top = pin_weights(v, g.faces, "top") > 0
+    both = pin_weights(v, g.faces, "top+waist", waist_height=wh) > 0
+    belt = both & ~top
+    assert np.all(both[top])  # the top stays pinned
+    assert belt.sum() >= 30 and np.all(np.abs(v[belt, 1] - wh) <= 0.025)
+    assert np.array_equal(belt, (np.abs(v[:, 1] - wh) <= 0.025) & ~top)  # every vertex at the waist, only those
+    # a ring round the body, not a patch: every eighth of the turn about the vertical axis has belt vertices
+    c = v[belt].mean(0)
+    octant = np.floor((np.arctan2(v[belt, 2] - c[2], v[belt, 0] - c[0]) + np.pi) / (np.pi / 4)).astype(int) % 8
+    assert set(octant.tolist()) == set(range(8))
+    with pytest.raises(InputError, match="waist height"):
+        pin_weights(v, g.faces, "top+waist")
+    with pytest.raises(InputError, match=r"no garment vertex lies at the body's waist height.*heights"):
+        pin_weights(v, g.faces, "top+waist", waist_height=5.0)
+
+
+def test_the_simulator_is_given_the_waist_pin(sim_python, body, tmp_path):
+    """``simulate`` with ``pin = "top+waist"`` hands Blender the top and the waist ring of the body's own
+    waist (its shape's, not the template's), and those vertices follow the skinned garment."""
+    from segadeform.body.transfer import skin_garment, transfer_weights
+    from segadeform.garments import make_garment
+
+    betas = np.array([1.0, 0.5])
+    g = make_garment("jumpsuit", body, betas)
+    mo = make_motion("walk", seconds=0.2, fps=30)
+    st = SimSettings(effects=("pinning",), pin="top+waist", drape_seconds=0.1, blend_seconds=0.0, quality=2)
+    r = simulate(g.vertices, g.faces, body, mo, betas=betas, settings=st, keep_job=tmp_path / "job")
+    sent = np.load(tmp_path / "job" / "pins.npy") > 0
+    want = pin_weights(g.vertices, g.faces, "top+waist", waist_height=waist_height(body, betas)) > 0
+    assert np.array_equal(sent, want)
+    assert not np.array_equal(want, pin_weights(g.vertices, g.faces, "top+waist", waist_height=waist_height(body)) > 0)
+    w = transfer_weights(g.vertices, body.shaped_vertices(betas[None])[0], body.faces, body.weights)
+    skinned = skin_garment(g.vertices, w, body, mo.poses, betas, mo.trans)
+    assert np.abs(r.frames[:, want] - skinned[:, want]).max() < 5e-3
 
 
 def test_preroll_starts_at_rest_and_ends_at_the_first_frame():

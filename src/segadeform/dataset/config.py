@@ -63,7 +63,8 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     #                         # +Y up, on the body): simulated on the [[bodies]] of the shape it was made
     #                         # for (its `# betas:` line; the default shape when it has none); kind gives
     #                         # its type label and pin group
-    pin = "waistband"         # optional: the pin group of this garment (with the "pinning" effect)
+    pin = "waistband"         # optional: the pin group of this garment (with the "pinning" effect):
+    #                         # waistband, top, or top+waist (the top and a ring at the body's waist)
     resolution = 2500
     split = "train"           # train | val (held out to choose the model) | test (held out)
 
@@ -117,7 +118,7 @@ from ..errors import FileFormatError, InputError
 from ..garments import GARMENT_KINDS, WAISTBAND_KINDS, GarmentParams
 from ..io.toml import key, key_line, read_table, read_toml
 from ..motion.procedural import MOTION_KINDS
-from ..settings.simulation import SimSettings, parse_simulate_table
+from ..settings.simulation import PIN_GROUPS, SimSettings, parse_simulate_table
 
 __all__ = ["GarmentSpec", "MotionEntry", "QualitySpec", "DatasetConfig", "load_dataset_config", "SAMPLE_ORDERS"]
 
@@ -514,8 +515,10 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
                         got=decimate,
                     )
                 decimate = float(decimate)
-            if pin is not None and pin not in ("waistband", "top"):
-                raise FileFormatError(f"garments[{i}].pin must be 'waistband' or 'top'", path=p, got=pin)
+            if pin is not None and pin not in PIN_GROUPS:
+                raise FileFormatError(
+                    f"garments[{i}].pin is not a pin group", path=p, expected=" | ".join(PIN_GROUPS), got=pin
+                )
             if split != "test" and kind in held_kinds:
                 raise FileFormatError(
                     f"garments[{i}] is a {split} garment of the held-out kind {kind!r}",

@@ -15,6 +15,7 @@ from .blender import (
     preroll_poses,
     simulate,
     unpose_lbs,
+    waist_height,
 )
 
 __all__ = [
@@ -22,6 +23,7 @@ __all__ = [
     "simulate",
     "find_sim_python",
     "pin_weights",
+    "waist_height",
     "preroll_poses",
     "unpose_lbs",
     "A_POSE",

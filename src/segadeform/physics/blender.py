@@ -40,7 +40,7 @@ from ..geometry.mesh_ops import adjacency, boundary_loops, connected_components
 from ..io.pc2 import PC2Writer
 from ..motion.motion import Motion
 from ..settings.scene import Y_TO_Z
-from ..settings.simulation import EFFECTS, MATERIALS, MAX_QUALITY, SimSettings
+from ..settings.simulation import EFFECTS, MATERIALS, MAX_QUALITY, PIN_GROUPS, SimSettings
 
 __all__ = [
     "SimResult",
@@ -48,6 +48,7 @@ __all__ = [
     "find_sim_python",
     "preroll_poses",
     "pin_weights",
+    "waist_height",
     "clip_quality",
     "unpose_lbs",
     "A_POSE",
@@ -172,7 +173,7 @@ def clip_quality(body_frames, quality: int, max_step_motion: float, cap: int = M
 
 
 def _pin_group(v: np.ndarray, faces: np.ndarray, group: str, width: float) -> np.ndarray:
-    """``pin_weights`` of one connected mesh (local indices)."""
+    """``pin_weights`` of one connected mesh (local indices), ``top`` or ``waistband``."""
     if group == "top":
         return (v[:, 1] >= v[:, 1].max() - width).astype(np.float64)
     loops = boundary_loops(faces, len(v))
@@ -185,9 +186,14 @@ def _pin_group(v: np.ndarray, faces: np.ndarray, group: str, width: float) -> np
     return (d <= width).astype(np.float64)
 
 
-def pin_weights(vertices, faces, group: str, width: float = 0.025, *, piece_size: float = 0.1) -> np.ndarray:
+def pin_weights(
+    vertices, faces, group: str, width: float = 0.025, *, piece_size: float = 0.1, waist_height: float | None = None
+) -> np.ndarray:
     """Pin weights (N,) in {0, 1}: ``waistband`` = within ``width`` (along edges) of the highest
-    boundary loop; ``top`` = within ``width`` of the highest vertex height.
+    boundary loop; ``top`` = within ``width`` of the highest vertex height; ``top+waist`` = ``top`` and
+    the ring of vertices within ``width`` of ``waist_height`` (a belt: a jumpsuit's legs then hang from
+    the waist, not from the shoulders, and do not drag the seat down onto the hips; ``waist_height``,
+    metres, is required for it: :func:`waist_height` of the body).
 
     A garment of several pieces (connected components: a button, a pocket, a label beside the cloth) has each
     piece held: a piece the rule leaves without a pin is pinned whole when it is smaller than ``piece_size``
@@ -196,8 +202,20 @@ def pin_weights(vertices, faces, group: str, width: float = 0.025, *, piece_size
     2 s and the gate rejected every clip as detached)."""
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.int64)
-    if group not in ("top", "waistband"):
-        raise InputError("unknown pin group", expected="waistband | top", got=group)
+    if group not in PIN_GROUPS:
+        raise InputError("unknown pin group", expected=" | ".join(PIN_GROUPS), got=group)
+    belt = None
+    if group == "top+waist":
+        if waist_height is None or not np.isfinite(waist_height):
+            raise InputError("pin = 'top+waist' needs the body's waist height (metres)", got=waist_height)
+        belt = np.abs(v[:, 1] - float(waist_height)) <= width
+        if not belt.any():
+            raise InputError(
+                "pin = 'top+waist': no garment vertex lies at the body's waist height",
+                expected=f"vertices within {width} m of y = {float(waist_height):.3f}",
+                got=f"heights {v[:, 1].min():.3f}..{v[:, 1].max():.3f}",
+            )
+        group = "top"
     w = _pin_group(v, f, group, width)  # the rule on the whole garment
     n_comp, comp = connected_components(f, len(v))
     for c in range(n_comp) if n_comp > 1 else ():
@@ -214,7 +232,18 @@ def pin_weights(vertices, faces, group: str, width: float = 0.025, *, piece_size
             w[idx] = _pin_group(v[idx], local[fc], group, width)
         except InputError:  # a closed piece has no waistband: its top holds it
             w[idx] = _pin_group(v[idx], local[fc], "top", width)
+    if belt is not None:
+        w[belt] = 1.0
     return w
+
+
+def waist_height(body: BodyModel, betas=None) -> float:
+    """The height (metres, y-up) of the body's waist at rest: 2 cm below the ``spine1`` joint, where
+    :mod:`segadeform.garments.make` puts a waistband."""
+    if "spine1" not in body.joint_names:
+        raise InputError("pin = 'top+waist' needs a body with a 'spine1' joint", got=list(body.joint_names)[:4])
+    j = body.rest_joints(None if betas is None else np.asarray(betas, np.float64).reshape(1, -1))[0]
+    return float(j[body.joint_names.index("spine1"), 1] - 0.02)
 
 
 def simulate(
@@ -333,7 +362,8 @@ def simulate(
         if bs["wind"]:
             job["wind"]["direction"] = list(map(float, np.asarray(settings.wind) @ _Y_TO_Z.T))
         if settings.has("pinning"):
-            pins = pin_weights(v, f, settings.pin)
+            wh = waist_height(body, betas) if settings.pin == "top+waist" else None
+            pins = pin_weights(v, f, settings.pin, waist_height=wh)
             if not pins.any():
                 raise InputError(f"pin group {settings.pin!r} selects no vertex of this garment")
             np.save(job_dir / "pins.npy", pins.astype(np.float32))

@@ -15,7 +15,7 @@ does not name is off in the solver::
     max_step_motion = 0.0          # metres the body may move in one solver step: a clip where it moves
                                    # farther in a frame gets more steps (quality raised, at most 80); 0: off
     self_collision_distance = 0.005
-    pin = "waistband"              # which vertices "pinning" holds (PIN_GROUPS)
+    pin = "waistband"              # which vertices "pinning" holds: waistband, top or top+waist (PIN_GROUPS)
     wind = [0.0, 0.0, 1.0]         # direction of the "wind" effect (y-up, like the garment)
     wind_strength = 2.0
     drape_seconds = 0.5            # settle in the rest pose before the motion
@@ -94,7 +94,8 @@ __all__ = [
 EFFECTS = ("gravity", "body_collision", "self_collision", "bending", "air_damping", "pinning", "wind")
 #: what a scene without a [simulate] table gets
 DEFAULT_EFFECTS = ("gravity", "body_collision", "bending", "air_damping")
-PIN_GROUPS = ("waistband", "top")
+#: waistband: the highest boundary loop; top: the highest vertices; top+waist: those and a ring at the body's waist
+PIN_GROUPS = ("waistband", "top", "top+waist")
 
 
 @dataclasses.dataclass(frozen=True)
