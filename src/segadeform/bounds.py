@@ -31,6 +31,9 @@ procedural seed     0 .. 2**32 - 1       numpy's seeds
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+
 import numpy as np
 
 from .errors import InputError
@@ -47,6 +50,7 @@ __all__ = [
     "SEED_RANGE",
     "check_fps",
     "check_translation",
+    "played_at",
     "check_betas",
     "check_body_height",
     "height_reach",
@@ -89,16 +93,50 @@ def check_fps(fps, *, path=None, what: str = "frame rate") -> float:
     return f
 
 
-def check_translation(trans, *, path=None) -> None:
+#: the frame rate the motion being read will be played at (:func:`played_at`), None: its own
+_PLAYED_FPS: contextvars.ContextVar[float | None] = contextvars.ContextVar("played_fps", default=None)
+
+
+@contextlib.contextmanager
+def played_at(fps):
+    """Within it, a motion read at another frame rate than ``fps`` (None: its own), which a run then resamples to it
+    (``run --fps``), has the frames :func:`check_translation` refuses named as they are played at ``fps``: the frames
+    ``run --frames A:B`` and the run's other messages count (the frame as read is named beside it)."""
+    token = _PLAYED_FPS.set(None if fps is None else float(fps))
+    try:
+        yield
+    finally:
+        _PLAYED_FPS.reset(token)
+
+
+def _first_far(t: np.ndarray) -> int | None:
+    far = ~(np.abs(t.reshape(len(t), -1)) <= MAX_TRANSLATION).all(axis=1)
+    return int(np.argmax(far)) if far.any() else None
+
+
+def _far_frame(t: np.ndarray, fps) -> str:
+    """Where the translations ``t (T, 3)`` (at ``fps``, None: unknown) first go past :data:`MAX_TRANSLATION`, in the
+    frames they are played at (:func:`played_at`: resampled as :func:`~segadeform.motion.resample` resamples them)."""
+    k = _first_far(t)
+    played = _PLAYED_FPS.get()
+    if fps is None or played is None or not played > 0 or abs(played - float(fps)) <= 1e-9 or t.ndim != 2:
+        return f", first at frame {k}"
+    from .motion.motion import resample_positions, sample_translations
+
+    j = _first_far(sample_translations(t, resample_positions(len(t), float(fps), played)))
+    if j is None:  # past it only between the frames played
+        return f", first at frame {k} as read at {float(fps):g} fps, between the frames played at {played:g} fps"
+    return f", first at frame {j} at {played:g} fps (frame {k} as read, at {float(fps):g} fps)"
+
+
+def check_translation(trans, *, path=None, fps=None) -> None:
     """Every root translation ``(T, 3)`` within :data:`MAX_TRANSLATION` metres of the origin; the refusal names the
-    first frame past it (of the motion as read: it named none, a user's trial)."""
+    first frame past it (it named none, a user's trial): of the motion as read, or -- read at ``fps`` within
+    :func:`played_at` another rate -- as it is played at that rate (the frames a run's ``--frames`` counts)."""
     t = _real(trans, "translations", path)
     m = float(np.abs(t).max()) if t.size else 0.0
     if not m <= MAX_TRANSLATION:  # NaN fails too
-        at = ""
-        if t.ndim:
-            far = ~(np.abs(t.reshape(len(t), -1)) <= MAX_TRANSLATION).all(axis=1)
-            at = f", first at frame {int(np.argmax(far))}"
+        at = _far_frame(t, fps) if t.ndim else ""
         raise InputError(
             "the motion's root moves too far: check the file's units",
             path=path,

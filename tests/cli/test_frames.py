@@ -123,3 +123,32 @@ def test_run_repairs_a_captures_glitches_when_asked_and_keeps_its_frames(tmp_pat
     assert r.exit_code == 1 and "small.obj" in r.output and "does not sit on the body" in r.output, r.output
     assert [rec.getMessage() for rec in caplog.records if rec.levelno >= logging.WARNING] == [], caplog.records
     assert not (tmp_path / "s.pc2").exists()
+
+
+def test_a_root_too_far_is_named_at_the_frame_run_counts(tmp_path):
+    """A root past 10 km named the frame of the motion as read; `run --fps` plays it resampled, and `--frames A:B`
+    and run's other messages count the frames played: the refusal names the frame at the rate played (and the one as
+    read beside it).  A range changes nothing: the whole motion is checked, and its frames keep their numbers."""
+    m = make_motion("walk", seconds=1.0, fps=30.0)
+    m.save(tmp_path / "m.npz")
+    d = dict(np.load(tmp_path / "m.npz"))
+    d["trans"][12:, 0] = 3e4  # 30 km away from frame 12 on
+    np.savez(tmp_path / "far.npz", **d)
+    skirt = str(SAMPLES / "garments" / "skirt.obj")
+    for motion, extra, said in (
+        ("far", [], "first at frame 12)"),
+        ("far", ["--frames", "5:10"], "first at frame 12)"),
+        ("far", ["--fps", "30"], "first at frame 12)"),
+        ("far", ["--fps", "60"], "first at frame 23 at 60 fps (frame 12 as read, at 30 fps))"),  # 15 km at 11.5
+        ("far", ["--fps", "15", "--frames", "2:4"], "first at frame 6 at 15 fps (frame 12 as read, at 30 fps))"),
+        (
+            "m",
+            ["--fps", "60", "--frames", "0:99"],
+            "outside the motion's 59 frames (expected 0 <= A < B <= 59, got 0:99)",
+        ),
+    ):
+        args = ["run", "--garment", skirt, "--motion", str(tmp_path / f"{motion}.npz"), "-o", str(tmp_path / "o.pc2")]
+        r = CliRunner().invoke(cli, [*args, *extra])
+        assert r.exit_code == 1 and r.output.strip().endswith(said), (extra, r.output)
+        assert motion == "m" or f"Error: {tmp_path / 'far.npz'}: the motion's root moves too far" in r.output, r.output
+    assert not (tmp_path / "o.pc2").exists()

@@ -79,7 +79,7 @@ class Motion:
         if not (np.isfinite(p).all() and np.isfinite(t).all()):
             raise InputError("motion contains NaN or inf")
         check_fps(self.fps)
-        check_translation(t)
+        check_translation(t, fps=self.fps)
         # equal rotations written alike (angles in [0, pi]): the network reads axis-angle; in range, bit for bit
         poses = canonical_axis_angle(p.astype(np.float64).reshape(-1, 24, 3)).reshape(p.shape)
         object.__setattr__(self, "poses", poses)
@@ -337,15 +337,42 @@ def sample_frames(motion: Motion, t) -> tuple[np.ndarray, np.ndarray]:
     Shapes:
         t: (M,) -> poses (M, 72), trans (M, 3)
     """
-    t = np.clip(np.asarray(t, np.float64), 0.0, motion.n_frames - 1)
-    i0 = np.clip(np.floor(t).astype(int), 0, motion.n_frames - 1)
-    i1 = np.clip(i0 + 1, 0, motion.n_frames - 1)
-    a = (t - i0)[:, None]
+    i0, i1, a = _between(t, motion.n_frames)
     q = axis_angle_to_quaternion(motion.poses.reshape(-1, 24, 3))
     qs = quaternion_slerp(q[i0], q[i1], np.repeat(a, 24, axis=1))
-    poses = quaternion_to_axis_angle(qs).reshape(len(t), N_POSE)
-    trans = (1 - a) * motion.trans[i0] + a * motion.trans[i1]
-    return poses, trans
+    poses = quaternion_to_axis_angle(qs).reshape(len(i0), N_POSE)
+    return poses, (1 - a) * motion.trans[i0] + a * motion.trans[i1]
+
+
+def sample_translations(trans, t) -> np.ndarray:
+    """:func:`sample_frames`' translations alone, of the translations ``trans`` (no :class:`Motion` made of them).
+
+    Shapes:
+        trans: (T, 3), t: (M,) -> (M, 3)
+    """
+    tr = np.asarray(trans, np.float64)
+    i0, i1, a = _between(t, len(tr))
+    return (1 - a) * tr[i0] + a * tr[i1]
+
+
+def _between(t, n_frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(i0, i1, a (M, 1))``: the frames each fractional index of ``t`` (clamped to ``n_frames``) lies between, and
+    how far from ``i0`` it is."""
+    t = np.clip(np.asarray(t, np.float64), 0.0, n_frames - 1)
+    i0 = np.clip(np.floor(t).astype(int), 0, n_frames - 1)
+    return i0, np.clip(i0 + 1, 0, n_frames - 1), (t - i0)[:, None]
+
+
+def resample_positions(n_frames: int, fps_from: float, fps_to: float) -> np.ndarray:
+    """The fractional frame indices of a motion of ``n_frames`` at ``fps_from`` that :func:`resample` to ``fps_to``
+    takes its frames at.
+
+    Shapes:
+        -> (M,)
+    """
+    duration = (n_frames - 1) / fps_from
+    n_out = int(np.floor(duration * fps_to + 1e-9)) + 1
+    return np.arange(n_out) / fps_to * fps_from
 
 
 def resample(motion: Motion, fps: float) -> Motion:
@@ -359,9 +386,7 @@ def resample(motion: Motion, fps: float) -> Motion:
         raise InputError("target fps must be positive", got=fps)
     if abs(fps - motion.fps) < 1e-9:
         return motion
-    duration = (motion.n_frames - 1) / motion.fps
-    n_out = int(np.floor(duration * fps + 1e-9)) + 1
-    poses, trans = sample_frames(motion, np.arange(n_out) / fps * motion.fps)
+    poses, trans = sample_frames(motion, resample_positions(motion.n_frames, motion.fps, fps))
     return Motion(
         poses=poses,
         trans=trans,

@@ -25,6 +25,7 @@ def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
 
     ``rest_joints (24, 3)``: the body that will play it (files are retargeted onto it).
     """
+    from ..bounds import played_at
     from . import load_motion  # the package's reader by extension
 
     if spec.file is not None:
@@ -34,16 +35,17 @@ def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
                 units = float(units)
             except ValueError:
                 pass
-        m = load_motion(
-            spec.file,
-            rest_joints=rest_joints,
-            up=spec.up,
-            units=units,
-            joint_map=spec.joint_map,
-            floor=spec.floor,
-            skeleton=spec.skeleton,
-            animation=spec.animation,
-        )
+        with played_at(spec.fps):  # its refusals name the frames as resampled below: those --frames A:B counts
+            m = load_motion(
+                spec.file,
+                rest_joints=rest_joints,
+                up=spec.up,
+                units=units,
+                joint_map=spec.joint_map,
+                floor=spec.floor,
+                skeleton=spec.skeleton,
+                animation=spec.animation,
+            )
     else:
         m = make_motion(
             spec.kind,
