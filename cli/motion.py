@@ -30,8 +30,16 @@ def motion_group():
     type=PathParam(dir_okay=False, path_type=Path),
     help="Motion file (.npz, .bvh or .sgdm).",
 )
-def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
-    """Make a procedural motion of KIND (idle, walk, run, jump, arm_swing, touch_high, torso_twist, dance)."""
+@click.option(
+    "--body",
+    type=PathParam(dir_okay=False, path_type=Path),
+    help="BVH output: the body whose skeleton the file carries (default: the shipped body).",
+)
+def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output, body):
+    """Make a procedural motion of KIND (idle, walk, run, jump, arm_swing, touch_high, torso_twist, dance).
+
+    A .bvh is written in centimetres on the skeleton of --body (the shipped body by default), so that it reads back
+    as the same motion on that body; .npz and .sgdm hold the poses and root path themselves."""
     from segadeform.io.output_guard import OutputGuard
     from segadeform.motion import make_motion, write_bvh
     from segadeform.settings.scene import check_motion_fps
@@ -40,10 +48,15 @@ def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output):
     guard = OutputGuard("motion make")
     guard.file(output)
     m = make_motion(kind, seconds=seconds, fps=fps, seed=seed, speed=speed, amplitude=amplitude, ease_in=ease_in)
-    if output.suffix.lower() == ".bvh":
-        from segadeform.body.skeleton import default_rest_joints
+    is_bvh = output.suffix.lower() == ".bvh"
+    if body is not None and not is_bvh:
+        raise click.UsageError(f"--body is for a .bvh output (its skeleton), not {output.suffix or 'no extension'}")
+    if is_bvh:
+        from segadeform.body import default_body_path, load_body
 
-        write_bvh(output, m, default_rest_joints(), scale=100.0)
+        # the body's own joints: a BVH read back is retargeted by fitting its legs to the body, so a skeleton of
+        # other proportions (the hand-made 1.7 m stand-in, written before) came back with strides 17 % longer
+        write_bvh(output, m, load_body(body or default_body_path()).rest_joints()[0], scale=100.0)
     else:
         m.save(output)
     guard.record()

@@ -1,0 +1,33 @@
+"""``segadeform motion make``: what it writes reads back as the motion it made."""
+
+from __future__ import annotations
+
+import numpy as np
+from click.testing import CliRunner
+
+from segadeform.cli.main import cli
+
+
+def test_a_bvh_made_reads_back_as_the_same_motion_on_the_body(tmp_path):
+    """The BVH is written on the body's own skeleton: read back (its legs fitted to the body) it poses the body as
+    the .npz of the same motion does.  On the hand-made 1.7 m stand-in skeleton it was written on before, the
+    strides came back 17 % longer and the garment up to 0.57 m away (a new user's trial)."""
+    from segadeform.body import default_body_path, load_body
+    from segadeform.motion import load_motion
+
+    r = CliRunner()
+    for name in ("w.bvh", "w.npz"):
+        res = r.invoke(cli, ["motion", "make", "walk", "--seconds", "1", "-o", str(tmp_path / name)])
+        assert res.exit_code == 0, res.output
+    body = load_body(default_body_path())
+    J = body.rest_joints()[0]
+    a = load_motion(tmp_path / "w.npz", rest_joints=J)
+    b = load_motion(tmp_path / "w.bvh", rest_joints=J)
+    assert abs(b.meta["scale"] - 0.01) < 1e-9  # centimetres, read as such
+    assert np.abs(np.ptp(b.trans, axis=0) - np.ptp(a.trans, axis=0)).max() < 1e-5  # the same strides
+    va = body.forward(a.poses, None, a.trans).vertices
+    vb = body.forward(b.poses, None, b.trans).vertices
+    assert np.abs(va - vb).max() < 1e-4
+    # --body is the BVH's skeleton: asked of another output, it is refused before anything is written
+    res = r.invoke(cli, ["motion", "make", "walk", "--body", str(default_body_path()), "-o", str(tmp_path / "x.npz")])
+    assert res.exit_code == 2 and "--body is for a .bvh output" in res.output and not (tmp_path / "x.npz").exists()
