@@ -275,6 +275,9 @@ BAD_AMC = [  # (name, edit of the AMC text, message fragment: FILE:LINE: problem
     ("nan", lambda t: _first_value(t, "lfemur", "nan"), ":6: bone 'lfemur' has a value that is not finite"),
     ("inf", lambda t: _first_value(t, "ltibia", "-inf"), ":8: bone 'ltibia' has a value that is not finite"),
     ("not_a_number", lambda t: _first_value(t, "lfemur", "x1"), ":6: bone 'lfemur' has a value that is not a number"),
+    # past the BVH reader's bound: 1e20 played (a new user's trial), 1e300 overflowed and blamed the bone lengths
+    ("huge", lambda t: _first_value(t, "lfemur", "1e20"), ":6: bone 'lfemur' has a value no capture holds (expected"),
+    ("overflow", lambda t: _first_value(t, "ltibia", "1e300"), ":8: bone 'ltibia' has a value no capture holds"),
     ("empty", lambda t: "", "AMC has no frames (expected frame numbers followed by bone values, got an empty file)"),
     ("only_header", lambda t: "#!OML:ASF x\n:FULLY-SPECIFIED\n:DEGREES\n", "no frame numbers"),
     ("unknown_keyword", lambda t: _edit_amc(t, ":DEGREES", ":GRADIANS"), ":3: unknown AMC keyword ':GRADIANS'"),

@@ -45,7 +45,7 @@ import numpy as np
 
 from ..body.rotations import axis_angle_to_matrix
 from ..errors import FileFormatError, file_error
-from .bvh import BVHSkeleton, skeleton_motion, to_y_up
+from .bvh import MAX_CHANNEL, BVHSkeleton, skeleton_motion, to_y_up
 from .motion import Motion
 
 __all__ = [
@@ -698,6 +698,18 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
                 path=p,
                 line=line_of[n][r],
                 expected="finite numbers",
+                got=toks[r * k + c],
+            )
+        # a value past MAX_CHANNEL (degrees, radians or length units): the BVH reader's bound, so that 1e20 is refused
+        # here at its line as it is there (it played), and 1e300 not blamed on "bone lengths" after overflow warnings
+        huge = np.abs(v) > MAX_CHANNEL
+        if huge.any():
+            r, c = (int(x[0]) for x in np.nonzero(huge))
+            raise FileFormatError(
+                f"bone {n!r} has a value no capture holds",
+                path=p,
+                line=line_of[n][r],
+                expected=f"|{skeleton.dofs[skeleton.names.index(n)][c]}| <= {MAX_CHANNEL:g}",
                 got=toks[r * k + c],
             )
         if len(v) == n_frames:
