@@ -65,6 +65,16 @@ def test_a_body_output_that_cannot_be_written_is_refused_before_anything_is(tmp_
     assert written(tmp_path) == []
 
 
+@pytest.mark.parametrize("out", ["g.pc2", "g.abc", "g.usd"])
+def test_a_body_output_without_an_extension_is_a_folder_of_obj_frames(tmp_path, out):
+    """As `run --help` says, whatever the garment's format."""
+    r = run(tmp_path, "-o", tmp_path / out, "--body-out", tmp_path / "body")
+    assert r.exit_code == 0, r.output
+    assert written(tmp_path) == sorted([out, "body"]) and (tmp_path / "body").is_dir()
+    frames = sorted(p.name for p in (tmp_path / "body").glob("*.obj"))
+    assert len(frames) == 3, frames
+
+
 def test_format_and_extension_must_agree_and_read_only_formats_are_not_offered(tmp_path):
     r = run(tmp_path, "-o", tmp_path / "x.usda", "--format", "pc2")
     assert r.exit_code == 1 and "the extension says usd, the format asked for is pc2" in r.output, r.output
@@ -80,9 +90,11 @@ def test_format_and_extension_must_agree_and_read_only_formats_are_not_offered(t
 def test_format_rules_as_functions():
     assert output_format_for("a/b.usdc") == "usd" and output_format_for("a/frames") == "obj-seq"
     assert output_format_for("a/b.bin", "pc2") == "pc2" and body_output_format("b.abc", "pc2") == "abc"
-    # no extension, or one no format claims: the garment's format, as before (a body.cache beside a .cache)
-    assert body_output_format("out/body", "pc2") == "pc2" and body_output_format("b.cache", "pc2") == "pc2"
-    assert body_output_format("out/body", "obj-seq") == "obj-seq"
+    # an extension no format claims: the garment's format, as before (a body.cache beside a .cache); no extension:
+    # a folder of OBJ frames, as `run --help` says and as the garment's own path (it was the garment's format: a
+    # new user's trial found an extension-less Alembic that inspect refused and a USD refused as no USD name)
+    assert body_output_format("b.cache", "pc2") == "pc2"
+    assert all(body_output_format("out/body", f) == "obj-seq" for f in ("pc2", "abc", "usd", "obj-seq", None))
     with pytest.raises(ValueError, match="extension says xdmf"):
         output_format_for("b.xmf", "abc")
 

@@ -116,15 +116,18 @@ _NOT_SEQUENCES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf", ".fbx", ".npz
 
 def body_output_format(body_path, fmt: str | None = None) -> str:
     """The format the posed body is written in: the one ``body_path``'s own extension names, whatever the
-    garment's output is (``--body-out body.pc2`` beside ``-o dress.usd`` writes a point cache); with no extension
-    or one no format claims (``body.cache``), the garment's format ``fmt``, as before; an error for the extension
-    of a mesh or another kind of file (``body.obj``)."""
+    garment's output is (``--body-out body.pc2`` beside ``-o dress.usd`` writes a point cache); with no
+    extension a folder of OBJ frames, as for the garment's own path; with an extension no format claims
+    (``body.cache``), the garment's format ``fmt``, as before; an error for the extension of a mesh or another
+    kind of file (``body.obj``).  (An extension-less body was written in the garment's format: a PC2 or Alembic
+    file with no extension, which ``inspect`` refused, and a USD refused as no USD name -- while ``run --help``
+    said a folder of OBJ frames: a new user's trial.)"""
     p = Path(body_path)
     _check_name(p)
     named = format_for_path(p)
     if p.suffix and named is not None:
         return named.name
-    if fmt is not None and p.suffix.lower() not in _NOT_SEQUENCES:
+    if fmt is not None and p.suffix and p.suffix.lower() not in _NOT_SEQUENCES:
         return sequence_format(fmt).name
     return output_format_for(p)
 
