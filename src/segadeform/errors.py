@@ -10,6 +10,7 @@ non-zero exit, never a traceback.  Messages follow one pattern::
 from __future__ import annotations
 
 import os
+import re
 
 __all__ = [
     "SegadeformError",
@@ -111,5 +112,11 @@ def check_readable(path, what: str = "file", *, cls: type = FileFormatError) -> 
 
 def unreadable_error(e: BaseException, path, what: str, *, cls: type = FileFormatError) -> FileFormatError:
     """The one wording for a file that opens but whose contents a library cannot read:
-    ``not a readable {what} file ({ExceptionType}: {message})``."""
-    return cls(f"not a readable {what} file ({type(e).__name__}: {e})", path=path)
+    ``not a readable {what} file ({ExceptionType}: {message})``, on one line: a library's message of several lines
+    is joined, and OpenUSD's ``Error in 'pxrInternal_...::UsdStage::Open' at line N in file ...: 'what'`` is cut to
+    its ``what`` (a new user's trial: a bad .usd printed 2-4 lines of pxr internals)."""
+    msg = " ".join(str(e).split())
+    cut = re.search(r"Error in '[^']*' at line \d+ in file \S+ ?: '(.*)'", msg)
+    if cut:
+        msg = cut.group(1)
+    return cls(f"not a readable {what} file ({type(e).__name__}: {msg})", path=path)

@@ -313,6 +313,16 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
             "disagree with the manifest",
         )
         pkgcase("joint_count_mismatch", man(joint_names=["pelvis"]), "joint_names do not match")
+
+    def usd(name, ext, data, words):
+        p = d / f"{name}{ext}"
+        p.write_bytes(data)
+        cases.append((f"usd/{name}", ["inspect", str(p)], words, None))
+
+    # OpenUSD's own errors ran over 2-4 lines of pxr internals (a new user's trial): one line now
+    usd("garbage", ".usd", b"garbage\n", "not a readable USD file")
+    usd("usdc_truncated", ".usdc", b"PXR-USDC" + b"\x00" * 16 + b"junk", "not a readable USD file")
+    usd("usda_bad_syntax", ".usda", b'#usda 1.0\n(\n    doc = "x\n', "not a readable USD file")
     return [c for c in cases if c is not None]
 
 

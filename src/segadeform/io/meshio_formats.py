@@ -9,7 +9,10 @@ and vertex cells are ignored.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
+import re
 import warnings
 from pathlib import Path
 
@@ -32,16 +35,21 @@ def read_meshio(path: str | os.PathLike, file_format: str | None = None) -> Mesh
     p = Path(path)
     if not p.is_file():
         raise FileFormatError("no such file", path=p)
+    said = io.StringIO()  # meshio prints its readers' errors and "Couldn't read file" itself, then exits
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
             warnings.simplefilter("ignore")
             m = meshio.read(p, file_format=file_format)
     except InputError:
         raise
     except (Exception, SystemExit) as e:
-        # meshio raises many kinds (ReadError, ValueError, struct.error ...)
-        # and its PLY reader calls sys.exit() on an unknown header line.
-        msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        # meshio raises many kinds (ReadError, ValueError, struct.error ...), and exits (after printing why) when no
+        # reader could read the file, or its PLY reader meets an unknown header line: the first thing it said, on
+        # the one line of the error (it printed over several lines before it: a new user's trial)
+        lines = [ln.strip() for ln in said.getvalue().splitlines() if ln.strip()]
+        text = str(e).strip() if isinstance(e, Exception) else ""
+        msg = text.splitlines()[0] if text else (lines[0] if lines else type(e).__name__)
+        msg = re.sub(r"^Error: Couldn't read file .* as (.*)$", r"no \1 that meshio reads", msg)  # the path said once
         raise FileFormatError(f"cannot parse mesh: {msg}", path=p) from None
     pts = np.asarray(m.points)
     if pts.ndim == 2 and pts.shape[1] == 2:
