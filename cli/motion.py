@@ -99,8 +99,12 @@ def info_cmd(motion, body, up, units, joint_map, skeleton, animation):
     ang = np.linalg.norm(m.poses.reshape(-1, 24, 3), axis=-1)
     from segadeform.io.writer import nominal_fps
 
-    click.echo(f"{motion}: {m.n_frames} frames, {nominal_fps(m.fps):g} fps, {m.seconds:.2f} s")  # as outputs write it
     meta = m.meta
+    first = int((meta or {}).get("start_frame", 0))
+    numbered = f" (numbered {first}-{first + m.n_frames - 1}: run --frames counts them from 0)" if first else ""
+    click.echo(  # the rate as outputs write it; a cut file's numbering, which the outputs keep
+        f"{motion}: {m.n_frames} frames{numbered}, {nominal_fps(m.fps):g} fps, {m.seconds:.2f} s"
+    )
     if meta.get("format") == "amc":
         click.echo(
             f"  skeleton: {meta['skeleton']} ({meta['scheme']} names), length unit {meta['length_unit']:g} "

@@ -367,8 +367,15 @@ def run_cmd(
         )
     off = summary.effects.off()
     q = f"quality {quality}: " if quality else ""
+    # a cut motion file numbers its frames from its own start, and the output keeps that numbering while --frames
+    # counts from 0: said, so that a TD finds frame 25 where the file says 25 (a new user's trial)
+    numbered = (
+        f" (written as frames {summary.first_frame}-{summary.first_frame + summary.frames - 1})"
+        if summary.first_frame != summary.start
+        else ""
+    )
     click.echo(
-        f"{summary.frames} frames, {summary.ms_per_frame:.1f} ms/frame ({q}effects {summary.effects.label()}"
+        f"{summary.frames} frames{numbered}, {summary.ms_per_frame:.1f} ms/frame ({q}effects {summary.effects.label()}"
         f"{'; off: ' + ', '.join(off) if off else ''}; graph {summary.variant})"
     )
     if summary.batch < batch:  # a big garment: fewer frames a call (the runtimes lower it alike)

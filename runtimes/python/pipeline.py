@@ -117,6 +117,11 @@ class RunSummary:
     cloth: dict | None = None
     #: frames per deformer call (``batch``, lowered for a big garment: :func:`effective_batch`)
     batch: int = 0
+    #: the number the output gives its first frame: the run's first frame (``--frames A:``) plus a cut motion
+    #: file's own start frame
+    first_frame: int = 0
+    #: the run's first frame counted from the motion's first, 0 (``--frames A:``)
+    start: int = 0
 
     @property
     def ms_per_frame(self) -> float:
@@ -191,7 +196,7 @@ class Run:
         self._asset: GarmentAsset | None = None  # checked_asset's
         self._surface: np.ndarray | None = None  # _surface_faces's
         self._asset_seconds = 0.0
-        self.start, self.stop = frame_range(frames, motion.n_frames)
+        self.start, self.stop = frame_range(frames, motion.n_frames, first=self._motion_start())
         self.guard = guard
         if guard is not None:  # refused before any work: an output over a file segadeform did not write ...
             claim_scene_outputs(guard, self.output, output_format, self.body_output)
@@ -272,6 +277,11 @@ class Run:
         if self._surface is None:
             self._surface = surface_faces(vertices, faces)
         return self._surface
+
+    def _motion_start(self) -> int:
+        """The frame number a cut motion file gives its first frame (``motion export --frames 10:40``: 10), which
+        the outputs keep; ``--frames`` counts from the motion's first frame, 0, whatever it is."""
+        return int((self.motion.meta or {}).get("start_frame", 0))
 
     def checked_asset(self) -> GarmentAsset:
         """The garment's asset (:meth:`load_asset`), its placement on the body checked (a garment that is not on it --
@@ -363,7 +373,7 @@ class Run:
             fmt=self.output_format,
             up=self.up,
             fps=self.motion.fps,
-            start_frame=self.start + int((self.motion.meta or {}).get("start_frame", 0)),  # a cut motion file's numbers
+            start_frame=self.start + self._motion_start(),  # a cut motion file's numbers
             garment_faces=asset.faces,
             garment_rest=asset.vertices,
             garment_surface=garment_surface(self.garment, asset.n_vertices, self.output_format),
@@ -450,6 +460,8 @@ class Run:
             out.abort()
             raise
         return RunSummary(
+            first_frame=self.start + self._motion_start(),
+            start=self.start,
             frames=self.stop - self.start,
             seconds=time.perf_counter() - t_all,
             output=self.output,
@@ -699,7 +711,7 @@ def run_scene(
     check_motion_shape(motion, scene, body, force=force)
     check_package_body(package, body, force=force)
     try:  # a range past the motion's end is the scene's to fix: name it
-        frame_range(scene.motion.frames, motion.n_frames)
+        frame_range(scene.motion.frames, motion.n_frames, first=int((motion.meta or {}).get("start_frame", 0)))
     except InputError as e:
         raise e.with_path(scene.path) if scene.path is not None and frames_from_scene else e from None
     said: list = []  # what the run says of the motion: after the garment is checked (a bad one is then one line)

@@ -152,3 +152,32 @@ def test_a_root_too_far_is_named_at_the_frame_run_counts(tmp_path):
         assert r.exit_code == 1 and r.output.strip().endswith(said), (extra, r.output)
         assert motion == "m" or f"Error: {tmp_path / 'far.npz'}: the motion's root moves too far" in r.output, r.output
     assert not (tmp_path / "o.pc2").exists()
+
+
+def test_a_cut_motion_files_numbering_is_said_where_frames_counts_from_0(tmp_path):
+    """A motion cut by `motion export --frames 10:40` numbers its frames 10-39 and the outputs keep that numbering,
+    while --frames counts from 0 (a new user's trial: `--frames 10:20` wrote frames 20-29 without a word, and
+    `--frames 30:40` was refused as past the motion's 30 frames with nothing saying where they start).  `motion
+    info` says the numbering; `run` says the frames it wrote when they differ from --frames; the refusal says both."""
+    from segadeform.io.pc2 import read_pc2_header
+
+    cut = tmp_path / "w1040.sgdm"
+    bvh = SAMPLES / "motions" / "cmu" / "02_01_walk.bvh"
+    r = CliRunner()
+    res = r.invoke(cli, ["motion", "export", str(bvh), "--fps", "30", "--frames", "10:40", "-o", str(cut)])
+    assert res.exit_code == 0, res.output
+    res = r.invoke(cli, ["motion", "info", str(cut)])
+    assert res.exit_code == 0 and "30 frames (numbered 10-39: run --frames counts them from 0)" in res.output
+    base = ["run", "--garment", str(SAMPLES / "garments" / "dress.obj"), "--motion", str(cut), "--no-cache"]
+    res = r.invoke(cli, [*base, "--frames", "10:20", "--effects", "none", "-o", str(tmp_path / "a.pc2")])
+    assert res.exit_code == 0, res.output
+    assert "10 frames (written as frames 20-29)," in res.output
+    assert read_pc2_header(tmp_path / "a.pc2").start_frame == 20
+    res = r.invoke(cli, [*base, "--frames", "30:40", "--effects", "none", "-o", str(tmp_path / "b.pc2")])
+    assert res.exit_code == 1 and not (tmp_path / "b.pc2").exists()
+    assert "outside the motion's 30 frames (counted from its first frame, 0; the file numbers them 10-39)" in (
+        res.output
+    )
+    # a motion that starts at 0 says nothing more
+    res = r.invoke(cli, [*base[:4], str(bvh), "--no-cache", "--frames", "2:4", "-o", str(tmp_path / "c.pc2")])
+    assert res.exit_code == 0 and res.output.startswith("2 frames, "), res.output

@@ -78,18 +78,22 @@ def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
     return m
 
 
-def frame_range(frames: tuple[int, int | None] | None, n_frames: int) -> tuple[int, int]:
+def frame_range(frames: tuple[int, int | None] | None, n_frames: int, *, first: int = 0) -> tuple[int, int]:
     """``(A, B)`` -- B exclusive, ``None`` meaning the end -- checked against a motion of ``n_frames``.
 
     Returns ``(A, B)`` with B filled in; :class:`~segadeform.errors.InputError` when the range is empty or
-    goes past the motion (the one check ``run``, ``simulate`` and ``bundle`` share).
+    goes past the motion (the one check ``run``, ``simulate`` and ``bundle`` share).  ``first``: the number the
+    motion's file gives its first frame (a cut ``.sgdm``), said in the error: A and B count from 0 whatever it is.
     """
     a, b = frames if frames else (0, None)
     stop = n_frames if b is None else b
     if not 0 <= a < stop <= n_frames:
         given = f"{a}:{'' if b is None else b}"
+        where = (
+            f" (counted from its first frame, 0; the file numbers them {first}-{first + n_frames - 1})" if first else ""
+        )
         raise InputError(
-            f"frame range {given} is outside the motion's {n_frames} frames",
+            f"frame range {given} is outside the motion's {n_frames} frames{where}",
             expected=f"0 <= A < B <= {n_frames}",
             got=given,
         )
@@ -98,7 +102,7 @@ def frame_range(frames: tuple[int, int | None] | None, n_frames: int) -> tuple[i
 
 def select_frames(motion: Motion, frames: tuple[int, int | None] | None) -> tuple[Motion, int]:
     """The motion's frames ``A:B`` as a motion of their own (checked by :func:`frame_range`), and ``A``."""
-    a, b = frame_range(frames, motion.n_frames)
+    a, b = frame_range(frames, motion.n_frames, first=int((motion.meta or {}).get("start_frame", 0)))
     if (a, b) == (0, motion.n_frames):
         return motion, 0
     return dataclasses.replace(motion, poses=motion.poses[a:b], trans=motion.trans[a:b]), a
