@@ -8,6 +8,9 @@ A jobs file (TOML; relative paths are relative to it)::
     model = "../models/default"    # optional (default: the shipped model)
     body = "../bodies/default_body.npz"   # optional (default: the shipped body)
     effects = "dqs,collisions"     # optional, as `run --effects` (default: every effect)
+    # quality = "best"             # optional, as `run --quality` (effects then takes +name/-name changes)
+    # collision_margin = 0.004     # optional, as `run --collision-margin` (metres)
+    # cloth_iterations = 8         # optional cloth stage knobs, as `run --cloth` (cloth_<knob>)
     up = "y"                       # y | z
     frames_per_call = 8            # frames per deformer call (`run --batch`)
 
@@ -50,21 +53,31 @@ from segadeform.io.atomic import WriteError
 from segadeform.io.location import Location, is_url, open_location
 from segadeform.io.toml import config_path, key, read_table, read_toml
 from segadeform.settings import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects
+from segadeform.settings.cloth import CLOTH_KNOBS, ClothSettings
+from segadeform.settings.presets import preset_effects
 from segadeform.settings.scene import MotionTable, motion_spec_from_table
 
 __all__ = ["BatchConfig", "BatchJob", "BatchSummary", "load_batch", "batch_jobs", "run_batch", "run_job"]
 
 
 # The jobs file's tables (what each key takes: segadeform.io.toml.read_table)
-@dataclasses.dataclass(frozen=True)
-class _BatchTable:
-    output: str | None = None
-    format: str = "pc2"
-    model: str | None = None
-    body: str | None = None
-    effects: str | None = None
-    up: str = "y"
-    frames_per_call: int = key(8, range=(1, 2**31))
+_BatchTable = dataclasses.make_dataclass(
+    "_BatchTable",
+    [
+        ("output", str | None, dataclasses.field(default=None)),
+        ("format", str, dataclasses.field(default="pc2")),
+        ("model", str | None, dataclasses.field(default=None)),
+        ("body", str | None, dataclasses.field(default=None)),
+        ("effects", str | None, dataclasses.field(default=None)),
+        ("quality", str | None, dataclasses.field(default=None)),
+        ("collision_margin", float | None, dataclasses.field(default=None)),
+        ("up", str, dataclasses.field(default="y")),
+        ("frames_per_call", int, key(8, range=(1, 2**31))),
+    ]
+    # the cloth stage's knobs, as a scene's [effects] names them
+    + [(f"cloth_{k}", float | None, dataclasses.field(default=None)) for k in CLOTH_KNOBS],
+    frozen=True,
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -115,6 +128,45 @@ def _name_ok(name: str, what: str, p: Path) -> str:
             got=repr(name),
         )
     return name
+
+
+def _batch_effects(b: dict, p: Path) -> Effects:
+    """What ``[batch]`` asks to run: ``effects`` (a complete list, or changes with ``quality``), ``quality`` (a
+    preset of ``run --quality``), ``collision_margin`` (``run --collision-margin``) and ``cloth_<knob>`` (``run
+    --cloth``); a knob whose stage is off is refused, as ``run`` refuses it (a new user's trial found none of them
+    in a jobs file: ``unknown key batch.quality``)."""
+    text = b.get("effects")
+    try:
+        if "quality" in b:
+            effects = preset_effects(b["quality"], text)
+        else:
+            effects = parse_effects(text) if text is not None else DEFAULT_EFFECTS
+    except (FileFormatError, InputError) as e:
+        what = "batch.quality" if "quality" in b else "batch.effects"
+        raise FileFormatError(f"{what}: {e.problem}", path=p, expected=e.expected, got=e.got) from None
+    knobs = {k[len("cloth_") :]: v for k, v in b.items() if k.startswith("cloth_")}
+    if knobs and not effects.cloth:
+        raise FileFormatError(
+            f"batch.cloth_{sorted(knobs)[0]} is set but the cloth stage is off",
+            path=p,
+            expected='effects with +cloth, or quality = "best"',
+            got=effects.label(),
+        )
+    if "collision_margin" in b and not (effects.collisions or effects.cloth):
+        raise FileFormatError(
+            "batch.collision_margin is set but neither collisions nor the cloth stage is on",
+            path=p,
+            expected="effects with collisions or cloth",
+            got=effects.label(),
+        )
+    try:
+        return dataclasses.replace(
+            effects,
+            collision_margin=float(b.get("collision_margin", effects.collision_margin)),
+            cloth_settings=ClothSettings(**knobs) if knobs else effects.cloth_settings,
+        )
+    except (ValueError, InputError) as e:
+        raise FileFormatError(f"[batch]: {e}", path=p) from None
 
 
 def load_batch(path) -> BatchConfig:
@@ -193,10 +245,7 @@ def load_batch(path) -> BatchConfig:
 
     if b.get("up", "y") not in UP_AXES:
         raise FileFormatError("unknown batch.up axis", path=p, expected=" | ".join(UP_AXES), got=b["up"])
-    try:
-        effects = parse_effects(b["effects"]) if "effects" in b else DEFAULT_EFFECTS
-    except FileFormatError as e:
-        raise e.with_path(p) from None
+    effects = _batch_effects(b, p)
     out = b.get("output")
     if out is not None and not is_url(out):
         out = str(rel(out))

@@ -65,6 +65,14 @@ def test_jobs_file_makes_every_garment_x_motion(tmp_path):
         (('frames = "0:6"', 'frames = "6:0"'), "0 <= A < B"),
         (("[batch]", '[batch]\nformat = "gif"'), "not an output format"),
         (("betas = [0.1]", "betas = 0.1"), "wrong type"),
+        (
+            ('effects = "lbs,collisions"', 'quality = "turbo"'),
+            r"batch.quality: unknown quality preset.*fast \| balanced",
+        ),
+        (('effects = "lbs,collisions"', 'quality = "fast"\neffects = "lbs"'), "batch.quality: a quality preset takes"),
+        (('effects = "lbs,collisions"', 'effects = "lbs"\ncollision_margin = 0.01'), "neither collisions nor the cl"),
+        (("[batch]", "[batch]\ncloth_iterations = 8"), "batch.cloth_iterations is set but the cloth stage is off"),
+        (('effects = "lbs,collisions"', 'quality = "best"\ncloth_iterations = 0'), "cloth iterations must be"),
     ],
 )
 def test_bad_jobs_files(tmp_path, edit, msg):
@@ -72,6 +80,33 @@ def test_bad_jobs_files(tmp_path, edit, msg):
     with pytest.raises(FileFormatError, match=msg) as e:
         load_batch(jobs_file(tmp_path, JOBS.replace(edit[0], edit[1], 1)))
     assert "jobs.toml" in str(e.value)
+
+
+def test_a_jobs_file_takes_a_preset_a_margin_and_cloth_knobs_as_run_does(tmp_path, capsys):
+    """`quality`, `collision_margin` and `cloth_<knob>` in [batch] are `run --quality --collision-margin --cloth`
+    (a new user's trial: `unknown key batch.quality`): a job's frames are those of the same `run`, and its spec
+    changes with them (a finished job is not taken for another setting's)."""
+    text = JOBS.replace(
+        'effects = "lbs,collisions"', 'quality = "best"\ncollision_margin = 0.006\ncloth_iterations = 2'
+    )
+    cfg = load_batch(jobs_file(tmp_path, text))
+    assert cfg.effects.cloth and cfg.effects.collision_margin == 0.006 and cfg.effects.cloth_settings.iterations == 2
+    plain = batch_jobs(
+        load_batch(jobs_file(tmp_path, JOBS.replace('effects = "lbs,collisions"', 'quality = "best"'), "plain.toml"))
+    )
+    assert {j.id: j.spec for j in batch_jobs(cfg)}.keys() == {j.id: j.spec for j in plain}.keys()
+    assert not {j.spec for j in batch_jobs(cfg)} & {j.spec for j in plain}
+    text = text.replace('[[garments]]\nname = "big-skirt"', '[[unused]]\nname = "big-skirt"').split("[[unused]]")[0]
+    jf = jobs_file(
+        tmp_path, text + f'[[motions]]\nfile = "{SAMPLES / "motions" / "walk.npz"}"\nframes = "0:4"\n', "one.toml"
+    )
+    assert main(["batch", str(jf)]) == 0
+    rec = json.loads((tmp_path / "out" / "jobs" / "skirt__walk.json").read_text())
+    assert rec["effects"] == "lbs+dynamics+wrinkles+cloth(iterations=2)"
+    args = ["--quality", "best", "--collision-margin", "0.006", "--cloth", "iterations=2", "--frames", "0:4"]
+    g, m = str(SAMPLES / "garments" / "skirt.obj"), str(SAMPLES / "motions" / "walk.npz")
+    assert main(["run", "--garment", g, "--motion", m, *args, "-o", str(tmp_path / "one.pc2")]) == 0
+    assert (tmp_path / "one.pc2").read_bytes() == (tmp_path / "out" / "skirt__walk.pc2").read_bytes()
 
 
 def test_batch_runs_resumes_and_refuses_a_changed_job(tmp_path, capsys):
