@@ -85,7 +85,11 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
     )
     if s.failed:  # every job that could run did; the failed ones run again next time
         f0 = s.failed[0]
+        # --force accepts only what a refusal says it would (a garment off the body): offered for nothing else (a
+        # units error ended "or pass --force" too: a new user's trial)
+        forced = not force and any("--force" in f["failed"] for f in s.failed)
         raise click.ClickException(
             f"{len(s.failed)} of {s.planned} jobs failed (first: job {f0['id']}, garment {f0['garment']!r}, motion "
-            f"{f0['motion']!r}: {f0['failed']}); fix the jobs file or pass --force, then run again to make them"
+            f"{f0['motion']!r}: {f0['failed']}); fix the jobs file{' or pass --force' if forced else ''}, then run "
+            "again to make them"
         )

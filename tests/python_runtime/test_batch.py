@@ -195,3 +195,17 @@ def test_a_job_whose_garment_is_refused_does_not_stop_the_others(tmp_path, capsy
     assert main(["batch", str(jf), "-j", "1", "--force"]) == 0  # the refused ones, accepted
     assert "4 jobs, 2 already done, 2 made -> " in capsys.readouterr().out
     assert np.isfinite(read_pc2(tmp_path / "out" / "big-skirt__walk.pc2").frames).all()
+
+
+def test_a_failed_batch_offers_force_only_for_what_force_accepts(tmp_path, capsys):
+    """A job refused for its garment file's contents (no face with an area) is not one --force makes: the summary
+    no longer ends "or pass --force" (a new user's trial); a garment off the body still is (test above)."""
+    (tmp_path / "flat.obj").write_text("v 0 1.2 0.15\nv 0.1 1.2 0.15\nv 0.2 1.2 0.15\nf 1 2 3\n")
+    text = JOBS.replace(
+        f'mesh = "{SAMPLES / "garments" / "skirt.obj"}"\nbetas = [0.1]', f'mesh = "{tmp_path / "flat.obj"}"'
+    )
+    assert text != JOBS
+    assert main(["batch", str(jobs_file(tmp_path, text)), "-j", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "2 of 4 jobs failed" in err and "no face with an area" in err
+    assert "--force" not in err.splitlines()[-1] and "fix the jobs file, then run again" in err
