@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import click
@@ -10,44 +11,112 @@ import numpy as np
 from .main import PathParam, cli
 
 
-def _frames_summary(path, frames: np.ndarray) -> None:
-    """Bounds, a NaN check and the motion per frame of a (S, N, 3) sequence; NaN/inf is an error."""
+@dataclasses.dataclass
+class FrameStats:
+    """What ``inspect`` says of a sequence's frames (:func:`frame_stats`).
+
+    Attributes:
+        n_frames, n_points: S and N.
+        nonfinite: NaN/inf values; bad_frames: the frames holding them (the rest is not computed when there are any).
+        far: the largest ``|x|``; lo, hi: the bounds (3,) over all frames.
+        step_mean, step_max: a vertex's motion from one frame to the next (metres), its mean and largest;
+        step_max_frame: the frame the largest ends at; still: frames identical to the one before.
+        centroid_range: how far each frame's centroid ranges over the frames (x, y, z).
+    """
+
+    n_frames: int
+    n_points: int
+    nonfinite: int = 0
+    bad_frames: list = dataclasses.field(default_factory=list)
+    far: float = 0.0
+    lo: np.ndarray = dataclasses.field(default_factory=lambda: np.full(3, np.inf))
+    hi: np.ndarray = dataclasses.field(default_factory=lambda: np.full(3, -np.inf))
+    step_mean: float = 0.0
+    step_max: float = 0.0
+    step_max_frame: int = 0
+    still: int = 0
+    centroid_range: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+
+
+def frame_stats(frames, max_values: int | None = None) -> FrameStats:
+    """The statistics of ``frames (S, N, 3)`` (an array or :class:`~segadeform.io.sequence.LazyFrames`), streamed
+    over the frames a bounded chunk at a time (``max_values`` coordinates, default
+    :data:`~segadeform.io.sequence.CHUNK_VALUES`; at least one frame): a long clip is never held whole, and each
+    chunk is upcast to float64 on its own (steps of float32 frames near 1e38 overflow).  The numbers are those of
+    the whole array, the mean step up to summation order."""
+    from segadeform.io.sequence import CHUNK_VALUES, frame_chunks
+
+    st = FrameStats(n_frames=len(frames), n_points=int(frames.shape[1]))
+    if st.n_frames == 0 or st.n_points == 0:
+        return st
+    prev = None
+    n_steps, step_sum, step_max = 0, 0.0, -1.0
+    cmin, cmax = np.full(3, np.inf), np.full(3, -np.inf)
+    for s, block in frame_chunks(frames, CHUNK_VALUES if max_values is None else max_values):
+        finite = np.isfinite(block)
+        ok = finite.all(axis=(1, 2))
+        if st.nonfinite or not ok.all():  # an error: the rest need not be computed
+            st.nonfinite += int(finite.size - np.count_nonzero(finite))
+            st.bad_frames.extend((s + np.flatnonzero(~ok)).tolist())
+            continue
+        del finite, ok
+        b = block.astype(np.float64)
+        st.far = max(st.far, float(b.max()), -float(b.min()))  # the largest |x| (np.abs would be another copy)
+        flat = b.reshape(-1, 3)
+        st.lo, st.hi = np.minimum(st.lo, flat.min(0)), np.maximum(st.hi, flat.max(0))
+        c = b.mean(axis=1)
+        cmin, cmax = np.minimum(cmin, c.min(0)), np.maximum(cmax, c.max(0))
+        d = np.diff(b, axis=0) if prev is None else np.diff(b, axis=0, prepend=prev[None])
+        first = s + 1 if prev is None else s  # the frame the first step of d ends at
+        prev = b[-1].copy()
+        if len(d):
+            step = np.linalg.norm(d, axis=2)  # (k, N)
+            n_steps += step.size
+            step_sum += float(step.sum())
+            m = step.max(axis=1)
+            j = int(m.argmax())
+            if m[j] > step_max:  # the first frame of the largest, as argmax over the whole
+                step_max, st.step_max_frame = float(m[j]), first + j
+            st.still += int((m == 0).sum())
+    if n_steps:
+        st.step_mean, st.step_max = step_sum / n_steps, step_max
+    st.centroid_range = cmax - cmin
+    return st
+
+
+def _frames_summary(path, frames) -> None:
+    """Bounds, a NaN check and the motion per frame of a (S, N, 3) sequence (an array or
+    :class:`~segadeform.io.sequence.LazyFrames`, streamed: :func:`frame_stats`); NaN/inf is an error."""
     from segadeform.bounds import MAX_POSITION
     from segadeform.errors import FileFormatError
 
-    bad = ~np.isfinite(frames).all(axis=(1, 2))
-    if bad.any():
-        idx = np.flatnonzero(bad)
+    st = frame_stats(frames)
+    if st.nonfinite:
+        idx = st.bad_frames
         raise FileFormatError(
-            f"{int((~np.isfinite(frames)).sum())} non-finite values (NaN or inf), in {len(idx)} frames "
+            f"{st.nonfinite} non-finite values (NaN or inf), in {len(idx)} frames "
             f"({', '.join(map(str, idx[:8]))}{' ...' if len(idx) > 8 else ''})",
             path=path,
         )
-    if len(frames) == 0 or frames.shape[1] == 0:
-        click.echo(f"  no {'frames' if len(frames) == 0 else 'points'}")
+    if st.n_frames == 0 or st.n_points == 0:
+        click.echo(f"  no {'frames' if st.n_frames == 0 else 'points'}")
         return
-    frames = frames.astype(np.float64)  # steps of float32 frames near 1e38 overflow
-    far = np.abs(frames).max()
-    if far > MAX_POSITION:
+    if st.far > MAX_POSITION:
         raise FileFormatError(
             "a point lies beyond 10 km of the origin (another unit?)",
             path=path,
             expected=f"|x| <= {MAX_POSITION:g} m",
-            got=f"{far:.3g}",
+            got=f"{st.far:.3g}",
         )
-    lo, hi = frames.reshape(-1, 3).min(0), frames.reshape(-1, 3).max(0)
-    click.echo(f"  bounds {np.round(lo, 4).tolist()} .. {np.round(hi, 4).tolist()} (all frames); NaN/inf: none")
-    if len(frames) > 1:
-        step = np.linalg.norm(np.diff(frames, axis=0), axis=2)  # (S-1, N)
-        c = frames.mean(axis=1).astype(float)
+    click.echo(f"  bounds {np.round(st.lo, 4).tolist()} .. {np.round(st.hi, 4).tolist()} (all frames); NaN/inf: none")
+    if st.n_frames > 1:
         click.echo(
-            f"  motion per frame: mean {1e3 * step.mean():.2f} mm, largest {1e3 * step.max():.2f} mm "
-            f"(frame {int(np.unravel_index(step.argmax(), step.shape)[0]) + 1}); centroid travels "
-            f"{np.round(np.ptp(c, axis=0), 4).tolist()} m (x, y, z range)"
+            f"  motion per frame: mean {1e3 * st.step_mean:.2f} mm, largest {1e3 * st.step_max:.2f} mm "
+            f"(frame {st.step_max_frame}); centroid travels "
+            f"{np.round(st.centroid_range, 4).tolist()} m (x, y, z range)"
         )
-        still = int((step.max(axis=1) == 0).sum())
-        if still:
-            click.echo(f"  {still} frames identical to the one before")
+        if st.still:
+            click.echo(f"  {st.still} frames identical to the one before")
 
 
 @cli.command("inspect")
@@ -78,7 +147,7 @@ def inspect_cmd(path):
     if sequence_format_of(path) is not None:  # every registered output format (segadeform.io.formats)
         fmt, summary, frames = inspect_sequence(path)
         click.echo(f"{path}: {fmt.name} sequence, {summary}")
-        _frames_summary(path, np.asarray(frames))
+        _frames_summary(path, frames)  # streamed: a long cache is never held whole
     elif ext in (".bvh", ".amc", ".glb", ".gltf"):  # motions `run --motion` takes (an AMC with its ASF beside it)
         from segadeform.motion import load_motion
 

@@ -73,10 +73,11 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     import numpy as np
 
     from segadeform.body import default_body_path, load_body
-    from segadeform.errors import InputError
-    from segadeform.io import read_mesh, read_sequence
+    from segadeform.errors import FileFormatError, InputError
+    from segadeform.io import read_mesh
     from segadeform.io.formats import sequence_start_frame
     from segadeform.io.output_guard import OutputGuard
+    from segadeform.io.sequence import CHUNK_VALUES, open_sequence_frames
     from segadeform.preview.render import MeshLayer, check_encoder, fit_bounds, render, save_animation, save_image
     from segadeform.settings import Y_TO_Z, parse_frames
 
@@ -99,7 +100,9 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     if not (16 <= w <= 8192 and 16 <= h <= 8192):  # 0x10 was a traceback, 99999x99999 "out of memory"
         raise click.UsageError(f"--size must be WIDTHxHEIGHT, each from 16 to 8192 pixels, got {size!r}")
     g = read_mesh(garment)
-    G = np.asarray(read_sequence(result, faces=g.faces), np.float64)
+    # frames are read when drawn (a PC2 by seeking to them, an Alembic's or a USD's time samples one at a time):
+    # `preview --frames 0:3` of a long cache read the whole of it (2.5 GB to draw 3 frames; a user's trial)
+    G = open_sequence_frames(result, faces=g.faces)
     if G.shape[1] != g.n_vertices:
         raise InputError(
             "the result and the garment have different vertex counts",
@@ -115,7 +118,7 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
             if side.is_file() and body_seq.suffix.lower() != ".obj"
             else load_body(body_model or default_body_path()).faces
         )
-        B = np.asarray(read_sequence(body_seq, faces=bf), np.float64)
+        B = open_sequence_frames(body_seq, faces=bf)
         n_rest = int(np.asarray(bf).max()) + 1 if np.asarray(bf).size else 0
         if B.shape[1] != n_rest:  # a garment's cache given as the body, or another body's (a user's trial)
             rest = (
@@ -133,10 +136,6 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
             raise InputError(
                 "the body and garment sequences have different frame counts", path=body_seq, expected=len(G), got=len(B)
             )
-    if up == "z":  # back to +Y up for rendering
-        R = np.array(Y_TO_Z)
-        G = G @ R
-        B = None if B is None else B @ R
     if len(G) == 0:
         raise InputError("the result has no frames", path=result, expected="a sequence of at least 1 frame")
     first = sequence_start_frame(result)  # the motion frame the result starts at
@@ -155,17 +154,47 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     if ext == ".png" and chosen > PNG_FRAMES:  # chosen before rendering (all were rendered, then 8 kept, unsaid)
         pick = np.linspace(0, chosen - 1, PNG_FRAMES).round().astype(int)
         idx, angles = [idx[i] for i in pick], [angles[i] for i in pick]
-    pts = G[idx] if B is None else np.concatenate([G[idx], B[idx]], axis=1)
-    # one scale for the whole animation (the largest frame), the camera following the subject
-    boxes = [fit_bounds(p, azimuth=ang, size=(w, h)) for p, ang in zip(pts, angles, strict=True)]
+    R = np.array(Y_TO_Z) if up == "z" else None  # back to +Y up for rendering
+
+    def drawn(seq, path, ks):
+        """Frames ``ks`` of ``seq`` as float64, +Y up; NaN or inf in one of them is an error naming it."""
+        pts = np.asarray(seq[ks], np.float64)
+        bad = np.flatnonzero(~np.isfinite(pts).all(axis=(1, 2)))
+        if bad.size:
+            raise FileFormatError(
+                f"frame {first + ks[int(bad[0])]} has a non-finite coordinate (NaN or inf)",
+                path=path,
+                expected="finite positions",
+            )
+        return pts if R is None else pts @ R
+
+    def read(ks):
+        """The garment's and the body's frames ``ks`` (the body None without one)."""
+        return drawn(G, result, ks), None if B is None else drawn(B, body_seq, ks)
+
+    # one scale for the whole animation (the largest frame), the camera following the subject: the frames drawn
+    # are framed a bounded chunk at a time, then read again one by one to be drawn (all at once when one chunk)
+    per = max(1, CHUNK_VALUES // (3 * (G.shape[1] + (0 if B is None else B.shape[1]))))
+    boxes, kept = [], None
+    for c in range(0, len(idx), per):
+        gs, bs = read(idx[c : c + per])
+        pts = gs if bs is None else np.concatenate([gs, bs], axis=1)
+        boxes += [fit_bounds(q, azimuth=ang, size=(w, h)) for q, ang in zip(pts, angles[c : c + per], strict=True)]
+        kept = (gs, bs) if len(idx) <= per else None
+        del pts
     half = max(max(bx[0][1] - bx[0][0], bx[1][1] - bx[1][0]) / np.array([w, h]).max() for bx in boxes) / 2
     images = []
     for k, t in enumerate(idx):
+        if kept is not None:
+            gk, bk = kept[0][k], None if kept[1] is None else kept[1][k]
+        else:
+            gs, bs = read([t])
+            gk, bk = gs[0], None if bs is None else bs[0]
         (x0, x1), (y0, y1) = boxes[k]
         cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
         bounds = ((cx - half * w, cx + half * w), (cy - half * h, cy + half * h))
-        layers = [] if B is None else [MeshLayer(B[t], bf, (0.86, 0.72, 0.62))]
-        layers.append(MeshLayer(G[t], g.faces, (0.28, 0.45, 0.82), depth_bias=0.004))
+        layers = [] if bk is None else [MeshLayer(bk, bf, (0.86, 0.72, 0.62))]
+        layers.append(MeshLayer(gk, g.faces, (0.28, 0.45, 0.82), depth_bias=0.004))
         images.append(
             render(layers, azimuth=angles[k], size=(w, h), bounds=bounds, title=f"{result.name}  frame {first + t}")
         )

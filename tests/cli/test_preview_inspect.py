@@ -354,3 +354,137 @@ def test_inspect_names_a_dataset_sample_not_a_motion(tmp_path):
     assert r.exit_code == 0, r.output
     assert "dataset sample, 4 frames of 3 garment vertices (1 triangle); split train, kind skirt" in r.output
     assert "motion" not in r.output.split(";")[0]
+
+
+def _whole_array_stats(frames):
+    """What inspect computed before it streamed: the whole clip as float64 at once."""
+    a = np.asarray(frames, np.float64)
+    step = np.linalg.norm(np.diff(a, axis=0), axis=2)
+    return {
+        "far": np.abs(a).max(),
+        "lo": a.reshape(-1, 3).min(0),
+        "hi": a.reshape(-1, 3).max(0),
+        "step_mean": step.mean(),
+        "step_max": step.max(),
+        "step_max_frame": int(np.unravel_index(step.argmax(), step.shape)[0]) + 1,
+        "still": int((step.max(axis=1) == 0).sum()),
+        "centroid_range": np.ptp(a.mean(axis=1), axis=0),
+    }
+
+
+def _long_cache(path, s, n=4, seed=0):
+    """A long PC2 of few vertices (a random walk, a frame repeated, the largest step twice)."""
+    rng = np.random.default_rng(seed)
+    fr = np.cumsum(0.01 * rng.normal(size=(s, n, 3)), axis=0).astype(np.float32)
+    fr[s // 3] = fr[s // 3 - 1]  # a frame identical to the one before
+    fr[5], fr[6] = fr[4] + 1.0, fr[4]  # the largest step, at frame 5 and (back, as large) at 6: the first is named
+    write_pc2(path, fr, start_frame=3)
+    return fr
+
+
+def test_inspect_streams_the_same_statistics_as_the_whole_array(tmp_path):
+    """inspect's statistics are computed a chunk of frames at a time (a long cache was held whole, as float64, and
+    its differences besides: 8x the file); they are the whole array's, whatever the chunk (the mean step to
+    summation order), and so is what inspect prints."""
+    from segadeform.cli.inspect_cmd import frame_stats
+    from segadeform.io.pc2 import PC2Frames
+
+    fr = _long_cache(tmp_path / "l.pc2", 301, n=6)
+    want = _whole_array_stats(fr)
+    pc = PC2Frames(tmp_path / "l.pc2")
+    for chunk in (1, 3 * 6, 7 * 3 * 6, 300 * 3 * 6, None):  # at least a frame; one; 7; the file less one; default
+        st = frame_stats(pc, max_values=chunk)
+        assert (st.n_frames, st.n_points, st.nonfinite) == (301, 6, 0)
+        for k in ("far", "lo", "hi", "step_max", "centroid_range"):
+            np.testing.assert_array_equal(getattr(st, k), want[k], err_msg=f"{k} at chunk {chunk}")
+        assert (st.step_max_frame, st.still) == (want["step_max_frame"], want["still"]) == (5, 1)
+        assert st.step_mean == pytest.approx(want["step_mean"], rel=1e-12)
+        from_array = frame_stats(fr, max_values=chunk)  # an array streams alike
+        assert all(np.array_equal(getattr(from_array, k), v) for k, v in vars(st).items())
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "l.pc2")])
+    assert r.exit_code == 0, r.output
+    assert f"bounds {np.round(want['lo'], 4).tolist()} .. {np.round(want['hi'], 4).tolist()} (all frames)" in r.output
+    assert (
+        f"motion per frame: mean {1e3 * want['step_mean']:.2f} mm, largest {1e3 * want['step_max']:.2f} mm (frame 5); "
+        f"centroid travels {np.round(want['centroid_range'], 4).tolist()} m" in r.output
+    )
+    assert "1 frames identical to the one before" in r.output
+
+
+def test_inspect_of_a_long_cache_reads_bounded_chunks_and_holds_no_more(tmp_path, monkeypatch):
+    """The reader is asked for chunks of a bounded number of values, each frame once, and the memory inspect
+    takes (tracemalloc's peak) is that of a few chunks, not of the clip: a cache of 60,000 frames peaks where one of
+    600 does.  NaN/inf is still counted over the whole clip."""
+    import tracemalloc
+
+    from segadeform.cli import inspect_cmd
+    from segadeform.io import sequence
+    from segadeform.io.pc2 import PC2Frames
+
+    monkeypatch.setattr(sequence, "CHUNK_VALUES", 3000)  # 250 frames of 4 vertices
+    long_ = _long_cache(tmp_path / "long.pc2", 60_000)
+    _long_cache(tmp_path / "short.pc2", 600)
+    asked = []
+    real = PC2Frames._read
+    monkeypatch.setattr(PC2Frames, "_read", lambda self, idx: asked.append(list(idx)) or real(self, idx))
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "long.pc2")])
+    assert r.exit_code == 0 and "60000 samples x 4 points" in r.output, r.output
+    assert max(len(a) for a in asked) == 250 and sorted(i for a in asked for i in a) == list(range(60_000))
+    monkeypatch.setattr(PC2Frames, "_read", real)
+
+    def peak(name):
+        tracemalloc.start()
+        try:
+            inspect_cmd.frame_stats(PC2Frames(tmp_path / name))
+            return tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+
+    short, long_peak = peak("short.pc2"), peak("long.pc2")
+    assert long_peak < 2 * short + 64_000, (short, long_peak)
+    assert long_peak < long_.nbytes / 8, (long_peak, long_.nbytes)  # the whole clip as float32 is 2.9 MB
+    raw = bytearray((tmp_path / "long.pc2").read_bytes())  # NaN in two far-apart frames: both counted
+    for frame in (10, 59_990):
+        off = 32 + frame * 4 * 12
+        raw[off : off + 4] = np.float32(np.nan).tobytes()
+    (tmp_path / "n.pc2").write_bytes(bytes(raw))
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "n.pc2")])
+    assert r.exit_code == 1 and "2 non-finite values (NaN or inf), in 2 frames (10, 59990)" in r.output, r.output
+
+
+@pytest.mark.parametrize("fmt", ["pc2", "abc", "usd"])
+def test_preview_reads_only_the_frames_it_draws(tmp_path, monkeypatch, fmt):
+    """`preview CACHE --body BODY --frames 0:3` read both caches whole, as float64 (2.5 GB to draw 3 frames of a
+    756 MB body; a user's trial).  Now the garment's and the body's frames drawn are read and no other: a PC2's by
+    seeking to them, an Alembic's or a USD's time samples one by one.  A frame of NaN not drawn is not read."""
+    import importlib.util
+
+    if fmt != "pc2" and importlib.util.find_spec({"abc": "alembic3d", "usd": "pxr"}[fmt]) is None:
+        pytest.skip(f"{fmt} needs its extra")
+    from segadeform.io import open_sequence_writer
+    from segadeform.io.alembic import AlembicFrames
+    from segadeform.io.pc2 import PC2Frames
+    from segadeform.io.usd import UsdFrames
+
+    fr = _scene(tmp_path, n_frames=40)
+    f = np.array([[0, 1, 2], [1, 3, 2]])
+    ext = {"pc2": ".pc2", "abc": ".abc", "usd": ".usd"}[fmt]
+    fr[30, 1] = np.nan  # not drawn
+    body = fr + [0.0, 0.0, -0.1]
+    for name, frames in (("r", fr), ("b", body)):
+        w = open_sequence_writer(tmp_path / f"{name}{ext}", fmt, faces=f, num_points=4, start_frame=10)
+        w._append(frames)  # the writers refuse NaN: written past the check
+        w.num_samples = len(frames)
+        w.close()
+    write_obj(tmp_path / "b.obj", Mesh(vertices=body[0], faces=f))
+    asked = []
+    cls = {"pc2": PC2Frames, "abc": AlembicFrames, "usd": UsdFrames}[fmt]
+    real = cls._read
+    monkeypatch.setattr(cls, "_read", lambda self, idx: asked.append((self.path.stem, list(idx))) or real(self, idx))
+    args = ["preview", str(tmp_path / f"r{ext}"), "--garment", str(tmp_path / "g.obj"), "--size", "40x30"]
+    args += ["--body", str(tmp_path / f"b{ext}"), "-o", str(tmp_path / "p.png")]
+    r = CliRunner().invoke(cli, args + ["--frames", "12:15"])
+    assert r.exit_code == 0 and "3 frames rendered" in r.output, r.output
+    assert sorted({i for _, idx in asked for i in idx}) == [2, 3, 4] and {n for n, _ in asked} == {"r", "b"}
+    r = CliRunner().invoke(cli, args + ["--frames", "39:41"])
+    assert r.exit_code == 1 and "frame 40 has a non-finite coordinate" in r.output and f"r{ext}" in r.output

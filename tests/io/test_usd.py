@@ -171,3 +171,31 @@ def test_usd_target_that_cannot_be_written(tmp_path, walk_motion):
     assert len(lines) == 1 and lines[0].startswith("Error: ") and "dress.usd" in lines[0], r.output
     assert "afile" in lines[0].split("dress.usd", 1)[1]  # and says why: afile is a file
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+@pytest.mark.parametrize("ext", [".usd", ".usda"])
+def test_lazy_frames_read_the_time_samples_asked_for(tmp_path, ext, monkeypatch):
+    """`read_usd_mesh(lazy=True)` reads a time sample when it is indexed, as float32 (`inspect` and `preview` of a
+    long USD held the whole clip as float64, 7.5 GB for a 756 MB body; a user's trial); the start frame is read
+    from the time codes alone."""
+    from segadeform.io import usd
+    from segadeform.io.formats import sequence_start_frame
+    from segadeform.io.sequence import open_sequence_frames
+
+    v, f, frames = _mesh(n=12, frames=9)
+    path = tmp_path / f"g{ext}"
+    with open_sequence_writer(path, "usd", faces=f, num_points=len(v), fps=30.0, start_frame=5) as w:
+        w.write(frames)
+    lazy = usd.read_usd_mesh(path, lazy=True)[2]
+    assert isinstance(lazy, usd.UsdFrames) and lazy.shape == (9, 12, 3) and lazy.dtype == np.float32
+    np.testing.assert_array_equal(lazy.times, 5 + np.arange(9))
+    asked = []
+    real = usd.UsdFrames._read
+    monkeypatch.setattr(usd.UsdFrames, "_read", lambda self, idx: asked.append(list(idx)) or real(self, idx))
+    np.testing.assert_array_equal(lazy[[2, 7]], frames[[2, 7]].astype(np.float32))
+    assert lazy[4].dtype == np.float32 and asked == [[2, 7], [4]]
+    np.testing.assert_array_equal(open_sequence_frames(path)[1:3], frames[1:3].astype(np.float32))
+    assert sequence_start_frame(path) == 5 and usd.usd_start_frame(path) == 5.0
+    whole = usd.read_usd_mesh(path)[2]  # not lazy: the whole clip, float64, as before
+    assert whole.dtype == np.float64
+    np.testing.assert_array_equal(whole, frames.astype(np.float32))

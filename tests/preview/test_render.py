@@ -87,3 +87,18 @@ def test_hard_triangles_cover_what_they_should():
     bad = [[[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [9.0, 9.0, 0.0]], [[1.0, 1.0, 0.0], [np.nan, 2.0, 0.0], [9.0, 1.0, 0.0]]]
     assert (rasterize(np.array(bad), w, h) == -1).all()
     assert (rasterize(np.zeros((0, 3, 3)), w, h) == -1).all()
+
+
+def test_a_subject_of_no_extent_renders_blank_without_warnings():
+    """Every point in one place (a cache of zeros): the framing had no size and rendering divided by it (NaN
+    warnings from numpy, a user's preview of such a cache)."""
+    import warnings
+
+    from segadeform.preview.render import fit_bounds
+
+    v, f = np.zeros((3, 3)), np.array([[0, 1, 2]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        img = render([MeshLayer(v, f)], size=(20, 10), bounds=fit_bounds(v, size=(20, 10)))
+        assert img.shape == (10, 20, 3) and (img == 255).all()
+        assert (render([MeshLayer(v, f)], size=(20, 10)) == 255).all()

@@ -15,18 +15,21 @@ from __future__ import annotations
 
 import gc
 import os
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..errors import FileFormatError, InputError, check_readable, unreadable_error
 from .atomic import _tmp_sibling
 from .mesh import validate_mesh_arrays
+from .sequence import LazyFrames
 from .surface import fan_triangles
 from .usd import usd_prim_name
 from .writer import SequenceWriter, nominal_fps
 
-__all__ = ["AlembicSequenceWriter", "read_alembic_sequence", "alembic_available"]
+__all__ = ["AlembicFrames", "AlembicSequenceWriter", "read_alembic_sequence", "alembic_available"]
 
 
 def _modules():
@@ -166,8 +169,42 @@ def alembic_start_frame(path: str | os.PathLike) -> float:
     return alembic_timing(path)[1]
 
 
-def read_alembic_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Read the first PolyMesh of an ``.abc`` file: faces ``(F, 3)``, frames ``(S, N, 3)``, times ``(S,)``."""
+class AlembicFrames(LazyFrames):
+    """The positions of an ``.abc`` mesh's samples ``(S, N, 3) float32``, read when indexed (N: the first
+    sample's).  ``times``: the sample times.  Each read opens the archive and lets it go (Alembic maps the file
+    into memory: an archive kept open over a long clip's reads holds all of it)."""
+
+    def __init__(self, path: Path, times: np.ndarray, n_points: int) -> None:
+        super().__init__(len(times), n_points, np.float32, path)
+        self._file = path
+        self.times = times
+
+    def _read(self, indices: Sequence[int]) -> np.ndarray:
+        Abc = _modules()[0]
+        out = np.empty((len(indices), *self.shape[1:]), np.float32)
+        try:
+            positions = _first_mesh_schema(self._file).getPositionsProperty()
+            for j, i in enumerate(indices):
+                pts = np.asarray(memoryview(positions.getValue(Abc.ISampleSelector(float(self.times[i])))))
+                if pts.shape != out.shape[1:]:
+                    raise FileFormatError(
+                        f"Alembic sample {i} has another number of points than the first",
+                        path=self._file,
+                        expected=out.shape[1:],
+                        got=pts.shape,
+                    )
+                out[j] = pts
+        except FileFormatError:
+            raise
+        except Exception as e:
+            raise unreadable_error(e, self._file, "Alembic") from None
+        return out
+
+
+def read_alembic_sequence(path: str | os.PathLike, *, lazy: bool = False) -> tuple[np.ndarray, Any, np.ndarray]:
+    """Read the first PolyMesh of an ``.abc`` file: faces ``(F, 3)``, frames ``(S, N, 3)`` float64, times ``(S,)``.
+
+    ``lazy``: frames are an :class:`AlembicFrames` (float32, each sample read when indexed) instead of an array."""
     p = Path(path)
     check_readable(p)  # a missing file is worded like every reader's, with or without the extra
     Abc, _, _, _ = _modules()
@@ -182,11 +219,9 @@ def read_alembic_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarr
             raise FileFormatError("Alembic mesh faces are not polygons of 3 or more corners", path=p)
         faces = fan_triangles(counts, corners[_reversed_corners(counts)])  # back to counter-clockwise
         times = np.array([ts.getSampleTime(i) for i in range(n)])
-        frames = np.stack(
-            [np.array(memoryview(schema.getValue(Abc.ISampleSelector(t)).getPositions())) for t in times]
-        ).astype(np.float64)
+        frames = AlembicFrames(p, times, len(memoryview(first.getPositions())))
     except FileFormatError:
         raise
     except Exception as e:
         raise unreadable_error(e, p, "Alembic") from None
-    return faces, frames, times
+    return faces, (frames if lazy else frames.read_all(np.float64)), times

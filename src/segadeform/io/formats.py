@@ -25,6 +25,7 @@ import dataclasses
 import os
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -62,8 +63,9 @@ class SequenceFormat:
         description: one line for help texts.
         extra: the optional dependency group it needs, if any.
         inspect: optional ``inspect(path) -> (summary, frames)`` for ``segadeform inspect``: a one-line
-            summary of the file (its header: counts, start frame ...) and its frames ``(S, N, 3)`` with
-            non-finite values kept (inspect reports them).  None: ``read`` and a summary of the counts.
+            summary of the file (its header: counts, start frame ...) and its frames ``(S, N, 3)`` (an array,
+            or :class:`~segadeform.io.sequence.LazyFrames` read when indexed) with non-finite values kept
+            (inspect reports them).  None: ``read`` and a summary of the counts.
         start: optional ``start(path) -> int``: the frame number of the file's first frame (``run --frames
             10:40`` writes 10), for :func:`sequence_start_frame`.  None: the format keeps none (0).
     """
@@ -178,9 +180,13 @@ def sequence_start_frame(path: str | os.PathLike) -> int:
     return 0 if f is None or f.start is None else int(round(f.start(p)))
 
 
-def inspect_sequence(path: str | os.PathLike) -> tuple[SequenceFormat, str, np.ndarray]:
+def inspect_sequence(path: str | os.PathLike) -> tuple[SequenceFormat, str, Any]:
     """``(format, summary, frames (S, N, 3))`` of an output of any registered format, for ``segadeform inspect``:
-    the format's ``inspect`` hook, else its reader and the counts.  Non-finite values are kept, not refused."""
+    the format's ``inspect`` hook, else its reader and the counts.  Non-finite values are kept, not refused.
+    Frames a hook gives as :class:`~segadeform.io.sequence.LazyFrames` (PC2, Alembic, USD) stay so: read when
+    indexed, a bounded part at a time (:func:`~segadeform.io.sequence.frame_chunks`)."""
+    from .sequence import LazyFrames
+
     p = Path(path)
     f = sequence_format_of(p)
     if f is None:
@@ -192,7 +198,7 @@ def inspect_sequence(path: str | os.PathLike) -> tuple[SequenceFormat, str, np.n
     else:
         frames = np.asarray(f.read(p, None))
         summary = f"{frames.shape[0]} frames x {frames.shape[1]} vertices"
-    return f, summary, np.asarray(frames)
+    return f, summary, frames if isinstance(frames, LazyFrames) else np.asarray(frames)
 
 
 # ---- the built-in formats ----------------------------------------------------------------------------------
@@ -209,14 +215,14 @@ def _pc2_read(path, faces):
 
 
 def _pc2_inspect(path):
-    from .pc2 import read_pc2
+    from .pc2 import PC2Frames
 
-    pc = read_pc2(path, check_finite=False)
+    pc = PC2Frames(path)  # read when indexed (a memory map of the whole file is resident once read through)
     h = pc.header
     return (
         f"{h.num_samples} samples x {h.num_points} points, start frame {h.start_frame:g}, "
         f"sample rate {h.sample_rate:g}",
-        pc.frames,
+        pc,
     )
 
 
@@ -288,7 +294,7 @@ def _abc_inspect(path):
     """A user's trial: `inspect X.abc` gave no frame rate or start frame (USD's did)."""
     from .alembic import alembic_timing, read_alembic_sequence
 
-    faces, frames, _ = read_alembic_sequence(path)
+    faces, frames, _ = read_alembic_sequence(path, lazy=True)
     fps, start = alembic_timing(path)
     rate = f"{fps:g} fps, start frame {start:g}" if fps > 0 else "no uniform frame rate"
     return f"{frames.shape[0]} samples x {frames.shape[1]} points, {len(faces)} triangles, {rate}", frames
@@ -363,16 +369,16 @@ def _usd_read(path, faces):
 
 
 def _usd_start(path):
-    from .usd import read_usd_sequence
+    from .usd import usd_start_frame
 
-    return read_usd_sequence(path)[2][0]
+    return usd_start_frame(path)
 
 
 def _usd_inspect(path):
     from .surface import fan_triangles
     from .usd import read_usd_mesh
 
-    counts, idx, frames, times, info = read_usd_mesh(path)
+    counts, idx, frames, times, info = read_usd_mesh(path, lazy=True)
     faces = _faces_said(len(counts), len(fan_triangles(counts, idx)))
     return (
         f"{frames.shape[0]} time samples x {frames.shape[1]} points, {faces} ({info['prim']}), "

@@ -19,18 +19,21 @@ from __future__ import annotations
 import dataclasses
 import os
 import struct
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import FileFormatError, InputError, file_error
 from .atomic import _tmp_sibling
+from .sequence import LazyFrames
 from .writer import SequenceWriter
 
 __all__ = [
     "PC2_HEADER",
     "PC2_MAGIC",
     "PC2Header",
+    "PC2Frames",
     "PointCache",
     "PC2Writer",
     "read_pc2_header",
@@ -133,6 +136,51 @@ def read_pc2(
                 bad = s + int(np.flatnonzero(~np.isfinite(block).reshape(len(block), -1).all(axis=1))[0])
                 raise FileFormatError(f"PC2 sample {bad} has a non-finite coordinate", path=p)
     return PointCache(header=h, frames=frames, path=str(p))
+
+
+class PC2Frames(LazyFrames):
+    """The frames of a PC2 file ``(S, N, 3) float32``, read from the file when indexed (a seek to the frame, one
+    read per run of consecutive frames): a summary or a preview of a long cache holds the frames it asks for and
+    no more (a memory map of the whole file is resident once every page is read).  ``header``: the file's.
+
+    Args:
+        num_points: if given, the file must have exactly this many points.
+    """
+
+    def __init__(self, path: str | os.PathLike, *, num_points: int | None = None) -> None:
+        p = Path(path)
+        self.header = h = read_pc2_header(p)
+        if num_points is not None and h.num_points != num_points:
+            raise FileFormatError(
+                "PC2 point count does not match the mesh", path=p, expected=num_points, got=h.num_points
+            )
+        super().__init__(h.num_samples, h.num_points, _FRAME_DTYPE, p)
+        self._file = p
+
+    def _read(self, indices: Sequence[int]) -> np.ndarray:
+        n = self.shape[1]
+        out = np.empty((len(indices), n, 3), _FRAME_DTYPE)
+        frame_bytes = n * 3 * _FRAME_DTYPE.itemsize
+        try:
+            with open(self._file, "rb") as fh:
+                j = 0
+                while j < len(indices):
+                    k = j + 1  # a run of consecutive frames is one read
+                    while k < len(indices) and indices[k] == indices[k - 1] + 1:
+                        k += 1
+                    fh.seek(PC2_HEADER.size + indices[j] * frame_bytes)
+                    got = fh.readinto(out[j:k].data.cast("B"))
+                    if got != (k - j) * frame_bytes:
+                        raise FileFormatError(
+                            f"PC2 file ends inside frame {indices[j] + got // frame_bytes} (was it cut short?)",
+                            path=self._file,
+                            expected=f"{PC2_HEADER.size + self.shape[0] * frame_bytes} bytes",
+                            got=f"{PC2_HEADER.size + indices[j] * frame_bytes + got} bytes",
+                        )
+                    j = k
+        except OSError as e:
+            raise file_error(e, self._file) from None
+        return out
 
 
 class PC2Writer(SequenceWriter):

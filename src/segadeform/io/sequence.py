@@ -1,6 +1,8 @@
 """Mesh sequences: a folder of per-frame OBJ files, and meshio's XDMF time series.
 
 Both hold one topology (faces) and S frames of positions ``(S, N, 3)``.
+:class:`LazyFrames` is the frames of a file read when indexed (a PC2's, an Alembic's, a USD's, an OBJ folder's:
+:func:`open_sequence_frames`), so that a summary or a preview of a long clip holds a bounded part of it at a time.
 Writers take frames in batches and publish their output atomically on
 ``close`` (a folder is built under a temporary name and renamed; an XDMF
 file likewise).  Readers check that every frame has the same topology.
@@ -21,8 +23,9 @@ import os
 import re
 import shutil
 import warnings
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -33,6 +36,12 @@ from .obj import read_obj, write_obj_positions
 from .writer import SequenceWriter, nominal_fps, to_up
 
 __all__ = [
+    "CHUNK_VALUES",
+    "LazyFrames",
+    "ArrayFrames",
+    "ObjFrames",
+    "frame_chunks",
+    "open_sequence_frames",
     "ObjSequenceWriter",
     "XdmfSequenceWriter",
     "read_obj_sequence",
@@ -43,6 +52,103 @@ __all__ = [
 ]
 
 _NUM = re.compile(r"(\d+)(?!.*\d)")
+
+#: coordinates in one chunk of :func:`frame_chunks` (4 MB of float32, 8 MB as float64): a summary of a clip holds
+#: about this much of it at a time, however long the clip
+CHUNK_VALUES = 1 << 20
+
+
+class LazyFrames:
+    """The frames ``(S, N, 3)`` of a file, read when indexed, in the file's own dtype (float32 for PC2, Alembic and
+    USD: not upcast): ``frames[i]`` is ``(N, 3)``, ``frames[a:b]`` and ``frames[[i, j, ...]]`` are ``(k, N, 3)``.
+    Nothing of the frames is held between reads (a reader keeps the file's header, or a text USD's parsed stage);
+    ``np.asarray(frames)`` reads the whole clip.
+
+    Subclasses set ``shape`` and ``dtype`` and implement ``_read(indices) -> (k, N, 3)`` for valid, non-negative
+    frame indices.
+    """
+
+    ndim = 3
+
+    def __init__(self, n_frames: int, n_points: int, dtype, path: str | os.PathLike | None = None) -> None:
+        self.shape = (int(n_frames), int(n_points), 3)
+        self.dtype = np.dtype(dtype)
+        self.path = None if path is None else Path(path)
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.shape[0]} frames x {self.shape[1]} points, {self.dtype}, {self.path})"
+
+    def _read(self, indices: Sequence[int]) -> np.ndarray:
+        raise NotImplementedError
+
+    def _index(self, i) -> int:
+        n = self.shape[0]
+        k = int(i)
+        if not -n <= k < n:
+            raise InputError("frame index out of range", path=self.path, expected=f"0..{n - 1}", got=k)
+        return k % n
+
+    def __getitem__(self, key) -> np.ndarray:
+        if isinstance(key, slice):
+            idx: Sequence[int] = range(*key.indices(self.shape[0]))
+        elif isinstance(key, (int, np.integer)):
+            return self[[self._index(key)]][0]
+        else:
+            a = np.asarray(key)
+            if a.ndim != 1 or not (a.size == 0 or np.issubdtype(a.dtype, np.integer)):
+                raise InputError(
+                    "frames are indexed by a frame, a slice or a list of frames",
+                    expected="an int, a slice or a 1-D sequence of ints",
+                    got=repr(key),
+                )
+            idx = [self._index(i) for i in a.tolist()]
+        if len(idx) == 0:
+            return np.empty((0, *self.shape[1:]), self.dtype)
+        out = np.asarray(self._read(idx))
+        if out.shape != (len(idx), *self.shape[1:]):
+            raise FileFormatError(
+                "frame has another number of points than the first",
+                path=self.path,
+                expected=(len(idx), *self.shape[1:]),
+                got=out.shape,
+            )
+        return out
+
+    def read_all(self, dtype=None) -> np.ndarray:
+        """The whole clip ``(S, N, 3)`` in ``dtype`` (default: the file's), filled chunk by chunk (one copy)."""
+        out = np.empty(self.shape, self.dtype if dtype is None else dtype)
+        for s, block in frame_chunks(self):
+            out[s : s + len(block)] = block
+        return out
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        return self.read_all(dtype)
+
+
+class ArrayFrames(LazyFrames):
+    """Frames already in memory ``(S, N, 3)`` (a format read whole, e.g. XDMF), indexed as :class:`LazyFrames`."""
+
+    def __init__(self, frames, path: str | os.PathLike | None = None) -> None:
+        a = np.asarray(frames)
+        if a.ndim != 3 or a.shape[2] != 3:
+            raise FileFormatError("frames are not (S, N, 3)", path=path, expected="(S, N, 3)", got=a.shape)
+        super().__init__(a.shape[0], a.shape[1], a.dtype, path)
+        self._frames = a
+
+    def _read(self, indices: Sequence[int]) -> np.ndarray:
+        return self._frames[list(indices)]
+
+
+def frame_chunks(frames: Any, max_values: int = CHUNK_VALUES) -> Iterator[tuple[int, np.ndarray]]:
+    """``(first frame, block (k, N, 3))`` over ``frames`` (an array or :class:`LazyFrames`), each block at most
+    ``max_values`` coordinates (at least one frame): the clip read a bounded part at a time."""
+    n, per = len(frames), 3 * int(frames.shape[1])
+    step = max(1, int(max_values) // max(per, 1))
+    for s in range(0, n, step):
+        yield s, np.asarray(frames[s : min(n, s + step)])
 
 
 def _surface_obj_text(surface, num_points: int) -> str:
@@ -149,22 +255,61 @@ def read_obj_sequence(directory: str | os.PathLike) -> tuple[np.ndarray, np.ndar
     Returns:
         faces ``(F, 3) int64`` and frames ``(S, N, 3) float64``.
     """
-    d = Path(directory)
-    keyed = obj_sequence_files(d)
-    first = read_obj(keyed[0][1])
-    frames = np.empty((len(keyed), first.n_vertices, 3))
-    frames[0] = first.vertices
-    for i, (_, f) in enumerate(keyed[1:], start=1):
-        mesh = read_obj(f)
-        if mesh.n_vertices != first.n_vertices or not np.array_equal(mesh.faces, first.faces):
-            raise FileFormatError(
-                "frame topology differs from the first frame",
-                path=f,
-                expected=f"{first.n_vertices} vertices, {first.n_faces} faces as in {keyed[0][1].name}",
-                got=f"{mesh.n_vertices} vertices, {mesh.n_faces} faces",
-            )
-        frames[i] = mesh.vertices
-    return first.faces, frames
+    seq = ObjFrames(directory)
+    return seq.faces, seq.read_all()
+
+
+class ObjFrames(LazyFrames):
+    """The frames of a folder of OBJ files (:func:`obj_sequence_files`), each file read when its frame is, its
+    topology checked against the first's; ``faces`` the first's, frames float64."""
+
+    def __init__(self, directory: str | os.PathLike) -> None:
+        self._files = [f for _, f in obj_sequence_files(directory)]
+        self._first = read_obj(self._files[0])
+        self.faces = self._first.faces
+        super().__init__(len(self._files), self._first.n_vertices, np.float64, directory)
+
+    def _read(self, indices: Sequence[int]) -> np.ndarray:
+        first = self._first
+        out = np.empty((len(indices), *self.shape[1:]))
+        for j, i in enumerate(indices):
+            mesh = first if i == 0 else read_obj(self._files[i])
+            if mesh.n_vertices != first.n_vertices or not np.array_equal(mesh.faces, first.faces):
+                raise FileFormatError(
+                    "frame topology differs from the first frame",
+                    path=self._files[i],
+                    expected=f"{first.n_vertices} vertices, {first.n_faces} faces as in {self._files[0].name}",
+                    got=f"{mesh.n_vertices} vertices, {mesh.n_faces} faces",
+                )
+            out[j] = mesh.vertices
+        return out
+
+
+def open_sequence_frames(path: str | os.PathLike, *, faces: np.ndarray | None = None) -> LazyFrames:
+    """The frames of a sequence of any registered format, read when indexed (:class:`LazyFrames`): a PC2's from
+    the file, frame by frame; an Alembic's or a USD's time samples, one at a time; an OBJ folder's files, one at a
+    time.  Any other format (XDMF, one registered elsewhere) is read whole
+    (:func:`~segadeform.io.formats.read_sequence`).  Values are as the file holds them, non-finite ones included."""
+    from .formats import read_sequence, sequence_format_of
+
+    p = Path(path)
+    f = sequence_format_of(p)
+    name = None if f is None else f.name
+    if name == "pc2":
+        from .pc2 import PC2Frames
+
+        return PC2Frames(p)
+    if name == "abc":
+        from .alembic import read_alembic_sequence
+
+        return cast(LazyFrames, read_alembic_sequence(p, lazy=True)[1])
+    if name == "usd":
+        from .usd import read_usd_mesh
+
+        return cast(LazyFrames, read_usd_mesh(p, lazy=True)[2])
+    if name == "obj-seq":
+        return ObjFrames(p)
+    return ArrayFrames(read_sequence(p, faces=faces), p)
 
 
 class XdmfSequenceWriter(SequenceWriter):

@@ -20,22 +20,27 @@ import contextlib
 import os
 import re
 import unicodedata
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..errors import FileFormatError, InputError, check_readable, unreadable_error
 from .atomic import WriteError, _tmp_sibling, write_error
 from .mesh import validate_mesh_arrays
+from .sequence import LazyFrames
 from .surface import fan_triangles
 from .writer import SequenceWriter, nominal_fps
 
 __all__ = [
+    "UsdFrames",
     "UsdSequenceWriter",
     "read_usd_mesh",
     "read_usd_sequence",
     "usd_available",
     "usd_prim_name",
+    "usd_start_frame",
     "USD_EXTENSIONS",
 ]
 
@@ -162,6 +167,55 @@ class UsdSequenceWriter(SequenceWriter):
         self._stage = None
 
 
+class UsdFrames(LazyFrames):
+    """The time samples of a USD mesh's ``points`` ``(S, N, 3) float32`` (or its one default value), read when
+    indexed (N: the first's).  ``times``: the time codes.  Without ``stage``, each read opens the stage and lets
+    it go (a binary USD file is mapped into memory: a stage kept open over a long clip's reads holds all of it); a
+    text one, parsed whole when opened, is read from the ``stage`` given."""
+
+    def __init__(self, path: Path, prim: str, times: np.ndarray, n_points: int, *, default=None, stage=None) -> None:
+        super().__init__(len(times), n_points, np.float32, path)
+        self._file, self._prim, self._default, self.times = path, prim, default, times
+        self._stage = stage
+
+    def _read(self, indices: Sequence[int]) -> np.ndarray:
+        out = np.empty((len(indices), *self.shape[1:]), np.float32)
+        attr = None
+        if self._default is None:
+            Usd, UsdGeom, _, _, _ = _modules()
+            stage = self._stage
+            if stage is None:
+                try:
+                    stage = Usd.Stage.Open(str(self._file))
+                except Exception as e:
+                    raise unreadable_error(e, self._file, "USD") from None
+            prim = None if stage is None else stage.GetPrimAtPath(self._prim)
+            if prim is None or not prim.IsA(UsdGeom.Mesh):
+                raise FileFormatError("USD mesh is gone from the file", path=self._file, expected=self._prim)
+            attr = UsdGeom.Mesh(prim).GetPointsAttr()
+        for j, i in enumerate(indices):
+            pts = self._default if attr is None else attr.Get(float(self.times[i]))
+            a = np.asarray(pts if pts is not None else [], np.float32)
+            if a.shape != out.shape[1:]:
+                raise FileFormatError(
+                    f"USD points at time code {self.times[i]:g} are not the first's {self.shape[1]} 3-vectors",
+                    path=self._file,
+                    expected=out.shape[1:],
+                    got=a.shape,
+                )
+            out[j] = a
+        return out
+
+
+def _is_crate(path: Path) -> bool:
+    """Whether ``path`` is a binary (crate) USD file, by its magic."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(8) == b"PXR-USDC"
+    except OSError:
+        return False
+
+
 def read_usd_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
     """The first mesh of a USD file: faces ``(F, 3)``, frames ``(S, N, 3)`` (its points' time samples, or its
     one default value), time codes ``(S,)`` and the stage's ``{"up", "meters_per_unit", "fps", "start",
@@ -170,9 +224,19 @@ def read_usd_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, 
     return fan_triangles(counts, idx), frames, times, info
 
 
-def read_usd_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+def usd_start_frame(path: str | os.PathLike) -> float:
+    """The first time code of a USD mesh's points (0 for points without time samples); reads no frame."""
+    return float(read_usd_mesh(path, lazy=True)[3][0])
+
+
+def read_usd_mesh(
+    path: str | os.PathLike, *, lazy: bool = False
+) -> tuple[np.ndarray, np.ndarray, Any, np.ndarray, dict]:
     """:func:`read_usd_sequence` with the mesh's own polygons for its triangles: ``faceVertexCounts (F,)`` and
-    ``faceVertexIndices (C,)``, then frames, time codes and the stage's values."""
+    ``faceVertexIndices (C,)``, then frames (float64), time codes and the stage's values.
+
+    ``lazy``: frames are a :class:`UsdFrames` (float32, each time sample read when indexed) instead of an array;
+    the face indices are then checked against the first sample's points."""
     p = Path(path)
     check_readable(p)
     Usd, UsdGeom, _, _, _ = _modules()
@@ -196,19 +260,24 @@ def read_usd_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.n
         )
     attr = mesh.GetPointsAttr()
     times = np.asarray(attr.GetTimeSamples(), np.float64)
+    default = None
     if times.size:
-        frames = np.stack([np.asarray(attr.Get(t), np.float64) for t in times])
+        first = attr.Get(float(times[0]))
     else:
-        pts = attr.Get()
-        if pts is None:
+        default = first = attr.Get()
+        if first is None:
             raise FileFormatError("USD mesh has no points", path=p, got=str(mesh.GetPath()))
-        frames, times = np.asarray(pts, np.float64)[None], np.zeros(1)
-    if frames.ndim != 3 or frames.shape[2] != 3:
-        raise FileFormatError("USD points are not 3-vectors", path=p, got=frames.shape)
-    if idx.size and (idx.min() < 0 or idx.max() >= frames.shape[1]):
+        times = np.zeros(1)
+    shape = np.shape(np.asarray(first if first is not None else [], np.float32))
+    if len(shape) != 2 or shape[1] != 3:
+        raise FileFormatError("USD points are not 3-vectors", path=p, got=(len(times), *shape))
+    if idx.size and (idx.min() < 0 or idx.max() >= shape[0]):
         raise FileFormatError(
-            "USD face index out of range", path=p, expected=f"0..{frames.shape[1] - 1}", got=f"{idx.min()}..{idx.max()}"
+            "USD face index out of range", path=p, expected=f"0..{shape[0] - 1}", got=f"{idx.min()}..{idx.max()}"
         )
+    mapped = lazy and _is_crate(p)  # a binary file is mapped, not parsed: lazy frames open it again per read
+    seq = UsdFrames(p, str(mesh.GetPath()), times, shape[0], default=default, stage=None if mapped else stage)
+    frames = seq if lazy else seq.read_all(np.float64)
     info = {
         "up": str(UsdGeom.GetStageUpAxis(stage)),
         "meters_per_unit": float(UsdGeom.GetStageMetersPerUnit(stage)),

@@ -99,7 +99,9 @@ def render(
             (c[1] - r / min(aspect, 1), c[1] + r / min(aspect, 1)),
         )
     (x0, x1), (y0, y1) = bounds
-    s = max((x1 - x0) / w, (y1 - y0) / h)  # equal scale on both axes
+    # equal scale on both axes; a subject of no extent (every point in one place: a cache of zeros) is not a
+    # division by zero (NaN warnings, nothing drawn): a micrometre a pixel
+    s = max((x1 - x0) / w, (y1 - y0) / h, 1e-6)
     cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
     pix = np.empty_like(T)  # pixel coordinates: x right, y down, depth (larger: nearer)
     pix[..., 0] = (T[..., 0] - (cx - s * w / 2)) / s
