@@ -166,6 +166,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     from segadeform.bounds import check_betas, check_body_height
     from segadeform.errors import InputError
     from segadeform.garments.registration import edge_distortion, fit_mhclo, fit_to_body_mesh, guess_units_and_up
+    from segadeform.geometry.mesh_ops import check_has_area
     from segadeform.io import read_mesh
     from segadeform.io.mhclo import read_mhclo
     from segadeform.io.obj import OWN_COMMENT, betas_record, rewrite_obj_vertices
@@ -222,6 +223,8 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
             expected="a MakeHuman binding (--mhclo) or --from-body with --betas",
             got="a plain OBJ",
         )
+    mesh = read_mesh(obj)
+    check_has_area(mesh.vertices, mesh.faces, path=obj)  # a garment of flat faces was written, exit 0
     guard = OutputGuard("garment fit", inputs=(garment, mhclo, obj, from_body, body))
     guard.file(output)
     bm = load_body(body or default_body_path())
@@ -240,7 +243,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         default_margin = 0.003
     elif from_body is not None:
         src = read_mesh(from_body)
-        g = read_mesh(obj)
+        g = mesh
         try:
             u_read, up_read, _ = guess_units_and_up(src.vertices, units=units_v, up=up)
         except InputError as e:
@@ -264,14 +267,13 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         how = f"registered to {from_body.name}{read_as} (body fit {100 * fit.body_error:.1f} cm mean)"
         default_margin = 0.003
     else:
-        g = read_mesh(obj)
+        g = mesh
         v = fix_units_and_axes(g.vertices, units=units_v, up=up or "y", scale=scale)
         how = f"units {units or 'm'}, up {up or 'y'}, scale {scale:g}"
         default_margin = None
     if off is not None:  # after the fit (a binding's, another body's) or the unit/axis fix
         v = v + np.asarray(off, np.float64)
         how += f", offset {off}"
-    mesh = read_mesh(obj)
     if len(mesh.vertices) != len(v):
         raise InputError(
             f"the binding and {obj.name} have different vertex counts",

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from segadeform.errors import SegadeformError
+from segadeform.errors import InputError, SegadeformError
 
 from .garment import _betas, garment_group
 from .main import PathParam
@@ -72,15 +72,18 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
     else:
         n_star = config["n_star"]
         mesh = read_mesh(garment)
-        asset = precompute_garment(
-            mesh.vertices,
-            mesh.faces,
-            b.rest_joints()[0],
-            k=k,
-            n_star=n_star,
-            source_name=garment.name,
-            source_sha256=file_sha256(garment),
-        )
+        try:
+            asset = precompute_garment(
+                mesh.vertices,
+                mesh.faces,
+                b.rest_joints()[0],
+                k=k,
+                n_star=n_star,
+                source_name=garment.name,
+                source_sha256=file_sha256(garment),
+            )
+        except InputError as e:  # of the garment's mesh ("no face with an area"): named by its file (it was not)
+            raise e.with_path(garment) from None
     unfit = None
     try:
         check_body_height(b, beta_vals)

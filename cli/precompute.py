@@ -38,6 +38,7 @@ from .main import PathParam, cli
 def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, geodesic):
     """Precompute graph, features and descriptor of GARMENT (OBJ, PLY, OFF, STL ...)."""
     from segadeform.body import load_rest_joints
+    from segadeform.errors import InputError
     from segadeform.geometry import DEFAULT_GEODESIC, DEFAULT_MAX_K, DEFAULT_N_STAR, precompute_garment
     from segadeform.io import read_mesh
     from segadeform.io.garment_asset import check_asset_path
@@ -53,17 +54,20 @@ def precompute_cmd(garment, output, joints_path, body_path, k, max_k, n_star, ge
     t0 = time.perf_counter()
     mesh = read_mesh(garment)
     joints = load_rest_joints(joints_path or body_path)
-    asset = precompute_garment(
-        mesh.vertices,
-        mesh.faces,
-        joints,
-        k=k,
-        max_k=max_k or DEFAULT_MAX_K,
-        n_star=n_star or DEFAULT_N_STAR,
-        geodesic=geodesic or DEFAULT_GEODESIC,
-        source_name=garment.name,
-        source_sha256=file_sha256(garment),
-    )
+    try:
+        asset = precompute_garment(
+            mesh.vertices,
+            mesh.faces,
+            joints,
+            k=k,
+            max_k=max_k or DEFAULT_MAX_K,
+            n_star=n_star or DEFAULT_N_STAR,
+            geodesic=geodesic or DEFAULT_GEODESIC,
+            source_name=garment.name,
+            source_sha256=file_sha256(garment),
+        )
+    except InputError as e:  # of the garment's mesh ("no face with an area"): named by its file (it was not)
+        raise e.with_path(garment) from None
     asset.save(output)
     guard.record()
     dt = time.perf_counter() - t0

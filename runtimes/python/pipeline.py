@@ -122,6 +122,8 @@ class RunSummary:
     first_frame: int = 0
     #: the run's first frame counted from the motion's first, 0 (``--frames A:``)
     start: int = 0
+    #: with ``resolution < 1``: (the vertices the model ran on, the garment's), else None
+    resolution_vertices: tuple | None = None
 
     @property
     def ms_per_frame(self) -> float:
@@ -178,6 +180,7 @@ class Run:
         collider: Callable = BodyCollider,
         body_backend: str = "auto",
         guard=None,
+        resolution: float = 1.0,
     ) -> None:
         if not callable(collider):
             raise InputError(
@@ -196,6 +199,16 @@ class Run:
         self._asset: GarmentAsset | None = None  # checked_asset's
         self._surface: np.ndarray | None = None  # _surface_faces's
         self._asset_seconds = 0.0
+        r = float(resolution)
+        if not (np.isfinite(r) and 0.0 < r <= 1.0):
+            raise InputError(
+                "resolution is the share of the garment's vertices the model runs on", expected="0 < R <= 1", got=r
+            )
+        self.resolution = r
+        #: with resolution < 1: the garment as given (vertices, faces), which the outputs, collisions and the
+        #: cloth stage use, and the map from the model's decimated garment back to it (load_asset)
+        self._full: tuple[np.ndarray, np.ndarray] | None = None
+        self._smap = None
         self.start, self.stop = frame_range(frames, motion.n_frames, first=self._motion_start())
         self.guard = guard
         if guard is not None:  # refused before any work: an output over a file segadeform did not write ...
@@ -219,6 +232,13 @@ class Run:
     def load_asset(self, joints: np.ndarray) -> GarmentAsset:
         n_star = int(self.package.config["n_star"])
         if self.garment.suffix.lower() in (".npz", PORTABLE_SUFFIX):
+            if self.resolution < 1.0:
+                raise InputError(
+                    "a garment asset is one resolution: --resolution takes the garment's mesh",
+                    path=self.garment,
+                    expected="an .obj (or another mesh file) with --resolution",
+                    got=self.garment.suffix,
+                )
             asset = GarmentAsset.load(self.garment)
             if asset.descriptor.shape != (n_star,):  # an asset exported for another model (a new user's trial)
                 raise InputError(
@@ -245,8 +265,19 @@ class Run:
         # keyed by the file's bytes, and must not make a file that fails to read (an OBJ renamed .txt) run
         mesh = read_mesh(self.garment)
         sha = file_sha256(self.garment) if self.garment.is_file() else ""
+        if self.resolution < 1.0:  # the model runs on the garment decimated, its frames carried back to every vertex
+            from segadeform.garments.resample import SurfaceMap, decimate
+
+            full = mesh
+            v, f = decimate(full.vertices, full.faces, max(4, int(round(len(full.vertices) * self.resolution))))
+            mesh = type(full)(vertices=v, faces=f)
+            self._full = (np.asarray(full.vertices, np.float64), np.asarray(full.faces, np.int64))
+            self._smap = SurfaceMap.build(full.vertices, v, f)
         cdir = self._cache_dir()
-        cpath = cdir / f"asset-{sha[:32]}-n{n_star}-p{PRECOMPUTE_VERSION}.npz" if cdir is not None and sha else None
+        res = "" if self.resolution == 1.0 else f"-r{self.resolution:.6g}"
+        cpath = (
+            cdir / f"asset-{sha[:32]}-n{n_star}-p{PRECOMPUTE_VERSION}{res}.npz" if cdir is not None and sha else None
+        )
         if cpath is not None and cpath.is_file():
             try:
                 a = GarmentAsset.load(cpath)
@@ -254,15 +285,18 @@ class Run:
                     return a
             except Exception:  # a stale or broken cache entry is recomputed
                 log.warning("ignoring unreadable asset cache %s", cpath)
-        a = precompute_garment(
-            mesh.vertices,
-            mesh.faces,
-            joints,
-            n_star=n_star,
-            source_name=self.garment.name,
-            source_sha256=sha,
-            surface=self._surface_faces(mesh.vertices, mesh.faces),
-        )
+        try:
+            a = precompute_garment(
+                mesh.vertices,
+                mesh.faces,
+                joints,
+                n_star=n_star,
+                source_name=self.garment.name,
+                source_sha256=sha,
+                surface=self._surface_faces(mesh.vertices, mesh.faces),
+            )
+        except InputError as e:  # of the garment's mesh ("no face with an area"): named by its file (it was not)
+            raise e.with_path(self.garment) from None
         if cpath is not None:
             try:
                 a.save(cpath)
@@ -324,6 +358,11 @@ class Run:
         poser = cast(BodyPoser, self.body_poser)
         return poser.pose(np.zeros((1, 3 * self.body.n_joints)), self.betas, np.zeros((1, 3)))[0]
 
+    def _output_mesh(self, asset: GarmentAsset) -> tuple[np.ndarray, np.ndarray]:
+        """The garment the run writes, collides and steps the cloth stage on: the asset's, or with
+        ``resolution < 1`` the garment as given (the model's frames are carried to it)."""
+        return self._full if self._full is not None else (asset.vertices, asset.faces)
+
     def _cloth_stage(self, asset: GarmentAsset):
         """The cloth stage for this run: the garment's per-garment data on the body at rest (posed as the run poses
         it, zero pose: the same float32 body the other runtimes use with the body graph), cached with the garment,
@@ -331,9 +370,8 @@ class Run:
         from segadeform.body.cloth import ClothStage, garment_setup
 
         rest = self._body_rest()  # the cloth stage needs the body
-        setup = garment_setup(
-            asset.vertices, asset.faces, rest, self.body.faces, self.effects.cloth_settings, cache_dir=self._cache_dir()
-        )
+        gv, gf = self._output_mesh(asset)
+        setup = garment_setup(gv, gf, rest, self.body.faces, self.effects.cloth_settings, cache_dir=self._cache_dir())
         return ClothStage(
             setup,
             rest,
@@ -368,15 +406,16 @@ class Run:
         )
         stage["encode"] += time.perf_counter() - t
         need_body = self.effects.collisions or self.effects.cloth or self.body_output is not None
+        out_v, out_f = self._output_mesh(asset)
         out = SceneOutput(
             path=self.output,
             fmt=self.output_format,
             up=self.up,
             fps=self.motion.fps,
             start_frame=self.start + self._motion_start(),  # a cut motion file's numbers
-            garment_faces=asset.faces,
-            garment_rest=asset.vertices,
-            garment_surface=garment_surface(self.garment, asset.n_vertices, self.output_format),
+            garment_faces=out_f,
+            garment_rest=out_v,
+            garment_surface=garment_surface(self.garment, len(out_v), self.output_format),
             body_path=self.body_output,
             body_faces=self.body.faces,
             body_rest=self._body_rest() if self.body_output else None,
@@ -397,7 +436,7 @@ class Run:
             # up to 7 mm at each chunk's start); it costs those A frames.  Without either every frame stands alone.
             stateful = cloth is not None or self.effects.collisions
             warm_up = range(0, self.start, batch) if stateful else range(0)
-            carry = np.zeros((asset.n_vertices, 3)) if self.effects.collisions else None
+            carry = np.zeros((len(out_v), 3)) if self.effects.collisions else None
             for lo in [*warm_up, *range(self.start, self.stop, batch)]:
                 writing = lo >= self.start
                 if writing and lo == self.start and cloth is not None:  # the run reports its own frames' counts
@@ -411,6 +450,8 @@ class Run:
                 trans = self.motion.trans[lo:hi]
                 root = np.zeros_like(trans)
                 verts = self.deformer.deform(P, asset, win, joints, root, self.betas, log_wbody=lw)
+                if self._smap is not None:  # carried to every vertex of the garment as given
+                    verts = self._smap.apply(verts)
                 stage["deform"] += time.perf_counter() - t
                 if not np.isfinite(verts).all():
                     raise InputError(f"the deformer produced NaN or inf at frames {lo}..{hi - 1}")
@@ -462,6 +503,7 @@ class Run:
         return RunSummary(
             first_frame=self.start + self._motion_start(),
             start=self.start,
+            resolution_vertices=(asset.n_vertices, len(out_v)) if self._full is not None else None,
             frames=self.stop - self.start,
             seconds=time.perf_counter() - t_all,
             output=self.output,
@@ -685,6 +727,7 @@ def run_scene(
     body_backend: str = "auto",
     guard=None,
     frames_from_scene: bool = True,
+    resolution: float = 1.0,
 ) -> RunSummary:
     """Run a scene (optionally overriding its model package and output path); ``body_backend`` and ``guard``:
     :class:`Run`'s.  ``frames_from_scene``: the frame range is the scene file's (a range past the motion's end
@@ -757,6 +800,7 @@ def run_scene(
         force=force,
         body_backend=body_backend,
         guard=guard,
+        resolution=resolution,
     )
     run.checked_asset()
     for words in said:

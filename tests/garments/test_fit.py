@@ -733,3 +733,21 @@ def test_check_recorded_shape_pads_with_zeros_and_ignores_a_garment_without_a_re
     check_recorded_shape((), np.zeros(10))
     with pytest.raises(PlacementError, match=r"betas 0\.5, not for this body's betas 0\.5,0\.001"):
         check_recorded_shape((0.5,), (0.5, 0.001), path="g.obj")
+
+
+def test_a_garment_with_no_face_area_is_named_and_not_fitted(tmp_path):
+    """A new user's trial: a garment whose one face is flat (collinear corners) was refused by run, precompute and
+    garment export without naming the file, and `garment fit` wrote it, exit 0."""
+    g = tmp_path / "colin.obj"
+    g.write_text("v 0 1.2 0.15\nv 0.1 1.2 0.15\nv 0.2 1.2 0.15\nf 1 2 3\n")
+    motion = str(ROOT / "samples/motions/walk.npz")
+    for args, out in (
+        (["run", "--garment", str(g), "--motion", motion, "-o", str(tmp_path / "o.pc2"), "--no-cache"], "o.pc2"),
+        (["precompute", str(g), "--body", str(default_body_path()), "-o", str(tmp_path / "a.npz")], "a.npz"),
+        (["garment", "export", str(g), "-o", str(tmp_path / "a.sgda")], "a.sgda"),
+        (["garment", "fit", str(g), "-o", str(tmp_path / "fit.obj")], "fit.obj"),
+    ):
+        r = CliRunner().invoke(cli, args)
+        assert r.exit_code == 1, (args, r.output)
+        assert f"{g}: the garment has no face with an area" in r.output, r.output
+        assert len(r.output.strip().splitlines()) == 1 and not (tmp_path / out).exists(), r.output

@@ -6,6 +6,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
+from ..errors import InputError
 from ._checks import check_faces, check_mesh
 
 __all__ = [
@@ -19,6 +20,7 @@ __all__ = [
     "boundary_loops",
     "surface_faces",
     "mesh_defects",
+    "check_has_area",
     "misoriented_edges",
     "connected_components",
     "adjacency",
@@ -169,6 +171,24 @@ def mesh_defects(vertices: np.ndarray, faces: np.ndarray) -> dict[str, int]:
     out["duplicated"] += int(second.sum())  # a quad given again along its other diagonal (a review: it went unsaid)
     out["non_manifold"], out["misoriented"] = _edge_defects(s[~second])
     return out
+
+
+def check_has_area(vertices: np.ndarray, faces: np.ndarray, *, path=None) -> None:
+    """Refuse a mesh none of whose faces has an area (each flat, :data:`FLAT`, or with a repeated corner): it has no
+    surface (:func:`surface_faces` is empty) and no garment can be made of it -- the precompute refuses it, and
+    ``garment fit`` wrote one, exit 0 (a new user's trial).  ``path``: the file it came from, named in the error.
+
+    Raises:
+        InputError
+    """
+    v, f = check_mesh(vertices, faces)
+    if not f.size or _degenerate(v, f).all():
+        raise InputError(
+            "the garment has no face with an area",
+            path=path,
+            expected="triangles whose corners are not collinear",
+            got=f"{len(f)} flat or broken face{'' if len(f) == 1 else 's'}",
+        )
 
 
 def misoriented_edges(surface: np.ndarray, n_vertices: int) -> int:
