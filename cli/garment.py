@@ -161,6 +161,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     """
     import numpy as np
 
+    from segadeform import __version__
     from segadeform.body import default_body_path, load_body
     from segadeform.body.placement import fix_units_and_axes, placement_report, push_off_body
     from segadeform.bounds import check_betas, check_body_height
@@ -169,7 +170,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     from segadeform.geometry.mesh_ops import check_has_area
     from segadeform.io import read_mesh
     from segadeform.io.mhclo import read_mhclo
-    from segadeform.io.obj import OWN_COMMENT, betas_record, rewrite_obj_vertices
+    from segadeform.io.obj import OWN_COMMENT, betas_record, material_libraries, recorded_betas, rewrite_obj_vertices
     from segadeform.io.output_guard import OutputGuard
 
     _obj_output(output)
@@ -287,14 +288,31 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     pushed = 0
     if m is not None:
         v, pushed = push_off_body(v, rest, bm.faces, m)
-    # a refit records the body shape it was fitted for (`run` refuses the garment on another); a unit/axis fix
-    # keeps the shape, and whatever record the file has
-    header = () if binding is None and from_body is None else (f"{OWN_COMMENT} fit: {how}", betas_record(b or ()))
+    pushed_text = f", {pushed} pushed to {1e3 * m:.0f} mm" if m else ""
+    # the first line says what rewrote the file, and how (a fitted file kept its source's `# Exported from Maya 2024`
+    # with nothing saying segadeform had moved every vertex: a new user's trial); a refit records the body shape it
+    # was fitted for (`run` refuses the garment on another); a unit/axis fix keeps the shape, and whatever record
+    # the file has
+    fitted = (
+        f"{OWN_COMMENT} fit: {how}{pushed_text} (segadeform {__version__}; from {obj.name}: vertices moved, normals "
+        "recomputed, the other lines kept)"
+    )
+    kept = recorded_betas(obj)
+    if binding is None and from_body is None:
+        header: tuple[str, ...] = (fitted,) if kept is None else (fitted, betas_record(kept))
+    else:
+        header = (fitted, betas_record(b or ()))
+    libraries = material_libraries(obj, output)
     rewrite_obj_vertices(obj, v, output, header=header)
     guard.record()
     rep = placement_report(v, rest, bm.faces)
-    click.echo(f"{obj.name}: {len(v)} vertices, {how}" + (f", {pushed} pushed to {1e3 * m:.0f} mm" if m else ""))
+    click.echo(f"{obj.name}: {len(v)} vertices, {how}{pushed_text}")
     click.echo(f"  {rep.line()}")
+    for name, written in libraries.items():  # the copy names the material library as found from its folder
+        if written is None:
+            click.echo(f"  mtllib {name}: no such file beside {obj.name} or the output; left out")
+        elif written != name:
+            click.echo(f"  mtllib {name}: written as {written} (the file beside {obj.name})")
     click.echo(f"  -> {output}")
 
 

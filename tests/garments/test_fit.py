@@ -751,3 +751,41 @@ def test_a_garment_with_no_face_area_is_named_and_not_fitted(tmp_path):
         assert r.exit_code == 1, (args, r.output)
         assert f"{g}: the garment has no face with an area" in r.output, r.output
         assert len(r.output.strip().splitlines()) == 1 and not (tmp_path / out).exists(), r.output
+
+
+def test_garment_fit_into_another_folder_keeps_its_material_library_found_and_says_it_fitted(tmp_path, dress):
+    """A new user's trial: `garment fit` of a Maya OBJ into another folder copied `mtllib garment.mtl` with no such
+    file there (Blender's OBJ import logs an error on each import of it) and kept `# Exported from Maya 2024` as its
+    first line, nothing saying segadeform had rewritten every vertex.  The library is named as found from the
+    output's folder (a relative path to the source's), one found nowhere is left out, and the first line says the
+    file was fitted, by which segadeform and how; a record of the body shape is kept by a unit fix."""
+    from segadeform import __version__
+    from segadeform.io import Mesh, write_obj
+    from segadeform.io.obj import recorded_betas
+
+    src, out = tmp_path / "maya", tmp_path / "fitted" / "deep"
+    src.mkdir()
+    write_obj(src / "plain.obj", Mesh(vertices=dress.vertices * 100, faces=dress.faces))
+    body = [ln for ln in (src / "plain.obj").read_text().splitlines() if not ln.startswith("#")]
+    head = ["# Exported from Maya 2024", "mtllib garment.mtl", "mtllib gone.mtl", "usemtl cotton"]
+    (src / "g.obj").write_text("\n".join(head + body) + "\n")
+    (src / "garment.mtl").write_text("newmtl cotton\nKd 0.8 0.8 0.8\n")
+
+    def fit(source, output):
+        r = CliRunner().invoke(cli, ["garment", "fit", str(source), "-o", str(output), "--units", "cm"])
+        assert r.exit_code == 0, r.output
+        return r.output, output.read_text().splitlines()
+
+    said, lines = fit(src / "g.obj", out / "fit.obj")
+    libs = [ln.split(maxsplit=1)[1] for ln in lines if ln.startswith("mtllib")]
+    assert libs == ["../../maya/garment.mtl"] and all((out / x).is_file() for x in libs), lines[:5]
+    assert "mtllib gone.mtl: no such file" in said and "written as ../../maya/garment.mtl" in said, said
+    assert lines[0].startswith("# segadeform garment fit: units cm, up y, scale 1 (segadeform ")
+    assert __version__ in lines[0] and lines[1] == "# Exported from Maya 2024", lines[:3]
+    assert recorded_betas(out / "fit.obj") is None  # a file from elsewhere records no shape, as before
+    np.testing.assert_allclose(read_mesh(out / "fit.obj").vertices, dress.vertices, atol=1e-5)
+    # beside its source, the library is named as it was; a unit fix keeps the shape the source records
+    (src / "made.obj").write_text("# segadeform garment: kind=dress\n# betas: 1.5\n" + "\n".join(head + body) + "\n")
+    _, lines = fit(src / "made.obj", src / "fit.obj")
+    assert [ln for ln in lines if ln.startswith("mtllib")] == ["mtllib garment.mtl"]
+    assert recorded_betas(src / "fit.obj") == (1.5,) and sum("betas:" in ln for ln in lines) == 1

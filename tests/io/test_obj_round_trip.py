@@ -60,6 +60,7 @@ f 1//3 2//3 9//3 8//3
 def rich_obj(tmp_path):
     p = tmp_path / "rich.obj"
     p.write_text(RICH)
+    (tmp_path / "garment.mtl").write_text("newmtl cotton\n")  # its mtllib is found (a copy leaves out one that is not)
     return p
 
 

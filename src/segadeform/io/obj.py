@@ -38,6 +38,7 @@ __all__ = [
     "BETAS_RECORD",
     "betas_record",
     "recorded_betas",
+    "material_libraries",
 ]
 
 _IGNORED = {
@@ -426,13 +427,68 @@ def write_obj_positions(path, faces: np.ndarray, vertices: np.ndarray, **kw) -> 
     write_obj(path, Mesh(vertices=np.asarray(vertices, np.float64), faces=faces), **kw)
 
 
+def _library_at(name: str, folder: Path) -> Path | None:
+    """The material library ``name`` (an ``mtllib`` name: relative to the OBJ's folder, or absolute) as found from
+    ``folder``; None when no file is there."""
+    p = Path(name.replace("\\", "/"))
+    p = p if p.is_absolute() else folder / p
+    return p if p.is_file() else None
+
+
+def material_libraries(src: str | os.PathLike, dst: str | os.PathLike) -> dict[str, str | None]:
+    """What a copy of OBJ ``src`` written at ``dst`` names for each material library ``src``'s ``mtllib`` lines name:
+    the name itself when it is found from ``dst``'s folder, a path from there to the file ``src`` names when only
+    that is found (relative, with ``/``), or None when neither is (the ``mtllib`` is left out: a ``garment fit`` into
+    another folder kept ``mtllib garment.mtl`` with no such file beside it, and Blender's OBJ import logs an error on
+    each import of a file naming a missing library).  A name with spaces is one name when the whole of it is found.
+
+    Returns:
+        ``{name in src: name to write, or None}``, in the order named
+    """
+    src, dst = Path(src), Path(dst)
+    out: dict[str, str | None] = {}
+    try:
+        lines = obj_logical_lines(src)
+    except OSError as e:
+        raise file_error(e, src) from None
+    for _, ln in lines:
+        words = ln.split()
+        if words[:1] != ["mtllib"] or len(words) < 2:
+            continue
+        whole = ln.split(maxsplit=1)[1].strip()
+        found = _library_at(whole, dst.parent) or _library_at(whole, src.parent)
+        for name in [whole] if found is not None or len(words) == 2 else words[1:]:
+            if name in out:
+                continue
+            if _library_at(name, dst.parent) is not None:
+                out[name] = name
+            elif (at := _library_at(name, src.parent)) is not None:
+                try:
+                    out[name] = Path(os.path.relpath(at.resolve(), dst.parent.resolve())).as_posix()
+                except ValueError:  # another drive (Windows): no relative path
+                    out[name] = at.resolve().as_posix()
+            else:
+                out[name] = None
+    return out
+
+
+def _mtllib_line(ln: str, libraries: dict[str, str | None]) -> str | None:
+    """An ``mtllib`` line of the source as the copy writes it (:func:`material_libraries`); None: left out."""
+    whole = ln.split(maxsplit=1)[1].strip() if len(ln.split()) > 1 else ""
+    names = [whole] if whole in libraries else ln.split()[1:]
+    kept = [w for w in (libraries.get(n, n) for n in names) if w is not None]
+    return "mtllib " + " ".join(kept) if kept else None
+
+
 def rewrite_obj_vertices(
     src: str | os.PathLike, vertices: np.ndarray, dst: str | os.PathLike, *, header: tuple[str, ...] = ()
 ) -> Path:
     """Copy an OBJ file with its ``v`` lines replaced by ``vertices`` (same order) and its ``vn`` lines
     recomputed for them (:func:`corner_normals`), keeping faces (quads and polygons as they are), UVs, groups,
     materials and every other line; written atomically.  ``header``: comment lines written first; with them, the
-    source's own body-shape record and ``segadeform garment fit`` lines (a garment fitted before) are dropped.
+    source's own body-shape record and ``segadeform garment fit`` lines (a garment fitted before) are dropped.  A
+    material library (``mtllib``) is named as it is found from ``dst``'s folder, or left out when it is not there
+    (:func:`material_libraries`).
 
     Shapes:
         vertices: (N, 3), N = the file's ``v`` lines
@@ -449,6 +505,7 @@ def rewrite_obj_vertices(
     if not np.isfinite(v).all():
         raise InputError("fitted vertices are not finite", path=src)
     normals = corner_normals(lines, v, path=src)
+    libraries = material_libraries(src, dst)
     it, k = iter(v), 0
     superseded = (BETAS_RECORD, OWN_COMMENT + " fit:")
     with atomic_open(dst, "w", encoding="utf-8", newline="\n") as fh:
@@ -466,6 +523,10 @@ def rewrite_obj_vertices(
                 nx = normals[k]
                 k += 1
                 fh.write(f"vn {nx[0]:.6f} {nx[1]:.6f} {nx[2]:.6f}\n")
+            elif key == ["mtllib"]:
+                kept = _mtllib_line(ln, libraries)
+                if kept is not None:
+                    fh.write(kept + "\n")
             else:
                 fh.write(ln + "\n")
     return dst
