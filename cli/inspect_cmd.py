@@ -84,9 +84,10 @@ def frame_stats(frames, max_values: int | None = None) -> FrameStats:
     return st
 
 
-def _frames_summary(path, frames) -> None:
+def _frames_summary(path, frames, head: str | None = None) -> None:
     """Bounds, a NaN check and the motion per frame of a (S, N, 3) sequence (an array or
-    :class:`~segadeform.io.sequence.LazyFrames`, streamed: :func:`frame_stats`); NaN/inf is an error."""
+    :class:`~segadeform.io.sequence.LazyFrames`, streamed: :func:`frame_stats`); NaN/inf is an error.  ``head``:
+    the summary's first line, said once the frames are read (an error is then the one line said)."""
     from segadeform.bounds import MAX_POSITION
     from segadeform.errors import FileFormatError
 
@@ -98,6 +99,8 @@ def _frames_summary(path, frames) -> None:
             f"({', '.join(map(str, idx[:8]))}{' ...' if len(idx) > 8 else ''})",
             path=path,
         )
+    if head is not None:
+        click.echo(head)
     if st.n_frames == 0 or st.n_points == 0:
         click.echo(f"  no {'frames' if st.n_frames == 0 else 'points'}")
         return
@@ -146,8 +149,7 @@ def inspect_cmd(path):
         raise file_error(e, path) from None
     if sequence_format_of(path) is not None:  # every registered output format (segadeform.io.formats)
         fmt, summary, frames = inspect_sequence(path)
-        click.echo(f"{path}: {fmt.name} sequence, {summary}")
-        _frames_summary(path, frames)  # streamed: a long cache is never held whole
+        _frames_summary(path, frames, f"{path}: {fmt.name} sequence, {summary}")  # streamed: never held whole
     elif ext in (".bvh", ".amc", ".glb", ".gltf"):  # motions `run --motion` takes (an AMC with its ASF beside it)
         from segadeform.motion import load_motion
 

@@ -48,6 +48,8 @@ def test_malformed_corpus_through_the_cli(tmp_path, random_package):
             problems.append("traceback")
         if r["words"] not in r["output"]:
             problems.append(f"message lacks {r['words']!r}")
+        if len([ln for ln in r["output"].splitlines() if ln.strip()]) != 1:
+            problems.append("not one line")
         if r["out_exists"]:
             problems.append("partial output written")
         if problems:
