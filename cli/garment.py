@@ -135,6 +135,14 @@ def garment_kinds_cmd():
     type=click.Choice(["y", "z", "-z", "x"]),
     help="Up axis of the garment (and --from-body) file (default y; with --from-body, read from the body).",
 )
+@click.option(
+    "--turn",
+    type=float,
+    default=0.0,
+    metavar="DEGREES",
+    help="Turn the garment (and --from-body) by DEGREES about the up axis through the origin, after --units/--up: "
+    "counterclockwise seen from above (the body faces +z; a garment facing +x takes 270, one facing backward 180).",
+)
 @click.option("--scale", type=float, default=1.0, show_default=True, help="Extra scale factor.")
 @click.option(
     "--offset", help="Move by dx,dy,dz metres (after a --mhclo/--from-body fit, or after units, axes and scale)."
@@ -150,14 +158,14 @@ def garment_kinds_cmd():
     is_flag=True,
     help="Write the garment even when it does not sit on the body, or when a --from-body fit tore it.",
 )
-def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, scale, offset, margin, force):
-    """Bring GARMENT (OBJ or .mhclo) onto the body: a MakeHuman binding, --from-body, or --units/--up/--scale.
+def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, turn, scale, offset, margin, force):
+    """Bring GARMENT (OBJ or .mhclo) onto the body: a MakeHuman binding, --from-body, or --units/--up/--turn/--scale.
 
     Vertex order and count are kept; faces (quads and polygons as they are), UVs and groups are copied from the
     input OBJ, and its normals recomputed for the fitted vertices.  --offset moves the result (after a fit, or
-    after --units/--up/--scale); --betas reshapes only what can be refitted (--mhclo, --from-body).  A result that
-    does not sit on the body (a plain fix of a file in other units or axes), or that a --from-body fit tore (a
-    source body whose pose was not found), is refused with the fix, unless --force.
+    after --units/--up/--turn/--scale); --betas reshapes only what can be refitted (--mhclo, --from-body).  A
+    result that does not sit on the body (a plain fix of a file in other units, axes or facing), or that a
+    --from-body fit tore (a source body whose pose was not found), is refused with the fix, unless --force.
     """
     import numpy as np
 
@@ -183,6 +191,8 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
             raise ValueError
     except ValueError:
         raise click.UsageError(f"--offset must be dx,dy,dz, got {offset!r}") from None
+    if not np.isfinite(turn):
+        raise click.UsageError(f"--turn must be degrees, got {turn!r}")
     obj = garment
     if garment.suffix.lower() == ".mhclo":
         if mhclo is not None and Path(mhclo).resolve() != Path(garment).resolve():
@@ -196,7 +206,12 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
             raise click.UsageError("give --mhclo or --from-body, not both")
         fixes = [
             f
-            for f, given in (("--units", units is not None), ("--up", up not in (None, "y")), ("--scale", scale != 1.0))
+            for f, given in (
+                ("--units", units is not None),
+                ("--up", up not in (None, "y")),
+                ("--turn", turn % 360 != 0),
+                ("--scale", scale != 1.0),
+            )
             if given
         ]
         if fixes:  # the binding places every vertex on the body itself: these cannot apply
@@ -252,8 +267,8 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
         read_as = "" if units_v is not None and up is not None else f", read in {u_read} with +{up_read} up"
         if units_v is None:
             units_v = u_read
-        src_v = fix_units_and_axes(src.vertices, units=units_v, up=up_read, scale=scale)
-        g_v = fix_units_and_axes(g.vertices, units=units_v, up=up_read, scale=scale)
+        src_v = fix_units_and_axes(src.vertices, units=units_v, up=up_read, scale=scale, turn=turn)
+        g_v = fix_units_and_axes(g.vertices, units=units_v, up=up_read, scale=scale, turn=turn)
         fit = fit_to_body_mesh(g_v, src_v, src.faces, bm, b, garment_faces=g.faces)
         v = fit.vertices
         torn, worst = edge_distortion(g_v, v, g.faces)
@@ -265,12 +280,14 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
                 path=garment,
                 expected="a source body standing, walking or near a T- or A-pose (--units/--up if misread), or --force",
             )
-        how = f"registered to {from_body.name}{read_as} (body fit {100 * fit.body_error:.1f} cm mean)"
+        turned = f", turned {turn:g} degrees" if turn % 360 else ""
+        how = f"registered to {from_body.name}{read_as}{turned} (body fit {100 * fit.body_error:.1f} cm mean)"
         default_margin = 0.003
     else:
         g = mesh
-        v = fix_units_and_axes(g.vertices, units=units_v, up=up or "y", scale=scale)
-        how = f"units {units or 'm'}, up {up or 'y'}, scale {scale:g}"
+        v = fix_units_and_axes(g.vertices, units=units_v, up=up or "y", scale=scale, turn=turn)
+        turned = f", turn {turn:g}" if turn % 360 else ""
+        how = f"units {units or 'm'}, up {up or 'y'}{turned}, scale {scale:g}"
         default_margin = None
     if off is not None:  # after the fit (a binding's, another body's) or the unit/axis fix
         v = v + np.asarray(off, np.float64)
@@ -283,7 +300,13 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
             got=len(v),
         )
     if binding is None and from_body is None and not force:
-        _check_plain_fix(g.vertices, v, rest, bm.faces, garment, how)
+        given = (
+            (f" --units {units}" if units is not None else "")
+            + (f" --up {up}" if up not in (None, "y") else "")
+            + (f" --turn {turn:g}" if turn % 360 else "")
+            + (f" --scale {scale:g}" if scale != 1.0 else "")
+        )
+        _check_plain_fix(g.vertices, v, rest, bm.faces, garment, how, given=None if off is not None else given)
     m = default_margin if margin is None else margin
     pushed = 0
     if m is not None:
@@ -316,10 +339,13 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, s
     click.echo(f"  -> {output}")
 
 
-def _check_plain_fix(original, fixed, rest, faces, path, how: str) -> None:
+def _check_plain_fix(original, fixed, rest, faces, path, how: str, *, given: str | None = None) -> None:
     """Refuse a plain unit/axis fix whose result does not sit on the body, with the options that make the
-    original file sit (check_placement's suggestion is for the file as given, not for this fix's result)."""
-    from segadeform.body.placement import PlacementError, check_placement
+    original file sit (check_placement's suggestion is for the file as given, not for this fix's result).
+    ``given``: the fix's options as typed (``--units cm --up z``; None: it moved the garment too, --offset): a result
+    that sits once turned about the up axis is named with them and the --turn it takes (with none, the file as given
+    is the result, and its refusal names the turn)."""
+    from segadeform.body.placement import FACING, PlacementError, check_placement, facing_turn
     from segadeform.errors import InputError
 
     try:
@@ -327,6 +353,15 @@ def _check_plain_fix(original, fixed, rest, faces, path, how: str) -> None:
         return
     except PlacementError as e:
         failed = e
+    t = facing_turn(fixed, rest, faces) if given and "--turn" not in given else None
+    if t is not None:  # read right, and facing another way (a cm, z-up, +x-facing garment read in cm with +z up)
+        raise InputError(
+            f"the garment does not sit on the body with {how}: it faces {FACING[t]}, the body +z (forward); it does "
+            f"once also turned {t} degrees about the up axis",
+            path=path,
+            expected=f"a garment facing the body's front: run `segadeform garment fit {path} -o FIXED.obj{given} "
+            f"--turn {t}`, or pass --force",
+        )
     if not np.array_equal(np.asarray(original, np.float64), np.asarray(fixed, np.float64)):
         try:
             check_placement(original, rest, faces, path=path)

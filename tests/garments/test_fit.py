@@ -789,3 +789,41 @@ def test_garment_fit_into_another_folder_keeps_its_material_library_found_and_sa
     _, lines = fit(src / "made.obj", src / "fit.obj")
     assert [ln for ln in lines if ln.startswith("mtllib")] == ["mtllib garment.mtl"]
     assert recorded_betas(src / "fit.obj") == (1.5,) and sum("betas:" in ln for ln in lines) == 1
+
+
+def test_a_garment_facing_another_way_is_named_with_the_turn(tmp_path, body):
+    """A new user's trial: a shirt turned 180 degrees about the up axis, and a cm, z-up, +x-facing one (Unreal
+    Engine's) read in cm with +z up, were said to be made for another body (`--from-body THEIR_BODY.obj`).  The
+    check tries the garment turned about the up axis, and names the turn; `garment fit --turn` applies it."""
+    from segadeform.garments import GarmentParams, make_garment
+    from segadeform.io import Mesh, write_obj
+
+    g = make_garment("tshirt", body, None, GarmentParams())
+    rest = body.shaped_vertices()[0]
+    check_placement(g.vertices, rest, body.faces)  # it sits as made
+    np.testing.assert_allclose(fix_units_and_axes([[0.0, 0.0, 1.0]], turn=90), [[1.0, 0.0, 0.0]], atol=1e-12)
+    back = fix_units_and_axes(g.vertices, turn=180)
+    with pytest.raises(
+        PlacementError, match=r"turned 180 degrees.*faces -z \(backward\).*fit g\.obj -o FIXED\.obj --turn 180`"
+    ):
+        check_placement(back, rest, body.faces, path=Path("g.obj"))
+    # the file in cm, +z up, facing +x: what --units cm --up z --turn 270 brings back
+    rot = fix_units_and_axes(np.eye(3), up="z", turn=270).T
+    ue = (g.vertices * 100) @ rot
+    np.testing.assert_allclose(fix_units_and_axes(ue, units="cm", up="z", turn=270), g.vertices, atol=1e-9)
+    with pytest.raises(PlacementError, match=r"read in cm with \+z up, turned 270.*--units cm --up z --turn 270`"):
+        check_placement(ue, rest, body.faces, path=Path("g.obj"))
+    write_obj(tmp_path / "ue.obj", Mesh(vertices=ue, faces=g.faces))
+    out = tmp_path / "fixed.obj"
+
+    def fit(*extra):
+        return CliRunner().invoke(cli, ["garment", "fit", str(tmp_path / "ue.obj"), "-o", str(out), *extra])
+
+    r = fit("--units", "cm", "--up", "z")  # read right, facing +x: the turn is named with the options given
+    assert r.exit_code == 1 and "faces +x" in r.output and "--units cm --up z --turn 270`" in r.output, r.output
+    assert "another body" not in r.output and not out.exists()
+    r = fit("--units", "cm", "--up", "z", "--turn", "270")
+    assert r.exit_code == 0 and "turn 270" in r.output, r.output
+    np.testing.assert_allclose(read_mesh(out).vertices, g.vertices, atol=1e-5)
+    r = fit("--mhclo", str(SAMPLES / "skirt_short_f.mhclo"), "--turn", "90")
+    assert r.exit_code == 1 and "got --turn" in r.output, r.output

@@ -15,6 +15,10 @@ from .collision import BodyProxy, push_out
 __all__ = [
     "UNIT_SCALES",
     "fix_units_and_axes",
+    "turn_about_up",
+    "TURNS",
+    "FACING",
+    "facing_turn",
     "FitReport",
     "placement_report",
     "push_off_body",
@@ -26,11 +30,24 @@ __all__ = [
 UNIT_SCALES = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "ft": 0.3048}
 
 
+def turn_about_up(degrees: float) -> np.ndarray:
+    """The rotation ``(3, 3)`` by ``degrees`` about +Y (the up axis), counterclockwise seen from above: +Z (the
+    body's front) goes to +X at 90."""
+    t = np.radians(float(degrees))
+    c, s = np.cos(t), np.sin(t)
+    if abs(c) < 1e-12:
+        c = 0.0
+    if abs(s) < 1e-12:
+        s = 0.0
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
 def fix_units_and_axes(
-    vertices, *, units: str | float | None = None, up: str = "y", scale: float = 1.0, offset=None
+    vertices, *, units: str | float | None = None, up: str = "y", scale: float = 1.0, offset=None, turn: float = 0.0
 ) -> np.ndarray:
-    """A plain similarity: file units to metres, the file's up axis to +Y, an extra scale, then ``offset``
-    (metres, after the rest).
+    """A plain similarity: file units to metres, the file's up axis to +Y, a turn of ``turn`` degrees about it (about
+    the origin, counterclockwise seen from above: :func:`turn_about_up`), an extra scale, then ``offset`` (metres,
+    after the rest).
 
     ``up``: ``"y"`` (no change), ``"z"`` (Blender / 3ds Max: (x, y, z) -> (x, z, -y)), ``"-z"``, ``"x"``.
 
@@ -59,6 +76,10 @@ def fix_units_and_axes(
     }.get(up)
     if rot is None:
         raise InputError("unknown up axis", expected="y, z, -z or x", got=up)
+    if not np.isfinite(turn):
+        raise InputError("turn must be finite degrees", got=turn)
+    if turn % 360:
+        rot = turn_about_up(turn) @ rot
     out = (v @ rot.T) * f
     if offset is not None:
         o = np.asarray(offset, np.float64).reshape(3)
@@ -260,6 +281,68 @@ def _offset_fix(v, bv, proxy, top, floor) -> tuple[np.ndarray, str] | None:
     return None
 
 
+#: the turns about the up axis (degrees, counterclockwise seen from above) :func:`check_placement` tries, and the
+#: way a garment faces that sits on the body once turned by each (the body faces +z)
+FACING = {90: "-x (the body's right)", 180: "-z (backward)", 270: "+x (the body's left)"}
+TURNS = tuple(FACING)
+
+
+def _turned_fixes(v, proxy, top, floor, what: str, g) -> list[tuple[float, float, int, str, str]]:
+    """The fixes (as :func:`_check_placement` lists them) that turn the garment about the up axis (:data:`TURNS`),
+    read as it is or in other units or up axis, and put it on the body: a garment facing another way than the body
+    (+z).  A shirt turned 180 degrees, or a cm, z-up, +x-facing one (Unreal Engine's) read in cm with +z up, was sent
+    to `--from-body` as made for another body (a new user's trial).  A turn changes no height: only the readings
+    whose heights could fit are turned."""
+    out: list[tuple[float, float, int, str, str]] = []
+    for units in (None, "dm", "cm", "mm", "inch"):
+        for up in ("y", "z", "-z"):
+            read = fix_units_and_axes(v, units=units, up=up)
+            outside = float(((read[:, 1] > top + 0.02) | (read[:, 1] < floor - 0.02)).mean())
+            if outside > 0.02 or np.ptp(read, axis=0).max() < MIN_GARMENT_SIZE:
+                continue
+            for turn in TURNS:
+                fst = _stats(read @ turn_about_up(turn).T, proxy, top, floor)
+                if not _fits(fst):
+                    continue
+                opts = (f" --units {units}" if units else "") + (f" --up {up}" if up != "y" else "")
+                how = " ".join(
+                    x for x in ((f"in {units}" if units else ""), (f"with {_axis(up)} up" if up != "y" else "")) if x
+                )
+                out.append(
+                    (
+                        fst["median"],
+                        fst["size"],
+                        len(out),
+                        f"the garment does not sit on the body ({what}); it does once "
+                        + (f"read {how}, " if how else "")
+                        + f"turned {turn} degrees about the up axis: it faces {FACING[turn]}, the body +z (forward)",
+                        f"a garment facing the body's front: run `segadeform garment fit {g} -o FIXED.obj{opts} "
+                        f"--turn {turn}`, or pass --force",
+                    )
+                )
+    return out
+
+
+def facing_turn(vertices, body_vertices, body_faces, *, max_points: int = 4000) -> int | None:
+    """The turn about the up axis (:data:`TURNS`, degrees) that puts a garment read in metres with +Y up on the (rest)
+    body by :func:`check_placement`'s measure, where it is not on it as it is: a garment facing another way (the one
+    it then sits closest to the skin); None when it sits as it is, or no turn puts it there.
+
+    Shapes:
+        vertices: (N, 3), body_vertices: (M, 3), body_faces: (K, 3)
+    """
+    v = np.asarray(vertices, np.float64)
+    if len(v) > max_points:
+        v = v[np.linspace(0, len(v) - 1, max_points).astype(np.int64)]
+    bv = np.asarray(body_vertices, np.float64)
+    proxy = BodyProxy(bv, body_faces)
+    top, floor = float(bv[:, 1].max()), float(bv[:, 1].min())
+    if _fits(_stats(v, proxy, top, floor)):
+        return None
+    fit = [(st["median"], t) for t in TURNS if _fits(st := _stats(v @ turn_about_up(t).T, proxy, top, floor))]
+    return min(fit)[1] if fit else None
+
+
 def _check_placement(
     vertices,
     body_vertices,
@@ -399,6 +482,8 @@ def _check_placement(
                         f"metres, +Y up: run `segadeform garment fit {g} -o FIXED.obj{opts}`, or pass --force",
                     )
                 )
+    if not fixes:  # nothing else puts it on the body: turned about the up axis (a garment facing another way)
+        fixes = _turned_fixes(v, proxy, top, floor, what, g)
     if fixes:  # among the fixes that leave a garment of a human's size, if any does (a skirt 1 m to the side also sat
         # on the skin once read in dm, at 7 cm across, closer to it than the loose skirt moved back: a review)
         sized = [fx for fx in fixes if fx[1] >= _HUMAN_SIZE] or fixes
