@@ -508,6 +508,33 @@ def test_train_on_a_pack_with_a_validation_split_and_batches_of_garments(synthet
     assert sorted(info["samples"]) == ["shorts__b0__walk", "skirt__b0__walk"]  # validation never trained on
 
 
+def test_several_splits_train_together_and_validation_must_be_apart(synthetic_dataset, tmp_path, body):
+    """``split = "train+val"``: a final fit on the training and validation samples at a step count chosen on
+    validation before; every sample of both is trained on, the test split's never; val_split may not be one of them,
+    and a split named twice or an empty part is refused."""
+    from segadeform.errors import FileFormatError
+
+    ds = _with_val_split(synthetic_dataset, tmp_path / "ds")
+    base = "[model]\nhidden = 16\nlstm_hidden = 16\n[optim]\nsteps = 2\nframes = 2\n"
+    cfg_p = tmp_path / "t.toml"
+    cfg_p.write_text(f"[data]\ndataset = '{ds}'\nsplit = 'train+val'\n" + base)
+    train(load_train_config(cfg_p), tmp_path / "both", body)
+    both = json.loads((tmp_path / "both" / "train.json").read_text())["samples"]
+    cfg_p.write_text(f"[data]\ndataset = '{ds}'\n" + base)
+    train(load_train_config(cfg_p), tmp_path / "one", body)
+    one = json.loads((tmp_path / "one" / "train.json").read_text())["samples"]
+    val = [p.stem for p in (ds / "samples").glob("*__swing.json")]
+    assert val and sorted(both) == sorted(one + val) and not set(one) & set(val)
+    for split, extra, words in (
+        ("train+val", "val_split = 'val'\n", "val_split must name a split other than the training ones"),
+        ("train+train", "", "must name a split, or several joined by"),
+        ("train+", "", "must name a split, or several joined by"),
+    ):
+        cfg_p.write_text(f"[data]\ndataset = '{ds}'\nsplit = '{split}'\n{extra}" + base)
+        with pytest.raises(FileFormatError, match=words):
+            load_train_config(cfg_p)
+
+
 def test_warmup_then_cosine_and_a_time_budget_that_fixes_the_step_count(synthetic_dataset, tmp_path, body, monkeypatch):
     """optim.warmup ramps the rate linearly, then the cosine decays it; optim.seconds times the warm-up and
     fixes the step count (recorded), and --steps with that count reruns the same schedule."""

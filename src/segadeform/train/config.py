@@ -6,7 +6,8 @@ Example (``samples/train/continuum/light_prior_seed1.toml`` is the shipped model
     [data]
     dataset = "../../data/train"   # relative to this file; or a list of roots: folders and packs
     optional = ["../../../shared/data/sim"]  # roots read when they exist (the durable packs)
-    split = "train"
+    split = "train"                # or several joined by "+" ("train+val": a final fit at a step count
+                                   # chosen on val before, with no val_split)
     val_split = "val"              # held-out garments and motion families that choose the model
                                    # (the checkpoint with the lowest vertex error on them is model.pt)
     exclude = []                   # sample ids matching any of these globs are not trained on
@@ -404,9 +405,18 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
     else:  # the roots given are the data: the config's own (required and optional) are not read
         dataset = tuple(Path(x) for x in ([dataset] if isinstance(dataset, (str, Path)) else dataset))
         optional = ()
+    split = d.get("split", "train")
+    parts = split.split("+") if isinstance(split, str) else []
+    if not parts or not all(parts) or len(set(parts)) != len(parts):
+        raise FileFormatError(
+            "data.split must name a split, or several joined by '+'",
+            path=p,
+            expected='e.g. "train" or "train+val"',
+            got=split,
+        )
     val_split = d.get("val_split")
-    if val_split is not None and (not isinstance(val_split, str) or val_split == d.get("split", "train")):
-        raise FileFormatError("data.val_split must name a split other than the training one", path=p, got=val_split)
+    if val_split is not None and (not isinstance(val_split, str) or val_split in parts):
+        raise FileFormatError("data.val_split must name a split other than the training ones", path=p, got=val_split)
     model = _table(data, "model", ModelConfig, p)
     if model.ensemble != 1:
         raise FileFormatError(
@@ -451,7 +461,7 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
         loss=loss,
         optim=optim,
         dataset=dataset,
-        split=d.get("split", "train"),
+        split=split,
         optional=optional,
         val_split=val_split,
         physics=physics,

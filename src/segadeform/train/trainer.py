@@ -338,14 +338,18 @@ def train(
     # the body the model learns on: recorded in last.pt, model.pt and train.json (eval, export and run refuse the
     # model on another one; a model trained on a second body was taken on the first without a word)
     trained_body = body_label(body)
-    ids = cfg.select(roots.ids(cfg.split))
+    ids = cfg.select(sorted({i for part in cfg.split.split("+") for i in roots.ids(part)}))
     if not ids:
         have = sorted({str(roots.meta(s).get("split")) for s in roots.ids()})
         raise InputError(
             f"no '{cfg.split}' samples in the dataset",
             path=cfg.path,
             expected=(f"data.split = {' | '.join(have)}" if have else "segadeform dataset make first")
-            + (" (or samples that data.exclude and data.fraction leave)" if have and cfg.split in have else ""),
+            + (
+                " (or samples that data.exclude and data.fraction leave)"
+                if have and set(cfg.split.split("+")) & set(have)
+                else ""
+            ),
             got=(f"the splits {', '.join(have)} in " if have else "") + _roots_said(roots),
         )
     if cfg.mirror:  # a mirrored sample is trained on the body itself: it must be its own mirror image at every shape
