@@ -111,7 +111,9 @@ def _effects_option(text, base=None, *, check_only: bool = False):
     "--format",
     "fmt",
     type=_format_choice(),
-    help="Output format (see segadeform.io.formats; abc needs the 'alembic' extra).",
+    help="Output format (see segadeform.io.formats; abc needs the 'alembic' extra).  A .usda (text) and xdmf are "
+    "built in memory, the whole clip (a .usda about 12 bytes per vertex per frame, garment and body each; a .usd is "
+    "written as it runs): use .pc2, .abc or .usd for long clips.",
 )
 @click.option("--model", type=PathParam(file_okay=False, path_type=Path, package=True), help="Model package directory.")
 @click.option("--frames", help="Frame range A:B of the motion (B exclusive).")

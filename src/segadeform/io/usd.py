@@ -10,8 +10,11 @@ as time samples at time codes ``start_frame, start_frame + 1, ...``. The stage s
 fps``, with ``startTimeCode``/``endTimeCode`` spanning the frames. ``.usd`` and ``.usdc`` are written binary
 (crate), ``.usda`` as text.
 
-The stage is built in memory and exported under a temporary name when the writer closes, then renamed: a failed run
-leaves nothing.
+A binary file (``.usd``, ``.usdc``) is streamed: written under a temporary name as the frames come, saved every
+:data:`SAVE_BYTES` of points (USD's crate format appends what changed and lets the saved samples go from memory:
+a writer holds about that much, however long the clip), and renamed when the writer closes.  A text file
+(``.usda``) cannot be: its stage is built in memory -- about 12 bytes per vertex per frame, the whole clip -- and
+exported under a temporary name when the writer closes, then renamed.  Either way a failed run leaves nothing.
 """
 
 from __future__ import annotations
@@ -45,6 +48,9 @@ __all__ = [
 ]
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc")
+
+#: points (bytes, float32) a binary USD writer adds between saves of its file: what it holds of the clip at most
+SAVE_BYTES = 8 << 20
 
 
 def _modules():
@@ -108,9 +114,34 @@ class UsdSequenceWriter(SequenceWriter):
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
         if not (np.isfinite(fps) and fps > 0):
             raise InputError("fps must be positive", got=fps)
+        if surface is not None and surface.n_vertices_used > num_points:
+            raise InputError("the surface indexes more vertices than the frames have", path=self.path)
         self._Usd = Usd
         self.fps, self.start = nominal_fps(fps), float(start_frame)  # 120, not a BVH's 120.000048
-        self._stage = Usd.Stage.CreateInMemory()
+        self._hold = _tmp_sibling(self.path, directory=False)  # reserves the name; USD needs the extension
+        self._tmp = self._hold.with_name(self._hold.name + ext)
+        self._layer: Any = None  # a binary file's layer, streamed to self._tmp (a text one is exported when closed)
+        self._unsaved = 0
+        try:
+            if ext == ".usda":
+                self._stage = Usd.Stage.CreateInMemory()
+            else:
+                self._layer = Sdf.Layer.CreateNew(str(self._tmp), args={"format": "usdc"})
+                if self._layer is None:
+                    raise WriteError(self.path, "USD could not create the file; nothing was left behind")
+                self._stage = Usd.Stage.Open(self._layer)
+            self._define(UsdGeom, Sdf, up, surface)
+        except WriteError:
+            self._discard()
+            raise
+        except Exception as e:  # pxr's Tf.ErrorException
+            self._discard()
+            raise WriteError(
+                self.path, f"USD could not create the file ({_first_line(e)}); nothing was left behind"
+            ) from None
+
+    def _define(self, UsdGeom, Sdf, up: str, surface) -> None:
+        """The stage's values and the mesh: everything but the frames."""
         UsdGeom.SetStageUpAxis(self._stage, UsdGeom.Tokens.z if up == "z" else UsdGeom.Tokens.y)
         UsdGeom.SetStageMetersPerUnit(self._stage, 1.0)
         self._stage.SetTimeCodesPerSecond(self.fps)
@@ -121,8 +152,6 @@ class UsdSequenceWriter(SequenceWriter):
         if surface is None:
             counts, corners = np.full(len(self.faces), 3, np.int32), self.faces.astype(np.int32).ravel()
         else:  # the garment's own polygons (and texture coordinates: the `st` primvar, face-varying)
-            if surface.n_vertices_used > num_points:
-                raise InputError("the surface indexes more vertices than the frames have", path=self.path)
             counts, corners = np.asarray(surface.counts, np.int32), np.asarray(surface.indices, np.int32)
         mesh.CreateFaceVertexCountsAttr(self._Vt.IntArray.FromNumpy(counts))
         mesh.CreateFaceVertexIndicesAttr(self._Vt.IntArray.FromNumpy(corners))
@@ -143,28 +172,54 @@ class UsdSequenceWriter(SequenceWriter):
             t = Usd.TimeCode(self.start + self.num_samples + k)
             self._points.Set(Vt.Vec3fArray.FromNumpy(fr), t)
             self._extent.Set(Vt.Vec3fArray.FromNumpy(np.stack([fr.min(axis=0), fr.max(axis=0)])), t)
+        if self._layer is not None:
+            self._unsaved += frames.shape[0] * frames.shape[1] * 12
+            if self._unsaved >= SAVE_BYTES:  # to the file; the samples saved leave memory
+                self._save()
+
+    def _save(self) -> None:
+        """Save the binary layer to its file; an OSError when USD cannot (the writer names the target)."""
+        try:
+            ok = self._layer.Save()
+        except Exception as e:  # pxr's Tf.ErrorException (disk full ...)
+            raise OSError(f"USD could not save the file ({_first_line(e)})") from None
+        if not ok:
+            raise OSError("USD could not save the file")
+        self._unsaved = 0
 
     def _commit(self) -> None:
         self._stage.SetEndTimeCode(self.start + max(self.num_samples - 1, 0))
-        ext = self.path.suffix.lower()
-        hold = _tmp_sibling(self.path, directory=False)  # reserves the name; USD needs the extension
-        tmp = hold.with_name(hold.name + ext)
         try:
-            args = {"format": "usdc"} if ext == ".usd" else {}
-            if not self._stage.GetRootLayer().Export(str(tmp), "", args):
-                raise WriteError(self.path, "USD could not export the stage; nothing was left behind")
-            os.replace(tmp, self.path)
+            if self._layer is not None:
+                self._save()
+            else:
+                try:
+                    ok = self._stage.GetRootLayer().Export(str(self._tmp))
+                except Exception as e:  # pxr's Tf.ErrorException
+                    raise OSError(f"USD could not export the stage ({_first_line(e)})") from None
+                if not ok:
+                    raise OSError("USD could not export the stage")
+            self._release()  # the file is closed before it is renamed
+            os.replace(self._tmp, self.path)
         except OSError as e:
             raise write_error(e, self.path) from None
         finally:
-            with contextlib.suppress(FileNotFoundError):
-                tmp.unlink()
-            with contextlib.suppress(FileNotFoundError):
-                hold.unlink()
-            self._stage = None
+            self._discard()
+
+    def _release(self) -> None:
+        self._stage = self._points = self._extent = self._layer = None
 
     def _discard(self) -> None:
-        self._stage = None
+        self._release()
+        for p in (self._tmp, self._hold):
+            with contextlib.suppress(FileNotFoundError):
+                p.unlink()
+
+
+def _first_line(e: Exception) -> str:
+    """The first line of an exception's message (pxr's run over several lines of its internals)."""
+    text = str(e).strip()
+    return text.splitlines()[0] if text else type(e).__name__
 
 
 class UsdFrames(LazyFrames):
