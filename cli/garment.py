@@ -154,11 +154,19 @@ def garment_kinds_cmd():
     "(default 0.003 for --mhclo/--from-body fits, none for plain unit/axis fixes).",
 )
 @click.option(
+    "--weld",
+    is_flag=True,
+    help="Merge vertices at the same place on open boundaries with no edge between them (a mesh split at its UV "
+    "seams: `run` deforms the two sides apart); UVs stay per corner.  The output has fewer vertices than GARMENT.",
+)
+@click.option(
     "--force",
     is_flag=True,
     help="Write the garment even when it does not sit on the body, or when a --from-body fit tore it.",
 )
-def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, turn, scale, offset, margin, force):
+def garment_fit_cmd(
+    garment, output, mhclo, from_body, body, betas, units, up, turn, scale, offset, margin, weld, force
+):
     """Bring GARMENT (OBJ or .mhclo) onto the body: a MakeHuman binding, --from-body, or --units/--up/--turn/--scale.
 
     Vertex order and count are kept; faces (quads and polygons as they are), UVs and groups are copied from the
@@ -175,7 +183,7 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, t
     from segadeform.bounds import check_betas, check_body_height
     from segadeform.errors import InputError
     from segadeform.garments.registration import edge_distortion, fit_mhclo, fit_to_body_mesh, guess_units_and_up
-    from segadeform.geometry.mesh_ops import check_has_area
+    from segadeform.geometry.mesh_ops import check_has_area, coincident_map, surface_faces
     from segadeform.io import read_mesh
     from segadeform.io.mhclo import read_mhclo
     from segadeform.io.obj import OWN_COMMENT, betas_record, material_libraries, recorded_betas, rewrite_obj_vertices
@@ -307,11 +315,20 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, t
             + (f" --scale {scale:g}" if scale != 1.0 else "")
         )
         _check_plain_fix(g.vertices, v, rest, bm.faces, garment, how, given=None if off is not None else given)
+    welds, welded = None, 0
+    if weld:  # the seam's vertices, found where the file has them, each group at the mean of its fitted places
+        welds = coincident_map(mesh.vertices, surface_faces(mesh.vertices, mesh.faces))
+        welded = int((welds != np.arange(len(v))).sum())
+        counts = np.bincount(welds, minlength=len(v)).astype(np.float64)
+        sums = np.stack([np.bincount(welds, weights=v[:, k], minlength=len(v)) for k in range(3)], axis=1)
+        v = (sums / np.maximum(counts, 1.0)[:, None])[welds]
     m = default_margin if margin is None else margin
     pushed = 0
     if m is not None:
         v, pushed = push_off_body(v, rest, bm.faces, m)
     pushed_text = f", {pushed} pushed to {1e3 * m:.0f} mm" if m else ""
+    if welded:
+        pushed_text += f", {welded} vertices welded"
     # the first line says what rewrote the file, and how (a fitted file kept its source's `# Exported from Maya 2024`
     # with nothing saying segadeform had moved every vertex: a new user's trial); a refit records the body shape it
     # was fitted for (`run` refuses the garment on another); a unit/axis fix keeps the shape, and whatever record
@@ -326,11 +343,18 @@ def garment_fit_cmd(garment, output, mhclo, from_body, body, betas, units, up, t
     else:
         header = (fitted, betas_record(b or ()))
     libraries = material_libraries(obj, output)
-    rewrite_obj_vertices(obj, v, output, header=header)
+    rewrite_obj_vertices(obj, v, output, header=header, weld=welds if welded else None)
     guard.record()
     rep = placement_report(v, rest, bm.faces)
     click.echo(f"{obj.name}: {len(v)} vertices, {how}{pushed_text}")
     click.echo(f"  {rep.line()}")
+    if weld:
+        click.echo(
+            f"  welded {welded} vertices onto those at their place: {len(v) - welded} vertices written (a point cache "
+            f"of the welded garment fits {output.name}, not {obj.name})"
+            if welded
+            else "  --weld: no vertices at the place of another on an open boundary; none welded"
+        )
     for name, written in libraries.items():  # the copy names the material library as found from its folder
         if written is None:
             click.echo(f"  mtllib {name}: no such file beside {obj.name} or the output; left out")

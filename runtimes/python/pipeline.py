@@ -348,6 +348,7 @@ class Run:
                     log.warning("--force: %s (played anyway)", e)
             _warn_blender_import(self.garment, asset)
             _warn_winding(self.garment, asset, self.body, self.betas, self._surface_faces(asset.vertices, asset.faces))
+            _warn_seams(self.garment, asset, self._surface_faces(asset.vertices, asset.faces))
             self._asset = asset
             self._asset_seconds = time.perf_counter() - t  # counted in the run's precompute, whoever asked first
         return self._asset
@@ -623,6 +624,33 @@ def _warn_winding(garment, asset: GarmentAsset, body: BodyModel, betas, surface:
             name,
             100 * inward,
         )
+
+
+def _warn_seams(garment, asset: GarmentAsset, surface: np.ndarray | None = None) -> None:
+    """Say when the garment is split along a seam: vertices of an open boundary at the place of another, with no
+    edge between them (:func:`~segadeform.geometry.mesh_ops.coincident_map`; game-engine exports split vertices at
+    UV seams).  The model deforms the two sides apart: a user's shirt with 83 centre-line vertices duplicated tore
+    (3.8 mm apart on average, 16 mm at most) with no word but that it lay outside the training garments.
+    ``surface``: the garment's :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here)."""
+    from segadeform.geometry.mesh_ops import coincident_map
+
+    v, f = np.asarray(asset.vertices, np.float64), np.asarray(asset.faces)
+    welded = int((coincident_map(v, surface_faces(v, f) if surface is None else surface) != np.arange(len(v))).sum())
+    if not welded:
+        return
+    path = Path(str(garment)) if isinstance(garment, (str, os.PathLike)) else None
+    name = path.name if path is not None else "garment"
+    # an OBJ is welded by `garment fit --weld`; an asset's mesh is welded before it is exported again
+    how = f"`segadeform garment fit {path} -o WELDED.obj --weld`, or " if name.lower().endswith(".obj") else ""
+    log.warning(
+        "garment %s: %d vertices lie on an open boundary at the place of another vertex, with no edge between them: "
+        "the mesh is split along a seam (as exports split it at UV seams), and the model deforms the two sides apart, "
+        "so the output tears there; weld them (%sBlender: Mesh > Clean Up > Merge by Distance) and run the welded "
+        "garment",
+        name,
+        welded,
+        how,
+    )
 
 
 def shape_for_inputs(scene: Scene, body: BodyModel, *, force: bool = False) -> tuple:

@@ -99,13 +99,21 @@ def test_mesh_defects_counts_each_kind_once():
     from segadeform.geometry.mesh_ops import mesh_defects, surface_faces
 
     v, f = grid_plane(3, 3)
-    assert mesh_defects(v, f) == {"duplicated": 0, "degenerate": 0, "isolated": 0, "non_manifold": 0, "misoriented": 0}
+    assert mesh_defects(v, f) == {
+        "duplicated": 0,
+        "degenerate": 0,
+        "isolated": 0,
+        "non_manifold": 0,
+        "misoriented": 0,
+        "coincident": 0,
+    }
     v2 = np.concatenate([v, [[9.0, 9.0, 9.0], [0.5, 0.5, 1.0]]])
     a, b, c = next(t for t in f.tolist() if ((f == t[0]).any(1) & (f == t[1]).any(1)).sum() == 2)  # a-b: inside
     # two repeats, a broken face, a third face on the inner edge a-b
     f2 = np.concatenate([f, [[a, b, c], [c, b, a], [a, a, b], [a, b, len(v) + 1]]])
     d = mesh_defects(v2, f2)
-    assert d == {"duplicated": 2, "degenerate": 1, "isolated": 1, "non_manifold": 1, "misoriented": 0}, d
+    want = {"duplicated": 2, "degenerate": 1, "isolated": 1, "non_manifold": 1, "misoriented": 0, "coincident": 0}
+    assert d == want, d
     # the repeats and the broken face alone are no non-manifold edge: they are not surface
     assert mesh_defects(v2, f2[:-1])["non_manifold"] == 0 and len(surface_faces(v2, f2[:-1])) == len(f)
     # a face wound against its neighbours: each of its edges (all inner here) is misoriented; every face flipped, none
@@ -116,3 +124,33 @@ def test_mesh_defects_counts_each_kind_once():
     g[inner] = g[inner, ::-1]
     assert mesh_defects(v, g)["misoriented"] == 3
     assert mesh_defects(v, f[:, ::-1])["misoriented"] == 0
+
+
+def test_coincident_boundary_vertices_are_a_seam_to_weld():
+    """A mesh split along a line (its vertices there copied for the faces on one side, as exports split them at UV
+    seams) has coincident vertices on its open boundaries: counted as a weld removes them, whatever the units; a
+    mesh cut apart at a gap, and the corners of one small face, are none; each group is welded onto its lowest
+    vertex (a new user's trial: `inspect` called such a shirt clean, and its output tore)."""
+    from segadeform.geometry.mesh_ops import coincident_map, mesh_defects, surface_faces
+
+    v, f = grid_plane(7, 7)
+    line = np.flatnonzero(np.isclose(v[:, 0], 0.5))
+    assert len(line) == 7
+    right = v[f].mean(axis=1)[:, 0] > v[line[0], 0]
+    copy = np.arange(len(v))
+    copy[line] = len(v) + np.arange(len(line))
+    g = f.copy()
+    g[right] = copy[g[right]]
+    w = np.concatenate([v, v[line]])
+    for scale in (1.0, 100.0, 0.001):
+        assert mesh_defects(w * scale, g)["coincident"] == len(line)
+    m = coincident_map(w, surface_faces(w, g))
+    np.testing.assert_array_equal(m[len(v) :], line)
+    assert (m[: len(v)] == np.arange(len(v))).all()
+    # moved apart by a gap (1 % of the size): no seam; the same place joined by an edge: no seam
+    gap = w.copy()
+    gap[len(v) :, 0] += 0.01 * np.ptp(v[:, 0])
+    assert mesh_defects(gap, g)["coincident"] == 0
+    assert mesh_defects(v, f)["coincident"] == 0
+    tiny = np.array([[0.0, 0, 0], [1e-9, 0, 0], [0, 1, 0]])
+    assert mesh_defects(tiny, np.array([[0, 1, 2]]))["coincident"] == 0

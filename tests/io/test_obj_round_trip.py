@@ -10,6 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from segadeform.cli.main import cli
+from segadeform.errors import InputError
 from segadeform.io import read_mesh, read_obj, write_obj
 from segadeform.io.obj import corner_normals, obj_logical_lines, rewrite_obj_vertices
 
@@ -278,3 +279,26 @@ def test_the_body_shape_record_is_read_only_where_segadeform_wrote_it(tmp_path):
     with pytest.raises(FileFormatError, match="recorded body shape") as e:
         recorded_betas(tmp_path / "bad.obj")
     assert "bad.obj:2:" in str(e.value)
+
+
+def test_a_welded_rewrite_keeps_polygons_uvs_and_names_the_kept_vertices(tmp_path):
+    """`garment fit --weld`: the vertices merged onto others are not written, and every face corner (a relative
+    index too) and line element names the kept vertex; UVs, normals and polygons stay per corner."""
+    src = rich_obj(tmp_path)
+    src.write_text(src.read_text() + "l 1 -1\n")
+    m = read_obj(src)
+    weld = np.arange(m.n_vertices)
+    weld[[9, 10]] = [3, 6]  # v 10 onto v 4, v 11 onto v 7 (placed there)
+    v = m.vertices.copy()
+    v[[9, 10]] = v[[3, 6]]
+    out = rewrite_obj_vertices(src, v, tmp_path / "welded.obj", weld=weld)
+    back = read_obj(out)
+    keep = np.arange(9)
+    np.testing.assert_allclose(back.vertices, v[keep], atol=1e-6)
+    np.testing.assert_array_equal(back.faces, weld[m.faces])
+    np.testing.assert_array_equal(back.face_origin, m.face_origin)
+    text = out.read_text().splitlines()
+    assert "f 8/1/3 9/2/3 7/3/4 7/4/4" in text and "l 1 7" in text, text  # 11 and -1 (the 11th) -> 7
+    assert sum(ln.startswith("vt ") for ln in text) == 5 and sum(ln.startswith("v ") for ln in text) == 9
+    with pytest.raises(InputError, match="weld must map"):
+        rewrite_obj_vertices(src, v, tmp_path / "bad.obj", weld=weld[::-1].copy())

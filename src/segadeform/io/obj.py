@@ -481,17 +481,25 @@ def _mtllib_line(ln: str, libraries: dict[str, str | None]) -> str | None:
 
 
 def rewrite_obj_vertices(
-    src: str | os.PathLike, vertices: np.ndarray, dst: str | os.PathLike, *, header: tuple[str, ...] = ()
+    src: str | os.PathLike,
+    vertices: np.ndarray,
+    dst: str | os.PathLike,
+    *,
+    header: tuple[str, ...] = (),
+    weld: np.ndarray | None = None,
 ) -> Path:
     """Copy an OBJ file with its ``v`` lines replaced by ``vertices`` (same order) and its ``vn`` lines
     recomputed for them (:func:`corner_normals`), keeping faces (quads and polygons as they are), UVs, groups,
     materials and every other line; written atomically.  ``header``: comment lines written first; with them, the
     source's own body-shape record and ``segadeform garment fit`` lines (a garment fitted before) are dropped.  A
     material library (``mtllib``) is named as it is found from ``dst``'s folder, or left out when it is not there
-    (:func:`material_libraries`).
+    (:func:`material_libraries`).  ``weld``: for each vertex, the vertex it is merged onto (itself, or a lower one
+    that is kept: :func:`segadeform.geometry.mesh_ops.coincident_map`); only the kept vertices' ``v`` lines are
+    written, and every face, line and point names the kept vertex (as an absolute index); texture coordinates and
+    normals stay per corner, so a seam's UVs are kept.
 
     Shapes:
-        vertices: (N, 3), N = the file's ``v`` lines
+        vertices: (N, 3), N = the file's ``v`` lines; weld: (N,)
     """
     src, dst = Path(src), Path(dst)
     v = np.asarray(vertices, np.float64)
@@ -504,32 +512,63 @@ def rewrite_obj_vertices(
         raise InputError("vertex count differs from the OBJ's", path=src, expected=n, got=v.shape)
     if not np.isfinite(v).all():
         raise InputError("fitted vertices are not finite", path=src)
+    target = written = None
+    if weld is not None:
+        w = np.asarray(weld)
+        ok = w.shape == (n,) and np.issubdtype(w.dtype, np.integer)
+        if ok and n:
+            w = w.astype(np.int64)
+            ok = bool((w >= 0).all() and (w < n).all() and (w[w] == w).all() and (w <= np.arange(n)).all())
+        if not ok:
+            raise InputError(
+                "weld must map each vertex onto itself or a lower vertex kept", path=src, expected=(n,), got=w.shape
+            )
+        written = w == np.arange(n)
+        target = (np.cumsum(written) - 1)[w]  # each vertex's index among those written
     normals = corner_normals(lines, v, path=src)
     libraries = material_libraries(src, dst)
-    it, k = iter(v), 0
+    it, k, seen = iter(v), 0, 0
     superseded = (BETAS_RECORD, OWN_COMMENT + " fit:")
     with atomic_open(dst, "w", encoding="utf-8", newline="\n") as fh:
         for line in header:
             fh.write(f"# {line}\n")
-        for _, ln in lines:
+        for no, ln in lines:
             key = ln.split()[:1]
             if header and ln.lstrip().startswith("#") and ln.lstrip().lstrip("#").strip().startswith(superseded):
                 continue
             if key == ["v"]:
                 x = next(it)
+                seen += 1
+                if written is not None and not written[seen - 1]:
+                    continue
                 extra = ln.split()[4:]  # vertex colours stay
                 fh.write(f"v {x[0]:.6f} {x[1]:.6f} {x[2]:.6f}" + (" " + " ".join(extra) if extra else "") + "\n")
+            elif target is not None and key and key[0] in ("f", "l", "p"):
+                fh.write(_renumbered(ln, target, seen, src, no) + "\n")
             elif key == ["vn"]:
                 nx = normals[k]
                 k += 1
                 fh.write(f"vn {nx[0]:.6f} {nx[1]:.6f} {nx[2]:.6f}\n")
             elif key == ["mtllib"]:
-                kept = _mtllib_line(ln, libraries)
-                if kept is not None:
-                    fh.write(kept + "\n")
+                library = _mtllib_line(ln, libraries)
+                if library is not None:
+                    fh.write(library + "\n")
             else:
                 fh.write(ln + "\n")
     return dst
+
+
+def _renumbered(ln: str, target: np.ndarray, seen: int, path, line: int) -> str:
+    """A face, line or point element with each corner's vertex index replaced by ``target``'s for it (1-based,
+    absolute), the texture and normal indices as they were; ``seen``: the ``v`` lines before it (what a negative
+    index counts back from)."""
+    words = ln.split()
+    out = [words[0]]
+    for c in words[1:]:
+        sub = c.split("/")
+        sub[0] = str(int(target[_obj_index(sub[0], seen, path, line)]) + 1)
+        out.append("/".join(sub))
+    return " ".join(out)
 
 
 def corner_normals(lines, vertices: np.ndarray, *, path=None) -> np.ndarray:
