@@ -19,7 +19,7 @@ process, one after another (errors against the Blender simulation stored in the 
 * N*: furthest-point samples of the garment descriptor, its eigenvalues rescaled to the model's length
   (:func:`segadeform.geometry.descriptor.rescale_descriptor`);
 * garment resolution: the model run on a decimated and a subdivided copy of each garment
-  (:mod:`segadeform.garments.resample`), the result carried to the full-resolution vertices by a
+  (:mod:`segadeform.body.resample`), the result carried to the full-resolution vertices by a
   :class:`SurfaceMap` and compared there;
 * models: each ``NAME=SPEC`` (e.g. width/depth variants trained on the same data);
 * cloth: the runtime's cloth stage (:mod:`segadeform.body.cloth`, as ``segadeform run --effects=+cloth``) on

@@ -264,7 +264,7 @@ class _Runner:
 
 
 def _resampled(v, f, res: str):
-    from segadeform.garments.resample import decimate, subdivide
+    from segadeform.body.resample import decimate, subdivide
 
     if res.endswith("x"):
         vv, ff = v, f
@@ -285,7 +285,7 @@ class _Assets:
 
     def get(self, k=None, n_star=None, res=None):
         """(asset, precompute ms, SurfaceMap or None)."""
-        from segadeform.garments.resample import SurfaceMap
+        from segadeform.body.resample import SurfaceMap
         from segadeform.geometry import precompute_garment
         from segadeform.geometry.descriptor import garment_descriptor, rescale_descriptor
         from segadeform.geometry.graph import neighbour_graph

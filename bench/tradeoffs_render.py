@@ -167,7 +167,7 @@ def write_docs(
         "(`rescale_descriptor`). N* changes only `setup_ms` (one geodesic solve per sample), not ms/frame.",
         "* **garment resolution**: each garment decimated (shortest-edge collapse) or subdivided (midpoint), "
         "the model run there and its frames carried to the full-resolution vertices (barycentric "
-        "place on the nearest triangle plus the rest offset along its normal: `garments/resample.py`); "
+        "place on the nearest triangle plus the rest offset along its normal: `body/resample.py`); "
         "errors on the full-resolution garment, ms/frame including the carry, setup including the resampling.",
         "* **collisions**: the push-out at the margin named, on the row named.",
         "* **cloth**: the runtime's cloth stage (`segadeform run --effects=+cloth --cloth ...`: stretch limit, "

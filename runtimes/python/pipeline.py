@@ -208,7 +208,7 @@ class Run:
         #: with resolution < 1: the garment as given (vertices, faces), which the outputs, collisions and the
         #: cloth stage use, and the map from the model's decimated garment back to it (load_asset)
         self._full: tuple[np.ndarray, np.ndarray] | None = None
-        self._smap = None
+        self._smap: Any = None  # a segadeform.body.resample.SurfaceMap
         self.start, self.stop = frame_range(frames, motion.n_frames, first=self._motion_start())
         self.guard = guard
         if guard is not None:  # refused before any work: an output over a file segadeform did not write ...
@@ -266,7 +266,7 @@ class Run:
         mesh = read_mesh(self.garment)
         sha = file_sha256(self.garment) if self.garment.is_file() else ""
         if self.resolution < 1.0:  # the model runs on the garment decimated, its frames carried back to every vertex
-            from segadeform.garments.resample import SurfaceMap, decimate
+            from segadeform.body.resample import SurfaceMap, decimate
 
             full = mesh
             v, f = decimate(full.vertices, full.faces, max(4, int(round(len(full.vertices) * self.resolution))))

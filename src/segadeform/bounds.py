@@ -51,6 +51,8 @@ __all__ = [
     "check_fps",
     "check_translation",
     "played_at",
+    "resample_positions",
+    "sample_translations",
     "check_betas",
     "check_body_height",
     "height_reach",
@@ -121,8 +123,6 @@ def _far_frame(t: np.ndarray, fps) -> str:
     played = _PLAYED_FPS.get()
     if fps is None or played is None or not played > 0 or abs(played - float(fps)) <= 1e-9 or t.ndim != 2:
         return f", first at frame {k}"
-    from .motion.motion import resample_positions, sample_translations
-
     j = _first_far(sample_translations(t, resample_positions(len(t), float(fps), played)))
     if j is None:  # past it only between the frames played
         return f", first at frame {k} as read at {float(fps):g} fps, between the frames played at {played:g} fps"
@@ -249,3 +249,36 @@ def check_seed(seed, *, path=None) -> int:
     if not lo <= int(seed) <= hi:
         raise InputError("seed out of range", path=path, expected=f"{lo}..{hi}", got=int(seed))
     return int(seed)
+
+
+# ---- where a resampled motion's frames fall (segadeform.motion.resample plays them; here, at the base layer, so that
+# a bound's refusal names the frame a run plays: check_translation within played_at)
+def sample_translations(trans, t) -> np.ndarray:
+    """:func:`sample_frames`' translations alone, of the translations ``trans`` (no :class:`Motion` made of them).
+
+    Shapes:
+        trans: (T, 3), t: (M,) -> (M, 3)
+    """
+    tr = np.asarray(trans, np.float64)
+    i0, i1, a = _between(t, len(tr))
+    return (1 - a) * tr[i0] + a * tr[i1]
+
+
+def _between(t, n_frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(i0, i1, a (M, 1))``: the frames each fractional index of ``t`` (clamped to ``n_frames``) lies between, and
+    how far from ``i0`` it is."""
+    t = np.clip(np.asarray(t, np.float64), 0.0, n_frames - 1)
+    i0 = np.clip(np.floor(t).astype(int), 0, n_frames - 1)
+    return i0, np.clip(i0 + 1, 0, n_frames - 1), (t - i0)[:, None]
+
+
+def resample_positions(n_frames: int, fps_from: float, fps_to: float) -> np.ndarray:
+    """The fractional frame indices of a motion of ``n_frames`` at ``fps_from`` that :func:`resample` to ``fps_to``
+    takes its frames at.
+
+    Shapes:
+        -> (M,)
+    """
+    duration = (n_frames - 1) / fps_from
+    n_out = int(np.floor(duration * fps_to + 1e-9)) + 1
+    return np.arange(n_out) / fps_to * fps_from

@@ -78,7 +78,7 @@ def test_a_small_ease_stays_outside_the_body_at_every_resolution(body):
     """A user's trial: `garment make jumpsuit --ease 0.005 --resolution 6000` was refused with 2 vertices inside the
     body: flat midpoints of one subdivision sank 1.3 mm into the groin.  Midpoints inside are pushed out; every other
     vertex is where it was."""
-    from segadeform.garments.resample import subdivide
+    from segadeform.body.resample import subdivide
 
     proxy = BodyProxy(body.shaped_vertices()[0], body.faces)
     coarse = make_garment("jumpsuit", body, params=GarmentParams(ease=0.005))

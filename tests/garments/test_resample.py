@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from segadeform.body.resample import SurfaceMap, decimate, subdivide, subdivide_reference
 from segadeform.body.transfer import skin_garment, transfer_weights
 from segadeform.errors import InputError
 from segadeform.garments import check_garment
-from segadeform.garments.resample import SurfaceMap, decimate, subdivide, subdivide_reference
 from segadeform.geometry.mesh_ops import boundary_loops, mean_edge_length
 from segadeform.io import read_mesh
 from segadeform.motion import make_motion

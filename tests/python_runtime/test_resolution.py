@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from segadeform.body.resample import SurfaceMap, decimate
 from segadeform.cli.main import cli
-from segadeform.garments.resample import SurfaceMap, decimate
 from segadeform.io import read_mesh, read_pc2, write_obj
 
 from ..conftest import SAMPLES

@@ -474,8 +474,8 @@ def _garment_file(out, cfg: DatasetConfig, gi: int, bi: int, body: BodyModel) ->
                 write_obj(tmp, Mesh(vertices=v, faces=m.faces), header=f"garment {Path(g.mesh).name}, by segadeform")
         elif g.mhclo is not None:  # a MakeHuman garment: fitted to this body (decimated), 3 mm off the skin
             from ..body.placement import push_off_body
+            from ..body.resample import decimate
             from ..garments.registration import fit_mhclo
-            from ..garments.resample import decimate
             from ..io.mhclo import read_mhclo
 
             binding = read_mhclo(g.mhclo)

@@ -53,11 +53,11 @@ import numpy as np
 
 from ..body.collision import BodyProxy
 from ..body.model import BodyModel
+from ..body.resample import subdivide
 from ..body.skeleton import SMPL_JOINT_NAMES
 from ..errors import InputError
 from ..geometry.mesh_ops import boundary_loops, connected_components, mean_edge_length, unique_edges, vertex_normals
 from ..io.obj import betas_record
-from .resample import subdivide
 
 __all__ = [
     "GARMENT_KINDS",

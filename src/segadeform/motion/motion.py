@@ -16,6 +16,7 @@ from ..body.rotations import (
     quaternion_to_axis_angle,
 )
 from ..body.skeleton import SMPL_JOINT_NAMES
+from ..bounds import _between, resample_positions
 from ..errors import FileFormatError, InputError
 from ..io.atomic import atomic_path
 from ..io.sgdm import read_motion_arrays, write_motion_arrays
@@ -342,37 +343,6 @@ def sample_frames(motion: Motion, t) -> tuple[np.ndarray, np.ndarray]:
     qs = quaternion_slerp(q[i0], q[i1], np.repeat(a, 24, axis=1))
     poses = quaternion_to_axis_angle(qs).reshape(len(i0), N_POSE)
     return poses, (1 - a) * motion.trans[i0] + a * motion.trans[i1]
-
-
-def sample_translations(trans, t) -> np.ndarray:
-    """:func:`sample_frames`' translations alone, of the translations ``trans`` (no :class:`Motion` made of them).
-
-    Shapes:
-        trans: (T, 3), t: (M,) -> (M, 3)
-    """
-    tr = np.asarray(trans, np.float64)
-    i0, i1, a = _between(t, len(tr))
-    return (1 - a) * tr[i0] + a * tr[i1]
-
-
-def _between(t, n_frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(i0, i1, a (M, 1))``: the frames each fractional index of ``t`` (clamped to ``n_frames``) lies between, and
-    how far from ``i0`` it is."""
-    t = np.clip(np.asarray(t, np.float64), 0.0, n_frames - 1)
-    i0 = np.clip(np.floor(t).astype(int), 0, n_frames - 1)
-    return i0, np.clip(i0 + 1, 0, n_frames - 1), (t - i0)[:, None]
-
-
-def resample_positions(n_frames: int, fps_from: float, fps_to: float) -> np.ndarray:
-    """The fractional frame indices of a motion of ``n_frames`` at ``fps_from`` that :func:`resample` to ``fps_to``
-    takes its frames at.
-
-    Shapes:
-        -> (M,)
-    """
-    duration = (n_frames - 1) / fps_from
-    n_out = int(np.floor(duration * fps_to + 1e-9)) + 1
-    return np.arange(n_out) / fps_to * fps_from
 
 
 def resample(motion: Motion, fps: float) -> Motion:

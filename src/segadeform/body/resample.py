@@ -1,4 +1,5 @@
-"""The same garment at another resolution, and positions carried from one resolution to another.
+"""The same garment at another resolution, and positions carried from one resolution to another.  In the body layer
+(it needs the body's closest-point routine, nothing of garments) so that the runtime's ``run --resolution`` uses it.
 
 * :func:`subdivide` -- midpoint subdivision, every triangle into four (about 4x the vertices).  The
   first ``N`` vertices are the input's; vertex ``N + i`` is the midpoint of ``unique_edges(faces)[i]``.
@@ -28,10 +29,10 @@ import heapq
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..body.collision import closest_point_on_triangles
 from ..errors import InputError
 from ..geometry._checks import check_mesh
 from ..geometry.mesh_ops import face_cross, unique_edges
+from .collision import closest_point_on_triangles
 
 __all__ = ["subdivide", "subdivide_reference", "decimate", "SurfaceMap"]
 
@@ -124,7 +125,7 @@ def decimate(vertices, faces, n_vertices: int, *, max_turn: float = 60.0) -> tup
         if len(shared(a, b)) == 1:
             boundary[a] = boundary[b] = True
 
-    heap = []
+    heap: list[tuple[float, int, int, int, int]] = []
 
     def push(a, b):
         a, b = min(a, b), max(a, b)
