@@ -99,18 +99,18 @@ def _frames_summary(path, frames, head: str | None = None) -> None:
             f"({', '.join(map(str, idx[:8]))}{' ...' if len(idx) > 8 else ''})",
             path=path,
         )
-    if head is not None:
-        click.echo(head)
-    if st.n_frames == 0 or st.n_points == 0:
-        click.echo(f"  no {'frames' if st.n_frames == 0 else 'points'}")
-        return
-    if st.far > MAX_POSITION:
+    if st.n_frames and st.n_points and st.far > MAX_POSITION:
         raise FileFormatError(
             "a point lies beyond 10 km of the origin (another unit?)",
             path=path,
             expected=f"|x| <= {MAX_POSITION:g} m",
             got=f"{st.far:.3g}",
         )
+    if head is not None:
+        click.echo(head)
+    if st.n_frames == 0 or st.n_points == 0:
+        click.echo(f"  no {'frames' if st.n_frames == 0 else 'points'}")
+        return
     click.echo(f"  bounds {np.round(st.lo, 4).tolist()} .. {np.round(st.hi, 4).tolist()} (all frames); NaN/inf: none")
     if st.n_frames > 1:
         click.echo(
@@ -303,13 +303,20 @@ def _mesh_defects(vertices, faces) -> None:
             (d["isolated"], "isolated vertex", "isolated vertices", " (in no face)"),
             (d["non_manifold"], "non-manifold edge", "non-manifold edges", " (in more than two faces)"),
             (d["misoriented"], "misoriented edge", "misoriented edges", " (between faces wound against each other)"),
+            (
+                d["coincident"],
+                "coincident boundary vertex",
+                "coincident boundary vertices",
+                " (at another's place on an open boundary, no edge between: a seam to weld, `garment fit --weld`)",
+            ),
         )
         if n
     ]
     click.echo(
         "  " + ", ".join(said)
         if said
-        else "  no duplicated or degenerate faces, isolated vertices, non-manifold or misoriented edges"
+        else "  no duplicated or degenerate faces, isolated vertices, non-manifold or misoriented edges, or coincident "
+        "boundary vertices"
     )
 
 

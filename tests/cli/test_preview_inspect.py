@@ -157,7 +157,8 @@ def test_inspect_counts_what_of_a_garment_is_not_a_clean_surface(tmp_path):
 
     clean = CliRunner().invoke(cli, ["inspect", str(SAMPLES / "garments" / "skirt.obj")])
     assert clean.exit_code == 0 and clean.output.splitlines()[1] == (
-        "  no duplicated or degenerate faces, isolated vertices, non-manifold or misoriented edges"
+        "  no duplicated or degenerate faces, isolated vertices, non-manifold or misoriented edges, or coincident "
+        "boundary vertices"
     ), clean.output
     g = read_obj(SAMPLES / "garments" / "skirt.obj")
     v, f = g.vertices, g.faces
@@ -488,3 +489,27 @@ def test_preview_reads_only_the_frames_it_draws(tmp_path, monkeypatch, fmt):
     assert sorted({i for _, idx in asked for i in idx}) == [2, 3, 4] and {n for n, _ in asked} == {"r", "b"}
     r = CliRunner().invoke(cli, args + ["--frames", "39:41"])
     assert r.exit_code == 1 and "frame 40 has a non-finite coordinate" in r.output and f"r{ext}" in r.output
+
+
+def test_inspect_counts_a_seam_split_mesh_and_a_sequence_past_10_km_is_one_line(tmp_path):
+    """A garment split along its UV seams (vertices duplicated on the boundary, no edge between) was "clean" to
+    inspect (a new user's trial); a point cache past 10 km printed its summary line before the error."""
+    from segadeform.io import read_obj, write_obj
+    from segadeform.io.pc2 import PC2Writer
+
+    from ..conftest import SAMPLES
+
+    g = read_obj(SAMPLES / "garments" / "skirt.obj")
+    v, f = np.asarray(g.vertices), np.asarray(g.faces).copy()
+    # cut the skirt along the faces of one vertex of its hem: that vertex duplicated for half its faces
+    hem = int(np.argmin(v[:, 1]))
+    rows = np.flatnonzero((f == hem).any(1))[:1]
+    f[rows] = np.where(f[rows] == hem, len(v), f[rows])
+    write_obj(tmp_path / "seam.obj", type(g)(vertices=np.vstack([v, v[hem]]), faces=f))
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "seam.obj")])
+    assert r.exit_code == 0 and "1 coincident boundary vertex (at another's place" in r.output, r.output
+    with PC2Writer(tmp_path / "far.pc2", 3) as w:
+        w.write(np.full((2, 3, 3), 2e4, np.float32))
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "far.pc2")])
+    lines = [ln for ln in r.output.splitlines() if ln.strip()]
+    assert r.exit_code == 1 and len(lines) == 1 and "beyond 10 km" in lines[0], r.output
