@@ -8,7 +8,7 @@ Example (``samples/train/continuum/light_prior_seed1.toml`` is the shipped model
     optional = ["../../../shared/data/sim"]  # roots read when they exist (the durable packs)
     split = "train"                # or several joined by "+" ("train+val": a final fit at a step count
                                    # chosen on val before, with no val_split)
-    val_split = "val"              # held-out garments and motion families that choose the model
+    val_split = "val"              # held-out garments and motion families that choose the model ("": none)
                                    # (the checkpoint with the lowest vertex error on them is model.pt)
     exclude = []                   # sample ids matching any of these globs are not trained on
                                    # (e.g. ["*__cmu-*"]: no motion capture)
@@ -415,6 +415,8 @@ def load_train_config(path, *, dataset=None, overrides: dict | None = None) -> T
             got=split,
         )
     val_split = d.get("val_split")
+    if val_split == "":  # none: a config over a base that names one (a final fit on train+val)
+        val_split = None
     if val_split is not None and (not isinstance(val_split, str) or val_split in parts):
         raise FileFormatError("data.val_split must name a split other than the training ones", path=p, got=val_split)
     model = _table(data, "model", ModelConfig, p)
