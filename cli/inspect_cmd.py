@@ -84,10 +84,12 @@ def frame_stats(frames, max_values: int | None = None) -> FrameStats:
     return st
 
 
-def _frames_summary(path, frames, head: str | None = None) -> None:
+def _frames_summary(path, frames, head: str | None = None, first: int = 0) -> None:
     """Bounds, a NaN check and the motion per frame of a (S, N, 3) sequence (an array or
     :class:`~segadeform.io.sequence.LazyFrames`, streamed: :func:`frame_stats`); NaN/inf is an error.  ``head``:
-    the summary's first line, said once the frames are read (an error is then the one line said)."""
+    the summary's first line, said once the frames are read (an error is then the one line said).  ``first``: the
+    file's number for its first frame (a run's --frames 10:40 writes 10): frames are named by the file's numbers, as
+    preview and a DCC number them (they were counted from 0: a new user's trial)."""
     from segadeform.bounds import MAX_POSITION
     from segadeform.errors import FileFormatError
 
@@ -96,7 +98,7 @@ def _frames_summary(path, frames, head: str | None = None) -> None:
         idx = st.bad_frames
         raise FileFormatError(
             f"{st.nonfinite} non-finite values (NaN or inf), in {len(idx)} frames "
-            f"({', '.join(map(str, idx[:8]))}{' ...' if len(idx) > 8 else ''})",
+            f"({', '.join(str(first + i) for i in idx[:8])}{' ...' if len(idx) > 8 else ''})",
             path=path,
         )
     if st.n_frames and st.n_points and st.far > MAX_POSITION:
@@ -115,7 +117,7 @@ def _frames_summary(path, frames, head: str | None = None) -> None:
     if st.n_frames > 1:
         click.echo(
             f"  motion per frame: mean {1e3 * st.step_mean:.2f} mm, largest {1e3 * st.step_max:.2f} mm "
-            f"(frame {st.step_max_frame}); centroid travels "
+            f"(frame {first + st.step_max_frame}); centroid travels "
             f"{np.round(st.centroid_range, 4).tolist()} m (x, y, z range)"
         )
         if st.still:
@@ -149,7 +151,10 @@ def inspect_cmd(path):
         raise file_error(e, path) from None
     if sequence_format_of(path) is not None:  # every registered output format (segadeform.io.formats)
         fmt, summary, frames = inspect_sequence(path)
-        _frames_summary(path, frames, f"{path}: {fmt.name} sequence, {summary}")  # streamed: never held whole
+        from segadeform.io.formats import sequence_start_frame
+
+        # streamed (never held whole); frames named by the file's own numbers
+        _frames_summary(path, frames, f"{path}: {fmt.name} sequence, {summary}", sequence_start_frame(path))
     elif ext in (".bvh", ".amc", ".glb", ".gltf"):  # motions `run --motion` takes (an AMC with its ASF beside it)
         from segadeform.motion import load_motion
 

@@ -406,7 +406,7 @@ def test_inspect_streams_the_same_statistics_as_the_whole_array(tmp_path):
     assert r.exit_code == 0, r.output
     assert f"bounds {np.round(want['lo'], 4).tolist()} .. {np.round(want['hi'], 4).tolist()} (all frames)" in r.output
     assert (
-        f"motion per frame: mean {1e3 * want['step_mean']:.2f} mm, largest {1e3 * want['step_max']:.2f} mm (frame 5); "
+        f"motion per frame: mean {1e3 * want['step_mean']:.2f} mm, largest {1e3 * want['step_max']:.2f} mm (frame 8); "
         f"centroid travels {np.round(want['centroid_range'], 4).tolist()} m" in r.output
     )
     assert "1 frames identical to the one before" in r.output
@@ -450,7 +450,8 @@ def test_inspect_of_a_long_cache_reads_bounded_chunks_and_holds_no_more(tmp_path
         raw[off : off + 4] = np.float32(np.nan).tobytes()
     (tmp_path / "n.pc2").write_bytes(bytes(raw))
     r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "n.pc2")])
-    assert r.exit_code == 1 and "2 non-finite values (NaN or inf), in 2 frames (10, 59990)" in r.output, r.output
+    # named by the file's numbers: it starts at frame 3
+    assert r.exit_code == 1 and "2 non-finite values (NaN or inf), in 2 frames (13, 59993)" in r.output, r.output
 
 
 @pytest.mark.parametrize("fmt", ["pc2", "abc", "usd"])
@@ -513,3 +514,21 @@ def test_inspect_counts_a_seam_split_mesh_and_a_sequence_past_10_km_is_one_line(
     r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "far.pc2")])
     lines = [ln for ln in r.output.splitlines() if ln.strip()]
     assert r.exit_code == 1 and len(lines) == 1 and "beyond 10 km" in lines[0], r.output
+
+
+def test_inspect_names_frames_by_the_files_own_numbers(tmp_path):
+    """A cache a run wrote with --frames 10:40 starts at frame 10: inspect names its frames so (it counted from 0,
+    so that a TD scrubbing to the frame it named found nothing there: a new user's trial), as preview does."""
+    from segadeform.io.pc2 import PC2Writer
+
+    x = np.zeros((6, 3, 3), np.float32)
+    x[4:] += 0.05  # the largest step ends at the file's 5th frame
+    with PC2Writer(tmp_path / "a.pc2", 3, start_frame=10.0) as w:
+        w.write(x)
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "a.pc2")])
+    assert r.exit_code == 0 and "largest 86.60 mm (frame 14)" in r.output, r.output
+    raw = bytearray((tmp_path / "a.pc2").read_bytes())
+    raw[32 + 2 * 36 : 32 + 2 * 36 + 4] = np.float32(np.nan).tobytes()  # a NaN in the file's third frame
+    (tmp_path / "b.pc2").write_bytes(bytes(raw))
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "b.pc2")])
+    assert r.exit_code == 1 and "in 1 frames (12)" in r.output, r.output
