@@ -27,6 +27,7 @@ as in every other runtime, so that all of them push out of the same float32 body
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import logging
 import os
 import time
@@ -47,6 +48,7 @@ from segadeform.geometry.precompute import PRECOMPUTE_VERSION
 from segadeform.io import SceneOutput, read_mesh
 from segadeform.io.garment_asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
+from segadeform.io.mesh import Mesh
 from segadeform.io.obj import recorded_betas
 from segadeform.io.outputs import claim_scene_outputs, garment_surface
 from segadeform.io.toml import key_line
@@ -76,6 +78,10 @@ FLOOR_WARN_M = 0.5  # (CMU 03_01, a walk over a raised platform, stands 0.33 m u
 
 #: the most vertex-frames (batch x garment vertices) one deformer call takes
 MAX_VERTEX_FRAMES = 32_768
+
+#: the fewest vertices ``--resolution`` may leave the model (fewer left a dress unrecognisable: its placement refused
+#: as another unit and axis, a review)
+MIN_RESOLUTION_VERTICES = 200
 
 
 def effective_batch(batch: int, n_vertices: int) -> int:
@@ -265,24 +271,17 @@ class Run:
         # keyed by the file's bytes, and must not make a file that fails to read (an OBJ renamed .txt) run
         mesh = read_mesh(self.garment)
         sha = file_sha256(self.garment) if self.garment.is_file() else ""
-        if self.resolution < 1.0:  # the model runs on the garment decimated, its frames carried back to every vertex
-            from segadeform.body.resample import SurfaceMap, decimate
-
-            full = mesh
-            v, f = decimate(full.vertices, full.faces, max(4, int(round(len(full.vertices) * self.resolution))))
-            mesh = type(full)(vertices=v, faces=f)
-            self._full = (np.asarray(full.vertices, np.float64), np.asarray(full.faces, np.int64))
-            self._smap = SurfaceMap.build(full.vertices, v, f)
         cdir = self._cache_dir()
-        res = "" if self.resolution == 1.0 else f"-r{self.resolution:.6g}"
-        cpath = (
-            cdir / f"asset-{sha[:32]}-n{n_star}-p{PRECOMPUTE_VERSION}{res}.npz" if cdir is not None and sha else None
-        )
+        key = sha[:32]
+        if self.resolution < 1.0:  # the model runs on the garment decimated, its frames carried back to every vertex
+            mesh, key = self._decimated(mesh, sha, cdir)
+        cpath = cdir / f"asset-{key}-n{n_star}-p{PRECOMPUTE_VERSION}.npz" if cdir is not None and sha else None
         if cpath is not None and cpath.is_file():
             try:
                 a = GarmentAsset.load(cpath)
                 if a.source_sha256 == sha and a.n_vertices == len(mesh.vertices):
-                    return a
+                    if self._full is None or np.array_equal(a.vertices, np.asarray(mesh.vertices, a.vertices.dtype)):
+                        return a
             except Exception:  # a stale or broken cache entry is recomputed
                 log.warning("ignoring unreadable asset cache %s", cpath)
         try:
@@ -304,6 +303,47 @@ class Run:
                 log.warning("cannot write the asset cache %s (%s)", cpath, e.strerror or e)
         return a
 
+    def _decimated(self, full, sha: str, cdir: Path | None):
+        """The garment decimated to ``resolution`` of its vertices and the :class:`SurfaceMap` that carries the
+        model's frames back to every vertex (``self._full``, ``self._smap``): the mesh the model runs on and the
+        key of its cache entries.  Both are cached (``R-<key>.npz``, with the asset keyed alike), so a run does not
+        decimate again (14.5 s on a 39k-vertex garment: a review)."""
+        from segadeform.body.resample import SurfaceMap, decimate
+
+        n = int(round(len(full.vertices) * self.resolution))
+        if n < MIN_RESOLUTION_VERTICES:
+            raise InputError(
+                f"--resolution {self.resolution:g} leaves the model {n} of the garment's {len(full.vertices)} vertices",
+                path=self.garment,
+                expected=f"at least {MIN_RESOLUTION_VERTICES} vertices (a higher resolution)",
+                got=n,
+            )
+        key = hashlib.sha256(f"{sha}:resolution={self.resolution!r}:{n}".encode()).hexdigest()[:32]
+        rpath = cdir / f"R-{key}.npz" if cdir is not None and sha else None
+        self._full = (np.asarray(full.vertices, np.float64), np.asarray(full.faces, np.int64))
+        if rpath is not None and rpath.is_file():
+            try:
+                with np.load(rpath, allow_pickle=False) as z:
+                    v, f = z["vertices"], z["faces"]
+                    smap = SurfaceMap(face=z["face"], bary=z["bary"], offset=z["offset"], faces=f)
+                if len(smap.face) == len(full.vertices) and len(f) and int(f.max()) < len(v):
+                    self._smap = smap
+                    return type(full)(vertices=v, faces=f), key
+            except (OSError, ValueError, KeyError):
+                log.warning("ignoring unreadable resolution cache %s", rpath)
+        v, f = decimate(full.vertices, full.faces, n)
+        self._smap = SurfaceMap.build(full.vertices, v, f)
+        if rpath is not None:
+            try:
+                from segadeform.io.atomic import atomic_path
+
+                with atomic_path(rpath) as tmp, open(tmp, "wb") as fh:
+                    m = self._smap
+                    np.savez(fh, vertices=v, faces=f, face=m.face, bary=m.bary, offset=m.offset)
+            except OSError as e:
+                log.warning("cannot write the resolution cache %s (%s)", rpath, e.strerror or e)
+        return type(full)(vertices=v, faces=f), key
+
     def _surface_faces(self, vertices, faces) -> np.ndarray:
         """The garment's :func:`~segadeform.geometry.mesh_ops.surface_faces` (``vertices`` and ``faces``: the run's
         garment, its mesh or its asset), computed once a run: the precompute, the winding check and the familiarity
@@ -324,14 +364,24 @@ class Run:
         if self._asset is None:
             t = time.perf_counter()
             asset = self.load_asset(self.body.rest_joints(self.betas)[0])
+            # the garment as given is what is checked: with --resolution the model's asset is a decimated copy, and
+            # the outputs are the file's (a review: loose vertices went unsaid, seams and windings were undercounted)
+            given: GarmentAsset | Mesh = (
+                asset if self._full is None else Mesh(vertices=self._full[0], faces=self._full[1])
+            )
+            surface = (
+                self._surface_faces(asset.vertices, asset.faces)
+                if self._full is None
+                else surface_faces(given.vertices, given.faces)
+            )
             # with --force each refusal is played anyway and said (--force left no word of it: a user's trial)
             checks = (
                 lambda: check_body_height(self.body, self.betas),
                 lambda: check_placement(
-                    asset.vertices,
+                    given.vertices,
                     self.body.shaped_vertices(self.betas)[0],
                     self.body.faces,
-                    faces=asset.faces,
+                    faces=given.faces,
                     path=self.garment,
                     template_vertices=self.body.v_template,
                     betas=self.betas,
@@ -346,9 +396,9 @@ class Run:
                     if not self.force:
                         raise
                     log.warning("--force: %s (played anyway)", e)
-            _warn_blender_import(self.garment, asset)
-            _warn_winding(self.garment, asset, self.body, self.betas, self._surface_faces(asset.vertices, asset.faces))
-            _warn_seams(self.garment, asset, self._surface_faces(asset.vertices, asset.faces))
+            _warn_blender_import(self.garment, given)
+            _warn_winding(self.garment, given, self.body, self.betas, surface)
+            _warn_seams(self.garment, given, surface)
             self._asset = asset
             self._asset_seconds = time.perf_counter() - t  # counted in the run's precompute, whoever asked first
         return self._asset
@@ -541,7 +591,7 @@ def _label(betas) -> str:
     return "[" + ", ".join(f"{x:g}" for x in b) + "]" if b.size else "0 (the default shape)"
 
 
-def _warn_blender_import(garment, asset: GarmentAsset) -> None:
+def _warn_blender_import(garment, asset: GarmentAsset | Mesh) -> None:
     """Say when the garment's OBJ is not what a DCC's import of it gives: vertices in no face (Blender's OBJ import
     drops them) or several objects (imported apart).  The output has one point per vertex of the file, so a point
     cache then fits no import of it (a user's trial: `Vertex count mismatch`, with no word from the run)."""
@@ -590,7 +640,9 @@ WINDING_NEAR = 0.03
 INWARD = 0.8
 
 
-def _warn_winding(garment, asset: GarmentAsset, body: BodyModel, betas, surface: np.ndarray | None = None) -> None:
+def _warn_winding(
+    garment, asset: GarmentAsset | Mesh, body: BodyModel, betas, surface: np.ndarray | None = None
+) -> None:
     """Say when the garment's faces are not all wound outward: some against their neighbours
     (:func:`~segadeform.geometry.mesh_ops.mesh_defects`' ``misoriented`` edges) or all of them inward (the normals of
     most vertices near the body point into it).  The model reads the normals: a Blender artist's trial moved a
@@ -626,7 +678,7 @@ def _warn_winding(garment, asset: GarmentAsset, body: BodyModel, betas, surface:
         )
 
 
-def _warn_seams(garment, asset: GarmentAsset, surface: np.ndarray | None = None) -> None:
+def _warn_seams(garment, asset: GarmentAsset | Mesh, surface: np.ndarray | None = None) -> None:
     """Say when the garment is split along a seam: vertices of an open boundary at the place of another, with no
     edge between them (:func:`~segadeform.geometry.mesh_ops.coincident_map`; game-engine exports split vertices at
     UV seams).  The model deforms the two sides apart: a user's shirt with 83 centre-line vertices duplicated tore
