@@ -511,8 +511,8 @@ def test_train_on_a_pack_with_a_validation_split_and_batches_of_garments(synthet
 def test_several_splits_train_together_and_validation_must_be_apart(synthetic_dataset, tmp_path, body):
     """``split = "train+val"``: a final fit on the training and validation samples at a step count chosen on
     validation before; every sample of both is trained on, the test split's never; val_split may not be one of them,
-    and a split named twice or an empty part is refused."""
-    from segadeform.errors import FileFormatError
+    a split named twice or an empty part is refused, and so is a part the dataset has no sample of (a typo)."""
+    from segadeform.errors import FileFormatError, InputError
 
     ds = _with_val_split(synthetic_dataset, tmp_path / "ds")
     base = "[model]\nhidden = 16\nlstm_hidden = 16\n[optim]\nsteps = 2\nframes = 2\n"
@@ -525,6 +525,12 @@ def test_several_splits_train_together_and_validation_must_be_apart(synthetic_da
     one = json.loads((tmp_path / "one" / "train.json").read_text())["samples"]
     val = [p.stem for p in (ds / "samples").glob("*__swing.json")]
     assert val and sorted(both) == sorted(one + val) and not set(one) & set(val)
+    cfg_p.write_text(f"[data]\ndataset = '{ds}'\nsplit = 'train+vall'\n" + base)
+    with pytest.raises(
+        InputError, match=r"no 'vall' samples in the dataset \(data.split = 'train\+vall'\).*train \| val"
+    ):
+        train(load_train_config(cfg_p), tmp_path / "typo", body)
+    assert not (tmp_path / "typo").exists()
     for split, extra, words in (
         ("train+val", "val_split = 'val'\n", "val_split must name a split other than the training ones"),
         ("train+train", "", "must name a split, or several joined by"),

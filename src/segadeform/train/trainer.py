@@ -338,7 +338,18 @@ def train(
     # the body the model learns on: recorded in last.pt, model.pt and train.json (eval, export and run refuse the
     # model on another one; a model trained on a second body was taken on the first without a word)
     trained_body = body_label(body)
-    ids = cfg.select(sorted({i for part in cfg.split.split("+") for i in roots.ids(part)}))
+    parts = cfg.split.split("+")
+    by_part = {part: roots.ids(part) for part in parts}
+    empty = [part for part, got in by_part.items() if not got]
+    if empty and len(parts) > 1:  # a misspelled part trained on the others without a word (a review)
+        have = sorted({str(roots.meta(s).get("split")) for s in roots.ids()})
+        raise InputError(
+            f"no '{empty[0]}' samples in the dataset (data.split = {cfg.split!r})",
+            path=cfg.path,
+            expected=f"each part a split of the dataset: {' | '.join(have)}",
+            got=_roots_said(roots),
+        )
+    ids = cfg.select(sorted({i for got in by_part.values() for i in got}))
     if not ids:
         have = sorted({str(roots.meta(s).get("split")) for s in roots.ids()})
         raise InputError(
