@@ -95,6 +95,10 @@ def test_format_rules_as_functions():
     # new user's trial found an extension-less Alembic that inspect refused and a USD refused as no USD name)
     assert body_output_format("b.cache", "pc2") == "pc2"
     assert all(body_output_format("out/body", f) == "obj-seq" for f in ("pc2", "abc", "usd", "obj-seq", None))
+    assert all(body_output_format("out/body", f, "out/g.pc2") == "obj-seq" for f in ("pc2", "abc"))
+    # ... unless the garment's path has none either: its format was given apart (--format), and the body follows it
+    # as before (a review: `-o anim --format pc2 --body-out body` wrote the body as OBJ frames)
+    assert body_output_format("out/body", "pc2", "out/anim") == "pc2"
     with pytest.raises(ValueError, match="extension says xdmf"):
         output_format_for("b.xmf", "abc")
 

@@ -114,20 +114,24 @@ def garment_surface(path, n_vertices: int, fmt: str):
 _NOT_SEQUENCES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf", ".fbx", ".npz", ".bvh", ".amc", ".png", ".gif")
 
 
-def body_output_format(body_path, fmt: str | None = None) -> str:
+def body_output_format(body_path, fmt: str | None = None, garment_path=None) -> str:
     """The format the posed body is written in: the one ``body_path``'s own extension names, whatever the
     garment's output is (``--body-out body.pc2`` beside ``-o dress.usd`` writes a point cache); with no
-    extension a folder of OBJ frames, as for the garment's own path; with an extension no format claims
-    (``body.cache``), the garment's format ``fmt``, as before; an error for the extension of a mesh or another
-    kind of file (``body.obj``).  (An extension-less body was written in the garment's format: a PC2 or Alembic
-    file with no extension, which ``inspect`` refused, and a USD refused as no USD name -- while ``run --help``
-    said a folder of OBJ frames: a new user's trial.)"""
+    extension a folder of OBJ frames, as for the garment's own path -- unless the garment's path (``garment_path``)
+    has none either, its format ``fmt`` then given apart (``-o anim --format pc2 --body-out body``: both point
+    caches, as before); with an extension no format claims (``body.cache``), the garment's format ``fmt``, as before;
+    an error for the extension of a mesh or another kind of file (``body.obj``).  (An extension-less body beside
+    ``-o dress.abc`` was written in the garment's format: an Alembic file with no extension, which ``inspect``
+    refused, and a USD refused as no USD name -- while ``run --help`` said a folder of OBJ frames: a new user's
+    trial.)"""
     p = Path(body_path)
     _check_name(p)
     named = format_for_path(p)
     if p.suffix and named is not None:
         return named.name
     if fmt is not None and p.suffix and p.suffix.lower() not in _NOT_SEQUENCES:
+        return sequence_format(fmt).name
+    if fmt is not None and not p.suffix and garment_path is not None and not Path(garment_path).suffix:
         return sequence_format(fmt).name
     return output_format_for(p)
 
@@ -137,7 +141,7 @@ def _targets(path, fmt: str, body_path=None) -> list[tuple[Path, bool]]:
     same path (the body would overwrite the garment, or a point cache's rest mesh the body)."""
     out = [(Path(path), sequence_format(fmt).folder)]
     if body_path is not None:
-        bf = body_output_format(body_path, fmt)
+        bf = body_output_format(body_path, fmt, path)
         out.append((Path(body_path), sequence_format(bf).folder))
         if bf == "pc2":  # the rest mesh the body's cache animates
             out.append((Path(body_path).with_suffix(".obj"), False))
@@ -202,7 +206,7 @@ class SceneOutput:
     ) -> None:
         _targets(path, fmt, body_path)  # unknown formats and clashing paths fail before anything is opened
         self.fmt, self.up, self.guard = fmt, up, guard
-        self.body_fmt = body_output_format(body_path, fmt) if body_path is not None else None
+        self.body_fmt = body_output_format(body_path, fmt, path) if body_path is not None else None
         _warn_z_up(path, fmt, up)
         if body_path is not None:
             _warn_z_up(body_path, cast(str, self.body_fmt), up)

@@ -34,7 +34,8 @@ are required; relative paths are relative to the scene file)::
     format = "pc2"                 # pc2 | obj-seq | xdmf | abc | usd (default: from the extension; abc and
                                    # usd need the 'alembic' and 'usd' extras)
     up = "y"                       # y (as computed; what Blender's Mesh Cache on an imported OBJ wants) | z
-    body = "../../out/body.pc2"    # optional: the posed body too, in the format its extension names (else path's)
+    body = "../../out/body.pc2"    # optional: the posed body too, in the format its extension names (no extension:
+                                   # a folder of OBJ frames, or path's format when path has none either)
 
     [effects]                      # what is not named is off (skinning: lbs); no table: every effect on
     skinning = "lbs"               # lbs | dqs
@@ -321,7 +322,7 @@ def load_scene(path: str | os.PathLike, *, effects: str | None = None, sim_effec
         ) from None
     if "body" in out:
         try:
-            body_output_format(rel(out["body"]), fmt)
+            body_output_format(rel(out["body"]), fmt, out_path)
         except InputError as e:
             raise FileFormatError(f"output.body: {e.problem}", path=p, expected=e.expected, got=e.got) from None
     up = out.get("up", "y")
