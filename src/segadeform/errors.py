@@ -115,8 +115,14 @@ def unreadable_error(e: BaseException, path, what: str, *, cls: type = FileForma
     ``not a readable {what} file ({ExceptionType}: {message})``, on one line: a library's message of several lines
     is joined, and OpenUSD's ``Error in 'pxrInternal_...::UsdStage::Open' at line N in file ...: 'what'`` is cut to
     its ``what`` (a new user's trial: a bad .usd printed 2-4 lines of pxr internals)."""
+    return cls(f"not a readable {what} file ({type(e).__name__}: {_library_message(e)})", path=path)
+
+
+def _library_message(e: BaseException) -> str:
+    """A library's message on one line: OpenUSD's ``Error in 'pxrInternal_...' at line N in file F : 'what'``
+    reports (one or several) cut to their ``what``, a parser's template names (``matching pxrInternal_...pegtl::...``)
+    dropped (a review: two reports ran into one line of pxr internals)."""
     msg = " ".join(str(e).split())
-    cut = re.search(r"Error in '[^']*' at line \d+ in file \S+ ?: '(.*)'", msg)
-    if cut:
-        msg = cut.group(1)
-    return cls(f"not a readable {what} file ({type(e).__name__}: {msg})", path=path)
+    reports = [r.strip().strip("'").strip() for r in re.split(r"Error in '[^']*' at line \d+ in file \S+ ?: ", msg)]
+    reports = [re.sub(r" matching pxrInternal.*$", "", r) for r in reports if r]
+    return "; ".join(reports) if reports else msg

@@ -56,7 +56,10 @@ _WHY: dict[int | None, str] = {
 
 def write_error(e: OSError, target) -> SegadeformError:
     """The one wording for an output that could not be written: the target and the reason, e.g.
-    ``out/x.pc2: cannot write: no space left on the device (expected free space, got ...)``."""
+    ``out/x.pc2: cannot write: no space left on the device (expected free space, got ...)``.  A :class:`WriteError`
+    already is one: it is given back as it is (wrapped again, a USD writer's said its target twice: a review)."""
+    if isinstance(e, WriteError):
+        return e
     why = _WHY.get(e.errno, e.strerror or str(e))
     return WriteError(target, f"{why}; nothing was left behind", e.errno)
 

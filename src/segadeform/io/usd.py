@@ -217,9 +217,10 @@ class UsdSequenceWriter(SequenceWriter):
 
 
 def _first_line(e: Exception) -> str:
-    """The first line of an exception's message (pxr's run over several lines of its internals)."""
-    text = str(e).strip()
-    return text.splitlines()[0] if text else type(e).__name__
+    """An exception's message on one line without pxr's internals (its reports run over several lines of them)."""
+    from ..errors import _library_message
+
+    return _library_message(e) if str(e).strip() else type(e).__name__
 
 
 class UsdFrames(LazyFrames):
