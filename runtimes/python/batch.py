@@ -41,6 +41,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -51,11 +52,13 @@ from segadeform.distributed.executors import Executor, LocalExecutor
 from segadeform.errors import FileFormatError, InputError, SegadeformError, file_error
 from segadeform.io.atomic import WriteError
 from segadeform.io.location import Location, is_url, open_location
-from segadeform.io.toml import config_path, key, read_table, read_toml
+from segadeform.io.toml import config_path, key, key_line, read_table, read_toml
 from segadeform.settings import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects
 from segadeform.settings.cloth import CLOTH_KNOBS, ClothSettings
 from segadeform.settings.presets import preset_effects
 from segadeform.settings.scene import MotionTable, motion_spec_from_table
+
+log = logging.getLogger(__name__)
 
 __all__ = ["BatchConfig", "BatchJob", "BatchSummary", "load_batch", "batch_jobs", "run_batch", "run_job"]
 
@@ -159,12 +162,22 @@ def _batch_effects(b: dict, p: Path) -> Effects:
             expected="effects with collisions or cloth",
             got=effects.label(),
         )
+    margin = float(b.get("collision_margin", effects.collision_margin))
     try:
-        return dataclasses.replace(
-            effects,
-            collision_margin=float(b.get("collision_margin", effects.collision_margin)),
-            cloth_settings=ClothSettings(**knobs) if knobs else effects.cloth_settings,
+        effects = dataclasses.replace(effects, collision_margin=margin)
+    except ValueError as e:
+        raise FileFormatError(
+            f"batch.collision_margin: {e}", path=p, line=key_line(p, "batch", "collision_margin")
+        ) from None
+    if margin > 0.05:  # as run --collision-margin says it (metres: 0.5 holds the cloth half a metre off the body)
+        log.warning(
+            "%s: batch.collision_margin %g holds the garment %g cm off the body (metres; the default is 0.004)",
+            p,
+            margin,
+            100 * margin,
         )
+    try:
+        return dataclasses.replace(effects, cloth_settings=ClothSettings(**knobs) if knobs else effects.cloth_settings)
     except (ValueError, InputError) as e:
         raise FileFormatError(f"[batch]: {e}", path=p) from None
 

@@ -53,6 +53,7 @@ __all__ = [
     "played_at",
     "resample_positions",
     "sample_translations",
+    "frames_between",
     "check_betas",
     "check_body_height",
     "height_reach",
@@ -260,11 +261,11 @@ def sample_translations(trans, t) -> np.ndarray:
         trans: (T, 3), t: (M,) -> (M, 3)
     """
     tr = np.asarray(trans, np.float64)
-    i0, i1, a = _between(t, len(tr))
+    i0, i1, a = frames_between(t, len(tr))
     return (1 - a) * tr[i0] + a * tr[i1]
 
 
-def _between(t, n_frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def frames_between(t, n_frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(i0, i1, a (M, 1))``: the frames each fractional index of ``t`` (clamped to ``n_frames``) lies between, and
     how far from ``i0`` it is."""
     t = np.clip(np.asarray(t, np.float64), 0.0, n_frames - 1)

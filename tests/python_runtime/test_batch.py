@@ -73,6 +73,10 @@ def test_jobs_file_makes_every_garment_x_motion(tmp_path):
         (('effects = "lbs,collisions"', 'effects = "lbs"\ncollision_margin = 0.01'), "neither collisions nor the cl"),
         (("[batch]", "[batch]\ncloth_iterations = 8"), "batch.cloth_iterations is set but the cloth stage is off"),
         (('effects = "lbs,collisions"', 'quality = "best"\ncloth_iterations = 0'), "cloth iterations must be"),
+        (
+            ('effects = "lbs,collisions"', "collision_margin = 1.5"),
+            r"jobs.toml:\d+: batch.collision_margin: .*\[0, 1\)",
+        ),
     ],
 )
 def test_bad_jobs_files(tmp_path, edit, msg):

@@ -16,7 +16,7 @@ from ..body.rotations import (
     quaternion_to_axis_angle,
 )
 from ..body.skeleton import SMPL_JOINT_NAMES
-from ..bounds import _between, resample_positions
+from ..bounds import frames_between, resample_positions
 from ..errors import FileFormatError, InputError
 from ..io.atomic import atomic_path
 from ..io.sgdm import read_motion_arrays, write_motion_arrays
@@ -338,7 +338,7 @@ def sample_frames(motion: Motion, t) -> tuple[np.ndarray, np.ndarray]:
     Shapes:
         t: (M,) -> poses (M, 72), trans (M, 3)
     """
-    i0, i1, a = _between(t, motion.n_frames)
+    i0, i1, a = frames_between(t, motion.n_frames)
     q = axis_angle_to_quaternion(motion.poses.reshape(-1, 24, 3))
     qs = quaternion_slerp(q[i0], q[i1], np.repeat(a, 24, axis=1))
     poses = quaternion_to_axis_angle(qs).reshape(len(i0), N_POSE)
