@@ -261,6 +261,11 @@ def garment_fit_cmd(
     except ValueError:
         units_v = units
     rest = bm.shaped_vertices(b)[0]
+    if binding is None and from_body is None and b is None and recorded_betas(obj):
+        # a plain fix (units, axes, --weld) keeps the body shape the file records: checked on that body, as `run`
+        # runs it (a garment made for betas 2.5 was refused as "another body's origin", so the --weld that `run`
+        # suggested could not be done: a review)
+        rest = bm.shaped_vertices(np.asarray(recorded_betas(obj), np.float64)[None])[0]
     if binding is not None:
         v = fit_mhclo(binding, bm, b)
         how = f"MakeHuman binding {mhclo.name}"

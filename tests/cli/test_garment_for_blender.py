@@ -208,3 +208,27 @@ def test_a_mesh_split_at_a_seam_is_said_and_welded(tmp_path, caplog):
     np.testing.assert_array_equal(back.faces, m.faces)
     r, said = _run(tmp_path, welded, caplog=caplog)
     assert r.exit_code == 0 and "open boundary" not in said, said
+
+
+def test_a_garment_made_for_another_shape_is_welded_on_that_shape(tmp_path):
+    """`garment fit --weld` (the command `run` suggests) on a garment made for betas 2.5 checked it on the default
+    body and refused it as placed for another body's origin (a review): a plain fix keeps the shape the file
+    records and is checked on it, and the welded file records it still."""
+    from segadeform.io import Mesh, read_mesh, write_obj
+    from segadeform.io.obj import recorded_betas
+
+    made = tmp_path / "ts25.obj"
+    r = CliRunner().invoke(cli, ["garment", "make", "tshirt", "--betas", "2.5", "-o", str(made)])
+    assert r.exit_code == 0, r.output
+    v, f, n = _split_at_a_seam(read_mesh(made))
+    header = [
+        ln for ln in made.read_text().splitlines() if ln.startswith(("# segadeform garment", "# params", "# betas"))
+    ]
+    write_obj(tmp_path / "split.obj", Mesh(v, f))
+    (tmp_path / "split.obj").write_text("\n".join(header) + "\n" + (tmp_path / "split.obj").read_text())
+    assert recorded_betas(tmp_path / "split.obj") == (2.5,)
+    r = CliRunner().invoke(
+        cli, ["garment", "fit", str(tmp_path / "split.obj"), "-o", str(tmp_path / "w.obj"), "--weld"]
+    )
+    assert r.exit_code == 0 and f"welded {n} vertices" in r.output, r.output
+    assert recorded_betas(tmp_path / "w.obj") == (2.5,)
