@@ -160,6 +160,14 @@ _HUMAN_SIZE = 0.25
 MIN_GARMENT_SIZE = 0.03
 
 
+def _reading(units, up: str) -> tuple[str, str]:
+    """A reading of a garment file in words and as ``garment fit`` options: ``(" --units cm --up z", "in cm with +z
+    up")``; the file's own (metres, +Y up) parts are left out."""
+    opts = (f" --units {units}" if units else "") + (f" --up {up}" if up != "y" else "")
+    words = " ".join(x for x in ((f"in {units}" if units else ""), (f"with {_axis(up)} up" if up != "y" else "")) if x)
+    return opts, words
+
+
 def _axis(up: str) -> str:
     """An up axis as a message says it: ``+z``, ``-z``."""
     return up if up.startswith("-") else f"+{up}"
@@ -304,10 +312,7 @@ def _turned_fixes(v, proxy, top, floor, what: str, g) -> list[tuple[float, float
                 fst = _stats(read @ turn_about_up(turn).T, proxy, top, floor)
                 if not _fits(fst):
                     continue
-                opts = (f" --units {units}" if units else "") + (f" --up {up}" if up != "y" else "")
-                how = " ".join(
-                    x for x in ((f"in {units}" if units else ""), (f"with {_axis(up)} up" if up != "y" else "")) if x
-                )
+                opts, how = _reading(units, up)
                 out.append(
                     (
                         fst["median"],
@@ -454,10 +459,7 @@ def _check_placement(
                 continue
             fst = _stats(fix_units_and_axes(v, units=units, up=up), proxy, top, floor)
             if _fits(fst):
-                opts = (f" --units {units}" if units else "") + (f" --up {up}" if up != "y" else "")
-                read = " and ".join(
-                    x for x in ((f"in {units}" if units else ""), (f"with {_axis(up)} up" if up != "y" else "")) if x
-                )
+                opts, read = _reading(units, up)
                 fixes.append(
                     (
                         fst["median"],
