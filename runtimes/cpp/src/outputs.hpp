@@ -219,7 +219,7 @@ inline void claim_outputs(const std::vector<std::string>& outputs, const std::ve
     if (!same)
       throw refused(out,
                     std::string("exists and ") +
-                        (it == m.files.end() ? "segadeform did not write it" : "it changed since segadeform wrote it") +
+                        (it == m.files.end() ? "segadeform did not write it" : "it changed since segadeform wrote it (its size or modification time: edited, or touched)") +
                         "; segadeform never overwrites such a file",
                     "a new path, or remove the file yourself", "an existing file");
     if (it->second.kind != KIND)

@@ -111,7 +111,7 @@ export function claimOutputs(outputs, inputs) {
     if (st.isDirectory()) throw refuse(out, "is a folder", "a file path for this output", "a folder");
     const entry = files[basename(out)];
     if (!entry || !unchanged(entry, st)) {
-      const why = !entry ? "segadeform did not write it" : "it changed since segadeform wrote it";
+      const why = !entry ? "segadeform did not write it" : "it changed since segadeform wrote it (its size or modification time: edited, or touched)";
       throw refuse(out, `exists and ${why}; segadeform never overwrites such a file`,
         "a new path, or remove the file yourself", "an existing file");
     }

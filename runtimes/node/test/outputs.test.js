@@ -21,7 +21,7 @@ test("a new path is written, recorded, and replaced by the next run; a user's fi
   commitOutputs([{ path: out, bytes: Buffer.from("two") }]);
   assert.equal(readFileSync(out, "utf8"), "two");
   appendFileSync(out, "!"); // edited since: a user's file now
-  assert.throws(() => claimOutputs([out], []), /it changed since segadeform wrote it/);
+  assert.throws(() => claimOutputs([out], []), /it changed since segadeform wrote it \(its size or modification time: edited, or touched\)/);
   const mine = join(d, "mine.pc2");
   writeFileSync(mine, "mine");
   assert.throws(() => claimOutputs([mine], []), /mine\.pc2: exists and segadeform did not write it/);

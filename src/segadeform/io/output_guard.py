@@ -263,7 +263,12 @@ class OutputGuard:
             raise OutputRefused("is a folder", path=p, expected="a file path for this output", got="a folder")
         entry = files.get(p.name)
         if entry is None or not _unchanged(entry, st):
-            why = "segadeform did not write it" if entry is None else "it changed since segadeform wrote it"
+            # its size or time: the manifest holds no hash (a `touch` of the same bytes is refused too: said)
+            why = (
+                "segadeform did not write it"
+                if entry is None
+                else "it changed since segadeform wrote it (its size or modification time: edited, or touched)"
+            )
             raise OutputRefused(
                 f"exists and {why}; segadeform never overwrites such a file",
                 path=p,
