@@ -84,16 +84,19 @@ def frame_stats(frames, max_values: int | None = None) -> FrameStats:
     return st
 
 
-def _frames_summary(path, frames, head: str | None = None, first: int = 0) -> None:
+def _frames_summary(path, frames, head: str | None = None, first: int = 0, unit: float | None = None) -> None:
     """Bounds, a NaN check and the motion per frame of a (S, N, 3) sequence (an array or
     :class:`~segadeform.io.sequence.LazyFrames`, streamed: :func:`frame_stats`); NaN/inf is an error.  ``head``:
     the summary's first line, said once the frames are read (an error is then the one line said).  ``first``: the
     file's number for its first frame (a run's --frames 10:40 writes 10): frames are named by the file's numbers, as
-    preview and a DCC number them (they were counted from 0: a new user's trial)."""
+    preview and a DCC number them (they were counted from 0: a new user's trial).  ``unit``: the metres per unit the
+    file records (a USD's ``metersPerUnit``; None: none recorded, its numbers read as metres): bounds are said in
+    the file's units, motion in metres (a centimetre USD's steps were said 100 times too long)."""
     from segadeform.bounds import MAX_POSITION
     from segadeform.errors import FileFormatError
 
     st = frame_stats(frames)
+    k = 1.0 if unit is None else unit  # metres per file unit
     if st.nonfinite:
         idx = st.bad_frames
         raise FileFormatError(
@@ -101,24 +104,27 @@ def _frames_summary(path, frames, head: str | None = None, first: int = 0) -> No
             f"({', '.join(str(first + i) for i in idx[:8])}{' ...' if len(idx) > 8 else ''})",
             path=path,
         )
-    if st.n_frames and st.n_points and st.far > MAX_POSITION:
+    if st.n_frames and st.n_points and st.far * k > MAX_POSITION:
         raise FileFormatError(
             "a point lies beyond 10 km of the origin (another unit?)",
             path=path,
             expected=f"|x| <= {MAX_POSITION:g} m",
-            got=f"{st.far:.3g}",
+            got=f"{st.far * k:.3g} m",
         )
     if head is not None:
         click.echo(head)
     if st.n_frames == 0 or st.n_points == 0:
         click.echo(f"  no {'frames' if st.n_frames == 0 else 'points'}")
         return
-    click.echo(f"  bounds {np.round(st.lo, 4).tolist()} .. {np.round(st.hi, 4).tolist()} (all frames); NaN/inf: none")
+    said = "" if k == 1.0 else f", in the file's units of {k:g} m"
+    click.echo(
+        f"  bounds {np.round(st.lo, 4).tolist()} .. {np.round(st.hi, 4).tolist()} (all frames{said}); NaN/inf: none"
+    )
     if st.n_frames > 1:
         click.echo(
-            f"  motion per frame: mean {1e3 * st.step_mean:.2f} mm, largest {1e3 * st.step_max:.2f} mm "
+            f"  motion per frame: mean {1e3 * k * st.step_mean:.2f} mm, largest {1e3 * k * st.step_max:.2f} mm "
             f"(frame {first + st.step_max_frame}); centroid travels "
-            f"{np.round(st.centroid_range, 4).tolist()} m (x, y, z range)"
+            f"{np.round(k * np.asarray(st.centroid_range), 4).tolist()} m (x, y, z range)"
         )
         if st.still:
             click.echo(f"  {st.still} frames identical to the one before")
@@ -151,10 +157,16 @@ def inspect_cmd(path):
         raise file_error(e, path) from None
     if sequence_format_of(path) is not None:  # every registered output format (segadeform.io.formats)
         fmt, summary, frames = inspect_sequence(path)
-        from segadeform.io.formats import sequence_start_frame
+        from segadeform.io.formats import sequence_start_frame, sequence_units
 
         # streamed (never held whole); frames named by the file's own numbers
-        _frames_summary(path, frames, f"{path}: {fmt.name} sequence, {summary}", sequence_start_frame(path))
+        _frames_summary(
+            path,
+            frames,
+            f"{path}: {fmt.name} sequence, {summary}",
+            sequence_start_frame(path),
+            unit=sequence_units(path),
+        )
     elif ext in (".bvh", ".amc", ".glb", ".gltf"):  # motions `run --motion` takes (an AMC with its ASF beside it)
         from segadeform.motion import load_motion
 

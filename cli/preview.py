@@ -66,7 +66,13 @@ PNG_FRAMES = 8
     show_default=True,
     help="Up axis the result was written with (run --up).",
 )
-def preview_cmd(result, garment, body_seq, body_model, output, frames, every, view, size, fps, up):
+@click.option(
+    "--output-units",
+    metavar="UNITS",
+    help="Units the result and --body were written in (run --output-units: m, dm, cm, mm, inch, ft or metres per "
+    "unit); default: what a USD records (metersPerUnit), else metres.",
+)
+def preview_cmd(result, garment, body_seq, body_model, output, frames, every, view, size, fps, up, output_units=None):
     """Render RESULT (PC2, OBJ sequence folder, XDMF, Alembic or USD) with its garment and, if given, the body.
 
     Frames are numbered as the result numbers them (a PC2's start frame, USD time codes, OBJ frame names)."""
@@ -75,9 +81,10 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     from segadeform.body import default_body_path, load_body
     from segadeform.errors import FileFormatError, InputError
     from segadeform.io import read_mesh
-    from segadeform.io.formats import sequence_start_frame
+    from segadeform.io.formats import sequence_start_frame, sequence_units
     from segadeform.io.output_guard import OutputGuard
     from segadeform.io.sequence import CHUNK_VALUES, open_sequence_frames
+    from segadeform.io.writer import output_unit
     from segadeform.preview.render import MeshLayer, check_encoder, fit_bounds, render, save_animation, save_image
     from segadeform.settings import Y_TO_Z, parse_frames
 
@@ -156,8 +163,16 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         idx, angles = [idx[i] for i in pick], [angles[i] for i in pick]
     R = np.array(Y_TO_Z) if up == "z" else None  # back to +Y up for rendering
 
-    def drawn(seq, path, ks):
-        """Frames ``ks`` of ``seq`` as float64, +Y up; NaN or inf in one of them is an error naming it."""
+    def metres(path) -> float:
+        """Metres per unit of a sequence: --output-units, else what the file records, else 1."""
+        if output_units is not None:
+            return output_unit(output_units, option="--output-units")
+        return sequence_units(path) or 1.0
+
+    scale = {"g": metres(result), "b": None if body_seq is None else metres(body_seq)}
+
+    def drawn(seq, path, ks, unit):
+        """Frames ``ks`` of ``seq`` as float64, +Y up, metres; NaN or inf in one of them is an error naming it."""
         pts = np.asarray(seq[ks], np.float64)
         bad = np.flatnonzero(~np.isfinite(pts).all(axis=(1, 2)))
         if bad.size:
@@ -166,11 +181,12 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
                 path=path,
                 expected="finite positions",
             )
+        pts = pts if unit == 1.0 else pts * unit
         return pts if R is None else pts @ R
 
     def read(ks):
         """The garment's and the body's frames ``ks`` (the body None without one)."""
-        return drawn(G, result, ks), None if B is None else drawn(B, body_seq, ks)
+        return drawn(G, result, ks, scale["g"]), None if B is None else drawn(B, body_seq, ks, scale["b"])
 
     # one scale for the whole animation (the largest frame), the camera following the subject: the frames drawn
     # are framed a bounded chunk at a time, then read again one by one to be drawn (all at once when one chunk)

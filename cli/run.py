@@ -128,11 +128,9 @@ def _effects_option(text, base=None, *, check_only: bool = False):
 @click.option(
     "--resolution",
     type=click.FloatRange(min=0.0, max=1.0, min_open=True),
-    default=1.0,
-    show_default=True,
     help="Share of the garment's vertices the model runs on: the garment decimated, the frames carried back to every "
     "vertex of the file (collisions, the cloth stage and the outputs stay at full resolution); 0.5 is on the measured "
-    "accuracy/time frontier (docs/accuracy-vs-time.md).",
+    "accuracy/time frontier (docs/accuracy-vs-time.md).  Default: the scene's [model] resolution, else 1.",
 )
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help="onnxruntime threads.")
 @click.option("--providers", help="Comma-separated onnxruntime providers, or 'auto' (default: CPU).")
@@ -143,6 +141,13 @@ def _effects_option(text, base=None, *, check_only: bool = False):
     "body's rest mesh beside it as .obj; no extension: a folder of OBJ frames).",
 )
 @click.option("--up", type=click.Choice(UP_AXES), help="Up axis of the written coordinates (default y).")
+@click.option(
+    "--output-units",
+    metavar="UNITS",
+    help="Units of the written coordinates: m (default, as computed), dm, cm (Maya, Unreal), mm, inch, ft, or "
+    "metres per unit; the body's (--body-out) too.  USD records them (metersPerUnit); PC2, OBJ, Alembic and "
+    "XDMF have no field for them: preview and import them in the same units.",
+)
 @click.option(
     "--no-cache",
     is_flag=True,
@@ -220,17 +225,20 @@ def run_cmd(
     body_backend,
     cloth=None,
     collision_margin=None,
-    resolution=1.0,
+    resolution=None,
+    output_units=None,
 ):
     """Animate a garment: SCENE.toml, or the flag form --garment G --motion M -o OUT."""
     import dataclasses
 
+    from segadeform.io.writer import output_unit
     from segadeform.runtime.pipeline import MAX_VERTEX_FRAMES, run_scene
     from segadeform.settings import Effects, MotionSpec, Scene, load_scene, parse_frames
     from segadeform.settings.scene import check_motion_fps
 
     if fps is not None:  # said first, naming the option (the motion's own check named nothing)
         check_motion_fps(fps, option="--fps")
+    out_unit = None if output_units is None else output_unit(output_units, option="--output-units")
     preset = None
     if quality:
         from segadeform.settings.presets import is_change_list, preset_effects
@@ -260,6 +268,8 @@ def run_cmd(
             changes["output_format"] = _fmt_from(output or sc.output, fmt)
         if up:
             changes["up"] = up
+        if out_unit is not None:
+            changes["units"] = out_unit
         if body_out:
             changes["body_output"] = body_out
         if body:
@@ -308,6 +318,7 @@ def run_cmd(
             output=output,
             output_format=_fmt_from(output, fmt),
             up=up or "y",
+            units=1.0 if out_unit is None else out_unit,
             body=body,
             betas=beta_vals,
             model=None,
@@ -393,7 +404,8 @@ def run_cmd(
     )
     if summary.resolution_vertices is not None:
         m, n = summary.resolution_vertices
-        click.echo(f"resolution {resolution:g}: the model ran on {m} of the garment's {n} vertices, carried to all")
+        r = resolution if resolution is not None else sc.resolution
+        click.echo(f"resolution {r:g}: the model ran on {m} of the garment's {n} vertices, carried to all")
     if summary.batch < batch:  # a big garment: fewer frames a call (the runtimes lower it alike)
         click.echo(
             f"batch: {summary.batch} frames a call, not {batch} (at most {MAX_VERTEX_FRAMES} vertex-frames a call)"

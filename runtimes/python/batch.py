@@ -12,6 +12,8 @@ A jobs file (TOML; relative paths are relative to it)::
     # collision_margin = 0.004     # optional, as `run --collision-margin` (metres)
     # cloth_iterations = 8         # optional cloth stage knobs, as `run --cloth` (cloth_<knob>)
     up = "y"                       # y | z
+    units = "m"                    # as `run --output-units`: m | dm | cm | mm | inch | ft or metres per unit
+    resolution = 1.0               # as `run --resolution`: share of each garment's vertices the model runs on
     frames_per_call = 8            # frames per deformer call (`run --batch`)
 
     [[garments]]
@@ -75,6 +77,8 @@ _BatchTable = dataclasses.make_dataclass(
         ("quality", str | None, dataclasses.field(default=None)),
         ("collision_margin", float | None, dataclasses.field(default=None)),
         ("up", str, dataclasses.field(default="y")),
+        ("units", str | int | float | None, key(None, types=(str, int, float))),
+        ("resolution", float, key(1.0, range=(1e-9, 1.0))),
         ("frames_per_call", int, key(8, range=(1, 2**31))),
     ]
     # the cloth stage's knobs, as a scene's [effects] names them
@@ -120,6 +124,8 @@ class BatchConfig:
     up: str = "y"
     frames_per_call: int = 8
     path: Path | None = None
+    units: float = 1.0  # metres per written unit (segadeform.io.writer.output_unit)
+    resolution: float = 1.0  # share of each garment's vertices the model runs on (`run --resolution`)
 
 
 def _name_ok(name: str, what: str, p: Path) -> str:
@@ -258,6 +264,14 @@ def load_batch(path) -> BatchConfig:
 
     if b.get("up", "y") not in UP_AXES:
         raise FileFormatError("unknown batch.up axis", path=p, expected=" | ".join(UP_AXES), got=b["up"])
+    from segadeform.io import output_unit
+
+    try:
+        units = output_unit(b.get("units", 1.0), option="batch.units")
+    except InputError as e:
+        raise FileFormatError(
+            e.problem, path=p, line=key_line(p, "batch", "units"), expected=e.expected, got=e.got
+        ) from None
     effects = _batch_effects(b, p)
     out = b.get("output")
     if out is not None and not is_url(out):
@@ -273,6 +287,8 @@ def load_batch(path) -> BatchConfig:
         up=b.get("up", "y"),
         frames_per_call=int(b.get("frames_per_call", 8)),
         path=p,
+        units=units,
+        resolution=float(b.get("resolution", 1.0)),
     )
 
 
@@ -292,6 +308,8 @@ class BatchJob:
     frames_per_call: int
     spec: str
     force: bool = False  # accept a garment that does not sit on the body (`batch --force`; not part of the spec)
+    units: float = 1.0  # metres per written unit
+    resolution: float = 1.0  # share of the garment's vertices the model runs on
 
     @property
     def output_name(self) -> str:
@@ -325,7 +343,7 @@ def batch_jobs(cfg: BatchConfig, out=None) -> list[BatchJob]:
     jobs = []
     for g in cfg.garments:
         for m in cfg.motions:
-            spec = {
+            spec: dict[str, object] = {
                 "garment": str(g.mesh),
                 "garment_sha256": gd[g.name],
                 "betas": list(g.betas),
@@ -336,6 +354,11 @@ def batch_jobs(cfg: BatchConfig, out=None) -> list[BatchJob]:
                 "effects": dataclasses.asdict(cfg.effects),
                 "up": cfg.up,
             }
+            # (the specs of jobs at the defaults are those made before these keys existed: they resume)
+            if cfg.units != 1.0:
+                spec["units"] = cfg.units
+            if cfg.resolution != 1.0:
+                spec["resolution"] = cfg.resolution
             digest = hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:16]
             jobs.append(
                 BatchJob(
@@ -350,6 +373,8 @@ def batch_jobs(cfg: BatchConfig, out=None) -> list[BatchJob]:
                     cfg.up,
                     cfg.frames_per_call,
                     digest,
+                    units=cfg.units,
+                    resolution=cfg.resolution,
                 )
             )
     return jobs
@@ -390,6 +415,8 @@ def _run_job(job: BatchJob, loc, name: str, t0: float) -> dict:
                 output=Path(d) / name,
                 output_format=job.format,
                 up=job.up,
+                units=job.units,
+                resolution=job.resolution,
                 body=job.body,
                 betas=job.garment.betas,
                 model=job.model,

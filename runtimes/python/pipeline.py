@@ -45,7 +45,7 @@ from segadeform.errors import InputError
 from segadeform.geometry import GarmentAsset, precompute_garment
 from segadeform.geometry.mesh_ops import surface_faces
 from segadeform.geometry.precompute import PRECOMPUTE_VERSION
-from segadeform.io import SceneOutput, read_mesh
+from segadeform.io import SceneOutput, output_unit, read_mesh
 from segadeform.io.garment_asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
 from segadeform.io.mesh import Mesh
@@ -147,6 +147,8 @@ class Run:
         betas: body shape.
         effects: stages to run.
         output / output_format / up / body_output: where and how to write.
+        units: metres per written unit of the outputs (1: metres; 0.01: centimetres;
+            :func:`segadeform.io.writer.output_unit`).
         frames: ``(start, stop)`` of the motion, stop exclusive (None: to the end).
         batch: frames per deformer call, at most: lowered so that a call holds at most
             :data:`MAX_VERTEX_FRAMES` vertex-frames (:func:`effective_batch`).
@@ -178,6 +180,7 @@ class Run:
         output: Path,
         output_format: str = "pc2",
         up: str = "y",
+        units: float = 1.0,
         body_output: Path | None = None,
         frames=None,
         batch: int = 8,
@@ -200,6 +203,7 @@ class Run:
         self.garment, self.motion, self.package, self.body = Path(garment), motion, package, body
         self.betas = np.asarray(betas, np.float64)
         self.effects, self.output, self.output_format, self.up = effects, Path(output), output_format, up
+        self.units = output_unit(units)
         self.body_output = Path(body_output) if body_output else None
         self.batch, self.cache, self.force = int(batch), cache, bool(force)
         self._asset: GarmentAsset | None = None  # checked_asset's
@@ -462,6 +466,7 @@ class Run:
             path=self.output,
             fmt=self.output_format,
             up=self.up,
+            unit=self.units,
             fps=self.motion.fps,
             start_frame=self.start + self._motion_start(),  # a cut motion file's numbers
             garment_faces=out_f,
@@ -807,11 +812,12 @@ def run_scene(
     body_backend: str = "auto",
     guard=None,
     frames_from_scene: bool = True,
-    resolution: float = 1.0,
+    resolution: float | None = None,
 ) -> RunSummary:
     """Run a scene (optionally overriding its model package and output path); ``body_backend`` and ``guard``:
     :class:`Run`'s.  ``frames_from_scene``: the frame range is the scene file's (a range past the motion's end
-    names the file); False when a command-line flag gave it."""
+    names the file); False when a command-line flag gave it.  ``resolution``: :class:`Run`'s (None: the scene's
+    ``[model] resolution``)."""
     package = ModelPackage(model or scene.model or default_model_path(), threads=threads, providers=providers)
     body = load_body(scene.body or default_body_path())
     betas = shape_for_inputs(scene, body, force=force)
@@ -873,6 +879,7 @@ def run_scene(
         output=out,
         output_format=scene.output_format,
         up=scene.up,
+        units=scene.units,
         body_output=scene.body_output,
         frames=scene.motion.frames,
         batch=batch,
@@ -880,7 +887,7 @@ def run_scene(
         force=force,
         body_backend=body_backend,
         guard=guard,
-        resolution=resolution,
+        resolution=scene.resolution if resolution is None else resolution,
     )
     run.checked_asset()
     for words in said:

@@ -213,6 +213,46 @@ def test_run_into_a_folder_of_the_users_files_issue_reproduction(tmp_path):
     assert sorted(set(folder_hash(d)) - set(before)) == ["frame_00000.obj", "frame_00001.obj"]
 
 
+def test_run_body_out_into_a_folder_of_the_users_files(tmp_path):
+    """`--body-out` without an extension is a folder of OBJ frames: into a folder of a user's files it is refused
+    (nothing written, the garment output neither), with --force its frames go beside them, and a later, shorter run
+    removes only the frames it wrote."""
+    d = user_folder(tmp_path, "body_notes.obj")
+    before = folder_hash(d)
+
+    def args(frames="0:3"):
+        out = tmp_path / "g.pc2"
+        return [
+            "run",
+            "--garment",
+            SKIRT,
+            "--motion",
+            WALK,
+            "--frames",
+            frames,
+            "--no-cache",
+            "-o",
+            out,
+            "--body-out",
+            d,
+        ]
+
+    r = invoke(args())
+    assert r.exit_code == 1 and str(d) in r.output and "body_notes.obj, notes.txt" in r.output, r.output
+    assert len(r.output.strip().splitlines()) == 1 and not (tmp_path / "g.pc2").exists()
+    assert folder_hash(d) == before
+    r = invoke(args() + ["--force"])
+    assert r.exit_code == 0, r.output
+    after = folder_hash(d)
+    assert {k: after[k] for k in before} == before
+    assert sorted(set(after) - set(before)) == ["frame_00000.obj", "frame_00001.obj", "frame_00002.obj"]
+    r = invoke(args("0:2") + ["--force"])
+    assert r.exit_code == 0, r.output
+    after = folder_hash(d)
+    assert {k: after[k] for k in before} == before
+    assert sorted(set(after) - set(before)) == ["frame_00000.obj", "frame_00001.obj"]
+
+
 def test_a_scene_writing_into_its_own_folder_keeps_every_toml(tmp_path):
     """A scene whose output.path is its own folder deleted the 39 .toml files beside it (exit 0)."""
     d = tmp_path / "scenes"

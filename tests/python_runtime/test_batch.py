@@ -113,6 +113,31 @@ def test_a_jobs_file_takes_a_preset_a_margin_and_cloth_knobs_as_run_does(tmp_pat
     assert (tmp_path / "one.pc2").read_bytes() == (tmp_path / "out" / "skirt__walk.pc2").read_bytes()
 
 
+def test_a_jobs_file_names_its_output_units_as_run_does(tmp_path):
+    """`units` in [batch] is `run --output-units`: a job's bytes are that run's; a metre job keeps the spec it had
+    before units existed (a finished batch resumes), a centimetre one has another."""
+    one = (
+        JOBS.split('[[garments]]\nname = "big-skirt"')[0]
+        + f'[[motions]]\nfile = "{SAMPLES / "motions" / "walk.npz"}"\n'
+    )
+    one += 'frames = "0:4"\n'
+    metres = batch_jobs(load_batch(jobs_file(tmp_path, one, "m.toml")))
+    assert (
+        batch_jobs(load_batch(jobs_file(tmp_path, one.replace("[batch]", '[batch]\nunits = "m"'), "m2.toml")))[0].spec
+        == metres[0].spec
+    )
+    jf = jobs_file(tmp_path, one.replace("[batch]", '[batch]\nunits = "cm"'), "cm.toml")
+    cfg = load_batch(jf)
+    assert cfg.units == 0.01 and batch_jobs(cfg)[0].spec != metres[0].spec
+    assert main(["batch", str(jf)]) == 0
+    g, m = str(SAMPLES / "garments" / "skirt.obj"), str(SAMPLES / "motions" / "walk.npz")
+    args = ["--effects", "lbs,collisions", "--frames", "0:4", "--output-units", "cm"]
+    assert main(["run", "--garment", g, "--motion", m, *args, "-o", str(tmp_path / "one.pc2")]) == 0
+    assert (tmp_path / "one.pc2").read_bytes() == (tmp_path / "out" / "skirt__walk.pc2").read_bytes()
+    with pytest.raises(FileFormatError, match=r"cm2.toml:\d+: unknown batch.units"):
+        load_batch(jobs_file(tmp_path, one.replace("[batch]", '[batch]\nunits = "furlongs"'), "cm2.toml"))
+
+
 def test_batch_runs_resumes_and_refuses_a_changed_job(tmp_path, capsys):
     jf = jobs_file(tmp_path)
     assert main(["batch", str(jf), "-j", "2"]) == 0

@@ -122,3 +122,33 @@ def test_the_garment_as_given_is_checked_and_too_few_vertices_refused(tmp_path, 
     n = len(read_mesh(DRESS).vertices)
     assert r.exit_code == 1 and f"leaves the model {round(n * 0.002)} of the garment's {n} vertices" in r.output
     assert "at least 200 vertices" in r.output and not (tmp_path / "b.pc2").exists()
+
+
+def test_a_scene_and_a_jobs_file_name_the_resolution_as_run_does(tmp_path):
+    """`[model] resolution` in a scene and `resolution` in a jobs file's [batch] are `run --resolution` (the option
+    alone set it); the command line's wins over the scene's."""
+    from segadeform.cli.main import main
+    from segadeform.errors import FileFormatError
+    from segadeform.settings import load_scene
+
+    scene = tmp_path / "s.toml"
+    body = f'[garment]\nmesh = "{DRESS}"\n[motion]\nfile = "{WALK}"\nframes = "0:6"\n'
+    scene.write_text(body + '[model]\nresolution = 0.5\n[output]\npath = "scene.pc2"\n')
+    assert load_scene(scene).resolution == 0.5
+    r = CliRunner().invoke(cli, ["run", str(scene), "--no-cache"])
+    assert r.exit_code == 0 and "resolution 0.5: the model ran on" in r.output, r.output
+    r = _run(tmp_path, "--garment", DRESS, "--resolution", "0.5", "--no-cache", "-o", tmp_path / "flag.pc2")
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "scene.pc2").read_bytes()[32:] == (tmp_path / "flag.pc2").read_bytes()[32:]
+    r = CliRunner().invoke(cli, ["run", str(scene), "--resolution", "1", "--no-cache", "-o", str(tmp_path / "one.pc2")])
+    assert r.exit_code == 0 and "resolution" not in r.output, r.output  # the option over the scene's
+    scene.write_text(body + '[model]\nresolution = 1.5\n[output]\npath = "x.pc2"\n')
+    with pytest.raises(FileFormatError, match=r"s.toml.*model.resolution"):
+        load_scene(scene)
+    jobs = tmp_path / "jobs.toml"
+    jobs.write_text(
+        f'[batch]\noutput = "out"\nresolution = 0.5\n[[garments]]\nmesh = "{DRESS}"\n'
+        f'[[motions]]\nfile = "{WALK}"\nframes = "0:6"\n'
+    )
+    assert main(["batch", str(jobs)]) == 0
+    assert (tmp_path / "out" / "dress__walk.pc2").read_bytes()[32:] == (tmp_path / "flag.pc2").read_bytes()[32:]

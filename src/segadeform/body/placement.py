@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..io.writer import UNIT_SCALES
 from .collision import BodyProxy, push_out
 
 __all__ = [
@@ -26,8 +27,6 @@ __all__ = [
     "check_placement",
     "check_recorded_shape",
 ]
-
-UNIT_SCALES = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "ft": 0.3048}
 
 
 def turn_about_up(degrees: float) -> np.ndarray:

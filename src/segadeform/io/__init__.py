@@ -40,7 +40,7 @@ from .sequence import (
     write_obj_sequence,
     write_xdmf_sequence,
 )
-from .writer import UP_AXES, Y_TO_Z, SequenceWriter, to_up
+from .writer import UNIT_SCALES, UP_AXES, Y_TO_Z, SequenceWriter, output_unit, to_output, to_up
 
 __all__ = [
     "Mesh",
@@ -73,6 +73,9 @@ __all__ = [
     "UP_AXES",
     "Y_TO_Z",
     "to_up",
+    "to_output",
+    "output_unit",
+    "UNIT_SCALES",
     "SceneOutput",
     "atomic_path",
     "atomic_open",

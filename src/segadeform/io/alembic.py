@@ -83,8 +83,9 @@ class AlembicSequenceWriter(SequenceWriter):
         name: str | None = None,
         up: str = "y",
         surface=None,
+        unit: float = 1.0,
     ) -> None:
-        super().__init__(path, num_points, up=up)
+        super().__init__(path, num_points, up=up, unit=unit)
         Abc, AbcGeom, AbcCoreAbstract, self._imath = _modules()
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
         if not (np.isfinite(fps) and fps > 0):

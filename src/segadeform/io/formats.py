@@ -68,6 +68,8 @@ class SequenceFormat:
             (inspect reports them).  None: ``read`` and a summary of the counts.
         start: optional ``start(path) -> int``: the frame number of the file's first frame (``run --frames
             10:40`` writes 10), for :func:`sequence_start_frame`.  None: the format keeps none (0).
+        units: optional ``units(path) -> float``: the metres per unit the file records (USD's ``metersPerUnit``),
+            for :func:`sequence_units`.  None: the format records none (its points are read as they are).
     """
 
     name: str
@@ -78,6 +80,7 @@ class SequenceFormat:
     extra: str | None = None
     inspect: Callable | None = None
     start: Callable | None = None
+    units: Callable | None = None
 
     @property
     def folder(self) -> bool:
@@ -138,23 +141,32 @@ def open_sequence_writer(
     rest: np.ndarray | None = None,
     up: str = "y",
     surface=None,
+    unit: float = 1.0,
 ):
     """A streaming writer (:class:`~segadeform.io.writer.SequenceWriter`) for the format called ``fmt``;
     ``surface``: polygons and texture coordinates to keep (:class:`~segadeform.io.surface.Surface`; OBJ frames,
-    USD and Alembic keep them, the others write ``faces``)."""
+    USD and Alembic keep them, the others write ``faces``); ``unit``: metres per written unit (0.01: centimetres;
+    USD records it as ``metersPerUnit``, the other formats have no field for it)."""
     f = sequence_format(fmt)
-    kw = {"surface": surface} if surface is not None and _takes_surface(f.open) else {}  # formats from before it
+    kw = (
+        {"surface": surface} if surface is not None and _takes_parameter(f.open, "surface") else {}
+    )  # formats from before it
+    if unit != 1.0:
+        if not _takes_parameter(f.open, "unit"):
+            raise InputError(f"the {fmt} writer cannot write other units than metres", path=path, got=unit)
+        kw["unit"] = unit
     return f.open(path, faces=faces, num_points=num_points, fps=fps, start_frame=start_frame, rest=rest, up=up, **kw)
 
 
-def _takes_surface(open_fn) -> bool:
+def _takes_parameter(open_fn, name: str) -> bool:
+    """Whether a format's opener takes the keyword ``name`` (formats registered before it existed do not)."""
     import inspect
 
     try:
         params = inspect.signature(open_fn).parameters
     except (TypeError, ValueError):
         return False
-    return "surface" in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
+    return name in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
 
 
 def read_sequence(path: str | os.PathLike, *, faces: np.ndarray | None = None) -> np.ndarray:
@@ -180,6 +192,13 @@ def sequence_start_frame(path: str | os.PathLike) -> int:
     return 0 if f is None or f.start is None else int(round(f.start(p)))
 
 
+def sequence_units(path: str | os.PathLike) -> float | None:
+    """The metres per unit an output records (a USD's ``metersPerUnit``), or None when its format records none
+    (PC2, OBJ, XDMF and Alembic points are numbers only: ``run --output-units`` is the reader's to know)."""
+    f = sequence_format_of(Path(path))
+    return None if f is None or f.units is None else float(f.units(Path(path)))
+
+
 def inspect_sequence(path: str | os.PathLike) -> tuple[SequenceFormat, str, Any]:
     """``(format, summary, frames (S, N, 3))`` of an output of any registered format, for ``segadeform inspect``:
     the format's ``inspect`` hook, else its reader and the counts.  Non-finite values are kept, not refused.
@@ -202,10 +221,10 @@ def inspect_sequence(path: str | os.PathLike) -> tuple[SequenceFormat, str, Any]
 
 
 # ---- the built-in formats ----------------------------------------------------------------------------------
-def _pc2_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
+def _pc2_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None, unit=1.0):
     from .pc2 import PC2Writer
 
-    return PC2Writer(path, num_points, start_frame=float(start_frame), sample_rate=1.0, up=up)
+    return PC2Writer(path, num_points, start_frame=float(start_frame), sample_rate=1.0, up=up, unit=unit)
 
 
 def _pc2_read(path, faces):
@@ -238,10 +257,10 @@ def _objseq_start(path):
     return obj_sequence_files(path)[0][0]
 
 
-def _objseq_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
+def _objseq_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None, unit=1.0):
     from .sequence import ObjSequenceWriter
 
-    return ObjSequenceWriter(path, faces, num_points, start=start_frame, up=up, surface=surface)
+    return ObjSequenceWriter(path, faces, num_points, start=start_frame, up=up, surface=surface, unit=unit)
 
 
 def _objseq_read(path, faces):
@@ -266,10 +285,10 @@ def _objseq_inspect(path):
     return f"{frames.shape[0]} frames x {frames.shape[1]} vertices, {_faces_said(polygons, len(faces))}", frames
 
 
-def _xdmf_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
+def _xdmf_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None, unit=1.0):
     from .sequence import XdmfSequenceWriter
 
-    return XdmfSequenceWriter(path, faces, num_points, rest=rest, fps=fps, start=start_frame, up=up)
+    return XdmfSequenceWriter(path, faces, num_points, rest=rest, fps=fps, start=start_frame, up=up, unit=unit)
 
 
 def _xdmf_read(path, faces):
@@ -300,10 +319,12 @@ def _abc_inspect(path):
     return f"{frames.shape[0]} samples x {frames.shape[1]} points, {len(faces)} triangles, {rate}", frames
 
 
-def _abc_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
+def _abc_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None, unit=1.0):
     from .alembic import AlembicSequenceWriter
 
-    return AlembicSequenceWriter(path, faces, num_points, fps=fps, start_frame=start_frame, up=up, surface=surface)
+    return AlembicSequenceWriter(
+        path, faces, num_points, fps=fps, start_frame=start_frame, up=up, surface=surface, unit=unit
+    )
 
 
 def _abc_read(path, faces):
@@ -351,10 +372,12 @@ register_sequence_format(
 )
 
 
-def _usd_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None):
+def _usd_open(path, *, faces, num_points, fps, start_frame, rest, up, surface=None, unit=1.0):
     from .usd import UsdSequenceWriter
 
-    return UsdSequenceWriter(path, faces, num_points, fps=fps, start_frame=start_frame, up=up, surface=surface)
+    return UsdSequenceWriter(
+        path, faces, num_points, fps=fps, start_frame=start_frame, up=up, surface=surface, unit=unit
+    )
 
 
 def _usd_read(path, faces):
@@ -372,6 +395,12 @@ def _usd_start(path):
     from .usd import usd_start_frame
 
     return usd_start_frame(path)
+
+
+def _usd_units(path):
+    from .usd import usd_meters_per_unit
+
+    return usd_meters_per_unit(path)
 
 
 def _usd_inspect(path):
@@ -398,6 +427,7 @@ register_sequence_format(
         extra="usd",
         inspect=_usd_inspect,
         start=_usd_start,
+        units=_usd_units,
     )
 )
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import FileFormatError, InputError
 from .formats import SEQUENCE_FORMATS, format_for_path, open_sequence_writer, sequence_format
-from .writer import to_up
+from .writer import output_unit, to_output
 
 __all__ = ["SceneOutput", "claim_scene_outputs", "body_output_format", "output_format_for", "garment_surface"]
 
@@ -97,10 +97,10 @@ def garment_surface(path, n_vertices: int, fmt: str):
     them: an OBJ's own (:func:`~segadeform.io.surface.obj_surface`) when its faces index ``n_vertices`` vertices or
     fewer (the frames' vertices are the file's, in its order); else None (formats that write triangles only, other
     garment files, precomputed assets, an OBJ whose polygons or UVs cannot be read: the triangles then)."""
-    from .formats import _takes_surface
+    from .formats import _takes_parameter
     from .surface import obj_surface
 
-    if Path(path).suffix.lower() != ".obj" or not _takes_surface(sequence_format(fmt).open):
+    if Path(path).suffix.lower() != ".obj" or not _takes_parameter(sequence_format(fmt).open, "surface"):
         return None
     try:
         s = obj_surface(path)
@@ -176,6 +176,8 @@ class SceneOutput:
     Args:
         path, fmt: the garment output and its format (a name in :data:`~segadeform.io.SEQUENCE_FORMATS`).
         up: axes of the written coordinates ("y" as computed, "z" turned to Z-up).
+        unit: metres per written unit (1: metres as computed; 0.01: centimetres, as Maya and Unreal work), the
+            body's frames and its rest mesh alike (:func:`~segadeform.io.writer.output_unit`).
         fps, start_frame: timing of the first written frame.
         garment_faces (F, 3), garment_rest (N, 3): the garment mesh.
         garment_surface: the garment file's own polygons and texture coordinates
@@ -194,6 +196,7 @@ class SceneOutput:
         path: str | os.PathLike,
         fmt: str,
         up: str = "y",
+        unit: float = 1.0,
         fps: float = 30.0,
         start_frame: int = 0,
         garment_faces: np.ndarray,
@@ -205,7 +208,7 @@ class SceneOutput:
         garment_surface=None,
     ) -> None:
         _targets(path, fmt, body_path)  # unknown formats and clashing paths fail before anything is opened
-        self.fmt, self.up, self.guard = fmt, up, guard
+        self.fmt, self.up, self.unit, self.guard = fmt, up, output_unit(unit), guard
         self.body_fmt = body_output_format(body_path, fmt, path) if body_path is not None else None
         _warn_z_up(path, fmt, up)
         if body_path is not None:
@@ -221,6 +224,7 @@ class SceneOutput:
             rest=rest,
             up=up,
             surface=garment_surface,
+            unit=self.unit,
         )
         self.body = None
         self._body_rest = None
@@ -235,6 +239,7 @@ class SceneOutput:
                     start_frame=start_frame,
                     rest=np.asarray(body_rest),
                     up=up,
+                    unit=self.unit,
                 )
             except BaseException:
                 self.garment.abort()
@@ -262,7 +267,7 @@ class SceneOutput:
                 write_obj(
                     obj,
                     Mesh(
-                        vertices=to_up(cast(np.ndarray, self._body_rest), self.up),
+                        vertices=to_output(cast(np.ndarray, self._body_rest), self.up, self.unit),
                         faces=cast(np.ndarray, self._body_faces),
                     ),
                 )

@@ -207,8 +207,9 @@ class PC2Writer(SequenceWriter):
         start_frame: float = 0.0,
         sample_rate: float = 1.0,
         up: str = "y",
+        unit: float = 1.0,
     ) -> None:
-        super().__init__(path, num_points, up=up)
+        super().__init__(path, num_points, up=up, unit=unit)
         if not np.isfinite(start_frame):
             raise InputError("start_frame must be finite", got=start_frame)
         if not (np.isfinite(sample_rate) and sample_rate > 0):

@@ -33,7 +33,7 @@ from ..errors import FileFormatError, InputError
 from .atomic import _tmp_sibling, atomic_path, merge_directory
 from .mesh import validate_mesh_arrays
 from .obj import read_obj, write_obj_positions
-from .writer import SequenceWriter, nominal_fps, to_up
+from .writer import SequenceWriter, nominal_fps, to_output
 
 __all__ = [
     "CHUNK_VALUES",
@@ -187,8 +187,9 @@ class ObjSequenceWriter(SequenceWriter):
         precision: int = 9,
         up: str = "y",
         surface=None,
+        unit: float = 1.0,
     ) -> None:
-        super().__init__(directory, num_points, up=up)
+        super().__init__(directory, num_points, up=up, unit=unit)
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
         self._surface_text = None if surface is None else _surface_obj_text(surface, num_points)
         if self.path.exists() and not self.path.is_dir():
@@ -325,10 +326,11 @@ class XdmfSequenceWriter(SequenceWriter):
         fps: float = 30.0,
         start: int = 0,
         up: str = "y",
+        unit: float = 1.0,
     ) -> None:
-        super().__init__(path, num_points, up=up)
+        super().__init__(path, num_points, up=up, unit=unit)
         _, self.faces = validate_mesh_arrays(np.zeros((num_points, 3)), faces)
-        self.rest = None if rest is None else to_up(self.check(rest)[0].astype(np.float64), up)
+        self.rest = None if rest is None else to_output(self.check(rest)[0].astype(np.float64), up, self.unit)
         if not (np.isfinite(fps) and fps > 0):
             raise InputError("fps must be positive", got=fps)
         self.fps, self.start = nominal_fps(fps), int(start)

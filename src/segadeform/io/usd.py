@@ -6,9 +6,9 @@ faces written once (``faceVertexCounts`` all 3, ``faceVertexIndices`` in the gar
 garment file's own :class:`~segadeform.io.surface.Surface`, its quads and polygons and its texture coordinates as
 the face-varying ``st`` primvar -- counter-clockwise = ``rightHanded``, no subdivision), ``points`` and ``extent``
 as time samples at time codes ``start_frame, start_frame + 1, ...``. The stage says how to read them: ``upAxis``
-(``Y`` as computed, or ``Z`` for ``--up z``), ``metersPerUnit = 1`` and ``timeCodesPerSecond = framesPerSecond =
-fps``, with ``startTimeCode``/``endTimeCode`` spanning the frames. ``.usd`` and ``.usdc`` are written binary
-(crate), ``.usda`` as text.
+(``Y`` as computed, or ``Z`` for ``--up z``), ``metersPerUnit`` (1, or the unit ``--output-units`` names) and
+``timeCodesPerSecond = framesPerSecond = fps``, with ``startTimeCode``/``endTimeCode`` spanning the frames.
+``.usd`` and ``.usdc`` are written binary (crate), ``.usda`` as text.
 
 A binary file (``.usd``, ``.usdc``) is streamed: written under a temporary name as the frames come, saved every
 :data:`SAVE_BYTES` of points (USD's crate format appends what changed and lets the saved samples go from memory:
@@ -44,6 +44,7 @@ __all__ = [
     "usd_available",
     "usd_prim_name",
     "usd_start_frame",
+    "usd_meters_per_unit",
     "USD_EXTENSIONS",
 ]
 
@@ -93,6 +94,7 @@ class UsdSequenceWriter(SequenceWriter):
         fps: frames per second (the stage's time codes per second, as :func:`~segadeform.io.writer.nominal_fps`
             rounds it); start_frame: the first frame's time code.
         up: "y" (as computed) or "z" (points turned to Z-up, ``upAxis = Z``).
+        unit: metres per written unit (the stage's ``metersPerUnit``: 0.01 writes centimetres).
     """
 
     def __init__(
@@ -105,8 +107,9 @@ class UsdSequenceWriter(SequenceWriter):
         start_frame: int = 0,
         up: str = "y",
         surface=None,
+        unit: float = 1.0,
     ) -> None:
-        super().__init__(path, num_points, up=up)
+        super().__init__(path, num_points, up=up, unit=unit)
         ext = self.path.suffix.lower()
         if ext not in USD_EXTENSIONS:
             raise InputError("not a USD file name", path=self.path, expected=" | ".join(USD_EXTENSIONS), got=ext)
@@ -143,7 +146,7 @@ class UsdSequenceWriter(SequenceWriter):
     def _define(self, UsdGeom, Sdf, up: str, surface) -> None:
         """The stage's values and the mesh: everything but the frames."""
         UsdGeom.SetStageUpAxis(self._stage, UsdGeom.Tokens.z if up == "z" else UsdGeom.Tokens.y)
-        UsdGeom.SetStageMetersPerUnit(self._stage, 1.0)
+        UsdGeom.SetStageMetersPerUnit(self._stage, self.unit)
         self._stage.SetTimeCodesPerSecond(self.fps)
         self._stage.SetFramesPerSecond(self.fps)
         self._stage.SetStartTimeCode(self.start)
@@ -283,6 +286,11 @@ def read_usd_sequence(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, 
 def usd_start_frame(path: str | os.PathLike) -> float:
     """The first time code of a USD mesh's points (0 for points without time samples); reads no frame."""
     return float(read_usd_mesh(path, lazy=True)[3][0])
+
+
+def usd_meters_per_unit(path: str | os.PathLike) -> float:
+    """The stage's ``metersPerUnit`` (what ``run --output-units`` wrote; 0.01 for centimetres); reads no frame."""
+    return float(read_usd_mesh(path, lazy=True)[4]["meters_per_unit"])
 
 
 def read_usd_mesh(

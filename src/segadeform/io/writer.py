@@ -1,8 +1,9 @@
 """The one lifecycle every streaming sequence writer shares, and the output axis convention.
 
 A :class:`SequenceWriter` takes frames ``(N, 3)`` or ``(B, N, 3)`` (finite, the right
-vertex count), optionally turns them from the package's +Y-up convention to +Z up,
-and hands them to its format's ``_append``; ``close`` commits the output (atomically:
+vertex count) in metres, optionally turns them from the package's +Y-up convention to +Z up
+and writes them in other units (``unit``: metres per written unit, 0.01 for Maya's and Unreal's
+centimetres), and hands them to its format's ``_append``; ``close`` commits the output (atomically:
 nothing appears under the final name before) and ``abort`` -- or leaving a ``with``
 block by an exception, or dropping the writer -- discards it.  A format subclasses
 it with ``_append``, ``_commit`` and ``_discard`` (and registers itself in
@@ -18,7 +19,17 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["SequenceWriter", "UP_AXES", "Y_TO_Z", "to_up", "COMMON_FPS", "nominal_fps"]
+__all__ = [
+    "SequenceWriter",
+    "UP_AXES",
+    "Y_TO_Z",
+    "UNIT_SCALES",
+    "to_up",
+    "to_output",
+    "output_unit",
+    "COMMON_FPS",
+    "nominal_fps",
+]
 
 #: the up axes a writer can write (``--up``, a scene's ``output.up``, a jobs file's ``batch.up``)
 UP_AXES = ("y", "z")
@@ -26,6 +37,12 @@ UP_AXES = ("y", "z")
 #: +Y up -> +Z up as Blender's OBJ importer turns objects by default (forward -Z, up Y):
 #: (x, y, z) -> (x, -z, y).  Rows act on column vectors: row-vector points map as ``p @ Y_TO_Z.T``.
 Y_TO_Z = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
+
+#: metres per unit of the length units a file may be read or written in (a garment's ``--units``, an output's
+#: ``--output-units``)
+UNIT_SCALES = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "ft": 0.3048}
+#: metres per written unit an output may take (a number outside it is a typo: 1e-9 m is no tool's unit)
+OUTPUT_UNIT_RANGE = (1e-4, 1e3)
 
 
 #: the frame rates besides whole numbers that a rate within :data:`FPS_RTOL` of stands for: NTSC film and video,
@@ -69,6 +86,36 @@ def to_up(points: np.ndarray, up: str) -> np.ndarray:
     raise InputError("unknown up axis", expected=" | ".join(UP_AXES), got=up)
 
 
+def output_unit(units, *, option: str = "output units") -> float:
+    """Metres per written unit of ``units``: a name of :data:`UNIT_SCALES` (``"cm"`` -> 0.01) or a positive number
+    (metres per unit, as a number or its text) inside :data:`OUTPUT_UNIT_RANGE`.  ``option`` names where it came
+    from in the error."""
+    if isinstance(units, str) and units.strip().lower() in UNIT_SCALES:
+        return UNIT_SCALES[units.strip().lower()]
+    expected = " | ".join(UNIT_SCALES) + f" or metres per unit ({OUTPUT_UNIT_RANGE[0]:g}..{OUTPUT_UNIT_RANGE[1]:g})"
+    if isinstance(units, bool):
+        raise InputError(f"unknown {option}", expected=expected, got=units)
+    try:
+        f = float(units)
+    except (TypeError, ValueError):
+        raise InputError(f"unknown {option}", expected=expected, got=units) from None
+    lo, hi = OUTPUT_UNIT_RANGE
+    if not lo <= f <= hi:  # NaN too
+        raise InputError(f"{option} out of range", expected=expected, got=units)
+    return f
+
+
+def to_output(points: np.ndarray, up: str, unit: float = 1.0) -> np.ndarray:
+    """Points in the package's convention (+Y up, metres) as written for ``up`` and ``unit`` (metres per written
+    unit: 0.01 writes centimetres).
+
+    Shapes:
+        points: (..., 3) -> (..., 3)
+    """
+    p = to_up(points, up)
+    return p if unit == 1.0 else np.asarray(p) / unit
+
+
 class SequenceWriter:
     """Base class of the streaming writers (see the module docstring).
 
@@ -79,7 +126,7 @@ class SequenceWriter:
     #: a writer whose ``close`` needs at least one frame
     needs_frames = True
 
-    def __init__(self, path: str | os.PathLike, num_points: int, *, up: str = "y") -> None:
+    def __init__(self, path: str | os.PathLike, num_points: int, *, up: str = "y", unit: float = 1.0) -> None:
         if int(num_points) <= 0:
             raise InputError("num_points must be positive", got=num_points)
         if up not in UP_AXES:
@@ -88,10 +135,11 @@ class SequenceWriter:
         self.num_points = int(num_points)
         self.num_samples = 0
         self.up = up
+        self.unit = output_unit(unit)  # metres per written unit
         self._closed = False
 
     # ---- what a format provides ---------------------------------------------------------------
-    def _append(self, frames: np.ndarray) -> None:  # (B, N, 3) finite, already in the output axes
+    def _append(self, frames: np.ndarray) -> None:  # (B, N, 3) finite, already in the output axes and units
         raise NotImplementedError
 
     def _commit(self) -> None:
@@ -118,12 +166,12 @@ class SequenceWriter:
         return a
 
     def write(self, frames: np.ndarray) -> None:
-        """Append ``(N, 3)`` or ``(B, N, 3)`` frames (+Y up; written in ``up``)."""
+        """Append ``(N, 3)`` or ``(B, N, 3)`` frames (+Y up, metres; written in ``up`` and ``unit``)."""
         if self._closed:
             raise InputError(f"{type(self).__name__} is closed", path=self.path)
         a = self.check(frames)
         try:
-            self._append(to_up(a, self.up))
+            self._append(to_output(a, self.up, self.unit))
         except OSError as e:  # disk full, ulimit -f: name the output, leave nothing
             self.abort()
             raise _write_error(e, self.path) from None

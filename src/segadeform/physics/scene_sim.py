@@ -79,6 +79,7 @@ def simulate_scene(
         path=out,
         fmt=scene.output_format,
         up=scene.up,
+        unit=scene.units,
         fps=motion.fps,
         start_frame=start + int((motion.meta or {}).get("start_frame", 0)),  # a cut motion file's numbers
         garment_faces=mesh.faces,

@@ -28,12 +28,16 @@ are required; relative paths are relative to the scene file)::
 
     [model]                        # optional; the shipped default model when absent
     package = "../models/default"
+    resolution = 1.0               # share of the garment's vertices the model runs on (0 < R <= 1; run --resolution):
+                                   # the garment decimated, its frames carried to every vertex of the file
 
     [output]
     path = "../../out/skirt.pc2"
     format = "pc2"                 # pc2 | obj-seq | xdmf | abc | usd (default: from the extension; abc and
                                    # usd need the 'alembic' and 'usd' extras)
     up = "y"                       # y (as computed; what Blender's Mesh Cache on an imported OBJ wants) | z
+    units = "m"                    # m (as computed) | dm | cm (Maya, Unreal) | mm | inch | ft, or metres per unit;
+                                   # USD records it (metersPerUnit), the other formats have no field for it
     body = "../../out/body.pc2"    # optional: the posed body too, in the format its extension names (no extension:
                                    # a folder of OBJ frames, or path's format when path has none either)
 
@@ -76,7 +80,7 @@ from pathlib import Path
 from ..bounds import SEED_RANGE, check_betas
 from ..errors import FileFormatError, InputError
 from ..io.toml import config_path, key, key_line, read_table, read_toml
-from ..io.writer import UP_AXES, Y_TO_Z
+from ..io.writer import UP_AXES, Y_TO_Z, output_unit
 from .cloth import CLOTH_KNOBS, ClothSettings
 from .effects import DEFAULT_EFFECTS, EFFECT_NAMES, Effects, parse_effects
 from .simulation import parse_simulate_table
@@ -133,6 +137,8 @@ class Scene:
     output: Path
     output_format: str = "pc2"
     up: str = "y"
+    units: float = 1.0  # metres per written unit (io.writer.output_unit)
+    resolution: float = 1.0  # share of the garment's vertices the model runs on (`run --resolution`)
     body: Path | None = None
     betas: tuple = ()
     model: Path | None = None
@@ -205,6 +211,7 @@ class _MotionTable(MotionTable):
 @dataclasses.dataclass(frozen=True)
 class _ModelTable:
     package: str | None = None
+    resolution: float = key(1.0, range=(1e-9, 1.0))  # share of the garment's vertices the model runs on
 
 
 @dataclasses.dataclass(frozen=True)
@@ -212,6 +219,7 @@ class _OutputTable:
     path: str
     format: str | None = None
     up: str = "y"  # one of io.writer.UP_AXES, read when a scene is loaded
+    units: str | None = key(None, types=(str, int, float))  # io.writer.output_unit's, read when a scene is loaded
     body: str | None = None
 
 
@@ -328,6 +336,12 @@ def load_scene(path: str | os.PathLike, *, effects: str | None = None, sim_effec
     up = out.get("up", "y")
     if up not in UP_AXES:
         raise FileFormatError("unknown output.up axis", path=p, expected=" | ".join(UP_AXES), got=up)
+    try:
+        units = output_unit(out.get("units", 1.0), option="output.units")
+    except InputError as e:
+        raise FileFormatError(
+            e.problem, path=p, line=key_line(p, "output", "units"), expected=e.expected, got=e.got
+        ) from None
     betas = data.get("body", {}).get("betas", [])
     if not all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in betas):
         raise FileFormatError("body.betas must be a list of numbers", path=p, got=betas)
@@ -373,9 +387,11 @@ def load_scene(path: str | os.PathLike, *, effects: str | None = None, sim_effec
         output=out_path,
         output_format=fmt,
         up=up,
+        units=units,
         body=rel(data["body"]["model"]) if "model" in data.get("body", {}) else None,
         betas=tuple(float(b) for b in betas),
         model=rel(data["model"]["package"]) if "package" in data.get("model", {}) else None,
+        resolution=float(data.get("model", {}).get("resolution", 1.0)),
         body_output=rel(out["body"]) if "body" in out else None,
         effects=effects,
         path=p,
