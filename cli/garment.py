@@ -360,6 +360,17 @@ def garment_fit_cmd(
             if welded
             else "  --weld: no vertices at the place of another on an open boundary; none welded"
         )
+    else:  # a mesh split at its seams tears wherever it is played: said here, where --weld joins it (a trial)
+        split = int(
+            (coincident_map(mesh.vertices, surface_faces(mesh.vertices, mesh.faces)) != np.arange(len(v))).sum()
+        )
+        if split:
+            click.echo(
+                f"  warning: {split} vertices lie on an open boundary at the place of another vertex, with no edge "
+                "between them: the mesh is split along a seam (as exports split it at UV seams) and the output would "
+                "tear there; add --weld to join them",
+                err=True,
+            )
     for name, written in libraries.items():  # the copy names the material library as found from its folder
         if written is None:
             click.echo(f"  mtllib {name}: no such file beside {obj.name} or the output; left out")

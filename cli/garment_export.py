@@ -4,6 +4,7 @@ model input only Python computes, for the runtimes without Python (docs/package.
 from __future__ import annotations
 
 import dataclasses
+import logging
 from pathlib import Path
 
 import click
@@ -12,6 +13,8 @@ from segadeform.errors import InputError, SegadeformError
 
 from .garment import _betas, garment_group
 from .main import PathParam
+
+log = logging.getLogger(__name__)
 
 
 @garment_group.command("export")
@@ -41,7 +44,14 @@ from .main import PathParam
     is_flag=True,
     help="Export a garment even when it does not sit on the body, or for a body no human's height.",
 )
-def garment_export_cmd(garment, output, body, betas, model, k, force):
+@click.option(
+    "--resolution",
+    type=click.FloatRange(min=0.0, max=1.0, min_open=True),
+    help="Share of the garment's vertices the model runs on, as `run --resolution`: the asset holds the garment "
+    "decimated for the model and the map that carries its frames to every vertex of the garment as given, which "
+    "the runtimes write, collide and step the cloth stage on (default 1: the garment as given).",
+)
+def garment_export_cmd(garment, output, body, betas, model, k, force, resolution=None):
     """Prepare GARMENT (a mesh, or an asset from `segadeform precompute`) for a body shape: neighbours, mask,
     descriptor, the encoder features for the shape's rest joints, the body's weights at the garment
     (log_wbody), betas and the body's hash: what `segadeform run` computes before the model runs."""
@@ -67,11 +77,24 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
 
         model = default_model_path()
     config = read_manifest_text((Path(model) / "manifest.json").read_text(encoding="utf-8"))["config"]
+    given = None  # with --resolution < 1: the garment as given, and the map from the model's decimated copy to it
     if garment.suffix.lower() in (".npz", PORTABLE_SUFFIX):
+        if resolution is not None and resolution < 1.0:
+            raise InputError(
+                "a garment asset is one resolution: --resolution takes the garment's mesh",
+                path=garment,
+                expected="an .obj (or another mesh file) with --resolution",
+                got=garment.suffix,
+            )
         asset = GarmentAsset.load(garment)
     else:
         n_star = config["n_star"]
         mesh = read_mesh(garment)
+        if resolution is not None and resolution < 1.0:
+            from segadeform.runtime.pipeline import decimated_garment
+
+            v, f, smap = decimated_garment(mesh.vertices, mesh.faces, resolution, path=garment)
+            given, mesh = (mesh, smap), type(mesh)(vertices=v, faces=f)
         try:
             asset = precompute_garment(
                 mesh.vertices,
@@ -85,13 +108,14 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
         except InputError as e:  # of the garment's mesh ("no face with an area"): named by its file (it was not)
             raise e.with_path(garment) from None
     unfit = None
+    on = asset if given is None else given[0]  # the garment as given is what is checked (as `run` checks it)
     try:
         check_body_height(b, beta_vals)
         check_placement(
-            asset.vertices,
+            on.vertices,
             b.shaped_vertices(beta_vals)[0],
             b.faces,
-            faces=asset.faces,
+            faces=on.faces,
             path=garment,
             template_vertices=b.v_template,
             betas=beta_vals,
@@ -101,13 +125,38 @@ def garment_export_cmd(garment, output, body, betas, model, k, force):
         if not force:
             raise
         unfit = e.problem  # kept in the asset: the runtimes refuse it unless forced again, as `segadeform run` does
+    # what `run` says of the garment (split seams, faces wound inward ...), said here and kept in the asset for the
+    # runtimes that play it to say (a developer's trial: a garment split at its UV seams tore in Node with no word)
+    from segadeform.runtime.deformer import unfamiliar_warning
+    from segadeform.runtime.package import ModelPackage
+    from segadeform.runtime.pipeline import garment_warnings
+
+    said = garment_warnings(garment, on, b, beta_vals)
+    far = unfamiliar_warning(ModelPackage(model), asset)
+    said += [] if far is None else [far]
+    for w in said:
+        log.warning("%s", w)
     asset = prepare_for_body(asset, b, beta_vals, weight_prior=config.get("weight_prior", "nearest"))
+    asset = dataclasses.replace(asset, warnings=tuple(said))
     if unfit is not None:
         asset = dataclasses.replace(asset, body={**asset.body, "unfit": unfit})
+    if given is not None:
+        import numpy as np
+
+        full, smap = given
+        asset = dataclasses.replace(
+            asset,
+            out_vertices=np.asarray(full.vertices, np.float64),
+            out_faces=np.asarray(full.faces, np.int64),
+            carry_face=np.asarray(smap.face, np.int64),
+            carry_bary=np.asarray(smap.bary, np.float64),
+            carry_offset=np.asarray(smap.offset, np.float64),
+        )
     asset.save(output)
     guard.record()
+    carried = "" if given is None else f" (the model's, carried to the garment's {len(given[0].vertices)})"
     click.echo(
-        f"{garment.name}: {asset.n_vertices} vertices, K={asset.nbr.shape[1]}, N*={len(asset.descriptor)}, "
+        f"{garment.name}: {asset.n_vertices} vertices{carried}, K={asset.nbr.shape[1]}, N*={len(asset.descriptor)}, "
         f"for {asset.body['name'] or 'the body'} betas {[round(float(x), 4) for x in asset.betas[: len(beta_vals)]]} "
         f"-> {output}"
     )

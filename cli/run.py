@@ -405,7 +405,10 @@ def run_cmd(
     if summary.resolution_vertices is not None:
         m, n = summary.resolution_vertices
         r = resolution if resolution is not None else sc.resolution
-        click.echo(f"resolution {r:g}: the model ran on {m} of the garment's {n} vertices, carried to all")
+        if r < 1.0:
+            click.echo(f"resolution {r:g}: the model ran on {m} of the garment's {n} vertices, carried to all")
+        else:  # a garment asset exported with --resolution
+            click.echo(f"the garment asset's model garment: the model ran on {m} of its {n} vertices, carried to all")
     if summary.batch < batch:  # a big garment: fewer frames a call (the runtimes lower it alike)
         click.echo(
             f"batch: {summary.batch} frames a call, not {batch} (at most {MAX_VERTEX_FRAMES} vertex-frames a call)"

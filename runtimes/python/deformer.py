@@ -18,7 +18,7 @@ from segadeform.settings import Effects
 from .package import ModelPackage
 from .translation import at_translation
 
-__all__ = ["Deformer"]
+__all__ = ["Deformer", "unfamiliar_warning"]
 
 log = logging.getLogger(__name__)
 
@@ -144,19 +144,9 @@ class Deformer:
         return P
 
     def _warn_if_unfamiliar(self, asset: GarmentAsset, surface: np.ndarray | None = None) -> None:
-        from segadeform.geometry.mesh_ops import boundary_loops, surface_faces
-
-        if surface is None:
-            surface = surface_faces(asset.vertices, asset.faces)
-        fam = self.package.familiarity(asset.descriptor, len(boundary_loops(surface, asset.n_vertices)))
-        if fam is not None and fam.outside:
-            log.warning(
-                "garment %s lies outside the garments model %s was trained on (%s); results may be "
-                "less accurate than on those (for the shipped model: its MODEL_CARD.md)",
-                asset.source_name or "(unnamed)",
-                self.package.path.name,
-                fam,
-            )
+        said = unfamiliar_warning(self.package, asset, surface)
+        if said is not None:
+            log.warning("%s", said)
 
     # ---- deformer ------------------------------------------------------
     def body_log_weights(
@@ -281,3 +271,20 @@ class Deformer:
         out = list(self.package.run(self.variant, feeds))
         out[0] = at_translation(out[0], trans)
         return out if outputs else out[0]
+
+
+def unfamiliar_warning(package, asset: GarmentAsset, surface: np.ndarray | None = None) -> str | None:
+    """What a run says of a garment that lies outside the garments ``package``'s model was trained on
+    (:meth:`~segadeform.runtime.package.ModelPackage.familiarity`), or None.  ``surface``: the asset's
+    :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here)."""
+    from segadeform.geometry.mesh_ops import boundary_loops, surface_faces
+
+    if surface is None:
+        surface = surface_faces(asset.vertices, asset.faces)
+    fam = package.familiarity(asset.descriptor, len(boundary_loops(surface, asset.n_vertices)))
+    if fam is None or not fam.outside:
+        return None
+    return (
+        f"garment {asset.source_name or '(unnamed)'} lies outside the garments model {package.path.name} was trained "
+        f"on ({fam}); results may be less accurate than on those (for the shipped model: its MODEL_CARD.md)"
+    )

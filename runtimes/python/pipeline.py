@@ -84,6 +84,24 @@ MAX_VERTEX_FRAMES = 32_768
 MIN_RESOLUTION_VERTICES = 200
 
 
+def decimated_garment(vertices, faces, resolution: float, *, path=None, option: str = "--resolution"):
+    """The garment ``vertices`` (N, 3), ``faces`` (F, 3) decimated to ``resolution`` of its vertices, and the
+    :class:`~segadeform.body.resample.SurfaceMap` that carries the decimated garment's frames back to every vertex:
+    ``(v (M, 3), f (G, 3), map)``; fewer than :data:`MIN_RESOLUTION_VERTICES` left is an error naming ``path``."""
+    from segadeform.body.resample import SurfaceMap, decimate
+
+    n = int(round(len(vertices) * resolution))
+    if n < MIN_RESOLUTION_VERTICES:
+        raise InputError(
+            f"{option} {resolution:g} leaves the model {n} of the garment's {len(vertices)} vertices",
+            path=path,
+            expected=f"at least {MIN_RESOLUTION_VERTICES} vertices (a higher resolution)",
+            got=n,
+        )
+    v, f = decimate(vertices, faces, n)
+    return v, f, SurfaceMap.build(vertices, v, f)
+
+
 def effective_batch(batch: int, n_vertices: int) -> int:
     """Frames per deformer call for a garment of ``n_vertices``: ``batch``, lowered (to at least 1) so that
     ``batch x n_vertices <= MAX_VERTEX_FRAMES``."""
@@ -258,6 +276,17 @@ class Run:
                     expected=f"a garment descriptor of {n_star} values",
                     got=asset.descriptor.shape[0],
                 )
+            if asset.carried:  # `garment export --resolution`: the model's garment is decimated, its frames carried
+                from segadeform.body.resample import SurfaceMap
+
+                out_v, out_f = cast(np.ndarray, asset.out_vertices), cast(np.ndarray, asset.out_faces)
+                self._full = (out_v, out_f)
+                self._smap = SurfaceMap(
+                    face=cast(np.ndarray, asset.carry_face),
+                    bary=cast(np.ndarray, asset.carry_bary),
+                    offset=cast(np.ndarray, asset.carry_offset),
+                    faces=asset.faces,
+                )
             # its body weights made with another model's weight prior: refused, as the Node and C++ runtimes refuse
             # it (this runtime recomputed them and played the file they refuse: a developer's trial)
             if self.deformer.needs_body_weights and asset.log_wbody is not None and isinstance(asset.body, dict):
@@ -312,16 +341,9 @@ class Run:
         model's frames back to every vertex (``self._full``, ``self._smap``): the mesh the model runs on and the
         key of its cache entries.  Both are cached (``R-<key>.npz``, with the asset keyed alike), so a run does not
         decimate again (14.5 s on a 39k-vertex garment: a review)."""
-        from segadeform.body.resample import SurfaceMap, decimate
+        from segadeform.body.resample import SurfaceMap
 
         n = int(round(len(full.vertices) * self.resolution))
-        if n < MIN_RESOLUTION_VERTICES:
-            raise InputError(
-                f"--resolution {self.resolution:g} leaves the model {n} of the garment's {len(full.vertices)} vertices",
-                path=self.garment,
-                expected=f"at least {MIN_RESOLUTION_VERTICES} vertices (a higher resolution)",
-                got=n,
-            )
         key = hashlib.sha256(f"{sha}:resolution={self.resolution!r}:{n}".encode()).hexdigest()[:32]
         rpath = cdir / f"R-{key}.npz" if cdir is not None and sha else None
         self._full = (np.asarray(full.vertices, np.float64), np.asarray(full.faces, np.int64))
@@ -335,8 +357,7 @@ class Run:
                     return type(full)(vertices=v, faces=f), key
             except (OSError, ValueError, KeyError):
                 log.warning("ignoring unreadable resolution cache %s", rpath)
-        v, f = decimate(full.vertices, full.faces, n)
-        self._smap = SurfaceMap.build(full.vertices, v, f)
+        v, f, self._smap = decimated_garment(full.vertices, full.faces, self.resolution, path=self.garment)
         if rpath is not None:
             try:
                 from segadeform.io.atomic import atomic_path
@@ -506,8 +527,10 @@ class Run:
                 trans = self.motion.trans[lo:hi]
                 root = np.zeros_like(trans)
                 verts = self.deformer.deform(P, asset, win, joints, root, self.betas, log_wbody=lw)
-                if self._smap is not None:  # carried to every vertex of the garment as given
-                    verts = self._smap.apply(verts)
+                if self._smap is not None:  # carried to every vertex of the garment as given, in float32 as the
+                    # deformer gives its frames and the Node and C++ runtimes carry them (the push-out of a float64
+                    # carry moved a vertex in a crease 0.1 mm off theirs)
+                    verts = self._smap.apply(verts).astype(np.float32)
                 stage["deform"] += time.perf_counter() - t
                 if not np.isfinite(verts).all():
                     raise InputError(f"the deformer produced NaN or inf at frames {lo}..{hi - 1}")
@@ -596,10 +619,11 @@ def _label(betas) -> str:
     return "[" + ", ".join(f"{x:g}" for x in b) + "]" if b.size else "0 (the default shape)"
 
 
-def _warn_blender_import(garment, asset: GarmentAsset | Mesh) -> None:
+def _warn_blender_import(garment, asset: GarmentAsset | Mesh, say: Callable[..., None] | None = None) -> None:
     """Say when the garment's OBJ is not what a DCC's import of it gives: vertices in no face (Blender's OBJ import
     drops them) or several objects (imported apart).  The output has one point per vertex of the file, so a point
-    cache then fits no import of it (a user's trial: `Vertex count mismatch`, with no word from the run)."""
+    cache then fits no import of it (a user's trial: `Vertex count mismatch`, with no word from the run).  ``say``: what
+    says it, with ``log.warning``'s arguments (default: it)."""
     if not isinstance(garment, (str, os.PathLike)) or Path(garment).suffix.lower() != ".obj":
         return
     from segadeform.io.obj import obj_line_vertices, obj_objects
@@ -614,7 +638,7 @@ def _warn_blender_import(garment, asset: GarmentAsset | Mesh) -> None:
     used[lines] = True
     loose = int((~used).sum())
     if loose:
-        log.warning(
+        (say or log.warning)(
             "garment %s: %d vertices are in no face; Blender's OBJ import drops them, so the output's %d points fit "
             "no import of the file (delete them and run again: Mesh > Clean Up > Delete Loose)",
             name,
@@ -627,7 +651,7 @@ def _warn_blender_import(garment, asset: GarmentAsset | Mesh) -> None:
         return
     if len(objects) > 1:
         shown = ", ".join(repr(o) if o else "(unnamed)" for o in objects[:4]) + (" ..." if len(objects) > 4 else "")
-        log.warning(
+        (say or log.warning)(
             "garment %s: holds %d objects (%s), deformed here as one garment; an import that splits them (Blender's "
             "default) has objects the output's points fit none of: join them (import as one object) or export "
             "the garment alone",
@@ -646,13 +670,19 @@ INWARD = 0.8
 
 
 def _warn_winding(
-    garment, asset: GarmentAsset | Mesh, body: BodyModel, betas, surface: np.ndarray | None = None
+    garment,
+    asset: GarmentAsset | Mesh,
+    body: BodyModel,
+    betas,
+    surface: np.ndarray | None = None,
+    say: Callable[..., None] | None = None,
 ) -> None:
     """Say when the garment's faces are not all wound outward: some against their neighbours
     (:func:`~segadeform.geometry.mesh_ops.mesh_defects`' ``misoriented`` edges) or all of them inward (the normals of
     most vertices near the body point into it).  The model reads the normals: a Blender artist's trial moved a
     dress's frames 1.2 cm on average, 6.6 cm at most, with every face flipped, and nothing said so.  ``surface``: the
-    garment's :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here)."""
+    garment's :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here).  ``say``: what says it, with
+    ``log.warning``'s arguments (default: it)."""
     from segadeform.body.collision import BodyCollider
     from segadeform.geometry.mesh_ops import misoriented_edges, vertex_normals
 
@@ -660,7 +690,7 @@ def _warn_winding(
     v, f = np.asarray(asset.vertices, np.float64), np.asarray(asset.faces)
     bad = misoriented_edges(surface_faces(v, f) if surface is None else surface, len(v))
     if bad:
-        log.warning(
+        (say or log.warning)(
             "garment %s: %d edges lie between faces wound against each other (their normals point opposite ways, "
             "and the model reads them): wind them alike (Blender: Mesh > Normals > Recalculate Outside)",
             name,
@@ -675,7 +705,7 @@ def _warn_winding(
     n = vertex_normals(v, f)[near]
     inward = float(((n * q.normal[near]).sum(axis=1) < 0).mean())
     if inward > INWARD:
-        log.warning(
+        (say or log.warning)(
             "garment %s: its faces are wound inward (the normals of %.0f %% of its vertices near the body point into "
             "it), and the model reads them: flip them (Blender: Mesh > Normals > Recalculate Outside)",
             name,
@@ -683,12 +713,15 @@ def _warn_winding(
         )
 
 
-def _warn_seams(garment, asset: GarmentAsset | Mesh, surface: np.ndarray | None = None) -> None:
+def _warn_seams(
+    garment, asset: GarmentAsset | Mesh, surface: np.ndarray | None = None, say: Callable[..., None] | None = None
+) -> None:
     """Say when the garment is split along a seam: vertices of an open boundary at the place of another, with no
     edge between them (:func:`~segadeform.geometry.mesh_ops.coincident_map`; game-engine exports split vertices at
     UV seams).  The model deforms the two sides apart: a user's shirt with 83 centre-line vertices duplicated tore
     (3.8 mm apart on average, 16 mm at most) with no word but that it lay outside the training garments.
-    ``surface``: the garment's :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here)."""
+    ``surface``: the garment's :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here).  ``say``:
+    what says it, with ``log.warning``'s arguments (default: it)."""
     from segadeform.geometry.mesh_ops import coincident_map
 
     v, f = np.asarray(asset.vertices, np.float64), np.asarray(asset.faces)
@@ -699,7 +732,7 @@ def _warn_seams(garment, asset: GarmentAsset | Mesh, surface: np.ndarray | None 
     name = path.name if path is not None else "garment"
     # an OBJ is welded by `garment fit --weld`; an asset's mesh is welded before it is exported again
     how = f"`segadeform garment fit {path} -o WELDED.obj --weld`, or " if name.lower().endswith(".obj") else ""
-    log.warning(
+    (say or log.warning)(
         "garment %s: %d vertices lie on an open boundary at the place of another vertex, with no edge between them: "
         "the mesh is split along a seam (as exports split it at UV seams), and the model deforms the two sides apart, "
         "so the output tears there; weld them (%sBlender: Mesh > Clean Up > Merge by Distance) and run the welded "
@@ -708,6 +741,22 @@ def _warn_seams(garment, asset: GarmentAsset | Mesh, surface: np.ndarray | None 
         welded,
         how,
     )
+
+
+def garment_warnings(garment, mesh: GarmentAsset | Mesh, body: BodyModel, betas) -> list[str]:
+    """What ``segadeform run`` says of a garment (``mesh``: its mesh as given; ``garment`` its file, for the words):
+    vertices in no face or several objects, faces wound against each other or inward, a mesh split along seams.
+    ``garment export`` says them too and keeps them in the asset, for the runtimes that play it to say (a
+    developer's trial: a garment split at its UV seams tore in Node with no word)."""
+    said: list[str] = []
+
+    def say(fmt, *args):
+        said.append(fmt % args)
+
+    _warn_blender_import(garment, mesh, say)
+    _warn_winding(garment, mesh, body, betas, None, say)
+    _warn_seams(garment, mesh, None, say)
+    return said
 
 
 def shape_for_inputs(scene: Scene, body: BodyModel, *, force: bool = False) -> tuple:

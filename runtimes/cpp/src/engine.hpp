@@ -440,7 +440,12 @@ struct Scene {
   const sgd::Array *features = nullptr, *nbr = nullptr, *mask = nullptr, *descriptor = nullptr, *joints = nullptr,
                    *log_wbody = nullptr;
   std::vector<float> rest, betas, poses, trans;
-  int64_t N = 0, K = 0, S = 0, T = 0, D = 0;
+  // N: the garment the frames are written, collided and stepped on; M: the model's garment (rest, features, nbr ...),
+  // a decimated copy of it in a schema-3 asset (garment export --resolution), else the same (M = N)
+  int64_t N = 0, M = 0, K = 0, S = 0, T = 0, D = 0;
+  // a schema-3 asset's map from the model's garment to the garment as given: each given vertex's triangle of
+  // `model_faces`, barycentric weights and offset along its unit normal (segadeform.body.resample.SurfaceMap)
+  const sgd::Array *carry_face = nullptr, *carry_bary = nullptr, *carry_offset = nullptr, *model_faces = nullptr;
   std::string body_sha;  // the body a garment asset was prepared for
   std::string weight_prior;  // how its weights reached the garment (log_wbody): nearest | inpaint
   const sgd::Array *vertices64 = nullptr, *faces = nullptr;  // a garment asset's rest vertices and faces (cloth)
@@ -461,7 +466,7 @@ inline Scene scene_of_bundle(const sgd::Bundle& b) {
   s.betas = floats(b.at("betas"));
   s.poses = floats(b.at("poses"));
   s.trans = floats(b.at("trans"));
-  s.N = b.at("rest").shape[0];
+  s.N = s.M = b.at("rest").shape[0];
   s.K = b.at("nbr").shape[1];
   s.S = b.at("joints").shape[0];
   s.T = b.at("poses").shape[0];
@@ -479,13 +484,89 @@ inline const sgd::Array& need(const sgd::Bundle& b, const std::string& path, con
   return b.at(name);
 }
 
+// A schema-3 asset's garment as given and the map to it from the model's garment (garment export --resolution),
+// checked as Python's GarmentAsset checks them: all five fields or none.  Sets s.N, vertices64 and faces to the garment
+// as given, and model_faces to the model's (M vertices).
+inline void carry_of_asset(Scene& s, const sgd::Bundle& a, const std::string& apath, int version) {
+  static const char* fields[] = {"out_vertices", "out_faces", "carry_face", "carry_bary", "carry_offset"};
+  int given = 0;
+  for (const char* k : fields) given += a.has(k) ? 1 : 0;
+  if (given == 0 && version != 3) return;
+  if (given != 5)
+    throw std::runtime_error(apath + ": a decimated model garment needs out_vertices, out_faces, carry_face, "
+                             "carry_bary and carry_offset (expected all five)");
+  const auto& ov = need(a, apath, "out_vertices", "f64", 2);
+  const auto& of = need(a, apath, "out_faces", "i32", 2);
+  const auto& cf = need(a, apath, "carry_face", "i32", 1);
+  const auto& cb = need(a, apath, "carry_bary", "f64", 2);
+  const auto& co = need(a, apath, "carry_offset", "f64", 1);
+  const int64_t P = ov.shape[0], F = s.faces->shape[0];
+  if (P < 1 || ov.shape[1] != 3 || cf.shape[0] != P || cb.shape[0] != P || cb.shape[1] != 3 || co.shape[0] != P ||
+      of.shape[1] != 3 || of.shape[0] < 1)
+    throw std::runtime_error(apath + ": the carry fields do not agree (expected out_vertices (P, 3), out_faces (G, 3), "
+                             "carry_face (P), carry_bary (P, 3), carry_offset (P))");
+  const int32_t* o = of.as<int32_t>();
+  for (int64_t i = 0; i < of.count(); ++i)
+    if (o[i] < 0 || o[i] >= P)
+      throw std::runtime_error(apath + ": field 'out_faces' has an index out of range (expected 0.." +
+                               std::to_string(P - 1) + ", got " + std::to_string(o[i]) + ")");
+  const int32_t* c = cf.as<int32_t>();
+  for (int64_t i = 0; i < P; ++i)
+    if (c[i] < 0 || c[i] >= F)
+      throw std::runtime_error(apath + ": field 'carry_face' has an index out of range (expected 0.." +
+                               std::to_string(F - 1) + ", got " + std::to_string(c[i]) + ")");
+  for (const char* k : {"out_vertices", "carry_bary", "carry_offset"}) finite_values(a.at(k), apath, k);
+  const double* d = ov.as<double>();
+  for (int64_t i = 0; i < ov.count(); ++i)
+    if (std::fabs(d[i]) > 1e4)
+      throw std::runtime_error(apath + ": field 'out_vertices' lies beyond 10 km (expected |x| <= 10000 m)");
+  s.model_faces = s.faces;
+  s.carry_face = &cf;
+  s.carry_bary = &cb;
+  s.carry_offset = &co;
+  s.N = P;
+  s.vertices64 = &ov;
+  s.faces = &of;
+}
+
+// Frames of the model's garment, b * M * 3, carried to the garment as given, out (b * N * 3): each vertex at its
+// barycentric place on its triangle plus its offset along the triangle's unit normal (float64 sums, as
+// segadeform.body.resample.SurfaceMap.apply; the Node runtime's carryFrames).
+inline void carry_frames(const Scene& s, const float* x, int64_t b, float* out) {
+  const int64_t M = s.M, N = s.N;
+  const int32_t* face = s.carry_face->as<int32_t>();
+  const int32_t* tri = s.model_faces->as<int32_t>();
+  const double* bary = s.carry_bary->as<double>();
+  const double* off = s.carry_offset->as<double>();
+  for (int64_t k = 0; k < b; ++k) {
+    const float* xk = x + k * M * 3;
+    float* ok = out + k * N * 3;
+    for (int64_t i = 0; i < N; ++i) {
+      const float* p0 = xk + 3 * static_cast<int64_t>(tri[3 * face[i]]);
+      const float* p1 = xk + 3 * static_cast<int64_t>(tri[3 * face[i] + 1]);
+      const float* p2 = xk + 3 * static_cast<int64_t>(tri[3 * face[i] + 2]);
+      const double e1x = double(p1[0]) - p0[0], e1y = double(p1[1]) - p0[1], e1z = double(p1[2]) - p0[2];
+      const double e2x = double(p2[0]) - p0[0], e2y = double(p2[1]) - p0[1], e2z = double(p2[2]) - p0[2];
+      double nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z, nz = e1x * e2y - e1y * e2x;
+      const double len = std::max(std::sqrt(nx * nx + ny * ny + nz * nz), 1e-300), o = off[i];
+      nx /= len;  // (Python's order of operations: the same float64 numbers)
+      ny /= len;
+      nz /= len;
+      const double w0 = bary[3 * i], w1 = bary[3 * i + 1], w2 = bary[3 * i + 2];
+      ok[3 * i] = static_cast<float>(w0 * p0[0] + w1 * p1[0] + w2 * p2[0] + o * nx);
+      ok[3 * i + 1] = static_cast<float>(w0 * p0[1] + w1 * p1[1] + w2 * p2[1] + o * ny);
+      ok[3 * i + 2] = static_cast<float>(w0 * p0[2] + w1 * p1[2] + w2 * p2[2] + o * nz);
+    }
+  }
+}
+
 // The garment of a scene: a garment asset's fields, checked (`force`: an asset exported with --force is played).
 inline Scene garment_of_asset(const sgd::Bundle& a, const std::string& apath, bool force) {
   if (!a.meta.has("kind") || a.meta["kind"].str != "segadeform-garment-asset")
     throw std::runtime_error(apath + ": not a garment asset (expected meta.kind 'segadeform-garment-asset')");
   const int av = static_cast<int>(a.meta["schema_version"].num);
-  if (av != 1 && av != 2)
-    throw std::runtime_error(apath + ": unsupported garment asset schema version (expected 1 or 2, got " +
+  if (av != 1 && av != 2 && av != 3)
+    throw std::runtime_error(apath + ": unsupported garment asset schema version (expected 1, 2 or 3, got " +
                              std::to_string(av) + ")");
   if (!a.has("betas") || !a.has("log_wbody") || !a.meta.has("body"))
     throw std::runtime_error(apath + ": the garment asset is not prepared for a body shape (expected a schema-2 asset "
@@ -535,6 +616,12 @@ inline Scene garment_of_asset(const sgd::Bundle& a, const std::string& apath, bo
   s.weight_prior = a.meta["body"].has("weight_prior") ? a.meta["body"]["weight_prior"].str : "nearest";
   s.vertices64 = &v;
   s.faces = &faces;
+  s.M = s.N;
+  carry_of_asset(s, a, apath, av);
+  // what `segadeform garment export` said of the garment (a mesh split at its seams tears ...), said again here
+  if (a.meta.has("warnings"))
+    for (const auto& w : a.meta["warnings"].arr)
+      if (w.kind == sgd::Json::String) s.warnings.push_back("when the garment asset was exported: " + w.str);
   // an asset exported with --force for a body it does not sit on: refused unless forced again, as `segadeform run`
   // refuses it (it checks the fit itself)
   if (a.meta["body"].has("unfit") && a.meta["body"]["unfit"].kind == sgd::Json::String) {
@@ -741,7 +828,7 @@ class Stream {
     if (opt.batch < 1) throw std::runtime_error("batch must be an integer >= 1 (got " + std::to_string(opt.batch) + ")");
     if (opt.threads < 1)
       throw std::runtime_error("threads must be an integer >= 1 (got " + std::to_string(opt.threads) + ")");
-    opt_.batch = effective_batch(opt.batch, sc.N);
+    opt_.batch = effective_batch(opt.batch, sc.M);
     if (!(opt.margin >= 0 && opt.margin < 1))
       throw std::runtime_error("the collision margin must be in [0, 1) metres (got " + sgd::shortest(opt.margin) + ")");
     const Effects& eff = opt_.effects;
@@ -896,7 +983,7 @@ class Stream {
     Session enc(env, pkg.dir + "/" + enc_spec["file"].str, opt_.threads, /*arena=*/false);
     dec_.reset(new Session(env, pkg.dir + "/" + dec_spec["file"].str, opt_.threads));
     const auto t0 = Clock::now();  // the encoder's run and the deformer's (not the sessions' creation)
-    const int64_t N = sc.N, K = sc.K, S = sc.S;
+    const int64_t N = sc.M, K = sc.K, S = sc.S;  // the model's garment
     window_ = static_cast<int64_t>(find_input(dec_spec, "window")["shape"].arr[1].num);
     nb_ = static_cast<int64_t>(find_input(dec_spec, "betas")["shape"].arr[1].num);
     betas_ = model_betas(sc.betas, nb_);
@@ -955,7 +1042,7 @@ class Stream {
     ms_deform_ += since(t0);
   }
 
-  // b frames from global frame g0 into out (b * N * 3): the window of frame t is t, t-1, ... t-window+1 (before the
+  // b frames from global frame g0 into out (b * N * 3; the model's b * M * 3 carried to them): the window of frame t is t, t-1, ... t-window+1 (before the
   // clip's first frame: that frame), read from `all` (global frame `first` at index 0)
   void deform(const std::vector<float>& all, int64_t first, int64_t g0, int64_t b, const float* trans, float* out) {
     const int64_t D = sc_.D, S = sc_.S, W = window_;
@@ -979,7 +1066,8 @@ class Stream {
     for (auto& d : din) in.push_back(Input{d.name, {}, d.dims, d.value});
     try {
       Output v = std::move(dec_->run(in, {out_name_})[0]);
-      std::copy(v.f.begin(), v.f.end(), out);
+      if (sc_.carry_face) carry_frames(sc_, v.f.data(), b, out);  // the model's garment carried to the one given
+      else std::copy(v.f.begin(), v.f.end(), out);
     } catch (...) {
       release(din);
       throw;

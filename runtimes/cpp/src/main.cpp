@@ -16,11 +16,38 @@
 // API (the shared library, C++17, no other dependency).  Formats: docs/package.md.  The engine (engine.hpp) is
 // the library's too: this program pushes the motion through a sgd::engine::Stream a batch at a time, as a
 // program of one's own pushes it through segadeform::Player (include/segadeform/player.hpp).
+#include <csignal>
+#include <cstring>
+#include <set>
+
 #include "engine.hpp"
 
 using namespace sgd::engine;
 
 namespace {
+
+// The temporaries this run writes its outputs to, removed when a signal stops it (Ctrl-C, kill): they were left
+// behind, 172 MB of a body cache (a developer's trial).  Fixed buffers: the handler only calls unlink.
+constexpr int MAX_TEMPS = 8;
+char g_temps[MAX_TEMPS][4096];
+volatile std::sig_atomic_t g_ntemps = 0;
+
+extern "C" void remove_temporaries_and_stop(int sig) {
+  for (int i = 0; i < g_ntemps; ++i) ::unlink(g_temps[i]);
+  std::signal(sig, SIG_DFL);
+  std::raise(sig);
+}
+
+void remove_temporaries_on_signals(const std::vector<std::string>& outputs) {
+  for (const auto& o : outputs) {
+    const std::string t = sgd::temporary_name(o);
+    if (g_ntemps < MAX_TEMPS && t.size() < sizeof g_temps[0]) {
+      std::memcpy(g_temps[g_ntemps], t.c_str(), t.size() + 1);
+      g_ntemps = g_ntemps + 1;
+    }
+  }
+  for (int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, remove_temporaries_and_stop);
+}
 
 const char* USAGE =
     "usage: segadeform-run --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]\n"
@@ -69,10 +96,15 @@ int main(int argc, char** argv) {
   bool force = false;  // a motion made for another body or shape: played, with a warning
   std::vector<std::string> pos;
   std::string current;  // the option being read (a bad value names it)
+  std::set<std::string> seen;  // an option given twice is a usage error, as in Node and Python (the last one won)
+  std::string repeated;
   try {
     for (size_t i = 0; i < args.size(); ++i) {
       const bool more = i + 1 < args.size();
       current = args[i];
+      if (args[i].rfind("-", 0) == 0 && std::string(USAGE).find(args[i] + " ") != std::string::npos &&
+          !seen.insert(args[i]).second && repeated.empty())
+        repeated = args[i];
       if (args[i] == "-o" && more) out = args[++i];
       else if (args[i] == "--batch" && more) batch = whole_int(args[++i]);
       else if (args[i] == "--threads" && more) threads = whole_int(args[++i]);
@@ -111,6 +143,7 @@ int main(int argc, char** argv) {
   const bool flag_form = !package.empty() || !garment.empty() || !motion.empty();
   // what is wrong, in one line before the usage (the usage alone said nothing of it)
   std::string problem;
+  if (!repeated.empty()) problem = repeated + " is given more than once";
   for (const auto& p : pos)
     if (problem.empty() && p.size() > 1 && p[0] == '-') problem = "unknown option " + p;
   if (problem.empty()) {
@@ -147,6 +180,7 @@ int main(int argc, char** argv) {
     std::cerr << "Error: " << sgd::outputs_detail::one_line(e.what()) << "\n";
     return 1;
   }
+  remove_temporaries_on_signals(outputs);
   try {
     api = OrtGetApiBase()->GetApi(ORT_API_VERSION);
     if (!api) throw std::runtime_error("the onnxruntime library is older than the headers (API " +
@@ -185,6 +219,13 @@ int main(int argc, char** argv) {
     } else {
       bundle = sgd::read_bundle(pos[1]);
       sc = scene_of_bundle(bundle);
+      // the scene's post-processes a bundle does not play: its frames are the network's alone (--check included)
+      if (bundle.meta.has("left_out") && !bundle.meta["left_out"].arr.empty()) {
+        std::string left;
+        for (const auto& n : bundle.meta["left_out"].arr) left += (left.empty() ? "" : " and ") + n.str;
+        sc.warnings.push_back("the scene's " + left + " are not in the bundle: these frames are the network's alone "
+                              "(segadeform garment export and motion export, then --package/--garment/--motion, run them)");
+      }
       check_training_body(pkg, false, sc.warnings, "--package/--garment/--motion with --force");
       eff = effects_of(bundle.meta["effects"]);
     }

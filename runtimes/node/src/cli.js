@@ -5,15 +5,15 @@
 // (without --effects: the model's own effects, and collisions when the package has a body graph; margin 0.004 m;
 // cloth, the cloth stage, only when named; --cloth sets its knobs, as segadeform run --cloth)
 // segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]      (a scene bundle)
-import { readFileSync } from "node:fs";
+import { closeSync, openSync, readFileSync, unlinkSync, writeFileSync, writeSync } from "node:fs";
 import { join } from "node:path";
 import * as os from "node:os";
-import { animate, readAsset } from "./index.js";
+import { animate, open, readAsset, readMotion } from "./index.js";
 import {
-  MAX_VERTEX_FRAMES, defaultEffects, effectsLabel, objText, otherTrainingBody, parseCloth, parseEffects, pc2Parts,
-  readManifest,
+  MAX_VERTEX_FRAMES, defaultEffects, effectsLabel, objText, otherTrainingBody, parseCloth, parseEffects, pc2Header,
+  pc2Parts, readManifest, sceneInputs,
 } from "./core.js";
-import { claimOutputs, commitOutputs } from "./outputs.js";
+import { claimOutputs, commitOutputs, commitTemporaries, temporaryOf } from "./outputs.js";
 
 const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
   "[--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M] [--cloth K=V,..] [--batch N] " +
@@ -161,27 +161,18 @@ try {
     process.exit(1);
   }
   const r = flagForm
-    // force: the API's own refusal is this command's, below, naming the motion file
-    ? await animate(pkg, garment, motion, { batch, threads: usedThreads, effects, body: !!bodyOut, collisionMargin: margin, cloth,
-      force: true })
+    ? await playStreamed()
     : await animate(args[0], args[1], { batch, threads: usedThreads });
-  // a motion made for another body or shape is refused, as `segadeform run` refuses it (nothing is written)
-  const other = (r.warnings || []).find((w) => w.startsWith("the motion was retargeted onto another"));
-  if (other && !force) {
-    console.error(`Error: ${motion}: ${other} (expected a motion exported for the asset's body and --betas: ` +
-      "segadeform motion export ... --betas ..., or --force)");
-    process.exit(1);
+  if (!flagForm) { // a bundle: the frames it holds, written at once
+    for (const w of r.warnings || []) console.error(`warning: ${w}`);
+    const left = r.leftOut || [];
+    if (left.length) {
+      console.error(`warning: the scene's ${left.join(" and ")} are not in the bundle: these frames are the network's ` +
+        "alone (segadeform garment export and motion export, then --package/--garment/--motion, run them)");
+    }
+    const startFrame = (r.motionMeta && Number.isInteger(r.motionMeta.start_frame)) ? r.motionMeta.start_frame : 0;
+    commitOutputs([{ path: out, bytes: pc2Parts(r.frames, r.T, r.N, { startFrame }) }], inputs); // all or none
   }
-  for (const w of r.warnings || []) console.error(`warning: ${w}`);
-  // PC2 in frames, as `segadeform run` writes it: start 0, one sample per frame
-  // a motion file cut from a longer one (motion export --frames 10:70) starts at its first frame's number, as run's
-  const startFrame = (r.motionMeta && Number.isInteger(r.motionMeta.start_frame)) ? r.motionMeta.start_frame : 0;
-  const items = [{ path: out, bytes: pc2Parts(r.frames, r.T, r.N, { startFrame }) }];
-  if (bodyOut) {
-    items.push({ path: bodyOut, bytes: pc2Parts(r.body.vertices, r.body.T, r.body.V, { startFrame }) });
-    items.push({ path: restObj, bytes: objText(r.body.rest, r.body.faces) });
-  }
-  commitOutputs(items, inputs); // all or none
   const c = r.collisions, k = r.cloth;
   console.log(`${r.T} frames, ${r.msPerFrame.toFixed(2)} ms/frame (${r.variant}: ${effectsLabel(r.effects)}) -> ${out}` +
     (bodyOut ? `; body ${r.body.V} vertices, ${r.body.msPerFrame.toFixed(2)} ms/frame (${r.body.graph}) -> ${bodyOut}` : "") +
@@ -198,4 +189,82 @@ try {
   const named = flagForm && e.message.startsWith("the garment asset ") ? `${garment}: ` : "";
   console.error(`Error: ${named}${e.message}`);
   process.exit(1);
+}
+
+/**
+ * The flag form: the motion pushed through a Player about 256 frames at a time (whole batches: the frames of one push
+ * of the whole motion, bit for bit) and written to the outputs' temporaries as it comes, then committed all or none:
+ * neither the frames nor the posed body are held whole (a 4,593-frame capture with --body-out held 963 MB: a
+ * developer's trial).  A signal (Ctrl-C, kill) removes the temporaries.  Returns what the summary line says.
+ */
+async function playStreamed() {
+  const A = readAsset(garment), M = readMotion(motion);
+  const I = sceneInputs({ asset: A, motion: M });
+  // a motion made for another body or shape is refused, as `segadeform run` refuses it (nothing is written)
+  const other = I.warnings.find((w) => w.startsWith("the motion was retargeted onto another"));
+  if (other && !force) {
+    console.error(`Error: ${motion}: ${other} (expected a motion exported for the asset's body and --betas: ` +
+      "segadeform motion export ... --betas ..., or --force)");
+    process.exit(1);
+  }
+  // force: the API's own refusals (the motion's) are this command's, above
+  const p = await open(pkg, A, { batch, threads: usedThreads, effects, body: !!bodyOut, collisionMargin: margin, cloth,
+    fps: I.fps, force: true });
+  const temps = [];
+  const removeTemps = () => {
+    for (const t of temps) {
+      try {
+        unlinkSync(t);
+      } catch {
+        // already gone
+      }
+    }
+  };
+  const signals = { SIGINT: 130, SIGTERM: 143, SIGHUP: 129 };
+  for (const [sig, code] of Object.entries(signals)) process.on(sig, () => { removeTemps(); process.exit(code); });
+  const fds = [];
+  try {
+    for (const w of [...p.warnings, ...I.warnings]) console.error(`warning: ${w}`);
+    // PC2 in frames, as `segadeform run` writes it: one sample per frame, from the motion file's first frame number
+    // (motion export --frames 10:70 starts at 10, as run's output)
+    const startFrame = Number.isInteger(M.meta.start_frame) ? M.meta.start_frame : 0;
+    const T = I.T, D = I.D;
+    const openOut = (path, header) => {
+      const t = temporaryOf(path);
+      temps.push(t);
+      const fd = openSync(t, "w");
+      fds.push(fd);
+      writeSync(fd, header);
+      return fd;
+    };
+    const bytes = (a) => new Uint8Array(a.buffer, a.byteOffset, a.byteLength);
+    const fg = openOut(out, pc2Header(T, p.N, { startFrame }));
+    const fb = bodyOut ? openOut(bodyOut, pc2Header(T, p.V, { startFrame })) : null;
+    const step = p.batch * Math.max(1, Math.floor(256 / p.batch));
+    for (let lo = 0; lo < T; lo += step) {
+      const hi = Math.min(lo + step, T);
+      const c = await p.push(I.poses.subarray(lo * D, hi * D), I.trans.subarray(lo * 3, hi * 3));
+      writeSync(fg, bytes(c.frames));
+      if (fb !== null) writeSync(fb, bytes(c.body));
+    }
+    while (fds.length) closeSync(fds.pop());
+    if (bodyOut) {
+      const rest = await p.poser.rest();
+      temps.push(temporaryOf(restObj));
+      writeFileSync(temps[temps.length - 1], objText(rest.vertices, p.poser.faces()));
+    }
+    commitTemporaries(outputs, inputs); // all or none
+    const perFrame = (ms) => ms / Math.max(T, 1);
+    const r = { T, N: p.N, batch: p.batch, msPerFrame: perFrame(p.msDeform), variant: p.variant, effects: p.effects };
+    if (bodyOut) r.body = { V: p.V, msPerFrame: perFrame(p.msBody), graph: p.poser.name };
+    if (p.effects.cloth) r.cloth = { ...p.counts, msPerFrame: perFrame(p.msAfter) };
+    else if (p.effects.collisions) r.collisions = { moved: p.moved, msPerFrame: perFrame(p.msAfter), margin: p.margin };
+    return r;
+  } catch (e) {
+    while (fds.length) closeSync(fds.pop());
+    removeTemps();
+    throw e;
+  } finally {
+    await p.close();
+  }
 }

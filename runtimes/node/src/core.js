@@ -234,15 +234,21 @@ function need(parsed, name, dtype, ndim, where) {
   return a;
 }
 
+/** The fields of a schema-3 asset whose model garment is a decimated copy of the garment as given (`segadeform
+ * garment export --resolution R`), and their dtypes and dims. */
+const CARRY_FIELDS = [["out_vertices", "f64", 2], ["out_faces", "i32", 2], ["carry_face", "i32", 1],
+  ["carry_bary", "f64", 2], ["carry_offset", "f64", 1]];
+
 /**
- * Check a parsed garment asset (.sgda, docs/package.md): schema 1 or 2.  Animating it needs one prepared for a
- * body shape (schema 2 with betas, log_wbody and the body: `segadeform garment export`).
+ * Check a parsed garment asset (.sgda, docs/package.md): schema 1, 2 or 3.  Animating it needs one prepared for a
+ * body shape (schema 2 with betas, log_wbody and the body: `segadeform garment export`); schema 3 also carries the
+ * model garment's frames to the garment as given (`garment export --resolution`).
  */
 export function readAsset(parsed, where = "garment asset") {
   const { meta } = parsed;
   if (meta.kind !== ASSET_KIND) throw new Error(`${where}: not a garment asset (expected meta.kind '${ASSET_KIND}', got ${JSON.stringify(meta.kind)})`);
-  if (meta.schema_version !== 1 && meta.schema_version !== 2) {
-    throw new Error(`${where}: unsupported garment asset schema version (expected 1 or 2, got ${meta.schema_version})`);
+  if (![1, 2, 3].includes(meta.schema_version)) {
+    throw new Error(`${where}: unsupported garment asset schema version (expected 1, 2 or 3, got ${meta.schema_version})`);
   }
   const v = need(parsed, "vertices", "f64", 2, where);
   const N = v.shape[0];
@@ -276,7 +282,68 @@ export function readAsset(parsed, where = "garment asset") {
       if (Math.abs(d[i]) > 1e4) throw new Error(`${where}: field '${k}' lies beyond 10 km (expected |x| <= 10000 m, got ${d[i]})`);
     }
   }
+  readCarry(parsed, where);
   return parsed;
+}
+
+/** The carry fields of a parsed asset, checked as Python's GarmentAsset checks them: all five or none. */
+function readCarry(parsed, where) {
+  const A = parsed.arrays, given = CARRY_FIELDS.filter(([k]) => A[k]).map(([k]) => k);
+  if (!given.length && parsed.meta.schema_version !== 3) return;
+  if (given.length !== CARRY_FIELDS.length) {
+    throw new Error(`${where}: a decimated model garment needs ${CARRY_FIELDS.map(([k]) => k).join(", ")} (expected ` +
+      `all five, got ${given.join(", ") || "none"})`);
+  }
+  for (const [k, dt, nd] of CARRY_FIELDS) need(parsed, k, dt, nd, where);
+  const P = A.out_vertices.shape[0], F = A.faces.shape[0];
+  const shapes = [["out_vertices", [P, 3]], ["carry_face", [P]], ["carry_bary", [P, 3]], ["carry_offset", [P]]];
+  for (const [k, want] of shapes) {
+    if (P < 1 || JSON.stringify(A[k].shape) !== JSON.stringify(want)) {
+      throw new Error(`${where}: field '${k}' has the wrong shape (expected ${JSON.stringify(want)}, got ` +
+        `${JSON.stringify(A[k].shape)})`);
+    }
+  }
+  if (A.out_faces.shape[1] !== 3 || A.out_faces.shape[0] < 1) {
+    throw new Error(`${where}: field 'out_faces' has the wrong shape (expected (G, 3), G >= 1, got ${JSON.stringify(A.out_faces.shape)})`);
+  }
+  for (const [k, hi] of [["out_faces", P], ["carry_face", F]]) {
+    const d = A[k].data;
+    for (let i = 0; i < d.length; i++) {
+      if (!(d[i] >= 0 && d[i] < hi)) throw new Error(`${where}: field '${k}' has an index out of range (expected 0..${hi - 1}, got ${d[i]})`);
+    }
+  }
+  for (const k of ["out_vertices", "carry_bary", "carry_offset"]) finite(A[k], k, where);
+  const d = A.out_vertices.data;
+  for (let i = 0; i < d.length; i++) {
+    if (Math.abs(d[i]) > 1e4) throw new Error(`${where}: field 'out_vertices' lies beyond 10 km (expected |x| <= 10000 m, got ${d[i]})`);
+  }
+}
+
+/**
+ * Frames of the model's garment, B*M*3 (M vertices), carried to the garment as given, B*N*3: each vertex at its
+ * barycentric place on its triangle of the model's garment plus its offset along that triangle's unit normal
+ * (segadeform.body.resample.SurfaceMap.apply; float64 sums, float32 frames).  carry: { N, face (N), bary (N*3),
+ * offset (N), faces (the model garment's triangles) }.
+ */
+export function carryFrames(x, B, M, carry) {
+  const { N, face, bary, offset, faces } = carry;
+  const out = new Float32Array(B * N * 3);
+  for (let b = 0; b < B; b++) {
+    const xo = b * M * 3, oo = b * N * 3;
+    for (let i = 0; i < N; i++) {
+      const t = 3 * face[i], p0 = xo + 3 * faces[t], p1 = xo + 3 * faces[t + 1], p2 = xo + 3 * faces[t + 2];
+      const w0 = bary[3 * i], w1 = bary[3 * i + 1], w2 = bary[3 * i + 2];
+      const e1x = x[p1] - x[p0], e1y = x[p1 + 1] - x[p0 + 1], e1z = x[p1 + 2] - x[p0 + 2];
+      const e2x = x[p2] - x[p0], e2y = x[p2 + 1] - x[p0 + 1], e2z = x[p2 + 2] - x[p0 + 2];
+      let nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z, nz = e1x * e2y - e1y * e2x;
+      const len = Math.max(Math.sqrt(nx * nx + ny * ny + nz * nz), 1e-300), o = offset[i];
+      nx /= len; ny /= len; nz /= len; // (Python's order of operations: the same float64 numbers)
+      out[oo + 3 * i] = w0 * x[p0] + w1 * x[p1] + w2 * x[p2] + o * nx;
+      out[oo + 3 * i + 1] = w0 * x[p0 + 1] + w1 * x[p1 + 1] + w2 * x[p2 + 1] + o * ny;
+      out[oo + 3 * i + 2] = w0 * x[p0 + 2] + w1 * x[p1 + 2] + w2 * x[p2 + 2] + o * nz;
+    }
+  }
+  return out;
 }
 
 /** The index [i0, i1, ...] of flat position `i` in an array of `shape` (a motion's poses: [frame, joint, axis]). */
@@ -368,11 +435,16 @@ export function garmentInputs(source) {
       throw new Error("the garment asset is not prepared for a body shape (expected a schema-2 asset with betas, " +
         "log_wbody and body: segadeform garment export GARMENT --betas ... -o G.sgda)");
     }
-    const S = A.joints.shape[0];
+    const S = A.joints.shape[0], M = A.vertices.shape[0];
+    // N, faces and outRest: the garment the frames are written, collided and stepped on (a schema-3 asset's garment
+    // as given); M, rest: the model's garment (its decimated copy there), carry: the map between them
+    const carry = A.out_vertices ? { N: A.out_vertices.shape[0], face: A.carry_face.data, bary: A.carry_bary.data,
+      offset: A.carry_offset.data, faces: A.faces.data } : null;
     return {
       features: A.features.data, nbr: A.nbr.data, mask: A.mask.data, descriptor: f32(A.descriptor.data),
       betas: f32(A.betas.data), rest: f32(A.vertices.data), joints: f32(A.joints.data), log_wbody: A.log_wbody.data,
-      faces: A.faces.data, N: A.vertices.shape[0], K: A.nbr.shape[1], S, D: 3 * S, F: A.features.shape[1],
+      faces: carry ? A.out_faces.data : A.faces.data, N: carry ? carry.N : M, M, carry,
+      outRest: carry ? A.out_vertices.data : A.vertices.data, K: A.nbr.shape[1], S, D: 3 * S, F: A.features.shape[1],
       effects: undefined, body: am.body, asset: source.asset,
     };
   }
@@ -384,7 +456,8 @@ export function garmentInputs(source) {
   return {
     features: A.features.data, nbr: A.nbr.data, mask: A.mask.data, descriptor: A.descriptor.data, betas: A.betas.data,
     rest: A.rest.data, joints: A.joints.data, log_wbody: A.log_wbody ? A.log_wbody.data : null,
-    faces: A.faces ? A.faces.data : null, N: A.rest.shape[0], K: A.nbr.shape[1], S: A.joints.shape[0],
+    faces: A.faces ? A.faces.data : null, N: A.rest.shape[0], M: A.rest.shape[0], carry: null, K: A.nbr.shape[1],
+    S: A.joints.shape[0],
     D: A.poses.shape[1], F: A.features.shape[1], effects: meta.effects, body: null, asset: null,
   };
 }
@@ -538,6 +611,10 @@ export class Player {
       if (!options.force) throw new Error(`${why} (expected a garment that sits on its body, or the option force: true)`);
       p.warnings.push(why);
     }
+    // what `segadeform garment export` said of the garment (a mesh split at its seams tears ...), said again here
+    if (G.asset && Array.isArray(G.asset.meta.warnings)) {
+      for (const w of G.asset.meta.warnings) p.warnings.push(`when the garment asset was exported: ${w}`);
+    }
     // an asset prepared for another body than the package's is refused whatever the effects (only the body graph's
     // poser checked it, so effects "none" played it), as `segadeform run` refuses it
     for (const spec of Object.values(manifest.graphs || {})) {
@@ -571,7 +648,7 @@ export class Player {
     if (stages && effects.cloth && options.fps === undefined) {
       throw new Error("the cloth stage needs the motion's frame rate (expected the option fps, 1..1000)");
     }
-    Object.assign(p, { ort, manifest, G, effects, margin, stages, batch: effectiveBatch(options.batch || 8, G.N), N: G.N,
+    Object.assign(p, { ort, manifest, G, effects, margin, stages, batch: effectiveBatch(options.batch || 8, G.M), N: G.N,
       S: G.S, D: G.D, faces: G.faces, fps: options.fps, wantBody: !!options.body });
     p.settings = typeof options.cloth === "string" ? parseCloth(options.cloth) : options.cloth || DEFAULT_CLOTH;
     const t0 = performance.now();
@@ -592,7 +669,7 @@ export class Player {
 
   async #openDeformer(session) {
     const { ort, manifest, G, effects } = this;
-    const { N, K, S } = G;
+    const { M: N, K, S } = G; // the model's garment
     const encSpec = manifest.graphs.garment_encoder;
     const { name: variant, spec: decSpec } = pickVariant(manifest, effects);
     const enc = await session(encSpec);
@@ -653,8 +730,7 @@ export class Player {
     this.stage = null;
     if (this.stages && this.effects.cloth) {
       const t0 = performance.now();
-      const A = this.G.asset.arrays;
-      this.stage = clothStart(this.rest.vertices, this.rest.faces, A.vertices.data, A.faces.data,
+      this.stage = clothStart(this.rest.vertices, this.rest.faces, this.G.outRest, this.G.faces,
         { settings: this.settings, margin: this.margin, dt: 1.0 / this.fps });
       this.msAfter += performance.now() - t0;
     }
@@ -698,7 +774,8 @@ export class Player {
       const hi = Math.min(lo + this.batch, B), n = hi - lo, tr = Tr.subarray(3 * lo, 3 * hi);
       const rel = frames.subarray(lo * N * 3, hi * N * 3), zero = new Float32Array(3 * n);
       let t0 = performance.now();
-      rel.set(await this.#deform(all, first, this.seen + lo, n, zero));
+      const x = await this.#deform(all, first, this.seen + lo, n, zero);
+      rel.set(this.G.carry ? carryFrames(x, n, this.G.M, this.G.carry) : x);
       this.msDeform += performance.now() - t0;
       if (!this.poser || !this.stages) {
         rel.set(atTranslation(rel, tr, n));

@@ -118,6 +118,7 @@ export async function animate(dir, garment, motion, options = {}) {
     const r = await playWith(ort, manifest, source, session, rest);
     if (source.motion) r.motionMeta = source.motion.meta;
     else if (source.meta && Number.isInteger(source.meta.start_frame)) r.motionMeta = { start_frame: source.meta.start_frame };
+    if (source.meta && Array.isArray(source.meta.left_out)) r.leftOut = source.meta.left_out; // a scene's stages not in it
     return r;
   } finally {
     await session.release();

@@ -132,8 +132,7 @@ export function commitOutputs(items, inputs = []) {
   const temps = [];
   try {
     for (const { path, bytes } of items) {
-      mkdirSync(dirname(resolve(path)), { recursive: true });
-      const tmp = join(dirname(path), `.${basename(path)}.tmp-${process.pid}`);
+      const tmp = temporaryOf(path);
       temps.push(tmp);
       if (Array.isArray(bytes)) {
         const fd = openSync(tmp, "w");
@@ -146,13 +145,33 @@ export function commitOutputs(items, inputs = []) {
         writeFileSync(tmp, bytes);
       }
     }
-    claimOutputs(items.map((i) => i.path), inputs);
+  } catch (e) {
+    for (const t of temps) if (existsSync(t)) unlinkSync(t);
+    throw e;
+  }
+  commitTemporaries(items.map((i) => i.path), inputs);
+}
+
+/** The hidden temporary beside `path` an output is written to before it is committed (its folder made when
+ * missing): what a command that writes its outputs a chunk at a time writes to, then commitTemporaries. */
+export function temporaryOf(path) {
+  mkdirSync(dirname(resolve(path)), { recursive: true });
+  return join(dirname(path), `.${basename(path)}.tmp-${process.pid}`);
+}
+
+/** Rename the temporaries of `paths` (temporaryOf, every one written) into place after checking the claims again (a
+ * file that appeared meanwhile), and record them in their folders' manifests.  On a refusal the temporaries are
+ * removed and nothing is replaced. */
+export function commitTemporaries(paths, inputs = []) {
+  const temps = paths.map((p) => join(dirname(p), `.${basename(p)}.tmp-${process.pid}`));
+  try {
+    claimOutputs(paths, inputs);
   } catch (e) {
     for (const t of temps) if (existsSync(t)) unlinkSync(t);
     throw e;
   }
   const byFolder = new Map();
-  items.forEach(({ path }, k) => {
+  paths.forEach((path, k) => {
     renameSync(temps[k], path);
     const st = lstatSync(path, { bigint: true });
     const folder = dirname(path);

@@ -27,6 +27,18 @@ log_wbody          (N, S) float32   optional (schema 2): ``log(w + 1e-5)``, ``w`
 body               JSON string      optional (schema 2): ``{"name", "sha256", "weight_prior"}``: that body
                                     (:func:`segadeform.body.identity.body_sha256`) and how its weights
                                     reached the garment (the model's ``config.weight_prior``)
+out_vertices       (P, 3) float64   optional (schema 3, all five or none): the garment as given, when the
+                                    model's garment (``vertices``, ``faces``) is a decimated copy of it
+                                    (``garment export --resolution R``); the runtimes write, collide and
+                                    step the cloth stage on it
+out_faces          (G, 3) int64     its triangles
+carry_face         (P,) int64       the model garment's triangle each given vertex is carried by
+carry_bary         (P, 3) float64   its barycentric weights on that triangle
+carry_offset       (P,) float64     its distance along the triangle's unit normal: a posed given vertex is
+                                    ``sum_k bary_k x[faces[face, k]] + offset n`` (``body.resample.SurfaceMap``)
+warnings           JSON list        optional: what ``garment export`` said of the garment (a mesh split at
+                                    its seams, faces wound inward ...), for the runtimes that play the asset
+                                    to say again (``meta.warnings`` in the portable form)
 =================  ===============  =============================================
 
 An asset **prepared for a body shape** (:func:`segadeform.body.prepare.prepare_for_body`,
@@ -68,9 +80,12 @@ __all__ = [
     "check_asset_path",
 ]
 
-#: 2: optional ``betas``, ``log_wbody`` and ``body`` (an asset prepared for a body shape)
+#: 2: optional ``betas``, ``log_wbody`` and ``body`` (an asset prepared for a body shape); 3: also the optional
+#: ``out_*`` and ``carry_*`` fields (a model garment decimated from the garment as given).  An asset is written with
+#: the lowest version that holds its fields (runtimes that cannot carry frames refuse a schema-3 asset)
 ASSET_SCHEMA_VERSION = 2
-READABLE_ASSET_SCHEMAS = (1, 2)
+CARRY_SCHEMA_VERSION = 3
+READABLE_ASSET_SCHEMAS = (1, 2, 3)
 #: ``meta.kind`` of the portable form, and its file suffix
 ASSET_KIND = "segadeform-garment-asset"
 PORTABLE_SUFFIX = ".sgda"
@@ -107,6 +122,21 @@ _NP_OF = {"f64": np.float64, "f32": np.float32, "i32": np.int32, "u8": np.uint8}
 #: the optional fields of an asset prepared for a body shape (portable dtypes); ``body`` is in ``meta``
 _BODY_PORTABLE = {"betas": "f64", "log_wbody": "f32"}
 _BODY_ARRAYS = {"betas": (np.float64, 1), "log_wbody": (np.float32, 2)}
+#: the optional fields of a decimated model garment (schema 3): the garment as given and the map to it
+_CARRY_PORTABLE = {
+    "out_vertices": "f64",
+    "out_faces": "i32",
+    "carry_face": "i32",
+    "carry_bary": "f64",
+    "carry_offset": "f64",
+}
+_CARRY_ARRAYS = {
+    "out_vertices": (np.float64, 2),
+    "out_faces": (np.int64, 2),
+    "carry_face": (np.int64, 1),
+    "carry_bary": (np.float64, 2),
+    "carry_offset": (np.float64, 1),
+}
 
 _ARRAYS = {
     "vertices": (np.float64, 2),
@@ -141,10 +171,28 @@ class GarmentAsset:
     betas: np.ndarray | None = None
     log_wbody: np.ndarray | None = None
     body: dict | None = None
+    out_vertices: np.ndarray | None = None
+    out_faces: np.ndarray | None = None
+    carry_face: np.ndarray | None = None
+    carry_bary: np.ndarray | None = None
+    carry_offset: np.ndarray | None = None
+    warnings: tuple = ()  # what `garment export` said of the garment (strings)
 
     @property
     def n_vertices(self) -> int:
+        """The model garment's vertices (with :attr:`carried`, the decimated copy's)."""
         return int(self.vertices.shape[0])
+
+    @property
+    def carried(self) -> bool:
+        """Whether the model garment is a decimated copy whose frames are carried to the garment as given
+        (``out_vertices``, ``out_faces`` and the ``carry_*`` map)."""
+        return self.out_vertices is not None
+
+    @property
+    def schema_version(self) -> int:
+        """The version this asset is written with: the lowest that holds its fields."""
+        return CARRY_SCHEMA_VERSION if self.carried else ASSET_SCHEMA_VERSION
 
     @property
     def for_a_body(self) -> bool:
@@ -164,11 +212,12 @@ class GarmentAsset:
         self.validate()
         if p.suffix.lower() == PORTABLE_SUFFIX:
             return self._save_portable(p)
+        extra: dict[str, Any] = {"warnings": np.str_(json.dumps(list(self.warnings)))} if self.warnings else {}
         with atomic_path(p) as tmp:
             with open(tmp, "wb") as fh:
                 np.savez(
                     fh,
-                    schema_version=np.int64(ASSET_SCHEMA_VERSION),
+                    schema_version=np.int64(self.schema_version),
                     geodesic_radius=np.float64(self.geodesic_radius),
                     params=np.str_(json.dumps(self.params, sort_keys=True)),
                     source_name=np.str_(self.source_name),
@@ -179,6 +228,8 @@ class GarmentAsset:
                         if self.for_a_body
                         else {}
                     ),
+                    **({k: getattr(self, k) for k in _CARRY_ARRAYS} if self.carried else {}),
+                    **extra,
                 )
         return p
 
@@ -190,7 +241,7 @@ class GarmentAsset:
         arrays = {k: getattr(self, k).astype(_NP_OF[dt]) for k, dt in _PORTABLE.items()}
         meta = {
             "kind": ASSET_KIND,
-            "schema_version": ASSET_SCHEMA_VERSION,
+            "schema_version": self.schema_version,
             "geodesic_radius": float(self.geodesic_radius),
             "params": self.params,
             "source_name": self.source_name,
@@ -199,6 +250,10 @@ class GarmentAsset:
         if self.for_a_body:
             arrays.update({k: getattr(self, k).astype(_NP_OF[dt]) for k, dt in _BODY_PORTABLE.items()})
             meta["body"] = self.body
+        if self.carried:
+            arrays.update({k: getattr(self, k).astype(_NP_OF[dt]) for k, dt in _CARRY_PORTABLE.items()})
+        if self.warnings:
+            meta["warnings"] = list(self.warnings)
         return write_bundle(p, arrays, meta)
 
     @classmethod
@@ -217,6 +272,8 @@ class GarmentAsset:
             )
         fields = {}
         optional = {k: dt for k, dt in _BODY_PORTABLE.items() if k in arrays or "body" in meta}
+        if meta.get("schema_version") == CARRY_SCHEMA_VERSION or any(k in arrays for k in _CARRY_PORTABLE):
+            optional |= _CARRY_PORTABLE
         for k, dt in (_PORTABLE | optional).items():
             a = arrays.get(k)
             if a is None or a.dtype != np.dtype(_NP_OF[dt]).newbyteorder("<"):
@@ -226,14 +283,20 @@ class GarmentAsset:
                     expected=dt,
                     got=None if a is None else a.dtype,
                 )
-            fields[k] = a.astype((_ARRAYS | _BODY_ARRAYS)[k][0])
+            fields[k] = a.astype((_ARRAYS | _BODY_ARRAYS | _CARRY_ARRAYS)[k][0])
         try:
             radius = float(meta["geodesic_radius"])
             params = dict(meta["params"])
         except (KeyError, TypeError, ValueError):
             raise FileFormatError("garment asset meta lacks geodesic_radius or params", path=p) from None
-        if optional:
+        if any(k in optional for k in _BODY_PORTABLE):
             fields["body"] = meta.get("body")
+        said = meta.get("warnings", [])
+        if not (isinstance(said, list) and all(isinstance(w, str) for w in said)):
+            raise FileFormatError(
+                "garment asset meta.warnings is not a list of strings", path=p, got=type(said).__name__
+            )
+        fields["warnings"] = tuple(said)
         return cls(
             geodesic_radius=radius,
             params=params,
@@ -285,6 +348,10 @@ class GarmentAsset:
             if version >= 2 and ({"betas", "log_wbody", "body"} & names):
                 fields.update({k: z[k] for k in _BODY_ARRAYS if k in names})
                 fields["body"] = json.loads(str(z["body"])) if "body" in names else None
+            if version >= CARRY_SCHEMA_VERSION or (set(_CARRY_ARRAYS) & names):
+                fields.update({k: z[k] for k in _CARRY_ARRAYS if k in names})
+            if "warnings" in names:
+                fields["warnings"] = tuple(str(w) for w in json.loads(str(z["warnings"])))
             params = json.loads(str(z["params"]))
             radius = float(z["geodesic_radius"])
             src = str(z["source_name"]) if "source_name" in names else ""
@@ -365,5 +432,53 @@ class GarmentAsset:
                 raise InputError(
                     "asset field 'body' must name the body", expected='{"name": str, "sha256": str}', got=self.body
                 )
+        self._validate_carry(n)
         if not (np.isfinite(self.geodesic_radius) and self.geodesic_radius > 0):
             raise InputError("asset geodesic_radius must be positive", got=self.geodesic_radius)
+
+    def _validate_carry(self, n: int) -> None:
+        """The ``out_*`` and ``carry_*`` fields: all or none; shapes, index ranges, finite values."""
+        given = [k for k in _CARRY_ARRAYS if getattr(self, k) is not None]
+        if not given:
+            return
+        if len(given) != len(_CARRY_ARRAYS):
+            raise InputError(
+                "a decimated model garment needs out_vertices, out_faces, carry_face, carry_bary and carry_offset",
+                expected="all five or none",
+                got=", ".join(given),
+            )
+        for k, (dt, nd) in _CARRY_ARRAYS.items():
+            a = getattr(self, k)
+            if not isinstance(a, np.ndarray) or a.dtype != dt or a.ndim != nd:
+                raise InputError(
+                    f"asset field {k!r} has the wrong type",
+                    expected=f"{np.dtype(dt).name} array with {nd} dims",
+                    got=f"{getattr(a, 'dtype', type(a).__name__)} {getattr(a, 'shape', '')}",
+                )
+        ov, of = cast(np.ndarray, self.out_vertices), cast(np.ndarray, self.out_faces)
+        face, bary, off = (cast(np.ndarray, getattr(self, k)) for k in ("carry_face", "carry_bary", "carry_offset"))
+        p = len(ov)
+        checks = [
+            ("out_vertices", ov.shape == (p, 3) and p >= 1, "(P, 3), P >= 1"),
+            ("out_faces", of.shape[1:] == (3,) and len(of) >= 1, "(G, 3), G >= 1"),
+            ("carry_face", face.shape == (p,), f"({p},)"),
+            ("carry_bary", bary.shape == (p, 3), f"({p}, 3)"),
+            ("carry_offset", off.shape == (p,), f"({p},)"),
+        ]
+        for name, ok, exp in checks:
+            if not ok:
+                raise InputError(
+                    f"asset field {name!r} has the wrong shape", expected=exp, got=getattr(self, name).shape
+                )
+        for name, arr, hi in (("out_faces", of, p), ("carry_face", face, len(self.faces))):
+            if arr.min() < 0 or arr.max() >= hi:
+                raise InputError(
+                    f"asset field {name!r} has an index out of range",
+                    expected=f"0..{hi - 1}",
+                    got=int(arr.max()) if arr.max() >= hi else int(arr.min()),
+                )
+        for name in ("out_vertices", "carry_bary", "carry_offset"):
+            if not np.isfinite(getattr(self, name)).all():
+                raise InputError(f"asset field {name!r} contains NaN or inf")
+        if float(np.abs(ov).max()) > 1.0e4:
+            raise InputError("asset field 'out_vertices' lies beyond 10 km", expected="|x| <= 10000 m")

@@ -1,0 +1,172 @@
+"""What a developer's trial of the Node and C++ command lines found (1 Dec 2026): an option given twice ran the last
+one in C++; a signal left the outputs' temporaries behind; Node held the whole clip (and the posed body) in memory
+before writing it; a garment split at its seams tore in Node and C++ with no word, as `garment export` and
+`garment fit` said nothing of it; a bundle that leaves the scene's collisions out was played as the scene."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import time
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from segadeform.cli.main import cli
+from segadeform.io import Mesh, read_mesh, read_pc2, write_obj
+from tests.conftest import SAMPLES
+
+RTOL = 1e-5  # the parity rule of tests/runtimes/test_engines.py
+
+
+def _split_at_a_seam(m):
+    """``m`` split along its centre line, as exports split vertices at UV seams (tests/cli/test_garment_for_blender)."""
+    side = m.vertices[m.faces].mean(axis=1)[:, 0] > 0
+    shared = np.intersect1d(np.unique(m.faces[side]), np.unique(m.faces[~side]))
+    copy = np.arange(len(m.vertices))
+    copy[shared] = len(m.vertices) + np.arange(len(shared))
+    faces = m.faces.copy()
+    faces[side] = copy[faces[side]]
+    return np.concatenate([m.vertices, m.vertices[shared]]), faces, len(shared)
+
+
+def _play(exe, package, garment, motion, out, *more, timeout=600):
+    return subprocess.run(
+        exe + ["--package", str(package), "--garment", str(garment), "--motion", str(motion), "-o", str(out), *more],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+@pytest.mark.parametrize("option, values", [("--batch", ["8", "4"]), ("--effects", ["lbs", "dqs"]), ("-o", None)])
+def test_an_option_given_twice_is_a_usage_error(runtime, option, values, request, portable_scene, tmp_path):
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    more = [option, values[0], option, values[1]] if values else ["-o", str(tmp_path / "y.pc2")]
+    p = _play(exe, "pkg", s["garment"], s["motion"], tmp_path / "x.pc2", *more)
+    assert p.returncode == 2, p.stdout + p.stderr
+    assert f"{option} is given more than once" in p.stderr.splitlines()[0], p.stderr
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_a_signal_leaves_no_temporaries_and_no_output(runtime, request, random_package, portable_scene, tmp_path):
+    """Ctrl-C or kill during a run: its outputs' hidden temporaries are removed (C++ left 172 MB of a body cache),
+    and nothing is written."""
+    from segadeform.cli.main import main
+
+    exe = request.getfixturevalue(runtime)
+    motion = tmp_path / "long.sgdm"
+    args = ["motion", "export", "dance", "--seconds", "300", "--betas", "0.5,-0.3", "-o", str(motion)]
+    assert main(args) == 0
+    out = tmp_path / "out"
+    out.mkdir()
+    p = subprocess.Popen(
+        exe
+        + ["--package", str(random_package), "--garment", str(portable_scene["garment"]), "--motion", str(motion)]
+        + ["-o", str(out / "g.pc2"), "--body-out", str(out / "b.pc2"), "--effects", "lbs,dynamics,wrinkles"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 300
+    while not [q for q in out.iterdir() if ".tmp-" in q.name] and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert p.poll() is None, "the run ended before it was stopped: " + p.stdout.read() + p.stderr.read()
+    time.sleep(0.3)
+    p.send_signal(signal.SIGINT)
+    p.wait(timeout=60)
+    assert p.returncode in (130, -signal.SIGINT), (p.returncode, p.stderr.read())
+    assert [q.name for q in out.iterdir()] == []
+
+
+def test_node_writes_a_long_clip_a_chunk_at_a_time_as_one_push(node, random_package, portable_scene, tmp_path):
+    """Node's command line pushes the motion about 256 frames at a time (whole batches) and writes each chunk as it
+    comes: the frames and the posed body are those of `segadeform run`, across the chunks' seams."""
+    from segadeform.cli.main import main
+
+    motion = tmp_path / "m.sgdm"
+    assert main(["motion", "export", "dance", "--seconds", "20", "--betas", "0.5,-0.3", "-o", str(motion)]) == 0
+    effects = "dqs,dynamics,wrinkles"
+    p = _play(
+        node,
+        random_package,
+        portable_scene["garment"],
+        motion,
+        tmp_path / "n.pc2",
+        "--effects",
+        effects,
+        "--body-out",
+        str(tmp_path / "nb.pc2"),
+        "--batch",
+        "5",
+    )
+    assert p.returncode == 0, p.stdout + p.stderr
+    run = ["run", "--model", str(random_package), "--garment", str(portable_scene["garment"]), "--motion", str(motion)]
+    run += ["--effects", effects, "--batch", "5", "--no-cache", "--force", "-o", str(tmp_path / "p.pc2")]
+    assert main([*run, "--body-out", str(tmp_path / "pb.pc2")]) == 0
+    for mine, theirs in (("n.pc2", "p.pc2"), ("nb.pc2", "pb.pc2")):
+        got, want = read_pc2(tmp_path / mine).frames, read_pc2(tmp_path / theirs).frames
+        assert got.shape == want.shape and got.shape[0] == 600
+        assert np.abs(got - want).max() <= RTOL * np.abs(want).max()
+    np.testing.assert_allclose(
+        read_mesh(tmp_path / "nb.obj").vertices, read_mesh(tmp_path / "pb.obj").vertices, atol=1e-9
+    )
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_what_garment_export_says_of_a_split_garment_every_runtime_says(
+    runtime, request, random_package, portable_scene, tmp_path, caplog
+):
+    exe = request.getfixturevalue(runtime)
+    m = read_mesh(portable_scene["dir"] / "dress_b.obj")
+    v, f, n = _split_at_a_seam(m)
+    write_obj(tmp_path / "split.obj", Mesh(v, f))
+    export = ["garment", "export", str(tmp_path / "split.obj"), "--betas", "0.5,-0.3", "--model", str(random_package)]
+    r = CliRunner().invoke(cli, [*export, "-o", str(tmp_path / "split.sgda")])
+    assert r.exit_code == 0, r.output
+    seam = f"garment split.obj: {n} vertices lie on an open boundary at the place of another vertex"
+    assert seam in caplog.text, caplog.text  # (the command line prints its log as "warning: ...")
+    p = _play(exe, random_package, tmp_path / "split.sgda", portable_scene["motion"], tmp_path / "o.pc2")
+    assert p.returncode == 0, p.stdout + p.stderr
+    said = [ln for ln in p.stderr.splitlines() if ln.startswith("warning: when the garment asset was exported: ")]
+    assert any(seam in ln for ln in said), p.stderr
+    # a garment without one says nothing of it
+    p = _play(exe, random_package, portable_scene["garment"], portable_scene["motion"], tmp_path / "q.pc2")
+    assert p.returncode == 0 and "when the garment asset was exported" not in p.stderr, p.stderr
+
+
+def test_garment_fit_says_a_split_garment_needs_weld(tmp_path):
+    m = read_mesh(SAMPLES / "garments" / "dress.obj")
+    v, f, n = _split_at_a_seam(m)
+    write_obj(tmp_path / "split.obj", Mesh(v, f))
+    r = CliRunner().invoke(cli, ["garment", "fit", str(tmp_path / "split.obj"), "-o", str(tmp_path / "f.obj")])
+    assert r.exit_code == 0, r.output
+    assert f"warning: {n} vertices lie on an open boundary" in r.output and "add --weld" in r.output
+    r = CliRunner().invoke(
+        cli, ["garment", "fit", str(SAMPLES / "garments" / "dress.obj"), "-o", str(tmp_path / "g.obj")]
+    )
+    assert r.exit_code == 0 and "open boundary" not in r.output, r.output
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_a_bundle_without_the_scenes_collisions_says_so(runtime, request, random_package, tmp_path):
+    exe = request.getfixturevalue(runtime)
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        f'[garment]\nmesh = "{SAMPLES / "garments" / "dress.obj"}"\n[motion]\nkind = "walk"\nseconds = 0.2\n'
+        f'[output]\npath = "{tmp_path / "o.pc2"}"\n[effects]\ndynamics = true\nwrinkles = true\ncollisions = true\n'
+    )
+    r = CliRunner().invoke(cli, ["bundle", str(scene), "--model", str(random_package), "-o", str(tmp_path / "b.sgdb")])
+    assert r.exit_code == 0, r.output
+    p = subprocess.run(
+        exe + [str(random_package), str(tmp_path / "b.sgdb"), "-o", str(tmp_path / "x.pc2")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "the scene's collisions are not in the bundle: these frames are the network's alone" in p.stderr, p.stderr
