@@ -42,7 +42,9 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
     \b
     JOBS.toml (relative paths are relative to it):
       [batch]        output = "out/batch", format = "pc2" (| obj-seq | xdmf | abc | usd), and optionally
-                     model, body, effects ("dqs,collisions", as run --effects), up, frames_per_call
+                     model, body, effects ("dqs,collisions", as run --effects), quality, collision_margin,
+                     cloth_<knob>, up, units ("cm", as run --output-units), resolution (as run --resolution),
+                     frames_per_call
       [[garments]]   mesh = "skirt.obj", and optionally name, betas = [0.0, 0.5]
       [[motions]]    file = "walk.bvh" or kind = "walk" (with seconds, speed, amplitude, seed), and
                      optionally name, fps, frames = "0:60"

@@ -38,6 +38,12 @@ def bundle_cmd(scene, output, model, no_expected, frames, force):
     p = scene_bundle(sc, output, model=model, expected=not no_expected, force=force)
     guard.record()
     click.echo(f"wrote {p}")
+    if sc.units != 1.0:  # the runtimes write metres (a review: a scene's units were dropped without a word)
+        click.echo(
+            f"note: the scene's output units ({sc.units:g} m per unit) are not in the bundle: Node and C++ write "
+            "metres",
+            err=True,
+        )
     e = sc.effects
     post = [n for n, on in (("collisions", e.collisions), ("cloth", e.cloth)) if on]
     if post:  # the host runtime's post-processes: not in the bundle, named on its command line with their knobs

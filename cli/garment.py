@@ -366,9 +366,9 @@ def garment_fit_cmd(
         )
         if split:
             click.echo(
-                f"  warning: {split} vertices lie on an open boundary at the place of another vertex, with no edge "
-                "between them: the mesh is split along a seam (as exports split it at UV seams) and the output would "
-                "tear there; add --weld to join them",
+                f"  warning: {obj.name}: {split} vertices lie on an open boundary at the place of another vertex, with "
+                "no edge between them: the mesh is split along a seam (as exports split it at UV seams) and the "
+                "output would tear there; add --weld to join them",
                 err=True,
             )
     for name, written in libraries.items():  # the copy names the material library as found from its folder

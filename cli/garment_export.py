@@ -108,7 +108,15 @@ def garment_export_cmd(garment, output, body, betas, model, k, force, resolution
         except InputError as e:  # of the garment's mesh ("no face with an area"): named by its file (it was not)
             raise e.with_path(garment) from None
     unfit = None
-    on = asset if given is None else given[0]  # the garment as given is what is checked (as `run` checks it)
+    # the garment as given is what is checked (as `run` checks it): a mesh's, or an asset's from --resolution
+    if given is not None:
+        on = given[0]
+    elif asset.carried:
+        from segadeform.io import Mesh
+
+        on = Mesh(vertices=asset.out_vertices, faces=asset.out_faces)
+    else:
+        on = asset
     try:
         check_body_height(b, beta_vals)
         check_placement(
@@ -131,7 +139,12 @@ def garment_export_cmd(garment, output, body, betas, model, k, force, resolution
     from segadeform.runtime.package import ModelPackage
     from segadeform.runtime.pipeline import garment_warnings
 
-    said = garment_warnings(garment, on, b, beta_vals)
+    if garment.suffix.lower() in (".npz", PORTABLE_SUFFIX):
+        # an asset exported again (another shape): what its first export said of the garment file, which the asset
+        # cannot tell again (vertices in no face ...; a review: dropped), but against this model
+        said = [w for w in asset.warnings if " lies outside the garments model " not in w]
+    else:
+        said = garment_warnings(garment, on, b, beta_vals)
     far = unfamiliar_warning(ModelPackage(model), asset)
     said += [] if far is None else [far]
     for w in said:
@@ -154,7 +167,7 @@ def garment_export_cmd(garment, output, body, betas, model, k, force, resolution
         )
     asset.save(output)
     guard.record()
-    carried = "" if given is None else f" (the model's, carried to the garment's {len(given[0].vertices)})"
+    carried = f" (the model's, carried to the garment's {len(asset.out_vertices)})" if asset.carried else ""
     click.echo(
         f"{garment.name}: {asset.n_vertices} vertices{carried}, K={asset.nbr.shape[1]}, N*={len(asset.descriptor)}, "
         f"for {asset.body['name'] or 'the body'} betas {[round(float(x), 4) for x in asset.betas[: len(beta_vals)]]} "

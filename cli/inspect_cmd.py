@@ -106,10 +106,10 @@ def _frames_summary(path, frames, head: str | None = None, first: int = 0, unit:
         )
     if st.n_frames and st.n_points and st.far * k > MAX_POSITION:
         raise FileFormatError(
-            "a point lies beyond 10 km of the origin (another unit?)",
+            "a point lies beyond 10 km of the origin (another unit? --output-units says the one it was written in)",
             path=path,
             expected=f"|x| <= {MAX_POSITION:g} m",
-            got=f"{st.far * k:.3g} m",
+            got=f"{st.far * k:.3g} m" + ("" if unit is not None else " read as metres"),
         )
     if head is not None:
         click.echo(head)
@@ -132,11 +132,20 @@ def _frames_summary(path, frames, head: str | None = None, first: int = 0, unit:
 
 @cli.command("inspect")
 @click.argument("path", type=PathParam(path_type=Path))
-def inspect_cmd(path):
+@click.option(
+    "--output-units",
+    metavar="UNITS",
+    help="Units a sequence was written in (run --output-units: m, dm, cm, mm, inch, ft or metres per unit); "
+    "default: what a USD records (metersPerUnit), else metres.",
+)
+def inspect_cmd(path, output_units=None):
     """Read PATH (mesh, point cache or any registered sequence format, body, motion, garment asset, scene,
     scene bundle, dataset pack or model package), validate it fully, and print a summary."""
     from segadeform.errors import file_error
     from segadeform.io.formats import inspect_sequence, sequence_format_of
+    from segadeform.io.writer import output_unit
+
+    unit = None if output_units is None else output_unit(output_units, option="--output-units")
 
     ext = path.suffix.lower()
     if path.is_dir() and (path / "manifest.json").exists():
@@ -165,7 +174,7 @@ def inspect_cmd(path):
             frames,
             f"{path}: {fmt.name} sequence, {summary}",
             sequence_start_frame(path),
-            unit=sequence_units(path),
+            unit=unit if unit is not None else sequence_units(path),
         )
     elif ext in (".bvh", ".amc", ".glb", ".gltf"):  # motions `run --motion` takes (an AMC with its ASF beside it)
         from segadeform.motion import load_motion
@@ -298,11 +307,24 @@ def inspect_cmd(path):
     else:
         from segadeform.io import read_mesh
 
-        m = read_mesh(path)
+        if unit is not None and ext == ".obj":  # a rest mesh `run --output-units` wrote: bounded in its units
+            from segadeform.bounds import MAX_POSITION
+            from segadeform.errors import FileFormatError
+            from segadeform.io.obj import read_obj
+
+            m = read_obj(path, bounded=False)
+            far = float(np.abs(m.vertices).max()) * unit if m.n_vertices else 0.0
+            if far > MAX_POSITION:
+                raise FileFormatError(
+                    "a vertex lies beyond 10 km of the origin", path=path, expected="|x| <= 10000 m", got=f"{far:.3g} m"
+                )
+        else:
+            m = read_mesh(path)
         v = m.vertices
+        said = "" if unit is None or unit == 1.0 else f" (in the file's units of {unit:g} m)"
         click.echo(
             f"{path}: mesh, {m.n_vertices} vertices, {m.n_faces} triangles, bounds "
-            f"{np.round(v.min(0), 4).tolist()} .. {np.round(v.max(0), 4).tolist()}"
+            f"{np.round(v.min(0), 4).tolist()} .. {np.round(v.max(0), 4).tolist()}{said}"
         )
         _mesh_defects(m.vertices, m.faces)
 

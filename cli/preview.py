@@ -70,7 +70,8 @@ PNG_FRAMES = 8
     "--output-units",
     metavar="UNITS",
     help="Units the result and --body were written in (run --output-units: m, dm, cm, mm, inch, ft or metres per "
-    "unit); default: what a USD records (metersPerUnit), else metres.",
+    "unit); default: what a USD records (metersPerUnit; a body from the same run is read in the same units), else "
+    "metres.",
 )
 def preview_cmd(result, garment, body_seq, body_model, output, frames, every, view, size, fps, up, output_units=None):
     """Render RESULT (PC2, OBJ sequence folder, XDMF, Alembic or USD) with its garment and, if given, the body.
@@ -163,13 +164,15 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         idx, angles = [idx[i] for i in pick], [angles[i] for i in pick]
     R = np.array(Y_TO_Z) if up == "z" else None  # back to +Y up for rendering
 
-    def metres(path) -> float:
-        """Metres per unit of a sequence: --output-units, else what the file records, else 1."""
-        if output_units is not None:
-            return output_unit(output_units, option="--output-units")
-        return sequence_units(path) or 1.0
-
-    scale = {"g": metres(result), "b": None if body_seq is None else metres(body_seq)}
+    # metres per unit of the result and the body: --output-units, else what each file records, else what the other
+    # records (one run wrote both: a centimetre USD beside a PC2 body, which records nothing), else 1
+    if output_units is not None:
+        u = output_unit(output_units, option="--output-units")
+        scale = {"g": u, "b": u}
+    else:
+        g_rec = sequence_units(result)
+        b_rec = None if body_seq is None else sequence_units(body_seq)
+        scale = {"g": g_rec or b_rec or 1.0, "b": b_rec or g_rec or 1.0}
 
     def drawn(seq, path, ks, unit):
         """Frames ``ks`` of ``seq`` as float64, +Y up, metres; NaN or inf in one of them is an error naming it."""

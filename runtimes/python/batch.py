@@ -422,7 +422,9 @@ def _run_job(job: BatchJob, loc, name: str, t0: float) -> dict:
                 model=job.model,
                 effects=job.effects,
             )
-            s = run_scene(scene, batch=job.frames_per_call, threads=1, force=job.force)
+            s = run_scene(
+                scene, batch=job.frames_per_call, threads=1, force=job.force, resolution_option="batch.resolution"
+            )
             written = loc.commit_tree(Path(d))
     except WriteError as e:  # disk full, read-only: name the job's output, not its scratch folder
         raise WriteError(f"{loc}/{name}", e.reason, e.errno) from None

@@ -208,6 +208,7 @@ class Run:
         body_backend: str = "auto",
         guard=None,
         resolution: float = 1.0,
+        resolution_option: str = "--resolution",
     ) -> None:
         if not callable(collider):
             raise InputError(
@@ -233,6 +234,7 @@ class Run:
                 "resolution is the share of the garment's vertices the model runs on", expected="0 < R <= 1", got=r
             )
         self.resolution = r
+        self.resolution_option = resolution_option  # where the resolution came from, for its errors
         #: with resolution < 1: the garment as given (vertices, faces), which the outputs, collisions and the
         #: cloth stage use, and the map from the model's decimated garment back to it (load_asset)
         self._full: tuple[np.ndarray, np.ndarray] | None = None
@@ -357,7 +359,9 @@ class Run:
                     return type(full)(vertices=v, faces=f), key
             except (OSError, ValueError, KeyError):
                 log.warning("ignoring unreadable resolution cache %s", rpath)
-        v, f, self._smap = decimated_garment(full.vertices, full.faces, self.resolution, path=self.garment)
+        v, f, self._smap = decimated_garment(
+            full.vertices, full.faces, self.resolution, path=self.garment, option=self.resolution_option
+        )
         if rpath is not None:
             try:
                 from segadeform.io.atomic import atomic_path
@@ -862,11 +866,13 @@ def run_scene(
     guard=None,
     frames_from_scene: bool = True,
     resolution: float | None = None,
+    resolution_option: str | None = None,
 ) -> RunSummary:
     """Run a scene (optionally overriding its model package and output path); ``body_backend`` and ``guard``:
     :class:`Run`'s.  ``frames_from_scene``: the frame range is the scene file's (a range past the motion's end
     names the file); False when a command-line flag gave it.  ``resolution``: :class:`Run`'s (None: the scene's
-    ``[model] resolution``)."""
+    ``[model] resolution``); ``resolution_option``: what its errors call it (default ``--resolution``, or the scene
+    file's key)."""
     package = ModelPackage(model or scene.model or default_model_path(), threads=threads, providers=providers)
     body = load_body(scene.body or default_body_path())
     betas = shape_for_inputs(scene, body, force=force)
@@ -937,6 +943,14 @@ def run_scene(
         body_backend=body_backend,
         guard=guard,
         resolution=scene.resolution if resolution is None else resolution,
+        resolution_option=resolution_option
+        or (
+            "--resolution"
+            if resolution is not None
+            else f"{scene.path.name}: model.resolution"
+            if scene.path is not None
+            else "model.resolution"
+        ),
     )
     run.checked_asset()
     for words in said:

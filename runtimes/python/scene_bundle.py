@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from segadeform.body import default_body_path, load_body
+from segadeform.errors import InputError
 from segadeform.geometry.features import vertex_features
 from segadeform.io.sgdb import write_bundle
 from segadeform.motion import build_motion, motion_windows, select_frames
@@ -33,6 +34,17 @@ def scene_bundle(
     post-processes, named on the host runtime's command line).
 
     ``expected``: also run the deformer here and store its output (the parity vector)."""
+    # a bundle holds the model's garment and its frames: a garment decimated for the model (a scene's [model]
+    # resolution, an asset from `garment export --resolution`) would be played at the model's resolution, its point
+    # cache fitting no import of the garment (a review): refused, with what to do
+    if scene.resolution < 1.0:
+        raise InputError(
+            "a bundle holds the garment the model runs on: a scene's [model] resolution below 1 is not bundled",
+            path=scene.path,
+            expected="resolution = 1, or `segadeform garment export GARMENT --resolution R` and the runtimes' "
+            "--package/--garment/--motion",
+            got=scene.resolution,
+        )
     package = ModelPackage(model or scene.model or default_model_path())
     body = load_body(scene.body or default_body_path())
     joints = body.rest_joints(scene.betas)[0]
@@ -54,6 +66,13 @@ def scene_bundle(
     # the run's own checks: the body's height and the garment's placement (with force: played, and said as
     # warnings; the bundle skipped them without a word: a review), and what a DCC's import of the garment would not fit
     asset = run.checked_asset()
+    if asset.carried:
+        raise InputError(
+            "the garment asset's model garment is decimated (garment export --resolution), and a bundle holds the "
+            "garment the model runs on",
+            path=scene.garment,
+            expected="the asset played with the runtimes' --package/--garment/--motion, or a full-resolution garment",
+        )
     d = run.deformer
     feats = vertex_features(asset.vertices, asset.faces, joints, normals=asset.normals.astype(np.float64))
     betas = d._betas(scene.betas)

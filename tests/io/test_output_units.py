@@ -191,3 +191,45 @@ def test_unit_names_are_one_table():
     from segadeform.body import placement
 
     assert placement.UNIT_SCALES is UNIT_SCALES
+
+
+def test_a_millimetre_output_past_10000_units_is_read_in_its_units(tmp_path):
+    """A walk 11 m from the origin written in millimetres holds numbers past 10,000: `inspect` and `preview` refused
+    it as beyond 10 km (a review); told its units they read it, and `inspect` without them says how."""
+    from segadeform.io import Mesh, write_obj
+
+    v, f, frames = _mesh()
+    far = frames + np.array([11.0, 0.0, 0.0])  # 11 m along x
+    d = tmp_path / "mm"
+    with open_sequence_writer(d, "obj-seq", faces=f, num_points=len(v), unit=0.001) as w:
+        w.write(far)
+    r = CliRunner().invoke(cli, ["inspect", str(d)])
+    assert r.exit_code == 1 and "--output-units says the one it was written in" in r.output, r.output
+    r = CliRunner().invoke(cli, ["inspect", str(d), "--output-units", "mm"])
+    assert r.exit_code == 0 and "in the file's units of 0.001 m" in r.output, r.output
+    write_obj(tmp_path / "g.obj", Mesh(vertices=v, faces=f))
+    args = ["preview", str(d), "--garment", str(tmp_path / "g.obj"), "-o", str(tmp_path / "p.png"), "--size", "64x64"]
+    r = CliRunner().invoke(cli, [*args, "--output-units", "mm"])
+    assert r.exit_code == 0, r.output
+    # a rest mesh in a tiny unit (0.1 mm): read in its units
+    write_obj(tmp_path / "tiny.obj", Mesh(vertices=(v + 11.0) / 1e-4, faces=f))
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "tiny.obj"), "--output-units", "0.0001"])
+    assert r.exit_code == 0 and "in the file's units of 0.0001 m" in r.output, r.output
+
+
+def test_preview_reads_a_body_beside_a_centimetre_usd_in_its_units(tmp_path):
+    """A USD records its unit and a PC2 body of the same run does not: the body is drawn in the USD's units (it was
+    drawn 100 times too big, the garment lost in it: a review)."""
+    pytest.importorskip("pxr", reason="USD output needs the 'usd' extra")
+    pytest.importorskip("matplotlib")
+    import matplotlib.image as mpimg
+
+    for unit in ("m", "cm"):
+        d = tmp_path / unit
+        d.mkdir()
+        assert _run("-o", d / "g.usd", "--body-out", d / "b.pc2", "--output-units", unit).exit_code == 0
+        args = ["preview", str(d / "g.usd"), "--garment", str(DRESS), "--body", str(d / "b.pc2")]
+        r = CliRunner().invoke(cli, [*args, "-o", str(d / "p.png"), "--frames", "1:2", "--size", "96x128"])
+        assert r.exit_code == 0, r.output
+    a, b = mpimg.imread(tmp_path / "m" / "p.png"), mpimg.imread(tmp_path / "cm" / "p.png")
+    assert np.abs(a - b).max() < 0.02

@@ -168,3 +168,47 @@ def test_a_broken_carry_is_refused_naming_the_file(
     )
     assert p.returncode == 1 and says in p.stderr and str(path) in p.stderr, p.stdout + p.stderr
     assert len(p.stderr.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_an_asset_exported_again_keeps_its_garment_as_given(carried, random_package, caplog):
+    """Exported again (another shape, the same here): the garment as given is what is checked and said (a review: the
+    decimated copy was, and the seams it said were the copy's), and the map is kept."""
+    a = GarmentAsset.load(carried["asset"])
+    out = carried["dir"] / "reexported.sgda"
+    args = ["garment", "export", str(carried["asset"]), "--betas", "0.5,-0.3", "--model", str(random_package)]
+    r = CliRunner().invoke(cli, [*args, "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert f"(the model's, carried to the garment's {len(a.out_vertices)})" in r.output
+    b = GarmentAsset.load(out)
+    for k in ("vertices", "out_vertices", "out_faces", "carry_face", "carry_bary", "carry_offset"):
+        np.testing.assert_array_equal(getattr(b, k), getattr(a, k))
+    assert "carried to the garment's" in repr(b)
+
+
+def test_an_npz_asset_of_schema_3_without_its_map_is_refused(carried, tmp_path):
+    a = GarmentAsset.load(carried["asset"])
+    a.save(tmp_path / "a.npz")
+    with np.load(tmp_path / "a.npz", allow_pickle=False) as z:
+        kept = {k: z[k] for k in z.files if k != "carry_offset"}
+    np.savez(tmp_path / "b.npz", **kept)
+    with pytest.raises(FileFormatError, match="lacks fields.*carry_offset"):
+        GarmentAsset.load(tmp_path / "b.npz")
+
+
+def test_a_decimated_model_garment_is_not_bundled(carried, portable_scene, random_package, tmp_path):
+    """A bundle holds the garment the model runs on: a carried asset or a scene's resolution below 1 was bundled at
+    the model's resolution, its point cache fitting no import of the garment (a review); now refused."""
+    for garment, extra, says in (
+        (carried["asset"], "", "model garment is decimated"),
+        (carried["mesh"], "[model]\nresolution = 0.5\n", "resolution below 1 is not bundled"),
+    ):
+        scene = tmp_path / "s.toml"
+        scene.write_text(
+            f'[garment]\nmesh = "{garment}"\n[motion]\nfile = "{portable_scene["motion"]}"\n[body]\n'
+            f'betas = [0.5, -0.3]\n{extra}[output]\npath = "{tmp_path / "o.pc2"}"\n'
+        )
+        r = CliRunner().invoke(
+            cli, ["bundle", str(scene), "--model", str(random_package), "--force", "-o", str(tmp_path / "b.sgdb")]
+        )
+        assert r.exit_code == 1 and says in r.output, r.output
+        assert not (tmp_path / "b.sgdb").exists()

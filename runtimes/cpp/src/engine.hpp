@@ -619,9 +619,16 @@ inline Scene garment_of_asset(const sgd::Bundle& a, const std::string& apath, bo
   s.M = s.N;
   carry_of_asset(s, a, apath, av);
   // what `segadeform garment export` said of the garment (a mesh split at its seams tears ...), said again here
-  if (a.meta.has("warnings"))
-    for (const auto& w : a.meta["warnings"].arr)
-      if (w.kind == sgd::Json::String) s.warnings.push_back("when the garment asset was exported: " + w.str);
+  if (a.meta.has("warnings")) {  // one-line texts, as Python's GarmentAsset and Node's readAsset hold them
+    const sgd::Json& said = a.meta["warnings"];
+    bool ok = said.kind == sgd::Json::Array;
+    for (const auto& w : said.arr)
+      ok = ok && w.kind == sgd::Json::String && !w.str.empty() && w.str.find('\n') == std::string::npos;
+    if (!ok)
+      throw std::runtime_error(apath + ": meta.warnings is not a list of one-line texts (expected strings without "
+                               "line breaks)");
+    for (const auto& w : said.arr) s.warnings.push_back("when the garment asset was exported: " + w.str);
+  }
   // an asset exported with --force for a body it does not sit on: refused unless forced again, as `segadeform run`
   // refuses it (it checks the fit itself)
   if (a.meta["body"].has("unfit") && a.meta["body"]["unfit"].kind == sgd::Json::String) {

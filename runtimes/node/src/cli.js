@@ -45,9 +45,9 @@ const threads = integer(opt("--threads", "1"));
 const pkg = opt("--package"), garment = opt("--garment"), motion = opt("--motion");
 const bodyOut = opt("--body-out"), effects = opt("--effects"), marginText = opt("--collision-margin");
 const cloth = opt("--cloth");
-const forceAt = args.indexOf("--force"); // a motion made for another body or shape: played, with a warning
-const force = forceAt >= 0;
-if (force) args.splice(forceAt, 1);
+// a motion made for another body or shape: played, with a warning (a flag given twice is the flag, as click reads it)
+const force = args.includes("--force");
+for (let at = args.indexOf("--force"); at >= 0; at = args.indexOf("--force")) args.splice(at, 1);
 // as Python's float() reads it: "" is no number (Number("") is 0: an empty margin ran with 0)
 const margin = marginText === undefined ? undefined : marginText.trim() === "" ? NaN : Number(marginText);
 const flagForm = pkg || garment || motion;

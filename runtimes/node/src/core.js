@@ -283,6 +283,13 @@ export function readAsset(parsed, where = "garment asset") {
     }
   }
   readCarry(parsed, where);
+  // what `garment export` said of the garment, said again when it plays: one-line texts, as Python's GarmentAsset
+  // holds them
+  const said = parsed.meta.warnings;
+  if (said !== undefined && !(Array.isArray(said) && said.every((w) => typeof w === "string" && w && !w.includes("\n")))) {
+    throw new Error(`${where}: meta.warnings is not a list of one-line texts (expected strings without line breaks, ` +
+      `got ${JSON.stringify(said).slice(0, 60)})`);
+  }
   return parsed;
 }
 

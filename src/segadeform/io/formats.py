@@ -280,7 +280,7 @@ def _objseq_inspect(path):
     from .sequence import obj_sequence_files, read_obj_sequence
 
     faces, frames = read_obj_sequence(path)
-    origin = read_obj(obj_sequence_files(path)[0][1]).face_origin  # the file's polygon of each triangle
+    origin = read_obj(obj_sequence_files(path)[0][1], bounded=False).face_origin  # the file's polygon of each triangle
     polygons = len(faces) if origin is None else len(np.unique(origin))
     return f"{frames.shape[0]} frames x {frames.shape[1]} vertices, {_faces_said(polygons, len(faces))}", frames
 

@@ -201,6 +201,8 @@ class GarmentAsset:
 
     def __repr__(self) -> str:
         shape = f", betas={np.round(self.betas, 3).tolist()}" if self.betas is not None else ""  # for_a_body
+        if self.carried:  # the model's garment, decimated; the outputs have the garment as given
+            shape += f", carried to the garment's {len(cast(np.ndarray, self.out_vertices))} vertices"
         return (
             f"GarmentAsset(N={self.n_vertices}, F={len(self.faces)}, K={self.nbr.shape[1]}, "
             f"S={len(self.joints)}, N*={len(self.descriptor)}, source={self.source_name!r}{shape})"
@@ -292,11 +294,7 @@ class GarmentAsset:
         if any(k in optional for k in _BODY_PORTABLE):
             fields["body"] = meta.get("body")
         said = meta.get("warnings", [])
-        if not (isinstance(said, list) and all(isinstance(w, str) for w in said)):
-            raise FileFormatError(
-                "garment asset meta.warnings is not a list of strings", path=p, got=type(said).__name__
-            )
-        fields["warnings"] = tuple(said)
+        fields["warnings"] = tuple(said) if isinstance(said, list) else said  # checked by validate
         return cls(
             geodesic_radius=radius,
             params=params,
@@ -349,9 +347,17 @@ class GarmentAsset:
                 fields.update({k: z[k] for k in _BODY_ARRAYS if k in names})
                 fields["body"] = json.loads(str(z["body"])) if "body" in names else None
             if version >= CARRY_SCHEMA_VERSION or (set(_CARRY_ARRAYS) & names):
-                fields.update({k: z[k] for k in _CARRY_ARRAYS if k in names})
+                if not set(_CARRY_ARRAYS) <= names:
+                    raise FileFormatError(
+                        "garment asset of a decimated model garment lacks fields",
+                        path=p,
+                        expected=", ".join(_CARRY_ARRAYS),
+                        got="missing " + ", ".join(sorted(set(_CARRY_ARRAYS) - names)),
+                    )
+                fields.update({k: z[k] for k in _CARRY_ARRAYS})
             if "warnings" in names:
-                fields["warnings"] = tuple(str(w) for w in json.loads(str(z["warnings"])))
+                said = json.loads(str(z["warnings"]))
+                fields["warnings"] = tuple(said) if isinstance(said, list) else said
             params = json.loads(str(z["params"]))
             radius = float(z["geodesic_radius"])
             src = str(z["source_name"]) if "source_name" in names else ""
@@ -433,6 +439,11 @@ class GarmentAsset:
                     "asset field 'body' must name the body", expected='{"name": str, "sha256": str}', got=self.body
                 )
         self._validate_carry(n)
+        w = self.warnings
+        if not (isinstance(w, tuple) and all(isinstance(x, str) and x and "\n" not in x for x in w)):
+            raise InputError(
+                "asset field 'warnings' is not a list of one-line texts", expected="strings without line breaks", got=w
+            )
         if not (np.isfinite(self.geodesic_radius) and self.geodesic_radius > 0):
             raise InputError("asset geodesic_radius must be positive", got=self.geodesic_radius)
 

@@ -189,8 +189,10 @@ def _cut_short(path, line: int, key: str) -> FileFormatError:
     )
 
 
-def read_obj(path: str | os.PathLike) -> Mesh:
-    """Read an OBJ file into a :class:`Mesh` (vertex order kept).
+def read_obj(path: str | os.PathLike, *, bounded: bool = True) -> Mesh:
+    """Read an OBJ file into a :class:`Mesh` (vertex order kept).  ``bounded``: a vertex beyond 10 km of the origin
+    (:data:`segadeform.bounds.MAX_POSITION`) is an error naming its line (False: the frames of an output, which
+    ``run --output-units mm`` may write past 10,000 units; their reader checks them in their units).
 
     Returns:
         Mesh with ``vertices (N, 3)``, ``faces (F, 3)`` (polygons
@@ -255,7 +257,7 @@ def read_obj(path: str | os.PathLike) -> Mesh:
                     xyz = [c / w for c in xyz]
                 if not all(np.isfinite(xyz)):
                     raise FileFormatError("vertex coordinate is not finite", path=p, line=lineno, got=vals[:3])
-                if max(abs(c) for c in xyz) > MAX_POSITION:
+                if bounded and max(abs(c) for c in xyz) > MAX_POSITION:
                     raise FileFormatError(
                         "vertex lies beyond 10 km of the origin (another unit?)",
                         path=p,
@@ -330,7 +332,7 @@ def read_obj(path: str | os.PathLike) -> Mesh:
             line=cut_at,
         )
     v, f = validate_mesh_arrays(
-        np.asarray(verts, dtype=np.float64), np.asarray(tris, dtype=np.int64), path=p, bounded=True
+        np.asarray(verts, dtype=np.float64), np.asarray(tris, dtype=np.int64), path=p, bounded=bounded
     )
     col = None
     if all(c is not None for c in colors):

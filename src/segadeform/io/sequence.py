@@ -266,7 +266,7 @@ class ObjFrames(LazyFrames):
 
     def __init__(self, directory: str | os.PathLike) -> None:
         self._files = [f for _, f in obj_sequence_files(directory)]
-        self._first = read_obj(self._files[0])
+        self._first = read_obj(self._files[0], bounded=False)  # an output: checked in its units by its reader
         self.faces = self._first.faces
         super().__init__(len(self._files), self._first.n_vertices, np.float64, directory)
 
@@ -274,7 +274,7 @@ class ObjFrames(LazyFrames):
         first = self._first
         out = np.empty((len(indices), *self.shape[1:]))
         for j, i in enumerate(indices):
-            mesh = first if i == 0 else read_obj(self._files[i])
+            mesh = first if i == 0 else read_obj(self._files[i], bounded=False)
             if mesh.n_vertices != first.n_vertices or not np.array_equal(mesh.faces, first.faces):
                 raise FileFormatError(
                     "frame topology differs from the first frame",
