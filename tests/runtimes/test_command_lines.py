@@ -235,3 +235,75 @@ def test_a_scenes_resolution_is_named_as_its_key(tmp_path):
     )
     r = CliRunner().invoke(cli, ["run", str(scene), "--no-cache"])
     assert r.exit_code == 1 and "s.toml: model.resolution 0.01 leaves the model" in r.output, r.output
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_the_runtimes_write_in_the_units_and_axes_run_writes(
+    runtime, request, random_package, portable_scene, tmp_path
+):
+    """`--up z --output-units cm` (Maya, Unreal): the garment's and the body's point caches and the body's rest OBJ
+    are `segadeform run`'s, bit for bit and byte for byte."""
+    from segadeform.cli.main import main
+
+    exe = request.getfixturevalue(runtime)
+    s = portable_scene
+    more = ["--effects", "dqs,dynamics,wrinkles", "--up", "z", "--output-units", "cm"]
+    p = _play(
+        exe,
+        random_package,
+        s["garment"],
+        s["motion"],
+        tmp_path / "r.pc2",
+        *more,
+        "--body-out",
+        str(tmp_path / "rb.pc2"),
+    )
+    assert p.returncode == 0, p.stdout + p.stderr
+    run = ["run", "--model", str(random_package), "--garment", str(s["garment"]), "--motion", str(s["motion"])]
+    assert (
+        main(
+            [
+                *run,
+                *more,
+                "--no-cache",
+                "--force",
+                "-o",
+                str(tmp_path / "p.pc2"),
+                "--body-out",
+                str(tmp_path / "pb.pc2"),
+            ]
+        )
+        == 0
+    )
+    for mine, theirs in (("r.pc2", "p.pc2"), ("rb.pc2", "pb.pc2")):
+        got, want = read_pc2(tmp_path / mine).frames, read_pc2(tmp_path / theirs).frames
+        assert np.abs(got - want).max() <= RTOL * np.abs(want).max()
+    assert (tmp_path / "rb.obj").read_bytes() == (tmp_path / "pb.obj").read_bytes()
+    metres = read_pc2(tmp_path / "p.pc2").frames
+    assert np.abs(metres).max() > 50  # centimetres
+    for bad, says in (
+        (["--up", "x"], "--up must be y or z"),
+        (["--output-units", "furlong"], "--output-units must be"),
+    ):
+        p = _play(exe, random_package, s["garment"], s["motion"], tmp_path / "x.pc2", *bad)
+        assert p.returncode == 2 and says in p.stderr and not (tmp_path / "x.pc2").exists(), p.stderr
+
+
+def test_node_prints_numbers_as_python_prints_them(node):
+    """Node's OBJ text printed 7.54e-5 as -0.0000754 and rounded ties away from zero (976885.0625 -> ...063); C's and
+    Python's %.9g print -7.54e-05 and round half to even (...062)."""
+    import json
+
+    rng = np.random.default_rng(3)
+    xs = (rng.choice([-1, 1], 4000) * 10.0 ** rng.uniform(-12, 12, 4000)).tolist()
+    xs += rng.normal(size=2000).astype(np.float32).astype(float).tolist()
+    xs += [-976885.0625, 0.5, 2.5e-5, 0.0, -0.0, 1e9, 999999999.5, 1.00000000005, 12345.678949999999]
+    script = (
+        "import(process.argv[1]).then(({formatG9}) => {"
+        "const xs = JSON.parse(require('fs').readFileSync(0, 'utf8'));"
+        "process.stdout.write(JSON.stringify(xs.map(formatG9)));})"
+    )
+    core = str(SAMPLES.parent / "runtimes" / "node" / "src" / "core.js")
+    p = subprocess.run(["node", "-e", script, core], input=json.dumps(xs), capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert json.loads(p.stdout) == [f"{x:.9g}" for x in xs]

@@ -52,8 +52,9 @@ void remove_temporaries_on_signals(const std::vector<std::string>& outputs) {
 const char* USAGE =
     "usage: segadeform-run --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2]\n"
     "                      [--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M]\n"
-    "                      [--cloth K=V,..] [--batch N] [--threads N] [--force]\n"
-    "       segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--check]\n";
+    "                      [--cloth K=V,..] [--batch N] [--threads N] [--up y|z] [--output-units U] [--force]\n"
+    "       segadeform-run PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--up y|z] [--output-units U]\n"
+    "                      [--check]\n";
 
 // A whole decimal integer (std::stoi read "8x" as 8 and "2.5" as 2: a user's trial); else invalid_argument.
 int whole_int(const std::string& t) {
@@ -63,13 +64,42 @@ int whole_int(const std::string& t) {
   return v;
 }
 
+// Metres per unit of --output-units (segadeform.io.writer.output_unit): a name or a number in [1e-4, 1e3]; else NaN.
+double metres_per_unit(const std::string& text) {
+  std::string t;
+  for (char c : text)
+    if (!std::isspace(static_cast<unsigned char>(c))) t += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  static const std::map<std::string, double> names{{"m", 1.0},     {"dm", 0.1},      {"cm", 0.01},
+                                                   {"mm", 0.001},  {"inch", 0.0254}, {"ft", 0.3048}};
+  if (names.count(t)) return names.at(t);
+  char* e = nullptr;
+  const double f = t.empty() ? NAN : std::strtod(t.c_str(), &e);
+  return (e && *e == '\0' && f >= 1e-4 && f <= 1e3) ? f : NAN;
+}
+
+// The written coordinates (segadeform.io.writer.to_output): +Y up metres turned to +Z up ((x, y, z) -> (x, -z, y))
+// and divided by the unit, in float64, then held as T (the point caches' float32; the rest OBJ's double, as Python's).
+template <class T>
+std::vector<T> to_output(const float* a, int64_t n, bool z_up, double unit) {
+  std::vector<T> out(static_cast<size_t>(n));
+  for (int64_t i = 0; i + 2 < n; i += 3) {
+    const double x = a[i], y = a[i + 1], z = a[i + 2];
+    out[i] = static_cast<T>(x / unit);
+    out[i + 1] = static_cast<T>((z_up ? -z : y) / unit);
+    out[i + 2] = static_cast<T>((z_up ? y : z) / unit);
+  }
+  return out;
+}
+
 // A triangle mesh as OBJ, as segadeform.io.obj.write_obj writes it (9 significant digits, 1-based faces).
-void write_obj(const std::string& path, const std::vector<float>& v, const std::vector<int32_t>& f) {
+template <class T>
+void write_obj(const std::string& path, const std::vector<T>& v, const std::vector<int32_t>& f) {
   std::ofstream o(path, std::ios::binary);
   o << "# segadeform OBJ: " << v.size() / 3 << " vertices, " << f.size() / 3 << " triangles\n";
   char line[96];
   for (size_t i = 0; i + 2 < v.size(); i += 3) {
-    std::snprintf(line, sizeof line, "v %.9g %.9g %.9g\n", v[i], v[i + 1], v[i + 2]);
+    std::snprintf(line, sizeof line, "v %.9g %.9g %.9g\n", static_cast<double>(v[i]), static_cast<double>(v[i + 1]),
+                  static_cast<double>(v[i + 2]));
     o << line;
   }
   for (size_t i = 0; i + 2 < f.size(); i += 3) o << "f " << f[i] + 1 << " " << f[i + 1] + 1 << " " << f[i + 2] + 1 << "\n";
@@ -86,7 +116,7 @@ int main(int argc, char** argv) {
       std::cout << USAGE;
       return 0;
     }
-  std::string out, package, garment, motion, body_out, effects, cloth;
+  std::string out, package, garment, motion, body_out, effects, cloth, up = "y", units_text;
   bool effects_given = false;  // `--effects ""` is an empty list (refused), not "not given"
   int batch = 8, threads = 1;
   double margin = DEFAULT_COLLISION_MARGIN;
@@ -114,6 +144,8 @@ int main(int argc, char** argv) {
       else if (args[i] == "--body-out" && more) body_out = args[++i];
       else if (args[i] == "--effects" && more) effects = args[++i], effects_given = true;
       else if (args[i] == "--cloth" && more) cloth = args[++i];
+      else if (args[i] == "--up" && more) up = args[++i];
+      else if (args[i] == "--output-units" && more) units_text = args[++i];
       else if (args[i] == "--collision-margin" && more) {
         // read as Python's float() reads it: 1e-400 is 0 (std::stod refused the underflow: usage, exit 2)
         const char* b = args[++i].c_str();
@@ -150,6 +182,9 @@ int main(int argc, char** argv) {
     if (out.empty()) problem = "-o OUT.pc2 is missing";
     else if (batch < 1) problem = "--batch must be an integer >= 1";
     else if (threads < 1) problem = "--threads must be an integer >= 1";
+    else if (up != "y" && up != "z") problem = "--up must be y or z (got " + up + ")";
+    else if (!units_text.empty() && !(metres_per_unit(units_text) > 0))
+      problem = "--output-units must be m, dm, cm, mm, inch, ft or metres per unit (0.0001..1000), got " + units_text;
     else if (flag_form && package.empty()) problem = "--package is missing";
     else if (flag_form && garment.empty()) problem = "--garment is missing";
     else if (flag_form && motion.empty()) problem = "--motion is missing";
@@ -253,6 +288,11 @@ int main(int argc, char** argv) {
       expected = e.as<float>();
     }
     double max_abs = 0, max_ref = 0;
+    // the written coordinates' axes and units (--up, --output-units), as `segadeform run` writes them; --check compares
+    // the frames as computed
+    const bool z_up = up == "z";
+    const double unit = units_text.empty() ? 1.0 : metres_per_unit(units_text);
+    const bool as_given = !z_up && unit == 1.0;
     // the motion pushed a batch at a time and written as it comes: neither the frames nor the body held whole
     Pc2Writer pc2(out, static_cast<int32_t>(T), static_cast<int32_t>(N), sc.start_frame);
     std::unique_ptr<Pc2Writer> body_pc2;
@@ -263,8 +303,13 @@ int main(int argc, char** argv) {
     for (int64_t lo = 0; lo < T; lo += step) {
       const int64_t B = std::min<int64_t>(lo + step, T) - lo;
       stream.push(sc.poses.data() + lo * sc.D, sc.trans.data() + lo * 3, B, chunk.data(), body_pc2 ? body.data() : nullptr);
-      pc2.append(chunk.data(), B * N * 3);
-      if (body_pc2) body_pc2->append(body.data(), B * V * 3);
+      if (as_given) {
+        pc2.append(chunk.data(), B * N * 3);
+        if (body_pc2) body_pc2->append(body.data(), B * V * 3);
+      } else {
+        pc2.append(to_output<float>(chunk.data(), B * N * 3, z_up, unit).data(), B * N * 3);
+        if (body_pc2) body_pc2->append(to_output<float>(body.data(), B * V * 3, z_up, unit).data(), B * V * 3);
+      }
       for (int64_t i = 0; expected && i < B * N * 3; ++i) {
         const float x = expected[lo * N * 3 + i];
         max_abs = std::max(max_abs, static_cast<double>(std::fabs(chunk[i] - x)));
@@ -274,7 +319,10 @@ int main(int argc, char** argv) {
     pc2.finish();
     if (body_pc2) {
       body_pc2->finish();
-      write_obj(sgd::temporary(rest_obj), stream.rest_body(), stream.body_faces());
+      const std::vector<float> rest = stream.rest_body();
+      if (as_given) write_obj(sgd::temporary(rest_obj), rest, stream.body_faces());
+      else write_obj(sgd::temporary(rest_obj), to_output<double>(rest.data(), static_cast<int64_t>(rest.size()), z_up, unit),
+                     stream.body_faces());
     }
     const sgd::Cloth* stage = stream.cloth();
     if (stage && stage->resets() > 0)

@@ -17,8 +17,8 @@ import { claimOutputs, commitOutputs, commitTemporaries, temporaryOf } from "./o
 
 const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
   "[--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M] [--cloth K=V,..] [--batch N] " +
-  "[--threads N] [--force]\n" +
-  "       segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N]";
+  "[--threads N] [--up y|z] [--output-units m|cm|mm|inch|..] [--force]\n" +
+  "       segadeform-node PACKAGE_DIR BUNDLE.sgdb -o OUT.pc2 [--batch N] [--threads N] [--up y|z] [--output-units U]";
 // --name=value is --name value (as click reads `segadeform run --effects=+cloth`)
 const args = process.argv.slice(2).flatMap((a) => (/^--[a-z-]+=/.test(a) ? [a.slice(0, a.indexOf("=")), a.slice(a.indexOf("=") + 1)] : [a]));
 if (args.includes("--help") || args.includes("-h")) {
@@ -45,6 +45,33 @@ const threads = integer(opt("--threads", "1"));
 const pkg = opt("--package"), garment = opt("--garment"), motion = opt("--motion");
 const bodyOut = opt("--body-out"), effects = opt("--effects"), marginText = opt("--collision-margin");
 const cloth = opt("--cloth");
+// the written coordinates' axes and units, as `segadeform run --up --output-units` writes them (Maya and Unreal work
+// in centimetres and take a point cache's numbers as they are)
+const up = opt("--up", "y"), unitsText = opt("--output-units");
+const UNIT_SCALES = { m: 1, dm: 0.1, cm: 0.01, mm: 0.001, inch: 0.0254, ft: 0.3048 };
+function metresPerUnit(text) { // segadeform.io.writer.output_unit: a name or metres per unit in [1e-4, 1e3]
+  const t = text.trim().toLowerCase();
+  if (t in UNIT_SCALES) return UNIT_SCALES[t];
+  const f = t === "" ? NaN : Number(t);
+  return f >= 1e-4 && f <= 1e3 ? f : NaN;
+}
+const unit = unitsText === undefined ? 1 : metresPerUnit(unitsText);
+/** Frames (float32, +Y up, metres) as written: turned to +Z up ((x, y, z) -> (x, -z, y)) and in `unit`, held as
+ * `Type` (a copy; the frames themselves when neither changes them).  A rest mesh is written from float64, as
+ * Python's. */
+function toOutput(a, Type = Float32Array) {
+  if (up === "y" && unit === 1) return a;
+  const out = new Type(a.length);
+  for (let i = 0; i < a.length; i += 3) {
+    const x = a[i], y = a[i + 1], z = a[i + 2];
+    if (up === "z") {
+      out[i] = x / unit; out[i + 1] = -z / unit; out[i + 2] = y / unit;
+    } else {
+      out[i] = x / unit; out[i + 1] = y / unit; out[i + 2] = z / unit;
+    }
+  }
+  return out;
+}
 // a motion made for another body or shape: played, with a warning (a flag given twice is the flag, as click reads it)
 const force = args.includes("--force");
 for (let at = args.indexOf("--force"); at >= 0; at = args.indexOf("--force")) args.splice(at, 1);
@@ -91,6 +118,8 @@ function clothOff() {
 const problem =
   repeated.length ? `${repeated[0]} is given more than once`
   : noValue.length ? `${noValue[0]} needs a value`
+  : up !== "y" && up !== "z" ? `--up must be y or z (got ${up})`
+  : !(unit > 0) ? `--output-units must be m, dm, cm, mm, inch, ft or metres per unit (0.0001..1000), got ${unitsText}`
   : args.find((a) => a.startsWith("-")) !== undefined ? `unknown option ${args.find((a) => a.startsWith("-"))}`
   : !out ? "-o OUT.pc2 is missing"
   : !(batch >= 1) ? "--batch must be an integer >= 1"
@@ -171,7 +200,7 @@ try {
         "alone (segadeform garment export and motion export, then --package/--garment/--motion, run them)");
     }
     const startFrame = (r.motionMeta && Number.isInteger(r.motionMeta.start_frame)) ? r.motionMeta.start_frame : 0;
-    commitOutputs([{ path: out, bytes: pc2Parts(r.frames, r.T, r.N, { startFrame }) }], inputs); // all or none
+    commitOutputs([{ path: out, bytes: pc2Parts(toOutput(r.frames), r.T, r.N, { startFrame }) }], inputs); // all or none
   }
   const c = r.collisions, k = r.cloth;
   console.log(`${r.T} frames, ${r.msPerFrame.toFixed(2)} ms/frame (${r.variant}: ${effectsLabel(r.effects)}) -> ${out}` +
@@ -244,14 +273,14 @@ async function playStreamed() {
     for (let lo = 0; lo < T; lo += step) {
       const hi = Math.min(lo + step, T);
       const c = await p.push(I.poses.subarray(lo * D, hi * D), I.trans.subarray(lo * 3, hi * 3));
-      writeSync(fg, bytes(c.frames));
-      if (fb !== null) writeSync(fb, bytes(c.body));
+      writeSync(fg, bytes(toOutput(c.frames)));
+      if (fb !== null) writeSync(fb, bytes(toOutput(c.body)));
     }
     while (fds.length) closeSync(fds.pop());
     if (bodyOut) {
       const rest = await p.poser.rest();
       temps.push(temporaryOf(restObj));
-      writeFileSync(temps[temps.length - 1], objText(rest.vertices, p.poser.faces()));
+      writeFileSync(temps[temps.length - 1], objText(toOutput(rest.vertices, Float64Array), p.poser.faces()));
     }
     commitTemporaries(outputs, inputs); // all or none
     const perFrame = (ms) => ms / Math.max(T, 1);

@@ -856,12 +856,37 @@ export class Player {
   }
 }
 
+/** A number as C's and Python's "%.9g" print it (JavaScript's own printing turns to exponents elsewhere: 7.54e-5 was
+ * -0.0000754 in Node's rest OBJ, -7.54e-05 in Python's and C++'s). */
+export function formatG9(x) {
+  if (!Number.isFinite(x)) return String(x);
+  if (x === 0) return Object.is(x, -0) ? "-0" : "0";
+  const a = Math.abs(x);
+  // nine significant digits, rounded half to even as C rounds the exact binary value (toExponential rounds a tie
+  // away from zero: 976885.0625 was ...063 here, ...062 in Python and C++); the exact digits show a tie
+  let [m, e] = a.toExponential(8).split("e");
+  let digits = m.replace(".", ""), exp = Number(e);
+  const [em, ee] = a.toExponential(Math.min(100, 48)).split("e");
+  const exact = em.replace(".", "");
+  if (exact[9] === "5" && /^0*$/.test(exact.slice(10)) && Number(exact[8]) % 2 === 0) {
+    digits = exact.slice(0, 9);
+    exp = Number(ee);
+  }
+  const sign = x < 0 ? "-" : "";
+  const trim = (s) => (s.includes(".") ? s.replace(/0+$/, "").replace(/\.$/, "") : s);
+  if (exp < -4 || exp >= 9) {
+    return `${sign}${trim(`${digits[0]}.${digits.slice(1)}`)}e${exp < 0 ? "-" : "+"}${String(Math.abs(exp)).padStart(2, "0")}`;
+  }
+  const fixed = exp >= 0 ? `${digits.slice(0, exp + 1)}.${digits.slice(exp + 1)}` : `0.${"0".repeat(-exp - 1)}${digits}`;
+  return sign + trim(fixed);
+}
+
 /**
  * A triangle mesh as OBJ text, as segadeform.io.obj.write_obj writes it (9 significant digits, 1-based faces):
  * vertices (V*3), faces (F*3, 0-based) -> a Uint8Array.
  */
 export function objText(vertices, faces) {
-  const V = vertices.length / 3, F = faces.length / 3, g = (x) => String(Number(x.toPrecision(9)));
+  const V = vertices.length / 3, F = faces.length / 3, g = formatG9;
   const lines = [`# segadeform OBJ: ${V} vertices, ${F} triangles`];
   for (let i = 0; i < V; i++) lines.push(`v ${g(vertices[3 * i])} ${g(vertices[3 * i + 1])} ${g(vertices[3 * i + 2])}`);
   for (let i = 0; i < F; i++) lines.push(`f ${faces[3 * i] + 1} ${faces[3 * i + 1] + 1} ${faces[3 * i + 2] + 1}`);
