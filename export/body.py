@@ -110,9 +110,12 @@ def _export(module, inputs: dict, spec: dict, path: Path) -> None:
         i["name"]: {ax: Dim("B", min=1, max=1 << 20) for ax, d in enumerate(i["shape"]) if d == "B"}
         for i in spec["inputs"]
     }
-    onnx_log = logging.getLogger("torch.onnx")
-    level = onnx_log.level
-    onnx_log.setLevel(logging.ERROR)
+    # the exporter's chatter, and its report that it keeps the constant output `triangles` as it is (printed on every
+    # export, about nothing to act on: a researcher's trial), quiet for this export only
+    quiet = [logging.getLogger(n) for n in ("torch.onnx", "onnx_ir.passes.common.initializer_deduplication")]
+    levels = [q.level for q in quiet]
+    for q in quiet:
+        q.setLevel(logging.ERROR)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -128,7 +131,8 @@ def _export(module, inputs: dict, spec: dict, path: Path) -> None:
             )
             prog.save(str(path), external_data=False)
     finally:
-        onnx_log.setLevel(level)
+        for q, lv in zip(quiet, levels, strict=True):
+            q.setLevel(lv)
 
 
 def _constant_outputs(proto) -> None:

@@ -134,6 +134,13 @@ def test_roots_read_packs_beside_folders_and_never_write_them(tmp_path, body):
     assert r.writable is None and r.skipped == [tmp_path / "absent"]
     with pytest.raises(InputError, match="never overwritten"):
         write_pack(new, pack, body=body)
+    # a file where the writable root keeps its cache: named, before anything is written ("File exists": a trial)
+    (new / "cache").mkdir(exist_ok=True)
+    (new / "cache").rmdir()
+    (new / "cache").write_text("a user's notes\n")
+    with pytest.raises(InputError, match="cache: is a file, where train and eval keep"):
+        DatasetRoots([new, store])
+    assert (new / "cache").read_text() == "a user's notes\n"
 
 
 def test_a_sample_that_differs_between_roots_is_an_error(tmp_path, body):
@@ -193,6 +200,12 @@ def test_damaged_pack_is_a_clear_error(tmp_path, body):
     (tmp_path / "junk.sgdpack").write_bytes(b"not a zip")
     with pytest.raises(FileFormatError, match="not a zip"):
         Pack(tmp_path / "junk.sgdpack")
+    # a pack cut short (a copy that stopped) is said to be one, not "not a pack" (a researcher's trial)
+    for share in (0.5, 0.9, 0.999):
+        cut = tmp_path / f"cut{share}.sgdpack"
+        cut.write_bytes(p.read_bytes()[: int(share * p.stat().st_size)])
+        with pytest.raises(FileFormatError, match="truncated or damaged .*a copy cut short"):
+            Pack(cut)
     # a byte flipped inside a member's LZMA stream: lzma's own error was a traceback (a user's trial)
     with zipfile.ZipFile(p) as z:
         info = z.getinfo("samples/a.npz")

@@ -63,6 +63,8 @@ def test_regate_moves_samples_both_ways_and_keeps_their_arrays(tmp_path, body):
     assert json.loads((root / "samples" / "stretched.json").read_text())["status"] == "kept"
     r = regate(root, load_dataset_config(strict))
     assert sorted(r.moved) == [("stretched", "rejected")] and list_samples(root) == ["calm"]
+    # each sample gated once: the one moved into rejected/ was gated there again and counted twice (a trial)
+    assert (r.kept, r.rejected) == (1, 2)
     meta = json.loads((root / "rejected" / "stretched.json").read_text())
     assert meta["status"] == "rejected" and any("strain" in x for x in meta["reasons"])
     assert (root / "rejected" / "stretched.npz").is_file()

@@ -187,9 +187,17 @@ def test_what_a_run_leaves_that_is_not_a_model_is_named_in_one_line(synthetic_da
     assert "\n" not in str(e.value)
     with pytest.raises(InputError, match=r"optim.checkpoint_every must be an integer >= 1"):
         load_train_config(tiny_config, dataset=synthetic_dataset, overrides={"optim.checkpoint_every": 0})
-    # a validation split the dataset does not have: said (model.pt is then the last step)
+    # a validation split no dataset makes (a typo) is refused before anything is written (it trained unvalidated,
+    # with a warning: a researcher's trial)
+    typo = load_train_config(
+        tiny_config, dataset=synthetic_dataset, overrides={"optim.steps": 1, "data.val_split": "vall"}
+    )
+    with pytest.raises(InputError, match="no 'vall' samples in the dataset, and no dataset makes such a split"):
+        train(typo, tmp_path / "typo", body)
+    assert not (tmp_path / "typo").exists()
+    # one a dataset makes but this one lacks: said (model.pt is then the last step)
     quiet = load_train_config(
-        tiny_config, dataset=synthetic_dataset, overrides={"optim.steps": 1, "data.val_split": "nowhere"}
+        tiny_config, dataset=synthetic_dataset, overrides={"optim.steps": 1, "data.val_split": "test-garment"}
     )
     records = []
     handler = logging.Handler()
@@ -199,7 +207,7 @@ def test_what_a_run_leaves_that_is_not_a_model_is_named_in_one_line(synthetic_da
         train(quiet, tmp_path / "q", body)
     finally:
         logging.getLogger("segadeform.train.trainer").removeHandler(handler)
-    assert any("no 'nowhere' samples" in r.getMessage() for r in records)
+    assert any("no 'test-garment' samples" in r.getMessage() for r in records)
 
 
 def test_resume_refuses_other_samples(synthetic_dataset, tiny_config, tmp_path, body):
@@ -1032,3 +1040,25 @@ def test_a_run_starts_from_a_checkpoint_to_fine_tune_and_refuses_another_models(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "another [model] config" in err and "model.hidden 16 -> 8" in err, err
     assert not (tmp_path / "w").exists()
+
+
+def test_the_frames_seen_are_those_the_clips_have(synthetic_dataset, tiny_config, tmp_path, body):
+    """`optim.frames` longer than the clips: each step sees every frame of a clip, and train.json counts those (it
+    counted optim.frames: 300 where 45 were seen, a researcher's trial)."""
+    import json
+
+    from segadeform.dataset import list_samples, load_sample
+
+    lengths = {
+        len(load_sample(synthetic_dataset, s).frames)
+        for s in list_samples(synthetic_dataset)
+        if load_sample(synthetic_dataset, s).meta.get("split") == "train"
+    }
+    assert len(lengths) == 1 and (n := lengths.pop()) < 1000
+    cfg = load_train_config(
+        tiny_config,
+        dataset=synthetic_dataset,
+        overrides={"optim.steps": 2, "optim.frames": 1000, "optim.garments": 2, "data.val_split": ""},
+    )
+    train(cfg, tmp_path / "run", body)
+    assert json.loads((tmp_path / "run" / "train.json").read_text())["sample_frames_seen"] == 2 * 2 * n

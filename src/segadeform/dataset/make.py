@@ -937,9 +937,12 @@ def regate(
     body = load_body(body_path or default_body_path())
     kept = rejected = 0
     moved, skipped = [], []
+    # both folders listed before any sample moves: a sample moved into rejected/ was gated and counted there again
+    # (a researcher's trial: "0 pass the gate, 8 do not" of 4 samples)
+    listed = {f: sorted((root / f).glob("*.json")) if (root / f).is_dir() else [] for f in ("samples", "rejected")}
     for folder in ("samples", "rejected"):
         d = root / folder
-        for meta_p in sorted(d.glob("*.json")) if d.is_dir() else []:
+        for meta_p in listed[folder]:
             sid = meta_p.stem
             if not (d / f"{sid}.npz").is_file():
                 skipped.append(sid)

@@ -312,6 +312,19 @@ class Pack:
         except OSError as e:
             raise file_error(e, self.path, "dataset pack") from None
         except zipfile.BadZipFile:
+            # a file that starts as a zip archive and has no directory at its end was cut short (a copy or a download
+            # that stopped): said so, not "not a pack" (a researcher's trial)
+            try:
+                with open(self.path, "rb") as fh:
+                    starts_as_zip = fh.read(4) == b"PK\x03\x04"
+            except OSError:
+                starts_as_zip = False
+            if starts_as_zip:
+                raise FileFormatError(
+                    "the dataset pack is truncated or damaged (its zip directory is missing: a copy cut short?)",
+                    path=self.path,
+                    expected="the whole file, as `segadeform dataset pack` wrote it",
+                ) from None
             raise FileFormatError("not a dataset pack (not a zip archive)", path=self.path) from None
         try:
             head = json.loads(self._zip.read("pack.json"))

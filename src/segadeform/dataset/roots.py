@@ -113,6 +113,14 @@ class DatasetRoots:
         self._check_compatible()
         first = self.folders[0] / "cache" if self.folders else None
         self.cache_dir: Path | None = first if first is not None else (Path(cache_dir) if cache_dir else None)
+        if self.cache_dir is not None and self.cache_dir.exists() and not self.cache_dir.is_dir():
+            # (it was "File exists" when the cache was first written: a researcher's trial)
+            raise InputError(
+                "is a file, where train and eval keep what they derive from the dataset (a folder)",
+                path=self.cache_dir,
+                expected="a folder named cache, or no file there",
+                got="a file",
+            )
 
     def _check_compatible(self) -> None:
         if len(self._bodies) > 1:  # packs by their heads, folders by their samples' records

@@ -350,6 +350,19 @@ def train(
             got=_roots_said(roots),
         )
     ids = cfg.select(sorted({i for got in by_part.values() for i in got}))
+    from ..dataset.config import SPLITS
+
+    # a validation split no dataset makes (a typo) is refused before anything is written; one a dataset makes but
+    # this one lacks trains unvalidated, said below (a researcher's trial: "vall" trained on with a warning)
+    if cfg.val_split and not val_ids and not roots.ids(cfg.val_split):
+        if not (cfg.val_split in SPLITS or cfg.val_split.startswith("test-")):
+            have = sorted({str(roots.meta(s).get("split")) for s in roots.ids()})
+            raise InputError(
+                f"no '{cfg.val_split}' samples in the dataset, and no dataset makes such a split (data.val_split)",
+                path=cfg.path,
+                expected=f"data.val_split = {' | '.join(have)}, or \"\" for no validation",
+                got=_roots_said(roots),
+            )
     if not ids:
         have = sorted({str(roots.meta(s).get("split")) for s in roots.ids()})
         raise InputError(
@@ -440,6 +453,7 @@ def train(
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda s: o.lr_factor(s, total[0]))
     rng = np.random.default_rng(o.seed)
     step, elapsed = 0, 0.0
+    seen_frames = [0]  # sample-frames the loss has seen: a clip shorter than optim.frames gives all its frames
     ck_pairs = None  # the prefetched pairs' stream, when resumed
     ck_window = None  # the loss rows' running sums, when resumed
     budget = {"seconds": o.seconds, "probe": [], "steps": None} if o.seconds > 0 else None
@@ -492,6 +506,8 @@ def train(
         rng.bit_generator.state = ck["rng"]
         torch.set_rng_state(ck["torch_rng"])
         step, elapsed = int(ck["step"]), float(ck["elapsed"])
+        # (a checkpoint from before the count: its steps at optim.frames each, what train.json said then)
+        seen_frames[0] = int(ck.get("frames_seen", step * o.garments * o.frames))
         total[0] = int(ck.get("total_steps", o.steps))
         ck_pairs = ck.get("pairs")
         ck_window = ck.get("log_window")
@@ -534,6 +550,7 @@ def train(
                     "rng": rng.bit_generator.state,
                     "torch_rng": torch.get_rng_state(),
                     "step": step,
+                    "frames_seen": seen_frames[0],
                     "elapsed": elapsed + (time.perf_counter() - t0),  # up to now (elapsed lags until the next log)
                     "config_digest": cfg.digest(),
                     "train_config": cfg.to_dict(),  # what a refused resume names as changed
@@ -623,6 +640,7 @@ def train(
                 t = torch.as_tensor(
                     rng.choice(it.n_frames, size=min(o.frames, it.n_frames), replace=False), device=device
                 )
+                seen_frames[0] += int(t.numel())
                 one = step_losses(model, it, t, cfg.loss, prior_scale=fade, terms_scale=late)
                 if not torch.isfinite(one["total"]):
                     raise InputError(f"the loss became {float(one['total'])} at step {step} on {it.id}; lower optim.lr")
@@ -746,7 +764,7 @@ def train(
         "steps": step,
         "train_seconds": round(elapsed, 1),
         "chosen": chosen,
-        "sample_frames_seen": step * o.garments * o.frames,
+        "sample_frames_seen": seen_frames[0],
         **(
             {
                 "time_budget": {"seconds": o.seconds, "warmup": o.warmup, "steps_chosen": budget["steps"]},
