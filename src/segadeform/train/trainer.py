@@ -360,7 +360,7 @@ def train(
             raise InputError(
                 f"no '{cfg.val_split}' samples in the dataset, and no dataset makes such a split (data.val_split)",
                 path=cfg.path,
-                expected=f"data.val_split = {' | '.join(have)}, or \"\" for no validation",
+                expected=f'data.val_split = {" | ".join(have)}, or "" for no validation',
                 got=_roots_said(roots),
             )
     if not ids:
