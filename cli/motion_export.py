@@ -142,15 +142,20 @@ def motion_export_cmd(
     full = [0.0] * b.n_betas
     full[: len(beta_vals)] = beta_vals
     first += int((m.meta or {}).get("start_frame", 0))  # a motion file cut before: numbers of its source
-    write_motion_file(output, m, body=body_label(b), betas=full, source=str(source), start_frame=first)
+    said = (
+        [
+            f"the capture has {settle} leading frames it settles from and {jumps} frames it jumps to and back from "
+            "(joints faster than 20 m/s), which throw the cloth about in every runtime; `motion export "
+            "--repair-glitches` rebuilds them"
+        ]
+        if settle or jumps
+        else []
+    )
+    # kept in the file for the runtimes that play it to say again (Node and C++ said nothing: a developer's trial)
+    write_motion_file(output, m, body=body_label(b), betas=full, source=str(source), start_frame=first, warnings=said)
     guard.record()
-    if settle or jumps:  # what `run` warns of, said where the file is made
-        click.echo(
-            f"warning: the capture has {settle} leading frames it settles from and {jumps} frames "
-            "it jumps to and back from (joints faster than 20 m/s), which throw the cloth about in every runtime; "
-            "--repair-glitches rebuilds them",
-            err=True,
-        )
+    for w in said:  # what `run` warns of, said where the file is made
+        click.echo(f"warning: {w}", err=True)
     if first > int((built.meta or {}).get("start_frame", 0)):  # said, as a user took it for run --frames A:B
         click.echo(
             f"note: the file starts at frame {first} with no motion before it: played, its frames differ from "

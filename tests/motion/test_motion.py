@@ -357,6 +357,9 @@ def test_a_scene_can_repair_a_captures_glitches_keeping_its_frames(tmp_path):
 
     raw, said = export("raw.sgdm")
     assert "3 leading frames it settles from and 2 frames it jumps to" in said and "--repair-glitches" in said
+    # kept in the file, for Node and C++ to say again (tests/runtimes/test_command_lines.py)
+    kept = read_motion_arrays(tmp_path / "raw.sgdm")[3]["warnings"]
+    assert len(kept) == 1 and "3 leading frames it settles from" in kept[0] and kept[0] in said
     _, said = export("late.sgdm", "--frames", "110:200")  # none inside this range: nothing to say
     assert "warning" not in said
     rep, said = export("rep.sgdm", "--repair-glitches")

@@ -307,3 +307,26 @@ def test_node_prints_numbers_as_python_prints_them(node):
     p = subprocess.run(["node", "-e", script, core], input=json.dumps(xs), capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     assert json.loads(p.stdout) == [f"{x:.9g}" for x in xs]
+
+
+@pytest.mark.parametrize("runtime", ["node", "cpp"])
+def test_what_motion_export_said_every_runtime_says(runtime, request, random_package, portable_scene, tmp_path):
+    """`motion export` keeps what it says of a capture (its glitches) in the file; Node and C++ said nothing of it
+    (a developer's trial).  A list that is not one of one-line texts is refused by every reader."""
+    from segadeform.errors import FileFormatError
+    from segadeform.io.sgdb import read_bundle, write_bundle
+    from segadeform.io.sgdm import read_motion_arrays
+
+    exe = request.getfixturevalue(runtime)
+    arrays, meta = read_bundle(portable_scene["motion"])
+    said = "the capture has 3 leading frames it settles from and 2 frames it jumps to and back from"
+    write_bundle(tmp_path / "m.sgdm", arrays, {**meta, "warnings": [said]})
+    p = _play(exe, random_package, portable_scene["garment"], tmp_path / "m.sgdm", tmp_path / "o.pc2")
+    assert p.returncode == 0, p.stderr
+    assert f"warning: when the motion file was exported: {said}" in p.stderr, p.stderr
+    write_bundle(tmp_path / "bad.sgdm", arrays, {**meta, "warnings": ["two\nlines"]})
+    with pytest.raises(FileFormatError, match="one-line texts"):
+        read_motion_arrays(tmp_path / "bad.sgdm")
+    p = _play(exe, random_package, portable_scene["garment"], tmp_path / "bad.sgdm", tmp_path / "x.pc2")
+    assert p.returncode == 1 and "meta.warnings is not a list of one-line texts" in p.stderr, p.stderr
+    assert str(tmp_path / "bad.sgdm") in p.stderr and not (tmp_path / "x.pc2").exists()

@@ -484,6 +484,23 @@ inline const sgd::Array& need(const sgd::Bundle& b, const std::string& path, con
   return b.at(name);
 }
 
+// A file's meta.warnings (what the command that wrote it said): one-line texts, as Python's readers and Node's hold
+// them; anything else is refused naming the file.
+inline std::vector<std::string> one_line_texts(const sgd::Json& meta, const std::string& path) {
+  std::vector<std::string> out;
+  if (!meta.has("warnings")) return out;
+  const sgd::Json& said = meta["warnings"];
+  bool ok = said.kind == sgd::Json::Array;
+  for (const auto& w : said.arr) {
+    ok = ok && w.kind == sgd::Json::String && !w.str.empty() && w.str.find('\n') == std::string::npos;
+    if (ok) out.push_back(w.str);
+  }
+  if (!ok)
+    throw std::runtime_error(path + ": meta.warnings is not a list of one-line texts (expected strings without line "
+                             "breaks)");
+  return out;
+}
+
 // A schema-3 asset's garment as given and the map to it from the model's garment (garment export --resolution),
 // checked as Python's GarmentAsset checks them: all five fields or none.  Sets s.N, vertices64 and faces to the garment
 // as given, and model_faces to the model's (M vertices).
@@ -619,16 +636,8 @@ inline Scene garment_of_asset(const sgd::Bundle& a, const std::string& apath, bo
   s.M = s.N;
   carry_of_asset(s, a, apath, av);
   // what `segadeform garment export` said of the garment (a mesh split at its seams tears ...), said again here
-  if (a.meta.has("warnings")) {  // one-line texts, as Python's GarmentAsset and Node's readAsset hold them
-    const sgd::Json& said = a.meta["warnings"];
-    bool ok = said.kind == sgd::Json::Array;
-    for (const auto& w : said.arr)
-      ok = ok && w.kind == sgd::Json::String && !w.str.empty() && w.str.find('\n') == std::string::npos;
-    if (!ok)
-      throw std::runtime_error(apath + ": meta.warnings is not a list of one-line texts (expected strings without "
-                               "line breaks)");
-    for (const auto& w : said.arr) s.warnings.push_back("when the garment asset was exported: " + w.str);
-  }
+  for (const std::string& w : one_line_texts(a.meta, apath))
+    s.warnings.push_back("when the garment asset was exported: " + w);
   // an asset exported with --force for a body it does not sit on: refused unless forced again, as `segadeform run`
   // refuses it (it checks the fit itself)
   if (a.meta["body"].has("unfit") && a.meta["body"]["unfit"].kind == sgd::Json::String) {
@@ -668,6 +677,8 @@ inline void motion_into(Scene& s, const sgd::Bundle& m, const std::string& mpath
   if (m.meta.has("betas"))
     for (const auto& b : m.meta["betas"].arr)
       if (!std::isfinite(b.num)) throw std::runtime_error(mpath + ": meta.betas contains NaN or inf");
+  // what `segadeform motion export` said of the motion (capture glitches ...), said again here
+  for (const std::string& w : one_line_texts(m.meta, mpath)) s.warnings.push_back("when the motion file was exported: " + w);
   if (poses.shape[1] != s.S || poses.shape[2] != 3 || trans.shape[0] != poses.shape[0] || trans.shape[1] != 3 ||
       poses.shape[0] < 1)
     throw std::runtime_error(mpath + ": poses and trans do not fit the garment asset (expected (T, " +

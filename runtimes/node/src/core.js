@@ -285,11 +285,7 @@ export function readAsset(parsed, where = "garment asset") {
   readCarry(parsed, where);
   // what `garment export` said of the garment, said again when it plays: one-line texts, as Python's GarmentAsset
   // holds them
-  const said = parsed.meta.warnings;
-  if (said !== undefined && !(Array.isArray(said) && said.every((w) => typeof w === "string" && w && !w.includes("\n")))) {
-    throw new Error(`${where}: meta.warnings is not a list of one-line texts (expected strings without line breaks, ` +
-      `got ${JSON.stringify(said).slice(0, 60)})`);
-  }
+  oneLineTexts(parsed.meta.warnings, where);
   return parsed;
 }
 
@@ -424,8 +420,18 @@ export function readMotion(parsed, where = "motion file") {
   if (Array.isArray(meta.betas) && !meta.betas.every((b) => Number.isFinite(b))) {
     throw new Error(`${where}: meta.betas contains NaN or inf (got ${JSON.stringify(meta.betas)})`);
   }
+  oneLineTexts(meta.warnings, where);
   canonicalAxisAngle(p.data);
   return parsed;
+}
+
+/** Throw unless `said` (a file's meta.warnings: what the command that wrote it said) is absent or a list of
+ * one-line texts, as Python's readers hold them. */
+function oneLineTexts(said, where) {
+  if (said !== undefined && !(Array.isArray(said) && said.every((w) => typeof w === "string" && w && !w.includes("\n")))) {
+    throw new Error(`${where}: meta.warnings is not a list of one-line texts (expected strings without line breaks, ` +
+      `got ${JSON.stringify(said).slice(0, 60)})`);
+  }
 }
 
 const f32 = (a) => (a instanceof Float32Array ? a : Float32Array.from(a));
@@ -481,6 +487,8 @@ export function sceneInputs(source) {
     if (M.poses.shape[1] !== G.S) throw new Error(`the motion has ${M.poses.shape[1]} joints, the garment asset ${G.S}`);
     const warnings = [];
     if (mm.body && mm.body.sha256 !== am.body.sha256) warnings.push("the motion was retargeted onto another body than the garment asset's");
+    // what `segadeform motion export` said of the motion (capture glitches ...), said again here
+    for (const w of mm.warnings || []) warnings.push(`when the motion file was exported: ${w}`);
     if (mm.betas && mm.betas.some((b, i) => Math.abs(b - (G.betas[i] || 0)) > 1e-6)) { // (C++'s tolerance)
       warnings.push("the motion was retargeted onto another body shape (betas) than the garment asset's");
     }

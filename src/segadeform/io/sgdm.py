@@ -44,11 +44,13 @@ def write_motion_arrays(
     body: dict | None = None,
     betas=None,
     start_frame: int = 0,
+    warnings: Sequence[str] = (),
 ) -> Path:
     """Write a motion file: ``poses`` (T, S, 3) local axis-angle and ``trans`` (T, 3), as float32 (what the graphs
     take), ``fps``, ``name``, the S ``joint_names`` and ``source`` in ``meta``; ``body`` (``{"name", "sha256"}``)
     and ``betas``: the body it was retargeted onto; ``start_frame``: the source's frame number of its first frame
-    (``motion export --frames 10:70``: 10; the runtimes write it as their point caches' start frame)."""
+    (``motion export --frames 10:70``: 10; the runtimes write it as their point caches' start frame); ``warnings``:
+    what ``motion export`` said of the motion (one-line texts), for the runtimes that play it to say again."""
     poses = np.asarray(poses, np.float64)
     meta = {
         "kind": MOTION_KIND,
@@ -64,6 +66,8 @@ def write_motion_arrays(
         meta["betas"] = [float(x) for x in np.asarray(betas, np.float64).ravel()]
     if start_frame:
         meta["start_frame"] = int(start_frame)
+    if warnings:
+        meta["warnings"] = [str(w) for w in warnings]
     arrays = {"poses": poses.astype(np.float32), "trans": np.asarray(trans, np.float32)}
     return write_bundle(path, arrays, meta)
 
@@ -105,4 +109,9 @@ def read_motion_arrays(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray,
         fps = float(meta["fps"])
     except (KeyError, TypeError, ValueError):
         raise FileFormatError("motion file meta has no fps", path=p) from None
+    said = meta.get("warnings", [])
+    if not (isinstance(said, list) and all(isinstance(w, str) and w and "\n" not in w for w in said)):
+        raise FileFormatError(
+            "motion file meta.warnings is not a list of one-line texts", path=p, expected="strings without line breaks"
+        )
     return poses, trans, fps, meta

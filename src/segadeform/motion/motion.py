@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -613,12 +614,20 @@ def history_inputs(poses: np.ndarray, trans: np.ndarray, fps: float) -> np.ndarr
 
 
 def write_motion_file(
-    path, motion: Motion, *, body: dict | None = None, betas=None, source: str = "", start_frame: int = 0
+    path,
+    motion: Motion,
+    *,
+    body: dict | None = None,
+    betas=None,
+    source: str = "",
+    start_frame: int = 0,
+    warnings: Sequence[str] = (),
 ):
     """Write ``motion`` as a motion file (``.sgdm``, :mod:`segadeform.io.sgdm`): poses ``(T, S, 3)`` and trans
     ``(T, 3)`` as float32, ``fps`` and the rest in ``meta``.  ``body``: the ``{"name", "sha256"}`` of the body it was
     retargeted onto (:func:`segadeform.body.identity.body_label`), ``betas`` that body's shape; ``source``: what it
-    was made from; ``start_frame``: the source's frame number of the first frame written."""
+    was made from; ``start_frame``: the source's frame number of the first frame written; ``warnings``: what
+    ``motion export`` said of it, for the runtimes that play it to say again."""
     poses = np.asarray(motion.poses, np.float64)
     s = poses.shape[1] // 3
     return write_motion_arrays(
@@ -632,6 +641,7 @@ def write_motion_file(
         body=body,
         betas=betas,
         start_frame=start_frame,
+        warnings=warnings,
     )
 
 
