@@ -63,6 +63,19 @@ def made_once(tmp_path_factory, name: str, make: Callable[[Path], object]) -> Pa
     return path
 
 
+def split_at_a_seam(m):
+    """The mesh ``m`` split along its centre line, as game-engine exports split vertices at UV seams: the vertices
+    of faces on both sides of x = 0 copied (appended) for the faces on the +x side.  Returns the vertices, the faces
+    and the count copied."""
+    side = m.vertices[m.faces].mean(axis=1)[:, 0] > 0
+    shared = np.intersect1d(np.unique(m.faces[side]), np.unique(m.faces[~side]))
+    copy = np.arange(len(m.vertices))
+    copy[shared] = len(m.vertices) + np.arange(len(shared))
+    faces = m.faces.copy()
+    faces[side] = copy[faces[side]]
+    return np.concatenate([m.vertices, m.vertices[shared]]), faces, len(shared)
+
+
 def leftovers(directory: Path) -> list[str]:
     """Temporary files a failed write might have left (atomic writes use '.NAME.tmp-*')."""
     return sorted(p.name for p in Path(directory).iterdir() if ".tmp-" in p.name)

@@ -58,7 +58,7 @@ from segadeform.io.toml import config_path, key, key_line, read_table, read_toml
 from segadeform.settings import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects
 from segadeform.settings.cloth import CLOTH_KNOBS, ClothSettings
 from segadeform.settings.presets import preset_effects
-from segadeform.settings.scene import MotionTable, motion_spec_from_table
+from segadeform.settings.scene import MotionTable, motion_spec_from_table, units_key
 
 log = logging.getLogger(__name__)
 
@@ -264,14 +264,7 @@ def load_batch(path) -> BatchConfig:
 
     if b.get("up", "y") not in UP_AXES:
         raise FileFormatError("unknown batch.up axis", path=p, expected=" | ".join(UP_AXES), got=b["up"])
-    from segadeform.io import output_unit
-
-    try:
-        units = output_unit(b.get("units", 1.0), option="batch.units")
-    except InputError as e:
-        raise FileFormatError(
-            e.problem, path=p, line=key_line(p, "batch", "units"), expected=e.expected, got=e.got
-        ) from None
+    units = units_key(b, p, "batch")
     effects = _batch_effects(b, p)
     out = b.get("output")
     if out is not None and not is_url(out):

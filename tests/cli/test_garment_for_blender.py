@@ -9,7 +9,7 @@ from click.testing import CliRunner
 
 from segadeform.cli.main import cli
 
-from ..conftest import SAMPLES
+from ..conftest import SAMPLES, split_at_a_seam
 
 WALK = SAMPLES / "motions" / "walk.npz"
 
@@ -171,19 +171,6 @@ def test_run_computes_the_garment_surface_once(tmp_path, caplog, monkeypatch):
     assert sum("garment j.obj lies outside the garments model default was trained on" in w for w in said) == 1, said
 
 
-def _split_at_a_seam(m):
-    """The mesh ``m`` split along its centre line, as game-engine exports split vertices at UV seams: the vertices
-    of faces on both sides of x = 0 copied (appended) for the faces on the +x side.  Returns the vertices, the faces
-    and the count copied."""
-    side = m.vertices[m.faces].mean(axis=1)[:, 0] > 0
-    shared = np.intersect1d(np.unique(m.faces[side]), np.unique(m.faces[~side]))
-    copy = np.arange(len(m.vertices))
-    copy[shared] = len(m.vertices) + np.arange(len(shared))
-    faces = m.faces.copy()
-    faces[side] = copy[faces[side]]
-    return np.concatenate([m.vertices, m.vertices[shared]]), faces, len(shared)
-
-
 def test_a_mesh_split_at_a_seam_is_said_and_welded(tmp_path, caplog):
     """A new user's trial: a shirt with its centre-line vertices duplicated (an export split at UV seams) ran with no
     word but that it lay outside the training garments, and its output tore (the pairs 3.8 mm apart on average,
@@ -193,7 +180,7 @@ def test_a_mesh_split_at_a_seam_is_said_and_welded(tmp_path, caplog):
     from segadeform.io import Mesh, read_mesh, write_obj
 
     m = read_mesh(SAMPLES / "garments" / "dress.obj")
-    v, f, n = _split_at_a_seam(m)
+    v, f, n = split_at_a_seam(m)
     assert n > 10 and mesh_defects(v, f)["coincident"] == n and mesh_defects(m.vertices, m.faces)["coincident"] == 0
     write_obj(tmp_path / "split.obj", Mesh(v, f))
     r, said = _run(tmp_path, tmp_path / "split.obj", caplog=caplog)
@@ -220,7 +207,7 @@ def test_a_garment_made_for_another_shape_is_welded_on_that_shape(tmp_path):
     made = tmp_path / "ts25.obj"
     r = CliRunner().invoke(cli, ["garment", "make", "tshirt", "--betas", "2.5", "-o", str(made)])
     assert r.exit_code == 0, r.output
-    v, f, n = _split_at_a_seam(read_mesh(made))
+    v, f, n = split_at_a_seam(read_mesh(made))
     header = [
         ln for ln in made.read_text().splitlines() if ln.startswith(("# segadeform garment", "# params", "# betas"))
     ]

@@ -15,20 +15,9 @@ from click.testing import CliRunner
 
 from segadeform.cli.main import cli
 from segadeform.io import Mesh, read_mesh, read_pc2, write_obj
-from tests.conftest import SAMPLES
+from tests.conftest import SAMPLES, split_at_a_seam
 
 RTOL = 1e-5  # the parity rule of tests/runtimes/test_engines.py
-
-
-def _split_at_a_seam(m):
-    """``m`` split along its centre line, as exports split vertices at UV seams (tests/cli/test_garment_for_blender)."""
-    side = m.vertices[m.faces].mean(axis=1)[:, 0] > 0
-    shared = np.intersect1d(np.unique(m.faces[side]), np.unique(m.faces[~side]))
-    copy = np.arange(len(m.vertices))
-    copy[shared] = len(m.vertices) + np.arange(len(shared))
-    faces = m.faces.copy()
-    faces[side] = copy[faces[side]]
-    return np.concatenate([m.vertices, m.vertices[shared]]), faces, len(shared)
 
 
 def _play(exe, package, garment, motion, out, *more, timeout=600):
@@ -123,7 +112,7 @@ def test_what_garment_export_says_of_a_split_garment_every_runtime_says(
 ):
     exe = request.getfixturevalue(runtime)
     m = read_mesh(portable_scene["dir"] / "dress_b.obj")
-    v, f, n = _split_at_a_seam(m)
+    v, f, n = split_at_a_seam(m)
     write_obj(tmp_path / "split.obj", Mesh(v, f))
     export = ["garment", "export", str(tmp_path / "split.obj"), "--betas", "0.5,-0.3", "--model", str(random_package)]
     r = CliRunner().invoke(cli, [*export, "-o", str(tmp_path / "split.sgda")])
@@ -141,7 +130,7 @@ def test_what_garment_export_says_of_a_split_garment_every_runtime_says(
 
 def test_garment_fit_says_a_split_garment_needs_weld(tmp_path):
     m = read_mesh(SAMPLES / "garments" / "dress.obj")
-    v, f, n = _split_at_a_seam(m)
+    v, f, n = split_at_a_seam(m)
     write_obj(tmp_path / "split.obj", Mesh(v, f))
     r = CliRunner().invoke(cli, ["garment", "fit", str(tmp_path / "split.obj"), "-o", str(tmp_path / "f.obj")])
     assert r.exit_code == 0, r.output

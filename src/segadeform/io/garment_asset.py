@@ -375,14 +375,7 @@ class GarmentAsset:
 
     def validate(self) -> None:
         """Check dtypes, shapes, consistency and finiteness of every field."""
-        for k, (dt, nd) in _ARRAYS.items():
-            a = getattr(self, k)
-            if not isinstance(a, np.ndarray) or a.dtype != dt or a.ndim != nd:
-                raise InputError(
-                    f"asset field {k!r} has the wrong type",
-                    expected=f"{np.dtype(dt).name} array with {nd} dims",
-                    got=f"{getattr(a, 'dtype', type(a).__name__)} with shape {getattr(a, 'shape', '?')}",
-                )
+        self._check_types(_ARRAYS)
         n = self.vertices.shape[0]
         s = self.joints.shape[0]
         checks = [
@@ -447,6 +440,17 @@ class GarmentAsset:
         if not (np.isfinite(self.geodesic_radius) and self.geodesic_radius > 0):
             raise InputError("asset geodesic_radius must be positive", got=self.geodesic_radius)
 
+    def _check_types(self, fields: dict) -> None:
+        """Each of ``fields`` (name -> (dtype, ndim)) an array of its dtype and number of dimensions."""
+        for k, (dt, nd) in fields.items():
+            a = getattr(self, k)
+            if not isinstance(a, np.ndarray) or a.dtype != dt or a.ndim != nd:
+                raise InputError(
+                    f"asset field {k!r} has the wrong type",
+                    expected=f"{np.dtype(dt).name} array with {nd} dims",
+                    got=f"{getattr(a, 'dtype', type(a).__name__)} with shape {getattr(a, 'shape', '?')}",
+                )
+
     def _validate_carry(self, n: int) -> None:
         """The ``out_*`` and ``carry_*`` fields: all or none; shapes, index ranges, finite values."""
         given = [k for k in _CARRY_ARRAYS if getattr(self, k) is not None]
@@ -458,14 +462,7 @@ class GarmentAsset:
                 expected="all five or none",
                 got=", ".join(given),
             )
-        for k, (dt, nd) in _CARRY_ARRAYS.items():
-            a = getattr(self, k)
-            if not isinstance(a, np.ndarray) or a.dtype != dt or a.ndim != nd:
-                raise InputError(
-                    f"asset field {k!r} has the wrong type",
-                    expected=f"{np.dtype(dt).name} array with {nd} dims",
-                    got=f"{getattr(a, 'dtype', type(a).__name__)} {getattr(a, 'shape', '')}",
-                )
+        self._check_types(_CARRY_ARRAYS)
         ov, of = cast(np.ndarray, self.out_vertices), cast(np.ndarray, self.out_faces)
         face, bary, off = (cast(np.ndarray, getattr(self, k)) for k in ("carry_face", "carry_bary", "carry_offset"))
         p = len(ov)

@@ -178,6 +178,17 @@ class MotionTable:
     repair_glitches: bool = False
 
 
+def units_key(table: dict, path, name: str) -> float:
+    """Metres per written unit of the ``units`` key of TOML table ``name`` (a scene's ``[output]``, a jobs file's
+    ``[batch]``; :func:`segadeform.io.writer.output_unit`), 1 without it; a bad one names the file, line and key."""
+    try:
+        return output_unit(table.get("units", 1.0), option=f"{name}.units")
+    except InputError as e:
+        raise FileFormatError(
+            e.problem, path=path, line=key_line(path, name, "units"), expected=e.expected, got=e.got
+        ) from None
+
+
 def motion_spec_from_table(m: dict, rel, *, where) -> MotionSpec:
     """The :class:`MotionSpec` of a checked motion table ``m`` (a scene's ``[motion]``, a jobs file's
     ``[[motions]]``); ``rel`` resolves a path against the file's folder, ``where`` names the file in errors.
@@ -336,12 +347,7 @@ def load_scene(path: str | os.PathLike, *, effects: str | None = None, sim_effec
     up = out.get("up", "y")
     if up not in UP_AXES:
         raise FileFormatError("unknown output.up axis", path=p, expected=" | ".join(UP_AXES), got=up)
-    try:
-        units = output_unit(out.get("units", 1.0), option="output.units")
-    except InputError as e:
-        raise FileFormatError(
-            e.problem, path=p, line=key_line(p, "output", "units"), expected=e.expected, got=e.got
-        ) from None
+    units = units_key(out, p, "output")
     betas = data.get("body", {}).get("betas", [])
     if not all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in betas):
         raise FileFormatError("body.betas must be a list of numbers", path=p, got=betas)

@@ -275,6 +275,11 @@ class _PairPrefetch:
         self.pool.shutdown(wait=False, cancel_futures=True)
 
 
+def _splits_of(roots) -> list[str]:
+    """The splits the dataset roots' samples are of, sorted (what an error about a split name offers)."""
+    return sorted({str(roots.meta(s).get("split")) for s in roots.ids()})
+
+
 def _roots_said(roots) -> str:
     """The dataset roots as an error names them: the roots read, else the folders given that hold no samples (an
     empty folder was said to be "no dataset root: none given": a user's trial), else the optional roots missing."""
@@ -342,7 +347,7 @@ def train(
     by_part = {part: roots.ids(part) for part in parts}
     empty = [part for part, got in by_part.items() if not got]
     if empty and len(parts) > 1:  # a misspelled part trained on the others without a word (a review)
-        have = sorted({str(roots.meta(s).get("split")) for s in roots.ids()})
+        have = _splits_of(roots)
         raise InputError(
             f"no '{empty[0]}' samples in the dataset (data.split = {cfg.split!r})",
             path=cfg.path,
@@ -356,7 +361,7 @@ def train(
     # this one lacks trains unvalidated, said below (a researcher's trial: "vall" trained on with a warning)
     if cfg.val_split and not val_ids and not roots.ids(cfg.val_split):
         if not (cfg.val_split in SPLITS or cfg.val_split.startswith("test-")):
-            have = sorted({str(roots.meta(s).get("split")) for s in roots.ids()})
+            have = _splits_of(roots)
             raise InputError(
                 f"no '{cfg.val_split}' samples in the dataset, and no dataset makes such a split (data.val_split)",
                 path=cfg.path,
@@ -364,7 +369,7 @@ def train(
                 got=_roots_said(roots),
             )
     if not ids:
-        have = sorted({str(roots.meta(s).get("split")) for s in roots.ids()})
+        have = _splits_of(roots)
         raise InputError(
             f"no '{cfg.split}' samples in the dataset",
             path=cfg.path,
