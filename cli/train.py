@@ -235,6 +235,7 @@ def eval_cmd(dataset, models, output, splits, body, push_margin, heatmap, force,
     dataset = DatasetRoots(list(dataset))
     margins = None if not push_margin else push_margin[0] if len(push_margin) == 1 else list(push_margin)
     predictors = make_predictors(spec, package=PackagePredictor)
+    _say_trained_on(spec, set(dataset.ids(split)), split)
     res = run_eval(
         dataset,
         b,
@@ -248,6 +249,28 @@ def eval_cmd(dataset, models, output, splits, body, push_margin, heatmap, force,
     guard.record()
     click.echo(markdown_table(res))
     click.echo(f"-> {output}")
+
+
+def _say_trained_on(spec: dict, scored: set, split: str) -> None:
+    """Warn of a model scored on samples it was trained on: a checkpoint whose run folder's ``train.json`` lists
+    some of ``scored`` (a researcher's trial: `eval` took a model's own training samples without a word)."""
+    import json
+
+    for name, s in spec.items():
+        record = Path(s).parent / "train.json" if Path(s).is_file() else None
+        if record is None or not record.is_file():
+            continue
+        try:
+            trained = set(json.loads(record.read_text(encoding="utf-8")).get("samples") or [])
+        except (OSError, ValueError, AttributeError):
+            continue
+        both = sorted(scored & trained)
+        if both:
+            click.echo(
+                f"warning: model {name} was trained on {len(both)} of the {len(scored)} '{split}' samples it is "
+                f"scored on (first: {both[0]}; {record} lists them): its numbers there are not held out",
+                err=True,
+            )
 
 
 @cli.command("ensemble")

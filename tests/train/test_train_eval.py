@@ -400,8 +400,16 @@ def test_cli_train_and_eval(synthetic_dataset, tiny_config, tmp_path, capsys):
     assert (
         main(["eval", str(synthetic_dataset), "-m", "lbs=lbs", "-m", f"sega={run / 'model.pt'}", "-o", str(out)]) == 0
     )
-    text = capsys.readouterr().out
+    said = capsys.readouterr()
+    text = said.out
     assert "| lbs |" in text and "| sega |" in text
+    assert "trained on" not in said.err  # the test split: held out
+    # scored on its own training samples: said (a researcher's trial: eval took them without a word)
+    args = ["eval", str(synthetic_dataset), "-m", f"sega={run / 'model.pt'}", "--split", "train"]
+    assert main([*args, "-o", str(tmp_path / "on_train")]) == 0
+    n_train = len(json.loads((run / "train.json").read_text())["samples"])
+    err = capsys.readouterr().err
+    assert f"warning: model sega was trained on {n_train} of the {n_train} 'train' samples" in err, err
     for f in (
         "eval.md",
         "eval.json",
