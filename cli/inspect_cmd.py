@@ -229,6 +229,8 @@ def inspect_cmd(path, output_units=None):
             f"  root translation {np.round(m.trans.min(0), 4).tolist()} .. {np.round(m.trans.max(0), 4).tolist()} m; "
             f"largest joint rotation {float(rot.max()):.3f} rad"
         )
+        for w in meta.get("warnings", []):  # what `motion export` said, which the runtimes say again
+            click.echo(f"  said when exported: {w}")
     elif ext == ".sgdb":  # a scene bundle (`segadeform bundle`): what the Node, C++ and browser runtimes run
         from segadeform.io.sgdb import read_bundle
 
@@ -273,7 +275,10 @@ def inspect_cmd(path, output_units=None):
     elif ext == ".sgda":
         from segadeform.geometry import GarmentAsset
 
-        click.echo(f"{path}: portable {GarmentAsset.load(path)!r}")
+        a = GarmentAsset.load(path)
+        click.echo(f"{path}: portable {a!r}")
+        for w in a.warnings:  # what `garment export` said, which the runtimes say again
+            click.echo(f"  said when exported: {w}")
     elif ext == ".npz":
         from segadeform.io.npz import load_npz
 
@@ -299,7 +304,10 @@ def inspect_cmd(path, output_units=None):
         elif "features" in keys and "nbr" in keys:
             from segadeform.geometry import GarmentAsset
 
-            click.echo(f"{path}: {GarmentAsset.load(path)!r}")
+            a = GarmentAsset.load(path)
+            click.echo(f"{path}: {a!r}")
+            for w in a.warnings:
+                click.echo(f"  said when exported: {w}")
         else:
             from segadeform.body import load_body
 

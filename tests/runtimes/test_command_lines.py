@@ -119,6 +119,8 @@ def test_what_garment_export_says_of_a_split_garment_every_runtime_says(
     assert r.exit_code == 0, r.output
     seam = f"garment split.obj: {n} vertices lie on an open boundary at the place of another vertex"
     assert seam in caplog.text, caplog.text  # (the command line prints its log as "warning: ...")
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "split.sgda")])
+    assert r.exit_code == 0 and f"  said when exported: {seam}" in r.output, r.output
     p = _play(exe, random_package, tmp_path / "split.sgda", portable_scene["motion"], tmp_path / "o.pc2")
     assert p.returncode == 0, p.stdout + p.stderr
     said = [ln for ln in p.stderr.splitlines() if ln.startswith("warning: when the garment asset was exported: ")]
