@@ -54,11 +54,11 @@ def _page(site, ep, tmp_path, *extra, shot=True):
     return json.loads(line[5:])
 
 
-def _asset_args(check: str, effects: str | None = None, motion: str = "motion.sgdm") -> list[str]:
+def _asset_args(
+    check: str, effects: str | None = None, motion: str = "motion.sgdm", garment: str = "garment.sgda"
+) -> list[str]:
     """The page's arguments for the garment asset and a motion in its site, the check vector and the effects."""
-    return ["--garment", "garment.sgda", "--motion", motion, "--check", check] + (
-        ["--effects", effects] if effects else []
-    )
+    return ["--garment", garment, "--motion", motion, "--check", check] + (["--effects", effects] if effects else [])
 
 
 @pytest.fixture(scope="module")
@@ -174,3 +174,28 @@ def test_a_page_of_ones_own_runs_the_vendored_runtime_a_chunk_at_a_time(portable
     # the package's files fetched when a run first needs them: the encoder, the one deformer and the shared weights
     # (every graph was fetched before)
     assert sorted(r["fetched"]) == ["deformer_dqs.onnx", "garment_encoder.onnx", "weights.bin"], r["fetched"]
+
+
+def test_page_plays_a_decimated_model_garment_like_segadeform_run(site, portable_scene, random_package, tmp_path):
+    """`garment export --resolution 0.5`: the page runs the model on the decimated copy and shows every vertex of
+    the garment as given, as `segadeform run` writes it (tests/runtimes/test_resolution_assets.py for Node, C++)."""
+    from segadeform.cli.main import main
+    from segadeform.io import read_pc2
+    from segadeform.io.sgdb import write_bundle
+
+    d = tmp_path / "half"
+    d.mkdir()
+    export = ["garment", "export", str(portable_scene["dir"] / "dress_b.obj"), "--betas", "0.5,-0.3"]
+    assert main([*export, "--model", str(random_package), "--resolution", "0.5", "-o", str(d / "half.sgda")]) == 0
+    effects = portable_scene["effects"]
+    run = ["run", "--model", str(random_package), "--garment", str(d / "half.sgda"), "--motion"]
+    run += [str(portable_scene["motion"]), "--effects", effects, "--no-cache", "--force"]
+    assert main([*run, "-o", str(d / "p.pc2"), "--body-out", str(d / "b.pc2")]) == 0
+    frames, body = read_pc2(d / "p.pc2").frames, read_pc2(d / "b.pc2").frames
+    write_bundle(d / "check_half.sgdb", {"expected": frames, "body": body}, {"effects": effects})
+    for name in ("half.sgda", "check_half.sgdb"):
+        link = site / name
+        if not link.exists():
+            link.symlink_to(d / name)
+    r = _page(site, "wasm", tmp_path, *_asset_args("check_half.sgdb", effects, garment="half.sgda"), shot=False)
+    _assert_matches(r, len(frames), "wasm")
