@@ -117,3 +117,14 @@ def portable_scene(tmp_path_factory, random_package):
         "body": body,
         "effects": "dqs,dynamics,wrinkles",
     }
+
+
+def play(exe, package, garment, motion, out, *more, timeout=600):
+    """A runtime's command line (``exe``: the ``node`` or ``cpp`` fixture's argv) on a garment asset and a motion file,
+    writing ``out``: the finished process (stdout and stderr as text)."""
+    return subprocess.run(
+        exe + ["--package", str(package), "--garment", str(garment), "--motion", str(motion), "-o", str(out), *more],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )

@@ -16,17 +16,9 @@ from click.testing import CliRunner
 from segadeform.cli.main import cli
 from segadeform.io import Mesh, read_mesh, read_pc2, write_obj
 from tests.conftest import SAMPLES, split_at_a_seam
+from tests.runtimes.conftest import play
 
 RTOL = 1e-5  # the parity rule of tests/runtimes/test_engines.py
-
-
-def _play(exe, package, garment, motion, out, *more, timeout=600):
-    return subprocess.run(
-        exe + ["--package", str(package), "--garment", str(garment), "--motion", str(motion), "-o", str(out), *more],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-    )
 
 
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
@@ -35,7 +27,7 @@ def test_an_option_given_twice_is_a_usage_error(runtime, option, values, request
     exe = request.getfixturevalue(runtime)
     s = portable_scene
     more = [option, values[0], option, values[1]] if values else ["-o", str(tmp_path / "y.pc2")]
-    p = _play(exe, "pkg", s["garment"], s["motion"], tmp_path / "x.pc2", *more)
+    p = play(exe, "pkg", s["garment"], s["motion"], tmp_path / "x.pc2", *more)
     assert p.returncode == 2, p.stdout + p.stderr
     assert f"{option} is given more than once" in p.stderr.splitlines()[0], p.stderr
     assert not list(tmp_path.iterdir())
@@ -80,7 +72,7 @@ def test_node_writes_a_long_clip_a_chunk_at_a_time_as_one_push(node, random_pack
     motion = tmp_path / "m.sgdm"
     assert main(["motion", "export", "dance", "--seconds", "20", "--betas", "0.5,-0.3", "-o", str(motion)]) == 0
     effects = "dqs,dynamics,wrinkles"
-    p = _play(
+    p = play(
         node,
         random_package,
         portable_scene["garment"],
@@ -121,12 +113,12 @@ def test_what_garment_export_says_of_a_split_garment_every_runtime_says(
     assert seam in caplog.text, caplog.text  # (the command line prints its log as "warning: ...")
     r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "split.sgda")])
     assert r.exit_code == 0 and f"  said when exported: {seam}" in r.output, r.output
-    p = _play(exe, random_package, tmp_path / "split.sgda", portable_scene["motion"], tmp_path / "o.pc2")
+    p = play(exe, random_package, tmp_path / "split.sgda", portable_scene["motion"], tmp_path / "o.pc2")
     assert p.returncode == 0, p.stdout + p.stderr
     said = [ln for ln in p.stderr.splitlines() if ln.startswith("warning: when the garment asset was exported: ")]
     assert any(seam in ln for ln in said), p.stderr
     # a garment without one says nothing of it
-    p = _play(exe, random_package, portable_scene["garment"], portable_scene["motion"], tmp_path / "q.pc2")
+    p = play(exe, random_package, portable_scene["garment"], portable_scene["motion"], tmp_path / "q.pc2")
     assert p.returncode == 0 and "when the garment asset was exported" not in p.stderr, p.stderr
 
 
@@ -179,7 +171,7 @@ def test_asset_warnings_that_are_not_one_line_texts_are_refused(
         with pytest.raises(FileFormatError, match="one-line texts"):
             GarmentAsset.load(path)
         return
-    p = _play(request.getfixturevalue(runtime), random_package, path, portable_scene["motion"], tmp_path / "o.pc2")
+    p = play(request.getfixturevalue(runtime), random_package, path, portable_scene["motion"], tmp_path / "o.pc2")
     assert p.returncode == 1 and "meta.warnings is not a list of one-line texts" in p.stderr, p.stderr
     assert str(path) in p.stderr and len(p.stderr.strip().splitlines()) == 1 and not (tmp_path / "o.pc2").exists()
 
@@ -204,7 +196,7 @@ def test_an_asset_exported_again_keeps_what_its_first_export_said(random_package
 
 
 def test_node_takes_a_flag_given_twice_as_click_does(node, random_package, portable_scene, tmp_path):
-    p = _play(
+    p = play(
         node,
         random_package,
         portable_scene["garment"],
@@ -239,7 +231,7 @@ def test_the_runtimes_write_in_the_units_and_axes_run_writes(
     exe = request.getfixturevalue(runtime)
     s = portable_scene
     more = ["--effects", "dqs,dynamics,wrinkles", "--up", "z", "--output-units", "cm"]
-    p = _play(
+    p = play(
         exe,
         random_package,
         s["garment"],
@@ -276,7 +268,7 @@ def test_the_runtimes_write_in_the_units_and_axes_run_writes(
         (["--up", "x"], "--up must be y or z"),
         (["--output-units", "furlong"], "--output-units must be"),
     ):
-        p = _play(exe, random_package, s["garment"], s["motion"], tmp_path / "x.pc2", *bad)
+        p = play(exe, random_package, s["garment"], s["motion"], tmp_path / "x.pc2", *bad)
         assert p.returncode == 2 and says in p.stderr and not (tmp_path / "x.pc2").exists(), p.stderr
 
 
@@ -312,12 +304,12 @@ def test_what_motion_export_said_every_runtime_says(runtime, request, random_pac
     arrays, meta = read_bundle(portable_scene["motion"])
     said = "the capture has 3 leading frames it settles from and 2 frames it jumps to and back from"
     write_bundle(tmp_path / "m.sgdm", arrays, {**meta, "warnings": [said]})
-    p = _play(exe, random_package, portable_scene["garment"], tmp_path / "m.sgdm", tmp_path / "o.pc2")
+    p = play(exe, random_package, portable_scene["garment"], tmp_path / "m.sgdm", tmp_path / "o.pc2")
     assert p.returncode == 0, p.stderr
     assert f"warning: when the motion file was exported: {said}" in p.stderr, p.stderr
     write_bundle(tmp_path / "bad.sgdm", arrays, {**meta, "warnings": ["two\nlines"]})
     with pytest.raises(FileFormatError, match="one-line texts"):
         read_motion_arrays(tmp_path / "bad.sgdm")
-    p = _play(exe, random_package, portable_scene["garment"], tmp_path / "bad.sgdm", tmp_path / "x.pc2")
+    p = play(exe, random_package, portable_scene["garment"], tmp_path / "bad.sgdm", tmp_path / "x.pc2")
     assert p.returncode == 1 and "meta.warnings is not a list of one-line texts" in p.stderr, p.stderr
     assert str(tmp_path / "bad.sgdm") in p.stderr and not (tmp_path / "x.pc2").exists()

@@ -5,7 +5,6 @@ and C++ write, collide and step the cloth stage on the garment as given, and giv
 from __future__ import annotations
 
 import dataclasses
-import subprocess
 
 import numpy as np
 import pytest
@@ -15,6 +14,7 @@ from segadeform.cli.main import cli
 from segadeform.errors import FileFormatError
 from segadeform.geometry import GarmentAsset
 from segadeform.io import read_mesh, read_pc2
+from tests.runtimes.conftest import play
 
 RTOL = 1e-5  # the parity rule of tests/runtimes/test_engines.py
 
@@ -98,21 +98,7 @@ def test_runtime_plays_a_carried_asset_like_segadeform_run(
 ):
     exe = request.getfixturevalue(runtime)
     out = tmp_path / "g.pc2"
-    p = subprocess.run(
-        exe
-        + [
-            "--package",
-            str(random_package),
-            "--garment",
-            str(carried["asset"]),
-            "--motion",
-            str(portable_scene["motion"]),
-        ]
-        + ["--effects", effects, "-o", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    p = play(exe, random_package, carried["asset"], portable_scene["motion"], out, "--effects", effects)
     assert p.returncode == 0, p.stdout + p.stderr
     got = read_pc2(out).frames
     assert got.shape[1] == len(read_mesh(carried["mesh"]).vertices)  # every vertex of the garment as given
@@ -158,14 +144,7 @@ def test_a_broken_carry_is_refused_naming_the_file(
         assert str(path) in str(e.value)
         return
     exe = request.getfixturevalue(runtime)
-    p = subprocess.run(
-        exe
-        + ["--package", str(random_package), "--garment", str(path), "--motion", str(portable_scene["motion"])]
-        + ["-o", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    p = play(exe, random_package, path, portable_scene["motion"], out)
     assert p.returncode == 1 and says in p.stderr and str(path) in p.stderr, p.stdout + p.stderr
     assert len(p.stderr.strip().splitlines()) == 1 and not out.exists()
 
