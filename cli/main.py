@@ -173,6 +173,7 @@ def _register() -> None:
         info_cmd,
         inspect_cmd,
         motion,
+        motion_convert,
         motion_export,
         precompute,
         preview,

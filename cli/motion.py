@@ -80,22 +80,34 @@ def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output, body):
     type=PathParam(dir_okay=False, path_type=Path),
     help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).",
 )
-@click.option("--animation", help="glTF motions (.glb/.gltf): the animation (default: the first).")
+@click.option(
+    "--animation", help="glTF (.glb/.gltf) and FBX motions: the animation (default: the first; FBX: the armature's)."
+)
 def info_cmd(motion, body, up, units, joint_map, skeleton, animation):
-    """Print frames, rate, duration, joint ranges and (BVH, AMC) the joint mapping of MOTION (.npz, .bvh, .amc or
-    .sgdm)."""
+    """Print frames, rate, duration, joint ranges and (BVH, AMC) the joint mapping of MOTION (.npz, .bvh, .amc,
+    .glb, .gltf, .sgdm, or .fbx through Blender as `motion convert` reads it)."""
     from segadeform.body import default_body_path, load_body
     from segadeform.motion import load_motion
     from segadeform.motion.limits import limit_violation
+
+    from .motion_convert import fbx_as_bvh
 
     J = load_body(body or default_body_path()).rest_joints()[0]
     try:
         units_v = float(units) if units is not None else None
     except ValueError:
         units_v = units
-    m = load_motion(
-        motion, rest_joints=J, up=up, units=units_v, joint_map=joint_map, skeleton=skeleton, animation=animation
-    )
+    fbx = motion.suffix.lower() == ".fbx"
+    with fbx_as_bvh(motion, animation) as path:
+        m = load_motion(
+            path,
+            rest_joints=J,
+            up=up,
+            units=units_v,
+            joint_map=joint_map,
+            skeleton=skeleton,
+            animation=None if fbx else animation,
+        )
     ang = np.linalg.norm(m.poses.reshape(-1, 24, 3), axis=-1)
     from segadeform.io.writer import nominal_fps
 

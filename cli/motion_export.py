@@ -3,6 +3,7 @@ without Python (Node, the browser, C++; the format: docs/package.md, ``segadefor
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import click
@@ -58,6 +59,9 @@ from .motion import motion_group
 @click.option("--seed", type=int, default=0, show_default=True, help="Procedural motions: seed.")
 @click.option("--speed", type=float, default=1.0, show_default=True, help="Procedural motions: cycle rate.")
 @click.option("--amplitude", type=float, default=1.0, show_default=True, help="Procedural motions: joint angle scale.")
+@click.option(
+    "--animation", help="glTF (.glb/.gltf) and FBX motions: the animation (default: the first; FBX: the armature's)."
+)
 @click.option("--force", is_flag=True, help="Write it for a body shape no human has (as run and garment export take).")
 def motion_export_cmd(
     source,
@@ -76,10 +80,12 @@ def motion_export_cmd(
     seed,
     speed,
     amplitude,
+    animation,
     force,
 ):
-    """Write SOURCE (a .bvh, .amc or .npz motion, or a procedural kind: idle, walk, dance, ...) as a motion file:
-    poses (T, 24, 3) and translations (T, 3) on the body's skeleton, as `segadeform run` would play it."""
+    """Write SOURCE (a .bvh, .amc, .npz, .glb/.gltf or .fbx motion, or a procedural kind: idle, walk, dance, ...) as a
+    motion file: poses (T, 24, 3) and translations (T, 3) on the body's skeleton, as `segadeform run` would play it.
+    An FBX file is read through Blender, as `segadeform motion convert` reads it."""
     from segadeform.body import default_body_path, load_body
     from segadeform.body.identity import body_label
     from segadeform.errors import InputError
@@ -108,9 +114,11 @@ def motion_export_cmd(
     path = Path(source)
     guard = OutputGuard("motion export", inputs=(path, body, joint_map, skeleton))
     guard.file(output)
-    if path.suffix.lower() in (".bvh", ".npz", ".amc") or path.exists():
+    fbx = path.suffix.lower() == ".fbx"
+    if path.suffix.lower() in (".bvh", ".npz", ".amc", ".glb", ".gltf", ".fbx") or path.exists():
         spec = MotionSpec(
             file=path,
+            animation=None if fbx else animation,
             fps=fps,
             up=up,
             units=units,
@@ -126,9 +134,11 @@ def motion_export_cmd(
     else:
         raise InputError(
             "SOURCE is neither a motion file nor a procedural kind",
-            expected=".bvh, .amc, .npz or one of " + ", ".join(MOTION_KINDS),
+            expected=".bvh, .amc, .npz, .glb, .gltf, .fbx or one of " + ", ".join(MOTION_KINDS),
             got=source,
         )
+    if animation is not None and spec.file is None:
+        raise click.UsageError("--animation picks an animation of a glTF or FBX file; a procedural motion has none")
     if repair_glitches and spec.file is None:
         raise click.UsageError("--repair-glitches repairs motion capture; a procedural motion has no glitches")
     b = load_body(body or default_body_path())
@@ -136,7 +146,10 @@ def motion_export_cmd(
         from segadeform.bounds import check_body_height
 
         check_body_height(b, beta_vals)
-    built = build_motion(spec, b.rest_joints(beta_vals)[0])
+    from .motion_convert import fbx_as_bvh
+
+    with fbx_as_bvh(path, animation if fbx else None) as read_from:  # an FBX file: the BVH Blender writes of it
+        built = build_motion(dataclasses.replace(spec, file=read_from) if fbx else spec, b.rest_joints(beta_vals)[0])
     settle, jumps = glitches_in_range(built, parse_frames(frames) if frames else None)
     m, first = select_frames(built, parse_frames(frames) if frames else None)
     full = [0.0] * b.n_betas

@@ -77,11 +77,17 @@ RESTRICTED = {
     "torch": {"model", "train", "export"},
     "onnx": {"export"},
     "onnxscript": {"export"},
-    "bpy": set(),  # only the simulator's worker, which runs in Blender's own Python (ALLOWED_MODULES)
+    "bpy": set(),  # only the simulator's and the FBX reader's workers, in Blender's own Python (ALLOWED_MODULES)
 }
-#: module -> restricted imports it alone may make: the simulator's worker runs inside Blender; baking the body
-#: from anny (``segadeform body bake``, the ``body`` extra) runs anny, a torch library
-ALLOWED_MODULES = {"segadeform.physics.blender_worker": {"bpy"}, "segadeform.body.bake_anny": {"torch"}}
+#: module -> restricted imports it alone may make: the simulator's and the FBX reader's workers run inside Blender;
+#: baking the body from anny (``segadeform body bake``, the ``body`` extra) runs anny, a torch library
+ALLOWED_MODULES = {
+    "segadeform.physics.blender_worker": {"bpy"},
+    "segadeform.physics.fbx_worker": {"bpy"},
+    "segadeform.body.bake_anny": {"torch"},
+}
+#: the modules that run inside Blender's Python, never imported by segadeform
+BLENDER_SIDE = {m for m, allowed in ALLOWED_MODULES.items() if "bpy" in allowed}
 #: layer -> restricted imports it may make inside functions only (the commands that train and export)
 LAZY_ALLOWED = {"cli": {"torch", "onnx"}}
 
@@ -286,9 +292,7 @@ def test_the_check_catches_back_edges_hidden_in_functions(tmp_path):
 def test_torch_free_layers_import_with_torch_blocked():
     """Every module of the torch-free layers imports (and the CLI builds its commands) with torch unavailable."""
     names = sorted(
-        m
-        for m in modules()
-        if layer_of(m) in TORCH_FREE and m != "segadeform.physics.blender_worker" and not m.endswith("__main__")
+        m for m in modules() if layer_of(m) in TORCH_FREE and m not in BLENDER_SIDE and not m.endswith("__main__")
     )
     code = (
         "import sys\n"

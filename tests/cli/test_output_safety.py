@@ -81,6 +81,16 @@ def pc2_result(tmp_path) -> Path:
     return p
 
 
+def fbx_file(tmp_path) -> str:
+    """An FBX character (a skinned mesh and its animation), made by Blender once per test folder."""
+    from tests.physics.fbx_files import make_fbx
+
+    p = tmp_path / "walk.fbx"
+    if not p.exists():
+        make_fbx(SAMPLES / "motions" / "cmu" / "02_01_walk.bvh", p, "skinned")
+    return str(p)
+
+
 def member_checkpoints(tmp_path) -> list[str]:
     """Two small trained-network checkpoints of one configuration (the inputs of `segadeform ensemble`)."""
     import torch
@@ -109,6 +119,7 @@ FILE_COMMANDS = {
     "garment export": ("g.sgda", lambda t, o: ["garment", "export", SKIRT, "--model", MODEL, "-o", o]),
     "motion make": ("m.npz", lambda t, o: ["motion", "make", "walk", "--seconds", "0.2", "-o", o]),
     "motion export": ("m.sgdm", lambda t, o: ["motion", "export", "walk", "--seconds", "0.2", "-o", o]),
+    "motion convert": ("m.bvh", lambda t, o: ["motion", "convert", fbx_file(t), "-o", o]),
     "precompute": ("a.npz", lambda t, o: ["precompute", SKIRT, "--body", BODY, "-o", o]),
     "preview": ("p.png", lambda t, o: ["preview", pc2_result(t), "--garment", SKIRT, "--size", "40x60", "-o", o]),
     "bundle": (

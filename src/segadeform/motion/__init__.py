@@ -141,8 +141,17 @@ def load_motion(
                 ),
             )
         m, _ = read_motion_file(p)
+    elif ext == ".fbx":  # read through Blender, a layer above this one: said, with the command that does it
+        raise FileFormatError(
+            "an FBX motion is read through Blender: `segadeform motion convert FILE.fbx -o FILE.bvh` writes it as a "
+            "BVH file (motion info and motion export take the .fbx itself)",
+            path=p,
+        )
     else:
         raise FileFormatError(
-            "unknown motion file type", path=p, expected=".npz, .bvh, .amc, .glb, .gltf or .sgdm", got=ext or "none"
+            "unknown motion file type",
+            path=p,
+            expected=".npz, .bvh, .amc, .glb, .gltf, .sgdm (or .fbx through `segadeform motion convert`)",
+            got=ext or "none",
         )
     return feet_on_floor(m, rest_joints) if floor else m

@@ -1,0 +1,91 @@
+"""``segadeform motion convert``: an FBX character's animation -> a BVH file, through Blender's FBX importer
+(:mod:`segadeform.physics.fbx`); and :func:`fbx_as_bvh`, with which ``motion info`` and ``motion export`` read an
+FBX file directly."""
+
+from __future__ import annotations
+
+import contextlib
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import click
+
+from .main import PathParam
+from .motion import motion_group
+
+
+def _say(src: Path, got) -> None:
+    others = [a for a in got.animations if a != got.animation]
+    click.echo(
+        f"{src.name}: armature {got.armature!r} ({got.bones} bones), animation {got.animation!r}, {got.frames} frames "
+        f"at {got.fps:g} fps (Blender {got.blender})"
+        + (f"; other animations: {', '.join(repr(a) for a in others)} (--animation NAME)" if others else ""),
+        err=True,
+    )
+    if not got.skinned:
+        click.echo(
+            f"warning: {src.name} has no mesh skinned to its armature, so its rest pose is whatever pose the bones "
+            "stand in, not a bind pose: the motion is read relative to it (check it with `segadeform preview` or "
+            "`segadeform motion info`; an export with the character's mesh carries the bind pose)",
+            err=True,
+        )
+
+
+@contextlib.contextmanager
+def fbx_as_bvh(path: Path, animation: str | None, sim_python=None) -> Iterator[Path]:
+    """``path`` itself, or for an ``.fbx`` the BVH that Blender makes of it in a temporary folder (removed after),
+    named as the FBX is (the motion's name)."""
+    if path.suffix.lower() != ".fbx":
+        yield path
+        return
+    from segadeform.errors import InputError
+    from segadeform.physics.fbx import fbx_to_bvh
+
+    with tempfile.TemporaryDirectory(prefix="segadeform-fbx-") as tmp:
+        bvh = Path(tmp) / (path.stem + ".bvh")
+        _say(path, fbx_to_bvh(path, bvh, animation=animation, sim_python=sim_python))
+        try:
+            yield bvh
+        except InputError as e:  # the BVH's reader named the temporary file: the user's file is the FBX
+            if e.path is None or Path(e.path) != bvh:
+                raise
+            raise type(e)(
+                e.problem + " (read from the BVH Blender wrote of it)", path=path, expected=e.expected, got=e.got
+            ) from None
+
+
+@motion_group.command("convert")
+@click.argument("source", type=PathParam(dir_okay=False, path_type=Path))
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=PathParam(dir_okay=False, path_type=Path),
+    help="The BVH file to write (.bvh).",
+)
+@click.option("--animation", help="The FBX file's animation (take) to convert (default: the armature's own).")
+@click.option("--sim-python", type=PathParam(dir_okay=False, path_type=Path), help="The simulator's Python (Blender).")
+def convert_cmd(source, output, animation, sim_python):
+    """Write the animation of SOURCE (.fbx: Mixamo, Maya, MotionBuilder, Unreal, Unity ...) as a BVH file, through
+    Blender's FBX importer (the simulator environment: python -m segadeform.physics.setup).
+
+    The BVH is in metres, in Blender's axes (+Z up), over the animation's frames at its frame rate; every command
+    that takes a motion reads it (motion info and motion export also take the .fbx itself)."""
+    from segadeform.errors import InputError
+    from segadeform.io.atomic import atomic_path
+    from segadeform.io.output_guard import OutputGuard
+    from segadeform.physics.fbx import FBX_EXTENSIONS, fbx_to_bvh
+
+    if source.suffix.lower() not in FBX_EXTENSIONS:
+        raise InputError("motion convert reads FBX files", path=source, expected=".fbx", got=source.suffix or "none")
+    if output.suffix.lower() != ".bvh":
+        raise click.UsageError(f"-o must end in .bvh, got {output.name!r}")
+    guard = OutputGuard("motion convert", inputs=(source, sim_python))
+    guard.file(output)
+    with atomic_path(output) as tmp:
+        got = fbx_to_bvh(source, tmp, animation=animation, sim_python=sim_python)
+        guard.recheck()
+    guard.record()
+    _say(source, got)
+    click.echo(f"{source.name}: {got.frames} frames at {got.fps:g} fps -> {output}")

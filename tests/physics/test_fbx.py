@@ -1,0 +1,158 @@
+"""FBX motion through Blender (segadeform.physics.fbx, `segadeform motion convert`): an FBX character's animation
+reads as the motion it was made from; files without one are refused in one line naming them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from segadeform.body.rotations import axis_angle_to_matrix
+from segadeform.body.skeleton import default_rest_joints
+from segadeform.errors import FileFormatError
+from segadeform.motion import load_motion, read_motion_file
+from segadeform.motion.bvh import read_bvh_skeleton
+from segadeform.physics.fbx import fbx_to_bvh
+from tests.physics.fbx_files import make_fbx
+
+REPO = Path(__file__).resolve().parents[2]
+BVH = REPO / "samples" / "motions" / "cmu" / "02_01_walk.bvh"  # a CMU walk kept in the repository
+
+
+@pytest.fixture(scope="module")
+def fbx(tmp_path_factory):
+    """name -> FBX file made by Blender from BVH (each 1-2 s)."""
+    d = tmp_path_factory.mktemp("fbx")
+    kinds = {
+        "skinned": ("skinned",),
+        "mixamo-cm": ("skinned", "mixamo", "cm"),
+        "two-takes": ("skinned", "two-takes"),
+        "unskinned": (),
+        "still": ("still",),
+        "no-armature": ("no-armature",),
+    }
+    return {k: make_fbx(BVH, d / f"{k}.fbx", *modes) for k, modes in kinds.items()}
+
+
+def _angles(a, b) -> np.ndarray:
+    """(T, 24) degrees between the joint rotations of motions a and b."""
+    n = min(a.n_frames, b.n_frames)
+    ra = axis_angle_to_matrix(a.poses[:n].reshape(-1, 3))
+    rb = axis_angle_to_matrix(b.poses[:n].reshape(-1, 3))
+    cos = (np.einsum("nij,nij->n", ra, rb) - 1.0) / 2.0
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).reshape(n, 24)
+
+
+@pytest.mark.parametrize("kind", ["skinned", "mixamo-cm"])
+def test_an_fbx_characters_animation_reads_as_the_motion_it_was_made_from(fbx, tmp_path, kind):
+    """A BVH taken to an FBX character (a mesh skinned to the armature; Mixamo's bone names and a 2x scaled armature
+    for the second) and back through fbx_to_bvh: the same frames, rate and retargeted poses, within 0.5 degrees per
+    joint and 3 mm of root travel (FBX stores floats; Blender resamples the keys)."""
+    out = tmp_path / "back.bvh"
+    got = fbx_to_bvh(fbx[kind], out)
+    src_sk = read_bvh_skeleton(BVH)
+    assert got.skinned and got.bones == len(src_sk.names) and got.frames == len(src_sk.positions)
+    assert got.fps == pytest.approx(src_sk.fps, rel=1e-4)
+    J = default_rest_joints()
+    a, b = load_motion(BVH, rest_joints=J), load_motion(out, rest_joints=J)
+    assert a.n_frames == b.n_frames and b.fps == pytest.approx(a.fps, rel=1e-4)
+    ang = _angles(a, b)
+    assert ang.max() < 1.0 and ang.mean() < 0.1, (ang.max(), ang.mean())
+    assert np.abs(a.trans - b.trans).max() < 0.005
+    if kind == "mixamo-cm":  # Mixamo's names read as such; the armature scaled 2x gives offsets twice as long
+        assert b.meta["mapped"]["pelvis"] == "mixamorig:Hips"
+        plain = tmp_path / "plain.bvh"
+        fbx_to_bvh(fbx["skinned"], plain)
+        r1, r2 = read_bvh_skeleton(plain).rest, read_bvh_skeleton(out).rest
+        np.testing.assert_allclose(r2 - r2[0], 2.0 * (r1 - r1[0]), atol=1e-4 * np.ptp(r2))
+
+
+def test_an_fbx_take_is_chosen_by_name_and_an_unknown_one_lists_the_takes(fbx, tmp_path):
+    both = fbx_to_bvh(fbx["two-takes"], tmp_path / "a.bvh")
+    assert len(both.animations) == 2 and both.frames > 40
+    short = [a for a in both.animations if a.endswith("walk-start")][0]
+    got = fbx_to_bvh(fbx["two-takes"], tmp_path / "b.bvh", animation=short)
+    assert got.animation == short and got.frames == 40
+    assert load_motion(tmp_path / "b.bvh").n_frames == 40
+    with pytest.raises(FileFormatError) as e:
+        fbx_to_bvh(fbx["two-takes"], tmp_path / "c.bvh", animation="run")
+    msg = str(e.value)
+    assert msg.startswith(str(fbx["two-takes"])) and "no animation 'run'" in msg and short in msg and "\n" not in msg
+    assert not (tmp_path / "c.bvh").exists()
+
+
+@pytest.mark.parametrize(
+    ("kind", "says"),
+    [
+        ("still", "its armature has no animation"),
+        ("no-armature", "no armature (skeleton)"),
+        ("junk", "Blender's FBX importer could not read it (ASCII FBX files are not supported)"),
+        ("binary-junk", "Blender's FBX importer could not read it"),
+    ],
+)
+def test_a_file_without_an_animated_skeleton_is_refused_naming_it(fbx, tmp_path, kind, says):
+    if kind == "junk":
+        src = tmp_path / "junk.fbx"
+        src.write_text("; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n")
+    elif kind == "binary-junk":
+        src = tmp_path / "binary.fbx"
+        src.write_bytes(b"Kaydara FBX Binary  \x00\x1a\x00" + bytes(range(256)) * 4)
+    else:
+        src = fbx[kind]
+    out = tmp_path / "x.bvh"
+    with pytest.raises(FileFormatError) as e:
+        fbx_to_bvh(src, out)
+    msg = str(e.value)
+    assert msg.startswith(f"{src}: ") and says in msg and "\n" not in msg, msg
+    assert not out.exists()
+
+
+def test_a_missing_fbx_file_is_named_before_blender_starts(tmp_path):
+    with pytest.raises(FileFormatError, match="no such file"):
+        fbx_to_bvh(tmp_path / "nope.fbx", tmp_path / "x.bvh", sim_python=tmp_path / "no-python")
+
+
+def _cli(args):
+    from segadeform.cli.main import cli
+
+    return CliRunner().invoke(cli, args, catch_exceptions=False)
+
+
+def test_motion_convert_writes_the_bvh_and_says_what_it_read(fbx, tmp_path):
+    out = tmp_path / "walk.bvh"
+    r = _cli(["motion", "convert", str(fbx["two-takes"]), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "other animations:" in r.output and "--animation NAME" in r.output and str(out) in r.output
+    assert "warning" not in r.output
+    assert load_motion(out).n_frames == read_bvh_skeleton(BVH).positions.shape[0]
+    # an FBX without a skinned mesh: converted, with a warning that its rest pose is not a bind pose
+    r = _cli(["motion", "convert", str(fbx["unskinned"]), "-o", str(tmp_path / "u.bvh")])
+    assert r.exit_code == 0 and "no mesh skinned to its armature" in r.output, r.output
+    # refusals: not an FBX, not a .bvh output
+    r = _cli(["motion", "convert", str(out), "-o", str(tmp_path / "y.bvh")])
+    assert r.exit_code == 1 and "expected .fbx" in r.output and len(r.output.strip().splitlines()) == 1
+    r = _cli(["motion", "convert", str(fbx["skinned"]), "-o", str(tmp_path / "y.npz")])
+    assert r.exit_code == 2 and "-o must end in .bvh" in r.output
+    assert not (tmp_path / "y.bvh").exists() and not (tmp_path / "y.npz").exists()
+
+
+def test_motion_info_and_export_read_an_fbx_file_as_motion_convert_does(fbx, tmp_path):
+    bvh = tmp_path / "skinned.bvh"
+    fbx_to_bvh(fbx["skinned"], bvh)
+    r = _cli(["motion", "info", str(fbx["skinned"])])
+    assert r.exit_code == 0 and "cmu-motionbuilder names" in r.output, r.output
+    for src, name in ((fbx["skinned"], "a"), (bvh, "b")):
+        r = _cli(["motion", "export", str(src), "-o", str(tmp_path / f"{name}.sgdm")])
+        assert r.exit_code == 0, r.output
+    (a, meta_a), (b, _) = read_motion_file(tmp_path / "a.sgdm"), read_motion_file(tmp_path / "b.sgdm")
+    np.testing.assert_array_equal(a.poses, b.poses)
+    np.testing.assert_array_equal(a.trans, b.trans)
+    assert meta_a["source"] == str(fbx["skinned"])
+    short = [n for n in fbx_to_bvh(fbx["two-takes"], tmp_path / "t.bvh").animations if n.endswith("walk-start")][0]
+    r = _cli(["motion", "export", str(fbx["two-takes"]), "--animation", short, "-o", str(tmp_path / "s.sgdm")])
+    assert r.exit_code == 0 and read_motion_file(tmp_path / "s.sgdm")[0].n_frames == 40, r.output
+    # `run` and the scene readers do not read FBX: one line, with the command that does
+    with pytest.raises(FileFormatError, match="segadeform motion convert"):
+        load_motion(fbx["skinned"])
