@@ -102,7 +102,7 @@ def info_cmd(motion, body, up, units, joint_map, skeleton, animation):
         m = load_motion(
             path,
             rest_joints=J,
-            up=up,
+            up="y" if fbx and up == "auto" else up,  # the BVH made of an FBX is +Y up
             units=units_v,
             joint_map=joint_map,
             skeleton=skeleton,

@@ -5,6 +5,7 @@ FBX file directly."""
 from __future__ import annotations
 
 import contextlib
+import logging
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -35,24 +36,55 @@ def _say(src: Path, got) -> None:
 @contextlib.contextmanager
 def fbx_as_bvh(path: Path, animation: str | None, sim_python=None) -> Iterator[Path]:
     """``path`` itself, or for an ``.fbx`` the BVH that Blender makes of it in a temporary folder (removed after),
-    named as the FBX is (the motion's name)."""
+    named as the FBX is (the motion's name).  Errors and warnings about the BVH name the FBX file."""
     if path.suffix.lower() != ".fbx":
         yield path
         return
-    from segadeform.errors import InputError
     from segadeform.physics.fbx import fbx_to_bvh
 
     with tempfile.TemporaryDirectory(prefix="segadeform-fbx-") as tmp:
         bvh = Path(tmp) / (path.stem + ".bvh")
         _say(path, fbx_to_bvh(path, bvh, animation=animation, sim_python=sim_python))
-        try:
+        with as_the_fbx(bvh, path):
             yield bvh
-        except InputError as e:  # the BVH's reader named the temporary file: the user's file is the FBX
-            if e.path is None or Path(e.path) != bvh:
-                raise
-            raise type(e)(
-                e.problem + " (read from the BVH Blender wrote of it)", path=path, expected=e.expected, got=e.got
-            ) from None
+
+
+class _Rename(logging.Filter):
+    """A warning that names the temporary BVH names the user's FBX file instead."""
+
+    def __init__(self, bvh: Path, fbx: Path) -> None:
+        super().__init__()
+        self.pairs = ((str(bvh), str(fbx)), (bvh.name, fbx.name))
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        msg = record.getMessage()
+        for a, b in self.pairs:
+            msg = msg.replace(a, b)
+        record.msg, record.args = msg, None
+        return True
+
+
+@contextlib.contextmanager
+def as_the_fbx(bvh: Path, fbx: Path) -> Iterator[None]:
+    """While reading the BVH made of ``fbx``: its errors and segadeform's warnings name the FBX file (a filter on
+    each of segadeform's loggers: a logger's filters see only its own records)."""
+    from segadeform.errors import InputError
+
+    f = _Rename(bvh, fbx)
+    loggers = [logging.getLogger(n) for n in list(logging.root.manager.loggerDict) if n.startswith("segadeform")]
+    for lg in loggers:
+        lg.addFilter(f)
+    try:
+        yield
+    except InputError as e:  # the BVH's reader named the temporary file: the user's file is the FBX
+        if e.path is None or Path(e.path) != bvh:
+            raise
+        raise type(e)(
+            e.problem + " (read from the BVH Blender wrote of it)", path=fbx, expected=e.expected, got=e.got
+        ) from None
+    finally:
+        for lg in loggers:
+            lg.removeFilter(f)
 
 
 @motion_group.command("convert")
@@ -70,8 +102,9 @@ def convert_cmd(source, output, animation, sim_python):
     """Write the animation of SOURCE (.fbx: Mixamo, Maya, MotionBuilder, Unreal, Unity ...) as a BVH file, through
     Blender's FBX importer (the simulator environment: python -m segadeform.physics.setup).
 
-    The BVH is in metres, in Blender's axes (+Z up), over the animation's frames at its frame rate; every command
-    that takes a motion reads it (motion info and motion export also take the .fbx itself)."""
+    The BVH is in metres, +Y up, in world space (root motion on the armature object or a parent null kept), over
+    the animation's frames at its frame rate; every command that takes a motion reads it (motion info and motion
+    export also take the .fbx itself)."""
     from segadeform.errors import InputError
     from segadeform.io.atomic import atomic_path
     from segadeform.io.output_guard import OutputGuard
@@ -83,8 +116,12 @@ def convert_cmd(source, output, animation, sim_python):
         raise click.UsageError(f"-o must end in .bvh, got {output.name!r}")
     guard = OutputGuard("motion convert", inputs=(source, sim_python))
     guard.file(output)
+    from segadeform.motion.bvh import read_bvh
+
     with atomic_path(output) as tmp:
         got = fbx_to_bvh(source, tmp, animation=animation, sim_python=sim_python)
+        with as_the_fbx(tmp, source):  # a skeleton segadeform cannot play (not a humanoid) is refused, not written
+            read_bvh(tmp, up="y")
         guard.recheck()
     guard.record()
     _say(source, got)

@@ -149,7 +149,9 @@ def motion_export_cmd(
     from .motion_convert import fbx_as_bvh
 
     with fbx_as_bvh(path, animation if fbx else None) as read_from:  # an FBX file: the BVH Blender writes of it
-        built = build_motion(dataclasses.replace(spec, file=read_from) if fbx else spec, b.rest_joints(beta_vals)[0])
+        if fbx:  # the BVH made of an FBX is +Y up
+            spec = dataclasses.replace(spec, file=read_from, up="y" if spec.up == "auto" else spec.up)
+        built = build_motion(spec, b.rest_joints(beta_vals)[0])
     settle, jumps = glitches_in_range(built, parse_frames(frames) if frames else None)
     m, first = select_frames(built, parse_frames(frames) if frames else None)
     full = [0.0] * b.n_betas

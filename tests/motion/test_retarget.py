@@ -19,6 +19,7 @@ from segadeform.motion.bvh import read_bvh_skeleton
 from .bvh_build import smooth_local_rotations, source_fk, write_skeleton_bvh
 
 SHARED_CMU = Path(__file__).resolve().parents[3] / "shared" / "data" / "mocap" / "cmu"
+REPO_CMU = Path(__file__).resolve().parents[2] / "samples" / "motions" / "cmu"
 LIMB_BONES = [
     ("left_hip", "left_knee"),
     ("right_hip", "right_knee"),
@@ -418,3 +419,32 @@ def test_bad_motion_data_names_its_line(tmp_path):
     with pytest.raises(FileFormatError, match=r"got \d+ numbers, 3 frames \(cut short\?\)") as e:
         read_bvh(tmp_path / "t.bvh")
     assert e.value.line == frames_line
+
+
+@pytest.mark.parametrize("degrees", [90.0, 180.0, -35.0])
+def test_a_skeleton_that_faces_another_way_at_rest_gets_the_same_joint_rotations(degrees):
+    """A CMU walk with its rest and motion turned rigidly about +Y (a character that faces +X, -Z ... in its file):
+    every joint's rotation against its parent is the original's, the root and its travel turn with the file.  The
+    retargeting matches bone directions, which leaves a vertical bone's turn about itself free: without turning the
+    source to face +Z first (motion.bvh.facing_turn) the spine and knees took the file's turn as a twist of their
+    own (90 degrees at 90: an FBX review)."""
+    import dataclasses
+
+    from segadeform.body.rotations import axis_angle_to_matrix
+    from segadeform.motion.bvh import facing_turn, skeleton_motion
+
+    path = REPO_CMU / "02_01_walk.bvh"
+    sk = read_bvh_skeleton(path)
+    m = map_skeleton(sk.names, sk.parents, sk.rest, leaf_ends=sk.ends)
+    assert facing_turn(sk.rest, m.source) is None  # CMU's skeletons face +Z: read as before
+    R = axis_angle_to_matrix(np.array([0.0, np.radians(degrees), 0.0]))
+    turned = dataclasses.replace(
+        sk, rest=sk.rest @ R.T, ends=sk.ends @ R.T, rotations=R @ sk.rotations @ R.T, positions=sk.positions @ R.T
+    )
+    J = default_rest_joints()
+    a, b = skeleton_motion(sk, path, rest_joints=J), skeleton_motion(turned, path, rest_joints=J)
+    ra = axis_angle_to_matrix(a.poses.reshape(-1, 24, 3))
+    rb = axis_angle_to_matrix(b.poses.reshape(-1, 24, 3))
+    np.testing.assert_allclose(rb[:, 1:], ra[:, 1:], atol=1e-6)
+    np.testing.assert_allclose(rb[:, 0], R @ ra[:, 0], atol=1e-6)
+    np.testing.assert_allclose(J[0] + b.trans, (J[0] + a.trans) @ R.T, atol=1e-6)

@@ -8,7 +8,8 @@ from pathlib import Path
 
 from segadeform.physics.blender import find_sim_python
 
-#: run by Blender's Python: SCRIPT BVH DST MODE...  (modes: skinned, mixamo, cm, two-takes, still, no-armature)
+#: run by Blender's Python: SCRIPT BVH DST MODE...  (modes: skinned, mixamo, spaces, cm, turned, objroot, two-takes,
+#: prop, still, no-armature)
 SCRIPT = r"""
 import sys, bpy
 src, dst, modes = sys.argv[1], sys.argv[2], set(sys.argv[3:])
@@ -23,8 +24,25 @@ arm.name = "Armature"
 if "mixamo" in modes:
     for b in arm.data.bones:
         b.name = "mixamorig:" + b.name
+if "spaces" in modes:  # 3ds Max Biped's names
+    for b in arm.data.bones:
+        b.name = "Bip01 " + b.name
 if "cm" in modes:
     arm.scale = (2.0, 2.0, 2.0)
+if "turned" in modes:  # the character faces +X in the file: the turn applied to the armature's data
+    arm.rotation_euler = (0.0, 0.0, 1.5707963267948966)
+    bpy.context.view_layer.objects.active = arm
+    arm.select_set(True)
+    bpy.ops.object.transform_apply(location=False, rotation=True, scale=False)
+if "objroot" in modes:  # root motion on the armature object: 2 m along +X over the clip, on top of the bones'
+    f0, f1 = (int(round(f)) for f in arm.animation_data.action.frame_range)
+    arm.location = (0.0, 0.0, 0.0)
+    arm.keyframe_insert("location", frame=f0)
+    arm.location = (2.0, 0.0, 0.0)
+    arm.keyframe_insert("location", frame=f1)
+    for fc in getattr(arm.animation_data.action, "fcurves", None) or []:
+        for k in fc.keyframe_points:
+            k.interpolation = "LINEAR"
 if "two-takes" in modes:
     act = arm.animation_data.action
     act.name = "walk"
@@ -44,6 +62,25 @@ if "skinned" in modes:
     ob.modifiers.new("skin", "ARMATURE").object = arm
     ob.select_set(True)
     objects.add("MESH")
+if "prop" in modes:  # a prop's rig with more bones than the character, animated too, no mesh
+    pd = bpy.data.armatures.new("PropRig")
+    prop = bpy.data.objects.new("Prop", pd)
+    bpy.context.scene.collection.objects.link(prop)
+    bpy.context.view_layer.objects.active = prop
+    bpy.ops.object.mode_set(mode="EDIT")
+    parent = None
+    for i in range(60):
+        eb = pd.edit_bones.new(f"Prop_{i:02d}")
+        eb.head, eb.tail = (3.0, 0.0, 0.1 * i), (3.0, 0.0, 0.1 * i + 0.1)
+        eb.parent, eb.use_connect = parent, parent is not None
+        parent = eb
+    bpy.ops.object.mode_set(mode="OBJECT")
+    for f in (1, 20):
+        for pb in prop.pose.bones:
+            pb.rotation_mode = "XYZ"
+            pb.rotation_euler = (0.05 * f, 0.0, 0.0)
+            pb.keyframe_insert("rotation_euler", frame=f)
+    prop.select_set(True)
 bpy.context.view_layer.objects.active = arm
 arm.select_set(True)
 bpy.ops.export_scene.fbx(

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from segadeform.body.rotations import axis_angle_to_matrix
 from segadeform.body.skeleton import default_rest_joints
-from segadeform.errors import FileFormatError
+from segadeform.errors import FileFormatError, SimulationError
 from segadeform.motion import load_motion, read_motion_file
 from segadeform.motion.bvh import read_bvh_skeleton
 from segadeform.physics.fbx import fbx_to_bvh
@@ -30,6 +30,9 @@ def fbx(tmp_path_factory):
         "mixamo-cm": ("skinned", "mixamo", "cm"),
         "two-takes": ("skinned", "two-takes"),
         "unskinned": (),
+        "objroot": ("skinned", "objroot"),
+        "turned-biped": ("skinned", "turned", "spaces"),
+        "with-prop": ("skinned", "prop"),
         "still": ("still",),
         "no-armature": ("no-armature",),
     }
@@ -79,7 +82,12 @@ def test_an_fbx_take_is_chosen_by_name_and_an_unknown_one_lists_the_takes(fbx, t
     with pytest.raises(FileFormatError) as e:
         fbx_to_bvh(fbx["two-takes"], tmp_path / "c.bvh", animation="run")
     msg = str(e.value)
-    assert msg.startswith(str(fbx["two-takes"])) and "no animation 'run'" in msg and short in msg and "\n" not in msg
+    assert (
+        msg.startswith(str(fbx["two-takes"]))
+        and "no armature animation 'run'" in msg
+        and short in msg
+        and "\n" not in msg
+    )
     assert not (tmp_path / "c.bvh").exists()
 
 
@@ -156,3 +164,64 @@ def test_motion_info_and_export_read_an_fbx_file_as_motion_convert_does(fbx, tmp
     # `run` and the scene readers do not read FBX: one line, with the command that does
     with pytest.raises(FileFormatError, match="segadeform motion convert"):
         load_motion(fbx["skinned"])
+
+
+def test_root_motion_on_the_armature_object_is_kept(fbx, tmp_path):
+    """The armature object keyed 2 m along +X over the clip (the bones as they were): the BVH's root is the plain
+    file's plus that travel, in world space (Blender's exporter read armature space and dropped it: a review)."""
+    fbx_to_bvh(fbx["skinned"], tmp_path / "plain.bvh")
+    fbx_to_bvh(fbx["objroot"], tmp_path / "moved.bvh")
+    a, b = read_bvh_skeleton(tmp_path / "plain.bvh"), read_bvh_skeleton(tmp_path / "moved.bvh")
+    assert a.up == b.up == "y"
+    d = b.positions[:, 0] - a.positions[:, 0]
+    np.testing.assert_allclose(d[0], [0.0, 0.0, 0.0], atol=1e-4)
+    np.testing.assert_allclose(d[-1], [2.0, 0.0, 0.0], atol=1e-4)
+    assert np.all(np.diff(d[:, 0]) >= -1e-6)  # it travels one way
+    np.testing.assert_allclose(b.positions - b.positions[:, :1], a.positions - a.positions[:, :1], atol=1e-4)
+
+
+def test_a_character_facing_x_with_biped_names_reads_as_the_same_motion_turned(fbx, tmp_path):
+    """3ds Max Biped's names ("Bip01 LeftUpLeg": BVH names are one word, so they become "Bip01_LeftUpLeg") on a
+    character that faces +X in its file: the BVH is +Y up whatever way the character faces, and every joint's
+    rotation against its parent is the original's (the retargeting turned to face +Z first: a quarter-turn twist
+    of the spine and knees before, a review); the root turns and travels with the file."""
+    got = fbx_to_bvh(fbx["turned-biped"], tmp_path / "t.bvh")
+    assert got.renamed == got.bones
+    sk = read_bvh_skeleton(tmp_path / "t.bvh", up="auto")
+    assert sk.up == "y" and all(" " not in n for n in sk.names) and "Bip01_LeftUpLeg" in sk.names
+    J = default_rest_joints()
+    a, b = load_motion(BVH, rest_joints=J), load_motion(tmp_path / "t.bvh", rest_joints=J)
+    ang = _angles(a, b)[:, 1:]  # every joint but the root, against its parent
+    assert ang.max() < 1.0 and ang.mean() < 0.1, (ang.max(), ang.mean())
+    # the root: the original's turned a quarter about +Y (the file's turn about Blender's +Z)
+    turn = axis_angle_to_matrix(np.array([0.0, np.pi / 2, 0.0]))
+    ra, rb = axis_angle_to_matrix(a.poses[:, :3]), axis_angle_to_matrix(b.poses[:, :3])
+    cos = (np.einsum("nij,nij->n", turn @ ra, rb) - 1.0) / 2.0
+    assert np.degrees(np.arccos(np.clip(cos, -1, 1))).max() < 1.0
+    travel_a, travel_b = a.trans - a.trans[0], b.trans - b.trans[0]
+    np.testing.assert_allclose(travel_b, travel_a @ turn.T, atol=0.005)
+
+
+def test_the_character_is_taken_before_a_prop_rig_with_more_bones(fbx, tmp_path):
+    got = fbx_to_bvh(fbx["with-prop"], tmp_path / "c.bvh")
+    assert got.armature == "Armature" and got.skinned and len(got.armatures) == 2
+    assert read_bvh_skeleton(tmp_path / "c.bvh").names[0] == "Hips"
+
+
+def test_a_take_is_also_found_by_its_own_name(fbx, tmp_path):
+    got = fbx_to_bvh(fbx["two-takes"], tmp_path / "s.bvh", animation="walk-start")
+    assert got.animation.endswith("|walk-start") and got.frames == 40
+
+
+def test_an_empty_file_and_a_failed_worker_leave_nothing(tmp_path):
+    src = tmp_path / "empty.fbx"
+    src.write_bytes(b"")
+    with pytest.raises(FileFormatError, match="empty file"):
+        fbx_to_bvh(src, tmp_path / "x.bvh")
+    src.write_bytes(b"Kaydara FBX Binary  \x00\x1a\x00" + bytes(200))
+    fake = tmp_path / "python"  # a "simulator Python" that writes half a file and dies
+    fake.write_text(f"#!/bin/sh\nprintf 'HIERARCHY' > '{tmp_path / 'x.bvh.part'}'\nexit 3\n")
+    fake.chmod(0o755)
+    with pytest.raises(SimulationError, match="exit 3"):
+        fbx_to_bvh(src, tmp_path / "x.bvh", sim_python=fake)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.fbx", "python"]

@@ -97,7 +97,7 @@ def load_motion(
         )
     if animation is not None and ext not in (".glb", ".gltf"):
         raise FileFormatError(
-            "an animation name applies to glTF files only",
+            "an animation name applies to glTF files only (an FBX file's: `segadeform motion convert --animation`)",
             path=p,
             expected=".glb or .gltf with --animation",
             got=ext or "no extension",

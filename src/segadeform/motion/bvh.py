@@ -422,7 +422,15 @@ def skeleton_motion(
                 scale_f = limb_scale(sk.rest, src, target)
             except InputError as e:
                 raise FileFormatError(e.problem, path=p, got=e.got) from None
-    rot, trans = retarget_to_smpl(src, sk.rest, sk.rotations, sk.positions, target, scale_f)
+    turn = facing_turn(sk.rest, src)
+    if turn is None:
+        rot, trans = retarget_to_smpl(src, sk.rest, sk.rotations, sk.positions, target, scale_f)
+    else:  # retargeted facing +Z, as SMPL's rest does, then the whole motion turned back (its world heading kept)
+        rot, trans = retarget_to_smpl(
+            src, sk.rest @ turn.T, turn @ sk.rotations @ turn.T, sk.positions @ turn.T, target, scale_f
+        )
+        rot[:, 0] = turn.T @ rot[:, 0]
+        trans = (target[0] + trans) @ turn - target[0]
     poses = matrix_to_axis_angle(rot).reshape(len(rot), 72)
     meta = {
         "format": fmt,
@@ -440,6 +448,35 @@ def skeleton_motion(
         return Motion(poses=poses, trans=trans, fps=sk.fps, name=p.stem, meta=meta)
     except InputError as e:
         raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
+
+
+def facing_turn(rest: np.ndarray, src: np.ndarray, *, min_degrees: float = 0.5) -> np.ndarray | None:
+    """The turn about +Y that makes a source skeleton's rest face +Z as SMPL's does (its left hip towards +X; the
+    shoulders where the hips are not mapped), or ``None`` when it does already (within ``min_degrees``) or they give
+    no direction.
+
+    The retargeting matches bone directions, which leaves a vertical bone's turn about itself free: a rest that faces
+    +X (an FBX character turned in its file) would give the spine, neck and knees a quarter-turn twist of their own
+    (a review measured 90 degrees).  Retargeted facing +Z and turned back, the motion keeps its heading in the world.
+    Every CMU skeleton here faces +Z already (turn ``None``).
+
+    Shapes:
+        rest: (J, 3) source rest joints (+Y up); src: (24,) source joint per SMPL joint (-1: none) -> (3, 3) or None
+    """
+    left = None
+    for a, b in ((1, 2), (16, 17)):  # SMPL's left and right hip, else left and right shoulder
+        if src[a] >= 0 and src[b] >= 0:
+            d = rest[src[a]] - rest[src[b]]
+            if np.hypot(d[0], d[2]) > 1e-3 * max(float(np.linalg.norm(d)), 1e-12):
+                left = d
+                break
+    if left is None:
+        return None
+    theta = np.arctan2(-left[2], left[0])  # the source's left is R_y(theta) applied to +X
+    if abs(np.degrees(theta)) < min_degrees:
+        return None
+    c, s = np.cos(-theta), np.sin(-theta)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])  # R_y(-theta): the source's left onto +X
 
 
 def _own_rest(rest: np.ndarray, src: np.ndarray) -> np.ndarray:

@@ -3,17 +3,23 @@
 FBX is a closed format with no maintained Python reader; Blender's importer (``io_scene_fbx``, in the simulator
 environment that ``python -m segadeform.physics.setup`` makes) reads the files Mixamo, Maya, MotionBuilder,
 Unreal and Unity write.  :func:`fbx_to_bvh` runs it out of process (:mod:`.fbx_worker`, in Blender's own Python, as
-the cloth simulator runs) and writes the animated armature's motion with Blender's BVH exporter:
+the cloth simulator runs) and writes the animated armature's motion as a BVH file:
 
-* **which animation**: the armature with an animation (of several, the one with the most bones), and the
-  animation the importer gave it; ``animation=NAME`` takes another (an FBX file's takes are Blender's actions;
-  an unknown name is refused with the names there are);
+* **which armature and animation**: the animations are the actions that animate an armature's bones (a null's or
+  a camera's are not offered); by default the one the importer gave an armature, the armature with a mesh skinned
+  to it first (a character before a prop's rig), then the one with the most bones animated.  ``animation=NAME``
+  takes another, by Blender's name (``Armature|Armature|Walk``) or by the take's own (``Walk``) when one action has
+  it, on the armature whose bones it animates; an unknown name is refused with the names there are;
 * **frames**: the animation's own frame range, at the file's frame rate;
-* **units**: metres (the armature object's scale applied: an FBX in centimetres comes out in metres);
-* **axes**: Blender's (+Z up, the importer's conversion of the file's axes; the BVH reader finds the up axis);
-* **rest pose**: the armature's rest.  An FBX with a mesh skinned to the armature has its bind pose there; one
-  without (an "animation only" export) has whatever pose the file's bones stand in, which need not be a T-pose
-  or an A-pose: the result says so (``FbxMotion.skinned``) and the CLI warns.
+* **world space**: the bones' world transforms are sampled every frame, so root motion carried by the armature
+  object or by an animated parent (MotionBuilder's ``Reference`` null) is kept, and the BVH is +Y up in metres
+  whatever the FBX file's axes, units (the objects' scales applied) and bone orientations;
+* **names**: the bones' own, with white space turned into ``_`` (3ds Max's ``Bip01 L Thigh``: BVH names are one
+  word each); a bone that moves against its parent gets position channels;
+* **rest pose**: the armature's rest, placed as the armature stands at the first frame.  An FBX with a mesh skinned
+  to the armature has its bind pose there; one without (an "animation only" export) has whatever pose the file's
+  bones stand in, which need not be a T-pose or an A-pose: the result says so (``FbxMotion.skinned``) and the CLI
+  warns.
 
 The BVH is then read like any other (:func:`segadeform.motion.load_motion`: the joint names of Mixamo, Unreal,
 Unity and the rest, the retargeting onto the body).  Measured on a CMU walk taken through Blender to an FBX with
@@ -43,7 +49,8 @@ WORKER = Path(__file__).with_name("fbx_worker.py")
 @dataclasses.dataclass(frozen=True)
 class FbxMotion:
     """What :func:`fbx_to_bvh` read: the armature and animation taken, the others there are, the frames and frame
-    rate, whether a mesh is skinned to the armature (its rest is then the bind pose) and Blender's version."""
+    rate, whether a mesh is skinned to the armature (its rest is then the bind pose), Blender's version and how many
+    bone names lost their white space."""
 
     armature: str
     armatures: tuple[str, ...]
@@ -54,6 +61,7 @@ class FbxMotion:
     fps: float
     skinned: bool
     blender: str
+    renamed: int = 0
 
 
 def fbx_to_bvh(
@@ -72,7 +80,10 @@ def fbx_to_bvh(
     """
     src, dst = Path(src), Path(dst)
     check_readable(src, "FBX file")
+    if src.stat().st_size == 0:
+        raise FileFormatError("empty file", path=src, expected="an FBX file")
     exe = find_sim_python(sim_python)
+    part = dst.with_name(dst.name + ".part")  # the worker writes here and renames it when complete
     with tempfile.TemporaryDirectory(prefix="segadeform-fbx-") as tmp:
         info_path = Path(tmp) / "info.json"
         cmd = [str(exe), str(WORKER), str(src.resolve()), str(Path(dst).resolve()), str(info_path)]
@@ -83,8 +94,13 @@ def fbx_to_bvh(
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tmp, timeout=timeout)
         except subprocess.TimeoutExpired:
+            part.unlink(missing_ok=True)
             raise SimulationError(f"{src}: Blender ran past its {timeout:.0f} s limit reading the FBX file") from None
+        except BaseException:
+            part.unlink(missing_ok=True)
+            raise
         if proc.returncode != 0 or not info_path.is_file():
+            part.unlink(missing_ok=True)
             tail = [s for s in (proc.stderr or proc.stdout or "").strip().splitlines() if s.strip()][-1:]
             why = f": {tail[0]}" if tail else ""
             raise SimulationError(f"{src}: Blender failed reading the FBX file (exit {proc.returncode}){why}")
@@ -102,5 +118,6 @@ def fbx_to_bvh(
         frames=int(info["frames"]),
         fps=float(info["fps"]),
         skinned=bool(info["skinned"]),
+        renamed=int(info.get("renamed", 0)),
         blender=str(info["blender"]),
     )
