@@ -66,14 +66,22 @@ class _Rename(logging.Filter):
 
 @contextlib.contextmanager
 def as_the_fbx(bvh: Path, fbx: Path) -> Iterator[None]:
-    """While reading the BVH made of ``fbx``: its errors and segadeform's warnings name the FBX file (a filter on
-    each of segadeform's loggers: a logger's filters see only its own records)."""
+    """While reading the BVH made of ``fbx``: its errors and segadeform's warnings name the FBX file.  The warnings
+    go through a filter on the handlers that print them (with none configured, as in the command line, a handler
+    that prints them as Python's last resort does: the message alone, to stderr)."""
     from segadeform.errors import InputError
 
     f = _Rename(bvh, fbx)
-    loggers = [logging.getLogger(n) for n in list(logging.root.manager.loggerDict) if n.startswith("segadeform")]
-    for lg in loggers:
-        lg.addFilter(f)
+    pkg = logging.getLogger("segadeform")
+    handlers = [*logging.root.handlers, *pkg.handlers]
+    added = None
+    if not handlers:
+        added = logging.StreamHandler()  # sys.stderr at the time of the call, as the last resort's
+        added.setLevel(logging.WARNING)
+        pkg.addHandler(added)
+        handlers = [added]
+    for h in handlers:
+        h.addFilter(f)
     try:
         yield
     except InputError as e:  # the BVH's reader named the temporary file: the user's file is the FBX
@@ -83,8 +91,10 @@ def as_the_fbx(bvh: Path, fbx: Path) -> Iterator[None]:
             e.problem + " (read from the BVH Blender wrote of it)", path=fbx, expected=e.expected, got=e.got
         ) from None
     finally:
-        for lg in loggers:
-            lg.removeFilter(f)
+        for h in handlers:
+            h.removeFilter(f)
+        if added is not None:
+            pkg.removeHandler(added)
 
 
 @motion_group.command("convert")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from pathlib import Path
 
@@ -170,7 +171,10 @@ def _effects_option(text, base=None, *, check_only: bool = False):
     type=PathParam(dir_okay=False, path_type=Path),
     help="AMC motions: the ASF skeleton (default: the one .asf beside the .amc).",
 )
-@click.option("--animation", help="glTF motions (.glb/.gltf): the animation to play (default: the first).")
+@click.option(
+    "--animation",
+    help="glTF (.glb/.gltf) and FBX motions: the animation to play (default: the first; FBX: the armature's own).",
+)
 @click.option("--floor", is_flag=True, default=None, help="Move the motion so the feet touch the floor.")
 @click.option(
     "--repair-glitches",
@@ -359,36 +363,52 @@ def run_cmd(
     interactive = sys.stderr.isatty()
     from segadeform.motion import build_motion, frame_range
 
-    total = None
-    if interactive:
-        a, b = frame_range(sc.motion.frames, build_motion(sc.motion, None).n_frames)
-        total = b - a
-    from segadeform.io.output_guard import OutputGuard
+    from .motion_convert import fbx_as_bvh
 
-    guard = OutputGuard(
-        "run",
-        force=force,
-        inputs=(scene, sc.garment, sc.motion.file, sc.body, sc.motion.joint_map, sc.motion.skeleton, model or sc.model),
-    )
-    threads, threads_note = usable_threads(threads)
-    if threads_note:
-        click.echo(threads_note)
-    with click.progressbar(length=total or 1, label="deforming", file=sys.stderr, hidden=not interactive) as bar:
-        summary = run_scene(
-            sc,
-            model=model,
-            output=output,
-            batch=batch,
-            threads=threads,
-            providers=prov,
-            progress=bar.update if interactive else None,
-            cache=not no_cache,
+    given_motion = sc.motion.file  # an FBX file is read through Blender, as `motion convert` reads it
+    with contextlib.ExitStack() as stack:
+        if given_motion is not None and Path(given_motion).suffix.lower() == ".fbx":
+            read_from = stack.enter_context(fbx_as_bvh(Path(given_motion), sc.motion.animation))
+            up = "y" if sc.motion.up == "auto" else sc.motion.up  # the BVH made of an FBX is +Y up
+            sc = dataclasses.replace(sc, motion=dataclasses.replace(sc.motion, file=read_from, animation=None, up=up))
+        total = None
+        if interactive:
+            a, b = frame_range(sc.motion.frames, build_motion(sc.motion, None).n_frames)
+            total = b - a
+        from segadeform.io.output_guard import OutputGuard
+
+        guard = OutputGuard(
+            "run",
             force=force,
-            body_backend=body_backend,
-            guard=guard,
-            frames_from_scene=not frames,
-            resolution=resolution,
+            inputs=(
+                scene,
+                sc.garment,
+                given_motion,
+                sc.body,
+                sc.motion.joint_map,
+                sc.motion.skeleton,
+                model or sc.model,
+            ),
         )
+        threads, threads_note = usable_threads(threads)
+        if threads_note:
+            click.echo(threads_note)
+        with click.progressbar(length=total or 1, label="deforming", file=sys.stderr, hidden=not interactive) as bar:
+            summary = run_scene(
+                sc,
+                model=model,
+                output=output,
+                batch=batch,
+                threads=threads,
+                providers=prov,
+                progress=bar.update if interactive else None,
+                cache=not no_cache,
+                force=force,
+                body_backend=body_backend,
+                guard=guard,
+                frames_from_scene=not frames,
+                resolution=resolution,
+            )
     off = summary.effects.off()
     q = f"quality {quality}: " if quality else ""
     # a cut motion file numbers its frames from its own start, and the output keeps that numbering while --frames

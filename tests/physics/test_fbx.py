@@ -161,9 +161,48 @@ def test_motion_info_and_export_read_an_fbx_file_as_motion_convert_does(fbx, tmp
     short = [n for n in fbx_to_bvh(fbx["two-takes"], tmp_path / "t.bvh").animations if n.endswith("walk-start")][0]
     r = _cli(["motion", "export", str(fbx["two-takes"]), "--animation", short, "-o", str(tmp_path / "s.sgdm")])
     assert r.exit_code == 0 and read_motion_file(tmp_path / "s.sgdm")[0].n_frames == 40, r.output
-    # `run` and the scene readers do not read FBX: one line, with the command that does
+    # the motion readers below the command line do not read FBX: one line, with the commands that do
     with pytest.raises(FileFormatError, match="segadeform motion convert"):
         load_motion(fbx["skinned"])
+
+
+def test_run_plays_an_fbx_motion_as_the_bvh_motion_convert_writes(fbx, tmp_path):
+    from segadeform.io import read_pc2
+
+    skirt = str(REPO / "samples" / "garments" / "skirt.obj")
+    bvh = tmp_path / "walk.bvh"
+    assert _cli(["motion", "convert", str(fbx["skinned"]), "-o", str(bvh)]).exit_code == 0
+    for src, out in ((fbx["skinned"], "a.pc2"), (bvh, "b.pc2")):
+        r = _cli(
+            [
+                "run",
+                "--garment",
+                skirt,
+                "--motion",
+                str(src),
+                "--frames",
+                "0:12",
+                "--no-cache",
+                "-o",
+                str(tmp_path / out),
+            ]
+        )
+        assert r.exit_code == 0, r.output
+    np.testing.assert_array_equal(read_pc2(tmp_path / "a.pc2").frames, read_pc2(tmp_path / "b.pc2").frames)
+    r = _cli(
+        [
+            "run",
+            "--garment",
+            skirt,
+            "--motion",
+            str(fbx["skinned"]),
+            "--animation",
+            "nope",
+            "-o",
+            str(tmp_path / "c.pc2"),
+        ]
+    )
+    assert r.exit_code == 1 and "no armature animation 'nope'" in r.output and not (tmp_path / "c.pc2").exists()
 
 
 def test_root_motion_on_the_armature_object_is_kept(fbx, tmp_path):

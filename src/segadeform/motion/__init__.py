@@ -143,8 +143,8 @@ def load_motion(
         m, _ = read_motion_file(p)
     elif ext == ".fbx":  # read through Blender, a layer above this one: said, with the command that does it
         raise FileFormatError(
-            "an FBX motion is read through Blender: `segadeform motion convert FILE.fbx -o FILE.bvh` writes it as a "
-            "BVH file (motion info and motion export take the .fbx itself)",
+            "an FBX motion is read through Blender: `segadeform run`, `motion info` and `motion export` take it, and "
+            "`segadeform motion convert FILE.fbx -o FILE.bvh` writes it as a BVH file for the rest",
             path=p,
         )
     else:
