@@ -198,6 +198,27 @@ def test_a_loose_skirt_moved_gets_the_move_back(body):
             check_placement(skirt + move, rest, body.faces, path=Path("g.obj"))
 
 
+def test_a_garment_a_few_centimetres_off_is_moved_back_not_shrunk(body):
+    """A technical artist's trial: the sample dress moved 3 cm sideways was told to be read in dm with +z up and turned
+    270 degrees (a 10 cm scrap at the feet, which every command then took); a skirt 2.5 cm back was sent 35 cm down.
+    A garment a few centimetres off gets the small move onto the body, and a garment of a human's size is never told
+    to shrink below one."""
+    rest = body.shaped_vertices()[0]
+    dress = read_mesh(ROOT / "samples" / "garments" / "dress.obj").vertices
+    skirt = read_mesh(ROOT / "samples" / "garments" / "skirt.obj").vertices
+    for v, move, words in (
+        (dress, [0.03, 0.0, 0.0], r"3 cm to the body's right .*--offset -0\.03,0\.00,0\.00"),
+        (dress, [0.06, 0.0, 0.0], r"--offset -0\.06,0\.00,0\.00"),
+        (dress, [0.0, 0.0, -0.025], r"--offset 0\.00,0\.00,0\.04"),
+        (skirt, [0.0, 0.0, -0.025], r"--offset 0\.00,0\.0\d,0\.04"),
+        (skirt, [0.06, 0.0, 0.0], r"--offset -0\.06,0\.0\d,0\.00"),
+    ):
+        with pytest.raises(PlacementError, match=words) as ei:
+            check_placement(v + move, rest, body.faces, path=Path("g.obj"))
+        assert "--units" not in str(ei.value) and "--turn" not in str(ei.value) and "--scale" not in str(ei.value)
+        assert "another body's origin" not in str(ei.value)
+
+
 def test_vertices_in_no_face_are_left_out(body):
     """A user's trial: 100 stray vertices (in no face) tipped the check and got the advice of another origin."""
     skirt = read_mesh(ROOT / "samples" / "garments" / "skirt.obj")
