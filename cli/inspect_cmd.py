@@ -365,6 +365,17 @@ def _mesh_defects(vertices, faces) -> None:
         else "  no duplicated or degenerate faces, isolated vertices, non-manifold or misoriented edges, or coincident "
         "boundary vertices"
     )
+    from segadeform.geometry.mesh_ops import SMALL_PIECE, small_pieces
+
+    pieces = small_pieces(vertices, faces)
+    if len(pieces):  # stray triangles: each an opening the model counts (a technical artist's trial: unsaid)
+        click.echo(
+            f"  {len(pieces)} small loose piece{'s' if len(pieces) > 1 else ''} ({int(pieces.sum())} faces in all, "
+            f"each under {100 * SMALL_PIECE:g} % of the faces: "
+            + ", ".join(str(int(n)) for n in pieces[:8])
+            + (" ..." if len(pieces) > 8 else "")
+            + "): each is an opening the model reads; delete them if they are not part of the garment"
+        )
 
 
 def _inspect_toml(path) -> None:

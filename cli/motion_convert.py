@@ -113,7 +113,7 @@ def convert_cmd(source, output, animation, sim_python):
     Blender's FBX importer (the simulator environment: python -m segadeform.physics.setup).
 
     The BVH is in metres, +Y up, in world space (root motion on the armature object or a parent null kept), over
-    the animation's frames at its frame rate; every command that takes a motion reads it (motion info and motion
+    the animation's frames at its frame rate; every command that takes a motion reads it (run, motion info and motion
     export also take the .fbx itself)."""
     from segadeform.errors import InputError
     from segadeform.io.atomic import atomic_path

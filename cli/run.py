@@ -75,7 +75,7 @@ def _effects_option(text, base=None, *, check_only: bool = False):
     "--motion",
     "motion_path",
     type=PathParam(dir_okay=False, path_type=Path),
-    help="Motion .npz/.bvh/.amc/.glb/.gltf/.sgdm (flag form; CMU's .amc is read at 120 fps).",
+    help="Motion .npz/.bvh/.amc/.glb/.gltf/.sgdm, or .fbx through Blender (flag form; CMU's .amc at 120 fps).",
 )
 @click.option(
     "--body",

@@ -154,3 +154,37 @@ def test_coincident_boundary_vertices_are_a_seam_to_weld():
     assert mesh_defects(v, f)["coincident"] == 0
     tiny = np.array([[0.0, 0, 0], [1e-9, 0, 0], [0, 1, 0]])
     assert mesh_defects(tiny, np.array([[0, 1, 2]]))["coincident"] == 0
+
+
+def test_small_pieces_are_stray_triangles_not_a_seam_or_a_belt():
+    """A technical artist's trial: four stray triangles by a belt made a dress "9 openings" and moved it up to
+    10.8 cm, with no word.  small_pieces counts pieces under 0.5 % of the faces; a mesh split at its UV seams is one
+    piece (welded first), and a belt (a few % of the faces) is not small."""
+    from pathlib import Path
+
+    from segadeform.geometry.mesh_ops import small_pieces
+    from segadeform.io import read_mesh
+
+    m = read_mesh(Path(__file__).resolve().parents[2] / "samples" / "garments" / "dress.obj")
+    v, f = m.vertices, m.faces
+    assert len(small_pieces(v, f)) == 0
+    strays = np.array([[0.30, 1.0, 0.0], [0.31, 1.0, 0.0], [0.30, 1.01, 0.0]])
+    v2 = np.concatenate([v, strays, strays + [0, 0.05, 0]])
+    n = len(v)
+    f2 = np.concatenate([f, [[n, n + 1, n + 2], [n + 3, n + 4, n + 5]]])
+    np.testing.assert_array_equal(small_pieces(v2, f2), [1, 1])
+    # the dress split along its centre line, as exports split vertices at UV seams: welded, it is one piece
+    from segadeform.geometry.mesh_ops import mesh_defects
+    from tests.conftest import split_at_a_seam
+
+    sv, sf, copied = split_at_a_seam(m)
+    assert copied > 0 and mesh_defects(sv, sf)["coincident"] > 0
+    assert len(small_pieces(sv, sf)) == 0
+    # a belt: a ring of 60 faces (1.2 % of the dress's) is a piece, not a small one
+    ring = np.array(
+        [[0.2 * np.cos(a), 1.0 + dy, 0.2 * np.sin(a)] for a in np.linspace(0, 2 * np.pi, 30, False) for dy in (0, 0.03)]
+    )
+    k = len(v)
+    rf = [[k + 2 * i, k + 2 * ((i + 1) % 30), k + 2 * i + 1] for i in range(30)]
+    rf += [[k + 2 * i + 1, k + 2 * ((i + 1) % 30), k + 2 * ((i + 1) % 30) + 1] for i in range(30)]
+    assert len(small_pieces(np.concatenate([v, ring]), np.concatenate([f, rf]))) == 0

@@ -11,7 +11,7 @@ are required; relative paths are relative to the scene file)::
     betas = [0.0, 0.5]             # up to the body's shape coefficients; the rest are 0
 
     [motion]                       # a file ...
-    file = "../motions/walk.npz"   # .npz (AMASS-style), .bvh, .amc (CMU ASF/AMC), .glb/.gltf or .sgdm
+    file = "../motions/walk.npz"   # .npz (AMASS-style), .bvh, .amc (CMU ASF/AMC), .glb/.gltf, .sgdm; .fbx (run only)
     # ... or a procedural kind:
     # kind = "walk"; seconds = 3.0; speed = 1.0; amplitude = 1.0; seed = 0
     fps = 30.0                     # resample the motion to this rate (default: the motion's own)
@@ -20,7 +20,7 @@ are required; relative paths are relative to the scene file)::
     units = "cm"                   # BVH: metres per file unit or m|dm|cm|mm|inch|cmu (default: fit the legs)
     joint_map = "map.toml"         # BVH: SMPL name = "file joint name" for skeletons not recognised
     skeleton = "16.asf"            # AMC: its ASF skeleton (default: the one .asf beside the .amc)
-    animation = "Walk"             # glTF (.glb/.gltf): which animation (default: the first)
+    animation = "Walk"             # glTF (.glb/.gltf) or FBX: which animation (default: the first; FBX: the rig's own)
     floor = false                  # move the motion so the feet touch the floor
     repair_glitches = false        # motion capture: hold the first settled pose over the frames its solve
                                    # settles from, rebuild frames it jumps to and back from (faster than
@@ -122,7 +122,7 @@ class MotionSpec:
     joint_map: Path | None = None
     floor: bool = False
     skeleton: Path | None = None  # an AMC's ASF (default: the one .asf beside it)
-    animation: str | None = None  # a glTF file's animation (default: the first)
+    animation: str | None = None  # a glTF or FBX file's animation (default: the first; FBX: the rig's own)
     repair_glitches: bool = False  # motion capture's settling frames and jumps repaired (frame count kept)
 
     def __post_init__(self):
