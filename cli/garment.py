@@ -182,7 +182,13 @@ def garment_fit_cmd(
     from segadeform.body.placement import fix_units_and_axes, placement_report, push_off_body
     from segadeform.bounds import check_betas, check_body_height
     from segadeform.errors import InputError
-    from segadeform.garments.registration import edge_distortion, fit_mhclo, fit_to_body_mesh, guess_units_and_up
+    from segadeform.garments.registration import (
+        edge_distortion,
+        fit_mhclo,
+        fit_to_body_mesh,
+        folded_edges,
+        guess_units_and_up,
+    )
     from segadeform.geometry.mesh_ops import check_has_area, coincident_map, surface_faces
     from segadeform.io import read_mesh
     from segadeform.io.mhclo import read_mhclo
@@ -292,6 +298,16 @@ def garment_fit_cmd(
                 "walking or a T- or A-pose -- a leg raised high, a deep crouch -- or other units or up axis)",
                 path=garment,
                 expected="a source body standing, walking or near a T- or A-pose (--units/--up if misread), or --force",
+            )
+        new_folds = folded_edges(v, g.faces) - folded_edges(g_v, g.faces)
+        if new_folds > 0.001 * len(g.faces):  # a dense garment on a coarse body follows its facets: said, with the
+            # count (a technical artist's 20k-vertex dress came out with 544 folded pairs and no word)
+            click.echo(
+                f"warning: the fit folded {new_folds} pairs of neighbouring faces onto each other (more than 90 "
+                f"degrees apart; {folded_edges(g_v, g.faces)} before): a zig-zag where the garment follows the facets "
+                f"of {from_body.name}, which is coarser than the garment; look at it before you run it (a denser "
+                "source body, or the garment at a lower resolution, folds less)",
+                err=True,
             )
         turned = f", turned {turn:g} degrees" if turn % 360 else ""
         how = f"registered to {from_body.name}{read_as}{turned} (body fit {100 * fit.body_error:.1f} cm mean)"

@@ -850,3 +850,23 @@ def test_a_garment_facing_another_way_is_named_with_the_turn(tmp_path, body):
     np.testing.assert_allclose(read_mesh(out).vertices, g.vertices, atol=1e-5)
     r = fit("--mhclo", str(SAMPLES / "skirt_short_f.mhclo"), "--turn", "90")
     assert r.exit_code == 1 and "got --turn" in r.output, r.output
+
+
+def test_folded_edges_counts_faces_folded_onto_each_other():
+    """A technical artist's trial: `garment fit --from-body` carried a 20k-vertex dress onto a coarser body's facets
+    and folded 544 pairs of neighbouring faces (a zig-zag down the skirt) with no word; the fit now says how many it
+    added.  The count: a flat sheet and the sample dress have none; a sheet folded in half along a grid line has one
+    per edge of the crease."""
+    from segadeform.garments.registration import folded_edges
+    from segadeform.geometry.primitives import grid_plane
+
+    v, f = grid_plane(9, 9)  # x in [-0.5, 0.5] or [0, 1]: the crease on its middle grid line
+    assert folded_edges(v, f) == 0
+    sheet = read_mesh(ROOT / "samples" / "garments" / "dress.obj")
+    assert folded_edges(sheet.vertices, sheet.faces) == 0
+    mid = np.unique(v[:, 0])[4]
+    w = v.copy()
+    right = v[:, 0] > mid + 1e-9
+    w[right, 0] = 2 * mid - v[right, 0]  # the right half laid back over the left ...
+    w[right, 1] += 1e-3 * (v[right, 0] - mid)  # ... just above it
+    assert folded_edges(w, f) == 8  # the 8 edges of the crease

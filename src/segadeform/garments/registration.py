@@ -34,7 +34,7 @@ from ..errors import FileFormatError, InputError
 from ..geometry.mesh_ops import adjacency, face_areas, face_cross, vertex_normals
 from ..io.mhclo import MhcloBinding
 
-__all__ = ["fit_mhclo", "fit_to_body_mesh", "BodyFit", "guess_units_and_up", "edge_distortion"]
+__all__ = ["fit_mhclo", "fit_to_body_mesh", "BodyFit", "guess_units_and_up", "edge_distortion", "folded_edges"]
 
 _MH_TO_M = 0.1  # MakeHuman mesh units are decimetres
 
@@ -451,6 +451,29 @@ def guess_units_and_up(vertices, *, units=None, up=None) -> tuple[str, str, floa
                 got=f"{height:g}",
             )
     return str(units), up, height
+
+
+def folded_edges(vertices, faces) -> int:
+    """How many edges of a mesh join two faces folded onto each other (their normals more than 90 degrees apart:
+    a crease sharper than any cloth's rest shape; a fit that follows a coarse body's facets leaves a zig-zag of them).
+
+    Shapes:
+        vertices: (N, 3); faces: (F, 3)
+    """
+    f = np.asarray(faces, np.int64)
+    if f.size == 0:
+        return 0
+    v = np.asarray(vertices, np.float64)
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    key = np.sort(e, axis=1)
+    owner = np.tile(np.arange(len(f)), 3)
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    k, o = key[order], owner[order]
+    same = np.all(k[1:] == k[:-1], axis=1)  # consecutive rows of one edge: the two faces that share it
+    a, b = o[:-1][same], o[1:][same]
+    return int((np.einsum("ij,ij->i", n[a], n[b]) < 0.0).sum())
 
 
 def edge_distortion(before, after, faces, *, factor: float = 2.0) -> tuple[float, float]:
