@@ -191,6 +191,7 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         """The garment's and the body's frames ``ks`` (the body None without one)."""
         return drawn(G, result, ks, scale["g"]), None if B is None else drawn(B, body_seq, ks, scale["b"])
 
+    _say_units_and_up(read([idx[0]]), result, body_seq, up, output_units)
     # one scale for the whole animation (the largest frame), the camera following the subject: the frames drawn
     # are framed a bounded chunk at a time, then read again one by one to be drawn (all at once when one chunk)
     per = max(1, CHUNK_VALUES // (3 * (G.shape[1] + (0 if B is None else B.shape[1]))))
@@ -229,3 +230,29 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         )
     else:
         click.echo(f"{len(images)} frames rendered -> {output}")
+
+
+def _say_units_and_up(first, result, body_seq, up, output_units) -> None:
+    """Warn when the first frame drawn does not look like a person in metres, +Y up: a result written in centimetres
+    or with +Z up (run --output-units, --up) that nothing records was drawn 100 times too big or lying on its back,
+    with no word (a technical artist's trial).  The body is judged when there is one (it stands), else the garment
+    when it is far taller along z than y."""
+    import numpy as np
+
+    g, b = first
+    pts = (b if b is not None else g)[0]
+    ext = np.ptp(pts, axis=0)
+    what = body_seq.name if b is not None else result.name
+    if output_units is None and ext.max() > 10.0:
+        click.echo(
+            f"warning: {what} is {ext.max():.0f} m across as read (metres): written in other units (run --output-units "
+            "cm ...)? pass the same --output-units to preview",
+            err=True,
+        )
+    tall_z = ext[2] > (1.5 if b is not None else 2.0) * ext[1]
+    if up != "z" and tall_z:
+        click.echo(
+            f"warning: {what} stands along z as read (+Y up): written with +Z up (run --up z)? pass --up z to preview",
+            err=True,
+        )
+

@@ -532,3 +532,39 @@ def test_inspect_names_frames_by_the_files_own_numbers(tmp_path):
     (tmp_path / "b.pc2").write_bytes(bytes(raw))
     r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "b.pc2")])
     assert r.exit_code == 1 and "in 1 frames (12)" in r.output, r.output
+
+
+def test_preview_says_a_result_that_looks_written_in_centimetres_or_z_up(tmp_path):
+    """A technical artist's trial: a centimetre, +Z-up point cache (run --output-units cm --up z; a PC2 records
+    neither) was drawn lying on its back, 100 times too big, with no word.  Preview says what it looks like and the
+    options that read it; with them, nothing is said."""
+    from pathlib import Path
+
+    from segadeform.io import read_mesh
+
+    skirt = read_mesh(Path(__file__).resolve().parents[2] / "samples" / "garments" / "dress.obj")
+    v = skirt.vertices
+    z_up_cm = np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1) * 100.0  # (x, y, z) -> (x, -z, y), in cm
+    write_pc2(tmp_path / "d.pc2", np.stack([z_up_cm, z_up_cm]))
+    write_obj(tmp_path / "d.obj", Mesh(v, skirt.faces))
+    base = ["preview", str(tmp_path / "d.pc2"), "--garment", str(tmp_path / "d.obj"), "--size", "40x60"]
+    r = CliRunner().invoke(cli, [*base, "-o", str(tmp_path / "a.png")])
+    assert r.exit_code == 0, r.output
+    assert "pass the same --output-units" in r.output and "pass --up z" in r.output, r.output
+    r = CliRunner().invoke(cli, [*base, "--up", "z", "--output-units", "cm", "-o", str(tmp_path / "b.png")])
+    assert r.exit_code == 0 and "warning" not in r.output, r.output
+    write_pc2(tmp_path / "m.pc2", np.stack([v, v]))  # metres, +Y up: nothing said
+    r = CliRunner().invoke(
+        cli,
+        [
+            "preview",
+            str(tmp_path / "m.pc2"),
+            "--garment",
+            str(tmp_path / "d.obj"),
+            "--size",
+            "40x60",
+            "-o",
+            str(tmp_path / "c.png"),
+        ],
+    )
+    assert r.exit_code == 0 and "warning" not in r.output, r.output
