@@ -8,8 +8,8 @@ from pathlib import Path
 
 from segadeform.physics.blender import find_sim_python
 
-#: run by Blender's Python: SCRIPT BVH DST MODE...  (modes: skinned, mixamo, spaces, cm, turned, objroot, two-takes,
-#: prop, still, no-armature)
+#: run by Blender's Python: SCRIPT BVH DST MODE...  (modes: skinned, mixamo, spaces, fps30, cm, turned, objroot,
+#: two-takes, prop, still, no-armature)
 SCRIPT = r"""
 import sys, bpy
 src, dst, modes = sys.argv[1], sys.argv[2], set(sys.argv[3:])
@@ -24,6 +24,8 @@ arm.name = "Armature"
 if "mixamo" in modes:
     for b in arm.data.bones:
         b.name = "mixamorig:" + b.name
+if "fps30" in modes:  # a 30 fps scene
+    bpy.context.scene.render.fps, bpy.context.scene.render.fps_base = 30, 1.0  # (any rate: 30 is a common one)
 if "spaces" in modes:  # 3ds Max Biped's names
     for b in arm.data.bones:
         b.name = "Bip01 " + b.name

@@ -33,6 +33,7 @@ def fbx(tmp_path_factory):
         "objroot": ("skinned", "objroot"),
         "turned-biped": ("skinned", "turned", "spaces"),
         "with-prop": ("skinned", "prop"),
+        "fps30": ("skinned", "fps30"),
         "still": ("still",),
         "no-armature": ("no-armature",),
     }
@@ -264,3 +265,11 @@ def test_an_empty_file_and_a_failed_worker_leave_nothing(tmp_path):
     with pytest.raises(SimulationError, match="exit 3"):
         fbx_to_bvh(src, tmp_path / "x.bvh", sim_python=fake)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.fbx", "python"]
+
+
+def test_a_30_fps_file_comes_back_at_30_fps(fbx, tmp_path):
+    """The BVH's Frame Time was written to 9 decimals, 0.033333333, which reads back as 30.0000003 fps: a Node game
+    loop opened at 30 fps then differed from the command line by 5.7e-6 m (a trial).  It is written to 17 digits."""
+    got = fbx_to_bvh(fbx["fps30"], tmp_path / "w.bvh")
+    assert got.fps == 30.0
+    assert read_bvh_skeleton(tmp_path / "w.bvh").fps == pytest.approx(30.0, rel=1e-12)

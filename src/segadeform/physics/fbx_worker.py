@@ -140,7 +140,7 @@ def _write_bvh(path, names, parents, offsets, ends, channels, frames, fps):
         for r in roots:
             joint(r, 1)
         lines.append("}")
-    lines += ["MOTION", f"Frames: {len(frames)}", "Frame Time: %.9f" % (1.0 / fps)]
+    lines += ["MOTION", f"Frames: {len(frames)}", f"Frame Time: {1.0 / fps:.17g}"]  # 1/x gives the rate back
     for fr in frames:
         vals = []
         for j in order:
