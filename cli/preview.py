@@ -255,4 +255,3 @@ def _say_units_and_up(first, result, body_seq, up, output_units) -> None:
             f"warning: {what} stands along z as read (+Y up): written with +Z up (run --up z)? pass --up z to preview",
             err=True,
         )
-
