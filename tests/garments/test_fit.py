@@ -870,3 +870,27 @@ def test_folded_edges_counts_faces_folded_onto_each_other():
     w[right, 0] = 2 * mid - v[right, 0]  # the right half laid back over the left ...
     w[right, 1] += 1e-3 * (v[right, 0] - mid)  # ... just above it
     assert folded_edges(w, f) == 8  # the 8 edges of the crease
+
+
+def test_the_carry_is_smoothed_over_the_garment_so_a_coarse_body_leaves_no_zig_zag():
+    """The carried displacement is smoothed over the garment's own edges (registration._smooth_carry): a dense sheet
+    carried by a moved, turned frame plus a zig-zag across it (each vertex's offset turned with a coarse body's
+    triangle: a technical artist's 20k-vertex dress came out with 433 folded pairs) keeps the move and the turn and
+    loses the zig-zag's folds.  Measured end to end by hand: the sample dress subdivided (9,800 vertices) fitted from
+    the default body decimated to 1,498 vertices, 312 folded pairs without the smoothing, 9 with it."""
+    from segadeform.garments.registration import _smooth_carry, folded_edges
+    from segadeform.geometry.primitives import grid_plane
+
+    v, f = grid_plane(40, 40, (0.5, 0.5))
+    turn = np.array([[np.cos(0.3), 0.0, np.sin(0.3)], [0.0, 1.0, 0.0], [-np.sin(0.3), 0.0, np.cos(0.3)]])
+    rigid = v @ turn.T + [0.1, 1.0, -0.2]
+    ij = np.round(v[:, [0, 2]] / (0.5 / 39)).astype(int)
+    zig = rigid + np.array([0.0, 0.02, 0.0]) * ((ij.sum(axis=1) % 2) * 2 - 1)[:, None]  # 2 cm up and down, alternately
+    assert folded_edges(zig, f) > 100
+    out = _smooth_carry(v, zig, f)
+    assert folded_edges(out, f) == 0
+    inner = (ij.min(axis=1) >= 5) & (ij.max(axis=1) <= 34)  # away from the sheet's border
+    assert np.abs(out - rigid)[inner].max() < 0.01  # the move and the turn kept, the 2 cm zig-zag down to < 1 cm
+    # a vertex in no face keeps its own displacement
+    v2, z2 = np.concatenate([v, [[9.0, 9.0, 9.0]]]), np.concatenate([zig, [[1.0, 2.0, 3.0]]])
+    np.testing.assert_array_equal(_smooth_carry(v2, z2, f)[-1], [1.0, 2.0, 3.0])

@@ -404,7 +404,27 @@ def fit_to_body_mesh(
     c_r = np.einsum("mk,mkc->mc", bary, R[body.faces[face]])
     r1, r2, rn = _local_frames(R, body.faces, face)
     out = c_r + coef[:, :1] * r1 + coef[:, 1:2] * r2 + coef[:, 2:] * rn
+    if garment_faces is not None:
+        out = _smooth_carry(g, out, garment_faces)
     return BodyFit(vertices=out, body_error=body_error, scale=scale_f, trans=np.asarray(t), pose=th, betas=beta)
+
+
+def _smooth_carry(g: np.ndarray, out: np.ndarray, faces, iterations: int = 10) -> np.ndarray:
+    """The carried garment with its displacement ``out - g`` smoothed over the garment's own edges (``iterations``
+    steps halfway to the neighbours' mean, as the body surface's correction above).  Neighbouring garment vertices
+    attached to neighbouring triangles of a body coarser than the garment turn with those triangles' frames, so a
+    loose garment's offsets came out in a zig-zag: a technical artist's 20k-vertex dress had 433 pairs of faces
+    folded onto each other after the fit; smoothed, 3, the vertices moved 1.2 mm on average and none into the body
+    (docs/garment-fit.md, "Folds")."""
+    f = np.asarray(faces, np.int64)
+    A = adjacency(f, len(g)).tocsr()
+    A.data[:] = 1.0
+    deg = np.asarray(A.sum(axis=1)).ravel()
+    d = out - g
+    alone = (deg == 0)[:, None]  # a vertex in no face keeps its own
+    for _ in range(iterations):
+        d = 0.5 * d + 0.5 * np.where(alone, d, (A @ d) / np.maximum(deg, 1)[:, None])
+    return g + d
 
 
 #: a standing adult's height in metres: the range :func:`guess_units_and_up` reads a body mesh's units from
