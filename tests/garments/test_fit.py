@@ -514,8 +514,10 @@ def test_a_mesh_wound_inward_gives_the_same_fit(body):
     np.testing.assert_allclose(b.pose, a.pose, atol=1e-6)  # the same registration
     d = np.linalg.norm(a.vertices - b.vertices, axis=1)
     # the same attachment but where a tie (a normal at right angles to the other's, a point on an edge between two
-    # triangles) is decided by rounding: measured 2.3 % of vertices moved more than 1 mm, 0.17 mm on average
-    assert np.median(d) < 1e-9 and (d > 1e-3).mean() < 0.05 and d.mean() < 1e-3, (np.median(d), d.mean())
+    # triangles) is decided by rounding: measured 2.3 % of vertices moved more than 1 mm, 0.17 mm on average; the
+    # carry's smoothing over the garment (registration._smooth_carry) spreads those few over their neighbours:
+    # median 0.025 mm, mean 0.10 mm
+    assert np.median(d) < 1e-4 and (d > 1e-3).mean() < 0.05 and d.mean() < 1e-3, (np.median(d), d.mean())
 
 
 def _walls(spec, n: int = 6, width: float = 0.1):
