@@ -246,10 +246,11 @@ def _say_units_and_up(first, result, body_seq, up, output_units) -> None:
     if output_units is None and ext.max() > 10.0:
         click.echo(
             f"warning: {what} is {ext.max():.0f} m across as read (metres): written in other units (run --output-units "
-            "cm ...)? pass the same --output-units to preview",
+            f"{'mm' if ext.max() > 300.0 else 'cm'} ...)? pass the same --output-units to preview",
             err=True,
         )
-    tall_z = ext[2] > (1.5 if b is not None else 2.0) * ext[1]
+    # a garment alone: only one tall enough to be a body's length (a belt or a collar is flat top to bottom: a review)
+    tall_z = ext[2] > 1.5 * ext[1] if b is not None else (ext[2] > 2.0 * ext[1] and ext[2] > 0.5)
     if up != "z" and tall_z:
         click.echo(
             f"warning: {what} stands along z as read (+Y up): written with +Z up (run --up z)? pass --up z to preview",

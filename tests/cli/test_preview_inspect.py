@@ -553,6 +553,26 @@ def test_preview_says_a_result_that_looks_written_in_centimetres_or_z_up(tmp_pat
     assert "pass the same --output-units" in r.output and "pass --up z" in r.output, r.output
     r = CliRunner().invoke(cli, [*base, "--up", "z", "--output-units", "cm", "-o", str(tmp_path / "b.png")])
     assert r.exit_code == 0 and "warning" not in r.output, r.output
+    # a belt alone (40 x 6 x 26 cm: flat top to bottom, metres, +Y up) is not taken for a +Z-up result (a review)
+    a = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    ring = np.array([[0.2 * np.cos(t), 1.0 + dy, 0.13 * np.sin(t)] for t in a for dy in (0.0, 0.06)])
+    rf = [[2 * i, 2 * ((i + 1) % 24), 2 * i + 1] for i in range(24)]
+    write_obj(tmp_path / "belt.obj", Mesh(ring, np.array(rf)))
+    write_pc2(tmp_path / "belt.pc2", np.stack([ring, ring]))
+    r = CliRunner().invoke(
+        cli,
+        [
+            "preview",
+            str(tmp_path / "belt.pc2"),
+            "--garment",
+            str(tmp_path / "belt.obj"),
+            "--size",
+            "40x60",
+            "-o",
+            str(tmp_path / "belt.png"),
+        ],
+    )
+    assert r.exit_code == 0 and "warning" not in r.output, r.output
     write_pc2(tmp_path / "m.pc2", np.stack([v, v]))  # metres, +Y up: nothing said
     r = CliRunner().invoke(
         cli,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -217,6 +218,13 @@ def test_a_garment_a_few_centimetres_off_is_moved_back_not_shrunk(body):
             check_placement(v + move, rest, body.faces, path=Path("g.obj"))
         assert "--units" not in str(ei.value) and "--turn" not in str(ei.value) and "--scale" not in str(ei.value)
         assert "another body's origin" not in str(ei.value)
+    # the advice as printed (rounded to cm) puts it on the body: the dress 3 cm off on every axis (a review: the
+    # rounded offset once failed the check it came from) -- and no "-0.00"
+    with pytest.raises(PlacementError) as ei:
+        check_placement(dress + [0.03, 0.03, 0.03], rest, body.faces, path=Path("g.obj"))
+    printed = re.search(r"--offset ([-0-9.]+),([-0-9.]+),([-0-9.]+)", str(ei.value))
+    assert printed is not None and "-0.00" not in str(ei.value), str(ei.value)
+    check_placement(dress + [0.03, 0.03, 0.03] + np.array([float(x) for x in printed.groups()]), rest, body.faces)
 
 
 def test_vertices_in_no_face_are_left_out(body):

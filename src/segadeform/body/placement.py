@@ -296,9 +296,10 @@ def _small_offset_fix(v, bv, proxy, top, floor) -> tuple[np.ndarray, str] | None
     closest to the skin (median distance, within 5 mm), the shortest."""
     centre = -_centre_offset(v, bv)
     cands = []
-    for s in (centre, np.array([centre[0], 0.0, 0.0]), np.array([0.0, 0.0, centre[2]]), np.zeros(3)):
+    c = np.round(centre, 2)  # the offsets as the advice prints them (rounded, one printed could fail: a review)
+    for s in (c, np.array([c[0], 0.0, 0.0]), np.array([0.0, 0.0, c[2]]), np.zeros(3)):
         for dy in np.round(np.arange(-0.10, 0.101, 0.01), 2):
-            off = s + np.array([0.0, dy, 0.0])
+            off = s + np.array([0.0, dy, 0.0]) + 0.0  # + 0.0: no -0.00 printed
             if 0.005 <= np.abs(off).max() <= 0.25:
                 st = _stats(v + off, proxy, top, floor)
                 if _fits(st):
