@@ -90,7 +90,7 @@ def info_cmd(motion, body, up, units, joint_map, skeleton, animation):
     from segadeform.motion import load_motion
     from segadeform.motion.limits import limit_violation
 
-    from .motion_convert import fbx_as_bvh
+    from .motion_convert import bvh_up, fbx_as_bvh
 
     J = load_body(body or default_body_path()).rest_joints()[0]
     try:
@@ -102,7 +102,7 @@ def info_cmd(motion, body, up, units, joint_map, skeleton, animation):
         m = load_motion(
             path,
             rest_joints=J,
-            up="y" if fbx and up == "auto" else up,  # the BVH made of an FBX is +Y up
+            up=bvh_up(up) if fbx else up,
             units=units_v,
             joint_map=joint_map,
             skeleton=skeleton,

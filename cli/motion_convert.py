@@ -33,6 +33,11 @@ def _say(src: Path, got) -> None:
         )
 
 
+def bvh_up(up: str) -> str:
+    """The up axis to read the BVH made of an FBX file with: +Y (the worker writes it so), unless one is given."""
+    return "y" if up == "auto" else up
+
+
 @contextlib.contextmanager
 def fbx_as_bvh(path: Path, animation: str | None, sim_python=None) -> Iterator[Path]:
     """``path`` itself, or for an ``.fbx`` the BVH that Blender makes of it in a temporary folder (removed after),

@@ -146,11 +146,11 @@ def motion_export_cmd(
         from segadeform.bounds import check_body_height
 
         check_body_height(b, beta_vals)
-    from .motion_convert import fbx_as_bvh
+    from .motion_convert import bvh_up, fbx_as_bvh
 
     with fbx_as_bvh(path, animation if fbx else None) as read_from:  # an FBX file: the BVH Blender writes of it
         if fbx:  # the BVH made of an FBX is +Y up
-            spec = dataclasses.replace(spec, file=read_from, up="y" if spec.up == "auto" else spec.up)
+            spec = dataclasses.replace(spec, file=read_from, up=bvh_up(spec.up))
         built = build_motion(spec, b.rest_joints(beta_vals)[0])
     settle, jumps = glitches_in_range(built, parse_frames(frames) if frames else None)
     m, first = select_frames(built, parse_frames(frames) if frames else None)
