@@ -65,8 +65,11 @@ class _Group(click.Group):
         return super().parse_args(ctx, args)
 
     def invoke(self, ctx):
+        from segadeform.io.output_guard import tidy_on_failure
+
         try:
-            return super().invoke(ctx)
+            with tidy_on_failure():  # a command that fails or is stopped leaves no empty output folder
+                return super().invoke(ctx)
         except SegadeformError as e:
             raise click.ClickException(str(e)) from None
         except MemoryError:

@@ -94,3 +94,27 @@ def test_a_command_interrupted_says_so_in_one_line_and_writes_nothing(tmp_path, 
     assert main(["motion", "make", "walk", "--seconds", "0.5", "-o", str(out)]) == 1
     err = capsys.readouterr().err
     assert err == f"Error: {INTERRUPTED}\n" and "Aborted" not in err and not out.exists()
+
+
+def test_a_run_interrupted_while_writing_leaves_no_empty_folder(tmp_path, monkeypatch, capsys):
+    """`run -o new/deeper/out.pc2` stopped after its writer had begun left `new/deeper/` behind, empty (a session's
+    trial with SIGTERM); the folders a stopped command made for its outputs go with its temporaries."""
+    import segadeform.io.pc2
+    from segadeform.cli.main import INTERRUPTED, main
+
+    def stop(self, frames):
+        assert self._tmp.parent.is_dir()  # the writer made the folders and its temporary: then the stop
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(segadeform.io.pc2.PC2Writer, "_append", stop)
+    out = tmp_path / "new" / "deeper" / "out.pc2"
+    argv = [
+        "run",
+        "--garment",
+        str(SAMPLES / "garments" / "skirt.obj"),
+        "--motion",
+        str(SAMPLES / "motions" / "walk.npz"),
+    ]
+    assert main([*argv, "--frames", "0:4", "-o", str(out)]) == 1
+    assert capsys.readouterr().err.endswith(f"Error: {INTERRUPTED}\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
