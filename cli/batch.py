@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 from pathlib import Path
 
 import click
@@ -75,9 +77,11 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
         click.echo(f"[{n[0]}] {rec['id']}: {how} -> {rec['output']}", err=True)
 
     try:
-        with make_executor(executor, jobs) as ex:
-            guard.start()
-            s = run_batch(cfg, out=output, executor=ex, limit=limit, progress=progress, force=force)
+        with contextlib.ExitStack() as stack:
+            cfg = _fbx_read(cfg, executor, stack)
+            with make_executor(executor, jobs) as ex:
+                guard.start()
+                s = run_batch(cfg, out=output, executor=ex, limit=limit, progress=progress, force=force)
     finally:
         guard.abandon()  # a run that made nothing leaves no empty output folder
     click.echo(
@@ -95,3 +99,30 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
             f"{f0['motion']!r}: {f0['failed']}); fix the jobs file{' or pass --force' if forced else ''}, then run "
             "again to make them"
         )
+
+
+def _fbx_read(cfg, executor: str, stack: contextlib.ExitStack):
+    """``cfg`` with each ``.fbx`` motion read from the BVH Blender makes of it (once per motion, in a temporary folder
+    that ``stack`` removes), as `segadeform run` reads one; the jobs keep the FBX file as their identity, so a batch
+    resumes.  The BVH lives on this machine: a Ray cluster's workers would not find it."""
+    from .motion_convert import motion_spec_read
+
+    fbx = [m for m in cfg.motions if m.spec.file is not None and Path(m.spec.file).suffix.lower() == ".fbx"]
+    if not fbx:
+        return cfg
+    if executor != "local":
+        from segadeform.errors import InputError
+
+        raise InputError(
+            f"motion {fbx[0].name!r} is an FBX file, which is read through Blender on this machine, and the jobs "
+            f"run on {executor}",
+            path=fbx[0].spec.file,
+            expected="--executor local, or the motion converted first (`segadeform motion convert FILE.fbx -o "
+            "FILE.bvh`) and the .bvh in the jobs file",
+            got=".fbx",
+        )
+    motions = tuple(
+        dataclasses.replace(m, read_from=stack.enter_context(motion_spec_read(m.spec))) if m in fbx else m
+        for m in cfg.motions
+    )
+    return dataclasses.replace(cfg, motions=motions)

@@ -35,7 +35,12 @@ def bundle_cmd(scene, output, model, no_expected, frames, force):
     guard.file(output)
     if frames:
         sc = dataclasses.replace(sc, motion=dataclasses.replace(sc.motion, frames=parse_frames(frames)))
-    p = scene_bundle(sc, output, model=model, expected=not no_expected, force=force)
+    from .motion_convert import motion_spec_read
+
+    with motion_spec_read(sc.motion) as motion:  # an FBX file: the BVH Blender makes of it, as `run` reads it
+        p = scene_bundle(
+            dataclasses.replace(sc, motion=motion), output, model=model, expected=not no_expected, force=force
+        )
     guard.record()
     click.echo(f"wrote {p}")
     if sc.units != 1.0:  # the runtimes write metres (a review: a scene's units were dropped without a word)

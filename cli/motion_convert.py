@@ -54,6 +54,20 @@ def fbx_as_bvh(path: Path, animation: str | None, sim_python=None) -> Iterator[P
             yield bvh
 
 
+@contextlib.contextmanager
+def motion_spec_read(spec, sim_python=None) -> Iterator:
+    """A scene's (or jobs file's) motion as it is read: ``spec`` itself, or for an ``.fbx`` file the same spec on the
+    BVH Blender makes of it (:func:`fbx_as_bvh`: its animation taken, read +Y up unless the spec says otherwise),
+    valid inside the block."""
+    import dataclasses
+
+    if spec.file is None or Path(spec.file).suffix.lower() != ".fbx":
+        yield spec
+        return
+    with fbx_as_bvh(Path(spec.file), spec.animation, sim_python) as bvh:
+        yield dataclasses.replace(spec, file=bvh, animation=None, up=bvh_up(spec.up))
+
+
 class _Rename(logging.Filter):
     """A warning that names the temporary BVH names the user's FBX file instead."""
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import sys
 from pathlib import Path
 
@@ -363,14 +362,11 @@ def run_cmd(
     interactive = sys.stderr.isatty()
     from segadeform.motion import build_motion, frame_range
 
-    from .motion_convert import bvh_up, fbx_as_bvh
+    from .motion_convert import motion_spec_read
 
     given_motion = sc.motion.file  # an FBX file is read through Blender, as `motion convert` reads it
-    with contextlib.ExitStack() as stack:
-        if given_motion is not None and Path(given_motion).suffix.lower() == ".fbx":
-            read_from = stack.enter_context(fbx_as_bvh(Path(given_motion), sc.motion.animation))
-            motion = dataclasses.replace(sc.motion, file=read_from, animation=None, up=bvh_up(sc.motion.up))
-            sc = dataclasses.replace(sc, motion=motion)
+    with motion_spec_read(sc.motion) as motion:
+        sc = dataclasses.replace(sc, motion=motion)
         total = None
         if interactive:
             a, b = frame_range(sc.motion.frames, build_motion(sc.motion, None).n_frames)

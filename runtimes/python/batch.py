@@ -108,8 +108,13 @@ class BatchGarment:
 
 @dataclasses.dataclass(frozen=True)
 class BatchMotion:
+    """A jobs file's motion: ``spec`` as the file gives it (the jobs' identity), and ``read_from``, the spec a job
+    reads instead when the command line converted it (an ``.fbx`` file: the BVH Blender made of it, on this
+    machine; its errors then name the FBX file)."""
+
     name: str
     spec: MotionSpec
+    read_from: MotionSpec | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -394,7 +399,13 @@ def run_job(job: BatchJob) -> dict:
     except WriteError:
         raise  # the output is the whole batch's: stop
     except SegadeformError as e:  # this job's inputs: the others still run; no record, so a later run tries again
-        return {"id": job.id, "garment": job.garment.name, "motion": job.motion.name, "failed": str(e)}
+        why = str(e)
+        m = job.motion
+        if m.read_from is not None and m.read_from.file is not None:  # the user's file, not the converted one
+            why = why.replace(str(m.read_from.file), str(m.spec.file)).replace(
+                Path(m.read_from.file).name, Path(str(m.spec.file)).name
+            )
+        return {"id": job.id, "garment": job.garment.name, "motion": m.name, "failed": why}
 
 
 def _run_job(job: BatchJob, loc, name: str, t0: float) -> dict:
@@ -404,7 +415,7 @@ def _run_job(job: BatchJob, loc, name: str, t0: float) -> dict:
         with loc.scratch(name) as d:
             scene = Scene(
                 garment=job.garment.mesh,
-                motion=job.motion.spec,
+                motion=job.motion.read_from or job.motion.spec,
                 output=Path(d) / name,
                 output_format=job.format,
                 up=job.up,

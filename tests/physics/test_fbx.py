@@ -273,3 +273,56 @@ def test_a_30_fps_file_comes_back_at_30_fps(fbx, tmp_path):
     got = fbx_to_bvh(fbx["fps30"], tmp_path / "w.bvh")
     assert got.fps == 30.0
     assert read_bvh_skeleton(tmp_path / "w.bvh").fps == pytest.approx(30.0, rel=1e-12)
+
+
+def test_batch_and_bundle_read_an_fbx_motion_as_run_does(fbx, tmp_path):
+    """A jobs file's motion and a scene's motion may be the .fbx itself (they took only the converted BVH): `batch`
+    writes what `run` writes of it, resumes without converting the jobs' identity away, and `bundle` packs the motion
+    `run` plays."""
+    from segadeform.io import read_pc2
+    from segadeform.io.sgdb import read_bundle
+
+    skirt = REPO / "samples" / "garments" / "skirt.obj"
+    r = _cli(
+        [
+            "run",
+            "--garment",
+            str(skirt),
+            "--motion",
+            str(fbx["skinned"]),
+            "--frames",
+            "0:12",
+            "-o",
+            str(tmp_path / "run.pc2"),
+        ]
+    )
+    assert r.exit_code == 0, r.output
+    jobs = tmp_path / "jobs.toml"
+    jobs.write_text(
+        f'[batch]\noutput = "out"\n[[garments]]\nmesh = "{skirt}"\n[[motions]]\nfile = "{fbx["skinned"]}"\n'
+        'name = "walk"\nframes = "0:12"\n'
+    )
+    r = _cli(["batch", str(jobs)])
+    assert r.exit_code == 0 and "1 made" in r.output, r.output
+    np.testing.assert_allclose(
+        read_pc2(tmp_path / "out" / "skirt__walk.pc2").frames, read_pc2(tmp_path / "run.pc2").frames, atol=1e-6
+    )
+    r = _cli(["batch", str(jobs)])  # the job's identity is the FBX file, not the temporary BVH: done
+    assert r.exit_code == 0 and "1 already done" in r.output, r.output
+    # with a Ray cluster the BVH made here would not reach the workers: one line, before anything runs
+    r = _cli(["batch", str(jobs), "-o", str(tmp_path / "ray"), "--executor", "ray://nowhere:1"])
+    assert r.exit_code == 1 and "converted first" in r.output and not (tmp_path / "ray").exists(), r.output
+    # a bundle of a scene whose motion is the FBX: the motion `run` plays (the converted BVH's), named as the file
+    bvh = tmp_path / "walk.bvh"
+    assert _cli(["motion", "convert", str(fbx["skinned"]), "-o", str(bvh)]).exit_code == 0
+    for motion, name in ((fbx["skinned"], "a"), (bvh, "b")):
+        scene = tmp_path / f"{name}.toml"
+        scene.write_text(
+            f'[garment]\nmesh = "{skirt}"\n[motion]\nfile = "{motion}"\nframes = "0:8"\n[output]\npath = "{name}.pc2"\n'
+        )
+        r = _cli(["bundle", str(scene), "--no-expected", "-o", str(tmp_path / f"{name}.sgdb")])
+        assert r.exit_code == 0, r.output
+    (a, ma), (b, mb) = read_bundle(tmp_path / "a.sgdb"), read_bundle(tmp_path / "b.sgdb")
+    np.testing.assert_array_equal(a["poses"], b["poses"])
+    np.testing.assert_array_equal(a["trans"], b["trans"])
+    assert ma["motion"] == fbx["skinned"].stem
