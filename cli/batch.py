@@ -48,7 +48,8 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
                      cloth_<knob>, up, units ("cm", as run --output-units), resolution (as run --resolution),
                      frames_per_call
       [[garments]]   mesh = "skirt.obj", and optionally name, betas = [0.0, 0.5]
-      [[motions]]    file = "walk.bvh" or kind = "walk" (with seconds, speed, amplitude, seed), and
+      [[motions]]    file = "walk.bvh" (.fbx: read through Blender, as run reads it) or kind = "walk"
+                     (with seconds, speed, amplitude, seed), and
                      optionally name, fps, frames = "0:60"
     Each garment x motion is the job GARMENT__MOTION; a job whose inputs are refused is named and the others
     are made (exit 1); run again to resume."""

@@ -22,7 +22,7 @@ A jobs file (TOML; relative paths are relative to it)::
     betas = [0.0, 0.5]             # optional body shape for this garment
 
     [[motions]]
-    file = "../motions/walk.npz"   # a file (.npz, .bvh) ...
+    file = "../motions/walk.npz"   # a file (.npz, .bvh, .amc, .glb, .fbx through Blender) ...
     # kind = "walk"                # ... or a procedural kind, with seconds / speed / amplitude / seed
     name = "walk"                  # optional: the file's stem or the kind
     fps = 30.0                     # optional: resample to this rate

@@ -326,3 +326,33 @@ def test_batch_and_bundle_read_an_fbx_motion_as_run_does(fbx, tmp_path):
     np.testing.assert_array_equal(a["poses"], b["poses"])
     np.testing.assert_array_equal(a["trans"], b["trans"])
     assert ma["motion"] == fbx["skinned"].stem
+
+
+def test_a_dataset_config_takes_an_fbx_motion_read_once_through_blender(fbx, tmp_path, monkeypatch):
+    """A dataset's [[motions]] file may be an .fbx (it took only the converted BVH): its clips are cut from the BVH
+    Blender makes of it, converted once and kept in the user cache, and named as the FBX file."""
+    import segadeform.physics.fbx as fbx_mod
+    from segadeform.dataset import load_dataset_config
+    from segadeform.dataset.make import _capture
+
+    monkeypatch.setenv("SEGADEFORM_CACHE_DIR", str(tmp_path / "cache"))
+    bvh = tmp_path / "walk.bvh"
+    assert _cli(["motion", "convert", str(fbx["skinned"]), "-o", str(bvh)]).exit_code == 0
+    cfgs = []
+    for name, f in (("a", fbx["skinned"]), ("b", bvh)):
+        p = tmp_path / f"{name}.toml"
+        p.write_text(
+            '[dataset]\nfps = 30.0\nseconds = 0.5\n[[garments]]\nkind = "skirt"\n[[bodies]]\nbetas = []\n'
+            f'[[motions]]\nfile = "{f}"\n'
+        )
+        cfgs.append(load_dataset_config(p))
+    calls = []
+    real = fbx_mod.fbx_to_bvh
+    monkeypatch.setattr(fbx_mod, "fbx_to_bvh", lambda *a, **k: calls.append(a) or real(*a, **k))
+    a = _capture(cfgs[0].motions[0], cfgs[0])
+    b = _capture(cfgs[1].motions[0], cfgs[1])
+    np.testing.assert_array_equal(a.poses, b.poses)
+    np.testing.assert_array_equal(a.trans, b.trans)
+    assert a.name == fbx["skinned"].stem and len(calls) == 1
+    _capture(cfgs[0].motions[0], cfgs[0])  # the second clip of the file: from the cache, no Blender
+    assert len(calls) == 1 and [p.name[:2] for p in (tmp_path / "cache").iterdir()] == ["F-"]

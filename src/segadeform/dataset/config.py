@@ -83,7 +83,8 @@ Example (``samples/datasets/tiny.toml`` is a complete one)::
     # speed = 1.0            # procedural: speed and amplitude factors (either may be a range with count)
     # amplitude = 1.0
     # file = "../motions/walk.npz"   # ... or a motion file (relative to this config; BVH retargeted
-    # start = 2.0                    #     onto each body, feet on the floor), from `start` seconds
+    # start = 2.0                    #     onto each body, feet on the floor; an .fbx through Blender, its
+    #                                #     default animation, converted once), from `start` seconds
     # ease_in = 0.0          # procedural: seconds blending in from the rest pose (default 1.0)
     # count = 3              # procedural: seeds seed .. seed+2; speed / amplitude may be ranges;
     #                        # files: `start` may be a range (clips of one file); named NAME-k
@@ -125,8 +126,9 @@ __all__ = ["GarmentSpec", "MotionEntry", "QualitySpec", "DatasetConfig", "load_d
 SAMPLE_ORDERS = ("body-major", "spread")
 
 
-#: the motion files `segadeform.motion.load_motion` reads
-MOTION_FILE_TYPES = (".bvh", ".amc", ".npz", ".glb", ".gltf")
+#: the motion files a dataset reads: those `segadeform.motion.load_motion` reads, and FBX (its default animation,
+#: through Blender: `segadeform.physics.fbx.fbx_cached_bvh`)
+MOTION_FILE_TYPES = (".bvh", ".amc", ".npz", ".glb", ".gltf", ".fbx")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -62,6 +62,7 @@ from ..io.hashing import file_sha256
 from ..io.location import LocalLocation, Location, open_location
 from ..motion import face_forward, load_motion, make_motion, resample
 from ..motion.motion import drop_leading_glitches, drop_leading_jumps, drop_leading_tpose, ramp_in, repair_glitches
+from ..physics.fbx import FBX_EXTENSIONS, fbx_cached_bvh
 from .config import SPLITS, DatasetConfig, GarmentSpec, MotionEntry
 from .quality import BodyParts, frame_stats, kept_frames, on_body_at_rest
 from .store import Sample, load_sample, save_sample
@@ -297,7 +298,20 @@ RAMP_MIN_SECONDS = 0.3  # a clip with less capture before it starts this far in,
 def _capture(m: MotionEntry, cfg: DatasetConfig, rest_joints=None):
     """Motion file entry ``m`` as its clips are cut from it: retargeted onto ``rest_joints``, the frames in front
     of the capture and its glitches dealt with (:func:`_motion`), at the dataset's frame rate."""
-    mo = load_motion(m.file, rest_joints=rest_joints, floor=True)
+    f = Path(m.file)
+    if f.suffix.lower() in FBX_EXTENSIONS:  # read as the BVH Blender makes of it (once: the user cache), +Y up
+        bvh = fbx_cached_bvh(f)
+        try:
+            mo = load_motion(bvh, rest_joints=rest_joints, floor=True, up="y")
+        except InputError as e:
+            if e.path is None or Path(e.path) != bvh:
+                raise
+            raise type(e)(
+                e.problem + " (read from the BVH Blender wrote of it)", path=f, expected=e.expected, got=e.got
+            ) from None
+        mo = dataclasses.replace(mo, name=f.stem)
+    else:
+        mo = load_motion(f, rest_joints=rest_joints, floor=True)
     joints = default_rest_joints() if rest_joints is None else np.asarray(rest_joints, np.float64)
     mo, _ = drop_leading_jumps(mo)  # a T-pose put in front of the capture (cgspeed's CMU BVH)
     mo, _ = drop_leading_glitches(mo, joints)  # frames the capture's solve settles from

@@ -25,9 +25,10 @@ __all__ = ["cache_dir", "prune", "is_entry", "DEFAULT_MAX_MB"]
 DEFAULT_MAX_MB = 1024
 
 #: the names of the cache's entries (content hashes): garment assets, encoder outputs (P-), body weights at a
-#: garment (W-), cloth setups (C-).  prune and `cache clear` remove these only: $SEGADEFORM_CACHE_DIR may name
-#: a folder that holds the user's own files too, and no command deletes a file it did not write.
-_ENTRY = re.compile(r"^(?:asset-[0-9a-f]{16,}(?:-n\d+)?(?:-p\d+)?\.npz|[A-Z]-[0-9a-f]{16,}\.np[yz])$")
+#: garment (W-), cloth setups (C-), FBX motions as BVH (F-).  prune and `cache clear` remove these only:
+#: $SEGADEFORM_CACHE_DIR may name a folder that holds the user's own files too, and no command deletes a file it did
+#: not write.
+_ENTRY = re.compile(r"^(?:asset-[0-9a-f]{16,}(?:-n\d+)?(?:-p\d+)?\.npz|[A-Z]-[0-9a-f]{16,}\.(?:np[yz]|bvh))$")
 
 
 def is_entry(name: str) -> bool:

@@ -39,7 +39,7 @@ from pathlib import Path
 from ..errors import FileFormatError, SimulationError, check_readable
 from .blender import find_sim_python
 
-__all__ = ["FbxMotion", "fbx_to_bvh", "FBX_EXTENSIONS", "WORKER"]
+__all__ = ["FbxMotion", "fbx_to_bvh", "fbx_cached_bvh", "FBX_EXTENSIONS", "WORKER"]
 
 FBX_EXTENSIONS = (".fbx",)
 #: the Blender-side script (run by the simulator environment's Python, never imported)
@@ -121,3 +121,32 @@ def fbx_to_bvh(
         renamed=int(info.get("renamed", 0)),
         blender=str(info["blender"]),
     )
+
+
+def fbx_cached_bvh(src: str | os.PathLike, *, sim_python: str | os.PathLike | None = None) -> Path:
+    """The BVH :func:`fbx_to_bvh` makes of FBX file ``src`` (its default animation), kept in the user cache
+    (:mod:`segadeform.io.cache`, ``F-<hash>.bvh``, the hash of the file's bytes and of the Blender-side script) so
+    that the samples a dataset cuts from one FBX file launch Blender once.  Written under a unique temporary name
+    and renamed, so parallel workers converting the same file each find a whole one.  The BVH is +Y up."""
+    import hashlib
+
+    from ..io.cache import cache_dir, prune
+    from ..io.hashing import file_sha256
+
+    src = Path(src)
+    check_readable(src, "FBX file")
+    key = hashlib.sha256(f"{file_sha256(src)}:{file_sha256(WORKER)}".encode()).hexdigest()[:32]
+    d = cache_dir()
+    out = d / f"F-{key}.bvh"
+    if out.is_file():
+        return out
+    tmp = Path(tempfile.mkdtemp(prefix=".fbx-", dir=d))
+    try:
+        fbx_to_bvh(src, tmp / "motion.bvh", sim_python=sim_python)
+        os.replace(tmp / "motion.bvh", out)
+    finally:
+        for q in tmp.iterdir():
+            q.unlink(missing_ok=True)
+        tmp.rmdir()
+    prune(d)
+    return out
