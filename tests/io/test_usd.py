@@ -309,3 +309,36 @@ def test_a_usd_file_that_cannot_be_saved_is_one_error_naming_it(tmp_path, monkey
         "more lines of pxr); nothing was left behind"
     )
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_stop_during_the_usd_import_still_stops_the_command():
+    """USD's module set-up catches what is raised while it runs: a SIGTERM (the CLI's KeyboardInterrupt) in that half
+    second was lost and the run wrote its output (a session's trial).  It is now held until the import is done."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("pxr")
+    code = """
+import builtins, os, signal
+from segadeform.cli.main import _terminated
+signal.signal(signal.SIGTERM, _terminated)
+real = builtins.__import__
+def imp(name, *a, **k):
+    if name == "pxr":  # as USD's set-up: the signal arrives, and what its handler raises is caught
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(100000):
+                pass
+        except BaseException as e:
+            print("swallowed", type(e).__name__)
+    return real(name, *a, **k)
+builtins.__import__ = imp
+from segadeform.io import usd
+try:
+    usd._modules()
+    print("not stopped")
+except KeyboardInterrupt:
+    print("stopped")
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.stdout.split() == ["stopped"], (out.stdout, out.stderr)

@@ -22,6 +22,9 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import signal
+import sys
+import threading
 import unicodedata
 from collections.abc import Sequence
 from pathlib import Path
@@ -55,10 +58,26 @@ SAVE_BYTES = 8 << 20
 
 
 def _modules():
+    # USD's module set-up catches an exception raised while it runs and goes on (it printed "Error occurred
+    # postprocessing module pxr.Trace._trace!"): Ctrl-C or SIGTERM (which the CLI turns into KeyboardInterrupt) in
+    # that half second was lost, and the run wrote its output (a session's trial).  During the import the two
+    # signals are only noted, then raised again once it is done, for the handlers there were (the main thread only:
+    # no other may set handlers, and the interpreter runs them there).
+    held: list[int] = []
+    previous = {}
+    if "pxr" not in sys.modules and threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, getattr(signal, "SIGTERM", None)):
+            if sig is not None and signal.getsignal(sig) is not None:  # (None: a handler not set from Python)
+                previous[sig] = signal.signal(sig, lambda signum, frame: held.append(signum))
     try:
         from pxr import Sdf, Tf, Usd, UsdGeom, Vt
     except ImportError:
         raise InputError("USD output needs the 'usd' extra: pip install 'segadeform[usd]'") from None
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if held:
+            signal.raise_signal(held[0])
     return Usd, UsdGeom, Sdf, Vt, Tf
 
 
