@@ -79,7 +79,7 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
 
     try:
         with contextlib.ExitStack() as stack:
-            cfg = _fbx_read(cfg, executor, stack)
+            cfg = _fbx_read(cfg, executor, stack, output)
             with make_executor(executor, jobs) as ex:
                 guard.start()
                 s = run_batch(cfg, out=output, executor=ex, limit=limit, progress=progress, force=force)
@@ -102,18 +102,25 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
         )
 
 
-def _fbx_read(cfg, executor: str, stack: contextlib.ExitStack):
-    """``cfg`` with each ``.fbx`` motion read from the BVH Blender makes of it (once per motion, in a temporary folder
-    that ``stack`` removes), as `segadeform run` reads one; the jobs keep the FBX file as their identity, so a batch
-    resumes.  The BVH lives on this machine: a Ray cluster's workers would not find it."""
+def _fbx_read(cfg, executor: str, stack: contextlib.ExitStack, output):
+    """``cfg`` with each ``.fbx`` motion that has a job left to make read from the BVH Blender makes of it (once per
+    motion, in a temporary folder that ``stack`` removes), as `segadeform run` reads one; the jobs keep the FBX file
+    as their identity, so a batch resumes, and a motion whose jobs are all done is not read again.  A file Blender
+    cannot read fails its own jobs only.  The BVH lives on this machine: a Ray cluster's workers would not find it."""
+    from segadeform.errors import InputError, SegadeformError
+    from segadeform.runtime.batch import batch_jobs
+
     from .motion_convert import motion_spec_read
 
     fbx = [m for m in cfg.motions if m.spec.file is not None and Path(m.spec.file).suffix.lower() == ".fbx"]
-    if not fbx:
+    if not fbx or (output is None and cfg.output is None):  # (no output: run_batch says so)
         return cfg
-    if executor != "local":
-        from segadeform.errors import InputError
-
+    plan = batch_jobs(cfg, output)
+    loc = plan[0].out
+    done = set(loc.listdir("jobs"))
+    left = {j.motion.name for j in plan if f"{j.id}.json" not in done}
+    fbx = [m for m in fbx if m.name in left]
+    if fbx and executor != "local":
         raise InputError(
             f"motion {fbx[0].name!r} is an FBX file, which is read through Blender on this machine, and the jobs "
             f"run on {executor}",
@@ -122,8 +129,12 @@ def _fbx_read(cfg, executor: str, stack: contextlib.ExitStack):
             "FILE.bvh`) and the .bvh in the jobs file",
             got=".fbx",
         )
-    motions = tuple(
-        dataclasses.replace(m, read_from=stack.enter_context(motion_spec_read(m.spec))) if m in fbx else m
-        for m in cfg.motions
-    )
-    return dataclasses.replace(cfg, motions=motions)
+    motions = []
+    for m in cfg.motions:
+        if m in fbx:
+            try:
+                m = dataclasses.replace(m, read_from=stack.enter_context(motion_spec_read(m.spec)))
+            except SegadeformError as e:  # this motion's jobs fail with it; the others are made
+                m = dataclasses.replace(m, refused=str(e))
+        motions.append(m)
+    return dataclasses.replace(cfg, motions=tuple(motions))

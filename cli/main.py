@@ -65,10 +65,10 @@ class _Group(click.Group):
         return super().parse_args(ctx, args)
 
     def invoke(self, ctx):
-        from segadeform.io.output_guard import tidy_on_failure
+        from segadeform.io.atomic import removing_made_folders
 
         try:
-            with tidy_on_failure():  # a command that fails or is stopped leaves no empty output folder
+            with removing_made_folders():  # a command that fails or is stopped leaves no empty folder it made
                 return super().invoke(ctx)
         except SegadeformError as e:
             raise click.ClickException(str(e)) from None

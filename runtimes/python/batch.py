@@ -110,11 +110,13 @@ class BatchGarment:
 class BatchMotion:
     """A jobs file's motion: ``spec`` as the file gives it (the jobs' identity), and ``read_from``, the spec a job
     reads instead when the command line converted it (an ``.fbx`` file: the BVH Blender made of it, on this
-    machine; its errors then name the FBX file)."""
+    machine; its errors then name the FBX file), or ``refused``, why the command line could not (its jobs fail
+    with it; the others run)."""
 
     name: str
     spec: MotionSpec
     read_from: MotionSpec | None = None
+    refused: str | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -390,6 +392,8 @@ def run_job(job: BatchJob) -> dict:
     done = _record(loc, job.id)
     if done is not None:
         return done
+    if job.motion.refused is not None:
+        return {"id": job.id, "garment": job.garment.name, "motion": job.motion.name, "failed": job.motion.refused}
     t0 = time.perf_counter()
     name = job.output_name
     loc.remove_temporaries(name)  # what a killed attempt of this job left

@@ -9,13 +9,18 @@ from pathlib import Path
 
 import pytest
 
-from segadeform.io.atomic import atomic_directory, atomic_path, merge_directory
+from segadeform.io.atomic import (
+    atomic_directory,
+    atomic_path,
+    make_folders,
+    merge_directory,
+    removing_made_folders,
+)
 from segadeform.io.output_guard import (
     MANIFEST_NAME,
     OutputGuard,
     OutputRefused,
     read_manifest,
-    tidy_on_failure,
     written_by,
 )
 
@@ -224,34 +229,36 @@ def test_a_run_that_made_nothing_leaves_no_folder(tmp_path):
 
 def test_a_run_stopped_midway_leaves_no_empty_folder_and_removes_nothing_else(tmp_path):
     """`run -o new/deeper/out.pc2` stopped (Ctrl-C, SIGTERM) after its writer had made the folders left `new/` behind
-    (a user's trial): the folders a failed run's claims made go again where they are empty, and only those."""
-    theirs = tmp_path / "theirs"
-    theirs.mkdir()
-    with pytest.raises(KeyboardInterrupt), tidy_on_failure():
+    (a user's trial): the folders made inside removing_made_folders go again where they are empty, and only those --
+    not a folder the user made after the command claimed its output and before the writer began (a review)."""
+    with pytest.raises(KeyboardInterrupt), removing_made_folders():
         g = OutputGuard("run")
-        g.file(tmp_path / "new" / "deeper" / "out.pc2")
-        g.folder(theirs / "frames" / "seq.obj-seq", names="*.obj")  # inside a folder of the user's
-        g.resumable(tmp_path / "made" / "data")
-        g.start()  # the resumable folder is made now (with its manifest): abandon()'s to remove, not this rule's
-        (tmp_path / "new" / "deeper").mkdir(parents=True)  # as the writer's temporary beside the output does
-        (theirs / "frames" / "seq.obj-seq").mkdir(parents=True)
-        raise KeyboardInterrupt
-    assert not (tmp_path / "new").exists()
-    assert theirs.is_dir() and not (theirs / "frames").exists()
-    assert (tmp_path / "made" / "data" / MANIFEST_NAME).is_file()  # not empty: left
+        out = g.file(tmp_path / "new" / "deeper" / "out.pc2")
+        mine = g.file(tmp_path / "mine" / "out.pc2")
+        (tmp_path / "mine").mkdir()  # the user's, made between the claim and the write
+        for p in (out, mine):
+            with atomic_path(p):  # the writer's temporary beside the output (and its folders): then the stop
+                raise KeyboardInterrupt
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine"]
     # a folder something else wrote into meanwhile is not empty: it stays, with its parents and its file
-    with pytest.raises(ValueError), tidy_on_failure():
-        g = OutputGuard("run")
-        g.file(tmp_path / "a" / "b" / "out.pc2")
-        (tmp_path / "a" / "b").mkdir(parents=True)
+    with pytest.raises(ValueError), removing_made_folders():
+        make_folders(tmp_path / "a" / "b")
         (tmp_path / "a" / "note.txt").write_text("mine")
         raise ValueError("bad input")
     assert not (tmp_path / "a" / "b").exists() and (tmp_path / "a" / "note.txt").read_text() == "mine"
-    # a run that succeeds keeps its folders, even an empty one; outside tidy_on_failure nothing is tracked
-    with tidy_on_failure():
-        g = OutputGuard("run")
-        g.file(tmp_path / "ok" / "out.pc2")
-        (tmp_path / "ok").mkdir()
+    # a resumable folder the run made and marked holds its manifest: left to abandon(), which removes it
+    with pytest.raises(KeyboardInterrupt), removing_made_folders():
+        g = OutputGuard("batch")
+        g.resumable(tmp_path / "made" / "data")
+        g.start()
+        try:
+            raise KeyboardInterrupt
+        finally:
+            g.abandon()
+    assert not (tmp_path / "made").exists()
+    # a command that succeeds keeps its folders, even an empty one
+    with removing_made_folders():
+        make_folders(tmp_path / "ok")
     assert (tmp_path / "ok").is_dir()
 
 

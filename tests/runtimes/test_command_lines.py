@@ -36,7 +36,7 @@ def test_an_option_given_twice_is_a_usage_error(runtime, option, values, request
 @pytest.mark.parametrize("runtime", ["node", "cpp"])
 def test_a_signal_leaves_no_temporaries_and_no_output(runtime, request, random_package, portable_scene, tmp_path):
     """Ctrl-C or kill during a run: its outputs' hidden temporaries are removed (C++ left 172 MB of a body cache),
-    and nothing is written."""
+    and nothing is written; the folders it made for them go too, as `segadeform run`'s (they were left empty)."""
     from segadeform.cli.main import main
 
     exe = request.getfixturevalue(runtime)
@@ -48,13 +48,14 @@ def test_a_signal_leaves_no_temporaries_and_no_output(runtime, request, random_p
     p = subprocess.Popen(
         exe
         + ["--package", str(random_package), "--garment", str(portable_scene["garment"]), "--motion", str(motion)]
-        + ["-o", str(out / "g.pc2"), "--body-out", str(out / "b.pc2"), "--effects", "lbs,dynamics,wrinkles"],
+        + ["-o", str(out / "new" / "deeper" / "g.pc2"), "--body-out", str(out / "new" / "b.pc2")]
+        + ["--effects", "lbs,dynamics,wrinkles"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
     )
     deadline = time.monotonic() + 300
-    while not [q for q in out.iterdir() if ".tmp-" in q.name] and p.poll() is None and time.monotonic() < deadline:
+    while not [q for q in out.rglob("*") if ".tmp-" in q.name] and p.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)
     assert p.poll() is None, "the run ended before it was stopped: " + p.stdout.read() + p.stderr.read()
     time.sleep(0.3)

@@ -16,6 +16,8 @@
 // API (the shared library, C++17, no other dependency).  Formats: docs/package.md.  The engine (engine.hpp) is
 // the library's too: this program pushes the motion through a sgd::engine::Stream a batch at a time, as a
 // program of one's own pushes it through segadeform::Player (include/segadeform/player.hpp).
+#include <unistd.h>
+
 #include <csignal>
 #include <cstring>
 #include <set>
@@ -28,22 +30,51 @@ namespace {
 
 // The temporaries this run writes its outputs to, removed when a signal stops it (Ctrl-C, kill): they were left
 // behind, 172 MB of a body cache (a developer's trial).  Fixed buffers: the handler only calls unlink.
+// The folders this run made for its outputs (deepest first) go too where they are still empty, as `segadeform run`
+// removes them (segadeform.io.atomic.make_folders): rmdir removes nothing else.
 constexpr int MAX_TEMPS = 8;
+constexpr int MAX_DIRS = 32;
 char g_temps[MAX_TEMPS][4096];
 volatile std::sig_atomic_t g_ntemps = 0;
+char g_dirs[MAX_DIRS][4096];
+volatile std::sig_atomic_t g_ndirs = 0;
+
+void remove_temporaries_and_made_folders() {
+  for (int i = 0; i < g_ntemps; ++i) ::unlink(g_temps[i]);
+  for (int i = 0; i < g_ndirs; ++i) ::rmdir(g_dirs[i]);  // not empty: left
+}
 
 extern "C" void remove_temporaries_and_stop(int sig) {
-  for (int i = 0; i < g_ntemps; ++i) ::unlink(g_temps[i]);
+  remove_temporaries_and_made_folders();
   std::signal(sig, SIG_DFL);
   std::raise(sig);
 }
 
 void remove_temporaries_on_signals(const std::vector<std::string>& outputs) {
+  namespace fs = sgd::outputs_detail::fs;
+  std::vector<std::string> dirs;
   for (const auto& o : outputs) {
     const std::string t = sgd::temporary_name(o);
     if (g_ntemps < MAX_TEMPS && t.size() < sizeof g_temps[0]) {
       std::memcpy(g_temps[g_ntemps], t.c_str(), t.size() + 1);
       g_ntemps = g_ntemps + 1;
+    }
+    // the folders it goes in, made here one level at a time: those this call made (not one someone else made
+    // meanwhile) are noted, deepest first
+    std::error_code ec;
+    std::vector<std::string> missing;
+    for (fs::path d = fs::absolute(fs::path(o), ec).parent_path(); !d.empty() && !fs::exists(d, ec);
+         d = d.parent_path()) {
+      if (d == d.parent_path()) break;
+      missing.push_back(d.string());
+    }
+    for (auto it = missing.rbegin(); it != missing.rend(); ++it)
+      if (::mkdir(it->c_str(), 0777) == 0) dirs.insert(dirs.begin(), *it);
+  }
+  for (const auto& d : dirs) {
+    if (g_ndirs < MAX_DIRS && d.size() < sizeof g_dirs[0]) {
+      std::memcpy(g_dirs[g_ndirs], d.c_str(), d.size() + 1);
+      g_ndirs = g_ndirs + 1;
     }
   }
   for (int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, remove_temporaries_and_stop);
@@ -353,6 +384,7 @@ int main(int argc, char** argv) {
     api->ReleaseEnv(env);
   } catch (const std::exception& e) {
     for (const auto& o : outputs) std::remove(sgd::temporary_name(o).c_str());  // a failed run leaves no output
+    remove_temporaries_and_made_folders();  // nor the folders it made for them
     // the engine's refusals of the garment asset name no file: this command names the one it was given
     const std::string what = e.what(), named = flag_form && what.rfind("the garment asset ", 0) == 0 ? garment + ": " : "";
     std::cerr << "Error: " << named << sgd::outputs_detail::one_line(e.what()) << "\n";

@@ -13,7 +13,9 @@ import {
   MAX_VERTEX_FRAMES, defaultEffects, effectsLabel, objText, otherTrainingBody, parseCloth, parseEffects, pc2Header,
   pc2Parts, readManifest, sceneInputs,
 } from "./core.js";
-import { claimOutputs, commitOutputs, commitTemporaries, temporaryOf } from "./outputs.js";
+import {
+  claimOutputs, commitOutputs, commitTemporaries, makeFolders, removeEmptyFolders, temporaryOf,
+} from "./outputs.js";
 
 const USAGE = "usage: segadeform-node --package DIR --garment G.sgda --motion M.sgdm -o OUT.pc2 [--body-out BODY.pc2] " +
   "[--effects lbs|dqs,dynamics,wrinkles,collisions,cloth] [--collision-margin M] [--cloth K=V,..] [--batch N] " +
@@ -240,6 +242,7 @@ async function playStreamed() {
   const p = await open(pkg, A, { batch, threads: usedThreads, effects, body: !!bodyOut, collisionMargin: margin, cloth,
     fps: I.fps, force: true });
   const temps = [];
+  const made = makeFolders(outputs); // made for the outputs: removed again, where empty, when the run fails
   const removeTemps = () => {
     for (const t of temps) {
       try {
@@ -248,6 +251,7 @@ async function playStreamed() {
         // already gone
       }
     }
+    removeEmptyFolders(made);
   };
   const signals = { SIGINT: 130, SIGTERM: 143, SIGHUP: 129 };
   for (const [sig, code] of Object.entries(signals)) process.on(sig, () => { removeTemps(); process.exit(code); });

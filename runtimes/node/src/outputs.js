@@ -9,7 +9,7 @@
 //   that fails leaves none of them; then the manifest records them (the same format and kind as Python's `run`, so
 //   either runtime may replace the other's output).
 import {
-  closeSync, existsSync, lstatSync, mkdirSync, openSync, readFileSync, renameSync, statSync, unlinkSync, writeFileSync, writeSync,
+  closeSync, existsSync, lstatSync, mkdirSync, openSync, readFileSync, renameSync, rmdirSync, statSync, unlinkSync, writeFileSync, writeSync,
 } from "node:fs";
 import { basename, dirname, join, resolve } from "node:path";
 
@@ -150,6 +150,37 @@ export function commitOutputs(items, inputs = []) {
     throw e;
   }
   commitTemporaries(items.map((i) => i.path), inputs);
+}
+
+/** Make the folders `paths` go in, one level at a time; returns those this call made, deepest first: what a run
+ * that fails or is stopped removes again where they are still empty (removeEmptyFolders), as `segadeform run` does
+ * (segadeform.io.atomic.make_folders).  A folder someone else made meanwhile is not counted. */
+export function makeFolders(paths) {
+  const made = [];
+  for (const p of paths) {
+    const missing = [];
+    for (let d = dirname(resolve(p)); !existsSync(d) && dirname(d) !== d; d = dirname(d)) missing.push(d);
+    for (const d of missing.reverse()) {
+      try {
+        mkdirSync(d);
+        made.push(d);
+      } catch (e) {
+        if (e.code !== "EEXIST") throw e;
+      }
+    }
+  }
+  return made.reverse();
+}
+
+/** Remove each of `folders` (missingFolders) that is empty; a folder that is not is left, with what is in it. */
+export function removeEmptyFolders(folders) {
+  for (const d of folders) {
+    try {
+      rmdirSync(d);
+    } catch {
+      // not empty, or already gone: left as it is
+    }
+  }
 }
 
 /** The hidden temporary beside `path` an output is written to before it is committed (its folder made when

@@ -300,16 +300,14 @@ def _capture(m: MotionEntry, cfg: DatasetConfig, rest_joints=None):
     of the capture and its glitches dealt with (:func:`_motion`), at the dataset's frame rate."""
     f = Path(m.file)
     if f.suffix.lower() in FBX_EXTENSIONS:  # read as the BVH Blender makes of it (once: the user cache), +Y up
-        bvh = fbx_cached_bvh(f)
-        try:
-            mo = load_motion(bvh, rest_joints=rest_joints, floor=True, up="y")
-        except InputError as e:
-            if e.path is None or Path(e.path) != bvh:
-                raise
-            raise type(e)(
-                e.problem + " (read from the BVH Blender wrote of it)", path=f, expected=e.expected, got=e.got
-            ) from None
-        mo = dataclasses.replace(mo, name=f.stem)
+        with fbx_cached_bvh(f) as bvh:  # (named as the FBX file: the motion's name is its stem)
+            try:
+                mo = load_motion(bvh, rest_joints=rest_joints, floor=True, up="y")
+            except InputError as e:
+                if e.path is None or Path(e.path) != bvh:
+                    raise
+                why = e.problem + " (read from the BVH Blender wrote of it)"
+                raise type(e)(why, path=f, expected=e.expected, got=e.got) from None
     else:
         mo = load_motion(f, rest_joints=rest_joints, floor=True)
     joints = default_rest_joints() if rest_joints is None else np.asarray(rest_joints, np.float64)

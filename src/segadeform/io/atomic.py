@@ -4,11 +4,17 @@ A failed or interrupted write leaves the target untouched (the old file, or
 nothing) and removes its temporary file.  ``os.replace`` is atomic on POSIX
 and Windows when source and target are on the same file system, which holds
 because the temporary file is created in the target's directory.
+
+The folders an output goes in are made by :func:`make_folders`, one level at a time: inside
+:func:`removing_made_folders` (the CLI runs every command in it) those it made are noted, and a command that fails
+or is stopped removes them again where they are still empty -- only folders this process made, never one that
+someone else made meanwhile, and ``os.rmdir`` removes nothing else.
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import errno
 import glob
 import os
@@ -27,7 +33,51 @@ __all__ = [
     "merge_directory",
     "WriteError",
     "write_error",
+    "make_folders",
+    "removing_made_folders",
 ]
+
+#: the folders :func:`make_folders` made inside the innermost :func:`removing_made_folders`, in the order made
+_MADE: contextvars.ContextVar[list | None] = contextvars.ContextVar("segadeform_made_folders", default=None)
+
+
+def make_folders(folder: str | os.PathLike) -> None:
+    """``mkdir -p folder``, one level at a time, noting each folder this call made (see the module docstring).  A
+    folder that appeared meanwhile is not counted; a file in the way raises as ``mkdir`` does."""
+    folder = Path(folder)
+    missing = []
+    for a in [folder, *folder.parents]:
+        if os.path.lexists(a):
+            break
+        missing.append(a)
+    made = _MADE.get()
+    for a in reversed(missing):
+        try:
+            os.mkdir(a)
+        except FileExistsError:
+            continue
+        if made is not None:
+            made.append(a)
+
+
+@contextlib.contextmanager
+def removing_made_folders() -> Iterator[None]:
+    """``with removing_made_folders(): <one command>`` -- when the block raises (an error, KeyboardInterrupt), the
+    folders :func:`make_folders` made inside it are removed where they are empty, deepest first, then the exception
+    goes on (``run -o new/out.pc2`` stopped mid-write left ``new/``: a user's trial)."""
+    made: list = []
+    token = _MADE.set(made)
+    try:
+        yield
+    except BaseException:
+        for d in reversed(made):
+            try:
+                os.rmdir(d)
+            except OSError:
+                pass  # not empty (what is in it stays), or already gone
+        raise
+    finally:
+        _MADE.reset(token)
 
 
 class WriteError(SegadeformError, OSError):
@@ -77,7 +127,7 @@ def _tmp_sibling(target: Path, *, directory: bool) -> Path:
                 raise WriteError(target, f"{a} is a file, not a folder", errno.ENOTDIR)
             break
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
+        make_folders(target.parent)
     except OSError as e:
         raise write_error(e, target) from None
     prefix = f".{target.name}.tmp-"

@@ -32,7 +32,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from ..errors import InputError, SegadeformError
-from .atomic import _tmp_sibling, atomic_path, remove_temporaries
+from .atomic import _tmp_sibling, atomic_path, make_folders, remove_temporaries
 
 __all__ = ["Location", "LocalLocation", "FsspecLocation", "open_location", "is_url"]
 
@@ -178,7 +178,7 @@ class LocalLocation(Location):
 
     def _commit_file(self, local: Path, rel: str) -> None:
         target = self.path(rel)
-        target.parent.mkdir(parents=True, exist_ok=True)
+        make_folders(target.parent)
         try:
             os.replace(local, target)  # same file system when ``local`` is in :meth:`scratch`
         except OSError:
@@ -186,7 +186,7 @@ class LocalLocation(Location):
 
     def append_text(self, rel: str, text: str) -> None:
         p = self.path(rel)
-        p.parent.mkdir(parents=True, exist_ok=True)
+        make_folders(p.parent)
         with open(p, "a", encoding="utf-8") as fh:  # a log: lines appended, each flushed whole
             fh.write(text)
             fh.flush()

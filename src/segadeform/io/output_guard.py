@@ -30,17 +30,11 @@ successful commit (under an advisory lock, so parallel writers into one folder d
 
 **The write itself** stays atomic (:mod:`segadeform.io.atomic`): claims are checked before any work and again
 just before the commit (:meth:`OutputGuard.recheck`), so a file that appeared meanwhile is refused too.
-
-**A run that fails or is stopped** (an error, Ctrl-C, SIGTERM) leaves no empty folder behind: inside
-:func:`tidy_on_failure` (the CLI wraps every command in it) each guard built remembers the folders its claims
-needed that did not exist yet, and on the way out removes those that are still empty -- ``os.rmdir``, which
-removes nothing else (``run -o new/out.pc2`` stopped after a minute left ``new/``: a user's trial).
 """
 
 from __future__ import annotations
 
 import contextlib
-import contextvars
 import dataclasses
 import fnmatch
 import json
@@ -51,7 +45,7 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["MANIFEST_NAME", "OutputRefused", "OutputGuard", "written_by", "read_manifest", "tidy_on_failure"]
+__all__ = ["MANIFEST_NAME", "OutputRefused", "OutputGuard", "written_by", "read_manifest"]
 
 #: the manifest each output folder gets
 MANIFEST_NAME = ".segadeform-outputs.json"
@@ -183,40 +177,6 @@ class _Claim:
     #: resumable, local: the top-level names before the run and whether the manifest was there
     before: tuple | None = None
     had_manifest: bool = False
-    #: the folders this claim needs that did not exist when it was made, deepest first (removed again, where still
-    #: empty, after a run that failed: :meth:`OutputGuard.remove_empty_folders`)
-    made: tuple = ()
-
-
-def _missing_folders(p: Path) -> tuple:
-    """``p`` and its ancestors that do not exist, deepest first (stopping at the first that does)."""
-    out = []
-    for a in [p, *p.parents]:
-        if _stat(a) is not None:
-            break
-        out.append(a)
-    return tuple(out)
-
-
-#: the guards built inside the innermost :func:`tidy_on_failure` (one command's run); None outside it
-_RUN_GUARDS: contextvars.ContextVar[list | None] = contextvars.ContextVar("segadeform_run_guards", default=None)
-
-
-@contextlib.contextmanager
-def tidy_on_failure() -> Iterator[None]:
-    """``with tidy_on_failure(): <one command>`` -- when the block raises (an error, KeyboardInterrupt), every
-    :class:`OutputGuard` built inside it removes the folders its claims made that are still empty
-    (:meth:`OutputGuard.remove_empty_folders`), then the exception goes on."""
-    guards: list = []
-    token = _RUN_GUARDS.set(guards)
-    try:
-        yield
-    except BaseException:
-        for g in guards:
-            g.remove_empty_folders()
-        raise
-    finally:
-        _RUN_GUARDS.reset(token)
 
 
 def _same_file(a: Path, b: Path) -> bool:
@@ -257,9 +217,6 @@ class OutputGuard:
         self.kind, self.force, self.replaces = kind, bool(force) and replaces, replaces
         self.inputs = tuple(Path(p) for p in inputs if p is not None and not _is_url(p))
         self.claims: list[_Claim] = []
-        run = _RUN_GUARDS.get()
-        if run is not None:
-            run.append(self)
 
     def __repr__(self) -> str:
         return f"OutputGuard({self.kind!r}, force={self.force}, {len(self.claims)} claims)"
@@ -338,7 +295,7 @@ class OutputGuard:
         """Claim file output ``path`` (see the module docstring); returns it."""
         p = Path(path)
         existed = self._check_file(p)
-        self.claims.append(_Claim(p, "file", existed=existed, made=_missing_folders(p.parent)))
+        self.claims.append(_Claim(p, "file", existed=existed))
         return p
 
     # -- folder outputs ----------------------------------------------------------------------------------------
@@ -404,7 +361,7 @@ class OutputGuard:
         p = Path(path)
         names = (names,) if isinstance(names, str) else None if names is None else tuple(names)
         existed, snap = self._check_folder(p, names)
-        self.claims.append(_Claim(p, "folder", names=names, existed=existed, snapshot=snap, made=_missing_folders(p)))
+        self.claims.append(_Claim(p, "folder", names=names, existed=existed, snapshot=snap))
         return p
 
     # -- resumable folders ---------------------------------------------------------------------------------------
@@ -440,8 +397,6 @@ class OutputGuard:
         )
         if isinstance(loc, LocalLocation) and names is not None:
             c.before, c.had_manifest = tuple(names), (loc.root / MANIFEST_NAME).is_file()
-        if isinstance(loc, LocalLocation):
-            c.made = _missing_folders(loc.root)
         self._check_resumable(c, names or [])
         self.claims.append(c)
         return loc
@@ -550,7 +505,9 @@ class OutputGuard:
         from .location import LocalLocation
 
         if isinstance(loc, LocalLocation):
-            loc.root.mkdir(parents=True, exist_ok=True)
+            from .atomic import make_folders
+
+            make_folders(loc.root)  # (noted: a command that fails removes it again where it is empty)
             _update_manifest(loc.root, {}, mark=self.kind)
         elif not loc.exists(MANIFEST_NAME):
             body = {"segadeform_outputs": _MANIFEST_VERSION, "folder": self.kind, "files": {}}
@@ -580,19 +537,6 @@ class OutputGuard:
                         with contextlib.suppress(FileNotFoundError):
                             (root / sub).unlink()
                     root.rmdir()
-
-    def remove_empty_folders(self) -> None:
-        """After a run that failed or was stopped: remove the folders the claims needed that did not exist when
-        they were made and are empty now (deepest first; ``os.rmdir`` removes nothing else; a folder that
-        cannot be removed is left)."""
-        for c in self.claims:
-            for d in c.made:
-                try:
-                    os.rmdir(d)
-                except FileNotFoundError:
-                    continue  # never made (the run stopped before), or its writer removed it
-                except OSError:
-                    break  # not empty (or not ours to remove): its parents are not empty either
 
     def check_files_in(self, folder, names: Sequence[str]) -> None:
         """Refuse when a file of ``names`` in resumable ``folder`` that its manifest lists as this kind's was edited

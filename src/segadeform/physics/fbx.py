@@ -29,11 +29,13 @@ directly, the root within 3 mm.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
 import subprocess
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 from ..errors import FileFormatError, SimulationError, check_readable
@@ -123,12 +125,15 @@ def fbx_to_bvh(
     )
 
 
-def fbx_cached_bvh(src: str | os.PathLike, *, sim_python: str | os.PathLike | None = None) -> Path:
-    """The BVH :func:`fbx_to_bvh` makes of FBX file ``src`` (its default animation), kept in the user cache
-    (:mod:`segadeform.io.cache`, ``F-<hash>.bvh``, the hash of the file's bytes and of the Blender-side script) so
-    that the samples a dataset cuts from one FBX file launch Blender once.  Written under a unique temporary name
-    and renamed, so parallel workers converting the same file each find a whole one.  The BVH is +Y up."""
+@contextlib.contextmanager
+def fbx_cached_bvh(src: str | os.PathLike, *, sim_python: str | os.PathLike | None = None) -> Iterator[Path]:
+    """``with fbx_cached_bvh(FBX) as bvh:`` -- the BVH :func:`fbx_to_bvh` makes of FBX file ``src`` (its default
+    animation; +Y up), as ``<stem>.bvh`` in a temporary folder removed after the block.  A copy is kept in the user
+    cache (:mod:`segadeform.io.cache`, ``F-<hash>.bvh``: the hash of the file's bytes and of the Blender-side script),
+    so the samples a dataset cuts from one FBX file launch Blender once; the block reads its own copy, so a cache too
+    small to keep it, pruned or cleared meanwhile (another process), costs a conversion, not the read (a review)."""
     import hashlib
+    import shutil
 
     from ..io.cache import cache_dir, prune
     from ..io.hashing import file_sha256
@@ -136,17 +141,19 @@ def fbx_cached_bvh(src: str | os.PathLike, *, sim_python: str | os.PathLike | No
     src = Path(src)
     check_readable(src, "FBX file")
     key = hashlib.sha256(f"{file_sha256(src)}:{file_sha256(WORKER)}".encode()).hexdigest()[:32]
-    d = cache_dir()
-    out = d / f"F-{key}.bvh"
-    if out.is_file():
-        return out
-    tmp = Path(tempfile.mkdtemp(prefix=".fbx-", dir=d))
-    try:
-        fbx_to_bvh(src, tmp / "motion.bvh", sim_python=sim_python)
-        os.replace(tmp / "motion.bvh", out)
-    finally:
-        for q in tmp.iterdir():
-            q.unlink(missing_ok=True)
-        tmp.rmdir()
-    prune(d)
-    return out
+    with tempfile.TemporaryDirectory(prefix="segadeform-fbx-") as tmp:
+        out = Path(tmp) / (src.stem + ".bvh")
+        try:
+            d = cache_dir()
+            shutil.copyfile(d / f"F-{key}.bvh", out)
+        except OSError:
+            fbx_to_bvh(src, out, sim_python=sim_python)
+            with contextlib.suppress(OSError):  # the cache is a convenience: a read-only or full one is skipped
+                part = d / f".F-{key}.{os.getpid()}.part"
+                try:
+                    shutil.copyfile(out, part)
+                    os.replace(part, d / f"F-{key}.bvh")
+                finally:
+                    part.unlink(missing_ok=True)
+                prune(d)
+        yield out
