@@ -944,6 +944,38 @@ def test_gate_rejects_a_garment_that_slipped_off_the_body():
     assert a != b_ and float(a) > float(b_), why
 
 
+def test_gate_rejects_a_skirt_that_slid_down_the_hips_though_it_stays_on_the_body():
+    """An unpinned skirt slid down its wearer: its waistband 9-12 cm below its place, still lying on the body, so the
+    slipped check passed it (a researcher's trial; the samples' error was mostly the slide).  The vertices on the body
+    at rest must stay near the points of the body they lay on (the median, carried with the posed body)."""
+    from segadeform.body import load_body
+    from segadeform.dataset.quality import body_anchors, frame_stats, on_body_at_rest
+    from segadeform.garments import make_garment
+
+    b = load_body(SAMPLES / "bodies" / "default_body.npz")
+    g = make_garment("skirt", b)
+    rest = b.shaped_vertices()[0]
+    on = on_body_at_rest(g.vertices, rest, b.faces)
+    anchors = body_anchors(g.vertices, rest, b.faces, on)
+    assert len(anchors.index) == on.sum() and np.allclose(anchors.bary.sum(axis=1), 1.0)
+    spec = QualitySpec(max_jitter=1.0, max_penetrating=1.0, max_strain=10.0)
+    # the body walks 30 cm forward and the skirt with it (anchored: fine); then the skirt alone 10 cm down
+    step = np.array([0.0, 0.0, 0.3])
+    bf = np.stack([rest, rest + step, rest + step])
+    x = np.stack([g.vertices, g.vertices + step, g.vertices + step - [0.0, 0.10, 0.0]])
+    st = frame_stats(x, g.vertices, g.faces, bf, b.faces, spec, on_body=on, anchors=anchors)
+    assert st.slid[0] < 0.02 and abs(st.slid[1] - st.slid[0]) < 1e-9 and st.slid[2] > 0.08
+    r = quality_check(x, g.vertices, g.faces, bf, b.faces, spec, on_body=on, anchors=anchors)
+    assert r.slipped < spec.max_slipped  # the old check: close to the body all along
+    assert not r.ok and any(s.startswith("slid:") and "pinning" in s for s in r.reasons), r.reasons
+    assert st.passing_prefix(spec) == 2
+    # 5 cm down passes; without anchors the check is skipped
+    x[2] += [0.0, 0.05, 0.0]
+    assert quality_check(x, g.vertices, g.faces, bf, b.faces, spec, on_body=on, anchors=anchors).ok
+    x[2] -= [0.0, 0.05, 0.0]
+    assert quality_check(x, g.vertices, g.faces, bf, b.faces, spec, on_body=on).ok
+
+
 def test_the_gate_on_every_prefix_equals_judging_the_cut_clip_and_finds_the_longest_that_passes():
     """FrameStats.report(spec, k) against quality_check on frames[:k] (the slow, obvious reference), for every
     k of a clip whose cloth is clean for 6 frames, then sinks into the body, then jitters."""

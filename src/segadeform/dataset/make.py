@@ -64,7 +64,7 @@ from ..motion import face_forward, load_motion, make_motion, resample
 from ..motion.motion import drop_leading_glitches, drop_leading_jumps, drop_leading_tpose, ramp_in, repair_glitches
 from ..physics.fbx import FBX_EXTENSIONS, fbx_cached_bvh
 from .config import SPLITS, DatasetConfig, GarmentSpec, MotionEntry
-from .quality import BodyParts, frame_stats, kept_frames, on_body_at_rest
+from .quality import BodyParts, body_anchors, frame_stats, kept_frames, on_body_at_rest
 from .store import Sample, load_sample, save_sample
 
 log = logging.getLogger(__name__)
@@ -672,6 +672,7 @@ def _attempt(
     # strain against the cloth's own rest (the A-posed garment when the simulation rests there)
     strain_rest = res.cloth_rest if res.cloth_rest is not None else mesh.vertices
     parts = BodyParts.of(body, betas or None)
+    on_body = on_body_at_rest(mesh.vertices, parts.rest, body.faces)
     fs = frame_stats(
         res.frames,
         strain_rest,
@@ -681,7 +682,8 @@ def _attempt(
         cfg.quality,
         contact=contact,
         parts=parts,
-        on_body=on_body_at_rest(mesh.vertices, parts.rest, body.faces),
+        on_body=on_body,
+        anchors=body_anchors(mesh.vertices, parts.rest, body.faces, on_body),
     )
     q = fs.report(cfg.quality)
     keep = kept_frames(q, cfg.quality)
@@ -975,7 +977,8 @@ def regate(
                 body.faces,
                 cfg.quality,
                 parts=parts,
-                on_body=on_body_at_rest(s.rest, parts.rest, body.faces),
+                on_body=(ob := on_body_at_rest(s.rest, parts.rest, body.faces)),
+                anchors=body_anchors(s.rest, parts.rest, body.faces, ob),
             )
             q = st.report(cfg.quality)
             keep = kept_frames(q, cfg.quality)

@@ -28,7 +28,11 @@ Checks (thresholds from the dataset config's ``[quality]``):
 * **slipped** -- of the vertices that lie on the body at rest (``on_body``: a waistband, shoulders,
   cuffs), at most ``max_slipped`` may be farther than ``slip_distance`` from the body in any frame: a
   sleeve thrown off its arm or a skirt fallen to the knees is no ground truth either, though nothing tears
-  or penetrates.
+  or penetrates;
+* **slid** -- those vertices, as a whole, no farther than ``slip_distance`` (median) from the points of the body
+  they lay on at rest (:func:`body_anchors`, carried with the posed body's triangles): an unpinned skirt that slides
+  down the hips stays close to the body, so the slipped check passed it (a researcher's trial: a waistband 9-12 cm
+  below its place from the first frame, kept).
 """
 
 from __future__ import annotations
@@ -51,6 +55,8 @@ __all__ = [
     "BodyParts",
     "pinched",
     "on_body_at_rest",
+    "BodyAnchors",
+    "body_anchors",
 ]
 
 
@@ -134,6 +140,38 @@ def pinched(
     return (near & other & apart).any(axis=1)
 
 
+@dataclasses.dataclass(frozen=True)
+class BodyAnchors:
+    """Where garment vertices ``index`` lay on the body at rest: at barycentric ``bary`` of the body triangle whose
+    corners are body vertices ``corners``.  Shapes: index (M,) int, corners (M, 3) int, bary (M, 3)."""
+
+    index: np.ndarray
+    corners: np.ndarray
+    bary: np.ndarray
+
+    def distance(self, x, body) -> np.ndarray:
+        """How far each anchored vertex of garment frame ``x`` is from its anchor on the posed body ``body``.
+        Shapes: x (N, 3), body (V, 3) -> (M,)"""
+        return np.linalg.norm(x[self.index] - np.einsum("mk,mkc->mc", self.bary, body[self.corners]), axis=1)
+
+
+def body_anchors(rest, body_rest, body_faces, on_body) -> BodyAnchors:
+    """The closest body points at rest of the garment vertices ``on_body`` (:func:`on_body_at_rest`).
+
+    Shapes: rest (N, 3) the garment on the body's rest pose, body_rest (V, 3), body_faces (F, 3), on_body (N,) bool
+    -> :class:`BodyAnchors`"""
+    from ..body.collision.reference import closest_point_on_triangles
+
+    idx = np.flatnonzero(np.asarray(on_body, bool))
+    b = np.asarray(body_rest, np.float64)
+    bf = np.asarray(body_faces, np.int64)
+    p = np.asarray(rest, np.float64)[idx]
+    face = BodyProxy(b, bf).query(p).face if len(idx) else np.zeros(0, np.int64)
+    tri = b[bf[face]]
+    _, bary = closest_point_on_triangles(p, tri[:, 0], tri[:, 1], tri[:, 2])
+    return BodyAnchors(idx, bf[np.asarray(face, np.int64)], np.asarray(bary, np.float64))
+
+
 def on_body_at_rest(rest, body_rest, body_faces, *, within: float = 0.015) -> np.ndarray:
     """Which garment vertices lie on the body at rest (closer than ``within`` to its surface, either side).
 
@@ -164,6 +202,9 @@ class FrameStats:
     pinch_from: np.ndarray
     jitter: np.ndarray
     n: int
+    #: (T,) the median distance of the on-body vertices from their anchors (:func:`body_anchors`), metres; zeros
+    #: without anchors
+    slid: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
@@ -183,6 +224,8 @@ class FrameStats:
             ok &= worst <= bound
         far = np.concatenate([[0.0], np.maximum.accumulate(self.far)]) if t else np.zeros(1)
         ok &= far <= 0
+        if self.slid is not None and t:
+            ok &= np.concatenate([[0.0], np.maximum.accumulate(self.slid)]) <= spec.slip_distance
         n_e = max(len(self.tear_from), 1)
         torn = np.searchsorted(np.sort(self.tear_from), ks, side="left") / n_e  # edges torn before frame k
         ok &= torn <= spec.max_strained_edges
@@ -219,6 +262,7 @@ class FrameStats:
         pinch = float(self.pinch[:k].max())
         far = float(self.far[:k].max())
         slip = float(self.slip[:k].max())
+        slid = float(self.slid[:k].max()) if self.slid is not None else 0.0
         tear = self.tear_from < k
         pinch_e = self.pinch_from < k
         jit = float(self.jitter[: k - 2].sum() / ((k - 2) * max(self.n, 1))) if k >= 3 else 0.0
@@ -244,6 +288,11 @@ class FrameStats:
             a, b = _apart(100 * slip, 100 * spec.max_slipped, digits=1)
             reasons.append(
                 f"slipped: {a}% of the vertices on the body at rest farther than {spec.slip_distance} m from it > {b}%"
+            )
+        if slid > spec.slip_distance:
+            reasons.append(
+                f"slid: the vertices on the body at rest {slid:.3f} m (median) from where they lay on it > "
+                f'{spec.slip_distance} m (a waistband down the hips: pin it, [simulate] effects "pinning")'
             )
         if far > 0:
             reasons.append(
@@ -279,6 +328,7 @@ def frame_stats(
     contact: dict | None = None,
     parts: BodyParts | None = None,
     on_body=None,
+    anchors: BodyAnchors | None = None,
 ) -> FrameStats:
     """The gate's measurements of every frame (:class:`FrameStats`); arguments as :func:`quality_check`'s.
 
@@ -299,6 +349,7 @@ def frame_stats(
         over_t &= length - l0 > spec.min_stretch
     proxy = None
     pen, pinch, far, slip = (np.zeros(t_n) for _ in range(4))
+    slid = np.zeros(t_n) if anchors is not None else None
     n_comp, comp = connected_components(faces, len(rest))
     if on_body is not None:
         on_body = np.asarray(on_body, bool)
@@ -333,6 +384,8 @@ def frame_stats(
         far[t] = float(lost.mean())
         if on_body is not None and on_body.any():
             slip[t] = float((dist[on_body] > spec.slip_distance).mean())
+        if slid is not None and len(anchors.index):
+            slid[t] = float(np.median(anchors.distance(x[t], np.asarray(body_frames[t], np.float64))))
         if contact is not None:
             contact["closest"][t], contact["normal"][t] = q.closest, q.normal
     jitter = np.zeros(max(t_n - 2, 0))
@@ -341,7 +394,7 @@ def frame_stats(
         b = np.asarray(body_frames, np.float64)
         bacc = np.linalg.norm(b[2:] - 2 * b[1:-1] + b[:-2], axis=2).max(axis=1)  # (T-2,)
         jitter = (acc > 3 * bacc[:, None] + 0.01).sum(axis=1).astype(np.float64)
-    return FrameStats(True, strain, pen, pinch, far, slip, tear_from, pinch_from, jitter, x.shape[1])
+    return FrameStats(True, strain, pen, pinch, far, slip, tear_from, pinch_from, jitter, x.shape[1], slid)
 
 
 def quality_check(
@@ -355,6 +408,7 @@ def quality_check(
     contact: dict | None = None,
     parts: BodyParts | None = None,
     on_body=None,
+    anchors: BodyAnchors | None = None,
 ) -> QualityReport:
     """Shapes: frames (T, N, 3), rest (N, 3), faces (F, 3), body_frames (T, V, 3) -> report.
 
@@ -363,13 +417,15 @@ def quality_check(
     ``parts``: the body's parts (:class:`BodyParts`), to tell pinches (:func:`pinched`); without them
     every penetrating vertex and strained edge counts.
     ``on_body``: (N,) bool, the vertices that lie on the body at rest (:func:`on_body_at_rest`), for the
-    slipped check; without it the check is skipped.
+    slipped check; without it the check is skipped.  ``anchors``: where they lay on the body at rest
+    (:func:`body_anchors`), for the slid check; without them it is skipped.
 
     The report is the verdict on the whole clip; its ``passing_frames`` is how many leading frames pass
     (:meth:`FrameStats.passing_prefix`), which a dataset with ``[quality] min_frames`` keeps of a clip that
     fails later on.
     """
-    st = frame_stats(frames, rest, faces, body_frames, body_faces, spec, contact=contact, parts=parts, on_body=on_body)
+    kw = {"contact": contact, "parts": parts, "on_body": on_body, "anchors": anchors}
+    st = frame_stats(frames, rest, faces, body_frames, body_faces, spec, **kw)
     return st.report(spec)
 
 
