@@ -78,3 +78,19 @@ def test_the_package_format_refuses_a_draped_model(tmp_path):
     with pytest.raises(InputError, match="drape"):
         export_package(net, tmp_path / "pkg", check=False, variants=False)
     assert not (tmp_path / "pkg").exists()
+
+
+def test_a_mistyped_model_path_is_named_as_missing(tmp_path):
+    """`eval -m shipped=samples/models/nope` said "a model must be 'simulation', 'lbs', ..." (a researcher's trial):
+    a path that is not there is named as missing, one that is neither a package folder nor a checkpoint as such."""
+    from segadeform.errors import FileFormatError, InputError
+    from segadeform.train.predictors import make_predictor
+
+    with pytest.raises(FileFormatError, match="no such model package folder or checkpoint") as e:
+        make_predictor("m", str(tmp_path / "nope"))
+    assert str(tmp_path / "nope") in str(e.value)
+    (tmp_path / "manifest.json").write_text("{}")
+    with pytest.raises(FileFormatError, match="not a model package folder"):
+        make_predictor("m", str(tmp_path / "manifest.json"))
+    with pytest.raises(InputError, match="a model must be"):  # a word, not a path: the choices
+        make_predictor("m", "lbs-nope")

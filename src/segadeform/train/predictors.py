@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import abc
+import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -19,7 +20,7 @@ from ..body.drape import skinned_rest
 from ..body.model import BodyModel
 from ..body.transfer import WEIGHT_PRIORS, garment_weights, residual_log_weights, skin_garment
 from ..dataset.store import Sample
-from ..errors import InputError
+from ..errors import FileFormatError, InputError
 from ..geometry.features import vertex_features
 from ..motion.motion import motion_windows
 
@@ -167,6 +168,13 @@ def make_predictor(name: str, spec: str, *, package: Callable[[str, str], Predic
         p = package(folder, eff)
     elif Path(spec).suffix == ".pt":
         p = CheckpointPredictor(spec)
+    elif "/" in spec or os.sep in spec or spec.startswith("."):  # a path: one that is not there is named as such
+        where = spec.rsplit(":", 1)[0] if ":" in spec and not Path(spec).exists() else spec
+        raise FileFormatError(
+            "no such model package folder or checkpoint" if not Path(where).exists() else "not a model package folder",
+            path=where,
+            expected="a model package folder (segadeform export) or a .pt checkpoint (segadeform train)",
+        )
     else:
         raise InputError(
             "a model must be 'simulation', 'lbs', 'lbs-PRIOR' ("
