@@ -1503,8 +1503,12 @@ def test_a_garment_obj_of_the_users_is_a_dataset_garment_on_the_shape_it_was_mad
     only = head.split("[[garments]]")[0] + "[[garments]]\nname = 'mine'\nkind = 'dress'\nmesh = 'my_dress.obj'\n"
     assert main(["dataset", "make", str(_write(d, "m.toml", only)), "-o", str(tmp_path / "made"), "-j", "1"]) == 0
     capsys.readouterr()
-    done = [p.name for sub in ("samples", "rejected") for p in (tmp_path / "made" / sub).glob("*.json")]
-    assert done == ["mine__b0__walk-s0.json"], done
+    done = [p for sub in ("samples", "rejected") for p in (tmp_path / "made" / sub).glob("*.json")]
+    assert [p.name for p in done] == ["mine__b0__walk-s0.json"], done
+    # its parameters as the OBJ records them (`# params:`), not the config's defaults (a researcher's trial: a
+    # flare-0.5 skirt's samples said flare 0.25)
+    meta = json.loads(done[0].read_text())
+    assert meta["garment_params"] == {"flare": 0.25, "ease": 0.015, "subdivisions": 0.0, "resolution": 2500.0}
 
 
 def test_a_gate_verdict_reads_its_share_apart_from_the_limit_and_info_counts_it_by_name():
@@ -1519,6 +1523,7 @@ def test_a_gate_verdict_reads_its_share_apart_from_the_limit_and_info_counts_it_
         ("strain 1.87 > 1.0 on 0.104% > 0.100% of edges", "strain"),
         ("penetration 2.10% of vertices > 1.00%", "penetration"),
         ("slipped: 10.0% of the vertices ...", "slipped"),
+        ("slid: the vertices on the body at rest 0.121 m (median) ...", "slid"),
         ("simulation failed: Blender exited 1", "simulation failed"),
         ("max_strain 1.5 > 1.0", "max_strain"),
     ):

@@ -60,6 +60,7 @@ from ..garments import GARMENT_TYPES, make_garment
 from ..io import Mesh, read_mesh, write_obj
 from ..io.hashing import file_sha256
 from ..io.location import LocalLocation, Location, open_location
+from ..io.obj import recorded_params
 from ..motion import face_forward, load_motion, make_motion, resample
 from ..motion.motion import drop_leading_glitches, drop_leading_jumps, drop_leading_tpose, ramp_in, repair_glitches
 from ..physics.fbx import FBX_EXTENSIONS, fbx_cached_bvh
@@ -708,7 +709,9 @@ def _attempt(
         fps=motion.fps,
         betas=list(betas),
         settings=res.settings,
-        garment_params=_garment_params(g),
+        # a garment OBJ's own (`garment make` records them), not the config's defaults (a researcher's trial: a
+        # flare-0.5 skirt's samples said flare 0.25); {} for one that records none
+        garment_params=_garment_params(g) if g.mesh is None else (recorded_params(g.mesh) or {}),
         config_digest=cfg.digest(),
         blender_info=res.blender,
     )

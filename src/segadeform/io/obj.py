@@ -355,15 +355,9 @@ def betas_record(betas) -> str:
     return " ".join([BETAS_RECORD] + [f"{x:.9g}" for x in b])
 
 
-def recorded_betas(path: str | os.PathLike) -> tuple[float, ...] | None:
-    """The body shape recorded in the leading comments of OBJ ``path`` (:func:`betas_record`, under a comment
-    starting ``segadeform garment``): a tuple (``()``: the default shape), or None -- a file that is not an OBJ,
-    or an OBJ that records none (a garment from elsewhere).
-
-    Raises:
-        FileFormatError: a segadeform record whose values are not finite numbers.
-    """
-    p = Path(path)
+def _own_comments(p: Path) -> list[tuple[int, str]] | None:
+    """The leading comment lines of OBJ ``p`` (line number, text without ``#``) when they are segadeform's own (one
+    starts with :data:`OWN_COMMENT`); None for another file."""
     if p.suffix.lower() != ".obj":
         return None
     comments: list[tuple[int, str]] = []
@@ -378,9 +372,19 @@ def recorded_betas(path: str | os.PathLike) -> tuple[float, ...] | None:
                 comments.append((no, s.lstrip("#").strip()))
     except OSError as e:
         raise file_error(e, p) from None
-    if not any(c.startswith(OWN_COMMENT) for _, c in comments):
-        return None
-    for no, c in comments:
+    return comments if any(c.startswith(OWN_COMMENT) for _, c in comments) else None
+
+
+def recorded_betas(path: str | os.PathLike) -> tuple[float, ...] | None:
+    """The body shape recorded in the leading comments of OBJ ``path`` (:func:`betas_record`, under a comment
+    starting ``segadeform garment``): a tuple (``()``: the default shape), or None -- a file that is not an OBJ,
+    or an OBJ that records none (a garment from elsewhere).
+
+    Raises:
+        FileFormatError: a segadeform record whose values are not finite numbers.
+    """
+    p = Path(path)
+    for no, c in _own_comments(p) or []:
         if c.split()[:1] == [BETAS_RECORD]:
             try:
                 b = tuple(float(x) for x in c.split()[1:])
@@ -389,6 +393,25 @@ def recorded_betas(path: str | os.PathLike) -> tuple[float, ...] | None:
             if not np.isfinite(b).all():
                 raise FileFormatError("the recorded body shape is not a list of numbers", path=p, line=no, got=c[:60])
             return b
+    return None
+
+
+def recorded_params(path: str | os.PathLike) -> dict | None:
+    """The garment parameters recorded by ``garment make`` in the leading comments of OBJ ``path``
+    (``# params: length=0.7 flare=0.6 ...``) as ``{name: number}``; None where there is no such record (a garment
+    from elsewhere, or fitted).  A value that is not a number is kept as its text."""
+    for _, c in _own_comments(Path(path)) or []:
+        if c.split()[:1] == ["params:"]:
+            out: dict = {}
+            for item in c.split()[1:]:
+                k, sep, v = item.partition("=")
+                if not sep:
+                    continue
+                try:
+                    out[k] = float(v)
+                except ValueError:
+                    out[k] = v
+            return out
     return None
 
 
