@@ -419,6 +419,15 @@ def test_cli_train_and_eval(synthetic_dataset, tiny_config, tmp_path, capsys):
         "error_vs_cost.png",
     ):
         assert (out / f).stat().st_size > 100
+    # each sample's error, in eval.json and as a table in eval.md (a researcher's trial: six samples of their own,
+    # read one by one); the overall vertex error is their plain mean
+    res = json.loads((out / "eval.json").read_text())
+    assert list(res["by_sample"]) == res["samples"]
+    for n, m in res["models"].items():
+        mean = np.mean([r["vertex_cm"][n] for r in res["by_sample"].values()])
+        assert abs(mean - m["vertex_cm"]) < 1e-9, (n, mean, m["vertex_cm"])
+    md = (out / "eval.md").read_text()
+    assert "Per sample (vertex error, cm):" in md and all(f"| {sid} | " in md for sid in res["samples"])
     assert main(["eval", str(synthetic_dataset), "-m", "nonsense", "-o", str(out)]) == 2
     # a name given twice dropped the first model from the table without a word (a user's trial)
     assert main(["eval", str(synthetic_dataset), "-m", "a=lbs", "-m", "a=lbs-smooth", "-o", str(tmp_path / "d")]) == 2

@@ -160,7 +160,8 @@ def evaluate(
     """Evaluate ``predictors`` ({name: :class:`~segadeform.train.predictors.Predictor`}) on ``split`` of ``dataset``.
 
     Returns ``{"models": {name: {metric: value}}, "by_type": {name: {type: {metric: value}}},
-    "per_frame": {name: [vertex_cm per frame index]}, "samples": [...]}``.
+    "per_frame": {name: [vertex_cm per frame index]}, "by_sample": {id: {"type", "vertex_cm": {name: cm}}},
+    "samples": [...]}``.
     ``push_out_margin``: also report every model but plain ``lbs`` and ``simulation`` with the runtime's collision
     post-process (:class:`BodyCollider`, as ``segadeform run``): one margin in metres (``name + push-out``) or a list
     (``name + push-out 2 mm``, ... ; :func:`push_out_names`).  Its time is the model's plus the push-out's.
@@ -203,6 +204,7 @@ def evaluate(
     acc = {n: _Acc.new() for n in names}
     by_type = {n: {} for n in names}
     per_frame = {n: _Acc.new() for n in names}
+    by_sample: dict = {}
     bases = {}
     for sid in ids:
         s = dataset.load(sid)
@@ -241,6 +243,7 @@ def evaluate(
             for k, v in vals.items():
                 acc[n].add(k, v)
                 by_type[n].setdefault(typ, _Acc.new()).add(k, v)
+            by_sample.setdefault(sid, {"type": typ, "vertex_cm": {}})["vertex_cm"][n] = float(vals["vertex_cm"])
             for t, v in enumerate(100 * d.mean(axis=1)):
                 per_frame[n].add(t, v)
     res = {
@@ -250,6 +253,7 @@ def evaluate(
         "models": {n: {k: acc[n].mean(k) for k in METRICS + ("ms_per_frame",)} for n in names},
         "by_type": {n: {t: {k: a.mean(k) for k in METRICS} for t, a in sorted(by_type[n].items())} for n in names},
         "per_frame": {n: [per_frame[n].mean(t) for t in sorted(per_frame[n].sums)] for n in names},
+        "by_sample": by_sample,
         "specs": dict(models),
         "n_star": n_star,
     }

@@ -73,6 +73,21 @@ def markdown_table(res: dict) -> str:
     return "\n".join(out)
 
 
+def _sample_table(res: dict) -> list[str]:
+    """Each sample's vertex error (cm) per model, as eval.json's ``by_sample`` (a small set of one's own is read sample
+    by sample: a researcher's trial); an older result without it gives nothing."""
+    rows = res.get("by_sample") or {}
+    if not rows:
+        return []
+    names = list(res["models"])
+    out = ["Per sample (vertex error, cm):", "", "| sample | type | " + " | ".join(names) + " |"]
+    out.append("|---" * (len(names) + 2) + "|")
+    for sid, r in rows.items():
+        v = r["vertex_cm"]
+        out.append(f"| {sid} | {r['type']} | " + " | ".join(f"{v[n]:.3f}" if n in v else "-" for n in names) + " |")
+    return [*out, ""]
+
+
 def write_report(
     res: dict,
     out_dir: Path,
@@ -100,6 +115,7 @@ def write_report(
         "",
         markdown_table(res),
         "",
+        *_sample_table(res),
     ]
     with atomic_path(out / "eval.md") as tmp:
         Path(tmp).write_text("\n".join(md))
