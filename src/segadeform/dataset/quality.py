@@ -32,7 +32,7 @@ Checks (thresholds from the dataset config's ``[quality]``):
 * **slid** -- those vertices, as a whole, no farther than ``slip_distance`` (median) from the points of the body
   they lay on at rest (:func:`body_anchors`, carried with the posed body's triangles): an unpinned skirt that slides
   down the hips stays close to the body, so the slipped check passed it (a researcher's trial: a waistband 9-12 cm
-  below its place from the first frame, kept).
+  below its place from the first frame, kept).  ``max_slipped = 1`` turns both checks off.
 """
 
 from __future__ import annotations
@@ -224,7 +224,7 @@ class FrameStats:
             ok &= worst <= bound
         far = np.concatenate([[0.0], np.maximum.accumulate(self.far)]) if t else np.zeros(1)
         ok &= far <= 0
-        if self.slid is not None and t:
+        if self.slid is not None and t and spec.max_slipped < 1.0:  # (max_slipped = 1: no slipping is checked)
             ok &= np.concatenate([[0.0], np.maximum.accumulate(self.slid)]) <= spec.slip_distance
         n_e = max(len(self.tear_from), 1)
         torn = np.searchsorted(np.sort(self.tear_from), ks, side="left") / n_e  # edges torn before frame k
@@ -262,7 +262,7 @@ class FrameStats:
         pinch = float(self.pinch[:k].max())
         far = float(self.far[:k].max())
         slip = float(self.slip[:k].max())
-        slid = float(self.slid[:k].max()) if self.slid is not None else 0.0
+        slid = float(self.slid[:k].max()) if self.slid is not None and spec.max_slipped < 1.0 else 0.0
         tear = self.tear_from < k
         pinch_e = self.pinch_from < k
         jit = float(self.jitter[: k - 2].sum() / ((k - 2) * max(self.n, 1))) if k >= 3 else 0.0
