@@ -141,19 +141,25 @@ def fbx_cached_bvh(src: str | os.PathLike, *, sim_python: str | os.PathLike | No
     src = Path(src)
     check_readable(src, "FBX file")
     key = hashlib.sha256(f"{file_sha256(src)}:{file_sha256(WORKER)}".encode()).hexdigest()[:32]
+    try:
+        d: Path | None = cache_dir()
+    except OSError:  # the cache is a convenience: one that cannot be made (read-only home) is skipped
+        d = None
     with tempfile.TemporaryDirectory(prefix="segadeform-fbx-") as tmp:
         out = Path(tmp) / (src.stem + ".bvh")
         try:
-            d = cache_dir()
+            if d is None:
+                raise FileNotFoundError
             shutil.copyfile(d / f"F-{key}.bvh", out)
         except OSError:
             fbx_to_bvh(src, out, sim_python=sim_python)
-            with contextlib.suppress(OSError):  # the cache is a convenience: a read-only or full one is skipped
-                part = d / f".F-{key}.{os.getpid()}.part"
-                try:
-                    shutil.copyfile(out, part)
-                    os.replace(part, d / f"F-{key}.bvh")
-                finally:
-                    part.unlink(missing_ok=True)
-                prune(d)
+            if d is not None:
+                with contextlib.suppress(OSError):  # a full or read-only cache is skipped
+                    part = d / f".F-{key}.{os.getpid()}.part"
+                    try:
+                        shutil.copyfile(out, part)
+                        os.replace(part, d / f"F-{key}.bvh")
+                    finally:
+                        part.unlink(missing_ok=True)
+                    prune(d)
         yield out
