@@ -202,8 +202,8 @@ class FrameStats:
     pinch_from: np.ndarray
     jitter: np.ndarray
     n: int
-    #: (T,) the median distance of the on-body vertices from their anchors (:func:`body_anchors`), metres; zeros
-    #: without anchors
+    #: (T,) the median distance of the on-body vertices from their anchors (:func:`body_anchors`), metres; None
+    #: without anchors (the slid check is skipped)
     slid: np.ndarray | None = None
 
     @property
