@@ -28,6 +28,19 @@ def _training_garments_option(default: str):
     )
 
 
+def _training_motions_option(default: str):
+    """``--training-motions`` (export and repack), its default named in the help."""
+    return click.option(
+        "--training-motions",
+        "training_motions",
+        multiple=True,
+        type=PathParam(dir_okay=False, exists=True, path_type=Path),
+        help="A dataset config (.toml) whose training split's motions the model was trained on (repeatable): "
+        "their fingerprints are recorded in the manifest, so `eval` says when a sample it scores plays one of "
+        f"them.  Default: {default}.",
+    )
+
+
 @cli.command("export")
 @click.argument("checkpoint", required=False, type=PathParam(dir_okay=False, path_type=Path))
 @click.option(
@@ -68,8 +81,20 @@ def _training_garments_option(default: str):
 )
 @_inline_weights_option
 @_training_garments_option("what the checkpoint records")
+@_training_motions_option("what the checkpoint records")
 def export_cmd(
-    checkpoint, output, random_init, config_json, seed, check, legacy, variants, body, inline_weights, training_files
+    checkpoint,
+    output,
+    random_init,
+    config_json,
+    seed,
+    check,
+    legacy,
+    variants,
+    body,
+    inline_weights,
+    training_files,
+    training_motions,
 ):
     """Export CHECKPOINT (or --random-init) to an ONNX model package (needs the 'torch' extra)."""
     try:
@@ -83,7 +108,7 @@ def export_cmd(
 
     if (checkpoint is None) == (not random_init):
         raise click.UsageError("give a CHECKPOINT or --random-init (not both)")
-    guard = _package_guard(output, (checkpoint, body, *training_files))
+    guard = _package_guard(output, (checkpoint, body, *training_files, *training_motions))
     if random_init:
         try:
             overrides = json.loads(config_json) if config_json else {}
@@ -113,6 +138,9 @@ def export_cmd(
         from segadeform.export.training_set import training_garments_entry
 
         extra["training_garments"] = training_garments_entry(*garments)
+    motions = _training_motions(training_motions, checkpoint)
+    if motions is not None:
+        extra["training_motions"] = motions
     m = export_package(
         model,
         output,
@@ -169,13 +197,14 @@ def quantize_cmd(package, output, precision):
 )
 @_inline_weights_option
 @_training_garments_option("the package's own list")
+@_training_motions_option("the package's own record")
 @click.option(
     "--opset",
     type=click.IntRange(15, 21),
     default=None,
     help="Convert every graph to this ONNX opset (default: the exporter's, 18); 15 for Unity Sentis.",
 )
-def repack_cmd(package, output, inline_weights, training_files, opset):
+def repack_cmd(package, output, inline_weights, training_files, training_motions, opset):
     """Rewrite model PACKAGE (any schema) in the current layout, same graphs (needs onnx)."""
     try:
         import onnx  # noqa: F401 (only whether the extra is installed)
@@ -184,7 +213,7 @@ def repack_cmd(package, output, inline_weights, training_files, opset):
     from segadeform.contracts import model_package as contract
     from segadeform.export.packing import repack_package
 
-    guard = _package_guard(output, (package, *training_files))
+    guard = _package_guard(output, (package, *training_files, *training_motions))
     before = _size(package)
     garments = _training_garments(
         training_files,
@@ -195,7 +224,14 @@ def repack_cmd(package, output, inline_weights, training_files, opset):
         from segadeform.export.training_set import training_garments_entry
 
         entry = training_garments_entry(*garments)
-    m = repack_package(package, output, shared=not inline_weights, training_garments=entry, opset=opset)
+    m = repack_package(
+        package,
+        output,
+        shared=not inline_weights,
+        training_garments=entry,
+        training_motions=_training_motions(training_motions, None),
+        opset=opset,
+    )
     guard.record()
     click.echo(
         f"{output}: schema {m['schema_version']}, opset {m['opset']}, {len(m['graphs'])} graphs, "
@@ -248,6 +284,20 @@ def _training_garments(files, n_star: int):
     from segadeform.export.training_set import mesh_descriptors
 
     return mesh_descriptors(files, n_star)
+
+
+def _training_motions(configs, checkpoint) -> dict | None:
+    """The ``training_motions`` record: the training split's motions of the dataset ``configs`` when any are
+    given, else what ``checkpoint`` records (None: nothing to record)."""
+    if configs:
+        from segadeform.dataset.make import config_training_motions
+
+        return config_training_motions(configs)
+    if checkpoint is None:
+        return None
+    from segadeform.model.network import checkpoint_training_motions
+
+    return checkpoint_training_motions(checkpoint)
 
 
 def _size(folder) -> int:

@@ -57,11 +57,13 @@ def garment_group():
     type=float,
     help="Trousers, shorts, skirts: metres at the waistband, tapering to --ease 8 cm below it (default: --ease).",
 )
-def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, resolution, waist_ease):
+@click.option("--force", is_flag=True, help="Make it for a body shape no human has (as `run --force` plays one).")
+def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, resolution, waist_ease, force):
     """Make a KIND garment dressed on the body in rest pose (kinds: see `segadeform garment kinds`).
 
     An option the kind does not use (--sleeve for a tank, --flare for trousers) is refused."""
     from segadeform.body import default_body_path, load_body
+    from segadeform.bounds import check_betas, check_body_height
     from segadeform.errors import InputError
     from segadeform.garments import KIND_PARAMS, GarmentParams, check_garment, make_garment
     from segadeform.garments.make import GarmentCheckError
@@ -76,10 +78,16 @@ def garment_make_cmd(kind, output, body, betas, length, flare, ease, sleeve, res
             if value is not None and name not in takes:  # it changed nothing, yet was recorded in the OBJ
                 opts = ", ".join("--" + n.replace("_", "-") for n in takes)
                 raise InputError(f"--{name.replace('_', '-')} does not apply to {kind}; it takes: {opts}")
+    b = _betas(betas)
+    if b is not None:
+        b = check_betas(b, what="--betas")
     guard = OutputGuard("garment make", inputs=(body,))
     guard.file(output)
-    b = _betas(betas)
     bm = load_body(body or default_body_path())
+    try:  # a shape every other command refuses (--betas 3,-2: a 2.6 m body) was dressed, exit 0 (a user's trial)
+        check_body_height(bm, b, force=force)
+    except InputError as e:
+        raise InputError(f"--betas: {e.problem}", expected=e.expected, got=e.got) from None
     try:
         g = make_garment(
             kind,

@@ -145,7 +145,9 @@ def inspect_cmd(path, output_units=None):
     from segadeform.io.formats import inspect_sequence, sequence_format_of
     from segadeform.io.writer import output_unit
 
-    unit = None if output_units is None else output_unit(output_units, option="--output-units")
+    from .main import option_value
+
+    unit = None if output_units is None else option_value(output_unit, output_units, option="--output-units")
 
     ext = path.suffix.lower()
     if path.is_dir() and (path / "manifest.json").exists():

@@ -215,5 +215,21 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def option_value(check, value, *, option: str):
+    """``check(value, ...)`` (a library check raising :class:`InputError`), its refusal a usage error (exit 2) naming
+    ``option``: a bad option value is a command-line mistake, as in the C++ and Node runtimes and as click's own
+    ranges (``--batch 0``) are (a technical artist's trial: ``run --output-units furlong`` and ``--fps 0`` exited 1)."""
+    import inspect
+
+    from segadeform.errors import InputError
+
+    try:
+        return check(value, option=option) if "option" in inspect.signature(check).parameters else check(value)
+    except InputError as e:
+        what = e.problem.removeprefix(f"{option}: ").replace(option, "value")
+        detail = ", ".join(f"{k} {v}" for k, v in (("expected", e.expected), ("got", e.got)) if v is not None)
+        raise click.BadParameter(what + (f" ({detail})" if detail else ""), param_hint=f"'{option}'") from None
+
+
 if __name__ == "__main__":
     sys.exit(main())

@@ -44,7 +44,9 @@ def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output, body):
     from segadeform.motion import make_motion, write_bvh
     from segadeform.settings.scene import check_motion_fps
 
-    check_motion_fps(fps, option="--fps")  # naming the option, as `run --fps` does
+    from .main import option_value
+
+    option_value(check_motion_fps, fps, option="--fps")  # naming the option, as `run --fps` does
     guard = OutputGuard("motion make")
     guard.file(output)
     m = make_motion(kind, seconds=seconds, fps=fps, seed=seed, speed=speed, amplitude=amplitude, ease_in=ease_in)

@@ -101,10 +101,12 @@ def motion_export_cmd(
     from segadeform.settings import parse_frames
     from segadeform.settings.scene import check_motion_fps
 
+    from .main import option_value
+
     if output.suffix.lower() != MOTION_SUFFIX:
         raise click.UsageError(f"-o must end in {MOTION_SUFFIX}, got {output.name!r}")
     if fps is not None:  # naming the option, as `run --fps` does
-        check_motion_fps(fps, option="--fps")
+        option_value(check_motion_fps, fps, option="--fps")
     try:
         beta_vals = tuple(float(x) for x in betas.split(",")) if betas else ()
     except ValueError:

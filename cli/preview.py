@@ -89,6 +89,8 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     from segadeform.preview.render import MeshLayer, check_encoder, fit_bounds, render, save_animation, save_image
     from segadeform.settings import Y_TO_Z, parse_frames
 
+    from .main import option_value
+
     ext = output.suffix.lower()
     if ext not in (".png", ".gif", ".mp4"):  # before any rendering
         raise InputError("unknown preview format", path=output, expected=".png, .gif or .mp4", got=ext or "none")
@@ -167,7 +169,7 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     # metres per unit of the result and the body: --output-units, else what each file records, else what the other
     # records (one run wrote both: a centimetre USD beside a PC2 body, which records nothing), else 1
     if output_units is not None:
-        u = output_unit(output_units, option="--output-units")
+        u = option_value(output_unit, output_units, option="--output-units")
         scale = {"g": u, "b": u}
     else:
         g_rec = sequence_units(result)

@@ -239,9 +239,15 @@ def run_cmd(
     from segadeform.settings import Effects, MotionSpec, Scene, load_scene, parse_frames
     from segadeform.settings.scene import check_motion_fps
 
-    if fps is not None:  # said first, naming the option (the motion's own check named nothing)
-        check_motion_fps(fps, option="--fps")
-    out_unit = None if output_units is None else output_unit(output_units, option="--output-units")
+    from .main import option_value
+
+    # a bad option value is a command-line mistake, exit 2, as in the C++ and Node runtimes and as click's own ranges
+    # (--batch 0) are (a technical artist's trial: --output-units furlong and --fps 0 gave 1); said first, naming it
+    if fps is not None:
+        option_value(check_motion_fps, fps, option="--fps")
+    out_unit = None if output_units is None else option_value(output_unit, output_units, option="--output-units")
+    if frames:
+        option_value(parse_frames, frames, option="--frames")
     preset = None
     if quality:
         from segadeform.settings.presets import is_change_list, preset_effects

@@ -236,6 +236,7 @@ def eval_cmd(dataset, models, output, splits, body, push_margin, heatmap, force,
     margins = None if not push_margin else push_margin[0] if len(push_margin) == 1 else list(push_margin)
     predictors = make_predictors(spec, package=PackagePredictor)
     _say_trained_on(spec, set(dataset.ids(split)), split)
+    _say_motions_trained_on(spec, dataset, sorted(dataset.ids(split)), split)
     res = run_eval(
         dataset,
         b,
@@ -269,6 +270,58 @@ def _say_trained_on(spec: dict, scored: set, split: str) -> None:
             click.echo(
                 f"warning: model {name} was trained on {len(both)} of the {len(scored)} '{split}' samples it is "
                 f"scored on (first: {both[0]}; {record} lists them): its numbers there are not held out",
+                err=True,
+            )
+
+
+def _motions_record_of(s: str) -> dict | None:
+    """The record of training motions that model ``s`` keeps: a package's manifest ``training_motions``, a
+    checkpoint's; None for a baseline word or a model that records none."""
+    import json
+
+    p = Path(s)
+    if p.is_dir() and (p / "manifest.json").is_file():
+        try:
+            return json.loads((p / "manifest.json").read_text(encoding="utf-8")).get("training_motions")
+        except (OSError, ValueError, AttributeError):
+            return None
+    if p.is_file() and p.suffix == ".pt":
+        from segadeform.model.network import checkpoint_training_motions
+
+        return checkpoint_training_motions(p)
+    return None
+
+
+def _say_motions_trained_on(spec: dict, dataset, ids: list, split: str) -> None:
+    """Warn of a model scored on samples that play a motion it was trained on: one capture by the joints'
+    speeds (:mod:`segadeform.motion.fingerprint`), whatever the file, its format, frame rate or rig (a
+    researcher's trial: the shipped package was scored on CMU clips it had been trained on, and nothing said)."""
+    from segadeform.errors import InputError
+    from segadeform.motion.fingerprint import SAME_CAPTURE, joint_speeds, nearest_capture, read_motions_record
+
+    records = {n: r for n, s in spec.items() if (r := _motions_record_of(s)) is not None}
+    if not records or not ids:
+        return
+    prints = {}
+    for sid in ids:
+        smp = dataset.load(sid)
+        prints[sid] = joint_speeds(smp.poses, float(smp.meta.get("fps", 30.0)))
+    for name, record in records.items():
+        try:
+            motions = read_motions_record(record)
+        except InputError as e:
+            click.echo(f"warning: model {name}'s record of its training motions cannot be read: {e}", err=True)
+            continue
+        hits = []
+        for sid, fp in prints.items():
+            i, d = nearest_capture(fp, [sp for _, sp in motions])
+            if d <= SAME_CAPTURE:
+                hits.append((sid, motions[i][0]))
+        if hits:
+            click.echo(
+                f"warning: model {name} was trained on the motion of {len(hits)} of the {len(ids)} '{split}' samples "
+                f"it is scored on (first: {hits[0][0]} plays its training motion {hits[0][1]!r}, one capture by the "
+                "joints' speeds): its numbers there are not held out on motion",
                 err=True,
             )
 

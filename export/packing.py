@@ -154,6 +154,7 @@ def repack_package(
     *,
     shared: bool = True,
     training_garments: dict | None = None,
+    training_motions: dict | None = None,
     opset: int | None = None,
 ) -> dict:
     """Write package ``src`` (schema 1, 2 or 3) to ``dst`` in the current layout; returns the new manifest.
@@ -163,7 +164,8 @@ def repack_package(
     Cast, and, for schema-1 packages, the file name of the model's own deformer change): debug info stripped,
     weights shared unless ``shared=False``.  The model card and other ``.md``/``.txt`` files are copied; checkpoints and
     reports are not (they live beside a package, not in it).  ``training_garments`` (a manifest entry,
-    :func:`export.training_set.training_garments_entry`) replaces the package's list; ``opset`` converts
+    :func:`export.training_set.training_garments_entry`) replaces the package's list, ``training_motions``
+    (:func:`segadeform.motion.fingerprint.motions_record`) its record of motions; ``opset`` converts
     every graph (:func:`convert_opset`, e.g. 15 for Unity Sentis).  Written atomically."""
     import onnx
 
@@ -198,6 +200,8 @@ def repack_package(
             out["opset"] = int(opset)
         if training_garments is not None:
             out[spec.TRAINING_GARMENTS] = training_garments
+        if training_motions is not None:
+            out[spec.TRAINING_MOTIONS] = training_motions
         if weights is not None:
             out["weights"] = weights
         finish_package(src, tmp, out, dst)

@@ -102,6 +102,34 @@ def decimated_garment(vertices, faces, resolution: float, *, path=None, option: 
     return v, f, SurfaceMap.build(vertices, v, f)
 
 
+def welded_garment(vertices, faces):
+    """The garment ``vertices`` (N, 3), ``faces`` (F, 3) welded along its split seams for the model, and the
+    :class:`~segadeform.body.resample.SurfaceMap` that carries the welded garment's frames back to every vertex as
+    given: ``(v (M, 3), f (F, 3), map)``, each given vertex on its weld (a corner of a face holding it); None when
+    nothing is split (:func:`~segadeform.geometry.mesh_ops.coincident_map`), or when a vertex lies in no face (which a
+    carried garment cannot keep).  Game-engine exports split vertices at UV seams, and the model deformed the two sides
+    apart: a technical artist's garment split at its UV seams tore 17 cm, exit 0, and the fix on offer (weld) changed
+    the vertex count their engine's mesh has (a point cache must keep the file's); welded here, the outputs keep the
+    file's vertices and the sides move as one."""
+    from segadeform.body.resample import SurfaceMap
+    from segadeform.geometry.mesh_ops import coincident_map
+
+    v, f = np.asarray(vertices, np.float64), np.asarray(faces, np.int64)
+    m = coincident_map(v, surface_faces(v, f))
+    if (m == np.arange(len(v))).all() or len(np.unique(f)) < len(v):
+        return None
+    keep = np.flatnonzero(m == np.arange(len(v)))
+    new = np.full(len(v), -1, np.int64)
+    new[keep] = np.arange(len(keep))
+    idx = new[m]  # each given vertex's welded index
+    wf = idx[f]
+    owner = np.empty(len(keep), np.int64)  # a face holding each welded vertex (every one is held: checked above)
+    owner[wf.ravel()] = np.repeat(np.arange(len(wf)), 3)
+    face = owner[idx]
+    bary = (wf[face] == idx[:, None]).astype(np.float64)
+    return v[keep], wf, SurfaceMap(face=face, bary=bary, offset=np.zeros(len(v)), faces=wf)
+
+
 def effective_batch(batch: int, n_vertices: int) -> int:
     """Frames per deformer call for a garment of ``n_vertices``: ``batch``, lowered (to at least 1) so that
     ``batch x n_vertices <= MAX_VERTEX_FRAMES``."""
@@ -239,6 +267,7 @@ class Run:
         #: cloth stage use, and the map from the model's decimated garment back to it (load_asset)
         self._full: tuple[np.ndarray, np.ndarray] | None = None
         self._smap: Any = None  # a segadeform.body.resample.SurfaceMap
+        self._welded = False  # the model runs on the garment welded along its split seams (welded_garment)
         self.start, self.stop = frame_range(frames, motion.n_frames, first=self._motion_start())
         self.guard = guard
         if guard is not None:  # refused before any work: an output over a file segadeform did not write ...
@@ -310,6 +339,12 @@ class Run:
         key = sha[:32]
         if self.resolution < 1.0:  # the model runs on the garment decimated, its frames carried back to every vertex
             mesh, key = self._decimated(mesh, sha, cdir)
+        elif (welded := welded_garment(mesh.vertices, mesh.faces)) is not None:  # split at seams: run welded, carried
+            self._full = (np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64))
+            wv, wf, self._smap = welded
+            mesh = type(mesh)(vertices=wv, faces=wf)
+            key = hashlib.sha256(f"{sha}:welded".encode()).hexdigest()[:32]
+            self._welded = True
         cpath = cdir / f"asset-{key}-n{n_star}-p{PRECOMPUTE_VERSION}.npz" if cdir is not None and sha else None
         if cpath is not None and cpath.is_file():
             try:
@@ -427,7 +462,7 @@ class Run:
                     log.warning("--force: %s (played anyway)", e)
             _warn_blender_import(self.garment, given)
             _warn_winding(self.garment, given, self.body, self.betas, surface)
-            _warn_seams(self.garment, given, surface)
+            _warn_seams(self.garment, given, surface, welded=self._welded)
             _warn_small_pieces(self.garment, given)
             self._asset = asset
             self._asset_seconds = time.perf_counter() - t  # counted in the run's precompute, whoever asked first
@@ -587,7 +622,7 @@ class Run:
         return RunSummary(
             first_frame=self.start + self._motion_start(),
             start=self.start,
-            resolution_vertices=(asset.n_vertices, len(out_v)) if self._full is not None else None,
+            resolution_vertices=(asset.n_vertices, len(out_v)) if self._full is not None and not self._welded else None,
             frames=self.stop - self.start,
             seconds=time.perf_counter() - t_all,
             output=self.output,
@@ -719,7 +754,12 @@ def _warn_winding(
 
 
 def _warn_seams(
-    garment, asset: GarmentAsset | Mesh, surface: np.ndarray | None = None, say: Callable[..., None] | None = None
+    garment,
+    asset: GarmentAsset | Mesh,
+    surface: np.ndarray | None = None,
+    say: Callable[..., None] | None = None,
+    *,
+    welded: bool = False,
 ) -> None:
     """Say when the garment is split along a seam: vertices of an open boundary at the place of another, with no
     edge between them (:func:`~segadeform.geometry.mesh_ops.coincident_map`; game-engine exports split vertices at
@@ -730,11 +770,20 @@ def _warn_seams(
     from segadeform.geometry.mesh_ops import coincident_map
 
     v, f = np.asarray(asset.vertices, np.float64), np.asarray(asset.faces)
-    welded = int((coincident_map(v, surface_faces(v, f) if surface is None else surface) != np.arange(len(v))).sum())
-    if not welded:
+    welded_n = int((coincident_map(v, surface_faces(v, f) if surface is None else surface) != np.arange(len(v))).sum())
+    if not welded_n:
         return
     path = Path(str(garment)) if isinstance(garment, (str, os.PathLike)) else None
     name = path.name if path is not None else "garment"
+    if welded:  # the model ran on it welded (welded_garment): the sides move as one, the file's vertices written
+        (say or log.warning)(
+            "garment %s: %d vertices lie on an open boundary at the place of another vertex (the mesh is split along a "
+            "seam, as exports split it at UV seams): the model runs on it welded there and writes every vertex of "
+            "the file; the push-out and the cloth stage still see the two sides apart",
+            name,
+            welded_n,
+        )
+        return
     # an OBJ is welded by `garment fit --weld`; an asset's mesh is welded before it is exported again
     how = f"`segadeform garment fit {path} -o WELDED.obj --weld`, or " if name.lower().endswith(".obj") else ""
     (say or log.warning)(
@@ -743,16 +792,17 @@ def _warn_seams(
         "so the output tears there; weld them (%sBlender: Mesh > Clean Up > Merge by Distance) and run the welded "
         "garment",
         name,
-        welded,
+        welded_n,
         how,
     )
 
 
-def garment_warnings(garment, mesh: GarmentAsset | Mesh, body: BodyModel, betas) -> list[str]:
+def garment_warnings(garment, mesh: GarmentAsset | Mesh, body: BodyModel, betas, *, welded: bool = False) -> list[str]:
     """What ``segadeform run`` says of a garment (``mesh``: its mesh as given; ``garment`` its file, for the words):
     vertices in no face or several objects, faces wound against each other or inward, a mesh split along seams.
     ``garment export`` says them too and keeps them in the asset, for the runtimes that play it to say (a
-    developer's trial: a garment split at its UV seams tore in Node with no word)."""
+    developer's trial: a garment split at its UV seams tore in Node with no word).  ``welded``: the model's garment is
+    ``mesh`` welded along its seams (:func:`welded_garment`)."""
     said: list[str] = []
 
     def say(fmt, *args):
@@ -760,7 +810,7 @@ def garment_warnings(garment, mesh: GarmentAsset | Mesh, body: BodyModel, betas)
 
     _warn_blender_import(garment, mesh, say)
     _warn_winding(garment, mesh, body, betas, None, say)
-    _warn_seams(garment, mesh, None, say)
+    _warn_seams(garment, mesh, None, say, welded=welded)
     _warn_small_pieces(garment, mesh, say)
     return said
 

@@ -528,6 +528,23 @@ def test_a_mesh_wound_inward_gives_the_same_fit(body):
     assert np.median(d) < 1e-4 and (d > 1e-3).mean() < 0.05 and d.mean() < 1e-3, (np.median(d), d.mean())
 
 
+def test_a_source_facing_another_way_is_fitted_as_if_turned(body):
+    """A source body and garment facing +X (an Unreal character) or -Z were fitted facing +Z: legs crossed, 46 cm
+    off, exit 0 (a technical artist's trial).  Each quarter turn is tried; the fit is the unturned one's."""
+    from segadeform.body.placement import turn_about_up
+    from segadeform.garments.registration import fit_to_body_mesh
+
+    g, g_src, sv, sf = _other_body_scene(body, [1.5, -1.0])
+    gv = fix_units_and_axes(g_src, units="cm", up="z")
+    bv = fix_units_and_axes(sv, units="cm", up="z")
+    a = fit_to_body_mesh(gv, bv, sf, body, None, samples=600, rounds=3, garment_faces=g.faces)
+    for turn in (90.0, 180.0):
+        r = turn_about_up(turn)
+        b = fit_to_body_mesh(gv @ r.T, bv @ r.T, sf, body, None, samples=600, rounds=3, garment_faces=g.faces)
+        d = np.linalg.norm(a.vertices - b.vertices, axis=1)
+        assert np.median(d) < 1e-3 and d.max() < 0.01, (turn, np.median(d), d.max())
+
+
 def _walls(spec, n: int = 6, width: float = 0.1):
     """Square walls across x, each n x n vertices ``width`` wide: ``spec`` = [(x, +1 or -1: the way it faces along
     x), ...].  Returns vertices, faces and each face's wall (its index in ``spec``)."""

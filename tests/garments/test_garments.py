@@ -162,6 +162,21 @@ def test_cli_garment_make_refuses_what_the_kind_does_not_use(tmp_path, capsys):
     assert "resolution=200" in out.read_text()[:300]
 
 
+def test_cli_garment_make_refuses_a_body_shape_every_other_command_refuses(tmp_path, capsys):
+    """A technical artist's trial: `garment make jacket --betas 3,-2` dressed a 2.6 m body, exit 0, which `run`,
+    `garment fit`, `garment export` and `batch` then refused.  One line as `run`'s, nothing written; --force makes
+    it, as `run --force` plays it; a beta past the shape space is refused as everywhere."""
+    out = tmp_path / "x.obj"
+    assert main(["garment", "make", "tank", "--betas", "3,-2", "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("Error: --betas: the body shape is not a human's height") and err.count("\n") == 1, err
+    assert not out.exists()
+    assert main(["garment", "make", "tank", "--betas", "11", "-o", str(out)]) == 1
+    assert "--betas out of range" in capsys.readouterr().err and not out.exists()
+    assert main(["garment", "make", "tank", "--betas", "3,-2", "--force", "-o", str(out)]) == 0
+    assert out.stat().st_size > 1000
+
+
 def test_cli_garment_make_and_fit_write_only_obj(tmp_path, capsys):
     """A user's trial: `garment make ... -o made.pc2` and `garment fit ... -o made.pc2` wrote OBJ text into a file
     named .pc2.  Another name is one line, exit 1, nothing written, before anything is made."""

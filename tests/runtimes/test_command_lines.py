@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from scipy.spatial import cKDTree
 
 from segadeform.cli.main import cli
 from segadeform.io import Mesh, read_mesh, read_pc2, write_obj
@@ -118,6 +119,11 @@ def test_what_garment_export_says_of_a_split_garment_every_runtime_says(
     assert p.returncode == 0, p.stdout + p.stderr
     said = [ln for ln in p.stderr.splitlines() if ln.startswith("warning: when the garment asset was exported: ")]
     assert any(seam in ln for ln in said), p.stderr
+    # the model's garment is the split one welded, its frames carried to every vertex of the file: no tear
+    frames = read_pc2(tmp_path / "o.pc2").frames
+    twins = cKDTree(m.vertices).query(v[len(m.vertices) :])[1]
+    assert frames.shape[1] == len(v)
+    np.testing.assert_array_equal(frames[:, len(m.vertices) :], frames[:, twins])
     # a garment without one says nothing of it
     p = play(exe, random_package, portable_scene["garment"], portable_scene["motion"], tmp_path / "q.pc2")
     assert p.returncode == 0 and "when the garment asset was exported" not in p.stderr, p.stderr

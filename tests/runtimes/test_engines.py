@@ -269,6 +269,20 @@ def test_cpp_runtime_matches_python_on_a_bundle(shared_bundle, random_package, c
         text=True,
     )
     assert bad.returncode == 1 and "missing.sgdb: no such file" in bad.stderr and not (tmp_path / "x.pc2").exists()
+    # --check on a bundle made with --no-expected said "bundle has no array 'expected'", naming no file, after the
+    # sessions were built (a technical artist's trial): the file, the cause and the fix, first
+    from segadeform.io.sgdb import write_bundle
+
+    meta = read_bundle(shared_bundle)[1]
+    write_bundle(tmp_path / "ne.sgdb", {k: v for k, v in arrays.items() if k != "expected"}, meta)
+    ne = subprocess.run(
+        [exe, str(random_package), str(tmp_path / "ne.sgdb"), "-o", str(tmp_path / "y.pc2"), "--check"],
+        capture_output=True,
+        text=True,
+    )
+    said = f"Error: {tmp_path / 'ne.sgdb'}: the bundle holds no expected frames to --check against"
+    assert ne.returncode == 1 and ne.stderr.startswith(said) and ne.stderr.count("\n") == 1, ne.stderr
+    assert not (tmp_path / "y.pc2").exists()
 
 
 @pytest.mark.parametrize("runtime", ["node", "cpp"])

@@ -1079,3 +1079,74 @@ def test_the_frames_seen_are_those_the_clips_have(synthetic_dataset, tiny_config
     )
     train(cfg, tmp_path / "run", body)
     assert json.loads((tmp_path / "run" / "train.json").read_text())["sample_frames_seen"] == 2 * 2 * n
+
+
+def test_eval_says_when_a_sample_plays_a_motion_the_model_was_trained_on(
+    synthetic_dataset, tiny_config, tmp_path, body, capsys, monkeypatch, random_package
+):
+    """A researcher scored the shipped package on CMU clips it had been trained on, and nothing said so: a checkpoint
+    records its training motions' fingerprints (segadeform.motion.fingerprint), export carries them into the
+    manifest, and eval warns of samples that play one of them, for a checkpoint and for a package; the test split's
+    arm swing is not taken for the walk."""
+    import shutil
+
+    from segadeform.model.network import checkpoint_training_motions
+    from segadeform.motion.fingerprint import BASELINE, read_motions_record
+
+    run = tmp_path / "r"
+    final = train(load_train_config(tiny_config, dataset=synthetic_dataset, overrides={"optim.steps": 2}), run, body)
+    record = checkpoint_training_motions(final)
+    names = [n for n, _ in read_motions_record(record)]
+    assert names == ["shorts__b0__walk", "skirt__b0__walk"]  # (the synthetic samples name no motion: their ids)
+    lead = [sp for n, sp in read_motions_record(record) if n == "skirt__b0__walk"][0]
+    assert len(lead) == 12 + 4 - BASELINE  # the lead's 4 frames and the 12 of the clip, a speed over each 3
+    for split, said in (("train", True), ("test", False)):
+        out = tmp_path / f"ev-{split}"
+        assert main(["eval", str(synthetic_dataset), "-m", f"sega={final}", "--split", split, "-o", str(out)]) == 0
+        err = capsys.readouterr().err
+        assert ("warning: model sega was trained on the motion of 2 of the 2 'train' samples" in err) == said, err
+        assert ("trained on the motion" in err) == said, err
+    # export carries the record into the manifest (the export itself is stubbed: it takes minutes)
+    manifests = []
+
+    class Exported(Exception):
+        pass
+
+    def export_package(model, out, **kw):
+        manifests.append(kw["extra_manifest"])
+        raise Exported
+
+    monkeypatch.setattr("segadeform.export.export_package", export_package)
+    with pytest.raises(Exported):
+        main(["export", str(final), "-o", str(tmp_path / "pkg")])
+    assert manifests[-1]["training_motions"] == record
+    # a package that records them: the same warning
+    pkg = tmp_path / "pkg-with-motions"
+    shutil.copytree(random_package, pkg)
+    m = json.loads((pkg / "manifest.json").read_text())
+    m["training_motions"] = record
+    (pkg / "manifest.json").write_text(json.dumps(m))
+    out = tmp_path / "ev-pkg"
+    assert main(["eval", str(synthetic_dataset), "-m", f"p={pkg}", "--split", "train", "-o", str(out)]) == 0
+    assert "warning: model p was trained on the motion of 2 of the 2 'train' samples" in capsys.readouterr().err
+    # a record from another release cannot be compared: said, and the eval goes on
+    m["training_motions"] = dict(record, rate=24.0)
+    (pkg / "manifest.json").write_text(json.dumps(m))
+    assert main(["eval", str(synthetic_dataset), "-m", f"p={pkg}", "--split", "train", "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "model p's record of its training motions cannot be read: a training_motions record taken another way" in err
+
+
+def test_a_dataset_config_s_training_motions_are_recorded_for_a_package():
+    """``export --training-motions CONFIG`` (a package trained before checkpoints recorded motions): the training
+    split's motions of the config, lead and clip, as ``dataset make`` cuts them; the held-out ones are not."""
+    from segadeform.dataset.make import config_training_motions
+    from segadeform.motion import make_motion
+    from segadeform.motion.fingerprint import SAME_CAPTURE, capture_distance, joint_speeds, read_motions_record
+
+    rec = read_motions_record(config_training_motions([SAMPLES / "datasets" / "tiny.toml"]))
+    assert [n for n, _ in rec] == ["walk-s0"]  # (the entry's name: kind and seed)
+    walk = make_motion("walk", seconds=0.5, fps=30.0)
+    swing = make_motion("arm_swing", seconds=0.5, fps=30.0, seed=1)
+    assert capture_distance(joint_speeds(walk.poses, 30.0), rec[0][1]) < 0.05  # (its ease-in aside)
+    assert capture_distance(joint_speeds(swing.poses, 30.0), rec[0][1]) > SAME_CAPTURE

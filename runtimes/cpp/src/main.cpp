@@ -284,6 +284,9 @@ int main(int argc, char** argv) {
       check_training_body(pkg, force, sc.warnings);
     } else {
       bundle = sgd::read_bundle(pos[1]);
+      if (do_check && !bundle.has("expected"))  // said before the sessions are built, naming the file and the fix
+        throw std::runtime_error(pos[1] + ": the bundle holds no expected frames to --check against (expected a bundle "
+                                 "made without --no-expected, got one made with it)");
       sc = scene_of_bundle(bundle);
       // the scene's post-processes a bundle does not play: its frames are the network's alone (--check included)
       if (bundle.meta.has("left_out") && !bundle.meta["left_out"].arr.empty()) {

@@ -70,6 +70,7 @@ __all__ = [
     "manifest_schema",
     "write_manifest_schema",
     "TRAINING_GARMENTS",
+    "TRAINING_MOTIONS",
     "MAX_NODE_TENSORS",
     "BODY",
     "BODY_INPUTS",
@@ -88,6 +89,12 @@ __all__ = [
 #: (null with one garment); a garment whose nearest training garment is further than that, or whose
 #: number of openings (boundary loops) no training garment has, is outside the training set.
 TRAINING_GARMENTS = "training_garments"
+
+#: optional manifest key: fingerprints of the motions the model was trained on (each joint's angular speed over
+#: time, :mod:`segadeform.motion.fingerprint`), so ``eval`` can say when a sample it scores plays one of them:
+#: ``{"metric": "joint-speeds-v1", "rate": 30.0, "joints": [9 SMPL joints], "motions": [{"name": str, "frames":
+#: int, "speeds": base64, a byte a value}, ...]}``.  Runtimes do not read it.
+TRAINING_MOTIONS = "training_motions"
 
 #: the most tensors one graph node may read and write: WebGPU's default storage buffers per shader stage (a
 #: Concat of 24 joints needed 25, and onnxruntime-web's JSEP WebGPU returned wrong numbers without an error);
@@ -521,6 +528,31 @@ _EFFECTS = {
 }
 _OPSET = {"type": "integer", "minimum": SUPPORTED_OPSETS.start, "maximum": SUPPORTED_OPSETS.stop - 1}
 _POSITIVE = {"type": "integer", "minimum": 1}
+_TRAINING_MOTIONS = {
+    "type": "object",
+    "required": ["metric", "rate", "joints", "motions"],
+    "additionalProperties": False,
+    "description": "fingerprints of the training motions (segadeform.motion.fingerprint); eval says when a sample "
+    "it scores plays one of them",
+    "properties": {
+        "metric": {"type": "string"},
+        "rate": {"type": "number", "minimum": 0},
+        "joints": {"type": "array", "items": {"type": "integer", "minimum": 0}},
+        "motions": {
+            "type": "array",
+            "items": {
+                "type": "object",
+                "required": ["name", "frames", "speeds"],
+                "additionalProperties": False,
+                "properties": {
+                    "name": {"type": "string"},
+                    "frames": {"type": "integer", "minimum": 0},
+                    "speeds": {"type": "string"},
+                },
+            },
+        },
+    },
+}
 _TRAINING_GARMENTS = {
     "type": "object",
     "required": ["metric", "threshold", "garments"],
@@ -743,6 +775,14 @@ def validate_manifest(m, *, path=None) -> None:
         raise PackageError("manifest weights file is also a graph file", path=path, got=w["file"])
     if TRAINING_GARMENTS in m:
         _check_training_garments(m[TRAINING_GARMENTS], cfg["n_star"], path)
+    if TRAINING_MOTIONS in m and not _conforms(m[TRAINING_MOTIONS], _TRAINING_MOTIONS):
+        raise PackageError(
+            f"manifest {TRAINING_MOTIONS} is malformed",
+            path=path,
+            expected='{"metric": str, "rate": number > 0, "joints": [int], "motions": [{"name": str, "frames": int, '
+            '"speeds": str}, ...]}',
+            got=str(m[TRAINING_MOTIONS])[:200],
+        )
 
 
 def _check_body(name, g, m, path) -> None:
@@ -896,6 +936,7 @@ def manifest_schema() -> dict:
                 "additionalProperties": {"type": "object", "additionalProperties": {"type": "integer"}},
             },
             TRAINING_GARMENTS: _TRAINING_GARMENTS,
+            TRAINING_MOTIONS: _TRAINING_MOTIONS,
         },
         "$defs": {"tensor": tensor, "effects": effects, "encoder": encoder, "deformer": deformer, "body": body},
     }

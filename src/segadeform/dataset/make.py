@@ -81,6 +81,7 @@ __all__ = [
     "make_order",
     "regate",
     "RegateSummary",
+    "config_training_motions",
 ]
 
 
@@ -421,6 +422,27 @@ def _motion(m: MotionEntry, cfg: DatasetConfig, rest_joints=None, *, with_lead: 
     # the lead's first frame is where the simulation's rest pose stands: facing +Z above x = z = 0
     clip = face_forward(dataclasses.replace(mo, poses=mo.poses[a - lead : a + n], trans=mo.trans[a - lead : a + n]), 0)
     return (clip, lead) if with_lead else clip
+
+
+def config_training_motions(configs) -> dict:
+    """The record of the motions the training split of each dataset config (a path) plays, lead and clip as
+    :func:`_motion` cuts them, on the default body (:func:`segadeform.motion.fingerprint.motions_record`; the
+    fingerprint barely depends on the body: under 0.001 between body shapes).  What ``export --training-motions``
+    records for a model trained on those datasets."""
+    from ..motion.fingerprint import joint_speeds, motions_record
+    from .config import load_dataset_config
+
+    rest = load_body(default_body_path()).rest_joints(None)[0]
+    names, speeds = [], []
+    for c in configs:
+        cfg = load_dataset_config(c)
+        for mi in sorted({p.motion for p in sample_plan(cfg) if p.split == "train"}):
+            mo, _ = _motion(cfg.motions[mi], cfg, rest, with_lead=True)
+            names.append(cfg.motions[mi].name)
+            speeds.append(joint_speeds(mo.poses, mo.fps))
+    if not names:
+        raise InputError("the dataset configs plan no training samples", got=", ".join(str(c) for c in configs))
+    return motions_record(names, speeds)
 
 
 def _without_lead(motion, lead: int):

@@ -228,8 +228,10 @@ def fit_to_body_mesh(
     seed: int = 0,
     scale: float | None = None,
     garment_faces=None,
+    _facing_known: bool = False,
 ) -> BodyFit:
-    """Carry a garment modelled on another body mesh (any topology and pose, +Y up, metres) onto ``body``.
+    """Carry a garment modelled on another body mesh (any topology and pose, +Y up, metres, facing any way about
+    +Y) onto ``body``.
 
     1. **register** the body to the source mesh: scale (``None``: from the ratio of surface areas, which a pose
        changes little, or of heights for a point cloud; a number fixes it), translation, shape and joint rotations
@@ -237,7 +239,9 @@ def fit_to_body_mesh(
        point paired with the nearest one facing the same way, with priors pulling pose and shape to zero: pose and
        placement alone from each of the T-pose, MakeHuman's A-pose (when the body file has it) and arms down; from
        the best, each arm and leg tried in a few directions (a stride, an arm raised forward) and kept where the
-       body fits closer; then everything, shape included, to the end;
+       body fits closer; then everything, shape included, to the end.  A source facing another way than +Z
+       (found by fitting the T-pose facing each quarter turn) is turned to face +Z first, garment with it
+       (``BodyFit``'s ``trans`` and ``pose`` are then those of the turned source);
     2. **correct the surface**: every registered body vertex within 3 cm of the source moves onto it (the
        closest point facing its way), the displacement smoothed over the mesh;
     3. **attach** each garment vertex to the closest point of that surface: triangle, barycentric
@@ -357,8 +361,39 @@ def fit_to_body_mesh(
     down[17] = [0, 0, 1.2]
     starts.append(down.ravel())
     # From each start, pose and placement alone (shape and scale held: free, they bend to fit a wrong pose), with
-    # the pairs found again every few steps; the best start on.
-    trials = [fit(start(s0), 12, shape=False, nfev=5) for s0 in starts]
+    # the pairs found again every few steps; the best start on.  The source may face any way about its up axis (an
+    # Unreal character faces +X), and closest points do not turn a body a quarter round: unless the caller knows the
+    # facing, the rest pose is tried facing each of four ways first, and a source that faces another way than +Z is
+    # turned to face it (with the garment) and fitted again -- as `--turn` would have it (a technical artist's source
+    # facing +X was fitted facing +Z, legs crossed and 46 cm off, with exit 0).
+    if not _facing_known:
+        from ..body.rotations import axis_angle_to_matrix
+
+        facings = [
+            fit(start(np.concatenate([[0.0, np.radians(a), 0.0], starts[0][3:]])), 12, shape=False, nfev=5)
+            for a in (0.0, 90.0, 180.0, 270.0)
+        ]
+        quarter = int(np.argmin([e for _, e in facings]))
+        toes = _toes_facing(sv)  # a body seen from behind fits about as close as from the front: the feet tell
+        if toes is not None:
+            quarter = min((quarter, (quarter + 2) % 4), key=lambda q: abs((90.0 * q - toes + 180.0) % 360.0 - 180.0))
+        if quarter:
+            r = axis_angle_to_matrix(np.array([0.0, np.radians(90.0 * quarter), 0.0]))  # the body turned so fits
+            return fit_to_body_mesh(
+                g @ r,  # (rows: R^T v) the source and garment turned back, to face the body's way
+                sv @ r,
+                sf,
+                body,
+                betas,
+                samples=samples,
+                rounds=rounds,
+                seed=seed,
+                scale=scale,
+                garment_faces=garment_faces,
+                _facing_known=True,
+            )
+    trials = [] if _facing_known else [facings[0]]  # (the rest pose facing +Z: tried already)
+    trials += [fit(start(s0), 12, shape=False, nfev=5) for s0 in starts[len(trials) :]]
     x, err = min(trials, key=lambda r: r[1])
     # Then each limb from a few directions (closest points alone leave an arm or a leg where it started when the
     # source holds it far from there -- a stride, an arm raised forward), kept where the whole body fits closer.
@@ -407,6 +442,22 @@ def fit_to_body_mesh(
     if garment_faces is not None:
         out = _smooth_carry(g, out, garment_faces)
     return BodyFit(vertices=out, body_error=body_error, scale=scale_f, trans=np.asarray(t), pose=th, betas=beta)
+
+
+def _toes_facing(v: np.ndarray) -> float | None:
+    """Degrees about +Y from +Z that a standing body mesh ``v`` (N, 3), +Y up, faces by its feet: the lowest 3 % of
+    its height against its shins (10-20 %), whose toes point forward; None where the feet are not told apart from
+    the shins (fewer than 10 vertices either way, or under 2 % of the height between them)."""
+    h = v[:, 1]
+    lo, height = float(h.min()), float(np.ptp(h))
+    feet = v[h < lo + 0.03 * height]
+    shins = v[(h > lo + 0.1 * height) & (h < lo + 0.2 * height)]
+    if len(feet) < 10 or len(shins) < 10:
+        return None
+    d = feet[:, [0, 2]].mean(axis=0) - shins[:, [0, 2]].mean(axis=0)
+    if not np.linalg.norm(d) > 0.02 * height:
+        return None
+    return float(np.degrees(np.arctan2(d[0], d[1])))
 
 
 def _smooth_carry(g: np.ndarray, out: np.ndarray, faces, iterations: int = 10) -> np.ndarray:

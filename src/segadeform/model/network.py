@@ -209,6 +209,14 @@ def checkpoint_training_garments(path: str | os.PathLike):
     return list(t["names"]), np.asarray(t["descriptors"], np.float64), t.get("openings")
 
 
+def checkpoint_training_motions(path: str | os.PathLike) -> dict | None:
+    """The record of the motions a checkpoint was trained on (:func:`segadeform.motion.fingerprint.motions_record`);
+    None when it does not say (checkpoints written before training recorded them)."""
+    ck = torch.load(Path(path), map_location="cpu", weights_only=True)
+    t = ck.get("training_motions") if isinstance(ck, dict) else None
+    return t if isinstance(t, dict) and t.get("motions") else None
+
+
 def checkpoint_body(path: str | os.PathLike) -> dict | None:
     """``{"name", "sha256"}`` of the body a checkpoint was trained on
     (:func:`segadeform.body.identity.body_label`); None when it does not say (checkpoints written before training

@@ -28,6 +28,7 @@ from ..geometry.mesh_ops import unique_edges
 from ..geometry.precompute import PRECOMPUTE_VERSION, precompute_garment
 from ..io.atomic import atomic_path
 from ..io.garment_asset import GarmentAsset
+from ..motion.fingerprint import joint_speeds
 from ..motion.motion import history_inputs, motion_windows
 
 __all__ = ["TrainItem", "load_items", "sample_asset", "sample_history_inputs"]
@@ -68,6 +69,9 @@ class TrainItem:
     contact_n: torch.Tensor  # (T, N, 3) outward body normal there
     body_weights: torch.Tensor  # (N, S) the body's skinning weights carried to the garment (weight_prior)
     asset: GarmentAsset
+    #: (T', J) the fingerprint of the sample's motion, lead and clip
+    #: (:func:`~segadeform.motion.fingerprint.joint_speeds`): what a checkpoint records of the motions it was trained on
+    motion_speeds: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
@@ -201,9 +205,16 @@ def load_items(
                 contact_n=f32(cn),
                 body_weights=f32(bw),
                 asset=a,
+                motion_speeds=_motion_speeds(s),
             )
         )
     return out
+
+
+def _motion_speeds(s: Sample) -> np.ndarray:
+    """The fingerprint of sample ``s``'s motion: its lead (when it records one) and its clip."""
+    lead = np.zeros((0, s.poses.shape[1])) if s.lead_poses is None else s.lead_poses
+    return joint_speeds(np.concatenate([lead, s.poses]), float(s.meta.get("fps", 30.0)))
 
 
 def _samples(roots, ids, mirror_joints):

@@ -292,6 +292,27 @@ def _roots_said(roots) -> str:
     return "no dataset root: " + (", ".join(f"{r} is not there" for r in roots.skipped) or "none given")
 
 
+def _training_motions(items, init) -> dict:
+    """The fingerprints of the motions ``items`` play (:func:`segadeform.motion.fingerprint.motions_record`),
+    one per motion name (a mirrored sample's motion is another motion), and those of the starting model
+    ``init`` when it records them (a fine-tuned model has seen its starting model's motions too)."""
+    from ..motion.fingerprint import motions_record, read_motions_record
+
+    names, speeds = [], []
+    for i in items:
+        if i.motion_speeds is not None:
+            names.append(str(i.meta.get("motion") or i.id) + ("~mirror" if str(i.id).endswith("~mirror") else ""))
+            speeds.append(i.motion_speeds)
+    if init and Path(init).is_file():
+        from ..model.network import checkpoint_training_motions
+
+        before = checkpoint_training_motions(init)
+        for n, sp in read_motions_record(before) if before is not None else []:
+            names.append(n)
+            speeds.append(sp)
+    return motions_record(names, speeds)
+
+
 def _hardware(device: torch.device) -> dict:
     hw = {
         "device": str(device),
@@ -762,7 +783,15 @@ def train(
                     seen["names"].append(n)
                     seen["descriptors"].append([float(x) for x in d])
                     seen["openings"].append(int(k))
-    save_checkpoint(final, model, train_config=cfg.to_dict(), steps=step, body=trained_body, training_garments=seen)
+    save_checkpoint(
+        final,
+        model,
+        train_config=cfg.to_dict(),
+        steps=step,
+        body=trained_body,
+        training_garments=seen,
+        training_motions=_training_motions(items, o.init),
+    )
     info = {
         "config": cfg.to_dict(),
         "config_digest": cfg.digest(),
