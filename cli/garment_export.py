@@ -78,7 +78,7 @@ def garment_export_cmd(garment, output, body, betas, model, k, force, resolution
         model = default_model_path()
     config = read_manifest_text((Path(model) / "manifest.json").read_text(encoding="utf-8"))["config"]
     given = None  # with --resolution < 1: the garment as given, and the map from the model's decimated copy to it
-    welded = False  # the model's garment is the given one welded along its split seams (then given is set too)
+    welded = flipped = False  # the model's garment is the given one welded, flipped (then given is set too)
     if garment.suffix.lower() in (".npz", PORTABLE_SUFFIX):
         if resolution is not None and resolution < 1.0:
             raise InputError(
@@ -96,11 +96,12 @@ def garment_export_cmd(garment, output, body, betas, model, k, force, resolution
 
             v, f, smap = decimated_garment(mesh.vertices, mesh.faces, resolution, path=garment)
             given, mesh = (mesh, smap), type(mesh)(vertices=v, faces=f)
-        else:  # split along seams (a game engine's UV seams): the model's garment welded, its frames carried to all
-            from segadeform.runtime.pipeline import welded_garment
+        else:  # split along seams (UV seams) or wound inward: the model's garment welded and flipped, carried to all
+            from segadeform.runtime.pipeline import model_garment
 
-            if (w := welded_garment(mesh.vertices, mesh.faces)) is not None:
-                given, mesh, welded = (mesh, w[2]), type(mesh)(vertices=w[0], faces=w[1]), True
+            mv, mf, smap, welded, flipped = model_garment(mesh.vertices, mesh.faces, b, beta_vals)
+            if smap is not None:
+                given, mesh = (mesh, smap), type(mesh)(vertices=mv, faces=mf)
         try:
             asset = precompute_garment(
                 mesh.vertices,
@@ -150,7 +151,7 @@ def garment_export_cmd(garment, output, body, betas, model, k, force, resolution
         # cannot tell again (vertices in no face ...; a review: dropped), but against this model
         said = [w for w in asset.warnings if " lies outside the garments model " not in w]
     else:
-        said = garment_warnings(garment, on, b, beta_vals, welded=welded)
+        said = garment_warnings(garment, on, b, beta_vals, welded=welded, flipped=flipped)
     far = unfamiliar_warning(ModelPackage(model), asset)
     said += [] if far is None else [far]
     for w in said:

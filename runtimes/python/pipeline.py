@@ -102,7 +102,7 @@ def decimated_garment(vertices, faces, resolution: float, *, path=None, option: 
     return v, f, SurfaceMap.build(vertices, v, f)
 
 
-def welded_garment(vertices, faces):
+def welded_garment(vertices, faces, surface: np.ndarray | None = None):
     """The garment ``vertices`` (N, 3), ``faces`` (F, 3) welded along its split seams for the model, and the
     :class:`~segadeform.body.resample.SurfaceMap` that carries the welded garment's frames back to every vertex as
     given: ``(v (M, 3), f (F, 3), map)``, each given vertex on its weld (a corner of a face holding it); None when
@@ -115,7 +115,7 @@ def welded_garment(vertices, faces):
     from segadeform.geometry.mesh_ops import coincident_map
 
     v, f = np.asarray(vertices, np.float64), np.asarray(faces, np.int64)
-    m = coincident_map(v, surface_faces(v, f))
+    m = coincident_map(v, surface_faces(v, f) if surface is None else surface)
     if (m == np.arange(len(v))).all() or len(np.unique(f)) < len(v):
         return None
     keep = np.flatnonzero(m == np.arange(len(v)))
@@ -128,6 +128,38 @@ def welded_garment(vertices, faces):
     face = owner[idx]
     bary = (wf[face] == idx[:, None]).astype(np.float64)
     return v[keep], wf, SurfaceMap(face=face, bary=bary, offset=np.zeros(len(v)), faces=wf)
+
+
+def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray | None = None):
+    """The garment the model runs on for a garment mesh as given: welded along its split seams
+    (:func:`welded_garment`) and, when its faces are all wound inward (:func:`inward_share` over :data:`INWARD`, none
+    wound against its neighbours), flipped -- the model reads the normals, and a technical artist's garment wound
+    inward ran 9.5 cm off the same garment wound outward, exit 0.  Returns ``(v, f, map, welded, flipped)``: the
+    :class:`~segadeform.body.resample.SurfaceMap` carries the model's frames to every vertex as given (None, with ``v``
+    and ``f`` as given, when neither applies).  ``surface``: the garment's
+    :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here)."""
+    from segadeform.body.resample import SurfaceMap
+    from segadeform.geometry.mesh_ops import misoriented_edges
+
+    v, f = np.asarray(vertices, np.float64), np.asarray(faces, np.int64)
+    surface = surface_faces(v, f) if surface is None else surface
+    w = welded_garment(v, f, surface)
+    mv, mf, smap = (v, f, None) if w is None else w
+    flip = (
+        len(np.unique(f)) == len(v)  # (a carried garment keeps no vertex outside a face)
+        and misoriented_edges(surface if w is None else surface_faces(mv, mf), len(mv)) == 0
+        and inward_share(mv, mf, body, betas) > INWARD
+    )
+    if not flip:
+        return mv, mf, smap, w is not None, False
+    if smap is None:  # each vertex on a corner of a face holding it
+        owner = np.empty(len(v), np.int64)
+        owner[f.ravel()] = np.repeat(np.arange(len(f)), 3)
+        bary = (f[owner] == np.arange(len(v))[:, None]).astype(np.float64)
+        smap = SurfaceMap(face=owner, bary=bary, offset=np.zeros(len(v)), faces=f)
+    flipped = mf[:, ::-1].copy()  # corners reversed: the same places, the other way round
+    smap = SurfaceMap(face=smap.face, bary=smap.bary[:, ::-1].copy(), offset=-smap.offset, faces=flipped)
+    return mv, flipped, smap, w is not None, True
 
 
 def effective_batch(batch: int, n_vertices: int) -> int:
@@ -268,6 +300,7 @@ class Run:
         self._full: tuple[np.ndarray, np.ndarray] | None = None
         self._smap: Any = None  # a segadeform.body.resample.SurfaceMap
         self._welded = False  # the model runs on the garment welded along its split seams (welded_garment)
+        self._flipped = False  # ... and its faces flipped, wound inward in the file (model_garment)
         self.start, self.stop = frame_range(frames, motion.n_frames, first=self._motion_start())
         self.guard = guard
         if guard is not None:  # refused before any work: an output over a file segadeform did not write ...
@@ -339,12 +372,17 @@ class Run:
         key = sha[:32]
         if self.resolution < 1.0:  # the model runs on the garment decimated, its frames carried back to every vertex
             mesh, key = self._decimated(mesh, sha, cdir)
-        elif (welded := welded_garment(mesh.vertices, mesh.faces)) is not None:  # split at seams: run welded, carried
-            self._full = (np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64))
-            wv, wf, self._smap = welded
-            mesh = type(mesh)(vertices=wv, faces=wf)
-            key = hashlib.sha256(f"{sha}:welded".encode()).hexdigest()[:32]
-            self._welded = True
+        else:  # split at seams, or wound inward: the model runs on it welded and flipped, its frames carried to all
+            mv, mf, smap, self._welded, self._flipped = model_garment(
+                mesh.vertices, mesh.faces, self.body, self.betas, self._surface_faces(mesh.vertices, mesh.faces)
+            )
+            if smap is not None:  # (the surface computed above is the file's, not the model's garment's)
+                self._surface = None
+                self._full = (np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64))
+                self._smap = smap
+                mesh = type(mesh)(vertices=mv, faces=mf)
+                how = f"welded={self._welded}:flipped={self._flipped}"
+                key = hashlib.sha256(f"{sha}:{how}".encode()).hexdigest()[:32]
         cpath = cdir / f"asset-{key}-n{n_star}-p{PRECOMPUTE_VERSION}.npz" if cdir is not None and sha else None
         if cpath is not None and cpath.is_file():
             try:
@@ -461,7 +499,7 @@ class Run:
                         raise
                     log.warning("--force: %s (played anyway)", e)
             _warn_blender_import(self.garment, given)
-            _warn_winding(self.garment, given, self.body, self.betas, surface)
+            _warn_winding(self.garment, given, self.body, self.betas, surface, flipped=self._flipped)
             _warn_seams(self.garment, given, surface, welded=self._welded)
             _warn_small_pieces(self.garment, given)
             self._asset = asset
@@ -622,7 +660,9 @@ class Run:
         return RunSummary(
             first_frame=self.start + self._motion_start(),
             start=self.start,
-            resolution_vertices=(asset.n_vertices, len(out_v)) if self._full is not None and not self._welded else None,
+            resolution_vertices=(asset.n_vertices, len(out_v))
+            if self._full is not None and self.resolution < 1
+            else None,
             frames=self.stop - self.start,
             seconds=time.perf_counter() - t_all,
             output=self.output,
@@ -709,6 +749,20 @@ WINDING_NEAR = 0.03
 INWARD = 0.8
 
 
+def inward_share(vertices, faces, body: BodyModel, betas) -> float:
+    """The share of a garment's vertices near the body at rest (within :data:`WINDING_NEAR`) whose normals point into
+    it; 0 when fewer than 10 are near."""
+    from segadeform.body.collision import BodyCollider
+    from segadeform.geometry.mesh_ops import vertex_normals
+
+    v, f = np.asarray(vertices, np.float64), np.asarray(faces)
+    q = BodyCollider(body.v_template, body.faces).query(v, body.shaped_vertices(betas)[0])
+    near = np.abs(q.signed_distance) < WINDING_NEAR
+    if near.sum() < 10:
+        return 0.0
+    return float(((vertex_normals(v, f)[near] * q.normal[near]).sum(axis=1) < 0).mean())
+
+
 def _warn_winding(
     garment,
     asset: GarmentAsset | Mesh,
@@ -716,6 +770,8 @@ def _warn_winding(
     betas,
     surface: np.ndarray | None = None,
     say: Callable[..., None] | None = None,
+    *,
+    flipped: bool = False,
 ) -> None:
     """Say when the garment's faces are not all wound outward: some against their neighbours
     (:func:`~segadeform.geometry.mesh_ops.mesh_defects`' ``misoriented`` edges) or all of them inward (the normals of
@@ -723,8 +779,7 @@ def _warn_winding(
     dress's frames 1.2 cm on average, 6.6 cm at most, with every face flipped, and nothing said so.  ``surface``: the
     garment's :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here).  ``say``: what says it, with
     ``log.warning``'s arguments (default: it)."""
-    from segadeform.body.collision import BodyCollider
-    from segadeform.geometry.mesh_ops import misoriented_edges, vertex_normals
+    from segadeform.geometry.mesh_ops import misoriented_edges
 
     name = Path(str(garment)).name if isinstance(garment, (str, os.PathLike)) else "garment"
     v, f = np.asarray(asset.vertices, np.float64), np.asarray(asset.faces)
@@ -737,13 +792,16 @@ def _warn_winding(
             bad,
         )
         return
-    rest = body.shaped_vertices(betas)[0]
-    q = BodyCollider(body.v_template, body.faces).query(v, rest)
-    near = np.abs(q.signed_distance) < WINDING_NEAR
-    if near.sum() < 10:
+    inward = inward_share(v, f, body, betas)
+    if flipped:  # the model ran on it flipped (model_garment): said, with what the file's faces still are
+        (say or log.warning)(
+            "garment %s: its faces are wound inward (the normals of %.0f %% of its vertices near the body point into "
+            "it): the model runs on it flipped, and the outputs keep the file's faces; flip them in the file "
+            "(Blender: Mesh > Normals > Recalculate Outside) for renders that read them",
+            name,
+            100 * inward,
+        )
         return
-    n = vertex_normals(v, f)[near]
-    inward = float(((n * q.normal[near]).sum(axis=1) < 0).mean())
     if inward > INWARD:
         (say or log.warning)(
             "garment %s: its faces are wound inward (the normals of %.0f %% of its vertices near the body point into "
@@ -797,7 +855,9 @@ def _warn_seams(
     )
 
 
-def garment_warnings(garment, mesh: GarmentAsset | Mesh, body: BodyModel, betas, *, welded: bool = False) -> list[str]:
+def garment_warnings(
+    garment, mesh: GarmentAsset | Mesh, body: BodyModel, betas, *, welded: bool = False, flipped: bool = False
+) -> list[str]:
     """What ``segadeform run`` says of a garment (``mesh``: its mesh as given; ``garment`` its file, for the words):
     vertices in no face or several objects, faces wound against each other or inward, a mesh split along seams.
     ``garment export`` says them too and keeps them in the asset, for the runtimes that play it to say (a
@@ -809,7 +869,7 @@ def garment_warnings(garment, mesh: GarmentAsset | Mesh, body: BodyModel, betas,
         said.append(fmt % args)
 
     _warn_blender_import(garment, mesh, say)
-    _warn_winding(garment, mesh, body, betas, None, say)
+    _warn_winding(garment, mesh, body, betas, None, say, flipped=flipped)
     _warn_seams(garment, mesh, None, say, welded=welded)
     _warn_small_pieces(garment, mesh, say)
     return said

@@ -101,8 +101,15 @@ def test_faces_wound_against_their_neighbours_or_inward_are_said(tmp_path, caplo
     assert r.exit_code == 0 and "edges lie between faces wound against each other" in said, said
     r, said = _run(tmp_path, tmp_path / "inward.obj", caplog=caplog)
     assert r.exit_code == 0 and "its faces are wound inward (the normals of 100 %" in said, said
+    # all of them inward: the model runs on it flipped (a technical artist's garment ran 9.5 cm off, exit 0), so its
+    # frames are those of the garment wound outward; faces wound against their neighbours are only said
+    assert "the model runs on it flipped, and the outputs keep the file's faces" in said, said
+    from segadeform.io import read_pc2
+
+    inward = read_pc2(tmp_path / "o.pc2").frames
     r, said = _run(tmp_path, SAMPLES / "garments" / "dress.obj", caplog=caplog)
     assert "wound against" not in said and "wound inward" not in said, said
+    np.testing.assert_array_equal(inward, read_pc2(tmp_path / "o.pc2").frames)
 
 
 def test_bundle_force_says_what_it_plays_anyway(tmp_path, caplog):
