@@ -660,8 +660,10 @@ class Run:
         return RunSummary(
             first_frame=self.start + self._motion_start(),
             start=self.start,
+            # (a decimated model garment's counts: --resolution, or an asset exported with it; not a mesh welded or
+            # flipped for the model, which keeps the file's vertex count in all but its seams)
             resolution_vertices=(asset.n_vertices, len(out_v))
-            if self._full is not None and self.resolution < 1
+            if self._full is not None and not (self._welded or self._flipped)
             else None,
             frames=self.stop - self.start,
             seconds=time.perf_counter() - t_all,
