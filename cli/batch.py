@@ -14,6 +14,21 @@ from .main import PathParam, cli
 BATCH_LAYOUT = ("jobs", "*__*")
 
 
+def _made_by_batch(loc, names) -> bool:
+    """Whether a folder without a manifest is one an earlier batch made: its ``jobs/`` holds job records (``*.json``,
+    and the markers of jobs being committed) and nothing else, and every other name is a job's output
+    (``GARMENT__MOTION...``).  A folder that merely has a ``jobs/`` (a render farm's) is not."""
+    import fnmatch
+
+    records = loc.listdir("jobs")
+    return (
+        "jobs" in names
+        and any(n.endswith(".json") for n in records)
+        and all(n.endswith((".json", ".partial")) for n in records)
+        and all(n == "jobs" or fnmatch.fnmatchcase(n, "*__*") for n in names)
+    )
+
+
 @cli.command("batch")
 @click.argument("jobs_file", metavar="JOBS.toml", type=PathParam(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", help="Folder or fsspec URL for the outputs (overrides [batch] output).")
@@ -57,7 +72,8 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
     from segadeform.runtime.batch import load_batch, run_batch
 
     cfg = load_batch(jobs_file)
-    from segadeform.io.output_guard import OutputGuard
+    from segadeform.io.location import is_url
+    from segadeform.io.output_guard import OutputGuard, written_by
 
     guard = OutputGuard(
         "batch",
@@ -66,14 +82,25 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
     )
     where = output if output is not None else cfg.output
     if where is not None:  # (none: run_batch says so)
-        output = guard.resumable(where, layout=BATCH_LAYOUT, legacy=("jobs/",))
+        output = guard.resumable(where, layout=BATCH_LAYOUT, legacy=_made_by_batch)
     n = [0]
+
+    local = Path(str(output)) if output is not None and not is_url(str(output)) else None
+
+    def owned(rel: str) -> bool:  # a file the batch wrote, unchanged since (the folder's outputs manifest)
+        return local is not None and written_by(local / rel) == "batch"
 
     def progress(rec):
         n[0] += 1
         if "failed" in rec:
             click.echo(f"[{n[0]}] {rec['id']}: FAILED: {rec['failed']}", err=True)
             return
+        if local is not None and not rec.get("resumed"):  # the job's files are the batch's: in the manifests
+            by_folder: dict[Path, list[str]] = {}
+            for f in rec.get("files", []):
+                by_folder.setdefault((local / f).parent, []).append(Path(f).name)
+            for folder, names in by_folder.items():
+                guard.record_files_in(folder, names)
         how = "already done" if rec.get("resumed") else f"{rec['frames']} frames, {rec['ms_per_frame']:.1f} ms/frame"
         click.echo(f"[{n[0]}] {rec['id']}: {how} -> {rec['output']}", err=True)
 
@@ -82,7 +109,7 @@ def batch_cmd(jobs_file, output, jobs, executor, limit, force):
             cfg = _fbx_read(cfg, executor, stack, output)
             with make_executor(executor, jobs) as ex:
                 guard.start()
-                s = run_batch(cfg, out=output, executor=ex, limit=limit, progress=progress, force=force)
+                s = run_batch(cfg, out=output, executor=ex, limit=limit, progress=progress, force=force, owned=owned)
     finally:
         guard.abandon()  # a run that made nothing leaves no empty output folder
     click.echo(

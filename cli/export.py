@@ -16,28 +16,29 @@ _inline_weights_option = click.option(
 )
 
 
-def _training_garments_option(default: str):
-    """``--training-garments`` (export and repack), its default named in the help."""
-    return click.option(
-        "--training-garments",
+_TRAINING_OPTIONS = {
+    "garments": (
         "training_files",
-        multiple=True,
-        type=PathParam(dir_okay=False, exists=True, path_type=Path),
-        help="Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes "
-        f"warn about garments far from all of them.  Default: {default}.",
-    )
-
-
-def _training_motions_option(default: str):
-    """``--training-motions`` (export and repack), its default named in the help."""
-    return click.option(
-        "--training-motions",
+        "Garment mesh files the model was trained on (repeatable); recorded in the manifest so runtimes warn about "
+        "garments far from all of them.",
+    ),
+    "motions": (
         "training_motions",
+        "A dataset config (.toml) whose training split's motions the model was trained on (repeatable): their "
+        "fingerprints are recorded in the manifest, so `eval` says when a sample it scores plays one of them.",
+    ),
+}
+
+
+def _training_option(what: str, default: str):
+    """``--training-garments`` / ``--training-motions`` (export and repack), the default named in the help."""
+    dest, text = _TRAINING_OPTIONS[what]
+    return click.option(
+        f"--training-{what}",
+        dest,
         multiple=True,
         type=PathParam(dir_okay=False, exists=True, path_type=Path),
-        help="A dataset config (.toml) whose training split's motions the model was trained on (repeatable): "
-        "their fingerprints are recorded in the manifest, so `eval` says when a sample it scores plays one of "
-        f"them.  Default: {default}.",
+        help=f"{text}  Default: {default}.",
     )
 
 
@@ -80,8 +81,8 @@ def _training_motions_option(default: str):
     "the model's.",
 )
 @_inline_weights_option
-@_training_garments_option("what the checkpoint records")
-@_training_motions_option("what the checkpoint records")
+@_training_option("garments", "what the checkpoint records")
+@_training_option("motions", "what the checkpoint records")
 def export_cmd(
     checkpoint,
     output,
@@ -196,8 +197,8 @@ def quantize_cmd(package, output, precision):
     "-o", "--output", required=True, type=PathParam(file_okay=False, path_type=Path), help="The new package folder."
 )
 @_inline_weights_option
-@_training_garments_option("the package's own list")
-@_training_motions_option("the package's own record")
+@_training_option("garments", "the package's own list")
+@_training_option("motions", "the package's own record")
 @click.option(
     "--opset",
     type=click.IntRange(15, 21),

@@ -43,16 +43,24 @@ def _given_twice(cmd: click.Command, ctx: click.Context, args: list[str]) -> Non
 
 
 #: what a command stopped by Ctrl-C or SIGTERM says (train says its own: the step it resumes from); outputs are
-#: committed whole or not at all, and dataset make keeps each sample as it finishes
-INTERRUPTED = (
-    "interrupted: nothing half-written was left; run the same command again (dataset make goes on from the "
-    "samples it finished)"
-)
+#: committed whole or not at all
+INTERRUPTED = "interrupted: nothing half-written was left; run the same command again"
+#: the commands that keep each unit of work as it finishes, and go on from there when run again
+_GOES_ON = {"batch": "the jobs", "dataset make": "the samples"}
+
+
+def interrupted_message(command: str) -> str:
+    """What ``command`` (``batch``, ``dataset make`` ...) says when stopped: :data:`INTERRUPTED`, and for a command that
+    keeps its finished work, that it goes on from there (a pipeline TD's trial: `run` and `batch` spoke of dataset
+    make)."""
+    what = _GOES_ON.get(command)
+    return INTERRUPTED + (f" (it goes on from {what} it finished)" if what else "")
 
 
 class _Command(click.Command):
     def parse_args(self, ctx, args):
         _given_twice(self, ctx, args)
+        ctx.meta["segadeform.command"] = " ".join(ctx.command_path.split()[1:])  # (meta: shared with the group's)
         return super().parse_args(ctx, args)
 
 
@@ -75,7 +83,7 @@ class _Group(click.Group):
         except MemoryError:
             raise click.ClickException("out of memory (is the input much larger than expected?)") from None
         except KeyboardInterrupt:  # Ctrl-C, SIGTERM: click said "Aborted!" alone (a user's trial)
-            raise click.ClickException(INTERRUPTED) from None
+            raise click.ClickException(interrupted_message(ctx.meta.get("segadeform.command", ""))) from None
         except BrokenPipeError:
             if not _stdout_closed():  # a pipe of ours (the simulator's) broke: an error like any other
                 raise click.ClickException("broken pipe") from None

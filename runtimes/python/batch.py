@@ -33,7 +33,11 @@ runs in a scratch folder, commits its output to ``OUTPUT/GARMENT__MOTION.EXT`` (
 for obj-seq), and then its record to ``OUTPUT/jobs/GARMENT__MOTION.json``, written last and once:
 that file marks the job done.  A run skips done jobs (run again to resume), a job retried after its
 worker died starts over and commits once, and a job whose spec changed under the same name (another
-mesh, motion, model or effects) stops the run before anything is made.  The executor
+mesh, motion, model or effects) stops the run before anything is made.  The batch never writes over a file it
+did not write: before committing, a job writes ``OUTPUT/jobs/GARMENT__MOTION.partial`` (removed after its
+record), and a run refuses, before anything runs, a file where a job to make writes that is neither a killed
+attempt's (its marker there) nor one the folder's outputs manifest lists as the batch's.  A finished job's record
+keeps each file's size: one whose output is gone is made again, one whose output changed since is refused.  The executor
 (:mod:`segadeform.distributed.executors`) is this machine's process pool or a Ray cluster; the files a jobs
 file names must be at the same path on every worker.
 """
@@ -54,6 +58,7 @@ from segadeform.distributed.executors import Executor, LocalExecutor
 from segadeform.errors import FileFormatError, InputError, SegadeformError, file_error
 from segadeform.io.atomic import WriteError
 from segadeform.io.location import Location, is_url, open_location
+from segadeform.io.output_guard import OutputRefused
 from segadeform.io.toml import config_path, key, key_line, read_table, read_toml
 from segadeform.settings import DEFAULT_EFFECTS, Effects, MotionSpec, Scene, parse_effects
 from segadeform.settings.cloth import CLOTH_KNOBS, ClothSettings
@@ -380,6 +385,17 @@ def batch_jobs(cfg: BatchConfig, out=None) -> list[BatchJob]:
     return jobs
 
 
+def _pending(jid: str) -> str:
+    """The marker a job writes before it commits its output and removes after its record: a file at the job's output
+    name is the batch's own (a killed attempt's, to be written over) only where it is there."""
+    return f"jobs/{jid}.partial"
+
+
+def _occupied(loc: Location, name: str) -> list[str]:
+    """What is at a job's output name: the file, or the files of the folder (obj-seq)."""
+    return [name] if loc.exists(name) else [f"{name}/{n}" for n in loc.listdir(name)]
+
+
 def _record(loc: Location, jid: str) -> dict | None:
     rel = f"jobs/{jid}.json"
     return dict(json.loads(loc.read_text(rel)), resumed=True) if loc.exists(rel) else None
@@ -433,6 +449,20 @@ def _run_job(job: BatchJob, loc, name: str, t0: float) -> dict:
             s = run_scene(
                 scene, batch=job.frames_per_call, threads=1, force=job.force, resolution_option="batch.resolution"
             )
+            local = sorted(p for p in Path(d).rglob("*") if p.is_file())
+            sizes = {p.relative_to(d).as_posix(): p.stat().st_size for p in local}
+            pending = _pending(job.id)
+            if not loc.exists(pending):  # (run_batch checked before the run; a file may have come since)
+                taken = [t for t in sizes if loc.exists(t)]
+                if taken:
+                    return {
+                        "id": job.id,
+                        "garment": job.garment.name,
+                        "motion": job.motion.name,
+                        "failed": f"{loc}/{taken[0]} is in the way: a file segadeform batch did not write, which it "
+                        "never writes over (move it, or use another output)",
+                    }
+            loc.put_bytes(pending, json.dumps(sorted(sizes)).encode())
             written = loc.commit_tree(Path(d))
     except WriteError as e:  # disk full, read-only: name the job's output, not its scratch folder
         raise WriteError(f"{loc}/{name}", e.reason, e.errno) from None
@@ -443,15 +473,58 @@ def _run_job(job: BatchJob, loc, name: str, t0: float) -> dict:
         "spec": job.spec,
         "output": name,
         "files": written,
+        "sizes": sizes,  # bytes per file: a finished job's output that changed since is refused, one gone made again
         "frames": s.frames,
         "ms_per_frame": s.ms_per_frame,
         "effects": job.effects.label(),
         "graph": s.variant,
         "seconds": time.perf_counter() - t0,
     }
-    if not loc.put_bytes(f"jobs/{job.id}.json", json.dumps(rec, indent=1, sort_keys=True).encode(), once=True):
+    first = loc.put_bytes(f"jobs/{job.id}.json", json.dumps(rec, indent=1, sort_keys=True).encode(), once=True)
+    loc.remove(_pending(job.id))
+    if not first:
         return cast(dict, _record(loc, job.id))  # another attempt committed it first
     return rec
+
+
+def _check_outputs(loc: Location, plan: list[BatchJob], done: dict, owned: Callable[[str], bool]) -> dict:
+    """Before a run: ``{job id: its files there}`` for the jobs to make whose output name already holds the batch's own
+    files -- a finished job (``done``: id -> record) whose output is gone in part or whole, or a job without a record
+    whose files ``owned`` says the batch wrote (its record removed to have it made again).  Refused, before anything
+    runs, when a finished job's output changed since the batch wrote it (its size) or when something the batch did not
+    write is where a job to make writes: batch writes over neither."""
+    edited, redo = [], set()
+    for jid, rec in done.items():
+        sizes = rec.get("sizes") or {}  # (records before 2 Dec 2026 have none: only a file gone is seen)
+        for f in rec.get("files", []):
+            got = loc.size(f)
+            if got is None:
+                redo.add(jid)
+            elif f in sizes and got != sizes[f]:
+                edited.append(f"{f} ({got:,} bytes, written {sizes[f]:,})")
+    if edited:
+        raise OutputRefused(
+            f"{len(edited)} output(s) of finished jobs changed since batch wrote them (first: {edited[0]}); batch "
+            "never writes over them: move them out of the folder to have their jobs made again, or use another output",
+            path=str(loc),
+        )
+    carry = {jid: list(done[jid].get("files", [])) for jid in redo}
+    in_way = []
+    for j in plan:
+        there = _occupied(loc, j.output_name) if j.id not in done else []
+        if not there or loc.exists(_pending(j.id)):  # nothing there, or a killed attempt's (its marker)
+            continue
+        mine = [f for f in there if owned(f)]
+        if len(mine) == len(there):
+            carry[j.id] = there
+        in_way += [f for f in there if f not in mine]
+    if in_way:
+        raise OutputRefused(
+            f"the folder holds {len(in_way)} file(s) where batch writes that it did not write (first: {in_way[0]}); "
+            "batch never writes over them: move them, or use another output",
+            path=str(loc),
+        )
+    return carry
 
 
 @dataclasses.dataclass
@@ -473,12 +546,15 @@ def run_batch(
     limit: int | None = None,
     progress: Callable[[dict], None] | None = None,
     force: bool = False,
+    owned: Callable[[str], bool] | None = None,
 ) -> BatchSummary:
     """Run every job of ``cfg`` not done yet in ``out`` (see the module docstring) on ``executor``
     (default: a local pool of ``jobs`` processes; one given here is left open).  A job whose inputs are refused
     (a garment off the body, a frame range past its motion ...) does not stop the others: it is in the summary's
     ``failed`` with its message, and a later run tries it again.  ``force``: accept garments that do not sit on the
-    body, as ``run --force``."""
+    body, as ``run --force``.  ``owned(path in the output)``: whether a file there is one the batch wrote (the CLI
+    reads the folder's outputs manifest): a job without a record whose output holds only such files is made again
+    over them; any other file where a job writes is refused before anything runs."""
     plan = batch_jobs(cfg, out)
     if force:
         plan = [dataclasses.replace(j, force=True) for j in plan]
@@ -497,7 +573,13 @@ def run_batch(
             f"gives them (first: {changed[0]}); rename the entries or use another output",
             path=cfg.path,
         )
-    todo = [j for j in plan if f"{j.id}.json" not in names]
+    done = {j.id: json.loads(loc.read_text(f"jobs/{j.id}.json")) for j in plan if f"{j.id}.json" in names}
+    carry = _check_outputs(loc, plan, done, owned or (lambda rel: False))
+    for jid, files in carry.items():  # the batch's own files at a job made again: its marker says so, then no record
+        loc.put_bytes(_pending(jid), json.dumps(files).encode())
+        if jid in done:
+            loc.remove(f"jobs/{jid}.json")
+    todo = [j for j in plan if j.id not in done or j.id in carry]
     skipped = len(plan) - len(todo)
     if limit is not None:
         todo = todo[:limit]

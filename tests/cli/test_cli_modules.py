@@ -94,6 +94,12 @@ def test_a_command_interrupted_says_so_in_one_line_and_writes_nothing(tmp_path, 
     assert main(["motion", "make", "walk", "--seconds", "0.5", "-o", str(out)]) == 1
     err = capsys.readouterr().err
     assert err == f"Error: {INTERRUPTED}\n" and "Aborted" not in err and not out.exists()
+    assert "dataset make" not in err  # (a pipeline TD's trial: every command spoke of it)
+    monkeypatch.setattr("segadeform.runtime.batch.run_batch", stop)
+    jobs = tmp_path / "jobs.toml"
+    jobs.write_text(f'[[garments]]\nmesh = "{SAMPLES / "garments" / "skirt.obj"}"\n[[motions]]\nkind = "walk"\n')
+    assert main(["batch", str(jobs), "-o", str(tmp_path / "b")]) == 1
+    assert capsys.readouterr().err == f"Error: {INTERRUPTED} (it goes on from the jobs it finished)\n"
 
 
 def test_a_run_interrupted_while_writing_leaves_no_empty_folder(tmp_path, monkeypatch, capsys):

@@ -50,11 +50,13 @@ def test_output_unit_takes_a_name_or_metres_per_unit(units, metres):
     assert output_unit(units) == metres
 
 
-@pytest.mark.parametrize("bad", ["furlong", "", "nan", float("nan"), 0, -0.01, 1e-9, 1e6, True, None, [1]])
+@pytest.mark.parametrize("bad", ["furlong", "", "nan", float("nan"), 0, -0.01, 1e-9, 1e6, 100, "1.5", True, None, [1]])
 def test_output_unit_refuses_what_is_no_unit(bad):
     with pytest.raises(InputError) as e:
         output_unit(bad, option="--output-units")
     assert "--output-units" in str(e.value) and "cm" in str(e.value)  # names the option and what it takes
+    if bad in (100, "1.5"):  # a unit longer than a metre: "x100, centimetres" meant (a pipeline TD's trial)
+        assert "centimetres are cm or 0.01" in str(e.value)
 
 
 FORMATS = [

@@ -238,3 +238,97 @@ def test_a_failed_batch_offers_force_only_for_what_force_accepts(tmp_path, capsy
     err = capsys.readouterr().err
     assert "2 of 4 jobs failed" in err and "no face with an area" in err
     assert "--force" not in err.splitlines()[-1] and "fix the jobs file, then run again" in err
+
+
+ONE = f"""
+[batch]
+output = "out"
+effects = "lbs"
+
+[[garments]]
+mesh = "{SAMPLES / "garments" / "skirt.obj"}"
+
+[[motions]]
+file = "{SAMPLES / "motions" / "walk.npz"}"
+frames = "0:4"
+"""
+TWO = ONE + '\n[[motions]]\nkind = "dance"\nseconds = 0.2\n'
+
+
+def test_batch_never_writes_over_a_file_it_did_not_write_and_makes_a_job_again_when_its_output_is_gone(
+    tmp_path, capsys
+):
+    """A pipeline TD's trial: a jobs file grown by a motion whose output name holds the studio's own file wrote over
+    it, and a finished job whose output was deleted or truncated stayed "already done".  Now the file in the way is
+    refused before anything runs (one line, exit 1, the file intact), an output that is gone is made again (the same
+    bytes), one whose size changed is refused (never written over), and a killed attempt's output (its marker there)
+    or one the folder's manifest lists (its record removed to have it made again) is the batch's own to replace."""
+    out = tmp_path / "out"
+    assert main(["batch", str(jobs_file(tmp_path, ONE))]) == 0
+    walk = (out / "skirt__walk.pc2").read_bytes()
+    jf = jobs_file(tmp_path, TWO)
+    (out / "skirt__dance.pc2").write_text("MINE")
+    capsys.readouterr()
+    assert main(["batch", str(jf)]) == 1
+    err = capsys.readouterr().err
+    assert "skirt__dance.pc2" in err and "did not write" in err and len(err.strip().splitlines()) == 1, err
+    assert (out / "skirt__dance.pc2").read_text() == "MINE" and not (out / "jobs" / "skirt__dance.json").exists()
+    (out / "skirt__dance.pc2").unlink()
+    assert main(["batch", str(jf)]) == 0
+    assert "2 jobs, 1 already done, 1 made" in capsys.readouterr().out
+    rec = json.loads((out / "jobs" / "skirt__dance.json").read_text())
+    assert rec["sizes"] == {"skirt__dance.pc2": (out / "skirt__dance.pc2").stat().st_size}
+    assert not list((out / "jobs").glob("*.partial"))
+    # a finished job's output deleted: made again, the same bytes
+    (out / "skirt__walk.pc2").unlink()
+    assert main(["batch", str(jf)]) == 0
+    assert "2 jobs, 1 already done, 1 made" in capsys.readouterr().out
+    assert (out / "skirt__walk.pc2").read_bytes() == walk
+    # truncated (or edited): refused, left as it is
+    with open(out / "skirt__walk.pc2", "r+b") as fh:
+        fh.truncate(100)
+    assert main(["batch", str(jf)]) == 1
+    err = capsys.readouterr().err
+    assert "skirt__walk.pc2 (100 bytes, written" in err and "never writes over" in err, err
+    assert (out / "skirt__walk.pc2").stat().st_size == 100
+    (out / "skirt__walk.pc2").unlink()
+    assert main(["batch", str(jf)]) == 0 and (out / "skirt__walk.pc2").read_bytes() == walk
+    capsys.readouterr()
+    # a job killed between its output and its record: with its marker the output is the batch's, made again ...
+    (out / "jobs" / "skirt__walk.json").unlink()
+    (out / "jobs" / "skirt__walk.partial").write_text('["skirt__walk.pc2"]')
+    assert main(["batch", str(jf)]) == 0
+    assert "2 jobs, 1 already done, 1 made" in capsys.readouterr().out
+    assert (out / "skirt__walk.pc2").read_bytes() == walk and not (out / "jobs" / "skirt__walk.partial").exists()
+    # ... a record removed to have the job made again: the folder's manifest says the output is the batch's ...
+    (out / "jobs" / "skirt__walk.json").unlink()
+    assert main(["batch", str(jf)]) == 0
+    assert "2 jobs, 1 already done, 1 made" in capsys.readouterr().out
+    # ... but a file of the user's put there since is nobody's the batch knows: refused
+    (out / "jobs" / "skirt__walk.json").unlink()
+    (out / "skirt__walk.pc2").write_text("MINE")
+    assert main(["batch", str(jf)]) == 1
+    assert "did not write (first: skirt__walk.pc2)" in capsys.readouterr().err
+    assert (out / "skirt__walk.pc2").read_text() == "MINE"
+
+
+def test_a_folder_with_a_jobs_folder_is_not_taken_for_a_batch_s_own(tmp_path, capsys):
+    """Any folder with a jobs/ sub-folder was continued as a batch folder made before manifests, writing over the
+    files in it; only one whose jobs/ holds job records and whose other names are job outputs is."""
+    out = tmp_path / "out"
+    (out / "jobs").mkdir(parents=True)
+    (out / "skirt__walk.pc2").write_text("MINE")
+    assert main(["batch", str(jobs_file(tmp_path, ONE))]) == 1
+    assert "did not write" in capsys.readouterr().err and (out / "skirt__walk.pc2").read_text() == "MINE"
+    (out / "skirt__walk.pc2").unlink()
+    (out / "jobs" / "render_farm.txt").write_text("queue 7")
+    assert main(["batch", str(jobs_file(tmp_path, ONE))]) == 1
+    assert "did not write" in capsys.readouterr().err
+    # an earlier batch's folder without a manifest (records and outputs only) is continued
+    (out / "jobs" / "render_farm.txt").unlink()
+    (out / "jobs").rmdir()
+    out.rmdir()
+    assert main(["batch", str(jobs_file(tmp_path, ONE))]) == 0
+    (out / ".segadeform-outputs.json").unlink()
+    assert main(["batch", str(jobs_file(tmp_path, TWO))]) == 0
+    assert "2 jobs, 1 already done, 1 made" in capsys.readouterr().out

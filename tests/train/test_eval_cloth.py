@@ -92,6 +92,42 @@ def test_pinched_cloth_is_penetrating_and_told_apart():
     assert penetrating(ref, pts, 0).tolist() == pen.tolist()
 
 
+def test_a_face_across_a_limb_is_told_from_one_that_lies_on_it():
+    """``through_faces``: a face whose corners are all outside a unit sphere on opposite sides of it (its centre deep
+    inside) spans the limb; one outside, one with a corner inside (that is penetration, counted there) and one
+    hugging the surface with its centre 2 mm inside (a coarse face wrapped round a limb) do not."""
+    from types import SimpleNamespace
+
+    from segadeform.body.collision import BodyCollider
+    from segadeform.train.metrics import THROUGH_DEPTH, through_faces
+    from tests.body._shapes import sphere
+
+    v, f = sphere(48, 32)
+    r = np.linalg.norm(v, axis=1).min()  # the mesh's inscribed radius, about 1
+    pts = np.array(
+        [
+            [-1.2, -0.5, 0.0],
+            [1.2, -0.5, 0.0],
+            [0.0, 1.1, 0.0],  # across: centre at the sphere's middle
+            [3.0, 0.0, 0.0],
+            [4.0, 0.0, 0.0],
+            [3.0, 1.0, 0.0],  # outside
+            [0.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [2.0, 1.0, 0.0],  # a corner inside
+        ]
+    )
+    c = r - 0.004  # the fourth: corners just outside, centre 2-3 mm inside the faceted sphere
+    h = np.sqrt(1.03**2 - c**2)
+    pts = np.vstack([pts, [[c, h, 0.0], [c, -h / 2, h * 0.866], [c, -h / 2, -h * 0.866]]])
+    faces = np.arange(12).reshape(4, 3)
+    ref = SimpleNamespace(collider=BodyCollider(v, f), posed=v[None], faces=faces)
+    assert through_faces(ref, pts, 0).tolist() == [True, False, False, False]
+    sd = ref.collider.query(pts[faces].mean(axis=1), v).signed_distance
+    assert sd[0] < -0.5 and -THROUGH_DEPTH < sd[3] < -0.001  # the fourth's centre: inside, shallower than the depth
+    assert (ref.collider.query(pts[[0, 1, 2, 9, 10, 11]], v).signed_distance > 0).all()  # their corners: outside
+
+
 def test_cli_eval_cloth(synthetic_dataset, random_package, tmp_path, capsys):
     out = tmp_path / "eval"
     assert (

@@ -95,7 +95,7 @@ int whole_int(const std::string& t) {
   return v;
 }
 
-// Metres per unit of --output-units (segadeform.io.writer.output_unit): a name or a number in [1e-4, 1e3]; else NaN.
+// Metres per unit of --output-units (segadeform.io.writer.output_unit): a name or a number in [1e-4, 1]; else NaN.
 double metres_per_unit(const std::string& text) {
   std::string t;
   for (char c : text)
@@ -105,7 +105,7 @@ double metres_per_unit(const std::string& text) {
   if (names.count(t)) return names.at(t);
   char* e = nullptr;
   const double f = t.empty() ? NAN : std::strtod(t.c_str(), &e);
-  return (e && *e == '\0' && f >= 1e-4 && f <= 1e3) ? f : NAN;
+  return (e && *e == '\0' && f >= 1e-4 && f <= 1.0) ? f : NAN;
 }
 
 // The written coordinates (segadeform.io.writer.to_output): +Y up metres turned to +Z up ((x, y, z) -> (x, -z, y))
@@ -215,7 +215,7 @@ int main(int argc, char** argv) {
     else if (threads < 1) problem = "--threads must be an integer >= 1";
     else if (up != "y" && up != "z") problem = "--up must be y or z (got " + up + ")";
     else if (!units_text.empty() && !(metres_per_unit(units_text) > 0))
-      problem = "--output-units must be m, dm, cm, mm, inch, ft or metres per unit (0.0001..1000), got " + units_text;
+      problem = "--output-units must be m, dm, cm, mm, inch, ft or metres per unit (0.0001..1; centimetres are cm or 0.01), got " + units_text;
     else if (flag_form && package.empty()) problem = "--package is missing";
     else if (flag_form && garment.empty()) problem = "--garment is missing";
     else if (flag_form && motion.empty()) problem = "--motion is missing";

@@ -51,11 +51,11 @@ const cloth = opt("--cloth");
 // in centimetres and take a point cache's numbers as they are)
 const up = opt("--up", "y"), unitsText = opt("--output-units");
 const UNIT_SCALES = { m: 1, dm: 0.1, cm: 0.01, mm: 0.001, inch: 0.0254, ft: 0.3048 };
-function metresPerUnit(text) { // segadeform.io.writer.output_unit: a name or metres per unit in [1e-4, 1e3]
+function metresPerUnit(text) { // segadeform.io.writer.output_unit: a name or metres per unit in [1e-4, 1]
   const t = text.trim().toLowerCase();
   if (t in UNIT_SCALES) return UNIT_SCALES[t];
   const f = t === "" ? NaN : Number(t);
-  return f >= 1e-4 && f <= 1e3 ? f : NaN;
+  return f >= 1e-4 && f <= 1 ? f : NaN;
 }
 const unit = unitsText === undefined ? 1 : metresPerUnit(unitsText);
 /** Frames (float32, +Y up, metres) as written: turned to +Z up ((x, y, z) -> (x, -z, y)) and in `unit`, held as
@@ -121,7 +121,7 @@ const problem =
   repeated.length ? `${repeated[0]} is given more than once`
   : noValue.length ? `${noValue[0]} needs a value`
   : up !== "y" && up !== "z" ? `--up must be y or z (got ${up})`
-  : !(unit > 0) ? `--output-units must be m, dm, cm, mm, inch, ft or metres per unit (0.0001..1000), got ${unitsText}`
+  : !(unit > 0) ? `--output-units must be m, dm, cm, mm, inch, ft or metres per unit (0.0001..1; centimetres are cm or 0.01), got ${unitsText}`
   : args.find((a) => a.startsWith("-")) !== undefined ? `unknown option ${args.find((a) => a.startsWith("-"))}`
   : !out ? "-o OUT.pc2 is missing"
   : !(batch >= 1) ? "--batch must be an integer >= 1"

@@ -121,8 +121,12 @@ def _interrupted(signum, frame):
     global _STOPPING
     _STOPPING = True
     for s in (signal.SIGINT, signal.SIGTERM):  # once: a second signal must not break the unwinding of the first
-        signal.signal(s, signal.SIG_IGN)
-    raise KeyboardInterrupt
+        signal.signal(s, _ignored)  # (not SIG_IGN: a signal already on its way then raised "Signal 15 ignored due to
+    raise KeyboardInterrupt  # race condition" in the unwinding, a traceback per worker on Ctrl-C: a TD's trial)
+
+
+def _ignored(signum, frame) -> None:
+    """A local worker's handler after its first stop signal: nothing (the worker is unwinding already)."""
 
 
 def _stop_on_signal() -> None:

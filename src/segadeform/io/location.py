@@ -71,6 +71,16 @@ class Location(abc.ABC):
         raise NotImplementedError
 
     @abc.abstractmethod
+    def size(self, rel: str) -> int | None:
+        """The size in bytes of file ``rel``; None when there is no such file."""
+        raise NotImplementedError
+
+    @abc.abstractmethod
+    def remove(self, rel: str) -> None:
+        """Remove file ``rel`` (one the caller wrote: nothing else is ever removed); nothing when it is not there."""
+        raise NotImplementedError
+
+    @abc.abstractmethod
     @contextlib.contextmanager
     def writing(self, rel: str, *, once: bool = False) -> Iterator[Path]:
         """Yield a local path to write; committed to ``rel`` when the block succeeds.  With ``once``
@@ -155,6 +165,13 @@ class LocalLocation(Location):
         if not d.is_dir():
             return []
         return sorted(p.name for p in d.iterdir() if p.is_file() and not p.name.startswith("."))
+
+    def size(self, rel: str) -> int | None:
+        p = self.path(rel)
+        return p.stat().st_size if p.is_file() else None
+
+    def remove(self, rel: str) -> None:
+        self.path(rel).unlink(missing_ok=True)
 
     @contextlib.contextmanager
     def writing(self, rel: str, *, once: bool = False) -> Iterator[Path]:
@@ -242,6 +259,14 @@ class FsspecLocation(Location):
             return []
         names = [posixpath.basename(e["name"].rstrip("/")) for e in entries if e.get("type") == "file"]
         return sorted(n for n in names if not n.startswith("."))
+
+    def size(self, rel: str) -> int | None:
+        key = self.key(rel)
+        return int(self.fs.size(key)) if self.fs.isfile(key) else None
+
+    def remove(self, rel: str) -> None:
+        with contextlib.suppress(FileNotFoundError):
+            self.fs.rm(self.key(rel))
 
     @contextlib.contextmanager
     def writing(self, rel: str, *, once: bool = False) -> Iterator[Path]:

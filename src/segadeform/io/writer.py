@@ -41,8 +41,10 @@ Y_TO_Z = ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
 #: metres per unit of the length units a file may be read or written in (a garment's ``--units``, an output's
 #: ``--output-units``)
 UNIT_SCALES = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "ft": 0.3048}
-#: metres per written unit an output may take (a number outside it is a typo: 1e-9 m is no tool's unit)
-OUTPUT_UNIT_RANGE = (1e-4, 1e3)
+#: metres per written unit an output may take (a number outside it is a typo: 1e-9 m is no tool's unit, and a unit
+#: longer than a metre none of a garment's: ``--output-units 100`` meant "x100, centimetres" and wrote a skirt 1.2 cm
+#: tall, a pipeline TD's trial; 1e3 until 2 Dec 2026)
+OUTPUT_UNIT_RANGE = (1e-4, 1.0)
 
 
 #: the frame rates besides whole numbers that a rate within :data:`FPS_RTOL` of stands for: NTSC film and video,
@@ -101,7 +103,8 @@ def output_unit(units, *, option: str = "output units") -> float:
         raise InputError(f"unknown {option}", expected=expected, got=units) from None
     lo, hi = OUTPUT_UNIT_RANGE
     if not lo <= f <= hi:  # NaN too
-        raise InputError(f"{option} out of range", expected=expected, got=units)
+        hint = " (a number is metres per unit: centimetres are cm or 0.01)" if f > hi else ""
+        raise InputError(f"{option} out of range", expected=expected, got=f"{units}{hint}")
     return f
 
 

@@ -14,6 +14,9 @@ type's samples):
   more than 2 mm from every surface of it (:func:`~segadeform.train.metrics.penetrating`); ``pinched_pct`` those of
   them in a pinch where the body intersects itself (an arm pressed into the torso: the surface nearest them, the
   arm's skin buried in the torso, says outside; :func:`~segadeform.train.metrics.penetrating_and_pinched`)
+* ``through_pct``  faces across a limb (% of faces): the centre more than 5 mm inside the body while no corner
+  penetrates -- a limb through the cloth between vertices taken out on opposite sides of it, which a render shows
+  as a hole and the vertex count does not (:func:`~segadeform.train.metrics.through_faces`)
 * ``max_strain_pct``  the largest edge stretch, length / rest length - 1 against the garment's rest mesh, over
   every edge and frame (%; over samples, the largest), and ``p99_strain_pct`` its 99th percentile (averaged)
 * ``jitter_mm``     mean |second difference of pred - second difference of sim| (mm/frame^2)

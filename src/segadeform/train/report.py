@@ -27,6 +27,7 @@ _HEAD = {
     "high_cm": "high band (cm)",
     "penetration_pct": "penetrating (%)",
     "pinched_pct": "of which pinched (%)",
+    "through_pct": "faces across a limb (%)",
     "jitter_mm": "jitter (mm/f²)",
     "ms_per_frame": "ms/frame",
     "max_strain_pct": "max stretch (%)",
@@ -39,6 +40,7 @@ _TYPE_COLS = (
     "edge_mm",
     "penetration_pct",
     "pinched_pct",
+    "through_pct",
     "max_strain_pct",
     "p99_strain_pct",
 )
