@@ -26,11 +26,11 @@ def _obj_output(output: Path) -> None:
         raise InputError("a garment is written as an OBJ", path=output, expected=".obj", got=output.suffix or "none")
 
 
-
 #: the share of a written garment inside the body above which `garment fit` warns: a suit scaled by 0.95 and moved as
 #: the advice then said was 62 % inside (2 % deeper than 1 cm), and `run` took it (a pipeline TD's trial); a garment
 #: fitted from a body or MakeHuman binding has none inside, the sample skirt 7 %
 INSIDE_WARNING = 0.25
+
 
 @cli.group("garment")
 def garment_group():
