@@ -63,7 +63,11 @@ def _effects_option(text, base=None, *, check_only: bool = False):
             return parse_effect_list(text, EFFECT_NAMES, choices=("lbs", "dqs"))
         return parse_effects(text, DEFAULT_EFFECTS if base is None else base)
     except InputError as e:
-        raise type(e)(f"--effects: {e.problem}", path=e.path, line=e.line, expected=e.expected, got=e.got) from None
+        if e.path is not None:  # (a scene's own list: the file's problem, exit 1)
+            raise type(e)(f"--effects: {e.problem}", path=e.path, line=e.line, expected=e.expected, got=e.got) from None
+        # a command-line mistake, exit 2 (an unknown effect exited 1: a QA trial), as Node and C++ say it
+        detail = ", ".join(f"{k} {v}" for k, v in (("expected", e.expected), ("got", e.got)) if v is not None)
+        raise click.BadParameter(e.problem + (f" ({detail})" if detail else ""), param_hint="'--effects'") from None
 
 
 @cli.command("run")
@@ -257,7 +261,7 @@ def run_cmd(
                 f"--quality {quality} sets the effects; --effects may only change them with "
                 f"signed items (e.g. --effects=+collisions), got the complete list {effects!r}"
             )
-        preset = preset_effects(quality, effects)
+        preset = option_value(lambda text: preset_effects(quality, text), effects, option="--effects")
     if scene is not None:
         if garment or motion_path:
             raise click.UsageError("give a SCENE or --garment/--motion, not both")

@@ -502,6 +502,7 @@ class Run:
             _warn_winding(self.garment, given, self.body, self.betas, surface, flipped=self._flipped)
             _warn_seams(self.garment, given, surface, welded=self._welded)
             _warn_small_pieces(self.garment, given)
+            _warn_non_manifold(self.garment, given)
             self._asset = asset
             self._asset_seconds = time.perf_counter() - t  # counted in the run's precompute, whoever asked first
         return self._asset
@@ -874,7 +875,28 @@ def garment_warnings(
     _warn_winding(garment, mesh, body, betas, None, say, flipped=flipped)
     _warn_seams(garment, mesh, None, say, welded=welded)
     _warn_small_pieces(garment, mesh, say)
+    _warn_non_manifold(garment, mesh, say)
     return said
+
+
+def _warn_non_manifold(garment, mesh: GarmentAsset | Mesh, say: Callable[..., None] | None = None) -> None:
+    """Say a garment's edges in more than two faces (``non_manifold`` of
+    :func:`~segadeform.geometry.mesh_ops.mesh_defects`: a fin, a pocket or a second layer joined along an edge).
+    The model's graph and its spectrum are built from the edges: a QA trial's skirt with two stray faces on one edge
+    moved by up to 10 mm everywhere, and `run` said nothing (only `inspect` counted it)."""
+    from segadeform.geometry.mesh_ops import mesh_defects
+
+    n = mesh_defects(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces))["non_manifold"]
+    if n:
+        name = Path(str(garment)).name if isinstance(garment, (str, os.PathLike)) else "garment"
+        (say or log.warning)(
+            "garment %s: %d edge%s in more than two faces (non-manifold: a fin, a pocket or a layer joined along an "
+            "edge); the model's graph reads the garment as one surface joined there, which moves all of it (Blender: "
+            "Select > Select All by Trait > Non Manifold)",
+            name,
+            n,
+            "s are" if n > 1 else " is",
+        )
 
 
 def _warn_small_pieces(garment, mesh: GarmentAsset | Mesh, say: Callable[..., None] | None = None) -> None:

@@ -264,3 +264,26 @@ def test_a_garment_made_for_another_shape_is_welded_on_that_shape(tmp_path):
     )
     assert r.exit_code == 0 and f"welded {n} vertices" in r.output, r.output
     assert recorded_betas(tmp_path / "w.obj") == (2.5,)
+
+
+def test_a_non_manifold_edge_is_said_by_run_and_garment_export(tmp_path, caplog):
+    """A QA trial: a skirt with two "fin" faces on one edge moved by up to 10 mm everywhere (the graph the model reads
+    changed) and `run` said nothing; only `inspect` counted the edge.  The clean dress is not said."""
+    from segadeform.io import Mesh, read_mesh, write_obj
+
+    m = read_mesh(SAMPLES / "garments" / "dress.obj")
+    a, b = m.faces[0][:2]
+    n = len(m.vertices)
+    fin = m.vertices[[a, b]].mean(axis=0) + [0.0, 0.0, 0.02]
+    v = np.concatenate([m.vertices, [fin]])
+    f = np.concatenate([m.faces, [[a, b, n], [b, a, n]]])
+    write_obj(tmp_path / "fin.obj", Mesh(v, f))
+    r, said = _run(tmp_path, tmp_path / "fin.obj", caplog=caplog)
+    assert r.exit_code == 0 and "garment fin.obj: 1 edge is in more than two faces (non-manifold" in said, said
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        r = CliRunner().invoke(cli, ["garment", "export", str(tmp_path / "fin.obj"), "-o", str(tmp_path / "fin.sgda")])
+    said = r.output + "\n".join(x.getMessage() for x in caplog.records)
+    assert r.exit_code == 0 and "1 edge is in more than two faces" in said, said
+    r, said = _run(tmp_path, SAMPLES / "garments" / "dress.obj", caplog=caplog)
+    assert r.exit_code == 0 and "non-manifold" not in said, said

@@ -118,6 +118,19 @@ def test_units_and_axes():
     np.testing.assert_allclose(fix_units_and_axes(v, scale=2, offset=(1, 0, 0)), [[1, 2, 4]])
     with pytest.raises(InputError, match="unknown units"):
         fix_units_and_axes(v, units="furlong")
+    # a number of units or a scale beyond any file's (a QA trial: 1e308 overflowed into "points contain NaN or inf"
+    # with numpy's warning, and --units 0 was refused as "scale must be positive")
+    for kw, says in (
+        ({"units": 1e308}, "units out of range"),
+        ({"units": 0.0}, "units out of range"),
+        ({"units": float("nan")}, "units out of range"),
+        ({"scale": 0.0}, "scale out of range"),
+        ({"scale": 1e9}, "scale out of range"),
+    ):
+        with pytest.raises(InputError, match=says):
+            fix_units_and_axes(v, **kw)
+    with pytest.raises(InputError, match="overflow"):
+        fix_units_and_axes(np.array([[1e305, 0.0, 0.0]]), units=1000.0, scale=1e4)
 
 
 # ---- the off-body check -------------------------------------------------------------------------------

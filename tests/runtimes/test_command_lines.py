@@ -275,6 +275,7 @@ def test_the_runtimes_write_in_the_units_and_axes_run_writes(
         (["--up", "x"], "--up must be y or z"),
         (["--output-units", "furlong"], "--output-units must be"),
         (["--output-units", "100"], "centimetres are cm or 0.01"),  # 100 m per unit: "x100" meant (a TD's trial)
+        (["--effects", "lbs,foo"], "unknown effect"),  # exited 1 (a QA trial): a command-line mistake
     ):
         p = play(exe, random_package, s["garment"], s["motion"], tmp_path / "x.pc2", *bad)
         assert p.returncode == 2 and says in p.stderr and not (tmp_path / "x.pc2").exists(), p.stderr

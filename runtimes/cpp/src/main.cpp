@@ -259,9 +259,14 @@ int main(int argc, char** argv) {
     if (flag_form) {
       // the effects first (the package's defaults and --effects): a knob of a stage that will not run, or out of its
       // range, is a command-line mistake, said before the inputs are read, as `segadeform run` says it
-      eff = !effects_given ? pkg.default_effects() : parse_effects(effects, pkg.default_effects());
       std::string problem;
-      if (!cloth.empty() && !eff.cloth) {
+      try {  // an --effects list's own mistake is a command-line one, exit 2, as `segadeform run` says it (a QA trial)
+        eff = !effects_given ? pkg.default_effects() : parse_effects(effects, pkg.default_effects());
+      } catch (const std::exception& e) {
+        problem = std::string("--effects: ") + e.what();
+      }
+      if (!problem.empty()) {
+      } else if (!cloth.empty() && !eff.cloth) {
         problem = "--cloth sets the cloth stage's knobs, but the stage is off (name cloth in --effects)";
       } else if (!cloth.empty()) {
         try {

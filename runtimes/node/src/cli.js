@@ -116,6 +116,17 @@ function clothOff() {
   const e = resolvedEffects();
   return !!e && !e.cloth;
 }
+// an --effects list's own mistake (an unknown effect, a name twice, a mix of a list and changes), told without the
+// package: a command-line mistake, exit 2, as `segadeform run` says it (it exited 1: a QA trial)
+function effectsProblem() {
+  if (effects === undefined) return null;
+  try {
+    parseEffects(effects, parseEffects("lbs", null));
+    return null;
+  } catch (e) {
+    return e.message;
+  }
+}
 // what is wrong, in one line before the usage (a misspelled flag printed the usage alone)
 const problem =
   repeated.length ? `${repeated[0]} is given more than once`
@@ -134,6 +145,7 @@ const problem =
   : !flagForm && (bodyOut || effects || cloth || marginText !== undefined || force)
     ? "--body-out, --effects, --cloth, --collision-margin and --force go with --package/--garment/--motion"
   : marginText !== undefined && !Number.isFinite(margin) ? `--collision-margin must be a number, got ${marginText}`
+  : effectsProblem() ? `--effects: ${effectsProblem()}`
   // a knob of a stage that will not run, or out of its range, is a command-line mistake, as `segadeform run` says it
   // (its value as the user wrote it)
   : cloth && clothOff()

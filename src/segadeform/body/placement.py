@@ -64,9 +64,15 @@ def fix_units_and_axes(
         f = UNIT_SCALES[units]
     else:
         f = float(units)
+        if not 1e-4 <= f <= 1e3:  # NaN too (units 0 was refused as "scale must be positive", 1e308 overflowed)
+            raise InputError(
+                "units out of range",
+                expected=" | ".join(UNIT_SCALES) + " or metres per file unit (0.0001..1000)",
+                got=units,
+            )
+    if not 1e-4 <= float(scale) <= 1e4:
+        raise InputError("scale out of range", expected="a positive factor (0.0001..10000)", got=scale)
     f *= float(scale)
-    if not (np.isfinite(f) and f > 0):
-        raise InputError("scale must be positive", got=f)
     rot = {
         "y": np.eye(3),
         "z": np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]]),
@@ -79,7 +85,10 @@ def fix_units_and_axes(
         raise InputError("turn must be finite degrees", got=turn)
     if turn % 360:
         rot = turn_about_up(turn) @ rot
-    out = (v @ rot.T) * f
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = (v @ rot.T) * f
+    if not np.isfinite(out).all():
+        raise InputError("the garment's coordinates overflow at this scale", expected="finite coordinates", got=f)
     if offset is not None:
         o = np.asarray(offset, np.float64).reshape(3)
         if not np.isfinite(o).all():
