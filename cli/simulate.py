@@ -48,6 +48,12 @@ def simulate_cmd(scene, output, effects, material, quality, frames, body_out, si
     from segadeform.settings import load_scene, parse_frames
     from segadeform.settings.simulation import parse_sim_effects
 
+    if effects is not None:  # the list's own mistakes are the command line's (exit 2), as run's --effects
+        from segadeform.settings.simulation import DEFAULT_EFFECTS
+
+        from .main import option_value
+
+        option_value(lambda text: parse_sim_effects(text, DEFAULT_EFFECTS), effects, option="--effects")
     sc = load_scene(scene, sim_effects=effects)  # its [simulate] knobs judged against the effects that will run
     st = sc.simulate or SimSettings()
     kw = {}

@@ -502,7 +502,7 @@ class Run:
             _warn_winding(self.garment, given, self.body, self.betas, surface, flipped=self._flipped)
             _warn_seams(self.garment, given, surface, welded=self._welded)
             _warn_small_pieces(self.garment, given)
-            _warn_non_manifold(self.garment, given)
+            _warn_non_manifold(self.garment, given, surface)
             self._asset = asset
             self._asset_seconds = time.perf_counter() - t  # counted in the run's precompute, whoever asked first
         return self._asset
@@ -875,18 +875,21 @@ def garment_warnings(
     _warn_winding(garment, mesh, body, betas, None, say, flipped=flipped)
     _warn_seams(garment, mesh, None, say, welded=welded)
     _warn_small_pieces(garment, mesh, say)
-    _warn_non_manifold(garment, mesh, say)
+    _warn_non_manifold(garment, mesh, None, say)
     return said
 
 
-def _warn_non_manifold(garment, mesh: GarmentAsset | Mesh, say: Callable[..., None] | None = None) -> None:
+def _warn_non_manifold(
+    garment, mesh: GarmentAsset | Mesh, surface: np.ndarray | None = None, say: Callable[..., None] | None = None
+) -> None:
     """Say a garment's edges in more than two faces (``non_manifold`` of
     :func:`~segadeform.geometry.mesh_ops.mesh_defects`: a fin, a pocket or a second layer joined along an edge).
     The model's graph and its spectrum are built from the edges: a QA trial's skirt with two stray faces on one edge
     moved by up to 10 mm everywhere, and `run` said nothing (only `inspect` counted it)."""
-    from segadeform.geometry.mesh_ops import mesh_defects
+    from segadeform.geometry.mesh_ops import non_manifold_edges
 
-    n = mesh_defects(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces))["non_manifold"]
+    v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
+    n = non_manifold_edges(surface_faces(v, f) if surface is None else surface, len(v))
     if n:
         name = Path(str(garment)).name if isinstance(garment, (str, os.PathLike)) else "garment"
         (say or log.warning)(

@@ -65,7 +65,7 @@ def test_scene_without_simulate_starts_from_the_default(tmp_path, captured):
 )
 def test_bad_lists_are_errors_in_the_same_words_as_run(tmp_path, captured, arg, message):
     r, st = _simulate(tmp_path, captured, "", f"--effects={arg}")
-    assert r.exit_code == 1 and message in r.output and st is None
+    assert r.exit_code == 2 and message in r.output and st is None  # a command-line mistake, as run says it
     # run says the same about its own effects (before touching any file)
     r2 = CliRunner().invoke(
         cli,
@@ -80,7 +80,7 @@ def test_bad_lists_are_errors_in_the_same_words_as_run(tmp_path, captured, arg, 
             f"--effects={arg.replace('gravity', 'dynamics').replace('wind', 'wrinkles')}",
         ],
     )
-    assert r2.exit_code == 1 and message in r2.output
+    assert r2.exit_code == 2 and message in r2.output
 
 
 def test_parse_sim_effects():

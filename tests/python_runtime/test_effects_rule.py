@@ -23,14 +23,14 @@ def test_scene_runs_only_named_effects(tmp_path, random_package):
     assert r.exit_code == 0 and "effects lbs+wrinkles; off: dynamics, collisions" in r.output
     for empty in ("", " , "):  # "" kept the scene's effects and " , " turned every one off (a scene's trial)
         r = CliRunner().invoke(cli, ["run", str(scene), "--model", str(random_package), "--effects", empty])
-        assert r.exit_code == 1 and "an empty effects list" in r.output, r.output
+        assert r.exit_code == 2 and "an empty effects list" in r.output, r.output
         # the same without a scene (--garment/--motion): "" ran every effect there (a test that refused the run
         # for another reason hid it)
         flags = ["run", "--garment", str(SAMPLES / "garments" / "skirt.obj"), "--motion", "walk"]
         r = CliRunner().invoke(
             cli, [*flags, "--model", str(random_package), "-o", str(tmp_path / "f.pc2"), "--effects", empty]
         )
-        assert r.exit_code == 1 and "an empty effects list" in r.output, r.output
+        assert r.exit_code == 2 and "an empty effects list" in r.output, r.output
         assert not (tmp_path / "f.pc2").exists()
     r = CliRunner().invoke(
         cli, ["run", str(scene), "--model", str(random_package), "--no-cache", "--effects=+dynamics"]

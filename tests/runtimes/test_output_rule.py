@@ -196,16 +196,16 @@ def test_signed_effects_change_the_runs_defaults_as_in_segadeform_run(
         text=True,
         timeout=300,
     )
-    assert r.returncode == 1 and "mix a complete list with changes" in r.stderr
+    assert r.returncode == 2 and "mix a complete list with changes" in r.stderr  # a command-line mistake
     # refused by every runtime alike; an empty list too ("" kept the scene's effects, " , " turned all off)
     for twice in ("+wrinkles,-wrinkles", "lbs,dqs", "dqs,dqs", "lbs,-cloth,lbs", "", " , "):
         r = subprocess.run(
             [*base, f"--effects={twice}", "-o", str(tmp_path / "x.pc2")], capture_output=True, text=True, timeout=300
         )
         said = ("twice", "one skinning", "an empty effects list")
-        assert r.returncode == 1 and any(w in r.stderr for w in said), (twice, r.stderr)
+        assert r.returncode == 2 and any(w in r.stderr for w in said), (twice, r.stderr)
         assert (
             main(["run", "--garment", str(g), "--motion", str(m), f"--effects={twice}", "-o", str(tmp_path / "y.pc2")])
-            == 1
+            == 2
         )
     assert not (tmp_path / "x.pc2").exists() and not (tmp_path / "y.pc2").exists()

@@ -22,6 +22,7 @@ __all__ = [
     "mesh_defects",
     "check_has_area",
     "misoriented_edges",
+    "non_manifold_edges",
     "COINCIDENT",
     "coincident_map",
     "connected_components",
@@ -291,6 +292,16 @@ def misoriented_edges(surface: np.ndarray, n_vertices: int) -> int:
         surface: (F', 3) -> int
     """
     return _edge_defects(check_faces(surface, n_vertices))[1]
+
+
+def non_manifold_edges(surface: np.ndarray, n_vertices: int) -> int:
+    """:func:`mesh_defects`' ``non_manifold`` count from the mesh's :func:`surface_faces` (as
+    :func:`misoriented_edges`: a run's checks share one surface), of a mesh of ``n_vertices``.
+
+    Shapes:
+        surface: (F', 3) -> int
+    """
+    return _edge_defects(check_faces(surface, n_vertices))[0]
 
 
 def _edge_defects(s: np.ndarray) -> tuple[int, int]:
