@@ -562,18 +562,14 @@ def run_batch(
         raise InputError("the jobs file makes no jobs", path=cfg.path)
     loc = plan[0].out
     names = set(loc.listdir("jobs"))
-    changed = [
-        j.id
-        for j in plan
-        if f"{j.id}.json" in names and json.loads(loc.read_text(f"jobs/{j.id}.json")).get("spec") != j.spec
-    ]
+    done = {j.id: json.loads(loc.read_text(f"jobs/{j.id}.json")) for j in plan if f"{j.id}.json" in names}
+    changed = [j.id for j in plan if j.id in done and done[j.id].get("spec") != j.spec]
     if changed:
         raise InputError(
             f"{len(changed)} finished jobs in {loc} were made from another spec than the jobs file now "
             f"gives them (first: {changed[0]}); rename the entries or use another output",
             path=cfg.path,
         )
-    done = {j.id: json.loads(loc.read_text(f"jobs/{j.id}.json")) for j in plan if f"{j.id}.json" in names}
     carry = _check_outputs(loc, plan, done, owned or (lambda rel: False))
     for jid, files in carry.items():  # the batch's own files at a job made again: its marker says so, then no record
         loc.put_bytes(_pending(jid), json.dumps(files).encode())
