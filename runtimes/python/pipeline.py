@@ -837,10 +837,11 @@ def _warn_seams(
     path = Path(str(garment)) if isinstance(garment, (str, os.PathLike)) else None
     name = path.name if path is not None else "garment"
     if welded:  # the model ran on it welded (welded_garment): the sides move as one, the file's vertices written
+        # (the push-out moves each copy as its twin; the cloth stage welds them, _cloth.c's scl_weld)
         (say or log.warning)(
             "garment %s: %d vertices lie on an open boundary at the place of another vertex (the mesh is split along a "
             "seam, as exports split it at UV seams): the model runs on it welded there and writes every vertex of "
-            "the file; the push-out and the cloth stage still see the two sides apart",
+            "the file, the two sides of the seam together",
             name,
             welded_n,
         )

@@ -66,19 +66,70 @@ def test_setup_is_the_reference_on_hard_meshes(body):
             np.vstack([f, [[0, 1, len(v) + 1]], [[0, len(v), 1]], f[:3]]),
         ),
         "strip": (grid_plane(30, 2, size=(0.6, 0.02))[0] + [-0.3, 1.0, 0.2], grid_plane(30, 2, size=(0.6, 0.02))[1]),
+        # split along a seam (as exports split UV seams), and a vertex at -0.0 where another is at 0.0
+        "split": _split(v, f),
+        "signed zero": (np.vstack([v, [[0.0, 1.5, 0.0]], [[-0.0, 1.5, 0.0]]]), f),
     }
     for name, (vv, ff) in meshes.items():
         sd = rest_signed_distance(vv, rest_body, body.faces)
         for s in (ClothSettings(), ClothSettings(attachment=0.0, max_distance=0.2)):
             a, b = cloth_setup(vv, ff, sd, s), cloth_setup_reference(vv, ff, sd, s)
-            for k in ("edges", "rest_len", "nptr", "nidx", "radius", "anchor", "tether"):
+            for k in ("edges", "rest_len", "nptr", "nidx", "radius", "anchor", "tether", "weld"):
                 np.testing.assert_array_equal(getattr(a, k), getattr(b, k), err_msg=f"{name} {k}")
             a.validate()
             assert (a.edges[:, 0] < a.edges[:, 1]).all() and len(np.unique(a.edges, axis=0)) == len(a.edges)
             assert (a.radius <= s.max_distance).all() and (a.radius[sd <= s.attachment] == 0).all()
-    # the isolated vertex has no neighbours
+    # the isolated vertex has no neighbours; the copy of vertex 0 is welded to it, so the face holding both makes one
+    # edge, not a zero-length one
     a = cloth_setup(*meshes["degenerate"], rest_signed_distance(meshes["degenerate"][0], rest_body, body.faces))
     assert a.nptr[-1] - a.nptr[-2] == 0
+    assert a.weld[len(v)] == 0 and (a.weld[: len(v)] == np.arange(len(v))).all() and a.weld[len(v) + 1] == len(v) + 1
+    assert (a.rest_len > 0).all()
+    # the split skirt's setup is the whole skirt's, its copies welded onto the vertices they were copied from
+    sv, sf = meshes["split"]
+    a = cloth_setup(sv, sf, rest_signed_distance(sv, rest_body, body.faces))
+    b = cloth_setup(v, f, rest_signed_distance(v, rest_body, body.faces))
+    np.testing.assert_array_equal(a.edges, b.edges)
+    np.testing.assert_array_equal(a.weld[len(v) :], _twins(v, sv))
+    a = cloth_setup(*meshes["signed zero"], rest_signed_distance(meshes["signed zero"][0], rest_body, body.faces))
+    assert a.weld[-1] == len(v)
+
+
+def _split(v, f):
+    """The mesh split along x = 0 (tests.conftest.split_at_a_seam): the copies appended."""
+    from segadeform.io import Mesh
+    from tests.conftest import split_at_a_seam
+
+    sv, sf, n = split_at_a_seam(Mesh(v, f))
+    assert n > 5
+    return sv, sf
+
+
+def _twins(v, sv):
+    """The vertex of ``v`` each appended copy in ``sv`` is at."""
+    return np.array([int(np.flatnonzero((v == p).all(axis=1))[0]) for p in sv[len(v) :]])
+
+
+def test_a_mesh_split_at_a_seam_moves_as_the_whole_mesh(walk, body):
+    """Split along a seam (game-engine exports split vertices at UV seams), the stage gives the frames of the mesh
+    before it was split, each copy where its twin is: a dress split so on a walk tore 7 cm at its seam, the push-out
+    beside it 0 mm (2 Dec 2026).  The kernel and the reference agree on it."""
+    v, f, targets, posed, setup = walk
+    sv, sf = _split(v, f)
+    split = garment_setup(sv, sf, body.shaped_vertices()[0], body.faces)
+    st_targets = np.concatenate([targets, targets[:, _twins(v, sv)]], axis=1)
+    whole = _stage(setup, body).step(targets, posed)
+    stage = _stage(split, body)
+    out = stage.step(st_targets, posed)
+    np.testing.assert_array_equal(out[:, len(v) :], out[:, _twins(v, sv)])
+    np.testing.assert_allclose(out[:, : len(v)], whole, atol=1e-12)
+    assert np.abs(whole - targets).max() > 0.01 and stage.pushed > 0  # the stage moved the cloth: a test of something
+    ref, _ = cloth_reference(st_targets, posed, body.faces, split, margin=MARGIN)
+    assert np.abs(ref - out).max() <= 1e-9
+    # a copy's own target is not its twin's: the copy still goes where its twin goes (one point of cloth)
+    shifted = st_targets.copy()
+    shifted[:, len(v) :] += 0.01
+    np.testing.assert_array_equal(_stage(split, body).step(shifted, posed)[:, len(v) :], out[:, len(v) :])
 
 
 def test_tethers_anchor_free_vertices_to_the_nearest_attached_one():

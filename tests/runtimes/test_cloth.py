@@ -4,8 +4,9 @@
 the Node runtime and the browser page (its line-for-line JavaScript port, ``runtimes/node/src/cloth.js``).
 
 * A shared vector of the stage alone: a skirt through the hips and thighs over a walk with a teleport, Python's
-  setup and frames, against the JavaScript stage on the same float64 inputs (two settings): the setup equal, every
-  frame equal (in practice bit for bit), the same counts.
+  setup and frames, against the JavaScript stage on the same float64 inputs (three settings, and the skirt split
+  along a seam as exports split UV seams): the setup equal, every frame equal (in practice bit for bit), the same
+  counts.
 * The whole pipeline on the shipped model: the dress, tightened, dancing, as the runtimes without Python read it;
   `segadeform run` with the cloth stage against Node and C++ (the same deformer frames and body graph: within 1e-5
   relative every vertex-frame, in practice bit for bit, the same counts) and the browser (wasm rounds the deformer's
@@ -24,9 +25,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from segadeform.io import read_pc2
+from segadeform.io import Mesh, read_pc2
 from segadeform.io.sgdb import write_bundle
-from tests.conftest import SAMPLES
+from tests.conftest import SAMPLES, split_at_a_seam
 from tests.runtimes.test_collisions import FRAMES, MARGIN, TIGHTEN, _agree, _node_vectors, _site, _web_frames
 
 EFFECTS = "lbs,dynamics,wrinkles,cloth"
@@ -55,6 +56,7 @@ def _write_vector(path, v, f, rest_body, body_faces, targets, posed, setup, out,
             "radius": setup.radius,
             "anchor": setup.anchor.astype(np.int32),
             "tether": setup.tether,
+            "weld": setup.weld.astype(np.int32),
             "expected": out,
         },
         {"settings": dataclasses.asdict(settings), "margin": MARGIN, "dt": 1 / 30, "batch": batch},
@@ -62,7 +64,8 @@ def _write_vector(path, v, f, rest_body, body_faces, targets, posed, setup, out,
 
 
 @pytest.fixture(
-    scope="module", params=["default", "iterations=3,stiffness=0.6,bending=0,follow=0,gravity=20", "backstop=0"]
+    scope="module",
+    params=["default", "iterations=3,stiffness=0.6,bending=0,follow=0,gravity=20", "backstop=0", "split"],
 )
 def cloth_vector(request, tmp_path_factory):
     from segadeform.body import default_body_path, load_body
@@ -73,8 +76,10 @@ def cloth_vector(request, tmp_path_factory):
 
     assert compiled_available(), "the compiled cloth kernel is not built (pip install -e . builds it)"
     body = load_body(default_body_path())
-    settings = ClothSettings.parse("" if request.param == "default" else request.param)
+    settings = ClothSettings.parse("" if request.param in ("default", "split") else request.param)
     v, f = frustum(24, 9, 0.13, 0.2, 1.0, 0.5)  # partly inside the hips, the thighs swinging through it
+    if request.param == "split":  # split along a seam, as exports split UV seams: the sides welded, moving as one
+        v, f, _ = split_at_a_seam(Mesh(v, f))
     m = make_motion("walk", seconds=0.8, seed=1)
     trans = m.trans.copy()
     trans[14:] += [2.0, 0.0, 1.0]  # a teleport: the stage resets
@@ -106,7 +111,7 @@ def test_javascript_cloth_is_the_compiled_kernel(cloth_vector, node):
     r = _node_vectors("cloth_vectors.mjs", path, "CLOTH")
     _report("javascript stage vs ClothStage", **r, python=py)
     assert r["edges"] == r["nptr"] == r["nidx"] == r["anchor"] == 0 and r["restLen"] == r["radius"] == 0, r
-    assert r["tether"] == 0, r
+    assert r["tether"] == 0 and r["weld"] == 0, r
     assert r["frames"] <= 1e-12 and r["identical"] == r["coordinates"], r
     names = ("contacts", "pushed", "resets", "traced")
     assert [r[k] for k in names] == [py[k] for k in names], (r, py)

@@ -23,15 +23,15 @@ int64_t sdc_n_nodes(const void* h);
 void sdc_refit(const void* h, const double* verts, double* box);
 void sdc_query(const void* h, const double* verts, const double* box, const double* pts, int64_t i0, int64_t i1,
                double* sd, double* closest, double* normal, int64_t* face);
-// _cloth.c's (its ABI 12)
+// _cloth.c's (its ABI 15)
 int64_t scl_abi(void);
 int64_t scl_n_settings(void);
 int64_t scl_setup(const double* rest, int64_t n, const int64_t* faces, int64_t nf, const double* rest_sd,
                   double attachment, double max_distance, int64_t* edges, double* rest_len, int64_t* nptr,
-                  int64_t* nidx, double* radius, int64_t* anchor, double* tether);
+                  int64_t* nidx, double* radius, int64_t* anchor, double* tether, int64_t* weld);
 int64_t scl_step(int64_t n, int64_t ne, const int64_t* edges, const double* rest_len, const int64_t* nptr,
                  const int64_t* nidx, const double* radius, const int64_t* anchor, const double* tether,
-                 int64_t nf, const int64_t* faces, const double* settings, const void* collider, int64_t nv,
+                 const int64_t* weld, int64_t nf, const int64_t* faces, const double* settings, const void* collider, int64_t nv,
                  const double* body, int64_t nb, const double* target, double* out, double* state, int64_t* info);
 }
 
@@ -114,8 +114,8 @@ class Cloth {
   Cloth(const double* rest, int64_t n, const int32_t* faces, int64_t nf, const float* rest_body, int64_t nv,
         const int32_t* body_faces, int64_t nbf, const ClothSettings& settings, double margin, double dt)
       : n_(n), nv_(nv) {
-    if (scl_abi() != 14 || scl_n_settings() != 12)
-      throw std::runtime_error("the cloth kernel is from another version (expected ABI 14, 12 settings)");
+    if (scl_abi() != 15 || scl_n_settings() != 12)
+      throw std::runtime_error("the cloth kernel is from another version (expected ABI 15, 12 settings)");
     if (n < 1 || nv < 1 || nbf < 1) throw std::runtime_error("the cloth stage needs a garment and a body");
     std::vector<double> rb(rest_body, rest_body + 3 * nv);
     std::vector<int64_t> bf(body_faces, body_faces + 3 * nbf), gf(faces, faces + 3 * nf);
@@ -136,9 +136,10 @@ class Cloth {
     radius_.resize(n);
     anchor_.resize(n);
     tether_.resize(n);
+    weld_.resize(n);
     ne_ = scl_setup(rest, n, gf.data(), nf, sd.data(), settings.v.at("attachment"), settings.v.at("max_distance"),
                     edges_.data(), rest_len_.data(), nptr_.data(), nidx_.data(), radius_.data(), anchor_.data(),
-                    tether_.data());
+                    tether_.data(), weld_.data());
     if (ne_ == -1) throw std::runtime_error("out of memory in the cloth stage's setup");
     if (ne_ < 0) throw std::runtime_error("garment face index out of range");
     faces_ = gf;  // checked by scl_setup; the backstop's normals
@@ -165,7 +166,7 @@ class Cloth {
         }
     }
     const int64_t status = scl_step(n_, ne_, edges_.data(), rest_len_.data(), nptr_.data(), nidx_.data(),
-                                    radius_.data(), anchor_.data(), tether_.data(), nf_, faces_.data(), settings_.data(),
+                                    radius_.data(), anchor_.data(), tether_.data(), weld_.data(), nf_, faces_.data(), settings_.data(),
                                     h_, nv_, b.data(),
                                     nb, y.data(), out.data(), state_.data(), info_);
     if (status == -1) throw std::runtime_error("out of memory in the cloth stage");
@@ -185,7 +186,7 @@ class Cloth {
  private:
   void* h_ = nullptr;
   int64_t n_ = 0, nv_ = 0, ne_ = 0, nf_ = 0, frames_ = 0, first_reset_ = -1;
-  std::vector<int64_t> edges_, nptr_, nidx_, anchor_, faces_;
+  std::vector<int64_t> edges_, nptr_, nidx_, anchor_, faces_, weld_;
   std::vector<double> rest_len_, radius_, tether_, settings_, state_;
   int64_t info_[6] = {0, 0, 0, 0, -1, 0};
 };

@@ -3,7 +3,7 @@
 //   node scripts/cloth_vectors.mjs VEC.sgdb
 // VEC.sgdb (tests/runtimes/test_cloth.py writes it): the garment's rest (N, 3) f64 and faces (F, 3) i32, the body at
 // rest (V, 3) f64 and its faces (F', 3) i32, targets (T, N, 3) and posed bodies (T, V, 3) f64, Python's setup
-// (edges (E, 2) i32, rest_len, nptr, nidx, radius, anchor, tether) and frames `expected` (T, N, 3) f64; meta: settings, margin, dt,
+// (edges (E, 2) i32, rest_len, nptr, nidx, radius, anchor, tether, weld) and frames `expected` (T, N, 3) f64; meta: settings, margin, dt,
 // batch, and Python's contacts, pushed, resets.
 import { readBundle } from "../src/bundle.js";
 import { clothSetup, ClothStage } from "../src/cloth.js";
@@ -35,6 +35,7 @@ console.log(`CLOTH ${JSON.stringify({
   edges: maxDiff(setup.edges, A.edges.data), restLen: maxDiff(setup.restLen, A.rest_len.data),
   nptr: maxDiff(setup.nptr, A.nptr.data), nidx: maxDiff(setup.nidx, A.nidx.data), radius: maxDiff(setup.radius, A.radius.data),
   anchor: maxDiff(setup.anchor, A.anchor.data), tether: maxDiff(setup.tether, A.tether.data),
+  weld: maxDiff(setup.weld, A.weld.data),
   frames: maxDiff(out, A.expected.data), identical, coordinates: out.length, contacts: stage.contacts,
   pushed: stage.pushed, resets: stage.resets, traced: stage.traced, msPerFrame: ms,
 })}`);

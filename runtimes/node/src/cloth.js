@@ -70,19 +70,22 @@ export function checkCloth(s) {
  * vertex's signed distance from the body at rest restSd (N): { edges (Int32Array 2E, a < b, sorted by (a, b)),
  * restLen (E), nptr (Int32Array N + 1), nidx (Int32Array 2E: each vertex's neighbours, ascending), radius (N),
  * anchor (Int32Array N: each free vertex's tether anchor, -1 for none), tether (N: its path's rest length), faces
- * (Int32Array 3F: the garment's faces, the backstop's normals) }.
+ * (Int32Array 3F: the garment's faces, the backstop's normals through weld), weld (Int32Array N: the lowest index of
+ * the vertices at exactly each one's rest position: a seam's two sides are one point of cloth, the C file's scl_weld) }.
+ * The edges are those of the faces through weld.
  */
 export function clothSetup(rest, faces, restSd, attachment, maxDistance) {
   const n = Math.floor(rest.length / 3), nf = Math.floor(faces.length / 3);
   for (let i = 0; i < 3 * nf; i++) {
     if (!(faces[i] >= 0 && faces[i] < n)) throw new Error(`garment face index out of range (expected 0..${n - 1}, got ${faces[i]})`);
   }
+  const weld = weldOf(rest, n);
   // the distinct edges (a < b) sorted by (a, b): the C file's qsort of pairs, as one sort of keys a * n + b
   const keys = new Float64Array(3 * nf);
   let ne = 0;
   for (let i = 0; i < nf; i++) {
     for (let k = 0; k < 3; k++) {
-      const x = faces[3 * i + k], y = faces[3 * i + (k + 1) % 3];
+      const x = weld[faces[3 * i + k]], y = weld[faces[3 * i + (k + 1) % 3]];
       if (x === y) continue;
       keys[ne++] = x < y ? x * n + y : y * n + x;
     }
@@ -117,7 +120,28 @@ export function clothSetup(rest, faces, restSd, attachment, maxDistance) {
     radius[i] = d > 0 ? (d < maxDistance ? d : maxDistance) : 0.0;
   }
   const { anchor, tether } = tethers(rest, n, nptr, nidx, radius);
-  return { edges, restLen, nptr, nidx, radius, anchor, tether, faces: Int32Array.from(faces), n, ne, nf };
+  return { edges, restLen, nptr, nidx, radius, anchor, tether, faces: Int32Array.from(faces), weld, n, ne, nf };
+}
+
+/* Each vertex's weld (the C file's scl_weld): the lowest index of the vertices at exactly its rest position. */
+function weldOf(rest, n) {
+  const order = new Int32Array(n);
+  for (let i = 0; i < n; i++) order[i] = i;
+  order.sort((i, j) => {
+    for (let c = 0; c < 3; c++) {
+      const a = rest[3 * i + c], b = rest[3 * j + c];
+      if (a !== b) return a < b ? -1 : 1;
+    }
+    return i - j;
+  });
+  const weld = new Int32Array(n);
+  let first = 0;
+  for (let k = 0; k < n; k++) {
+    const i = order[k], p = order[first];
+    if (k > 0 && !(rest[3 * i] === rest[3 * p] && rest[3 * i + 1] === rest[3 * p + 1] && rest[3 * i + 2] === rest[3 * p + 2])) first = k;
+    weld[i] = order[first];
+  }
+  return weld;
 }
 
 /* the heap's order: by distance, then by vertex (a total order: every heap pops the same sequence) */
@@ -359,7 +383,7 @@ function edgeContact(x, edges, e, sd, cp, cn, k, margin, band) {
  * yt = y + the spread move and x moved alike.  w: the stage's buffers.  Returns how many vertices were
  * traced out (0: yt and x are untouched).
  */
-function backstop(col, bv, box, n, nf, faces, nptr, nidx, radius, y, x, sd, cn, margin, band, deep, w) {
+function backstop(col, bv, box, n, nf, faces, weld, nptr, nidx, radius, y, x, sd, cn, margin, band, deep, w) {
   let nd = 0, nt = 0, vote = 0;
   if (!(deep > 0)) return 0; // off
   // the loose vertices whose target is deeper than `deep` inside and whose prediction is inside: the network's depth
@@ -385,7 +409,7 @@ function backstop(col, bv, box, n, nf, faces, nptr, nidx, radius, y, x, sd, cn, 
   const vn = w.vn;
   vn.fill(0);
   for (let j = 0; j < nf; j++) {
-    const a = 3 * faces[3 * j], b = 3 * faces[3 * j + 1], c = 3 * faces[3 * j + 2];
+    const a = 3 * weld[faces[3 * j]], b = 3 * weld[faces[3 * j + 1]], c = 3 * weld[faces[3 * j + 2]];
     const u0 = y[b] - y[a], u1 = y[b + 1] - y[a + 1], u2 = y[b + 2] - y[a + 2];
     const v0 = y[c] - y[a], v1 = y[c + 1] - y[a + 1], v2 = y[c + 2] - y[a + 2];
     const f0 = u1 * v2 - u2 * v1, f1 = u2 * v0 - u0 * v2, f2 = u0 * v1 - u1 * v0;
@@ -564,7 +588,7 @@ export class ClothStage {
   }
 
   step(target, body, nb) {
-    const { n, ne, nf, faces, edges, restLen, nptr, nidx, radius, anchor, tether } = this.setup;
+    const { n, ne, nf, faces, edges, restLen, nptr, nidx, radius, anchor, tether, weld } = this.setup;
     const nv = this.collider.nv, st = this.settings, col = this.collider;
     if (target.length !== nb * n * 3 || body.length !== nb * nv * 3) {
       throw new Error(`the cloth stage takes ${nb} frames of ${n} garment and ${nv} body vertices (got ${target.length} ` +
@@ -632,8 +656,8 @@ export class ClothStage {
       col.near(bv, box, x, 0, n, margin + band, sd, cp, cn);
       // deep targets: traced out along the garment's normal (the backstop), then the contacts found again
       let yf = yr;
-      const nt = backstop(col, bv, box, n, nf, faces, nptr, nidx, radius, yr, x, sd, cn, margin, band, st.backstop,
-        this.work);
+      const nt = backstop(col, bv, box, n, nf, faces, weld, nptr, nidx, radius, yr, x, sd, cn, margin, band,
+        st.backstop, this.work);
       if (nt > 0) { // only the vertices it moved (held and in the region) are looked up again
         const w = this.work;
         let nm = 0;
@@ -746,6 +770,15 @@ export class ClothStage {
             x[p + 1] = q[3 * i + 1];
             x[p + 2] = q[3 * i + 2];
           }
+        }
+      }
+      // a seam's sides: every vertex where its group's lowest one is (clothSetup's weld)
+      for (let i = 0; i < n; i++) {
+        const r = weld[i];
+        if (r !== i) {
+          x[3 * i] = x[3 * r];
+          x[3 * i + 1] = x[3 * r + 1];
+          x[3 * i + 2] = x[3 * r + 2];
         }
       }
       // the state: this frame, the one before, this target

@@ -89,6 +89,12 @@
  * (radius 0) have infinite mass for the stretch limits, tethers and smoothing, which move only free vertices;
  * contacts, at vertices and edge middles, move any vertex.
  *
+ * Seams: vertices at exactly the same rest position (a mesh split along a seam: game-engine exports split vertices
+ * at UV seams) are one point of cloth.  scl_setup gives each its group's lowest index (weld), builds the edges on
+ * the faces through it (the edges of the mesh as if it had never been split) and the backstop's normals come from
+ * those faces too; each frame ends with every other vertex of a group put where the group's lowest one is, so that a
+ * seam's two sides move as one (split at a seam, a dress on a walk tore 7 cm at its seam: 2 Dec 2026).
+ *
  * State (the caller keeps it between calls; calls may hold any number of frames): the last two output frames and
  * the last target.  Inertia: p = x1 + (1 - damping)(x1 - x0) - (0, gravity dt^2, 0), from the frames before, then
  * p += follow (y - p) (a drive toward the target: the deviation decays instead of staying at the bound); the
@@ -118,7 +124,7 @@ int64_t sdc_near(const void *h, const double *verts, const double *box, const do
 int64_t sdc_push_out(const void *h, const double *verts, const double *box, int64_t nb, double *pts, int64_t n,
                      int64_t i0, int64_t i1, double margin, int64_t iterations, uint8_t *moved);
 
-#define SCL_ABI 14 /* 14: SCL_LOOSE 7 mm (was 1 cm); 13: the backstop picks the loose vertices whose target (not prediction) is deeper than `backstop`
+#define SCL_ABI 15 /* 15: vertices at one rest position welded (scl_setup's weld, scl_step's); 14: SCL_LOOSE 7 mm (was 1 cm); 13: the backstop picks the loose vertices whose target (not prediction) is deeper than `backstop`
                        * inside; 12: an edge middle deeper than SCL_EDGE_DEEP inside gets no contact plane, a backstop trace
                        * longer than SCL_REACH is dropped; 11: the collision kernel it embeds leaves cloth pinched deeper than SDC_PINCH; 10: every frame
                        * checked for NaN and inf before any is stepped (the state unchanged on one); 9: its contact
@@ -172,9 +178,45 @@ static int cmp_edge(const void *x, const void *y) {
     return p->b < q->b ? -1 : (p->b > q->b ? 1 : 0);
 }
 
+typedef struct {
+    double x, y, z;
+    int64_t i;
+} scl_point;
+
+static int cmp_point(const void *u, const void *v) {
+    const scl_point *p = (const scl_point *)u, *q = (const scl_point *)v;
+    if (p->x != q->x) return p->x < q->x ? -1 : 1;
+    if (p->y != q->y) return p->y < q->y ? -1 : 1;
+    if (p->z != q->z) return p->z < q->z ? -1 : 1;
+    return p->i < q->i ? -1 : (p->i > q->i ? 1 : 0);
+}
+
+/* Each vertex's weld (N,): the lowest index of the vertices at exactly its rest position (itself when none other
+ * is there).  Returns 0, -1 when out of memory. */
+static int64_t scl_weld(const double *rest, int64_t n, int64_t *weld) {
+    int64_t i, first = 0;
+    scl_point *p = (scl_point *)malloc(sizeof(scl_point) * (size_t)n);
+    if (!p) return -1;
+    for (i = 0; i < n; i++) {
+        p[i].x = rest[3 * i];
+        p[i].y = rest[3 * i + 1];
+        p[i].z = rest[3 * i + 2];
+        p[i].i = i;
+    }
+    qsort(p, (size_t)n, sizeof(scl_point), cmp_point);
+    for (i = 0; i < n; i++) {
+        if (i > 0 && !(p[i].x == p[i - 1].x && p[i].y == p[i - 1].y && p[i].z == p[i - 1].z)) first = i;
+        weld[p[i].i] = p[first].i; /* sorted by index within a group: its first is its lowest */
+    }
+    free(p);
+    return 0;
+}
+
 /* The per-garment data from the rest garment rest (N, 3), faces (F, 3) and each vertex's signed distance from
  * the body at rest rest_sd (N,) (negative inside):
- *   edges (E, 2)     the distinct edges (a < b) of the faces, sorted by (a, b); a face's repeated vertex makes none;
+ *   weld (N,)        each vertex's group: the lowest index of the vertices at exactly its rest position (scl_weld);
+ *   edges (E, 2)     the distinct edges (a < b) of the faces through weld (a seam's two sides joined), sorted by
+ *                    (a, b); a face's repeated vertex makes none;
  *   rest_len (E,)    their rest lengths;
  *   nptr (N + 1), nidx (2E)  each vertex's neighbours nidx[nptr[i]:nptr[i + 1]], ascending;
  *   radius (N,)      how far each vertex may leave its target: 0 within `attachment` of the body at rest, else
@@ -268,19 +310,20 @@ static int64_t scl_tethers(const double *rest, int64_t n, const int64_t *nptr, c
 
 SCL_API int64_t scl_setup(const double *rest, int64_t n, const int64_t *faces, int64_t nf, const double *rest_sd,
                           double attachment, double max_distance, int64_t *edges, double *rest_len, int64_t *nptr,
-                          int64_t *nidx, double *radius, int64_t *anchor, double *tether) {
+                          int64_t *nidx, double *radius, int64_t *anchor, double *tether, int64_t *weld) {
     scl_edge *e;
     int64_t *fill;
     int64_t i, k, ne = 0, m = 0;
     if (n < 1 || nf < 0) return -2;
     for (i = 0; i < 3 * nf; i++)
         if (faces[i] < 0 || faces[i] >= n) return -2;
+    if (scl_weld(rest, n, weld) < 0) return -1;
     e = (scl_edge *)malloc(sizeof(scl_edge) * (size_t)(nf > 0 ? 3 * nf : 1));
     fill = (int64_t *)malloc(sizeof(int64_t) * (size_t)n);
     if (!e || !fill) { free(e); free(fill); return -1; }
     for (i = 0; i < nf; i++)
         for (k = 0; k < 3; k++) {
-            int64_t x = faces[3 * i + k], y = faces[3 * i + (k + 1) % 3];
+            int64_t x = weld[faces[3 * i + k]], y = weld[faces[3 * i + (k + 1) % 3]];
             if (x == y) continue;
             e[ne].a = x < y ? x : y;
             e[ne].b = x < y ? y : x;
@@ -563,7 +606,7 @@ static int work_alloc(scl_work *w, int64_t n, const int64_t *nptr) {
  * 0); yt = y + the spread move and x moved alike.  Returns how many vertices were traced out (0: yt and x are
  * untouched), -1 when out of memory. */
 static int64_t backstop(const void *collider, const double *bv, const double *box, int64_t n, int64_t nf,
-                        const int64_t *faces, const int64_t *nptr, const int64_t *nidx, const double *radius,
+                        const int64_t *faces, const int64_t *weld, const int64_t *nptr, const int64_t *nidx, const double *radius,
                         const double *y, double *x, const double *sd, const double *cn, double margin, double band,
                         double deep, scl_work *w) {
     int64_t i, j, k, nd = 0, nt = 0;
@@ -594,7 +637,7 @@ static int64_t backstop(const void *collider, const double *bv, const double *bo
      * just outside the body agree with the body's normal */
     for (i = 0; i < 3 * n; i++) w->vn[i] = 0;
     for (j = 0; j < nf; j++) {
-        const int64_t a = faces[3 * j], b = faces[3 * j + 1], c = faces[3 * j + 2];
+        const int64_t a = weld[faces[3 * j]], b = weld[faces[3 * j + 1]], c = weld[faces[3 * j + 2]];
         const double *pa = y + 3 * a, *pb = y + 3 * b, *pc = y + 3 * c;
         double u0 = pb[0] - pa[0], u1 = pb[1] - pa[1], u2 = pb[2] - pa[2];
         double v0 = pc[0] - pa[0], v1 = pc[1] - pa[1], v2 = pc[2] - pa[2];
@@ -725,7 +768,8 @@ static int64_t backstop(const void *collider, const double *bv, const double *bo
 
 /* The cloth stage on nb frames: targets (B, N, 3) -> out (B, N, 3), against the posed body (B, V, 3) through the
  * collider (sdc_create on the body's faces), with the per-garment data of scl_setup (edges to tether), the
- * garment's faces (nf, 3) (the backstop's normals; their indices checked by scl_setup) and settings (S_COUNT,).
+ * garment's faces (nf, 3) (the backstop's normals, through scl_setup's weld; their indices checked by scl_setup) and
+ * settings (S_COUNT,).
  * state (3, N, 3): the last output, the one before it and the last target; info (I_COUNT,): I_HAVE how many of
  * the state's frames are set (0: none, the next frame starts from its target), counts added to (I_RESETS,
  * I_CONTACTS: vertex-frames with a contact plane, I_PUSHED: vertex-frames the final push-out moved by more than
@@ -735,7 +779,7 @@ static int64_t backstop(const void *collider, const double *bv, const double *bo
  * is checked before any is stepped, so then no frame is done and the state and the counts are as they were. */
 SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const double *rest_len, const int64_t *nptr,
                          const int64_t *nidx, const double *radius, const int64_t *anchor, const double *tether,
-                         int64_t nf, const int64_t *faces, const double *settings, const void *collider,
+                         const int64_t *weld, int64_t nf, const int64_t *faces, const double *settings, const void *collider,
                          int64_t nv, const double *body, int64_t nb, const double *target, double *out, double *state,
                          int64_t *info) {
     int64_t iters = (int64_t)settings[S_ITERATIONS], n_nodes = sdc_n_nodes(collider), f, i, it, e;
@@ -839,8 +883,8 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
         sdc_refit(collider, bv, box);
         sdc_near(collider, bv, box, x, 0, n, margin + band, sd, cp, cn, 0);
         /* deep targets: traced out along the garment's normal (the backstop), then the contacts found again */
-        nt = backstop(collider, bv, box, n, nf, faces, nptr, nidx, radius, y, x, sd, cn, margin, band, settings[S_BACKSTOP],
-                      &w);
+        nt = backstop(collider, bv, box, n, nf, faces, weld, nptr, nidx, radius, y, x, sd, cn, margin, band,
+                      settings[S_BACKSTOP], &w);
         if (nt < 0) { status = -1; goto done; }
         if (nt > 0) { /* only the vertices it moved (held and in the region) are looked up again */
             int64_t r, nm = 0;
@@ -967,6 +1011,9 @@ SCL_API int64_t scl_step(int64_t n, int64_t ne, const int64_t *edges, const doub
                 for (i = 0; i < m; i++) memcpy(x + 3 * pick[i], q + 3 * i, sizeof(double) * 3);
             }
         }
+        /* a seam's sides: every vertex where its group's lowest one is (scl_setup's weld) */
+        for (i = 0; i < n; i++)
+            if (weld[i] != i) memcpy(x + 3 * i, x + 3 * weld[i], sizeof(double) * 3);
         /* the state: this frame, the one before, this target */
         if (have == 0) memcpy(x0, x, sizeof(double) * 3 * (size_t)n);
         else memcpy(x0, x1, sizeof(double) * 3 * (size_t)n);

@@ -16,6 +16,10 @@ every vertex in contact goes through.  Cloth deeper in such a pinch is left ther
 (Blender's frames of the held-out dresses hold 0.42-0.48 % of their vertices there): taken out one vertex at a time,
 across the arm, it made flaps at a dress's armholes (measured and rendered 30 Nov 2026, ``docs/cloth-eval.md``).
 
+A mesh split along a seam (game-engine exports split vertices at UV seams) is one piece of cloth to the stage: the
+vertices at exactly one rest position are welded (:attr:`ClothSetup.weld`), the edges join the seam's two sides, and
+each frame puts every copy where its group's lowest vertex is (split so, a dress on a walk tore 7 cm at its seam).
+
 Side by side:
 
 * :class:`ClothStage` -- the fast path: the compiled kernel ``_cloth.c`` (built with the collision kernel it
@@ -114,8 +118,8 @@ LOOSE = 0.007
 #: attached gets a contact plane at its middle only where its ends' and its middle's normals agree so
 AGREE = 0.5
 #: the per-garment data's version: part of its cache key (a release that changes scl_setup reads no old entry)
-SETUP_VERSION = 3
-_ABI = 14
+SETUP_VERSION = 4
+_ABI = 15
 #: the order of _cloth.c's settings array
 _SETTINGS = (
     "iterations",
@@ -165,9 +169,9 @@ def _load_kernel():
                 (
                     ("sdc_create", p, (p, i64, p, i64, i64)),
                     ("sdc_free", None, (p,)),
-                    ("scl_setup", i64, (p, i64, p, i64, p, f64, f64, p, p, p, p, p, p, p)),
+                    ("scl_setup", i64, (p, i64, p, i64, p, f64, f64, p, p, p, p, p, p, p, p)),
                     ("scl_per_sweep", f64, (f64, i64)),
-                    ("scl_step", i64, (i64, i64, p, p, p, p, p, p, p, i64, p, p, p, i64, p, i64, p, p, p, p)),
+                    ("scl_step", i64, (i64, i64, p, p, p, p, p, p, p, p, i64, p, p, p, i64, p, i64, p, p, p, p)),
                 ),
             )
             _KERNEL.update(lib=lib, why=why)
@@ -203,7 +207,10 @@ class ClothSetup:
     Shapes: edges (E, 2) int64, a < b, sorted; rest_len (E,); nptr (N + 1,) int64 and nidx (2E,) int64: vertex i's
     neighbours ``nidx[nptr[i]:nptr[i + 1]]``, ascending; radius (N,): how far vertex i may leave its target;
     anchor (N,) int64: free vertex i's tether anchor, the attached vertex nearest to it along the edges (-1: none);
-    tether (N,): the rest length of that path; faces (F, 3) int64: the garment's faces (the backstop's normals)."""
+    tether (N,): the rest length of that path; faces (F, 3) int64: the garment's faces (the backstop's normals, through
+    ``weld``); weld (N,) int64: the lowest index of the vertices at exactly vertex i's rest position (a seam's two
+    sides, split as exports split UV seams, are one point of cloth: the edges join them and every frame puts each
+    where its group's lowest vertex is)."""
 
     edges: np.ndarray
     rest_len: np.ndarray
@@ -213,6 +220,7 @@ class ClothSetup:
     anchor: np.ndarray
     tether: np.ndarray
     faces: np.ndarray
+    weld: np.ndarray
 
     @property
     def n_vertices(self) -> int:
@@ -249,12 +257,15 @@ class ClothSetup:
         ok = ok and self.anchor.min() >= -1 and self.anchor.max() < n
         ok = ok and np.isfinite(self.tether).all() and (self.tether >= 0).all()
         ok = ok and (self.radius[self.anchor[self.anchor >= 0]] == 0).all()  # anchors are attached vertices
+        ok = ok and self.weld.dtype == np.int64 and self.weld.shape == (n,)
+        ok = ok and self.weld.min() >= 0 and (self.weld <= np.arange(n)).all()
+        ok = ok and (self.weld[self.weld] == self.weld).all()  # each group's lowest vertex is its own
         if not ok:
             raise InputError(
                 "inconsistent cloth setup",
                 expected="scl_setup's arrays",
                 got=f"edges {self.edges.shape}, nptr {self.nptr.shape}, radius {self.radius.shape}, "
-                f"anchor {self.anchor.shape}, tether {self.tether.shape}",
+                f"anchor {self.anchor.shape}, tether {self.tether.shape}, weld {self.weld.shape}",
             )
         return self
 
@@ -300,6 +311,7 @@ def cloth_setup(rest, faces, rest_sd, settings: ClothSettings = ClothSettings())
     radius = np.empty(n)
     anchor = np.empty(n, np.int64)
     tether = np.empty(n)
+    weld = np.empty(n, np.int64)
     ne = lib.scl_setup(
         _ptr(v),
         n,
@@ -315,6 +327,7 @@ def cloth_setup(rest, faces, rest_sd, settings: ClothSettings = ClothSettings())
         _ptr(radius),
         _ptr(anchor),
         _ptr(tether),
+        _ptr(weld),
     )
     if ne == -1:
         raise MemoryError("out of memory in the cloth stage's setup")
@@ -329,6 +342,7 @@ def cloth_setup(rest, faces, rest_sd, settings: ClothSettings = ClothSettings())
         anchor=anchor,
         tether=tether,
         faces=f.copy(),
+        weld=weld,
     )
 
 
@@ -336,7 +350,9 @@ def cloth_setup_reference(rest, faces, rest_sd, settings: ClothSettings = ClothS
     """:func:`cloth_setup` in numpy, the obvious way (the reference the kernel is tested against)."""
     v, f, sd = _check_setup_inputs(rest, faces, rest_sd, settings)
     n = len(v)
-    pairs = np.stack([f, np.roll(f, -1, axis=1)], axis=-1).reshape(-1, 2)  # (a, b) of every face side
+    weld = _weld_reference(v)
+    wf = weld[f]  # the faces as if the mesh had never been split
+    pairs = np.stack([wf, np.roll(wf, -1, axis=1)], axis=-1).reshape(-1, 2)  # (a, b) of every face side
     pairs = pairs[pairs[:, 0] != pairs[:, 1]]
     pairs = np.unique(np.sort(pairs, axis=1), axis=0)  # sorted by (a, b)
     d = v[pairs[:, 1]] - v[pairs[:, 0]]
@@ -358,7 +374,18 @@ def cloth_setup_reference(rest, faces, rest_sd, settings: ClothSettings = ClothS
         anchor=anchor,
         tether=tether,
         faces=f.copy(),
+        weld=weld,
     )
+
+
+def _weld_reference(v: np.ndarray) -> np.ndarray:
+    """Each vertex's weld (``scl_weld``): the lowest index of the vertices at exactly its position.
+    Shapes: (N, 3) -> (N,) int64"""
+    _, inverse = np.unique(v + 0.0, axis=0, return_inverse=True)  # (+ 0.0: -0.0 is 0.0, as C's == has it)
+    inverse = inverse.reshape(-1)
+    lowest = np.full(inverse.max() + 1, len(v), np.int64)
+    np.minimum.at(lowest, inverse, np.arange(len(v)))
+    return lowest[inverse]
 
 
 def _tethers_reference(v, nptr, nidx, radius):
@@ -490,6 +517,7 @@ class ClothStage:
                 setup.radius,
                 setup.anchor,
                 setup.tether,
+                setup.weld,
                 setup.faces,
             )
         ]
@@ -559,7 +587,7 @@ class ClothStage:
         bv = self._float64(bv, 1)
         out = np.empty_like(y)
         before, last = self.resets, self._state[2].copy()  # the last target, for the reset's message
-        e, rl, nptr, nidx, rad, anc, teth, fc = self._arrays
+        e, rl, nptr, nidx, rad, anc, teth, weld, fc = self._arrays
         status = self._lib.scl_step(
             self.n_vertices,
             len(e),
@@ -570,6 +598,7 @@ class ClothStage:
             _ptr(rad),
             _ptr(anc),
             _ptr(teth),
+            _ptr(weld),
             len(fc),
             _ptr(fc),
             _ptr(self._settings),
@@ -765,6 +794,7 @@ def cloth_reference(
             again = np.flatnonzero((np.sum((x - before) ** 2, axis=1) > 0) & (~(clear > 0) | contact | moved))
             if len(again):
                 x[again] = col.push_out(x[again], bv, margin, iterations=PASSES)[0]
+        x = x[setup.weld]  # a seam's sides where their group's lowest vertex is
         st["x0"] = x.copy() if have == 0 else st["x1"]
         st["x1"], st["yp"], st["have"] = x.copy(), y.copy(), 1 if have == 0 else 2
         out[f] = x
@@ -852,9 +882,10 @@ def _backstop_reference(col, bv, setup: ClothSetup, y, x, sd, normal, margin: fl
     from ..geometry.mesh_ops import face_cross
 
     vn = np.zeros((n, 3))  # area-weighted, unnormalised vertex normals of the target
-    fc = face_cross(y, setup.faces)
+    wf = setup.weld[setup.faces]  # a seam's two sides one vertex
+    fc = face_cross(y, wf)
     for corner in range(3):
-        np.add.at(vn, setup.faces[:, corner], fc)
+        np.add.at(vn, wf[:, corner], fc)
     vote = 0.0
     for i in range(n):
         if 0 <= sd[i] < margin + CONTACT_BAND:
