@@ -52,7 +52,15 @@ from segadeform.io.mesh import Mesh
 from segadeform.io.obj import recorded_betas
 from segadeform.io.outputs import claim_scene_outputs, garment_surface
 from segadeform.io.toml import key_line
-from segadeform.motion import Motion, build_motion, floor_shift, frame_range, glitches_in_range, motion_windows
+from segadeform.motion import (
+    Motion,
+    build_motion,
+    floor_shift,
+    frame_range,
+    glitches_in_range,
+    motion_windows,
+    root_cuts,
+)
 from segadeform.settings import Effects, Scene
 
 from .body import BODY_BACKENDS, BodyPoser, package_body
@@ -1081,6 +1089,20 @@ def run_scene(
                 Path(scene.motion.file or "motion").name,
                 settle,
                 jumps,
+            )
+        )
+    cuts = root_cuts(motion, scene.motion.frames)
+    if cuts:
+        first, metres = cuts[0]
+        said.append(
+            (
+                "motion %s: its root moves %.3g m in one frame, into frame %d: a cut or a teleport, and the garment "
+                "jumps with it (%d step%s faster than 20 m/s)",
+                Path(scene.motion.file or "motion").name,
+                metres,
+                first + int((motion.meta or {}).get("start_frame", 0)),  # numbered as the outputs number it
+                len(cuts),
+                "" if len(cuts) == 1 else "s",
             )
         )
     out = Path(output) if output is not None else scene.output

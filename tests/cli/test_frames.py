@@ -181,3 +181,36 @@ def test_a_cut_motion_files_numbering_is_said_where_frames_counts_from_0(tmp_pat
     # a motion that starts at 0 says nothing more
     res = r.invoke(cli, [*base[:4], str(bvh), "--no-cache", "--frames", "2:4", "-o", str(tmp_path / "c.pc2")])
     assert res.exit_code == 0 and res.output.startswith("2 frames, "), res.output
+
+
+def test_a_root_that_teleports_is_said_once_with_its_frame(tmp_path, caplog):
+    """A root moved 100 m in one frame played without a word (a QA engineer's trial; the output follows it, as it
+    should).  `run` now says where, once, counting the steps inside the frames it plays; a root that jumps and comes
+    straight back is a glitch (the warning above), and a walk says nothing."""
+    import dataclasses
+
+    from segadeform.motion import root_cuts
+
+    m = make_motion("walk", seconds=1.0, fps=30.0, seed=0)
+    trans = m.trans.copy()
+    trans[10:, 0] += 100.0
+    trans[20:, 2] += 1.0  # a second cut: 1 m in a frame is 30 m/s
+    cut = dataclasses.replace(m, trans=trans)
+    assert [f for f, _ in root_cuts(cut)] == [10, 20] and abs(root_cuts(cut)[0][1] - 100.0) < 0.1
+    assert root_cuts(m) == [] and root_cuts(cut, (11, 20)) == [] and [f for f, _ in root_cuts(cut, (15, None))] == [20]
+    back = m.trans.copy()
+    back[10, 0] += 2.0  # there and straight back: a glitch, not a cut
+    assert root_cuts(dataclasses.replace(m, trans=back)) == []
+    cut.save(tmp_path / "cut.npz")
+    m.save(tmp_path / "walk.npz")
+    for name, frames, said_n in (("cut", "0:30", 1), ("cut", "11:19", 0), ("walk", "0:30", 0)):
+        args = ["run", "--garment", str(SAMPLES / "garments" / "skirt.obj"), "--motion", str(tmp_path / f"{name}.npz")]
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            r = CliRunner().invoke(cli, [*args, "--frames", frames, "-o", str(tmp_path / "o.pc2"), "--no-cache"])
+        assert r.exit_code == 0, r.output
+        said = [rec.getMessage() for rec in caplog.records if "root moves" in rec.getMessage()]
+        assert len(said) == said_n, (name, frames, said)
+        if said_n:
+            assert "cut.npz: its root moves 100 m in one frame, into frame 10" in said[0], said
+            assert "(2 steps faster than 20 m/s)" in said[0], said

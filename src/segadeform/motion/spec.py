@@ -16,7 +16,10 @@ from ..settings.scene import MotionSpec
 from .motion import Motion, drop_leading_glitches, feet_on_floor, repair_capture, repair_glitches, resample
 from .procedural import make_motion
 
-__all__ = ["MotionSpec", "build_motion", "frame_range", "select_frames", "glitches_in_range"]
+__all__ = ["MotionSpec", "build_motion", "frame_range", "select_frames", "glitches_in_range", "root_cuts", "CUT_SPEED"]
+
+#: m/s: a root faster than this between two frames has cut or teleported (no person runs at it: the glitch bound)
+CUT_SPEED = 20.0
 
 
 def build_motion(spec: MotionSpec, rest_joints=None) -> Motion:
@@ -122,3 +125,27 @@ def glitches_in_range(motion: Motion, frames: tuple[int, int | None] | None = No
     settle = max(0, min(settle, int(round(stop / motion.fps * file_fps))) - int(round(start / motion.fps * file_fps)))
     t0, t1 = (start - 0.5) / motion.fps, (stop - 0.5) / motion.fps
     return settle, sum(1 for t in jump_times if t0 <= t < t1)
+
+
+def root_cuts(motion: Motion, frames: tuple[int, int | None] | None = None) -> list[tuple[int, float]]:
+    """The steps inside ``frames`` (``(A, B)`` of the motion, B exclusive; None: all) where the root moves faster
+    than :data:`CUT_SPEED`: ``[(frame after the step, metres moved), ...]``.  A cut or a teleport in the motion's
+    translation (a root moved 100 m in one frame played without a word: a QA engineer's trial) that stays there for
+    the next 0.05 s (and not the way back of one before); a jump and a jump back are the capture's glitches (:func:`glitches_in_range`).
+
+    Shapes: motion.trans (T, 3) -> list of (int, float)"""
+    t = np.asarray(motion.trans, np.float64)
+    start, stop = frames or (0, None)
+    stop = len(t) if stop is None else stop
+    if stop - start < 2:
+        return []
+    t = t[start:stop]
+    step = np.linalg.norm(np.diff(t, axis=0), axis=1)
+    gap = max(1, int(round(0.05 * motion.fps)))  # a jump back within this is a glitch, not a cut
+    cuts = []
+    for k in np.flatnonzero(step * motion.fps > CUT_SPEED).tolist():
+        later, earlier = t[min(k + 1 + gap, len(t) - 1)], t[max(k - gap, 0)]
+        # it stays away, and it is not the way back of a jump
+        if np.linalg.norm(later - t[k]) > 0.5 * step[k] and np.linalg.norm(t[k + 1] - earlier) > 0.5 * step[k]:
+            cuts.append((int(start + k + 1), float(step[k])))
+    return cuts
