@@ -157,6 +157,7 @@ def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray |
         len(np.unique(f)) == len(v)  # (a carried garment keeps no vertex outside a face)
         and misoriented_edges(surface if w is None else surface_faces(mv, mf), len(mv)) == 0
         and inward_share(mv, mf, body, betas) > INWARD
+        and _on_the_body(v, f, body, betas)
     )
     if not flip:
         return mv, mf, smap, w is not None, False
@@ -168,6 +169,25 @@ def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray |
     flipped = mf[:, ::-1].copy()  # corners reversed: the same places, the other way round
     smap = SurfaceMap(face=smap.face, bary=smap.bary[:, ::-1].copy(), offset=-smap.offset, faces=flipped)
     return mv, flipped, smap, w is not None, True
+
+
+def _on_the_body(vertices, faces, body: BodyModel, betas) -> bool:
+    """Whether the garment sits on a human's body (:func:`check_body_height`, :func:`check_placement`), which the
+    winding test (:func:`inward_share`) takes for granted: under ``--force`` a dress between the legs of a 3.85 m body
+    was called wound inward (its normals face the legs) and run flipped."""
+    try:
+        check_body_height(body, betas)
+        check_placement(
+            vertices,
+            body.shaped_vertices(betas)[0],
+            body.faces,
+            faces=faces,
+            template_vertices=body.v_template,
+            betas=betas,
+        )
+    except InputError:
+        return False
+    return True
 
 
 def effective_batch(batch: int, n_vertices: int) -> int:
@@ -813,7 +833,7 @@ def _warn_winding(
             100 * inward,
         )
         return
-    if inward > INWARD:
+    if inward > INWARD and _on_the_body(v, f, body, betas):  # (off it, the test says nothing: --force played it)
         (say or log.warning)(
             "garment %s: its faces are wound inward (the normals of %.0f %% of its vertices near the body point into "
             "it), and the model reads them: flip them (Blender: Mesh > Normals > Recalculate Outside)",

@@ -112,6 +112,26 @@ def test_faces_wound_against_their_neighbours_or_inward_are_said(tmp_path, caplo
     np.testing.assert_array_equal(inward, read_pc2(tmp_path / "o.pc2").frames)
 
 
+def test_a_garment_off_a_giant_body_under_force_is_not_taken_for_wound_inward(tmp_path, caplog):
+    """The winding test takes a garment on the body for granted: under --force, the sample dress (wound outward) on a
+    3.85 m body (betas 8) was said to be wound inward -- between the giant's legs its normals face them -- and run
+    flipped (a QA engineer's trial).  Off the body it is played as the file winds it, and nothing is said of its
+    winding; on the body, wound inward, it is still flipped (the test above)."""
+    from segadeform.io import read_pc2
+
+    r, said = _run(tmp_path, SAMPLES / "garments" / "dress.obj", "--betas", "8", "--force", caplog=caplog)
+    assert r.exit_code == 0 and "(played anyway)" in said, said
+    assert "wound inward" not in said and "flipped" not in said, said
+    from segadeform.body import default_body_path, load_body
+    from segadeform.io import read_mesh
+    from segadeform.runtime.pipeline import inward_share, model_garment
+
+    body, m = load_body(default_body_path()), read_mesh(SAMPLES / "garments" / "dress.obj")
+    assert inward_share(m.vertices, m.faces, body, (8.0,)) > 0.8  # what the test alone says there
+    assert model_garment(m.vertices, m.faces, body, (8.0,))[4] is False
+    assert read_pc2(tmp_path / "o.pc2").frames.shape[1] == len(m.vertices)
+
+
 def test_bundle_force_says_what_it_plays_anyway(tmp_path, caplog):
     """`segadeform bundle --force` skipped the placement check without a word; it runs the run's checks now."""
     lines = (SAMPLES / "garments" / "dress.obj").read_text().splitlines()

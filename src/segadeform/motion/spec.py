@@ -131,7 +131,8 @@ def root_cuts(motion: Motion, frames: tuple[int, int | None] | None = None) -> l
     """The steps inside ``frames`` (``(A, B)`` of the motion, B exclusive; None: all) where the root moves faster
     than :data:`CUT_SPEED`: ``[(frame after the step, metres moved), ...]``.  A cut or a teleport in the motion's
     translation (a root moved 100 m in one frame played without a word: a QA engineer's trial) that stays there for
-    the next 0.05 s (and not the way back of one before); a jump and a jump back are the capture's glitches (:func:`glitches_in_range`).
+    the next 0.05 s (and not the way back of one before); a jump and a jump back are the capture's glitches
+    (:func:`glitches_in_range`).
 
     Shapes: motion.trans (T, 3) -> list of (int, float)"""
     t = np.asarray(motion.trans, np.float64)
