@@ -140,6 +140,9 @@ def root_cuts(motion: Motion, frames: tuple[int, int | None] | None = None) -> l
     stop = len(t) if stop is None else stop
     if stop - start < 2:
         return []
+    glitches = (motion.meta or {}).get("unrepaired_glitches")
+    # the leading frames a capture settles from are the glitches' warning's (CMU's 09_10 jumps 2 m into frame 4)
+    settled = int(np.ceil(glitches[0] / glitches[2] * motion.fps)) if glitches else 0
     t = t[start:stop]
     step = np.linalg.norm(np.diff(t, axis=0), axis=1)
     gap = max(1, int(round(0.05 * motion.fps)))  # a jump back within this is a glitch, not a cut
@@ -147,6 +150,7 @@ def root_cuts(motion: Motion, frames: tuple[int, int | None] | None = None) -> l
     for k in np.flatnonzero(step * motion.fps > CUT_SPEED).tolist():
         later, earlier = t[min(k + 1 + gap, len(t) - 1)], t[max(k - gap, 0)]
         # it stays away, and it is not the way back of a jump
-        if np.linalg.norm(later - t[k]) > 0.5 * step[k] and np.linalg.norm(t[k + 1] - earlier) > 0.5 * step[k]:
+        stays = np.linalg.norm(later - t[k]) > 0.5 * step[k] and np.linalg.norm(t[k + 1] - earlier) > 0.5 * step[k]
+        if stays and start + k + 1 > settled:
             cuts.append((int(start + k + 1), float(step[k])))
     return cuts
