@@ -78,7 +78,7 @@ def garment_export_cmd(garment, output, body, betas, model, k, force, resolution
         model = default_model_path()
     config = read_manifest_text((Path(model) / "manifest.json").read_text(encoding="utf-8"))["config"]
     given = None  # with --resolution < 1: the garment as given, and the map from the model's decimated copy to it
-    welded = flipped = False  # the model's garment is the given one welded, flipped (then given is set too)
+    welded, flipped = False, ""  # the model's garment is the given one welded, rewound (then given is set too)
     if garment.suffix.lower() in (".npz", PORTABLE_SUFFIX):
         if resolution is not None and resolution < 1.0:
             raise InputError(

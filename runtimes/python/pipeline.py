@@ -140,35 +140,57 @@ def welded_garment(vertices, faces, surface: np.ndarray | None = None):
 
 def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray | None = None):
     """The garment the model runs on for a garment mesh as given: welded along its split seams
-    (:func:`welded_garment`) and, when its faces are all wound inward (:func:`inward_share` over :data:`INWARD`, none
-    wound against its neighbours), flipped -- the model reads the normals, and a technical artist's garment wound
-    inward ran 9.5 cm off the same garment wound outward, exit 0.  Returns ``(v, f, map, welded, flipped)``: the
+    (:func:`welded_garment`); its faces wound alike where some are wound against their neighbours
+    (:func:`~segadeform.geometry.mesh_ops.wound_alike`: each piece as most of its faces; a dress with 150 faces so ran
+    up to 6.6 cm off); and, when its faces are then all wound inward (:func:`inward_share` over :data:`INWARD`, on a
+    garment that sits on the body), flipped -- the model reads the normals, and a technical artist's garment wound
+    inward ran 9.5 cm off the same garment wound outward, exit 0.  Returns ``(v, f, map, welded, rewound)``: the
     :class:`~segadeform.body.resample.SurfaceMap` carries the model's frames to every vertex as given (None, with ``v``
-    and ``f`` as given, when neither applies).  ``surface``: the garment's
+    and ``f`` as given, when none applies); ``rewound``: ``""``, ``"aligned"``, ``"flipped"`` or
+    ``"aligned+flipped"``.  ``surface``: the garment's
     :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here)."""
     from segadeform.body.resample import SurfaceMap
-    from segadeform.geometry.mesh_ops import misoriented_edges
+    from segadeform.geometry.mesh_ops import misoriented_edges, wound_alike
 
     v, f = np.asarray(vertices, np.float64), np.asarray(faces, np.int64)
     surface = surface_faces(v, f) if surface is None else surface
     w = welded_garment(v, f, surface)
     mv, mf, smap = (v, f, None) if w is None else w
+    held = len(np.unique(f)) == len(v)  # (a carried garment keeps no vertex outside a face)
+    how = ""
+    if held and misoriented_edges(surface if w is None else surface_faces(mv, mf), len(mv)):
+        alike = wound_alike(mf, len(mv))  # some faces against their neighbours: wound as most of their piece's
+        if alike is not None:
+            mf, how = alike, "aligned"
     flip = (
-        len(np.unique(f)) == len(v)  # (a carried garment keeps no vertex outside a face)
-        and misoriented_edges(surface if w is None else surface_faces(mv, mf), len(mv)) == 0
+        held
+        and misoriented_edges(surface_faces(mv, mf), len(mv)) == 0
         and inward_share(mv, mf, body, betas) > INWARD
         and _on_the_body(v, f, body, betas)
     )
-    if not flip:
-        return mv, mf, smap, w is not None, False
-    if smap is None:  # each vertex on a corner of a face holding it
-        owner = np.empty(len(v), np.int64)
-        owner[f.ravel()] = np.repeat(np.arange(len(f)), 3)
-        bary = (f[owner] == np.arange(len(v))[:, None]).astype(np.float64)
-        smap = SurfaceMap(face=owner, bary=bary, offset=np.zeros(len(v)), faces=f)
-    flipped = mf[:, ::-1].copy()  # corners reversed: the same places, the other way round
-    smap = SurfaceMap(face=smap.face, bary=smap.bary[:, ::-1].copy(), offset=-smap.offset, faces=flipped)
-    return mv, flipped, smap, w is not None, True
+    if flip:
+        mf = mf[:, ::-1].copy()  # corners reversed: the same places, the other way round
+        how = "aligned+flipped" if how else "flipped"
+    if not how:
+        return mv, mf, smap, w is not None, ""
+    if smap is None:  # each vertex on itself: the given vertices are the model's
+        smap = _corners(len(v), mf)
+    else:  # each given vertex on its weld, a corner of the model's face (its corners reordered above)
+        at = smap.faces[smap.face, np.argmax(smap.bary, axis=1)]
+        smap = _corners(len(mv), mf)
+        smap = SurfaceMap(face=smap.face[at], bary=smap.bary[at], offset=np.zeros(len(at)), faces=mf)
+    return mv, mf, smap, w is not None, how
+
+
+def _corners(n: int, faces: np.ndarray):
+    """The :class:`~segadeform.body.resample.SurfaceMap` that puts each of ``n`` vertices on a corner of a face
+    holding it (every vertex is held).  Shapes: faces (F, 3) -> map of (n,)"""
+    from segadeform.body.resample import SurfaceMap
+
+    owner = np.empty(n, np.int64)
+    owner[faces.ravel()] = np.repeat(np.arange(len(faces)), 3)
+    bary = (faces[owner] == np.arange(n)[:, None]).astype(np.float64)
+    return SurfaceMap(face=owner, bary=bary, offset=np.zeros(n), faces=faces)
 
 
 def _on_the_body(vertices, faces, body: BodyModel, betas) -> bool:
@@ -328,7 +350,7 @@ class Run:
         self._full: tuple[np.ndarray, np.ndarray] | None = None
         self._smap: Any = None  # a segadeform.body.resample.SurfaceMap
         self._welded = False  # the model runs on the garment welded along its split seams (welded_garment)
-        self._flipped = False  # ... and its faces flipped, wound inward in the file (model_garment)
+        self._flipped = ""  # ... and its faces wound alike or flipped, as the file's were not (model_garment)
         self.start, self.stop = frame_range(frames, motion.n_frames, first=self._motion_start())
         self.guard = guard
         if guard is not None:  # refused before any work: an output over a file segadeform did not write ...
@@ -802,25 +824,39 @@ def _warn_winding(
     surface: np.ndarray | None = None,
     say: Callable[..., None] | None = None,
     *,
-    flipped: bool = False,
+    flipped: str = "",
 ) -> None:
     """Say when the garment's faces are not all wound outward: some against their neighbours
     (:func:`~segadeform.geometry.mesh_ops.mesh_defects`' ``misoriented`` edges) or all of them inward (the normals of
     most vertices near the body point into it).  The model reads the normals: a Blender artist's trial moved a
-    dress's frames 1.2 cm on average, 6.6 cm at most, with every face flipped, and nothing said so.  ``surface``: the
-    garment's :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here).  ``say``: what says it, with
-    ``log.warning``'s arguments (default: it)."""
+    dress's frames 1.2 cm on average, 6.6 cm at most, with every face flipped, and nothing said so.  ``flipped``: how
+    the model's garment was wound for it (:func:`model_garment`'s ``rewound``: ``"aligned"``, ``"flipped"``, both,
+    or ``""``).  ``surface``: the garment's :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here).
+    ``say``: what says it, with ``log.warning``'s arguments (default: it)."""
     from segadeform.geometry.mesh_ops import misoriented_edges
 
     name = Path(str(garment)).name if isinstance(garment, (str, os.PathLike)) else "garment"
     v, f = np.asarray(asset.vertices, np.float64), np.asarray(asset.faces)
+    fix = "(Blender: Mesh > Normals > Recalculate Outside)"
     bad = misoriented_edges(surface_faces(v, f) if surface is None else surface, len(v))
     if bad:
+        if "aligned" in flipped:  # the model ran on it wound alike (model_garment)
+            (say or log.warning)(
+                "garment %s: %d edges lie between faces wound against each other (their normals point opposite "
+                "ways): the model runs on it with each piece wound as most of its faces%s, and the outputs keep the "
+                "file's faces; wind them alike in the file %s for renders that read them",
+                name,
+                bad,
+                ", then flipped (most of its normals pointed into the body)" if "flipped" in flipped else "",
+                fix,
+            )
+            return
         (say or log.warning)(
             "garment %s: %d edges lie between faces wound against each other (their normals point opposite ways, "
-            "and the model reads them): wind them alike (Blender: Mesh > Normals > Recalculate Outside)",
+            "and the model reads them): wind them alike %s",
             name,
             bad,
+            fix,
         )
         return
     inward = inward_share(v, f, body, betas)
@@ -828,17 +864,19 @@ def _warn_winding(
         (say or log.warning)(
             "garment %s: its faces are wound inward (the normals of %.0f %% of its vertices near the body point into "
             "it): the model runs on it flipped, and the outputs keep the file's faces; flip them in the file "
-            "(Blender: Mesh > Normals > Recalculate Outside) for renders that read them",
+            "%s for renders that read them",
             name,
             100 * inward,
+            fix,
         )
         return
     if inward > INWARD and _on_the_body(v, f, body, betas):  # (off it, the test says nothing: --force played it)
         (say or log.warning)(
             "garment %s: its faces are wound inward (the normals of %.0f %% of its vertices near the body point into "
-            "it), and the model reads them: flip them (Blender: Mesh > Normals > Recalculate Outside)",
+            "it), and the model reads them: flip them %s",
             name,
             100 * inward,
+            fix,
         )
 
 
@@ -888,7 +926,7 @@ def _warn_seams(
 
 
 def garment_warnings(
-    garment, mesh: GarmentAsset | Mesh, body: BodyModel, betas, *, welded: bool = False, flipped: bool = False
+    garment, mesh: GarmentAsset | Mesh, body: BodyModel, betas, *, welded: bool = False, flipped: str = ""
 ) -> list[str]:
     """What ``segadeform run`` says of a garment (``mesh``: its mesh as given; ``garment`` its file, for the words):
     vertices in no face or several objects, faces wound against each other or inward, a mesh split along seams.

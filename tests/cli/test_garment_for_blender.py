@@ -89,8 +89,9 @@ def test_force_says_what_it_plays_anyway(tmp_path, caplog):
 
 
 def test_faces_wound_against_their_neighbours_or_inward_are_said(tmp_path, caplog):
-    """Flipped faces moved a dress's frames up to 6.6 cm without a word (the model reads the normals)."""
-    from segadeform.io import Mesh, read_mesh, write_obj
+    """Flipped faces moved a dress's frames up to 6.6 cm without a word (the model reads the normals).  Now they are
+    said, and the model runs on the garment wound alike (each piece as most of its faces) and outward."""
+    from segadeform.io import Mesh, read_mesh, read_pc2, write_obj
 
     m = read_mesh(SAMPLES / "garments" / "dress.obj")
     some = m.faces.copy()
@@ -99,17 +100,27 @@ def test_faces_wound_against_their_neighbours_or_inward_are_said(tmp_path, caplo
     write_obj(tmp_path / "inward.obj", Mesh(m.vertices, m.faces[:, ::-1].copy()))
     r, said = _run(tmp_path, tmp_path / "some.obj", caplog=caplog)
     assert r.exit_code == 0 and "edges lie between faces wound against each other" in said, said
+    # the model runs on it wound as most of its faces are: the frames of the dress as it was (6.6 cm off before)
+    assert "the model runs on it with each piece wound as most of its faces, and the outputs keep" in said, said
+    some_frames = read_pc2(tmp_path / "o.pc2").frames
+    # and most of them flipped too: wound alike, then flipped
+    most = m.faces[:, ::-1].copy()
+    most[:150] = m.faces[:150]
+    write_obj(tmp_path / "most.obj", Mesh(m.vertices, most))
+    r, said = _run(tmp_path, tmp_path / "most.obj", caplog=caplog)
+    assert "wound as most of its faces, then flipped (most of its normals pointed into the body)" in said, said
+    most_frames = read_pc2(tmp_path / "o.pc2").frames
     r, said = _run(tmp_path, tmp_path / "inward.obj", caplog=caplog)
     assert r.exit_code == 0 and "its faces are wound inward (the normals of 100 %" in said, said
     # all of them inward: the model runs on it flipped (a technical artist's garment ran 9.5 cm off, exit 0), so its
     # frames are those of the garment wound outward; faces wound against their neighbours are only said
     assert "the model runs on it flipped, and the outputs keep the file's faces" in said, said
-    from segadeform.io import read_pc2
-
     inward = read_pc2(tmp_path / "o.pc2").frames
     r, said = _run(tmp_path, SAMPLES / "garments" / "dress.obj", caplog=caplog)
     assert "wound against" not in said and "wound inward" not in said, said
     np.testing.assert_array_equal(inward, read_pc2(tmp_path / "o.pc2").frames)
+    np.testing.assert_array_equal(some_frames, read_pc2(tmp_path / "o.pc2").frames)
+    np.testing.assert_array_equal(most_frames, read_pc2(tmp_path / "o.pc2").frames)
 
 
 def test_a_garment_off_a_giant_body_under_force_is_not_taken_for_wound_inward(tmp_path, caplog):
@@ -128,7 +139,7 @@ def test_a_garment_off_a_giant_body_under_force_is_not_taken_for_wound_inward(tm
 
     body, m = load_body(default_body_path()), read_mesh(SAMPLES / "garments" / "dress.obj")
     assert inward_share(m.vertices, m.faces, body, (8.0,)) > 0.8  # what the test alone says there
-    assert model_garment(m.vertices, m.faces, body, (8.0,))[4] is False
+    assert model_garment(m.vertices, m.faces, body, (8.0,))[4] == ""
     assert read_pc2(tmp_path / "o.pc2").frames.shape[1] == len(m.vertices)
 
 
@@ -312,3 +323,21 @@ def test_a_non_manifold_edge_is_said_by_run_and_garment_export(tmp_path, caplog)
     assert r.exit_code == 0 and "1 edge is in more than two faces" in said, said
     r, said = _run(tmp_path, SAMPLES / "garments" / "dress.obj", caplog=caplog)
     assert r.exit_code == 0 and "non-manifold" not in said, said
+
+
+def test_a_split_garment_with_faces_wound_every_way_is_the_garment_before():
+    """Split at a seam and with 150 faces wound against their neighbours (and all of it reversed), the model's garment
+    is the dress before it was split, faces and all, and the map carries its frames exactly to every vertex given."""
+    from segadeform.body import default_body_path, load_body
+    from segadeform.io import read_mesh
+    from segadeform.runtime.pipeline import model_garment
+
+    m, body = read_mesh(SAMPLES / "garments" / "dress.obj"), load_body(default_body_path())
+    v, f, _ = split_at_a_seam(m)
+    f[:150] = f[:150, ::-1]
+    for faces, how in ((f, "aligned"), (f[:, ::-1].copy(), "aligned+flipped")):
+        mv, mf, smap, welded, rewound = model_garment(v, faces, body, ())
+        assert welded and rewound == how
+        np.testing.assert_array_equal(mv, m.vertices)
+        np.testing.assert_array_equal(mf, m.faces)
+        np.testing.assert_array_equal(smap.apply(mv[None])[0], v)

@@ -192,3 +192,32 @@ def test_small_pieces_are_stray_triangles_not_a_seam_or_a_belt():
     tri = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.0, 0.01, 0.0]])
     many_v = np.concatenate([tri + [0.02 * k, 0.0, 0.0] for k in range(300)])
     assert len(small_pieces(many_v, np.arange(900).reshape(300, 3))) == 0
+
+
+def test_wound_alike_winds_each_piece_as_most_of_its_faces():
+    """Faces wound against their neighbours are turned to the winding most of their piece has (two pieces, each its
+    own majority); a face with a repeated corner is left as it is; a Moebius strip cannot be wound alike: None."""
+    from segadeform.geometry.mesh_ops import misoriented_edges, wound_alike
+
+    v, f = grid_plane(6, 6)
+    n = len(v)
+    two = np.concatenate([f, f[:, ::-1] + n])  # a second piece, wound the other way
+    bad = two.copy()
+    bad[[3, 7, 11]] = bad[[3, 7, 11], ::-1]
+    bad[len(f) + 5] = bad[len(f) + 5, ::-1]
+    bad = np.concatenate([bad, [[0, 0, 1]]])
+    assert misoriented_edges(bad, 2 * n) > 0
+    out = wound_alike(bad, 2 * n)
+    np.testing.assert_array_equal(out[:-1], two)
+    np.testing.assert_array_equal(out[-1], [0, 0, 1])
+    # a strip of 12 quads closed with a half twist
+    k = 12
+    top, bottom = np.arange(k), np.arange(k) + k
+    faces = []
+    for i in range(k):
+        a, b, c, d = top[i], top[(i + 1) % k], bottom[(i + 1) % k], bottom[i]
+        if i == k - 1:  # the twist: the last quad joins top to bottom
+            b, c = bottom[0], top[0]
+        faces += [[a, b, c], [a, c, d]]
+    assert wound_alike(np.array(faces), 2 * k) is None
+    assert wound_alike(np.zeros((0, 3), np.int64), 4).shape == (0, 3)

@@ -23,6 +23,7 @@ __all__ = [
     "check_has_area",
     "misoriented_edges",
     "non_manifold_edges",
+    "wound_alike",
     "COINCIDENT",
     "coincident_map",
     "connected_components",
@@ -302,6 +303,57 @@ def non_manifold_edges(surface: np.ndarray, n_vertices: int) -> int:
         surface: (F', 3) -> int
     """
     return _edge_defects(check_faces(surface, n_vertices))[0]
+
+
+def wound_alike(faces: np.ndarray, n_vertices: int) -> np.ndarray | None:
+    """The faces with every piece wound alike: each edge two faces share run along in opposite directions.  A piece
+    (faces joined by such edges) keeps the winding most of its faces have, the others are reversed; faces with a
+    repeated corner and edges of three or more faces join nothing.  None when a piece cannot be wound alike (a
+    Moebius strip, a Klein bottle).  The model reads the normals: a dress with 150 of its faces wound against their
+    neighbours ran up to 6.6 cm off (a Blender artist's trial).
+
+    Shapes:
+        faces: (F, 3) -> (F, 3) int64, or None
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, connected_components
+
+    f = check_faces(faces, n_vertices)
+    nf = len(f)
+    if nf == 0:
+        return f.copy()
+    d = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])  # each face's edges, in its winding
+    owner = np.tile(np.arange(nf), 3)
+    ok = (d[:, 0] != d[:, 1]) & (f[owner] != f[owner][:, [1, 2, 0]]).all(axis=1)  # proper faces' edges only
+    d, owner = d[ok], owner[ok]
+    e = np.sort(d, axis=1)
+    _, inv, counts = np.unique(e, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.ravel()
+    two = np.flatnonzero(counts[inv] == 2)
+    pair = two[np.argsort(inv[two], kind="stable")].reshape(-1, 2)
+    a, b = owner[pair[:, 0]], owner[pair[:, 1]]
+    same = (d[pair[:, 0]] == d[pair[:, 1]]).all(axis=1)  # wound against each other: one of the two is to turn
+    g = coo_matrix((np.ones(len(a)), (a, b)), shape=(nf, nf)).tocsr()
+    g = g + g.T
+    n_pieces, piece = connected_components(g, directed=False)
+    turn = np.zeros(nf, bool)
+    rel = {}
+    for x, y, s in zip(a.tolist(), b.tolist(), same.tolist(), strict=True):
+        rel[(x, y)] = rel[(y, x)] = s
+    for p in range(n_pieces):
+        root = int(np.flatnonzero(piece == p)[0])
+        order, pred = breadth_first_order(g, root, directed=False, return_predecessors=True)
+        for x in order[1:].tolist():
+            turn[x] = turn[pred[x]] ^ rel[(int(pred[x]), x)]
+    if ((turn[a] ^ turn[b]) != same).any():  # an edge the pieces' windings cannot both run along oppositely
+        return None
+    for p in range(n_pieces):  # each piece the way most of its faces are wound
+        m = piece == p
+        if turn[m].sum() * 2 > m.sum():
+            turn[m] = ~turn[m]
+    out = f.copy()
+    out[turn] = out[turn][:, ::-1]
+    return out
 
 
 def _edge_defects(s: np.ndarray) -> tuple[int, int]:
