@@ -131,11 +131,8 @@ def welded_garment(vertices, faces, surface: np.ndarray | None = None):
     new[keep] = np.arange(len(keep))
     idx = new[m]  # each given vertex's welded index
     wf = idx[f]
-    owner = np.empty(len(keep), np.int64)  # a face holding each welded vertex (every one is held: checked above)
-    owner[wf.ravel()] = np.repeat(np.arange(len(wf)), 3)
-    face = owner[idx]
-    bary = (wf[face] == idx[:, None]).astype(np.float64)
-    return v[keep], wf, SurfaceMap(face=face, bary=bary, offset=np.zeros(len(v)), faces=wf)
+    m = _corners(len(keep), wf)  # each welded vertex on a corner of a face holding it (every one is held: above)
+    return v[keep], wf, SurfaceMap(face=m.face[idx], bary=m.bary[idx], offset=np.zeros(len(v)), faces=wf)
 
 
 def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray | None = None):
@@ -184,13 +181,24 @@ def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray |
 
 def _corners(n: int, faces: np.ndarray):
     """The :class:`~segadeform.body.resample.SurfaceMap` that puts each of ``n`` vertices on a corner of a face
-    holding it (every vertex is held).  Shapes: faces (F, 3) -> map of (n,)"""
+    holding it (every vertex is held), its weight 1 on that one corner: a face with a repeated corner (A, A, B) held a
+    vertex of a garment split at its seams with weights (1, 1, 0), which wrote it at twice its place, 1.35 m off (an
+    engine integrator's trial).  Faces with three distinct corners are taken first.  Shapes: faces (F, 3) -> map of
+    (n,)"""
     from segadeform.body.resample import SurfaceMap
 
-    owner = np.empty(n, np.int64)
-    owner[faces.ravel()] = np.repeat(np.arange(len(faces)), 3)
-    bary = (faces[owner] == np.arange(n)[:, None]).astype(np.float64)
-    return SurfaceMap(face=owner, bary=bary, offset=np.zeros(n), faces=faces)
+    f = np.asarray(faces, np.int64)
+    proper = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
+    owner = np.full(n, -1, np.int64)  # the last face holding each vertex, of those with three corners if any
+    for pick in (~proper, proper):
+        at = np.flatnonzero(pick)
+        if pick is proper:
+            owner[np.unique(f[at])] = -1
+        np.maximum.at(owner, f[at].ravel(), np.repeat(at, 3))
+    corner = np.argmax(f[owner] == np.arange(n)[:, None], axis=1)
+    bary = np.zeros((n, 3))
+    bary[np.arange(n), corner] = 1.0
+    return SurfaceMap(face=owner, bary=bary, offset=np.zeros(n), faces=f)
 
 
 def _on_the_body(vertices, faces, body: BodyModel, betas) -> bool:

@@ -5,6 +5,7 @@ garment off the body played with --force (which left no word of it)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from segadeform.cli.main import cli
@@ -341,3 +342,42 @@ def test_a_split_garment_with_faces_wound_every_way_is_the_garment_before():
         np.testing.assert_array_equal(mv, m.vertices)
         np.testing.assert_array_equal(mf, m.faces)
         np.testing.assert_array_equal(smap.apply(mv[None])[0], v)
+
+
+def test_a_face_with_a_repeated_corner_in_a_split_garment_moves_nothing(tmp_path, caplog):
+    """An engine integrator's trial: one face (A, A, B) added to a garment split at its seams held vertex A with
+    weights (1, 1, 0), so every frame wrote it at twice its place (1.35 m off, every runtime and quality, exit 0).
+    Now each vertex sits on one corner (of a face with three corners first): the frames are those without the face.
+    An asset an earlier release exported with such weights is refused with what to do, in Python, Node and C++."""
+    import dataclasses
+
+    from segadeform.errors import InputError
+    from segadeform.geometry import GarmentAsset
+    from segadeform.io import Mesh, read_mesh, read_pc2, write_obj
+    from segadeform.runtime.pipeline import welded_garment
+
+    m = read_mesh(SAMPLES / "garments" / "dress.obj")
+    v, f, _ = split_at_a_seam(m)
+    a, b = int(f[0, 0]), int(f[0, 1])
+    write_obj(tmp_path / "split.obj", Mesh(v, f))
+    write_obj(tmp_path / "deg.obj", Mesh(v, np.concatenate([f, [[a, a, b]]])))  # last: the face that held a was
+    _, wf, smap = welded_garment(v, np.concatenate([f, [[a, a, b]]]))
+    assert (smap.bary.sum(axis=1) == 1).all() and (smap.bary.max(axis=1) == 1).all()
+    frames = {}
+    for name in ("split", "deg"):
+        r, said = _run(tmp_path, tmp_path / f"{name}.obj", caplog=caplog)
+        assert r.exit_code == 0, said
+        frames[name] = read_pc2(tmp_path / "o.pc2").frames
+    np.testing.assert_array_equal(frames["deg"], frames["split"])
+    asset = GarmentAsset.load(_export(tmp_path, tmp_path / "split.obj"))
+    bary = asset.carry_bary.copy()
+    bary[3] = [1.0, 1.0, 0.0]
+    with pytest.raises(InputError, match="'carry_bary' has weights that do not sum to 1"):
+        dataclasses.replace(asset, carry_bary=bary).validate()
+
+
+def _export(tmp_path, garment):
+    out = tmp_path / "g.sgda"
+    r = CliRunner().invoke(cli, ["garment", "export", str(garment), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    return out

@@ -447,6 +447,31 @@ def test_the_node_api_refuses_a_motion_made_for_another_shape_unless_forced(
     got = _node_api_refused_then_forced(random_package, portable_scene["garment"], tmp_path / "m0.sgdm")
     assert got["refused"] and "another body shape (betas)" in got["refused"] and "force: true" in got["refused"]
     assert got["T"] > 0 and any("another body shape" in w for w in got["warnings"])
+    assert got["warnings"].count(next(w for w in got["warnings"] if "another body shape" in w)) == 1  # said once
+    # a Player opened with { asset, motion } (the page of one's own, runtimes/web/examples/embed.html) played it
+    # without a word (a web developer's trial): refused the same way, played with the warning under force
+    index = (REPO / "runtimes" / "node" / "src" / "index.js").as_uri()
+    script = (
+        f"import {{ open }} from {json.dumps(index)};\n"
+        "const [pkg, g, m] = process.argv.slice(1);\n"
+        "const opts = { effects: 'lbs', motion: m };\n"
+        "let refused = null;\n"
+        "try { await open(pkg, g, opts); } catch (e) { refused = e.message; }\n"
+        "const p = await open(pkg, g, { ...opts, force: true });\n"
+        "const mine = await open(pkg, g, { effects: 'lbs' });\n"
+        "console.log('RESULT' + JSON.stringify({ refused, warnings: p.warnings, mine: mine.warnings }));\n"
+        "await p.close(); await mine.close();\n"
+    )
+    p = subprocess.run(
+        ["node", "--input-type=module", "-e", script, str(random_package), str(portable_scene["garment"]),
+         str(tmp_path / "m0.sgdm")],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stdout + p.stderr
+    got = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+    assert got["refused"] and "another body shape (betas)" in got["refused"] and "force: true" in got["refused"]
+    assert any("another body shape" in w for w in got["warnings"])
+    assert not any("another body shape" in w for w in got["mine"])  # no motion given: the host answers for it
 
 
 @pytest.mark.parametrize("runtime", ["node", "cpp"])

@@ -533,6 +533,14 @@ inline void carry_of_asset(Scene& s, const sgd::Bundle& a, const std::string& ap
       throw std::runtime_error(apath + ": field 'carry_face' has an index out of range (expected 0.." +
                                std::to_string(F - 1) + ", got " + std::to_string(c[i]) + ")");
   for (const char* k : {"out_vertices", "carry_bary", "carry_offset"}) finite_values(a.at(k), apath, k);
+  const double* w = cb.as<double>();  // weights (1, 1, 0) on a face (A, A, B) put a vertex twice as far
+  for (int64_t i = 0; i < P; ++i) {
+    const double sum = w[3 * i] + w[3 * i + 1] + w[3 * i + 2];
+    if (!(std::fabs(sum - 1.0) <= 1e-6))
+      throw std::runtime_error(apath + ": field 'carry_bary' has weights that do not sum to 1 (an asset exported by a "
+                               "release that put a vertex on a face with a repeated corner twice: export it again) "
+                               "(expected each row summing to 1 within 1e-06, got row " + std::to_string(i) + ")");
+  }
   const double* d = ov.as<double>();
   for (int64_t i = 0; i < ov.count(); ++i)
     if (std::fabs(d[i]) > 1e4)

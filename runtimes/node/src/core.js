@@ -316,6 +316,15 @@ function readCarry(parsed, where) {
     }
   }
   for (const k of ["out_vertices", "carry_bary", "carry_offset"]) finite(A[k], k, where);
+  const w = A.carry_bary.data; // weights (1, 1, 0) on a face (A, A, B) put a vertex twice as far (Python refuses them)
+  for (let i = 0; i < P; i++) {
+    const sum = w[3 * i] + w[3 * i + 1] + w[3 * i + 2];
+    if (!(Math.abs(sum - 1) <= 1e-6)) {
+      throw new Error(`${where}: field 'carry_bary' has weights that do not sum to 1 (an asset exported by a release ` +
+        `that put a vertex on a face with a repeated corner twice: export it again) (expected each row summing to 1 ` +
+        `within 1e-06, got row ${i} sums to ${sum})`);
+    }
+  }
   const d = A.out_vertices.data;
   for (let i = 0; i < d.length; i++) {
     if (Math.abs(d[i]) > 1e4) throw new Error(`${where}: field 'out_vertices' lies beyond 10 km (expected |x| <= 10000 m, got ${d[i]})`);
@@ -604,8 +613,9 @@ export const PLAYER_OPTIONS = ["effects", "collisionMargin", "cloth", "fps", "ba
  *   const { frames } = await p.push(poses, trans);   // poses (B*S*3 axis-angle), trans (B*3) -> frames (B*N*3)
  *   p.reset();                                       // a new clip: no history, the stage and collider anew
  *
- * `source`: { asset } (a checked .sgda; animate's { asset, motion } works too, its motion unused) or a scene bundle
- * (its garment; push its poses).  `session(spec)`: an onnxruntime InferenceSession for a graph's manifest entry, made
+ * `source`: { asset, motion } (a checked .sgda and the .sgdm to be pushed: a motion made for another body or shape
+ * than the asset's is refused unless force; its frames are not played by open, push them), { asset } (a stream with no
+ * file: the host answers for its body shape) or a scene bundle (its garment; push its poses).  `session(spec)`: an onnxruntime InferenceSession for a graph's manifest entry, made
  * once by the caller.  options: effects (an object or "dqs,dynamics,..."/"+cloth"; default: the bundle's, else the
  * model's own and collisions when the package has a body graph), collisionMargin (0.004 m), cloth (the stage's knobs:
  * "iterations=8,..." or an object; DEFAULT_CLOTH), fps (the motion's frame rate: the cloth stage's time step; needed
@@ -625,6 +635,16 @@ export class Player {
       const why = `the garment asset was exported with --force although ${G.body.unfit}`;
       if (!options.force) throw new Error(`${why} (expected a garment that sits on its body, or the option force: true)`);
       p.warnings.push(why);
+    }
+    // a motion given with the asset ({ asset, motion }, as animate takes them) made for another body or shape: refused
+    // unless forced, as playWith and `segadeform run` refuse it (a Player opened so played it without a word)
+    if (source.asset && source.motion && source.motion.arrays) {
+      const other = sceneInputs(source).warnings.find((w) => w.startsWith("the motion was retargeted onto another"));
+      if (other && !options.force) {
+        throw new Error(`${other} (expected a motion exported for the asset's body and betas: segadeform motion ` +
+          "export ... --betas ..., or the option force: true)");
+      }
+      if (other) p.warnings.push(other);
     }
     // what `segadeform garment export` said of the garment (a mesh split at its seams tears ...), said again here
     if (G.asset && Array.isArray(G.asset.meta.warnings)) {
@@ -739,6 +759,7 @@ export class Player {
   reset() {
     this.prev = new Float32Array(0); // the last window - 1 poses pushed (fewer at the start)
     this.seen = 0;
+    this.moved = 0; // the counts are the clip's (they added up over reset(): a web developer's trial)
     this.collider = null;
     this.carry = new Float64Array(3 * this.N); // each vertex's push-out correction at the frame before
     this.broken = false; // a push failed part-way: refused until reset() (as the C++ Player)
@@ -952,7 +973,7 @@ export async function playWith(ort, manifest, source, session, options = {}) {
   const r = await p.push(I.poses, I.trans);
   const T = I.T, perFrame = (ms) => ms / Math.max(T, 1);
   const out = { frames: r.frames, T, N: I.N, batch: p.batch, msPerFrame: perFrame(p.msDeform), variant: p.variant,
-    effects: p.effects, faces: I.faces, fps: I.fps, warnings: [...p.warnings, ...I.warnings] };
+    effects: p.effects, faces: I.faces, fps: I.fps, warnings: [...new Set([...p.warnings, ...I.warnings])] };
   if (options.body) {
     out.body = { vertices: r.body, joints: r.joints, restJoints: p.restJoints, rest: (await p.poser.rest()).vertices,
       V: p.V, T, faces: p.poser.faces(),

@@ -132,7 +132,8 @@ export async function animate(dir, garment, motion, options = {}) {
  *   const { frames } = await p.push(poses, trans);   // B frames: poses (B*S*3), trans (B*3) -> frames (B*N*3)
  *   await p.close();                                 // frees the sessions
  * garment: a .sgda path or readAsset(...), or a .sgdb path or readBundle(...) (its garment).  options: Player.open's
- * (effects, collisionMargin, cloth, fps, batch, body) and threads (1).  A motion file's poses and fps fit as they are:
+ * (effects, collisionMargin, cloth, fps, batch, body, force), threads (1) and motion (a .sgdm path or readMotion(...):
+ * the motion to be pushed, its body shape checked against the asset's, refused unless force when another).  A motion file's poses and fps fit as they are:
  * readMotion(path).arrays.poses.data, .trans.data and .meta.fps.
  */
 export async function open(dir, garment, options = {}) {
@@ -140,8 +141,13 @@ export async function open(dir, garment, options = {}) {
   if (garment === null || typeof garment !== "object" || !garment.meta) {
     throw new Error("expected a garment asset (a .sgda path or readAsset(...)) or a scene bundle (a .sgdb path or readBundle(...))");
   }
+  const { threads, motion, ...rest } = checkOptions(options,
+    [...PLAYER_OPTIONS.filter((k) => k !== "stages"), "threads", "motion"], "open");
   const source = garment.meta.kind === "segadeform-garment-asset" ? { asset: checkAsset(garment) } : garment;
-  const { threads, ...rest } = checkOptions(options, [...PLAYER_OPTIONS.filter((k) => k !== "stages"), "threads"], "open");
+  if (motion !== undefined) { // the motion to be pushed: its body shape checked against the asset's
+    if (!source.asset) throw new Error("the option motion goes with a garment asset (a scene bundle holds its motion)");
+    source.motion = typeof motion === "string" ? readMotion(motion) : motion;
+  }
   const manifest = loadManifest(dir);
   const session = sessions(dir, { threads });
   try {

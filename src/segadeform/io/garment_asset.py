@@ -151,6 +151,10 @@ _ARRAYS = {
 }
 
 
+#: how far from 1 a row of carry_bary may sum (barycentric weights of a point on a face)
+CARRY_BARY_TOLERANCE = 1e-6
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class GarmentAsset:
     """A precomputed garment (see the module table for shapes)."""
@@ -488,5 +492,13 @@ class GarmentAsset:
         for name in ("out_vertices", "carry_bary", "carry_offset"):
             if not np.isfinite(getattr(self, name)).all():
                 raise InputError(f"asset field {name!r} contains NaN or inf")
+        off = np.abs(bary.sum(axis=1) - 1.0)
+        if float(off.max()) > CARRY_BARY_TOLERANCE:  # weights (1, 1, 0) on a face (A, A, B) wrote a vertex twice as far
+            raise InputError(
+                "asset field 'carry_bary' has weights that do not sum to 1 (an asset exported by a release that put a "
+                "vertex on a face with a repeated corner twice: export it again)",
+                expected=f"each row summing to 1 within {CARRY_BARY_TOLERANCE:g}",
+                got=f"row {int(off.argmax())} sums to {float(bary[int(off.argmax())].sum()):.9g}",
+            )
         if float(np.abs(ov).max()) > 1.0e4:
             raise InputError("asset field 'out_vertices' lies beyond 10 km", expected="|x| <= 10000 m")
