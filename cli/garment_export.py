@@ -163,10 +163,12 @@ def garment_export_cmd(garment, output, body, betas, model, k, force, resolution
     if given is not None:
         import numpy as np
 
+        from segadeform.runtime.pipeline import seam_rest
+
         full, smap = given
         asset = dataclasses.replace(
             asset,
-            out_vertices=np.asarray(full.vertices, np.float64),
+            out_vertices=seam_rest(full.vertices, smap),  # (a welded seam's copies at one place: the cloth stage's)
             out_faces=np.asarray(full.faces, np.int64),
             carry_face=np.asarray(smap.face, np.int64),
             carry_bary=np.asarray(smap.bary, np.float64),

@@ -179,6 +179,26 @@ def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray |
     return mv, mf, smap, w is not None, how
 
 
+def seam_rest(vertices, smap) -> np.ndarray:
+    """The garment ``vertices`` (N, 3) as given with each copy of a welded seam vertex at its twin's place: vertices a
+    corner-pick :class:`~segadeform.body.resample.SurfaceMap` (:func:`model_garment`'s; weights one-hot, no offset)
+    carries from one model vertex all take the lowest-indexed one's position.  The model welds copies within
+    :data:`~segadeform.geometry.mesh_ops.COINCIDENT` of the garment's size; the cloth stage welds only copies at one
+    position (``_cloth.c``'s ``scl_weld``), so copies 5 um apart tore 51 mm there (an engine integrator's trial).  The
+    cloth stage's rest, and a garment asset's ``out_vertices``.  Any other map (a decimated garment's) or None: the
+    vertices as given.  Shapes: (N, 3) -> (N, 3) float64"""
+    v = np.array(vertices, np.float64)
+    if smap is None or not len(v):
+        return v
+    bary = np.asarray(smap.bary)
+    if bary.shape != (len(v), 3) or np.any(smap.offset != 0) or not np.all(np.sort(bary, axis=1) == [0.0, 0.0, 1.0]):
+        return v
+    key = np.asarray(smap.faces)[smap.face, np.argmax(bary, axis=1)]  # each vertex's model vertex
+    first = np.full(int(key.max()) + 1, len(v), np.int64)
+    np.minimum.at(first, key, np.arange(len(v)))
+    return v[first[key]]
+
+
 def _corners(n: int, faces: np.ndarray):
     """The :class:`~segadeform.body.resample.SurfaceMap` that puts each of ``n`` vertices on a corner of a face
     holding it (every vertex is held), its weight 1 on that one corner: a face with a repeated corner (A, A, B) held a
@@ -584,6 +604,7 @@ class Run:
 
         rest = self._body_rest()  # the cloth stage needs the body
         gv, gf = self._output_mesh(asset)
+        gv = seam_rest(gv, self._smap)  # a welded seam's copies at one place: the stage welds them too
         setup = garment_setup(gv, gf, rest, self.body.faces, self.effects.cloth_settings, cache_dir=self._cache_dir())
         return ClothStage(
             setup,

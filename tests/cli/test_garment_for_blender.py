@@ -240,6 +240,21 @@ def test_a_mesh_split_at_a_seam_is_said_and_welded(tmp_path, caplog):
     assert r.exit_code == 0, said
     cloth_frames = read_pc2(tmp_path / "o.pc2").frames
     np.testing.assert_array_equal(cloth_frames[:, len(m.vertices) :], cloth_frames[:, _twins(m, v)])
+    # copies a few micrometres from their twins (the model welds them, the stage welds copies at one place): the
+    # stage's rest takes each copy at its twin's place (copies 5 um apart tore 51 mm: an engine integrator's trial),
+    # and so does a garment asset's
+    near = v.copy()
+    near[len(m.vertices) :, 0] += 3e-6
+    write_obj(tmp_path / "near.obj", Mesh(near, f))
+    r, said = _run(tmp_path, tmp_path / "near.obj", "--effects=+cloth", caplog=caplog)
+    assert r.exit_code == 0 and "the model runs on it welded there" in said, said
+    near_frames = read_pc2(tmp_path / "o.pc2").frames
+    np.testing.assert_array_equal(near_frames[:, len(m.vertices) :], near_frames[:, _twins(m, v)])
+    from segadeform.geometry import GarmentAsset
+
+    out = GarmentAsset.load(_export(tmp_path, tmp_path / "near.obj")).out_vertices
+    np.testing.assert_array_equal(out[len(m.vertices) :], out[_twins(m, v)])
+    np.testing.assert_allclose(out, near, atol=1e-5)
     welded = tmp_path / "welded.obj"
     r = CliRunner().invoke(cli, ["garment", "fit", str(tmp_path / "split.obj"), "-o", str(welded), "--weld"])
     assert r.exit_code == 0 and f"welded {n} vertices" in r.output, r.output
