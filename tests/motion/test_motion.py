@@ -103,6 +103,17 @@ def test_resample_keeps_frames_and_interpolates_on_the_sphere():
     np.testing.assert_allclose(rot(down), rot(m)[::3], atol=1e-9)
 
 
+def test_a_rate_written_rounded_is_the_rate_asked_for():
+    """A BVH's "Frame Time: 0.008333" is 120.005 fps; `--fps 120` resampled it and lost its last frame (343 -> 342, the
+    new last frame 13.9 mm off: an engine integrator's trial).  A rate within SAME_RATE of the file's keeps its
+    frames, at the rate asked; a rate really apart is resampled."""
+    m = dataclasses.replace(make_motion("walk", seconds=2.0, fps=30), fps=1.0 / 0.008333)
+    same = resample(m, 120.0)
+    assert same.fps == 120.0 and same.n_frames == m.n_frames
+    np.testing.assert_array_equal(same.poses, m.poses)
+    assert resample(m, 119.0).n_frames < m.n_frames
+
+
 def test_windows_pad_with_first_frame():
     p = np.arange(6, dtype=float)[:, None] * np.ones((1, 72))
     w = motion_windows(p, 4)

@@ -346,8 +346,14 @@ def sample_frames(motion: Motion, t) -> tuple[np.ndarray, np.ndarray]:
     return poses, (1 - a) * motion.trans[i0] + a * motion.trans[i1]
 
 
+#: rates this close (relative) are one rate: a BVH's "Frame Time: 0.008333" is 120.005 fps, and resampled to 120 it
+#: lost its last frame (343 -> 342: an engine integrator's trial); six decimals of a frame time are 6e-5 off at most
+SAME_RATE = 1e-4
+
+
 def resample(motion: Motion, fps: float) -> Motion:
-    """Resample to ``fps``: slerp on each joint's rotation, linear on translation.
+    """Resample to ``fps``: slerp on each joint's rotation, linear on translation.  A rate within :data:`SAME_RATE`
+    of the motion's is its own, written rounded: its frames are kept, at ``fps``.
 
     The first frame is kept; the last output frame is the last time <= the
     input's last frame time.  A motion cut from a longer one (``meta["start_frame"]``, the source's number of
@@ -357,6 +363,8 @@ def resample(motion: Motion, fps: float) -> Motion:
         raise InputError("target fps must be positive", got=fps)
     if abs(fps - motion.fps) < 1e-9:
         return motion
+    if abs(fps - motion.fps) <= SAME_RATE * fps:  # a file's rounded frame time: its frames, at the rate asked
+        return dataclasses.replace(motion, fps=float(fps))
     poses, trans = sample_frames(motion, resample_positions(motion.n_frames, motion.fps, fps))
     return Motion(
         poses=poses,
