@@ -881,3 +881,26 @@ def test_the_readme_says_what_effects_none_runs():
     text = " ".join((REPO / "README.md").read_text(encoding="utf-8").split())
     assert "`none`: every effect off" not in text
     assert "(`none`: LBS skinning alone, with dynamics, wrinkles, collisions and the cloth stage off" in text
+
+
+def test_node_reads_a_motion_of_no_frames_as_such_and_says_nan_as_nan(node, tmp_path):
+    """A web developer's trial: a well-formed motion file of 0 frames read as "bundle array poses does not fit the
+    file" (its (0, 24, 3) shape was measured against the file's bytes), and an fps of NaN was said as "got null"."""
+    meta = {"kind": "segadeform-motion", "schema_version": 1, "fps": 30.0, "name": "empty"}
+    arrays = {"poses": np.zeros((0, 24, 3), np.float32), "trans": np.zeros((0, 3), np.float32)}
+    write_bundle(tmp_path / "empty.sgdm", arrays, meta)
+    core = (REPO / "runtimes" / "node" / "src").as_uri()
+    script = (
+        f"import {{ readMotion, checkOptions }} from {json.dumps(core + '/core.js')};\n"
+        f"import {{ readBundle }} from {json.dumps(core + '/bundle.js')};\n"
+        "const out = {};\n"
+        "try { readMotion(readBundle(process.argv[1]), 'empty.sgdm'); } catch (e) { out.motion = e.message; }\n"
+        "try { checkOptions({ fps: NaN }, ['fps'], 'Player.open'); } catch (e) { out.fps = e.message; }\n"
+        "console.log('RESULT' + JSON.stringify(out));\n"
+    )
+    p = subprocess.run(["node", "--input-type=module", "-e", script, str(tmp_path / "empty.sgdm")],
+                       capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert p.returncode == 0, p.stdout + p.stderr
+    got = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+    assert got["motion"] == "empty.sgdm: the motion has no frames (expected T >= 1, got [0,24,3])", got
+    assert got["fps"].endswith("(expected 1..1000, got NaN)"), got

@@ -62,14 +62,17 @@ export function parseBundle(bytes, where = "bundle") {
   const body = Math.max(buf.length - start, 0); // bytes of array data
   // a whole decimal in 0..body (a crafted header's negative or huge sizes and offsets are refused here, never read)
   const size = (x) => (/^\d+$/.test(x || "") && Number(x) <= body ? Number(x) : -1);
+  // a dimension: up to 2^31 (an array with a 0 in its shape holds no bytes: a 0-frame motion is (0, 24, 3))
+  const dim = (x) => (/^\d+$/.test(x || "") && Number(x) <= 2 ** 31 ? Number(x) : -1);
   for (const ln of lines.slice(1, n + 1)) {
     const t = ln.trim().split(/\s+/);
     const [name, dt] = t;
     const nd = /^\d$/.test(t[2] || "") ? Number(t[2]) : -1;
-    const shape = nd >= 0 ? t.slice(3, 3 + nd).map(size) : [];
+    const shape = nd >= 0 ? t.slice(3, 3 + nd).map(dim) : [];
     const off = size(t[3 + nd]), nbytes = size(t[4 + nd]);
     const [Ctor, width] = DTYPES[dt] || [];
-    const count = shape.reduce((a, b) => (a < 0 || b < 0 || a > body ? -1 : a * b), 1);
+    const count = shape.some((d) => d < 0) ? -1 : shape.includes(0) ? 0
+      : shape.reduce((a, b) => (a < 0 || a > body || b > body ? -1 : a * b), 1);
     if (!Ctor || nd < 0 || t.length !== 5 + nd || shape.some((d) => d < 0) || off < 0 || nbytes < 0 || count < 0 ||
         count * width !== nbytes || off + nbytes > body || start > buf.length) {
       throw new Error(`${where}: bundle array ${name} does not fit the file`);
@@ -286,6 +289,7 @@ export function readAsset(parsed, where = "garment asset") {
   // what `garment export` said of the garment, said again when it plays: one-line texts, as Python's GarmentAsset
   // holds them
   oneLineTexts(parsed.meta.warnings, where);
+  if (parsed.where === undefined) parsed.where = where; // named in later errors (Player.open's)
   return parsed;
 }
 
@@ -410,6 +414,7 @@ export function readMotion(parsed, where = "motion file") {
   if (meta.schema_version !== 1) throw new Error(`${where}: unsupported motion file schema version (expected 1, got ${meta.schema_version})`);
   const p = need(parsed, "poses", "f32", 3, where);
   const t = need(parsed, "trans", "f32", 2, where);
+  if (p.shape[0] === 0) throw new Error(`${where}: the motion has no frames (expected T >= 1, got ${JSON.stringify(p.shape)})`);
   if (p.shape[2] !== 3 || p.shape[0] < 1 || t.shape[0] !== p.shape[0] || t.shape[1] !== 3) {
     throw new Error(`${where}: poses and trans do not fit (expected (T, S, 3) and (T, 3), got ${JSON.stringify(p.shape)} and ${JSON.stringify(t.shape)})`);
   }
@@ -546,6 +551,11 @@ export async function releaseSessions(made) {
   }
 }
 
+/* A value as an error shows it: numbers as themselves (JSON.stringify(NaN) is "null": a web developer's trial) */
+function shown(v) {
+  return typeof v === "number" ? String(v) : JSON.stringify(v);
+}
+
 /** Throw unless `options` holds only the keys of `allowed` (`where`: whose options), each of a usable value. */
 export function checkOptions(options, allowed, where) {
   if (options === null || typeof options !== "object" || Array.isArray(options)) {
@@ -557,7 +567,7 @@ export function checkOptions(options, allowed, where) {
   for (const k of ["batch", "threads"]) {
     const v = options[k];
     if (v !== undefined && !(Number.isInteger(v) && v >= 1 && v <= 1e6)) {
-      throw new Error(`${where}: option ${k} must be an integer >= 1 (got ${JSON.stringify(v)})`);
+      throw new Error(`${where}: option ${k} must be an integer >= 1 (got ${shown(v)})`);
     }
   }
   const m = options.collisionMargin;
@@ -570,7 +580,7 @@ export function checkOptions(options, allowed, where) {
   }
   const f = options.fps;
   if (f !== undefined && !(typeof f === "number" && f >= 1 && f <= 1000)) {
-    throw new Error(`${where}: option fps must be a frame rate (expected 1..1000, got ${JSON.stringify(f)})`);
+    throw new Error(`${where}: option fps must be a frame rate (expected 1..1000, got ${shown(f)})`);
   }
   return options;
 }
@@ -726,8 +736,10 @@ export class Player {
     const encFeeds = {};
     const want = (encSpec.inputs.find((i) => i.name === "descriptor") || { shape: [] }).shape[1];
     if (typeof want === "number" && want !== G.descriptor.length) { // (onnxruntime's own error named neither)
-      throw new Error("the garment asset was exported for another model; export it for this one: segadeform garment " +
-        `export GARMENT --model PACKAGE (expected a garment descriptor of ${want} values, got ${G.descriptor.length})`);
+      const name = G.asset && G.asset.where && G.asset.where !== "garment asset" ? `${G.asset.where}: ` : "";
+      throw new Error(`${name}the garment asset was exported for another model; export it for this one: segadeform ` +
+        `garment export GARMENT --model PACKAGE (expected a garment descriptor of ${want} values, got ` +
+        `${G.descriptor.length})`);
     }
     for (const i of encSpec.inputs) {
       if (!encArrays[i.name]) throw new Error(`the garment encoder takes '${i.name}', which this runtime cannot feed`);

@@ -29,9 +29,30 @@ export async function loadOrt(ep, base, { threads = 1 } = {}) {
 }
 
 export async function fetchBytes(url) {
-  const r = await fetch(url);
+  const r = await fetchOr(url);
   if (!r.ok) throw new Error(`${url}: ${r.status} ${r.statusText}`);
   return new Uint8Array(await r.arrayBuffer());
+}
+
+/* fetch(url), its network failure named with the URL and the likely cause (the browser says only "Failed to fetch"
+ * for a server that is down and for another origin without CORS headers alike: a web developer's trial) */
+async function fetchOr(url) {
+  try {
+    return await fetch(url);
+  } catch (e) {
+    const other = typeof location !== "undefined" && new URL(url, location.href).origin !== location.origin;
+    throw new Error(`${url}: ${e.message} (${other ? "another origin than the page's: it must send CORS headers " +
+      "(Access-Control-Allow-Origin), or serve it from the page's origin" : "is the server running?"})`);
+  }
+}
+
+/* JSON.parse of a file's text, its error naming the file */
+function parseJson(text, name) {
+  try {
+    return JSON.parse(text);
+  } catch (e) {
+    throw new Error(`${name}: not JSON (${e.message})`);
+  }
 }
 
 async function sha256Hex(bytes) {
@@ -72,29 +93,38 @@ async function packageFrom(manifest, where, bytesOf, { eager = false } = {}) {
  */
 export async function loadPackage(url) {
   const base = new URL(url.endsWith("/") ? url : `${url}/`, location.href);
-  const r = await fetch(new URL("manifest.json", base));
+  const where = new URL("manifest.json", base).href;
+  const r = await fetchOr(where);
   if (!r.ok) throw new Error(`${base}: no manifest.json (not a model package)`);
-  const manifest = readManifest(await r.json(), new URL("manifest.json", base).href);
+  const manifest = readManifest(parseJson(await r.text(), where), where);
   return packageFrom(manifest, base.href, (file) => fetchBytes(new URL(file, base)));
 }
 
 /** A package from dropped files ({name: Uint8Array}: manifest.json, the graphs, weights.bin), every file checked now. */
 export async function packageFromFiles(files) {
   if (!files["manifest.json"]) throw new Error("the dropped files have no manifest.json (expected a model package's files)");
-  const manifest = readManifest(JSON.parse(new TextDecoder().decode(files["manifest.json"])), "manifest.json");
+  const manifest = readManifest(parseJson(new TextDecoder().decode(files["manifest.json"]), "manifest.json"),
+    "manifest.json");
   return packageFrom(manifest, "dropped package: ", async (file) => {
     if (!files[file]) throw new Error(`dropped package: ${file} is missing (the manifest lists it)`);
     return files[file];
   }, { eager: true });
 }
 
-/** Parse a container (bytes or a URL) as a garment asset, a motion file or a scene bundle, by its meta.kind. */
-export async function openContainer(src, name = String(src)) {
+const KINDS = { asset: "a garment asset (.sgda)", motion: "a motion file (.sgdm)", bundle: "a scene bundle (.sgdb)" };
+
+/** Parse a container (bytes or a URL) as a garment asset, a motion file or a scene bundle, by its meta.kind.
+ * `expect` ("asset", "motion" or "bundle"): another kind is an error naming the file (a garment and a motion given
+ * the other way round were read as they came: a web developer's trial). */
+export async function openContainer(src, name = String(src), { expect } = {}) {
   const bytes = typeof src === "string" ? await fetchBytes(src) : src;
   const parsed = parseBundle(bytes, name);
-  if (parsed.meta.kind === "segadeform-garment-asset") return { kind: "asset", parsed: readAsset(parsed, name) };
-  if (parsed.meta.kind === "segadeform-motion") return { kind: "motion", parsed: readMotion(parsed, name) };
-  return { kind: "bundle", parsed };
+  const kind = parsed.meta.kind === "segadeform-garment-asset" ? "asset"
+    : parsed.meta.kind === "segadeform-motion" ? "motion" : "bundle";
+  if (expect !== undefined && kind !== expect) throw new Error(`${name}: expected ${KINDS[expect]}, got ${KINDS[kind]}`);
+  if (kind === "asset") return { kind, parsed: readAsset(parsed, name) };
+  if (kind === "motion") return { kind, parsed: readMotion(parsed, name) };
+  return { kind, parsed };
 }
 
 /**
