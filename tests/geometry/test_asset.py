@@ -117,6 +117,13 @@ def test_load_rejects_non_npz_and_pickles(tmp_path):
     np.savez(tmp_path / "o.npz", **{"vertices": np.array([object()], dtype=object)})
     with pytest.raises(FileFormatError):
         GarmentAsset.load(tmp_path / "o.npz")
+    # a .sgda that is an empty file or a web page (a server's 404 saved): said so, not as a bad zip (a web developer's
+    # trial got "not a readable garment asset .npz file (BadZipFile ...)")
+    for body, got in ((b"", "got an empty file"), (b"<html>404</html>", "got b'<html>404</html>'")):
+        (tmp_path / "g.sgda").write_bytes(body)
+        with pytest.raises(FileFormatError, match="not a garment asset") as e:
+            GarmentAsset.load(tmp_path / "g.sgda")
+        assert got in str(e.value) and "segadeform garment export" in str(e.value) and "zip" not in str(e.value)
 
 
 def test_precompute_validates_inputs(rest_joints):

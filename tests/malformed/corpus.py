@@ -90,6 +90,9 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
         "cannot parse mesh",
     )
     mesh("unknown_extension", ".xyz", "1 2 3\n", "unknown mesh file extension")
+    mesh("glb_garbage", ".glb", b"glTF\x02\x00\x00\x00" + b"\xff" * 40, "glTF")
+    mesh("gltf_not_json", ".gltf", "{not json", "glTF")
+    mesh("gltf_no_mesh", ".gltf", '{"asset": {"version": "2.0"}, "scenes": [{"nodes": []}], "scene": 0}', "no mesh")
 
     def pc2(name, data, words):
         p = d / f"{name}.pc2"

@@ -29,6 +29,12 @@ __all__ = [
 ]
 
 
+def _length(metres: float) -> str:
+    """A distance as a message says it: centimetres under a metre, metres from there (a garment in centimetres read
+    as metres was "10692.7 cm" from the body)."""
+    return f"{100 * metres:.1f} cm" if abs(metres) < 1.0 else f"{metres:.2f} m"
+
+
 def turn_about_up(degrees: float) -> np.ndarray:
     """The rotation ``(3, 3)`` by ``degrees`` about +Y (the up axis), counterclockwise seen from above: +Z (the
     body's front) goes to +X at 90."""
@@ -110,8 +116,8 @@ class FitReport:
 
     def line(self) -> str:
         return (
-            f"median distance to the body {100 * self.median_distance:.1f} cm, 90th percentile "
-            f"{100 * self.p90_distance:.1f} cm, {100 * self.inside_fraction:.1f} % of vertices inside "
+            f"median distance to the body {_length(self.median_distance)}, 90th percentile "
+            f"{_length(self.p90_distance)}, {100 * self.inside_fraction:.1f} % of vertices inside "
             f"({100 * self.deep_inside_fraction:.1f} % deeper than 1 cm)"
         )
 
@@ -252,8 +258,8 @@ def _check_centred(v, bv, proxy, top, floor, st, path) -> None:
         if abs(d) >= 0.01
     )
     raise PlacementError(
-        f"the garment sits off the body's middle ({where}; median distance to the skin {100 * st['median']:.1f} cm, "
-        f"{100 * back['median']:.1f} cm once moved back): it was placed with a wrong offset",
+        f"the garment sits off the body's middle ({where}; median distance to the skin {_length(st['median'])}, "
+        f"{_length(back['median'])} once moved back): it was placed with a wrong offset",
         path=path,
         expected=f"a garment around the body: run `segadeform garment fit {g} -o FIXED.obj --offset "
         f"{-off[0]:.2f},0.00,{-off[2]:.2f}`, or pass --force",

@@ -26,6 +26,7 @@ from .formats import (
     register_sequence_format,
     sequence_format,
 )
+from .gltf import read_gltf_mesh
 from .mesh import Mesh, validate_mesh_arrays
 from .meshio_formats import read_meshio, write_meshio
 from .obj import read_obj, write_obj
@@ -83,7 +84,12 @@ __all__ = [
     "validate_mesh_arrays",
 ]
 
-MESH_READERS: dict[str, Callable[[Path], Mesh]] = {".obj": read_obj, ".off": read_off}
+MESH_READERS: dict[str, Callable[[Path], Mesh]] = {
+    ".obj": read_obj,
+    ".off": read_off,
+    ".glb": read_gltf_mesh,  # an engine's export (extra gltf: pygltflib)
+    ".gltf": read_gltf_mesh,
+}
 MESH_WRITERS: dict[str, Callable[..., None]] = {".obj": write_obj}
 _MESHIO_EXTS = (".ply", ".stl", ".vtk", ".vtu", ".msh", ".mesh", ".gmsh")
 

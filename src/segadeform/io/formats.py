@@ -500,6 +500,16 @@ def _register_file_formats() -> None:
         )
     )
     register_file_format(FileFormat("mhclo", (MHCLO_SUFFIX,), read_mhclo, "MakeHuman garment binding (read only)"))
+    from .gltf import read_gltf_mesh
+
+    register_file_format(
+        FileFormat(
+            "gltf-mesh",
+            (".glb", ".gltf"),
+            read_gltf_mesh,
+            "glTF garment mesh, as an engine exports it (read only; --motion reads the same files' animations)",
+        )
+    )
 
 
 _register_file_formats()

@@ -326,6 +326,15 @@ class GarmentAsset:
                 raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
             return asset
 
+        if p.suffix.lower() == PORTABLE_SUFFIX and p.is_file():  # a .sgda that is not one (an empty file, a web page)
+            with open(p, "rb") as fh:
+                head = fh.read(64)
+            raise FileFormatError(
+                "not a garment asset",
+                path=p,
+                expected="a file `segadeform garment export` writes (it starts with 'SEGADEFORM-BUNDLE')",
+                got="an empty file" if not head else repr(head[:16]) + "...",
+            )
         z = load_npz(p, what="garment asset .npz")
         names = set(z)
         required = set(_ARRAYS) | {"schema_version", "geodesic_radius", "params"}

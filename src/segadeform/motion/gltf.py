@@ -30,13 +30,13 @@ NaN or infinite keys, times that do not increase, accessors outside their buffer
 from __future__ import annotations
 
 import os
-import urllib.parse
 from pathlib import Path
 
 import numpy as np
 
 from ..body.rotations import quaternion_slerp, quaternion_to_matrix
-from ..errors import FileFormatError, InputError, check_readable, unreadable_error
+from ..errors import InputError
+from ..io.gltf import GltfFile as _File
 from .bvh import BVHSkeleton, skeleton_motion, to_y_up
 from .motion import Motion
 
@@ -50,99 +50,7 @@ __all__ = [
 ]
 
 GLTF_EXTENSIONS = (".glb", ".gltf")
-_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
-_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _PATH_WIDTH = {"translation": 3, "rotation": 4, "scale": 3}
-
-
-def _pygltflib():
-    try:
-        import pygltflib
-    except ImportError:
-        raise InputError("glTF motion needs the 'gltf' extra: pip install 'segadeform[gltf]'") from None
-    return pygltflib
-
-
-class _File:
-    """A loaded glTF and its buffers, with accessors read as float64 arrays."""
-
-    def __init__(self, path: Path):
-        self.path = path
-        check_readable(path, "glTF")
-        lib = _pygltflib()
-        try:
-            with open(path, "rb") as fh:
-                magic = fh.read(4)
-            g = lib.GLTF2().load_binary(str(path)) if magic == b"glTF" else lib.GLTF2().load_json(str(path))
-        except Exception as e:
-            raise unreadable_error(e, path, "glTF") from None
-        if g is None:
-            raise FileFormatError("not a readable glTF file", path=path)
-        self.g = g
-        self._buffers: dict[int, bytes] = {}
-
-    def error(self, problem, **kw):
-        return FileFormatError(problem, path=self.path, **kw)
-
-    def buffer(self, i: int) -> bytes:
-        if i not in self._buffers:
-            if not 0 <= i < len(self.g.buffers):
-                raise self.error(
-                    "bufferView names a buffer that is not there", expected=f"0..{len(self.g.buffers) - 1}", got=i
-                )
-            uri = self.g.buffers[i].uri
-            if uri is None:  # the GLB's own binary chunk
-                data = self.g.binary_blob()
-            elif uri.startswith("data:"):
-                try:
-                    data = self.g.decode_data_uri(uri)
-                except Exception as e:
-                    raise self.error(f"buffer {i} has a data URI that does not decode ({type(e).__name__})") from None
-            else:
-                f = self.path.parent / urllib.parse.unquote(uri)
-                try:
-                    data = f.read_bytes()
-                except OSError:
-                    raise self.error(
-                        f"buffer {i}'s file is missing", expected="a readable file beside it", got=uri
-                    ) from None
-            if data is None:
-                raise self.error(f"buffer {i} has no data")
-            self._buffers[i] = bytes(data)
-        return self._buffers[i]
-
-    def accessor(self, i, what: str) -> np.ndarray:
-        """Accessor ``i`` as a float64 ``(count, width)`` array (normalised integers scaled to [-1, 1] / [0, 1])."""
-        acc = self.g.accessors
-        if i is None or not 0 <= i < len(acc):
-            raise self.error(f"{what} names an accessor that is not there", expected=f"0..{len(acc) - 1}", got=i)
-        a = acc[i]
-        if getattr(a, "sparse", None) is not None:
-            raise self.error(f"{what}: sparse accessors are not read", expected="a plain accessor", got="sparse")
-        if a.componentType not in _DTYPES or a.type not in _WIDTH:
-            raise self.error(f"{what}: unknown accessor layout", got=f"{a.componentType} {a.type}")
-        dt, width, count = np.dtype(_DTYPES[a.componentType]).newbyteorder("<"), _WIDTH[a.type], int(a.count)
-        if a.bufferView is None:
-            return np.zeros((count, width))
-        if not 0 <= a.bufferView < len(self.g.bufferViews):
-            raise self.error(f"{what} names a bufferView that is not there", got=a.bufferView)
-        bv = self.g.bufferViews[a.bufferView]
-        data = self.buffer(bv.buffer)
-        start = int(bv.byteOffset or 0) + int(a.byteOffset or 0)
-        elem = dt.itemsize * width
-        stride = int(bv.byteStride or elem)
-        need = start + (count - 1) * stride + elem if count else start
-        if need > int(bv.byteOffset or 0) + int(bv.byteLength) or need > len(data) or stride < elem:
-            raise self.error(
-                f"{what} reaches outside its buffer",
-                expected=f"<= {min(len(data), bv.byteLength)} bytes",
-                got=f"{need} bytes",
-            )
-        raw = np.ndarray((count, width), dtype=dt, buffer=data, offset=start, strides=(stride, dt.itemsize))
-        out = raw.astype(np.float64)
-        if a.normalized and dt.kind in "iu":
-            out = np.maximum(out / np.iinfo(dt).max, -1.0)
-        return out
 
 
 def gltf_animations(path: str | os.PathLike) -> list[str]:

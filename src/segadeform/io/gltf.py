@@ -1,0 +1,217 @@
+"""glTF 2.0 files (``.glb``, ``.gltf``) through ``pygltflib`` (extra ``gltf``): the file and its accessors
+(:class:`GltfFile`, which :mod:`segadeform.motion.gltf` reads motions with) and a garment mesh (:func:`read_gltf_mesh`).
+
+A garment as an engine exports it (an engine integrator's trial: `run` took no ``.glb``):
+
+* **what is read**: the triangles of every mesh the default scene's nodes hold (depth first, each node's primitives
+  in order; triangle strips and fans made triangles; points and lines left out), their ``POSITION`` and indices.
+  Vertices are the file's, in that order and count: an engine binds a point cache by vertex index, and exports split
+  vertices at UV and normal seams (the run welds those for the model and writes every copy).
+* **where**: an unskinned mesh at its node's world transform; a skinned one as its vertices are stored (glTF places
+  a skinned mesh by its joints and ignores its node's transform; at the bind pose that is where they are).
+* **units and axes**: glTF's, metres and +Y up, which are this package's.  Morph targets are not read.
+
+Errors name the file: not glTF, no mesh with triangles, an index outside its vertices, accessors outside their
+buffers.
+"""
+
+from __future__ import annotations
+
+import os
+import urllib.parse
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FileFormatError, InputError, check_readable, unreadable_error
+from .mesh import Mesh, validate_mesh_arrays
+
+__all__ = ["GltfFile", "read_gltf_mesh"]
+
+_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+_TRIANGLES, _STRIP, _FAN = 4, 5, 6
+
+
+def _pygltflib():
+    try:
+        import pygltflib
+    except ImportError:
+        raise InputError("glTF files need the 'gltf' extra: pip install 'segadeform[gltf]'") from None
+    return pygltflib
+
+
+class GltfFile:
+    """A loaded glTF and its buffers, with accessors read as float64 arrays."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        check_readable(path, "glTF")
+        lib = _pygltflib()
+        try:
+            with open(path, "rb") as fh:
+                magic = fh.read(4)
+            g = lib.GLTF2().load_binary(str(path)) if magic == b"glTF" else lib.GLTF2().load_json(str(path))
+        except Exception as e:
+            raise unreadable_error(e, path, "glTF") from None
+        if g is None:
+            raise FileFormatError("not a readable glTF file", path=path)
+        self.g = g
+        self._buffers: dict[int, bytes] = {}
+
+    def error(self, problem, **kw):
+        return FileFormatError(problem, path=self.path, **kw)
+
+    def buffer(self, i: int) -> bytes:
+        if i not in self._buffers:
+            if not 0 <= i < len(self.g.buffers):
+                raise self.error(
+                    "bufferView names a buffer that is not there", expected=f"0..{len(self.g.buffers) - 1}", got=i
+                )
+            uri = self.g.buffers[i].uri
+            if uri is None:  # the GLB's own binary chunk
+                data = self.g.binary_blob()
+            elif uri.startswith("data:"):
+                try:
+                    data = self.g.decode_data_uri(uri)
+                except Exception as e:
+                    raise self.error(f"buffer {i} has a data URI that does not decode ({type(e).__name__})") from None
+            else:
+                f = self.path.parent / urllib.parse.unquote(uri)
+                try:
+                    data = f.read_bytes()
+                except OSError:
+                    raise self.error(
+                        f"buffer {i}'s file is missing", expected="a readable file beside it", got=uri
+                    ) from None
+            if data is None:
+                raise self.error(f"buffer {i} has no data")
+            self._buffers[i] = bytes(data)
+        return self._buffers[i]
+
+    def accessor(self, i, what: str) -> np.ndarray:
+        """Accessor ``i`` as a float64 ``(count, width)`` array (normalised integers scaled to [-1, 1] / [0, 1])."""
+        acc = self.g.accessors
+        if i is None or not 0 <= i < len(acc):
+            raise self.error(f"{what} names an accessor that is not there", expected=f"0..{len(acc) - 1}", got=i)
+        a = acc[i]
+        if getattr(a, "sparse", None) is not None:
+            raise self.error(f"{what}: sparse accessors are not read", expected="a plain accessor", got="sparse")
+        if a.componentType not in _DTYPES or a.type not in _WIDTH:
+            raise self.error(f"{what}: unknown accessor layout", got=f"{a.componentType} {a.type}")
+        dt, width, count = np.dtype(_DTYPES[a.componentType]).newbyteorder("<"), _WIDTH[a.type], int(a.count)
+        if a.bufferView is None:
+            return np.zeros((count, width))
+        if not 0 <= a.bufferView < len(self.g.bufferViews):
+            raise self.error(f"{what} names a bufferView that is not there", got=a.bufferView)
+        bv = self.g.bufferViews[a.bufferView]
+        data = self.buffer(bv.buffer)
+        start = int(bv.byteOffset or 0) + int(a.byteOffset or 0)
+        elem = dt.itemsize * width
+        stride = int(bv.byteStride or elem)
+        need = start + (count - 1) * stride + elem if count else start
+        if need > int(bv.byteOffset or 0) + int(bv.byteLength) or need > len(data) or stride < elem:
+            raise self.error(
+                f"{what} reaches outside its buffer",
+                expected=f"<= {min(len(data), bv.byteLength)} bytes",
+                got=f"{need} bytes",
+            )
+        raw = np.ndarray((count, width), dtype=dt, buffer=data, offset=start, strides=(stride, dt.itemsize))
+        out = raw.astype(np.float64)
+        if a.normalized and dt.kind in "iu":
+            out = np.maximum(out / float(np.iinfo(dt.name).max), -1.0)
+        return out
+
+
+def _node_matrix(node) -> np.ndarray:
+    """A node's local transform, 4x4 (its matrix, else T R S)."""
+    if node.matrix is not None:
+        return np.asarray(node.matrix, np.float64).reshape(4, 4).T  # glTF matrices are column-major
+    t = np.asarray(node.translation if node.translation is not None else [0, 0, 0], np.float64)
+    x, y, z, w = np.asarray(node.rotation if node.rotation is not None else [0, 0, 0, 1], np.float64)
+    n = max(float(np.sqrt(x * x + y * y + z * z + w * w)), 1e-12)
+    x, y, z, w = x / n, y / n, z / n, w / n
+    R = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    s = np.asarray(node.scale if node.scale is not None else [1, 1, 1], np.float64)
+    M = np.eye(4)
+    M[:3, :3] = R * s[None, :]
+    M[:3, 3] = t
+    return M
+
+
+def _triangles(f: GltfFile, prim, n: int, what: str) -> np.ndarray | None:
+    """A primitive's triangles (T, 3) in its own vertex numbers; None for points and lines."""
+    mode = _TRIANGLES if prim.mode is None else int(prim.mode)
+    if mode not in (_TRIANGLES, _STRIP, _FAN):
+        return None
+    idx = (
+        np.arange(n, dtype=np.int64)
+        if prim.indices is None
+        else f.accessor(prim.indices, f"{what} indices")[:, 0].astype(np.int64)
+    )
+    if len(idx) and (idx.min() < 0 or idx.max() >= n):
+        raise f.error(f"{what} has an index outside its vertices", expected=f"0..{n - 1}", got=int(idx.max()))
+    if mode == _TRIANGLES:
+        return idx[: len(idx) - len(idx) % 3].reshape(-1, 3)
+    k = np.arange(max(len(idx) - 2, 0))
+    if mode == _STRIP:  # every other triangle turned, so that all wind alike
+        tri = np.stack([idx[k], idx[k + 1], idx[k + 2]], axis=1)
+        tri[1::2] = tri[1::2][:, [1, 0, 2]]
+        return tri
+    return np.stack([np.full(len(k), idx[0] if len(idx) else 0), idx[k + 1], idx[k + 2]], axis=1)
+
+
+def read_gltf_mesh(path: str | os.PathLike) -> Mesh:
+    """The garment mesh of a ``.glb``/``.gltf`` file (the module's docstring says what is read, where and in what
+    order).  Shapes: -> Mesh with vertices (N, 3), faces (F, 3)"""
+    p = Path(path)
+    f = GltfFile(p)
+    g = f.g
+    scene = g.scene if g.scene is not None else 0
+    roots = list(g.scenes[scene].nodes or []) if g.scenes and 0 <= scene < len(g.scenes) else range(len(g.nodes))
+    verts: list[np.ndarray] = []
+    faces: list[np.ndarray] = []
+    count = 0
+    seen: set[int] = set()
+
+    def walk(k: int, parent: np.ndarray) -> None:
+        nonlocal count
+        if not 0 <= k < len(g.nodes) or k in seen:  # (a node twice in the tree would loop)
+            raise f.error("the node tree names a node that is not there, or one twice", got=k)
+        seen.add(k)
+        node = g.nodes[k]
+        world = parent @ _node_matrix(node)
+        if node.mesh is not None:
+            if not 0 <= node.mesh < len(g.meshes):
+                raise f.error(f"node {k} names a mesh that is not there", got=node.mesh)
+            for j, prim in enumerate(g.meshes[node.mesh].primitives):
+                what = f"mesh {node.mesh} primitive {j}"
+                pos_i = getattr(prim.attributes, "POSITION", None)
+                if pos_i is None:
+                    continue
+                v = f.accessor(pos_i, f"{what} POSITION")
+                if v.shape[1] != 3:
+                    raise f.error(f"{what} POSITION is not 3D", got=v.shape[1])
+                tri = _triangles(f, prim, len(v), what)
+                if tri is None:
+                    continue
+                if node.skin is None:  # a skinned mesh is placed by its joints: its vertices as stored
+                    v = v @ world[:3, :3].T + world[:3, 3]
+                verts.append(v)
+                faces.append(tri + count)
+                count += len(v)
+        for c in node.children or []:
+            walk(int(c), world)
+
+    for r in roots:
+        walk(int(r), np.eye(4))
+    if not faces or not sum(len(x) for x in faces):
+        raise InputError("the glTF file has no mesh with triangles", path=p, expected="a garment mesh")
+    vertices, tris = validate_mesh_arrays(np.concatenate(verts), np.concatenate(faces), path=p, bounded=True)
+    return Mesh(vertices=vertices, faces=tris, path=str(p))

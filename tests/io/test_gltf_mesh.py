@@ -1,0 +1,93 @@
+"""A garment mesh from a glTF file (``.glb``/``.gltf``), as an engine exports it: `run` took none (an engine
+integrator's trial).  The reader keeps the file's vertices, in the order of the scene's nodes and their primitives,
+places an unskinned mesh at its node's world transform and a skinned one as stored, makes strips triangles, leaves
+points out, and names the file in its errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from segadeform.errors import FileFormatError, InputError
+from segadeform.io import read_mesh
+
+
+def _glb(path, prims, *, nodes=None):
+    """A GLB with one mesh per entry of ``prims``: (positions (n, 3), indices or None, mode), each on a node of its
+    own (``nodes``: keyword arguments per node, e.g. translation, skin); the scene holds them all."""
+    import pygltflib as g
+
+    blob = bytearray()
+    views, accessors, meshes = [], [], []
+
+    def add(arr, kind, comp):
+        arr = np.ascontiguousarray(arr)
+        while len(blob) % 4:
+            blob.append(0)
+        views.append(g.BufferView(buffer=0, byteOffset=len(blob), byteLength=arr.nbytes))
+        blob.extend(arr.tobytes())
+        accessors.append(g.Accessor(bufferView=len(views) - 1, componentType=comp, count=len(arr), type=kind))
+        return len(accessors) - 1
+
+    for pos, idx, mode in prims:
+        attrs = g.Attributes(POSITION=add(np.asarray(pos, np.float32), g.VEC3, g.FLOAT))
+        ind = None if idx is None else add(np.asarray(idx, np.uint16).ravel(), g.SCALAR, g.UNSIGNED_SHORT)
+        meshes.append(g.Mesh(primitives=[g.Primitive(attributes=attrs, indices=ind, mode=mode)]))
+    extra = nodes or [{} for _ in prims]
+    gl = g.GLTF2(
+        scene=0,
+        scenes=[g.Scene(nodes=list(range(len(prims))))],
+        nodes=[g.Node(mesh=k, **extra[k]) for k in range(len(prims))],
+        meshes=meshes,
+        accessors=accessors,
+        bufferViews=views,
+        buffers=[g.Buffer(byteLength=len(blob))],
+    )
+    gl.set_binary_blob(bytes(blob))
+    gl.save_binary(str(path))
+    return path
+
+
+QUAD = np.array([[0.0, 1.0, 0.0], [0.1, 1.0, 0.0], [0.1, 1.1, 0.0], [0.0, 1.1, 0.0]])
+
+
+def test_a_glb_garment_is_read_in_the_files_vertex_order_and_place(tmp_path):
+    p = _glb(
+        tmp_path / "g.glb",
+        [(QUAD, [[0, 1, 2], [0, 2, 3]], 4), (QUAD, [0, 1, 3, 2], 5), (QUAD, None, 0)],
+        nodes=[{"translation": [0.0, 0.0, 0.2]}, {"rotation": [0.0, 0.7071068, 0.0, 0.7071068]}, {}],
+    )
+    m = read_mesh(p)
+    assert m.n_vertices == 8  # the points are left out
+    np.testing.assert_allclose(m.vertices[:4], QUAD + [0, 0, 0.2], atol=1e-6)  # at the node's translation
+    np.testing.assert_allclose(m.vertices[4:], QUAD[:, [2, 1, 0]] * [1, 1, -1], atol=1e-6)  # turned 90 deg about +Y
+    np.testing.assert_array_equal(m.faces[:2], [[0, 1, 2], [0, 2, 3]])
+    # a strip 0 1 3 2: two triangles wound alike
+    np.testing.assert_array_equal(m.faces[2:], [[4, 5, 7], [7, 5, 6]])
+    n = np.cross(*(m.vertices[m.faces[:, 1:]] - m.vertices[m.faces[:, :1]]).transpose(1, 0, 2))
+    assert (n[2:] @ n[2] > 0).all()
+
+
+def test_a_skinned_glb_mesh_is_read_as_stored(tmp_path):
+    import pygltflib as g
+
+    p = _glb(tmp_path / "s.glb", [(QUAD, [[0, 1, 2], [0, 2, 3]], 4)], nodes=[{"translation": [5.0, 0.0, 0.0]}])
+    gl = g.GLTF2().load_binary(str(p))
+    gl.nodes.append(g.Node(name="root"))
+    gl.skins = [g.Skin(joints=[1])]
+    gl.nodes[0].skin = 0
+    gl.save_binary(str(p))
+    np.testing.assert_allclose(read_mesh(p).vertices, QUAD, atol=1e-6)  # its node's transform ignored, as glTF says
+
+
+def test_glb_errors_name_the_file(tmp_path):
+    with pytest.raises(InputError, match="no mesh with triangles") as e:
+        read_mesh(_glb(tmp_path / "points.glb", [(QUAD, None, 0)]))
+    assert "points.glb" in str(e.value)
+    with pytest.raises(FileFormatError, match="index outside its vertices") as e:
+        read_mesh(_glb(tmp_path / "far.glb", [(QUAD, [[0, 1, 9]], 4)]))
+    assert "far.glb" in str(e.value)
+    (tmp_path / "not.glb").write_bytes(b"glTF\x02\x00\x00\x00garbage")
+    with pytest.raises(FileFormatError) as e:
+        read_mesh(tmp_path / "not.glb")
+    assert "not.glb" in str(e.value)
