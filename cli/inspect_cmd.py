@@ -178,7 +178,8 @@ def inspect_cmd(path, output_units=None):
             sequence_start_frame(path),
             unit=unit if unit is not None else sequence_units(path),
         )
-    elif ext in (".bvh", ".amc", ".glb", ".gltf"):  # motions `run --motion` takes (an AMC with its ASF beside it)
+    elif ext in (".bvh", ".amc") or (ext in (".glb", ".gltf") and _animated(path)):
+        # motions `run --motion` takes (an AMC with its ASF beside it); a glTF with no animation is a garment mesh
         from segadeform.motion import load_motion
 
         m = load_motion(path)
@@ -339,6 +340,14 @@ def inspect_cmd(path, output_units=None):
         _mesh_defects(m.vertices, m.faces)
 
 
+def _animated(path) -> bool:
+    """Whether a glTF file holds an animation (a motion), else a mesh (a garment, as an engine exports it: `inspect`
+    said "glTF has no skin" of one: an engine integrator's trial)."""
+    from segadeform.motion.gltf import gltf_animations
+
+    return bool(gltf_animations(path))
+
+
 def _mesh_defects(vertices, faces) -> None:
     """One informational line: what of the mesh is not a clean surface (it was read; nothing here is an error)."""
     from segadeform.geometry.mesh_ops import mesh_defects
@@ -356,7 +365,8 @@ def _mesh_defects(vertices, faces) -> None:
                 d["coincident"],
                 "coincident boundary vertex",
                 "coincident boundary vertices",
-                " (at another's place on an open boundary, no edge between: a seam to weld, `garment fit --weld`)",
+                " (at another's place on an open boundary, no edge between: a split seam, which `run` welds for the "
+                "model and the cloth stage; `garment fit --weld` merges them in a file)",
             ),
         )
         if n

@@ -91,3 +91,14 @@ def test_glb_errors_name_the_file(tmp_path):
     with pytest.raises(FileFormatError) as e:
         read_mesh(tmp_path / "not.glb")
     assert "not.glb" in str(e.value)
+
+
+def test_inspect_says_a_glb_without_animation_is_a_mesh(tmp_path):
+    """`inspect` read every .glb as a motion and said "glTF has no skin" of a garment (an engine integrator's trial)."""
+    from click.testing import CliRunner
+
+    from segadeform.cli.main import cli
+
+    p = _glb(tmp_path / "g.glb", [(QUAD, [[0, 1, 2], [0, 2, 3]], 4)])
+    r = CliRunner().invoke(cli, ["inspect", str(p)])
+    assert r.exit_code == 0 and f"{p}: mesh, 4 vertices, 2 triangles" in r.output, r.output
