@@ -998,13 +998,30 @@ def _warn_non_manifold(
         )
 
 
+#: metres: a small piece whose open boundary lies this close to the rest of the garment is split off along a seam
+SEAM_GAP = 0.001
+
+
 def _warn_small_pieces(garment, mesh: GarmentAsset | Mesh, say: Callable[..., None] | None = None) -> None:
     """Say a garment's small loose pieces (:func:`~segadeform.geometry.mesh_ops.small_pieces`): stray triangles an
     edit left are openings the model's descriptor counts, and change the whole garment's frames (a technical artist's
     four stray triangles moved a dress up to 10.8 cm, with no word)."""
-    from segadeform.geometry.mesh_ops import SMALL_PIECE, small_pieces
+    from segadeform.geometry.mesh_ops import SMALL_PIECE, seam_gaps, small_pieces
 
     pieces = small_pieces(mesh.vertices, mesh.faces)
+    gaps = seam_gaps(mesh.vertices, mesh.faces) if len(pieces) else np.zeros(0)
+    if len(pieces) and (gaps <= SEAM_GAP).mean() > 0.5:  # panels split along seams, their copies apart: not strays
+        (say or log.warning)(
+            "garment %s: %d small pieces whose open boundaries lie within %.2g mm of the rest of the garment (at "
+            "most): the mesh is split along seams with the two copies of each seam vertex apart, and the model deforms "
+            "the pieces apart; weld them (Blender: Mesh > Clean Up > Merge by Distance, %.2g mm) and run the welded "
+            "garment",
+            Path(garment).name if isinstance(garment, (str, os.PathLike)) else "garment",
+            int((gaps <= SEAM_GAP).sum()),
+            1e3 * float(gaps[gaps <= SEAM_GAP].max()),
+            1e3 * float(gaps[gaps <= SEAM_GAP].max()) * 1.1,
+        )
+        return
     if len(pieces):
         (say or log.warning)(
             "garment %s: %d small loose piece%s (%d faces in all, each under %g %% of the garment's), e.g. stray "

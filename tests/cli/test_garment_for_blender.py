@@ -396,3 +396,31 @@ def _export(tmp_path, garment):
     r = CliRunner().invoke(cli, ["garment", "export", str(garment), "-o", str(out)])
     assert r.exit_code == 0, r.output
     return out
+
+
+def test_pieces_split_off_along_seams_are_told_to_be_welded_not_deleted():
+    """An export that moved each copy of a seam vertex 0.1 mm: "101 small loose pieces ... delete them" (an engine
+    integrator's trial).  Pieces whose whole open boundary lies within a millimetre of the rest are said to be a split
+    seam to weld; stray triangles beside the garment are still strays."""
+    from segadeform.geometry.primitives import grid_plane
+    from segadeform.io import Mesh
+    from segadeform.runtime.pipeline import _warn_small_pieces
+
+    v, f = grid_plane(30, 30)
+    detach = np.arange(97, len(f), 97)[:12]  # scattered faces, each split off along its three edges
+    new_v, new_f = [v], f.copy()
+    for k in detach:
+        corners = new_f[k]
+        start = sum(len(x) for x in new_v)
+        new_v.append(v[corners] + 1e-4)
+        new_f[k] = start + np.arange(3)
+    split = Mesh(np.concatenate(new_v), new_f)
+    said: list[str] = []
+    _warn_small_pieces("split.obj", split, lambda fmt, *a: said.append(fmt % a))
+    assert len(said) == 1 and "12 small pieces whose open boundaries lie within 0.17 mm" in said[0], said
+    assert "weld them" in said[0] and "delete" not in said[0]
+    far = np.concatenate([v, [[5.0, 5, 5], [5.1, 5, 5], [5, 5.1, 5]]])
+    strays = Mesh(far, np.concatenate([f, [[len(v), len(v) + 1, len(v) + 2]]]))
+    said.clear()
+    _warn_small_pieces("strays.obj", strays, lambda fmt, *a: said.append(fmt % a))
+    assert len(said) == 1 and "1 small loose piece" in said[0] and "delete them" in said[0], said

@@ -28,6 +28,7 @@ __all__ = [
     "coincident_map",
     "connected_components",
     "small_pieces",
+    "seam_gaps",
     "SMALL_PIECE",
     "adjacency",
 ]
@@ -152,6 +153,36 @@ def small_pieces(vertices: np.ndarray, faces: np.ndarray, *, share: float = SMAL
     # and small beside the largest piece: a garment of hundreds of like pieces (sequins, fringe) has no strays
     small = sizes[(sizes > 0) & (sizes < share * len(f)) & (sizes < 0.05 * sizes.max())]
     return np.sort(small)[::-1].astype(np.int64)
+
+
+def seam_gaps(vertices: np.ndarray, faces: np.ndarray, *, share: float = SMALL_PIECE) -> np.ndarray:
+    """For each small piece (:func:`small_pieces`, the same order), how far its open boundary lies from the other
+    pieces': the largest distance from one of its boundary vertices to the nearest boundary vertex of another piece
+    (inf: none has one).  A piece whose whole boundary lies within a millimetre of another's is a panel split off along
+    a seam with its copies apart, not a stray: an export that moved each copy 0.1 mm was told "101 small loose pieces:
+    delete them" (an engine integrator's trial).
+
+    Shapes:
+        vertices: (N, 3), faces: (F, 3) -> (K,) float64, metres
+    """
+    from scipy.spatial import cKDTree
+
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces, np.int64)
+    if f.size == 0:
+        return np.zeros(0)
+    f = coincident_map(v, f)[f]
+    _, labels = connected_components(f, len(v))
+    sizes = np.bincount(labels[f[:, 0]], minlength=int(labels.max()) + 1)
+    pieces = np.flatnonzero((sizes > 0) & (sizes < share * len(f)) & (sizes < 0.05 * sizes.max()))
+    pieces = pieces[np.argsort(-sizes[pieces], kind="stable")]
+    b = boundary_vertices(f)
+    out = np.full(len(pieces), np.inf)
+    for k, p in enumerate(pieces.tolist()):
+        mine, other = b[labels[b] == p], b[labels[b] != p]
+        if len(mine) and len(other):
+            out[k] = float(cKDTree(v[other]).query(v[mine])[0].max())
+    return out
 
 
 def boundary_vertices(faces: np.ndarray) -> np.ndarray:
