@@ -181,6 +181,7 @@ def _register() -> None:
         export,
         garment,
         garment_export,
+        garment_unfit,
         info_cmd,
         inspect_cmd,
         motion,

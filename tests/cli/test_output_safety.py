@@ -81,6 +81,13 @@ def pc2_result(tmp_path) -> Path:
     return p
 
 
+def fitted_skirt(tmp_path) -> Path:
+    """The skirt as `garment fit --units m` records a plain fit (what `garment unfit` undoes)."""
+    p = tmp_path / "fitted.obj"
+    p.write_text("# segadeform garment fit: units m, up y, scale 1 (by hand)\n" + Path(SKIRT).read_text())
+    return p
+
+
 def fbx_file(tmp_path) -> str:
     """An FBX character (a skinned mesh and its animation), made by Blender once per test folder."""
     from tests.physics.fbx_files import make_fbx
@@ -117,6 +124,10 @@ FILE_COMMANDS = {
     "garment make": ("g.obj", lambda t, o: ["garment", "make", "skirt", "-o", o]),
     "garment fit": ("f.obj", lambda t, o: ["garment", "fit", MHCLO, "-o", o]),
     "garment export": ("g.sgda", lambda t, o: ["garment", "export", SKIRT, "--model", MODEL, "-o", o]),
+    "garment unfit": (
+        "u.pc2",
+        lambda t, o: ["garment", "unfit", pc2_result(t), "--garment", fitted_skirt(t), "-o", o],
+    ),
     "motion make": ("m.npz", lambda t, o: ["motion", "make", "walk", "--seconds", "0.2", "-o", o]),
     "motion export": ("m.sgdm", lambda t, o: ["motion", "export", "walk", "--seconds", "0.2", "-o", o]),
     "motion convert": ("m.bvh", lambda t, o: ["motion", "convert", fbx_file(t), "-o", o]),

@@ -375,6 +375,12 @@ def _own_comments(p: Path) -> list[tuple[int, str]] | None:
     return comments if any(c.startswith(OWN_COMMENT) for _, c in comments) else None
 
 
+def recorded_fit(path: str | os.PathLike) -> str | None:
+    """The record `segadeform garment fit` wrote in OBJ ``path``'s leading comments (``"segadeform garment fit:
+    units cm, up z, turn 90, scale 1 ..."``), or None."""
+    return next((c for _, c in _own_comments(Path(path)) or [] if c.startswith(f"{OWN_COMMENT} fit:")), None)
+
+
 def recorded_betas(path: str | os.PathLike) -> tuple[float, ...] | None:
     """The body shape recorded in the leading comments of OBJ ``path`` (:func:`betas_record`, under a comment
     starting ``segadeform garment``): a tuple (``()``: the default shape), or None -- a file that is not an OBJ,
