@@ -155,13 +155,17 @@ def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray |
     mv, mf, smap = (v, f, None) if w is None else w
     held = len(np.unique(f)) == len(v)  # (a carried garment keeps no vertex outside a face)
     how = ""
-    if held and misoriented_edges(surface if w is None else surface_faces(mv, mf), len(mv)):
+    surf = surface if w is None else surface_faces(mv, mf)  # (the caller's when nothing was welded)
+    bad = misoriented_edges(surf, len(mv)) if held else 0
+    if bad:
         alike = wound_alike(mf, len(mv))  # some faces against their neighbours: wound as most of their piece's
         if alike is not None:
-            mf, how = alike, "aligned"
+            s2 = surface_faces(mv, alike)
+            if misoriented_edges(s2, len(mv)) < bad:  # (said only when it helped)
+                mf, how, surf = alike, "aligned", s2
     flip = (
         held
-        and misoriented_edges(surface_faces(mv, mf), len(mv)) == 0
+        and misoriented_edges(surf, len(mv)) == 0
         and inward_share(mv, mf, body, betas) > INWARD
         and _on_the_body(v, f, body, betas)
     )
@@ -868,18 +872,19 @@ def _warn_winding(
     v, f = np.asarray(asset.vertices, np.float64), np.asarray(asset.faces)
     fix = "(Blender: Mesh > Normals > Recalculate Outside)"
     bad = misoriented_edges(surface_faces(v, f) if surface is None else surface, len(v))
+    if "aligned" in flipped:  # the model ran on it wound alike (model_garment)
+        where = f"{bad} edges lie" if bad else "its split seams lie"  # (across a seam: only once welded)
+        (say or log.warning)(
+            "garment %s: %s between faces wound against each other (their normals point opposite ways): the model "
+            "runs on it with each piece wound as most of its faces%s, and the outputs keep the file's faces; wind "
+            "them alike in the file %s for renders that read them",
+            name,
+            where,
+            ", then flipped (most of its normals pointed into the body)" if "flipped" in flipped else "",
+            fix,
+        )
+        return
     if bad:
-        if "aligned" in flipped:  # the model ran on it wound alike (model_garment)
-            (say or log.warning)(
-                "garment %s: %d edges lie between faces wound against each other (their normals point opposite "
-                "ways): the model runs on it with each piece wound as most of its faces%s, and the outputs keep the "
-                "file's faces; wind them alike in the file %s for renders that read them",
-                name,
-                bad,
-                ", then flipped (most of its normals pointed into the body)" if "flipped" in flipped else "",
-                fix,
-            )
-            return
         (say or log.warning)(
             "garment %s: %d edges lie between faces wound against each other (their normals point opposite ways, "
             "and the model reads them): wind them alike %s",
@@ -889,7 +894,7 @@ def _warn_winding(
         )
         return
     inward = inward_share(v, f, body, betas)
-    if flipped:  # the model ran on it flipped (model_garment): said, with what the file's faces still are
+    if flipped == "flipped":  # the model ran on it flipped (model_garment): said, with what the file's faces still are
         (say or log.warning)(
             "garment %s: its faces are wound inward (the normals of %.0f %% of its vertices near the body point into "
             "it): the model runs on it flipped, and the outputs keep the file's faces; flip them in the file "

@@ -345,7 +345,7 @@ def test_a_split_garment_with_faces_wound_every_way_is_the_garment_before():
     """Split at a seam and with 150 faces wound against their neighbours (and all of it reversed), the model's garment
     is the dress before it was split, faces and all, and the map carries its frames exactly to every vertex given."""
     from segadeform.body import default_body_path, load_body
-    from segadeform.io import read_mesh
+    from segadeform.io import Mesh, read_mesh
     from segadeform.runtime.pipeline import model_garment
 
     m, body = read_mesh(SAMPLES / "garments" / "dress.obj"), load_body(default_body_path())
@@ -357,6 +357,20 @@ def test_a_split_garment_with_faces_wound_every_way_is_the_garment_before():
         np.testing.assert_array_equal(mv, m.vertices)
         np.testing.assert_array_equal(mf, m.faces)
         np.testing.assert_array_equal(smap.apply(mv[None])[0], v)
+    # one side of the seam wound the other way: the file's own surface has no misoriented edge (they meet only once
+    # welded), which was said as "wound inward ... run flipped" (a review); now as what it is
+    from segadeform.runtime.pipeline import _warn_winding
+
+    v, f, n = split_at_a_seam(m)
+    side = m.vertices[m.faces].mean(axis=1)[:, 0] > 0
+    f[side] = f[side][:, ::-1]
+    mv, mf, smap, welded, rewound = model_garment(v, f, body, ())
+    assert welded and rewound == "aligned"
+    assert (mf == m.faces).all()  # the larger side's winding: the dress's own
+    said: list[str] = []
+    _warn_winding("half.obj", Mesh(v, f), body, (), None, lambda fmt, *a: said.append(fmt % a), flipped=rewound)
+    assert len(said) == 1 and "its split seams lie between faces wound against each other" in said[0], said
+    assert "flipped" not in said[0]
 
 
 def test_a_face_with_a_repeated_corner_in_a_split_garment_moves_nothing(tmp_path, caplog):

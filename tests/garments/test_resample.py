@@ -83,3 +83,19 @@ def test_surface_map_carries_posed_frames_between_resolutions(skirt):
         coarse.apply(np.zeros((2, 3, 3)))
     with pytest.raises(InputError):
         SurfaceMap.build(np.full((2, 3), np.nan), vc, fc)
+
+
+def test_a_point_on_a_vertex_of_a_face_with_a_repeated_corner_maps_to_it_once(skirt):
+    """A vertex of the mesh maps to itself with weight 1 on one corner, of a face with three corners when one holds it:
+    a face (A, A, B) listed first gave A the weights (1, 1, 0), and `run --resolution` wrote it 1.55 m off (a
+    review)."""
+    v, f = skirt[0], skirt[1]
+    a, b = int(f[0, 0]), int(f[0, 1])
+    faces = np.concatenate([[[a, a, b]], f])
+    m = SurfaceMap.build(v, v, faces)
+    np.testing.assert_allclose(m.bary.sum(axis=1), 1.0, atol=1e-12)
+    assert (faces[m.face[a]] != faces[m.face[a]][[1, 2, 0]]).all()  # a face with three corners
+    np.testing.assert_allclose(m.apply(v[None])[0], v, atol=1e-12)
+    only = np.array([[a, a, b]])  # no other face holds them: the one there is, once
+    m = SurfaceMap.build(v[[a, b]], v, only)
+    np.testing.assert_allclose(m.bary.sum(axis=1), 1.0, atol=1e-12)

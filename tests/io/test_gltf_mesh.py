@@ -102,3 +102,33 @@ def test_inspect_says_a_glb_without_animation_is_a_mesh(tmp_path):
     p = _glb(tmp_path / "g.glb", [(QUAD, [[0, 1, 2], [0, 2, 3]], 4)])
     r = CliRunner().invoke(cli, ["inspect", str(p)])
     assert r.exit_code == 0 and f"{p}: mesh, 4 vertices, 2 triangles" in r.output, r.output
+
+
+def test_shared_vertices_mirrors_scenes_and_compression(tmp_path):
+    """Found by a review: primitives sharing one POSITION accessor had their vertices copied (vertices in no face); a
+    mirroring node's faces came out wound inward; a file with no scene failed on its node tree; a Draco-compressed
+    mesh read as zeros."""
+    import pygltflib as g
+
+    p = _glb(tmp_path / "shared.glb", [(QUAD, [[0, 1, 2]], 4), (QUAD, [[0, 2, 3]], 4)])
+    gl = g.GLTF2().load_binary(str(p))
+    second = gl.meshes[1].primitives[0]
+    second.attributes.POSITION = gl.meshes[0].primitives[0].attributes.POSITION  # one vertex buffer, two materials
+    gl.meshes[0].primitives.append(second)
+    gl.scenes[0].nodes = [0]
+    gl.save_binary(str(p))
+    m = read_mesh(p)
+    assert m.n_vertices == 4 and m.faces.tolist() == [[0, 1, 2], [0, 2, 3]]
+    p = _glb(tmp_path / "mirror.glb", [(QUAD, [[0, 1, 2], [0, 2, 3]], 4)], nodes=[{"scale": [-1.0, 1.0, 1.0]}])
+    m = read_mesh(p)
+    n = np.cross(*(m.vertices[m.faces[:, 1:]] - m.vertices[m.faces[:, :1]]).transpose(1, 0, 2))
+    assert (n[:, 2] > 0).all()  # the quad faces +Z as in the file, mirrored or not
+    gl = g.GLTF2().load_binary(str(_glb(tmp_path / "tree.glb", [(QUAD, [[0, 1, 2]], 4)])))
+    gl.nodes.insert(0, g.Node(children=[1]))
+    gl.scenes, gl.scene = [], None
+    gl.save_binary(str(tmp_path / "noscene.glb"))
+    assert read_mesh(tmp_path / "noscene.glb").n_vertices == 4
+    gl.extensionsRequired = ["KHR_draco_mesh_compression"]
+    gl.save_binary(str(tmp_path / "draco.glb"))
+    with pytest.raises(FileFormatError, match="compressed .KHR_draco_mesh_compression."):
+        read_mesh(tmp_path / "draco.glb")

@@ -230,10 +230,17 @@ class SurfaceMap:
         hit = cKDTree(v).query(p, k=1)
         exact = hit[0] == 0.0
         if exact.any():
+            # on a face holding it with three distinct corners when one does (weights (1, 1, 0) on a face (A, A, B)
+            # put the point twice as far: 1.55 m off under --resolution, a review), its weight on one corner
+            proper = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
             for r in np.flatnonzero(exact):
                 vi = hit[1][r]
-                fi = np.flatnonzero((f == vi).any(1))[0]
-                face[r], bary[r] = fi, (f[fi] == vi).astype(np.float64)
+                holding = np.flatnonzero((f == vi).any(1))
+                good = holding[proper[holding]]
+                fi = int(good[0] if len(good) else holding[0])
+                bary[r] = 0.0
+                bary[r, int(np.argmax(f[fi] == vi))] = 1.0
+                face[r] = fi
         n = face_cross(v, f[face])
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
         on = np.einsum("pk,pkd->pd", bary, v[f[face]])

@@ -338,10 +338,12 @@ def non_manifold_edges(surface: np.ndarray, n_vertices: int) -> int:
 
 def wound_alike(faces: np.ndarray, n_vertices: int) -> np.ndarray | None:
     """The faces with every piece wound alike: each edge two faces share run along in opposite directions.  A piece
-    (faces joined by such edges) keeps the winding most of its faces have, the others are reversed; faces with a
-    repeated corner and edges of three or more faces join nothing.  None when a piece cannot be wound alike (a
-    Moebius strip, a Klein bottle).  The model reads the normals: a dress with 150 of its faces wound against their
-    neighbours ran up to 6.6 cm off (a Blender artist's trial).
+    (faces joined by such edges) keeps the winding most of its faces have, the others are reversed.  Only surface
+    faces join (three distinct corners, the first of faces over the same corners: a double-sided garment's back
+    faces are left as they are, as :func:`surface_faces` leaves them out), and edges of three or more of them join
+    nothing.  None when a piece cannot be wound alike (a Moebius strip, a Klein bottle).  The model reads the
+    normals: a dress with 150 of its faces wound against their neighbours ran up to 6.6 cm off (a Blender artist's
+    trial).  One breadth-first search over all pieces, its parities summed up the tree by pointer jumping.
 
     Shapes:
         faces: (F, 3) -> (F, 3) int64, or None
@@ -353,35 +355,52 @@ def wound_alike(faces: np.ndarray, n_vertices: int) -> np.ndarray | None:
     nf = len(f)
     if nf == 0:
         return f.copy()
-    d = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])  # each face's edges, in its winding
-    owner = np.tile(np.arange(nf), 3)
-    ok = (d[:, 0] != d[:, 1]) & (f[owner] != f[owner][:, [1, 2, 0]]).all(axis=1)  # proper faces' edges only
-    d, owner = d[ok], owner[ok]
-    e = np.sort(d, axis=1)
-    _, inv, counts = np.unique(e, axis=0, return_inverse=True, return_counts=True)
+    proper = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
+    first = np.zeros(nf, bool)  # the first face over each set of corners (a repeat, reversed or not, joins nothing)
+    idx = np.flatnonzero(proper)
+    first[idx[np.unique(np.sort(f[idx], axis=1), axis=0, return_index=True)[1]]] = True
+    surf = np.flatnonzero(first)
+    d = np.concatenate([f[surf][:, [0, 1]], f[surf][:, [1, 2]], f[surf][:, [2, 0]]])  # edges, in their winding
+    owner = np.tile(surf, 3)
+    _, inv, counts = np.unique(np.sort(d, axis=1), axis=0, return_inverse=True, return_counts=True)
     inv = inv.ravel()
     two = np.flatnonzero(counts[inv] == 2)
     pair = two[np.argsort(inv[two], kind="stable")].reshape(-1, 2)
     a, b = owner[pair[:, 0]], owner[pair[:, 1]]
     same = (d[pair[:, 0]] == d[pair[:, 1]]).all(axis=1)  # wound against each other: one of the two is to turn
     g = coo_matrix((np.ones(len(a)), (a, b)), shape=(nf, nf)).tocsr()
-    g = g + g.T
+    g = (g + g.T).tocsr()
     n_pieces, piece = connected_components(g, directed=False)
-    turn = np.zeros(nf, bool)
-    rel = {}
-    for x, y, s in zip(a.tolist(), b.tolist(), same.tolist(), strict=True):
-        rel[(x, y)] = rel[(y, x)] = s
-    for p in range(n_pieces):
-        root = int(np.flatnonzero(piece == p)[0])
-        order, pred = breadth_first_order(g, root, directed=False, return_predecessors=True)
-        for x in order[1:].tolist():
-            turn[x] = turn[pred[x]] ^ rel[(int(pred[x]), x)]
+    # one search from a root joined to every piece's first face, the parity to the root summed by pointer jumping
+    roots = np.unique(piece, return_index=True)[1]
+    big = coo_matrix(
+        (
+            np.ones(2 * len(a) + len(roots)),
+            (np.concatenate([a, b, np.full(len(roots), nf)]), np.concatenate([b, a, roots])),
+        ),
+        shape=(nf + 1, nf + 1),
+    ).tocsr()
+    _, pred = breadth_first_order(big, nf, directed=True, return_predecessors=True)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    key = lo.astype(np.int64) * nf + hi
+    order = np.argsort(key, kind="stable")
+    key, rel = key[order], same[order]
+    parent = np.where(pred[:nf] < 0, nf, pred[:nf])
+    tree = parent < nf  # a face with a parent face (not the root)
+    q = np.minimum(parent[tree], np.flatnonzero(tree)) * np.int64(nf) + np.maximum(parent[tree], np.flatnonzero(tree))
+    x = np.zeros(nf + 1, bool)
+    x[np.flatnonzero(tree)] = rel[np.searchsorted(key, q)]
+    up = np.append(parent, nf)
+    while (up[:nf] != nf).any():
+        x = x ^ np.where(up == nf, False, x[up])
+        up = up[up]
+    turn = x[:nf]
     if ((turn[a] ^ turn[b]) != same).any():  # an edge the pieces' windings cannot both run along oppositely
         return None
-    for p in range(n_pieces):  # each piece the way most of its faces are wound
-        m = piece == p
-        if turn[m].sum() * 2 > m.sum():
-            turn[m] = ~turn[m]
+    flips = np.bincount(piece, weights=turn.astype(np.float64), minlength=n_pieces)
+    sizes = np.bincount(piece, minlength=n_pieces)
+    turn = turn ^ (2 * flips > sizes)[piece]  # each piece the way most of its faces are wound
+    turn &= first  # the faces that join nothing keep theirs
     out = f.copy()
     out[turn] = out[turn][:, ::-1]
     return out

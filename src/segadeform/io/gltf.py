@@ -7,8 +7,11 @@ A garment as an engine exports it (an engine integrator's trial: `run` took no `
   in order; triangle strips and fans made triangles; points and lines left out), their ``POSITION`` and indices.
   Vertices are the file's, in that order and count: an engine binds a point cache by vertex index, and exports split
   vertices at UV and normal seams (the run welds those for the model and writes every copy).
-* **where**: an unskinned mesh at its node's world transform; a skinned one as its vertices are stored (glTF places
-  a skinned mesh by its joints and ignores its node's transform; at the bind pose that is where they are).
+  Primitives of one node that share a ``POSITION`` accessor (a mesh of several materials) share its vertices.  With
+  no scene, the nodes that are no node's child are the roots.  Compressed meshes (Draco, meshopt) are refused.
+* **where**: an unskinned mesh at its node's world transform (a mirroring one's triangles wound back, as glTF's
+  front faces turn clockwise there); a skinned one as its vertices are stored (glTF places a skinned mesh by its
+  joints and ignores its node's transform; at the bind pose that is where they are).
 * **units and axes**: glTF's, metres and +Y up, which are this package's.  Morph targets are not read.
 
 Errors name the file: not glTF, no mesh with triangles, an index outside its vertices, accessors outside their
@@ -31,6 +34,8 @@ __all__ = ["GltfFile", "read_gltf_mesh"]
 _DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _TRIANGLES, _STRIP, _FAN = 4, 5, 6
+#: mesh compression extensions (their accessors hold no plain data)
+_COMPRESSED = {"KHR_draco_mesh_compression", "EXT_meshopt_compression"}
 
 
 def _pygltflib():
@@ -173,8 +178,19 @@ def read_gltf_mesh(path: str | os.PathLike) -> Mesh:
     p = Path(path)
     f = GltfFile(p)
     g = f.g
+    packed = sorted(set(g.extensionsRequired or []) & _COMPRESSED)
+    if packed:  # its accessors hold no plain data (read as zeros before: a review)
+        raise FileFormatError(
+            f"the glTF file's meshes are compressed ({', '.join(packed)}), which is not read",
+            path=p,
+            expected="a glTF exported without mesh compression",
+        )
     scene = g.scene if g.scene is not None else 0
-    roots = list(g.scenes[scene].nodes or []) if g.scenes and 0 <= scene < len(g.scenes) else range(len(g.nodes))
+    if g.scenes and 0 <= scene < len(g.scenes):
+        roots = list(g.scenes[scene].nodes or [])
+    else:  # no scene (valid glTF): the nodes that are no node's child
+        children = {int(c) for n in g.nodes for c in (n.children or [])}
+        roots = [k for k in range(len(g.nodes)) if k not in children]
     verts: list[np.ndarray] = []
     faces: list[np.ndarray] = []
     count = 0
@@ -190,8 +206,13 @@ def read_gltf_mesh(path: str | os.PathLike) -> Mesh:
         if node.mesh is not None:
             if not 0 <= node.mesh < len(g.meshes):
                 raise f.error(f"node {k} names a mesh that is not there", got=node.mesh)
+            # a mirroring transform turns the front faces clockwise (glTF 2.0, 3.7.4): wound back (a review)
+            mirrored = node.skin is None and float(np.linalg.det(world[:3, :3])) < 0
+            blocks: dict[int, int] = {}  # POSITION accessor -> its first vertex here: primitives share vertices
             for j, prim in enumerate(g.meshes[node.mesh].primitives):
                 what = f"mesh {node.mesh} primitive {j}"
+                if _COMPRESSED & set((prim.extensions or {}).keys()):
+                    raise f.error(f"{what} is compressed, which is not read", expected="uncompressed meshes")
                 pos_i = getattr(prim.attributes, "POSITION", None)
                 if pos_i is None:
                     continue
@@ -201,11 +222,13 @@ def read_gltf_mesh(path: str | os.PathLike) -> Mesh:
                 tri = _triangles(f, prim, len(v), what)
                 if tri is None:
                     continue
-                if node.skin is None:  # a skinned mesh is placed by its joints: its vertices as stored
-                    v = v @ world[:3, :3].T + world[:3, 3]
-                verts.append(v)
-                faces.append(tri + count)
-                count += len(v)
+                if pos_i not in blocks:
+                    if node.skin is None:  # a skinned mesh is placed by its joints: its vertices as stored
+                        v = v @ world[:3, :3].T + world[:3, 3]
+                    blocks[pos_i] = count
+                    verts.append(v)
+                    count += len(v)
+                faces.append((tri[:, ::-1] if mirrored else tri) + blocks[pos_i])
         for c in node.children or []:
             walk(int(c), world)
 
