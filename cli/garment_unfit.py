@@ -70,7 +70,7 @@ def fit_similarity(garment: Path) -> tuple[np.ndarray, float, np.ndarray]:
     type=PathParam(dir_okay=False, exists=True, path_type=Path),
     help="The OBJ `segadeform garment fit` wrote (its first line records how it was fitted).",
 )
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path), help="Output .pc2.")
+@click.option("-o", "--output", required=True, type=PathParam(dir_okay=False, path_type=Path), help="Output .pc2.")
 def garment_unfit_cmd(result, garment, output):
     """Write RESULT (a .pc2 of the fitted garment, in metres and +Y up as every runtime writes it) in the units, axes
     and place of the file the garment was fitted from: each frame through the inverse of the fit's units, up axis,
