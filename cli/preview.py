@@ -218,7 +218,8 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
         layers = [] if bk is None else [MeshLayer(bk, bf, (0.86, 0.72, 0.62))]
         layers.append(MeshLayer(gk, g.faces, (0.28, 0.45, 0.82), depth_bias=0.004))
         images.append(
-            render(layers, azimuth=angles[k], size=(w, h), bounds=bounds, title=f"{result.name}  frame {first + t}")
+            # the frame's number first: a narrow image cut the title short ("frar" for frame 192: a technical artist)
+            render(layers, azimuth=angles[k], size=(w, h), bounds=bounds, title=f"frame {first + t}  {result.name}")
         )
     if ext == ".png":
         save_image(output, np.concatenate(images, axis=1))

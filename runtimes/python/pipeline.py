@@ -135,7 +135,9 @@ def welded_garment(vertices, faces, surface: np.ndarray | None = None):
     return v[keep], wf, SurfaceMap(face=m.face[idx], bary=m.bary[idx], offset=np.zeros(len(v)), faces=wf)
 
 
-def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray | None = None):
+def model_garment(
+    vertices, faces, body: BodyModel, betas, surface: np.ndarray | None = None, *, out: dict | None = None
+):
     """The garment the model runs on for a garment mesh as given: welded along its split seams
     (:func:`welded_garment`); its faces wound alike where some are wound against their neighbours
     (:func:`~segadeform.geometry.mesh_ops.wound_alike`: each piece as most of its faces; a dress with 150 faces so ran
@@ -145,7 +147,9 @@ def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray |
     :class:`~segadeform.body.resample.SurfaceMap` carries the model's frames to every vertex as given (None, with ``v``
     and ``f`` as given, when none applies); ``rewound``: ``""``, ``"aligned"``, ``"flipped"`` or
     ``"aligned+flipped"``.  ``surface``: the garment's
-    :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here)."""
+    :func:`~segadeform.geometry.mesh_ops.surface_faces` (None: computed here).  ``out``: a dict given to be filled
+    with ``"surface"``, the model's garment's surface faces (a run computes them once: 1.5 s on a 69k-vertex
+    garment)."""
     from segadeform.body.resample import SurfaceMap
     from segadeform.geometry.mesh_ops import misoriented_edges, wound_alike
 
@@ -160,7 +164,7 @@ def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray |
     if bad:
         alike = wound_alike(mf, len(mv))  # some faces against their neighbours: wound as most of their piece's
         if alike is not None:
-            s2 = surface_faces(mv, alike)
+            s2 = _rewound(surf, mf, alike)  # the same faces kept, some the other way round
             if misoriented_edges(s2, len(mv)) < bad:  # (said only when it helped)
                 mf, how, surf = alike, "aligned", s2
     flip = (
@@ -171,7 +175,10 @@ def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray |
     )
     if flip:
         mf = mf[:, ::-1].copy()  # corners reversed: the same places, the other way round
+        surf = surf[:, ::-1].copy()
         how = "aligned+flipped" if how else "flipped"
+    if out is not None:
+        out["surface"] = surf
     if not how:
         return mv, mf, smap, w is not None, ""
     if smap is None:  # each vertex on itself: the given vertices are the model's
@@ -181,6 +188,18 @@ def model_garment(vertices, faces, body: BodyModel, betas, surface: np.ndarray |
         smap = _corners(len(mv), mf)
         smap = SurfaceMap(face=smap.face[at], bary=smap.bary[at], offset=np.zeros(len(at)), faces=mf)
     return mv, mf, smap, w is not None, how
+
+
+def _rewound(surface: np.ndarray, faces: np.ndarray, rewound: np.ndarray) -> np.ndarray:
+    """``surface`` (rows of ``faces``: :func:`surface_faces` keeps faces by their corners, whatever their winding) as
+    the same rows of ``rewound`` (``faces`` with some rows reversed).  Shapes: (F', 3), (F, 3), (F, 3) -> (F', 3)"""
+    f = np.asarray(faces, np.int64)
+    n = np.int64(max(int(f.max()) + 1, 1)) if f.size else np.int64(1)
+    key = (f[:, 0] * n + f[:, 1]) * n + f[:, 2]
+    order = np.argsort(key, kind="stable")
+    s = np.asarray(surface, np.int64)
+    at = order[np.searchsorted(key[order], (s[:, 0] * n + s[:, 1]) * n + s[:, 2])]
+    return np.asarray(rewound, np.int64)[at]
 
 
 def seam_rest(vertices, smap) -> np.ndarray:
@@ -369,6 +388,7 @@ class Run:
         self.batch, self.cache, self.force = int(batch), cache, bool(force)
         self._asset: GarmentAsset | None = None  # checked_asset's
         self._surface: np.ndarray | None = None  # _surface_faces's
+        self._file_surface: np.ndarray | None = None  # the file's, when the model's garment is welded or rewound
         self._asset_seconds = 0.0
         r = float(resolution)
         if not (np.isfinite(r) and 0.0 < r <= 1.0):
@@ -455,11 +475,17 @@ class Run:
         if self.resolution < 1.0:  # the model runs on the garment decimated, its frames carried back to every vertex
             mesh, key = self._decimated(mesh, sha, cdir)
         else:  # split at seams, or wound inward: the model runs on it welded and flipped, its frames carried to all
+            found: dict = {}
             mv, mf, smap, self._welded, self._flipped = model_garment(
-                mesh.vertices, mesh.faces, self.body, self.betas, self._surface_faces(mesh.vertices, mesh.faces)
+                mesh.vertices,
+                mesh.faces,
+                self.body,
+                self.betas,
+                self._surface_faces(mesh.vertices, mesh.faces),
+                out=found,
             )
-            if smap is not None:  # (the surface computed above is the file's, not the model's garment's)
-                self._surface = None
+            if smap is not None:  # (the surface computed above is the file's: kept for its checks)
+                self._file_surface, self._surface = self._surface, found["surface"]
                 self._full = (np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64))
                 self._smap = smap
                 mesh = type(mesh)(vertices=mv, faces=mf)
@@ -556,6 +582,8 @@ class Run:
             surface = (
                 self._surface_faces(asset.vertices, asset.faces)
                 if self._full is None
+                else self._file_surface
+                if self._file_surface is not None
                 else surface_faces(given.vertices, given.faces)
             )
             # with --force each refusal is played anyway and said (--force left no word of it: a user's trial)

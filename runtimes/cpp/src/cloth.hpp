@@ -62,7 +62,7 @@ inline std::string shortest(float x) { return shortest_of(x); }
 
 // The knobs, as segadeform.cloth_settings.ClothSettings (defaults and ranges); `--cloth K=V,...` changes them.
 struct ClothSettings {
-  std::map<std::string, double> v{{"iterations", 4},   {"stiffness", 1.0}, {"stretch", 0.03},  {"compress", 0.03},
+  std::map<std::string, double> v{{"iterations", 4},   {"stiffness", 1.0}, {"stretch", 0.03},  {"compress", 0.3},
                                   {"bending", 0.9},    {"damping", 0.1},   {"follow", 0.5},    {"gravity", 9.81},
                                   {"attachment", 0.02}, {"max_distance", 0.05}, {"reset", 0.25},
                                   {"backstop", 0.03}};

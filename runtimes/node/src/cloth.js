@@ -24,7 +24,7 @@ const AGREE = 0.5; // cosine: contact normals within 60 degrees are on the same 
 
 /** The cloth stage's knobs when none are given: segadeform.cloth_settings.ClothSettings' defaults. */
 export const DEFAULT_CLOTH = Object.freeze({
-  iterations: 4, stiffness: 1.0, stretch: 0.03, compress: 0.03, bending: 0.9, damping: 0.1, follow: 0.5, gravity: 9.81,
+  iterations: 4, stiffness: 1.0, stretch: 0.03, compress: 0.3, bending: 0.9, damping: 0.1, follow: 0.5, gravity: 9.81,
   attachment: 0.02, max_distance: 0.05, reset: 0.25, backstop: 0.03,
 });
 
