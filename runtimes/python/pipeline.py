@@ -636,7 +636,9 @@ class Run:
 
         rest = self._body_rest()  # the cloth stage needs the body
         gv, gf = self._output_mesh(asset)
-        gv = seam_rest(gv, self._smap)  # a welded seam's copies at one place: the stage welds them too
+        if self._welded:  # a mesh welded for the model: its seam's copies at one place, which the stage welds too (an
+            # asset is taken as it is stored, as Node and C++ take it: `garment export` writes the copies so)
+            gv = seam_rest(gv, self._smap)
         setup = garment_setup(gv, gf, rest, self.body.faces, self.effects.cloth_settings, cache_dir=self._cache_dir())
         return ClothStage(
             setup,
