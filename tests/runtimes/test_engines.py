@@ -430,7 +430,12 @@ def _node_api_refused_then_forced(package, garment, motion) -> dict:
         "const r = await animate(pkg, g, m, { force: true });\n"
         "console.log('RESULT' + JSON.stringify({ refused, warnings: r.warnings, T: r.T }));\n"
     )
-    p = subprocess.run(["node", "--input-type=module", "-e", script, str(package), str(garment), str(motion)],
+    return _node_result(script, package, garment, motion)
+
+
+def _node_result(script: str, *args) -> dict:
+    """Run the ES module ``script`` with ``args`` in Node; what it printed after ``RESULT``, read as JSON."""
+    p = subprocess.run(["node", "--input-type=module", "-e", script, *map(str, args)],
                        capture_output=True, text=True, timeout=600)  # fmt: skip
     assert p.returncode == 0, p.stdout + p.stderr
     return json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
@@ -462,13 +467,7 @@ def test_the_node_api_refuses_a_motion_made_for_another_shape_unless_forced(
         "console.log('RESULT' + JSON.stringify({ refused, warnings: p.warnings, mine: mine.warnings }));\n"
         "await p.close(); await mine.close();\n"
     )
-    p = subprocess.run(
-        ["node", "--input-type=module", "-e", script, str(random_package), str(portable_scene["garment"]),
-         str(tmp_path / "m0.sgdm")],
-        capture_output=True, text=True, timeout=600,
-    )  # fmt: skip
-    assert p.returncode == 0, p.stdout + p.stderr
-    got = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+    got = _node_result(script, random_package, portable_scene["garment"], tmp_path / "m0.sgdm")
     assert got["refused"] and "another body shape (betas)" in got["refused"] and "force: true" in got["refused"]
     assert any("another body shape" in w for w in got["warnings"])
     assert not any("another body shape" in w for w in got["mine"])  # no motion given: the host answers for it
@@ -898,9 +897,6 @@ def test_node_reads_a_motion_of_no_frames_as_such_and_says_nan_as_nan(node, tmp_
         "try { checkOptions({ fps: NaN }, ['fps'], 'Player.open'); } catch (e) { out.fps = e.message; }\n"
         "console.log('RESULT' + JSON.stringify(out));\n"
     )
-    p = subprocess.run(["node", "--input-type=module", "-e", script, str(tmp_path / "empty.sgdm")],
-                       capture_output=True, text=True, timeout=120)  # fmt: skip
-    assert p.returncode == 0, p.stdout + p.stderr
-    got = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("RESULT"))[6:])
+    got = _node_result(script, tmp_path / "empty.sgdm")
     assert got["motion"] == "empty.sgdm: the motion has no frames (expected T >= 1, got [0,24,3])", got
     assert got["fps"].endswith("(expected 1..1000, got NaN)"), got
