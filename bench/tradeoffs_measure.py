@@ -315,6 +315,15 @@ class _Assets:
         return self.cache[key]
 
 
+
+def peak_metrics(per_sample: dict) -> dict:
+    """The metrics that are a largest value (``segadeform eval``'s PEAK_METRICS: the largest edge stretch) over a
+    row's samples: the largest of the samples', as ``eval`` reports them, not their mean.  ``per_sample``: sample
+    id -> {"metrics": {...}}."""
+    from segadeform.train.metrics import PEAK_METRICS
+
+    return {k: max(v["metrics"][k] for v in per_sample.values()) for k in PEAK_METRICS}
+
 def measure(
     dataset: Path,
     body,
@@ -431,6 +440,7 @@ def measure(
     out = {}
     for r in rows:
         out[r.name] = {k_: v_ / len(ids) for k_, v_ in sums[r.name].items()}
+        out[r.name].update(peak_metrics(per_sample[r.name]))
         out[r.name].update(
             knob=r.knob,
             setting=r.setting,

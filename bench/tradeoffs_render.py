@@ -121,8 +121,25 @@ def write_docs(
         "the machine when it is above ~0: the times are this run's, the ratios between rows hold better "
         "than the absolute values).",
         "",
+    ]
+    if n_samples < 10:
+        md += [
+            f"**This run is small, and says so**: {n_samples} samples of the {split} split "
+            f"({', '.join(f'`{s}`' for s in res['samples'])}); the errors are exact for them, the times are one "
+            "run's: read differences under ~1 ms/frame as ties.",
+            "",
+        ]
+    md += [
+        "What changed from one run of this table to the next, and why, is in "
+        "[accuracy-vs-time-history.md](accuracy-vs-time-history.md).",
+        "",
         "Errors are against the Blender simulation stored in the dataset; units: vertex and band errors cm, "
-        "normal degrees, edge mm, penetration % of vertices deeper than 2 mm inside the body, jitter mm/frame². "
+        "normal degrees, edge mm, penetration % of vertices deeper than 2 mm inside the body (by the body's "
+        "winding number), `pinched_pct` the part of that % pinched where the posed body intersects itself (an "
+        "arm pressed into the torso: outside the skin nearest them), `through_pct` % of "
+        "faces across a limb (the centre more than 5 mm inside the body while no corner penetrates: a render "
+        "shows a hole), the strain columns the stretch of edges over their rest length (the largest over every "
+        "edge and frame, and the 99th percentile), jitter mm/frame². "
         f"`ms_per_frame` is one onnxruntime thread, `ms_per_frame_{threads_all}t` {threads_all} threads "
         "(best of the repeats): the deformer calls and the collision push-out (the runtime's BodyCollider, "
         "frames in batches of 8), not the once-per-garment `setup_ms` (precompute and encoder) nor writing. "
@@ -153,6 +170,18 @@ def write_docs(
     md += [
         "",
         "## The knobs",
+        "",
+        "How to set each: `effects`, the push-out margin, the cloth knobs, `threads`, `batch` and the presets "
+        "are `segadeform run` options (`--effects`, `--collision-margin`, `--cloth KEY=VALUE`, `--threads`, "
+        "`--batch`, `--quality`); precision is the package (`segadeform quantize PACKAGE -o PKG8 --precision int8` "
+        "or `fp16-weights`, then `run --model PKG8`); **K and N\\*** are the garment's precompute (`segadeform "
+        "precompute GARMENT.obj -o G.sgda --k 4` or `--n-star`, then `run --garment G.sgda`); **garment "
+        "resolution** is `run --resolution R`, a scene's `[model] resolution` or a jobs file's `batch.resolution` "
+        "(the share of the vertices the model runs on: the garment decimated with `segadeform.body.resample`, its "
+        "frames carried back to every vertex of the file by a `SurfaceMap`, as the bench's rows do; collisions, the "
+        "cloth stage and the outputs stay at full resolution; decimation alone -- the 4x row, subdivided, is the "
+        "bench's).  Node, the browser and C++ take it from the garment asset: `segadeform garment export GARMENT "
+        '--resolution R` (docs/package.md, "A decimated model garment").',
         "",
         "* **threads**: every row at one thread and at all of this machine's threads; the predictions agree "
         "(largest difference over rows: "

@@ -38,11 +38,11 @@ class Preset:
 #: name -> preset, fastest first.  Measured figures: docs/accuracy-vs-time.md ("Presets").  All three are
 #: points of the shipped model's measured frontier on the held-out split of samples/datasets/continuum.toml
 #: (a product setting read off that table, not a model choice).  With the model shipped in issue #27 the
-#: temporal weights (dynamics) pay (all effects 4.423 cm, without dynamics 4.596 on the doc's 4 samples), and the
-#: cloth stage after all effects is the lowest error there is (4.325-4.350 cm over 1-16 sweeps and stiffness 0.2-1,
-#: against 4.416 with the push-out); its settings differ by under 0.03 cm, so best runs it at its defaults.  Three
-#: other values of its knobs measured lower still on those 4 held-out samples (gravity 0: 4.310, attachment 1 cm:
-#: 4.318, damping 0.3: 4.316; compress 0.1 4.325 as 16 sweeps); a default chosen there would be tuned on the test
+#: temporal weights (dynamics) pay (all effects 4.272 cm, without dynamics 4.452 on the doc's 4 samples), and the
+#: cloth stage after all effects is the lowest error there is (4.168-4.199 cm over 1-16 sweeps and stiffness 0.2-1,
+#: against 4.265 with the push-out); its settings differ by under 0.03 cm, so best runs it at its defaults.  Three
+#: other values of its knobs measured lower still on those 4 held-out samples (gravity 0: 4.154, damping 0.3: 4.161,
+#: attachment 1 cm: 4.164, against 4.173 at the defaults); a default chosen there would be tuned on the test
 #: split, so they stay rows of the table.  Fast and balanced are unchanged (the cheapest points without and with
 #: the collision stage).  A new model should run the bench again and revise this table.
 QUALITY_PRESETS = {
