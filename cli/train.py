@@ -181,6 +181,14 @@ def _interrupted(output: Path) -> str:
     multiple=True,
     help="Dataset split to evaluate (default: test); one split a report, so given once.",
 )
+@click.option(
+    "--sample",
+    "sample_ids",
+    multiple=True,
+    metavar="ID",
+    help="Evaluate only this sample of the split (repeatable; default: every kept sample of it); eval.json's "
+    "by_sample holds every metric of each sample, so any subset's table can be made again.",
+)
 @click.option("--body", type=PathParam(dir_okay=False, path_type=Path), help="Body .npz (default: shipped body).")
 @click.option(
     "--push-out",
@@ -204,12 +212,13 @@ def _interrupted(output: Path) -> str:
     is_flag=True,
     help="Write the report into a folder that holds other files (beside them, never over them).",
 )
-def eval_cmd(dataset, models, output, splits, body, push_margin, heatmap, force, cloth=()):
+def eval_cmd(dataset, models, output, splits, body, push_margin, heatmap, force, cloth=(), sample_ids=()):
     """Evaluate models against the simulation on DATASET (one or more roots: dataset folders, packs, folders of
     packs): the paper's metrics per model and garment type."""
     from segadeform.io.output_guard import OutputGuard
     from segadeform.runtime.predictor import PackagePredictor
     from segadeform.train.evaluate import evaluate as run_eval
+    from segadeform.train.evaluate import pick_samples
     from segadeform.train.predictors import make_predictors
     from segadeform.train.report import markdown_table, write_report
 
@@ -235,8 +244,9 @@ def eval_cmd(dataset, models, output, splits, body, push_margin, heatmap, force,
     dataset = DatasetRoots(list(dataset))
     margins = None if not push_margin else push_margin[0] if len(push_margin) == 1 else list(push_margin)
     predictors = make_predictors(spec, package=PackagePredictor)
-    _say_trained_on(spec, set(dataset.ids(split)), split)
-    _say_motions_trained_on(spec, dataset, sorted(dataset.ids(split)), split)
+    scored = pick_samples(dataset.ids(split), sample_ids, split, dataset) if sample_ids else dataset.ids(split)
+    _say_trained_on(spec, set(scored), split)
+    _say_motions_trained_on(spec, dataset, sorted(scored), split)
     res = run_eval(
         dataset,
         b,
@@ -245,6 +255,7 @@ def eval_cmd(dataset, models, output, splits, body, push_margin, heatmap, force,
         push_out_margin=margins,
         cloth=list(cloth) or None,
         progress=lambda sid: click.echo(f"  {sid}", err=True),
+        samples=list(sample_ids) or None,
     )
     write_report(res, output, dataset=dataset, body=b, heatmap=predictors.get(heatmap or next(iter(spec))))
     guard.record()

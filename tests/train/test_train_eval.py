@@ -1150,3 +1150,40 @@ def test_a_dataset_config_s_training_motions_are_recorded_for_a_package():
     swing = make_motion("arm_swing", seconds=0.5, fps=30.0, seed=1)
     assert capture_distance(joint_speeds(walk.poses, 30.0), rec[0][1]) < 0.05  # (its ease-in aside)
     assert capture_distance(joint_speeds(swing.poses, 30.0), rec[0][1]) > SAME_CAPTURE
+
+
+def test_eval_takes_named_samples_and_keeps_every_metric_of_each(synthetic_dataset, tmp_path, body, capsys):
+    """A researcher's audit: eval had no way to score a subset (a folder of links did it), and eval.json kept only
+    each sample's vertex error, so no subset's table could be made again from it."""
+    from segadeform.errors import InputError
+    from segadeform.train.evaluate import pick_samples
+
+    res = evaluate(
+        synthetic_dataset, body, make_predictors({"lbs": "lbs"}), split="train", samples=["shorts__b0__walk"]
+    )
+    assert res["samples"] == ["shorts__b0__walk"]
+    one = res["by_sample"]["shorts__b0__walk"]
+    assert set(one["metrics"]["lbs"]) == set(METRICS) and one["metrics"]["lbs"]["vertex_cm"] == one["vertex_cm"]["lbs"]
+    # the split's table is the per-sample numbers' mean: one sample, the same numbers
+    assert all(res["models"]["lbs"][k] == pytest.approx(one["metrics"]["lbs"][k]) for k in METRICS)
+    full = evaluate(synthetic_dataset, body, make_predictors({"lbs": "lbs"}), split="train")
+    assert sorted(full["samples"]) == ["shorts__b0__walk", "skirt__b0__walk"]
+    both = full["by_sample"]
+    mean = np.mean([both[s]["metrics"]["lbs"]["vertex_cm"] for s in both])
+    assert full["models"]["lbs"]["vertex_cm"] == pytest.approx(mean)
+    # a sample of another split, a name twice, none: each said
+    with pytest.raises(InputError, match=r"not a sample of the 'train' split.*got skirt__b0__swing"):
+        pick_samples(full["samples"], ["skirt__b0__swing"], "train", synthetic_dataset)
+    with pytest.raises(InputError, match="named twice"):
+        pick_samples(full["samples"], ["skirt__b0__walk"] * 2, "train", synthetic_dataset)
+    # the command line: --sample, and a wrong one is one line, exit 1, no report
+    out = tmp_path / "ev"
+    args = ["eval", str(synthetic_dataset), "-m", "lbs=lbs", "--split", "train", "--sample", "skirt__b0__walk"]
+    assert main([*args, "-o", str(out)]) == 0
+    assert json.loads((out / "eval.json").read_text())["samples"] == ["skirt__b0__walk"]
+    capsys.readouterr()
+    bad = tmp_path / "bad"
+    assert main([*args[:-1], "nope__b0__walk", "-o", str(bad)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "nope__b0__walk" in err[0] and "'train' split" in err[0], err
+    assert not bad.exists() or not any(bad.iterdir())
