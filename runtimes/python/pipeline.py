@@ -316,16 +316,25 @@ class RunSummary:
 
 
 class Run:
-    """One configured run; :meth:`execute` streams it.  Built from a :class:`Scene` by :func:`run_scene`.
+    """One configured run: :meth:`execute` writes it to ``output``; :meth:`stream` (a batch of frames at a time) and
+    :meth:`animate` (every frame) give its frames in memory instead.  Built from a :class:`Scene` by
+    :func:`run_scene`, or directly::
+
+        run = Run(garment=Path("skirt.obj"), motion=motion, package=ModelPackage(path), body=load_body(...),
+                  effects=Effects(cloth=True))
+        frames = run.animate()  # (T, N, 3) float32 metres
 
     Args:
-        garment: mesh file (OBJ, PLY, ...) or a precomputed asset (``.npz`` or portable ``.sgda``).
+        garment: the path of a mesh file (OBJ, PLY, glTF, ...) or of a precomputed asset (``.npz`` or portable
+            ``.sgda``).
         motion: a :class:`Motion`.
         package: a :class:`ModelPackage`.
         body: a :class:`BodyModel`.
         betas: body shape.
         effects: stages to run.
-        output / output_format / up / body_output: where and how to write.
+        output / output_format / up / body_output: where and how :meth:`execute` writes (``output`` None: the run
+            is only streamed; ``output_format`` is taken as given, not from ``output``'s suffix: :func:`run_scene`
+            and the command line take it from the suffix).
         units: metres per written unit of the outputs (1: metres; 0.01: centimetres;
             :func:`segadeform.io.writer.output_unit`).
         frames: ``(start, stop)`` of the motion, stop exclusive (None: to the end).
@@ -356,7 +365,7 @@ class Run:
         body: BodyModel,
         betas=(),
         effects: Effects = Effects(),
-        output: Path,
+        output: Path | None = None,
         output_format: str = "pc2",
         up: str = "y",
         units: float = 1.0,
@@ -382,7 +391,9 @@ class Run:
             raise InputError("batch must be at least 1", got=batch)
         self.garment, self.motion, self.package, self.body = Path(garment), motion, package, body
         self.betas = np.asarray(betas, np.float64)
-        self.effects, self.output, self.output_format, self.up = effects, Path(output), output_format, up
+        self.effects, self.output, self.output_format, self.up = effects, output, output_format, up
+        if output is not None:
+            self.output = Path(output)
         self.units = output_unit(units)
         self.body_output = Path(body_output) if body_output else None
         self.batch, self.cache, self.force = int(batch), cache, bool(force)
@@ -405,7 +416,8 @@ class Run:
         self._flipped = ""  # ... and its faces wound alike or flipped, as the file's were not (model_garment)
         self.start, self.stop = frame_range(frames, motion.n_frames, first=self._motion_start())
         self.guard = guard
-        if guard is not None:  # refused before any work: an output over a file segadeform did not write ...
+        if guard is not None and self.output is not None:  # refused before any work: an output over a file
+            # segadeform did not write ...
             claim_scene_outputs(guard, self.output, output_format, self.body_output)
         self.deformer = Deformer(package, effects)  # picks the variant; creates no session yet
         #: poses the body when collisions, the cloth stage or the body output need it (None otherwise); creates no
@@ -650,15 +662,15 @@ class Run:
             first_frame=0,  # it steps from the motion's first frame (:meth:`execute`: frames A:B warm it up)
         )
 
-    def execute(self, progress: Callable[[int], None] | None = None) -> RunSummary:
-        t_all = time.perf_counter()
+    def _prepare(self) -> dict:
+        """The garment's asset, code and output mesh, the stage timings so far and the state the frames need (the
+        cloth stage built once per run), for :meth:`_frames`."""
         stage = {k: 0.0 for k in ("precompute", "encode", "deform", "pose body", "collisions", "cloth", "write")}
         t = time.perf_counter()
         joints = self.body.rest_joints(self.betas)[0]
         asked = self._asset is not None
         asset = self.checked_asset()
         stage["precompute"] += (self._asset_seconds if asked else 0.0) + time.perf_counter() - t
-        t_all -= self._asset_seconds if asked else 0.0  # the run's seconds include it, as when execute loads it
         t = time.perf_counter()
         P = self.deformer.encode(
             asset,
@@ -673,8 +685,124 @@ class Run:
             else None
         )
         stage["encode"] += time.perf_counter() - t
-        need_body = self.effects.collisions or self.effects.cloth or self.body_output is not None
         out_v, out_f = self._output_mesh(asset)
+        cloth = None
+        if self.effects.cloth:  # built once per run (its cost counts here); its state spans the batches
+            t = time.perf_counter()
+            cloth = self._cloth_stage(asset)
+            stage["cloth"] += time.perf_counter() - t
+        return {
+            "stage": stage,
+            "asked": asked,
+            "asset": asset,
+            "joints": joints,
+            "P": P,
+            "lw": lw,
+            "out_v": out_v,
+            "out_f": out_f,
+            "batch": effective_batch(self.batch, asset.n_vertices),
+            "cloth": cloth,
+            "pushed": 0,
+            "warm": {"contacts": 0, "pushed": 0, "traced": 0, "resets": 0},
+        }
+
+    def _frames(self, st: dict):
+        """The run's frames, a batch at a time: yields ``(lo, frames (B, N, 3) float32, body (B, V, 3) float32 or
+        None)`` for the frames ``lo .. lo + B - 1`` of the motion in world coordinates (the body when it was posed:
+        collisions, the cloth stage or ``body_output``).  Updates ``st``'s timings and counts."""
+        stage, asset, cloth, batch = st["stage"], st["asset"], st["cloth"], st["batch"]
+        need_body = self.effects.collisions or self.effects.cloth or self.body_output is not None
+        collider = None
+        # with the cloth stage or collisions (both carry state from frame to frame: the stage's velocities, the
+        # push-out's corrections), frames A:B step them over the frames before A first, writing nothing, so that
+        # their state at A is a whole run's and so are its frames (a user's trial: a render in chunks popped by
+        # up to 7 mm at each chunk's start); it costs those A frames.  Without either every frame stands alone.
+        stateful = cloth is not None or self.effects.collisions
+        warm_up = range(0, self.start, batch) if stateful else range(0)
+        carry = np.zeros((len(st["out_v"]), 3)) if self.effects.collisions else None
+        for lo in [*warm_up, *range(self.start, self.stop, batch)]:
+            writing = lo >= self.start
+            if writing and lo == self.start and cloth is not None:  # the run reports its own frames' counts
+                st["warm"] = {k: getattr(cloth, k) for k in st["warm"]}
+            hi = min(lo + batch, self.stop if writing else self.start)
+            t = time.perf_counter()
+            win = motion_windows(self.motion.poses, self.deformer.window, start=lo, stop=hi)
+            # the graphs run at the root and collisions are resolved there; the translation is added after them
+            # (runtime.translation: the same frames wherever the character stands, as Node and C++ compute them);
+            # the cloth stage steps in world coordinates
+            trans = self.motion.trans[lo:hi]
+            root = np.zeros_like(trans)
+            verts = self.deformer.deform(st["P"], asset, win, st["joints"], root, self.betas, log_wbody=st["lw"])
+            if self._smap is not None:  # carried to every vertex of the garment as given, in float32 as the
+                # deformer gives its frames and the Node and C++ runtimes carry them (the push-out of a float64
+                # carry moved a vertex in a crease 0.1 mm off theirs)
+                verts = self._smap.apply(verts).astype(np.float32)
+            stage["deform"] += time.perf_counter() - t
+            if not np.isfinite(verts).all():
+                raise InputError(f"the deformer produced NaN or inf at frames {lo}..{hi - 1}")
+            if need_body:
+                t = time.perf_counter()
+                posed = cast(BodyPoser, self.body_poser).pose(self.motion.poses[lo:hi], self.betas, root)
+                stage["pose body"] += time.perf_counter() - t
+            if self.effects.cloth:  # contact included: no push-out after it
+                t = time.perf_counter()
+                verts = cast(Any, cloth).step(at_translation(verts, trans), at_translation(posed, trans))
+                stage["cloth"] += time.perf_counter() - t
+            else:
+                if self.effects.collisions:
+                    t = time.perf_counter()
+                    if collider is None:  # built once per run (its cost counts here), the session's threads
+                        # from the body at rest as the run poses it, as Node and C++ build theirs (the tree's
+                        # shape decides between equally near triangles: the same tree, the same frames)
+                        collider = self.collider(
+                            self._body_rest(),
+                            self.body.faces,
+                            threads=max(1, int(getattr(self.package, "threads", 1))),
+                        )
+                    # the correction carried from frame to frame (BodyCollider.push_out): a vertex deep in a
+                    # limb keeps the side it was pushed to instead of flipping to the nearest one
+                    verts, n = collider.push_out(verts, posed, self.effects.collision_margin, carry=carry)
+                    st["pushed"] += n if writing else 0
+                    stage["collisions"] += time.perf_counter() - t
+                # rounded to float32 at the root, as the other runtimes hold their frames, then moved
+                verts = at_translation(verts.astype(np.float32), trans)
+            if not writing:
+                continue
+            # float32, as every runtime writes them (an OBJ frame printed the float64 sum's extra digits)
+            body = at_translation(posed, trans).astype(np.float32) if need_body else None
+            yield lo, verts.astype(np.float32), body
+
+    def stream(self):
+        """The run's frames in memory, a batch at a time, without writing a file (``output`` may be None): yields
+        ``(lo, frames, body)`` -- ``frames`` (B, N, 3) float32 metres, y up, in world coordinates, the motion's frames
+        ``lo .. lo + B - 1`` (``lo`` counted from the motion's first frame), exactly the frames :meth:`execute` writes
+        (its effects, cloth stage and collisions included); ``body`` (B, V, 3) float32, the posed body of those
+        frames when the run posed it (collisions, the cloth stage or ``body_output``), else None.  N is the
+        garment's vertex count in its file's order.  Each call runs the clip from its start (the cloth stage and the
+        push-out start afresh).  Python's counterpart of the Node and C++ ``Player``: a frame at a time through a
+        game loop is ``for lo, frames, body in run.stream(): ...``."""
+        yield from self._frames(self._prepare())
+
+    def animate(self) -> np.ndarray:
+        """Every frame of the run in memory: (T, N, 3) float32 metres (:meth:`stream`'s frames, stacked; T the run's
+        frame count, N the garment's vertices in its file's order)."""
+        chunks = [f for _, f, _ in self.stream()]
+        if not chunks:
+            return np.zeros((0, 0, 3), np.float32)
+        return np.concatenate(chunks, axis=0)
+
+    def execute(self, progress: Callable[[int], None] | None = None) -> RunSummary:
+        """Run the clip and write its outputs (``output``, ``body_output``); returns what it did."""
+        if self.output is None:
+            raise InputError(
+                "the run has no output to write",
+                expected="Run(output=PATH), or Run.stream() for frames in memory",
+                got="output=None",
+            )
+        t_all = time.perf_counter()
+        st = self._prepare()
+        stage, asset = st["stage"], st["asset"]
+        t_all -= self._asset_seconds if st["asked"] else 0.0  # the run's seconds include it, as when execute loads it
         out = SceneOutput(
             path=self.output,
             fmt=self.output_format,
@@ -682,85 +810,23 @@ class Run:
             unit=self.units,
             fps=self.motion.fps,
             start_frame=self.start + self._motion_start(),  # a cut motion file's numbers
-            garment_faces=out_f,
-            garment_rest=out_v,
-            garment_surface=garment_surface(self.garment, len(out_v), self.output_format),
+            garment_faces=st["out_f"],
+            garment_rest=st["out_v"],
+            garment_surface=garment_surface(self.garment, len(st["out_v"]), self.output_format),
             body_path=self.body_output,
             body_faces=self.body.faces,
             body_rest=self._body_rest() if self.body_output else None,
             guard=self.guard,
         )
-        pushed = 0
-        collider = cloth = None
-        warm = {"contacts": 0, "pushed": 0, "traced": 0, "resets": 0}
+        cloth = st["cloth"]
+        need_body = self.effects.collisions or self.effects.cloth or self.body_output is not None
         try:
-            batch = effective_batch(self.batch, asset.n_vertices)
-            if self.effects.cloth:  # built once per run (its cost counts here); its state spans the batches
+            for _lo, verts, body in self._frames(st):
                 t = time.perf_counter()
-                cloth = self._cloth_stage(asset)
-                stage["cloth"] += time.perf_counter() - t
-            # with the cloth stage or collisions (both carry state from frame to frame: the stage's velocities, the
-            # push-out's corrections), frames A:B step them over the frames before A first, writing nothing, so that
-            # their state at A is a whole run's and so are its frames (a user's trial: a render in chunks popped by
-            # up to 7 mm at each chunk's start); it costs those A frames.  Without either every frame stands alone.
-            stateful = cloth is not None or self.effects.collisions
-            warm_up = range(0, self.start, batch) if stateful else range(0)
-            carry = np.zeros((len(out_v), 3)) if self.effects.collisions else None
-            for lo in [*warm_up, *range(self.start, self.stop, batch)]:
-                writing = lo >= self.start
-                if writing and lo == self.start and cloth is not None:  # the run reports its own frames' counts
-                    warm = {k: getattr(cloth, k) for k in warm}
-                hi = min(lo + batch, self.stop if writing else self.start)
-                t = time.perf_counter()
-                win = motion_windows(self.motion.poses, self.deformer.window, start=lo, stop=hi)
-                # the graphs run at the root and collisions are resolved there; the translation is added after them
-                # (runtime.translation: the same frames wherever the character stands, as Node and C++ compute them);
-                # the cloth stage steps in world coordinates
-                trans = self.motion.trans[lo:hi]
-                root = np.zeros_like(trans)
-                verts = self.deformer.deform(P, asset, win, joints, root, self.betas, log_wbody=lw)
-                if self._smap is not None:  # carried to every vertex of the garment as given, in float32 as the
-                    # deformer gives its frames and the Node and C++ runtimes carry them (the push-out of a float64
-                    # carry moved a vertex in a crease 0.1 mm off theirs)
-                    verts = self._smap.apply(verts).astype(np.float32)
-                stage["deform"] += time.perf_counter() - t
-                if not np.isfinite(verts).all():
-                    raise InputError(f"the deformer produced NaN or inf at frames {lo}..{hi - 1}")
-                if need_body:
-                    t = time.perf_counter()
-                    posed = cast(BodyPoser, self.body_poser).pose(self.motion.poses[lo:hi], self.betas, root)
-                    stage["pose body"] += time.perf_counter() - t
-                if self.effects.cloth:  # contact included: no push-out after it
-                    t = time.perf_counter()
-                    verts = cast(Any, cloth).step(at_translation(verts, trans), at_translation(posed, trans))
-                    stage["cloth"] += time.perf_counter() - t
-                else:
-                    if self.effects.collisions:
-                        t = time.perf_counter()
-                        if collider is None:  # built once per run (its cost counts here), the session's threads
-                            # from the body at rest as the run poses it, as Node and C++ build theirs (the tree's
-                            # shape decides between equally near triangles: the same tree, the same frames)
-                            collider = self.collider(
-                                self._body_rest(),
-                                self.body.faces,
-                                threads=max(1, int(getattr(self.package, "threads", 1))),
-                            )
-                        # the correction carried from frame to frame (BodyCollider.push_out): a vertex deep in a
-                        # limb keeps the side it was pushed to instead of flipping to the nearest one
-                        verts, n = collider.push_out(verts, posed, self.effects.collision_margin, carry=carry)
-                        pushed += n if writing else 0
-                        stage["collisions"] += time.perf_counter() - t
-                    # rounded to float32 at the root, as the other runtimes hold their frames, then moved
-                    verts = at_translation(verts.astype(np.float32), trans)
-                if not writing:
-                    continue
-                t = time.perf_counter()
-                # float32, as every runtime writes them (an OBJ frame printed the float64 sum's extra digits)
-                body = at_translation(posed, trans).astype(np.float32) if self.body_output is not None else None
-                out.write(verts.astype(np.float32), body)
+                out.write(verts, body if self.body_output is not None else None)
                 stage["write"] += time.perf_counter() - t
                 if progress is not None:
-                    progress(hi - lo)
+                    progress(len(verts))
             t = time.perf_counter()
             written = out.close()
             if self.cache:
@@ -771,12 +837,13 @@ class Run:
         except BaseException:
             out.abort()
             raise
+        warm = st["warm"]
         return RunSummary(
             first_frame=self.start + self._motion_start(),
             start=self.start,
             # (a decimated model garment's counts: --resolution, or an asset exported with it; not a mesh welded or
             # flipped for the model, which keeps the file's vertex count in all but its seams)
-            resolution_vertices=(asset.n_vertices, len(out_v))
+            resolution_vertices=(asset.n_vertices, len(st["out_v"]))
             if self._full is not None and not (self._welded or self._flipped)
             else None,
             frames=self.stop - self.start,
@@ -788,10 +855,10 @@ class Run:
             effects=self.effects,
             variant=self.deformer.variant,
             sessions=sorted(self.package.created),
-            pushed_vertices=pushed,
+            pushed_vertices=st["pushed"],
             stage_seconds=stage,
             body_backend=cast(BodyPoser, self.body_poser).backend if need_body else None,
-            batch=batch,
+            batch=st["batch"],
             cloth=None
             if cloth is None
             else {
