@@ -315,7 +315,6 @@ class _Assets:
         return self.cache[key]
 
 
-
 def peak_metrics(per_sample: dict) -> dict:
     """The metrics that are a largest value (``segadeform eval``'s PEAK_METRICS: the largest edge stretch) over a
     row's samples: the largest of the samples', as ``eval`` reports them, not their mean.  ``per_sample``: sample
@@ -323,6 +322,7 @@ def peak_metrics(per_sample: dict) -> dict:
     from segadeform.train.metrics import PEAK_METRICS
 
     return {k: max(v["metrics"][k] for v in per_sample.values()) for k in PEAK_METRICS}
+
 
 def measure(
     dataset: Path,

@@ -118,6 +118,9 @@ class PathParam(click.Path):
             else:
                 if not self.dir_okay and stat.S_ISDIR(mode):
                     raise FileFormatError("is a directory, not a file", path=path)
+                if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):  # /dev/zero was read until the kernel killed the
+                    # process, with no word (a fuzzer's trial); a pipe (<(...)) stays a file to read
+                    raise FileFormatError("is a device, not a file", path=path, expected="a file")
                 if not self.file_okay and stat.S_ISREG(mode):
                     if self.package and path.endswith(".pt"):  # a checkpoint for --model: what makes a package
                         raise FileFormatError(

@@ -80,6 +80,7 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
     import numpy as np
 
     from segadeform.body import default_body_path, load_body
+    from segadeform.bounds import MAX_POSITION
     from segadeform.errors import FileFormatError, InputError
     from segadeform.io import read_mesh
     from segadeform.io.formats import sequence_start_frame, sequence_units
@@ -187,6 +188,15 @@ def preview_cmd(result, garment, body_seq, body_model, output, frames, every, vi
                 expected="finite positions",
             )
         pts = pts if unit == 1.0 else pts * unit
+        far = float(np.abs(pts).max()) if pts.size else 0.0
+        if far > MAX_POSITION:  # as inspect refuses it (a fuzzer's 3e38 was drawn, with a warning: exit 0)
+            raise FileFormatError(
+                f"frame {first + ks[int(np.argmax(np.abs(pts).max(axis=(1, 2))))]} has a point beyond 10 km of the "
+                "origin (another unit? --output-units says the one it was written in)",
+                path=path,
+                expected=f"|x| <= {MAX_POSITION:g} m",
+                got=f"{far:.3g} m",
+            )
         return pts if R is None else pts @ R
 
     def read(ks):

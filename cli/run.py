@@ -163,7 +163,11 @@ def _effects_option(text, base=None, *, check_only: bool = False):
     type=click.Choice(["auto", "y", "z"]),
     help="Up axis of the motion file (default auto; AMASS is z-up).",
 )
-@click.option("--units", help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).")
+@click.option(
+    "--units",
+    callback=lambda ctx, param, v: _bvh_units(v),
+    help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).",
+)
 @click.option(
     "--joint-map",
     type=PathParam(dir_okay=False, path_type=Path),
@@ -458,3 +462,12 @@ def run_cmd(
         )
     for path in summary.written:
         click.echo(f"  wrote {path}")
+
+
+def _bvh_units(value):
+    """``--units`` checked as the command line is read: a bad value is a usage error naming it (exit 2; it was
+    "scale must be positive", exit 1, naming neither: a fuzzer's trial)."""
+    from segadeform.cli.main import option_value
+    from segadeform.motion.bvh import bvh_units
+
+    return None if value is None else option_value(bvh_units, value, option="--units")

@@ -589,3 +589,17 @@ def test_motion_export_refuses_a_body_no_human_has_unless_forced(tmp_path):
         == 0
     )
     assert (tmp_path / "m.sgdm").is_file()
+
+
+def test_a_device_given_as_an_input_file_is_refused_not_read_for_ever(tmp_path):
+    """A fuzzer's trial: a garment or motion that is (a link to) /dev/zero was read until the kernel killed the
+    process after about 30 s, with no word."""
+    import os
+
+    link = tmp_path / "zero.obj"
+    os.symlink("/dev/zero", link)
+    out = tmp_path / "o.pc2"
+    r = invoke("run", "--garment", link, "--motion", WALK, "-o", out)
+    assert r.exit_code == 1 and "zero.obj: is a device, not a file" in r.output and not out.exists()
+    r = invoke("inspect", "/dev/zero")
+    assert r.exit_code == 1 and "/dev/zero: is a device, not a file" in r.output

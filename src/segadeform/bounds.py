@@ -26,6 +26,9 @@ body surface        <= 0.1 % of faces    a shape whose skin folds through itself
                     --force)             shape space's normal distribution turn at most 9, and 4 in
                                          400 drawn uniformly within +-3 are refused (up to 114)
 procedural seed     0 .. 2**32 - 1       numpy's seeds
+pose angles         |value| <= 1e6 rad   axis-angle components; the BVH reader's bound is 1e8 degrees
+                                         (1.7e6 rad); past about 1e154 the angle's norm overflowed
+                                         and the motion turned to NaN (a fuzzer's 1e300 poses)
 ==================  ===================  ==========================================================
 """
 
@@ -42,6 +45,8 @@ __all__ = [
     "FPS_RANGE",
     "MAX_TRANSLATION",
     "MAX_POSITION",
+    "MAX_POSE_ANGLE",
+    "check_pose_angles",
     "BETA_LIMIT",
     "HEIGHT_RANGE",
     "FOLDED_FACES",
@@ -63,6 +68,7 @@ __all__ = [
 FPS_RANGE = (1.0, 1000.0)
 MAX_TRANSLATION = 1.0e4
 MAX_POSITION = 1.0e4
+MAX_POSE_ANGLE = 1.0e6
 BETA_LIMIT = 10.0
 HEIGHT_RANGE = (0.9, 2.5)
 #: the share of the body's faces a shape may turn over (their normal against the template's) before it is refused,
@@ -143,6 +149,22 @@ def check_translation(trans, *, path=None, fps=None) -> None:
             path=path,
             expected=f"|translation| <= {MAX_TRANSLATION:g} m",
             got=f"{m:.3g} m{at}",
+        )
+
+
+def check_pose_angles(poses, *, path=None) -> None:
+    """Every axis-angle component of ``poses (T, D)`` within :data:`MAX_POSE_ANGLE` radians; the refusal names the
+    first frame and value past it."""
+    a = np.asarray(poses)
+    huge = ~(np.abs(a) <= MAX_POSE_ANGLE)  # NaN fails too
+    if huge.any():
+        k = int(np.flatnonzero(huge.ravel())[0])
+        frame, col = divmod(k, a.shape[-1]) if a.ndim == 2 else (0, k)
+        raise InputError(
+            "the poses hold an angle no capture holds",
+            path=path,
+            expected=f"|axis-angle component| <= {MAX_POSE_ANGLE:g} radians",
+            got=f"{a.ravel()[k]:.3g} (frame {frame}, joint {col // 3})",
         )
 
 

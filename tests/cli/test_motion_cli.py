@@ -31,3 +31,25 @@ def test_a_bvh_made_reads_back_as_the_same_motion_on_the_body(tmp_path):
     # --body is the BVH's skeleton: asked of another output, it is refused before anything is written
     res = r.invoke(cli, ["motion", "make", "walk", "--body", str(default_body_path()), "-o", str(tmp_path / "x.npz")])
     assert res.exit_code == 2 and "--body is for a .bvh output" in res.output and not (tmp_path / "x.npz").exists()
+
+
+def test_bad_bvh_units_are_a_usage_error_naming_the_option(tmp_path):
+    """A fuzzer's trial: `--units 0`, `-1` or `nan` said "scale must be positive", naming neither the option nor a
+    file, with exit 1; the other bad option values are usage errors (exit 2)."""
+    from tests.conftest import SAMPLES
+
+    bvh = SAMPLES / "motions" / "cmu" / "02_01_walk.bvh"
+    garment = SAMPLES / "garments" / "skirt.obj"
+    r = CliRunner()
+    for cmd in (
+        ["run", "--garment", str(garment), "--motion", str(bvh), "-o", str(tmp_path / "o.pc2")],
+        ["motion", "export", str(bvh), "-o", str(tmp_path / "o.sgdm")],
+        ["motion", "info", str(bvh)],
+    ):
+        for bad, words in (("0", "positive number"), ("-1", "positive number"), ("nan", "positive"), ("x", "unknown")):
+            res = r.invoke(cli, [*cmd, "--units", bad])
+            assert res.exit_code == 2 and "Invalid value for '--units'" in res.output, res.output
+            assert words in res.output, res.output
+    assert not list(tmp_path.iterdir())
+    res = r.invoke(cli, ["motion", "info", str(bvh), "--units", "cm"])
+    assert res.exit_code == 0, res.output

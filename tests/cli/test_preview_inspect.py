@@ -588,3 +588,18 @@ def test_preview_says_a_result_that_looks_written_in_centimetres_or_z_up(tmp_pat
         ],
     )
     assert r.exit_code == 0 and "warning" not in r.output, r.output
+
+
+def test_preview_refuses_a_point_beyond_10_km_as_inspect_does(tmp_path):
+    """A fuzzer's trial: a point cache with one value at 3e38 was drawn by preview (a warning, exit 0) while inspect
+    refuses it."""
+    frames = _scene(tmp_path).copy()
+    g = tmp_path / "g.obj"
+    frames[2, 3, 0] = 3e38
+    bad = tmp_path / "far.pc2"
+    write_pc2(bad, frames)
+    out = tmp_path / "far.png"
+    r = CliRunner().invoke(cli, ["preview", str(bad), "--garment", str(g), "-o", str(out), "--size", "64x64"])
+    assert r.exit_code == 1 and "far.pc2: frame 2 has a point beyond 10 km" in r.output and not out.exists(), r.output
+    r = CliRunner().invoke(cli, ["inspect", str(bad)])
+    assert r.exit_code == 1 and "beyond 10 km" in r.output

@@ -974,3 +974,37 @@ def test_garment_fit_warns_when_most_of_what_it_writes_is_inside_the_body(tmp_pa
     assert re.search(r"warning: out\.obj: (9\d|100)\.\d % of the garment lies inside the body", r.output), r.output
     r = CliRunner().invoke(cli, ["garment", "fit", str(SAMPLES / "skirt_short_f.obj"), "-o", str(tmp_path / "s.obj")])
     assert r.exit_code == 0 and "lies inside the body" not in r.output, r.output
+
+
+def test_a_vertex_in_no_face_far_from_the_body_is_refused_near_ones_pass(body, dress, tmp_path):
+    """A fuzzer's trial: the skirt plus `v 9000 9000 9000` in no face ran with exit 0, its stray point swung 3.9 km in
+    a frame by the skinning.  Vertices in no face more than LOOSE_FAR from the body are refused (unless --force);
+    those near it pass the check as before (they are left out of it)."""
+    from segadeform.body.placement import LOOSE_FAR
+
+    rest = body.shaped_vertices()[0]
+    for far, ok in (([9000.0, 9000, 9000], False), ([1000.0, 0, 0], False), ([0.0, 1.0, 0.6], True)):
+        v = np.vstack([dress.vertices, far])
+        if ok:
+            check_placement(v, rest, body.faces, faces=dress.faces, path=Path("g.obj"))
+            continue
+        with pytest.raises(
+            PlacementError, match=rf"1 vertices in no face lie more than .*vertex {len(dress.vertices)}"
+        ):
+            check_placement(v, rest, body.faces, faces=dress.faces, path=Path("g.obj"))
+    assert LOOSE_FAR == 1.0
+    # the command: one line, exit 1, nothing written; --force plays it and says so
+    g = tmp_path / "stray.obj"
+    g.write_text(
+        "".join(f"v {x:.6f} {y:.6f} {z:.6f}\n" for x, y, z in dress.vertices)
+        + "v 9000 9000 9000\n"
+        + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in dress.faces)
+    )
+    out = tmp_path / "o.pc2"
+    motion = ROOT / "samples" / "motions" / "walk.npz"
+    args = ["run", "--garment", str(g), "--motion", str(motion), "--frames", "0:2", "-o", str(out)]
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 1 and "vertices in no face lie more than" in r.output and "stray.obj" in r.output
+    assert not out.exists()
+    r = CliRunner().invoke(cli, [*args, "--force"])
+    assert r.exit_code == 0 and out.exists(), r.output

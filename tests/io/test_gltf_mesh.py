@@ -132,3 +132,58 @@ def test_shared_vertices_mirrors_scenes_and_compression(tmp_path):
     gl.save_binary(str(tmp_path / "draco.glb"))
     with pytest.raises(FileFormatError, match="compressed .KHR_draco_mesh_compression."):
         read_mesh(tmp_path / "draco.glb")
+
+
+@pytest.mark.parametrize(
+    "rotation, turned",
+    [
+        ([0.0, 0.7071067811865476, 0.0, 0.7071067811865476], True),  # 90 degrees about +Y
+        ([0.0, 1e300, 0.0, 1e300], True),  # the same, scaled past float range when squared
+        ([0.0, 1e-300, 0.0, 1e-300], True),  # ... and below it
+        ([0.0, 0.0, 0.0, 0.0], None),  # no rotation at all: refused
+    ],
+)
+def test_a_node_rotation_of_any_length_is_normalised_and_a_zero_one_refused(tmp_path, rotation, turned):
+    """A fuzzer's trial: rotations [0, 1e300, 0, 1e300], [0, 1e-300, 0, 1e-300] and [0, 0, 0, 0] were all read as
+    no rotation (the first with numpy's overflow warning), with exit 0."""
+    path = _glb(tmp_path / "q.glb", [(QUAD, [[0, 1, 2], [0, 2, 3]], 4)], nodes=[{"rotation": rotation}])
+    if turned is None:
+        with pytest.raises(FileFormatError, match=r"q\.glb: node 0's rotation is not a rotation"):
+            read_mesh(path)
+        return
+    v = read_mesh(path).vertices
+    want = QUAD @ np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]]).T  # +X -> -Z, +Z -> +X
+    assert np.abs(v - want).max() < 1e-6
+
+
+def test_nodes_nested_thousands_deep_are_one_line_and_a_buffer_is_read_to_its_length(tmp_path):
+    """A fuzzer's trial: 5,000 nested nodes gave a RecursionError traceback, and a buffer whose uri was /dev/zero was
+    read until the kernel killed the process."""
+    import json
+
+    path = _glb(tmp_path / "g.glb", [(QUAD, [[0, 1, 2], [0, 2, 3]], 4)])
+    import pygltflib as g
+
+    gl = g.GLTF2().load(str(path))
+    depth = 400
+    gl.nodes = [g.Node(children=[k + 1]) for k in range(depth)] + [g.Node(mesh=0)]
+    gl.scenes = [g.Scene(nodes=[0])]
+    gl.save_binary(str(tmp_path / "deep.glb"))
+    with pytest.raises(FileFormatError, match=r"deep\.glb: nodes nest too deeply \(expected at most 256 levels"):
+        read_mesh(tmp_path / "deep.glb")
+    # a .gltf whose buffer is a device, and one whose file is shorter than its byteLength
+    gl = g.GLTF2().load(str(path))
+    blob = gl.binary_blob()
+    (tmp_path / "g.bin").write_bytes(blob)
+    doc = json.loads(gl.to_json())
+    doc["buffers"] = [{"byteLength": len(blob), "uri": "/dev/zero"}]
+    (tmp_path / "zero.gltf").write_text(json.dumps(doc))
+    with pytest.raises(FileFormatError, match=r"zero\.gltf: buffer 0's file is not a regular file"):
+        read_mesh(tmp_path / "zero.gltf")
+    doc["buffers"] = [{"byteLength": len(blob) + 8, "uri": "g.bin"}]
+    (tmp_path / "short.gltf").write_text(json.dumps(doc))
+    with pytest.raises(FileFormatError, match=r"short\.gltf: buffer 0's file is shorter than the glTF says"):
+        read_mesh(tmp_path / "short.gltf")
+    doc["buffers"] = [{"byteLength": len(blob), "uri": "g.bin"}]
+    (tmp_path / "ok.gltf").write_text(json.dumps(doc))
+    assert np.abs(read_mesh(tmp_path / "ok.gltf").vertices - QUAD).max() < 1e-6

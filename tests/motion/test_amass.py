@@ -124,6 +124,10 @@ def test_feet_on_floor_shift_is_one_constant(tmp_path):
         (dict(poses=np.zeros((3, 72)), mocap_framerate=np.float64(np.nan)), "positive"),
         (dict(poses=np.full((3, 72), np.nan)), "NaN"),
         (dict(poses=np.zeros((3, 72)), trans=np.full((3, 3), np.inf)), "NaN or inf"),
+        # finite but past any capture: 1e300 overflowed the angle's norm into NaN, said of the network's input with
+        # numpy's warnings, and `motion export` wrote it (a fuzzer's trial)
+        (dict(poses=np.full((3, 72), 1e300)), r"an angle no capture holds.*got 1e\+300 \(frame 0, joint 0\)"),
+        (dict(poses=np.pad(np.full((1, 1), -2e6), ((2, 0), (5, 66)))), r"got -2e\+06 \(frame 2, joint 1\)"),
     ],
 )
 def test_malformed_amass_layouts(tmp_path, arrays, words):
@@ -159,3 +163,14 @@ def test_equal_rotations_written_otherwise_are_the_same_motion(tmp_path):
         m2 = load_motion(tmp_path / f"{name}.npz")
         np.testing.assert_allclose(m2.poses, m.poses, atol=1e-9)
         assert np.array_equal(m2.poses[:, 6:], m.poses[:, 6:])  # the other joints: untouched
+
+
+def test_a_motion_made_in_python_with_angles_past_any_capture_is_refused():
+    """The same bound on a Motion built by hand: it was built, holding NaN after its angles were made canonical."""
+    from segadeform.errors import InputError
+    from segadeform.motion import Motion
+
+    with pytest.raises(InputError, match="an angle no capture holds"):
+        Motion(poses=np.full((2, 72), 1e300), trans=np.zeros((2, 3)), fps=30.0)
+    m = Motion(poses=np.full((2, 72), 1e5), trans=np.zeros((2, 3)), fps=30.0)  # within it: finite, canonical
+    assert np.isfinite(m.poses).all() and np.linalg.norm(m.poses.reshape(-1, 3), axis=1).max() <= np.pi + 1e-9

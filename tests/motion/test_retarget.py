@@ -448,3 +448,23 @@ def test_a_skeleton_that_faces_another_way_at_rest_gets_the_same_joint_rotations
     np.testing.assert_allclose(rb[:, 1:], ra[:, 1:], atol=1e-6)
     np.testing.assert_allclose(rb[:, 0], R @ ra[:, 0], atol=1e-6)
     np.testing.assert_allclose(J[0] + b.trans, (J[0] + a.trans) @ R.T, atol=1e-6)
+
+
+def test_joints_nested_thousands_deep_are_one_line(tmp_path):
+    """A fuzzer's trial: a chain of 2,000 joints gave a RecursionError traceback from `run`, `inspect` and `motion
+    info`; past MAX_DEPTH levels the file is refused at the joint's line."""
+    from segadeform.motion.bvh import MAX_DEPTH, read_bvh_skeleton
+
+    def chain(n: int) -> str:
+        six = "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n"
+        head = "HIERARCHY\nROOT Hips\n{\nOFFSET 0 0 0\n" + six
+        body = "".join(f"JOINT j{k}\n{{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n" for k in range(n))
+        tail = "End Site\n{\nOFFSET 0 1 0\n}\n" + "}\n" * (n + 1)
+        row = " ".join(["0"] * (6 + 3 * n))
+        return head + body + tail + f"MOTION\nFrames: 2\nFrame Time: 0.0333333\n{row}\n{row}\n"
+
+    (tmp_path / "ok.bvh").write_text(chain(MAX_DEPTH))
+    assert len(read_bvh_skeleton(tmp_path / "ok.bvh").names) == MAX_DEPTH + 1
+    (tmp_path / "deep.bvh").write_text(chain(2000))
+    with pytest.raises(FileFormatError, match=r"deep\.bvh:\d+: joints nest too deeply \(expected at most 256 levels"):
+        read_bvh_skeleton(tmp_path / "deep.bvh")

@@ -82,17 +82,39 @@ class GltfFile:
                 except Exception as e:
                     raise self.error(f"buffer {i} has a data URI that does not decode ({type(e).__name__})") from None
             else:
-                f = self.path.parent / urllib.parse.unquote(uri)
-                try:
-                    data = f.read_bytes()
-                except OSError:
-                    raise self.error(
-                        f"buffer {i}'s file is missing", expected="a readable file beside it", got=uri
-                    ) from None
+                data = self._external(i, uri)
             if data is None:
                 raise self.error(f"buffer {i} has no data")
             self._buffers[i] = bytes(data)
         return self._buffers[i]
+
+    def _external(self, i: int, uri: str) -> bytes:
+        """Buffer ``i``'s bytes from its file ``uri`` (relative to the glTF's folder, as the format says): a regular
+        file, read no further than the buffer's ``byteLength`` (a fuzzer's buffer at /dev/zero was read until the
+        kernel killed the process, with no word)."""
+        import stat
+
+        f = self.path.parent / urllib.parse.unquote(uri)
+        want = int(self.g.buffers[i].byteLength or 0)
+        try:
+            st = f.stat()
+        except OSError:
+            raise self.error(f"buffer {i}'s file is missing", expected="a readable file beside it", got=uri) from None
+        if not stat.S_ISREG(st.st_mode):
+            raise self.error(f"buffer {i}'s file is not a regular file", expected="a .bin file beside it", got=uri)
+        if st.st_size < want:
+            raise self.error(
+                f"buffer {i}'s file is shorter than the glTF says",
+                expected=f"{want} bytes",
+                got=f"{st.st_size} ({uri})",
+            )
+        try:
+            with open(f, "rb") as fh:
+                return fh.read(want)
+        except OSError:
+            raise self.error(
+                f"buffer {i}'s file cannot be read", expected="a readable file beside it", got=uri
+            ) from None
 
     def accessor(self, i, what: str) -> np.ndarray:
         """Accessor ``i`` as a float64 ``(count, width)`` array (normalised integers scaled to [-1, 1] / [0, 1])."""
@@ -128,14 +150,36 @@ class GltfFile:
         return out
 
 
-def _node_matrix(node) -> np.ndarray:
+#: nodes nested deeper than this are refused (a character's skeleton is a few tens deep; 5,000 nested nodes gave a
+#: RecursionError traceback: a fuzzer's trial)
+MAX_DEPTH = 256
+
+
+def unit_quaternion(q, *, where: str = "", error=None) -> np.ndarray:
+    """A node's rotation ``q (x, y, z, w)`` at unit length, scaled by its largest component first so that no square
+    overflows or underflows (a fuzzer's [0, 1e300, 0, 1e300] and [0, 1e-300, 0, 1e-300] were read as no rotation);
+    a zero or non-finite one is refused through ``error`` (a callable taking the problem and keywords, e.g.
+    ``GltfFile.error``; default: a plain :class:`FileFormatError`), naming ``where``."""
+    q = np.asarray(q, np.float64).reshape(4)
+    big = float(np.abs(q).max()) if np.isfinite(q).all() else float("nan")
+    if not (np.isfinite(big) and big > 0):
+        make = error or (lambda problem, **kw: FileFormatError(problem, **kw))
+        got = [float(x) for x in q]
+        raise make(f"{where}rotation is not a rotation", expected="a non-zero finite quaternion", got=got)
+    q = q / big
+    return q / np.sqrt(float(q @ q))
+
+
+def _node_matrix(node, f: GltfFile | None = None, k: int = -1) -> np.ndarray:
     """A node's local transform, 4x4 (its matrix, else T R S)."""
     if node.matrix is not None:
         return np.asarray(node.matrix, np.float64).reshape(4, 4).T  # glTF matrices are column-major
     t = np.asarray(node.translation if node.translation is not None else [0, 0, 0], np.float64)
-    x, y, z, w = np.asarray(node.rotation if node.rotation is not None else [0, 0, 0, 1], np.float64)
-    n = max(float(np.sqrt(x * x + y * y + z * z + w * w)), 1e-12)
-    x, y, z, w = x / n, y / n, z / n, w / n
+    x, y, z, w = unit_quaternion(
+        node.rotation if node.rotation is not None else [0, 0, 0, 1],
+        where=f"node {k}'s " if k >= 0 else "",
+        error=None if f is None else f.error,
+    )
     R = np.array(
         [
             [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
@@ -196,13 +240,15 @@ def read_gltf_mesh(path: str | os.PathLike) -> Mesh:
     count = 0
     seen: set[int] = set()
 
-    def walk(k: int, parent: np.ndarray) -> None:
+    def walk(k: int, parent: np.ndarray, depth: int = 0) -> None:
         nonlocal count
         if not 0 <= k < len(g.nodes) or k in seen:  # (a node twice in the tree would loop)
             raise f.error("the node tree names a node that is not there, or one twice", got=k)
+        if depth > MAX_DEPTH:
+            raise f.error("nodes nest too deeply", expected=f"at most {MAX_DEPTH} levels", got=f"{depth} at node {k}")
         seen.add(k)
         node = g.nodes[k]
-        world = parent @ _node_matrix(node)
+        world = parent @ _node_matrix(node, f, k)
         if node.mesh is not None:
             if not 0 <= node.mesh < len(g.meshes):
                 raise f.error(f"node {k} names a mesh that is not there", got=node.mesh)
@@ -230,7 +276,7 @@ def read_gltf_mesh(path: str | os.PathLike) -> Mesh:
                     count += len(v)
                 faces.append((tri[:, ::-1] if mirrored else tri) + blocks[pos_i])
         for c in node.children or []:
-            walk(int(c), world)
+            walk(int(c), world, depth + 1)
 
     for r in roots:
         walk(int(r), np.eye(4))

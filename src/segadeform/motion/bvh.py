@@ -61,6 +61,22 @@ __all__ = [
 
 #: metres per file unit of the units a BVH file may be in (``units=`` in :func:`read_bvh`).
 UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "cmu": 0.0254 / 0.45}
+
+
+def bvh_units(units):
+    """``units`` (a name of :data:`UNITS` or metres per file unit, as text or a number) checked: returned as given,
+    or refused as :class:`InputError` (the command line's ``--units``: a usage error naming the option)."""
+    if units is None or units in UNITS:
+        return units
+    try:
+        f = float(units)
+    except (TypeError, ValueError):
+        raise InputError("unknown units", expected=", ".join(UNITS) + " or metres per unit", got=units) from None
+    if not (np.isfinite(f) and f > 0):
+        raise InputError("units must be a positive number of metres per unit", got=units)
+    return units
+
+
 log = logging.getLogger(__name__)
 
 _TYPICAL_LEGS_M = 1.64  # hip-knee-ankle, both legs, of an adult (metres); only for reporting the unit
@@ -102,8 +118,12 @@ def _parse(text: str, path: Path):
     nxt("HIERARCHY")
     joints: list[_Joint] = []
 
-    def parse_joint(parent_idx):
+    def parse_joint(parent_idx, depth=0):
         ln, kw = tok[pos - 1]
+        if depth > MAX_DEPTH:  # (a fuzzer's 2,000 nested joints: a RecursionError traceback)
+            raise FileFormatError(
+                "joints nest too deeply", path=path, line=ln, expected=f"at most {MAX_DEPTH} levels", got=depth
+            )
         _, name = nxt()
         j = _Joint(name, parent_idx)
         idx = len(joints)
@@ -128,7 +148,7 @@ def _parse(text: str, path: Path):
                         raise FileFormatError(f"unknown channel {c!r}", path=path, line=c_ln)
                     j.channels.append(c.lower())
             elif u == "JOINT":
-                parse_joint(idx)
+                parse_joint(idx, depth + 1)
             elif u == "END":
                 nxt("Site")
                 nxt("{")
@@ -205,6 +225,8 @@ def _parse(text: str, path: Path):
 
 #: the largest rotation channel read, in degrees (about 280,000 turns)
 MAX_CHANNEL = 1.0e8
+#: joints nested deeper than this are refused (a human's skeleton is about 10 deep, a hand's fingers add 4)
+MAX_DEPTH = 256
 
 
 def _isfloat(t):

@@ -36,6 +36,7 @@ import numpy as np
 
 from ..body.rotations import quaternion_slerp, quaternion_to_matrix
 from ..errors import InputError
+from ..io.gltf import MAX_DEPTH, unit_quaternion
 from ..io.gltf import GltfFile as _File
 from .bvh import BVHSkeleton, skeleton_motion, to_y_up
 from .motion import Motion
@@ -194,13 +195,17 @@ def _rotation_part(M: np.ndarray) -> np.ndarray:
     return U @ Vt
 
 
-def _node_rest(node) -> np.ndarray:
+def _node_rest(node, f: _File | None = None, k: int = -1) -> np.ndarray:
     if node.matrix is not None:
         return np.asarray(node.matrix, np.float64).reshape(4, 4).T  # glTF matrices are column-major
     t = np.asarray(node.translation if node.translation is not None else [0, 0, 0], np.float64)
-    q = np.asarray(node.rotation if node.rotation is not None else [0, 0, 0, 1], np.float64)
+    q = unit_quaternion(
+        node.rotation if node.rotation is not None else [0, 0, 0, 1],
+        where=f"node {k}'s " if k >= 0 else "",
+        error=None if f is None else f.error,
+    )
     s = np.asarray(node.scale if node.scale is not None else [1, 1, 1], np.float64)
-    return _trs_matrix(t, q / max(np.linalg.norm(q), 1e-12), s)
+    return _trs_matrix(t, q, s)
 
 
 def _pick_animation(f: _File, name: str | None):
@@ -241,6 +246,8 @@ def read_gltf_skeleton(
             k, seen = int(parent[k]), seen + 1
             if seen > n:
                 raise f.error("the node hierarchy has a cycle", got=f"node {i}")
+            if seen > MAX_DEPTH:  # (5,000 nested nodes: a RecursionError traceback, a fuzzer's trial)
+                raise f.error("nodes nest too deeply", expected=f"at most {MAX_DEPTH} levels", got=f"node {i}")
     # the channels of the animation, validated
     channels = []
     key_times = []
@@ -298,7 +305,7 @@ def read_gltf_skeleton(
         nd = nodes[k]
         anim_k = {path: (times, vals, interp) for node, path, times, vals, interp in channels if node == k}
         if not anim_k:
-            local[k] = np.broadcast_to(_node_rest(nd), (nf, 4, 4))
+            local[k] = np.broadcast_to(_node_rest(nd, f, k), (nf, 4, 4))
             continue
         if nd.matrix is not None:
             raise f.error(f"node {nd.name!r} is animated but has a matrix", expected="translation/rotation/scale")
@@ -323,9 +330,9 @@ def read_gltf_skeleton(
         if pk >= 0:
             walk(pk)
             world[k] = world[pk] @ local[k]
-            rest_world[k] = rest_world[pk] @ _node_rest(nodes[k])
+            rest_world[k] = rest_world[pk] @ _node_rest(nodes[k], f, k)
         else:
-            world[k], rest_world[k] = np.asarray(local[k]), _node_rest(nodes[k])
+            world[k], rest_world[k] = np.asarray(local[k]), _node_rest(nodes[k], f, k)
 
     for k in needed:
         walk(k)

@@ -17,7 +17,7 @@ from ..body.rotations import (
     quaternion_to_axis_angle,
 )
 from ..body.skeleton import SMPL_JOINT_NAMES
-from ..bounds import frames_between, resample_positions
+from ..bounds import check_pose_angles, frames_between, resample_positions
 from ..errors import FileFormatError, InputError
 from ..io.atomic import atomic_path
 from ..io.sgdm import read_motion_arrays, write_motion_arrays
@@ -80,6 +80,7 @@ class Motion:
                 raise InputError(f"{what} must be real numbers", expected="float", got=str(a.dtype))
         if not (np.isfinite(p).all() and np.isfinite(t).all()):
             raise InputError("motion contains NaN or inf")
+        check_pose_angles(p)
         check_fps(self.fps)
         check_translation(t, fps=self.fps)
         # equal rotations written alike (angles in [0, pi]): the network reads axis-angle; in range, bit for bit
@@ -206,6 +207,10 @@ def load_motion_npz(path: str | os.PathLike, *, up: str = "auto", rest_joints: n
         )
     if not np.isfinite(body).all():
         raise FileFormatError("poses contain NaN or inf", path=p)
+    try:  # the file named (a fuzzer's 1e300 poses turned into NaN and were said of the network's input)
+        check_pose_angles(body)
+    except InputError as e:
+        raise FileFormatError(e.problem, path=p, expected=e.expected, got=e.got) from None
     trans = d.get("trans", np.zeros((poses.shape[0], 3)))
     if trans.shape != (poses.shape[0], 3) or trans.dtype.kind not in "biuf":
         raise FileFormatError(
