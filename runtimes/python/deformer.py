@@ -247,10 +247,21 @@ class Deformer:
         bsz = w.shape[0]
         if np.shape(trans) != (bsz, 3):
             raise InputError("trans must be (batch, 3), one row per window", expected=(bsz, 3), got=np.shape(trans))
+        if not np.isfinite(np.asarray(trans, np.float64)).all():  # every frame came out NaN (a library user's trial)
+            raise InputError("trans must be finite", expected="finite (batch, 3)", got="NaN or inf")
+        code = np.asarray(P, np.float32)
+        if code.ndim < 2 or code.shape[0] != asset.n_vertices or not np.isfinite(code).all():
+            # one row per garment vertex: another garment's code reached onnxruntime's own error (a library user's
+            # trial)
+            raise InputError(
+                "the garment code P is not this garment's (Deformer.encode of this asset)",
+                expected=f"finite ({asset.n_vertices}, ...)",
+                got=code.shape,
+            )
         b = np.repeat(self._betas(betas)[None], bsz, axis=0)
         j = np.repeat(np.asarray(joints, np.float32)[None], bsz, axis=0)
         feeds = {
-            self.code_name: np.asarray(P, np.float32),
+            self.code_name: code,
             "window": w,
             "betas": b,
             "rest": asset.vertices.astype(np.float32),

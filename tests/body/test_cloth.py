@@ -787,3 +787,20 @@ def test_the_holes_bench_counts_a_chord_across_a_corner():
     x = np.stack([v, v + [0.05, 0.05, 0.0]])
     out = holes(x, f, unique_edges(f), np.repeat(body_v[None], 2, 0), col)
     assert out.tolist() == [[0.0, 1.0, 1.0], [0.0, 0.0, 0.0]]
+
+
+def test_reset_starts_a_new_clip_as_a_fresh_stage_counters_included(walk, body):
+    """A library user's trial: a stage stepped into a second clip that began within the reset distance carried the
+    first clip's velocity into it (2.6 cm off a fresh stage), and reset() left the counters and frame numbers going
+    on from the old clip."""
+    v, f, targets, posed, setup = walk
+    used = _stage(setup, body, first_frame=7)
+    used.step(targets[:10], posed[:10])
+    assert used.frames == 10 and used.contacts > 0
+    used.reset(first_frame=3)
+    assert (used.frames, used.resets, used.contacts, used.pushed, used.traced) == (0, 0, 0, 0, 0)
+    assert used.first_frame == 3
+    again = used.step(targets[4:12], posed[4:12])
+    fresh = _stage(setup, body).step(targets[4:12], posed[4:12])
+    np.testing.assert_allclose(again, fresh, rtol=0, atol=1e-6)
+    assert used.frames == 8

@@ -196,3 +196,22 @@ def test_skinning_fast_paths_match_the_per_vertex_reference():
     )
     np.testing.assert_allclose(linear_blend_skinning(v, w, a), lbs_ref, atol=1e-12)
     np.testing.assert_allclose(linear_blend_skinning(v, np.repeat(w[None], b, 0), a), lbs_ref, atol=1e-12)
+
+
+def test_wrong_shapes_are_refused_not_reshaped():
+    """A library user's trial: a transposed (3, B) translation was reshaped into the wrong frames' translations (the
+    body 2.17 m off), and (3, 96) axis-angle vectors gave matrices from their first three columns."""
+    from segadeform.body import default_body_path, load_body
+    from segadeform.body.rotations import axis_angle_to_matrix
+
+    body = load_body(default_body_path())
+    poses = np.zeros((4, 72))
+    with pytest.raises(InputError, match=r"trans must be finite \(B, 3\).*expected \(4, 3\), got \(3, 4\)"):
+        body.forward(poses, trans=np.zeros((3, 4)))
+    with pytest.raises(InputError, match="trans must be finite"):
+        body.forward(poses, trans=np.full((4, 3), np.nan))
+    assert body.forward(poses[:1], trans=np.zeros(3)).vertices.shape == (1, body.n_vertices, 3)
+    with pytest.raises(InputError, match=r"must be \(\.\.\., 3\).*got \(3, 96\)"):
+        axis_angle_to_matrix(np.zeros((3, 96)))
+    with pytest.raises(InputError, match=r"got \(96, 2\)"):
+        axis_angle_to_matrix(np.zeros((96, 2)))

@@ -221,3 +221,18 @@ def test_wound_alike_winds_each_piece_as_most_of_its_faces():
         faces += [[a, b, c], [a, c, d]]
     assert wound_alike(np.array(faces), 2 * k) is None
     assert wound_alike(np.zeros((0, 3), np.int64), 4).shape == (0, 3)
+
+
+def test_unique_edges_checks_faces_as_given():
+    """A library user's trial: float faces were truncated into real edges, -1 made an edge and (F, 4) lost a column,
+    silently; the same checks as the other mesh functions now."""
+    with pytest.raises(InputError, match="faces must be integers"):
+        unique_edges(np.array([[0.5, 1.7, 2.2]]))
+    with pytest.raises(InputError, match="face index out of range"):
+        unique_edges(np.array([[-1, 0, 1]]))
+    with pytest.raises(InputError, match=r"faces must be \(F, 3\)"):
+        unique_edges(np.zeros((3, 4), np.int64))
+    with pytest.raises(InputError, match="faces must be integers"):
+        connected_components(np.array([[0.0, 1.0, 2.0]]), 3)
+    np.testing.assert_array_equal(unique_edges(np.array([[0, 1, 2]])), [[0, 1], [0, 2], [1, 2]])
+    assert unique_edges(np.zeros((0, 3), np.int64)).shape == (0, 2)

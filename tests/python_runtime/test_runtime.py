@@ -454,3 +454,24 @@ def test_a_training_runs_folder_given_as_a_package_names_export(tmp_path):
     (tmp_path / "model.pt").write_bytes(b"")
     with pytest.raises(PackageError, match=r"training run's folder.*segadeform export .*model\.pt -o PACKAGE_DIR`"):
         ModelPackage(tmp_path)
+
+
+def test_deform_refuses_another_garments_code_and_a_nan_translation(tmp_path, random_package, body):
+    """A library user's trial: a code with one row too few reached onnxruntime's own error (and its red log line),
+    and a NaN translation made every frame NaN."""
+    from segadeform.errors import InputError
+
+    d = Deformer(ModelPackage(random_package), Effects(dynamics=False))
+    run = make_run(tmp_path, random_package, body, Effects())
+    joints = body.rest_joints()[0]
+    asset = run.load_asset(joints)
+    P = d.encode(asset, joints)
+    w = np.zeros((1, 1, 72), np.float32)
+    lw = d.body_log_weights(asset, body) if d.needs_body_weights else None
+    with pytest.raises(
+        InputError, match=rf"garment code P is not this garment's.*expected finite \({asset.n_vertices}"
+    ):
+        d.deform(P[:-1], asset, w, joints, np.zeros((1, 3)), log_wbody=lw)
+    with pytest.raises(InputError, match="trans must be finite"):
+        d.deform(P, asset, w, joints, np.full((1, 3), np.nan), log_wbody=lw)
+    assert np.isfinite(d.deform(P, asset, w, joints, np.zeros((1, 3)), log_wbody=lw)).all()

@@ -478,6 +478,10 @@ class ClothStage:
     garment jumped, :attr:`ClothSettings.reset`; the first is logged), ``contacts`` (given a contact plane),
     ``pushed`` (moved by the final push-out, more than :data:`MOVED`), ``traced`` (deep targets the backstop
     traced out of the body, ``_cloth.c``).
+
+    One stage is one clip's: call :meth:`reset` before stepping another clip through it (or make a new stage).  A
+    stage is not for two threads at once (its state and buffers are its own, unlocked); stages on different threads
+    are independent (a library user's trial: two stages on two threads gave the frames of one at a time).
     """
 
     def __init__(
@@ -543,9 +547,16 @@ class ClothStage:
     def traced(self) -> int:
         return int(self._info[5])
 
-    def reset(self) -> None:
-        """Forget the previous frames: the next one starts from its target with no velocity."""
-        self._info[0] = 0
+    def reset(self, first_frame: int = 0) -> None:
+        """Start a new clip: forget the previous frames (the next one starts from its target with no velocity) and
+        start the counters again, the next frame numbered ``first_frame`` in messages.  Call it between clips: a stage
+        stepped on into another clip carries the last one's velocity into it (a library user's trial: 2.6 cm off a
+        fresh stage's frames on a clip that began within the reset distance), and its counters and frame numbers went
+        on from the old clip's."""
+        self._info[:] = 0
+        self._state[:] = 0.0
+        self.frames = 0
+        self.first_frame = int(first_frame)
 
     def _float64(self, a: np.ndarray, k: int) -> np.ndarray:
         """``a`` as C-contiguous float64: itself when it is, else a copy into the stage's own buffer ``k`` (kept

@@ -55,7 +55,12 @@ def forward_kinematics(rot: np.ndarray, joints: np.ndarray, parents, trans: np.n
     if rot.ndim != 4 or rot.shape[-2:] != (3, 3) or rot.shape[1] != p.size:
         raise InputError("rot must be (B, S, 3, 3)", expected=f"(B, {p.size}, 3, 3)", got=rot.shape)
     b = rot.shape[0]
-    j = np.broadcast_to(np.asarray(joints, np.float64), (b, p.size, 3))
+    j = np.asarray(joints, np.float64)
+    if j.shape not in ((p.size, 3), (b, p.size, 3)):
+        raise InputError(
+            "joints must be (S, 3) or (B, S, 3)", expected=f"({p.size}, 3) or ({b}, {p.size}, 3)", got=j.shape
+        )
+    j = np.broadcast_to(j, (b, p.size, 3))
     rel = j.copy()
     rel[:, 1:] -= j[:, p[1:]]
     local = np.zeros((b, p.size, 4, 4))
@@ -63,7 +68,11 @@ def forward_kinematics(rot: np.ndarray, joints: np.ndarray, parents, trans: np.n
     local[..., :3, 3] = rel
     local[..., 3, 3] = 1.0
     if trans is not None:
-        local[:, 0, :3, 3] += np.asarray(trans, np.float64).reshape(b, 3)
+        t = np.asarray(trans, np.float64)
+        if t.shape not in ((b, 3), (3,) if b == 1 else (b, 3)) or not np.isfinite(t).all():
+            # a transposed (3, B) was reshaped into the wrong frames' translations (a library user's trial)
+            raise InputError("trans must be finite (B, 3)", expected=f"({b}, 3)", got=t.shape)
+        local[:, 0, :3, 3] += t.reshape(b, 3)
     g = np.empty_like(local)
     g[:, 0] = local[:, 0]
     for k in range(1, p.size):

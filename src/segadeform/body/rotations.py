@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = [
     "axis_angle_to_matrix",
     "matrix_to_axis_angle",
@@ -36,6 +38,8 @@ def axis_angle_to_matrix(r: np.ndarray) -> np.ndarray:
         r: (..., 3) -> (..., 3, 3)
     """
     r = np.asarray(r, np.float64)
+    if r.ndim < 1 or r.shape[-1] != 3:  # (3, 96) gave (3, 3, 3) from its first columns (a library user's trial)
+        raise InputError("axis-angle vectors must be (..., 3)", expected="(..., 3)", got=r.shape)
     t2 = np.sum(r * r, axis=-1)
     t = np.sqrt(t2)
     small = t < _SMALL

@@ -85,11 +85,11 @@ def unique_edges(faces: np.ndarray, n_vertices: int | None = None) -> np.ndarray
 
     Edges of degenerate faces that repeat a vertex (i, i) are dropped.
     """
-    f = np.asarray(faces, dtype=np.int64)
-    if n_vertices is not None:
-        f = check_faces(f, n_vertices)
+    f = np.asarray(faces)
     if f.size == 0:
         return np.zeros((0, 2), np.int64)
+    # checked as given: int64 first truncated 0.5 / 1.7 into real edges, and -1 made an edge (a library user's trial)
+    f = check_faces(f, n_vertices if n_vertices is not None else max(int(np.max(f)) + 1, 1))
     e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     e = np.sort(e, axis=1)
     e = e[e[:, 0] != e[:, 1]]
