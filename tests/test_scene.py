@@ -185,3 +185,32 @@ def test_a_bad_motion_value_names_the_scene_and_line(tmp_path, motion, line, wor
     r = CliRunner().invoke(cli, ["run", str(p), "--no-cache"])
     assert r.exit_code == 1 and f"{p}:{line}: [motion]: {words}" in r.output, r.output
     assert not (tmp_path / "o.pc2").exists()
+
+
+def test_a_scene_made_in_python_takes_its_format_from_the_output_and_checks_its_parts(tmp_path):
+    """A library user's trial: ``Scene(output=Path("x.obj"))`` kept the default format pc2 and wrote a point cache
+    named .obj; ``effects="+cloth"`` was said as "effects must name skinning"; ``MotionSpec()`` as "unknown motion
+    kind" with nothing got."""
+    from pathlib import Path
+
+    from segadeform.errors import InputError
+    from segadeform.settings import Scene, parse_effects
+    from segadeform.settings.scene import MotionSpec
+
+    walk = MotionSpec(kind="walk")
+    assert Scene(garment=Path("g.obj"), motion=walk, output=Path("o.usda")).output_format == "usd"
+    assert Scene(garment=Path("g.obj"), motion=walk, output=Path("o.pc2")).output_format == "pc2"
+    assert Scene(garment=Path("g.obj"), motion=walk, output=Path("frames")).output_format == "obj-seq"
+    with pytest.raises(InputError, match="cannot tell the output format from the file extension"):
+        Scene(garment=Path("g.obj"), motion=walk, output=Path("x.obj"))
+    with pytest.raises(InputError, match="the extension says usd, the format asked for is pc2"):
+        Scene(garment=Path("g.obj"), motion=walk, output=Path("o.usda"), output_format="pc2")
+    with pytest.raises(InputError, match=r"effects must be an Effects.*parse_effects"):
+        Scene(garment=Path("g.obj"), motion=walk, output=Path("o.pc2"), effects="+cloth")
+    assert Scene(
+        garment=Path("g.obj"), motion=walk, output=Path("o.pc2"), effects=parse_effects("+cloth")
+    ).effects.cloth
+    with pytest.raises(InputError, match=r"a motion is a file or a procedural kind.*got neither"):
+        MotionSpec()
+    with pytest.raises(InputError, match="got both"):
+        MotionSpec(file=tmp_path / "m.bvh", kind="walk")

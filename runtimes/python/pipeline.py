@@ -1320,7 +1320,7 @@ def run_scene(
         betas=scene.betas,
         effects=scene.effects,
         output=out,
-        output_format=scene.output_format,
+        output_format=cast(str, scene.output_format),  # resolved by Scene from the extension
         up=scene.up,
         units=scene.units,
         body_output=scene.body_output,

@@ -1,5 +1,7 @@
 """One rule for effects, end to end: a scene runs the stages it names and nothing else."""
 
+import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from segadeform.cli.main import cli
@@ -90,3 +92,26 @@ def test_a_motion_far_from_the_floor_is_said(tmp_path, random_package, caplog):
     assert "m.npz: its feet are 1.2" in msg and "m below the floor" in msg, msg
     assert said("--motion", str(tmp_path / "m.npz"), "--floor", "-o", str(tmp_path / "b.pc2")) == ""
     assert said("--motion", str(SAMPLES / "motions" / "walk.npz"), "-o", str(tmp_path / "c.pc2")) == ""
+
+
+def test_effects_and_cloth_settings_refuse_wrong_types_with_the_projects_error():
+    """A library user's trial: ``Effects(collision_margin="0.004")`` was a TypeError, ``Effects(cloth="no")`` ran the
+    cloth stage, and both classes raised plain ValueError/TypeError rather than the project's error."""
+    from segadeform.errors import InputError
+    from segadeform.settings import Effects
+    from segadeform.settings.cloth import ClothSettings
+
+    for bad, words in (
+        (dict(collision_margin="0.004"), "collision_margin must be in"),
+        (dict(collision_margin=True), "collision_margin must be in"),
+        (dict(collision_margin=float("nan")), "collision_margin must be in"),
+        (dict(cloth="no"), "cloth must be True or False"),
+        (dict(dynamics=1), "dynamics must be True or False"),
+        (dict(skinning="LBS"), "skinning must be 'lbs' or 'dqs'"),
+        (dict(cloth_settings={"iterations": 4}), "cloth_settings must be a ClothSettings"),
+    ):
+        with pytest.raises(InputError, match=words):
+            Effects(**bad)
+    assert Effects(collision_margin=0, cloth=np.bool_(True)).cloth is True
+    with pytest.raises(InputError, match=r"cloth iterations must be an integer in \[1, 64\].*got 0"):
+        ClothSettings(iterations=0)

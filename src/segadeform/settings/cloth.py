@@ -12,6 +12,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from ..errors import InputError
+
 __all__ = ["ClothSettings", "CLOTH_KNOBS"]
 
 #: knob -> (type, lowest, highest, what it is)
@@ -65,9 +67,9 @@ class ClothSettings:
             if typ is int:
                 ok = ok and float(v) == int(v)
             if not ok:
-                raise ValueError(
-                    f"cloth {name} must be {'an integer' if typ is int else 'a number'} in "
-                    f"[{lo:g}, {hi:g}] ({what}), got {v!r}"
+                raise InputError(
+                    f"cloth {name} must be {'an integer' if typ is int else 'a number'} in [{lo:g}, {hi:g}] ({what})",
+                    got=repr(v),
                 )
             object.__setattr__(self, name, typ(v))
 

@@ -17,7 +17,9 @@ import dataclasses
 import logging
 from collections.abc import Iterable, Sequence
 
-from ..errors import FileFormatError
+import numpy as np
+
+from ..errors import FileFormatError, InputError
 from .cloth import ClothSettings
 
 log = logging.getLogger(__name__)
@@ -104,10 +106,22 @@ class Effects:
     cloth_settings: ClothSettings = ClothSettings()
 
     def __post_init__(self):
+        # InputError (a ValueError): a library user's trial found "0.004" a TypeError and cloth="no" taken as on
         if self.skinning not in ("lbs", "dqs"):
-            raise ValueError(f"skinning must be 'lbs' or 'dqs', got {self.skinning!r}")
-        if not (self.collision_margin >= 0 and self.collision_margin < 1):
-            raise ValueError(f"collision_margin must be in [0, 1) metres, got {self.collision_margin!r}")
+            raise InputError("skinning must be 'lbs' or 'dqs'", expected="lbs | dqs", got=repr(self.skinning))
+        for name in ("dynamics", "wrinkles", "collisions", "cloth"):
+            v = getattr(self, name)
+            if not isinstance(v, (bool, np.bool_)):
+                raise InputError(f"{name} must be True or False", expected="a bool", got=repr(v))
+            object.__setattr__(self, name, bool(v))
+        m = self.collision_margin
+        if isinstance(m, bool) or not isinstance(m, (int, float, np.integer, np.floating)) or not 0 <= m < 1:
+            raise InputError("collision_margin must be in [0, 1) metres", expected="0 <= metres < 1", got=repr(m))
+        object.__setattr__(self, "collision_margin", float(m))
+        if not isinstance(self.cloth_settings, ClothSettings):
+            raise InputError(
+                "cloth_settings must be a ClothSettings", expected="ClothSettings(...)", got=type(self.cloth_settings)
+            )
 
     def label(self) -> str:
         """What runs: ``lbs+dynamics+collisions``; with the cloth stage, whose contact replaces the push-out,

@@ -128,14 +128,25 @@ class MotionSpec:
     def __post_init__(self):
         if self.fps is not None:  # NaN compares false with everything: checked here, not left to a resample
             check_motion_fps(self.fps)
+        if (self.file is None) == (self.kind is None):  # neither was "unknown motion kind" with no got
+            raise InputError(
+                "a motion is a file or a procedural kind",
+                expected="MotionSpec(file=PATH) or MotionSpec(kind=NAME)",
+                got="both" if self.file is not None else "neither",
+            )
 
 
 @dataclasses.dataclass(frozen=True)
 class Scene:
+    """One run's inputs, outputs and effects (a scene file's tables: :func:`load_scene`).  ``output_format`` None
+    (the default): the one ``output``'s extension names, as the command line takes it (a library user's
+    ``Scene(output=Path("x.obj"))`` wrote a point cache named .obj); a format the extension contradicts is refused.
+    ``effects``: an :class:`Effects` (``parse_effects("+cloth")`` makes one from the command line's words)."""
+
     garment: Path
     motion: MotionSpec
     output: Path
-    output_format: str = "pc2"
+    output_format: str | None = None
     up: str = "y"
     units: float = 1.0  # metres per written unit (io.writer.output_unit)
     resolution: float = 1.0  # share of the garment's vertices the model runs on (`run --resolution`)
@@ -146,6 +157,15 @@ class Scene:
     effects: Effects = Effects()
     path: Path | None = None
     simulate: object | None = None  # segadeform.physics.SimSettings; None: no [simulate] table
+
+    def __post_init__(self):
+        from ..io.outputs import output_format_for
+
+        object.__setattr__(self, "output_format", output_format_for(self.output, self.output_format))
+        if not isinstance(self.effects, Effects):  # "+cloth" was said as "effects must name skinning ..."
+            raise InputError(
+                "effects must be an Effects", expected="Effects(...) or parse_effects(TEXT)", got=type(self.effects)
+            )
 
 
 # The scene's tables (what each key takes: segadeform.io.toml.read_table)
