@@ -436,6 +436,9 @@ class Run:
         return cache_dir()
 
     def load_asset(self, joints: np.ndarray) -> GarmentAsset:
+        """The garment's precomputed asset for the rest ``joints (S, 3)``: read from an asset file, else made from
+        the mesh (cached in the user cache with ``cache``), welded or rewound for the model and decimated with
+        ``resolution < 1`` as the run needs; unchecked (:meth:`checked_asset` checks how it sits on the body)."""
         n_star = int(self.package.config["n_star"])
         if self.garment.suffix.lower() in (".npz", PORTABLE_SUFFIX):
             if self.resolution < 1.0:

@@ -227,6 +227,9 @@ class ClothSetup:
         return len(self.radius)
 
     def validate(self) -> ClothSetup:
+        """Itself when every array has the shape, type and range the kernel reads (a cached or hand-made setup is
+        checked before any C code touches it); else :class:`InputError` ("inconsistent cloth setup", with the
+        arrays' shapes)."""
         n, e = len(self.radius), len(self.edges)
         ok: bool | np.bool_ = (
             self.edges.dtype == np.int64
@@ -270,6 +273,7 @@ class ClothSetup:
         return self
 
     def save(self, path) -> Path:
+        """Write the setup's arrays to ``path`` (``.npz``, atomically); :meth:`load` reads them back, checked."""
         from ..io.atomic import atomic_path
 
         p = Path(path)
@@ -280,6 +284,7 @@ class ClothSetup:
 
     @classmethod
     def load(cls, path) -> ClothSetup:
+        """A setup :meth:`save` wrote, checked (:meth:`validate`)."""
         with np.load(path, allow_pickle=False) as z:
             return cls(**{f.name: np.asarray(z[f.name]) for f in dataclasses.fields(cls)}).validate()
 

@@ -12,6 +12,8 @@ __all__ = ["vertex_features", "feature_dim"]
 
 
 def feature_dim(n_joints: int) -> int:
+    """The width of :func:`vertex_features`' rows for a skeleton of ``n_joints`` joints: position (3), normal (3) and
+    one skinning weight per joint."""
     return 6 + int(n_joints)
 
 

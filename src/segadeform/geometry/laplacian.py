@@ -154,6 +154,13 @@ class SpectralBasis:
     def from_mesh(
         cls, vertices, faces, *, low: float = BAND_LOW, mid: float = BAND_MID, allow_large: bool = False
     ) -> SpectralBasis:
+        """The basis of a mesh: the cotangent Laplacian's first ``mid`` share of eigenvectors (M-orthonormal in the
+        lumped mass matrix), the low band their first ``low`` share.  ``allow_large``: past
+        :data:`MAX_DENSE_VERTICES` vertices (a dense eigenproblem) compute it anyway.
+
+        Shapes:
+            vertices: (N, 3) metres; faces: (F, 3) int -> a basis with eigenvectors (N, ceil(mid N))
+        """
         v, f = check_mesh(vertices, faces)
         n = v.shape[0]
         if not (0 < low <= mid <= 1):

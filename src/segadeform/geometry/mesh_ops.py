@@ -100,11 +100,17 @@ def unique_edges(faces: np.ndarray, n_vertices: int | None = None) -> np.ndarray
 
 
 def edge_lengths(vertices, edges) -> np.ndarray:
+    """Each edge's length.  Shapes: vertices (N, 3), edges (E, 2) int -> (E,)"""
     v = np.asarray(vertices, np.float64)
     return np.linalg.norm(v[edges[:, 1]] - v[edges[:, 0]], axis=1)
 
 
 def mean_edge_length(vertices, faces) -> float:
+    """The mean length of a mesh's unique edges (vertices' units; 0 for a mesh without edges).
+
+    Shapes:
+        vertices: (N, 3); faces: (F, 3) int -> float
+    """
     e = unique_edges(faces)
     if len(e) == 0:
         return 0.0

@@ -23,6 +23,8 @@ __all__ = ["read_off"]
 
 
 def read_off(path: str | os.PathLike) -> Mesh:
+    """Read an OFF file (Geomview's Object File Format, ASCII) into a :class:`Mesh`: its vertices in the file's order,
+    polygons fanned into triangles; a malformed file is a :class:`FileFormatError` naming it."""
     p = Path(path)
     try:
         text = p.read_bytes().decode("utf-8-sig", errors="replace")  # a byte-order mark is dropped
