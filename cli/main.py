@@ -120,7 +120,8 @@ class PathParam(click.Path):
                     raise FileFormatError("is a directory, not a file", path=path)
                 if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):  # /dev/zero was read until the kernel killed the
                     # process, with no word (a fuzzer's trial); a pipe (<(...)) stays a file to read
-                    raise FileFormatError("is a device, not a file", path=path, expected="a file")
+                    what = "a file" if self.file_okay else "a folder"
+                    raise FileFormatError(f"is a device, not {what}", path=path, expected=what)
                 if not self.file_okay and stat.S_ISREG(mode):
                     if self.package and path.endswith(".pt"):  # a checkpoint for --model: what makes a package
                         raise FileFormatError(
@@ -169,6 +170,14 @@ def _stdout_closed() -> bool:
 @click.version_option(__version__, prog_name="segadeform")
 def cli() -> None:
     """SEGA garment deformation: precompute, export and run."""
+
+
+def bvh_units_option(ctx, param, value):
+    """A ``--units`` option's callback (BVH units: :func:`segadeform.motion.bvh.bvh_units`): a bad value is a usage
+    error naming it (exit 2; it was "scale must be positive", exit 1, naming neither: a fuzzer's trial)."""
+    from segadeform.motion.bvh import bvh_units
+
+    return None if value is None else option_value(bvh_units, value, option="--units")
 
 
 def _register() -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from .main import PathParam, cli
+from .main import PathParam, bvh_units_option, cli
 
 
 @cli.group("motion")
@@ -77,7 +77,7 @@ def make_cmd(kind, seconds, fps, seed, speed, amplitude, ease_in, output, body):
 )
 @click.option(
     "--units",
-    callback=lambda ctx, param, v: _bvh_units(v),
+    callback=bvh_units_option,
     help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).",
 )
 @click.option("--joint-map", type=PathParam(dir_okay=False, path_type=Path), help="BVH/AMC joint map (TOML/JSON).")
@@ -181,12 +181,3 @@ def info_cmd(motion, body, up, units, joint_map, skeleton, animation):
         )
     if m.betas is not None:
         click.echo(f"  betas: {np.round(m.betas[:10], 3).tolist()}")
-
-
-def _bvh_units(value):
-    """``--units`` checked as the command line is read: a bad value is a usage error naming it (exit 2; it was
-    "scale must be positive", exit 1, naming neither: a fuzzer's trial)."""
-    from segadeform.cli.main import option_value
-    from segadeform.motion.bvh import bvh_units
-
-    return None if value is None else option_value(bvh_units, value, option="--units")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from .main import PathParam
+from .main import PathParam, bvh_units_option
 from .motion import motion_group
 
 
@@ -43,7 +43,7 @@ from .motion import motion_group
 )
 @click.option(
     "--units",
-    callback=lambda ctx, param, v: _bvh_units(v),
+    callback=bvh_units_option,
     help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).",
 )
 @click.option("--joint-map", type=PathParam(dir_okay=False, path_type=Path), help="BVH/AMC joint map (TOML/JSON).")
@@ -188,12 +188,3 @@ def motion_export_cmd(
         f"{m.name}: {m.n_frames} frames at {m.fps:g} fps ({m.seconds:.2f} s) on "
         f"{body_label(b)['name'] or 'the body'} -> {output}"
     )
-
-
-def _bvh_units(value):
-    """``--units`` checked as the command line is read: a bad value is a usage error naming it (exit 2; it was
-    "scale must be positive", exit 1, naming neither: a fuzzer's trial)."""
-    from segadeform.cli.main import option_value
-    from segadeform.motion.bvh import bvh_units
-
-    return None if value is None else option_value(bvh_units, value, option="--units")

@@ -9,7 +9,7 @@ import click
 
 from segadeform.io.writer import UP_AXES
 
-from .main import PathParam, cli, usable_threads
+from .main import PathParam, bvh_units_option, cli, usable_threads
 
 
 def _fmt_from(path: Path, fmt: str | None) -> str:
@@ -165,7 +165,7 @@ def _effects_option(text, base=None, *, check_only: bool = False):
 )
 @click.option(
     "--units",
-    callback=lambda ctx, param, v: _bvh_units(v),
+    callback=bvh_units_option,
     help="BVH units: m, dm, cm, mm, inch, cmu or metres per unit (default: fit the legs).",
 )
 @click.option(
@@ -283,6 +283,8 @@ def run_cmd(
             changes["effects"] = _effects_option(effects, sc.effects)
         if fmt or output:
             changes["output_format"] = _fmt_from(output or sc.output, fmt)
+        if output:  # the scene checks its format against its output (a review: -o x.usda on a .pc2 scene refused)
+            changes["output"] = output
         if up:
             changes["up"] = up
         if out_unit is not None:
@@ -462,12 +464,3 @@ def run_cmd(
         )
     for path in summary.written:
         click.echo(f"  wrote {path}")
-
-
-def _bvh_units(value):
-    """``--units`` checked as the command line is read: a bad value is a usage error naming it (exit 2; it was
-    "scale must be positive", exit 1, naming neither: a fuzzer's trial)."""
-    from segadeform.cli.main import option_value
-    from segadeform.motion.bvh import bvh_units
-
-    return None if value is None else option_value(bvh_units, value, option="--units")

@@ -69,6 +69,7 @@ def simulate_cmd(scene, output, effects, material, quality, frames, body_out, si
         changes["motion"] = dataclasses.replace(sc.motion, frames=parse_frames(frames))
     if output is not None:
         changes["output_format"] = output_format_for(output)
+        changes["output"] = output
     if body_out is not None:  # (a scene's body path that `run` wrote is another command's output: move it)
         changes["body_output"] = body_out
     sc = dataclasses.replace(sc, **changes)

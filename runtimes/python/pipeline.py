@@ -50,7 +50,7 @@ from segadeform.io.garment_asset import PORTABLE_SUFFIX
 from segadeform.io.hashing import file_sha256
 from segadeform.io.mesh import Mesh
 from segadeform.io.obj import recorded_betas
-from segadeform.io.outputs import claim_scene_outputs, garment_surface
+from segadeform.io.outputs import claim_scene_outputs, garment_surface, output_format_for
 from segadeform.io.toml import key_line
 from segadeform.motion import (
     Motion,
@@ -333,8 +333,8 @@ class Run:
         betas: body shape.
         effects: stages to run.
         output / output_format / up / body_output: where and how :meth:`execute` writes (``output`` None: the run
-            is only streamed; ``output_format`` is taken as given, not from ``output``'s suffix: :func:`run_scene`
-            and the command line take it from the suffix).
+            is only streamed; ``output_format`` None: the one ``output``'s extension names, else checked against
+            it, as the command line takes them).
         units: metres per written unit of the outputs (1: metres; 0.01: centimetres;
             :func:`segadeform.io.writer.output_unit`).
         frames: ``(start, stop)`` of the motion, stop exclusive (None: to the end).
@@ -366,7 +366,7 @@ class Run:
         betas=(),
         effects: Effects = Effects(),
         output: Path | None = None,
-        output_format: str = "pc2",
+        output_format: str | None = None,
         up: str = "y",
         units: float = 1.0,
         body_output: Path | None = None,
@@ -391,9 +391,12 @@ class Run:
             raise InputError("batch must be at least 1", got=batch)
         self.garment, self.motion, self.package, self.body = Path(garment), motion, package, body
         self.betas = np.asarray(betas, np.float64)
-        self.effects, self.output, self.output_format, self.up = effects, output, output_format, up
+        self.effects, self.output, self.up = effects, output, up
         if output is not None:
             self.output = Path(output)
+        # the format the output's extension names unless given (and then checked against it), as the command line
+        # and Scene take it (a review: Run(output="out.obj") wrote a point cache named .obj)
+        self.output_format = output_format_for(self.output, output_format) if self.output is not None else "pc2"
         self.units = output_unit(units)
         self.body_output = Path(body_output) if body_output else None
         self.batch, self.cache, self.force = int(batch), cache, bool(force)
@@ -418,7 +421,7 @@ class Run:
         self.guard = guard
         if guard is not None and self.output is not None:  # refused before any work: an output over a file
             # segadeform did not write ...
-            claim_scene_outputs(guard, self.output, output_format, self.body_output)
+            claim_scene_outputs(guard, self.output, self.output_format, self.body_output)
         self.deformer = Deformer(package, effects)  # picks the variant; creates no session yet
         #: poses the body when collisions, the cloth stage or the body output need it (None otherwise); creates no
         #: session yet
@@ -779,11 +782,11 @@ class Run:
         """The run's frames in memory, a batch at a time, without writing a file (``output`` may be None): yields
         ``(lo, frames, body)`` -- ``frames`` (B, N, 3) float32 metres, y up, in world coordinates, the motion's frames
         ``lo .. lo + B - 1`` (``lo`` counted from the motion's first frame), exactly the frames :meth:`execute` writes
-        (its effects, cloth stage and collisions included); ``body`` (B, V, 3) float32, the posed body of those
-        frames when the run posed it (collisions, the cloth stage or ``body_output``), else None.  N is the
-        garment's vertex count in its file's order.  Each call runs the clip from its start (the cloth stage and the
-        push-out start afresh).  Python's counterpart of the Node and C++ ``Player``: a frame at a time through a
-        game loop is ``for lo, frames, body in run.stream(): ...``."""
+        (its effects, cloth stage and collisions included) before its writer converts them to ``units`` and ``up``;
+        ``body`` (B, V, 3) float32, the posed body of those frames when the run posed it (collisions, the cloth stage
+        or ``body_output``), else None.  N is the garment's vertex count in its file's order.  Each call runs the clip
+        from its start (the cloth stage and the push-out start afresh).  Python's counterpart of the Node and C++
+        ``Player``: a frame at a time through a game loop is ``for lo, frames, body in run.stream(): ...``."""
         yield from self._frames(self._prepare())
 
     def animate(self) -> np.ndarray:
@@ -1323,7 +1326,8 @@ def run_scene(
         betas=scene.betas,
         effects=scene.effects,
         output=out,
-        output_format=cast(str, scene.output_format),  # resolved by Scene from the extension
+        # another output than the scene's: the format its extension names (the command line's -o sets both)
+        output_format=scene.output_format if output is None or Path(output) == scene.output else None,
         up=scene.up,
         units=scene.units,
         body_output=scene.body_output,

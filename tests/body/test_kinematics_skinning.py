@@ -206,7 +206,7 @@ def test_wrong_shapes_are_refused_not_reshaped():
 
     body = load_body(default_body_path())
     poses = np.zeros((4, 72))
-    with pytest.raises(InputError, match=r"trans must be finite \(B, 3\).*expected \(4, 3\), got \(3, 4\)"):
+    with pytest.raises(InputError, match=r"trans must be \(B, 3\).*expected \(4, 3\), got \(3, 4\)"):
         body.forward(poses, trans=np.zeros((3, 4)))
     with pytest.raises(InputError, match="trans must be finite"):
         body.forward(poses, trans=np.full((4, 3), np.nan))

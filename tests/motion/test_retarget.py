@@ -463,8 +463,11 @@ def test_joints_nested_thousands_deep_are_one_line(tmp_path):
         row = " ".join(["0"] * (6 + 3 * n))
         return head + body + tail + f"MOTION\nFrames: 2\nFrame Time: 0.0333333\n{row}\n{row}\n"
 
-    (tmp_path / "ok.bvh").write_text(chain(MAX_DEPTH))
-    assert len(read_bvh_skeleton(tmp_path / "ok.bvh").names) == MAX_DEPTH + 1
+    (tmp_path / "ok.bvh").write_text(chain(MAX_DEPTH - 1))  # the root and MAX_DEPTH - 1 joints below it
+    assert len(read_bvh_skeleton(tmp_path / "ok.bvh").names) == MAX_DEPTH
+    (tmp_path / "one.bvh").write_text(chain(MAX_DEPTH))
+    with pytest.raises(FileFormatError, match="joints nest too deeply"):
+        read_bvh_skeleton(tmp_path / "one.bvh")
     (tmp_path / "deep.bvh").write_text(chain(2000))
     with pytest.raises(FileFormatError, match=r"deep\.bvh:\d+: joints nest too deeply \(expected at most 256 levels"):
         read_bvh_skeleton(tmp_path / "deep.bvh")

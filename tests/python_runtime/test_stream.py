@@ -96,3 +96,36 @@ def test_the_readme_library_snippets_run_as_written(monkeypatch):
     exec(compile(blocks[1], "README.md: Library 2", "exec"), scope)
     low, mid, high = scope["low"], scope["mid"], scope["high"]
     assert np.abs(low + mid + high - scope["mesh"].vertices).max() < 1e-9
+
+
+def test_run_and_a_scene_take_the_format_of_their_output(tmp_path, random_package, body):
+    """A review: ``Run(output="out.obj")`` wrote a point cache named .obj, and `run SCENE -o x.usda` on a scene
+    writing .pc2 was refused once Scene checked its format against its output."""
+    from click.testing import CliRunner
+
+    from segadeform.cli.main import cli
+
+    def run(output, fmt=None):
+        return Run(
+            garment=SKIRT,
+            motion=make_motion("walk", seconds=0.2),
+            package=ModelPackage(random_package),
+            body=body,
+            output=output,
+            output_format=fmt,
+            cache=False,
+            force=True,
+        )
+
+    assert run(tmp_path / "a.usda").output_format == "usd" and run(tmp_path / "b.pc2").output_format == "pc2"
+    with pytest.raises(InputError, match="cannot tell the output format"):
+        run(tmp_path / "out.obj")
+    with pytest.raises(InputError, match="the extension says pc2, the format asked for is usd"):
+        run(tmp_path / "c.pc2", "usd")
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        f'[garment]\nmesh = "{SKIRT}"\n[motion]\nkind = "walk"\nseconds = 0.2\n'
+        f'[output]\npath = "{tmp_path / "scene.pc2"}"\n[model]\npackage = "{random_package}"\n'
+    )
+    r = CliRunner().invoke(cli, ["run", str(scene), "-o", str(tmp_path / "other.usda"), "--force", "--no-cache"])
+    assert r.exit_code == 0 and (tmp_path / "other.usda").is_file() and not (tmp_path / "scene.pc2").exists(), r.output

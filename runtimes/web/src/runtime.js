@@ -11,11 +11,12 @@ const ORT_BUILDS = { wasm: "ort.wasm.min.mjs", webgpu: "ort.webgpu.min.mjs" };
 
 /**
  * Import onnxruntime-web for an execution provider ("wasm" or "webgpu"); `base` is the URL of its files (its dist/,
- * or the ort/ folder `npm run vendor` makes).  `threads` (1): WebAssembly threads, which need a cross-origin
- * isolated page (served with Cross-Origin-Opener-Policy: same-origin and Cross-Origin-Embedder-Policy: require-corp);
- * more than one on a page that is not is refused here rather than silently run on one.
+ * or the ort/ folder `npm run vendor` makes; default: the ort/ folder beside this file, where vendor puts it, so that
+ * the same call works on a page, in a Web Worker and one folder down).  `threads` (1): WebAssembly threads, which need
+ * a cross-origin isolated page (served with Cross-Origin-Opener-Policy: same-origin and Cross-Origin-Embedder-Policy:
+ * require-corp); more than one on a page that is not is refused here rather than silently run on one.
  */
-export async function loadOrt(ep, base, { threads = 1 } = {}) {
+export async function loadOrt(ep, base = new URL("./ort/", import.meta.url), { threads = 1 } = {}) {
   const file = ORT_BUILDS[ep];
   if (!file) throw new Error(`unknown execution provider '${ep}' (expected wasm or webgpu)`);
   if (!(Number.isInteger(threads) && threads >= 1)) throw new Error(`threads must be an integer >= 1 (got ${threads})`);
@@ -40,7 +41,14 @@ async function fetchOr(url) {
   try {
     return await fetch(url);
   } catch (e) {
-    const other = typeof location !== "undefined" && new URL(url, location.href).origin !== location.origin;
+    // (in a blob: worker a relative URL has no base: new URL threw here and hid the fetch's error, a web developer's
+    // trial of a worker)
+    const here = typeof location !== "undefined" ? location.href : undefined;
+    if (!URL.canParse(String(url), here)) {
+      throw new Error(`${url}: a relative URL with no base here (${here ?? "no location"}; a blob: worker?): pass ` +
+        "an absolute URL");
+    }
+    const other = here !== undefined && new URL(url, here).origin !== location.origin;
     throw new Error(`${url}: ${e.message} (${other ? "another origin than the page's: it must send CORS headers " +
       "(Access-Control-Allow-Origin), or serve it from the page's origin" : "is the server running?"})`);
   }
@@ -92,7 +100,12 @@ async function packageFrom(manifest, where, bytesOf, { eager = false } = {}) {
  * on another origin than the page needs CORS headers.
  */
 export async function loadPackage(url) {
-  const base = new URL(url.endsWith("/") ? url : `${url}/`, location.href);
+  const rel = url.endsWith("/") ? url : `${url}/`;
+  if (!URL.canParse(rel, location.href)) {  // a blob: worker's location is no base for a relative URL
+    throw new Error(`${url}: a relative URL, and ${location.href} is no base for it (a blob: worker?): pass an ` +
+      "absolute URL (new URL(url, page's location).href, posted from the page)");
+  }
+  const base = new URL(rel, location.href);
   const where = new URL("manifest.json", base).href;
   const r = await fetchOr(where);
   if (!r.ok) throw new Error(`${base}: no manifest.json (not a model package)`);

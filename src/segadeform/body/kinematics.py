@@ -69,9 +69,11 @@ def forward_kinematics(rot: np.ndarray, joints: np.ndarray, parents, trans: np.n
     local[..., 3, 3] = 1.0
     if trans is not None:
         t = np.asarray(trans, np.float64)
-        if t.shape not in ((b, 3), (3,) if b == 1 else (b, 3)) or not np.isfinite(t).all():
+        if t.shape not in ((b, 3), (3,) if b == 1 else (b, 3)):
             # a transposed (3, B) was reshaped into the wrong frames' translations (a library user's trial)
-            raise InputError("trans must be finite (B, 3)", expected=f"({b}, 3)", got=t.shape)
+            raise InputError("trans must be (B, 3)", expected=f"({b}, 3)", got=t.shape)
+        if not np.isfinite(t).all():
+            raise InputError("trans must be finite", expected="finite translations", got="NaN or inf")
         local[:, 0, :3, 3] += t.reshape(b, 3)
     g = np.empty_like(local)
     g[:, 0] = local[:, 0]

@@ -437,11 +437,12 @@ def _check_loose(v: np.ndarray, used: np.ndarray, proxy, path) -> None:
         return
     k = int(far[np.argmax(d[d > LOOSE_FAR])])
     raise PlacementError(
-        f"{far.size} vertices in no face lie more than {_length(LOOSE_FAR)} from the body (the farthest, vertex {k}, "
-        f"{_length(float(d.max()))} away): they are no cloth, and the skinning swings them with the body",
+        f"{far.size} {'vertex' if far.size == 1 else 'vertices'} in no face more than {_length(LOOSE_FAR)} from the "
+        f"body (the farthest, vertex {k}, {_length(float(d.max()))} away): no cloth, and the skinning swings "
+        f"{'it' if far.size == 1 else 'them'} with the body",
         path=path,
-        expected="a garment without them: delete them (Blender: Mesh > Clean Up > Delete Loose) and run again, "
-        "or pass --force",
+        expected="a garment without vertices in no face far off: delete them (Blender: Mesh > Clean Up > Delete "
+        "Loose) and run again, or pass --force",
     )
 
 
@@ -482,12 +483,12 @@ def _check_placement(
     v = np.asarray(vertices, np.float64)
     bv = np.asarray(body_vertices, np.float64)
     proxy = BodyProxy(bv, body_faces)
+    given, used = v, None
     if faces is not None:
         fi = np.asarray(faces, np.int64).ravel()
         if fi.size and fi.min() >= 0 and fi.max() < len(v):
             used = np.zeros(len(v), bool)
             used[fi] = True
-            _check_loose(v, used, proxy, path)
             v = v[used]
     if len(v) > max_points:
         v = v[np.linspace(0, len(v) - 1, max_points).astype(np.int64)]
@@ -495,6 +496,9 @@ def _check_placement(
     st = _stats(v, proxy, top, floor)
     if _fits(st):
         _check_centred(v, bv, proxy, top, floor, st, path)
+        if used is not None:  # once the garment sits on the body (a garment in cm with a stray vertex among its
+            # own was told to delete the vertex, not to be read in cm: a review)
+            _check_loose(given, used, proxy, path)
         return st
     small = (
         f"{1000 * st['size']:.1f} mm across (a garment is at least {100 * MIN_GARMENT_SIZE:.0f} cm), "

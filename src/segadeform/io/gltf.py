@@ -95,14 +95,16 @@ class GltfFile:
         import stat
 
         f = self.path.parent / urllib.parse.unquote(uri)
-        want = int(self.g.buffers[i].byteLength or 0)
+        n = self.g.buffers[i].byteLength
+        # byteLength is required; a file without it (or with none above 0) is read whole, as before (a review)
+        want = int(n) if isinstance(n, int) and not isinstance(n, bool) and n > 0 else None
         try:
             st = f.stat()
         except OSError:
             raise self.error(f"buffer {i}'s file is missing", expected="a readable file beside it", got=uri) from None
         if not stat.S_ISREG(st.st_mode):
             raise self.error(f"buffer {i}'s file is not a regular file", expected="a .bin file beside it", got=uri)
-        if st.st_size < want:
+        if want is not None and st.st_size < want:
             raise self.error(
                 f"buffer {i}'s file is shorter than the glTF says",
                 expected=f"{want} bytes",
@@ -110,7 +112,7 @@ class GltfFile:
             )
         try:
             with open(f, "rb") as fh:
-                return fh.read(want)
+                return fh.read() if want is None else fh.read(want)
         except OSError:
             raise self.error(
                 f"buffer {i}'s file cannot be read", expected="a readable file beside it", got=uri
@@ -244,8 +246,8 @@ def read_gltf_mesh(path: str | os.PathLike) -> Mesh:
         nonlocal count
         if not 0 <= k < len(g.nodes) or k in seen:  # (a node twice in the tree would loop)
             raise f.error("the node tree names a node that is not there, or one twice", got=k)
-        if depth > MAX_DEPTH:
-            raise f.error("nodes nest too deeply", expected=f"at most {MAX_DEPTH} levels", got=f"{depth} at node {k}")
+        if depth >= MAX_DEPTH:  # (root: depth 0, level 1)
+            raise f.error("nodes nest too deeply", expected=f"at most {MAX_DEPTH} levels", got=f"more, at node {k}")
         seen.add(k)
         node = g.nodes[k]
         world = parent @ _node_matrix(node, f, k)

@@ -120,9 +120,9 @@ def _parse(text: str, path: Path):
 
     def parse_joint(parent_idx, depth=0):
         ln, kw = tok[pos - 1]
-        if depth > MAX_DEPTH:  # (a fuzzer's 2,000 nested joints: a RecursionError traceback)
+        if depth >= MAX_DEPTH:  # (a fuzzer's 2,000 nested joints: a RecursionError traceback; the root is level 1)
             raise FileFormatError(
-                "joints nest too deeply", path=path, line=ln, expected=f"at most {MAX_DEPTH} levels", got=depth
+                "joints nest too deeply", path=path, line=ln, expected=f"at most {MAX_DEPTH} levels", got="more"
             )
         _, name = nxt()
         j = _Joint(name, parent_idx)

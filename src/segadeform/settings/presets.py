@@ -40,7 +40,7 @@ class Preset:
 #: (a product setting read off that table, not a model choice).  With the model shipped in issue #27 the
 #: temporal weights (dynamics) pay (all effects 4.272 cm, without dynamics 4.452 on the doc's 4 samples), and the
 #: cloth stage after all effects is the lowest error there is (4.168-4.199 cm over 1-16 sweeps and stiffness 0.2-1,
-#: against 4.265 with the push-out); its settings differ by under 0.03 cm, so best runs it at its defaults.  Three
+#: against 4.265 with the push-out); its settings differ by about 0.03 cm, so best runs it at its defaults.  Three
 #: other values of its knobs measured lower still on those 4 held-out samples (gravity 0: 4.154, damping 0.3: 4.161,
 #: attachment 1 cm: 4.164, against 4.173 at the defaults); a default chosen there would be tuned on the test
 #: split, so they stay rows of the table.  Fast and balanced are unchanged (the cheapest points without and with
