@@ -69,7 +69,7 @@ if (process.argv[1] === fileURLToPath(import.meta.url)) {
   try {
     const files = vendor(args[0], { ep });
     console.log(`${files.length} files -> ${join(resolve(args[0]), "segadeform")} (import ./segadeform/runtime.js; ` +
-      "loadOrt(ep, new URL('./segadeform/ort/', location.href)))");
+      "loadOrt(ep) finds ./segadeform/ort/ beside it; examples/embed.html, and embed-worker.* for a Web Worker)");
   } catch (e) {
     console.error(`error: ${e.message}`);
     process.exit(1);

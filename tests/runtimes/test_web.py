@@ -174,6 +174,22 @@ def test_a_page_of_ones_own_runs_the_vendored_runtime_a_chunk_at_a_time(portable
     # the package's files fetched when a run first needs them: the encoder, the one deformer and the shared weights
     # (every graph was fetched before)
     assert sorted(r["fetched"]) == ["deformer_dqs.onnx", "garment_encoder.onnx", "weights.bin"], r["fetched"]
+    # the same work in a module Web Worker (a web developer's trial: the docs said to use one, with no example; the
+    # page's thread then only receives frames): the same frames
+    for name in ("embed-worker.html", "embed-worker.js"):
+        shutil.copy(WEB / "examples" / name, site / name)
+    p = subprocess.run(
+        ["node", str(WEB / "test" / "embed.mjs"), "--root", str(site), "--page", f"embed-worker.html?{query}"]
+        + ["--chromium", CHROMIUM],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert p.returncode == 0, (p.stdout + p.stderr)[-3000:]
+    w = json.loads(next(ln for ln in p.stdout.splitlines() if ln.startswith("PAGE "))[5:])
+    assert "error" not in w and w["inWorker"], w
+    assert w["T"] == r["T"] and w["chunk"] == 3 and w["variant"] == r["variant"], w
+    assert w["finite"] and w["sameLength"] and w["rel"] <= RTOL, w
 
 
 def test_page_plays_a_decimated_model_garment_like_segadeform_run(site, portable_scene, random_package, tmp_path):
