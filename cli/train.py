@@ -56,7 +56,9 @@ def _body(path):
     "them); a run folder of the same config is resumed without it.",
 )
 def train_cmd(config, output, dataset, steps, init, device, seconds, body, val_ids, threads, force):
-    """Train the SEGA model on a simulated dataset (CONFIG.toml; see segadeform.train.config)."""
+    """Train the SEGA model on a simulated dataset (CONFIG.toml; see segadeform.train.config; needs the 'torch'
+    extra)."""
+    _need_torch("train")
     from segadeform.io.output_guard import OutputGuard
 
     guard = OutputGuard("train", force=force, inputs=(config, *dataset, body, init))
@@ -156,6 +158,15 @@ def _interrupted(output: Path) -> str:
     return "interrupted before the run's first checkpoint: run the same command again to start it afresh"
 
 
+def _need_torch(command: str) -> None:
+    """One line, exit 1, when torch is not installed: the training package imports it (a new user's `eval` without
+    the extra ended in a ModuleNotFoundError traceback)."""
+    import importlib.util
+
+    if importlib.util.find_spec("torch") is None:
+        raise click.ClickException(f"{command} needs the 'torch' extra: pip install 'segadeform[torch]'")
+
+
 @cli.command("eval")
 @click.argument("dataset", nargs=-1, required=True, type=PathParam(exists=True, path_type=Path))
 @click.option(
@@ -214,7 +225,8 @@ def _interrupted(output: Path) -> str:
 )
 def eval_cmd(dataset, models, output, splits, body, push_margin, heatmap, force, cloth=(), sample_ids=()):
     """Evaluate models against the simulation on DATASET (one or more roots: dataset folders, packs, folders of
-    packs): the paper's metrics per model and garment type."""
+    packs): the paper's metrics per model and garment type (needs the 'torch' extra)."""
+    _need_torch("eval")
     from segadeform.io.output_guard import OutputGuard
     from segadeform.runtime.predictor import PackagePredictor
     from segadeform.train.evaluate import evaluate as run_eval

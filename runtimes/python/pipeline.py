@@ -57,6 +57,7 @@ from segadeform.motion import (
     build_motion,
     floor_shift,
     frame_range,
+    glitch_words,
     glitches_in_range,
     motion_windows,
     root_cuts,
@@ -1295,12 +1296,10 @@ def run_scene(
     if settle or jumps:
         said.append(
             (
-                "motion %s: %d leading frames its capture settles from and %d frames it jumps to and back from "
-                "(joints faster than 20 m/s) throw the cloth about; --repair-glitches (repair_glitches = true in a "
-                "scene's [motion]) rebuilds them",
+                "motion %s: %s (joints faster than 20 m/s) throw the garment about; --repair-glitches "
+                "(repair_glitches = true in a scene's [motion]) rebuilds them",
                 Path(scene.motion.file or "motion").name,
-                settle,
-                jumps,
+                glitch_words(settle, jumps),
             )
         )
     cuts = root_cuts(motion, scene.motion.frames)

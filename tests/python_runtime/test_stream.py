@@ -24,6 +24,19 @@ def body():
     return load_body(SAMPLES / "bodies" / "default_body.npz")
 
 
+def _walk_run(package, body, **kw) -> Run:
+    """A run of the sample skirt on a short procedural walk (no cache, placement not checked)."""
+    return Run(
+        garment=SKIRT,
+        motion=make_motion("walk", seconds=0.2),
+        package=ModelPackage(package),
+        body=body,
+        cache=False,
+        force=True,
+        **kw,
+    )
+
+
 @pytest.mark.parametrize(
     "effects",
     [Effects(collisions=False), Effects(), Effects(cloth=True)],
@@ -64,14 +77,7 @@ def test_stream_and_animate_are_the_frames_execute_writes(tmp_path, random_packa
 
 
 def test_a_run_with_no_output_is_streamed_not_executed(random_package, body):
-    r = Run(
-        garment=SKIRT,
-        motion=make_motion("walk", seconds=0.2),
-        package=ModelPackage(random_package),
-        body=body,
-        cache=False,
-        force=True,
-    )
+    r = _walk_run(random_package, body)
     with pytest.raises(InputError, match=r"no output to write.*Run\.stream\(\)"):
         r.execute()
     assert r.animate().shape[0] == r.stop - r.start
@@ -106,16 +112,7 @@ def test_run_and_a_scene_take_the_format_of_their_output(tmp_path, random_packag
     from segadeform.cli.main import cli
 
     def run(output, fmt=None):
-        return Run(
-            garment=SKIRT,
-            motion=make_motion("walk", seconds=0.2),
-            package=ModelPackage(random_package),
-            body=body,
-            output=output,
-            output_format=fmt,
-            cache=False,
-            force=True,
-        )
+        return _walk_run(random_package, body, output=output, output_format=fmt)
 
     assert run(tmp_path / "a.usda").output_format == "usd" and run(tmp_path / "b.pc2").output_format == "pc2"
     with pytest.raises(InputError, match="cannot tell the output format"):

@@ -23,7 +23,7 @@ from .motion import (
     write_motion_file,
 )
 from .procedural import MOTION_KINDS, make_motion
-from .spec import MotionSpec, build_motion, frame_range, glitches_in_range, root_cuts, select_frames
+from .spec import MotionSpec, build_motion, frame_range, glitch_words, glitches_in_range, root_cuts, select_frames
 
 __all__ = [
     "Motion",
@@ -45,6 +45,7 @@ __all__ = [
     "frame_range",
     "select_frames",
     "glitches_in_range",
+    "glitch_words",
     "root_cuts",
     "read_motion_file",
     "write_motion_file",

@@ -127,6 +127,18 @@ def glitches_in_range(motion: Motion, frames: tuple[int, int | None] | None = No
     return settle, sum(1 for t in jump_times if t0 <= t < t1)
 
 
+def glitch_words(settle: int, jumps: int) -> str:
+    """:func:`glitches_in_range`'s counts in words, the parts that are not 0, each singular or plural ("1 leading frame
+    its capture settles from and 3 frames it jumps to and back from"; "1 leading frames" and "0 leading frames ..."
+    read oddly: a new user's trial)."""
+    parts = []
+    if settle:
+        parts.append(f"{settle} leading frame{'s' if settle != 1 else ''} its capture settles from")
+    if jumps:
+        parts.append(f"{jumps} frame{'s' if jumps != 1 else ''} it jumps to and back from")
+    return " and ".join(parts)
+
+
 def root_cuts(motion: Motion, frames: tuple[int, int | None] | None = None) -> list[tuple[int, float]]:
     """The steps inside ``frames`` (``(A, B)`` of the motion, B exclusive; None: all) where the root moves faster
     than :data:`CUT_SPEED`: ``[(frame after the step, metres moved), ...]``.  A cut or a teleport in the motion's
