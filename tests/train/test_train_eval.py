@@ -1187,3 +1187,21 @@ def test_eval_takes_named_samples_and_keeps_every_metric_of_each(synthetic_datas
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "nope__b0__walk" in err[0] and "'train' split" in err[0], err
     assert not bad.exists() or not any(bad.iterdir())
+
+
+def test_eval_and_train_without_torch_say_so_in_one_line(synthetic_dataset, tiny_config, tmp_path, monkeypatch, capsys):
+    """A new user's walkthrough: `eval` after the Quick start's install (no torch extra) ended in a
+    ModuleNotFoundError traceback; both commands now say what to install, exit 1, writing nothing."""
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a, **k: None if name == "torch" else real(name, *a, **k)
+    )
+    out = tmp_path / "ev"
+    assert main(["eval", str(synthetic_dataset), "-m", "lbs=lbs", "-o", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["Error: eval needs the 'torch' extra: pip install 'segadeform[torch]'"], err
+    assert main(["train", str(tiny_config), "-o", str(tmp_path / "run"), "--dataset", str(synthetic_dataset)]) == 1
+    assert "train needs the 'torch' extra" in capsys.readouterr().err
+    assert not out.exists() and not (tmp_path / "run").exists()
