@@ -59,7 +59,7 @@ def scene_bundle(
         body=body,
         betas=scene.betas,
         effects=effects,
-        output=Path(out).with_suffix(".unused"),
+        output=None,  # only its checks and its deformer: nothing is written through it
         cache=False,
         force=force,
     )

@@ -490,3 +490,22 @@ def _run_cli(args):
 
     r = CliRunner().invoke(cli, args)
     return r.exit_code, r.output
+
+
+def test_a_decompression_bomb_is_refused_in_an_npz_and_in_a_pack(tmp_path):
+    """A security review: 3.2 MB of deflated zeros in a motion .npz grew to 24 GB of memory, and a 455 KB pack whose
+    pack.json unpacked to 3 GiB ran out of memory; a member that unpacks past 64 MiB to over 200 times its compressed
+    size is refused before it is read."""
+    import zipfile
+
+    from segadeform.dataset.pack import Pack
+    from segadeform.errors import FileFormatError
+    from segadeform.io.npz import load_npz
+
+    np.savez_compressed(tmp_path / "bomb.npz", poses=np.zeros((70 * 2**20 // 8,)))  # 70 MiB of zeros, ~70 KB packed
+    with pytest.raises(FileFormatError, match="array 'poses' unpacks to far more than its compressed size"):
+        load_npz(tmp_path / "bomb.npz")
+    with zipfile.ZipFile(tmp_path / "bomb.sgdpack", "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("pack.json", b'{"format": "x"' + b" " * (70 * 2**20) + b"}")
+    with pytest.raises(FileFormatError, match="pack.json unpacks to far more than its compressed size"):
+        Pack(tmp_path / "bomb.sgdpack")

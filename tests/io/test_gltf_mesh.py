@@ -160,6 +160,7 @@ def test_nodes_nested_thousands_deep_are_one_line_and_a_buffer_is_read_to_its_le
     """A fuzzer's trial: 5,000 nested nodes gave a RecursionError traceback, and a buffer whose uri was /dev/zero was
     read until the kernel killed the process."""
     import json
+    import os
 
     path = _glb(tmp_path / "g.glb", [(QUAD, [[0, 1, 2], [0, 2, 3]], 4)])
     import pygltflib as g
@@ -176,7 +177,8 @@ def test_nodes_nested_thousands_deep_are_one_line_and_a_buffer_is_read_to_its_le
     blob = gl.binary_blob()
     (tmp_path / "g.bin").write_bytes(blob)
     doc = json.loads(gl.to_json())
-    doc["buffers"] = [{"byteLength": len(blob), "uri": "/dev/zero"}]
+    os.symlink("/dev/zero", tmp_path / "zero.bin")  # beside it, but a device (an absolute uri is refused before)
+    doc["buffers"] = [{"byteLength": len(blob), "uri": "zero.bin"}]
     (tmp_path / "zero.gltf").write_text(json.dumps(doc))
     with pytest.raises(FileFormatError, match=r"zero\.gltf: buffer 0's file is not a regular file"):
         read_mesh(tmp_path / "zero.gltf")
@@ -187,3 +189,32 @@ def test_nodes_nested_thousands_deep_are_one_line_and_a_buffer_is_read_to_its_le
     doc["buffers"] = [{"byteLength": len(blob), "uri": "g.bin"}]
     (tmp_path / "ok.gltf").write_text(json.dumps(doc))
     assert np.abs(read_mesh(tmp_path / "ok.gltf").vertices - QUAD).max() < 1e-6
+
+
+def test_a_buffer_outside_the_gltfs_folder_and_an_unbacked_huge_accessor_are_refused(tmp_path):
+    """A security review: a buffer uri of ../secret or an absolute path read any file and copied its bytes into the
+    garment (normalised unsigned bytes pass every bound), and a 276-byte file asked for 30 million zeros (6 GB)."""
+    import json
+
+    import pygltflib as g
+
+    path = _glb(tmp_path / "g.glb", [(QUAD, [[0, 1, 2], [0, 2, 3]], 4)])
+    gl = g.GLTF2().load(str(path))
+    blob = gl.binary_blob()
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "g.bin").write_bytes(blob)
+    (tmp_path / "sub" / "g.bin").write_bytes(blob)
+    doc = json.loads(gl.to_json())
+    for uri in ("../g.bin", str(tmp_path / "g.bin"), "..%2Fg.bin", "sub/../../g.bin"):
+        doc["buffers"] = [{"byteLength": len(blob), "uri": uri}]
+        (tmp_path / "sub" / "x.gltf").write_text(json.dumps(doc))
+        with pytest.raises(FileFormatError, match="buffer 0's file is outside the glTF's folder"):
+            read_mesh(tmp_path / "sub" / "x.gltf")
+    doc["buffers"] = [{"byteLength": len(blob), "uri": "g.bin"}]  # beside it: read
+    (tmp_path / "sub" / "x.gltf").write_text(json.dumps(doc))
+    assert len(read_mesh(tmp_path / "sub" / "x.gltf").vertices) == 4
+    pos = doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+    doc["accessors"][pos] = {"componentType": 5126, "count": 30_000_000, "type": "VEC3"}  # no bufferView
+    (tmp_path / "sub" / "x.gltf").write_text(json.dumps(doc))
+    with pytest.raises(FileFormatError, match="has no bufferView and a count too large"):
+        read_mesh(tmp_path / "sub" / "x.gltf")

@@ -900,3 +900,52 @@ def test_node_reads_a_motion_of_no_frames_as_such_and_says_nan_as_nan(node, tmp_
     got = _node_result(script, tmp_path / "empty.sgdm")
     assert got["motion"] == "empty.sgdm: the motion has no frames (expected T >= 1, got [0,24,3])", got
     assert got["fps"].endswith("(expected 1..1000, got NaN)"), got
+
+
+def test_a_manifest_naming_a_file_outside_the_package_is_refused_by_node_and_cpp(
+    node, cpp, portable_scene, random_package, tmp_path
+):
+    """A security review: Node and C++ joined a graph's file name from manifest.json to the package folder unchecked:
+    `../outside.onnx` ran a graph from outside the package, `../../dev/zero` read until Node aborted, a FIFO hung
+    both.  They now hold the name to Python's rule (a plain .onnx name in the folder)."""
+    import shutil
+
+    from tests.runtimes.conftest import play
+
+    for bad in ("../outside.onnx", "/dev/zero", "sub/x.onnx", ".hidden.onnx"):
+        pkg = tmp_path / "pkg"
+        shutil.rmtree(pkg, ignore_errors=True)
+        shutil.copytree(random_package, pkg)
+        m = json.loads((pkg / "manifest.json").read_text())
+        m["graphs"]["garment_encoder"]["file"] = bad
+        (pkg / "manifest.json").write_text(json.dumps(m))
+        for exe in (node, cpp):
+            p = play(exe, pkg, portable_scene["garment"], portable_scene["motion"], tmp_path / "o.pc2", timeout=120)
+            assert p.returncode != 0 and "must be a .onnx file name in the package folder" in p.stderr, (exe, p.stderr)
+            assert not (tmp_path / "o.pc2").exists()
+
+
+def test_cpp_refuses_a_scene_bundle_whose_arrays_do_not_agree(cpp, shared_bundle, random_package, tmp_path):
+    """A security review: the C++ bundle path read a 1-D nbr's missing second dimension from the heap and took 1-D
+    poses into std::bad_alloc; it now checks a bundle's arrays as an asset's."""
+    arrays, meta = read_bundle(shared_bundle)
+    for name, bad in (("nbr", arrays["nbr"][:1, 0].copy()), ("poses", arrays["poses"].ravel().copy())):
+        broken = dict(arrays, **{name: bad})
+        f = tmp_path / f"bad_{name}.sgdb"
+        write_bundle(f, broken, meta)
+        p = subprocess.run(
+            [*cpp, str(random_package), str(f), "-o", str(tmp_path / "o.pc2")],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert p.returncode != 0 and f"field '{name}' is missing or malformed" in p.stderr, p.stderr
+    broken = dict(arrays, nbr=np.full_like(arrays["nbr"], len(arrays["rest"])))
+    write_bundle(tmp_path / "far.sgdb", broken, meta)
+    p = subprocess.run(
+        [*cpp, str(random_package), str(tmp_path / "far.sgdb"), "-o", str(tmp_path / "o.pc2")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode != 0 and "nbr index out of range" in p.stderr, p.stderr

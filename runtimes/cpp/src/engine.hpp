@@ -385,10 +385,21 @@ struct Package {
   explicit Package(const std::string& d) : dir(d), manifest(sgd::parse_json(read_text(d + "/manifest.json"))) {
     if (!manifest.has("format") || manifest["format"].str != "segadeform-model-package")
       throw std::runtime_error(dir + ": not a segadeform model package");
-    schema = static_cast<int>(manifest["schema_version"].num);
-    if (schema < 1 || schema > 3)
-      throw std::runtime_error(dir + "/manifest.json: unsupported manifest schema version (expected 1, 2 or 3, got " +
-                               std::to_string(schema) + ")");
+    const double v = manifest.has("schema_version") ? manifest["schema_version"].num : 0.0;
+    schema = v == 1.0 || v == 2.0 || v == 3.0 ? static_cast<int>(v) : 0;  // (a cast of NaN or 1e300 is undefined)
+    if (schema == 0)
+      throw std::runtime_error(dir + "/manifest.json: unsupported manifest schema version (expected 1, 2 or 3)");
+  }
+  // a graph's file: a plain .onnx name in the package folder, as Python's manifest schema has it (a name with a path
+  // in it loaded a graph from outside the package, or waited on a FIFO: a security review)
+  std::string graph_file(const sgd::Json& spec) const {
+    const std::string f = spec.has("file") ? spec["file"].str : std::string();
+    const bool plain = f.size() > 5 && f[0] != '.' && f.find('/') == std::string::npos &&
+                       f.find('\\') == std::string::npos && f.compare(f.size() - 5, 5, ".onnx") == 0;
+    if (!plain)
+      throw std::runtime_error(dir + "/manifest.json: a graph's file must be a .onnx file name in the package folder "
+                               "(got \"" + f + "\")");
+    return dir + "/" + f;
   }
   // schema 1 listed the deformers in "variants"; 2 and 3 list every graph once in "graphs", with a role
   const sgd::Json& deformer(const Effects& want) const {
@@ -454,23 +465,43 @@ struct Scene {
   std::vector<std::string> warnings;  // what a forced run played anyway (the caller says them)
 };
 
-inline Scene scene_of_bundle(const sgd::Bundle& b) {
+inline const sgd::Array& need(const sgd::Bundle& b, const std::string& path, const std::string& name, const std::string& dtype,
+                       size_t ndim);
+
+// a scene bundle's arrays, checked as an asset's are: dtypes, ranks, agreeing shapes and index ranges (a bundle with a
+// 1-D nbr read heap memory as its K, one with 1-D poses ended in std::bad_alloc: a security review)
+inline Scene scene_of_bundle(const sgd::Bundle& b, const std::string& path = "the bundle") {
   Scene s;
-  s.features = &b.at("features");
-  s.nbr = &b.at("nbr");
-  s.mask = &b.at("mask");
-  s.descriptor = &b.at("descriptor");
-  s.joints = &b.at("joints");
-  if (b.has("log_wbody")) s.log_wbody = &b.at("log_wbody");
-  s.rest = floats(b.at("rest"));
+  s.features = &need(b, path, "features", "f32", 2);
+  s.nbr = &need(b, path, "nbr", "i32", 2);
+  s.mask = &need(b, path, "mask", "u8", 2);
+  s.descriptor = &need(b, path, "descriptor", "f32", 1);
+  s.joints = &need(b, path, "joints", "f32", 2);
+  if (b.has("log_wbody")) s.log_wbody = &need(b, path, "log_wbody", "f32", 2);
+  const auto& rest = need(b, path, "rest", "f32", 2);
+  const auto& poses = need(b, path, "poses", "f32", 2);
+  const auto& trans = need(b, path, "trans", "f32", 2);
+  s.N = s.M = rest.shape[0];
+  s.K = s.nbr->shape[1];
+  s.S = s.joints->shape[0];
+  s.T = poses.shape[0];
+  s.D = poses.shape[1];
+  if (rest.shape[1] != 3 || s.N < 1 || s.nbr->shape[0] != s.N || s.mask->shape != s.nbr->shape ||
+      s.features->shape[0] != s.N || s.joints->shape[1] != 3 || s.D != 3 * s.S || s.T < 1 ||
+      trans.shape[0] != s.T || trans.shape[1] != 3 ||
+      (s.log_wbody && (s.log_wbody->shape[0] != s.N || s.log_wbody->shape[1] != s.S)))
+    throw std::runtime_error(path + ": fields do not agree (expected rest (N, 3), nbr and mask (N, K), features (N, F), "
+                             "joints (S, 3), poses (T, 3 S), trans (T, 3), log_wbody (N, S))");
+  const int32_t* nb = s.nbr->as<int32_t>();
+  for (int64_t i = 0; i < s.nbr->count(); ++i)
+    if (nb[i] < 0 || nb[i] >= s.N)
+      throw std::runtime_error(path + ": nbr index out of range (expected 0.." + std::to_string(s.N - 1) + ", got " +
+                               std::to_string(nb[i]) + ")");
+  if (!b.has("betas")) throw std::runtime_error(path + ": field 'betas' is missing");
+  s.rest = floats(rest);
   s.betas = floats(b.at("betas"));
-  s.poses = floats(b.at("poses"));
-  s.trans = floats(b.at("trans"));
-  s.N = s.M = b.at("rest").shape[0];
-  s.K = b.at("nbr").shape[1];
-  s.S = b.at("joints").shape[0];
-  s.T = b.at("poses").shape[0];
-  s.D = b.at("poses").shape[1];
+  s.poses = floats(poses);
+  s.trans = floats(trans);
   // a scene with frames A:B: its motion starts at A, and so does the point cache (as `segadeform run` numbers it)
   s.start_frame = b.meta.has("start_frame") ? static_cast<float>(b.meta["start_frame"].num) : 0.f;
   return s;
@@ -787,7 +818,7 @@ inline void at_translation(float* frames, const float* trans, int64_t B, int64_t
 class BodyPoser {
  public:
   BodyPoser(OrtEnv* env, const Package& pkg, const sgd::Json& spec, const Scene& sc, int threads)
-      : sess_(env, pkg.dir + "/" + spec["file"].str, threads) {
+      : sess_(env, pkg.graph_file(spec), threads) {
     if (spec.has("body") && !sc.body_sha.empty() && spec["body"]["sha256"].str != sc.body_sha)
       throw std::runtime_error("the garment asset was prepared for another body than the package's (" +
                                spec["body"]["name"].str + ")");
@@ -1006,8 +1037,8 @@ class Stream {
   void open_deformer(OrtEnv* env, const Package& pkg, const sgd::Json& dec_spec) {
     const sgd::Json& enc_spec = pkg.manifest["graphs"]["garment_encoder"];
     const Scene& sc = sc_;
-    Session enc(env, pkg.dir + "/" + enc_spec["file"].str, opt_.threads, /*arena=*/false);
-    dec_.reset(new Session(env, pkg.dir + "/" + dec_spec["file"].str, opt_.threads));
+    Session enc(env, pkg.graph_file(enc_spec), opt_.threads, /*arena=*/false);
+    dec_.reset(new Session(env, pkg.graph_file(dec_spec), opt_.threads));
     const auto t0 = Clock::now();  // the encoder's run and the deformer's (not the sessions' creation)
     const int64_t N = sc.M, K = sc.K, S = sc.S;  // the model's garment
     window_ = static_cast<int64_t>(find_input(dec_spec, "window")["shape"].arr[1].num);

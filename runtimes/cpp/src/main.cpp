@@ -292,7 +292,7 @@ int main(int argc, char** argv) {
       if (do_check && !bundle.has("expected"))  // said before the sessions are built, naming the file and the fix
         throw std::runtime_error(pos[1] + ": the bundle holds no expected frames to --check against (expected a bundle "
                                  "made without --no-expected, got one made with it)");
-      sc = scene_of_bundle(bundle);
+      sc = scene_of_bundle(bundle, pos[1]);
       // the scene's post-processes a bundle does not play: its frames are the network's alone (--check included)
       if (bundle.meta.has("left_out") && !bundle.meta["left_out"].arr.empty()) {
         std::string left;

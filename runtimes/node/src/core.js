@@ -97,8 +97,25 @@ export function readManifest(m, where = "manifest.json") {
     throw new Error(`${where}: unsupported manifest schema version (expected 1, 2 or 3, got ${m.schema_version})`);
   }
   if (!m.graphs || !m.graphs.garment_encoder) throw new Error(`${where}: manifest has no garment_encoder`);
+  // every file a plain name in the package folder, as Python's manifest schema has it: a name with a path in it read
+  // a graph from outside the package (or a device, or a FIFO that hung: a security review)
+  for (const [name, g] of Object.entries(m.graphs)) {
+    if (typeof g.file !== "string" || !GRAPH_FILE.test(g.file)) {
+      throw new Error(`${where}: graph '${name}' file must be a .onnx file name in the package folder ` +
+        `(got ${JSON.stringify(g.file)})`);
+    }
+  }
+  if (m.weights !== undefined && m.weights !== null &&
+      (typeof m.weights.file !== "string" || !WEIGHTS_FILE.test(m.weights.file))) {
+    throw new Error(`${where}: manifest weights must name a file in the package folder ` +
+      `(got ${JSON.stringify(m.weights.file)})`);
+  }
   return m;
 }
+
+/* a graph's and the shared weights' file names (segadeform.contracts.model_package's _GRAPH_FILE, _WEIGHTS_FILE) */
+const GRAPH_FILE = /^[^./\\][^/\\]*\.onnx$/;
+const WEIGHTS_FILE = /^[^./\\][^/\\]*$/;
 
 /** Schema 1 -> 3 (segadeform.package_spec.upgrade_manifest): one name per graph. */
 function upgradeManifest(m) {

@@ -158,6 +158,22 @@ def _sample_bytes(s: Sample, step: float) -> bytes:
     return buf.getvalue()
 
 
+def _check_unpacked(info, path) -> None:
+    """A zip member ``info`` that would unpack past :data:`segadeform.io.npz.UNPACKED_MIN` bytes to more than
+    :data:`~segadeform.io.npz.UNPACKED_RATIO` times its compressed size is refused (a decompression bomb)."""
+    from ..io.npz import UNPACKED_MIN, UNPACKED_RATIO
+
+    if info.compress_type != zipfile.ZIP_STORED and info.file_size > max(
+        UNPACKED_MIN, UNPACKED_RATIO * info.compress_size
+    ):
+        raise FileFormatError(
+            f"{info.filename} unpacks to far more than its compressed size (a decompression bomb?)",
+            path=path,
+            expected=f"at most {UNPACKED_RATIO}x its {info.compress_size} compressed bytes",
+            got=f"{info.file_size} bytes",
+        )
+
+
 @dataclasses.dataclass(frozen=True)
 class PackSummary:
     path: Path
@@ -327,7 +343,9 @@ class Pack:
                 ) from None
             raise FileFormatError("not a dataset pack (not a zip archive)", path=self.path) from None
         try:
-            head = json.loads(self._zip.read("pack.json"))
+            head = json.loads(self._read("pack.json"))
+        except FileFormatError:
+            raise
         except KeyError:
             raise FileFormatError("not a dataset pack (no pack.json)", path=self.path) from None
         except (ValueError, *_DAMAGED) as e:
@@ -351,6 +369,12 @@ class Pack:
         self.head = head
         self.entries: dict = ent
 
+    def _read(self, name: str) -> bytes:
+        """Member ``name`` of the pack, refused when it unpacks to far more than its compressed size (a security
+        review: a 455 KB pack whose pack.json unpacked to 3 GiB)."""
+        _check_unpacked(self._zip.getinfo(name), self.path)
+        return self._zip.read(name)
+
     # what made it
     @property
     def body_sha256(self) -> str | None:
@@ -366,14 +390,16 @@ class Pack:
     def read_meta(self, sid: str) -> dict:
         e = self._entry(sid)
         try:
-            return json.loads(self._zip.read(f"{e['folder']}/{sid}.json"))
+            return json.loads(self._read(f"{e['folder']}/{sid}.json"))
+        except FileFormatError:
+            raise
         except (KeyError, ValueError, *_DAMAGED) as err:
             raise FileFormatError(f"sample {sid}'s metadata is unreadable ({err})", path=self.path) from None
 
     def load(self, sid: str) -> Sample:
         e = self._entry(sid)
         try:
-            data = self._zip.read(f"{e['folder']}/{sid}.npz")
+            data = self._read(f"{e['folder']}/{sid}.npz")
         except (KeyError, *_DAMAGED) as err:
             raise FileFormatError(f"sample {sid} is unreadable ({err})", path=self.path) from None
         if hashlib.sha256(data).hexdigest() != e.get("sha256"):
@@ -381,6 +407,9 @@ class Pack:
                 f"sample {sid} does not match its recorded SHA-256 (the pack is damaged)", path=self.path
             )
         try:
+            with zipfile.ZipFile(io.BytesIO(data)) as inner:  # the sample's own arrays: no bomb inside either
+                for info in inner.infolist():
+                    _check_unpacked(info, self.path)
             z = dict(np.load(io.BytesIO(data), allow_pickle=False))
             frames = decode_frames(z)
         except (ValueError, KeyError, OSError, InputError) as err:

@@ -94,7 +94,17 @@ class GltfFile:
         kernel killed the process, with no word)."""
         import stat
 
-        f = self.path.parent / urllib.parse.unquote(uri)
+        rel = urllib.parse.unquote(uri)
+        parts = rel.replace("\\", "/").split("/")
+        if Path(rel).is_absolute() or rel.startswith(("/", "\\")) or ".." in parts or ":" in parts[0]:
+            # a file beside the glTF or below its folder, as the format's relative URIs are: an absolute or ../ URI
+            # read any file and copied it into the output (a security review)
+            raise self.error(
+                f"buffer {i}'s file is outside the glTF's folder",
+                expected="a relative path beside the glTF (no .., no absolute path)",
+                got=uri,
+            )
+        f = self.path.parent / rel
         n = self.g.buffers[i].byteLength
         # byteLength is required; a file without it (or with none above 0) is read whole, as before (a review)
         want = int(n) if isinstance(n, int) and not isinstance(n, bool) and n > 0 else None
@@ -129,7 +139,12 @@ class GltfFile:
         if a.componentType not in _DTYPES or a.type not in _WIDTH:
             raise self.error(f"{what}: unknown accessor layout", got=f"{a.componentType} {a.type}")
         dt, width, count = np.dtype(_DTYPES[a.componentType]).newbyteorder("<"), _WIDTH[a.type], int(a.count)
-        if a.bufferView is None:
+        if a.bufferView is None:  # zeros, as the format says; a count no garment has is refused (a 276-byte file asked
+            # for 30 million and took 6 GB: a security review)
+            if not 0 <= count <= MAX_UNBACKED:
+                raise self.error(
+                    f"{what} has no bufferView and a count too large", expected=f"<= {MAX_UNBACKED}", got=count
+                )
             return np.zeros((count, width))
         if not 0 <= a.bufferView < len(self.g.bufferViews):
             raise self.error(f"{what} names a bufferView that is not there", got=a.bufferView)
@@ -152,6 +167,8 @@ class GltfFile:
         return out
 
 
+#: an accessor without a bufferView (zeros) may have at most this many elements
+MAX_UNBACKED = 2_000_000
 #: nodes nested deeper than this are refused (a character's skeleton is a few tens deep; 5,000 nested nodes gave a
 #: RecursionError traceback: a fuzzer's trial)
 MAX_DEPTH = 256

@@ -19,6 +19,12 @@ from ..errors import FileFormatError
 __all__ = ["load_npz"]
 
 
+#: a compressed member may unpack to at most this many times its compressed size once past UNPACKED_MIN bytes: real
+#: arrays (floats, indices, masks) compress a few times at most; a member of zeros compresses about 1,000 times
+UNPACKED_RATIO = 200
+UNPACKED_MIN = 64 * 2**20
+
+
 def load_npz(path: str | os.PathLike, *, what: str = ".npz") -> dict[str, np.ndarray]:
     """All arrays of an ``.npz`` file as a dict, each checked against its stored size first."""
     p = Path(path)
@@ -44,6 +50,16 @@ def load_npz(path: str | os.PathLike, *, what: str = ".npz") -> dict[str, np.nda
                     declared = int(np.prod(shape, dtype=object)) * dtype.itemsize
                     header_len = fh.tell()
                     stored = info.file_size - header_len
+                    if info.compress_type != zipfile.ZIP_STORED and declared > max(
+                        UNPACKED_MIN, UNPACKED_RATIO * info.compress_size
+                    ):  # (a security review: 3.2 MB of deflated zeros grew to 24 GB of memory)
+                        raise FileFormatError(
+                            f"array '{name}' unpacks to far more than its compressed size (a decompression bomb?)",
+                            path=p,
+                            expected=f"at most {UNPACKED_RATIO}x its {info.compress_size} compressed bytes above "
+                            f"{UNPACKED_MIN // 2**20} MiB",
+                            got=f"{declared} bytes",
+                        )
                     if declared != stored:
                         raise FileFormatError(
                             f"array '{name}' declares more data than the file holds"
