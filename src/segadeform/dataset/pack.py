@@ -51,6 +51,7 @@ import numpy as np
 
 from ..errors import FileFormatError, InputError, file_error
 from ..io.atomic import atomic_path
+from ..io.npz import check_unpacked
 from .store import SAMPLE_FOLDERS, Sample, check_sample, load_sample
 
 #: what reading a damaged member of the archive raises (a flipped byte in an LZMA stream: LZMAError, a traceback
@@ -156,22 +157,6 @@ def _sample_bytes(s: Sample, step: float) -> bytes:
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     return buf.getvalue()
-
-
-def _check_unpacked(info, path) -> None:
-    """A zip member ``info`` that would unpack past :data:`segadeform.io.npz.UNPACKED_MIN` bytes to more than
-    :data:`~segadeform.io.npz.UNPACKED_RATIO` times its compressed size is refused (a decompression bomb)."""
-    from ..io.npz import UNPACKED_MIN, UNPACKED_RATIO
-
-    if info.compress_type != zipfile.ZIP_STORED and info.file_size > max(
-        UNPACKED_MIN, UNPACKED_RATIO * info.compress_size
-    ):
-        raise FileFormatError(
-            f"{info.filename} unpacks to far more than its compressed size (a decompression bomb?)",
-            path=path,
-            expected=f"at most {UNPACKED_RATIO}x its {info.compress_size} compressed bytes",
-            got=f"{info.file_size} bytes",
-        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -372,7 +357,7 @@ class Pack:
     def _read(self, name: str) -> bytes:
         """Member ``name`` of the pack, refused when it unpacks to far more than its compressed size (a security
         review: a 455 KB pack whose pack.json unpacked to 3 GiB)."""
-        _check_unpacked(self._zip.getinfo(name), self.path)
+        check_unpacked(self._zip.getinfo(name), self.path, name)
         return self._zip.read(name)
 
     # what made it
@@ -409,7 +394,7 @@ class Pack:
         try:
             with zipfile.ZipFile(io.BytesIO(data)) as inner:  # the sample's own arrays: no bomb inside either
                 for info in inner.infolist():
-                    _check_unpacked(info, self.path)
+                    check_unpacked(info, self.path, f"sample {sid}'s {info.filename}")
             z = dict(np.load(io.BytesIO(data), allow_pickle=False))
             frames = decode_frames(z)
         except (ValueError, KeyError, OSError, InputError) as err:

@@ -25,6 +25,22 @@ UNPACKED_RATIO = 200
 UNPACKED_MIN = 64 * 2**20
 
 
+def check_unpacked(info: zipfile.ZipInfo, path, what: str) -> None:
+    """Refuse zip member ``info`` (``what`` names it) when it would unpack past :data:`UNPACKED_MIN` bytes to more than
+    :data:`UNPACKED_RATIO` times its compressed size: a decompression bomb, refused before it is read (npz arrays,
+    dataset packs and their samples)."""
+    if info.compress_type != zipfile.ZIP_STORED and info.file_size > max(
+        UNPACKED_MIN, UNPACKED_RATIO * info.compress_size
+    ):
+        raise FileFormatError(
+            f"{what} unpacks to far more than its compressed size (a decompression bomb?)",
+            path=path,
+            expected=f"at most {UNPACKED_RATIO}x its {info.compress_size} compressed bytes above "
+            f"{UNPACKED_MIN // 2**20} MiB",
+            got=f"{info.file_size} bytes",
+        )
+
+
 def load_npz(path: str | os.PathLike, *, what: str = ".npz") -> dict[str, np.ndarray]:
     """All arrays of an ``.npz`` file as a dict, each checked against its stored size first."""
     p = Path(path)
@@ -38,6 +54,7 @@ def load_npz(path: str | os.PathLike, *, what: str = ".npz") -> dict[str, np.nda
     with zf:
         for info in zf.infolist():
             name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+            check_unpacked(info, p, f"array '{name}'")  # (a security review: 3.2 MB of zeros grew to 24 GB)
             try:
                 with zf.open(info) as fh:
                     version = np.lib.format.read_magic(fh)
@@ -50,16 +67,6 @@ def load_npz(path: str | os.PathLike, *, what: str = ".npz") -> dict[str, np.nda
                     declared = int(np.prod(shape, dtype=object)) * dtype.itemsize
                     header_len = fh.tell()
                     stored = info.file_size - header_len
-                    if info.compress_type != zipfile.ZIP_STORED and declared > max(
-                        UNPACKED_MIN, UNPACKED_RATIO * info.compress_size
-                    ):  # (a security review: 3.2 MB of deflated zeros grew to 24 GB of memory)
-                        raise FileFormatError(
-                            f"array '{name}' unpacks to far more than its compressed size (a decompression bomb?)",
-                            path=p,
-                            expected=f"at most {UNPACKED_RATIO}x its {info.compress_size} compressed bytes above "
-                            f"{UNPACKED_MIN // 2**20} MiB",
-                            got=f"{declared} bytes",
-                        )
                     if declared != stored:
                         raise FileFormatError(
                             f"array '{name}' declares more data than the file holds"
