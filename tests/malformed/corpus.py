@@ -70,6 +70,10 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     obj("bad_normal_index", GOOD_OBJ + "f 1//1 2//1 3//1\n", "normal index out of range")
     obj("truncated_vertex_line", "v 0 0 0\nv 1 0\n", "x y z")
     obj("bad_corner", GOOD_OBJ + "f 1/1/1/1 2 3\n", "bad face corner")
+    # numbers only as files write them: Python's float() and int() also read "0.15_9" and other scripts' digits
+    obj("digit_separator", "v 0 0.15_9 0\n" + GOOD_OBJ, "non-numeric")
+    obj("arabic_digit", "v 0 \u0661 0\n" + GOOD_OBJ, "non-numeric")
+    obj("index_separator", GOOD_OBJ + "f 1 2 1_0\n", "bad vertex index")
 
     def mesh(name, ext, data, words):
         p = d / f"{name}{ext}"
@@ -80,6 +84,8 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     mesh("off_bad_counts", ".off", "OFF\nfour two zero\n", "counts")
     mesh("off_index", ".off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", "out of range")
     mesh("off_not_off", ".off", "COFFEE\n", "not an OFF file")
+    mesh("off_digit_separator", ".off", "OFF\n3 1 0\n0 0 0\n1_0 0 0\n0 1 0\n3 0 1 2\n", "non-numeric")
+    mesh("off_count_separator", ".off", "OFF\n1_0 1 0\n", "counts")
     mesh("ply_garbage", ".ply", "ply\nformat nonsense 9\n", "cannot parse mesh")
     mesh(
         "ply_truncated",
@@ -220,6 +226,8 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
         ("bvh_duplicate_joints", good_bvh.replace("JOINT left_knee", "JOINT Left_Hip"), "joint names repeat"),
         ("bvh_nan", good_bvh.replace("0.000000", "nan", 1), "not finite"),
         ("bvh_channels", good_bvh.replace("CHANNELS 3", "CHANNELS 9", 1), "channel count"),
+        ("bvh_digit_separator", good_bvh.replace("0.000000", "0.000_000", 1), "expected a number"),
+        ("bvh_data_separator", good_bvh.rstrip("\n").rsplit(" ", 1)[0] + " 1_0\n", "non-numeric value"),
     ):
         motionfile(name, ".bvh", lambda p, t=text: p.write_text(t), words)
 
@@ -239,6 +247,11 @@ def build(d: Path, package: Path | None = None) -> list[tuple[str, list[str], st
     mhclo("other_basemesh", good_mhclo.replace("basemesh hm08", "basemesh hm07"), "only hm08")
     mhclo("short_line", good_mhclo.replace("verts 0", "verts 0\n12 13 0.5 0.5", 1), "1, 6 or 9 numbers")
     mhclo("not_a_number", good_mhclo.replace("verts 0", "verts 0\n12 13 14 0.5 x 0.5 0 0 0", 1), "expected a number")
+    mhclo(
+        "digit_separator",
+        good_mhclo.replace("verts 0", "verts 0\n12 13 14 0.5 0.2_5 0.25 0 0 0", 1),
+        "expected a number",
+    )
     mhclo("no_bindings", good_mhclo.split("verts 0")[0], "no binding lines")
     mhclo(
         "index_out_of_range", good_mhclo.replace("verts 0", "verts 0\n99999 1 2 0.3 0.3 0.4 0 0 0", 1), "does not have"
@@ -383,6 +396,8 @@ def asf_amc_cases(d: Path, cases: list) -> None:
     )
     text, ln = first_value("lfemur", "nan")
     case("amc", "nan", good_asf, text, f"FILE:{ln}: bone 'lfemur' has a value that is not finite")
+    text, ln = first_value("lfemur", "1_0")
+    case("amc", "digit_separator", good_asf, text, f"FILE:{ln}: bone 'lfemur' has a value that is not a number")
     case("amc", "empty", good_asf, "", "FILE: AMC has no frames")
     case("amc", "skeleton_missing", None, good_amc, "FILE: cannot tell which skeleton this AMC uses")
     # a skeleton that does not fit the motion: its ltibia bends two ways

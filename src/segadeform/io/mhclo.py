@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, file_error
+from .numbers import integer, number
 
 __all__ = ["MhcloBinding", "read_mhclo", "MHCLO_SUFFIX"]
 
@@ -176,7 +177,7 @@ _MAX_INDEX = 10**6
 
 def _int(t, p, ln) -> int:
     try:
-        i = int(t)
+        i = integer(t)
     except ValueError:
         raise FileFormatError("expected an integer", path=p, line=ln, got=t[:30]) from None
     if abs(i) > _MAX_INDEX:
@@ -186,7 +187,7 @@ def _int(t, p, ln) -> int:
 
 def _float(t, p, ln) -> float:
     try:
-        v = float(t)
+        v = number(t)
     except ValueError:
         raise FileFormatError("expected a number", path=p, line=ln, got=t[:30]) from None
     if not np.isfinite(v):

@@ -26,6 +26,7 @@ from ..bounds import MAX_POSITION
 from ..errors import FileFormatError, InputError, file_error
 from .atomic import atomic_open
 from .mesh import Mesh, validate_mesh_arrays
+from .numbers import integer, number
 
 __all__ = [
     "read_obj",
@@ -127,7 +128,7 @@ def obj_line_vertices(path) -> set[int]:
         elif words[0] == "l":
             for w in words[1:]:
                 try:
-                    k = int(w.split("/")[0])
+                    k = integer(w.split("/")[0])
                 except ValueError:
                     continue
                 out.add(k - 1 if k > 0 else n + k)
@@ -154,7 +155,7 @@ def obj_objects(path) -> list[str]:
 
 def _resolve(tok: str, count: int, kind: str, path, lineno) -> int:
     try:
-        i = int(tok)
+        i = integer(tok)
     except ValueError:
         raise FileFormatError(f"bad {kind} index {tok!r}", path=path, line=lineno) from None
     if i > 0:
@@ -246,7 +247,7 @@ def read_obj(path: str | os.PathLike, *, bounded: bool = True) -> Mesh:
                         got=f"{len(vals)}",
                     )
                 try:
-                    nums = [float(x) for x in vals]
+                    nums = [number(x) for x in vals]
                 except ValueError:
                     raise FileFormatError(f"vertex has a non-numeric value in {s!r}", path=p, line=lineno) from None
                 xyz = nums[:3]
@@ -393,7 +394,7 @@ def recorded_betas(path: str | os.PathLike) -> tuple[float, ...] | None:
     for no, c in _own_comments(p) or []:
         if c.split()[:1] == [BETAS_RECORD]:
             try:
-                b = tuple(float(x) for x in c.split()[1:])
+                b = tuple(number(x) for x in c.split()[1:])
             except ValueError:
                 b = (float("nan"),)
             if not np.isfinite(b).all():
@@ -622,7 +623,7 @@ def corner_normals(lines, vertices: np.ndarray, *, path=None) -> np.ndarray:
             n_v += 1
         elif t[0] == "vn":
             try:
-                old.append([float(x) for x in t[1:4]])
+                old.append([number(x) for x in t[1:4]])
             except ValueError:
                 raise FileFormatError("normal has a non-numeric value", path=path, line=ln_no) from None
             if len(old[-1]) != 3:
@@ -651,7 +652,7 @@ def corner_normals(lines, vertices: np.ndarray, *, path=None) -> np.ndarray:
 
 def _obj_index(tok: str, count: int, path, line: int) -> int:
     try:
-        i = int(tok)
+        i = integer(tok)
     except ValueError:
         raise FileFormatError(f"bad index {tok!r}", path=path, line=line) from None
     j = i - 1 if i > 0 else count + i

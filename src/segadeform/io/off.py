@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import FileFormatError, file_error
 from .mesh import Mesh, validate_mesh_arrays
+from .numbers import integer, number
 
 __all__ = ["read_off"]
 
@@ -50,7 +51,7 @@ def read_off(path: str | os.PathLike) -> Mesh:
     if len(head) == 1:
         rest = rest[1:]
     try:
-        nv, nf = int(counts_tokens[0]), int(counts_tokens[1])
+        nv, nf = integer(counts_tokens[0]), integer(counts_tokens[1])
     except (IndexError, ValueError):
         raise FileFormatError("bad OFF counts line", path=p, line=counts_line, expected="nv nf ne") from None
     if nv < 1 or nf < 1:
@@ -65,7 +66,7 @@ def read_off(path: str | os.PathLike) -> Mesh:
     for k in range(nv):
         i, t = rest[k]
         try:
-            verts[k] = [float(x) for x in t[:3]]
+            verts[k] = [number(x) for x in t[:3]]
         except ValueError:
             raise FileFormatError("vertex has a non-numeric value", path=p, line=i) from None
         if len(t) < 3:
@@ -76,8 +77,8 @@ def read_off(path: str | os.PathLike) -> Mesh:
     for k in range(nf):
         i, t = rest[nv + k]
         try:
-            cnt = int(t[0])
-            idx = [int(x) for x in t[1 : 1 + cnt]]
+            cnt = integer(t[0])
+            idx = [integer(x) for x in t[1 : 1 + cnt]]
         except ValueError:
             raise FileFormatError("bad face line", path=p, line=i) from None
         if cnt < 3 or len(idx) != cnt:

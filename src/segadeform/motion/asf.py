@@ -45,6 +45,7 @@ import numpy as np
 
 from ..body.rotations import axis_angle_to_matrix
 from ..errors import FileFormatError, file_error
+from ..io.numbers import number
 from .bvh import MAX_CHANNEL, BVHSkeleton, skeleton_motion, to_y_up
 from .motion import Motion
 
@@ -157,7 +158,7 @@ def _floats(toks, n, what, path, ln, *, allow_inf=False):
     out = []
     for t in toks:
         try:
-            v = float(t)
+            v = number(t)
         except ValueError:
             raise FileFormatError(f"{what} must be numbers", path=path, line=ln, expected="a number", got=t) from None
         if np.isnan(v) or (np.isinf(v) and not allow_inf):
@@ -406,7 +407,7 @@ def read_asf(path: str | os.PathLike) -> ASFSkeleton:
 
 def _isnum(t: str) -> bool:
     try:
-        float(t)
+        number(t)
         return True
     except ValueError:
         return False
@@ -680,7 +681,7 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
             continue
         toks = tokens[n]
         try:
-            v = np.fromiter(map(float, toks), np.float64, len(toks)).reshape(-1, k)
+            v = np.fromiter(map(number, toks), np.float64, len(toks)).reshape(-1, k)
         except ValueError:
             bad = next(i for i, t in enumerate(toks) if not _isnum(t))
             raise FileFormatError(

@@ -45,6 +45,7 @@ from ..body.skeleton import SMPL_JOINT_NAMES, SMPL_PARENTS
 from ..body.skeleton_map import MIXAMO_TO_SMPL, SMPL_SHORT_NAMES, map_skeleton, read_joint_map
 from ..errors import FileFormatError, InputError, file_error
 from ..io.atomic import atomic_open
+from ..io.numbers import integer, number
 from .motion import Motion
 
 __all__ = [
@@ -108,7 +109,7 @@ def _parse(text: str, path: Path):
     def num(what):
         ln, t = nxt()
         try:
-            v = float(t)
+            v = number(t)
         except ValueError:
             raise FileFormatError(f"expected a number for {what}", path=path, line=ln, got=t) from None
         if not np.isfinite(v):
@@ -137,7 +138,7 @@ def _parse(text: str, path: Path):
             elif u == "CHANNELS":
                 n_ln, n = nxt()
                 try:
-                    n = int(n)
+                    n = integer(n)
                 except ValueError:
                     raise FileFormatError("bad channel count", path=path, line=n_ln, got=n) from None
                 if not 0 <= n <= 6:
@@ -168,7 +169,7 @@ def _parse(text: str, path: Path):
     nxt("Frames:")
     f_ln, nf = nxt()
     try:
-        n_frames = int(nf)
+        n_frames = integer(nf)
     except ValueError:
         raise FileFormatError("bad frame count", path=path, line=f_ln, got=nf) from None
     nxt("Frame")
@@ -198,7 +199,7 @@ def _parse(text: str, path: Path):
             + (f", {len(rest) / n_ch:g} frames (cut short?)" if len(rest) < n_frames * n_ch else ""),
         )
     try:
-        data = np.array([float(t) for _, t in rest], np.float64).reshape(n_frames, n_ch)
+        data = np.array([number(t) for _, t in rest], np.float64).reshape(n_frames, n_ch)
     except ValueError:
         bad = next((ln, t) for ln, t in rest if not _isfloat(t))
         raise FileFormatError("motion data has a non-numeric value", path=path, line=bad[0], got=bad[1]) from None
@@ -231,7 +232,7 @@ MAX_DEPTH = 256
 
 def _isfloat(t):
     try:
-        float(t)
+        number(t)
         return True
     except ValueError:
         return False
