@@ -575,6 +575,35 @@ def test_a_source_facing_another_way_is_fitted_as_if_turned(body):
         assert np.median(d) < 1e-3 and d.max() < 0.01, (turn, np.median(d), d.max())
 
 
+def test_the_body_s_shape_says_which_way_it_faces_where_the_fit_and_the_feet_cannot(body):
+    """The rest pose turned a quarter fitted a body in a stride closer than facing its way (CMU 02_01 frame 0: fitted
+    facing +X, joints 39 cm off, 15 % of the T-shirt's edges torn; a docs audit), and the feet point every way in a
+    stride (07_03 frame 40: 152 degrees off).  The shoulders' line and the head in front of the neck give the facing
+    of the rest body turned any way and of walking frames; only the quarters within 60 degrees of it are fitted."""
+    from segadeform.body.placement import turn_about_up
+    from segadeform.garments.registration import _body_facing, _facing_candidates, _toes_facing
+    from segadeform.motion import load_motion
+
+    betas = np.array([1.5, -1.0])
+    rest = body.shaped_vertices(betas)[0]
+    for turn in (0.0, 90.0, 180.0, 270.0, 30.0):
+        got, sure = _body_facing(rest @ turn_about_up(turn).T)
+        assert sure and abs((got - turn + 180.0) % 360.0 - 180.0) < 2.0, (turn, got)
+    assert _facing_candidates(rest @ turn_about_up(-90.0).T) == [3]  # an Unreal character facing -X
+    assert _facing_candidates(rest @ turn_about_up(45.0).T) == [0, 1]  # between two: both fitted, the closer kept
+    for clip, frame in (("02_01_walk", 0), ("07_03_walk", 40)):
+        m = load_motion(ROOT / "samples" / "motions" / "cmu" / f"{clip}.bvh", rest_joints=body.rest_joints(betas)[0])
+        pose = np.asarray(m.poses[frame], np.float64).copy()
+        pose[:3] = 0.0  # facing +Z
+        v = body.forward(pose[None], betas).vertices[0]
+        got, sure = _body_facing(v)
+        assert sure and abs(got) < 20.0, (clip, got)
+        assert _facing_candidates(v) == [0]
+    assert abs(_toes_facing(v)) > 120.0  # (07_03 frame 40's feet: the cue the facing was taken from before)
+    flat = rest * [1.0, 1.0, 0.0]  # no depth: the head in line with the neck, either way along the normal
+    assert _body_facing(flat)[1] is False and _facing_candidates(flat) == [0, 2]
+
+
 def _walls(spec, n: int = 6, width: float = 0.1):
     """Square walls across x, each n x n vertices ``width`` wide: ``spec`` = [(x, +1 or -1: the way it faces along
     x), ...].  Returns vertices, faces and each face's wall (its index in ``spec``)."""
