@@ -51,7 +51,7 @@ def main() -> None:
     so.intra_op_num_threads = 1
     so.inter_op_num_threads = 1
     enc_s = ort.InferenceSession(str(pkg / "garment_encoder.onnx"), so, providers=["CPUExecutionProvider"])
-    dec_file = graph_specs(net.cfg)["deformer"]["file"]  # the model's own deformer (package_spec names it)
+    dec_file = graph_specs(net.cfg)["deformer"]["file"]  # the model's own deformer (contracts.model_package names it)
     dec_s = ort.InferenceSession(str(pkg / dec_file), so, providers=["CPUExecutionProvider"])
     joints = default_rest_joints()
     motion = make_motion("dance", seconds=2.0)

@@ -120,6 +120,9 @@ def dataset_make_cmd(
     def progress(rec):
         n[0] += 1
         why = "" if rec["status"] == "kept" else ": " + "; ".join(rec.get("reasons", []))
+        q = rec.get("quality") or {}
+        if rec["status"] != "kept" and q.get("frames"):  # (how much of the clip passes: what min_frames could keep)
+            why += f" (the first {q.get('passing_frames', 0)} of {q['frames']} frames pass)"
         spf = f"{rec['seconds_per_frame']:.3f} s/frame" if "seconds_per_frame" in rec else ""
         click.echo(f"[{n[0]}] {rec['id']} ({rec['vertices']} v) {rec['status']} {spf}{why}", err=True)
 
@@ -142,6 +145,12 @@ def dataset_make_cmd(
     finally:
         guard.abandon()  # a run that made nothing leaves no empty folder
     click.echo(f"{s.planned} planned, {s.skipped} already done, {s.kept} kept, {s.rejected} rejected -> {output}")
+    if s.rejected:  # (a first dataset of one's own kept nothing and said nothing of what to do: an ML user's trial)
+        click.echo(
+            f"note: a rejected sample keeps its frames: `segadeform dataset regate CONFIG -o {output}` applies a "
+            "looser [quality] gate (max_strain, max_strained_edges, min_frames: keep a clip's passing first frames) "
+            "without simulating again, and [[fallback]] tables simulate rejected samples again with other settings"
+        )
     if s.unplanned:
         click.echo(
             f"note: {len(s.unplanned)} kept sample{'s' if len(s.unplanned) != 1 else ''} in {output} "

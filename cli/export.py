@@ -151,6 +151,7 @@ def export_cmd(
         shared_weights=not inline_weights,
         extra_manifest=extra,
         body=body_model,
+        progress=lambda line: click.echo(line, err=True),
     )
     guard.record()
     click.echo(

@@ -1444,7 +1444,7 @@ def test_sigterm_stops_dataset_make_as_ctrl_c_does(tmp_path, jobs):
     assert main(["dataset", "make", str(TINY), "-o", str(out), "-j", "2"]) == 0  # it resumes
 
 
-def test_a_garment_obj_of_the_users_is_a_dataset_garment_on_the_shape_it_was_made_for(tmp_path, capsys):
+def test_a_garment_obj_of_the_users_is_a_dataset_garment_on_the_shape_it_was_made_for(tmp_path, capsys, caplog):
     """A user's trial: a garment OBJ (`garment fit -o my.obj`, the README's own path) could not go into a dataset
     (`unknown key garments[0].mesh`), and `mhclo = "my.obj"` failed only after the first samples were simulated.
     Now `mesh = FILE` is a garment as it is, planned on the [[bodies]] of the shape it records alone, checked on
@@ -1504,6 +1504,11 @@ def test_a_garment_obj_of_the_users_is_a_dataset_garment_on_the_shape_it_was_mad
         load_dataset_config(_write(d, "e.toml", head + "[[garments]]\nname = 't'\nkind = 'dress'\nmesh = 'tall.obj'\n"))
     # and it is simulated, end to end
     only = head.split("[[garments]]")[0] + "[[garments]]\nname = 'mine'\nkind = 'dress'\nmesh = 'my_dress.obj'\n"
+    # a body no garment sits on gets no samples, and is said to (an ML user's test body added nothing, unsaid)
+    with caplog.at_level("WARNING", logger="segadeform.dataset.config"):
+        load_dataset_config(_write(d, "m.toml", only))
+    assert "m.toml: bodies[1] (betas [1.0, 0.0]) gets no samples" in caplog.text
+    assert "bodies[0]" not in caplog.text
     assert main(["dataset", "make", str(_write(d, "m.toml", only)), "-o", str(tmp_path / "made"), "-j", "1"]) == 0
     capsys.readouterr()
     done = [p for sub in ("samples", "rejected") for p in (tmp_path / "made" / sub).glob("*.json")]

@@ -155,6 +155,16 @@ def test_select_deformer_is_an_exact_match(random_package):
     no_blend["graphs"] = {k: v for k, v in pkg.manifest["graphs"].items() if "nowrinkles" in k or k == contract.ENCODER}
     with pytest.raises(PackageError, match="no deformer for these effects.*deformer_dqs_nowrinkles"):
         contract.select_deformer(no_blend, Effects(wrinkles=True))
+    # a package of the model's own deformer alone (`export --no-variants`) says how to get the others
+    own = dict(
+        pkg.manifest,
+        graphs={k: v for k, v in pkg.manifest["graphs"].items() if k in ("deformer_lbs", contract.ENCODER)},
+    )
+    with pytest.raises(PackageError, match="model's own alone: `segadeform export` without --no-variants"):
+        contract.select_deformer(own, Effects(skinning="dqs"))
+    with pytest.raises(PackageError) as e:
+        contract.select_deformer(no_blend, Effects(wrinkles=True))
+    assert "--no-variants" not in str(e.value)
 
 
 def test_export_of_a_model_without_blend_shapes_has_no_wrinkle_graphs():

@@ -54,6 +54,18 @@ def test_package_is_the_checkpoints_and_small(shipped):
     assert (TRAIN / "eval" / "eval.md").is_file()
 
 
+def test_the_shipped_checkpoint_records_the_packages_training_motions(shipped):
+    """A model fine-tuned from the shipped checkpoint (`train --init`) records its starting model's training motions
+    with its own, so eval warns of a test clip either was trained on; the checkpoint recorded none (the package
+    alone did) and a fine-tuned package listed 1 motion against 246 (an ML user's trial)."""
+    from segadeform.model.network import checkpoint_training_motions
+
+    _, manifest = shipped
+    record = checkpoint_training_motions(TRAIN / "model.pt")
+    assert record is not None and record == manifest["training_motions"]
+    assert len(record["motions"]) == 246
+
+
 def test_shipped_parity_on_the_sample_dress(shipped):
     net, manifest = shipped
     body = load_body(SAMPLES / "bodies" / "default_body.npz")

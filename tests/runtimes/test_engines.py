@@ -925,6 +925,27 @@ def test_a_manifest_naming_a_file_outside_the_package_is_refused_by_node_and_cpp
             assert not (tmp_path / "o.pc2").exists()
 
 
+def test_a_package_of_the_models_own_deformer_alone_says_how_to_get_the_others(
+    node, cpp, portable_scene, random_package, tmp_path
+):
+    """An ML user's package exported --no-variants refused `--quality fast` with "no deformer for these effects" and
+    no word of why; every runtime now says it has the model's own alone and how to export the others."""
+    import shutil
+
+    from tests.runtimes.conftest import play
+
+    pkg = tmp_path / "pkg"
+    shutil.copytree(random_package, pkg)
+    m = json.loads((pkg / "manifest.json").read_text())
+    m["graphs"] = {k: g for k, g in m["graphs"].items() if g["role"] != "deformer" or k == m["default_deformer"]}
+    (pkg / "manifest.json").write_text(json.dumps(m))
+    other = "dqs" if "lbs" in m["default_deformer"] else "lbs"
+    for exe in (node, cpp):
+        p = play(exe, pkg, portable_scene["garment"], portable_scene["motion"], tmp_path / "o.pc2", "--effects", other)
+        assert p.returncode == 1 and "without --no-variants writes the others" in p.stderr, (exe, p.stderr)
+        assert not (tmp_path / "o.pc2").exists()
+
+
 def test_cpp_refuses_a_scene_bundle_whose_arrays_do_not_agree(cpp, shared_bundle, random_package, tmp_path):
     """A security review: the C++ bundle path read a 1-D nbr's missing second dimension from the heap and took 1-D
     poses into std::bad_alloc; it now checks a bundle's arrays as an asset's."""

@@ -409,8 +409,14 @@ struct Package {
       if (e["skinning"].str == want.skinning && e["wrinkles"].b == want.wrinkles && e["dynamics"].b == want.dynamics)
         return kv.second;
     }
+    size_t n = 0;
+    for (const auto& kv : (schema == 1 ? manifest["variants"] : manifest["graphs"]).obj)
+      if (schema == 1 || (kv.second.has("role") && kv.second["role"].str == "deformer")) ++n;
     throw std::runtime_error("the package has no deformer graph for effects " + want.skinning +
-                             (want.dynamics ? ", dynamics" : "") + (want.wrinkles ? ", wrinkles" : ""));
+                             (want.dynamics ? ", dynamics" : "") + (want.wrinkles ? ", wrinkles" : "") +
+                             (n == 1 ? " (it has the model's own alone: `segadeform export` without --no-variants "
+                                       "writes the others)"
+                                     : ""));
   }
   // the effects of a run that names none: the model's own and collisions when the package can pose the body
   Effects default_effects() const {

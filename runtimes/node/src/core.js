@@ -117,7 +117,7 @@ export function readManifest(m, where = "manifest.json") {
 const GRAPH_FILE = /^[^./\\][^/\\]*\.onnx$/;
 const WEIGHTS_FILE = /^[^./\\][^/\\]*$/;
 
-/** Schema 1 -> 3 (segadeform.package_spec.upgrade_manifest): one name per graph. */
+/** Schema 1 -> 3 (segadeform.contracts.model_package.upgrade_manifest): one name per graph. */
 function upgradeManifest(m) {
   const graphs = { garment_encoder: { ...m.graphs.garment_encoder, role: "encoder" } };
   let dflt = null;
@@ -145,8 +145,9 @@ export function pickVariant(manifest, effects) {
       return { name, spec: g };
     }
   }
-  const have = Object.entries(manifest.graphs).filter(([, g]) => g.role === "deformer").map(([n]) => n).join(", ");
-  throw new Error(`the package has no deformer graph for effects ${JSON.stringify(effects)} (expected one of ${have})`);
+  const names = Object.entries(manifest.graphs).filter(([, g]) => g.role === "deformer").map(([n]) => n);
+  const only = names.length === 1 ? "; it has the model's own alone: `segadeform export` without --no-variants writes the others" : "";
+  throw new Error(`the package has no deformer graph for effects ${JSON.stringify(effects)} (expected one of ${names.join(", ")}${only})`);
 }
 
 /**

@@ -109,6 +109,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import logging
 import re
 from pathlib import Path
 
@@ -124,6 +125,8 @@ from ..settings.simulation import PIN_GROUPS, SimSettings, parse_simulate_table
 __all__ = ["GarmentSpec", "MotionEntry", "QualitySpec", "DatasetConfig", "load_dataset_config", "SAMPLE_ORDERS"]
 
 SAMPLE_ORDERS = ("body-major", "spread")
+
+log = logging.getLogger(__name__)
 
 
 #: the motion files a dataset reads: those `segadeform.motion.load_motion` reads, and FBX (its default animation,
@@ -605,6 +608,16 @@ def load_dataset_config(path, *, require_files: bool = True) -> DatasetConfig:
                 expected=f"a [[bodies]] entry with betas = [{','.join(f'{x:g}' for x in g.mesh_betas)}], or the "
                 "garment fitted for a listed shape (`segadeform garment fit ... --betas ...`)",
                 got=", ".join(str(list(b)) for b in bodies),
+            )
+    for i, b in enumerate(bodies):  # (a test body added for a garment OBJ made nothing, unsaid: an ML user's trial)
+        if not any(g.sits_on(b) for g in garments):
+            log.warning(
+                "%s: bodies[%d] (betas %s) gets no samples: each garment is a garment OBJ (mesh =), simulated on "
+                "the shape it was made for alone; `segadeform garment fit ... --betas` makes one for this shape, and "
+                "a MakeHuman garment (mhclo =) is fitted to every shape",
+                p.name,
+                i,
+                list(b),
             )
     motions, mnames, entries = [], set(), []
     for i, m in enumerate(data.get("motions", [])):

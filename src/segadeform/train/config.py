@@ -3,8 +3,11 @@
 Example (``samples/train/continuum/light_prior_seed1.toml`` is the shipped model's recipe: ``full.toml`` on the
 ``smooth-light`` prior, seed 1; ``samples/train/default.toml`` an early model's)::
 
+    base = "full.toml"             # optional, first: a config (relative to this file) whose tables this one
+                                   # changes, table by table and key by key
     [data]
     dataset = "../../data/train"   # relative to this file; or a list of roots: folders and packs
+                                   # (`train --dataset` replaces it and `optional`, not [physics] pairs)
     optional = ["../../../shared/data/sim"]  # roots read when they exist (the durable packs)
     split = "train"                # or several joined by "+" ("train+val": a final fit at a step count
                                    # chosen on val before, with no val_split)
@@ -59,7 +62,8 @@ Example (``samples/train/continuum/light_prior_seed1.toml`` is the shipped model
 
     [physics]                      # self-supervision on pairs never simulated (segadeform.train.energies)
     pairs = "../datasets/continuum.toml"   # a dataset config: its training garments x bodies x motions
-    every = 2                      # add a self-supervised term every `every` steps (0: off)
+    every = 2                      # add a self-supervised term every `every` steps (0: off: the dataset's
+                                   # samples alone)
     weight = 0.002                 # its weight; the energies are in metres of equivalent height
     frames = 5                     # consecutive frames per term (the first two are the history)
     density = 0.2                  # the cloth (segadeform.train.energies.Material)
