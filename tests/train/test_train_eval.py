@@ -1005,7 +1005,7 @@ def test_mirror_trains_on_each_samples_mirror_image_and_needs_a_symmetric_body(
 
 
 def test_a_run_starts_from_a_checkpoint_to_fine_tune_and_refuses_another_models(
-    synthetic_dataset, tiny_config, tmp_path, body, capsys
+    synthetic_dataset, tiny_config, tmp_path, body, capsys, caplog
 ):
     """optim.init / `train --init`: a new run starts from a trained model's weights (a user's trial: fine-tuning the
     shipped model on one's own samples had no way); a checkpoint of another [model] is refused before anything is
@@ -1044,6 +1044,19 @@ def test_a_run_starts_from_a_checkpoint_to_fine_tune_and_refuses_another_models(
     from segadeform.model.network import checkpoint_training_garments
 
     assert sorted(checkpoint_training_garments(tuned / "model.pt")[0]) == ["shorts", "skirt"]
+    # and its training motions (a fine-tuned shipped model listed its own alone: an ML user's trial); a starting
+    # checkpoint that records none is named, with the fix
+    from segadeform.model.network import checkpoint_training_motions
+    from segadeform.motion.fingerprint import read_motions_record
+
+    names = sorted(n for n, _ in read_motions_record(checkpoint_training_motions(tuned / "model.pt")))
+    assert names == ["shorts__b0__walk", "skirt__b0__walk"], names  # (the tuned run saw the skirt alone)
+    ck = torch.load(first / "model.pt", weights_only=False)
+    del ck["training_motions"]
+    torch.save(ck, tmp_path / "nomo.pt")
+    with caplog.at_level("WARNING", logger="segadeform.train.trainer"):
+        assert main([*args[:3], str(tmp_path / "nomo"), *args[4:-1], str(tmp_path / "nomo.pt")]) == 0
+    assert "nomo.pt records no training motions" in caplog.text and "--training-motions" in caplog.text
     fresh = tmp_path / "fresh"  # without it the run starts elsewhere
     assert main(["train", str(slow), "-o", str(fresh), "--dataset", str(synthetic_dataset)]) == 0
     other = torch.load(fresh / "last.pt", weights_only=False)["state_dict"]

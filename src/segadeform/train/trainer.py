@@ -307,6 +307,13 @@ def _training_motions(items, init) -> dict:
         from ..model.network import checkpoint_training_motions
 
         before = checkpoint_training_motions(init)
+        if before is None:  # (a fine-tuned shipped model forgot the 246 motions it started from: an ML user's trial)
+            log.warning(
+                "%s records no training motions: the fine-tuned model records only its own samples', so eval cannot "
+                "warn of a test motion the starting model was trained on; `segadeform export --training-motions "
+                "CONFIG` adds the starting model's",
+                init,
+            )
         for n, sp in read_motions_record(before) if before is not None else []:
             names.append(n)
             speeds.append(sp)
