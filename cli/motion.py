@@ -179,5 +179,14 @@ def info_cmd(motion, body, up, units, joint_map, skeleton, animation):
             f"glitches: {settle} leading frames the capture settles from, {jumps} frames it jumps to and back "
             f"from (> 20 m/s)" + ("; repair_glitches = true repairs them" if settle or jumps else "")
         )
+    from segadeform.motion import root_cuts
+
+    cuts = root_cuts(m)  # (a root 18 m away every other frame: "0 frames it jumps to and back from" alone, a fuzzer)
+    if cuts:
+        first, metres = cuts[0]
+        click.echo(
+            f"  root: {len(cuts)} step{'s' if len(cuts) != 1 else ''} faster than 20 m/s, the first {metres:.3g} m "
+            f"into frame {first}: a cut, a teleport or a root that jumps about (the garment jumps with it)"
+        )
     if m.betas is not None:
         click.echo(f"  betas: {np.round(m.betas[:10], 3).tolist()}")
