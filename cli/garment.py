@@ -155,7 +155,8 @@ def garment_kinds_cmd():
     default=0.0,
     metavar="DEGREES",
     help="Turn the garment (and --from-body) by DEGREES about the up axis through the origin, after --units/--up: "
-    "counterclockwise seen from above (the body faces +z; a garment facing +x takes 270, one facing backward 180).",
+    "counterclockwise seen from above (the body faces +z; a garment facing +x takes 270, one facing backward 180). "
+    "With --from-body, given (0 too) it says which way the source faces once turned: +z, not searched for.",
 )
 @click.option("--scale", type=float, default=1.0, show_default=True, help="Extra scale factor.")
 @click.option(
@@ -302,7 +303,10 @@ def garment_fit_cmd(
             units_v = u_read
         src_v = fix_units_and_axes(src.vertices, units=units_v, up=up_read, scale=scale, turn=turn)
         g_v = fix_units_and_axes(g.vertices, units=units_v, up=up_read, scale=scale, turn=turn)
-        fit = fit_to_body_mesh(g_v, src_v, src.faces, bm, b, garment_faces=g.faces)
+        # --turn given (0 too) says which way the source faces: no search (a body whose head is tilted far back reads
+        # as facing backwards: registration._body_facing)
+        given = click.get_current_context().get_parameter_source("turn") != click.core.ParameterSource.DEFAULT
+        fit = fit_to_body_mesh(g_v, src_v, src.faces, bm, b, garment_faces=g.faces, search_facing=not given)
         v = fit.vertices
         torn, worst = edge_distortion(g_v, v, g.faces)
         if torn > 0.05 and not force:  # a carried garment keeps most edges within tens of percent (armpits may tear)

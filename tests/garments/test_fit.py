@@ -504,6 +504,12 @@ def test_fit_to_another_body_mesh(body, tmp_path, monkeypatch):
     np.testing.assert_allclose(
         read_mesh(tmp_path / "a.obj").vertices, read_mesh(tmp_path / "f.obj").vertices, atol=1e-9
     )
+    # the facing is searched for unless --turn is given (0 too: the source faces +Z as it is; a head tilted far back
+    # reads as facing backwards)
+    assert k1["search_facing"] and k2["search_facing"]
+    args = ["garment", "fit", str(tmp_path / "g.obj"), "--from-body", str(tmp_path / "b.obj"), "--turn", "0"]
+    res = CliRunner().invoke(cli, [*args, "-o", str(tmp_path / "t.obj")])
+    assert res.exit_code == 0 and calls[-1][1]["search_facing"] is False, res.output
 
 
 def test_a_body_in_a_stride_is_registered(body):
@@ -600,6 +606,15 @@ def test_the_body_s_shape_says_which_way_it_faces_where_the_fit_and_the_feet_can
         assert sure and abs(got) < 20.0, (clip, got)
         assert _facing_candidates(v) == [0]
     assert abs(_toes_facing(v)) > 120.0  # (07_03 frame 40's feet: the cue the facing was taken from before)
+    # a review's poses: arms reaching forward (the widest band across them once: the torso's alone now), hands on
+    # the head (the top band no head alone: unsure, both ways along the shoulders' normal fitted)
+    z = np.zeros((24, 3))
+    arms = z.copy()
+    arms[16], arms[17] = [0.0, -1.5, -0.3], [0.0, 1.5, 0.3]
+    assert _facing_candidates(body.forward(arms.reshape(1, -1), betas).vertices[0]) == [0]
+    hands = z.copy()
+    hands[16], hands[17], hands[18], hands[19] = [0, 0, 1.0], [0, 0, -1.0], [0, -2.0, 0], [0, 2.0, 0]
+    assert _facing_candidates(body.forward(hands.reshape(1, -1), betas).vertices[0]) == [0, 2]
     flat = rest * [1.0, 1.0, 0.0]  # no depth: the head in line with the neck, either way along the normal
     assert _body_facing(flat)[1] is False and _facing_candidates(flat) == [0, 2]
 

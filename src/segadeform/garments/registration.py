@@ -228,7 +228,7 @@ def fit_to_body_mesh(
     seed: int = 0,
     scale: float | None = None,
     garment_faces=None,
-    _facing_known: bool = False,
+    search_facing: bool = True,
 ) -> BodyFit:
     """Carry a garment modelled on another body mesh (any topology and pose, +Y up, metres, facing any way about
     +Y) onto ``body``.
@@ -239,9 +239,11 @@ def fit_to_body_mesh(
        point paired with the nearest one facing the same way, with priors pulling pose and shape to zero: pose and
        placement alone from each of the T-pose, MakeHuman's A-pose (when the body file has it) and arms down; from
        the best, each arm and leg tried in a few directions (a stride, an arm raised forward) and kept where the
-       body fits closer; then everything, shape included, to the end.  A source facing another way than +Z
-       (found by fitting the T-pose facing each quarter turn) is turned to face +Z first, garment with it
-       (``BodyFit``'s ``trans`` and ``pose`` are then those of the turned source);
+       body fits closer; then everything, shape included, to the end.  With ``search_facing``, a source facing
+       another way than +Z (the way its shoulders and head face, :func:`_facing_candidates`; where they do not
+       tell, the quarter turns whose T-pose fits closest) is turned to face +Z first, garment with it
+       (``BodyFit``'s ``trans`` and ``pose`` are then those of the turned source); without it the source is taken
+       to face +Z (``garment fit --turn`` has turned it so);
     2. **correct the surface**: every registered body vertex within 3 cm of the source moves onto it (the
        closest point facing its way), the displacement smoothed over the mesh;
     3. **attach** each garment vertex to the closest point of that surface: triangle, barycentric
@@ -363,12 +365,12 @@ def fit_to_body_mesh(
     # From each start, pose and placement alone (shape and scale held: free, they bend to fit a wrong pose), with
     # the pairs found again every few steps; the best start on.  The source may face any way about its up axis (an
     # Unreal character faces +X), and closest points do not turn a body a quarter round: unless the caller knows the
-    # facing, the rest pose is tried facing each of four ways first, and a source that faces another way than +Z is
-    # turned to face it (with the garment) and fitted again -- as `--turn` would have it (a technical artist's source
-    # facing +X was fitted facing +Z, legs crossed and 46 cm off, with exit 0).
-    # Which quarters are fitted: those the body's shape points to (:func:`_facing_candidates`), one where it is clear.
+    # facing, the rest pose is tried facing the quarters the body's shape points to (:func:`_facing_candidates`: one
+    # where it is clear), and a source that faces another way than +Z is turned to face it (with the garment) and
+    # fitted again -- as `--turn` would have it (a technical artist's source facing +X was fitted facing +Z, legs
+    # crossed and 46 cm off, with exit 0).
     facings: dict = {}
-    if not _facing_known:
+    if search_facing:
         from ..body.rotations import axis_angle_to_matrix
 
         for q in _facing_candidates(sv):
@@ -388,7 +390,7 @@ def fit_to_body_mesh(
                 seed=seed,
                 scale=scale,
                 garment_faces=garment_faces,
-                _facing_known=True,
+                search_facing=False,
             )
     trials = [facings[0]] if 0 in facings else []  # (the rest pose facing +Z: tried already)
     trials += [fit(start(s0), 12, shape=False, nfev=5) for s0 in starts[len(trials) :]]
@@ -463,12 +465,14 @@ def _facing_candidates(v: np.ndarray) -> list[int]:
 
 def _body_facing(v: np.ndarray) -> tuple[float, bool] | None:
     """``(degrees, sure)``: the way about +Y from +Z that a standing body mesh ``v`` (N, 3), +Y up, faces by its
-    shape: across its shoulders (the widest horizontal direction of 72-82 % of its height, which a pose changes
-    little: arms hanging or held out lie along it; within 17 degrees of the truth on 16 frames of two CMU walks),
-    towards the side its head stands out to (above 90 % of the height, against the neck at 84-88 %: 0.9-10 cm
-    forward on those frames, 8.5 at rest).  ``sure`` False: the head within 0.2 % of the height of the neck along
-    that axis, the body facing ``degrees`` or the opposite way.  None where the shoulders are less than 1.2x as wide
-    as deep (or the bands are nearly empty)."""
+    shape: across its shoulders (the widest horizontal direction of the torso at 72-82 % of its height: the points
+    within 15 % of the height of the band's median, so arms held out or reaching forward are left out; within 17
+    degrees of the truth on 16 frames of two CMU walks), towards the side its head stands out to (above 90 % of the
+    height, against the neck at 84-88 %: 0.2-10 cm forward on those frames, 8.5 at rest).  ``sure`` False: the head
+    within 0.2 % of the height of the neck along that axis, or the top band wider than 20 % of the height (hands on
+    the head, arms raised): the body faces ``degrees`` or the opposite way.  None where the torso is less than 1.2x
+    as wide as deep (or the bands are nearly empty).  A head tilted far back (a pose no modeller stands a body in)
+    reads as facing backwards: ``fit_to_body_mesh(..., search_facing=False)``, ``garment fit --turn``, decides."""
     h = v[:, 1]
     lo, height = float(h.min()), float(np.ptp(h))
 
@@ -478,6 +482,9 @@ def _body_facing(v: np.ndarray) -> tuple[float, bool] | None:
     shoulders, head, neck = band(0.72, 0.82), band(0.90, 1.0), band(0.84, 0.88)
     if min(len(shoulders), len(head), len(neck)) < 10 or not height > 0:
         return None
+    shoulders = shoulders[np.linalg.norm(shoulders - np.median(shoulders, axis=0), axis=1) < 0.15 * height]
+    if len(shoulders) < 10:
+        return None
     c = shoulders - shoulders.mean(axis=0)
     w, e = np.linalg.eigh(c.T @ c / len(c))
     if not w[1] > 1.44 * w[0]:  # (variances: 1.2x the width)
@@ -486,7 +493,8 @@ def _body_facing(v: np.ndarray) -> tuple[float, bool] | None:
     ahead = np.array([across[1], -across[0]])  # a quarter turn from it, one of the two ways
     lead = float((head.mean(axis=0) - neck.mean(axis=0)) @ ahead)
     ahead = ahead if lead > 0 else -ahead
-    return float(np.degrees(np.arctan2(ahead[0], ahead[1]))), abs(lead) >= 0.002 * height
+    alone = float(np.ptp(head, axis=0).max()) <= 0.2 * height  # a head, no hands or arms beside it
+    return float(np.degrees(np.arctan2(ahead[0], ahead[1]))), alone and abs(lead) >= 0.002 * height
 
 
 def _toes_facing(v: np.ndarray) -> float | None:
