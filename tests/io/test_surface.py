@@ -133,3 +133,13 @@ def test_a_garment_whose_uvs_cannot_be_read_still_runs(tmp_path):
         args = ["run", "--garment", str(tmp_path / "g.obj"), "--motion", str(SAMPLES / "motions" / "walk.npz")]
         r = CliRunner().invoke(cli, [*args, "--frames", "0:2", "--no-cache", "-o", str(tmp_path / out)])
         assert r.exit_code == 0, r.output
+
+
+def test_a_texture_coordinate_is_a_number_as_files_write_it(tmp_path):
+    """A review: `vt 0.5_5 ١` was read as (0.55, 1.0) and `vt nan 0` as a NaN UV; both are refused, naming the line."""
+    for bad, words in (("vt 0.5_5 \u0661", "bad vt line"), ("vt nan 0", "not finite")):
+        p = tmp_path / "uv.obj"
+        p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\n" + bad + "\nvt 0 1\nf 1/1 2/2 3/3\n")
+        with pytest.raises(FileFormatError, match=words) as e:
+            obj_surface(p)
+        assert e.value.line == 5

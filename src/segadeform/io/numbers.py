@@ -14,19 +14,15 @@ from __future__ import annotations
 __all__ = ["number", "integer"]
 
 
-def _plain(token: str) -> str:
-    if "_" in token or not token.isascii() or token != token.strip():
-        raise ValueError(f"not a plain number: {token!r}")
-    return token
-
-
 def number(token: str) -> float:
     """``float(token)`` for a number as a text file writes it (``-1.5``, ``2e-3``, ``.5``, ``nan``).
 
     Raises:
         ValueError: anything else, ``1_000``, non-ASCII digits and padded tokens too.
     """
-    return float(_plain(token))
+    if "_" in token or not token.isascii() or token != token.strip():  # (inline: called per token of big files)
+        raise ValueError(f"not a plain number: {token!r}")
+    return float(token)
 
 
 def integer(token: str) -> int:
@@ -35,4 +31,6 @@ def integer(token: str) -> int:
     Raises:
         ValueError: anything else, ``1_000``, non-ASCII digits and padded tokens too.
     """
-    return int(_plain(token))
+    if "_" in token or not token.isascii() or token != token.strip():
+        raise ValueError(f"not a plain integer: {token!r}")
+    return int(token)

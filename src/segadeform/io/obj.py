@@ -415,7 +415,7 @@ def recorded_params(path: str | os.PathLike) -> dict | None:
                 if not sep:
                     continue
                 try:
-                    out[k] = float(v)
+                    out[k] = number(v)
                 except ValueError:
                     out[k] = v
             return out

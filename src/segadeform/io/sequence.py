@@ -51,7 +51,7 @@ __all__ = [
     "write_xdmf_sequence",
 ]
 
-_NUM = re.compile(r"(\d+)(?!.*\d)")
+_NUM = re.compile(r"(\d+)(?!.*\d)", re.ASCII)
 
 #: coordinates in one chunk of :func:`frame_chunks` (4 MB of float32, 8 MB as float64): a summary of a clip holds
 #: about this much of it at a time, however long the clip

@@ -14,6 +14,7 @@ import os
 import numpy as np
 
 from ..errors import FileFormatError, InputError, file_error
+from .numbers import number
 
 __all__ = ["Surface", "obj_surface", "fan_triangles"]
 
@@ -104,9 +105,12 @@ def obj_surface(path: str | os.PathLike) -> Surface:
         elif parts[0] == "vt":
             nt += 1
             try:
-                uvs.append((float(parts[1]), float(parts[2]) if len(parts) > 2 else 0.0))
+                uv = (number(parts[1]), number(parts[2]) if len(parts) > 2 else 0.0)
             except (IndexError, ValueError):
                 raise FileFormatError("bad vt line", path=path, line=lineno, got=ln) from None
+            if not np.isfinite(uv).all():  # (a NaN texture coordinate went into every format's UVs: a review)
+                raise FileFormatError("vt line is not finite", path=path, line=lineno, got=ln)
+            uvs.append(uv)
         elif parts[0] == "f":
             corners = parts[1:]
             if len(corners) < 3:
