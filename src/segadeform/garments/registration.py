@@ -451,7 +451,7 @@ def _facing_candidates(v: np.ndarray) -> list[int]:
     head does not tell), else of its feet (:func:`_toes_facing`), else all four.  The fit's error alone does not
     tell: a body seen from behind fits about as close as from the front, and a body in a stride fits its rest pose
     turned a quarter or a half closer than facing its way (CMU 02_01 frame 0 was fitted facing +X, joints 39 cm off:
-    a docs audit); and the feet point every way in a stride (07_03: 150-165 degrees off in 5 of 8 frames)."""
+    a docs audit); and the feet point every way in a stride (07_03: 146-165 degrees off in 5 of 8 frames)."""
     facing = _body_facing(v)
     if facing is not None:
         cues = [facing[0]] if facing[1] else [facing[0], facing[0] + 180.0]
@@ -466,7 +466,7 @@ def _facing_candidates(v: np.ndarray) -> list[int]:
 def _body_facing(v: np.ndarray) -> tuple[float, bool] | None:
     """``(degrees, sure)``: the way about +Y from +Z that a standing body mesh ``v`` (N, 3), +Y up, faces by its
     shape: across its shoulders (the widest horizontal direction of the torso at 72-82 % of its height: the points
-    within 15 % of the height of the band's median, so arms held out or reaching forward are left out; within 17
+    within 15 % of the height of the band's median, so arms held out or reaching forward are left out; within 24
     degrees of the truth on 16 frames of two CMU walks), towards the side its head stands out to (above 90 % of the
     height, against the neck at 84-88 %: 0.2-10 cm forward on those frames, 8.5 at rest).  ``sure`` False: the head
     within 0.2 % of the height of the neck along that axis, or the top band wider than 20 % of the height (hands on
