@@ -1816,3 +1816,24 @@ def test_retry_rejected_checks_the_rejected_samples_clips_in_the_words_that_name
     line = text.splitlines().index("[[motions]]") + 1
     assert str(e.value).startswith(f"{tmp_path / 'c.toml'}:{line}: motions[0] (w): "), str(e.value)
     assert sorted(f.relative_to(root) for f in root.rglob("*")) == before
+
+
+def test_dataset_make_says_how_much_of_a_rejected_clip_passes_and_what_to_do(tmp_path, monkeypatch, capsys):
+    """An ML user's first dataset kept nothing: "2 planned, 0 already done, 0 kept, 2 rejected" and no next step.  A
+    rejection now says how many leading frames pass, and the summary names regate and [[fallback]] (the simulation
+    stubbed: what is under test is what the command says)."""
+    import segadeform.dataset as ds
+    import segadeform.physics as physics
+    from segadeform.dataset.make import DatasetSummary
+
+    def made(cfg, loc, *, progress, **kw):
+        rec = {"id": "mine__b0__walk", "vertices": 911, "status": "rejected", "seconds_per_frame": 0.4}
+        progress(dict(rec, reasons=["strain 1.52 > 1.00"], quality={"frames": 30, "passing_frames": 5}))
+        return DatasetSummary(planned=1, skipped=0, kept=0, rejected=1, records=[])
+
+    monkeypatch.setattr(ds, "make_dataset", made)
+    monkeypatch.setattr(physics, "find_sim_python", lambda *a, **k: None)
+    assert main(["dataset", "make", str(TINY), "-o", str(tmp_path / "d")]) == 0
+    out, err = capsys.readouterr()
+    assert "rejected 0.400 s/frame: strain 1.52 > 1.00 (the first 5 of 30 frames pass)" in err, err
+    assert "0 kept, 1 rejected" in out and "segadeform dataset regate CONFIG -o" in out and "[[fallback]]" in out, out
