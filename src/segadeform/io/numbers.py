@@ -11,7 +11,7 @@ every reader refuses them with its own words ("not finite").
 
 from __future__ import annotations
 
-__all__ = ["number", "integer"]
+__all__ = ["number", "integer", "is_number"]
 
 
 def number(token: str) -> float:
@@ -34,3 +34,12 @@ def integer(token: str) -> int:
     if "_" in token or not token.isascii() or token != token.strip():
         raise ValueError(f"not a plain integer: {token!r}")
     return int(token)
+
+
+def is_number(token: str) -> bool:
+    """Whether :func:`number` reads ``token`` (a reader's search for the token that broke a bulk conversion)."""
+    try:
+        number(token)
+    except ValueError:
+        return False
+    return True

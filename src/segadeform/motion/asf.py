@@ -45,7 +45,7 @@ import numpy as np
 
 from ..body.rotations import axis_angle_to_matrix
 from ..errors import FileFormatError, file_error
-from ..io.numbers import number
+from ..io.numbers import is_number, number
 from .bvh import MAX_CHANNEL, BVHSkeleton, skeleton_motion, to_y_up
 from .motion import Motion
 
@@ -303,7 +303,7 @@ def read_asf(path: str | os.PathLike) -> ASFSkeleton:
                 bones.append(bone)
                 bone = None
                 continue
-            if limits_open and _isnum(toks[0]):
+            if limits_open and is_number(toks[0]):
                 bone.limits.append((ln, toks))
                 continue
             limits_open = False
@@ -403,14 +403,6 @@ def read_asf(path: str | os.PathLike) -> ASFSkeleton:
     if not hier:
         raise FileFormatError("ASF has no :hierarchy", path=p, expected="a :hierarchy section", got="none")
     return _assemble(p, units, root, bones, hier)
-
-
-def _isnum(t: str) -> bool:
-    try:
-        number(t)
-        return True
-    except ValueError:
-        return False
 
 
 def _finish_bone(b: _Bone, path, ln) -> None:
@@ -683,7 +675,7 @@ def read_amc_values(path: str | os.PathLike, skeleton: ASFSkeleton) -> AMCValues
         try:
             v = np.fromiter(map(number, toks), np.float64, len(toks)).reshape(-1, k)
         except ValueError:
-            bad = next(i for i, t in enumerate(toks) if not _isnum(t))
+            bad = next(i for i, t in enumerate(toks) if not is_number(t))
             raise FileFormatError(
                 f"bone {n!r} has a value that is not a number",
                 path=p,

@@ -45,7 +45,7 @@ from ..body.skeleton import SMPL_JOINT_NAMES, SMPL_PARENTS
 from ..body.skeleton_map import MIXAMO_TO_SMPL, SMPL_SHORT_NAMES, map_skeleton, read_joint_map
 from ..errors import FileFormatError, InputError, file_error
 from ..io.atomic import atomic_open
-from ..io.numbers import integer, number
+from ..io.numbers import integer, is_number, number
 from .motion import Motion
 
 __all__ = [
@@ -201,7 +201,7 @@ def _parse(text: str, path: Path):
     try:
         data = np.array([number(t) for _, t in rest], np.float64).reshape(n_frames, n_ch)
     except ValueError:
-        bad = next((ln, t) for ln, t in rest if not _isfloat(t))
+        bad = next((ln, t) for ln, t in rest if not is_number(t))
         raise FileFormatError("motion data has a non-numeric value", path=path, line=bad[0], got=bad[1]) from None
     if not np.isfinite(data).all():  # the first such number's line (a user's trial: the file alone was named)
         k = int(np.flatnonzero(~np.isfinite(data.ravel()))[0])
@@ -228,14 +228,6 @@ def _parse(text: str, path: Path):
 MAX_CHANNEL = 1.0e8
 #: joints nested deeper than this are refused (a human's skeleton is about 10 deep, a hand's fingers add 4)
 MAX_DEPTH = 256
-
-
-def _isfloat(t):
-    try:
-        number(t)
-        return True
-    except ValueError:
-        return False
 
 
 @dataclasses.dataclass(frozen=True)
