@@ -26,8 +26,9 @@ import dataclasses
 import numpy as np
 
 from ..body.collision import BodyProxy, closest_point_on_triangles
-from ..body.kinematics import forward_kinematics, poses_to_rotmats, relative_transforms
+from ..body.kinematics import forward_kinematics, relative_transforms
 from ..body.makehuman import makehuman_vertices, makehuman_weights
+from ..body.rotations import axis_angle_to_matrix
 from ..body.skinning import linear_blend_skinning
 from ..bounds import BETA_LIMIT
 from ..errors import FileFormatError, InputError
@@ -216,6 +217,23 @@ def _local_frames(v: np.ndarray, faces: np.ndarray, face_idx: np.ndarray):
     return t1, np.cross(n, t1), n
 
 
+def _forward_differences(fun_batch, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The Jacobian of ``fun_batch`` at ``x0`` by forward differences, every step in one batched call.
+
+    The steps are scipy's ``'2-point'`` ones (``scipy.optimize._numdiff``): ``sqrt(eps) * max(1, |x|)`` with the
+    sign of ``x`` (+ at 0), taken the other way where it would leave ``[lo, hi]``; the step is the representable
+    ``(x + h) - x``.  What ``least_squares`` would compute with one call per parameter, in one.
+
+    Shapes:
+        fun_batch: (R, P) -> (R, M); x0, lo, hi: (P,) -> (M, P)
+    """
+    h = np.finfo(np.float64).eps ** 0.5 * np.where(x0 >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x0))
+    h = np.where((x0 + h > hi) | (x0 + h < lo), -h, h)
+    h = (x0 + h) - x0
+    f = fun_batch(np.vstack([x0[None], x0 + np.diag(h)]))
+    return ((f[1:] - f[0]) / h[:, None]).T
+
+
 def fit_to_body_mesh(
     garment_vertices,
     source_vertices,
@@ -284,12 +302,24 @@ def fit_to_body_mesh(
         th.reshape(24, 3)[joints_free] = x[4 + nb :].reshape(-1, 3)
         return float(np.exp(x[0])), x[1:4], x[4 : 4 + nb], th
 
+    # the samples' rest positions and the joints are linear in the shape: J(beta) = J0 + sum_b beta_b dJ_b
+    v_b, dirs_b = body.v_template[bidx], body.shapedirs[bidx]
+    J0 = body.rest_joints()[0]
+    dJ = np.stack([body.rest_joints(row)[0] - J0 for row in np.eye(nb)], axis=-1)  # (S, 3, nb)
+
+    def body_points_batch(X):
+        """The body samples for each row of parameters ``X (R, P)`` at once: ``(R, V, 3)``."""
+        th = np.zeros((len(X), 24, 3))
+        th[:, joints_free] = X[:, 4 + nb :].reshape(len(X), -1, 3)
+        beta = X[:, 4 : 4 + nb]
+        rest = v_b + np.einsum("vcb,rb->rvc", dirs_b, beta)
+        J = J0 + np.einsum("scb,rb->rsc", dJ, beta)
+        g4, _ = forward_kinematics(axis_angle_to_matrix(th), J, body.parents)
+        posed = linear_blend_skinning(rest, W, relative_transforms(g4, J))
+        return posed * np.exp(X[:, 0])[:, None, None] + X[:, None, 1:4]
+
     def body_points(x):
-        sc, t, beta, th = unpack(x)
-        rest = body.v_template[bidx] + np.einsum("vcb,b->vc", body.shapedirs[bidx], beta)
-        J = body.rest_joints(beta)[0]
-        g4, _ = forward_kinematics(poses_to_rotmats(th[None], 24), J, body.parents)
-        return linear_blend_skinning(rest, W, relative_transforms(g4, J))[0] * sc + t
+        return body_points_batch(x[None])[0]
 
     # the scale from the surface areas where the source has faces (a pose changes a body's area little, its height a
     # lot: arms raised, knees bent), else from the heights
@@ -341,16 +371,31 @@ def fit_to_body_mesh(
             near_b = _compatible_nearest(cKDTree(p), p_n, s_pts, s_n[sidx])  # source sample -> body sample
             mine = use[near_b]  # the pairs whose body sample the free joints move
 
-            def res(xf, x=x, q=q, near_b=near_b[mine], s_mine=s_pts[mine]):  # this round's pairs
-                xx = x.copy()
-                xx[free] = xf
-                pp = body_points(xx)
+            def res_batch(XF, x=x, q=q, near_b=near_b[mine], s_mine=s_pts[mine]):  # this round's pairs, per row
+                XX = np.repeat(x[None], len(XF), axis=0)
+                XX[:, free] = XF
+                pp = body_points_batch(XX)
+                r = len(XF)
                 return np.concatenate(
-                    [(pp[use] - q).ravel(), (pp[near_b] - s_mine).ravel(), 0.05 * xx[4 : 4 + nb], prior * xx[4 + nb :]]
+                    [
+                        (pp[:, use] - q).reshape(r, -1),
+                        (pp[:, near_b] - s_mine).reshape(r, -1),
+                        0.05 * XX[:, 4 : 4 + nb],
+                        prior * XX[:, 4 + nb :],
+                    ],
+                    axis=1,
                 )
 
             x = x.copy()
-            x[free] = least_squares(res, x[free], max_nfev=nfev, method="trf", x_scale="jac", bounds=(lo, hi)).x
+            x[free] = least_squares(
+                lambda xf: res_batch(xf[None])[0],
+                x[free],
+                jac=lambda xf: _forward_differences(res_batch, xf, lo, hi),
+                max_nfev=nfev,
+                method="trf",
+                x_scale="jac",
+                bounds=(lo, hi),
+            ).x
         p = body_points(x)
         return x, 0.5 * (s_tree.query(p)[0].mean() + cKDTree(p).query(s_pts)[0].mean())
 
@@ -371,8 +416,6 @@ def fit_to_body_mesh(
     # crossed and 46 cm off, with exit 0).
     facings: dict = {}
     if search_facing:
-        from ..body.rotations import axis_angle_to_matrix
-
         for q in _facing_candidates(sv):
             rest = np.concatenate([[0.0, np.radians(90.0 * q), 0.0], starts[0][3:]])
             facings[q] = fit(start(rest), 12, shape=False, nfev=5)

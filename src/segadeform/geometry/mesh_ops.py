@@ -57,7 +57,7 @@ def vertex_normals(vertices, faces) -> np.ndarray:
     cross product already carries the area weight.  Zero-area faces add
     nothing; a vertex whose faces sum to (numerically) zero, or that has no
     face at all, gets the zero vector rather than NaN.  The threshold is
-    relative to the mesh scale (1e-12 x mean squared edge length), so mm and
+    relative to the mesh scale (1e-12 x the squared mean length of the faces' edges), so mm and
     km inputs behave alike.
 
     Shapes:
@@ -73,7 +73,9 @@ def vertex_normals(vertices, faces) -> np.ndarray:
         for corner in range(3):
             out[:, k] += np.bincount(f[:, corner], weights=c[:, k], minlength=n)
     norm = np.linalg.norm(out, axis=1)
-    scale2 = max(mean_edge_length(v, f) ** 2, np.finfo(float).tiny)
+    # the faces' own edges (an inner edge counted once per face it borders): no sort for the unique edges, which
+    # took two thirds of this function's time on a 41k-vertex body
+    scale2 = max(float(np.mean(np.linalg.norm(v[f] - v[np.roll(f, 1, axis=1)], axis=2))) ** 2, np.finfo(float).tiny)
     ok = norm > 1e-12 * scale2
     out[ok] /= norm[ok, None]
     out[~ok] = 0.0
