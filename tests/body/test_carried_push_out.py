@@ -129,10 +129,12 @@ def test_streams_backends_threads_and_the_reference_agree(batch, case):
     cut, carry_cut = _run(BodyCollider(v, f, threads=2), posed, points, batch=batch)
     np.testing.assert_array_equal(cut, whole)  # bit for bit: any cut of the stream, any threads
     np.testing.assert_array_equal(carry_cut, carry)
-    numpy, _ = _run(BodyCollider(v, f, backend="numpy"), posed, points, batch=batch)
-    np.testing.assert_allclose(numpy, whole, rtol=0, atol=1e-9)
-    ref, _ = _run(ReferenceCollider(v, f), posed[::3], points[::3], batch=batch)
+    # the numpy twin and the exhaustive reference on every third frame (each is ~100x slower than C; a carried
+    # stream all the same, the frames further apart)
     mine, _ = _run(BodyCollider(v, f), posed[::3], points[::3], batch=batch)
+    numpy, _ = _run(BodyCollider(v, f, backend="numpy"), posed[::3], points[::3], batch=batch)
+    np.testing.assert_allclose(numpy, mine, rtol=0, atol=1e-9)
+    ref, _ = _run(ReferenceCollider(v, f), posed[::3], points[::3], batch=batch)
     np.testing.assert_allclose(ref, mine, rtol=0, atol=1e-9)
 
 

@@ -24,19 +24,39 @@ from segadeform.motion import make_motion, motion_windows
 from tests.conftest import made_once
 
 RTOL = 1e-5
-VARIANTS = {
-    "lbs": dict(skinning="lbs"),
-    "dqs": dict(skinning="dqs"),
-    "lbs-noblend": dict(skinning="lbs", use_blend_shapes=False),
+# the networks whose graphs are checked: the first three are graphs of the session's random package (conftest's
+# random_model: its own deformer and two of its variants, each exported from the network with that config), the
+# other two are networks of their own (a drape blend shape, a heading input), exported here
+SHARED = {
+    "lbs": dict(skinning="lbs", wrinkles=True, dynamics=True),
+    "dqs": dict(skinning="dqs", wrinkles=True, dynamics=True),
+    "lbs-noblend": dict(skinning="lbs", wrinkles=False, dynamics=True),
+}
+OWN = {
     "lbs-drape": dict(skinning="lbs", static_blend=True),  # the motion-independent blend shape
     "lbs-heading": dict(skinning="lbs", motion_input="heading"),  # the root's rotation relative to the heading
 }
+VARIANTS = [*SHARED, *OWN]
+
+
+def _sessions(pkg, files):
+    return {g: ort.InferenceSession(str(pkg / f), providers=["CPUExecutionProvider"]) for g, f in files.items()}
 
 
 @pytest.fixture(scope="module")
-def packages(tmp_path_factory):
+def packages(tmp_path_factory, random_model):
+    """variant -> (frozen torch network, package folder, manifest, {graph role: onnxruntime session})."""
+    from segadeform.export.package import _variant_model, deformer_variants
+
+    base, path = random_model
+    manifest = json.loads((path / "manifest.json").read_text())
     out = {}
-    for name, kw in VARIANTS.items():
+    for name, eff in SHARED.items():
+        var = next(v for v in deformer_variants(base.cfg).values() if v["effects"] == eff)
+        net = base if var["default"] else _variant_model(base, var["config"])
+        files = {"garment_encoder": manifest["graphs"]["garment_encoder"]["file"], "deformer": var["file"]}
+        out[name] = (net, path, manifest, _sessions(path, files))
+    for name, kw in OWN.items():
         torch.manual_seed(7)
         net = SEGANet(ModelConfig(**kw)).eval()
         with torch.no_grad():  # residual corrections on, so the exported graphs run every path
@@ -50,12 +70,8 @@ def packages(tmp_path_factory):
             f"export-{name}",
             lambda p, net=net: export_package(net, p, check=False, variants=False, body=None),
         )
-        manifest = json.loads((pkg / "manifest.json").read_text())
-        sessions = {
-            g: ort.InferenceSession(str(pkg / spec["file"]), providers=["CPUExecutionProvider"])
-            for g, spec in graph_specs(net.cfg).items()
-        }
-        out[name] = (net.freeze(), pkg, manifest, sessions)
+        m = json.loads((pkg / "manifest.json").read_text())
+        out[name] = (net.freeze(), pkg, m, _sessions(pkg, {g: s["file"] for g, s in graph_specs(net.cfg).items()}))
     return out
 
 
@@ -78,7 +94,7 @@ def assert_parity(net, sess, graph, feeds):
         assert rel <= RTOL, (graph, err, rel)
 
 
-@pytest.mark.parametrize("variant", list(VARIANTS))
+@pytest.mark.parametrize("variant", VARIANTS)
 @pytest.mark.parametrize("n", [3, 37, 1000, 20000])
 @pytest.mark.parametrize("b", [1, 2, 5])
 def test_parity_random_inputs(packages, variant, n, b):
@@ -141,8 +157,9 @@ def test_parity_on_hard_garments_and_twists(packages, variant, mesh):
     assert_parity(net, sessions["deformer"], "deformer", dict(dec, **{enc_spec["outputs"][0]["name"]: code}))
 
 
-@pytest.mark.parametrize("variant", ["dqs", "lbs-heading"])
+@pytest.mark.parametrize("variant", ["lbs", "lbs-heading"])
 def test_manifest_matches_the_graphs(packages, variant):
+    """Every graph of a package (the session's random one with every variant; one with a heading input)."""
     net, path, manifest, _ = packages[variant]
     on_disk = json.loads((path / "manifest.json").read_text())
     assert on_disk["schema_version"] == 3 and on_disk["opset"] == 18
