@@ -114,6 +114,50 @@ def random_package(random_model):
     return random_model[1]
 
 
+def _dqs_net(seed: int, motion_input: str = "pose"):
+    """A DQS network as after training (residual corrections on): the portable scene's skinning, so that the model's
+    own deformer is the one the scene runs and a package needs no other variant."""
+    import torch
+
+    from segadeform.model import ModelConfig, SEGANet
+
+    torch.manual_seed(seed)
+    net = SEGANet(ModelConfig(skinning="dqs", motion_input=motion_input)).eval()
+    with torch.no_grad():
+        net.weight_gate.fill_(0.5 + 0.2 * (seed - 5))
+        net.blend_gate.fill_(0.5)
+    return net
+
+
+@pytest.fixture(scope="session")
+def heading_model(tmp_path_factory):
+    """(frozen network whose motion processors read the root's rotation relative to the heading, its package: the
+    model's own deformer and the body graphs), made once per run: tests/export checks its graphs, tests/runtimes runs
+    it in every runtime."""
+    pytest.importorskip("torch", reason="exporting a package needs the 'torch' extra")
+    from segadeform.export import export_package
+
+    net = _dqs_net(5, "heading")
+    path = made_once(tmp_path_factory, "variant-heading", lambda p: export_package(net, p, check=False, variants=False))
+    return net.freeze(), path
+
+
+@pytest.fixture(scope="session")
+def ensemble_model(tmp_path_factory):
+    """(frozen ensemble of two DQS networks, its package as heading_model's, the two members), made once per run:
+    tests/model checks it against torch, tests/runtimes runs it in every runtime."""
+    pytest.importorskip("torch", reason="exporting a package needs the 'torch' extra")
+    from segadeform.export import export_package
+    from segadeform.model.ensemble import combine
+
+    members = [_dqs_net(5), _dqs_net(6)]
+    ens = combine(members)
+    path = made_once(
+        tmp_path_factory, "variant-ensemble", lambda p: export_package(ens, p, check=False, variants=False)
+    )
+    return ens.freeze(), path, members
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _user_cache(tmp_path_factory):
     """The suite's runs cache into a folder of its own, never the user's cache."""

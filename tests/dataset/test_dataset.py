@@ -1441,7 +1441,9 @@ def test_sigterm_stops_dataset_make_as_ctrl_c_does(tmp_path, jobs):
     assert list(tmp.iterdir()) == []  # the job's folder and Blender's own (inside it) are gone
     ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
     assert str(tmp) not in ps  # no Blender worker of this run is left
-    assert main(["dataset", "make", str(TINY), "-o", str(out), "-j", "2"]) == 0  # it resumes
+    if jobs == 2:  # it resumes (once: the whole tiny dataset is simulated, most of this test's time; -j 2 is where
+        # workers were stopped mid-sample)
+        assert main(["dataset", "make", str(TINY), "-o", str(out), "-j", "2"]) == 0
 
 
 def test_a_garment_obj_of_the_users_is_a_dataset_garment_on_the_shape_it_was_made_for(tmp_path, capsys, caplog):

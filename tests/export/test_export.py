@@ -25,18 +25,17 @@ from tests.conftest import made_once
 
 RTOL = 1e-5
 # the networks whose graphs are checked: the first three are graphs of the session's random package (conftest's
-# random_model: its own deformer and two of its variants, each exported from the network with that config), the
-# other two are networks of their own (a drape blend shape, a heading input), exported here
+# random_model: its own deformer and two of its variants, each exported from the network with that config), then a
+# network with a drape blend shape, exported here, and one with a heading input
 SHARED = {
     "lbs": dict(skinning="lbs", wrinkles=True, dynamics=True),
     "dqs": dict(skinning="dqs", wrinkles=True, dynamics=True),
     "lbs-noblend": dict(skinning="lbs", wrinkles=False, dynamics=True),
 }
-OWN = {
-    "lbs-drape": dict(skinning="lbs", static_blend=True),  # the motion-independent blend shape
-    "lbs-heading": dict(skinning="lbs", motion_input="heading"),  # the root's rotation relative to the heading
-}
-VARIANTS = [*SHARED, *OWN]
+OWN = {"lbs-drape": dict(skinning="lbs", static_blend=True)}  # the motion-independent blend shape
+# the root's rotation relative to the heading: conftest's heading_model (DQS, with the body graphs), which
+# tests/runtimes runs in every runtime
+VARIANTS = [*SHARED, *OWN, "dqs-heading"]
 
 
 def _sessions(pkg, files):
@@ -44,7 +43,7 @@ def _sessions(pkg, files):
 
 
 @pytest.fixture(scope="module")
-def packages(tmp_path_factory, random_model):
+def packages(tmp_path_factory, random_model, heading_model):
     """variant -> (frozen torch network, package folder, manifest, {graph role: onnxruntime session})."""
     from segadeform.export.package import _variant_model, deformer_variants
 
@@ -72,6 +71,9 @@ def packages(tmp_path_factory, random_model):
         )
         m = json.loads((pkg / "manifest.json").read_text())
         out[name] = (net.freeze(), pkg, m, _sessions(pkg, {g: s["file"] for g, s in graph_specs(net.cfg).items()}))
+    net, pkg = heading_model
+    m = json.loads((pkg / "manifest.json").read_text())
+    out["dqs-heading"] = (net, pkg, m, _sessions(pkg, {g: s["file"] for g, s in graph_specs(net.cfg).items()}))
     return out
 
 
@@ -157,7 +159,7 @@ def test_parity_on_hard_garments_and_twists(packages, variant, mesh):
     assert_parity(net, sessions["deformer"], "deformer", dict(dec, **{enc_spec["outputs"][0]["name"]: code}))
 
 
-@pytest.mark.parametrize("variant", ["lbs", "lbs-heading"])
+@pytest.mark.parametrize("variant", ["lbs", "dqs-heading"])
 def test_manifest_matches_the_graphs(packages, variant):
     """Every graph of a package (the session's random one with every variant; one with a heading input)."""
     net, path, manifest, _ = packages[variant]
@@ -297,6 +299,15 @@ def test_export_cli_random_init_with_check(tmp_path):
     assert "deformer_lbs.vertices: max abs" in r.output and "max rel" in r.output
     rels = [float(line.rsplit("max rel ", 1)[1].split()[0]) for line in r.output.splitlines() if "max rel" in line]
     assert rels and max(rels) <= RTOL
+    # a line on stderr as each graph is exported and checked (an export was silent for minutes: an ML user's trial)
+    said = [line for line in r.stderr.splitlines() if line.startswith(("exporting", "checking"))]
+    assert said[:3] == [
+        "exporting garment_encoder (1 of 2)",
+        "exporting deformer_lbs (2 of 2)",
+        "exporting the body graphs",
+    ], r.stderr
+    checked = {f"checking {g} against torch" for g in ("garment_encoder", "deformer_lbs", "body_lbs", "body_dqs")}
+    assert set(said[3:]) == checked and len(said) == 7, r.stderr
     r = CliRunner().invoke(cli, ["export", "-o", str(tmp_path / "p2")])
     assert r.exit_code == 2 and "CHECKPOINT or --random-init" in r.output
     r = CliRunner().invoke(cli, ["export", str(tmp_path / "missing.pt"), "-o", str(tmp_path / "p3")])

@@ -12,35 +12,16 @@ import numpy as np
 import pytest
 
 from segadeform.io import read_pc2
-from tests.conftest import made_once
 
 RTOL = 1e-5
 
 
 @pytest.fixture(scope="module", params=["ensemble", "heading"])
 def ensemble_scene(request, tmp_path_factory, portable_scene):
-    torch = pytest.importorskip("torch", reason="exporting a package needs the 'torch' extra")
     from segadeform.cli.main import main
-    from segadeform.export import export_package
-    from segadeform.model import ModelConfig, SEGANet
-    from segadeform.model.ensemble import combine
 
-    nets = []
-    for seed in (5, 6) if request.param == "ensemble" else (5,):
-        torch.manual_seed(seed)
-        # DQS: the portable scene's skinning, so that the model's own deformer is the one the scene runs and the
-        # other variants need not be exported (minutes of this suite)
-        cfg = ModelConfig(skinning="dqs", motion_input="heading" if request.param == "heading" else "pose")
-        net = SEGANet(cfg).eval()
-        with torch.no_grad():
-            net.weight_gate.fill_(0.5 + 0.2 * (seed - 5))
-            net.blend_gate.fill_(0.5)
-        nets.append(net)
+    pkg = request.getfixturevalue(f"{request.param}_model")[1]  # tests/conftest.py: made once per run
     d = tmp_path_factory.mktemp(request.param)
-    net = combine(nets) if len(nets) > 1 else nets[0]
-    pkg = made_once(
-        tmp_path_factory, f"variant-{request.param}", lambda p: export_package(net, p, check=False, variants=False)
-    )
     s = portable_scene
     scene = d / "s.toml"
     scene.write_text((s["dir"] / "s.toml").read_text().replace(str(s["dir"] / "python"), str(d / "python")))
