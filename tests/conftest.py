@@ -171,3 +171,25 @@ def _user_cache(tmp_path_factory):
         os.environ.pop("SEGADEFORM_CACHE_DIR", None)
     else:
         os.environ["SEGADEFORM_CACHE_DIR"] = old
+
+
+# the packages a run exports once (made_once), in the order the second worker makes them
+_PACKAGES = ("random_model", "heading_model", "ensemble_model")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _packages_first(request):
+    """Under pytest-xdist, the second worker (gw1) makes the run's packages before its first test, while the others
+    run tests that need none (the test files in alphabetical order: tests/body ... tests/distributed need none).
+    Otherwise every worker reached the first test that needs one at about the same time, and all but one waited on
+    its lock for the four minutes of the export.  Only the packages some collected test uses are made; in one process
+    nothing changes (each is made when first used)."""
+    if os.environ.get("PYTEST_XDIST_WORKER") != "gw1":
+        return
+    used = set().union(*(item.fixturenames for item in request.session.items)) if request.session.items else set()
+    for name in _PACKAGES:
+        if name in used or (name == "random_model" and "random_package" in used):
+            try:
+                request.getfixturevalue(name)
+            except (Exception, pytest.skip.Exception):  # no torch here, or the export fails: the tests that use the
+                return  # package say so themselves (each asks made_once again), not every test of this worker
