@@ -178,7 +178,7 @@ _PACKAGES = ("random_model", "heading_model", "ensemble_model")
 
 
 @pytest.fixture(scope="session", autouse=True)
-def _packages_first(request):
+def _packages_first(request, _user_cache):  # (after the suite's own cache folder is set)
     """Under pytest-xdist, the second worker (gw1) makes the run's packages before its first test, while the others
     run tests that need none (the test files in alphabetical order: tests/body ... tests/distributed need none).
     Otherwise every worker reached the first test that needs one at about the same time, and all but one waited on
@@ -186,10 +186,10 @@ def _packages_first(request):
     nothing changes (each is made when first used)."""
     if os.environ.get("PYTEST_XDIST_WORKER") != "gw1":
         return
-    used = set().union(*(item.fixturenames for item in request.session.items)) if request.session.items else set()
+    used = set().union(*(getattr(item, "fixturenames", ()) for item in request.session.items))
     for name in _PACKAGES:
         if name in used or (name == "random_model" and "random_package" in used):
             try:
                 request.getfixturevalue(name)
             except (Exception, pytest.skip.Exception):  # no torch here, or the export fails: the tests that use the
-                return  # package say so themselves (each asks made_once again), not every test of this worker
+                return  # package get the skip or the error (pytest keeps a session fixture's), not every test here

@@ -14,8 +14,8 @@ from segadeform.runtime.batch import load_batch, run_batch
 from ..python_runtime.test_batch import IDS, JOBS
 from .faults import DyingLocation, temporaries
 
-# one worker runs this folder's tests, one after another, on one local Ray (``--dist loadgroup`` in pyproject.toml):
-# each worker used to wait on another's lock for all of its Ray tests
+# with --dist loadgroup (.ci/run) one worker runs this folder's tests, one after another, on one local Ray: each
+# worker used to wait on another's lock for all of its Ray tests
 pytestmark = pytest.mark.xdist_group("ray")
 
 

@@ -16,8 +16,8 @@ from ..conftest import SAMPLES
 from ..dataset.test_dataset import _need_simulator
 from .faults import DyingLocation, temporaries
 
-# one worker runs this folder's tests, one after another, on one local Ray (``--dist loadgroup`` in pyproject.toml):
-# each worker used to wait on another's lock for all of its Ray tests
+# with --dist loadgroup (.ci/run) one worker runs this folder's tests, one after another, on one local Ray: each
+# worker used to wait on another's lock for all of its Ray tests
 pytestmark = pytest.mark.xdist_group("ray")
 
 BODY = SAMPLES / "bodies" / "default_body.npz"

@@ -13,8 +13,8 @@ import pytest
 from segadeform.distributed.executors import ExecutorError, LocalExecutor, RayExecutor, make_executor
 from segadeform.errors import InputError
 
-# one worker runs this folder's tests, one after another, on one local Ray (``--dist loadgroup`` in pyproject.toml):
-# each worker used to wait on another's lock for all of its Ray tests
+# with --dist loadgroup (.ci/run) one worker runs this folder's tests, one after another, on one local Ray: each
+# worker used to wait on another's lock for all of its Ray tests
 pytestmark = pytest.mark.xdist_group("ray")
 
 

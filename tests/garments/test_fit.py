@@ -1058,3 +1058,26 @@ def test_a_vertex_in_no_face_far_from_the_body_is_refused_near_ones_pass(body, d
     assert not out.exists()
     r = CliRunner().invoke(cli, [*args, "--force"])
     assert r.exit_code == 0 and out.exists(), r.output
+
+
+def test_the_batched_jacobian_is_scipys_forward_differences():
+    """`garment fit --from-body`'s least squares take the Jacobian from one batched body evaluation
+    (registration._forward_differences): the same steps as scipy's '2-point' differences, bit for bit, within bounds
+    wide or narrower than the step (a review: the first form left a box narrower than the step)."""
+    from scipy.optimize._numdiff import approx_derivative
+
+    from segadeform.garments.registration import _forward_differences
+
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(3, 4))
+
+    def f(x):
+        return np.sin(a @ x) + (x**2).sum()
+
+    for _ in range(300):
+        x0 = rng.normal(size=4) * rng.choice([1e-3, 1.0, 100.0])
+        width = rng.choice([np.inf, 1.0, 3e-8, 1e-9])
+        lo, hi = x0 - rng.uniform(0, 1, 4) * width, x0 + rng.uniform(0, 1, 4) * width
+        want = approx_derivative(f, x0, method="2-point", bounds=(lo, hi))
+        got = _forward_differences(lambda xs: np.array([f(x) for x in xs]), x0, lo, hi)
+        assert got.shape == (3, 4) and np.array_equal(got, want), (x0, lo, hi)

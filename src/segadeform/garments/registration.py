@@ -221,14 +221,18 @@ def _forward_differences(fun_batch, x0: np.ndarray, lo: np.ndarray, hi: np.ndarr
     """The Jacobian of ``fun_batch`` at ``x0`` by forward differences, every step in one batched call.
 
     The steps are scipy's ``'2-point'`` ones (``scipy.optimize._numdiff``): ``sqrt(eps) * max(1, |x|)`` with the
-    sign of ``x`` (+ at 0), taken the other way where it would leave ``[lo, hi]``; the step is the representable
-    ``(x + h) - x``.  What ``least_squares`` would compute with one call per parameter, in one.
+    sign of ``x`` (+ at 0); where that leaves ``[lo, hi]``, the other way if it fits there, else the whole distance
+    to the farther bound; the step is the representable ``(x + h) - x``.  What ``least_squares`` would compute with
+    one call per parameter, in one.
 
     Shapes:
         fun_batch: (R, P) -> (R, M); x0, lo, hi: (P,) -> (M, P)
     """
     h = np.finfo(np.float64).eps ** 0.5 * np.where(x0 >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x0))
-    h = np.where((x0 + h > hi) | (x0 + h < lo), -h, h)
+    below, above = x0 - lo, hi - x0
+    fits = np.abs(h) <= np.maximum(below, above)
+    h = np.where(((x0 + h > hi) | (x0 + h < lo)) & fits, -h, h)
+    h = np.where(fits, h, np.where(above >= below, above, -below))  # a box narrower than the step
     h = (x0 + h) - x0
     f = fun_batch(np.vstack([x0[None], x0 + np.diag(h)]))
     return ((f[1:] - f[0]) / h[:, None]).T
@@ -304,8 +308,8 @@ def fit_to_body_mesh(
 
     # the samples' rest positions and the joints are linear in the shape: J(beta) = J0 + sum_b beta_b dJ_b
     v_b, dirs_b = body.v_template[bidx], body.shapedirs[bidx]
-    J0 = body.rest_joints()[0]
-    dJ = np.stack([body.rest_joints(row)[0] - J0 for row in np.eye(nb)], axis=-1)  # (S, 3, nb)
+    j_rest = body.rest_joints()[0]
+    dJ = np.stack([body.rest_joints(row)[0] - j_rest for row in np.eye(nb)], axis=-1)  # (S, 3, nb)
 
     def body_points_batch(X):
         """The body samples for each row of parameters ``X (R, P)`` at once: ``(R, V, 3)``."""
@@ -313,7 +317,7 @@ def fit_to_body_mesh(
         th[:, joints_free] = X[:, 4 + nb :].reshape(len(X), -1, 3)
         beta = X[:, 4 : 4 + nb]
         rest = v_b + np.einsum("vcb,rb->rvc", dirs_b, beta)
-        J = J0 + np.einsum("scb,rb->rsc", dJ, beta)
+        J = j_rest + np.einsum("scb,rb->rsc", dJ, beta)
         g4, _ = forward_kinematics(axis_angle_to_matrix(th), J, body.parents)
         posed = linear_blend_skinning(rest, W, relative_transforms(g4, J))
         return posed * np.exp(X[:, 0])[:, None, None] + X[:, None, 1:4]
