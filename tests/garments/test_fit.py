@@ -10,12 +10,12 @@ import pytest
 from click.testing import CliRunner
 
 from segadeform.body import default_body_path, load_body
-from segadeform.body.collision import BodyProxy
 from segadeform.body.makehuman import makehuman_vertices, makehuman_weights
 from segadeform.body.placement import (
     PlacementError,
     _centre_offset,
     _fits,
+    _RestBody,
     _stats,
     check_placement,
     fix_units_and_axes,
@@ -169,7 +169,7 @@ def test_wrong_offset_that_passes_the_lenient_test_is_refused(body, dress):
     offset that moves it back."""
     rest = body.shaped_vertices()[0]
     moved = dress.vertices + [0.0, 0.0, 0.25]
-    st = _stats(moved, BodyProxy(rest, body.faces), float(rest[:, 1].max()), float(rest[:, 1].min()))
+    st = _stats(moved, _RestBody(rest, body.faces), float(rest[:, 1].max()), float(rest[:, 1].min()))
     assert _fits(st)  # what the lenient test alone says
     with pytest.raises(PlacementError, match=r"23 cm in front.*--offset 0\.00,0\.00,-0\.23"):
         check_placement(moved, rest, body.faces, path=Path("g.obj"))
