@@ -17,6 +17,7 @@ every runtime, and engines that import ONNX (Unity Sentis, Unreal NNE) get the b
 from __future__ import annotations
 
 import os
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -155,11 +156,41 @@ def _constant_outputs(proto) -> None:
     proto.graph.node.extend(keep)
 
 
+class _Exported:
+    """The body graphs this process has exported, by the body's arrays (:func:`~segadeform.body.identity.body_sha256`),
+    the skinning, the opset and the exporter's version: a graph depends on nothing else, and every package exported
+    in one process for one body (an ensemble's members, a training run's checkpoints, the test suite's packages)
+    carried the same two graphs, at 5-12 s each on two cores.  Holds at most ``size`` graphs (about 2 MB each for
+    the shipped body); thread-safe."""
+
+    def __init__(self, size: int = 4) -> None:
+        self.size, self._graphs, self._lock = size, {}, threading.Lock()
+
+    def get(self, key: tuple) -> tuple[bytes, dict] | None:
+        with self._lock:
+            hit = self._graphs.pop(key, None)
+            if hit is not None:
+                self._graphs[key] = hit  # most recently used last
+            return hit
+
+    def put(self, key: tuple, graph: bytes, ops: dict) -> None:
+        with self._lock:
+            self._graphs.pop(key, None)
+            self._graphs[key] = (graph, dict(ops))
+            while len(self._graphs) > self.size:
+                self._graphs.pop(next(iter(self._graphs)))
+
+
+_EXPORTED = _Exported()
+
+
 def export_body_graphs(body, folder: str | os.PathLike, *, skinnings=contract.SKINNING) -> tuple[dict, dict]:
     """Write ``body_<skinning>.onnx`` for each skinning into ``folder`` (self-contained graphs: the package's
     packing shares their weights); returns ``(graphs, ops)``: the manifest entries (without hashes) and each
-    graph's op counts, after the portability check."""
+    graph's op counts, after the portability check.  A graph this process has exported already for the same body
+    arrays, skinning and exporter is written again from memory (the same bytes), not exported again."""
     import onnx
+    import torch
 
     from segadeform.body.identity import body_label
 
@@ -179,6 +210,13 @@ def export_body_graphs(body, folder: str | os.PathLike, *, skinnings=contract.SK
             body=label,
         )
         path = folder / spec["file"]
+        key = (label["sha256"], skin, contract.OPSET, torch.__version__)
+        hit = _EXPORTED.get(key)
+        if hit is not None:
+            path.write_bytes(hit[0])
+            ops[name] = dict(hit[1])
+            graphs[name] = spec
+            continue
         _export(body_module(body, skin), body_sample_inputs(body), spec, path)
         proto = onnx.load(str(path))
         replace_trig(proto)  # Rodrigues' sin and cos, float32-accurate on WebGPU too
@@ -190,6 +228,7 @@ def export_body_graphs(body, folder: str | os.PathLike, *, skinnings=contract.SK
         if got != [i["name"] for i in spec["inputs"]]:
             raise RuntimeError(f"{name}: exported inputs {got} differ from the spec")
         graphs[name] = spec
+        _EXPORTED.put(key, path.read_bytes(), ops[name])
     return graphs, ops
 
 

@@ -312,3 +312,32 @@ def test_export_cli_random_init_with_check(tmp_path):
     assert r.exit_code == 2 and "CHECKPOINT or --random-init" in r.output
     r = CliRunner().invoke(cli, ["export", str(tmp_path / "missing.pt"), "-o", str(tmp_path / "p3")])
     assert r.exit_code == 1 and "missing.pt" in r.output and not (tmp_path / "p3").exists()
+
+
+def test_a_second_export_for_the_same_body_writes_the_graphs_it_made(tmp_path, monkeypatch):
+    """The body graphs depend on the body's arrays only: a process that exports several packages for one body (the
+    suite, an ensemble, checkpoints) exports them once and writes the same bytes again; a body that differs in one
+    vertex is exported anew."""
+    import dataclasses
+
+    from segadeform.body import default_body_path, load_body
+    from segadeform.export import body as body_export
+
+    body = load_body(default_body_path())
+    (tmp_path / "a").mkdir()
+    first, ops = body_export.export_body_graphs(body, tmp_path / "a", skinnings=("lbs",))
+
+    def no_export(*a, **k):
+        raise AssertionError("exported again")
+
+    monkeypatch.setattr(body_export, "_export", no_export)
+    (tmp_path / "b").mkdir()
+    again, ops_again = body_export.export_body_graphs(body, tmp_path / "b", skinnings=("lbs",))
+    assert again == first and ops_again == ops
+    assert (tmp_path / "b" / "body_lbs.onnx").read_bytes() == (tmp_path / "a" / "body_lbs.onnx").read_bytes()
+    v = body.v_template.copy()
+    v[0, 1] += 1e-3
+    moved = dataclasses.replace(body, v_template=v)
+    (tmp_path / "c").mkdir()
+    with pytest.raises(AssertionError, match="exported again"):
+        body_export.export_body_graphs(moved, tmp_path / "c", skinnings=("lbs",))
