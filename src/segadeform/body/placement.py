@@ -155,7 +155,7 @@ class _RestBody:
     (the brute force's answer, :class:`~segadeform.body.collision.BodyCollider`), the tree built once for the dozens of
     readings of the garment a check tries.  (The checks used :class:`~segadeform.body.collision.BodyProxy`, the slow
     reference, whose ``k`` nearest centroids only approximate the closest triangle of a point far off the body: one
-    check of a dress 3 cm off took 9 s.)"""
+    check of a dress 3 cm off took 11.5 s, 2.6 s with the collider.)"""
 
     def __init__(self, vertices, faces) -> None:
         self.vertices = np.asarray(vertices, np.float64)
